@@ -1,0 +1,5 @@
+"""``python -m quadctl``."""
+
+from quadctl.cli.app import main
+
+main()

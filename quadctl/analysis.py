@@ -1,0 +1,165 @@
+"""Controllability, observability and their PBH forms, with a stated numerical rank tolerance.
+
+Ranks are numerical: the number of singular values above
+``tol = max(shape) * eps * sigma_max`` (the tolerance of ``numpy.linalg.matrix_rank``),
+reported with every result. The Kalman matrices of these models are badly scaled
+(inputs enter through ``1/J ~ 1e4``), so the verdicts come from the PBH test,
+``rank [lambda I - A, B] = n`` at each eigenvalue, which needs no matrix powers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+STABILITY_MARGIN = 1e-9
+"""An eigenvalue with ``Re >= -STABILITY_MARGIN * max(1, |lambda|)`` counts as not stable (rad/s)."""
+
+
+@dataclass(frozen=True)
+class Rank:
+    """A numerical rank.
+
+    Attributes
+    ----------
+    rank : int
+    singular_values : (k,) ndarray
+    tolerance : float
+        Singular values above this count.
+    """
+
+    rank: int
+    singular_values: np.ndarray
+    tolerance: float
+
+
+@dataclass(frozen=True)
+class ModeTest:
+    """PBH test at one eigenvalue: ``rank [lambda I - A, B]`` (or ``[lambda I - A; C]``)."""
+
+    eigenvalue: complex
+    rank: int
+    passed: bool
+    states: tuple[str, ...]
+    """The states the mode's eigenvector lives in most (largest components first)."""
+
+
+@dataclass(frozen=True)
+class Checks:
+    """Controllability and observability of one system.
+
+    ``controllable``/``observable`` come from PBH at every eigenvalue; ``ctrb``/``obsv`` are the
+    Kalman matrices' ranks, reported for comparison with the report.
+    """
+
+    n: int
+    ctrb: Rank
+    obsv: Rank
+    controllable: bool
+    observable: bool
+    stabilizable: bool
+    detectable: bool
+    pbh_ctrb: tuple[ModeTest, ...]
+    pbh_obsv: tuple[ModeTest, ...]
+
+    @property
+    def uncontrollable_modes(self) -> tuple[ModeTest, ...]:
+        return tuple(m for m in self.pbh_ctrb if not m.passed)
+
+    @property
+    def unstabilizable_modes(self) -> tuple[ModeTest, ...]:
+        return tuple(m for m in self.pbh_ctrb if not m.passed and not is_stable(m.eigenvalue))
+
+
+def numerical_rank(mat: np.ndarray) -> Rank:
+    """Rank by SVD with ``tol = max(shape) * eps * sigma_max``."""
+    mat = np.atleast_2d(np.asarray(mat))
+    sv = np.linalg.svd(mat, compute_uv=False)
+    tol = max(mat.shape) * np.finfo(float).eps * (sv[0] if sv.size else 0.0)
+    return Rank(rank=int((sv > tol).sum()), singular_values=sv, tolerance=float(tol))
+
+
+def ctrb(A, B) -> np.ndarray:
+    """Kalman controllability matrix ``[B, AB, ..., A^(n-1) B]``, shape (n, n m)."""
+    A = np.asarray(A, dtype=float)
+    blocks = [np.asarray(B, dtype=float)]
+    for _ in range(A.shape[0] - 1):
+        blocks.append(A @ blocks[-1])
+    return np.hstack(blocks)
+
+
+def obsv(A, C) -> np.ndarray:
+    """Kalman observability matrix ``[C; CA; ...; C A^(n-1)]``, shape (n p, n)."""
+    return ctrb(np.asarray(A).T, np.asarray(C).T).T
+
+
+def is_stable(eig: complex) -> bool:
+    """Strictly in the open left half-plane, with the margin ``STABILITY_MARGIN``."""
+    return eig.real < -STABILITY_MARGIN * max(1.0, abs(eig))
+
+
+def pbh(A, M, names, *, dual: bool = False) -> tuple[ModeTest, ...]:
+    """PBH test at each distinct eigenvalue of ``A``.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    M : array_like
+        ``B`` (n, m) for controllability, or ``C`` (p, n) for observability (``dual=True``).
+    names : sequence of str
+        State names, to say where each mode lives.
+    """
+    A = np.asarray(A, dtype=float)
+    M = np.asarray(M, dtype=float)
+    n = A.shape[0]
+    eigvals, eigvecs = np.linalg.eig(A.T if not dual else A)
+    tests = []
+    seen: list[complex] = []
+    for k, lam in enumerate(eigvals):
+        if any(abs(lam - s) <= 1e-9 * max(1.0, abs(lam)) for s in seen):
+            continue
+        seen.append(lam)
+        pencil = lam * np.eye(n) - A
+        stacked = np.vstack([pencil, M]) if dual else np.hstack([pencil, M])
+        r = numerical_rank(stacked).rank
+        vec = np.abs(eigvecs[:, k])
+        order = [i for i in np.argsort(-vec) if vec[i] > 0.1 * vec.max()]
+        tests.append(ModeTest(eigenvalue=complex(lam), rank=r, passed=r == n,
+                              states=tuple(names[i] for i in order)))
+    return tuple(tests)
+
+
+def check(A, B, C=None, names=None) -> Checks:
+    """Controllability, observability, stabilizability and detectability of ``(A, B, C)``.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    B : (n, m) array_like
+    C : (p, n) array_like, optional
+        Default identity (every state measured).
+    names : sequence of str, optional
+        State names for the mode reports.
+
+    Returns
+    -------
+    Checks
+    """
+    A = np.asarray(A, dtype=float)
+    n = A.shape[0]
+    C = np.eye(n) if C is None else np.asarray(C, dtype=float)
+    names = list(names) if names is not None else [f"x{i}" for i in range(n)]
+    ctrb_modes = pbh(A, B, names)
+    obsv_modes = pbh(A, C, names, dual=True)
+    return Checks(
+        n=n,
+        ctrb=numerical_rank(ctrb(A, B)),
+        obsv=numerical_rank(obsv(A, C)),
+        controllable=all(m.passed for m in ctrb_modes),
+        observable=all(m.passed for m in obsv_modes),
+        stabilizable=all(m.passed or is_stable(m.eigenvalue) for m in ctrb_modes),
+        detectable=all(m.passed or is_stable(m.eigenvalue) for m in obsv_modes),
+        pbh_ctrb=ctrb_modes,
+        pbh_obsv=obsv_modes,
+    )

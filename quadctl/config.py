@@ -1,0 +1,372 @@
+"""The YAML config: schema, validation, loading and the bundled configs.
+
+A config is validated whole on load: unknown keys are refused (with the nearest valid
+key suggested), numbers must be finite, names must exist, and every error is one
+:class:`~quadctl.errors.ConfigError` line naming the file, the key path, the value
+and what is allowed.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+from importlib import resources
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from quadctl.errors import ConfigError
+from quadctl.layout import INPUT_NAMES, REPORT_PARTITION, STATE_NAMES
+
+DEFAULT_CONFIG = "forward"
+"""Bundled config used when no ``--config`` is given: the report's forward-flight case."""
+
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
+NonNegative = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
+Vector3 = Annotated[list[Number], Field(min_length=3, max_length=3)]
+Matrix = Union[list[Number], list[list[Number]]]
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class VehicleConfig(_Section):
+    """Vehicle parameters, SI units."""
+
+    mass: Positive = Field(0.068, description="kg")
+    gravity: Positive = Field(9.81, description="m/s^2")
+    inertia: Annotated[list[Positive], Field(min_length=3, max_length=3)] = Field(
+        [0.69e-4, 0.775e-4, 1.5e-4], description="kg m^2, diagonal [Jxx, Jyy, Jzz]")
+    drag: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
+        [0.22, 0.22, 0.0], description="Kc diagonal; rotor drag force is -T Kc V_b (1/(m/s))")
+
+
+class TrimConfig(_Section):
+    """The flight condition to trim about."""
+
+    velocity_ned: Vector3 = Field([0.0, 0.0, 0.0], description="m/s, earth frame (down positive)")
+    position_ned: Vector3 = Field([0.0, 0.0, -1.0], description="m; altitude 1 m is pD = -1")
+    yaw: Number = Field(0.0, description="rad, heading psi")
+
+
+class SubsystemConfig(_Section):
+    """One block of the partition: its states, its inputs, and whether it is regulated."""
+
+    states: Annotated[list[str], Field(min_length=1)]
+    inputs: Annotated[list[str], Field(min_length=1)]
+    regulate: bool = True
+    outputs: list[str] | None = Field(None, description="measured states (C rows); default all")
+
+
+class LqrWeights(_Section):
+    """LQR weights of one subsystem: a list is a diagonal, a nested list a full matrix."""
+
+    Q: Matrix
+    R: Matrix
+
+
+class SimulationConfig(_Section):
+    """Closed-loop simulation settings."""
+
+    duration: Positive = Field(10.0, description="s")
+    dt: Union[Literal["auto"], Positive] = Field("auto", description="s, or auto")
+    initial_offset: dict[str, Number] = Field(
+        default_factory=dict, description="state name -> offset from trim (state units)")
+
+
+class Config(_Section):
+    """A whole quadctl config (see the README's config reference)."""
+
+    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")]
+    description: str = ""
+    vehicle: VehicleConfig = VehicleConfig()
+    trim: TrimConfig = TrimConfig()
+    subsystems: dict[str, SubsystemConfig] | None = None
+    lqr: dict[str, LqrWeights]
+    simulation: SimulationConfig = SimulationConfig()
+
+    def partition(self) -> dict[str, SubsystemConfig]:
+        """The subsystems in force: the config's, or the report's five."""
+        if self.subsystems is not None:
+            return dict(self.subsystems)
+        return {k: SubsystemConfig(**v) for k, v in REPORT_PARTITION.items()}
+
+    def digest(self) -> str:
+        """sha256 of the validated config (canonical JSON): the provenance of every artifact."""
+        text = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def to_yaml(self) -> str:
+        """The validated config as YAML (all defaults filled in)."""
+        return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
+
+
+# ---------------------------------------------------------------------------------------
+# Loading
+
+
+def bundled_names() -> list[str]:
+    """Names of the configs that ship with quadctl (without ``.yaml``)."""
+    folder = resources.files("quadctl") / "configs"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
+def resolve(spec: str | Path | None) -> tuple[str, str]:
+    """Find a config: an existing path, else a bundled name (with or without ``.yaml``).
+
+    Returns
+    -------
+    (label, text) : the file name to cite in errors, and its YAML text.
+
+    Raises
+    ------
+    ConfigError
+        The path does not exist and no bundled config has that name, or it cannot be read.
+    """
+    spec = DEFAULT_CONFIG if spec is None else str(spec)
+    path = Path(spec)
+    if path.is_dir():
+        raise ConfigError(f"{spec}: is a folder, not a config file; give a .yaml file")
+    if path.exists():
+        try:
+            return str(path), path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+            raise ConfigError(f"{spec}: cannot read the config ({reason}); check the file") from None
+    name = spec[:-5] if spec.endswith(".yaml") else spec
+    if "/" not in name and name in bundled_names():
+        res = resources.files("quadctl") / "configs" / f"{name}.yaml"
+        return f"{name}.yaml", res.read_text(encoding="utf-8")
+    raise ConfigError(
+        f"{spec}: no such file and no bundled config of that name; "
+        f"bundled: {', '.join(bundled_names())}")
+
+
+def load(spec: str | Path | None = None) -> Config:
+    """Load and validate a config from a path or a bundled name (default: ``forward``).
+
+    Raises
+    ------
+    ConfigError
+        With one line naming the file, key path, value and the fix.
+    """
+    label, text = resolve(spec)
+    return parse(text, label)
+
+
+def parse(text: str, label: str = "<config>") -> Config:
+    """Validate YAML text as a config; ``label`` names it in errors."""
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(f"{label}: YAML syntax error{where}: {problem}; fix the YAML") from None
+    return from_dict(data, label)
+
+
+def from_dict(data: Any, label: str = "<config>") -> Config:
+    """Validate a mapping (as YAML gives it) as a config."""
+    if not isinstance(data, dict):
+        kind = "empty" if data is None else f"a {type(data).__name__}"
+        raise ConfigError(f"{label}: the config is {kind}, not a mapping of keys; "
+                          "start from `quadctl config show`")
+    try:
+        cfg = Config.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(_describe(exc, data, label)) from None
+    _check_semantics(cfg, label)
+    return cfg
+
+
+def _describe(exc: ValidationError, data: Any, label: str) -> str:
+    """One line for the first pydantic error: file, key path, value, what is allowed."""
+    err = exc.errors()[0]
+    loc = [part for part in err["loc"] if not _is_union_tag(part)]
+    path = key_path(loc)
+    more = f" (+{exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+    kind = err["type"]
+    if kind == "extra_forbidden":
+        parent = _section_model(loc[:-1])
+        allowed = sorted(parent.model_fields) if parent else []
+        near = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
+        hint = f"did you mean `{near[0]}`?" if near else f"allowed: {', '.join(allowed)}"
+        return f"{label}: {path}: unknown key; {hint}{more}"
+    if kind == "missing":
+        return f"{label}: {path}: required key is missing; add it{more}"
+    value = _lookup(data, loc)
+    msg = err["msg"]
+    if kind in ("finite_number",):
+        msg = "must be a finite number (not NaN or infinity)"
+    return f"{label}: {path} = {_show(value)}: {msg}{more}"
+
+
+def _is_union_tag(part: Any) -> bool:
+    return isinstance(part, str) and (part.startswith("list[") or part in ("literal['auto']",)
+                                      or part.startswith("function-") or part == "float")
+
+
+def _section_model(loc: list) -> type[BaseModel] | None:
+    """The schema section that the key path ``loc`` points into (for unknown-key hints)."""
+    model: Any = Config
+    expect_key = False
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        if expect_key:  # a name inside subsystems/lqr/initial_offset: the value model follows
+            expect_key = False
+            continue
+        field = model.model_fields.get(part) if isinstance(model, type) else None
+        if field is None:
+            return None
+        inner = _first_model(field.annotation)
+        expect_key = "dict" in str(field.annotation)
+        model = inner if inner is not None else None
+    return model if isinstance(model, type) and issubclass(model, BaseModel) else None
+
+
+def _first_model(annotation: Any) -> Any:
+    """The BaseModel inside an annotation such as ``dict[str, X] | None``."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in getattr(annotation, "__args__", ()) or ():
+        found = _first_model(arg)
+        if found is not None:
+            return found
+    return None
+
+
+def key_path(loc: list | tuple) -> str:
+    """``['lqr', 'roll', 'Q', 1]`` -> ``'lqr.roll.Q[1]'``."""
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out or "<top level>"
+
+
+def _lookup(data: Any, loc: list) -> Any:
+    for part in loc:
+        try:
+            data = data[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
+
+
+def _show(value: Any) -> str:
+    text = json.dumps(value) if not isinstance(value, float) else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+# ---------------------------------------------------------------------------------------
+# Checks across fields
+
+
+def _check_semantics(cfg: Config, label: str) -> None:
+    def fail(path: str, value: Any, why: str) -> None:
+        raise ConfigError(f"{label}: {path} = {_show(value)}: {why}")
+
+    partition = cfg.partition()
+    where = "subsystems" if cfg.subsystems is not None else "subsystems (the report's default)"
+    seen_states: dict[str, str] = {}
+    seen_inputs: dict[str, str] = {}
+    for name, sub in partition.items():
+        for i, state in enumerate(sub.states):
+            if state not in STATE_NAMES:
+                fail(f"subsystems.{name}.states[{i}]", state, _unknown(state, STATE_NAMES, "state"))
+            if state in seen_states:
+                fail(f"subsystems.{name}.states[{i}]", state,
+                     f"state already in subsystem `{seen_states[state]}`; each state belongs to one subsystem")
+            seen_states[state] = name
+        allowed = INPUT_NAMES if sub.regulate else INPUT_NAMES + STATE_NAMES
+        for i, inp in enumerate(sub.inputs):
+            if inp not in allowed:
+                kind = "input" if sub.regulate else "input or state"
+                fail(f"subsystems.{name}.inputs[{i}]", inp, _unknown(inp, allowed, kind))
+            if inp in INPUT_NAMES:
+                if inp in seen_inputs:
+                    fail(f"subsystems.{name}.inputs[{i}]", inp,
+                         f"input already drives subsystem `{seen_inputs[inp]}`; give each input to one subsystem")
+                seen_inputs[inp] = name
+            elif inp in sub.states:
+                fail(f"subsystems.{name}.inputs[{i}]", inp, "a subsystem's own state cannot be its input")
+        for i, out in enumerate(sub.outputs or []):
+            if out not in sub.states:
+                fail(f"subsystems.{name}.outputs[{i}]", out,
+                     f"outputs must be states of this subsystem: {', '.join(sub.states)}")
+    regulated = {n: s for n, s in partition.items() if s.regulate}
+    for inp in INPUT_NAMES:
+        if inp not in seen_inputs:
+            fail(where, sorted(regulated), f"input `{inp}` is not assigned to any regulated subsystem; "
+                 "add it to one subsystem's inputs")
+    for name in cfg.lqr:
+        if name not in partition:
+            fail(f"lqr.{name}", name, _unknown(name, list(regulated), "regulated subsystem"))
+        if not partition[name].regulate:
+            fail(f"lqr.{name}", name, "this subsystem has regulate: false; remove its weights or regulate it")
+    for name, sub in regulated.items():
+        if name not in cfg.lqr:
+            fail("lqr", sorted(cfg.lqr), f"regulated subsystem `{name}` has no weights; "
+                 f"add lqr.{name} with Q ({len(sub.states)} values) and R ({len(sub.inputs)})")
+        weights = cfg.lqr[name]
+        check_weight(weights.Q, len(sub.states), f"lqr.{name}.Q", label, definite=False,
+                     names=sub.states)
+        check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
+                     names=sub.inputs)
+    for state, value in cfg.simulation.initial_offset.items():
+        if state not in STATE_NAMES:
+            fail(f"simulation.initial_offset.{state}", value, _unknown(state, STATE_NAMES, "state"))
+
+
+def _unknown(name: str, allowed, kind: str) -> str:
+    near = difflib.get_close_matches(name, list(allowed), n=1)
+    hint = f"did you mean `{near[0]}`?" if near else f"allowed: {', '.join(allowed)}"
+    return f"unknown {kind}; {hint}"
+
+
+SYMMETRY_RTOL = 1e-10
+"""Relative tolerance of the symmetry test, scaled by the matrix's largest entry."""
+DEFINITENESS_RTOL = 1e-12
+"""Eigenvalues above ``-rtol * max|eig|`` count as nonnegative (PSD test), as in SciPy's ``_are``."""
+
+
+def weight_matrix(value: list, size: int):
+    """A weight as a (size, size) numpy array: a list is a diagonal, a nested list a matrix."""
+    import numpy as np
+
+    arr = np.asarray(value, dtype=float)
+    return np.diag(arr) if arr.ndim == 1 else arr
+
+
+def check_weight(value: list, size: int, path: str, label: str, *, definite: bool,
+                 names: list[str]) -> None:
+    """Check Q (PSD) or R (PD): size, symmetry, definiteness; raise ConfigError naming ``path``."""
+    import numpy as np
+
+    nested = bool(value) and isinstance(value[0], list)
+    if nested and any(not isinstance(row, list) for row in value):
+        raise ConfigError(f"{label}: {path}: mixes numbers and rows; give a list (diagonal) or a list of rows")
+    shape = (len(value), len(value[0])) if nested and value else (len(value),)
+    expect = f"{size} values (one per {', '.join(names)}) or a {size}x{size} matrix"
+    if (not nested and len(value) != size) or (nested and (len(value) != size or any(
+            len(row) != size for row in value))):
+        got = "x".join(map(str, shape)) if nested else f"{len(value)} values"
+        raise ConfigError(f"{label}: {path} = {_show(value)}: expected {expect}, got {got}")
+    mat = weight_matrix(value, size)
+    scale = max(float(np.abs(mat).max()), 1.0)
+    if not np.allclose(mat, mat.T, rtol=0, atol=SYMMETRY_RTOL * scale):
+        raise ConfigError(f"{label}: {path} = {_show(value)}: not symmetric; make it equal to its transpose")
+    eig = np.linalg.eigvalsh((mat + mat.T) / 2)
+    floor = DEFINITENESS_RTOL * max(float(np.abs(eig).max()), 1e-300)
+    if definite and eig.min() <= floor:
+        raise ConfigError(f"{label}: {path} = {_show(value)}: must be positive definite "
+                          f"(smallest eigenvalue {eig.min():.3g}); use positive weights")
+    if not definite and eig.min() < -floor:
+        raise ConfigError(f"{label}: {path} = {_show(value)}: must be positive semidefinite "
+                          f"(smallest eigenvalue {eig.min():.3g}); use nonnegative weights")

@@ -1,0 +1,44 @@
+"""The quadctl exception hierarchy.
+
+Every error a user can cause is a :class:`QuadctlError`; its message is one line that
+names the problem and the fix. ``exit_code`` is what the command line returns:
+2 for bad input, 1 for valid input whose design fails a check.
+"""
+
+from __future__ import annotations
+
+
+class QuadctlError(Exception):
+    """Base class of every error quadctl raises on purpose."""
+
+    exit_code = 2
+
+
+class ConfigError(QuadctlError, ValueError):
+    """A config file or value is invalid (names the file, key path, value and fix)."""
+
+
+class ArtifactError(QuadctlError, OSError):
+    """An artifact cannot be written, or an existing one is corrupt or foreign."""
+
+
+class SweepError(QuadctlError, ValueError):
+    """A sweep file is invalid."""
+
+
+class TrimError(QuadctlError, ValueError):
+    """No equilibrium exists for the flight condition, or the solver did not find it."""
+
+
+class CheckFailed(QuadctlError):
+    """The input is valid but the design fails a check (rank, stability, divergence)."""
+
+    exit_code = 1
+
+
+class DesignError(CheckFailed, ValueError):
+    """A subsystem is not stabilizable, or a Riccati solve failed."""
+
+
+class StepSizeError(QuadctlError, ValueError):
+    """A fixed step that RK4 cannot hold stable for the closed loop."""

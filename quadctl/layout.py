@@ -1,0 +1,53 @@
+"""The state and input layout: names, units and index maps, declared once.
+
+Every other module takes names, units and indices from here; no module hard-codes
+a size or an index (MODEL.md, "Frames, states, inputs").
+"""
+
+from __future__ import annotations
+
+STATE_NAMES: tuple[str, ...] = (
+    "pN", "pE", "pD",
+    "u", "v", "w",
+    "phi", "theta", "psi",
+    "p", "q", "r",
+)
+"""The 12 states: NED position, FRD body velocity, 3-2-1 Euler angles, body rates."""
+
+INPUT_NAMES: tuple[str, ...] = ("T", "A", "E", "R")
+"""The 4 inputs: thrust along body -z, and the body torques about x, y, z."""
+
+STATE_UNITS: dict[str, str] = {
+    "pN": "m", "pE": "m", "pD": "m",
+    "u": "m/s", "v": "m/s", "w": "m/s",
+    "phi": "rad", "theta": "rad", "psi": "rad",
+    "p": "rad/s", "q": "rad/s", "r": "rad/s",
+}
+INPUT_UNITS: dict[str, str] = {"T": "N", "A": "N m", "E": "N m", "R": "N m"}
+
+STATE_INDEX: dict[str, int] = {name: i for i, name in enumerate(STATE_NAMES)}
+INPUT_INDEX: dict[str, int] = {name: i for i, name in enumerate(INPUT_NAMES)}
+
+N_STATES = len(STATE_NAMES)
+N_INPUTS = len(INPUT_NAMES)
+
+POSITION_STATES: tuple[str, ...] = ("pN", "pE", "pD")
+"""States the dynamics never read (translation invariance): their columns of A are zero."""
+
+PARAMETER_NAMES: tuple[str, ...] = ("mass", "gravity", "Jxx", "Jyy", "Jzz", "Kx", "Ky", "Kz")
+"""Order of the vehicle parameter vector the CasADi model takes."""
+
+
+def unit_of(name: str) -> str:
+    """Unit of a state or input name (``"m"``, ``"N m"``, ...)."""
+    return STATE_UNITS.get(name) or INPUT_UNITS[name]
+
+
+REPORT_PARTITION: dict[str, dict] = {
+    "altitude": {"states": ["pD", "w"], "inputs": ["T"], "regulate": True},
+    "roll": {"states": ["v", "phi", "p"], "inputs": ["A"], "regulate": True},
+    "pitch": {"states": ["u", "theta", "q"], "inputs": ["E"], "regulate": True},
+    "yaw": {"states": ["psi", "r"], "inputs": ["R"], "regulate": True},
+    "guidance": {"states": ["pN", "pE"], "inputs": ["u", "psi"], "regulate": False},
+}
+"""The report's five subsystems (MODEL.md, "Decoupling"); ``guidance`` takes states as inputs."""

@@ -1,0 +1,50 @@
+"""Jacobian linearization of the model at an operating point."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from quadctl.model import Vehicle, build_model
+
+
+@dataclass(frozen=True)
+class LinearModel:
+    """``d(dx)/dt = A dx + B du`` about ``(x_trim, u_trim)``.
+
+    Attributes
+    ----------
+    A : (12, 12) ndarray
+    B : (12, 4) ndarray
+    x_trim : (12,) ndarray
+    u_trim : (4,) ndarray
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    x_trim: np.ndarray
+    u_trim: np.ndarray
+
+    def __iter__(self):
+        return iter((self.A, self.B))
+
+
+def linearize(x_trim, u_trim, vehicle: Vehicle) -> LinearModel:
+    """Exact Jacobians ``A = df/dx``, ``B = df/du`` from CasADi's automatic differentiation.
+
+    Parameters
+    ----------
+    x_trim : (12,) array_like
+    u_trim : (4,) array_like
+    vehicle : Vehicle
+
+    Returns
+    -------
+    LinearModel
+    """
+    x_trim = np.asarray(x_trim, dtype=float)
+    u_trim = np.asarray(u_trim, dtype=float)
+    a, b = build_model().jacobians(x_trim, u_trim, vehicle.vector())
+    return LinearModel(A=np.asarray(a, dtype=float), B=np.asarray(b, dtype=float),
+                       x_trim=x_trim, u_trim=u_trim)

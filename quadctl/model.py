@@ -1,0 +1,164 @@
+"""The 12-state nonlinear quadcopter model of MODEL.md, as CasADi functions.
+
+This is the only place the equations of motion live. Everything numeric (trim,
+Jacobians, the compiled simulation) is generated from the functions built here.
+
+Conventions: NED earth frame, FRD body frame, 3-2-1 Euler angles, states and
+inputs ordered as in :mod:`quadctl.layout`. Thrust ``T`` acts along body -z
+(``F_T = [0, 0, -T]``), correcting the report's sign.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from quadctl.layout import N_INPUTS, N_STATES, PARAMETER_NAMES
+
+N_PARAMS = len(PARAMETER_NAMES)
+N_DISTURBANCES = 6
+"""Body-frame disturbance force (N, 3) and torque (N m, 3) added to the dynamics."""
+
+
+@dataclass(frozen=True)
+class Vehicle:
+    """Vehicle parameters (SI units).
+
+    Parameters
+    ----------
+    mass : float
+        kg.
+    gravity : float
+        m/s^2.
+    inertia : (3,) tuple of float
+        Diagonal of J, kg m^2.
+    drag : (3,) tuple of float
+        Diagonal of Kc; the rotor drag force is ``-T Kc V_b`` (1/(m/s)... per newton of thrust).
+    """
+
+    mass: float = 0.068
+    gravity: float = 9.81
+    inertia: tuple[float, float, float] = (0.69e-4, 0.775e-4, 1.5e-4)
+    drag: tuple[float, float, float] = (0.22, 0.22, 0.0)
+
+    def vector(self) -> np.ndarray:
+        """Parameters as the (8,) vector the CasADi functions take (order: ``PARAMETER_NAMES``)."""
+        return np.array([self.mass, self.gravity, *self.inertia, *self.drag], dtype=float)
+
+
+def rotation_earth_to_body(phi, theta, psi):
+    """``R_E^b = R(phi) R(theta) R(psi)`` (report eq. 1), as a CasADi 3 x 3 expression."""
+    cph, sph = ca.cos(phi), ca.sin(phi)
+    cth, sth = ca.cos(theta), ca.sin(theta)
+    cps, sps = ca.cos(psi), ca.sin(psi)
+    r_phi = ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(0, cph, sph), ca.horzcat(0, -sph, cph))
+    r_theta = ca.vertcat(ca.horzcat(cth, 0, -sth), ca.horzcat(0, 1, 0), ca.horzcat(sth, 0, cth))
+    r_psi = ca.vertcat(ca.horzcat(cps, sps, 0), ca.horzcat(-sps, cps, 0), ca.horzcat(0, 0, 1))
+    return r_phi @ r_theta @ r_psi
+
+
+def euler_rates_matrix(phi, theta):
+    """``H(phi, theta)`` with ``omega = H [phi_dot, theta_dot, psi_dot]`` (MODEL.md; report eq. 7 corrected)."""
+    cph, sph = ca.cos(phi), ca.sin(phi)
+    cth, sth = ca.cos(theta), ca.sin(theta)
+    return ca.vertcat(
+        ca.horzcat(1, 0, -sth),
+        ca.horzcat(0, cph, sph * cth),
+        ca.horzcat(0, -sph, cph * cth),
+    )
+
+
+def dynamics_expression(x, u, params, disturbance):
+    """Right-hand side ``f(x, u)`` of MODEL.md eqs. 1-8 as a CasADi expression.
+
+    Parameters
+    ----------
+    x : (12,) casadi SX
+        State, ordered as ``STATE_NAMES``.
+    u : (4,) casadi SX
+        Input ``[T, A, E, R]`` in N and N m.
+    params : (8,) casadi SX
+        ``[mass, gravity, Jxx, Jyy, Jzz, Kx, Ky, Kz]``.
+    disturbance : (6,) casadi SX
+        Body force (N) and torque (N m) added to the vehicle's own.
+
+    Returns
+    -------
+    (12,) casadi SX
+        ``dx/dt``.
+    """
+    vel_b = x[3:6]
+    phi, theta, psi = x[6], x[7], x[8]
+    omega = x[9:12]
+    thrust, torque = u[0], u[1:4]
+    mass, gravity = params[0], params[1]
+    inertia = params[2:5]
+    drag = params[5:8]
+
+    r_eb = rotation_earth_to_body(phi, theta, psi)
+    pos_dot = r_eb.T @ vel_b
+
+    force_thrust = ca.vertcat(0, 0, -thrust)
+    force_drag = -thrust * drag * vel_b
+    force_gravity = r_eb @ ca.vertcat(0, 0, mass * gravity)
+    force = force_thrust + force_drag + force_gravity + disturbance[0:3]
+    vel_dot = force / mass - ca.cross(omega, vel_b)
+
+    # H^-1 omega in closed form (H is the matrix of euler_rates_matrix).
+    p, q, r = omega[0], omega[1], omega[2]
+    cph, sph = ca.cos(phi), ca.sin(phi)
+    cth, tth = ca.cos(theta), ca.tan(theta)
+    euler_dot = ca.vertcat(
+        p + (q * sph + r * cph) * tth,
+        q * cph - r * sph,
+        (q * sph + r * cph) / cth,
+    )
+
+    moment = torque + disturbance[3:6]
+    omega_dot = (moment - ca.cross(omega, inertia * omega)) / inertia
+    return ca.vertcat(pos_dot, vel_dot, euler_dot, omega_dot)
+
+
+@dataclass(frozen=True)
+class Model:
+    """Named CasADi functions of the model, built once.
+
+    Attributes
+    ----------
+    f : casadi.Function
+        ``f(x[12], u[4], p[8]) -> xdot[12]``.
+    f_disturbed : casadi.Function
+        ``f(x[12], u[4], p[8], d[6]) -> xdot[12]``.
+    jacobians : casadi.Function
+        ``(x, u, p) -> (A[12x12], B[12x4])``, exact automatic derivatives.
+    """
+
+    f: ca.Function
+    f_disturbed: ca.Function
+    jacobians: ca.Function
+
+
+@lru_cache(maxsize=1)
+def build_model() -> Model:
+    """Build the symbolic model (cached: the same functions are returned on every call)."""
+    x = ca.SX.sym("x", N_STATES)
+    u = ca.SX.sym("u", N_INPUTS)
+    p = ca.SX.sym("p", N_PARAMS)
+    d = ca.SX.sym("d", N_DISTURBANCES)
+    rhs_d = dynamics_expression(x, u, p, d)
+    rhs = ca.substitute(rhs_d, d, ca.DM.zeros(N_DISTURBANCES))
+    f = ca.Function("quad_f", [x, u, p], [rhs], ["x", "u", "p"], ["xdot"])
+    f_dist = ca.Function("quad_fd", [x, u, p, d], [rhs_d], ["x", "u", "p", "d"], ["xdot"])
+    jac = ca.Function(
+        "quad_jac", [x, u, p], [ca.jacobian(rhs, x), ca.jacobian(rhs, u)],
+        ["x", "u", "p"], ["A", "B"],
+    )
+    return Model(f=f, f_disturbed=f_dist, jacobians=jac)
+
+
+def evaluate(x: np.ndarray, u: np.ndarray, vehicle: Vehicle) -> np.ndarray:
+    """``f(x, u)`` as a (12,) numpy array."""
+    return np.asarray(build_model().f(x, u, vehicle.vector())).ravel()

@@ -1,0 +1,176 @@
+"""Equilibrium (trim) solving for hover and constant-velocity flight.
+
+Given the earth-frame velocity ``V^E``, heading ``psi`` and position, find roll, pitch
+and thrust such that every state derivative but position is zero (position grows at
+``V^E``). Body rates and torques are zero at any such trim. Newton's method on the
+three force-balance equations, with exact CasADi Jacobians and a velocity homotopy
+when the direct solve does not converge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from quadctl.errors import TrimError
+from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX
+from quadctl.model import N_PARAMS, Vehicle, build_model, rotation_earth_to_body
+
+RESIDUAL_TOL = 1e-10
+"""Largest |dx/dt| (non-position states) accepted as an equilibrium, in SI units."""
+MAX_TILT = np.deg2rad(80.0)
+"""Roll or pitch beyond this is refused: the Euler kinematics are singular at 90 deg."""
+_POSITION = [STATE_INDEX[s] for s in POSITION_STATES]
+_NON_POSITION = [i for i in range(N_STATES) if i not in _POSITION]
+
+
+@dataclass(frozen=True)
+class Trim:
+    """An equilibrium of the model.
+
+    Attributes
+    ----------
+    x : (12,) ndarray
+        Trim state (``STATE_NAMES`` order).
+    u : (4,) ndarray
+        Trim input ``[T, A, E, R]`` (N, N m).
+    xdot : (12,) ndarray
+        ``f(x, u)``: the position rows equal ``V^E``, the rest is the residual.
+    residual : float
+        ``max |xdot|`` over the non-position states.
+    iterations : int
+        Newton iterations used.
+    """
+
+    x: np.ndarray
+    u: np.ndarray
+    xdot: np.ndarray
+    residual: float
+    iterations: int
+
+    def __iter__(self):
+        return iter((self.x, self.u))
+
+
+@lru_cache(maxsize=1)
+def _force_balance() -> ca.Function:
+    """``g(z=[phi, theta, T], v_e, psi, params) -> body force / m (3,)`` and its Jacobian."""
+    z = ca.SX.sym("z", 3)
+    v_e = ca.SX.sym("v_e", 3)
+    psi = ca.SX.sym("psi")
+    params = ca.SX.sym("p", N_PARAMS)
+    x = ca.vertcat(ca.DM.zeros(3), rotation_earth_to_body(z[0], z[1], psi) @ v_e,
+                   z[0], z[1], psi, ca.DM.zeros(3))
+    u = ca.vertcat(z[2], ca.DM.zeros(3))
+    vel_dot = build_model().f(x, u, params)[3:6]
+    return ca.Function("trim_newton", [z, v_e, psi, params], [vel_dot, ca.jacobian(vel_dot, z)])
+
+
+def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
+               *, max_iter: int = 50) -> Trim:
+    """Solve the trim for a constant earth-frame velocity and heading.
+
+    Parameters
+    ----------
+    velocity_ned : (3,) array_like
+        m/s, NED (down positive: a climb has negative ``vD``).
+    yaw : float
+        Heading psi, rad.
+    position_ned : (3,) array_like
+        m; sets the trim position (it does not enter the dynamics).
+    vehicle : Vehicle
+
+    Returns
+    -------
+    Trim
+
+    Raises
+    ------
+    TrimError
+        No equilibrium exists (with the reason) or Newton did not converge.
+
+    Examples
+    --------
+    >>> t = solve_trim([1, 0, 0], 0.0, [0, 0, -1], Vehicle())
+    >>> round(float(t.x[7]), 4), round(float(t.u[0]), 4)
+    (-0.2119, 0.6522)
+    """
+    v_e = np.asarray(velocity_ned, dtype=float)
+    params = vehicle.vector()
+    newton = _force_balance()
+    z = np.array([0.0, 0.0, vehicle.mass * vehicle.gravity])
+    total = 0
+    # Homotopy in the speed: solve at growing fractions of V^E, each from the last.
+    for fraction in (1.0,) if _converges(newton, z, v_e, yaw, params, max_iter) else (
+            0.25, 0.5, 0.75, 1.0):
+        z, iters, resid = _newton(newton, z, fraction * v_e, yaw, params, max_iter)
+        total += iters
+        if resid > RESIDUAL_TOL:
+            raise TrimError(
+                f"trim did not converge at velocity_ned {_fmt(fraction * v_e)} m/s "
+                f"(residual {resid:.2e} m/s^2 after {iters} iterations); "
+                "try a lower speed or check the vehicle parameters")
+    phi, theta, thrust = z
+    _check_physical(phi, theta, thrust, v_e, vehicle)
+    x = np.zeros(N_STATES)
+    x[_POSITION] = np.asarray(position_ned, dtype=float)
+    r_eb = np.asarray(rotation_earth_to_body(phi, theta, yaw), dtype=float)
+    x[[STATE_INDEX[s] for s in ("u", "v", "w")]] = r_eb @ v_e
+    x[STATE_INDEX["phi"]], x[STATE_INDEX["theta"]], x[STATE_INDEX["psi"]] = phi, theta, yaw
+    u = np.zeros(N_INPUTS)
+    u[INPUT_INDEX["T"]] = thrust
+    xdot = np.asarray(build_model().f(x, u, params), dtype=float).ravel()
+    residual = float(np.abs(xdot[_NON_POSITION]).max())
+    return Trim(x=x, u=u, xdot=xdot, residual=residual, iterations=total)
+
+
+def _newton(newton, z, v_e, yaw, params, max_iter):
+    """Damped Newton on the force balance; returns (z, iterations, residual)."""
+    resid = np.inf
+    for it in range(1, max_iter + 1):
+        g, jac = (np.asarray(a, dtype=float) for a in newton(z, v_e, yaw, params))
+        g = g.ravel()
+        resid = float(np.abs(g).max())
+        if resid <= RESIDUAL_TOL * 1e-2:
+            return z, it - 1, resid
+        try:
+            step = np.linalg.solve(jac, -g)
+        except np.linalg.LinAlgError:
+            return z, it, resid
+        # Backtrack so each step reduces the residual (and stays off the Euler singularity).
+        for scale in (1.0, 0.5, 0.25, 0.125, 0.0625):
+            trial = z + scale * step
+            if abs(trial[1]) < np.pi / 2 and abs(trial[0]) < np.pi:
+                g_new = np.asarray(newton(trial, v_e, yaw, params)[0], dtype=float).ravel()
+                if np.abs(g_new).max() < resid:
+                    z = trial
+                    break
+        else:
+            return z, it, resid
+    g = np.asarray(newton(z, v_e, yaw, params)[0], dtype=float).ravel()
+    return z, max_iter, float(np.abs(g).max())
+
+
+def _converges(newton, z, v_e, yaw, params, max_iter) -> bool:
+    return _newton(newton, z, v_e, yaw, params, max_iter)[2] <= RESIDUAL_TOL
+
+
+def _check_physical(phi, theta, thrust, v_e, vehicle: Vehicle) -> None:
+    if thrust <= 0:
+        raise TrimError(
+            f"no equilibrium at velocity_ned {_fmt(v_e)} m/s: it needs thrust {thrust:.3g} N <= 0 "
+            "(the rotor drag along body z outgrows the thrust at this vertical speed); "
+            "choose a slower vertical speed or a smaller vehicle.drag[2]")
+    for name, angle in (("roll", phi), ("pitch", theta)):
+        if abs(angle) > MAX_TILT:
+            raise TrimError(
+                f"no usable equilibrium at velocity_ned {_fmt(v_e)} m/s: it needs {name} "
+                f"{np.rad2deg(angle):.1f} deg, beyond the {np.rad2deg(MAX_TILT):.0f} deg the Euler-angle "
+                "model supports; choose a lower speed")
+
+
+def _fmt(v) -> str:
+    return "[" + ", ".join(f"{float(c):g}" for c in v) + "]"
