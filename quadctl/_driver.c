@@ -1,0 +1,77 @@
+/* quadctl simulation driver: loops the CasADi-generated RK4 step functions.
+ *
+ * No dynamics here: qc_step (closed-loop RK4 step), qc_ctrl (control law) and qc_step_ol
+ * (RK4 step under a held input) are generated from quadctl/model.py by quadctl/codegen.py
+ * and prepended to this file. This file only iterates them, records every `stride`-th
+ * state, and stops at the first state outside [lo, hi] (NaN included).
+ */
+#include <string.h>
+
+static const casadi_real qc_zero[16] = {0};
+
+static int qc_in_bounds(const double* x, const double* lo, const double* hi) {
+  for (int i = 0; i < 12; i++) {
+    if (!(x[i] >= lo[i] && x[i] <= hi[i])) return 0;
+  }
+  return 1;
+}
+
+/* x0[12], c[]: packed constants; dist: n x 6 (or NULL), meas: n x 12 (or NULL);
+ * hold = 0: continuous feedback inside every RK4 stage;
+ * hold = k > 0: control computed every k steps (zero-order hold) from x + meas noise.
+ * Records rows k = 0, stride, 2 stride, ... and the last step into xs (12 per row), us (4)
+ * and ks (step index). Returns steps completed (n when every state stayed in bounds);
+ * *n_rec receives the number of rows written (at most n / stride + 2). */
+long qc_run(const double* x0, double t0, double dt, long n, const double* c,
+            const double* dist, const double* meas, long hold, long stride,
+            const double* lo, const double* hi, double* xs, double* us, long* ks, long* n_rec) {
+  const casadi_real* arg[QC_SZ_ARG];
+  casadi_real* res[QC_SZ_RES];
+  casadi_int iw[QC_SZ_IW + 1];
+  casadi_real w[QC_SZ_W + 1];
+  double t, xa[12], xb[12], xm[12], u_now[4], u_hold[4] = {0, 0, 0, 0};
+  double *x = xa, *x_next = xb, *swap;
+  long rows = 0, k;
+  int in_bounds = 1;
+  memcpy(x, x0, sizeof xa);
+  for (k = 0; k < n; k++) {
+    const double* dk = dist ? dist + 6 * k : qc_zero;
+    const double* mk = meas ? meas + 12 * k : qc_zero;
+    t = t0 + dt * (double)k;
+    if (hold > 0) {
+      if (k % hold == 0) {
+        for (int i = 0; i < 12; i++) xm[i] = x[i] + mk[i];
+        arg[0] = xm; arg[1] = &t; arg[2] = c; res[0] = u_hold;
+        qc_ctrl(arg, res, iw, w, 0);
+      }
+      memcpy(u_now, u_hold, sizeof u_now);
+      arg[0] = x; arg[1] = u_hold; arg[2] = &dt; arg[3] = c; arg[4] = dk; res[0] = x_next;
+      qc_step_ol(arg, res, iw, w, 0);
+    } else {
+      arg[0] = x; arg[1] = &t; arg[2] = &dt; arg[3] = c; arg[4] = dk; arg[5] = mk;
+      res[0] = x_next; res[1] = u_now;
+      qc_step(arg, res, iw, w, 0);
+    }
+    if (k % stride == 0) {
+      memcpy(xs + 12 * rows, x, sizeof xa);
+      memcpy(us + 4 * rows, u_now, sizeof u_now);
+      ks[rows++] = k;
+    }
+    swap = x; x = x_next; x_next = swap;
+    if (!qc_in_bounds(x, lo, hi)) { in_bounds = 0; k++; break; }
+  }
+  /* the final state, with the input the law gives there (or the held one) */
+  memcpy(xs + 12 * rows, x, sizeof xa);
+  if (!in_bounds || (hold > 0 && k % hold != 0)) {
+    memcpy(us + 4 * rows, hold > 0 ? u_hold : u_now, sizeof u_now);
+  } else {
+    const double* mk = meas ? meas + 12 * (k > 0 ? k - 1 : 0) : qc_zero;
+    for (int i = 0; i < 12; i++) xm[i] = x[i] + mk[i];
+    t = t0 + dt * (double)k;
+    arg[0] = xm; arg[1] = &t; arg[2] = c; res[0] = us + 4 * rows;
+    qc_ctrl(arg, res, iw, w, 0);
+  }
+  ks[rows++] = k;
+  *n_rec = rows;
+  return k;
+}

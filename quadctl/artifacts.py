@@ -1,0 +1,163 @@
+"""The run directory: writing and reading artifacts atomically, with provenance.
+
+Every artifact carries ``quadctl_version``, ``config_hash``, ``config_name``, ``state_names``,
+``input_names`` and a ``created`` timestamp (the only field that differs between two runs
+of the same config). JSON is written with sorted keys and NPZ with fixed zip timestamps, so
+the same config gives byte-identical artifacts apart from ``created``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import tempfile
+import zipfile
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from quadctl import __version__
+from quadctl.errors import ArtifactError
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
+
+FORMAT_VERSION = 1
+"""Bumped when the layout of an artifact changes incompatibly."""
+
+
+def metadata(cfg, kind: str) -> dict:
+    """Provenance fields every artifact carries."""
+    return {
+        "artifact": kind,
+        "format_version": FORMAT_VERSION,
+        "quadctl_version": __version__,
+        "config_name": cfg.name,
+        "config_hash": cfg.digest(),
+        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "state_names": list(STATE_NAMES),
+        "input_names": list(INPUT_NAMES),
+    }
+
+
+def jsonable(value: Any) -> Any:
+    """numpy arrays, complex numbers and non-finite floats as plain JSON values.
+
+    Complex numbers become ``[re, im]``; NaN and infinity become ``null``.
+    """
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (complex, np.complexfloating)):
+        return [jsonable(float(value.real)), jsonable(float(value.imag))]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    """Write to a temporary file in the same folder, fsync, then rename over ``path``."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise ArtifactError(f"{path.parent}: cannot write artifacts there ({exc.strerror}); "
+                            "choose another --out folder") from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_json(path: Path, payload: dict) -> Path:
+    """Write ``payload`` as indented, key-sorted JSON, atomically."""
+    text = json.dumps(jsonable(payload), indent=1, sort_keys=True, allow_nan=False)
+    _atomic_write(path, (text + "\n").encode())
+    return Path(path)
+
+
+def write_npz(path: Path, arrays: dict[str, Any], meta: dict) -> Path:
+    """Write arrays (and ``meta`` as a JSON string under ``meta``) as an NPZ, atomically.
+
+    Zip entries get a fixed timestamp so equal arrays give equal bytes.
+    """
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
+        items = dict(arrays)
+        items["meta"] = np.array(json.dumps(jsonable(meta), sort_keys=True))
+        for name in sorted(items):
+            arr = np.asarray(items[name])
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            member = io.BytesIO()
+            np.lib.format.write_array(member, arr, allow_pickle=False)
+            zf.writestr(info, member.getvalue())
+    _atomic_write(path, buf.getvalue())
+    return Path(path)
+
+
+def write_bytes(path: Path, data: bytes) -> Path:
+    _atomic_write(path, data)
+    return Path(path)
+
+
+def read_json(path: Path) -> dict:
+    """Read a JSON artifact; ArtifactError names the file if it is corrupt or foreign."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ArtifactError(f"{path}: corrupted artifact ({_reason(exc)}); "
+                            "delete it or rerun with --fresh") from None
+    _check_provenance(path, data if isinstance(data, dict) else {})
+    return data
+
+
+def read_npz(path: Path) -> tuple[dict[str, np.ndarray], dict]:
+    """Read an NPZ artifact: (arrays, meta)."""
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        meta = json.loads(str(arrays.pop("meta")))
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
+        raise ArtifactError(f"{path}: corrupted artifact ({_reason(exc)}); "
+                            "delete it or rerun with --fresh") from None
+    _check_provenance(path, meta)
+    return arrays, meta
+
+
+def _check_provenance(path, meta: dict) -> None:
+    if meta.get("format_version") != FORMAT_VERSION or "config_hash" not in meta:
+        version = meta.get("quadctl_version", "unknown")
+        raise ArtifactError(f"{path}: written by quadctl {version} in another format; "
+                            "delete it or rerun with --fresh")
+
+
+def _reason(exc: Exception) -> str:
+    text = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+    return text.splitlines()[0][:120]
+
+
+def is_fresh(path: Path, cfg) -> bool:
+    """True if ``path`` exists and was made from this exact config by this quadctl version.
+
+    Raises ArtifactError if it exists but is corrupt or of a foreign format.
+    """
+    path = Path(path)
+    if not path.exists():
+        return False
+    meta = read_npz(path)[1] if path.suffix == ".npz" else read_json(path)
+    return meta.get("config_hash") == cfg.digest() and meta.get("quadctl_version") == __version__

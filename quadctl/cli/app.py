@@ -1,0 +1,45 @@
+"""The ``quadctl`` application: composes the commands; ``main`` is the console script."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from quadctl import __version__
+from quadctl.cli import commands
+from quadctl.cli.errors import EXIT_CODES_HELP
+
+app = typer.Typer(
+    name="quadctl",
+    help="Design and verify LQR controllers for quadcopters: trim, linearize, decouple, check, "
+         f"design, simulate.\n\n{EXIT_CODES_HELP}",
+    no_args_is_help=True,
+    add_completion=False,
+    rich_markup_mode="rich",
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"quadctl {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    ctx: typer.Context,
+    debug: Annotated[bool, typer.Option("--debug", help="Show the traceback of an error.")] = False,
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Print the version and exit.")] = False,
+) -> None:
+    ctx.obj = {"debug": debug}
+
+
+commands.register(app)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app(prog_name="quadctl")

@@ -1,0 +1,25 @@
+"""One module per command; :func:`register` adds them all to the app."""
+
+from __future__ import annotations
+
+import typer
+
+from quadctl.cli.commands import (
+    check,
+    configs,
+    decouple,
+    design,
+    linearize,
+    run,
+    simulate,
+    trim,
+)
+from quadctl.cli.errors import handled
+
+COMMANDS = (trim, linearize, decouple, check, design, simulate, run, configs)
+
+
+def register(app: typer.Typer) -> None:
+    """Add every command, each wrapped by the one error handler."""
+    for module in COMMANDS:
+        app.command(module.NAME, help=module.command.__doc__)(handled(module.command))

@@ -1,0 +1,17 @@
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, open_workspace
+
+NAME = "decouple"
+
+
+def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
+            fresh: FreshOpt = False) -> None:
+    """Split the linear model into subsystems and list the coupling terms dropped; write subsystems.json."""
+    from quadctl.cli import render
+
+    ws = open_workspace(config, out, fresh)
+    dec = ws.decoupled
+    if json:
+        return render.emit_json(ws.payloads["subsystems.json"])
+    render.out.print(render.subsystems_table(dec))
+    render.out.print(render.dropped_table(dec))
+    render.out.print(f"-> {ws.path('subsystems.json')}")

@@ -1,0 +1,18 @@
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, open_workspace
+
+NAME = "linearize"
+
+
+def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
+            fresh: FreshOpt = False) -> None:
+    """Jacobians A (12 x 12) and B (12 x 4) at the trim, from CasADi; write linear.npz."""
+    from quadctl.cli import render
+
+    ws = open_workspace(config, out, fresh)
+    linear = ws.linear
+    if json:
+        return render.emit_json({"A": linear.A.tolist(), "B": linear.B.tolist(),
+                                 "x_trim": linear.x_trim.tolist(), "u_trim": linear.u_trim.tolist()})
+    for table in render.linear_tables(linear):
+        render.out.print(table)
+    render.out.print(f"-> {ws.path('linear.npz')}")

@@ -1,0 +1,58 @@
+import typer
+
+from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, open_workspace
+
+NAME = "run"
+
+
+def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
+            json: JsonOpt = False, fresh: FreshOpt = False) -> None:
+    """Every stage in order: trim, linearize, decouple, check, design, simulate.
+
+    Stops with exit 1 at the first failed check; artifacts of earlier stages stay whole.
+    """
+    from quadctl.cli import render
+    from quadctl.cli.figures import save_figures
+
+    ws = open_workspace(config, out, fresh)
+    stages = {}
+
+    def done(stage: str, detail: str) -> None:
+        stages[stage] = detail
+        if not json:
+            render.out.print(f"[green]✓[/green] {stage:<10} {detail}")
+
+    done("trim", f"T = {ws.trim.u[0]:.4f} N, theta = {ws.trim.x[7]:.4f} rad, residual {ws.trim.residual:.1e}")
+    done("linearize", f"A {ws.linear.A.shape}, B {ws.linear.B.shape}")
+    done("decouple", f"{len(ws.decoupled.subsystems)} subsystems, {len(ws.decoupled.dropped)} terms dropped")
+    regulated = {s.name for s in ws.decoupled.regulated}
+    bad = [n for n in regulated if not ws.checks[n].stabilizable]
+    if bad:
+        raise _stop(json, stages, f"check: not stabilizable: {', '.join(bad)}")
+    done("check", "every regulated subsystem stabilizable")
+    if not ws.design.stable:
+        raise _stop(json, stages, "design: unstable on the coupled 12-state model")
+    done("design", "stable on the coupled model; slowest pole "
+         f"{max(e.real for e in ws.design.full_eigenvalues if abs(e) > 1e-9):.3g} rad/s")
+    sim = ws.simulation
+    if sim.status != "ok":
+        raise _stop(json, stages, f"simulate: {sim.message}")
+    done("simulate", f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.steps_per_second / 1e6:.2f} M steps/s")
+    if plot:
+        for path in save_figures(ws, sim):
+            if not json:
+                render.out.print(f"figure -> {path}")
+    if json:
+        render.emit_json({"stages": stages, "ok": True, "out": str(ws.out)})
+    else:
+        render.out.print(f"artifacts in {ws.out}/")
+
+
+def _stop(json: bool, stages: dict, why: str) -> typer.Exit:
+    from quadctl.cli import render
+
+    if json:
+        render.emit_json({"stages": stages, "ok": False, "failed": why})
+    render.err.print(f"quadctl: check failed: {why}")
+    return typer.Exit(EXIT_CHECK_FAILED)

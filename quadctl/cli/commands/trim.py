@@ -1,0 +1,17 @@
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, open_workspace
+
+NAME = "trim"
+
+
+def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
+            fresh: FreshOpt = False) -> None:
+    """Solve the equilibrium for the config's flight condition; write trim.json."""
+    from quadctl.cli import render
+
+    ws = open_workspace(config, out, fresh)
+    trim = ws.trim
+    if json:
+        return render.emit_json(ws.payloads.get("trim.json") or {"x": trim.x.tolist(), "u": trim.u.tolist()})
+    render.out.print(render.trim_table(trim))
+    render.out.print(f"equilibrium residual max|dx/dt| = {trim.residual:.2e} (non-position states), "
+                     f"{trim.iterations} Newton iterations -> {ws.path('trim.json')}")

@@ -1,0 +1,72 @@
+"""The one place that maps exceptions to exit codes and one-line messages."""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+
+import typer
+
+EXIT_OK = 0
+EXIT_CHECK_FAILED = 1
+EXIT_BAD_INPUT = 2
+EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130
+
+EXIT_CODES_HELP = (
+    "Exit codes: 0 success; 1 a check failed (rank, stability, divergence, a sweep gate); "
+    "2 bad input (config, options, files); 3 internal error (a bug: please report it); "
+    "130 interrupted."
+)
+
+
+def debug_enabled() -> bool:
+    """``--debug`` on the command line or ``QUADCTL_DEBUG=1``: show tracebacks."""
+    if os.environ.get("QUADCTL_DEBUG") == "1":
+        return True
+    import click
+
+    ctx = click.get_current_context(silent=True)
+    root = ctx.find_root() if ctx else None
+    return bool(root and isinstance(root.obj, dict) and root.obj.get("debug"))
+
+
+def fail(message: str, code: int) -> typer.Exit:
+    """Print ``quadctl: error: message`` to stderr and return the Exit to raise."""
+    typer.echo(f"quadctl: error: {message}", err=True)
+    return typer.Exit(code)
+
+
+def handled(fn):
+    """Decorate a command: QuadctlError -> its exit code and one line on stderr, no traceback."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from quadctl.errors import QuadctlError
+
+        try:
+            return fn(*args, **kwargs)
+        except (typer.Exit, typer.Abort, SystemExit):
+            raise
+        except QuadctlError as exc:
+            if debug_enabled():
+                raise
+            raise fail(str(exc), exc.exit_code) from None
+        except KeyboardInterrupt:
+            raise fail("interrupted; artifacts written before this point are complete",
+                       EXIT_INTERRUPTED) from None
+        except Exception as exc:  # a bug: say so in one line, traceback on --debug
+            if debug_enabled():
+                raise
+            where = ""
+            tb = sys.exc_info()[2]
+            while tb and tb.tb_next:
+                tb = tb.tb_next
+            if tb:
+                where = f" at {os.path.basename(tb.tb_frame.f_code.co_filename)}:{tb.tb_lineno}"
+            raise fail(f"internal error {type(exc).__name__}: {exc}{where}; "
+                       "rerun with --debug for the traceback and please report it",
+                       EXIT_INTERNAL) from None
+
+    return wrapper

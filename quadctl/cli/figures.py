@@ -1,0 +1,19 @@
+"""Save the simulation figures of a workspace, atomically."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+
+def save_figures(ws, sim) -> list[Path]:
+    """Render every figure of ``sim`` to ``ws.out/plots/*.png``; return the paths."""
+    from quadctl import artifacts, plots
+
+    paths = []
+    for name, fig in plots.simulation_figures(sim, ws.cfg.partition(), ws.linear.u_trim,
+                                                   title=ws.cfg.name).items():
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110)
+        paths.append(artifacts.write_bytes(ws.out / "plots" / f"{name}.png", buf.getvalue()))
+    return paths

@@ -1,0 +1,28 @@
+"""Options shared by the commands, and the workspace they open."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+ConfigOpt = Annotated[Optional[str], typer.Option(
+    "--config", "-c", metavar="PATH|NAME",
+    help="Config file, or the name of a bundled config (see `quadctl configs`). "
+         "Default: forward, the report's case.")]
+OutOpt = Annotated[Optional[Path], typer.Option(
+    "--out", "-o", metavar="DIR", help="Run directory for artifacts. Default: runs/<config name>.")]
+JsonOpt = Annotated[bool, typer.Option(
+    "--json", help="Print machine-readable JSON to stdout instead of tables.")]
+FreshOpt = Annotated[bool, typer.Option(
+    "--fresh", help="Recompute every stage; ignore artifacts already in the run directory.")]
+PlotOpt = Annotated[bool, typer.Option("--plot", help="Also write PNG figures to DIR/plots/.")]
+
+
+def open_workspace(config: str | None, out: Path | None, fresh: bool = False):
+    """Load the config and open its run directory."""
+    from quadctl import config as config_mod
+    from quadctl.workspace import Workspace
+
+    return Workspace(config_mod.load(config), out, fresh=fresh)

@@ -1,0 +1,150 @@
+"""Rich renderings of stage results for the terminal (stdout), and the notice line (stderr)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
+
+out = Console(highlight=False)
+err = Console(stderr=True, highlight=False)
+
+
+def notice(text: str) -> None:
+    """A one-line note on stderr (keeps stdout clean for --json)."""
+    err.print(f"[dim]quadctl:[/dim] {text}")
+
+
+def emit_json(payload) -> None:
+    """Machine-readable result on stdout."""
+    print(json.dumps(payload, indent=1, sort_keys=True))
+
+
+def num(value: float, digits: int = 4) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, complex) or isinstance(value, np.complexfloating):
+        return eig(value)
+    if not math.isfinite(value):
+        return str(value)
+    return f"{value:.{digits}g}"
+
+
+def eig(e: complex) -> str:
+    e = complex(e)
+    return f"{e.real:.5g}" if abs(e.imag) < 1e-9 else f"{e.real:.5g} {'+' if e.imag >= 0 else '-'} {abs(e.imag):.5g}j"
+
+
+def yes(flag: bool) -> str:
+    return "[green]yes[/green]" if flag else "[red]no[/red]"
+
+
+def matrix(title: str, mat, rows, cols) -> Table:
+    table = Table(title=title, title_justify="left", show_edge=False, pad_edge=False)
+    table.add_column("")
+    for c in cols:
+        table.add_column(c, justify="right")
+    for i, r in enumerate(rows):
+        table.add_row(r, *[("·" if mat[i, j] == 0 else f"{mat[i, j]:.4g}") for j in range(len(cols))])
+    return table
+
+
+def trim_table(trim) -> Table:
+    table = Table(title="Trim", title_justify="left")
+    for col in ("quantity", "value", "unit"):
+        table.add_column(col, justify="right" if col == "value" else "left")
+    for i, name in enumerate(STATE_NAMES):
+        table.add_row(name, f"{trim.x[i]:.6g}", unit_of(name))
+    for j, name in enumerate(INPUT_NAMES):
+        table.add_row(f"[bold]{name}[/bold]", f"{trim.u[j]:.6g}", unit_of(name))
+    return table
+
+
+def linear_tables(linear) -> list[Table]:
+    return [matrix("A = df/dx at the trim (· is an exact zero)", linear.A, STATE_NAMES, STATE_NAMES),
+            matrix("B = df/du at the trim", linear.B, STATE_NAMES, INPUT_NAMES)]
+
+
+def subsystems_table(dec) -> Table:
+    table = Table(title="Subsystems (diagonal blocks of A, matching columns of B)", title_justify="left")
+    for col in ("subsystem", "states", "inputs", "regulated", "open-loop eigenvalues"):
+        table.add_column(col)
+    for s in dec.subsystems:
+        eigs = ", ".join(eig(e) for e in np.linalg.eigvals(s.A))
+        src = "" if s.regulated else " (from A)"
+        table.add_row(s.name, " ".join(s.states), " ".join(s.inputs) + src, yes(s.regulated), eigs)
+    return table
+
+
+def dropped_table(dec, top: int = 8) -> Table:
+    table = Table(title=f"Largest coupling terms the partition drops (top {top} of A and of B; "
+                        f"{len(dec.dropped)} in all)", title_justify="left")
+    for col in ("term", "matrix", "value", "unit", "|value| / max|matrix|"):
+        table.add_column(col, justify="right" if col in ("value", "|value| / max|matrix|") else "left")
+    for kind in ("A", "B"):
+        for d in [d for d in dec.dropped if d.matrix == kind][:top]:
+            table.add_row(d.name, d.matrix, f"{d.value:.4g}", d.unit, f"{d.relative:.2e}")
+    return table
+
+
+def checks_table(checks: dict, regulated: set[str]) -> Table:
+    some = next(iter(checks.values()))
+    table = Table(title="Controllability and observability (Kalman rank by SVD; verdicts by PBH)",
+                  title_justify="left", caption=f"rank tolerance: singular values > max(shape) * eps * "
+                  f"sigma_max (eps = {np.finfo(float).eps:.3g}); stable means Re < 0", caption_justify="left")
+    for col in ("system", "n", "ctrb rank", "obsv rank", "tolerance", "controllable", "observable",
+                "stabilizable", "detectable"):
+        table.add_column(col, justify="right" if col in ("n", "ctrb rank", "obsv rank", "tolerance") else "left")
+    del some
+    for name, c in checks.items():
+        label = name if name == "full" or name in regulated else f"{name} (analysed only)"
+        table.add_row(label, str(c.n), f"{c.ctrb.rank}/{c.n}", f"{c.obsv.rank}/{c.n}",
+                      f"{c.ctrb.tolerance:.2e}", yes(c.controllable), yes(c.observable),
+                      yes(c.stabilizable), yes(c.detectable))
+    return table
+
+
+def design_tables(des) -> list:
+    table = Table(title="LQR per subsystem (u = -K x, K = R^-1 B' P)", title_justify="left")
+    for col in ("subsystem", "states", "input", "K", "closed-loop eigenvalues", "Riccati residual"):
+        table.add_column(col)
+    for s in des.subsystems:
+        table.add_row(s.name, " ".join(s.states), " ".join(s.inputs),
+                      "[" + ", ".join(f"{k:.4g}" for k in s.K.ravel()) + "]",
+                      ", ".join(eig(e) for e in s.eigenvalues), f"{s.residual:.1e}")
+    full = Table(title="Coupled 12-state closed loop A - B K_block", title_justify="left")
+    full.add_column("eigenvalue (rad/s)", justify="right")
+    full.add_column("verdict")
+    for e in sorted(des.full_eigenvalues, key=lambda z: (z.real, z.imag)):
+        zero = abs(e) < 1e-9
+        verdict = ("marginal: unregulated position" if zero and des.marginal_states else
+                   ("stable" if e.real < 0 else "[red]unstable[/red]"))
+        full.add_row(eig(e), verdict)
+    return [table, matrix("K_block (4 x 12)", des.K_block, INPUT_NAMES, STATE_NAMES), full]
+
+
+def metrics_table(metrics: dict) -> Table:
+    table = Table(title="Closed-loop response (error from the reference)", title_justify="left",
+                  caption="settling: within 2 % of the state's largest error; '-' never settled or n/a",
+                  caption_justify="left")
+    for col in ("state", "unit", "settling (s)", "overshoot (%)", "peak |error|", "final error"):
+        table.add_column(col, justify="left" if col in ("state", "unit") else "right")
+    for name in STATE_NAMES:
+        table.add_row(name, unit_of(name), num(metrics["settling_time"].get(name)),
+                      num(metrics["overshoot"].get(name), 3), num(metrics["peak_error"][name]),
+                      num(metrics["final_error"][name]))
+    return table
+
+
+def peaks_table(metrics: dict, u_trim) -> Table:
+    table = Table(title="Inputs", title_justify="left")
+    for col in ("input", "unit", "trim", "peak |u|"):
+        table.add_column(col, justify="left" if col in ("input", "unit") else "right")
+    for j, name in enumerate(INPUT_NAMES):
+        table.add_row(name, unit_of(name), num(u_trim[j]), num(metrics["peak"][name]))
+    return table

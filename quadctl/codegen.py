@@ -1,0 +1,292 @@
+"""Compiled closed-loop RK4 steps, generated from the CasADi model.
+
+The step functions are built symbolically from :func:`quadctl.model.build_model` (never a
+second copy of the equations), exported with CasADi's C code generator, compiled once with
+the system C compiler together with the small loop in ``_driver.c``, and cached on disk
+keyed by a hash of the generated source. Without a C compiler, the same CasADi functions
+run in CasADi's own virtual machine from a Python loop: same results, slower.
+
+Constants the step reads are packed into one vector ``c`` (layout :data:`CONST_LAYOUT`).
+The gain's sparsity pattern and the saturation mode are baked into the generated code,
+so a block-diagonal gain costs only its nonzeros.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from quadctl.layout import N_INPUTS, N_STATES
+from quadctl.model import N_DISTURBANCES, N_PARAMS, build_model
+
+CONST_LAYOUT: tuple[tuple[str, tuple[int, ...]], ...] = (
+    ("x_ref", (N_STATES,)),        # reference state at t = 0
+    ("x_rate", (N_STATES,)),       # reference drift (m/s on positions): x_ref(t) = x_ref + x_rate t
+    ("u_trim", (N_INPUTS,)),
+    ("K", (N_INPUTS, N_STATES)),   # u = u_trim - K (x - x_ref(t)), stored column-major
+    ("params", (N_PARAMS,)),
+    ("mix", (N_INPUTS, N_INPUTS)),      # [T, A, E, R] -> actuator commands (motors mode)
+    ("mix_inv", (N_INPUTS, N_INPUTS)),  # actuator commands -> [T, A, E, R]
+    ("lo", (N_INPUTS,)),           # actuator lower limits (box: on T, A, E, R)
+    ("hi", (N_INPUTS,)),
+)
+SATURATION_MODES = ("none", "box", "motors")
+COMPILE_FLAGS = ("-O3", "-fno-math-errno", "-fPIC", "-shared")
+"""-fno-math-errno lets sin/cos inline and pair; no -ffast-math, so NaN still propagates."""
+
+
+def const_size() -> int:
+    return sum(int(np.prod(shape)) for _, shape in CONST_LAYOUT)
+
+
+def pack_constants(**values) -> np.ndarray:
+    """Pack named constants into the ``c`` vector (missing ones: zero; ``mix``: identity)."""
+    out = []
+    for name, shape in CONST_LAYOUT:
+        default = np.eye(N_INPUTS) if name in ("mix", "mix_inv") else np.zeros(shape)
+        arr = np.asarray(values.pop(name, default), dtype=float)
+        if arr.shape != shape:
+            raise ValueError(f"{name}: expected shape {shape}, got {arr.shape}")
+        out.append(arr.ravel(order="F"))
+    if values:
+        raise ValueError(f"unknown constants: {sorted(values)}")
+    return np.concatenate(out)
+
+
+@dataclass(frozen=True)
+class StepFunctions:
+    """The CasADi functions of one variant (gain pattern, saturation mode)."""
+
+    step: ca.Function      # (x, t, dt, c, d, nm) -> (x_next, u)
+    ctrl: ca.Function      # (x_meas, t, c) -> u
+    step_ol: ca.Function   # (x, u, dt, c, d) -> x_next
+
+
+def build_step_functions(pattern: tuple[bool, ...], saturation: str) -> StepFunctions:
+    """Closed-loop RK4 step functions for a gain sparsity ``pattern`` (48 bools, column-major)."""
+    if saturation not in SATURATION_MODES:
+        raise ValueError(f"saturation must be one of {SATURATION_MODES}")
+    f = build_model().f_disturbed
+    c = ca.SX.sym("c", const_size())
+    parts = {}
+    offset = 0
+    for name, shape in CONST_LAYOUT:
+        size = int(np.prod(shape))
+        block = c[offset:offset + size]
+        parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
+        offset += size
+    mask = ca.DM(np.reshape(np.asarray(pattern, dtype=float), (N_INPUTS, N_STATES), order="F"))
+    gain = parts["K"] * mask  # structural zeros vanish from the generated code
+
+    def control(x_meas, t):
+        cmd = parts["u_trim"] - gain @ (x_meas - (parts["x_ref"] + parts["x_rate"] * t))
+        if saturation == "none":
+            return cmd
+        act = parts["mix"] @ cmd if saturation == "motors" else cmd
+        act = ca.if_else(act < parts["lo"], parts["lo"], act)
+        act = ca.if_else(act > parts["hi"], parts["hi"], act)
+        return parts["mix_inv"] @ act if saturation == "motors" else act
+
+    x = ca.SX.sym("x", N_STATES)
+    u = ca.SX.sym("u", N_INPUTS)
+    t = ca.SX.sym("t")
+    dt = ca.SX.sym("dt")
+    d = ca.SX.sym("d", N_DISTURBANCES)
+    nm = ca.SX.sym("nm", N_STATES)
+    p = parts["params"]
+
+    def rk4(rhs):
+        k1 = rhs(x, t)
+        k2 = rhs(x + dt / 2 * k1, t + dt / 2)
+        k3 = rhs(x + dt / 2 * k2, t + dt / 2)
+        k4 = rhs(x + dt * k3, t + dt)
+        return x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    x_cl = rk4(lambda xs, ts: f(xs, control(xs + nm, ts), p, d))
+    x_ol = rk4(lambda xs, ts: f(xs, u, p, d))
+    return StepFunctions(
+        step=ca.Function("qc_step", [x, t, dt, c, d, nm], [x_cl, control(x + nm, t)]),
+        ctrl=ca.Function("qc_ctrl", [x, t, c], [control(x, t)]),
+        step_ol=ca.Function("qc_step_ol", [x, u, dt, c, d], [x_ol]),
+    )
+
+
+def cache_dir() -> Path:
+    """Where compiled steps are kept: ``$QUADCTL_CACHE``, else ``~/.cache/quadctl``."""
+    env = os.environ.get("QUADCTL_CACHE")
+    base = Path(env) if env else Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "quadctl"
+    return base
+
+
+def find_compiler() -> str | None:
+    """The C compiler to use (``$CC``, ``cc``, ``gcc``, ``clang``), or None.
+
+    ``QUADCTL_NO_COMPILE=1`` forces the CasADi fallback (tests use it to compare both paths).
+    """
+    if os.environ.get("QUADCTL_NO_COMPILE") == "1":
+        return None
+    for cand in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if cand and shutil.which(cand):
+            return shutil.which(cand)
+    return None
+
+
+def record_rows(n: int, stride: int) -> int:
+    """Rows the loop records for ``n`` steps at ``stride``: steps 0, stride, ... and the last."""
+    return (n - 1) // stride + 2 if n > 0 else 1
+
+
+class CompiledLoop:
+    """A compiled variant: :meth:`run` integrates ``n`` steps in C."""
+
+    backend = "compiled"
+
+    def __init__(self, library: Path):
+        self._lib = ctypes.CDLL(str(library))
+        dp = ctypes.POINTER(ctypes.c_double)
+        lp = ctypes.POINTER(ctypes.c_long)
+        self._run = self._lib.qc_run
+        self._run.restype = ctypes.c_long
+        self._run.argtypes = [dp, ctypes.c_double, ctypes.c_double, ctypes.c_long, dp, dp, dp,
+                              ctypes.c_long, ctypes.c_long, dp, dp, dp, dp, lp, lp]
+
+    def run(self, x0, t0, dt, n, c, dist, meas, hold, stride, lo, hi):
+        """Integrate ``n`` steps of ``dt`` from ``x0``.
+
+        Returns
+        -------
+        (done, ks, xs, us) : steps completed, recorded step indices (r,), states (r, 12),
+        inputs (r, 4).
+        """
+        rows = record_rows(n, stride)
+        xs = np.empty((rows, N_STATES))
+        us = np.empty((rows, N_INPUTS))
+        ks = np.empty(rows, dtype=np.int_)
+        n_rec = ctypes.c_long(0)
+        ptr = _pointer
+        done = int(self._run(ptr(np.ascontiguousarray(x0, dtype=float)), float(t0), float(dt),
+                             int(n), ptr(c), ptr(dist), ptr(meas), int(hold), int(stride),
+                             ptr(lo), ptr(hi), ptr(xs), ptr(us),
+                             ks.ctypes.data_as(ctypes.POINTER(ctypes.c_long)), ctypes.byref(n_rec)))
+        r = n_rec.value
+        return done, ks[:r], xs[:r], us[:r]
+
+
+class InterpretedLoop:
+    """The loop of ``_driver.c`` in Python, evaluating the CasADi functions (no C compiler)."""
+
+    backend = "casadi"
+
+    def __init__(self, funcs: StepFunctions):
+        self._f = funcs
+
+    def run(self, x0, t0, dt, n, c, dist, meas, hold, stride, lo, hi):
+        """Same contract as :meth:`CompiledLoop.run`."""
+        zero6, zero12 = np.zeros(N_DISTURBANCES), np.zeros(N_STATES)
+        x = np.array(x0, dtype=float)
+        u_hold = np.zeros(N_INPUTS)
+        u_now = u_hold
+        ks, xs, us = [], [], []
+        in_bounds = True
+        k = 0
+        while k < n:
+            t = t0 + dt * k
+            dk = dist[k] if dist is not None else zero6
+            mk = meas[k] if meas is not None else zero12
+            if hold > 0:
+                if k % hold == 0:
+                    u_hold = np.asarray(self._f.ctrl(x + mk, t, c)).ravel()
+                u_now = u_hold
+                x_next = np.asarray(self._f.step_ol(x, u_hold, dt, c, dk)).ravel()
+            else:
+                x_next, u_now = (np.asarray(v).ravel() for v in self._f.step(x, t, dt, c, dk, mk))
+            if k % stride == 0:
+                ks.append(k)
+                xs.append(x)
+                us.append(u_now)
+            x = x_next
+            k += 1
+            if not np.all((x >= lo) & (x <= hi)):
+                in_bounds = False
+                break
+        ks.append(k)
+        xs.append(x)
+        if not in_bounds or (hold > 0 and k % hold != 0):
+            us.append(u_hold if hold > 0 else u_now)
+        else:
+            mk = meas[k - 1] if (meas is not None and k > 0) else zero12
+            us.append(np.asarray(self._f.ctrl(x + mk, t0 + dt * k, c)).ravel())
+        return k, np.array(ks), np.array(xs), np.array(us)
+
+
+def _pointer(arr):
+    if arr is None:
+        return None
+    if not (isinstance(arr, np.ndarray) and arr.dtype == np.float64 and arr.flags.c_contiguous):
+        raise TypeError("expected a C-contiguous float64 array")
+    return arr.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+
+@lru_cache(maxsize=32)
+def get_loop(pattern: tuple[bool, ...], saturation: str = "none"):
+    """The loop for a gain pattern and saturation mode: compiled if a C compiler exists.
+
+    Compiles at most once per variant per machine (cached in :func:`cache_dir`).
+    """
+    funcs = build_step_functions(pattern, saturation)
+    compiler = find_compiler()
+    if compiler is None:
+        return InterpretedLoop(funcs)
+    return CompiledLoop(_compile(funcs, compiler))
+
+
+def _compile(funcs: StepFunctions, compiler: str) -> Path:
+    with tempfile.TemporaryDirectory(prefix="quadctl-gen-") as tmp:
+        gen = ca.CodeGenerator("qc_gen.c", {"with_header": False, "main": False})
+        for fn in (funcs.step, funcs.ctrl, funcs.step_ol):
+            gen.add(fn)
+        cwd = os.getcwd()
+        try:
+            os.chdir(tmp)
+            gen.generate()
+        finally:
+            os.chdir(cwd)
+        generated = (Path(tmp) / "qc_gen.c").read_text()
+    fns = (funcs.step, funcs.ctrl, funcs.step_ol)
+    sizes = (f"#define QC_SZ_ARG {max(f.sz_arg() for f in fns)}\n"
+             f"#define QC_SZ_RES {max(f.sz_res() for f in fns)}\n"
+             f"#define QC_SZ_IW {max(f.sz_iw() for f in fns)}\n"
+             f"#define QC_SZ_W {max(f.sz_w() for f in fns)}\n")
+    driver = resources.files("quadctl").joinpath("_driver.c").read_text()
+    source = generated + "\n" + sizes + driver
+    key = hashlib.sha256((source + " ".join(COMPILE_FLAGS) + ca.__version__ + sys.platform).encode())
+    folder = cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    library = folder / f"qc_{key.hexdigest()[:20]}.so"
+    if library.exists():
+        return library
+    src = folder / f"{library.stem}.{os.getpid()}.c"
+    tmp_lib = folder / f"{library.stem}.{os.getpid()}.so.tmp"
+    src.write_text(source)
+    try:
+        proc = subprocess.run([compiler, *COMPILE_FLAGS, str(src), "-o", str(tmp_lib), "-lm"],
+                              capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"C compiler failed: {proc.stderr.strip()[:500]}")
+        os.replace(tmp_lib, library)  # atomic: concurrent workers never load a half-written library
+    finally:
+        src.unlink(missing_ok=True)
+        tmp_lib.unlink(missing_ok=True)
+    return library
