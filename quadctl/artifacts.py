@@ -1,9 +1,10 @@
 """The run directory: writing and reading artifacts atomically, with provenance.
 
 Every artifact carries ``quadctl_version``, ``config_hash``, ``config_name``, ``state_names``,
-``input_names`` and a ``created`` timestamp (the only field that differs between two runs
-of the same config). JSON is written with sorted keys and NPZ with fixed zip timestamps, so
-the same config gives byte-identical artifacts apart from ``created``.
+``input_names``; JSON artifacts also a ``created`` timestamp, the only field that differs
+between two runs of the same config (NPZ artifacts are byte-identical). JSON is written
+with sorted keys and NPZ with fixed zip timestamps, so the same config gives byte-identical
+artifacts apart from ``created``.
 """
 
 from __future__ import annotations
@@ -94,8 +95,10 @@ def write_json(path: Path, payload: dict) -> Path:
 def write_npz(path: Path, arrays: dict[str, Any], meta: dict) -> Path:
     """Write arrays (and ``meta`` as a JSON string under ``meta``) as an NPZ, atomically.
 
-    Zip entries get a fixed timestamp so equal arrays give equal bytes.
+    Zip entries get a fixed timestamp, and ``created`` is left out of ``meta`` (the zip's CRCs
+    would carry it), so the same arrays give the same bytes.
     """
+    meta = {k: v for k, v in meta.items() if k != "created"}
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
         items = dict(arrays)

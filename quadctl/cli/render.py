@@ -37,6 +37,7 @@ def num(value: float, digits: int = 4) -> str:
 
 def eig(e: complex) -> str:
     e = complex(e)
+    e = complex(e.real + 0.0, e.imag + 0.0)  # no "-0"
     return f"{e.real:.5g}" if abs(e.imag) < 1e-9 else f"{e.real:.5g} {'+' if e.imag >= 0 else '-'} {abs(e.imag):.5g}j"
 
 

@@ -1,0 +1,40 @@
+"""Trim across the flight envelope: pitch and thrust against speed, for three headings.
+
+Run: python examples/trim_envelope.py   (writes trim_envelope.png in the current folder)
+"""
+
+import math
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from quadctl.errors import TrimError
+from quadctl.model import Vehicle
+from quadctl.trim import solve_trim
+
+vehicle = Vehicle()
+speeds = np.linspace(0.0, 12.0, 49)
+fig = Figure(figsize=(7, 5), layout="constrained")
+ax_pitch, ax_thrust = fig.subplots(2, 1, sharex=True)
+for heading_deg in (0, 45, 90):
+    psi = math.radians(heading_deg)
+    tilt, thrust = [], []
+    for s in speeds:
+        try:
+            t = solve_trim([s * math.cos(psi), s * math.sin(psi), 0.0], psi, [0, 0, -1], vehicle)
+        except TrimError as exc:
+            print(f"{s:.2f} m/s: {exc}")
+            break
+        tilt.append(math.degrees(t.x[7]))
+        thrust.append(t.u[0])
+    ax_pitch.plot(speeds[:len(tilt)], tilt, label=f"heading {heading_deg} deg, flying along it")
+    ax_thrust.plot(speeds[:len(thrust)], thrust)
+ax_pitch.set_ylabel("pitch theta [deg]")
+ax_thrust.set_ylabel("thrust T [N]")
+ax_thrust.set_xlabel("speed [m/s]")
+ax_pitch.legend(frameon=False)
+for ax in (ax_pitch, ax_thrust):
+    ax.grid(alpha=0.3)
+fig.savefig("trim_envelope.png", dpi=100)
+t1 = solve_trim([1, 0, 0], 0.0, [0, 0, -1], vehicle)
+print(f"1 m/s north: theta = {t1.x[7]:.4f} rad, T = {t1.u[0]:.4f} N (the report: -0.2119, 0.6522)")

@@ -1,0 +1,103 @@
+"""Artifacts: provenance, byte-for-byte determinism, reuse only when fresh, atomic writes."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from quadctl import artifacts, config
+from quadctl.errors import ArtifactError
+from quadctl.workspace import Workspace
+
+ALL = ("trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
+_CREATED = re.compile(rb'"created": ?"[^"]*"')
+
+
+def _run_all(cfg, out):
+    ws = Workspace(cfg, out)
+    ws.checks, ws.design, ws.simulation  # noqa: B018 - evaluating the stages writes them
+    return ws
+
+
+def test_same_config_gives_identical_artifacts_apart_from_created(tmp_path):
+    cfg = config.load("hover")
+    _run_all(cfg, tmp_path / "a")
+    _run_all(cfg, tmp_path / "b")
+    for name in ALL:
+        a, b = (_without_created(tmp_path / d / name) for d in ("a", "b"))
+        assert a == b, name
+
+
+def _without_created(path):
+    """File bytes with the JSON ``created`` field blanked (NPZ files carry none)."""
+    return _CREATED.sub(b"", path.read_bytes())
+
+
+def test_every_artifact_records_provenance(tmp_path):
+    cfg = config.load("forward")
+    _run_all(cfg, tmp_path)
+    for name in ALL:
+        meta = (artifacts.read_npz(tmp_path / name)[1] if name.endswith(".npz")
+                else artifacts.read_json(tmp_path / name))
+        assert meta["config_hash"] == cfg.digest(), name
+        assert meta["state_names"][:3] == ["pN", "pE", "pD"] and meta["input_names"] == ["T", "A", "E", "R"]
+        assert meta["quadctl_version"]
+
+
+def test_upstream_reused_only_when_config_hash_matches(tmp_path):
+    cfg = config.load("forward")
+    Workspace(cfg, tmp_path).linear  # noqa: B018
+    ws = Workspace(cfg, tmp_path)
+    ws.design  # noqa: B018
+    assert tmp_path / "linear.npz" in ws.reused
+    # a different config in the same folder: recomputed, never stale
+    other = config.from_dict({**cfg.model_dump(mode="json"), "vehicle": {"mass": 0.08}}, "x")
+    ws2 = Workspace(other, tmp_path)
+    assert ws2.trim.u[0] == pytest.approx(0.08 * 9.81 * np.cos(ws2.trim.x[7]))
+    ws2.linear  # noqa: B018
+    assert tmp_path / "linear.npz" not in ws2.reused
+    assert artifacts.read_npz(tmp_path / "linear.npz")[1]["config_hash"] == other.digest()
+
+
+def test_corrupted_artifact_is_a_clear_error(tmp_path):
+    cfg = config.load("forward")
+    Workspace(cfg, tmp_path).linear  # noqa: B018
+    (tmp_path / "trim.json").write_text("{not json")
+    with pytest.raises(ArtifactError, match=r"trim.json: corrupted artifact .*delete it or rerun with --fresh"):
+        Workspace(cfg, tmp_path).trim  # noqa: B018
+    assert Workspace(cfg, tmp_path, fresh=True).trim.residual < 1e-12  # --fresh recovers
+
+
+def test_foreign_format_is_refused(tmp_path):
+    path = tmp_path / "trim.json"
+    path.write_text(json.dumps({"format_version": 999, "quadctl_version": "9.9", "config_hash": "x"}))
+    with pytest.raises(ArtifactError, match=r"written by quadctl 9.9 in another format"):
+        artifacts.read_json(path)
+
+
+def test_atomic_write_leaves_old_file_whole_on_failure(tmp_path, monkeypatch):
+    path = tmp_path / "a.json"
+    artifacts.write_json(path, {"v": 1})
+
+    def boom(*_):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(artifacts.os, "replace", boom)
+    with pytest.raises(KeyboardInterrupt):
+        artifacts.write_json(path, {"v": 2})
+    assert json.loads(path.read_text()) == {"v": 1}
+    assert [p.name for p in tmp_path.iterdir()] == ["a.json"]  # no temporary left behind
+
+
+def test_unwritable_out_folder_is_a_clear_error(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(ArtifactError, match=r"cannot write artifacts there .*choose another --out folder"):
+        artifacts.write_json(blocker / "sub" / "x.json", {})
+
+
+def test_json_has_no_nan_and_complex_as_pairs():
+    assert artifacts.jsonable({"e": np.array([1 + 2j]), "n": float("nan")}) == {"e": [[1.0, 2.0]], "n": None}

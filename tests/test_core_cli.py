@@ -1,0 +1,149 @@
+"""Every command through typer's CliRunner: output, artifacts, exit codes, --json, one-line errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from quadctl import config
+from quadctl.cli.app import app
+
+runner = CliRunner()
+
+
+def invoke(*args):
+    return runner.invoke(app, [str(a) for a in args], catch_exceptions=False)
+
+
+def test_help_lists_commands_and_exit_codes():
+    res = invoke("--help")
+    assert res.exit_code == 0
+    for name in ("trim", "linearize", "decouple", "check", "design", "simulate", "run", "configs"):
+        assert name in res.output
+    assert "Exit codes" in res.output and "2 bad input" in res.output
+
+
+@pytest.mark.parametrize("command,artifact", [
+    ("trim", "trim.json"), ("linearize", "linear.npz"), ("decouple", "subsystems.json"),
+    ("check", "checks.json"), ("design", "design.json"), ("simulate", "sim.json"),
+])
+def test_each_stage_writes_its_artifact(tmp_path, command, artifact):
+    res = invoke(command, "-o", tmp_path)
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / artifact).exists()
+
+
+def test_trim_reports_the_report_numbers(tmp_path):
+    res = invoke("trim", "-o", tmp_path)
+    assert "0.652166" in res.output and "-0.211854" in res.output and "residual" in res.output
+    data = json.loads((tmp_path / "trim.json").read_text())
+    assert data["state_names"][7] == "theta" and round(data["x"][7], 4) == -0.2119
+    assert data["config_hash"] and data["quadctl_version"]
+
+
+def test_json_output_is_parseable_and_matches_the_artifact(tmp_path):
+    res = invoke("design", "-o", tmp_path, "--json")
+    payload = json.loads(res.stdout)
+    assert payload == json.loads((tmp_path / "design.json").read_text())
+    assert np.array(payload["K_block"]).shape == (4, 12)
+    assert len(payload["full_closed_loop_eigenvalues"][0]) == 2  # [re, im]
+
+
+def test_decouple_names_dropped_terms(tmp_path):
+    res = invoke("decouple", "-o", tmp_path)
+    assert "d(w)/d(theta)" in res.output and "d(u)/d(T)" in res.output
+    data = json.loads((tmp_path / "subsystems.json").read_text())
+    assert data["subsystems"]["guidance"]["regulated"] is False
+    assert any(d["name"] == "d(u)/d(T)" for d in data["dropped"])
+
+
+def test_check_states_tolerance(tmp_path):
+    res = invoke("check", "-o", tmp_path, "-c", "hover")
+    assert res.exit_code == 0 and "tolerance" in res.output
+    data = json.loads((tmp_path / "checks.json").read_text())
+    assert data["subsystems"]["roll"]["stabilizable"] and data["full"]["ctrb_rank"] == 12
+
+
+def test_simulate_reports_speed_and_plots(tmp_path):
+    res = invoke("simulate", "-o", tmp_path, "--plot")
+    assert res.exit_code == 0, res.output
+    assert "M steps/s" in res.output
+    pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
+    assert pngs == ["altitude.png", "guidance.png", "inputs.png", "pitch.png", "roll.png", "yaw.png"]
+    with np.load(tmp_path / "sim.npz") as npz:
+        assert npz["x"].shape[1] == 12 and npz["u"].shape[1] == 4 and str(npz["status"]) == "ok"
+        assert list(npz["state_names"])[0] == "pN"
+    summary = json.loads((tmp_path / "sim.json").read_text())
+    assert summary["metrics"]["settling_time"]["pD"] < 2.0
+    assert summary["metrics"]["peak"]["T"] > 0.6
+
+
+def test_run_executes_every_stage(tmp_path):
+    res = invoke("run", "-o", tmp_path, "-c", "forward-script-q")
+    assert res.exit_code == 0, res.output
+    for name in ("trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz"):
+        assert (tmp_path / name).exists()
+
+
+def test_configs_lists_and_shows(tmp_path):
+    res = invoke("configs")
+    assert "forward" in res.output and "hover" in res.output
+    shown = invoke("configs", "--show", "hover")
+    assert "velocity_ned" in shown.output
+    own = tmp_path / "mine.yaml"
+    own.write_text(shown.output)
+    assert invoke("trim", "-c", own, "-o", tmp_path).exit_code == 0
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "c.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_bad_config_is_one_line_exit_2(tmp_path):
+    cfg = _write(tmp_path, "name: x\nlqr: {}\nvehicle: {mass: -1}\n")
+    res = runner.invoke(app, ["trim", "-c", str(cfg), "-o", str(tmp_path)])
+    assert res.exit_code == 2
+    assert res.stderr.strip().count("\n") == 0
+    assert "vehicle.mass = -1" in res.stderr and "Traceback" not in res.output + res.stderr
+
+
+def test_unknown_bundled_name_lists_the_bundled_ones():
+    res = runner.invoke(app, ["trim", "-c", "fowrard"])
+    assert res.exit_code == 2
+    assert "bundled: forward, forward-script-q, hover" in res.stderr
+
+
+def test_unstabilizable_partition_fails_check_with_exit_1(tmp_path):
+    """Swap the torques: the yaw torque R cannot move the roll loop's states."""
+    text = config.resolve("hover")[1]
+    text = text.replace("roll:     {states: [v, phi, p], inputs: [A]}", "roll:     {states: [v, phi, p], inputs: [R]}")
+    text = text.replace("yaw:      {states: [psi, r], inputs: [R]}", "yaw:      {states: [psi, r], inputs: [A]}")
+    cfg = _write(tmp_path, text)
+    res = runner.invoke(app, ["check", "-c", str(cfg), "-o", str(tmp_path)])
+    assert res.exit_code == 1, res.output
+    assert "roll is not stabilizable" in res.stderr and "yaw is not stabilizable" in res.stderr
+    res = runner.invoke(app, ["design", "-c", str(cfg), "-o", str(tmp_path)])
+    assert res.exit_code == 1
+    assert "not stabilizable: the mode at eigenvalue 0 (in " in res.stderr
+
+
+def test_unstable_step_is_bad_input(tmp_path):
+    text = config.resolve("forward")[1]
+    cfg = _write(tmp_path, text.replace("dt: auto", "dt: 0.001"))
+    res = runner.invoke(app, ["simulate", "-c", str(cfg), "-o", str(tmp_path)])
+    assert res.exit_code == 2
+    assert "subsystem roll" in res.stderr and "use dt: auto" in res.stderr
+
+
+def test_python_dash_m_and_version():
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "quadctl", "--version"], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.startswith("quadctl ")

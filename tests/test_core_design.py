@@ -1,0 +1,135 @@
+"""Linearization, decoupling, checks and LQR: closed forms, Riccati residuals, the coupled verdict."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from quadctl.analysis import check
+from quadctl.decouple import decouple
+from quadctl.errors import DesignError
+from quadctl.layout import REPORT_PARTITION, STATE_NAMES
+from quadctl.lqr import closed_loop_stability, design, lqr, riccati_residual
+
+
+def test_linear_model_report_entries(forward):
+    """Entries a hand derivation gives at the report's trim (MODEL.md equations)."""
+    _, trim, linear, _, _ = forward
+    theta = trim.x[7]
+    i = STATE_NAMES.index
+    g, m = 9.81, 0.068
+    assert linear.A[i("u"), i("theta")] == pytest.approx(-g * math.cos(theta))
+    assert linear.A[i("w"), i("theta")] == pytest.approx(-g * math.sin(theta))
+    assert linear.A[i("u"), i("u")] == pytest.approx(-trim.u[0] * 0.22 / m)
+    assert linear.B[i("w"), 0] == pytest.approx(-1 / m)
+    assert linear.B[i("p"), 1] == pytest.approx(1 / 0.69e-4)
+    assert linear.A[i("pD"), i("theta")] == pytest.approx(-1.0)  # pitching tilts the velocity
+    # translation invariance: nothing depends on position
+    assert not np.any(linear.A[:, :3])
+
+
+def test_decouple_keeps_blocks_and_lists_what_it_drops(forward):
+    _, _, linear, dec, _ = forward
+    alt = dec["altitude"]
+    np.testing.assert_array_equal(alt.A, linear.A[np.ix_([2, 5], [2, 5])])
+    np.testing.assert_array_equal(alt.B[:, 0], linear.B[[2, 5], 0])
+    guid = dec["guidance"]
+    np.testing.assert_array_equal(guid.B, linear.A[np.ix_([0, 1], [3, 8])])  # inputs u, psi from A
+    names = {d.name: d for d in dec.dropped}
+    assert names["d(u)/d(T)"].value == pytest.approx(linear.B[3, 0])
+    assert "d(w)/d(theta)" in names and "d(pD)/d(theta)" in names
+    # kept + dropped = the whole model
+    dropped_a = np.zeros_like(linear.A)
+    for d in dec.dropped:
+        if d.matrix == "A":
+            dropped_a[STATE_NAMES.index(d.row), STATE_NAMES.index(d.column)] = d.value
+    np.testing.assert_allclose(dec.A_kept + dropped_a, linear.A, atol=1e-12)
+
+
+def test_every_report_subsystem_controllable_and_observable(forward):
+    _, _, linear, dec, _ = forward
+    for sub in dec.subsystems:
+        c = check(sub.A, sub.B, sub.C, sub.states)
+        assert c.controllable and c.observable and c.ctrb.rank == c.n, sub.name
+        assert c.ctrb.tolerance > 0
+    full = check(linear.A, linear.B)
+    assert full.controllable and full.ctrb.rank == 12
+
+
+def test_uncontrollable_mode_is_found_by_pbh():
+    A = np.diag([1.0, -2.0])
+    B = np.array([[0.0], [1.0]])
+    c = check(A, B, names=["a", "b"])
+    assert not c.controllable and not c.stabilizable
+    bad = c.unstabilizable_modes
+    assert len(bad) == 1 and bad[0].eigenvalue == 1.0 and bad[0].states == ("a",)
+    assert check(np.diag([-1.0, -2.0]), B).stabilizable  # uncontrollable but stable
+
+
+def test_scalar_integrator_closed_form():
+    q, r = 9.0, 4.0
+    K, P, E = lqr([[0.0]], [[1.0]], [[q]], [[r]])
+    assert P[0, 0] == pytest.approx(math.sqrt(q * r))
+    assert K[0, 0] == pytest.approx(math.sqrt(q / r))
+    assert E[0] == pytest.approx(-math.sqrt(q / r))
+
+
+def test_double_integrator_closed_form():
+    """x'' = u, Q = diag(q1, q2), R = r: K = [sqrt(q1/r), sqrt(q2/r + 2 sqrt(q1/r))]."""
+    q1, q2, r = 50.0, 3.0, 2.0
+    K, P, _ = lqr([[0, 1], [0, 0]], [[0], [1]], np.diag([q1, q2]), [[r]])
+    np.testing.assert_allclose(K[0], [math.sqrt(q1 / r), math.sqrt(q2 / r + 2 * math.sqrt(q1 / r))], rtol=1e-12)
+
+
+def test_riccati_residuals_of_the_report_design(forward):
+    *_, des = forward
+    for s in des.subsystems:
+        assert s.residual < 1e-10, s.name
+        assert all(e.real < 0 for e in s.eigenvalues)
+        np.testing.assert_allclose(s.P, s.P.T)
+        assert np.linalg.eigvalsh(s.P).min() > 0
+
+
+def test_report_design_values(forward):
+    """The report's loops: altitude K = [-sqrt(50), .], fast rate poles near -B/J."""
+    *_, des = forward
+    assert des["altitude"].K[0, 0] == pytest.approx(-math.sqrt(50))  # b < 0: thrust pushes up
+    assert des["yaw"].K[0, 0] == pytest.approx(math.sqrt(50))
+    assert min(e.real for e in des["roll"].eigenvalues) == pytest.approx(-14492.75, rel=1e-4)
+    assert des.stable and des.marginal_states == ("pN", "pE")
+    # the block gain holds each loop's K at its states
+    assert des.K_block[1, STATE_NAMES.index("phi")] == des["roll"].K[0, 1]
+    assert np.count_nonzero(des.K_block) == 10
+
+
+def test_riccati_residual_detects_a_wrong_solution():
+    A, B, Q, R = np.array([[0.0]]), np.array([[1.0]]), np.array([[1.0]]), np.array([[1.0]])
+    assert riccati_residual(A, B, Q, R, np.array([[1.0]])) < 1e-15
+    assert riccati_residual(A, B, Q, R, np.array([[1.5]])) > 0.1
+
+
+def test_not_stabilizable_subsystem_names_the_mode():
+    with pytest.raises(DesignError, match=r"sys: not stabilizable: the mode at eigenvalue 1 \(in a\)"):
+        lqr(np.diag([1.0, -2.0]), [[0.0], [1.0]], np.eye(2), [[1.0]], name="sys", state_names=["a", "b"])
+
+
+def test_unstable_coupled_loop_is_detected():
+    """Two states each stable alone (-1), destabilized by couplings: eigenvalues -1 +- sqrt(50)."""
+    A_cl = -np.eye(12)
+    A_cl[3, 4], A_cl[4, 3] = 10.0, 5.0
+    K = np.ones((4, 12))  # every state fed back: no marginal positions
+    eig, marginal, stable = closed_loop_stability(A_cl, K)
+    assert not stable and marginal == ()
+    assert max(e.real for e in eig) == pytest.approx(-1 + math.sqrt(50))
+
+
+def test_design_on_report_partition_is_stable_on_hover(forward):
+    from quadctl import config, pipeline
+
+    cfg = config.load("hover")
+    trim = pipeline.trim_of(cfg)
+    linear = pipeline.linear_of(cfg, trim)
+    des = design(decouple(linear.A, linear.B, REPORT_PARTITION), linear.A, linear.B, pipeline.weights_of(cfg))
+    assert des.stable

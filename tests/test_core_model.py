@@ -1,0 +1,119 @@
+"""The CasADi model: Jacobians, kinematics, conservation laws, the report's equilibrium."""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from quadctl.layout import STATE_INDEX
+from quadctl.model import Vehicle, build_model, euler_rates_matrix, evaluate, rotation_earth_to_body
+
+FD_STEP = 1e-6
+"""Central differences: truncation ~ h^2 |f'''| ~ 1e-12, round-off ~ eps |f| / h ~ 1e-10 (scaled)."""
+FD_RTOL = 1e-6
+
+
+def _random_point(rng):
+    x = rng.normal(size=12) * 0.3
+    x[STATE_INDEX["theta"]] = rng.uniform(-1.0, 1.0)  # stay off the Euler singularity
+    u = np.array([rng.uniform(0.3, 1.0), *rng.normal(size=3) * 1e-3])
+    return x, u
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_jacobians_match_central_differences(seed):
+    rng = np.random.default_rng(seed)
+    x, u = _random_point(rng)
+    vehicle = Vehicle(drag=(0.22, 0.3, 0.1))  # a nonzero Kz exercises every drag term
+    a, b = (np.asarray(m) for m in build_model().jacobians(x, u, vehicle.vector()))
+    a_fd = np.column_stack([(evaluate(x + FD_STEP * e, u, vehicle) - evaluate(x - FD_STEP * e, u, vehicle))
+                            / (2 * FD_STEP) for e in np.eye(12)])
+    b_fd = np.column_stack([(evaluate(x, u + FD_STEP * e, vehicle) - evaluate(x, u - FD_STEP * e, vehicle))
+                            / (2 * FD_STEP) for e in np.eye(4)])
+    for exact, approx, name in ((a, a_fd, "A"), (b, b_fd, "B")):
+        err = np.abs(exact - approx).max() / max(1.0, np.abs(exact).max())
+        assert err < FD_RTOL, f"{name}: max diff {err:.4E}"
+
+
+def test_euler_rate_inverse_matches_H():
+    """The closed-form H^-1 in the dynamics inverts MODEL.md's H: H @ (dphi, dtheta, dpsi) = omega."""
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        x, u = _random_point(rng)
+        euler_dot = evaluate(x, u, Vehicle())[6:9]
+        h = np.asarray(ca.DM(euler_rates_matrix(x[6], x[7])))
+        np.testing.assert_allclose(h @ euler_dot, x[9:12], atol=1e-12)
+
+
+def test_rotation_is_orthonormal_and_321():
+    r = np.asarray(ca.DM(rotation_earth_to_body(0.3, -0.2, 1.1)))
+    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-14)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    # pure yaw rotates north into the body x axis at -psi
+    ry = np.asarray(ca.DM(rotation_earth_to_body(0.0, 0.0, 0.5)))
+    np.testing.assert_allclose(ry @ [1, 0, 0], [math.cos(0.5), -math.sin(0.5), 0], atol=1e-15)
+
+
+def test_thrust_points_up_and_hover_balances():
+    """F_T = [0, 0, -T]: at T = m g the level vehicle holds still; at T = 0 it falls at g."""
+    v = Vehicle()
+    x = np.zeros(12)
+    hover = evaluate(x, [v.mass * v.gravity, 0, 0, 0], v)
+    np.testing.assert_allclose(hover, 0.0, atol=1e-15)
+    fall = evaluate(x, [0, 0, 0, 0], v)
+    assert fall[STATE_INDEX["w"]] == pytest.approx(v.gravity)  # body z is down
+
+
+def test_report_equilibrium_balances_only_with_corrected_thrust_sign():
+    """MODEL.md: the report's trim (theta = -0.2119, T = m g cos theta) is exact with -T, not with +T."""
+    v = Vehicle()
+    theta = -0.2119
+    x = np.zeros(12)
+    x[[3, 5, 7]] = math.cos(theta), math.sin(theta), theta
+    thrust = v.mass * v.gravity * math.cos(theta)
+    xdot = evaluate(x, [thrust, 0, 0, 0], v)
+    assert np.abs(xdot[3:]).max() < 1e-3  # 4-digit theta: residual of order 1e-4
+    # the report's literal +T (equivalently -T into the corrected model) gives ~2 g cos(theta) in w
+    wrong = evaluate(x, [-thrust, 0, 0, 0], Vehicle(drag=(-0.22, -0.22, 0.0)))
+    assert wrong[STATE_INDEX["w"]] == pytest.approx(2 * v.gravity * math.cos(theta), rel=1e-3)
+
+
+def _rk4_open_loop(x, u, vehicle, dt, n):
+    f = build_model().f
+    p = vehicle.vector()
+    for _ in range(n):
+        k1 = np.asarray(f(x, u, p)).ravel()
+        k2 = np.asarray(f(x + dt / 2 * k1, u, p)).ravel()
+        k3 = np.asarray(f(x + dt / 2 * k2, u, p)).ravel()
+        k4 = np.asarray(f(x + dt * k3, u, p)).ravel()
+        x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
+def test_torque_free_rotation_conserves_energy_and_momentum():
+    """Euler's equations with M = 0: 0.5 w'Jw and |Jw| are invariants of the exact flow."""
+    v = Vehicle()
+    J = np.diag(v.inertia)
+    x = np.zeros(12)
+    x[9:12] = [3.0, -2.0, 1.5]
+    end = _rk4_open_loop(x, np.zeros(4), v, 1e-3, 2000)
+    w0, w1 = x[9:12], end[9:12]
+    assert 0.5 * w1 @ J @ w1 == pytest.approx(0.5 * w0 @ J @ w0, rel=1e-9)
+    assert np.linalg.norm(J @ w1) == pytest.approx(np.linalg.norm(J @ w0), rel=1e-9)
+
+
+def test_free_fall_conserves_mechanical_energy_while_tumbling():
+    """T = 0 (so no rotor drag): 0.5 |V|^2 - g pD is constant; the omega x V term does no work."""
+    v = Vehicle()
+    x = np.zeros(12)
+    x[3:6] = [1.0, -0.5, 0.2]
+    x[9:12] = [0.7, -0.4, 0.9]
+    end = _rk4_open_loop(x, np.zeros(4), v, 1e-3, 1500)
+
+    def energy(s):
+        return 0.5 * s[3:6] @ s[3:6] - v.gravity * s[STATE_INDEX["pD"]]
+
+    assert energy(end) == pytest.approx(energy(x), rel=1e-9, abs=1e-9)

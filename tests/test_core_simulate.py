@@ -1,0 +1,110 @@
+"""RK4 simulation: step choice, refusal of unstable steps, compiled vs interpreted, convergence."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from quadctl import codegen, pipeline
+from quadctl.errors import StepSizeError
+from quadctl.layout import STATE_INDEX
+from quadctl.simulate import (
+    ACCURACY_STEP,
+    ClosedLoop,
+    max_stable_step,
+    plan_step,
+    rk4_amplification,
+    simulate,
+)
+
+
+@pytest.fixture(scope="module")
+def loop(forward):
+    cfg, trim, linear, _, des = forward
+    return cfg, pipeline.closed_loop_of(cfg, linear, des.K_block, pipeline.reference_rate(trim))
+
+
+def test_rk4_real_axis_limit():
+    """RK4 is stable on the negative real axis up to h lambda = -2.785293563 (a known constant)."""
+    assert max_stable_step(-1.0) == pytest.approx(2.785293563, rel=1e-8)
+    assert max_stable_step(-100.0) == pytest.approx(0.02785293563, rel=1e-8)
+    assert max_stable_step(0.0) == math.inf
+    h = max_stable_step(-3 + 4j)
+    assert rk4_amplification(h * (-3 + 4j)) == pytest.approx(1.0, abs=1e-9)
+    assert rk4_amplification(1.01 * h * (-3 + 4j)) > 1.0
+
+
+def test_auto_step_is_stable_and_accurate(loop):
+    _, cl = loop
+    plan = plan_step(cl.eigenvalues, cl.owners, 10.0, "auto")
+    assert plan.auto and plan.dt * abs(plan.fastest_eigenvalue) <= ACCURACY_STEP + 1e-12
+    assert plan.dt < plan.max_stable_dt
+    assert plan.n_steps * plan.dt == pytest.approx(10.0)
+    assert plan.fastest_owner == "roll"  # 1/Jxx is the largest input gain
+
+
+def test_unstable_user_step_is_refused_with_eigenvalue_subsystem_and_limit(loop):
+    _, cl = loop
+    with pytest.raises(StepSizeError, match=r"simulation.dt = 0.001 s is unstable for RK4: the closed-loop "
+                       r"eigenvalue -14492.8 rad/s \(subsystem roll\) needs dt <= 0.000192\d* s"):
+        plan_step(cl.eigenvalues, cl.owners, 10.0, 1e-3)
+    ok = plan_step(cl.eigenvalues, cl.owners, 1.0, 1.9e-4)
+    assert ok.dt == 1.9e-4 and not ok.auto
+
+
+def test_closed_loop_returns_to_trim(loop):
+    cfg, cl = loop
+    sim = pipeline.simulation_of(cfg, cl)
+    assert sim.status == "ok" and sim.t[-1] == pytest.approx(cfg.simulation.duration)
+    err = sim.x[-1] - sim.x_ref[-1]
+    regulated = [STATE_INDEX[s] for s in ("pD", "u", "v", "w", "phi", "theta", "psi", "p", "q", "r")]
+    assert np.abs(err[regulated]).max() < 1e-4
+    # the unregulated north position keeps moving at the flight speed
+    assert sim.x[-1, 0] == pytest.approx(cfg.simulation.duration * 1.0, abs=0.5)
+
+
+def test_compiled_and_interpreted_loops_agree(loop, monkeypatch):
+    cfg, cl = loop
+    x0 = pipeline.initial_state(cfg, cl.x_trim)
+    compiled = simulate(cl, x0, 0.02, 2e-5)
+    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
+    codegen.get_loop.cache_clear()
+    try:
+        interpreted = simulate(cl, x0, 0.02, 2e-5)
+    finally:
+        codegen.get_loop.cache_clear()
+    assert compiled.backend == "compiled" and interpreted.backend == "casadi"
+    diff = np.abs(compiled.x - interpreted.x).max()
+    assert diff < 1e-12, f"Max diff is {diff:.4E}"
+    np.testing.assert_allclose(compiled.u, interpreted.u, atol=1e-12)
+
+
+def test_rk4_is_fourth_order(loop):
+    """Halving dt divides the global error by ~16 (reference: dt / 8)."""
+    cfg, cl = loop
+    x0 = pipeline.initial_state(cfg, cl.x_trim)
+    runs = [simulate(cl, x0, 0.01, h).x[-1] for h in (4e-5, 2e-5, 2.5e-6)]
+    e1, e2 = np.abs(runs[0] - runs[2]).max(), np.abs(runs[1] - runs[2]).max()
+    assert 12 < e1 / e2 < 24  # order 3 would give 8, order 5 would give 32
+
+
+def test_divergence_stops_and_keeps_what_was_computed(loop):
+    cfg, cl = loop
+    bad = ClosedLoop(**{**cl.__dict__, "K": -cl.K})  # positive feedback
+    sim = simulate(bad, pipeline.initial_state(cfg, cl.x_trim), 5.0, 1e-4)
+    assert sim.status in ("diverged", "left_valid_range")
+    assert sim.steps < 50000 and len(sim.t) >= 2 and np.all(np.isfinite(sim.x[:-1]))
+    assert "saved" in sim.message
+
+
+def test_leaving_the_euler_range_is_reported(loop):
+    cfg, cl = loop
+    free = ClosedLoop(**{**cl.__dict__, "K": np.zeros((4, 12)), "eigenvalues": np.zeros(12)})
+    x0 = cl.x_trim.copy()
+    x0[STATE_INDEX["q"]] = 3.0  # pitch up at 3 rad/s with no control
+    sim = simulate(free, x0, 2.0, 1e-3)
+    assert sim.status == "left_valid_range"
+    assert "pitch" in sim.message and "Euler" in sim.message
+    assert abs(sim.x[-2, STATE_INDEX["theta"]]) <= math.radians(85)

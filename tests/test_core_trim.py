@@ -1,0 +1,64 @@
+"""Trim: the report's numbers, hover, residuals across flight conditions, no-equilibrium cases."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from quadctl.errors import TrimError
+from quadctl.layout import STATE_INDEX
+from quadctl.model import Vehicle, evaluate
+from quadctl.trim import RESIDUAL_TOL, solve_trim
+
+
+def test_report_forward_trim_to_four_digits():
+    t = solve_trim([1.0, 0.0, 0.0], 0.0, [0, 0, -1], Vehicle())
+    assert round(t.x[STATE_INDEX["theta"]], 4) == -0.2119
+    assert round(t.u[0], 4) == 0.6522
+    theta = t.x[STATE_INDEX["theta"]]
+    # closed forms of the balance (MODEL.md): T = m g cos(theta) and 0.22 cos^2(theta) = -sin(theta)
+    assert t.u[0] == pytest.approx(0.068 * 9.81 * math.cos(theta), rel=1e-12)
+    assert 0.22 * math.cos(theta) ** 2 == pytest.approx(-math.sin(theta), rel=1e-12)
+    np.testing.assert_allclose(t.x[[3, 5]], [math.cos(theta), math.sin(theta)], rtol=1e-12)
+
+
+def test_hover_is_mg():
+    v = Vehicle(mass=0.1, gravity=9.8)
+    t = solve_trim([0, 0, 0], 0.4, [1, 2, -3], v)
+    assert t.u[0] == pytest.approx(0.98, rel=1e-14)
+    np.testing.assert_allclose(t.x[6:8], 0.0, atol=1e-14)
+    np.testing.assert_allclose(t.x[:3], [1, 2, -3])
+
+
+@pytest.mark.parametrize("velocity,yaw", [
+    ([1, 0, 0], 0.0), ([0, 2, 0], 0.3), ([3, -2, -1], -2.0), ([0, 0, -2], 1.0),
+    ([5, 5, 0.5], 3.0), ([0.2, 0.1, 1.5], -0.7), ([8, 0, 0], 0.0),
+])
+def test_equilibrium_residual_and_position_rate(velocity, yaw):
+    v = Vehicle(drag=(0.22, 0.25, 0.05))
+    t = solve_trim(velocity, yaw, [0, 0, -1], v)
+    xdot = evaluate(t.x, t.u, v)
+    assert np.abs(xdot[3:]).max() < RESIDUAL_TOL
+    np.testing.assert_allclose(xdot[:3], velocity, atol=1e-12)  # moves at the asked velocity
+    assert t.x[STATE_INDEX["psi"]] == yaw and t.u[0] > 0 and not np.any(t.u[1:])
+
+
+def test_heading_rotates_the_problem_not_the_answer():
+    """Flying along the heading gives the same attitude and thrust for any heading."""
+    base = solve_trim([2, 0, 0], 0.0, [0, 0, 0], Vehicle())
+    for psi in (0.5, 2.0, -2.5):
+        t = solve_trim([2 * math.cos(psi), 2 * math.sin(psi), 0], psi, [0, 0, 0], Vehicle())
+        np.testing.assert_allclose(t.x[6:8], base.x[6:8], atol=1e-12)
+        assert t.u[0] == pytest.approx(base.u[0], rel=1e-12)
+
+
+def test_climb_with_body_z_drag_past_its_limit_has_no_equilibrium():
+    with pytest.raises(TrimError, match=r"no equilibrium at velocity_ned \[0, 0, -10\].*thrust .* <= 0"):
+        solve_trim([0, 0, -10], 0.0, [0, 0, 0], Vehicle(drag=(0.2, 0.2, 0.2)))
+
+
+def test_speed_beyond_the_euler_range_is_refused_with_the_angle():
+    with pytest.raises(TrimError, match=r"needs pitch -8\d\.\d deg, beyond the 80 deg"):
+        solve_trim([200, 0, 0], 0.0, [0, 0, 0], Vehicle())
