@@ -190,7 +190,8 @@ def _describe(exc: ValidationError, data: Any, label: str) -> str:
     err = exc.errors()[0]
     loc = [part for part in err["loc"] if not _is_union_tag(part)]
     path = key_path(loc)
-    more = f" (+{exc.error_count() - 1} more)" if exc.error_count() > 1 else ""
+    distinct = {tuple(p for p in e["loc"] if not _is_union_tag(p)) for e in exc.errors()}
+    more = f" (+{len(distinct) - 1} more)" if len(distinct) > 1 else ""
     kind = err["type"]
     if kind == "extra_forbidden":
         parent = _section_model(loc[:-1])
@@ -201,10 +202,62 @@ def _describe(exc: ValidationError, data: Any, label: str) -> str:
     if kind == "missing":
         return f"{label}: {path}: required key is missing; add it{more}"
     value = _lookup(data, loc)
-    msg = err["msg"]
-    if kind in ("finite_number",):
-        msg = "must be a finite number (not NaN or infinity)"
-    return f"{label}: {path} = {_show(value)}: {msg}{more}"
+    return f"{label}: {path} = {_show(value)}: {_expected(err, loc)}{more}"
+
+
+UNION_HINTS = {
+    "dt": "must be a positive number of seconds, or auto",
+    "Q": "must be a list of numbers (the diagonal) or a list of rows (a full matrix)",
+    "R": "must be a list of numbers (the diagonal) or a list of rows (a full matrix)",
+}
+"""Fields whose type is a union: one plain sentence instead of pydantic's per-branch errors."""
+
+
+def _expected(err: dict, loc: list) -> str:
+    """What the value should be, in words, with the field's unit from the schema."""
+    kind, ctx = err["type"], err.get("ctx") or {}
+    names = [p for p in loc if isinstance(p, str)]
+    if names and names[-1] in UNION_HINTS:
+        return UNION_HINTS[names[-1]]
+    field = _field_info(loc)
+    unit = f" ({field.description})" if field is not None and field.description else ""
+    if kind == "finite_number":
+        return "must be a finite number (not NaN or infinity)"
+    if kind == "greater_than":
+        return f"must be greater than {ctx.get('gt')}{unit}"
+    if kind == "greater_than_equal":
+        return f"must be at least {ctx.get('ge')}{unit}"
+    if kind in ("float_type", "float_parsing", "int_type", "int_parsing"):
+        return f"must be a number{unit}"
+    if kind in ("too_short", "too_long"):
+        lo, hi = ctx.get("min_length"), ctx.get("max_length")
+        if field is not None:
+            meta = {type(m).__name__: m for m in field.metadata}
+            lo = getattr(meta.get("MinLen"), "min_length", lo)
+            hi = getattr(meta.get("MaxLen"), "max_length", hi)
+        count = f"exactly {lo}" if lo is not None and lo == hi else f"at least {lo}" if hi is None else \
+            f"{lo} to {hi}"
+        return f"must be a list of {count} items{unit}"
+    if kind == "list_type":
+        return f"must be a list{unit}"
+    if kind in ("string_type",):
+        return "must be text"
+    if kind in ("bool_type", "bool_parsing"):
+        return "must be true or false"
+    if kind in ("dict_type", "model_type", "model_attributes_type"):
+        return "must be a mapping of keys"
+    if kind == "string_pattern_mismatch":
+        return "must use only letters, digits, '_', '.' and '-'"
+    if kind == "string_too_short":
+        return "must not be empty"
+    return err["msg"]
+
+
+def _field_info(loc: list):
+    """The pydantic FieldInfo a key path ends at (None inside dict values and lists)."""
+    parent = _section_model([p for p in loc if not isinstance(p, int)][:-1])
+    name = next((p for p in reversed(loc) if isinstance(p, str)), None)
+    return parent.model_fields.get(name) if parent is not None and name else None
 
 
 def _is_union_tag(part: Any) -> bool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import inspect
 import os
 import sys
 
@@ -21,15 +22,12 @@ EXIT_CODES_HELP = (
 )
 
 
-def debug_enabled() -> bool:
-    """``--debug`` on the command line or ``QUADCTL_DEBUG=1``: show tracebacks."""
+def debug_enabled(ctx: typer.Context | None) -> bool:
+    """``--debug`` on the command line (the root context's ``obj``) or ``QUADCTL_DEBUG=1``."""
     if os.environ.get("QUADCTL_DEBUG") == "1":
         return True
-    import click
-
-    ctx = click.get_current_context(silent=True)
-    root = ctx.find_root() if ctx else None
-    return bool(root and isinstance(root.obj, dict) and root.obj.get("debug"))
+    root = ctx.find_root() if ctx is not None else None
+    return bool(root is not None and isinstance(root.obj, dict) and root.obj.get("debug"))
 
 
 def fail(message: str, code: int) -> typer.Exit:
@@ -45,19 +43,20 @@ def handled(fn):
     def wrapper(*args, **kwargs):
         from quadctl.errors import QuadctlError
 
+        ctx = kwargs.pop(_CTX, None)
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, SystemExit):
             raise
         except QuadctlError as exc:
-            if debug_enabled():
+            if debug_enabled(ctx):
                 raise
             raise fail(str(exc), exc.exit_code) from None
         except KeyboardInterrupt:
             raise fail("interrupted; artifacts written before this point are complete",
                        EXIT_INTERRUPTED) from None
         except Exception as exc:  # a bug: say so in one line, traceback on --debug
-            if debug_enabled():
+            if debug_enabled(ctx):
                 raise
             where = ""
             tb = sys.exc_info()[2]
@@ -69,4 +68,11 @@ def handled(fn):
                        "rerun with --debug for the traceback and please report it",
                        EXIT_INTERNAL) from None
 
+    # typer hands the context to a parameter annotated typer.Context: add one to the signature
+    sig = inspect.signature(fn)
+    ctx_param = inspect.Parameter(_CTX, inspect.Parameter.KEYWORD_ONLY, annotation=typer.Context)
+    wrapper.__signature__ = sig.replace(parameters=[*sig.parameters.values(), ctx_param])
     return wrapper
+
+
+_CTX = "quadctl_context"
