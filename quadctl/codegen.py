@@ -6,9 +6,18 @@ the system C compiler together with the small loop in ``_driver.c``, and cached 
 keyed by a hash of the generated source. Without a C compiler, the same CasADi functions
 run in CasADi's own virtual machine from a Python loop: same results, slower.
 
-Constants the step reads are packed into one vector ``c`` (layout :data:`CONST_LAYOUT`).
-The gain's sparsity pattern and the saturation mode are baked into the generated code,
-so a block-diagonal gain costs only its nonzeros.
+Constants the step reads are packed into one vector ``c`` (layout :data:`CONST_LAYOUT`, then
+:func:`const_layout` for a controller with integrators). The gain's sparsity pattern, the
+saturation mode and the integrated states are baked into the generated code, so a
+block-diagonal gain costs only its nonzeros.
+
+Controller states. An LQI controller (``lqr.<subsystem>.integral``) carries ``nz`` integrator
+states ``z`` next to the 12 plant states; the loop then integrates ``X = [x; z]`` (``nz + 12``
+numbers). With continuous feedback, ``dz/dt = -(x_i - x_ref_i)`` is integrated by the same RK4
+step as the plant; with a zero-order hold, ``z`` is a forward-Euler accumulator updated once per
+controller sample, ``z <- z - Ts (x_i - x_ref_i)`` (MATLAB ``lqi`` for discrete systems). Either
+way the integration of ``z`` stops while saturation alters an input that ``z`` drives
+(conditional-integration anti-wind-up, gated by the ``antiwindup`` constant).
 """
 
 from __future__ import annotations
@@ -42,19 +51,40 @@ CONST_LAYOUT: tuple[tuple[str, tuple[int, ...]], ...] = (
     ("lo", (N_INPUTS,)),           # actuator lower limits (box: on T, A, E, R)
     ("hi", (N_INPUTS,)),
 )
+INTEGRAL_CONSTANTS = (
+    ("Ki", lambda nz: (N_INPUTS, nz)),          # u -= Ki z, column-major
+    ("antiwindup", lambda nz: (nz, N_INPUTS)),  # 1 where input j's saturation freezes integrator i
+    ("Ts", lambda nz: (1,)),                    # controller sample time (s) of the held accumulator
+)
+"""Constants appended after :data:`CONST_LAYOUT` when the controller has ``nz > 0`` integrators."""
+ANTIWINDUP_TOL = 1e-10
+"""An input counts as saturated when clipping changed it by more than this (N or N m): far above
+the round-off of mixing and unmixing (~1e-15), far below any clip that matters."""
 SATURATION_MODES = ("none", "box", "motors")
 COMPILE_FLAGS = ("-O3", "-fno-math-errno", "-fPIC", "-shared")
 """-fno-math-errno lets sin/cos inline and pair; no -ffast-math, so NaN still propagates."""
 
 
-def const_size() -> int:
-    return sum(int(np.prod(shape)) for _, shape in CONST_LAYOUT)
+def const_layout(nz: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
+    """The constant layout of a controller with ``nz`` integrator states (``CONST_LAYOUT`` when 0)."""
+    if nz == 0:
+        return CONST_LAYOUT
+    return CONST_LAYOUT + tuple((name, shape(nz)) for name, shape in INTEGRAL_CONSTANTS)
+
+
+def const_size(nz: int = 0) -> int:
+    return sum(int(np.prod(shape)) for _, shape in const_layout(nz))
 
 
 def pack_constants(**values) -> np.ndarray:
-    """Pack named constants into the ``c`` vector (missing ones: zero; ``mix``: identity)."""
+    """Pack named constants into the ``c`` vector (missing ones: zero; ``mix``: identity).
+
+    A controller with integrators passes ``Ki`` (4, nz); ``nz`` is read from its shape, and
+    ``antiwindup`` (nz, 4) and ``Ts`` (s) then belong to the layout too.
+    """
+    nz = np.shape(values["Ki"])[1] if "Ki" in values else 0
     out = []
-    for name, shape in CONST_LAYOUT:
+    for name, shape in const_layout(nz):
         default = np.eye(N_INPUTS) if name in ("mix", "mix_inv") else np.zeros(shape)
         arr = np.asarray(values.pop(name, default), dtype=float)
         if arr.shape != shape:
@@ -67,22 +97,37 @@ def pack_constants(**values) -> np.ndarray:
 
 @dataclass(frozen=True)
 class StepFunctions:
-    """The CasADi functions of one variant (gain pattern, saturation mode)."""
+    """The CasADi functions of one variant (gain pattern, saturation mode, integrated states).
 
-    step: ca.Function      # (x, t, dt, c, d, nm) -> (x_next, u)
-    ctrl: ca.Function      # (x_meas, t, c) -> u
-    step_ol: ca.Function   # (x, u, dt, c, d) -> x_next
+    ``X = [x; z]`` is the plant state followed by the ``nz`` integrator states.
+    """
+
+    step: ca.Function      # (X, t, dt, c, d, nm) -> (X_next, u): continuous feedback in every RK4 stage
+    ctrl: ca.Function      # (x_meas, z, t, c) -> (u, z_next): one controller sample (z_next = z + Ts dz)
+    step_ol: ca.Function   # (x, u, dt, c, d) -> x_next: the plant under a held input
+    nz: int = 0
 
 
-def build_step_functions(pattern: tuple[bool, ...], saturation: str) -> StepFunctions:
-    """Closed-loop RK4 step functions for a gain sparsity ``pattern`` (48 bools, column-major)."""
+def build_step_functions(pattern: tuple[bool, ...], saturation: str,
+                         integral: tuple[int, ...] = ()) -> StepFunctions:
+    """Closed-loop RK4 step functions.
+
+    Parameters
+    ----------
+    pattern : tuple of 48 bool
+        Sparsity of the (4, 12) state gain, column-major.
+    saturation : {"none", "box", "motors"}
+    integral : tuple of int
+        Plant-state index integrated by each controller integrator (empty: no integrators).
+    """
     if saturation not in SATURATION_MODES:
         raise ValueError(f"saturation must be one of {SATURATION_MODES}")
+    nz = len(integral)
     f = build_model().f_disturbed
-    c = ca.SX.sym("c", const_size())
+    c = ca.SX.sym("c", const_size(nz))
     parts = {}
     offset = 0
-    for name, shape in CONST_LAYOUT:
+    for name, shape in const_layout(nz):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -90,8 +135,7 @@ def build_step_functions(pattern: tuple[bool, ...], saturation: str) -> StepFunc
     mask = ca.DM(np.reshape(np.asarray(pattern, dtype=float), (N_INPUTS, N_STATES), order="F"))
     gain = parts["K"] * mask  # structural zeros vanish from the generated code
 
-    def control(x_meas, t):
-        cmd = parts["u_trim"] - gain @ (x_meas - (parts["x_ref"] + parts["x_rate"] * t))
+    def saturate(cmd):
         if saturation == "none":
             return cmd
         act = parts["mix"] @ cmd if saturation == "motors" else cmd
@@ -99,7 +143,26 @@ def build_step_functions(pattern: tuple[bool, ...], saturation: str) -> StepFunc
         act = ca.if_else(act > parts["hi"], parts["hi"], act)
         return parts["mix_inv"] @ act if saturation == "motors" else act
 
-    x = ca.SX.sym("x", N_STATES)
+    def control(x_meas, z, t):
+        """(u, dz/dt): the saturated input and the integrators' rates (anti-wind-up applied)."""
+        err = x_meas - (parts["x_ref"] + parts["x_rate"] * t)
+        cmd = parts["u_trim"] - gain @ err
+        if nz == 0:
+            return saturate(cmd), ca.SX(0, 1)
+        cmd = cmd - parts["Ki"] @ z
+        u_sat = saturate(cmd)
+        rate = -ca.vertcat(*[err[i] for i in integral])  # MATLAB lqi: dz/dt = r - y
+        if saturation != "none":
+            clipped = ca.if_else(ca.fabs(u_sat - cmd) > ANTIWINDUP_TOL, 1, 0)
+            frozen = parts["antiwindup"] @ clipped
+            rate = ca.if_else(frozen > 0.5, 0, rate)
+        return u_sat, rate
+
+    X = ca.SX.sym("x", N_STATES + nz)
+    x, z = X[:N_STATES], X[N_STATES:]
+    xo = ca.SX.sym("xo", N_STATES)
+    xm = ca.SX.sym("xm", N_STATES)
+    zs = ca.SX.sym("z", nz)
     u = ca.SX.sym("u", N_INPUTS)
     t = ca.SX.sym("t")
     dt = ca.SX.sym("dt")
@@ -107,19 +170,28 @@ def build_step_functions(pattern: tuple[bool, ...], saturation: str) -> StepFunc
     nm = ca.SX.sym("nm", N_STATES)
     p = parts["params"]
 
-    def rk4(rhs):
-        k1 = rhs(x, t)
-        k2 = rhs(x + dt / 2 * k1, t + dt / 2)
-        k3 = rhs(x + dt / 2 * k2, t + dt / 2)
-        k4 = rhs(x + dt * k3, t + dt)
-        return x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    def rk4(rhs, y):
+        k1 = rhs(y, t)
+        k2 = rhs(y + dt / 2 * k1, t + dt / 2)
+        k3 = rhs(y + dt / 2 * k2, t + dt / 2)
+        k4 = rhs(y + dt * k3, t + dt)
+        return y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
-    x_cl = rk4(lambda xs, ts: f(xs, control(xs + nm, ts), p, d))
-    x_ol = rk4(lambda xs, ts: f(xs, u, p, d))
+    def closed_rhs(ys, ts):
+        xs, zz = ys[:N_STATES], ys[N_STATES:]
+        u_now, z_rate = control(xs + nm, zz, ts)
+        xdot = f(xs, u_now, p, d)
+        return ca.vertcat(xdot, z_rate) if nz else xdot
+
+    x_cl = rk4(closed_rhs, X)
+    x_ol = rk4(lambda xs, ts: f(xs, u, p, d), xo)
+    u_ctrl, z_rate = control(xm, zs, t)
+    z_next = zs + parts["Ts"] * z_rate if nz else zs
     return StepFunctions(
-        step=ca.Function("qc_step", [x, t, dt, c, d, nm], [x_cl, control(x + nm, t)]),
-        ctrl=ca.Function("qc_ctrl", [x, t, c], [control(x, t)]),
-        step_ol=ca.Function("qc_step_ol", [x, u, dt, c, d], [x_ol]),
+        step=ca.Function("qc_step", [X, t, dt, c, d, nm], [x_cl, control(x + nm, z, t)[0]]),
+        ctrl=ca.Function("qc_ctrl", [xm, zs, t, c], [u_ctrl, z_next]),
+        step_ol=ca.Function("qc_step_ol", [xo, u, dt, c, d], [x_ol]),
+        nz=nz,
     )
 
 
@@ -153,7 +225,8 @@ class CompiledLoop:
 
     backend = "compiled"
 
-    def __init__(self, library: Path):
+    def __init__(self, library: Path, nz: int = 0):
+        self.nz = nz
         self._lib = ctypes.CDLL(str(library))
         dp = ctypes.POINTER(ctypes.c_double)
         lp = ctypes.POINTER(ctypes.c_long)
@@ -165,13 +238,24 @@ class CompiledLoop:
     def run(self, x0, t0, dt, n, c, dist, meas, hold, stride, lo, hi):
         """Integrate ``n`` steps of ``dt`` from ``x0``.
 
+        Parameters
+        ----------
+        x0, lo, hi : (12 + nz,) ndarray
+            Initial state ``[x; z]`` and the bounds that stop the run (NaN always stops it).
+        dist : (n, 6) ndarray or None
+            Body force and torque disturbance of each step (N, N m).
+        meas : (n, 12) ndarray or None
+            Measurement noise added to the state the controller sees at each step.
+        hold : int
+            0: feedback inside every RK4 stage; k > 0: a controller sample every k steps, held.
+
         Returns
         -------
-        (done, ks, xs, us) : steps completed, recorded step indices (r,), states (r, 12),
+        (done, ks, xs, us) : steps completed, recorded step indices (r,), states (r, 12 + nz),
         inputs (r, 4).
         """
         rows = record_rows(n, stride)
-        xs = np.empty((rows, N_STATES))
+        xs = np.empty((rows, N_STATES + self.nz))
         us = np.empty((rows, N_INPUTS))
         ks = np.empty(rows, dtype=np.int_)
         n_rec = ctypes.c_long(0)
@@ -191,10 +275,17 @@ class InterpretedLoop:
 
     def __init__(self, funcs: StepFunctions):
         self._f = funcs
+        self.nz = funcs.nz
 
     def run(self, x0, t0, dt, n, c, dist, meas, hold, stride, lo, hi):
         """Same contract as :meth:`CompiledLoop.run`."""
         zero6, zero12 = np.zeros(N_DISTURBANCES), np.zeros(N_STATES)
+        ns = N_STATES
+
+        def ctrl(xx, mk, t):
+            u, z_new = self._f.ctrl(xx[:ns] + mk, xx[ns:], t, c)
+            return np.asarray(u).ravel(), np.asarray(z_new).ravel()
+
         x = np.array(x0, dtype=float)
         u_hold = np.zeros(N_INPUTS)
         u_now = u_hold
@@ -206,10 +297,12 @@ class InterpretedLoop:
             dk = dist[k] if dist is not None else zero6
             mk = meas[k] if meas is not None else zero12
             if hold > 0:
+                z_new = x[ns:]
                 if k % hold == 0:
-                    u_hold = np.asarray(self._f.ctrl(x + mk, t, c)).ravel()
+                    u_hold, z_new = ctrl(x, mk, t)
                 u_now = u_hold
-                x_next = np.asarray(self._f.step_ol(x, u_hold, dt, c, dk)).ravel()
+                x_plant = np.asarray(self._f.step_ol(x[:ns], u_hold, dt, c, dk)).ravel()
+                x_next = np.concatenate([x_plant, z_new])
             else:
                 x_next, u_now = (np.asarray(v).ravel() for v in self._f.step(x, t, dt, c, dk, mk))
             if k % stride == 0:
@@ -227,8 +320,8 @@ class InterpretedLoop:
             us.append(u_hold if hold > 0 else u_now)
         else:
             mk = meas[k - 1] if (meas is not None and k > 0) else zero12
-            us.append(np.asarray(self._f.ctrl(x + mk, t0 + dt * k, c)).ravel())
-        return k, np.array(ks), np.array(xs), np.array(us)
+            us.append(ctrl(x, mk, t0 + dt * k)[0])
+        return k, np.array(ks), np.array(xs).reshape(len(xs), ns + self.nz), np.array(us)
 
 
 def _pointer(arr):
@@ -240,16 +333,17 @@ def _pointer(arr):
 
 
 @lru_cache(maxsize=32)
-def get_loop(pattern: tuple[bool, ...], saturation: str = "none"):
-    """The loop for a gain pattern and saturation mode: compiled if a C compiler exists.
+def get_loop(pattern: tuple[bool, ...], saturation: str = "none", integral: tuple[int, ...] = ()):
+    """The loop for a gain pattern, saturation mode and integrated states: compiled if a C
+    compiler exists.
 
     Compiles at most once per variant per machine (cached in :func:`cache_dir`).
     """
-    funcs = build_step_functions(pattern, saturation)
+    funcs = build_step_functions(pattern, saturation, integral)
     compiler = find_compiler()
     if compiler is None:
         return InterpretedLoop(funcs)
-    return CompiledLoop(_compile(funcs, compiler))
+    return CompiledLoop(_compile(funcs, compiler), funcs.nz)
 
 
 def _compile(funcs: StepFunctions, compiler: str) -> Path:
@@ -265,7 +359,8 @@ def _compile(funcs: StepFunctions, compiler: str) -> Path:
             os.chdir(cwd)
         generated = (Path(tmp) / "qc_gen.c").read_text()
     fns = (funcs.step, funcs.ctrl, funcs.step_ol)
-    sizes = (f"#define QC_SZ_ARG {max(f.sz_arg() for f in fns)}\n"
+    sizes = (f"#define QC_NZ {funcs.nz}\n"
+             f"#define QC_SZ_ARG {max(f.sz_arg() for f in fns)}\n"
              f"#define QC_SZ_RES {max(f.sz_res() for f in fns)}\n"
              f"#define QC_SZ_IW {max(f.sz_iw() for f in fns)}\n"
              f"#define QC_SZ_W {max(f.sz_w() for f in fns)}\n")

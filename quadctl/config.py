@@ -13,7 +13,7 @@ import hashlib
 import json
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Optional, Union
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -64,10 +64,41 @@ class SubsystemConfig(_Section):
 
 
 class LqrWeights(_Section):
-    """LQR weights of one subsystem: a list is a diagonal, a nested list a full matrix."""
+    """LQR weights of one subsystem: a list is a diagonal, a nested list a full matrix.
+
+    With ``integral`` (LQI, as MATLAB ``lqi``), ``Q`` weighs ``[states; integrals]``: it has one
+    entry more per integrated state, in the order of ``integral``.
+    """
 
     Q: Matrix
     R: Matrix
+    integral: list[str] = Field(
+        default_factory=list, description="states of this subsystem whose error is integrated (LQI)")
+
+
+class NoiseConfig(_Section):
+    """Process and sensor noise: zero-mean Gaussian, drawn every ``period`` and held in between."""
+
+    seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description="random seed; same seed, same run")
+    force: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
+        [0.0, 0.0, 0.0], description="N, standard deviation of the body-frame force disturbance")
+    torque: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
+        [0.0, 0.0, 0.0], description="N m, standard deviation of the body torque disturbance")
+    sensor: dict[str, NonNegative] = Field(
+        default_factory=dict, description="state name -> standard deviation of its measurement (state units)")
+    period: Optional[Positive] = Field(
+        None, description="s between noise samples; default the controller period, or 5 ms if continuous")
+
+
+class PlantConfig(_Section):
+    """The simulated vehicle where it differs from the design model (model mismatch)."""
+
+    mass: Optional[Positive] = Field(None, description="kg")
+    gravity: Optional[Positive] = Field(None, description="m/s^2")
+    inertia: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = Field(
+        None, description="kg m^2, diagonal")
+    drag: Optional[Annotated[list[NonNegative], Field(min_length=3, max_length=3)]] = Field(
+        None, description="Kc diagonal")
 
 
 class SimulationConfig(_Section):
@@ -77,6 +108,32 @@ class SimulationConfig(_Section):
     dt: Union[Literal["auto"], Positive] = Field("auto", description="s, or auto")
     initial_offset: dict[str, Number] = Field(
         default_factory=dict, description="state name -> offset from trim (state units)")
+    noise: Optional[NoiseConfig] = Field(None, description="process and sensor noise; absent: none")
+    plant: Optional[PlantConfig] = Field(
+        None, description="simulated vehicle parameters that differ from vehicle: (model mismatch)")
+
+
+class ControllerConfig(_Section):
+    """How the controller runs on the flight computer."""
+
+    rate: Optional[Positive] = Field(None, description="Hz; absent: continuous feedback, as in the report")
+    design: Literal["discrete", "continuous"] = Field(
+        "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
+        "run at that rate (emulation)")
+
+
+class MotorsConfig(_Section):
+    """Four rotors; defaults: the Parrot Mambo (MODEL.md, "Motors")."""
+
+    layout: Literal["x", "+"] = Field("x", description="x: rotors at +-45 deg from the nose; +: on the axes")
+    arm_length: Positive = Field(0.0624, description="m, from the centre to each rotor axis")
+    thrust_coefficient: Positive = Field(4.72e-8, description="N/(rad/s)^2, rotor thrust = k omega^2")
+    torque_coefficient: Positive = Field(0.00241, description="N m of yaw reaction torque per N of thrust")
+    min_thrust: NonNegative = Field(0.0, description="N per rotor")
+    max_thrust: Positive = Field(0.33, description="N per rotor")
+
+
+InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]
 
 
 class Config(_Section):
@@ -89,6 +146,10 @@ class Config(_Section):
     subsystems: dict[str, SubsystemConfig] | None = None
     lqr: dict[str, LqrWeights]
     simulation: SimulationConfig = SimulationConfig()
+    controller: ControllerConfig = ControllerConfig()
+    motors: Optional[MotorsConfig] = Field(None, description="rotor layout and thrust limits; saturates the inputs")
+    limits: Optional[dict[str, InputLimits]] = Field(
+        None, description="input name -> [low, high] (N or N m); box limits when there is no motors:")
 
     def partition(self) -> dict[str, SubsystemConfig]:
         """The subsystems in force: the config's, or the report's five."""
@@ -368,13 +429,38 @@ def _check_semantics(cfg: Config, label: str) -> None:
             fail("lqr", sorted(cfg.lqr), f"regulated subsystem `{name}` has no weights; "
                  f"add lqr.{name} with Q ({len(sub.states)} values) and R ({len(sub.inputs)})")
         weights = cfg.lqr[name]
-        check_weight(weights.Q, len(sub.states), f"lqr.{name}.Q", label, definite=False,
-                     names=sub.states)
+        for i, state in enumerate(weights.integral):
+            if state not in sub.states:
+                fail(f"lqr.{name}.integral[{i}]", state,
+                     f"not a state of subsystem `{name}`; integrate one of {', '.join(sub.states)}")
+            if state in weights.integral[:i]:
+                fail(f"lqr.{name}.integral[{i}]", state, "listed twice; integrate each state once")
+        check_weight(weights.Q, len(sub.states) + len(weights.integral), f"lqr.{name}.Q", label,
+                     definite=False, names=[*sub.states, *(f"integral of {s}" for s in weights.integral)])
         check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
                      names=sub.inputs)
     for state, value in cfg.simulation.initial_offset.items():
         if state not in STATE_NAMES:
             fail(f"simulation.initial_offset.{state}", value, _unknown(state, STATE_NAMES, "state"))
+    _check_flight(cfg, fail)
+
+
+def _check_flight(cfg: Config, fail) -> None:
+    """Controller rate, motors, limits and noise (issue 5)."""
+    if cfg.motors is not None and cfg.limits is not None:
+        fail("limits", cfg.limits, "give either motors: (limits from the rotors) or limits:, not both")
+    if cfg.motors is not None and cfg.motors.min_thrust >= cfg.motors.max_thrust:
+        fail("motors.min_thrust", cfg.motors.min_thrust,
+             f"must be below motors.max_thrust = {cfg.motors.max_thrust:g} N")
+    for name, (low, high) in (cfg.limits or {}).items():
+        if name not in INPUT_NAMES:
+            fail(f"limits.{name}", [low, high], _unknown(name, INPUT_NAMES, "input"))
+        if not low < high:
+            fail(f"limits.{name}", [low, high], "must be [low, high] with low < high")
+    noise = cfg.simulation.noise
+    for state, value in (noise.sensor if noise else {}).items():
+        if state not in STATE_NAMES:
+            fail(f"simulation.noise.sensor.{state}", value, _unknown(state, STATE_NAMES, "state"))
 
 
 def _unknown(name: str, allowed, kind: str) -> str:

@@ -2,15 +2,20 @@
 
 MATLAB ``lqr`` conventions: ``u = -K x``, ``K = R^-1 B^T P``, ``P`` the stabilizing solution of
 ``A^T P + P A - P B R^-1 B^T P + Q = 0``.
+
+With a controller rate, :func:`design` solves the discrete problem instead (MATLAB ``lqrd``, see
+:mod:`quadctl.discrete`); with ``integral`` states, each subsystem is augmented with their
+integrals first (MATLAB ``lqi``, see :mod:`quadctl.integral`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
 
+from quadctl import discrete, integral
 from quadctl.analysis import check, is_stable
 from quadctl.decouple import Decoupled
 from quadctl.errors import DesignError
@@ -76,13 +81,7 @@ def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
     (2.0, 2.0, (-2+0j))
     """
     A, B, Q, R = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, Q, R))
-    checks = check(A, B, names=state_names)
-    if not checks.stabilizable:
-        mode = checks.unstabilizable_modes[0]
-        raise DesignError(
-            f"{name}: not stabilizable: the mode at eigenvalue {_fmt_eig(mode.eigenvalue)} "
-            f"(in {', '.join(mode.states)}) is unstable and no input reaches it; "
-            "change the partition so an input drives those states")
+    require_stabilizable(A, B, name, state_names)
     try:
         P = scipy.linalg.solve_continuous_are(A, B, Q, R)
     except (np.linalg.LinAlgError, ValueError) as exc:
@@ -101,9 +100,25 @@ def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
     return LqrResult(K=K, P=P, E=E, residual=residual)
 
 
+def require_stabilizable(A, B, name: str, state_names=None) -> None:
+    """Raise DesignError naming the first unstable mode no input reaches (PBH)."""
+    checks = check(A, B, names=state_names)
+    if not checks.stabilizable:
+        mode = checks.unstabilizable_modes[0]
+        raise DesignError(
+            f"{name}: not stabilizable: the mode at eigenvalue {_fmt_eig(mode.eigenvalue)} "
+            f"(in {', '.join(mode.states)}) is unstable and no input reaches it; "
+            "change the partition so an input drives those states")
+
+
 @dataclass(frozen=True)
 class SubsystemDesign:
-    """LQR of one regulated subsystem."""
+    """LQR of one regulated subsystem.
+
+    ``K`` is the state gain (m, n). With integral action, ``Ki`` (m, ni) is the gain on the
+    integrators of ``integral`` and ``Q``, ``P`` are those of the augmented ``[x; z]``. For a
+    discrete design, ``eigenvalues`` are the ``s``-equivalents ``ln(z) / Ts`` of ``eigenvalues_z``.
+    """
 
     name: str
     states: tuple[str, ...]
@@ -114,6 +129,9 @@ class SubsystemDesign:
     P: np.ndarray
     eigenvalues: np.ndarray
     residual: float
+    integral: tuple[str, ...] = ()
+    Ki: np.ndarray | None = None
+    eigenvalues_z: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -133,7 +151,16 @@ class Design:
     marginal_states : tuple of str
         Unregulated position states: their exact zero eigenvalues are expected, not unstable.
     stable : bool
-        Every other eigenvalue of the coupled closed loop is in the open left half-plane.
+        Every other eigenvalue of the coupled closed loop is in the open left half-plane
+        (inside the unit circle for a discrete design).
+    rate : float or None
+        Hz of a discrete design (``lqrd`` at ``1 / rate``); None for a continuous one.
+    Ki_block : (4, nz) ndarray
+        ``u -= Ki_block z``: the integrator gains, one column per entry of ``integral_states``.
+    integral_states : tuple of str
+        The state each integrator integrates (``dz/dt = -(x_s - x_ref,s)``).
+    full_eigenvalues_z : ndarray or None
+        A discrete design's coupled eigenvalues ``z``; ``full_eigenvalues`` then holds ``ln(z) / Ts``.
     """
 
     subsystems: tuple[SubsystemDesign, ...]
@@ -143,6 +170,15 @@ class Design:
     full_eigenvalues: np.ndarray
     marginal_states: tuple[str, ...]
     stable: bool
+    rate: float | None = None
+    Ki_block: np.ndarray = field(default_factory=lambda: np.zeros((N_INPUTS, 0)))
+    integral_states: tuple[str, ...] = ()
+    full_eigenvalues_z: np.ndarray | None = None
+
+    @property
+    def sample_time(self) -> float | None:
+        """s between controller samples (None: continuous)."""
+        return None if self.rate is None else 1.0 / self.rate
 
     def __getitem__(self, name: str) -> SubsystemDesign:
         for sub in self.subsystems:
@@ -151,7 +187,8 @@ class Design:
         raise KeyError(name)
 
 
-def design(decoupled: Decoupled, A, B, weights: dict) -> Design:
+def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = None,
+           integral: dict | None = None) -> Design:
     """LQR per regulated subsystem, assembled into a block gain and checked on ``(A, B)``.
 
     Parameters
@@ -161,7 +198,13 @@ def design(decoupled: Decoupled, A, B, weights: dict) -> Design:
         The full coupled model the block gain is checked on.
     B : (12, 4) array_like
     weights : dict
-        ``subsystem name -> (Q, R)`` as (n, n) and (m, m) arrays.
+        ``subsystem name -> (Q, R)`` as (n, n) and (m, m) arrays; with integral action ``Q`` is
+        (n + ni, n + ni), weighing ``[states; integrals]``.
+    rate : float, optional
+        Hz. Given: a discrete design at ``Ts = 1 / rate`` (MATLAB ``lqrd``: ZOH plant, weights
+        integrated over a sample), checked on the ZOH discretization of ``(A, B)``.
+    integral : dict, optional
+        ``subsystem name -> states`` to integrate (LQI); see :mod:`quadctl.integral`.
 
     Returns
     -------
@@ -172,39 +215,106 @@ def design(decoupled: Decoupled, A, B, weights: dict) -> Design:
     DesignError
         A subsystem is not stabilizable or its Riccati solve fails.
     """
+    Ts = None if rate is None else 1.0 / rate
+    integral = integral or {}
     K_block = np.zeros((N_INPUTS, N_STATES))
     Q_block = np.zeros((N_STATES, N_STATES))
     R_block = np.zeros((N_INPUTS, N_INPUTS))
+    ki_columns: list[np.ndarray] = []
+    integral_states: list[str] = []
     subs = []
     for sub in decoupled.regulated:
         Q, R = (np.atleast_2d(np.asarray(m, dtype=float)) for m in weights[sub.name])
-        res = lqr(sub.A, sub.B, Q, R, name=f"subsystem {sub.name}", state_names=sub.states)
+        ints = tuple(integral.get(sub.name, ()))
+        K, Ki, P, eig_s, eig_z, residual = _solve_subsystem(sub, Q, R, ints, Ts)
         rows = [INPUT_INDEX[i] for i in sub.inputs]
         cols = sub.state_index
-        K_block[np.ix_(rows, cols)] = res.K
-        Q_block[np.ix_(cols, cols)] = Q
+        n = len(cols)
+        K_block[np.ix_(rows, cols)] = K
+        Q_block[np.ix_(cols, cols)] = Q[:n, :n]
         R_block[np.ix_(rows, rows)] = R
+        for j, state in enumerate(ints):
+            column = np.zeros(N_INPUTS)
+            column[rows] = Ki[:, j]
+            ki_columns.append(column)
+            integral_states.append(state)
         subs.append(SubsystemDesign(name=sub.name, states=sub.states, inputs=sub.inputs, Q=Q, R=R,
-                                    K=res.K, P=res.P, eigenvalues=res.E, residual=res.residual))
-    eig, marginal, stable = closed_loop_stability(np.asarray(A) - np.asarray(B) @ K_block, K_block)
+                                    K=K, P=P, eigenvalues=eig_s, residual=residual, integral=ints,
+                                    Ki=Ki if ints else None, eigenvalues_z=eig_z))
+    Ki_block = np.array(ki_columns).T.reshape(N_INPUTS, len(ki_columns))
+    A_cl = closed_loop_matrix(A, B, K_block, Ki_block, tuple(integral_states), Ts)
+    eig, marginal, stable = closed_loop_stability(A_cl, K_block, sample_time=Ts)
     return Design(subsystems=tuple(subs), K_block=K_block, Q_block=Q_block, R_block=R_block,
-                  full_eigenvalues=eig, marginal_states=marginal, stable=stable)
+                  full_eigenvalues=eig, marginal_states=marginal, stable=stable, rate=rate,
+                  Ki_block=Ki_block, integral_states=tuple(integral_states),
+                  full_eigenvalues_z=None if Ts is None else np.linalg.eigvals(A_cl))
 
 
-def closed_loop_stability(A_cl, K) -> tuple[np.ndarray, tuple[str, ...], bool]:
+def _solve_subsystem(sub, Q, R, ints, Ts):
+    """(K, Ki, P, eigenvalues s, eigenvalues z or None, residual) of one subsystem."""
+    n = len(sub.states)
+    C = integral.selector(sub.states, ints)
+    names = [*sub.states, *(f"integral of {s}" for s in ints)]
+    label = f"subsystem {sub.name}"
+    Aa, Ba = integral.augment(sub.A, sub.B, C)
+    if Ts is None:
+        res = lqr(Aa, Ba, Q, R, name=label, state_names=names)
+        eig_s, eig_z = res.E, None
+    else:
+        require_stabilizable(Aa, Ba, label, names)
+        Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(sub.A, sub.B, Q[:n, :n], R, Ts)
+        Ada, Bda = integral.augment_discrete(Ad, Bd, C, Ts)
+        Qda, Nda = integral.discrete_weights(Qd, Nd, Q, Ts)
+        res = discrete.dlqr(Ada, Bda, Qda, Rd, Nda, name=label)
+        eig_z = res.E
+        eig_s = discrete.s_equivalent(eig_z, Ts)
+    return res.K[:, :n], res.K[:, n:], res.P, eig_s, eig_z, res.residual
+
+
+def closed_loop_matrix(A, B, K, Ki=None, integral_states=(), sample_time=None) -> np.ndarray:
+    """The coupled closed loop of ``[x; z]`` under ``u = -K x - Ki z`` (deviations from trim).
+
+    Continuous: ``[[A - B K, -B Ki], [-C, 0]]``. With ``sample_time`` (a discrete controller on
+    the ZOH plant): ``[[Ad - Bd K, -Bd Ki], [-Ts C, I]]``. ``C`` selects ``integral_states``.
+    """
+    A, B, K = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, K))
+    nz = len(integral_states)
+    Ki = np.zeros((B.shape[1], 0)) if Ki is None else np.asarray(Ki, dtype=float).reshape(B.shape[1], nz)
+    C = integral.selector(STATE_NAMES, integral_states)
+    if sample_time is None:
+        top = np.hstack([A - B @ K, -B @ Ki])
+        bottom = np.hstack([-C, np.zeros((nz, nz))])
+    else:
+        Ad, Bd = discrete.c2d(A, B, sample_time)
+        top = np.hstack([Ad - Bd @ K, -Bd @ Ki])
+        bottom = np.hstack([-sample_time * C, np.eye(nz)])
+    return np.vstack([top, bottom])
+
+
+def closed_loop_stability(A_cl, K, *, sample_time: float | None = None
+                          ) -> tuple[np.ndarray, tuple[str, ...], bool]:
     """Eigenvalues of the coupled closed loop, and whether it is stable.
 
     Position states that no gain feeds back and that nothing depends on (zero columns of
     ``A_cl``: translation invariance) add exact zero eigenvalues; they are reported as
     marginal and excluded from the verdict. Every other eigenvalue must be stable.
+
+    ``A_cl`` may carry integrator states after the 12 plant states. With ``sample_time`` it is a
+    discrete loop: such a position has a unit column (eigenvalue ``z = 1``), stability means
+    ``|z| < 1``, and the eigenvalues are returned as ``ln(z) / Ts`` (rad/s).
     """
     A_cl = np.asarray(A_cl, dtype=float)
+    size = A_cl.shape[0]
     eig = np.linalg.eigvals(A_cl)
+    drift = A_cl - np.eye(size) if sample_time is not None else A_cl
     marginal = tuple(s for s in POSITION_STATES
-                     if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A_cl[:, STATE_INDEX[s]]))
-    keep = [i for i, s in enumerate(STATE_NAMES) if s not in marginal]
+                     if not np.any(K[:, STATE_INDEX[s]]) and not np.any(drift[:, STATE_INDEX[s]]))
+    keep = [i for i in range(size) if i >= N_STATES or STATE_NAMES[i] not in marginal]
     core = np.linalg.eigvals(A_cl[np.ix_(keep, keep)])
-    return eig, marginal, bool(all(is_stable(e) for e in core))
+    if sample_time is None:
+        return eig, marginal, bool(all(is_stable(e) for e in core))
+    return (discrete.s_equivalent(eig, sample_time), marginal,
+            bool(all(discrete.is_stable_z(z) for z in core)))
 
 
 def _fmt_eig(e: complex) -> str:

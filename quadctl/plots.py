@@ -70,3 +70,61 @@ def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "") ->
             for name, sub in partition.items()}
     figs["inputs"] = inputs_figure(sim, u_trim, title=title)
     return figs
+
+
+def margins_figure(m, *, title: str = "") -> Figure:
+    """Bode (magnitude, phase) and Nyquist plot of one broken loop, with its margins marked.
+
+    Parameters
+    ----------
+    m : quadctl.margins.LoopMargins
+    """
+    fig = Figure(figsize=(10.0, 5.2), layout="constrained")
+    grid = fig.add_gridspec(2, 2, width_ratios=(1.25, 1.0))
+    ax_mag = fig.add_subplot(grid[0, 0])
+    ax_ph = fig.add_subplot(grid[1, 0], sharex=ax_mag)
+    ax_ny = fig.add_subplot(grid[:, 1])
+    w, L = m.freq, m.response
+    phase = np.rad2deg(np.unwrap(np.angle(L)))
+    ax_mag.semilogx(w, 20 * np.log10(np.abs(L)), color=_COLORS[0], lw=1.5)
+    ax_mag.axhline(0.0, color="0.35", lw=0.9, ls="--")
+    ax_mag.set_ylabel("|L| [dB]")
+    ax_ph.semilogx(w, phase, color=_COLORS[0], lw=1.5)
+    for k in range(-3, 2):
+        if phase.min() - 10 <= -180 + 360 * k <= phase.max() + 10:
+            ax_ph.axhline(-180 + 360 * k, color="0.35", lw=0.9, ls="--")
+    ax_ph.set_ylabel("phase of L [deg]")
+    ax_ph.set_xlabel("frequency [rad/s]")
+    if m.phase_crossover_freq is not None:
+        for ax in (ax_mag, ax_ph):
+            ax.axvline(m.phase_crossover_freq, color=_COLORS[2], lw=1.0, ls=":")
+        ax_ph.annotate(f"PM {m.phase_margin_deg:.3g} deg", (m.phase_crossover_freq, phase.min()),
+                       fontsize=8, color=_COLORS[2])
+    for wg, gm in zip(m.gain_crossover_freqs, m.gain_margin_db):
+        if wg is not None:
+            for ax in (ax_mag, ax_ph):
+                ax.axvline(wg, color=_COLORS[1], lw=1.0, ls=":")
+            ax_mag.annotate(f"GM {gm:+.3g} dB", (wg, 0.0), fontsize=8, color=_COLORS[1])
+    if m.sample_time:
+        ax_mag.axvline(np.pi / m.sample_time, color="0.5", lw=0.9)
+        ax_mag.annotate("Nyquist", (np.pi / m.sample_time, 0.0), fontsize=8, color="0.4", ha="right")
+    for ax in (ax_mag, ax_ph):
+        ax.grid(True, which="both", alpha=0.3)
+    ax_ny.plot(L.real, L.imag, color=_COLORS[0], lw=1.5, label="L(jw), w > 0")
+    ax_ny.plot(L.real, -L.imag, color=_COLORS[0], lw=1.0, ls="--", alpha=0.6, label="w < 0")
+    circle = np.exp(1j * np.linspace(0, 2 * np.pi, 361))
+    ax_ny.plot(circle.real, circle.imag, color="0.6", lw=0.8)
+    disk = -1 + m.min_return_difference * circle  # L never enters this disk around -1
+    ax_ny.plot(disk.real, disk.imag, color=_COLORS[3], lw=1.0, label=f"min |1+L| = {m.min_return_difference:.3g}")
+    ax_ny.plot(-1, 0, "x", color=_COLORS[1], ms=9, mew=2)
+    ax_ny.set_xlim(-3, 2)
+    ax_ny.set_ylim(-2.5, 2.5)
+    ax_ny.set_aspect("equal", adjustable="box")
+    ax_ny.set_xlabel("Re L")
+    ax_ny.set_ylabel("Im L")
+    ax_ny.grid(True, alpha=0.3)
+    ax_ny.legend(loc="lower right", fontsize=7, frameon=False)
+    kind = f"sampled, Ts = {m.sample_time * 1e3:.3g} ms" if m.sample_time else "continuous"
+    head = f"{m.loop} loop broken at {m.input} ({m.model} model, {kind})"
+    fig.suptitle(f"{title}: {head}" if title else head)
+    return fig

@@ -4,6 +4,13 @@
 the trim velocity), integrated by the compiled loop of :mod:`quadctl.codegen`. The step is
 chosen from the closed loop's spectrum: RK4 is stable for ``h lambda`` inside its stability
 region, and accurate when ``|h lambda|`` is small.
+
+A controller with a rate (``ClosedLoop.rate``) is sampled every ``Ts = 1 / rate`` and its
+command held (zero-order hold); RK4 then integrates the plant under a constant input between
+samples, so the step divides ``Ts`` and is chosen from the *open-loop* spectrum
+(:func:`plan_held_step`). Integrators of an LQI controller (``ClosedLoop.integral_states``) are
+carried as extra loop states; inputs are clipped by ``ClosedLoop.actuators``; noise arrays come
+from :mod:`quadctl.noise`.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ from quadctl.analysis import is_stable
 from quadctl.codegen import get_loop, pack_constants
 from quadctl.errors import StepSizeError
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.noise import NoiseSpec, realize
 
 ACCURACY_STEP = 0.5
 """``dt: auto`` keeps ``|dt lambda| <= 0.5`` for the fastest eigenvalue: RK4's one-step error is then
@@ -59,7 +67,10 @@ def max_stable_step(eigenvalue: complex) -> float:
 
 @dataclass(frozen=True)
 class StepPlan:
-    """The chosen step and why: ``dt`` (s), ``n_steps``, and the governing eigenvalue."""
+    """The chosen step and why: ``dt`` (s), ``n_steps``, and the governing eigenvalue.
+
+    With a sampled controller, ``hold`` RK4 steps make one controller period ``sample_time``.
+    """
 
     dt: float
     n_steps: int
@@ -67,6 +78,8 @@ class StepPlan:
     fastest_eigenvalue: complex
     fastest_owner: str
     auto: bool
+    hold: int = 0
+    sample_time: float | None = None
 
 
 def plan_step(eigenvalues, owners, duration: float, dt="auto") -> StepPlan:
@@ -110,10 +123,63 @@ def plan_step(eigenvalues, owners, duration: float, dt="auto") -> StepPlan:
     return StepPlan(dt, n, h_max, fastest, owners[k_fast] if eig.size else "", False)
 
 
-def eigen_owners(A_cl, state_owner: dict[str, str]) -> tuple[np.ndarray, list[str]]:
-    """Eigenvalues of ``A_cl`` and, for each, the subsystem of its eigenvector's largest state."""
+def plan_held_step(open_loop_eigenvalues, rate: float, duration: float, dt="auto") -> StepPlan:
+    """Choose or check the RK4 step for a controller sampled at ``rate`` Hz (zero-order hold).
+
+    Between samples the input is constant, so RK4 integrates the open-loop plant: the step
+    must be stable and accurate for the open-loop eigenvalues, and divide the controller
+    period ``Ts = 1 / rate`` into ``hold`` whole steps.
+
+    Parameters
+    ----------
+    open_loop_eigenvalues : (n,) array_like
+        Of the linear plant ``A`` (rad/s).
+    rate : float
+        Hz.
+    duration : float
+        s.
+    dt : float or "auto"
+
+    Raises
+    ------
+    StepSizeError
+        A user's step that does not divide ``Ts``, or that RK4 cannot hold stable.
+    """
+    Ts = 1.0 / rate
+    eig = np.asarray(open_loop_eigenvalues, dtype=complex)
+    stable_modes = np.array([is_stable(e) for e in eig], dtype=bool)
+    limits = np.array([max_stable_step(e) for e in eig])
+    h_max = float(limits[stable_modes].min()) if stable_modes.any() else math.inf
+    fastest = complex(eig[int(np.argmax(np.abs(eig)))]) if eig.size else 0j
+    if dt == "auto":
+        h = min(ACCURACY_STEP / abs(fastest) if abs(fastest) > 0 else math.inf, 0.5 * h_max,
+                1.0 / MAX_AUTO_STEPS_PER_SECOND, Ts)
+        hold = max(1, math.ceil(Ts / h - 1e-9))
+    else:
+        dt = float(dt)
+        hold = max(1, round(Ts / dt))
+        if abs(hold * dt - Ts) > 1e-9 * Ts:
+            good = Ts / max(1, math.ceil(Ts / dt))
+            raise StepSizeError(
+                f"simulation.dt = {dt:g} s does not divide the controller period 1/rate = {Ts:g} s "
+                f"(controller.rate = {rate:g} Hz); use dt: auto or {good:.6g} s")
+        if dt > h_max:
+            raise StepSizeError(
+                f"simulation.dt = {dt:g} s is unstable for RK4 on the open-loop plant between "
+                f"controller samples (needs dt <= {h_max:.3g} s); use dt: auto or {Ts / math.ceil(Ts / h_max):.6g} s")
+    step = Ts / hold
+    n = max(1, math.ceil(duration / step - 1e-9))
+    return StepPlan(step, n, h_max, fastest, "open loop (held input)", dt == "auto", hold, Ts)
+
+
+def eigen_owners(A_cl, state_owner: dict[str, str], names=STATE_NAMES) -> tuple[np.ndarray, list[str]]:
+    """Eigenvalues of ``A_cl`` and, for each, the subsystem of its eigenvector's largest state.
+
+    ``names`` labels the rows of ``A_cl`` (default the 12 states; an LQI loop appends its
+    integrators, each owned by the subsystem of the state it integrates).
+    """
     eig, vec = np.linalg.eig(np.asarray(A_cl, dtype=float))
-    owners = [state_owner.get(STATE_NAMES[int(np.argmax(np.abs(vec[:, k])))], "unassigned")
+    owners = [state_owner.get(names[int(np.argmax(np.abs(vec[:, k])))], "unassigned")
               for k in range(len(eig))]
     return eig, owners
 
@@ -125,7 +191,8 @@ class ClosedLoop:
     Attributes
     ----------
     params : (8,) ndarray
-        Vehicle parameter vector (:meth:`quadctl.model.Vehicle.vector`).
+        Vehicle parameter vector (:meth:`quadctl.model.Vehicle.vector`) of the simulated plant
+        (it may differ from the design model's: model mismatch).
     x_trim : (12,) ndarray
     u_trim : (4,) ndarray
     x_rate : (12,) ndarray
@@ -144,6 +211,16 @@ class ClosedLoop:
     K: np.ndarray
     eigenvalues: np.ndarray
     owners: list = field(default_factory=list)
+    rate: float | None = None
+    """Hz of a sampled controller (zero-order hold); None: continuous feedback."""
+    Ki: np.ndarray | None = None
+    """(4, nz) integrator gains: ``u -= Ki z``."""
+    integral_states: tuple[str, ...] = ()
+    """The state each integrator integrates (``dz/dt = -(x_s - x_ref,s)``)."""
+    actuators: object | None = None
+    """:class:`quadctl.motors.Actuators` that clip the input; None: unlimited."""
+    open_loop_eigenvalues: np.ndarray | None = None
+    """Of the plant ``A``: what RK4 integrates between samples of a sampled controller."""
 
 
 @dataclass(frozen=True)
@@ -187,35 +264,53 @@ class SimResult:
     plan: StepPlan
     steps: int
     stride: int
+    z: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(N+1, nz) integrator states of an LQI controller."""
+    noise_seed: int | None = None
 
     @property
     def steps_per_second(self) -> float:
         return self.steps / self.wall_time if self.wall_time > 0 else math.inf
 
 
-def simulate(loop: ClosedLoop, x0, duration: float, dt="auto") -> SimResult:
+def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
+             noise: NoiseSpec | None = None) -> SimResult:
     """RK4 of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
     ----------
     loop : ClosedLoop
     x0 : (12,) array_like
-        Initial state.
+        Initial state (integrators, if any, start at zero).
     duration : float
         s.
     dt : float or "auto"
-        s; see :func:`plan_step`.
+        s; see :func:`plan_step` (continuous control) or :func:`plan_held_step` (``loop.rate``).
+    noise : NoiseSpec, optional
+        Process and sensor noise; the same spec gives the same run.
 
     Returns
     -------
     SimResult
         A diverging run stops at the first bad state and keeps everything before it.
     """
-    plan = plan_step(loop.eigenvalues, loop.owners, duration, dt)
+    if loop.rate is not None:
+        ol = loop.open_loop_eigenvalues if loop.open_loop_eigenvalues is not None else np.zeros(0)
+        plan = plan_held_step(ol, loop.rate, duration, dt)
+    else:
+        plan = plan_step(loop.eigenvalues, loop.owners, duration, dt)
+    nz = len(loop.integral_states)
+    act = loop.actuators
     pattern = tuple(bool(v) for v in (loop.K != 0).ravel(order="F"))
-    runner = get_loop(pattern, "none")
-    c = pack_constants(x_ref=loop.x_trim, x_rate=loop.x_rate, u_trim=loop.u_trim, K=loop.K,
-                       params=loop.params)
+    runner = get_loop(pattern, act.mode if act is not None else "none",
+                      tuple(STATE_INDEX[s] for s in loop.integral_states))
+    consts = dict(x_ref=loop.x_trim, x_rate=loop.x_rate, u_trim=loop.u_trim, K=loop.K, params=loop.params)
+    if act is not None:
+        consts.update(mix=act.mix, mix_inv=act.mix_inv, lo=act.lo, hi=act.hi)
+    if nz:
+        Ki = np.asarray(loop.Ki, dtype=float).reshape(len(loop.u_trim), nz)
+        consts.update(Ki=Ki, antiwindup=(Ki.T != 0).astype(float), Ts=[plan.sample_time or 0.0])
+    c = pack_constants(**consts)
     n = plan.n_steps
     bound = np.array([RUNAWAY[s] for s in STATE_NAMES])
     theta = STATE_INDEX["theta"]
@@ -224,15 +319,21 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto") -> SimResult:
     # positions drift with the reference: bound them around the farthest reference point
     drift = np.abs(loop.x_rate) * duration
     lo, hi = lo - drift, hi + drift
+    lo_all = np.concatenate([lo, np.full(nz, -np.inf)])
+    hi_all = np.concatenate([hi, np.full(nz, np.inf)])
+    x0_all = np.concatenate([np.asarray(x0, dtype=float), np.zeros(nz)])
+    dist, meas = realize(noise, n, plan.dt) if noise is not None and noise.active else (None, None)
     stride = max(1, math.ceil(n / MAX_RECORDS))
     start = time.perf_counter()
-    done, ks, xs, us = runner.run(x0, 0.0, plan.dt, n, c, None, None, 0, stride, lo, hi)
+    done, ks, xs, us = runner.run(x0_all, 0.0, plan.dt, n, c, dist, meas, plan.hold, stride, lo_all, hi_all)
     wall = time.perf_counter() - start
     t = plan.dt * ks
     x_ref = loop.x_trim + np.outer(t, loop.x_rate)
-    status, message = _verdict(xs, t, done, n, lo, hi)
-    return SimResult(t=t, x=xs, u=us, x_ref=x_ref, dt=plan.dt, status=status, message=message,
-                     wall_time=wall, backend=runner.backend, plan=plan, steps=done, stride=stride)
+    status, message = _verdict(xs[:, :N_STATES], t, done, n, lo, hi)
+    seed = noise.seed if noise is not None and noise.active else None
+    return SimResult(t=t, x=np.ascontiguousarray(xs[:, :N_STATES]), u=us, x_ref=x_ref, dt=plan.dt, status=status,
+                     message=message, wall_time=wall, backend=runner.backend, plan=plan, steps=done, stride=stride,
+                     z=np.ascontiguousarray(xs[:, N_STATES:]), noise_seed=seed)
 
 
 def _verdict(xs, t, done, n, lo, hi) -> tuple[str, str]:

@@ -16,6 +16,7 @@ from quadctl import artifacts, pipeline
 from quadctl.analysis import Checks
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
+from quadctl.discrete import realizable_frequency
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 from quadctl.linearize import LinearModel
 from quadctl.lqr import Design
@@ -25,6 +26,7 @@ from quadctl.trim import Trim
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
+MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
 
 
 def default_out(cfg: Config) -> Path:
@@ -117,10 +119,26 @@ class Workspace:
     def checks(self) -> dict[str, Checks]:
         checks = pipeline.checks_of(self.decoupled, self.linear)
         regulated = {s.name for s in self.decoupled.regulated}
+        self.rate_warnings = self._rate_warnings(checks, regulated)
+        rate = self.cfg.controller.rate
         self._write_json(CHECKS, "checks", {
             "subsystems": {n: _checks_payload(c, n in regulated) for n, c in checks.items() if n != "full"},
-            "full": _checks_payload(checks["full"], True)})
+            "full": _checks_payload(checks["full"], True),
+            "rate": None if rate is None else {
+                "rate": rate, "design": self.cfg.controller.design,
+                "realizable_frequency": realizable_frequency(rate),
+                "warnings": [{"loop": w.loop, "pole": w.pole, "factor": w.factor,
+                              "sampled_spectral_radius": w.sampled_radius, "sampled_stable": w.sampled_stable,
+                              "message": w.message(rate)} for w in self.rate_warnings]}})
         return checks
+
+    def _rate_warnings(self, checks, regulated) -> list:
+        """A continuous design run at ``controller.rate``: the loops that rate cannot realize."""
+        ctl = self.cfg.controller
+        if ctl.rate is None or ctl.design != "continuous" or any(
+                not checks[n].stabilizable for n in regulated):
+            return []
+        return pipeline.rate_warnings_of(self.cfg, self.decoupled, self.linear, ctl.rate)
 
     @cached_property
     def design(self) -> Design:
@@ -131,15 +149,57 @@ class Workspace:
                                     "riccati_residual": s.residual} for s in des.subsystems},
             "K_block": des.K_block, "Q_block": des.Q_block, "R_block": des.R_block,
             "full_closed_loop_eigenvalues": des.full_eigenvalues,
-            "marginal_states": des.marginal_states, "stable": des.stable})
+            "marginal_states": des.marginal_states, "stable": des.stable,
+            **_flight_design_payload(des)})
         return des
 
     @cached_property
     def gain(self) -> np.ndarray:
         """K_block: from design.json when it is fresh, else from a new design."""
+        return self.gains[0]
+
+    @cached_property
+    def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        """(K_block, Ki_block, integral_states): from design.json when it is fresh, else a new design."""
         if self._reusable(DESIGN):
-            return np.array(artifacts.read_json(self.path(DESIGN))["K_block"], dtype=float)
-        return self.design.K_block
+            data = artifacts.read_json(self.path(DESIGN))
+            ints = tuple(data.get("integral_states", ()))
+            Ki = np.array(data.get("Ki_block", [[]] * len(INPUT_NAMES)), dtype=float)
+            return (np.array(data["K_block"], dtype=float), Ki.reshape(len(INPUT_NAMES), len(ints)), ints)
+        des = self.design
+        return des.K_block, des.Ki_block, des.integral_states
+
+    @cached_property
+    def margins(self) -> list:
+        """Margins of every regulated loop (design model and coupled); writes margins.json."""
+        from quadctl import margins
+
+        des, ctl, linear = self.design, self.cfg.controller, self.linear
+        emulated = ctl.rate if ctl.rate is not None and des.rate is None else None
+        result = margins.all_margins(
+            des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
+            actuators=pipeline.actuators_of_config(self.cfg), u_trim=linear.u_trim,
+            initial_demand=pipeline.initial_demand(self.cfg, linear, des))
+        self._write_json(MARGINS, "margins", {
+            "rate": ctl.rate, "design": "discrete" if des.rate else "continuous",
+            "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
+                          "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
+            "loops": [m.as_dict() for m in result]})
+        return result
+
+    @cached_property
+    def full(self):
+        """``design --full``: (FullDesign, comparison); writes design_full.json."""
+        fd, comparison = pipeline.compare_full(self.cfg, self.linear, self.trim, self.design)
+        self._write_json(DESIGN_FULL, "design_full", {
+            "K": fd.K, "Ki": fd.Ki, "integral_states": fd.integral_states, "states": fd.states,
+            "left_out": fd.left_out, "Q": fd.Q, "R": fd.R, "P": fd.P,
+            "closed_loop_eigenvalues": fd.eigenvalues, "stable": fd.stable, "rate": fd.rate,
+            "riccati_residual": fd.residual,
+            "position": ("left out: " + ", ".join(fd.left_out) + " (no weight, no dynamics); "
+                         if fd.left_out else "") + "weighted positions regulated about the moving reference",
+            "comparison": comparison})
+        return fd, comparison
 
     @cached_property
     def weights_block(self) -> tuple[np.ndarray, np.ndarray]:
@@ -151,14 +211,19 @@ class Workspace:
             if name in weights:
                 si = [STATE_NAMES.index(s) for s in sub.states]
                 ii = [INPUT_NAMES.index(i) for i in sub.inputs]
-                Q[np.ix_(si, si)], R[np.ix_(ii, ii)] = weights[name]
+                Qw, Rw = weights[name]
+                Q[np.ix_(si, si)] = Qw[:len(si), :len(si)]  # an LQI Q also weighs the integrators
+                R[np.ix_(ii, ii)] = Rw
         return Q, R
 
     @cached_property
     def simulation(self) -> SimResult:
         linear = self.linear
-        loop = pipeline.closed_loop_of(self.cfg, linear, self.gain, pipeline.reference_rate(self.trim))
+        K, Ki, ints = self.gains
+        loop = pipeline.closed_loop_of(self.cfg, linear, K, pipeline.reference_rate(self.trim),
+                                       Ki=Ki, integral_states=ints)
         sim = pipeline.simulation_of(self.cfg, loop)
+        self.flight = pipeline.flight_summary(self.cfg, loop, sim)
         regulated = [s for sub in self.cfg.partition().values() if sub.regulate for s in sub.states]
         Q, R = self.weights_block
         summary = summarize(sim, linear.u_trim, Q, R, regulated)
@@ -167,7 +232,8 @@ class Workspace:
             "t": sim.t, "x": sim.x, "u": sim.u, "x_ref": sim.x_ref, "dt": np.array(sim.dt),
             "stride": np.array(sim.stride),
             "status": np.array(sim.status), "state_names": np.array(STATE_NAMES),
-            "input_names": np.array(INPUT_NAMES)}, meta))
+            "input_names": np.array(INPUT_NAMES), "z": sim.z,
+            "integral_states": np.array(loop.integral_states, dtype=str)}, meta))
         self._write_json(SIM_JSON, "simulation", {
             "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,
             "stride": sim.stride, "samples": len(sim.t),
@@ -175,9 +241,21 @@ class Workspace:
             "dt_auto": sim.plan.auto, "max_stable_dt": sim.plan.max_stable_dt,
             "fastest_eigenvalue": sim.plan.fastest_eigenvalue,
             "fastest_subsystem": sim.plan.fastest_owner,
-            "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}})
+            "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **self.flight})
         self.metrics = summary
         return sim
+
+
+def _flight_design_payload(des: Design) -> dict:
+    """design.json keys of issue 5: rate, integrators, discrete eigenvalues."""
+    return {
+        "rate": des.rate, "discrete": des.rate is not None,
+        "Ki_block": des.Ki_block, "integral_states": des.integral_states,
+        "full_closed_loop_eigenvalues_z": des.full_eigenvalues_z,
+        "subsystem_integrals": {s.name: {"integral": s.integral, "Ki": s.Ki,
+                                         "closed_loop_eigenvalues_z": s.eigenvalues_z}
+                                for s in des.subsystems},
+    }
 
 
 def _checks_payload(c: Checks, regulated: bool) -> dict:

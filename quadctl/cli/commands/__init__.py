@@ -10,13 +10,14 @@ from quadctl.cli.commands import (
     decouple,
     design,
     linearize,
+    margins,
     run,
     simulate,
     trim,
 )
 from quadctl.cli.errors import handled
 
-COMMANDS = (trim, linearize, decouple, check, design, simulate, run, configs)
+COMMANDS = (trim, linearize, decouple, check, design, simulate, margins, run, configs)
 
 
 def register(app: typer.Typer) -> None:

@@ -1,3 +1,5 @@
+from typing import Annotated, Optional
+
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
@@ -7,9 +9,16 @@ NAME = "check"
 
 
 def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
-            fresh: FreshOpt = False) -> None:
+            fresh: FreshOpt = False,
+            rate: Annotated[Optional[float], typer.Option(
+                "--rate", metavar="HZ", min=1e-9,
+                help="Also check the continuous design against this controller rate (a what-if; "
+                     "the config's controller.rate is checked anyway when its design is continuous).")] = None,
+            ) -> None:
     """Controllability, observability, PBH, stabilizability of every subsystem and the full model.
 
+    Warns when a continuous design has closed-loop poles faster than the controller rate can
+    realize (which loop, by how much, and whether the sampled loop is still stable).
     Exits 1 when a regulated subsystem is not stabilizable.
     """
     from quadctl.cli import render
@@ -18,11 +27,22 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     checks = ws.checks
     regulated = {s.name for s in ws.decoupled.regulated}
     failed = [n for n in regulated if not checks[n].stabilizable]
+    warn_rate = ws.cfg.controller.rate
+    warnings = ws.rate_warnings
+    if rate is not None and not failed:
+        from quadctl import pipeline
+
+        warn_rate, warnings = rate, pipeline.rate_warnings_of(ws.cfg, ws.decoupled, ws.linear, rate)
     if json:
-        render.emit_json(ws.payloads["checks.json"])
+        payload = ws.payloads["checks.json"]
+        if rate is not None:
+            payload = {**payload, "what_if_rate": {"rate": rate, "warnings": [w.message(rate) for w in warnings]}}
+        render.emit_json(payload)
     else:
         render.out.print(render.checks_table(checks, regulated))
         render.out.print(f"-> {ws.path('checks.json')}")
+    for w in warnings:
+        render.err.print(f"quadctl: warning: {w.message(warn_rate)}", markup=False)
     for name in failed:
         mode = checks[name].unstabilizable_modes[0]
         render.err.print(f"quadctl: check failed: subsystem {name} is not stabilizable: mode "

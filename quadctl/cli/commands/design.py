@@ -1,3 +1,5 @@
+from typing import Annotated
+
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
@@ -7,21 +9,38 @@ NAME = "design"
 
 
 def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
-            fresh: FreshOpt = False) -> None:
+            fresh: FreshOpt = False,
+            full: Annotated[bool, typer.Option(
+                "--full", help="Also solve one 12-state LQR on the coupled model with the same cost, simulate "
+                               "both on the nonlinear model and say which does better; write design_full.json.")
+                            ] = False) -> None:
     """LQR per regulated subsystem, assembled and checked on the coupled model; write design.json.
 
-    Exits 1 when the design, stable per subsystem, is unstable on the coupled 12-state model.
+    With a controller rate (controller.rate, controller.design: discrete) the design is the
+    discrete LQR at that rate (MATLAB lqrd). Exits 1 when the design, stable per subsystem, is
+    unstable on the coupled 12-state model.
     """
     from quadctl.cli import render
 
     ws = open_workspace(config, out, fresh)
     des = ws.design
+    comparison = ws.full if full else None
     if json:
-        render.emit_json(ws.payloads["design.json"])
+        payload = ws.payloads["design.json"]
+        render.emit_json({**payload, "full": ws.payloads["design_full.json"]} if full else payload)
     else:
+        if des.rate:
+            render.out.print(f"discrete design at {des.rate:g} Hz (lqrd: ZOH plant, cost integrated over "
+                             f"{1e3 / des.rate:.4g} ms); eigenvalues shown as ln(z)/Ts in rad/s")
         for table in render.design_tables(des):
             render.out.print(table)
         render.out.print(f"-> {ws.path('design.json')}")
+        if comparison is not None:
+            from quadctl.cli import render_flight
+
+            for item in render_flight.full_tables(*comparison):
+                render.out.print(item)
+            render.out.print(f"-> {ws.path('design_full.json')}")
     if not des.stable:
         render.err.print("quadctl: check failed: every subsystem is stable alone, but the assembled "
                          "gain is UNSTABLE on the coupled 12-state model (the dropped couplings matter)")

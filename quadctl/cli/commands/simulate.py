@@ -29,11 +29,40 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
                          f"fastest eigenvalue {render.eig(plan.fastest_eigenvalue)} rad/s in "
                          f"{plan.fastest_owner}), {sim.steps} steps in {sim.wall_time * 1e3:.1f} ms: "
                          f"[bold]{sim.steps_per_second / 1e6:.2f} M steps/s[/bold] ({sim.backend})")
+        _print_flight(render, ws, sim, before=True)
         render.out.print(render.metrics_table(ws.metrics))
         render.out.print(render.peaks_table(ws.metrics, ws.linear.u_trim))
+        _print_flight(render, ws, sim, before=False)
         render.out.print(f"{sim.status}: {sim.message} -> {ws.path('sim.npz')}")
         for path in figures:
             render.out.print(f"figure -> {path}")
+    sat = ws.flight.get("saturation")
+    if sat and sat["saturates"]:
+        worst = max(sat["fraction"], key=sat["fraction"].get)
+        render.err.print(f"quadctl: warning: the design saturates: {worst} is at a limit "
+                         f"{sat['fraction'][worst] * 100:.3g} % of the run (flag above "
+                         f"{sat['flag_above'] * 100:g} %); lower the gains (larger R) or the initial offset",
+                         markup=False)
     if sim.status != "ok":
         render.err.print(f"quadctl: check failed: {sim.message}")
         raise typer.Exit(EXIT_CHECK_FAILED)
+
+
+def _print_flight(render, ws, sim, *, before: bool) -> None:
+    """Controller rate, saturation, noise RMS and integrator lines (issue 5), when they apply."""
+    from quadctl.cli import render_flight
+
+    flight = ws.flight
+    if before:
+        line = render_flight.controller_line(flight, sim)
+        if line:
+            render.out.print(line)
+        return
+    table = render_flight.saturation_table(flight)
+    if table is not None:
+        render.out.print(table)
+    if flight.get("noise"):
+        render.out.print(render_flight.rms_table(flight))
+    line = render_flight.integral_line(flight)
+    if line:
+        render.out.print(line)

@@ -1,0 +1,89 @@
+"""Integral action (LQI, as MATLAB ``lqi``): a subsystem augmented with the integral of some states.
+
+Continuous time (MATLAB ``lqi``): the integrator ``z`` obeys ``dz/dt = r - y = -(x_I - x_I,ref)``
+for the integrated states ``x_I = C x``; the regulator ``u = -[Kx, Ki] [x; z]`` is the LQR of
+
+    d/dt [x; z] = [[A, 0], [-C, 0]] [x; z] + [[B], [0]] u.
+
+Discrete time (a controller at ``rate`` Hz, MATLAB ``lqi`` on a discrete plant): the integrator
+is the forward-Euler accumulator ``z[k+1] = z[k] - Ts (x_I[k] - x_I,ref)``, so the augmented
+ZOH plant is ``[[Ad, 0], [-Ts C, I]]``, ``[[Bd], [0]]``. The simulation runs exactly this
+accumulator (:mod:`quadctl.codegen`), so the design model and the implementation agree.
+
+A constant disturbance or a model error (a mass 10 % off) leaves a steady error ``e`` in plain
+LQR; with the integrator, a steady state needs ``dz/dt = 0``, that is ``e = 0`` for every
+integrated state. When an input saturates, the integrators that drive it stop (conditional
+integration), so they do not wind up while the loop is open.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def selector(states, integral) -> np.ndarray:
+    """``C`` (ni, n): rows of the identity that pick the integrated states out of ``states``."""
+    states = list(states)
+    return np.eye(len(states))[[states.index(s) for s in integral]].reshape(len(integral), len(states))
+
+
+def augment(A, B, C) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous LQI plant ``([[A, 0], [-C, 0]], [[B], [0]])``.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    B : (n, m) array_like
+    C : (ni, n) array_like
+        Selects the integrated states.
+
+    Returns
+    -------
+    (n + ni, n + ni) ndarray, (n + ni, m) ndarray
+
+    Examples
+    --------
+    >>> Aa, Ba = augment([[0.0]], [[1.0]], [[1.0]])
+    >>> Aa.tolist(), Ba.tolist()
+    ([[0.0, 0.0], [-1.0, 0.0]], [[1.0], [0.0]])
+    """
+    A, B, C = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, C))
+    n, m = B.shape
+    ni = C.shape[0] if C.size else 0
+    Aa = np.zeros((n + ni, n + ni))
+    Aa[:n, :n] = A
+    Aa[n:, :n] = -C[:ni]
+    Ba = np.vstack([B, np.zeros((ni, m))])
+    return Aa, Ba
+
+
+def augment_discrete(Ad, Bd, C, Ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """Discrete LQI plant with the forward-Euler accumulator: ``([[Ad, 0], [-Ts C, I]], [[Bd], [0]])``."""
+    Aa, Ba = augment(Ad, Bd, np.asarray(C, dtype=float) * Ts)
+    n = np.atleast_2d(Ad).shape[0]
+    Aa[n:, n:] = np.eye(Aa.shape[0] - n)
+    return Aa, Ba
+
+
+def discrete_weights(Qd, Nd, Q, Ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """Augmented discrete weights for :func:`augment_discrete`.
+
+    The plant block is ``lqrd``'s ``Qd`` (the continuous cost integrated over a sample); the rows
+    and columns of the integrators are the continuous ``Q``'s times ``Ts`` (rectangle rule: the
+    accumulator is constant over the sample). ``Nd`` gets zero rows for the integrators.
+
+    Parameters
+    ----------
+    Qd : (n, n) array_like
+    Nd : (n, m) array_like
+    Q : (n + ni, n + ni) array_like
+        The continuous weight of ``[x; z]`` from the config.
+    Ts : float
+        s.
+    """
+    Qd, Nd, Q = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (Qd, Nd, Q))
+    n = Qd.shape[0]
+    Qa = np.asarray(Q, dtype=float) * Ts
+    Qa[:n, :n] = Qd
+    Na = np.vstack([Nd, np.zeros((Q.shape[0] - n, Nd.shape[1]))])
+    return Qa, Na

@@ -1,0 +1,478 @@
+"""Stability margins of each regulated loop, broken at the plant input.
+
+For state feedback ``u = -K x`` (``-K x - Ki z`` with integrators), the loop broken at input
+``j`` is ``L(s) = K_j (sI - A_o)^-1 B_j`` where ``A_o = A - B_o K_o`` keeps every *other* input's
+loop closed (on a single-input subsystem, ``A_o = A``). A sampled controller gives the discrete
+loop ``L(z) = K_j (zI - A_o)^-1 B_j`` on the ZOH plant, evaluated on ``z = e^(j w Ts)`` up to
+the Nyquist frequency ``pi / Ts``: that is the loop the flight computer closes, hold and sampling
+included. The closed loop is ``1 + L = 0`` (negative feedback).
+
+Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
+
+- gain margins (dB): the loop-gain factors ``g`` that make ``1 + g L`` singular, from every
+  phase crossover (``L`` real and negative, ``g = -1 / L``); *upper* is the smallest factor
+  above 1, *lower* the largest below 1 (None: infinite, no such factor);
+- phase margin (deg): ``180 + angle L`` at the gain crossover ``|L| = 1`` (the smallest one);
+- disk margin (balanced, skew 0, MATLAB's default): ``alpha = 1 / max_w |S - 1/2|``,
+  ``S = 1 / (1 + L)``; the loop tolerates simultaneous gain and phase changes in the disk, i.e.
+  gains in ``[(2 - alpha)/(2 + alpha), (2 + alpha)/(2 - alpha)]`` and phase ``+-2 atan(alpha/2)``
+  (Seiler, Packard & Gahinet, "An introduction to disk margins", IEEE CSM 2020);
+- the return difference ``min_w |1 + L|``. A continuous LQR loop (on its design model) has
+  ``|1 + L| >= 1`` at every frequency, hence the guarantee: gain margin from -6 dB to infinity,
+  phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
+
+Each loop is compared with that guarantee and every shortfall is explained: the couplings the
+decoupled design ignores, the sample-and-hold of a discrete controller, or saturation (which
+lowers the effective loop gain; the circle criterion keeps the loop stable while the effective
+gain stays above the lower disk gain margin).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.optimize
+
+from quadctl.layout import INPUT_INDEX, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
+
+LQR_GAIN_MARGIN_DB = (20 * math.log10(0.5), math.inf)
+"""Guaranteed gain margin of continuous LQR: from -6.02 dB to infinity."""
+LQR_PHASE_MARGIN_DEG = 60.0
+"""Guaranteed phase margin of continuous LQR (single input, ``R`` diagonal)."""
+GUARANTEE_TOL = 1e-6
+"""Relative slack when comparing with the guarantee (the guarantee is met with equality at high
+frequency for a loop whose ``|1 + L|`` tends to 1)."""
+POINTS_PER_DECADE = 200
+"""Frequency grid density before crossings are refined by root finding (rad/s, log spaced)."""
+GRID_SPAN = 100.0
+"""The grid reaches from the slowest nonzero loop eigenvalue / 100 to the fastest x 100."""
+
+
+@dataclass(frozen=True)
+class LoopMargins:
+    """Margins of one loop broken at one input.
+
+    Attributes
+    ----------
+    loop : str
+        Subsystem name.
+    input : str
+        The input the loop is broken at.
+    model : str
+        ``design`` (the subsystem the LQR was designed on) or ``coupled`` (the 12-state linear
+        model with the other loops closed).
+    sample_time : float or None
+        s for a sampled loop (``L(z)``), None for continuous.
+    stable : bool
+        The closed loop (``g = 1``) is stable; the margins mean nothing otherwise.
+    gain_margin_db : (float or None, float or None)
+        (lower, upper) in dB; None is -inf / +inf (no critical gain on that side).
+    gain_crossover_freqs : (float or None, float or None)
+        rad/s of the phase crossovers that set them.
+    phase_margin_deg : float or None
+        None when ``|L|`` never crosses 1.
+    phase_crossover_freq : float or None
+        rad/s of the gain crossover (``|L| = 1``) that sets it.
+    disk_alpha : float
+        Balanced disk margin ``alpha``.
+    disk_gain_db : (float, float)
+        The disk's gain range in dB.
+    disk_phase_deg : float
+    disk_freq : float
+        rad/s where the disk margin is smallest.
+    min_return_difference : float
+        ``min |1 + L|``.
+    freq : (n,) ndarray
+        The frequency grid (rad/s).
+    response : (n,) complex ndarray
+        ``L`` on it (for Bode and Nyquist plots).
+    notes : list of str
+        Comparison with the LQR guarantee and the reasons for any shortfall.
+    """
+
+    loop: str
+    input: str
+    model: str
+    sample_time: float | None
+    stable: bool
+    gain_margin_db: tuple[float | None, float | None]
+    gain_crossover_freqs: tuple[float | None, float | None]
+    phase_margin_deg: float | None
+    phase_crossover_freq: float | None
+    disk_alpha: float
+    disk_gain_db: tuple[float, float]
+    disk_phase_deg: float
+    disk_freq: float
+    min_return_difference: float
+    freq: np.ndarray = field(repr=False)
+    response: np.ndarray = field(repr=False)
+    notes: tuple[str, ...] = ()
+
+    @property
+    def meets_lqr_guarantee(self) -> bool:
+        """Gain margin within [-6 dB, inf) and phase margin >= 60 deg (and stable)."""
+        lower, upper = self.gain_margin_db
+        gm_ok = (lower is None or lower <= LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL)) and upper is None
+        pm_ok = self.phase_margin_deg is None or self.phase_margin_deg >= LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL)
+        return self.stable and gm_ok and pm_ok
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary (the curves left out)."""
+        return {
+            "loop": self.loop, "input": self.input, "model": self.model, "sample_time": self.sample_time,
+            "stable": self.stable,
+            "gain_margin_lower_db": self.gain_margin_db[0], "gain_margin_upper_db": self.gain_margin_db[1],
+            "gain_margin_lower_freq": self.gain_crossover_freqs[0],
+            "gain_margin_upper_freq": self.gain_crossover_freqs[1],
+            "phase_margin_deg": self.phase_margin_deg, "crossover_freq": self.phase_crossover_freq,
+            "disk_margin_alpha": self.disk_alpha, "disk_gain_margin_db": list(self.disk_gain_db),
+            "disk_phase_margin_deg": self.disk_phase_deg, "disk_margin_freq": self.disk_freq,
+            "min_return_difference": self.min_return_difference,
+            "meets_lqr_guarantee": self.meets_lqr_guarantee, "notes": list(self.notes),
+        }
+
+
+# ---------------------------------------------------------------------------------------
+# The loop transfer function
+
+
+@dataclass(frozen=True)
+class BrokenLoop:
+    """``L = k (sI - A)^-1 b`` (or in ``z`` with ``sample_time``): a loop broken at one input."""
+
+    A: np.ndarray
+    b: np.ndarray
+    k: np.ndarray
+    sample_time: float | None = None
+
+    def __call__(self, w) -> np.ndarray:
+        """``L`` at frequencies ``w`` (rad/s), complex, same shape as ``w``."""
+        w = np.atleast_1d(np.asarray(w, dtype=float))
+        s = np.exp(1j * w * self.sample_time) if self.sample_time else 1j * w
+        n = self.A.shape[0]
+        M = s[:, None, None] * np.eye(n) - self.A[None, :, :]
+        x = np.linalg.solve(M, np.broadcast_to(self.b, (len(w), n))[..., None])[..., 0]
+        return x @ self.k
+
+    def closed_loop_eigenvalues(self, gain: float = 1.0) -> np.ndarray:
+        return np.linalg.eigvals(self.A - gain * np.outer(self.b, self.k))
+
+    def is_stable(self, gain: float = 1.0) -> bool:
+        eig = self.closed_loop_eigenvalues(gain)
+        if self.sample_time:
+            return bool(np.all(np.abs(eig) < 1 - 1e-9))
+        return bool(np.all(eig.real < -1e-9 * np.maximum(1.0, np.abs(eig))))
+
+
+def broken_loop(A, B, K, j: int, sample_time: float | None = None) -> BrokenLoop:
+    """The loop of ``u = -K x`` broken at input ``j``, the other inputs' loops closed.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+        Plant (discrete ``Ad`` with ``sample_time``).
+    B : (n, m) array_like
+    K : (m, n) array_like
+    j : int
+        Input to break at.
+    sample_time : float, optional
+        s; given, ``A`` and ``B`` are the ZOH plant.
+    """
+    A, B, K = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, K))
+    others = [i for i in range(B.shape[1]) if i != j]
+    A_o = A - B[:, others] @ K[others, :]
+    return BrokenLoop(A=A_o, b=B[:, j].copy(), k=K[j, :].copy(), sample_time=sample_time)
+
+
+# ---------------------------------------------------------------------------------------
+# Margins
+
+
+def loop_margins(loop: BrokenLoop, *, name: str = "loop", input_name: str = "u", model: str = "design",
+                 grid: np.ndarray | None = None) -> LoopMargins:
+    """Gain, phase and disk margins of a broken loop.
+
+    Parameters
+    ----------
+    loop : BrokenLoop
+    name, input_name, model : str
+        Labels.
+    grid : (n,) array_like, optional
+        Frequencies (rad/s) to scan; default from the loop's eigenvalues (:func:`frequency_grid`).
+
+    Returns
+    -------
+    LoopMargins
+        ``notes`` empty (see :func:`explain`).
+
+    Examples
+    --------
+    An integrator with a first-order lag, ``L = sqrt(2) / (s (s + 1))``, crosses ``|L| = 1`` at
+    ``w = 1`` with phase ``-90 - 45`` deg: phase margin 45 deg; its phase never reaches -180 deg,
+    so the gain margin is infinite.
+
+    >>> A = np.array([[0.0, 1.0], [0.0, -1.0]]); b = np.array([0.0, 1.0]); k = np.array([2 ** 0.5, 0.0])
+    >>> m = loop_margins(BrokenLoop(A, b, k))
+    >>> round(m.phase_margin_deg, 6), round(m.phase_crossover_freq, 6), m.gain_margin_db
+    (45.0, 1.0, (None, None))
+    """
+    w = frequency_grid(loop) if grid is None else np.asarray(grid, dtype=float)
+    Lw = loop(w)
+    stable = loop.is_stable()
+    lower, upper, w_lower, w_upper = _gain_margins(loop, w, Lw)
+    pm, w_pm = _phase_margin(loop, w, Lw)
+    alpha, w_disk = _disk_margin(loop, w)
+    rd = float(np.min(np.abs(1 + Lw)))
+    rd = min(rd, _refine_min(lambda x: float(np.abs(1 + loop(x))[0]), w, np.abs(1 + Lw)))
+    g_lo = (2 - alpha) / (2 + alpha)
+    g_hi = (2 + alpha) / (2 - alpha) if alpha < 2 else math.inf
+    return LoopMargins(
+        loop=name, input=input_name, model=model, sample_time=loop.sample_time, stable=stable,
+        gain_margin_db=(lower, upper), gain_crossover_freqs=(w_lower, w_upper),
+        phase_margin_deg=pm, phase_crossover_freq=w_pm, disk_alpha=alpha,
+        disk_gain_db=(_db(g_lo), _db(g_hi)), disk_phase_deg=math.degrees(2 * math.atan(alpha / 2)),
+        disk_freq=w_disk, min_return_difference=rd, freq=w, response=Lw)
+
+
+def frequency_grid(loop: BrokenLoop) -> np.ndarray:
+    """Log-spaced rad/s covering the loop's dynamics (``GRID_SPAN`` beyond its eigenvalues).
+
+    A sampled loop's grid ends exactly at the Nyquist frequency ``pi / Ts``.
+    """
+    eig = np.concatenate([np.linalg.eigvals(loop.A), loop.closed_loop_eigenvalues()])
+    if loop.sample_time:
+        with np.errstate(divide="ignore"):
+            eig = np.log(eig.astype(complex)) / loop.sample_time
+    mags = np.abs(eig[np.isfinite(eig)])
+    mags = mags[mags > 1e-9]
+    lo = (mags.min() if mags.size else 1.0) / GRID_SPAN
+    hi = (mags.max() if mags.size else 1.0) * GRID_SPAN
+    if loop.sample_time:
+        hi = math.pi / loop.sample_time
+        lo = min(lo, hi / 1e3)
+    decades = max(math.log10(hi / lo), 1.0)
+    w = np.logspace(math.log10(lo), math.log10(hi), int(decades * POINTS_PER_DECADE) + 1)
+    if loop.sample_time:
+        w[-1] = math.pi / loop.sample_time
+    return w
+
+
+def _gain_margins(loop, w, Lw):
+    """(lower dB, upper dB, lower freq, upper freq) from the phase crossovers."""
+    crossings = []  # (frequency, critical gain)
+    im = Lw.imag
+    for i in np.nonzero(np.sign(im[:-1]) * np.sign(im[1:]) < 0)[0]:
+        wc = _root(lambda x: float(loop(x)[0].imag), w[i], w[i + 1])
+        Lc = loop(wc)[0]
+        if Lc.real < 0:
+            crossings.append((wc, -1.0 / Lc.real))
+    if loop.sample_time and abs(Lw[-1].imag) <= 1e-12 * max(1.0, abs(Lw[-1])) and Lw[-1].real < 0:
+        crossings.append((float(w[-1]), -1.0 / Lw[-1].real))  # L is real at the Nyquist frequency
+    above = [(g, wc) for wc, g in crossings if g > 1]
+    below = [(g, wc) for wc, g in crossings if g < 1]
+    upper = min(above) if above else None
+    lower = max(below) if below else None
+    return (_db(lower[0]) if lower else None, _db(upper[0]) if upper else None,
+            lower[1] if lower else None, upper[1] if upper else None)
+
+
+def _phase_margin(loop, w, Lw):
+    mag = np.log(np.abs(Lw))
+    best = None
+    for i in np.nonzero(np.sign(mag[:-1]) * np.sign(mag[1:]) < 0)[0]:
+        wc = _root(lambda x: float(np.log(np.abs(loop(x)[0]))), w[i], w[i + 1])
+        pm = math.degrees(math.remainder(float(np.angle(loop(wc)[0])) + math.pi, 2 * math.pi))
+        if best is None or pm < best[0]:
+            best = (pm, wc)
+    return (best[0], best[1]) if best else (None, None)
+
+
+def _disk_margin(loop, w):
+    """Balanced disk margin: ``1 / max |S - 1/2|`` and where it is reached."""
+    def peak(x):
+        L = loop(x)
+        return np.abs(1 / (1 + L) - 0.5)
+
+    vals = peak(w)
+    i = int(np.argmax(vals))
+    best = float(vals[i])
+    lo, hi = w[max(i - 1, 0)], w[min(i + 1, len(w) - 1)]
+    if hi > lo:
+        res = scipy.optimize.minimize_scalar(lambda lx: -float(peak(math.exp(lx))[0]),
+                                             bounds=(math.log(lo), math.log(hi)), method="bounded",
+                                             options={"xatol": 1e-10})
+        if -res.fun > best:
+            best, wbest = float(-res.fun), float(math.exp(res.x))
+        else:
+            wbest = float(w[i])
+    else:
+        wbest = float(w[i])
+    return 1.0 / best, wbest
+
+
+def _refine_min(fn, w, vals) -> float:
+    i = int(np.argmin(vals))
+    lo, hi = w[max(i - 1, 0)], w[min(i + 1, len(w) - 1)]
+    if hi <= lo:
+        return float(vals[i])
+    res = scipy.optimize.minimize_scalar(lambda lx: fn(math.exp(lx)), bounds=(math.log(lo), math.log(hi)),
+                                         method="bounded", options={"xatol": 1e-10})
+    return float(min(res.fun, vals[i]))
+
+
+def _root(fn, a, b) -> float:
+    return float(scipy.optimize.brentq(fn, a, b, xtol=1e-14 * max(abs(a), 1.0), rtol=1e-14, maxiter=200))
+
+
+def _db(g: float) -> float:
+    return 20 * math.log10(g) if g > 0 and math.isfinite(g) else (math.inf if g == math.inf else -math.inf)
+
+
+# ---------------------------------------------------------------------------------------
+# Loops of a design, and the explanations
+
+
+def design_loops(design, decoupled, A, B):
+    """Yield ``(name, input, model, BrokenLoop)`` for every regulated loop of ``design``.
+
+    ``model = "design"``: the subsystem alone (with its integrators), the loop the LQR guarantee
+    is about. ``model = "coupled"``: the 12-state linear model, every other loop closed, position
+    states that nothing feeds back left out. A design with ``rate`` gives sampled loops.
+    """
+    from quadctl import discrete, integral
+
+    Ts = design.sample_time
+    for sub in design.subsystems:
+        dsub = decoupled[sub.name]
+        C = integral.selector(sub.states, sub.integral)
+        Ka = np.hstack([sub.K, sub.Ki]) if sub.Ki is not None else sub.K
+        if Ts is None:
+            Aa, Ba = integral.augment(dsub.A, dsub.B, C)
+        else:
+            Ad, Bd = discrete.c2d(dsub.A, dsub.B, Ts)
+            Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
+        for j, inp in enumerate(sub.inputs):
+            yield sub.name, inp, "design", broken_loop(Aa, Ba, Ka, j, Ts)
+    Af, Bf, Kf, keep = _coupled(design, A, B)
+    for sub in design.subsystems:
+        for inp in sub.inputs:
+            yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
+
+
+def _coupled(design, A, B):
+    """Augmented coupled plant and gain ``[K, Ki]`` without the positions nothing feeds back."""
+    from quadctl import discrete, integral
+
+    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    K, Ki, Ts = design.K_block, design.Ki_block, design.sample_time
+    nz = len(design.integral_states)
+    C = integral.selector(STATE_NAMES, design.integral_states)
+    if Ts is None:
+        Aa, Ba = integral.augment(A, B, C)
+    else:
+        Ad, Bd = discrete.c2d(A, B, Ts)
+        Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
+    Ka = np.hstack([K, Ki.reshape(K.shape[0], nz)])
+    free = [STATE_INDEX[s] for s in POSITION_STATES
+            if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]])
+            and s not in design.integral_states]
+    keep = [i for i in range(N_STATES + nz) if i not in free]
+    return Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep], keep
+
+
+def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,
+                u_trim=None, initial_demand: dict | None = None) -> list[LoopMargins]:
+    """Margins of every regulated loop of a design, on its design model and on the coupled model.
+
+    Parameters
+    ----------
+    design : quadctl.lqr.Design
+    decoupled : quadctl.decouple.Decoupled
+    A, B : array_like
+        The coupled 12-state linear model.
+    emulated_rate : float, optional
+        Hz at which a *continuous* design is run (``controller.design: continuous`` with a rate):
+        its loops are then evaluated sampled, with the continuous gains.
+    actuators : quadctl.motors.Actuators, optional
+        For the saturation notes.
+    u_trim : (4,) array_like, optional
+        For the actuators' headroom.
+    initial_demand : dict, optional
+        ``input -> |du|`` the configured initial offset asks for at ``t = 0`` (``|K dx0|``).
+
+    Returns
+    -------
+    list of LoopMargins
+        Design-model loops first, then coupled ones, each with :func:`explain` notes.
+    """
+    from dataclasses import replace
+
+    des = design
+    if emulated_rate is not None and design.rate is None:
+        des = replace(design, rate=emulated_rate)  # the continuous gains on the sampled plant
+    out = []
+    for name, inp, model, loop in design_loops(des, decoupled, A, B):
+        m = loop_margins(loop, name=name, input_name=inp, model=model)
+        out.append(replace(m, notes=tuple(explain(m, design, emulated_rate, actuators, u_trim,
+                                                  initial_demand))))
+    return out
+
+
+def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=None,
+            initial_demand=None) -> list[str]:
+    """Sentences comparing ``m`` with the LQR guarantee and naming the cause of any shortfall."""
+    notes = []
+    lower, upper = m.gain_margin_db
+    if not m.stable:
+        notes.append("the closed loop is UNSTABLE: no margin; the gains are too high for this loop"
+                     + (" at this rate" if m.sample_time else ""))
+        return notes
+    if m.meets_lqr_guarantee:
+        notes.append("meets the continuous LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg)")
+    else:
+        short = []
+        if upper is not None:
+            short.append(f"upper gain margin {upper:.3g} dB (guarantee: inf)")
+        if lower is not None and lower > LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL):
+            short.append(f"lower gain margin {lower:.3g} dB (guarantee: <= -6.02 dB)")
+        if m.phase_margin_deg is not None and m.phase_margin_deg < LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL):
+            short.append(f"phase margin {m.phase_margin_deg:.3g} deg (guarantee: >= 60 deg)")
+        notes.append("short of the continuous LQR guarantee: " + "; ".join(short))
+        if m.sample_time:
+            wc = m.phase_crossover_freq
+            lag = f"; the hold's half-sample delay alone costs {math.degrees(wc * m.sample_time / 2):.3g} deg " \
+                  f"at the {wc:.4g} rad/s crossover" if wc else ""
+            if design.rate is None and emulated_rate is not None:
+                notes.append(f"cause: continuous gains run at {emulated_rate:g} Hz (sample and hold); the "
+                             f"guarantee assumes instantaneous continuous feedback{lag}")
+            else:
+                notes.append("cause: discrete design: the LQR guarantee holds for continuous feedback only; a "
+                             f"sampled loop has no such bound{lag}")
+        elif m.model == "coupled":
+            notes.append("cause: couplings the decoupled design ignores (the guarantee holds on the "
+                         "subsystem it was designed on)")
+    if actuators is not None and u_trim is not None:
+        notes.extend(_saturation_notes(m, actuators, u_trim, initial_demand))
+    return notes
+
+
+def _saturation_notes(m, actuators, u_trim, initial_demand) -> list[str]:
+    from quadctl.motors import headroom
+
+    down, up = headroom(actuators, u_trim)[m.input]
+    room = min(down, up)
+    g_min = 10 ** (m.disk_gain_db[0] / 20)
+    if not math.isfinite(room):
+        return []
+    covered = room / g_min if g_min > 0 else math.inf
+    text = (f"saturation: {m.input} has {room:.3g} of headroom from trim (other inputs at trim); the disk "
+            f"margin keeps the loop stable (circle criterion) while the effective gain stays above "
+            f"{g_min:.3g}, i.e. for commands up to {covered:.3g}")
+    demand = (initial_demand or {}).get(m.input)
+    if demand is not None:
+        verdict = ("within it" if demand <= covered else
+                   "BEYOND it: the margins no longer guarantee stability during that saturation")
+        text += f"; the initial offset asks for {demand:.3g}, {verdict}"
+    return [text]

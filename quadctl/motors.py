@@ -1,0 +1,204 @@
+"""Rotors: the mixing matrix between [T, A, E, R] and the four rotor thrusts, and saturation.
+
+Geometry (FRD body frame, rotors in the body x-y plane, thrust ``f_i >= 0`` along body -z).
+A rotor at ``(x_i, y_i)`` contributes the moment ``r_i x [0, 0, -f_i] = [-y_i f_i, x_i f_i, 0]``
+and a yaw reaction torque ``s_i k_m f_i`` (``k_m`` N m per N, ``s_i = +1`` for a rotor spinning
+counter-clockwise seen from above, whose drag torque on the body is nose-right, ``-1`` clockwise).
+So
+
+    [T, A, E, R]' = M f,   M = [[1, 1, 1, 1], [-y_i], [x_i], [s_i k_m]],
+
+and the mixer is ``M^-1``. Rotor numbering and spin (both layouts number clockwise seen from
+above, rotor 1 first; diagonal rotors spin alike):
+
+====  ===========================  ====================  ====
+rotor  ``x`` layout (d = L / sqrt 2)  ``+`` layout            spin
+====  ===========================  ====================  ====
+1      front right  ( d,  d)         front  ( L, 0)        CCW
+2      rear right   (-d,  d)         right  ( 0, L)        CW
+3      rear left    (-d, -d)         rear   (-L, 0)        CCW
+4      front left   ( d, -d)         left   ( 0, -L)       CW
+====  ===========================  ====================  ====
+
+Saturation (:mod:`quadctl.codegen`, mode ``motors``): the commanded ``[T, A, E, R]`` is mixed to
+rotor thrusts, each clipped to ``[min_thrust, max_thrust]``, and mixed back. Clipping one rotor
+changes every input it contributes to (there is no priority between thrust and torques, as in
+the simplest flight-controller mixers). Without motors, box limits clip ``T, A, E, R`` directly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from quadctl.errors import ConfigError
+from quadctl.layout import INPUT_INDEX, INPUT_NAMES, N_INPUTS
+
+SATURATED_RTOL = 1e-9
+"""A rotor (or input) counts as saturated when within ``SATURATED_RTOL * (1 + |limit|)`` of a limit."""
+SATURATION_FLAG = 0.01
+"""A design is flagged as saturating when some actuator spends more than 1 % of the run at a limit."""
+SPINS = (1.0, -1.0, 1.0, -1.0)
+"""Yaw reaction sign of rotors 1-4 (+1: counter-clockwise seen from above)."""
+
+
+@dataclass(frozen=True)
+class Motors:
+    """Four rotors (defaults: the Parrot Mambo of MODEL.md).
+
+    Parameters
+    ----------
+    layout : {"x", "+"}
+    arm_length : float
+        m, centre to rotor axis.
+    thrust_coefficient : float
+        N/(rad/s)^2: rotor thrust ``f = k omega^2``.
+    torque_coefficient : float
+        N m of yaw reaction torque per N of rotor thrust.
+    min_thrust, max_thrust : float
+        N per rotor.
+    """
+
+    layout: str = "x"
+    arm_length: float = 0.0624
+    thrust_coefficient: float = 4.72e-8
+    torque_coefficient: float = 0.00241
+    min_thrust: float = 0.0
+    max_thrust: float = 0.33
+
+    @classmethod
+    def from_config(cls, cfg) -> Motors:
+        """From a :class:`quadctl.config.MotorsConfig`."""
+        return cls(**cfg.model_dump())
+
+    def positions(self) -> np.ndarray:
+        """(4, 2) rotor positions ``(x, y)`` in the body frame, m."""
+        if self.layout == "x":
+            d = self.arm_length / math.sqrt(2.0)
+            return np.array([[d, d], [-d, d], [-d, -d], [d, -d]])
+        if self.layout == "+":
+            L = self.arm_length
+            return np.array([[L, 0.0], [0.0, L], [-L, 0.0], [0.0, -L]])
+        raise ValueError(f"layout must be 'x' or '+', got {self.layout!r}")
+
+    def effectiveness(self) -> np.ndarray:
+        """``M`` (4, 4): ``[T, A, E, R] = M f`` for rotor thrusts ``f`` (N)."""
+        pos = self.positions()
+        return np.array([np.ones(4), -pos[:, 1], pos[:, 0], np.array(SPINS) * self.torque_coefficient])
+
+    def mixer(self) -> np.ndarray:
+        """``M^-1`` (4, 4): rotor thrusts from ``[T, A, E, R]``."""
+        return np.linalg.inv(self.effectiveness())
+
+    def speed(self, thrust) -> np.ndarray:
+        """Rotor speed (rad/s) for rotor thrust (N): ``sqrt(f / k)``."""
+        return np.sqrt(np.maximum(np.asarray(thrust, dtype=float), 0.0) / self.thrust_coefficient)
+
+
+@dataclass(frozen=True)
+class Actuators:
+    """What the simulation clips: rotor thrusts (``motors``) or the inputs themselves (``box``).
+
+    Attributes
+    ----------
+    mode : {"motors", "box"}
+    names : tuple of str
+        ``rotor 1``... or the input names.
+    mix : (4, 4) ndarray
+        ``[T, A, E, R]`` -> actuator commands (identity for box).
+    mix_inv : (4, 4) ndarray
+    lo, hi : (4,) ndarray
+        Actuator limits (N per rotor, or N / N m; infinite where unlimited).
+    motors : Motors or None
+    """
+
+    mode: str
+    names: tuple[str, ...]
+    mix: np.ndarray
+    mix_inv: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    motors: Motors | None = None
+
+    def commands(self, u) -> np.ndarray:
+        """Actuator commands (..., 4) for inputs ``u`` (..., 4)."""
+        return np.asarray(u, dtype=float) @ self.mix.T
+
+    def at_limit(self, u) -> np.ndarray:
+        """(..., 4) bool: actuator at (or beyond) a limit for inputs ``u``."""
+        act = self.commands(u)
+        tol_lo = SATURATED_RTOL * (1.0 + np.abs(np.where(np.isfinite(self.lo), self.lo, 0.0)))
+        tol_hi = SATURATED_RTOL * (1.0 + np.abs(np.where(np.isfinite(self.hi), self.hi, 0.0)))
+        return (act <= self.lo + tol_lo) | (act >= self.hi - tol_hi)
+
+
+def actuators_of(motors: Motors | None = None, limits: dict | None = None) -> Actuators | None:
+    """The actuators of a config: rotors, box limits on named inputs, or None (unlimited)."""
+    if motors is not None:
+        mix = motors.mixer()
+        return Actuators(mode="motors", names=tuple(f"rotor {i + 1}" for i in range(4)), mix=mix,
+                         mix_inv=motors.effectiveness(), lo=np.full(4, motors.min_thrust),
+                         hi=np.full(4, motors.max_thrust), motors=motors)
+    if limits:
+        lo, hi = np.full(N_INPUTS, -np.inf), np.full(N_INPUTS, np.inf)
+        for name, (low, high) in limits.items():
+            lo[INPUT_INDEX[name]], hi[INPUT_INDEX[name]] = low, high
+        return Actuators(mode="box", names=INPUT_NAMES, mix=np.eye(N_INPUTS), mix_inv=np.eye(N_INPUTS),
+                         lo=lo, hi=hi)
+    return None
+
+
+def check_trim(actuators: Actuators | None, u_trim) -> None:
+    """Raise ConfigError when the trim itself is outside the actuator limits (no flight possible)."""
+    if actuators is None:
+        return
+    act = actuators.commands(u_trim)
+    for i, name in enumerate(actuators.names):
+        if not actuators.lo[i] <= act[i] <= actuators.hi[i]:
+            key = "motors.max_thrust" if actuators.mode == "motors" else f"limits.{name}"
+            raise ConfigError(
+                f"{key}: the trim needs {name} = {act[i]:.4g} "
+                f"{'N' if actuators.mode == 'motors' else ''}, outside the limits "
+                f"[{actuators.lo[i]:.4g}, {actuators.hi[i]:.4g}]; the vehicle cannot hold this flight "
+                "condition: raise the limit or change trim:".replace(" ,", ","))
+
+
+def headroom(actuators: Actuators, u_trim) -> dict[str, tuple[float, float]]:
+    """Per input, how far it can move down and up from the trim, the others held at trim.
+
+    Returns
+    -------
+    dict
+        ``input name -> (down, up)``, both >= 0 (N or N m; inf when unlimited).
+    """
+    base = actuators.commands(u_trim)
+    out = {}
+    for j, name in enumerate(INPUT_NAMES):
+        col = actuators.mix[:, j]
+        up, down = math.inf, math.inf
+        for i in range(len(base)):
+            if col[i] > 0:
+                up = min(up, (actuators.hi[i] - base[i]) / col[i])
+                down = min(down, (base[i] - actuators.lo[i]) / col[i])
+            elif col[i] < 0:
+                up = min(up, (base[i] - actuators.lo[i]) / -col[i])
+                down = min(down, (actuators.hi[i] - base[i]) / -col[i])
+        out[name] = (max(down, 0.0), max(up, 0.0))
+    return out
+
+
+def saturation_fraction(actuators: Actuators, u) -> dict[str, float]:
+    """Fraction of the recorded samples each actuator spends at a limit.
+
+    ``u`` are the applied (already clipped) inputs of a run, (N, 4); clipping leaves a
+    saturated actuator exactly at its limit, so this needs no record of the commands.
+    """
+    at = actuators.at_limit(np.atleast_2d(u))
+    return {name: float(at[:, i].mean()) for i, name in enumerate(actuators.names)}
+
+
+def saturates(fractions: dict[str, float]) -> bool:
+    """True when some actuator is at a limit more than ``SATURATION_FLAG`` of the time."""
+    return any(f > SATURATION_FLAG for f in fractions.values())
