@@ -85,6 +85,24 @@ def _atomic_write(path: Path, data: bytes) -> None:
         raise
 
 
+STALE_TEMPORARY_AGE = 60.0
+"""s; a temporary older than this was left by a killed run (a live write takes milliseconds)."""
+
+
+def remove_stale_temporaries(folder: Path) -> list[Path]:
+    """Delete temporaries that a killed run left in ``folder`` (``.<name>.*.tmp``); return them."""
+    import time
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    now = time.time()
+    stale = [p for p in folder.rglob(".*.tmp") if now - p.stat().st_mtime > STALE_TEMPORARY_AGE]
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return stale
+
+
 def write_json(path: Path, payload: dict) -> Path:
     """Write ``payload`` as indented, key-sorted JSON, atomically."""
     text = json.dumps(jsonable(payload), indent=1, sort_keys=True, allow_nan=False)

@@ -374,7 +374,16 @@ def _lookup(data: Any, loc: list) -> Any:
 
 
 def _show(value: Any) -> str:
-    text = json.dumps(value) if not isinstance(value, float) else repr(value)
+    """A value as the user wrote it (whole floats without ``.0``), cut to 60 characters."""
+    def plain(v):
+        if isinstance(v, (list, tuple)):
+            return [plain(x) for x in v]
+        if isinstance(v, float) and v.is_integer() and abs(v) < 1e15:
+            return int(v)
+        return v
+
+    value = plain(value)
+    text = repr(value) if isinstance(value, float) else json.dumps(value)
     return text if len(text) <= 60 else text[:57] + "..."
 
 
@@ -464,7 +473,8 @@ def _check_flight(cfg: Config, fail) -> None:
 
 
 def _unknown(name: str, allowed, kind: str) -> str:
-    near = difflib.get_close_matches(name, list(allowed), n=1)
+    same_but_case = [a for a in allowed if a.lower() == name.lower()]
+    near = same_but_case or difflib.get_close_matches(name, list(allowed), n=1)
     hint = f"did you mean `{near[0]}`?" if near else f"allowed: {', '.join(allowed)}"
     return f"unknown {kind}; {hint}"
 
@@ -492,7 +502,7 @@ def check_weight(value: list, size: int, path: str, label: str, *, definite: boo
     if nested and any(not isinstance(row, list) for row in value):
         raise ConfigError(f"{label}: {path}: mixes numbers and rows; give a list (diagonal) or a list of rows")
     shape = (len(value), len(value[0])) if nested and value else (len(value),)
-    expect = f"{size} values (one per {', '.join(names)}) or a {size}x{size} matrix"
+    expect = f"{size} value{'s' if size != 1 else ''} (one per {', '.join(names)}) or a {size}x{size} matrix"
     if (not nested and len(value) != size) or (nested and (len(value) != size or any(
             len(row) != size for row in value))):
         got = "x".join(map(str, shape)) if nested else f"{len(value)} values"

@@ -54,6 +54,7 @@ class Workspace:
         self.reused: list[Path] = []
         self.payloads: dict[str, dict] = {}
         """JSON artifacts written in this session, by file name (what ``--json`` prints)."""
+        artifacts.remove_stale_temporaries(self.out)
 
     def path(self, name: str) -> Path:
         return self.out / name
