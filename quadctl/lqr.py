@@ -10,6 +10,7 @@ integrals first (MATLAB ``lqi``, see :mod:`quadctl.integral`).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,17 +83,25 @@ def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
     """
     A, B, Q, R = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, Q, R))
     require_stabilizable(A, B, name, state_names)
-    try:
-        P = scipy.linalg.solve_continuous_are(A, B, Q, R)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise DesignError(f"{name}: the Riccati solve failed ({exc}); "
-                          "check that Q makes every unstable mode visible (detectable)") from None
-    if not np.all(np.isfinite(P)):
-        raise DesignError(f"{name}: the Riccati solution is not finite; check the weights")
-    P = (P + P.T) / 2
-    K = np.linalg.solve(R, B.T @ P)
-    E = np.linalg.eigvals(A - B @ K)
-    residual = riccati_residual(A, B, Q, R, P)
+    # SciPy balances the Hamiltonian first; entries near the underflow limit can spoil that
+    # balancing (seen: a 5.6e-301 entry gave residual 0.5), so an inaccurate answer is retried
+    # without it.
+    for balanced in (True, False):
+        try:
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                P = scipy.linalg.solve_continuous_are(A, B, Q, R, balanced=balanced)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise DesignError(f"{name}: the Riccati solve failed ({exc}); "
+                              "check that Q makes every unstable mode visible (detectable)") from None
+        if not np.all(np.isfinite(P)):
+            raise DesignError(f"{name}: the Riccati solution is not finite; check the weights")
+        P = (P + P.T) / 2
+        K = np.linalg.solve(R, B.T @ P)
+        E = np.linalg.eigvals(A - B @ K)
+        residual = riccati_residual(A, B, Q, R, P)
+        if residual <= RICCATI_RTOL and all(is_stable(e) for e in E):
+            break
     if residual > RICCATI_RTOL or not all(is_stable(e) for e in E):
         raise DesignError(
             f"{name}: the Riccati solution is not stabilizing (residual {residual:.1e}); "
