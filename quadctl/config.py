@@ -237,7 +237,7 @@ def from_dict(data: Any, label: str = "<config>") -> Config:
     if not isinstance(data, dict):
         kind = "empty" if data is None else f"a {type(data).__name__}"
         raise ConfigError(f"{label}: the config is {kind}, not a mapping of keys; "
-                          "start from `quadctl config show`")
+                          "start from `quadctl configs --show forward`")
     try:
         cfg = Config.model_validate(data)
     except ValidationError as exc:
