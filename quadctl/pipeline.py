@@ -111,6 +111,9 @@ def closed_loop_of(cfg: Config, linear: LinearModel, K: np.ndarray, x_rate: np.n
     open-loop plant's instead.
     """
     integral_states = tuple(integral_states)
+    if integral_of(cfg) and not integral_states:
+        raise ValueError("the config has integral action (lqr.<subsystem>.integral): pass Ki and "
+                         "integral_states from the design, or call pipeline.loop_of(cfg, linear, design, x_rate)")
     A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, integral_states)
     names = (*STATE_NAMES, *integral_states)
     eig, owners = eigen_owners(A_cl, state_owner(cfg), names)

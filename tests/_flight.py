@@ -9,9 +9,9 @@ from functools import cache
 from quadctl import config, pipeline
 
 
-def cfg_dict(name: str, **changes) -> dict:
+def cfg_dict(bundled: str, **changes) -> dict:
     """A bundled config as a mutable dict, with top-level ``changes`` merged in."""
-    data = copy.deepcopy(config.load(name).model_dump(mode="json"))
+    data = copy.deepcopy(config.load(bundled).model_dump(mode="json"))
     data.update(changes)
     return data
 

@@ -1,0 +1,120 @@
+"""Stability margins against loops with known answers, and against the LQR guarantee."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.optimize
+from _flight import cfg_dict, solve
+
+from quadctl import discrete, margins
+from quadctl.margins import BrokenLoop, loop_margins
+
+
+def integrator_with_lag(k: float, tau: float) -> BrokenLoop:
+    """``L(s) = k / (s (tau s + 1))`` as state feedback: x1' = x2, x2' = (u - x2) / tau, u = -k x1."""
+    A = np.array([[0.0, 1.0], [0.0, -1.0 / tau]])
+    b = np.array([0.0, 1.0 / tau])
+    return BrokenLoop(A, b, np.array([k, 0.0]))
+
+
+@pytest.mark.parametrize("k, tau", [(math.sqrt(2), 1.0), (5.0, 0.1), (0.3, 2.0)])
+def test_integrator_with_first_order_lag(k, tau):
+    """|L(jw)| = 1 at k = w sqrt(1 + w^2 tau^2); PM = 90 - atan(w tau); the phase never reaches
+    -180 deg, so both gain margins are infinite."""
+    wc = math.sqrt((math.sqrt(1 + 4 * k**2 * tau**2) - 1) / (2 * tau**2))
+    m = loop_margins(integrator_with_lag(k, tau))
+    assert m.stable
+    assert m.phase_crossover_freq == pytest.approx(wc, rel=1e-9)
+    assert m.phase_margin_deg == pytest.approx(90 - math.degrees(math.atan(wc * tau)), abs=1e-7)
+    assert m.gain_margin_db == (None, None)
+
+
+def test_integrator_with_lag_of_k_sqrt2_has_45_degrees():
+    m = loop_margins(integrator_with_lag(math.sqrt(2), 1.0))
+    assert m.phase_margin_deg == pytest.approx(45.0, abs=1e-8)
+    assert m.phase_crossover_freq == pytest.approx(1.0, rel=1e-10)
+
+
+def test_three_lags_gain_margin_is_six():
+    """L = 1 / (s (s + 1) (s + 2)): phase -180 deg at w = sqrt(2), |L| = 1/6 there: GM = 6 (15.56 dB)."""
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -2.0, -3.0]])
+    m = loop_margins(BrokenLoop(A, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])))
+    assert m.gain_margin_db[1] == pytest.approx(20 * math.log10(6.0), abs=1e-9)
+    assert m.gain_crossover_freqs[1] == pytest.approx(math.sqrt(2), rel=1e-10)
+    assert m.gain_margin_db[0] is None
+    wc = scipy.optimize.brentq(lambda w: w**2 * (w**2 + 1) * (w**2 + 4) - 1, 0.1, 1.0)
+    pm = 90 - math.degrees(math.atan(wc) + math.atan(wc / 2))
+    assert m.phase_margin_deg == pytest.approx(pm, abs=1e-8)
+
+
+def test_pure_integrator_disk_margin_is_two():
+    """L = k / s: |S - T| = 1 at every frequency, so alpha = 2, gains [0, inf), disk phase 90 deg."""
+    m = loop_margins(BrokenLoop(np.array([[0.0]]), np.array([1.0]), np.array([3.0])))
+    assert m.disk_alpha == pytest.approx(2.0, rel=1e-9)
+    assert m.disk_phase_deg == pytest.approx(90.0, rel=1e-9)
+    # |1 + k/(jw)| = |jw + k| / w > 1, tending to 1 beyond the grid's last frequency
+    assert 1.0 <= m.min_return_difference < 1.0 + 1e-4
+
+
+def test_unstable_loop_is_reported_unstable():
+    m = loop_margins(BrokenLoop(np.array([[0.0]]), np.array([1.0]), np.array([-1.0])))
+    assert not m.stable and not m.meets_lqr_guarantee
+
+
+@pytest.mark.filterwarnings("ignore:__call__. evaluation above Nyquist")
+def test_agrees_with_python_control_continuous_and_sampled():
+    control = pytest.importorskip("control")
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -2.0, -3.0]])
+    B, C = np.array([[0.0], [0.0], [1.0]]), np.array([[1.5, 0.2, 0.0]])
+    sys = control.ss(A, B, C, 0)
+    for ts in (None, 0.1):
+        if ts:
+            sysd = control.c2d(sys, ts)
+            loop = BrokenLoop(sysd.A, sysd.B.ravel(), sysd.C.ravel(), ts)
+            grid = np.logspace(-3, math.log10(math.pi / ts), 20001)
+            ref = sysd
+        else:
+            loop = BrokenLoop(A, B.ravel(), C.ravel())
+            grid = np.logspace(-3, 3, 20001)
+            ref = sys
+        m = loop_margins(loop)
+        gm, pm, _, wpc, wgc, _ = control.stability_margins(ref, method="frd" if ts else "best")
+        assert 10 ** (m.gain_margin_db[1] / 20) == pytest.approx(gm, rel=1e-6)
+        assert m.phase_margin_deg == pytest.approx(pm, rel=1e-6)
+        assert m.phase_crossover_freq == pytest.approx(wgc, rel=1e-6)
+        alpha = control.disk_margins(ref, grid)[0]
+        assert m.disk_alpha == pytest.approx(float(np.min(alpha)), rel=1e-5)
+
+
+def test_continuous_lqr_loops_meet_the_guarantee():
+    """Every report loop on its design model: |1 + L| >= 1, GM from -6 dB to inf, PM >= 60 deg."""
+    _, _, linear, dec, des = solve(cfg_dict("forward"))
+    result = margins.all_margins(des, dec, linear.A, linear.B)
+    design_loops = [m for m in result if m.model == "design"]
+    assert {m.loop for m in design_loops} == {"altitude", "roll", "pitch", "yaw"}
+    for m in design_loops:
+        assert m.meets_lqr_guarantee, m.loop
+        assert np.abs(1 + m.response).min() >= 1 - 1e-9
+        assert "meets the continuous LQR guarantee" in m.notes[0]
+
+
+def test_sampled_loops_explain_their_shortfall():
+    _, _, linear, dec, des = solve(cfg_dict("mambo-200hz"))
+    result = margins.all_margins(des, dec, linear.A, linear.B)
+    roll = next(m for m in result if m.loop == "roll" and m.model == "design")
+    assert roll.sample_time == pytest.approx(0.005) and roll.stable
+    assert roll.gain_margin_db[1] is not None  # a sampled loop has a finite upper gain margin
+    assert any("cause: discrete design" in n for n in roll.notes)
+    # the continuous report design run at 200 Hz: unstable sampled loops
+    _, _, linear, dec, des_c = solve(cfg_dict("forward"))
+    emulated = margins.all_margins(des_c, dec, linear.A, linear.B, emulated_rate=200.0)
+    assert not next(m for m in emulated if m.loop == "roll").stable
+
+
+def test_the_grid_of_a_sampled_loop_ends_at_nyquist():
+    Ad, Bd = discrete.c2d([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]], 0.01)
+    loop = BrokenLoop(Ad, Bd.ravel(), np.array([1.0, 1.0]), 0.01)
+    assert margins.frequency_grid(loop)[-1] == pytest.approx(math.pi / 0.01, rel=1e-15)

@@ -1,0 +1,98 @@
+"""Rotor mixing, saturation, and the bundled mambo-200hz design against the Mambo's motor limits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from _flight import cfg_dict, run
+
+from quadctl import config, motors, pipeline
+from quadctl.errors import ConfigError
+from quadctl.layout import INPUT_INDEX
+
+MAMBO = motors.Motors()
+MG = 0.068 * 9.81
+
+
+@pytest.mark.parametrize("layout", ["x", "+"])
+def test_mixing_round_trip(layout):
+    m = motors.Motors(layout=layout)
+    np.testing.assert_allclose(m.mixer() @ m.effectiveness(), np.eye(4), atol=1e-12)
+    u = np.array([[0.7, 0.01, -0.02, 0.001], [MG, 0.0, 0.0, 0.0], [0.2, -0.005, 0.003, -0.0004]])
+    f = u @ m.mixer().T
+    np.testing.assert_allclose(f @ m.effectiveness().T, u, rtol=1e-12, atol=1e-15)
+
+
+def test_x_layout_signs_and_the_mambo_torque_authority():
+    """Hover splits m g evenly; +A (right wing down) loads the left rotors, +E (nose up) the front
+    ones, +R (nose right) the counter-clockwise ones (1, 3); the Mambo reaches ~0.03 N m of roll."""
+    mix = MAMBO.mixer()
+    np.testing.assert_allclose(mix @ [MG, 0, 0, 0], [MG / 4] * 4, rtol=1e-12)
+    d = 0.0624 / math.sqrt(2)
+    roll = mix @ [0, 1e-3, 0, 0]
+    np.testing.assert_allclose(roll, np.array([-1, -1, 1, 1]) * 1e-3 / (4 * d), rtol=1e-12)
+    pitch = mix @ [0, 0, 1e-3, 0]
+    np.testing.assert_allclose(pitch, np.array([1, -1, -1, 1]) * 1e-3 / (4 * d), rtol=1e-12)
+    yaw = mix @ [0, 0, 0, 1e-3]
+    np.testing.assert_allclose(yaw, np.array([1, -1, 1, -1]) * 1e-3 / (4 * 0.00241), rtol=1e-12)
+    act = motors.actuators_of(MAMBO)
+    room = motors.headroom(act, [MG, 0, 0, 0])
+    # two rotors to the limit, two to zero around hover: 4 d (0.33 - m g / 4)
+    assert room["A"][1] == pytest.approx(4 * d * (0.33 - MG / 4), rel=1e-12)
+    assert 0.025 < room["A"][1] < 0.03 and room["R"][1] < 2e-3
+
+
+def test_plus_layout_rolls_with_the_side_rotors_only():
+    roll = motors.Motors(layout="+").mixer() @ [0, 1e-3, 0, 0]
+    assert roll[0] == pytest.approx(0, abs=1e-15) and roll[2] == pytest.approx(0, abs=1e-15)
+    assert roll[1] < 0 < roll[3]
+
+
+def test_a_trim_the_rotors_cannot_hold_is_refused():
+    data = cfg_dict("hover", motors={"max_thrust": 0.1})
+    cfg = config.from_dict(data)
+    trim = pipeline.trim_of(cfg)
+    linear = pipeline.linear_of(cfg, trim)
+    with pytest.raises(ConfigError, match=r"motors.max_thrust: the trim needs rotor 1 = 0.1668 N, outside "
+                                          r"the limits \[0, 0.1\]"):
+        pipeline.closed_loop_of(cfg, linear, np.zeros((4, 12)), pipeline.reference_rate(trim))
+
+
+def test_box_limits_clip_the_inputs_and_are_reported():
+    data = cfg_dict("forward", limits={"A": [-0.05, 0.05], "E": [-0.05, 0.05], "R": [-0.05, 0.05]})
+    data["simulation"]["duration"] = 2.0
+    cfg, _, loop, sim = run(data)
+    assert sim.status == "ok"
+    for name in "AER":
+        assert np.abs(sim.u[:, INPUT_INDEX[name]]).max() <= 0.05 + 1e-15
+    fractions = motors.saturation_fraction(loop.actuators, sim.u)
+    assert fractions["T"] == 0.0 and fractions["R"] > 0.0  # the report's yaw gain asks for 1.4 N m
+
+
+def test_the_reports_design_saturates_the_mambo_rotors_and_is_flagged():
+    data = cfg_dict("forward", controller={"rate": 200.0}, motors={})
+    cfg, _, loop, sim = run(data)
+    summary = pipeline.flight_summary(cfg, loop, sim)
+    sat = summary["saturation"]
+    assert sat["saturates"] and max(sat["fraction"].values()) > motors.SATURATION_FLAG
+    assert max(sat["peak_command"].values()) == pytest.approx(0.33, rel=1e-9)  # clipped at the limit
+
+
+def test_mambo_200hz_stays_within_its_motor_limits():
+    """The bundled realistic design: no rotor reaches a limit, torques far inside the authority."""
+    data = cfg_dict("mambo-200hz")
+    cfg, des, loop, sim = run(data)
+    assert sim.status == "ok" and des.rate == 200.0 and sim.plan.hold == 5
+    f = loop.actuators.commands(sim.u)
+    assert f.min() > 0.05 and f.max() < 0.33 * 0.97, (f.min(), f.max())
+    assert all(v == 0.0 for v in motors.saturation_fraction(loop.actuators, sim.u).values())
+    peak = np.abs(sim.u - loop.u_trim).max(axis=0)
+    room = motors.headroom(loop.actuators, loop.u_trim)
+    for name in "AER":
+        assert peak[INPUT_INDEX[name]] < 0.5 * min(room[name]), name
+    # and it regulates: attitude errors settle to the noise floor
+    err = sim.x - sim.x_ref
+    late = sim.t > 8.0
+    assert np.abs(err[late][:, [6, 7]]).max() < 0.01  # phi, theta within ~0.6 deg
