@@ -128,3 +128,58 @@ def margins_figure(m, *, title: str = "") -> Figure:
     head = f"{m.loop} loop broken at {m.input} ({m.model} model, {kind})"
     fig.suptitle(f"{title}: {head}" if title else head)
     return fig
+
+
+def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") -> Figure:
+    """A sweep's trade-off: metric ``y`` against metric ``x``, one point per case.
+
+    Passing cases are dots, failing ones red crosses; gate thresholds on either axis are
+    dashed lines. Cases without both values (no design, never settled) are counted in the title.
+
+    Parameters
+    ----------
+    rows : list of dict
+        Sweep rows (:attr:`quadctl.sweep.SweepResult.rows`): metric name -> value, and ``pass``.
+    x, y : str
+        Metric names, such as ``peak.T`` and ``settling_time.pD``.
+    gates : sequence of quadctl.sweep.Gate
+    """
+    def unit(metric: str) -> str:
+        family, _, name = metric.partition(".")
+        if family == "settling_time":
+            return "s"
+        if family == "overshoot":
+            return "%"
+        if family == "peak":
+            return unit_of(name)
+        return "rad/s" if family == "eig" else ""
+
+    fig = Figure(figsize=(7.5, 5.0), layout="constrained")
+    ax = fig.subplots()
+    plotted = {True: ([], []), False: ([], [])}
+    missing = 0
+    for row in rows:
+        vx, vy = row.get(x), row.get(y)
+        if isinstance(vx, (int, float)) and isinstance(vy, (int, float)) and np.isfinite([vx, vy]).all():
+            plotted[bool(row.get("pass"))][0].append(vx)
+            plotted[bool(row.get("pass"))][1].append(vy)
+        else:
+            missing += 1
+    ax.scatter(*plotted[True], s=14, color=_COLORS[0], alpha=0.7, label=f"pass ({len(plotted[True][0])})")
+    ax.scatter(*plotted[False], s=22, color=_COLORS[1], marker="x", label=f"fail ({len(plotted[False][0])})")
+    for gate in gates:
+        for bound in (gate.min, gate.max):
+            if bound is None:
+                continue
+            if gate.metric == x:
+                ax.axvline(bound, color="0.3", ls="--", lw=1.0)
+            elif gate.metric == y:
+                ax.axhline(bound, color="0.3", ls="--", lw=1.0)
+    ax.set_xlabel(f"{x} [{unit(x)}]" if unit(x) else x)
+    ax.set_ylabel(f"{y} [{unit(y)}]" if unit(y) else y)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8, frameon=False)
+    note = f"; {missing} cases without both values" if missing else ""
+    fig.suptitle(f"{title}: sweep trade-off ({len(rows)} cases{note})" if title else
+                 f"sweep trade-off ({len(rows)} cases{note})")
+    return fig

@@ -13,11 +13,12 @@ from quadctl.cli.commands import (
     margins,
     run,
     simulate,
+    sweep,
     trim,
 )
 from quadctl.cli.errors import handled
 
-COMMANDS = (trim, linearize, decouple, check, design, simulate, margins, run, configs)
+COMMANDS = (trim, linearize, decouple, check, design, simulate, margins, sweep, run, configs)
 
 
 def register(app: typer.Typer) -> None:

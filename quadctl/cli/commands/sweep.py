@@ -1,0 +1,57 @@
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.options import ConfigOpt, JsonOpt, OutOpt
+
+NAME = "sweep"
+
+
+def command(
+    sweep: Annotated[Path, typer.Option("--sweep", "-s", metavar="FILE",
+                                        help="Sweep file: parameters to vary, mode, gates.")],
+    config: ConfigOpt = None, out: OutOpt = None,
+    jobs: Annotated[Optional[int], typer.Option(
+        "--jobs", "-j", min=1, help="Local worker processes. Default: all cores.")] = None,
+    scheduler: Annotated[Optional[str], typer.Option(
+        "--scheduler", metavar="ADDRESS", help="Run on this Dask scheduler (tcp://host:8786) instead.")] = None,
+    resume: Annotated[bool, typer.Option(
+        "--resume", help="Keep the rows an interrupted run of this sweep finished; compute the rest.")] = False,
+    json: JsonOpt = False,
+) -> None:
+    """Design, simulate and score many variants of a config; write sweep.csv, sweep.json, sweep.png.
+
+    Each case is the config with the sweep's values put in at their key paths (lqr.roll.Q[1],
+    vehicle.mass, ...), designed, simulated on the nonlinear model and scored. Exits 1 when a case
+    fails a gate (or, with require_ok, fails to design, is unstable or diverges), listing the worst.
+    """
+    from quadctl import config as config_mod
+    from quadctl import sweep as sweep_mod
+    from quadctl.cli import render, render_sweep
+    from quadctl.workspace import default_out
+
+    cfg = config_mod.load(config)
+    spec = sweep_mod.load(sweep, cfg)
+    label = config_mod.resolve(config)[0]
+    with render_sweep.sweep_progress(spec.count(), quiet=json) as progress:
+        outcome = sweep_mod.execute(cfg, spec, out or default_out(cfg), label=label, jobs=jobs,
+                                    scheduler=scheduler, resume=resume, progress=progress)
+    result, summary = outcome.result, outcome.summary
+    if "casadi" in result.stats["backend"]:
+        render.notice("no C compiler found: simulating in CasADi's interpreter (correct, slower)")
+    if json:
+        render.emit_json({**summary, "performance": render_sweep.sweep_performance(outcome)})
+    else:
+        render.out.print(render_sweep.sweep_tables(result, spec))
+        render.out.print(render_sweep.sweep_line(outcome))
+        for path in outcome.files:
+            render.out.print(f"-> {path}")
+    if result.failed:
+        if not json:
+            for line in render_sweep.worst_lines(result):
+                render.out.print(line, markup=False)
+        render.err.print(f"quadctl: check failed: {len(result.failed)} of {len(result.rows)} cases fail: "
+                         + render_sweep.sweep_failures(summary), markup=False)
+        raise typer.Exit(EXIT_CHECK_FAILED)

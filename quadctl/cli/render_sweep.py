@@ -1,0 +1,170 @@
+"""Terminal output of ``quadctl sweep``: the progress bar, the best/worst table, the summary line."""
+
+from __future__ import annotations
+
+import contextlib
+
+from rich.console import Group
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    ProgressColumn,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.table import Table
+from rich.text import Text
+
+from quadctl.cli.render import err, num
+
+SHOWN = 5
+"""Rows of the best and of the worst cases in the table."""
+
+
+class _RateColumn(ProgressColumn):
+    """Cases per second."""
+
+    def render(self, task) -> Text:
+        speed = task.finished_speed or task.speed
+        return Text(f"{speed:,.0f} cases/s" if speed else "", style="progress.data.speed")
+
+
+@contextlib.contextmanager
+def sweep_progress(total: int, quiet: bool = False):
+    """A rich progress bar on stderr (rate and ETA); yields ``progress(done, total)`` for the library.
+
+    No refresh thread: the bar is redrawn as chunks land, so worker processes fork from a
+    process without one.
+    """
+    if quiet:
+        yield None
+        return
+    bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), _RateColumn(),
+                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+                   console=err, auto_refresh=False)
+    task = bar.add_task("sweep", total=total)
+
+    def update(done: int, all_cases: int) -> None:
+        bar.update(task, completed=done, total=all_cases, refresh=True)
+
+    with bar:
+        yield update
+
+
+def _shown_metrics(result, spec) -> list[str]:
+    gated = [g.metric for g in spec.gates]
+    extra = [m for m in ("settling_time.pD", "peak.T", "cost") if m in result.columns and m not in gated]
+    return (gated + extra)[:3]
+
+
+def sweep_tables(result, spec) -> Group:
+    """Two tables: the best and the worst cases (by their slack to the gates; by cost without gates)."""
+    metrics = _shown_metrics(result, spec)
+    ranked = result.ranked()
+    worst = ranked[:SHOWN]
+    best = [r for r in reversed(ranked[-SHOWN:]) if r not in worst]
+    how = "by the smallest relative slack to the gates" if spec.gates else "by LQR cost"
+    tables = []
+    for title, rows in ((f"Best of {len(result.rows)} cases ({how})", best),
+                        (f"Worst of {len(result.rows)} cases", worst)):
+        if not rows:
+            continue
+        table = Table(title=title, title_justify="left", expand=True)
+        table.add_column("case", justify="right")
+        table.add_column("parameters", overflow="fold", ratio=3)
+        for name in metrics:
+            table.add_column(_header(name), justify="right", ratio=1)
+        table.add_column("result")
+        for row in rows:
+            params = ", ".join(f"{_short(n)}={_fmt(row.get(n))}" for n in spec.names)
+            status = row.get("status")
+            verdict = ("[green]pass[/green]" if row["pass"] else
+                       "[red]fail[/red]" + ("" if status == "ok" else f" ({status})"))
+            table.add_row(str(row["case"]), params, *[_fmt(row.get(m)) for m in metrics], verdict)
+        tables.append(table)
+    return Group(*tables)
+
+
+def _short(path: str) -> str:
+    """A parameter's key path without its section (``lqr.roll.Q[1]`` -> ``roll.Q[1]``)."""
+    head, _, rest = path.partition(".")
+    return rest or head
+
+
+def _header(metric: str) -> str:
+    """``settling_time.pD`` -> ``settle pD (s)``: short enough for an 80-column terminal."""
+    from quadctl.layout import unit_of
+
+    family, _, name = metric.partition(".")
+    if family == "settling_time":
+        return f"settle {name} (s)"
+    if family == "overshoot":
+        return f"overshoot {name} (%)"
+    if family == "peak":
+        return f"peak {name} ({unit_of(name)})"
+    if family == "eig":
+        return f"eig {name} (rad/s)"
+    return metric
+
+
+def worst_lines(result, limit: int = SHOWN) -> list[str]:
+    """One line per failing case, worst first: what it fails."""
+    return [f"case {row['case']}: {row['failed_gates']}" + (f" ({row['reason']})" if row.get("reason") else "")
+            for row in result.ranked()[:limit] if not row["pass"]]
+
+
+def _fmt(value) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        return num(value)
+    return "-" if value is None else str(value)
+
+
+def sweep_performance(outcome) -> dict:
+    """Timing of the cases computed in this run (not in sweep.json, which stays deterministic)."""
+    result = outcome.result
+    stats = result.stats
+    wall = result.wall_time
+    return {
+        "cases": len(result.rows), "computed": result.computed, "resumed": outcome.reused,
+        "wall_time_s": wall, "simulated_steps": stats["steps"],
+        "steps_per_second": stats["steps"] / wall if wall > 0 else None,
+        "designs_per_second": result.computed / wall if wall > 0 else None,
+        "subsystem_designs": stats["designs"],
+        "us_per_subsystem_design": 1e6 * stats["design_time"] / stats["designs"] if stats["designs"] else None,
+        "batched_solves_redone_by_scipy": stats["fallbacks"],
+        "backend": stats["backend"], "executor": stats["executor"],
+    }
+
+
+def sweep_line(outcome) -> str:
+    """One line: what ran, how fast, and the verdict."""
+    perf = sweep_performance(outcome)
+    result = outcome.result
+    resumed = f", {perf['resumed']} resumed" if perf["resumed"] else ""
+    speed = ""
+    if perf["steps_per_second"]:
+        speed = (f": [bold]{perf['steps_per_second'] / 1e6:.2f} M RK4 steps/s[/bold], "
+                 f"{perf['designs_per_second']:.0f} designs/s")
+    if perf["us_per_subsystem_design"] is not None:
+        speed += f", {perf['us_per_subsystem_design']:.1f} µs per subsystem LQR"
+    backend = ", ".join(perf["backend"]) or "-"
+    failed = len(result.failed)
+    verdict = "[green]all pass[/green]" if not failed else f"[red]{failed} fail[/red]"
+    return (f"{perf['cases']} cases ({perf['computed']} computed{resumed}) in {perf['wall_time_s']:.2f} s "
+            f"on {perf['executor']} ({backend}){speed}; {verdict}")
+
+
+def sweep_failures(summary: dict) -> str:
+    """What the failing cases fail, with counts, and the worst case numbers."""
+    parts = [f"{metric} ({gate['failed']})" for metric, gate in summary["gates"].items() if gate["failed"]]
+    bad = {k: v for k, v in summary["statuses"].items() if k != "ok"}
+    parts += [f"status {k} ({v})" for k, v in bad.items()]
+    if summary.get("unstable"):
+        parts.append(f"unstable ({summary['unstable']})")
+    worst = ", ".join(str(r["case"]) for r in summary["worst"][:5] if not r["pass"])
+    text = "; ".join(parts) if parts else "see sweep.csv"
+    return f"{text}; worst cases: {worst}" if worst else text

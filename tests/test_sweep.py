@@ -1,0 +1,531 @@
+"""Sweeps: expansion, key paths, gates, failure rows, resume, executors, and the batched numerics
+checked against their one-case references (SciPy, quadctl's own simulate and metrics)."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg
+from typer.testing import CliRunner
+
+from quadctl import batch, batch_codegen, config, metrics, pipeline, sweep
+from quadctl.cli.app import app
+from quadctl.errors import DesignError, SweepError
+from quadctl.lqr import lqr, riccati_residual
+from quadctl.simulate import max_stable_step, plan_step, simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+SHORT = {"simulation.duration": 0.15}
+"""Every sweep here simulates 0.15 s (about 4 400 RK4 steps at the report's auto step): long
+enough for the fast loops, short enough to keep the suite quick."""
+
+MATCH_RTOL = 1e-9
+"""Batched and one-case paths do the same arithmetic in a different order (SIMD lanes, a
+vectorized Riccati solver, summed quadratic forms): they agree to round-off amplified by the
+closed loop's stiffness (|lambda| dt up to 0.5 over thousands of steps), far below 1e-9."""
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return config.load("forward")
+
+
+def spec_of(cfg, **data):
+    data.setdefault("set", dict(SHORT))
+    return sweep.from_dict(data, cfg, "test.yaml")
+
+
+def max_rel_diff(rows_a, rows_b) -> tuple[float, str]:
+    """Largest relative difference over the numeric cells of two row lists, and where."""
+    worst, where = 0.0, ""
+    for a, b in zip(rows_a, rows_b):
+        assert a.keys() == b.keys()
+        for key in a:
+            va, vb = a[key], b[key]
+            if isinstance(va, float) and isinstance(vb, float):
+                d = abs(va - vb) / max(abs(vb), 1e-12)
+                if d > worst:
+                    worst, where = d, f"case {a['case']} {key}: {va!r} vs {vb!r}"
+            else:
+                assert va == vb, f"case {a['case']} {key}: {va!r} vs {vb!r}"
+    return worst, where
+
+
+# ---------------------------------------------------------------------------------------
+# Expansion
+
+
+def test_grid_is_the_cartesian_product_in_file_order(cfg):
+    spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [10, 50],
+                                    "lqr.altitude.R[0]": {"from": 0.1, "to": 10, "num": 3, "scale": "log"}})
+    cases = spec.cases()
+    assert spec.count() == len(cases) == 6
+    assert [c.index for c in cases] == list(range(6))
+    assert [c.values for c in cases] == [(10, 0.1), (10, 1.0), (10, 10.0), (50, 0.1), (50, 1.0), (50, 10.0)]
+
+
+def test_linear_range_includes_both_ends(cfg):
+    spec = spec_of(cfg, parameters={"vehicle.mass": {"from": 0.06, "to": 0.08, "num": 5}})
+    assert [c.values[0] for c in spec.cases()] == pytest.approx([0.06, 0.065, 0.07, 0.075, 0.08])
+
+
+def test_random_mode_same_seed_same_cases_and_within_bounds(cfg):
+    params = {"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 10, "high": 100},
+              "vehicle.mass": {"distribution": "normal", "mean": 0.068, "std": 0.003},
+              "lqr.yaw.R[0]": [0.5, 1, 2],
+              "lqr.pitch.Q[1]": {"from": 20, "to": 80}}
+    a = spec_of(cfg, mode="random", samples=200, seed=7, parameters=params).cases()
+    b = spec_of(cfg, mode="random", samples=200, seed=7, parameters=params).cases()
+    c = spec_of(cfg, mode="random", samples=200, seed=8, parameters=params).cases()
+    assert a == b
+    assert a != c
+    roll, mass, yaw, pitch = (np.array([case.values[k] for case in a]) for k in range(4))
+    assert roll.min() >= 10 and roll.max() <= 100
+    assert set(yaw) <= {0.5, 1, 2} and len(set(yaw)) == 3
+    assert pitch.min() >= 20 and pitch.max() <= 80
+    # 200 normal draws: the mean is within 4 standard errors (seeded, so this cannot flake)
+    assert abs(mass.mean() - 0.068) < 4 * 0.003 / math.sqrt(200)
+    assert len({case.values for case in a}) == 200  # no two alike
+
+
+# ---------------------------------------------------------------------------------------
+# Errors in the sweep file
+
+
+@pytest.mark.parametrize("data,message", [
+    ({"parameters": {"lqr.rol.Q[1]": [1, 2]}}, r"parameters\.lqr\.rol\.Q\[1\]: no such key in the config: "
+                                                r"`lqr\.rol`; did you mean `roll`\?"),
+    ({"parameters": {"lqr.roll.Q[3]": [1, 2]}}, r"index 3 out of range: lqr\.roll\.Q has 3 values"),
+    ({"parameters": {"vehicle.mas": [1]}}, r"`vehicle\.mas`; did you mean `mass`\?"),
+    ({"parameters": {"lqr.roll": [1]}}, r"is a section, not a value; name one of its keys: Q, R"),
+    ({"parameters": {"vehicle.mass.x": [1]}}, r"has no key `x`; the path goes too deep"),
+    ({"parameters": {"lqr..roll": [1]}}, r"not a key path"),
+    ({"parameters": {"vehicle.inertia": {"from": 1, "to": 2, "num": 2}}}, r"is a list .* index one entry"),
+    ({"parameters": {"vehicle.mass": []}}, r"parameters\.vehicle\.mass: empty list; give at least one value"),
+    ({"parameters": {"vehicle.mass": {"from": 0.06, "to": 0.07, "num": 0}}},
+     r"vehicle\.mass\.num = 0: empty range; num must be a whole number >= 1"),
+    ({"parameters": {"vehicle.mass": {"from": 0, "to": 0.07, "num": 3, "scale": "log"}}},
+     r"a log range needs from and to > 0"),
+    ({"parameters": {"vehicle.mass": {"distribution": "normal", "mean": 0.07, "std": 0.01}}},
+     r"a distribution needs mode: random"),
+    ({"mode": "random", "samples": 5, "parameters": {"vehicle.mass": {"distribution": "uniform", "low": 2,
+                                                                      "high": 1}}},
+     r"empty range: low 2 must be below high 1"),
+    ({"mode": "random", "parameters": {"vehicle.mass": [1]}}, r"samples: random mode needs the number of cases"),
+    ({"mode": "grd", "parameters": {"vehicle.mass": [1]}}, r"mode: \"grd\" is not a mode; use grid or random"),
+    ({"paramters": {"vehicle.mass": [1]}}, r"paramters: unknown key; did you mean `parameters`\?"),
+    ({"parameters": {}}, r"parameters: nothing to vary"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"settling_time.pd": {"max": 1}}},
+     r"gates\.settling_time\.pd: unknown metric; did you mean `settling_time\.pD`\?"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"settling_time.pN": {"max": 1}}},
+     r"pN is not regulated, so it has no settling time; regulated states: pD, u,"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"peak.T": {"maks": 1}}},
+     r"gates\.peak\.T\.maks: unknown key; did you mean `max`\?"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"peak.T": {"min": 2, "max": 1}}},
+     r"min 2 is above max 1; no case can pass"),
+])
+def test_sweep_file_errors_name_the_key_and_the_fix(cfg, data, message):
+    with pytest.raises(SweepError, match=message) as info:
+        sweep.from_dict(data, cfg, "s.yaml")
+    text = str(info.value)
+    assert text.startswith("s.yaml: ") and "\n" not in text
+
+
+def test_missing_sweep_file_and_yaml_errors(cfg, tmp_path):
+    with pytest.raises(SweepError, match=r"no such sweep file; check the path"):
+        sweep.load(tmp_path / "nope.yaml", cfg)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("parameters:\n  vehicle.mass: [1, 2\n")
+    with pytest.raises(SweepError, match=r"YAML syntax error at line \d+, column \d+"):
+        sweep.load(bad, cfg)
+
+
+def test_initial_offset_of_another_state_is_a_valid_key(cfg):
+    spec = spec_of(cfg, parameters={"simulation.initial_offset.q": [0.0, 0.1]})
+    assert spec.parameters[0].keys == ("simulation", "initial_offset", "q")
+
+
+def test_assign_copies_only_the_path(cfg):
+    base = cfg.model_dump(mode="json")
+    new = sweep.assign(base, ("lqr", "roll", "Q", 1), 7.0)
+    assert new["lqr"]["roll"]["Q"] == [1.0, 7.0, 1.0]
+    assert base["lqr"]["roll"]["Q"] == [1.0, 50.0, 1.0]
+    assert new["vehicle"] is base["vehicle"]
+
+
+# ---------------------------------------------------------------------------------------
+# Batched numerics against their one-case references
+
+
+def _random_stabilizable(rng, n, m):
+    while True:
+        A = rng.normal(size=(n, n))
+        B = rng.normal(size=(n, m))
+        ctrb = np.hstack([np.linalg.matrix_power(A, k) @ B for k in range(n)])
+        if np.linalg.matrix_rank(ctrb) == n:
+            return A, B
+
+
+@pytest.mark.parametrize("n,m", [(1, 1), (2, 1), (3, 1), (3, 2), (4, 2)])
+def test_batched_riccati_agrees_with_scipy_and_solves_the_equation(n, m):
+    rng = np.random.default_rng(n * 10 + m)
+    N = 60
+    systems = [_random_stabilizable(rng, n, m) for _ in range(N)]
+    A = np.stack([s[0] for s in systems])
+    B = np.stack([s[1] for s in systems])
+    L = rng.normal(size=(N, n, n))
+    Q = L @ L.transpose(0, 2, 1) + 1e-3 * np.eye(n)
+    M = rng.normal(size=(N, m, m))
+    R = M @ M.transpose(0, 2, 1) + 0.1 * np.eye(m)
+    res = batch.care(A, B, Q, R)
+    assert res.ok.all()
+    worst = 0.0
+    for k in range(N):
+        P = scipy.linalg.solve_continuous_are(A[k], B[k], Q[k], R[k])
+        worst = max(worst, np.abs(res.P[k] - P).max() / np.abs(P).max())
+        ours = riccati_residual(A[k], B[k], Q[k], R[k], res.P[k])
+        assert ours == pytest.approx(res.residual[k], rel=1e-6, abs=1e-18)
+        # never worse than SciPy's own solution by more than round-off
+        assert ours <= 10 * riccati_residual(A[k], B[k], Q[k], R[k], P) + 1e-14
+        assert np.all(np.linalg.eigvals(A[k] - B[k] @ res.K[k]).real < 0)
+    # random draws include nearly uncontrollable pairs (P ~ 1e6): both solvers then carry
+    # residuals ~1e-11 and their P differ in the 9th digit; well-conditioned ones agree to 1e-13
+    assert worst < 1e-7, f"Max diff is {worst:.4E}"
+    assert res.residual.max() <= 1e-10
+
+
+def test_batched_riccati_on_the_report_subsystems(forward):
+    _, _, _, dec, des = forward
+    for sub in des.subsystems:
+        A, B = dec[sub.name].A, dec[sub.name].B
+        res = batch.care(A[None], B[None], sub.Q[None], sub.R[None])
+        assert res.ok[0]
+        np.testing.assert_allclose(res.K[0], sub.K, rtol=1e-9)
+        np.testing.assert_allclose(res.P[0], sub.P, rtol=1e-9, atol=1e-12 * np.abs(sub.P).max())
+
+
+def test_batched_riccati_scalar_integrator_closed_form():
+    # x' = u: P = sqrt(q r), K = sqrt(q / r) (python-control's hand-derived case)
+    q = np.array([1.0, 4.0, 9.0, 100.0])
+    r = np.array([1.0, 2.0, 0.5, 4.0])
+    res = batch.care(np.zeros((4, 1, 1)), np.ones((4, 1, 1)), q[:, None, None], r[:, None, None])
+    np.testing.assert_allclose(res.P.ravel(), np.sqrt(q * r), rtol=1e-14)
+    np.testing.assert_allclose(res.K.ravel(), np.sqrt(q / r), rtol=1e-14)
+
+
+def test_batched_riccati_flags_what_has_no_stabilizing_solution():
+    # an unstable mode no input reaches, and a marginal mode Q does not see
+    A = np.array([[[1.0, 0.0], [0.0, -1.0]], [[0.0, 1.0], [0.0, 0.0]]])
+    B = np.array([[[0.0], [1.0]], [[0.0], [1.0]]])
+    Q = np.array([np.eye(2), np.zeros((2, 2))])
+    R = np.ones((2, 1, 1))
+    res = batch.care(A, B, Q, R)
+    assert not res.ok.any()
+    for k in range(2):
+        with pytest.raises(DesignError):
+            lqr(A[k], B[k], Q[k], R[k])
+
+
+def test_step_limits_agree_with_the_scan():
+    rng = np.random.default_rng(3)
+    eig = np.concatenate([rng.normal(size=300) * 10 ** rng.uniform(-2, 4, 300)
+                          + 1j * rng.normal(size=300) * 10 ** rng.uniform(-2, 4, 300),
+                          [-1.0, -14493.0, 0.0, 2.0, 1j, -1e-12 + 5j]])
+    fast = batch.max_stable_steps(eig)
+    slow = np.array([max_stable_step(e) for e in eig])
+    finite = np.isfinite(slow) & (slow > 0)
+    assert np.array_equal(fast[~finite], slow[~finite])
+    worst = np.max(np.abs(fast[finite] - slow[finite]) / slow[finite])
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
+
+
+def test_plan_with_limits_is_plan_step(forward):
+    _, _, linear, _, des = forward
+    eig = np.linalg.eigvals(linear.A - linear.B @ des.K_block)
+    owners = ["x"] * len(eig)
+    limits = batch.max_stable_steps(eig)
+    for dt in ("auto", 1e-5, 1e-4):
+        got, ref = batch.plan_with_limits(eig, owners, 2.0, dt, limits), plan_step(eig, owners, 2.0, dt)
+        # the limit comes from a bisection in another order: equal to the last bit or two
+        assert got.max_stable_dt == pytest.approx(ref.max_stable_dt, rel=1e-14)
+        assert dataclasses.replace(got, max_stable_dt=ref.max_stable_dt) == ref
+    with pytest.raises(Exception, match="is unstable for RK4"):
+        batch.plan_with_limits(eig, owners, 2.0, 0.01, limits)
+
+
+def _closed_loop(forward):
+    cfg, trim, linear, _, des = forward
+    loop = pipeline.closed_loop_of(cfg, linear, des.K_block, pipeline.reference_rate(trim))
+    return cfg, linear, des, loop
+
+
+def test_summary_matches_metrics_summarize(forward):
+    cfg, linear, des, loop = _closed_loop(forward)
+    sim = simulate(loop, pipeline.initial_state(cfg, linear.x_trim), 1.0, "auto")
+    regulated = [s for sub in cfg.partition().values() if sub.regulate for s in sub.states]
+    ref = metrics.summarize(sim, linear.u_trim, des.Q_block, des.R_block, regulated)
+    got = batch.summarize_run(sim.t, sim.x, sim.u, sim.x_ref, linear.u_trim, des.Q_block, des.R_block,
+                              regulated, sim.status)
+    assert got.keys() == ref.keys()
+    for key in ("settling_time", "overshoot", "peak_error", "final_error", "peak"):
+        assert got[key] == ref[key], key
+    assert got["cost"] == pytest.approx(ref["cost"], rel=1e-12)
+    assert got["status"] == ref["status"]
+
+
+def _lane_inputs(loop, x0, duration, dt):
+    from quadctl.layout import STATE_INDEX, STATE_NAMES
+    from quadctl.simulate import RUNAWAY, VALID_PITCH
+
+    bound = np.array([RUNAWAY[s] for s in STATE_NAMES])
+    lo, hi = loop.x_trim - bound, loop.x_trim + bound
+    lo[STATE_INDEX["theta"]], hi[STATE_INDEX["theta"]] = -VALID_PITCH, VALID_PITCH
+    drift = np.abs(loop.x_rate) * duration
+    c = batch_codegen.pack_lane_constants(loop.x_trim, loop.x_rate, loop.u_trim, loop.K, loop.params)
+    return c, lo - drift, hi + drift
+
+
+@pytest.mark.parametrize("no_compile", [False, True])
+def test_lanes_reproduce_simulate(forward, monkeypatch, no_compile):
+    """The lane loop (compiled SIMD, or CasADi's interpreter) gives simulate()'s trajectory, rows and
+    final input, lane by lane, whatever the other lanes do (9 cases: a full group and one more)."""
+    if no_compile:
+        monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
+        batch_codegen.get_lanes.cache_clear()
+    cfg, linear, des, loop = _closed_loop(forward)
+    x0 = pipeline.initial_state(cfg, linear.x_trim)
+    duration, dt = (0.01, 2e-5) if no_compile else (0.1, 2e-5)
+    n = round(duration / dt)
+    c, lo, hi = _lane_inputs(loop, x0, duration, dt)
+    count = 9
+    X0 = np.repeat(x0[None], count, 0)
+    X0[3, 7] += 0.2                                  # other lanes differ: the first must not care
+    steps = np.full(count, n)
+    steps[5] = n // 3
+    strides = np.ones(count, dtype=int)
+    strides[2] = 7
+    runner = batch_codegen.get_lanes(sweep.structural_pattern(forward[3]))
+    assert runner.backend == ("casadi" if no_compile else "compiled-simd")
+    results = runner.run(X0, np.full(count, dt), steps, np.repeat(c[None], count, 0), strides,
+                         np.repeat(lo[None], count, 0), np.repeat(hi[None], count, 0))
+    ref = simulate(loop, x0, duration, dt)
+    done, ks, xs, us = results[0]
+    assert done == ref.steps == n
+    np.testing.assert_array_equal(ks * dt, ref.t)
+    diff = np.abs(xs - ref.x).max()
+    assert diff <= 1e-12, f"Max diff is {diff:.4E}"
+    assert np.abs(us - ref.u).max() <= 1e-12
+    assert results[5][0] == n // 3 and results[5][1][-1] == n // 3
+    assert list(results[2][1][:3]) == [0, 7, 14] and results[2][1][-1] == n
+    if no_compile:
+        batch_codegen.get_lanes.cache_clear()
+
+
+def test_a_diverging_lane_stops_like_simulate(forward):
+    cfg, linear, des, loop = _closed_loop(forward)
+    bad = dataclasses.replace(loop, K=-loop.K)       # positive feedback: runs away
+    x0 = pipeline.initial_state(cfg, linear.x_trim)
+    c, lo, hi = _lane_inputs(bad, x0, 0.5, 2e-5)
+    runner = batch_codegen.get_lanes(sweep.structural_pattern(forward[3]))
+    done, ks, xs, us = runner.run(x0[None], [2e-5], [25000], c[None], [1], lo[None], hi[None])[0]
+    ref = simulate(dataclasses.replace(bad, eigenvalues=np.full(12, -1.0 + 0j)), x0, 0.5, 2e-5)
+    assert ref.status != "ok" and done == ref.steps < 25000
+    np.testing.assert_allclose(xs[-1], ref.x[-1], rtol=1e-9)
+    np.testing.assert_array_equal(us[-1], ref.u[-1])
+
+
+# ---------------------------------------------------------------------------------------
+# Running sweeps
+
+
+def test_batched_path_matches_the_pipeline(cfg):
+    spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [10, 200], "lqr.altitude.R[0]": [0.3, 3.0],
+                                    "vehicle.mass": [0.06, 0.075]},
+                   gates={"peak.T": {"max": 3.0}})
+    fast = sweep.run(cfg, spec, jobs=1)
+    slow = sweep.run(cfg, spec, jobs=1, fast=False)
+    assert fast.stats["backend"] == ["compiled-simd"] and slow.stats["backend"] == ["compiled"]
+    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert worst < MATCH_RTOL, f"Max diff is {worst:.4E} at {where}"
+    assert {r["status"] for r in fast.rows} == {"ok"}
+
+
+def test_failed_cases_are_rows_with_their_reason(cfg):
+    spec = spec_of(cfg, parameters={"lqr.yaw.Q[0]": [0.0, 50.0], "vehicle.mass": [-0.01, 0.068]},
+                   set={**SHORT, "lqr.yaw.Q[1]": 0.0})
+    result = sweep.run(cfg, spec, jobs=1)
+    by_values = {r["case"]: r for r in result.rows}
+    # Q = 0 on yaw: its double integrator is invisible to the cost, no stabilizing solution
+    assert by_values[1]["status"] == "design_failed"
+    assert "subsystem yaw" in by_values[1]["reason"]
+    # a negative mass is not a valid config: the case says which key and why
+    assert by_values[0]["status"] == "invalid_config"
+    assert "case 0: vehicle.mass = -0.01" in by_values[0]["reason"]
+    assert by_values[3]["status"] == "ok" and by_values[3]["pass"]
+    assert [r["pass"] for r in result.rows] == [False, False, False, True]
+    assert result.stats["fallbacks"] == 1
+
+
+def test_a_step_rk4_cannot_hold_is_a_row(cfg):
+    spec = spec_of(cfg, parameters={"lqr.roll.R[0]": [1.0]}, set={**SHORT, "simulation.dt": 0.001})
+    row = sweep.run(cfg, spec, jobs=1).rows[0]
+    assert row["status"] == "step_refused" and "is unstable for RK4" in row["reason"] and not row["pass"]
+
+
+def test_gates_and_ranking(cfg):
+    spec = spec_of(cfg, parameters={"lqr.altitude.R[0]": [0.2, 1.0, 5.0]},
+                   gates={"peak.T": {"max": 3.0}, "stable": {"equals": True}})
+    result = sweep.run(cfg, spec, jobs=1)
+    peaks = [r["peak.T"] for r in result.rows]
+    assert peaks[0] > peaks[1] > peaks[2]            # cheaper thrust, gentler thrust
+    assert [r["pass"] for r in result.rows] == [p <= 3.0 for p in peaks]
+    assert result.ranked()[0]["case"] == 0           # the worst: the largest peak
+    assert "peak.T <= 3 (got" in result.rows[0]["failed_gates"]
+
+
+def test_local_processes_give_the_same_rows(cfg):
+    spec = spec_of(cfg, mode="random", samples=20, seed=3, chunk_size=8,
+                   parameters={"lqr.pitch.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}})
+    one = sweep.run(cfg, spec, jobs=1)
+    two = sweep.run(cfg, spec, jobs=2)
+    assert two.stats["executor"] == "local processes (2)"
+    assert one.rows == two.rows
+
+
+def test_dask_local_cluster_gives_the_same_rows(cfg):
+    distributed = pytest.importorskip("distributed")
+    spec = spec_of(cfg, mode="random", samples=12, seed=5, chunk_size=8,
+                   parameters={"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}})
+    local = sweep.run(cfg, spec, jobs=1)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        remote = sweep.run(cfg, spec, scheduler=cluster.scheduler_address)
+    assert remote.stats["executor"].startswith("dask tcp://127.0.0.1:")
+    assert remote.rows == local.rows
+
+
+# ---------------------------------------------------------------------------------------
+# The run directory and resume
+
+
+class _Stop(KeyboardInterrupt):
+    pass
+
+
+def test_resume_keeps_finished_rows_and_computes_only_the_rest(cfg, tmp_path, monkeypatch):
+    spec = spec_of(cfg, mode="random", samples=24, seed=11, chunk_size=8,
+                   parameters={"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500},
+                               "vehicle.mass": {"distribution": "uniform", "low": 0.06, "high": 0.075}},
+                   gates={"settling_time.phi": {"max": 0.1}})
+    sweep.execute(cfg, spec, tmp_path / "full", jobs=1)
+
+    def stop_after_first(done, total):
+        if done >= 8:
+            raise _Stop()
+
+    with pytest.raises(_Stop):
+        sweep.execute(cfg, spec, tmp_path / "cut", jobs=1, progress=stop_after_first)
+    parts = sorted((tmp_path / "cut" / sweep.PARTS).glob("chunk-*.json"))
+    assert [p.name for p in parts] == ["chunk-0000000.json"]
+    assert not (tmp_path / "cut" / "sweep.csv").exists()
+
+    computed = []
+    real = sweep.evaluate_chunk
+    monkeypatch.setattr(sweep, "evaluate_chunk", lambda task: computed.extend(i for i, _ in task.cases)
+                        or real(task))
+    resumed = sweep.execute(cfg, spec, tmp_path / "cut", jobs=1, resume=True)
+    assert sorted(computed) == list(range(8, 24))
+    assert resumed.reused == 8 and resumed.result.computed == 16
+    assert (tmp_path / "cut" / "sweep.csv").read_text() == (tmp_path / "full" / "sweep.csv").read_text()
+
+    computed.clear()
+    again = sweep.execute(cfg, spec, tmp_path / "cut", jobs=1, resume=True)
+    assert computed == [] and again.reused == 24
+
+    changed = dataclasses.replace(spec, seed=12, canonical={**spec.canonical, "seed": 12})
+    with pytest.raises(SweepError, match=r"rows of another sweep .* run without --resume"):
+        sweep.execute(cfg, changed, tmp_path / "cut", jobs=1, resume=True)
+
+
+def test_outputs_table_summary_and_plot(cfg, tmp_path):
+    spec = spec_of(cfg, parameters={"lqr.altitude.R[0]": [0.2, 5.0]}, gates={"peak.T": {"max": 3.0}})
+    outcome = sweep.execute(cfg, spec, tmp_path, jobs=1)
+    with open(tmp_path / "sweep.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    header = list(table[0])
+    assert header[:2] == ["case", "lqr.altitude.R[0]"]
+    assert header[-3:] == ["pass", "failed_gates", "reason"]
+    assert header.index("stable") < header.index("peak.T") < header.index("pass")
+    assert [row["pass"] for row in table] == ["false", "true"]
+    summary = json.loads((tmp_path / "sweep.json").read_text())
+    assert summary["config_hash"] == cfg.digest()
+    assert summary["cases"] == 2 and summary["failed"] == 1 and not summary["ok"]
+    assert summary["gates"]["peak.T"]["failed"] == 1
+    assert summary["worst"][0]["case"] == 0
+    assert summary["sweep_digest"] == spec.digest(cfg)
+    assert (tmp_path / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert outcome.summary["ok"] is False
+
+
+# ---------------------------------------------------------------------------------------
+# The command
+
+
+runner = CliRunner()
+
+
+def _write(path: Path, data: dict) -> Path:
+    path.write_text(json.dumps(data))  # JSON is YAML
+    return path
+
+
+def test_cli_gate_pass_exits_0(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [25, 50]}, "set": SHORT,
+                                              "gates": {"peak.T": {"max": 10.0}}})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out"), "-j", "1"])
+    assert res.exit_code == 0, res.output
+    assert "all pass" in res.output and "M RK4 steps/s" in res.output
+    assert (tmp_path / "out" / "sweep.csv").exists()
+
+
+def test_cli_gate_failure_exits_1_and_lists_the_worst(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.altitude.R[0]": [0.2, 1.0, 5.0]},
+                                              "set": SHORT, "gates": {"peak.T": {"max": 3.0}}})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out"), "-j", "1"])
+    assert res.exit_code == 1
+    assert "quadctl: check failed: 2 of 3 cases fail: peak.T (2); worst cases: 0, 1" in res.output
+    assert "case 0: peak.T <= 3 (got" in res.output
+
+
+def test_cli_json_output_is_parseable(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [50]}, "set": SHORT})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out"), "-j", "1", "--json"])
+    assert res.exit_code == 0
+    payload = json.loads(res.stdout)
+    assert payload["cases"] == 1 and payload["performance"]["simulated_steps"] > 0
+
+
+@pytest.mark.parametrize("data,code,message", [
+    ({"parameters": {"lqr.roll.Q[7]": [1]}}, 2, "index 7 out of range"),
+    ({"parameters": {"vehicle.mass": [0.07]}, "gates": {"peak.X": {"max": 1}}}, 2, "unknown metric"),
+])
+def test_cli_bad_sweep_file_exits_2_with_one_line(tmp_path, data, code, message):
+    sweep_file = _write(tmp_path / "s.yaml", data)
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out")])
+    assert res.exit_code == code
+    assert message in res.output and "Traceback" not in res.output
+
+
+def test_ci_example_passes_on_the_bundled_design(tmp_path):
+    cfg = config.load("forward")
+    spec = sweep.load(ROOT / "examples" / "ci-sweep.yaml", cfg)
+    spec = dataclasses.replace(spec, fixed=((*spec.fixed[0][:2], 1.5),))  # 1.5 s instead of 4 s: quicker
+    result = sweep.run(cfg, spec, jobs=1)
+    assert len(result.rows) == 27
+    assert all(r["pass"] for r in result.rows), [r["failed_gates"] for r in result.rows if not r["pass"]]
