@@ -289,7 +289,7 @@ def rate_warnings(loops, rate: float) -> list[RateWarning]:
     -------
     list of RateWarning
         One per loop whose fastest pole exceeds :func:`realizable_frequency`, or whose sampled
-        loop is unstable, fastest first.
+        loop is unstable: subsystems fastest first, then the coupled loop.
     """
     limit = realizable_frequency(rate)
     out = []
@@ -303,7 +303,7 @@ def rate_warnings(loops, rate: float) -> list[RateWarning]:
         if abs(pole) > limit or radius >= 1.0 - UNIT_CIRCLE_MARGIN:
             out.append(RateWarning(loop=name, pole=pole, limit=limit, factor=abs(pole) / limit,
                                    sampled_radius=radius))
-    return sorted(out, key=lambda w: -w.factor)
+    return sorted(out, key=lambda w: (w.loop == "coupled", -w.factor))
 
 
 def _fmt(e: complex) -> str:

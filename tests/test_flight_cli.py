@@ -120,3 +120,12 @@ def test_every_bundled_flight_config_loads():
     cfg = config.load("mambo-200hz")
     assert cfg.controller.rate == 200 and cfg.motors.max_thrust == 0.33
     assert cfg.lqr["altitude"].integral == ["pD"]
+
+
+def test_the_readme_walkthrough_configs_load():
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parent.parent / "docs" / "configs"
+    loaded = {p.stem: config.load(p) for p in folder.glob("*.yaml")}
+    assert loaded["report-at-200hz"].controller.design == "continuous"
+    assert loaded["report-on-mambo"].motors is not None and loaded["report-on-mambo"].controller.rate == 200

@@ -1,0 +1,152 @@
+"""Regenerate the figures of the README section "From the report's design to one that flies".
+
+Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers)
+
+Every number and curve comes from the library (the same calls the CLI makes); nothing is stored.
+"""
+
+from __future__ import annotations
+
+import copy
+import io
+import sys
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from quadctl import config, margins, motors, pipeline, plots
+from quadctl.layout import INPUT_NAMES, STATE_INDEX
+
+OUT = Path(__file__).resolve().parent / "figures"
+MAMBO = motors.Motors()
+
+
+def solve(data: dict):
+    cfg = config.from_dict(data, "<docs>")
+    trim = pipeline.trim_of(cfg)
+    linear = pipeline.linear_of(cfg, trim)
+    dec = pipeline.decoupled_of(cfg, linear)
+    des = pipeline.design_of(cfg, dec, linear)
+    loop = pipeline.loop_of(cfg, linear, des, pipeline.reference_rate(trim))
+    return cfg, linear, dec, des, loop, pipeline.simulation_of(cfg, loop)
+
+
+def variant(name: str, **changes) -> dict:
+    data = copy.deepcopy(config.load(name).model_dump(mode="json"))
+    for key, value in changes.items():
+        section, _, field = key.partition(".")
+        if field:
+            data[section][field] = value
+        else:
+            data[section] = value
+    return data
+
+
+def save(fig: Figure, name: str) -> None:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=80)
+    OUT.mkdir(exist_ok=True)
+    (OUT / name).write_bytes(buf.getvalue())
+    print(f"wrote docs/figures/{name} ({len(buf.getvalue()) // 1024} KB)")
+
+
+def peak_demand_figure(cases: dict) -> Figure:
+    """Peak |u - u_trim| of each design over what the Mambo's rotors give from the trim."""
+    fig = Figure(figsize=(8.0, 3.8), layout="constrained")
+    ax = fig.subplots()
+    width = 0.8 / len(cases)
+    for k, (label, (ratio, _)) in enumerate(cases.items()):
+        ax.bar(np.arange(4) + (k - (len(cases) - 1) / 2) * width, ratio, width, label=label)
+    ax.axhline(1.0, color="k", lw=1.0, ls="--")
+    ax.set_yscale("log")
+    ax.set_xticks(range(4), [f"{n}" for n in INPUT_NAMES])
+    ax.set_ylabel("peak |u - u_trim| / rotor headroom")
+    ax.grid(True, axis="y", which="both", alpha=0.3)
+    ax.legend(fontsize=8, frameon=False, loc="upper left")
+    fig.suptitle("What each design asks of the Mambo's rotors (report's initial offset); above 1: impossible")
+    return fig
+
+
+def response_figure(sim, loop) -> Figure:
+    fig = Figure(figsize=(8.0, 6.0), layout="constrained")
+    ax = fig.subplots(3, 1, sharex=True)
+    err = sim.x - sim.x_ref
+    for name in ("phi", "theta", "psi"):
+        ax[0].plot(sim.t, np.rad2deg(err[:, STATE_INDEX[name]]), lw=1.2, label=name)
+    ax[0].set_ylabel("attitude error [deg]")
+    ax[1].plot(sim.t, err[:, STATE_INDEX["pD"]], lw=1.2, label="pD error")
+    ax[1].set_ylabel("pD error [m]")
+    f = loop.actuators.commands(sim.u)
+    for i in range(4):
+        ax[2].plot(sim.t, f[:, i], lw=1.0, label=f"rotor {i + 1}")
+    ax[2].axhline(MAMBO.max_thrust, color="k", ls="--", lw=1.0, label="limit")
+    ax[2].set_ylabel("rotor thrust [N]")
+    ax[2].set_xlabel("time [s]")
+    for a in ax:
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=7, frameon=False, loc="upper right", ncol=5)
+    fig.suptitle("mambo-200hz: report's offset, 200 Hz discrete LQR, rotor limits, noise (seed 1)")
+    return fig
+
+
+def lqi_figure(runs: dict) -> Figure:
+    fig = Figure(figsize=(8.0, 3.4), layout="constrained")
+    ax = fig.subplots()
+    for label, sim in runs.items():
+        pd = STATE_INDEX["pD"]
+        ax.plot(sim.t, (sim.x[:, pd] - sim.x_ref[:, pd]) * 100, lw=1.4, label=label)
+    ax.axhline(0.0, color="0.3", lw=0.8)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("altitude error pD [cm] (positive: low)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, frameon=False)
+    fig.suptitle("Vehicle 10 % heavier than the design model (hover, mambo-200hz weights, no noise)")
+    return fig
+
+
+def main() -> int:
+    cases = {}
+
+    def demand(label, data):
+        cfg, linear, _, des, loop, sim = solve(data)
+        act = motors.actuators_of(MAMBO)
+        room = motors.headroom(act, linear.u_trim)
+        peak = np.abs(sim.u - linear.u_trim).max(axis=0)
+        ratio = np.array([peak[j] / min(room[n]) for j, n in enumerate(INPUT_NAMES)])
+        sat = motors.saturation_fraction(loop.actuators, sim.u) if loop.actuators is not None else None
+        cases[label] = (ratio, sat)
+        print(f"{label}: status {sim.status} ({sim.message}); peak |du| = "
+              + ", ".join(f"{n} {peak[j]:.4g}" for j, n in enumerate(INPUT_NAMES))
+              + "; / headroom = " + ", ".join(f"{r:.3g}" for r in ratio)
+              + (f"; saturated {max(sat.values()) * 100:.3g} % (worst rotor)" if sat else ""))
+        return cfg, linear, des, loop, sim
+
+    demand("report, continuous", variant("forward"))
+    demand("report weights, lqrd 200 Hz", variant("forward", controller={"rate": 200.0}))
+    demand("report weights, lqrd 200 Hz, rotor limits", variant("forward", controller={"rate": 200.0}, motors={}))
+    cfg, linear, des, loop, sim = demand("mambo-200hz", variant("mambo-200hz"))
+    emulated = variant("forward", controller={"rate": 200.0, "design": "continuous"})
+    print("report gains run at 200 Hz:", solve(emulated)[-1].message)
+    save(peak_demand_figure(cases), "peak-demand.png")
+    save(response_figure(sim, loop), "mambo-response.png")
+    result = margins.all_margins(des, solve(variant("mambo-200hz"))[2], linear.A, linear.B)
+    roll = next(m for m in result if m.loop == "roll" and m.model == "design")
+    save(plots.margins_figure(roll, title="mambo-200hz"), "mambo-roll-margins.png")
+    runs = {}
+    for label, weights in (("plain LQR", {"Q": [4.0, 4.0], "R": [25.0]}),
+                           ("LQI (integral of pD)", {"Q": [4.0, 4.0, 1.0], "R": [25.0], "integral": ["pD"]})):
+        data = variant("mambo-200hz", trim={"velocity_ned": [0.0, 0.0, 0.0], "position_ned": [0.0, 0.0, -1.0],
+                                            "yaw": 0.0})
+        data["lqr"]["altitude"] = weights
+        data["simulation"].update({"duration": 15.0, "initial_offset": {}, "noise": None,
+                                   "plant": {"mass": 0.068 * 1.1}})
+        runs[label] = solve(data)[-1]
+        pd = STATE_INDEX["pD"]
+        print(f"{label}: final pD error {(runs[label].x[-1, pd] - runs[label].x_ref[-1, pd]) * 1000:.4g} mm")
+    save(lqi_figure(runs), "lqi-mass-error.png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
