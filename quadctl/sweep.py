@@ -831,7 +831,7 @@ def _evaluate_one(prep: _Prepared, stats: dict) -> dict:
         return _failed(prep.head, "design_failed", str(exc))
     A_cl = linear.A - linear.B @ des.K_block
     core, stable = _core_eigenvalues(A_cl, des.K_block)
-    loop = pipeline.closed_loop_of(cfg, linear, des.K_block, prep.rate)
+    loop = pipeline.loop_of(cfg, linear, des, prep.rate)  # the integrators of an LQI design too
     try:
         t0 = time.perf_counter()
         sim = pipeline.simulation_of(cfg, loop)
