@@ -355,7 +355,7 @@ def design_loops(design, decoupled, A, B):
             Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
         for j, inp in enumerate(sub.inputs):
             yield sub.name, inp, "design", broken_loop(Aa, Ba, Ka, j, Ts)
-    Af, Bf, Kf, keep = _coupled(design, A, B)
+    Af, Bf, Kf = _coupled(design, A, B)
     for sub in design.subsystems:
         for inp in sub.inputs:
             yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
@@ -379,7 +379,7 @@ def _coupled(design, A, B):
             if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]])
             and s not in design.integral_states]
     keep = [i for i in range(N_STATES + nz) if i not in free]
-    return Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep], keep
+    return Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep]
 
 
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.errors import ConfigError
-from quadctl.layout import INPUT_INDEX, INPUT_NAMES, N_INPUTS
+from quadctl.layout import INPUT_INDEX, INPUT_NAMES, INPUT_UNITS, N_INPUTS
 
 SATURATED_RTOL = 1e-9
 """A rotor (or input) counts as saturated when within ``SATURATED_RTOL * (1 + |limit|)`` of a limit."""
@@ -156,13 +156,16 @@ def check_trim(actuators: Actuators | None, u_trim) -> None:
         return
     act = actuators.commands(u_trim)
     for i, name in enumerate(actuators.names):
-        if not actuators.lo[i] <= act[i] <= actuators.hi[i]:
-            key = "motors.max_thrust" if actuators.mode == "motors" else f"limits.{name}"
-            raise ConfigError(
-                f"{key}: the trim needs {name} = {act[i]:.4g} "
-                f"{'N' if actuators.mode == 'motors' else ''}, outside the limits "
-                f"[{actuators.lo[i]:.4g}, {actuators.hi[i]:.4g}]; the vehicle cannot hold this flight "
-                "condition: raise the limit or change trim:".replace(" ,", ","))
+        if actuators.lo[i] <= act[i] <= actuators.hi[i]:
+            continue
+        if actuators.mode == "motors":
+            key, unit = ("motors.max_thrust" if act[i] > actuators.hi[i] else "motors.min_thrust"), "N"
+        else:
+            key, unit = f"limits.{name}", INPUT_UNITS[name]
+        raise ConfigError(
+            f"{key}: the trim needs {name} = {act[i]:.4g} {unit}, outside the limits "
+            f"[{actuators.lo[i]:.4g}, {actuators.hi[i]:.4g}] {unit}; the vehicle cannot hold this flight "
+            "condition: raise the limit or change trim:")
 
 
 def headroom(actuators: Actuators, u_trim) -> dict[str, tuple[float, float]]:
