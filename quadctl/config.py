@@ -288,7 +288,9 @@ def _expected(err: dict, loc: list) -> str:
         return f"must be greater than {ctx.get('gt')}{unit}"
     if kind == "greater_than_equal":
         return f"must be at least {ctx.get('ge')}{unit}"
-    if kind in ("float_type", "float_parsing", "int_type", "int_parsing"):
+    if kind in ("int_type", "int_parsing", "int_from_float"):
+        return f"must be a whole number{unit}"
+    if kind in ("float_type", "float_parsing"):
         return f"must be a number{unit}"
     if kind in ("too_short", "too_long"):
         lo, hi = ctx.get("min_length"), ctx.get("max_length")

@@ -74,6 +74,11 @@ CONFIG_CASES = {
 }
 
 
+MAMBO = config.resolve("mambo-200hz")[1]
+CONFIG_CASES["not a whole number"] = (MAMBO.replace("seed: 1", "seed: 1.5"),
+                                      r"simulation\.noise\.seed = 1\.5: must be a whole number")
+
+
 @pytest.mark.parametrize("case", sorted(CONFIG_CASES))
 def test_config_error_is_one_line_exit_2(tmp_path, case):
     text, pattern = CONFIG_CASES[case]
