@@ -74,20 +74,27 @@ _DRIVER = r"""
 void qb_run(const double* x0, const double* dt, const long* n, const long* stride, const double* c,
             const double* lo, const double* hi, long rows_max,
             double* xs, double* us, long* ks, long* n_rec, long* done) {
-  double X[12 * QB_L], XN[12 * QB_L], U[4 * QB_L], UF[4 * QB_L], T[QB_L];
+  double X[12 * QB_L], XN[12 * QB_L], XF[12 * QB_L], U[4 * QB_L], UF[4 * QB_L], T[QB_L];
   long countdown[QB_L], rows[QB_L];
   int active[QB_L], inb[QB_L], n_active = 0;
   memcpy(X, x0, sizeof X);
+  memcpy(XF, x0, sizeof XF);
   for (int l = 0; l < QB_L; ++l) {
     active[l] = n[l] > 0; inb[l] = 1; rows[l] = 0; countdown[l] = 0; done[l] = 0;
     n_active += active[l];
   }
   for (long k = 0; n_active > 0; ++k) {
-    for (int l = 0; l < QB_L; ++l) T[l] = dt[l] * (double)k;
-    qb_step(X, T, dt, c, XN, U);
+    double bad[QB_L];
+    int rec = 0;
     for (int l = 0; l < QB_L; ++l) {
-      if (!active[l]) continue;
-      if (countdown[l] == 0) {
+      T[l] = dt[l] * (double)k;
+      bad[l] = 0.0;
+      rec |= active[l] && countdown[l] == 0;
+    }
+    qb_step(X, T, dt, c, XN, U);
+    if (rec) {
+      for (int l = 0; l < QB_L; ++l) {
+        if (!active[l] || countdown[l] != 0) continue;
         double* xr = xs + l * 12 * rows_max + rows[l];
         double* ur = us + l * 4 * rows_max + rows[l];
         for (int i = 0; i < 12; ++i) xr[i * rows_max] = X[i * QB_L + l];
@@ -96,28 +103,41 @@ void qb_run(const double* x0, const double* dt, const long* n, const long* strid
         rows[l]++;
         countdown[l] = stride[l];
       }
-      countdown[l]--;
-      int ok = 1;
-      for (int i = 0; i < 12; ++i) {
+    }
+    /* bounds of every lane at once (vectorized; NaN compares false, so it counts as out) */
+    for (int i = 0; i < 12; ++i)
+      for (int l = 0; l < QB_L; ++l) {
         double v = XN[i * QB_L + l];
-        X[i * QB_L + l] = v;
-        if (!(v >= lo[i * QB_L + l] && v <= hi[i * QB_L + l])) ok = 0;
+        bad[l] += (v >= lo[i * QB_L + l] && v <= hi[i * QB_L + l]) ? 0.0 : 1.0;
       }
-      if (!ok) {
-        active[l] = 0; inb[l] = 0; done[l] = k + 1; n_active--;
-        for (int i = 0; i < 4; ++i) UF[i * QB_L + l] = U[i * QB_L + l];
-      } else if (k + 1 == n[l]) {
-        active[l] = 0; done[l] = n[l]; n_active--;
+    memcpy(X, XN, sizeof X);
+    for (int l = 0; l < QB_L; ++l) {
+      if (!active[l]) continue;
+      countdown[l]--;
+      if (bad[l] != 0.0 || k + 1 == n[l]) {
+        /* the lane is done: keep its final state, and restart it from x0 so that it goes on
+           computing harmless numbers (a runaway lane would drag the vector math into its slow
+           paths for huge or NaN arguments) */
+        active[l] = 0; n_active--;
+        done[l] = k + 1;
+        if (bad[l] != 0.0) {
+          inb[l] = 0;
+          for (int i = 0; i < 4; ++i) UF[i * QB_L + l] = U[i * QB_L + l];
+        }
+        for (int i = 0; i < 12; ++i) {
+          XF[i * QB_L + l] = X[i * QB_L + l];
+          X[i * QB_L + l] = x0[i * QB_L + l];
+        }
       }
     }
   }
   /* the final state, with the input the law gives there (or, past the bounds, the last one) */
   for (int l = 0; l < QB_L; ++l) T[l] = dt[l] * (double)done[l];
-  qb_ctrl(X, T, c, U);
+  qb_ctrl(XF, T, c, U);
   for (int l = 0; l < QB_L; ++l) {
     double* xr = xs + l * 12 * rows_max + rows[l];
     double* ur = us + l * 4 * rows_max + rows[l];
-    for (int i = 0; i < 12; ++i) xr[i * rows_max] = X[i * QB_L + l];
+    for (int i = 0; i < 12; ++i) xr[i * rows_max] = XF[i * QB_L + l];
     for (int i = 0; i < 4; ++i) ur[i * rows_max] = inb[l] ? U[i * QB_L + l] : UF[i * QB_L + l];
     ks[l * rows_max + rows[l]] = done[l];
     n_rec[l] = rows[l] + 1;

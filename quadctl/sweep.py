@@ -784,23 +784,35 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
     return row
 
 
-def _weights_block(cfg) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """(Q_block (12, 12), R_block (4, 4), regulated states) assembled from the config."""
+def _weights_block(cfg) -> tuple[np.ndarray, np.ndarray, list[str], dict]:
+    """(Q_block (12, 12), R_block (4, 4), regulated states, {subsystem: (Q, R)}) from the config."""
     from quadctl.config import weight_matrix
 
     Q = np.zeros((N_STATES, N_STATES))
     R = np.zeros((N_INPUTS, N_INPUTS))
     regulated = []
-    for name, sub in cfg.partition().items():
-        if not sub.regulate:
-            continue
-        regulated.extend(sub.states)
-        si = [STATE_INDEX[s] for s in sub.states]
-        ii = [INPUT_INDEX[i] for i in sub.inputs]
+    per_subsystem = {}
+    for name, (si, ii, states) in _block_index(cfg).items():
+        regulated.extend(states)
         w = cfg.lqr[name]
-        Q[np.ix_(si, si)] = weight_matrix(w.Q, len(si))
-        R[np.ix_(ii, ii)] = weight_matrix(w.R, len(ii))
-    return Q, R, regulated
+        q, r = weight_matrix(w.Q, len(si)), weight_matrix(w.R, len(ii))
+        Q.flat[(si[:, None] * N_STATES + si).ravel()] = q.ravel()
+        R.flat[(ii[:, None] * N_INPUTS + ii).ravel()] = r.ravel()
+        per_subsystem[name] = (q, r)
+    return Q, R, regulated, per_subsystem
+
+
+def _block_index(cfg) -> dict:
+    """Regulated subsystem -> (state indices, input indices, state names); cached per partition."""
+    partition = cfg.partition()
+    key = tuple((name, tuple(sub.states), tuple(sub.inputs)) for name, sub in partition.items() if sub.regulate)
+    return _block_index_cached(key)
+
+
+@lru_cache(maxsize=64)
+def _block_index_cached(key) -> dict:
+    return {name: (np.array([STATE_INDEX[s] for s in states]), np.array([INPUT_INDEX[i] for i in inputs]),
+                   list(states)) for name, states, inputs in key}
 
 
 def _core_eigenvalues(A_cl, K) -> tuple[np.ndarray, bool]:
@@ -842,7 +854,7 @@ def _evaluate_one(prep: _Prepared, stats: dict) -> dict:
         return row
     stats["backend"].add(sim.backend)
     stats["steps"] += sim.steps
-    Q, R, regulated = _weights_block(cfg)
+    Q, R, regulated, _ = _weights_block(cfg)
     summary = metrics.summarize(sim, linear.u_trim, Q, R, regulated)
     return _row(prep.head, stable, core, sim.plan, summary, sim.steps,
                 "" if sim.status == "ok" else sim.message)
@@ -855,17 +867,13 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
     from quadctl.simulate import RUNAWAY, VALID_PITCH, _verdict
 
     rows: dict[int, dict] = {}
-    t0 = time.perf_counter()
     # 1. LQR of every regulated subsystem of every case, batched by shape
+    weights = [_weights_block(prep.cfg) for prep in preps]
+    t0 = time.perf_counter()  # the design stage: stacking, batched solves, one-by-one fallbacks
     problems = []  # (case position, subsystem, Q, R)
-    weights = []
     for k, prep in enumerate(preps):
-        Qb, Rb, regulated = _weights_block(prep.cfg)
-        weights.append((Qb, Rb, regulated))
         for sub in prep.decoupled.regulated:
-            si = sub.state_index
-            ii = [INPUT_INDEX[i] for i in sub.inputs]
-            problems.append((k, sub, Qb[np.ix_(si, si)], Rb[np.ix_(ii, ii)]))
+            problems.append((k, sub, *weights[k][3][sub.name]))
     gains: dict[tuple[int, str], np.ndarray] = {}
     failed: dict[int, str] = {}
     by_shape: dict[tuple[int, int], list] = {}
@@ -893,8 +901,10 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
             rows[prep.index] = _failed(prep.head, "design_failed", failed[k])
             continue
         K = np.zeros((N_INPUTS, N_STATES))
+        index = _block_index(prep.cfg)
         for sub in prep.decoupled.regulated:
-            K[np.ix_([INPUT_INDEX[i] for i in sub.inputs], sub.state_index)] = gains[(k, sub.name)]
+            si, ii, _ = index[sub.name]
+            K.flat[(ii[:, None] * N_STATES + si).ravel()] = gains[(k, sub.name)].ravel()
         live.append((k, prep, K))
     if not live:
         return rows
@@ -944,10 +954,10 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
         for j, done, ks, xs, us in results:
             _, prep, k, core, stable, plan, _, _, lo, hi, _ = group[j]
             t = plan.dt * ks
-            x_ref = (prep.linear.x_trim[:, None] + prep.rate[:, None] * t).T  # (r, 12), state-major
             status, message = _verdict(xs, t, done, plan.n_steps, lo, hi)
-            Qb, Rb, regulated = weights[k]
-            summary = batch.summarize_run(t, xs, us, x_ref, prep.linear.u_trim, Qb, Rb, regulated, status)
+            Qb, Rb, regulated, _ = weights[k]
+            summary = batch.summarize_run(t, xs, us, (prep.linear.x_trim, prep.rate), prep.linear.u_trim,
+                                          Qb, Rb, regulated, status)
             stats["steps"] += done
             rows[prep.index] = _row(prep.head, stable, core, plan, summary, done,
                                     "" if status == "ok" else message)
@@ -1050,21 +1060,26 @@ def default_jobs() -> int:
         return os.cpu_count() or 1
 
 
-def default_chunk(n_cases: int) -> int:
-    """Cases per task: about 32 tasks, a multiple of the SIMD lanes, 8 to 128 cases each."""
+def default_chunk(n_cases: int, workers: int) -> int:
+    """Cases per task: about four tasks per worker (so a stop loses little and the load balances),
+    a multiple of the SIMD lanes, 8 to 256 cases (the batched solves pay off with more)."""
     from quadctl.batch_codegen import LANES
 
-    size = max(LANES, min(128, math.ceil(n_cases / 32)))
+    size = max(LANES, min(256, math.ceil(n_cases / (4 * max(1, workers)))))
     return math.ceil(size / LANES) * LANES
 
 
-def tasks_for(cfg, spec: SweepSpec, cases: Iterable[Case], label: str, fast: bool = True) -> list[ChunkTask]:
-    """The chunks of ``cases`` (in case order), ready for any executor."""
+def tasks_for(cfg, spec: SweepSpec, cases: Iterable[Case], label: str, size: int,
+              fast: bool = True) -> list[ChunkTask]:
+    """The chunks of ``cases`` (in case order, ``size`` each), ready for any executor.
+
+    A case's row does not depend on the chunk it is in, so the chunk size is free to follow the
+    executor (the resume test checks this: a resumed sweep, chunked anew, writes the same table).
+    """
     cases = list(cases)
     base = cfg.model_dump(mode="json")
     for _, keys, value in spec.fixed:
         base = assign(base, keys, value)
-    size = spec.chunk_size or default_chunk(spec.count())
     keys = tuple(p.keys for p in spec.parameters)
     return [ChunkTask(base=base, label=label, keys=keys, names=tuple(spec.names),
                       cases=tuple((c.index, c.values) for c in cases[i:i + size]), gates=spec.gates,
@@ -1101,44 +1116,52 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     Returns
     -------
     SweepResult
+
+    Raises
+    ------
+    SweepError
+        ``jobs`` below 1, or the scheduler cannot be reached.
     """
     label = label or cfg.name
     done = dict(done or {})
     cases = spec.cases()
     todo = [c for c in cases if c.index not in done]
-    tasks = tasks_for(cfg, spec, todo, label, fast)
     stats = {"designs": 0, "design_time": 0.0, "simulate_time": 0.0, "steps": 0, "fallbacks": 0,
              "backend": set()}
-    if scheduler:
-        results = _dask_results(tasks, scheduler)
-        stats["executor"] = f"dask {scheduler}"
-        stats["workers"] = None
-    else:
-        jobs = jobs or default_jobs()
-        if jobs < 1:
-            raise SweepError(f"--jobs {jobs}: must be at least 1")
-        jobs = min(jobs, max(1, len(tasks)))
-        if tasks and fast:
+    if jobs is not None and jobs < 1:
+        raise SweepError(f"--jobs {jobs}: must be at least 1")
+    client = _dask_client(scheduler) if scheduler else None
+    try:
+        if client is not None:
+            workers = max(1, sum(client.nthreads().values()))
+            stats["executor"] = f"dask {scheduler} ({workers} threads)"
+        else:
+            workers = max(1, min(jobs or default_jobs(), len(todo)))
+            stats["executor"] = "local" if workers == 1 else f"local processes ({workers})"
+        stats["workers"] = workers
+        tasks = tasks_for(cfg, spec, todo, label, spec.chunk_size or default_chunk(len(todo), workers), fast)
+        if client is None and tasks and fast:
             _warm_up(tasks[0])
-        results = _local_results(tasks, jobs)
-        stats["executor"] = "local" if jobs == 1 else f"local processes ({jobs})"
-        stats["workers"] = jobs
-    rows = dict(done)
-    total = len(cases)
-    start = time.perf_counter()
-    if progress:
-        progress(len(rows), total)
-    for result in results:
-        for row in result.rows:
-            rows[row["case"]] = row
-        for key in ("designs", "design_time", "simulate_time", "steps", "fallbacks"):
-            stats[key] += result.stats[key]
-        stats["backend"].update(result.stats["backend"])
-        if on_chunk:
-            on_chunk(result.rows)
+        results = _dask_results(client, tasks) if client is not None else _local_results(tasks, workers)
+        rows = dict(done)
+        total = len(cases)
+        start = time.perf_counter()
         if progress:
             progress(len(rows), total)
-    wall = time.perf_counter() - start
+        for result in results:
+            for row in result.rows:
+                rows[row["case"]] = row
+            for key in ("designs", "design_time", "simulate_time", "steps", "fallbacks"):
+                stats[key] += result.stats[key]
+            stats["backend"].update(result.stats["backend"])
+            if on_chunk:
+                on_chunk(result.rows)
+            if progress:
+                progress(len(rows), total)
+        wall = time.perf_counter() - start
+    finally:
+        if client is not None:
+            client.close()
     stats["backend"] = sorted(stats["backend"])
     ordered = [rows[c.index] for c in cases]
     return SweepResult(rows=ordered, columns=columns_of(cfg, spec), computed=len(todo), wall_time=wall,
@@ -1193,24 +1216,33 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _dask_results(tasks: list[ChunkTask], address: str) -> Iterator[ChunkResult]:
+SCHEDULER_TIMEOUT = "10s"
+"""How long to try to reach a Dask scheduler before saying it cannot be reached."""
+
+
+def _dask_client(address: str):
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError:
         raise SweepError("--scheduler needs the `distributed` package; "
                          "install it with pip install 'quadctl[cluster]'") from None
     try:
-        client = Client(address, timeout="10s", set_as_default=False)
+        return Client(address, timeout=SCHEDULER_TIMEOUT, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SweepError(f"--scheduler {address}: cannot reach the Dask scheduler ({reason}); "
                          "check the address, or start one with `dask scheduler`") from None
+
+
+def _dask_results(client, tasks: list[ChunkTask]) -> Iterator[ChunkResult]:
+    from distributed import as_completed
+
+    futures = client.map(evaluate_chunk, tasks, pure=False)
     try:
-        futures = client.map(evaluate_chunk, tasks, pure=False)
         for fut in as_completed(futures, loop=client.loop):
             yield fut.result()
     finally:
-        client.close()
+        client.cancel(futures)
 
 
 # ---------------------------------------------------------------------------------------

@@ -277,6 +277,13 @@ def test_summary_matches_metrics_summarize(forward):
         assert got[key] == ref[key], key
     assert got["cost"] == pytest.approx(ref["cost"], rel=1e-12)
     assert got["status"] == ref["status"]
+    # the reference given by what makes it (x_trim + x_rate t) instead of the array
+    lazy = batch.summarize_run(sim.t, sim.x, sim.u, (loop.x_trim, loop.x_rate), linear.u_trim, des.Q_block,
+                               des.R_block, regulated, sim.status)
+    for key in ("settling_time", "overshoot", "peak", "status"):
+        assert lazy[key] == got[key], key
+    for key in ("peak_error", "final_error"):
+        assert lazy[key] == pytest.approx(got[key], rel=1e-12, abs=1e-15), key
 
 
 def _lane_inputs(loop, x0, duration, dt):

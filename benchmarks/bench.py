@@ -1,0 +1,275 @@
+"""quadctl benchmarks: one table, measured in one run, against the obvious alternatives.
+
+    python benchmarks/bench.py            # everything (about a minute)
+    python benchmarks/bench.py --skip-slow  # without the two RK45 runs (about 7 s each)
+
+1. One closed-loop simulation of the bundled forward config (the report's case), RK4 at
+   dt = 1e-5 s for 10 s = 1 000 000 steps: quadctl's compiled loop (library call, after the one-time
+   compilation), the same through the command line end to end (a fresh process: interpreter
+   start, imports, trim, design, simulation, artifacts), and SciPy's solve_ivp (RK45 and LSODA)
+   and python-control's input_output_response on the same closed loop (the CasADi model called
+   from Python), at tolerances that reach the same final-state accuracy.
+2. A sweep of 1000 random designs (benchmarks/random-1000.yaml, no two alike) x 10 000 RK4 steps:
+   on both cores, on one, through the command line, and the one-case-at-a-time pipeline.
+3. The LQR designs of that sweep (4000 small subsystems): quadctl's batched solver against a
+   Python loop over scipy.linalg.solve_continuous_are.
+
+Not a test: it asserts nothing, it prints what it measured and the machine's load while it ran
+(other processes on a 2-core machine change every number here).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+SWEEP_FILE = HERE / "random-1000.yaml"
+DURATION = 10.0       # s
+DT = 1e-5             # s: 1 000 000 RK4 steps
+TOLERANCES = {"RK45": (1e-8, 1e-10), "LSODA": (1e-10, 1e-12)}
+"""(rtol, atol) per solve_ivp method: the loosest that reach the final-state error of quadctl's RK4
+at dt = 1e-5 s (about 1e-9 in state units, against the reference) on this problem."""
+
+
+def timed(fn, repeat: int = 1):
+    """(best wall time in s, last result)."""
+    best, out = np.inf, None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - start)
+    return best, out
+
+
+def cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def table(title: str, header: list[str], rows: list[list[str]]) -> str:
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    line = "| " + " | ".join(h.ljust(w) for h, w in zip(header, widths)) + " |"
+    rule = "|" + "|".join("-" * (w + 2) for w in widths) + "|"
+    body = ["| " + " | ".join(str(c).rjust(w) if k else str(c).ljust(w) for k, (c, w) in
+                              enumerate(zip(r, widths))) + " |" for r in rows]
+    return "\n".join([f"\n{title}\n", line, rule, *body])
+
+
+# ---------------------------------------------------------------------------------------
+# 1. One simulation
+
+
+def one_simulation(skip_slow: bool) -> str:
+    import casadi as ca
+    from scipy.integrate import solve_ivp
+
+    from quadctl import config, pipeline
+    from quadctl.model import build_model
+    from quadctl.simulate import simulate
+
+    cfg = config.load("forward")
+    trim = pipeline.trim_of(cfg)
+    linear = pipeline.linear_of(cfg, trim)
+    des = pipeline.design_of(cfg, pipeline.decoupled_of(cfg, linear), linear)
+    loop = pipeline.closed_loop_of(cfg, linear, des.K_block, pipeline.reference_rate(trim))
+    x0 = pipeline.initial_state(cfg, linear.x_trim)
+    simulate(loop, x0, 0.01, DT)  # compile (or load the cached library) before timing
+
+    # the closed loop as one CasADi function, called from Python by the ODE solvers
+    x, t = ca.SX.sym("x", 12), ca.SX.sym("t")
+    u = loop.u_trim - ca.DM(loop.K) @ (x - (loop.x_trim + loop.x_rate * t))
+    rhs_fn = ca.Function("closed_loop", [t, x], [build_model().f(x, u, loop.params)])
+
+    def rhs(tt, xx):
+        return rhs_fn(tt, xx).full().ravel()
+
+    # reference: an independent method at a far tighter tolerance
+    ref = solve_ivp(rhs, (0, DURATION), x0, method="LSODA", rtol=1e-12, atol=1e-14).y[:, -1]
+
+    def error(x_end):
+        return float(np.max(np.abs(np.asarray(x_end) - ref)))
+
+    runs = []
+    sims = [simulate(loop, x0, DURATION, DT) for _ in range(3)]
+    best = min(sims, key=lambda s: s.wall_time)
+    ours = best.wall_time
+    runs.append(("quadctl compiled RK4 (library)", ours, f"{best.steps:,} steps", error(best.x[-1])))
+
+    with tempfile.TemporaryDirectory() as tmp:
+        import yaml
+
+        data = cfg.model_dump(mode="json")
+        data["name"] = "forward-1M"
+        data["simulation"]["dt"] = DT
+        path = Path(tmp) / "forward-1M.yaml"
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+        cmd = [sys.executable, "-m", "quadctl", "simulate", "-c", str(path), "-o", str(Path(tmp) / "run")]
+        subprocess.run(cmd, check=True, capture_output=True)  # warm the OS file cache
+        cli, _ = timed(lambda: subprocess.run(cmd, check=True, capture_output=True), repeat=3)
+        import numpy as _np
+
+        with _np.load(Path(tmp) / "run" / "sim.npz") as npz:
+            cli_err = error(npz["x"][-1])
+    runs.append(("quadctl simulate, CLI end to end", cli, f"{best.steps:,} steps", cli_err))
+
+    for method in ("RK45", "LSODA"):
+        if skip_slow and method == "RK45":
+            continue
+        rtol, atol = TOLERANCES[method]
+        wall, sol = timed(lambda m=method, r=rtol, a=atol: solve_ivp(rhs, (0, DURATION), x0, method=m,
+                                                                      rtol=r, atol=a))
+        runs.append((f"scipy solve_ivp {method} (rtol {rtol:g})", wall, f"{sol.nfev:,} RHS calls",
+                     error(sol.y[:, -1])))
+
+    import control
+
+    sys_ct = control.nlsys(lambda tt, xx, uu, params: rhs(tt, xx), None, states=12, inputs=0,
+                           outputs=12, name="quad")
+    for method in ("RK45", "LSODA"):
+        if skip_slow and method == "RK45":
+            continue
+        rtol, atol = TOLERANCES[method]
+        wall, resp = timed(lambda m=method, r=rtol, a=atol: control.input_output_response(
+            sys_ct, [0.0, DURATION], 0.0, x0, solve_ivp_method=m, solve_ivp_kwargs={"rtol": r, "atol": a}))
+        runs.append((f"python-control input_output_response, {method}", wall, "(solve_ivp inside)",
+                     error(resp.states[:, -1])))
+
+    rows = []
+    for name, wall, work, err in runs:
+        rows.append([name, f"{wall:.3f}", work, f"{1e6 / wall / 1e6:.2f} M", f"{err:.1e}",
+                     "1" if wall == ours else f"{wall / ours:.2f}"])
+    return table(f"One simulation: forward config, RK4 dt = {DT:g} s over {DURATION:g} s = 1,000,000 steps",
+                 ["method", "wall (s)", "work", "RK4 steps/s equiv.", "final error", "wall / quadctl"],
+                 rows) + ("\n\n'RK4 steps/s equiv.' is 1,000,000 / wall: the rate at which each method "
+                          "covers the same 10 s simulation. 'final error' is the largest final-state "
+                          "difference (state units) from LSODA at rtol 1e-12.")
+
+
+# ---------------------------------------------------------------------------------------
+# 2 and 3. The sweep and its designs
+
+
+def the_sweep() -> tuple[str, list]:
+    import dataclasses
+
+    from quadctl import config, sweep
+
+    cfg = config.load("forward")
+    spec = sweep.load(SWEEP_FILE, cfg)
+    cases = spec.cases()
+    assert len({c.values for c in cases}) == len(cases)  # no two alike
+    sweep.run(cfg, dataclasses.replace(spec, samples=16), jobs=1)  # warm: imports, lane library
+    rows = []
+    results = {}
+    for jobs in (2, 1):
+        wall, result = timed(lambda j=jobs: sweep.run(cfg, spec, jobs=j))
+        results[jobs] = result
+        steps = result.stats["steps"]
+        rows.append([f"quadctl sweep, library, --jobs {jobs}", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
+                     f"{len(result.rows) / wall:,.0f}", f"{result.stats['steps'] / len(result.rows):,.0f}"])
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [sys.executable, "-m", "quadctl", "sweep", "-c", "forward", "-s", str(SWEEP_FILE), "-o", tmp,
+               "-j", "2"]
+        wall, proc = timed(lambda: subprocess.run(cmd, capture_output=True, text=True))
+        if proc.returncode not in (0, 1):
+            raise RuntimeError(proc.stderr)
+    steps = results[2].stats["steps"]
+    rows.append(["quadctl sweep, CLI end to end, -j 2", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
+                 f"{1000 / wall:,.0f}", "(same cases)"])
+    # the obvious alternative: each case through the pipeline, one at a time (scipy's CARE with
+    # quadctl's checks, the compiled scalar loop, metrics.summarize), on the first 100 cases
+    subset = dataclasses.replace(spec, samples=100)
+    wall, slow = timed(lambda: sweep.run(cfg, subset, jobs=1, fast=False))
+    rows.append(["one case at a time (pipeline), --jobs 1, 100 cases", f"{wall:.2f}",
+                 f"{slow.stats['steps'] / wall / 1e6:.2f} M", f"{100 / wall:,.0f}", "10,000"])
+    text = table("Sweep: 1000 random designs x 10,000 RK4 steps (benchmarks/random-1000.yaml)",
+                 ["run", "wall (s)", "simulated steps/s", "designs/s", "steps per case"], rows)
+    both = results[2]
+    per_design = 1e6 * both.stats["design_time"] / both.stats["designs"]
+    text += (f"\n\nIn the --jobs 2 sweep the design stage (stacking, batched Riccati solves, gain "
+             f"assembly) took {per_design:.1f} µs per subsystem design on average "
+             f"({both.stats['designs']} designs, {both.stats['fallbacks']} redone one by one).")
+    return text, [cfg, spec]
+
+
+def the_designs(cfg, spec) -> str:
+    import scipy.linalg
+
+    from quadctl import batch, pipeline, sweep
+
+    # the 4000 subsystem problems of the sweep: the report's plant, each case's weights
+    base = cfg.model_dump(mode="json")
+    problems: dict[tuple, list] = {}
+    linear = pipeline.linear_of(cfg, pipeline.trim_of(cfg))
+    dec = pipeline.decoupled_of(cfg, linear)
+    for case in spec.cases():
+        data = base
+        for p, value in zip(spec.parameters, case.values):
+            data = sweep.assign(data, p.keys, value)
+        case_cfg = config_from(data)
+        for name, (Q, R) in pipeline.weights_of(case_cfg).items():
+            sub = dec[name]
+            problems.setdefault(sub.B.shape, []).append((sub.A, sub.B, np.atleast_2d(Q), np.atleast_2d(R)))
+    n = sum(len(v) for v in problems.values())
+    stacks = {shape: [np.stack([p[k] for p in group]) for k in range(4)] for shape, group in problems.items()}
+
+    def batched():
+        return [batch.care(*stack) for stack in stacks.values()]
+
+    def loop():
+        out = []
+        for group in problems.values():
+            for A, B, Q, R in group:
+                P = scipy.linalg.solve_continuous_are(A, B, Q, R)
+                out.append(np.linalg.solve(R, B.T @ P))
+        return out
+
+    fast, results = timed(batched, repeat=3)
+    assert all(r.ok.all() for r in results)
+    slow, _ = timed(loop)
+    rows = [["quadctl batch.care (batched, residual-checked)", f"{1e6 * fast / n:.1f}", f"{n / fast:,.0f}", "1"],
+            ["Python loop over scipy solve_continuous_are", f"{1e6 * slow / n:.1f}", f"{n / slow:,.0f}",
+             f"{slow / fast:.0f}"]]
+    return table(f"LQR designs: the sweep's {n} subsystem problems (2- and 3-state, one input)",
+                 ["solver", "µs per design", "designs/s", "time / quadctl"], rows)
+
+
+def config_from(data):
+    from quadctl import config
+
+    return config.from_dict(data, "bench")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--skip-slow", action="store_true", help="skip the RK45 runs (about 7 s each)")
+    args = parser.parse_args()
+    import casadi
+
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"quadctl benchmarks on {cpu_name()}, {os.cpu_count()} cores; Python {platform.python_version()}, "
+          f"numpy {np.__version__}, casadi {casadi.__version__}; load average {load:.2f} at start")
+    print(one_simulation(args.skip_slow))
+    text, (cfg, spec) = the_sweep()
+    print(text)
+    print(the_designs(cfg, spec))
+    end = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"\nload average {end:.2f} at the end (2 cores: above ~0.3, other work shared the machine)")
+
+
+if __name__ == "__main__":
+    main()
