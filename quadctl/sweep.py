@@ -1277,6 +1277,7 @@ class SweepStore:
         a fresh sweep first clears the journal of an earlier one."""
         from quadctl import artifacts
 
+        artifacts.remove_stale_temporaries(self.out)  # what a killed run was writing
         files = sorted(self.parts.glob("chunk-*.json")) if self.parts.is_dir() else []
         if not resume:
             for path in files:

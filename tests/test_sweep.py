@@ -460,6 +460,39 @@ def test_resume_keeps_finished_rows_and_computes_only_the_rest(cfg, tmp_path, mo
         sweep.execute(cfg, changed, tmp_path / "cut", jobs=1, resume=True)
 
 
+def test_a_killed_sweep_resumes_from_its_journal(tmp_path):
+    """kill -9 a real `quadctl sweep` once it has journaled a chunk; --resume finishes the rest."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    sweep_file = _write(tmp_path / "s.yaml", {
+        "mode": "random", "samples": 160, "seed": 1, "chunk_size": 8,
+        "parameters": {"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}},
+        "set": {"simulation.duration": 1.0}})
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "quadctl", "sweep", "-s", str(sweep_file), "-o", str(out),
+                             "-j", "1"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env={**os.environ, "QUADCTL_CACHE": os.environ["QUADCTL_CACHE"]})
+    deadline = time.monotonic() + 60
+    while not list((out / sweep.PARTS).glob("chunk-*.json")) and time.monotonic() < deadline:
+        time.sleep(0.005)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    kept = list((out / sweep.PARTS).glob("chunk-*.json"))
+    assert 1 <= len(kept) < 20, "the sweep must be stopped part-way for this test to mean anything"
+    assert not (out / "sweep.csv").exists()
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(out), "-j", "1", "--resume", "--json"])
+    assert res.exit_code == 0, res.output
+    perf = json.loads(res.stdout)["performance"]
+    assert perf["resumed"] == 8 * len(kept) and perf["computed"] == 160 - 8 * len(kept)
+    full = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "full"), "-j", "1"])
+    assert full.exit_code == 0
+    assert (out / "sweep.csv").read_text() == (tmp_path / "full" / "sweep.csv").read_text()
+
+
 def test_outputs_table_summary_and_plot(cfg, tmp_path):
     spec = spec_of(cfg, parameters={"lqr.altitude.R[0]": [0.2, 5.0]}, gates={"peak.T": {"max": 3.0}})
     outcome = sweep.execute(cfg, spec, tmp_path, jobs=1)

@@ -13,7 +13,7 @@ from quadctl.cli.errors import EXIT_CODES_HELP
 app = typer.Typer(
     name="quadctl",
     help="Design and verify LQR controllers for quadcopters: trim, linearize, decouple, check, "
-         f"design, simulate.\n\n{EXIT_CODES_HELP}",
+         f"design, simulate; sweep many designs at once.\n\n{EXIT_CODES_HELP}",
     no_args_is_help=True,
     add_completion=False,
     rich_markup_mode="rich",

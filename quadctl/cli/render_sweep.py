@@ -12,7 +12,6 @@ from rich.progress import (
     ProgressColumn,
     TextColumn,
     TimeElapsedColumn,
-    TimeRemainingColumn,
 )
 from rich.table import Table
 from rich.text import Text
@@ -24,11 +23,28 @@ SHOWN = 5
 
 
 class _RateColumn(ProgressColumn):
-    """Cases per second."""
+    """Cases per second since the start (chunks land in bursts: a moving estimate would jump)."""
 
     def render(self, task) -> Text:
-        speed = task.finished_speed or task.speed
-        return Text(f"{speed:,.0f} cases/s" if speed else "", style="progress.data.speed")
+        rate = _rate(task)
+        return Text(f"{rate:,.0f} cases/s" if rate else "", style="progress.data.speed")
+
+
+class _EtaColumn(ProgressColumn):
+    """Time left at the average rate so far."""
+
+    def render(self, task) -> Text:
+        rate = _rate(task)
+        if task.finished or not rate or task.total is None:
+            return Text("ETA -:--:--" if not task.finished else "", style="progress.remaining")
+        left = int((task.total - task.completed) / rate)
+        return Text(f"ETA {left // 3600}:{left // 60 % 60:02d}:{left % 60:02d}", style="progress.remaining")
+
+
+def _rate(task) -> float | None:
+    done = task.completed - (task.fields.get("resumed") or 0)
+    elapsed = task.elapsed
+    return done / elapsed if elapsed and done > 0 else None
 
 
 @contextlib.contextmanager
@@ -42,11 +58,12 @@ def sweep_progress(total: int, quiet: bool = False):
         yield None
         return
     bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), _RateColumn(),
-                   TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                   console=err, auto_refresh=False)
-    task = bar.add_task("sweep", total=total)
+                   TimeElapsedColumn(), _EtaColumn(), console=err, auto_refresh=False)
+    task = bar.add_task("sweep", total=total, resumed=None)
 
     def update(done: int, all_cases: int) -> None:
+        if bar.tasks[0].fields["resumed"] is None:  # the first call: rows kept from before
+            bar.update(task, resumed=done)
         bar.update(task, completed=done, total=all_cases, refresh=True)
 
     with bar:

@@ -23,9 +23,9 @@ def command(
 ) -> None:
     """Design, simulate and score many variants of a config; write sweep.csv, sweep.json, sweep.png.
 
-    Each case is the config with the sweep's values put in at their key paths (lqr.roll.Q[1],
-    vehicle.mass, ...), designed, simulated on the nonlinear model and scored. Exits 1 when a case
-    fails a gate (or, with require_ok, fails to design, is unstable or diverges), listing the worst.
+    Each case is the config with the sweep file's values put in at their key paths (lqr.roll.Q[1], vehicle.mass).
+    Every case is trimmed, designed, simulated on the nonlinear model and scored.
+    Exits 1 when a case fails a gate (or, with require_ok, fails to design, is unstable or diverges).
     """
     from quadctl import config as config_mod
     from quadctl import sweep as sweep_mod
