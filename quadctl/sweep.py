@@ -638,7 +638,7 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
     from quadctl import pipeline
 
     start = time.perf_counter()
-    stats = {"cases": len(task.cases), "designs": 0, "design_time": 0.0, "simulate_time": 0.0,
+    stats = {"cases": len(task.cases), "designs": 0, "design_time": 0.0, "design_cpu": 0.0, "simulate_time": 0.0,
              "steps": 0, "fallbacks": 0, "backend": set()}
     rows: dict[int, dict] = {}
     columns: list[str] | None = None
@@ -835,9 +835,10 @@ def _evaluate_one(prep: _Prepared, stats: dict) -> dict:
 
     cfg, linear = prep.cfg, prep.linear
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         des = pipeline.design_of(cfg, prep.decoupled, linear)
         stats["design_time"] += time.perf_counter() - t0
+        stats["design_cpu"] += time.process_time() - c0
         stats["designs"] += len(prep.decoupled.regulated)
     except DesignError as exc:
         return _failed(prep.head, "design_failed", str(exc))
@@ -869,7 +870,8 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
     rows: dict[int, dict] = {}
     # 1. LQR of every regulated subsystem of every case, batched by shape
     weights = [_weights_block(prep.cfg) for prep in preps]
-    t0 = time.perf_counter()  # the design stage: stacking, batched solves, one-by-one fallbacks
+    # the design stage: stacking, batched solves, one-by-one fallbacks (wall and CPU time)
+    t0, c0 = time.perf_counter(), time.process_time()
     problems = []  # (case position, subsystem, Q, R)
     for k, prep in enumerate(preps):
         for sub in prep.decoupled.regulated:
@@ -894,6 +896,7 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
                 failed.setdefault(k, str(exc))
     stats["designs"] += len(problems)
     stats["design_time"] += time.perf_counter() - t0
+    stats["design_cpu"] += time.process_time() - c0
     # 2. block gains, coupled eigenvalues, step plans
     live = []
     for k, prep in enumerate(preps):
@@ -1026,9 +1029,11 @@ class SweepResult:
     wall_time : float
         s, for the cases computed here.
     stats : dict
-        Totals over the chunks: ``designs`` (subsystem LQR solves), ``design_time`` (s, summed over
-        workers), ``steps`` (RK4 steps simulated), ``fallbacks`` (batched solves redone one by
-        one), ``backend``, ``executor``, ``workers``.
+        Totals over the chunks: ``designs`` (subsystem LQR solves), ``design_time`` and
+        ``design_cpu`` (s of wall and of CPU time in the design stage, summed over workers: CPU
+        time is what a design costs, wall time also counts what other processes took),
+        ``steps`` (RK4 steps simulated), ``fallbacks`` (batched solves redone one by one),
+        ``backend``, ``executor``, ``workers``.
     """
 
     rows: list
@@ -1126,7 +1131,7 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     done = dict(done or {})
     cases = spec.cases()
     todo = [c for c in cases if c.index not in done]
-    stats = {"designs": 0, "design_time": 0.0, "simulate_time": 0.0, "steps": 0, "fallbacks": 0,
+    stats = {"designs": 0, "design_time": 0.0, "design_cpu": 0.0, "simulate_time": 0.0, "steps": 0, "fallbacks": 0,
              "backend": set()}
     if jobs is not None and jobs < 1:
         raise SweepError(f"--jobs {jobs}: must be at least 1")
@@ -1151,7 +1156,7 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
         for result in results:
             for row in result.rows:
                 rows[row["case"]] = row
-            for key in ("designs", "design_time", "simulate_time", "steps", "fallbacks"):
+            for key in ("designs", "design_time", "design_cpu", "simulate_time", "steps", "fallbacks"):
                 stats[key] += result.stats[key]
             stats["backend"].update(result.stats["backend"])
             if on_chunk:
