@@ -47,9 +47,11 @@ import multiprocessing
 import os
 import re
 import signal
+import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -1202,8 +1204,10 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
         for task in tasks:
             yield evaluate_chunk(task)
         return
-    methods = multiprocessing.get_all_start_methods()
-    ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+    # fork on Linux: workers start at once with everything imported and the lane library loaded
+    # (the progress bar runs no thread, so nothing is forked mid-lock); spawn elsewhere (macOS's
+    # system libraries are not fork-safe)
+    ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_ignore_sigint)
     pending = set()
     try:
@@ -1214,7 +1218,13 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
                 pending.add(pool.submit(evaluate_chunk, queue.pop(0)))
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in finished:
-                yield fut.result()
+                try:
+                    result = fut.result()
+                except BrokenProcessPool:
+                    raise RuntimeError("a sweep worker process died (killed, or out of memory); the chunks "
+                                       "finished before are kept: rerun with --resume (--jobs 1 shows "
+                                       "any error in this process)") from None
+                yield result
     finally:
         for fut in pending:
             fut.cancel()
