@@ -75,6 +75,7 @@ def _atomic_write(path: Path, data: bytes) -> None:
         raise ArtifactError(f"{path.parent}: cannot write artifacts there ({exc.strerror}); "
                             "choose another --out folder") from None
     try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; artifacts are shared like any file
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -101,6 +102,12 @@ def remove_stale_temporaries(folder: Path) -> list[Path]:
     for p in stale:
         p.unlink(missing_ok=True)
     return stale
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def write_json(path: Path, payload: dict) -> Path:

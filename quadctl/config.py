@@ -11,6 +11,8 @@ from __future__ import annotations
 import difflib
 import hashlib
 import json
+import math
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional, Union
@@ -171,6 +173,31 @@ class Config(_Section):
 # Loading
 
 
+class YamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, but ``1e5`` and ``68e-3`` are numbers (YAML 1.1 needs a dot)."""
+
+
+YamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                |[-+]?\.(?:inf|Inf|INF)
+                |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
+
+
+def load_yaml(text: str, label: str) -> Any:
+    """Parse YAML text; a syntax error is a ConfigError with line and column."""
+    try:
+        return yaml.load(text, Loader=YamlLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(f"{label}: YAML syntax error{where}: {problem}; fix the YAML") from None
+
+
 def bundled_names() -> list[str]:
     """Names of the configs that ship with quadctl (without ``.yaml``)."""
     folder = resources.files("quadctl") / "configs"
@@ -199,12 +226,14 @@ def resolve(spec: str | Path | None) -> tuple[str, str]:
         except (OSError, UnicodeDecodeError) as exc:
             reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
             raise ConfigError(f"{spec}: cannot read the config ({reason}); check the file") from None
-    name = spec[:-5] if spec.endswith(".yaml") else spec
+    name = re.sub(r"\.ya?ml$", "", spec)
     if "/" not in name and name in bundled_names():
         res = resources.files("quadctl") / "configs" / f"{name}.yaml"
         return f"{name}.yaml", res.read_text(encoding="utf-8")
+    near = difflib.get_close_matches(name, bundled_names(), n=1)
+    hint = f"did you mean `{near[0]}`? " if near and "/" not in name else ""
     raise ConfigError(
-        f"{spec}: no such file and no bundled config of that name; "
+        f"{spec}: no such file and no bundled config of that name; {hint}"
         f"bundled: {', '.join(bundled_names())}")
 
 
@@ -222,14 +251,7 @@ def load(spec: str | Path | None = None) -> Config:
 
 def parse(text: str, label: str = "<config>") -> Config:
     """Validate YAML text as a config; ``label`` names it in errors."""
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ConfigError(f"{label}: YAML syntax error{where}: {problem}; fix the YAML") from None
-    return from_dict(data, label)
+    return from_dict(load_yaml(text, label), label)
 
 
 def from_dict(data: Any, label: str = "<config>") -> Config:
@@ -248,18 +270,19 @@ def from_dict(data: Any, label: str = "<config>") -> Config:
 
 def _describe(exc: ValidationError, data: Any, label: str) -> str:
     """One line for the first pydantic error: file, key path, value, what is allowed."""
-    err = exc.errors()[0]
+    # an unknown key usually explains the errors after it (a misspelt required key): say it first
+    errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+    err = errors[0]
     loc = [part for part in err["loc"] if not _is_union_tag(part)]
     path = key_path(loc)
     distinct = {tuple(p for p in e["loc"] if not _is_union_tag(p)) for e in exc.errors()}
-    more = f" (+{len(distinct) - 1} more)" if len(distinct) > 1 else ""
+    n_more = len(distinct) - 1
+    more = f" (and {n_more} more error{'s' if n_more > 1 else ''})" if n_more else ""
     kind = err["type"]
     if kind == "extra_forbidden":
         parent = _section_model(loc[:-1])
         allowed = sorted(parent.model_fields) if parent else []
-        near = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
-        hint = f"did you mean `{near[0]}`?" if near else f"allowed: {', '.join(allowed)}"
-        return f"{label}: {path}: unknown key; {hint}{more}"
+        return f"{label}: {path}: unknown key; {_hint(str(loc[-1]), allowed)}{more}"
     if kind == "missing":
         return f"{label}: {path}: required key is missing; add it{more}"
     value = _lookup(data, loc)
@@ -453,6 +476,11 @@ def _check_semantics(cfg: Config, label: str) -> None:
     for state, value in cfg.simulation.initial_offset.items():
         if state not in STATE_NAMES:
             fail(f"simulation.initial_offset.{state}", value, _unknown(state, STATE_NAMES, "state"))
+        limit = MAX_TILT_OFFSET if state in ("phi", "theta") else 2 * math.pi if state == "psi" else None
+        if limit is not None and abs(value) >= limit:
+            fail(f"simulation.initial_offset.{state}", value, _degrees_hint(value, limit))
+    if abs(cfg.trim.yaw) > 2 * math.pi:
+        fail("trim.yaw", cfg.trim.yaw, _degrees_hint(cfg.trim.yaw, 2 * math.pi))
     _check_flight(cfg, fail)
 
 
@@ -474,11 +502,25 @@ def _check_flight(cfg: Config, fail) -> None:
             fail(f"simulation.noise.sensor.{state}", value, _unknown(state, STATE_NAMES, "state"))
 
 
+MAX_TILT_OFFSET = math.radians(85.0)
+"""Roll or pitch offsets at or past 85 deg start outside the Euler model's valid range."""
+
+
+def _degrees_hint(value: float, limit: float) -> str:
+    """Angles are in rad: say what the value would be, and what the user likely meant."""
+    return (f"that is {math.degrees(value):.0f} deg, beyond {math.degrees(limit):.0f} deg; angles are in rad: "
+            f"for {value:g} deg write {math.radians(value):.4g}")
+
+
 def _unknown(name: str, allowed, kind: str) -> str:
+    return f"unknown {kind}; {_hint(name, allowed)}"
+
+
+def _hint(name: str, allowed) -> str:
+    """``did you mean `X`?`` (case first, then spelling), else the list of what is allowed."""
     same_but_case = [a for a in allowed if a.lower() == name.lower()]
     near = same_but_case or difflib.get_close_matches(name, list(allowed), n=1)
-    hint = f"did you mean `{near[0]}`?" if near else f"allowed: {', '.join(allowed)}"
-    return f"unknown {kind}; {hint}"
+    return f"did you mean `{near[0]}`?" if near else f"allowed: {', '.join(allowed)}"
 
 
 SYMMETRY_RTOL = 1e-10

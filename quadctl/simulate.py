@@ -325,7 +325,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     dist, meas = realize(noise, n, plan.dt) if noise is not None and noise.active else (None, None)
     stride = max(1, math.ceil(n / MAX_RECORDS))
     start = time.perf_counter()
-    done, ks, xs, us = runner.run(x0_all, 0.0, plan.dt, n, c, dist, meas, plan.hold, stride, lo_all, hi_all)
+    done, ks, xs, us = run_in_chunks(runner, x0_all, plan.dt, n, c, dist, meas, plan.hold, stride,
+                                     lo_all, hi_all)
     wall = time.perf_counter() - start
     t = plan.dt * ks
     x_ref = loop.x_trim + np.outer(t, loop.x_rate)
@@ -336,6 +337,43 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
                      z=np.ascontiguousarray(xs[:, N_STATES:]), noise_seed=seed)
 
 
+CHUNK_STEPS = 250_000
+"""Steps per call into the compiled loop (~50 ms): Python sees Ctrl-C between calls."""
+
+
+def run_in_chunks(runner, x0, dt, n, c, dist, meas, hold, stride, lo, hi):
+    """``runner.run`` over ``n`` steps, in chunks aligned to the hold and the record stride.
+
+    Every chunk starts on a controller sample and a recorded step, so the rows are those of one
+    long call; between chunks Python handles signals (Ctrl-C stops a long run at once).
+
+    Returns
+    -------
+    (done, ks, xs, us) : as :meth:`quadctl.codegen.CompiledLoop.run`.
+    """
+    unit = math.lcm(stride, max(hold, 1))
+    chunk = max(unit, CHUNK_STEPS // unit * unit)
+    parts_k, parts_x, parts_u = [], [], []
+    x = np.ascontiguousarray(x0, dtype=float)
+    start = 0
+    while True:
+        m = min(chunk, n - start)
+        window = slice(start, start + m)
+        done, ks, xs, us = runner.run(
+            x, dt * start, dt, m, c,
+            None if dist is None else np.ascontiguousarray(dist[window]),
+            None if meas is None else np.ascontiguousarray(meas[window]), hold, stride, lo, hi)
+        last = start + m >= n or done < m
+        keep = len(ks) if last else len(ks) - 1  # a chunk's last row is the next one's first
+        parts_k.append(ks[:keep] + start)
+        parts_x.append(xs[:keep])
+        parts_u.append(us[:keep])
+        if last:
+            return start + done, np.concatenate(parts_k), np.concatenate(parts_x), np.concatenate(parts_u)
+        x = np.ascontiguousarray(xs[-1])
+        start += m
+
+
 def _verdict(xs, t, done, n, lo, hi) -> tuple[str, str]:
     if done == n:
         return "ok", f"completed {n} steps to t = {t[-1]:.6g} s"
@@ -343,13 +381,17 @@ def _verdict(xs, t, done, n, lo, hi) -> tuple[str, str]:
     bad = [i for i in range(N_STATES) if not (lo[i] <= last[i] <= hi[i])]
     name = STATE_NAMES[bad[0]] if bad else "?"
     if not np.all(np.isfinite(last)):
-        return "diverged", f"diverged at t = {t[-1]:.4g} s: {name} is not finite; saved {done} steps"
+        return "diverged", f"diverged at t = {t[-1]:.4g} s: {name} is not finite; saved {_steps(done)}"
     if name == "theta":
         return "left_valid_range", (
             f"left the model's valid range at t = {t[-1]:.4g} s: pitch {math.degrees(last[bad[0]]):.1f} deg "
-            f"is beyond +-{math.degrees(VALID_PITCH):.0f} deg (Euler kinematics singular at 90); saved {done} steps")
+            f"is beyond +-{math.degrees(VALID_PITCH):.0f} deg (Euler kinematics singular at 90); saved {_steps(done)}")
     return "diverged", (f"diverged at t = {t[-1]:.4g} s: {name} = {last[bad[0]]:.3g} ran away; "
-                        f"saved {done} steps")
+                        f"saved {_steps(done)}")
+
+
+def _steps(n: int) -> str:
+    return f"{n} step" if n == 1 else f"{n} steps"
 
 
 def _fmt_eig(e: complex) -> str:

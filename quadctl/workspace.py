@@ -65,6 +65,8 @@ class Workspace:
         ok = artifacts.is_fresh(self.path(name), self.cfg)
         if ok:
             self.reused.append(self.path(name))
+            if name.endswith(".json"):  # --json prints the artifact, reused or new
+                self.payloads[name] = artifacts.read_json(self.path(name))
         return ok
 
     def _meta(self, kind: str) -> dict:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 
 import numpy as np
@@ -97,6 +98,15 @@ def test_unwritable_out_folder_is_a_clear_error(tmp_path):
     blocker.write_text("")
     with pytest.raises(ArtifactError, match=r"cannot write artifacts there .*choose another --out folder"):
         artifacts.write_json(blocker / "sub" / "x.json", {})
+
+
+def test_artifacts_follow_the_umask_not_mkstemps_0600(tmp_path):
+    old = os.umask(0o022)
+    try:
+        path = artifacts.write_json(tmp_path / "a.json", {})
+    finally:
+        os.umask(old)
+    assert path.stat().st_mode & 0o777 == 0o644
 
 
 def test_json_has_no_nan_and_complex_as_pairs():

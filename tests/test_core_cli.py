@@ -53,6 +53,19 @@ def test_json_output_is_parseable_and_matches_the_artifact(tmp_path):
     assert len(payload["full_closed_loop_eigenvalues"][0]) == 2  # [re, im]
 
 
+@pytest.mark.parametrize("command,artifact", [("trim", "trim.json"), ("check", "checks.json")])
+def test_json_prints_the_artifact_whether_new_or_reused(tmp_path, command, artifact):
+    first = json.loads(invoke(command, "-o", tmp_path, "--json").stdout)
+    again = json.loads(invoke(command, "-o", tmp_path, "--json").stdout)  # trim.json is reused now
+    on_disk = json.loads((tmp_path / artifact).read_text())
+    assert first.keys() == again.keys() == on_disk.keys()
+
+
+def test_linearize_json_names_its_arrays(tmp_path):
+    data = json.loads(invoke("linearize", "-o", tmp_path, "--json").stdout)
+    assert data["state_names"][0] == "pN" and np.array(data["B"]).shape == (12, 4)
+
+
 def test_decouple_names_dropped_terms(tmp_path):
     res = invoke("decouple", "-o", tmp_path)
     assert "d(w)/d(theta)" in res.output and "d(u)/d(T)" in res.output

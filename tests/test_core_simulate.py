@@ -108,3 +108,19 @@ def test_leaving_the_euler_range_is_reported(loop):
     assert sim.status == "left_valid_range"
     assert "pitch" in sim.message and "Euler" in sim.message
     assert abs(sim.x[-2, STATE_INDEX["theta"]]) <= math.radians(85)
+
+
+def test_chunked_runs_equal_one_long_call(loop, monkeypatch):
+    """Chunk boundaries (for Ctrl-C) change nothing but round-off in t = t0 + k dt."""
+    import quadctl.simulate as sim_mod
+
+    cfg, cl = loop
+    x0 = pipeline.initial_state(cfg, cl.x_trim)
+    whole = simulate(cl, x0, 0.05, 1e-5)
+    monkeypatch.setattr(sim_mod, "CHUNK_STEPS", 777)
+    chunked = simulate(cl, x0, 0.05, 1e-5)
+    np.testing.assert_array_equal(whole.t, chunked.t)
+    diff = np.abs(whole.x - chunked.x).max()
+    assert diff < 1e-13, f"Max diff is {diff:.4E}"
+    np.testing.assert_allclose(whole.u, chunked.u, atol=1e-12)
+    assert whole.steps == chunked.steps == 5000

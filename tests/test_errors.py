@@ -68,12 +68,21 @@ CONFIG_CASES = {
                             r"lqr\.yw = \"yw\": unknown regulated subsystem; did you mean `yaw`\?"),
     "duration not positive": (_edit("duration: 10.0", "duration: -1"),
                               r"simulation\.duration = -1: must be greater than 0"),
-    "dt not positive": (_edit("dt: auto", "dt: 0"), r"simulation\.dt = 0: must be a positive number of seconds, or auto"),
+    "dt not positive": (_edit("dt: auto", "dt: 0"),
+                        r"simulation\.dt = 0: must be a positive number of seconds, or auto"),
     "offset unknown state": (_edit("{pD: 0.5,", "{pd: 0.5,"),
                              r"simulation\.initial_offset\.pd = 0\.5: unknown state; did you mean `pD`\?"),
 }
 
 
+CONFIG_CASES.update({
+    "pitch offset in degrees": (_edit("theta: 0.1", "theta: 10"),
+                                r"simulation\.initial_offset\.theta = 10: that is 573 deg, beyond 85 deg; "
+                                r"angles are in rad: for 10 deg write 0\.1745"),
+    "yaw in degrees": (_edit("yaw: 0.0", "yaw: 90"), r"trim\.yaw = 90: that is 5157 deg.* for 90 deg write 1\.571"),
+    "case of a key": (_edit("altitude: {Q: [50, 1], R: [1]}", "altitude: {q: [50, 1], R: [1]}"),
+                      r"lqr\.altitude\.q: unknown key; did you mean `Q`\? \(and 1 more error\)"),
+})
 MAMBO = config.resolve("mambo-200hz")[1]
 CONFIG_CASES["not a whole number"] = (MAMBO.replace("seed: 1", "seed: 1.5"),
                                       r"simulation\.noise\.seed = 1\.5: must be a whole number")
@@ -100,6 +109,23 @@ def test_config_error_is_one_line_exit_2(tmp_path, case):
 def test_config_file_errors(args, pattern):
     res = runner.invoke(app, ["trim", *args])
     assert res.exit_code == 2 and re.search(pattern, res.stderr), res.stderr
+
+
+def test_exponent_without_a_dot_is_a_number():
+    """YAML 1.1 reads 1e5 as text; quadctl's loader reads it as the number a user means."""
+    cfg = config.parse(_edit("mass: 0.068", "mass: 68e-3").replace(
+        "altitude: {Q: [50, 1], R: [1]}", "altitude: {Q: [5e1, 1], R: [1E0]}"), "c.yaml")
+    assert cfg.vehicle.mass == 0.068 and cfg.lqr["altitude"].Q == [50.0, 1.0]
+
+
+@pytest.mark.parametrize("spec,label", [("forward.yml", "forward.yaml"), ("hover.yaml", "hover.yaml")])
+def test_bundled_names_with_an_extension(spec, label):
+    assert config.resolve(spec)[0] == label
+
+
+def test_misspelt_bundled_name_gets_a_suggestion():
+    res = runner.invoke(app, ["trim", "-c", "forwad"])
+    assert res.exit_code == 2 and "did you mean `forward`?" in res.stderr
 
 
 def test_undecodable_config_file(tmp_path):
@@ -178,8 +204,9 @@ def test_json_stdout_stays_parseable_when_a_check_fails(tmp_path):
     import json
 
     path = tmp_path / "c.yaml"
-    path.write_text(_edit("roll:     {states: [v, phi, p], inputs: [A]}", "roll:     {states: [v, phi, p], inputs: [R]}")
-                    .replace("yaw:      {states: [psi, r], inputs: [R]}", "yaw:      {states: [psi, r], inputs: [A]}"))
+    swapped = _edit("roll:     {states: [v, phi, p], inputs: [A]}", "roll:     {states: [v, phi, p], inputs: [R]}")
+    path.write_text(swapped.replace("yaw:      {states: [psi, r], inputs: [R]}",
+                                    "yaw:      {states: [psi, r], inputs: [A]}"))
     res = runner.invoke(app, ["check", "-c", str(path), "-o", str(tmp_path), "--json"])
     assert res.exit_code == 1
     assert json.loads(res.stdout)["subsystems"]["roll"]["stabilizable"] is False

@@ -76,3 +76,24 @@ def test_a_killed_runs_stale_temporary_is_cleaned_up(tmp_path):
     fresh.write_text("")
     assert artifacts.remove_stale_temporaries(tmp_path) == [stale]
     assert not stale.exists() and fresh.exists()
+
+
+def test_ctrl_c_stops_a_long_simulation_promptly(tmp_path):
+    """The compiled loop runs in ~50 ms chunks, so an interrupt does not wait for the whole run."""
+    from quadctl import config
+
+    path = tmp_path / "long.yaml"
+    path.write_text(config.resolve("forward-script-q")[1].replace("duration: 10.0", "duration: 600.0"))
+    cmd = [sys.executable, "-m", "quadctl", "simulate", "-c", str(path), "-o", str(tmp_path / "out")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.time() + 60
+    while not (tmp_path / "out" / "design.json").exists() and time.time() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.5)  # well inside the ~20 s integration (1.1e8 steps)
+    sent = time.time()
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    waited = time.time() - sent
+    assert proc.returncode == 130, err.decode()
+    assert waited < 5.0, f"Ctrl-C took {waited:.1f} s to stop the run"

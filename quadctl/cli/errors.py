@@ -52,6 +52,10 @@ def handled(fn):
             if debug_enabled(ctx):
                 raise
             raise fail(str(exc), exc.exit_code) from None
+        except BrokenPipeError:  # `quadctl ... --json | head`: the reader left; the work is saved
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            raise typer.Exit(EXIT_OK) from None
         except KeyboardInterrupt:
             raise fail("interrupted; artifacts written before this point are complete",
                        EXIT_INTERRUPTED) from None

@@ -11,8 +11,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     ws = open_workspace(config, out, fresh)
     linear = ws.linear
     if json:
-        return render.emit_json({"A": linear.A.tolist(), "B": linear.B.tolist(),
-                                 "x_trim": linear.x_trim.tolist(), "u_trim": linear.u_trim.tolist()})
+        from quadctl import artifacts
+
+        arrays, meta = artifacts.read_npz(ws.path("linear.npz"))
+        return render.emit_json(artifacts.jsonable({**meta, **arrays}))
     for table in render.linear_tables(linear):
         render.out.print(table)
     render.out.print(f"-> {ws.path('linear.npz')}")

@@ -11,7 +11,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     ws = open_workspace(config, out, fresh)
     trim = ws.trim
     if json:
-        return render.emit_json(ws.payloads.get("trim.json") or {"x": trim.x.tolist(), "u": trim.u.tolist()})
+        return render.emit_json(ws.payloads["trim.json"])
     render.out.print(render.trim_table(trim))
     render.out.print(f"equilibrium residual max|dx/dt| = {trim.residual:.2e} (non-position states), "
                      f"{trim.iterations} Newton iterations -> {ws.path('trim.json')}")
