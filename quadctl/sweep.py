@@ -673,8 +673,12 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
             rows[index] = _failed(head, "no_trim", str(plant))
             continue
         ready.append(_Prepared(index, head, cfg, *plant))
-    fast = [p for p in ready if task.fast and is_plain(p.cfg)]
-    slow = [p for p in ready if not (task.fast and is_plain(p.cfg))]
+    # the batched path for plain configs; a case is as plain as the base when the sweep only
+    # touches keys the batched path models, so the full check runs once per chunk, not per case
+    shortcut = ready and task.fast and all(_plain_key(keys) for keys in task.keys) and is_plain(ready[0].cfg)
+    plain = [bool(shortcut) or (task.fast and is_plain(p.cfg)) for p in ready]
+    fast = [p for p, ok in zip(ready, plain) if ok]
+    slow = [p for p, ok in zip(ready, plain) if not ok]
     if fast:
         rows.update(_evaluate_batched(fast, stats))
     for prep in slow:
@@ -734,6 +738,17 @@ def is_plain(cfg) -> bool:
     blocks = [(w, _PLAIN["lqr.*"]) for w in cfg.lqr.values()]
     blocks += [(s, _PLAIN["subsystems.*"]) for s in (cfg.subsystems or {}).values()]
     return all(plain(section, allowed) for section, allowed in blocks)
+
+
+def _plain_key(keys: tuple) -> bool:
+    """Whether a key path stays inside what the batched path models (:data:`_PLAIN`)."""
+    if not keys or keys[0] not in _PLAIN[""]:
+        return False
+    if keys[0] in ("lqr", "subsystems"):
+        return len(keys) > 2 and keys[2] in _PLAIN[f"{keys[0]}.*"]
+    if keys[0] in _PLAIN:
+        return len(keys) > 1 and keys[1] in _PLAIN[keys[0]]
+    return True
 
 
 def _dumped(value):
@@ -806,15 +821,26 @@ def _weights_block(cfg) -> tuple[np.ndarray, np.ndarray, list[str], dict]:
 
 def _block_index(cfg) -> dict:
     """Regulated subsystem -> (state indices, input indices, state names); cached per partition."""
-    partition = cfg.partition()
-    key = tuple((name, tuple(sub.states), tuple(sub.inputs)) for name, sub in partition.items() if sub.regulate)
-    return _block_index_cached(key)
+    return _block_index_cached(_partition_key(cfg))
+
+
+def _partition_key(cfg) -> tuple:
+    return tuple((name, tuple(sub.states), tuple(sub.inputs))
+                 for name, sub in cfg.partition().items() if sub.regulate)
 
 
 @lru_cache(maxsize=64)
 def _block_index_cached(key) -> dict:
     return {name: (np.array([STATE_INDEX[s] for s in states]), np.array([INPUT_INDEX[i] for i in inputs]),
                    list(states)) for name, states, inputs in key}
+
+
+@lru_cache(maxsize=64)
+def _pattern_cached(key) -> tuple[bool, ...]:
+    mask = np.zeros((N_INPUTS, N_STATES), dtype=bool)
+    for si, ii, _ in _block_index_cached(key).values():
+        mask[np.ix_(ii, si)] = True
+    return tuple(bool(v) for v in mask.ravel(order="F"))
 
 
 def _core_eigenvalues(A_cl, K) -> tuple[np.ndarray, bool]:
@@ -917,12 +943,12 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
     eigs, vecs = np.linalg.eig(A_cl)
     limits = batch.max_stable_steps(eigs)
     cores, stables = batch.coupled_stability(A_cl, np.stack([K for _, _, K in live]))
+    largest = np.argmax(np.abs(vecs), axis=1).tolist()  # each mode's largest state (eigen_owners)
     jobs = []
     for j, (k, prep, K) in enumerate(live):
         cfg = prep.cfg
         owner_of = pipeline.state_owner(cfg)
-        owners = [owner_of.get(STATE_NAMES[int(np.argmax(np.abs(vecs[j][:, m])))], "unassigned")
-                  for m in range(N_STATES)]
+        owners = [owner_of.get(STATE_NAMES[i], "unassigned") for i in largest[j]]
         core, stable = cores[j], bool(stables[j])
         sim_cfg = cfg.simulation
         try:
@@ -941,7 +967,7 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
         lo, hi = lo - drift, hi + drift
         c = batch_codegen.pack_lane_constants(x_trim, rate, prep.linear.u_trim, K,
                                               pipeline.vehicle_of(cfg).vector())
-        pattern = structural_pattern(prep.decoupled)
+        pattern = _pattern_of(cfg)
         jobs.append((pattern, prep, k, core, stable, plan, pipeline.initial_state(cfg, x_trim), c, lo, hi,
                      max(1, math.ceil(plan.n_steps / SWEEP_MAX_RECORDS))))
     # 3. simulations, LANES at a time per gain pattern, metrics as each group lands
@@ -968,6 +994,11 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
                                     "" if status == "ok" else message)
         stats["simulate_time"] += time.perf_counter() - t0
     return rows
+
+
+def _pattern_of(cfg) -> tuple[bool, ...]:
+    """:func:`structural_pattern` of a config's partition (cached per partition)."""
+    return _pattern_cached(_partition_key(cfg))
 
 
 def structural_pattern(decoupled) -> tuple[bool, ...]:
