@@ -643,7 +643,6 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
     stats = {"cases": len(task.cases), "designs": 0, "design_time": 0.0, "design_cpu": 0.0, "simulate_time": 0.0,
              "steps": 0, "fallbacks": 0, "backend": set()}
     rows: dict[int, dict] = {}
-    columns: list[str] | None = None
     ready = []
     plant_cache: dict[str, Any] = {}
     for index, values in task.cases:
@@ -656,8 +655,6 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
         except ConfigError as exc:
             rows[index] = _failed(head, "invalid_config", str(exc))
             continue
-        if columns is None:
-            columns = metric_columns(cfg)
         key = json.dumps(cfg.model_dump(mode="json", include={"vehicle", "trim", "subsystems"}),
                          sort_keys=True)
         if key not in plant_cache:
@@ -682,7 +679,10 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
     if fast:
         rows.update(_evaluate_batched(fast, stats))
     for prep in slow:
-        rows[prep.index] = _evaluate_one(prep, stats)
+        try:
+            rows[prep.index] = _evaluate_one(prep, stats)
+        except QuadctlError as exc:  # whatever else a feature of the config refuses: a row, not a crash
+            rows[prep.index] = _failed(prep.head, "failed", str(exc))
     out = []
     for index, _ in task.cases:
         row = rows[index]
