@@ -133,3 +133,12 @@ def test_design_on_report_partition_is_stable_on_hover(forward):
     linear = pipeline.linear_of(cfg, trim)
     des = design(decouple(linear.A, linear.B, REPORT_PARTITION), linear.A, linear.B, pipeline.weights_of(cfg))
     assert des.stable
+
+
+@pytest.mark.parametrize("tiny", [5.59673574e-301, 2.22507386e-309])
+def test_subnormal_entries_do_not_spoil_the_riccati_solve(tiny):
+    """Found by hypothesis: SciPy's balancing fails on entries near the underflow limit."""
+    A = np.array([[-1.0, tiny], [1.0, 0.0]])
+    K, P, E = lqr(A, [[0.0], [1.0]], np.diag([1e-3, 1.0]), [[0.1]])
+    assert riccati_residual(A, np.array([[0.0], [1.0]]), np.diag([1e-3, 1.0]), np.array([[0.1]]), P) < 1e-12
+    assert all(e.real < 0 for e in E)
