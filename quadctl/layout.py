@@ -31,11 +31,33 @@ INPUT_INDEX: dict[str, int] = {name: i for i, name in enumerate(INPUT_NAMES)}
 N_STATES = len(STATE_NAMES)
 N_INPUTS = len(INPUT_NAMES)
 
+def _block(first: str, size: int, names: tuple[str, ...]) -> slice:
+    start = names.index(first)
+    return slice(start, start + size)
+
+
+POSITION = _block("pN", 3, STATE_NAMES)
+"""``x[POSITION]``: pN, pE, pD (m)."""
+VELOCITY = _block("u", 3, STATE_NAMES)
+"""``x[VELOCITY]``: u, v, w (m/s, body frame)."""
+ATTITUDE = _block("phi", 3, STATE_NAMES)
+"""``x[ATTITUDE]``: phi, theta, psi (rad)."""
+BODY_RATES = _block("p", 3, STATE_NAMES)
+"""``x[BODY_RATES]``: p, q, r (rad/s)."""
+THRUST = INPUT_NAMES.index("T")
+"""``u[THRUST]``: T (N)."""
+TORQUES = _block("A", 3, INPUT_NAMES)
+"""``u[TORQUES]``: A, E, R (N m)."""
+
 POSITION_STATES: tuple[str, ...] = ("pN", "pE", "pD")
 """States the dynamics never read (translation invariance): their columns of A are zero."""
 
 PARAMETER_NAMES: tuple[str, ...] = ("mass", "gravity", "Jxx", "Jyy", "Jzz", "Kx", "Ky", "Kz")
 """Order of the vehicle parameter vector the CasADi model takes."""
+MASS = PARAMETER_NAMES.index("mass")
+GRAVITY = PARAMETER_NAMES.index("gravity")
+INERTIA = _block("Jxx", 3, PARAMETER_NAMES)
+DRAG = _block("Kx", 3, PARAMETER_NAMES)
 
 
 def unit_of(name: str) -> str:

@@ -18,6 +18,10 @@ ERROR_FLOOR = 1e-9
 """Errors below this (state units) count as zero: a state that never moves settles at t = 0."""
 
 
+OVERSHOOT_FLOOR = 1e-6
+"""Excursions past zero below this fraction of the initial error are round-off: overshoot 0."""
+
+
 def settling_time(t, err) -> float | None:
     """Time after which ``|err|`` stays within ``SETTLING_BAND`` of its peak (s); None if it never does."""
     mag = np.abs(err)
@@ -39,7 +43,8 @@ def overshoot(err) -> float | None:
     e0 = float(err[0])
     if abs(e0) <= ERROR_FLOOR:
         return None
-    return float(max(0.0, float(np.max(-np.sign(e0) * err))) / abs(e0) * 100.0)
+    excursion = max(0.0, float(np.max(-np.sign(e0) * err))) / abs(e0)
+    return 0.0 if excursion < OVERSHOOT_FLOOR else excursion * 100.0
 
 
 def lqr_cost(t, err, du, Q, R) -> float:

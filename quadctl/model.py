@@ -16,11 +16,14 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from quadctl import layout
 from quadctl.layout import N_INPUTS, N_STATES, PARAMETER_NAMES
 
 N_PARAMS = len(PARAMETER_NAMES)
 N_DISTURBANCES = 6
 """Body-frame disturbance force (N, 3) and torque (N m, 3) added to the dynamics."""
+DISTURBANCE_FORCE = slice(0, 3)
+DISTURBANCE_TORQUE = slice(3, 6)
 
 
 @dataclass(frozen=True)
@@ -90,13 +93,13 @@ def dynamics_expression(x, u, params, disturbance):
     (12,) casadi SX
         ``dx/dt``.
     """
-    vel_b = x[3:6]
-    phi, theta, psi = x[6], x[7], x[8]
-    omega = x[9:12]
-    thrust, torque = u[0], u[1:4]
-    mass, gravity = params[0], params[1]
-    inertia = params[2:5]
-    drag = params[5:8]
+    vel_b = x[layout.VELOCITY]
+    phi, theta, psi = ca.vertsplit(x[layout.ATTITUDE])
+    omega = x[layout.BODY_RATES]
+    thrust, torque = u[layout.THRUST], u[layout.TORQUES]
+    mass, gravity = params[layout.MASS], params[layout.GRAVITY]
+    inertia = params[layout.INERTIA]
+    drag = params[layout.DRAG]
 
     r_eb = rotation_earth_to_body(phi, theta, psi)
     pos_dot = r_eb.T @ vel_b
@@ -104,11 +107,11 @@ def dynamics_expression(x, u, params, disturbance):
     force_thrust = ca.vertcat(0, 0, -thrust)
     force_drag = -thrust * drag * vel_b
     force_gravity = r_eb @ ca.vertcat(0, 0, mass * gravity)
-    force = force_thrust + force_drag + force_gravity + disturbance[0:3]
+    force = force_thrust + force_drag + force_gravity + disturbance[DISTURBANCE_FORCE]
     vel_dot = force / mass - ca.cross(omega, vel_b)
 
     # H^-1 omega in closed form (H is the matrix of euler_rates_matrix).
-    p, q, r = omega[0], omega[1], omega[2]
+    p, q, r = ca.vertsplit(omega)
     cph, sph = ca.cos(phi), ca.sin(phi)
     cth, tth = ca.cos(theta), ca.tan(theta)
     euler_dot = ca.vertcat(
@@ -117,7 +120,7 @@ def dynamics_expression(x, u, params, disturbance):
         (q * sph + r * cph) / cth,
     )
 
-    moment = torque + disturbance[3:6]
+    moment = torque + disturbance[DISTURBANCE_TORQUE]
     omega_dot = (moment - ca.cross(omega, inertia * omega)) / inertia
     return ca.vertcat(pos_dot, vel_dot, euler_dot, omega_dot)
 

@@ -41,7 +41,7 @@ def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
         ax.plot(sim.t, ref, color="0.35", lw=1.0, ls="--", label="reference")
         ax.set_ylabel(f"{state} [{unit}]")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8, frameon=False)
+        ax.legend(loc="best", fontsize=8, frameon=False)
     axes[-1].set_xlabel("time [s]")
     status = "" if sim.status == "ok" else f" ({sim.status})"
     fig.suptitle(f"{title}: {name} subsystem{status}" if title else f"{name} subsystem{status}")
@@ -49,17 +49,25 @@ def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
 
 
 def inputs_figure(sim, u_trim=None, *, title: str = "") -> Figure:
-    """The four inputs T, A, E, R against time, with their trim values dashed."""
-    fig = Figure(figsize=(7.5, 7.0), layout="constrained")
-    axes = fig.subplots(len(INPUT_NAMES), 1, sharex=True)
-    for j, (ax, name, color) in enumerate(zip(axes, INPUT_NAMES, _COLORS)):
-        ax.plot(sim.t, sim.u[:, j], color=color, lw=1.6, label=name)
-        if u_trim is not None:
-            ax.axhline(u_trim[j], color="0.35", lw=1.0, ls="--", label="trim")
-        ax.set_ylabel(f"{name} [{unit_of(name)}]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize=8, frameon=False)
-    axes[-1].set_xlabel("time [s]")
+    """The four inputs T, A, E, R against time, with their trim values dashed.
+
+    Left: linear time. Right: the same on a log time axis, where the fast transients of the
+    rate loops (milliseconds or less) are visible.
+    """
+    fig = Figure(figsize=(10.0, 7.0), layout="constrained")
+    axes = fig.subplots(len(INPUT_NAMES), 2, sharex="col")
+    later = sim.t > 0
+    for j, (row, name, color) in enumerate(zip(axes, INPUT_NAMES, _COLORS)):
+        for ax, t, u in ((row[0], sim.t, sim.u[:, j]), (row[1], sim.t[later], sim.u[later, j])):
+            ax.plot(t, u, color=color, lw=1.6, label=name)
+            if u_trim is not None:
+                ax.axhline(u_trim[j], color="0.35", lw=1.0, ls="--", label="trim")
+            ax.grid(True, alpha=0.3)
+        row[0].set_ylabel(f"{name} [{unit_of(name)}]")
+        row[0].legend(loc="best", fontsize=8, frameon=False)
+        row[1].set_xscale("log")
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[-1, 1].set_xlabel("time [s], log scale")
     fig.suptitle(f"{title}: inputs" if title else "inputs")
     return fig
 

@@ -94,19 +94,18 @@ def dropped_table(dec, top: int = 8) -> Table:
 
 
 def checks_table(checks: dict, regulated: set[str]) -> Table:
-    some = next(iter(checks.values()))
-    table = Table(title="Controllability and observability (Kalman rank by SVD; verdicts by PBH)",
-                  title_justify="left", caption=f"rank tolerance: singular values > max(shape) * eps * "
-                  f"sigma_max (eps = {np.finfo(float).eps:.3g}); stable means Re < 0", caption_justify="left")
-    for col in ("system", "n", "ctrb rank", "obsv rank", "tolerance", "controllable", "observable",
-                "stabilizable", "detectable"):
-        table.add_column(col, justify="right" if col in ("n", "ctrb rank", "obsv rank", "tolerance") else "left")
-    del some
+    table = Table(title="Controllability and observability", title_justify="left", caption=(
+        "ctrb/obsv: Kalman matrix rank by SVD, counting singular values > tol = max(shape) * eps * "
+        f"sigma_max (eps = {np.finfo(float).eps:.3g}); verdicts by PBH at each eigenvalue; "
+        "stable means Re < 0; * analysed only"), caption_justify="left")
+    for col, right in (("system", False), ("ctrb", True), ("obsv", True), ("tol", True),
+                       ("controllable", False), ("observable", False), ("stabilizable", False),
+                       ("detectable", False)):
+        table.add_column(col, justify="right" if right else "left")
     for name, c in checks.items():
-        label = name if name == "full" or name in regulated else f"{name} (analysed only)"
-        table.add_row(label, str(c.n), f"{c.ctrb.rank}/{c.n}", f"{c.obsv.rank}/{c.n}",
-                      f"{c.ctrb.tolerance:.2e}", yes(c.controllable), yes(c.observable),
-                      yes(c.stabilizable), yes(c.detectable))
+        label = name if name == "full" or name in regulated else f"{name}*"
+        table.add_row(label, f"{c.ctrb.rank}/{c.n}", f"{c.obsv.rank}/{c.n}", f"{c.ctrb.tolerance:.0e}",
+                      yes(c.controllable), yes(c.observable), yes(c.stabilizable), yes(c.detectable))
     return table
 
 
@@ -126,7 +125,8 @@ def design_tables(des) -> list:
         verdict = ("marginal: unregulated position" if zero and des.marginal_states else
                    ("stable" if e.real < 0 else "[red]unstable[/red]"))
         full.add_row(eig(e), verdict)
-    return [table, matrix("K_block (4 x 12)", des.K_block, INPUT_NAMES, STATE_NAMES), full]
+    return [table, matrix("K_block, transposed: a row per state, a column per input (· is zero)",
+                          des.K_block.T, STATE_NAMES, INPUT_NAMES), full]
 
 
 def metrics_table(metrics: dict) -> Table:
@@ -144,7 +144,7 @@ def metrics_table(metrics: dict) -> Table:
 
 def peaks_table(metrics: dict, u_trim) -> Table:
     table = Table(title="Inputs", title_justify="left")
-    for col in ("input", "unit", "trim", "peak |u|"):
+    for col in ("input", "unit", "trim", "peak magnitude"):
         table.add_column(col, justify="left" if col in ("input", "unit") else "right")
     for j, name in enumerate(INPUT_NAMES):
         table.add_row(name, unit_of(name), num(u_trim[j]), num(metrics["peak"][name]))
