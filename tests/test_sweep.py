@@ -562,6 +562,13 @@ def test_cli_bad_sweep_file_exits_2_with_one_line(tmp_path, data, code, message)
     assert message in res.output and "Traceback" not in res.output
 
 
+def test_cli_jobs_and_scheduler_together_is_bad_input(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"vehicle.mass": [0.07]}})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-j", "2", "--scheduler", "tcp://127.0.0.1:1"])
+    assert res.exit_code == 2
+    assert "--jobs and --scheduler: give one" in res.output
+
+
 def test_ci_example_passes_on_the_bundled_design(tmp_path):
     cfg = config.load("forward")
     spec = sweep.load(ROOT / "examples" / "ci-sweep.yaml", cfg)

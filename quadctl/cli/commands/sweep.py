@@ -14,7 +14,7 @@ def command(
                                         help="Sweep file: parameters to vary, mode, gates.")],
     config: ConfigOpt = None, out: OutOpt = None,
     jobs: Annotated[Optional[int], typer.Option(
-        "--jobs", "-j", min=1, help="Local worker processes. Default: all cores.")] = None,
+        "--jobs", "-j", min=1, help="Local worker processes (not with --scheduler). Default: all cores.")] = None,
     scheduler: Annotated[Optional[str], typer.Option(
         "--scheduler", metavar="ADDRESS", help="Run on this Dask scheduler (tcp://host:8786) instead.")] = None,
     resume: Annotated[bool, typer.Option(
@@ -30,8 +30,11 @@ def command(
     from quadctl import config as config_mod
     from quadctl import sweep as sweep_mod
     from quadctl.cli import render, render_sweep
+    from quadctl.errors import SweepError
     from quadctl.workspace import default_out
 
+    if jobs is not None and scheduler:
+        raise SweepError("--jobs and --scheduler: give one; on a cluster its workers do the work")
     cfg = config_mod.load(config)
     spec = sweep_mod.load(sweep, cfg)
     label = config_mod.resolve(config)[0]
