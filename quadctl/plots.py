@@ -175,14 +175,14 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
             missing += 1
     ax.scatter(*plotted[True], s=14, color=_COLORS[0], alpha=0.7, label=f"pass ({len(plotted[True][0])})")
     ax.scatter(*plotted[False], s=22, color=_COLORS[1], marker="x", label=f"fail ({len(plotted[False][0])})")
+    labelled = False
     for gate in gates:
         for bound in (gate.min, gate.max):
-            if bound is None:
+            if bound is None or gate.metric not in (x, y):
                 continue
-            if gate.metric == x:
-                ax.axvline(bound, color="0.3", ls="--", lw=1.0)
-            elif gate.metric == y:
-                ax.axhline(bound, color="0.3", ls="--", lw=1.0)
+            line = ax.axvline if gate.metric == x else ax.axhline
+            line(bound, color="0.3", ls="--", lw=1.0, label=None if labelled else "gate")
+            labelled = True
     ax.set_xlabel(f"{x} [{unit(x)}]" if unit(x) else x)
     ax.set_ylabel(f"{y} [{unit(y)}]" if unit(y) else y)
     ax.grid(True, alpha=0.3)
