@@ -16,26 +16,35 @@ def _db(value) -> str:
     return f"{value:+.3g}" if math.isfinite(value) else ("+inf" if value > 0 else "-inf")
 
 
-def margins_table(margins, rate=None) -> Table:
+def margins_table(margins, rate=None) -> list[Table]:
+    """Two tables that fit 80 columns: classical margins, then disk margin and the LQR guarantee."""
     kind = f"sampled at {rate:g} Hz (L(z), hold included)" if rate else "continuous (L(s))"
-    table = Table(title=f"Stability margins, each loop broken at its plant input; {kind}",
-                  title_justify="left",
-                  caption="gain margin: lower / upper in dB ('-' is infinite); continuous LQR guarantees "
-                          "<= -6.02 / inf dB and >= 60 deg, |1+L| >= 1", caption_justify="left")
-    for col in ("loop", "input", "model", "GM lower dB", "GM upper dB", "at rad/s", "PM deg", "crossover rad/s",
-                "disk alpha", "disk GM dB", "disk PM deg", "min|1+L|", "LQR guarantee"):
-        table.add_column(col, justify="left" if col in ("loop", "input", "model", "LQR guarantee") else "right")
+    classic = Table(title=f"Stability margins, each loop broken at its plant input; {kind}",
+                    title_justify="left", caption="GM: lower / upper gain margin in dB ('-' is infinite), "
+                    "at the phase crossovers; PM at the gain crossover", caption_justify="left")
+    for col, right in (("loop", False), ("model", False), ("GM dB", True), ("at rad/s", True),
+                       ("PM deg", True), ("at rad/s ", True)):
+        classic.add_column(col, justify="right" if right else "left")
+    disk = Table(title="Disk margins and the continuous LQR guarantee", title_justify="left",
+                 caption="continuous LQR guarantees GM <= -6.02 / inf dB, PM >= 60 deg, |1+L| >= 1",
+                 caption_justify="left")
+    for col, right in (("loop", False), ("model", False), ("alpha", True), ("disk GM dB", True),
+                       ("disk PM", True), ("min|1+L|", True), ("guarantee", False)):
+        disk.add_column(col, justify="right" if right else "left")
     for m in margins:
         lo, hi = m.gain_margin_db
-        w_lo, w_hi = m.gain_crossover_freqs
-        at = " / ".join(num(w) for w in (w_lo, w_hi) if w is not None) or "-"
+        at = " / ".join(num(w, 3) for w in m.gain_crossover_freqs if w is not None) or "-"
         verdict = ("[green]met[/green]" if m.meets_lqr_guarantee else
                    ("[red]unstable[/red]" if not m.stable else "[yellow]short[/yellow]"))
-        table.add_row(m.loop, m.input, m.model, _db(lo), _db(hi), at, num(m.phase_margin_deg),
-                      num(m.phase_crossover_freq), num(m.disk_alpha, 3),
-                      f"{_db(m.disk_gain_db[0])} / {_db(m.disk_gain_db[1])}", num(m.disk_phase_deg, 3),
-                      num(m.min_return_difference, 3), verdict)
-    return table
+        loop = f"{m.loop} ({m.input})"
+        classic.add_row(loop, m.model, f"{_db(lo)} / {_db(hi)}", at, num(m.phase_margin_deg, 3),
+                        num(m.phase_crossover_freq, 3))
+        d_lo, d_hi = m.disk_gain_db
+        symmetric = d_lo is not None and d_hi is not None and abs(d_lo + d_hi) < 1e-6 * max(1.0, abs(d_hi))
+        disk_gm = f"±{abs(d_hi):.3g}" if symmetric else f"{_db(d_lo)} / {_db(d_hi)}"
+        disk.add_row(loop, m.model, num(m.disk_alpha, 3), disk_gm,
+                     num(m.disk_phase_deg, 3), num(m.min_return_difference, 3), verdict)
+    return [classic, disk]
 
 
 def margin_notes(margins) -> list[str]:

@@ -29,7 +29,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     if json:
         render.emit_json(ws.payloads["margins.json"])
     else:
-        render.out.print(render_flight.margins_table(margins, ws.cfg.controller.rate))
+        for table in render_flight.margins_table(margins, ws.cfg.controller.rate):
+            render.out.print(table)
         for line in render_flight.margin_notes(margins):
             render.out.print(f"  {line}", markup=False)
         render.out.print(f"-> {ws.path('margins.json')}")
