@@ -443,10 +443,9 @@ def get_lanes(pattern: tuple[bool, ...]):
     compiler = find_compiler()
     if compiler is None:
         return InterpretedLanes(funcs)
-    failures = []
     for simd, flags, backend in ((True, SIMD_FLAGS, "compiled-simd"), (False, PORTABLE_FLAGS, "compiled")):
         try:
             return CompiledLanes(_compile(lane_source(funcs, simd), flags, compiler), backend)
-        except (RuntimeError, OSError, ValueError) as exc:
-            failures.append(str(exc))
+        except (RuntimeError, OSError, ValueError):
+            continue  # this compiler cannot build (or load) the variant: try the next, then CasADi
     return InterpretedLanes(funcs)

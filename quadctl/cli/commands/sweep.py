@@ -43,7 +43,7 @@ def command(
                                     scheduler=scheduler, resume=resume, progress=progress)
     result, summary = outcome.result, outcome.summary
     if "casadi" in result.stats["backend"]:
-        render.notice("no C compiler found: simulating in CasADi's interpreter (correct, slower)")
+        render.notice("no working C compiler: simulating in CasADi's interpreter (correct, slower)")
     if json:
         render.emit_json({**summary, "performance": render_sweep.sweep_performance(outcome)})
     else:
