@@ -546,11 +546,18 @@ def assign(tree: Any, keys: tuple, value) -> Any:
     head, rest = keys[0], keys[1:]
     if isinstance(tree, dict):
         out = dict(tree)
-        out[head] = assign(tree.get(head), rest, value) if rest else value
+        out[head] = assign(tree.get(head), rest, value) if rest else _like(tree.get(head), value)
         return out
     out = list(tree)
-    out[head] = assign(tree[head], rest, value) if rest else value
+    out[head] = assign(tree[head], rest, value) if rest else _like(tree[head], value)
     return out
+
+
+def _like(old, value):
+    """A whole float where the config holds an integer (a seed from a range): the integer."""
+    if _is_int(old) and isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
 
 
 def _hint(name: str, allowed, many: bool = False) -> str:

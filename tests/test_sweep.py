@@ -575,3 +575,14 @@ def test_ci_example_passes_on_the_bundled_design(tmp_path):
     result = sweep.run(cfg, spec, jobs=1)
     assert len(result.rows) == 27
     assert all(r["pass"] for r in result.rows), [r["failed_gates"] for r in result.rows if not r["pass"]]
+
+
+def test_a_range_of_seeds_gives_whole_numbers_where_the_config_holds_one():
+    """Ranges are floats; an integer config key (a noise seed) gets the integer."""
+    from quadctl.sweep import assign
+
+    tree = {"simulation": {"noise": {"seed": 1}, "duration": 2.0}}
+    assert assign(tree, ("simulation", "noise", "seed"), 4.0)["simulation"]["noise"]["seed"] == 4
+    assert type(assign(tree, ("simulation", "noise", "seed"), 4.0)["simulation"]["noise"]["seed"]) is int
+    assert assign(tree, ("simulation", "duration"), 3.0)["simulation"]["duration"] == 3.0
+    assert assign(tree, ("simulation", "noise", "seed"), 4.5)["simulation"]["noise"]["seed"] == 4.5  # refused later
