@@ -107,6 +107,7 @@ def test_configs_lists_and_shows(tmp_path):
     assert "forward" in res.output and "hover" in res.output
     shown = invoke("configs", "--show", "hover")
     assert "velocity_ned" in shown.output
+    assert config.parse(shown.output, "shown") == config.load("hover")  # round trip, long lines unwrapped
     own = tmp_path / "mine.yaml"
     own.write_text(shown.output)
     assert invoke("trim", "-c", own, "-o", tmp_path).exit_code == 0

@@ -13,7 +13,7 @@ def command(show: Annotated[Optional[str], typer.Option(
     from quadctl.cli import render
 
     if show:
-        render.out.print(config.load(show).to_yaml(), end="", markup=False)
+        typer.echo(config.load(show).to_yaml(), nl=False)  # raw: rich would wrap long lines
         return
     from rich.table import Table
 
