@@ -22,10 +22,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
-import os
 import platform
-import subprocess
-import sys
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -33,7 +30,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from quadctl.codegen import cache_dir, find_compiler, record_rows
+from quadctl.codegen import compile_cached, find_compiler, record_rows
 from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.model import N_DISTURBANCES, N_PARAMS, build_model
 
@@ -285,27 +282,8 @@ def _cpu_tag() -> str:
 
 
 def _compile(source: str, flags: tuple[str, ...], compiler: str) -> Path:
-    """Compile ``source`` once per machine (cached by a hash of source, flags, CasADi, CPU)."""
-    key = hashlib.sha256("\0".join((source, " ".join(flags), ca.__version__, sys.platform,
-                                    _cpu_tag() if "-march=native" in flags else "")).encode())
-    folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    library = folder / f"qb_{key.hexdigest()[:20]}.so"
-    if library.exists():
-        return library
-    src = folder / f"{library.stem}.{os.getpid()}.c"
-    tmp_lib = folder / f"{library.stem}.{os.getpid()}.so.tmp"
-    src.write_text(source)
-    try:
-        proc = subprocess.run([compiler, *flags, str(src), "-o", str(tmp_lib), "-lm"],
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise RuntimeError(f"C compiler failed: {proc.stderr.strip()[:500]}")
-        os.replace(tmp_lib, library)  # atomic: concurrent workers never load a half-written library
-    finally:
-        src.unlink(missing_ok=True)
-        tmp_lib.unlink(missing_ok=True)
-    return library
+    """Compile ``source`` once per machine (cached by source, flags, CasADi and, for -march=native, CPU)."""
+    return compile_cached(source, flags, compiler, "qb", _cpu_tag() if "-march=native" in flags else "")
 
 
 class CompiledLanes:

@@ -365,22 +365,33 @@ def _compile(funcs: StepFunctions, compiler: str) -> Path:
              f"#define QC_SZ_IW {max(f.sz_iw() for f in fns)}\n"
              f"#define QC_SZ_W {max(f.sz_w() for f in fns)}\n")
     driver = resources.files("quadctl").joinpath("_driver.c").read_text()
-    source = generated + "\n" + sizes + driver
-    key = hashlib.sha256((source + " ".join(COMPILE_FLAGS) + ca.__version__ + sys.platform).encode())
+    return compile_cached(generated + "\n" + sizes + driver, COMPILE_FLAGS, compiler, "qc")
+
+
+def compile_cached(source: str, flags: tuple[str, ...], compiler: str, prefix: str,
+                   extra_key: str = "") -> Path:
+    """Compile C ``source`` to a shared library once per machine; return its path.
+
+    Cached in :func:`cache_dir` under a hash of the source, flags, CasADi version, platform and
+    ``extra_key`` (e.g. the CPU for ``-march=native``). The library is compiled to a temporary
+    name and renamed, so concurrent workers never load a half-written file.
+    """
+    key = hashlib.sha256("\0".join((source, " ".join(flags), ca.__version__, sys.platform,
+                                    extra_key)).encode())
     folder = cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
-    library = folder / f"qc_{key.hexdigest()[:20]}.so"
+    library = folder / f"{prefix}_{key.hexdigest()[:20]}.so"
     if library.exists():
         return library
     src = folder / f"{library.stem}.{os.getpid()}.c"
     tmp_lib = folder / f"{library.stem}.{os.getpid()}.so.tmp"
     src.write_text(source)
     try:
-        proc = subprocess.run([compiler, *COMPILE_FLAGS, str(src), "-o", str(tmp_lib), "-lm"],
+        proc = subprocess.run([compiler, *flags, str(src), "-o", str(tmp_lib), "-lm"],
                               capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"C compiler failed: {proc.stderr.strip()[:500]}")
-        os.replace(tmp_lib, library)  # atomic: concurrent workers never load a half-written library
+        os.replace(tmp_lib, library)
     finally:
         src.unlink(missing_ok=True)
         tmp_lib.unlink(missing_ok=True)
