@@ -33,10 +33,17 @@ The sweep file::
 Distributions (random mode): ``uniform {low, high}``, ``loguniform {low, high}``,
 ``normal {mean, std}``, ``choice {values}``. In random mode a list is a uniform choice and a
 range is sampled uniformly on ``[from, to]`` (log-uniformly with ``scale: log``).
+
+A sweep whose only parameter is ``simulation.noise.seed`` is a Monte Carlo
+(:attr:`SweepSpec.monte_carlo`): every case also keeps the deviation of its regulated states from
+the reference on a common grid of :data:`MC_POINTS` times, and the run directory gets
+``montecarlo.png`` and ``montecarlo.npz``, the percentile bands of those deviations against time
+(:func:`montecarlo_bands`).
 """
 
 from __future__ import annotations
 
+import base64
 import csv
 import difflib
 import hashlib
@@ -62,7 +69,7 @@ import yaml
 
 from quadctl import __version__
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, SweepError, TrimError
-from quadctl.layout import INPUT_INDEX, INPUT_NAMES, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.layout import INPUT_INDEX, INPUT_NAMES, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES, unit_of
 
 MODES = ("grid", "random")
 DISTRIBUTIONS = {
@@ -84,6 +91,14 @@ SWEEP_MAX_RECORDS = 20_000
 """A case keeps at most this many samples (every ``stride``-th step and the last) for its metrics:
 ``quadctl simulate`` keeps up to 200 000, which for thousands of cases would not fit in memory.
 With 10 s at the report's auto step (290 000 steps) that is a sample every 0.5 ms."""
+MC_PARAMETER = ("simulation", "noise", "seed")
+"""The key path a Monte Carlo varies, and the only one (see :attr:`SweepSpec.monte_carlo`)."""
+MC_POINTS = 201
+"""A Monte Carlo case keeps its regulated states at this many evenly spaced times (float32): with
+the ten regulated states of ``mambo-200hz``, 8 kB a case in memory and in the journal, whatever the
+duration and step (10 000 seeds: 80 MB). At 10 s, a point every 50 ms."""
+MC_PERCENTILES = (5, 25, 50, 75, 95)
+"""The percentiles a Monte Carlo reports at every time (the bands 5-95 and 25-75, the median)."""
 PARTS = "sweep.parts"
 """Folder of the run directory holding the finished chunks (the journal ``--resume`` reads)."""
 WORST_SHOWN = 10
@@ -236,6 +251,12 @@ class SweepSpec:
     def names(self) -> list[str]:
         """The parameters' key paths (the first columns of the table)."""
         return [p.path for p in self.parameters]
+
+    @property
+    def monte_carlo(self) -> bool:
+        """A Monte Carlo: the sweep varies the noise seed (``simulation.noise.seed``) and nothing
+        else, so its cases differ only in the noise each run draws. ``set:`` values apply to all."""
+        return all(p.keys == MC_PARAMETER for p in self.parameters)
 
     def count(self) -> int:
         """Number of cases."""
@@ -523,11 +544,16 @@ def metric_columns(cfg) -> list[str]:
     (the simulation's: ok, diverged, left_valid_range; or why the case has no simulation),
     ``dt`` (s) and ``steps``.
     """
-    regulated = {s for sub in cfg.partition().values() if sub.regulate for s in sub.states}
-    states = [s for s in STATE_NAMES if s in regulated]
+    states = regulated_states(cfg)
     return (["stable", "eig.fastest", "eig.slowest"] + [f"settling_time.{s}" for s in states]
             + [f"overshoot.{s}" for s in states] + [f"peak.{i}" for i in INPUT_NAMES]
             + ["cost", "status", "dt", "steps"])
+
+
+def regulated_states(cfg) -> list[str]:
+    """The states of the config's regulated subsystems, in state order."""
+    regulated = {s for sub in cfg.partition().values() if sub.regulate for s in sub.states}
+    return [s for s in STATE_NAMES if s in regulated]
 
 
 def _lookup(tree, keys):
@@ -618,6 +644,8 @@ class ChunkTask:
     require_ok : bool
     fast : bool
         Use the batched path for configs it models (False: every case through the pipeline).
+    trace : tuple of str
+        A Monte Carlo: the states whose trajectories each case keeps (empty: none).
     """
 
     base: dict
@@ -628,14 +656,18 @@ class ChunkTask:
     gates: tuple
     require_ok: bool
     fast: bool = True
+    trace: tuple = ()
 
 
 @dataclass
 class ChunkResult:
-    """Rows of a chunk, and what computing them took."""
+    """Rows of a chunk, what computing them took and, in a Monte Carlo, each case's trajectory:
+    case number -> (MC_POINTS, len(trace)) float32 array (see :func:`resample_deviation`); a case
+    that did not simulate to the end has none."""
 
     rows: list
     stats: dict
+    traces: dict = field(default_factory=dict)
 
 
 def evaluate_chunk(task: ChunkTask) -> ChunkResult:
@@ -650,6 +682,7 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
     stats = {"cases": len(task.cases), "designs": 0, "design_time": 0.0, "design_cpu": 0.0, "simulate_time": 0.0,
              "steps": 0, "fallbacks": 0, "backend": set()}
     rows: dict[int, dict] = {}
+    traces: dict[int, np.ndarray] = {}
     ready = []
     plant_cache: dict[str, Any] = {}
     for index, values in task.cases:
@@ -678,16 +711,20 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
             continue
         ready.append(_Prepared(index, head, cfg, *plant))
     # the batched path for plain configs; a case is as plain as the base when the sweep only
-    # touches keys the batched path models, so the full check runs once per chunk, not per case
-    shortcut = ready and task.fast and all(_plain_key(keys) for keys in task.keys) and is_plain(ready[0].cfg)
-    plain = [bool(shortcut) or (task.fast and is_plain(p.cfg)) for p in ready]
+    # touches keys the batched path models, so the full check runs once per chunk, not per case.
+    # A Monte Carlo (noise: never plain) keeps trajectories, which only the pipeline path gives.
+    batched = task.fast and not task.trace
+    shortcut = ready and batched and all(_plain_key(keys) for keys in task.keys) and is_plain(ready[0].cfg)
+    plain = [bool(shortcut) or (batched and is_plain(p.cfg)) for p in ready]
     fast = [p for p, ok in zip(ready, plain) if ok]
     slow = [p for p, ok in zip(ready, plain) if not ok]
     if fast:
         rows.update(_evaluate_batched(fast, stats))
     for prep in slow:
         try:
-            rows[prep.index] = _evaluate_one(prep, stats)
+            rows[prep.index], trace = _evaluate_one(prep, stats, task.trace)
+            if trace is not None:
+                traces[prep.index] = trace
         except QuadctlError as exc:  # whatever else a feature of the config refuses: a row, not a crash
             rows[prep.index] = _failed(prep.head, "failed", str(exc))
     out = []
@@ -699,7 +736,7 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
         out.append(row)
     stats["backend"] = sorted(stats["backend"])
     stats["wall_time"] = time.perf_counter() - start
-    return ChunkResult(rows=out, stats=stats)
+    return ChunkResult(rows=out, stats=stats, traces=traces)
 
 
 @dataclass
@@ -864,8 +901,12 @@ def _core_eigenvalues(A_cl, K) -> tuple[np.ndarray, bool]:
     return core, bool(stable and all(is_stable(e) for e in core))
 
 
-def _evaluate_one(prep: _Prepared, stats: dict) -> dict:
-    """One case through the pipeline, as ``quadctl simulate`` runs it (the reference path)."""
+def _evaluate_one(prep: _Prepared, stats: dict, trace: tuple = ()) -> tuple[dict, np.ndarray | None]:
+    """One case through the pipeline, as ``quadctl simulate`` runs it (the reference path).
+
+    Returns the row and, when ``trace`` names states and the run reached its end, their
+    deviations resampled by :func:`resample_deviation` (else None).
+    """
     from quadctl import metrics, pipeline
 
     cfg, linear = prep.cfg, prep.linear
@@ -876,7 +917,7 @@ def _evaluate_one(prep: _Prepared, stats: dict) -> dict:
         stats["design_cpu"] += time.process_time() - c0
         stats["designs"] += len(prep.decoupled.regulated)
     except DesignError as exc:
-        return _failed(prep.head, "design_failed", str(exc))
+        return _failed(prep.head, "design_failed", str(exc)), None
     A_cl = linear.A - linear.B @ des.K_block
     core, stable = _core_eigenvalues(A_cl, des.K_block)
     loop = pipeline.loop_of(cfg, linear, des, prep.rate)  # the integrators of an LQI design too
@@ -887,13 +928,47 @@ def _evaluate_one(prep: _Prepared, stats: dict) -> dict:
     except StepSizeError as exc:
         row = _row(prep.head, stable, core, None, None, 0, str(exc))
         row["status"] = "step_refused"
-        return row
+        return row, None
     stats["backend"].add(sim.backend)
     stats["steps"] += sim.steps
     Q, R, regulated, _ = _weights_block(cfg)
     summary = metrics.summarize(sim, linear.u_trim, Q, R, regulated)
-    return _row(prep.head, stable, core, sim.plan, summary, sim.steps,
-                "" if sim.status == "ok" else sim.message)
+    row = _row(prep.head, stable, core, sim.plan, summary, sim.steps,
+               "" if sim.status == "ok" else sim.message)
+    kept = None
+    if trace and sim.status == "ok":
+        kept = resample_deviation(sim.t, sim.x, sim.x_ref, trace, cfg.simulation.duration)
+    return row, kept
+
+
+def mc_grid(duration: float) -> np.ndarray:
+    """The Monte Carlo time grid: (MC_POINTS,) evenly spaced times from 0 to ``duration`` s."""
+    return np.linspace(0.0, float(duration), MC_POINTS)
+
+
+def resample_deviation(t, x, x_ref, states, duration: float) -> np.ndarray:
+    """Deviation of ``states`` from the reference, linearly interpolated onto :func:`mc_grid`.
+
+    Parameters
+    ----------
+    t : (N,) array_like
+        s, increasing (a simulation's records).
+    x, x_ref : (N, 12) array_like
+        State and reference (state units: m, m/s, rad, rad/s).
+    states : sequence of str
+    duration : float
+        s, the end of the grid.
+
+    Returns
+    -------
+    (MC_POINTS, len(states)) float32 ndarray
+        ``x - x_ref`` at the grid's times. float32 keeps seven digits, far below the noise a Monte
+        Carlo measures, at half the memory.
+    """
+    grid = mc_grid(duration)
+    index = [STATE_INDEX[s] for s in states]
+    dev = np.asarray(x)[:, index] - np.asarray(x_ref)[:, index]
+    return np.stack([np.interp(grid, t, dev[:, j]) for j in range(len(index))], axis=1).astype(np.float32)
 
 
 def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
@@ -1074,6 +1149,10 @@ class SweepResult:
         time is what a design costs, wall time also counts what other processes took),
         ``steps`` (RK4 steps simulated), ``fallbacks`` (batched solves redone one by one),
         ``backend``, ``executor``, ``workers``.
+    traces : dict
+        A Monte Carlo: case number -> (MC_POINTS, regulated states) float32 deviations from the
+        reference, for the cases computed here that simulated to the end (a resumed sweep's
+        earlier cases are in its journal: :class:`SweepStore`).
     """
 
     rows: list
@@ -1083,6 +1162,7 @@ class SweepResult:
     stats: dict
     gates: tuple = ()
     require_ok: bool = True
+    traces: dict = field(default_factory=dict)
 
     @property
     def failed(self) -> list[dict]:
@@ -1122,19 +1202,26 @@ def tasks_for(cfg, spec: SweepSpec, cases: Iterable[Case], label: str, size: int
     executor (the resume test checks this: a resumed sweep, chunked anew, writes the same table).
     """
     cases = list(cases)
+    base = base_of(cfg, spec)
+    keys = tuple(p.keys for p in spec.parameters)
+    trace = tuple(regulated_states(cfg)) if spec.monte_carlo else ()
+    return [ChunkTask(base=base, label=label, keys=keys, names=tuple(spec.names),
+                      cases=tuple((c.index, c.values) for c in cases[i:i + size]), gates=spec.gates,
+                      require_ok=spec.require_ok, fast=fast, trace=trace)
+            for i in range(0, len(cases), size)]
+
+
+def base_of(cfg, spec: SweepSpec) -> dict:
+    """The config every case starts from, as a mapping: ``cfg`` with the ``set:`` values in."""
     base = cfg.model_dump(mode="json")
     for _, keys, value in spec.fixed:
         base = assign(base, keys, value)
-    keys = tuple(p.keys for p in spec.parameters)
-    return [ChunkTask(base=base, label=label, keys=keys, names=tuple(spec.names),
-                      cases=tuple((c.index, c.values) for c in cases[i:i + size]), gates=spec.gates,
-                      require_ok=spec.require_ok, fast=fast)
-            for i in range(0, len(cases), size)]
+    return base
 
 
 def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = None,
         scheduler: str | None = None, done: dict[int, dict] | None = None,
-        on_chunk: Callable[[list], None] | None = None,
+        on_chunk: Callable[[list, dict], None] | None = None,
         progress: Callable[[int, int], None] | None = None, fast: bool = True) -> SweepResult:
     """Run a sweep: every case of ``spec`` not already in ``done``.
 
@@ -1152,7 +1239,8 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     done : dict, optional
         Rows already computed, by case number (a resumed sweep): not recomputed.
     on_chunk : callable, optional
-        Called with the rows of each finished chunk, in completion order (to save them).
+        ``on_chunk(rows, traces)`` for each finished chunk, in completion order (to save them);
+        ``traces`` as :attr:`ChunkResult.traces` (empty unless a Monte Carlo).
     progress : callable, optional
         ``progress(cases_done, cases_total)`` after each chunk.
     fast : bool
@@ -1189,6 +1277,7 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
             _warm_up(tasks[0])
         results = _dask_results(client, tasks) if client is not None else _local_results(tasks, workers)
         rows = dict(done)
+        traces: dict[int, np.ndarray] = {}
         total = len(cases)
         start = time.perf_counter()
         if progress:
@@ -1196,11 +1285,12 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
         for result in results:
             for row in result.rows:
                 rows[row["case"]] = row
+            traces.update(result.traces)
             for key in ("designs", "design_time", "design_cpu", "simulate_time", "steps", "fallbacks"):
                 stats[key] += result.stats[key]
             stats["backend"].update(result.stats["backend"])
             if on_chunk:
-                on_chunk(result.rows)
+                on_chunk(result.rows, result.traces)
             if progress:
                 progress(len(rows), total)
         wall = time.perf_counter() - start
@@ -1210,7 +1300,8 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     stats["backend"] = sorted(stats["backend"])
     ordered = [rows[c.index] for c in cases]
     return SweepResult(rows=ordered, columns=columns_of(cfg, spec), computed=len(todo), wall_time=wall,
-                       stats=stats, gates=spec.gates, require_ok=spec.require_ok)
+                       stats=stats, gates=spec.gates, require_ok=spec.require_ok,
+                       traces={c.index: traces[c.index] for c in cases if c.index in traces})
 
 
 def columns_of(cfg, spec: SweepSpec) -> list[str]:
@@ -1308,7 +1399,9 @@ class SweepStore:
     Finished chunks go to ``DIR/sweep.parts/`` one file each, atomically, as they land; a
     stopped sweep keeps them and ``--resume`` reads them back instead of recomputing. At the
     end: ``sweep.csv`` (one row per case), ``sweep.json`` (summary, gates, worst and best cases,
-    config hash) and ``sweep.png`` (the trade-off plot).
+    config hash) and ``sweep.png`` (the trade-off plot). A Monte Carlo's chunks also hold their
+    cases' trajectories (float32, base64), so a resumed one has the bands of every case, and it
+    ends with ``montecarlo.png`` and ``montecarlo.npz`` (:func:`montecarlo_bands`).
 
     Parameters
     ----------
@@ -1324,6 +1417,9 @@ class SweepStore:
         self.spec = spec
         self.parts = self.out / PARTS
         self.digest = spec.digest(cfg)
+        self.trace = tuple(regulated_states(cfg)) if spec.monte_carlo else ()
+        self.traces: dict[int, np.ndarray] = {}
+        """Monte Carlo trajectories journaled so far (read back on resume, added per chunk)."""
 
     def start(self, resume: bool) -> dict[int, dict]:
         """Rows of finished chunks when resuming (checked to be of this very sweep), else none:
@@ -1345,29 +1441,168 @@ class SweepStore:
                     "since); run without --resume to start over, or use another -o folder")
             for row in data["rows"]:
                 done[int(row["case"])] = row
+            if self.trace:
+                self.traces.update(self._decode(path, data.get("traces")))
         return done
 
-    def save_chunk(self, rows: list[dict]) -> Path:
-        """Write a finished chunk atomically (``chunk-<first case>.json``)."""
+    def save_chunk(self, rows: list[dict], traces: dict | None = None) -> Path:
+        """Write a finished chunk atomically (``chunk-<first case>.json``), with its cases'
+        trajectories in a Monte Carlo."""
         from quadctl import artifacts
 
         first = min(int(r["case"]) for r in rows)
         payload = {**artifacts.metadata(self.cfg, "sweep-chunk"), "sweep_digest": self.digest,
                    "cases": [r["case"] for r in rows], "rows": rows}
+        if self.trace:
+            traces = traces or {}
+            self.traces.update(traces)
+            payload["traces"] = {"states": list(self.trace), "points": MC_POINTS, "dtype": "<f4",
+                                 "cases": {str(k): base64.b64encode(np.ascontiguousarray(v, "<f4").tobytes())
+                                           .decode("ascii") for k, v in traces.items()}}
         return artifacts.write_json(self.parts / f"chunk-{first:07d}.json", payload)
 
+    def _decode(self, path: Path, block) -> dict[int, np.ndarray]:
+        """A chunk's trajectories, checked to have this sweep's layout."""
+        if not isinstance(block, dict) or block.get("states") != list(self.trace) \
+                or block.get("points") != MC_POINTS or block.get("dtype") != "<f4":
+            raise SweepError(f"{path}: a Monte Carlo chunk without trajectories of this layout "
+                             f"({MC_POINTS} times of {', '.join(self.trace)}); run without --resume "
+                             "to start over")
+        shape = (MC_POINTS, len(self.trace))
+        return {int(k): np.frombuffer(base64.b64decode(v), dtype="<f4").reshape(shape)
+                for k, v in block["cases"].items()}
+
     def finish(self, result: SweepResult) -> dict:
-        """Write sweep.csv, sweep.json and sweep.png; return the summary (sweep.json's content)."""
+        """Write sweep.csv, sweep.json and sweep.png (and a Monte Carlo's files); return the
+        summary (sweep.json's content)."""
         from quadctl import artifacts
 
         csv_path = artifacts.write_bytes(self.out / "sweep.csv", to_csv(result).encode())
         summary = summarize(result, self.cfg, self.spec)
         summary["files"] = {"table": csv_path.name, "plot": "sweep.png", "chunks": PARTS}
+        bands = self.finish_montecarlo(result)
+        if self.trace:
+            summary["montecarlo"] = {
+                "cases": 0 if bands is None else len(bands.cases), "points": MC_POINTS,
+                "percentiles": list(MC_PERCENTILES), "states": list(self.trace),
+                "left_out": [r["case"] for r in result.rows] if bands is None else list(bands.left_out)}
+        if bands is not None:
+            summary["files"]["montecarlo"] = list(MC_FILES)
         payload = artifacts.jsonable({**artifacts.metadata(self.cfg, "sweep"), **summary,
                                       "sweep_digest": self.digest})
         artifacts.write_json(self.out / "sweep.json", payload)
         artifacts.write_bytes(self.out / "sweep.png", tradeoff_png(result, self.cfg))
         return payload
+
+    def finish_montecarlo(self, result: SweepResult) -> MonteCarloBands | None:
+        """A Monte Carlo: write montecarlo.npz and montecarlo.png from every trajectory (journaled
+        and computed now). None if the sweep is no Monte Carlo or no case simulated to the end:
+        then those files of an earlier run in this folder go, so none is mistaken for this one's."""
+        from quadctl import artifacts
+
+        traces = {**self.traces, **result.traces} if self.trace else {}
+        if not traces:
+            for name in MC_FILES:
+                (self.out / name).unlink(missing_ok=True)
+            return None
+        duration = _lookup(base_of(self.cfg, self.spec), ("simulation", "duration"))
+        bands = montecarlo_bands(traces, self.trace, duration, [r["case"] for r in result.rows])
+        meta = {**artifacts.metadata(self.cfg, "montecarlo"), "sweep_digest": self.digest,
+                "quantity": "deviation from the reference, x - x_ref, in state units (m, m/s, rad, rad/s)",
+                "units": {s: unit_of(s) for s in bands.states}, "left_out": list(bands.left_out)}
+        artifacts.write_npz(self.out / "montecarlo.npz",
+                            {"t": bands.t, "percentiles": np.asarray(bands.percentiles, dtype=float),
+                             "bands": bands.bands, "states": np.array(bands.states), "cases": bands.cases,
+                             "traces": bands.traces}, meta)
+        artifacts.write_bytes(self.out / "montecarlo.png", montecarlo_png(bands, self.cfg))
+        return bands
+
+
+MC_FILES = ("montecarlo.png", "montecarlo.npz")
+
+
+@dataclass(frozen=True)
+class MonteCarloBands:
+    """Percentile bands of a Monte Carlo's trajectories against time.
+
+    Attributes
+    ----------
+    t : (P,) ndarray
+        s, the grid (:func:`mc_grid`).
+    percentiles : tuple of float
+        The levels, :data:`MC_PERCENTILES`.
+    bands : (len(percentiles), P, S) ndarray
+        At each level, time and state: the deviation from the reference in state units (m, m/s,
+        rad, rad/s), over the cases at that time (numpy's linear interpolation between cases).
+    states : tuple of str
+        The S states, in state order.
+    cases : (N,) int ndarray
+        The cases the bands are over, in order.
+    traces : (N, P, S) float32 ndarray
+        Their trajectories.
+    left_out : tuple of int
+        Cases of the sweep without a trajectory (they did not simulate to the end).
+    """
+
+    t: np.ndarray
+    percentiles: tuple
+    bands: np.ndarray
+    states: tuple
+    cases: np.ndarray
+    traces: np.ndarray
+    left_out: tuple = ()
+
+
+def montecarlo_bands(traces: dict, states, duration: float, cases: Iterable[int] = ()) -> MonteCarloBands:
+    """The percentile bands of trajectories on the Monte Carlo grid.
+
+    Parameters
+    ----------
+    traces : dict
+        Case number -> (MC_POINTS, len(states)) deviations (:func:`resample_deviation`).
+    states : sequence of str
+    duration : float
+        s, the run's length (the grid's end).
+    cases : iterable of int, optional
+        Every case of the sweep: those without a trajectory are listed as left out.
+
+    Raises
+    ------
+    SweepError
+        No trajectory at all, or one of another shape.
+
+    Examples
+    --------
+    >>> b = montecarlo_bands({0: np.zeros((MC_POINTS, 1)), 1: np.ones((MC_POINTS, 1))}, ["pD"], 1.0)
+    >>> float(b.bands[2, 0, 0])  # the median of 0 and 1
+    0.5
+    """
+    shape = (MC_POINTS, len(states))
+    if not traces:
+        raise SweepError("no case of the Monte Carlo simulated to the end, so there are no bands; "
+                         "see the reasons in sweep.csv")
+    for case, trace in traces.items():
+        if np.shape(trace) != shape:
+            raise SweepError(f"case {case}: trajectory of shape {np.shape(trace)}, expected {shape} "
+                             f"({MC_POINTS} times of {', '.join(states)})")
+    order = sorted(traces)
+    stack = np.stack([np.asarray(traces[k], dtype=np.float32) for k in order])
+    bands = np.percentile(stack.astype(np.float64), MC_PERCENTILES, axis=0)
+    return MonteCarloBands(t=mc_grid(duration), percentiles=tuple(float(p) for p in MC_PERCENTILES),
+                           bands=bands, states=tuple(states), cases=np.array(order, dtype=np.int64),
+                           traces=stack, left_out=tuple(int(c) for c in cases if c not in traces))
+
+
+def montecarlo_png(bands: MonteCarloBands, cfg) -> bytes:
+    """The Monte Carlo figure (:func:`quadctl.plots.montecarlo_figure`) as PNG bytes."""
+    from quadctl import plots
+
+    groups = {name: [s for s in sub.states if s in bands.states]
+              for name, sub in cfg.partition().items() if sub.regulate}
+    fig = plots.montecarlo_figure(bands, groups, title=cfg.name)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    return buf.getvalue()
 
 
 def to_csv(result: SweepResult) -> str:
@@ -1470,7 +1705,8 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     cfg : Config
     spec : SweepSpec
     out : path
-        Run directory (``sweep.csv``, ``sweep.json``, ``sweep.png``, ``sweep.parts/``).
+        Run directory (``sweep.csv``, ``sweep.json``, ``sweep.png``, ``sweep.parts/``; a Monte
+        Carlo also ``montecarlo.png`` and ``montecarlo.npz``).
     label, jobs, scheduler, progress
         As :func:`run`.
     resume : bool
@@ -1491,4 +1727,5 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
                  on_chunk=store.save_chunk, progress=progress)
     summary = store.finish(result)
     files = [store.out / "sweep.csv", store.out / "sweep.json", store.out / "sweep.png"]
+    files += [store.out / name for name in summary["files"].get("montecarlo", [])]
     return SweepOutcome(result=result, summary=summary, out=store.out, reused=len(done), files=files)

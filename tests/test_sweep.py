@@ -511,6 +511,7 @@ def test_outputs_table_summary_and_plot(cfg, tmp_path):
     assert summary["sweep_digest"] == spec.digest(cfg)
     assert (tmp_path / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert outcome.summary["ok"] is False
+    assert not spec.monte_carlo and not (tmp_path / "montecarlo.png").exists()
 
 
 # ---------------------------------------------------------------------------------------
@@ -586,3 +587,61 @@ def test_a_range_of_seeds_gives_whole_numbers_where_the_config_holds_one():
     assert type(assign(tree, ("simulation", "noise", "seed"), 4.0)["simulation"]["noise"]["seed"]) is int
     assert assign(tree, ("simulation", "duration"), 3.0)["simulation"]["duration"] == 3.0
     assert assign(tree, ("simulation", "noise", "seed"), 4.5)["simulation"]["noise"]["seed"] == 4.5  # refused later
+
+
+# ---------------------------------------------------------------------------------------
+# Monte Carlo over noise seeds
+
+
+MC_SWEEP = {"parameters": {"simulation.noise.seed": [1, 2, 3, 4]}, "set": {"simulation.duration": 0.5},
+            "chunk_size": 2}
+"""Four seeds of mambo-200hz, 0.5 s each (the roll and pitch transients and a hundred noise draws)."""
+
+
+@pytest.fixture(scope="module")
+def mambo():
+    return config.load("mambo-200hz")
+
+
+def test_only_a_sweep_of_the_noise_seed_is_a_monte_carlo(mambo):
+    assert sweep.from_dict(MC_SWEEP, mambo, "mc.yaml").monte_carlo
+    mixed = {**MC_SWEEP, "parameters": {**MC_SWEEP["parameters"], "vehicle.mass": [0.068]}}
+    assert not sweep.from_dict(mixed, mambo, "mc.yaml").monte_carlo
+
+
+def test_monte_carlo_bands_are_ordered_percentiles_of_the_kept_trajectories(mambo, tmp_path):
+    from quadctl import artifacts
+
+    spec = sweep.from_dict(MC_SWEEP, mambo, "mc.yaml")
+    outcome = sweep.execute(mambo, spec, tmp_path, jobs=2)  # the trajectories come back from workers
+    assert sorted(outcome.result.traces) == [0, 1, 2, 3]
+    arrays, meta = artifacts.read_npz(tmp_path / "montecarlo.npz")
+    bands, traces, states = arrays["bands"], arrays["traces"], list(arrays["states"])
+    assert list(arrays["percentiles"]) == [5, 25, 50, 75, 95]
+    assert bands.shape == (5, sweep.MC_POINTS, len(states)) == (5, *traces.shape[1:])
+    assert states == sweep.regulated_states(mambo) and meta["left_out"] == []
+    assert np.all(np.diff(bands, axis=0) >= 0), "p5 <= p25 <= p50 <= p75 <= p95 at every time and state"
+    np.testing.assert_allclose(bands[2], np.median(traces.astype(np.float64), axis=0), rtol=0, atol=1e-15)
+    # physics: every seed starts at the configured offset, and the noise makes the seeds differ
+    offset = mambo.simulation.initial_offset
+    for name, value in offset.items():
+        assert traces[:, 0, states.index(name)] == pytest.approx(value, rel=1e-6)
+    assert np.ptp(traces[:, -1, :], axis=0).min() > 0
+    assert (tmp_path / "montecarlo.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert outcome.summary["montecarlo"]["cases"] == 4
+    assert outcome.summary["files"]["montecarlo"] == ["montecarlo.png", "montecarlo.npz"]
+
+
+def test_a_resumed_monte_carlo_reads_the_trajectories_from_its_journal(mambo, tmp_path):
+    spec = sweep.from_dict(MC_SWEEP, mambo, "mc.yaml")
+    sweep.execute(mambo, spec, tmp_path / "full", jobs=1)
+
+    def stop_after_first(done, total):
+        if done >= 2:
+            raise _Stop()
+
+    with pytest.raises(_Stop):
+        sweep.execute(mambo, spec, tmp_path / "cut", jobs=1, progress=stop_after_first)
+    resumed = sweep.execute(mambo, spec, tmp_path / "cut", jobs=1, resume=True)
+    assert resumed.reused == 2 and sorted(resumed.result.traces) == [2, 3]
+    assert (tmp_path / "cut" / "montecarlo.npz").read_bytes() == (tmp_path / "full" / "montecarlo.npz").read_bytes()

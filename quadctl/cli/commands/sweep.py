@@ -26,6 +26,7 @@ def command(
     Each case is the config with the sweep file's values put in at their key paths (lqr.roll.Q[1], vehicle.mass).
     Every case is trimmed, designed, simulated on the nonlinear model and scored.
     Exits 1 when a case fails a gate (or, with require_ok, fails to design, is unstable or diverges).
+    A sweep of simulation.noise.seed alone is a Monte Carlo: also montecarlo.png and montecarlo.npz, percentile bands.
     """
     from quadctl import config as config_mod
     from quadctl import sweep as sweep_mod
