@@ -49,6 +49,25 @@ def weights_of(cfg: Config) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     return {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()}
 
 
+def weights_block(cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+    """(Q_block (12, 12), R_block (4, 4)): the subsystems' weights on the plant states and inputs.
+
+    An LQI subsystem's Q also weighs its integrators; only its plant-state block is kept here
+    (the cost the metrics report is on the plant).
+    """
+    Q = np.zeros((len(STATE_NAMES),) * 2)
+    R = np.zeros((len(INPUT_NAMES),) * 2)
+    weights = weights_of(cfg)
+    for name, sub in cfg.partition().items():
+        if name in weights:
+            si = [STATE_NAMES.index(s) for s in sub.states]
+            ii = [INPUT_NAMES.index(i) for i in sub.inputs]
+            Qw, Rw = weights[name]
+            Q[np.ix_(si, si)] = Qw[:len(si), :len(si)]
+            R[np.ix_(ii, ii)] = Rw
+    return Q, R
+
+
 def design_rate(cfg: Config) -> float | None:
     """Hz of a discrete design: ``controller.rate`` when ``controller.design`` is discrete, else None."""
     ctl = cfg.controller

@@ -847,20 +847,11 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
 
 def _weights_block(cfg) -> tuple[np.ndarray, np.ndarray, list[str], dict]:
     """(Q_block (12, 12), R_block (4, 4), regulated states, {subsystem: (Q, R)}) from the config."""
-    from quadctl.config import weight_matrix
+    from quadctl import pipeline
 
-    Q = np.zeros((N_STATES, N_STATES))
-    R = np.zeros((N_INPUTS, N_INPUTS))
-    regulated = []
-    per_subsystem = {}
-    for name, (si, ii, states) in _block_index(cfg).items():
-        regulated.extend(states)
-        w = cfg.lqr[name]
-        q, r = weight_matrix(w.Q, len(si)), weight_matrix(w.R, len(ii))
-        Q.flat[(si[:, None] * N_STATES + si).ravel()] = q.ravel()
-        R.flat[(ii[:, None] * N_INPUTS + ii).ravel()] = r.ravel()
-        per_subsystem[name] = (q, r)
-    return Q, R, regulated, per_subsystem
+    regulated = [s for states in (v[2] for v in _block_index(cfg).values()) for s in states]
+    Q, R = pipeline.weights_block(cfg)
+    return Q, R, regulated, pipeline.weights_of(cfg)
 
 
 def _block_index(cfg) -> dict:

@@ -205,21 +205,6 @@ class Workspace:
         return fd, comparison
 
     @cached_property
-    def weights_block(self) -> tuple[np.ndarray, np.ndarray]:
-        """(Q_block, R_block) assembled from the config."""
-        Q = np.zeros((len(STATE_NAMES),) * 2)
-        R = np.zeros((len(INPUT_NAMES),) * 2)
-        weights = pipeline.weights_of(self.cfg)
-        for name, sub in self.cfg.partition().items():
-            if name in weights:
-                si = [STATE_NAMES.index(s) for s in sub.states]
-                ii = [INPUT_NAMES.index(i) for i in sub.inputs]
-                Qw, Rw = weights[name]
-                Q[np.ix_(si, si)] = Qw[:len(si), :len(si)]  # an LQI Q also weighs the integrators
-                R[np.ix_(ii, ii)] = Rw
-        return Q, R
-
-    @cached_property
     def simulation(self) -> SimResult:
         linear = self.linear
         K, Ki, ints = self.gains
@@ -228,7 +213,7 @@ class Workspace:
         sim = pipeline.simulation_of(self.cfg, loop)
         self.flight = pipeline.flight_summary(self.cfg, loop, sim)
         regulated = [s for sub in self.cfg.partition().values() if sub.regulate for s in sub.states]
-        Q, R = self.weights_block
+        Q, R = pipeline.weights_block(self.cfg)
         summary = summarize(sim, linear.u_trim, Q, R, regulated)
         meta = self._meta("simulation")
         self.written.append(artifacts.write_npz(self.path(SIM_NPZ), {
