@@ -27,12 +27,14 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 
+from quadctl._lazy import lazy_import
 from quadctl.codegen import compile_cached, find_compiler, record_rows
 from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.model import N_DISTURBANCES, N_PARAMS, build_model
+
+ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 LANES = 8
 """Cases per vectorized call: one AVX-512 register of doubles, or two AVX2 ones."""
@@ -209,9 +211,13 @@ def build_lane_functions(pattern: tuple[bool, ...]) -> LaneFunctions:
 # ---------------------------------------------------------------------------------------
 # C emission from CasADi's instruction list
 
-_BINARY = {ca.OP_ADD: "+", ca.OP_SUB: "-", ca.OP_MUL: "*", ca.OP_DIV: "/"}
-_UNARY = {ca.OP_SIN: "sin", ca.OP_COS: "cos", ca.OP_TAN: "tan", ca.OP_SQRT: "sqrt",
-          ca.OP_FABS: "fabs", ca.OP_EXP: "exp", ca.OP_LOG: "log"}
+@lru_cache(maxsize=1)
+def _c_operators() -> tuple[dict[int, str], dict[int, str]]:
+    """CasADi operation codes -> C: (binary infix operators, unary functions)."""
+    binary = {ca.OP_ADD: "+", ca.OP_SUB: "-", ca.OP_MUL: "*", ca.OP_DIV: "/"}
+    unary = {ca.OP_SIN: "sin", ca.OP_COS: "cos", ca.OP_TAN: "tan", ca.OP_SQRT: "sqrt",
+             ca.OP_FABS: "fabs", ca.OP_EXP: "exp", ca.OP_LOG: "log"}
+    return binary, unary
 
 
 def emit_lanes(fn: ca.Function, name: str, lanes: int = LANES) -> str:
@@ -221,6 +227,7 @@ def emit_lanes(fn: ca.Function, name: str, lanes: int = LANES) -> str:
     for lane ``l`` is ``in_i[j * lanes + l]``. Raises ValueError on an operation it does not
     know (the caller then falls back to CasADi's interpreter).
     """
+    binary, unary = _c_operators()
     n_in, n_out = fn.n_in(), fn.n_out()
     args = [f"const double* restrict i{k}" for k in range(n_in)] + \
            [f"double* restrict o{k}" for k in range(n_out)]
@@ -235,10 +242,10 @@ def emit_lanes(fn: ca.Function, name: str, lanes: int = LANES) -> str:
             line = f"o{out[0]}[{out[1]} * {lanes} + l] = w{ins[0]};"
         elif op == ca.OP_CONST:
             line = f"w{out[0]} = {float(fn.instruction_constant(k))!r};"
-        elif op in _BINARY:
-            line = f"w{out[0]} = w{ins[0]} {_BINARY[op]} w{ins[1]};"
-        elif op in _UNARY:
-            line = f"w{out[0]} = {_UNARY[op]}(w{ins[0]});"
+        elif op in binary:
+            line = f"w{out[0]} = w{ins[0]} {binary[op]} w{ins[1]};"
+        elif op in unary:
+            line = f"w{out[0]} = {unary[op]}(w{ins[0]});"
         elif op == ca.OP_NEG:
             line = f"w{out[0]} = -w{ins[0]};"
         elif op == ca.OP_TWICE:
@@ -279,11 +286,6 @@ def _cpu_tag() -> str:
     except OSError:
         pass
     return platform.machine() + hashlib.sha256(flags.encode()).hexdigest()[:12]
-
-
-def _compile(source: str, flags: tuple[str, ...], compiler: str) -> Path:
-    """Compile ``source`` once per machine (cached by source, flags, CasADi and, for -march=native, CPU)."""
-    return compile_cached(source, flags, compiler, "qb", _cpu_tag() if "-march=native" in flags else "")
 
 
 class CompiledLanes:
@@ -417,13 +419,16 @@ def get_lanes(pattern: tuple[bool, ...]):
     Returns a :class:`CompiledLanes` (``backend`` ``"compiled-simd"`` or ``"compiled"``) or,
     without a C compiler, an :class:`InterpretedLanes` (``"casadi"``).
     """
-    funcs = build_lane_functions(pattern)
     compiler = find_compiler()
     if compiler is None:
-        return InterpretedLanes(funcs)
+        return InterpretedLanes(build_lane_functions(pattern))
+    pattern_bits = "".join("1" if b else "0" for b in pattern)
     for simd, flags, backend in ((True, SIMD_FLAGS, "compiled-simd"), (False, PORTABLE_FLAGS, "compiled")):
+        variant = f"qb {pattern_bits} simd={simd} {_cpu_tag() if '-march=native' in flags else ''}"
         try:
-            return CompiledLanes(_compile(lane_source(funcs, simd), flags, compiler), backend)
+            library = compile_cached(lambda s=simd: lane_source(build_lane_functions(pattern), s),
+                                     flags, compiler, "qb", variant)
+            return CompiledLanes(library, backend)
         except (RuntimeError, OSError, ValueError):
             continue  # this compiler cannot build (or load) the variant: try the next, then CasADi
-    return InterpretedLanes(funcs)
+    return InterpretedLanes(build_lane_functions(pattern))

@@ -3,7 +3,8 @@
 The step functions are built symbolically from :func:`quadctl.model.build_model` (never a
 second copy of the equations), exported with CasADi's C code generator, compiled once with
 the system C compiler together with the small loop in ``_driver.c``, and cached on disk
-keyed by a hash of the generated source. Without a C compiler, the same CasADi functions
+keyed by a hash of what the source is generated from (:func:`generator_fingerprint` and the
+variant), so a cached library loads without CasADi. Without a C compiler, the same CasADi functions
 run in CasADi's own virtual machine from a Python loop: same results, slower.
 
 Constants the step reads are packed into one vector ``c`` (layout :data:`CONST_LAYOUT`, then
@@ -29,16 +30,19 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import resources
+from importlib import metadata, resources
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 
+from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.model import N_DISTURBANCES, N_PARAMS, build_model
+
+ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 CONST_LAYOUT: tuple[tuple[str, tuple[int, ...]], ...] = (
     ("x_ref", (N_STATES,)),        # reference state at t = 0
@@ -337,16 +341,20 @@ def get_loop(pattern: tuple[bool, ...], saturation: str = "none", integral: tupl
     """The loop for a gain pattern, saturation mode and integrated states: compiled if a C
     compiler exists.
 
-    Compiles at most once per variant per machine (cached in :func:`cache_dir`).
+    Compiles at most once per variant per machine (cached in :func:`cache_dir`); a cached
+    library loads without building the CasADi functions at all.
     """
-    funcs = build_step_functions(pattern, saturation, integral)
     compiler = find_compiler()
     if compiler is None:
-        return InterpretedLoop(funcs)
-    return CompiledLoop(_compile(funcs, compiler), funcs.nz)
+        return InterpretedLoop(build_step_functions(pattern, saturation, integral))
+    variant = f"qc {saturation} {''.join('1' if b else '0' for b in pattern)} {integral}"
+    library = compile_cached(lambda: loop_source(build_step_functions(pattern, saturation, integral)),
+                             COMPILE_FLAGS, compiler, "qc", variant)
+    return CompiledLoop(library, len(integral))
 
 
-def _compile(funcs: StepFunctions, compiler: str) -> Path:
+def loop_source(funcs: StepFunctions) -> str:
+    """C source of one variant: CasADi's generated step functions, their work sizes, ``_driver.c``."""
     with tempfile.TemporaryDirectory(prefix="quadctl-gen-") as tmp:
         gen = ca.CodeGenerator("qc_gen.c", {"with_header": False, "main": False})
         for fn in (funcs.step, funcs.ctrl, funcs.step_ol):
@@ -365,27 +373,49 @@ def _compile(funcs: StepFunctions, compiler: str) -> Path:
              f"#define QC_SZ_IW {max(f.sz_iw() for f in fns)}\n"
              f"#define QC_SZ_W {max(f.sz_w() for f in fns)}\n")
     driver = resources.files("quadctl").joinpath("_driver.c").read_text()
-    return compile_cached(generated + "\n" + sizes + driver, COMPILE_FLAGS, compiler, "qc")
+    return generated + "\n" + sizes + driver
 
 
-def compile_cached(source: str, flags: tuple[str, ...], compiler: str, prefix: str,
-                   extra_key: str = "") -> Path:
-    """Compile C ``source`` to a shared library once per machine; return its path.
+GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "codegen.py", "batch_codegen.py", "_driver.c")
+"""The files generated C depends on (with the CasADi version): the cache key of every compiled
+library includes their hash, so editing the model or a generator never loads a stale library.
+``tests/test_structure.py`` checks that this covers everything the generators import."""
 
-    Cached in :func:`cache_dir` under a hash of the source, flags, CasADi version, platform and
-    ``extra_key`` (e.g. the CPU for ``-march=native``). The library is compiled to a temporary
-    name and renamed, so concurrent workers never load a half-written file.
+
+@lru_cache(maxsize=1)
+def generator_fingerprint() -> str:
+    """:func:`fingerprint` of this installation: its generator sources and CasADi version."""
+    return fingerprint(resources.files("quadctl"), metadata.version("casadi"))
+
+
+def fingerprint(package, casadi_version: str) -> str:
+    """sha256 of the :data:`GENERATOR_SOURCES` files in ``package`` (a folder) and a CasADi version."""
+    digest = hashlib.sha256(casadi_version.encode())
+    for name in GENERATOR_SOURCES:
+        digest.update(name.encode() + b"\0" + package.joinpath(name).read_bytes() + b"\0")
+    return digest.hexdigest()
+
+
+def compile_cached(make_source: Callable[[], str], flags: tuple[str, ...], compiler: str, prefix: str,
+                   variant: str) -> Path:
+    """Compile the C source ``make_source()`` into a shared library once per machine; its path.
+
+    The cache key is what the source is made from, not the source itself, so a cached library is
+    found without generating any code: :func:`generator_fingerprint`, ``variant`` (everything
+    the generator is called with, plus e.g. the CPU for ``-march=native``), flags, compiler and
+    platform. The library is compiled to a temporary name and renamed, so concurrent workers never
+    load a half-written file.
     """
-    key = hashlib.sha256("\0".join((source, " ".join(flags), ca.__version__, sys.platform,
-                                    extra_key)).encode())
+    key = hashlib.sha256("\0".join((generator_fingerprint(), variant, " ".join(flags), compiler,
+                                    sys.platform)).encode())
     folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
     library = folder / f"{prefix}_{key.hexdigest()[:20]}.so"
     if library.exists():
         return library
+    folder.mkdir(parents=True, exist_ok=True)
     src = folder / f"{library.stem}.{os.getpid()}.c"
     tmp_lib = folder / f"{library.stem}.{os.getpid()}.so.tmp"
-    src.write_text(source)
+    src.write_text(make_source())
     try:
         proc = subprocess.run([compiler, *flags, str(src), "-o", str(tmp_lib), "-lm"],
                               capture_output=True, text=True)

@@ -113,6 +113,8 @@ class SimulationConfig(_Section):
     noise: Optional[NoiseConfig] = Field(None, description="process and sensor noise; absent: none")
     plant: Optional[PlantConfig] = Field(
         None, description="simulated vehicle parameters that differ from vehicle: (model mismatch)")
+    max_samples: Annotated[int, Field(strict=True, ge=2)] = Field(
+        20_000, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
 
 
 class ControllerConfig(_Section):

@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
+import scipy  # scipy.linalg loads on first use
 
 from quadctl.errors import DesignError
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
-import scipy.linalg
+import scipy  # scipy.linalg loads on first use
 
 from quadctl import discrete, integral
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES

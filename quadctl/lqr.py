@@ -14,7 +14,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
+import scipy  # scipy.linalg loads on first use
 
 from quadctl import discrete, integral
 from quadctl.analysis import check, is_stable

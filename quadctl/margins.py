@@ -33,7 +33,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.optimize
+import scipy  # scipy.optimize loads on first use
 
 from quadctl.layout import INPUT_INDEX, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
 

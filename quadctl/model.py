@@ -13,11 +13,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
-import casadi as ca
 import numpy as np
 
 from quadctl import layout
+from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS, N_STATES, PARAMETER_NAMES
+
+ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 N_PARAMS = len(PARAMETER_NAMES)
 N_DISTURBANCES = 6
@@ -110,19 +112,21 @@ def dynamics_expression(x, u, params, disturbance):
     force = force_thrust + force_drag + force_gravity + disturbance[DISTURBANCE_FORCE]
     vel_dot = force / mass - ca.cross(omega, vel_b)
 
-    # H^-1 omega in closed form (H is the matrix of euler_rates_matrix).
+    # H^-1 omega in closed form (H is the matrix of euler_rates_matrix); tan theta = sin / cos.
     p, q, r = ca.vertsplit(omega)
     cph, sph = ca.cos(phi), ca.sin(phi)
-    cth, tth = ca.cos(theta), ca.tan(theta)
+    cth, sth = ca.cos(theta), ca.sin(theta)
+    yaw_pitch_part = (q * sph + r * cph) / cth
     euler_dot = ca.vertcat(
-        p + (q * sph + r * cph) * tth,
+        p + yaw_pitch_part * sth,
         q * cph - r * sph,
-        (q * sph + r * cph) / cth,
+        yaw_pitch_part,
     )
 
     moment = torque + disturbance[DISTURBANCE_TORQUE]
     omega_dot = (moment - ca.cross(omega, inertia * omega)) / inertia
-    return ca.vertcat(pos_dot, vel_dot, euler_dot, omega_dot)
+    # one sin and one cos per angle: cse merges the copies made above and in the rotation
+    return ca.cse(ca.vertcat(pos_dot, vel_dot, euler_dot, omega_dot))
 
 
 @dataclass(frozen=True)

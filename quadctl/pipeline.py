@@ -153,8 +153,9 @@ def initial_state(cfg: Config, x_trim: np.ndarray) -> np.ndarray:
 
 
 def simulation_of(cfg: Config, loop: ClosedLoop) -> SimResult:
-    return simulate(loop, initial_state(cfg, loop.x_trim), cfg.simulation.duration, cfg.simulation.dt,
-                    noise=noise_of(cfg))
+    sim = cfg.simulation
+    return simulate(loop, initial_state(cfg, loop.x_trim), sim.duration, sim.dt, noise=noise_of(cfg),
+                    max_samples=sim.max_samples)
 
 
 # ---------------------------------------------------------------------------------------

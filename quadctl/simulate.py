@@ -30,8 +30,10 @@ from quadctl.noise import NoiseSpec, realize
 ACCURACY_STEP = 0.5
 """``dt: auto`` keeps ``|dt lambda| <= 0.5`` for the fastest eigenvalue: RK4's one-step error is then
 below 5e-4 of the mode's own decay (|R(-0.5)| = 0.60677 against exp(-0.5) = 0.60653)."""
-MAX_RECORDS = 200_000
-"""A run keeps at most this many samples (every ``stride``-th step, and always the last)."""
+MAX_SAMPLES = 20_000
+"""Default of ``simulation.max_samples``: a run keeps at most this many samples (every
+``stride``-th step, and always the last). 10 s at the report's auto step (290 000 steps) is then
+a sample every 0.5 ms: finer than any settling time or plot needs, and 4.5 MB of sim.npz."""
 MAX_AUTO_STEPS_PER_SECOND = 1000
 """``dt: auto`` is never coarser than 1 ms, so plots and metrics resolve the slow loops."""
 VALID_PITCH = math.radians(85.0)
@@ -246,7 +248,7 @@ class SimResult:
     steps : int
         RK4 steps taken.
     stride : int
-        Samples are every ``stride``-th step (and the last); see ``MAX_RECORDS``.
+        Samples are every ``stride``-th step (and the last); see ``max_samples``.
     backend : str
         ``compiled`` or ``casadi`` (no C compiler).
     plan : StepPlan
@@ -274,7 +276,7 @@ class SimResult:
 
 
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
-             noise: NoiseSpec | None = None) -> SimResult:
+             noise: NoiseSpec | None = None, max_samples: int = MAX_SAMPLES) -> SimResult:
     """RK4 of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
@@ -288,6 +290,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         s; see :func:`plan_step` (continuous control) or :func:`plan_held_step` (``loop.rate``).
     noise : NoiseSpec, optional
         Process and sensor noise; the same spec gives the same run.
+    max_samples : int
+        Samples kept: every ``stride = ceil(n_steps / max_samples)``-th step and the last.
 
     Returns
     -------
@@ -323,7 +327,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     hi_all = np.concatenate([hi, np.full(nz, np.inf)])
     x0_all = np.concatenate([np.asarray(x0, dtype=float), np.zeros(nz)])
     dist, meas = realize(noise, n, plan.dt) if noise is not None and noise.active else (None, None)
-    stride = max(1, math.ceil(n / MAX_RECORDS))
+    stride = max(1, math.ceil(n / max_samples))
     start = time.perf_counter()
     done, ks, xs, us = run_in_chunks(runner, x0_all, plan.dt, n, c, dist, meas, plan.hold, stride,
                                      lo_all, hi_all)

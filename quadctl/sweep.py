@@ -87,10 +87,6 @@ FREE_MAPPINGS = (("simulation", "initial_offset"),)
 """Config mappings whose keys are free (state names): a sweep may add a key there."""
 MAX_CASES = 1_000_000
 """A grid larger than this is refused (use random mode with ``samples``)."""
-SWEEP_MAX_RECORDS = 20_000
-"""A case keeps at most this many samples (every ``stride``-th step and the last) for its metrics:
-``quadctl simulate`` keeps up to 200 000, which for thousands of cases would not fit in memory.
-With 10 s at the report's auto step (290 000 steps) that is a sample every 0.5 ms."""
 MC_PARAMETER = ("simulation", "noise", "seed")
 """The key path a Monte Carlo varies, and the only one (see :attr:`SweepSpec.monte_carlo`)."""
 MC_POINTS = 201
@@ -1042,7 +1038,7 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
                                               pipeline.vehicle_of(cfg).vector())
         pattern = _pattern_of(cfg)
         jobs.append((pattern, prep, k, core, stable, plan, pipeline.initial_state(cfg, x_trim), c, lo, hi,
-                     max(1, math.ceil(plan.n_steps / SWEEP_MAX_RECORDS))))
+                     max(1, math.ceil(plan.n_steps / sim_cfg.max_samples))))
     # 3. simulations, LANES at a time per gain pattern, metrics as each group lands
     by_pattern: dict[tuple, list] = {}
     for job in jobs:

@@ -12,12 +12,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
-import casadi as ca
 import numpy as np
 
+from quadctl._lazy import lazy_import
 from quadctl.errors import TrimError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX
 from quadctl.model import N_PARAMS, Vehicle, build_model, rotation_earth_to_body
+
+ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 RESIDUAL_TOL = 1e-10
 """Largest |dx/dt| (non-position states) accepted as an equilibrium, in SI units."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -124,3 +125,71 @@ def test_chunked_runs_equal_one_long_call(loop, monkeypatch):
     assert diff < 1e-13, f"Max diff is {diff:.4E}"
     np.testing.assert_allclose(whole.u, chunked.u, atol=1e-12)
     assert whole.steps == chunked.steps == 5000
+
+
+def test_max_samples_sets_the_record_stride_and_keeps_the_last_step(loop):
+    cfg, cl = loop
+    x0 = pipeline.initial_state(cfg, cl.x_trim)
+    every = simulate(cl, x0, 0.01, 1e-5)  # 1000 steps, all kept
+    few = simulate(cl, x0, 0.01, 1e-5, max_samples=70)
+    assert every.stride == 1 and len(every.t) == 1001
+    assert few.stride == math.ceil(1000 / 70) == 15
+    assert len(few.t) == 1000 // 15 + 2 and few.t[-1] == every.t[-1]
+    np.testing.assert_array_equal(few.x[:-1], every.x[:-1:15])
+    np.testing.assert_array_equal(few.x[-1], every.x[-1])
+
+
+def test_a_cached_library_loads_without_building_casadi_functions(loop, monkeypatch):
+    """The compile cache is keyed by what the C is made from, so a hit skips code generation."""
+    cfg, cl = loop
+    x0 = pipeline.initial_state(cfg, cl.x_trim)
+    first = simulate(cl, x0, 0.01, 1e-5)  # compiled (or found) and cached
+
+    def refuse(*_):
+        raise AssertionError("a cached library must not rebuild the step functions")
+
+    codegen.get_loop.cache_clear()
+    monkeypatch.setattr(codegen, "build_step_functions", refuse)
+    try:
+        again = simulate(cl, x0, 0.01, 1e-5)
+    finally:
+        codegen.get_loop.cache_clear()
+    assert again.backend == "compiled"
+    np.testing.assert_array_equal(first.x, again.x)
+
+
+def test_the_compile_cache_key_follows_the_generator_sources(tmp_path, monkeypatch):
+    """Editing model.py or a generator changes the fingerprint, hence the library compiled."""
+    compiler = codegen.find_compiler()
+    if compiler is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path))
+    made = []
+
+    def source():
+        made.append(1)
+        return "double qc_answer(void) { return 42.0; }\n"
+
+    flags = ("-O1", "-fPIC", "-shared")
+    one = codegen.compile_cached(source, flags, compiler, "t", "v")
+    assert codegen.compile_cached(source, flags, compiler, "t", "v") == one and len(made) == 1
+    assert codegen.compile_cached(source, flags, compiler, "t", "other variant") != one
+    monkeypatch.setattr(codegen, "generator_fingerprint", lambda: "model.py edited")
+    assert codegen.compile_cached(source, flags, compiler, "t", "v") != one and len(made) == 3
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".so", ".so", ".so"]  # no temporaries left
+
+
+def test_fingerprint_changes_with_any_generator_source_or_casadi(tmp_path):
+    import shutil
+
+    for name in codegen.GENERATOR_SOURCES:
+        shutil.copy(Path(codegen.__file__).parent / name, tmp_path / name)
+    base = codegen.fingerprint(tmp_path, "3.6.0")
+    assert codegen.fingerprint(tmp_path, "3.6.0") == base
+    assert codegen.fingerprint(tmp_path, "3.7.0") != base
+    for name in ("model.py", "_driver.c"):
+        original = (tmp_path / name).read_bytes()
+        (tmp_path / name).write_bytes(original + b"\n# edited\n")
+        assert codegen.fingerprint(tmp_path, "3.6.0") != base, name
+        (tmp_path / name).write_bytes(original)
+    assert codegen.fingerprint(tmp_path, "3.6.0") == base

@@ -39,3 +39,46 @@ def test_dynamics_live_only_in_model():
             continue
         text = path.read_text()
         assert "ca.cross(" not in text and "tan(theta)" not in text, path.name
+
+
+def _quadctl_imports(module: str) -> set[str]:
+    """File names of the quadctl modules ``module`` imports, directly or through others."""
+    seen, todo = set(), [module]
+    while todo:
+        name = todo.pop()
+        path = PACKAGE / (name.split(".", 1)[1].replace(".", "/") + ".py")
+        if path.name in seen:
+            continue
+        seen.add(path.name)
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("quadctl"):
+                todo += [node.module] if node.module != "quadctl" else [f"quadctl.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                todo += [a.name for a in node.names if a.name.startswith("quadctl.")]
+    return seen
+
+
+def test_compile_cache_key_covers_everything_the_generators_import():
+    """A cached library is found by a hash of GENERATOR_SOURCES, not of the generated C: a module
+    the generators import but the hash leaves out could change the C and load a stale library."""
+    from quadctl.codegen import GENERATOR_SOURCES
+
+    used = _quadctl_imports("quadctl.codegen") | _quadctl_imports("quadctl.batch_codegen") | {"_driver.c"}
+    assert used <= set(GENERATOR_SOURCES), sorted(used - set(GENERATOR_SOURCES))
+    assert all((PACKAGE / name).exists() for name in GENERATOR_SOURCES)
+
+
+def test_simulate_on_fresh_artifacts_imports_neither_casadi_nor_scipy(tmp_path):
+    """The warm path (artifacts and compiled loop cached) is numpy and the compiled loop only:
+    CasADi and SciPy would cost more than integrating a million steps (README, Performance)."""
+    cfg = Path(__file__).parent.parent / "quadctl" / "configs" / "hover.yaml"
+    env = {**__import__("os").environ, "QUADCTL_CACHE": str(tmp_path / "cache")}
+    run = [sys.executable, "-m", "quadctl", "simulate", "-c", str(cfg), "-o", str(tmp_path / "run")]
+    subprocess.run(run, capture_output=True, check=True, env=env)  # designs, compiles, caches
+    code = ("import sys\nfrom quadctl.cli.app import main\n"
+            f"sys.argv = {['quadctl', *run[3:]]!r}\n"
+            "try:\n    main()\nexcept SystemExit as exc:\n    assert not exc.code, exc.code\n"
+            "heavy = ('casadi.casadi', 'scipy.linalg', 'scipy.optimize', 'matplotlib')\n"
+            "print(sorted(m for m in heavy if m in sys.modules), file=sys.stderr)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    assert out.stderr.strip().splitlines()[-1] == "[]"
