@@ -1,9 +1,8 @@
-"""Vectorized numerics for many designs at once: Riccati solves, RK4 step limits, metrics.
+"""Vectorized numerics for many designs at once: Riccati solves and metrics.
 
 Each function here is the batched twin of a one-case function elsewhere in quadctl and is
 tested against it: :func:`care` against ``scipy.linalg.solve_continuous_are`` (and
-:func:`quadctl.lqr.lqr`), :func:`max_stable_steps` against
-:func:`quadctl.simulate.max_stable_step`, :func:`summarize_run` against
+:func:`quadctl.lqr.lqr`), :func:`summarize_run` against
 :func:`quadctl.metrics.summarize`. The batched forms exist because a sweep designs thousands
 of 2- and 3-state subsystems, where SciPy's per-call overhead (input checks, balancing, a QZ
 of a 2n x 2n pencil: about 0.8 ms a call) dwarfs the arithmetic.
@@ -20,14 +19,6 @@ from quadctl.analysis import STABILITY_MARGIN
 from quadctl.layout import INPUT_NAMES, POSITION_STATES, STATE_NAMES
 from quadctl.lqr import RICCATI_RTOL
 from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
-from quadctl.simulate import (
-    ACCURACY_STEP,
-    MAX_AUTO_STEPS_PER_SECOND,
-    StepPlan,
-    max_stable_step,
-    plan_step,
-    rk4_amplification,
-)
 
 NEWTON_STEPS = 2
 """Newton-Kleinman refinements after the eigenvector solution: each squares the relative error
@@ -224,97 +215,6 @@ def coupled_stability(A_cl, K) -> tuple[list[np.ndarray], np.ndarray]:
             core[k] = eig[j]
             stable[k] = ok[j]
     return core, stable
-
-
-# ---------------------------------------------------------------------------------------
-# RK4 step limits
-
-_BRACKET = (2.5, 3.0)
-"""Along any ray into the closed left half-plane, RK4's region ``|R(z)| <= 1`` ends once, at
-``|z|`` between 2.6155 and 2.9601 (scanned on 2001 directions, 64001 radii each): bisection
-on this bracket finds the same boundary point that :func:`quadctl.simulate.max_stable_step`
-finds by its grid scan."""
-_LEVEL = 1.0 + 1e-12
-"""The amplification level :func:`quadctl.simulate.max_stable_step` calls unstable."""
-
-
-def max_stable_steps(eigenvalues) -> np.ndarray:
-    """Largest stable RK4 step for each eigenvalue, vectorized (s).
-
-    Same values as :func:`quadctl.simulate.max_stable_step` applied one by one (to the last
-    bits of the bisection): ``inf`` for a zero eigenvalue, ``0`` for one that is not stable.
-
-    Parameters
-    ----------
-    eigenvalues : array_like of complex, any shape
-
-    Returns
-    -------
-    ndarray of float, the same shape
-    """
-    lam = np.asarray(eigenvalues, dtype=complex)
-    flat = lam.ravel()
-    out = np.zeros(flat.shape)
-    mag = np.abs(flat)
-    out[mag == 0] = np.inf
-    stable = flat.real < -STABILITY_MARGIN * np.maximum(1.0, mag)
-    idx = np.nonzero(stable & (mag > 0))[0]
-    if idx.size:
-        direction = flat[idx] / mag[idx]
-        lo = np.full(idx.size, _BRACKET[0])
-        hi = np.full(idx.size, _BRACKET[1])
-        bracketed = ((rk4_amplification(lo * direction) <= _LEVEL)
-                     & (rk4_amplification(hi * direction) > _LEVEL))
-        for _ in range(64):
-            mid = (lo + hi) / 2
-            inside = rk4_amplification(mid * direction) <= _LEVEL
-            lo = np.where(inside, mid, lo)
-            hi = np.where(inside, hi, mid)
-        out[idx] = lo / mag[idx]
-        for k in idx[~bracketed]:  # never seen; the exact scan decides
-            out[k] = max_stable_step(flat[k])
-    return out.reshape(lam.shape)
-
-
-def plan_with_limits(eigenvalues, owners, duration: float, dt, limits) -> StepPlan:
-    """:func:`quadctl.simulate.plan_step` given the step limits already (from :func:`max_stable_steps`).
-
-    The same rule and the same plan; only the per-eigenvalue scan is done beforehand, for
-    every case of a batch at once. A refused step is refused by ``plan_step`` itself, so the
-    error message is the one ``quadctl simulate`` gives.
-
-    Parameters
-    ----------
-    eigenvalues : (n,) array_like of complex
-    owners : sequence of str
-    duration : float
-        s.
-    dt : float or "auto"
-    limits : (n,) array_like of float
-        ``max_stable_steps(eigenvalues)``.
-
-    Raises
-    ------
-    StepSizeError
-        As :func:`quadctl.simulate.plan_step`.
-    """
-    eig = np.asarray(eigenvalues, dtype=complex)
-    limits = np.asarray(limits, dtype=float)
-    stable_modes = eig.real < -STABILITY_MARGIN * np.maximum(1.0, np.abs(eig))
-    h_max = float(limits[stable_modes].min()) if stable_modes.any() else math.inf
-    k_fast = int(np.argmax(np.abs(eig))) if eig.size else 0
-    fastest = complex(eig[k_fast]) if eig.size else 0j
-    owner = owners[k_fast] if eig.size else ""
-    if dt == "auto":
-        h = min(ACCURACY_STEP / abs(fastest) if abs(fastest) > 0 else math.inf,
-                0.5 * h_max, 1.0 / MAX_AUTO_STEPS_PER_SECOND, duration)
-        n = max(1, math.ceil(duration / h - 1e-9))
-        return StepPlan(duration / n, n, h_max, fastest, owner, True)
-    dt = float(dt)
-    if dt > h_max:
-        return plan_step(eig, owners, duration, dt)  # raises StepSizeError with its message
-    n = max(1, math.ceil(duration / dt - 1e-9))
-    return StepPlan(dt, n, h_max, fastest, owner, False)
 
 
 # ---------------------------------------------------------------------------------------

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import importlib.machinery
 import os
 import shutil
 import subprocess
@@ -33,7 +34,7 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import metadata, resources
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -384,13 +385,24 @@ library includes their hash, so editing the model or a generator never loads a s
 
 @lru_cache(maxsize=1)
 def generator_fingerprint() -> str:
-    """:func:`fingerprint` of this installation: its generator sources and CasADi version."""
-    return fingerprint(resources.files("quadctl"), metadata.version("casadi"))
+    """:func:`fingerprint` of this installation: its generator sources and its CasADi."""
+    return fingerprint(resources.files("quadctl"), casadi_stamp())
 
 
-def fingerprint(package, casadi_version: str) -> str:
-    """sha256 of the :data:`GENERATOR_SOURCES` files in ``package`` (a folder) and a CasADi version."""
-    digest = hashlib.sha256(casadi_version.encode())
+def casadi_stamp() -> str:
+    """Identifies the installed CasADi without importing it (~0.1 s) or reading its metadata
+    (~10 ms): where its module file is, its size and modification time. A reinstall changes it
+    (one recompilation); a different version always does."""
+    spec = importlib.machinery.PathFinder.find_spec("casadi")  # the path, not the (lazy) module
+    if spec is None or not spec.origin:
+        return "casadi not found"
+    info = os.stat(spec.origin)
+    return f"{spec.origin} {info.st_size} {info.st_mtime_ns}"
+
+
+def fingerprint(package, casadi: str) -> str:
+    """sha256 of the :data:`GENERATOR_SOURCES` files in ``package`` (a folder) and a CasADi stamp."""
+    digest = hashlib.sha256(casadi.encode())
     for name in GENERATOR_SOURCES:
         digest.update(name.encode() + b"\0" + package.joinpath(name).read_bytes() + b"\0")
     return digest.hexdigest()

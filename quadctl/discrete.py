@@ -25,9 +25,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy  # scipy.linalg loads on first use
 
+from quadctl._lazy import lazy_import
 from quadctl.errors import DesignError
+
+scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
 DARE_RTOL = 1e-8
 """Largest accepted relative DARE residual (same meaning as ``lqr.RICCATI_RTOL``)."""

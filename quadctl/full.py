@@ -24,11 +24,13 @@ from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
-import scipy  # scipy.linalg loads on first use
 
 from quadctl import discrete, integral
+from quadctl._lazy import lazy_import
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.lqr import _solve_subsystem, closed_loop_matrix, closed_loop_stability
+
+scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
 
 @dataclass(frozen=True)

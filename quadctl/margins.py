@@ -33,9 +33,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy  # scipy.optimize loads on first use
 
+from quadctl._lazy import lazy_import
 from quadctl.layout import INPUT_INDEX, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
+
+scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
 LQR_GAIN_MARGIN_DB = (20 * math.log10(0.5), math.inf)
 """Guaranteed gain margin of continuous LQR: from -6.02 dB to infinity."""

@@ -962,7 +962,7 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
     """Cases of plain configs, designed and simulated together."""
     from quadctl import batch, batch_codegen, pipeline
     from quadctl.lqr import lqr
-    from quadctl.simulate import RUNAWAY, VALID_PITCH, _verdict
+    from quadctl.simulate import RUNAWAY, VALID_PITCH, _verdict, max_stable_steps, plan_step
 
     rows: dict[int, dict] = {}
     # 1. LQR of every regulated subsystem of every case, batched by shape
@@ -1010,7 +1010,7 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
         return rows
     A_cl = np.stack([prep.linear.A - prep.linear.B @ K for _, prep, K in live])
     eigs, vecs = np.linalg.eig(A_cl)
-    limits = batch.max_stable_steps(eigs)
+    limits = max_stable_steps(eigs)
     cores, stables = batch.coupled_stability(A_cl, np.stack([K for _, _, K in live]))
     largest = np.argmax(np.abs(vecs), axis=1).tolist()  # each mode's largest state (eigen_owners)
     jobs = []
@@ -1021,7 +1021,7 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
         core, stable = cores[j], bool(stables[j])
         sim_cfg = cfg.simulation
         try:
-            plan = batch.plan_with_limits(eigs[j], owners, sim_cfg.duration, sim_cfg.dt, limits[j])
+            plan = plan_step(eigs[j], owners, sim_cfg.duration, sim_cfg.dt, limits=limits[j])
         except StepSizeError as exc:
             row = _row(prep.head, stable, core, None, None, 0, str(exc))
             row["status"] = "step_refused"

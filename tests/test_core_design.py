@@ -142,3 +142,27 @@ def test_subnormal_entries_do_not_spoil_the_riccati_solve(tiny):
     K, P, E = lqr(A, [[0.0], [1.0]], np.diag([1e-3, 1.0]), [[0.1]])
     assert riccati_residual(A, np.array([[0.0], [1.0]]), np.diag([1e-3, 1.0]), np.array([[0.1]]), P) < 1e-12
     assert all(e.real < 0 for e in E)
+
+
+def test_a_slow_stable_mode_gets_a_newton_refined_riccati_solution():
+    """Found by hypothesis: a mode at -7e-7 rad/s (B = 0, so P solves a Lyapunov equation) left
+    SciPy's Schur solution at residual 6e-8, above RICCATI_RTOL; Newton-Kleinman fixes it."""
+    import scipy.linalg
+
+    A = np.array([[-1.5, 0.0, 0.03125], [-1.0, 0.0, 0.0], [0.0, 6.9e-5, -2.0]])
+    B, Q = np.zeros((3, 3)), np.eye(3) * 1e-3
+    R = np.array([[1.1, 2.0, 0.0], [2.0, 4.1, 0.0], [0.0, 0.0, 0.1]])
+    scipy_alone = riccati_residual(A, B, Q, R, scipy.linalg.solve_continuous_are(A, B, Q, R))
+    K, P, E = lqr(A, B, Q, R)
+    assert riccati_residual(A, B, Q, R, P) < 1e-9 < scipy_alone
+    np.testing.assert_allclose(A.T @ P + P @ A, -Q, atol=1e-9 * np.abs(P).max())
+
+
+def test_an_ill_conditioned_riccati_equation_is_named_as_such():
+    """Found by hypothesis: a stable mode at -2e-6 rad/s that Q barely weighs keeps the residual
+    near 1e-8 even after Newton steps; the loop is stabilizing, so the error must not say it is not."""
+    A = np.array([[-1.0, 0.0, 0.03125], [-1.0, 0.0, 0.0], [0.0, 6.9e-5, -1.0]])
+    B = np.array([[-1.0, 0.0, 0.03125], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+    with pytest.raises(DesignError, match=r"too ill-conditioned to solve to 1e-08 \(residual .*\); its "
+                                          r"slowest closed-loop mode is at -2\.1\de-06 rad/s"):
+        lqr(A, B, np.eye(3) * 1e-3, np.eye(3) * 0.1)

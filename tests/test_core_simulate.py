@@ -15,6 +15,7 @@ from quadctl.simulate import (
     ACCURACY_STEP,
     ClosedLoop,
     max_stable_step,
+    max_stable_steps,
     plan_step,
     rk4_amplification,
     simulate,
@@ -184,12 +185,27 @@ def test_fingerprint_changes_with_any_generator_source_or_casadi(tmp_path):
 
     for name in codegen.GENERATOR_SOURCES:
         shutil.copy(Path(codegen.__file__).parent / name, tmp_path / name)
-    base = codegen.fingerprint(tmp_path, "3.6.0")
-    assert codegen.fingerprint(tmp_path, "3.6.0") == base
-    assert codegen.fingerprint(tmp_path, "3.7.0") != base
+    base = codegen.fingerprint(tmp_path, "casadi 3.6.0")
+    assert codegen.fingerprint(tmp_path, "casadi 3.6.0") == base
+    assert codegen.fingerprint(tmp_path, "casadi 3.7.0") != base
     for name in ("model.py", "_driver.c"):
         original = (tmp_path / name).read_bytes()
         (tmp_path / name).write_bytes(original + b"\n# edited\n")
-        assert codegen.fingerprint(tmp_path, "3.6.0") != base, name
+        assert codegen.fingerprint(tmp_path, "casadi 3.6.0") != base, name
         (tmp_path / name).write_bytes(original)
-    assert codegen.fingerprint(tmp_path, "3.6.0") == base
+    assert codegen.fingerprint(tmp_path, "casadi 3.6.0") == base
+
+
+def test_vectorized_step_limits_agree_with_the_scan():
+    rng = np.random.default_rng(3)
+    eig = np.concatenate([rng.normal(size=300) * 10 ** rng.uniform(-2, 4, 300)
+                          + 1j * rng.normal(size=300) * 10 ** rng.uniform(-2, 4, 300),
+                          [-1.0, -14493.0, 0.0, 2.0, 1j, -1e-12 + 5j]])
+    fast = max_stable_steps(eig)
+    slow = np.array([max_stable_step(e) for e in eig])
+    finite = np.isfinite(slow) & (slow > 0)
+    assert np.array_equal(fast[~finite], slow[~finite])
+    worst = np.max(np.abs(fast[finite] - slow[finite]) / slow[finite])
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
+    with pytest.raises(StepSizeError, match="is unstable for RK4"):  # limits given by a batch
+        plan_step(eig[:3], ["x"] * 3, 2.0, 10.0, limits=fast[:3])

@@ -130,6 +130,8 @@ def test_random_stabilizable_problems_give_small_residual_and_stable_loop(proble
     for lam in np.linalg.eigvals(A):
         if not is_stable(lam):
             assume(np.linalg.svd(np.hstack([lam * np.eye(n) - A, B]), compute_uv=False)[-1] > 1e-2)
+        else:  # a stable mode near the axis that Q barely sees stays there and makes the CARE
+            assume(lam.real < -1e-3)  # ill-conditioned (seen: -2e-6 rad/s, residual floor 1e-8)
     K, P, E = lqr(A, B, Q, R)
     assert riccati_residual(A, B, Q, R, P) < RICCATI_RTOL
     assert all(is_stable(e) for e in np.linalg.eigvals(A - B @ K))

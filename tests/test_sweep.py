@@ -18,7 +18,7 @@ from quadctl import batch, batch_codegen, config, metrics, pipeline, sweep
 from quadctl.cli.app import app
 from quadctl.errors import DesignError, SweepError
 from quadctl.lqr import lqr, riccati_residual
-from quadctl.simulate import max_stable_step, plan_step, simulate
+from quadctl.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = {"simulation.duration": 0.15}
@@ -230,33 +230,6 @@ def test_batched_riccati_flags_what_has_no_stabilizing_solution():
     for k in range(2):
         with pytest.raises(DesignError):
             lqr(A[k], B[k], Q[k], R[k])
-
-
-def test_step_limits_agree_with_the_scan():
-    rng = np.random.default_rng(3)
-    eig = np.concatenate([rng.normal(size=300) * 10 ** rng.uniform(-2, 4, 300)
-                          + 1j * rng.normal(size=300) * 10 ** rng.uniform(-2, 4, 300),
-                          [-1.0, -14493.0, 0.0, 2.0, 1j, -1e-12 + 5j]])
-    fast = batch.max_stable_steps(eig)
-    slow = np.array([max_stable_step(e) for e in eig])
-    finite = np.isfinite(slow) & (slow > 0)
-    assert np.array_equal(fast[~finite], slow[~finite])
-    worst = np.max(np.abs(fast[finite] - slow[finite]) / slow[finite])
-    assert worst < 1e-12, f"Max diff is {worst:.4E}"
-
-
-def test_plan_with_limits_is_plan_step(forward):
-    _, _, linear, _, des = forward
-    eig = np.linalg.eigvals(linear.A - linear.B @ des.K_block)
-    owners = ["x"] * len(eig)
-    limits = batch.max_stable_steps(eig)
-    for dt in ("auto", 1e-5, 1e-4):
-        got, ref = batch.plan_with_limits(eig, owners, 2.0, dt, limits), plan_step(eig, owners, 2.0, dt)
-        # the limit comes from a bisection in another order: equal to the last bit or two
-        assert got.max_stable_dt == pytest.approx(ref.max_stable_dt, rel=1e-14)
-        assert dataclasses.replace(got, max_stable_dt=ref.max_stable_dt) == ref
-    with pytest.raises(Exception, match="is unstable for RK4"):
-        batch.plan_with_limits(eig, owners, 2.0, 0.01, limits)
 
 
 def _closed_loop(forward):
