@@ -417,7 +417,7 @@ def test_resume_keeps_finished_rows_and_computes_only_the_rest(cfg, tmp_path, mo
 
     computed = []
     real = sweep.evaluate_chunk
-    monkeypatch.setattr(sweep, "evaluate_chunk", lambda task: computed.extend(i for i, _ in task.cases)
+    monkeypatch.setattr(sweep.runner, "evaluate_chunk", lambda task: computed.extend(i for i, _ in task.cases)
                         or real(task))
     resumed = sweep.execute(cfg, spec, tmp_path / "cut", jobs=1, resume=True)
     assert sorted(computed) == list(range(8, 24))

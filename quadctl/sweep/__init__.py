@@ -1,0 +1,74 @@
+"""Sweeps: many designs of one config, varied by key path, with metrics, gates and executors.
+
+A sweep file names config values to vary by their key path (``lqr.roll.Q[1]``,
+``vehicle.mass``), each as a list, a range or (random mode) a distribution, and gates on the
+metrics of every case. Each case is the base config with those values put in, validated again
+by :func:`quadctl.config.from_dict`, so every case is a valid config or a row that says why not.
+
+Per case: trim, linearize, decouple, LQR design, the coupled closed-loop eigenvalues, a nonlinear
+RK4 simulation and its metrics. Cases run in chunks, on local processes or a Dask cluster, and
+a chunk computes its cases together: the small Riccati equations in one batched solve
+(:func:`quadctl.batch.care`), the simulations :data:`~quadctl.batch_codegen.LANES` at a time in
+SIMD code generated from the CasADi model (:mod:`quadctl.batch_codegen`). A config that uses
+features the batched path does not model (anything beyond the plain continuous LQR loop) runs
+each case through :mod:`quadctl.pipeline` instead: slower, the same answers.
+
+The sweep file::
+
+    mode: grid                  # or random (then samples and seed)
+    samples: 1000               # random mode: number of cases
+    seed: 1                     # random mode: the same seed gives the same cases
+    parameters:                 # key path -> values
+      lqr.roll.Q[1]: [10, 50, 100]                                  # a list
+      lqr.altitude.R[0]: {from: 0.1, to: 10, num: 5, scale: log}   # a range (scale: linear or log)
+      vehicle.mass: {distribution: normal, mean: 0.068, std: 0.003} # random mode only
+    set:                        # optional: values every case gets
+      simulation.duration: 5.0
+    gates:                      # metric -> {min, max} (or {equals} for stable and status)
+      settling_time.pD: {max: 3.0}
+      peak.T: {max: 1.5}
+    require_ok: true            # a case must also design, be stable and simulate to the end
+    chunk_size: 32              # optional: cases per task
+
+Distributions (random mode): ``uniform {low, high}``, ``loguniform {low, high}``,
+``normal {mean, std}``, ``choice {values}``. In random mode a list is a uniform choice and a
+range is sampled uniformly on ``[from, to]`` (log-uniformly with ``scale: log``).
+
+A sweep whose only parameter is ``simulation.noise.seed`` is a Monte Carlo
+(:attr:`SweepSpec.monte_carlo`): every case also keeps the deviation of its regulated states from
+the reference on a common grid of :data:`MC_POINTS` times, and the run directory gets
+``montecarlo.png`` and ``montecarlo.npz``, the percentile bands of those deviations against time
+(:func:`montecarlo_bands`).
+
+Modules, each importing only those above it:
+
+- :mod:`~quadctl.sweep.spec`: the sweep file (parameters, values, gates) parsed and checked
+- :mod:`~quadctl.sweep.evaluate`: a chunk of cases designed and simulated together
+- :mod:`~quadctl.sweep.runner`: chunks on local processes or a Dask cluster
+- :mod:`~quadctl.sweep.outputs`: sweep.csv, the summary, the plots, Monte Carlo bands
+- :mod:`~quadctl.sweep.store`: the run directory (journal, ``--resume``) and :func:`execute`
+"""
+
+from quadctl.sweep.evaluate import MC_POINTS, ChunkResult, ChunkTask, evaluate_chunk, structural_pattern
+from quadctl.sweep.outputs import MonteCarloBands, montecarlo_bands, summarize, to_csv
+from quadctl.sweep.runner import SweepResult, run
+from quadctl.sweep.spec import (
+    Case,
+    Gate,
+    Parameter,
+    SweepSpec,
+    assign,
+    from_dict,
+    judge,
+    load,
+    parse,
+    regulated_states,
+)
+from quadctl.sweep.store import PARTS, SweepOutcome, SweepStore, execute
+
+__all__ = [
+    "MC_POINTS", "PARTS", "Case", "ChunkResult", "ChunkTask", "Gate", "MonteCarloBands", "Parameter",
+    "SweepOutcome", "SweepResult", "SweepSpec", "SweepStore", "assign", "evaluate_chunk", "execute",
+    "from_dict", "judge", "load", "montecarlo_bands", "parse", "regulated_states", "run",
+    "structural_pattern", "summarize", "to_csv",
+]

@@ -1,0 +1,283 @@
+"""Running a sweep: chunks of cases on local worker processes or a Dask cluster, results in case order."""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from quadctl.errors import QuadctlError, SweepError
+from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk, is_plain, structural_pattern
+from quadctl.sweep.spec import Case, SweepSpec, assign, margin, metric_columns, regulated_states
+
+
+@dataclass
+class SweepResult:
+    """A finished (or resumed) sweep.
+
+    Attributes
+    ----------
+    rows : list of dict
+        One per case, by case number: ``case``, the parameters, the metrics, ``pass``,
+        ``failed_gates``, ``reason``.
+    columns : list of str
+        The table's columns, in order.
+    computed : int
+        Cases computed in this call (the rest came from ``done``).
+    wall_time : float
+        s, for the cases computed here.
+    stats : dict
+        Totals over the chunks: ``designs`` (subsystem LQR solves), ``design_time`` and
+        ``design_cpu`` (s of wall and of CPU time in the design stage, summed over workers: CPU
+        time is what a design costs, wall time also counts what other processes took),
+        ``steps`` (RK4 steps simulated), ``fallbacks`` (batched solves redone one by one),
+        ``backend``, ``executor``, ``workers``.
+    traces : dict
+        A Monte Carlo: case number -> (MC_POINTS, regulated states) float32 deviations from the
+        reference, for the cases computed here that simulated to the end (a resumed sweep's
+        earlier cases are in its journal: :class:`SweepStore`).
+    """
+
+    rows: list
+    columns: list
+    computed: int
+    wall_time: float
+    stats: dict
+    gates: tuple = ()
+    require_ok: bool = True
+    traces: dict = field(default_factory=dict)
+
+    @property
+    def failed(self) -> list[dict]:
+        return [r for r in self.rows if not r["pass"]]
+
+    def ranked(self) -> list[dict]:
+        """Rows from the worst to the best (see :func:`margin`)."""
+        return sorted(self.rows, key=lambda r: (margin(r, self.gates, self.require_ok), -r["case"]))
+
+    @property
+    def steps_per_second(self) -> float:
+        return self.stats["steps"] / self.wall_time if self.wall_time > 0 else math.inf
+
+
+def default_jobs() -> int:
+    """All the cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def default_chunk(n_cases: int, workers: int) -> int:
+    """Cases per task: about four tasks per worker (so a stop loses little and the load balances),
+    a multiple of the SIMD lanes, 8 to 256 cases (the batched solves pay off with more)."""
+    from quadctl.batch_codegen import LANES
+
+    size = max(LANES, min(256, math.ceil(n_cases / (4 * max(1, workers)))))
+    return math.ceil(size / LANES) * LANES
+
+
+def tasks_for(cfg, spec: SweepSpec, cases: Iterable[Case], label: str, size: int,
+              fast: bool = True) -> list[ChunkTask]:
+    """The chunks of ``cases`` (in case order, ``size`` each), ready for any executor.
+
+    A case's row does not depend on the chunk it is in, so the chunk size is free to follow the
+    executor (the resume test checks this: a resumed sweep, chunked anew, writes the same table).
+    """
+    cases = list(cases)
+    base = base_of(cfg, spec)
+    keys = tuple(p.keys for p in spec.parameters)
+    trace = tuple(regulated_states(cfg)) if spec.monte_carlo else ()
+    return [ChunkTask(base=base, label=label, keys=keys, names=tuple(spec.names),
+                      cases=tuple((c.index, c.values) for c in cases[i:i + size]), gates=spec.gates,
+                      require_ok=spec.require_ok, fast=fast, trace=trace)
+            for i in range(0, len(cases), size)]
+
+
+def base_of(cfg, spec: SweepSpec) -> dict:
+    """The config every case starts from, as a mapping: ``cfg`` with the ``set:`` values in."""
+    base = cfg.model_dump(mode="json")
+    for _, keys, value in spec.fixed:
+        base = assign(base, keys, value)
+    return base
+
+
+def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = None,
+        scheduler: str | None = None, done: dict[int, dict] | None = None,
+        on_chunk: Callable[[list, dict], None] | None = None,
+        progress: Callable[[int, int], None] | None = None, fast: bool = True) -> SweepResult:
+    """Run a sweep: every case of ``spec`` not already in ``done``.
+
+    Parameters
+    ----------
+    cfg : Config
+        The base config.
+    spec : SweepSpec
+    label : str, optional
+        Names the config in case messages (default its name).
+    jobs : int, optional
+        Local worker processes (default all cores; 1 runs in this process).
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (``tcp://host:8786``): run the chunks there.
+    done : dict, optional
+        Rows already computed, by case number (a resumed sweep): not recomputed.
+    on_chunk : callable, optional
+        ``on_chunk(rows, traces)`` for each finished chunk, in completion order (to save them);
+        ``traces`` as :attr:`ChunkResult.traces` (empty unless a Monte Carlo).
+    progress : callable, optional
+        ``progress(cases_done, cases_total)`` after each chunk.
+    fast : bool
+        Use the batched path where it applies (False: every case through the pipeline).
+
+    Returns
+    -------
+    SweepResult
+
+    Raises
+    ------
+    SweepError
+        ``jobs`` below 1, or the scheduler cannot be reached.
+    """
+    label = label or cfg.name
+    done = dict(done or {})
+    cases = spec.cases()
+    todo = [c for c in cases if c.index not in done]
+    stats = {"designs": 0, "design_time": 0.0, "design_cpu": 0.0, "simulate_time": 0.0, "steps": 0, "fallbacks": 0,
+             "backend": set()}
+    if jobs is not None and jobs < 1:
+        raise SweepError(f"--jobs {jobs}: must be at least 1")
+    client = _dask_client(scheduler) if scheduler else None
+    try:
+        if client is not None:
+            workers = max(1, sum(client.nthreads().values()))
+            stats["executor"] = f"dask {scheduler} ({workers} threads)"
+        else:
+            workers = max(1, min(jobs or default_jobs(), len(todo)))
+            stats["executor"] = "local" if workers == 1 else f"local processes ({workers})"
+        stats["workers"] = workers
+        tasks = tasks_for(cfg, spec, todo, label, spec.chunk_size or default_chunk(len(todo), workers), fast)
+        if client is None and tasks and fast:
+            _warm_up(tasks[0])
+        results = _dask_results(client, tasks) if client is not None else _local_results(tasks, workers)
+        rows = dict(done)
+        traces: dict[int, np.ndarray] = {}
+        total = len(cases)
+        start = time.perf_counter()
+        if progress:
+            progress(len(rows), total)
+        for result in results:
+            for row in result.rows:
+                rows[row["case"]] = row
+            traces.update(result.traces)
+            for key in ("designs", "design_time", "design_cpu", "simulate_time", "steps", "fallbacks"):
+                stats[key] += result.stats[key]
+            stats["backend"].update(result.stats["backend"])
+            if on_chunk:
+                on_chunk(result.rows, result.traces)
+            if progress:
+                progress(len(rows), total)
+        wall = time.perf_counter() - start
+    finally:
+        if client is not None:
+            client.close()
+    stats["backend"] = sorted(stats["backend"])
+    ordered = [rows[c.index] for c in cases]
+    return SweepResult(rows=ordered, columns=columns_of(cfg, spec), computed=len(todo), wall_time=wall,
+                       stats=stats, gates=spec.gates, require_ok=spec.require_ok,
+                       traces={c.index: traces[c.index] for c in cases if c.index in traces})
+
+
+def columns_of(cfg, spec: SweepSpec) -> list[str]:
+    """Table columns: ``case``, the parameters, the metrics, ``pass``, ``failed_gates``, ``reason``."""
+    return ["case", *spec.names, *metric_columns(cfg), "pass", "failed_gates", "reason"]
+
+
+def _warm_up(task: ChunkTask) -> None:
+    """Build (and compile, once per machine) the lane code before the workers fork from us."""
+    from quadctl import config as config_mod
+    from quadctl import pipeline
+    from quadctl.batch_codegen import get_lanes
+
+    try:
+        cfg = config_mod.from_dict(task.base, task.label)
+        if is_plain(cfg):
+            dec = pipeline.decoupled_of(cfg, pipeline.linear_of(cfg, pipeline.trim_of(cfg)))
+            get_lanes(structural_pattern(dec))
+    except QuadctlError:
+        pass  # the cases will say what is wrong, row by row
+
+
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the pool
+
+
+def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
+    if jobs == 1:
+        for task in tasks:
+            yield evaluate_chunk(task)
+        return
+    # fork on Linux: workers start at once with everything imported and the lane library loaded
+    # (the progress bar runs no thread, so nothing is forked mid-lock); spawn elsewhere (macOS's
+    # system libraries are not fork-safe)
+    ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_ignore_sigint)
+    pending = set()
+    try:
+        queue = list(tasks)
+        # keep two tasks per worker in flight: a stop (Ctrl-C) leaves little half-done work
+        while queue or pending:
+            while queue and len(pending) < 2 * jobs:
+                pending.add(pool.submit(evaluate_chunk, queue.pop(0)))
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                try:
+                    result = fut.result()
+                except BrokenProcessPool:
+                    raise RuntimeError("a sweep worker process died (killed, or out of memory); the chunks "
+                                       "finished before are kept: rerun with --resume (--jobs 1 shows "
+                                       "any error in this process)") from None
+                yield result
+    finally:
+        for fut in pending:
+            fut.cancel()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+SCHEDULER_TIMEOUT = "10s"
+"""How long to try to reach a Dask scheduler before saying it cannot be reached."""
+
+
+def _dask_client(address: str):
+    try:
+        from distributed import Client
+    except ImportError:
+        raise SweepError("--scheduler needs the `distributed` package; "
+                         "install it with pip install 'quadctl[cluster]'") from None
+    try:
+        return Client(address, timeout=SCHEDULER_TIMEOUT, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise SweepError(f"--scheduler {address}: cannot reach the Dask scheduler ({reason}); "
+                         "check the address, or start one with `dask scheduler`") from None
+
+
+def _dask_results(client, tasks: list[ChunkTask]) -> Iterator[ChunkResult]:
+    from distributed import as_completed
+
+    futures = client.map(evaluate_chunk, tasks, pure=False)
+    try:
+        for fut in as_completed(futures, loop=client.loop):
+            yield fut.result()
+    finally:
+        client.cancel(futures)
+
+

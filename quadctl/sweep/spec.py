@@ -1,0 +1,584 @@
+"""The sweep file: parameters by key path, values, distributions, gates; parsed and checked."""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from quadctl import __version__
+from quadctl.errors import SweepError
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
+
+MODES = ("grid", "random")
+DISTRIBUTIONS = {
+    "uniform": ("low", "high"),
+    "loguniform": ("low", "high"),
+    "normal": ("mean", "std"),
+    "choice": ("values",),
+}
+"""Distribution name -> its required keys (random mode)."""
+TOP_KEYS = ("mode", "samples", "seed", "parameters", "set", "gates", "require_ok", "chunk_size",
+            "description")
+RANGE_KEYS = ("from", "to", "num", "scale")
+GATE_KEYS = ("min", "max", "equals")
+FREE_MAPPINGS = (("simulation", "initial_offset"),)
+"""Config mappings whose keys are free (state names): a sweep may add a key there."""
+MAX_CASES = 1_000_000
+"""A grid larger than this is refused (use random mode with ``samples``)."""
+MC_PARAMETER = ("simulation", "noise", "seed")
+"""The key path a Monte Carlo varies, and the only one (see :attr:`SweepSpec.monte_carlo`)."""
+_PATH_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*)*$")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One varied config value.
+
+    Attributes
+    ----------
+    path : str
+        The key path as written (``lqr.roll.Q[1]``).
+    keys : tuple
+        The path parsed: names (str) and list indices (int).
+    kind : {"values", "range", "distribution"}
+    spec : list or dict
+        The values, the range or the distribution as given.
+    """
+
+    path: str
+    keys: tuple
+    kind: str
+    spec: Any
+
+    def grid_values(self) -> list:
+        """The values a grid takes (lists as given, ranges expanded)."""
+        if self.kind == "values":
+            return list(self.spec)
+        lo, hi, num = self.spec["from"], self.spec["to"], int(self.spec["num"])
+        if self.spec.get("scale", "linear") == "log":
+            values = np.geomspace(lo, hi, num)
+        else:
+            values = np.linspace(lo, hi, num)
+        return [float(v) for v in values]
+
+    def sample(self, rng: np.random.Generator, n: int) -> list:
+        """``n`` random values (random mode)."""
+        spec = self.spec
+        if self.kind == "values":
+            return [spec[i] for i in rng.integers(0, len(spec), n)]
+        if self.kind == "range":
+            lo, hi = float(spec["from"]), float(spec["to"])
+            if spec.get("scale", "linear") == "log":
+                return [float(v) for v in np.exp(rng.uniform(math.log(lo), math.log(hi), n))]
+            return [float(v) for v in rng.uniform(lo, hi, n)]
+        kind = spec["distribution"]
+        if kind == "uniform":
+            values = rng.uniform(spec["low"], spec["high"], n)
+        elif kind == "loguniform":
+            values = np.exp(rng.uniform(math.log(spec["low"]), math.log(spec["high"]), n))
+        elif kind == "normal":
+            values = rng.normal(spec["mean"], spec["std"], n)
+        else:  # choice
+            return [spec["values"][i] for i in rng.integers(0, len(spec["values"]), n)]
+        return [float(v) for v in values]
+
+
+@dataclass(frozen=True)
+class Gate:
+    """A threshold on one metric: ``min <= value <= max``, or ``value == equals``."""
+
+    metric: str
+    min: float | None = None
+    max: float | None = None
+    equals: Any = None
+
+    def passes(self, value) -> bool:
+        """A missing value (never settled, no design) fails every gate."""
+        if self.equals is not None:
+            return value == self.equals
+        if value is None or isinstance(value, (bool, str)):
+            return False
+        if self.min is not None and not value >= self.min:
+            return False
+        if self.max is not None and not value <= self.max:
+            return False
+        return True
+
+    def slack(self, value) -> float:
+        """How far inside the gate ``value`` is, relative to the threshold (negative: outside)."""
+        if self.equals is not None:
+            return 0.0 if value == self.equals else -math.inf
+        if value is None or isinstance(value, (bool, str)) or not math.isfinite(value):
+            return -math.inf
+        slack = math.inf
+        for bound, sign in ((self.max, 1.0), (self.min, -1.0)):
+            if bound is not None:
+                slack = min(slack, sign * (bound - value) / max(abs(bound), 1e-12))
+        return slack
+
+    def describe(self) -> str:
+        if self.equals is not None:
+            return f"{self.metric} == {json.dumps(self.equals)}"
+        parts = ([f"{self.min:g} <="] if self.min is not None else []) + [self.metric] + \
+                ([f"<= {self.max:g}"] if self.max is not None else [])
+        return " ".join(parts)
+
+
+@dataclass(frozen=True)
+class Case:
+    """One case: its number and the value of each parameter (in the sweep file's order)."""
+
+    index: int
+    values: tuple
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep file.
+
+    Attributes
+    ----------
+    label : str
+        The file, for messages.
+    mode : {"grid", "random"}
+    samples : int or None
+    seed : int
+    parameters : tuple of Parameter
+    fixed : tuple of (path, keys, value)
+        ``set:`` values every case gets.
+    gates : tuple of Gate
+    require_ok : bool
+        A case that fails to design, is unstable on the coupled model or does not simulate to
+        the end fails the sweep even without gates.
+    chunk_size : int or None
+    canonical : dict
+        The file's content, normalized (what the sweep digest hashes).
+    """
+
+    label: str
+    mode: str
+    samples: int | None
+    seed: int
+    parameters: tuple[Parameter, ...]
+    fixed: tuple[tuple[str, tuple, Any], ...]
+    gates: tuple[Gate, ...]
+    require_ok: bool
+    chunk_size: int | None
+    canonical: dict
+
+    @property
+    def names(self) -> list[str]:
+        """The parameters' key paths (the first columns of the table)."""
+        return [p.path for p in self.parameters]
+
+    @property
+    def monte_carlo(self) -> bool:
+        """A Monte Carlo: the sweep varies the noise seed (``simulation.noise.seed``) and nothing
+        else, so its cases differ only in the noise each run draws. ``set:`` values apply to all."""
+        return all(p.keys == MC_PARAMETER for p in self.parameters)
+
+    def count(self) -> int:
+        """Number of cases."""
+        if self.mode == "random":
+            return int(self.samples)
+        return int(np.prod([len(p.grid_values()) for p in self.parameters], dtype=object))
+
+    def cases(self) -> list[Case]:
+        """Every case, numbered from 0: the grid in file order (first key slowest), or ``samples``
+        random draws (one stream per parameter, in file order, from ``seed``)."""
+        if self.mode == "grid":
+            grids = [p.grid_values() for p in self.parameters]
+            mesh = np.stack(np.meshgrid(*[np.arange(len(g)) for g in grids], indexing="ij"), -1)
+            flat = mesh.reshape(-1, len(grids))
+            return [Case(i, tuple(g[j] for g, j in zip(grids, row))) for i, row in enumerate(flat.tolist())]
+        rng = np.random.default_rng(self.seed)
+        columns = [p.sample(rng, int(self.samples)) for p in self.parameters]
+        return [Case(i, tuple(col[i] for col in columns)) for i in range(int(self.samples))]
+
+    def digest(self, cfg) -> str:
+        """sha256 of the config, the sweep and the quadctl version: what a resumed sweep must match."""
+        text = json.dumps({"config": cfg.digest(), "sweep": self.canonical, "quadctl": __version__},
+                          sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+def load(path: str | Path, cfg) -> SweepSpec:
+    """Read and validate a sweep file against the config it varies.
+
+    Raises
+    ------
+    SweepError
+        One line naming the file, the key and the fix.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise SweepError(f"{path}: is a folder, not a sweep file; give a .yaml file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SweepError(f"{path}: no such sweep file; check the path") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise SweepError(f"{path}: cannot read the sweep file ({reason}); check the file") from None
+    return parse(text, cfg, str(path))
+
+
+def parse(text: str, cfg, label: str = "<sweep>") -> SweepSpec:
+    """Validate YAML text as a sweep file; ``label`` names it in errors."""
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise SweepError(f"{label}: YAML syntax error{where}: {problem}; fix the YAML") from None
+    return from_dict(data, cfg, label)
+
+
+def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
+    """Validate a mapping (as YAML gives it) as a sweep of ``cfg``."""
+
+    def fail(where: str, why: str) -> SweepError:
+        return SweepError(f"{label}: {where}: {why}")
+
+    if not isinstance(data, dict):
+        kind = "empty" if data is None else f"a {type(data).__name__}"
+        raise SweepError(f"{label}: the sweep file is {kind}, not a mapping; "
+                         "give at least `parameters:` (see examples/ci-sweep.yaml)")
+    for key in data:
+        if key not in TOP_KEYS:
+            raise fail(str(key), "unknown key; " + _hint(str(key), TOP_KEYS))
+    mode = data.get("mode", "grid")
+    if mode not in MODES:
+        raise fail("mode", f"{_show(mode)} is not a mode; use grid or random")
+    samples = data.get("samples")
+    if mode == "random":
+        if samples is None:
+            raise fail("samples", "random mode needs the number of cases; add `samples: 100`, say")
+    if samples is not None and (not _is_int(samples) or samples < 1):
+        raise fail("samples", f"{_show(samples)}: must be a whole number >= 1")
+    seed = data.get("seed", 0)
+    if not _is_int(seed) or seed < 0:
+        raise fail("seed", f"{_show(seed)}: must be a whole number >= 0")
+    chunk = data.get("chunk_size")
+    if chunk is not None and (not _is_int(chunk) or chunk < 1):
+        raise fail("chunk_size", f"{_show(chunk)}: must be a whole number >= 1")
+    require_ok = data.get("require_ok", True)
+    if not isinstance(require_ok, bool):
+        raise fail("require_ok", f"{_show(require_ok)}: must be true or false")
+
+    base = cfg.model_dump(mode="json")
+    params = data.get("parameters")
+    if not isinstance(params, dict) or not params:
+        raise fail("parameters", "nothing to vary; add at least one key path, "
+                   "such as `lqr.roll.Q[1]: [10, 50, 100]`")
+    parameters = []
+    for path, spec in params.items():
+        keys = check_path(base, str(path), label, "parameters")
+        kind = _check_values(spec, str(path), mode, label)
+        leaf = _lookup(base, keys)
+        if isinstance(leaf, list) and kind != "values":
+            raise fail(f"parameters.{path}", f"is a list ({_show(leaf)}) here, a range gives numbers; "
+                       f"index one entry, as `{path}[0]`")
+        parameters.append(Parameter(str(path), keys, kind, spec))
+    fixed = []
+    sets = data.get("set") or {}
+    if not isinstance(sets, dict):
+        raise fail("set", "must be a mapping of key path -> value")
+    for path, value in sets.items():
+        keys = check_path(base, str(path), label, "set")
+        if str(path) in params:
+            raise fail(f"set.{path}", "is also a parameter; keep it in one place")
+        fixed.append((str(path), keys, value))
+    if data.get("gates") is not None and not isinstance(data.get("gates"), dict):
+        raise fail("gates", "must be a mapping of metric -> {min, max}")
+    gates = tuple(_check_gate(metric, spec, cfg, label) for metric, spec in (data.get("gates") or {}).items())
+    spec = SweepSpec(label=label, mode=mode, samples=int(samples) if samples is not None else None,
+                     seed=int(seed), parameters=tuple(parameters), fixed=tuple(fixed), gates=gates,
+                     require_ok=require_ok, chunk_size=int(chunk) if chunk is not None else None,
+                     canonical=json.loads(json.dumps({k: v for k, v in data.items() if k != "description"},
+                                                     default=str)))
+    if mode == "grid":
+        count = spec.count()
+        if count > MAX_CASES:
+            raise fail("parameters", f"the grid has {count} cases, more than {MAX_CASES}; "
+                       "use mode: random with samples")
+    return spec
+
+
+def _check_values(spec, path: str, mode: str, label: str) -> str:
+    where = f"{label}: parameters.{path}"
+    if isinstance(spec, list):
+        if not spec:
+            raise SweepError(f"{where}: empty list; give at least one value")
+        return "values"
+    if not isinstance(spec, dict):
+        raise SweepError(f"{where} = {_show(spec)}: give a list of values, a range "
+                         "{from, to, num} or, in random mode, a {distribution: ...}")
+    if "distribution" in spec:
+        if mode != "random":
+            raise SweepError(f"{where}: a distribution needs mode: random (a grid takes lists and ranges)")
+        kind = spec["distribution"]
+        if kind not in DISTRIBUTIONS:
+            raise SweepError(f"{where}: unknown distribution {_show(kind)}; "
+                             f"use one of {', '.join(DISTRIBUTIONS)}")
+        need = DISTRIBUTIONS[kind]
+        for key in spec:
+            if key != "distribution" and key not in need:
+                raise SweepError(f"{where}.{key}: unknown key for {kind}; it takes {', '.join(need)}")
+        for key in need:
+            if key not in spec:
+                raise SweepError(f"{where}: {kind} needs `{key}`; give {', '.join(need)}")
+        if kind == "choice":
+            if not isinstance(spec["values"], list) or not spec["values"]:
+                raise SweepError(f"{where}.values: empty; give a non-empty list")
+            return "distribution"
+        for key in need:
+            _finite(spec[key], f"{where}.{key}")
+        if kind == "normal" and spec["std"] < 0:
+            raise SweepError(f"{where}.std = {_show(spec['std'])}: must be >= 0")
+        if kind in ("uniform", "loguniform") and not spec["low"] < spec["high"]:
+            raise SweepError(f"{where}: empty range: low {_show(spec['low'])} must be below "
+                             f"high {_show(spec['high'])}")
+        if kind == "loguniform" and spec["low"] <= 0:
+            raise SweepError(f"{where}.low = {_show(spec['low'])}: loguniform needs low > 0")
+        return "distribution"
+    for key in spec:
+        if key not in RANGE_KEYS:
+            raise SweepError(f"{where}.{key}: unknown key; a range takes from, to, num, scale "
+                             "(and a distribution needs `distribution:`)")
+    need = ("from", "to") if mode == "random" else ("from", "to", "num")
+    for key in need:
+        if key not in spec:
+            raise SweepError(f"{where}: a range needs `{key}`; give {{from, to, num}}")
+    _finite(spec["from"], f"{where}.from")
+    _finite(spec["to"], f"{where}.to")
+    if "num" in spec:
+        num = spec["num"]
+        if not _is_int(num) or num < 1:
+            raise SweepError(f"{where}.num = {_show(num)}: empty range; num must be a whole number >= 1")
+    scale = spec.get("scale", "linear")
+    if scale not in ("linear", "log"):
+        raise SweepError(f"{where}.scale = {_show(scale)}: use linear or log")
+    if scale == "log" and (spec["from"] <= 0 or spec["to"] <= 0):
+        raise SweepError(f"{where}: a log range needs from and to > 0")
+    if mode == "random" and spec["from"] == spec["to"]:
+        raise SweepError(f"{where}: empty range: from equals to; give a list for one value")
+    return "range"
+
+
+def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
+    """Parse ``path`` and check that it names a value of the config ``tree``.
+
+    Raises SweepError naming the first part that does not exist, and the nearest valid key.
+    """
+    where = f"{label}: {section}.{path}"
+    if not _PATH_RE.match(path):
+        raise SweepError(f"{where}: not a key path; write it as `lqr.roll.Q[1]` or `vehicle.mass`")
+    keys = parse_path(path)
+    node = tree
+    walked: list = []
+    for k, key in enumerate(keys):
+        here = _path_text(walked) or "the config"
+        if isinstance(key, int):
+            if not isinstance(node, list):
+                raise SweepError(f"{where}: {here} is not a list; drop the [{key}]")
+            if key >= len(node):
+                raise SweepError(f"{where}: index {key} out of range: {here} has {len(node)} values "
+                                 f"(indices 0 to {len(node) - 1})")
+            node = node[key]
+        else:
+            if not isinstance(node, dict):
+                raise SweepError(f"{where}: {here} = {_show(node)} has no key `{key}`; "
+                                 "the path goes too deep")
+            if key not in node:
+                if tuple(walked) in FREE_MAPPINGS and k == len(keys) - 1:
+                    if key not in STATE_NAMES:  # a new key of a free mapping: another state's offset
+                        raise SweepError(f"{where}: `{key}` is not a state; " + _hint(key, STATE_NAMES))
+                    return keys
+                raise SweepError(f"{where}: no such key in the config: `{_path_text([*walked, key])}`; "
+                                 + _hint(key, [str(x) for x in node]))
+            node = node[key]
+        walked.append(key)
+    if isinstance(node, dict):
+        raise SweepError(f"{where}: is a section, not a value; name one of its keys: "
+                         f"{', '.join(map(str, node))}")
+    return keys
+
+
+def parse_path(path: str) -> tuple:
+    """``'lqr.roll.Q[1]'`` -> ``('lqr', 'roll', 'Q', 1)``."""
+    keys: list = []
+    for part in path.split("."):
+        name, *indices = re.split(r"\[", part)
+        keys.append(name)
+        keys.extend(int(i.rstrip("]")) for i in indices)
+    return tuple(keys)
+
+
+def _path_text(keys) -> str:
+    from quadctl.config import key_path
+
+    return key_path(list(keys)) if keys else ""
+
+
+def _check_gate(metric, spec, cfg, label: str) -> Gate:
+    metric = str(metric)
+    where = f"{label}: gates.{metric}"
+    known = metric_columns(cfg)
+    gateable = [m for m in known if m not in ("dt", "steps")] + ["steps"]
+    if metric not in gateable:
+        family, _, name = metric.partition(".")
+        if family in ("settling_time", "overshoot") and name in STATE_NAMES:
+            regulated = [m.partition(".")[2] for m in known if m.startswith(family + ".")]
+            raise SweepError(f"{where}: {name} is not regulated, so it has no {family.replace('_', ' ')}; "
+                             f"regulated states: {', '.join(regulated)}")
+        raise SweepError(f"{where}: unknown metric; " + _hint(metric, gateable, many=True))
+    if not isinstance(spec, dict) or not spec:
+        raise SweepError(f"{where}: give a threshold, as {{max: 3.0}} or {{min: 0}}")
+    for key in spec:
+        if key not in GATE_KEYS:
+            raise SweepError(f"{where}.{key}: unknown key; " + _hint(str(key), GATE_KEYS))
+    if metric in ("stable", "status"):
+        if set(spec) != {"equals"}:
+            raise SweepError(f"{where}: {metric} takes {{equals: {'true' if metric == 'stable' else 'ok'}}}")
+        return Gate(metric, equals=spec["equals"])
+    if "equals" in spec:
+        raise SweepError(f"{where}: a number takes min and max, not equals")
+    for key in ("min", "max"):
+        if key in spec:
+            _finite(spec[key], f"{where}.{key}")
+    if "min" in spec and "max" in spec and spec["min"] > spec["max"]:
+        raise SweepError(f"{where}: min {spec['min']} is above max {spec['max']}; no case can pass")
+    return Gate(metric, min=_num(spec.get("min")), max=_num(spec.get("max")))
+
+
+def metric_columns(cfg) -> list[str]:
+    """The metric columns of a sweep of ``cfg``, in table order.
+
+    ``stable`` (coupled linear closed loop), ``eig.fastest`` / ``eig.slowest`` (most negative and
+    largest real part of its eigenvalues, marginal position modes left out; rad/s), then per
+    regulated state ``settling_time.<state>`` (s, 2 % band) and ``overshoot.<state>`` (%), per
+    input ``peak.<input>`` (max |u|: N or N m), ``cost`` (the LQR cost integral), ``status``
+    (the simulation's: ok, diverged, left_valid_range; or why the case has no simulation),
+    ``dt`` (s) and ``steps``.
+    """
+    states = regulated_states(cfg)
+    return (["stable", "eig.fastest", "eig.slowest"] + [f"settling_time.{s}" for s in states]
+            + [f"overshoot.{s}" for s in states] + [f"peak.{i}" for i in INPUT_NAMES]
+            + ["cost", "status", "dt", "steps"])
+
+
+def regulated_states(cfg) -> list[str]:
+    """The states of the config's regulated subsystems, in state order."""
+    regulated = {s for sub in cfg.partition().values() if sub.regulate for s in sub.states}
+    return [s for s in STATE_NAMES if s in regulated]
+
+
+def _lookup(tree, keys):
+    for key in keys:
+        try:
+            tree = tree[key]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return tree
+
+
+def assign(tree: Any, keys: tuple, value) -> Any:
+    """A copy of ``tree`` with the value at ``keys`` replaced (only the path is copied)."""
+    if not keys:
+        return value
+    head, rest = keys[0], keys[1:]
+    if isinstance(tree, dict):
+        out = dict(tree)
+        out[head] = assign(tree.get(head), rest, value) if rest else _like(tree.get(head), value)
+        return out
+    out = list(tree)
+    out[head] = assign(tree[head], rest, value) if rest else _like(tree[head], value)
+    return out
+
+
+def _like(old, value):
+    """A whole float where the config holds an integer (a seed from a range): the integer."""
+    if _is_int(old) and isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+
+
+def _hint(name: str, allowed, many: bool = False) -> str:
+    by_case = {str(a).lower(): a for a in allowed}
+    if name.lower() in by_case:
+        return f"did you mean `{by_case[name.lower()]}`?"
+    near = difflib.get_close_matches(name, list(allowed), n=1, cutoff=0.5)
+    if near:
+        return f"did you mean `{near[0]}`?"
+    shown = list(allowed)
+    if many and len(shown) > 12:
+        shown = shown[:12] + ["..."]
+    return f"allowed: {', '.join(shown)}"
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _finite(value, where: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise SweepError(f"{where} = {_show(value)}: must be a finite number")
+
+
+def _num(value):
+    return None if value is None else float(value)
+
+
+def _show(value) -> str:
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+
+# ---------------------------------------------------------------------------------------
+# Gates
+
+
+def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:
+    """Whether a row passes, and what it fails (gate descriptions, or why it has no result)."""
+    failed = []
+    if require_ok:
+        if row.get("status") != "ok":
+            failed.append(f"status {row.get('status')}")
+        elif row.get("stable") is False:
+            failed.append("unstable on the coupled model")
+    for gate in gates:
+        if not gate.passes(row.get(gate.metric)):
+            value = row.get(gate.metric)
+            shown = "none" if value is None else (f"{value:.4g}" if isinstance(value, float) else str(value))
+            failed.append(f"{gate.describe()} (got {shown})")
+    return not failed, failed
+
+
+def margin(row: dict, gates, require_ok: bool) -> float:
+    """How well a row passes: the smallest relative slack over its gates (-inf: no result).
+
+    Without gates, the negative LQR cost (lower cost ranks better).
+    """
+    if require_ok and (row.get("status") != "ok" or row.get("stable") is False):
+        return -math.inf
+    if not gates:
+        cost = row.get("cost")
+        return -cost if isinstance(cost, (int, float)) and math.isfinite(cost) else -math.inf
+    return min(g.slack(row.get(g.metric)) for g in gates)
+
+

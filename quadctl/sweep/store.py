@@ -1,0 +1,201 @@
+"""The run directory of a sweep: the chunk journal ``--resume`` reads, and the final outputs written atomically."""
+
+from __future__ import annotations
+
+import base64
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from quadctl.errors import SweepError
+from quadctl.layout import unit_of
+from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS
+from quadctl.sweep.outputs import (
+    MC_FILES,
+    MonteCarloBands,
+    montecarlo_bands,
+    montecarlo_png,
+    summarize,
+    to_csv,
+    tradeoff_png,
+)
+from quadctl.sweep.runner import SweepResult, base_of, run
+from quadctl.sweep.spec import SweepSpec, _lookup, regulated_states
+
+PARTS = "sweep.parts"
+"""Folder of the run directory holding the finished chunks (the journal ``--resume`` reads)."""
+
+class SweepStore:
+    """The sweep's files in a run directory.
+
+    Finished chunks go to ``DIR/sweep.parts/`` one file each, atomically, as they land; a
+    stopped sweep keeps them and ``--resume`` reads them back instead of recomputing. At the
+    end: ``sweep.csv`` (one row per case), ``sweep.json`` (summary, gates, worst and best cases,
+    config hash) and ``sweep.png`` (the trade-off plot). A Monte Carlo's chunks also hold their
+    cases' trajectories (float32, base64), so a resumed one has the bands of every case, and it
+    ends with ``montecarlo.png`` and ``montecarlo.npz`` (:func:`montecarlo_bands`).
+
+    Parameters
+    ----------
+    out : path
+        The run directory.
+    cfg : Config
+    spec : SweepSpec
+    """
+
+    def __init__(self, out: Path | str, cfg, spec: SweepSpec):
+        self.out = Path(out)
+        self.cfg = cfg
+        self.spec = spec
+        self.parts = self.out / PARTS
+        self.digest = spec.digest(cfg)
+        self.trace = tuple(regulated_states(cfg)) if spec.monte_carlo else ()
+        self.traces: dict[int, np.ndarray] = {}
+        """Monte Carlo trajectories journaled so far (read back on resume, added per chunk)."""
+
+    def start(self, resume: bool) -> dict[int, dict]:
+        """Rows of finished chunks when resuming (checked to be of this very sweep), else none:
+        a fresh sweep first clears the journal of an earlier one."""
+        from quadctl import artifacts
+
+        artifacts.remove_stale_temporaries(self.out)  # what a killed run was writing
+        files = sorted(self.parts.glob("chunk-*.json")) if self.parts.is_dir() else []
+        if not resume:
+            for path in files:
+                path.unlink()
+            return {}
+        done: dict[int, dict] = {}
+        for path in files:
+            data = artifacts.read_json(path)
+            if data.get("sweep_digest") != self.digest:
+                raise SweepError(
+                    f"{path}: rows of another sweep (the config, the sweep file or quadctl changed "
+                    "since); run without --resume to start over, or use another -o folder")
+            for row in data["rows"]:
+                done[int(row["case"])] = row
+            if self.trace:
+                self.traces.update(self._decode(path, data.get("traces")))
+        return done
+
+    def save_chunk(self, rows: list[dict], traces: dict | None = None) -> Path:
+        """Write a finished chunk atomically (``chunk-<first case>.json``), with its cases'
+        trajectories in a Monte Carlo."""
+        from quadctl import artifacts
+
+        first = min(int(r["case"]) for r in rows)
+        payload = {**artifacts.metadata(self.cfg, "sweep-chunk"), "sweep_digest": self.digest,
+                   "cases": [r["case"] for r in rows], "rows": rows}
+        if self.trace:
+            traces = traces or {}
+            self.traces.update(traces)
+            payload["traces"] = {"states": list(self.trace), "points": MC_POINTS, "dtype": "<f4",
+                                 "cases": {str(k): base64.b64encode(np.ascontiguousarray(v, "<f4").tobytes())
+                                           .decode("ascii") for k, v in traces.items()}}
+        return artifacts.write_json(self.parts / f"chunk-{first:07d}.json", payload)
+
+    def _decode(self, path: Path, block) -> dict[int, np.ndarray]:
+        """A chunk's trajectories, checked to have this sweep's layout."""
+        if not isinstance(block, dict) or block.get("states") != list(self.trace) \
+                or block.get("points") != MC_POINTS or block.get("dtype") != "<f4":
+            raise SweepError(f"{path}: a Monte Carlo chunk without trajectories of this layout "
+                             f"({MC_POINTS} times of {', '.join(self.trace)}); run without --resume "
+                             "to start over")
+        shape = (MC_POINTS, len(self.trace))
+        return {int(k): np.frombuffer(base64.b64decode(v), dtype="<f4").reshape(shape)
+                for k, v in block["cases"].items()}
+
+    def finish(self, result: SweepResult) -> dict:
+        """Write sweep.csv, sweep.json and sweep.png (and a Monte Carlo's files); return the
+        summary (sweep.json's content)."""
+        from quadctl import artifacts
+
+        csv_path = artifacts.write_bytes(self.out / "sweep.csv", to_csv(result).encode())
+        summary = summarize(result, self.cfg, self.spec)
+        summary["files"] = {"table": csv_path.name, "plot": "sweep.png", "chunks": PARTS}
+        bands = self.finish_montecarlo(result)
+        if self.trace:
+            summary["montecarlo"] = {
+                "cases": 0 if bands is None else len(bands.cases), "points": MC_POINTS,
+                "percentiles": list(MC_PERCENTILES), "states": list(self.trace),
+                "left_out": [r["case"] for r in result.rows] if bands is None else list(bands.left_out)}
+        if bands is not None:
+            summary["files"]["montecarlo"] = list(MC_FILES)
+        payload = artifacts.jsonable({**artifacts.metadata(self.cfg, "sweep"), **summary,
+                                      "sweep_digest": self.digest})
+        artifacts.write_json(self.out / "sweep.json", payload)
+        artifacts.write_bytes(self.out / "sweep.png", tradeoff_png(result, self.cfg))
+        return payload
+
+    def finish_montecarlo(self, result: SweepResult) -> MonteCarloBands | None:
+        """A Monte Carlo: write montecarlo.npz and montecarlo.png from every trajectory (journaled
+        and computed now). None if the sweep is no Monte Carlo or no case simulated to the end:
+        then those files of an earlier run in this folder go, so none is mistaken for this one's."""
+        from quadctl import artifacts
+
+        traces = {**self.traces, **result.traces} if self.trace else {}
+        if not traces:
+            for name in MC_FILES:
+                (self.out / name).unlink(missing_ok=True)
+            return None
+        duration = _lookup(base_of(self.cfg, self.spec), ("simulation", "duration"))
+        bands = montecarlo_bands(traces, self.trace, duration, [r["case"] for r in result.rows])
+        meta = {**artifacts.metadata(self.cfg, "montecarlo"), "sweep_digest": self.digest,
+                "quantity": "deviation from the reference, x - x_ref, in state units (m, m/s, rad, rad/s)",
+                "units": {s: unit_of(s) for s in bands.states}, "left_out": list(bands.left_out)}
+        artifacts.write_npz(self.out / "montecarlo.npz",
+                            {"t": bands.t, "percentiles": np.asarray(bands.percentiles, dtype=float),
+                             "bands": bands.bands, "states": np.array(bands.states), "cases": bands.cases,
+                             "traces": bands.traces}, meta)
+        artifacts.write_bytes(self.out / "montecarlo.png", montecarlo_png(bands, self.cfg))
+        return bands
+
+
+
+@dataclass
+class SweepOutcome:
+    """What :func:`execute` did: the result, the summary written, the files, and what was reused."""
+
+    result: SweepResult
+    summary: dict
+    out: Path
+    reused: int = 0
+    files: list = field(default_factory=list)
+
+
+def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, jobs: int | None = None,
+            scheduler: str | None = None, resume: bool = False,
+            progress: Callable[[int, int], None] | None = None) -> SweepOutcome:
+    """Run a sweep into a run directory: journal each chunk, resume, write the outputs.
+
+    Parameters
+    ----------
+    cfg : Config
+    spec : SweepSpec
+    out : path
+        Run directory (``sweep.csv``, ``sweep.json``, ``sweep.png``, ``sweep.parts/``; a Monte
+        Carlo also ``montecarlo.png`` and ``montecarlo.npz``).
+    label, jobs, scheduler, progress
+        As :func:`run`.
+    resume : bool
+        Keep the rows of an earlier, interrupted run of this same sweep and compute only the rest.
+
+    Returns
+    -------
+    SweepOutcome
+
+    Raises
+    ------
+    SweepError
+        ``resume`` finds rows of a different sweep, or the scheduler cannot be reached.
+    """
+    store = SweepStore(out, cfg, spec)
+    done = store.start(resume)
+    result = run(cfg, spec, label=label, jobs=jobs, scheduler=scheduler, done=done,
+                 on_chunk=store.save_chunk, progress=progress)
+    summary = store.finish(result)
+    files = [store.out / "sweep.csv", store.out / "sweep.json", store.out / "sweep.png"]
+    files += [store.out / name for name in summary["files"].get("montecarlo", [])]
+    return SweepOutcome(result=result, summary=summary, out=store.out, reused=len(done), files=files)
+
