@@ -2,11 +2,12 @@
 
     python benchmarks/bench.py            # everything (about a minute)
     python benchmarks/bench.py --skip-slow  # without the two RK45 runs (about 7 s each)
+    python benchmarks/bench.py --cli-python VENV/bin/python  # the CLI rows with another install
 
 1. One closed-loop simulation of the bundled forward config (the report's case), RK4 at
    dt = 1e-5 s for 10 s = 1 000 000 steps: quadctl's compiled loop (library call, after the one-time
    compilation), the same through the command line end to end (a fresh process: interpreter
-   start, imports, trim, design, simulation, artifacts), and SciPy's solve_ivp (RK45 and LSODA)
+   start, imports, the simulation, metrics, artifacts; with and without --fresh), and SciPy's solve_ivp (RK45 and LSODA)
    and python-control's input_output_response on the same closed loop (the CasADi model called
    from Python), at tolerances that reach the same final-state accuracy.
 2. A sweep of 1000 random designs (benchmarks/random-1000.yaml, no two alike) x 10 000 RK4 steps:
@@ -38,6 +39,8 @@ DURATION = 10.0       # s
 DT = 1e-5             # s: 1 000 000 RK4 steps
 REPEAT = 5
 """Timed runs of each sweep: the best is reported (the others lost time to other processes)."""
+LIBRARY_IMPORTS = "import typer._adapters, numpy, pydantic, rich.console, rich.table, yaml"
+"""What any quadctl command imports before it does any work (typer imports pydantic to parse)."""
 TOLERANCES = {"RK45": (1e-8, 1e-10), "LSODA": (1e-10, 1e-12)}
 """(rtol, atol) per solve_ivp method: the loosest that reach the final-state error of quadctl's RK4
 at dt = 1e-5 s (about 1e-9 in state units, against the reference) on this problem."""
@@ -76,7 +79,7 @@ def table(title: str, header: list[str], rows: list[list[str]]) -> str:
 # 1. One simulation
 
 
-def one_simulation(skip_slow: bool) -> str:
+def one_simulation(skip_slow: bool, cli_python: str) -> str:
     import casadi as ca
     from scipy.integrate import solve_ivp
 
@@ -120,14 +123,15 @@ def one_simulation(skip_slow: bool) -> str:
         data["simulation"]["dt"] = DT
         path = Path(tmp) / "forward-1M.yaml"
         path.write_text(yaml.safe_dump(data, sort_keys=False))
-        cmd = [sys.executable, "-m", "quadctl", "simulate", "-c", str(path), "-o", str(Path(tmp) / "run")]
-        subprocess.run(cmd, check=True, capture_output=True)  # warm the OS file cache
-        cli, _ = timed(lambda: subprocess.run(cmd, check=True, capture_output=True), repeat=3)
-        import numpy as _np
-
-        with _np.load(Path(tmp) / "run" / "sim.npz") as npz:
+        cmd = [cli_python, "-m", "quadctl", "simulate", "-c", str(path), "-o", str(Path(tmp) / "run")]
+        subprocess.run(cmd, check=True, capture_output=True)  # designs once, warms the OS file cache
+        cli, _ = timed(lambda: subprocess.run(cmd, check=True, capture_output=True), repeat=REPEAT)
+        with np.load(Path(tmp) / "run" / "sim.npz") as npz:
             cli_err = error(npz["x"][-1])
+        fresh, _ = timed(lambda: subprocess.run([*cmd, "--fresh"], check=True, capture_output=True), repeat=3)
+        floor, _ = timed(lambda: subprocess.run([cli_python, "-c", LIBRARY_IMPORTS], check=True), repeat=REPEAT)
     runs.append(("quadctl simulate, CLI end to end", cli, f"{best.steps:,} steps", cli_err))
+    runs.append(("quadctl simulate --fresh, CLI end to end", fresh, "+ trim, design", cli_err))
 
     for method in ("RK45", "LSODA"):
         if skip_slow and method == "RK45":
@@ -159,7 +163,12 @@ def one_simulation(skip_slow: bool) -> str:
                  ["method", "wall (s)", "work", "RK4 steps/s equiv.", "final error", "wall / quadctl"],
                  rows) + ("\n\n'RK4 steps/s equiv.' is 1,000,000 / wall: the rate at which each method "
                           "covers the same 10 s simulation. 'final error' is the largest final-state "
-                          "difference (state units) from LSODA at rtol 1e-12.")
+                          "difference (state units) from LSODA at rtol 1e-12. The CLI rows are fresh "
+                          "processes; the first reuses the trim and design artifacts of an earlier run "
+                          "(`quadctl simulate` after `quadctl design`), --fresh recomputes them. Of the "
+                          f"CLI's {cli:.3f} s, {floor:.3f} s is Python starting and importing typer, numpy, "
+                          "pydantic, rich and yaml (`python -c '...'`): the floor of any command on "
+                          f"these dependencies, with that interpreter ({cli_python}).")
 
 
 # ---------------------------------------------------------------------------------------
@@ -261,13 +270,16 @@ def config_from(data):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--skip-slow", action="store_true", help="skip the RK45 runs (about 7 s each)")
+    parser.add_argument("--cli-python", default=sys.executable, metavar="PYTHON",
+                        help="interpreter for the command-line runs (default: this one), e.g. a venv's python "
+                             "with quadctl installed the way users install it (not editable)")
     args = parser.parse_args()
     import casadi
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"quadctl benchmarks on {cpu_name()}, {os.cpu_count()} cores; Python {platform.python_version()}, "
           f"numpy {np.__version__}, casadi {casadi.__version__}; load average {load:.2f} at start")
-    print(one_simulation(args.skip_slow))
+    print(one_simulation(args.skip_slow, args.cli_python))
     text, (cfg, spec) = the_sweep()
     print(text)
     print(the_designs(cfg, spec))
