@@ -15,6 +15,9 @@ import numpy as np
 
 STABILITY_MARGIN = 1e-9
 """An eigenvalue with ``Re >= -STABILITY_MARGIN * max(1, |lambda|)`` counts as not stable (rad/s)."""
+RICCATI_RTOL = 1e-8
+"""Largest accepted ``|CARE residual| / (|Q| + |A^T P| + |P B R^-1 B^T P|)`` (relative), for every
+continuous Riccati solution quadctl uses (:func:`quadctl.lqr.lqr`, :func:`quadctl.batch.care`)."""
 
 
 @dataclass(frozen=True)

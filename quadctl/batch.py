@@ -15,9 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.analysis import STABILITY_MARGIN
+from quadctl.analysis import RICCATI_RTOL, STABILITY_MARGIN
 from quadctl.layout import INPUT_NAMES, POSITION_STATES, STATE_NAMES
-from quadctl.lqr import RICCATI_RTOL
 from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
 
 NEWTON_STEPS = 2

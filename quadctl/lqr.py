@@ -17,16 +17,13 @@ import numpy as np
 
 from quadctl import discrete, integral
 from quadctl._lazy import lazy_import
-from quadctl.analysis import check, is_stable
+from quadctl.analysis import RICCATI_RTOL, check, is_stable
+from quadctl.batch import care as care_stacked
 from quadctl.decouple import Decoupled
 from quadctl.errors import DesignError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
-
-RICCATI_RTOL = 1e-8
-"""Largest accepted ``|CARE residual| / (|Q| + |A^T P| + |P B R^-1 B^T P|)`` (relative)."""
-
 
 @dataclass(frozen=True)
 class LqrResult:
@@ -75,6 +72,11 @@ def _refine(A, B, Q, R, P):
 def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
     """Continuous-time LQR (MATLAB ``lqr``).
 
+    Solved by :func:`quadctl.batch.care` (stable Hamiltonian eigenvectors, then Newton-Kleinman
+    to round-off); where that has no answer within ``RICCATI_RTOL`` and a stable loop, by
+    ``scipy.linalg.solve_continuous_are`` (balanced, then unbalanced, then Newton-refined). Both
+    are residual-checked; they agree to round-off (``tests/test_sweep.py``).
+
     Parameters
     ----------
     A : (n, n) array_like
@@ -107,6 +109,11 @@ def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
     """
     A, B, Q, R = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, Q, R))
     require_stabilizable(A, B, name, state_names)
+    # quadctl's own solver first (eigenvectors and Newton-Kleinman, numpy only, residual-checked:
+    # a design needs no SciPy import); SciPy's Schur solver where it has no answer
+    own = care_stacked(A[None], B[None], Q[None], R[None])
+    if own.ok[0]:
+        return LqrResult(K=own.K[0], P=own.P[0], E=own.E[0], residual=float(own.residual[0]))
     # SciPy balances the Hamiltonian first; entries near the underflow limit can spoil that
     # balancing (seen: a 5.6e-301 entry gave residual 0.5), so an inaccurate answer is retried
     # without it.

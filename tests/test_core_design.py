@@ -166,3 +166,28 @@ def test_an_ill_conditioned_riccati_equation_is_named_as_such():
     with pytest.raises(DesignError, match=r"too ill-conditioned to solve to 1e-08 \(residual .*\); its "
                                           r"slowest closed-loop mode is at -2\.1\de-06 rad/s"):
         lqr(A, B, np.eye(3) * 1e-3, np.eye(3) * 0.1)
+
+
+def test_scipy_fallback_gives_the_same_design_as_quadctls_solver(forward, monkeypatch):
+    """lqr solves with batch.care and falls back to SciPy where it has no answer: both paths,
+    on every report subsystem, give the same gain and pass the residual check."""
+    import dataclasses
+
+    import quadctl.lqr as lqr_mod
+
+    _, _, _, dec, des = forward
+    weights = {s.name: (s.Q, s.R) for s in des.subsystems}
+    own = {s.name: lqr(s.A, s.B, *weights[s.name]) for s in dec.regulated}
+
+    solve = lqr_mod.care_stacked
+
+    def no_answer(*args):
+        res = solve(*args)
+        return dataclasses.replace(res, ok=np.zeros_like(res.ok))
+
+    monkeypatch.setattr(lqr_mod, "care_stacked", no_answer)
+    for sub in dec.regulated:
+        fallback = lqr(sub.A, sub.B, *weights[sub.name])
+        assert fallback.residual < 1e-12 and own[sub.name].residual < 1e-12, sub.name
+        diff = np.abs(fallback.K - own[sub.name].K).max() / np.abs(own[sub.name].K).max()
+        assert diff < 1e-9, f"{sub.name}: Max diff is {diff:.4E}"
