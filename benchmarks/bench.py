@@ -202,8 +202,8 @@ def the_sweep() -> tuple[str, list]:
     steps = results[2].stats["steps"]
     rows.append(["quadctl sweep, CLI end to end, -j 2", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
                  f"{1000 / wall:,.0f}", "(same cases)"])
-    # the obvious alternative: each case through the pipeline, one at a time (scipy's CARE with
-    # quadctl's checks, the compiled scalar loop, metrics.summarize), on the first 100 cases
+    # the obvious alternative: each case through the pipeline, one at a time (trim, linearization,
+    # quadctl.lqr per subsystem, the compiled scalar loop, metrics.summarize), on the first 100 cases
     subset = dataclasses.replace(spec, samples=100)
     wall, slow = timed(lambda: sweep.run(cfg, subset, jobs=1, fast=False))
     rows.append(["one case at a time (pipeline), --jobs 1, 100 cases", f"{wall:.2f}",
