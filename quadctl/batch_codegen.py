@@ -30,11 +30,14 @@ from pathlib import Path
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.codegen import compile_cached, find_compiler, record_rows
+from quadctl.codegen import FINGERPRINT, compile_cached, find_compiler, record_rows
 from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.model import N_DISTURBANCES, N_PARAMS, build_model
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
+LANE_FINGERPRINT = hashlib.sha256(FINGERPRINT.encode() + Path(__file__).read_bytes()).hexdigest()
+"""Cache key part of the lane libraries: the scalar generator's and this file, as imported (see
+:data:`quadctl.codegen.SCALAR_SOURCES`)."""
 
 LANES = 8
 """Cases per vectorized call: one AVX-512 register of doubles, or two AVX2 ones."""
@@ -424,10 +427,10 @@ def get_lanes(pattern: tuple[bool, ...]):
         return InterpretedLanes(build_lane_functions(pattern))
     pattern_bits = "".join("1" if b else "0" for b in pattern)
     for simd, flags, backend in ((True, SIMD_FLAGS, "compiled-simd"), (False, PORTABLE_FLAGS, "compiled")):
-        variant = f"qb {pattern_bits} simd={simd} {_cpu_tag() if '-march=native' in flags else ''}"
+        key = f"{LANE_FINGERPRINT} qb {pattern_bits} simd={simd} {_cpu_tag() if '-march=native' in flags else ''}"
         try:
             library = compile_cached(lambda s=simd: lane_source(build_lane_functions(pattern), s),
-                                     flags, compiler, "qb", variant)
+                                     flags, compiler, "qb", key)
             return CompiledLanes(library, backend)
         except (RuntimeError, OSError, ValueError):
             continue  # this compiler cannot build (or load) the variant: try the next, then CasADi

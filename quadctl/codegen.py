@@ -3,8 +3,8 @@
 The step functions are built symbolically from :func:`quadctl.model.build_model` (never a
 second copy of the equations), exported with CasADi's C code generator, compiled once with
 the system C compiler together with the small loop in ``_driver.c``, and cached on disk
-keyed by a hash of what the source is generated from (:func:`generator_fingerprint` and the
-variant), so a cached library loads without CasADi. Without a C compiler, the same CasADi functions
+keyed by a hash of what the source is generated from (:data:`FINGERPRINT` and the variant), so a
+cached library loads without CasADi. Without a C compiler, the same CasADi functions
 run in CasADi's own virtual machine from a Python loop: same results, slower.
 
 Constants the step reads are packed into one vector ``c`` (layout :data:`CONST_LAYOUT`, then
@@ -27,14 +27,16 @@ import ctypes
 import hashlib
 import importlib.machinery
 import os
+import platform
 import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import resources
+from importlib import metadata, resources
 from pathlib import Path
 
 import numpy as np
@@ -348,9 +350,9 @@ def get_loop(pattern: tuple[bool, ...], saturation: str = "none", integral: tupl
     compiler = find_compiler()
     if compiler is None:
         return InterpretedLoop(build_step_functions(pattern, saturation, integral))
-    variant = f"qc {saturation} {''.join('1' if b else '0' for b in pattern)} {integral}"
+    key = f"{FINGERPRINT} qc {saturation} {''.join('1' if b else '0' for b in pattern)} {integral}"
     library = compile_cached(lambda: loop_source(build_step_functions(pattern, saturation, integral)),
-                             COMPILE_FLAGS, compiler, "qc", variant)
+                             COMPILE_FLAGS, compiler, "qc", key)
     return CompiledLoop(library, len(integral))
 
 
@@ -373,68 +375,83 @@ def loop_source(funcs: StepFunctions) -> str:
              f"#define QC_SZ_RES {max(f.sz_res() for f in fns)}\n"
              f"#define QC_SZ_IW {max(f.sz_iw() for f in fns)}\n"
              f"#define QC_SZ_W {max(f.sz_w() for f in fns)}\n")
-    driver = resources.files("quadctl").joinpath("_driver.c").read_text()
-    return generated + "\n" + sizes + driver
+    return generated + "\n" + sizes + _SOURCES["_driver.c"].decode()
 
 
-GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "codegen.py", "batch_codegen.py", "_driver.c")
-"""The files generated C depends on (with the CasADi version): the cache key of every compiled
-library includes their hash, so editing the model or a generator never loads a stale library.
-``tests/test_structure.py`` checks that this covers everything the generators import."""
+def read_sources(package, names) -> dict[str, bytes]:
+    """File name -> contents, for ``names`` in ``package`` (a folder or importlib Traversable)."""
+    return {name: package.joinpath(name).read_bytes() for name in names}
 
 
-@lru_cache(maxsize=1)
-def generator_fingerprint() -> str:
-    """:func:`fingerprint` of this installation: its generator sources and its CasADi."""
-    return fingerprint(resources.files("quadctl"), casadi_stamp())
-
-
-def casadi_stamp() -> str:
-    """Identifies the installed CasADi without importing it (~0.1 s) or reading its metadata
-    (~10 ms): where its module file is, its size and modification time. A reinstall changes it
-    (one recompilation); a different version always does."""
-    spec = importlib.machinery.PathFinder.find_spec("casadi")  # the path, not the (lazy) module
-    if spec is None or not spec.origin:
-        return "casadi not found"
-    info = os.stat(spec.origin)
-    return f"{spec.origin} {info.st_size} {info.st_mtime_ns}"
-
-
-def fingerprint(package, casadi: str) -> str:
-    """sha256 of the :data:`GENERATOR_SOURCES` files in ``package`` (a folder) and a CasADi stamp."""
+def fingerprint(sources: dict[str, bytes], casadi: str) -> str:
+    """sha256 of source files (name -> contents) and a CasADi stamp: a compile cache key part."""
     digest = hashlib.sha256(casadi.encode())
-    for name in GENERATOR_SOURCES:
-        digest.update(name.encode() + b"\0" + package.joinpath(name).read_bytes() + b"\0")
+    for name in sorted(sources):
+        digest.update(name.encode() + b"\0" + sources[name] + b"\0")
     return digest.hexdigest()
 
 
+def casadi_stamp() -> str:
+    """Identifies the installed CasADi without importing it (~0.1 s): where its module file is, its
+    size and modification time (a reinstall changes it: one recompilation), else its version from
+    the package metadata (~10 ms), for installs the path finder cannot see."""
+    spec = importlib.machinery.PathFinder.find_spec("casadi")  # the path, not the (lazy) module
+    try:
+        if spec is not None and spec.origin:
+            info = os.stat(spec.origin)
+            return f"{spec.origin} {info.st_size} {info.st_mtime_ns}"
+    except OSError:
+        pass
+    try:
+        return f"casadi {metadata.version('casadi')}"
+    except metadata.PackageNotFoundError:
+        return "casadi unknown"
+
+
+SCALAR_SOURCES = ("_lazy.py", "layout.py", "model.py", "codegen.py", "_driver.c")
+"""The files the scalar loop's C is generated from (``tests/test_structure.py`` checks this covers
+everything this module imports). They are read once, when this module is imported: the cache key
+:data:`FINGERPRINT` hashes the code this process runs, and ``_driver.c`` is compiled from the same
+bytes, so a file edited while a process runs never puts old code under the new key (or new under
+the old)."""
+_SOURCES = read_sources(resources.files("quadctl"), SCALAR_SOURCES)
+FINGERPRINT = fingerprint(_SOURCES, casadi_stamp())
+"""Part of every compiled library's cache key (:mod:`quadctl.batch_codegen` adds its own source)."""
+_COMPILE_LOCK = threading.Lock()
+
+
 def compile_cached(make_source: Callable[[], str], flags: tuple[str, ...], compiler: str, prefix: str,
-                   variant: str) -> Path:
+                   key: str) -> Path:
     """Compile the C source ``make_source()`` into a shared library once per machine; its path.
 
     The cache key is what the source is made from, not the source itself, so a cached library is
-    found without generating any code: :func:`generator_fingerprint`, ``variant`` (everything
-    the generator is called with, plus e.g. the CPU for ``-march=native``), flags, compiler and
-    platform. The library is compiled to a temporary name and renamed, so concurrent workers never
-    load a half-written file.
+    found without generating any code: ``key`` (the generator's :data:`FINGERPRINT` and everything
+    it is called with, plus e.g. the CPU for ``-march=native``), flags, compiler, platform and
+    machine. The library is compiled under a unique temporary name and renamed, so concurrent
+    workers (processes or threads) never load a half-written file; threads of one process compile
+    one at a time, and a library another compiled meanwhile is used, not rebuilt.
     """
-    key = hashlib.sha256("\0".join((generator_fingerprint(), variant, " ".join(flags), compiler,
-                                    sys.platform)).encode())
+    digest = hashlib.sha256("\0".join((key, " ".join(flags), compiler, sys.platform,
+                                       platform.machine())).encode())
     folder = cache_dir()
-    library = folder / f"{prefix}_{key.hexdigest()[:20]}.so"
+    library = folder / f"{prefix}_{digest.hexdigest()[:20]}.so"
     if library.exists():
         return library
-    folder.mkdir(parents=True, exist_ok=True)
-    src = folder / f"{library.stem}.{os.getpid()}.c"
-    tmp_lib = folder / f"{library.stem}.{os.getpid()}.so.tmp"
-    src.write_text(make_source())
-    try:
-        proc = subprocess.run([compiler, *flags, str(src), "-o", str(tmp_lib), "-lm"],
-                              capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise RuntimeError(f"C compiler failed: {proc.stderr.strip()[:500]}")
-        os.replace(tmp_lib, library)
-    finally:
-        src.unlink(missing_ok=True)
-        tmp_lib.unlink(missing_ok=True)
+    with _COMPILE_LOCK:
+        if library.exists():
+            return library
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, src_name = tempfile.mkstemp(prefix=f"{library.stem}.", suffix=".c", dir=folder)
+        src, tmp_lib = Path(src_name), Path(src_name).with_suffix(".so.tmp")
+        try:
+            with os.fdopen(fd, "w") as fh:
+                fh.write(make_source())
+            proc = subprocess.run([compiler, *flags, str(src), "-o", str(tmp_lib), "-lm"],
+                                  capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise RuntimeError(f"C compiler failed: {proc.stderr.strip()[:500]}")
+            os.replace(tmp_lib, library)
+        finally:
+            src.unlink(missing_ok=True)
+            tmp_lib.unlink(missing_ok=True)
     return library

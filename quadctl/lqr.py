@@ -75,7 +75,7 @@ def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
     Solved by :func:`quadctl.batch.care` (stable Hamiltonian eigenvectors, then Newton-Kleinman
     to round-off); where that has no answer within ``RICCATI_RTOL`` and a stable loop, by
     ``scipy.linalg.solve_continuous_are`` (balanced, then unbalanced, then Newton-refined). Both
-    are residual-checked; they agree to round-off (``tests/test_sweep.py``).
+    are residual-checked; they agree to round-off (``tests/test_core_design.py``).
 
     Parameters
     ----------
@@ -108,6 +108,7 @@ def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
     (2.0, 2.0, (-2+0j))
     """
     A, B, Q, R = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, Q, R))
+    _check_shapes(A, B, Q, R, name)
     require_stabilizable(A, B, name, state_names)
     # quadctl's own solver first (eigenvectors and Newton-Kleinman, numpy only, residual-checked:
     # a design needs no SciPy import); SciPy's Schur solver where it has no answer
@@ -116,35 +117,47 @@ def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
         return LqrResult(K=own.K[0], P=own.P[0], E=own.E[0], residual=float(own.residual[0]))
     # SciPy balances the Hamiltonian first; entries near the underflow limit can spoil that
     # balancing (seen: a 5.6e-301 entry gave residual 0.5), so an inaccurate answer is retried
-    # without it.
+    # without it. The verdict comes from the best of the answers, not the last.
+    answers, failure = [], None
     for balanced in (True, False):
         try:
             with np.errstate(all="ignore"), warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
                 P = scipy.linalg.solve_continuous_are(A, B, Q, R, balanced=balanced)
-        except (np.linalg.LinAlgError, ValueError) as exc:
-            if balanced:  # balancing itself can overflow on subnormal entries
-                continue
-            raise DesignError(f"{name}: the Riccati solve failed ({exc}); "
-                              "check that Q makes every unstable mode visible (detectable)") from None
+        except (np.linalg.LinAlgError, ValueError) as exc:  # balancing itself can overflow
+            failure = exc
+            continue
         if not np.all(np.isfinite(P)):
-            if balanced:
-                continue
-            raise DesignError(f"{name}: the Riccati solution is not finite; check the weights")
+            continue
         P, K, E, residual = _refine(A, B, Q, R, (P + P.T) / 2)
-        if residual <= RICCATI_RTOL and all(is_stable(e) for e in E):
-            break
-    if not all(is_stable(e) for e in E):
+        stable = all(is_stable(e) for e in E)
+        if residual <= RICCATI_RTOL and stable:
+            return LqrResult(K=K, P=P, E=E, residual=residual)
+        answers.append((not stable, residual, E))
+    if not answers:
+        if failure is not None:
+            raise DesignError(f"{name}: the Riccati solve failed ({failure}); "
+                              "check that Q makes every unstable mode visible (detectable)")
+        raise DesignError(f"{name}: the Riccati solution is not finite; check the weights")
+    unstable, residual, E = min(answers, key=lambda a: (a[0], a[1]))
+    if unstable:
         raise DesignError(
             f"{name}: the Riccati solution is not stabilizing (residual {residual:.1e}); "
             "an unstable or marginal mode is invisible to Q: give weight to the states it lives in")
-    if residual > RICCATI_RTOL:
-        slowest = E[int(np.argmin(np.abs(E.real)))]
-        raise DesignError(
-            f"{name}: the Riccati equation is too ill-conditioned to solve to {RICCATI_RTOL:g} "
-            f"(residual {residual:.1e}); its slowest closed-loop mode is at {slowest.real:.3g} rad/s: "
-            "weight the states of that mode, or rescale units so the entries of A, B, Q, R are comparable")
-    return LqrResult(K=K, P=P, E=E, residual=residual)
+    slowest = E[int(np.argmin(np.abs(E.real)))]
+    raise DesignError(
+        f"{name}: the Riccati equation is too ill-conditioned to solve to {RICCATI_RTOL:g} "
+        f"(residual {residual:.1e}); its slowest closed-loop mode is at {slowest.real:.3g} rad/s: "
+        "weight the states of that mode, or rescale units so the entries of A, B, Q, R are comparable")
+
+
+def _check_shapes(A, B, Q, R, name: str) -> None:
+    """``A`` (n, n), ``B`` (n, m), ``Q`` (n, n), ``R`` (m, m), or a DesignError naming the matrix."""
+    n, m = A.shape[0], B.shape[1] if B.ndim == 2 else 0
+    for label, M, shape in (("A", A, (n, n)), ("B", B, (n, m)), ("Q", Q, (n, n)), ("R", R, (m, m))):
+        if M.shape != shape:
+            raise DesignError(f"{name}: {label} has shape {M.shape}, expected {shape} "
+                              f"(A is n x n, B n x m, Q n x n, R m x m with n = {n}, m = {m})")
 
 
 def require_stabilizable(A, B, name: str, state_names=None) -> None:

@@ -340,7 +340,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     noise : NoiseSpec, optional
         Process and sensor noise; the same spec gives the same run.
     max_samples : int
-        Samples kept: every ``stride = ceil(n_steps / max_samples)``-th step and the last.
+        Samples kept, at most: every :func:`record_stride`-th step and the last.
 
     Returns
     -------
@@ -376,7 +376,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     hi_all = np.concatenate([hi, np.full(nz, np.inf)])
     x0_all = np.concatenate([np.asarray(x0, dtype=float), np.zeros(nz)])
     dist, meas = realize(noise, n, plan.dt) if noise is not None and noise.active else (None, None)
-    stride = max(1, math.ceil(n / max_samples))
+    stride = record_stride(n, max_samples)
     start = time.perf_counter()
     done, ks, xs, us = run_in_chunks(runner, x0_all, plan.dt, n, c, dist, meas, plan.hold, stride,
                                      lo_all, hi_all)
@@ -388,6 +388,12 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     return SimResult(t=t, x=np.ascontiguousarray(xs[:, :N_STATES]), u=us, x_ref=x_ref, dt=plan.dt, status=status,
                      message=message, wall_time=wall, backend=runner.backend, plan=plan, steps=done, stride=stride,
                      z=np.ascontiguousarray(xs[:, N_STATES:]), noise_seed=seed)
+
+
+def record_stride(n_steps: int, max_samples: int) -> int:
+    """The smallest stride whose records (steps ``0, stride, 2 stride, ...`` and the last, see
+    :func:`quadctl.codegen.record_rows`) number at most ``max_samples`` (>= 2) for ``n_steps``."""
+    return (n_steps - 1) // (max_samples - 1) + 1 if n_steps > 1 else 1
 
 
 CHUNK_STEPS = 250_000

@@ -191,3 +191,8 @@ def test_scipy_fallback_gives_the_same_design_as_quadctls_solver(forward, monkey
         assert fallback.residual < 1e-12 and own[sub.name].residual < 1e-12, sub.name
         diff = np.abs(fallback.K - own[sub.name].K).max() / np.abs(own[sub.name].K).max()
         assert diff < 1e-9, f"{sub.name}: Max diff is {diff:.4E}"
+
+
+def test_mismatched_shapes_are_a_design_error_naming_the_matrix():
+    with pytest.raises(DesignError, match=r"roll: R has shape \(2, 2\), expected \(1, 1\)"):
+        lqr(np.eye(2), [[0.0], [1.0]], np.eye(2), np.eye(2), name="roll")

@@ -59,13 +59,15 @@ def _quadctl_imports(module: str) -> set[str]:
 
 
 def test_compile_cache_key_covers_everything_the_generators_import():
-    """A cached library is found by a hash of GENERATOR_SOURCES, not of the generated C: a module
-    the generators import but the hash leaves out could change the C and load a stale library."""
-    from quadctl.codegen import GENERATOR_SOURCES
+    """A cached library is found by a hash of the generator's sources, not of the generated C: a
+    module the generators import but the hash leaves out could change the C and load a stale library."""
+    from quadctl.codegen import SCALAR_SOURCES
 
-    used = _quadctl_imports("quadctl.codegen") | _quadctl_imports("quadctl.batch_codegen") | {"_driver.c"}
-    assert used <= set(GENERATOR_SOURCES), sorted(used - set(GENERATOR_SOURCES))
-    assert all((PACKAGE / name).exists() for name in GENERATOR_SOURCES)
+    scalar = _quadctl_imports("quadctl.codegen") | {"_driver.c"}
+    assert scalar <= set(SCALAR_SOURCES), sorted(scalar - set(SCALAR_SOURCES))
+    lanes = _quadctl_imports("quadctl.batch_codegen")  # its key: codegen.FINGERPRINT + its own file
+    assert lanes <= set(SCALAR_SOURCES) | {"batch_codegen.py"}, sorted(lanes - set(SCALAR_SOURCES))
+    assert all((PACKAGE / name).exists() for name in SCALAR_SOURCES)
 
 
 def test_simulate_on_fresh_artifacts_imports_neither_casadi_nor_scipy(tmp_path):
@@ -82,3 +84,40 @@ def test_simulate_on_fresh_artifacts_imports_neither_casadi_nor_scipy(tmp_path):
             "print(sorted(m for m in heavy if m in sys.modules), file=sys.stderr)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
     assert out.stderr.strip().splitlines()[-1] == "[]"
+
+
+def test_lazy_module_loads_once_under_concurrent_first_use(tmp_path, monkeypatch):
+    """Dask workers run chunks in threads: all of them must see the whole module (importlib's
+    LazyLoader on Python 3.11 let 3 of 4 threads see it half-loaded)."""
+    import threading
+
+    from quadctl._lazy import lazy_import
+
+    (tmp_path / "slow_module_for_quadctl.py").write_text(
+        "import time\nLOADS = [1]\ntime.sleep(0.2)\nVALUE = 42\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    mod = lazy_import("slow_module_for_quadctl")
+    assert "slow_module_for_quadctl" not in sys.modules  # nothing ran yet
+    seen, start = [], threading.Barrier(4)
+
+    def use():
+        start.wait()
+        seen.append(mod.VALUE)
+
+    threads = [threading.Thread(target=use) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert seen == [42] * 4 and mod.LOADS == [1]
+    assert lazy_import("slow_module_for_quadctl") is sys.modules["slow_module_for_quadctl"]
+    sys.modules.pop("slow_module_for_quadctl")
+
+
+def test_lazy_import_of_a_missing_module_fails_at_once():
+    import pytest
+
+    from quadctl._lazy import lazy_import
+
+    with pytest.raises(ModuleNotFoundError, match="no_such_module_for_quadctl"):
+        lazy_import("no_such_module_for_quadctl")

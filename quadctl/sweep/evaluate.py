@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -364,7 +363,7 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
     """Cases of plain configs, designed and simulated together."""
     from quadctl import batch, batch_codegen, pipeline
     from quadctl.lqr import lqr
-    from quadctl.simulate import RUNAWAY, VALID_PITCH, _verdict, max_stable_steps, plan_step
+    from quadctl.simulate import RUNAWAY, VALID_PITCH, _verdict, max_stable_steps, plan_step, record_stride
 
     rows: dict[int, dict] = {}
     # 1. LQR of every regulated subsystem of every case, batched by shape
@@ -440,7 +439,7 @@ def _evaluate_batched(preps: list[_Prepared], stats: dict) -> dict[int, dict]:
                                               pipeline.vehicle_of(cfg).vector())
         pattern = _pattern_of(cfg)
         jobs.append((pattern, prep, k, core, stable, plan, pipeline.initial_state(cfg, x_trim), c, lo, hi,
-                     max(1, math.ceil(plan.n_steps / sim_cfg.max_samples))))
+                     record_stride(plan.n_steps, sim_cfg.max_samples)))
     # 3. simulations, LANES at a time per gain pattern, metrics as each group lands
     by_pattern: dict[tuple, list] = {}
     for job in jobs:
