@@ -288,6 +288,8 @@ def _describe(exc: ValidationError, data: Any, label: str) -> str:
     if kind == "missing":
         return f"{label}: {path}: required key is missing; add it{more}"
     value = _lookup(data, loc)
+    if kind in ("int_type", "int_from_float") and isinstance(value, float) and value.is_integer():
+        return f"{label}: {path} = {value!r}: must be a whole number; write {int(value)}{more}"
     return f"{label}: {path} = {_show(value)}: {_expected(err, loc)}{more}"
 
 

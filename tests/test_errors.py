@@ -86,6 +86,9 @@ CONFIG_CASES.update({
 MAMBO = config.resolve("mambo-200hz")[1]
 CONFIG_CASES["not a whole number"] = (MAMBO.replace("seed: 1", "seed: 1.5"),
                                       r"simulation\.noise\.seed = 1\.5: must be a whole number")
+CONFIG_CASES["whole number written as a float"] = (_edit("dt: auto", "dt: auto\n  max_samples: 20000.0"),
+                                                  r"simulation\.max_samples = 20000\.0: must be a whole number; "
+                                                  r"write 20000$")
 CONFIG_CASES["too few samples"] = (_edit("dt: auto", "dt: auto\n  max_samples: 1"),
                                    r"simulation\.max_samples = 1: must be at least 2")
 
