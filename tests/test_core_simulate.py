@@ -164,18 +164,24 @@ def test_a_cached_library_loads_without_building_casadi_functions(loop, monkeypa
     np.testing.assert_array_equal(first.x, again.x)
 
 
-def test_the_compile_cache_key_follows_what_the_source_is_made_from(tmp_path, monkeypatch):
-    """A hit skips generating the source; another key (variant, or generator edited) recompiles."""
-    compiler = codegen.find_compiler()
-    if compiler is None:
-        pytest.skip("no C compiler")
-    monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path))
+def _counting_source():
+    """A tiny C source, and the list that records each time it was generated."""
     made = []
 
     def source():
         made.append(1)
         return "double qc_answer(void) { return 42.0; }\n"
 
+    return source, made
+
+
+def test_the_compile_cache_key_follows_what_the_source_is_made_from(tmp_path, monkeypatch):
+    """A hit skips generating the source; another key (variant, or generator edited) recompiles."""
+    compiler = codegen.find_compiler()
+    if compiler is None:
+        pytest.skip("no C compiler")
+    monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path))
+    source, made = _counting_source()
     flags = ("-O1", "-fPIC", "-shared")
     one = codegen.compile_cached(source, flags, compiler, "t", "fingerprint variant")
     assert codegen.compile_cached(source, flags, compiler, "t", "fingerprint variant") == one and len(made) == 1
@@ -193,12 +199,7 @@ def test_threads_compiling_the_same_library_all_get_it(tmp_path, monkeypatch):
     if compiler is None:
         pytest.skip("no C compiler")
     monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path))
-    made = []
-
-    def source():
-        made.append(1)
-        return "double qc_answer(void) { return 42.0; }\n"
-
+    source, made = _counting_source()
     with ThreadPoolExecutor(4) as pool:
         paths = list(pool.map(lambda _: codegen.compile_cached(source, ("-O1", "-fPIC", "-shared"), compiler,
                                                                "t", "same"), range(4)))

@@ -42,6 +42,7 @@ the reference on a common grid of :data:`MC_POINTS` times, and the run directory
 
 Modules, each importing only those above it:
 
+- :mod:`~quadctl.sweep.gates`: the metrics of a case, the gates on them, verdict and ranking
 - :mod:`~quadctl.sweep.spec`: the sweep file (parameters, values, gates) parsed and checked
 - :mod:`~quadctl.sweep.evaluate`: a chunk of cases designed and simulated together
 - :mod:`~quadctl.sweep.runner`: chunks on local processes or a Dask cluster
@@ -50,25 +51,15 @@ Modules, each importing only those above it:
 """
 
 from quadctl.sweep.evaluate import MC_POINTS, ChunkResult, ChunkTask, evaluate_chunk, structural_pattern
+from quadctl.sweep.gates import Gate, judge, margin, metric_columns, regulated_states
 from quadctl.sweep.outputs import MonteCarloBands, montecarlo_bands, summarize, to_csv
 from quadctl.sweep.runner import SweepResult, run
-from quadctl.sweep.spec import (
-    Case,
-    Gate,
-    Parameter,
-    SweepSpec,
-    assign,
-    from_dict,
-    judge,
-    load,
-    parse,
-    regulated_states,
-)
+from quadctl.sweep.spec import Case, Parameter, SweepSpec, assign, from_dict, load, parse
 from quadctl.sweep.store import PARTS, SweepOutcome, SweepStore, execute
 
 __all__ = [
     "MC_POINTS", "PARTS", "Case", "ChunkResult", "ChunkTask", "Gate", "MonteCarloBands", "Parameter",
     "SweepOutcome", "SweepResult", "SweepSpec", "SweepStore", "assign", "evaluate_chunk", "execute",
-    "from_dict", "judge", "load", "montecarlo_bands", "parse", "regulated_states", "run",
+    "from_dict", "judge", "load", "margin", "metric_columns", "montecarlo_bands", "parse", "regulated_states", "run",
     "structural_pattern", "summarize", "to_csv",
 ]

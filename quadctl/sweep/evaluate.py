@@ -12,7 +12,8 @@ import numpy as np
 
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.sweep.spec import assign, judge
+from quadctl.sweep.gates import judge
+from quadctl.sweep.spec import assign
 
 MC_POINTS = 201
 """A Monte Carlo case keeps its regulated states at this many evenly spaced times (float32): with

@@ -17,7 +17,8 @@ import numpy as np
 
 from quadctl.errors import QuadctlError, SweepError
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk, is_plain, structural_pattern
-from quadctl.sweep.spec import Case, SweepSpec, assign, margin, metric_columns, regulated_states
+from quadctl.sweep.gates import margin, metric_columns, regulated_states
+from quadctl.sweep.spec import Case, SweepSpec, assign
 
 
 @dataclass

@@ -12,6 +12,7 @@ import numpy as np
 from quadctl.errors import SweepError
 from quadctl.layout import unit_of
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS
+from quadctl.sweep.gates import regulated_states
 from quadctl.sweep.outputs import (
     MC_FILES,
     MonteCarloBands,
@@ -22,7 +23,7 @@ from quadctl.sweep.outputs import (
     tradeoff_png,
 )
 from quadctl.sweep.runner import SweepResult, base_of, run
-from quadctl.sweep.spec import SweepSpec, _lookup, regulated_states
+from quadctl.sweep.spec import SweepSpec, _lookup
 
 PARTS = "sweep.parts"
 """Folder of the run directory holding the finished chunks (the journal ``--resume`` reads)."""

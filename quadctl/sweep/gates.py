@@ -1,0 +1,102 @@
+"""The metrics a sweep case reports, and the gates on them: thresholds, verdicts, ranking."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
+
+
+@dataclass(frozen=True)
+class Gate:
+    """A threshold on one metric: ``min <= value <= max``, or ``value == equals``."""
+
+    metric: str
+    min: float | None = None
+    max: float | None = None
+    equals: Any = None
+
+    def passes(self, value) -> bool:
+        """A missing value (never settled, no design) fails every gate."""
+        if self.equals is not None:
+            return value == self.equals
+        if value is None or isinstance(value, (bool, str)):
+            return False
+        if self.min is not None and not value >= self.min:
+            return False
+        if self.max is not None and not value <= self.max:
+            return False
+        return True
+
+    def slack(self, value) -> float:
+        """How far inside the gate ``value`` is, relative to the threshold (negative: outside)."""
+        if self.equals is not None:
+            return 0.0 if value == self.equals else -math.inf
+        if value is None or isinstance(value, (bool, str)) or not math.isfinite(value):
+            return -math.inf
+        slack = math.inf
+        for bound, sign in ((self.max, 1.0), (self.min, -1.0)):
+            if bound is not None:
+                slack = min(slack, sign * (bound - value) / max(abs(bound), 1e-12))
+        return slack
+
+    def describe(self) -> str:
+        if self.equals is not None:
+            return f"{self.metric} == {json.dumps(self.equals)}"
+        parts = ([f"{self.min:g} <="] if self.min is not None else []) + [self.metric] + \
+                ([f"<= {self.max:g}"] if self.max is not None else [])
+        return " ".join(parts)
+
+
+def metric_columns(cfg) -> list[str]:
+    """The metric columns of a sweep of ``cfg``, in table order.
+
+    ``stable`` (coupled linear closed loop), ``eig.fastest`` / ``eig.slowest`` (most negative and
+    largest real part of its eigenvalues, marginal position modes left out; rad/s), then per
+    regulated state ``settling_time.<state>`` (s, 2 % band) and ``overshoot.<state>`` (%), per
+    input ``peak.<input>`` (max |u|: N or N m), ``cost`` (the LQR cost integral), ``status``
+    (the simulation's: ok, diverged, left_valid_range; or why the case has no simulation),
+    ``dt`` (s) and ``steps``.
+    """
+    states = regulated_states(cfg)
+    return (["stable", "eig.fastest", "eig.slowest"] + [f"settling_time.{s}" for s in states]
+            + [f"overshoot.{s}" for s in states] + [f"peak.{i}" for i in INPUT_NAMES]
+            + ["cost", "status", "dt", "steps"])
+
+
+def regulated_states(cfg) -> list[str]:
+    """The states of the config's regulated subsystems, in state order."""
+    regulated = {s for sub in cfg.partition().values() if sub.regulate for s in sub.states}
+    return [s for s in STATE_NAMES if s in regulated]
+
+
+def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:
+    """Whether a row passes, and what it fails (gate descriptions, or why it has no result)."""
+    failed = []
+    if require_ok:
+        if row.get("status") != "ok":
+            failed.append(f"status {row.get('status')}")
+        elif row.get("stable") is False:
+            failed.append("unstable on the coupled model")
+    for gate in gates:
+        if not gate.passes(row.get(gate.metric)):
+            value = row.get(gate.metric)
+            shown = "none" if value is None else (f"{value:.4g}" if isinstance(value, float) else str(value))
+            failed.append(f"{gate.describe()} (got {shown})")
+    return not failed, failed
+
+
+def margin(row: dict, gates, require_ok: bool) -> float:
+    """How well a row passes: the smallest relative slack over its gates (-inf: no result).
+
+    Without gates, the negative LQR cost (lower cost ranks better).
+    """
+    if require_ok and (row.get("status") != "ok" or row.get("stable") is False):
+        return -math.inf
+    if not gates:
+        cost = row.get("cost")
+        return -cost if isinstance(cost, (int, float)) and math.isfinite(cost) else -math.inf
+    return min(g.slack(row.get(g.metric)) for g in gates)
