@@ -241,3 +241,10 @@ def test_vectorized_step_limits_agree_with_the_scan():
     assert worst < 1e-12, f"Max diff is {worst:.4E}"
     with pytest.raises(StepSizeError, match="is unstable for RK4"):  # limits given by a batch
         plan_step(eig[:3], ["x"] * 3, 2.0, 10.0, limits=fast[:3])
+
+
+def test_the_config_default_of_max_samples_is_the_library_default():
+    from quadctl.config import SimulationConfig
+    from quadctl.simulate import MAX_SAMPLES
+
+    assert SimulationConfig().max_samples == MAX_SAMPLES
