@@ -36,7 +36,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from importlib import metadata, resources
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -402,6 +402,8 @@ def casadi_stamp() -> str:
             return f"{spec.origin} {info.st_size} {info.st_mtime_ns}"
     except OSError:
         pass
+    from importlib import metadata  # ~10 ms: only for installs the path finder cannot see
+
     try:
         return f"casadi {metadata.version('casadi')}"
     except metadata.PackageNotFoundError:
