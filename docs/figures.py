@@ -16,6 +16,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from quadctl import config, margins, motors, pipeline, plots
+from quadctl.setup import resolve
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
 
 OUT = Path(__file__).resolve().parent / "figures"
@@ -23,13 +24,13 @@ MAMBO = motors.Motors()
 
 
 def solve(data: dict):
-    cfg = config.from_dict(data, "<docs>")
-    trim = pipeline.trim_of(cfg)
-    linear = pipeline.linear_of(cfg, trim)
-    dec = pipeline.decoupled_of(cfg, linear)
-    des = pipeline.design_of(cfg, dec, linear)
-    loop = pipeline.loop_of(cfg, linear, des, pipeline.reference_rate(trim))
-    return cfg, linear, dec, des, loop, pipeline.simulation_of(cfg, loop)
+    setup = resolve(config.from_dict(data, "<docs>"))
+    trim = pipeline.trim_of(setup)
+    linear = pipeline.linear_of(setup, trim)
+    dec = pipeline.decoupled_of(setup, linear)
+    des = pipeline.design_of(setup, dec, linear)
+    loop = pipeline.loop_of(setup, linear, des)
+    return setup, linear, dec, des, loop, pipeline.simulation_of(setup, loop)
 
 
 def variant(name: str, **changes) -> dict:

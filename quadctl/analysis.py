@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STABILITY_MARGIN = 1e-9
-"""An eigenvalue with ``Re >= -STABILITY_MARGIN * max(1, |lambda|)`` counts as not stable (rad/s)."""
+from quadctl.stability import STABILITY_MARGIN, is_stable  # noqa: F401 (STABILITY_MARGIN: re-exported)
+
 RICCATI_RTOL = 1e-8
 """Largest accepted ``|CARE residual| / (|Q| + |A^T P| + |P B R^-1 B^T P|)`` (relative), for every
 continuous Riccati solution quadctl uses (:func:`quadctl.lqr.lqr`, :func:`quadctl.batch.care`)."""
@@ -96,10 +96,6 @@ def obsv(A, C) -> np.ndarray:
     """Kalman observability matrix ``[C; CA; ...; C A^(n-1)]``, shape (n p, n)."""
     return ctrb(np.asarray(A).T, np.asarray(C).T).T
 
-
-def is_stable(eig: complex) -> bool:
-    """Strictly in the open left half-plane, with the margin ``STABILITY_MARGIN``."""
-    return eig.real < -STABILITY_MARGIN * max(1.0, abs(eig))
 
 
 def pbh(A, M, names, *, dual: bool = False) -> tuple[ModeTest, ...]:

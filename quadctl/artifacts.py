@@ -75,7 +75,8 @@ def _atomic_write(path: Path, data: bytes) -> None:
         raise ArtifactError(f"{path.parent}: cannot write artifacts there ({exc.strerror}); "
                             "choose another --out folder") from None
     try:
-        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; artifacts are shared like any file
+        if hasattr(os, "fchmod"):  # not on Windows before Python 3.13
+            os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; artifacts are shared like any file
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()

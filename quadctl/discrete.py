@@ -28,13 +28,12 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.errors import DesignError
+from quadctl.stability import UNIT_CIRCLE_MARGIN, is_stable
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
 DARE_RTOL = 1e-8
 """Largest accepted relative DARE residual (same meaning as ``lqr.RICCATI_RTOL``)."""
-UNIT_CIRCLE_MARGIN = 1e-9
-"""A discrete eigenvalue with ``|z| >= 1 - UNIT_CIRCLE_MARGIN`` counts as not stable."""
 SAMPLES_PER_POLE = 10.0
 """A sampled loop realizes a closed-loop pole ``s`` when ``|s| <= 2 pi rate / SAMPLES_PER_POLE``:
 the rule of thumb of sampling at least ten times the fastest closed-loop frequency (Franklin,
@@ -214,8 +213,8 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system") -> DlqrResult:
 
 
 def is_stable_z(z: complex) -> bool:
-    """Strictly inside the unit circle, with the margin ``UNIT_CIRCLE_MARGIN``."""
-    return abs(z) < 1.0 - UNIT_CIRCLE_MARGIN
+    """Strictly inside the unit circle (:func:`quadctl.stability.is_stable`, discrete)."""
+    return is_stable(z, discrete=True)
 
 
 def s_equivalent(z, Ts: float) -> np.ndarray:

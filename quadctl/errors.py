@@ -42,3 +42,10 @@ class DesignError(CheckFailed, ValueError):
 
 class StepSizeError(QuadctlError, ValueError):
     """A fixed step that RK4 cannot hold stable for the closed loop."""
+
+
+class QuadctlNotice(UserWarning):
+    """Something the user should know that does not stop the run (a fallback, a default taken).
+
+    The library issues it with :func:`warnings.warn`; the CLI prints it as one ``notice`` line.
+    """

@@ -25,10 +25,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from quadctl import discrete, integral
+from quadctl import discrete, integral, stability
 from quadctl._lazy import lazy_import
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.lqr import _solve_subsystem, closed_loop_matrix, closed_loop_stability
+from quadctl.lqr import _solve_subsystem, closed_loop_matrix
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -118,7 +118,8 @@ def full_design(design, A, B) -> FullDesign:
     K[:, keep] = K_red
     Ki = Ki.reshape(N_INPUTS, nz)
     A_cl = closed_loop_matrix(A, B, K, Ki, design.integral_states, design.sample_time)
-    eig, _, stable = closed_loop_stability(A_cl, K, sample_time=design.sample_time)
+    verdict = stability.assess(A_cl, K, sample_time=design.sample_time)
+    eig, stable = verdict.eigenvalues, verdict.stable
     return FullDesign(K=K, Ki=Ki, integral_states=design.integral_states, states=states, left_out=left_out,
                       Q=Q, R=R, P=P, eigenvalues=eig, stable=stable, rate=design.rate, residual=residual)
 

@@ -8,7 +8,7 @@ for the integrated states ``x_I = C x``; the regulator ``u = -[Kx, Ki] [x; z]`` 
 Discrete time (a controller at ``rate`` Hz, MATLAB ``lqi`` on a discrete plant): the integrator
 is the forward-Euler accumulator ``z[k+1] = z[k] - Ts (x_I[k] - x_I,ref)``, so the augmented
 ZOH plant is ``[[Ad, 0], [-Ts C, I]]``, ``[[Bd], [0]]``. The simulation runs exactly this
-accumulator (:mod:`quadctl.codegen`), so the design model and the implementation agree.
+accumulator (:mod:`quadctl.sim.builder`), so the design model and the implementation agree.
 
 A constant disturbance or a model error (a mass 10 % off) leaves a steady error ``e`` in plain
 LQR; with the integrator, a steady state needs ``dz/dt = 0``, that is ``e = 0`` for every
@@ -32,14 +32,15 @@ def augment(A, B, C) -> tuple[np.ndarray, np.ndarray]:
 
     Parameters
     ----------
-    A : (n, n) array_like
-    B : (n, m) array_like
+    A : (..., n, n) array_like
+    B : (..., n, m) array_like
+        Leading dimensions (a stack of plants) broadcast.
     C : (ni, n) array_like
         Selects the integrated states.
 
     Returns
     -------
-    (n + ni, n + ni) ndarray, (n + ni, m) ndarray
+    (..., n + ni, n + ni) ndarray, (..., n + ni, m) ndarray
 
     Examples
     --------
@@ -48,20 +49,22 @@ def augment(A, B, C) -> tuple[np.ndarray, np.ndarray]:
     ([[0.0, 0.0], [-1.0, 0.0]], [[1.0], [0.0]])
     """
     A, B, C = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, C))
-    n, m = B.shape
+    n, m = B.shape[-2:]
     ni = C.shape[0] if C.size else 0
-    Aa = np.zeros((n + ni, n + ni))
-    Aa[:n, :n] = A
-    Aa[n:, :n] = -C[:ni]
-    Ba = np.vstack([B, np.zeros((ni, m))])
+    lead = np.broadcast_shapes(A.shape[:-2], B.shape[:-2])
+    Aa = np.zeros((*lead, n + ni, n + ni))
+    Aa[..., :n, :n] = A
+    Aa[..., n:, :n] = -C[:ni]
+    Ba = np.zeros((*lead, n + ni, m))
+    Ba[..., :n, :] = B
     return Aa, Ba
 
 
 def augment_discrete(Ad, Bd, C, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     """Discrete LQI plant with the forward-Euler accumulator: ``([[Ad, 0], [-Ts C, I]], [[Bd], [0]])``."""
     Aa, Ba = augment(Ad, Bd, np.asarray(C, dtype=float) * Ts)
-    n = np.atleast_2d(Ad).shape[0]
-    Aa[n:, n:] = np.eye(Aa.shape[0] - n)
+    n = np.atleast_2d(Ad).shape[-1]
+    Aa[..., n:, n:] = np.eye(Aa.shape[-1] - n)
     return Aa, Ba
 
 
@@ -74,16 +77,18 @@ def discrete_weights(Qd, Nd, Q, Ts: float) -> tuple[np.ndarray, np.ndarray]:
 
     Parameters
     ----------
-    Qd : (n, n) array_like
-    Nd : (n, m) array_like
-    Q : (n + ni, n + ni) array_like
-        The continuous weight of ``[x; z]`` from the config.
+    Qd : (..., n, n) array_like
+    Nd : (..., n, m) array_like
+    Q : (..., n + ni, n + ni) array_like
+        The continuous weight of ``[x; z]`` from the config. Leading dimensions broadcast.
     Ts : float
         s.
     """
     Qd, Nd, Q = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (Qd, Nd, Q))
-    n = Qd.shape[0]
-    Qa = np.asarray(Q, dtype=float) * Ts
-    Qa[:n, :n] = Qd
-    Na = np.vstack([Nd, np.zeros((Q.shape[0] - n, Nd.shape[1]))])
+    n, m = Nd.shape[-2:]
+    lead = np.broadcast_shapes(Qd.shape[:-2], Nd.shape[:-2], Q.shape[:-2])
+    Qa = np.broadcast_to(Q * Ts, (*lead, *Q.shape[-2:])).copy()
+    Qa[..., :n, :n] = Qd
+    Na = np.zeros((*lead, Q.shape[-1], m))
+    Na[..., :n, :] = Nd
     return Qa, Na

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl.layout import POSITION
 from quadctl.model import Vehicle, build_model
 
 
@@ -19,12 +20,17 @@ class LinearModel:
     B : (12, 4) ndarray
     x_trim : (12,) ndarray
     u_trim : (4,) ndarray
+    x_rate : (12,) ndarray
+        Drift of the operating point: the trim's position rates (its earth velocity, m/s),
+        zero elsewhere. Position is not an equilibrium in forward flight; the reference the
+        controller regulates to is ``x_trim + x_rate t``.
     """
 
     A: np.ndarray
     B: np.ndarray
     x_trim: np.ndarray
     u_trim: np.ndarray
+    x_rate: np.ndarray
 
     def __iter__(self):
         return iter((self.A, self.B))
@@ -45,6 +51,10 @@ def linearize(x_trim, u_trim, vehicle: Vehicle) -> LinearModel:
     """
     x_trim = np.asarray(x_trim, dtype=float)
     u_trim = np.asarray(u_trim, dtype=float)
-    a, b = build_model().jacobians(x_trim, u_trim, vehicle.vector())
+    model = build_model()
+    a, b = model.jacobians(x_trim, u_trim, vehicle.vector())
+    xdot = np.asarray(model.f(x_trim, u_trim, vehicle.vector()), dtype=float).ravel()
+    x_rate = np.zeros_like(xdot)
+    x_rate[POSITION] = xdot[POSITION]
     return LinearModel(A=np.asarray(a, dtype=float), B=np.asarray(b, dtype=float),
-                       x_trim=x_trim, u_trim=u_trim)
+                       x_trim=x_trim, u_trim=u_trim, x_rate=x_rate)

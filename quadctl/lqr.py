@@ -15,13 +15,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from quadctl import discrete, integral
+from quadctl import discrete, integral, stability
 from quadctl._lazy import lazy_import
 from quadctl.analysis import RICCATI_RTOL, check, is_stable
 from quadctl.batch import care as care_stacked
 from quadctl.decouple import Decoupled
 from quadctl.errors import DesignError
-from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_NAMES
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -234,6 +234,8 @@ class Design:
     Ki_block: np.ndarray = field(default_factory=lambda: np.zeros((N_INPUTS, 0)))
     integral_states: tuple[str, ...] = ()
     full_eigenvalues_z: np.ndarray | None = None
+    core_eigenvalues: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
+    """``full_eigenvalues`` without the marginal modes (:mod:`quadctl.stability`): what ``stable`` is about."""
 
     @property
     def sample_time(self) -> float | None:
@@ -303,11 +305,11 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
                                     Ki=Ki if ints else None, eigenvalues_z=eig_z))
     Ki_block = np.array(ki_columns).T.reshape(N_INPUTS, len(ki_columns))
     A_cl = closed_loop_matrix(A, B, K_block, Ki_block, tuple(integral_states), Ts)
-    eig, marginal, stable = closed_loop_stability(A_cl, K_block, sample_time=Ts)
+    verdict = stability.assess(A_cl, K_block, sample_time=Ts)
     return Design(subsystems=tuple(subs), K_block=K_block, Q_block=Q_block, R_block=R_block,
-                  full_eigenvalues=eig, marginal_states=marginal, stable=stable, rate=rate,
-                  Ki_block=Ki_block, integral_states=tuple(integral_states),
-                  full_eigenvalues_z=None if Ts is None else np.linalg.eigvals(A_cl))
+                  full_eigenvalues=verdict.eigenvalues, marginal_states=verdict.marginal, stable=verdict.stable,
+                  rate=rate, Ki_block=Ki_block, integral_states=tuple(integral_states),
+                  full_eigenvalues_z=verdict.eigenvalues_z, core_eigenvalues=verdict.core)
 
 
 def _solve_subsystem(sub, Q, R, ints, Ts):
@@ -349,32 +351,6 @@ def closed_loop_matrix(A, B, K, Ki=None, integral_states=(), sample_time=None) -
         top = np.hstack([Ad - Bd @ K, -Bd @ Ki])
         bottom = np.hstack([-sample_time * C, np.eye(nz)])
     return np.vstack([top, bottom])
-
-
-def closed_loop_stability(A_cl, K, *, sample_time: float | None = None
-                          ) -> tuple[np.ndarray, tuple[str, ...], bool]:
-    """Eigenvalues of the coupled closed loop, and whether it is stable.
-
-    Position states that no gain feeds back and that nothing depends on (zero columns of
-    ``A_cl``: translation invariance) add exact zero eigenvalues; they are reported as
-    marginal and excluded from the verdict. Every other eigenvalue must be stable.
-
-    ``A_cl`` may carry integrator states after the 12 plant states. With ``sample_time`` it is a
-    discrete loop: such a position has a unit column (eigenvalue ``z = 1``), stability means
-    ``|z| < 1``, and the eigenvalues are returned as ``ln(z) / Ts`` (rad/s).
-    """
-    A_cl = np.asarray(A_cl, dtype=float)
-    size = A_cl.shape[0]
-    eig = np.linalg.eigvals(A_cl)
-    drift = A_cl - np.eye(size) if sample_time is not None else A_cl
-    marginal = tuple(s for s in POSITION_STATES
-                     if not np.any(K[:, STATE_INDEX[s]]) and not np.any(drift[:, STATE_INDEX[s]]))
-    keep = [i for i in range(size) if i >= N_STATES or STATE_NAMES[i] not in marginal]
-    core = np.linalg.eigvals(A_cl[np.ix_(keep, keep)])
-    if sample_time is None:
-        return eig, marginal, bool(all(is_stable(e) for e in core))
-    return (discrete.s_equivalent(eig, sample_time), marginal,
-            bool(all(discrete.is_stable_z(z) for z in core)))
 
 
 def _fmt_eig(e: complex) -> str:

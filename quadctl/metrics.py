@@ -85,3 +85,87 @@ def summarize(sim, u_trim, Q, R, regulated_states) -> dict:
     out["cost"] = cost if math.isfinite(cost) else None
     out["status"] = sim.status
     return out
+
+
+def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status) -> dict:
+    """:func:`summarize` of one run, vectorized over the states (what a sweep's lanes use).
+
+    Same definitions and the same numbers (the cost integral to round-off: its quadratic forms
+    are summed term by term over the nonzeros of ``Q`` and ``R`` instead of by ``einsum``),
+    several times faster on 10 000 samples. Works on the state-major transposes, where every
+    reduction runs along contiguous memory, and calls no BLAS (whose threads would fight the
+    sweep's worker processes for the cores).
+
+    Parameters
+    ----------
+    t : (r,) ndarray
+        s.
+    x : (r, 12) ndarray
+        Any memory layout; ``x.T`` contiguous is fastest.
+    x_ref : (r, 12) ndarray, or a pair ``(x_trim (12,), x_rate (12,))``
+        The reference, or what makes it: ``x_trim + x_rate t`` (cheaper than building it).
+    u : (r, 4) ndarray
+    u_trim : (4,) ndarray
+    Q : (12, 12) ndarray
+    R : (4, 4) ndarray
+    regulated_states : iterable of str
+    status : str
+
+    Returns
+    -------
+    dict
+        The keys of :func:`quadctl.metrics.summarize`.
+    """
+    t = np.asarray(t, dtype=float)
+    if isinstance(x_ref, tuple):
+        x_trim, x_rate = (np.asarray(a, dtype=float) for a in x_ref)
+        err = np.asarray(x).T - x_trim[:, None]           # (12, r)
+        for i in np.nonzero(x_rate)[0]:
+            err[i] -= x_rate[i] * t
+    else:
+        err = np.asarray(x).T - np.asarray(x_ref).T      # (12, r)
+    du = np.asarray(u).T - np.asarray(u_trim)[:, None]   # (4, r)
+    n = err.shape[1]
+    mag = np.abs(err)
+    peak = mag.max(axis=1)
+    regulated = set(regulated_states)
+    out: dict = {"settling_time": {}, "overshoot": {}, "peak_error": {}, "final_error": {}}
+    band = np.maximum(SETTLING_BAND * peak, ERROR_FLOOR)
+    outside = mag > band[:, None]
+    any_out = outside.any(axis=1)
+    last = n - 1 - np.argmax(outside[:, ::-1], axis=1)
+    e0 = err[:, 0]
+    # max(-sign(e0) e) without the product: -min(e) where e0 > 0, max(e) where e0 < 0 (exact)
+    past = np.where(e0 > 0, -err.min(axis=1), np.where(e0 < 0, err.max(axis=1), 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        over = np.maximum(0.0, past) / np.abs(e0) * 100.0
+    for i, name in enumerate(STATE_NAMES):
+        out["peak_error"][name] = float(peak[i])
+        out["final_error"][name] = float(err[i, -1])
+        if name in regulated:
+            if peak[i] <= ERROR_FLOOR or not any_out[i]:
+                settle = 0.0
+            elif last[i] == n - 1:
+                settle = None
+            else:
+                settle = float(t[last[i] + 1])
+            out["settling_time"][name] = settle
+            out["overshoot"][name] = None if abs(e0[i]) <= ERROR_FLOOR else float(over[i])
+    out["peak"] = {name: float(v) for name, v in zip(INPUT_NAMES, np.abs(np.asarray(u).T).max(axis=1))}
+    with np.errstate(all="ignore"):
+        integrand = _quadratic(err, np.asarray(Q, dtype=float)) + _quadratic(du, np.asarray(R, dtype=float))
+        cost = float(np.sum((integrand[1:] + integrand[:-1]) * np.diff(t)) / 2) if n > 1 else 0.0
+    out["cost"] = cost if math.isfinite(cost) else None
+    out["status"] = status
+    return out
+
+
+def _quadratic(vT: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """``v_k^T M v_k`` for each column ``v_k`` of ``vT`` (n, r), summed over the nonzeros of ``M``."""
+    acc = np.zeros(vT.shape[1])
+    term = np.empty(vT.shape[1])
+    for i, j in zip(*np.nonzero(M)):
+        np.multiply(vT[i], vT[j], out=term)
+        term *= M[i, j]
+        acc += term
+    return acc

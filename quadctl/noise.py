@@ -10,9 +10,10 @@ accurately instead of drawing a different one.
 - Sensor noise: added to the state the controller measures (state units); the plant is not
   touched, the controller acts on what it sees.
 
-Both arrays are drawn from one ``numpy.random.default_rng(seed)`` stream in a fixed order
-(all process samples, then all sensor samples, full width), so enabling one kind of noise does
-not change the other's realization. The same seed and numpy version give an identical run.
+Process and sensor noise are drawn from two independent streams spawned from the seed, in
+sample order, as the run needs them (:class:`NoiseStream`): enabling one kind of noise does not
+change the other's realization, and a day of flight never holds a day of noise in memory. The
+same seed and numpy version give an identical run.
 """
 
 from __future__ import annotations
@@ -64,23 +65,54 @@ class NoiseSpec:
         return bool(np.any(self.process_std > 0) or np.any(self.sensor_std > 0))
 
 
-def realize(spec: NoiseSpec, n: int, dt: float) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Per-step disturbance and measurement noise arrays for ``n`` RK4 steps of ``dt``.
+class NoiseStream:
+    """The noise samples of a spec, drawn in order as a run needs them (memory bounded by a chunk).
 
-    Returns
-    -------
-    dist : (n, 6) ndarray or None
-        None when there is no process noise.
-    meas : (n, 12) ndarray or None
-        None when there is no sensor noise.
+    Sample ``j`` (held over ``[j period, (j + 1) period)``) is one row of :data:`quadctl.sim.builder.EXO_LAYOUT`:
+    the body force and torque (N, N m), then the sensor noise of the 12 states. Process and
+    sensor noise come from two independent streams spawned from the seed
+    (``numpy.random.SeedSequence(seed).spawn(2)``), so enabling one does not change the other,
+    and the realization does not depend on how a run is cut into chunks, nor on the RK4 step.
     """
-    samples = int(math.floor((max(n, 1) - 1) * dt / spec.period + 1e-9)) + 1
-    rng = np.random.default_rng(spec.seed)
-    process = rng.standard_normal((samples, N_DISTURBANCES)) * spec.process_std
-    sensor = rng.standard_normal((samples, N_STATES)) * spec.sensor_std
-    index = np.minimum(np.floor(np.arange(n) * dt / spec.period + 1e-9).astype(np.int64), samples - 1)
-    dist = np.ascontiguousarray(process[index]) if np.any(spec.process_std > 0) else None
-    meas = np.ascontiguousarray(sensor[index]) if np.any(spec.sensor_std > 0) else None
+
+    def __init__(self, spec: NoiseSpec):
+        self.spec = spec
+        process, sensor = np.random.SeedSequence(spec.seed).spawn(2)
+        self._process = np.random.default_rng(process)
+        self._sensor = np.random.default_rng(sensor)
+        self._first = 0
+        self._rows = np.zeros((0, N_DISTURBANCES + N_STATES))
+
+    def samples(self, first: int, last: int) -> np.ndarray:
+        """Rows ``first .. last`` (inclusive); ``first`` never goes back before an earlier call's."""
+        if first < self._first:
+            raise ValueError(f"noise sample {first} was already dropped (stream at {self._first})")
+        have = self._first + len(self._rows)
+        if last >= have:
+            count = last + 1 - have
+            fresh = np.hstack([self._process.standard_normal((count, N_DISTURBANCES)) * self.spec.process_std,
+                               self._sensor.standard_normal((count, N_STATES)) * self.spec.sensor_std])
+            self._rows = np.vstack([self._rows, fresh])
+        self._rows = self._rows[first - self._first:]
+        self._first = first
+        return self._rows[:last + 1 - first]
+
+    def rows(self, k0: int, m: int, dt: float) -> tuple[int, np.ndarray]:
+        """(first sample index, rows) covering RK4 steps ``k0 .. k0 + m - 1`` of ``dt``."""
+        index = np.floor(np.array([k0, k0 + max(m, 1) - 1], dtype=float) * dt / self.spec.period + 1e-9)
+        first, last = int(index[0]), int(index[1])
+        return first, self.samples(first, last)
+
+
+def realize(spec: NoiseSpec, n: int, dt: float) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Per-step disturbance (n, 6) and sensor noise (n, 12) of ``n`` RK4 steps of ``dt`` (None where
+    that noise is off): what :class:`NoiseStream` gives a run, step by step (for tests and plots)."""
+    stream = NoiseStream(spec)
+    first, rows = stream.rows(0, n, dt)
+    index = np.floor(np.arange(n) * dt / spec.period + 1e-9).astype(np.int64) - first
+    per_step = rows[np.minimum(index, len(rows) - 1)]
+    dist = np.ascontiguousarray(per_step[:, :N_DISTURBANCES]) if np.any(spec.process_std > 0) else None
+    meas = np.ascontiguousarray(per_step[:, N_DISTURBANCES:]) if np.any(spec.sensor_std > 0) else None
     return dist, meas
 
 

@@ -1,6 +1,7 @@
-"""The stages chained from a config: pure functions, no I/O.
+"""The stages chained from a resolved :class:`~quadctl.setup.Setup`: pure functions, no I/O.
 
-Each takes the config (and upstream results) and returns the stage's result object.
+Each takes the setup (and upstream results) and returns the stage's result object; nothing here
+reads the config (:func:`quadctl.setup.resolve` did, once).
 """
 
 from __future__ import annotations
@@ -8,34 +9,26 @@ from __future__ import annotations
 import numpy as np
 
 from quadctl.analysis import Checks, check
-from quadctl.config import Config, weight_matrix
 from quadctl.decouple import Decoupled, decouple
-from quadctl.layout import INPUT_NAMES, POSITION_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
 from quadctl.linearize import LinearModel, linearize
 from quadctl.lqr import Design, closed_loop_matrix, design
-from quadctl.model import Vehicle
-from quadctl.motors import Actuators, Motors, actuators_of, check_trim
-from quadctl.noise import NoiseSpec
+from quadctl.motors import check_trim
+from quadctl.setup import Setup
 from quadctl.simulate import ClosedLoop, SimResult, eigen_owners, simulate
 from quadctl.trim import Trim, solve_trim
 
 
-def vehicle_of(cfg: Config) -> Vehicle:
-    v = cfg.vehicle
-    return Vehicle(mass=v.mass, gravity=v.gravity, inertia=tuple(v.inertia), drag=tuple(v.drag))
+def trim_of(setup: Setup) -> Trim:
+    return solve_trim(setup.velocity_ned, setup.yaw, setup.position_ned, setup.vehicle)
 
 
-def trim_of(cfg: Config) -> Trim:
-    t = cfg.trim
-    return solve_trim(t.velocity_ned, t.yaw, t.position_ned, vehicle_of(cfg))
+def linear_of(setup: Setup, trim: Trim) -> LinearModel:
+    return linearize(trim.x, trim.u, setup.vehicle)
 
 
-def linear_of(cfg: Config, trim: Trim) -> LinearModel:
-    return linearize(trim.x, trim.u, vehicle_of(cfg))
-
-
-def decoupled_of(cfg: Config, linear: LinearModel) -> Decoupled:
-    return decouple(linear.A, linear.B, cfg.partition())
+def decoupled_of(setup: Setup, linear: LinearModel) -> Decoupled:
+    return decouple(linear.A, linear.B, setup.partition)
 
 
 def checks_of(decoupled: Decoupled, linear: LinearModel) -> dict[str, Checks]:
@@ -45,130 +38,45 @@ def checks_of(decoupled: Decoupled, linear: LinearModel) -> dict[str, Checks]:
     return out
 
 
-def weights_of(cfg: Config) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    return {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()}
+def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, *, rate: float | None | str = "setup") -> Design:
+    """The decoupled LQR design at the setup's design rate (``rate`` overrides it; None: continuous)."""
+    return design(decoupled, linear.A, linear.B, setup.weights,
+                  rate=setup.timing.design_rate if rate == "setup" else rate, integral=setup.integral)
 
 
-def weights_block(cfg: Config) -> tuple[np.ndarray, np.ndarray]:
-    """(Q_block (12, 12), R_block (4, 4)): the subsystems' weights on the plant states and inputs.
+def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.ndarray | None = None,
+                   integral_states=()) -> ClosedLoop:
+    """The loop to simulate: gains ``K`` (and an LQI design's ``Ki``, ``integral_states``) on the
+    setup's plant, timing and actuators.
 
-    An LQI subsystem's Q also weighs its integrators; only its plant-state block is kept here
-    (the cost the metrics report is on the plant).
-    """
-    Q = np.zeros((len(STATE_NAMES),) * 2)
-    R = np.zeros((len(INPUT_NAMES),) * 2)
-    weights = weights_of(cfg)
-    for name, sub in cfg.partition().items():
-        if name in weights:
-            si = [STATE_NAMES.index(s) for s in sub.states]
-            ii = [INPUT_NAMES.index(i) for i in sub.inputs]
-            Qw, Rw = weights[name]
-            Q[np.ix_(si, si)] = Qw[:len(si), :len(si)]
-            R[np.ix_(ii, ii)] = Rw
-    return Q, R
-
-
-def design_rate(cfg: Config) -> float | None:
-    """Hz of a discrete design: ``controller.rate`` when ``controller.design`` is discrete, else None."""
-    ctl = cfg.controller
-    return ctl.rate if ctl.rate is not None and ctl.design == "discrete" else None
-
-
-def integral_of(cfg: Config) -> dict[str, list[str]]:
-    """``subsystem -> states`` with integral action (``lqr.<subsystem>.integral``)."""
-    return {name: list(w.integral) for name, w in cfg.lqr.items() if w.integral}
-
-
-def design_of(cfg: Config, decoupled: Decoupled, linear: LinearModel) -> Design:
-    return design(decoupled, linear.A, linear.B, weights_of(cfg), rate=design_rate(cfg),
-                  integral=integral_of(cfg))
-
-
-def actuators_of_config(cfg: Config) -> Actuators | None:
-    """Rotors (``motors:``), box limits (``limits:``), or None."""
-    motors = Motors.from_config(cfg.motors) if cfg.motors is not None else None
-    return actuators_of(motors, cfg.limits)
-
-
-def plant_of(cfg: Config) -> Vehicle:
-    """The simulated vehicle: ``vehicle:`` with ``simulation.plant`` overrides (model mismatch)."""
-    base = vehicle_of(cfg)
-    over = cfg.simulation.plant
-    if over is None:
-        return base
-    return Vehicle(mass=over.mass or base.mass, gravity=over.gravity or base.gravity,
-                   inertia=tuple(over.inertia) if over.inertia else base.inertia,
-                   drag=tuple(over.drag) if over.drag is not None else base.drag)
-
-
-def noise_of(cfg: Config) -> NoiseSpec | None:
-    """``simulation.noise`` as a spec (None when absent)."""
-    noise = cfg.simulation.noise
-    return None if noise is None else NoiseSpec.from_config(noise, cfg.controller.rate)
-
-
-def state_owner(cfg: Config) -> dict[str, str]:
-    """State name -> the subsystem it belongs to."""
-    return {s: name for name, sub in cfg.partition().items() for s in sub.states}
-
-
-def reference_rate(trim: Trim) -> np.ndarray:
-    """(12,) drift of the reference: the trim's position rates (its earth velocity)."""
-    rate = np.zeros(len(STATE_NAMES))
-    for s in POSITION_STATES:
-        rate[STATE_INDEX[s]] = trim.xdot[STATE_INDEX[s]]
-    return rate
-
-
-def closed_loop_of(cfg: Config, linear: LinearModel, K: np.ndarray, x_rate: np.ndarray, *,
-                   Ki: np.ndarray | None = None, integral_states=()) -> ClosedLoop:
-    """The loop to simulate: the design's gains on the config's plant, rate, actuators.
-
-    ``Ki`` (4, nz) and ``integral_states`` come from an LQI design (``Design.Ki_block``,
-    ``Design.integral_states``). The eigenvalues (for the RK4 step) are those of the
-    continuous closed loop including the integrators; a sampled controller steps on the
-    open-loop plant's instead.
+    The eigenvalues (for the RK4 step) are those of the continuous closed loop including the
+    integrators; a sampled controller steps on the open-loop plant's instead.
     """
     integral_states = tuple(integral_states)
-    if integral_of(cfg) and not integral_states:
-        raise ValueError("the config has integral action (lqr.<subsystem>.integral): pass Ki and "
-                         "integral_states from the design, or call pipeline.loop_of(cfg, linear, design, x_rate)")
+    if setup.integral and not integral_states:
+        raise ValueError("the setup has integral action (lqr.<subsystem>.integral): pass Ki and "
+                         "integral_states from the design, or call pipeline.loop_of(setup, linear, design)")
     A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, integral_states)
-    names = (*STATE_NAMES, *integral_states)
-    eig, owners = eigen_owners(A_cl, state_owner(cfg), names)
-    actuators = actuators_of_config(cfg)
-    check_trim(actuators, linear.u_trim)
-    return ClosedLoop(params=plant_of(cfg).vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
-                      x_rate=x_rate, K=K, eigenvalues=eig, owners=owners, rate=cfg.controller.rate,
+    eig, owners = eigen_owners(A_cl, setup.state_owner, (*STATE_NAMES, *integral_states))
+    check_trim(setup.actuators, linear.u_trim)
+    return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
+                      x_rate=linear.x_rate, K=K, eigenvalues=eig, owners=owners, rate=setup.timing.rate,
                       Ki=Ki if integral_states else None, integral_states=integral_states,
-                      actuators=actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A))
+                      actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A))
 
 
-def initial_state(cfg: Config, x_trim: np.ndarray) -> np.ndarray:
-    """Trim state plus the config's ``simulation.initial_offset``."""
-    x0 = np.array(x_trim, dtype=float)
-    for name, value in cfg.simulation.initial_offset.items():
-        x0[STATE_INDEX[name]] += value
-    return x0
-
-
-def simulation_of(cfg: Config, loop: ClosedLoop) -> SimResult:
-    sim = cfg.simulation
-    return simulate(loop, initial_state(cfg, loop.x_trim), sim.duration, sim.dt, noise=noise_of(cfg),
-                    max_samples=sim.max_samples)
-
-
-# ---------------------------------------------------------------------------------------
-# Flight: controller rate, motors, margins, integral action, noise, the full design (issue 5)
-
-
-def loop_of(cfg: Config, linear: LinearModel, des: Design, x_rate: np.ndarray) -> ClosedLoop:
+def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
     """:func:`closed_loop_of` for a design: its state gain *and* its integrators (LQI)."""
-    return closed_loop_of(cfg, linear, des.K_block, x_rate, Ki=des.Ki_block,
-                          integral_states=des.integral_states)
+    return closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block, integral_states=des.integral_states)
 
 
-def rate_warnings_of(cfg: Config, decoupled: Decoupled, linear: LinearModel, rate: float):
+def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True) -> SimResult:
+    """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise)."""
+    return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
+                    noise=setup.noise if noise else None, max_samples=setup.max_samples)
+
+
+def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float):
     """Loops of the *continuous* design that ``rate`` Hz cannot realize (``check``'s warning).
 
     Each subsystem (with its integrators) and the coupled loop are checked: the fastest
@@ -181,7 +89,7 @@ def rate_warnings_of(cfg: Config, decoupled: Decoupled, linear: LinearModel, rat
     """
     from quadctl import discrete, integral
 
-    des = design(decoupled, linear.A, linear.B, weights_of(cfg), integral=integral_of(cfg))
+    des = design_of(setup, decoupled, linear, rate=None)
     Ts = 1.0 / rate
     loops = []
     for sub in des.subsystems:
@@ -198,15 +106,14 @@ def rate_warnings_of(cfg: Config, decoupled: Decoupled, linear: LinearModel, rat
     return discrete.rate_warnings(loops, rate)
 
 
-def initial_demand(cfg: Config, linear: LinearModel, des: Design) -> dict[str, float]:
+def initial_demand(setup: Setup, des: Design) -> dict[str, float]:
     """``|K (x0 - x_trim)|`` per input: what the configured initial offset asks for at t = 0."""
-    dx0 = initial_state(cfg, linear.x_trim) - linear.x_trim
-    du = des.K_block @ dx0
+    du = des.K_block @ setup.initial_offset
     return {name: float(abs(du[j])) for j, name in enumerate(INPUT_NAMES)}
 
 
-def flight_summary(cfg: Config, loop: ClosedLoop, sim: SimResult) -> dict:
-    """What issue 5 adds to ``sim.json``: controller sampling, saturation, noise RMS, integrators.
+def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
+    """The flight numbers of ``sim.json``: controller sampling, saturation, noise RMS, integrators.
 
     Returns
     -------
@@ -222,8 +129,7 @@ def flight_summary(cfg: Config, loop: ClosedLoop, sim: SimResult) -> dict:
 
     duration = float(sim.t[-1]) if len(sim.t) else 0.0
     out: dict = {
-        "controller": {"rate": cfg.controller.rate,
-                       "design": (cfg.controller.design if cfg.controller.rate else "continuous"),
+        "controller": {"rate": setup.timing.rate, "design": setup.timing.mode,
                        "hold_steps": sim.plan.hold, "sample_time": sim.plan.sample_time},
         "peak_delta": {name: float(np.abs(sim.u[:, j] - loop.u_trim[j]).max())
                        for j, name in enumerate(INPUT_NAMES)},
@@ -232,7 +138,7 @@ def flight_summary(cfg: Config, loop: ClosedLoop, sim: SimResult) -> dict:
         "saturation": None, "noise": None,
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
-        "plant": cfg.simulation.plant.model_dump(exclude_none=True) if cfg.simulation.plant else None,
+        "plant": setup.plant_overrides or None,
     }
     act = loop.actuators
     if act is not None:
@@ -248,14 +154,14 @@ def flight_summary(cfg: Config, loop: ClosedLoop, sim: SimResult) -> dict:
             sat["peak_rotor_speed"] = {n: float(speeds[:, i].max()) for i, n in enumerate(act.names)}
             sat["trim_rotor_thrust"] = list(act.commands(loop.u_trim))
         out["saturation"] = sat
-    spec = noise_of(cfg)
-    if spec is not None and spec.active:
+    spec = setup.noise
+    if spec is not None:
         out["noise"] = {"seed": spec.seed, "period": spec.period, "process_std": spec.process_std,
                         "sensor_std": dict(zip(STATE_NAMES, spec.sensor_std))}
     return out
 
 
-def compare_full(cfg: Config, linear: LinearModel, trim: Trim, des: Design):
+def compare_full(setup: Setup, linear: LinearModel, des: Design):
     """``design --full``: one coupled LQR with the same cost, both simulated on the nonlinear model.
 
     Both runs start from the configured offset on the configured plant and actuators, *without*
@@ -271,17 +177,15 @@ def compare_full(cfg: Config, linear: LinearModel, trim: Trim, des: Design):
     from quadctl.metrics import summarize
 
     fd = full.full_design(des, linear.A, linear.B)
-    x_rate = reference_rate(trim)
-    dx0 = initial_state(cfg, linear.x_trim) - linear.x_trim
-    regulated = [s for sub in cfg.partition().values() if sub.regulate for s in sub.states]
+    dx0 = setup.initial_offset
     Q = des.Q_block
     runs = {}
     for label, K, Ki in (("decoupled", des.K_block, des.Ki_block), ("full", fd.K, fd.Ki)):
-        loop = closed_loop_of(cfg, linear, K, x_rate, Ki=Ki, integral_states=des.integral_states)
-        sim = simulate(loop, initial_state(cfg, loop.x_trim), cfg.simulation.duration, cfg.simulation.dt)
-        met = summarize(sim, linear.u_trim, Q, des.R_block, regulated)
+        loop = closed_loop_of(setup, linear, K, Ki=Ki, integral_states=des.integral_states)
+        sim = simulation_of(setup, loop, noise=False)
+        met = summarize(sim, linear.u_trim, Q, des.R_block, setup.regulated)
         met["peak_delta"] = {name: float(np.abs(sim.u[:, j] - linear.u_trim[j]).max())
                              for j, name in enumerate(INPUT_NAMES)}
         met["linear_cost"] = full.linear_cost(linear.A, linear.B, K, Ki, des, dx0)
         runs[label] = met
-    return fd, full.compare(runs, regulated)
+    return fd, full.compare(runs, setup.regulated)

@@ -7,6 +7,7 @@ version match, otherwise it is recomputed and rewritten (never a stale result).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
@@ -16,17 +17,41 @@ from quadctl import artifacts, pipeline
 from quadctl.analysis import Checks
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
-from quadctl.discrete import realizable_frequency
-from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
+from quadctl.discrete import RateWarning, realizable_frequency
+from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, STATE_NAMES, STATE_UNITS
 from quadctl.linearize import LinearModel
 from quadctl.lqr import Design
 from quadctl.metrics import summarize
-from quadctl.simulate import SimResult
+from quadctl.setup import resolve
+from quadctl.simulate import ClosedLoop, SimResult
 from quadctl.trim import Trim
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
 MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
+
+
+@dataclass(frozen=True)
+class CheckReport:
+    """``check``'s result: the rank checks per subsystem (and ``"full"``), and, for a continuous
+    design run at a rate, the loops that rate cannot realize."""
+
+    checks: dict[str, Checks]
+    rate: float | None
+    rate_warnings: tuple[RateWarning, ...]
+
+    def __getitem__(self, name: str) -> Checks:
+        return self.checks[name]
+
+
+@dataclass(frozen=True)
+class Flight:
+    """``simulate``'s result: the run, the loop it flew, its metrics and flight numbers."""
+
+    sim: SimResult
+    loop: ClosedLoop
+    metrics: dict
+    flight: dict
 
 
 def default_out(cfg: Config) -> Path:
@@ -48,12 +73,14 @@ class Workspace:
 
     def __init__(self, cfg: Config, out: Path | str | None = None, *, fresh: bool = False):
         self.cfg = cfg
+        self.setup = resolve(cfg)
         self.out = Path(out) if out is not None else default_out(cfg)
         self.fresh = fresh
         self.written: list[Path] = []
         self.reused: list[Path] = []
         self.payloads: dict[str, dict] = {}
-        """JSON artifacts written in this session, by file name (what ``--json`` prints)."""
+        """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
+        a reused artifact is parsed once, here."""
         artifacts.remove_stale_temporaries(self.out)
 
     def path(self, name: str) -> Path:
@@ -62,6 +89,8 @@ class Workspace:
     def _reusable(self, name: str) -> bool:
         if self.fresh:
             return False
+        if name in self.payloads:
+            return True
         ok = artifacts.is_fresh(self.path(name), self.cfg)
         if ok:
             self.reused.append(self.path(name))
@@ -82,13 +111,13 @@ class Workspace:
     @cached_property
     def trim(self) -> Trim:
         if self._reusable(TRIM):
-            data = artifacts.read_json(self.path(TRIM))
+            data = self.payloads[TRIM]
             return Trim(x=np.array(data["x"]), u=np.array(data["u"]), xdot=np.array(data["xdot"]),
                         residual=float(data["residual"]), iterations=int(data["iterations"]))
-        trim = pipeline.trim_of(self.cfg)
+        trim = pipeline.trim_of(self.setup)
         self._write_json(TRIM, "trim", {
             "x": trim.x, "u": trim.u, "xdot": trim.xdot, "residual": trim.residual,
-            "iterations": trim.iterations, "velocity_ned": self.cfg.trim.velocity_ned,
+            "iterations": trim.iterations, "velocity_ned": self.setup.velocity_ned,
             "state": dict(zip(STATE_NAMES, trim.x)), "input": dict(zip(INPUT_NAMES, trim.u)),
             "units": {**STATE_UNITS, **INPUT_UNITS}})
         return trim
@@ -98,18 +127,18 @@ class Workspace:
         if self._reusable(LINEAR):
             arrays, _ = artifacts.read_npz(self.path(LINEAR))
             return LinearModel(A=arrays["A"], B=arrays["B"], x_trim=arrays["x_trim"],
-                               u_trim=arrays["u_trim"])
-        linear = pipeline.linear_of(self.cfg, self.trim)
+                               u_trim=arrays["u_trim"], x_rate=arrays["x_rate"])
+        linear = pipeline.linear_of(self.setup, self.trim)
         self.written.append(artifacts.write_npz(self.path(LINEAR), {
             "A": linear.A, "B": linear.B, "x_trim": linear.x_trim, "u_trim": linear.u_trim,
-            "x_rate": pipeline.reference_rate(self.trim),
+            "x_rate": linear.x_rate,
             "state_names": np.array(STATE_NAMES), "input_names": np.array(INPUT_NAMES)},
             self._meta("linear")))
         return linear
 
     @cached_property
     def decoupled(self) -> Decoupled:
-        dec = pipeline.decoupled_of(self.cfg, self.linear)
+        dec = pipeline.decoupled_of(self.setup, self.linear)
         self._write_json(SUBSYSTEMS, "subsystems", {
             "subsystems": {s.name: {"states": s.states, "inputs": s.inputs, "A": s.A, "B": s.B,
                                     "C": s.C, "regulated": s.regulated} for s in dec.subsystems},
@@ -119,33 +148,28 @@ class Workspace:
         return dec
 
     @cached_property
-    def checks(self) -> dict[str, Checks]:
+    def checks(self) -> CheckReport:
+        """Rank checks; for a continuous design run at ``controller.rate``, the rate warnings."""
         checks = pipeline.checks_of(self.decoupled, self.linear)
         regulated = {s.name for s in self.decoupled.regulated}
-        self.rate_warnings = self._rate_warnings(checks, regulated)
-        rate = self.cfg.controller.rate
+        timing = self.setup.timing
+        warnings: list[RateWarning] = []
+        if timing.mode == "emulated" and all(checks[n].stabilizable for n in regulated):
+            warnings = pipeline.rate_warnings_of(self.setup, self.decoupled, self.linear, timing.rate)
         self._write_json(CHECKS, "checks", {
             "subsystems": {n: _checks_payload(c, n in regulated) for n, c in checks.items() if n != "full"},
             "full": _checks_payload(checks["full"], True),
-            "rate": None if rate is None else {
-                "rate": rate, "design": self.cfg.controller.design,
-                "realizable_frequency": realizable_frequency(rate),
+            "rate": None if timing.rate is None else {
+                "rate": timing.rate, "design": "discrete" if timing.discrete else "continuous",
+                "realizable_frequency": realizable_frequency(timing.rate),
                 "warnings": [{"loop": w.loop, "pole": w.pole, "factor": w.factor,
                               "sampled_spectral_radius": w.sampled_radius, "sampled_stable": w.sampled_stable,
-                              "message": w.message(rate)} for w in self.rate_warnings]}})
-        return checks
-
-    def _rate_warnings(self, checks, regulated) -> list:
-        """A continuous design run at ``controller.rate``: the loops that rate cannot realize."""
-        ctl = self.cfg.controller
-        if ctl.rate is None or ctl.design != "continuous" or any(
-                not checks[n].stabilizable for n in regulated):
-            return []
-        return pipeline.rate_warnings_of(self.cfg, self.decoupled, self.linear, ctl.rate)
+                              "message": w.message(timing.rate)} for w in warnings]}})
+        return CheckReport(checks=checks, rate=timing.rate, rate_warnings=tuple(warnings))
 
     @cached_property
     def design(self) -> Design:
-        des = pipeline.design_of(self.cfg, self.decoupled, self.linear)
+        des = pipeline.design_of(self.setup, self.decoupled, self.linear)
         self._write_json(DESIGN, "design", {
             "subsystems": {s.name: {"states": s.states, "inputs": s.inputs, "Q": s.Q, "R": s.R,
                                     "K": s.K, "P": s.P, "closed_loop_eigenvalues": s.eigenvalues,
@@ -157,18 +181,13 @@ class Workspace:
         return des
 
     @cached_property
-    def gain(self) -> np.ndarray:
-        """K_block: from design.json when it is fresh, else from a new design."""
-        return self.gains[0]
-
-    @cached_property
     def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
         """(K_block, Ki_block, integral_states): from design.json when it is fresh, else a new design."""
-        if self._reusable(DESIGN):
-            data = artifacts.read_json(self.path(DESIGN))
+        if "design" not in self.__dict__ and self._reusable(DESIGN):
+            data = self.payloads[DESIGN]
             ints = tuple(data.get("integral_states", ()))
-            Ki = np.array(data.get("Ki_block", [[]] * len(INPUT_NAMES)), dtype=float)
-            return (np.array(data["K_block"], dtype=float), Ki.reshape(len(INPUT_NAMES), len(ints)), ints)
+            Ki = np.array(data.get("Ki_block", [[]] * N_INPUTS), dtype=float)
+            return (np.array(data["K_block"], dtype=float), Ki.reshape(N_INPUTS, len(ints)), ints)
         des = self.design
         return des.K_block, des.Ki_block, des.integral_states
 
@@ -177,14 +196,14 @@ class Workspace:
         """Margins of every regulated loop (design model and coupled); writes margins.json."""
         from quadctl import margins
 
-        des, ctl, linear = self.design, self.cfg.controller, self.linear
-        emulated = ctl.rate if ctl.rate is not None and des.rate is None else None
+        des, timing, linear = self.design, self.setup.timing, self.linear
+        emulated = timing.rate if timing.mode == "emulated" else None
         result = margins.all_margins(
             des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
-            actuators=pipeline.actuators_of_config(self.cfg), u_trim=linear.u_trim,
-            initial_demand=pipeline.initial_demand(self.cfg, linear, des))
+            actuators=self.setup.actuators, u_trim=linear.u_trim,
+            initial_demand=pipeline.initial_demand(self.setup, des))
         self._write_json(MARGINS, "margins", {
-            "rate": ctl.rate, "design": "discrete" if des.rate else "continuous",
+            "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
             "loops": [m.as_dict() for m in result]})
@@ -193,7 +212,7 @@ class Workspace:
     @cached_property
     def full(self):
         """``design --full``: (FullDesign, comparison); writes design_full.json."""
-        fd, comparison = pipeline.compare_full(self.cfg, self.linear, self.trim, self.design)
+        fd, comparison = pipeline.compare_full(self.setup, self.linear, self.design)
         self._write_json(DESIGN_FULL, "design_full", {
             "K": fd.K, "Ki": fd.Ki, "integral_states": fd.integral_states, "states": fd.states,
             "left_out": fd.left_out, "Q": fd.Q, "R": fd.R, "P": fd.P,
@@ -205,16 +224,14 @@ class Workspace:
         return fd, comparison
 
     @cached_property
-    def simulation(self) -> SimResult:
-        linear = self.linear
+    def simulation(self) -> Flight:
+        """The configured run with the design's gains; writes sim.npz and sim.json."""
+        linear, setup = self.linear, self.setup
         K, Ki, ints = self.gains
-        loop = pipeline.closed_loop_of(self.cfg, linear, K, pipeline.reference_rate(self.trim),
-                                       Ki=Ki, integral_states=ints)
-        sim = pipeline.simulation_of(self.cfg, loop)
-        self.flight = pipeline.flight_summary(self.cfg, loop, sim)
-        regulated = [s for sub in self.cfg.partition().values() if sub.regulate for s in sub.states]
-        Q, R = pipeline.weights_block(self.cfg)
-        summary = summarize(sim, linear.u_trim, Q, R, regulated)
+        loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints)
+        sim = pipeline.simulation_of(setup, loop)
+        flight = pipeline.flight_summary(setup, loop, sim)
+        summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
         meta = self._meta("simulation")
         self.written.append(artifacts.write_npz(self.path(SIM_NPZ), {
             "t": sim.t, "x": sim.x, "u": sim.u, "x_ref": sim.x_ref, "dt": np.array(sim.dt),
@@ -229,13 +246,12 @@ class Workspace:
             "dt_auto": sim.plan.auto, "max_stable_dt": sim.plan.max_stable_dt,
             "fastest_eigenvalue": sim.plan.fastest_eigenvalue,
             "fastest_subsystem": sim.plan.fastest_owner,
-            "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **self.flight})
-        self.metrics = summary
-        return sim
+            "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **flight})
+        return Flight(sim=sim, loop=loop, metrics=summary, flight=flight)
 
 
 def _flight_design_payload(des: Design) -> dict:
-    """design.json keys of issue 5: rate, integrators, discrete eigenvalues."""
+    """design.json keys of sampled and LQI designs: rate, integrators, discrete eigenvalues."""
     return {
         "rate": des.rate, "discrete": des.rate is not None,
         "Ki_block": des.Ki_block, "integral_states": des.integral_states,

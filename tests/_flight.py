@@ -7,6 +7,7 @@ import json
 from functools import cache
 
 from quadctl import config, pipeline
+from quadctl.setup import resolve
 
 
 def cfg_dict(bundled: str, **changes) -> dict:
@@ -18,21 +19,21 @@ def cfg_dict(bundled: str, **changes) -> dict:
 
 @cache
 def _solved(text: str):
-    cfg = config.from_dict(json.loads(text), "<test>")
-    trim = pipeline.trim_of(cfg)
-    linear = pipeline.linear_of(cfg, trim)
-    dec = pipeline.decoupled_of(cfg, linear)
-    des = pipeline.design_of(cfg, dec, linear)
-    return cfg, trim, linear, dec, des
+    setup = resolve(config.from_dict(json.loads(text), "<test>"))
+    trim = pipeline.trim_of(setup)
+    linear = pipeline.linear_of(setup, trim)
+    dec = pipeline.decoupled_of(setup, linear)
+    des = pipeline.design_of(setup, dec, linear)
+    return setup, trim, linear, dec, des
 
 
 def solve(data: dict):
-    """(cfg, trim, linear, decoupled, design) of a config dict (cached by content)."""
+    """(setup, trim, linear, decoupled, design) of a config dict (cached by content)."""
     return _solved(json.dumps(data, sort_keys=True))
 
 
 def run(data: dict):
-    """(cfg, design, loop, sim) of a config dict through the pipeline."""
-    cfg, trim, linear, dec, des = solve(data)
-    loop = pipeline.loop_of(cfg, linear, des, pipeline.reference_rate(trim))
-    return cfg, des, loop, pipeline.simulation_of(cfg, loop)
+    """(setup, design, loop, sim) of a config dict through the pipeline."""
+    setup, trim, linear, dec, des = solve(data)
+    loop = pipeline.loop_of(setup, linear, des)
+    return setup, des, loop, pipeline.simulation_of(setup, loop)

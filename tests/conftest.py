@@ -11,15 +11,16 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 @pytest.fixture(scope="session")
 def forward():
-    """(cfg, trim, linear, decoupled, design) of the bundled forward config."""
+    """(setup, trim, linear, decoupled, design) of the bundled forward config."""
     from quadctl import config, pipeline
+    from quadctl.setup import resolve
 
-    cfg = config.load("forward")
-    trim = pipeline.trim_of(cfg)
-    linear = pipeline.linear_of(cfg, trim)
-    dec = pipeline.decoupled_of(cfg, linear)
-    des = pipeline.design_of(cfg, dec, linear)
-    return cfg, trim, linear, dec, des
+    setup = resolve(config.load("forward"))
+    trim = pipeline.trim_of(setup)
+    linear = pipeline.linear_of(setup, trim)
+    dec = pipeline.decoupled_of(setup, linear)
+    des = pipeline.design_of(setup, dec, linear)
+    return setup, trim, linear, dec, des
 
 
 @pytest.fixture(autouse=True)

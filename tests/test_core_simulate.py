@@ -3,30 +3,29 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from quadctl import codegen, pipeline
+from quadctl import pipeline
 from quadctl.errors import StepSizeError
 from quadctl.layout import STATE_INDEX
-from quadctl.simulate import (
+from quadctl.sim.cases import record_rows
+from quadctl.sim.plan import (
     ACCURACY_STEP,
-    ClosedLoop,
     max_stable_step,
     max_stable_steps,
     plan_step,
     record_stride,
     rk4_amplification,
-    simulate,
 )
+from quadctl.simulate import ClosedLoop, simulate
 
 
 @pytest.fixture(scope="module")
 def loop(forward):
-    cfg, trim, linear, _, des = forward
-    return cfg, pipeline.closed_loop_of(cfg, linear, des.K_block, pipeline.reference_rate(trim))
+    setup, trim, linear, _, des = forward
+    return setup, pipeline.loop_of(setup, linear, des)
 
 
 def test_rk4_real_axis_limit():
@@ -58,52 +57,36 @@ def test_unstable_user_step_is_refused_with_eigenvalue_subsystem_and_limit(loop)
 
 
 def test_closed_loop_returns_to_trim(loop):
-    cfg, cl = loop
-    sim = pipeline.simulation_of(cfg, cl)
-    assert sim.status == "ok" and sim.t[-1] == pytest.approx(cfg.simulation.duration)
+    setup, cl = loop
+    sim = pipeline.simulation_of(setup, cl)
+    assert sim.status == "ok" and sim.t[-1] == pytest.approx(setup.duration)
     err = sim.x[-1] - sim.x_ref[-1]
     regulated = [STATE_INDEX[s] for s in ("pD", "u", "v", "w", "phi", "theta", "psi", "p", "q", "r")]
     assert np.abs(err[regulated]).max() < 1e-4
     # the unregulated north position keeps moving at the flight speed
-    assert sim.x[-1, 0] == pytest.approx(cfg.simulation.duration * 1.0, abs=0.5)
-
-
-def test_compiled_and_interpreted_loops_agree(loop, monkeypatch):
-    cfg, cl = loop
-    x0 = pipeline.initial_state(cfg, cl.x_trim)
-    compiled = simulate(cl, x0, 0.02, 2e-5)
-    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
-    codegen.get_loop.cache_clear()
-    try:
-        interpreted = simulate(cl, x0, 0.02, 2e-5)
-    finally:
-        codegen.get_loop.cache_clear()
-    assert compiled.backend == "compiled" and interpreted.backend == "casadi"
-    diff = np.abs(compiled.x - interpreted.x).max()
-    assert diff < 1e-12, f"Max diff is {diff:.4E}"
-    np.testing.assert_allclose(compiled.u, interpreted.u, atol=1e-12)
+    assert sim.x[-1, 0] == pytest.approx(setup.duration * 1.0, abs=0.5)
 
 
 def test_rk4_is_fourth_order(loop):
     """Halving dt divides the global error by ~16 (reference: dt / 8)."""
-    cfg, cl = loop
-    x0 = pipeline.initial_state(cfg, cl.x_trim)
+    setup, cl = loop
+    x0 = setup.initial_state(cl.x_trim)
     runs = [simulate(cl, x0, 0.01, h).x[-1] for h in (4e-5, 2e-5, 2.5e-6)]
     e1, e2 = np.abs(runs[0] - runs[2]).max(), np.abs(runs[1] - runs[2]).max()
     assert 12 < e1 / e2 < 24  # order 3 would give 8, order 5 would give 32
 
 
 def test_divergence_stops_and_keeps_what_was_computed(loop):
-    cfg, cl = loop
+    setup, cl = loop
     bad = ClosedLoop(**{**cl.__dict__, "K": -cl.K})  # positive feedback
-    sim = simulate(bad, pipeline.initial_state(cfg, cl.x_trim), 5.0, 1e-4)
+    sim = simulate(bad, setup.initial_state(cl.x_trim), 5.0, 1e-4)
     assert sim.status in ("diverged", "left_valid_range")
     assert sim.steps < 50000 and len(sim.t) >= 2 and np.all(np.isfinite(sim.x[:-1]))
     assert "saved" in sim.message
 
 
 def test_leaving_the_euler_range_is_reported(loop):
-    cfg, cl = loop
+    setup, cl = loop
     free = ClosedLoop(**{**cl.__dict__, "K": np.zeros((4, 12)), "eigenvalues": np.zeros(12)})
     x0 = cl.x_trim.copy()
     x0[STATE_INDEX["q"]] = 3.0  # pitch up at 3 rad/s with no control
@@ -114,24 +97,25 @@ def test_leaving_the_euler_range_is_reported(loop):
 
 
 def test_chunked_runs_equal_one_long_call(loop, monkeypatch):
-    """Chunk boundaries (for Ctrl-C) change nothing but round-off in t = t0 + k dt."""
+    """Chunk boundaries (for Ctrl-C) change nothing: t = k dt from the absolute step index."""
     import quadctl.simulate as sim_mod
 
-    cfg, cl = loop
-    x0 = pipeline.initial_state(cfg, cl.x_trim)
+    setup, cl = loop
+    x0 = setup.initial_state(cl.x_trim)
     whole = simulate(cl, x0, 0.05, 1e-5)
-    monkeypatch.setattr(sim_mod, "CHUNK_STEPS", 777)
-    chunked = simulate(cl, x0, 0.05, 1e-5)
-    np.testing.assert_array_equal(whole.t, chunked.t)
-    diff = np.abs(whole.x - chunked.x).max()
-    assert diff < 1e-13, f"Max diff is {diff:.4E}"
-    np.testing.assert_allclose(whole.u, chunked.u, atol=1e-12)
+    monkeypatch.setattr(sim_mod, "CHUNK_STEPS", {"compiled": 777, "casadi": 777})
+    chunked = simulate(cl, x0, 0.05, 1e-5, max_samples=333)  # strides that do not divide the chunks
+    again = simulate(cl, x0, 0.05, 1e-5, max_samples=333)
+    np.testing.assert_array_equal(again.t, chunked.t)
+    np.testing.assert_array_equal(whole.x[::chunked.stride], chunked.x[:-1])
+    np.testing.assert_array_equal(whole.x[-1], chunked.x[-1])
+    np.testing.assert_array_equal(whole.u[::chunked.stride], chunked.u[:-1])
     assert whole.steps == chunked.steps == 5000
 
 
 def test_max_samples_sets_the_record_stride_and_keeps_the_last_step(loop):
-    cfg, cl = loop
-    x0 = pipeline.initial_state(cfg, cl.x_trim)
+    setup, cl = loop
+    x0 = setup.initial_state(cl.x_trim)
     every = simulate(cl, x0, 0.01, 1e-5)  # 1000 steps, all kept
     few = simulate(cl, x0, 0.01, 1e-5, max_samples=70)
     assert every.stride == 1 and len(every.t) == 1001
@@ -141,91 +125,8 @@ def test_max_samples_sets_the_record_stride_and_keeps_the_last_step(loop):
     for n in (1, 2, 3, 999, 1000, 1001, 289_856, 1_000_000):
         for cap in (2, 3, 69, 70, 1001, 20_000):
             stride = record_stride(n, cap)
-            assert codegen.record_rows(n, stride) <= cap, (n, cap)
-            assert stride == 1 or codegen.record_rows(n, stride - 1) > cap, (n, cap)  # the smallest
-
-
-def test_a_cached_library_loads_without_building_casadi_functions(loop, monkeypatch):
-    """The compile cache is keyed by what the C is made from, so a hit skips code generation."""
-    cfg, cl = loop
-    x0 = pipeline.initial_state(cfg, cl.x_trim)
-    first = simulate(cl, x0, 0.01, 1e-5)  # compiled (or found) and cached
-
-    def refuse(*_):
-        raise AssertionError("a cached library must not rebuild the step functions")
-
-    codegen.get_loop.cache_clear()
-    monkeypatch.setattr(codegen, "build_step_functions", refuse)
-    try:
-        again = simulate(cl, x0, 0.01, 1e-5)
-    finally:
-        codegen.get_loop.cache_clear()
-    assert again.backend == "compiled"
-    np.testing.assert_array_equal(first.x, again.x)
-
-
-def _counting_source():
-    """A tiny C source, and the list that records each time it was generated."""
-    made = []
-
-    def source():
-        made.append(1)
-        return "double qc_answer(void) { return 42.0; }\n"
-
-    return source, made
-
-
-def test_the_compile_cache_key_follows_what_the_source_is_made_from(tmp_path, monkeypatch):
-    """A hit skips generating the source; another key (variant, or generator edited) recompiles."""
-    compiler = codegen.find_compiler()
-    if compiler is None:
-        pytest.skip("no C compiler")
-    monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path))
-    source, made = _counting_source()
-    flags = ("-O1", "-fPIC", "-shared")
-    one = codegen.compile_cached(source, flags, compiler, "t", "fingerprint variant")
-    assert codegen.compile_cached(source, flags, compiler, "t", "fingerprint variant") == one and len(made) == 1
-    assert codegen.compile_cached(source, flags, compiler, "t", "fingerprint other-variant") != one
-    assert codegen.compile_cached(source, flags, compiler, "t", "edited-model variant") != one
-    assert len(made) == 3
-    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".so", ".so", ".so"]  # no temporaries left
-
-
-def test_threads_compiling_the_same_library_all_get_it(tmp_path, monkeypatch):
-    """Dask workers run chunks in threads: one compiles, the others wait and load its library."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    compiler = codegen.find_compiler()
-    if compiler is None:
-        pytest.skip("no C compiler")
-    monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path))
-    source, made = _counting_source()
-    with ThreadPoolExecutor(4) as pool:
-        paths = list(pool.map(lambda _: codegen.compile_cached(source, ("-O1", "-fPIC", "-shared"), compiler,
-                                                               "t", "same"), range(4)))
-    assert len(set(paths)) == 1 and paths[0].exists() and len(made) == 1
-
-
-def test_fingerprint_changes_with_any_generator_source_or_casadi(tmp_path):
-    import shutil
-
-    for name in codegen.SCALAR_SOURCES:
-        shutil.copy(Path(codegen.__file__).parent / name, tmp_path / name)
-
-    def fp(casadi="casadi 3.6.0"):
-        return codegen.fingerprint(codegen.read_sources(tmp_path, codegen.SCALAR_SOURCES), casadi)
-
-    base = fp()
-    assert fp() == base and fp("casadi 3.7.0") != base
-    for name in ("model.py", "_driver.c"):
-        original = (tmp_path / name).read_bytes()
-        (tmp_path / name).write_bytes(original + b"\n# edited\n")
-        assert fp() != base, name
-        (tmp_path / name).write_bytes(original)
-    assert fp() == base
-    # this process's key is that of the files it imported
-    assert codegen.FINGERPRINT == codegen.fingerprint(
-        codegen.read_sources(Path(codegen.__file__).parent, codegen.SCALAR_SOURCES), codegen.casadi_stamp())
+            assert record_rows(0, n, stride) <= cap, (n, cap)
+            assert stride == 1 or record_rows(0, n, stride - 1) > cap, (n, cap)  # the smallest
 
 
 def test_vectorized_step_limits_agree_with_the_scan():

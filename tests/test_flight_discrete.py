@@ -84,10 +84,10 @@ def test_lqrd_tends_to_the_continuous_gain_as_the_sample_time_shrinks():
 
 def test_design_at_a_rate_is_lqrd_per_subsystem_and_stable_in_z():
     data = cfg_dict("forward", controller={"rate": 200.0})
-    cfg, _, linear, dec, des = solve(data)
+    setup, _, linear, dec, des = solve(data)
     assert des.rate == 200.0 and des.stable
     roll = dec["roll"]
-    Q, R = (np.diag(v) for v in (cfg.lqr["roll"].Q, cfg.lqr["roll"].R))
+    Q, R = setup.weights["roll"]
     np.testing.assert_allclose(des["roll"].K, discrete.lqrd(roll.A, roll.B, Q, R, 1 / 200).K, rtol=1e-12)
     z = des.full_eigenvalues_z
     core = z[np.abs(z - 1) > 1e-9]  # pN, pE: z = 1 exactly
@@ -97,8 +97,8 @@ def test_design_at_a_rate_is_lqrd_per_subsystem_and_stable_in_z():
 
 
 def test_check_warns_which_loop_is_too_fast_for_the_rate_and_by_how_much():
-    cfg, _, linear, dec, _ = solve(cfg_dict("forward"))
-    warnings = {w.loop: w for w in pipeline.rate_warnings_of(cfg, dec, linear, 200.0)}
+    setup, _, linear, dec, _ = solve(cfg_dict("forward"))
+    warnings = {w.loop: w for w in pipeline.rate_warnings_of(setup, dec, linear, 200.0)}
     assert set(warnings) == {"roll", "pitch", "yaw", "coupled"}  # altitude's 12 rad/s is realizable
     roll = warnings["roll"]
     limit = 2 * math.pi * 200 / discrete.SAMPLES_PER_POLE
@@ -122,7 +122,7 @@ def test_zero_order_hold_simulation_follows_the_discrete_linear_loop():
     data = cfg_dict("forward", controller={"rate": 100.0})
     data["simulation"] = {"duration": 0.5, "dt": "auto",
                           "initial_offset": {"pD": 1e-4, "phi": 1e-4, "theta": -1e-4, "psi": 2e-4}}
-    cfg, des, loop, sim = run(data)
+    setup, des, loop, sim = run(data)
     _, trim, linear, _, _ = solve(data)
     assert sim.plan.hold >= 1 and sim.status == "ok"
     # the input is held: constant within each controller period
@@ -131,7 +131,7 @@ def test_zero_order_hold_simulation_follows_the_discrete_linear_loop():
     assert np.all(sim.u[1:-1][same_period[1:]] == sim.u[:-2][same_period[1:]])
     Ad, Bd = discrete.c2d(linear.A, linear.B, 1 / 100)
     Acl = Ad - Bd @ des.K_block
-    dx = pipeline.initial_state(cfg, linear.x_trim) - linear.x_trim
+    dx = setup.initial_offset.copy()
     samples = np.arange(0, len(sim.t), sim.plan.hold)
     worst = 0.0
     for i in samples:

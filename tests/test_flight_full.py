@@ -9,15 +9,16 @@ from _flight import cfg_dict, solve
 from quadctl import config, full, pipeline
 from quadctl.layout import STATE_INDEX
 from quadctl.lqr import riccati_residual
+from quadctl.setup import resolve
 
 
 @pytest.mark.parametrize("name", ["forward", "mambo-200hz"])
 def test_full_design_cost_never_exceeds_the_decoupled_one(name):
     """Both minimize the same cost; the full LQR is its optimum on the coupled linear model."""
-    cfg, trim, linear, _, des = solve(cfg_dict(name))
+    setup, trim, linear, _, des = solve(cfg_dict(name))
     fd = full.full_design(des, linear.A, linear.B)
     assert fd.stable
-    dx0 = pipeline.initial_state(cfg, linear.x_trim) - linear.x_trim
+    dx0 = setup.initial_offset
     j_dec = full.linear_cost(linear.A, linear.B, des.K_block, des.Ki_block, des, dx0)
     j_full = full.linear_cost(linear.A, linear.B, fd.K, fd.Ki, des, dx0)
     assert j_full <= j_dec * (1 + 1e-9)
@@ -44,8 +45,8 @@ def test_compare_reports_a_winner_and_a_ratio_per_criterion():
     cfg, trim, linear, _, des = solve(cfg_dict("mambo-200hz"))
     data = cfg_dict("mambo-200hz")
     data["simulation"]["duration"] = 4.0
-    cfg = config.from_dict(data)
-    fd, comparison = pipeline.compare_full(cfg, linear, trim, des)
+    setup = resolve(config.from_dict(data))
+    fd, comparison = pipeline.compare_full(setup, linear, des)
     assert set(comparison["designs"]) == {"decoupled", "full"}
     lin = comparison["better"]["linear_cost"]
     assert lin["winner"] in ("full", None) and lin["ratio"] >= 1.0

@@ -11,6 +11,7 @@ from _flight import cfg_dict, run
 from quadctl import config, motors, pipeline
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_INDEX
+from quadctl.setup import resolve
 
 MAMBO = motors.Motors()
 MG = 0.068 * 9.81
@@ -52,12 +53,11 @@ def test_plus_layout_rolls_with_the_side_rotors_only():
 
 def test_a_trim_the_rotors_cannot_hold_is_refused():
     data = cfg_dict("hover", motors={"max_thrust": 0.1})
-    cfg = config.from_dict(data)
-    trim = pipeline.trim_of(cfg)
-    linear = pipeline.linear_of(cfg, trim)
+    setup = resolve(config.from_dict(data))
+    linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
     with pytest.raises(ConfigError, match=r"motors.max_thrust: the trim needs rotor 1 = 0.1668 N, outside "
                                           r"the limits \[0, 0.1\]"):
-        pipeline.closed_loop_of(cfg, linear, np.zeros((4, 12)), pipeline.reference_rate(trim))
+        pipeline.closed_loop_of(setup, linear, np.zeros((4, 12)))
 
 
 def test_box_limits_clip_the_inputs_and_are_reported():
@@ -73,8 +73,8 @@ def test_box_limits_clip_the_inputs_and_are_reported():
 
 def test_the_reports_design_saturates_the_mambo_rotors_and_is_flagged():
     data = cfg_dict("forward", controller={"rate": 200.0}, motors={})
-    cfg, _, loop, sim = run(data)
-    summary = pipeline.flight_summary(cfg, loop, sim)
+    setup, _, loop, sim = run(data)
+    summary = pipeline.flight_summary(setup, loop, sim)
     sat = summary["saturation"]
     assert sat["saturates"] and max(sat["fraction"].values()) > motors.SATURATION_FLAG
     assert max(sat["peak_command"].values()) == pytest.approx(0.33, rel=1e-9)  # clipped at the limit

@@ -13,6 +13,7 @@ from quadctl.analysis import check, is_stable
 from quadctl.cli.app import app
 from quadctl.errors import QuadctlError
 from quadctl.lqr import RICCATI_RTOL, lqr, riccati_residual
+from quadctl.setup import resolve
 
 runner = CliRunner()
 FORWARD = config.resolve("forward")[1]
@@ -48,13 +49,14 @@ def configs(draw):
 @given(configs())
 def test_random_valid_configs_give_a_result_or_a_quadctl_error(cfg):
     try:
-        trim = pipeline.trim_of(cfg)
-        linear = pipeline.linear_of(cfg, trim)
-        dec = pipeline.decoupled_of(cfg, linear)
+        setup = resolve(cfg)
+        trim = pipeline.trim_of(setup)
+        linear = pipeline.linear_of(setup, trim)
+        dec = pipeline.decoupled_of(setup, linear)
         pipeline.checks_of(dec, linear)
-        des = pipeline.design_of(cfg, dec, linear)
-        loop = pipeline.closed_loop_of(cfg, linear, des.K_block, pipeline.reference_rate(trim))
-        sim = pipeline.simulation_of(cfg, loop)
+        des = pipeline.design_of(setup, dec, linear)
+        loop = pipeline.loop_of(setup, linear, des)
+        sim = pipeline.simulation_of(setup, loop)
     except QuadctlError as exc:
         assert str(exc) and "\n" not in str(exc)
         return

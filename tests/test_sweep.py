@@ -14,7 +14,7 @@ import pytest
 import scipy.linalg
 from typer.testing import CliRunner
 
-from quadctl import batch, batch_codegen, config, metrics, pipeline, sweep
+from quadctl import batch, config, metrics, pipeline, sweep
 from quadctl.cli.app import app
 from quadctl.errors import DesignError, SweepError
 from quadctl.lqr import lqr, riccati_residual
@@ -232,18 +232,13 @@ def test_batched_riccati_flags_what_has_no_stabilizing_solution():
             lqr(A[k], B[k], Q[k], R[k])
 
 
-def _closed_loop(forward):
-    cfg, trim, linear, _, des = forward
-    loop = pipeline.closed_loop_of(cfg, linear, des.K_block, pipeline.reference_rate(trim))
-    return cfg, linear, des, loop
-
-
 def test_summary_matches_metrics_summarize(forward):
-    cfg, linear, des, loop = _closed_loop(forward)
-    sim = simulate(loop, pipeline.initial_state(cfg, linear.x_trim), 1.0, "auto")
-    regulated = [s for sub in cfg.partition().values() if sub.regulate for s in sub.states]
+    setup, trim, linear, _, des = forward
+    loop = pipeline.loop_of(setup, linear, des)
+    sim = simulate(loop, setup.initial_state(linear.x_trim), 1.0, "auto")
+    regulated = setup.regulated
     ref = metrics.summarize(sim, linear.u_trim, des.Q_block, des.R_block, regulated)
-    got = batch.summarize_run(sim.t, sim.x, sim.u, sim.x_ref, linear.u_trim, des.Q_block, des.R_block,
+    got = metrics.summarize_run(sim.t, sim.x, sim.u, sim.x_ref, linear.u_trim, des.Q_block, des.R_block,
                               regulated, sim.status)
     assert got.keys() == ref.keys()
     for key in ("settling_time", "overshoot", "peak_error", "final_error", "peak"):
@@ -251,7 +246,7 @@ def test_summary_matches_metrics_summarize(forward):
     assert got["cost"] == pytest.approx(ref["cost"], rel=1e-12)
     assert got["status"] == ref["status"]
     # the reference given by what makes it (x_trim + x_rate t) instead of the array
-    lazy = batch.summarize_run(sim.t, sim.x, sim.u, (loop.x_trim, loop.x_rate), linear.u_trim, des.Q_block,
+    lazy = metrics.summarize_run(sim.t, sim.x, sim.u, (loop.x_trim, loop.x_rate), linear.u_trim, des.Q_block,
                                des.R_block, regulated, sim.status)
     for key in ("settling_time", "overshoot", "peak", "status"):
         assert lazy[key] == got[key], key
@@ -259,79 +254,34 @@ def test_summary_matches_metrics_summarize(forward):
         assert lazy[key] == pytest.approx(got[key], rel=1e-12, abs=1e-15), key
 
 
-def _lane_inputs(loop, x0, duration, dt):
-    from quadctl.layout import STATE_INDEX, STATE_NAMES
-    from quadctl.simulate import RUNAWAY, VALID_PITCH
-
-    bound = np.array([RUNAWAY[s] for s in STATE_NAMES])
-    lo, hi = loop.x_trim - bound, loop.x_trim + bound
-    lo[STATE_INDEX["theta"]], hi[STATE_INDEX["theta"]] = -VALID_PITCH, VALID_PITCH
-    drift = np.abs(loop.x_rate) * duration
-    c = batch_codegen.pack_lane_constants(loop.x_trim, loop.x_rate, loop.u_trim, loop.K, loop.params)
-    return c, lo - drift, hi + drift
-
-
-@pytest.mark.parametrize("no_compile", [False, True])
-def test_lanes_reproduce_simulate(forward, monkeypatch, no_compile):
-    """The lane loop (compiled SIMD, or CasADi's interpreter) gives simulate()'s trajectory, rows and
-    final input, lane by lane, whatever the other lanes do (9 cases: a full group and one more)."""
-    if no_compile:
-        monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
-        batch_codegen.get_lanes.cache_clear()
-    cfg, linear, des, loop = _closed_loop(forward)
-    x0 = pipeline.initial_state(cfg, linear.x_trim)
-    duration, dt = (0.01, 2e-5) if no_compile else (0.1, 2e-5)
-    n = round(duration / dt)
-    c, lo, hi = _lane_inputs(loop, x0, duration, dt)
-    count = 9
-    X0 = np.repeat(x0[None], count, 0)
-    X0[3, 7] += 0.2                                  # other lanes differ: the first must not care
-    steps = np.full(count, n)
-    steps[5] = n // 3
-    strides = np.ones(count, dtype=int)
-    strides[2] = 7
-    runner = batch_codegen.get_lanes(sweep.structural_pattern(forward[3]))
-    assert runner.backend == ("casadi" if no_compile else "compiled-simd")
-    results = runner.run(X0, np.full(count, dt), steps, np.repeat(c[None], count, 0), strides,
-                         np.repeat(lo[None], count, 0), np.repeat(hi[None], count, 0))
-    ref = simulate(loop, x0, duration, dt)
-    done, ks, xs, us = results[0]
-    assert done == ref.steps == n
-    np.testing.assert_array_equal(ks * dt, ref.t)
-    diff = np.abs(xs - ref.x).max()
-    assert diff <= 1e-12, f"Max diff is {diff:.4E}"
-    assert np.abs(us - ref.u).max() <= 1e-12
-    assert results[5][0] == n // 3 and results[5][1][-1] == n // 3
-    assert list(results[2][1][:3]) == [0, 7, 14] and results[2][1][-1] == n
-    if no_compile:
-        batch_codegen.get_lanes.cache_clear()
-
-
-def test_a_diverging_lane_stops_like_simulate(forward):
-    cfg, linear, des, loop = _closed_loop(forward)
-    bad = dataclasses.replace(loop, K=-loop.K)       # positive feedback: runs away
-    x0 = pipeline.initial_state(cfg, linear.x_trim)
-    c, lo, hi = _lane_inputs(bad, x0, 0.5, 2e-5)
-    runner = batch_codegen.get_lanes(sweep.structural_pattern(forward[3]))
-    done, ks, xs, us = runner.run(x0[None], [2e-5], [25000], c[None], [1], lo[None], hi[None])[0]
-    ref = simulate(dataclasses.replace(bad, eigenvalues=np.full(12, -1.0 + 0j)), x0, 0.5, 2e-5)
-    assert ref.status != "ok" and done == ref.steps < 25000
-    np.testing.assert_allclose(xs[-1], ref.x[-1], rtol=1e-9)
-    np.testing.assert_array_equal(us[-1], ref.u[-1])
-
-
 # ---------------------------------------------------------------------------------------
 # Running sweeps
 
 
-def test_batched_path_matches_the_pipeline(cfg):
-    spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [10, 200], "lqr.altitude.R[0]": [0.3, 3.0],
-                                    "vehicle.mass": [0.06, 0.075]},
-                   gates={"peak.T": {"max": 3.0}})
+BATCHED_CASES = {
+    "forward": ({"lqr.roll.Q[1]": [10, 200], "lqr.altitude.R[0]": [0.3, 3.0], "vehicle.mass": [0.06, 0.075]},
+                SHORT),
+    # discrete design at 200 Hz, rotors, LQI on altitude, noise: the seed and the weights vary
+    "mambo-200hz": ({"lqr.roll.R[0]": [20000, 80000], "lqr.altitude.Q[2]": [0.5, 2.0],
+                     "simulation.noise.seed": [1, 2]}, {"simulation.duration": 0.6}),
+    # the continuous design run at a rate (emulation), rotors, LQI, noise
+    "emulated": ({"lqr.roll.R[0]": [20000, 80000], "controller.rate": [200.0, 400.0]},
+                 {"simulation.duration": 0.6, "controller.design": "continuous"}),
+}
+
+
+@pytest.mark.parametrize("name", list(BATCHED_CASES))
+def test_batched_path_matches_the_pipeline(name):
+    """Every config simulate accepts runs in the lanes, and its rows are the one-by-one path's."""
+    cfg = config.load("mambo-200hz" if name == "emulated" else name)
+    parameters, fixed = BATCHED_CASES[name]
+    spec = spec_of(cfg, parameters=parameters, set=fixed, gates={"peak.T": {"max": 3.0}})
     fast = sweep.run(cfg, spec, jobs=1)
     slow = sweep.run(cfg, spec, jobs=1, fast=False)
     assert fast.stats["backend"] == ["compiled-simd"] and slow.stats["backend"] == ["compiled"]
-    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert {r["path"] for r in fast.rows} == {"batched"} and {r["path"] for r in slow.rows} == {"one-by-one"}
+    strip = [[{k: v for k, v in r.items() if k != "path"} for r in rows] for rows in (fast.rows, slow.rows)]
+    worst, where = max_rel_diff(*strip)
     assert worst < MATCH_RTOL, f"Max diff is {worst:.4E} at {where}"
     assert {r["status"] for r in fast.rows} == {"ok"}
 
@@ -473,7 +423,7 @@ def test_outputs_table_summary_and_plot(cfg, tmp_path):
         table = list(csv.DictReader(fh))
     header = list(table[0])
     assert header[:2] == ["case", "lqr.altitude.R[0]"]
-    assert header[-3:] == ["pass", "failed_gates", "reason"]
+    assert header[-4:] == ["pass", "failed_gates", "reason", "path"]
     assert header.index("stable") < header.index("peak.T") < header.index("pass")
     assert [row["pass"] for row in table] == ["false", "true"]
     summary = json.loads((tmp_path / "sweep.json").read_text())

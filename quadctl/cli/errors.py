@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import inspect
 import os
 import sys
+import warnings
 
 import typer
 
@@ -36,6 +38,28 @@ def fail(message: str, code: int) -> typer.Exit:
     return typer.Exit(code)
 
 
+@contextlib.contextmanager
+def notices_printed():
+    """Print each :class:`quadctl.errors.QuadctlNotice` the library issues as one stderr line, once."""
+    from quadctl.errors import QuadctlNotice
+
+    seen: set[str] = set()
+    original = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if not issubclass(category, QuadctlNotice):
+            return original(message, category, filename, lineno, file, line)
+        text = " ".join(str(message).split())
+        if text not in seen:
+            seen.add(text)
+            typer.echo(f"quadctl: notice: {text}", err=True)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", QuadctlNotice)
+        warnings.showwarning = show
+        yield
+
+
 def handled(fn):
     """Decorate a command: QuadctlError -> its exit code and one line on stderr, no traceback."""
 
@@ -45,7 +69,8 @@ def handled(fn):
 
         ctx = kwargs.pop(_CTX, None)
         try:
-            return fn(*args, **kwargs)
+            with notices_printed():
+                return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, SystemExit):
             raise
         except QuadctlError as exc:

@@ -11,8 +11,8 @@ def save_figures(ws, sim) -> list[Path]:
     from quadctl import artifacts, plots
 
     paths = []
-    for name, fig in plots.simulation_figures(sim, ws.cfg.partition(), ws.linear.u_trim,
-                                                   title=ws.cfg.name).items():
+    for name, fig in plots.simulation_figures(sim, ws.setup.partition, ws.linear.u_trim,
+                                                   title=ws.setup.name).items():
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=110)
         paths.append(artifacts.write_bytes(ws.out / "plots" / f"{name}.png", buf.getvalue()))

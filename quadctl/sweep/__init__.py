@@ -7,11 +7,12 @@ by :func:`quadctl.config.from_dict`, so every case is a valid config or a row th
 
 Per case: trim, linearize, decouple, LQR design, the coupled closed-loop eigenvalues, a nonlinear
 RK4 simulation and its metrics. Cases run in chunks, on local processes or a Dask cluster, and
-a chunk computes its cases together: the small Riccati equations in one batched solve
-(:func:`quadctl.batch.care`), the simulations :data:`~quadctl.batch_codegen.LANES` at a time in
-SIMD code generated from the CasADi model (:mod:`quadctl.batch_codegen`). A config that uses
-features the batched path does not model (anything beyond the plain continuous LQR loop) runs
-each case through :mod:`quadctl.pipeline` instead: slower, the same answers.
+a chunk computes its cases together (:mod:`~quadctl.sweep.batched`): the small Riccati equations
+in batched solves (continuous, or discrete at the controller rate), the simulations
+:data:`~quadctl.sim.engine.LANES` at a time in SIMD code generated from the one closed-loop
+definition (:mod:`quadctl.sim`), with every feature a config can have (rate and hold, motors and
+saturation, integral action, noise). ``fast=False`` runs each case through
+:mod:`quadctl.pipeline` instead: the reference the batched path is tested against.
 
 The sweep file::
 
@@ -44,13 +45,14 @@ Modules, each importing only those above it:
 
 - :mod:`~quadctl.sweep.gates`: the metrics of a case, the gates on them, verdict and ranking
 - :mod:`~quadctl.sweep.spec`: the sweep file (parameters, values, gates) parsed and checked
-- :mod:`~quadctl.sweep.evaluate`: a chunk of cases designed and simulated together
+- :mod:`~quadctl.sweep.batched`: designs, verdicts and lane simulations of many cases at once
+- :mod:`~quadctl.sweep.evaluate`: a chunk of cases, batched or one by one, as rows
 - :mod:`~quadctl.sweep.runner`: chunks on local processes or a Dask cluster
 - :mod:`~quadctl.sweep.outputs`: sweep.csv, the summary, the plots, Monte Carlo bands
 - :mod:`~quadctl.sweep.store`: the run directory (journal, ``--resume``) and :func:`execute`
 """
 
-from quadctl.sweep.evaluate import MC_POINTS, ChunkResult, ChunkTask, evaluate_chunk, structural_pattern
+from quadctl.sweep.evaluate import MC_POINTS, ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import Gate, judge, margin, metric_columns, regulated_states
 from quadctl.sweep.outputs import MonteCarloBands, montecarlo_bands, summarize, to_csv
 from quadctl.sweep.runner import SweepResult, run
@@ -61,5 +63,5 @@ __all__ = [
     "MC_POINTS", "PARTS", "Case", "ChunkResult", "ChunkTask", "Gate", "MonteCarloBands", "Parameter",
     "SweepOutcome", "SweepResult", "SweepSpec", "SweepStore", "assign", "evaluate_chunk", "execute",
     "from_dict", "judge", "load", "margin", "metric_columns", "montecarlo_bands", "parse", "regulated_states", "run",
-    "structural_pattern", "summarize", "to_csv",
+    "summarize", "to_csv",
 ]

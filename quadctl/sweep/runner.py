@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from quadctl.errors import QuadctlError, SweepError
-from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk, is_plain, structural_pattern
+from quadctl.errors import SweepError
+from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import margin, metric_columns, regulated_states
 from quadctl.sweep.spec import Case, SweepSpec, assign
 
@@ -81,7 +81,7 @@ def default_jobs() -> int:
 def default_chunk(n_cases: int, workers: int) -> int:
     """Cases per task: about four tasks per worker (so a stop loses little and the load balances),
     a multiple of the SIMD lanes, 8 to 256 cases (the batched solves pay off with more)."""
-    from quadctl.batch_codegen import LANES
+    from quadctl.sim.engine import LANES
 
     size = max(LANES, min(256, math.ceil(n_cases / (4 * max(1, workers)))))
     return math.ceil(size / LANES) * LANES
@@ -166,7 +166,7 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
             stats["executor"] = "local" if workers == 1 else f"local processes ({workers})"
         stats["workers"] = workers
         tasks = tasks_for(cfg, spec, todo, label, spec.chunk_size or default_chunk(len(todo), workers), fast)
-        if client is None and tasks and fast:
+        if client is None and tasks and workers > 1:
             _warm_up(tasks[0])
         results = _dask_results(client, tasks) if client is not None else _local_results(tasks, workers)
         rows = dict(done)
@@ -198,23 +198,17 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
 
 
 def columns_of(cfg, spec: SweepSpec) -> list[str]:
-    """Table columns: ``case``, the parameters, the metrics, ``pass``, ``failed_gates``, ``reason``."""
-    return ["case", *spec.names, *metric_columns(cfg), "pass", "failed_gates", "reason"]
+    """Table columns: ``case``, the parameters, the metrics, ``pass``, ``failed_gates``, ``reason``,
+    and ``path`` (batched, or one-by-one and why)."""
+    return ["case", *spec.names, *metric_columns(cfg), "pass", "failed_gates", "reason", "path"]
 
 
 def _warm_up(task: ChunkTask) -> None:
-    """Build (and compile, once per machine) the lane code before the workers fork from us."""
-    from quadctl import config as config_mod
-    from quadctl import pipeline
-    from quadctl.batch_codegen import get_lanes
+    """Evaluate the first case here, so the lane library is built (and compiled, once per machine)
+    before the workers fork from this process."""
+    from dataclasses import replace
 
-    try:
-        cfg = config_mod.from_dict(task.base, task.label)
-        if is_plain(cfg):
-            dec = pipeline.decoupled_of(cfg, pipeline.linear_of(cfg, pipeline.trim_of(cfg)))
-            get_lanes(structural_pattern(dec))
-    except QuadctlError:
-        pass  # the cases will say what is wrong, row by row
+    evaluate_chunk(replace(task, cases=task.cases[:1]))
 
 
 def _ignore_sigint() -> None:

@@ -27,19 +27,18 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     checks = ws.checks
     regulated = {s.name for s in ws.decoupled.regulated}
     failed = [n for n in regulated if not checks[n].stabilizable]
-    warn_rate = ws.cfg.controller.rate
-    warnings = ws.rate_warnings
+    warn_rate, warnings = checks.rate, checks.rate_warnings
     if rate is not None and not failed:
         from quadctl import pipeline
 
-        warn_rate, warnings = rate, pipeline.rate_warnings_of(ws.cfg, ws.decoupled, ws.linear, rate)
+        warn_rate, warnings = rate, pipeline.rate_warnings_of(ws.setup, ws.decoupled, ws.linear, rate)
     if json:
         payload = ws.payloads["checks.json"]
         if rate is not None:
             payload = {**payload, "what_if_rate": {"rate": rate, "warnings": [w.message(rate) for w in warnings]}}
         render.emit_json(payload)
     else:
-        render.out.print(render.checks_table(checks, regulated))
+        render.out.print(render.checks_table(checks.checks, regulated))
         render.out.print(f"-> {ws.path('checks.json')}")
     for w in warnings:
         render.err.print(f"quadctl: warning: {w.message(warn_rate)}", markup=False)

@@ -29,7 +29,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     if json:
         render.emit_json(ws.payloads["margins.json"])
     else:
-        for table in render_flight.margins_table(margins, ws.cfg.controller.rate):
+        for table in render_flight.margins_table(margins, ws.setup.timing.rate):
             render.out.print(table)
         for line in render_flight.margin_notes(margins):
             render.out.print(f"  {line}", markup=False)
@@ -50,7 +50,7 @@ def _save_figures(ws, margins):
 
     paths = []
     for m in margins:
-        fig = plots.margins_figure(m, title=ws.cfg.name)
+        fig = plots.margins_figure(m, title=ws.setup.name)
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=90)
         paths.append(artifacts.write_bytes(ws.out / "plots" / f"margins-{m.loop}-{m.model}.png", buf.getvalue()))

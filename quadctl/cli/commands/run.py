@@ -35,7 +35,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
         raise _stop(json, stages, "design: unstable on the coupled 12-state model")
     done("design", "stable on the coupled model; slowest pole "
          f"{max(e.real for e in ws.design.full_eigenvalues if abs(e) > 1e-9):.3g} rad/s")
-    sim = ws.simulation
+    sim = ws.simulation.sim
     if sim.status != "ok":
         raise _stop(json, stages, f"simulate: {sim.message}")
     done("simulate", f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.steps_per_second / 1e6:.2f} M steps/s")

@@ -16,9 +16,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     from quadctl.cli.figures import save_figures
 
     ws = open_workspace(config, out, fresh)
-    sim = ws.simulation
-    if sim.backend != "compiled":
-        render.notice("no C compiler found: simulating in CasADi's interpreter (correct, slower)")
+    flown = ws.simulation
+    sim = flown.sim
     figures = save_figures(ws, sim) if plot else []
     if json:
         render.emit_json(ws.payloads["sim.json"])
@@ -29,14 +28,14 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
                          f"fastest eigenvalue {render.eig(plan.fastest_eigenvalue)} rad/s in "
                          f"{plan.fastest_owner}), {sim.steps} steps in {sim.wall_time * 1e3:.1f} ms: "
                          f"[bold]{sim.steps_per_second / 1e6:.2f} M steps/s[/bold] ({sim.backend})")
-        _print_flight(render, ws, sim, before=True)
-        render.out.print(render.metrics_table(ws.metrics))
-        render.out.print(render.peaks_table(ws.metrics, ws.linear.u_trim))
-        _print_flight(render, ws, sim, before=False)
+        _print_flight(render, flown, before=True)
+        render.out.print(render.metrics_table(flown.metrics))
+        render.out.print(render.peaks_table(flown.metrics, ws.linear.u_trim))
+        _print_flight(render, flown, before=False)
         render.out.print(f"{sim.status}: {sim.message} -> {ws.path('sim.npz')}")
         for path in figures:
             render.out.print(f"figure -> {path}")
-    sat = ws.flight.get("saturation")
+    sat = flown.flight.get("saturation")
     if sat and sat["saturates"]:
         worst = max(sat["fraction"], key=sat["fraction"].get)
         render.err.print(f"quadctl: warning: the design saturates: {worst} is at a limit "
@@ -48,11 +47,11 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
         raise typer.Exit(EXIT_CHECK_FAILED)
 
 
-def _print_flight(render, ws, sim, *, before: bool) -> None:
-    """Controller rate, saturation, noise RMS and integrator lines (issue 5), when they apply."""
+def _print_flight(render, flown, *, before: bool) -> None:
+    """Controller rate, saturation, noise RMS and integrator lines, when they apply."""
     from quadctl.cli import render_flight
 
-    flight = ws.flight
+    flight, sim = flown.flight, flown.sim
     if before:
         line = render_flight.controller_line(flight, sim)
         if line:

@@ -1,0 +1,171 @@
+"""The config resolved once: a frozen :class:`Setup` that every stage takes.
+
+A config says things the way a user writes them (lists for diagonal weights, optional sections,
+a rate that means a discrete or an emulated design). :func:`resolve` turns it into the numbers
+and decisions the stages use, once: the design vehicle and the simulated plant, the partition,
+the weights per subsystem and as blocks, the integrators, the regulated states, the timing,
+the actuators, the noise, the initial state and the simulation settings. No stage reads the
+config after that.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from quadctl.config import Config, SubsystemConfig, weight_matrix
+from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
+from quadctl.model import Vehicle
+from quadctl.motors import Actuators, Motors, actuators_of
+from quadctl.noise import NoiseSpec
+
+
+@dataclass(frozen=True)
+class Timing:
+    """When the controller acts.
+
+    Attributes
+    ----------
+    rate : float or None
+        Hz of a sampled controller (zero-order hold); None: continuous feedback.
+    discrete : bool
+        With a rate: designed at that rate (MATLAB ``lqrd``); else the continuous design is run at
+        the rate (emulation).
+    """
+
+    rate: float | None = None
+    discrete: bool = False
+
+    @property
+    def mode(self) -> Literal["continuous", "discrete", "emulated"]:
+        if self.rate is None:
+            return "continuous"
+        return "discrete" if self.discrete else "emulated"
+
+    @property
+    def sample_time(self) -> float | None:
+        """s between controller samples; None for continuous feedback."""
+        return None if self.rate is None else 1.0 / self.rate
+
+    @property
+    def design_rate(self) -> float | None:
+        """Hz the design is computed at: the rate of a discrete design, else None (continuous)."""
+        return self.rate if self.mode == "discrete" else None
+
+    @property
+    def design_sample_time(self) -> float | None:
+        return None if self.design_rate is None else 1.0 / self.design_rate
+
+
+@dataclass(frozen=True)
+class Setup:
+    """A config resolved: what every stage reads.
+
+    Attributes
+    ----------
+    name : str
+    vehicle : Vehicle
+        The design model's parameters.
+    plant : Vehicle
+        The simulated vehicle (``simulation.plant`` overrides: model mismatch).
+    velocity_ned, position_ned : (3,) tuple of float
+        The flight condition (m/s, m).
+    yaw : float
+        rad.
+    partition : dict of str -> SubsystemConfig
+        The subsystems in force.
+    weights : dict of str -> (Q, R)
+        Per regulated subsystem, as matrices; an LQI subsystem's Q also weighs its integrators.
+    integral : dict of str -> tuple of str
+        Per subsystem with integral action, the states it integrates.
+    Q_block : (12, 12) ndarray
+        The subsystems' plant-state weights assembled (the cost the metrics report).
+    R_block : (4, 4) ndarray
+    regulated : tuple of str
+        States of the regulated subsystems, in partition order.
+    state_owner : dict of str -> str
+        State name -> its subsystem.
+    timing : Timing
+    actuators : Actuators or None
+        Rotors (``motors:``), box limits (``limits:``) or None (unlimited).
+    noise : NoiseSpec or None
+        Active noise only (None when absent or all zero).
+    initial_offset : (12,) ndarray
+        Offset of the initial state from the trim (state units).
+    duration : float
+        s.
+    dt : float or "auto"
+    max_samples : int
+    plant_overrides : dict
+        The ``simulation.plant`` values given (empty: the plant is the design model).
+    """
+
+    name: str
+    vehicle: Vehicle
+    plant: Vehicle
+    velocity_ned: tuple[float, float, float]
+    position_ned: tuple[float, float, float]
+    yaw: float
+    partition: dict[str, SubsystemConfig]
+    weights: dict[str, tuple[np.ndarray, np.ndarray]]
+    integral: dict[str, tuple[str, ...]]
+    Q_block: np.ndarray
+    R_block: np.ndarray
+    regulated: tuple[str, ...]
+    state_owner: dict[str, str]
+    timing: Timing
+    actuators: Actuators | None
+    noise: NoiseSpec | None
+    initial_offset: np.ndarray
+    duration: float
+    dt: float | str
+    max_samples: int
+    plant_overrides: dict = field(default_factory=dict)
+
+    def initial_state(self, x_trim) -> np.ndarray:
+        """(12,) trim state plus the configured initial offset."""
+        return np.asarray(x_trim, dtype=float) + self.initial_offset
+
+
+def resolve(cfg: Config) -> Setup:
+    """Resolve a validated config into the :class:`Setup` every stage takes."""
+    v = cfg.vehicle
+    vehicle = Vehicle(mass=v.mass, gravity=v.gravity, inertia=tuple(v.inertia), drag=tuple(v.drag))
+    over = cfg.simulation.plant
+    overrides = over.model_dump(exclude_none=True) if over is not None else {}
+    plant = vehicle if not overrides else Vehicle(
+        mass=overrides.get("mass", vehicle.mass), gravity=overrides.get("gravity", vehicle.gravity),
+        inertia=tuple(overrides.get("inertia", vehicle.inertia)), drag=tuple(overrides.get("drag", vehicle.drag)))
+    partition = cfg.partition()
+    weights = {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()}
+    Q = np.zeros((N_STATES, N_STATES))
+    R = np.zeros((N_INPUTS, N_INPUTS))
+    for name, sub in partition.items():
+        if name in weights:
+            si = [STATE_INDEX[s] for s in sub.states]
+            ii = [INPUT_INDEX[i] for i in sub.inputs]
+            Qw, Rw = weights[name]
+            Q[np.ix_(si, si)] = Qw[:len(si), :len(si)]
+            R[np.ix_(ii, ii)] = Rw
+    offset = np.zeros(N_STATES)
+    for state, value in cfg.simulation.initial_offset.items():
+        offset[STATE_INDEX[state]] += value
+    ctl = cfg.controller
+    timing = Timing(rate=ctl.rate, discrete=ctl.rate is not None and ctl.design == "discrete")
+    noise = None
+    if cfg.simulation.noise is not None:
+        spec = NoiseSpec.from_config(cfg.simulation.noise, timing.rate)
+        noise = spec if spec.active else None
+    motors = Motors.from_config(cfg.motors) if cfg.motors is not None else None
+    return Setup(
+        name=cfg.name, vehicle=vehicle, plant=plant, velocity_ned=tuple(cfg.trim.velocity_ned),
+        position_ned=tuple(cfg.trim.position_ned), yaw=cfg.trim.yaw, partition=partition,
+        weights=weights, integral={name: tuple(w.integral) for name, w in cfg.lqr.items() if w.integral},
+        Q_block=Q, R_block=R,
+        regulated=tuple(s for sub in partition.values() if sub.regulate for s in sub.states),
+        state_owner={s: name for name, sub in partition.items() for s in sub.states},
+        timing=timing, actuators=actuators_of(motors, cfg.limits), noise=noise, initial_offset=offset,
+        duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
+        plant_overrides=overrides)

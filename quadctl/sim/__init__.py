@@ -1,0 +1,18 @@
+"""The simulation engine: one closed-loop definition, compiled or interpreted, one case or many.
+
+Modules, each importing only those above it:
+
+- :mod:`~quadctl.sim.plan`: the RK4 step a loop needs (from its spectrum) or a user's step checked
+- :mod:`~quadctl.sim.builder`: the one closed-loop definition (:class:`LoopSpec` -> CasADi functions
+  of one step: plant, sample-and-hold, the control law with integrators, saturation, noise inputs)
+  and its one constant layout
+- :mod:`~quadctl.sim.emit`: those functions as C over ``lanes`` cases at once
+- :mod:`~quadctl.sim.compile`: compile once per machine, cached in the platform's cache folder
+- :mod:`~quadctl.sim.cases`: the loop contract's inputs (:class:`Cases`) and record counts
+- :mod:`~quadctl.sim.native`: the compiled runner (``driver.c``: 1 lane for one case, 8 for sweeps)
+- :mod:`~quadctl.sim.interpreted`: the same loop in CasADi's virtual machine, without a compiler
+- :mod:`~quadctl.sim.engine`: :func:`runner`, the fastest runner that builds here
+
+A new loop feature is one change to :func:`quadctl.sim.builder.build` plus its config; every
+runner, one case or many lanes, compiled or not, gets it from there.
+"""

@@ -1,0 +1,270 @@
+"""The one closed-loop definition: CasADi functions of one RK4 step of plant and controller.
+
+Every runner is generated from what this module builds: the compiled one-case loop and the
+compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
+``driver.c``), and the interpreted fallback (:mod:`quadctl.sim.interpreted`, CasADi's virtual
+machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
+
+The loop state is ``X = [x; z]``: the 12 plant states, then the ``nz`` controller states (the
+integrators of an LQI law). The control law is
+
+    u = sat(u_trim - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,
+
+with ``x_m = x + n_s`` the measured state (sensor noise ``n_s``) and ``sat`` the actuator
+clipping (``box`` on ``T, A, E, R``; ``motors``: mixed to rotor thrusts, clipped, mixed back).
+Integrators follow MATLAB ``lqi``, ``dz/dt = -(x_i - x_ref,i)``, frozen while saturation alters
+an input they drive (conditional integration).
+
+Two timings (:attr:`LoopSpec.held`):
+
+- continuous feedback: the law is evaluated in every RK4 stage, ``z`` integrated with ``x``
+  (function ``step``);
+- sampled, zero-order hold: the law runs once per controller period (function ``law``, which
+  also advances ``z`` by forward Euler, ``z <- z + Ts dz/dt``) and RK4 integrates the plant under
+  the held input in between (function ``plant``).
+
+Exogenous inputs (:data:`EXO_LAYOUT`, when :attr:`LoopSpec.noise`): per step, a body force and
+torque added to the plant and the sensor noise added to what the controller measures.
+
+Constants (:func:`constant_layout`): everything numeric a case carries (trim, gains, vehicle,
+mixing, limits) is one vector ``c``; the gain's sparsity, the saturation mode and the integrated
+states are baked into the generated code, so a block-diagonal gain costs only its nonzeros.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from quadctl._lazy import lazy_import
+from quadctl.layout import N_INPUTS, N_STATES
+from quadctl.model import N_DISTURBANCES, N_PARAMS, build_model
+
+ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
+
+SATURATION_MODES = ("none", "box", "motors")
+ANTIWINDUP_TOL = 1e-10
+"""An input counts as saturated when clipping changed it by more than this (N or N m): far above
+the round-off of mixing and unmixing (~1e-15), far below any clip that matters."""
+
+_BASE_LAYOUT: tuple[tuple[str, tuple[int, ...]], ...] = (
+    ("x_ref", (N_STATES,)),             # reference state at t = 0
+    ("x_rate", (N_STATES,)),            # reference drift (m/s on positions): x_ref(t) = x_ref + x_rate t
+    ("u_trim", (N_INPUTS,)),
+    ("K", (N_INPUTS, N_STATES)),        # column-major
+    ("params", (N_PARAMS,)),            # Vehicle.vector() of the simulated plant
+    ("mix", (N_INPUTS, N_INPUTS)),      # [T, A, E, R] -> actuator commands (motors mode)
+    ("mix_inv", (N_INPUTS, N_INPUTS)),  # actuator commands -> [T, A, E, R]
+    ("lo", (N_INPUTS,)),                # actuator limits (saturation modes box and motors)
+    ("hi", (N_INPUTS,)),
+    ("Ts", (1,)),                       # controller period (s): the held integrators' Euler step
+)
+EXO_LAYOUT: tuple[tuple[str, int], ...] = (
+    ("disturbance", N_DISTURBANCES),    # body force (N, 3) and torque (N m, 3) on the plant
+    ("sensor", N_STATES),               # added to the state the controller measures (state units)
+)
+"""Exogenous channels of one step, in order, when the loop has noise."""
+N_EXO = sum(size for _, size in EXO_LAYOUT)
+
+
+def constant_layout(nz: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
+    """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
+
+    ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
+    input ``j``'s saturation freezes integrator ``i``. Matrices are stored column-major.
+    """
+    if nz == 0:
+        return _BASE_LAYOUT
+    return _BASE_LAYOUT + (("Ki", (N_INPUTS, nz)), ("antiwindup", (nz, N_INPUTS)))
+
+
+def constant_size(nz: int = 0) -> int:
+    """Length of ``c`` for ``nz`` integrators."""
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz))
+
+
+def pack_constants(nz: int = 0, **values) -> np.ndarray:
+    """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
+
+    Raises
+    ------
+    ValueError
+        An entry has the wrong shape, or is not in the layout.
+    """
+    out = []
+    for name, shape in constant_layout(nz):
+        default = np.eye(N_INPUTS) if name in ("mix", "mix_inv") else np.zeros(shape)
+        arr = np.asarray(values.pop(name, default), dtype=float)
+        if arr.size != int(np.prod(shape)) or (arr.ndim > 1 and arr.shape != shape):
+            raise ValueError(f"{name}: expected shape {shape}, got {arr.shape}")
+        out.append(arr.reshape(shape).ravel(order="F"))
+    if values:
+        raise ValueError(f"unknown constants: {sorted(values)}")
+    return np.concatenate(out)
+
+
+@dataclass(frozen=True)
+class LoopSpec:
+    """The structure of a closed loop: what is baked into its generated code.
+
+    Cases that share a spec share one compiled library and run in the same lanes.
+
+    Attributes
+    ----------
+    pattern : tuple of 48 bool
+        Sparsity of the (4, 12) state gain, column-major.
+    saturation : {"none", "box", "motors"}
+    integral : tuple of int
+        Plant-state index that each controller integrator integrates.
+    held : bool
+        Sampled controller with a zero-order hold (else continuous feedback).
+    noise : bool
+        The loop takes the exogenous channels of :data:`EXO_LAYOUT` every step.
+    """
+
+    pattern: tuple[bool, ...]
+    saturation: str = "none"
+    integral: tuple[int, ...] = ()
+    held: bool = False
+    noise: bool = False
+
+    def __post_init__(self):
+        if len(self.pattern) != N_INPUTS * N_STATES:
+            raise ValueError(f"pattern: expected {N_INPUTS * N_STATES} entries, got {len(self.pattern)}")
+        if self.saturation not in SATURATION_MODES:
+            raise ValueError(f"saturation must be one of {SATURATION_MODES}, got {self.saturation!r}")
+
+    @property
+    def nz(self) -> int:
+        """Controller states."""
+        return len(self.integral)
+
+    @property
+    def nx(self) -> int:
+        """Loop states ``[x; z]``."""
+        return N_STATES + self.nz
+
+    @property
+    def n_exo(self) -> int:
+        """Exogenous channels per step."""
+        return N_EXO if self.noise else 0
+
+    @property
+    def n_constants(self) -> int:
+        return constant_size(self.nz)
+
+    def key(self) -> str:
+        """A text naming the spec (part of the compile cache key)."""
+        bits = "".join("1" if b else "0" for b in self.pattern)
+        return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
+                f"held={int(self.held)} noise={int(self.noise)}")
+
+    @classmethod
+    def of_gain(cls, K, **kwargs) -> LoopSpec:
+        """The spec whose pattern is the nonzeros of ``K`` (4, 12)."""
+        return cls(tuple(bool(v) for v in (np.asarray(K) != 0).ravel(order="F")), **kwargs)
+
+
+@dataclass(frozen=True)
+class LoopFunctions:
+    """The CasADi functions of one spec (arguments in this order, all column vectors).
+
+    ``step(X, t, dt, c, e) -> (X_next, u)``: one RK4 step with continuous feedback, and the
+    input at its start (continuous specs).
+    ``law(X, t, c, e) -> (u, X_sampled)``: the control law at ``X``, and ``X`` with its controller
+    states advanced by one controller period (held specs; the input part serves both).
+    ``plant(X, u, dt, c, e) -> X_next``: one RK4 step of the plant under a held ``u``; the
+    controller states pass through (held specs).
+    """
+
+    spec: LoopSpec
+    law: ca.Function
+    step: ca.Function | None = None
+    plant: ca.Function | None = None
+
+    def functions(self) -> tuple[tuple[str, ca.Function], ...]:
+        """(C name, function) of every function the driver calls."""
+        named = [("qc_law", self.law)]
+        named.append(("qc_plant", self.plant) if self.spec.held else ("qc_step", self.step))
+        return tuple(named)
+
+
+@lru_cache(maxsize=32)
+def build(spec: LoopSpec) -> LoopFunctions:
+    """Build the loop functions of ``spec`` (cached per spec)."""
+    f = build_model().f_disturbed
+    nz, nx = spec.nz, spec.nx
+    c = ca.SX.sym("c", spec.n_constants)
+    parts, offset = {}, 0
+    for name, shape in constant_layout(nz):
+        size = int(np.prod(shape))
+        block = c[offset:offset + size]
+        parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
+        offset += size
+    mask = ca.DM(np.reshape(np.asarray(spec.pattern, dtype=float), (N_INPUTS, N_STATES), order="F"))
+    gain = parts["K"] * mask  # structural zeros vanish from the generated code
+    e = ca.SX.sym("e", spec.n_exo)
+    if spec.noise:
+        disturbance = e[:N_DISTURBANCES]
+        sensor = e[N_DISTURBANCES:]
+    else:
+        disturbance, sensor = ca.DM.zeros(N_DISTURBANCES), ca.DM.zeros(N_STATES)
+
+    def saturate(cmd):
+        if spec.saturation == "none":
+            return cmd
+        act = parts["mix"] @ cmd if spec.saturation == "motors" else cmd
+        act = ca.if_else(act < parts["lo"], parts["lo"], act)
+        act = ca.if_else(act > parts["hi"], parts["hi"], act)
+        return parts["mix_inv"] @ act if spec.saturation == "motors" else act
+
+    def control(X, t):
+        """(u, dz/dt) at loop state ``X`` and time ``t``."""
+        x, z = X[:N_STATES], X[N_STATES:]
+        err = x + sensor - (parts["x_ref"] + parts["x_rate"] * t)
+        cmd = parts["u_trim"] - gain @ err
+        if nz == 0:
+            return saturate(cmd), ca.SX(0, 1)
+        cmd = cmd - parts["Ki"] @ z
+        u = saturate(cmd)
+        rate = -ca.vertcat(*[err[i] for i in spec.integral])  # MATLAB lqi: dz/dt = r - y
+        if spec.saturation != "none":
+            clipped = ca.if_else(ca.fabs(u - cmd) > ANTIWINDUP_TOL, 1, 0)
+            frozen = parts["antiwindup"] @ clipped
+            rate = ca.if_else(frozen > 0.5, 0, rate)
+        return u, rate
+
+    X = ca.SX.sym("X", nx)
+    t, dt = ca.SX.sym("t"), ca.SX.sym("dt")
+    u_held = ca.SX.sym("u", N_INPUTS)
+    params = parts["params"]
+
+    def rk4(rhs, Y):
+        k1 = rhs(Y, t)
+        k2 = rhs(Y + dt / 2 * k1, t + dt / 2)
+        k3 = rhs(Y + dt / 2 * k2, t + dt / 2)
+        k4 = rhs(Y + dt * k3, t + dt)
+        return Y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    u_now, z_rate = control(X, t)
+    X_sampled = ca.vertcat(X[:N_STATES], X[N_STATES:] + parts["Ts"] * z_rate) if nz else X
+    law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
+    if spec.held:
+        def plant_rhs(Y, ts):
+            xdot = f(Y[:N_STATES], u_held, params, disturbance)
+            return ca.vertcat(xdot, ca.DM.zeros(nz)) if nz else xdot
+
+        plant = ca.Function("qc_plant", [X, u_held, dt, c, e], [ca.cse(rk4(plant_rhs, X))],
+                            ["X", "u", "dt", "c", "e"], ["X_next"])
+        return LoopFunctions(spec=spec, law=law, plant=plant)
+
+    def closed_rhs(Y, ts):
+        u, rate = control(Y, ts)
+        xdot = f(Y[:N_STATES], u, params, disturbance)
+        return ca.vertcat(xdot, rate) if nz else xdot
+
+    step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([rk4(closed_rhs, X), u_now]),
+                       ["X", "t", "dt", "c", "e"], ["X_next", "u"])
+    return LoopFunctions(spec=spec, law=law, step=step)

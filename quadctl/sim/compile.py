@@ -1,0 +1,220 @@
+"""Compile the generated loop C once per machine and keep it in the platform's cache folder.
+
+A library's cache key is what its source is made from, not the source: :data:`FINGERPRINT`
+(the files the C is generated from, as this process imported them, and the installed CasADi),
+the loop's :class:`~quadctl.sim.builder.LoopSpec`, the lane count, the flags, the compiler, the
+platform and, for ``-march=native``, the CPU. So a cached library loads without building any
+CasADi function. Libraries are compiled under a unique temporary name and renamed into place,
+so concurrent processes and threads never load a half-written file; no working directory is
+ever changed. Libraries of other fingerprints (an older quadctl or CasADi) that were not used
+for :data:`EVICT_AFTER_DAYS` days are deleted when a new one is compiled.
+
+A compiler that is missing, or present but failing (a macOS ``cc`` stub without the command
+line tools, a broken ``$CC``), raises :class:`CompileError`; the engine then runs the same loop
+in CasADi's virtual machine and says so once.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.machinery
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+PORTABLE_FLAGS = ("-O3", "-ffp-contract=off", "-fno-math-errno", "-fPIC", "-shared")
+"""``-ffp-contract=off`` keeps a*b+c rounded as written (no FMA), so compiled and interpreted runs
+round alike; no ``-ffast-math``: NaN still propagates and stops a diverging run."""
+SIMD_FLAGS = PORTABLE_FLAGS[:1] + ("-march=native", "-fno-builtin-sin", "-fno-builtin-cos",
+                                   "-fno-builtin-tan", "-fopenmp-simd") + PORTABLE_FLAGS[1:]
+"""The vectorized lanes: ``-fno-builtin-sin/cos`` keep GCC from fusing sin and cos into one scalar
+``sincos`` call (it has no vector form)."""
+EVICT_AFTER_DAYS = 30
+"""Cached libraries of another fingerprint unused for this long are deleted."""
+GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "sim/builder.py", "sim/emit.py", "sim/cases.py",
+                     "sim/compile.py", "sim/native.py", "sim/driver.c")
+"""The files a library's C is generated from (``tests/test_structure.py`` checks that this lists
+everything those modules import from quadctl). Read once, when this module is imported: the cache
+key hashes the code this process runs, and ``driver.c`` is compiled from the same bytes."""
+
+
+class CompileError(RuntimeError):
+    """No working C compiler: the message says which and why (one line)."""
+
+
+def cache_dir() -> Path:
+    """``$QUADCTL_CACHE``, else the platform's per-user cache folder, then ``quadctl``.
+
+    Linux and BSD: ``$XDG_CACHE_HOME`` or ``~/.cache``; macOS: ``~/Library/Caches``; Windows:
+    ``%LOCALAPPDATA%``.
+    """
+    env = os.environ.get("QUADCTL_CACHE")
+    if env:
+        return Path(env)
+    if sys.platform == "win32":
+        base = Path(os.environ.get("LOCALAPPDATA") or Path.home() / "AppData" / "Local")
+    elif sys.platform == "darwin":
+        base = Path.home() / "Library" / "Caches"
+    else:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "quadctl"
+
+
+def find_compiler() -> str | None:
+    """Path of the C compiler to try (``$CC``, ``cc``, ``gcc``, ``clang``), or None.
+
+    ``QUADCTL_NO_COMPILE=1`` says there is none (tests use it to compare both paths).
+    """
+    if os.environ.get("QUADCTL_NO_COMPILE") == "1":
+        return None
+    for cand in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if cand and shutil.which(cand):
+            return shutil.which(cand)
+    return None
+
+
+def casadi_stamp() -> str:
+    """Identifies the installed CasADi without importing it (~0.1 s): its module file's path, size
+    and modification time (a reinstall changes them), else its version from the package metadata."""
+    spec = importlib.machinery.PathFinder.find_spec("casadi")  # the path, not the (lazy) module
+    try:
+        if spec is not None and spec.origin:
+            info = os.stat(spec.origin)
+            return f"{spec.origin} {info.st_size} {info.st_mtime_ns}"
+    except OSError:
+        pass
+    from importlib import metadata  # ~10 ms: only for installs the path finder cannot see
+
+    try:
+        return f"casadi {metadata.version('casadi')}"
+    except metadata.PackageNotFoundError:
+        return "casadi unknown"
+
+
+def _read_sources() -> dict[str, bytes]:
+    package = resources.files("quadctl")
+    return {name: package.joinpath(name).read_bytes() for name in GENERATOR_SOURCES}
+
+
+def fingerprint(sources: dict[str, bytes], casadi: str) -> str:
+    """sha256 of source files (name -> contents) and a CasADi stamp."""
+    digest = hashlib.sha256(casadi.encode())
+    for name in sorted(sources):
+        digest.update(name.encode() + b"\0" + sources[name] + b"\0")
+    return digest.hexdigest()
+
+
+_SOURCES = _read_sources()
+DRIVER_SOURCE = _SOURCES["sim/driver.c"].decode()
+FINGERPRINT = fingerprint(_SOURCES, casadi_stamp())
+_LOCK = threading.Lock()
+_FAILED: dict[tuple, str] = {}
+"""(compiler, flags) -> why that failed in this process (not tried again)."""
+
+
+@lru_cache(maxsize=1)
+def cpu_tag() -> str:
+    """What ``-march=native`` depends on: the machine and its CPU feature flags."""
+    flags = ""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            for line in fh:
+                if line.startswith("flags"):
+                    flags = line
+                    break
+    except OSError:
+        pass
+    return platform.machine() + hashlib.sha256(flags.encode()).hexdigest()[:12]
+
+
+def compile_cached(make_source: Callable[[], str], flags: tuple[str, ...], key: str) -> Path:
+    """Compile ``make_source()`` into a shared library once per machine; its path.
+
+    Parameters
+    ----------
+    make_source : callable
+        Returns the C source; called only when the library is not cached.
+    flags : tuple of str
+    key : str
+        Everything the source is generated from beyond :data:`FINGERPRINT`.
+
+    Raises
+    ------
+    CompileError
+        No compiler, or it failed (now or earlier in this process).
+    """
+    compiler = find_compiler()
+    if compiler is None:
+        raise CompileError("no C compiler found (looked for $CC, cc, gcc, clang)")
+    tried = (compiler, flags)
+    if tried in _FAILED:
+        raise CompileError(_FAILED[tried])
+    digest = hashlib.sha256("\0".join((FINGERPRINT, key, " ".join(flags), compiler, sys.platform,
+                                       platform.machine())).encode()).hexdigest()
+    folder = cache_dir()
+    suffix = ".dll" if sys.platform == "win32" else ".so"
+    library = folder / f"qc_{FINGERPRINT[:12]}_{digest[:16]}{suffix}"
+    if library.exists():
+        _touch(library)
+        return library
+    with _LOCK:
+        if library.exists():
+            return library
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CompileError(f"cannot create the compile cache {folder}: {exc.strerror}") from None
+        fd, src_name = tempfile.mkstemp(prefix=f"{library.stem}.", suffix=".c", dir=folder)
+        src, tmp_lib = Path(src_name), Path(src_name).with_suffix(suffix + ".tmp")
+        try:
+            with os.fdopen(fd, "w") as fh:
+                fh.write(make_source())
+            try:
+                proc = subprocess.run([compiler, *flags, str(src), "-o", str(tmp_lib), "-lm"],
+                                      capture_output=True, text=True, timeout=600)
+            except (OSError, subprocess.SubprocessError) as exc:
+                _FAILED[tried] = f"the C compiler {compiler} could not run ({exc})"
+                raise CompileError(_FAILED[tried]) from None
+            if proc.returncode != 0:
+                said = " ".join((proc.stderr or proc.stdout or "").split())[:300] or "no message"
+                _FAILED[tried] = f"the C compiler {compiler} failed (exit {proc.returncode}: {said})"
+                raise CompileError(_FAILED[tried])
+            os.replace(tmp_lib, library)
+        finally:
+            src.unlink(missing_ok=True)
+            tmp_lib.unlink(missing_ok=True)
+        evict_stale(folder)
+    return library
+
+
+def evict_stale(folder: Path, now: float | None = None) -> list[Path]:
+    """Delete cached libraries of other fingerprints unused for :data:`EVICT_AFTER_DAYS`; them."""
+    now = time.time() if now is None else now
+    gone = []
+    for path in [*folder.glob("qc_*"), *folder.glob("qb_*")]:
+        if path.name.startswith(f"qc_{FINGERPRINT[:12]}_"):
+            continue
+        try:
+            if now - path.stat().st_mtime > EVICT_AFTER_DAYS * 86400:
+                path.unlink()
+                gone.append(path)
+        except OSError:
+            pass
+    return gone
+
+
+def _touch(path: Path) -> None:
+    """Mark a library used (its age decides eviction); a read-only cache is fine."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass

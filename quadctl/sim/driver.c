@@ -1,0 +1,160 @@
+/* quadctl loop driver: iterates the closed-loop functions of quadctl/sim/builder.py.
+ *
+ * No dynamics here. quadctl/sim/compile.py prepends the sizes (QC_L lanes, QC_NX loop states,
+ * QC_NP plant states, QC_NU inputs, QC_NE exogenous channels, QC_NC constants, QC_HELD) and the
+ * functions emitted by quadctl/sim/emit.py from the builder's CasADi functions:
+ *   qc_law(X, t, c, e, u, X_sampled)   the control law (and the controller states' update)
+ *   qc_step(X, t, dt, c, e, X_next, u) one RK4 step with continuous feedback   (QC_HELD == 0)
+ *   qc_plant(X, u, dt, c, e, X_next)   one RK4 step under a held input        (QC_HELD == 1)
+ * Every argument is lane-major: element j of lane l is at [j * QC_L + l].
+ *
+ * One call runs up to QC_L cases ("lanes"), each with its own constants, step, step count and
+ * recording stride. Per lane it records the steps whose absolute index kk = k0 + k is a multiple
+ * of the stride (state before the step, input applied during it), stops at the first state
+ * outside [lo, hi] (NaN included), and records the final state with the input the law gives
+ * there (the held input between samples; the last applied input after leaving the bounds).
+ * A lane that is done restarts from its x0 and runs on, discarded, until every lane is done
+ * (a runaway lane would drag the vector math into its slow paths for huge or NaN arguments). */
+#include <math.h>
+#include <string.h>
+
+#define QC_NE1 (QC_NE + 1)
+/* per-lane parameters: lane_d[QC_LD][QC_L], lane_i[QC_LI][QC_L] */
+#define QC_DT(l) lane_d[0 * QC_L + (l)]         /* RK4 step, s */
+#define QC_PERIOD(l) lane_d[1 * QC_L + (l)]     /* exogenous sample period, s */
+#define QC_K0(l) lane_i[0 * QC_L + (l)]         /* absolute index of the first step */
+#define QC_N(l) lane_i[1 * QC_L + (l)]          /* steps to take */
+#define QC_STRIDE(l) lane_i[2 * QC_L + (l)]     /* record every stride-th absolute step */
+#define QC_HOLD(l) lane_i[3 * QC_L + (l)]       /* steps per controller sample (held loops) */
+#define QC_EXO_FIRST(l) lane_i[4 * QC_L + (l)]  /* absolute index of the first exogenous row given */
+#define QC_EXO_N(l) lane_i[5 * QC_L + (l)]      /* exogenous rows given */
+
+/* the exogenous row of absolute step kk: sample floor(kk dt / period), as quadctl.noise counts */
+static void qc_exo_row(const double* exo, long exo_rows, const double* lane_d, const long* lane_i,
+                       int l, long kk, double* e) {
+  if (QC_NE == 0 || exo == NULL) return;
+  long j = (long)floor((double)kk * QC_DT(l) / QC_PERIOD(l) + 1e-9) - QC_EXO_FIRST(l);
+  if (j > QC_EXO_N(l) - 1) j = QC_EXO_N(l) - 1;
+  if (j < 0) j = 0;
+  const double* row = exo + ((long)l * exo_rows + j) * QC_NE;
+  for (int i = 0; i < QC_NE; ++i) e[i * QC_L + l] = row[i];
+}
+
+static long qc_mod(long a, long m) { return m > 0 ? ((a % m) + m) % m : 0; }
+
+/* x0, lo, hi: [QC_NX][QC_L]; c: [QC_NC][QC_L]; exo: [QC_L][exo_rows][QC_NE] (or NULL).
+ * Records into xs [QC_L][QC_NX][rows_max], us [QC_L][QC_NU][rows_max], ks [QC_L][rows_max];
+ * n_rec[l]: rows written; done[l]: steps completed (n when every state stayed in bounds). */
+void qc_run(const double* x0, const double* c, const double* lane_d, const long* lane_i,
+            const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
+            double* xs, double* us, long* ks, long* n_rec, long* done) {
+  double X[QC_NX * QC_L], XN[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
+  double U[QC_NU * QC_L], UH[QC_NU * QC_L], UF[QC_NU * QC_L], T[QC_L], DT[QC_L], E[QC_NE1 * QC_L];
+  long rec_in[QC_L], hold_in[QC_L], rows[QC_L];
+  int active[QC_L], inb[QC_L], n_active = 0;
+  memcpy(X, x0, sizeof X);
+  memcpy(XF, x0, sizeof XF);
+  memset(E, 0, sizeof E);
+  memset(U, 0, sizeof U);
+  memset(UH, 0, sizeof UH);
+  memset(UF, 0, sizeof UF);
+  (void)XS; (void)hold_in;
+  for (int l = 0; l < QC_L; ++l) {
+    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = 0; done[l] = 0;
+    rec_in[l] = qc_mod(-QC_K0(l), QC_STRIDE(l));   /* steps until the next recorded one */
+    hold_in[l] = qc_mod(-QC_K0(l), QC_HOLD(l));    /* steps until the next controller sample */
+    DT[l] = QC_DT(l);
+    n_active += active[l];
+  }
+  for (long k = 0; n_active > 0; ++k) {
+    double bad[QC_L];
+    int rec = 0;
+    for (int l = 0; l < QC_L; ++l) {
+      T[l] = QC_DT(l) * (double)(QC_K0(l) + k);
+      bad[l] = 0.0;
+      rec |= active[l] && rec_in[l] == 0;
+      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, E);
+    }
+#if QC_HELD
+    int sample = 0;
+    for (int l = 0; l < QC_L; ++l) sample |= hold_in[l] == 0;
+    if (sample) {
+      qc_law(X, T, c, E, U, XS);
+      for (int l = 0; l < QC_L; ++l) {
+        if (hold_in[l] != 0) continue;
+        for (int i = 0; i < QC_NU; ++i) UH[i * QC_L + l] = U[i * QC_L + l];
+      }
+    }
+    const double* UA = UH;
+#else
+    qc_step(X, T, DT, c, E, XN, U);
+    const double* UA = U;
+#endif
+    if (rec) {
+      for (int l = 0; l < QC_L; ++l) {
+        if (!active[l] || rec_in[l] != 0) continue;
+        double* xr = xs + (long)l * QC_NX * rows_max + rows[l];
+        double* ur = us + (long)l * QC_NU * rows_max + rows[l];
+        for (int i = 0; i < QC_NX; ++i) xr[i * rows_max] = X[i * QC_L + l];
+        for (int i = 0; i < QC_NU; ++i) ur[i * rows_max] = UA[i * QC_L + l];
+        ks[(long)l * rows_max + rows[l]] = QC_K0(l) + k;
+        rows[l]++;
+      }
+    }
+#if QC_HELD
+    if (sample) {  /* the sampled controller states, then the plant under the held input */
+      for (int l = 0; l < QC_L; ++l) {
+        if (hold_in[l] != 0) continue;
+        for (int i = QC_NP; i < QC_NX; ++i) X[i * QC_L + l] = XS[i * QC_L + l];
+      }
+    }
+    qc_plant(X, UH, DT, c, E, XN);
+#endif
+    /* bounds of every lane at once (NaN compares false, so it counts as out) */
+    for (int i = 0; i < QC_NX; ++i)
+      for (int l = 0; l < QC_L; ++l) {
+        double v = XN[i * QC_L + l];
+        bad[l] += (v >= lo[i * QC_L + l] && v <= hi[i * QC_L + l]) ? 0.0 : 1.0;
+      }
+    memcpy(X, XN, sizeof X);
+    for (int l = 0; l < QC_L; ++l) {
+      rec_in[l] = rec_in[l] == 0 ? QC_STRIDE(l) - 1 : rec_in[l] - 1;
+      hold_in[l] = hold_in[l] == 0 ? QC_HOLD(l) - 1 : hold_in[l] - 1;
+      if (!active[l]) continue;
+      if (bad[l] != 0.0 || k + 1 == QC_N(l)) {
+        active[l] = 0; n_active--;
+        done[l] = k + 1;
+        if (bad[l] != 0.0) {
+          inb[l] = 0;
+          for (int i = 0; i < QC_NU; ++i) UF[i * QC_L + l] = UA[i * QC_L + l];
+        }
+        for (int i = 0; i < QC_NX; ++i) {
+          XF[i * QC_L + l] = X[i * QC_L + l];
+          X[i * QC_L + l] = x0[i * QC_L + l];
+        }
+      }
+    }
+  }
+  /* the final state, with the input the law gives there (held between samples; past the
+     bounds, the last applied one) */
+  for (int l = 0; l < QC_L; ++l) {
+    long last = QC_K0(l) + done[l];
+    T[l] = QC_DT(l) * (double)last;
+    qc_exo_row(exo, exo_rows, lane_d, lane_i, l, last > 0 ? last - 1 : 0, E);
+  }
+  qc_law(XF, T, c, E, U, XS);
+  for (int l = 0; l < QC_L; ++l) {
+    long last = QC_K0(l) + done[l];
+    const double* uf = U;
+    if (!inb[l]) uf = UF;
+#if QC_HELD
+    else if (qc_mod(last, QC_HOLD(l)) != 0) uf = UH;
+#endif
+    double* xr = xs + (long)l * QC_NX * rows_max + rows[l];
+    double* ur = us + (long)l * QC_NU * rows_max + rows[l];
+    for (int i = 0; i < QC_NX; ++i) xr[i * rows_max] = XF[i * QC_L + l];
+    for (int i = 0; i < QC_NU; ++i) ur[i * rows_max] = uf[i * QC_L + l];
+    ks[(long)l * rows_max + rows[l]] = last;
+    n_rec[l] = rows[l] + 1;
+  }
+}

@@ -1,0 +1,94 @@
+"""C source of CasADi SX functions evaluated on several cases ("lanes") at once.
+
+A CasADi SX function is a straight-line program of scalar operations (its instruction list).
+:func:`emit` writes it as a C function whose body is a loop over ``lanes`` cases, every
+variable holding one value per lane: the C compiler vectorizes that loop (sin and cos included,
+through glibc's vector math library) when ``lanes > 1``, and with ``lanes = 1`` it is the plain
+one-case function. Arguments are lane-major within each element: element ``j`` of argument
+``i`` for lane ``l`` is ``i<i>[j * lanes + l]``.
+
+The operations are CasADi's, spelled as its virtual machine computes them (``if_else_zero(c, x)``
+is ``c == 0 ? 0 : x``, comparisons give 1.0 or 0.0), so compiled and interpreted runs round alike.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+from quadctl._lazy import lazy_import
+
+ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
+
+SIMD_DECLARATIONS = """\
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+/* glibc's libmvec has vector variants of these: declaring them lets GCC vectorize the lane loop */
+double sin(double) __attribute__((simd("notinbranch"), const, nothrow));
+double cos(double) __attribute__((simd("notinbranch"), const, nothrow));
+double tan(double) __attribute__((simd("notinbranch"), const, nothrow));
+#endif
+"""
+"""Put before the emitted functions of a vectorized build (GCC on x86-64 Linux only)."""
+
+
+@lru_cache(maxsize=1)
+def _templates() -> dict[int, str]:
+    """CasADi operation code -> C expression template over ``{a}`` and ``{b}``."""
+    return {
+        ca.OP_ADD: "{a} + {b}", ca.OP_SUB: "{a} - {b}", ca.OP_MUL: "{a} * {b}", ca.OP_DIV: "{a} / {b}",
+        ca.OP_NEG: "-{a}", ca.OP_TWICE: "2.0 * {a}", ca.OP_SQ: "{a} * {a}", ca.OP_INV: "1.0 / {a}",
+        ca.OP_SIN: "sin({a})", ca.OP_COS: "cos({a})", ca.OP_TAN: "tan({a})", ca.OP_SQRT: "sqrt({a})",
+        ca.OP_FABS: "fabs({a})", ca.OP_EXP: "exp({a})", ca.OP_LOG: "log({a})",
+        ca.OP_FMIN: "fmin({a}, {b})", ca.OP_FMAX: "fmax({a}, {b})",
+        ca.OP_POW: "pow({a}, {b})", ca.OP_CONSTPOW: "pow({a}, {b})",
+        ca.OP_LT: "({a} < {b}) ? 1.0 : 0.0", ca.OP_LE: "({a} <= {b}) ? 1.0 : 0.0",
+        ca.OP_EQ: "({a} == {b}) ? 1.0 : 0.0", ca.OP_NE: "({a} != {b}) ? 1.0 : 0.0",
+        ca.OP_NOT: "({a} == 0.0) ? 1.0 : 0.0",
+        ca.OP_AND: "({a} != 0.0 && {b} != 0.0) ? 1.0 : 0.0",
+        ca.OP_OR: "({a} != 0.0 || {b} != 0.0) ? 1.0 : 0.0",
+        ca.OP_IF_ELSE_ZERO: "({a} == 0.0) ? 0.0 : {b}",
+    }
+
+
+def emit(fn, name: str, lanes: int) -> str:
+    """C source of the SX function ``fn`` as ``static void name(args...)`` over ``lanes`` cases.
+
+    Parameters
+    ----------
+    fn : casadi.Function
+        An SX function; its inputs become ``const double* i0, i1...``, its outputs ``double* o0...``.
+    name : str
+        The C function's name.
+    lanes : int
+        Cases per call (1: the one-case function).
+
+    Raises
+    ------
+    ValueError
+        ``fn`` uses an operation with no C form here.
+    """
+    templates = _templates()
+    args = [f"const double* restrict i{k}" for k in range(fn.n_in())]
+    args += [f"double* restrict o{k}" for k in range(fn.n_out())]
+    body = []
+    for k in range(fn.n_instructions()):
+        op = fn.instruction_id(k)
+        ins = fn.instruction_input(k)
+        out = fn.instruction_output(k)
+        if op == ca.OP_INPUT:
+            line = f"w{out[0]} = i{ins[0]}[{ins[1]} * {lanes} + l];"
+        elif op == ca.OP_OUTPUT:
+            line = f"o{out[0]}[{out[1]} * {lanes} + l] = w{ins[0]};"
+        elif op == ca.OP_CONST:
+            line = f"w{out[0]} = {float(fn.instruction_constant(k))!r};"
+        elif op in templates:
+            a = f"w{ins[0]}"
+            b = f"w{ins[1]}" if len(ins) > 1 else ""
+            line = f"w{out[0]} = {templates[op].format(a=a, b=b)};"
+        else:
+            raise ValueError(f"{name}: CasADi operation {op} has no C form in quadctl.sim.emit")
+        body.append("    " + line)
+    work = ", ".join(f"w{i}" for i in range(max(fn.sz_w(), 1)))
+    return (f"static void {name}({', '.join(args)}) {{\n"
+            "#pragma omp simd\n"
+            f"  for (int l = 0; l < {lanes}; ++l) {{\n"
+            f"    double {work};\n" + "\n".join(body) + "\n  }\n}\n")

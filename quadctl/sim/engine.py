@@ -1,0 +1,52 @@
+"""The runner for a loop spec: compiled where a C compiler works, else CasADi's VM (one notice).
+
+:func:`runner` gives the fastest runner that builds here for a :class:`LoopSpec` and a lane
+count: ``lanes = 1`` is the one-case loop (``quadctl simulate``), ``lanes = LANES`` the SIMD
+lanes a sweep runs. Both are generated from :func:`quadctl.sim.builder.build`; the interpreted
+fallback runs the same functions.
+"""
+
+from __future__ import annotations
+
+import warnings
+from functools import lru_cache
+
+from quadctl.errors import QuadctlNotice
+from quadctl.sim.builder import LoopSpec, build
+from quadctl.sim.compile import PORTABLE_FLAGS, SIMD_FLAGS, CompileError, compile_cached, cpu_tag
+from quadctl.sim.interpreted import InterpretedRunner
+from quadctl.sim.native import NativeRunner, library_source
+
+LANES = 8
+"""Cases per vectorized call: one AVX-512 register of doubles, or two AVX2 ones."""
+
+
+class CompilerNotice(QuadctlNotice):
+    """No working C compiler: the loop runs in CasADi's virtual machine (same numbers, slower)."""
+
+
+@lru_cache(maxsize=64)
+def runner(spec: LoopSpec, lanes: int = 1):
+    """A :class:`NativeRunner` (``backend`` ``"compiled"`` or ``"compiled-simd"``) or, when no C
+    compiler works, an :class:`InterpretedRunner` (``"casadi"``), after a :class:`CompilerNotice`.
+
+    Compiles at most once per spec and lane count per machine (see :mod:`quadctl.sim.compile`).
+    """
+    variants = [(False, PORTABLE_FLAGS, "compiled")]
+    if lanes > 1:
+        variants.insert(0, (True, SIMD_FLAGS, "compiled-simd"))
+    reason = ""
+    for simd, flags, backend in variants:
+        key = f"{spec.key()} lanes={lanes} simd={int(simd)} {cpu_tag() if simd else ''}"
+        try:
+            library = compile_cached(lambda s=simd: library_source(build(spec), lanes, s), flags, key)
+            return NativeRunner(library, spec, lanes, backend)
+        except CompileError as exc:
+            reason = str(exc)
+            if not simd:
+                break
+        except OSError as exc:  # built but does not load (a foreign or broken library)
+            reason = f"the compiled loop does not load ({exc})"
+    warnings.warn(CompilerNotice(f"{reason}: running the loop in CasADi's virtual machine "
+                                 "(same numbers, about 20x slower)"), stacklevel=2)
+    return InterpretedRunner(spec, reason)

@@ -1,0 +1,276 @@
+"""The batched path of a sweep chunk: designs, verdicts and lane simulations of many cases at once.
+
+Each function is the stacked twin of a one-case pipeline stage and is tested against it
+(``tests/test_sweep.py``): :func:`design_all` of :func:`quadctl.lqr.design` (the Riccati solves
+batched by shape, residual-checked; a case whose solve misses the check goes through the one-case
+design, which names the reason), :func:`loops_of` of :func:`quadctl.pipeline.loop_of` and the step
+plan, :func:`simulate_all` of :func:`quadctl.simulate.simulate` (SIMD lanes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from quadctl import integral, stability
+from quadctl.errors import DesignError, QuadctlError, StepSizeError
+from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
+
+BATCHED = "batched"
+"""``path`` of a row designed in the batched solve."""
+
+
+@dataclass(frozen=True)
+class CaseDesign:
+    """What a row needs of a design: the gains, the coupled verdict, and which path made it."""
+
+    K_block: np.ndarray
+    Ki_block: np.ndarray
+    integral_states: tuple[str, ...]
+    stable: bool
+    core: np.ndarray
+    path: str
+
+
+@dataclass(frozen=True)
+class LaneJob:
+    """A case ready for the lanes."""
+
+    spec: object
+    plan: object
+    c: np.ndarray
+    x0: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    stride: int
+    exo: np.ndarray | None
+    exo_first: int
+    exo_period: float
+
+
+def design_all(preps, stats) -> list:
+    """A :class:`CaseDesign` per case, or the one-line reason its design failed."""
+    groups: dict[tuple, list] = {}
+    for k, prep in enumerate(preps):
+        Ts = prep.setup.timing.design_sample_time
+        for sub in prep.plant.decoupled.regulated:
+            ints = prep.setup.integral.get(sub.name, ())
+            groups.setdefault((Ts, len(sub.states), len(sub.inputs), len(ints)), []).append((k, sub, ints))
+    gains: dict[tuple[int, str], np.ndarray] = {}
+    missed: set[int] = set()
+    for (Ts, n, _, _), group in groups.items():
+        K, ok = _solve(Ts, n, group, preps)
+        for j, (k, sub, _) in enumerate(group):
+            if ok[j]:
+                gains[(k, sub.name)] = K[j]
+            else:
+                missed.add(k)
+        stats["designs"] += len(group)
+    out: list = [None] * len(preps)
+    for k, prep in enumerate(preps):
+        if k in missed:
+            stats["fallbacks"] += 1
+            out[k] = _one_by_one(prep)
+    _assemble([(k, p) for k, p in enumerate(preps) if out[k] is None], gains, out)
+    return out
+
+
+def _solve(Ts, n, group, preps):
+    """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems."""
+    from quadctl import batch, discrete
+
+    A = np.stack([sub.A for _, sub, _ in group])
+    B = np.stack([sub.B for _, sub, _ in group])
+    Q = np.stack([preps[k].setup.weights[sub.name][0] for k, sub, _ in group])
+    R = np.stack([preps[k].setup.weights[sub.name][1] for k, sub, _ in group])
+    C = integral.selector(group[0][1].states, group[0][2])
+    same_ints = all(ints == group[0][2] and sub.states == group[0][1].states for _, sub, ints in group)
+    if not same_ints:  # integrators on different states: still one shape, build each selector
+        Cs = [integral.selector(sub.states, ints) for _, sub, ints in group]
+    if Ts is None:
+        if same_ints:
+            Aa, Ba = integral.augment(A, B, C)
+        else:
+            Aa, Ba = (np.stack(m) for m in zip(*(integral.augment(a, b, c) for a, b, c in zip(A, B, Cs))))
+        res = batch.care(Aa, Ba, Q, R)
+        return res.K, res.ok
+    Ad, Bd, Qd, Rd, Nd = _lqrd_weights(A, B, Q[:, :n, :n], R, Ts)
+    if same_ints:
+        Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
+    else:
+        Aa, Ba = (np.stack(m) for m in zip(*(integral.augment_discrete(a, b, c, Ts) for a, b, c in zip(Ad, Bd, Cs))))
+    Qa, Na = integral.discrete_weights(Qd, Nd, Q, Ts)
+    return _dare(Aa, Ba, Qa, Rd, Na, discrete)
+
+
+def _lqrd_weights(A, B, Q, R, Ts):
+    from quadctl import discrete
+
+    batched = getattr(discrete, "lqrd_weights_batch", None)
+    if batched is not None:
+        return batched(A, B, Q, R, Ts)
+    parts = [discrete.lqrd_weights(a, b, q, r, Ts) for a, b, q, r in zip(A, B, Q, R)]
+    return tuple(np.stack(p) for p in zip(*parts))
+
+
+def _dare(A, B, Q, R, N, discrete):
+    batched = getattr(discrete, "dare_batch", None)
+    if batched is not None:
+        res = batched(A, B, Q, R, N)
+        return res.K, res.ok
+    K = np.zeros((len(A), B.shape[2], A.shape[1]))
+    ok = np.zeros(len(A), dtype=bool)
+    for j in range(len(A)):
+        try:
+            K[j] = discrete.dlqr(A[j], B[j], Q[j], R[j], N[j]).K
+            ok[j] = True
+        except DesignError:
+            pass
+    return K, ok
+
+
+def _one_by_one(prep):
+    """The one-case design of a case the batched solve missed: its verdict, or why it failed."""
+    from quadctl import pipeline
+
+    try:
+        des = pipeline.design_of(prep.setup, prep.plant.decoupled, prep.plant.linear)
+    except DesignError as exc:
+        return str(exc)
+    return CaseDesign(des.K_block, des.Ki_block, des.integral_states, des.stable, des.core_eigenvalues,
+                      "one-by-one: the batched Riccati solve missed its residual or stability check")
+
+
+def _assemble(items, gains, out) -> None:
+    """Block gains and coupled verdicts of the batched designs, stacked per plant and timing."""
+    by_loop: dict[tuple, list] = {}
+    for k, prep in items:
+        setup, dec = prep.setup, prep.plant.decoupled
+        K = np.zeros((N_INPUTS, N_STATES))
+        columns, states = [], []
+        for sub in dec.regulated:
+            Ka = gains[(k, sub.name)]
+            n = len(sub.states)
+            rows = [INPUT_INDEX[i] for i in sub.inputs]
+            K[np.ix_(rows, sub.state_index)] = Ka[:, :n]
+            for j, state in enumerate(setup.integral.get(sub.name, ())):
+                column = np.zeros(N_INPUTS)
+                column[rows] = Ka[:, n + j]
+                columns.append(column)
+                states.append(state)
+        Ki = np.array(columns).T.reshape(N_INPUTS, len(columns))
+        key = (id(prep.plant), tuple(states), setup.timing.design_sample_time)
+        by_loop.setdefault(key, []).append((k, prep, K, Ki))
+    for (_, states, Ts), members in by_loop.items():
+        plant = members[0][1].plant
+        A_cl = closed_loops(plant, np.stack([m[2] for m in members]), np.stack([m[3] for m in members]), states, Ts)
+        for (k, _, K, Ki), verdict in zip(members, stability.assess_stack(A_cl, np.stack([m[2] for m in members]),
+                                                                          sample_time=Ts)):
+            out[k] = CaseDesign(K, Ki, states, verdict.stable, verdict.core, BATCHED)
+
+
+def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
+    """:func:`quadctl.lqr.closed_loop_matrix` of stacked gains on one plant: (N, 12 + nz, 12 + nz)."""
+    A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
+    nz = len(integral_states)
+    C = integral.selector(STATE_NAMES, integral_states)
+    N = len(K)
+    out = np.zeros((N, N_STATES + nz, N_STATES + nz))
+    out[:, :N_STATES, :N_STATES] = A - B @ K
+    out[:, :N_STATES, N_STATES:] = -(B @ Ki)
+    if Ts is None:
+        out[:, N_STATES:, :N_STATES] = -C
+    else:
+        out[:, N_STATES:, :N_STATES] = -Ts * C
+        out[:, N_STATES:, N_STATES:] = np.eye(nz)
+    return out
+
+
+def loops_of(live) -> list:
+    """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
+    from quadctl.motors import check_trim
+    from quadctl.noise import NoiseStream
+    from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
+    from quadctl.simulate import ClosedLoop
+
+    out: list = [None] * len(live)
+    continuous = [j for j, (prep, _) in enumerate(live) if prep.setup.timing.rate is None]
+    eig_of: dict[int, tuple] = {}
+    by_plant: dict[tuple, list] = {}
+    for j in continuous:
+        prep, des = live[j]
+        by_plant.setdefault((id(prep.plant), des.integral_states), []).append(j)
+    for (_, states), members in by_plant.items():
+        plant = live[members[0]][0].plant
+        A_cl = closed_loops(plant, np.stack([live[j][1].K_block for j in members]),
+                            np.stack([live[j][1].Ki_block for j in members]), states)
+        eigs, vecs = np.linalg.eig(A_cl)
+        limits = max_stable_steps(eigs)
+        largest = np.argmax(np.abs(vecs), axis=1)
+        names = (*STATE_NAMES, *states)
+        for i, j in enumerate(members):
+            owner_of = live[j][0].setup.state_owner
+            eig_of[j] = (eigs[i], [owner_of.get(names[r], "unassigned") for r in largest[i]], limits[i])
+    for j, (prep, des) in enumerate(live):
+        setup, linear = prep.setup, prep.plant.linear
+        try:
+            check_trim(setup.actuators, linear.u_trim)
+        except QuadctlError as exc:
+            out[j] = exc
+            continue
+        eig, owners, limits = eig_of.get(j, (np.zeros(0, complex), [], None))  # held: the plan needs none
+        loop = ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
+                          x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
+                          rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
+                          integral_states=des.integral_states, actuators=setup.actuators,
+                          open_loop_eigenvalues=prep.plant.open_loop_eigenvalues())
+        try:
+            if loop.rate is not None:
+                plan = plan_held_step(loop.open_loop_eigenvalues, loop.rate, setup.duration, setup.dt)
+            else:
+                plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)
+        except StepSizeError as exc:
+            out[j] = str(exc)
+            continue
+        lo, hi = loop.bounds(setup.duration)
+        exo, first, period = None, 0, 1.0
+        if setup.noise is not None:
+            first, exo = NoiseStream(setup.noise).rows(0, plan.n_steps, plan.dt)
+            period = setup.noise.period
+        nz = len(des.integral_states)
+        out[j] = LaneJob(spec=replace(loop.spec(setup.noise is not None), pattern=_structural_gain(prep)),
+                         plan=plan, c=loop.constants(plan.sample_time),
+                         x0=np.concatenate([setup.initial_state(linear.x_trim), np.zeros(nz)]), lo=lo, hi=hi,
+                         stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
+                         exo_period=period)
+    return out
+
+
+def _structural_gain(prep) -> tuple[bool, ...]:
+    """The block gain's sparsity from the partition (48 bools, column-major): cases with a gain that
+    happens to be zero share the lanes of their structure (a zero gain computes the same numbers)."""
+    mask = np.zeros((N_INPUTS, N_STATES), dtype=bool)
+    for sub in prep.plant.decoupled.regulated:
+        mask[np.ix_([INPUT_INDEX[i] for i in sub.inputs], [STATE_INDEX[s] for s in sub.states])] = True
+    return tuple(bool(v) for v in mask.ravel(order="F"))
+
+
+def simulate_all(jobs):
+    """Yield ``((prep, design, job), (done, ks, xs, us), backend)``, lanes grouped by loop spec."""
+    from quadctl.sim.cases import Cases
+    from quadctl.sim.engine import LANES, runner
+
+    by_spec: dict = {}
+    for item in jobs:
+        by_spec.setdefault(item[2].spec, []).append(item)
+    for spec, group in by_spec.items():
+        run = runner(spec, LANES)
+        js = [g[2] for g in group]
+        cases = Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
+                         [j.plan.n_steps for j in js], [j.stride for j in js], np.stack([j.lo for j in js]),
+                         np.stack([j.hi for j in js]), hold=[max(j.plan.hold, 1) for j in js],
+                         exo=[j.exo for j in js] if spec.noise else None,
+                         exo_first=[j.exo_first for j in js], exo_period=[j.exo_period for j in js])
+        for i, done, ks, xs, us in run.iter_run(cases):
+            yield group[i], (done, ks, xs, us), run.backend

@@ -1,0 +1,319 @@
+"""The simulation engine: one closed-loop definition, every runner agreeing with every other.
+
+For each loop feature (rate and hold, motors and box saturation, integrators with conditional
+integration, noise): the compiled one-case loop against CasADi's virtual machine, and the SIMD
+lanes against the one-case loop, to 1e-12. Then the machine: a missing or failing compiler, the
+compile cache, threads.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _flight import cfg_dict, solve
+
+from quadctl import pipeline
+from quadctl.sim import compile as compile_mod
+from quadctl.sim import engine
+from quadctl.sim.cases import Cases
+from quadctl.sim.plan import record_stride
+from quadctl.simulate import simulate
+
+needs_compiler = pytest.mark.skipif(compile_mod.find_compiler() is None, reason="no C compiler")
+
+
+def _features():
+    """(label, config dict, duration s): one loop per feature the builder has."""
+    box = cfg_dict("hover", limits={"T": [0.0, 1.5], "A": [-0.05, 0.05]})  # A clips, T does not
+    box["lqr"]["altitude"] = {"Q": [50.0, 1.0, 20.0], "R": [1.0], "integral": ["pD"]}
+    box["simulation"]["initial_offset"] = {"pD": 0.05, "phi": 0.1}
+    box["simulation"]["noise"] = {"seed": 4, "force": [0.01, 0.01, 0.01], "sensor": {"phi": 0.01}}
+    held = cfg_dict("mambo-200hz")
+    held["simulation"]["initial_offset"] = {"pD": 0.5, "phi": 0.4, "theta": 0.1}  # the rotors saturate
+    emulated = cfg_dict("forward", controller={"rate": 2000.0, "design": "continuous"})
+    return [("continuous", cfg_dict("forward"), 0.02),
+            ("continuous, box limits, LQI, noise", box, 0.02),
+            ("held, rotors, LQI, noise", held, 0.5),
+            ("held, emulated continuous design", emulated, 0.05)]
+
+
+FEATURES = _features()
+
+
+def _loop(data):
+    setup, trim, linear, _, des = solve(data)
+    return setup, pipeline.loop_of(setup, linear, des)
+
+
+def _clear():
+    engine.runner.cache_clear()
+
+
+@pytest.mark.parametrize("label, data, duration", FEATURES, ids=[f[0] for f in FEATURES])
+def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch):
+    setup, loop = _loop(data)
+    x0 = setup.initial_state(loop.x_trim)
+    compiled = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
+    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
+    _clear()
+    try:
+        with pytest.warns(engine.CompilerNotice, match="no C compiler found"):
+            interpreted = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
+    finally:
+        _clear()
+    if compile_mod.find_compiler() is not None:
+        assert compiled.backend == "compiled"
+    assert interpreted.backend == "casadi"
+    diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max(),
+               np.abs(compiled.z - interpreted.z).max() if compiled.z.size else 0.0)
+    assert diff < 1e-12, f"Max diff is {diff:.4E}"
+    assert compiled.steps == interpreted.steps and len(compiled.t) == len(interpreted.t)
+    if "LQI" in label:
+        assert compiled.z.shape[1] == 1 and np.any(compiled.z != 0)
+    if "box" in label:
+        assert np.abs(compiled.u[:, 1]).max() == pytest.approx(0.05)  # the box clipped A
+    if "rotors" in label:
+        commands = loop.actuators.commands(compiled.u)
+        assert commands.max() == pytest.approx(loop.actuators.hi[0])  # a rotor at its limit
+
+
+@needs_compiler
+@pytest.mark.parametrize("label, data, duration", FEATURES, ids=[f[0] for f in FEATURES])
+def test_lanes_equal_the_one_case_loop(label, data, duration):
+    """Eight lanes with different gains, steps and seeds, each against its own one-case run."""
+    from dataclasses import replace
+
+    from quadctl.noise import NoiseStream
+
+    setup, loop = _loop(data)
+    variants = []
+    for k in range(11):  # more than one group of 8 lanes, the last group padded
+        scale = 1.0 + 0.05 * k
+        vk = replace(loop, K=loop.K * scale, Ki=None if loop.Ki is None else loop.Ki * scale)
+        noise = None if setup.noise is None else replace(setup.noise, seed=setup.noise.seed + k)
+        variants.append((vk, noise, duration * (1.0 - 0.03 * k)))
+    spec = loop.spec(setup.noise is not None)
+    run = engine.runner(spec, engine.LANES)
+    jobs = []
+    for vk, noise, dur in variants:
+        plan = vk.plan(dur, setup.dt)
+        lo, hi = vk.bounds(dur)
+        first, exo = NoiseStream(noise).rows(0, plan.n_steps, plan.dt) if noise else (0, None)
+        x0 = np.concatenate([setup.initial_state(vk.x_trim), np.zeros(len(vk.integral_states))])
+        jobs.append((plan, vk.constants(plan.sample_time), x0, lo, hi, exo, first, noise))
+    cases = Cases.of(np.stack([j[2] for j in jobs]), np.stack([j[1] for j in jobs]), [j[0].dt for j in jobs],
+                     [j[0].n_steps for j in jobs], [record_stride(j[0].n_steps, setup.max_samples) for j in jobs],
+                     np.stack([j[3] for j in jobs]), np.stack([j[4] for j in jobs]),
+                     hold=[max(j[0].hold, 1) for j in jobs], exo=[j[5] for j in jobs] if spec.noise else None,
+                     exo_first=[j[6] for j in jobs],
+                     exo_period=[j[7].period if j[7] else 1.0 for j in jobs])
+    assert run.backend == "compiled-simd"
+    worst = 0.0
+    for (vk, noise, dur), (done, ks, xs, us) in zip(variants, run.run(cases)):
+        one = simulate(vk, setup.initial_state(vk.x_trim), dur, setup.dt, noise=noise,
+                       max_samples=setup.max_samples)
+        assert done == one.steps
+        np.testing.assert_array_equal(ks * one.dt, one.t)
+        worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max())
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
+
+
+def _failing_compiler(tmp_path: Path) -> str:
+    """A ``cc`` that exists and fails without a word (a macOS stub without the command line tools)."""
+    cc = tmp_path / "cc"
+    cc.write_text("#!/bin/sh\nexit 1\n")
+    cc.chmod(0o755)
+    return str(cc)
+
+
+@pytest.mark.parametrize("broken", ["missing", "failing"])
+@pytest.mark.parametrize("command", ["run", "simulate", "design --full", "sweep"])
+def test_every_command_without_a_working_compiler_gives_one_notice_and_the_same_numbers(
+        command, broken, tmp_path):
+    import subprocess
+    import sys
+
+    cfg = "mambo-200hz"
+    env = {**os.environ, "QUADCTL_CACHE": str(tmp_path / "cache")}
+    sweep_file = tmp_path / "s.yaml"
+    sweep_file.write_text("parameters:\n  lqr.roll.R[0]: [20000, 40000]\nset:\n  simulation.duration: 1.0\n")
+    args = command.split() + ["-c", cfg]
+    if command == "sweep":
+        args += ["-s", str(sweep_file), "--jobs", "1"]
+
+    def quadctl(out, extra_env):
+        res = subprocess.run([sys.executable, "-m", "quadctl", *args, "-o", str(out)],
+                             env={**env, **extra_env}, capture_output=True, text=True, timeout=600)
+        assert res.returncode == 0, res.stderr
+        return res
+
+    quadctl(tmp_path / "good", {})
+    bad_env = ({"QUADCTL_NO_COMPILE": "1"} if broken == "missing"
+               else {"CC": _failing_compiler(tmp_path), "PATH": str(tmp_path)
+                     + os.pathsep + os.environ["PATH"]})
+    bad = quadctl(tmp_path / "bad", bad_env)
+    notices = [line for line in bad.stderr.splitlines() if line.startswith("quadctl: notice:")]
+    assert len(notices) == 1, bad.stderr
+    assert "CasADi's virtual machine" in notices[0] and "Traceback" not in bad.stderr
+    if broken == "failing":
+        assert "failed (exit 1" in notices[0]
+    if command == "sweep":
+        import csv
+
+        rows = [list(csv.DictReader(open(tmp_path / d / "sweep.csv"))) for d in ("good", "bad")]
+        for a, b in zip(*rows):
+            for key in ("cost", "peak.A", "settling_time.phi"):
+                assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-9, abs=1e-12), key
+        return
+    if command == "design --full":
+        import json
+
+        good, bad_ = (json.loads((tmp_path / d / "design_full.json").read_text())["comparison"]
+                      for d in ("good", "bad"))
+        for design in ("decoupled", "full"):
+            assert good["designs"][design]["cost"] == pytest.approx(bad_["designs"][design]["cost"], rel=1e-9)
+        return
+    good_sim, bad_sim = (np.load(tmp_path / d / "sim.npz") for d in ("good", "bad"))
+    diff = max(np.abs(good_sim["x"] - bad_sim["x"]).max(), np.abs(good_sim["u"] - bad_sim["u"]).max())
+    assert diff < 1e-9, f"Max diff is {diff:.4E}"
+
+
+@needs_compiler
+def test_a_cached_library_loads_without_building_casadi_functions(monkeypatch):
+    """The compile cache is keyed by what the C is made from, so a hit skips code generation."""
+    from quadctl.sim import builder
+
+    setup, loop = _loop(cfg_dict("forward"))
+    x0 = setup.initial_state(loop.x_trim)
+    first = simulate(loop, x0, 0.01, 1e-5)  # compiled (or found) and cached
+    _clear()
+    builder.build.cache_clear()
+
+    def refuse(*_):
+        raise AssertionError("a cached library must not rebuild the loop functions")
+
+    monkeypatch.setattr(builder, "build", refuse)
+    try:
+        again = simulate(loop, x0, 0.01, 1e-5)
+    finally:
+        _clear()
+    assert again.backend == "compiled"
+    np.testing.assert_array_equal(first.x, again.x)
+
+
+def _counting_source():
+    """A tiny C source, and the list that records each time it was generated."""
+    made = []
+
+    def source():
+        made.append(1)
+        return "double qc_answer(void) { return 42.0; }\n"
+
+    return source, made
+
+
+@needs_compiler
+def test_the_compile_cache_key_follows_what_the_source_is_made_from(tmp_path, monkeypatch):
+    """A hit skips generating the source; another key (variant, or generator edited) recompiles."""
+    monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path))
+    source, made = _counting_source()
+    flags = ("-O1", "-fPIC", "-shared")
+    one = compile_mod.compile_cached(source, flags, "variant")
+    assert compile_mod.compile_cached(source, flags, "variant") == one and len(made) == 1
+    assert compile_mod.compile_cached(source, flags, "other-variant") != one
+    monkeypatch.setattr(compile_mod, "FINGERPRINT", "edited generator" + "0" * 50)
+    assert compile_mod.compile_cached(source, flags, "variant") != one
+    assert len(made) == 3
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".so", ".so", ".so"]  # no temporaries left
+
+
+@needs_compiler
+def test_threads_compile_one_library_without_touching_the_working_directory(tmp_path, monkeypatch):
+    """Dask workers run chunks in threads: one compiles, the others wait and load its library, and
+    nothing changes the process's working directory (which every thread shares)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def no_chdir(*_):
+        raise AssertionError("os.chdir moves every thread of the process")
+
+    monkeypatch.setattr(os, "chdir", no_chdir)
+    monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path / "cache"))
+    cwd = os.getcwd()
+    source, made = _counting_source()
+    with ThreadPoolExecutor(4) as pool:
+        paths = list(pool.map(lambda _: compile_mod.compile_cached(source, ("-O1", "-fPIC", "-shared"), "same"),
+                              range(4)))
+    assert len(set(paths)) == 1 and paths[0].exists() and len(made) == 1
+    # a real loop library, generated by CasADi, from several threads at once
+    _clear()
+    specs = [_loop(cfg_dict(name))[1].spec() for name in ("forward", "hover")]
+    with ThreadPoolExecutor(4) as pool:
+        runners = list(pool.map(lambda k: engine.runner(specs[k % 2], 1), range(4)))
+    _clear()
+    assert {r.backend for r in runners} == {"compiled"} and os.getcwd() == cwd
+
+
+def test_no_library_module_changes_directory_or_calls_fchmod_unguarded():
+    root = Path(compile_mod.__file__).parents[1]
+    for path in root.rglob("*.py"):
+        text = path.read_text()
+        assert "os.chdir(" not in text, path
+        for line in text.splitlines():
+            if "os.fchmod(" in line:
+                assert "hasattr(os, \"fchmod\")" in text or "hasattr(os, 'fchmod')" in text, path
+
+
+def test_fingerprint_changes_with_any_generator_source_or_casadi(tmp_path):
+    sources = dict(compile_mod._SOURCES)
+
+    def fp(casadi="casadi 3.6.0", **edits):
+        return compile_mod.fingerprint({**sources, **edits}, casadi)
+
+    base = fp()
+    assert fp() == base and fp("casadi 3.7.0") != base
+    for name in compile_mod.GENERATOR_SOURCES:
+        assert fp(**{name: sources[name] + b"\n/* edited */\n"}) != base, name
+    # this process's key is that of the files it imported
+    assert compile_mod.FINGERPRINT == compile_mod.fingerprint(compile_mod._read_sources(), compile_mod.casadi_stamp())
+
+
+def test_stale_libraries_of_other_fingerprints_are_evicted(tmp_path):
+    ours = tmp_path / f"qc_{compile_mod.FINGERPRINT[:12]}_abc.so"
+    old_other = tmp_path / "qc_0123456789ab_abc.so"
+    new_other = tmp_path / "qc_0123456789ab_def.so"
+    legacy = tmp_path / "qb_0123456789abcdef0123.so"
+    for path in (ours, old_other, new_other, legacy):
+        path.write_bytes(b"")
+    old = time.time() - (compile_mod.EVICT_AFTER_DAYS + 1) * 86400
+    for path in (ours, old_other, legacy):
+        os.utime(path, (old, old))
+    gone = compile_mod.evict_stale(tmp_path)
+    assert sorted(gone) == sorted([old_other, legacy])
+    assert ours.exists() and new_other.exists()
+
+
+def test_the_cache_is_in_the_platforms_cache_folder(monkeypatch):
+    monkeypatch.delenv("QUADCTL_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", "/x/cache")
+    monkeypatch.setattr(compile_mod.sys, "platform", "linux")
+    assert compile_mod.cache_dir() == Path("/x/cache/quadctl")
+    monkeypatch.setattr(compile_mod.sys, "platform", "darwin")
+    assert compile_mod.cache_dir() == Path.home() / "Library" / "Caches" / "quadctl"
+    monkeypatch.setattr(compile_mod.sys, "platform", "win32")
+    monkeypatch.setenv("LOCALAPPDATA", "C:/Users/u/AppData/Local")
+    assert compile_mod.cache_dir() == Path("C:/Users/u/AppData/Local") / "quadctl"
+
+
+def test_driver_sizes_come_from_the_layout():
+    """The C has no size of its own: every dimension is a macro the generator emits."""
+    import re
+
+    driver = compile_mod.DRIVER_SOURCE
+    code = re.sub(r"/\*.*?\*/", "", driver, flags=re.S)
+    assert not re.search(r"\[(12|4|6|16|18)\]", code)
+    assert not shutil.which("nonexistent-quadctl-cc")
