@@ -10,8 +10,11 @@
    start, imports, the simulation, metrics, artifacts; with and without --fresh), and SciPy's solve_ivp (RK45 and LSODA)
    and python-control's input_output_response on the same closed loop (the CasADi model called
    from Python), at tolerances that reach the same final-state accuracy.
+   Also the same loop without a C compiler (CasADi's virtual machine, the fallback).
 2. A sweep of 1000 random designs (benchmarks/random-1000.yaml, no two alike) x 10 000 RK4 steps:
-   on both cores, on one, through the command line, and the one-case-at-a-time pipeline.
+   on both cores, on one, through the command line, and the one-case-at-a-time pipeline; and a
+   sweep of 1000 random designs of mambo-200hz (benchmarks/mambo-1000.yaml: 200 Hz discrete
+   design, rotors, LQI, noise; 2 000 steps each), the configs that fly, at the same lane speed.
 3. The LQR designs of that sweep (4000 small subsystems): quadctl's batched solver against a
    Python loop over scipy.linalg.solve_continuous_are.
 
@@ -35,6 +38,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 SWEEP_FILE = HERE / "random-1000.yaml"
+FLYING_SWEEP_FILE = HERE / "mambo-1000.yaml"
 DURATION = 10.0       # s
 DT = 1e-5             # s: 1 000 000 RK4 steps
 REPEAT = 5
@@ -85,14 +89,16 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
 
     from quadctl import config, pipeline
     from quadctl.model import build_model
+    from quadctl.setup import resolve
+    from quadctl.sim import engine
     from quadctl.simulate import simulate
 
     cfg = config.load("forward")
-    trim = pipeline.trim_of(cfg)
-    linear = pipeline.linear_of(cfg, trim)
-    des = pipeline.design_of(cfg, pipeline.decoupled_of(cfg, linear), linear)
-    loop = pipeline.closed_loop_of(cfg, linear, des.K_block, pipeline.reference_rate(trim))
-    x0 = pipeline.initial_state(cfg, linear.x_trim)
+    setup = resolve(cfg)
+    linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
+    des = pipeline.design_of(setup, pipeline.decoupled_of(setup, linear), linear)
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(linear.x_trim)
     simulate(loop, x0, 0.01, DT)  # compile (or load the cached library) before timing
 
     # the closed loop as one CasADi function, called from Python by the ODE solvers
@@ -114,6 +120,21 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
     best = min(sims, key=lambda s: s.wall_time)
     ours = best.wall_time
     runs.append(("quadctl compiled RK4 (library)", ours, f"{best.steps:,} steps", error(best.x[-1])))
+    # no C compiler: the same loop in CasADi's virtual machine (a tenth of the run, scaled)
+    os.environ["QUADCTL_NO_COMPILE"] = "1"
+    engine.runner.cache_clear()
+    try:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            simulate(loop, x0, 0.01, DT)  # builds the CasADi blocks before timing
+            vm = min((simulate(loop, x0, DURATION / 10, DT) for _ in range(2)), key=lambda s: s.wall_time)
+    finally:
+        del os.environ["QUADCTL_NO_COMPILE"]
+        engine.runner.cache_clear()
+    runs.append(("quadctl without a C compiler (CasADi VM), x10", vm.wall_time * 10,
+                 f"{vm.steps * 10:,} steps", float("nan")))
 
     with tempfile.TemporaryDirectory() as tmp:
         import yaml
@@ -157,7 +178,7 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
 
     rows = []
     for name, wall, work, err in runs:
-        rows.append([name, f"{wall:.3f}", work, f"{1e6 / wall / 1e6:.2f} M", f"{err:.1e}",
+        rows.append([name, f"{wall:.3f}", work, f"{1e6 / wall / 1e6:.2f} M", "-" if err != err else f"{err:.1e}",
                      "1" if wall == ours else f"{wall / ours:.2f}"])
     return table(f"One simulation: forward config, RK4 dt = {DT:g} s over {DURATION:g} s = 1,000,000 steps",
                  ["method", "wall (s)", "work", "RK4 steps/s equiv.", "final error", "wall / quadctl"],
@@ -173,6 +194,38 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
 
 # ---------------------------------------------------------------------------------------
 # 2 and 3. The sweep and its designs
+
+
+def the_flying_sweep() -> str:
+    """Sweep 2: 1000 random mambo-200hz designs, the configs that fly, in the same lanes."""
+    import dataclasses
+
+    from quadctl import config, sweep
+
+    cfg = config.load("mambo-200hz")
+    spec = sweep.load(FLYING_SWEEP_FILE, cfg)
+    cases = spec.cases()
+    assert len({c.values for c in cases}) == len(cases)  # no two alike
+    sweep.run(cfg, dataclasses.replace(spec, samples=16), jobs=1)  # warm: imports, lane library
+    rows, notes = [], []
+    for jobs in (2, 1):
+        wall, result = timed(lambda j=jobs: sweep.run(cfg, spec, jobs=j), repeat=REPEAT)
+        st = result.stats
+        rows.append([f"quadctl sweep, library, --jobs {jobs}", f"{wall:.2f}", f"{st['steps'] / wall / 1e6:.2f} M",
+                     f"{len(result.rows) / wall:,.0f}", f"{1e6 * st['design_cpu'] / st['designs']:.1f}",
+                     f"{st['fallbacks']}"])
+        paths = {r["path"] for r in result.rows}
+        notes.append(f"--jobs {jobs}: rows by path {sorted(paths)}, backends {st['backend']}")
+    subset = dataclasses.replace(spec, samples=100)
+    wall, slow = timed(lambda: sweep.run(cfg, subset, jobs=1, fast=False))
+    st = slow.stats
+    rows.append(["one case at a time (pipeline), --jobs 1, 100 cases", f"{wall:.2f}",
+                 f"{st['steps'] / wall / 1e6:.2f} M", f"{100 / wall:,.0f}",
+                 f"{1e6 * st['design_cpu'] / st['designs']:.1f}", "-"])
+    return table(f"Sweep: 1000 random mambo-200hz designs x 2,000 RK4 steps (benchmarks/mambo-1000.yaml: "
+                 f"200 Hz discrete design, rotors, LQI, noise; best of {REPEAT})",
+                 ["run", "wall (s)", "simulated steps/s", "designs/s", "µs CPU per subsystem design",
+                  "designs redone one by one"], rows) + "\n\n" + "; ".join(notes)
 
 
 def the_sweep() -> tuple[str, list]:
@@ -223,18 +276,19 @@ def the_designs(cfg, spec) -> str:
     import scipy.linalg
 
     from quadctl import batch, pipeline, sweep
+    from quadctl.setup import resolve
 
     # the 4000 subsystem problems of the sweep: the report's plant, each case's weights
     base = cfg.model_dump(mode="json")
     problems: dict[tuple, list] = {}
-    linear = pipeline.linear_of(cfg, pipeline.trim_of(cfg))
-    dec = pipeline.decoupled_of(cfg, linear)
+    setup = resolve(cfg)
+    linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
+    dec = pipeline.decoupled_of(setup, linear)
     for case in spec.cases():
         data = base
         for p, value in zip(spec.parameters, case.values):
             data = sweep.assign(data, p.keys, value)
-        case_cfg = config_from(data)
-        for name, (Q, R) in pipeline.weights_of(case_cfg).items():
+        for name, (Q, R) in resolve(config_from(data)).weights.items():
             sub = dec[name]
             problems.setdefault(sub.B.shape, []).append((sub.A, sub.B, np.atleast_2d(Q), np.atleast_2d(R)))
     n = sum(len(v) for v in problems.values())
@@ -282,6 +336,7 @@ def main() -> None:
     print(one_simulation(args.skip_slow, args.cli_python))
     text, (cfg, spec) = the_sweep()
     print(text)
+    print(the_flying_sweep())
     print(the_designs(cfg, spec))
     end = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {end:.2f} at the end (2 cores: above ~0.3, other work shared the machine)")

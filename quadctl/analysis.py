@@ -67,10 +67,6 @@ class Checks:
     pbh_obsv: tuple[ModeTest, ...]
 
     @property
-    def uncontrollable_modes(self) -> tuple[ModeTest, ...]:
-        return tuple(m for m in self.pbh_ctrb if not m.passed)
-
-    @property
     def unstabilizable_modes(self) -> tuple[ModeTest, ...]:
         return tuple(m for m in self.pbh_ctrb if not m.passed and not is_stable(m.eigenvalue))
 

@@ -75,14 +75,13 @@ class Decoupled:
     subsystems : tuple of Subsystem
     dropped : tuple of DroppedTerm
         A's terms, then B's, each by ``|value|``, largest first.
-    A_kept, B_kept : ndarray
+    A_kept : (12, 12) ndarray
         The block model the partition keeps, in the 12-state layout (dropped terms zeroed).
     """
 
     subsystems: tuple[Subsystem, ...]
     dropped: tuple[DroppedTerm, ...]
     A_kept: np.ndarray
-    B_kept: np.ndarray
 
     def __getitem__(self, name: str) -> Subsystem:
         for sub in self.subsystems:
@@ -139,7 +138,7 @@ def decouple(A, B, partition: dict) -> Decoupled:
     dropped = _dropped_terms(A, kept_a, "A", STATE_NAMES) + _dropped_terms(B, kept_b, "B", INPUT_NAMES)
     dropped.sort(key=lambda d: (d.matrix, -abs(d.value)))
     return Decoupled(subsystems=tuple(subs), dropped=tuple(dropped),
-                     A_kept=np.where(kept_a, A, 0.0), B_kept=np.where(kept_b, B, 0.0))
+                     A_kept=np.where(kept_a, A, 0.0))
 
 
 def _dropped_terms(mat, kept, label, column_names) -> list[DroppedTerm]:

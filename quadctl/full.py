@@ -55,6 +55,8 @@ class FullDesign:
         Riccati solution (continuous or discrete).
     eigenvalues : ndarray
         Of the coupled closed loop (rad/s; ``ln(z) / Ts`` for a discrete design).
+    core_eigenvalues : ndarray
+        ``eigenvalues`` without the marginal modes (:mod:`quadctl.stability`): what ``stable`` is about.
     stable : bool
     rate : float or None
     residual : float
@@ -69,6 +71,7 @@ class FullDesign:
     R: np.ndarray
     P: np.ndarray
     eigenvalues: np.ndarray
+    core_eigenvalues: np.ndarray
     stable: bool
     rate: float | None
     residual: float
@@ -119,9 +122,9 @@ def full_design(design, A, B) -> FullDesign:
     Ki = Ki.reshape(N_INPUTS, nz)
     A_cl = closed_loop_matrix(A, B, K, Ki, design.integral_states, design.sample_time)
     verdict = stability.assess(A_cl, K, sample_time=design.sample_time)
-    eig, stable = verdict.eigenvalues, verdict.stable
     return FullDesign(K=K, Ki=Ki, integral_states=design.integral_states, states=states, left_out=left_out,
-                      Q=Q, R=R, P=P, eigenvalues=eig, stable=stable, rate=design.rate, residual=residual)
+                      Q=Q, R=R, P=P, eigenvalues=verdict.eigenvalues, core_eigenvalues=verdict.core,
+                      stable=verdict.stable, rate=design.rate, residual=residual)
 
 
 def linear_cost(A, B, K, Ki, design, dx0) -> float:
@@ -146,7 +149,7 @@ def linear_cost(A, B, K, Ki, design, dx0) -> float:
         Aa, Ba = integral.augment(A, B, C)
         Aa, Ba, Ka_r, Qa = Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep], Q_all[np.ix_(keep, keep)]
         Acl = Aa - Ba @ Ka_r
-        if np.any(np.linalg.eigvals(Acl).real >= 0):
+        if not np.all(stability.is_stable(np.linalg.eigvals(Acl))):
             return math.inf
         X = scipy.linalg.solve_continuous_lyapunov(Acl.T, -(Qa + Ka_r.T @ R @ Ka_r))
     else:
@@ -159,7 +162,7 @@ def linear_cost(A, B, K, Ki, design, dx0) -> float:
         Qa, Na = integral.discrete_weights(Qd, Nd, Q_all[np.ix_(qidx, qidx)], Ts)
         Ka_r = Ka[:, keep]
         Acl = Aa - Ba @ Ka_r
-        if np.any(np.abs(np.linalg.eigvals(Acl)) >= 1):
+        if not np.all(stability.is_stable(np.linalg.eigvals(Acl), discrete=True)):
             return math.inf
         stage = Qa + Ka_r.T @ Rd @ Ka_r - Na @ Ka_r - Ka_r.T @ Na.T
         X = scipy.linalg.solve_discrete_lyapunov(Acl.T, stage)

@@ -101,8 +101,7 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
     sampled = closed_loop_matrix(linear.A, linear.B, des.K_block, des.Ki_block, des.integral_states, Ts)
     keep = [i for i in range(sampled.shape[0])
             if i >= len(STATE_NAMES) or STATE_NAMES[i] not in des.marginal_states]
-    core = [e for e in des.full_eigenvalues if abs(e) > 1e-9 or not des.marginal_states]
-    loops.append(("coupled", core, sampled[np.ix_(keep, keep)]))
+    loops.append(("coupled", des.core_eigenvalues, sampled[np.ix_(keep, keep)]))
     return discrete.rate_warnings(loops, rate)
 
 

@@ -221,10 +221,9 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
                      noise_seed=noise.seed if noisy else None)
 
 
-CHUNK_SECONDS = 0.05
-"""Wall time of one call into the runner, about: Python sees Ctrl-C between calls."""
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
-"""Steps per call, by backend (~5 M and ~0.2 M steps/s): about :data:`CHUNK_SECONDS` each."""
+"""Steps per call into the runner, by backend (~5 M and ~0.2 M steps/s): 0.05 to 0.1 s each, so
+Python sees Ctrl-C between calls at once."""
 
 
 def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: NoiseStream | None = None):

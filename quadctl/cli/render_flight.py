@@ -138,7 +138,7 @@ def full_tables(fd, comparison: dict) -> list:
         row = [f"{fd.K[j, STATE_NAMES.index(s)]:.4g}" for s in fd.states]
         row += [f"{fd.Ki[j, i]:.4g}" for i in range(len(fd.integral_states))]
         table.add_row(name, *row)
-    eigs = ", ".join(eig(e) for e in sorted(fd.eigenvalues, key=lambda z: (z.real, z.imag)) if abs(e) > 1e-9)
+    eigs = ", ".join(eig(e) for e in sorted(fd.core_eigenvalues, key=lambda z: (z.real, z.imag)))
     comp = Table(title="Decoupled vs full design on the nonlinear model (same initial offset, no noise)",
                  title_justify="left",
                  caption="settling: the slowest regulated state; peak: max |u - u_trim|; cost: "

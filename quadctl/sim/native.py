@@ -13,12 +13,6 @@ from quadctl.sim.cases import C_LONG, Cases, record_rows
 from quadctl.sim.compile import DRIVER_SOURCE
 from quadctl.sim.emit import SIMD_DECLARATIONS, emit
 
-LANE_DOUBLES = 2
-"""Per-lane doubles the driver takes: dt, exogenous period."""
-LANE_LONGS = 6
-"""Per-lane integers the driver takes: k0, n, stride, hold, first exogenous row, exogenous rows."""
-
-
 def library_source(funcs: LoopFunctions, lanes: int, simd: bool) -> str:
     """The C file of one spec at ``lanes`` cases per call: sizes, emitted functions, driver."""
     spec = funcs.spec

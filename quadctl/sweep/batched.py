@@ -226,8 +226,11 @@ def loops_of(live) -> list:
                           integral_states=des.integral_states, actuators=setup.actuators,
                           open_loop_eigenvalues=prep.plant.open_loop_eigenvalues())
         try:
-            if loop.rate is not None:
-                plan = plan_held_step(loop.open_loop_eigenvalues, loop.rate, setup.duration, setup.dt)
+            if loop.rate is not None:  # the open-loop plant's: the same for every case of a plant
+                key = ("held plan", loop.rate, setup.duration, setup.dt)
+                if key not in prep.plant.cache:
+                    prep.plant.cache[key] = plan_held_step(loop.open_loop_eigenvalues, *key[1:])
+                plan = prep.plant.cache[key]
             else:
                 plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)
         except StepSizeError as exc:

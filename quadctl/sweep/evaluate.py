@@ -79,8 +79,17 @@ class ChunkResult:
 def evaluate_chunk(task: ChunkTask) -> ChunkResult:
     """Evaluate a chunk of cases: one row per case, never an exception for a bad case.
 
-    The top-level function executors run (a local process or a Dask worker).
+    The top-level function executors run (a local process or a Dask worker). BLAS and OpenMP run
+    one thread meanwhile: the workers are the parallelism, and the matrices here are too small for
+    threads to pay (on 2 cores, BLAS threads on top of two workers made a sweep 6 to 16x slower).
     """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1):
+        return _evaluate_chunk(task)
+
+
+def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
     from quadctl import config as config_mod
     from quadctl import pipeline
     from quadctl.setup import resolve

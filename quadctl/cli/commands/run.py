@@ -34,7 +34,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     if not ws.design.stable:
         raise _stop(json, stages, "design: unstable on the coupled 12-state model")
     done("design", "stable on the coupled model; slowest pole "
-         f"{max(e.real for e in ws.design.full_eigenvalues if abs(e) > 1e-9):.3g} rad/s")
+         f"{max(e.real for e in ws.design.core_eigenvalues):.3g} rad/s")
     sim = ws.simulation.sim
     if sim.status != "ok":
         raise _stop(json, stages, f"simulate: {sim.message}")
