@@ -1,3 +1,28 @@
-"""quadctl: trim, linearize, decouple, check, design and simulate LQR controllers for quadcopters."""
+"""quadctl: trim, linearize, decouple, check, design and simulate LQR controllers for quadcopters.
+
+A pure library (no printing, no terminal) under a thin command line (:mod:`quadctl.cli`, which
+nothing here imports). Modules, each importing only those above it:
+
+- :mod:`~quadctl.layout`: state and input names, units, index maps (declared once)
+- :mod:`~quadctl.errors`: the error classes (each with its exit code) and the notice warning
+- :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs
+- :mod:`~quadctl.model`: the CasADi model, the only place the equations of motion live
+- :mod:`~quadctl.motors`, :mod:`~quadctl.noise`: rotors and mixing; seeded noise streams
+- :mod:`~quadctl.setup`: the config resolved once into the :class:`~quadctl.setup.Setup` every stage takes
+- :mod:`~quadctl.trim`, :mod:`~quadctl.linearize`, :mod:`~quadctl.decouple`: equilibrium,
+  Jacobians (with the reference drift), the partition into subsystems and what it drops
+- :mod:`~quadctl.stability`: the one stability predicate and the one marginal-mode rule
+- :mod:`~quadctl.analysis`: controllability, observability, PBH, with a stated rank tolerance
+- :mod:`~quadctl.discrete`, :mod:`~quadctl.integral`, :mod:`~quadctl.lqr`: zero-order hold and
+  ``lqrd``; integral action (LQI); Riccati solves and the assembled decoupled design
+- :mod:`~quadctl.full`, :mod:`~quadctl.margins`: the coupled (full) design; loop margins
+- :mod:`~quadctl.sim`: the simulation engine (step planning, the one closed-loop builder, compile
+  and cache, native and interpreted runners, one case or many lanes)
+- :mod:`~quadctl.simulate`, :mod:`~quadctl.metrics`: one closed-loop run; its step-response metrics
+- :mod:`~quadctl.pipeline`: the stages chained from a setup (pure functions)
+- :mod:`~quadctl.sweep`: many designs at once (spec, batched evaluation, runner, outputs, store)
+- :mod:`~quadctl.artifacts`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`: the run directory
+  (atomic, with provenance), artifact-backed stages, figures (they read results only)
+"""
 
 __version__ = "0.1.0"

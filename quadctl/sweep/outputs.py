@@ -129,14 +129,18 @@ def _cell(value) -> str:
 
 
 def summarize(result: SweepResult, cfg, spec: SweepSpec) -> dict:
-    """The summary of a sweep: counts, each gate's failures, the worst and best cases.
+    """The summary of a sweep: counts (by status, and by ``path``: designed in the batched solve, or
+    one by one and why), each gate's failures, the worst and best cases.
 
     Deterministic (no timings), so the same sweep gives the same sweep.json apart from ``created``.
     """
     rows = result.rows
     statuses: dict[str, int] = {}
+    paths: dict[str, int] = {}
     for row in rows:
         statuses[row["status"]] = statuses.get(row["status"], 0) + 1
+        if row.get("path"):
+            paths[row["path"]] = paths.get(row["path"], 0) + 1
     gates = {}
     for gate in spec.gates:
         values = [r.get(gate.metric) for r in rows]
@@ -156,6 +160,7 @@ def summarize(result: SweepResult, cfg, spec: SweepSpec) -> dict:
         "passed": sum(r["pass"] for r in rows),
         "failed": sum(not r["pass"] for r in rows),
         "statuses": statuses,
+        "paths": paths,
         "unstable": sum(r.get("stable") is False for r in rows),
         "gates": gates,
         "worst": [r for r in ranked[:WORST_SHOWN] if not r["pass"]] or ranked[:min(WORST_SHOWN, len(ranked))],
