@@ -13,6 +13,7 @@ from quadctl.sim.cases import C_LONG, Cases, record_rows
 from quadctl.sim.compile import DRIVER_SOURCE
 from quadctl.sim.emit import SIMD_DECLARATIONS, emit
 
+
 def library_source(funcs: LoopFunctions, lanes: int, simd: bool) -> str:
     """The C file of one spec at ``lanes`` cases per call: sizes, emitted functions, driver."""
     spec = funcs.spec
