@@ -149,3 +149,21 @@ def test_the_config_default_of_max_samples_is_the_library_default():
     from quadctl.simulate import MAX_SAMPLES
 
     assert SimulationConfig().max_samples == MAX_SAMPLES
+
+
+def test_an_absurd_step_count_is_refused_and_a_long_one_announced(loop):
+    """An inertia in the wrong unit makes the loop 1e6 times faster: the plan says so before it runs."""
+    from quadctl.errors import QuadctlNotice
+    from quadctl.sim.plan import ANNOUNCE_STEPS, MAX_STEPS
+
+    _, cl = loop
+    fast = cl.eigenvalues * 1e6
+    with pytest.raises(StepSizeError, match=r"simulation.duration = 10 s at an RK4 step of .* more than the 1e\+10 "
+                                            r"quadctl runs .*check the units of vehicle.inertia"):
+        plan_step(fast, cl.owners, 10.0)
+    with pytest.raises(StepSizeError, match="more than the 1e\\+10"):
+        plan_step(cl.eigenvalues, cl.owners, 1e300)
+    step = plan_step(cl.eigenvalues, cl.owners, 1.0).dt
+    with pytest.warns(QuadctlNotice, match=r"simulating 2e\+08 RK4 steps"):
+        plan = plan_step(cl.eigenvalues, cl.owners, 2 * ANNOUNCE_STEPS * step)
+    assert ANNOUNCE_STEPS < plan.n_steps < MAX_STEPS

@@ -9,16 +9,24 @@ open-loop eigenvalues govern and the step divides the controller period.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from quadctl.analysis import STABILITY_MARGIN, is_stable
-from quadctl.errors import StepSizeError
+from quadctl.errors import QuadctlNotice, StepSizeError
 
 ACCURACY_STEP = 0.5
 """``dt: auto`` keeps ``|dt lambda| <= 0.5`` for the fastest eigenvalue: RK4's one-step error is then
 below 5e-4 of the mode's own decay (|R(-0.5)| = 0.60677 against exp(-0.5) = 0.60653)."""
+MAX_STEPS = 10**10
+"""A plan of more RK4 steps is refused: about 40 min compiled (14 h without a compiler), far past any
+flight worth simulating; it is almost always a unit slip (an inertia in kg m^2 entered as g cm^2
+makes the rate poles 10^7 times faster) or a duration in ms. Also keeps the count far from where it
+would wrap on its way to C's ``long``."""
+ANNOUNCE_STEPS = 10**8
+"""A plan of more RK4 steps is announced (a notice with the count) before the run starts."""
 MAX_AUTO_STEPS_PER_SECOND = 1000
 """``dt: auto`` is never coarser than 1 ms, so plots and metrics resolve the slow loops."""
 def rk4_amplification(z) -> np.ndarray:
@@ -136,11 +144,12 @@ def plan_step(eigenvalues, owners, duration: float, dt="auto", *, limits=None) -
     h_max = float(limits[stable_modes].min()) if stable_modes.any() else math.inf
     k_fast = int(np.argmax(np.abs(eig))) if eig.size else 0
     fastest = complex(eig[k_fast]) if eig.size else 0j
+    owner = owners[k_fast] if eig.size else ""
     if dt == "auto":
         h = min(ACCURACY_STEP / abs(fastest) if abs(fastest) > 0 else math.inf,
                 0.5 * h_max, 1.0 / MAX_AUTO_STEPS_PER_SECOND, duration)
-        n = max(1, math.ceil(duration / h - 1e-9))
-        return StepPlan(duration / n, n, h_max, fastest, owners[k_fast] if eig.size else "", True)
+        n = step_count(duration, h, fastest, owner)
+        return StepPlan(duration / n, n, h_max, fastest, owner, True)
     dt = float(dt)
     if dt > h_max:
         k = int(np.argmin(np.where(stable_modes, limits, np.inf)))
@@ -148,8 +157,7 @@ def plan_step(eigenvalues, owners, duration: float, dt="auto", *, limits=None) -
             f"simulation.dt = {dt:g} s is unstable for RK4: the closed-loop eigenvalue "
             f"{_fmt_eig(eig[k])} rad/s (subsystem {owners[k]}) needs dt <= {h_max:.3g} s; "
             f"use dt: auto or a step of at most {_round_down(h_max):g} s")
-    n = max(1, math.ceil(duration / dt - 1e-9))
-    return StepPlan(dt, n, h_max, fastest, owners[k_fast] if eig.size else "", False)
+    return StepPlan(dt, step_count(duration, dt, fastest, owner), h_max, fastest, owner, False)
 
 
 def plan_held_step(open_loop_eigenvalues, rate: float, duration: float, dt="auto") -> StepPlan:
@@ -197,8 +205,28 @@ def plan_held_step(open_loop_eigenvalues, rate: float, duration: float, dt="auto
                 f"simulation.dt = {dt:g} s is unstable for RK4 on the open-loop plant between "
                 f"controller samples (needs dt <= {h_max:.3g} s); use dt: auto or {Ts / math.ceil(Ts / h_max):.6g} s")
     step = Ts / hold
-    n = max(1, math.ceil(duration / step - 1e-9))
+    n = step_count(duration, step, fastest, "the open-loop plant")
     return StepPlan(step, n, h_max, fastest, "open loop (held input)", dt == "auto", hold, Ts)
+
+
+def step_count(duration: float, step: float, fastest: complex, owner: str) -> int:
+    """RK4 steps of ``step`` s covering ``duration`` s, or a StepSizeError past :data:`MAX_STEPS`.
+
+    A plan past :data:`ANNOUNCE_STEPS` is announced (a :class:`quadctl.errors.QuadctlNotice`).
+    """
+    count = duration / step
+    if not count <= MAX_STEPS:
+        raise StepSizeError(
+            f"simulation.duration = {duration:g} s at an RK4 step of {step:.3g} s is {count:.3g} steps, more "
+            f"than the {MAX_STEPS:.0e} quadctl runs (the step follows the fastest eigenvalue, "
+            f"{_fmt_eig(fastest)} rad/s in {owner}); shorten simulation.duration, or check the units of "
+            "vehicle.inertia and the weights (a slip by 1e6 makes the loop that much faster)")
+    n = max(1, math.ceil(count - 1e-9))
+    if n > ANNOUNCE_STEPS:
+        warnings.warn(QuadctlNotice(
+            f"simulating {n:.3g} RK4 steps of {step:.3g} s (fastest eigenvalue {_fmt_eig(fastest)} rad/s in "
+            f"{owner}): about {n / 4e6 / 60:.0f} min compiled; Ctrl-C stops it and keeps nothing"), stacklevel=3)
+    return n
 
 
 def record_stride(n_steps: int, max_samples: int) -> int:
