@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _flight import cfg_dict, solve
+from _solve import cfg_dict, solve
 
 from quadctl import pipeline
 from quadctl.sim import compile as compile_mod

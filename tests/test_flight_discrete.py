@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg
-from _flight import cfg_dict, run, solve
+from _solve import cfg_dict, run, solve
 
 from quadctl import discrete, pipeline
 from quadctl.errors import StepSizeError

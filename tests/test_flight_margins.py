@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 import scipy.optimize
-from _flight import cfg_dict, solve
+from _solve import cfg_dict, solve
 
 from quadctl import discrete, margins
 from quadctl.margins import BrokenLoop, loop_margins

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from _flight import cfg_dict, run
+from _solve import cfg_dict, run
 
 from quadctl import config, motors, pipeline
 from quadctl.errors import ConfigError

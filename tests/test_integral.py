@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _flight import cfg_dict, run
+from _solve import cfg_dict, run
 
 from quadctl import integral
 from quadctl.layout import INPUT_INDEX, STATE_INDEX

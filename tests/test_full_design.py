@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _flight import cfg_dict, solve
+from _solve import cfg_dict, solve
 
 from quadctl import config, full, pipeline
 from quadctl.layout import STATE_INDEX

@@ -1,4 +1,4 @@
-"""The flight features through the command line: margins, check --rate, design --full, saturation flags."""
+"""Sampled, saturating and noisy loops through the command line: margins, check --rate, design --full, saturation flags."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import json
 
 import pytest
 import yaml
-from _flight import cfg_dict
+from _solve import cfg_dict
 from typer.testing import CliRunner
 
 from quadctl import config
@@ -105,7 +105,7 @@ def test_design_full_compares_the_two_designs(tmp_path):
     ({"simulation": {"noise": {"sensor": {"ph": 0.1}}}}, r"simulation.noise.sensor.ph = 0.1: unknown state; "
                                                          r"did you mean `phi`\?"),
 ])
-def test_flight_config_errors_name_the_key(change, message):
+def test_controller_motor_and_noise_config_errors_name_the_key(change, message):
     data = cfg_dict("forward")
     for key, value in change.items():
         if key == "lqr":
@@ -116,7 +116,7 @@ def test_flight_config_errors_name_the_key(change, message):
         config.from_dict(data)
 
 
-def test_every_bundled_flight_config_loads():
+def test_every_bundled_config_with_a_rate_or_motors_loads():
     cfg = config.load("mambo-200hz")
     assert cfg.controller.rate == 200 and cfg.motors.max_thrust == 0.33
     assert cfg.lqr["altitude"].integral == ["pD"]
