@@ -200,9 +200,16 @@ def test_divergence_is_exit_1_and_saves_the_partial_run(tmp_path):
     assert (tmp_path / "sim.npz").exists() and (tmp_path / "sim.json").exists()
 
 
-def test_debug_shows_the_exception():
-    res = runner.invoke(app, ["--debug", "trim", "-c", "nope"])
-    assert type(res.exception).__name__ == "ConfigError"
+@pytest.mark.parametrize("debug", [[], ["--debug"]])
+def test_debug_prints_the_traceback_and_keeps_the_exit_code(debug):
+    """--debug adds the traceback; the exit code is still the error class's (2: bad input)."""
+    res = runner.invoke(app, [*debug, "trim", "-c", "nope"])
+    assert res.exit_code == 2, res.output
+    last = res.stderr.strip().splitlines()[-1]
+    assert last.startswith("quadctl: error: nope: no such file and no bundled config"), last
+    assert ("Traceback (most recent call last)" in res.stderr) == bool(debug)
+    if debug:
+        assert "quadctl.errors.ConfigError: nope: no such file" in res.stderr
 
 
 def test_json_stdout_stays_parseable_when_a_check_fails(tmp_path):

@@ -31,9 +31,39 @@ def debug_enabled(ctx: typer.Context | None) -> bool:
 
 
 def fail(message: str, code: int) -> typer.Exit:
-    """Print ``quadctl: error: message`` to stderr and return the Exit to raise."""
-    typer.echo(f"quadctl: error: {message}", err=True)
+    """Print ``quadctl: error: message`` to stderr, on one line, and return the Exit to raise."""
+    from quadctl.messages import one_line
+
+    typer.echo(f"quadctl: error: {one_line(message)}", err=True)
     return typer.Exit(code)
+
+
+def remember_config(label: str) -> None:
+    """Note the config file this command reads, so that :func:`handled` can name it in an error
+    that comes from the config's values but not from the file's text (no trim, an RK4 step)."""
+    import click
+
+    ctx = click.get_current_context(silent=True)
+    root = ctx.find_root() if ctx is not None else None
+    if root is not None and isinstance(root.obj, dict):
+        root.obj["config"] = label
+
+
+def message_of(exc, ctx: typer.Context | None) -> str:
+    """The error's message, with the config file in front when the config caused it."""
+    text = str(exc)
+    root = ctx.find_root() if ctx is not None else None
+    label = root.obj.get("config") if root is not None and isinstance(root.obj, dict) else None
+    if label and getattr(exc, "from_config", False) and not text.startswith(f"{label}:"):
+        text = f"{label}: {text}"
+    return text
+
+
+def _traceback() -> None:
+    """``--debug``: the traceback of the error being handled, on stderr, before its one line."""
+    import traceback
+
+    traceback.print_exc(file=sys.stderr)
 
 
 def handled(fn):
@@ -48,10 +78,10 @@ def handled(fn):
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, SystemExit):
             raise
-        except QuadctlError as exc:
+        except QuadctlError as exc:  # the class decides the exit code, with or without --debug
             if debug_enabled(ctx):
-                raise
-            raise fail(str(exc), exc.exit_code) from None
+                _traceback()
+            raise fail(message_of(exc, ctx), exc.exit_code) from None
         except BrokenPipeError:  # `quadctl ... --json | head`: the reader left; the work is saved
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
@@ -61,7 +91,7 @@ def handled(fn):
                        EXIT_INTERRUPTED) from None
         except Exception as exc:  # a bug: say so in one line, traceback on --debug
             if debug_enabled(ctx):
-                raise
+                _traceback()
             where = ""
             tb = sys.exc_info()[2]
             while tb and tb.tb_next:

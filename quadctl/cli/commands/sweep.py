@@ -28,17 +28,19 @@ def command(
     Exits 1 when a case fails a gate (or, with require_ok, fails to design, is unstable or diverges).
     A sweep of simulation.noise.seed alone is a Monte Carlo: also montecarlo.png and montecarlo.npz, percentile bands.
     """
-    from quadctl import config as config_mod
     from quadctl import sweep as sweep_mod
     from quadctl.cli import render, render_sweep
+    from quadctl.cli.options import load_config
     from quadctl.errors import SweepError
+    from quadctl.sweep.runner import check_scheduler_address
     from quadctl.workspace import default_out
 
     if jobs is not None and scheduler:
         raise SweepError("--jobs and --scheduler: give one; on a cluster its workers do the work")
-    cfg = config_mod.load(config)
+    if scheduler:
+        check_scheduler_address(scheduler)  # before anything is loaded: a typo fails at once
+    cfg, label = load_config(config)
     spec = sweep_mod.load(sweep, cfg)
-    label = config_mod.resolve(config)[0]
     with render_sweep.sweep_progress(spec.count(), quiet=json) as progress:
         outcome = sweep_mod.execute(cfg, spec, out or default_out(cfg), label=label, jobs=jobs,
                                     scheduler=scheduler, resume=resume, progress=progress)
