@@ -792,17 +792,18 @@ def _thrust_to_weight(cfg: Config, label: str) -> list[Notice]:
     low, high = THRUST_TO_WEIGHT
     if low <= ratio <= high:
         return []
+    # a unit slip is guessed only when the ratio is far outside the band (a slip moves it 10x or more)
     if ratio < low:
         key, what = "motors.max_thrust", "the vehicle cannot hover"
-        if low <= ratio / GRAM <= high:
+        if ratio < low / 2 and low <= ratio / GRAM <= high:
             key, guess = "vehicle.mass", f"is vehicle.mass in grams? {mass:g} g is {mass * GRAM:g} kg"
-        elif low <= ratio * 9.80665 <= high:
+        elif ratio < low / 2 and low <= ratio * 9.80665 <= high:
             guess = f"is motors.max_thrust in kilograms-force? {thrust:g} kgf is {thrust * 9.80665:.3g} N"
         else:
             guess = "check motors.max_thrust (N per rotor) and vehicle.mass (kg)"
     else:
         key, what = "motors.max_thrust", f"racing quadcopters reach about 10 (THRUST_TO_WEIGHT: {low:g} to {high:g})"
-        if low <= ratio * GRAM_FORCE <= high:
+        if ratio > 2 * high and low <= ratio * GRAM_FORCE <= high:
             guess = f"is motors.max_thrust in grams-force? {thrust:g} gf is {thrust * GRAM_FORCE:.3g} N"
         else:
             guess = "check motors.max_thrust (N per rotor) and vehicle.mass (kg)"

@@ -27,16 +27,17 @@ def key_path(loc) -> str:
     return out or "<top level>"
 
 
-def show(value: Any) -> str:
-    """A value as the user wrote it: whole floats without ``.0``, text quoted, cut to 60 characters.
+def show(value: Any, exact: bool = False) -> str:
+    """A value as the user wrote it: whole floats without ``.0`` (unless ``exact``: where a whole
+    number is due, ``1e3`` is shown as ``1000.0``), text quoted, cut to 60 characters.
 
-    >>> show([1.0, 50.0, 0.5]), show("heavy"), show(1e300)
-    ('[1, 50, 0.5]', '"heavy"', '1e+300')
+    >>> show([1.0, 50.0, 0.5]), show("heavy"), show(1e300), show(1e3, exact=True)
+    ('[1, 50, 0.5]', '"heavy"', '1e+300', '1000.0')
     """
     def plain(v):
         if isinstance(v, (list, tuple)):
             return [plain(x) for x in v]
-        if isinstance(v, float) and v.is_integer() and abs(v) < 1e15:
+        if isinstance(v, float) and v.is_integer() and abs(v) < 1e15 and not exact:
             return int(v)
         return v
 

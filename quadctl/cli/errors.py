@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextvars
 import functools
 import inspect
 import os
@@ -38,22 +39,23 @@ def fail(message: str, code: int) -> typer.Exit:
     return typer.Exit(code)
 
 
+_COMMAND: contextvars.ContextVar[dict] = contextvars.ContextVar("quadctl_command")
+"""What the running command has learnt that its error message needs (the config file); set by
+:func:`handled` for the length of one command."""
+
+
 def remember_config(label: str) -> None:
     """Note the config file this command reads, so that :func:`handled` can name it in an error
     that comes from the config's values but not from the file's text (no trim, an RK4 step)."""
-    import click
-
-    ctx = click.get_current_context(silent=True)
-    root = ctx.find_root() if ctx is not None else None
-    if root is not None and isinstance(root.obj, dict):
-        root.obj["config"] = label
+    state = _COMMAND.get(None)
+    if state is not None:
+        state["config"] = label
 
 
-def message_of(exc, ctx: typer.Context | None) -> str:
+def message_of(exc) -> str:
     """The error's message, with the config file in front when the config caused it."""
     text = str(exc)
-    root = ctx.find_root() if ctx is not None else None
-    label = root.obj.get("config") if root is not None and isinstance(root.obj, dict) else None
+    label = (_COMMAND.get(None) or {}).get("config")
     if label and getattr(exc, "from_config", False) and not text.startswith(f"{label}:"):
         text = f"{label}: {text}"
     return text
@@ -74,6 +76,7 @@ def handled(fn):
         from quadctl.errors import QuadctlError
 
         ctx = kwargs.pop(_CTX, None)
+        token = _COMMAND.set({})
         try:
             return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, SystemExit):
@@ -81,7 +84,7 @@ def handled(fn):
         except QuadctlError as exc:  # the class decides the exit code, with or without --debug
             if debug_enabled(ctx):
                 _traceback()
-            raise fail(message_of(exc, ctx), exc.exit_code) from None
+            raise fail(message_of(exc), exc.exit_code) from None
         except BrokenPipeError:  # `quadctl ... --json | head`: the reader left; the work is saved
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
@@ -101,6 +104,8 @@ def handled(fn):
             raise fail(f"internal error {type(exc).__name__}: {exc}{where}; "
                        "rerun with --debug for the traceback and please report it",
                        EXIT_INTERNAL) from None
+        finally:
+            _COMMAND.reset(token)
 
     # typer hands the context to a parameter annotated typer.Context: add one to the signature
     sig = inspect.signature(fn)

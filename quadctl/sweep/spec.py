@@ -219,16 +219,16 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
         if samples is None:
             raise fail("samples", "random mode needs the number of cases; add `samples: 100`, say")
     if samples is not None and (not is_whole(samples) or samples < 1):
-        raise fail("samples", f"{show(samples)}: {whole_number(samples, 1)}")
+        raise fail("samples", f"{show(samples, exact=True)}: {whole_number(samples, 1)}")
     if samples is not None and samples > MAX_CASES:
         raise fail("samples", f"{show(samples)}: more than {MAX_CASES:,} cases (MAX_CASES); "
                    "run fewer samples, or split the sweep into several files")
     seed = data.get("seed", 0)
     if not is_whole(seed) or seed < 0:
-        raise fail("seed", f"{show(seed)}: {whole_number(seed, 0)}")
+        raise fail("seed", f"{show(seed, exact=True)}: {whole_number(seed, 0)}")
     chunk = data.get("chunk_size")
     if chunk is not None and (not is_whole(chunk) or chunk < 1):
-        raise fail("chunk_size", f"{show(chunk)}: {whole_number(chunk, 1)}")
+        raise fail("chunk_size", f"{show(chunk, exact=True)}: {whole_number(chunk, 1)}")
     require_ok = data.get("require_ok", True)
     if not isinstance(require_ok, bool):
         raise fail("require_ok", f"{show(require_ok)}: must be true or false")
@@ -324,7 +324,7 @@ def _check_values(spec, path: str, mode: str, label: str) -> str:
         num = spec["num"]
         if not is_whole(num) or num < 1:
             why = "empty range; num " if finite_number(num) and num < 1 else "num "
-            raise SweepError(f"{where}.num = {show(num)}: {why}{whole_number(num, 1)}")
+            raise SweepError(f"{where}.num = {show(num, exact=True)}: {why}{whole_number(num, 1)}")
         if num > MAX_CASES:
             raise SweepError(f"{where}.num = {show(num)}: more than {MAX_CASES:,} values, the most cases a "
                              "sweep runs (MAX_CASES); use fewer")
