@@ -42,6 +42,23 @@ Vector3 = Annotated[list[Number], Field(min_length=3, max_length=3)]
 Matrix = Union[list[Number], list[list[Number]]]
 
 
+MASS_RANGE = (1e-4, 1e4)
+"""kg: from a 0.1 g robot to ten tonnes (the heaviest multirotors weigh about one). Outside it
+the input matrix (1/m) loses its digits and the design reports a false "not stabilizable"."""
+MAX_GRAVITY = 100.0
+"""m/s^2: ten g (Jupiter's is 24.8). 1e300 overflowed the controllability test."""
+MAX_DRAG = 100.0
+"""1/(m/s): 450 times the Mambo's 0.22. 1e300 overflowed the controllability test."""
+MAX_RATE = 1e5
+"""Hz: ten times the fastest flight controllers' loops (8 to 32 kHz)."""
+MAX_NOISE = {"force": 1e4, "torque": 1e3}
+"""Standard deviation of the process noise, N and N m: far past any gust; 1e300 overflowed the
+run's error statistics."""
+Mass = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=MASS_RANGE[0], le=MASS_RANGE[1])]
+Gravity = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_GRAVITY)]
+Drag = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=MAX_DRAG)]
+
+
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -49,11 +66,11 @@ class _Section(BaseModel):
 class VehicleConfig(_Section):
     """Vehicle parameters, SI units."""
 
-    mass: Positive = Field(0.068, description="kg")
-    gravity: Positive = Field(9.81, description="m/s^2")
+    mass: Mass = Field(0.068, description="kg")
+    gravity: Gravity = Field(9.81, description="m/s^2")
     inertia: Annotated[list[Positive], Field(min_length=3, max_length=3)] = Field(
         [0.69e-4, 0.775e-4, 1.5e-4], description="kg m^2, diagonal [Jxx, Jyy, Jzz]")
-    drag: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
+    drag: Annotated[list[Drag], Field(min_length=3, max_length=3)] = Field(
         [0.22, 0.22, 0.0], description="Kc diagonal; rotor drag force is -T Kc V_b (1/(m/s))")
 
 
@@ -91,9 +108,10 @@ class NoiseConfig(_Section):
     """Process and sensor noise: zero-mean Gaussian, drawn every ``period`` and held in between."""
 
     seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description="random seed; same seed, same run")
-    force: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
-        [0.0, 0.0, 0.0], description="N, standard deviation of the body-frame force disturbance")
-    torque: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
+    force: Annotated[list[Annotated[NonNegative, Field(le=MAX_NOISE["force"])]], Field(min_length=3, max_length=3)] \
+        = Field([0.0, 0.0, 0.0], description="N, standard deviation of the body-frame force disturbance")
+    torque: Annotated[list[Annotated[NonNegative, Field(le=MAX_NOISE["torque"])]], Field(min_length=3, max_length=3)] \
+        = Field(
         [0.0, 0.0, 0.0], description="N m, standard deviation of the body torque disturbance")
     sensor: dict[str, NonNegative] = Field(
         default_factory=dict, description="state name -> standard deviation of its measurement (state units)")
@@ -104,11 +122,11 @@ class NoiseConfig(_Section):
 class PlantConfig(_Section):
     """The simulated vehicle where it differs from the design model (model mismatch)."""
 
-    mass: Optional[Positive] = Field(None, description="kg")
-    gravity: Optional[Positive] = Field(None, description="m/s^2")
+    mass: Optional[Mass] = Field(None, description="kg")
+    gravity: Optional[Gravity] = Field(None, description="m/s^2")
     inertia: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = Field(
         None, description="kg m^2, diagonal")
-    drag: Optional[Annotated[list[NonNegative], Field(min_length=3, max_length=3)]] = Field(
+    drag: Optional[Annotated[list[Drag], Field(min_length=3, max_length=3)]] = Field(
         None, description="Kc diagonal")
 
 
@@ -129,7 +147,8 @@ class SimulationConfig(_Section):
 class ControllerConfig(_Section):
     """How the controller runs on the flight computer."""
 
-    rate: Optional[Positive] = Field(None, description="Hz; absent: continuous feedback, as in the report")
+    rate: Optional[Annotated[Positive, Field(le=MAX_RATE)]] = Field(
+        None, description="Hz; absent: continuous feedback, as in the report")
     design: Literal["discrete", "continuous"] = Field(
         "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
         "run at that rate (emulation)")
@@ -322,6 +341,8 @@ def _expected(err: dict, loc: list) -> str:
         return f"must be greater than {ctx.get('gt')}{unit}"
     if kind == "greater_than_equal":
         return f"must be at least {ctx.get('ge')}{unit}"
+    if kind == "less_than_equal":
+        return f"must be at most {ctx.get('le'):g}{unit}"
     if kind in ("int_type", "int_parsing", "int_from_float"):
         return f"must be a whole number{unit}"
     if kind in ("float_type", "float_parsing"):

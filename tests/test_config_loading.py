@@ -148,6 +148,26 @@ def test_extreme_numbers_are_refused_by_the_schema(tmp_path, old, new, pattern):
     one_error(run(tmp_path, edit(old, new), "simulate"), r"^quadctl: error: .*c\.yaml: " + pattern)
 
 
+MAMBO = config.bundled("mambo-200hz").text
+
+
+@pytest.mark.parametrize("old,new,pattern", [
+    ("mass: 0.068", "mass: 1e300", r"vehicle\.mass = 1e\+300: must be at most 10000 \(kg\)$"),
+    ("mass: 0.068", "mass: 1e-300", r"vehicle\.mass = 1e-300: must be at least 0\.0001 \(kg\)$"),
+    ("gravity: 9.81", "gravity: 1e300", r"vehicle\.gravity = 1e\+300: must be at most 100 \(m/s\^2\)$"),
+    ("drag: [0.22, 0.22, 0.0]", "drag: [0.22, 1e300, 0.0]", r"vehicle\.drag\[1\] = 1e\+300: must be at most 100 "),
+    ("rate: 200", "rate: 1e300", r"controller\.rate = 1e\+300: must be at most 100000 \(Hz"),
+    ("force: [0.005,", "force: [1e300,", r"simulation\.noise\.force\[0\] = 1e\+300: must be at most 10000 \(N,"),
+    ("torque: [2.0e-5,", "torque: [1e300,", r"simulation\.noise\.torque\[0\] = 1e\+300: must be at most 1000 \(N m,"),
+])
+def test_physical_bounds_the_pipeline_needs(tmp_path, old, new, pattern):
+    """Found by setting every number of the bundled configs to +-1e300 and 1e-300: these gave an
+    internal error (gravity, drag: the controllability test overflowed), numpy overflow warnings
+    (noise) or a false "not stabilizable" (mass, rate); every other number gives a result or a
+    refusal."""
+    one_error(run(tmp_path, edit(old, new, MAMBO), "simulate"), r"^quadctl: error: .*c\.yaml: " + pattern)
+
+
 def test_the_duration_bound_can_be_raised(tmp_path, monkeypatch):
     text = edit("duration: 10.0", "duration: 100000")
     one_error(run(tmp_path, text), r"simulation\.duration = 100000: must be at most 86400 s")
@@ -312,7 +332,7 @@ SWAPPED = edit("roll:     {states: [v, phi, p], inputs: [A]}", "roll:     {state
 
 @pytest.mark.parametrize("debug", [[], ["--debug"]])
 @pytest.mark.parametrize("text,code,pattern", [
-    (edit("mass: 0.068", "mass: -1"), 2, r"vehicle\.mass = -1: must be greater than 0"),       # ConfigError
+    (edit("mass: 0.068", "mass: -1"), 2, r"vehicle\.mass = -1: must be at least 0\.0001"),       # ConfigError
     (edit("dt: auto", "dt: 0.001"), 2, r"simulation\.dt = 0\.001 s is unstable for RK4"),      # StepSizeError
     (SWAPPED, 1, r"subsystem roll: not stabilizable"),                                       # DesignError
 ])
