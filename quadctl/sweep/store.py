@@ -72,7 +72,7 @@ class SweepStore:
             try:
                 data = artifacts.read_json(path)
             except ArtifactError as exc:  # its advice (--fresh) is for the stage commands, not sweep
-                why = str(exc).split(";")[0]
+                why = str(exc).rsplit(";", 1)[0]  # the file and what is wrong; the fix is the last clause
                 raise SweepError(f"{why}; delete it, or run without --resume to start over") from None
             if data.get("sweep_digest") != self.digest:
                 raise SweepError(
