@@ -12,25 +12,51 @@ import difflib
 import hashlib
 import json
 import math
+import os
 import re
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal, NamedTuple, Optional, Union
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from quadctl import yamlio
 from quadctl.errors import ConfigError
-from quadctl.layout import INPUT_NAMES, REPORT_PARTITION, STATE_NAMES
+from quadctl.layout import INPUT_NAMES, REPORT_PARTITION, STATE_NAMES, STATE_UNITS
+from quadctl.messages import hint as _hint
+from quadctl.messages import key_path, show
+from quadctl.messages import unknown as _unknown
 
 DEFAULT_CONFIG = "forward"
 """Bundled config used when no ``--config`` is given: the report's forward-flight case."""
+
+NAME_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"
+"""A config's name: one folder name inside ``runs/`` (no separator, not ``.`` or ``..``)."""
 
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
 NonNegative = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
 Vector3 = Annotated[list[Number], Field(min_length=3, max_length=3)]
 Matrix = Union[list[Number], list[list[Number]]]
+
+
+MASS_RANGE = (1e-4, 1e4)
+"""kg: from a 0.1 g robot to ten tonnes (the heaviest multirotors weigh about one). Outside it
+the input matrix (1/m) loses its digits and the design reports a false "not stabilizable"."""
+MAX_GRAVITY = 100.0
+"""m/s^2: ten g (Jupiter's is 24.8). 1e300 overflowed the controllability test."""
+MAX_DRAG = 100.0
+"""1/(m/s): 450 times the Mambo's 0.22. 1e300 overflowed the controllability test."""
+MAX_RATE = 1e5
+"""Hz: ten times the fastest flight controllers' loops (8 to 32 kHz)."""
+MAX_NOISE = {"force": 1e4, "torque": 1e3}
+"""Standard deviation of the process noise, N and N m: far past any gust; 1e300 overflowed the
+run's error statistics."""
+Mass = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=MASS_RANGE[0], le=MASS_RANGE[1])]
+Gravity = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_GRAVITY)]
+Drag = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=MAX_DRAG)]
 
 
 class _Section(BaseModel):
@@ -40,11 +66,11 @@ class _Section(BaseModel):
 class VehicleConfig(_Section):
     """Vehicle parameters, SI units."""
 
-    mass: Positive = Field(0.068, description="kg")
-    gravity: Positive = Field(9.81, description="m/s^2")
+    mass: Mass = Field(0.068, description="kg")
+    gravity: Gravity = Field(9.81, description="m/s^2")
     inertia: Annotated[list[Positive], Field(min_length=3, max_length=3)] = Field(
         [0.69e-4, 0.775e-4, 1.5e-4], description="kg m^2, diagonal [Jxx, Jyy, Jzz]")
-    drag: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
+    drag: Annotated[list[Drag], Field(min_length=3, max_length=3)] = Field(
         [0.22, 0.22, 0.0], description="Kc diagonal; rotor drag force is -T Kc V_b (1/(m/s))")
 
 
@@ -82,9 +108,10 @@ class NoiseConfig(_Section):
     """Process and sensor noise: zero-mean Gaussian, drawn every ``period`` and held in between."""
 
     seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description="random seed; same seed, same run")
-    force: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
-        [0.0, 0.0, 0.0], description="N, standard deviation of the body-frame force disturbance")
-    torque: Annotated[list[NonNegative], Field(min_length=3, max_length=3)] = Field(
+    force: Annotated[list[Annotated[NonNegative, Field(le=MAX_NOISE["force"])]], Field(min_length=3, max_length=3)] \
+        = Field([0.0, 0.0, 0.0], description="N, standard deviation of the body-frame force disturbance")
+    torque: Annotated[list[Annotated[NonNegative, Field(le=MAX_NOISE["torque"])]], Field(min_length=3, max_length=3)] \
+        = Field(
         [0.0, 0.0, 0.0], description="N m, standard deviation of the body torque disturbance")
     sensor: dict[str, NonNegative] = Field(
         default_factory=dict, description="state name -> standard deviation of its measurement (state units)")
@@ -95,11 +122,11 @@ class NoiseConfig(_Section):
 class PlantConfig(_Section):
     """The simulated vehicle where it differs from the design model (model mismatch)."""
 
-    mass: Optional[Positive] = Field(None, description="kg")
-    gravity: Optional[Positive] = Field(None, description="m/s^2")
+    mass: Optional[Mass] = Field(None, description="kg")
+    gravity: Optional[Gravity] = Field(None, description="m/s^2")
     inertia: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = Field(
         None, description="kg m^2, diagonal")
-    drag: Optional[Annotated[list[NonNegative], Field(min_length=3, max_length=3)]] = Field(
+    drag: Optional[Annotated[list[Drag], Field(min_length=3, max_length=3)]] = Field(
         None, description="Kc diagonal")
 
 
@@ -120,7 +147,8 @@ class SimulationConfig(_Section):
 class ControllerConfig(_Section):
     """How the controller runs on the flight computer."""
 
-    rate: Optional[Positive] = Field(None, description="Hz; absent: continuous feedback, as in the report")
+    rate: Optional[Annotated[Positive, Field(le=MAX_RATE)]] = Field(
+        None, description="Hz; absent: continuous feedback, as in the report")
     design: Literal["discrete", "continuous"] = Field(
         "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
         "run at that rate (emulation)")
@@ -143,7 +171,8 @@ InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]
 class Config(_Section):
     """A whole quadctl config (see the README's config reference)."""
 
-    name: Annotated[str, Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")]
+    name: Annotated[str, Field(min_length=1, pattern=NAME_PATTERN)] = Field(
+        description="names the run directory runs/<name>")
     description: str = ""
     vehicle: VehicleConfig = VehicleConfig()
     trim: TrimConfig = TrimConfig()
@@ -175,29 +204,13 @@ class Config(_Section):
 # Loading
 
 
-class YamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader, but ``1e5`` and ``68e-3`` are numbers (YAML 1.1 needs a dot)."""
+class Source(NamedTuple):
+    """Where a ``--config`` value led: the file to name in errors, its text, and a note when the
+    name could have meant something else (a file here and a bundled config of that name)."""
 
-
-YamlLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
-                |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
-                |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
-                |[-+]?\.(?:inf|Inf|INF)
-                |\.(?:nan|NaN|NAN))$""", re.X),
-    list("-+0123456789."))
-
-
-def load_yaml(text: str, label: str) -> Any:
-    """Parse YAML text; a syntax error is a ConfigError with line and column."""
-    try:
-        return yaml.load(text, Loader=YamlLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise ConfigError(f"{label}: YAML syntax error{where}: {problem}; fix the YAML") from None
+    label: str
+    text: str
+    note: str | None = None
 
 
 def bundled_names() -> list[str]:
@@ -206,36 +219,49 @@ def bundled_names() -> list[str]:
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
-def resolve(spec: str | Path | None) -> tuple[str, str]:
-    """Find a config: an existing path, else a bundled name (with or without ``.yaml``).
+def bundled(name: str) -> Source:
+    """A bundled config by name (``forward``), whatever files the working folder holds."""
+    res = resources.files("quadctl") / "configs" / f"{name}.yaml"
+    return Source(f"{name}.yaml", res.read_text(encoding="utf-8"))
+
+
+def resolve(spec: str | Path | None) -> Source:
+    """Find a config: a file, else a bundled name (with or without ``.yaml``).
+
+    A folder is never a config. A bundled name resolves unless a file of exactly that name
+    exists; when both could be meant (a file ``forward`` or ``forward.yaml`` here and a bundled
+    ``forward``), :attr:`Source.note` says which was taken and how to ask for the other.
 
     Returns
     -------
-    (label, text) : the file name to cite in errors, and its YAML text.
+    Source : (label, text, note)
+        The file name to cite in errors, its YAML text, and the note (or None).
 
     Raises
     ------
     ConfigError
-        The path does not exist and no bundled config has that name, or it cannot be read.
+        No such file and no bundled config of that name, a folder of that name and no bundled
+        config, or a file that cannot be read (too large, not UTF-8, no permission).
     """
     spec = DEFAULT_CONFIG if spec is None else str(spec)
     path = Path(spec)
+    name = re.sub(r"\.ya?ml$", "", spec)
+    is_name = "/" not in name and os.sep not in name and name in bundled_names()
+    if path.exists() and not path.is_dir():  # a file, a pipe or a device: read (with a size cap)
+        note = (f"-c {spec}: using the file {path}, not the bundled config `{name}` "
+                f"(`quadctl configs --show {name}` prints that one)") if is_name else None
+        return Source(str(path), yamlio.read_text(path, spec, "config file"), note)
+    if is_name:
+        here = [p for p in (name, f"{name}.yaml", f"{name}.yml") if Path(p).is_file()]
+        note = (f"-c {spec}: using the bundled config `{name}`, not the file {here[0]} in this folder "
+                f"(give -c ./{here[0]} for the file)") if here else None
+        return bundled(name)._replace(note=note)
     if path.is_dir():
         raise ConfigError(f"{spec}: is a folder, not a config file; give a .yaml file")
-    if path.exists():
-        try:
-            return str(path), path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-            raise ConfigError(f"{spec}: cannot read the config ({reason}); check the file") from None
-    name = re.sub(r"\.ya?ml$", "", spec)
-    if "/" not in name and name in bundled_names():
-        res = resources.files("quadctl") / "configs" / f"{name}.yaml"
-        return f"{name}.yaml", res.read_text(encoding="utf-8")
     near = difflib.get_close_matches(name, bundled_names(), n=1)
-    hint = f"did you mean `{near[0]}`? " if near and "/" not in name else ""
+    guess = f"did you mean `{near[0]}`? " if near and "/" not in name else ""
     raise ConfigError(
-        f"{spec}: no such file and no bundled config of that name; {hint}"
+        f"{spec}: no such file and no bundled config of that name; {guess}"
         f"bundled: {', '.join(bundled_names())}")
 
 
@@ -247,13 +273,13 @@ def load(spec: str | Path | None = None) -> Config:
     ConfigError
         With one line naming the file, key path, value and the fix.
     """
-    label, text = resolve(spec)
-    return parse(text, label)
+    source = resolve(spec)
+    return parse(source.text, source.label)
 
 
 def parse(text: str, label: str = "<config>") -> Config:
-    """Validate YAML text as a config; ``label`` names it in errors."""
-    return from_dict(load_yaml(text, label), label)
+    """Validate YAML text as a config; ``label`` names it in errors (see :mod:`quadctl.yamlio`)."""
+    return from_dict(yamlio.load(text, label, ConfigError), label)
 
 
 def from_dict(data: Any, label: str = "<config>") -> Config:
@@ -290,7 +316,7 @@ def _describe(exc: ValidationError, data: Any, label: str) -> str:
     value = _lookup(data, loc)
     if kind in ("int_type", "int_from_float") and isinstance(value, float) and value.is_integer():
         return f"{label}: {path} = {value!r}: must be a whole number; write {int(value)}{more}"
-    return f"{label}: {path} = {_show(value)}: {_expected(err, loc)}{more}"
+    return f"{label}: {path} = {show(value)}: {_expected(err, loc)}{more}"
 
 
 UNION_HINTS = {
@@ -315,6 +341,8 @@ def _expected(err: dict, loc: list) -> str:
         return f"must be greater than {ctx.get('gt')}{unit}"
     if kind == "greater_than_equal":
         return f"must be at least {ctx.get('ge')}{unit}"
+    if kind == "less_than_equal":
+        return f"must be at most {ctx.get('le'):g}{unit}"
     if kind in ("int_type", "int_parsing", "int_from_float"):
         return f"must be a whole number{unit}"
     if kind in ("float_type", "float_parsing"):
@@ -337,7 +365,8 @@ def _expected(err: dict, loc: list) -> str:
     if kind in ("dict_type", "model_type", "model_attributes_type"):
         return "must be a mapping of keys"
     if kind == "string_pattern_mismatch":
-        return "must use only letters, digits, '_', '.' and '-'"
+        return ("must start with a letter, digit or '_' and use only letters, digits, '_', '.' and '-' "
+                "(it names the folder runs/<name>)")
     if kind == "string_too_short":
         return "must not be empty"
     return err["msg"]
@@ -385,14 +414,6 @@ def _first_model(annotation: Any) -> Any:
     return None
 
 
-def key_path(loc: list | tuple) -> str:
-    """``['lqr', 'roll', 'Q', 1]`` -> ``'lqr.roll.Q[1]'``."""
-    out = ""
-    for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
-    return out or "<top level>"
-
-
 def _lookup(data: Any, loc: list) -> Any:
     for part in loc:
         try:
@@ -402,27 +423,13 @@ def _lookup(data: Any, loc: list) -> Any:
     return data
 
 
-def _show(value: Any) -> str:
-    """A value as the user wrote it (whole floats without ``.0``), cut to 60 characters."""
-    def plain(v):
-        if isinstance(v, (list, tuple)):
-            return [plain(x) for x in v]
-        if isinstance(v, float) and v.is_integer() and abs(v) < 1e15:
-            return int(v)
-        return v
-
-    value = plain(value)
-    text = repr(value) if isinstance(value, float) else json.dumps(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
 # ---------------------------------------------------------------------------------------
 # Checks across fields
 
 
 def _check_semantics(cfg: Config, label: str) -> None:
     def fail(path: str, value: Any, why: str) -> None:
-        raise ConfigError(f"{label}: {path} = {_show(value)}: {why}")
+        raise ConfigError(f"{label}: {path} = {show(value)}: {why}")
 
     partition = cfg.partition()
     where = "subsystems" if cfg.subsystems is not None else "subsystems (the report's default)"
@@ -483,9 +490,84 @@ def _check_semantics(cfg: Config, label: str) -> None:
         limit = MAX_TILT_OFFSET if state in ("phi", "theta") else 2 * math.pi if state == "psi" else None
         if limit is not None and abs(value) >= limit:
             fail(f"simulation.initial_offset.{state}", value, _degrees_hint(value, limit))
+        unit = STATE_UNITS[state]
+        if unit in MAX_OFFSET and abs(value) > MAX_OFFSET[unit]:
+            fail(f"simulation.initial_offset.{state}", value,
+                 f"must be at most {MAX_OFFSET[unit]:g} {unit} from the trim (MAX_OFFSET)")
     if abs(cfg.trim.yaw) > 2 * math.pi:
         fail("trim.yaw", cfg.trim.yaw, _degrees_hint(cfg.trim.yaw, 2 * math.pi))
+    for key in ("velocity_ned", "position_ned"):
+        unit = "m/s" if key == "velocity_ned" else "m"
+        for i, value in enumerate(getattr(cfg.trim, key)):
+            if abs(value) > MAX_TRIM[unit]:
+                fail(f"trim.{key}[{i}]", value, f"must be at most {MAX_TRIM[unit]:g} {unit} in magnitude (MAX_TRIM)")
+    max_duration = max_duration_s()
+    if cfg.simulation.duration > max_duration:
+        fail("simulation.duration", cfg.simulation.duration,
+             f"must be at most {max_duration:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to allow longer)")
+    _check_inertia(cfg, fail)
     _check_flight(cfg, fail)
+
+
+MAX_DURATION = 86_400.0
+"""s: the longest simulation (one day). A controller settles in seconds and a long hold is
+minutes; ``1e300`` is a typo that no step count can honour. Raise it with the environment
+variable :data:`MAX_DURATION_ENV` (seconds); the engine bounds the number of RK4 steps on its own."""
+MAX_DURATION_ENV = "QUADCTL_MAX_DURATION"
+
+
+def max_duration_s() -> float:
+    """The bound on ``simulation.duration`` in force: :data:`MAX_DURATION`, or the environment's."""
+    text = os.environ.get(MAX_DURATION_ENV)
+    if text is None:
+        return MAX_DURATION
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{MAX_DURATION_ENV}={text}: must be a positive number of seconds; unset it for "
+                          f"the default {MAX_DURATION:g} s")
+    return value
+
+
+MAX_OFFSET = {"m": 1e4, "m/s": 1e2, "rad/s": 1e2}
+"""Largest initial offset from the trim, by state unit (angles have their own bounds): 10 km,
+100 m/s and 100 rad/s (16 turns a second) are past any flight yet at least ten times inside
+the simulation's run-away bounds, so a run never starts out diverged, and no arithmetic on the
+state overflows (an offset of 1e308 did, with numpy warnings)."""
+MAX_TRIM = {"m": 1e6, "m/s": 1e3}
+"""Largest trim position (1000 km) and velocity (1000 m/s, three times the speed of sound): past
+them the trim and the reference it drifts along lose their digits."""
+
+
+INERTIA_TRIANGLE_RTOL = 0.10
+"""Slack on the triangle inequality of the principal moments of inertia. Measured inertias
+(pendulum tests, CAD) carry errors of a few percent: the report's Mambo itself has
+Jxx + Jyy = 0.979 Jzz, 2 % under the bound. 10 % takes measurement error, not a swapped axis."""
+
+
+def _check_inertia(cfg: Config, fail) -> None:
+    """Refuse a physically impossible inertia: the triangle inequality of the principal moments.
+
+    For any rigid body ``Jxx + Jyy >= Jzz`` (and the same for each axis: ``Jzz`` is the integral of
+    ``x^2 + y^2`` dm, ``Jxx + Jyy`` that of ``x^2 + y^2 + 2 z^2``). A vehicle that breaks it by more
+    than :data:`INERTIA_TRIANGLE_RTOL` does not exist: the values are a typo, a swapped or
+    mis-scaled entry, and a design for them is a design for no vehicle, so it is refused (exit 2).
+    Everything merely unusual (a heavy, long-armed, tall vehicle) is only warned about, by
+    :func:`notices`.
+    """
+    for path, inertia in (("vehicle.inertia", cfg.vehicle.inertia),
+                          ("simulation.plant.inertia", cfg.simulation.plant and cfg.simulation.plant.inertia)):
+        if not inertia:
+            continue
+        for k, axis in enumerate(("Jxx", "Jyy", "Jzz")):
+            others = sum(inertia) - inertia[k]
+            if others < inertia[k] * (1 - INERTIA_TRIANGLE_RTOL):
+                names = " + ".join(a for a in ("Jxx", "Jyy", "Jzz") if a != axis)
+                fail(path, inertia, f"no rigid body has {names} = {others:.4g} below {axis} = {inertia[k]:.4g} kg m^2 "
+                     f"(the moments of inertia obey {names} >= {axis}); check the order [Jxx, Jyy, Jzz] and "
+                     "that all three are in kg m^2")
 
 
 def _check_flight(cfg: Config, fail) -> None:
@@ -516,21 +598,17 @@ def _degrees_hint(value: float, limit: float) -> str:
             f"for {value:g} deg write {math.radians(value):.4g}")
 
 
-def _unknown(name: str, allowed, kind: str) -> str:
-    return f"unknown {kind}; {_hint(name, allowed)}"
-
-
-def _hint(name: str, allowed) -> str:
-    """``did you mean `X`?`` (case first, then spelling), else the list of what is allowed."""
-    same_but_case = [a for a in allowed if a.lower() == name.lower()]
-    near = same_but_case or difflib.get_close_matches(name, list(allowed), n=1)
-    return f"did you mean `{near[0]}`?" if near else f"allowed: {', '.join(allowed)}"
-
-
 SYMMETRY_RTOL = 1e-10
 """Relative tolerance of the symmetry test, scaled by the matrix's largest entry."""
 DEFINITENESS_RTOL = 1e-12
 """Eigenvalues above ``-rtol * max|eig|`` count as nonnegative (PSD test), as in SciPy's ``_are``."""
+
+
+WEIGHT_RANGE = (1e-15, 1e15)
+"""Magnitudes a nonzero entry of Q or R may have. The gains depend only on the ratios of the
+weights, and Bryson's rule (1/largest error^2) gives 1e-6 to 1e12 for vehicles from nano to heavy
+lift; past this range the Riccati solution, which holds products of weights, loses its digits
+(lqr.yaw.Q = [1e300, 1] designed a 1e150 gain and crashed the simulation)."""
 
 
 def weight_matrix(value: list, size: int):
@@ -554,19 +632,202 @@ def check_weight(value: list, size: int, path: str, label: str, *, definite: boo
     if (not nested and len(value) != size) or (nested and (len(value) != size or any(
             len(row) != size for row in value))):
         got = "x".join(map(str, shape)) if nested else f"{len(value)} values"
-        raise ConfigError(f"{label}: {path} = {_show(value)}: expected {expect}, got {got}")
+        raise ConfigError(f"{label}: {path} = {show(value)}: expected {expect}, got {got}")
+    flat = np.abs(np.asarray(value, dtype=float).ravel())
+    outside = np.flatnonzero((flat != 0) & ((flat < WEIGHT_RANGE[0]) | (flat > WEIGHT_RANGE[1])))
+    if outside.size:
+        k = int(outside[0])
+        where = f"{path}[{k}]" if not nested else f"{path}[{k // size}][{k % size}]"
+        entry = value[k] if not nested else value[k // size][k % size]
+        raise ConfigError(f"{label}: {where} = {show(entry)}: a weight must be 0 or between {WEIGHT_RANGE[0]:g} "
+                          f"and {WEIGHT_RANGE[1]:g} in magnitude (WEIGHT_RANGE); the gains depend only on the "
+                          "ratios of the weights: scale Q and R together")
     if nested:
         mat = weight_matrix(value, size)
         scale = max(float(np.abs(mat).max()), 1.0)
         if not np.allclose(mat, mat.T, rtol=0, atol=SYMMETRY_RTOL * scale):
-            raise ConfigError(f"{label}: {path} = {_show(value)}: not symmetric; make it equal to its transpose")
+            raise ConfigError(f"{label}: {path} = {show(value)}: not symmetric; make it equal to its transpose")
         eig = np.linalg.eigvalsh((mat + mat.T) / 2)
     else:  # a diagonal is symmetric and its eigenvalues are its entries (sweeps validate thousands)
         eig = np.sort(np.asarray(value, dtype=float))
     floor = DEFINITENESS_RTOL * max(float(np.abs(eig).max()), 1e-300)
     if definite and eig.min() <= floor:
-        raise ConfigError(f"{label}: {path} = {_show(value)}: must be positive definite "
+        raise ConfigError(f"{label}: {path} = {show(value)}: must be positive definite "
                           f"(smallest eigenvalue {eig.min():.3g}); use positive weights")
     if not definite and eig.min() < -floor:
-        raise ConfigError(f"{label}: {path} = {_show(value)}: must be positive semidefinite "
+        raise ConfigError(f"{label}: {path} = {show(value)}: must be positive semidefinite "
                           f"(smallest eigenvalue {eig.min():.3g}); use nonnegative weights")
+
+
+# ---------------------------------------------------------------------------------------
+# Notices: valid, but maybe not what the author meant
+
+
+@dataclass(frozen=True)
+class Notice:
+    """A remark on a valid config, for the command line to print (one line each).
+
+    Attributes
+    ----------
+    level : {"note", "warning"}
+        ``note``: a default was taken for a key the author may have meant to give;
+        ``warning``: the values are physically implausible (a unit slip, most likely).
+    key : str
+        The key path it is about (``vehicle.inertia``).
+    message : str
+        One line naming the file, the key, the values and the likely fix.
+    """
+
+    level: Literal["note", "warning"]
+    key: str
+    message: str
+
+    def __str__(self) -> str:
+        return self.message
+
+
+MAMBO_KEYS = {"vehicle": ("mass", "inertia", "drag"),
+              "motors": ("arm_length", "thrust_coefficient", "torque_coefficient", "max_thrust")}
+"""Keys whose defaults are the report's Parrot Mambo: a section that gives some of them and not
+the others flies a mix of two vehicles. (Gravity, the rotor layout and ``min_thrust = 0`` are
+generic and not listed.)"""
+GYRATION_TO_ARM = (0.1, 2.0)
+"""Plausible radius of gyration ``sqrt(J/m)`` (largest axis) as a multiple of the arm length.
+All the mass at the rotors gives 1 (about z); motors alone, at the arm ends, are 20 % or more of
+a quadcopter's mass, which keeps it above about 0.4; guards and long booms can pass 1. The
+report's Mambo has 0.75. A unit slip moves it by 30 times or more (grams for kilograms: /31.6;
+g m^2 for kg m^2: x31.6)."""
+GYRATION_TO_CUBE_ROOT_MASS = (0.02, 0.6)
+"""Plausible ``sqrt(J/m) / m^(1/3)`` (m / kg^(1/3)) when no motors give the arm length: vehicles of
+similar build have similar density, so their size grows as the cube root of their mass. The
+27 g Crazyflie 2.0 (Jzz = 2.9e-5 kg m^2) and the 68 g Mambo both have 0.11; the band is five
+times wider either way, and a mass in grams moves it by 316 times."""
+THRUST_TO_WEIGHT = (1.0, 30.0)
+"""Plausible ``4 max_thrust / (m g)``: below 1 the vehicle cannot hover; racing quadcopters
+reach about 10 to 15. A thrust in grams-force moves it by 102 times."""
+INERTIA_SLIPS = (("g m^2", 1e-3), ("kg cm^2", 1e-4), ("kg mm^2", 1e-6), ("g cm^2", 1e-7), ("g mm^2", 1e-9))
+"""Units an inertia is often written in, and their value in kg m^2."""
+GRAM = 1e-3
+GRAM_FORCE = 9.80665e-3
+"""N."""
+
+
+def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
+    """What a valid config does that its author may not mean: defaults taken, implausible physics.
+
+    Parameters
+    ----------
+    cfg : Config
+    label : str
+        The file, named in each message.
+
+    Returns
+    -------
+    list of Notice
+        A ``note`` listing the keys of a partly given ``vehicle:`` or ``motors:`` section that took
+        the report's Mambo values, then a ``warning`` for each implausible quantity, naming the
+        likely unit slip: the radius of gyration ``sqrt(J/m)`` against the arm length (or, with no
+        motors, against the mass), the thrust-to-weight ratio, and Jzz below Jxx or Jyy. An
+        impossible inertia is refused on load instead (see ``_check_inertia``).
+
+    Examples
+    --------
+    >>> cfg = parse(bundled("forward").text.replace("mass: 0.068", "mass: 68"), "c.yaml")
+    >>> [n.key for n in notices(cfg, "c.yaml")]
+    ['vehicle.mass']
+    """
+    found = _defaults_taken(cfg, label)
+    found += _gyration(cfg, label)
+    found += _thrust_to_weight(cfg, label)
+    jxx, jyy, jzz = cfg.vehicle.inertia
+    if jzz < max(jxx, jyy):
+        found.append(Notice("warning", "vehicle.inertia", (
+            f"{label}: vehicle.inertia = {show(list(cfg.vehicle.inertia))}: Jzz is below Jxx or Jyy, but a flat "
+            f"quadcopter has Jzz about Jxx + Jyy = {jxx + jyy:.3g} kg m^2; is the order [Jxx, Jyy, Jzz]?")))
+    return found
+
+
+def _defaults_taken(cfg: Config, label: str) -> list[Notice]:
+    taken = []
+    for section, keys in MAMBO_KEYS.items():
+        given = getattr(cfg, section)
+        if given is None or section not in cfg.model_fields_set:
+            continue
+        taken += [(f"{section}.{k}", getattr(given, k)) for k in keys if k not in given.model_fields_set]
+    if not taken:
+        return []
+    values = ", ".join(f"{path} = {show(value)}" for path, value in taken)
+    return [Notice("note", taken[0][0], f"{label}: {', '.join(p for p, _ in taken)} not given: using the report's "
+                   f"Parrot Mambo values ({values}); give your vehicle's")]
+
+
+def _gyration(cfg: Config, label: str) -> list[Notice]:
+    """The radius of gyration against the arm length (or the mass): catches a slip in either."""
+    mass, inertia = cfg.vehicle.mass, list(cfg.vehicle.inertia)
+    axis = ("Jxx", "Jyy", "Jzz")[inertia.index(max(inertia))]
+    arm = cfg.motors.arm_length if cfg.motors is not None else None
+
+    def ratio(m: float, j: float) -> float:
+        radius = math.sqrt(j / m)
+        return radius / arm if arm is not None else radius / m ** (1 / 3)
+
+    band = GYRATION_TO_ARM if arm is not None else GYRATION_TO_CUBE_ROOT_MASS
+    now = ratio(mass, max(inertia))
+    if band[0] <= now <= band[1]:
+        return []
+    radius = math.sqrt(max(inertia) / mass)
+    if arm is not None:
+        against = (f"{radius / arm:.3g} times motors.arm_length = {arm:g} m (a quadcopter's is {band[0]:g} to "
+                   f"{band[1]:g} times it: GYRATION_TO_ARM)")
+    else:
+        cube = mass ** (1 / 3)
+        against = (f"a {mass:g} kg quadcopter's is {band[0] * cube:.2g} to {band[1] * cube:.2g} m "
+                   "(GYRATION_TO_CUBE_ROOT_MASS)")
+    middle = math.sqrt(band[0] * band[1])
+
+    def fits(m: float, j: float) -> float:  # distance (in decades) from the middle of the band, if inside
+        r = ratio(m, j)
+        return abs(math.log10(r / middle)) if band[0] <= r <= band[1] else math.inf
+
+    if now > band[1]:
+        unit, factor = min(INERTIA_SLIPS, key=lambda s: fits(mass, max(inertia) * s[1]))
+        key = "vehicle.inertia"
+        guess = (f"is it in {unit}? that is {show([j * factor for j in inertia])} kg m^2"
+                 if math.isfinite(fits(mass, max(inertia) * factor)) else
+                 "check its units (kg m^2) and vehicle.mass (kg)")
+    else:
+        key = "vehicle.mass"
+        guess = (f"is vehicle.mass in grams? {mass:g} g is {mass * GRAM:g} kg"
+                 if math.isfinite(fits(mass * GRAM, max(inertia))) else
+                 "check the units: vehicle.mass in kg, vehicle.inertia in kg m^2")
+    return [Notice("warning", key, (
+        f"{label}: vehicle.inertia = {show(inertia)} kg m^2 with vehicle.mass = {mass:g} kg gives a radius of "
+        f"gyration sqrt({axis}/m) = {radius:.3g} m, but {against}; {guess}"))]
+
+
+def _thrust_to_weight(cfg: Config, label: str) -> list[Notice]:
+    if cfg.motors is None:
+        return []
+    mass, g, thrust = cfg.vehicle.mass, cfg.vehicle.gravity, cfg.motors.max_thrust
+    ratio = 4 * thrust / (mass * g)
+    low, high = THRUST_TO_WEIGHT
+    if low <= ratio <= high:
+        return []
+    # a unit slip is guessed only when the ratio is far outside the band (a slip moves it 10x or more)
+    if ratio < low:
+        key, what = "motors.max_thrust", "the vehicle cannot hover"
+        if ratio < low / 2 and low <= ratio / GRAM <= high:
+            key, guess = "vehicle.mass", f"is vehicle.mass in grams? {mass:g} g is {mass * GRAM:g} kg"
+        elif ratio < low / 2 and low <= ratio * 9.80665 <= high:
+            guess = f"is motors.max_thrust in kilograms-force? {thrust:g} kgf is {thrust * 9.80665:.3g} N"
+        else:
+            guess = "check motors.max_thrust (N per rotor) and vehicle.mass (kg)"
+    else:
+        key, what = "motors.max_thrust", f"racing quadcopters reach about 10 (THRUST_TO_WEIGHT: {low:g} to {high:g})"
+        if ratio > 2 * high and low <= ratio * GRAM_FORCE <= high:
+            guess = f"is motors.max_thrust in grams-force? {thrust:g} gf is {thrust * GRAM_FORCE:.3g} N"
+        else:
+            guess = "check motors.max_thrust (N per rotor) and vehicle.mass (kg)"
+    return [Notice("warning", key, (
+        f"{label}: motors.max_thrust = {thrust:g} N per rotor with vehicle.mass = {mass:g} kg is a thrust-to-weight "
+        f"ratio of {ratio:.3g} (4 rotors); {what}; {guess}"))]

@@ -12,6 +12,9 @@ class QuadctlError(Exception):
     """Base class of every error quadctl raises on purpose."""
 
     exit_code = 2
+    from_config = False
+    """The config's values caused it, but the message does not name the file (the stage that
+    raised it got numbers, not a file): the command line puts the file in front."""
 
 
 class ConfigError(QuadctlError, ValueError):
@@ -29,6 +32,8 @@ class SweepError(QuadctlError, ValueError):
 class TrimError(QuadctlError, ValueError):
     """No equilibrium exists for the flight condition, or the solver did not find it."""
 
+    from_config = True
+
 
 class CheckFailed(QuadctlError):
     """The input is valid but the design fails a check (rank, stability, divergence)."""
@@ -39,9 +44,13 @@ class CheckFailed(QuadctlError):
 class DesignError(CheckFailed, ValueError):
     """A subsystem is not stabilizable, or a Riccati solve failed."""
 
+    from_config = True
+
 
 class StepSizeError(QuadctlError, ValueError):
     """A fixed step that RK4 cannot hold stable for the closed loop."""
+
+    from_config = True
 
 
 class QuadctlNotice(UserWarning):

@@ -1,4 +1,4 @@
-"""Sampled, saturating and noisy loops through the command line: margins, check --rate, design --full, saturation flags."""
+"""Sampled, saturating and noisy loops through the CLI: margins, check --rate, design --full, saturation."""
 
 from __future__ import annotations
 

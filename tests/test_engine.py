@@ -157,7 +157,7 @@ def test_every_command_without_a_working_compiler_gives_one_notice_and_the_same_
                else {"CC": _failing_compiler(tmp_path), "PATH": str(tmp_path)
                      + os.pathsep + os.environ["PATH"]})
     bad = quadctl(tmp_path / "bad", bad_env)
-    notices = [line for line in bad.stderr.splitlines() if line.startswith("quadctl: notice:")]
+    notices = [line for line in bad.stderr.splitlines() if line.startswith("quadctl: note:")]
     assert len(notices) == 1, bad.stderr
     assert "CasADi's virtual machine" in notices[0] and "Traceback" not in bad.stderr
     if broken == "failing":

@@ -33,7 +33,7 @@ CONFIG_CASES = {
     "missing key": (_edit("name: forward\n", ""), r"name: required key is missing; add it"),
     "nan": (_edit("gravity: 9.81", "gravity: .nan"), r"vehicle\.gravity = nan: must be a finite number"),
     "infinite": (_edit("duration: 10.0", "duration: .inf"), r"simulation\.duration = inf: must be a finite"),
-    "mass not positive": (_edit("mass: 0.068", "mass: 0"), r"vehicle\.mass = 0: must be greater than 0"),
+    "mass not positive": (_edit("mass: 0.068", "mass: 0"), r"vehicle\.mass = 0: must be at least 0\.0001 \(kg\)$"),
     "inertia not positive": (_edit("inertia: [6.9e-5,", "inertia: [-6.9e-5,"),
                              r"vehicle\.inertia\[0\] = -6\.9e-05: must be greater than 0"),
     "negative drag": (_edit("drag: [0.22, 0.22, 0.0]", "drag: [0.22, -0.1, 0.0]"),
@@ -93,6 +93,49 @@ CONFIG_CASES["too few samples"] = (_edit("dt: auto", "dt: auto\n  max_samples: 1
                                    r"simulation\.max_samples = 1: must be at least 2")
 
 
+def billion_laughs() -> str:
+    """1.6 kB of YAML that stands for 9^9 strings."""
+    lines = ['lol0: &lol0 "lol"']
+    lines += [f"lol{i}: &lol{i} [" + ", ".join([f"*lol{i - 1}"] * 9) + "]" for i in range(1, 10)]
+    return "\n".join(lines) + "\n"
+
+
+CONFIG_CASES.update({
+    "duplicate key": (_edit("mass: 0.068", "mass: 0.068\n  mass: 0.5"),
+                      r"c\.yaml: vehicle\.mass: duplicate key at lines 6 and 7; keep one \(YAML would silently take "
+                      r"the last\)$"),
+    "alias bomb": (FORWARD + billion_laughs(), r"c\.yaml: lol6: at line 35 the aliases \(\*name\) expand the document "
+                                               r"past 2,000,000 values and characters \(MAX_EXPANDED\)"),
+    "nested 5000 deep": (_edit("description:", "deep: " + "[" * 5000 + "]" * 5000 + "\ndescription:"),
+                         r"c\.yaml: deep\[0\]\[0\]\.\.\.: nested more than 32 levels deep at line 4 \(MAX_DEPTH\)"),
+    "name outside runs/": (_edit("name: forward", "name: .."), r'c\.yaml: name = "\.\.": must start with a letter'),
+    "duration of 1e300 s": (_edit("duration: 10.0", "duration: 1e300"),
+                            r"simulation\.duration = 1e\+300: must be at most 86400 s \(MAX_DURATION"),
+    "weight of 1e300": (_edit("yaw:      {Q: [50, 1]", "yaw:      {Q: [1e300, 1]"),
+                        r"lqr\.yaw\.Q\[0\] = 1e\+300: a weight must be 0 or between 1e-15 and 1e\+15"),
+    "offset of 1e308": (_edit("{pD: 0.5,", "{pD: 1e308,"),
+                        r"simulation\.initial_offset\.pD = 1e\+308: must be at most 10000 m from the trim"),
+    "impossible inertia": (_edit("1.5e-4]", "3e-4]"), r"c\.yaml: vehicle\.inertia = .*: no rigid body has Jxx \+ Jyy"),
+})
+
+
+@pytest.mark.parametrize("path,pattern", [
+    ("/dev/zero", r"^quadctl: error: /dev/zero: more than 1,000,000 bytes, the most quadctl reads for a config file "
+                  r"\(MAX_BYTES\); a config file is a few kB: check the path$"),
+    ("big.yaml", r"big\.yaml: more than 1,000,000 bytes, the most quadctl reads for a config file \(MAX_BYTES\)"),
+])
+def test_a_config_too_large_to_be_one_is_refused_unread(tmp_path, path, pattern):
+    if path == "big.yaml":
+        path = tmp_path / path
+        with open(path, "wb") as f:
+            f.truncate(50_000_000)
+    elif not os.path.exists(path):
+        pytest.skip("needs /dev/zero")
+    res = runner.invoke(app, ["trim", "-c", str(path), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 2
+    assert len(res.stderr.strip().splitlines()) == 1 and re.search(pattern, res.stderr.strip()), res.stderr
+
+
 @pytest.mark.parametrize("case", sorted(CONFIG_CASES))
 def test_config_error_is_one_line_exit_2(tmp_path, case):
     text, pattern = CONFIG_CASES[case]
@@ -146,7 +189,7 @@ def test_unreadable_config_file(tmp_path):
     path.write_text(FORWARD)
     path.chmod(0)
     res = runner.invoke(app, ["trim", "-c", str(path)])
-    assert res.exit_code == 2 and "cannot read the config (Permission denied)" in res.stderr
+    assert res.exit_code == 2 and "cannot read the config file (Permission denied); check the file" in res.stderr
 
 
 @pytest.mark.parametrize("velocity,drag,pattern", [
@@ -200,9 +243,16 @@ def test_divergence_is_exit_1_and_saves_the_partial_run(tmp_path):
     assert (tmp_path / "sim.npz").exists() and (tmp_path / "sim.json").exists()
 
 
-def test_debug_shows_the_exception():
-    res = runner.invoke(app, ["--debug", "trim", "-c", "nope"])
-    assert type(res.exception).__name__ == "ConfigError"
+@pytest.mark.parametrize("debug", [[], ["--debug"]])
+def test_debug_prints_the_traceback_and_keeps_the_exit_code(debug):
+    """--debug adds the traceback; the exit code is still the error class's (2: bad input)."""
+    res = runner.invoke(app, [*debug, "trim", "-c", "nope"])
+    assert res.exit_code == 2, res.output
+    last = res.stderr.strip().splitlines()[-1]
+    assert last.startswith("quadctl: error: nope: no such file and no bundled config"), last
+    assert ("Traceback (most recent call last)" in res.stderr) == bool(debug)
+    if debug:
+        assert "quadctl.errors.ConfigError: nope: no such file" in res.stderr
 
 
 def test_json_stdout_stays_parseable_when_a_check_fails(tmp_path):
@@ -222,3 +272,146 @@ def test_unknown_option_is_exit_2():
     res = runner.invoke(app, ["trim", "--confg", "x"])
     assert res.exit_code == 2
 
+
+
+# ---------------------------------------------------------------------------------------
+# Sweep files: the same loader, the same bounds, one line
+
+
+SWEEP_CASES = {
+    "duplicate key": ("parameters:\n  vehicle.mass: [0.06]\n  vehicle.mass: [0.07]\n",
+                      r"s\.yaml: parameters\.vehicle\.mass: duplicate key at lines 2 and 3; keep one"),
+    "alias bomb": (billion_laughs().replace("lol", "x") + "parameters: {vehicle.mass: [0.07]}\n",
+                   r"s\.yaml: x7: at line 8 the aliases \(\*name\) expand the document past 2,000,000 values"),
+    "nested 5000 deep": ("parameters: {vehicle.mass: " + "[" * 5000 + "]" * 5000 + "}\n",
+                         r"s\.yaml: parameters\.vehicle\.mass\[0\]\.\.\.: nested more than 32 levels deep"),
+    "a billion samples": ("mode: random\nsamples: 1000000000\nparameters: {vehicle.mass: [0.07]}\n",
+                          r"s\.yaml: samples: 1000000000: more than 1,000,000 cases \(MAX_CASES\); run fewer samples"),
+    "10**30 samples": (f"mode: random\nsamples: {10 ** 30}\nparameters: {{vehicle.mass: [0.07]}}\n",
+                       rf"s\.yaml: samples: {10 ** 30}: more than 1,000,000 cases \(MAX_CASES\)"),
+    "samples as a float": ("mode: random\nsamples: 1e3\nparameters: {vehicle.mass: [0.07]}\n",
+                           r"s\.yaml: samples: 1000\.0: must be a whole number >= 1; write 1000$"),
+    "a range of 10**12": (f"parameters:\n  vehicle.mass: {{from: 0.06, to: 0.07, num: {10 ** 12}}}\n",
+                          r"s\.yaml: parameters\.vehicle\.mass\.num = 1000000000000: more than 1,000,000 values, the "
+                          r"most cases a sweep runs \(MAX_CASES\)"),
+    "a grid past the bound": ("parameters:\n  vehicle.mass: {from: 0.06, to: 0.07, num: 1000}\n"
+                              "  lqr.roll.Q[1]: {from: 1, to: 100, num: 1001}\n",
+                              r"s\.yaml: parameters: the grid has 1000 x 1001 = 1,001,000 cases, more than 1,000,000 "
+                              r"\(MAX_CASES\); use fewer values, or mode: random with samples$"),
+    "a range wider than a float": ("parameters:\n  vehicle.mass: {from: -1e308, to: 1e308, num: 3}\n",
+                                   r"s\.yaml: parameters\.vehicle\.mass\.from = -1e\+308: must be at most 1e\+300 in "
+                                   r"magnitude \(MAX_MAGNITUDE\)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SWEEP_CASES))
+def test_sweep_file_error_is_one_line_exit_2(tmp_path, case):
+    text, pattern = SWEEP_CASES[case]
+    (tmp_path / "s.yaml").write_text(text)
+    res = runner.invoke(app, ["sweep", "-s", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 2, res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("quadctl: error: "), res.stderr  # no progress bar: nothing ran
+    assert re.search(pattern, lines[0]), lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_sweep_numbers_read_as_config_numbers(tmp_path):
+    """5e0 was refused as "must be a finite number" and 68e-3 made every case invalid_config."""
+    import json
+
+    (tmp_path / "s.yaml").write_text("parameters:\n  vehicle.mass: [68e-3, 0.07]\n"
+                                     "  lqr.roll.Q[1]: {from: 5e0, to: 5e1, num: 2}\n"
+                                     "set: {simulation.duration: 1e-1}\ngates: {peak.T: {max: 5e0}}\n")
+    res = runner.invoke(app, ["sweep", "-s", str(tmp_path / "s.yaml"), "-o", str(tmp_path / "out"), "-j", "1",
+                              "--json"])
+    assert res.exit_code == 0, res.output
+    summary = json.loads(res.stdout)
+    assert summary["statuses"] == {"ok": 4} and summary["failed"] == 0
+    assert summary["sweep"]["parameters"]["vehicle.mass"] == [0.068, 0.07]
+
+
+# ---------------------------------------------------------------------------------------
+# One line, always: stderr piped (rich used to wrap at 80 columns when it was not a terminal)
+
+
+def test_errors_warnings_and_check_failures_stay_on_one_line_when_piped(tmp_path):
+    import subprocess
+    import sys
+
+    long_name = tmp_path / ("a-config-file-with-a-long-name-" * 3 + ".yaml")
+    long_name.write_text(_edit("mass: 0.068", "mass: 68").replace("duration: 10.0", "duration: 0.3")
+                         + "motors: {}\n")
+    sweep = tmp_path / "s.yaml"
+    sweep.write_text("parameters:\n  lqr.roll.Q[1]: [10, 20, 30, 40, 50, 60, 70]\nset: {simulation.duration: 0.1}\n"
+                     "gates: {peak.T: {max: 0.001}, peak.A: {max: 0.0000001}}\n")
+    runs = [
+        ["simulate", "-c", str(long_name), "-o", str(tmp_path / "a")],                  # notes, warnings, exit 1
+        ["trim", "-c", str(tmp_path / "nope" / ("x" * 90))],                            # an error, exit 2
+        ["sweep", "-s", str(sweep), "-o", str(tmp_path / "b"), "-j", "1", "--json"],    # a check failure, exit 1
+    ]
+    seen = []
+    for args in runs:
+        proc = subprocess.run([sys.executable, "-m", "quadctl", *args], capture_output=True, text=True,
+                              env={**os.environ, "COLUMNS": "80"})
+        assert proc.returncode in (1, 2), proc.stderr
+        lines = proc.stderr.splitlines()
+        assert all(line.startswith("quadctl: ") for line in lines), proc.stderr
+        seen += lines
+    kinds = {line.split(":")[1].strip() for line in seen}
+    assert kinds >= {"note", "warning", "error", "check failed"}, seen
+    assert max(map(len, seen)) > 200
+    failed = [line for line in seen if line.startswith("quadctl: check failed: 7 of 7 cases fail")]
+    assert failed and "worst cases: " in failed[0], seen
+
+
+# ---------------------------------------------------------------------------------------
+# --scheduler: the address's form is checked at once
+
+
+@pytest.mark.parametrize("address,why", [
+    ("tcp://127.0.0.1:notaport", "the port `notaport` is not a whole number from 1 to 65535"),
+    ("tcp://127.0.0.1:0", "the port `0` is not a whole number from 1 to 65535"),
+    ("tcp://127.0.0.1:70000", "the port `70000` is not a whole number from 1 to 65535"),
+    ("tcp://127.0.0.1", "no port"),
+    ("http://127.0.0.1:8786", "`http` is not a Dask protocol (tcp, tls, ws, wss, ucx)"),
+    ("tcp://:8786", "no host"),
+    ("tcp://my host:8786", "`my host` is not a host name or IP address"),
+])
+def test_a_malformed_scheduler_address_fails_at_once(tmp_path, address, why):
+    import time
+
+    (tmp_path / "s.yaml").write_text("parameters: {vehicle.mass: [0.07]}\n")
+    start = time.perf_counter()
+    res = runner.invoke(app, ["sweep", "-s", str(tmp_path / "s.yaml"), "--scheduler", address, "-o", str(tmp_path)])
+    assert time.perf_counter() - start < 5
+    assert res.exit_code == 2
+    assert res.stderr == (f"quadctl: error: --scheduler {address}: {why}; give the address as tcp://host:port "
+                          "(a Dask scheduler listens on 8786 unless told otherwise)\n")
+
+
+@pytest.mark.parametrize("address,normal", [("127.0.0.1:8786", "tcp://127.0.0.1:8786"),
+                                            ("TLS://sched.example.org:8786/", "tls://sched.example.org:8786"),
+                                            ("tcp://[::1]:8786", "tcp://[::1]:8786")])
+def test_well_formed_scheduler_addresses(address, normal):
+    from quadctl.sweep.runner import check_scheduler_address
+
+    assert check_scheduler_address(address) == normal
+
+
+def test_an_unreachable_scheduler_fails_within_the_timeout(monkeypatch):
+    import socket
+    import time
+
+    pytest.importorskip("distributed")
+    from quadctl.errors import SweepError
+    from quadctl.sweep import runner as runner_mod
+
+    with socket.socket() as sock:  # a port nobody listens on
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    monkeypatch.setattr(runner_mod, "SCHEDULER_TIMEOUT", "1s")
+    start = time.perf_counter()
+    with pytest.raises(SweepError, match=rf"^--scheduler tcp://127\.0\.0\.1:{port}: cannot reach the Dask scheduler"):
+        runner_mod._dask_client(f"tcp://127.0.0.1:{port}")
+    assert time.perf_counter() - start < 8

@@ -26,10 +26,12 @@ finite = st.floats(allow_nan=False, allow_infinity=False)
 def configs(draw):
     """Valid configs across the parameter space (including ones with no trim or no design)."""
     data = {**BASE}
+    jxx, jyy = draw(st.floats(1e-5, 1e-1)), draw(st.floats(1e-5, 1e-1))
     data["vehicle"] = {
         "mass": draw(st.floats(0.01, 5.0)),
         "gravity": draw(st.floats(1.0, 30.0)),
-        "inertia": draw(st.lists(st.floats(1e-5, 1e-1), min_size=3, max_size=3)),
+        # any rigid body's: each principal moment at most the sum of the other two
+        "inertia": [jxx, jyy, draw(st.floats(max(abs(jxx - jyy), 1e-5), jxx + jyy))],
         "drag": draw(st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3)),
     }
     data["trim"] = {
@@ -37,7 +39,8 @@ def configs(draw):
         "position_ned": draw(st.lists(st.floats(-100, 100), min_size=3, max_size=3)),
         "yaw": draw(st.floats(-np.pi, np.pi)),
     }
-    data["lqr"] = {name: {"Q": draw(st.lists(st.floats(0.0, 100.0), min_size=len(w["Q"]), max_size=len(w["Q"]))),
+    weight = st.one_of(st.just(0.0), st.floats(1e-6, 100.0))  # 0, or inside config.WEIGHT_RANGE
+    data["lqr"] = {name: {"Q": draw(st.lists(weight, min_size=len(w["Q"]), max_size=len(w["Q"]))),
                           "R": [draw(st.floats(0.01, 10.0))]}
                    for name, w in BASE["lqr"].items()}
     data["simulation"] = {"duration": draw(st.floats(0.001, 0.02)), "dt": "auto",

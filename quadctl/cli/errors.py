@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import functools
 import inspect
 import os
@@ -33,14 +34,16 @@ def debug_enabled(ctx: typer.Context | None) -> bool:
 
 
 def fail(message: str, code: int) -> typer.Exit:
-    """Print ``quadctl: error: message`` to stderr and return the Exit to raise."""
-    typer.echo(f"quadctl: error: {message}", err=True)
+    """Print ``quadctl: error: message`` to stderr, on one line, and return the Exit to raise."""
+    from quadctl.messages import one_line
+
+    typer.echo(f"quadctl: error: {one_line(message)}", err=True)
     return typer.Exit(code)
 
 
 @contextlib.contextmanager
 def notices_printed():
-    """Print each :class:`quadctl.errors.QuadctlNotice` the library issues as one stderr line, once."""
+    """Print each :class:`quadctl.errors.QuadctlNotice` the library issues as one ``note`` line, once."""
     from quadctl.errors import QuadctlNotice
 
     seen: set[str] = set()
@@ -52,12 +55,41 @@ def notices_printed():
         text = " ".join(str(message).split())
         if text not in seen:
             seen.add(text)
-            typer.echo(f"quadctl: notice: {text}", err=True)
+            from quadctl.cli import render
+
+            render.note(text)
 
     with warnings.catch_warnings():
         warnings.simplefilter("always", QuadctlNotice)
         warnings.showwarning = show
         yield
+_COMMAND: contextvars.ContextVar[dict] = contextvars.ContextVar("quadctl_command")
+"""What the running command has learnt that its error message needs (the config file); set by
+:func:`handled` for the length of one command."""
+
+
+def remember_config(label: str) -> None:
+    """Note the config file this command reads, so that :func:`handled` can name it in an error
+    that comes from the config's values but not from the file's text (no trim, an RK4 step)."""
+    state = _COMMAND.get(None)
+    if state is not None:
+        state["config"] = label
+
+
+def message_of(exc) -> str:
+    """The error's message, with the config file in front when the config caused it."""
+    text = str(exc)
+    label = (_COMMAND.get(None) or {}).get("config")
+    if label and getattr(exc, "from_config", False) and not text.startswith(f"{label}:"):
+        text = f"{label}: {text}"
+    return text
+
+
+def _traceback() -> None:
+    """``--debug``: the traceback of the error being handled, on stderr, before its one line."""
+    import traceback
+
+    traceback.print_exc(file=sys.stderr)
 
 
 def handled(fn):
@@ -68,15 +100,16 @@ def handled(fn):
         from quadctl.errors import QuadctlError
 
         ctx = kwargs.pop(_CTX, None)
+        token = _COMMAND.set({})
         try:
             with notices_printed():
                 return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, SystemExit):
             raise
-        except QuadctlError as exc:
+        except QuadctlError as exc:  # the class decides the exit code, with or without --debug
             if debug_enabled(ctx):
-                raise
-            raise fail(str(exc), exc.exit_code) from None
+                _traceback()
+            raise fail(message_of(exc), exc.exit_code) from None
         except BrokenPipeError:  # `quadctl ... --json | head`: the reader left; the work is saved
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
@@ -86,7 +119,7 @@ def handled(fn):
                        EXIT_INTERRUPTED) from None
         except Exception as exc:  # a bug: say so in one line, traceback on --debug
             if debug_enabled(ctx):
-                raise
+                _traceback()
             where = ""
             tb = sys.exc_info()[2]
             while tb and tb.tb_next:
@@ -96,6 +129,8 @@ def handled(fn):
             raise fail(f"internal error {type(exc).__name__}: {exc}{where}; "
                        "rerun with --debug for the traceback and please report it",
                        EXIT_INTERNAL) from None
+        finally:
+            _COMMAND.reset(token)
 
     # typer hands the context to a parameter annotated typer.Context: add one to the signature
     sig = inspect.signature(fn)

@@ -20,9 +20,29 @@ FreshOpt = Annotated[bool, typer.Option(
 PlotOpt = Annotated[bool, typer.Option("--plot", help="Also write PNG figures to DIR/plots/.")]
 
 
+def load_config(config: str | None):
+    """Resolve and load ``--config``; print its notes and warnings on stderr, one line each.
+
+    Returns
+    -------
+    (Config, str) : the validated config and the file to name in messages.
+    """
+    from quadctl import config as config_mod
+    from quadctl.cli import render
+    from quadctl.cli.errors import remember_config
+
+    source = config_mod.resolve(config)
+    if source.note:
+        render.note(source.note)
+    cfg = config_mod.parse(source.text, source.label)
+    remember_config(source.label)
+    for notice in config_mod.notices(cfg, source.label):
+        (render.note if notice.level == "note" else render.warning)(notice.message)
+    return cfg, source.label
+
+
 def open_workspace(config: str | None, out: Path | None, fresh: bool = False):
     """Load the config and open its run directory."""
-    from quadctl import config as config_mod
     from quadctl.workspace import Workspace
 
-    return Workspace(config_mod.load(config), out, fresh=fresh)
+    return Workspace(load_config(config)[0], out, fresh=fresh)

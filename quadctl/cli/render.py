@@ -10,14 +10,23 @@ from rich.console import Console
 from rich.table import Table
 
 from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
+from quadctl.messages import one_line
 
 out = Console(highlight=False)
-err = Console(stderr=True, highlight=False)
+err = Console(stderr=True, highlight=False, soft_wrap=True)
+"""stderr: errors, warnings, notes and the progress bar. ``soft_wrap``: a line is never broken at
+the console width (rich takes 80 columns when stderr is not a terminal, and a CI log would get
+``worst cases: 20, 11, 2,`` and ``19, 10`` on two lines); the terminal wraps it for the eye."""
 
 
-def notice(text: str) -> None:
-    """A one-line note on stderr (keeps stdout clean for --json)."""
-    err.print(f"[dim]quadctl:[/dim] {text}")
+def note(text: str) -> None:
+    """``quadctl: note: ...``: a default taken, a name resolved one of two ways."""
+    err.print(f"quadctl: note: {one_line(text)}", markup=False)
+
+
+def warning(text: str) -> None:
+    """``quadctl: warning: ...``: valid input that is likely not what was meant."""
+    err.print(f"quadctl: warning: {one_line(text)}", markup=False)
 
 
 def emit_json(payload) -> None:

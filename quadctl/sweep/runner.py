@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import re
 import signal
 import sys
 import time
@@ -249,9 +250,57 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
 
 SCHEDULER_TIMEOUT = "10s"
 """How long to try to reach a Dask scheduler before saying it cannot be reached."""
+SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
+"""The protocols a Dask scheduler address may name (``tcp://`` when none is given)."""
+_ADDRESS_RE = re.compile(r"(?:(?P<scheme>[^:/]*)://)?(?P<host>\[[^\]]*\]|[^:/\[\]]*)(?::(?P<port>[^/]*))?/?")
+_HOST_RE = re.compile(r"\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_]([A-Za-z0-9_.-]*[A-Za-z0-9_])?")
+
+
+def check_scheduler_address(address: str) -> str:
+    """Check the form of a Dask scheduler address, ``[protocol://]host:port``, before connecting.
+
+    A malformed address would otherwise fail only after Dask's connection retries (more than
+    15 s for ``tcp://127.0.0.1:notaport``).
+
+    Returns
+    -------
+    str
+        The address, with ``tcp://`` when it names no protocol.
+
+    Raises
+    ------
+    SweepError
+        Naming ``--scheduler``, the address and what is wrong: an unknown protocol, no host, no
+        port, or a port that is not a whole number from 1 to 65535.
+
+    Examples
+    --------
+    >>> check_scheduler_address("10.0.0.5:8786")
+    'tcp://10.0.0.5:8786'
+    """
+    def bad(why: str) -> SweepError:
+        return SweepError(f"--scheduler {address}: {why}; give the address as tcp://host:port "
+                          "(a Dask scheduler listens on 8786 unless told otherwise)")
+
+    match = _ADDRESS_RE.fullmatch(address.strip())
+    if match is None:
+        raise bad("not a scheduler address")
+    scheme, host, port = match.group("scheme"), match.group("host"), match.group("port")
+    if scheme is not None and scheme.lower() not in SCHEDULER_PROTOCOLS:
+        raise bad(f"`{scheme}` is not a Dask protocol ({', '.join(SCHEDULER_PROTOCOLS)})")
+    if not host:
+        raise bad("no host")
+    if not _HOST_RE.fullmatch(host):
+        raise bad(f"`{host}` is not a host name or IP address")
+    if port is None or port == "":
+        raise bad("no port")
+    if not re.fullmatch(r"[0-9]{1,5}", port) or not 1 <= int(port) <= 65535:
+        raise bad(f"the port `{port}` is not a whole number from 1 to 65535")
+    return f"{(scheme or 'tcp').lower()}://{host}:{int(port)}"
 
 
 def _dask_client(address: str):
+    address = check_scheduler_address(address)
     try:
         from distributed import Client
     except ImportError:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import json
 import math
@@ -12,11 +11,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from quadctl import __version__
+from quadctl import __version__, yamlio
 from quadctl.errors import SweepError
 from quadctl.layout import STATE_NAMES
+from quadctl.messages import finite_number, hint, is_whole, key_path, show, whole_number
 from quadctl.sweep.gates import Gate, metric_columns
 
 MODES = ("grid", "random")
@@ -34,7 +33,11 @@ GATE_KEYS = ("min", "max", "equals")
 FREE_MAPPINGS = (("simulation", "initial_offset"),)
 """Config mappings whose keys are free (state names): a sweep may add a key there."""
 MAX_CASES = 1_000_000
-"""A grid larger than this is refused (use random mode with ``samples``)."""
+"""Most cases a sweep runs (a grid, or ``samples`` in random mode), checked before any is listed.
+Every case is listed up front and its row (about 60 columns) stays in memory until sweep.csv is
+written, so a million is what a workstation holds comfortably, and at the thousand cases a
+second two cores manage it is already a 20-minute run; ``samples: 1000000000`` would exhaust the
+memory before the first case ran."""
 MC_PARAMETER = ("simulation", "noise", "seed")
 """The key path a Monte Carlo varies, and the only one (see :attr:`SweepSpec.monte_carlo`)."""
 _PATH_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*)*$")
@@ -59,6 +62,10 @@ class Parameter:
     keys: tuple
     kind: str
     spec: Any
+
+    def size(self) -> int:
+        """How many values a grid takes from this parameter (without listing them)."""
+        return len(self.spec) if self.kind == "values" else int(self.spec["num"])
 
     def grid_values(self) -> list:
         """The values a grid takes (lists as given, ranges expanded)."""
@@ -150,7 +157,7 @@ class SweepSpec:
         """Number of cases."""
         if self.mode == "random":
             return int(self.samples)
-        return int(np.prod([len(p.grid_values()) for p in self.parameters], dtype=object))
+        return math.prod(p.size() for p in self.parameters)
 
     def cases(self) -> list[Case]:
         """Every case, numbered from 0: the grid in file order (first key slowest), or ``samples``
@@ -179,29 +186,16 @@ def load(path: str | Path, cfg) -> SweepSpec:
     SweepError
         One line naming the file, the key and the fix.
     """
-    path = Path(path)
-    if path.is_dir():
-        raise SweepError(f"{path}: is a folder, not a sweep file; give a .yaml file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SweepError(f"{path}: no such sweep file; check the path") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = getattr(exc, "strerror", None) or str(exc)
-        raise SweepError(f"{path}: cannot read the sweep file ({reason}); check the file") from None
+    text = yamlio.read_text(path, str(path), "sweep file", SweepError)
     return parse(text, cfg, str(path))
 
 
 def parse(text: str, cfg, label: str = "<sweep>") -> SweepSpec:
-    """Validate YAML text as a sweep file; ``label`` names it in errors."""
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise SweepError(f"{label}: YAML syntax error{where}: {problem}; fix the YAML") from None
-    return from_dict(data, cfg, label)
+    """Validate YAML text as a sweep file; ``label`` names it in errors.
+
+    The text is read by :func:`quadctl.yamlio.load`, the loader configs are read with, so a
+    number reads the same in both (``68e-3``, ``5e0``) and the same bounds hold."""
+    return from_dict(yamlio.load(text, label, SweepError), cfg, label)
 
 
 def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
@@ -216,25 +210,28 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
                          "give at least `parameters:` (see examples/ci-sweep.yaml)")
     for key in data:
         if key not in TOP_KEYS:
-            raise fail(str(key), "unknown key; " + _hint(str(key), TOP_KEYS))
+            raise fail(str(key), "unknown key; " + hint(str(key), TOP_KEYS))
     mode = data.get("mode", "grid")
     if mode not in MODES:
-        raise fail("mode", f"{_show(mode)} is not a mode; use grid or random")
+        raise fail("mode", f"{show(mode)} is not a mode; use grid or random")
     samples = data.get("samples")
     if mode == "random":
         if samples is None:
             raise fail("samples", "random mode needs the number of cases; add `samples: 100`, say")
-    if samples is not None and (not _is_int(samples) or samples < 1):
-        raise fail("samples", f"{_show(samples)}: must be a whole number >= 1")
+    if samples is not None and (not is_whole(samples) or samples < 1):
+        raise fail("samples", f"{show(samples, exact=True)}: {whole_number(samples, 1)}")
+    if samples is not None and samples > MAX_CASES:
+        raise fail("samples", f"{show(samples)}: more than {MAX_CASES:,} cases (MAX_CASES); "
+                   "run fewer samples, or split the sweep into several files")
     seed = data.get("seed", 0)
-    if not _is_int(seed) or seed < 0:
-        raise fail("seed", f"{_show(seed)}: must be a whole number >= 0")
+    if not is_whole(seed) or seed < 0:
+        raise fail("seed", f"{show(seed, exact=True)}: {whole_number(seed, 0)}")
     chunk = data.get("chunk_size")
-    if chunk is not None and (not _is_int(chunk) or chunk < 1):
-        raise fail("chunk_size", f"{_show(chunk)}: must be a whole number >= 1")
+    if chunk is not None and (not is_whole(chunk) or chunk < 1):
+        raise fail("chunk_size", f"{show(chunk, exact=True)}: {whole_number(chunk, 1)}")
     require_ok = data.get("require_ok", True)
     if not isinstance(require_ok, bool):
-        raise fail("require_ok", f"{_show(require_ok)}: must be true or false")
+        raise fail("require_ok", f"{show(require_ok)}: must be true or false")
 
     base = cfg.model_dump(mode="json")
     params = data.get("parameters")
@@ -247,7 +244,7 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
         kind = _check_values(spec, str(path), mode, label)
         leaf = _lookup(base, keys)
         if isinstance(leaf, list) and kind != "values":
-            raise fail(f"parameters.{path}", f"is a list ({_show(leaf)}) here, a range gives numbers; "
+            raise fail(f"parameters.{path}", f"is a list ({show(leaf)}) here, a range gives numbers; "
                        f"index one entry, as `{path}[0]`")
         parameters.append(Parameter(str(path), keys, kind, spec))
     fixed = []
@@ -270,8 +267,9 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
     if mode == "grid":
         count = spec.count()
         if count > MAX_CASES:
-            raise fail("parameters", f"the grid has {count} cases, more than {MAX_CASES}; "
-                       "use mode: random with samples")
+            sizes = " x ".join(str(p.size()) for p in parameters)
+            raise fail("parameters", f"the grid has {sizes} = {count:,} cases, more than {MAX_CASES:,} "
+                       "(MAX_CASES); use fewer values, or mode: random with samples")
     return spec
 
 
@@ -282,14 +280,14 @@ def _check_values(spec, path: str, mode: str, label: str) -> str:
             raise SweepError(f"{where}: empty list; give at least one value")
         return "values"
     if not isinstance(spec, dict):
-        raise SweepError(f"{where} = {_show(spec)}: give a list of values, a range "
+        raise SweepError(f"{where} = {show(spec)}: give a list of values, a range "
                          "{from, to, num} or, in random mode, a {distribution: ...}")
     if "distribution" in spec:
         if mode != "random":
             raise SweepError(f"{where}: a distribution needs mode: random (a grid takes lists and ranges)")
         kind = spec["distribution"]
         if kind not in DISTRIBUTIONS:
-            raise SweepError(f"{where}: unknown distribution {_show(kind)}; "
+            raise SweepError(f"{where}: unknown distribution {show(kind)}; "
                              f"use one of {', '.join(DISTRIBUTIONS)}")
         need = DISTRIBUTIONS[kind]
         for key in spec:
@@ -305,12 +303,12 @@ def _check_values(spec, path: str, mode: str, label: str) -> str:
         for key in need:
             _finite(spec[key], f"{where}.{key}")
         if kind == "normal" and spec["std"] < 0:
-            raise SweepError(f"{where}.std = {_show(spec['std'])}: must be >= 0")
+            raise SweepError(f"{where}.std = {show(spec['std'])}: must be >= 0")
         if kind in ("uniform", "loguniform") and not spec["low"] < spec["high"]:
-            raise SweepError(f"{where}: empty range: low {_show(spec['low'])} must be below "
-                             f"high {_show(spec['high'])}")
+            raise SweepError(f"{where}: empty range: low {show(spec['low'])} must be below "
+                             f"high {show(spec['high'])}")
         if kind == "loguniform" and spec["low"] <= 0:
-            raise SweepError(f"{where}.low = {_show(spec['low'])}: loguniform needs low > 0")
+            raise SweepError(f"{where}.low = {show(spec['low'])}: loguniform needs low > 0")
         return "distribution"
     for key in spec:
         if key not in RANGE_KEYS:
@@ -324,11 +322,15 @@ def _check_values(spec, path: str, mode: str, label: str) -> str:
     _finite(spec["to"], f"{where}.to")
     if "num" in spec:
         num = spec["num"]
-        if not _is_int(num) or num < 1:
-            raise SweepError(f"{where}.num = {_show(num)}: empty range; num must be a whole number >= 1")
+        if not is_whole(num) or num < 1:
+            why = "empty range; num " if finite_number(num) and num < 1 else "num "
+            raise SweepError(f"{where}.num = {show(num, exact=True)}: {why}{whole_number(num, 1)}")
+        if num > MAX_CASES:
+            raise SweepError(f"{where}.num = {show(num)}: more than {MAX_CASES:,} values, the most cases a "
+                             "sweep runs (MAX_CASES); use fewer")
     scale = spec.get("scale", "linear")
     if scale not in ("linear", "log"):
-        raise SweepError(f"{where}.scale = {_show(scale)}: use linear or log")
+        raise SweepError(f"{where}.scale = {show(scale)}: use linear or log")
     if scale == "log" and (spec["from"] <= 0 or spec["to"] <= 0):
         raise SweepError(f"{where}: a log range needs from and to > 0")
     if mode == "random" and spec["from"] == spec["to"]:
@@ -358,15 +360,15 @@ def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
             node = node[key]
         else:
             if not isinstance(node, dict):
-                raise SweepError(f"{where}: {here} = {_show(node)} has no key `{key}`; "
+                raise SweepError(f"{where}: {here} = {show(node)} has no key `{key}`; "
                                  "the path goes too deep")
             if key not in node:
                 if tuple(walked) in FREE_MAPPINGS and k == len(keys) - 1:
                     if key not in STATE_NAMES:  # a new key of a free mapping: another state's offset
-                        raise SweepError(f"{where}: `{key}` is not a state; " + _hint(key, STATE_NAMES))
+                        raise SweepError(f"{where}: `{key}` is not a state; " + hint(key, STATE_NAMES))
                     return keys
                 raise SweepError(f"{where}: no such key in the config: `{_path_text([*walked, key])}`; "
-                                 + _hint(key, [str(x) for x in node]))
+                                 + hint(key, [str(x) for x in node]))
             node = node[key]
         walked.append(key)
     if isinstance(node, dict):
@@ -386,8 +388,6 @@ def parse_path(path: str) -> tuple:
 
 
 def _path_text(keys) -> str:
-    from quadctl.config import key_path
-
     return key_path(list(keys)) if keys else ""
 
 
@@ -402,12 +402,12 @@ def _check_gate(metric, spec, cfg, label: str) -> Gate:
             regulated = [m.partition(".")[2] for m in known if m.startswith(family + ".")]
             raise SweepError(f"{where}: {name} is not regulated, so it has no {family.replace('_', ' ')}; "
                              f"regulated states: {', '.join(regulated)}")
-        raise SweepError(f"{where}: unknown metric; " + _hint(metric, gateable, many=True))
+        raise SweepError(f"{where}: unknown metric; " + hint(metric, gateable, many=True))
     if not isinstance(spec, dict) or not spec:
         raise SweepError(f"{where}: give a threshold, as {{max: 3.0}} or {{min: 0}}")
     for key in spec:
         if key not in GATE_KEYS:
-            raise SweepError(f"{where}.{key}: unknown key; " + _hint(str(key), GATE_KEYS))
+            raise SweepError(f"{where}.{key}: unknown key; " + hint(str(key), GATE_KEYS))
     if metric in ("stable", "status"):
         if set(spec) != {"equals"}:
             raise SweepError(f"{where}: {metric} takes {{equals: {'true' if metric == 'stable' else 'ok'}}}")
@@ -447,40 +447,23 @@ def assign(tree: Any, keys: tuple, value) -> Any:
 
 def _like(old, value):
     """A whole float where the config holds an integer (a seed from a range): the integer."""
-    if _is_int(old) and isinstance(value, float) and value.is_integer():
+    if is_whole(old) and isinstance(value, float) and value.is_integer():
         return int(value)
     return value
 
 
-def _hint(name: str, allowed, many: bool = False) -> str:
-    by_case = {str(a).lower(): a for a in allowed}
-    if name.lower() in by_case:
-        return f"did you mean `{by_case[name.lower()]}`?"
-    near = difflib.get_close_matches(name, list(allowed), n=1, cutoff=0.5)
-    if near:
-        return f"did you mean `{near[0]}`?"
-    shown = list(allowed)
-    if many and len(shown) > 12:
-        shown = shown[:12] + ["..."]
-    return f"allowed: {', '.join(shown)}"
-
-
-def _is_int(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
+MAX_MAGNITUDE = 1e300
+"""Largest magnitude of a number in a range, a distribution or a gate: the width of a range
+(``to - from``) and a normal draw must stay finite. The values go on to the config, which has
+its own, tighter bounds."""
 
 
 def _finite(value, where: str) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise SweepError(f"{where} = {_show(value)}: must be a finite number")
+    if not finite_number(value):
+        raise SweepError(f"{where} = {show(value)}: must be a finite number")
+    if abs(value) > MAX_MAGNITUDE:
+        raise SweepError(f"{where} = {show(value)}: must be at most {MAX_MAGNITUDE:g} in magnitude (MAX_MAGNITUDE)")
 
 
 def _num(value):
     return None if value is None else float(value)
-
-
-def _show(value) -> str:
-    try:
-        text = json.dumps(value)
-    except (TypeError, ValueError):
-        text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl.errors import SweepError
+from quadctl.errors import ArtifactError, SweepError
 from quadctl.layout import unit_of
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS
 from quadctl.sweep.gates import regulated_states
@@ -69,7 +69,11 @@ class SweepStore:
             return {}
         done: dict[int, dict] = {}
         for path in files:
-            data = artifacts.read_json(path)
+            try:
+                data = artifacts.read_json(path)
+            except ArtifactError as exc:  # its advice (--fresh) is for the stage commands, not sweep
+                why = str(exc).rsplit(";", 1)[0]  # the file and what is wrong; the fix is the last clause
+                raise SweepError(f"{why}; delete it, or run without --resume to start over") from None
             if data.get("sweep_digest") != self.digest:
                 raise SweepError(
                     f"{path}: rows of another sweep (the config, the sweep file or quadctl changed "

@@ -11,9 +11,10 @@ def command(show: Annotated[Optional[str], typer.Option(
     """List the bundled configs, or print one with --show (a starting point for your own)."""
     from quadctl import config
     from quadctl.cli import render
+    from quadctl.cli.options import load_config
 
     if show:
-        typer.echo(config.load(show).to_yaml(), nl=False)  # raw: rich would wrap long lines
+        typer.echo(load_config(show)[0].to_yaml(), nl=False)  # raw: rich would wrap long lines
         return
     from rich.table import Table
 
@@ -21,5 +22,6 @@ def command(show: Annotated[Optional[str], typer.Option(
     table.add_column("name")
     table.add_column("description")
     for name in config.bundled_names():
-        table.add_row(name, config.load(name).description)
+        source = config.bundled(name)  # the bundled one, whatever files of that name are here
+        table.add_row(name, config.parse(source.text, source.label).description)
     render.out.print(table)

@@ -28,23 +28,26 @@ def command(
     Exits 1 when a case fails a gate (or, with require_ok, fails to design, is unstable or diverges).
     A sweep of simulation.noise.seed alone is a Monte Carlo: also montecarlo.png and montecarlo.npz, percentile bands.
     """
-    from quadctl import config as config_mod
     from quadctl import sweep as sweep_mod
     from quadctl.cli import render, render_sweep
+    from quadctl.cli.options import load_config
     from quadctl.errors import SweepError
+    from quadctl.sweep.runner import check_scheduler_address
     from quadctl.workspace import default_out
 
     if jobs is not None and scheduler:
         raise SweepError("--jobs and --scheduler: give one; on a cluster its workers do the work")
-    cfg = config_mod.load(config)
+    if scheduler:
+        check_scheduler_address(scheduler)  # before anything is loaded: a typo fails at once
+    cfg, label = load_config(config)
     spec = sweep_mod.load(sweep, cfg)
-    label = config_mod.resolve(config)[0]
     with render_sweep.sweep_progress(spec.count(), quiet=json) as progress:
         outcome = sweep_mod.execute(cfg, spec, out or default_out(cfg), label=label, jobs=jobs,
                                     scheduler=scheduler, resume=resume, progress=progress)
     result, summary = outcome.result, outcome.summary
-    if "casadi" in result.stats["backend"]:
-        render.notice("no working C compiler: simulating in CasADi's interpreter (correct, slower)")
+    if scheduler and "casadi" in result.stats["backend"]:  # locally, the engine's own notice said so
+        render.note("the Dask workers found no working C compiler: they simulated in CasADi's "
+                    "virtual machine (same numbers, about 20x slower)")
     if json:
         render.emit_json({**summary, "performance": render_sweep.sweep_performance(outcome)})
     else:

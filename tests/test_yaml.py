@@ -1,0 +1,179 @@
+"""The one YAML loader (quadctl.yamlio): numbers, duplicate keys, and the bounds it keeps.
+
+Configs and sweep files go through the same :func:`quadctl.yamlio.load`; the CLI tests of both
+are in test_config_loading.py and test_errors.py.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import pytest
+
+from quadctl import yamlio
+from quadctl.errors import ConfigError, SweepError
+
+
+def load(text: str):
+    return yamlio.load(text, "c.yaml")
+
+
+@pytest.mark.parametrize("text,value", [
+    ("68e-3", 0.068), ("5e0", 5.0), ("1E5", 1e5), ("+2e-1", 0.2), ("0.068", 0.068), (".5", 0.5),
+    ("-.inf", -math.inf), ("1_000", 1000), ("010", 10), ("0o17", 15), ("0x1F", 31), ("0b101", 5),
+    ("-7", -7), ("1e400", math.inf),
+])
+def test_numbers_read_as_yaml_1_2(text, value):
+    """YAML 1.1 (PyYAML) reads 68e-3 as text, 010 as eight and 1:30 as ninety."""
+    got = load(f"x: {text}")["x"]
+    assert got == value and type(got) is type(value)
+
+
+@pytest.mark.parametrize("text", ["1:30", "2024-01-01", "1e", "e5", "0x", "inf", "nan", "10**30"])
+def test_text_that_is_not_a_number_stays_text(text):
+    assert load(f"x: {text}")["x"] == text
+
+
+def test_nan():
+    assert math.isnan(load("x: .nan")["x"])
+
+
+def test_a_huge_whole_number_is_refused_before_conversion():
+    with pytest.raises(ConfigError, match=r"^c\.yaml: line 1: a whole number of 5000 digits \(MAX_DIGITS is 400\)"):
+        load("x: " + "9" * 5000)
+
+
+@pytest.mark.parametrize("text,message", [
+    ("vehicle:\n  mass: 0.068\n  gravity: 9.81\n  mass: 0.5\n",
+     r"^c\.yaml: vehicle\.mass: duplicate key at lines 2 and 4; keep one \(YAML would silently take the last\)$"),
+    ("a: 1\na: 1\n", r"^c\.yaml: a: duplicate key at lines 1 and 2"),
+    ("lqr: {roll: {Q: [1], Q: [2]}}\n", r"^c\.yaml: lqr\.roll\.Q: duplicate key at lines 1 and 1"),
+    ("s:\n  - {x: 1}\n  - {x: 1, y: 2, 'x': 3}\n", r"^c\.yaml: s\[1\]\.x: duplicate key at lines 3 and 3"),
+])
+def test_duplicate_keys_are_refused_with_both_lines(text, message):
+    with pytest.raises(ConfigError, match=message):
+        load(text)
+
+
+def test_a_merge_key_overridden_is_not_a_duplicate():
+    assert load("base: &b {mass: 1}\nv: {<<: *b, mass: 2}\n")["v"] == {"mass": 2}
+
+
+def test_the_error_class_is_the_callers():
+    with pytest.raises(SweepError, match=r"^s\.yaml: a: duplicate key"):
+        yamlio.load("a: 1\na: 2\n", "s.yaml", SweepError)
+
+
+def billion_laughs(levels: int = 9) -> str:
+    """The classic: 9 levels of 9 aliases each, 9^9 strings from about 1.6 kB."""
+    lines = ['lol0: &lol0 "lol"']
+    lines += [f"lol{i}: &lol{i} [" + ", ".join([f"*lol{i - 1}"] * 9) + "]" for i in range(1, levels + 1)]
+    return "\n".join(lines) + "\n"
+
+
+def test_an_alias_bomb_is_refused_while_parsing():
+    text = billion_laughs()
+    assert len(text) < 1700
+    start = time.perf_counter()
+    with pytest.raises(ConfigError, match=r"^c\.yaml: lol6: at line 7 the aliases \(\*name\) expand the document "
+                                          r"past 2,000,000 values and characters \(MAX_EXPANDED\)"):
+        load(text)
+    assert time.perf_counter() - start < 5  # refused before anything is built from it
+
+
+def test_aliases_that_expand_modestly_are_fine():
+    data = load("q: &q [1, 50, 1]\nroll: {Q: *q}\npitch: {Q: *q}\n" + billion_laughs(4))
+    assert data["pitch"]["Q"] == [1, 50, 1] and len(data["lol4"]) == 9
+
+
+def test_a_long_string_repeated_by_aliases_counts_its_characters():
+    text = f"s: &s {'x' * 100_000}\nl: [{', '.join(['*s'] * 30)}]\n"
+    with pytest.raises(ConfigError, match=r"^c\.yaml: l: .*MAX_EXPANDED"):
+        load(text)
+
+
+def test_a_recursive_alias_is_refused():
+    with pytest.raises(ConfigError, match=r"^c\.yaml: x\[0\]: the alias at line 1 refers to a mapping or list that "
+                                          r"contains it \(a recursive alias\)"):
+        load("x: &a [*a]")
+
+
+@pytest.mark.parametrize("text", ["x: " + "[" * 5000 + "]" * 5000, "x: " + "{a: " * 5000 + "1" + "}" * 5000,
+                                  "? " * 3000 + "a"])
+def test_deep_nesting_is_refused_before_recursing(text):
+    with pytest.raises(ConfigError, match=rf"nested more than {yamlio.MAX_DEPTH} levels deep at line 1 \(MAX_DEPTH\)"):
+        load(text)
+
+
+def test_nesting_a_config_needs_is_fine():
+    depth = yamlio.MAX_DEPTH - 1
+    assert load("[" * depth + "]" * depth) is not None
+
+
+@pytest.mark.parametrize("text,message", [
+    ("name: [forward\n", r"^c\.yaml: YAML syntax error at line 2, column 1: .*; fix the YAML$"),
+    ("\x1fname: x\n", r"^c\.yaml: YAML syntax error: .*special characters are not allowed"),
+    ("a: !!python/object:os.system x\n", r"^c\.yaml: YAML error at line 1, column 4: could not determine a "
+                                         r"constructor"),
+    ("a: 1\n---\nb: 2\n", r"^c\.yaml: YAML error at line 2, column 1: but found another document"),
+])
+def test_yaml_errors_are_one_line(text, message):
+    with pytest.raises(ConfigError, match=message) as info:
+        load(text)
+    assert "\n" not in str(info.value)
+
+
+def test_text_longer_than_the_cap_is_refused():
+    with pytest.raises(ConfigError, match=r"^c\.yaml: 1,000,001 characters, more than the 1,000,000 quadctl reads "
+                                          r"\(MAX_BYTES\)"):
+        load("#" * (yamlio.MAX_BYTES + 1))
+
+
+# ---------------------------------------------------------------------------------------
+# Reading files
+
+
+def read(path):
+    return yamlio.read_text(path, str(path), "config file")
+
+
+def test_a_large_file_is_refused_from_its_size(tmp_path):
+    path = tmp_path / "big.yaml"
+    with open(path, "wb") as f:
+        f.truncate(50_000_000)  # sparse: 50 MB that cost nothing to make
+    with pytest.raises(ConfigError, match=r"big\.yaml: more than 1,000,000 bytes, the most quadctl reads for a "
+                                          r"config file \(MAX_BYTES\); a config file is a few kB: check the path$"):
+        read(path)
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
+def test_an_endless_device_is_read_up_to_the_cap():
+    with pytest.raises(ConfigError, match=r"^/dev/zero: more than 1,000,000 bytes"):
+        read("/dev/zero")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+def test_a_pipe_is_read(tmp_path):
+    import threading
+
+    fifo = tmp_path / "config.fifo"
+    os.mkfifo(fifo)
+    writer = threading.Thread(target=lambda: fifo.write_text("name: piped\n"))
+    writer.start()
+    assert read(fifo) == "name: piped\n"
+    writer.join()
+
+
+@pytest.mark.parametrize("make,message", [
+    (lambda p: p.mkdir(), r"is a folder, not a config file; give a \.yaml file"),
+    (lambda p: None, r"no such config file; check the path"),
+    (lambda p: p.write_bytes(b"name: \xff\n"), r"cannot read the config file \(not UTF-8 text: invalid start byte at "
+                                              r"byte 6\); save it as UTF-8"),
+])
+def test_unreadable_files(tmp_path, make, message):
+    path = tmp_path / "c.yaml"
+    make(path)
+    with pytest.raises(ConfigError, match=message):
+        read(path)
