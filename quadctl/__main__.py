@@ -1,5 +1,5 @@
 """``python -m quadctl``."""
 
-from quadctl.cli.app import main
+from quadctl.cli.entry import main
 
 main()

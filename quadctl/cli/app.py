@@ -41,5 +41,5 @@ commands.register(app)
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Run the app (the console script goes through :func:`quadctl.cli.entry.main`)."""
     app(prog_name="quadctl")

@@ -212,8 +212,18 @@ def _warm_up(task: ChunkTask) -> None:
     evaluate_chunk(replace(task, cases=task.cases[:1]))
 
 
-def _ignore_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the pool
+def _worker_init() -> None:
+    """A worker ignores Ctrl-C (the parent handles it and stops the pool) and, on Linux, dies with
+    its parent: a killed sweep leaves no worker computing for nobody."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        PR_SET_PDEATHSIG = 1
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+        except (OSError, AttributeError):
+            pass
 
 
 def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
@@ -225,8 +235,9 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
     # (the progress bar runs no thread, so nothing is forked mid-lock); spawn elsewhere (macOS's
     # system libraries are not fork-safe)
     ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_ignore_sigint)
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init)
     pending = set()
+    finished_all = False
     try:
         queue = list(tasks)
         # keep two tasks per worker in flight: a stop (Ctrl-C) leaves little half-done work
@@ -242,9 +253,13 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
                                        "finished before are kept: rerun with --resume (--jobs 1 shows "
                                        "any error in this process)") from None
                 yield result
+        finished_all = True
     finally:
         for fut in pending:
             fut.cancel()
+        if not finished_all:  # Ctrl-C or an error: stop the running chunks now, not when they end
+            for process in list(getattr(pool, "_processes", {}).values()):
+                process.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
 
 
