@@ -15,9 +15,12 @@ import numpy as np
 
 STABILITY_MARGIN = 1e-9
 """An eigenvalue with ``Re >= -STABILITY_MARGIN * max(1, |lambda|)`` counts as not stable (rad/s)."""
+UNIT_CIRCLE_MARGIN = 1e-9
+"""A discrete eigenvalue with ``|z| >= 1 - UNIT_CIRCLE_MARGIN`` counts as not stable."""
 RICCATI_RTOL = 1e-8
-"""Largest accepted ``|CARE residual| / (|Q| + |A^T P| + |P B R^-1 B^T P|)`` (relative), for every
-continuous Riccati solution quadctl uses (:func:`quadctl.lqr.lqr`, :func:`quadctl.batch.care`)."""
+"""Largest accepted relative residual of a Riccati solution, continuous or discrete: the residual's
+1-norm over the sum of its terms' 1-norms (:func:`quadctl.riccati.riccati_residuals`,
+:func:`quadctl.riccati.dare_residuals`), for every solution quadctl uses (:mod:`quadctl.riccati`)."""
 
 
 @dataclass(frozen=True)
@@ -102,8 +105,16 @@ def is_stable(eig: complex) -> bool:
     return eig.real < -STABILITY_MARGIN * max(1.0, abs(eig))
 
 
-def pbh(A, M, names, *, dual: bool = False) -> tuple[ModeTest, ...]:
-    """PBH test at each distinct eigenvalue of ``A``.
+def is_stable_z(z: complex) -> bool:
+    """Strictly inside the unit circle, with the margin ``UNIT_CIRCLE_MARGIN``."""
+    return abs(z) < 1.0 - UNIT_CIRCLE_MARGIN
+
+
+def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
+    """PBH test at each distinct eigenvalue of ``A`` (or at those ``keep`` selects).
+
+    Each test is an SVD of an ``n x (n + m)`` matrix; no matrix powers, so no overflow however
+    large the entries of ``A``.
 
     Parameters
     ----------
@@ -112,6 +123,9 @@ def pbh(A, M, names, *, dual: bool = False) -> tuple[ModeTest, ...]:
         ``B`` (n, m) for controllability, or ``C`` (p, n) for observability (``dual=True``).
     names : sequence of str
         State names, to say where each mode lives.
+    keep : callable, optional
+        ``keep(eigenvalue) -> bool``: test only these modes (e.g. the unstable ones, for
+        stabilizability: a stable mode needs no input). Default: every mode.
     """
     A = np.asarray(A, dtype=float)
     M = np.asarray(M, dtype=float)
@@ -120,6 +134,8 @@ def pbh(A, M, names, *, dual: bool = False) -> tuple[ModeTest, ...]:
     tests = []
     seen: list[complex] = []
     for k, lam in enumerate(eigvals):
+        if keep is not None and not keep(lam):
+            continue
         if any(abs(lam - s) <= 1e-9 * max(1.0, abs(lam)) for s in seen):
             continue
         seen.append(lam)
