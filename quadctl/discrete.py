@@ -347,5 +347,5 @@ def _sample_times(Ts, batch: int) -> np.ndarray:
     Ts = np.broadcast_to(np.asarray(Ts, dtype=float), (batch,))
     bad = ~(np.isfinite(Ts) & (Ts > 0))
     if bad.any():
-        raise ValueError(f"sample time must be a positive finite number of seconds, got {Ts[bad][0]!r}")
+        raise ValueError(f"sample time must be a positive finite number of seconds, got {float(Ts[bad][0])!r}")
     return Ts

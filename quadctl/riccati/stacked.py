@@ -245,17 +245,16 @@ def dare_checked(A, B, Q, R, N, valid) -> BatchLqr:
         for _ in range(SDA_STEPS):
             X, _ = _solve(eye + Gk @ Hk, np.concatenate([Ak, Gk], axis=2))
             X1, X2 = X[:, :, :n], X[:, :, n:]
-            H_next = _sym(Hk + Ak.transpose(0, 2, 1) @ Hk @ X1)
-            Gk = _sym(Gk + Ak @ X2 @ Ak.transpose(0, 2, 1))
+            At = Ak.transpose(0, 2, 1)
+            step = At @ Hk @ X1
+            Hk = _sym(Hk + step)
+            Gk = _sym(Gk + Ak @ X2 @ At)
             Ak = Ak @ X1
-            change = norm1(H_next - Hk)
-            Hk, finite = _finite(H_next)
-            ok &= finite
-            Gk, _ = _finite(Gk)
-            Ak, _ = _finite(Ak)
-            if np.all(~ok | (change <= 4 * np.finfo(float).eps * norm1(Hk))):
+            # done when every step is round-off of H (a NaN entry has failed: decided after the loop)
+            if not np.any(np.abs(step).max(axis=(1, 2)) > 4 * np.finfo(float).eps * np.abs(Hk).max(axis=(1, 2))):
                 break
-        return _finish(True, A, B, Q, R, N, Hk, ok)
+        Hk, finite = _finite(Hk)
+        return _finish(True, A, B, Q, R, N, Hk, ok & finite)
 
 
 def _finish(discrete: bool, A, B, Q, R, N, P, ok) -> BatchLqr:
