@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _carex import (NUMBERS, arnold_laub_1_solution, case, circulant_solution, kenney_laub_wette_solution,
-                    laub_6)
+from _carex import NUMBERS, arnold_laub_1_solution, case, circulant_solution, kenney_laub_wette_solution, laub_6
 
 from quadctl.analysis import RICCATI_RTOL, is_stable
 from quadctl.errors import DesignError
