@@ -20,6 +20,7 @@ from quadctl.riccati.stacked import (
     KRONECKER_MAX_N,
     NEWTON_STEPS,
     ROUNDOFF_RTOL,
+    all_stable,
     care_checked,
     dare_checked,
     gain_and_residual,
@@ -84,15 +85,17 @@ def care_schur(A, B, Q, R, N=None) -> np.ndarray:
     """
     A, B, Q, R, N = as_problem(A, B, Q, R, N, name="care_schur")
     n = A.shape[0]
-    At, Qt, RinvBt, _ = (M[0] for M in without_cross(A[None], B[None], Q[None], R[None], N[None]))
-    S = B @ RinvBt
-    H = np.block([[At, -S], [-Qt, -At.T]])
+    X = np.linalg.solve(R, np.vstack([B, N]).T)             # [R^-1 B', R^-1 N']
+    At, Qt = A - B @ X[:, n:], Q - N @ X[:, n:]
+    H = np.empty((2 * n, 2 * n))
+    H[:n, :n], H[:n, n:], H[n:, :n], H[n:, n:] = At, -B @ X[:, :n], -(Qt + Qt.T) / 2, -At.T
     magnitude = np.abs(H)
     np.fill_diagonal(magnitude, 0.0)  # the diagonal does not change under a similarity scaling
     _, (scale, _) = scipy.linalg.matrix_balance(magnitude, permute=False, separate=True)
     log2 = np.log2(scale)
-    d = 2.0 ** np.round((log2[:n] - log2[n:]) / 2)    # x = D x_s: A_s = D^-1 A D, S_s = D^-1 S D^-1, Q_s = D Q D
-    H = np.block([[At * d / d[:, None], -S / np.outer(d, d)], [-Qt * np.outer(d, d), -(At * d / d[:, None]).T]])
+    d = 2.0 ** np.round((log2[:n] - log2[n:]) / 2)
+    t = np.concatenate([d, 1 / d])                              # x = D x_s: H_s = T^-1 H T, T = diag(D, D^-1)
+    H *= t / t[:, None]
     _, Z, stable = scipy.linalg.schur(H, output="real", sort="lhp")
     if stable != n:
         raise np.linalg.LinAlgError(f"the Hamiltonian has {stable} eigenvalues in the open left half-plane, "
@@ -194,12 +197,13 @@ def _scipy(discrete: bool, balanced: bool):
 
 def _refine(discrete, A, B, Q, R, N, P) -> LqrResult:
     """``P`` polished by Newton steps (:func:`newton_correction`, at most :data:`NEWTON_STEPS`) until its
-    residual is round-off (``ROUNDOFF_RTOL``); a step that does not lower the residual is dropped."""
+    residual is round-off for its size (``n ROUNDOFF_RTOL``); a step that does not lower the residual
+    is dropped."""
     args = tuple(M[None] for M in (A, B, Q, R, N))
     P = ((P + P.T) / 2)[None]
     K, F, residual, _ = gain_and_residual(discrete, *args, P)
     for _ in range(NEWTON_STEPS):
-        if not residual[0] > ROUNDOFF_RTOL:
+        if not residual[0] > len(A) * ROUNDOFF_RTOL:
             break
         D, done = newton_correction(discrete, args[0], args[1], K, F)
         if not done[0]:
@@ -214,7 +218,7 @@ def _refine(discrete, A, B, Q, R, N, P) -> LqrResult:
 
 
 def _stable(discrete: bool, E) -> bool:
-    return all((is_stable_z if discrete else is_stable)(e) for e in E)
+    return bool(all_stable(discrete, E))
 
 
 def _certified(discrete: bool, result: LqrResult) -> bool:
