@@ -178,3 +178,35 @@ def test_empty_stacks_give_empty_results():
     for batched in (care_batch, dare_batch):
         res = batched(np.zeros((0, 2, 2)), np.zeros((0, 2, 1)), np.zeros((0, 2, 2)), np.zeros((0, 1, 1)))
         assert res.K.shape == (0, 1, 2) and res.ok.shape == (0,)
+
+
+def test_a_member_whose_eigenvalues_do_not_converge_fails_alone(monkeypatch):
+    """numpy refuses a whole stack when one member's QR iteration does not converge: that member
+    alone is not ok (the one-case solver then says why), the others are answered."""
+    eig = np.linalg.eig
+
+    def eig_failing_on_a_marked_member(M):
+        if M.ndim == 3 or np.any(np.abs(M) == 7.0):  # the Hamiltonian holds -Q
+            raise np.linalg.LinAlgError("Eigenvalues did not converge")
+        return eig(M)
+
+    monkeypatch.setattr(np.linalg, "eig", eig_failing_on_a_marked_member)
+    A = np.array([[[0.0, 1.0], [0.0, 0.0]]] * 3)
+    Q = np.array([np.eye(2), np.eye(2) * 7.0, np.eye(2) * 2.0])
+    res = care_batch(A, np.array([[[0.0], [1.0]]] * 3), Q, np.ones((3, 1, 1)))
+    assert res.ok.tolist() == [True, False, True]
+    monkeypatch.undo()
+    np.testing.assert_allclose(res.K[2], care_batch(A[2:], np.array([[[0.0], [1.0]]]), Q[2:], np.ones((1, 1, 1))).K[0],
+                               rtol=1e-12)
+
+
+def test_a_stack_too_large_for_memory_is_a_design_error(monkeypatch):
+    from quadctl.riccati import stacked
+
+    def out_of_memory(*args):
+        raise MemoryError("Unable to allocate 2.4 GiB")
+
+    monkeypatch.setattr(stacked, "care_checked", out_of_memory)
+    with pytest.raises(DesignError, match=r"care_batch: out of memory for 3 problems of 2 states and 1 inputs "
+                                          r"\(Unable to allocate 2\.4 GiB\); solve them in smaller stacks"):
+        care_batch(np.zeros((3, 2, 2)), np.ones((3, 2, 1)), np.ones((3, 1, 1)) * np.eye(2), np.ones((3, 1, 1)))

@@ -14,6 +14,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.analysis import RICCATI_RTOL, STABILITY_MARGIN, UNIT_CIRCLE_MARGIN
+from quadctl.errors import DesignError
 from quadctl.riccati.weights import WeightCheck, as_problem, as_stack, neutral, norm1
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -157,7 +158,7 @@ def care_batch(A, B, Q, R, N=None) -> BatchLqr:
     Raises
     ------
     DesignError
-        The shapes do not stack.
+        The shapes do not stack, or the stack does not fit in memory.
 
     Examples
     --------
@@ -171,7 +172,10 @@ def care_batch(A, B, Q, R, N=None) -> BatchLqr:
     if len(B) == 0:
         return _empty(*B.shape[1:])
     valid = WeightCheck(A, B, Q, R, N).ok
-    return care_checked(*neutral(valid, A, B, Q, R, N), valid)
+    try:
+        return care_checked(*neutral(valid, A, B, Q, R, N), valid)
+    except MemoryError as exc:
+        raise _out_of_memory("care_batch", B.shape, exc) from None
 
 
 def care_checked(A, B, Q, R, N, valid) -> BatchLqr:
@@ -180,7 +184,8 @@ def care_checked(A, B, Q, R, N, valid) -> BatchLqr:
     with np.errstate(all="ignore"):
         At, Qt, RinvBt, solved = without_cross(A, B, Q, R, N)
         H, finite = _finite(np.block([[At, -B @ RinvBt], [-Qt, -At.transpose(0, 2, 1)]]))
-        w, V = np.linalg.eig(H)
+        (w, V), converged = _each_eig(np.linalg.eig, H)
+        finite &= converged
         order = np.argsort(w.real, axis=1)[:, :n]                     # the n most stable
         U = np.take_along_axis(V, order[:, None, :], axis=2)
         ok = valid & solved & finite & ((w.real < 0).sum(axis=1) == n)
@@ -221,7 +226,7 @@ def dare_batch(A, B, Q, R, N=None) -> BatchLqr:
     Raises
     ------
     DesignError
-        The shapes do not stack.
+        The shapes do not stack, or the stack does not fit in memory.
 
     Examples
     --------
@@ -235,7 +240,16 @@ def dare_batch(A, B, Q, R, N=None) -> BatchLqr:
     if len(B) == 0:
         return _empty(*B.shape[1:])
     valid = WeightCheck(A, B, Q, R, N).ok
-    return dare_checked(*neutral(valid, A, B, Q, R, N), valid)
+    try:
+        return dare_checked(*neutral(valid, A, B, Q, R, N), valid)
+    except MemoryError as exc:
+        raise _out_of_memory("dare_batch", B.shape, exc) from None
+
+
+def _out_of_memory(who: str, shape, exc) -> DesignError:
+    batch, n, m = shape
+    return DesignError(f"{who}: out of memory for {batch} problems of {n} states and {m} inputs ({exc}); "
+                       "solve them in smaller stacks")
 
 
 def dare_checked(A, B, Q, R, N, valid) -> BatchLqr:
@@ -273,7 +287,8 @@ def _finish(discrete: bool, A, B, Q, R, N, P, ok) -> BatchLqr:
         P = np.where(good[:, None, None], P_next, P)
         K, F, residual, solved = gain_and_residual(discrete, A, B, Q, R, N, P)
     A_cl, finite = _finite(A - B @ K)
-    E = np.linalg.eigvals(A_cl)
+    E, converged = _each_eig(np.linalg.eigvals, A_cl)
+    finite &= converged
     finite &= np.all(np.isfinite(P), axis=(1, 2))
     ok = ok & solved & finite & all_stable(discrete, E) & (residual <= RICCATI_RTOL)
     return BatchLqr(K=K, P=P, E=E, residual=residual, ok=ok)
@@ -377,6 +392,29 @@ def _finite(M) -> tuple[np.ndarray, np.ndarray]:
     """A stack with its non-finite members zeroed (LAPACK refuses NaN), and which were finite."""
     finite = np.all(np.isfinite(M), axis=(-2, -1))
     return (M if finite.all() else np.where(finite[:, None, None], M, 0.0)), finite
+
+
+def _each_eig(eig, M):
+    """``eig(M)`` of a stack that survives members whose QR iteration does not converge: (the
+    results, with NaN for those members, and which converged). numpy refuses the whole stack."""
+    try:
+        return eig(M), np.ones(len(M), dtype=bool)
+    except np.linalg.LinAlgError:
+        converged = np.ones(len(M), dtype=bool)
+        parts = []
+        for k in range(len(M)):
+            try:
+                parts.append(eig(M[k]))
+            except np.linalg.LinAlgError:
+                converged[k] = False
+                parts.append(eig(np.zeros_like(M[k])))
+        if isinstance(parts[0], tuple):
+            out = tuple(np.stack([p[i] for p in parts]).astype(complex) for i in range(2))
+            out[0][~converged] = np.nan
+        else:
+            out = np.stack(parts).astype(complex)
+            out[~converged] = np.nan
+        return out, converged
 
 
 def _solve(M, rhs) -> tuple[np.ndarray, np.ndarray]:
