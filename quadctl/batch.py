@@ -17,10 +17,10 @@ import numpy as np
 from quadctl.analysis import STABILITY_MARGIN
 from quadctl.layout import INPUT_NAMES, POSITION_STATES, STATE_NAMES
 from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
-from quadctl.riccati import NEWTON_STEPS, BatchLqr, riccati_residuals
-from quadctl.riccati import care_batch as care
-
-__all__ = ["NEWTON_STEPS", "BatchLqr", "care", "coupled_stability", "riccati_residuals", "summarize_run"]
+from quadctl.riccati import NEWTON_STEPS as NEWTON_STEPS  # re-exported for the sweep (quadctl.riccati's)
+from quadctl.riccati import BatchLqr as BatchLqr
+from quadctl.riccati import care_batch as care  # noqa: F401 (re-exported: quadctl.sweep calls batch.care)
+from quadctl.riccati import riccati_residuals as riccati_residuals
 
 
 def coupled_stability(A_cl, K) -> tuple[list[np.ndarray], np.ndarray]:

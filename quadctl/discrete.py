@@ -27,14 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.analysis import RICCATI_RTOL, UNIT_CIRCLE_MARGIN, is_stable_z
-from quadctl.riccati import LqrResult, as_stack, dare_residual, require_valid_weights, solve
+from quadctl.analysis import RICCATI_RTOL, UNIT_CIRCLE_MARGIN
+from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
+from quadctl.riccati import LqrResult, as_stack, require_valid_weights, solve
+from quadctl.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
-
-__all__ = ["DARE_RTOL", "UNIT_CIRCLE_MARGIN", "SAMPLES_PER_POLE", "RateWarning", "c2d", "c2d_batch",
-           "dare_residual", "dlqr", "is_stable_z", "lqrd", "lqrd_weights", "lqrd_weights_batch",
-           "rate_warnings", "realizable_frequency", "s_equivalent", "spectral_radius"]
 
 DARE_RTOL = RICCATI_RTOL
 """Largest accepted relative DARE residual: ``RICCATI_RTOL``, the one tolerance of every Riccati

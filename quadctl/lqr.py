@@ -16,13 +16,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl import discrete, integral
-from quadctl.analysis import RICCATI_RTOL, is_stable
+from quadctl.analysis import RICCATI_RTOL as RICCATI_RTOL  # re-exported: the tolerance lqr certifies to
+from quadctl.analysis import is_stable
 from quadctl.decouple import Decoupled
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.riccati import LqrResult, require_stabilizable, riccati_residual, solve
-
-__all__ = ["RICCATI_RTOL", "LqrResult", "Design", "SubsystemDesign", "closed_loop_matrix",
-           "closed_loop_stability", "design", "lqr", "require_stabilizable", "riccati_residual"]
+from quadctl.riccati import LqrResult, require_stabilizable, solve
+from quadctl.riccati import riccati_residual as riccati_residual  # re-exported: lqr's residual
 
 
 def lqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:

@@ -28,17 +28,17 @@ input reaches, a marginal mode ``Q`` does not see, or an ill-conditioned equatio
 
 from quadctl.riccati.single import LqrResult, care_schur, require_stabilizable, solve, unstabilizable_mode
 from quadctl.riccati.stacked import (
-                                    KRONECKER_MAX_N,
-                                    NEWTON_STEPS,
-                                    ROUNDOFF_RTOL,
-                                    SDA_STEPS,
-                                    BatchLqr,
-                                    care_batch,
-                                    dare_batch,
-                                    dare_residual,
-                                    dare_residuals,
-                                    riccati_residual,
-                                    riccati_residuals,
+    KRONECKER_MAX_N,
+    NEWTON_STEPS,
+    ROUNDOFF_RTOL,
+    SDA_STEPS,
+    BatchLqr,
+    care_batch,
+    dare_batch,
+    dare_residual,
+    dare_residuals,
+    riccati_residual,
+    riccati_residuals,
 )
 from quadctl.riccati.weights import SEMIDEFINITE_RTOL, WeightCheck, as_problem, as_stack, require_valid_weights
 
