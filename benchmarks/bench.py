@@ -296,7 +296,9 @@ def lqr_sizes() -> str:
                  "best wall time of 5-20)",
                  ["n x m", "lqr (ms)", "SciPy (ms)", "SciPy / lqr", "lqr residual", "SciPy residual"], rows) + (
         "\n\nlqr's time includes what SciPy's does not do: the weight checks, the gain, the closed-loop "
-        "eigenvalues and the residual that certifies the answer.")
+        "eigenvalues and the residual that certifies the answer. Both call multi-threaded BLAS: on a shared "
+        "2-core machine run these rows with OPENBLAS_NUM_THREADS=1, or threads contending with other "
+        "processes spread them 3-10x from run to run.")
 
 
 def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
