@@ -85,10 +85,14 @@ class WeightCheck:
 
     def __init__(self, A, B, Q, R, N):
         self._mats = {"A": A, "B": B, "Q": Q, "R": R, "N": N}
-        self._finite = {label: np.isfinite(M).all(axis=(-2, -1)) for label, M in self._mats.items()}
-        finite = np.logical_and.reduce(list(self._finite.values()))
-        clean = self._mats if finite.all() else {
-            label: np.where(finite[:, None, None], M, 0.0) for label, M in self._mats.items()}
+        batch = len(B)
+        finite = np.isfinite(np.concatenate([M.reshape(batch, -1) for M in self._mats.values()], axis=1)).all(axis=1)
+        if finite.all():  # the common case, in three calls
+            self._finite = dict.fromkeys(self._mats, finite)
+            clean = self._mats
+        else:
+            self._finite = {label: np.isfinite(M).all(axis=(-2, -1)) for label, M in self._mats.items()}
+            clean = {label: np.where(finite[:, None, None], M, 0.0) for label, M in self._mats.items()}
         self._asym, self._sym_tol, self._eig = {}, {}, {}
         with np.errstate(all="ignore"):
             for label in "QR":
