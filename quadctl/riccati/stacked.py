@@ -133,10 +133,10 @@ def care_batch(A, B, Q, R, N=None) -> BatchLqr:
     """Solve ``batch`` continuous algebraic Riccati equations at once (MATLAB ``lqr`` conventions).
 
     The ``n`` stable eigenvectors ``[U1; U2]`` of each Hamiltonian ``[[A~, -S], [-Q~, -A~']]``
-    (``S = B R^-1 B'``, ``A~``, ``Q~`` without the cross term) give ``P = U2 U1^-1``; then
-    :data:`NEWTON_STEPS` Newton-Kleinman steps ``Ac' P + P Ac + Q + K'RK - NK - K'N' = 0``. Each
-    step is one batched LAPACK call over the stack (Lyapunov equations by their Kronecker form up
-    to :data:`KRONECKER_MAX_N` states, by Bartels-Stewart above).
+    (``S = B R^-1 B'``, ``A~``, ``Q~`` without the cross term) give ``P = U2 U1^-1``; then up to
+    :data:`NEWTON_STEPS` Newton-Kleinman steps in defect-correction form (:func:`newton_correction`).
+    Each step is one batched LAPACK call over the stack (Lyapunov equations by their Kronecker form
+    up to :data:`KRONECKER_MAX_N` states, by Bartels-Stewart above).
 
     Parameters
     ----------
@@ -203,8 +203,9 @@ def dare_batch(A, B, Q, R, N=None) -> BatchLqr:
         A(k+1) = Ak W^-1 Ak,   G(k+1) = Gk + Ak W^-1 Gk Ak',   H(k+1) = Hk + Ak' Hk W^-1 Ak,
 
     ``Hk`` converges quadratically to ``P`` (``W`` is never singular: ``Gk Hk`` has no negative
-    eigenvalue). Then :data:`NEWTON_STEPS` Newton-Hewer steps, each a Stein equation
-    ``P = Ac' P Ac + Q + K'RK - NK - K'N'`` (Kronecker form up to :data:`KRONECKER_MAX_N` states).
+    eigenvalue). Then up to :data:`NEWTON_STEPS` Newton-Hewer steps in defect-correction form
+    (:func:`newton_correction`), each a Stein equation (Kronecker form up to
+    :data:`KRONECKER_MAX_N` states, SciPy's ``solve_discrete_lyapunov`` above).
 
     Parameters
     ----------
