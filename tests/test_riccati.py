@@ -70,6 +70,11 @@ def test_invalid_weights_are_refused_naming_the_matrix_what_was_found_and_the_fi
         solve(Q, R, N, name="sys")
 
 
+def test_a_matrix_that_is_not_numeric_is_named():
+    with pytest.raises(DesignError, match=r"sys: A is not a numeric matrix \(.*\); give an array of numbers"):
+        lqr([[0.0, 1.0], [0.0]], B_C, np.eye(2), [[1.0]], name="sys")
+
+
 def test_carex_2_5_is_refused_not_solved():
     """The regression: CAREX 2.5 at eps = 0 returned K = [3.00000004, 2.00000004] and a 'stable' loop."""
     with pytest.raises(DesignError, match=r"carex: Q is not positive semidefinite: its most negative eigenvalue "
