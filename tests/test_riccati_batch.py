@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg
+from _carex import case
 
 from quadctl import config, discrete, integral, pipeline
 from quadctl.errors import DesignError
@@ -172,6 +173,15 @@ def test_care_batch_above_the_kronecker_size_uses_bartels_stewart_and_agrees_wit
     assert res.ok.all() and res.residual.max() <= 1e-12
     for k in range(count):
         _close(res.P[k], scipy.linalg.solve_continuous_are(A[k], B[k], Q[k], R[k]), f"P[{k}] against SciPy")
+
+
+@pytest.mark.parametrize("number", ["3.2", "4.4"])
+def test_care_batch_of_large_carex_cases_needs_no_kronecker_system(number):
+    """The n^2 x n^2 Kronecker Newton step took 6.3 s at n = 64 (CAREX 3.2) and raised MemoryError
+    at n = 421 (CAREX 4.4); above KRONECKER_MAX_N each step is a Bartels-Stewart solve."""
+    c = case(number)
+    res = care_batch(c.A[None], c.B[None], c.Q[None], c.R[None])
+    assert res.ok[0] and res.residual[0] <= 1e-10
 
 
 def test_empty_stacks_give_empty_results():

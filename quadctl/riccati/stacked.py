@@ -8,6 +8,7 @@ ok, never raised: the one-case solver (:mod:`quadctl.riccati.single`) says why.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -371,12 +372,14 @@ def _each(solve_one, Ac, W):
     """``solve_one`` per stacked entry (Bartels-Stewart); NaN and not solved where it fails."""
     out = np.full(W.shape, np.nan)
     solved = np.zeros(len(W), dtype=bool)
-    for k in range(len(W)):
-        try:
-            out[k] = solve_one(Ac[k], W[k])
-            solved[k] = True
-        except (np.linalg.LinAlgError, ValueError):
-            pass
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # SciPy's near-singularity warnings: the residual check decides
+        for k in range(len(W)):
+            try:
+                out[k] = solve_one(Ac[k], W[k])
+                solved[k] = True
+            except (np.linalg.LinAlgError, ValueError):
+                pass
     return out, solved
 
 
