@@ -17,6 +17,11 @@
    design, rotors, LQI, noise; 2 000 steps each), the configs that fly, at the same lane speed.
 3. The LQR designs of that sweep (4000 small subsystems): quadctl's batched solver against a
    Python loop over scipy.linalg.solve_continuous_are.
+4. quadctl.lqr.lqr on one larger random system (n = 10, 50, 100, 200) against
+   scipy.linalg.solve_continuous_are on the same problem.
+5. Discrete designs of 1000 3-state subsystems (the report's roll and pitch loops at 200 Hz, random
+   weights): the batched lqrd (lqrd_weights_batch, dare_batch) against a Python loop over
+   scipy.linalg.solve_discrete_are.
 
 Not a test: it asserts nothing, it prints what it measured and the machine's load while it ran
 (other processes on a 2-core machine change every number here). Each quadctl timing is the best of
@@ -275,7 +280,8 @@ def the_sweep() -> tuple[str, list]:
 def the_designs(cfg, spec) -> str:
     import scipy.linalg
 
-    from quadctl import batch, pipeline, sweep
+    from quadctl import pipeline, sweep
+    from quadctl.riccati import care_batch
     from quadctl.setup import resolve
 
     # the 4000 subsystem problems of the sweep: the report's plant, each case's weights
@@ -295,7 +301,7 @@ def the_designs(cfg, spec) -> str:
     stacks = {shape: [np.stack([p[k] for p in group]) for k in range(4)] for shape, group in problems.items()}
 
     def batched():
-        return [batch.care(*stack) for stack in stacks.values()]
+        return [care_batch(*stack) for stack in stacks.values()]
 
     def loop():
         out = []
@@ -308,11 +314,98 @@ def the_designs(cfg, spec) -> str:
     fast, results = timed(batched, repeat=3)
     assert all(r.ok.all() for r in results)
     slow, _ = timed(loop)
-    rows = [["quadctl batch.care (batched, residual-checked)", f"{1e6 * fast / n:.1f}", f"{n / fast:,.0f}", "1"],
+    rows = [["quadctl care_batch (batched, residual-checked)", f"{1e6 * fast / n:.1f}", f"{n / fast:,.0f}", "1"],
             ["Python loop over scipy solve_continuous_are", f"{1e6 * slow / n:.1f}", f"{n / slow:,.0f}",
              f"{slow / fast:.0f}"]]
     return table(f"LQR designs: the sweep's {n} subsystem problems (2- and 3-state, one input)",
                  ["solver", "µs per design", "designs/s", "time / quadctl"], rows)
+
+
+# ---------------------------------------------------------------------------------------
+# 4 and 5. The Riccati solvers alone
+
+LQR_SIZES = (10, 50, 100, 200)
+"""States of the random problems of :func:`lqr_sizes` (inputs: n / 5)."""
+LQR_SEED = 2024
+
+
+def lqr_sizes() -> str:
+    import scipy.linalg
+
+    from quadctl.lqr import lqr, riccati_residual
+
+    rng = np.random.default_rng(LQR_SEED)
+    rows = []
+    for n in LQR_SIZES:
+        m = max(1, n // 5)
+        # random A (spectral radius ~1, about half its modes unstable), B: stabilizable almost surely
+        A, B, Q, R = rng.normal(size=(n, n)) / np.sqrt(n), rng.normal(size=(n, m)), np.eye(n), np.eye(m)
+        repeat = 20 if n <= 50 else 5
+        problem = (A, B, Q, R)
+        lqr(*problem)  # loads SciPy (above 7 states lqr uses its Schur decomposition)
+        ours, res = timed(lambda p=problem: lqr(*p), repeat=repeat)
+        theirs, P = timed(lambda p=problem: scipy.linalg.solve_continuous_are(*p), repeat=repeat)
+        rows.append([f"{n} x {m}", f"{1e3 * ours:.2f}", f"{1e3 * theirs:.2f}", f"{theirs / ours:.2f}",
+                     f"{res.residual:.0e}", f"{riccati_residual(A, B, Q, R, P):.0e}"])
+    return table(f"quadctl.lqr.lqr against scipy.linalg.solve_continuous_are (random problems, seed {LQR_SEED}; "
+                 "best wall time of 5-20)",
+                 ["n x m", "lqr (ms)", "SciPy (ms)", "SciPy / lqr", "lqr residual", "SciPy residual"], rows) + (
+        "\n\nlqr's time includes what SciPy's does not do: the weight checks, the gain, the closed-loop "
+        "eigenvalues and the residual that certifies the answer. Both call multi-threaded BLAS: on a shared "
+        "2-core machine run these rows with OPENBLAS_NUM_THREADS=1, or threads contending with other "
+        "processes spread them 3-10x from run to run.")
+
+
+def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
+    import scipy.linalg
+
+    from quadctl import config, discrete, pipeline
+    from quadctl.riccati import dare_batch
+
+    cfg = config.load("forward")
+    dec = pipeline.decoupled_of(cfg, pipeline.linear_of(cfg, pipeline.trim_of(cfg)))
+    rng = np.random.default_rng(LQR_SEED)
+    subs = [dec["roll"], dec["pitch"]]
+    A = np.stack([subs[k % 2].A for k in range(count)])
+    B = np.stack([subs[k % 2].B for k in range(count)])
+    Q = np.stack([np.diag(10 ** rng.uniform(-1, 2, 3)) for _ in range(count)])
+    R = 10 ** rng.uniform(-1, 1, (count, 1, 1))
+    Ts = 1 / rate
+
+    def cpu(fn, repeat):
+        best, out = np.inf, None
+        for _ in range(repeat):
+            start = time.process_time()
+            out = fn()
+            best = min(best, time.process_time() - start)
+        return best, out
+
+    def batched():
+        Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights_batch(A, B, Q, R, Ts)
+        return dare_batch(Ad, Bd, Qd, Rd, Nd)
+
+    weights_time, (Ad, Bd, Qd, Rd, Nd) = cpu(lambda: discrete.lqrd_weights_batch(A, B, Q, R, Ts), 5)
+    dare_time, _ = cpu(lambda: dare_batch(Ad, Bd, Qd, Rd, Nd), 5)
+    design_time, res = cpu(batched, 5)
+    assert res.ok.all()
+
+    def scipy_loop():
+        for k in range(count):
+            P = scipy.linalg.solve_discrete_are(Ad[k], Bd[k], Qd[k], Rd[k], s=Nd[k])
+            np.linalg.solve(Rd[k] + Bd[k].T @ P @ Bd[k], Bd[k].T @ P @ Ad[k] + Nd[k].T)
+
+    loop_time, _ = cpu(scipy_loop, 1)
+    one_time, _ = cpu(lambda: [discrete.lqrd(A[k], B[k], Q[k], R[k], Ts) for k in range(100)], 1)
+    rows = [["lqrd_weights_batch + dare_batch (the whole design)", f"{1e6 * design_time / count:.1f}", "1"],
+            ["  of which lqrd_weights_batch (Van Loan, batched expm)", f"{1e6 * weights_time / count:.1f}", ""],
+            ["  of which dare_batch (doubling, Newton-Hewer, checks)", f"{1e6 * dare_time / count:.1f}", ""],
+            ["loop over scipy solve_discrete_are (+ gain), same weights", f"{1e6 * loop_time / count:.1f}",
+             f"{loop_time / design_time:.0f}"],
+            ["loop over quadctl.discrete.lqrd (one case, first 100)", f"{1e6 * one_time / 100:.1f}",
+             f"{one_time / 100 * count / design_time:.0f}"]]
+    return table(f"Discrete LQR designs: {count} 3-state subsystems (roll and pitch of the forward config, random "
+                 f"weights) at {rate:g} Hz; CPU time, best of 5 (loops: one run)",
+                 ["solver", "µs CPU per design", "time / batched"], rows)
 
 
 def config_from(data):
@@ -338,6 +431,8 @@ def main() -> None:
     print(text)
     print(the_flying_sweep())
     print(the_designs(cfg, spec))
+    print(lqr_sizes())
+    print(discrete_designs())
     end = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {end:.2f} at the end (2 cores: above ~0.3, other work shared the machine)")
 

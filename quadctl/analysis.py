@@ -13,11 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.stability import STABILITY_MARGIN, is_stable  # noqa: F401 (STABILITY_MARGIN: re-exported)
+from quadctl.stability import STABILITY_MARGIN, UNIT_CIRCLE_MARGIN, is_stable  # noqa: F401 (re-exported)
 
 RICCATI_RTOL = 1e-8
-"""Largest accepted ``|CARE residual| / (|Q| + |A^T P| + |P B R^-1 B^T P|)`` (relative), for every
-continuous Riccati solution quadctl uses (:func:`quadctl.lqr.lqr`, :func:`quadctl.batch.care`)."""
+"""Largest accepted relative residual of a Riccati solution, continuous or discrete: the residual's
+1-norm over the sum of its terms' 1-norms (:func:`quadctl.riccati.riccati_residuals`,
+:func:`quadctl.riccati.dare_residuals`), for every solution quadctl uses (:mod:`quadctl.riccati`)."""
 
 
 @dataclass(frozen=True)
@@ -94,8 +95,16 @@ def obsv(A, C) -> np.ndarray:
 
 
 
-def pbh(A, M, names, *, dual: bool = False) -> tuple[ModeTest, ...]:
-    """PBH test at each distinct eigenvalue of ``A``.
+def is_stable_z(z: complex) -> bool:
+    """Strictly inside the unit circle: :func:`quadctl.stability.is_stable`, discrete."""
+    return is_stable(z, discrete=True)
+
+
+def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
+    """PBH test at each distinct eigenvalue of ``A`` (or at those ``keep`` selects).
+
+    Each test is an SVD of an ``n x (n + m)`` matrix; no matrix powers, so no overflow however
+    large the entries of ``A``.
 
     Parameters
     ----------
@@ -104,6 +113,9 @@ def pbh(A, M, names, *, dual: bool = False) -> tuple[ModeTest, ...]:
         ``B`` (n, m) for controllability, or ``C`` (p, n) for observability (``dual=True``).
     names : sequence of str
         State names, to say where each mode lives.
+    keep : callable, optional
+        ``keep(eigenvalue) -> bool``: test only these modes (e.g. the unstable ones, for
+        stabilizability: a stable mode needs no input). Default: every mode.
     """
     A = np.asarray(A, dtype=float)
     M = np.asarray(M, dtype=float)
@@ -112,6 +124,8 @@ def pbh(A, M, names, *, dual: bool = False) -> tuple[ModeTest, ...]:
     tests = []
     seen: list[complex] = []
     for k, lam in enumerate(eigvals):
+        if keep is not None and not keep(lam):
+            continue
         if any(abs(lam - s) <= 1e-9 * max(1.0, abs(lam)) for s in seen):
             continue
         seen.append(lam)

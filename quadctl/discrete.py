@@ -27,13 +27,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.errors import DesignError
-from quadctl.stability import UNIT_CIRCLE_MARGIN, is_stable
+from quadctl.analysis import RICCATI_RTOL, UNIT_CIRCLE_MARGIN
+from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
+from quadctl.riccati import LqrResult, as_stack, require_valid_weights, solve
+from quadctl.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
-DARE_RTOL = 1e-8
-"""Largest accepted relative DARE residual (same meaning as ``lqr.RICCATI_RTOL``)."""
+DARE_RTOL = RICCATI_RTOL
+"""Largest accepted relative DARE residual: ``RICCATI_RTOL``, the one tolerance of every Riccati
+solution (:mod:`quadctl.analysis`; the margin ``UNIT_CIRCLE_MARGIN`` lives there too)."""
 SAMPLES_PER_POLE = 10.0
 """A sampled loop realizes a closed-loop pole ``s`` when ``|s| <= 2 pi rate / SAMPLES_PER_POLE``:
 the rule of thumb of sampling at least ten times the fastest closed-loop frequency (Franklin,
@@ -64,12 +67,37 @@ def c2d(A, B, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     >>> np.round(Ad, 12).tolist(), np.round(Bd, 12).ravel().tolist()
     ([[1.0, 0.1], [0.0, 1.0]], [0.005, 0.1])
     """
-    A, B = _as2d(A), _as2d(B)
-    n, m = B.shape
-    F = np.zeros((n + m, n + m))
-    F[:n, :n], F[:n, n:] = A, B
-    E = scipy.linalg.expm(F * _positive_ts(Ts))
-    return E[:n, :n], E[:n, n:]
+    Ad, Bd = c2d_batch(_as2d(A)[None], _as2d(B)[None], Ts)
+    return Ad[0], Bd[0]
+
+
+def c2d_batch(A, B, Ts) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`c2d` of stacked plants: one ``scipy.linalg.expm`` call over the stack.
+
+    Parameters
+    ----------
+    A : (batch, n, n) array_like
+    B : (batch, n, m) array_like
+    Ts : float or (batch,) array_like
+        Sample time(s), s.
+
+    Returns
+    -------
+    Ad : (batch, n, n) ndarray
+    Bd : (batch, n, m) ndarray
+
+    Examples
+    --------
+    >>> Ad, Bd = c2d_batch([[[0.0]], [[-1.0]]], [[[1.0]], [[1.0]]], 0.5)
+    >>> np.round(Ad.ravel(), 6).tolist(), np.round(Bd.ravel(), 6).tolist()
+    ([1.0, 0.606531], [0.5, 0.393469])
+    """
+    A, B, *_ = as_stack(A, B, name="c2d_batch")
+    batch, n, m = B.shape
+    F = np.zeros((batch, n + m, n + m))
+    F[:, :n, :n], F[:, :n, n:] = A, B
+    E = scipy.linalg.expm(F * _sample_times(Ts, batch)[:, None, None])
+    return E[:, :n, :n], E[:, :n, n:]
 
 
 def lqrd_weights(A, B, Q, R, Ts: float, N=None):
@@ -93,48 +121,56 @@ def lqrd_weights(A, B, Q, R, Ts: float, N=None):
     [1.5, 0.375, 1.125]
     """
     A, B, Q, R = _as2d(A), _as2d(B), _as2d(Q), _as2d(R)
-    n, m = B.shape
-    N = np.zeros((n, m)) if N is None else _as2d(N)
-    Ts = _positive_ts(Ts)
-    F = np.zeros((n + m, n + m))
-    F[:n, :n], F[:n, n:] = A, B
-    W = np.block([[Q, N], [N.T, R]])
+    out = lqrd_weights_batch(A[None], B[None], Q[None], R[None], Ts, None if N is None else _as2d(N)[None])
+    return tuple(M[0] for M in out)
+
+
+def lqrd_weights_batch(A, B, Q, R, Ts, N=None):
+    """:func:`lqrd_weights` of stacked problems: one ``scipy.linalg.expm`` call over the stack.
+
+    Parameters
+    ----------
+    A : (batch, n, n) array_like
+    B : (batch, n, m) array_like
+    Q : (batch, n, n) array_like
+    R : (batch, m, m) array_like
+    Ts : float or (batch,) array_like
+        Sample time(s), s.
+    N : (batch, n, m) array_like, optional
+
+    Returns
+    -------
+    Ad, Bd, Qd, Rd, Nd : ndarray
+        Shapes (batch, n, n), (batch, n, m), (batch, n, n), (batch, m, m), (batch, n, m).
+
+    Raises
+    ------
+    DesignError
+        The shapes do not stack.
+    ValueError
+        A sample time is not positive and finite.
+    """
+    A, B, Q, R, N = as_stack(A, B, Q, R, N, name="lqrd_weights_batch")
+    batch, n, m = B.shape
     k = n + m
-    vl = np.zeros((2 * k, 2 * k))
-    vl[:k, :k], vl[:k, k:], vl[k:, k:] = -F.T, W, F
-    E = scipy.linalg.expm(vl * Ts)
-    phi = E[k:, k:]
-    Wd = phi.T @ E[:k, k:]
-    Wd = (Wd + Wd.T) / 2
-    return phi[:n, :n], phi[:n, n:], Wd[:n, :n], Wd[n:, n:], Wd[:n, n:]
+    F = np.zeros((batch, k, k))
+    F[:, :n, :n], F[:, :n, n:] = A, B
+    W = np.concatenate([np.concatenate([Q, N], axis=2), np.concatenate([N.transpose(0, 2, 1), R], axis=2)], axis=1)
+    vl = np.zeros((batch, 2 * k, 2 * k))
+    vl[:, :k, :k], vl[:, :k, k:], vl[:, k:, k:] = -F.transpose(0, 2, 1), W, F
+    E = scipy.linalg.expm(vl * _sample_times(Ts, batch)[:, None, None])
+    phi = E[:, k:, k:]
+    Wd = phi.transpose(0, 2, 1) @ E[:, :k, k:]
+    Wd = (Wd + Wd.transpose(0, 2, 1)) / 2
+    return phi[:, :n, :n], phi[:, :n, n:], Wd[:, :n, :n], Wd[:, n:, n:], Wd[:, :n, n:]
 
 
-@dataclass(frozen=True)
-class DlqrResult:
-    """``K, P, E = dlqr(...)``: gain (m, n), DARE solution (n, n), closed-loop eigenvalues ``z`` (n,)."""
+def dlqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:
+    """Discrete-time LQR (MATLAB ``dlqr``), solved by :func:`quadctl.riccati.solve`.
 
-    K: np.ndarray
-    P: np.ndarray
-    E: np.ndarray
-    residual: float
-
-    def __iter__(self):
-        return iter((self.K, self.P, self.E))
-
-
-def dare_residual(A, B, Q, R, P, N=None) -> float:
-    """Relative residual of ``A'PA - P - (A'PB + N)(R + B'PB)^-1 (B'PA + N') + Q = 0`` at ``P``."""
-    A, B, Q, R, P = (_as2d(m) for m in (A, B, Q, R, P))
-    N = np.zeros(B.shape) if N is None else _as2d(N)
-    G = A.T @ P @ B + N
-    terms = (A.T @ P @ A, P, G @ np.linalg.solve(R + B.T @ P @ B, G.T), Q)
-    res = terms[0] - terms[1] - terms[2] + terms[3]
-    scale = sum(np.linalg.norm(t, 1) for t in terms) or 1.0
-    return float(np.linalg.norm(res, 1) / scale)
-
-
-def dlqr(A, B, Q, R, N=None, *, name: str = "system") -> DlqrResult:
-    """Discrete-time LQR (MATLAB ``dlqr``) with ``scipy.linalg.solve_discrete_are``.
+    Weights validated; quadctl's own residual-checked solver first (:func:`quadctl.riccati.dare_batch`:
+    structure-preserving doubling and Newton-Hewer steps), SciPy's ``solve_discrete_are`` where it
+    has no answer within ``RICCATI_RTOL`` and a stable loop.
 
     Parameters
     ----------
@@ -146,19 +182,22 @@ def dlqr(A, B, Q, R, N=None, *, name: str = "system") -> DlqrResult:
     R : (m, m) array_like
         Symmetric positive definite.
     N : (n, m) array_like, optional
-        Cross weight (``2 x' N u`` in the cost).
+        Cross weight (``2 x' N u`` in the cost); ``[[Q, N], [N', R]]`` positive semidefinite.
     name : str
         Names the system in errors.
+    state_names : sequence of str, optional
+        Names the states of a refused mode in errors.
 
     Returns
     -------
-    DlqrResult
-        ``E`` holds the eigenvalues ``z`` of ``A - B K`` (stable: ``|z| < 1``).
+    LqrResult
+        ``E`` holds the eigenvalues ``z`` of ``A - B K`` (stable: ``|z| < 1 - UNIT_CIRCLE_MARGIN``).
 
     Raises
     ------
     DesignError
-        The DARE has no stabilizing solution.
+        Invalid weights, a mode that is not stable and that no input reaches, a mode on the unit
+        circle invisible to ``Q``, or an equation too ill-conditioned to certify (named).
 
     Examples
     --------
@@ -170,28 +209,10 @@ def dlqr(A, B, Q, R, N=None, *, name: str = "system") -> DlqrResult:
     >>> round(float(P[0, 0]), 10), round(float(K[0, 0]), 10)
     (1.6180339887, 0.6180339887)
     """
-    A, B, Q, R = (_as2d(m) for m in (A, B, Q, R))
-    N = None if N is None else _as2d(N)
-    try:
-        P = scipy.linalg.solve_discrete_are(A, B, Q, R, s=N)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise DesignError(f"{name}: the discrete Riccati solve failed ({exc}); check that every "
-                          "unstable mode is reachable by an input and visible to Q") from None
-    if not np.all(np.isfinite(P)):
-        raise DesignError(f"{name}: the discrete Riccati solution is not finite; check the weights")
-    P = (P + P.T) / 2
-    cross = B.T @ P @ A + (N.T if N is not None else 0.0)
-    K = np.linalg.solve(R + B.T @ P @ B, cross)
-    E = np.linalg.eigvals(A - B @ K)
-    residual = dare_residual(A, B, Q, R, P, N)
-    if residual > DARE_RTOL or not all(is_stable_z(z) for z in E):
-        raise DesignError(
-            f"{name}: the discrete Riccati solution is not stabilizing (residual {residual:.1e}); "
-            "an unstable or marginal mode is invisible to Q: give weight to the states it lives in")
-    return DlqrResult(K=K, P=P, E=E, residual=residual)
+    return solve(A, B, Q, R, N, discrete=True, name=name, state_names=state_names)
 
 
-def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system") -> DlqrResult:
+def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system", state_names=None) -> LqrResult:
     """Discrete LQR for a continuous plant sampled at ``Ts`` (MATLAB ``lqrd``).
 
     Parameters
@@ -202,19 +223,23 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system") -> DlqrResult:
         Continuous weights, as for ``lqr``.
     Ts : float
         s.
+    name : str
+        Names the system in errors.
+    state_names : sequence of str, optional
 
     Returns
     -------
-    DlqrResult
+    LqrResult
         Of ``dlqr`` on :func:`lqrd_weights`.
+
+    Raises
+    ------
+    DesignError
+        The continuous weights are invalid (checked before they are integrated), or ``dlqr`` fails.
     """
+    require_valid_weights(A, B, Q, R, N, name=name)
     Ad, Bd, Qd, Rd, Nd = lqrd_weights(A, B, Q, R, Ts, N)
-    return dlqr(Ad, Bd, Qd, Rd, Nd, name=name)
-
-
-def is_stable_z(z: complex) -> bool:
-    """Strictly inside the unit circle (:func:`quadctl.stability.is_stable`, discrete)."""
-    return is_stable(z, discrete=True)
+    return dlqr(Ad, Bd, Qd, Rd, Nd, name=name, state_names=state_names)
 
 
 def s_equivalent(z, Ts: float) -> np.ndarray:
@@ -315,8 +340,10 @@ def _as2d(m) -> np.ndarray:
     return np.atleast_2d(np.asarray(m, dtype=float))
 
 
-def _positive_ts(Ts) -> float:
-    Ts = float(Ts)
-    if not (Ts > 0 and math.isfinite(Ts)):
-        raise ValueError(f"sample time must be a positive finite number of seconds, got {Ts!r}")
+def _sample_times(Ts, batch: int) -> np.ndarray:
+    """``Ts`` as (batch,) positive finite seconds, or a ValueError naming the bad one."""
+    Ts = np.broadcast_to(np.asarray(Ts, dtype=float), (batch,))
+    bad = ~(np.isfinite(Ts) & (Ts > 0))
+    if bad.any():
+        raise ValueError(f"sample time must be a positive finite number of seconds, got {float(Ts[bad][0])!r}")
     return Ts

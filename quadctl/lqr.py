@@ -1,7 +1,8 @@
 """LQR gains from the continuous algebraic Riccati equation, per subsystem and assembled.
 
 MATLAB ``lqr`` conventions: ``u = -K x``, ``K = R^-1 B^T P``, ``P`` the stabilizing solution of
-``A^T P + P A - P B R^-1 B^T P + Q = 0``.
+``A^T P + P A - P B R^-1 B^T P + Q = 0``. The Riccati solvers, the weight checks and the refusals
+live in :mod:`quadctl.riccati`; :func:`lqr` is its one-case continuous entry point.
 
 With a controller rate, :func:`design` solves the discrete problem instead (MATLAB ``lqrd``, see
 :mod:`quadctl.discrete`); with ``integral`` states, each subsystem is augmented with their
@@ -10,72 +11,27 @@ integrals first (MATLAB ``lqi``, see :mod:`quadctl.integral`).
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from quadctl import discrete, integral, stability
-from quadctl._lazy import lazy_import
-from quadctl.analysis import RICCATI_RTOL, check, is_stable
-from quadctl.batch import care as care_stacked
+from quadctl.analysis import RICCATI_RTOL as RICCATI_RTOL  # re-exported: the tolerance lqr certifies to
 from quadctl.decouple import Decoupled
-from quadctl.errors import DesignError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_NAMES
-
-scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
-
-@dataclass(frozen=True)
-class LqrResult:
-    """``K, P, E = lqr(A, B, Q, R)``: gain (m, n), Riccati solution (n, n), closed-loop eigenvalues (n,)."""
-
-    K: np.ndarray
-    P: np.ndarray
-    E: np.ndarray
-    residual: float
-
-    def __iter__(self):
-        return iter((self.K, self.P, self.E))
+from quadctl.riccati import LqrResult, require_stabilizable, solve
+from quadctl.riccati import riccati_residual as riccati_residual  # re-exported: lqr's residual
 
 
-def riccati_residual(A, B, Q, R, P) -> float:
-    """Relative residual of the CARE at ``P`` (0 for an exact solution)."""
-    BRB = B @ np.linalg.solve(R, B.T)
-    terms = (A.T @ P, P @ A, P @ BRB @ P, Q)
-    res = terms[0] + terms[1] - terms[2] + terms[3]
-    scale = sum(np.linalg.norm(t, 1) for t in terms) or 1.0
-    return float(np.linalg.norm(res, 1) / scale)
+def lqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:
+    """Continuous-time LQR (MATLAB ``lqr``): ``u = -K x`` minimizing ``integral x'Qx + u'Ru + 2 x'Nu dt``.
 
-
-NEWTON_REFINEMENTS = 2
-"""Newton-Kleinman steps :func:`lqr` takes when SciPy's solution misses ``RICCATI_RTOL``: each
-solves one Lyapunov equation and squares the error (seen: a mode at -7e-7 rad/s left SciPy's
-Schur solution at 6e-8; one step took it to 1.6e-10)."""
-
-
-def _refine(A, B, Q, R, P):
-    """``(P, K, E, residual)`` of a CARE solution, refined by Newton-Kleinman while the residual
-    exceeds ``RICCATI_RTOL`` and the closed loop is stable (the condition for a Newton step)."""
-    for step in range(NEWTON_REFINEMENTS + 1):
-        K = np.linalg.solve(R, B.T @ P)
-        closed = A - B @ K
-        E = np.linalg.eigvals(closed)
-        residual = riccati_residual(A, B, Q, R, P)
-        if residual <= RICCATI_RTOL or step == NEWTON_REFINEMENTS or not all(is_stable(e) for e in E):
-            return P, K, E, residual
-        P_new = scipy.linalg.solve_continuous_lyapunov(closed.T, -(Q + K.T @ R @ K))
-        if not np.all(np.isfinite(P_new)):
-            return P, K, E, residual
-        P = (P_new + P_new.T) / 2
-
-
-def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
-    """Continuous-time LQR (MATLAB ``lqr``).
-
-    Solved by :func:`quadctl.batch.care` (stable Hamiltonian eigenvectors, then Newton-Kleinman
-    to round-off); where that has no answer within ``RICCATI_RTOL`` and a stable loop, by
-    ``scipy.linalg.solve_continuous_are`` (balanced, then unbalanced, then Newton-refined). Both
-    are residual-checked; they agree to round-off (``tests/test_core_design.py``).
+    ``K = R^-1 (B'P + N')``, ``P`` the stabilizing solution of
+    ``A'P + PA - (PB + N) R^-1 (B'P + N') + Q = 0``. Solved by :func:`quadctl.riccati.solve`:
+    weights validated; quadctl's own residual-checked solver first (stable Hamiltonian
+    eigenvectors and Newton-Kleinman, numpy only, up to ``KRONECKER_MAX_N`` states; Laub's Schur
+    method and Bartels-Stewart Newton steps above, several times faster than SciPy), SciPy's
+    ``solve_continuous_are`` where it has no answer within ``RICCATI_RTOL`` and a stable loop.
 
     Parameters
     ----------
@@ -85,90 +41,33 @@ def lqr(A, B, Q, R, *, name: str = "system", state_names=None) -> LqrResult:
         Symmetric positive semidefinite state weight.
     R : (m, m) array_like
         Symmetric positive definite input weight.
+    N : (n, m) array_like, optional
+        Cross weight; ``[[Q, N], [N', R]]`` positive semidefinite.
     name : str
         Names the system in errors.
     state_names : sequence of str, optional
-        Names the states of an unstabilizable mode in errors.
+        Names the states of a refused mode in errors.
 
     Returns
     -------
     LqrResult
+        ``K`` (m, n), ``P`` (n, n), ``E`` (n,) closed-loop eigenvalues (rad/s), ``residual``.
 
     Raises
     ------
     DesignError
-        ``(A, B)`` is not stabilizable (the mode is named), or the Riccati solve fails.
+        Invalid weights (the matrix and what is wrong are named), ``(A, B)`` not stabilizable
+        (the mode is named), a marginal mode invisible to ``Q``, or an ill-conditioned equation.
 
     Examples
     --------
     A scalar integrator ``x' = u`` with ``Q = q``, ``R = r`` has ``P = sqrt(q r)``, ``K = sqrt(q / r)``:
 
     >>> K, P, E = lqr([[0.0]], [[1.0]], [[4.0]], [[1.0]])
-    >>> float(K[0, 0]), float(P[0, 0]), complex(E[0])
+    >>> round(float(K[0, 0]), 12), round(float(P[0, 0]), 12), complex(np.round(E[0], 12))
     (2.0, 2.0, (-2+0j))
     """
-    A, B, Q, R = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, Q, R))
-    _check_shapes(A, B, Q, R, name)
-    require_stabilizable(A, B, name, state_names)
-    # quadctl's own solver first (eigenvectors and Newton-Kleinman, numpy only, residual-checked:
-    # a design needs no SciPy import); SciPy's Schur solver where it has no answer
-    own = care_stacked(A[None], B[None], Q[None], R[None])
-    if own.ok[0]:
-        return LqrResult(K=own.K[0], P=own.P[0], E=own.E[0], residual=float(own.residual[0]))
-    # SciPy balances the Hamiltonian first; entries near the underflow limit can spoil that
-    # balancing (seen: a 5.6e-301 entry gave residual 0.5), so an inaccurate answer is retried
-    # without it. The verdict comes from the best of the answers, not the last.
-    answers, failure = [], None
-    for balanced in (True, False):
-        try:
-            with np.errstate(all="ignore"), warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                P = scipy.linalg.solve_continuous_are(A, B, Q, R, balanced=balanced)
-        except (np.linalg.LinAlgError, ValueError) as exc:  # balancing itself can overflow
-            failure = exc
-            continue
-        if not np.all(np.isfinite(P)):
-            continue
-        P, K, E, residual = _refine(A, B, Q, R, (P + P.T) / 2)
-        stable = all(is_stable(e) for e in E)
-        if residual <= RICCATI_RTOL and stable:
-            return LqrResult(K=K, P=P, E=E, residual=residual)
-        answers.append((not stable, residual, E))
-    if not answers:
-        if failure is not None:
-            raise DesignError(f"{name}: the Riccati solve failed ({failure}); "
-                              "check that Q makes every unstable mode visible (detectable)")
-        raise DesignError(f"{name}: the Riccati solution is not finite; check the weights")
-    unstable, residual, E = min(answers, key=lambda a: (a[0], a[1]))
-    if unstable:
-        raise DesignError(
-            f"{name}: the Riccati solution is not stabilizing (residual {residual:.1e}); "
-            "an unstable or marginal mode is invisible to Q: give weight to the states it lives in")
-    slowest = E[int(np.argmin(np.abs(E.real)))]
-    raise DesignError(
-        f"{name}: the Riccati equation is too ill-conditioned to solve to {RICCATI_RTOL:g} "
-        f"(residual {residual:.1e}); its slowest closed-loop mode is at {slowest.real:.3g} rad/s: "
-        "weight the states of that mode, or rescale units so the entries of A, B, Q, R are comparable")
-
-
-def _check_shapes(A, B, Q, R, name: str) -> None:
-    """``A`` (n, n), ``B`` (n, m), ``Q`` (n, n), ``R`` (m, m), or a DesignError naming the matrix."""
-    n, m = A.shape[0], B.shape[1] if B.ndim == 2 else 0
-    for label, M, shape in (("A", A, (n, n)), ("B", B, (n, m)), ("Q", Q, (n, n)), ("R", R, (m, m))):
-        if M.shape != shape:
-            raise DesignError(f"{name}: {label} has shape {M.shape}, expected {shape} "
-                              f"(A is n x n, B n x m, Q n x n, R m x m with n = {n}, m = {m})")
-
-
-def require_stabilizable(A, B, name: str, state_names=None) -> None:
-    """Raise DesignError naming the first unstable mode no input reaches (PBH)."""
-    checks = check(A, B, names=state_names)
-    if not checks.stabilizable:
-        mode = checks.unstabilizable_modes[0]
-        raise DesignError(
-            f"{name}: not stabilizable: the mode at eigenvalue {_fmt_eig(mode.eigenvalue)} "
-            f"(in {', '.join(mode.states)}) is unstable and no input reaches it; "
-            "change the partition so an input drives those states")
+    return solve(A, B, Q, R, N, name=name, state_names=state_names)
 
 
 @dataclass(frozen=True)
@@ -351,7 +250,3 @@ def closed_loop_matrix(A, B, K, Ki=None, integral_states=(), sample_time=None) -
         top = np.hstack([Ad - Bd @ K, -Bd @ Ki])
         bottom = np.hstack([-sample_time * C, np.eye(nz)])
     return np.vstack([top, bottom])
-
-
-def _fmt_eig(e: complex) -> str:
-    return f"{e.real:.4g}" if abs(e.imag) < 1e-12 else f"{e.real:.4g}{e.imag:+.4g}j"

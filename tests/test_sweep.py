@@ -14,10 +14,11 @@ import pytest
 import scipy.linalg
 from typer.testing import CliRunner
 
-from quadctl import batch, config, metrics, pipeline, sweep
+from quadctl import config, metrics, pipeline, sweep
 from quadctl.cli.app import app
 from quadctl.errors import DesignError, SweepError
 from quadctl.lqr import lqr, riccati_residual
+from quadctl.riccati import care_batch
 from quadctl.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -183,7 +184,7 @@ def test_batched_riccati_agrees_with_scipy_and_solves_the_equation(n, m):
     Q = L @ L.transpose(0, 2, 1) + 1e-3 * np.eye(n)
     M = rng.normal(size=(N, m, m))
     R = M @ M.transpose(0, 2, 1) + 0.1 * np.eye(m)
-    res = batch.care(A, B, Q, R)
+    res = care_batch(A, B, Q, R)
     assert res.ok.all()
     worst = 0.0
     for k in range(N):
@@ -204,7 +205,7 @@ def test_batched_riccati_on_the_report_subsystems(forward):
     _, _, _, dec, des = forward
     for sub in des.subsystems:
         A, B = dec[sub.name].A, dec[sub.name].B
-        res = batch.care(A[None], B[None], sub.Q[None], sub.R[None])
+        res = care_batch(A[None], B[None], sub.Q[None], sub.R[None])
         assert res.ok[0]
         np.testing.assert_allclose(res.K[0], sub.K, rtol=1e-9)
         np.testing.assert_allclose(res.P[0], sub.P, rtol=1e-9, atol=1e-12 * np.abs(sub.P).max())
@@ -214,7 +215,7 @@ def test_batched_riccati_scalar_integrator_closed_form():
     # x' = u: P = sqrt(q r), K = sqrt(q / r) (python-control's hand-derived case)
     q = np.array([1.0, 4.0, 9.0, 100.0])
     r = np.array([1.0, 2.0, 0.5, 4.0])
-    res = batch.care(np.zeros((4, 1, 1)), np.ones((4, 1, 1)), q[:, None, None], r[:, None, None])
+    res = care_batch(np.zeros((4, 1, 1)), np.ones((4, 1, 1)), q[:, None, None], r[:, None, None])
     np.testing.assert_allclose(res.P.ravel(), np.sqrt(q * r), rtol=1e-14)
     np.testing.assert_allclose(res.K.ravel(), np.sqrt(q / r), rtol=1e-14)
 
@@ -225,7 +226,7 @@ def test_batched_riccati_flags_what_has_no_stabilizing_solution():
     B = np.array([[[0.0], [1.0]], [[0.0], [1.0]]])
     Q = np.array([np.eye(2), np.zeros((2, 2))])
     R = np.ones((2, 1, 1))
-    res = batch.care(A, B, Q, R)
+    res = care_batch(A, B, Q, R)
     assert not res.ok.any()
     for k in range(2):
         with pytest.raises(DesignError):

@@ -77,8 +77,10 @@ def design_all(preps, stats) -> list:
 
 
 def _solve(Ts, n, group, preps):
-    """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems."""
-    from quadctl import batch, discrete
+    """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems: the continuous
+    CARE, or the ZOH plant and ``lqrd`` weights and the discrete DARE, every step batched."""
+    from quadctl.discrete import lqrd_weights_batch
+    from quadctl.riccati import care_batch, dare_batch
 
     A = np.stack([sub.A for _, sub, _ in group])
     B = np.stack([sub.B for _, sub, _ in group])
@@ -93,41 +95,16 @@ def _solve(Ts, n, group, preps):
             Aa, Ba = integral.augment(A, B, C)
         else:
             Aa, Ba = (np.stack(m) for m in zip(*(integral.augment(a, b, c) for a, b, c in zip(A, B, Cs))))
-        res = batch.care(Aa, Ba, Q, R)
+        res = care_batch(Aa, Ba, Q, R)
         return res.K, res.ok
-    Ad, Bd, Qd, Rd, Nd = _lqrd_weights(A, B, Q[:, :n, :n], R, Ts)
+    Ad, Bd, Qd, Rd, Nd = lqrd_weights_batch(A, B, Q[:, :n, :n], R, Ts)
     if same_ints:
         Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
     else:
         Aa, Ba = (np.stack(m) for m in zip(*(integral.augment_discrete(a, b, c, Ts) for a, b, c in zip(Ad, Bd, Cs))))
     Qa, Na = integral.discrete_weights(Qd, Nd, Q, Ts)
-    return _dare(Aa, Ba, Qa, Rd, Na, discrete)
-
-
-def _lqrd_weights(A, B, Q, R, Ts):
-    from quadctl import discrete
-
-    batched = getattr(discrete, "lqrd_weights_batch", None)
-    if batched is not None:
-        return batched(A, B, Q, R, Ts)
-    parts = [discrete.lqrd_weights(a, b, q, r, Ts) for a, b, q, r in zip(A, B, Q, R)]
-    return tuple(np.stack(p) for p in zip(*parts))
-
-
-def _dare(A, B, Q, R, N, discrete):
-    batched = getattr(discrete, "dare_batch", None)
-    if batched is not None:
-        res = batched(A, B, Q, R, N)
-        return res.K, res.ok
-    K = np.zeros((len(A), B.shape[2], A.shape[1]))
-    ok = np.zeros(len(A), dtype=bool)
-    for j in range(len(A)):
-        try:
-            K[j] = discrete.dlqr(A[j], B[j], Q[j], R[j], N[j]).K
-            ok[j] = True
-        except DesignError:
-            pass
-    return K, ok
+    res = dare_batch(Aa, Ba, Qa, Rd, Na)
+    return res.K, res.ok
 
 
 def _one_by_one(prep):
