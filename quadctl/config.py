@@ -622,34 +622,40 @@ def weight_matrix(value: list, size: int):
 def check_weight(value: list, size: int, path: str, label: str, *, definite: bool,
                  names: list[str]) -> None:
     """Check Q (PSD) or R (PD): size, symmetry, definiteness; raise ConfigError naming ``path``."""
-    import numpy as np
-
     nested = bool(value) and isinstance(value[0], list)
     if nested and any(not isinstance(row, list) for row in value):
         raise ConfigError(f"{label}: {path}: mixes numbers and rows; give a list (diagonal) or a list of rows")
-    shape = (len(value), len(value[0])) if nested and value else (len(value),)
-    expect = f"{size} value{'s' if size != 1 else ''} (one per {', '.join(names)}) or a {size}x{size} matrix"
     if (not nested and len(value) != size) or (nested and (len(value) != size or any(
             len(row) != size for row in value))):
+        shape = (len(value), len(value[0])) if nested and value else (len(value),)
+        expect = f"{size} value{'s' if size != 1 else ''} (one per {', '.join(names)}) or a {size}x{size} matrix"
         got = "x".join(map(str, shape)) if nested else f"{len(value)} values"
         raise ConfigError(f"{label}: {path} = {show(value)}: expected {expect}, got {got}")
-    flat = np.abs(np.asarray(value, dtype=float).ravel())
-    outside = np.flatnonzero((flat != 0) & ((flat < WEIGHT_RANGE[0]) | (flat > WEIGHT_RANGE[1])))
-    if outside.size:
-        k = int(outside[0])
-        where = f"{path}[{k}]" if not nested else f"{path}[{k // size}][{k % size}]"
-        entry = value[k] if not nested else value[k // size][k % size]
-        raise ConfigError(f"{label}: {where} = {show(entry)}: a weight must be 0 or between {WEIGHT_RANGE[0]:g} "
-                          f"and {WEIGHT_RANGE[1]:g} in magnitude (WEIGHT_RANGE); the gains depend only on the "
-                          "ratios of the weights: scale Q and R together")
-    if nested:
-        mat = weight_matrix(value, size)
-        scale = max(float(np.abs(mat).max()), 1.0)
-        if not np.allclose(mat, mat.T, rtol=0, atol=SYMMETRY_RTOL * scale):
-            raise ConfigError(f"{label}: {path} = {show(value)}: not symmetric; make it equal to its transpose")
-        eig = np.linalg.eigvalsh((mat + mat.T) / 2)
-    else:  # a diagonal is symmetric and its eigenvalues are its entries (sweeps validate thousands)
-        eig = np.sort(np.asarray(value, dtype=float))
+    flat = [abs(float(v)) for row in (value if nested else [value]) for v in row]  # plain floats: a sweep
+    for k, mag in enumerate(flat):                                                 # checks thousands
+        if mag != 0 and not WEIGHT_RANGE[0] <= mag <= WEIGHT_RANGE[1]:
+            where = f"{path}[{k}]" if not nested else f"{path}[{k // size}][{k % size}]"
+            entry = value[k] if not nested else value[k // size][k % size]
+            raise ConfigError(f"{label}: {where} = {show(entry)}: a weight must be 0 or between {WEIGHT_RANGE[0]:g} "
+                              f"and {WEIGHT_RANGE[1]:g} in magnitude (WEIGHT_RANGE); the gains depend only on the "
+                              "ratios of the weights: scale Q and R together")
+    if not nested:  # a diagonal is symmetric and its eigenvalues are its entries
+        low, top = min(value), max(flat)
+        floor = DEFINITENESS_RTOL * max(top, 1e-300)
+        if definite and low <= floor:
+            raise ConfigError(f"{label}: {path} = {show(value)}: must be positive definite "
+                              f"(smallest eigenvalue {low:.3g}); use positive weights")
+        if not definite and low < -floor:
+            raise ConfigError(f"{label}: {path} = {show(value)}: must be positive semidefinite "
+                              f"(smallest eigenvalue {low:.3g}); use nonnegative weights")
+        return
+    import numpy as np
+
+    mat = weight_matrix(value, size)
+    scale = max(float(np.abs(mat).max()), 1.0)
+    if not np.allclose(mat, mat.T, rtol=0, atol=SYMMETRY_RTOL * scale):
+        raise ConfigError(f"{label}: {path} = {show(value)}: not symmetric; make it equal to its transpose")
+    eig = np.linalg.eigvalsh((mat + mat.T) / 2)
     floor = DEFINITENESS_RTOL * max(float(np.abs(eig).max()), 1e-300)
     if definite and eig.min() <= floor:
         raise ConfigError(f"{label}: {path} = {show(value)}: must be positive definite "

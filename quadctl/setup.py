@@ -11,6 +11,7 @@ config after that.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
@@ -144,11 +145,10 @@ def resolve(cfg: Config) -> Setup:
     R = np.zeros((N_INPUTS, N_INPUTS))
     for name, sub in partition.items():
         if name in weights:
-            si = [STATE_INDEX[s] for s in sub.states]
-            ii = [INPUT_INDEX[i] for i in sub.inputs]
+            (qi, qj, n), (ri, rj) = _block_index(tuple(sub.states), tuple(sub.inputs))
             Qw, Rw = weights[name]
-            Q[np.ix_(si, si)] = Qw[:len(si), :len(si)]
-            R[np.ix_(ii, ii)] = Rw
+            Q[qi, qj] = Qw[:n, :n]
+            R[ri, rj] = Rw
     offset = np.zeros(N_STATES)
     for state, value in cfg.simulation.initial_offset.items():
         offset[STATE_INDEX[state]] += value
@@ -159,6 +159,7 @@ def resolve(cfg: Config) -> Setup:
         spec = NoiseSpec.from_config(cfg.simulation.noise, timing.rate)
         noise = spec if spec.active else None
     motors = Motors.from_config(cfg.motors) if cfg.motors is not None else None
+    actuators = _rotors(motors) if motors is not None else actuators_of(None, cfg.limits)
     return Setup(
         name=cfg.name, vehicle=vehicle, plant=plant, velocity_ned=tuple(cfg.trim.velocity_ned),
         position_ned=tuple(cfg.trim.position_ned), yaw=cfg.trim.yaw, partition=partition,
@@ -166,6 +167,21 @@ def resolve(cfg: Config) -> Setup:
         Q_block=Q, R_block=R,
         regulated=tuple(s for sub in partition.values() if sub.regulate for s in sub.states),
         state_owner={s: name for name, sub in partition.items() for s in sub.states},
-        timing=timing, actuators=actuators_of(motors, cfg.limits), noise=noise, initial_offset=offset,
+        timing=timing, actuators=actuators, noise=noise, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides)
+
+
+@lru_cache(maxsize=64)
+def _block_index(states: tuple[str, ...], inputs: tuple[str, ...]):
+    """``np.ix_`` index pairs of a subsystem's block in Q (with its size) and in R (a sweep resolves
+    thousands of cases of one partition)."""
+    si = [STATE_INDEX[s] for s in states]
+    ii = [INPUT_INDEX[i] for i in inputs]
+    return (*np.ix_(si, si), len(si)), np.ix_(ii, ii)
+
+
+@lru_cache(maxsize=64)
+def _rotors(motors: Motors) -> Actuators:
+    """The actuators of a rotor set (its mixer inverted once; the arrays are only read)."""
+    return actuators_of(motors, None)

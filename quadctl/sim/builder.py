@@ -93,16 +93,32 @@ def pack_constants(nz: int = 0, **values) -> np.ndarray:
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    out = []
-    for name, shape in constant_layout(nz):
-        default = np.eye(N_INPUTS) if name in ("mix", "mix_inv") else np.zeros(shape)
-        arr = np.asarray(values.pop(name, default), dtype=float)
-        if arr.size != int(np.prod(shape)) or (arr.ndim > 1 and arr.shape != shape):
+    slots, template = _slots(nz)
+    out = template.copy()
+    for name, value in values.items():
+        if name not in slots:
+            raise ValueError(f"unknown constants: {sorted(set(values) - set(slots))}")
+        where, shape = slots[name]
+        arr = np.asarray(value, dtype=float)
+        if arr.size != where.stop - where.start or (arr.ndim > 1 and arr.shape != shape):
             raise ValueError(f"{name}: expected shape {shape}, got {arr.shape}")
-        out.append(arr.reshape(shape).ravel(order="F"))
-    if values:
-        raise ValueError(f"unknown constants: {sorted(values)}")
-    return np.concatenate(out)
+        out[where] = arr.reshape(shape).ravel(order="F")
+    return out
+
+
+@lru_cache(maxsize=16)
+def _slots(nz: int) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+    """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
+    slots, offset = {}, 0
+    for name, shape in constant_layout(nz):
+        size = int(np.prod(shape))
+        slots[name] = (slice(offset, offset + size), shape)
+        offset += size
+    template = np.zeros(offset)
+    for name in ("mix", "mix_inv"):
+        template[slots[name][0]] = np.eye(N_INPUTS).ravel(order="F")
+    template.setflags(write=False)
+    return slots, template
 
 
 @dataclass(frozen=True)

@@ -230,10 +230,12 @@ def loops_of(live) -> list:
 def _structural_gain(prep) -> tuple[bool, ...]:
     """The block gain's sparsity from the partition (48 bools, column-major): cases with a gain that
     happens to be zero share the lanes of their structure (a zero gain computes the same numbers)."""
-    mask = np.zeros((N_INPUTS, N_STATES), dtype=bool)
-    for sub in prep.plant.decoupled.regulated:
-        mask[np.ix_([INPUT_INDEX[i] for i in sub.inputs], [STATE_INDEX[s] for s in sub.states])] = True
-    return tuple(bool(v) for v in mask.ravel(order="F"))
+    if "pattern" not in prep.plant.cache:
+        mask = np.zeros((N_INPUTS, N_STATES), dtype=bool)
+        for sub in prep.plant.decoupled.regulated:
+            mask[np.ix_([INPUT_INDEX[i] for i in sub.inputs], [STATE_INDEX[s] for s in sub.states])] = True
+        prep.plant.cache["pattern"] = tuple(bool(v) for v in mask.ravel(order="F"))
+    return prep.plant.cache["pattern"]
 
 
 def simulate_all(jobs):
