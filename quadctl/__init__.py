@@ -21,8 +21,10 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.simulate`, :mod:`~quadctl.metrics`: one closed-loop run; its step-response metrics
 - :mod:`~quadctl.pipeline`: the stages chained from a setup (pure functions)
 - :mod:`~quadctl.sweep`: many designs at once (spec, batched evaluation, runner, outputs, store)
+- :mod:`~quadctl.provenance`: the software versions and the C compiler an artifact records
 - :mod:`~quadctl.artifacts`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`: the run directory
   (atomic, with provenance), artifact-backed stages, figures (they read results only)
+- :mod:`~quadctl.report`: every stage of a run in one self-contained HTML page and a Markdown twin
 """
 
 __version__ = "0.1.0"

@@ -29,8 +29,14 @@ FORMAT_VERSION = 1
 """Bumped when the layout of an artifact changes incompatibly."""
 
 
-def metadata(cfg, kind: str) -> dict:
-    """Provenance fields every artifact carries."""
+def metadata(cfg, kind: str, backends=()) -> dict:
+    """Provenance fields every artifact carries.
+
+    ``backends``: the simulation backends the stage ran (``SimResult.backend``), which decide the
+    ``compiler`` field (see :func:`quadctl.provenance.compiler`); empty when it ran no loop.
+    """
+    from quadctl import provenance
+
     return {
         "artifact": kind,
         "format_version": FORMAT_VERSION,
@@ -40,6 +46,8 @@ def metadata(cfg, kind: str) -> dict:
         "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "state_names": list(STATE_NAMES),
         "input_names": list(INPUT_NAMES),
+        "software": provenance.software(),
+        "compiler": provenance.compiler(backends),
     }
 
 

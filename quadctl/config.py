@@ -85,9 +85,12 @@ class TrimConfig(_Section):
 class SubsystemConfig(_Section):
     """One block of the partition: its states, its inputs, and whether it is regulated."""
 
-    states: Annotated[list[str], Field(min_length=1)]
-    inputs: Annotated[list[str], Field(min_length=1)]
-    regulate: bool = True
+    states: Annotated[list[str], Field(min_length=1)] = Field(
+        description="state names (pN pE pD u v w phi theta psi p q r), each in one subsystem")
+    inputs: Annotated[list[str], Field(min_length=1)] = Field(
+        description="input names (T A E R), each driving one regulated subsystem; an unregulated "
+        "subsystem may name states (their columns come from A)")
+    regulate: bool = Field(True, description="false: analysed only, no LQR")
     outputs: list[str] | None = Field(None, description="measured states (C rows); default all")
 
 
@@ -98,8 +101,12 @@ class LqrWeights(_Section):
     entry more per integrated state, in the order of ``integral``.
     """
 
-    Q: Matrix
-    R: Matrix
+    Q: Matrix = Field(description=(
+        "state weights, 1/(state unit)^2 (Bryson: 1 / largest acceptable error^2): a list is the diagonal "
+        "(one per state, then one per integral), a list of rows the symmetric positive semidefinite matrix"))
+    R: Matrix = Field(description=(
+        "input weights, 1/(input unit)^2, i.e. 1/N^2 or 1/(N m)^2: a list is the diagonal, a list of rows "
+        "the symmetric positive definite matrix"))
     integral: list[str] = Field(
         default_factory=list, description="states of this subsystem whose error is integrated (LQI)")
 
@@ -127,7 +134,7 @@ class PlantConfig(_Section):
     inertia: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = Field(
         None, description="kg m^2, diagonal")
     drag: Optional[Annotated[list[Drag], Field(min_length=3, max_length=3)]] = Field(
-        None, description="Kc diagonal")
+        None, description="Kc diagonal, 1/(m/s)")
 
 
 class SimulationConfig(_Section):
@@ -173,13 +180,15 @@ class Config(_Section):
 
     name: Annotated[str, Field(min_length=1, pattern=NAME_PATTERN)] = Field(
         description="names the run directory runs/<name>")
-    description: str = ""
-    vehicle: VehicleConfig = VehicleConfig()
-    trim: TrimConfig = TrimConfig()
-    subsystems: dict[str, SubsystemConfig] | None = None
-    lqr: dict[str, LqrWeights]
-    simulation: SimulationConfig = SimulationConfig()
-    controller: ControllerConfig = ControllerConfig()
+    description: str = Field("", description="one line, shown by `quadctl configs`")
+    vehicle: VehicleConfig = Field(VehicleConfig(), description="vehicle parameters, SI units")
+    trim: TrimConfig = Field(TrimConfig(), description="the flight condition to trim about")
+    subsystems: dict[str, SubsystemConfig] | None = Field(
+        None, description="subsystem name -> states and inputs; absent: the report's five (replaced whole)")
+    lqr: dict[str, LqrWeights] = Field(description="regulated subsystem name -> its LQR weights Q and R")
+    simulation: SimulationConfig = Field(SimulationConfig(), description="closed-loop simulation settings")
+    controller: ControllerConfig = Field(
+        ControllerConfig(), description="how the controller runs on the flight computer")
     motors: Optional[MotorsConfig] = Field(None, description="rotor layout and thrust limits; saturates the inputs")
     limits: Optional[dict[str, InputLimits]] = Field(
         None, description="input name -> [low, high] (N or N m); box limits when there is no motors:")
@@ -198,6 +207,54 @@ class Config(_Section):
     def to_yaml(self) -> str:
         """The validated config as YAML (all defaults filled in)."""
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
+
+
+SCHEMA_DIALECT = "http://json-schema.org/draft-07/schema#"
+"""The JSON Schema draft the schema declares: draft-07, the one editors validate YAML with
+(yaml-language-server); pydantic's output uses nothing newer once its ``$defs`` are renamed."""
+
+
+def json_schema() -> dict:
+    """The config's JSON Schema, for editors (completion, hover, checks as you type) and validators.
+
+    Built from the schema itself (:meth:`Config.model_json_schema`): types, bounds, enums, unknown
+    keys refused (``additionalProperties: false``), and each field's description with its unit.
+    For editors, which show a field's description on hover but not its default, the default is
+    appended to the description (``"kg; default 0.068"``); ``$defs`` become draft-07's
+    ``definitions``. Rules across fields (Q's size, state names, Jxx + Jyy >= Jzz) are checked only
+    when quadctl loads the config.
+
+    Returns
+    -------
+    dict
+        A draft-07 JSON Schema (``quadctl configs --schema`` prints it).
+
+    Examples
+    --------
+    >>> json_schema()["properties"]["vehicle"]["$ref"]
+    '#/definitions/VehicleConfig'
+    """
+    schema = Config.model_json_schema()
+    schema["definitions"] = schema.pop("$defs")
+
+    def visit(node):
+        if isinstance(node, dict):
+            ref = node.get("$ref")
+            if isinstance(ref, str) and ref.startswith("#/$defs/"):
+                node["$ref"] = "#/definitions/" + ref[len("#/$defs/"):]
+            default = node.get("default")
+            if isinstance(node.get("description"), str) and default not in (None, "", [], {}) \
+                    and not isinstance(default, dict):
+                node["description"] += f"; default {json.dumps(default)}"
+            for value in node.values():
+                visit(value)
+        elif isinstance(node, list):
+            for value in node:
+                visit(value)
+
+    visit(schema)
+    return {"$schema": SCHEMA_DIALECT, "title": "quadctl config", **{k: v for k, v in schema.items()
+                                                                     if k != "title"}}
 
 
 # ---------------------------------------------------------------------------------------

@@ -194,6 +194,7 @@ def compare(named_runs: dict, regulated_states) -> dict:
             "settling": None if any(v is None for v in settle) else max(settle),
             "peak_input": dict(met["peak_delta"]),
             "cost": met["cost"], "linear_cost": met["linear_cost"], "status": met["status"],
+            "backend": met.get("backend"),
         }
     labels = list(table)
     better = {}

@@ -186,5 +186,6 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
         met["peak_delta"] = {name: float(np.abs(sim.u[:, j] - linear.u_trim[j]).max())
                              for j, name in enumerate(INPUT_NAMES)}
         met["linear_cost"] = full.linear_cost(linear.A, linear.B, K, Ki, des, dx0)
+        met["backend"] = sim.backend
         runs[label] = met
     return fd, full.compare(runs, setup.regulated)

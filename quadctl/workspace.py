@@ -2,7 +2,9 @@
 
 A :class:`Workspace` couples a config to a run directory. Each stage writes its artifact
 atomically; an upstream artifact is reused only when its ``config_hash`` and quadctl
-version match, otherwise it is recomputed and rewritten (never a stale result).
+version match, otherwise it is recomputed and rewritten (never a stale result). The first
+write of a session also writes the config as given (``config.yaml``) and as resolved
+(``config.resolved.yaml``), so a run directory always says what made it.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import artifacts, pipeline
+from quadctl import __version__, artifacts, pipeline
 from quadctl.analysis import Checks
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
@@ -29,6 +31,7 @@ from quadctl.trim import Trim
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
 MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
+CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
 
 
 @dataclass(frozen=True)
@@ -69,13 +72,20 @@ class Workspace:
         Run directory (default ``runs/<config name>``).
     fresh : bool
         Recompute every stage, ignoring existing artifacts.
+    source_text : str, optional
+        The YAML the config was read from (the file's text, or a bundled config's), kept as
+        ``config.yaml``. Without it (a config built in Python) ``config.yaml`` is the validated
+        config under a comment that says so.
     """
 
-    def __init__(self, cfg: Config, out: Path | str | None = None, *, fresh: bool = False):
+    def __init__(self, cfg: Config, out: Path | str | None = None, *, fresh: bool = False,
+                 source_text: str | None = None):
         self.cfg = cfg
         self.setup = resolve(cfg)
         self.out = Path(out) if out is not None else default_out(cfg)
         self.fresh = fresh
+        self.source_text = source_text
+        self._config_written = False
         self.written: list[Path] = []
         self.reused: list[Path] = []
         self.payloads: dict[str, dict] = {}
@@ -98,13 +108,31 @@ class Workspace:
                 self.payloads[name] = artifacts.read_json(self.path(name))
         return ok
 
-    def _meta(self, kind: str) -> dict:
-        return artifacts.metadata(self.cfg, kind)
+    def _meta(self, kind: str, backends=()) -> dict:
+        return artifacts.metadata(self.cfg, kind, backends)
 
-    def _write_json(self, name: str, kind: str, payload: dict) -> None:
-        full = artifacts.jsonable({**self._meta(kind), **payload})
+    def _write_json(self, name: str, kind: str, payload: dict, backends=()) -> None:
+        self._write_config_files()
+        full = artifacts.jsonable({**self._meta(kind, backends), **payload})
         self.payloads[name] = full
         self.written.append(artifacts.write_json(self.path(name), full))
+
+    def _write_npz(self, name: str, arrays: dict, meta: dict) -> None:
+        self._write_config_files()
+        self.written.append(artifacts.write_npz(self.path(name), arrays, meta))
+
+    def _write_config_files(self) -> None:
+        """``config.yaml`` (as given) and ``config.resolved.yaml``, at the session's first write."""
+        if self._config_written:
+            return
+        resolved = self.cfg.to_yaml()
+        given = self.source_text if self.source_text is not None else (
+            "# built in Python, not read from a file: the validated config\n" + resolved)
+        head = (f"# the config as quadctl {__version__} validated it, every default filled in "
+                f"(config_hash {self.cfg.digest()})\n")
+        self.written.append(artifacts.write_bytes(self.path(CONFIG_GIVEN), given.encode("utf-8")))
+        self.written.append(artifacts.write_bytes(self.path(CONFIG_RESOLVED), (head + resolved).encode("utf-8")))
+        self._config_written = True
 
     # -- stages ---------------------------------------------------------------------------
 
@@ -129,11 +157,11 @@ class Workspace:
             return LinearModel(A=arrays["A"], B=arrays["B"], x_trim=arrays["x_trim"],
                                u_trim=arrays["u_trim"], x_rate=arrays["x_rate"])
         linear = pipeline.linear_of(self.setup, self.trim)
-        self.written.append(artifacts.write_npz(self.path(LINEAR), {
+        self._write_npz(LINEAR, {
             "A": linear.A, "B": linear.B, "x_trim": linear.x_trim, "u_trim": linear.u_trim,
             "x_rate": linear.x_rate,
             "state_names": np.array(STATE_NAMES), "input_names": np.array(INPUT_NAMES)},
-            self._meta("linear")))
+            self._meta("linear"))
         return linear
 
     @cached_property
@@ -220,7 +248,7 @@ class Workspace:
             "riccati_residual": fd.residual,
             "position": ("left out: " + ", ".join(fd.left_out) + " (no weight, no dynamics); "
                          if fd.left_out else "") + "weighted positions regulated about the moving reference",
-            "comparison": comparison})
+            "comparison": comparison}, [d["backend"] for d in comparison["designs"].values()])
         return fd, comparison
 
     @cached_property
@@ -232,13 +260,13 @@ class Workspace:
         sim = pipeline.simulation_of(setup, loop)
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
-        meta = self._meta("simulation")
-        self.written.append(artifacts.write_npz(self.path(SIM_NPZ), {
+        meta = self._meta("simulation", sim.backend)
+        self._write_npz(SIM_NPZ, {
             "t": sim.t, "x": sim.x, "u": sim.u, "x_ref": sim.x_ref, "dt": np.array(sim.dt),
             "stride": np.array(sim.stride),
             "status": np.array(sim.status), "state_names": np.array(STATE_NAMES),
             "input_names": np.array(INPUT_NAMES), "z": sim.z,
-            "integral_states": np.array(loop.integral_states, dtype=str)}, meta))
+            "integral_states": np.array(loop.integral_states, dtype=str)}, meta)
         self._write_json(SIM_JSON, "simulation", {
             "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,
             "stride": sim.stride, "samples": len(sim.t),
@@ -246,7 +274,7 @@ class Workspace:
             "dt_auto": sim.plan.auto, "max_stable_dt": sim.plan.max_stable_dt,
             "fastest_eigenvalue": sim.plan.fastest_eigenvalue,
             "fastest_subsystem": sim.plan.fastest_owner,
-            "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **flight})
+            "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **flight}, sim.backend)
         return Flight(sim=sim, loop=loop, metrics=summary, flight=flight)
 
 

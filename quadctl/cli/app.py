@@ -15,7 +15,7 @@ app = typer.Typer(
     help="Design and verify LQR controllers for quadcopters: trim, linearize, decouple, check, "
          f"design, simulate; sweep many designs at once.\n\n{EXIT_CODES_HELP}",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,
     rich_markup_mode="rich",
     context_settings={"help_option_names": ["-h", "--help"]},
 )

@@ -27,6 +27,12 @@ def load_config(config: str | None):
     -------
     (Config, str) : the validated config and the file to name in messages.
     """
+    cfg, source = load_source(config)
+    return cfg, source.label
+
+
+def load_source(config: str | None):
+    """:func:`load_config`, returning the config and its :class:`quadctl.config.Source` (label, text)."""
     from quadctl import config as config_mod
     from quadctl.cli import render
     from quadctl.cli.errors import remember_config
@@ -38,11 +44,12 @@ def load_config(config: str | None):
     remember_config(source.label)
     for notice in config_mod.notices(cfg, source.label):
         (render.note if notice.level == "note" else render.warning)(notice.message)
-    return cfg, source.label
+    return cfg, source
 
 
 def open_workspace(config: str | None, out: Path | None, fresh: bool = False):
     """Load the config and open its run directory."""
     from quadctl.workspace import Workspace
 
-    return Workspace(load_config(config)[0], out, fresh=fresh)
+    cfg, source = load_source(config)
+    return Workspace(cfg, out, fresh=fresh, source_text=source.text)

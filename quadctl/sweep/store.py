@@ -127,7 +127,8 @@ class SweepStore:
                 "left_out": [r["case"] for r in result.rows] if bands is None else list(bands.left_out)}
         if bands is not None:
             summary["files"]["montecarlo"] = list(MC_FILES)
-        payload = artifacts.jsonable({**artifacts.metadata(self.cfg, "sweep"), **summary,
+        backends = result.stats.get("backend", ())
+        payload = artifacts.jsonable({**artifacts.metadata(self.cfg, "sweep", backends), **summary,
                                       "sweep_digest": self.digest})
         artifacts.write_json(self.out / "sweep.json", payload)
         artifacts.write_bytes(self.out / "sweep.png", tradeoff_png(result, self.cfg))
@@ -146,7 +147,8 @@ class SweepStore:
             return None
         duration = _lookup(base_of(self.cfg, self.spec), ("simulation", "duration"))
         bands = montecarlo_bands(traces, self.trace, duration, [r["case"] for r in result.rows])
-        meta = {**artifacts.metadata(self.cfg, "montecarlo"), "sweep_digest": self.digest,
+        meta = {**artifacts.metadata(self.cfg, "montecarlo", result.stats.get("backend", ())),
+                "sweep_digest": self.digest,
                 "quantity": "deviation from the reference, x - x_ref, in state units (m, m/s, rad, rad/s)",
                 "units": {s: unit_of(s) for s in bands.states}, "left_out": list(bands.left_out)}
         artifacts.write_npz(self.out / "montecarlo.npz",

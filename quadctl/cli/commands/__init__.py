@@ -11,6 +11,7 @@ from quadctl.cli.commands import (
     design,
     linearize,
     margins,
+    report,
     run,
     simulate,
     sweep,
@@ -18,7 +19,7 @@ from quadctl.cli.commands import (
 )
 from quadctl.cli.errors import handled
 
-COMMANDS = (trim, linearize, decouple, check, design, simulate, margins, sweep, run, configs)
+COMMANDS = (trim, linearize, decouple, check, design, simulate, margins, sweep, run, report, configs)
 
 
 def register(app: typer.Typer) -> None:

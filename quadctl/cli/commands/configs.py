@@ -5,14 +5,24 @@ import typer
 NAME = "configs"
 
 
-def command(show: Annotated[Optional[str], typer.Option(
+def command(
+    show: Annotated[Optional[str], typer.Option(
         "--show", metavar="PATH|NAME",
-        help="Print this config, validated, with every default filled in.")] = None) -> None:
-    """List the bundled configs, or print one with --show (a starting point for your own)."""
+        help="Print this config, validated, with every default filled in.")] = None,
+    schema: Annotated[bool, typer.Option(
+        "--schema", help="Print the config's JSON Schema (units and defaults in the descriptions), for "
+                         "editors: put `# yaml-language-server: $schema=<file>` atop a config.")] = False,
+) -> None:
+    """List the bundled configs, print one with --show (a starting point for your own), or the schema."""
     from quadctl import config
     from quadctl.cli import render
     from quadctl.cli.options import load_config
 
+    if schema:
+        import json
+
+        typer.echo(json.dumps(config.json_schema(), indent=2))
+        return
     if show:
         typer.echo(load_config(show)[0].to_yaml(), nl=False)  # raw: rich would wrap long lines
         return

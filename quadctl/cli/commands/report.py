@@ -1,0 +1,38 @@
+import typer
+
+from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.options import ConfigOpt, FreshOpt, OutOpt
+
+NAME = "report"
+
+
+def command(config: ConfigOpt = None, out: OutOpt = None, fresh: FreshOpt = False) -> None:
+    """Every stage and the margins in one HTML page (figures inline, nothing fetched) and a Markdown twin.
+
+    Writes DIR/report/report.html, report.md and its figures. Exits 1 when a check fails, as `run`
+    does, after writing the report of what was computed (it says where it stopped).
+    """
+    from quadctl import report
+    from quadctl.cli import render
+    from quadctl.cli.options import load_source
+    from quadctl.workspace import Workspace
+
+    cfg, source = load_source(config)
+    ws = Workspace(cfg, out, fresh=fresh, source_text=source.text)
+    outcome = report.run_stages(ws)
+    doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh), label=source.label)
+    paths = report.write(doc, ws.out / report.FOLDER)
+    render.out.print(f"report -> {paths[-1]} (and {paths[-2].name}, {len(paths) - 2} figures)")
+    if outcome.error is not None:
+        raise outcome.error
+    if outcome.failed is not None:
+        render.err.print(f"quadctl: check failed: {outcome.failed}", markup=False)
+        raise typer.Exit(EXIT_CHECK_FAILED)
+
+
+def _command_line(config, out, fresh: bool) -> str:
+    """This command with the options it was given (shown in the report)."""
+    import shlex
+
+    words = ["quadctl", NAME] + (["--config", config] if config else []) + (["--out", str(out)] if out else [])
+    return shlex.join(words + (["--fresh"] if fresh else []))

@@ -1,0 +1,251 @@
+"""`quadctl report`: one self-contained HTML page and a Markdown twin, holding the numbers the stage
+commands print (read back from the artifacts), for every bundled config and for runs that stop."""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import re
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from quadctl import config, report
+from quadctl.cli.app import app
+from quadctl.workspace import Workspace
+
+runner = CliRunner()
+MAX_BYTES = 3_000_000
+"""The HTML report stays under 3 MB (figures included) so that it can be mailed and handed in."""
+VOID = {"meta", "img", "br", "hr", "link", "input", "source", "col", "area", "base", "wbr"}
+
+
+class Page(HTMLParser):
+    """The parts of the report a test reads: tables by id, <pre> texts, attributes, nesting errors."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.stack, self.errors, self.tags = [], [], []
+        self.tables: dict[str, list[list[str]]] = {}
+        self.srcs, self.hrefs, self.pres, self.text = [], [], [], []
+        self._table = self._cell = self._pre = None
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        self.tags.append(tag)
+        if tag not in VOID:
+            self.stack.append(tag)
+        if "src" in attrs:
+            self.srcs.append(attrs["src"])
+        if "href" in attrs:
+            self.hrefs.append(attrs["href"])
+        if tag == "table":
+            self._table = self.tables.setdefault(attrs.get("id", f"table-{len(self.tables)}"), [])
+        elif tag == "tr" and self._table is not None:
+            self._table.append([])
+        elif tag in ("td", "th"):
+            self._cell = []
+        elif tag == "pre":
+            self._pre = []
+
+    def handle_endtag(self, tag):
+        if tag in VOID:
+            return
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes <{self.stack[-1] if self.stack else None}>")
+        else:
+            self.stack.pop()
+        if tag in ("td", "th") and self._cell is not None:
+            self._table[-1].append("".join(self._cell).strip())
+            self._cell = None
+        elif tag == "table":
+            self._table = None
+        elif tag == "pre":
+            self.pres.append("".join(self._pre))
+            self._pre = None
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._cell is not None:
+            self._cell.append(data)
+        if self._pre is not None:
+            self._pre.append(data)
+
+    def row(self, table: str, *first: str) -> list[str]:
+        """The row of ``table`` whose first cells are ``first``."""
+        rows = [r for r in self.tables[table] if tuple(r[:len(first)]) == first]
+        assert len(rows) == 1, (table, first, self.tables[table])
+        return rows[0]
+
+    def column(self, table: str, name: str, *first: str) -> str:
+        return self.row(table, *first)[self.tables[table][0].index(name)]
+
+
+def _parse(path: Path) -> Page:
+    page = Page()
+    page.feed(path.read_text(encoding="utf-8"))
+    page.close()
+    assert page.errors == [] and page.stack == [], (page.errors, page.stack)
+    return page
+
+
+def _self_contained(page: Page, text: str) -> None:
+    assert page.srcs and all(s.startswith("data:image/png;base64,") for s in page.srcs)
+    for src in page.srcs:
+        assert base64.b64decode(src.split(",", 1)[1])[:8] == b"\x89PNG\r\n\x1a\n"
+    assert all(h.startswith("#") for h in page.hrefs), page.hrefs  # links inside the page only
+    assert not {"script", "link", "iframe", "object", "embed"} & set(page.tags)
+    assert not re.search(r"""(src|href)\s*=\s*["']?(https?:|//|file:)|url\(|@import""", text)
+
+
+def _artifact(out: Path, name: str) -> dict:
+    return json.loads((out / name).read_text())
+
+
+def _report(*args):
+    return runner.invoke(app, ["report", *map(str, args)])
+
+
+@pytest.fixture(scope="module")
+def reports(tmp_path_factory):
+    """`quadctl report -c NAME` of every bundled config, as `quadctl configs` lists them."""
+    out = {}
+    for name in config.bundled_names():
+        folder = tmp_path_factory.mktemp(name)
+        res = _report("-c", name, "-o", folder)
+        out[name] = (folder, res)
+    return out
+
+
+@pytest.mark.parametrize("name", config.bundled_names())
+def test_report_of_every_bundled_config_holds_what_the_stages_print(name, reports):
+    out, res = reports[name]
+    assert res.exit_code == 0, res.output
+    page_path = out / report.FOLDER / report.HTML
+    assert f"report -> {page_path}" in res.stdout
+    text = page_path.read_text(encoding="utf-8")
+    assert len(text.encode()) < MAX_BYTES
+    page = _parse(page_path)
+    _self_contained(page, text)
+    figures = sorted((out / report.FOLDER).glob("*.png"))
+    assert len(page.srcs) == len(figures) >= 5  # a figure per subsystem, the inputs, a margins plot per loop
+
+    trim = _artifact(out, "trim.json")  # `quadctl trim` prints the thrust with 6 digits
+    assert page.column("trim-input-table", "value", "T") == f"{trim['u'][0]:.6g}"
+    assert page.column("summary-table", "verdict", "simulate") == "ok"
+    design = _artifact(out, "design.json")  # `quadctl design`: each subsystem's K with 4 digits
+    for sub, d in design["subsystems"].items():
+        k = [v for row in d["K"] for v in row]
+        assert page.column("design-table", "K", sub) == "[" + ", ".join(f"{v:.4g}" for v in k) + "]"
+    k_block = design["K_block"]
+    assert page.row("kblock-table", "T")[1:13] == [f"{v + 0.0:.4g}" for v in k_block[0]]
+    margins = _artifact(out, "margins.json")  # the table `quadctl margins` prints
+    assert len(margins["loops"]) == len(page.tables["margins-table"]) - 1
+    for m in margins["loops"]:
+        loop = (f"{m['loop']} ({m['input']})", m["model"])
+        pm = m["phase_margin_deg"]
+        assert page.column("margins-table", "PM deg", *loop) == ("-" if pm is None else f"{pm:.3g}")
+        gm = [("-" if v is None else f"{v:+.3g}") for v in (m["gain_margin_lower_db"], m["gain_margin_upper_db"])]
+        assert page.column("margins-table", "GM dB", *loop) == " / ".join(gm)
+        assert page.column("disk-table", "alpha", *loop) == f"{m['disk_margin_alpha']:.3g}"
+        assert page.column("disk-table", "min|1+L|", *loop) == f"{m['min_return_difference']:.3g}"
+    sim = _artifact(out, "sim.json")  # `quadctl simulate`'s metrics table
+    for state, value in sim["metrics"]["peak_error"].items():
+        settle = sim["metrics"]["settling_time"].get(state)
+        assert page.column("metrics-table", "peak |error|", state) == f"{value:.4g}"
+        assert page.column("metrics-table", "settling (s)", state) == ("-" if settle is None else f"{settle:.4g}")
+    assert f"{sim['metrics']['cost']:.4g}" in "".join(page.text)
+    for state, rms in sim["rms_error"].items():
+        assert page.column("rms-table", "whole run", state) == f"{rms:.4g}"
+    if sim["saturation"]:
+        for i, actuator in enumerate(sim["saturation"]["actuators"]):
+            limits = page.column("headroom-table", "limits", actuator)
+            assert limits.startswith(f"{sim['saturation']['low'][i]:.4g} to {sim['saturation']['high'][i]:.4g}")
+    assert {r[0]: r[1] for r in page.tables["software-table"][1:6]} == sim["software"]
+    assert page.pres[0] == config.bundled(name).text  # the config as given, then as resolved
+    assert page.pres[1] == config.load(name).to_yaml()
+    assert f"Command line: quadctl report --config {name} --out {out}" in "".join(page.text)
+
+
+@pytest.mark.parametrize("name", config.bundled_names())
+def test_the_markdown_twin_shows_the_figures_beside_it(name, reports):
+    out, _ = reports[name]
+    folder = out / report.FOLDER
+    md = (folder / report.MARKDOWN).read_text(encoding="utf-8")
+    shown = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    assert shown and all((folder / f).is_file() for f in shown)
+    assert sorted(shown) == sorted(p.name for p in folder.glob("*.png"))
+    design = _artifact(out, "design.json")
+    for sub, d in design["subsystems"].items():
+        k = [v for row in d["K"] for v in row]
+        assert f"| {sub} | [" + ", ".join(f"{v:.4g}" for v in k) + "] |" in md
+    assert "## Margins" in md and "## Flight numbers" in md and config.bundled(name).text.rstrip() in md
+
+
+UNSTABILIZABLE = """name: swapped
+subsystems:  # A drives pitch and E roll: neither input reaches its subsystem's angle
+  altitude: {states: [pD, w], inputs: [T]}
+  roll:     {states: [v, phi, p], inputs: [E]}
+  pitch:    {states: [u, theta, q], inputs: [A]}
+  yaw:      {states: [psi, r], inputs: [R]}
+  guidance: {states: [pN, pE], inputs: [u, psi], regulate: false}
+lqr:
+  altitude: {Q: [50, 1], R: [1]}
+  roll:     {Q: [1, 50, 1], R: [1]}
+  pitch:    {Q: [1, 50, 1], R: [1]}
+  yaw:      {Q: [50, 1], R: [1]}
+"""
+
+
+def test_a_failed_check_exits_1_after_reporting_what_was_computed(tmp_path):
+    path = tmp_path / "swapped.yaml"
+    path.write_text(UNSTABILIZABLE)
+    res = _report("-c", path, "-o", tmp_path / "run")
+    assert res.exit_code == 1
+    assert "quadctl: check failed: check: not stabilizable: pitch, roll" in res.stderr
+    page = _parse(tmp_path / "run" / report.FOLDER / report.HTML)
+    text = "".join(page.text)
+    assert "Stopped at check: not stabilizable: pitch, roll. Not run: design, margins, simulate." in text
+    assert [r[1] for r in page.tables["summary-table"][1:]] == ["ok"] * 3 + ["failed"] + ["not run"] * 3
+    assert page.column("checks-table", "stabilizable", "roll") == "no"
+    assert "design-table" not in page.tables and "metrics-table" not in page.tables and not page.srcs
+    assert page.pres[0] == UNSTABILIZABLE
+
+
+def test_an_error_in_a_stage_keeps_its_exit_code_and_still_reports(tmp_path):
+    path = tmp_path / "sinking.yaml"  # a 10 m/s climb whose rotor drag outgrows the thrust
+    weights = "lqr:" + UNSTABILIZABLE.split("lqr:")[1]
+    path.write_text("name: sinking\nvehicle: {mass: 0.068, inertia: [6.9e-5, 7.75e-5, 1.5e-4], "
+                    "drag: [0.22, 0.22, 0.5]}\ntrim: {velocity_ned: [0, 0, -10]}\n" + weights)
+    res = _report("-c", path, "-o", tmp_path / "run")
+    assert res.exit_code == 2  # bad input, as every command says it
+    assert re.search(r"quadctl: error: .*sinking\.yaml: no equilibrium at velocity_ned \[0, 0, -10\]", res.stderr)
+    page = _parse(tmp_path / "run" / report.FOLDER / report.HTML)
+    assert page.column("summary-table", "verdict", "trim") == "failed"
+    assert "Stopped at trim: no equilibrium" in "".join(page.text)
+
+
+def test_the_report_reuses_fresh_artifacts_and_drops_stale_figures(tmp_path):
+    cfg = config.load("hover")
+    first = Workspace(cfg, tmp_path)
+    report.write(report.build(first, report.run_stages(first)), tmp_path / report.FOLDER)
+    (tmp_path / report.FOLDER / "margins-old.png").write_bytes(b"stale")
+    again = Workspace(cfg, tmp_path)
+    outcome = report.run_stages(again)
+    assert outcome.done == report.STAGES and outcome.stopped_at is None
+    assert {p.name for p in again.reused} >= {"trim.json", "linear.npz"}
+    report.write(report.build(again, outcome), tmp_path / report.FOLDER)
+    assert not (tmp_path / report.FOLDER / "margins-old.png").exists()
+    page = _parse(tmp_path / report.FOLDER / report.HTML)
+    assert "Command line: (library call)" in "".join(page.text)
+    assert html.unescape(page.pres[0]).startswith("# built in Python")  # no YAML text was given
+
+
+def test_help_lists_the_report():
+    res = runner.invoke(app, ["--help"])
+    assert res.exit_code == 0 and "report" in res.output
+    res = runner.invoke(app, ["report", "--help"])
+    assert "report.html" in res.output and "--config" in res.output
