@@ -8,11 +8,16 @@ the trajectory must be ``simulate``'s.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import io
 import json
 import math
+import re
+import shlex
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -327,7 +332,8 @@ def test_the_mat_file_loads_in_octave(tmp_path):
     if octave is None:
         pytest.skip("GNU Octave is not on PATH")
     assert runner.invoke(app, ["export", "--to", "mat", "-c", "mambo-200hz", "-o", str(tmp_path)]).exit_code == 0
-    script = ("d = load('controller.mat'); assert(isequal(size(d.K), [4 12])); assert(isequal(size(d.x_trim), [12 1]));"
+    script = ("d = load('quadctl_controller.mat'); assert(isequal(size(d.K), [4 12]));"
+              "assert(isequal(size(d.x_trim), [12 1]));"
               "assert(strcmp(d.state_names{3}, 'pD')); assert(abs(d.Ts - 0.005) < 1e-15);"
               "assert(isequal(size(d.subsystems.altitude.Q), [3 3])); disp('ok')")
     res = subprocess.run([octave, "--quiet", "--no-window-system", "--eval", script], cwd=tmp_path,
@@ -404,3 +410,131 @@ def test_simulate_crazyflie_reports_no_saturation(tmp_path):
     assert res.exit_code == 0, res.stderr
     assert "saturates" not in res.stderr
     assert "ok: completed 10000 steps" in res.stdout
+
+
+# ---------------------------------------------------------------------------------------
+# README, "Take it to the vehicle": every command and code block runs, and prints what it shows
+
+README = Path(__file__).resolve().parent.parent / "README.md"
+INLINE_COMMANDS = ("quadctl simulate -c crazyflie", "quadctl margins -c crazyflie")
+"""Commands the section names in its text (not in a console block)."""
+FLIGHT_LOOP_MAIN = r"""
+#include <stdio.h>
+#include "quadctl_controller.h"
+
+void control_tick(quadctl_controller *c);
+
+static quadctl_real sent[QUADCTL_N_ROTORS];
+
+void read_state(quadctl_real x[QUADCTL_NX]) {  /* hover trim, 0.5 m low */
+  int i;
+  for (i = 0; i < QUADCTL_NX; ++i) x[i] = 0;
+  x[QUADCTL_X_PD] = -0.5;
+}
+
+void set_rotor_thrusts(const quadctl_real thrust[QUADCTL_N_ROTORS]) {
+  int i;
+  for (i = 0; i < QUADCTL_N_ROTORS; ++i) sent[i] = thrust[i];
+}
+
+int main(void) {
+  quadctl_controller c;
+  quadctl_init(&c);
+  control_tick(&c);
+  printf("%.17g %.17g %.17g %.17g\n", (double)sent[0], (double)sent[1], (double)sent[2], (double)sent[3]);
+  return 0;
+}
+"""
+
+
+def _section() -> str:
+    text = README.read_text(encoding="utf-8")
+    start = text.index("\n## Take it to the vehicle\n")
+    return text[start:text.index("\n## ", start + 1)]
+
+
+def _blocks(lang: str) -> list[str]:
+    return re.findall(rf"```{lang}\n(.*?)```", _section(), re.S)
+
+
+def _console_runs() -> list[tuple[str, list[str]]]:
+    """(command, the output lines shown under it) of every console block."""
+    runs = []
+    for block in _blocks("console"):
+        for line in block.splitlines():
+            if line.startswith("$ "):
+                runs.append((line[2:].split("  #")[0].strip(), []))
+            elif line.strip() and line.strip() != "...":
+                runs[-1][1].append(line)
+    return runs
+
+
+def _flat(text: str) -> str:
+    return " ".join(text.split())
+
+
+def test_the_section_follows_the_flight_section():
+    headings = re.findall(r"^## .*$", README.read_text(encoding="utf-8"), re.M)
+    at = headings.index("## From the report's design to one that flies")
+    assert headings[at + 1] == "## Take it to the vehicle"
+
+
+def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    runs = _console_runs()
+    assert len(runs) == 5
+    for command, shown in runs:
+        res = runner.invoke(app, shlex.split(command)[1:])
+        failed = any(line.startswith("quadctl: error:") for line in shown)
+        assert (res.exit_code != 0) == failed, (command, res.exit_code, res.stderr)
+        printed = _flat(res.stderr if failed else res.stdout)
+        for line in shown:
+            assert _flat(line) in printed, (command, line)
+    for command in INLINE_COMMANDS:
+        assert command in _flat(_section())
+        res = runner.invoke(app, [*shlex.split(command)[1:], "-o", str(tmp_path / "inline")])
+        assert res.exit_code == 0, (command, res.stderr)
+    for block in _blocks("python"):  # a `print(...)  # text` line prints exactly that text
+        expected = [line.split("  # ", 1)[1] for line in block.splitlines()
+                    if line.startswith("print(") and "  # " in line]
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            exec(compile(block, "README.md", "exec"), {})
+        assert out.getvalue().splitlines() == expected
+
+
+@pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
+def test_the_readme_flight_loop_compiles_and_flies(single, tmp_path):
+    """The README's C snippet, with stub sensors and motors, against the crazyflie export: one tick
+    from 0.5 m low asks every rotor for the same thrust, the library's, clipped."""
+    (snippet,) = _blocks("c")
+    compiler = cc()
+    res = runner.invoke(app, ["export", "--to", "c", "-c", "crazyflie", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    (tmp_path / "flight.c").write_text(snippet)
+    (tmp_path / "main.c").write_text(FLIGHT_LOOP_MAIN)
+    exe = tmp_path / "flight"
+    build = subprocess.run([compiler, *STRICT, *(["-DQUADCTL_FLOAT"] if single else []), "flight.c", "main.c",
+                            cexport.SOURCE, "-o", str(exe), "-lm"], cwd=tmp_path, capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    thrust = np.array(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split(), float)
+    loop = prepared("crazyflie").loop
+    x = np.zeros(N_STATES)
+    x[STATE_INDEX["pD"]] = -0.5
+    act = loop.actuators
+    want = np.clip(act.commands(loop.u_trim - loop.K @ (x - loop.x_trim)), act.lo, act.hi)
+    np.testing.assert_allclose(thrust, want, rtol=1e-6 if single else 1e-14)
+    assert np.all(thrust > 0.027 * 9.81 / 4)  # climbing
+
+
+def test_the_readme_matlab_runs_in_octave(tmp_path):
+    octave = shutil.which("octave-cli") or shutil.which("octave")
+    if octave is None:
+        pytest.skip("GNU Octave is not on PATH")
+    (block,) = _blocks("matlab")
+    out = tmp_path / "runs" / "mambo-200hz"
+    assert runner.invoke(app, ["export", "--to", "mat", "-c", "mambo-200hz", "-o", str(out)]).exit_code == 0
+    script = block + "\nassert(max(abs(u - d.u_trim)) == 0); disp('ok')"
+    res = subprocess.run([octave, "--quiet", "--no-window-system", "--eval", script], cwd=tmp_path,
+                         capture_output=True, text=True)
+    assert res.returncode == 0 and res.stdout.strip().endswith("ok"), res.stderr

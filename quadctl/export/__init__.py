@@ -166,7 +166,7 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
     Returns
     -------
     list of pathlib.Path
-        ``quadctl_controller.h`` and ``.c``; or ``controller.mat``; or ``controller.json``.
+        ``quadctl_controller.h`` and ``.c``; or ``quadctl_controller.mat``; or ``quadctl_controller.json``.
     """
     import io
     from pathlib import Path

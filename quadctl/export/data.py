@@ -8,7 +8,7 @@ JSON (every field with its unit, shape and description; complex numbers as ``[re
 
 In MATLAB::
 
-    d = load('controller.mat');
+    d = load('quadctl_controller.mat');
     sys = ss(d.A, d.B, eye(12), 0, 'StateName', d.state_names, 'InputName', d.input_names);
     u = d.u_trim - d.K * (x - (d.x_trim + d.x_rate * t));   % plus - d.Ki * z with integrators
 """
@@ -27,7 +27,7 @@ from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 FORMAT = "quadctl-controller"
 FORMAT_VERSION = 1
 """Bumped when a field changes meaning or shape."""
-MAT_FILE, JSON_FILE = "controller.mat", "controller.json"
+MAT_FILE, JSON_FILE = "quadctl_controller.mat", "quadctl_controller.json"
 
 
 @dataclass(frozen=True)
