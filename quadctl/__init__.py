@@ -25,6 +25,8 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.artifacts`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`: the run directory
   (atomic, with provenance), artifact-backed stages, figures (they read results only)
 - :mod:`~quadctl.report`: every stage of a run in one self-contained HTML page and a Markdown twin
+- :mod:`~quadctl.export`: the design to the vehicle (a C99 controller emitted from the simulation's
+  own law, the design as MATLAB ``.mat`` or JSON); :mod:`~quadctl.interop`: python-control systems
 """
 
 __version__ = "0.1.0"

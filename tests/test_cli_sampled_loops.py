@@ -120,6 +120,8 @@ def test_every_bundled_config_with_a_rate_or_motors_loads():
     cfg = config.load("mambo-200hz")
     assert cfg.controller.rate == 200 and cfg.motors.max_thrust == 0.33
     assert cfg.lqr["altitude"].integral == ["pD"]
+    cfg = config.load("crazyflie")
+    assert cfg.controller.rate == 500 and cfg.motors.max_thrust == 0.159166 and cfg.vehicle.mass == 0.027
 
 
 def test_the_readme_walkthrough_configs_load():

@@ -9,10 +9,17 @@ one-case function. Arguments are lane-major within each element: element ``j`` o
 
 The operations are CasADi's, spelled as its virtual machine computes them (``if_else_zero(c, x)``
 is ``c == 0 ? 0 : x``, comparisons give 1.0 or 0.0), so compiled and interpreted runs round alike.
+
+A :class:`Dialect` says how the C spells its scalars: the engine's is plain ``double`` with a
+vectorized lane loop (:data:`ENGINE`); :mod:`quadctl.export` spells a scalar type and math
+functions chosen when the file is compiled (``double`` or ``float``), warning-free under
+``-std=c99 -Wall -Wextra -pedantic``.
 """
 
 from __future__ import annotations
 
+import re
+from dataclasses import dataclass
 from functools import lru_cache
 
 from quadctl._lazy import lazy_import
@@ -28,6 +35,60 @@ double tan(double) __attribute__((simd("notinbranch"), const, nothrow));
 #endif
 """
 """Put before the emitted functions of a vectorized build (GCC on x86-64 Linux only)."""
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """How emitted C spells its scalars (the default, :data:`ENGINE`, is the simulation engine's).
+
+    Attributes
+    ----------
+    real : str
+        The scalar type of arguments and work variables.
+    literal : str
+        Format of a numeric literal; ``{}`` is its Python ``repr`` (``"QUADCTL_LIT({})"``).
+    call : str
+        Format of a math function's name; ``{}`` is the C99 double name (``"QUADCTL_FN({})"``,
+        which a float build spells ``sinf``).
+    pragma : bool
+        Mark the lane loop ``#pragma omp simd`` (without OpenMP, ``-Wall`` warns of it).
+    named : tuple of (float, str)
+        Constants spelled by a name (a macro) instead of their value.
+    mark_used : bool
+        Open the function with ``(void)i0;`` ... for every argument, so that one it never reads
+        (an empty exogenous input) is no warning under ``-Wextra``.
+    """
+
+    real: str = "double"
+    literal: str = "{}"
+    call: str = "{}"
+    pragma: bool = True
+    named: tuple[tuple[float, str], ...] = ()
+    mark_used: bool = False
+
+    def constant(self, value: float) -> str:
+        """The C text of a constant of the function."""
+        for known, name in self.named:
+            if value == known:
+                return name
+        return self.literal.format(repr(float(value)))
+
+
+ENGINE = Dialect()
+"""The simulation engine's C: ``double`` lanes, vectorized."""
+
+_CALL = re.compile(r"\b([a-z]+)\(")
+_LITERAL = re.compile(r"\b\d+\.\d+\b")
+
+
+@lru_cache(maxsize=8)
+def _spelled(dialect: Dialect) -> dict[int, str]:
+    """:func:`_templates` with the dialect's literals and math calls."""
+    def spell(template: str) -> str:
+        template = _CALL.sub(lambda m: dialect.call.format(m.group(1)) + "(", template)
+        return _LITERAL.sub(lambda m: dialect.literal.format(m.group(0)), template)
+
+    return {op: spell(template) for op, template in _templates().items()}
 
 
 @lru_cache(maxsize=1)
@@ -49,7 +110,7 @@ def _templates() -> dict[int, str]:
     }
 
 
-def emit(fn, name: str, lanes: int) -> str:
+def emit(fn, name: str, lanes: int, dialect: Dialect = ENGINE) -> str:
     """C source of the SX function ``fn`` as ``static void name(args...)`` over ``lanes`` cases.
 
     Parameters
@@ -60,15 +121,18 @@ def emit(fn, name: str, lanes: int) -> str:
         The C function's name.
     lanes : int
         Cases per call (1: the one-case function).
+    dialect : Dialect
+        How the C spells its scalars (default: the engine's ``double``).
 
     Raises
     ------
     ValueError
         ``fn`` uses an operation with no C form here.
     """
-    templates = _templates()
-    args = [f"const double* restrict i{k}" for k in range(fn.n_in())]
-    args += [f"double* restrict o{k}" for k in range(fn.n_out())]
+    templates = _spelled(dialect)
+    real = dialect.real
+    args = [f"const {real}* restrict i{k}" for k in range(fn.n_in())]
+    args += [f"{real}* restrict o{k}" for k in range(fn.n_out())]
     body = []
     for k in range(fn.n_instructions()):
         op = fn.instruction_id(k)
@@ -79,7 +143,7 @@ def emit(fn, name: str, lanes: int) -> str:
         elif op == ca.OP_OUTPUT:
             line = f"o{out[0]}[{out[1]} * {lanes} + l] = w{ins[0]};"
         elif op == ca.OP_CONST:
-            line = f"w{out[0]} = {float(fn.instruction_constant(k))!r};"
+            line = f"w{out[0]} = {dialect.constant(fn.instruction_constant(k))};"
         elif op in templates:
             a = f"w{ins[0]}"
             b = f"w{ins[1]}" if len(ins) > 1 else ""
@@ -88,7 +152,8 @@ def emit(fn, name: str, lanes: int) -> str:
             raise ValueError(f"{name}: CasADi operation {op} has no C form in quadctl.sim.emit")
         body.append("    " + line)
     work = ", ".join(f"w{i}" for i in range(max(fn.sz_w(), 1)))
-    return (f"static void {name}({', '.join(args)}) {{\n"
-            "#pragma omp simd\n"
-            f"  for (int l = 0; l < {lanes}; ++l) {{\n"
-            f"    double {work};\n" + "\n".join(body) + "\n  }\n}\n")
+    used = "".join(f"  (void)i{k};\n" for k in range(fn.n_in())) if dialect.mark_used else ""
+    return (f"static void {name}({', '.join(args)}) {{\n" + used
+            + ("#pragma omp simd\n" if dialect.pragma else "")
+            + f"  for (int l = 0; l < {lanes}; ++l) {{\n"
+            f"    {real} {work};\n" + "\n".join(body) + "\n  }\n}\n")

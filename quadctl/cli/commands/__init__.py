@@ -9,6 +9,7 @@ from quadctl.cli.commands import (
     configs,
     decouple,
     design,
+    export,
     linearize,
     margins,
     report,
@@ -19,7 +20,7 @@ from quadctl.cli.commands import (
 )
 from quadctl.cli.errors import handled
 
-COMMANDS = (trim, linearize, decouple, check, design, simulate, margins, sweep, run, report, configs)
+COMMANDS = (trim, linearize, decouple, check, design, simulate, margins, export, sweep, run, report, configs)
 
 
 def register(app: typer.Typer) -> None:

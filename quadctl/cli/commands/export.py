@@ -1,0 +1,47 @@
+from enum import Enum
+from typing import Annotated, Optional
+
+import typer
+
+from quadctl.cli.options import ConfigOpt, OutOpt
+
+NAME = "export"
+
+
+class Target(str, Enum):
+    c = "c"
+    mat = "mat"
+    json = "json"
+
+
+def command(to: Annotated[Target, typer.Option(
+                "--to", help="c: a C99 controller (quadctl_controller.h and .c, double or float); mat: the design "
+                             "as a MATLAB v5 .mat; json: the same as one self-describing JSON.")],
+            config: ConfigOpt = None, out: OutOpt = None,
+            rate: Annotated[Optional[float], typer.Option(
+                "--rate", metavar="HZ", min=1e-9,
+                help="Run a continuous design (no controller.rate) at this rate, after the check "
+                     "`quadctl check --rate` makes.")] = None) -> None:
+    """Take the design to the vehicle: a C controller that applies it exactly as simulate does, or its matrices.
+
+    Writes into the run directory: quadctl_controller.h/.c (--to c), quadctl_controller.mat or quadctl_controller.json.
+    Exits 1 when the design is unstable, or when a continuous design's loop is unstable sampled at --rate;
+    2 when --to c has no rate (give --rate or set controller.rate).
+    """
+    from quadctl import artifacts, export
+    from quadctl.cli import render
+    from quadctl.cli.options import load_config
+    from quadctl.setup import resolve
+    from quadctl.workspace import default_out
+
+    cfg, _ = load_config(config)
+    exp = export.prepare(resolve(cfg), rate, need_rate=to is Target.c, config_hash=cfg.digest())
+    for w in exp.rate_warnings:
+        render.warning(w.message(exp.rate))
+    paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"))
+    timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
+    render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}",
+                     markup=False)
+    render.out.print(f"law: {exp.law()}", markup=False)
+    for path in paths:
+        render.out.print(f"-> {path}", markup=False)

@@ -1,0 +1,222 @@
+"""Take a design to the vehicle: the controller as C, and the design as MATLAB ``.mat`` or JSON.
+
+:func:`prepare` runs the stages of a setup once, checks that the design can leave quadctl (stable
+on the coupled model, and, for a continuous design run at a rate, stable as the flight computer
+samples it) and returns an :class:`Export`: the closed loop exactly as ``quadctl simulate`` runs
+it. The writers read only that object:
+
+- :mod:`quadctl.export.c`: a C99 controller generated from the simulation's own control law
+  (:func:`quadctl.sim.builder.build`), ``double`` or ``float``;
+- :mod:`quadctl.export.data`: the design as named, unit-carrying fields, written as a MATLAB v5
+  ``.mat`` (:func:`scipy.io.savemat`) or as one self-describing JSON.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from quadctl.decouple import Decoupled
+from quadctl.errors import CheckFailed, ConfigError
+from quadctl.linearize import LinearModel
+from quadctl.lqr import Design, closed_loop_matrix
+from quadctl.setup import Setup, Timing
+from quadctl.simulate import ClosedLoop
+
+
+@dataclass(frozen=True)
+class Export:
+    """A design ready to leave quadctl.
+
+    Attributes
+    ----------
+    setup : Setup
+        The resolved config (its timing is the exported one: a continuous design exported at
+        ``--rate`` has ``timing.mode == "emulated"``).
+    linear : LinearModel
+        The linearization at the trim (continuous ``A``, ``B``).
+    decoupled : Decoupled
+    design : Design
+    loop : ClosedLoop
+        The loop as ``quadctl simulate`` runs it (gains, trim, reference drift, integrators, actuators).
+    rate_warnings : tuple of quadctl.discrete.RateWarning
+        Loops of a continuous design that the rate realizes only approximately (still stable).
+    config_hash : str or None
+        sha256 of the config (:meth:`quadctl.config.Config.digest`): the provenance the files carry.
+    """
+
+    setup: Setup
+    linear: LinearModel
+    decoupled: Decoupled
+    design: Design
+    loop: ClosedLoop
+    rate_warnings: tuple = ()
+    config_hash: str | None = None
+
+    @property
+    def name(self) -> str:
+        return self.setup.name
+
+    @property
+    def rate(self) -> float | None:
+        """Hz the controller runs at (None: continuous feedback, a ``.mat``/JSON export only)."""
+        return self.setup.timing.rate
+
+    @property
+    def sample_time(self) -> float | None:
+        """s between controller samples (None: continuous)."""
+        return self.setup.timing.sample_time
+
+    @property
+    def mode(self) -> str:
+        """``discrete`` (designed at the rate), ``emulated`` (continuous design sampled) or ``continuous``."""
+        return self.setup.timing.mode
+
+    def closed_loop_matrix(self) -> np.ndarray:
+        """The linear closed loop of ``[x; z]`` as exported: ``z``-domain when sampled (ZOH plant)."""
+        return closed_loop_matrix(self.linear.A, self.linear.B, self.loop.K, self.loop.Ki,
+                                  self.loop.integral_states, self.sample_time)
+
+    def closed_loop_eigenvalues(self) -> np.ndarray:
+        """Eigenvalues of :meth:`closed_loop_matrix` (``z`` when sampled, ``s`` in rad/s when continuous)."""
+        return np.linalg.eigvals(self.closed_loop_matrix())
+
+    def law(self) -> str:
+        """The control law in words and symbols, with this loop's timing, integrators and saturation."""
+        return law_text(self.loop, self.sample_time)
+
+
+def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
+            config_hash: str | None = None) -> Export:
+    """Design ``setup`` and check that it can be exported.
+
+    Parameters
+    ----------
+    setup : Setup
+    rate : float, optional
+        Hz to run a *continuous* design at (a config without ``controller.rate``): the design is
+        emulated at that rate after the check ``quadctl check --rate`` makes.
+    need_rate : bool
+        A controller for a flight computer needs a rate (the C export); a ``.mat`` or JSON of a
+        continuous design does not.
+    config_hash : str, optional
+        The config's digest, for the provenance of the exported files.
+
+    Returns
+    -------
+    Export
+
+    Raises
+    ------
+    ConfigError
+        No rate where one is needed, or ``rate`` given for a config that has its own (exit 2).
+    CheckFailed
+        The design is unstable on the coupled model, or the sampled loop of a continuous design
+        is unstable at ``rate`` (exit 1; the message says which loop and why).
+    DesignError
+        A subsystem cannot be designed (exit 1).
+    """
+    from quadctl import pipeline
+
+    timing = setup.timing
+    if rate is not None and timing.rate is not None and rate != timing.rate:
+        raise ConfigError(f"--rate {rate:g}: the config sets controller.rate = {timing.rate:g} Hz; "
+                          "drop --rate, or remove controller.rate to run the continuous design at another rate")
+    if rate is not None and timing.rate is None:
+        setup = replace(setup, timing=Timing(rate=float(rate), discrete=False))
+    elif setup.timing.rate is None and need_rate:
+        raise ConfigError("the design is continuous (no controller.rate) and a flight computer samples: "
+                          "give --rate HZ to run it at that rate, or set controller.rate "
+                          "(with controller.design: discrete to design for it)")
+    trim = pipeline.trim_of(setup)
+    linear = pipeline.linear_of(setup, trim)
+    decoupled = pipeline.decoupled_of(setup, linear)
+    design = pipeline.design_of(setup, decoupled, linear)
+    if not design.stable:
+        raise CheckFailed("the design is unstable on the coupled 12-state model (every subsystem is stable "
+                          "alone: the dropped couplings matter); `quadctl design` shows its eigenvalues")
+    warnings: list = []
+    if setup.timing.mode == "emulated":
+        warnings = pipeline.rate_warnings_of(setup, decoupled, linear, setup.timing.rate)
+        unstable = [w for w in warnings if not w.sampled_stable]
+        if unstable:
+            raise CheckFailed(f"not exported: {unstable[0].message(setup.timing.rate)}")
+    loop = pipeline.loop_of(setup, linear, design)
+    return Export(setup=setup, linear=linear, decoupled=decoupled, design=design, loop=loop,
+                  rate_warnings=tuple(warnings), config_hash=config_hash)
+
+
+TARGETS = ("c", "mat", "json")
+"""What :func:`write` writes: the C controller, the MATLAB ``.mat``, the JSON."""
+
+
+def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
+    """Write the export ``to`` (one of :data:`TARGETS`) into ``folder``, atomically; the paths.
+
+    Parameters
+    ----------
+    exp : Export
+    to : {"c", "mat", "json"}
+    folder : path
+        Created if missing.
+    meta : dict, optional
+        Provenance for the JSON (:func:`quadctl.artifacts.metadata`).
+
+    Returns
+    -------
+    list of pathlib.Path
+        ``quadctl_controller.h`` and ``.c``; or ``quadctl_controller.mat``; or ``quadctl_controller.json``.
+    """
+    import io
+    from pathlib import Path
+
+    from quadctl import artifacts
+    from quadctl.export import c, data
+
+    folder = Path(folder)
+    if to == "c":
+        return [artifacts.write_bytes(folder / name, text.encode()) for name, text in c.sources(exp).items()]
+    if to == "mat":
+        buf = io.BytesIO()
+        data.write_mat(buf, exp)
+        return [artifacts.write_bytes(folder / data.MAT_FILE, buf.getvalue())]
+    if to == "json":
+        return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
+    raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
+
+
+def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
+    """The control law of ``loop`` in one paragraph (the C header, the ``.mat`` and the JSON say it).
+
+    Examples
+    --------
+    >>> from quadctl.simulate import ClosedLoop
+    >>> z = np.zeros(12)
+    >>> print(law_text(ClosedLoop(z, z, np.zeros(4), z, np.zeros((4, 12)), z), None))
+    u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t; continuous feedback; no input limits.
+    """
+    ints, act = loop.integral_states, loop.actuators
+    inner = "u_trim - K (x - x_ref(t))" + (" - Ki z" if ints else "")
+    parts = [(f"u = {inner}" if act is None else f"u = sat({inner})") + ", x_ref(t) = x_trim + x_rate t"]
+    if sample_time is None:
+        parts.append("continuous feedback")
+    else:
+        parts.append(f"sampled every Ts = {sample_time:.9g} s at t = k Ts (k counts the samples) and held "
+                     "until the next (zero-order hold)")
+    if ints:
+        step = "z <- z - Ts (x_i - x_ref_i(t))" if sample_time is not None else "dz/dt = -(x_i - x_ref_i(t))"
+        parts.append(f"{step} for i = {', '.join(ints)} (MATLAB lqi), frozen while saturation changes an input "
+                     "that its Ki drives (conditional integration)")
+    if act is None:
+        parts.append("no input limits")
+    elif act.mode == "motors":
+        m = act.motors
+        parts.append(f"sat: the command mixed to the four rotor thrusts ({m.layout} layout, arm {m.arm_length:g} m, "
+                     f"{m.torque_coefficient:g} N m of yaw torque per N), each clipped to "
+                     f"[{m.min_thrust:g}, {m.max_thrust:g}] N, mixed back")
+    else:
+        limited = [f"{n} in [{lo:g}, {hi:g}]" for n, lo, hi in zip(act.names, act.lo, act.hi)
+                   if np.isfinite(lo) or np.isfinite(hi)]
+        parts.append("sat: each input clipped to its limits (" + ", ".join(limited) + ")")
+    return "; ".join(parts) + "."

@@ -1,0 +1,162 @@
+"""The design as data: one table of named fields, written as a MATLAB v5 ``.mat`` or as JSON.
+
+:func:`fields` is the one list of what leaves quadctl (each field with its value, unit and
+meaning); :func:`mat_variables` and :func:`json_payload` only spell it for MATLAB
+(:func:`scipy.io.savemat`: matrices as matrices, vectors as columns, names as cell arrays, the
+subsystems as a struct, ``Ts = 0`` for a continuous design as MATLAB's ``ss`` has it) and for
+JSON (every field with its unit, shape and description; complex numbers as ``[re, im]``).
+
+In MATLAB::
+
+    d = load('quadctl_controller.mat');
+    sys = ss(d.A, d.B, eye(12), 0, 'StateName', d.state_names, 'InputName', d.input_names);
+    u = d.u_trim - d.K * (x - (d.x_trim + d.x_rate * t));   % plus - d.Ki * z with integrators
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from quadctl import __version__
+from quadctl.export import Export
+from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
+
+FORMAT = "quadctl-controller"
+FORMAT_VERSION = 1
+"""Bumped when a field changes meaning or shape."""
+MAT_FILE, JSON_FILE = "quadctl_controller.mat", "quadctl_controller.json"
+
+
+@dataclass(frozen=True)
+class Field:
+    """One exported quantity.
+
+    Attributes
+    ----------
+    name : str
+        A MATLAB identifier.
+    value : ndarray, str, list of str or dict
+        Arrays keep their shape (vectors are 1-D); ``list of str`` is a cell array; a dict of
+        dicts is a struct of structs (the subsystems).
+    unit : str
+    description : str
+    """
+
+    name: str
+    value: Any
+    unit: str
+    description: str
+
+
+def fields(exp: Export) -> list[Field]:
+    """Everything the ``.mat`` and the JSON hold, in order.
+
+    Parameters
+    ----------
+    exp : Export
+
+    Returns
+    -------
+    list of Field
+    """
+    loop, des, lin = exp.loop, exp.design, exp.linear
+    nz = len(loop.integral_states)
+    Ki = np.asarray(loop.Ki if nz else np.zeros((len(INPUT_NAMES), 0)), dtype=float).reshape(len(INPUT_NAMES), nz)
+    Ts = exp.sample_time
+    domain = "z (sampled loop on the zero-order-hold plant)" if Ts else "s, rad/s (continuous loop)"
+    subsystems = {}
+    for sub in des.subsystems:
+        subsystems[sub.name] = {
+            "states": list(sub.states), "inputs": list(sub.inputs), "integral": list(sub.integral),
+            "Q": np.asarray(sub.Q, dtype=float), "R": np.asarray(sub.R, dtype=float),
+            "K": np.asarray(sub.K, dtype=float),
+            "Ki": np.asarray(sub.Ki if sub.Ki is not None else np.zeros((len(sub.inputs), 0)), dtype=float),
+            "eig_cl": np.asarray(sub.eigenvalues_z if sub.eigenvalues_z is not None else sub.eigenvalues)}
+    units = [STATE_UNITS[s] for s in STATE_NAMES]
+    return [
+        Field("A", np.asarray(lin.A, dtype=float), "1/s (state units per state unit)",
+              "continuous linearization about the trim: d(dx)/dt = A dx + B du, dx = x - x_ref(t), du = u - u_trim"),
+        Field("B", np.asarray(lin.B, dtype=float), "state units / s per input unit",
+              "input matrix of the linearization"),
+        Field("Q", np.asarray(des.Q_block, dtype=float), "1 / state unit^2",
+              "the regulated subsystems' state weights assembled (12 x 12; integrator weights are per subsystem)"),
+        Field("R", np.asarray(des.R_block, dtype=float), "1 / input unit^2", "the input weights assembled (4 x 4)"),
+        Field("K", np.asarray(loop.K, dtype=float), "input unit per state unit",
+              "state gain: u = u_trim - K (x - x_ref(t)) - Ki z (4 x 12)"),
+        Field("Ki", Ki, "input unit per (state unit s)", "integrator gain (4 x nz), one column per integral_states"),
+        Field("integral_states", list(loop.integral_states), "",
+              "the state each integrator integrates: dz/dt = -(x_i - x_ref_i(t))"),
+        Field("x_trim", np.asarray(loop.x_trim, dtype=float), "state units", "the trim state: x_ref(0)"),
+        Field("u_trim", np.asarray(loop.u_trim, dtype=float), "input units", "the trim input"),
+        Field("x_rate", np.asarray(loop.x_rate, dtype=float), "state units / s",
+              "drift of the reference: x_ref(t) = x_trim + x_rate t (the trim velocity on positions)"),
+        Field("Ts", float(Ts or 0.0), "s", "controller sample time; 0: continuous feedback (MATLAB's convention)"),
+        Field("rate", float(exp.rate or 0.0), "Hz", "controller rate; 0: continuous feedback"),
+        Field("design", exp.mode, "",
+              "discrete (designed at the rate: lqrd), emulated (continuous design sampled) or continuous"),
+        Field("state_names", list(STATE_NAMES), "", "the order of x"),
+        Field("state_units", units, "", "unit of each state"),
+        Field("input_names", list(INPUT_NAMES), "", "the order of u"),
+        Field("input_units", [INPUT_UNITS[i] for i in INPUT_NAMES], "", "unit of each input"),
+        Field("eig_cl", exp.closed_loop_eigenvalues(), domain.split(" (")[0],
+              f"eigenvalues of the linear closed loop of [x; z] as exported, in {domain}"),
+        Field("subsystems", subsystems, "as the fields above",
+              "per regulated subsystem: states, inputs, integral, Q (of [states; integrals]), R, K, Ki, "
+              "eig_cl (its closed-loop eigenvalues: z when designed at a rate, else s)"),
+        Field("law", exp.law(), "", "the control law the C export applies and quadctl simulate runs"),
+        Field("config_name", exp.name, "", "the quadctl config"),
+        Field("config_hash", exp.config_hash or "", "", "sha256 of the validated config"),
+        Field("quadctl_version", __version__, "", "the quadctl that exported this"),
+    ]
+
+
+def mat_variables(exp: Export) -> dict[str, Any]:
+    """The variables of the ``.mat`` (for :func:`scipy.io.savemat` with ``oned_as="column"``)."""
+    out = {f.name: _mat(f.value) for f in fields(exp)}
+    out["units"] = {f.name: f.unit for f in fields(exp)}
+    out["descriptions"] = {f.name: f.description for f in fields(exp)}
+    return out
+
+
+def _mat(value):
+    if isinstance(value, dict):
+        return {k: _mat(v) for k, v in value.items()}
+    if isinstance(value, list):  # a cell array (savemat writes an object array as a cell)
+        cell = np.empty((len(value), 1), dtype=object)
+        for i, v in enumerate(value):
+            cell[i, 0] = v
+        return cell
+    return value
+
+
+def write_mat(path, exp: Export) -> None:
+    """Write the MATLAB v5 ``.mat`` of ``exp`` to ``path`` (a file or a binary file object)."""
+    from scipy.io import savemat
+
+    savemat(path, mat_variables(exp), format="5", oned_as="column", long_field_names=True)
+
+
+def json_payload(exp: Export, meta: dict | None = None) -> dict:
+    """The JSON of ``exp``: ``fields`` (each with ``value``, ``unit``, ``shape``, ``description``).
+
+    Parameters
+    ----------
+    exp : Export
+    meta : dict, optional
+        Provenance to put at the top (:func:`quadctl.artifacts.metadata`).
+    """
+    from quadctl.artifacts import jsonable
+
+    body = {}
+    for f in fields(exp):
+        value = f.value
+        entry = {"unit": f.unit, "description": f.description}
+        if isinstance(value, np.ndarray):
+            entry["shape"] = list(value.shape)
+            entry["complex"] = bool(np.iscomplexobj(value))
+        body[f.name] = {**entry, "value": jsonable(value)}
+    return {**(meta or {}), "format": FORMAT, "export_format_version": FORMAT_VERSION,
+            "law": exp.law(), "complex_numbers": "[re, im]", "fields": body}

@@ -1,0 +1,243 @@
+"""python-control interop: quadctl's models and designs as ``control.StateSpace``, and back.
+
+python-control (``pip install '.[control]'``, imported on first use) names the signals of a
+system (``states=``, ``inputs=``, ``outputs=``) and decides continuous or discrete from its
+``dt``; so do these conversions:
+
+- :func:`plant`: the 12-state linearization (or its zero-order-hold discretization), outputs
+  the states;
+- :func:`subsystem`: one decoupled subsystem, outputs its measured states (``C``);
+- :func:`controller`: a design's controller from the measured state deviation to the input
+  deviation, with its integrators as states (``u = -K x - Ki z``);
+- :func:`closed_loop`: the linear closed loop of ``[x; z]``, driven by an input disturbance
+  added to ``u``; ``control.feedback(plant(...), controller(...), sign=1)`` is the same loop;
+- :func:`from_statespace`: any python-control ``StateSpace`` as a :class:`Plant` quadctl designs
+  for (``A, B``, names, and ``dt`` deciding ``lqr`` or ``dlqr``).
+
+Every matrix comes from quadctl's own stages (:mod:`quadctl.discrete` for the hold,
+:func:`quadctl.lqr.closed_loop_matrix` for the loop); python-control only carries them.
+
+Examples
+--------
+>>> from quadctl import config, pipeline, interop
+>>> from quadctl.setup import resolve
+>>> setup = resolve(config.load("crazyflie"))
+>>> linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
+>>> sys = interop.plant(linear)
+>>> sys.state_labels[:3], sys.input_labels
+(['pN', 'pE', 'pD'], ['T', 'A', 'E', 'R'])
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
+
+INSTALL_HINT = "pip install '.[control]' (in a quadctl checkout) or pip install 'quadctl[control]'"
+
+
+def _control():
+    """The python-control module, or an ImportError that says how to install it."""
+    try:
+        import control
+    except ModuleNotFoundError:
+        raise ModuleNotFoundError(f"quadctl.interop needs python-control: {INSTALL_HINT}",
+                                  name="control") from None
+    return control
+
+
+def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
+    """The linearization ``dx' = A dx + B du`` as a StateSpace whose outputs are the states.
+
+    Parameters
+    ----------
+    linear : quadctl.linearize.LinearModel
+        ``A`` (12, 12) and ``B`` (12, 4) about the trim.
+    sample_time : float, optional
+        s. Given: the zero-order-hold plant (:func:`quadctl.discrete.c2d`) with ``dt = sample_time``.
+    name : str
+
+    Returns
+    -------
+    control.StateSpace
+        States and outputs named ``pN ... r``, inputs ``T A E R`` (deviations from the trim).
+    """
+    _control()
+    A, B = _held(linear.A, linear.B, sample_time)
+    return _ss(A, B, STATE_NAMES, INPUT_NAMES, STATE_NAMES, sample_time, name)
+
+
+def subsystem(sub, *, sample_time: float | None = None):
+    """A decoupled subsystem (:class:`quadctl.decouple.Subsystem`) as a StateSpace.
+
+    Its outputs are its measured states (the rows of ``sub.C``); with ``sample_time`` the
+    zero-order-hold discretization.
+    """
+    _control()
+    C = np.asarray(sub.C, dtype=float)
+    outputs = [sub.states[int(np.argmax(np.abs(row)))] for row in C]
+    A, B = _held(sub.A, sub.B, sample_time)
+    return _ss(A, B, sub.states, sub.inputs, outputs, sample_time, sub.name, C=C)
+
+
+def controller(design, *, sample_time: float | str | None = "design", name: str = "controller"):
+    """The controller of a design: measured state deviations in, input deviations out.
+
+    ``u = -K x - Ki z`` with ``dz/dt = -C x`` (continuous) or ``z[k+1] = z[k] - Ts C x[k]``
+    (sampled, as :mod:`quadctl.sim.builder` runs it), ``C`` selecting the integrated states.
+
+    Parameters
+    ----------
+    design : quadctl.lqr.Design or quadctl.simulate.ClosedLoop
+        Anything with ``K`` or ``K_block`` (4, 12), ``Ki``/``Ki_block`` (4, nz), ``integral_states``.
+    sample_time : float, None or "design"
+        s; ``"design"``: the design's own (a discrete design's, else continuous).
+    name : str
+
+    Returns
+    -------
+    control.StateSpace
+        States ``z_<state>``, inputs the 12 state names, outputs ``T A E R``.
+    """
+    from quadctl import integral
+
+    _control()
+    K, Ki, ints = _gains(design)
+    Ts = getattr(design, "sample_time", None) if sample_time == "design" else sample_time
+    C = integral.selector(STATE_NAMES, ints)
+    nz = len(ints)
+    A = np.eye(nz) if Ts else np.zeros((nz, nz))
+    B = -(Ts or 1.0) * C
+    return _ss(A, B, [f"z_{s}" for s in ints], STATE_NAMES, INPUT_NAMES, Ts, name, C=-Ki, D=-K)
+
+
+def closed_loop(linear, design, *, sample_time: float | str | None = "design", name: str = "closed loop"):
+    """The linear closed loop of ``[x; z]`` (:func:`quadctl.lqr.closed_loop_matrix`) as a StateSpace.
+
+    Its inputs are disturbances ``T A E R`` added to the controller's input (``B``, or the hold's
+    ``Bd`` when sampled), its outputs the loop states.
+
+    Parameters
+    ----------
+    linear : quadctl.linearize.LinearModel
+    design : quadctl.lqr.Design or quadctl.simulate.ClosedLoop
+    sample_time : float, None or "design"
+        s; ``"design"``: the design's own.
+    name : str
+
+    Returns
+    -------
+    control.StateSpace
+        Its poles are the closed-loop eigenvalues (``z`` when sampled).
+    """
+    from quadctl import discrete
+    from quadctl.lqr import closed_loop_matrix
+
+    _control()
+    K, Ki, ints = _gains(design)
+    Ts = getattr(design, "sample_time", None) if sample_time == "design" else sample_time
+    A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, ints, Ts)
+    B = np.asarray(linear.B, dtype=float) if not Ts else discrete.c2d(linear.A, linear.B, Ts)[1]
+    B_cl = np.vstack([B, np.zeros((len(ints), B.shape[1]))])
+    names = [*STATE_NAMES, *(f"z_{s}" for s in ints)]
+    return _ss(A_cl, B_cl, names, INPUT_NAMES, names, Ts, name)
+
+
+@dataclass(frozen=True)
+class Plant:
+    """A linear plant from python-control, checked, for quadctl to design for.
+
+    Unpacks like :class:`quadctl.linearize.LinearModel`: ``A, B = plant``.
+
+    Attributes
+    ----------
+    A : (n, n) ndarray
+    B : (n, m) ndarray
+    state_names : tuple of str
+    input_names : tuple of str
+    dt : float
+        0 for a continuous plant, else the sample time (s).
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    state_names: tuple[str, ...]
+    input_names: tuple[str, ...]
+    dt: float = 0.0
+
+    def __iter__(self):
+        return iter((self.A, self.B))
+
+    def lqr(self, Q, R):
+        """``K, P, E``: :func:`quadctl.lqr.lqr` for a continuous plant, :func:`quadctl.discrete.dlqr`
+        for a discrete one (decided by ``dt``, as python-control's ``lqr`` does)."""
+        from quadctl import discrete, lqr
+
+        if self.dt:
+            return discrete.dlqr(self.A, self.B, Q, R, name="plant")
+        return lqr.lqr(self.A, self.B, Q, R, name="plant", state_names=self.state_names)
+
+
+def from_statespace(sys) -> Plant:
+    """A python-control ``StateSpace`` (its ``A``, ``B``, signal names and ``dt``) as a :class:`Plant`.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+
+    Returns
+    -------
+    Plant
+
+    Raises
+    ------
+    ValueError
+        Not a state-space system, no states, non-finite entries, or an unspecified timebase
+        (``dt = None`` or ``True``: give the sample time).
+    """
+    if not all(hasattr(sys, attr) for attr in ("A", "B", "state_labels", "input_labels")):
+        raise ValueError(f"expected a control.StateSpace, got {type(sys).__name__}; convert it with control.ss(sys)")
+    A, B = np.atleast_2d(np.asarray(sys.A, dtype=float)), np.atleast_2d(np.asarray(sys.B, dtype=float))
+    n = A.shape[0]
+    if n == 0:
+        raise ValueError("the system has no states: nothing to regulate")
+    for label, M in (("A", A), ("B", B)):
+        if not np.all(np.isfinite(M)):
+            raise ValueError(f"{label} has non-finite entries; a plant to design for needs finite matrices")
+    if A.shape != (n, n) or B.shape[0] != n:
+        raise ValueError(f"A has shape {A.shape} and B {B.shape}: expected (n, n) and (n, m)")
+    dt = sys.dt
+    if dt is None or dt is True:
+        raise ValueError(f"the system's timebase is unspecified (dt = {dt}); give dt = 0 (continuous) or "
+                         "the sample time in s")
+    return Plant(A=A, B=B, state_names=tuple(sys.state_labels), input_names=tuple(sys.input_labels),
+                 dt=float(dt))
+
+
+def _gains(design):
+    K = np.asarray(getattr(design, "K_block", getattr(design, "K", None)), dtype=float)
+    ints = tuple(design.integral_states)
+    Ki = getattr(design, "Ki_block", getattr(design, "Ki", None))
+    Ki = np.zeros((K.shape[0], 0)) if Ki is None or not ints else np.asarray(Ki, dtype=float)
+    return K, Ki.reshape(K.shape[0], len(ints)), ints
+
+
+def _held(A, B, sample_time):
+    """``(A, B)``, or with a sample time the zero-order-hold plant ``(Ad, Bd)``."""
+    from quadctl import discrete
+
+    return discrete.c2d(A, B, sample_time) if sample_time else (np.asarray(A, float), np.asarray(B, float))
+
+
+def _ss(A, B, states, inputs, outputs, sample_time, name, C=None, D=None):
+    """A StateSpace with named signals (``C`` default identity, ``D`` zero), ``dt = sample_time or 0``."""
+    control = _control()
+    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    n, m = A.shape[0], B.shape[1]
+    C = np.eye(n) if C is None else np.asarray(C, dtype=float)
+    D = np.zeros((C.shape[0], m)) if D is None else np.asarray(D, dtype=float)
+    return control.ss(A, B, C, D, sample_time or 0, states=list(states), inputs=list(inputs),
+                      outputs=list(outputs), name=name)

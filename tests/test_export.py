@@ -1,0 +1,540 @@
+"""quadctl export: the exported C closes the loop exactly as simulate does; the .mat and JSON carry the design.
+
+The proof: the exported C, compiled with the system compiler (``-std=c99 -Wall -Wextra -pedantic
+-Werror``, both precisions), is loaded with ctypes and closes the loop around quadctl's own plant
+(the engine's ``plant`` function: RK4 under the held input, evaluated by CasADi), sample by sample;
+the trajectory must be ``simulate``'s.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import io
+import json
+import math
+import re
+import shlex
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _solve import cfg_dict
+from typer.testing import CliRunner
+
+from quadctl import config, export, motors
+from quadctl.cli.app import app
+from quadctl.export import c as cexport
+from quadctl.export import data
+from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
+from quadctl.setup import resolve
+from quadctl.simulate import simulate
+
+runner = CliRunner()
+STRICT = ("-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror")
+"""The flags the exported C must compile cleanly with."""
+DOUBLE_TOL = 1e-12
+"""The double build runs the same emitted operations as the engine's compiled loop (and the plant
+is the engine's): any difference is a bug, not round-off."""
+FLOAT_STATE_TOL = 1e-4
+"""(m, m/s, rad, rad/s). A float controller's input is off by about an ulp of its size (6e-8 N at
+the Mambo's 0.65 N trim thrust); the stable loop turns that into state errors of the same order,
+and the positions nothing regulates (pN, pE) integrate it: up to 1.2e-6 in these runs. 1e-4 is
+80 times that, and what a motion-capture system resolves (0.1 mm)."""
+FLOAT_INPUT_RTOL = 1e-5
+"""Of the size of the terms each input is summed from, ``|u_trim| + |K| (|x| + |x_ref|) + |Ki| |z|``
+(largest over the run). A float sum of n terms errs by at most about n unit roundoffs (2^-24) of
+that size (Higham, "Accuracy and Stability of Numerical Algorithms", 3.1): 14 terms, mixing there
+and back 8 more, 22 u = 1.3e-6; the float loop's own state difference adds K dx. Seen: up to
+1.7e-6 (the Crazyflie's yaw torque); 1e-5 is 168 u."""
+
+
+def _mambo_saturating():
+    """mambo-200hz from 2 m low and tilted: the rotors clip, the altitude integrator freezes."""
+    data = cfg_dict("mambo-200hz")
+    data["simulation"] = {**data["simulation"], "duration": 6.0,
+                          "initial_offset": {"pD": 2.0, "phi": 0.3, "theta": -0.3, "psi": 0.5}}
+    return data, None
+
+
+def _mambo_box():
+    """mambo-200hz without rotors, with box limits on T and A only (E, R unlimited: +-inf)."""
+    data = cfg_dict("mambo-200hz", motors=None, limits={"T": [0.3, 0.9], "A": [-0.004, 0.004]})
+    data["simulation"] = {**data["simulation"], "duration": 4.0, "initial_offset": {"pD": 1.0, "phi": 0.3}}
+    return data, None
+
+
+def _mambo_emulated():
+    """mambo-200hz designed continuous and exported at --rate 200 (emulation)."""
+    return cfg_dict("mambo-200hz", controller={"rate": None, "design": "discrete"}), 200.0
+
+
+CASES = {
+    "mambo-200hz": lambda: (cfg_dict("mambo-200hz"), None),  # LQI on altitude, rotors, 200 Hz
+    "crazyflie": lambda: (cfg_dict("crazyflie"), None),       # no integrator, 500 Hz
+    "mambo-saturating": _mambo_saturating,
+    "mambo-box": _mambo_box,
+    "mambo-emulated": _mambo_emulated,
+}
+
+
+def cc() -> str:
+    from quadctl.sim.compile import find_compiler
+
+    compiler = find_compiler()
+    if compiler is None:
+        pytest.skip("no C compiler (looked for $CC, cc, gcc, clang): the exported C cannot be built here")
+    return compiler
+
+
+def prepared(case: str):
+    cfg_data, rate = CASES[case]()
+    cfg = config.from_dict(cfg_data, f"{case}.yaml")
+    return export.prepare(resolve(cfg), rate, config_hash=cfg.digest())
+
+
+class Controller:
+    """The exported C loaded with ctypes (``quadctl_init``, ``quadctl_step``, ``quadctl_mix``)."""
+
+    def __init__(self, exp, folder, single: bool):
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, text in cexport.sources(exp).items():
+            (folder / name).write_text(text)
+        lib = folder / f"controller_{'float' if single else 'double'}.so"
+        res = subprocess.run([cc(), *STRICT, "-O2", "-fPIC", "-shared", *(["-DQUADCTL_FLOAT"] if single else []),
+                              str(folder / cexport.SOURCE), "-o", str(lib), "-lm"], capture_output=True, text=True)
+        assert res.returncode == 0, res.stderr
+        self.lib = ctypes.CDLL(str(lib))
+        self.real = ctypes.c_float if single else ctypes.c_double
+        nz = len(exp.loop.integral_states)
+
+        class State(ctypes.Structure):  # quadctl_controller of the header
+            _fields_ = [("z", self.real * max(nz, 1)), ("k", ctypes.c_ulong)]
+
+        self.state = State()
+        self.lib.quadctl_init(ctypes.byref(self.state))
+
+    def step(self, x) -> np.ndarray:
+        xa, ua = (self.real * N_STATES)(*x), (self.real * N_INPUTS)()
+        self.lib.quadctl_step(ctypes.byref(self.state), xa, ua)
+        return np.array(ua[:], dtype=float)
+
+    def mix(self, u) -> np.ndarray:
+        ua, fa = (self.real * N_INPUTS)(*u), (self.real * N_INPUTS)()
+        self.lib.quadctl_mix(ua, fa)
+        return np.array(fa[:], dtype=float)
+
+
+def fly(exp, ctl: Controller, x0, plan):
+    """The closed loop of the C controller around the engine's plant: ``quadctl_step`` at every
+    controller sample, ``hold`` RK4 steps of the plant under the held input in between.
+
+    Returns (xs, us): the state before each step and the input applied during it (N + 1 rows; the
+    last input is the one held at the end)."""
+    import casadi as ca
+
+    from quadctl.sim.builder import build
+
+    loop = exp.loop
+    plant = build(loop.spec(noise=False)).plant
+    c, e = ca.DM(loop.constants(plan.sample_time)), ca.DM.zeros(0, 1)
+    X = np.concatenate([x0, np.zeros(len(loop.integral_states))])  # the plant passes z through untouched
+    xs, us = np.empty((plan.n_steps + 1, N_STATES)), np.empty((plan.n_steps + 1, N_INPUTS))
+    for k in range(plan.n_steps):
+        if k % plan.hold == 0:
+            u = ctl.step(X[:N_STATES])
+        xs[k], us[k] = X[:N_STATES], u
+        X = np.asarray(plant(X, u, plan.dt, c, e)).ravel()
+    xs[-1], us[-1] = X[:N_STATES], u
+    return xs, us
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_exported_c_flies_the_loop_simulate_flies(case, tmp_path):
+    exp = prepared(case)
+    setup, loop = exp.setup, exp.loop
+    x0 = setup.initial_state(loop.x_trim)
+    plan = loop.plan(setup.duration, setup.dt)
+    ref = simulate(loop, x0, setup.duration, setup.dt, noise=None, max_samples=plan.n_steps + 1)
+    assert ref.status == "ok" and ref.stride == 1 and len(ref.t) == plan.n_steps + 1
+    terms = np.abs(loop.u_trim) + (np.abs(ref.x) + np.abs(ref.x_ref)) @ np.abs(loop.K).T
+    if loop.integral_states:
+        terms = terms + np.abs(ref.z) @ np.abs(loop.Ki).T
+    scale = terms.max(axis=0)
+    for single in (False, True):
+        xs, us = fly(exp, Controller(exp, tmp_path / case, single), x0, plan)
+        dx, du = np.abs(xs - ref.x).max(), np.abs(us[:-1] - ref.u[:-1]).max()
+        if single:
+            worst = (np.abs(us[:-1] - ref.u[:-1]) / scale).max()
+            assert dx <= FLOAT_STATE_TOL and worst <= FLOAT_INPUT_RTOL, \
+                f"float: max |dx| = {dx:.3e}, max |du| = {du:.3e} ({worst:.3e} of the terms' size)"
+        else:
+            assert dx <= DOUBLE_TOL and du <= DOUBLE_TOL, f"double: max |dx| = {dx:.4e}, max |du| = {du:.4e}"
+
+
+def test_the_proof_cases_clip_and_freeze_the_integrator():
+    """The saturating cases exercise what the C must get right beyond the gains: rotor clipping,
+    box clipping with unlimited (infinite) inputs, and conditional integration."""
+    exp = prepared("mambo-saturating")
+    setup, loop = exp.setup, exp.loop
+    sim = simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt, noise=None, max_samples=10**6)
+    fractions = motors.saturation_fraction(loop.actuators, sim.u)
+    assert max(fractions.values()) > 0.01, fractions
+    hold = sim.plan.hold
+    samples = np.arange(0, len(sim.t) - hold, hold)
+    error = sim.x[samples, STATE_INDEX["pD"]] - sim.x_ref[samples, STATE_INDEX["pD"]]
+    frozen = (sim.z[samples + hold, 0] == sim.z[samples, 0]) & (np.abs(error) > 1e-3)
+    assert frozen.sum() >= 10  # the integrator held still while the thrust was clipped
+    box = prepared("mambo-box")
+    assert box.loop.actuators.mode == "box" and np.isinf(box.loop.actuators.hi[2])
+    sim = simulate(box.loop, box.setup.initial_state(box.loop.x_trim), box.setup.duration, "auto", noise=None)
+    assert max(motors.saturation_fraction(box.loop.actuators, sim.u).values()) > 0.01
+
+
+def test_the_header_documents_the_interface_from_the_layout(tmp_path):
+    exp = prepared("crazyflie")
+    header = cexport.sources(exp)[cexport.HEADER]
+    for line in ("void quadctl_init(quadctl_controller *c);",
+                 "void quadctl_step(quadctl_controller *c, const quadctl_real x[QUADCTL_NX], "
+                 "quadctl_real u[QUADCTL_NU]);",
+                 "void quadctl_mix(const quadctl_real u[QUADCTL_NU], quadctl_real thrust[QUADCTL_N_ROTORS]);",
+                 "#define QUADCTL_NX 12", "#define QUADCTL_NU 4", "#define QUADCTL_NZ 0",
+                 "#define QUADCTL_SAMPLE_TIME 0.002", "#define QUADCTL_X_THETA 7  /* theta (rad) */",
+                 " *   x[ 2] pD     m      trim -1", " *   u[ 0] T      N      trim +0.26487",
+                 "typedef double quadctl_real;", "typedef float quadctl_real;"):
+        assert line in header, line
+    assert exp.law() in " ".join(line.lstrip(" *") for line in header.splitlines())
+    # a loop without rotors has no mixer
+    box = cexport.sources(prepared("mambo-box"))
+    assert "#define QUADCTL_N_ROTORS" in header and "#define QUADCTL_N_ROTORS" not in box[cexport.HEADER]
+    assert "INFINITY" in box[cexport.SOURCE]
+
+
+def test_the_mixer_gives_the_rotor_thrusts_of_the_applied_input(tmp_path):
+    exp = prepared("crazyflie")
+    act = exp.loop.actuators
+    ctl = Controller(exp, tmp_path, single=False)
+    x0 = exp.setup.initial_state(exp.loop.x_trim)
+    u = ctl.step(x0)
+    np.testing.assert_allclose(ctl.mix(u), np.clip(act.commands(u), act.lo, act.hi), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(ctl.mix(exp.loop.u_trim), [0.027 * 9.81 / 4] * 4, rtol=1e-12)
+    np.testing.assert_array_equal(ctl.mix([5.0, 0, 0, 0]), [act.hi[0]] * 4)  # clipped to the rotors' limit
+
+
+def test_float_clip_tolerance_covers_the_mixing_round_off():
+    act = prepared("crazyflie").loop.actuators
+    tol = cexport.float_tolerance(act)
+    assert tol == pytest.approx(cexport.FLOAT_ROUNDOFF_ULPS * 2.0 ** -23 * 4 * 0.159166, rel=0.05)
+    rng = np.random.default_rng(0)  # float32 mix and unmix of commands inside the limits
+    f = rng.uniform(act.lo, act.hi, size=(1000, 4)).astype(np.float32)
+    u = f @ act.mix_inv.T.astype(np.float32)
+    back = (u @ act.mix.T.astype(np.float32)) @ act.mix_inv.T.astype(np.float32)
+    assert np.abs(back - u).max() < tol / 8
+
+
+# ---------------------------------------------------------------------------------------
+# The command
+
+
+def test_export_c_writes_the_two_files(tmp_path):
+    res = runner.invoke(app, ["export", "--to", "c", "-c", "crazyflie", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    assert res.stdout.splitlines()[0] == "crazyflie: 500 Hz, discrete design; integrators: none"
+    assert (tmp_path / "quadctl_controller.h").exists() and (tmp_path / "quadctl_controller.c").exists()
+
+
+def test_a_continuous_design_needs_a_rate(tmp_path):
+    res = runner.invoke(app, ["export", "--to", "c", "-c", "hover", "-o", str(tmp_path)])
+    assert res.exit_code == 2
+    assert res.stderr.strip() == (
+        "quadctl: error: the design is continuous (no controller.rate) and a flight computer samples: give "
+        "--rate HZ to run it at that rate, or set controller.rate (with controller.design: discrete to design "
+        "for it)")
+
+
+def test_a_rate_that_makes_the_loop_unstable_is_refused_with_the_reason(tmp_path):
+    res = runner.invoke(app, ["export", "--to", "c", "-c", "hover", "--rate", "200", "-o", str(tmp_path)])
+    assert res.exit_code == 1
+    assert res.stderr.startswith("quadctl: error: not exported: roll: closed-loop pole -14493 rad/s is 115x faster "
+                                 "than 200 Hz realizes")
+    assert "sampled at 200 Hz this loop is UNSTABLE" in res.stderr
+    assert not (tmp_path / "quadctl_controller.c").exists()
+
+
+def test_a_rate_for_a_config_that_has_one_is_refused(tmp_path):
+    res = runner.invoke(app, ["export", "--to", "c", "-c", "crazyflie", "--rate", "200", "-o", str(tmp_path)])
+    assert res.exit_code == 2
+    assert "--rate 200: the config sets controller.rate = 500 Hz" in res.stderr
+
+
+# ---------------------------------------------------------------------------------------
+# .mat and JSON
+
+
+def _plain(value):
+    """A value as loadmat(simplify_cells=True) gives it back: squeezed arrays, cells as lists."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [str(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return np.squeeze(value)
+    return value
+
+
+def _loaded(value):
+    if isinstance(value, dict):
+        return {k: _loaded(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray) and value.dtype == object:
+        return [str(v) for v in value.ravel()]
+    if isinstance(value, np.ndarray) and value.dtype.kind == "U":  # an empty char array
+        return "".join(value.ravel())
+    return np.squeeze(value) if isinstance(value, np.ndarray) else value
+
+
+def _assert_same(name, expected, got):
+    if isinstance(expected, dict):
+        assert set(got) == set(expected), name
+        for k in expected:
+            _assert_same(f"{name}.{k}", expected[k], got[k])
+    elif isinstance(expected, list):
+        got = [got] if isinstance(got, str) else got  # a one-element cell comes back as its element
+        assert list(got) == expected, name
+    elif isinstance(expected, np.ndarray):
+        got = np.asarray(got)
+        assert got.size == expected.size and np.array_equal(got.ravel(), expected.ravel()), name
+    else:
+        assert got == expected, name
+
+
+@pytest.mark.parametrize("name", ["mambo-200hz", "forward"])
+def test_the_mat_file_round_trips_through_loadmat(name, tmp_path):
+    from scipy.io import loadmat
+
+    res = runner.invoke(app, ["export", "--to", "mat", "-c", name, "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    got = loadmat(str(tmp_path / data.MAT_FILE), simplify_cells=True)
+    cfg = config.load(name)
+    exp = export.prepare(resolve(cfg), need_rate=False, config_hash=cfg.digest())
+    fields = data.fields(exp)
+    assert {f.name for f in fields} | {"units", "descriptions"} == {k for k in got if not k.startswith("__")}
+    for f in fields:
+        _assert_same(f.name, _plain(f.value), _loaded(got[f.name]))
+    assert got["units"]["K"] == "input unit per state unit"
+    assert got["Ts"] == (0.005 if name == "mambo-200hz" else 0.0)
+    assert got["K"].shape == (4, 12) and got["x_trim"].shape == (12,)
+
+
+def test_the_mat_file_loads_in_octave(tmp_path):
+    octave = shutil.which("octave-cli") or shutil.which("octave")
+    if octave is None:
+        pytest.skip("GNU Octave is not on PATH")
+    assert runner.invoke(app, ["export", "--to", "mat", "-c", "mambo-200hz", "-o", str(tmp_path)]).exit_code == 0
+    script = ("d = load('quadctl_controller.mat'); assert(isequal(size(d.K), [4 12]));"
+              "assert(isequal(size(d.x_trim), [12 1]));"
+              "assert(strcmp(d.state_names{3}, 'pD')); assert(abs(d.Ts - 0.005) < 1e-15);"
+              "assert(isequal(size(d.subsystems.altitude.Q), [3 3])); disp('ok')")
+    res = subprocess.run([octave, "--quiet", "--no-window-system", "--eval", script], cwd=tmp_path,
+                         capture_output=True, text=True)
+    assert res.returncode == 0 and res.stdout.strip().endswith("ok"), res.stderr
+
+
+def test_the_json_holds_the_same_fields_with_units_and_shapes(tmp_path):
+    res = runner.invoke(app, ["export", "--to", "json", "-c", "mambo-200hz", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads((tmp_path / data.JSON_FILE).read_text())
+    cfg = config.load("mambo-200hz")
+    assert doc["format"] == "quadctl-controller" and doc["config_hash"] == cfg.digest()
+    exp = export.prepare(resolve(cfg), config_hash=cfg.digest())
+    assert doc["law"] == exp.law()
+    for f in data.fields(exp):
+        entry = doc["fields"][f.name]
+        assert set(entry) >= {"value", "unit", "description"}, f.name
+        if isinstance(f.value, np.ndarray):
+            assert entry["shape"] == list(f.value.shape), f.name
+            value = np.array(entry["value"], dtype=float)
+            if entry["complex"]:
+                value = value[..., 0] + 1j * value[..., 1]
+            np.testing.assert_array_equal(value.reshape(f.value.shape), f.value, err_msg=f.name)
+    eig = doc["fields"]["eig_cl"]
+    assert eig["unit"] == "z" and eig["shape"] == [13]
+    assert doc["fields"]["K"]["unit"] == "input unit per state unit"
+    assert doc["fields"]["subsystems"]["value"]["altitude"]["integral"] == ["pD"]
+
+
+def test_exported_eigenvalues_are_the_designs():
+    cfg = config.load("mambo-200hz")
+    exp = export.prepare(resolve(cfg))
+    got = np.sort_complex(exp.closed_loop_eigenvalues())
+    want = np.sort_complex(exp.design.full_eigenvalues_z)
+    assert np.abs(got - want).max() < 1e-12
+    marginal = np.abs(got) >= 1  # pN, pE: nothing regulates them (marginal by design)
+    assert marginal.sum() == len(exp.design.marginal_states) == 2 and np.allclose(got[marginal], 1.0)
+
+
+# ---------------------------------------------------------------------------------------
+# The Crazyflie config
+
+
+def test_the_crazyflie_flies_within_its_motors():
+    """Bryson weights sized for the rotors: from the configured offset no rotor reaches a limit,
+    and the most loaded stays inside the firmware's 0.12 N thrust cap too."""
+    exp = prepared("crazyflie")
+    setup, loop = exp.setup, exp.loop
+    sim = simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt, noise=None)
+    assert sim.status == "ok"
+    thrust = loop.actuators.commands(sim.u)
+    assert 0.06 < thrust.min() and thrust.max() < 0.12
+    assert not motors.saturates(motors.saturation_fraction(loop.actuators, sim.u))
+    final = np.abs(sim.x[-1] - sim.x_ref[-1])
+    assert final[STATE_INDEX["pD"]] < 1e-3 and final[STATE_INDEX["phi"]] < 1e-5
+
+
+def test_the_crazyflie_parameters_are_the_cited_ones():
+    cfg = config.load("crazyflie")
+    assert cfg.vehicle.mass == 0.027 and cfg.vehicle.inertia == [16.571710e-6, 16.655602e-6, 29.261652e-6]
+    rpm = math.pi / 30  # rad/s per rpm
+    assert cfg.motors.thrust_coefficient == pytest.approx(3.1582e-10 / rpm ** 2, rel=1e-4)
+    assert cfg.motors.max_thrust == pytest.approx(0.091492681 + 0.067673604, rel=2e-6)
+    # Förster's rotor drag at hover: K_aero * (sum of rotor speeds) = T * Kc
+    T = cfg.vehicle.mass * cfg.vehicle.gravity
+    speeds = 4 * math.sqrt(T / 4 / cfg.motors.thrust_coefficient)
+    assert cfg.vehicle.drag[0] * T == pytest.approx(10.2506e-7 * speeds, rel=1e-4)
+    assert cfg.vehicle.drag[2] * T == pytest.approx(7.5533e-7 * speeds, rel=1e-4)
+
+
+def test_simulate_crazyflie_reports_no_saturation(tmp_path):
+    res = runner.invoke(app, ["simulate", "-c", "crazyflie", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    assert "saturates" not in res.stderr
+    assert "ok: completed 10000 steps" in res.stdout
+
+
+# ---------------------------------------------------------------------------------------
+# README, "Take it to the vehicle": every command and code block runs, and prints what it shows
+
+README = Path(__file__).resolve().parent.parent / "README.md"
+INLINE_COMMANDS = ("quadctl simulate -c crazyflie", "quadctl margins -c crazyflie")
+"""Commands the section names in its text (not in a console block)."""
+FLIGHT_LOOP_MAIN = r"""
+#include <stdio.h>
+#include "quadctl_controller.h"
+
+void control_tick(quadctl_controller *c);
+
+static quadctl_real sent[QUADCTL_N_ROTORS];
+
+void read_state(quadctl_real x[QUADCTL_NX]) {  /* hover trim, 0.5 m low */
+  int i;
+  for (i = 0; i < QUADCTL_NX; ++i) x[i] = 0;
+  x[QUADCTL_X_PD] = -0.5;
+}
+
+void set_rotor_thrusts(const quadctl_real thrust[QUADCTL_N_ROTORS]) {
+  int i;
+  for (i = 0; i < QUADCTL_N_ROTORS; ++i) sent[i] = thrust[i];
+}
+
+int main(void) {
+  quadctl_controller c;
+  quadctl_init(&c);
+  control_tick(&c);
+  printf("%.17g %.17g %.17g %.17g\n", (double)sent[0], (double)sent[1], (double)sent[2], (double)sent[3]);
+  return 0;
+}
+"""
+
+
+def _section() -> str:
+    text = README.read_text(encoding="utf-8")
+    start = text.index("\n## Take it to the vehicle\n")
+    return text[start:text.index("\n## ", start + 1)]
+
+
+def _blocks(lang: str) -> list[str]:
+    return re.findall(rf"```{lang}\n(.*?)```", _section(), re.S)
+
+
+def _console_runs() -> list[tuple[str, list[str]]]:
+    """(command, the output lines shown under it) of every console block."""
+    runs = []
+    for block in _blocks("console"):
+        for line in block.splitlines():
+            if line.startswith("$ "):
+                runs.append((line[2:].split("  #")[0].strip(), []))
+            elif line.strip() and line.strip() != "...":
+                runs[-1][1].append(line)
+    return runs
+
+
+def _flat(text: str) -> str:
+    return " ".join(text.split())
+
+
+def test_the_section_follows_the_flight_section():
+    headings = re.findall(r"^## .*$", README.read_text(encoding="utf-8"), re.M)
+    at = headings.index("## From the report's design to one that flies")
+    assert headings[at + 1] == "## Take it to the vehicle"
+
+
+def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    runs = _console_runs()
+    assert len(runs) == 5
+    for command, shown in runs:
+        res = runner.invoke(app, shlex.split(command)[1:])
+        failed = any(line.startswith("quadctl: error:") for line in shown)
+        assert (res.exit_code != 0) == failed, (command, res.exit_code, res.stderr)
+        printed = _flat(res.stderr if failed else res.stdout)
+        for line in shown:
+            assert _flat(line) in printed, (command, line)
+    for command in INLINE_COMMANDS:
+        assert command in _flat(_section())
+        res = runner.invoke(app, [*shlex.split(command)[1:], "-o", str(tmp_path / "inline")])
+        assert res.exit_code == 0, (command, res.stderr)
+    for block in _blocks("python"):  # a `print(...)  # text` line prints exactly that text
+        expected = [line.split("  # ", 1)[1] for line in block.splitlines()
+                    if line.startswith("print(") and "  # " in line]
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            exec(compile(block, "README.md", "exec"), {})
+        assert out.getvalue().splitlines() == expected
+
+
+@pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
+def test_the_readme_flight_loop_compiles_and_flies(single, tmp_path):
+    """The README's C snippet, with stub sensors and motors, against the crazyflie export: one tick
+    from 0.5 m low asks every rotor for the same thrust, the library's, clipped."""
+    (snippet,) = _blocks("c")
+    compiler = cc()
+    res = runner.invoke(app, ["export", "--to", "c", "-c", "crazyflie", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    (tmp_path / "flight.c").write_text(snippet)
+    (tmp_path / "main.c").write_text(FLIGHT_LOOP_MAIN)
+    exe = tmp_path / "flight"
+    build = subprocess.run([compiler, *STRICT, *(["-DQUADCTL_FLOAT"] if single else []), "flight.c", "main.c",
+                            cexport.SOURCE, "-o", str(exe), "-lm"], cwd=tmp_path, capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    thrust = np.array(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split(), float)
+    loop = prepared("crazyflie").loop
+    x = np.zeros(N_STATES)
+    x[STATE_INDEX["pD"]] = -0.5
+    act = loop.actuators
+    want = np.clip(act.commands(loop.u_trim - loop.K @ (x - loop.x_trim)), act.lo, act.hi)
+    np.testing.assert_allclose(thrust, want, rtol=1e-6 if single else 1e-14)
+    assert np.all(thrust > 0.027 * 9.81 / 4)  # climbing
+
+
+def test_the_readme_matlab_runs_in_octave(tmp_path):
+    octave = shutil.which("octave-cli") or shutil.which("octave")
+    if octave is None:
+        pytest.skip("GNU Octave is not on PATH")
+    (block,) = _blocks("matlab")
+    out = tmp_path / "runs" / "mambo-200hz"
+    assert runner.invoke(app, ["export", "--to", "mat", "-c", "mambo-200hz", "-o", str(out)]).exit_code == 0
+    script = block + "\nassert(max(abs(u - d.u_trim)) == 0); disp('ok')"
+    res = subprocess.run([octave, "--quiet", "--no-window-system", "--eval", script], cwd=tmp_path,
+                         capture_output=True, text=True)
+    assert res.returncode == 0 and res.stdout.strip().endswith("ok"), res.stderr

@@ -1,0 +1,128 @@
+"""python-control interop: named StateSpace systems that reproduce quadctl's eigenvalues and margins."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+from _solve import cfg_dict, solve
+
+from quadctl import interop, margins
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.lqr import closed_loop_matrix, lqr
+
+control = pytest.importorskip("control")
+
+EIG_TOL = 1e-9
+"""Closed-loop eigenvalues, python-control's against quadctl's (|z| <= 1, |s| up to 1.5e4 rad/s:
+relative to max(1, |eigenvalue|)). The same matrices pass through python-control's feedback
+interconnection, whose products and sums round differently."""
+
+
+def _match(got, want) -> float:
+    """Largest relative distance from each wanted eigenvalue to its nearest unused got one."""
+    got, worst = list(np.asarray(got, dtype=complex)), 0.0
+    for w in np.asarray(want, dtype=complex):
+        k = int(np.argmin([abs(g - w) for g in got]))
+        worst = max(worst, abs(got.pop(k) - w) / max(1.0, abs(w)))
+    return worst
+
+
+@pytest.mark.parametrize("name", ["mambo-200hz", "crazyflie", "forward"])
+def test_the_loops_reproduce_quadctls_closed_loop_eigenvalues(name):
+    """Two ways: the closed loop as one system, and python-control's own feedback interconnection
+    of the plant and the controller (integrators included, sampled where the design is)."""
+    _, _, linear, _, des = solve(cfg_dict(name))
+    want = np.linalg.eigvals(closed_loop_matrix(linear.A, linear.B, des.K_block, des.Ki_block,
+                                                des.integral_states, des.sample_time))
+    loop = interop.closed_loop(linear, des)
+    assert loop.dt == (des.sample_time or 0)
+    assert loop.state_labels == [*STATE_NAMES, *(f"z_{s}" for s in des.integral_states)]
+    assert _match(loop.poles(), want) < EIG_TOL
+    plant, ctl = interop.plant(linear, sample_time=des.sample_time), interop.controller(des)
+    assert plant.input_labels == list(INPUT_NAMES) and ctl.output_labels == list(INPUT_NAMES)
+    assert ctl.input_labels == list(STATE_NAMES)
+    fb = control.feedback(plant, ctl, sign=1)  # u = controller(x): the controller carries the minus
+    assert _match(fb.poles(), want) < EIG_TOL
+    if des.sample_time:
+        z = des.full_eigenvalues_z
+        assert _match(loop.poles(), z) < EIG_TOL
+
+
+def test_one_loop_has_quadctls_margins():
+    """The Crazyflie's roll loop, sampled at 500 Hz and broken at its input: python-control's
+    stability_margins of K * subsystem agree with quadctl.margins (lower gain margin, phase margin
+    and its crossover).
+
+    On its frequency response (1 rad/s to Nyquist, 20001 points, crossings interpolated) it agrees
+    to 1e-9; its default method, from the roots of polynomials in z, finds the phase crossover only
+    to 3e-5 here (quadctl's root-refined crossing has |Im L| = 6e-14 there), so that one is held to 1e-4."""
+    _, _, linear, dec, des = solve(cfg_dict("crazyflie"))
+    roll, Ts = des["roll"], des.sample_time
+    sub = interop.subsystem(dec["roll"], sample_time=Ts)
+    assert sub.state_labels == ["v", "phi", "p"] and sub.input_labels == ["A"] and sub.dt == 0.002
+    L = control.series(sub, control.ss([], [], [], roll.K, dt=Ts))
+    grid = np.logspace(0, np.log10(np.pi / Ts), 20001)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # python-control evaluates near the Nyquist frequency
+        gm, pm, _, w_gm, wgc, _ = control.stability_margins(control.frd(L, grid))
+        gm_poly, pm_poly, *_ = control.stability_margins(L)
+    ours = [m for m in margins.all_margins(des, dec, linear.A, linear.B) if m.loop == "roll" and m.model == "design"][0]
+    assert 20 * np.log10(gm) == pytest.approx(ours.gain_margin_db[0], rel=1e-9)
+    assert w_gm == pytest.approx(ours.gain_crossover_freqs[0], rel=1e-9)
+    assert pm == pytest.approx(ours.phase_margin_deg, rel=1e-9)
+    assert wgc == pytest.approx(ours.phase_crossover_freq, rel=1e-9)
+    assert 20 * np.log10(gm_poly) == pytest.approx(ours.gain_margin_db[0], rel=1e-4)
+    assert pm_poly == pytest.approx(ours.phase_margin_deg, rel=1e-6)
+
+
+def test_a_statespace_comes_back_as_a_plant_quadctl_designs_for():
+    _, _, linear, _, des = solve(cfg_dict("forward"))
+    plant = interop.from_statespace(interop.plant(linear))
+    A, B = plant
+    assert np.array_equal(A, linear.A) and np.array_equal(B, linear.B)
+    assert plant.state_names == STATE_NAMES and plant.input_names == INPUT_NAMES and plant.dt == 0.0
+    # a double integrator from python-control: MATLAB lqr's K = [sqrt(q), sqrt(2 sqrt(q))]
+    sys_ = control.ss([[0, 1], [0, 0]], [[0], [1]], np.eye(2), 0, states=["x", "v"], inputs=["F"], outputs=["x", "v"])
+    K, P, E = interop.from_statespace(sys_).lqr(np.diag([4.0, 0.0]), [[1.0]])
+    np.testing.assert_allclose(K, [[2.0, 2.0]], rtol=1e-12)
+    K_ref, _, _ = control.lqr(sys_, np.diag([4.0, 0.0]), [[1.0]])
+    np.testing.assert_allclose(K, K_ref, rtol=1e-9)
+    # a discrete one designs with dlqr (python-control decides by dt, and so does the plant)
+    sysd = control.c2d(sys_, 0.1)
+    Kd = interop.from_statespace(sysd).lqr(np.diag([4.0, 0.0]), [[1.0]]).K
+    np.testing.assert_allclose(Kd, control.dlqr(sysd, np.diag([4.0, 0.0]), [[1.0]])[0], rtol=1e-9)
+    K2, _, _ = lqr(linear.A[np.ix_([2, 5], [2, 5])], linear.B[[2, 5]][:, [0]], np.diag([50.0, 1.0]), [[1.0]])
+    np.testing.assert_allclose(K2, des["altitude"].K, rtol=1e-9)
+
+
+@pytest.mark.parametrize("bad, message", [
+    (lambda: control.tf([1], [1, 1]), "expected a control.StateSpace, got TransferFunction"),
+    (lambda: control.ss([[0.0, 1.0], [0.0, np.inf]], [[0], [1]], np.eye(2), 0), "A has non-finite entries"),
+    (lambda: control.ss([[0.0]], [[1.0]], [[1.0]], 0, True), r"timebase is unspecified \(dt = True\)"),
+])
+def test_a_system_quadctl_cannot_design_for_is_refused_by_name(bad, message):
+    with pytest.raises(ValueError, match=message):
+        interop.from_statespace(bad())
+
+
+def test_without_python_control_the_error_says_how_to_install_it():
+    code = ("import sys; sys.modules['control'] = None\n"
+            "from quadctl import interop\n"
+            "try:\n    interop.plant(None)\nexcept ModuleNotFoundError as exc:\n    print(exc)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == ("quadctl.interop needs python-control: pip install '.[control]' (in a quadctl checkout) "
+                           "or pip install 'quadctl[control]'")
+
+
+def test_the_docstring_examples_run():
+    import doctest
+
+    from quadctl import export
+
+    for module in (interop, export):
+        result = doctest.testmod(module)
+        assert result.attempted and not result.failed, module.__name__
