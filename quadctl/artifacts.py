@@ -43,10 +43,26 @@ def metadata(cfg, kind: str) -> dict:
     }
 
 
+INFINITY = {math.inf: "inf", -math.inf: "-inf"}
+"""How JSON artifacts spell an infinite float (JSON has no infinity): a string, so that ``null``
+means only "not a number / does not apply"."""
+
+
 def jsonable(value: Any) -> Any:
     """numpy arrays, complex numbers and non-finite floats as plain JSON values.
 
-    Complex numbers become ``[re, im]``; NaN and infinity become ``null``.
+    The one place that maps values to JSON for every artifact and ``--json``:
+
+    - a complex number is ``[re, im]``, so a complex-dtype array is a list of pairs, always
+      (an array that may hold complex values, eigenvalues say, must be given as a complex
+      dtype: a real-dtype array is written as plain floats);
+    - ``inf`` and ``-inf`` are the strings ``"inf"`` and ``"-inf"`` (:data:`INFINITY`);
+    - NaN is ``null``, as is None: not a number, or not applicable.
+
+    >>> jsonable({"e": np.array([-2.0, 1 + 2j]), "gm": (-math.inf, 6.0), "w": float("nan")})
+    {'e': [[-2.0, 0.0], [1.0, 2.0]], 'gm': ['-inf', 6.0], 'w': None}
+
+    :func:`decode_floats` turns the strings back into floats.
     """
     if isinstance(value, dict):
         return {str(k): jsonable(v) for k, v in value.items()}
@@ -61,8 +77,30 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, (int, np.integer)):
         return int(value)
     if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
+        value = float(value)
+        if math.isfinite(value):
+            return value
+        return None if math.isnan(value) else INFINITY[value]
     return value
+
+
+def decode_floats(value: Any) -> Any:
+    """The inverse of :func:`jsonable` for infinities: ``"inf"`` / ``"-inf"`` back to floats,
+    in nested dicts and lists (every other value unchanged).
+
+    >>> decode_floats({"gm": ["-inf", 6.0], "name": "roll"})
+    {'gm': [-inf, 6.0], 'name': 'roll'}
+    """
+    if isinstance(value, dict):
+        return {k: decode_floats(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [decode_floats(v) for v in value]
+    if isinstance(value, str) and value in _FROM_JSON:
+        return _FROM_JSON[value]
+    return value
+
+
+_FROM_JSON = {text: number for number, text in INFINITY.items()}
 
 
 def _atomic_write(path: Path, data: bytes) -> None:

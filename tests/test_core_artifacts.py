@@ -109,5 +109,10 @@ def test_artifacts_follow_the_umask_not_mkstemps_0600(tmp_path):
     assert path.stat().st_mode & 0o777 == 0o644
 
 
-def test_json_has_no_nan_and_complex_as_pairs():
-    assert artifacts.jsonable({"e": np.array([1 + 2j]), "n": float("nan")}) == {"e": [[1.0, 2.0]], "n": None}
+def test_json_keeps_infinity_apart_from_nan_and_complex_as_pairs():
+    value = {"e": np.array([1 + 2j, -3 + 0j]), "n": float("nan"), "gm": (-np.inf, 6.0, np.float32(np.inf)),
+             "none": None}
+    coded = artifacts.jsonable(value)
+    assert coded == {"e": [[1.0, 2.0], [-3.0, 0.0]], "n": None, "gm": ["-inf", 6.0, "inf"], "none": None}
+    json.dumps(coded, allow_nan=False)  # strict JSON
+    assert artifacts.decode_floats(coded)["gm"] == [-np.inf, 6.0, np.inf]
