@@ -84,6 +84,18 @@ def jsonable(value: Any) -> Any:
     return value
 
 
+def complex_values(values) -> np.ndarray | None:
+    """``values`` as a complex array (None stays None).
+
+    How a payload hands :func:`jsonable` an array that may hold complex numbers (eigenvalues),
+    so that it is written as ``[re, im]`` pairs even when every value happens to be real.
+
+    >>> jsonable(complex_values([-2.0, -3.0]))
+    [[-2.0, 0.0], [-3.0, 0.0]]
+    """
+    return None if values is None else np.asarray(values, dtype=complex)
+
+
 def decode_floats(value: Any) -> Any:
     """The inverse of :func:`jsonable` for infinities: ``"inf"`` / ``"-inf"`` back to floats,
     in nested dicts and lists (every other value unchanged).

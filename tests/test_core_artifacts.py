@@ -116,3 +116,45 @@ def test_json_keeps_infinity_apart_from_nan_and_complex_as_pairs():
     assert coded == {"e": [[1.0, 2.0], [-3.0, 0.0]], "n": None, "gm": ["-inf", 6.0, "inf"], "none": None}
     json.dumps(coded, allow_nan=False)  # strict JSON
     assert artifacts.decode_floats(coded)["gm"] == [-np.inf, 6.0, np.inf]
+
+
+def _eigenvalue_fields(value, path=""):
+    """(path, value) of every key naming eigenvalues, anywhere in a JSON document."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            if "eigenvalue" in key:
+                yield f"{path}.{key}", item
+            else:
+                yield from _eigenvalue_fields(item, f"{path}.{key}")
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            yield from _eigenvalue_fields(item, f"{path}[{i}]")
+
+
+def _is_pair(value) -> bool:
+    number = (float, int, str)  # a part may be "inf" / "-inf" (a deadbeat mode's ln(0) / Ts)
+    return isinstance(value, list) and len(value) == 2 and all(isinstance(v, number) for v in value)
+
+
+def test_every_eigenvalue_in_every_json_artifact_is_a_pair(tmp_path):
+    """design.json used to mix plain floats (all real) and [re, im] pairs (some complex)."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    runs = {"forward": ["design", "--full"], "mambo-200hz": ["design", "--full"], "hover": ["check"]}
+    for name, command in runs.items():
+        res = CliRunner().invoke(app, [*command, "-c", name, "-o", str(tmp_path / name)])
+        assert res.exit_code == 0, res.output
+    fields = [(f"{path.relative_to(tmp_path)}{where}", v) for path in sorted(tmp_path.rglob("*.json"))
+              for where, v in _eigenvalue_fields(json.loads(path.read_text()))]
+    assert {f.split(".json")[0] for f, _ in fields} >= {"forward/design", "forward/design_full", "hover/checks",
+                                                       "mambo-200hz/design", "mambo-200hz/design_full"}
+    for where, value in fields:
+        if value is None:  # a continuous design has no z eigenvalues: not applicable
+            assert where.endswith("_z"), where
+            continue
+        assert _is_pair(value) or (isinstance(value, list) and value and all(_is_pair(v) for v in value)), \
+            (where, value)
+    altitude = dict(fields)["forward/design.json.subsystems.altitude.closed_loop_eigenvalues"]
+    assert len(altitude) == 2 and all(im == 0.0 for _, im in altitude)  # all real: still pairs
