@@ -67,15 +67,55 @@ def test_sigint_exits_130_with_a_message_and_keeps_artifacts(tmp_path):
     assert "trim.json" in _assert_whole(tmp_path)
 
 
-def test_a_killed_runs_stale_temporary_is_cleaned_up(tmp_path):
-    stale = tmp_path / ".trim.json.abc.tmp"
-    stale.write_text('{"half')
+def _old(path: Path) -> Path:
     old = time.time() - 2 * artifacts.STALE_TEMPORARY_AGE
-    os.utime(stale, (old, old))
-    fresh = tmp_path / ".sim.npz.def.tmp"  # maybe a live writer's: left alone
-    fresh.write_text("")
-    assert artifacts.remove_stale_temporaries(tmp_path) == [stale]
-    assert not stale.exists() and fresh.exists()
+    os.utime(path, (old, old), follow_symlinks=False)
+    return path
+
+
+def test_a_killed_runs_stale_temporary_is_cleaned_up(tmp_path):
+    (tmp_path / "plots").mkdir()
+    ours = [tmp_path / ".trim.json.quadctl-abc123_x.tmp", tmp_path / "plots" / ".roll.png.quadctl-q1w2e3r4.tmp"]
+    for path in ours:
+        path.write_text('{"half')
+        _old(path)
+    live = tmp_path / ".sim.npz.quadctl-def45678.tmp"  # maybe a live writer's: left alone
+    live.write_text("")
+    assert artifacts.remove_stale_temporaries(tmp_path) == sorted(ours)
+    assert not any(p.exists() for p in ours) and live.exists()
+
+
+def test_cleanup_deletes_only_what_quadctl_can_prove_it_wrote(tmp_path):
+    """A user's files that merely look temporary survive, whatever their age."""
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "plots").mkdir()
+    theirs = [tmp_path / ".notes.tmp", tmp_path / ".sim.npz.mine.tmp", tmp_path / ".trim.json.abc.tmp",
+              tmp_path / ".notes.txt.quadctl-abcdefgh.tmp",         # not a name quadctl writes
+              tmp_path / ".roll.png.quadctl-abcdefgh.tmp",          # a figure name, but not in plots/
+              tmp_path / "plots" / ".trim.json.quadctl-abcdefgh.tmp",  # an artifact name, but in plots/
+              tmp_path / "mine" / ".trim.json.quadctl-abcdefgh.tmp"]   # a folder of the user's: never recursive
+    for path in theirs:
+        path.write_text("the user's")
+        _old(path)
+    shaped_dir = tmp_path / ".design.json.quadctl-abcdefgh.tmp"
+    shaped_dir.mkdir()
+    _old(shaped_dir)
+    link = tmp_path / ".sim.json.quadctl-abcdefgh.tmp"
+    link.symlink_to(tmp_path / ".notes.tmp")
+    _old(link)
+    assert artifacts.remove_stale_temporaries(tmp_path) == []
+    assert all(p.read_text() == "the user's" for p in theirs) and shaped_dir.is_dir() and link.is_symlink()
+
+
+def test_a_run_in_a_folder_keeps_the_users_temporary_looking_files(tmp_path):
+    for name in (".notes.tmp", ".sim.npz.mine.tmp"):
+        (tmp_path / name).write_text("keep")
+        _old(tmp_path / name)
+    proc = subprocess.run([sys.executable, "-m", "quadctl", "trim", "-c", "hover", "-o", str(tmp_path)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / ".notes.tmp").read_text() == "keep" and (tmp_path / ".sim.npz.mine.tmp").read_text() == "keep"
+    assert (tmp_path / "trim.json").exists()
 
 
 def test_ctrl_c_stops_a_long_simulation_promptly(tmp_path):
