@@ -45,13 +45,46 @@ def _start(out: Path) -> subprocess.Popen:
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
-@pytest.mark.parametrize("delay", [0.4, 0.9, 1.3, 1.7, 2.2, 3.0])
-def test_sigkill_at_any_point_leaves_whole_artifacts(tmp_path, delay):
-    proc = _start(tmp_path)
-    time.sleep(delay)
+FINAL = "plots/inputs.png"
+"""The last file `run --plot` writes: while it is missing, the run has not completed."""
+
+WINDOWS = [  # (an artifact that exists, one that does not yet, a pause between seeing one and killing)
+    ("trim.json", "sim.npz", 0.0),            # during linearize, decouple, check, design
+    ("design.json", "sim.npz", 0.15),         # during the simulation
+    ("sim.json", "plots/altitude.png", 0.0),  # between the artifacts and the first figure
+    ("plots/roll.png", FINAL, 0.0),           # between figures
+]
+
+
+def _kill_between(proc: subprocess.Popen, out: Path, earlier: str, later: str, pause: float) -> bool:
+    """Kill ``proc`` once ``earlier`` exists and ``later`` does not yet; False if that moment was missed."""
+    deadline = time.time() + 120
+    while not (out / earlier).exists():
+        if proc.poll() is not None or time.time() > deadline:
+            break
+        time.sleep(0.001)
+    time.sleep(pause)
+    landed = (out / earlier).exists() and not (out / later).exists() and proc.poll() is None
     proc.kill()
-    proc.wait()
-    _assert_whole(tmp_path)
+    proc.communicate(timeout=60)
+    return landed
+
+
+@pytest.mark.parametrize("earlier, later, pause", WINDOWS, ids=[f"after {w[0]}" for w in WINDOWS])
+def test_sigkill_mid_run_leaves_whole_artifacts(tmp_path, earlier, later, pause):
+    """A `kill -9` that lands mid-run (proved: the run was alive, a later artifact not yet written,
+    the run never completed) leaves every file it wrote whole, and no visible half-written one."""
+    for attempt in range(3):
+        out = tmp_path / f"attempt-{attempt}"
+        proc = _start(out)
+        if _kill_between(proc, out, earlier, later, pause):
+            break
+    else:
+        pytest.fail(f"three runs gave no moment with {earlier} written and {later} not yet")
+    assert proc.returncode == -signal.SIGKILL  # the kill ended it, not the end of its work
+    assert not (out / FINAL).exists()          # the run did not complete
+    names = _assert_whole(out)
+    assert Path(earlier).name in names
 
 
 def test_sigint_exits_130_with_a_message_and_keeps_artifacts(tmp_path):
