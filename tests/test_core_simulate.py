@@ -68,6 +68,7 @@ def test_closed_loop_returns_to_trim(loop):
     assert sim.x[-1, 0] == pytest.approx(cfg.simulation.duration * 1.0, abs=0.5)
 
 
+@pytest.mark.compiler
 def test_compiled_and_interpreted_loops_agree(loop, monkeypatch):
     cfg, cl = loop
     x0 = pipeline.initial_state(cfg, cl.x_trim)
@@ -145,6 +146,7 @@ def test_max_samples_sets_the_record_stride_and_keeps_the_last_step(loop):
             assert stride == 1 or codegen.record_rows(n, stride - 1) > cap, (n, cap)  # the smallest
 
 
+@pytest.mark.compiler
 def test_a_cached_library_loads_without_building_casadi_functions(loop, monkeypatch):
     """The compile cache is keyed by what the C is made from, so a hit skips code generation."""
     cfg, cl = loop

@@ -26,6 +26,7 @@ def _both(data, monkeypatch, duration):
     return compiled, interpreted
 
 
+@pytest.mark.compiler
 @pytest.mark.parametrize("case", ["held, rotors, LQI, noise", "continuous, box limits, LQI, noise"])
 def test_compiled_and_interpreted_loops_agree(case, monkeypatch):
     if case.startswith("held"):

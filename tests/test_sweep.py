@@ -271,7 +271,7 @@ def _lane_inputs(loop, x0, duration, dt):
     return c, lo - drift, hi + drift
 
 
-@pytest.mark.parametrize("no_compile", [False, True])
+@pytest.mark.parametrize("no_compile", [pytest.param(False, marks=pytest.mark.compiler), True])
 def test_lanes_reproduce_simulate(forward, monkeypatch, no_compile):
     """The lane loop (compiled SIMD, or CasADi's interpreter) gives simulate()'s trajectory, rows and
     final input, lane by lane, whatever the other lanes do (9 cases: a full group and one more)."""
@@ -324,6 +324,7 @@ def test_a_diverging_lane_stops_like_simulate(forward):
 # Running sweeps
 
 
+@pytest.mark.compiler
 def test_batched_path_matches_the_pipeline(cfg):
     spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [10, 200], "lqr.altitude.R[0]": [0.3, 3.0],
                                     "vehicle.mass": [0.06, 0.075]},
