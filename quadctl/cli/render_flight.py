@@ -42,7 +42,7 @@ def margins_table(margins, rate=None) -> list[Table]:
                         num(m.phase_crossover_freq, 3))
         d_lo, d_hi = m.disk_gain_db
         symmetric = d_lo is not None and d_hi is not None and abs(d_lo + d_hi) < 1e-6 * max(1.0, abs(d_hi))
-        disk_gm = f"±{abs(d_hi):.3g}" if symmetric else f"{_db(d_lo)} / {_db(d_hi)}"
+        disk_gm = "0" if d_hi == 0 else (f"±{abs(d_hi):.3g}" if symmetric else f"{_db(d_lo)} / {_db(d_hi)}")
         disk.add_row(loop, m.model, num(m.disk_alpha, 3), disk_gm,
                      num(m.disk_phase_deg, 3), num(m.min_return_difference, 3), verdict)
     return [classic, disk]
