@@ -13,8 +13,10 @@ import io
 import json
 import math
 import os
+import re
 import tempfile
 import zipfile
+from contextlib import contextmanager
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -23,7 +25,7 @@ import numpy as np
 
 from quadctl import __version__
 from quadctl.errors import ArtifactError
-from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
 
 FORMAT_VERSION = 1
 """Bumped when the layout of an artifact changes incompatibly."""
@@ -51,10 +53,26 @@ def metadata(cfg, kind: str, backends=()) -> dict:
     }
 
 
+INFINITY = {math.inf: "inf", -math.inf: "-inf"}
+"""How JSON artifacts spell an infinite float (JSON has no infinity): a string, so that ``null``
+means only "not a number / does not apply"."""
+
+
 def jsonable(value: Any) -> Any:
     """numpy arrays, complex numbers and non-finite floats as plain JSON values.
 
-    Complex numbers become ``[re, im]``; NaN and infinity become ``null``.
+    The one place that maps values to JSON for every artifact and ``--json``:
+
+    - a complex number is ``[re, im]``, so a complex-dtype array is a list of pairs, always
+      (an array that may hold complex values, eigenvalues say, must be given as a complex
+      dtype: a real-dtype array is written as plain floats);
+    - ``inf`` and ``-inf`` are the strings ``"inf"`` and ``"-inf"`` (:data:`INFINITY`);
+    - NaN is ``null``, as is None: not a number, or not applicable.
+
+    >>> jsonable({"e": np.array([-2.0, 1 + 2j]), "gm": (-math.inf, 6.0), "w": float("nan")})
+    {'e': [[-2.0, 0.0], [1.0, 2.0]], 'gm': ['-inf', 6.0], 'w': None}
+
+    :func:`decode_floats` turns the strings back into floats.
     """
     if isinstance(value, dict):
         return {str(k): jsonable(v) for k, v in value.items()}
@@ -69,27 +87,137 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, (int, np.integer)):
         return int(value)
     if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
+        value = float(value)
+        if math.isfinite(value):
+            return value
+        return None if math.isnan(value) else INFINITY[value]
     return value
 
 
+def complex_values(values) -> np.ndarray | None:
+    """``values`` as a complex array (None stays None).
+
+    How a payload hands :func:`jsonable` an array that may hold complex numbers (eigenvalues),
+    so that it is written as ``[re, im]`` pairs even when every value happens to be real.
+
+    >>> jsonable(complex_values([-2.0, -3.0]))
+    [[-2.0, 0.0], [-3.0, 0.0]]
+    """
+    return None if values is None else np.asarray(values, dtype=complex)
+
+
+def decode_floats(value: Any) -> Any:
+    """The inverse of :func:`jsonable` for infinities: ``"inf"`` / ``"-inf"`` back to floats,
+    in nested dicts and lists (every other value unchanged).
+
+    >>> decode_floats({"gm": ["-inf", 6.0], "name": "roll"})
+    {'gm': [-inf, 6.0], 'name': 'roll'}
+    """
+    if isinstance(value, dict):
+        return {k: decode_floats(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [decode_floats(v) for v in value]
+    if isinstance(value, str) and value in _FROM_JSON:
+        return _FROM_JSON[value]
+    return value
+
+
+_FROM_JSON = {text: number for number, text in INFINITY.items()}
+
+
+# ---------------------------------------------------------------------------------------
+# Names: what quadctl writes, and only there
+
+ARTIFACT_NAMES = frozenset({
+    "config.yaml", "config.resolved.yaml",
+    "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json",
+    "margins.json", "design_full.json",
+    "sweep.csv", "sweep.json", "sweep.png", "montecarlo.npz", "montecarlo.png",
+    "quadctl_controller.h", "quadctl_controller.c", "quadctl_controller.mat", "quadctl_controller.json",
+})
+"""Every file quadctl writes at the top of a run directory (tests check the workspace's, the
+sweep's and the exports' names are among them)."""
+PLOTS = "plots"
+SUBFOLDER_NAMES = {
+    PLOTS: re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]*\.png"),
+    "sweep.parts": re.compile(r"chunk-[0-9]+\.json"),
+    "report": re.compile(r"report\.(html|md)|[A-Za-z0-9_][A-Za-z0-9_.+-]*\.png"),
+}
+"""The subfolders quadctl writes into, and the names it writes there."""
+TEMPORARY_TAG = "quadctl"
+"""A temporary is ``.<artifact>.quadctl-<random>.tmp``: the tag, and the artifact's registered
+name, are what let a later run prove the file is quadctl's before it deletes it."""
+_TEMPORARY = re.compile(rf"\.(?P<name>.+)\.{TEMPORARY_TAG}-[a-z0-9_]+\.tmp")
+
+
+def plot_path(folder: Path | str, stem: str) -> Path:
+    """``folder/plots/<stem>.png``, refusing a ``stem`` that is not a plain file name.
+
+    A stem made from a config's name (a subsystem's, say) must not lead out of the run
+    directory: ``../x`` or ``a/b`` is refused with :class:`~quadctl.errors.ArtifactError`.
+
+    >>> plot_path("runs/forward", "roll").as_posix()
+    'runs/forward/plots/roll.png'
+    """
+    name = f"{stem}.png"
+    if not SUBFOLDER_NAMES[PLOTS].fullmatch(name):
+        raise ArtifactError(f"{stem!r}: cannot name a figure in {Path(folder) / PLOTS} (only letters, digits "
+                            "and _ . + - make a file name there); rename it in the config")
+    return Path(folder) / PLOTS / name
+
+
+def _check_name(path: Path) -> None:
+    """An artifact path is ``<run dir>/<registered name>`` or ``<run dir>/<subfolder>/<name>``.
+
+    Artifact names are constants (and figure names pass :func:`plot_path`), so a path that is
+    neither is a bug: it is refused before anything is written.
+    """
+    if path.name in ARTIFACT_NAMES:
+        return
+    pattern = SUBFOLDER_NAMES.get(path.parent.name)
+    if pattern is not None and pattern.fullmatch(path.name):
+        return
+    raise ValueError(f"{path}: not an artifact name quadctl writes (ARTIFACT_NAMES, SUBFOLDER_NAMES)")
+
+
+# ---------------------------------------------------------------------------------------
+# Writing
+
+
 def _atomic_write(path: Path, data: bytes) -> None:
-    """Write to a temporary file in the same folder, fsync, then rename over ``path``."""
+    """Write to a tagged temporary in the same folder, fsync, then rename over ``path``.
+
+    Raises
+    ------
+    ArtifactError
+        The folder cannot be made or written, or ``path`` is a directory (exit code 2: the
+        message names the path and the way out).
+    """
     path = Path(path)
+    _check_name(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{TEMPORARY_TAG}-", suffix=".tmp", dir=path.parent)
     except OSError as exc:
-        raise ArtifactError(f"{path.parent}: cannot write artifacts there ({exc.strerror}); "
+        raise ArtifactError(f"{path.parent}: cannot write artifacts there ({_reason(exc)}); "
                             "choose another --out folder") from None
+    mode = 0o666 & ~_umask()  # mkstemp makes 0600; artifacts are shared like any file
     try:
         if hasattr(os, "fchmod"):  # not on Windows before Python 3.13
-            os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; artifacts are shared like any file
+            os.fchmod(fd, mode)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+        if not hasattr(os, "fchmod"):
+            os.chmod(tmp, mode)
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        if path.is_dir():
+            raise ArtifactError(_IS_A_DIRECTORY.format(path=path)) from None
+        raise ArtifactError(f"{path}: cannot write the artifact ({_reason(exc)}); free the space or the "
+                            "permission it needs, or choose another --out folder") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -100,17 +228,38 @@ STALE_TEMPORARY_AGE = 60.0
 
 
 def remove_stale_temporaries(folder: Path) -> list[Path]:
-    """Delete temporaries that a killed run left in ``folder`` (``.<name>.*.tmp``); return them."""
+    """Delete the temporaries a killed quadctl left in ``folder``; return them.
+
+    Only what quadctl can prove it wrote goes: a regular file named
+    ``.<artifact>.quadctl-<random>.tmp`` (:data:`TEMPORARY_TAG`) whose ``<artifact>`` is a name
+    quadctl writes in that very folder (:data:`ARTIFACT_NAMES` at the top, the
+    :data:`SUBFOLDER_NAMES` patterns in ``plots/`` and ``sweep.parts/``), older than
+    :data:`STALE_TEMPORARY_AGE`. Never recursive: a user's ``.notes.tmp``, a
+    ``.sim.npz.mine.tmp`` or anything in a folder of their own stays.
+    """
     import time
 
     folder = Path(folder)
-    if not folder.is_dir():
-        return []
     now = time.time()
-    stale = [p for p in folder.rglob(".*.tmp") if now - p.stat().st_mtime > STALE_TEMPORARY_AGE]
-    for p in stale:
-        p.unlink(missing_ok=True)
-    return stale
+    stale = []
+    places = [(folder, ARTIFACT_NAMES.__contains__)]
+    places += [(folder / sub, pattern.fullmatch) for sub, pattern in SUBFOLDER_NAMES.items()]
+    for where, is_ours in places:
+        try:
+            entries = list(os.scandir(where))
+        except OSError:  # no such folder (or unreadable): nothing of ours to remove
+            continue
+        for entry in entries:
+            match = _TEMPORARY.fullmatch(entry.name)
+            if not match or not is_ours(match["name"]) or not entry.is_file(follow_symlinks=False):
+                continue
+            try:
+                if now - entry.stat(follow_symlinks=False).st_mtime > STALE_TEMPORARY_AGE:
+                    os.unlink(entry.path)
+                    stale.append(Path(entry.path))
+            except OSError:  # gone meanwhile, or a read-only folder: leave it
+                continue
+    return sorted(stale)
 
 
 def _umask() -> int:
@@ -152,19 +301,113 @@ def write_bytes(path: Path, data: bytes) -> Path:
     return Path(path)
 
 
+# ---------------------------------------------------------------------------------------
+# Reading, with provenance and content checked
+
+
+class InvalidArtifact(ArtifactError):
+    """An artifact whose provenance is intact but whose content is not what quadctl writes (a key
+    missing, an array of the wrong shape, a value not finite): not fresh; recompute it.
+
+    Uncaught it is a bad-input error (exit 2) that names the file, the key and the way out.
+    """
+
+
+NAMES = "state names"
+"""Schema entry: a list of state names."""
+
+SCHEMAS: dict[str, dict[str, tuple | str]] = {
+    "trim.json": {"x": (N_STATES,), "u": (N_INPUTS,), "xdot": (N_STATES,), "residual": (), "iterations": ()},
+    "linear.npz": {"A": (N_STATES, N_STATES), "B": (N_STATES, N_INPUTS), "x_trim": (N_STATES,),
+                   "u_trim": (N_INPUTS,), "x_rate": (N_STATES,)},
+    "design.json": {"K_block": (N_INPUTS, N_STATES), "integral_states": NAMES,
+                    "Ki_block": (N_INPUTS, "integral_states")},
+}
+"""What a later stage reads back from each artifact: key -> shape of a finite float array (a
+dimension given as a key is that key's length), or :data:`NAMES`. :func:`read_json` and
+:func:`read_npz` check it for every artifact named here."""
+
+
+def validate(path: Path | str, data: dict) -> None:
+    """Check ``data`` (a JSON artifact, or an NPZ's arrays) against ``SCHEMAS[path.name]``.
+
+    Raises
+    ------
+    InvalidArtifact
+        Naming the file, the key and what is wrong.
+
+    Examples
+    --------
+    >>> validate("runs/forward/trim.json", {"x": [0.0] * 12, "u": [0.6, 0, 0, 0], "xdot": [0.0] * 12,
+    ...                                     "residual": 1e-15, "iterations": 4})
+    >>> try:
+    ...     validate("runs/forward/design.json", {"K_block": [[0.0] * 12] * 3, "integral_states": [],
+    ...                                           "Ki_block": [[]] * 4})
+    ... except InvalidArtifact as exc:
+    ...     print(exc)
+    runs/forward/design.json: invalid artifact: K_block is 3 x 12, expected 4 x 12; delete it or rerun with --fresh
+    """
+    schema = SCHEMAS.get(Path(path).name)
+    if schema is None:
+        return
+    for key, spec in schema.items():
+        problem = _problem(data, key, spec)
+        if problem:
+            raise InvalidArtifact(f"{path}: invalid artifact: {problem}; delete it or rerun with --fresh")
+
+
+def _problem(data: dict, key: str, spec) -> str | None:
+    if key not in data:
+        return f"{key} is missing"
+    value = data[key]
+    if spec == NAMES:
+        names = value.tolist() if isinstance(value, np.ndarray) else value
+        if not isinstance(names, list) or not all(isinstance(n, str) and n in STATE_NAMES for n in names):
+            return f"{key} is not a list of state names"
+        return None
+    try:
+        array = np.asarray(value)
+        if array.dtype.kind in "USV":  # "1.5" or "inf": a string, not a number quadctl wrote
+            raise TypeError
+        array = array.astype(float)  # a null (None) is NaN: caught as not finite below
+    except (TypeError, ValueError):
+        return f"{key} is not an array of numbers"
+    expected = tuple(len(data.get(d) or ()) if isinstance(d, str) else d for d in spec)
+    if array.shape != expected:
+        return f"{key} is {_shape(array.shape)}, expected {_shape(expected)}"
+    if not np.all(np.isfinite(array)):
+        return f"{key} has values that are not finite"
+    return None
+
+
+def _shape(shape: tuple) -> str:
+    return "a scalar" if not shape else " x ".join(str(n) for n in shape)
+
+
 def read_json(path: Path) -> dict:
-    """Read a JSON artifact; ArtifactError names the file if it is corrupt or foreign."""
+    """Read a JSON artifact, checking its provenance and (for those in :data:`SCHEMAS`) content.
+
+    Raises
+    ------
+    ArtifactError
+        Corrupt (not JSON), or written in another format.
+    InvalidArtifact
+        Provenance intact, content not what quadctl writes (:func:`validate`).
+    """
+    _refuse_directory(path)
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ArtifactError(f"{path}: corrupted artifact ({_reason(exc)}); "
                             "delete it or rerun with --fresh") from None
     _check_provenance(path, data if isinstance(data, dict) else {})
+    validate(path, data)
     return data
 
 
 def read_npz(path: Path) -> tuple[dict[str, np.ndarray], dict]:
-    """Read an NPZ artifact: (arrays, meta)."""
+    """Read an NPZ artifact: (arrays, meta); errors as :func:`read_json`."""
+    _refuse_directory(path)
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
@@ -172,8 +415,17 @@ def read_npz(path: Path) -> tuple[dict[str, np.ndarray], dict]:
     except (OSError, ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
         raise ArtifactError(f"{path}: corrupted artifact ({_reason(exc)}); "
                             "delete it or rerun with --fresh") from None
-    _check_provenance(path, meta)
+    _check_provenance(path, meta if isinstance(meta, dict) else {})
+    validate(path, arrays)
     return arrays, meta
+
+
+def _refuse_directory(path) -> None:
+    if Path(path).is_dir():
+        raise ArtifactError(_IS_A_DIRECTORY.format(path=path))
+
+
+_IS_A_DIRECTORY = "{path}: is a directory, not a file quadctl can write; remove it or choose another --out folder"
 
 
 def _check_provenance(path, meta: dict) -> None:
@@ -189,12 +441,128 @@ def _reason(exc: Exception) -> str:
 
 
 def is_fresh(path: Path, cfg) -> bool:
-    """True if ``path`` exists and was made from this exact config by this quadctl version.
+    """True if ``path`` exists, was made from this exact config by this quadctl version, and
+    holds what quadctl writes (:func:`validate`): then a stage may reuse it.
 
-    Raises ArtifactError if it exists but is corrupt or of a foreign format.
+    False for a missing, stale or invalid artifact (recompute it).
+
+    Raises
+    ------
+    ArtifactError
+        It exists but is corrupt or of a foreign format.
     """
     path = Path(path)
     if not path.exists():
         return False
-    meta = read_npz(path)[1] if path.suffix == ".npz" else read_json(path)
+    try:
+        meta = read_npz(path)[1] if path.suffix == ".npz" else read_json(path)
+    except InvalidArtifact:
+        return False
     return meta.get("config_hash") == cfg.digest() and meta.get("quadctl_version") == __version__
+
+
+# ---------------------------------------------------------------------------------------
+# One quadctl per run directory
+
+LOCK_NAME = ".quadctl.lock"
+"""The lock file in a run directory (it holds the pid of the quadctl that has the folder)."""
+
+try:
+    import fcntl
+except ImportError:  # Windows: an O_EXCL lock file instead
+    fcntl = None
+
+_held: dict[str, int] = {}
+"""Folders this process holds, with a count (:func:`locked` is re-entrant within a process)."""
+
+
+@contextmanager
+def locked(folder: Path | str):
+    """Hold ``folder`` (a run directory) for this process while the block runs.
+
+    Another quadctl writing the same folder at the same time (a config edited and rerun while an
+    earlier run still simulates) would leave artifacts of two configs side by side; the second
+    one is refused instead. With ``fcntl`` (Linux, macOS) the lock is ``flock`` on
+    ``<folder>/.quadctl.lock``, released by the kernel however the holder ends (``kill -9``
+    included); elsewhere the file is created with ``O_EXCL`` and removed on exit (a holder killed
+    hard leaves it: the message says to delete it). Re-entrant within one process.
+
+    Raises
+    ------
+    ArtifactError
+        The folder is held by another process (exit code 2): ``runs/x is in use by another
+        quadctl (pid N); wait for it or use -o another folder``; or it cannot be created.
+    """
+    folder = Path(folder)
+    key = os.path.abspath(folder)
+    if key in _held:
+        _held[key] += 1
+        try:
+            yield folder
+        finally:
+            _held[key] -= 1
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ArtifactError(f"{folder}: cannot write artifacts there ({_reason(exc)}); "
+                            "choose another --out folder") from None
+    release = _lock_flock(folder) if fcntl is not None else _lock_exclusive(folder)
+    _held[key] = 1
+    try:
+        yield folder
+    finally:
+        del _held[key]
+        release()
+
+
+def _in_use(folder: Path, pid: str, hint: str = "") -> ArtifactError:
+    return ArtifactError(f"{folder} is in use by another quadctl (pid {pid or 'unknown'}); wait for it or "
+                         f"use -o another folder{hint}")
+
+
+def _lock_flock(folder: Path):
+    path = folder / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError as exc:
+        raise ArtifactError(f"{path}: cannot create the run directory's lock ({_reason(exc)}); "
+                            "choose another --out folder") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+        os.close(fd)
+        raise _in_use(folder, pid) from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+
+    def release():
+        # the file stays: removing it would let a third process lock a new file while a second
+        # one still waits on the old one
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+    return release
+
+
+def _lock_exclusive(folder: Path):
+    path = folder / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    except FileExistsError:
+        try:
+            pid = path.read_text(encoding="ascii", errors="replace").strip()
+        except OSError:
+            pid = ""
+        raise _in_use(folder, pid, f" (if no quadctl runs there, delete {path})") from None
+    except OSError as exc:
+        raise ArtifactError(f"{path}: cannot create the run directory's lock ({_reason(exc)}); "
+                            "choose another --out folder") from None
+    with os.fdopen(fd, "w", encoding="ascii") as fh:
+        fh.write(f"{os.getpid()}\n")
+
+    def release():
+        path.unlink(missing_ok=True)
+
+    return release

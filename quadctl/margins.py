@@ -11,8 +11,9 @@ Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
 
 - gain margins (dB): the loop-gain factors ``g`` that make ``1 + g L`` singular, from every
   phase crossover (``L`` real and negative, ``g = -1 / L``); *upper* is the smallest factor
-  above 1, *lower* the largest below 1 (None: infinite, no such factor);
-- phase margin (deg): ``180 + angle L`` at the gain crossover ``|L| = 1`` (the smallest one);
+  above 1, *lower* the largest below 1 (``+inf`` / ``-inf`` dB: no such factor on that side);
+- phase margin (deg): ``180 + angle L`` at the gain crossover ``|L| = 1`` (the smallest one;
+  ``inf`` when ``|L|`` never crosses 1, as MATLAB's ``margin`` and python-control report it);
 - disk margin (balanced, skew 0, MATLAB's default): ``alpha = 1 / max_w |S - 1/2|``,
   ``S = 1 / (1 + L)``; the loop tolerates simultaneous gain and phase changes in the disk, i.e.
   gains in ``[(2 - alpha)/(2 + alpha), (2 + alpha)/(2 - alpha)]`` and phase ``+-2 atan(alpha/2)``
@@ -20,6 +21,10 @@ Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
 - the return difference ``min_w |1 + L|``. A continuous LQR loop (on its design model) has
   ``|1 + L| >= 1`` at every frequency, hence the guarantee: gain margin from -6 dB to infinity,
   phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
+
+An unstable closed loop has no margin: every margin is reported as zero (gain margins 0 dB,
+phase margin 0 deg, disk margin ``alpha = 0`` with its 0 dB / 0 deg disk) and no frequency, so
+no number suggests robustness the loop does not have (see :func:`no_margin`).
 
 Each loop is compared with that guarantee and every shortfall is explained: the couplings the
 decoupled design ignores, the sample-and-hold of a discrete controller, or saturation (which
@@ -68,24 +73,26 @@ class LoopMargins:
     sample_time : float or None
         s for a sampled loop (``L(z)``), None for continuous.
     stable : bool
-        The closed loop (``g = 1``) is stable; the margins mean nothing otherwise.
-    gain_margin_db : (float or None, float or None)
-        (lower, upper) in dB; None is -inf / +inf (no critical gain on that side).
+        The closed loop (``g = 1``) is stable. When it is not, every margin below is zero and
+        every frequency None (:func:`no_margin`).
+    gain_margin_db : (float, float)
+        (lower, upper) in dB; ``-inf`` / ``+inf`` when there is no critical gain on that side.
     gain_crossover_freqs : (float or None, float or None)
-        rad/s of the phase crossovers that set them.
-    phase_margin_deg : float or None
-        None when ``|L|`` never crosses 1.
+        rad/s of the phase crossovers that set them (None: no such crossover).
+    phase_margin_deg : float
+        ``inf`` when ``|L|`` never crosses 1.
     phase_crossover_freq : float or None
         rad/s of the gain crossover (``|L| = 1``) that sets it.
     disk_alpha : float
-        Balanced disk margin ``alpha``.
+        Balanced disk margin ``alpha`` (0 for an unstable loop).
     disk_gain_db : (float, float)
         The disk's gain range in dB.
     disk_phase_deg : float
-    disk_freq : float
+    disk_freq : float or None
         rad/s where the disk margin is smallest.
     min_return_difference : float
-        ``min |1 + L|``.
+        ``min |1 + L|`` on the grid: a property of the curve, reported for any loop (an unstable
+        loop's curve may stay far from -1; its margins are still zero).
     freq : (n,) ndarray
         The frequency grid (rad/s).
     response : (n,) complex ndarray
@@ -99,14 +106,14 @@ class LoopMargins:
     model: str
     sample_time: float | None
     stable: bool
-    gain_margin_db: tuple[float | None, float | None]
+    gain_margin_db: tuple[float, float]
     gain_crossover_freqs: tuple[float | None, float | None]
-    phase_margin_deg: float | None
+    phase_margin_deg: float
     phase_crossover_freq: float | None
     disk_alpha: float
     disk_gain_db: tuple[float, float]
     disk_phase_deg: float
-    disk_freq: float
+    disk_freq: float | None
     min_return_difference: float
     freq: np.ndarray = field(repr=False)
     response: np.ndarray = field(repr=False)
@@ -116,12 +123,13 @@ class LoopMargins:
     def meets_lqr_guarantee(self) -> bool:
         """Gain margin within [-6 dB, inf) and phase margin >= 60 deg (and stable)."""
         lower, upper = self.gain_margin_db
-        gm_ok = (lower is None or lower <= LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL)) and upper is None
-        pm_ok = self.phase_margin_deg is None or self.phase_margin_deg >= LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL)
+        gm_ok = lower <= LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL) and upper == math.inf
+        pm_ok = self.phase_margin_deg >= LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL)
         return self.stable and gm_ok and pm_ok
 
     def as_dict(self) -> dict:
-        """JSON-ready summary (the curves left out)."""
+        """JSON-ready summary (the curves left out); infinite margins stay ``inf`` floats (the
+        artifact writer spells them ``"inf"``), a frequency that does not apply is None."""
         return {
             "loop": self.loop, "input": self.input, "model": self.model, "sample_time": self.sample_time,
             "stable": self.stable,
@@ -218,24 +226,60 @@ def loop_margins(loop: BrokenLoop, *, name: str = "loop", input_name: str = "u",
     >>> A = np.array([[0.0, 1.0], [0.0, -1.0]]); b = np.array([0.0, 1.0]); k = np.array([2 ** 0.5, 0.0])
     >>> m = loop_margins(BrokenLoop(A, b, k))
     >>> round(m.phase_margin_deg, 6), round(m.phase_crossover_freq, 6), m.gain_margin_db
-    (45.0, 1.0, (None, None))
+    (45.0, 1.0, (-inf, inf))
+
+    The same loop with positive feedback is unstable: it has no margin at all.
+
+    >>> bad = loop_margins(BrokenLoop(A, b, -k))
+    >>> bad.stable, bad.gain_margin_db, bad.phase_margin_deg, bad.disk_alpha, bad.disk_freq
+    (False, (0.0, 0.0), 0.0, 0.0, None)
     """
     w = frequency_grid(loop) if grid is None else np.asarray(grid, dtype=float)
     Lw = loop(w)
-    stable = loop.is_stable()
+    rd = float(np.min(np.abs(1 + Lw)))
+    rd = min(rd, _refine_min(lambda x: float(np.abs(1 + loop(x))[0]), w, np.abs(1 + Lw)))
+    labels = dict(loop=name, input=input_name, model=model, sample_time=loop.sample_time,
+                  min_return_difference=rd, freq=w, response=Lw)
+    if not loop.is_stable():
+        return no_margin(**labels)
     lower, upper, w_lower, w_upper = _gain_margins(loop, w, Lw)
     pm, w_pm = _phase_margin(loop, w, Lw)
     alpha, w_disk = _disk_margin(loop, w)
-    rd = float(np.min(np.abs(1 + Lw)))
-    rd = min(rd, _refine_min(lambda x: float(np.abs(1 + loop(x))[0]), w, np.abs(1 + Lw)))
+    return LoopMargins(
+        stable=True, gain_margin_db=(lower, upper), gain_crossover_freqs=(w_lower, w_upper),
+        phase_margin_deg=pm, phase_crossover_freq=w_pm, disk_alpha=alpha,
+        disk_gain_db=disk_gain_range_db(alpha), disk_phase_deg=math.degrees(2 * math.atan(alpha / 2)),
+        disk_freq=w_disk, **labels)
+
+
+def disk_gain_range_db(alpha: float) -> tuple[float, float]:
+    """The balanced disk's gain range ``[(2 - a)/(2 + a), (2 + a)/(2 - a)]`` in dB (``a >= 2``: up
+    to ``+inf``)."""
     g_lo = (2 - alpha) / (2 + alpha)
     g_hi = (2 + alpha) / (2 - alpha) if alpha < 2 else math.inf
-    return LoopMargins(
-        loop=name, input=input_name, model=model, sample_time=loop.sample_time, stable=stable,
-        gain_margin_db=(lower, upper), gain_crossover_freqs=(w_lower, w_upper),
-        phase_margin_deg=pm, phase_crossover_freq=w_pm, disk_alpha=alpha,
-        disk_gain_db=(_db(g_lo), _db(g_hi)), disk_phase_deg=math.degrees(2 * math.atan(alpha / 2)),
-        disk_freq=w_disk, min_return_difference=rd, freq=w, response=Lw)
+    return _db(g_lo), _db(g_hi)
+
+
+def no_margin(**labels) -> LoopMargins:
+    """The margins of an unstable closed loop: none.
+
+    MATLAB's ``diskmargin`` (Robust Control Toolbox, ``help diskmargin``) defines the disk
+    margin as "the largest perturbation size ALPHA for which the feedback loop remains stable",
+    and derives ``GainMargin`` and ``PhaseMargin`` from that disk (``DiskMargin`` is its lower
+    bound, ``[GainMargin, PhaseMargin] = dm2gm(DiskMargin, sigma)``). A loop unstable at the
+    nominal gain remains stable for no perturbation: ``ALPHA = 0``, whose disk is the single
+    gain factor 1 (0 dB both ways) and phase 0 deg. quadctl reports exactly that, and applies
+    the same reading to the classical margins: a loop that is already unstable tolerates no
+    gain or phase change, so they are 0 dB and 0 deg, with no crossover frequency. (MATLAB's
+    ``allmargin`` instead keeps listing the crossings beside ``Stable = 0``, and ``margin``
+    warns "The closed-loop system is unstable."; ``stable`` and the notes say so here too, but
+    a crossing of an unstable loop is where stability would *return*, not a margin, and a
+    table that prints it as one reads as robustness.) quadctl computes no delay margin; a
+    delay-type field added later must be zero here as well.
+    """
+    return LoopMargins(stable=False, gain_margin_db=(0.0, 0.0), gain_crossover_freqs=(None, None),
+                       phase_margin_deg=0.0, phase_crossover_freq=None, disk_alpha=0.0,
+                       disk_gain_db=(0.0, 0.0), disk_phase_deg=0.0, disk_freq=None, **labels)
 
 
 def frequency_grid(loop: BrokenLoop) -> np.ndarray:
@@ -276,7 +320,7 @@ def _gain_margins(loop, w, Lw):
     below = [(g, wc) for wc, g in crossings if g < 1]
     upper = min(above) if above else None
     lower = max(below) if below else None
-    return (_db(lower[0]) if lower else None, _db(upper[0]) if upper else None,
+    return (_db(lower[0]) if lower else -math.inf, _db(upper[0]) if upper else math.inf,
             lower[1] if lower else None, upper[1] if upper else None)
 
 
@@ -288,7 +332,7 @@ def _phase_margin(loop, w, Lw):
         pm = math.degrees(math.remainder(float(np.angle(loop(wc)[0])) + math.pi, 2 * math.pi))
         if best is None or pm < best[0]:
             best = (pm, wc)
-    return (best[0], best[1]) if best else (None, None)
+    return (best[0], best[1]) if best else (math.inf, None)
 
 
 def _disk_margin(loop, w):
@@ -435,11 +479,11 @@ def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=N
         notes.append("meets the continuous LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg)")
     else:
         short = []
-        if upper is not None:
+        if math.isfinite(upper):
             short.append(f"upper gain margin {upper:.3g} dB (guarantee: inf)")
-        if lower is not None and lower > LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL):
+        if lower > LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL):
             short.append(f"lower gain margin {lower:.3g} dB (guarantee: <= -6.02 dB)")
-        if m.phase_margin_deg is not None and m.phase_margin_deg < LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL):
+        if m.phase_margin_deg < LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL):
             short.append(f"phase margin {m.phase_margin_deg:.3g} deg (guarantee: >= 60 deg)")
         notes.append("short of the continuous LQR guarantee: " + "; ".join(short))
         if m.sample_time:

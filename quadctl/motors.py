@@ -20,7 +20,7 @@ rotor  ``x`` layout (d = L / sqrt 2)  ``+`` layout            spin
 4      front left   ( d, -d)         left   ( 0, -L)       CW
 ====  ===========================  ====================  ====
 
-Saturation (:mod:`quadctl.codegen`, mode ``motors``): the commanded ``[T, A, E, R]`` is mixed to
+Saturation (:mod:`quadctl.sim.builder`, mode ``motors``): the commanded ``[T, A, E, R]`` is mixed to
 rotor thrusts, each clipped to ``[min_thrust, max_thrust]``, and mixed back. Clipping one rotor
 changes every input it contributes to (there is no priority between thrust and torques, as in
 the simplest flight-controller mixers). Without motors, box limits clip ``T, A, E, R`` directly.

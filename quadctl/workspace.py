@@ -55,6 +55,7 @@ class Flight:
     loop: ClosedLoop
     metrics: dict
     flight: dict
+_c = artifacts.complex_values  # eigenvalues: [re, im] pairs in JSON even when all are real
 
 
 def default_out(cfg: Config) -> Path:
@@ -200,10 +201,10 @@ class Workspace:
         des = pipeline.design_of(self.setup, self.decoupled, self.linear)
         self._write_json(DESIGN, "design", {
             "subsystems": {s.name: {"states": s.states, "inputs": s.inputs, "Q": s.Q, "R": s.R,
-                                    "K": s.K, "P": s.P, "closed_loop_eigenvalues": s.eigenvalues,
+                                    "K": s.K, "P": s.P, "closed_loop_eigenvalues": _c(s.eigenvalues),
                                     "riccati_residual": s.residual} for s in des.subsystems},
             "K_block": des.K_block, "Q_block": des.Q_block, "R_block": des.R_block,
-            "full_closed_loop_eigenvalues": des.full_eigenvalues,
+            "full_closed_loop_eigenvalues": _c(des.full_eigenvalues),
             "marginal_states": des.marginal_states, "stable": des.stable,
             **_flight_design_payload(des)})
         return des
@@ -244,7 +245,7 @@ class Workspace:
         self._write_json(DESIGN_FULL, "design_full", {
             "K": fd.K, "Ki": fd.Ki, "integral_states": fd.integral_states, "states": fd.states,
             "left_out": fd.left_out, "Q": fd.Q, "R": fd.R, "P": fd.P,
-            "closed_loop_eigenvalues": fd.eigenvalues, "stable": fd.stable, "rate": fd.rate,
+            "closed_loop_eigenvalues": _c(fd.eigenvalues), "stable": fd.stable, "rate": fd.rate,
             "riccati_residual": fd.residual,
             "position": ("left out: " + ", ".join(fd.left_out) + " (no weight, no dynamics); "
                          if fd.left_out else "") + "weighted positions regulated about the moving reference",
@@ -283,9 +284,9 @@ def _flight_design_payload(des: Design) -> dict:
     return {
         "rate": des.rate, "discrete": des.rate is not None,
         "Ki_block": des.Ki_block, "integral_states": des.integral_states,
-        "full_closed_loop_eigenvalues_z": des.full_eigenvalues_z,
+        "full_closed_loop_eigenvalues_z": _c(des.full_eigenvalues_z),
         "subsystem_integrals": {s.name: {"integral": s.integral, "Ki": s.Ki,
-                                         "closed_loop_eigenvalues_z": s.eigenvalues_z}
+                                         "closed_loop_eigenvalues_z": _c(s.eigenvalues_z)}
                                 for s in des.subsystems},
     }
 

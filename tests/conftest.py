@@ -1,4 +1,5 @@
-"""Shared fixtures: the report's configs solved through the pipeline once per session."""
+"""Shared fixtures (the report's configs solved once per session, a temporary compile cache) and
+the ``compiler`` marker: tests that need a C compiler skip, saying why, where there is none."""
 
 from __future__ import annotations
 
@@ -27,3 +28,17 @@ def forward():
 def _cache_in_tmp(tmp_path_factory, monkeypatch):
     """Compiled steps go to one session-wide temporary cache, never the user's."""
     monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path_factory.getbasetemp() / "qc-cache"))
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``compiler`` are skipped, with the reason, where no C compiler is found."""
+    marked = [item for item in items if item.get_closest_marker("compiler")]
+    if not marked:
+        return
+    from quadctl.sim.compile import find_compiler
+
+    if find_compiler() is None:
+        skip = pytest.mark.skip(reason="needs a C compiler: quadctl.sim.compile.find_compiler() found none "
+                                       "($CC, cc, gcc, clang; or QUADCTL_NO_COMPILE=1 is set)")
+        for item in marked:
+            item.add_marker(skip)

@@ -342,7 +342,8 @@ def test_the_exit_code_does_not_depend_on_debug(tmp_path, debug, text, code, pat
     res = runner.invoke(app, [*debug, "simulate", "-c", str(path), "-o", str(tmp_path / "out")])
     assert res.exit_code == code, res.output
     last = stderr_lines(res)[-1]
-    assert last.startswith(f"quadctl: error: {path}: ") and re.search(pattern, last), last
+    kind = "check failed" if code == 1 else "error"  # exit 1 is a failed check, and says so
+    assert last.startswith(f"quadctl: {kind}: {path}: ") and re.search(pattern, last), last
     assert ("Traceback (most recent call last)" in res.stderr) == bool(debug)
 
 

@@ -80,7 +80,7 @@ def test_foreign_format_is_refused(tmp_path):
 
 
 def test_atomic_write_leaves_old_file_whole_on_failure(tmp_path, monkeypatch):
-    path = tmp_path / "a.json"
+    path = tmp_path / "trim.json"
     artifacts.write_json(path, {"v": 1})
 
     def boom(*_):
@@ -90,24 +90,276 @@ def test_atomic_write_leaves_old_file_whole_on_failure(tmp_path, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         artifacts.write_json(path, {"v": 2})
     assert json.loads(path.read_text()) == {"v": 1}
-    assert [p.name for p in tmp_path.iterdir()] == ["a.json"]  # no temporary left behind
+    assert [p.name for p in tmp_path.iterdir()] == ["trim.json"]  # no temporary left behind
 
 
 def test_unwritable_out_folder_is_a_clear_error(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
     with pytest.raises(ArtifactError, match=r"cannot write artifacts there .*choose another --out folder"):
-        artifacts.write_json(blocker / "sub" / "x.json", {})
+        artifacts.write_json(blocker / "sub" / "trim.json", {})
 
 
 def test_artifacts_follow_the_umask_not_mkstemps_0600(tmp_path):
     old = os.umask(0o022)
     try:
-        path = artifacts.write_json(tmp_path / "a.json", {})
+        path = artifacts.write_json(tmp_path / "trim.json", {})
     finally:
         os.umask(old)
     assert path.stat().st_mode & 0o777 == 0o644
 
 
-def test_json_has_no_nan_and_complex_as_pairs():
-    assert artifacts.jsonable({"e": np.array([1 + 2j]), "n": float("nan")}) == {"e": [[1.0, 2.0]], "n": None}
+def test_json_keeps_infinity_apart_from_nan_and_complex_as_pairs():
+    value = {"e": np.array([1 + 2j, -3 + 0j]), "n": float("nan"), "gm": (-np.inf, 6.0, np.float32(np.inf)),
+             "none": None}
+    coded = artifacts.jsonable(value)
+    assert coded == {"e": [[1.0, 2.0], [-3.0, 0.0]], "n": None, "gm": ["-inf", 6.0, "inf"], "none": None}
+    json.dumps(coded, allow_nan=False)  # strict JSON
+    assert artifacts.decode_floats(coded)["gm"] == [-np.inf, 6.0, np.inf]
+
+
+def _eigenvalue_fields(value, path=""):
+    """(path, value) of every key naming eigenvalues, anywhere in a JSON document."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            if "eigenvalue" in key:
+                yield f"{path}.{key}", item
+            else:
+                yield from _eigenvalue_fields(item, f"{path}.{key}")
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            yield from _eigenvalue_fields(item, f"{path}[{i}]")
+
+
+def _is_pair(value) -> bool:
+    number = (float, int, str)  # a part may be "inf" / "-inf" (a deadbeat mode's ln(0) / Ts)
+    return isinstance(value, list) and len(value) == 2 and all(isinstance(v, number) for v in value)
+
+
+def test_every_eigenvalue_in_every_json_artifact_is_a_pair(tmp_path):
+    """design.json used to mix plain floats (all real) and [re, im] pairs (some complex)."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    runs = {"forward": ["design", "--full"], "mambo-200hz": ["design", "--full"], "hover": ["check"]}
+    for name, command in runs.items():
+        res = CliRunner().invoke(app, [*command, "-c", name, "-o", str(tmp_path / name)])
+        assert res.exit_code == 0, res.output
+    fields = [(f"{path.relative_to(tmp_path)}{where}", v) for path in sorted(tmp_path.rglob("*.json"))
+              for where, v in _eigenvalue_fields(json.loads(path.read_text()))]
+    assert {f.split(".json")[0] for f, _ in fields} >= {"forward/design", "forward/design_full", "hover/checks",
+                                                       "mambo-200hz/design", "mambo-200hz/design_full"}
+    for where, value in fields:
+        if value is None:  # a continuous design has no z eigenvalues: not applicable
+            assert where.endswith("_z"), where
+            continue
+        assert _is_pair(value) or (isinstance(value, list) and value and all(_is_pair(v) for v in value)), \
+            (where, value)
+    altitude = dict(fields)["forward/design.json.subsystems.altitude.closed_loop_eigenvalues"]
+    assert len(altitude) == 2 and all(im == 0.0 for _, im in altitude)  # all real: still pairs
+
+
+@pytest.mark.parametrize("fchmod", [True, False], ids=["os.fchmod", "no os.fchmod (Windows, Python < 3.13)"])
+def test_artifacts_follow_the_umask_with_or_without_fchmod(tmp_path, monkeypatch, fchmod):
+    if not fchmod:
+        monkeypatch.delattr(artifacts.os, "fchmod", raising=False)
+    old = os.umask(0o027)
+    try:
+        path = artifacts.write_json(tmp_path / "trim.json", {"v": 1})
+    finally:
+        os.umask(old)
+    assert path.stat().st_mode & 0o777 == 0o640
+    assert json.loads(path.read_text()) == {"v": 1} and [p.name for p in tmp_path.iterdir()] == ["trim.json"]
+
+
+# ---------------------------------------------------------------------------------------
+# Names: constants, and never a path out of the run directory
+
+
+def test_every_name_the_stages_write_is_registered():
+    from quadctl import report, workspace
+    from quadctl.export import c, data
+    from quadctl.sweep import outputs, store
+
+    names = {workspace.TRIM, workspace.LINEAR, workspace.SUBSYSTEMS, workspace.CHECKS, workspace.DESIGN,
+             workspace.SIM_NPZ, workspace.SIM_JSON, workspace.MARGINS, workspace.DESIGN_FULL,
+             workspace.CONFIG_GIVEN, workspace.CONFIG_RESOLVED, c.HEADER, c.SOURCE, data.MAT_FILE, data.JSON_FILE,
+             "sweep.csv", "sweep.json", "sweep.png", *outputs.MC_FILES}
+    assert names <= artifacts.ARTIFACT_NAMES, names - artifacts.ARTIFACT_NAMES
+    assert store.PARTS in artifacts.SUBFOLDER_NAMES and artifacts.PLOTS in artifacts.SUBFOLDER_NAMES
+    assert all(artifacts.SUBFOLDER_NAMES[report.FOLDER].fullmatch(n) for n in (report.HTML, report.MARKDOWN))
+
+
+@pytest.mark.parametrize("name", ["notes.json", "plots/../../x.png", "sweep.parts/a.json", "plots/trim.png/x"])
+def test_a_name_quadctl_does_not_write_is_refused_before_writing(tmp_path, name):
+    with pytest.raises(ValueError, match="not an artifact name quadctl writes"):
+        artifacts.write_json(tmp_path / "out" / name, {})
+    assert not any(tmp_path.rglob("*.json"))
+
+
+@pytest.mark.parametrize("stem", ["../../x/roll", "a/b", "..", ".hidden", "a\\b"])
+def test_a_figure_name_from_a_config_cannot_leave_the_run_directory(tmp_path, stem):
+    with pytest.raises(ArtifactError, match=r"cannot name a figure in .*plots .*rename it in the config"):
+        artifacts.plot_path(tmp_path, stem)
+
+
+def test_a_subsystem_named_like_a_path_writes_no_figure_outside(tmp_path):
+    """A subsystem key is any string the YAML allows; its figure must not land outside -o."""
+    import yaml
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    data = config.load("hover").model_dump(mode="json")
+    data["subsystems"]["../escaped"] = data["subsystems"].pop("yaw")
+    data["lqr"]["../escaped"] = data["lqr"].pop("yaw")
+    data["simulation"]["duration"] = 0.05
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(data))
+    res = CliRunner().invoke(app, ["simulate", "-c", str(path), "-o", str(tmp_path / "out"), "--plot"])
+    assert res.exit_code in (2, 0), res.output  # refused as a config or as a figure name, never exit 3
+    assert not (tmp_path / "out" / "escaped.png").exists() and not (tmp_path / "escaped.png").exists()
+    if res.exit_code == 2:
+        assert "rename it in the config" in res.output or "subsystems" in res.output
+
+
+# ---------------------------------------------------------------------------------------
+# Reading: provenance intact, content broken
+
+
+def _break(path, kind):
+    """Rewrite an artifact with its provenance intact and its content broken."""
+    if path.suffix == ".npz":
+        arrays, meta = artifacts.read_npz(path)
+        arrays["A"] = arrays["A"][:3, :3]
+        artifacts.write_npz(path, arrays, meta)
+    else:
+        data = json.loads(path.read_text())
+        if kind == "missing x":
+            del data["x"]
+        else:
+            data["K_block"] = data["K_block"][:3]
+        path.write_text(json.dumps(data))
+
+
+BROKEN = [("trim.json", "missing x", r"x is missing"),
+          ("design.json", "K_block 3 x 12", r"K_block is 3 x 12, expected 4 x 12"),
+          ("linear.npz", "A 3 x 3", r"A is 3 x 3, expected 12 x 12")]
+
+
+@pytest.mark.parametrize("name, kind, problem", BROKEN, ids=[b[1] for b in BROKEN])
+def test_a_broken_artifact_with_intact_provenance_is_invalid_not_fresh(tmp_path, name, kind, problem):
+    cfg = config.load("forward")
+    ws = Workspace(cfg, tmp_path)
+    ws.design  # noqa: B018 - writes trim.json, linear.npz, design.json
+    path = tmp_path / name
+    assert artifacts.is_fresh(path, cfg)
+    _break(path, kind)
+    if name.endswith(".npz"):
+        with np.load(path) as npz:
+            meta = json.loads(str(npz["meta"]))
+    else:
+        meta = json.loads(path.read_text())
+    assert meta["config_hash"] == cfg.digest() and meta["quadctl_version"]  # provenance intact
+    reader = artifacts.read_npz if name.endswith(".npz") else artifacts.read_json
+    with pytest.raises(artifacts.InvalidArtifact, match=rf"{name}: invalid artifact: {problem}; "
+                                                        "delete it or rerun with --fresh"):
+        reader(path)
+    assert not artifacts.is_fresh(path, cfg)
+
+
+@pytest.mark.parametrize("name, kind, problem", BROKEN, ids=[b[1] for b in BROKEN])
+def test_a_later_stage_recomputes_a_broken_artifact(tmp_path, name, kind, problem):
+    """Each of these crashed a later stage (exit 3) before; now the stage that reads it recomputes it
+    (`simulate` reads the linear model and the gains; the trim is read by `trim` and `linearize`)."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    cfg = config.load("hover")
+    Workspace(cfg, tmp_path).design  # noqa: B018
+    _break(tmp_path / name, kind)
+    command = "trim" if name == "trim.json" else "simulate"
+    res = CliRunner().invoke(app, [command, "-c", "hover", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    assert artifacts.is_fresh(tmp_path / name, cfg)  # rewritten whole
+
+
+@pytest.mark.parametrize("value, problem", [
+    ([0.0] * 11, "x is 11, expected 12"), ([[0.0] * 12], "x is 1 x 12, expected 12"),
+    ([None] + [0.0] * 11, "x has values that are not finite"), (["1.5"] + [0.0] * 11, "x is not an array of numbers"),
+    ("x", "x is not an array of numbers")])
+def test_the_reader_names_what_is_wrong(value, problem):
+    data = {"x": value, "u": [0.6, 0, 0, 0], "xdot": [0.0] * 12, "residual": 0.0, "iterations": 3}
+    with pytest.raises(artifacts.InvalidArtifact, match=re.escape(problem)):
+        artifacts.validate("trim.json", data)
+
+
+def test_integrators_set_the_shape_of_ki_block():
+    ok = {"K_block": [[0.0] * 12] * 4, "integral_states": ["pD"], "Ki_block": [[1.0]] * 4}
+    artifacts.validate("design.json", ok)
+    with pytest.raises(artifacts.InvalidArtifact, match="Ki_block is 4 x 0, expected 4 x 1"):
+        artifacts.validate("design.json", {**ok, "Ki_block": [[]] * 4})
+    with pytest.raises(artifacts.InvalidArtifact, match="integral_states is not a list of state names"):
+        artifacts.validate("design.json", {**ok, "integral_states": ["altitude"]})
+
+
+# ---------------------------------------------------------------------------------------
+# Writing into a folder that cannot take it: bad input (exit 2), never a traceback
+
+
+def _cli(*args):
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+@pytest.mark.parametrize("fresh", [False, True], ids=["reuse", "--fresh"])
+def test_an_artifact_path_that_is_a_directory_is_bad_input(tmp_path, fresh):
+    (tmp_path / "trim.json").mkdir()
+    res = _cli("trim", "-c", "hover", "-o", tmp_path, *(["--fresh"] if fresh else []))
+    assert res.exit_code == 2, res.output
+    line = " ".join(res.output.split())
+    assert f"quadctl: error: {tmp_path / 'trim.json'}: is a directory, not a file quadctl can write; remove it " \
+           "or choose another --out folder" in line
+    assert "internal error" not in line and not list(tmp_path.glob(".*.tmp"))
+
+
+def test_a_folder_that_refuses_writes_is_bad_input(tmp_path, monkeypatch):
+    """What a read-only folder does to mkstemp (simulated: root may write anywhere)."""
+    def refuse(*_, **__):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(artifacts.tempfile, "mkstemp", refuse)
+    res = _cli("trim", "-c", "hover", "-o", tmp_path)
+    assert res.exit_code == 2, res.output
+    assert f"quadctl: error: {tmp_path}: cannot write artifacts there (Permission denied); choose another " \
+           "--out folder" in " ".join(res.output.split())
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root writes into read-only folders")
+def test_a_read_only_folder_is_bad_input(tmp_path):
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    try:
+        res = _cli("trim", "-c", "hover", "-o", folder)
+    finally:
+        folder.chmod(0o755)
+    assert res.exit_code == 2, res.output
+    line = " ".join(res.output.split())
+    assert "cannot write artifacts there (Permission denied); choose another --out folder" in line
+
+
+def test_a_failing_disk_is_bad_input_naming_the_artifact(tmp_path, monkeypatch):
+    def full(*_):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(artifacts.os, "fsync", full)
+    with pytest.raises(ArtifactError, match=r"trim.json: cannot write the artifact \(No space left on device\); "
+                                            "free the space or the permission it needs, or choose another --out"):
+        artifacts.write_json(tmp_path / "trim.json", {})
+    assert list(tmp_path.iterdir()) == []

@@ -24,8 +24,6 @@ from quadctl.sim.cases import Cases
 from quadctl.sim.plan import record_stride
 from quadctl.simulate import simulate
 
-needs_compiler = pytest.mark.skipif(compile_mod.find_compiler() is None, reason="no C compiler")
-
 
 def _features():
     """(label, config dict, duration s): one loop per feature the builder has."""
@@ -54,6 +52,7 @@ def _clear():
     engine.runner.cache_clear()
 
 
+@pytest.mark.compiler
 @pytest.mark.parametrize("label, data, duration", FEATURES, ids=[f[0] for f in FEATURES])
 def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch):
     setup, loop = _loop(data)
@@ -66,9 +65,7 @@ def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch
             interpreted = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
     finally:
         _clear()
-    if compile_mod.find_compiler() is not None:
-        assert compiled.backend == "compiled"
-    assert interpreted.backend == "casadi"
+    assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max(),
                np.abs(compiled.z - interpreted.z).max() if compiled.z.size else 0.0)
     assert diff < 1e-12, f"Max diff is {diff:.4E}"
@@ -82,7 +79,7 @@ def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch
         assert commands.max() == pytest.approx(loop.actuators.hi[0])  # a rotor at its limit
 
 
-@needs_compiler
+@pytest.mark.compiler
 @pytest.mark.parametrize("label, data, duration", FEATURES, ids=[f[0] for f in FEATURES])
 def test_lanes_equal_the_one_case_loop(label, data, duration):
     """Eight lanes with different gains, steps and seeds, each against its own one-case run."""
@@ -183,7 +180,7 @@ def test_every_command_without_a_working_compiler_gives_one_notice_and_the_same_
     assert diff < 1e-9, f"Max diff is {diff:.4E}"
 
 
-@needs_compiler
+@pytest.mark.compiler
 def test_a_cached_library_loads_without_building_casadi_functions(monkeypatch):
     """The compile cache is keyed by what the C is made from, so a hit skips code generation."""
     from quadctl.sim import builder
@@ -217,7 +214,7 @@ def _counting_source():
     return source, made
 
 
-@needs_compiler
+@pytest.mark.compiler
 def test_the_compile_cache_key_follows_what_the_source_is_made_from(tmp_path, monkeypatch):
     """A hit skips generating the source; another key (variant, or generator edited) recompiles."""
     monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path))
@@ -232,7 +229,7 @@ def test_the_compile_cache_key_follows_what_the_source_is_made_from(tmp_path, mo
     assert sorted(p.suffix for p in tmp_path.iterdir()) == [".so", ".so", ".so"]  # no temporaries left
 
 
-@needs_compiler
+@pytest.mark.compiler
 def test_threads_compile_one_library_without_touching_the_working_directory(tmp_path, monkeypatch):
     """Dask workers run chunks in threads: one compiles, the others wait and load its library, and
     nothing changes the process's working directory (which every thread shares)."""

@@ -257,7 +257,8 @@ def test_a_continuous_design_needs_a_rate(tmp_path):
 def test_a_rate_that_makes_the_loop_unstable_is_refused_with_the_reason(tmp_path):
     res = runner.invoke(app, ["export", "--to", "c", "-c", "hover", "--rate", "200", "-o", str(tmp_path)])
     assert res.exit_code == 1
-    assert res.stderr.startswith("quadctl: error: not exported: roll: closed-loop pole -14493 rad/s is 115x faster "
+    assert res.stderr.startswith("quadctl: check failed: not exported: roll: closed-loop pole -14493 rad/s is 115x "
+                                 "faster "
                                  "than 200 Hz realizes")
     assert "sampled at 200 Hz this loop is UNSTABLE" in res.stderr
     assert not (tmp_path / "quadctl_controller.c").exists()
@@ -485,7 +486,7 @@ def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, mon
     assert len(runs) == 5
     for command, shown in runs:
         res = runner.invoke(app, shlex.split(command)[1:])
-        failed = any(line.startswith("quadctl: error:") for line in shown)
+        failed = any(line.startswith(("quadctl: error:", "quadctl: check failed:")) for line in shown)
         assert (res.exit_code != 0) == failed, (command, res.exit_code, res.stderr)
         printed = _flat(res.stderr if failed else res.stdout)
         for line in shown:

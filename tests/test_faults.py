@@ -45,13 +45,46 @@ def _start(out: Path) -> subprocess.Popen:
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
-@pytest.mark.parametrize("delay", [0.4, 0.9, 1.3, 1.7, 2.2, 3.0])
-def test_sigkill_at_any_point_leaves_whole_artifacts(tmp_path, delay):
-    proc = _start(tmp_path)
-    time.sleep(delay)
+FINAL = "plots/inputs.png"
+"""The last file `run --plot` writes: while it is missing, the run has not completed."""
+
+WINDOWS = [  # (an artifact that exists, one that does not yet, a pause between seeing one and killing)
+    ("trim.json", "sim.npz", 0.0),            # during linearize, decouple, check, design
+    ("design.json", "sim.npz", 0.15),         # during the simulation
+    ("sim.json", "plots/altitude.png", 0.0),  # between the artifacts and the first figure
+    ("plots/roll.png", FINAL, 0.0),           # between figures
+]
+
+
+def _kill_between(proc: subprocess.Popen, out: Path, earlier: str, later: str, pause: float) -> bool:
+    """Kill ``proc`` once ``earlier`` exists and ``later`` does not yet; False if that moment was missed."""
+    deadline = time.time() + 120
+    while not (out / earlier).exists():
+        if proc.poll() is not None or time.time() > deadline:
+            break
+        time.sleep(0.001)
+    time.sleep(pause)
+    landed = (out / earlier).exists() and not (out / later).exists() and proc.poll() is None
     proc.kill()
-    proc.wait()
-    _assert_whole(tmp_path)
+    proc.communicate(timeout=60)
+    return landed
+
+
+@pytest.mark.parametrize("earlier, later, pause", WINDOWS, ids=[f"after {w[0]}" for w in WINDOWS])
+def test_sigkill_mid_run_leaves_whole_artifacts(tmp_path, earlier, later, pause):
+    """A `kill -9` that lands mid-run (proved: the run was alive, a later artifact not yet written,
+    the run never completed) leaves every file it wrote whole, and no visible half-written one."""
+    for attempt in range(3):
+        out = tmp_path / f"attempt-{attempt}"
+        proc = _start(out)
+        if _kill_between(proc, out, earlier, later, pause):
+            break
+    else:
+        pytest.fail(f"three runs gave no moment with {earlier} written and {later} not yet")
+    assert proc.returncode == -signal.SIGKILL  # the kill ended it, not the end of its work
+    assert not (out / FINAL).exists()          # the run did not complete
+    names = _assert_whole(out)
+    assert Path(earlier).name in names
 
 
 def test_sigint_exits_130_with_a_message_and_keeps_artifacts(tmp_path):
@@ -67,15 +100,55 @@ def test_sigint_exits_130_with_a_message_and_keeps_artifacts(tmp_path):
     assert "trim.json" in _assert_whole(tmp_path)
 
 
-def test_a_killed_runs_stale_temporary_is_cleaned_up(tmp_path):
-    stale = tmp_path / ".trim.json.abc.tmp"
-    stale.write_text('{"half')
+def _old(path: Path) -> Path:
     old = time.time() - 2 * artifacts.STALE_TEMPORARY_AGE
-    os.utime(stale, (old, old))
-    fresh = tmp_path / ".sim.npz.def.tmp"  # maybe a live writer's: left alone
-    fresh.write_text("")
-    assert artifacts.remove_stale_temporaries(tmp_path) == [stale]
-    assert not stale.exists() and fresh.exists()
+    os.utime(path, (old, old), follow_symlinks=False)
+    return path
+
+
+def test_a_killed_runs_stale_temporary_is_cleaned_up(tmp_path):
+    (tmp_path / "plots").mkdir()
+    ours = [tmp_path / ".trim.json.quadctl-abc123_x.tmp", tmp_path / "plots" / ".roll.png.quadctl-q1w2e3r4.tmp"]
+    for path in ours:
+        path.write_text('{"half')
+        _old(path)
+    live = tmp_path / ".sim.npz.quadctl-def45678.tmp"  # maybe a live writer's: left alone
+    live.write_text("")
+    assert artifacts.remove_stale_temporaries(tmp_path) == sorted(ours)
+    assert not any(p.exists() for p in ours) and live.exists()
+
+
+def test_cleanup_deletes_only_what_quadctl_can_prove_it_wrote(tmp_path):
+    """A user's files that merely look temporary survive, whatever their age."""
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "plots").mkdir()
+    theirs = [tmp_path / ".notes.tmp", tmp_path / ".sim.npz.mine.tmp", tmp_path / ".trim.json.abc.tmp",
+              tmp_path / ".notes.txt.quadctl-abcdefgh.tmp",         # not a name quadctl writes
+              tmp_path / ".roll.png.quadctl-abcdefgh.tmp",          # a figure name, but not in plots/
+              tmp_path / "plots" / ".trim.json.quadctl-abcdefgh.tmp",  # an artifact name, but in plots/
+              tmp_path / "mine" / ".trim.json.quadctl-abcdefgh.tmp"]   # a folder of the user's: never recursive
+    for path in theirs:
+        path.write_text("the user's")
+        _old(path)
+    shaped_dir = tmp_path / ".design.json.quadctl-abcdefgh.tmp"
+    shaped_dir.mkdir()
+    _old(shaped_dir)
+    link = tmp_path / ".sim.json.quadctl-abcdefgh.tmp"
+    link.symlink_to(tmp_path / ".notes.tmp")
+    _old(link)
+    assert artifacts.remove_stale_temporaries(tmp_path) == []
+    assert all(p.read_text() == "the user's" for p in theirs) and shaped_dir.is_dir() and link.is_symlink()
+
+
+def test_a_run_in_a_folder_keeps_the_users_temporary_looking_files(tmp_path):
+    for name in (".notes.tmp", ".sim.npz.mine.tmp"):
+        (tmp_path / name).write_text("keep")
+        _old(tmp_path / name)
+    proc = subprocess.run([sys.executable, "-m", "quadctl", "trim", "-c", "hover", "-o", str(tmp_path)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / ".notes.tmp").read_text() == "keep" and (tmp_path / ".sim.npz.mine.tmp").read_text() == "keep"
+    assert (tmp_path / "trim.json").exists()
 
 
 def test_ctrl_c_stops_a_long_simulation_promptly(tmp_path):

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.optimize
 from _solve import cfg_dict, solve
+from typer.testing import CliRunner
 
 from quadctl import discrete, margins
+from quadctl.cli.app import app
 from quadctl.margins import BrokenLoop, loop_margins
 
 
@@ -29,7 +33,7 @@ def test_integrator_with_first_order_lag(k, tau):
     assert m.stable
     assert m.phase_crossover_freq == pytest.approx(wc, rel=1e-9)
     assert m.phase_margin_deg == pytest.approx(90 - math.degrees(math.atan(wc * tau)), abs=1e-7)
-    assert m.gain_margin_db == (None, None)
+    assert m.gain_margin_db == (-math.inf, math.inf)
 
 
 def test_integrator_with_lag_of_k_sqrt2_has_45_degrees():
@@ -44,7 +48,7 @@ def test_three_lags_gain_margin_is_six():
     m = loop_margins(BrokenLoop(A, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])))
     assert m.gain_margin_db[1] == pytest.approx(20 * math.log10(6.0), abs=1e-9)
     assert m.gain_crossover_freqs[1] == pytest.approx(math.sqrt(2), rel=1e-10)
-    assert m.gain_margin_db[0] is None
+    assert m.gain_margin_db[0] == -math.inf
     wc = scipy.optimize.brentq(lambda w: w**2 * (w**2 + 1) * (w**2 + 4) - 1, 0.1, 1.0)
     pm = 90 - math.degrees(math.atan(wc) + math.atan(wc / 2))
     assert m.phase_margin_deg == pytest.approx(pm, abs=1e-8)
@@ -62,6 +66,23 @@ def test_pure_integrator_disk_margin_is_two():
 def test_unstable_loop_is_reported_unstable():
     m = loop_margins(BrokenLoop(np.array([[0.0]]), np.array([1.0]), np.array([-1.0])))
     assert not m.stable and not m.meets_lqr_guarantee
+
+
+def test_an_unstable_loop_has_no_margin():
+    """x' = 2 x + u with u = -x: L = 1 / (s - 2), closed loop s = 1. The disk formula alone,
+    ``1 / max |S - 1/2|`` with ``S - 1/2 = (s - 3) / (2 (s - 1))``, gives 2/3 (at s = 0): a
+    margin the loop does not have. It is unstable, so every margin is zero."""
+    loop = BrokenLoop(np.array([[2.0]]), np.array([1.0]), np.array([1.0]))
+    assert loop.closed_loop_eigenvalues()[0] == pytest.approx(1.0)
+    w = np.logspace(-3, 3, 601)
+    assert 1.0 / np.abs(1 / (1 + loop(w)) - 0.5).max() == pytest.approx(2 / 3, rel=1e-5)
+    m = loop_margins(loop)
+    assert not m.stable
+    assert m.gain_margin_db == (0.0, 0.0) and m.gain_crossover_freqs == (None, None)
+    assert m.phase_margin_deg == 0.0 and m.phase_crossover_freq is None
+    assert (m.disk_alpha, m.disk_gain_db, m.disk_phase_deg, m.disk_freq) == (0.0, (0.0, 0.0), 0.0, None)
+    d = m.as_dict()
+    assert d["disk_margin_alpha"] == 0.0 and d["disk_margin_freq"] is None and not d["meets_lqr_guarantee"]
 
 
 @pytest.mark.filterwarnings("ignore:__call__. evaluation above Nyquist")
@@ -106,7 +127,7 @@ def test_sampled_loops_explain_their_shortfall():
     result = margins.all_margins(des, dec, linear.A, linear.B)
     roll = next(m for m in result if m.loop == "roll" and m.model == "design")
     assert roll.sample_time == pytest.approx(0.005) and roll.stable
-    assert roll.gain_margin_db[1] is not None  # a sampled loop has a finite upper gain margin
+    assert math.isfinite(roll.gain_margin_db[1])  # a sampled loop has a finite upper gain margin
     assert any("cause: discrete design" in n for n in roll.notes)
     # the continuous report design run at 200 Hz: unstable sampled loops
     _, _, linear, dec, des_c = solve(cfg_dict("forward"))
@@ -118,3 +139,39 @@ def test_the_grid_of_a_sampled_loop_ends_at_nyquist():
     Ad, Bd = discrete.c2d([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]], 0.01)
     loop = BrokenLoop(Ad, Bd.ravel(), np.array([1.0, 1.0]), 0.01)
     assert margins.frequency_grid(loop)[-1] == pytest.approx(math.pi / 0.01, rel=1e-15)
+
+
+REPORT_AT_200HZ = Path(__file__).parent.parent / "docs" / "configs" / "report-at-200hz.yaml"
+
+
+def test_margins_json_gives_an_unstable_loop_no_margin_and_spells_infinity(tmp_path):
+    """The report's gains at 200 Hz: roll, pitch and yaw are unstable sampled loops, so their
+    margins are zero (not the 1.89 / +-31 dB / 86.8 deg the disk formula gives); altitude is
+    stable with no lower critical gain: "-inf", distinct from null (not applicable)."""
+    res = CliRunner().invoke(app, ["margins", "-c", str(REPORT_AT_200HZ), "-o", str(tmp_path), "--design-only"])
+    assert res.exit_code == 1, res.output
+    assert "31.2" not in res.output and "1.89" not in res.output
+    data = json.loads((tmp_path / "margins.json").read_text())
+    loops = {(m["loop"], m["model"]): m for m in data["loops"]}
+    for name in ("roll", "pitch", "yaw"):
+        m = loops[name, "design"]
+        assert m["stable"] is False, name
+        assert (m["disk_margin_alpha"], m["disk_gain_margin_db"], m["disk_phase_margin_deg"]) == (0.0, [0.0, 0.0], 0.0)
+        assert (m["gain_margin_lower_db"], m["gain_margin_upper_db"], m["phase_margin_deg"]) == (0.0, 0.0, 0.0)
+        assert m["disk_margin_freq"] is None and m["crossover_freq"] is None
+        assert m["gain_margin_lower_freq"] is None and m["gain_margin_upper_freq"] is None
+    altitude = loops["altitude", "design"]
+    assert altitude["stable"] is True and altitude["gain_margin_lower_db"] == "-inf"
+    assert altitude["gain_margin_lower_freq"] is None  # no crossover: not applicable
+    assert 20.0 < altitude["gain_margin_upper_db"] < 30.0 and 0.5 < altitude["disk_margin_alpha"] < 2.0
+
+
+def test_an_infinite_margin_is_a_string_in_margins_json(tmp_path):
+    """A continuous LQR loop: upper gain margin +inf, disk gain range up to +inf (alpha 2)."""
+    res = CliRunner().invoke(app, ["margins", "-c", "hover", "-o", str(tmp_path), "--design-only", "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    assert data == json.loads((tmp_path / "margins.json").read_text())
+    for m in data["loops"]:
+        assert m["stable"] and m["meets_lqr_guarantee"], m["loop"]
+        assert m["gain_margin_upper_db"] == "inf" and m["gain_margin_upper_freq"] is None

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import config, report
+from quadctl import artifacts, config, report
 from quadctl.cli.app import app
 from quadctl.workspace import Workspace
 
@@ -102,7 +102,7 @@ def _self_contained(page: Page, text: str) -> None:
 
 
 def _artifact(out: Path, name: str) -> dict:
-    return json.loads((out / name).read_text())
+    return artifacts.decode_floats(json.loads((out / name).read_text()))  # "inf" back to a float
 
 
 def _report(*args):

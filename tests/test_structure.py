@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import quadctl
 
 PACKAGE = Path(quadctl.__file__).parent
@@ -72,6 +74,7 @@ def test_compile_cache_key_covers_everything_the_generators_import():
     assert all((PACKAGE / name).exists() for name in GENERATOR_SOURCES)
 
 
+@pytest.mark.compiler  # the interpreted fallback is CasADi itself
 def test_simulate_on_fresh_artifacts_imports_neither_casadi_nor_scipy(tmp_path):
     """The warm path (artifacts and compiled loop cached) is numpy and the compiled loop only:
     CasADi and SciPy would cost more than integrating a million steps (README, Performance)."""

@@ -271,6 +271,7 @@ BATCHED_CASES = {
 }
 
 
+@pytest.mark.compiler
 @pytest.mark.parametrize("name", list(BATCHED_CASES))
 def test_batched_path_matches_the_pipeline(name):
     """Every config simulate accepts runs in the lanes, and its rows are the one-by-one path's."""

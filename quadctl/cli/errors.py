@@ -34,10 +34,12 @@ def debug_enabled(ctx: typer.Context | None) -> bool:
 
 
 def fail(message: str, code: int) -> typer.Exit:
-    """Print ``quadctl: error: message`` to stderr, on one line, and return the Exit to raise."""
+    """Print the one stderr line of a failure and return the Exit to raise: ``quadctl: check failed:``
+    for a check that failed (exit 1, as ``check`` and ``run`` print it), else ``quadctl: error:``."""
     from quadctl.messages import one_line
 
-    typer.echo(f"quadctl: error: {one_line(message)}", err=True)
+    kind = "check failed" if code == EXIT_CHECK_FAILED else "error"
+    typer.echo(f"quadctl: {kind}: {one_line(message)}", err=True)
     return typer.Exit(code)
 
 

@@ -15,5 +15,5 @@ def save_figures(ws, sim) -> list[Path]:
                                                    title=ws.setup.name).items():
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=110)
-        paths.append(artifacts.write_bytes(ws.out / "plots" / f"{name}.png", buf.getvalue()))
+        paths.append(artifacts.write_bytes(artifacts.plot_path(ws.out, name), buf.getvalue()))
     return paths

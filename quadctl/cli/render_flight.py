@@ -10,9 +10,9 @@ from quadctl.cli.render import eig, num
 from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
 
 
-def _db(value) -> str:
-    if value is None:
-        return "-"
+def _db(value: float) -> str:
+    if value == 0:
+        return "0"
     return f"{value:+.3g}" if math.isfinite(value) else ("+inf" if value > 0 else "-inf")
 
 
@@ -20,8 +20,9 @@ def margins_table(margins, rate=None) -> list[Table]:
     """Two tables that fit 80 columns: classical margins, then disk margin and the LQR guarantee."""
     kind = f"sampled at {rate:g} Hz (L(z), hold included)" if rate else "continuous (L(s))"
     classic = Table(title=f"Stability margins, each loop broken at its plant input; {kind}",
-                    title_justify="left", caption="GM: lower / upper gain margin in dB ('-' is infinite), "
-                    "at the phase crossovers; PM at the gain crossover", caption_justify="left")
+                    title_justify="left", caption="GM: lower / upper gain margin in dB (inf: no critical gain on that "
+                    "side), at the phase crossovers; PM at the gain crossover; an unstable loop has "
+                    "no margin (0)", caption_justify="left")
     for col, right in (("loop", False), ("model", False), ("GM dB", True), ("at rad/s", True),
                        ("PM deg", True), ("at rad/s ", True)):
         classic.add_column(col, justify="right" if right else "left")
@@ -41,7 +42,7 @@ def margins_table(margins, rate=None) -> list[Table]:
                         num(m.phase_crossover_freq, 3))
         d_lo, d_hi = m.disk_gain_db
         symmetric = d_lo is not None and d_hi is not None and abs(d_lo + d_hi) < 1e-6 * max(1.0, abs(d_hi))
-        disk_gm = f"±{abs(d_hi):.3g}" if symmetric else f"{_db(d_lo)} / {_db(d_hi)}"
+        disk_gm = "0" if d_hi == 0 else (f"±{abs(d_hi):.3g}" if symmetric else f"{_db(d_lo)} / {_db(d_hi)}")
         disk.add_row(loop, m.model, num(m.disk_alpha, 3), disk_gm,
                      num(m.disk_phase_deg, 3), num(m.min_return_difference, 3), verdict)
     return [classic, disk]

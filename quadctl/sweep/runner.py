@@ -320,7 +320,7 @@ def _dask_client(address: str):
         from distributed import Client
     except ImportError:
         raise SweepError("--scheduler needs the `distributed` package; "
-                         "install it with pip install 'quadctl[cluster]'") from None
+                         "install it from the quadctl checkout with pip install '.[cluster]'") from None
     try:
         return Client(address, timeout=SCHEDULER_TIMEOUT, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:

@@ -79,7 +79,7 @@ class SweepStore:
                     f"{path}: rows of another sweep (the config, the sweep file or quadctl changed "
                     "since); run without --resume to start over, or use another -o folder")
             for row in data["rows"]:
-                done[int(row["case"])] = row
+                done[int(row["case"])] = artifacts.decode_floats(row)  # "inf" back to a float
             if self.trace:
                 self.traces.update(self._decode(path, data.get("traces")))
         return done

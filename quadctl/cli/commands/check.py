@@ -19,7 +19,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
 
     Warns when a continuous design has closed-loop poles faster than the controller rate can
     realize (which loop, by how much, and whether the sampled loop is still stable).
-    Exits 1 when a regulated subsystem is not stabilizable.
+    Exits 1 when a regulated subsystem is not stabilizable, or when a loop sampled at the
+    config's controller.rate (continuous design) or at --rate is unstable.
     """
     from quadctl.cli import render
 
@@ -27,24 +28,32 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     checks = ws.checks
     regulated = {s.name for s in ws.decoupled.regulated}
     failed = [n for n in regulated if not checks[n].stabilizable]
-    warn_rate, warnings = checks.rate, checks.rate_warnings
+    rated = [(checks.rate, checks.rate_warnings)] if checks.rate_warnings else []
     if rate is not None and not failed:
         from quadctl import pipeline
 
-        warn_rate, warnings = rate, pipeline.rate_warnings_of(ws.setup, ws.decoupled, ws.linear, rate)
+        what_if = pipeline.rate_warnings_of(ws.setup, ws.decoupled, ws.linear, rate)
+        rated = [(hz, found) for hz, found in rated if hz != rate] + [(rate, what_if)]
     if json:
         payload = ws.payloads["checks.json"]
         if rate is not None:
-            payload = {**payload, "what_if_rate": {"rate": rate, "warnings": [w.message(rate) for w in warnings]}}
+            payload = {**payload, "what_if_rate": {"rate": rate, "warnings": [
+                w.message(rate) for hz, found in rated if hz == rate for w in found]}}
         render.emit_json(payload)
     else:
         render.out.print(render.checks_table(checks.checks, regulated))
         render.out.print(f"-> {ws.path('checks.json')}")
-    for w in warnings:
-        render.err.print(f"quadctl: warning: {w.message(warn_rate)}", markup=False)
+    for hz, warnings in rated:
+        for w in warnings:
+            render.err.print(f"quadctl: warning: {w.message(hz)}", markup=False)
     for name in failed:
         mode = checks[name].unstabilizable_modes[0]
         render.err.print(f"quadctl: check failed: subsystem {name} is not stabilizable: mode "
                          f"{render.eig(mode.eigenvalue)} in {', '.join(mode.states)}")
+    for hz, warnings in rated:
+        verdict = render.unstable_when_sampled(warnings, hz)
+        if verdict:
+            render.err.print(f"quadctl: check failed: {verdict}", markup=False)
+            failed.append(verdict)
     if failed:
         raise typer.Exit(EXIT_CHECK_FAILED)

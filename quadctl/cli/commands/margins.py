@@ -53,5 +53,6 @@ def _save_figures(ws, margins):
         fig = plots.margins_figure(m, title=ws.setup.name)
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=90)
-        paths.append(artifacts.write_bytes(ws.out / "plots" / f"margins-{m.loop}-{m.model}.png", buf.getvalue()))
+        paths.append(artifacts.write_bytes(artifacts.plot_path(ws.out, f"margins-{m.loop}-{m.model}"),
+                                           buf.getvalue()))
     return paths

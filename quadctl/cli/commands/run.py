@@ -30,6 +30,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     bad = [n for n in regulated if not ws.checks[n].stabilizable]
     if bad:
         raise _stop(json, stages, f"check: not stabilizable: {', '.join(bad)}")
+    sampled = render.unstable_when_sampled(ws.checks.rate_warnings, ws.checks.rate or 0.0)
+    if sampled:
+        raise _stop(json, stages, f"check: {sampled}")
     done("check", "every regulated subsystem stabilizable")
     if not ws.design.stable:
         raise _stop(json, stages, "design: unstable on the coupled 12-state model")

@@ -1,0 +1,72 @@
+"""`quadctl check`'s verdict: exit 1 when a regulated loop cannot work, at the config's rate or a what-if one."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from quadctl import config, discrete, pipeline
+from quadctl.cli.app import app
+from quadctl.setup import resolve
+
+REPORT_AT_200HZ = Path(__file__).parent.parent / "docs" / "configs" / "report-at-200hz.yaml"
+UNSTABLE_AT_200HZ = "sampled at 200 Hz the continuous design's loop(s) roll, pitch, yaw, coupled are UNSTABLE"
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args], catch_exceptions=False)
+
+
+def flat(text: str) -> str:
+    return " ".join(text.split())
+
+
+def test_the_report_gains_really_are_unstable_at_200hz():
+    """The verdict's physics: the roll loop's continuous gain on the 200 Hz ZOH plant has an
+    eigenvalue outside the unit circle (independently of check's own code path)."""
+    setup = resolve(config.load("forward"))
+    linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
+    dec = pipeline.decoupled_of(setup, linear)
+    des = pipeline.design_of(setup, dec, linear)
+    roll = next(s for s in des.subsystems if s.name == "roll")
+    Ad, Bd = discrete.c2d(dec["roll"].A, dec["roll"].B, 1 / 200)
+    assert np.abs(np.linalg.eigvals(Ad - Bd @ roll.K)).max() > 1.0
+
+
+@pytest.mark.parametrize("args", [("-c", "forward", "--rate", 200), ("-c", REPORT_AT_200HZ)],
+                         ids=["what-if --rate", "the config's own rate"])
+def test_check_exits_1_when_a_sampled_loop_is_unstable(tmp_path, args):
+    res = invoke("check", *args, "-o", tmp_path)
+    assert res.exit_code == 1, res.output
+    out = flat(res.output)
+    assert f"quadctl: check failed: {UNSTABLE_AT_200HZ}; use a discrete design (controller.design: " \
+           "discrete) or smaller gains (larger R)" in out
+    assert (tmp_path / "checks.json").exists()  # the verdict comes after the artifact
+
+
+def test_check_json_still_parses_when_the_check_fails(tmp_path):
+    res = CliRunner().invoke(app, ["check", "-c", "forward", "--rate", "200", "-o", str(tmp_path),
+                                                   "--json"])
+    assert res.exit_code == 1
+    data = json.loads(res.stdout)
+    assert data["what_if_rate"]["rate"] == 200 and len(data["what_if_rate"]["warnings"]) == 4
+    assert UNSTABLE_AT_200HZ in flat(res.stderr)
+
+
+@pytest.mark.parametrize("args", [("-c", "forward"), ("-c", "forward", "--rate", 100_000), ("-c", "mambo-200hz")],
+                         ids=["no rate", "a rate fast enough", "a discrete design"])
+def test_check_passes_loops_that_work(tmp_path, args):
+    res = invoke("check", *args, "-o", tmp_path)
+    assert res.exit_code == 0, res.output
+    assert "check failed" not in res.output
+
+
+def test_run_stops_at_check_with_the_same_verdict(tmp_path):
+    res = invoke("run", "-c", REPORT_AT_200HZ, "-o", tmp_path)
+    assert res.exit_code == 1, res.output
+    assert f"quadctl: check failed: check: {UNSTABLE_AT_200HZ}" in flat(res.output)
+    assert "✓ check" not in res.output and not (tmp_path / "sim.npz").exists()

@@ -1,0 +1,93 @@
+"""One quadctl per run directory: `artifacts.locked`, held across processes."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from quadctl import artifacts
+from quadctl.errors import ArtifactError
+
+HOLD = textwrap.dedent("""
+    import sys, time
+    from quadctl import artifacts
+    if sys.argv[2] == "exclusive":
+        artifacts.fcntl = None
+    with artifacts.locked(sys.argv[1]):
+        print("held", flush=True)
+        time.sleep(float(sys.argv[3]))
+    print("released", flush=True)
+""")
+
+
+def _holder(folder, mode="flock", seconds=60.0) -> subprocess.Popen:
+    """Another process that takes the folder and says so."""
+    proc = subprocess.Popen([sys.executable, "-c", HOLD, str(folder), mode, str(seconds)],
+                            stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "held"
+    return proc
+
+
+MODES = ["flock", pytest.param("exclusive", id="O_EXCL (no fcntl)")]
+
+
+@pytest.fixture(params=MODES)
+def mode(request, monkeypatch):
+    if request.param == "exclusive":
+        monkeypatch.setattr(artifacts, "fcntl", None)
+    elif artifacts.fcntl is None:
+        pytest.skip("no fcntl on this platform")
+    return request.param
+
+
+def test_a_folder_held_by_another_process_is_refused_with_its_pid(tmp_path, mode):
+    folder = tmp_path / "runs" / "x"
+    other = _holder(folder, mode)
+    try:
+        with pytest.raises(ArtifactError, match=rf"^{folder} is in use by another quadctl \(pid {other.pid}\); "
+                                                r"wait for it or use -o another folder"):
+            with artifacts.locked(folder):
+                pytest.fail("two processes held the same run directory")
+        with artifacts.locked(tmp_path / "runs" / "y"):  # another folder is free
+            pass
+    finally:
+        other.kill()
+        other.wait()
+    if mode == "exclusive":  # a holder killed hard leaves its file: the message says what to do
+        with pytest.raises(ArtifactError, match=rf"if no quadctl runs there, delete {folder / artifacts.LOCK_NAME}"):
+            with artifacts.locked(folder):
+                pass
+        (folder / artifacts.LOCK_NAME).unlink()
+    with artifacts.locked(folder):  # flock: the kernel released it when the holder died
+        pass
+
+
+def test_the_folder_is_free_again_when_the_holder_is_done(tmp_path, mode):
+    other = _holder(tmp_path, mode, seconds=0.2)
+    assert other.stdout.readline().strip() == "released"
+    other.wait(timeout=30)
+    with artifacts.locked(tmp_path):
+        pass
+    with artifacts.locked(tmp_path):  # and after we are done too
+        pass
+
+
+def test_the_lock_is_reentrant_within_a_process_and_held_until_the_outer_block_ends(tmp_path):
+    with artifacts.locked(tmp_path):
+        with artifacts.locked(tmp_path):
+            pass
+        probe = subprocess.run([sys.executable, "-c", HOLD, str(tmp_path), "flock", "0"], capture_output=True,
+                               text=True, timeout=60)
+        assert probe.returncode != 0 and f"pid {os.getpid()}" in probe.stderr  # still ours
+    other = _holder(tmp_path, "flock", seconds=0)
+    other.wait(timeout=30)
+
+
+def test_the_lock_file_holds_the_pid_and_is_not_an_artifact(tmp_path):
+    with artifacts.locked(tmp_path):
+        assert (tmp_path / artifacts.LOCK_NAME).read_text().strip() == str(os.getpid())
+    assert artifacts.LOCK_NAME not in artifacts.ARTIFACT_NAMES  # the file may stay: never taken for one

@@ -1,0 +1,49 @@
+"""The suite runs what it claims: the library's doctests, and the compiler tests skip, saying why."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _pytest(*args: str, **env: str) -> str:
+    res = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", *args], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300, env={**os.environ, **env})
+    return res.stdout + res.stderr
+
+
+def test_a_bare_pytest_collects_the_docstring_examples():
+    out = _pytest("--collect-only", "-q")
+    for item in ("quadctl/margins.py::quadctl.margins.loop_margins", "quadctl/lqr.py::quadctl.lqr.lqr",
+                 "quadctl/artifacts.py::quadctl.artifacts.jsonable", "tests/test_readme.py::test_readme_block"):
+        assert item in out, out[-2000:]
+
+
+def test_compiler_tests_skip_with_the_reason_where_there_is_no_compiler():
+    out = _pytest("-q", "-rs", "tests/test_engine.py", "-k", "cached_library or compile_cache_key",
+                  QUADCTL_NO_COMPILE="1")
+    assert "2 skipped" in out and "needs a C compiler: quadctl.sim.compile.find_compiler() found none" in out, out
+
+
+def test_every_test_that_names_the_compiled_backend_is_marked():
+    """A test asserting a compiled backend (itself or through a helper of its module) fails without a
+    compiler unless it is marked `compiler`."""
+    import ast
+
+    def asserts_compiled(source: str) -> bool:
+        return "== 'compiled" in source or "else 'compiled" in source
+
+    unmarked = []
+    for path in sorted((ROOT / "tests").glob("test_*.py")):
+        tree = ast.parse(path.read_text())
+        functions = {n.name: ast.unparse(n) for n in tree.body if isinstance(n, ast.FunctionDef)}
+        helpers = {n for n, source in functions.items() if not n.startswith("test_") and asserts_compiled(source)}
+        for name, source in functions.items():
+            needs = asserts_compiled(source) or any(f"{h}(" in source for h in helpers)
+            if name.startswith("test_") and needs and "pytest.mark.compiler" not in source:
+                unmarked.append(f"{path.name}::{name}")
+    assert not unmarked, unmarked
