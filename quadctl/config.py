@@ -54,6 +54,10 @@ MAX_RATE = 1e5
 MAX_NOISE = {"force": 1e4, "torque": 1e3}
 """Standard deviation of the process noise, N and N m: far past any gust; 1e300 overflowed the
 run's error statistics."""
+MAX_ROTOR_TIME_CONSTANT = 1.0
+"""s: ten times the slowest small-rotor lags (brushless rotors reach their command in 10 to 100 ms);
+a rotor slower than this cannot hold a vehicle's attitude, and LQR on the rigid body means nothing."""
+RotorTimeConstant = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_ROTOR_TIME_CONSTANT)]
 Mass = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=MASS_RANGE[0], le=MASS_RANGE[1])]
 Gravity = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_GRAVITY)]
 Drag = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=MAX_DRAG)]
@@ -170,6 +174,8 @@ class MotorsConfig(_Section):
     torque_coefficient: Positive = Field(0.00241, description="N m of yaw reaction torque per N of thrust")
     min_thrust: NonNegative = Field(0.0, description="N per rotor")
     max_thrust: Positive = Field(0.33, description="N per rotor")
+    time_constant: Optional[RotorTimeConstant] = Field(
+        None, description="s, first-order lag of each rotor's thrust behind its command; absent: instantaneous")
 
 
 InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]

@@ -266,7 +266,10 @@ class Workspace:
             "stride": np.array(sim.stride),
             "status": np.array(sim.status), "state_names": np.array(STATE_NAMES),
             "input_names": np.array(INPUT_NAMES), "z": sim.z,
-            "integral_states": np.array(loop.integral_states, dtype=str)}, meta)
+            "integral_states": np.array(loop.integral_states, dtype=str),
+            "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
+            "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str)},
+            meta)
         self._write_json(SIM_JSON, "simulation", {
             "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,
             "stride": sim.stride, "samples": len(sim.t),
