@@ -155,6 +155,21 @@ class SimulationConfig(_Section):
         20_000, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
 
 
+MAX_DELAY_SAMPLES = 100
+"""Controller samples of delay: half a second at 200 Hz, far past any loop that still flies (the
+delay margin of a 200 Hz attitude loop is a few samples); each sample is four buffer states."""
+DELAY_SAMPLES_TOL = 1e-9
+"""A delay in seconds is a whole number of samples when ``delay * rate`` is within this (relative)
+of an integer: float round-off of ``0.005 * 200``, never a real fraction of a sample."""
+
+
+class DelaySamples(_Section):
+    """A delay given in controller samples."""
+
+    samples: Annotated[int, Field(strict=True, ge=0, le=MAX_DELAY_SAMPLES)] = Field(
+        description="controller samples from measurement to actuation")
+
+
 class ControllerConfig(_Section):
     """How the controller runs on the flight computer."""
 
@@ -163,6 +178,17 @@ class ControllerConfig(_Section):
     design: Literal["discrete", "continuous"] = Field(
         "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
         "run at that rate (emulation)")
+    delay: Optional[Union[NonNegative, DelaySamples]] = Field(
+        None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
+        "actuation; needs a rate; absent: none")
+
+    def delay_samples(self) -> int:
+        """Samples of delay (0 when none); :func:`_check_delay` has checked it is whole."""
+        if self.delay is None:
+            return 0
+        if isinstance(self.delay, DelaySamples):
+            return self.delay.samples
+        return round(self.delay * self.rate) if self.rate is not None else 0
 
 
 class MotorsConfig(_Section):
@@ -570,6 +596,30 @@ def _check_semantics(cfg: Config, label: str) -> None:
              f"must be at most {max_duration:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to allow longer)")
     _check_inertia(cfg, fail)
     _check_flight(cfg, fail)
+    _check_delay(cfg, fail)
+
+
+def _check_delay(cfg: Config, fail) -> None:
+    """``controller.delay``: needs a rate, and is a whole number of samples at it."""
+    delay, rate = cfg.controller.delay, cfg.controller.rate
+    if delay is None:
+        return
+    shown = delay.model_dump() if isinstance(delay, DelaySamples) else delay
+    if rate is None:
+        fail("controller.delay", shown, "a delay is counted in controller samples: set controller.rate (Hz), "
+             "or remove the delay")
+    if isinstance(delay, DelaySamples):
+        return
+    n = delay * rate
+    whole = round(n)
+    if abs(n - whole) > DELAY_SAMPLES_TOL * max(1.0, n):
+        lo, hi = math.floor(n), math.ceil(n)
+        fail("controller.delay", delay,
+             f"is {n:.6g} samples at {rate:g} Hz; the simulated delay is a whole number of samples: use "
+             f"{lo / rate:.6g} s ({{samples: {lo}}}) or {hi / rate:.6g} s ({{samples: {hi}}})")
+    if whole > MAX_DELAY_SAMPLES:
+        fail("controller.delay", delay, f"is {whole} samples at {rate:g} Hz, more than MAX_DELAY_SAMPLES = "
+             f"{MAX_DELAY_SAMPLES}; shorten it")
 
 
 MAX_DURATION = 86_400.0

@@ -34,10 +34,13 @@ class Timing:
     discrete : bool
         With a rate: designed at that rate (MATLAB ``lqrd``); else the continuous design is run at
         the rate (emulation).
+    delay_samples : int
+        Controller samples from measurement to actuation (``controller.delay``; 0: none).
     """
 
     rate: float | None = None
     discrete: bool = False
+    delay_samples: int = 0
 
     @property
     def mode(self) -> Literal["continuous", "discrete", "emulated"]:
@@ -153,7 +156,8 @@ def resolve(cfg: Config) -> Setup:
     for state, value in cfg.simulation.initial_offset.items():
         offset[STATE_INDEX[state]] += value
     ctl = cfg.controller
-    timing = Timing(rate=ctl.rate, discrete=ctl.rate is not None and ctl.design == "discrete")
+    timing = Timing(rate=ctl.rate, discrete=ctl.rate is not None and ctl.design == "discrete",
+                    delay_samples=ctl.delay_samples())
     noise = None
     if cfg.simulation.noise is not None:
         spec = NoiseSpec.from_config(cfg.simulation.noise, timing.rate)

@@ -82,6 +82,8 @@ class ClosedLoop:
     """:class:`quadctl.motors.Actuators` that clip the input; None: unlimited."""
     open_loop_eigenvalues: np.ndarray | None = None
     """Of the plant ``A``: what RK4 integrates between samples of a sampled controller."""
+    delay_samples: int = 0
+    """Controller samples from measurement to actuation (a sampled controller's command buffer)."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -105,7 +107,7 @@ class ClosedLoop:
         return LoopSpec.of_gain(self.K, saturation=act.mode if act is not None else "none",
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
-                                rotors=self.rotor_time_constant is not None)
+                                rotors=self.rotor_time_constant is not None, delay=self.delay_samples)
 
     def constants(self, sample_time: float | None = None) -> np.ndarray:
         """The constant vector ``c`` of this loop (:func:`quadctl.sim.builder.pack_constants`)."""
@@ -124,12 +126,13 @@ class ClosedLoop:
         return pack_constants(nz, tau is not None, **values)
 
     def initial_loop_state(self, x0) -> np.ndarray:
-        """The loop state ``[x0; f; z]`` a run starts from: the rotors (if they lag) at their trim
-        thrusts ``mix u_trim``, the integrators at zero."""
+        """The loop state ``[x0; f; z; b]`` a run starts from: the rotors (if they lag) at their trim
+        thrusts ``mix u_trim``, the integrators at zero, the delay's buffer at the trim input."""
         parts = [np.asarray(x0, dtype=float)]
         if self.rotor_time_constant is not None:
             parts.append(self.actuators.commands(self.u_trim))
         parts.append(np.zeros(len(self.integral_states)))
+        parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
         return np.concatenate(parts)
 
     def bounds(self, duration: float) -> tuple[np.ndarray, np.ndarray]:
@@ -238,7 +241,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     c = loop.constants(plan.sample_time)
     lo, hi = loop.bounds(duration)
     x0_all = loop.initial_loop_state(x0)
-    n_plant = len(x0_all) - len(loop.integral_states)
+    nz = len(loop.integral_states)
+    n_plant = len(x0_all) - nz - len(loop.u_trim) * loop.delay_samples
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
@@ -250,7 +254,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     status, message = verdict(xs[:, :N_STATES], t, done, n, lo, hi)
     return SimResult(t=t, x=np.ascontiguousarray(xs[:, :N_STATES]), u=us, x_ref=x_ref, dt=plan.dt,
                      status=status, message=message, wall_time=wall, backend=run.backend, plan=plan,
-                     steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:]),
+                     steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:n_plant + nz]),
                      rotor_thrust=np.ascontiguousarray(xs[:, N_STATES:n_plant]),
                      noise_seed=noise.seed if noisy else None)
 

@@ -39,6 +39,9 @@ def _features():
     lagged = cfg_dict("mambo-200hz")
     lagged["simulation"]["initial_offset"] = {"pD": 0.5, "phi": 0.4, "theta": 0.1}
     lagged["motors"]["time_constant"] = 0.03
+    delayed = cfg_dict("mambo-200hz", controller={"rate": 200.0, "delay": {"samples": 2}})
+    delayed["simulation"]["initial_offset"] = {"pD": 0.5, "phi": 0.4, "theta": 0.1}
+    delayed["motors"]["time_constant"] = 0.03
     lagged_continuous = cfg_dict("hover", motors={"time_constant": 0.02})
     lagged_continuous["simulation"]["initial_offset"] = {"phi": 0.02}
     return [("continuous", cfg_dict("forward"), 0.02),
@@ -46,7 +49,8 @@ def _features():
             ("held, rotors, LQI, noise", held, 0.5),
             ("held, emulated continuous design", emulated, 0.05),
             ("held, rotors with lag, LQI, noise", lagged, 0.5),
-            ("continuous, rotors with lag", lagged_continuous, 0.02)]
+            ("continuous, rotors with lag", lagged_continuous, 0.02),
+            ("held, delay, rotors with lag, LQI, noise", delayed, 0.5)]
 
 
 FEATURES = _features()
@@ -88,6 +92,11 @@ def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch
     if "rotors" in label:
         commands = loop.actuators.commands(compiled.u)
         assert commands.max() == pytest.approx(loop.actuators.hi[0])  # a rotor at its limit
+    if "delay" in label:  # the applied input is the command of two samples before (trim at first)
+        assert loop.spec().delay == 2
+        first = 2 * round(0.005 / compiled.dt)  # steps of the first two samples
+        np.testing.assert_array_equal(compiled.u[:first], np.tile(loop.u_trim, (first, 1)))
+        assert np.any(compiled.u[first] != loop.u_trim)
     if "lag" in label:  # the rotor states move, and stay below the command they follow
         assert compiled.rotor_thrust.shape == (len(compiled.t), 4)
         assert np.ptp(compiled.rotor_thrust) > 1e-3 and compiled.rotor_thrust.max() < loop.actuators.hi[0]
@@ -130,7 +139,8 @@ def test_lanes_equal_the_one_case_loop(label, data, duration):
                        max_samples=setup.max_samples)
         assert done == one.steps
         np.testing.assert_array_equal(ks * one.dt, one.t)
-        worst = max(worst, np.abs(xs - np.hstack([one.x, one.rotor_thrust, one.z])).max(), np.abs(us - one.u).max())
+        worst = max(worst, np.abs(xs[:, :one.x.shape[1] + one.rotor_thrust.shape[1] + one.z.shape[1]]
+                                  - np.hstack([one.x, one.rotor_thrust, one.z])).max(), np.abs(us - one.u).max())
     assert worst < 1e-12, f"Max diff is {worst:.4E}"
 
 

@@ -78,6 +78,7 @@ def sources(exp: Export) -> dict[str, str]:
     if loop.rotor_time_constant is not None:  # the rotors' lag is the vehicle's, not the law's: no rotor states
         act = loop.actuators
         loop = replace(loop, actuators=replace(act, motors=replace(act.motors, time_constant=None)))
+    loop = replace(loop, delay_samples=0)  # so is the delay: the vehicle's computer and bus add it
     spec = loop.spec(noise=False)
     c = loop.constants(Ts)
     nz = len(loop.integral_states)

@@ -6,8 +6,9 @@ compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
 machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
 
 The loop state is ``X = [x; f; z]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
-the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the ``nz`` controller
-states (the integrators of an LQI law). The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant`
+the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the controller states:
+the ``nz`` integrators of an LQI law, and the ``4 n`` entries of the command buffer of a loop
+with ``n`` samples of delay (:attr:`LoopSpec.delay`). The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant`
 states. The control law is
 
     u = sat(u_trim - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,
@@ -29,6 +30,11 @@ Rotor dynamics (:attr:`LoopSpec.rotors`, saturation ``motors`` only): each rotor
 its command through a first-order lag, ``df/dt = (f_cmd - f) / tau`` with ``f_cmd = mix u`` the
 mixed, clipped command, and the body gets ``[T, A, E, R] = mix_inv f`` (the effectiveness matrix)
 instead of ``u``. Without it the rotors are instantaneous: the body gets ``u``.
+
+Delay (:attr:`LoopSpec.delay`, held loops only): ``n`` controller samples from measurement to
+actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands computed 1 to ``n``
+samples ago; at a sample the law applies ``b_n`` and shifts, ``b_1 <- u_new``, ``b_k <- b_(k-1)``.
+Runs start with the buffer at the trim input. Exact: the delay is a whole number of samples.
 
 Exogenous inputs (:data:`EXO_LAYOUT`, when :attr:`LoopSpec.noise`): per step, a body force and
 torque added to the plant and the sensor noise added to what the controller measures.
@@ -155,6 +161,8 @@ class LoopSpec:
         The loop takes the exogenous channels of :data:`EXO_LAYOUT` every step.
     rotors : bool
         Rotor dynamics: the four rotor thrusts are plant states (saturation ``motors`` only).
+    delay : int
+        Controller samples from measurement to actuation (held loops only): a command buffer.
     """
 
     pattern: tuple[bool, ...]
@@ -163,6 +171,7 @@ class LoopSpec:
     held: bool = False
     noise: bool = False
     rotors: bool = False
+    delay: int = 0
 
     def __post_init__(self):
         if len(self.pattern) != N_INPUTS * N_STATES:
@@ -171,6 +180,8 @@ class LoopSpec:
             raise ValueError(f"saturation must be one of {SATURATION_MODES}, got {self.saturation!r}")
         if self.rotors and self.saturation != "motors":
             raise ValueError("rotor dynamics need the rotors' mixing: saturation 'motors'")
+        if self.delay < 0 or (self.delay and not self.held):
+            raise ValueError(f"delay: a whole number of samples >= 0 of a held loop, got {self.delay!r}")
 
     @property
     def nz(self) -> int:
@@ -183,9 +194,14 @@ class LoopSpec:
         return N_STATES + (N_ROTORS if self.rotors else 0)
 
     @property
+    def n_buffer(self) -> int:
+        """Entries of the delay's command buffer (4 per sample of delay)."""
+        return self.delay * N_INPUTS
+
+    @property
     def nx(self) -> int:
-        """Loop states ``[x; f; z]``."""
-        return self.n_plant + self.nz
+        """Loop states ``[x; f; z; b]``."""
+        return self.n_plant + self.nz + self.n_buffer
 
     @property
     def n_exo(self) -> int:
@@ -200,7 +216,8 @@ class LoopSpec:
         """A text naming the spec (part of the compile cache key)."""
         bits = "".join("1" if b else "0" for b in self.pattern)
         return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
-                f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else ""))
+                f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
+                + (f" delay={self.delay}" if self.delay else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -264,7 +281,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     def control(X, t):
         """(u, dz/dt) at loop state ``X`` and time ``t``."""
-        x, z = X[:N_STATES], X[npl:]
+        x, z = X[:N_STATES], X[npl:npl + nz]
         err = x + sensor - (parts["x_ref"] + parts["x_rate"] * t)
         cmd = parts["u_trim"] - gain @ err
         if nz == 0:
@@ -299,12 +316,15 @@ def build(spec: LoopSpec) -> LoopFunctions:
         return ca.vertcat(xdot, (parts["mix"] @ u - thrust) / parts["tau"])
 
     u_now, z_rate = control(X, t)
-    X_sampled = ca.vertcat(X[:npl], X[npl:] + parts["Ts"] * z_rate) if nz else X
+    X_sampled = ca.vertcat(X[:npl], X[npl:npl + nz] + parts["Ts"] * z_rate) if nz else X[:npl]
+    if spec.delay:  # apply the oldest command, shift the newest in
+        buffer, nb = X[npl + nz:], spec.n_buffer
+        u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
     law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
     if spec.held:
         def plant_rhs(Y, ts):
             xdot = body(Y, u_held)
-            return ca.vertcat(xdot, ca.DM.zeros(nz)) if nz else xdot
+            return ca.vertcat(xdot, ca.DM.zeros(nx - npl)) if nx > npl else xdot
 
         plant = ca.Function("qc_plant", [X, u_held, dt, c, e], [ca.cse(rk4(plant_rhs, X))],
                             ["X", "u", "dt", "c", "e"], ["X_next"])

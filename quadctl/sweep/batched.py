@@ -201,7 +201,8 @@ def loops_of(live) -> list:
                           x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
                           rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
                           integral_states=des.integral_states, actuators=setup.actuators,
-                          open_loop_eigenvalues=prep.plant.open_loop_eigenvalues())
+                          open_loop_eigenvalues=prep.plant.open_loop_eigenvalues(),
+                          delay_samples=setup.timing.delay_samples)
         tau = loop.rotor_time_constant
         try:
             if loop.rate is not None:  # the open-loop plant's (and rotors'): the same for every case of a plant
