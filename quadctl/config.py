@@ -388,7 +388,9 @@ def from_dict(data: Any, label: str = "<config>") -> Config:
 def _describe(exc: ValidationError, data: Any, label: str) -> str:
     """One line for the first pydantic error: file, key path, value, what is allowed."""
     # an unknown key usually explains the errors after it (a misspelt required key): say it first
-    errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+    # and a mapping given where a number or a section is allowed (controller.delay) was meant as the section
+    errors = sorted(exc.errors(), key=lambda e: (e["type"] != "extra_forbidden",
+                                                 e["type"] == "float_type" and isinstance(e.get("input"), dict)))
     err = errors[0]
     loc = [part for part in err["loc"] if not _is_union_tag(part)]
     path = key_path(loc)
@@ -470,7 +472,8 @@ def _field_info(loc: list):
 
 def _is_union_tag(part: Any) -> bool:
     return isinstance(part, str) and (part.startswith("list[") or part in ("literal['auto']",)
-                                      or part.startswith("function-") or part == "float")
+                                      or part.startswith("function-") or part == "float"
+                                      or part.startswith("constrained-") or part == DelaySamples.__name__)
 
 
 def _section_model(loc: list) -> type[BaseModel] | None:

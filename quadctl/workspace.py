@@ -229,9 +229,10 @@ class Workspace:
         result = margins.all_margins(
             des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
             actuators=self.setup.actuators, u_trim=linear.u_trim,
-            initial_demand=pipeline.initial_demand(self.setup, des))
+            initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples)
         self._write_json(MARGINS, "margins", {
             "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
+            "delay_samples": timing.delay_samples,
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
             "loops": [m.as_dict() for m in result]})
