@@ -178,6 +178,9 @@ class ControllerConfig(_Section):
     design: Literal["discrete", "continuous"] = Field(
         "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
         "run at that rate (emulation)")
+    rotor_lag: Literal["ignore"] = Field(
+        "ignore", description="ignore: the design model's rotors are instantaneous (motors.time_constant lags "
+        "the simulated plant only); include (the design model augmented with the rotor states) is not built yet")
     delay: Optional[Union[NonNegative, DelaySamples]] = Field(
         None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
         "actuation; needs a rate; absent: none")

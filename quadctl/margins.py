@@ -10,7 +10,10 @@ included. The closed loop is ``1 + L = 0`` (negative feedback).
 A configured delay of ``n`` controller samples (``controller.delay``) is in the loops: the discrete
 plant is augmented with ``n`` shift states per input (``b_1 <- u``, ``b_k <- b_(k-1)``, the plant
 driven by ``b_n``), which is ``z^-n`` on every input: exact, no Pade approximation. The delay
-margin is then the delay the loop tolerates beyond the configured one.
+margin is then the delay the loop tolerates beyond the configured one. Rotors that lag
+(``motors.time_constant``) are in the loops too: every input reaches the plant through
+``1 / (tau s + 1)`` (:func:`lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
+before the hold is applied; the design (``controller.rotor_lag: ignore``) does not know of it.
 
 Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
 
@@ -334,6 +337,22 @@ def _delay_margin(loop, w, Lw) -> float | None:
     return best
 
 
+def lagged(A, B, time_constant: float | None):
+    """``(A, B)`` of a continuous plant whose inputs pass through ``1 / (tau s + 1)`` each.
+
+    The state gains one lag state per input, ``[x; u_a]``: ``dx/dt = A x + B u_a``,
+    ``du_a/dt = (u - u_a) / tau``. ``None`` returns the plant unchanged.
+    """
+    A, B = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (A, B))
+    if time_constant is None:
+        return A, B
+    n, m = B.shape
+    Al = np.zeros((n + m, n + m))
+    Al[:n, :n], Al[:n, n:] = A, B
+    Al[n:, n:] = -np.eye(m) / time_constant
+    return Al, np.vstack([np.zeros((n, m)), np.eye(m) / time_constant])
+
+
 def delayed(A, B, K, samples: int):
     """``(A, B, K)`` of a discrete plant with ``samples`` of delay on every input, exactly.
 
@@ -409,30 +428,34 @@ def _db(g: float) -> float:
 # Loops of a design, and the explanations
 
 
-def design_loops(design, decoupled, A, B, delay_samples: int = 0):
+def design_loops(design, decoupled, A, B, delay_samples: int = 0, rotor_time_constant: float | None = None):
     """Yield ``(name, input, model, BrokenLoop)`` for every regulated loop of ``design``.
 
     ``model = "design"``: the subsystem alone (with its integrators), the loop the LQR guarantee
     is about. ``model = "coupled"``: the 12-state linear model, every other loop closed, position
     states that nothing feeds back left out. A design with ``rate`` gives sampled loops, with
-    ``delay_samples`` of delay on every input (:func:`delayed`).
+    ``delay_samples`` of delay on every input (:func:`delayed`); ``rotor_time_constant`` puts the
+    rotors' lag on every input (:func:`lagged`).
     """
     from quadctl import discrete, integral
 
     Ts = design.sample_time
     for sub in design.subsystems:
         dsub = decoupled[sub.name]
-        C = integral.selector(sub.states, sub.integral)
-        Ka = np.hstack([sub.K, sub.Ki]) if sub.Ki is not None else sub.K
+        As, Bs = lagged(dsub.A, dsub.B, rotor_time_constant)
+        extra = As.shape[0] - dsub.A.shape[0]
+        C = np.hstack([integral.selector(sub.states, sub.integral), np.zeros((len(sub.integral), extra))])
+        Ks = np.hstack([sub.K, np.zeros((sub.K.shape[0], extra))])
+        Ka = np.hstack([Ks, sub.Ki]) if sub.Ki is not None else Ks
         if Ts is None:
-            Aa, Ba = integral.augment(dsub.A, dsub.B, C)
+            Aa, Ba = integral.augment(As, Bs, C)
         else:
-            Ad, Bd = discrete.c2d(dsub.A, dsub.B, Ts)
+            Ad, Bd = discrete.c2d(As, Bs, Ts)
             Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
             Aa, Ba, Ka = delayed(Aa, Ba, Ka, delay_samples)
         for j, inp in enumerate(sub.inputs):
             yield sub.name, inp, "design", broken_loop(Aa, Ba, Ka, j, Ts)
-    Af, Bf, Kf = _coupled(design, A, B)
+    Af, Bf, Kf = _coupled(design, A, B, rotor_time_constant)
     if Ts is not None:
         Af, Bf, Kf = delayed(Af, Bf, Kf, delay_samples)
     for sub in design.subsystems:
@@ -440,29 +463,33 @@ def design_loops(design, decoupled, A, B, delay_samples: int = 0):
             yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
 
 
-def _coupled(design, A, B):
-    """Augmented coupled plant and gain ``[K, Ki]`` without the positions nothing feeds back."""
+def _coupled(design, A, B, rotor_time_constant=None):
+    """Augmented coupled plant (with the rotors' lag) and gain ``[K, 0, Ki]`` without the positions
+    nothing feeds back."""
     from quadctl import discrete, integral
 
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     K, Ki, Ts = design.K_block, design.Ki_block, design.sample_time
     nz = len(design.integral_states)
-    C = integral.selector(STATE_NAMES, design.integral_states)
+    Al, Bl = lagged(A, B, rotor_time_constant)
+    extra = Al.shape[0] - N_STATES
+    C = np.hstack([integral.selector(STATE_NAMES, design.integral_states), np.zeros((nz, extra))])
     if Ts is None:
-        Aa, Ba = integral.augment(A, B, C)
+        Aa, Ba = integral.augment(Al, Bl, C)
     else:
-        Ad, Bd = discrete.c2d(A, B, Ts)
+        Ad, Bd = discrete.c2d(Al, Bl, Ts)
         Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
-    Ka = np.hstack([K, Ki.reshape(K.shape[0], nz)])
+    Ka = np.hstack([K, np.zeros((K.shape[0], extra)), Ki.reshape(K.shape[0], nz)])
     free = [STATE_INDEX[s] for s in POSITION_STATES
             if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]])
             and s not in design.integral_states]
-    keep = [i for i in range(N_STATES + nz) if i not in free]
+    keep = [i for i in range(N_STATES + extra + nz) if i not in free]
     return Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep]
 
 
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,
-                u_trim=None, initial_demand: dict | None = None, delay_samples: int = 0) -> list[LoopMargins]:
+                u_trim=None, initial_demand: dict | None = None, delay_samples: int = 0,
+                rotor_time_constant: float | None = None) -> list[LoopMargins]:
     """Margins of every regulated loop of a design, on its design model and on the coupled model.
 
     Parameters
@@ -482,6 +509,8 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
         ``input -> |du|`` the configured initial offset asks for at ``t = 0`` (``|K dx0|``).
     delay_samples : int
         Controller samples of delay included in every sampled loop (``controller.delay``).
+    rotor_time_constant : float, optional
+        s of the rotors' lag included in every loop (``motors.time_constant``).
 
     Returns
     -------
@@ -496,7 +525,7 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     out = []
     if delay_samples and des.rate is None:
         raise ValueError("a delay is counted in controller samples: give the design's rate (or emulated_rate)")
-    for name, inp, model, loop in design_loops(des, decoupled, A, B, delay_samples):
+    for name, inp, model, loop in design_loops(des, decoupled, A, B, delay_samples, rotor_time_constant):
         m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)
         out.append(replace(m, notes=tuple(explain(m, design, emulated_rate, actuators, u_trim,
                                                   initial_demand))))

@@ -104,6 +104,8 @@ class Setup:
     max_samples : int
     plant_overrides : dict
         The ``simulation.plant`` values given (empty: the plant is the design model).
+    rotor_lag : {"ignore"}
+        What the design does with the rotors' lag (``controller.rotor_lag``).
     """
 
     name: str
@@ -127,6 +129,13 @@ class Setup:
     dt: float | str
     max_samples: int
     plant_overrides: dict = field(default_factory=dict)
+    rotor_lag: str = "ignore"
+
+    @property
+    def rotor_time_constant(self) -> float | None:
+        """s of the rotors' lag in the simulated plant (``motors.time_constant``); None: instantaneous."""
+        motors = self.actuators.motors if self.actuators is not None else None
+        return motors.time_constant if motors is not None else None
 
     def initial_state(self, x_trim) -> np.ndarray:
         """(12,) trim state plus the configured initial offset."""
@@ -173,7 +182,7 @@ def resolve(cfg: Config) -> Setup:
         state_owner={s: name for name, sub in partition.items() for s in sub.states},
         timing=timing, actuators=actuators, noise=noise, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
-        plant_overrides=overrides)
+        plant_overrides=overrides, rotor_lag=ctl.rotor_lag)
 
 
 @lru_cache(maxsize=64)

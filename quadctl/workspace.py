@@ -205,6 +205,7 @@ class Workspace:
             "K_block": des.K_block, "Q_block": des.Q_block, "R_block": des.R_block,
             "full_closed_loop_eigenvalues": des.full_eigenvalues,
             "marginal_states": des.marginal_states, "stable": des.stable,
+            "rotor_lag": {"mode": self.setup.rotor_lag, "time_constant": self.setup.rotor_time_constant},
             **_flight_design_payload(des)})
         return des
 
@@ -229,10 +230,11 @@ class Workspace:
         result = margins.all_margins(
             des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
             actuators=self.setup.actuators, u_trim=linear.u_trim,
-            initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples)
+            initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
+            rotor_time_constant=self.setup.rotor_time_constant)
         self._write_json(MARGINS, "margins", {
             "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
-            "delay_samples": timing.delay_samples,
+            "delay_samples": timing.delay_samples, "rotor_time_constant": self.setup.rotor_time_constant,
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
             "loops": [m.as_dict() for m in result]})

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import math
+import shlex
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -109,3 +111,39 @@ def test_a_delay_in_seconds_and_in_samples_are_the_same_loop():
     b = run(cfg_dict("mambo-200hz", controller={"rate": 200.0, "delay": {"samples": 2}}))
     assert a[2].delay_samples == b[2].delay_samples == 2
     np.testing.assert_array_equal(a[3].x, b[3].x)
+
+
+def _plant_section() -> str:
+    text = (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
+    return text[text.index("**9. The plant a vehicle really is"):text.index("### Flight config keys")]
+
+
+def test_the_readme_plant_section_commands_run_and_print_its_numbers(tmp_path, monkeypatch):
+    """README, "From the report's design to one that flies", 9: every command runs, and the table's
+    numbers are those of its margins.json (roll, design model) and sim.json."""
+    monkeypatch.chdir(Path(__file__).resolve().parent.parent)  # the configs' paths are the repository's
+    section = _plant_section()
+    commands = [line[2:].split("  #")[0].strip() for line in section.splitlines() if line.startswith("$ ")]
+    assert len(commands) == 6
+    found = {}
+    for k, command in enumerate(commands):
+        out = tmp_path / str(k)
+        res = CliRunner().invoke(app, [*shlex.split(command)[1:], "-o", str(out)])
+        assert res.exit_code == 0, (command, res.output)
+        config_name = command.split("-c ")[1]
+        if command.startswith("quadctl margins"):
+            data = json.loads((out / "margins.json").read_text())
+            roll = next(m for m in data["loops"] if m["loop"] == "roll" and m["model"] == "design")
+            found.setdefault(config_name, []).extend([
+                f"{roll['phase_margin_deg']:.3g} deg at {roll['crossover_freq']:.3g} rad/s",
+                f"{roll['delay_margin']['s'] * 1e3:.3g} ms ({roll['delay_margin']['samples']:.3g} samples)",
+                f"±{roll['disk_gain_margin_db'][1]:.3g} dB, {roll['disk_phase_margin_deg']:.3g} deg"])
+        else:
+            metrics = json.loads((out / "sim.json").read_text())["metrics"]
+            found.setdefault(config_name, []).extend(
+                f"{metrics['settling_time'][s]:.3g} s, {metrics['overshoot'][s]:.3g} %" for s in ("phi", "theta"))
+    rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line][1:]
+    columns = list(zip(*[[cell.strip() for cell in row.strip("|").split("|")[1:]] for row in rows]))
+    assert [list(col) for col in columns] == [found[name] for name in
+                                              ("mambo-200hz", "docs/configs/mambo-rotor-lag.yaml",
+                                               "docs/configs/mambo-delay.yaml")]

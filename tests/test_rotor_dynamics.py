@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
-from quadctl import config
+from quadctl import config, margins
 from quadctl.errors import ConfigError
 from quadctl.layout import N_STATES
 from quadctl.sim.builder import build
@@ -87,6 +87,17 @@ def test_a_vanishing_lag_approaches_the_instantaneous_loop():
         gaps[tau] = np.abs(x - base.x).max()
     assert gaps[1e-3] < gaps[1e-2] / 5, gaps
     assert gaps[1e-3] / gaps[1e-4] == pytest.approx(10.0, rel=0.1), gaps  # first order in tau (measured 9.9)
+
+
+@pytest.mark.parametrize("k, tau", [(1.0, 0.5), (50.0, 0.03)])
+def test_the_margins_see_the_lag_an_integrator_loop_loses_atan_wc_tau(k, tau):
+    """``L = k / (s (tau s + 1))``: ``|L| = 1`` at ``w_c`` with ``k = w_c sqrt(1 + (w_c tau)^2)``,
+    phase margin ``90 deg - atan(w_c tau)``."""
+    A, B = margins.lagged(np.zeros((1, 1)), np.ones((1, 1)), tau)
+    m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], np.array([k, 0.0])))
+    wc = np.sqrt((np.sqrt(1 + 4 * (k * tau) ** 2) - 1) / (2 * tau ** 2))
+    assert m.phase_crossover_freq == pytest.approx(wc, rel=1e-9)
+    assert m.phase_margin_deg == pytest.approx(90.0 - np.degrees(np.arctan(wc * tau)), rel=1e-9)
 
 
 @pytest.mark.parametrize("value, why", [(0.0, "must be greater than 0.0 \\(s, "), (2.0, "must be at most 1 \\(s, ")])
