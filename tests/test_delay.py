@@ -50,6 +50,19 @@ def test_each_sample_of_delay_takes_one_sample_of_margin():
             assert d.delay_margin_samples == pytest.approx(b.delay_margin_samples - n, rel=1e-9)
 
 
+def test_with_a_30ms_rotor_lag_one_sample_of_delay_leaves_0_73_and_two_are_unstable():
+    """README, 9: the lag's margin (1.73 samples) less the delay; both in the loop at once."""
+    found = {}
+    for n in (1, 2):
+        data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "delay": {"samples": n}})
+        data["motors"]["time_constant"] = 0.03
+        _, _, linear, dec, des = solve(data)
+        found[n] = [m for m in margins.all_margins(des, dec, linear.A, linear.B, delay_samples=n,
+                                                   rotor_time_constant=0.03) if m.loop == "roll"]
+    assert all(m.stable and round(m.delay_margin_samples, 2) == 0.73 for m in found[1])
+    assert not any(m.stable for m in found[2])
+
+
 def _roll_case(samples: int) -> dict:
     """mambo-200hz without rotor limits or noise (saturation would bound the growth), a small roll."""
     data = cfg_dict("mambo-200hz", motors=None)

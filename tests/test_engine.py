@@ -1,7 +1,7 @@
 """The simulation engine: one closed-loop definition, every runner agreeing with every other.
 
 For each loop feature (rate and hold, motors and box saturation, integrators with conditional
-integration, noise): the compiled one-case loop against CasADi's virtual machine, and the SIMD
+integration, noise, rotor lag, delay): the compiled one-case loop against CasADi's virtual machine, and the SIMD
 lanes against the one-case loop, to 1e-12. Then the machine: a missing or failing compiler, the
 compile cache, threads.
 """
