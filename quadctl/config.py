@@ -54,6 +54,10 @@ MAX_RATE = 1e5
 MAX_NOISE = {"force": 1e4, "torque": 1e3}
 """Standard deviation of the process noise, N and N m: far past any gust; 1e300 overflowed the
 run's error statistics."""
+MAX_ROTOR_TIME_CONSTANT = 1.0
+"""s: ten times the slowest small-rotor lags (brushless rotors reach their command in 10 to 100 ms);
+a rotor slower than this cannot hold a vehicle's attitude, and LQR on the rigid body means nothing."""
+RotorTimeConstant = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_ROTOR_TIME_CONSTANT)]
 Mass = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=MASS_RANGE[0], le=MASS_RANGE[1])]
 Gravity = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_GRAVITY)]
 Drag = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=MAX_DRAG)]
@@ -151,6 +155,21 @@ class SimulationConfig(_Section):
         20_000, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
 
 
+MAX_DELAY_SAMPLES = 100
+"""Controller samples of delay: half a second at 200 Hz, far past any loop that still flies (the
+delay margin of a 200 Hz attitude loop is a few samples); each sample is four buffer states."""
+DELAY_SAMPLES_TOL = 1e-9
+"""A delay in seconds is a whole number of samples when ``delay * rate`` is within this (relative)
+of an integer: float round-off of ``0.005 * 200``, never a real fraction of a sample."""
+
+
+class DelaySamples(_Section):
+    """A delay given in controller samples."""
+
+    samples: Annotated[int, Field(strict=True, ge=0, le=MAX_DELAY_SAMPLES)] = Field(
+        description="controller samples from measurement to actuation")
+
+
 class ControllerConfig(_Section):
     """How the controller runs on the flight computer."""
 
@@ -159,6 +178,20 @@ class ControllerConfig(_Section):
     design: Literal["discrete", "continuous"] = Field(
         "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
         "run at that rate (emulation)")
+    rotor_lag: Literal["ignore"] = Field(
+        "ignore", description="ignore: the design model's rotors are instantaneous (motors.time_constant lags "
+        "the simulated plant only); include (the design model augmented with the rotor states) is not built yet")
+    delay: Optional[Union[NonNegative, DelaySamples]] = Field(
+        None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
+        "actuation; needs a rate; absent: none")
+
+    def delay_samples(self) -> int:
+        """Samples of delay (0 when none); :func:`_check_delay` has checked it is whole."""
+        if self.delay is None:
+            return 0
+        if isinstance(self.delay, DelaySamples):
+            return self.delay.samples
+        return round(self.delay * self.rate) if self.rate is not None else 0
 
 
 class MotorsConfig(_Section):
@@ -170,6 +203,8 @@ class MotorsConfig(_Section):
     torque_coefficient: Positive = Field(0.00241, description="N m of yaw reaction torque per N of thrust")
     min_thrust: NonNegative = Field(0.0, description="N per rotor")
     max_thrust: Positive = Field(0.33, description="N per rotor")
+    time_constant: Optional[RotorTimeConstant] = Field(
+        None, description="s, first-order lag of each rotor's thrust behind its command; absent: instantaneous")
 
 
 InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]
@@ -356,7 +391,9 @@ def from_dict(data: Any, label: str = "<config>") -> Config:
 def _describe(exc: ValidationError, data: Any, label: str) -> str:
     """One line for the first pydantic error: file, key path, value, what is allowed."""
     # an unknown key usually explains the errors after it (a misspelt required key): say it first
-    errors = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
+    # and a mapping given where a number or a section is allowed (controller.delay) was meant as the section
+    errors = sorted(exc.errors(), key=lambda e: (e["type"] != "extra_forbidden",
+                                                 e["type"] == "float_type" and isinstance(e.get("input"), dict)))
     err = errors[0]
     loc = [part for part in err["loc"] if not _is_union_tag(part)]
     path = key_path(loc)
@@ -438,7 +475,8 @@ def _field_info(loc: list):
 
 def _is_union_tag(part: Any) -> bool:
     return isinstance(part, str) and (part.startswith("list[") or part in ("literal['auto']",)
-                                      or part.startswith("function-") or part == "float")
+                                      or part.startswith("function-") or part == "float"
+                                      or part.startswith("constrained-") or part == DelaySamples.__name__)
 
 
 def _section_model(loc: list) -> type[BaseModel] | None:
@@ -564,6 +602,30 @@ def _check_semantics(cfg: Config, label: str) -> None:
              f"must be at most {max_duration:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to allow longer)")
     _check_inertia(cfg, fail)
     _check_flight(cfg, fail)
+    _check_delay(cfg, fail)
+
+
+def _check_delay(cfg: Config, fail) -> None:
+    """``controller.delay``: needs a rate, and is a whole number of samples at it."""
+    delay, rate = cfg.controller.delay, cfg.controller.rate
+    if delay is None:
+        return
+    shown = delay.model_dump() if isinstance(delay, DelaySamples) else delay
+    if rate is None:
+        fail("controller.delay", shown, "a delay is counted in controller samples: set controller.rate (Hz), "
+             "or remove the delay")
+    if isinstance(delay, DelaySamples):
+        return
+    n = delay * rate
+    whole = round(n)
+    if abs(n - whole) > DELAY_SAMPLES_TOL * max(1.0, n):
+        lo, hi = math.floor(n), math.ceil(n)
+        fail("controller.delay", delay,
+             f"is {n:.6g} samples at {rate:g} Hz; the simulated delay is a whole number of samples: use "
+             f"{lo / rate:.6g} s ({{samples: {lo}}}) or {hi / rate:.6g} s ({{samples: {hi}}})")
+    if whole > MAX_DELAY_SAMPLES:
+        fail("controller.delay", delay, f"is {whole} samples at {rate:g} Hz, more than MAX_DELAY_SAMPLES = "
+             f"{MAX_DELAY_SAMPLES}; shorten it")
 
 
 MAX_DURATION = 86_400.0

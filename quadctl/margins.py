@@ -7,6 +7,14 @@ loop ``L(z) = K_j (zI - A_o)^-1 B_j`` on the ZOH plant, evaluated on ``z = e^(j 
 the Nyquist frequency ``pi / Ts``: that is the loop the flight computer closes, hold and sampling
 included. The closed loop is ``1 + L = 0`` (negative feedback).
 
+A configured delay of ``n`` controller samples (``controller.delay``) is in the loops: the discrete
+plant is augmented with ``n`` shift states per input (``b_1 <- u``, ``b_k <- b_(k-1)``, the plant
+driven by ``b_n``), which is ``z^-n`` on every input: exact, no Pade approximation. The delay
+margin is then the delay the loop tolerates beyond the configured one. Rotors that lag
+(``motors.time_constant``) are in the loops too: every input reaches the plant through
+``1 / (tau s + 1)`` (:func:`lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
+before the hold is applied; the design (``controller.rotor_lag: ignore``) does not know of it.
+
 Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
 
 - gain margins (dB): the loop-gain factors ``g`` that make ``1 + g L`` singular, from every
@@ -18,6 +26,9 @@ Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
   ``S = 1 / (1 + L)``; the loop tolerates simultaneous gain and phase changes in the disk, i.e.
   gains in ``[(2 - alpha)/(2 + alpha), (2 + alpha)/(2 - alpha)]`` and phase ``+-2 atan(alpha/2)``
   (Seiler, Packard & Gahinet, "An introduction to disk margins", IEEE CSM 2020);
+- delay margin (s, and samples of a sampled loop): the extra delay the loop tolerates before it
+  goes unstable, ``min_i PM_i / w_i`` over the gain crossovers (phase margin in rad, taken in
+  ``[0, 2 pi)``, over the crossover frequency): a delay ``tau`` turns the phase by ``-w tau``;
 - the return difference ``min_w |1 + L|``. A continuous LQR loop (on its design model) has
   ``|1 + L| >= 1`` at every frequency, hence the guarantee: gain margin from -6 dB to infinity,
   phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
@@ -99,6 +110,10 @@ class LoopMargins:
         ``L`` on it (for Bode and Nyquist plots).
     notes : list of str
         Comparison with the LQR guarantee and the reasons for any shortfall.
+    delay_margin : float or None
+        s of extra delay before instability (None: ``|L|`` never crosses 1, or unstable).
+    delay_samples : int
+        Samples of configured delay included in the loop.
     """
 
     loop: str
@@ -118,6 +133,15 @@ class LoopMargins:
     freq: np.ndarray = field(repr=False)
     response: np.ndarray = field(repr=False)
     notes: tuple[str, ...] = ()
+    delay_margin: float | None = None
+    delay_samples: int = 0
+
+    @property
+    def delay_margin_samples(self) -> float | None:
+        """The delay margin in controller samples (sampled loops)."""
+        if self.delay_margin is None or not self.sample_time:
+            return None
+        return self.delay_margin / self.sample_time
 
     @property
     def meets_lqr_guarantee(self) -> bool:
@@ -140,6 +164,8 @@ class LoopMargins:
             "disk_margin_alpha": self.disk_alpha, "disk_gain_margin_db": list(self.disk_gain_db),
             "disk_phase_margin_deg": self.disk_phase_deg, "disk_margin_freq": self.disk_freq,
             "min_return_difference": self.min_return_difference,
+            "delay_samples": self.delay_samples,
+            "delay_margin": {"s": self.delay_margin, "samples": self.delay_margin_samples},
             "meets_lqr_guarantee": self.meets_lqr_guarantee, "notes": list(self.notes),
         }
 
@@ -244,12 +270,13 @@ def loop_margins(loop: BrokenLoop, *, name: str = "loop", input_name: str = "u",
         return no_margin(**labels)
     lower, upper, w_lower, w_upper = _gain_margins(loop, w, Lw)
     pm, w_pm = _phase_margin(loop, w, Lw)
+    dm = _delay_margin(loop, w, Lw)
     alpha, w_disk = _disk_margin(loop, w)
     return LoopMargins(
         stable=True, gain_margin_db=(lower, upper), gain_crossover_freqs=(w_lower, w_upper),
         phase_margin_deg=pm, phase_crossover_freq=w_pm, disk_alpha=alpha,
         disk_gain_db=disk_gain_range_db(alpha), disk_phase_deg=math.degrees(2 * math.atan(alpha / 2)),
-        disk_freq=w_disk, **labels)
+        disk_freq=w_disk, delay_margin=dm, **labels)
 
 
 def disk_gain_range_db(alpha: float) -> tuple[float, float]:
@@ -274,12 +301,11 @@ def no_margin(**labels) -> LoopMargins:
     ``allmargin`` instead keeps listing the crossings beside ``Stable = 0``, and ``margin``
     warns "The closed-loop system is unstable."; ``stable`` and the notes say so here too, but
     a crossing of an unstable loop is where stability would *return*, not a margin, and a
-    table that prints it as one reads as robustness.) quadctl computes no delay margin; a
-    delay-type field added later must be zero here as well.
+    table that prints it as one reads as robustness.) The delay margin is 0 s as well.
     """
     return LoopMargins(stable=False, gain_margin_db=(0.0, 0.0), gain_crossover_freqs=(None, None),
                        phase_margin_deg=0.0, phase_crossover_freq=None, disk_alpha=0.0,
-                       disk_gain_db=(0.0, 0.0), disk_phase_deg=0.0, disk_freq=None, **labels)
+                       disk_gain_db=(0.0, 0.0), disk_phase_deg=0.0, disk_freq=None, delay_margin=0.0, **labels)
 
 
 def frequency_grid(loop: BrokenLoop) -> np.ndarray:
@@ -289,7 +315,7 @@ def frequency_grid(loop: BrokenLoop) -> np.ndarray:
     """
     eig = np.concatenate([np.linalg.eigvals(loop.A), loop.closed_loop_eigenvalues()])
     if loop.sample_time:
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):  # a delay's shift states sit at z = 0
             eig = np.log(eig.astype(complex)) / loop.sample_time
     mags = np.abs(eig[np.isfinite(eig)])
     mags = mags[mags > 1e-9]
@@ -327,12 +353,77 @@ def _gain_margins(loop, w, Lw):
 def _phase_margin(loop, w, Lw):
     mag = np.log(np.abs(Lw))
     best = None
-    for i in np.nonzero(np.sign(mag[:-1]) * np.sign(mag[1:]) < 0)[0]:
+    for i in _crossings(mag):
         wc = _root(lambda x: float(np.log(np.abs(loop(x)[0]))), w[i], w[i + 1])
         pm = math.degrees(math.remainder(float(np.angle(loop(wc)[0])) + math.pi, 2 * math.pi))
         if best is None or pm < best[0]:
             best = (pm, wc)
     return (best[0], best[1]) if best else (math.inf, None)
+
+
+def _crossings(v) -> np.ndarray:
+    """Indices ``i`` where ``v`` changes sign from ``v[i]`` to ``v[i + 1]``, a zero landing exactly on a
+    grid point included (counted once, in the interval that ends on it)."""
+    pos = v > 0
+    return np.nonzero(pos[:-1] != pos[1:])[0]
+
+
+def _delay_margin(loop, w, Lw) -> float | None:
+    """s: ``min_i PM_i / w_i`` over every gain crossover (``PM_i`` in ``[0, 2 pi)`` rad)."""
+    mag = np.log(np.abs(Lw))
+    best = None
+    for i in _crossings(mag):
+        wc = _root(lambda x: float(np.log(np.abs(loop(x)[0]))), w[i], w[i + 1])
+        pm = (float(np.angle(loop(wc)[0])) + math.pi) % (2 * math.pi)
+        if best is None or pm / wc < best:
+            best = pm / wc
+    return best
+
+
+def lagged(A, B, time_constant: float | None):
+    """``(A, B)`` of a continuous plant whose inputs pass through ``1 / (tau s + 1)`` each.
+
+    The state gains one lag state per input, ``[x; u_a]``: ``dx/dt = A x + B u_a``,
+    ``du_a/dt = (u - u_a) / tau``. ``None`` returns the plant unchanged.
+    """
+    A, B = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (A, B))
+    if time_constant is None:
+        return A, B
+    n, m = B.shape
+    Al = np.zeros((n + m, n + m))
+    Al[:n, :n], Al[:n, n:] = A, B
+    Al[n:, n:] = -np.eye(m) / time_constant
+    return Al, np.vstack([np.zeros((n, m)), np.eye(m) / time_constant])
+
+
+def delayed(A, B, K, samples: int):
+    """``(A, B, K)`` of a discrete plant with ``samples`` of delay on every input, exactly.
+
+    The state gains ``m`` shift states per sample, ``[x; b_1; ...; b_n]``: ``x <- A x + B b_n``,
+    ``b_1 <- u``, ``b_k <- b_(k-1)``; the gain ignores them (``[K, 0]``). ``samples = 0`` returns
+    the plant unchanged.
+
+    Examples
+    --------
+    One sample on ``x <- x + u``: ``L(z) = k / (z (z - 1))``.
+
+    >>> Ad, Bd, Kd = delayed(np.eye(1), np.eye(1), np.eye(1), 1)
+    >>> Ad.tolist(), Bd.ravel().tolist(), Kd.ravel().tolist()
+    ([[1.0, 1.0], [0.0, 0.0]], [0.0, 1.0], [1.0, 0.0])
+    """
+    A, B, K = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (A, B, K))
+    if samples == 0:
+        return A, B, K
+    n, m = B.shape
+    N = n + m * samples
+    Aa = np.zeros((N, N))
+    Aa[:n, :n] = A
+    Aa[:n, N - m:] = B
+    for k in range(1, samples):  # b_(k+1) <- b_k
+        Aa[n + k * m:n + (k + 1) * m, n + (k - 1) * m:n + k * m] = np.eye(m)
+    Ba = np.zeros((N, m))
+    Ba[n:n + m] = np.eye(m)
+    return Aa, Ba, np.hstack([K, np.zeros((K.shape[0], m * samples))])
 
 
 def _disk_margin(loop, w):
@@ -380,56 +471,68 @@ def _db(g: float) -> float:
 # Loops of a design, and the explanations
 
 
-def design_loops(design, decoupled, A, B):
+def design_loops(design, decoupled, A, B, delay_samples: int = 0, rotor_time_constant: float | None = None):
     """Yield ``(name, input, model, BrokenLoop)`` for every regulated loop of ``design``.
 
     ``model = "design"``: the subsystem alone (with its integrators), the loop the LQR guarantee
     is about. ``model = "coupled"``: the 12-state linear model, every other loop closed, position
-    states that nothing feeds back left out. A design with ``rate`` gives sampled loops.
+    states that nothing feeds back left out. A design with ``rate`` gives sampled loops, with
+    ``delay_samples`` of delay on every input (:func:`delayed`); ``rotor_time_constant`` puts the
+    rotors' lag on every input (:func:`lagged`).
     """
     from quadctl import discrete, integral
 
     Ts = design.sample_time
     for sub in design.subsystems:
         dsub = decoupled[sub.name]
-        C = integral.selector(sub.states, sub.integral)
-        Ka = np.hstack([sub.K, sub.Ki]) if sub.Ki is not None else sub.K
+        As, Bs = lagged(dsub.A, dsub.B, rotor_time_constant)
+        extra = As.shape[0] - dsub.A.shape[0]
+        C = np.hstack([integral.selector(sub.states, sub.integral), np.zeros((len(sub.integral), extra))])
+        Ks = np.hstack([sub.K, np.zeros((sub.K.shape[0], extra))])
+        Ka = np.hstack([Ks, sub.Ki]) if sub.Ki is not None else Ks
         if Ts is None:
-            Aa, Ba = integral.augment(dsub.A, dsub.B, C)
+            Aa, Ba = integral.augment(As, Bs, C)
         else:
-            Ad, Bd = discrete.c2d(dsub.A, dsub.B, Ts)
+            Ad, Bd = discrete.c2d(As, Bs, Ts)
             Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
+            Aa, Ba, Ka = delayed(Aa, Ba, Ka, delay_samples)
         for j, inp in enumerate(sub.inputs):
             yield sub.name, inp, "design", broken_loop(Aa, Ba, Ka, j, Ts)
-    Af, Bf, Kf = _coupled(design, A, B)
+    Af, Bf, Kf = _coupled(design, A, B, rotor_time_constant)
+    if Ts is not None:
+        Af, Bf, Kf = delayed(Af, Bf, Kf, delay_samples)
     for sub in design.subsystems:
         for inp in sub.inputs:
             yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
 
 
-def _coupled(design, A, B):
-    """Augmented coupled plant and gain ``[K, Ki]`` without the positions nothing feeds back."""
+def _coupled(design, A, B, rotor_time_constant=None):
+    """Augmented coupled plant (with the rotors' lag) and gain ``[K, 0, Ki]`` without the positions
+    nothing feeds back."""
     from quadctl import discrete, integral
 
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     K, Ki, Ts = design.K_block, design.Ki_block, design.sample_time
     nz = len(design.integral_states)
-    C = integral.selector(STATE_NAMES, design.integral_states)
+    Al, Bl = lagged(A, B, rotor_time_constant)
+    extra = Al.shape[0] - N_STATES
+    C = np.hstack([integral.selector(STATE_NAMES, design.integral_states), np.zeros((nz, extra))])
     if Ts is None:
-        Aa, Ba = integral.augment(A, B, C)
+        Aa, Ba = integral.augment(Al, Bl, C)
     else:
-        Ad, Bd = discrete.c2d(A, B, Ts)
+        Ad, Bd = discrete.c2d(Al, Bl, Ts)
         Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
-    Ka = np.hstack([K, Ki.reshape(K.shape[0], nz)])
+    Ka = np.hstack([K, np.zeros((K.shape[0], extra)), Ki.reshape(K.shape[0], nz)])
     free = [STATE_INDEX[s] for s in POSITION_STATES
             if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]])
             and s not in design.integral_states]
-    keep = [i for i in range(N_STATES + nz) if i not in free]
+    keep = [i for i in range(N_STATES + extra + nz) if i not in free]
     return Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep]
 
 
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,
-                u_trim=None, initial_demand: dict | None = None) -> list[LoopMargins]:
+                u_trim=None, initial_demand: dict | None = None, delay_samples: int = 0,
+                rotor_time_constant: float | None = None) -> list[LoopMargins]:
     """Margins of every regulated loop of a design, on its design model and on the coupled model.
 
     Parameters
@@ -447,6 +550,10 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
         For the actuators' headroom.
     initial_demand : dict, optional
         ``input -> |du|`` the configured initial offset asks for at ``t = 0`` (``|K dx0|``).
+    delay_samples : int
+        Controller samples of delay included in every sampled loop (``controller.delay``).
+    rotor_time_constant : float, optional
+        s of the rotors' lag included in every loop (``motors.time_constant``).
 
     Returns
     -------
@@ -459,8 +566,10 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     if emulated_rate is not None and design.rate is None:
         des = replace(design, rate=emulated_rate)  # the continuous gains on the sampled plant
     out = []
-    for name, inp, model, loop in design_loops(des, decoupled, A, B):
-        m = loop_margins(loop, name=name, input_name=inp, model=model)
+    if delay_samples and des.rate is None:
+        raise ValueError("a delay is counted in controller samples: give the design's rate (or emulated_rate)")
+    for name, inp, model, loop in design_loops(des, decoupled, A, B, delay_samples, rotor_time_constant):
+        m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)
         out.append(replace(m, notes=tuple(explain(m, design, emulated_rate, actuators, u_trim,
                                                   initial_demand))))
     return out
@@ -473,7 +582,8 @@ def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=N
     lower, upper = m.gain_margin_db
     if not m.stable:
         notes.append("the closed loop is UNSTABLE: no margin; the gains are too high for this loop"
-                     + (" at this rate" if m.sample_time else ""))
+                     + (" at this rate" if m.sample_time else "")
+                     + (f" with {m.delay_samples} samples of delay" if m.delay_samples else ""))
         return notes
     if m.meets_lqr_guarantee:
         notes.append("meets the continuous LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg)")

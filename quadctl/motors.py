@@ -59,6 +59,9 @@ class Motors:
         N m of yaw reaction torque per N of rotor thrust.
     min_thrust, max_thrust : float
         N per rotor.
+    time_constant : float or None
+        s: each rotor's thrust follows its command through ``df/dt = (f_cmd - f) / tau``;
+        None: instantaneous.
     """
 
     layout: str = "x"
@@ -67,6 +70,7 @@ class Motors:
     torque_coefficient: float = 0.00241
     min_thrust: float = 0.0
     max_thrust: float = 0.33
+    time_constant: float | None = None
 
     @classmethod
     def from_config(cls, cfg) -> Motors:

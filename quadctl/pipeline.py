@@ -62,7 +62,8 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
     return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
                       x_rate=linear.x_rate, K=K, eigenvalues=eig, owners=owners, rate=setup.timing.rate,
                       Ki=Ki if integral_states else None, integral_states=integral_states,
-                      actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A))
+                      actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A),
+                      delay_samples=setup.timing.delay_samples)
 
 
 def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:

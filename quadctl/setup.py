@@ -34,10 +34,13 @@ class Timing:
     discrete : bool
         With a rate: designed at that rate (MATLAB ``lqrd``); else the continuous design is run at
         the rate (emulation).
+    delay_samples : int
+        Controller samples from measurement to actuation (``controller.delay``; 0: none).
     """
 
     rate: float | None = None
     discrete: bool = False
+    delay_samples: int = 0
 
     @property
     def mode(self) -> Literal["continuous", "discrete", "emulated"]:
@@ -101,6 +104,8 @@ class Setup:
     max_samples : int
     plant_overrides : dict
         The ``simulation.plant`` values given (empty: the plant is the design model).
+    rotor_lag : {"ignore"}
+        What the design does with the rotors' lag (``controller.rotor_lag``).
     """
 
     name: str
@@ -124,6 +129,13 @@ class Setup:
     dt: float | str
     max_samples: int
     plant_overrides: dict = field(default_factory=dict)
+    rotor_lag: str = "ignore"
+
+    @property
+    def rotor_time_constant(self) -> float | None:
+        """s of the rotors' lag in the simulated plant (``motors.time_constant``); None: instantaneous."""
+        motors = self.actuators.motors if self.actuators is not None else None
+        return motors.time_constant if motors is not None else None
 
     def initial_state(self, x_trim) -> np.ndarray:
         """(12,) trim state plus the configured initial offset."""
@@ -153,7 +165,8 @@ def resolve(cfg: Config) -> Setup:
     for state, value in cfg.simulation.initial_offset.items():
         offset[STATE_INDEX[state]] += value
     ctl = cfg.controller
-    timing = Timing(rate=ctl.rate, discrete=ctl.rate is not None and ctl.design == "discrete")
+    timing = Timing(rate=ctl.rate, discrete=ctl.rate is not None and ctl.design == "discrete",
+                    delay_samples=ctl.delay_samples())
     noise = None
     if cfg.simulation.noise is not None:
         spec = NoiseSpec.from_config(cfg.simulation.noise, timing.rate)
@@ -169,7 +182,7 @@ def resolve(cfg: Config) -> Setup:
         state_owner={s: name for name, sub in partition.items() for s in sub.states},
         timing=timing, actuators=actuators, noise=noise, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
-        plant_overrides=overrides)
+        plant_overrides=overrides, rotor_lag=ctl.rotor_lag)
 
 
 @lru_cache(maxsize=64)

@@ -82,20 +82,32 @@ class ClosedLoop:
     """:class:`quadctl.motors.Actuators` that clip the input; None: unlimited."""
     open_loop_eigenvalues: np.ndarray | None = None
     """Of the plant ``A``: what RK4 integrates between samples of a sampled controller."""
+    delay_samples: int = 0
+    """Controller samples from measurement to actuation (a sampled controller's command buffer)."""
+
+    @property
+    def rotor_time_constant(self) -> float | None:
+        """s: the rotors' first-order lag (``motors.time_constant``); None: instantaneous rotors."""
+        motors = self.actuators.motors if self.actuators is not None else None
+        return motors.time_constant if motors is not None else None
 
     def plan(self, duration: float, dt="auto") -> StepPlan:
-        """The RK4 step: from the closed loop's spectrum, or the open loop's under a held input."""
+        """The RK4 step: from the closed loop's spectrum, or the open loop's under a held input
+        (both with the rotors' lag, :func:`rotor_eigenvalues`)."""
+        lag = rotor_eigenvalues(self.rotor_time_constant)
         if self.rate is not None:
             ol = self.open_loop_eigenvalues if self.open_loop_eigenvalues is not None else np.zeros(0)
-            return plan_held_step(ol, self.rate, duration, dt)
-        return plan_step(self.eigenvalues, self.owners, duration, dt)
+            return plan_held_step(np.concatenate([ol, lag]), self.rate, duration, dt)
+        return plan_step(np.concatenate([self.eigenvalues, lag]), [*self.owners, *["rotors"] * len(lag)],
+                         duration, dt)
 
     def spec(self, noise: bool = False) -> LoopSpec:
         """The structure of this loop's generated code."""
         act = self.actuators
         return LoopSpec.of_gain(self.K, saturation=act.mode if act is not None else "none",
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
-                                held=self.rate is not None, noise=noise)
+                                held=self.rate is not None, noise=noise,
+                                rotors=self.rotor_time_constant is not None, delay=self.delay_samples)
 
     def constants(self, sample_time: float | None = None) -> np.ndarray:
         """The constant vector ``c`` of this loop (:func:`quadctl.sim.builder.pack_constants`)."""
@@ -108,21 +120,42 @@ class ClosedLoop:
         if nz:
             Ki = np.asarray(self.Ki, dtype=float).reshape(len(self.u_trim), nz)
             values.update(Ki=Ki, antiwindup=(Ki.T != 0).astype(float))
-        return pack_constants(nz, **values)
+        tau = self.rotor_time_constant
+        if tau is not None:
+            values.update(tau=[tau])
+        return pack_constants(nz, tau is not None, **values)
+
+    def initial_loop_state(self, x0) -> np.ndarray:
+        """The loop state ``[x0; f; z; b]`` a run starts from: the rotors (if they lag) at their trim
+        thrusts ``mix u_trim``, the integrators at zero, the delay's buffer at the trim input."""
+        parts = [np.asarray(x0, dtype=float)]
+        if self.rotor_time_constant is not None:
+            parts.append(self.actuators.commands(self.u_trim))
+        parts.append(np.zeros(len(self.integral_states)))
+        parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
+        return np.concatenate(parts)
 
     def bounds(self, duration: float) -> tuple[np.ndarray, np.ndarray]:
-        """(lo, hi) of the loop state ``[x; z]`` past which a run stops (:data:`RUNAWAY`).
+        """(lo, hi) of the loop state ``[x; f; z]`` past which a run stops (:data:`RUNAWAY`).
 
-        Positions drift with the reference: they are bounded around its farthest point.
+        Positions drift with the reference: they are bounded around its farthest point; rotor
+        thrusts and integrators are unbounded (a NaN still stops the run).
         """
         bound = np.array([RUNAWAY[s] for s in STATE_NAMES])
         lo, hi = self.x_trim - bound, self.x_trim + bound
         theta = STATE_INDEX["theta"]
         lo[theta], hi[theta] = -VALID_PITCH, VALID_PITCH
         drift = np.abs(self.x_rate) * duration
-        nz = len(self.integral_states)
-        return (np.concatenate([lo - drift, np.full(nz, -np.inf)]),
-                np.concatenate([hi + drift, np.full(nz, np.inf)]))
+        free = len(self.initial_loop_state(self.x_trim)) - N_STATES
+        return (np.concatenate([lo - drift, np.full(free, -np.inf)]),
+                np.concatenate([hi + drift, np.full(free, np.inf)]))
+
+
+def rotor_eigenvalues(time_constant: float | None) -> np.ndarray:
+    """The rotor lag's four eigenvalues ``-1/tau`` (rad/s), for the RK4 step; none without a lag."""
+    if time_constant is None:
+        return np.zeros(0)
+    return np.full(4, -1.0 / time_constant)
 
 
 @dataclass(frozen=True)
@@ -168,6 +201,9 @@ class SimResult:
     stride: int
     z: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     """(N+1, nz) integrator states of an LQI controller."""
+    rotor_thrust: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(N+1, 4) N: each rotor's thrust, when the rotors lag (``motors.time_constant``); else empty
+    (an instantaneous rotor's thrust is the clipped command ``mix u``)."""
     noise_seed: int | None = None
 
     @property
@@ -183,7 +219,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     ----------
     loop : ClosedLoop
     x0 : (12,) array_like
-        Initial state (integrators, if any, start at zero).
+        Initial state (integrators, if any, start at zero; lagging rotors at their trim thrust).
     duration : float
         s.
     dt : float or "auto"
@@ -204,8 +240,9 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     run = runner(loop.spec(noisy), 1)
     c = loop.constants(plan.sample_time)
     lo, hi = loop.bounds(duration)
+    x0_all = loop.initial_loop_state(x0)
     nz = len(loop.integral_states)
-    x0_all = np.concatenate([np.asarray(x0, dtype=float), np.zeros(nz)])
+    n_plant = len(x0_all) - nz - len(loop.u_trim) * loop.delay_samples
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
@@ -217,7 +254,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     status, message = verdict(xs[:, :N_STATES], t, done, n, lo, hi)
     return SimResult(t=t, x=np.ascontiguousarray(xs[:, :N_STATES]), u=us, x_ref=x_ref, dt=plan.dt,
                      status=status, message=message, wall_time=wall, backend=run.backend, plan=plan,
-                     steps=done, stride=stride, z=np.ascontiguousarray(xs[:, N_STATES:]),
+                     steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:n_plant + nz]),
+                     rotor_thrust=np.ascontiguousarray(xs[:, N_STATES:n_plant]),
                      noise_seed=noise.seed if noisy else None)
 
 

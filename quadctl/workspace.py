@@ -206,6 +206,7 @@ class Workspace:
             "K_block": des.K_block, "Q_block": des.Q_block, "R_block": des.R_block,
             "full_closed_loop_eigenvalues": _c(des.full_eigenvalues),
             "marginal_states": des.marginal_states, "stable": des.stable,
+            "rotor_lag": {"mode": self.setup.rotor_lag, "time_constant": self.setup.rotor_time_constant},
             **_flight_design_payload(des)})
         return des
 
@@ -230,9 +231,11 @@ class Workspace:
         result = margins.all_margins(
             des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
             actuators=self.setup.actuators, u_trim=linear.u_trim,
-            initial_demand=pipeline.initial_demand(self.setup, des))
+            initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
+            rotor_time_constant=self.setup.rotor_time_constant)
         self._write_json(MARGINS, "margins", {
             "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
+            "delay_samples": timing.delay_samples, "rotor_time_constant": self.setup.rotor_time_constant,
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
             "loops": [m.as_dict() for m in result]})
@@ -267,7 +270,10 @@ class Workspace:
             "stride": np.array(sim.stride),
             "status": np.array(sim.status), "state_names": np.array(STATE_NAMES),
             "input_names": np.array(INPUT_NAMES), "z": sim.z,
-            "integral_states": np.array(loop.integral_states, dtype=str)}, meta)
+            "integral_states": np.array(loop.integral_states, dtype=str),
+            "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
+            "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str)},
+            meta)
         self._write_json(SIM_JSON, "simulation", {
             "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,
             "stride": sim.stride, "samples": len(sim.t),

@@ -1,7 +1,7 @@
 """The simulation engine: one closed-loop definition, every runner agreeing with every other.
 
 For each loop feature (rate and hold, motors and box saturation, integrators with conditional
-integration, noise): the compiled one-case loop against CasADi's virtual machine, and the SIMD
+integration, noise, rotor lag, delay): the compiled one-case loop against CasADi's virtual machine, and the SIMD
 lanes against the one-case loop, to 1e-12. Then the machine: a missing or failing compiler, the
 compile cache, threads.
 """
@@ -34,10 +34,21 @@ def _features():
     held = cfg_dict("mambo-200hz")
     held["simulation"]["initial_offset"] = {"pD": 0.5, "phi": 0.4, "theta": 0.1}  # the rotors saturate
     emulated = cfg_dict("forward", controller={"rate": 2000.0, "design": "continuous"})
+    lagged = cfg_dict("mambo-200hz")
+    lagged["simulation"]["initial_offset"] = {"pD": 0.5, "phi": 0.4, "theta": 0.1}
+    lagged["motors"]["time_constant"] = 0.03
+    delayed = cfg_dict("mambo-200hz", controller={"rate": 200.0, "delay": {"samples": 2}})
+    delayed["simulation"]["initial_offset"] = {"pD": 0.5, "phi": 0.4, "theta": 0.1}
+    delayed["motors"]["time_constant"] = 0.03
+    lagged_continuous = cfg_dict("hover", motors={"time_constant": 0.02})
+    lagged_continuous["simulation"]["initial_offset"] = {"phi": 0.02}
     return [("continuous", cfg_dict("forward"), 0.02),
             ("continuous, box limits, LQI, noise", box, 0.02),
             ("held, rotors, LQI, noise", held, 0.5),
-            ("held, emulated continuous design", emulated, 0.05)]
+            ("held, emulated continuous design", emulated, 0.05),
+            ("held, rotors with lag, LQI, noise", lagged, 0.5),
+            ("continuous, rotors with lag", lagged_continuous, 0.02),
+            ("held, delay, rotors with lag, LQI, noise", delayed, 0.5)]
 
 
 FEATURES = _features()
@@ -67,7 +78,8 @@ def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch
         _clear()
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max(),
-               np.abs(compiled.z - interpreted.z).max() if compiled.z.size else 0.0)
+               np.abs(compiled.z - interpreted.z).max() if compiled.z.size else 0.0,
+               np.abs(compiled.rotor_thrust - interpreted.rotor_thrust).max() if compiled.rotor_thrust.size else 0.0)
     assert diff < 1e-12, f"Max diff is {diff:.4E}"
     assert compiled.steps == interpreted.steps and len(compiled.t) == len(interpreted.t)
     if "LQI" in label:
@@ -77,6 +89,14 @@ def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch
     if "rotors" in label:
         commands = loop.actuators.commands(compiled.u)
         assert commands.max() == pytest.approx(loop.actuators.hi[0])  # a rotor at its limit
+    if "delay" in label:  # the applied input is the command of two samples before (trim at first)
+        assert loop.spec().delay == 2
+        first = 2 * round(0.005 / compiled.dt)  # steps of the first two samples
+        np.testing.assert_array_equal(compiled.u[:first], np.tile(loop.u_trim, (first, 1)))
+        assert np.any(compiled.u[first] != loop.u_trim)
+    if "lag" in label:  # the rotor states move, and stay below the command they follow
+        assert compiled.rotor_thrust.shape == (len(compiled.t), 4)
+        assert np.ptp(compiled.rotor_thrust) > 1e-3 and compiled.rotor_thrust.max() < loop.actuators.hi[0]
 
 
 @pytest.mark.compiler
@@ -101,7 +121,7 @@ def test_lanes_equal_the_one_case_loop(label, data, duration):
         plan = vk.plan(dur, setup.dt)
         lo, hi = vk.bounds(dur)
         first, exo = NoiseStream(noise).rows(0, plan.n_steps, plan.dt) if noise else (0, None)
-        x0 = np.concatenate([setup.initial_state(vk.x_trim), np.zeros(len(vk.integral_states))])
+        x0 = vk.initial_loop_state(setup.initial_state(vk.x_trim))
         jobs.append((plan, vk.constants(plan.sample_time), x0, lo, hi, exo, first, noise))
     cases = Cases.of(np.stack([j[2] for j in jobs]), np.stack([j[1] for j in jobs]), [j[0].dt for j in jobs],
                      [j[0].n_steps for j in jobs], [record_stride(j[0].n_steps, setup.max_samples) for j in jobs],
@@ -116,7 +136,8 @@ def test_lanes_equal_the_one_case_loop(label, data, duration):
                        max_samples=setup.max_samples)
         assert done == one.steps
         np.testing.assert_array_equal(ks * one.dt, one.t)
-        worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max())
+        worst = max(worst, np.abs(xs[:, :one.x.shape[1] + one.rotor_thrust.shape[1] + one.z.shape[1]]
+                                  - np.hstack([one.x, one.rotor_thrust, one.z])).max(), np.abs(us - one.u).max())
     assert worst < 1e-12, f"Max diff is {worst:.4E}"
 
 

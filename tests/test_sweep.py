@@ -268,6 +268,12 @@ BATCHED_CASES = {
     # the continuous design run at a rate (emulation), rotors, LQI, noise
     "emulated": ({"lqr.roll.R[0]": [20000, 80000], "controller.rate": [200.0, 400.0]},
                  {"simulation.duration": 0.6, "controller.design": "continuous"}),
+    # rotor dynamics: the lag is a constant of the lanes (and its RK4 step is each case's)
+    "rotor lag": ({"motors.time_constant": [0.01, 0.03], "lqr.roll.R[0]": [20000, 80000]},
+                  {"simulation.duration": 0.6}),
+    # delay: the buffer's length is a spec field (one lane group per delay)
+    "delay": ({"controller.delay": [0.0, 0.005, 0.01], "lqr.roll.R[0]": [20000, 80000]},
+              {"simulation.duration": 0.6}),
 }
 
 
@@ -275,7 +281,7 @@ BATCHED_CASES = {
 @pytest.mark.parametrize("name", list(BATCHED_CASES))
 def test_batched_path_matches_the_pipeline(name):
     """Every config simulate accepts runs in the lanes, and its rows are the one-by-one path's."""
-    cfg = config.load("mambo-200hz" if name == "emulated" else name)
+    cfg = config.load("mambo-200hz" if name in ("emulated", "rotor lag", "delay") else name)
     parameters, fixed = BATCHED_CASES[name]
     spec = spec_of(cfg, parameters=parameters, set=fixed, gates={"peak.T": {"max": 3.0}})
     fast = sweep.run(cfg, spec, jobs=1)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from dataclasses import replace
 from importlib import resources
 from string import Template
 
@@ -74,6 +75,10 @@ def sources(exp: Export) -> dict[str, str]:
     if exp.sample_time is None:
         raise ValueError("a C controller samples: prepare the export with a rate")
     loop, Ts = exp.loop, exp.sample_time
+    if loop.rotor_time_constant is not None:  # the rotors' lag is the vehicle's, not the law's: no rotor states
+        act = loop.actuators
+        loop = replace(loop, actuators=replace(act, motors=replace(act.motors, time_constant=None)))
+    loop = replace(loop, delay_samples=0)  # so is the delay: the vehicle's computer and bus add it
     spec = loop.spec(noise=False)
     c = loop.constants(Ts)
     nz = len(loop.integral_states)

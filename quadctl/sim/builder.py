@@ -5,8 +5,11 @@ compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
 ``driver.c``), and the interpreted fallback (:mod:`quadctl.sim.interpreted`, CasADi's virtual
 machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
 
-The loop state is ``X = [x; z]``: the 12 plant states, then the ``nz`` controller states (the
-integrators of an LQI law). The control law is
+The loop state is ``X = [x; f; z]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
+the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the controller states:
+the ``nz`` integrators of an LQI law, and the ``4 n`` entries of the command buffer of a loop
+with ``n`` samples of delay (:attr:`LoopSpec.delay`). The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant`
+states. The control law is
 
     u = sat(u_trim - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,
 
@@ -22,6 +25,16 @@ Two timings (:attr:`LoopSpec.held`):
 - sampled, zero-order hold: the law runs once per controller period (function ``law``, which
   also advances ``z`` by forward Euler, ``z <- z + Ts dz/dt``) and RK4 integrates the plant under
   the held input in between (function ``plant``).
+
+Rotor dynamics (:attr:`LoopSpec.rotors`, saturation ``motors`` only): each rotor's thrust lags
+its command through a first-order lag, ``df/dt = (f_cmd - f) / tau`` with ``f_cmd = mix u`` the
+mixed, clipped command, and the body gets ``[T, A, E, R] = mix_inv f`` (the effectiveness matrix)
+instead of ``u``. Without it the rotors are instantaneous: the body gets ``u``.
+
+Delay (:attr:`LoopSpec.delay`, held loops only): ``n`` controller samples from measurement to
+actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands computed 1 to ``n``
+samples ago; at a sample the law applies ``b_n`` and shifts, ``b_1 <- u_new``, ``b_k <- b_(k-1)``.
+Runs start with the buffer at the trim input. Exact: the delay is a whole number of samples.
 
 Exogenous inputs (:data:`EXO_LAYOUT`, when :attr:`LoopSpec.noise`): per step, a body force and
 torque added to the plant and the sensor noise added to what the controller measures.
@@ -69,23 +82,31 @@ EXO_LAYOUT: tuple[tuple[str, int], ...] = (
 N_EXO = sum(size for _, size in EXO_LAYOUT)
 
 
-def constant_layout(nz: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
+N_ROTORS = 4
+"""Rotor thrust states of a loop with rotor dynamics (one per rotor, N)."""
+
+
+def constant_layout(nz: int = 0, rotors: bool = False) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
-    input ``j``'s saturation freezes integrator ``i``. Matrices are stored column-major.
+    input ``j``'s saturation freezes integrator ``i``; ``tau`` (s) is the rotors' time constant
+    (loops with rotor dynamics). Matrices are stored column-major.
     """
-    if nz == 0:
-        return _BASE_LAYOUT
-    return _BASE_LAYOUT + (("Ki", (N_INPUTS, nz)), ("antiwindup", (nz, N_INPUTS)))
+    out = _BASE_LAYOUT
+    if nz:
+        out = out + (("Ki", (N_INPUTS, nz)), ("antiwindup", (nz, N_INPUTS)))
+    if rotors:
+        out = out + (("tau", (1,)),)
+    return out
 
 
-def constant_size(nz: int = 0) -> int:
-    """Length of ``c`` for ``nz`` integrators."""
-    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz))
+def constant_size(nz: int = 0, rotors: bool = False) -> int:
+    """Length of ``c`` for ``nz`` integrators (and rotor dynamics)."""
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors))
 
 
-def pack_constants(nz: int = 0, **values) -> np.ndarray:
+def pack_constants(nz: int = 0, rotors: bool = False, **values) -> np.ndarray:
     """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
 
     Raises
@@ -93,7 +114,7 @@ def pack_constants(nz: int = 0, **values) -> np.ndarray:
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots, template = _slots(nz)
+    slots, template = _slots(nz, rotors)
     out = template.copy()
     for name, value in values.items():
         if name not in slots:
@@ -107,10 +128,10 @@ def pack_constants(nz: int = 0, **values) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _slots(nz: int) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+def _slots(nz: int, rotors: bool = False) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
-    for name, shape in constant_layout(nz):
+    for name, shape in constant_layout(nz, rotors):
         size = int(np.prod(shape))
         slots[name] = (slice(offset, offset + size), shape)
         offset += size
@@ -138,6 +159,10 @@ class LoopSpec:
         Sampled controller with a zero-order hold (else continuous feedback).
     noise : bool
         The loop takes the exogenous channels of :data:`EXO_LAYOUT` every step.
+    rotors : bool
+        Rotor dynamics: the four rotor thrusts are plant states (saturation ``motors`` only).
+    delay : int
+        Controller samples from measurement to actuation (held loops only): a command buffer.
     """
 
     pattern: tuple[bool, ...]
@@ -145,12 +170,18 @@ class LoopSpec:
     integral: tuple[int, ...] = ()
     held: bool = False
     noise: bool = False
+    rotors: bool = False
+    delay: int = 0
 
     def __post_init__(self):
         if len(self.pattern) != N_INPUTS * N_STATES:
             raise ValueError(f"pattern: expected {N_INPUTS * N_STATES} entries, got {len(self.pattern)}")
         if self.saturation not in SATURATION_MODES:
             raise ValueError(f"saturation must be one of {SATURATION_MODES}, got {self.saturation!r}")
+        if self.rotors and self.saturation != "motors":
+            raise ValueError("rotor dynamics need the rotors' mixing: saturation 'motors'")
+        if self.delay < 0 or (self.delay and not self.held):
+            raise ValueError(f"delay: a whole number of samples >= 0 of a held loop, got {self.delay!r}")
 
     @property
     def nz(self) -> int:
@@ -158,9 +189,19 @@ class LoopSpec:
         return len(self.integral)
 
     @property
+    def n_plant(self) -> int:
+        """Plant states ``[x; f]``: the rigid body, and the rotor thrusts of rotor dynamics."""
+        return N_STATES + (N_ROTORS if self.rotors else 0)
+
+    @property
+    def n_buffer(self) -> int:
+        """Entries of the delay's command buffer (4 per sample of delay)."""
+        return self.delay * N_INPUTS
+
+    @property
     def nx(self) -> int:
-        """Loop states ``[x; z]``."""
-        return N_STATES + self.nz
+        """Loop states ``[x; f; z; b]``."""
+        return self.n_plant + self.nz + self.n_buffer
 
     @property
     def n_exo(self) -> int:
@@ -169,13 +210,14 @@ class LoopSpec:
 
     @property
     def n_constants(self) -> int:
-        return constant_size(self.nz)
+        return constant_size(self.nz, self.rotors)
 
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
         bits = "".join("1" if b else "0" for b in self.pattern)
         return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
-                f"held={int(self.held)} noise={int(self.noise)}")
+                f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
+                + (f" delay={self.delay}" if self.delay else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -193,6 +235,7 @@ class LoopFunctions:
     states advanced by one controller period (held specs; the input part serves both).
     ``plant(X, u, dt, c, e) -> X_next``: one RK4 step of the plant under a held ``u``; the
     controller states pass through (held specs).
+    ``u`` is always the (clipped) command; with rotor dynamics the body gets ``mix_inv f``.
     """
 
     spec: LoopSpec
@@ -211,10 +254,10 @@ class LoopFunctions:
 def build(spec: LoopSpec) -> LoopFunctions:
     """Build the loop functions of ``spec`` (cached per spec)."""
     f = build_model().f_disturbed
-    nz, nx = spec.nz, spec.nx
+    nz, nx, npl = spec.nz, spec.nx, spec.n_plant
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
-    for name, shape in constant_layout(nz):
+    for name, shape in constant_layout(nz, spec.rotors):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -238,7 +281,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     def control(X, t):
         """(u, dz/dt) at loop state ``X`` and time ``t``."""
-        x, z = X[:N_STATES], X[N_STATES:]
+        x, z = X[:N_STATES], X[npl:npl + nz]
         err = x + sensor - (parts["x_ref"] + parts["x_rate"] * t)
         cmd = parts["u_trim"] - gain @ err
         if nz == 0:
@@ -264,13 +307,24 @@ def build(spec: LoopSpec) -> LoopFunctions:
         k4 = rhs(Y + dt * k3, t + dt)
         return Y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
+    def body(Y, u):
+        """d[x; f]/dt under the command ``u``: the body under ``u``, or under its rotors' thrusts."""
+        if not spec.rotors:
+            return f(Y[:N_STATES], u, params, disturbance)
+        thrust = Y[N_STATES:npl]
+        xdot = f(Y[:N_STATES], parts["mix_inv"] @ thrust, params, disturbance)
+        return ca.vertcat(xdot, (parts["mix"] @ u - thrust) / parts["tau"])
+
     u_now, z_rate = control(X, t)
-    X_sampled = ca.vertcat(X[:N_STATES], X[N_STATES:] + parts["Ts"] * z_rate) if nz else X
+    X_sampled = ca.vertcat(X[:npl], X[npl:npl + nz] + parts["Ts"] * z_rate) if nz else X[:npl]
+    if spec.delay:  # apply the oldest command, shift the newest in
+        buffer, nb = X[npl + nz:], spec.n_buffer
+        u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
     law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
     if spec.held:
         def plant_rhs(Y, ts):
-            xdot = f(Y[:N_STATES], u_held, params, disturbance)
-            return ca.vertcat(xdot, ca.DM.zeros(nz)) if nz else xdot
+            xdot = body(Y, u_held)
+            return ca.vertcat(xdot, ca.DM.zeros(nx - npl)) if nx > npl else xdot
 
         plant = ca.Function("qc_plant", [X, u_held, dt, c, e], [ca.cse(rk4(plant_rhs, X))],
                             ["X", "u", "dt", "c", "e"], ["X_next"])
@@ -278,7 +332,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     def closed_rhs(Y, ts):
         u, rate = control(Y, ts)
-        xdot = f(Y[:N_STATES], u, params, disturbance)
+        xdot = body(Y, u)
         return ca.vertcat(xdot, rate) if nz else xdot
 
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([rk4(closed_rhs, X), u_now]),

@@ -169,7 +169,7 @@ def loops_of(live) -> list:
     from quadctl.motors import check_trim
     from quadctl.noise import NoiseStream
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
-    from quadctl.simulate import ClosedLoop
+    from quadctl.simulate import ClosedLoop, rotor_eigenvalues
 
     out: list = [None] * len(live)
     continuous = [j for j, (prep, _) in enumerate(live) if prep.setup.timing.rate is None]
@@ -201,13 +201,18 @@ def loops_of(live) -> list:
                           x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
                           rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
                           integral_states=des.integral_states, actuators=setup.actuators,
-                          open_loop_eigenvalues=prep.plant.open_loop_eigenvalues())
+                          open_loop_eigenvalues=prep.plant.open_loop_eigenvalues(),
+                          delay_samples=setup.timing.delay_samples)
+        tau = loop.rotor_time_constant
         try:
-            if loop.rate is not None:  # the open-loop plant's: the same for every case of a plant
-                key = ("held plan", loop.rate, setup.duration, setup.dt)
+            if loop.rate is not None:  # the open-loop plant's (and rotors'): the same for every case of a plant
+                key = ("held plan", loop.rate, setup.duration, setup.dt, tau)
                 if key not in prep.plant.cache:
-                    prep.plant.cache[key] = plan_held_step(loop.open_loop_eigenvalues, *key[1:])
+                    ol = np.concatenate([loop.open_loop_eigenvalues, rotor_eigenvalues(tau)])
+                    prep.plant.cache[key] = plan_held_step(ol, *key[1:4])
                 plan = prep.plant.cache[key]
+            elif tau is not None:
+                plan = loop.plan(setup.duration, setup.dt)
             else:
                 plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)
         except StepSizeError as exc:
@@ -218,10 +223,9 @@ def loops_of(live) -> list:
         if setup.noise is not None:
             first, exo = NoiseStream(setup.noise).rows(0, plan.n_steps, plan.dt)
             period = setup.noise.period
-        nz = len(des.integral_states)
         out[j] = LaneJob(spec=replace(loop.spec(setup.noise is not None), pattern=_structural_gain(prep)),
                          plan=plan, c=loop.constants(plan.sample_time),
-                         x0=np.concatenate([setup.initial_state(linear.x_trim), np.zeros(nz)]), lo=lo, hi=hi,
+                         x0=loop.initial_loop_state(setup.initial_state(linear.x_trim)), lo=lo, hi=hi,
                          stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
                          exo_period=period)
     return out

@@ -32,6 +32,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
         if des.rate:
             render.out.print(f"discrete design at {des.rate:g} Hz (lqrd: ZOH plant, cost integrated over "
                              f"{1e3 / des.rate:.4g} ms); eigenvalues shown as ln(z)/Ts in rad/s")
+        tau = ws.setup.rotor_time_constant
+        if tau is not None:
+            render.out.print(f"rotor lag {tau * 1e3:.4g} ms: ignored by the design (controller.rotor_lag: "
+                             f"{ws.setup.rotor_lag}); simulated in the plant")
         for table in render.design_tables(des):
             render.out.print(table)
         render.out.print(f"-> {ws.path('design.json')}")
