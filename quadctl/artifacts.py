@@ -500,7 +500,8 @@ def locked(folder: Path | str):
         try:
             yield folder
         finally:
-            _held[key] -= 1
+            if key in _held:  # holders may be released in any order (a workspace closed at exit)
+                _held[key] -= 1
         return
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -512,7 +513,7 @@ def locked(folder: Path | str):
     try:
         yield folder
     finally:
-        del _held[key]
+        _held.pop(key, None)
         release()
 
 

@@ -9,6 +9,8 @@ write of a session also writes the config as given (``config.yaml``) and as reso
 
 from __future__ import annotations
 
+import contextlib
+import weakref
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -92,7 +94,20 @@ class Workspace:
         self.payloads: dict[str, dict] = {}
         """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
         a reused artifact is parsed once, here."""
+        self._hold = contextlib.ExitStack()
+        self._hold.enter_context(artifacts.locked(self.out))  # one run writes a folder at a time
+        weakref.finalize(self, self._hold.close)
         artifacts.remove_stale_temporaries(self.out)
+
+    def close(self) -> None:
+        """Release the run folder (the process's end releases it too)."""
+        self._hold.close()
+
+    def __enter__(self) -> Workspace:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     def path(self, name: str) -> Path:
         return self.out / name

@@ -157,15 +157,17 @@ def test_a_run_in_a_folder_keeps_the_users_temporary_looking_files(tmp_path):
     assert (tmp_path / "trim.json").exists()
 
 
-@pytest.mark.compiler  # CasADi's interpreter did not stop within 60 s of the SIGINT (reported to the lead)
-def test_ctrl_c_stops_a_long_simulation_promptly(tmp_path):
-    """The compiled loop runs in ~50 ms chunks, so an interrupt does not wait for the whole run."""
+@pytest.mark.parametrize("engine", [pytest.param("compiled", marks=pytest.mark.compiler), "casadi"])
+def test_ctrl_c_stops_a_long_simulation_promptly(tmp_path, engine):
+    """The loop runs in chunks of ~0.1 s (compiled, or in CasADi's VM), so an interrupt does not wait
+    for the whole run: it stops within a second."""
     from quadctl import config
 
     path = tmp_path / "long.yaml"
     path.write_text(config.resolve("forward-script-q")[1].replace("duration: 10.0", "duration: 600.0"))
     cmd = [sys.executable, "-m", "quadctl", "simulate", "-c", str(path), "-o", str(tmp_path / "out")]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    env = {**os.environ, **({"QUADCTL_NO_COMPILE": "1"} if engine == "casadi" else {})}
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 60
     while not (tmp_path / "out" / "design.json").exists() and time.time() < deadline:
@@ -176,4 +178,4 @@ def test_ctrl_c_stops_a_long_simulation_promptly(tmp_path):
     _, err = proc.communicate(timeout=60)
     waited = time.time() - sent
     assert proc.returncode == 130, err.decode()
-    assert waited < 5.0, f"Ctrl-C took {waited:.1f} s to stop the run"
+    assert waited < 1.0, f"Ctrl-C took {waited:.1f} s to stop the run"

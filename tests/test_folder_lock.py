@@ -91,3 +91,40 @@ def test_the_lock_file_holds_the_pid_and_is_not_an_artifact(tmp_path):
     with artifacts.locked(tmp_path):
         assert (tmp_path / artifacts.LOCK_NAME).read_text().strip() == str(os.getpid())
     assert artifacts.LOCK_NAME not in artifacts.ARTIFACT_NAMES  # the file may stay: never taken for one
+
+
+def test_two_commands_on_one_run_folder_are_not_run_side_by_side(tmp_path):
+    """The workspace and the sweep hold the folder: a second quadctl on it is refused, whole."""
+    import subprocess
+    import sys
+    import time
+
+    held = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time\n"
+        "from quadctl import config\n"
+        "from quadctl.workspace import Workspace\n"
+        f"ws = Workspace(config.load('hover'), {str(tmp_path)!r})\n"
+        "print('held', flush=True)\n"
+        "time.sleep(30)\n")], stdout=subprocess.PIPE, text=True)
+    try:
+        assert held.stdout.readline().strip() == "held"
+        for args in (["simulate", "-c", "hover"], ["sweep", "-c", "hover", "-s", str(_sweep_file(tmp_path))]):
+            res = subprocess.run([sys.executable, "-m", "quadctl", *args, "-o", str(tmp_path)],
+                                 capture_output=True, text=True, timeout=120)
+            assert res.returncode == 2, res.stderr
+            assert f"{tmp_path} is in use by another quadctl (pid {held.pid})" in res.stderr
+        assert not (tmp_path / "sim.npz").exists() and not (tmp_path / "sweep.csv").exists()
+    finally:
+        held.kill()
+        held.wait()
+    started = time.monotonic()
+    res = subprocess.run([sys.executable, "-m", "quadctl", "trim", "-c", "hover", "-o", str(tmp_path)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr  # the holder is gone: the folder is free again
+    assert time.monotonic() - started < 60
+
+
+def _sweep_file(tmp_path):
+    path = tmp_path.parent / "lock-sweep.yaml"
+    path.write_text("parameters:\n  lqr.roll.R[0]: [1.0, 2.0]\nset:\n  simulation.duration: 0.05\n")
+    return path

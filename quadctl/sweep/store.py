@@ -197,11 +197,14 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     SweepError
         ``resume`` finds rows of a different sweep, or the scheduler cannot be reached.
     """
+    from quadctl import artifacts
+
     store = SweepStore(out, cfg, spec)
-    done = store.start(resume)
-    result = run(cfg, spec, label=label, jobs=jobs, scheduler=scheduler, done=done,
-                 on_chunk=store.save_chunk, progress=progress)
-    summary = store.finish(result)
+    with artifacts.locked(store.out):  # one run writes a folder at a time
+        done = store.start(resume)
+        result = run(cfg, spec, label=label, jobs=jobs, scheduler=scheduler, done=done,
+                     on_chunk=store.save_chunk, progress=progress)
+        summary = store.finish(result)
     files = [store.out / "sweep.csv", store.out / "sweep.json", store.out / "sweep.png"]
     files += [store.out / name for name in summary["files"].get("montecarlo", [])]
     return SweepOutcome(result=result, summary=summary, out=store.out, reused=len(done), files=files)
