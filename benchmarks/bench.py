@@ -361,9 +361,10 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
 
     from quadctl import config, discrete, pipeline
     from quadctl.riccati import dare_batch
+    from quadctl.setup import resolve
 
-    cfg = config.load("forward")
-    dec = pipeline.decoupled_of(cfg, pipeline.linear_of(cfg, pipeline.trim_of(cfg)))
+    setup = resolve(config.load("forward"))
+    dec = pipeline.decoupled_of(setup, pipeline.linear_of(setup, pipeline.trim_of(setup)))
     rng = np.random.default_rng(LQR_SEED)
     subs = [dec["roll"], dec["pitch"]]
     A = np.stack([subs[k % 2].A for k in range(count)])

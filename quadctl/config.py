@@ -601,7 +601,7 @@ def _check_semantics(cfg: Config, label: str) -> None:
         fail("simulation.duration", cfg.simulation.duration,
              f"must be at most {max_duration:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to allow longer)")
     _check_inertia(cfg, fail)
-    _check_flight(cfg, fail)
+    _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
 
 
@@ -689,8 +689,8 @@ def _check_inertia(cfg: Config, fail) -> None:
                      "that all three are in kg m^2")
 
 
-def _check_flight(cfg: Config, fail) -> None:
-    """Controller rate, motors, limits and noise (issue 5)."""
+def _check_controller_and_actuators(cfg: Config, fail) -> None:
+    """Controller rate and delay, motors, limits and noise: the keys that only make sense together."""
     if cfg.motors is not None and cfg.limits is not None:
         fail("limits", cfg.limits, "give either motors: (limits from the rotors) or limits:, not both")
     if cfg.motors is not None and cfg.motors.min_thrust >= cfg.motors.max_thrust:

@@ -88,11 +88,11 @@ class LoopMargins:
         every frequency None (:func:`no_margin`).
     gain_margin_db : (float, float)
         (lower, upper) in dB; ``-inf`` / ``+inf`` when there is no critical gain on that side.
-    gain_crossover_freqs : (float or None, float or None)
+    phase_crossover_freqs : (float or None, float or None)
         rad/s of the phase crossovers that set them (None: no such crossover).
     phase_margin_deg : float
         ``inf`` when ``|L|`` never crosses 1.
-    phase_crossover_freq : float or None
+    gain_crossover_freq : float or None
         rad/s of the gain crossover (``|L| = 1``) that sets it.
     disk_alpha : float
         Balanced disk margin ``alpha`` (0 for an unstable loop).
@@ -122,9 +122,9 @@ class LoopMargins:
     sample_time: float | None
     stable: bool
     gain_margin_db: tuple[float, float]
-    gain_crossover_freqs: tuple[float | None, float | None]
+    phase_crossover_freqs: tuple[float | None, float | None]
     phase_margin_deg: float
-    phase_crossover_freq: float | None
+    gain_crossover_freq: float | None
     disk_alpha: float
     disk_gain_db: tuple[float, float]
     disk_phase_deg: float
@@ -158,9 +158,9 @@ class LoopMargins:
             "loop": self.loop, "input": self.input, "model": self.model, "sample_time": self.sample_time,
             "stable": self.stable,
             "gain_margin_lower_db": self.gain_margin_db[0], "gain_margin_upper_db": self.gain_margin_db[1],
-            "gain_margin_lower_freq": self.gain_crossover_freqs[0],
-            "gain_margin_upper_freq": self.gain_crossover_freqs[1],
-            "phase_margin_deg": self.phase_margin_deg, "crossover_freq": self.phase_crossover_freq,
+            "gain_margin_lower_freq": self.phase_crossover_freqs[0],
+            "gain_margin_upper_freq": self.phase_crossover_freqs[1],
+            "phase_margin_deg": self.phase_margin_deg, "gain_crossover_freq": self.gain_crossover_freq,
             "disk_margin_alpha": self.disk_alpha, "disk_gain_margin_db": list(self.disk_gain_db),
             "disk_phase_margin_deg": self.disk_phase_deg, "disk_margin_freq": self.disk_freq,
             "min_return_difference": self.min_return_difference,
@@ -251,7 +251,7 @@ def loop_margins(loop: BrokenLoop, *, name: str = "loop", input_name: str = "u",
 
     >>> A = np.array([[0.0, 1.0], [0.0, -1.0]]); b = np.array([0.0, 1.0]); k = np.array([2 ** 0.5, 0.0])
     >>> m = loop_margins(BrokenLoop(A, b, k))
-    >>> round(m.phase_margin_deg, 6), round(m.phase_crossover_freq, 6), m.gain_margin_db
+    >>> round(m.phase_margin_deg, 6), round(m.gain_crossover_freq, 6), m.gain_margin_db
     (45.0, 1.0, (-inf, inf))
 
     The same loop with positive feedback is unstable: it has no margin at all.
@@ -273,8 +273,8 @@ def loop_margins(loop: BrokenLoop, *, name: str = "loop", input_name: str = "u",
     dm = _delay_margin(loop, w, Lw)
     alpha, w_disk = _disk_margin(loop, w)
     return LoopMargins(
-        stable=True, gain_margin_db=(lower, upper), gain_crossover_freqs=(w_lower, w_upper),
-        phase_margin_deg=pm, phase_crossover_freq=w_pm, disk_alpha=alpha,
+        stable=True, gain_margin_db=(lower, upper), phase_crossover_freqs=(w_lower, w_upper),
+        phase_margin_deg=pm, gain_crossover_freq=w_pm, disk_alpha=alpha,
         disk_gain_db=disk_gain_range_db(alpha), disk_phase_deg=math.degrees(2 * math.atan(alpha / 2)),
         disk_freq=w_disk, delay_margin=dm, **labels)
 
@@ -303,8 +303,8 @@ def no_margin(**labels) -> LoopMargins:
     a crossing of an unstable loop is where stability would *return*, not a margin, and a
     table that prints it as one reads as robustness.) The delay margin is 0 s as well.
     """
-    return LoopMargins(stable=False, gain_margin_db=(0.0, 0.0), gain_crossover_freqs=(None, None),
-                       phase_margin_deg=0.0, phase_crossover_freq=None, disk_alpha=0.0,
+    return LoopMargins(stable=False, gain_margin_db=(0.0, 0.0), phase_crossover_freqs=(None, None),
+                       phase_margin_deg=0.0, gain_crossover_freq=None, disk_alpha=0.0,
                        disk_gain_db=(0.0, 0.0), disk_phase_deg=0.0, disk_freq=None, delay_margin=0.0, **labels)
 
 
@@ -471,18 +471,20 @@ def _db(g: float) -> float:
 # Loops of a design, and the explanations
 
 
-def design_loops(design, decoupled, A, B, delay_samples: int = 0, rotor_time_constant: float | None = None):
+def design_loops(design, decoupled, A, B, sample_time: float | None = None, delay_samples: int = 0,
+                 rotor_time_constant: float | None = None):
     """Yield ``(name, input, model, BrokenLoop)`` for every regulated loop of ``design``.
 
     ``model = "design"``: the subsystem alone (with its integrators), the loop the LQR guarantee
     is about. ``model = "coupled"``: the 12-state linear model, every other loop closed, position
-    states that nothing feeds back left out. A design with ``rate`` gives sampled loops, with
-    ``delay_samples`` of delay on every input (:func:`delayed`); ``rotor_time_constant`` puts the
-    rotors' lag on every input (:func:`lagged`).
+    states that nothing feeds back left out. With ``sample_time`` (s: the controller's period, the
+    design's own for a discrete design, or the rate a continuous design is run at) the loops are
+    sampled, with ``delay_samples`` of delay on every input (:func:`delayed`);
+    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`lagged`).
     """
     from quadctl import discrete, integral
 
-    Ts = design.sample_time
+    Ts = sample_time
     for sub in design.subsystems:
         dsub = decoupled[sub.name]
         As, Bs = lagged(dsub.A, dsub.B, rotor_time_constant)
@@ -498,7 +500,7 @@ def design_loops(design, decoupled, A, B, delay_samples: int = 0, rotor_time_con
             Aa, Ba, Ka = delayed(Aa, Ba, Ka, delay_samples)
         for j, inp in enumerate(sub.inputs):
             yield sub.name, inp, "design", broken_loop(Aa, Ba, Ka, j, Ts)
-    Af, Bf, Kf = _coupled(design, A, B, rotor_time_constant)
+    Af, Bf, Kf = _coupled(design, A, B, Ts, rotor_time_constant)
     if Ts is not None:
         Af, Bf, Kf = delayed(Af, Bf, Kf, delay_samples)
     for sub in design.subsystems:
@@ -506,13 +508,13 @@ def design_loops(design, decoupled, A, B, delay_samples: int = 0, rotor_time_con
             yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
 
 
-def _coupled(design, A, B, rotor_time_constant=None):
+def _coupled(design, A, B, Ts, rotor_time_constant=None):
     """Augmented coupled plant (with the rotors' lag) and gain ``[K, 0, Ki]`` without the positions
     nothing feeds back."""
     from quadctl import discrete, integral
 
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
-    K, Ki, Ts = design.K_block, design.Ki_block, design.sample_time
+    K, Ki = design.K_block, design.Ki_block
     nz = len(design.integral_states)
     Al, Bl = lagged(A, B, rotor_time_constant)
     extra = Al.shape[0] - N_STATES
@@ -562,13 +564,13 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     """
     from dataclasses import replace
 
-    des = design
-    if emulated_rate is not None and design.rate is None:
-        des = replace(design, rate=emulated_rate)  # the continuous gains on the sampled plant
+    # the loops run at the design's rate, or a continuous design's gains at the emulated rate
+    sample_time = design.sample_time or (1.0 / emulated_rate if emulated_rate else None)
     out = []
-    if delay_samples and des.rate is None:
+    if delay_samples and sample_time is None:
         raise ValueError("a delay is counted in controller samples: give the design's rate (or emulated_rate)")
-    for name, inp, model, loop in design_loops(des, decoupled, A, B, delay_samples, rotor_time_constant):
+    for name, inp, model, loop in design_loops(design, decoupled, A, B, sample_time, delay_samples,
+                                               rotor_time_constant):
         m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)
         out.append(replace(m, notes=tuple(explain(m, design, emulated_rate, actuators, u_trim,
                                                   initial_demand))))
@@ -597,7 +599,7 @@ def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=N
             short.append(f"phase margin {m.phase_margin_deg:.3g} deg (guarantee: >= 60 deg)")
         notes.append("short of the continuous LQR guarantee: " + "; ".join(short))
         if m.sample_time:
-            wc = m.phase_crossover_freq
+            wc = m.gain_crossover_freq
             lag = f"; the hold's half-sample delay alone costs {math.degrees(wc * m.sample_time / 2):.3g} deg " \
                   f"at the {wc:.4g} rad/s crossover" if wc else ""
             if design.rate is None and emulated_rate is not None:

@@ -103,12 +103,12 @@ def margins_figure(m, *, title: str = "") -> Figure:
             ax_ph.axhline(-180 + 360 * k, color="0.35", lw=0.9, ls="--")
     ax_ph.set_ylabel("phase of L [deg]")
     ax_ph.set_xlabel("frequency [rad/s]")
-    if m.phase_crossover_freq is not None:
+    if m.gain_crossover_freq is not None:
         for ax in (ax_mag, ax_ph):
-            ax.axvline(m.phase_crossover_freq, color=_COLORS[2], lw=1.0, ls=":")
-        ax_ph.annotate(f"PM {m.phase_margin_deg:.3g} deg", (m.phase_crossover_freq, phase.min()),
+            ax.axvline(m.gain_crossover_freq, color=_COLORS[2], lw=1.0, ls=":")
+        ax_ph.annotate(f"PM {m.phase_margin_deg:.3g} deg", (m.gain_crossover_freq, phase.min()),
                        fontsize=8, color=_COLORS[2])
-    for wg, gm in zip(m.gain_crossover_freqs, m.gain_margin_db):
+    for wg, gm in zip(m.phase_crossover_freqs, m.gain_margin_db):
         if wg is not None:
             for ax in (ax_mag, ax_ph):
                 ax.axvline(wg, color=_COLORS[1], lw=1.0, ls=":")

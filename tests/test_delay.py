@@ -46,7 +46,7 @@ def test_each_sample_of_delay_takes_one_sample_of_margin():
         for b, d in zip(base, with_delay):
             if b.model != "design":  # the coupled loops' other channels are delayed too
                 continue
-            assert d.delay_samples == n and d.phase_crossover_freq == pytest.approx(b.phase_crossover_freq, rel=1e-9)
+            assert d.delay_samples == n and d.gain_crossover_freq == pytest.approx(b.gain_crossover_freq, rel=1e-9)
             assert d.delay_margin_samples == pytest.approx(b.delay_margin_samples - n, rel=1e-9)
 
 
@@ -102,8 +102,8 @@ def test_margins_json_reports_the_delay_margin(tmp_path):
     roll = next(m for m in out["loops"] if m["loop"] == "roll" and m["model"] == "design")
     assert roll["delay_samples"] == 1
     assert roll["delay_margin"]["samples"] == pytest.approx(roll["delay_margin"]["s"] * 200.0, rel=1e-12)
-    assert roll["delay_margin"]["s"] == pytest.approx(math.radians(roll["phase_margin_deg"]) / roll["crossover_freq"],
-                                                      rel=1e-9)
+    expected = math.radians(roll["phase_margin_deg"]) / roll["gain_crossover_freq"]
+    assert roll["delay_margin"]["s"] == pytest.approx(expected, rel=1e-9)
 
 
 @pytest.mark.parametrize("controller, message", [
@@ -148,7 +148,7 @@ def test_the_readme_plant_section_commands_run_and_print_its_numbers(tmp_path, m
             data = json.loads((out / "margins.json").read_text())
             roll = next(m for m in data["loops"] if m["loop"] == "roll" and m["model"] == "design")
             found.setdefault(config_name, []).extend([
-                f"{roll['phase_margin_deg']:.3g} deg at {roll['crossover_freq']:.3g} rad/s",
+                f"{roll['phase_margin_deg']:.3g} deg at {roll['gain_crossover_freq']:.3g} rad/s",
                 f"{roll['delay_margin']['s'] * 1e3:.3g} ms ({roll['delay_margin']['samples']:.3g} samples)",
                 f"±{roll['disk_gain_margin_db'][1]:.3g} dB, {roll['disk_phase_margin_deg']:.3g} deg"])
         else:

@@ -72,9 +72,9 @@ def test_one_loop_has_quadctls_margins():
         gm_poly, pm_poly, *_ = control.stability_margins(L)
     ours = [m for m in margins.all_margins(des, dec, linear.A, linear.B) if m.loop == "roll" and m.model == "design"][0]
     assert 20 * np.log10(gm) == pytest.approx(ours.gain_margin_db[0], rel=1e-9)
-    assert w_gm == pytest.approx(ours.gain_crossover_freqs[0], rel=1e-9)
+    assert w_gm == pytest.approx(ours.phase_crossover_freqs[0], rel=1e-9)
     assert pm == pytest.approx(ours.phase_margin_deg, rel=1e-9)
-    assert wgc == pytest.approx(ours.phase_crossover_freq, rel=1e-9)
+    assert wgc == pytest.approx(ours.gain_crossover_freq, rel=1e-9)
     assert 20 * np.log10(gm_poly) == pytest.approx(ours.gain_margin_db[0], rel=1e-4)
     assert pm_poly == pytest.approx(ours.phase_margin_deg, rel=1e-6)
 

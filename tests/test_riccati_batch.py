@@ -52,7 +52,7 @@ def test_lqrd_weights_batch_is_lqrd_weights_per_entry_and_the_hand_integrals():
     for k in range(20):
         for batched, one in zip(out, discrete.lqrd_weights(A[k], B[k], Q[k], R[k], 0.01, N[k])):
             np.testing.assert_array_equal(batched[k], one)
-    # x' = u: Qd = q Ts, Nd = q Ts^2 / 2, Rd = r Ts + q Ts^3 / 3 (tests/test_flight_discrete.py, per entry)
+    # x' = u: Qd = q Ts, Nd = q Ts^2 / 2, Rd = r Ts + q Ts^3 / 3 (tests/test_discrete.py, per entry)
     q, r, Ts = np.array([3.0, 1.0]), np.array([2.0, 5.0]), np.array([0.3, 0.01])
     _, _, Qd, Rd, Nd = discrete.lqrd_weights_batch(np.zeros((2, 1, 1)), np.ones((2, 1, 1)), q[:, None, None],
                                                    r[:, None, None], Ts)

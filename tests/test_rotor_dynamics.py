@@ -96,7 +96,7 @@ def test_the_margins_see_the_lag_an_integrator_loop_loses_atan_wc_tau(k, tau):
     A, B = margins.lagged(np.zeros((1, 1)), np.ones((1, 1)), tau)
     m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], np.array([k, 0.0])))
     wc = np.sqrt((np.sqrt(1 + 4 * (k * tau) ** 2) - 1) / (2 * tau ** 2))
-    assert m.phase_crossover_freq == pytest.approx(wc, rel=1e-9)
+    assert m.gain_crossover_freq == pytest.approx(wc, rel=1e-9)
     assert m.phase_margin_deg == pytest.approx(90.0 - np.degrees(np.arctan(wc * tau)), rel=1e-9)
 
 

@@ -206,10 +206,10 @@ def margins(ws) -> Section:
     classic, disk = [], []
     for m in loops:
         lo, hi = m.gain_margin_db
-        at = " / ".join(num(w, 3) for w in m.gain_crossover_freqs if w is not None) or "-"
+        at = " / ".join(num(w, 3) for w in m.phase_crossover_freqs if w is not None) or "-"
         loop = f"{m.loop} ({m.input})"
         classic.append((loop, m.model, f"{db(lo)} / {db(hi)}", at, num(m.phase_margin_deg, 3),
-                        num(m.phase_crossover_freq, 3)))
+                        num(m.gain_crossover_freq, 3)))
         d_lo, d_hi = m.disk_gain_db
         symmetric = d_lo is not None and d_hi is not None and abs(d_lo + d_hi) < 1e-6 * max(1.0, abs(d_hi))
         verdict = "met" if m.meets_lqr_guarantee else ("unstable" if not m.stable else "short")

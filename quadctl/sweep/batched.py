@@ -87,7 +87,8 @@ def _solve(Ts, n, group, preps):
     Q = np.stack([preps[k].setup.weights[sub.name][0] for k, sub, _ in group])
     R = np.stack([preps[k].setup.weights[sub.name][1] for k, sub, _ in group])
     C = integral.selector(group[0][1].states, group[0][2])
-    same_ints = all(ints == group[0][2] and sub.states == group[0][1].states for _, sub, ints in group)
+    same_ints = not group[0][2] or all(ints == group[0][2] and sub.states == group[0][1].states
+                                       for _, sub, ints in group)  # no integrators: C is empty for all
     if not same_ints:  # integrators on different states: still one shape, build each selector
         Cs = [integral.selector(sub.states, ints) for _, sub, ints in group]
     if Ts is None:
@@ -129,8 +130,8 @@ def _assemble(items, gains, out) -> None:
         for sub in dec.regulated:
             Ka = gains[(k, sub.name)]
             n = len(sub.states)
-            rows = [INPUT_INDEX[i] for i in sub.inputs]
-            K[np.ix_(rows, sub.state_index)] = Ka[:, :n]
+            rows, flat = _gain_slots(prep.plant, sub)
+            K.flat[flat] = Ka[:, :n].ravel()
             for j, state in enumerate(setup.integral.get(sub.name, ())):
                 column = np.zeros(N_INPUTS)
                 column[rows] = Ka[:, n + j]
@@ -145,6 +146,15 @@ def _assemble(items, gains, out) -> None:
         for (k, _, K, Ki), verdict in zip(members, stability.assess_stack(A_cl, np.stack([m[2] for m in members]),
                                                                           sample_time=Ts)):
             out[k] = CaseDesign(K, Ki, states, verdict.stable, verdict.core, BATCHED)
+
+
+def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:
+    """(input rows, flat indices into the (4, 12) block gain) of a subsystem's gain, once per plant."""
+    key = ("gain slots", sub.name)
+    if key not in plant.cache:
+        rows = [INPUT_INDEX[i] for i in sub.inputs]
+        plant.cache[key] = rows, (np.array(rows)[:, None] * N_STATES + np.array(sub.state_index)).ravel()
+    return plant.cache[key]
 
 
 def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:

@@ -40,9 +40,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
             render.out.print(table)
         render.out.print(f"-> {ws.path('design.json')}")
         if comparison is not None:
-            from quadctl.cli import render_flight
+            from quadctl.cli import render_loop
 
-            for item in render_flight.full_tables(*comparison):
+            for item in render_loop.full_tables(*comparison):
                 render.out.print(item)
             render.out.print(f"-> {ws.path('design_full.json')}")
     if not des.stable:

@@ -21,7 +21,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     margin 60 deg) and explains shortfalls (coupling, sampling, saturation). With a controller
     rate the loops are the sampled ones the flight computer closes. Exits 1 when a loop is unstable.
     """
-    from quadctl.cli import render, render_flight
+    from quadctl.cli import render, render_loop
 
     ws = open_workspace(config, out, fresh)
     margins = [m for m in ws.margins if coupled or m.model == "design"]
@@ -29,9 +29,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     if json:
         render.emit_json(ws.payloads["margins.json"])
     else:
-        for table in render_flight.margins_table(margins, ws.setup.timing.rate):
+        for table in render_loop.margins_table(margins, ws.setup.timing.rate):
             render.out.print(table)
-        for line in render_flight.margin_notes(margins):
+        for line in render_loop.margin_notes(margins):
             render.out.print(f"  {line}", markup=False)
         render.out.print(f"-> {ws.path('margins.json')}")
         for path in paths:

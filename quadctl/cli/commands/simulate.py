@@ -49,19 +49,19 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
 
 def _print_flight(render, flown, *, before: bool) -> None:
     """Controller rate, saturation, noise RMS and integrator lines, when they apply."""
-    from quadctl.cli import render_flight
+    from quadctl.cli import render_loop
 
     flight, sim = flown.flight, flown.sim
     if before:
-        line = render_flight.controller_line(flight, sim)
+        line = render_loop.controller_line(flight, sim)
         if line:
             render.out.print(line)
         return
-    table = render_flight.saturation_table(flight)
+    table = render_loop.saturation_table(flight)
     if table is not None:
         render.out.print(table)
     if flight.get("noise"):
-        render.out.print(render_flight.rms_table(flight))
-    line = render_flight.integral_line(flight)
+        render.out.print(render_loop.rms_table(flight))
+    line = render_loop.integral_line(flight)
     if line:
         render.out.print(line)

@@ -1,4 +1,4 @@
-"""Rich renderings of the flight results: margins, saturation, noise, the full-design comparison."""
+"""Rich renderings of a closed loop's numbers: sampling, margins, saturation, noise, integrators, the full design."""
 
 from __future__ import annotations
 
@@ -34,12 +34,12 @@ def margins_table(margins, rate=None) -> list[Table]:
         disk.add_column(col, justify="right" if right else "left")
     for m in margins:
         lo, hi = m.gain_margin_db
-        at = " / ".join(num(w, 3) for w in m.gain_crossover_freqs if w is not None) or "-"
+        at = " / ".join(num(w, 3) for w in m.phase_crossover_freqs if w is not None) or "-"
         verdict = ("[green]met[/green]" if m.meets_lqr_guarantee else
                    ("[red]unstable[/red]" if not m.stable else "[yellow]short[/yellow]"))
         loop = f"{m.loop} ({m.input})"
         classic.add_row(loop, m.model, f"{_db(lo)} / {_db(hi)}", at, num(m.phase_margin_deg, 3),
-                        num(m.phase_crossover_freq, 3))
+                        num(m.gain_crossover_freq, 3))
         d_lo, d_hi = m.disk_gain_db
         symmetric = d_lo is not None and d_hi is not None and abs(d_lo + d_hi) < 1e-6 * max(1.0, abs(d_hi))
         disk_gm = "0" if d_hi == 0 else (f"±{abs(d_hi):.3g}" if symmetric else f"{_db(d_lo)} / {_db(d_hi)}")

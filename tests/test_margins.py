@@ -31,7 +31,7 @@ def test_integrator_with_first_order_lag(k, tau):
     wc = math.sqrt((math.sqrt(1 + 4 * k**2 * tau**2) - 1) / (2 * tau**2))
     m = loop_margins(integrator_with_lag(k, tau))
     assert m.stable
-    assert m.phase_crossover_freq == pytest.approx(wc, rel=1e-9)
+    assert m.gain_crossover_freq == pytest.approx(wc, rel=1e-9)
     assert m.phase_margin_deg == pytest.approx(90 - math.degrees(math.atan(wc * tau)), abs=1e-7)
     assert m.gain_margin_db == (-math.inf, math.inf)
 
@@ -39,7 +39,7 @@ def test_integrator_with_first_order_lag(k, tau):
 def test_integrator_with_lag_of_k_sqrt2_has_45_degrees():
     m = loop_margins(integrator_with_lag(math.sqrt(2), 1.0))
     assert m.phase_margin_deg == pytest.approx(45.0, abs=1e-8)
-    assert m.phase_crossover_freq == pytest.approx(1.0, rel=1e-10)
+    assert m.gain_crossover_freq == pytest.approx(1.0, rel=1e-10)
 
 
 def test_three_lags_gain_margin_is_six():
@@ -47,7 +47,7 @@ def test_three_lags_gain_margin_is_six():
     A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -2.0, -3.0]])
     m = loop_margins(BrokenLoop(A, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])))
     assert m.gain_margin_db[1] == pytest.approx(20 * math.log10(6.0), abs=1e-9)
-    assert m.gain_crossover_freqs[1] == pytest.approx(math.sqrt(2), rel=1e-10)
+    assert m.phase_crossover_freqs[1] == pytest.approx(math.sqrt(2), rel=1e-10)
     assert m.gain_margin_db[0] == -math.inf
     wc = scipy.optimize.brentq(lambda w: w**2 * (w**2 + 1) * (w**2 + 4) - 1, 0.1, 1.0)
     pm = 90 - math.degrees(math.atan(wc) + math.atan(wc / 2))
@@ -78,8 +78,8 @@ def test_an_unstable_loop_has_no_margin():
     assert 1.0 / np.abs(1 / (1 + loop(w)) - 0.5).max() == pytest.approx(2 / 3, rel=1e-5)
     m = loop_margins(loop)
     assert not m.stable
-    assert m.gain_margin_db == (0.0, 0.0) and m.gain_crossover_freqs == (None, None)
-    assert m.phase_margin_deg == 0.0 and m.phase_crossover_freq is None
+    assert m.gain_margin_db == (0.0, 0.0) and m.phase_crossover_freqs == (None, None)
+    assert m.phase_margin_deg == 0.0 and m.gain_crossover_freq is None
     assert (m.disk_alpha, m.disk_gain_db, m.disk_phase_deg, m.disk_freq) == (0.0, (0.0, 0.0), 0.0, None)
     d = m.as_dict()
     assert d["disk_margin_alpha"] == 0.0 and d["disk_margin_freq"] is None and not d["meets_lqr_guarantee"]
@@ -105,7 +105,7 @@ def test_agrees_with_python_control_continuous_and_sampled():
         gm, pm, _, wpc, wgc, _ = control.stability_margins(ref, method="frd" if ts else "best")
         assert 10 ** (m.gain_margin_db[1] / 20) == pytest.approx(gm, rel=1e-6)
         assert m.phase_margin_deg == pytest.approx(pm, rel=1e-6)
-        assert m.phase_crossover_freq == pytest.approx(wgc, rel=1e-6)
+        assert m.gain_crossover_freq == pytest.approx(wgc, rel=1e-6)
         alpha = control.disk_margins(ref, grid)[0]
         assert m.disk_alpha == pytest.approx(float(np.min(alpha)), rel=1e-5)
 
@@ -158,7 +158,7 @@ def test_margins_json_gives_an_unstable_loop_no_margin_and_spells_infinity(tmp_p
         assert m["stable"] is False, name
         assert (m["disk_margin_alpha"], m["disk_gain_margin_db"], m["disk_phase_margin_deg"]) == (0.0, [0.0, 0.0], 0.0)
         assert (m["gain_margin_lower_db"], m["gain_margin_upper_db"], m["phase_margin_deg"]) == (0.0, 0.0, 0.0)
-        assert m["disk_margin_freq"] is None and m["crossover_freq"] is None
+        assert m["disk_margin_freq"] is None and m["gain_crossover_freq"] is None
         assert m["gain_margin_lower_freq"] is None and m["gain_margin_upper_freq"] is None
     altitude = loops["altitude", "design"]
     assert altitude["stable"] is True and altitude["gain_margin_lower_db"] == "-inf"
