@@ -5,7 +5,8 @@ nothing here imports). Modules, each importing only those above it:
 
 - :mod:`~quadctl.layout`: state and input names, units, index maps (declared once)
 - :mod:`~quadctl.errors`: the error classes (each with its exit code) and the notice warning
-- :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs
+- :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs; :mod:`~quadctl.notices`: what a
+  valid config took by default or likely got in the wrong unit
 - :mod:`~quadctl.model`: the CasADi model, the only place the equations of motion live
 - :mod:`~quadctl.motors`, :mod:`~quadctl.noise`: rotors and mixing; seeded noise streams
 - :mod:`~quadctl.setup`: the config resolved once into the :class:`~quadctl.setup.Setup` every stage takes

@@ -11,7 +11,7 @@ import re
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import config
+from quadctl import config, notices
 from quadctl.cli.app import app
 
 runner = CliRunner()
@@ -210,7 +210,7 @@ def test_the_reports_own_inertia_is_within_the_tolerance():
 
 @pytest.mark.parametrize("name", config.bundled_names())
 def test_bundled_configs_earn_no_notice(name):
-    assert config.notices(config.load(name), name) == []
+    assert notices.notices(config.load(name), name) == []
 
 
 def notice_lines(res) -> list[str]:
@@ -238,7 +238,7 @@ def test_empty_motors_say_they_are_the_mambos(tmp_path):
 
 def test_a_vehicle_left_out_whole_is_the_reports_without_a_word():
     text = FORWARD.replace(VEHICLE, "")
-    assert config.notices(config.parse(text, "c.yaml"), "c.yaml") == []
+    assert notices.notices(config.parse(text, "c.yaml"), "c.yaml") == []
 
 
 @pytest.mark.parametrize("old,new,key,pattern", [
@@ -261,7 +261,7 @@ def test_a_vehicle_left_out_whole_is_the_reports_without_a_word():
 ])
 def test_an_implausible_vehicle_is_warned_about_with_the_likely_slip(tmp_path, old, new, key, pattern):
     cfg = config.parse(edit(old, new), "c.yaml")
-    found = config.notices(cfg, "c.yaml")
+    found = notices.notices(cfg, "c.yaml")
     assert [(n.level, n.key) for n in found] == [("warning", key)]
     assert re.search(r"^c\.yaml: " + pattern, found[0].message), found[0].message
     res = run(tmp_path, edit(old, new), "linearize")
@@ -282,7 +282,7 @@ def test_an_implausible_vehicle_is_warned_about_with_the_likely_slip(tmp_path, o
 ])
 def test_thrust_to_weight(motors, mass, key, pattern):
     text = edit("mass: 0.068", f"mass: {mass}") + f"motors: {motors}\n"
-    found = [n for n in config.notices(config.parse(text, "c.yaml"), "c.yaml") if n.level == "warning"]
+    found = [n for n in notices.notices(config.parse(text, "c.yaml"), "c.yaml") if n.level == "warning"]
     assert [n.key for n in found] == [key]
     assert re.search(pattern, found[0].message), found[0].message
 
@@ -290,7 +290,7 @@ def test_thrust_to_weight(motors, mass, key, pattern):
 def test_with_motors_the_radius_of_gyration_is_held_to_the_arm():
     text = edit("mass: 0.068", "mass: 68") + "motors: {arm_length: 0.0624, thrust_coefficient: 4.72e-8, " \
                                              "torque_coefficient: 0.00241, max_thrust: 0.33}\n"
-    found = config.notices(config.parse(text, "c.yaml"), "c.yaml")
+    found = notices.notices(config.parse(text, "c.yaml"), "c.yaml")
     assert [n.key for n in found] == ["vehicle.mass", "vehicle.mass"]  # the radius, and the thrust-to-weight
     assert "0.0238 times motors.arm_length = 0.0624 m (a quadcopter's is 0.1 to 2 times it: GYRATION_TO_ARM); " \
            "is vehicle.mass in grams? 68 g is 0.068 kg" in found[0].message
@@ -305,7 +305,7 @@ def test_with_motors_the_radius_of_gyration_is_held_to_the_arm():
 ])
 def test_real_vehicles_earn_no_warning(mass, inertia):
     text = edit("mass: 0.068", f"mass: {mass}").replace("[6.9e-5, 7.75e-5, 1.5e-4]", str(inertia))
-    assert config.notices(config.parse(text, "c.yaml"), "c.yaml") == []
+    assert notices.notices(config.parse(text, "c.yaml"), "c.yaml") == []
 
 
 # ---------------------------------------------------------------------------------------

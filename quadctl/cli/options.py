@@ -34,6 +34,7 @@ def load_config(config: str | None):
 def load_source(config: str | None):
     """:func:`load_config`, returning the config and its :class:`quadctl.config.Source` (label, text)."""
     from quadctl import config as config_mod
+    from quadctl import notices
     from quadctl.cli import render
     from quadctl.cli.errors import remember_config
 
@@ -42,7 +43,7 @@ def load_source(config: str | None):
         render.note(source.note)
     cfg = config_mod.parse(source.text, source.label)
     remember_config(source.label)
-    for notice in config_mod.notices(cfg, source.label):
+    for notice in notices.notices(cfg, source.label):
         (render.note if notice.level == "note" else render.warning)(notice.message)
     return cfg, source
 

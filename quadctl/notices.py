@@ -1,0 +1,187 @@
+"""Notices on a valid config: defaults it took and values that are likely a unit slip.
+
+Nothing here refuses a config (that is :mod:`quadctl.config`'s validation); :func:`notices` returns
+remarks the command line prints as one ``note`` or ``warning`` line each: the Mambo defaults a
+partly given ``vehicle:`` or ``motors:`` section took, a radius of gyration implausible for the
+vehicle's size (an inertia in kg mm^2 given as kg m^2), a thrust-to-weight below 1 or absurdly high.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from quadctl.config import Config
+from quadctl.messages import show
+
+
+@dataclass(frozen=True)
+class Notice:
+    """A remark on a valid config, for the command line to print (one line each).
+
+    Attributes
+    ----------
+    level : {"note", "warning"}
+        ``note``: a default was taken for a key the author may have meant to give;
+        ``warning``: the values are physically implausible (a unit slip, most likely).
+    key : str
+        The key path it is about (``vehicle.inertia``).
+    message : str
+        One line naming the file, the key, the values and the likely fix.
+    """
+
+    level: Literal["note", "warning"]
+    key: str
+    message: str
+
+    def __str__(self) -> str:
+        return self.message
+
+
+MAMBO_KEYS = {"vehicle": ("mass", "inertia", "drag"),
+              "motors": ("arm_length", "thrust_coefficient", "torque_coefficient", "max_thrust")}
+"""Keys whose defaults are the report's Parrot Mambo: a section that gives some of them and not
+the others flies a mix of two vehicles. (Gravity, the rotor layout and ``min_thrust = 0`` are
+generic and not listed.)"""
+GYRATION_TO_ARM = (0.1, 2.0)
+"""Plausible radius of gyration ``sqrt(J/m)`` (largest axis) as a multiple of the arm length.
+All the mass at the rotors gives 1 (about z); motors alone, at the arm ends, are 20 % or more of
+a quadcopter's mass, which keeps it above about 0.4; guards and long booms can pass 1. The
+report's Mambo has 0.75. A unit slip moves it by 30 times or more (grams for kilograms: /31.6;
+g m^2 for kg m^2: x31.6)."""
+GYRATION_TO_CUBE_ROOT_MASS = (0.02, 0.6)
+"""Plausible ``sqrt(J/m) / m^(1/3)`` (m / kg^(1/3)) when no motors give the arm length: vehicles of
+similar build have similar density, so their size grows as the cube root of their mass. The
+27 g Crazyflie 2.0 (Jzz = 2.9e-5 kg m^2) and the 68 g Mambo both have 0.11; the band is five
+times wider either way, and a mass in grams moves it by 316 times."""
+THRUST_TO_WEIGHT = (1.0, 30.0)
+"""Plausible ``4 max_thrust / (m g)``: below 1 the vehicle cannot hover; racing quadcopters
+reach about 10 to 15. A thrust in grams-force moves it by 102 times."""
+INERTIA_SLIPS = (("g m^2", 1e-3), ("kg cm^2", 1e-4), ("kg mm^2", 1e-6), ("g cm^2", 1e-7), ("g mm^2", 1e-9))
+"""Units an inertia is often written in, and their value in kg m^2."""
+GRAM = 1e-3
+GRAM_FORCE = 9.80665e-3
+"""N."""
+
+
+def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
+    """What a valid config does that its author may not mean: defaults taken, implausible physics.
+
+    Parameters
+    ----------
+    cfg : Config
+    label : str
+        The file, named in each message.
+
+    Returns
+    -------
+    list of Notice
+        A ``note`` listing the keys of a partly given ``vehicle:`` or ``motors:`` section that took
+        the report's Mambo values, then a ``warning`` for each implausible quantity, naming the
+        likely unit slip: the radius of gyration ``sqrt(J/m)`` against the arm length (or, with no
+        motors, against the mass), the thrust-to-weight ratio, and Jzz below Jxx or Jyy. An
+        impossible inertia is refused on load instead (see ``quadctl.config._check_inertia``).
+
+    Examples
+    --------
+    >>> from quadctl.config import bundled, parse
+    >>> cfg = parse(bundled("forward").text.replace("mass: 0.068", "mass: 68"), "c.yaml")
+    >>> [n.key for n in notices(cfg, "c.yaml")]
+    ['vehicle.mass']
+    """
+    found = _defaults_taken(cfg, label)
+    found += _gyration(cfg, label)
+    found += _thrust_to_weight(cfg, label)
+    jxx, jyy, jzz = cfg.vehicle.inertia
+    if jzz < max(jxx, jyy):
+        found.append(Notice("warning", "vehicle.inertia", (
+            f"{label}: vehicle.inertia = {show(list(cfg.vehicle.inertia))}: Jzz is below Jxx or Jyy, but a flat "
+            f"quadcopter has Jzz about Jxx + Jyy = {jxx + jyy:.3g} kg m^2; is the order [Jxx, Jyy, Jzz]?")))
+    return found
+
+
+def _defaults_taken(cfg: Config, label: str) -> list[Notice]:
+    taken = []
+    for section, keys in MAMBO_KEYS.items():
+        given = getattr(cfg, section)
+        if given is None or section not in cfg.model_fields_set:
+            continue
+        taken += [(f"{section}.{k}", getattr(given, k)) for k in keys if k not in given.model_fields_set]
+    if not taken:
+        return []
+    values = ", ".join(f"{path} = {show(value)}" for path, value in taken)
+    return [Notice("note", taken[0][0], f"{label}: {', '.join(p for p, _ in taken)} not given: using the report's "
+                   f"Parrot Mambo values ({values}); give your vehicle's")]
+
+
+def _gyration(cfg: Config, label: str) -> list[Notice]:
+    """The radius of gyration against the arm length (or the mass): catches a slip in either."""
+    mass, inertia = cfg.vehicle.mass, list(cfg.vehicle.inertia)
+    axis = ("Jxx", "Jyy", "Jzz")[inertia.index(max(inertia))]
+    arm = cfg.motors.arm_length if cfg.motors is not None else None
+
+    def ratio(m: float, j: float) -> float:
+        radius = math.sqrt(j / m)
+        return radius / arm if arm is not None else radius / m ** (1 / 3)
+
+    band = GYRATION_TO_ARM if arm is not None else GYRATION_TO_CUBE_ROOT_MASS
+    now = ratio(mass, max(inertia))
+    if band[0] <= now <= band[1]:
+        return []
+    radius = math.sqrt(max(inertia) / mass)
+    if arm is not None:
+        against = (f"{radius / arm:.3g} times motors.arm_length = {arm:g} m (a quadcopter's is {band[0]:g} to "
+                   f"{band[1]:g} times it: GYRATION_TO_ARM)")
+    else:
+        cube = mass ** (1 / 3)
+        against = (f"a {mass:g} kg quadcopter's is {band[0] * cube:.2g} to {band[1] * cube:.2g} m "
+                   "(GYRATION_TO_CUBE_ROOT_MASS)")
+    middle = math.sqrt(band[0] * band[1])
+
+    def fits(m: float, j: float) -> float:  # distance (in decades) from the middle of the band, if inside
+        r = ratio(m, j)
+        return abs(math.log10(r / middle)) if band[0] <= r <= band[1] else math.inf
+
+    if now > band[1]:
+        unit, factor = min(INERTIA_SLIPS, key=lambda s: fits(mass, max(inertia) * s[1]))
+        key = "vehicle.inertia"
+        guess = (f"is it in {unit}? that is {show([j * factor for j in inertia])} kg m^2"
+                 if math.isfinite(fits(mass, max(inertia) * factor)) else
+                 "check its units (kg m^2) and vehicle.mass (kg)")
+    else:
+        key = "vehicle.mass"
+        guess = (f"is vehicle.mass in grams? {mass:g} g is {mass * GRAM:g} kg"
+                 if math.isfinite(fits(mass * GRAM, max(inertia))) else
+                 "check the units: vehicle.mass in kg, vehicle.inertia in kg m^2")
+    return [Notice("warning", key, (
+        f"{label}: vehicle.inertia = {show(inertia)} kg m^2 with vehicle.mass = {mass:g} kg gives a radius of "
+        f"gyration sqrt({axis}/m) = {radius:.3g} m, but {against}; {guess}"))]
+
+
+def _thrust_to_weight(cfg: Config, label: str) -> list[Notice]:
+    if cfg.motors is None:
+        return []
+    mass, g, thrust = cfg.vehicle.mass, cfg.vehicle.gravity, cfg.motors.max_thrust
+    ratio = 4 * thrust / (mass * g)
+    low, high = THRUST_TO_WEIGHT
+    if low <= ratio <= high:
+        return []
+    # a unit slip is guessed only when the ratio is far outside the band (a slip moves it 10x or more)
+    if ratio < low:
+        key, what = "motors.max_thrust", "the vehicle cannot hover"
+        if ratio < low / 2 and low <= ratio / GRAM <= high:
+            key, guess = "vehicle.mass", f"is vehicle.mass in grams? {mass:g} g is {mass * GRAM:g} kg"
+        elif ratio < low / 2 and low <= ratio * 9.80665 <= high:
+            guess = f"is motors.max_thrust in kilograms-force? {thrust:g} kgf is {thrust * 9.80665:.3g} N"
+        else:
+            guess = "check motors.max_thrust (N per rotor) and vehicle.mass (kg)"
+    else:
+        key, what = "motors.max_thrust", f"racing quadcopters reach about 10 (THRUST_TO_WEIGHT: {low:g} to {high:g})"
+        if ratio > 2 * high and low <= ratio * GRAM_FORCE <= high:
+            guess = f"is motors.max_thrust in grams-force? {thrust:g} gf is {thrust * GRAM_FORCE:.3g} N"
+        else:
+            guess = "check motors.max_thrust (N per rotor) and vehicle.mass (kg)"
+    return [Notice("warning", key, (
+        f"{label}: motors.max_thrust = {thrust:g} N per rotor with vehicle.mass = {mass:g} kg is a thrust-to-weight "
+        f"ratio of {ratio:.3g} (4 rotors); {what}; {guess}"))]
