@@ -27,16 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.analysis import RICCATI_RTOL, UNIT_CIRCLE_MARGIN
+from quadctl.analysis import UNIT_CIRCLE_MARGIN
 from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
 from quadctl.riccati import LqrResult, as_stack, require_valid_weights, solve
 from quadctl.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
-DARE_RTOL = RICCATI_RTOL
-"""Largest accepted relative DARE residual: ``RICCATI_RTOL``, the one tolerance of every Riccati
-solution (:mod:`quadctl.analysis`; the margin ``UNIT_CIRCLE_MARGIN`` lives there too)."""
 SAMPLES_PER_POLE = 10.0
 """A sampled loop realizes a closed-loop pole ``s`` when ``|s| <= 2 pi rate / SAMPLES_PER_POLE``:
 the rule of thumb of sampling at least ten times the fastest closed-loop frequency (Franklin,

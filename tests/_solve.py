@@ -37,3 +37,13 @@ def run(data: dict):
     setup, trim, linear, dec, des = solve(data)
     loop = pipeline.loop_of(setup, linear, des)
     return setup, des, loop, pipeline.simulation_of(setup, loop)
+
+
+def bundled_subsystems(names=("forward", "hover", "mambo-200hz")):
+    """(setup, regulated subsystem) of every bundled config in ``names``: the plants the Riccati tests
+    design for."""
+    for name in names:
+        setup = resolve(config.load(name))
+        linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
+        for sub in pipeline.decoupled_of(setup, linear).regulated:
+            yield setup, sub

@@ -8,15 +8,15 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg
+from _solve import bundled_subsystems
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from quadctl import analysis, config, discrete, integral, pipeline, riccati
+from quadctl import analysis, discrete, integral, riccati
 from quadctl.discrete import dlqr, lqrd
 from quadctl.errors import DesignError
 from quadctl.lqr import lqr, riccati_residual
 from quadctl.riccati import ROUNDOFF_RTOL, SEMIDEFINITE_RTOL, WeightCheck, care_batch, dare_batch
-from quadctl.setup import resolve
 
 AGREEMENT = 1e-8
 """Relative difference of ``P`` allowed against SciPy's on well-posed problems: both are certified
@@ -102,23 +102,19 @@ def test_quadctls_own_discrete_weights_are_semidefinite_far_inside_the_tolerance
     augments them) at 50 Hz to 10 kHz: their most negative eigenvalue, against the cost's scale, is
     round-off, and WeightCheck accepts them all."""
     worst = 0.0
-    for name in ("forward", "hover", "mambo-200hz"):
-        setup = resolve(config.load(name))
-        linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
-        weights = setup.weights
-        for sub in pipeline.decoupled_of(setup, linear).regulated:
-            Q, R = (np.atleast_2d(w) for w in weights[sub.name])
-            n = len(sub.states)
-            Qa = np.eye(n + 1)
-            Qa[:n, :n] = Q[:n, :n]
-            for rate in (50.0, 200.0, 1e3, 1e4):
-                Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(sub.A, sub.B, Qa[:n, :n], R, 1 / rate)
-                Aa, Ba = integral.augment_discrete(Ad, Bd, integral.selector(sub.states, sub.states[:1]), 1 / rate)
-                Qda, Nda = integral.discrete_weights(Qd, Nd, Qa, 1 / rate)
-                assert WeightCheck(Aa[None], Ba[None], Qda[None], Rd[None], Nda[None]).ok[0], (name, sub.name, rate)
-                W = np.block([[Qda, Nda], [Nda.T, Rd]])
-                lam = np.linalg.eigvalsh(W)
-                worst = min(worst, np.linalg.eigvalsh(Qda)[0] / np.abs(lam).max(), lam[0] / np.abs(lam).max())
+    for setup, sub in bundled_subsystems():
+        Q, R = (np.atleast_2d(w) for w in setup.weights[sub.name])
+        n = len(sub.states)
+        Qa = np.eye(n + 1)
+        Qa[:n, :n] = Q[:n, :n]
+        for rate in (50.0, 200.0, 1e3, 1e4):
+            Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(sub.A, sub.B, Qa[:n, :n], R, 1 / rate)
+            Aa, Ba = integral.augment_discrete(Ad, Bd, integral.selector(sub.states, sub.states[:1]), 1 / rate)
+            Qda, Nda = integral.discrete_weights(Qd, Nd, Qa, 1 / rate)
+            assert WeightCheck(Aa[None], Ba[None], Qda[None], Rd[None], Nda[None]).ok[0], (setup.name, sub.name, rate)
+            W = np.block([[Qda, Nda], [Nda.T, Rd]])
+            lam = np.linalg.eigvalsh(W)
+            worst = min(worst, np.linalg.eigvalsh(Qda)[0] / np.abs(lam).max(), lam[0] / np.abs(lam).max())
     assert worst > -1e-3 * SEMIDEFINITE_RTOL, f"worst relative eigenvalue {worst:.3e}"
 
 

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import scipy.linalg
 from _carex import case
+from _solve import bundled_subsystems
 
-from quadctl import config, discrete, integral, pipeline
+from quadctl import discrete, integral
 from quadctl.errors import DesignError
 from quadctl.riccati import KRONECKER_MAX_N, care_batch, dare_batch, dare_residual
-from quadctl.setup import resolve
 
 AGREEMENT = 1e-9
 """Relative difference (largest entry over the largest entry) allowed between the batched answers
@@ -105,19 +105,15 @@ def _subsystem_problems(rates):
     problem (as a sweep varies them): the continuous plants, weights, selectors and sample times."""
     rng = np.random.default_rng(4)
     problems = []
-    for name in ("forward", "hover", "mambo-200hz"):
-        setup = resolve(config.load(name))
-        linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
-        weights = setup.weights
-        for sub in pipeline.decoupled_of(setup, linear).regulated:
-            Q, R = (np.atleast_2d(w) for w in weights[sub.name])
-            n = len(sub.states)
-            for ints in ((), sub.states[:1]):
-                for rate in rates:
-                    Qa = np.eye(n + len(ints)) * rng.uniform(0.5, 2)
-                    Qa[:n, :n] = Q[:n, :n] * rng.uniform(0.5, 2, n)
-                    problems.append((sub.A, sub.B, Qa, R * rng.uniform(0.5, 2), integral.selector(sub.states, ints),
-                                     1 / rate))
+    for setup, sub in bundled_subsystems():
+        Q, R = (np.atleast_2d(w) for w in setup.weights[sub.name])
+        n = len(sub.states)
+        for ints in ((), sub.states[:1]):
+            for rate in rates:
+                Qa = np.eye(n + len(ints)) * rng.uniform(0.5, 2)
+                Qa[:n, :n] = Q[:n, :n] * rng.uniform(0.5, 2, n)
+                problems.append((sub.A, sub.B, Qa, R * rng.uniform(0.5, 2), integral.selector(sub.states, ints),
+                                 1 / rate))
     return problems
 
 
