@@ -292,6 +292,16 @@ class RateWarning:
                 "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
 
 
+def unstable_when_sampled(warnings, rate: float) -> str | None:
+    """The failed-check verdict for the loops of ``warnings`` that are unstable sampled at ``rate`` Hz
+    (None when every one is stable): ``check``, ``run`` and ``report`` give this same verdict."""
+    unstable = [w.loop for w in warnings if not w.sampled_stable]
+    if not unstable:
+        return None
+    return (f"sampled at {rate:g} Hz the continuous design's loop(s) {', '.join(unstable)} are UNSTABLE; "
+            "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
+
+
 def spectral_radius(A_cl) -> float:
     """``max |eig(A_cl)|`` of a discrete closed loop (``>= 1``: not stable)."""
     return float(np.abs(np.linalg.eigvals(_as2d(A_cl))).max())

@@ -249,3 +249,16 @@ def test_help_lists_the_report():
     assert res.exit_code == 0 and "report" in res.output
     res = runner.invoke(app, ["report", "--help"])
     assert "report.html" in res.output and "--config" in res.output
+
+
+def test_report_stops_where_run_does_on_a_loop_unstable_at_its_rate(tmp_path):
+    """The report's gains at 200 Hz: `run` stops at its check stage; `report` gives the same verdict."""
+    config_path = Path(__file__).parent.parent / "docs" / "configs" / "report-at-200hz.yaml"
+    verdict = "check: sampled at 200 Hz the continuous design's loop(s) roll, pitch, yaw, coupled are UNSTABLE"
+    ran = runner.invoke(app, ["run", "-c", str(config_path), "-o", str(tmp_path / "run")])
+    reported = _report("-c", config_path, "-o", tmp_path / "report")
+    assert ran.exit_code == reported.exit_code == 1
+    for res in (ran, reported):
+        assert f"quadctl: check failed: {verdict}" in " ".join(res.stderr.split()), res.stderr
+    text = "".join(_parse(tmp_path / "report" / report.FOLDER / report.HTML).text)
+    assert "Stopped at check: sampled at 200 Hz" in " ".join(text.split())

@@ -50,16 +50,6 @@ def eig(e: complex) -> str:
     return f"{e.real:.5g}" if abs(e.imag) < 1e-9 else f"{e.real:.5g} {'+' if e.imag >= 0 else '-'} {abs(e.imag):.5g}j"
 
 
-def unstable_when_sampled(warnings, rate: float) -> str | None:
-    """The check-failed line for the loops of ``warnings`` that are unstable sampled at ``rate``
-    Hz (None if every one is stable): ``check`` and ``run`` give the same verdict."""
-    unstable = [w.loop for w in warnings if not w.sampled_stable]
-    if not unstable:
-        return None
-    return (f"sampled at {rate:g} Hz the continuous design's loop(s) {', '.join(unstable)} are UNSTABLE; "
-            "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
-
-
 def yes(flag: bool) -> str:
     return "[green]yes[/green]" if flag else "[red]no[/red]"
 

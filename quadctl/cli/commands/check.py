@@ -23,6 +23,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     config's controller.rate (continuous design) or at --rate is unstable.
     """
     from quadctl.cli import render
+    from quadctl.discrete import unstable_when_sampled
 
     ws = open_workspace(config, out, fresh)
     checks = ws.checks
@@ -51,7 +52,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
         render.err.print(f"quadctl: check failed: subsystem {name} is not stabilizable: mode "
                          f"{render.eig(mode.eigenvalue)} in {', '.join(mode.states)}")
     for hz, warnings in rated:
-        verdict = render.unstable_when_sampled(warnings, hz)
+        verdict = unstable_when_sampled(warnings, hz)
         if verdict:
             render.err.print(f"quadctl: check failed: {verdict}", markup=False)
             failed.append(verdict)

@@ -14,6 +14,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     """
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
+    from quadctl.discrete import unstable_when_sampled
 
     ws = open_workspace(config, out, fresh)
     stages = {}
@@ -30,7 +31,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     bad = [n for n in regulated if not ws.checks[n].stabilizable]
     if bad:
         raise _stop(json, stages, f"check: not stabilizable: {', '.join(bad)}")
-    sampled = render.unstable_when_sampled(ws.checks.rate_warnings, ws.checks.rate or 0.0)
+    sampled = unstable_when_sampled(ws.checks.rate_warnings, ws.checks.rate or 0.0)
     if sampled:
         raise _stop(json, stages, f"check: {sampled}")
     done("check", "every regulated subsystem stabilizable")
