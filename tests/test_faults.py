@@ -96,14 +96,17 @@ def test_sigkill_mid_run_leaves_whole_artifacts(tmp_path, earlier, later, pause)
 def test_sigint_exits_130_with_a_message_and_keeps_artifacts(tmp_path):
     proc = _start(tmp_path)
     deadline = time.time() + 60
-    while not (tmp_path / "trim.json").exists() and time.time() < deadline:
+    # after the design: the simulation and six figures, a second or more of work, are left. (A
+    # SIGINT that lands inside a CasADi call, as during the linearization, can be lost: seen about 1
+    # time in 30, the run then completing; CasADi's own interrupt handling is the suspect.)
+    while not (tmp_path / "design.json").exists() and time.time() < deadline:
         time.sleep(0.005)
-    proc.send_signal(signal.SIGINT)  # the run has a second or more of work left
+    proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err.decode()
     assert "interrupted; artifacts written before this point are complete" in err.decode()
     assert "Traceback" not in err.decode()
-    assert "trim.json" in _assert_whole(tmp_path)
+    assert "design.json" in _assert_whole(tmp_path) and not (tmp_path / FINAL).exists()  # stopped mid-run
 
 
 def _old(path: Path) -> Path:
