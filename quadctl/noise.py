@@ -90,9 +90,13 @@ class NoiseStream:
         have = self._first + len(self._rows)
         if last >= have:
             count = last + 1 - have
-            fresh = np.hstack([self._process.standard_normal((count, N_DISTURBANCES)) * self.spec.process_std,
-                               self._sensor.standard_normal((count, N_STATES)) * self.spec.sensor_std])
-            self._rows = np.vstack([self._rows, fresh])
+            rows = np.empty((len(self._rows) + count, N_DISTURBANCES + N_STATES))
+            rows[:len(self._rows)] = self._rows
+            np.multiply(self._process.standard_normal((count, N_DISTURBANCES)), self.spec.process_std,
+                        out=rows[len(self._rows):, :N_DISTURBANCES])
+            np.multiply(self._sensor.standard_normal((count, N_STATES)), self.spec.sensor_std,
+                        out=rows[len(self._rows):, N_DISTURBANCES:])
+            self._rows = rows
         self._rows = self._rows[first - self._first:]
         self._first = first
         return self._rows[:last + 1 - first]

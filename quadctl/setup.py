@@ -10,7 +10,7 @@ config after that.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Literal
 
@@ -153,14 +153,7 @@ def resolve(cfg: Config) -> Setup:
         inertia=tuple(overrides.get("inertia", vehicle.inertia)), drag=tuple(overrides.get("drag", vehicle.drag)))
     partition = cfg.partition()
     weights = {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()}
-    Q = np.zeros((N_STATES, N_STATES))
-    R = np.zeros((N_INPUTS, N_INPUTS))
-    for name, sub in partition.items():
-        if name in weights:
-            (qi, qj, n), (ri, rj) = _block_index(tuple(sub.states), tuple(sub.inputs))
-            Qw, Rw = weights[name]
-            Q[qi, qj] = Qw[:n, :n]
-            R[ri, rj] = Rw
+    Q, R = _weight_blocks(partition, weights)
     offset = np.zeros(N_STATES)
     for state, value in cfg.simulation.initial_offset.items():
         offset[STATE_INDEX[state]] += value
@@ -183,6 +176,45 @@ def resolve(cfg: Config) -> Setup:
         timing=timing, actuators=actuators, noise=noise, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag)
+
+
+def vary(setup: Setup, weights: dict[str, tuple[list, list]] | None = None, noise_seed: int | None = None) -> Setup:
+    """``setup`` with some subsystems' weights or the noise seed replaced: what :func:`resolve` gives
+    for the config with those values, without validating and resolving all of it again (a sweep
+    builds thousands of cases from one base this way).
+
+    Parameters
+    ----------
+    setup : Setup
+    weights : dict of str -> (Q, R), optional
+        Per subsystem, its ``lqr.<name>.Q`` and ``R`` as the config writes them (lists), already
+        checked (:func:`quadctl.config.check_weight`): the caller validates.
+    noise_seed : int, optional
+        ``simulation.noise.seed`` (a whole number >= 0).
+    """
+    changes: dict = {}
+    if weights:
+        merged = dict(setup.weights)
+        for name, (Q, R) in weights.items():
+            merged[name] = (weight_matrix(Q, 0), weight_matrix(R, 0))
+        changes["weights"] = merged
+        changes["Q_block"], changes["R_block"] = _weight_blocks(setup.partition, merged)
+    if noise_seed is not None and setup.noise is not None:
+        changes["noise"] = replace(setup.noise, seed=int(noise_seed))
+    return replace(setup, **changes) if changes else setup
+
+
+def _weight_blocks(partition, weights) -> tuple[np.ndarray, np.ndarray]:
+    """(Q (12, 12), R (4, 4)): the regulated subsystems' plant-state weights assembled."""
+    Q = np.zeros((N_STATES, N_STATES))
+    R = np.zeros((N_INPUTS, N_INPUTS))
+    for name, sub in partition.items():
+        if name in weights:
+            (qi, qj, n), (ri, rj) = _block_index(tuple(sub.states), tuple(sub.inputs))
+            Qw, Rw = weights[name]
+            Q[qi, qj] = Qw[:n, :n]
+            R[ri, rj] = Rw
+    return Q, R
 
 
 @lru_cache(maxsize=64)

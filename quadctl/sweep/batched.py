@@ -182,6 +182,7 @@ def loops_of(live) -> list:
     from quadctl.simulate import ClosedLoop, rotor_eigenvalues
 
     out: list = [None] * len(live)
+    realized: dict[tuple, tuple] = {}  # cases with the same noise and steps share its realization
     continuous = [j for j, (prep, _) in enumerate(live) if prep.setup.timing.rate is None]
     eig_of: dict[int, tuple] = {}
     by_plant: dict[tuple, list] = {}
@@ -231,8 +232,13 @@ def loops_of(live) -> list:
         lo, hi = loop.bounds(setup.duration)
         exo, first, period = None, 0, 1.0
         if setup.noise is not None:
-            first, exo = NoiseStream(setup.noise).rows(0, plan.n_steps, plan.dt)
-            period = setup.noise.period
+            noise = setup.noise
+            key = (noise.seed, noise.process_std.tobytes(), noise.sensor_std.tobytes(), noise.period,
+                   plan.n_steps, plan.dt)
+            if key not in realized:
+                realized[key] = NoiseStream(noise).rows(0, plan.n_steps, plan.dt)
+            first, exo = realized[key]
+            period = noise.period
         out[j] = LaneJob(spec=replace(loop.spec(setup.noise is not None), pattern=_structural_gain(prep)),
                          plan=plan, c=loop.constants(plan.sample_time),
                          x0=loop.initial_loop_state(setup.initial_state(linear.x_trim)), lo=lo, hi=hi,
