@@ -60,13 +60,18 @@ def design_all(preps, stats) -> list:
     gains: dict[tuple[int, str], np.ndarray] = {}
     missed: set[int] = set()
     for (Ts, n, _, _), group in groups.items():
-        K, ok = _solve(Ts, n, group, preps)
+        # the same problem (a subsystem whose weights no case varies) is solved once
+        first: dict[tuple, int] = {}
+        slot = [first.setdefault(_problem(preps[k], sub, ints), j) for j, (k, sub, ints) in enumerate(group)]
+        unique = sorted(first.values())
+        K, ok = _solve(Ts, n, [group[j] for j in unique], preps)
+        row = {j: i for i, j in enumerate(unique)}
         for j, (k, sub, _) in enumerate(group):
-            if ok[j]:
-                gains[(k, sub.name)] = K[j]
+            if ok[row[slot[j]]]:
+                gains[(k, sub.name)] = K[row[slot[j]]]
             else:
                 missed.add(k)
-        stats["designs"] += len(group)
+        stats["designs"] += len(unique)
     out: list = [None] * len(preps)
     for k, prep in enumerate(preps):
         if k in missed:
@@ -74,6 +79,13 @@ def design_all(preps, stats) -> list:
             out[k] = _one_by_one(prep)
     _assemble([(k, p) for k, p in enumerate(preps) if out[k] is None], gains, out)
     return out
+
+
+def _problem(prep, sub, ints) -> tuple:
+    """What a subsystem's design depends on: its plant, its weights and integrators (the timing is
+    the group's)."""
+    Q, R = prep.setup.weights[sub.name]
+    return id(prep.plant), sub.name, ints, Q.tobytes(), R.tobytes()
 
 
 def _solve(Ts, n, group, preps):
@@ -229,7 +241,11 @@ def loops_of(live) -> list:
         except StepSizeError as exc:
             out[j] = str(exc)
             continue
-        lo, hi = loop.bounds(setup.duration)
+        shape, held = _structure(loop, setup.noise is not None, setup.duration)
+        if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
+            prep.plant.cache[shape] = (replace(loop.spec(setup.noise is not None), pattern=_structural_gain(prep)),
+                                       *loop.bounds(setup.duration), held)
+        spec, lo, hi, _ = prep.plant.cache[shape]
         exo, first, period = None, 0, 1.0
         if setup.noise is not None:
             noise = setup.noise
@@ -239,12 +255,40 @@ def loops_of(live) -> list:
                 realized[key] = NoiseStream(noise).rows(0, plan.n_steps, plan.dt)
             first, exo = realized[key]
             period = noise.period
-        out[j] = LaneJob(spec=replace(loop.spec(setup.noise is not None), pattern=_structural_gain(prep)),
-                         plan=plan, c=loop.constants(plan.sample_time),
+        out[j] = LaneJob(spec=spec, plan=plan, c=loop.constants(plan.sample_time),
                          x0=loop.initial_loop_state(setup.initial_state(linear.x_trim)), lo=lo, hi=hi,
                          stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
                          exo_period=period)
     return out
+
+
+PER_CASE = ("K", "Ki", "eigenvalues", "owners")
+"""Fields of a :class:`~quadctl.simulate.ClosedLoop` that its lane spec and bounds do not read (the
+gain's sparsity is the partition's: :func:`_structural_gain`)."""
+
+
+def _structure(loop, noise: bool, duration: float) -> tuple[tuple, list]:
+    """What a loop's lane spec and bounds depend on: every field of the loop but the gains and the
+    spectrum (a field added to ``ClosedLoop`` is part of the key without a change here); arrays
+    by value, other unhashable objects (the actuators) by identity, returned to be kept alive
+    with the cached entry (an identity is unique only while its object lives)."""
+    from dataclasses import fields
+
+    parts, held = [], []
+    for f in fields(loop):
+        if f.name in PER_CASE:
+            continue
+        value = getattr(loop, f.name)
+        if isinstance(value, np.ndarray):
+            parts.append((value.dtype.str, value.shape, value.tobytes()))
+            continue
+        try:
+            hash(value)
+            parts.append(value)
+        except TypeError:
+            parts.append(("id", id(value)))
+            held.append(value)
+    return ("structure", noise, duration, *parts), held
 
 
 def _structural_gain(prep) -> tuple[bool, ...]:
