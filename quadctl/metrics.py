@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.layout import INPUT_NAMES, N_STATES, STATE_NAMES
 
 SETTLING_BAND = 0.02
 """Settled once ``|e|`` stays within 2 % of the state's largest ``|e|`` over the run."""
@@ -88,7 +88,7 @@ def summarize(sim, u_trim, Q, R, regulated_states) -> dict:
 
 
 def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status) -> dict:
-    """:func:`summarize` of one run, vectorized over the states (what a sweep's lanes use).
+    """:func:`summarize` of one run, vectorized over the states (:func:`summarize_errors` of it).
 
     Same definitions and the same numbers (the cost integral to round-off: its quadratic forms
     are summed term by term over the nonzeros of ``Q`` and ``R`` instead of by ``einsum``),
@@ -118,57 +118,98 @@ def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status) -> dic
     """
     t = np.asarray(t, dtype=float)
     if isinstance(x_ref, tuple):
-        x_trim, x_rate = (np.asarray(a, dtype=float) for a in x_ref)
-        err = np.asarray(x).T - x_trim[:, None]           # (12, r)
-        for i in np.nonzero(x_rate)[0]:
-            err[i] -= x_rate[i] * t
+        err = np.empty((1, N_STATES, len(t)))
+        error_into(err[0], t, np.asarray(x).T, *x_ref)
     else:
-        err = np.asarray(x).T - np.asarray(x_ref).T      # (12, r)
-    uT = np.asarray(u).T
-    du = uT - np.asarray(u_trim)[:, None]                 # (4, r)
-    n = err.shape[1]
+        err = (np.asarray(x).T - np.asarray(x_ref).T)[None]
+    return summarize_errors(t[None], err, np.asarray(u).T[None], np.asarray(u_trim, dtype=float)[None],
+                            np.asarray(Q, dtype=float)[None], np.asarray(R, dtype=float)[None], regulated_states,
+                            [status])[0]
+
+
+def error_into(out: np.ndarray, t: np.ndarray, xT: np.ndarray, x_trim, x_rate) -> np.ndarray:
+    """``x - x_ref(t)`` state-major into ``out`` (12, r), with ``x_ref(t) = x_trim + x_rate t``.
+
+    ``xT`` (12, r) holds the states (any strides); ``t`` (r,) s.
+    """
+    np.subtract(xT, np.asarray(x_trim, dtype=float)[:, None], out=out)
+    x_rate = np.asarray(x_rate, dtype=float)
+    for i in np.nonzero(x_rate)[0]:
+        out[i] -= x_rate[i] * t
+    return out
+
+
+def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status) -> list[dict]:
+    """:func:`summarize` of ``B`` runs of as many samples at once (a sweep's batches of cases).
+
+    Each run's numbers are those :func:`summarize_run` gives it alone (every operation is
+    elementwise or a reduction along one run's samples), so they do not depend on the batch.
+
+    Parameters
+    ----------
+    t : (B, r) ndarray
+        s.
+    err : (B, 12, r) ndarray
+        ``x - x_ref`` (state units), state-major (:func:`error_into`).
+    u : (B, 4, r) ndarray
+        Applied inputs, input-major.
+    u_trim : (B, 4) ndarray
+    Q : (B, 12, 12) ndarray
+    R : (B, 4, 4) ndarray
+        Same sparsity in every run (the cost sums the nonzeros of the first run's ``Q`` and ``R``).
+    regulated_states : iterable of str
+        States that get settling and overshoot figures (the same in every run).
+    status : sequence of B str
+
+    Returns
+    -------
+    list of B dict
+        The keys of :func:`quadctl.metrics.summarize`.
+    """
+    B, _, n = err.shape
+    du = u - u_trim[:, :, None]
     mag = np.abs(err)
-    peak = mag.max(axis=1)
+    peak = mag.max(axis=2)
     band = np.maximum(SETTLING_BAND * peak, ERROR_FLOOR)
-    outside = mag > band[:, None]
-    last = n - 1 - np.argmax(outside[:, ::-1], axis=1)   # the last step outside (n - 1 when none is)
-    rows = np.arange(len(err))
-    # settled at once when the error is ~0 or never leaves the band; never when the last step is out
-    at_once = ((peak <= ERROR_FLOOR) | ~outside[rows, last]).tolist()
-    never = outside[:, -1].tolist()
-    settled_at = t[np.minimum(last + 1, n - 1)].tolist()
-    e0 = err[:, 0]
+    outside = mag > band[:, :, None]
+    last = n - 1 - np.argmax(outside[:, :, ::-1], axis=2)  # the last sample outside (n - 1 when none is)
+    run, state = np.indices(last.shape)
+    # settled at once when the error is ~0 or never leaves the band; never when the last sample is out
+    at_once = ((peak <= ERROR_FLOOR) | ~outside[run, state, last]).tolist()
+    never = outside[:, :, -1].tolist()
+    settled_at = np.take_along_axis(t, np.minimum(last + 1, n - 1), axis=1).tolist()
+    e0 = err[:, :, 0]
     # max(-sign(e0) e) without the product: -min(e) where e0 > 0, max(e) where e0 < 0 (exact)
-    past = np.where(e0 > 0, -err.min(axis=1), np.where(e0 < 0, err.max(axis=1), 0.0))
+    past = np.where(e0 > 0, -err.min(axis=2), np.where(e0 < 0, err.max(axis=2), 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
         over = (np.maximum(0.0, past) / np.abs(e0) * 100.0).tolist()
     no_initial = (np.abs(e0) <= ERROR_FLOOR).tolist()
-    regulated = set(regulated_states)
-    peaks, finals = peak.tolist(), err[:, -1].tolist()
-    out: dict = {"settling_time": {}, "overshoot": {}, "peak_error": dict(zip(STATE_NAMES, peaks)),
-                 "final_error": dict(zip(STATE_NAMES, finals))}
-    for i, name in enumerate(STATE_NAMES):
-        if name in regulated:
-            out["settling_time"][name] = 0.0 if at_once[i] else None if never[i] else settled_at[i]
-            out["overshoot"][name] = None if no_initial[i] else over[i]
-    out["peak"] = dict(zip(INPUT_NAMES, np.abs(uT).max(axis=1).tolist()))
+    peaks, finals = peak.tolist(), err[:, :, -1].tolist()
+    peak_u = np.abs(u).max(axis=2).tolist()
     with np.errstate(all="ignore"):
-        integrand = _quadratic(err, np.asarray(Q, dtype=float)) + _quadratic(du, np.asarray(R, dtype=float))
-        cost = float(np.sum((integrand[1:] + integrand[:-1]) * np.diff(t)) / 2) if n > 1 else 0.0
-    out["cost"] = cost if math.isfinite(cost) else None
-    out["status"] = status
+        integrand = _quadratic(err, Q) + _quadratic(du, R)
+        cost = ((integrand[:, 1:] + integrand[:, :-1]) * np.diff(t, axis=1)).sum(axis=1) / 2 if n > 1 \
+            else np.zeros(B)
+    regulated = [(i, name) for i, name in enumerate(STATE_NAMES) if name in set(regulated_states)]
+    out = []
+    for b, c in enumerate(cost.tolist()):
+        out.append({
+            "settling_time": {name: 0.0 if at_once[b][i] else None if never[b][i] else settled_at[b][i]
+                              for i, name in regulated},
+            "overshoot": {name: None if no_initial[b][i] else over[b][i] for i, name in regulated},
+            "peak_error": dict(zip(STATE_NAMES, peaks[b])), "final_error": dict(zip(STATE_NAMES, finals[b])),
+            "peak": dict(zip(INPUT_NAMES, peak_u[b])), "cost": c if math.isfinite(c) else None,
+            "status": status[b]})
     return out
 
 
 def _quadratic(vT: np.ndarray, M: np.ndarray) -> np.ndarray:
-    """``v_k^T M v_k`` for each column ``v_k`` of ``vT`` (n, r), summed over the nonzeros of ``M``.
-
-    One row-sized term at a time: a stacked (terms, r) temporary is as fast in isolation but, past
-    glibc's mmap threshold, costs its page faults on every call (measured 2.5x slower in a sweep)."""
-    acc = np.zeros(vT.shape[1])
-    term = np.empty(vT.shape[1])
-    for i, j in zip(*np.nonzero(M)):
-        np.multiply(vT[i], vT[j], out=term)
-        term *= M[i, j]
+    """``v_k^T M v_k`` for each sample ``k`` of each run: ``vT`` (B, n, r), ``M`` (B, n, n) -> (B, r),
+    summed term by term over the nonzeros of the first run's ``M`` (row-major order)."""
+    acc = np.zeros((vT.shape[0], vT.shape[2]))
+    term = np.empty_like(acc)
+    for i, j in zip(*np.nonzero(M[0])):
+        np.multiply(vT[:, i], vT[:, j], out=term)
+        term *= M[:, i, j][:, None]
         acc += term
     return acc

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
-from quadctl.layout import STATE_INDEX
+from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.sweep.gates import judge
 from quadctl.sweep.spec import assign
 
@@ -404,8 +404,8 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         else:
             jobs.append((prep, des, job))
     t0 = time.perf_counter()
+    batch = MetricsBatch()
     for (prep, des, job), (done, ks, xs, us), backend in batched.simulate_all(jobs):
-        from quadctl import metrics
         from quadctl.simulate import verdict
 
         setup, linear = prep.setup, prep.plant.linear
@@ -413,14 +413,67 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         t = plan.dt * ks
         x = xs[:, :len(linear.x_trim)]
         status, message = verdict(x, t, done, plan.n_steps, job.lo, job.hi)
-        summary = metrics.summarize_run(t, x, us, (linear.x_trim, linear.x_rate), linear.u_trim,
-                                        setup.Q_block, setup.R_block, setup.regulated, status)
         stats["steps"] += done
         stats["backend"].add(backend)
-        rows[prep.index] = _row(prep.head, des.stable, des.core, plan, summary, done,
-                                "" if status == "ok" else message, des.path)
+        for (p, d, j, steps, msg), summary in batch.add(t, x, us, setup, linear, status,
+                                                         (prep, des, job, done, message)):
+            rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps, "" if summary["status"] == "ok"
+                                 else msg, d.path)
         if trace and status == "ok":
             x_ref = linear.x_trim + np.outer(t, linear.x_rate)
             traces[prep.index] = resample_deviation(t, x, x_ref, trace, setup.duration)
+    for (p, d, j, steps, msg), summary in batch.flush():
+        rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps,
+                             "" if summary["status"] == "ok" else msg, d.path)
     stats["simulate_time"] += time.perf_counter() - t0
     return rows, traces
+
+
+class MetricsBatch:
+    """Runs gathered for :func:`quadctl.metrics.summarize_errors`: their errors are computed as the
+    runner yields them (its arrays are overwritten by the next lanes) into one (B, 12, r) array,
+    and summarized together when :data:`SIZE` have the same samples, regulated states and weight
+    sparsity (each run's numbers are those it gets alone)."""
+
+    SIZE = 8
+
+    def __init__(self):
+        self.key = None
+        self.items: list = []
+
+    def add(self, t, x, u, setup, linear, status, item) -> list:
+        """Gather one run (``x`` (r, 12), ``u`` (r, 4)); returns the ``(item, summary)`` pairs of the
+        batch this completes or closes (else none)."""
+        key = (len(t), setup.regulated, (setup.Q_block != 0).tobytes(), (setup.R_block != 0).tobytes())
+        done = self.flush() if key != self.key else []
+        if not self.items:
+            self.key = key
+            r = len(t)
+            self.t, self.err, self.u = np.empty((self.SIZE, r)), np.empty((self.SIZE, N_STATES, r)), \
+                np.empty((self.SIZE, u.shape[1], r))
+            self.u_trim, self.Q, self.R, self.status = [], [], [], []
+        from quadctl.metrics import error_into
+
+        b = len(self.items)
+        self.t[b] = t
+        error_into(self.err[b], t, x.T, linear.x_trim, linear.x_rate)
+        self.u[b] = u.T
+        self.u_trim.append(linear.u_trim)
+        self.Q.append(setup.Q_block)
+        self.R.append(setup.R_block)
+        self.status.append(status)
+        self.items.append(item)
+        return done + (self.flush() if len(self.items) == self.SIZE else [])
+
+    def flush(self) -> list:
+        """Summarize what is gathered: ``(item, summary)`` pairs."""
+        from quadctl.metrics import summarize_errors
+
+        if not self.items:
+            return []
+        B = len(self.items)
+        summaries = summarize_errors(self.t[:B], self.err[:B], self.u[:B], np.array(self.u_trim), np.array(self.Q),
+                                     np.array(self.R), self.key[1], self.status)
+        out = list(zip(self.items, summaries))
+        self.items = []
+        return out
