@@ -12,7 +12,9 @@ path it took (``path``). Rows equal the one-by-one path's (``tests/test_sweep.py
 from __future__ import annotations
 
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -83,14 +85,24 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
     one thread meanwhile: the workers are the parallelism, and the matrices here are too small for
     threads to pay (on 2 cores, BLAS threads on top of two workers made a sweep 6 to 16x slower).
     """
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=1):
+    with _threadpools().limit(limits=1):
         return _evaluate_chunk(task)
 
 
+@lru_cache(maxsize=1)
+def _threadpools():
+    """The process's BLAS and OpenMP thread pools, found once (a search costs ~1 ms, a chunk each
+    time), after loading every library a chunk uses (a pool loaded later would not be limited)."""
+    import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS)
+    from threadpoolctl import ThreadpoolController
+
+    import quadctl.riccati  # noqa: F401
+    import quadctl.sim.engine  # noqa: F401
+
+    return ThreadpoolController()
+
+
 def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
-    from quadctl import pipeline
 
     start = time.perf_counter()
     stats = {"cases": len(task.cases), "designs": 0, "design_time": 0.0, "design_cpu": 0.0, "simulate_time": 0.0,
@@ -98,7 +110,6 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
     rows: dict[int, dict] = {}
     traces: dict[int, np.ndarray] = {}
     ready = []
-    plant_cache: dict[tuple, Any] = {}
     setup_of = CaseSetups(task)
     for index, values in task.cases:
         head = {"case": index, **dict(zip(task.names, values))}
@@ -107,15 +118,7 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
         except ConfigError as exc:
             rows[index] = _failed(head, "invalid_config", str(exc))
             continue
-        key = _plant_key(setup)
-        if key not in plant_cache:
-            try:
-                trim = pipeline.trim_of(setup)
-                linear = pipeline.linear_of(setup, trim)
-                plant_cache[key] = Plant(linear, pipeline.decoupled_of(setup, linear))
-            except TrimError as exc:
-                plant_cache[key] = exc
-        plant = plant_cache[key]
+        plant = plant_of(setup)
         if isinstance(plant, TrimError):
             rows[index] = _failed(head, "no_trim", str(plant))
             continue
@@ -265,6 +268,38 @@ class Prepared:
     head: dict
     setup: Any
     plant: Plant
+
+
+PLANTS = 16
+"""Flight conditions a process keeps (:func:`plant_of`)."""
+_plants: OrderedDict[tuple, Any] = OrderedDict()
+
+
+def plant_of(setup):
+    """The :class:`Plant` (or the TrimError) of a setup's flight condition and partition.
+
+    Kept for the :data:`PLANTS` last used: every chunk of a sweep flies the same few, and a
+    worker forked after the first case inherits them (a trim, linearization, partition and step
+    plan cost ~5 ms, a tenth of a 128-case chunk of mambo-200hz). The key holds everything they
+    depend on (:func:`_plant_key`) and a Plant's own cache is keyed by what its entries depend
+    on, so a plant is the same object for every case that flies it.
+    """
+    from quadctl import pipeline
+
+    key = _plant_key(setup)
+    if key in _plants:
+        _plants.move_to_end(key)
+        return _plants[key]
+    try:
+        trim = pipeline.trim_of(setup)
+        linear = pipeline.linear_of(setup, trim)
+        plant = Plant(linear, pipeline.decoupled_of(setup, linear))
+    except TrimError as exc:
+        plant = exc
+    _plants[key] = plant
+    if len(_plants) > PLANTS:
+        _plants.popitem(last=False)
+    return plant
 
 
 def _plant_key(setup) -> tuple:
