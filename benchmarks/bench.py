@@ -3,6 +3,7 @@
     python benchmarks/bench.py            # everything (about a minute)
     python benchmarks/bench.py --skip-slow  # without the two RK45 runs (about 7 s each)
     python benchmarks/bench.py --cli-python VENV/bin/python  # the CLI rows with another install
+    python benchmarks/bench.py --only sweep flying-sweep  # some sections (see --help)
 
 1. One closed-loop simulation of the bundled forward config (the report's case), RK4 at
    dt = 1e-5 s for 10 s = 1 000 000 steps: quadctl's compiled loop (library call, after the one-time
@@ -201,8 +202,9 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
 # 2 and 3. The sweep and its designs
 
 
-def the_flying_sweep() -> str:
-    """Sweep 2: 1000 random mambo-200hz designs, the configs that fly, in the same lanes."""
+def the_flying_sweep(plain_rate: float | None = None) -> str:
+    """Sweep 2: 1000 random mambo-200hz designs, the configs that fly, in the same lanes;
+    ``plain_rate`` the plain sweep's steps/s on both cores, measured in the same run (or None)."""
     import dataclasses
 
     from quadctl import config, sweep
@@ -212,10 +214,11 @@ def the_flying_sweep() -> str:
     cases = spec.cases()
     assert len({c.values for c in cases}) == len(cases)  # no two alike
     sweep.run(cfg, dataclasses.replace(spec, samples=16), jobs=1)  # warm: imports, lane library
-    rows, notes = [], []
+    rows, notes, rates = [], [], {}
     for jobs in (2, 1):
         wall, result = timed(lambda j=jobs: sweep.run(cfg, spec, jobs=j), repeat=REPEAT)
         st = result.stats
+        rates[jobs] = st["steps"] / wall
         rows.append([f"quadctl sweep, library, --jobs {jobs}", f"{wall:.2f}", f"{st['steps'] / wall / 1e6:.2f} M",
                      f"{len(result.rows) / wall:,.0f}", f"{1e6 * st['design_cpu'] / st['designs']:.1f}",
                      f"{st['fallbacks']}"])
@@ -227,13 +230,17 @@ def the_flying_sweep() -> str:
     rows.append(["one case at a time (pipeline), --jobs 1, 100 cases", f"{wall:.2f}",
                  f"{st['steps'] / wall / 1e6:.2f} M", f"{100 / wall:,.0f}",
                  f"{1e6 * st['design_cpu'] / st['designs']:.1f}", "-"])
+    if plain_rate:
+        notes.append(f"simulated steps/s on both cores against the plain (forward) sweep's in this run: "
+                     f"{rates[2] / plain_rate:.2f}")
     return table(f"Sweep: 1000 random mambo-200hz designs x 2,000 RK4 steps (benchmarks/mambo-1000.yaml: "
                  f"200 Hz discrete design, rotors, LQI, noise; best of {REPEAT})",
                  ["run", "wall (s)", "simulated steps/s", "designs/s", "µs CPU per subsystem design",
                   "designs redone one by one"], rows) + "\n\n" + "; ".join(notes)
 
 
-def the_sweep() -> tuple[str, list]:
+def the_sweep() -> tuple[str, list, float]:
+    """Sweep 1: 1000 random designs of the forward config; (text, [cfg, spec], steps/s on both cores)."""
     import dataclasses
 
     from quadctl import config, sweep
@@ -244,10 +251,10 @@ def the_sweep() -> tuple[str, list]:
     assert len({c.values for c in cases}) == len(cases)  # no two alike
     sweep.run(cfg, dataclasses.replace(spec, samples=16), jobs=1)  # warm: imports, lane library
     rows = []
-    results = {}
+    results, rows_wall = {}, {}
     for jobs in (2, 1):
         wall, result = timed(lambda j=jobs: sweep.run(cfg, spec, jobs=j), repeat=REPEAT)
-        results[jobs] = result
+        results[jobs], rows_wall[jobs] = result, wall
         steps = result.stats["steps"]
         rows.append([f"quadctl sweep, library, --jobs {jobs}", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
                      f"{len(result.rows) / wall:,.0f}", f"{result.stats['steps'] / len(result.rows):,.0f}"])
@@ -274,7 +281,7 @@ def the_sweep() -> tuple[str, list]:
                  f"{1e6 * st['design_cpu'] / st['designs']:.1f} µs of CPU time per subsystem design "
                  f"({1e6 * st['design_time'] / st['designs']:.1f} µs of wall time in its worker; "
                  f"{st['designs']} designs, {st['fallbacks']} redone one by one).")
-    return text, [cfg, spec]
+    return text, [cfg, spec], results[2].stats["steps"] / rows_wall[2]
 
 
 def the_designs(cfg, spec) -> str:
@@ -409,6 +416,11 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
                  ["solver", "µs CPU per design", "time / batched"], rows)
 
 
+SECTIONS = ("simulation", "sweep", "flying-sweep", "designs", "lqr", "discrete")
+"""What ``--only`` may name: the numbered sections of the module docstring (the designs are the
+plain sweep's)."""
+
+
 def config_from(data):
     from quadctl import config
 
@@ -421,19 +433,34 @@ def main() -> None:
     parser.add_argument("--cli-python", default=sys.executable, metavar="PYTHON",
                         help="interpreter for the command-line runs (default: this one), e.g. a venv's python "
                              "with quadctl installed the way users install it (not editable)")
+    parser.add_argument("--only", nargs="+", choices=SECTIONS, metavar="SECTION",
+                        help=f"run only these sections: {', '.join(SECTIONS)} (default: all)")
     args = parser.parse_args()
+    only = set(args.only or SECTIONS)
     import casadi
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"quadctl benchmarks on {cpu_name()}, {os.cpu_count()} cores; Python {platform.python_version()}, "
           f"numpy {np.__version__}, casadi {casadi.__version__}; load average {load:.2f} at start")
-    print(one_simulation(args.skip_slow, args.cli_python))
-    text, (cfg, spec) = the_sweep()
-    print(text)
-    print(the_flying_sweep())
-    print(the_designs(cfg, spec))
-    print(lqr_sizes())
-    print(discrete_designs())
+    if "simulation" in only:
+        print(one_simulation(args.skip_slow, args.cli_python))
+    plain_rate, cfg_spec = None, None
+    if "sweep" in only:
+        text, cfg_spec, plain_rate = the_sweep()
+        print(text)
+    if "flying-sweep" in only:
+        print(the_flying_sweep(plain_rate))
+    if "designs" in only:
+        if cfg_spec is None:
+            from quadctl import config, sweep
+
+            cfg = config.load("forward")
+            cfg_spec = [cfg, sweep.load(SWEEP_FILE, cfg)]
+        print(the_designs(*cfg_spec))
+    if "lqr" in only:
+        print(lqr_sizes())
+    if "discrete" in only:
+        print(discrete_designs())
     end = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {end:.2f} at the end (2 cores: above ~0.3, other work shared the machine)")
 

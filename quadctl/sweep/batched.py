@@ -71,7 +71,7 @@ def design_all(preps, stats) -> list:
                 gains[(k, sub.name)] = K[row[slot[j]]]
             else:
                 missed.add(k)
-        stats["designs"] += len(unique)
+        stats["designs"] += len(group)  # the designs the rows get (a shared one counts for each)
     out: list = [None] * len(preps)
     for k, prep in enumerate(preps):
         if k in missed:
