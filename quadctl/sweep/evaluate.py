@@ -103,7 +103,6 @@ def _threadpools():
 
 
 def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
-
     start = time.perf_counter()
     stats = {"cases": len(task.cases), "designs": 0, "design_time": 0.0, "design_cpu": 0.0, "simulate_time": 0.0,
              "steps": 0, "fallbacks": 0, "backend": set()}
@@ -157,7 +156,7 @@ class CaseSetups:
     type the schema takes (a finite float, a whole number >= 0) and the weight checks of
     :func:`quadctl.config.check_weight`. A value that fails any check goes the reference way, which
     words the error, so an invalid value gives the same one-line error either way
-    (``tests/test_sweep.py`` checks that both ways give the same setups and messages).
+    (``tests/test_case_setups.py`` checks that both ways give the same setups and messages).
     """
 
     def __init__(self, task: ChunkTask):
