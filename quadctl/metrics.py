@@ -168,26 +168,30 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status) -> list[
     """
     B, _, n = err.shape
     du = u - u_trim[:, :, None]
-    mag = np.abs(err)
-    peak = mag.max(axis=2)
+    low, high = err.min(axis=2), err.max(axis=2)
+    with np.errstate(invalid="ignore"):
+        peak = np.abs(np.where(np.isnan(low) | np.isnan(high), np.nan, np.maximum(high, -low)))  # max |e|
     band = np.maximum(SETTLING_BAND * peak, ERROR_FLOOR)
-    outside = mag > band[:, :, None]
-    last = n - 1 - np.argmax(outside[:, :, ::-1], axis=2)  # the last sample outside (n - 1 when none is)
+    mag = np.abs(err)
+    # outside the band, newest sample first (contiguous, so the search for the last one is fast)
+    outside = mag[:, :, ::-1] > band[:, :, None]
+    newest = np.argmax(outside, axis=2)
+    last = n - 1 - newest  # the last sample outside (n - 1 when none is)
     run, state = np.indices(last.shape)
     # settled at once when the error is ~0 or never leaves the band; never when the last sample is out
-    at_once = ((peak <= ERROR_FLOOR) | ~outside[run, state, last]).tolist()
-    never = outside[:, :, -1].tolist()
+    at_once = ((peak <= ERROR_FLOOR) | ~outside[run, state, newest]).tolist()
+    never = outside[:, :, 0].tolist()
     settled_at = np.take_along_axis(t, np.minimum(last + 1, n - 1), axis=1).tolist()
     e0 = err[:, :, 0]
     # max(-sign(e0) e) without the product: -min(e) where e0 > 0, max(e) where e0 < 0 (exact)
-    past = np.where(e0 > 0, -err.min(axis=2), np.where(e0 < 0, err.max(axis=2), 0.0))
+    past = np.where(e0 > 0, -low, np.where(e0 < 0, high, 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
         over = (np.maximum(0.0, past) / np.abs(e0) * 100.0).tolist()
     no_initial = (np.abs(e0) <= ERROR_FLOOR).tolist()
     peaks, finals = peak.tolist(), err[:, :, -1].tolist()
     peak_u = np.abs(u).max(axis=2).tolist()
     with np.errstate(all="ignore"):
-        integrand = _quadratic(err, Q) + _quadratic(du, R)
+        integrand = _quadratic(err, Q, np.multiply(mag, mag, out=mag)) + _quadratic(du, R)
         cost = ((integrand[:, 1:] + integrand[:, :-1]) * np.diff(t, axis=1)).sum(axis=1) / 2 if n > 1 \
             else np.zeros(B)
     regulated = [(i, name) for i, name in enumerate(STATE_NAMES) if name in set(regulated_states)]
@@ -203,13 +207,17 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status) -> list[
     return out
 
 
-def _quadratic(vT: np.ndarray, M: np.ndarray) -> np.ndarray:
+def _quadratic(vT: np.ndarray, M: np.ndarray, squares: np.ndarray | None = None) -> np.ndarray:
     """``v_k^T M v_k`` for each sample ``k`` of each run: ``vT`` (B, n, r), ``M`` (B, n, n) -> (B, r),
-    summed term by term over the nonzeros of the first run's ``M`` (row-major order)."""
+    summed term by term over the nonzeros of the first run's ``M`` (row-major order). ``squares``,
+    ``vT * vT`` if the caller has it, saves a product per diagonal term (the same numbers)."""
     acc = np.zeros((vT.shape[0], vT.shape[2]))
     term = np.empty_like(acc)
     for i, j in zip(*np.nonzero(M[0])):
-        np.multiply(vT[:, i], vT[:, j], out=term)
-        term *= M[:, i, j][:, None]
+        if i == j and squares is not None:
+            np.multiply(squares[:, i], M[:, i, j][:, None], out=term)
+        else:
+            np.multiply(vT[:, i], vT[:, j], out=term)
+            term *= M[:, i, j][:, None]
         acc += term
     return acc
