@@ -178,7 +178,8 @@ def resolve(cfg: Config) -> Setup:
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag)
 
 
-def vary(setup: Setup, weights: dict[str, tuple[list, list]] | None = None, noise_seed: int | None = None) -> Setup:
+def vary(setup: Setup, weights: dict[str, tuple[list | None, list | None]] | None = None,
+         noise_seed: int | None = None) -> Setup:
     """``setup`` with some subsystems' weights or the noise seed replaced: what :func:`resolve` gives
     for the config with those values, without validating and resolving all of it again (a sweep
     builds thousands of cases from one base this way).
@@ -187,8 +188,8 @@ def vary(setup: Setup, weights: dict[str, tuple[list, list]] | None = None, nois
     ----------
     setup : Setup
     weights : dict of str -> (Q, R), optional
-        Per subsystem, its ``lqr.<name>.Q`` and ``R`` as the config writes them (lists), already
-        checked (:func:`quadctl.config.check_weight`): the caller validates.
+        Per subsystem, its ``lqr.<name>.Q`` and ``R`` as the config writes them (lists; None: as in
+        ``setup``), already checked (:func:`quadctl.config.check_weight`): the caller validates.
     noise_seed : int, optional
         ``simulation.noise.seed`` (a whole number >= 0).
     """
@@ -196,20 +197,25 @@ def vary(setup: Setup, weights: dict[str, tuple[list, list]] | None = None, nois
     if weights:
         merged = dict(setup.weights)
         for name, (Q, R) in weights.items():
-            merged[name] = (weight_matrix(Q, 0), weight_matrix(R, 0))
+            old_Q, old_R = merged[name]
+            merged[name] = (old_Q if Q is None else weight_matrix(Q, 0), old_R if R is None else weight_matrix(R, 0))
         changes["weights"] = merged
-        changes["Q_block"], changes["R_block"] = _weight_blocks(setup.partition, merged)
+        changes["Q_block"], changes["R_block"] = _weight_blocks(setup.partition, merged, setup, weights)
     if noise_seed is not None and setup.noise is not None:
         changes["noise"] = replace(setup.noise, seed=int(noise_seed))
     return replace(setup, **changes) if changes else setup
 
 
-def _weight_blocks(partition, weights) -> tuple[np.ndarray, np.ndarray]:
-    """(Q (12, 12), R (4, 4)): the regulated subsystems' plant-state weights assembled."""
-    Q = np.zeros((N_STATES, N_STATES))
-    R = np.zeros((N_INPUTS, N_INPUTS))
+def _weight_blocks(partition, weights, base: Setup | None = None, changed=None) -> tuple[np.ndarray, np.ndarray]:
+    """(Q (12, 12), R (4, 4)): the regulated subsystems' plant-state weights assembled; with a
+    ``base`` setup, its blocks with only the ``changed`` subsystems' rewritten (the subsystems'
+    blocks do not overlap: a state belongs to one subsystem, an input drives one)."""
+    if base is None:
+        Q, R = np.zeros((N_STATES, N_STATES)), np.zeros((N_INPUTS, N_INPUTS))
+    else:
+        Q, R = base.Q_block.copy(), base.R_block.copy()
     for name, sub in partition.items():
-        if name in weights:
+        if name in weights and (changed is None or name in changed):
             (qi, qj, n), (ri, rj) = _block_index(tuple(sub.states), tuple(sub.inputs))
             Qw, Rw = weights[name]
             Q[qi, qj] = Qw[:n, :n]

@@ -210,7 +210,7 @@ class CaseSetups:
         from quadctl.config import check_weight
         from quadctl.setup import vary
 
-        weights: dict[str, dict[str, list]] = {}
+        weights: dict[str, dict[str, list]] = {}  # subsystem -> the changed "Q" and "R" lists
         seed = None
         for kind, value in zip(self.kinds, values):
             if kind[0] == "seed":
@@ -219,21 +219,23 @@ class CaseSetups:
                     return None
                 continue
             _, name, which, i = kind
-            lqr = self.cfg.lqr[name]
-            entries = weights.setdefault(name, {"Q": list(lqr.Q), "R": list(lqr.R)})
-            entries[which] = assign(entries[which], (i,), _plain(value))
-            if type(entries[which][i]) is not float or not math.isfinite(entries[which][i]):
+            changed = weights.setdefault(name, {})
+            entries = changed[which] = assign(changed.get(which, getattr(self.cfg.lqr[name], which)), (i,),
+                                              _plain(value))
+            if type(entries[i]) is not float or not math.isfinite(entries[i]):
                 return None  # the schema: a strict, finite float
-        for name, entries in weights.items():
+        for name, changed in weights.items():  # the base's own weights passed these checks already
             sub, integral = self.base.partition[name], self.cfg.lqr[name].integral
             try:  # as quadctl.config._check_semantics checks them
-                check_weight(entries["Q"], len(sub.states) + len(integral), f"lqr.{name}.Q", self.task.label,
-                             definite=False, names=[*sub.states, *(f"integral of {s}" for s in integral)])
-                check_weight(entries["R"], len(sub.inputs), f"lqr.{name}.R", self.task.label, definite=True,
-                             names=sub.inputs)
+                if "Q" in changed:
+                    check_weight(changed["Q"], len(sub.states) + len(integral), f"lqr.{name}.Q", self.task.label,
+                                 definite=False, names=[*sub.states, *(f"integral of {s}" for s in integral)])
+                if "R" in changed:
+                    check_weight(changed["R"], len(sub.inputs), f"lqr.{name}.R", self.task.label, definite=True,
+                                 names=sub.inputs)
             except ConfigError:
                 return None
-        return vary(self.base, weights={n: (e["Q"], e["R"]) for n, e in weights.items()}, noise_seed=seed)
+        return vary(self.base, weights={n: (c.get("Q"), c.get("R")) for n, c in weights.items()}, noise_seed=seed)
 
 
 class Plant:
