@@ -20,11 +20,11 @@ from quadctl.trim import Trim, solve_trim
 
 
 def trim_of(setup: Setup) -> Trim:
-    return solve_trim(setup.velocity_ned, setup.yaw, setup.position_ned, setup.vehicle)
+    return solve_trim(setup.velocity_ned, setup.yaw, setup.position_ned, setup.vehicle, wind_ned=setup.trim_wind)
 
 
 def linear_of(setup: Setup, trim: Trim) -> LinearModel:
-    return linearize(trim.x, trim.u, setup.vehicle)
+    return linearize(trim.x, trim.u, setup.vehicle, setup.trim_wind)
 
 
 def decoupled_of(setup: Setup, linear: LinearModel) -> Decoupled:
@@ -72,9 +72,10 @@ def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
 
 
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True) -> SimResult:
-    """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise)."""
+    """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise;
+    the wind, a condition of the flight, stays)."""
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
-                    noise=setup.noise if noise else None, max_samples=setup.max_samples)
+                    noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples)
 
 
 def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float):
@@ -122,7 +123,8 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         per input), ``rms_error`` and ``rms_error_second_half`` (per state, state units),
         ``saturation`` (None without actuators; else per actuator the fraction of the run at a
         limit, ``saturates`` when one exceeds 1 %, peak commands, rotor speeds), ``noise``
-        (seed and period, or None), ``integral`` (states and final integrator values), ``plant``
+        (seed and period, or None), ``wind`` (:func:`wind_summary`, or None), ``integral`` (states and
+        final integrator values), ``plant``
         (the simulated vehicle's parameters when they differ from the design model).
     """
     from quadctl import motors, noise
@@ -135,7 +137,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
                        for j, name in enumerate(INPUT_NAMES)},
         "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_ref),
         "rms_error_second_half": noise.rms_deviation(sim.t, sim.x, sim.x_ref, duration / 2),
-        "saturation": None, "noise": None,
+        "saturation": None, "noise": None, "wind": wind_summary(setup, sim),
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
         "plant": setup.plant_overrides or None,
@@ -159,6 +161,39 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         out["noise"] = {"seed": spec.seed, "period": spec.period, "process_std": spec.process_std,
                         "sensor_std": dict(zip(STATE_NAMES, spec.sensor_std))}
     return out
+
+
+def speeds(sim: SimResult) -> tuple[np.ndarray, np.ndarray]:
+    """(ground speed, airspeed) at each recorded sample, m/s: ``|R_b^E V_b|`` from the model's position
+    rates, and ``|R_b^E V_b - w|`` with the wind the plant felt (still air: the two agree)."""
+    from quadctl.model import Vehicle, build_model
+
+    # the position rows of f are the kinematics R_b^E V_b: no parameter enters them
+    vel = np.asarray(build_model().f.map(len(sim.t))(sim.x.T, sim.u.T, Vehicle().vector()), dtype=float)[:3].T
+    wind = sim.wind if len(sim.wind) else np.zeros_like(vel)
+    return np.linalg.norm(vel, axis=1), np.linalg.norm(vel - wind, axis=1)
+
+
+def wind_summary(setup: Setup, sim: SimResult) -> dict | None:
+    """``sim.json``'s ``wind``: the wind's configuration and seed, the peak wind, and the ground speed
+    and airspeed (m/s: max and RMS over the run); None in still air."""
+    spec = setup.wind
+    if spec is None or len(sim.t) == 0:
+        return None
+    ground, air = speeds(sim)
+    turb = spec.turbulence
+    return {
+        "steady": list(spec.steady), "gusts": [{"start": g.start, "length": g.length, "amplitude": list(g.amplitude),
+                                                 "hold": g.hold} for g in spec.gusts],
+        "turbulence": None if turb is None else {
+            "seed": turb.seed, "sigma": list(turb.sigma), "length_scale": list(turb.length),
+            "reference_speed": turb.speed, "heading": turb.heading, "period": turb.period},
+        "trim_in_wind": bool(any(setup.trim_wind)),
+        "peak_wind": float(np.linalg.norm(sim.wind, axis=1).max()),
+        "ground_speed": {"max": float(ground.max()), "rms": float(np.sqrt(np.mean(ground ** 2)))},
+        "airspeed": {"max": float(air.max()), "rms": float(np.sqrt(np.mean(air ** 2)))},
+        "units": "m/s",
+    }
 
 
 def compare_full(setup: Setup, linear: LinearModel, des: Design):

@@ -287,7 +287,9 @@ class Workspace:
             "input_names": np.array(INPUT_NAMES), "z": sim.z,
             "integral_states": np.array(loop.integral_states, dtype=str),
             "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
-            "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str)},
+            "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str),
+            "wind": sim.wind, "wind_unit": np.array("m/s"),  # empty: still air
+            "wind_names": np.array(["wind N", "wind E", "wind D"] if len(sim.wind) else [], dtype=str)},
             meta)
         self._write_json(SIM_JSON, "simulation", {
             "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,

@@ -108,12 +108,33 @@ def saturation_table(flight: dict) -> Table | None:
 def rms_table(flight: dict) -> Table:
     noise = flight.get("noise") or {}
     seed = f", noise seed {noise['seed']}" if noise else ""
+    turb = (flight.get("wind") or {}).get("turbulence")
+    seed += f", turbulence seed {turb['seed']}" if turb else ""
     table = Table(title=f"RMS deviation from the reference{seed}", title_justify="left")
     for col in ("state", "unit", "whole run", "second half"):
         table.add_column(col, justify="left" if col in ("state", "unit") else "right")
     for name in STATE_NAMES:
         table.add_row(name, unit_of(name), num(flight["rms_error"][name]),
                       num(flight["rms_error_second_half"][name]))
+    return table
+
+
+def wind_table(flight: dict) -> Table:
+    """Ground speed and airspeed (max, RMS) of a run in wind, with the wind's peak."""
+    wind = flight["wind"]
+    parts = [f"steady {', '.join(num(w) for w in wind['steady'])} m/s NED"]
+    if wind["gusts"]:
+        parts.append(f"{len(wind['gusts'])} gust" + ("s" if len(wind["gusts"]) > 1 else ""))
+    turb = wind["turbulence"]
+    if turb:
+        sigma = ", ".join(num(s) for s in turb["sigma"])
+        parts.append(f"Dryden sigma {sigma} m/s at {num(turb['reference_speed'])} m/s")
+    table = Table(title="Wind: " + "; ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s"
+                  + ("; trimmed in the steady wind" if wind["trim_in_wind"] else ""), title_justify="left")
+    for col in ("speed", "unit", "max", "RMS"):
+        table.add_column(col, justify="left" if col in ("speed", "unit") else "right")
+    for key, label in (("ground_speed", "ground speed"), ("airspeed", "airspeed")):
+        table.add_row(label, "m/s", num(wind[key]["max"]), num(wind[key]["rms"]))
     return table
 
 

@@ -36,8 +36,10 @@ actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands compu
 samples ago; at a sample the law applies ``b_n`` and shifts, ``b_1 <- u_new``, ``b_k <- b_(k-1)``.
 Runs start with the buffer at the trim input. Exact: the delay is a whole number of samples.
 
-Exogenous inputs (:data:`EXO_LAYOUT`, when :attr:`LoopSpec.noise`): per step, a body force and
-torque added to the plant and the sensor noise added to what the controller measures.
+Exogenous inputs (:func:`exo_layout`): per step, when :attr:`LoopSpec.noise`, a body force and
+torque added to the plant and the sensor noise added to what the controller measures
+(:data:`EXO_LAYOUT`); then, when :attr:`LoopSpec.wind`, the wind (NED, m/s) the rotor drag sees
+through the air-relative velocity (:data:`WIND_LAYOUT`; :mod:`quadctl.wind`).
 
 Constants (:func:`constant_layout`): everything numeric a case carries (trim, gains, vehicle,
 mixing, limits) is one vector ``c``; the gain's sparsity, the saturation mode and the integrated
@@ -53,7 +55,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS, N_STATES
-from quadctl.model import N_DISTURBANCES, N_PARAMS, build_model
+from quadctl.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -80,6 +82,15 @@ EXO_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 """Exogenous channels of one step, in order, when the loop has noise."""
 N_EXO = sum(size for _, size in EXO_LAYOUT)
+WIND_LAYOUT: tuple[tuple[str, int], ...] = (
+    ("wind", N_WIND),                   # the air's velocity over the ground, NED (m/s)
+)
+"""Exogenous channels of one step after the noise's, when the loop has wind."""
+
+
+def exo_layout(noise: bool, wind: bool) -> tuple[tuple[str, int], ...]:
+    """The exogenous channels of a loop (name, size), in the order of one step's row."""
+    return (EXO_LAYOUT if noise else ()) + (WIND_LAYOUT if wind else ())
 
 
 N_ROTORS = 4
@@ -159,6 +170,8 @@ class LoopSpec:
         Sampled controller with a zero-order hold (else continuous feedback).
     noise : bool
         The loop takes the exogenous channels of :data:`EXO_LAYOUT` every step.
+    wind : bool
+        The loop takes the wind (:data:`WIND_LAYOUT`) every step, after the noise's channels.
     rotors : bool
         Rotor dynamics: the four rotor thrusts are plant states (saturation ``motors`` only).
     delay : int
@@ -172,6 +185,7 @@ class LoopSpec:
     noise: bool = False
     rotors: bool = False
     delay: int = 0
+    wind: bool = False
 
     def __post_init__(self):
         if len(self.pattern) != N_INPUTS * N_STATES:
@@ -206,7 +220,7 @@ class LoopSpec:
     @property
     def n_exo(self) -> int:
         """Exogenous channels per step."""
-        return N_EXO if self.noise else 0
+        return sum(size for _, size in exo_layout(self.noise, self.wind))
 
     @property
     def n_constants(self) -> int:
@@ -217,7 +231,7 @@ class LoopSpec:
         bits = "".join("1" if b else "0" for b in self.pattern)
         return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
                 f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
-                + (f" delay={self.delay}" if self.delay else ""))
+                + (f" delay={self.delay}" if self.delay else "") + (" wind=1" if self.wind else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -253,7 +267,7 @@ class LoopFunctions:
 @lru_cache(maxsize=32)
 def build(spec: LoopSpec) -> LoopFunctions:
     """Build the loop functions of ``spec`` (cached per spec)."""
-    f = build_model().f_disturbed
+    model = build_model()
     nz, nx, npl = spec.nz, spec.nx, spec.n_plant
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
@@ -267,9 +281,16 @@ def build(spec: LoopSpec) -> LoopFunctions:
     e = ca.SX.sym("e", spec.n_exo)
     if spec.noise:
         disturbance = e[:N_DISTURBANCES]
-        sensor = e[N_DISTURBANCES:]
+        sensor = e[N_DISTURBANCES:N_EXO]
     else:
         disturbance, sensor = ca.DM.zeros(N_DISTURBANCES), ca.DM.zeros(N_STATES)
+    if spec.wind:
+        wind = e[spec.n_exo - N_WIND:]
+
+        def f(x, u, p, d):
+            return model.f_disturbed_wind(x, u, p, d, wind)
+    else:
+        f = model.f_disturbed
 
     def saturate(cmd):
         if spec.saturation == "none":
