@@ -156,8 +156,9 @@ class GustConfig(_Section):
     length: Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=3600)] = Field(
         description="s to rise from 0 to the amplitude (and to fall back)")
     amplitude: WindVector = Field(description="m/s, the gust's peak wind, NED")
-    hold: Annotated[float, Field(strict=True, ge=0)] = Field(
-        0.0, description="s at the amplitude between rise and fall; .inf: stays (the specification's gust)")
+    hold: Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=86_400.0)] = Field(
+        0.0, description="s at the amplitude between rise and fall; past the run's end: the specification's gust, "
+        "which stays")
 
 
 class TurbulenceConfig(_Section):

@@ -8,7 +8,7 @@ the velocity relative to the air (:func:`quadctl.model.dynamics_expression`). ``
   ``v = (V_m / 2) (1 - cos(pi x / d_m))`` over ``0 <= x <= d_m``, written in time for a vehicle that
   may hover (``x / d_m = (t - start) / length``): each gust rises over ``length`` seconds to its
   ``amplitude`` (m/s per NED axis), stays there ``hold`` seconds (MIL-F-8785C's gust holds ``V_m``
-  for ever: ``hold = inf``), and falls back over ``length`` seconds as the mirror image. With
+  for ever: a hold past the run's end), and falls back over ``length`` seconds as the mirror image. With
   ``hold = 0`` it is the full ``(V_m / 2)(1 - cos(pi (t - start) / length))`` over ``2 length``;
 - **Dryden turbulence**, the low-altitude model of MIL-HDBK-1797 (§B.4.4.1, after MIL-F-8785C
   §3.7.2), in the handbook's form and length scales (``h`` in ft, below 1000 ft)::

@@ -177,9 +177,8 @@ def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
 def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
     from quadctl.motors import check_trim
-    from quadctl.noise import NoiseStream
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
-    from quadctl.simulate import ClosedLoop, rotor_eigenvalues
+    from quadctl.simulate import ClosedLoop, ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
     continuous = [j for j, (prep, _) in enumerate(live) if prep.setup.timing.rate is None]
@@ -230,10 +229,12 @@ def loops_of(live) -> list:
             continue
         lo, hi = loop.bounds(setup.duration)
         exo, first, period = None, 0, 1.0
-        if setup.noise is not None:
-            first, exo = NoiseStream(setup.noise).rows(0, plan.n_steps, plan.dt)
-            period = setup.noise.period
-        out[j] = LaneJob(spec=replace(loop.spec(setup.noise is not None), pattern=_structural_gain(prep)),
+        if setup.noise is not None or setup.wind is not None:  # the rows simulate's ExoStream gives, at once
+            stream = ExoStream(setup.noise, setup.wind, setup.timing.rate)
+            first, exo = stream.rows(0, plan.n_steps, plan.dt)
+            period = stream.period
+        out[j] = LaneJob(spec=replace(loop.spec(setup.noise is not None, setup.wind is not None),
+                                      pattern=_structural_gain(prep)),
                          plan=plan, c=loop.constants(plan.sample_time),
                          x0=loop.initial_loop_state(setup.initial_state(linear.x_trim)), lo=lo, hi=hi,
                          stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
@@ -266,7 +267,7 @@ def simulate_all(jobs):
         cases = Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
                          [j.plan.n_steps for j in js], [j.stride for j in js], np.stack([j.lo for j in js]),
                          np.stack([j.hi for j in js]), hold=[max(j.plan.hold, 1) for j in js],
-                         exo=[j.exo for j in js] if spec.noise else None,
+                         exo=[j.exo for j in js] if spec.n_exo else None,
                          exo_first=[j.exo_first for j in js], exo_period=[j.exo_period for j in js])
         for i, done, ks, xs, us in run.iter_run(cases):
             yield group[i], (done, ks, xs, us), run.backend
