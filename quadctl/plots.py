@@ -72,11 +72,28 @@ def inputs_figure(sim, u_trim=None, *, title: str = "") -> Figure:
     return fig
 
 
+def wind_figure(sim, *, title: str = "") -> Figure:
+    """The wind the plant felt (N, E, D components, m/s) against time."""
+    fig = Figure(figsize=(10.0, 3.5), layout="constrained")
+    ax = fig.subplots()
+    for i, (name, color) in enumerate(zip(("wind N", "wind E", "wind D"), _COLORS)):
+        ax.plot(sim.t, sim.wind[:, i], color=color, lw=1.2, label=name)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("wind [m/s], NED")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8, frameon=False)
+    fig.suptitle(f"{title}: wind" if title else "wind")
+    return fig
+
+
 def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "") -> dict[str, Figure]:
-    """A figure per subsystem (in partition order) and one of the inputs, keyed by file stem."""
+    """A figure per subsystem (in partition order), one of the inputs and, in wind, one of the wind,
+    keyed by file stem."""
     figs = {name: subsystem_figure(sim, name, sub.states, title=title)
             for name, sub in partition.items()}
     figs["inputs"] = inputs_figure(sim, u_trim, title=title)
+    if len(getattr(sim, "wind", ())):
+        figs["wind"] = wind_figure(sim, title=title)
     return figs
 
 

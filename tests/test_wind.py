@@ -396,3 +396,19 @@ def test_the_bundled_wind_config_trims_tilted_into_its_wind():
     v = setup.vehicle  # wind blowing east: roll left (negative phi) to lean the thrust west
     assert phi < 0 and math.tan(-phi) == pytest.approx(trim.u[0] * v.drag[1] * 9.7 / (v.mass * v.gravity), rel=1e-9)
     assert setup.wind.turbulence.speed == pytest.approx(9.7)  # the trim's airspeed
+
+
+def test_the_readme_gust_numbers():
+    """README, "Wind": the gust alone moves crazyflie-wind 0.24 m and 0.72 deg, the turbulence 2.5 m and 5.2 deg;
+    the trim rolls it -0.2266 rad."""
+    for turbulence, drift, pitch in ((False, 0.24, 0.72), (True, 2.5, 5.2)):
+        data = cfg_dict("crazyflie-wind")
+        if not turbulence:
+            data["simulation"]["wind"]["turbulence"] = None
+        setup, trim, linear, _, des = solve(data)
+        sim = pipeline.simulation_of(setup, pipeline.loop_of(setup, linear, des))
+        err = sim.x - sim.x_ref
+        assert sim.status == "ok"
+        assert np.abs(err[:, 0]).max() == pytest.approx(drift, abs=0.005 if drift < 1 else 0.05)
+        assert math.degrees(np.abs(err[:, 7]).max()) == pytest.approx(pitch, abs=0.005 if pitch < 1 else 0.05)
+        assert trim.x[6] == pytest.approx(-0.2266, abs=5e-5)

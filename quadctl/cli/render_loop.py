@@ -119,18 +119,25 @@ def rms_table(flight: dict) -> Table:
     return table
 
 
-def wind_table(flight: dict) -> Table:
-    """Ground speed and airspeed (max, RMS) of a run in wind, with the wind's peak."""
+def wind_line(flight: dict) -> str:
+    """The wind of a run in one line: steady, gusts, turbulence, peak, and whether the trim is in it."""
     wind = flight["wind"]
-    parts = [f"steady {', '.join(num(w) for w in wind['steady'])} m/s NED"]
+    parts = [f"steady [{', '.join(num(w) for w in wind['steady'])}] m/s NED"]
     if wind["gusts"]:
         parts.append(f"{len(wind['gusts'])} gust" + ("s" if len(wind["gusts"]) > 1 else ""))
     turb = wind["turbulence"]
     if turb:
         sigma = ", ".join(num(s) for s in turb["sigma"])
-        parts.append(f"Dryden sigma {sigma} m/s at {num(turb['reference_speed'])} m/s")
-    table = Table(title="Wind: " + "; ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s"
-                  + ("; trimmed in the steady wind" if wind["trim_in_wind"] else ""), title_justify="left")
+        parts.append(f"Dryden turbulence sigma [{sigma}] m/s at {num(turb['reference_speed'])} m/s "
+                     f"(seed {turb['seed']})")
+    trimmed = "trimmed in the steady wind" if wind["trim_in_wind"] else "trimmed in still air"
+    return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"
+
+
+def wind_table(flight: dict) -> Table:
+    """Ground speed and airspeed (max, RMS) of a run in wind."""
+    wind = flight["wind"]
+    table = Table(title="Ground speed and airspeed", title_justify="left")
     for col in ("speed", "unit", "max", "RMS"):
         table.add_column(col, justify="left" if col in ("speed", "unit") else "right")
     for key, label in (("ground_speed", "ground speed"), ("airspeed", "airspeed")):

@@ -289,6 +289,7 @@ def simulation(ws) -> Section:
     blocks.append(Text(f"Cost of the run, integral of e'Qe + du'R du dt: {num(metrics['cost'])}."))
     for name, fig in plots.simulation_figures(sim, ws.setup.partition, u_trim, title=ws.setup.name).items():
         what = "the four inputs against time, trim dashed" if name == "inputs" else \
+            "the wind the plant felt against time (NED, m/s)" if name == "wind" else \
             f"the {name} subsystem's states and their reference against time (angles in degrees)"
         blocks.append(Figure(f"sim-{name}", f"Simulation: {what}.", _png(fig, SIM_DPI)))
     return Section("simulation", "Simulation", tuple(blocks))

@@ -63,6 +63,7 @@ def _print_flight(render, flown, *, before: bool) -> None:
     if flight.get("noise") or flight.get("wind"):
         render.out.print(render_loop.rms_table(flight))
     if flight.get("wind"):
+        render.out.print(render_loop.wind_line(flight), markup=False)
         render.out.print(render_loop.wind_table(flight))
     line = render_loop.integral_line(flight)
     if line:
