@@ -89,7 +89,7 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     wind_ned : (3,) array_like, optional
         m/s, a steady wind (NED) to trim in; the vehicle holds ``velocity_ned`` over the ground.
         Hovering in a horizontal wind ``w`` (``Kz = 0``, nose into it) it pitches into the wind with
-        ``tan(theta) = T Kx w / (m g)`` and ``T = m g cos(theta)``.
+        ``tan θ = T Kx w / (m g)`` and ``T = m g cos θ``.
 
     Returns
     -------

@@ -173,10 +173,22 @@ class Turbulence:
 
 
 def _stationary(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """The stationary covariance ``P`` of ``dx = A x dt + B dW``: ``A P + P A' + B B' = 0``."""
-    from scipy.linalg import solve_continuous_lyapunov
+    """The stationary covariance ``P`` of ``dx = A x dt + B dW`` (``A P + P A' + B B' = 0``) for the
+    two forming filters, in closed form: ``1 / (2 a)`` for ``A = [-a]``; ``diag(1 / (4 b^3), 1 / (4 b))``
+    for the double pole ``A = [[0, 1], [-b^2, -2 b]]``, ``B = [0, 1]'``."""
+    if len(A) == 1:
+        return np.array([[float(B[0, 0]) ** 2 / (-2.0 * float(A[0, 0]))]])
+    b = -float(A[1, 1]) / 2.0
+    return np.diag([1.0 / (4.0 * b ** 3), 1.0 / (4.0 * b)])
 
-    return solve_continuous_lyapunov(A, -B @ B.T)
+
+def _transition(A: np.ndarray, T: float) -> np.ndarray:
+    """``expm(A T)`` of a forming filter, in closed form: ``exp(-a T)``; for the double pole ``-b``,
+    ``exp(-b T) [[1 + b T, T], [-b^2 T, 1 - b T]]``."""
+    if len(A) == 1:
+        return np.array([[math.exp(float(A[0, 0]) * T)]])
+    b = -float(A[1, 1]) / 2.0
+    return math.exp(-b * T) * np.array([[1.0 + b * T, T], [-b * b * T, 1.0 - b * T]])
 
 
 def low_altitude(intensity: str, altitude: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
@@ -252,17 +264,15 @@ class TurbulenceStream:
     def __init__(self, turb: Turbulence):
         self.turb = turb
         self._rngs = [np.random.default_rng(s) for s in np.random.SeedSequence(turb.seed).spawn(3)]
-        from scipy.linalg import cholesky, expm
-
         self._steps = []
         self._state = []
         for (A, B, C), rng in zip(turb.filters(), self._rngs):
             P = _stationary(A, B)
-            Ad = expm(A * turb.period)
-            Qd = P - Ad @ P @ Ad.T
+            Ad = _transition(A, turb.period)
+            Qd = P - Ad @ P @ Ad.T  # the process noise that keeps the sampled state stationary
             Qd = (Qd + Qd.T) / 2
-            self._steps.append((Ad, cholesky(Qd, lower=True), C.ravel()))
-            self._state.append(cholesky((P + P.T) / 2, lower=True) @ rng.standard_normal(len(A)))
+            self._steps.append((Ad, np.linalg.cholesky(Qd), C.ravel()))
+            self._state.append(np.linalg.cholesky(P) @ rng.standard_normal(len(A)))
         self._rotate = turb.to_ned()
         self._first = 0
         self._rows = np.zeros((0, 3))

@@ -412,3 +412,16 @@ def test_the_readme_gust_numbers():
         assert np.abs(err[:, 0]).max() == pytest.approx(drift, abs=0.005 if drift < 1 else 0.05)
         assert math.degrees(np.abs(err[:, 7]).max()) == pytest.approx(pitch, abs=0.005 if pitch < 1 else 0.05)
         assert trim.x[6] == pytest.approx(-0.2266, abs=5e-5)
+
+
+def test_the_forming_filters_closed_forms_are_expm_and_lyapunov():
+    from scipy.linalg import expm, solve_continuous_lyapunov
+
+    from quadctl.wind import _stationary, _transition
+
+    for axis, (A, B, C) in enumerate(TURB.filters()):
+        P = solve_continuous_lyapunov(A, -B @ B.T)
+        np.testing.assert_allclose(_stationary(A, B), P, rtol=1e-12, atol=1e-12 * np.abs(P).max())
+        np.testing.assert_allclose(_transition(A, TURB.period), expm(A * TURB.period), rtol=1e-12, atol=1e-15)
+        variance = float((C @ _stationary(A, B) @ C.T)[0, 0])
+        assert variance == pytest.approx(TURB.sigma[axis] ** 2, rel=1e-12)
