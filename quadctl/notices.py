@@ -80,7 +80,8 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
         A ``note`` listing the keys of a partly given ``vehicle:`` or ``motors:`` section that took
         the report's Mambo values, then a ``warning`` for each implausible quantity, naming the
         likely unit slip: the radius of gyration ``sqrt(J/m)`` against the arm length (or, with no
-        motors, against the mass), the thrust-to-weight ratio, and Jzz below Jxx or Jyy. An
+        motors, against the mass), the thrust-to-weight ratio, and Jzz below Jxx or Jyy; a ``note``
+        when a steady wind is simulated but the trim is in still air (``trim.wind: false``). An
         impossible inertia is refused on load instead (see ``quadctl.config._check_inertia``).
 
     Examples
@@ -98,6 +99,11 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
         found.append(Notice("warning", "vehicle.inertia", (
             f"{label}: vehicle.inertia = {show(list(cfg.vehicle.inertia))}: Jzz is below Jxx or Jyy, but a flat "
             f"quadcopter has Jzz about Jxx + Jyy = {jxx + jyy:.3g} kg m^2; is the order [Jxx, Jyy, Jzz]?")))
+    wind = cfg.simulation.wind
+    if wind is not None and any(wind.steady) and not cfg.trim.wind:
+        found.append(Notice("note", "trim.wind", (
+            f"{label}: simulation.wind.steady = {show(list(wind.steady))} m/s but trim.wind is false: the design is "
+            "trimmed in still air and the steady wind pushes the vehicle off it; set trim.wind: true to trim in it")))
     return found
 
 

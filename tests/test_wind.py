@@ -425,3 +425,14 @@ def test_the_forming_filters_closed_forms_are_expm_and_lyapunov():
         np.testing.assert_allclose(_transition(A, TURB.period), expm(A * TURB.period), rtol=1e-12, atol=1e-15)
         variance = float((C @ _stationary(A, B) @ C.T)[0, 0])
         assert variance == pytest.approx(TURB.sigma[axis] ** 2, rel=1e-12)
+
+
+def test_a_steady_wind_without_trim_wind_gets_a_note():
+    from quadctl import notices
+
+    data = _windy()
+    data["trim"]["wind"] = False
+    found = notices.notices(config.from_dict(data, "w.yaml"), "w.yaml")
+    assert [(n.level, n.key) for n in found] == [("note", "trim.wind")]
+    assert "trim.wind: true" in found[0].message and "\n" not in found[0].message
+    assert notices.notices(config.from_dict(_windy(), "w.yaml"), "w.yaml") == []
