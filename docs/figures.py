@@ -1,4 +1,4 @@
-"""Regenerate the figures of the README section "From the report's design to one that flies".
+"""Regenerate the figures of the README sections "From the report's design to one that flies" and "Wind".
 
 Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers)
 
