@@ -221,20 +221,28 @@ class Workspace:
             "K_block": des.K_block, "Q_block": des.Q_block, "R_block": des.R_block,
             "full_closed_loop_eigenvalues": _c(des.full_eigenvalues),
             "marginal_states": des.marginal_states, "stable": des.stable,
-            "rotor_lag": {"mode": self.setup.rotor_lag, "time_constant": self.setup.rotor_time_constant},
+            "rotor_lag": {"mode": self.setup.rotor_lag, "time_constant": self.setup.rotor_time_constant,
+                          "design_time_constant": des.lag_time_constant,
+                          "Kv_block": des.Kv_block if des.lag_time_constant is not None else None,
+                          "measured": ("the controller's own model of the lag, propagated from its commands"
+                                       if des.lag_time_constant is not None else None)},
             **_flight_design_payload(des)})
         return des
 
     @cached_property
-    def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
-        """(K_block, Ki_block, integral_states): from design.json when it is fresh, else a new design."""
+    def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray | None]:
+        """(K_block, Ki_block, integral_states, Kv_block or None): from design.json when it is fresh,
+        else a new design. ``Kv_block`` is None unless the design includes the rotors' lag."""
         if "design" not in self.__dict__ and self._reusable(DESIGN):
             data = self.payloads[DESIGN]
             ints = tuple(data.get("integral_states", ()))
             Ki = np.array(data.get("Ki_block", [[]] * N_INPUTS), dtype=float)
-            return (np.array(data["K_block"], dtype=float), Ki.reshape(N_INPUTS, len(ints)), ints)
+            Kv = (data.get("rotor_lag") or {}).get("Kv_block")
+            return (np.array(data["K_block"], dtype=float), Ki.reshape(N_INPUTS, len(ints)), ints,
+                    None if Kv is None else np.array(Kv, dtype=float))
         des = self.design
-        return des.K_block, des.Ki_block, des.integral_states
+        return (des.K_block, des.Ki_block, des.integral_states,
+                des.Kv_block if des.lag_time_constant is not None else None)
 
     @cached_property
     def margins(self) -> list:
@@ -274,8 +282,8 @@ class Workspace:
     def simulation(self) -> Flight:
         """The configured run with the design's gains; writes sim.npz and sim.json."""
         linear, setup = self.linear, self.setup
-        K, Ki, ints = self.gains
-        loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints)
+        K, Ki, ints, Kv = self.gains
+        loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints, Kv=Kv)
         sim = pipeline.simulation_of(setup, loop)
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
