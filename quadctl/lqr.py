@@ -220,7 +220,8 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
             column[rows] = Ki[:, j]
             ki_columns.append(column)
             integral_states.append(state)
-        subs.append(SubsystemDesign(name=sub.name, states=sub.states, inputs=sub.inputs, Q=Q, R=R,
+        subs.append(SubsystemDesign(name=sub.name, states=sub.states, inputs=sub.inputs,
+                                    Q=_lag_weight(Q, n, 0 if Kv is None else Kv.shape[1]), R=R,
                                     K=K, P=P, eigenvalues=eig_s, residual=residual, integral=ints,
                                     Ki=Ki if ints else None, eigenvalues_z=eig_z, Kv=Kv))
     Ki_block = np.array(ki_columns).T.reshape(N_INPUTS, len(ki_columns))
@@ -244,13 +245,10 @@ def _solve_subsystem(sub, Q, R, ints, Ts, tau=None):
     n = len(sub.states)
     A, B = lag.lagged(sub.A, sub.B, tau)
     nl = A.shape[0] - n  # lag states: one per input, or none
-    names = [*sub.states, *(f"lag of {i}" for i in sub.inputs[:nl]), *(f"integral of {s}" for s in ints)]
+    lags = (f"lag of {i}" for i in sub.inputs) if nl else ()  # (the full design's plant has no inputs named)
+    names = [*sub.states, *lags, *(f"integral of {s}" for s in ints)]
     C = np.hstack([integral.selector(sub.states, ints), np.zeros((len(ints), nl))])
-    if nl:
-        keep = [*range(n), *range(n + nl, n + nl + len(ints))]
-        Qp = np.zeros((n + nl + len(ints),) * 2)
-        Qp[np.ix_(keep, keep)] = Q
-        Q = Qp
+    Q = _lag_weight(Q, n, nl)
     label = f"subsystem {sub.name}"
     Aa, Ba = integral.augment(A, B, C)
     if Ts is None:
@@ -266,6 +264,16 @@ def _solve_subsystem(sub, Q, R, ints, Ts, tau=None):
         eig_s = discrete.s_equivalent(eig_z, Ts)
     Kv = res.K[:, n:n + nl] if nl else None
     return res.K[:, :n], Kv, res.K[:, n + nl:], res.P, eig_s, eig_z, res.residual
+
+
+def _lag_weight(Q, n: int, nl: int) -> np.ndarray:
+    """``Q`` of ``[x; z]`` as the weight of ``[x; v; z]``: zero rows and columns for the ``nl`` lag states."""
+    if not nl:
+        return Q
+    keep = [*range(n), *range(n + nl, Q.shape[0] + nl)]
+    out = np.zeros((Q.shape[0] + nl,) * 2)
+    out[np.ix_(keep, keep)] = Q
+    return out
 
 
 def closed_loop_matrix(A, B, K, Ki=None, integral_states=(), sample_time=None, *, Kv=None,

@@ -214,6 +214,9 @@ class SimResult:
     """(N+1, 4) N: each rotor's thrust, when the rotors lag (``motors.time_constant``); else empty
     (an instantaneous rotor's thrust is the clipped command ``mix u``)."""
     noise_seed: int | None = None
+    lag_model: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(N+1, 4) the controller's rotor lag model ``l`` (deviation of ``[T, A, E, R]`` from trim; N, N m)
+    when the design includes the lag (``controller.rotor_lag: include``); else empty."""
 
     @property
     def steps_per_second(self) -> float:
@@ -251,7 +254,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     lo, hi = loop.bounds(duration)
     x0_all = loop.initial_loop_state(x0)
     nz = len(loop.integral_states)
-    n_plant = loop.spec().n_plant
+    n_plant, n_lag = loop.spec().n_plant, loop.spec().n_lag
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
@@ -265,7 +268,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
                      status=status, message=message, wall_time=wall, backend=run.backend, plan=plan,
                      steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:n_plant + nz]),
                      rotor_thrust=np.ascontiguousarray(xs[:, N_STATES:n_plant]),
-                     noise_seed=noise.seed if noisy else None)
+                     noise_seed=noise.seed if noisy else None,
+                     lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]))
 
 
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
