@@ -253,6 +253,12 @@ def montecarlo_figure(bands, groups: dict, *, title: str = "", varied: tuple = (
     if not varied or tuple(varied) == ("simulation.noise.seed",):
         head = f"Monte Carlo over {n} noise seeds{left}: deviation from the reference"
     else:
-        head = f"{n} cases varying {', '.join(varied)}{left}:\ndeviation from the reference (one design)"
+        import textwrap
+
+        width = max(40, int(8 * fig.get_figwidth()))  # characters a title line holds (12 pt, ~8 an inch)
+        text = f"{title}: " if title else ""
+        fig.suptitle(textwrap.fill(f"{text}{n} cases of one design{left}, varying {', '.join(varied)}", width)
+                     + "; deviation from the reference")
+        return fig
     fig.suptitle(f"{title}: {head}" if title else head)
     return fig

@@ -8,15 +8,20 @@ eigenvalues, and what including the lag buys on the Mambo at 200 Hz with a 30 ms
 
 from __future__ import annotations
 
+import json
 import math
+import shlex
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import scipy.linalg
 from _solve import cfg_dict, solve
+from typer.testing import CliRunner
 
 from quadctl import config, discrete, integral, lag, margins, pipeline
+from quadctl.cli.app import app
 from quadctl.errors import ConfigError
 from quadctl.lqr import _solve_subsystem
 from quadctl.notices import notices
@@ -218,3 +223,37 @@ def test_a_time_constant_without_rotor_lag_says_which_the_design_took(given, not
     assert bool(found) == noted
     if noted:
         assert "the design ignores the lag (rotor_lag: ignore, the default)" in found[0].message
+
+
+def _lag_section() -> str:
+    text = (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
+    return text[text.index("**10. Designing with the rotors' lag"):text.index("### Flight config keys")]
+
+
+def test_the_readme_rotor_lag_table_is_what_the_commands_write(tmp_path, monkeypatch):
+    """README, 10: the table's numbers are those of margins.json (roll: design and coupled) and sim.json
+    of the ignore and include configs."""
+    root = Path(__file__).resolve().parent.parent
+    monkeypatch.chdir(root)
+    section = _lag_section()
+    found = {}
+    for name in ("mambo-rotor-lag", "mambo-rotor-lag-include"):
+        out = tmp_path / name
+        for command in ("margins", "simulate"):
+            res = CliRunner().invoke(app, [command, "-c", f"docs/configs/{name}.yaml", "-o", str(out)])
+            assert res.exit_code == 0, res.output
+        loops = json.loads((out / "margins.json").read_text())["loops"]
+        roll = {m["model"]: m for m in loops if m["loop"] == "roll"}
+        metrics = json.loads((out / "sim.json").read_text())["metrics"]
+        c = roll["coupled"]
+        found[name] = [
+            *(f"{roll[k]['phase_margin_deg']:.3g} deg at {roll[k]['gain_crossover_freq']:.3g} rad/s"
+              for k in ("design", "coupled")),
+            f"{c['delay_margin']['s'] * 1e3:.3g} ms ({c['delay_margin']['samples']:.3g} samples)",
+            f"±{c['disk_gain_margin_db'][1]:.3g} dB, {c['disk_phase_margin_deg']:.3g} deg",
+            *(f"{metrics['settling_time'][s]:.3g} s, {metrics['overshoot'][s]:.3g} %" for s in ("phi", "theta"))]
+    rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line][1:]
+    columns = list(zip(*[[cell.strip() for cell in row.strip("|").split("|")[1:]] for row in rows]))
+    assert [list(col) for col in columns] == [found["mambo-rotor-lag"], found["mambo-rotor-lag-include"]]
+    commands = [shlex.split(line[2:].split("  #")[0]) for line in section.splitlines() if line.startswith("$ quadctl")]
+    assert ["quadctl", "margins", "-c", "docs/configs/mambo-rotor-lag-include.yaml"] in commands
