@@ -498,6 +498,24 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
             yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
 
 
+def closed_loop(design, A, B, sample_time: float | None = None, delay_samples: int = 0,
+                rotor_time_constant: float | None = None) -> np.ndarray:
+    """The linear closed loop the vehicle has: the coupled model with the rotors' lag, the
+    controller's lag model (a design that includes the lag), the integrators and the delay, the
+    positions nothing feeds back left out.
+
+    Returns
+    -------
+    (n, n) ndarray
+        ``A - B K`` of :func:`design_loops`' coupled loop: continuous, or the ``z``-domain loop of
+        a controller sampled every ``sample_time`` s (with ``delay_samples`` of delay).
+    """
+    Af, Bf, Kf = _coupled(design, A, B, sample_time, rotor_time_constant)
+    if sample_time is not None:
+        Af, Bf, Kf = delayed(Af, Bf, Kf, delay_samples)
+    return Af - Bf @ Kf
+
+
 def _coupled(design, A, B, Ts, rotor_time_constant=None):
     """Augmented coupled plant (with the rotors' lag) and gain ``[K, 0, Ki]`` without the positions
     nothing feeds back; a design that includes the lag appends the controller's lag model ``l``

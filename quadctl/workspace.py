@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import __version__, artifacts, pipeline
+from quadctl import __version__, artifacts, pipeline, stability
 from quadctl.analysis import Checks
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
@@ -256,9 +256,21 @@ class Workspace:
             actuators=self.setup.actuators, u_trim=linear.u_trim,
             initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
             rotor_time_constant=self.setup.rotor_time_constant)
+        sample_time = des.sample_time or (1.0 / emulated if emulated else None)
+        A_cl = margins.closed_loop(des, linear.A, linear.B, sample_time, timing.delay_samples,
+                                   self.setup.rotor_time_constant)
+        eig = np.linalg.eigvals(A_cl)
+        slowest = np.abs(eig).max() if sample_time else eig.real.max()
         self._write_json(MARGINS, "margins", {
             "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
             "delay_samples": timing.delay_samples, "rotor_time_constant": self.setup.rotor_time_constant,
+            "rotor_lag": self.setup.rotor_lag,
+            "closed_loop": {
+                "what": "the coupled linear loop with the rotors' lag, the controller's lag model (include), the "
+                        "integrators and the delay; free positions left out",
+                "domain": "z" if sample_time else "s", "eigenvalues": _c(eig),
+                "stable": bool(np.all(stability.is_stable(eig, discrete=sample_time is not None))),
+                "spectral_radius" if sample_time else "slowest_real_part": float(slowest)},
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
             "loops": [m.as_dict() for m in result]})

@@ -257,3 +257,21 @@ def test_the_readme_rotor_lag_table_is_what_the_commands_write(tmp_path, monkeyp
     assert [list(col) for col in columns] == [found["mambo-rotor-lag"], found["mambo-rotor-lag-include"]]
     commands = [shlex.split(line[2:].split("  #")[0]) for line in section.splitlines() if line.startswith("$ quadctl")]
     assert ["quadctl", "margins", "-c", "docs/configs/mambo-rotor-lag-include.yaml"] in commands
+
+
+@pytest.mark.parametrize("rotor_lag, stable", [("ignore", False), ("include", True)])
+def test_two_samples_of_delay_with_the_lag_are_unstable_unless_the_design_includes_it(rotor_lag, stable, tmp_path):
+    """margins.json's closed loop (lag, lag model, delay) against the margins: with a 30 ms lag the ignore
+    design tolerates 1.73 samples of delay, the include design 5.59; two samples split them."""
+    import yaml
+
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(_mambo(rotor_lag, delay=2)))
+    res = CliRunner().invoke(app, ["margins", "-c", str(path), "-o", str(tmp_path / "out")])
+    assert res.exit_code == (0 if stable else 1), res.output
+    closed = json.loads((tmp_path / "out" / "margins.json").read_text())["closed_loop"]
+    radius = max(math.hypot(*e) for e in closed["eigenvalues"])
+    assert closed["stable"] is stable and closed["domain"] == "z"
+    assert (radius < 1) is stable and radius == pytest.approx(closed["spectral_radius"], rel=1e-12)
+    assert ("closed loop with a 30 ms rotor lag (" + rotor_lag + "d by the design) and 2 samples of delay: "
+            + ("stable" if stable else "UNSTABLE")) in " ".join(res.output.split())
