@@ -275,3 +275,14 @@ def test_two_samples_of_delay_with_the_lag_are_unstable_unless_the_design_includ
     assert (radius < 1) is stable and radius == pytest.approx(closed["spectral_radius"], rel=1e-12)
     assert ("closed loop with a 30 ms rotor lag (" + rotor_lag + "d by the design) and 2 samples of delay: "
             + ("stable" if stable else "UNSTABLE")) in " ".join(res.output.split())
+
+
+def test_python_control_interop_refuses_a_design_whose_controller_has_lag_states():
+    pytest.importorskip("control")
+    from quadctl import interop
+
+    setup, _, linear, _, des = solve(_mambo("include"))
+    with pytest.raises(ValueError, match=r"the design includes the rotors' lag \(controller.rotor_lag: include\)"):
+        interop.closed_loop(linear, des)
+    with pytest.raises(ValueError, match="lag-model states"):
+        interop.controller(pipeline.loop_of(setup, linear, des))
