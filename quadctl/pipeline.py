@@ -185,8 +185,12 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
         with each run's metrics and status.
     """
     from quadctl import full
+    from quadctl.errors import ConfigError
     from quadctl.metrics import summarize
 
+    if des.lag_time_constant is not None:
+        raise ConfigError("controller.rotor_lag = include: design --full (one coupled LQR) is built for designs "
+                          "without the rotors' lag only; run it with rotor_lag: ignore, or drop --full")
     fd = full.full_design(des, linear.A, linear.B)
     dx0 = setup.initial_offset
     Q = des.Q_block

@@ -286,3 +286,11 @@ def test_python_control_interop_refuses_a_design_whose_controller_has_lag_states
         interop.closed_loop(linear, des)
     with pytest.raises(ValueError, match="lag-model states"):
         interop.controller(pipeline.loop_of(setup, linear, des))
+
+
+def test_design_full_refuses_an_included_lag_with_the_key_and_the_way_out(tmp_path):
+    path = Path(__file__).resolve().parent.parent / "docs/configs/mambo-rotor-lag-include.yaml"
+    res = CliRunner().invoke(app, ["design", "--full", "-c", str(path), "-o", str(tmp_path)])
+    assert res.exit_code == 2
+    assert "controller.rotor_lag = include: design --full (one coupled LQR) is built for designs without the " \
+           "rotors' lag only" in " ".join(res.output.split())
