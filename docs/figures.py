@@ -144,6 +144,27 @@ def gust_runs() -> dict:
     return runs
 
 
+def uncertainty_figure() -> Figure:
+    """The rotor_lag include design flown on the 64 vehicles of examples/uncertainty-sweep.yaml (README, 10)."""
+    from quadctl import sweep
+    from quadctl.sweep.outputs import montecarlo_bands
+    from quadctl.sweep.runner import base_of
+
+    root = Path(__file__).resolve().parent.parent
+    cfg = config.parse((root / "docs/configs/mambo-rotor-lag-include.yaml").read_text(), "mambo-rotor-lag-include")
+    spec = sweep.load(root / "examples/uncertainty-sweep.yaml", cfg)
+    result = sweep.run(cfg, spec, jobs=1)
+    duration = base_of(cfg, spec)["simulation"]["duration"]  # with the sweep's set: values
+    bands = montecarlo_bands(result.traces, sweep.regulated_states(cfg), duration, [r["case"] for r in result.rows])
+    phi = bands.states.index("phi")
+    half = bands.t >= bands.t[-1] / 2
+    spread = np.degrees(bands.bands[-1, half, phi] - bands.bands[0, half, phi]).max()
+    print(f"uncertainty: {len(bands.cases)} cases, {sum(r['pass'] for r in result.rows)} pass; phi 5-95 % band "
+          f"(second half) at most {spread:.3g} deg wide")
+    groups = {name: list(cfg.partition()[name].states) for name in ("altitude", "roll")}  # the mass and Jxx errors
+    return plots.montecarlo_figure(bands, groups, title=cfg.name, varied=tuple(spec.names))
+
+
 def main() -> int:
     cases = {}
 
@@ -184,6 +205,7 @@ def main() -> int:
         pd = STATE_INDEX["pD"]
         print(f"{label}: final pD error {(runs[label].x[-1, pd] - runs[label].x_ref[-1, pd]) * 1000:.4g} mm")
     save(lqi_figure(runs), "lqi-mass-error.png")
+    save(uncertainty_figure(), "uncertainty-bands.png")
     save(gust_figure(gust_runs()), "crazyflie-gust.png")
     return 0
 

@@ -238,9 +238,10 @@ class ControllerConfig(_Section):
     design: Literal["discrete", "continuous"] = Field(
         "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
         "run at that rate (emulation)")
-    rotor_lag: Literal["ignore"] = Field(
+    rotor_lag: Literal["ignore", "include"] = Field(
         "ignore", description="ignore: the design model's rotors are instantaneous (motors.time_constant lags "
-        "the simulated plant only); include (the design model augmented with the rotor states) is not built yet")
+        "the simulated plant only); include: the design model's inputs lag by motors.time_constant, and the "
+        "controller feeds back its own model of the lag, propagated from its commands")
     delay: Optional[Union[NonNegative, DelaySamples]] = Field(
         None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
         "actuation; needs a rate; absent: none")
@@ -663,6 +664,9 @@ def _check_semantics(cfg: Config, label: str) -> None:
     _check_inertia(cfg, fail)
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
+    if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
+        fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
+             "or use rotor_lag: ignore")
 
 
 def _check_delay(cfg: Config, fail) -> None:

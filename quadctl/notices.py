@@ -92,6 +92,7 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
     ['vehicle.mass']
     """
     found = _defaults_taken(cfg, label)
+    found += _rotor_lag_taken(cfg, label)
     found += _gyration(cfg, label)
     found += _thrust_to_weight(cfg, label)
     jxx, jyy, jzz = cfg.vehicle.inertia
@@ -119,6 +120,16 @@ def _defaults_taken(cfg: Config, label: str) -> list[Notice]:
     values = ", ".join(f"{path} = {show(value)}" for path, value in taken)
     return [Notice("note", taken[0][0], f"{label}: {', '.join(p for p, _ in taken)} not given: using the report's "
                    f"Parrot Mambo values ({values}); give your vehicle's")]
+
+
+def _rotor_lag_taken(cfg: Config, label: str) -> list[Notice]:
+    """A rotor time constant with ``controller.rotor_lag`` not given: say which the design took."""
+    if cfg.motors is None or cfg.motors.time_constant is None or "rotor_lag" in cfg.controller.model_fields_set:
+        return []
+    return [Notice("note", "controller.rotor_lag", (
+        f"{label}: motors.time_constant = {cfg.motors.time_constant:g} s with controller.rotor_lag not given: the "
+        f"design ignores the lag (rotor_lag: ignore, the default) and only the simulated plant has it; set "
+        f"rotor_lag: include to design with it, or ignore to silence this"))]
 
 
 def _gyration(cfg: Config, label: str) -> list[Notice]:

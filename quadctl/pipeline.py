@@ -41,34 +41,45 @@ def checks_of(decoupled: Decoupled, linear: LinearModel) -> dict[str, Checks]:
 def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, *, rate: float | None | str = "setup") -> Design:
     """The decoupled LQR design at the setup's design rate (``rate`` overrides it; None: continuous)."""
     return design(decoupled, linear.A, linear.B, setup.weights,
-                  rate=setup.timing.design_rate if rate == "setup" else rate, integral=setup.integral)
+                  rate=setup.timing.design_rate if rate == "setup" else rate, integral=setup.integral,
+                  lag_time_constant=setup.design_lag_time_constant)
 
 
 def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.ndarray | None = None,
-                   integral_states=()) -> ClosedLoop:
-    """The loop to simulate: gains ``K`` (and an LQI design's ``Ki``, ``integral_states``) on the
-    setup's plant, timing and actuators.
+                   integral_states=(), Kv: np.ndarray | None = None) -> ClosedLoop:
+    """The loop to simulate: gains ``K`` (and an LQI design's ``Ki``, ``integral_states``; a design
+    with the rotors' lag's ``Kv``, fed by the controller's lag model) on the setup's plant, timing
+    and actuators.
 
     The eigenvalues (for the RK4 step) are those of the continuous closed loop including the
-    integrators; a sampled controller steps on the open-loop plant's instead.
+    integrators (and the lag states, with ``Kv``); a sampled controller steps on the open-loop
+    plant's instead.
     """
     integral_states = tuple(integral_states)
     if setup.integral and not integral_states:
         raise ValueError("the setup has integral action (lqr.<subsystem>.integral): pass Ki and "
                          "integral_states from the design, or call pipeline.loop_of(setup, linear, design)")
-    A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, integral_states)
-    eig, owners = eigen_owners(A_cl, setup.state_owner, (*STATE_NAMES, *integral_states))
+    tau = setup.design_lag_time_constant if Kv is not None else None
+    if Kv is not None and tau is None:
+        raise ValueError("Kv feeds back the controller's rotor lag model: the setup must include the lag "
+                         "(controller.rotor_lag: include with motors.time_constant)")
+    A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, integral_states, Kv=Kv, lag_time_constant=tau)
+    lag_names = tuple(f"lag of {i}" for i in INPUT_NAMES) if tau is not None else ()
+    owner = {**setup.state_owner, **{f"lag of {i}": setup.input_owner(i) for i in INPUT_NAMES}}
+    eig, owners = eigen_owners(A_cl, owner, (*STATE_NAMES, *lag_names, *integral_states))
     check_trim(setup.actuators, linear.u_trim)
     return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
                       x_rate=linear.x_rate, K=K, eigenvalues=eig, owners=owners, rate=setup.timing.rate,
                       Ki=Ki if integral_states else None, integral_states=integral_states,
                       actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A),
-                      delay_samples=setup.timing.delay_samples)
+                      delay_samples=setup.timing.delay_samples, Kv=Kv, lag_model_time_constant=tau)
 
 
 def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
-    """:func:`closed_loop_of` for a design: its state gain *and* its integrators (LQI)."""
-    return closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block, integral_states=des.integral_states)
+    """:func:`closed_loop_of` for a design: its state gain, its integrators (LQI) and its gain on
+    the rotors' lag (a design that includes it)."""
+    return closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block, integral_states=des.integral_states,
+                          Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True) -> SimResult:
@@ -209,8 +220,12 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
         with each run's metrics and status.
     """
     from quadctl import full
+    from quadctl.errors import ConfigError
     from quadctl.metrics import summarize
 
+    if des.lag_time_constant is not None:
+        raise ConfigError("controller.rotor_lag = include: design --full (one coupled LQR) is built for designs "
+                          "without the rotors' lag only; run it with rotor_lag: ignore, or drop --full")
     fd = full.full_design(des, linear.A, linear.B)
     dx0 = setup.initial_offset
     Q = des.Q_block

@@ -211,7 +211,7 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
 
 
 
-def montecarlo_figure(bands, groups: dict, *, title: str = "") -> Figure:
+def montecarlo_figure(bands, groups: dict, *, title: str = "", varied: tuple = ()) -> Figure:
     """A Monte Carlo's percentile bands against time: a row per subsystem, a column per state.
 
     Each state gets two panels. Above: the median deviation from the reference, the 25-75 % band
@@ -225,6 +225,9 @@ def montecarlo_figure(bands, groups: dict, *, title: str = "") -> Figure:
         ``t`` (P,) s; ``bands`` (5, P, S) at ``percentiles`` 5, 25, 50, 75, 95; ``states`` (S,).
     groups : dict
         Subsystem name -> its states (a row each, in order); states not in ``bands`` are skipped.
+    varied : tuple of str
+        The sweep's parameters (key paths), named in the title; none or only the noise seed: a
+        Monte Carlo over noise seeds.
     """
     level = {p: k for k, p in enumerate(bands.percentiles)}
     rows = [(name, [s for s in states if s in bands.states]) for name, states in groups.items()]
@@ -264,6 +267,15 @@ def montecarlo_figure(bands, groups: dict, *, title: str = "") -> Figure:
     fig.legend(handles[:3], labels[:3], loc="outside lower center", ncols=3, fontsize=8, frameon=False)
     n = len(bands.cases)
     left = f"; {len(bands.left_out)} left out (did not finish)" if len(bands.left_out) else ""
-    head = f"Monte Carlo over {n} noise seeds{left}: deviation from the reference"
+    if not varied or tuple(varied) == ("simulation.noise.seed",):
+        head = f"Monte Carlo over {n} noise seeds{left}: deviation from the reference"
+    else:
+        import textwrap
+
+        width = max(40, int(8 * fig.get_figwidth()))  # characters a title line holds (12 pt, ~8 an inch)
+        text = f"{title}: " if title else ""
+        fig.suptitle(textwrap.fill(f"{text}{n} cases of one design{left}, varying {', '.join(varied)}", width)
+                     + "; deviation from the reference")
+        return fig
     fig.suptitle(f"{title}: {head}" if title else head)
     return fig

@@ -109,7 +109,7 @@ class Setup:
     max_samples : int
     plant_overrides : dict
         The ``simulation.plant`` values given (empty: the plant is the design model).
-    rotor_lag : {"ignore"}
+    rotor_lag : {"ignore", "include"}
         What the design does with the rotors' lag (``controller.rotor_lag``).
     """
 
@@ -143,6 +143,19 @@ class Setup:
         """s of the rotors' lag in the simulated plant (``motors.time_constant``); None: instantaneous."""
         motors = self.actuators.motors if self.actuators is not None else None
         return motors.time_constant if motors is not None else None
+
+    @property
+    def design_lag_time_constant(self) -> float | None:
+        """s of the rotors' lag the design model includes (``controller.rotor_lag: include``); None:
+        the design's rotors are instantaneous."""
+        return self.rotor_time_constant if self.rotor_lag == "include" else None
+
+    def input_owner(self, name: str) -> str:
+        """The subsystem whose input ``name`` is (``unassigned``: none)."""
+        for sub_name, sub in self.partition.items():
+            if name in sub.inputs:
+                return sub_name
+        return "unassigned"
 
     def initial_state(self, x_trim) -> np.ndarray:
         """(12,) trim state plus the configured initial offset."""

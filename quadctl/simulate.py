@@ -85,6 +85,10 @@ class ClosedLoop:
     """Of the plant ``A``: what RK4 integrates between samples of a sampled controller."""
     delay_samples: int = 0
     """Controller samples from measurement to actuation (a sampled controller's command buffer)."""
+    Kv: np.ndarray | None = None
+    """(4, 4) gain on the controller's rotor lag model (``controller.rotor_lag: include``): ``u -= Kv l``."""
+    lag_model_time_constant: float | None = None
+    """s of the controller's rotor lag model (the design's; None: no model)."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -99,8 +103,9 @@ class ClosedLoop:
         if self.rate is not None:
             ol = self.open_loop_eigenvalues if self.open_loop_eigenvalues is not None else np.zeros(0)
             return plan_held_step(np.concatenate([ol, lag]), self.rate, duration, dt)
-        return plan_step(np.concatenate([self.eigenvalues, lag]), [*self.owners, *["rotors"] * len(lag)],
-                         duration, dt)
+        model = rotor_eigenvalues(self.lag_model_time_constant) if self.Kv is not None else np.zeros(0)
+        return plan_step(np.concatenate([self.eigenvalues, lag, model]),
+                         [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model)], duration, dt)
 
     def spec(self, noise: bool = False, wind: bool = False) -> LoopSpec:
         """The structure of this loop's generated code."""
@@ -109,7 +114,7 @@ class ClosedLoop:
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
-                                wind=wind)
+                                lag_model=self.Kv is not None, wind=wind)
 
     def constants(self, sample_time: float | None = None) -> np.ndarray:
         """The constant vector ``c`` of this loop (:func:`quadctl.sim.builder.pack_constants`)."""
@@ -125,15 +130,18 @@ class ClosedLoop:
         tau = self.rotor_time_constant
         if tau is not None:
             values.update(tau=[tau])
-        return pack_constants(nz, tau is not None, **values)
+        if self.Kv is not None:
+            values.update(Kv=self.Kv, tau_model=[self.lag_model_time_constant])
+        return pack_constants(nz, tau is not None, self.Kv is not None, **values)
 
     def initial_loop_state(self, x0) -> np.ndarray:
-        """The loop state ``[x0; f; z; b]`` a run starts from: the rotors (if they lag) at their trim
-        thrusts ``mix u_trim``, the integrators at zero, the delay's buffer at the trim input."""
+        """The loop state ``[x0; f; z; l; b]`` a run starts from: the rotors (if they lag) at their trim
+        thrusts ``mix u_trim``, the integrators and the lag model (deviation from trim) at zero, the
+        delay's buffer at the trim input."""
         parts = [np.asarray(x0, dtype=float)]
         if self.rotor_time_constant is not None:
             parts.append(self.actuators.commands(self.u_trim))
-        parts.append(np.zeros(len(self.integral_states)))
+        parts.append(np.zeros(len(self.integral_states) + (len(self.u_trim) if self.Kv is not None else 0)))
         parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
         return np.concatenate(parts)
 
@@ -207,6 +215,9 @@ class SimResult:
     """(N+1, 4) N: each rotor's thrust, when the rotors lag (``motors.time_constant``); else empty
     (an instantaneous rotor's thrust is the clipped command ``mix u``)."""
     noise_seed: int | None = None
+    lag_model: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(N+1, 4) the controller's rotor lag model ``l`` (deviation of ``[T, A, E, R]`` from trim; N, N m)
+    when the design includes the lag (``controller.rotor_lag: include``); else empty."""
     wind: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """(N+1, 3) m/s NED: the wind the plant felt over each recorded step (empty: still air)."""
     wind_seed: int | None = None
@@ -298,7 +309,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     lo, hi = loop.bounds(duration)
     x0_all = loop.initial_loop_state(x0)
     nz = len(loop.integral_states)
-    n_plant = len(x0_all) - nz - len(loop.u_trim) * loop.delay_samples
+    n_plant, n_lag = loop.spec().n_plant, loop.spec().n_lag
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
@@ -313,6 +324,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
                      steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:n_plant + nz]),
                      rotor_thrust=np.ascontiguousarray(xs[:, N_STATES:n_plant]),
                      noise_seed=noise.seed if noisy else None,
+                     lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
                      wind=wind_felt(wind, exo.period, ks, plan.dt) if windy else np.zeros((0, 3)),
                      wind_seed=wind.seed if windy else None)
 

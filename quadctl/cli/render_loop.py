@@ -186,3 +186,20 @@ def full_tables(fd, comparison: dict) -> list:
         comp.add_row(label, num(get(designs["decoupled"])), num(get(designs["full"])),
                      better["winner"] or "tie", by)
     return [table, f"full closed-loop eigenvalues (rad/s): {eigs}", comp]
+
+
+def closed_loop_line(payload: dict) -> str:
+    """One line on margins.json's ``closed_loop``: the loop the vehicle has (lag, lag model, delay)."""
+    cl = payload["closed_loop"]
+    parts = []
+    if payload.get("rotor_time_constant"):
+        lag = payload.get("rotor_lag", "ignore")
+        parts.append(f"a {payload['rotor_time_constant'] * 1e3:.4g} ms rotor lag ({lag}d by the design)")
+    if payload.get("delay_samples"):
+        parts.append(f"{payload['delay_samples']} samples of delay")
+    what = "closed loop" + (" with " + " and ".join(parts) if parts else "")
+    if cl["domain"] == "z":
+        size = f"spectral radius {cl['spectral_radius']:.6g}"
+    else:
+        size = f"slowest pole {cl['slowest_real_part']:.4g} rad/s"
+    return f"{what}: {'stable' if cl['stable'] else 'UNSTABLE'} ({len(cl['eigenvalues'])} eigenvalues, {size})"

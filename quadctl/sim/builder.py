@@ -5,10 +5,11 @@ compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
 ``driver.c``), and the interpreted fallback (:mod:`quadctl.sim.interpreted`, CasADi's virtual
 machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
 
-The loop state is ``X = [x; f; z]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
+The loop state is ``X = [x; f; z; l; b]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
 the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the controller states:
-the ``nz`` integrators of an LQI law, and the ``4 n`` entries of the command buffer of a loop
-with ``n`` samples of delay (:attr:`LoopSpec.delay`). The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant`
+the ``nz`` integrators of an LQI law, the four states ``l`` of the controller's rotor lag model
+(:attr:`LoopSpec.lag_model`), and the ``4 n`` entries of the command buffer of a loop with ``n``
+samples of delay (:attr:`LoopSpec.delay`). The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant`
 states. The control law is
 
     u = sat(u_trim - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,
@@ -30,6 +31,15 @@ Rotor dynamics (:attr:`LoopSpec.rotors`, saturation ``motors`` only): each rotor
 its command through a first-order lag, ``df/dt = (f_cmd - f) / tau`` with ``f_cmd = mix u`` the
 mixed, clipped command, and the body gets ``[T, A, E, R] = mix_inv f`` (the effectiveness matrix)
 instead of ``u``. Without it the rotors are instantaneous: the body gets ``u``.
+
+Rotor lag model (:attr:`LoopSpec.lag_model`, ``controller.rotor_lag: include``): a design that
+includes the rotors' lag feeds back the achieved virtual inputs ``v`` too, ``u -= Kv (v - u_trim)``.
+The controller does not measure them: it propagates its own model of the lag from its own
+(clipped) commands, ``l = v - u_trim`` with ``dl/dt = (u - u_trim - l) / tau_model`` (continuous
+feedback, integrated by RK4 with the plant), or its exact ZOH ``l <- a l + (1 - a)(u - u_trim)``,
+``a = exp(-Ts / tau_model)``, once per sample (held loops). It starts at 0 (the rotors at trim)
+and equals the plant's ``mix_inv f - u_trim`` while the model is right (the same ``tau``, no
+delay: a delay is the vehicle's, the model follows the commands the law computes).
 
 Delay (:attr:`LoopSpec.delay`, held loops only): ``n`` controller samples from measurement to
 actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands computed 1 to ``n``
@@ -97,27 +107,32 @@ N_ROTORS = 4
 """Rotor thrust states of a loop with rotor dynamics (one per rotor, N)."""
 
 
-def constant_layout(nz: int = 0, rotors: bool = False) -> tuple[tuple[str, tuple[int, ...]], ...]:
+def constant_layout(nz: int = 0, rotors: bool = False,
+                    lag_model: bool = False) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
     input ``j``'s saturation freezes integrator ``i``; ``tau`` (s) is the rotors' time constant
-    (loops with rotor dynamics). Matrices are stored column-major.
+    (loops with rotor dynamics); ``Kv`` (4, 4) the gain on the controller's rotor lag model and
+    ``tau_model`` (s) the model's time constant (loops with a lag model). Matrices are stored
+    column-major.
     """
     out = _BASE_LAYOUT
     if nz:
         out = out + (("Ki", (N_INPUTS, nz)), ("antiwindup", (nz, N_INPUTS)))
     if rotors:
         out = out + (("tau", (1,)),)
+    if lag_model:
+        out = out + (("Kv", (N_INPUTS, N_INPUTS)), ("tau_model", (1,)))
     return out
 
 
-def constant_size(nz: int = 0, rotors: bool = False) -> int:
-    """Length of ``c`` for ``nz`` integrators (and rotor dynamics)."""
-    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors))
+def constant_size(nz: int = 0, rotors: bool = False, lag_model: bool = False) -> int:
+    """Length of ``c`` for ``nz`` integrators (and rotor dynamics, and a lag model)."""
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model))
 
 
-def pack_constants(nz: int = 0, rotors: bool = False, **values) -> np.ndarray:
+def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, **values) -> np.ndarray:
     """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
 
     Raises
@@ -125,7 +140,7 @@ def pack_constants(nz: int = 0, rotors: bool = False, **values) -> np.ndarray:
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots, template = _slots(nz, rotors)
+    slots, template = _slots(nz, rotors, lag_model)
     out = template.copy()
     for name, value in values.items():
         if name not in slots:
@@ -139,10 +154,11 @@ def pack_constants(nz: int = 0, rotors: bool = False, **values) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _slots(nz: int, rotors: bool = False) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+def _slots(nz: int, rotors: bool = False,
+           lag_model: bool = False) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
-    for name, shape in constant_layout(nz, rotors):
+    for name, shape in constant_layout(nz, rotors, lag_model):
         size = int(np.prod(shape))
         slots[name] = (slice(offset, offset + size), shape)
         offset += size
@@ -170,12 +186,14 @@ class LoopSpec:
         Sampled controller with a zero-order hold (else continuous feedback).
     noise : bool
         The loop takes the exogenous channels of :data:`EXO_LAYOUT` every step.
-    wind : bool
-        The loop takes the wind (:data:`WIND_LAYOUT`) every step, after the noise's channels.
     rotors : bool
         Rotor dynamics: the four rotor thrusts are plant states (saturation ``motors`` only).
     delay : int
         Controller samples from measurement to actuation (held loops only): a command buffer.
+    lag_model : bool
+        The controller propagates a model of the rotors' lag and feeds it back (``Kv``).
+    wind : bool
+        The loop takes the wind (:data:`WIND_LAYOUT`) every step, after the noise's channels.
     """
 
     pattern: tuple[bool, ...]
@@ -185,6 +203,7 @@ class LoopSpec:
     noise: bool = False
     rotors: bool = False
     delay: int = 0
+    lag_model: bool = False
     wind: bool = False
 
     def __post_init__(self):
@@ -213,9 +232,14 @@ class LoopSpec:
         return self.delay * N_INPUTS
 
     @property
+    def n_lag(self) -> int:
+        """States of the controller's rotor lag model (one per input, or none)."""
+        return N_INPUTS if self.lag_model else 0
+
+    @property
     def nx(self) -> int:
-        """Loop states ``[x; f; z; b]``."""
-        return self.n_plant + self.nz + self.n_buffer
+        """Loop states ``[x; f; z; l; b]``."""
+        return self.n_plant + self.nz + self.n_lag + self.n_buffer
 
     @property
     def n_exo(self) -> int:
@@ -224,14 +248,15 @@ class LoopSpec:
 
     @property
     def n_constants(self) -> int:
-        return constant_size(self.nz, self.rotors)
+        return constant_size(self.nz, self.rotors, self.lag_model)
 
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
         bits = "".join("1" if b else "0" for b in self.pattern)
         return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
                 f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
-                + (f" delay={self.delay}" if self.delay else "") + (" wind=1" if self.wind else ""))
+                + (f" delay={self.delay}" if self.delay else "") + (" lag_model=1" if self.lag_model else "")
+                + (" wind=1" if self.wind else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -268,10 +293,10 @@ class LoopFunctions:
 def build(spec: LoopSpec) -> LoopFunctions:
     """Build the loop functions of ``spec`` (cached per spec)."""
     model = build_model()
-    nz, nx, npl = spec.nz, spec.nx, spec.n_plant
+    nz, nx, npl, nl = spec.nz, spec.nx, spec.n_plant, spec.n_lag
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
-    for name, shape in constant_layout(nz, spec.rotors):
+    for name, shape in constant_layout(nz, spec.rotors, spec.lag_model):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -305,6 +330,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
         x, z = X[:N_STATES], X[npl:npl + nz]
         err = x + sensor - (parts["x_ref"] + parts["x_rate"] * t)
         cmd = parts["u_trim"] - gain @ err
+        if nl:
+            cmd = cmd - parts["Kv"] @ X[npl + nz:npl + nz + nl]
         if nz == 0:
             return saturate(cmd), ca.SX(0, 1)
         cmd = cmd - parts["Ki"] @ z
@@ -336,10 +363,17 @@ def build(spec: LoopSpec) -> LoopFunctions:
         xdot = f(Y[:N_STATES], parts["mix_inv"] @ thrust, params, disturbance)
         return ca.vertcat(xdot, (parts["mix"] @ u - thrust) / parts["tau"])
 
+    def lag_rate(Y, u):
+        """dl/dt of the controller's lag model under its command ``u``."""
+        return (u - parts["u_trim"] - Y[npl + nz:npl + nz + nl]) / parts["tau_model"]
+
     u_now, z_rate = control(X, t)
     X_sampled = ca.vertcat(X[:npl], X[npl:npl + nz] + parts["Ts"] * z_rate) if nz else X[:npl]
+    if nl:  # the lag model's exact ZOH over one sample under the held command
+        a = ca.exp(-parts["Ts"] / parts["tau_model"])
+        X_sampled = ca.vertcat(X_sampled, a * X[npl + nz:npl + nz + nl] + (1 - a) * (u_now - parts["u_trim"]))
     if spec.delay:  # apply the oldest command, shift the newest in
-        buffer, nb = X[npl + nz:], spec.n_buffer
+        buffer, nb = X[npl + nz + nl:], spec.n_buffer
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
     law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
     if spec.held:
@@ -354,7 +388,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
     def closed_rhs(Y, ts):
         u, rate = control(Y, ts)
         xdot = body(Y, u)
-        return ca.vertcat(xdot, rate) if nz else xdot
+        xdot = ca.vertcat(xdot, rate) if nz else xdot
+        return ca.vertcat(xdot, lag_rate(Y, u)) if nl else xdot
 
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([rk4(closed_rhs, X), u_now]),
                        ["X", "t", "dt", "c", "e"], ["X_next", "u"])
