@@ -436,3 +436,12 @@ def test_a_steady_wind_without_trim_wind_gets_a_note():
     assert [(n.level, n.key) for n in found] == [("note", "trim.wind")]
     assert "trim.wind: true" in found[0].message and "\n" not in found[0].message
     assert notices.notices(config.from_dict(_windy(), "w.yaml"), "w.yaml") == []
+
+
+def test_wind_keys_are_plant_side_but_the_steady_wind_a_trim_is_made_in():
+    cfg = config.from_dict(_windy("mambo-200hz"), "wind.yaml")  # trim.wind: true
+    study = {"simulation.wind.turbulence.seed": [0, 1], "simulation.wind.gusts[0].start": [0.05, 0.1]}
+    assert sweep.from_dict({"parameters": study}, cfg, "s.yaml").monte_carlo
+    steady = {"simulation.wind.steady[0]": [1.0, 2.0]}
+    assert not sweep.from_dict({"parameters": steady}, cfg, "s.yaml").monte_carlo  # a design per wind
+    assert sweep.from_dict({"parameters": steady, "set": {"trim.wind": False}}, cfg, "s.yaml").monte_carlo

@@ -46,13 +46,14 @@ environment: a sweep of them is no uncertainty study (its trajectories would not
 _PATH_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*)*$")
 
 
-def plant_side(keys: tuple, rotor_lag: str = "ignore") -> bool:
+def plant_side(keys: tuple, rotor_lag: str = "ignore", trim_wind: bool = False) -> bool:
     """Whether a parameter changes only the simulated vehicle or its environment, never the design.
 
     Plant-side: every key under ``simulation.`` but :data:`RUN_KEYS` (``simulation.plant.*``, the
-    mass and inertia errors; ``simulation.noise.*``; the initial offset; ``simulation.wind.*``
-    once it exists), ``controller.delay`` (the design does not see it) and ``motors.time_constant``
-    while ``controller.rotor_lag`` is ``ignore`` (with ``include`` the design is made for it).
+    mass and inertia errors; ``simulation.noise.*``; the initial offset; ``simulation.wind.*``, but
+    the steady wind while ``trim.wind`` is true: the design is trimmed in it), ``controller.delay``
+    (the design does not see it) and ``motors.time_constant`` while ``controller.rotor_lag`` is
+    ``ignore`` (with ``include`` the design is made for it).
 
     Examples
     --------
@@ -60,8 +61,12 @@ def plant_side(keys: tuple, rotor_lag: str = "ignore") -> bool:
     (True, False)
     >>> plant_side(("motors", "time_constant")), plant_side(("motors", "time_constant"), "include")
     (True, False)
+    >>> plant_side(("simulation", "wind", "steady", 0)), plant_side(("simulation", "wind", "steady", 0), trim_wind=True)
+    (True, False)
     """
     keys = tuple(keys)
+    if keys[:3] == ("simulation", "wind", "steady") and trim_wind:
+        return False
     if keys[:1] == ("simulation",):
         return keys[:2] not in RUN_KEYS
     if keys[:2] == ("controller", "delay"):
@@ -291,12 +296,13 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
         raise fail("gates", "must be a mapping of metric -> {min, max}")
     gates = tuple(_check_gate(metric, spec, cfg, label) for metric, spec in (data.get("gates") or {}).items())
     rotor_lag = next((v for p, _, v in fixed if p == "controller.rotor_lag"), cfg.controller.rotor_lag)
+    trim_wind = next((v for p, _, v in fixed if p == "trim.wind"), cfg.trim.wind)
     spec = SweepSpec(label=label, mode=mode, samples=int(samples) if samples is not None else None,
                      seed=int(seed), parameters=tuple(parameters), fixed=tuple(fixed), gates=gates,
                      require_ok=require_ok, chunk_size=int(chunk) if chunk is not None else None,
                      canonical=json.loads(json.dumps({k: v for k, v in data.items() if k != "description"},
                                                      default=str)),
-                     uncertainty=all(plant_side(p.keys, rotor_lag) for p in parameters))
+                     uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind)) for p in parameters))
     if mode == "grid":
         count = spec.count()
         if count > MAX_CASES:
