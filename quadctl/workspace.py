@@ -162,6 +162,7 @@ class Workspace:
         self._write_json(TRIM, "trim", {
             "x": trim.x, "u": trim.u, "xdot": trim.xdot, "residual": trim.residual,
             "iterations": trim.iterations, "velocity_ned": self.setup.velocity_ned,
+            "wind_ned": self.setup.trim_wind,  # m/s: the steady wind trimmed in (trim.wind), else zero
             "state": dict(zip(STATE_NAMES, trim.x)), "input": dict(zip(INPUT_NAMES, trim.u)),
             "units": {**STATE_UNITS, **INPUT_UNITS}})
         return trim

@@ -359,6 +359,7 @@ def test_simulate_records_the_wind_and_reports_ground_and_air_speed(tmp_path):
     npz = np.load(tmp_path / "sim.npz")
     assert npz["wind"].shape == (len(npz["t"]), 3) and str(npz["wind_unit"]) == "m/s"
     assert list(npz["wind_names"]) == ["wind N", "wind E", "wind D"]
+    assert json.loads((tmp_path / "trim.json").read_text())["wind_ned"] == [0.0, 9.7, 0.0]
     wind = json.loads((tmp_path / "sim.json").read_text())["wind"]
     assert wind["steady"] == [0.0, 9.7, 0.0] and wind["trim_in_wind"] and wind["turbulence"]["seed"] == 1
     # hovering in a 9.7 m/s wind: the airspeed is about the wind, the ground speed small
