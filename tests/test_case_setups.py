@@ -50,6 +50,8 @@ MAMBO = {"lqr.roll.Q[1]": [50.0], "lqr.roll.R[0]": [4e4], "lqr.yaw.Q[0]": [25.0]
     ("forward", {"lqr.pitch.Q[1]": [50.0], "lqr.altitude.R[0]": [1.0]}, [(5.0, 0.3), (500.0, 3.0)]),
     # with integral action (the Q of an LQI subsystem has its integrators' entries)
     ("mambo-200hz", {"lqr.altitude.Q[2]": [1.0]}, [(0.5,), (2.0,)]),
+    # with wind (its own seed: the noise seed does not touch it)
+    ("crazyflie-wind", {"lqr.roll.Q[1]": [50.0]}, [(5.0,), (500.0,)]),
 ])
 def test_varied_setups_equal_the_resolved_ones(name, parameters, cases):
     task = task_of(name, parameters, cases)

@@ -31,6 +31,8 @@ class CaseDesign:
     stable: bool
     core: np.ndarray
     path: str
+    Kv: np.ndarray | None = None
+    """(4, 4) gain on the controller's rotor lag model (a design that includes the lag); else None."""
 
 
 @dataclass(frozen=True)
@@ -50,9 +52,40 @@ class LaneJob:
 
 
 def design_all(preps, stats) -> list:
-    """A :class:`CaseDesign` per case, or the one-line reason its design failed."""
+    """A :class:`CaseDesign` per case, or the one-line reason its design failed.
+
+    Cases whose design problems are identical (the same plant, weights, integrators and design
+    rate: an uncertainty study varies only the simulated vehicle) share one design. A design that
+    includes the rotors' lag is made by the one-case design (:func:`quadctl.lqr.design`).
+    """
+    unique: dict[tuple, int] = {}
+    first = [unique.setdefault(_problem_key(prep), k) for k, prep in enumerate(preps)]
+    owners = sorted(set(first))
+    designs = _design_unique([preps[k] for k in owners], stats)
+    by_owner = dict(zip(owners, designs))
+    return [by_owner[k] for k in first]
+
+
+def _problem_key(prep) -> tuple:
+    """What a case's design depends on: its plant (the design vehicle's linear model), weights,
+    integrators, design rate and the rotor lag the design includes."""
+    setup = prep.setup
+    weights = tuple((name, Q.tobytes(), R.tobytes()) for name, (Q, R) in sorted(setup.weights.items()))
+    return (id(prep.plant), weights, tuple(sorted(setup.integral.items())), setup.timing.design_sample_time,
+            setup.design_lag_time_constant)
+
+
+def _design_unique(preps, stats) -> list:
+    """:func:`design_all` of distinct problems."""
     groups: dict[tuple, list] = {}
+    out: list = [None] * len(preps)
     for k, prep in enumerate(preps):
+        if prep.setup.design_lag_time_constant is not None:
+            stats["designs"] += len(prep.plant.decoupled.regulated)
+            out[k] = _one_by_one(prep, "one-by-one: the design includes the rotors' lag")
+    for k, prep in enumerate(preps):
+        if out[k] is not None:
+            continue
         Ts = prep.setup.timing.design_sample_time
         for sub in prep.plant.decoupled.regulated:
             ints = prep.setup.integral.get(sub.name, ())
@@ -71,8 +104,7 @@ def design_all(preps, stats) -> list:
                 gains[(k, sub.name)] = K[row[slot[j]]]
             else:
                 missed.add(k)
-        stats["designs"] += len(group)  # the designs the rows get (a shared one counts for each)
-    out: list = [None] * len(preps)
+        stats["designs"] += len(group)  # the designs the distinct cases get (a shared one counts for each)
     for k, prep in enumerate(preps):
         if k in missed:
             stats["fallbacks"] += 1
@@ -120,16 +152,16 @@ def _solve(Ts, n, group, preps):
     return res.K, res.ok
 
 
-def _one_by_one(prep):
-    """The one-case design of a case the batched solve missed: its verdict, or why it failed."""
+def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed its residual or stability check"):
+    """The one-case design of a case the batched solve does not make: its verdict, or why it failed."""
     from quadctl import pipeline
 
     try:
         des = pipeline.design_of(prep.setup, prep.plant.decoupled, prep.plant.linear)
     except DesignError as exc:
         return str(exc)
-    return CaseDesign(des.K_block, des.Ki_block, des.integral_states, des.stable, des.core_eigenvalues,
-                      "one-by-one: the batched Riccati solve missed its residual or stability check")
+    return CaseDesign(des.K_block, des.Ki_block, des.integral_states, des.stable, des.core_eigenvalues, why,
+                      Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
 def _assemble(items, gains, out) -> None:
@@ -189,13 +221,12 @@ def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
 def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
     from quadctl.motors import check_trim
-    from quadctl.noise import NoiseStream
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
-    from quadctl.simulate import ClosedLoop, rotor_eigenvalues
+    from quadctl.simulate import ClosedLoop, ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
     realized: dict[tuple, tuple] = {}  # cases with the same noise and steps share its realization
-    continuous = [j for j, (prep, _) in enumerate(live) if prep.setup.timing.rate is None]
+    continuous = [j for j, (prep, des) in enumerate(live) if prep.setup.timing.rate is None and des.Kv is None]
     eig_of: dict[int, tuple] = {}
     by_plant: dict[tuple, list] = {}
     for j in continuous:
@@ -220,12 +251,18 @@ def loops_of(live) -> list:
             out[j] = exc
             continue
         eig, owners, limits = eig_of.get(j, (np.zeros(0, complex), [], None))  # held: the plan needs none
-        loop = ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
-                          x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
-                          rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
-                          integral_states=des.integral_states, actuators=setup.actuators,
-                          open_loop_eigenvalues=prep.plant.open_loop_eigenvalues(),
-                          delay_samples=setup.timing.delay_samples)
+        if des.Kv is not None:  # a design with the rotors' lag: the loop (and its lag model) as simulate builds it
+            from quadctl import pipeline
+
+            loop = pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
+                                           integral_states=des.integral_states, Kv=des.Kv)
+        else:
+            loop = ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
+                              x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
+                              rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
+                              integral_states=des.integral_states, actuators=setup.actuators,
+                              open_loop_eigenvalues=prep.plant.open_loop_eigenvalues(),
+                              delay_samples=setup.timing.delay_samples)
         tau = loop.rotor_time_constant
         try:
             if loop.rate is not None:  # the open-loop plant's (and rotors'): the same for every case of a plant
@@ -234,27 +271,35 @@ def loops_of(live) -> list:
                     ol = np.concatenate([loop.open_loop_eigenvalues, rotor_eigenvalues(tau)])
                     prep.plant.cache[key] = plan_held_step(ol, *key[1:4])
                 plan = prep.plant.cache[key]
-            elif tau is not None:
+            elif tau is not None or des.Kv is not None:
                 plan = loop.plan(setup.duration, setup.dt)
             else:
                 plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)
         except StepSizeError as exc:
             out[j] = str(exc)
             continue
-        shape, held = _structure(loop, setup.noise is not None, setup.duration)
+        noisy, windy = setup.noise is not None, setup.wind is not None
+        shape, held = _structure(loop, (noisy, windy, setup.duration))
         if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
-            prep.plant.cache[shape] = (replace(loop.spec(setup.noise is not None), pattern=_structural_gain(prep)),
+            prep.plant.cache[shape] = (replace(loop.spec(noisy, windy), pattern=_structural_gain(prep)),
                                        *loop.bounds(setup.duration), held)
         spec, lo, hi, _ = prep.plant.cache[shape]
         exo, first, period = None, 0, 1.0
-        if setup.noise is not None:
-            noise = setup.noise
-            key = (noise.seed, noise.process_std.tobytes(), noise.sensor_std.tobytes(), noise.period,
-                   plan.n_steps, plan.dt)
-            if key not in realized:
-                realized[key] = NoiseStream(noise).rows(0, plan.n_steps, plan.dt)
-            first, exo = realized[key]
-            period = noise.period
+        if setup.noise is not None or setup.wind is not None:  # the rows simulate's ExoStream gives, at once
+            key = None
+            if setup.wind is None:
+                noise = setup.noise
+                key = (noise.seed, noise.process_std.tobytes(), noise.sensor_std.tobytes(), noise.period,
+                       setup.timing.rate, plan.n_steps, plan.dt)
+            if key is None or key not in realized:
+                stream = ExoStream(setup.noise, setup.wind, setup.timing.rate)
+                rows = (*stream.rows(0, plan.n_steps, plan.dt), stream.period)
+                if key is None:
+                    first, exo, period = rows
+                else:
+                    realized[key] = rows
+            if key is not None:
+                first, exo, period = realized[key]
         out[j] = LaneJob(spec=spec, plan=plan, c=loop.constants(plan.sample_time),
                          x0=loop.initial_loop_state(setup.initial_state(linear.x_trim)), lo=lo, hi=hi,
                          stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
@@ -262,21 +307,22 @@ def loops_of(live) -> list:
     return out
 
 
-PER_CASE = ("K", "Ki", "eigenvalues", "owners")
-"""Fields of a :class:`~quadctl.simulate.ClosedLoop` that its lane spec and bounds do not read (the
-gain's sparsity is the partition's: :func:`_structural_gain`)."""
+PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners")
+"""Fields of a :class:`~quadctl.simulate.ClosedLoop` whose values its lane spec and bounds do not read
+(only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`)."""
 
 
-def _structure(loop, noise: bool, duration: float) -> tuple[tuple, list]:
-    """What a loop's lane spec and bounds depend on: every field of the loop but the gains and the
-    spectrum (a field added to ``ClosedLoop`` is part of the key without a change here); arrays
-    by value, other unhashable objects (the actuators) by identity, returned to be kept alive
-    with the cached entry (an identity is unique only while its object lives)."""
+def _structure(loop, extra: tuple) -> tuple[tuple, list]:
+    """What a loop's lane spec and bounds depend on: ``extra`` and every field of the loop but the
+    values of the gains and the spectrum (a field added to ``ClosedLoop`` is part of the key without
+    a change here); arrays by value, other unhashable objects (the actuators) by identity, returned
+    to be kept alive with the cached entry (an identity is unique only while its object lives)."""
     from dataclasses import fields
 
     parts, held = [], []
     for f in fields(loop):
         if f.name in PER_CASE:
+            parts.append(getattr(loop, f.name) is None)
             continue
         value = getattr(loop, f.name)
         if isinstance(value, np.ndarray):
@@ -288,7 +334,7 @@ def _structure(loop, noise: bool, duration: float) -> tuple[tuple, list]:
         except TypeError:
             parts.append(("id", id(value)))
             held.append(value)
-    return ("structure", noise, duration, *parts), held
+    return ("structure", *extra, *parts), held
 
 
 def _structural_gain(prep) -> tuple[bool, ...]:
@@ -316,7 +362,7 @@ def simulate_all(jobs):
         cases = Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
                          [j.plan.n_steps for j in js], [j.stride for j in js], np.stack([j.lo for j in js]),
                          np.stack([j.hi for j in js]), hold=[max(j.plan.hold, 1) for j in js],
-                         exo=[j.exo for j in js] if spec.noise else None,
+                         exo=[j.exo for j in js] if spec.n_exo else None,
                          exo_first=[j.exo_first for j in js], exo_period=[j.exo_period for j in js])
         for i, done, ks, xs, us in run.iter_run(cases):
             yield group[i], (done, ks, xs, us), run.backend
