@@ -60,10 +60,25 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
     eig, owners = eigen_owners(A_cl, setup.state_owner, (*STATE_NAMES, *integral_states))
     check_trim(setup.actuators, linear.u_trim)
     return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
-                      x_rate=linear.x_rate, K=K, eigenvalues=eig, owners=owners, rate=setup.timing.rate,
+                      estimator=estimator_of(setup, linear), x_rate=linear.x_rate, K=K, eigenvalues=eig,
+                      owners=owners, rate=setup.timing.rate,
                       Ki=Ki if integral_states else None, integral_states=integral_states,
                       actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A),
                       delay_samples=setup.timing.delay_samples)
+
+
+def estimator_of(setup: Setup, linear: LinearModel):
+    """The setup's steady-state Kalman filter (:func:`quadctl.estimator.kalman`) at the controller's
+    timing (discrete at the controller period when sampled, Kalman-Bucy when continuous); None
+    without ``estimator:``."""
+    est = setup.estimator
+    if est is None:
+        return None
+    from quadctl import estimator
+
+    G = estimator.noise_input(linear.x_trim, linear.u_trim, setup.vehicle)
+    return estimator.kalman(linear.A, linear.B, G, est.measured, est.sensor_std, est.process_std,
+                            sample_time=setup.timing.sample_time, period=est.period)
 
 
 def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:

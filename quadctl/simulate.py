@@ -84,6 +84,8 @@ class ClosedLoop:
     """Of the plant ``A``: what RK4 integrates between samples of a sampled controller."""
     delay_samples: int = 0
     """Controller samples from measurement to actuation (a sampled controller's command buffer)."""
+    estimator: object | None = None
+    """:class:`quadctl.estimator.Kalman` the law closes through (LQG); None: the measured state."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -98,8 +100,9 @@ class ClosedLoop:
         if self.rate is not None:
             ol = self.open_loop_eigenvalues if self.open_loop_eigenvalues is not None else np.zeros(0)
             return plan_held_step(np.concatenate([ol, lag]), self.rate, duration, dt)
-        return plan_step(np.concatenate([self.eigenvalues, lag]), [*self.owners, *["rotors"] * len(lag)],
-                         duration, dt)
+        est = self.estimator.eigenvalues if self.estimator is not None else np.zeros(0)
+        return plan_step(np.concatenate([self.eigenvalues, lag, est]),
+                         [*self.owners, *["rotors"] * len(lag), *["estimator"] * len(est)], duration, dt)
 
     def spec(self, noise: bool = False) -> LoopSpec:
         """The structure of this loop's generated code."""
@@ -107,7 +110,13 @@ class ClosedLoop:
         return LoopSpec.of_gain(self.K, saturation=act.mode if act is not None else "none",
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
-                                rotors=self.rotor_time_constant is not None, delay=self.delay_samples)
+                                rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
+                                measured=tuple(STATE_INDEX[s] for s in self.measured))
+
+    @property
+    def measured(self) -> tuple[str, ...]:
+        """States the Kalman filter measures; empty without one."""
+        return tuple(self.estimator.measured) if self.estimator is not None else ()
 
     def constants(self, sample_time: float | None = None) -> np.ndarray:
         """The constant vector ``c`` of this loop (:func:`quadctl.sim.builder.pack_constants`)."""
@@ -123,7 +132,13 @@ class ClosedLoop:
         tau = self.rotor_time_constant
         if tau is not None:
             values.update(tau=[tau])
-        return pack_constants(nz, tau is not None, **values)
+        kal = self.estimator
+        if kal is not None:
+            if kal.discrete != (self.rate is not None) or (
+                    kal.discrete and not math.isclose(kal.sample_time, 1.0 / self.rate, rel_tol=1e-12)):
+                raise ValueError("the Kalman filter's sample time must be the controller period (or both continuous)")
+            values.update(Ae=kal.A, Be=kal.B, Le=kal.gain)
+        return pack_constants(nz, tau is not None, len(self.measured), **values)
 
     def initial_loop_state(self, x0) -> np.ndarray:
         """The loop state ``[x0; f; z; b]`` a run starts from: the rotors (if they lag) at their trim
@@ -133,6 +148,7 @@ class ClosedLoop:
             parts.append(self.actuators.commands(self.u_trim))
         parts.append(np.zeros(len(self.integral_states)))
         parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
+        parts.append(np.zeros(N_STATES if self.estimator is not None else 0))
         return np.concatenate(parts)
 
     def bounds(self, duration: float) -> tuple[np.ndarray, np.ndarray]:
@@ -205,6 +221,9 @@ class SimResult:
     """(N+1, 4) N: each rotor's thrust, when the rotors lag (``motors.time_constant``); else empty
     (an instantaneous rotor's thrust is the clipped command ``mix u``)."""
     noise_seed: int | None = None
+    x_hat: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(N+1, 12) the Kalman filter's estimate of ``x`` (``x_ref`` plus its deviation estimate; a held
+    loop's a priori estimate for the coming sample) of an LQG loop; else empty."""
 
     @property
     def steps_per_second(self) -> float:
@@ -242,7 +261,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     lo, hi = loop.bounds(duration)
     x0_all = loop.initial_loop_state(x0)
     nz = len(loop.integral_states)
-    n_plant = len(x0_all) - nz - len(loop.u_trim) * loop.delay_samples
+    ne = N_STATES if loop.estimator is not None else 0
+    n_plant = len(x0_all) - nz - len(loop.u_trim) * loop.delay_samples - ne
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
@@ -256,7 +276,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
                      status=status, message=message, wall_time=wall, backend=run.backend, plan=plan,
                      steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:n_plant + nz]),
                      rotor_thrust=np.ascontiguousarray(xs[:, N_STATES:n_plant]),
-                     noise_seed=noise.seed if noisy else None)
+                     noise_seed=noise.seed if noisy else None,
+                     x_hat=x_ref + xs[:, xs.shape[1] - ne:] if ne else np.zeros((0, 0)))
 
 
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}

@@ -36,6 +36,16 @@ actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands compu
 samples ago; at a sample the law applies ``b_n`` and shifts, ``b_1 <- u_new``, ``b_k <- b_(k-1)``.
 Runs start with the buffer at the trim input. Exact: the delay is a whole number of samples.
 
+State estimation (:attr:`LoopSpec.measured`, LQG; :mod:`quadctl.estimator`): the last 12 loop
+states are the Kalman filter's estimate ``xh`` of the deviation ``x - x_ref(t)`` on the linear
+model about the trim (``Ae, Be``), from ``y = C (x_m - x_ref(t))`` (``C`` picks the measured
+states, baked in), under the applied input deviation ``u - u_trim``; the law uses the estimate in
+place of ``x_m - x_ref``. Held loops: ``xh`` is the a priori estimate, and ``law`` updates it with
+the filter gain ``Le = M``, acts on ``xc = xh + M (y - C xh)`` and predicts ``xh <- Ae xc + Be du``
+(``Ae, Be`` the zero-order-hold model at the controller period). Continuous loops: the
+Kalman-Bucy filter ``dxh/dt = Ae xh + Be du + Le (y - C xh)`` is integrated in the RK4 stages.
+Runs start with ``xh = 0`` (the filter believes the trim).
+
 Exogenous inputs (:data:`EXO_LAYOUT`, when :attr:`LoopSpec.noise`): per step, a body force and
 torque added to the plant and the sensor noise added to what the controller measures.
 
@@ -86,27 +96,31 @@ N_ROTORS = 4
 """Rotor thrust states of a loop with rotor dynamics (one per rotor, N)."""
 
 
-def constant_layout(nz: int = 0, rotors: bool = False) -> tuple[tuple[str, tuple[int, ...]], ...]:
+def constant_layout(nz: int = 0, rotors: bool = False, ny: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
     input ``j``'s saturation freezes integrator ``i``; ``tau`` (s) is the rotors' time constant
-    (loops with rotor dynamics). Matrices are stored column-major.
+    (loops with rotor dynamics); ``Ae`` (12, 12), ``Be`` (12, 4) and ``Le`` (12, ny) are the
+    Kalman filter's model and gain of a loop with ``ny`` measurements (LQG). Matrices are stored
+    column-major.
     """
     out = _BASE_LAYOUT
     if nz:
         out = out + (("Ki", (N_INPUTS, nz)), ("antiwindup", (nz, N_INPUTS)))
     if rotors:
         out = out + (("tau", (1,)),)
+    if ny:
+        out = out + (("Ae", (N_STATES, N_STATES)), ("Be", (N_STATES, N_INPUTS)), ("Le", (N_STATES, ny)))
     return out
 
 
-def constant_size(nz: int = 0, rotors: bool = False) -> int:
-    """Length of ``c`` for ``nz`` integrators (and rotor dynamics)."""
-    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors))
+def constant_size(nz: int = 0, rotors: bool = False, ny: int = 0) -> int:
+    """Length of ``c`` for ``nz`` integrators (and rotor dynamics, and ``ny`` measurements)."""
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, ny))
 
 
-def pack_constants(nz: int = 0, rotors: bool = False, **values) -> np.ndarray:
+def pack_constants(nz: int = 0, rotors: bool = False, ny: int = 0, **values) -> np.ndarray:
     """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
 
     Raises
@@ -114,7 +128,7 @@ def pack_constants(nz: int = 0, rotors: bool = False, **values) -> np.ndarray:
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots, template = _slots(nz, rotors)
+    slots, template = _slots(nz, rotors, ny)
     out = template.copy()
     for name, value in values.items():
         if name not in slots:
@@ -128,10 +142,10 @@ def pack_constants(nz: int = 0, rotors: bool = False, **values) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
-def _slots(nz: int, rotors: bool = False) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+def _slots(nz: int, rotors: bool = False, ny: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
-    for name, shape in constant_layout(nz, rotors):
+    for name, shape in constant_layout(nz, rotors, ny):
         size = int(np.prod(shape))
         slots[name] = (slice(offset, offset + size), shape)
         offset += size
@@ -163,6 +177,8 @@ class LoopSpec:
         Rotor dynamics: the four rotor thrusts are plant states (saturation ``motors`` only).
     delay : int
         Controller samples from measurement to actuation (held loops only): a command buffer.
+    measured : tuple of int
+        State indices a Kalman filter measures (LQG); empty: the law measures the full state.
     """
 
     pattern: tuple[bool, ...]
@@ -172,6 +188,7 @@ class LoopSpec:
     noise: bool = False
     rotors: bool = False
     delay: int = 0
+    measured: tuple[int, ...] = ()
 
     def __post_init__(self):
         if len(self.pattern) != N_INPUTS * N_STATES:
@@ -199,9 +216,19 @@ class LoopSpec:
         return self.delay * N_INPUTS
 
     @property
+    def ny(self) -> int:
+        """Measurements of the Kalman filter (0: full-state feedback)."""
+        return len(self.measured)
+
+    @property
+    def n_estimate(self) -> int:
+        """Estimator states (the 12 of the estimate, with a filter; else none)."""
+        return N_STATES if self.measured else 0
+
+    @property
     def nx(self) -> int:
-        """Loop states ``[x; f; z; b]``."""
-        return self.n_plant + self.nz + self.n_buffer
+        """Loop states ``[x; f; z; b; xh]``."""
+        return self.n_plant + self.nz + self.n_buffer + self.n_estimate
 
     @property
     def n_exo(self) -> int:
@@ -210,14 +237,15 @@ class LoopSpec:
 
     @property
     def n_constants(self) -> int:
-        return constant_size(self.nz, self.rotors)
+        return constant_size(self.nz, self.rotors, self.ny)
 
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
         bits = "".join("1" if b else "0" for b in self.pattern)
         return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
                 f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
-                + (f" delay={self.delay}" if self.delay else ""))
+                + (f" delay={self.delay}" if self.delay else "")
+                + (f" measured={','.join(map(str, self.measured))}" if self.measured else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -257,7 +285,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
     nz, nx, npl = spec.nz, spec.nx, spec.n_plant
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
-    for name, shape in constant_layout(nz, spec.rotors):
+    for name, shape in constant_layout(nz, spec.rotors, spec.ny):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -279,10 +307,26 @@ def build(spec: LoopSpec) -> LoopFunctions:
         act = ca.if_else(act > parts["hi"], parts["hi"], act)
         return parts["mix_inv"] @ act if spec.saturation == "motors" else act
 
+    ne = spec.n_estimate
+    measured = list(spec.measured)
+
+    def innovation(X, t):
+        """``y - C xh``: the measured deviation less its estimate."""
+        x, xh = X[:N_STATES], X[nx - ne:]
+        y = (x + sensor - (parts["x_ref"] + parts["x_rate"] * t))[measured]
+        return y - xh[measured]
+
+    def deviation(X, t):
+        """What the law acts on: the measured deviation, or the filter's (updated, held) estimate."""
+        if not ne:
+            return X[:N_STATES] + sensor - (parts["x_ref"] + parts["x_rate"] * t)
+        xh = X[nx - ne:]
+        return xh + parts["Le"] @ innovation(X, t) if spec.held else xh
+
     def control(X, t):
         """(u, dz/dt) at loop state ``X`` and time ``t``."""
-        x, z = X[:N_STATES], X[npl:npl + nz]
-        err = x + sensor - (parts["x_ref"] + parts["x_rate"] * t)
+        z = X[npl:npl + nz]
+        err = deviation(X, t)
         cmd = parts["u_trim"] - gain @ err
         if nz == 0:
             return saturate(cmd), ca.SX(0, 1)
@@ -318,8 +362,13 @@ def build(spec: LoopSpec) -> LoopFunctions:
     u_now, z_rate = control(X, t)
     X_sampled = ca.vertcat(X[:npl], X[npl:npl + nz] + parts["Ts"] * z_rate) if nz else X[:npl]
     if spec.delay:  # apply the oldest command, shift the newest in
-        buffer, nb = X[npl + nz:], spec.n_buffer
+        buffer, nb = X[npl + nz:npl + nz + spec.n_buffer], spec.n_buffer
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
+    if ne and spec.held:  # predict from the updated estimate under the applied input
+        xc = deviation(X, t)
+        X_sampled = ca.vertcat(X_sampled, parts["Ae"] @ xc + parts["Be"] @ (u_now - parts["u_trim"]))
+    elif ne:
+        X_sampled = ca.vertcat(X_sampled, X[nx - ne:])
     law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
     if spec.held:
         def plant_rhs(Y, ts):
@@ -333,7 +382,12 @@ def build(spec: LoopSpec) -> LoopFunctions:
     def closed_rhs(Y, ts):
         u, rate = control(Y, ts)
         xdot = body(Y, u)
-        return ca.vertcat(xdot, rate) if nz else xdot
+        out = ca.vertcat(xdot, rate) if nz else xdot
+        if ne:  # Kalman-Bucy
+            xh = Y[nx - ne:]
+            xh_dot = parts["Ae"] @ xh + parts["Be"] @ (u - parts["u_trim"]) + parts["Le"] @ innovation(Y, ts)
+            out = ca.vertcat(out, xh_dot)
+        return out
 
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([rk4(closed_rhs, X), u_now]),
                        ["X", "t", "dt", "c", "e"], ["X_next", "u"])
