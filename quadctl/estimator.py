@@ -144,7 +144,7 @@ def require_detectable(A, C, measured, key: str = "estimator.measure") -> None:
     groups = [g for g, ss in SENSOR_GROUPS.items() if set(states) & set(ss)]
     raise DesignError(
         f"{key} = {list(measured)}: {', '.join(states)} not observable (modes at s = {modes}, not stable): "
-        f"measure {' or '.join(states)}" + (f" (e.g. add {' or '.join(groups)})" if groups else ""))
+        f"measure {' and '.join(states)}" + (f" (e.g. add {' or '.join(groups)})" if groups else ""))
 
 
 def _unobserved_states(A, C, lam: complex) -> tuple[str, ...]:

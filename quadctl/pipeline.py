@@ -137,8 +137,10 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         per input), ``rms_error`` and ``rms_error_second_half`` (per state, state units),
         ``saturation`` (None without actuators; else per actuator the fraction of the run at a
         limit, ``saturates`` when one exceeds 1 %, peak commands, rotor speeds), ``noise``
-        (seed and period, or None), ``integral`` (states and final integrator values), ``plant``
-        (the simulated vehicle's parameters when they differ from the design model).
+        (seed and period, or None), ``estimation`` (LQG only: RMS of ``x - x_hat`` per state, whole
+        run and second half, and the steady filter's predicted standard deviation), ``integral``
+        (states and final integrator values), ``plant`` (the simulated vehicle's parameters when they
+        differ from the design model).
     """
     from quadctl import motors, noise
 
@@ -150,7 +152,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
                        for j, name in enumerate(INPUT_NAMES)},
         "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_ref),
         "rms_error_second_half": noise.rms_deviation(sim.t, sim.x, sim.x_ref, duration / 2),
-        "saturation": None, "noise": None,
+        "saturation": None, "noise": None, "estimation": None,
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
         "plant": setup.plant_overrides or None,
@@ -169,6 +171,14 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
             sat["peak_rotor_speed"] = {n: float(speeds[:, i].max()) for i, n in enumerate(act.names)}
             sat["trim_rotor_thrust"] = list(act.commands(loop.u_trim))
         out["saturation"] = sat
+    kal = loop.estimator
+    if kal is not None and sim.x_hat.size:
+        predicted = np.sqrt(np.maximum(np.diag(kal.P), 0.0))
+        out["estimation"] = {
+            "form": kal.form, "measured": list(kal.measured),
+            "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_hat),
+            "rms_error_second_half": noise.rms_deviation(sim.t, sim.x, sim.x_hat, duration / 2),
+            "predicted_std": dict(zip(STATE_NAMES, predicted))}
     spec = setup.noise
     if spec is not None:
         out["noise"] = {"seed": spec.seed, "period": spec.period, "process_std": spec.process_std,

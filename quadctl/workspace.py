@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from quadctl import __version__, artifacts, pipeline
-from quadctl.analysis import Checks
+from quadctl.analysis import Checks, check
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
 from quadctl.discrete import RateWarning, realizable_frequency
@@ -195,14 +195,22 @@ class Workspace:
     def checks(self) -> CheckReport:
         """Rank checks; for a continuous design run at ``controller.rate``, the rate warnings."""
         checks = pipeline.checks_of(self.decoupled, self.linear)
+        est = self.setup.estimator
+        if est is not None:  # the measured set on the coupled 12-state model (what the Kalman filter sees)
+            from quadctl.estimator import selector
+
+            checks[ESTIMATOR_CHECK] = check(self.linear.A, self.linear.B, selector(est.measured), STATE_NAMES)
         regulated = {s.name for s in self.decoupled.regulated}
         timing = self.setup.timing
         warnings: list[RateWarning] = []
         if timing.mode == "emulated" and all(checks[n].stabilizable for n in regulated):
             warnings = pipeline.rate_warnings_of(self.setup, self.decoupled, self.linear, timing.rate)
         self._write_json(CHECKS, "checks", {
-            "subsystems": {n: _checks_payload(c, n in regulated) for n, c in checks.items() if n != "full"},
+            "subsystems": {n: _checks_payload(c, n in regulated) for n, c in checks.items()
+                           if n not in ("full", ESTIMATOR_CHECK)},
             "full": _checks_payload(checks["full"], True),
+            ESTIMATOR_CHECK: None if est is None else {
+                "measured": est.measured, **_checks_payload(checks[ESTIMATOR_CHECK], False)},
             "rate": None if timing.rate is None else {
                 "rate": timing.rate, "design": "discrete" if timing.discrete else "continuous",
                 "realizable_frequency": realizable_frequency(timing.rate),
@@ -222,8 +230,33 @@ class Workspace:
             "full_closed_loop_eigenvalues": _c(des.full_eigenvalues),
             "marginal_states": des.marginal_states, "stable": des.stable,
             "rotor_lag": {"mode": self.setup.rotor_lag, "time_constant": self.setup.rotor_time_constant},
-            **_flight_design_payload(des)})
+            **_flight_design_payload(des), "estimator": self._estimator_payload()})
         return des
+
+    def _estimator_payload(self) -> dict | None:
+        """design.json's ``estimator``: the Kalman filter, its form stated (None without ``estimator:``)."""
+        kal = pipeline.estimator_of(self.setup, self.linear)
+        if kal is None:
+            return None
+        discrete = kal.discrete
+        return {
+            "form": kal.form,
+            "gain_form": ("filter (measurement-update) gain M of MATLAB dlqe: x_hat[k|k] = x_hat[k|k-1] + "
+                          "M (y[k] - C x_hat[k|k-1]); the law acts on x_hat[k|k]; predictor gain L = Ad M"
+                          if discrete else "Kalman-Bucy gain L of MATLAB lqe: dx_hat/dt = A x_hat + B du + "
+                          "L (y - C x_hat)"),
+            "coordinates": "deviation from the trim reference x_ref(t), on the linear model about the trim",
+            "measured": kal.measured, "sample_time": kal.sample_time,
+            "A": kal.A, "B": kal.B, "C": kal.C, "G": kal.G, "Qn": kal.Qn, "Rn": kal.Rn,
+            "noise_convention": ("covariance per sample (noise held over each controller period)" if discrete
+                                 else "intensity sigma^2 * noise period (held noise's low-frequency spectrum)"),
+            "gain": kal.gain, "predictor_gain": kal.predictor_gain,
+            "P": kal.P, "Z": kal.Z,
+            "covariance": ("P a priori, Z = P - M C P a posteriori" if discrete else "P = Z error covariance"),
+            "eigenvalues": _c(kal.eigenvalues),
+            "eigenvalues_of": "Ad - L C (z)" if discrete else "A - L C (s)",
+            "riccati_residual": kal.residual,
+        }
 
     @cached_property
     def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
@@ -287,7 +320,8 @@ class Workspace:
             "input_names": np.array(INPUT_NAMES), "z": sim.z,
             "integral_states": np.array(loop.integral_states, dtype=str),
             "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
-            "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str)},
+            "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str),
+            "x_hat": sim.x_hat},  # empty without an estimator: the Kalman filter's estimate of x (state units)
             meta)
         self._write_json(SIM_JSON, "simulation", {
             "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,
@@ -298,6 +332,10 @@ class Workspace:
             "fastest_subsystem": sim.plan.fastest_owner,
             "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **flight}, sim.backend)
         return Flight(sim=sim, loop=loop, metrics=summary, flight=flight)
+
+
+ESTIMATOR_CHECK = "estimator"
+"""checks' key of the measured set (``estimator.measure``) on the coupled model."""
 
 
 def _flight_design_payload(des: Design) -> dict:

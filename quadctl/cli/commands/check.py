@@ -19,7 +19,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
 
     Warns when a continuous design has closed-loop poles faster than the controller rate can
     realize (which loop, by how much, and whether the sampled loop is still stable).
-    Exits 1 when a regulated subsystem is not stabilizable, or when a loop sampled at the
+    With an ``estimator:``, the measured set on the coupled model too (row ``estimator``).
+    Exits 1 when a regulated subsystem is not stabilizable, the measured set leaves a mode that is
+    not stable unobservable, or when a loop sampled at the
     config's controller.rate (continuous design) or at --rate is unstable.
     """
     from quadctl.cli import render
@@ -51,6 +53,16 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
         mode = checks[name].unstabilizable_modes[0]
         render.err.print(f"quadctl: check failed: subsystem {name} is not stabilizable: mode "
                          f"{render.eig(mode.eigenvalue)} in {', '.join(mode.states)}")
+    if "estimator" in checks.checks and not checks["estimator"].detectable:
+        from quadctl.errors import DesignError
+        from quadctl.estimator import require_detectable, selector
+
+        measured = ws.setup.estimator.measured
+        try:
+            require_detectable(ws.linear.A, selector(measured), measured)
+        except DesignError as exc:
+            render.err.print(f"quadctl: check failed: {exc}", markup=False)
+            failed.append(str(exc))
     for hz, warnings in rated:
         verdict = unstable_when_sampled(warnings, hz)
         if verdict:

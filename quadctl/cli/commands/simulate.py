@@ -62,6 +62,9 @@ def _print_flight(render, flown, *, before: bool) -> None:
         render.out.print(table)
     if flight.get("noise"):
         render.out.print(render_loop.rms_table(flight))
+    table = render_loop.estimation_table(flight)
+    if table is not None:
+        render.out.print(table)
     line = render_loop.integral_line(flight)
     if line:
         render.out.print(line)
