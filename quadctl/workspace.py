@@ -280,12 +280,16 @@ class Workspace:
             des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
             actuators=self.setup.actuators, u_trim=linear.u_trim,
             initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
-            rotor_time_constant=self.setup.rotor_time_constant)
+            rotor_time_constant=self.setup.rotor_time_constant,
+            estimator=pipeline.estimator_of(self.setup, linear))
         self._write_json(MARGINS, "margins", {
             "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
             "delay_samples": timing.delay_samples, "rotor_time_constant": self.setup.rotor_time_constant,
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
+            "estimator": None if self.setup.estimator is None else {
+                "measured": self.setup.estimator.measured, "model": "lqg",
+                "broken": "at the plant input, Kalman filter in the loop fed the commanded input"},
             "loops": [m.as_dict() for m in result]})
         return result
 

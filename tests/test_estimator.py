@@ -346,3 +346,48 @@ def test_simulate_reports_the_estimation_error_and_records_x_hat(tmp_path):
     assert est["rms_error"]["pD"] == pytest.approx(float(np.sqrt((err[:, 2] ** 2).mean())), rel=1e-6)
     design = json.loads((out / "design.json").read_text()) if (out / "design.json").exists() else None
     assert design is None or design["estimator"]["form"] == "filter"
+
+
+# ---------------------------------------------------------------------------------------
+# Margins with the estimator in the loop
+
+
+@pytest.mark.parametrize("data", [DISCRETE, CONTINUOUS], ids=["discrete filter", "kalman-bucy"])
+def test_each_lqg_broken_loop_closes_to_the_regulator_and_the_estimator(data):
+    """Closing any input's LQG loop (v = c_j) gives back the LQG loop: its eigenvalues are the regulator's
+    (A - B K, without the positions nothing feeds back) and the estimator's, to 1e-9."""
+    from quadctl import margins
+
+    setup, linear, des, kal = _filter(data)
+    A, B = (kal.A, kal.B) if kal.discrete else (linear.A, linear.B)
+    free = [i for i, s in enumerate(estimator.STATE_NAMES)
+            if s in ("pN", "pE") and not np.any(des.K_block[:, i]) and not np.any(linear.A[:, i])]
+    keep = [i for i in range(12) if i not in free]
+    regulator = np.linalg.eigvals((A - B @ des.K_block)[np.ix_(keep, keep)])
+    expected = np.concatenate([regulator, kal.eigenvalues])
+    loops = list(margins.lqg_loops(des, linear.A, linear.B, kal))
+    assert sorted(inp for _, inp, _, _ in loops) == ["A", "E", "R", "T"]
+    for name, inp, model, loop in loops:
+        assert model == "lqg"
+        worst = _matched(loop.closed_loop_eigenvalues(), expected)
+        assert worst < SEPARATION_TOL, f"{name} {inp}: Max diff is {worst:.4E}"
+
+
+def test_margins_reports_the_lost_lqr_guarantee_next_to_the_full_state_loops(tmp_path):
+    path = tmp_path / "lqg.yaml"
+    path.write_text(json.dumps(CONTINUOUS))
+    out = tmp_path / "run"
+    result = CliRunner().invoke(app, ["margins", "-c", str(path), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    loops = json.loads((out / "margins.json").read_text())["loops"]
+    lqg = {m["input"]: m for m in loops if m["model"] == "lqg"}
+    full = {m["input"]: m for m in loops if m["model"] == "coupled"}
+    assert set(lqg) == {"T", "A", "E", "R"}
+    for inp, m in lqg.items():
+        assert m["stable"] and "does not hold with an estimator in the loop (Doyle 1978)" in m["notes"][0]
+        assert f"(full state {full[inp]['phase_margin_deg']:.3g})" in m["notes"][1]
+        # the estimator costs robustness: the disk margin of the full-state loop is not reached
+        assert m["disk_margin_alpha"] < full[inp]["disk_margin_alpha"]
+    # the continuous full-state loops of the hover design meet the guarantee; with the filter one does not
+    assert all(full[i]["meets_lqr_guarantee"] for i in full)
+    assert not all(m["meets_lqr_guarantee"] for m in lqg.values())
