@@ -1,6 +1,8 @@
-"""Regenerate the figures of the README section "From the report's design to one that flies".
+"""Regenerate the figures of the README sections "From the report's design to one that flies" and
+"State estimation (LQG)".
 
-Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers)
+Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers);
+python docs/figures.py lqg   writes only the LQG figure.
 
 Every number and curve comes from the library (the same calls the CLI makes); nothing is stored.
 """
@@ -106,7 +108,53 @@ def lqi_figure(runs: dict) -> Figure:
     return fig
 
 
+def lqg_figure(full, lqg) -> Figure:
+    """The same gains with full-state feedback and through the Kalman filter: attitude and altitude
+    errors, and the filter's estimation error on w (a state it does not measure)."""
+    fig = Figure(figsize=(9.0, 5.6), layout="constrained")
+    axes = fig.subplots(2, 2, sharex=True).ravel()
+    for ax, name, scale, unit in zip(axes[:3], ("pD", "phi", "theta"), (100.0, 180 / np.pi, 180 / np.pi),
+                                     ("cm", "deg", "deg")):
+        i = STATE_INDEX[name]
+        for label, sim, style in (("full-state LQR (measured x)", full, "-"),
+                                  ("LQG (Kalman filter on imu + mocap)", lqg, "--")):
+            ax.plot(sim.t, (sim.x[:, i] - sim.x_ref[:, i]) * scale, style, lw=1.0, label=label)
+        ax.set_ylabel(f"{name} error [{unit}]")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8, frameon=False)
+    w = STATE_INDEX["w"]
+    axes[3].plot(lqg.t, (lqg.x[:, w] - lqg.x_hat[:, w]) * 100, lw=0.8, color="C2")
+    axes[3].set_ylabel("w - w_hat [cm/s] (not measured)")
+    axes[3].grid(True, alpha=0.3)
+    for ax in axes[2:]:
+        ax.set_xlabel("time [s]")
+    fig.suptitle("mambo-200hz: the same gains, full state against LQG (same noise seed)")
+    return fig
+
+
+def make_lqg_figure() -> None:
+    """docs/configs/mambo-lqg.yaml against mambo-200hz (same gains, same noise)."""
+    from quadctl.noise import rms_deviation
+
+    full = solve(variant("mambo-200hz"))
+    lqg_data = config.load(str(Path(__file__).resolve().parent / "configs" / "mambo-lqg.yaml")).model_dump(
+        mode="json")
+    lqg = solve(lqg_data)
+    for label, (setup, _, _, _, loop, sim) in (("full state", full), ("LQG", lqg)):
+        half = sim.t[-1] / 2
+        rms = rms_deviation(sim.t, sim.x, sim.x_ref, half)
+        print(f"{label}: {sim.status}; RMS second half: pD {rms['pD'] * 100:.3g} cm, phi "
+              f"{np.degrees(rms['phi']):.3g} deg, theta {np.degrees(rms['theta']):.3g} deg")
+    sim = lqg[-1]
+    err = rms_deviation(sim.t, sim.x, sim.x_hat, sim.t[-1] / 2)
+    print("LQG estimation error RMS (second half): " + ", ".join(f"{k} {v:.3g}" for k, v in err.items()))
+    save(lqg_figure(full[-1], sim), "lqg-vs-lqr.png")
+
+
 def main() -> int:
+    if sys.argv[1:] == ["lqg"]:
+        make_lqg_figure()
+        return 0
     cases = {}
 
     def demand(label, data):
@@ -146,6 +194,7 @@ def main() -> int:
         pd = STATE_INDEX["pD"]
         print(f"{label}: final pD error {(runs[label].x[-1, pd] - runs[label].x_ref[-1, pd]) * 1000:.4g} mm")
     save(lqi_figure(runs), "lqi-mass-error.png")
+    make_lqg_figure()
     return 0
 
 
