@@ -391,3 +391,11 @@ def test_margins_reports_the_lost_lqr_guarantee_next_to_the_full_state_loops(tmp
     # the continuous full-state loops of the hover design meet the guarantee; with the filter one does not
     assert all(full[i]["meets_lqr_guarantee"] for i in full)
     assert not all(m["meets_lqr_guarantee"] for m in lqg.values())
+
+
+def test_the_c_export_refuses_a_loop_through_a_kalman_filter(tmp_path):
+    path = tmp_path / "lqg.yaml"
+    path.write_text(json.dumps(DISCRETE))
+    result = CliRunner().invoke(app, ["export", "-c", str(path), "--to", "c", "--out", str(tmp_path / "run")])
+    assert result.exit_code == 2
+    assert "estimator: the C controller acts on the measured full state" in result.output
