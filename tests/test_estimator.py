@@ -187,6 +187,7 @@ def test_the_lqg_loop_has_the_regulators_and_the_estimators_eigenvalues(data, tm
     out = tmp_path / "run"
     result = CliRunner().invoke(app, ["design", "-c", str(path), "--out", str(out)])
     assert result.exit_code == 0, result.output
+    assert "estimator (LQG) on pN pE pD phi theta psi p q r:" in " ".join(result.output.split())
     design = json.loads((out / "design.json").read_text())
     linear = np.load(out / "linear.npz")
     est = design["estimator"]
@@ -399,3 +400,33 @@ def test_the_c_export_refuses_a_loop_through_a_kalman_filter(tmp_path):
     result = CliRunner().invoke(app, ["export", "-c", str(path), "--to", "c", "--out", str(tmp_path / "run")])
     assert result.exit_code == 2
     assert "estimator: the C controller acts on the measured full state" in result.output
+
+
+def test_the_readme_lqg_table_is_what_margins_writes(tmp_path, monkeypatch):
+    """README, "State estimation (LQG)": the table's numbers are those of margins.json for
+    docs/configs/mambo-lqg.yaml (coupled full-state loops against the lqg ones)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    monkeypatch.chdir(root)
+    text = (root / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("### State estimation (LQG)"):text.index("## Take it to the vehicle")]
+    result = CliRunner().invoke(app, ["margins", "-c", "docs/configs/mambo-lqg.yaml", "-o", str(tmp_path / "m")])
+    assert result.exit_code == 0, result.output
+    loops = json.loads((tmp_path / "m" / "margins.json").read_text())["loops"]
+    by = {(m["loop"], m["model"]): m for m in loops}
+    rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line][1:]
+    found = {}
+    for row in rows:
+        label, full, lqg = (cell.strip() for cell in row.strip("|").split("|"))
+        found[label.split(":")[0]] = [full, lqg]
+
+    def cells(m, loop):
+        if loop == "altitude":
+            lo, hi = m["gain_margin_lower_db"], m["gain_margin_upper_db"]
+            return f"{m['phase_margin_deg']:.1f} deg, {lo:.1f} / {hi:+.1f} dB"
+        return f"{m['phase_margin_deg']:.1f} deg, {m['disk_margin_alpha']:.3g}"
+
+    expected = {loop: [cells(by[(loop, "coupled")], loop), cells(by[(loop, "lqg")], loop)]
+                for loop in ("altitude", "roll", "pitch", "yaw")}
+    assert found == expected
