@@ -221,22 +221,3 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
                   predictor_gain=L, P=P, Z=(Z + Z.T) / 2, eigenvalues=np.linalg.eigvals(Ad - L @ C),
                   sample_time=float(sample_time), residual=res.residual)
 
-
-def lqg_closed_loop(A, B, K, kal: Kalman) -> np.ndarray:
-    """(24, 24) linear closed loop in ``[x; x_hat]`` with ``u = -K x_hat`` (for the separation check).
-
-    Continuous: ``dx/dt = A x - B K x_hat``, ``dx_hat/dt = L C x + (A - B K - L C) x_hat``.
-    Discrete (``x_hat`` the a priori estimate, the law on ``x_hat + M (C x - C x_hat)``):
-    ``x+ = Ad x - Bd K xc``, ``x_hat+ = Ad xc - Bd K xc`` with ``xc = (I - M C) x_hat + M C x``.
-    ``A, B`` are the model's continuous matrices; the discrete form uses ``kal.A, kal.B``.
-    """
-    K = np.asarray(K, dtype=float)
-    if not kal.discrete:
-        A, B = np.asarray(A, float), np.asarray(B, float)
-        L, C = kal.gain, kal.C
-        return np.block([[A, -B @ K], [L @ C, A - B @ K - L @ C]])
-    Ad, Bd, M, C = kal.A, kal.B, kal.gain, kal.C
-    n = Ad.shape[0]
-    # xc = Mx x + Mh x_hat
-    Mx, Mh = M @ C, np.eye(n) - M @ C
-    return np.block([[Ad - Bd @ K @ Mx, -Bd @ K @ Mh], [(Ad - Bd @ K) @ Mx, (Ad - Bd @ K) @ Mh]])
