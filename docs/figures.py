@@ -1,5 +1,5 @@
-"""Regenerate the figures of the README sections "From the report's design to one that flies" and
-"State estimation (LQG)".
+"""Regenerate the figures of the README sections "From the report's design to one that flies",
+"Wind" and "State estimation (LQG)".
 
 Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers);
 python docs/figures.py lqg   writes only the LQG figure.
@@ -151,6 +151,65 @@ def make_lqg_figure() -> None:
     save(lqg_figure(full[-1], sim), "lqg-vs-lqr.png")
 
 
+def gust_figure(runs: dict) -> Figure:
+    """The Crazyflie trimmed in its 9.7 m/s east wind, hit by the 2 m/s north gust of crazyflie-wind."""
+    fig = Figure(figsize=(8.0, 6.0), layout="constrained")
+    ax = fig.subplots(3, 1, sharex=True)
+    for label, sim in runs.items():
+        ls = "-" if "turbulence" not in label else ":"
+        ax[0].plot(sim.t, sim.wind[:, 0], lw=1.2, ls=ls, label=f"wind N, {label}")
+        err = sim.x - sim.x_ref
+        ax[1].plot(sim.t, err[:, STATE_INDEX["pN"]], lw=1.2, ls=ls, label=f"pN, {label}")
+        ax[2].plot(sim.t, np.rad2deg(err[:, STATE_INDEX["theta"]]), lw=1.2, ls=ls, label=f"theta, {label}")
+    ax[0].set_ylabel("wind N [m/s]")
+    ax[1].set_ylabel("pN drift [m]")
+    ax[2].set_ylabel("pitch from trim [deg]")
+    ax[2].set_xlabel("time [s]")
+    for a in ax:
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=7, frameon=False, loc="upper left")
+    fig.suptitle("crazyflie-wind: 1-cosine gust (MIL-F-8785C), 2 m/s north rising over 0.5 s, in a 9.7 m/s east wind")
+    return fig
+
+
+def gust_runs() -> dict:
+    """crazyflie-wind with its gust alone, and with the moderate turbulence too; prints the peaks."""
+    runs = {}
+    for label, turbulence in (("gust", False), ("gust and turbulence", True)):
+        data = variant("crazyflie-wind")
+        if not turbulence:
+            data["simulation"]["wind"]["turbulence"] = None
+        setup, _, _, _, loop, sim = solve(data)
+        runs[label] = sim
+        err = sim.x - sim.x_ref
+        ground, air = pipeline.speeds(sim)
+        print(f"crazyflie-wind, {label}: status {sim.status}; peak |pN drift| {np.abs(err[:, 0]).max():.3g} m, "
+              f"peak |theta - trim| {np.rad2deg(np.abs(err[:, 7]).max()):.3g} deg, "
+              f"ground speed max {ground.max():.3g} m/s, airspeed max {air.max():.3g} m/s")
+    return runs
+
+
+def uncertainty_figure() -> Figure:
+    """The rotor_lag include design flown on the 64 vehicles of examples/uncertainty-sweep.yaml (README, 10)."""
+    from quadctl import sweep
+    from quadctl.sweep.outputs import montecarlo_bands
+    from quadctl.sweep.runner import base_of
+
+    root = Path(__file__).resolve().parent.parent
+    cfg = config.parse((root / "docs/configs/mambo-rotor-lag-include.yaml").read_text(), "mambo-rotor-lag-include")
+    spec = sweep.load(root / "examples/uncertainty-sweep.yaml", cfg)
+    result = sweep.run(cfg, spec, jobs=1)
+    duration = base_of(cfg, spec)["simulation"]["duration"]  # with the sweep's set: values
+    bands = montecarlo_bands(result.traces, sweep.regulated_states(cfg), duration, [r["case"] for r in result.rows])
+    phi = bands.states.index("phi")
+    half = bands.t >= bands.t[-1] / 2
+    spread = np.degrees(bands.bands[-1, half, phi] - bands.bands[0, half, phi]).max()
+    print(f"uncertainty: {len(bands.cases)} cases, {sum(r['pass'] for r in result.rows)} pass; phi 5-95 % band "
+          f"(second half) at most {spread:.3g} deg wide")
+    groups = {name: list(cfg.partition()[name].states) for name in ("altitude", "roll")}  # the mass and Jxx errors
+    return plots.montecarlo_figure(bands, groups, title=cfg.name, varied=tuple(spec.names))
+
+
 def main() -> int:
     if sys.argv[1:] == ["lqg"]:
         make_lqg_figure()
@@ -194,6 +253,8 @@ def main() -> int:
         pd = STATE_INDEX["pD"]
         print(f"{label}: final pD error {(runs[label].x[-1, pd] - runs[label].x_ref[-1, pd]) * 1000:.4g} mm")
     save(lqi_figure(runs), "lqi-mass-error.png")
+    save(uncertainty_figure(), "uncertainty-bands.png")
+    save(gust_figure(gust_runs()), "crazyflie-gust.png")
     make_lqg_figure()
     return 0
 

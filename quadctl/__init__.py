@@ -8,7 +8,8 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs; :mod:`~quadctl.notices`: what a
   valid config took by default or likely got in the wrong unit
 - :mod:`~quadctl.model`: the CasADi model, the only place the equations of motion live
-- :mod:`~quadctl.motors`, :mod:`~quadctl.noise`: rotors and mixing; seeded noise streams
+- :mod:`~quadctl.motors`, :mod:`~quadctl.noise`, :mod:`~quadctl.wind`: rotors and mixing; seeded noise
+  streams; steady wind, gusts and Dryden turbulence
 - :mod:`~quadctl.setup`: the config resolved once into the :class:`~quadctl.setup.Setup` every stage takes
 - :mod:`~quadctl.trim`, :mod:`~quadctl.linearize`, :mod:`~quadctl.decouple`: equilibrium,
   Jacobians (with the reference drift), the partition into subsystems and what it drops

@@ -83,6 +83,9 @@ class TrimConfig(_Section):
     velocity_ned: Vector3 = Field([0.0, 0.0, 0.0], description="m/s, earth frame (down positive)")
     position_ned: Vector3 = Field([0.0, 0.0, -1.0], description="m; altitude 1 m is pD = -1")
     yaw: Number = Field(0.0, description="rad, heading psi")
+    wind: bool = Field(False, description=(
+        "true: trim in the steady wind simulation.wind.steady (the vehicle holds velocity_ned over the "
+        "ground, tilted into the wind), and linearize there; false: trim in still air"))
 
 
 class SubsystemConfig(_Section):
@@ -129,6 +132,63 @@ class NoiseConfig(_Section):
         None, description="s between noise samples; default the controller period, or 5 ms if continuous")
 
 
+MAX_WIND = 50.0
+"""m/s per axis of a steady wind or a gust: past hurricane force (33 m/s) and twice the severe
+turbulence's 45 kt at 20 ft; larger is a unit slip (km/h, knots)."""
+MAX_GUSTS = 100
+"""Gusts of one run: a gust every 0.1 s of a 10 s run; more belongs in turbulence."""
+MAX_TURBULENCE_SIGMA = 20.0
+"""m/s: above the severe low-altitude intensity (4.5 m/s vertical, 9 m/s along the wind at 10 ft)."""
+TURBULENCE_LENGTH = (1.0, 1e4)
+"""m: turbulence scales from a metre (at the ground) to MIL-HDBK-1797's high-altitude 1750 ft and beyond;
+shorter makes the turbulence white at the step, longer a steady wind."""
+MAX_WIND_ALTITUDE = 304.8
+"""m: the top of the low-altitude Dryden model (1000 ft, MIL-HDBK-1797 §B.4.4.1)."""
+
+WindComponent = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=-MAX_WIND, le=MAX_WIND)]
+WindVector = Annotated[list[WindComponent], Field(min_length=3, max_length=3)]
+
+
+class GustConfig(_Section):
+    """A 1-cosine gust (MIL-F-8785C §3.7.3.4), in time: rises over ``length``, holds, falls back."""
+
+    start: NonNegative = Field(description="s, when the gust begins")
+    length: Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=3600)] = Field(
+        description="s to rise from 0 to the amplitude (and to fall back)")
+    amplitude: WindVector = Field(description="m/s, the gust's peak wind, NED")
+    hold: Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=86_400.0)] = Field(
+        0.0, description="s at the amplitude between rise and fall; past the run's end: the specification's gust, "
+        "which stays")
+
+
+class TurbulenceConfig(_Section):
+    """Dryden turbulence (MIL-HDBK-1797 low altitude): an intensity and altitude, or sigma and length_scale."""
+
+    intensity: Optional[Literal["light", "moderate", "severe"]] = Field(
+        None, description="wind at 20 ft of 15, 30 or 45 kt (sigma_w = 0.1 W20); or give sigma and length_scale")
+    altitude: Optional[Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_WIND_ALTITUDE)]] = Field(
+        None, description="m above ground for the intensity's scales (at least 10 ft); default the trim's altitude")
+    sigma: Optional[Annotated[list[Annotated[NonNegative, Field(le=MAX_TURBULENCE_SIGMA)]],
+                              Field(min_length=3, max_length=3)]] = Field(
+        None, description="m/s, standard deviations [along the mean wind, across it, down]")
+    length_scale: Optional[Annotated[list[Annotated[float, Field(
+        strict=True, allow_inf_nan=False, ge=TURBULENCE_LENGTH[0], le=TURBULENCE_LENGTH[1])]],
+        Field(min_length=3, max_length=3)]] = Field(
+        None, description="m, [L_u, L_v, L_w] of MIL-HDBK-1797's Dryden form")
+    airspeed: Optional[Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=100)]] = Field(
+        None, description="m/s turning the spatial spectra into time; default the trim's airspeed, at least 1 m/s")
+    seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description="random seed; same seed, same wind")
+
+
+class WindConfig(_Section):
+    """Wind: steady, gusts and turbulence, summed; acts through the rotor drag on the air-relative velocity."""
+
+    steady: WindVector = Field([0.0, 0.0, 0.0], description="m/s, the air's velocity over the ground, NED")
+    gusts: Annotated[list[GustConfig], Field(max_length=MAX_GUSTS)] = Field(
+        default_factory=list, description="1-cosine gusts (MIL-F-8785C)")
+    turbulence: Optional[TurbulenceConfig] = Field(None, description="Dryden turbulence; absent: none")
+
+
 class PlantConfig(_Section):
     """The simulated vehicle where it differs from the design model (model mismatch)."""
 
@@ -148,6 +208,7 @@ class SimulationConfig(_Section):
     initial_offset: dict[str, Number] = Field(
         default_factory=dict, description="state name -> offset from trim (state units)")
     noise: Optional[NoiseConfig] = Field(None, description="process and sensor noise; absent: none")
+    wind: Optional[WindConfig] = Field(None, description="steady wind, gusts and turbulence; absent: still air")
     plant: Optional[PlantConfig] = Field(
         None, description="simulated vehicle parameters that differ from vehicle: (model mismatch)")
     max_samples: Annotated[int, Field(strict=True, ge=2)] = Field(
@@ -177,9 +238,10 @@ class ControllerConfig(_Section):
     design: Literal["discrete", "continuous"] = Field(
         "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
         "run at that rate (emulation)")
-    rotor_lag: Literal["ignore"] = Field(
+    rotor_lag: Literal["ignore", "include"] = Field(
         "ignore", description="ignore: the design model's rotors are instantaneous (motors.time_constant lags "
-        "the simulated plant only); include (the design model augmented with the rotor states) is not built yet")
+        "the simulated plant only); include: the design model's inputs lag by motors.time_constant, and the "
+        "controller feeds back its own model of the lag, propagated from its commands")
     delay: Optional[Union[NonNegative, DelaySamples]] = Field(
         None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
         "actuation; needs a rate; absent: none")
@@ -629,6 +691,9 @@ def _check_semantics(cfg: Config, label: str) -> None:
     _check_inertia(cfg, fail)
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
+    if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
+        fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
+             "or use rotor_lag: ignore")
 
 
 def _check_delay(cfg: Config, fail) -> None:
@@ -733,6 +798,7 @@ def _check_controller_and_actuators(cfg: Config, fail) -> None:
             fail(f"simulation.noise.sensor.{state}", value, _unknown(state, STATE_NAMES, "state"))
     if cfg.estimator is not None:
         _check_estimator(cfg.estimator, noise, fail)
+    _check_wind(cfg, fail)
 
 
 def _check_estimator(est: EstimatorConfig, noise, fail) -> None:
@@ -755,6 +821,35 @@ def _check_estimator(est: EstimatorConfig, noise, fail) -> None:
     if not any(v > 0 for v in (*force, *torque)):
         fail("estimator.force", force, "the filter needs process noise: give estimator.force and estimator.torque "
              "(N, N m) or simulation.noise.force/torque; with none it would trust its model and ignore every sensor")
+
+
+def _check_wind(cfg: Config, fail) -> None:
+    """``simulation.wind`` and ``trim.wind``: the keys that only make sense together."""
+    wind = cfg.simulation.wind
+    if cfg.trim.wind and (wind is None or not any(wind.steady)):
+        fail("trim.wind", True, "needs a steady wind to trim in: set simulation.wind.steady, or trim.wind: false")
+    turb = wind.turbulence if wind is not None else None
+    if turb is None:
+        return
+    where = "simulation.wind.turbulence"
+    explicit = turb.sigma is not None or turb.length_scale is not None
+    if turb.intensity is not None and explicit:
+        fail(f"{where}.intensity", turb.intensity, "give either intensity (with altitude) or sigma and "
+             "length_scale, not both")
+    if turb.intensity is None and not explicit:
+        fail(where, turb.model_dump(exclude_none=True), "needs intensity: light|moderate|severe, or sigma and "
+             "length_scale")
+    if explicit and (turb.sigma is None or turb.length_scale is None):
+        missing = "sigma" if turb.sigma is None else "length_scale"
+        fail(f"{where}.{missing}", None, "sigma and length_scale go together: give both (or intensity)")
+    if explicit and turb.altitude is not None:
+        fail(f"{where}.altitude", turb.altitude, "sets the scales of an intensity only; remove it with sigma")
+    if turb.intensity is not None and turb.altitude is None and -cfg.trim.position_ned[2] <= 0:
+        fail(f"{where}.altitude", None, f"the trim's altitude {-cfg.trim.position_ned[2]:g} m is not above "
+             "ground: give the turbulence's altitude (m)")
+    if turb.intensity is not None and turb.altitude is None and -cfg.trim.position_ned[2] > MAX_WIND_ALTITUDE:
+        fail(f"{where}.altitude", None, f"the trim's altitude {-cfg.trim.position_ned[2]:g} m is above the "
+             f"low-altitude model's {MAX_WIND_ALTITUDE:g} m (1000 ft): give sigma and length_scale instead")
 
 
 MAX_TILT_OFFSET = math.radians(85.0)

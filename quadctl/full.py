@@ -116,7 +116,7 @@ def full_design(design, A, B) -> FullDesign:
     qidx = keep + list(range(N_STATES, N_STATES + nz))
     Q = Q_all[np.ix_(qidx, qidx)]
     plant = SimpleNamespace(A=A[np.ix_(keep, keep)], B=B[keep], states=states, name="full")
-    K_red, Ki, P, _, _, residual = _solve_subsystem(plant, Q, R, design.integral_states, design.sample_time)
+    K_red, _, Ki, P, _, _, residual = _solve_subsystem(plant, Q, R, design.integral_states, design.sample_time)
     K = np.zeros((N_INPUTS, N_STATES))
     K[:, keep] = K_red
     Ki = Ki.reshape(N_INPUTS, nz)

@@ -218,6 +218,10 @@ def from_statespace(sys) -> Plant:
 
 
 def _gains(design):
+    if getattr(design, "lag_time_constant", None) is not None or getattr(design, "Kv", None) is not None:
+        raise ValueError("the design includes the rotors' lag (controller.rotor_lag: include): its controller has "
+                         "lag-model states these python-control systems do not carry; export it with "
+                         "quadctl export (C, .mat or JSON: Kv and the law), or design with rotor_lag: ignore")
     K = np.asarray(getattr(design, "K_block", getattr(design, "K", None)), dtype=float)
     ints = tuple(design.integral_states)
     Ki = getattr(design, "Ki_block", getattr(design, "Ki", None))

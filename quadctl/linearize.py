@@ -36,7 +36,7 @@ class LinearModel:
         return iter((self.A, self.B))
 
 
-def linearize(x_trim, u_trim, vehicle: Vehicle) -> LinearModel:
+def linearize(x_trim, u_trim, vehicle: Vehicle, wind_ned=None) -> LinearModel:
     """Exact Jacobians ``A = df/dx``, ``B = df/du`` from CasADi's automatic differentiation.
 
     Parameters
@@ -44,6 +44,8 @@ def linearize(x_trim, u_trim, vehicle: Vehicle) -> LinearModel:
     x_trim : (12,) array_like
     u_trim : (4,) array_like
     vehicle : Vehicle
+    wind_ned : (3,) array_like, optional
+        m/s NED: the steady wind of a trim in wind (:func:`quadctl.trim.solve_trim`); None: still air.
 
     Returns
     -------
@@ -52,8 +54,13 @@ def linearize(x_trim, u_trim, vehicle: Vehicle) -> LinearModel:
     x_trim = np.asarray(x_trim, dtype=float)
     u_trim = np.asarray(u_trim, dtype=float)
     model = build_model()
-    a, b = model.jacobians(x_trim, u_trim, vehicle.vector())
-    xdot = np.asarray(model.f(x_trim, u_trim, vehicle.vector()), dtype=float).ravel()
+    if wind_ned is None or not np.any(wind_ned):
+        a, b = model.jacobians(x_trim, u_trim, vehicle.vector())
+        xdot = np.asarray(model.f(x_trim, u_trim, vehicle.vector()), dtype=float).ravel()
+    else:
+        wind = np.asarray(wind_ned, dtype=float)
+        a, b = model.jacobians_wind(x_trim, u_trim, vehicle.vector(), wind)
+        xdot = np.asarray(model.f_wind(x_trim, u_trim, vehicle.vector(), wind), dtype=float).ravel()
     x_rate = np.zeros_like(xdot)
     x_rate[POSITION] = xdot[POSITION]
     return LinearModel(A=np.asarray(a, dtype=float), B=np.asarray(b, dtype=float),

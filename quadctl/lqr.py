@@ -6,7 +6,10 @@ live in :mod:`quadctl.riccati`; :func:`lqr` is its one-case continuous entry poi
 
 With a controller rate, :func:`design` solves the discrete problem instead (MATLAB ``lqrd``, see
 :mod:`quadctl.discrete`); with ``integral`` states, each subsystem is augmented with their
-integrals first (MATLAB ``lqi``, see :mod:`quadctl.integral`).
+integrals first (MATLAB ``lqi``, see :mod:`quadctl.integral`). With a rotor time constant
+(``controller.rotor_lag: include``), each subsystem is first augmented with the lag of its inputs
+(:mod:`quadctl.lag`): the gain then also feeds back the achieved virtual inputs ``v``, ``u = -K x -
+Kv (v - u_trim) - Ki z``.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from quadctl import discrete, integral, stability
+from quadctl import discrete, integral, lag, stability
 from quadctl.analysis import RICCATI_RTOL as RICCATI_RTOL  # re-exported: the tolerance lqr certifies to
 from quadctl.decouple import Decoupled
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_NAMES
@@ -77,6 +80,8 @@ class SubsystemDesign:
     ``K`` is the state gain (m, n). With integral action, ``Ki`` (m, ni) is the gain on the
     integrators of ``integral`` and ``Q``, ``P`` are those of the augmented ``[x; z]``. For a
     discrete design, ``eigenvalues`` are the ``s``-equivalents ``ln(z) / Ts`` of ``eigenvalues_z``.
+    A design with the rotors' lag has ``Kv`` (m, m), the gain on the lag states ``v`` of the inputs
+    (:mod:`quadctl.lag`); ``Q``, ``P`` are then those of ``[x; v; z]`` (``Q`` zero on ``v``).
     """
 
     name: str
@@ -91,6 +96,7 @@ class SubsystemDesign:
     integral: tuple[str, ...] = ()
     Ki: np.ndarray | None = None
     eigenvalues_z: np.ndarray | None = None
+    Kv: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -120,6 +126,12 @@ class Design:
         The state each integrator integrates (``dz/dt = -(x_s - x_ref,s)``).
     full_eigenvalues_z : ndarray or None
         A discrete design's coupled eigenvalues ``z``; ``full_eigenvalues`` then holds ``ln(z) / Ts``.
+    Kv_block : (4, 4) ndarray
+        ``u -= Kv_block (v - u_trim)``: the gain on the rotors' lag states, the achieved virtual
+        inputs ``v`` (zero unless the design includes the lag).
+    lag_time_constant : float or None
+        s of the rotors' lag the design model includes (``controller.rotor_lag: include``); None:
+        instantaneous rotors. With it, ``full_eigenvalues`` are those of ``[x; v; z]``.
     """
 
     subsystems: tuple[SubsystemDesign, ...]
@@ -135,6 +147,8 @@ class Design:
     full_eigenvalues_z: np.ndarray | None = None
     core_eigenvalues: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
     """``full_eigenvalues`` without the marginal modes (:mod:`quadctl.stability`): what ``stable`` is about."""
+    Kv_block: np.ndarray = field(default_factory=lambda: np.zeros((N_INPUTS, N_INPUTS)))
+    lag_time_constant: float | None = None
 
     @property
     def sample_time(self) -> float | None:
@@ -149,7 +163,7 @@ class Design:
 
 
 def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = None,
-           integral: dict | None = None) -> Design:
+           integral: dict | None = None, lag_time_constant: float | None = None) -> Design:
     """LQR per regulated subsystem, assembled into a block gain and checked on ``(A, B)``.
 
     Parameters
@@ -166,6 +180,10 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
         integrated over a sample), checked on the ZOH discretization of ``(A, B)``.
     integral : dict, optional
         ``subsystem name -> states`` to integrate (LQI); see :mod:`quadctl.integral`.
+    lag_time_constant : float, optional
+        s. Given: every subsystem's inputs lag through ``1 / (tau s + 1)`` in the design model
+        (:func:`quadctl.lag.lagged`; ZOH of that for a discrete design), and the gain feeds back the
+        lag states too (``Kv``); the coupled check is on the lagged ``(A, B)``.
 
     Returns
     -------
@@ -179,6 +197,7 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
     Ts = None if rate is None else 1.0 / rate
     integral = integral or {}
     K_block = np.zeros((N_INPUTS, N_STATES))
+    Kv_block = np.zeros((N_INPUTS, N_INPUTS))
     Q_block = np.zeros((N_STATES, N_STATES))
     R_block = np.zeros((N_INPUTS, N_INPUTS))
     ki_columns: list[np.ndarray] = []
@@ -187,8 +206,10 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
     for sub in decoupled.regulated:
         Q, R = (np.atleast_2d(np.asarray(m, dtype=float)) for m in weights[sub.name])
         ints = tuple(integral.get(sub.name, ()))
-        K, Ki, P, eig_s, eig_z, residual = _solve_subsystem(sub, Q, R, ints, Ts)
+        K, Kv, Ki, P, eig_s, eig_z, residual = _solve_subsystem(sub, Q, R, ints, Ts, lag_time_constant)
         rows = [INPUT_INDEX[i] for i in sub.inputs]
+        if Kv is not None:
+            Kv_block[np.ix_(rows, rows)] = Kv
         cols = sub.state_index
         n = len(cols)
         K_block[np.ix_(rows, cols)] = K
@@ -199,49 +220,80 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
             column[rows] = Ki[:, j]
             ki_columns.append(column)
             integral_states.append(state)
-        subs.append(SubsystemDesign(name=sub.name, states=sub.states, inputs=sub.inputs, Q=Q, R=R,
+        subs.append(SubsystemDesign(name=sub.name, states=sub.states, inputs=sub.inputs,
+                                    Q=_lag_weight(Q, n, 0 if Kv is None else Kv.shape[1]), R=R,
                                     K=K, P=P, eigenvalues=eig_s, residual=residual, integral=ints,
-                                    Ki=Ki if ints else None, eigenvalues_z=eig_z))
+                                    Ki=Ki if ints else None, eigenvalues_z=eig_z, Kv=Kv))
     Ki_block = np.array(ki_columns).T.reshape(N_INPUTS, len(ki_columns))
-    A_cl = closed_loop_matrix(A, B, K_block, Ki_block, tuple(integral_states), Ts)
+    A_cl = closed_loop_matrix(A, B, K_block, Ki_block, tuple(integral_states), Ts,
+                              Kv=Kv_block if lag_time_constant is not None else None,
+                              lag_time_constant=lag_time_constant)
     verdict = stability.assess(A_cl, K_block, sample_time=Ts)
     return Design(subsystems=tuple(subs), K_block=K_block, Q_block=Q_block, R_block=R_block,
                   full_eigenvalues=verdict.eigenvalues, marginal_states=verdict.marginal, stable=verdict.stable,
                   rate=rate, Ki_block=Ki_block, integral_states=tuple(integral_states),
-                  full_eigenvalues_z=verdict.eigenvalues_z, core_eigenvalues=verdict.core)
+                  full_eigenvalues_z=verdict.eigenvalues_z, core_eigenvalues=verdict.core,
+                  Kv_block=Kv_block, lag_time_constant=lag_time_constant)
 
 
-def _solve_subsystem(sub, Q, R, ints, Ts):
-    """(K, Ki, P, eigenvalues s, eigenvalues z or None, residual) of one subsystem."""
+def _solve_subsystem(sub, Q, R, ints, Ts, tau=None):
+    """(K, Kv or None, Ki, P, eigenvalues s, eigenvalues z or None, residual) of one subsystem.
+
+    With a lag time constant ``tau`` the plant is :func:`quadctl.lag.lagged` (state ``[x; v]``)
+    and ``Q`` gets zero rows and columns for ``v`` (the lag is weighed through the states it moves).
+    """
     n = len(sub.states)
-    C = integral.selector(sub.states, ints)
-    names = [*sub.states, *(f"integral of {s}" for s in ints)]
+    A, B = lag.lagged(sub.A, sub.B, tau)
+    nl = A.shape[0] - n  # lag states: one per input, or none
+    lags = (f"lag of {i}" for i in sub.inputs) if nl else ()  # (the full design's plant has no inputs named)
+    names = [*sub.states, *lags, *(f"integral of {s}" for s in ints)]
+    C = np.hstack([integral.selector(sub.states, ints), np.zeros((len(ints), nl))])
+    Q = _lag_weight(Q, n, nl)
     label = f"subsystem {sub.name}"
-    Aa, Ba = integral.augment(sub.A, sub.B, C)
+    Aa, Ba = integral.augment(A, B, C)
     if Ts is None:
         res = lqr(Aa, Ba, Q, R, name=label, state_names=names)
         eig_s, eig_z = res.E, None
     else:
         require_stabilizable(Aa, Ba, label, names)
-        Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(sub.A, sub.B, Q[:n, :n], R, Ts)
+        Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(A, B, Q[:n + nl, :n + nl], R, Ts)
         Ada, Bda = integral.augment_discrete(Ad, Bd, C, Ts)
         Qda, Nda = integral.discrete_weights(Qd, Nd, Q, Ts)
         res = discrete.dlqr(Ada, Bda, Qda, Rd, Nda, name=label)
         eig_z = res.E
         eig_s = discrete.s_equivalent(eig_z, Ts)
-    return res.K[:, :n], res.K[:, n:], res.P, eig_s, eig_z, res.residual
+    Kv = res.K[:, n:n + nl] if nl else None
+    return res.K[:, :n], Kv, res.K[:, n + nl:], res.P, eig_s, eig_z, res.residual
 
 
-def closed_loop_matrix(A, B, K, Ki=None, integral_states=(), sample_time=None) -> np.ndarray:
+def _lag_weight(Q, n: int, nl: int) -> np.ndarray:
+    """``Q`` of ``[x; z]`` as the weight of ``[x; v; z]``: zero rows and columns for the ``nl`` lag states."""
+    if not nl:
+        return Q
+    keep = [*range(n), *range(n + nl, Q.shape[0] + nl)]
+    out = np.zeros((Q.shape[0] + nl,) * 2)
+    out[np.ix_(keep, keep)] = Q
+    return out
+
+
+def closed_loop_matrix(A, B, K, Ki=None, integral_states=(), sample_time=None, *, Kv=None,
+                       lag_time_constant: float | None = None) -> np.ndarray:
     """The coupled closed loop of ``[x; z]`` under ``u = -K x - Ki z`` (deviations from trim).
 
     Continuous: ``[[A - B K, -B Ki], [-C, 0]]``. With ``sample_time`` (a discrete controller on
     the ZOH plant): ``[[Ad - Bd K, -Bd Ki], [-Ts C, I]]``. ``C`` selects ``integral_states``.
+    With ``lag_time_constant`` the plant's inputs lag (:func:`quadctl.lag.lagged`): the state is
+    ``[x; v; z]`` and the gain ``[K, Kv]`` on ``[x; v]`` (``Kv`` (4, 4), zero when None).
     """
+    if lag_time_constant is not None:
+        A, B = lag.lagged(A, B, lag_time_constant)
+        m = B.shape[1]
+        K = np.hstack([np.atleast_2d(np.asarray(K, dtype=float)),
+                       np.zeros((m, m)) if Kv is None else np.asarray(Kv, dtype=float)])
     A, B, K = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, K))
     nz = len(integral_states)
     Ki = np.zeros((B.shape[1], 0)) if Ki is None else np.asarray(Ki, dtype=float).reshape(B.shape[1], nz)
-    C = integral.selector(STATE_NAMES, integral_states)
+    C = np.hstack([integral.selector(STATE_NAMES, integral_states), np.zeros((nz, A.shape[0] - N_STATES))])
     if sample_time is None:
         top = np.hstack([A - B @ K, -B @ Ki])
         bottom = np.hstack([-C, np.zeros((nz, nz))])

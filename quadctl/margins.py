@@ -13,7 +13,12 @@ driven by ``b_n``), which is ``z^-n`` on every input: exact, no Pade approximati
 margin is then the delay the loop tolerates beyond the configured one. Rotors that lag
 (``motors.time_constant``) are in the loops too: every input reaches the plant through
 ``1 / (tau s + 1)`` (:func:`lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
-before the hold is applied; the design (``controller.rotor_lag: ignore``) does not know of it.
+before the hold is applied. A design that ignores the lag (``controller.rotor_lag: ignore``) does
+not know of it. One that includes it (``include``) feeds back the lag states ``v`` through ``Kv``:
+on the design model (``model = "design"``) they are the augmented plant's states, the loop the
+LQR guarantee is about; on the coupled model the controller's own lag model supplies them, a
+controller state driven by the controller's command, so a loop broken at the plant input (an
+error between the command and the rotors, which the model does not see) is the loop the vehicle has.
 
 Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
 
@@ -60,6 +65,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl._lazy import lazy_import
+from quadctl.lag import lagged as lagged  # re-exported: the lag every loop carries
 from quadctl.layout import INPUT_INDEX, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -389,22 +395,6 @@ def _delay_margin(loop, w, Lw) -> float | None:
     return best
 
 
-def lagged(A, B, time_constant: float | None):
-    """``(A, B)`` of a continuous plant whose inputs pass through ``1 / (tau s + 1)`` each.
-
-    The state gains one lag state per input, ``[x; u_a]``: ``dx/dt = A x + B u_a``,
-    ``du_a/dt = (u - u_a) / tau``. ``None`` returns the plant unchanged.
-    """
-    A, B = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (A, B))
-    if time_constant is None:
-        return A, B
-    n, m = B.shape
-    Al = np.zeros((n + m, n + m))
-    Al[:n, :n], Al[:n, n:] = A, B
-    Al[n:, n:] = -np.eye(m) / time_constant
-    return Al, np.vstack([np.zeros((n, m)), np.eye(m) / time_constant])
-
-
 def delayed(A, B, K, samples: int):
     """``(A, B, K)`` of a discrete plant with ``samples`` of delay on every input, exactly.
 
@@ -499,7 +489,7 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
         As, Bs = lagged(dsub.A, dsub.B, rotor_time_constant)
         extra = As.shape[0] - dsub.A.shape[0]
         C = np.hstack([integral.selector(sub.states, sub.integral), np.zeros((len(sub.integral), extra))])
-        Ks = np.hstack([sub.K, np.zeros((sub.K.shape[0], extra))])
+        Ks = np.hstack([sub.K, sub.Kv if sub.Kv is not None and extra else np.zeros((sub.K.shape[0], extra))])
         Ka = np.hstack([Ks, sub.Ki]) if sub.Ki is not None else Ks
         if Ts is None:
             Aa, Ba = integral.augment(As, Bs, C)
@@ -572,9 +562,28 @@ def lqg_loops(design, A, B, kal):
                                                    sample_time=Ts)
 
 
+def closed_loop(design, A, B, sample_time: float | None = None, delay_samples: int = 0,
+                rotor_time_constant: float | None = None) -> np.ndarray:
+    """The linear closed loop the vehicle has: the coupled model with the rotors' lag, the
+    controller's lag model (a design that includes the lag), the integrators and the delay, the
+    positions nothing feeds back left out.
+
+    Returns
+    -------
+    (n, n) ndarray
+        ``A - B K`` of :func:`design_loops`' coupled loop: continuous, or the ``z``-domain loop of
+        a controller sampled every ``sample_time`` s (with ``delay_samples`` of delay).
+    """
+    Af, Bf, Kf = _coupled(design, A, B, sample_time, rotor_time_constant)
+    if sample_time is not None:
+        Af, Bf, Kf = delayed(Af, Bf, Kf, delay_samples)
+    return Af - Bf @ Kf
+
+
 def _coupled(design, A, B, Ts, rotor_time_constant=None):
     """Augmented coupled plant (with the rotors' lag) and gain ``[K, 0, Ki]`` without the positions
-    nothing feeds back."""
+    nothing feeds back; a design that includes the lag appends the controller's lag model ``l``
+    (:func:`with_lag_model`)."""
     from quadctl import discrete, integral
 
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
@@ -593,7 +602,51 @@ def _coupled(design, A, B, Ts, rotor_time_constant=None):
             if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]])
             and s not in design.integral_states]
     keep = [i for i in range(N_STATES + extra + nz) if i not in free]
-    return Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep]
+    Aa, Ba, Ka = Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep]
+    if design.lag_time_constant is not None:
+        Aa, Ba, Ka = with_lag_model(Aa, Ba, Ka, design.Kv_block, design.lag_time_constant, Ts)
+    return Aa, Ba, Ka
+
+
+def with_lag_model(A, B, K, Kv, time_constant: float, sample_time: float | None = None):
+    """``(A, B, K)`` of a state-feedback loop whose controller also propagates a model ``l`` of the
+    inputs' lag from its own command and feeds it back: ``u_c = -K X - Kv l``.
+
+    ``dl/dt = (u_c - l) / tau`` (continuous), or ``l <- a l + (1 - a) u_c``, ``a = exp(-Ts / tau)``
+    (its exact ZOH, sampled). ``l`` is a controller state: its rows are in ``A`` (the command it
+    follows is the controller's, before the loop's break point) and ``B`` has none, so a loop
+    broken at an input sees the model as part of the controller (:mod:`quadctl.sim.builder` runs
+    the same model).
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    B : (n, m) array_like
+    K : (m, n) array_like
+    Kv : (m, m) array_like
+    time_constant : float
+        s of the model.
+    sample_time : float, optional
+        s of a sampled loop (``A``, ``B`` the ZOH plant).
+
+    Returns
+    -------
+    (n + m, n + m) ndarray, (n + m, m) ndarray, (m, n + m) ndarray
+    """
+    from quadctl.lag import model_pole
+
+    A, B, K, Kv = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (A, B, K, Kv))
+    n, m = B.shape
+    Aa = np.zeros((n + m, n + m))
+    Aa[:n, :n] = A
+    if sample_time is None:
+        Aa[n:, :n] = -K / time_constant
+        Aa[n:, n:] = -(np.eye(m) + Kv) / time_constant
+    else:
+        a = model_pole(time_constant, sample_time)
+        Aa[n:, :n] = -(1 - a) * K
+        Aa[n:, n:] = a * np.eye(m) - (1 - a) * Kv
+    return Aa, np.vstack([B, np.zeros((m, m))]), np.hstack([K, Kv])
 
 
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,

@@ -26,6 +26,8 @@ N_DISTURBANCES = 6
 """Body-frame disturbance force (N, 3) and torque (N m, 3) added to the dynamics."""
 DISTURBANCE_FORCE = slice(0, 3)
 DISTURBANCE_TORQUE = slice(3, 6)
+N_WIND = 3
+"""Wind velocity, NED earth frame (m/s): the air's velocity over the ground."""
 
 
 @dataclass(frozen=True)
@@ -41,7 +43,8 @@ class Vehicle:
     inertia : (3,) tuple of float
         Diagonal of J, kg m^2.
     drag : (3,) tuple of float
-        Diagonal of Kc; the rotor drag force is ``-T Kc V_b`` (1/(m/s)... per newton of thrust).
+        Diagonal of Kc; the rotor drag force is ``-T Kc (V_b - R_E^b w)`` with ``w`` the wind
+        (1/(m/s), per newton of thrust).
     """
 
     mass: float = 0.068
@@ -76,8 +79,11 @@ def euler_rates_matrix(phi, theta):
     )
 
 
-def dynamics_expression(x, u, params, disturbance):
+def dynamics_expression(x, u, params, disturbance, wind=None):
     """Right-hand side ``f(x, u)`` of MODEL.md eqs. 1-8 as a CasADi expression.
+
+    The rotor drag acts on the velocity relative to the air, ``V_b - R_E^b w``: in still air
+    (``wind`` None or zero) it is MODEL.md's ``-T Kc V_b``; a vehicle moving with the wind feels none.
 
     Parameters
     ----------
@@ -89,6 +95,8 @@ def dynamics_expression(x, u, params, disturbance):
         ``[mass, gravity, Jxx, Jyy, Jzz, Kx, Ky, Kz]``.
     disturbance : (6,) casadi SX
         Body force (N) and torque (N m) added to the vehicle's own.
+    wind : (3,) casadi SX, optional
+        Wind velocity, NED (m/s); None: still air.
 
     Returns
     -------
@@ -107,7 +115,8 @@ def dynamics_expression(x, u, params, disturbance):
     pos_dot = r_eb.T @ vel_b
 
     force_thrust = ca.vertcat(0, 0, -thrust)
-    force_drag = -thrust * drag * vel_b
+    air_b = vel_b if wind is None else vel_b - r_eb @ wind  # velocity relative to the air, body frame
+    force_drag = -thrust * drag * air_b
     force_gravity = r_eb @ ca.vertcat(0, 0, mass * gravity)
     force = force_thrust + force_drag + force_gravity + disturbance[DISTURBANCE_FORCE]
     vel_dot = force / mass - ca.cross(omega, vel_b)
@@ -141,11 +150,20 @@ class Model:
         ``f(x[12], u[4], p[8], d[6]) -> xdot[12]``.
     jacobians : casadi.Function
         ``(x, u, p) -> (A[12x12], B[12x4])``, exact automatic derivatives.
+    f_wind : casadi.Function
+        ``f(x[12], u[4], p[8], w[3]) -> xdot[12]``: in a wind ``w`` (NED, m/s).
+    jacobians_wind : casadi.Function
+        ``(x, u, p, w) -> (A[12x12], B[12x4])`` in the wind ``w`` (the linearization at a trim in wind).
+    f_disturbed_wind : casadi.Function
+        ``f(x[12], u[4], p[8], d[6], w[3]) -> xdot[12]``: disturbance ``d`` and wind ``w`` (the loops with wind).
     """
 
     f: ca.Function
     f_disturbed: ca.Function
     jacobians: ca.Function
+    f_wind: ca.Function
+    jacobians_wind: ca.Function
+    f_disturbed_wind: ca.Function
 
 
 @lru_cache(maxsize=1)
@@ -155,15 +173,23 @@ def build_model() -> Model:
     u = ca.SX.sym("u", N_INPUTS)
     p = ca.SX.sym("p", N_PARAMS)
     d = ca.SX.sym("d", N_DISTURBANCES)
-    rhs_d = dynamics_expression(x, u, p, d)
+    w = ca.SX.sym("w", N_WIND)
+    rhs_d = dynamics_expression(x, u, p, d)  # still air: the expressions (and code) of a loop without wind
     rhs = ca.substitute(rhs_d, d, ca.DM.zeros(N_DISTURBANCES))
+    rhs_dw = dynamics_expression(x, u, p, d, w)
+    rhs_w = ca.substitute(rhs_dw, d, ca.DM.zeros(N_DISTURBANCES))
     f = ca.Function("quad_f", [x, u, p], [rhs], ["x", "u", "p"], ["xdot"])
     f_dist = ca.Function("quad_fd", [x, u, p, d], [rhs_d], ["x", "u", "p", "d"], ["xdot"])
+    f_air = ca.Function("quad_fa", [x, u, p, d, w], [rhs_dw], ["x", "u", "p", "d", "w"], ["xdot"])
     jac = ca.Function(
         "quad_jac", [x, u, p], [ca.jacobian(rhs, x), ca.jacobian(rhs, u)],
         ["x", "u", "p"], ["A", "B"],
     )
-    return Model(f=f, f_disturbed=f_dist, jacobians=jac)
+    f_wind = ca.Function("quad_fw", [x, u, p, w], [rhs_w], ["x", "u", "p", "w"], ["xdot"])
+    jac_wind = ca.Function("quad_jacw", [x, u, p, w], [ca.jacobian(rhs_w, x), ca.jacobian(rhs_w, u)],
+                           ["x", "u", "p", "w"], ["A", "B"])
+    return Model(f=f, f_disturbed=f_dist, jacobians=jac, f_wind=f_wind, jacobians_wind=jac_wind,
+                 f_disturbed_wind=f_air)
 
 
 def evaluate(x: np.ndarray, u: np.ndarray, vehicle: Vehicle) -> np.ndarray:

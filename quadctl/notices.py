@@ -80,7 +80,8 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
         A ``note`` listing the keys of a partly given ``vehicle:`` or ``motors:`` section that took
         the report's Mambo values, then a ``warning`` for each implausible quantity, naming the
         likely unit slip: the radius of gyration ``sqrt(J/m)`` against the arm length (or, with no
-        motors, against the mass), the thrust-to-weight ratio, and Jzz below Jxx or Jyy. An
+        motors, against the mass), the thrust-to-weight ratio, and Jzz below Jxx or Jyy; a ``note``
+        when a steady wind is simulated but the trim is in still air (``trim.wind: false``). An
         impossible inertia is refused on load instead (see ``quadctl.config._check_inertia``).
 
     Examples
@@ -91,6 +92,7 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
     ['vehicle.mass']
     """
     found = _defaults_taken(cfg, label)
+    found += _rotor_lag_taken(cfg, label)
     found += _gyration(cfg, label)
     found += _thrust_to_weight(cfg, label)
     jxx, jyy, jzz = cfg.vehicle.inertia
@@ -98,6 +100,11 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
         found.append(Notice("warning", "vehicle.inertia", (
             f"{label}: vehicle.inertia = {show(list(cfg.vehicle.inertia))}: Jzz is below Jxx or Jyy, but a flat "
             f"quadcopter has Jzz about Jxx + Jyy = {jxx + jyy:.3g} kg m^2; is the order [Jxx, Jyy, Jzz]?")))
+    wind = cfg.simulation.wind
+    if wind is not None and any(wind.steady) and not cfg.trim.wind:
+        found.append(Notice("note", "trim.wind", (
+            f"{label}: simulation.wind.steady = {show(list(wind.steady))} m/s but trim.wind is false: the design is "
+            "trimmed in still air and the steady wind pushes the vehicle off it; set trim.wind: true to trim in it")))
     return found
 
 
@@ -113,6 +120,16 @@ def _defaults_taken(cfg: Config, label: str) -> list[Notice]:
     values = ", ".join(f"{path} = {show(value)}" for path, value in taken)
     return [Notice("note", taken[0][0], f"{label}: {', '.join(p for p, _ in taken)} not given: using the report's "
                    f"Parrot Mambo values ({values}); give your vehicle's")]
+
+
+def _rotor_lag_taken(cfg: Config, label: str) -> list[Notice]:
+    """A rotor time constant with ``controller.rotor_lag`` not given: say which the design took."""
+    if cfg.motors is None or cfg.motors.time_constant is None or "rotor_lag" in cfg.controller.model_fields_set:
+        return []
+    return [Notice("note", "controller.rotor_lag", (
+        f"{label}: motors.time_constant = {cfg.motors.time_constant:g} s with controller.rotor_lag not given: the "
+        f"design ignores the lag (rotor_lag: ignore, the default) and only the simulated plant has it; set "
+        f"rotor_lag: include to design with it, or ignore to silence this"))]
 
 
 def _gyration(cfg: Config, label: str) -> list[Notice]:

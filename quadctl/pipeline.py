@@ -20,11 +20,11 @@ from quadctl.trim import Trim, solve_trim
 
 
 def trim_of(setup: Setup) -> Trim:
-    return solve_trim(setup.velocity_ned, setup.yaw, setup.position_ned, setup.vehicle)
+    return solve_trim(setup.velocity_ned, setup.yaw, setup.position_ned, setup.vehicle, wind_ned=setup.trim_wind)
 
 
 def linear_of(setup: Setup, trim: Trim) -> LinearModel:
-    return linearize(trim.x, trim.u, setup.vehicle)
+    return linearize(trim.x, trim.u, setup.vehicle, setup.trim_wind)
 
 
 def decoupled_of(setup: Setup, linear: LinearModel) -> Decoupled:
@@ -41,30 +41,39 @@ def checks_of(decoupled: Decoupled, linear: LinearModel) -> dict[str, Checks]:
 def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, *, rate: float | None | str = "setup") -> Design:
     """The decoupled LQR design at the setup's design rate (``rate`` overrides it; None: continuous)."""
     return design(decoupled, linear.A, linear.B, setup.weights,
-                  rate=setup.timing.design_rate if rate == "setup" else rate, integral=setup.integral)
+                  rate=setup.timing.design_rate if rate == "setup" else rate, integral=setup.integral,
+                  lag_time_constant=setup.design_lag_time_constant)
 
 
 def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.ndarray | None = None,
-                   integral_states=()) -> ClosedLoop:
-    """The loop to simulate: gains ``K`` (and an LQI design's ``Ki``, ``integral_states``) on the
-    setup's plant, timing and actuators.
+                   integral_states=(), Kv: np.ndarray | None = None) -> ClosedLoop:
+    """The loop to simulate: gains ``K`` (and an LQI design's ``Ki``, ``integral_states``; a design
+    with the rotors' lag's ``Kv``, fed by the controller's lag model) on the setup's plant, timing
+    and actuators.
 
     The eigenvalues (for the RK4 step) are those of the continuous closed loop including the
-    integrators; a sampled controller steps on the open-loop plant's instead.
+    integrators (and the lag states, with ``Kv``); a sampled controller steps on the open-loop
+    plant's instead.
     """
     integral_states = tuple(integral_states)
     if setup.integral and not integral_states:
         raise ValueError("the setup has integral action (lqr.<subsystem>.integral): pass Ki and "
                          "integral_states from the design, or call pipeline.loop_of(setup, linear, design)")
-    A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, integral_states)
-    eig, owners = eigen_owners(A_cl, setup.state_owner, (*STATE_NAMES, *integral_states))
+    tau = setup.design_lag_time_constant if Kv is not None else None
+    if Kv is not None and tau is None:
+        raise ValueError("Kv feeds back the controller's rotor lag model: the setup must include the lag "
+                         "(controller.rotor_lag: include with motors.time_constant)")
+    A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, integral_states, Kv=Kv, lag_time_constant=tau)
+    lag_names = tuple(f"lag of {i}" for i in INPUT_NAMES) if tau is not None else ()
+    owner = {**setup.state_owner, **{f"lag of {i}": setup.input_owner(i) for i in INPUT_NAMES}}
+    eig, owners = eigen_owners(A_cl, owner, (*STATE_NAMES, *lag_names, *integral_states))
     check_trim(setup.actuators, linear.u_trim)
     return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
                       estimator=estimator_of(setup, linear), x_rate=linear.x_rate, K=K, eigenvalues=eig,
                       owners=owners, rate=setup.timing.rate,
                       Ki=Ki if integral_states else None, integral_states=integral_states,
                       actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A),
-                      delay_samples=setup.timing.delay_samples)
+                      delay_samples=setup.timing.delay_samples, Kv=Kv, lag_model_time_constant=tau)
 
 
 def estimator_of(setup: Setup, linear: LinearModel):
@@ -82,14 +91,17 @@ def estimator_of(setup: Setup, linear: LinearModel):
 
 
 def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
-    """:func:`closed_loop_of` for a design: its state gain *and* its integrators (LQI)."""
-    return closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block, integral_states=des.integral_states)
+    """:func:`closed_loop_of` for a design: its state gain, its integrators (LQI) and its gain on
+    the rotors' lag (a design that includes it)."""
+    return closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block, integral_states=des.integral_states,
+                          Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True) -> SimResult:
-    """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise)."""
+    """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise;
+    the wind, a condition of the flight, stays)."""
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
-                    noise=setup.noise if noise else None, max_samples=setup.max_samples)
+                    noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples)
 
 
 def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float):
@@ -137,10 +149,10 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         per input), ``rms_error`` and ``rms_error_second_half`` (per state, state units),
         ``saturation`` (None without actuators; else per actuator the fraction of the run at a
         limit, ``saturates`` when one exceeds 1 %, peak commands, rotor speeds), ``noise``
-        (seed and period, or None), ``estimation`` (LQG only: RMS of ``x - x_hat`` per state, whole
-        run and second half, and the steady filter's predicted standard deviation), ``integral``
-        (states and final integrator values), ``plant`` (the simulated vehicle's parameters when they
-        differ from the design model).
+        (seed and period, or None), ``wind`` (:func:`wind_summary`, or None), ``estimation`` (LQG
+        only: RMS of ``x - x_hat`` per state, whole run and second half, and the steady filter's
+        predicted standard deviation), ``integral`` (states and final integrator values), ``plant``
+        (the simulated vehicle's parameters when they differ from the design model).
     """
     from quadctl import motors, noise
 
@@ -152,7 +164,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
                        for j, name in enumerate(INPUT_NAMES)},
         "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_ref),
         "rms_error_second_half": noise.rms_deviation(sim.t, sim.x, sim.x_ref, duration / 2),
-        "saturation": None, "noise": None, "estimation": None,
+        "saturation": None, "noise": None, "wind": wind_summary(setup, sim), "estimation": None,
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
         "plant": setup.plant_overrides or None,
@@ -186,6 +198,39 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
     return out
 
 
+def speeds(sim: SimResult) -> tuple[np.ndarray, np.ndarray]:
+    """(ground speed, airspeed) at each recorded sample, m/s: ``|R_b^E V_b|`` from the model's position
+    rates, and ``|R_b^E V_b - w|`` with the wind the plant felt (still air: the two agree)."""
+    from quadctl.model import Vehicle, build_model
+
+    # the position rows of f are the kinematics R_b^E V_b: no parameter enters them
+    vel = np.asarray(build_model().f.map(len(sim.t))(sim.x.T, sim.u.T, Vehicle().vector()), dtype=float)[:3].T
+    wind = sim.wind if len(sim.wind) else np.zeros_like(vel)
+    return np.linalg.norm(vel, axis=1), np.linalg.norm(vel - wind, axis=1)
+
+
+def wind_summary(setup: Setup, sim: SimResult) -> dict | None:
+    """``sim.json``'s ``wind``: the wind's configuration and seed, the peak wind, and the ground speed
+    and airspeed (m/s: max and RMS over the run); None in still air."""
+    spec = setup.wind
+    if spec is None or len(sim.t) == 0:
+        return None
+    ground, air = speeds(sim)
+    turb = spec.turbulence
+    return {
+        "steady": list(spec.steady), "gusts": [{"start": g.start, "length": g.length, "amplitude": list(g.amplitude),
+                                                 "hold": g.hold} for g in spec.gusts],
+        "turbulence": None if turb is None else {
+            "seed": turb.seed, "sigma": list(turb.sigma), "length_scale": list(turb.length),
+            "reference_speed": turb.speed, "heading": turb.heading, "period": turb.period},
+        "trim_in_wind": bool(any(setup.trim_wind)),
+        "peak_wind": float(np.linalg.norm(sim.wind, axis=1).max()),
+        "ground_speed": {"max": float(ground.max()), "rms": float(np.sqrt(np.mean(ground ** 2)))},
+        "airspeed": {"max": float(air.max()), "rms": float(np.sqrt(np.mean(air ** 2)))},
+        "units": "m/s",
+    }
+
+
 def compare_full(setup: Setup, linear: LinearModel, des: Design):
     """``design --full``: one coupled LQR with the same cost, both simulated on the nonlinear model.
 
@@ -199,8 +244,12 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
         with each run's metrics and status.
     """
     from quadctl import full
+    from quadctl.errors import ConfigError
     from quadctl.metrics import summarize
 
+    if des.lag_time_constant is not None:
+        raise ConfigError("controller.rotor_lag = include: design --full (one coupled LQR) is built for designs "
+                          "without the rotors' lag only; run it with rotor_lag: ignore, or drop --full")
     fd = full.full_design(des, linear.A, linear.B)
     dx0 = setup.initial_offset
     Q = des.Q_block

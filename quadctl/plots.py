@@ -72,11 +72,28 @@ def inputs_figure(sim, u_trim=None, *, title: str = "") -> Figure:
     return fig
 
 
+def wind_figure(sim, *, title: str = "") -> Figure:
+    """The wind the plant felt (N, E, D components, m/s) against time."""
+    fig = Figure(figsize=(10.0, 3.5), layout="constrained")
+    ax = fig.subplots()
+    for i, (name, color) in enumerate(zip(("wind N", "wind E", "wind D"), _COLORS)):
+        ax.plot(sim.t, sim.wind[:, i], color=color, lw=1.2, label=name)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("wind [m/s], NED")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8, frameon=False)
+    fig.suptitle(f"{title}: wind" if title else "wind")
+    return fig
+
+
 def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "") -> dict[str, Figure]:
-    """A figure per subsystem (in partition order) and one of the inputs, keyed by file stem."""
+    """A figure per subsystem (in partition order), one of the inputs and, in wind, one of the wind,
+    keyed by file stem."""
     figs = {name: subsystem_figure(sim, name, sub.states, title=title)
             for name, sub in partition.items()}
     figs["inputs"] = inputs_figure(sim, u_trim, title=title)
+    if len(getattr(sim, "wind", ())):
+        figs["wind"] = wind_figure(sim, title=title)
     return figs
 
 
@@ -194,7 +211,7 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
 
 
 
-def montecarlo_figure(bands, groups: dict, *, title: str = "") -> Figure:
+def montecarlo_figure(bands, groups: dict, *, title: str = "", varied: tuple = ()) -> Figure:
     """A Monte Carlo's percentile bands against time: a row per subsystem, a column per state.
 
     Each state gets two panels. Above: the median deviation from the reference, the 25-75 % band
@@ -208,6 +225,9 @@ def montecarlo_figure(bands, groups: dict, *, title: str = "") -> Figure:
         ``t`` (P,) s; ``bands`` (5, P, S) at ``percentiles`` 5, 25, 50, 75, 95; ``states`` (S,).
     groups : dict
         Subsystem name -> its states (a row each, in order); states not in ``bands`` are skipped.
+    varied : tuple of str
+        The sweep's parameters (key paths), named in the title; none or only the noise seed: a
+        Monte Carlo over noise seeds.
     """
     level = {p: k for k, p in enumerate(bands.percentiles)}
     rows = [(name, [s for s in states if s in bands.states]) for name, states in groups.items()]
@@ -247,6 +267,15 @@ def montecarlo_figure(bands, groups: dict, *, title: str = "") -> Figure:
     fig.legend(handles[:3], labels[:3], loc="outside lower center", ncols=3, fontsize=8, frameon=False)
     n = len(bands.cases)
     left = f"; {len(bands.left_out)} left out (did not finish)" if len(bands.left_out) else ""
-    head = f"Monte Carlo over {n} noise seeds{left}: deviation from the reference"
+    if not varied or tuple(varied) == ("simulation.noise.seed",):
+        head = f"Monte Carlo over {n} noise seeds{left}: deviation from the reference"
+    else:
+        import textwrap
+
+        width = max(40, int(8 * fig.get_figwidth()))  # characters a title line holds (12 pt, ~8 an inch)
+        text = f"{title}: " if title else ""
+        fig.suptitle(textwrap.fill(f"{text}{n} cases of one design{left}, varying {', '.join(varied)}", width)
+                     + "; deviation from the reference")
+        return fig
     fig.suptitle(f"{title}: {head}" if title else head)
     return fig

@@ -21,6 +21,7 @@ from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.model import Vehicle
 from quadctl.motors import Actuators, Motors, actuators_of
 from quadctl.noise import DEFAULT_PERIOD, NoiseSpec
+from quadctl.wind import WindSpec, wind_of
 
 
 @dataclass(frozen=True)
@@ -122,6 +123,10 @@ class Setup:
         Rotors (``motors:``), box limits (``limits:``) or None (unlimited).
     noise : NoiseSpec or None
         Active noise only (None when absent or all zero).
+    wind : WindSpec or None
+        The simulated wind (None when absent or all zero).
+    trim_wind : (3,) tuple of float
+        m/s NED: the steady wind the trim and the linear model are computed in (``trim.wind``; else zero).
     initial_offset : (12,) ndarray
         Offset of the initial state from the trim (state units).
     duration : float
@@ -130,7 +135,7 @@ class Setup:
     max_samples : int
     plant_overrides : dict
         The ``simulation.plant`` values given (empty: the plant is the design model).
-    rotor_lag : {"ignore"}
+    rotor_lag : {"ignore", "include"}
         What the design does with the rotors' lag (``controller.rotor_lag``).
     estimator : EstimatorSpec or None
         The Kalman filter's measurements and noise (``estimator:``); None: full-state feedback.
@@ -152,6 +157,8 @@ class Setup:
     timing: Timing
     actuators: Actuators | None
     noise: NoiseSpec | None
+    wind: WindSpec | None
+    trim_wind: tuple[float, float, float]
     initial_offset: np.ndarray
     duration: float
     dt: float | str
@@ -165,6 +172,19 @@ class Setup:
         """s of the rotors' lag in the simulated plant (``motors.time_constant``); None: instantaneous."""
         motors = self.actuators.motors if self.actuators is not None else None
         return motors.time_constant if motors is not None else None
+
+    @property
+    def design_lag_time_constant(self) -> float | None:
+        """s of the rotors' lag the design model includes (``controller.rotor_lag: include``); None:
+        the design's rotors are instantaneous."""
+        return self.rotor_time_constant if self.rotor_lag == "include" else None
+
+    def input_owner(self, name: str) -> str:
+        """The subsystem whose input ``name`` is (``unassigned``: none)."""
+        for sub_name, sub in self.partition.items():
+            if name in sub.inputs:
+                return sub_name
+        return "unassigned"
 
     def initial_state(self, x_trim) -> np.ndarray:
         """(12,) trim state plus the configured initial offset."""
@@ -200,6 +220,8 @@ def resolve(cfg: Config) -> Setup:
     if cfg.simulation.noise is not None:
         spec = NoiseSpec.from_config(cfg.simulation.noise, timing.rate)
         noise = spec if spec.active else None
+    wind = wind_of(cfg.simulation.wind, cfg.trim.velocity_ned, -cfg.trim.position_ned[2])
+    trim_wind = tuple(float(w) for w in cfg.simulation.wind.steady) if cfg.trim.wind else (0.0, 0.0, 0.0)
     motors = Motors.from_config(cfg.motors) if cfg.motors is not None else None
     actuators = _rotors(motors) if motors is not None else actuators_of(None, cfg.limits)
     return Setup(
@@ -209,7 +231,7 @@ def resolve(cfg: Config) -> Setup:
         Q_block=Q, R_block=R,
         regulated=tuple(s for sub in partition.values() if sub.regulate for s in sub.states),
         state_owner={s: name for name, sub in partition.items() for s in sub.states},
-        timing=timing, actuators=actuators, noise=noise, initial_offset=offset,
+        timing=timing, actuators=actuators, noise=noise, wind=wind, trim_wind=trim_wind, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing))
 

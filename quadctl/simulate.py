@@ -3,8 +3,8 @@
 ``u = u_trim - K (x - x_ref(t))`` with ``x_ref(t) = x_trim + x_rate t`` (positions drift at
 the trim velocity), with the integrators, sampling, saturation and noise the loop has, run by
 the engine of :mod:`quadctl.sim` (compiled where a C compiler works). The step comes from
-:mod:`quadctl.sim.plan`; the run goes in chunks so Ctrl-C stops it at once, and noise is drawn
-chunk by chunk (:class:`quadctl.noise.NoiseStream`), so memory does not grow with the duration.
+:mod:`quadctl.sim.plan`; the run goes in chunks so Ctrl-C stops it at once, and noise and wind are
+drawn chunk by chunk (:class:`ExoStream`), so memory does not grow with the duration.
 """
 
 from __future__ import annotations
@@ -16,11 +16,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.noise import NoiseSpec, NoiseStream
+from quadctl.noise import DEFAULT_PERIOD, NoiseSpec, NoiseStream
 from quadctl.sim.builder import LoopSpec, pack_constants
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
+from quadctl.wind import WindSpec, WindStream
 
 MAX_SAMPLES = 20_000
 """Default of ``simulation.max_samples``: a run keeps at most this many samples (every
@@ -84,6 +85,10 @@ class ClosedLoop:
     """Of the plant ``A``: what RK4 integrates between samples of a sampled controller."""
     delay_samples: int = 0
     """Controller samples from measurement to actuation (a sampled controller's command buffer)."""
+    Kv: np.ndarray | None = None
+    """(4, 4) gain on the controller's rotor lag model (``controller.rotor_lag: include``): ``u -= Kv l``."""
+    lag_model_time_constant: float | None = None
+    """s of the controller's rotor lag model (the design's; None: no model)."""
     estimator: object | None = None
     """:class:`quadctl.estimator.Kalman` the law closes through (LQG); None: the measured state."""
 
@@ -101,16 +106,19 @@ class ClosedLoop:
             ol = self.open_loop_eigenvalues if self.open_loop_eigenvalues is not None else np.zeros(0)
             return plan_held_step(np.concatenate([ol, lag]), self.rate, duration, dt)
         est = self.estimator.eigenvalues if self.estimator is not None else np.zeros(0)
-        return plan_step(np.concatenate([self.eigenvalues, lag, est]),
-                         [*self.owners, *["rotors"] * len(lag), *["estimator"] * len(est)], duration, dt)
+        model = rotor_eigenvalues(self.lag_model_time_constant) if self.Kv is not None else np.zeros(0)
+        return plan_step(np.concatenate([self.eigenvalues, lag, model, est]),
+                         [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
+                          *["estimator"] * len(est)], duration, dt)
 
-    def spec(self, noise: bool = False) -> LoopSpec:
+    def spec(self, noise: bool = False, wind: bool = False) -> LoopSpec:
         """The structure of this loop's generated code."""
         act = self.actuators
         return LoopSpec.of_gain(self.K, saturation=act.mode if act is not None else "none",
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
+                                lag_model=self.Kv is not None, wind=wind,
                                 measured=tuple(STATE_INDEX[s] for s in self.measured))
 
     @property
@@ -132,21 +140,24 @@ class ClosedLoop:
         tau = self.rotor_time_constant
         if tau is not None:
             values.update(tau=[tau])
+        if self.Kv is not None:
+            values.update(Kv=self.Kv, tau_model=[self.lag_model_time_constant])
         kal = self.estimator
         if kal is not None:
             if kal.discrete != (self.rate is not None) or (
                     kal.discrete and not math.isclose(kal.sample_time, 1.0 / self.rate, rel_tol=1e-12)):
                 raise ValueError("the Kalman filter's sample time must be the controller period (or both continuous)")
             values.update(Ae=kal.A, Be=kal.B, Le=kal.gain)
-        return pack_constants(nz, tau is not None, len(self.measured), **values)
+        return pack_constants(nz, tau is not None, self.Kv is not None, len(self.measured), **values)
 
     def initial_loop_state(self, x0) -> np.ndarray:
-        """The loop state ``[x0; f; z; b]`` a run starts from: the rotors (if they lag) at their trim
-        thrusts ``mix u_trim``, the integrators at zero, the delay's buffer at the trim input."""
+        """The loop state ``[x0; f; z; l; b; xh]`` a run starts from: the rotors (if they lag) at their trim
+        thrusts ``mix u_trim``, the integrators and the lag model (deviation from trim) at zero, the
+        delay's buffer at the trim input."""
         parts = [np.asarray(x0, dtype=float)]
         if self.rotor_time_constant is not None:
             parts.append(self.actuators.commands(self.u_trim))
-        parts.append(np.zeros(len(self.integral_states)))
+        parts.append(np.zeros(len(self.integral_states) + (len(self.u_trim) if self.Kv is not None else 0)))
         parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
         parts.append(np.zeros(N_STATES if self.estimator is not None else 0))
         return np.concatenate(parts)
@@ -221,6 +232,13 @@ class SimResult:
     """(N+1, 4) N: each rotor's thrust, when the rotors lag (``motors.time_constant``); else empty
     (an instantaneous rotor's thrust is the clipped command ``mix u``)."""
     noise_seed: int | None = None
+    lag_model: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(N+1, 4) the controller's rotor lag model ``l`` (deviation of ``[T, A, E, R]`` from trim; N, N m)
+    when the design includes the lag (``controller.rotor_lag: include``); else empty."""
+    wind: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """(N+1, 3) m/s NED: the wind the plant felt over each recorded step (empty: still air)."""
+    wind_seed: int | None = None
+    """The turbulence's seed (None: no turbulence)."""
     x_hat: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     """(N+1, 12) the Kalman filter's estimate of ``x`` (``x_ref`` plus its deviation estimate; a held
     loop's a priori estimate for the coming sample) of an LQG loop; else empty."""
@@ -230,8 +248,55 @@ class SimResult:
         return self.steps / self.wall_time if self.wall_time > 0 else math.inf
 
 
+class ExoStream:
+    """The exogenous rows of a run (:func:`quadctl.sim.builder.exo_layout`) on one clock, drawn in order.
+
+    Row ``j`` holds over ``[j period, (j + 1) period)``: the noise's sample ``j``
+    (:class:`quadctl.noise.NoiseStream`), then the wind at ``t = j period``
+    (:class:`quadctl.wind.WindStream`). The clock is the noise's period, else the controller's, else
+    :data:`quadctl.noise.DEFAULT_PERIOD`: never the RK4 step, so a seed gives the same run at any ``dt``.
+    """
+
+    def __init__(self, noise: NoiseSpec | None, wind: WindSpec | None, rate: float | None = None):
+        self.period = noise.period if noise is not None else (1.0 / rate if rate else DEFAULT_PERIOD)
+        self.noise = NoiseStream(noise) if noise is not None else None
+        self.wind = WindStream(wind, self.period) if wind is not None else None
+
+    def index(self, steps, dt: float) -> np.ndarray:
+        """The row each absolute RK4 step of ``dt`` takes (as the runners count)."""
+        return np.floor(np.asarray(steps, dtype=float) * dt / self.period + 1e-9).astype(np.int64)
+
+    def samples(self, first: int, last: int) -> np.ndarray:
+        """Rows ``first .. last`` (inclusive); ``first`` never goes back before an earlier call's."""
+        parts = []
+        if self.noise is not None:
+            parts.append(self.noise.samples(first, last))
+        if self.wind is not None:
+            parts.append(self.wind.samples(first, last))
+        return np.hstack(parts)
+
+    def rows(self, k0: int, m: int, dt: float) -> tuple[int, np.ndarray]:
+        """(first row index, rows) covering RK4 steps ``k0 .. k0 + m - 1`` of ``dt``."""
+        first, last = (int(j) for j in self.index([k0, k0 + max(m, 1) - 1], dt))
+        return first, self.samples(first, last)
+
+
+def wind_felt(wind: WindSpec, period: float, ks, dt: float, block: int = 256) -> np.ndarray:
+    """(len(ks), 3) m/s NED: the wind the plant felt over each absolute step in ``ks`` (increasing) of
+    a run whose exogenous clock has ``period`` s; a fresh stream, ``block`` steps at a time (memory
+    bounded by a block's span)."""
+    stream = WindStream(wind, period)
+    ks = np.asarray(ks)
+    out = np.empty((len(ks), 3))
+    for a in range(0, len(ks), block):
+        j = np.floor(ks[a:a + block].astype(float) * dt / period + 1e-9).astype(np.int64)
+        out[a:a + block] = stream.samples(int(j[0]), int(j[-1]))[j - j[0]]
+    return out
+
+
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
-             noise: NoiseSpec | None = None, max_samples: int = MAX_SAMPLES) -> SimResult:
+             noise: NoiseSpec | None = None, wind: WindSpec | None = None,
+             max_samples: int = MAX_SAMPLES) -> SimResult:
     """RK4 of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
@@ -246,6 +311,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         :func:`quadctl.sim.plan.plan_held_step` (``loop.rate``).
     noise : NoiseSpec, optional
         Process and sensor noise; the same spec gives the same run.
+    wind : WindSpec, optional
+        Steady wind, gusts and turbulence (:mod:`quadctl.wind`); the same spec gives the same run.
     max_samples : int
         Samples kept, at most: every :func:`record_stride`-th step and the last.
 
@@ -256,18 +323,19 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     """
     plan = loop.plan(duration, dt)
     noisy = noise is not None and noise.active
-    run = runner(loop.spec(noisy), 1)
+    windy = wind is not None and wind.active
+    run = runner(loop.spec(noisy, windy), 1)
     c = loop.constants(plan.sample_time)
     lo, hi = loop.bounds(duration)
     x0_all = loop.initial_loop_state(x0)
     nz = len(loop.integral_states)
-    ne = N_STATES if loop.estimator is not None else 0
-    n_plant = len(x0_all) - nz - len(loop.u_trim) * loop.delay_samples - ne
+    spec = loop.spec()
+    n_plant, n_lag, ne = spec.n_plant, spec.n_lag, spec.n_estimate
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
-    done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi,
-                                     NoiseStream(noise) if noisy else None)
+    exo = ExoStream(noise if noisy else None, wind if windy else None, loop.rate) if noisy or windy else None
+    done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo)
     wall = time.perf_counter() - start
     t = plan.dt * ks
     x_ref = loop.x_trim + np.outer(t, loop.x_rate)
@@ -277,6 +345,9 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
                      steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:n_plant + nz]),
                      rotor_thrust=np.ascontiguousarray(xs[:, N_STATES:n_plant]),
                      noise_seed=noise.seed if noisy else None,
+                     lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
+                     wind=wind_felt(wind, exo.period, ks, plan.dt) if windy else np.zeros((0, 3)),
+                     wind_seed=wind.seed if windy else None,
                      x_hat=x_ref + xs[:, xs.shape[1] - ne:] if ne else np.zeros((0, 0)))
 
 
@@ -285,7 +356,7 @@ CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
 Python sees Ctrl-C between calls at once."""
 
 
-def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: NoiseStream | None = None):
+def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: ExoStream | None = None):
     """Run ``n`` steps in chunks, each starting on a controller sample; the rows of one long run.
 
     Returns
@@ -303,7 +374,7 @@ def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise
         exo, first, period = None, 0, 1.0
         if noise is not None:
             first, exo = noise.rows(k0, m, plan.dt)
-            exo, period = [exo], noise.spec.period
+            exo, period = [exo], noise.period
         cases = Cases.of(x, c, plan.dt, m, stride, lo, hi, hold=hold, k0=k0, exo=exo, exo_first=first,
                          exo_period=period)
         (done, ks, xs, us), = run.run(cases)

@@ -1,6 +1,7 @@
 """Equilibrium (trim) solving for hover and constant-velocity flight.
 
-Given the earth-frame velocity ``V^E``, heading ``psi`` and position, find roll, pitch
+Given the earth-frame velocity ``V^E``, heading ``psi`` and position (and optionally a steady
+wind, which the rotor drag sees through the air-relative velocity), find roll, pitch
 and thrust such that every state derivative but position is zero (position grows at
 ``V^E``). Body rates and torques are zero at any such trim. Newton's method on the
 three force-balance equations, with exact CasADi Jacobians and a velocity homotopy
@@ -59,20 +60,21 @@ class Trim:
 
 @lru_cache(maxsize=1)
 def _force_balance() -> ca.Function:
-    """``g(z=[phi, theta, T], v_e, psi, params) -> body force / m (3,)`` and its Jacobian."""
+    """``g(z=[phi, theta, T], v_e, psi, params, wind) -> body force / m (3,)`` and its Jacobian."""
     z = ca.SX.sym("z", 3)
     v_e = ca.SX.sym("v_e", 3)
     psi = ca.SX.sym("psi")
     params = ca.SX.sym("p", N_PARAMS)
+    wind = ca.SX.sym("w", 3)
     x = ca.vertcat(ca.DM.zeros(3), rotation_earth_to_body(z[0], z[1], psi) @ v_e,
                    z[0], z[1], psi, ca.DM.zeros(3))
     u = ca.vertcat(z[2], ca.DM.zeros(3))
-    vel_dot = build_model().f(x, u, params)[3:6]
-    return ca.Function("trim_newton", [z, v_e, psi, params], [vel_dot, ca.jacobian(vel_dot, z)])
+    vel_dot = build_model().f_wind(x, u, params, wind)[3:6]
+    return ca.Function("trim_newton", [z, v_e, psi, params, wind], [vel_dot, ca.jacobian(vel_dot, z)])
 
 
 def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
-               *, max_iter: int = 50) -> Trim:
+               *, wind_ned=None, max_iter: int = 50) -> Trim:
     """Solve the trim for a constant earth-frame velocity and heading.
 
     Parameters
@@ -84,6 +86,10 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     position_ned : (3,) array_like
         m; sets the trim position (it does not enter the dynamics).
     vehicle : Vehicle
+    wind_ned : (3,) array_like, optional
+        m/s, a steady wind (NED) to trim in; the vehicle holds ``velocity_ned`` over the ground.
+        Hovering in a horizontal wind ``w`` (``Kz = 0``, nose into it) it pitches into the wind with
+        ``tan θ = T Kx w / (m g)`` and ``T = m g cos θ``.
 
     Returns
     -------
@@ -101,22 +107,25 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     (-0.2119, 0.6522)
     """
     v_e = np.asarray(velocity_ned, dtype=float)
+    wind = np.zeros(3) if wind_ned is None else np.asarray(wind_ned, dtype=float)
     params = vehicle.vector()
-    newton = _force_balance()
+    newton = _in_wind(wind)
     z = np.array([0.0, 0.0, vehicle.mass * vehicle.gravity])
     total = 0
-    # Homotopy in the speed: solve at growing fractions of V^E, each from the last.
+    # Homotopy in the speed (and the wind): solve at growing fractions of V^E, each from the last.
     for fraction in (1.0,) if _converges(newton, z, v_e, yaw, params, max_iter) else (
             0.25, 0.5, 0.75, 1.0):
+        newton = _in_wind(fraction * wind)
         z, iters, resid = _newton(newton, z, fraction * v_e, yaw, params, max_iter)
         total += iters
         if resid > RESIDUAL_TOL:
             raise TrimError(
-                f"trim did not converge at velocity_ned {_fmt(fraction * v_e)} m/s "
+                f"trim did not converge at velocity_ned {_fmt(fraction * v_e)} m/s"
+                + (f" in wind {_fmt(fraction * wind)} m/s " if wind.any() else " ") +
                 f"(residual {resid:.2e} m/s^2 after {iters} iterations); "
                 "try a lower speed or check the vehicle parameters")
     phi, theta, thrust = z
-    _check_physical(phi, theta, thrust, v_e, vehicle)
+    _check_physical(phi, theta, thrust, v_e, vehicle, wind)
     x = np.zeros(N_STATES)
     x[_POSITION] = np.asarray(position_ned, dtype=float)
     r_eb = np.asarray(rotation_earth_to_body(phi, theta, yaw), dtype=float)
@@ -124,9 +133,15 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     x[STATE_INDEX["phi"]], x[STATE_INDEX["theta"]], x[STATE_INDEX["psi"]] = phi, theta, yaw
     u = np.zeros(N_INPUTS)
     u[INPUT_INDEX["T"]] = thrust
-    xdot = np.asarray(build_model().f(x, u, params), dtype=float).ravel()
+    xdot = np.asarray(build_model().f_wind(x, u, params, wind), dtype=float).ravel()
     residual = float(np.abs(xdot[_NON_POSITION]).max())
     return Trim(x=x, u=u, xdot=xdot, residual=residual, iterations=total)
+
+
+def _in_wind(wind):
+    """The force balance (and Jacobian) in the steady wind ``wind`` (NED, m/s)."""
+    balance = _force_balance()
+    return lambda z, v_e, psi, params: balance(z, v_e, psi, params, wind)
 
 
 def _newton(newton, z, v_e, yaw, params, max_iter):
@@ -160,18 +175,19 @@ def _converges(newton, z, v_e, yaw, params, max_iter) -> bool:
     return _newton(newton, z, v_e, yaw, params, max_iter)[2] <= RESIDUAL_TOL
 
 
-def _check_physical(phi, theta, thrust, v_e, vehicle: Vehicle) -> None:
+def _check_physical(phi, theta, thrust, v_e, vehicle: Vehicle, wind) -> None:
+    where = f"velocity_ned {_fmt(v_e)} m/s" + (f" in wind {_fmt(wind)} m/s" if np.any(wind) else "")
     if thrust <= 0:
         raise TrimError(
-            f"no equilibrium at velocity_ned {_fmt(v_e)} m/s: it needs thrust {thrust:.3g} N <= 0 "
+            f"no equilibrium at {where}: it needs thrust {thrust:.3g} N <= 0 "
             "(the rotor drag along body z outgrows the thrust at this vertical speed); "
             "choose a slower vertical speed or a smaller vehicle.drag[2]")
     for name, angle in (("roll", phi), ("pitch", theta)):
         if abs(angle) > MAX_TILT:
             raise TrimError(
-                f"no usable equilibrium at velocity_ned {_fmt(v_e)} m/s: it needs {name} "
+                f"no usable equilibrium at {where}: it needs {name} "
                 f"{np.rad2deg(angle):.1f} deg, beyond the {np.rad2deg(MAX_TILT):.0f} deg the Euler-angle "
-                "model supports; choose a lower speed")
+                "model supports; choose a lower " + ("airspeed" if np.any(wind) else "speed"))
 
 
 def _fmt(v) -> str:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import __version__, artifacts, pipeline
+from quadctl import __version__, artifacts, pipeline, stability
 from quadctl.analysis import Checks, check
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
@@ -162,6 +162,7 @@ class Workspace:
         self._write_json(TRIM, "trim", {
             "x": trim.x, "u": trim.u, "xdot": trim.xdot, "residual": trim.residual,
             "iterations": trim.iterations, "velocity_ned": self.setup.velocity_ned,
+            "wind_ned": self.setup.trim_wind,  # m/s: the steady wind trimmed in (trim.wind), else zero
             "state": dict(zip(STATE_NAMES, trim.x)), "input": dict(zip(INPUT_NAMES, trim.u)),
             "units": {**STATE_UNITS, **INPUT_UNITS}})
         return trim
@@ -229,7 +230,11 @@ class Workspace:
             "K_block": des.K_block, "Q_block": des.Q_block, "R_block": des.R_block,
             "full_closed_loop_eigenvalues": _c(des.full_eigenvalues),
             "marginal_states": des.marginal_states, "stable": des.stable,
-            "rotor_lag": {"mode": self.setup.rotor_lag, "time_constant": self.setup.rotor_time_constant},
+            "rotor_lag": {"mode": self.setup.rotor_lag, "time_constant": self.setup.rotor_time_constant,
+                          "design_time_constant": des.lag_time_constant,
+                          "Kv_block": des.Kv_block if des.lag_time_constant is not None else None,
+                          "measured": ("the controller's own model of the lag, propagated from its commands"
+                                       if des.lag_time_constant is not None else None)},
             **_flight_design_payload(des), "estimator": self._estimator_payload()})
         return des
 
@@ -259,15 +264,19 @@ class Workspace:
         }
 
     @cached_property
-    def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
-        """(K_block, Ki_block, integral_states): from design.json when it is fresh, else a new design."""
+    def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray | None]:
+        """(K_block, Ki_block, integral_states, Kv_block or None): from design.json when it is fresh,
+        else a new design. ``Kv_block`` is None unless the design includes the rotors' lag."""
         if "design" not in self.__dict__ and self._reusable(DESIGN):
             data = self.payloads[DESIGN]
             ints = tuple(data.get("integral_states", ()))
             Ki = np.array(data.get("Ki_block", [[]] * N_INPUTS), dtype=float)
-            return (np.array(data["K_block"], dtype=float), Ki.reshape(N_INPUTS, len(ints)), ints)
+            Kv = (data.get("rotor_lag") or {}).get("Kv_block")
+            return (np.array(data["K_block"], dtype=float), Ki.reshape(N_INPUTS, len(ints)), ints,
+                    None if Kv is None else np.array(Kv, dtype=float))
         des = self.design
-        return des.K_block, des.Ki_block, des.integral_states
+        return (des.K_block, des.Ki_block, des.integral_states,
+                des.Kv_block if des.lag_time_constant is not None else None)
 
     @cached_property
     def margins(self) -> list:
@@ -282,9 +291,21 @@ class Workspace:
             initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
             rotor_time_constant=self.setup.rotor_time_constant,
             estimator=pipeline.estimator_of(self.setup, linear))
+        sample_time = des.sample_time or (1.0 / emulated if emulated else None)
+        A_cl = margins.closed_loop(des, linear.A, linear.B, sample_time, timing.delay_samples,
+                                   self.setup.rotor_time_constant)
+        eig = np.linalg.eigvals(A_cl)
+        slowest = np.abs(eig).max() if sample_time else eig.real.max()
         self._write_json(MARGINS, "margins", {
             "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
             "delay_samples": timing.delay_samples, "rotor_time_constant": self.setup.rotor_time_constant,
+            "rotor_lag": self.setup.rotor_lag,
+            "closed_loop": {
+                "what": "the coupled linear loop with the rotors' lag, the controller's lag model (include), the "
+                        "integrators and the delay; free positions left out",
+                "domain": "z" if sample_time else "s", "eigenvalues": _c(eig),
+                "stable": bool(np.all(stability.is_stable(eig, discrete=sample_time is not None))),
+                "spectral_radius" if sample_time else "slowest_real_part": float(slowest)},
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
             "estimator": None if self.setup.estimator is None else {
@@ -311,8 +332,8 @@ class Workspace:
     def simulation(self) -> Flight:
         """The configured run with the design's gains; writes sim.npz and sim.json."""
         linear, setup = self.linear, self.setup
-        K, Ki, ints = self.gains
-        loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints)
+        K, Ki, ints, Kv = self.gains
+        loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints, Kv=Kv)
         sim = pipeline.simulation_of(setup, loop)
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
@@ -325,7 +346,9 @@ class Workspace:
             "integral_states": np.array(loop.integral_states, dtype=str),
             "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
             "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str),
-            "x_hat": sim.x_hat},  # empty without an estimator: the Kalman filter's estimate of x (state units)
+            "x_hat": sim.x_hat,  # empty without an estimator: the Kalman filter's estimate of x (state units)
+            "wind": sim.wind, "wind_unit": np.array("m/s"),  # empty: still air
+            "wind_names": np.array(["wind N", "wind E", "wind D"] if len(sim.wind) else [], dtype=str)},
             meta)
         self._write_json(SIM_JSON, "simulation", {
             "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,

@@ -128,7 +128,7 @@ def test_a_delay_in_seconds_and_in_samples_are_the_same_loop():
 
 def _plant_section() -> str:
     text = (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
-    return text[text.index("**9. The plant a vehicle really is"):text.index("### Flight config keys")]
+    return text[text.index("**9. The plant a vehicle really is"):text.index("**10. Designing with the rotors' lag")]
 
 
 def test_the_readme_plant_section_commands_run_and_print_its_numbers(tmp_path, monkeypatch):

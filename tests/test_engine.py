@@ -42,13 +42,25 @@ def _features():
     delayed["motors"]["time_constant"] = 0.03
     lagged_continuous = cfg_dict("hover", motors={"time_constant": 0.02})
     lagged_continuous["simulation"]["initial_offset"] = {"phi": 0.02}
+    included = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include"})
+    included["simulation"]["initial_offset"] = {"pD": 0.5, "phi": 0.4, "theta": 0.1}
+    included["motors"]["time_constant"] = 0.03
+    included_continuous = cfg_dict("hover", motors={"time_constant": 0.02}, controller={"rotor_lag": "include"})
+    included_continuous["simulation"]["initial_offset"] = {"phi": 0.02}
+    included_delayed = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include",
+                                                            "delay": {"samples": 1}})
+    included_delayed["simulation"]["initial_offset"] = {"pD": 0.2, "phi": 0.2}
+    included_delayed["motors"]["time_constant"] = 0.03
     return [("continuous", cfg_dict("forward"), 0.02),
             ("continuous, box limits, LQI, noise", box, 0.02),
             ("held, rotors, LQI, noise", held, 0.5),
             ("held, emulated continuous design", emulated, 0.05),
             ("held, rotors with lag, LQI, noise", lagged, 0.5),
             ("continuous, rotors with lag", lagged_continuous, 0.02),
-            ("held, delay, rotors with lag, LQI, noise", delayed, 0.5)]
+            ("held, delay, rotors with lag, LQI, noise", delayed, 0.5),
+            ("held, rotors with lag included in the design, LQI, noise", included, 0.5),
+            ("continuous, rotor lag included in the design", included_continuous, 0.02),
+            ("held, rotor lag included, one sample of delay, LQI, noise", included_delayed, 0.5)]
 
 
 FEATURES = _features()
@@ -79,7 +91,8 @@ def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max(),
                np.abs(compiled.z - interpreted.z).max() if compiled.z.size else 0.0,
-               np.abs(compiled.rotor_thrust - interpreted.rotor_thrust).max() if compiled.rotor_thrust.size else 0.0)
+               np.abs(compiled.rotor_thrust - interpreted.rotor_thrust).max() if compiled.rotor_thrust.size else 0.0,
+               np.abs(compiled.lag_model - interpreted.lag_model).max() if compiled.lag_model.size else 0.0)
     assert diff < 1e-12, f"Max diff is {diff:.4E}"
     assert compiled.steps == interpreted.steps and len(compiled.t) == len(interpreted.t)
     if "LQI" in label:
@@ -89,11 +102,14 @@ def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch
     if "rotors" in label:
         commands = loop.actuators.commands(compiled.u)
         assert commands.max() == pytest.approx(loop.actuators.hi[0])  # a rotor at its limit
-    if "delay" in label:  # the applied input is the command of two samples before (trim at first)
-        assert loop.spec().delay == 2
-        first = 2 * round(0.005 / compiled.dt)  # steps of the first two samples
+    if "delay" in label:  # the applied input is the command of n samples before (trim at first)
+        n = loop.spec().delay
+        assert n == (1 if "one sample" in label else 2)
+        first = n * round(0.005 / compiled.dt)  # steps of the first n samples
         np.testing.assert_array_equal(compiled.u[:first], np.tile(loop.u_trim, (first, 1)))
         assert np.any(compiled.u[first] != loop.u_trim)
+    if "included" in label:  # the controller's lag model moves with the commands
+        assert compiled.lag_model.shape == (len(compiled.t), 4) and np.ptp(compiled.lag_model) > 1e-3
     if "lag" in label:  # the rotor states move, and stay below the command they follow
         assert compiled.rotor_thrust.shape == (len(compiled.t), 4)
         assert np.ptp(compiled.rotor_thrust) > 1e-3 and compiled.rotor_thrust.max() < loop.actuators.hi[0]
@@ -136,8 +152,8 @@ def test_lanes_equal_the_one_case_loop(label, data, duration):
                        max_samples=setup.max_samples)
         assert done == one.steps
         np.testing.assert_array_equal(ks * one.dt, one.t)
-        worst = max(worst, np.abs(xs[:, :one.x.shape[1] + one.rotor_thrust.shape[1] + one.z.shape[1]]
-                                  - np.hstack([one.x, one.rotor_thrust, one.z])).max(), np.abs(us - one.u).max())
+        kept = np.hstack([one.x, one.rotor_thrust, one.z, one.lag_model])  # [x; f; z; l], the buffer aside
+        worst = max(worst, np.abs(xs[:, :kept.shape[1]] - kept).max(), np.abs(us - one.u).max())
     assert worst < 1e-12, f"Max diff is {worst:.4E}"
 
 

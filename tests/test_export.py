@@ -71,12 +71,28 @@ def _mambo_emulated():
     return cfg_dict("mambo-200hz", controller={"rate": None, "design": "discrete"}), 200.0
 
 
+def _mambo_lagged(rotor_lag: str, delay: int = 0):
+    """mambo-200hz with a 30 ms rotor lag (designed with it, or not), and ``delay`` samples of delay."""
+    data = cfg_dict("mambo-200hz")
+    data["motors"]["time_constant"] = 0.03
+    data["controller"]["rotor_lag"] = rotor_lag
+    if delay:
+        data["controller"]["delay"] = {"samples": delay}
+    data["simulation"] = {**data["simulation"], "duration": 3.0,
+                          "initial_offset": {"pD": 0.5, "phi": 0.4, "theta": 0.1}}  # the rotors clip
+    return data, None
+
+
 CASES = {
     "mambo-200hz": lambda: (cfg_dict("mambo-200hz"), None),  # LQI on altitude, rotors, 200 Hz
     "crazyflie": lambda: (cfg_dict("crazyflie"), None),       # no integrator, 500 Hz
     "mambo-saturating": _mambo_saturating,
     "mambo-box": _mambo_box,
     "mambo-emulated": _mambo_emulated,
+    "mambo-lag-ignored": lambda: _mambo_lagged("ignore"),
+    "mambo-lag-included": lambda: _mambo_lagged("include"),
+    "mambo-lag-included-delayed": lambda: _mambo_lagged("include", 2),
+    "mambo-lag-ignored-delayed": lambda: _mambo_lagged("ignore", 1),
 }
 
 
@@ -108,10 +124,10 @@ class Controller:
         assert res.returncode == 0, res.stderr
         self.lib = ctypes.CDLL(str(lib))
         self.real = ctypes.c_float if single else ctypes.c_double
-        nz = len(exp.loop.integral_states)
+        nz, nl = len(exp.loop.integral_states), exp.loop.spec().n_lag
 
-        class State(ctypes.Structure):  # quadctl_controller of the header
-            _fields_ = [("z", self.real * max(nz, 1)), ("k", ctypes.c_ulong)]
+        class State(ctypes.Structure):  # quadctl_controller of the header (l[]: a design with the rotors' lag)
+            _fields_ = [("z", self.real * max(nz, 1)), *([("l", self.real * nl)] if nl else []), ("k", ctypes.c_ulong)]
 
         self.state = State()
         self.lib.quadctl_init(ctypes.byref(self.state))
@@ -129,10 +145,13 @@ class Controller:
 
 def fly(exp, ctl: Controller, x0, plan):
     """The closed loop of the C controller around the engine's plant: ``quadctl_step`` at every
-    controller sample, ``hold`` RK4 steps of the plant under the held input in between.
+    controller sample, ``hold`` RK4 steps of the plant under the held input in between. The rotors'
+    lag is the plant's (its rotor states); the configured delay is the vehicle's: each command
+    reaches the plant ``n`` samples after ``quadctl_step`` returns it (the trim input before).
 
-    Returns (xs, us): the state before each step and the input applied during it (N + 1 rows; the
-    last input is the one held at the end)."""
+    Returns (xs, us, commands): the state before each step and the input applied during it (N + 1
+    rows; the last input is the one held at the end), and what ``quadctl_step`` returned at each
+    sample."""
     import casadi as ca
 
     from quadctl.sim.builder import build
@@ -140,15 +159,18 @@ def fly(exp, ctl: Controller, x0, plan):
     loop = exp.loop
     plant = build(loop.spec(noise=False)).plant
     c, e = ca.DM(loop.constants(plan.sample_time)), ca.DM.zeros(0, 1)
-    X = np.concatenate([x0, np.zeros(len(loop.integral_states))])  # the plant passes z through untouched
-    xs, us = np.empty((plan.n_steps + 1, N_STATES)), np.empty((plan.n_steps + 1, N_INPUTS))
+    X = loop.initial_loop_state(x0)  # the plant passes the simulation's controller states through untouched
+    pending = [np.asarray(loop.u_trim, dtype=float)] * loop.delay_samples
+    xs, us, commands = np.empty((plan.n_steps + 1, N_STATES)), np.empty((plan.n_steps + 1, N_INPUTS)), []
     for k in range(plan.n_steps):
         if k % plan.hold == 0:
-            u = ctl.step(X[:N_STATES])
+            commands.append(ctl.step(X[:N_STATES]))
+            pending.append(commands[-1])
+            u = pending.pop(0)
         xs[k], us[k] = X[:N_STATES], u
         X = np.asarray(plant(X, u, plan.dt, c, e)).ravel()
     xs[-1], us[-1] = X[:N_STATES], u
-    return xs, us
+    return xs, us, np.array(commands)
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -162,9 +184,17 @@ def test_the_exported_c_flies_the_loop_simulate_flies(case, tmp_path):
     terms = np.abs(loop.u_trim) + (np.abs(ref.x) + np.abs(ref.x_ref)) @ np.abs(loop.K).T
     if loop.integral_states:
         terms = terms + np.abs(ref.z) @ np.abs(loop.Ki).T
+    if loop.Kv is not None:
+        terms = terms + np.abs(ref.lag_model) @ np.abs(loop.Kv).T
     scale = terms.max(axis=0)
     for single in (False, True):
-        xs, us = fly(exp, Controller(exp, tmp_path / case, single), x0, plan)
+        xs, us, commands = fly(exp, Controller(exp, tmp_path / case, single), x0, plan)
+        if loop.delay_samples:  # the law's command at sample k is what the simulation applies at k + n
+            n, samples = loop.delay_samples, ref.u[::plan.hold]
+            shifted = np.abs(commands[:len(samples) - n] - samples[n:]).max()
+            assert shifted <= (DOUBLE_TOL if not single else FLOAT_INPUT_RTOL * scale.max()), \
+                f"max |command - simulated input n samples later| = {shifted:.4e}"
+            np.testing.assert_array_equal(samples[:n], np.tile(loop.u_trim, (n, 1)))
         dx, du = np.abs(xs - ref.x).max(), np.abs(us[:-1] - ref.u[:-1]).max()
         if single:
             worst = (np.abs(us[:-1] - ref.u[:-1]) / scale).max()
@@ -172,6 +202,19 @@ def test_the_exported_c_flies_the_loop_simulate_flies(case, tmp_path):
                 f"float: max |dx| = {dx:.3e}, max |du| = {du:.3e} ({worst:.3e} of the terms' size)"
         else:
             assert dx <= DOUBLE_TOL and du <= DOUBLE_TOL, f"double: max |dx| = {dx:.4e}, max |du| = {du:.4e}"
+
+
+def test_the_header_says_what_the_law_does_with_the_rotor_lag_and_the_delay():
+    """The lag model is the controller's (state in the struct); the delay is the vehicle's (no buffer)."""
+    lagged = cexport.sources(prepared("mambo-lag-included-delayed"))
+    header = lagged[cexport.HEADER]
+    assert "#define QUADCTL_NL 4" in header and "quadctl_real l[4];" in header
+    assert "controller.delay, 2 samples (0.01 s) from measurement to actuation" in header
+    assert "Do not add a buffer here" in header and "a = exp(-Ts/tau) = 0.846481725" in header
+    assert "u = sat(u_trim - K (x - x_ref(t)) - Ki z - Kv l)" in " ".join(header.replace(" *  ", "").split())
+    plain = cexport.sources(prepared("mambo-200hz"))[cexport.HEADER]
+    assert "#define QUADCTL_NL 0" in plain and "quadctl_real l[" not in plain
+    assert "No delay was configured" in plain and "The design ignores the rotors' lag" in plain
 
 
 def test_the_proof_cases_clip_and_freeze_the_integrator():

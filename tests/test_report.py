@@ -262,3 +262,28 @@ def test_report_stops_where_run_does_on_a_loop_unstable_at_its_rate(tmp_path):
         assert f"quadctl: check failed: {verdict}" in " ".join(res.stderr.split()), res.stderr
     text = "".join(_parse(tmp_path / "report" / report.FOLDER / report.HTML).text)
     assert "Stopped at check: sampled at 200 Hz" in " ".join(text.split())
+
+
+@pytest.mark.parametrize("path, lag, delay", [
+    ("docs/configs/mambo-rotor-lag-include.yaml", "Rotor time constant 30 ms (motors.time_constant), included in the "
+                                                  "design (controller.rotor_lag: include", "no delay"),
+    ("docs/configs/mambo-rotor-lag.yaml", "Rotor time constant 30 ms (motors.time_constant), ignored by the design "
+                                          "(controller.rotor_lag: ignore)", "no delay"),
+    ("docs/configs/mambo-delay.yaml", "Rotors: instantaneous", "delay 1 sample (5 ms) from measurement to actuation"),
+])
+def test_the_report_shows_the_rotor_lag_the_delay_and_the_delay_margins(path, lag, delay, tmp_path):
+    res = _report("-c", Path(__file__).resolve().parent.parent / path, "-o", tmp_path)
+    assert res.exit_code == 0, res.output
+    page = _parse(tmp_path / report.FOLDER / report.HTML)
+    text = " ".join(" ".join(page.text).split())
+    assert lag in text and delay in text
+    margins = _artifact(tmp_path, "margins.json")
+    for m in margins["loops"]:
+        loop = (f"{m['loop']} ({m['input']})", m["model"])
+        dm = m["delay_margin"]
+        assert page.column("delay-margin-table", "delay margin ms", *loop) == f"{dm['s'] * 1e3:.3g}"
+        assert page.column("delay-margin-table", "samples", *loop) == f"{dm['samples']:.3g}"
+        assert page.column("delay-margin-table", "configured delay (samples)", *loop) == str(m["delay_samples"])
+    if "include" in path:
+        design = _artifact(tmp_path, "design.json")
+        assert design["rotor_lag"]["mode"] == "include" and len(page.tables["design-table"][0]) == 6  # Kv shown

@@ -120,13 +120,18 @@ def checks_table(checks: dict, regulated: set[str]) -> Table:
 
 def design_tables(des) -> list:
     table = Table(title="LQR per subsystem (u = -K x, K = R^-1 B' P)", title_justify="left")
-    for col in ("subsystem", "states", "input", "K", "closed-loop eigenvalues", "Riccati residual"):
+    lagged = des.lag_time_constant is not None
+    for col in ("subsystem", "states", "input", "K", *(["Kv (lag)"] if lagged else []), "closed-loop eigenvalues",
+                "Riccati residual"):
         table.add_column(col)
     for s in des.subsystems:
+        kv = ["[" + ", ".join(f"{k:.4g}" for k in s.Kv.ravel()) + "]"] if lagged else []
         table.add_row(s.name, " ".join(s.states), " ".join(s.inputs),
-                      "[" + ", ".join(f"{k:.4g}" for k in s.K.ravel()) + "]",
+                      "[" + ", ".join(f"{k:.4g}" for k in s.K.ravel()) + "]", *kv,
                       ", ".join(eig(e) for e in s.eigenvalues), f"{s.residual:.1e}")
-    full = Table(title="Coupled 12-state closed loop A - B K_block", title_justify="left")
+    title = ("Coupled closed loop with the rotors' lag, [x; v]: A - B [K_block, Kv_block]" if lagged else
+             "Coupled 12-state closed loop A - B K_block")
+    full = Table(title=title, title_justify="left")
     full.add_column("eigenvalue (rad/s)", justify="right")
     full.add_column("verdict")
     for e in sorted(des.full_eigenvalues, key=lambda z: (z.real, z.imag)):

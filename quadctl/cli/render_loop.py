@@ -108,6 +108,8 @@ def saturation_table(flight: dict) -> Table | None:
 def rms_table(flight: dict) -> Table:
     noise = flight.get("noise") or {}
     seed = f", noise seed {noise['seed']}" if noise else ""
+    turb = (flight.get("wind") or {}).get("turbulence")
+    seed += f", turbulence seed {turb['seed']}" if turb else ""
     table = Table(title=f"RMS deviation from the reference{seed}", title_justify="left")
     for col in ("state", "unit", "whole run", "second half"):
         table.add_column(col, justify="left" if col in ("state", "unit") else "right")
@@ -130,6 +132,32 @@ def estimation_table(flight: dict) -> Table | None:
     for name in STATE_NAMES:
         table.add_row(name, unit_of(name), num(est["rms_error"][name]), num(est["rms_error_second_half"][name]),
                       num(est["predicted_std"][name]))
+    return table
+
+
+def wind_line(flight: dict) -> str:
+    """The wind of a run in one line: steady, gusts, turbulence, peak, and whether the trim is in it."""
+    wind = flight["wind"]
+    parts = [f"steady [{', '.join(num(w) for w in wind['steady'])}] m/s NED"]
+    if wind["gusts"]:
+        parts.append(f"{len(wind['gusts'])} gust" + ("s" if len(wind["gusts"]) > 1 else ""))
+    turb = wind["turbulence"]
+    if turb:
+        sigma = ", ".join(num(s) for s in turb["sigma"])
+        parts.append(f"Dryden turbulence sigma [{sigma}] m/s at {num(turb['reference_speed'])} m/s "
+                     f"(seed {turb['seed']})")
+    trimmed = "trimmed in the steady wind" if wind["trim_in_wind"] else "trimmed in still air"
+    return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"
+
+
+def wind_table(flight: dict) -> Table:
+    """Ground speed and airspeed (max, RMS) of a run in wind."""
+    wind = flight["wind"]
+    table = Table(title="Ground speed and airspeed", title_justify="left")
+    for col in ("speed", "unit", "max", "RMS"):
+        table.add_column(col, justify="left" if col in ("speed", "unit") else "right")
+    for key, label in (("ground_speed", "ground speed"), ("airspeed", "airspeed")):
+        table.add_row(label, "m/s", num(wind[key]["max"]), num(wind[key]["rms"]))
     return table
 
 
@@ -174,3 +202,20 @@ def full_tables(fd, comparison: dict) -> list:
         comp.add_row(label, num(get(designs["decoupled"])), num(get(designs["full"])),
                      better["winner"] or "tie", by)
     return [table, f"full closed-loop eigenvalues (rad/s): {eigs}", comp]
+
+
+def closed_loop_line(payload: dict) -> str:
+    """One line on margins.json's ``closed_loop``: the loop the vehicle has (lag, lag model, delay)."""
+    cl = payload["closed_loop"]
+    parts = []
+    if payload.get("rotor_time_constant"):
+        lag = payload.get("rotor_lag", "ignore")
+        parts.append(f"a {payload['rotor_time_constant'] * 1e3:.4g} ms rotor lag ({lag}d by the design)")
+    if payload.get("delay_samples"):
+        parts.append(f"{payload['delay_samples']} samples of delay")
+    what = "closed loop" + (" with " + " and ".join(parts) if parts else "")
+    if cl["domain"] == "z":
+        size = f"spectral radius {cl['spectral_radius']:.6g}"
+    else:
+        size = f"slowest pole {cl['slowest_real_part']:.4g} rad/s"
+    return f"{what}: {'stable' if cl['stable'] else 'UNSTABLE'} ({len(cl['eigenvalues'])} eigenvalues, {size})"

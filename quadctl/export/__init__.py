@@ -74,9 +74,12 @@ class Export:
         return self.setup.timing.mode
 
     def closed_loop_matrix(self) -> np.ndarray:
-        """The linear closed loop of ``[x; z]`` as exported: ``z``-domain when sampled (ZOH plant)."""
+        """The linear closed loop of ``[x; z]`` as exported: ``z``-domain when sampled (ZOH plant).
+        A design that includes the rotors' lag: of ``[x; v; z]`` (the lag states as the design sees
+        them; the controller's lag model equals them while the model is right)."""
         return closed_loop_matrix(self.linear.A, self.linear.B, self.loop.K, self.loop.Ki,
-                                  self.loop.integral_states, self.sample_time)
+                                  self.loop.integral_states, self.sample_time, Kv=self.loop.Kv,
+                                  lag_time_constant=self.loop.lag_model_time_constant)
 
     def closed_loop_eigenvalues(self) -> np.ndarray:
         """Eigenvalues of :meth:`closed_loop_matrix` (``z`` when sampled, ``s`` in rad/s when continuous)."""
@@ -197,7 +200,7 @@ def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
     u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t; continuous feedback; no input limits.
     """
     ints, act = loop.integral_states, loop.actuators
-    inner = "u_trim - K (x - x_ref(t))" + (" - Ki z" if ints else "")
+    inner = "u_trim - K (x - x_ref(t))" + (" - Ki z" if ints else "") + (" - Kv l" if loop.Kv is not None else "")
     parts = [(f"u = {inner}" if act is None else f"u = sat({inner})") + ", x_ref(t) = x_trim + x_rate t"]
     if sample_time is None:
         parts.append("continuous feedback")
@@ -208,6 +211,16 @@ def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
         step = "z <- z - Ts (x_i - x_ref_i(t))" if sample_time is not None else "dz/dt = -(x_i - x_ref_i(t))"
         parts.append(f"{step} for i = {', '.join(ints)} (MATLAB lqi), frozen while saturation changes an input "
                      "that its Ki drives (conditional integration)")
+    if loop.Kv is not None:
+        tau = loop.lag_model_time_constant
+        step = ("l <- a l + (1 - a) (u - u_trim), a = exp(-Ts / tau)" if sample_time is not None
+                else "dl/dt = (u - u_trim - l) / tau")
+        parts.append(f"{step}, tau = {tau:g} s: the controller's model l of the rotors' lag (the deviation of "
+                     "[T, A, E, R] from trim), driven by its own command u, starting at 0")
+    if loop.delay_samples and sample_time is not None:
+        n = loop.delay_samples
+        parts.append(f"the vehicle applies u {n} sample{'s' if n > 1 else ''} ({n * sample_time:.6g} s, "
+                     "controller.delay) after computing it: the delay is the vehicle's, not part of this law")
     if act is None:
         parts.append("no input limits")
     elif act.mode == "motors":

@@ -86,14 +86,15 @@ def sources(exp: Export) -> dict[str, str]:
     if loop.rotor_time_constant is not None:  # the rotors' lag is the vehicle's, not the law's: no rotor states
         act = loop.actuators
         loop = replace(loop, actuators=replace(act, motors=replace(act.motors, time_constant=None)))
+    delay = loop.delay_samples
     loop = replace(loop, delay_samples=0)  # so is the delay: the vehicle's computer and bus add it
-    spec = loop.spec(noise=False)
+    spec = loop.spec(noise=False)  # a design with the rotors' lag keeps its lag model: controller states
     c = loop.constants(Ts)
-    nz = len(loop.integral_states)
+    nz, nl = len(loop.integral_states), spec.n_lag
     dialect = Dialect(real="quadctl_real", literal="QUADCTL_LIT({})", call="QUADCTL_FN({})", pragma=False,
                       named=((ANTIWINDUP_TOL, "QUADCTL_ANTIWINDUP_TOL"),), mark_used=True)
     law = emit(build(spec).law, "qc_law", 1, dialect)
-    offsets = _offsets(nz)
+    offsets = _offsets(nz, spec.lag_model)
     act = loop.actuators
     rotors = ""
     if act is not None and act.mode == "motors":
@@ -112,7 +113,15 @@ def sources(exp: Export) -> dict[str, str]:
         "TOL_FLOAT": repr(tol_float), "TOL_DOUBLE": repr(ANTIWINDUP_TOL),
         "FLOAT_EXACT_S": f"{2 ** 24 * Ts:.4g}", "ULONG_DAYS": f"{2 ** 32 * Ts / 86400:.4g}",
         "NX": str(N_STATES), "NU": str(N_INPUTS), "NZ": str(nz), "NZ_STORAGE": str(max(nz, 1)),
-        "NX_LOOP": str(spec.nx), "NC": str(len(c)),
+        "NX_LOOP": str(spec.nx), "NC": str(len(c)), "NL": str(nl),
+        "LAG_MEMBER": (f"  quadctl_real l[{nl}];  /* the rotor lag model: [T, A, E, R] the rotors reach, from trim "
+                       "(N, N m x3) */\n" if nl else ""),
+        "LAG_INIT": "  for (i = 0; i < QUADCTL_NL; ++i) c->l[i] = QUADCTL_LIT(0.0);\n" if nl else "",
+        "LAG_LOAD": ("  for (i = 0; i < QUADCTL_NL; ++i) X[QUADCTL_NX + QUADCTL_NZ + i] = c->l[i];\n" if nl else ""),
+        "LAG_STORE": ("  for (i = 0; i < QUADCTL_NL; ++i) c->l[i] = X_sampled[QUADCTL_NX + QUADCTL_NZ + i];\n"
+                      if nl else ""),
+        "LAG_DOC": _lag_doc(loop, Ts),
+        "DELAY_DOC": _delay_doc(delay, Ts),
         "STATE_DEFINES": "".join(f"#define QUADCTL_X_{n.upper()} {i}  /* {n} ({STATE_UNITS[n]}) */\n"
                                  for i, n in enumerate(STATE_NAMES)).rstrip("\n"),
         "INPUT_DEFINES": "".join(f"#define QUADCTL_U_{n} {i}  /* {n} ({INPUT_UNITS[n]}) */\n"
@@ -140,10 +149,40 @@ def float_tolerance(actuators) -> float:
     return float(f"{FLOAT_ROUNDOFF_ULPS * FLT_EPSILON * scale:.2g}")
 
 
-def _offsets(nz: int) -> list[tuple[str, tuple[int, ...], int]]:
+def _lag_doc(loop, Ts: float) -> str:
+    """The header's paragraph on the rotors' lag: what the law does with it."""
+    tau = loop.lag_model_time_constant
+    if loop.Kv is None:
+        lines = ["The design ignores the rotors' lag (controller.rotor_lag: ignore): no lag state here; the",
+                 "simulation's rotors lag by motors.time_constant if the config sets one."]
+    else:
+        a = math.exp(-Ts / tau)
+        lines = [f"The design includes the rotors' {tau:g} s lag (controller.rotor_lag: include). The controller",
+                 "does not measure the thrust the rotors reach: it keeps a model of it, l (the struct's l[], the",
+                 "deviation of [T, A, E, R] from trim), advanced each sample from the command it returns by the",
+                 f"lag's exact zero-order hold, l <- a l + (1 - a)(u - u_trim), a = exp(-Ts/tau) = {a:.9g}, and",
+                 "fed back through Kv. quadctl_init starts it at 0: the rotors at their trim thrust."]
+    return "\n".join(" *   " + line for line in lines)
+
+
+def _delay_doc(delay: int, Ts: float) -> str:
+    """The header's paragraph on the delay: the law is the law before it."""
+    if not delay:
+        lines = ["No delay was configured (controller.delay): the simulation applies u at the instant x is",
+                 "measured."]
+    else:
+        n = f"{delay} sample{'s' if delay > 1 else ''}"
+        lines = [f"The config's controller.delay, {n} ({delay * Ts:.6g} s) from measurement to actuation, is",
+                 "the vehicle's (its computer, bus and ESCs), not part of this law: quadctl_step returns the",
+                 f"command at once, and `quadctl simulate` applies each command {n} later (a buffer starting",
+                 "at u_trim). Do not add a buffer here: the vehicle has the delay already."]
+    return "\n".join(" *   " + line for line in lines)
+
+
+def _offsets(nz: int, lag_model: bool = False) -> list[tuple[str, tuple[int, ...], int]]:
     """(name, shape, first index) of each block of the constant vector."""
     out, start = [], 0
-    for name, shape in constant_layout(nz):
+    for name, shape in constant_layout(nz, lag_model=lag_model):
         out.append((name, shape, start))
         start += int(np.prod(shape))
     return out

@@ -87,6 +87,15 @@ def fields(exp: Export) -> list[Field]:
         Field("K", np.asarray(loop.K, dtype=float), "input unit per state unit",
               "state gain: u = u_trim - K (x - x_ref(t)) - Ki z (4 x 12)"),
         Field("Ki", Ki, "input unit per (state unit s)", "integrator gain (4 x nz), one column per integral_states"),
+        Field("Kv", np.asarray(loop.Kv if loop.Kv is not None else np.zeros((4, 4)), dtype=float),
+              "input unit per input unit", "gain on the controller's rotor lag model l: u -= Kv l (4 x 4; zero "
+              "unless rotor_lag is include)"),
+        Field("rotor_lag", exp.setup.rotor_lag, "", "ignore: the design's rotors are instantaneous; include: designed "
+              "with the lag, the controller propagates its model l (see law)"),
+        Field("rotor_time_constant", float(loop.rotor_time_constant or 0.0), "s",
+              "first-order lag of each rotor's thrust (motors.time_constant); 0: instantaneous"),
+        Field("delay_samples", int(loop.delay_samples), "samples", "controller.delay: the vehicle's, from measurement "
+              "to actuation; not part of the law (simulate applies each command this many samples later)"),
         Field("integral_states", list(loop.integral_states), "",
               "the state each integrator integrates: dz/dt = -(x_i - x_ref_i(t))"),
         Field("x_trim", np.asarray(loop.x_trim, dtype=float), "state units", "the trim state: x_ref(0)"),

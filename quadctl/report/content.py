@@ -160,9 +160,29 @@ def checks(ws) -> Section:
     return Section("checks", "Checks", tuple(blocks))
 
 
+def _plant_and_timing(ws) -> Text:
+    """The rotors' lag, what the design does with it, and the delay: one sentence."""
+    tau, delay, timing = ws.setup.rotor_time_constant, ws.setup.timing.delay_samples, ws.setup.timing
+    if tau is None:
+        lag = "Rotors: instantaneous (no motors.time_constant)"
+    elif ws.setup.rotor_lag == "include":
+        lag = (f"Rotor time constant {tau * 1e3:.4g} ms (motors.time_constant), included in the design "
+               "(controller.rotor_lag: include: each input lags in the design model; the controller feeds back "
+               "its own model of the lag through Kv)")
+    else:
+        lag = (f"Rotor time constant {tau * 1e3:.4g} ms (motors.time_constant), ignored by the design "
+               "(controller.rotor_lag: ignore): only the simulated plant and the margins have it")
+    if delay:
+        when = f"{delay} sample{'s' if delay > 1 else ''} ({delay * timing.sample_time * 1e3:.4g} ms)"
+        dl = f"delay {when} from measurement to actuation (controller.delay), in the simulation and the margins"
+    else:
+        dl = "no delay (controller.delay)"
+    return Text(f"{lag}; {dl}.")
+
+
 def design(ws) -> Section:
     des = ws.design
-    blocks = []
+    blocks = [_plant_and_timing(ws)]
     if des.rate:
         blocks.append(Text(f"Discrete design at {des.rate:g} Hz (lqrd: ZOH plant, cost integrated over "
                            f"{1e3 / des.rate:.4g} ms); eigenvalues shown as ln(z)/Ts in rad/s."))
@@ -170,16 +190,22 @@ def design(ws) -> Section:
     for s in des.subsystems:
         states = " ".join(s.states) + ("" if not s.integral else " + int " + " ".join(s.integral))
         weights_rows.append((s.name, states, " ".join(s.inputs), weights(s.Q), weights(s.R)))
-        gain_rows.append((s.name, vector(s.K), "-" if s.Ki is None else vector(s.Ki), eigs(s.eigenvalues),
+        gain_rows.append((s.name, vector(s.K), "-" if s.Ki is None else vector(s.Ki),
+                          *([vector(s.Kv)] if des.lag_time_constant is not None else []), eigs(s.eigenvalues),
                           f"{s.residual:.1e}"))
+    lagged = des.lag_time_constant is not None
     blocks.append(Table("weights-table", "LQR weights per subsystem (cost: integral of x'Qx + u'Ru)",
                         ("subsystem", "states", "input", "Q", "R"), tuple(weights_rows), align="lllll"))
     blocks.append(Table("design-table", "Gains per subsystem (u = -K x, K = R^-1 B' P)",
-                        ("subsystem", "K", "Ki", "closed-loop eigenvalues (rad/s)", "Riccati residual"),
+                        ("subsystem", "K", "Ki", *(["Kv"] if lagged else []), "closed-loop eigenvalues (rad/s)",
+                         "Riccati residual"),
                         tuple(gain_rows),
-                        caption="Ki: the gain on the integral of the error (LQI). Riccati residual: relative "
-                                "residual of the Riccati equation at the solution P (0 for an exact solution).",
-                        align="lllwr"))
+                        caption="Ki: the gain on the integral of the error (LQI). "
+                                + ("Kv: the gain on the lag states (the inputs the rotors reach, from trim). "
+                                   if lagged else "")
+                                + "Riccati residual: relative residual of the Riccati equation at the solution P "
+                                  "(0 for an exact solution).",
+                        align="llllwr" if lagged else "lllwr"))
     cols = list(STATE_NAMES) + [f"int {s}" for s in des.integral_states]
     K = np.hstack([des.K_block, des.Ki_block]) if des.integral_states else des.K_block
     blocks.append(Table("kblock-table", "K_block: a row per input, a column per state (0 is an exact zero)",
@@ -231,6 +257,15 @@ def margins(ws) -> Section:
               caption="Continuous LQR guarantees GM <= -6.02 / inf dB, PM >= 60 deg, |1+L| >= 1.",
               align="llrrrrl"),
     ]
+    blocks.insert(0, _plant_and_timing(ws))
+    blocks.append(Table(
+        "delay-margin-table", "Delay margins: the extra delay each loop tolerates (PM / crossover frequency)",
+        ("loop", "model", "configured delay (samples)", "delay margin ms", "samples"),
+        tuple((f"{m.loop} ({m.input})", m.model, str(m.delay_samples),
+               num(None if m.delay_margin is None else m.delay_margin * 1e3, 3), num(m.delay_margin_samples, 3))
+              for m in loops),
+        caption="Beyond the configured delay (controller.delay), already in every loop; '-': |L| never crosses 1.",
+        align="llrrr"))
     if unstable:
         blocks.append(Text(f"Unstable loop(s): {', '.join(unstable)}.", "fail"))
     notes = _margin_notes(loops)
@@ -289,6 +324,7 @@ def simulation(ws) -> Section:
     blocks.append(Text(f"Cost of the run, integral of e'Qe + du'R du dt: {num(metrics['cost'])}."))
     for name, fig in plots.simulation_figures(sim, ws.setup.partition, u_trim, title=ws.setup.name).items():
         what = "the four inputs against time, trim dashed" if name == "inputs" else \
+            "the wind the plant felt against time (NED, m/s)" if name == "wind" else \
             f"the {name} subsystem's states and their reference against time (angles in degrees)"
         blocks.append(Figure(f"sim-{name}", f"Simulation: {what}.", _png(fig, SIM_DPI)))
     return Section("simulation", "Simulation", tuple(blocks))

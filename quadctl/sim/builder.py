@@ -5,11 +5,12 @@ compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
 ``driver.c``), and the interpreted fallback (:mod:`quadctl.sim.interpreted`, CasADi's virtual
 machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
 
-The loop state is ``X = [x; f; z]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
+The loop state is ``X = [x; f; z; l; b; xh]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
 the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the controller states:
-the ``nz`` integrators of an LQI law, and the ``4 n`` entries of the command buffer of a loop
-with ``n`` samples of delay (:attr:`LoopSpec.delay`). The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant`
-states. The control law is
+the ``nz`` integrators of an LQI law, the four states ``l`` of the controller's rotor lag model
+(:attr:`LoopSpec.lag_model`), and the ``4 n`` entries of the command buffer of a loop with ``n``
+samples of delay (:attr:`LoopSpec.delay`), then the 12 states ``xh`` of a Kalman filter (LQG).
+The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant` states. The control law is
 
     u = sat(u_trim - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,
 
@@ -31,6 +32,15 @@ its command through a first-order lag, ``df/dt = (f_cmd - f) / tau`` with ``f_cm
 mixed, clipped command, and the body gets ``[T, A, E, R] = mix_inv f`` (the effectiveness matrix)
 instead of ``u``. Without it the rotors are instantaneous: the body gets ``u``.
 
+Rotor lag model (:attr:`LoopSpec.lag_model`, ``controller.rotor_lag: include``): a design that
+includes the rotors' lag feeds back the achieved virtual inputs ``v`` too, ``u -= Kv (v - u_trim)``.
+The controller does not measure them: it propagates its own model of the lag from its own
+(clipped) commands, ``l = v - u_trim`` with ``dl/dt = (u - u_trim - l) / tau_model`` (continuous
+feedback, integrated by RK4 with the plant), or its exact ZOH ``l <- a l + (1 - a)(u - u_trim)``,
+``a = exp(-Ts / tau_model)``, once per sample (held loops). It starts at 0 (the rotors at trim)
+and equals the plant's ``mix_inv f - u_trim`` while the model is right (the same ``tau``, no
+delay: a delay is the vehicle's, the model follows the commands the law computes).
+
 Delay (:attr:`LoopSpec.delay`, held loops only): ``n`` controller samples from measurement to
 actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands computed 1 to ``n``
 samples ago; at a sample the law applies ``b_n`` and shifts, ``b_1 <- u_new``, ``b_k <- b_(k-1)``.
@@ -46,8 +56,11 @@ the filter gain ``Le = M``, acts on ``xc = xh + M (y - C xh)`` and predicts ``xh
 Kalman-Bucy filter ``dxh/dt = Ae xh + Be du + Le (y - C xh)`` is integrated in the RK4 stages.
 Runs start with ``xh = 0`` (the filter believes the trim).
 
-Exogenous inputs (:data:`EXO_LAYOUT`, when :attr:`LoopSpec.noise`): per step, a body force and
-torque added to the plant and the sensor noise added to what the controller measures.
+
+Exogenous inputs (:func:`exo_layout`): per step, when :attr:`LoopSpec.noise`, a body force and
+torque added to the plant and the sensor noise added to what the controller measures
+(:data:`EXO_LAYOUT`); then, when :attr:`LoopSpec.wind`, the wind (NED, m/s) the rotor drag sees
+through the air-relative velocity (:data:`WIND_LAYOUT`; :mod:`quadctl.wind`).
 
 Constants (:func:`constant_layout`): everything numeric a case carries (trim, gains, vehicle,
 mixing, limits) is one vector ``c``; the gain's sparsity, the saturation mode and the integrated
@@ -63,7 +76,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS, N_STATES
-from quadctl.model import N_DISTURBANCES, N_PARAMS, build_model
+from quadctl.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -90,19 +103,31 @@ EXO_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 """Exogenous channels of one step, in order, when the loop has noise."""
 N_EXO = sum(size for _, size in EXO_LAYOUT)
+WIND_LAYOUT: tuple[tuple[str, int], ...] = (
+    ("wind", N_WIND),                   # the air's velocity over the ground, NED (m/s)
+)
+"""Exogenous channels of one step after the noise's, when the loop has wind."""
+
+
+def exo_layout(noise: bool, wind: bool) -> tuple[tuple[str, int], ...]:
+    """The exogenous channels of a loop (name, size), in the order of one step's row."""
+    return (EXO_LAYOUT if noise else ()) + (WIND_LAYOUT if wind else ())
 
 
 N_ROTORS = 4
 """Rotor thrust states of a loop with rotor dynamics (one per rotor, N)."""
 
 
-def constant_layout(nz: int = 0, rotors: bool = False, ny: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
+def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
+                    ny: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
     input ``j``'s saturation freezes integrator ``i``; ``tau`` (s) is the rotors' time constant
-    (loops with rotor dynamics); ``Ae`` (12, 12), ``Be`` (12, 4) and ``Le`` (12, ny) are the
-    Kalman filter's model and gain of a loop with ``ny`` measurements (LQG). Matrices are stored
+    (loops with rotor dynamics); ``Kv`` (4, 4) the gain on the controller's rotor lag model and
+    ``tau_model`` (s) the model's time constant (loops with a lag model); ``Ae`` (12, 12), ``Be``
+    (12, 4) and ``Le`` (12, ny) are the Kalman filter's model and gain of a loop with ``ny``
+    measurements (LQG). Matrices are stored
     column-major.
     """
     out = _BASE_LAYOUT
@@ -110,17 +135,20 @@ def constant_layout(nz: int = 0, rotors: bool = False, ny: int = 0) -> tuple[tup
         out = out + (("Ki", (N_INPUTS, nz)), ("antiwindup", (nz, N_INPUTS)))
     if rotors:
         out = out + (("tau", (1,)),)
+    if lag_model:
+        out = out + (("Kv", (N_INPUTS, N_INPUTS)), ("tau_model", (1,)))
     if ny:
         out = out + (("Ae", (N_STATES, N_STATES)), ("Be", (N_STATES, N_INPUTS)), ("Le", (N_STATES, ny)))
     return out
 
 
-def constant_size(nz: int = 0, rotors: bool = False, ny: int = 0) -> int:
-    """Length of ``c`` for ``nz`` integrators (and rotor dynamics, and ``ny`` measurements)."""
-    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, ny))
+def constant_size(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0) -> int:
+    """Length of ``c`` for ``nz`` integrators (and rotor dynamics, a lag model, ``ny`` measurements)."""
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model, ny))
 
 
-def pack_constants(nz: int = 0, rotors: bool = False, ny: int = 0, **values) -> np.ndarray:
+def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
+                   **values) -> np.ndarray:
     """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
 
     Raises
@@ -128,7 +156,7 @@ def pack_constants(nz: int = 0, rotors: bool = False, ny: int = 0, **values) -> 
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots, template = _slots(nz, rotors, ny)
+    slots, template = _slots(nz, rotors, lag_model, ny)
     out = template.copy()
     for name, value in values.items():
         if name not in slots:
@@ -142,10 +170,11 @@ def pack_constants(nz: int = 0, rotors: bool = False, ny: int = 0, **values) -> 
 
 
 @lru_cache(maxsize=16)
-def _slots(nz: int, rotors: bool = False, ny: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+def _slots(nz: int, rotors: bool = False, lag_model: bool = False,
+           ny: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
-    for name, shape in constant_layout(nz, rotors, ny):
+    for name, shape in constant_layout(nz, rotors, lag_model, ny):
         size = int(np.prod(shape))
         slots[name] = (slice(offset, offset + size), shape)
         offset += size
@@ -177,6 +206,10 @@ class LoopSpec:
         Rotor dynamics: the four rotor thrusts are plant states (saturation ``motors`` only).
     delay : int
         Controller samples from measurement to actuation (held loops only): a command buffer.
+    lag_model : bool
+        The controller propagates a model of the rotors' lag and feeds it back (``Kv``).
+    wind : bool
+        The loop takes the wind (:data:`WIND_LAYOUT`) every step, after the noise's channels.
     measured : tuple of int
         State indices a Kalman filter measures (LQG); empty: the law measures the full state.
     """
@@ -188,6 +221,8 @@ class LoopSpec:
     noise: bool = False
     rotors: bool = False
     delay: int = 0
+    lag_model: bool = False
+    wind: bool = False
     measured: tuple[int, ...] = ()
 
     def __post_init__(self):
@@ -216,6 +251,11 @@ class LoopSpec:
         return self.delay * N_INPUTS
 
     @property
+    def n_lag(self) -> int:
+        """States of the controller's rotor lag model (one per input, or none)."""
+        return N_INPUTS if self.lag_model else 0
+
+    @property
     def ny(self) -> int:
         """Measurements of the Kalman filter (0: full-state feedback)."""
         return len(self.measured)
@@ -227,24 +267,25 @@ class LoopSpec:
 
     @property
     def nx(self) -> int:
-        """Loop states ``[x; f; z; b; xh]``."""
-        return self.n_plant + self.nz + self.n_buffer + self.n_estimate
+        """Loop states ``[x; f; z; l; b; xh]``."""
+        return self.n_plant + self.nz + self.n_lag + self.n_buffer + self.n_estimate
 
     @property
     def n_exo(self) -> int:
         """Exogenous channels per step."""
-        return N_EXO if self.noise else 0
+        return sum(size for _, size in exo_layout(self.noise, self.wind))
 
     @property
     def n_constants(self) -> int:
-        return constant_size(self.nz, self.rotors, self.ny)
+        return constant_size(self.nz, self.rotors, self.lag_model, self.ny)
 
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
         bits = "".join("1" if b else "0" for b in self.pattern)
         return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
                 f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
-                + (f" delay={self.delay}" if self.delay else "")
+                + (f" delay={self.delay}" if self.delay else "") + (" lag_model=1" if self.lag_model else "")
+                + (" wind=1" if self.wind else "")
                 + (f" measured={','.join(map(str, self.measured))}" if self.measured else ""))
 
     @classmethod
@@ -281,11 +322,11 @@ class LoopFunctions:
 @lru_cache(maxsize=32)
 def build(spec: LoopSpec) -> LoopFunctions:
     """Build the loop functions of ``spec`` (cached per spec)."""
-    f = build_model().f_disturbed
-    nz, nx, npl = spec.nz, spec.nx, spec.n_plant
+    model = build_model()
+    nz, nx, npl, nl = spec.nz, spec.nx, spec.n_plant, spec.n_lag
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
-    for name, shape in constant_layout(nz, spec.rotors, spec.ny):
+    for name, shape in constant_layout(nz, spec.rotors, spec.lag_model, spec.ny):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -295,9 +336,16 @@ def build(spec: LoopSpec) -> LoopFunctions:
     e = ca.SX.sym("e", spec.n_exo)
     if spec.noise:
         disturbance = e[:N_DISTURBANCES]
-        sensor = e[N_DISTURBANCES:]
+        sensor = e[N_DISTURBANCES:N_EXO]
     else:
         disturbance, sensor = ca.DM.zeros(N_DISTURBANCES), ca.DM.zeros(N_STATES)
+    if spec.wind:
+        wind = e[spec.n_exo - N_WIND:]
+
+        def f(x, u, p, d):
+            return model.f_disturbed_wind(x, u, p, d, wind)
+    else:
+        f = model.f_disturbed
 
     def saturate(cmd):
         if spec.saturation == "none":
@@ -328,6 +376,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
         z = X[npl:npl + nz]
         err = deviation(X, t)
         cmd = parts["u_trim"] - gain @ err
+        if nl:
+            cmd = cmd - parts["Kv"] @ X[npl + nz:npl + nz + nl]
         if nz == 0:
             return saturate(cmd), ca.SX(0, 1)
         cmd = cmd - parts["Ki"] @ z
@@ -359,10 +409,17 @@ def build(spec: LoopSpec) -> LoopFunctions:
         xdot = f(Y[:N_STATES], parts["mix_inv"] @ thrust, params, disturbance)
         return ca.vertcat(xdot, (parts["mix"] @ u - thrust) / parts["tau"])
 
+    def lag_rate(Y, u):
+        """dl/dt of the controller's lag model under its command ``u``."""
+        return (u - parts["u_trim"] - Y[npl + nz:npl + nz + nl]) / parts["tau_model"]
+
     u_now, z_rate = control(X, t)
     X_sampled = ca.vertcat(X[:npl], X[npl:npl + nz] + parts["Ts"] * z_rate) if nz else X[:npl]
+    if nl:  # the lag model's exact ZOH over one sample under the held command
+        a = ca.exp(-parts["Ts"] / parts["tau_model"])
+        X_sampled = ca.vertcat(X_sampled, a * X[npl + nz:npl + nz + nl] + (1 - a) * (u_now - parts["u_trim"]))
     if spec.delay:  # apply the oldest command, shift the newest in
-        buffer, nb = X[npl + nz:npl + nz + spec.n_buffer], spec.n_buffer
+        buffer, nb = X[npl + nz + nl:npl + nz + nl + spec.n_buffer], spec.n_buffer
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
     if ne and spec.held:  # predict from the updated estimate under the applied input
         xc = deviation(X, t)
@@ -382,12 +439,13 @@ def build(spec: LoopSpec) -> LoopFunctions:
     def closed_rhs(Y, ts):
         u, rate = control(Y, ts)
         xdot = body(Y, u)
-        out = ca.vertcat(xdot, rate) if nz else xdot
+        xdot = ca.vertcat(xdot, rate) if nz else xdot
+        xdot = ca.vertcat(xdot, lag_rate(Y, u)) if nl else xdot
         if ne:  # Kalman-Bucy
             xh = Y[nx - ne:]
             xh_dot = parts["Ae"] @ xh + parts["Be"] @ (u - parts["u_trim"]) + parts["Le"] @ innovation(Y, ts)
-            out = ca.vertcat(out, xh_dot)
-        return out
+            xdot = ca.vertcat(xdot, xh_dot)
+        return xdot
 
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([rk4(closed_rhs, X), u_now]),
                        ["X", "t", "dt", "c", "e"], ["X_next", "u"])

@@ -35,11 +35,15 @@ Distributions (random mode): ``uniform {low, high}``, ``loguniform {low, high}``
 ``normal {mean, std}``, ``choice {values}``. In random mode a list is a uniform choice and a
 range is sampled uniformly on ``[from, to]`` (log-uniformly with ``scale: log``).
 
-A sweep whose only parameter is ``simulation.noise.seed`` is a Monte Carlo
-(:attr:`SweepSpec.monte_carlo`): every case also keeps the deviation of its regulated states from
-the reference on a common grid of :data:`MC_POINTS` times, and the run directory gets
-``montecarlo.png`` and ``montecarlo.npz``, the percentile bands of those deviations against time
-(:func:`montecarlo_bands`).
+A sweep whose parameters are all plant-side (:func:`~quadctl.sweep.spec.plant_side`: the noise
+seed, ``simulation.plant`` mass and inertia errors, the rotor time constant a design ignores, the
+delay, any ``simulation.`` key but the run's length and step) is an uncertainty study, a Monte
+Carlo when its values are drawn (:attr:`SweepSpec.monte_carlo`): its cases share one design (the
+chunk designs each distinct problem once), run in the lanes (grouped by loop structure: one group
+per delay), and each keeps the deviation of its regulated states from the reference on a common
+grid of :data:`MC_POINTS` times; the run directory gets ``montecarlo.png`` and ``montecarlo.npz``,
+the percentile bands of those deviations against time (:func:`montecarlo_bands`), naming the
+parameters varied.
 
 Modules, each importing only those above it:
 

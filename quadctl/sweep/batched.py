@@ -31,6 +31,8 @@ class CaseDesign:
     stable: bool
     core: np.ndarray
     path: str
+    Kv: np.ndarray | None = None
+    """(4, 4) gain on the controller's rotor lag model (a design that includes the lag); else None."""
 
 
 @dataclass(frozen=True)
@@ -50,9 +52,40 @@ class LaneJob:
 
 
 def design_all(preps, stats) -> list:
-    """A :class:`CaseDesign` per case, or the one-line reason its design failed."""
+    """A :class:`CaseDesign` per case, or the one-line reason its design failed.
+
+    Cases whose design problems are identical (the same plant, weights, integrators and design
+    rate: an uncertainty study varies only the simulated vehicle) share one design. A design that
+    includes the rotors' lag is made by the one-case design (:func:`quadctl.lqr.design`).
+    """
+    unique: dict[tuple, int] = {}
+    first = [unique.setdefault(_problem_key(prep), k) for k, prep in enumerate(preps)]
+    owners = sorted(set(first))
+    designs = _design_unique([preps[k] for k in owners], stats)
+    by_owner = dict(zip(owners, designs))
+    return [by_owner[k] for k in first]
+
+
+def _problem_key(prep) -> tuple:
+    """What a case's design depends on: its plant (the design vehicle's linear model), weights,
+    integrators, design rate and the rotor lag the design includes."""
+    setup = prep.setup
+    weights = tuple((name, Q.tobytes(), R.tobytes()) for name, (Q, R) in sorted(setup.weights.items()))
+    return (id(prep.plant), weights, tuple(sorted(setup.integral.items())), setup.timing.design_sample_time,
+            setup.design_lag_time_constant)
+
+
+def _design_unique(preps, stats) -> list:
+    """:func:`design_all` of distinct problems."""
     groups: dict[tuple, list] = {}
+    out: list = [None] * len(preps)
     for k, prep in enumerate(preps):
+        if prep.setup.design_lag_time_constant is not None:
+            stats["designs"] += len(prep.plant.decoupled.regulated)
+            out[k] = _one_by_one(prep, "one-by-one: the design includes the rotors' lag")
+    for k, prep in enumerate(preps):
+        if out[k] is not None:
+            continue
         Ts = prep.setup.timing.design_sample_time
         for sub in prep.plant.decoupled.regulated:
             ints = prep.setup.integral.get(sub.name, ())
@@ -67,7 +100,6 @@ def design_all(preps, stats) -> list:
             else:
                 missed.add(k)
         stats["designs"] += len(group)
-    out: list = [None] * len(preps)
     for k, prep in enumerate(preps):
         if k in missed:
             stats["fallbacks"] += 1
@@ -108,16 +140,16 @@ def _solve(Ts, n, group, preps):
     return res.K, res.ok
 
 
-def _one_by_one(prep):
-    """The one-case design of a case the batched solve missed: its verdict, or why it failed."""
+def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed its residual or stability check"):
+    """The one-case design of a case the batched solve does not make: its verdict, or why it failed."""
     from quadctl import pipeline
 
     try:
         des = pipeline.design_of(prep.setup, prep.plant.decoupled, prep.plant.linear)
     except DesignError as exc:
         return str(exc)
-    return CaseDesign(des.K_block, des.Ki_block, des.integral_states, des.stable, des.core_eigenvalues,
-                      "one-by-one: the batched Riccati solve missed its residual or stability check")
+    return CaseDesign(des.K_block, des.Ki_block, des.integral_states, des.stable, des.core_eigenvalues, why,
+                      Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
 def _assemble(items, gains, out) -> None:
@@ -177,12 +209,11 @@ def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
 def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
     from quadctl.motors import check_trim
-    from quadctl.noise import NoiseStream
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
-    from quadctl.simulate import ClosedLoop, rotor_eigenvalues
+    from quadctl.simulate import ClosedLoop, ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
-    continuous = [j for j, (prep, _) in enumerate(live) if prep.setup.timing.rate is None]
+    continuous = [j for j, (prep, des) in enumerate(live) if prep.setup.timing.rate is None and des.Kv is None]
     eig_of: dict[int, tuple] = {}
     by_plant: dict[tuple, list] = {}
     for j in continuous:
@@ -208,12 +239,18 @@ def loops_of(live) -> list:
             out[j] = exc
             continue
         eig, owners, limits = eig_of.get(j, (np.zeros(0, complex), [], None))  # held: the plan needs none
-        loop = ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
-                          x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
-                          rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
-                          integral_states=des.integral_states, actuators=setup.actuators,
-                          open_loop_eigenvalues=prep.plant.open_loop_eigenvalues(),
-                          delay_samples=setup.timing.delay_samples, estimator=kalman)
+        if des.Kv is not None:  # a design with the rotors' lag: the loop (and its lag model) as simulate builds it
+            from quadctl import pipeline
+
+            loop = pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
+                                           integral_states=des.integral_states, Kv=des.Kv)
+        else:
+            loop = ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
+                              x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
+                              rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
+                              integral_states=des.integral_states, actuators=setup.actuators,
+                              open_loop_eigenvalues=prep.plant.open_loop_eigenvalues(),
+                              delay_samples=setup.timing.delay_samples, estimator=kalman)
         tau = loop.rotor_time_constant
         try:
             if loop.rate is not None:  # the open-loop plant's (and rotors'): the same for every case of a plant
@@ -222,7 +259,7 @@ def loops_of(live) -> list:
                     ol = np.concatenate([loop.open_loop_eigenvalues, rotor_eigenvalues(tau)])
                     prep.plant.cache[key] = plan_held_step(ol, *key[1:4])
                 plan = prep.plant.cache[key]
-            elif tau is not None or loop.estimator is not None:
+            elif tau is not None or des.Kv is not None or loop.estimator is not None:
                 plan = loop.plan(setup.duration, setup.dt)
             else:
                 plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)
@@ -231,10 +268,12 @@ def loops_of(live) -> list:
             continue
         lo, hi = loop.bounds(setup.duration)
         exo, first, period = None, 0, 1.0
-        if setup.noise is not None:
-            first, exo = NoiseStream(setup.noise).rows(0, plan.n_steps, plan.dt)
-            period = setup.noise.period
-        out[j] = LaneJob(spec=replace(loop.spec(setup.noise is not None), pattern=_structural_gain(prep)),
+        if setup.noise is not None or setup.wind is not None:  # the rows simulate's ExoStream gives, at once
+            stream = ExoStream(setup.noise, setup.wind, setup.timing.rate)
+            first, exo = stream.rows(0, plan.n_steps, plan.dt)
+            period = stream.period
+        out[j] = LaneJob(spec=replace(loop.spec(setup.noise is not None, setup.wind is not None),
+                                      pattern=_structural_gain(prep)),
                          plan=plan, c=loop.constants(plan.sample_time),
                          x0=loop.initial_loop_state(setup.initial_state(linear.x_trim)), lo=lo, hi=hi,
                          stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
@@ -280,7 +319,7 @@ def simulate_all(jobs):
         cases = Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
                          [j.plan.n_steps for j in js], [j.stride for j in js], np.stack([j.lo for j in js]),
                          np.stack([j.hi for j in js]), hold=[max(j.plan.hold, 1) for j in js],
-                         exo=[j.exo for j in js] if spec.noise else None,
+                         exo=[j.exo for j in js] if spec.n_exo else None,
                          exo_first=[j.exo_first for j in js], exo_period=[j.exo_period for j in js])
         for i, done, ks, xs, us in run.iter_run(cases):
             yield group[i], (done, ks, xs, us), run.backend

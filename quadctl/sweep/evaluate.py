@@ -185,7 +185,7 @@ def _plant_key(setup) -> tuple:
     """What the trim, the linear model and the decoupling depend on."""
     parts = tuple((name, tuple(sub.states), tuple(sub.inputs), sub.regulate, tuple(sub.outputs or ()))
                   for name, sub in setup.partition.items())
-    return (setup.vehicle, setup.velocity_ned, setup.position_ned, setup.yaw, parts)
+    return (setup.vehicle, setup.velocity_ned, setup.position_ned, setup.yaw, setup.trim_wind, parts)
 
 
 def _plain(value):

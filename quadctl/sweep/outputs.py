@@ -94,13 +94,14 @@ def montecarlo_bands(traces: dict, states, duration: float, cases: Iterable[int]
                            traces=stack, left_out=tuple(int(c) for c in cases if c not in traces))
 
 
-def montecarlo_png(bands: MonteCarloBands, cfg) -> bytes:
-    """The Monte Carlo figure (:func:`quadctl.plots.montecarlo_figure`) as PNG bytes."""
+def montecarlo_png(bands: MonteCarloBands, cfg, varied=()) -> bytes:
+    """The Monte Carlo figure (:func:`quadctl.plots.montecarlo_figure`) as PNG bytes; ``varied``: the
+    parameters' key paths, named in the title."""
     from quadctl import plots
 
     groups = {name: [s for s in sub.states if s in bands.states]
               for name, sub in cfg.partition().items() if sub.regulate}
-    fig = plots.montecarlo_figure(bands, groups, title=cfg.name)
+    fig = plots.montecarlo_figure(bands, groups, title=cfg.name, varied=tuple(varied))
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     return buf.getvalue()

@@ -19,7 +19,7 @@ import numpy as np
 from quadctl.errors import SweepError
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import margin, metric_columns, regulated_states
-from quadctl.sweep.spec import Case, SweepSpec, assign
+from quadctl.sweep.spec import Case, SweepSpec, assign, with_sections
 
 
 @dataclass
@@ -107,7 +107,7 @@ def tasks_for(cfg, spec: SweepSpec, cases: Iterable[Case], label: str, size: int
 
 def base_of(cfg, spec: SweepSpec) -> dict:
     """The config every case starts from, as a mapping: ``cfg`` with the ``set:`` values in."""
-    base = cfg.model_dump(mode="json")
+    base = with_sections(cfg.model_dump(mode="json"), [*spec.names, *(path for path, _, _ in spec.fixed)])
     for _, keys, value in spec.fixed:
         base = assign(base, keys, value)
     return base

@@ -39,8 +39,39 @@ written, so a million is what a workstation holds comfortably, and at the thousa
 second two cores manage it is already a 20-minute run; ``samples: 1000000000`` would exhaust the
 memory before the first case ran."""
 MC_PARAMETER = ("simulation", "noise", "seed")
-"""The key path a Monte Carlo varies, and the only one (see :attr:`SweepSpec.monte_carlo`)."""
+"""The key path of a Monte Carlo over noise seeds: one kind of uncertainty study (see :func:`plant_side`)."""
+RUN_KEYS = (("simulation", "duration"), ("simulation", "dt"), ("simulation", "max_samples"))
+"""Keys under ``simulation.`` that set the run (its length, step, records), not the vehicle or its
+environment: a sweep of them is no uncertainty study (its trajectories would not share a grid)."""
 _PATH_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*)*$")
+
+
+def plant_side(keys: tuple, rotor_lag: str = "ignore", trim_wind: bool = False) -> bool:
+    """Whether a parameter changes only the simulated vehicle or its environment, never the design.
+
+    Plant-side: every key under ``simulation.`` but :data:`RUN_KEYS` (``simulation.plant.*``, the
+    mass and inertia errors; ``simulation.noise.*``; the initial offset; ``simulation.wind.*``, but
+    the steady wind while ``trim.wind`` is true: the design is trimmed in it), ``controller.delay``
+    (the design does not see it) and ``motors.time_constant`` while ``controller.rotor_lag`` is
+    ``ignore`` (with ``include`` the design is made for it).
+
+    Examples
+    --------
+    >>> plant_side(("simulation", "plant", "mass")), plant_side(("vehicle", "mass"))
+    (True, False)
+    >>> plant_side(("motors", "time_constant")), plant_side(("motors", "time_constant"), "include")
+    (True, False)
+    >>> plant_side(("simulation", "wind", "steady", 0)), plant_side(("simulation", "wind", "steady", 0), trim_wind=True)
+    (True, False)
+    """
+    keys = tuple(keys)
+    if keys[:3] == ("simulation", "wind", "steady") and trim_wind:
+        return False
+    if keys[:1] == ("simulation",):
+        return keys[:2] not in RUN_KEYS
+    if keys[:2] == ("controller", "delay"):
+        return True
+    return keys[:2] == ("motors", "time_constant") and rotor_lag == "ignore"
 
 
 @dataclass(frozen=True)
@@ -141,6 +172,8 @@ class SweepSpec:
     require_ok: bool
     chunk_size: int | None
     canonical: dict
+    uncertainty: bool = False
+    """Every parameter is :func:`plant_side`: one design, many vehicles (see :attr:`monte_carlo`)."""
 
     @property
     def names(self) -> list[str]:
@@ -149,9 +182,11 @@ class SweepSpec:
 
     @property
     def monte_carlo(self) -> bool:
-        """A Monte Carlo: the sweep varies the noise seed (``simulation.noise.seed``) and nothing
-        else, so its cases differ only in the noise each run draws. ``set:`` values apply to all."""
-        return all(p.keys == MC_PARAMETER for p in self.parameters)
+        """An uncertainty study: every parameter is :func:`plant_side` (the noise seed, mass and
+        inertia errors of the simulated vehicle, the rotor lag it ignores, the delay, ...), so its
+        cases share one design and differ only in the vehicle they fly; each keeps its trajectory
+        for the bands (``montecarlo.npz``). ``set:`` values apply to all."""
+        return self.uncertainty
 
     def count(self) -> int:
         """Number of cases."""
@@ -233,11 +268,13 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
     if not isinstance(require_ok, bool):
         raise fail("require_ok", f"{show(require_ok)}: must be true or false")
 
-    base = cfg.model_dump(mode="json")
     params = data.get("parameters")
     if not isinstance(params, dict) or not params:
         raise fail("parameters", "nothing to vary; add at least one key path, "
                    "such as `lqr.roll.Q[1]: [10, 50, 100]`")
+    sets = data.get("set") or {}
+    base = with_sections(cfg.model_dump(mode="json"),
+                         [str(p) for p in params] + ([str(p) for p in sets] if isinstance(sets, dict) else []))
     parameters = []
     for path, spec in params.items():
         keys = check_path(base, str(path), label, "parameters")
@@ -248,7 +285,6 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
                        f"index one entry, as `{path}[0]`")
         parameters.append(Parameter(str(path), keys, kind, spec))
     fixed = []
-    sets = data.get("set") or {}
     if not isinstance(sets, dict):
         raise fail("set", "must be a mapping of key path -> value")
     for path, value in sets.items():
@@ -259,11 +295,14 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
     if data.get("gates") is not None and not isinstance(data.get("gates"), dict):
         raise fail("gates", "must be a mapping of metric -> {min, max}")
     gates = tuple(_check_gate(metric, spec, cfg, label) for metric, spec in (data.get("gates") or {}).items())
+    rotor_lag = next((v for p, _, v in fixed if p == "controller.rotor_lag"), cfg.controller.rotor_lag)
+    trim_wind = next((v for p, _, v in fixed if p == "trim.wind"), cfg.trim.wind)
     spec = SweepSpec(label=label, mode=mode, samples=int(samples) if samples is not None else None,
                      seed=int(seed), parameters=tuple(parameters), fixed=tuple(fixed), gates=gates,
                      require_ok=require_ok, chunk_size=int(chunk) if chunk is not None else None,
                      canonical=json.loads(json.dumps({k: v for k, v in data.items() if k != "description"},
-                                                     default=str)))
+                                                     default=str)),
+                     uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind)) for p in parameters))
     if mode == "grid":
         count = spec.count()
         if count > MAX_CASES:
@@ -429,6 +468,18 @@ def _lookup(tree, keys):
         except (KeyError, IndexError, TypeError):
             return None
     return tree
+
+
+def with_sections(base: dict, paths) -> dict:
+    """``base`` with ``simulation.plant`` spelled out (the design vehicle's values) when a path goes
+    into it and the config has none: then ``simulation.plant.mass`` is a mass error to sweep, the
+    other values staying the design model's (the same vehicle as no section at all)."""
+    if base.get("simulation", {}).get("plant") is not None or not any(
+            str(p).startswith("simulation.plant.") for p in paths):
+        return base
+    vehicle = base["vehicle"]
+    plant = {key: vehicle[key] for key in ("mass", "gravity", "inertia", "drag")}
+    return assign(base, ("simulation", "plant"), plant)
 
 
 def assign(tree: Any, keys: tuple, value) -> Any:

@@ -123,7 +123,7 @@ class SweepStore:
         if self.trace:
             summary["montecarlo"] = {
                 "cases": 0 if bands is None else len(bands.cases), "points": MC_POINTS,
-                "percentiles": list(MC_PERCENTILES), "states": list(self.trace),
+                "percentiles": list(MC_PERCENTILES), "states": list(self.trace), "parameters": list(self.spec.names),
                 "left_out": [r["case"] for r in result.rows] if bands is None else list(bands.left_out)}
         if bands is not None:
             summary["files"]["montecarlo"] = list(MC_FILES)
@@ -150,12 +150,14 @@ class SweepStore:
         meta = {**artifacts.metadata(self.cfg, "montecarlo", result.stats.get("backend", ())),
                 "sweep_digest": self.digest,
                 "quantity": "deviation from the reference, x - x_ref, in state units (m, m/s, rad, rad/s)",
-                "units": {s: unit_of(s) for s in bands.states}, "left_out": list(bands.left_out)}
+                "units": {s: unit_of(s) for s in bands.states}, "left_out": list(bands.left_out),
+                "t_unit": "s", "parameters": list(self.spec.names)}
         artifacts.write_npz(self.out / "montecarlo.npz",
                             {"t": bands.t, "percentiles": np.asarray(bands.percentiles, dtype=float),
-                             "bands": bands.bands, "states": np.array(bands.states), "cases": bands.cases,
-                             "traces": bands.traces}, meta)
-        artifacts.write_bytes(self.out / "montecarlo.png", montecarlo_png(bands, self.cfg))
+                             "bands": bands.bands, "states": np.array(bands.states),
+                             "units": np.array([unit_of(s) for s in bands.states]), "cases": bands.cases,
+                             "traces": bands.traces, "parameters": np.array(self.spec.names)}, meta)
+        artifacts.write_bytes(self.out / "montecarlo.png", montecarlo_png(bands, self.cfg, self.spec.names))
         return bands
 
 

@@ -33,9 +33,12 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
             render.out.print(f"discrete design at {des.rate:g} Hz (lqrd: ZOH plant, cost integrated over "
                              f"{1e3 / des.rate:.4g} ms); eigenvalues shown as ln(z)/Ts in rad/s")
         tau = ws.setup.rotor_time_constant
-        if tau is not None:
+        if tau is not None and des.lag_time_constant is None:
             render.out.print(f"rotor lag {tau * 1e3:.4g} ms: ignored by the design (controller.rotor_lag: "
                              f"{ws.setup.rotor_lag}); simulated in the plant")
+        elif tau is not None:
+            render.out.print(f"rotor lag {tau * 1e3:.4g} ms: included in the design (controller.rotor_lag: include; "
+                             "each subsystem's inputs lag, Kv feeds back the controller's lag model)")
         for table in render.design_tables(des):
             render.out.print(table)
         est = ws.payloads["design.json"].get("estimator")

@@ -33,6 +33,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
             render.out.print(table)
         for line in render_loop.margin_notes(margins):
             render.out.print(f"  {line}", markup=False)
+        render.out.print(render_loop.closed_loop_line(ws.payloads["margins.json"]), markup=False)
         render.out.print(f"-> {ws.path('margins.json')}")
         for path in paths:
             render.out.print(f"figure -> {path}")

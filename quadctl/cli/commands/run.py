@@ -2,6 +2,7 @@ import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
 from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, open_workspace
+from quadctl.layout import STATE_INDEX
 
 NAME = "run"
 
@@ -24,7 +25,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
         if not json:
             render.out.print(f"[green]✓[/green] {stage:<10} {detail}")
 
-    done("trim", f"T = {ws.trim.u[0]:.4f} N, theta = {ws.trim.x[7]:.4f} rad, residual {ws.trim.residual:.1e}")
+    phi, theta = ws.trim.x[STATE_INDEX["phi"]], ws.trim.x[STATE_INDEX["theta"]]
+    done("trim", f"T = {ws.trim.u[0]:.4f} N, phi = {phi:.4f} rad, theta = {theta:.4f} rad, "
+                 f"residual {ws.trim.residual:.1e}")
     done("linearize", f"A {ws.linear.A.shape}, B {ws.linear.B.shape}")
     done("decouple", f"{len(ws.decoupled.subsystems)} subsystems, {len(ws.decoupled.dropped)} terms dropped")
     regulated = {s.name for s in ws.decoupled.regulated}

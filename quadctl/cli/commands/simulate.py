@@ -60,11 +60,14 @@ def _print_flight(render, flown, *, before: bool) -> None:
     table = render_loop.saturation_table(flight)
     if table is not None:
         render.out.print(table)
-    if flight.get("noise"):
+    if flight.get("noise") or flight.get("wind"):
         render.out.print(render_loop.rms_table(flight))
     table = render_loop.estimation_table(flight)
     if table is not None:
         render.out.print(table)
+    if flight.get("wind"):
+        render.out.print(render_loop.wind_line(flight), markup=False)
+        render.out.print(render_loop.wind_table(flight))
     line = render_loop.integral_line(flight)
     if line:
         render.out.print(line)

@@ -21,6 +21,12 @@ ${INPUT_TABLE}
  * THE LAW (as `quadctl simulate` applies it)
 ${LAW}
  *
+ * ROTOR LAG
+${LAG_DOC}
+ *
+ * DELAY
+${DELAY_DOC}
+ *
  * PRECISION
  *   quadctl_real is double unless QUADCTL_FLOAT is defined (-DQUADCTL_FLOAT): then float, with
  *   float literals and math functions (sinf, ...) for microcontrollers with a single-precision
@@ -45,6 +51,7 @@ typedef double quadctl_real;
 #define QUADCTL_NX ${NX}  /* plant states */
 #define QUADCTL_NU ${NU}  /* inputs */
 #define QUADCTL_NZ ${NZ}  /* integrators (LQI) */
+#define QUADCTL_NL ${NL}  /* states of the controller's rotor lag model (controller.rotor_lag: include) */
 #define QUADCTL_RATE_HZ ${RATE}
 #define QUADCTL_SAMPLE_TIME ${TS}
 
@@ -56,14 +63,14 @@ ${ROTOR_DEFINES}
 /* The controller's memory: initialize with quadctl_init, then pass to quadctl_step every sample. */
 typedef struct quadctl_controller {
   quadctl_real z[${NZ_STORAGE}];  /* the integrators${INTEGRAL_DOC} */
-  unsigned long k;          /* samples taken since quadctl_init: t = k Ts */
+${LAG_MEMBER}  unsigned long k;          /* samples taken since quadctl_init: t = k Ts */
 } quadctl_controller;
 
-/* Integrators and time to zero. */
+/* Integrators (and the rotor lag model) and time to zero. */
 void quadctl_init(quadctl_controller *c);
 
 /* One controller sample: u (the input to apply until the next sample) from the measured state x;
- * advances the integrators and the time by one sample. */
+ * advances the integrators (and the rotor lag model) and the time by one sample. */
 void quadctl_step(quadctl_controller *c, const quadctl_real x[QUADCTL_NX], quadctl_real u[QUADCTL_NU]);
 
 #ifdef QUADCTL_N_ROTORS
