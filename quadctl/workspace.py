@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import __version__, artifacts, pipeline, stability
+from quadctl import __version__, artifacts, pipeline
 from quadctl.analysis import Checks, check
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
@@ -38,12 +38,15 @@ CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
 
 @dataclass(frozen=True)
 class CheckReport:
-    """``check``'s result: the rank checks per subsystem (and ``"full"``), and, for a continuous
-    design run at a rate, the loops that rate cannot realize."""
+    """``check``'s result: the rank checks per subsystem (and ``"full"``); for a continuous
+    design run at a rate, the loops that rate cannot realize; with rotor lag or delay, the loop
+    the vehicle flies."""
 
     checks: dict[str, Checks]
     rate: float | None
     rate_warnings: tuple[RateWarning, ...]
+    vehicle_loop: pipeline.VehicleLoop | None = None
+    """With rotor lag or delay configured: the design's loop flown with them (else None)."""
 
     def __getitem__(self, name: str) -> Checks:
         return self.checks[name]
@@ -204,8 +207,13 @@ class Workspace:
         regulated = {s.name for s in self.decoupled.regulated}
         timing = self.setup.timing
         warnings: list[RateWarning] = []
-        if timing.mode == "emulated" and all(checks[n].stabilizable for n in regulated):
-            warnings = pipeline.rate_warnings_of(self.setup, self.decoupled, self.linear, timing.rate)
+        vehicle = None
+        if all(checks[n].stabilizable for n in regulated):
+            if timing.mode == "emulated":
+                warnings = pipeline.rate_warnings_of(self.setup, self.decoupled, self.linear, timing.rate)
+            if self.setup.rotor_time_constant is not None or timing.delay_samples:
+                des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
+                vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
         self._write_json(CHECKS, "checks", {
             "subsystems": {n: _checks_payload(c, n in regulated) for n, c in checks.items()
                            if n not in ("full", ESTIMATOR_CHECK)},
@@ -217,8 +225,11 @@ class Workspace:
                 "realizable_frequency": realizable_frequency(timing.rate),
                 "warnings": [{"loop": w.loop, "pole": w.pole, "factor": w.factor,
                               "sampled_spectral_radius": w.sampled_radius, "sampled_stable": w.sampled_stable,
-                              "message": w.message(timing.rate)} for w in warnings]}})
-        return CheckReport(checks=checks, rate=timing.rate, rate_warnings=tuple(warnings))
+                              "message": w.message(timing.rate)} for w in warnings]},
+            "closed_loop": None if vehicle is None else {
+                **_vehicle_loop_payload(vehicle), "rotor_time_constant": self.setup.rotor_time_constant,
+                "rotor_lag": self.setup.rotor_lag, "delay_samples": timing.delay_samples}})
+        return CheckReport(checks=checks, rate=timing.rate, rate_warnings=tuple(warnings), vehicle_loop=vehicle)
 
     @cached_property
     def design(self) -> Design:
@@ -291,21 +302,12 @@ class Workspace:
             initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
             rotor_time_constant=self.setup.rotor_time_constant,
             estimator=pipeline.estimator_of(self.setup, linear))
-        sample_time = des.sample_time or (1.0 / emulated if emulated else None)
-        A_cl = margins.closed_loop(des, linear.A, linear.B, sample_time, timing.delay_samples,
-                                   self.setup.rotor_time_constant)
-        eig = np.linalg.eigvals(A_cl)
-        slowest = np.abs(eig).max() if sample_time else eig.real.max()
+        vehicle = pipeline.vehicle_loop_of(self.setup, linear, des)
         self._write_json(MARGINS, "margins", {
             "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
             "delay_samples": timing.delay_samples, "rotor_time_constant": self.setup.rotor_time_constant,
             "rotor_lag": self.setup.rotor_lag,
-            "closed_loop": {
-                "what": "the coupled linear loop with the rotors' lag, the controller's lag model (include), the "
-                        "integrators and the delay; free positions left out",
-                "domain": "z" if sample_time else "s", "eigenvalues": _c(eig),
-                "stable": bool(np.all(stability.is_stable(eig, discrete=sample_time is not None))),
-                "spectral_radius" if sample_time else "slowest_real_part": float(slowest)},
+            "closed_loop": _vehicle_loop_payload(vehicle),
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
             "estimator": None if self.setup.estimator is None else {
@@ -391,3 +393,14 @@ def _checks_payload(c: Checks, regulated: bool) -> dict:
         "pbh_obsv": [{"eigenvalue": m.eigenvalue, "obsv_rank": m.rank, "observable": m.passed,
                       "states": m.states} for m in c.pbh_obsv],
     }
+
+
+def _vehicle_loop_payload(loop) -> dict:
+    """margins.json's and checks.json's ``closed_loop``: the loop the vehicle flies (:class:`pipeline.VehicleLoop`)."""
+    Ts, eig = loop.sample_time, loop.eigenvalues
+    return {
+        "what": "the coupled linear loop with the rotors' lag, the controller's lag model (include), the "
+                "integrators and the delay; free positions left out",
+        "domain": "z" if Ts else "s", "eigenvalues": _c(eig), "stable": loop.stable,
+        "spectral_radius" if Ts else "slowest_real_part": float(np.abs(eig).max() if Ts else eig.real.max()),
+        "least_damping": loop.least_damping, "design_least_damping": loop.design_least_damping}

@@ -20,9 +20,11 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     Warns when a continuous design has closed-loop poles faster than the controller rate can
     realize (which loop, by how much, and whether the sampled loop is still stable).
     With an ``estimator:``, the measured set on the coupled model too (row ``estimator``).
+    With rotor lag (motors.time_constant) or delay (controller.delay), whether the design's loop
+    stays stable with them, and how much damping they take.
     Exits 1 when a regulated subsystem is not stabilizable, the measured set leaves a mode that is
-    not stable unobservable, or when a loop sampled at the
-    config's controller.rate (continuous design) or at --rate is unstable.
+    not stable unobservable, a loop sampled at the config's controller.rate (continuous design) or
+    at --rate is unstable, or the lag and delay make the design's loop unstable.
     """
     from quadctl.cli import render
     from quadctl.discrete import unstable_when_sampled
@@ -45,6 +47,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
         render.emit_json(payload)
     else:
         render.out.print(render.checks_table(checks.checks, regulated))
+        if checks.vehicle_loop is not None:
+            render.out.print(checks.vehicle_loop.summary(), markup=False)
         render.out.print(f"-> {ws.path('checks.json')}")
     for hz, warnings in rated:
         for w in warnings:
@@ -63,6 +67,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
         except DesignError as exc:
             render.err.print(f"quadctl: check failed: {exc}", markup=False)
             failed.append(str(exc))
+    verdict = checks.vehicle_loop.verdict() if checks.vehicle_loop is not None else None
+    if verdict:
+        render.err.print(f"quadctl: check failed: {verdict}", markup=False)
+        failed.append(verdict)
     for hz, warnings in rated:
         verdict = unstable_when_sampled(warnings, hz)
         if verdict:
