@@ -2,7 +2,7 @@
 "Wind" and "State estimation (LQG)".
 
 Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers);
-python docs/figures.py lqg   writes only the LQG figure.
+python docs/figures.py lqg   writes only the LQG figure; python docs/figures.py lag   only the lag and delay one.
 
 Every number and curve comes from the library (the same calls the CLI makes); nothing is stored.
 """
@@ -210,9 +210,50 @@ def uncertainty_figure() -> Figure:
     return plots.montecarlo_figure(bands, groups, title=cfg.name, varied=tuple(spec.names))
 
 
+def lag_delay_figure(runs: dict) -> Figure:
+    """mambo-200hz's weights on four plants (the include run is its own design): roll and pitch from the trim,
+    and rotor 1's thrust."""
+    fig = Figure(figsize=(8.0, 6.4), layout="constrained")
+    ax = fig.subplots(3, 1, sharex=True)
+    for label, sim in runs.items():
+        err = sim.x - sim.x_ref
+        ax[0].plot(sim.t, np.rad2deg(err[:, STATE_INDEX["phi"]]), lw=1.1, label=label)
+        ax[1].plot(sim.t, np.rad2deg(err[:, STATE_INDEX["theta"]]), lw=1.1, label=label)
+        thrust = sim.rotor_thrust[:, 0] if sim.rotor_thrust.size else motors.actuators_of(MAMBO).commands(sim.u)[:, 0]
+        ax[2].plot(sim.t, thrust, lw=1.1, label=label)
+    ax[0].set_ylabel("phi from trim [deg]")
+    ax[1].set_ylabel("theta from trim [deg]")
+    ax[2].set_ylabel("rotor 1 thrust [N]")
+    ax[2].set_xlabel("time [s]")
+    for a in ax:
+        a.grid(True, alpha=0.3)
+    ax[0].legend(fontsize=8, frameon=False, loc="upper right")
+    ax[0].set_xlim(0.0, 1.5)
+    fig.suptitle("mambo-200hz weights: instantaneous rotors, a 30 ms lag ignored or included, 5 ms of delay")
+    return fig
+
+
+def lag_delay_runs() -> dict:
+    """mambo-200hz and the docs configs that add a rotor lag (ignored, included) or a delay."""
+    folder = Path(__file__).resolve().parent / "configs"
+    runs = {}
+    for label, source in (("instantaneous rotors", "mambo-200hz"),
+                          ("30 ms rotor lag, ignored by the design", folder / "mambo-rotor-lag.yaml"),
+                          ("30 ms rotor lag, included in the design", folder / "mambo-rotor-lag-include.yaml"),
+                          ("one sample (5 ms) of delay", folder / "mambo-delay.yaml")):
+        sim = solve(config.load(str(source)).model_dump(mode="json"))[-1]
+        runs[label] = sim
+        err = np.rad2deg(np.abs(sim.x - sim.x_ref)[:, STATE_INDEX["phi"]])
+        print(f"{label}: status {sim.status}; peak |phi - trim| after 0.2 s {err[sim.t > 0.2].max():.3g} deg")
+    return runs
+
+
 def main() -> int:
     if sys.argv[1:] == ["lqg"]:
         make_lqg_figure()
+        return 0
+    if sys.argv[1:] == ["lag"]:
+        save(lag_delay_figure(lag_delay_runs()), "lag-and-delay.png")
         return 0
     cases = {}
 
@@ -253,6 +294,7 @@ def main() -> int:
         pd = STATE_INDEX["pD"]
         print(f"{label}: final pD error {(runs[label].x[-1, pd] - runs[label].x_ref[-1, pd]) * 1000:.4g} mm")
     save(lqi_figure(runs), "lqi-mass-error.png")
+    save(lag_delay_figure(lag_delay_runs()), "lag-and-delay.png")
     save(uncertainty_figure(), "uncertainty-bands.png")
     save(gust_figure(gust_runs()), "crazyflie-gust.png")
     make_lqg_figure()
