@@ -1,6 +1,8 @@
-"""Regenerate the figures of the README sections "From the report's design to one that flies" and "Wind".
+"""Regenerate the figures of the README sections "From the report's design to one that flies",
+"Wind" and "State estimation (LQG)".
 
-Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers)
+Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers);
+python docs/figures.py lqg   writes only the LQG figure; python docs/figures.py lag   only the lag and delay one.
 
 Every number and curve comes from the library (the same calls the CLI makes); nothing is stored.
 """
@@ -106,6 +108,49 @@ def lqi_figure(runs: dict) -> Figure:
     return fig
 
 
+def lqg_figure(full, lqg) -> Figure:
+    """The same gains with full-state feedback and through the Kalman filter: attitude and altitude
+    errors, and the filter's estimation error on w (a state it does not measure)."""
+    fig = Figure(figsize=(9.0, 5.6), layout="constrained")
+    axes = fig.subplots(2, 2, sharex=True).ravel()
+    for ax, name, scale, unit in zip(axes[:3], ("pD", "phi", "theta"), (100.0, 180 / np.pi, 180 / np.pi),
+                                     ("cm", "deg", "deg")):
+        i = STATE_INDEX[name]
+        for label, sim, style in (("full-state LQR (measured x)", full, "-"),
+                                  ("LQG (Kalman filter on imu + mocap)", lqg, "--")):
+            ax.plot(sim.t, (sim.x[:, i] - sim.x_ref[:, i]) * scale, style, lw=1.0, label=label)
+        ax.set_ylabel(f"{name} error [{unit}]")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8, frameon=False)
+    w = STATE_INDEX["w"]
+    axes[3].plot(lqg.t, (lqg.x[:, w] - lqg.x_hat[:, w]) * 100, lw=0.8, color="C2")
+    axes[3].set_ylabel("w - w_hat [cm/s] (not measured)")
+    axes[3].grid(True, alpha=0.3)
+    for ax in axes[2:]:
+        ax.set_xlabel("time [s]")
+    fig.suptitle("mambo-200hz: the same gains, full state against LQG (same noise seed)")
+    return fig
+
+
+def make_lqg_figure() -> None:
+    """docs/configs/mambo-lqg.yaml against mambo-200hz (same gains, same noise)."""
+    from quadctl.noise import rms_deviation
+
+    full = solve(variant("mambo-200hz"))
+    lqg_data = config.load(str(Path(__file__).resolve().parent / "configs" / "mambo-lqg.yaml")).model_dump(
+        mode="json")
+    lqg = solve(lqg_data)
+    for label, (setup, _, _, _, loop, sim) in (("full state", full), ("LQG", lqg)):
+        half = sim.t[-1] / 2
+        rms = rms_deviation(sim.t, sim.x, sim.x_ref, half)
+        print(f"{label}: {sim.status}; RMS second half: pD {rms['pD'] * 100:.3g} cm, phi "
+              f"{np.degrees(rms['phi']):.3g} deg, theta {np.degrees(rms['theta']):.3g} deg")
+    sim = lqg[-1]
+    err = rms_deviation(sim.t, sim.x, sim.x_hat, sim.t[-1] / 2)
+    print("LQG estimation error RMS (second half): " + ", ".join(f"{k} {v:.3g}" for k, v in err.items()))
+    save(lqg_figure(full[-1], sim), "lqg-vs-lqr.png")
+
+
 def gust_figure(runs: dict) -> Figure:
     """The Crazyflie trimmed in its 9.7 m/s east wind, hit by the 2 m/s north gust of crazyflie-wind."""
     fig = Figure(figsize=(8.0, 6.0), layout="constrained")
@@ -165,7 +210,51 @@ def uncertainty_figure() -> Figure:
     return plots.montecarlo_figure(bands, groups, title=cfg.name, varied=tuple(spec.names))
 
 
+def lag_delay_figure(runs: dict) -> Figure:
+    """mambo-200hz's weights on four plants (the include run is its own design): roll and pitch from the trim,
+    and rotor 1's thrust."""
+    fig = Figure(figsize=(8.0, 6.4), layout="constrained")
+    ax = fig.subplots(3, 1, sharex=True)
+    for label, sim in runs.items():
+        err = sim.x - sim.x_ref
+        ax[0].plot(sim.t, np.rad2deg(err[:, STATE_INDEX["phi"]]), lw=1.1, label=label)
+        ax[1].plot(sim.t, np.rad2deg(err[:, STATE_INDEX["theta"]]), lw=1.1, label=label)
+        thrust = sim.rotor_thrust[:, 0] if sim.rotor_thrust.size else motors.actuators_of(MAMBO).commands(sim.u)[:, 0]
+        ax[2].plot(sim.t, thrust, lw=1.1, label=label)
+    ax[0].set_ylabel("phi from trim [deg]")
+    ax[1].set_ylabel("theta from trim [deg]")
+    ax[2].set_ylabel("rotor 1 thrust [N]")
+    ax[2].set_xlabel("time [s]")
+    for a in ax:
+        a.grid(True, alpha=0.3)
+    ax[0].legend(fontsize=8, frameon=False, loc="upper right")
+    ax[0].set_xlim(0.0, 1.5)
+    fig.suptitle("mambo-200hz weights: instantaneous rotors, a 30 ms lag ignored or included, 5 ms of delay")
+    return fig
+
+
+def lag_delay_runs() -> dict:
+    """mambo-200hz and the docs configs that add a rotor lag (ignored, included) or a delay."""
+    folder = Path(__file__).resolve().parent / "configs"
+    runs = {}
+    for label, source in (("instantaneous rotors", "mambo-200hz"),
+                          ("30 ms rotor lag, ignored by the design", folder / "mambo-rotor-lag.yaml"),
+                          ("30 ms rotor lag, included in the design", folder / "mambo-rotor-lag-include.yaml"),
+                          ("one sample (5 ms) of delay", folder / "mambo-delay.yaml")):
+        sim = solve(config.load(str(source)).model_dump(mode="json"))[-1]
+        runs[label] = sim
+        err = np.rad2deg(np.abs(sim.x - sim.x_ref)[:, STATE_INDEX["phi"]])
+        print(f"{label}: status {sim.status}; peak |phi - trim| after 0.2 s {err[sim.t > 0.2].max():.3g} deg")
+    return runs
+
+
 def main() -> int:
+    if sys.argv[1:] == ["lqg"]:
+        make_lqg_figure()
+        return 0
+    if sys.argv[1:] == ["lag"]:
+        save(lag_delay_figure(lag_delay_runs()), "lag-and-delay.png")
+        return 0
     cases = {}
 
     def demand(label, data):
@@ -205,8 +294,10 @@ def main() -> int:
         pd = STATE_INDEX["pD"]
         print(f"{label}: final pD error {(runs[label].x[-1, pd] - runs[label].x_ref[-1, pd]) * 1000:.4g} mm")
     save(lqi_figure(runs), "lqi-mass-error.png")
+    save(lag_delay_figure(lag_delay_runs()), "lag-and-delay.png")
     save(uncertainty_figure(), "uncertainty-bands.png")
     save(gust_figure(gust_runs()), "crazyflie-gust.png")
+    make_lqg_figure()
     return 0
 
 

@@ -17,7 +17,10 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.analysis`: controllability, observability, PBH, with a stated rank tolerance
 - :mod:`~quadctl.discrete`, :mod:`~quadctl.integral`, :mod:`~quadctl.lqr`: zero-order hold and
   ``lqrd``; integral action (LQI); Riccati solves and the assembled decoupled design
-- :mod:`~quadctl.full`, :mod:`~quadctl.margins`: the coupled (full) design; loop margins
+- :mod:`~quadctl.estimator`: the steady-state Kalman filter of an LQG loop (discrete filter form or
+  Kalman-Bucy) and the observability of the measured set
+- :mod:`~quadctl.full`, :mod:`~quadctl.margins`: the coupled (full) design; loop margins (with the
+  filter in the loop for LQG)
 - :mod:`~quadctl.sim`: the simulation engine (step planning, the one closed-loop builder, compile
   and cache, native and interpreted runners, one case or many lanes)
 - :mod:`~quadctl.simulate`, :mod:`~quadctl.metrics`: one closed-loop run; its step-response metrics

@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from quadctl import yamlio
 from quadctl.errors import ConfigError
-from quadctl.layout import INPUT_NAMES, REPORT_PARTITION, STATE_NAMES, STATE_UNITS
+from quadctl.layout import INPUT_NAMES, REPORT_PARTITION, SENSOR_GROUPS, STATE_NAMES, STATE_UNITS
 from quadctl.messages import hint as _hint
 from quadctl.messages import key_path, show
 from quadctl.messages import unknown as _unknown
@@ -268,6 +268,30 @@ class MotorsConfig(_Section):
         None, description="s, first-order lag of each rotor's thrust behind its command; absent: instantaneous")
 
 
+class EstimatorConfig(_Section):
+    """A steady-state Kalman filter: the loop closes through its estimate instead of the measured state."""
+
+    measure: Annotated[list[str], Field(min_length=1)] = Field(description=(
+        "measured quantities: state names or sensor groups (imu: phi theta psi p q r; baro: pD; "
+        "mocap, gps: pN pE pD; flow: u v)"))
+    sensor: dict[str, Positive] = Field(default_factory=dict, description=(
+        "state name -> standard deviation of its measurement the filter assumes (state units); default "
+        "simulation.noise.sensor's; every measured state needs one of the two, > 0"))
+    force: Optional[Annotated[list[Annotated[NonNegative, Field(le=MAX_NOISE["force"])]],
+                              Field(min_length=3, max_length=3)]] = Field(
+        None, description="N, standard deviation of the body force process noise the filter assumes; "
+        "default simulation.noise.force")
+    torque: Optional[Annotated[list[Annotated[NonNegative, Field(le=MAX_NOISE["torque"])]],
+                               Field(min_length=3, max_length=3)]] = Field(
+        None, description="N m, standard deviation of the body torque process noise the filter assumes; "
+        "default simulation.noise.torque")
+
+    def measured(self) -> tuple[str, ...]:
+        """The measured states, in state order (groups expanded)."""
+        names = {s for item in self.measure for s in SENSOR_GROUPS.get(item, (item,))}
+        return tuple(s for s in STATE_NAMES if s in names)
+
+
 InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]
 
 
@@ -288,6 +312,9 @@ class Config(_Section):
     motors: Optional[MotorsConfig] = Field(None, description="rotor layout and thrust limits; saturates the inputs")
     limits: Optional[dict[str, InputLimits]] = Field(
         None, description="input name -> [low, high] (N or N m); box limits when there is no motors:")
+    estimator: Optional[EstimatorConfig] = Field(
+        None, description="state estimation (LQG): what is measured and the noise the Kalman filter assumes; "
+        "absent: the controller measures the full state")
 
     def partition(self) -> dict[str, SubsystemConfig]:
         """The subsystems in force: the config's, or the report's five."""
@@ -769,7 +796,31 @@ def _check_controller_and_actuators(cfg: Config, fail) -> None:
     for state, value in (noise.sensor if noise else {}).items():
         if state not in STATE_NAMES:
             fail(f"simulation.noise.sensor.{state}", value, _unknown(state, STATE_NAMES, "state"))
+    if cfg.estimator is not None:
+        _check_estimator(cfg.estimator, noise, fail)
     _check_wind(cfg, fail)
+
+
+def _check_estimator(est: EstimatorConfig, noise, fail) -> None:
+    """Known names, a sensor noise for every measured state, some process noise."""
+    known = tuple(SENSOR_GROUPS) + STATE_NAMES
+    for i, item in enumerate(est.measure):
+        if item not in known:
+            fail(f"estimator.measure[{i}]", item, _unknown(item, known, "state or sensor group"))
+    for state, value in est.sensor.items():
+        if state not in STATE_NAMES:
+            fail(f"estimator.sensor.{state}", value, _unknown(state, STATE_NAMES, "state"))
+    given = noise.sensor if noise is not None else {}
+    for state in est.measured():
+        if est.sensor.get(state, given.get(state, 0.0)) <= 0:
+            fail("estimator.measure", est.measure,
+                 f"{state} is measured but has no sensor noise: give estimator.sensor.{state} or "
+                 f"simulation.noise.sensor.{state} (> 0, {STATE_UNITS[state]})")
+    force = est.force if est.force is not None else (noise.force if noise is not None else [0.0] * 3)
+    torque = est.torque if est.torque is not None else (noise.torque if noise is not None else [0.0] * 3)
+    if not any(v > 0 for v in (*force, *torque)):
+        fail("estimator.force", force, "the filter needs process noise: give estimator.force and estimator.torque "
+             "(N, N m) or simulation.noise.force/torque; with none it would trust its model and ignore every sensor")
 
 
 def _check_wind(cfg: Config, fail) -> None:

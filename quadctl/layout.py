@@ -25,6 +25,15 @@ STATE_UNITS: dict[str, str] = {
 }
 INPUT_UNITS: dict[str, str] = {"T": "N", "A": "N m", "E": "N m", "R": "N m"}
 
+SENSOR_GROUPS: dict[str, tuple[str, ...]] = {
+    "imu": ("phi", "theta", "psi", "p", "q", "r"),  # attitude (AHRS) and gyro rates
+    "baro": ("pD",),                                # barometric altitude
+    "mocap": ("pN", "pE", "pD"),                    # motion-capture position
+    "gps": ("pN", "pE", "pD"),                      # satellite position
+    "flow": ("u", "v"),                             # optical flow: horizontal body velocity
+}
+"""Sensor groups ``estimator.measure`` accepts, each the states it measures (a state name measures itself)."""
+
 STATE_INDEX: dict[str, int] = {name: i for i, name in enumerate(STATE_NAMES)}
 INPUT_INDEX: dict[str, int] = {name: i for i, name in enumerate(INPUT_NAMES)}
 

@@ -38,6 +38,15 @@ Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
   ``|1 + L| >= 1`` at every frequency, hence the guarantee: gain margin from -6 dB to infinity,
   phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
 
+With a Kalman filter in the loop (LQG, ``estimator:``), each input's loop is also broken at the plant
+input with the estimator in it (``model = "lqg"``, on the coupled model): the compensator
+``K (sI - A + BK + LC)^-1 L`` (or its discrete current-estimator equivalent, the law acting on
+``x_hat + M (y - C x_hat)``) times the plant, the estimator fed the *commanded* input (what the
+flight computer knows), the other loops closed (:func:`lqg_loops`). The LQR guarantee does not
+hold there (Doyle, "Guaranteed margins for LQG regulators", IEEE TAC 23(4), 1978): the notes say by
+how much each margin fell from the full-state loop. The rotors' lag and the delay are not in these
+loops (the notes say so when they are configured).
+
 An unstable closed loop has no margin: every margin is reported as zero (gain margins 0 dB,
 phase margin 0 deg, disk margin ``alpha = 0`` with its 0 dB / 0 deg disk) and no frequency, so
 no number suggests robustness the loop does not have (see :func:`no_margin`).
@@ -498,6 +507,61 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
             yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
 
 
+def lqg_loops(design, A, B, kal):
+    """Yield ``(name, input, "lqg", BrokenLoop)``: every regulated input's loop with the Kalman filter in it.
+
+    Loop state ``[x; x_hat; z]`` (``x_hat`` a priori for the discrete filter), the command
+    ``c = -Kc [x; x_hat; z]`` (continuous: ``Kc = [0, K, Ki]``; discrete: the law on
+    ``xc = M C x + (I - M C) x_hat``, ``Kc = [K M C, K (I - M C), Ki]``), the plant given ``c``
+    except at the broken input ``j`` (given ``v``), the estimator and the integrators fed ``c`` and
+    ``xc``. Positions nothing feeds back are left out in the coordinates ``[x; x - x_hat; z]``
+    (there they drive nothing), as on the full-state coupled loop.
+
+    Parameters
+    ----------
+    design : quadctl.lqr.Design
+    A, B : (12, 12), (12, 4) array_like
+        The continuous coupled linear model.
+    kal : quadctl.estimator.Kalman
+    """
+    from quadctl import integral
+
+    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    K, ints = design.K_block, design.integral_states
+    nz, n = len(ints), N_STATES
+    Ki = np.asarray(design.Ki_block, dtype=float).reshape(K.shape[0], nz)
+    Cz = integral.selector(STATE_NAMES, ints)
+    C, G, Ts = kal.C, kal.gain, kal.sample_time
+    Z = np.zeros
+    if Ts is None:
+        base = np.block([[A, Z((n, n)), Z((n, nz))], [G @ C, A - G @ C, Z((n, nz))],
+                         [Z((nz, n)), -Cz, Z((nz, nz))]])
+        Kc = np.hstack([Z(K.shape), K, Ki])
+        Bp, Be = B, B
+    else:
+        Ad, Bd = kal.A, kal.B
+        Mx, Mh = G @ C, np.eye(n) - G @ C
+        base = np.block([[Ad, Z((n, n)), Z((n, nz))], [Ad @ Mx, Ad @ Mh, Z((n, nz))],
+                         [-Ts * Cz @ Mx, -Ts * Cz @ Mh, np.eye(nz)]])
+        Kc = np.hstack([K @ Mx, K @ Mh, Ki])
+        Bp, Be = Bd, Bd
+    T = np.eye(2 * n + nz)
+    T[n:2 * n, :n], T[n:2 * n, n:2 * n] = np.eye(n), -np.eye(n)  # [x; x - x_hat; z]; T^-1 = T
+    free = [STATE_INDEX[s] for s in POSITION_STATES
+            if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]]) and s not in ints]
+    keep = [i for i in range(2 * n + nz) if i not in free]
+    for sub in design.subsystems:
+        for inp in sub.inputs:
+            j = INPUT_INDEX[inp]
+            others = Bp.copy()
+            others[:, j] = 0.0
+            Aa = base - np.vstack([others, Be, Z((nz, Bp.shape[1]))]) @ Kc
+            b = np.concatenate([Bp[:, j], Z(n), Z(nz)])
+            At, bt, kt = T @ Aa @ T, T @ b, Kc[j] @ T
+            yield sub.name, inp, "lqg", BrokenLoop(A=At[np.ix_(keep, keep)], b=bt[keep], k=kt[keep],
+                                                   sample_time=Ts)
+
+
 def closed_loop(design, A, B, sample_time: float | None = None, delay_samples: int = 0,
                 rotor_time_constant: float | None = None) -> np.ndarray:
     """The linear closed loop the vehicle has: the coupled model with the rotors' lag, the
@@ -587,8 +651,9 @@ def with_lag_model(A, B, K, Kv, time_constant: float, sample_time: float | None 
 
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,
                 u_trim=None, initial_demand: dict | None = None, delay_samples: int = 0,
-                rotor_time_constant: float | None = None) -> list[LoopMargins]:
-    """Margins of every regulated loop of a design, on its design model and on the coupled model.
+                rotor_time_constant: float | None = None, estimator=None) -> list[LoopMargins]:
+    """Margins of every regulated loop of a design, on its design model and on the coupled model
+    (and with the Kalman filter in the loop, ``estimator``).
 
     Parameters
     ----------
@@ -609,11 +674,13 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
         Controller samples of delay included in every sampled loop (``controller.delay``).
     rotor_time_constant : float, optional
         s of the rotors' lag included in every loop (``motors.time_constant``).
+    estimator : quadctl.estimator.Kalman, optional
+        The LQG loops (:func:`lqg_loops`), each compared with the full-state coupled loop.
 
     Returns
     -------
     list of LoopMargins
-        Design-model loops first, then coupled ones, each with :func:`explain` notes.
+        Design-model loops first, then coupled ones, then LQG ones, each with :func:`explain` notes.
     """
     from dataclasses import replace
 
@@ -627,7 +694,36 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
         m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)
         out.append(replace(m, notes=tuple(explain(m, design, emulated_rate, actuators, u_trim,
                                                   initial_demand))))
+    if estimator is not None:
+        full_state = {m.input: m for m in out if m.model == "coupled"}
+        for name, inp, model, loop in lqg_loops(design, A, B, estimator):
+            m = loop_margins(loop, name=name, input_name=inp, model=model)
+            out.append(replace(m, notes=tuple(lqg_notes(m, full_state.get(inp), estimator, delay_samples,
+                                                        rotor_time_constant))))
     return out
+
+
+def lqg_notes(m: LoopMargins, full: LoopMargins | None, kal, delay_samples: int = 0,
+              rotor_time_constant: float | None = None) -> list[str]:
+    """What the estimator cost ``m`` against the full-state loop ``full`` (Doyle 1978)."""
+    measured = " ".join(kal.measured)
+    if not m.stable:
+        return [f"LQG (Kalman filter on {measured}): the closed loop is UNSTABLE: no margin"]
+    notes = ["LQG: the LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg) does not hold with an "
+             f"estimator in the loop (Doyle 1978); Kalman filter ({kal.form}) on {measured}"
+             + ("; meets it anyway" if m.meets_lqr_guarantee else "")]
+    if full is not None and full.stable:
+        lo, hi = m.gain_margin_db
+        flo, fhi = full.gain_margin_db
+        notes.append(f"against full-state feedback: phase margin {m.phase_margin_deg:.3g} deg "
+                     f"(full state {full.phase_margin_deg:.3g}), gain margin {lo:.3g} / {hi:.3g} dB "
+                     f"(full state {flo:.3g} / {fhi:.3g}), disk alpha {m.disk_alpha:.3g} "
+                     f"(full state {full.disk_alpha:.3g})")
+    left = [what for what, on in (("the rotors' lag", rotor_time_constant is not None),
+                                  (f"{delay_samples} samples of delay", bool(delay_samples))) if on]
+    if left:
+        notes.append("not in this loop: " + " and ".join(left) + " (the full-state loops include them)")
+    return notes
 
 
 def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=None,

@@ -6,6 +6,8 @@ reads the config (:func:`quadctl.setup.resolve` did, once).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from quadctl.analysis import Checks, check
@@ -69,10 +71,25 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
     eig, owners = eigen_owners(A_cl, owner, (*STATE_NAMES, *lag_names, *integral_states))
     check_trim(setup.actuators, linear.u_trim)
     return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
-                      x_rate=linear.x_rate, K=K, eigenvalues=eig, owners=owners, rate=setup.timing.rate,
+                      estimator=estimator_of(setup, linear), x_rate=linear.x_rate, K=K, eigenvalues=eig,
+                      owners=owners, rate=setup.timing.rate,
                       Ki=Ki if integral_states else None, integral_states=integral_states,
                       actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A),
                       delay_samples=setup.timing.delay_samples, Kv=Kv, lag_model_time_constant=tau)
+
+
+def estimator_of(setup: Setup, linear: LinearModel):
+    """The setup's steady-state Kalman filter (:func:`quadctl.estimator.kalman`) at the controller's
+    timing (discrete at the controller period when sampled, Kalman-Bucy when continuous); None
+    without ``estimator:``."""
+    est = setup.estimator
+    if est is None:
+        return None
+    from quadctl import estimator
+
+    G = estimator.noise_input(linear.x_trim, linear.u_trim, setup.vehicle)
+    return estimator.kalman(linear.A, linear.B, G, est.measured, est.sensor_std, est.process_std,
+                            sample_time=setup.timing.sample_time, period=est.period)
 
 
 def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
@@ -87,6 +104,77 @@ def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True) -> SimR
     the wind, a condition of the flight, stays)."""
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
                     noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples)
+
+
+@dataclass(frozen=True)
+class VehicleLoop:
+    """The linear closed loop the vehicle flies: the design's gains on the coupled model with the
+    rotors' lag, the controller's lag model (a design that includes it), the integrators and the
+    delay (:func:`quadctl.margins.closed_loop`), next to the loop the design saw.
+
+    Attributes
+    ----------
+    eigenvalues : (n,) ndarray of complex
+        ``s`` (rad/s), or ``z`` of a loop sampled every ``sample_time`` s.
+    design_eigenvalues : (n,) ndarray of complex
+        The same loop without the rotors' lag and the delay (what a design that ignores them sees).
+    sample_time : float or None
+    stable : bool
+    least_damping, design_least_damping : float
+        :func:`quadctl.stability.least_damping` of each.
+    """
+
+    eigenvalues: np.ndarray
+    design_eigenvalues: np.ndarray
+    sample_time: float | None
+    stable: bool
+    least_damping: float
+    design_least_damping: float
+    rotor_time_constant: float | None = None
+    rotor_lag: str = "ignore"
+    delay_samples: int = 0
+
+    def _what(self) -> str:
+        parts = []
+        if self.rotor_time_constant is not None:
+            how = "included in" if self.rotor_lag == "include" else "ignored by"
+            parts.append(f"the rotors' {self.rotor_time_constant * 1e3:g} ms lag ({how} the design)")
+        if self.delay_samples:
+            parts.append(f"{self.delay_samples} sample{'s' if self.delay_samples > 1 else ''} of delay")
+        return " and ".join(parts)
+
+    def summary(self) -> str:
+        """One line: what the loop has, stable or not, and its least damping against the design's."""
+        state = "stays stable" if self.stable else "is UNSTABLE"
+        return (f"with {self._what()} the design's closed loop {state}: least damping "
+                f"{self.least_damping:.3g} ({self.design_least_damping:.3g} as designed)")
+
+    def verdict(self) -> str | None:
+        """The failed-check verdict when the loop is unstable (None when stable): ``check`` and ``run``."""
+        if self.stable:
+            return None
+        fix = ("include the lag in the design (controller.rotor_lag: include), or lower the gains (larger R)"
+               if self.rotor_time_constant is not None and self.rotor_lag == "ignore"
+               else "lower the gains (larger R) or shorten the delay")
+        return f"with {self._what()} the design's closed loop is UNSTABLE; {fix}"
+
+
+def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLoop:
+    """:class:`VehicleLoop` of a design flown with the setup's rotors and delay."""
+    from quadctl import margins, stability
+
+    timing = setup.timing
+    Ts = des.sample_time or (timing.sample_time if timing.mode == "emulated" else None)
+    eig = np.linalg.eigvals(margins.closed_loop(des, linear.A, linear.B, Ts, timing.delay_samples,
+                                                setup.rotor_time_constant))
+    seen = setup.rotor_time_constant if des.lag_time_constant is not None else None
+    ideal = np.linalg.eigvals(margins.closed_loop(des, linear.A, linear.B, Ts, 0, seen))
+    return VehicleLoop(eigenvalues=eig, design_eigenvalues=ideal, sample_time=Ts,
+                       stable=bool(np.all(stability.is_stable(eig, discrete=Ts is not None))),
+                       least_damping=stability.least_damping(eig, Ts),
+                       design_least_damping=stability.least_damping(ideal, Ts),
+                       rotor_time_constant=setup.rotor_time_constant, rotor_lag=setup.rotor_lag,
+                       delay_samples=timing.delay_samples)
 
 
 def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float):
@@ -134,8 +222,9 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         per input), ``rms_error`` and ``rms_error_second_half`` (per state, state units),
         ``saturation`` (None without actuators; else per actuator the fraction of the run at a
         limit, ``saturates`` when one exceeds 1 %, peak commands, rotor speeds), ``noise``
-        (seed and period, or None), ``wind`` (:func:`wind_summary`, or None), ``integral`` (states and
-        final integrator values), ``plant``
+        (seed and period, or None), ``wind`` (:func:`wind_summary`, or None), ``estimation`` (LQG
+        only: RMS of ``x - x_hat`` per state, whole run and second half, and the steady filter's
+        predicted standard deviation), ``integral`` (states and final integrator values), ``plant``
         (the simulated vehicle's parameters when they differ from the design model).
     """
     from quadctl import motors, noise
@@ -148,7 +237,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
                        for j, name in enumerate(INPUT_NAMES)},
         "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_ref),
         "rms_error_second_half": noise.rms_deviation(sim.t, sim.x, sim.x_ref, duration / 2),
-        "saturation": None, "noise": None, "wind": wind_summary(setup, sim),
+        "saturation": None, "noise": None, "wind": wind_summary(setup, sim), "estimation": None,
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
         "plant": setup.plant_overrides or None,
@@ -167,6 +256,14 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
             sat["peak_rotor_speed"] = {n: float(speeds[:, i].max()) for i, n in enumerate(act.names)}
             sat["trim_rotor_thrust"] = list(act.commands(loop.u_trim))
         out["saturation"] = sat
+    kal = loop.estimator
+    if kal is not None and sim.x_hat.size:
+        predicted = np.sqrt(np.maximum(np.diag(kal.P), 0.0))
+        out["estimation"] = {
+            "form": kal.form, "measured": list(kal.measured),
+            "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_hat),
+            "rms_error_second_half": noise.rms_deviation(sim.t, sim.x, sim.x_hat, duration / 2),
+            "predicted_std": dict(zip(STATE_NAMES, predicted))}
     spec = setup.noise
     if spec is not None:
         out["noise"] = {"seed": spec.seed, "period": spec.period, "process_std": spec.process_std,

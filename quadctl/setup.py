@@ -20,7 +20,7 @@ from quadctl.config import Config, SubsystemConfig, weight_matrix
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.model import Vehicle
 from quadctl.motors import Actuators, Motors, actuators_of
-from quadctl.noise import NoiseSpec
+from quadctl.noise import DEFAULT_PERIOD, NoiseSpec
 from quadctl.wind import WindSpec, wind_of
 
 
@@ -62,6 +62,32 @@ class Timing:
     @property
     def design_sample_time(self) -> float | None:
         return None if self.design_rate is None else 1.0 / self.design_rate
+
+
+@dataclass(frozen=True)
+class EstimatorSpec:
+    """What the Kalman filter measures and the noise it assumes (``estimator:`` resolved).
+
+    Attributes
+    ----------
+    measured : tuple of str
+        Measured states, in state order (sensor groups expanded).
+    sensor_std : (p,) ndarray
+        Standard deviation of each measurement (state units): ``estimator.sensor``, else
+        ``simulation.noise.sensor``.
+    process_std : (6,) ndarray
+        Body force (N, 3) and torque (N m, 3) standard deviations: ``estimator.force/torque``, else
+        ``simulation.noise.force/torque``.
+    period : float
+        s the noise is held for (``simulation.noise.period``, else the controller period, else 5 ms):
+        a held sample of std ``sigma`` has the low-frequency intensity ``sigma^2 period``, which the
+        continuous (Kalman-Bucy) filter takes.
+    """
+
+    measured: tuple[str, ...]
+    sensor_std: np.ndarray
+    process_std: np.ndarray
+    period: float
 
 
 @dataclass(frozen=True)
@@ -111,6 +137,8 @@ class Setup:
         The ``simulation.plant`` values given (empty: the plant is the design model).
     rotor_lag : {"ignore", "include"}
         What the design does with the rotors' lag (``controller.rotor_lag``).
+    estimator : EstimatorSpec or None
+        The Kalman filter's measurements and noise (``estimator:``); None: full-state feedback.
     """
 
     name: str
@@ -137,6 +165,7 @@ class Setup:
     max_samples: int
     plant_overrides: dict = field(default_factory=dict)
     rotor_lag: str = "ignore"
+    estimator: EstimatorSpec | None = None
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -197,7 +226,23 @@ def resolve(cfg: Config) -> Setup:
         state_owner={s: name for name, sub in partition.items() for s in sub.states},
         timing=timing, actuators=actuators, noise=noise, wind=wind, trim_wind=trim_wind, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
-        plant_overrides=overrides, rotor_lag=ctl.rotor_lag)
+        plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing))
+
+
+def _estimator(cfg: Config, timing: Timing) -> EstimatorSpec | None:
+    """``estimator:`` with the noise it takes from ``simulation.noise`` filled in (checked by the config)."""
+    est, noise = cfg.estimator, cfg.simulation.noise
+    if est is None:
+        return None
+    measured = est.measured()
+    given = noise.sensor if noise is not None else {}
+    zeros = [0.0, 0.0, 0.0]
+    force = est.force if est.force is not None else (noise.force if noise is not None else zeros)
+    torque = est.torque if est.torque is not None else (noise.torque if noise is not None else zeros)
+    period = (noise.period if noise is not None else None) or timing.sample_time or DEFAULT_PERIOD
+    return EstimatorSpec(measured=measured,
+                         sensor_std=np.array([est.sensor.get(s, given.get(s, 0.0)) for s in measured], float),
+                         process_std=np.array([*force, *torque], float), period=float(period))
 
 
 def vary(setup: Setup, weights: dict[str, tuple[list | None, list | None]] | None = None,

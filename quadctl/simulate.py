@@ -89,6 +89,8 @@ class ClosedLoop:
     """(4, 4) gain on the controller's rotor lag model (``controller.rotor_lag: include``): ``u -= Kv l``."""
     lag_model_time_constant: float | None = None
     """s of the controller's rotor lag model (the design's; None: no model)."""
+    estimator: object | None = None
+    """:class:`quadctl.estimator.Kalman` the law closes through (LQG); None: the measured state."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -103,9 +105,11 @@ class ClosedLoop:
         if self.rate is not None:
             ol = self.open_loop_eigenvalues if self.open_loop_eigenvalues is not None else np.zeros(0)
             return plan_held_step(np.concatenate([ol, lag]), self.rate, duration, dt)
+        est = self.estimator.eigenvalues if self.estimator is not None else np.zeros(0)
         model = rotor_eigenvalues(self.lag_model_time_constant) if self.Kv is not None else np.zeros(0)
-        return plan_step(np.concatenate([self.eigenvalues, lag, model]),
-                         [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model)], duration, dt)
+        return plan_step(np.concatenate([self.eigenvalues, lag, model, est]),
+                         [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
+                          *["estimator"] * len(est)], duration, dt)
 
     def spec(self, noise: bool = False, wind: bool = False) -> LoopSpec:
         """The structure of this loop's generated code."""
@@ -114,7 +118,13 @@ class ClosedLoop:
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
-                                lag_model=self.Kv is not None, wind=wind)
+                                lag_model=self.Kv is not None, wind=wind,
+                                measured=tuple(STATE_INDEX[s] for s in self.measured))
+
+    @property
+    def measured(self) -> tuple[str, ...]:
+        """States the Kalman filter measures; empty without one."""
+        return tuple(self.estimator.measured) if self.estimator is not None else ()
 
     def constants(self, sample_time: float | None = None) -> np.ndarray:
         """The constant vector ``c`` of this loop (:func:`quadctl.sim.builder.pack_constants`)."""
@@ -132,10 +142,16 @@ class ClosedLoop:
             values.update(tau=[tau])
         if self.Kv is not None:
             values.update(Kv=self.Kv, tau_model=[self.lag_model_time_constant])
-        return pack_constants(nz, tau is not None, self.Kv is not None, **values)
+        kal = self.estimator
+        if kal is not None:
+            if kal.discrete != (self.rate is not None) or (
+                    kal.discrete and not math.isclose(kal.sample_time, 1.0 / self.rate, rel_tol=1e-12)):
+                raise ValueError("the Kalman filter's sample time must be the controller period (or both continuous)")
+            values.update(Ae=kal.A, Be=kal.B, Le=kal.gain)
+        return pack_constants(nz, tau is not None, self.Kv is not None, len(self.measured), **values)
 
     def initial_loop_state(self, x0) -> np.ndarray:
-        """The loop state ``[x0; f; z; l; b]`` a run starts from: the rotors (if they lag) at their trim
+        """The loop state ``[x0; f; z; l; b; xh]`` a run starts from: the rotors (if they lag) at their trim
         thrusts ``mix u_trim``, the integrators and the lag model (deviation from trim) at zero, the
         delay's buffer at the trim input."""
         parts = [np.asarray(x0, dtype=float)]
@@ -143,6 +159,7 @@ class ClosedLoop:
             parts.append(self.actuators.commands(self.u_trim))
         parts.append(np.zeros(len(self.integral_states) + (len(self.u_trim) if self.Kv is not None else 0)))
         parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
+        parts.append(np.zeros(N_STATES if self.estimator is not None else 0))
         return np.concatenate(parts)
 
     def bounds(self, duration: float) -> tuple[np.ndarray, np.ndarray]:
@@ -222,6 +239,9 @@ class SimResult:
     """(N+1, 3) m/s NED: the wind the plant felt over each recorded step (empty: still air)."""
     wind_seed: int | None = None
     """The turbulence's seed (None: no turbulence)."""
+    x_hat: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(N+1, 12) the Kalman filter's estimate of ``x`` (``x_ref`` plus its deviation estimate; a held
+    loop's a priori estimate for the coming sample) of an LQG loop; else empty."""
 
     @property
     def steps_per_second(self) -> float:
@@ -309,7 +329,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     lo, hi = loop.bounds(duration)
     x0_all = loop.initial_loop_state(x0)
     nz = len(loop.integral_states)
-    n_plant, n_lag = loop.spec().n_plant, loop.spec().n_lag
+    spec = loop.spec()
+    n_plant, n_lag, ne = spec.n_plant, spec.n_lag, spec.n_estimate
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
@@ -326,7 +347,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
                      noise_seed=noise.seed if noisy else None,
                      lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
                      wind=wind_felt(wind, exo.period, ks, plan.dt) if windy else np.zeros((0, 3)),
-                     wind_seed=wind.seed if windy else None)
+                     wind_seed=wind.seed if windy else None,
+                     x_hat=x_ref + xs[:, xs.shape[1] - ne:] if ne else np.zeros((0, 0)))
 
 
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}

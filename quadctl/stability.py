@@ -133,3 +133,29 @@ def _as_s(e: np.ndarray, sample_time: float | None) -> np.ndarray:
         return e
     with np.errstate(divide="ignore"):
         return np.log(e.astype(complex)) / sample_time
+
+
+def least_damping(eigenvalues, sample_time: float | None = None) -> float:
+    """The smallest damping ratio ``zeta = -Re(s) / |s|`` of a loop's modes (``inf`` with none).
+
+    Parameters
+    ----------
+    eigenvalues : array_like of complex
+        ``s`` (rad/s), or with ``sample_time`` the ``z`` of a loop sampled every ``sample_time`` s,
+        mapped to ``s = ln(z) / Ts`` (a mode at ``z = 0``, a pure delay, has no damping to lose and
+        is skipped).
+
+    Returns
+    -------
+    float
+        In ``[-1, 1]``: negative for an unstable mode; ``1`` for a real stable one.
+
+    >>> least_damping([-1 + 1j, -1 - 1j, -3])
+    0.7071067811865475
+    """
+    e = np.asarray(eigenvalues, dtype=complex).ravel()
+    if sample_time is not None:
+        e = e[np.abs(e) > 1e-12]
+        e = np.log(e) / sample_time
+    e = e[np.abs(e) > 0]
+    return float((-e.real / np.abs(e)).min()) if e.size else float("inf")

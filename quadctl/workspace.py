@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import __version__, artifacts, pipeline, stability
-from quadctl.analysis import Checks
+from quadctl import __version__, artifacts, pipeline
+from quadctl.analysis import Checks, check
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
 from quadctl.discrete import RateWarning, realizable_frequency
@@ -38,12 +38,15 @@ CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
 
 @dataclass(frozen=True)
 class CheckReport:
-    """``check``'s result: the rank checks per subsystem (and ``"full"``), and, for a continuous
-    design run at a rate, the loops that rate cannot realize."""
+    """``check``'s result: the rank checks per subsystem (and ``"full"``); for a continuous
+    design run at a rate, the loops that rate cannot realize; with rotor lag or delay, the loop
+    the vehicle flies."""
 
     checks: dict[str, Checks]
     rate: float | None
     rate_warnings: tuple[RateWarning, ...]
+    vehicle_loop: pipeline.VehicleLoop | None = None
+    """With rotor lag or delay configured: the design's loop flown with them (else None)."""
 
     def __getitem__(self, name: str) -> Checks:
         return self.checks[name]
@@ -196,21 +199,37 @@ class Workspace:
     def checks(self) -> CheckReport:
         """Rank checks; for a continuous design run at ``controller.rate``, the rate warnings."""
         checks = pipeline.checks_of(self.decoupled, self.linear)
+        est = self.setup.estimator
+        if est is not None:  # the measured set on the coupled 12-state model (what the Kalman filter sees)
+            from quadctl.estimator import selector
+
+            checks[ESTIMATOR_CHECK] = check(self.linear.A, self.linear.B, selector(est.measured), STATE_NAMES)
         regulated = {s.name for s in self.decoupled.regulated}
         timing = self.setup.timing
         warnings: list[RateWarning] = []
-        if timing.mode == "emulated" and all(checks[n].stabilizable for n in regulated):
-            warnings = pipeline.rate_warnings_of(self.setup, self.decoupled, self.linear, timing.rate)
+        vehicle = None
+        if all(checks[n].stabilizable for n in regulated):
+            if timing.mode == "emulated":
+                warnings = pipeline.rate_warnings_of(self.setup, self.decoupled, self.linear, timing.rate)
+            if self.setup.rotor_time_constant is not None or timing.delay_samples:
+                des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
+                vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
         self._write_json(CHECKS, "checks", {
-            "subsystems": {n: _checks_payload(c, n in regulated) for n, c in checks.items() if n != "full"},
+            "subsystems": {n: _checks_payload(c, n in regulated) for n, c in checks.items()
+                           if n not in ("full", ESTIMATOR_CHECK)},
             "full": _checks_payload(checks["full"], True),
+            ESTIMATOR_CHECK: None if est is None else {
+                "measured": est.measured, **_checks_payload(checks[ESTIMATOR_CHECK], False)},
             "rate": None if timing.rate is None else {
                 "rate": timing.rate, "design": "discrete" if timing.discrete else "continuous",
                 "realizable_frequency": realizable_frequency(timing.rate),
                 "warnings": [{"loop": w.loop, "pole": w.pole, "factor": w.factor,
                               "sampled_spectral_radius": w.sampled_radius, "sampled_stable": w.sampled_stable,
-                              "message": w.message(timing.rate)} for w in warnings]}})
-        return CheckReport(checks=checks, rate=timing.rate, rate_warnings=tuple(warnings))
+                              "message": w.message(timing.rate)} for w in warnings]},
+            "closed_loop": None if vehicle is None else {
+                **_vehicle_loop_payload(vehicle), "rotor_time_constant": self.setup.rotor_time_constant,
+                "rotor_lag": self.setup.rotor_lag, "delay_samples": timing.delay_samples}})
+        return CheckReport(checks=checks, rate=timing.rate, rate_warnings=tuple(warnings), vehicle_loop=vehicle)
 
     @cached_property
     def design(self) -> Design:
@@ -227,8 +246,33 @@ class Workspace:
                           "Kv_block": des.Kv_block if des.lag_time_constant is not None else None,
                           "measured": ("the controller's own model of the lag, propagated from its commands"
                                        if des.lag_time_constant is not None else None)},
-            **_flight_design_payload(des)})
+            **_flight_design_payload(des), "estimator": self._estimator_payload()})
         return des
+
+    def _estimator_payload(self) -> dict | None:
+        """design.json's ``estimator``: the Kalman filter, its form stated (None without ``estimator:``)."""
+        kal = pipeline.estimator_of(self.setup, self.linear)
+        if kal is None:
+            return None
+        discrete = kal.discrete
+        return {
+            "form": kal.form,
+            "gain_form": ("filter (measurement-update) gain M of MATLAB dlqe: x_hat[k|k] = x_hat[k|k-1] + "
+                          "M (y[k] - C x_hat[k|k-1]); the law acts on x_hat[k|k]; predictor gain L = Ad M"
+                          if discrete else "Kalman-Bucy gain L of MATLAB lqe: dx_hat/dt = A x_hat + B du + "
+                          "L (y - C x_hat)"),
+            "coordinates": "deviation from the trim reference x_ref(t), on the linear model about the trim",
+            "measured": kal.measured, "sample_time": kal.sample_time,
+            "A": kal.A, "B": kal.B, "C": kal.C, "G": kal.G, "Qn": kal.Qn, "Rn": kal.Rn,
+            "noise_convention": ("covariance per sample (noise held over each controller period)" if discrete
+                                 else "intensity sigma^2 * noise period (held noise's low-frequency spectrum)"),
+            "gain": kal.gain, "predictor_gain": kal.predictor_gain,
+            "P": kal.P, "Z": kal.Z,
+            "covariance": ("P a priori, Z = P - M C P a posteriori" if discrete else "P = Z error covariance"),
+            "eigenvalues": _c(kal.eigenvalues),
+            "eigenvalues_of": "Ad - L C (z)" if discrete else "A - L C (s)",
+            "riccati_residual": kal.residual,
+        }
 
     @cached_property
     def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray | None]:
@@ -256,24 +300,19 @@ class Workspace:
             des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
             actuators=self.setup.actuators, u_trim=linear.u_trim,
             initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
-            rotor_time_constant=self.setup.rotor_time_constant)
-        sample_time = des.sample_time or (1.0 / emulated if emulated else None)
-        A_cl = margins.closed_loop(des, linear.A, linear.B, sample_time, timing.delay_samples,
-                                   self.setup.rotor_time_constant)
-        eig = np.linalg.eigvals(A_cl)
-        slowest = np.abs(eig).max() if sample_time else eig.real.max()
+            rotor_time_constant=self.setup.rotor_time_constant,
+            estimator=pipeline.estimator_of(self.setup, linear))
+        vehicle = pipeline.vehicle_loop_of(self.setup, linear, des)
         self._write_json(MARGINS, "margins", {
             "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
             "delay_samples": timing.delay_samples, "rotor_time_constant": self.setup.rotor_time_constant,
             "rotor_lag": self.setup.rotor_lag,
-            "closed_loop": {
-                "what": "the coupled linear loop with the rotors' lag, the controller's lag model (include), the "
-                        "integrators and the delay; free positions left out",
-                "domain": "z" if sample_time else "s", "eigenvalues": _c(eig),
-                "stable": bool(np.all(stability.is_stable(eig, discrete=sample_time is not None))),
-                "spectral_radius" if sample_time else "slowest_real_part": float(slowest)},
+            "closed_loop": _vehicle_loop_payload(vehicle),
             "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                           "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
+            "estimator": None if self.setup.estimator is None else {
+                "measured": self.setup.estimator.measured, "model": "lqg",
+                "broken": "at the plant input, Kalman filter in the loop fed the commanded input"},
             "loops": [m.as_dict() for m in result]})
         return result
 
@@ -309,6 +348,7 @@ class Workspace:
             "integral_states": np.array(loop.integral_states, dtype=str),
             "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
             "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str),
+            "x_hat": sim.x_hat,  # empty without an estimator: the Kalman filter's estimate of x (state units)
             "wind": sim.wind, "wind_unit": np.array("m/s"),  # empty: still air
             "wind_names": np.array(["wind N", "wind E", "wind D"] if len(sim.wind) else [], dtype=str)},
             meta)
@@ -321,6 +361,10 @@ class Workspace:
             "fastest_subsystem": sim.plan.fastest_owner,
             "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **flight}, sim.backend)
         return Flight(sim=sim, loop=loop, metrics=summary, flight=flight)
+
+
+ESTIMATOR_CHECK = "estimator"
+"""checks' key of the measured set (``estimator.measure``) on the coupled model."""
 
 
 def _flight_design_payload(des: Design) -> dict:
@@ -349,3 +393,14 @@ def _checks_payload(c: Checks, regulated: bool) -> dict:
         "pbh_obsv": [{"eigenvalue": m.eigenvalue, "obsv_rank": m.rank, "observable": m.passed,
                       "states": m.states} for m in c.pbh_obsv],
     }
+
+
+def _vehicle_loop_payload(loop) -> dict:
+    """margins.json's and checks.json's ``closed_loop``: the loop the vehicle flies (:class:`pipeline.VehicleLoop`)."""
+    Ts, eig = loop.sample_time, loop.eigenvalues
+    return {
+        "what": "the coupled linear loop with the rotors' lag, the controller's lag model (include), the "
+                "integrators and the delay; free positions left out",
+        "domain": "z" if Ts else "s", "eigenvalues": _c(eig), "stable": loop.stable,
+        "spectral_radius" if Ts else "slowest_real_part": float(np.abs(eig).max() if Ts else eig.real.max()),
+        "least_damping": loop.least_damping, "design_least_damping": loop.design_least_damping}

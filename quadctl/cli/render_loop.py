@@ -119,6 +119,22 @@ def rms_table(flight: dict) -> Table:
     return table
 
 
+def estimation_table(flight: dict) -> Table | None:
+    """RMS of ``x - x_hat`` per state next to the steady filter's predicted standard deviation (LQG)."""
+    est = flight.get("estimation")
+    if not est:
+        return None
+    table = Table(title=f"Estimation error x - x_hat ({est['form']} form; measured: {' '.join(est['measured'])})",
+                  title_justify="left", caption="predicted: the steady Kalman covariance (a priori for a "
+                  "sampled filter), for the noise the filter assumes", caption_justify="left")
+    for col in ("state", "unit", "RMS whole run", "RMS second half", "predicted std"):
+        table.add_column(col, justify="left" if col in ("state", "unit") else "right")
+    for name in STATE_NAMES:
+        table.add_row(name, unit_of(name), num(est["rms_error"][name]), num(est["rms_error_second_half"][name]),
+                      num(est["predicted_std"][name]))
+    return table
+
+
 def wind_line(flight: dict) -> str:
     """The wind of a run in one line: steady, gusts, turbulence, peak, and whether the trim is in it."""
     wind = flight["wind"]

@@ -69,12 +69,20 @@ def sources(exp: Export) -> dict[str, str]:
     ------
     ValueError
         ``exp`` is continuous (nothing to sample), or the law has an operation ``emit`` cannot write.
+    ConfigError
+        The loop closes through a Kalman filter (``estimator:``), which the C controller does not carry.
     """
     from quadctl.sim.emit import Dialect, emit
 
     if exp.sample_time is None:
         raise ValueError("a C controller samples: prepare the export with a rate")
     loop, Ts = exp.loop, exp.sample_time
+    if loop.estimator is not None:
+        from quadctl.errors import ConfigError
+
+        raise ConfigError("estimator: the C controller acts on the measured full state; exporting the Kalman "
+                          "filter is not built: use --to json or --to mat (design.json holds the filter), or "
+                          "remove estimator: to export the full-state law")
     if loop.rotor_time_constant is not None:  # the rotors' lag is the vehicle's, not the law's: no rotor states
         act = loop.actuators
         loop = replace(loop, actuators=replace(act, motors=replace(act.motors, time_constant=None)))

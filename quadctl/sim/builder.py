@@ -5,12 +5,12 @@ compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
 ``driver.c``), and the interpreted fallback (:mod:`quadctl.sim.interpreted`, CasADi's virtual
 machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
 
-The loop state is ``X = [x; f; z; l; b]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
+The loop state is ``X = [x; f; z; l; b; xh]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
 the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the controller states:
 the ``nz`` integrators of an LQI law, the four states ``l`` of the controller's rotor lag model
 (:attr:`LoopSpec.lag_model`), and the ``4 n`` entries of the command buffer of a loop with ``n``
-samples of delay (:attr:`LoopSpec.delay`). The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant`
-states. The control law is
+samples of delay (:attr:`LoopSpec.delay`), then the 12 states ``xh`` of a Kalman filter (LQG).
+The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant` states. The control law is
 
     u = sat(u_trim - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,
 
@@ -45,6 +45,17 @@ Delay (:attr:`LoopSpec.delay`, held loops only): ``n`` controller samples from m
 actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands computed 1 to ``n``
 samples ago; at a sample the law applies ``b_n`` and shifts, ``b_1 <- u_new``, ``b_k <- b_(k-1)``.
 Runs start with the buffer at the trim input. Exact: the delay is a whole number of samples.
+
+State estimation (:attr:`LoopSpec.measured`, LQG; :mod:`quadctl.estimator`): the last 12 loop
+states are the Kalman filter's estimate ``xh`` of the deviation ``x - x_ref(t)`` on the linear
+model about the trim (``Ae, Be``), from ``y = C (x_m - x_ref(t))`` (``C`` picks the measured
+states, baked in), under the applied input deviation ``u - u_trim``; the law uses the estimate in
+place of ``x_m - x_ref``. Held loops: ``xh`` is the a priori estimate, and ``law`` updates it with
+the filter gain ``Le = M``, acts on ``xc = xh + M (y - C xh)`` and predicts ``xh <- Ae xc + Be du``
+(``Ae, Be`` the zero-order-hold model at the controller period). Continuous loops: the
+Kalman-Bucy filter ``dxh/dt = Ae xh + Be du + Le (y - C xh)`` is integrated in the RK4 stages.
+Runs start with ``xh = 0`` (the filter believes the trim).
+
 
 Exogenous inputs (:func:`exo_layout`): per step, when :attr:`LoopSpec.noise`, a body force and
 torque added to the plant and the sensor noise added to what the controller measures
@@ -107,14 +118,16 @@ N_ROTORS = 4
 """Rotor thrust states of a loop with rotor dynamics (one per rotor, N)."""
 
 
-def constant_layout(nz: int = 0, rotors: bool = False,
-                    lag_model: bool = False) -> tuple[tuple[str, tuple[int, ...]], ...]:
+def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
+                    ny: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
     input ``j``'s saturation freezes integrator ``i``; ``tau`` (s) is the rotors' time constant
     (loops with rotor dynamics); ``Kv`` (4, 4) the gain on the controller's rotor lag model and
-    ``tau_model`` (s) the model's time constant (loops with a lag model). Matrices are stored
+    ``tau_model`` (s) the model's time constant (loops with a lag model); ``Ae`` (12, 12), ``Be``
+    (12, 4) and ``Le`` (12, ny) are the Kalman filter's model and gain of a loop with ``ny``
+    measurements (LQG). Matrices are stored
     column-major.
     """
     out = _BASE_LAYOUT
@@ -124,15 +137,18 @@ def constant_layout(nz: int = 0, rotors: bool = False,
         out = out + (("tau", (1,)),)
     if lag_model:
         out = out + (("Kv", (N_INPUTS, N_INPUTS)), ("tau_model", (1,)))
+    if ny:
+        out = out + (("Ae", (N_STATES, N_STATES)), ("Be", (N_STATES, N_INPUTS)), ("Le", (N_STATES, ny)))
     return out
 
 
-def constant_size(nz: int = 0, rotors: bool = False, lag_model: bool = False) -> int:
-    """Length of ``c`` for ``nz`` integrators (and rotor dynamics, and a lag model)."""
-    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model))
+def constant_size(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0) -> int:
+    """Length of ``c`` for ``nz`` integrators (and rotor dynamics, a lag model, ``ny`` measurements)."""
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model, ny))
 
 
-def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, **values) -> np.ndarray:
+def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
+                   **values) -> np.ndarray:
     """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
 
     Raises
@@ -140,7 +156,7 @@ def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, *
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots, template = _slots(nz, rotors, lag_model)
+    slots, template = _slots(nz, rotors, lag_model, ny)
     out = template.copy()
     for name, value in values.items():
         if name not in slots:
@@ -154,11 +170,11 @@ def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, *
 
 
 @lru_cache(maxsize=16)
-def _slots(nz: int, rotors: bool = False,
-           lag_model: bool = False) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+def _slots(nz: int, rotors: bool = False, lag_model: bool = False,
+           ny: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
-    for name, shape in constant_layout(nz, rotors, lag_model):
+    for name, shape in constant_layout(nz, rotors, lag_model, ny):
         size = int(np.prod(shape))
         slots[name] = (slice(offset, offset + size), shape)
         offset += size
@@ -194,6 +210,8 @@ class LoopSpec:
         The controller propagates a model of the rotors' lag and feeds it back (``Kv``).
     wind : bool
         The loop takes the wind (:data:`WIND_LAYOUT`) every step, after the noise's channels.
+    measured : tuple of int
+        State indices a Kalman filter measures (LQG); empty: the law measures the full state.
     """
 
     pattern: tuple[bool, ...]
@@ -205,6 +223,7 @@ class LoopSpec:
     delay: int = 0
     lag_model: bool = False
     wind: bool = False
+    measured: tuple[int, ...] = ()
 
     def __post_init__(self):
         if len(self.pattern) != N_INPUTS * N_STATES:
@@ -237,9 +256,19 @@ class LoopSpec:
         return N_INPUTS if self.lag_model else 0
 
     @property
+    def ny(self) -> int:
+        """Measurements of the Kalman filter (0: full-state feedback)."""
+        return len(self.measured)
+
+    @property
+    def n_estimate(self) -> int:
+        """Estimator states (the 12 of the estimate, with a filter; else none)."""
+        return N_STATES if self.measured else 0
+
+    @property
     def nx(self) -> int:
-        """Loop states ``[x; f; z; l; b]``."""
-        return self.n_plant + self.nz + self.n_lag + self.n_buffer
+        """Loop states ``[x; f; z; l; b; xh]``."""
+        return self.n_plant + self.nz + self.n_lag + self.n_buffer + self.n_estimate
 
     @property
     def n_exo(self) -> int:
@@ -248,7 +277,7 @@ class LoopSpec:
 
     @property
     def n_constants(self) -> int:
-        return constant_size(self.nz, self.rotors, self.lag_model)
+        return constant_size(self.nz, self.rotors, self.lag_model, self.ny)
 
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
@@ -256,7 +285,8 @@ class LoopSpec:
         return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
                 f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
                 + (f" delay={self.delay}" if self.delay else "") + (" lag_model=1" if self.lag_model else "")
-                + (" wind=1" if self.wind else ""))
+                + (" wind=1" if self.wind else "")
+                + (f" measured={','.join(map(str, self.measured))}" if self.measured else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -296,7 +326,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
     nz, nx, npl, nl = spec.nz, spec.nx, spec.n_plant, spec.n_lag
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
-    for name, shape in constant_layout(nz, spec.rotors, spec.lag_model):
+    for name, shape in constant_layout(nz, spec.rotors, spec.lag_model, spec.ny):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -325,10 +355,26 @@ def build(spec: LoopSpec) -> LoopFunctions:
         act = ca.if_else(act > parts["hi"], parts["hi"], act)
         return parts["mix_inv"] @ act if spec.saturation == "motors" else act
 
+    ne = spec.n_estimate
+    measured = list(spec.measured)
+
+    def innovation(X, t):
+        """``y - C xh``: the measured deviation less its estimate."""
+        x, xh = X[:N_STATES], X[nx - ne:]
+        y = (x + sensor - (parts["x_ref"] + parts["x_rate"] * t))[measured]
+        return y - xh[measured]
+
+    def deviation(X, t):
+        """What the law acts on: the measured deviation, or the filter's (updated, held) estimate."""
+        if not ne:
+            return X[:N_STATES] + sensor - (parts["x_ref"] + parts["x_rate"] * t)
+        xh = X[nx - ne:]
+        return xh + parts["Le"] @ innovation(X, t) if spec.held else xh
+
     def control(X, t):
         """(u, dz/dt) at loop state ``X`` and time ``t``."""
-        x, z = X[:N_STATES], X[npl:npl + nz]
-        err = x + sensor - (parts["x_ref"] + parts["x_rate"] * t)
+        z = X[npl:npl + nz]
+        err = deviation(X, t)
         cmd = parts["u_trim"] - gain @ err
         if nl:
             cmd = cmd - parts["Kv"] @ X[npl + nz:npl + nz + nl]
@@ -373,8 +419,13 @@ def build(spec: LoopSpec) -> LoopFunctions:
         a = ca.exp(-parts["Ts"] / parts["tau_model"])
         X_sampled = ca.vertcat(X_sampled, a * X[npl + nz:npl + nz + nl] + (1 - a) * (u_now - parts["u_trim"]))
     if spec.delay:  # apply the oldest command, shift the newest in
-        buffer, nb = X[npl + nz + nl:], spec.n_buffer
+        buffer, nb = X[npl + nz + nl:npl + nz + nl + spec.n_buffer], spec.n_buffer
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
+    if ne and spec.held:  # predict from the updated estimate under the applied input
+        xc = deviation(X, t)
+        X_sampled = ca.vertcat(X_sampled, parts["Ae"] @ xc + parts["Be"] @ (u_now - parts["u_trim"]))
+    elif ne:
+        X_sampled = ca.vertcat(X_sampled, X[nx - ne:])
     law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
     if spec.held:
         def plant_rhs(Y, ts):
@@ -389,7 +440,12 @@ def build(spec: LoopSpec) -> LoopFunctions:
         u, rate = control(Y, ts)
         xdot = body(Y, u)
         xdot = ca.vertcat(xdot, rate) if nz else xdot
-        return ca.vertcat(xdot, lag_rate(Y, u)) if nl else xdot
+        xdot = ca.vertcat(xdot, lag_rate(Y, u)) if nl else xdot
+        if ne:  # Kalman-Bucy
+            xh = Y[nx - ne:]
+            xh_dot = parts["Ae"] @ xh + parts["Be"] @ (u - parts["u_trim"]) + parts["Le"] @ innovation(Y, ts)
+            xdot = ca.vertcat(xdot, xh_dot)
+        return xdot
 
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([rk4(closed_rhs, X), u_now]),
                        ["X", "t", "dt", "c", "e"], ["X_next", "u"])

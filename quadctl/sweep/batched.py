@@ -247,6 +247,7 @@ def loops_of(live) -> list:
         setup, linear = prep.setup, prep.plant.linear
         try:
             check_trim(setup.actuators, linear.u_trim)
+            kalman = _estimator(prep)
         except QuadctlError as exc:
             out[j] = exc
             continue
@@ -262,7 +263,7 @@ def loops_of(live) -> list:
                               rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
                               integral_states=des.integral_states, actuators=setup.actuators,
                               open_loop_eigenvalues=prep.plant.open_loop_eigenvalues(),
-                              delay_samples=setup.timing.delay_samples)
+                              delay_samples=setup.timing.delay_samples, estimator=kalman)
         tau = loop.rotor_time_constant
         try:
             if loop.rate is not None:  # the open-loop plant's (and rotors'): the same for every case of a plant
@@ -271,7 +272,7 @@ def loops_of(live) -> list:
                     ol = np.concatenate([loop.open_loop_eigenvalues, rotor_eigenvalues(tau)])
                     prep.plant.cache[key] = plan_held_step(ol, *key[1:4])
                 plan = prep.plant.cache[key]
-            elif tau is not None or des.Kv is not None:
+            elif tau is not None or des.Kv is not None or loop.estimator is not None:
                 plan = loop.plan(setup.duration, setup.dt)
             else:
                 plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)
@@ -335,6 +336,19 @@ def _structure(loop, extra: tuple) -> tuple[tuple, list]:
             parts.append(("id", id(value)))
             held.append(value)
     return ("structure", *extra, *parts), held
+
+
+def _estimator(prep):
+    """The case's Kalman filter (:func:`quadctl.pipeline.estimator_of`), once per plant and filter config."""
+    est, timing = prep.setup.estimator, prep.setup.timing
+    if est is None:
+        return None
+    key = ("estimator", est.measured, tuple(est.sensor_std), tuple(est.process_std), est.period, timing.sample_time)
+    if key not in prep.plant.cache:
+        from quadctl.pipeline import estimator_of
+
+        prep.plant.cache[key] = estimator_of(prep.setup, prep.plant.linear)
+    return prep.plant.cache[key]
 
 
 def _structural_gain(prep) -> tuple[bool, ...]:

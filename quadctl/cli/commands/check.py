@@ -19,8 +19,12 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
 
     Warns when a continuous design has closed-loop poles faster than the controller rate can
     realize (which loop, by how much, and whether the sampled loop is still stable).
-    Exits 1 when a regulated subsystem is not stabilizable, or when a loop sampled at the
-    config's controller.rate (continuous design) or at --rate is unstable.
+    With an ``estimator:``, the measured set on the coupled model too (row ``estimator``).
+    With rotor lag (motors.time_constant) or delay (controller.delay), whether the design's loop
+    stays stable with them, and how much damping they take.
+    Exits 1 when a regulated subsystem is not stabilizable, the measured set leaves a mode that is
+    not stable unobservable, a loop sampled at the config's controller.rate (continuous design) or
+    at --rate is unstable, or the lag and delay make the design's loop unstable.
     """
     from quadctl.cli import render
     from quadctl.discrete import unstable_when_sampled
@@ -43,6 +47,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
         render.emit_json(payload)
     else:
         render.out.print(render.checks_table(checks.checks, regulated))
+        if checks.vehicle_loop is not None:
+            render.out.print(checks.vehicle_loop.summary(), markup=False)
         render.out.print(f"-> {ws.path('checks.json')}")
     for hz, warnings in rated:
         for w in warnings:
@@ -51,6 +57,20 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
         mode = checks[name].unstabilizable_modes[0]
         render.err.print(f"quadctl: check failed: subsystem {name} is not stabilizable: mode "
                          f"{render.eig(mode.eigenvalue)} in {', '.join(mode.states)}")
+    if "estimator" in checks.checks and not checks["estimator"].detectable:
+        from quadctl.errors import DesignError
+        from quadctl.estimator import require_detectable, selector
+
+        measured = ws.setup.estimator.measured
+        try:
+            require_detectable(ws.linear.A, selector(measured), measured)
+        except DesignError as exc:
+            render.err.print(f"quadctl: check failed: {exc}", markup=False)
+            failed.append(str(exc))
+    verdict = checks.vehicle_loop.verdict() if checks.vehicle_loop is not None else None
+    if verdict:
+        render.err.print(f"quadctl: check failed: {verdict}", markup=False)
+        failed.append(verdict)
     for hz, warnings in rated:
         verdict = unstable_when_sampled(warnings, hz)
         if verdict:

@@ -41,6 +41,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
                              "each subsystem's inputs lag, Kv feeds back the controller's lag model)")
         for table in render.design_tables(des):
             render.out.print(table)
+        est = ws.payloads["design.json"].get("estimator")
+        if est:
+            render.out.print(_estimator_line(est, render))
         render.out.print(f"-> {ws.path('design.json')}")
         if comparison is not None:
             from quadctl.cli import render_loop
@@ -55,3 +58,16 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     if not json:
         marg = f" (marginal by design: {', '.join(des.marginal_states)})" if des.marginal_states else ""
         render.out.print(f"[green]stable[/green] on the coupled 12-state linear model{marg}")
+
+
+def _estimator_line(est: dict, render) -> str:
+    """One line on the Kalman filter design.json holds: its form, what it measures, its slowest pole."""
+    eig = [complex(re, im) for re, im in est["eigenvalues"]]
+    if est["form"] == "filter":
+        slowest = max(eig, key=abs)
+        how = (f"discrete filter at {1 / est['sample_time']:g} Hz, gain M (measurement update; predictor "
+               f"L = Ad M), slowest pole |z| = {abs(slowest):.4g}")
+    else:
+        slowest = max(eig, key=lambda e: e.real)
+        how = f"Kalman-Bucy filter, gain L, slowest pole {render.eig(slowest)} rad/s"
+    return f"estimator (LQG) on {' '.join(est['measured'])}: {how}"

@@ -37,6 +37,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     sampled = unstable_when_sampled(ws.checks.rate_warnings, ws.checks.rate or 0.0)
     if sampled:
         raise _stop(json, stages, f"check: {sampled}")
+    vehicle = ws.checks.vehicle_loop
+    if vehicle is not None and vehicle.verdict():
+        raise _stop(json, stages, f"check: {vehicle.verdict()}")
     done("check", "every regulated subsystem stabilizable")
     if not ws.design.stable:
         raise _stop(json, stages, "design: unstable on the coupled 12-state model")

@@ -62,6 +62,9 @@ def _print_flight(render, flown, *, before: bool) -> None:
         render.out.print(table)
     if flight.get("noise") or flight.get("wind"):
         render.out.print(render_loop.rms_table(flight))
+    table = render_loop.estimation_table(flight)
+    if table is not None:
+        render.out.print(table)
     if flight.get("wind"):
         render.out.print(render_loop.wind_line(flight), markup=False)
         render.out.print(render_loop.wind_table(flight))
