@@ -47,3 +47,22 @@ def bundled_subsystems(names=("forward", "hover", "mambo-200hz")):
         linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
         for sub in pipeline.decoupled_of(setup, linear).regulated:
             yield setup, sub
+
+
+def max_rel_diff(rows_a, rows_b, skip=("path",)) -> tuple[float, str]:
+    """Largest relative difference over the numeric cells of two sweeps' rows, and where; the
+    other cells must be equal (``skip``: columns left out, the path each case took by default)."""
+    worst, where = 0.0, ""
+    for a, b in zip(rows_a, rows_b, strict=True):
+        assert a.keys() == b.keys()
+        for key in a:
+            if key in skip:
+                continue
+            va, vb = a[key], b[key]
+            if isinstance(va, float) and isinstance(vb, float):
+                d = abs(va - vb) / max(abs(vb), 1e-12)
+                if d > worst:
+                    worst, where = d, f"case {a['case']} {key}: {va!r} vs {vb!r}"
+            else:
+                assert va == vb, f"case {a['case']} {key}: {va!r} vs {vb!r}"
+    return worst, where

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.linalg
-from _solve import cfg_dict, solve
+from _solve import cfg_dict, max_rel_diff, solve
 from scipy.optimize import linear_sum_assignment
 from typer.testing import CliRunner
 
@@ -323,13 +323,8 @@ def test_a_sweep_of_an_lqg_config_runs_in_the_lanes_with_the_one_by_one_rows():
     slow = sweep.run(cfg, spec, jobs=1, fast=False)
     assert fast.stats["backend"] == ["compiled-simd"] and slow.stats["backend"] == ["compiled"]
     assert {r["path"] for r in fast.rows} == {"batched"} and {r["status"] for r in fast.rows} == {"ok"}
-    worst = 0.0
-    for a, b in zip(fast.rows, slow.rows):
-        for key, va in a.items():
-            vb = b[key]
-            if isinstance(va, float) and isinstance(vb, float):
-                worst = max(worst, abs(va - vb) / max(abs(vb), 1e-12))
-    assert worst < 1e-9, f"Max diff is {worst:.4E}"
+    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert worst < 1e-9, f"Max diff is {worst:.4E} at {where}"
 
 
 def test_simulate_reports_the_estimation_error_and_records_x_hat(tmp_path):

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _solve import cfg_dict, max_rel_diff, solve
 
 from quadctl import config, pipeline, sweep
 from quadctl.sim import engine
-from tests._solve import cfg_dict, solve
 
 SENSORS = {"pN": 0.01, "pE": 0.01, "pD": 0.01, "phi": 0.002, "theta": 0.002, "psi": 0.005,
            "p": 0.005, "q": 0.005, "r": 0.005}
@@ -70,10 +70,5 @@ def test_a_sweep_with_every_feature_runs_in_the_lanes_with_the_one_by_one_rows()
     # the lag-augmented designs are solved one by one (and say so); the runs fly in the lanes
     assert {r["path"] for r in fast.rows} == {"one-by-one: the design includes the rotors' lag"}
     assert {r["status"] for r in fast.rows} == {"ok"}
-    worst = 0.0
-    for a, b in zip(fast.rows, slow.rows):
-        for key, va in a.items():
-            vb = b[key]
-            if isinstance(va, float) and isinstance(vb, float):
-                worst = max(worst, abs(va - vb) / max(abs(vb), 1e-12))
-    assert worst < 1e-9, f"Max diff is {worst:.4E}"
+    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert worst < 1e-9, f"Max diff is {worst:.4E} at {where}"

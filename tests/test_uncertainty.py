@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _solve import max_rel_diff
 
 from quadctl import artifacts, config, sweep
 from quadctl.sweep.spec import plant_side
@@ -73,7 +74,7 @@ def test_vehicle_variations_run_in_lanes_with_one_design_and_equal_the_one_case_
     assert fast.stats["designs"] == 4 and slow.stats["designs"] == 4 * 16
     assert fast.stats["backend"] == ["compiled-simd"] and {r["path"] for r in fast.rows} == {"batched"}
     assert {r["status"] for r in fast.rows} == {"ok"}
-    worst = _max_rel_diff(fast.rows, slow.rows)
+    worst = max_rel_diff(fast.rows, slow.rows)
     assert worst[0] < MATCH_RTOL, f"Max diff is {worst[0]:.4E} at {worst[1]}"
     assert sorted(fast.traces) == sorted(slow.traces) == list(range(16))
     gap = max(np.abs(fast.traces[k] - slow.traces[k]).max() for k in fast.traces)
@@ -96,7 +97,7 @@ def test_an_included_lag_design_flies_the_vehicle_variations_as_the_one_case_pat
     slow = sweep.run(mambo, spec, jobs=1, fast=False)
     assert fast.stats["designs"] == 4 and fast.stats["backend"] == ["compiled-simd"]
     assert {r["path"] for r in fast.rows} == {"one-by-one: the design includes the rotors' lag"}
-    worst = _max_rel_diff(fast.rows, slow.rows)
+    worst = max_rel_diff(fast.rows, slow.rows)
     assert worst[0] < MATCH_RTOL, f"Max diff is {worst[0]:.4E} at {worst[1]}"
 
 
@@ -118,19 +119,3 @@ def test_the_bands_file_names_its_states_units_and_parameters(mambo, tmp_path):
     assert (tmp_path / "montecarlo.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def _max_rel_diff(rows_a, rows_b) -> tuple[float, str]:
-    """Largest relative difference over the numeric cells (the path aside), and where."""
-    worst, where = 0.0, ""
-    for a, b in zip(rows_a, rows_b):
-        assert a.keys() == b.keys()
-        for key in a:
-            if key == "path":
-                continue
-            va, vb = a[key], b[key]
-            if isinstance(va, float) and isinstance(vb, float):
-                d = abs(va - vb) / max(abs(vb), 1e-12)
-                if d > worst:
-                    worst, where = d, f"case {a['case']} {key}: {va!r} vs {vb!r}"
-            else:
-                assert va == vb, f"case {a['case']} {key}: {va!r} vs {vb!r}"
-    return worst, where

@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 import yaml
+from _solve import cfg_dict, solve
 from typer.testing import CliRunner
 
 from quadctl import pipeline, stability
 from quadctl.cli.app import app
-from tests._solve import cfg_dict, solve
 
 
 def _lagged(rotor_lag: str = "ignore", delay: int = 0) -> dict:
