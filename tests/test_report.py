@@ -287,3 +287,56 @@ def test_the_report_shows_the_rotor_lag_the_delay_and_the_delay_margins(path, la
     if "include" in path:
         design = _artifact(tmp_path, "design.json")
         assert design["rotor_lag"]["mode"] == "include" and len(page.tables["design-table"][0]) == 6  # Kv shown
+
+
+def _lqg_in_wind(tmp_path: Path) -> Path:
+    """crazyflie-wind with a 20 ms rotor lag (ignored), noise and a Kalman filter on imu + mocap."""
+    import yaml
+
+    data = config.load("crazyflie-wind").model_dump(mode="json")
+    data.update(name="cf-lqg", estimator={"measure": ["imu", "mocap"]})
+    data["motors"]["time_constant"] = 0.02
+    data["simulation"].update(duration=3.0, noise={"seed": 3, "force": [0.002] * 3, "torque": [1e-5] * 3, "sensor": {
+        "pN": 0.01, "pE": 0.01, "pD": 0.01, "phi": 0.002, "theta": 0.002, "psi": 0.005, "p": 0.005, "q": 0.005,
+        "r": 0.005}})
+    path = tmp_path / "cf-lqg.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_the_report_shows_the_filter_the_wind_and_the_loop_with_the_lag(tmp_path):
+    res = _report("-c", _lqg_in_wind(tmp_path), "-o", tmp_path / "run")
+    assert res.exit_code == 0, res.output
+    out = tmp_path / "run"
+    page = _parse(out / report.FOLDER / report.HTML)
+    text = " ".join(" ".join(page.text).split())
+    closed = _artifact(out, "checks.json")["closed_loop"]
+    assert (f"With the rotors' 20 ms lag (ignored by the design) the design's closed loop stays stable: least "
+            f"damping {closed['least_damping']:.3g} ({closed['design_least_damping']:.3g} as designed).") in text
+    assert "The law closes through a steady-state Kalman filter (LQG), the discrete filter at 500 Hz" in text
+    design = _artifact(out, "design.json")["estimator"]
+    assert [row[0] for row in page.tables["estimator-table"][1:]] == design["measured"]
+    sim = _artifact(out, "sim.json")
+    est, wind = sim["estimation"], sim["wind"]
+    for state in ("pN", "phi", "w"):
+        assert page.column("estimation-table", "RMS whole run", state) == f"{est['rms_error'][state]:.4g}"
+        assert page.column("estimation-table", "predicted std", state) == f"{est['predicted_std'][state]:.4g}"
+    assert page.column("speeds-table", "max", "airspeed") == f"{wind['airspeed']['max']:.4g}"
+    assert page.column("speeds-table", "RMS", "ground speed") == f"{wind['ground_speed']['rms']:.4g}"
+    assert "Wind: steady [0, 9.7, 0] m/s NED, 1 gust, Dryden turbulence" in text
+
+
+def test_report_stops_where_run_does_when_the_lag_destabilizes_the_design(tmp_path):
+    import yaml
+
+    data = config.load("mambo-200hz").model_dump(mode="json")
+    data["motors"]["time_constant"] = 0.03
+    data["controller"].update(rotor_lag="ignore", delay={"samples": 2})
+    path = tmp_path / "lag.yaml"
+    path.write_text(yaml.safe_dump(data))
+    ran = runner.invoke(app, ["run", "-c", str(path), "-o", str(tmp_path / "run")])
+    reported = _report("-c", path, "-o", tmp_path / "report")
+    assert ran.exit_code == reported.exit_code == 1
+    verdict = "check: with the rotors' 30 ms lag (ignored by the design) and 2 samples of delay the design's closed"
+    for res in (ran, reported):
+        assert f"quadctl: check failed: {verdict}" in " ".join(res.stderr.split()), res.stderr

@@ -136,18 +136,10 @@ def estimation_table(flight: dict) -> Table | None:
 
 
 def wind_line(flight: dict) -> str:
-    """The wind of a run in one line: steady, gusts, turbulence, peak, and whether the trim is in it."""
-    wind = flight["wind"]
-    parts = [f"steady [{', '.join(num(w) for w in wind['steady'])}] m/s NED"]
-    if wind["gusts"]:
-        parts.append(f"{len(wind['gusts'])} gust" + ("s" if len(wind["gusts"]) > 1 else ""))
-    turb = wind["turbulence"]
-    if turb:
-        sigma = ", ".join(num(s) for s in turb["sigma"])
-        parts.append(f"Dryden turbulence sigma [{sigma}] m/s at {num(turb['reference_speed'])} m/s "
-                     f"(seed {turb['seed']})")
-    trimmed = "trimmed in the steady wind" if wind["trim_in_wind"] else "trimmed in still air"
-    return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"
+    """The wind of a run in one line (:func:`quadctl.pipeline.wind_line`)."""
+    from quadctl.pipeline import wind_line
+
+    return wind_line(flight["wind"])
 
 
 def wind_table(flight: dict) -> Table:

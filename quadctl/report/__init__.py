@@ -62,7 +62,8 @@ def run_stages(ws) -> Outcome:
     """Run the stages in order until one fails a check or raises; what ``quadctl run`` checks, plus margins.
 
     A check fails when a regulated subsystem is not stabilizable, a continuous design is unstable
-    sampled at the controller's rate (the verdict ``check`` and ``run`` give), the assembled design is unstable
+    sampled at the controller's rate, or the rotors' lag and the delay make the design's loop unstable
+    (the verdicts ``check`` and ``run`` give), the assembled design is unstable
     on the coupled model, or the simulation does not finish (diverged, left the valid range); a
     :class:`~quadctl.errors.QuadctlError` a stage raises stops the stages too. Neither is raised:
     both are in the returned :class:`Outcome`, so that what was computed can still be reported.
@@ -86,7 +87,8 @@ def run_stages(ws) -> Outcome:
         ("check", lambda: ws.checks, lambda: (
             "not stabilizable: " + ", ".join(sorted(n for n in regulated() if not ws.checks[n].stabilizable))
             if any(not ws.checks[n].stabilizable for n in regulated())
-            else unstable_when_sampled(ws.checks.rate_warnings, ws.checks.rate or 0.0))),
+            else unstable_when_sampled(ws.checks.rate_warnings, ws.checks.rate or 0.0)
+            or (ws.checks.vehicle_loop.verdict() if ws.checks.vehicle_loop is not None else None))),
         ("design", lambda: ws.design, lambda: (
             None if ws.design.stable else "unstable on the coupled 12-state model")),
         ("margins", lambda: ws.margins, None),

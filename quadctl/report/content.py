@@ -157,6 +157,9 @@ def checks(ws) -> Section:
         else:
             blocks.append(Text(f"Controller rate {report.rate:g} Hz: no rate warning (every loop it closes is "
                                "slow enough for it, or the design is discrete at that rate)."))
+    if report.vehicle_loop is not None:
+        loop = report.vehicle_loop
+        blocks.append(Text(loop.summary()[0].upper() + loop.summary()[1:] + ".", "ok" if loop.stable else "fail"))
     return Section("checks", "Checks", tuple(blocks))
 
 
@@ -220,7 +223,33 @@ def design(ws) -> Section:
         blocks.append(Text("Every subsystem is stable alone, but the assembled gain is UNSTABLE on the coupled "
                            "12-state model (the dropped couplings matter).", "fail"))
     blocks.append(Text(f"Closed-loop eigenvalues of A - B K_block on the coupled model (rad/s): {eigs(ordered)}."))
+    blocks.extend(_estimator(ws))
     return Section("design", "Design", tuple(blocks))
+
+
+def _estimator(ws) -> tuple:
+    """The Kalman filter of an LQG config: what it measures, its form and its eigenvalues."""
+    from quadctl import pipeline
+
+    kal = pipeline.estimator_of(ws.setup, ws.linear)
+    if kal is None:
+        return ()
+    est = ws.setup.estimator
+    if kal.discrete:
+        form = (f"the discrete filter at {1 / kal.sample_time:g} Hz (MATLAB dlqe conventions): the gain is the "
+                "filter (measurement-update) gain M, x_hat[k|k] = x_hat[k|k-1] + M (y[k] - C x_hat[k|k-1]); the "
+                "law acts on x_hat[k|k]; eigenvalues of Ad - Ad M C shown as ln(z)/Ts in rad/s")
+        shown = np.log(kal.eigenvalues.astype(complex)) / kal.sample_time
+    else:
+        form = "the Kalman-Bucy filter (MATLAB lqe): dx_hat/dt = A x_hat + B du + L (y - C x_hat)"
+        shown = kal.eigenvalues
+    rows = tuple((name, unit_of(name), num(std)) for name, std in zip(est.measured, est.sensor_std))
+    return (Text(f"The law closes through a steady-state Kalman filter (LQG), {form}; Riccati residual "
+                 f"{kal.residual:.1e}."),
+            Table("estimator-table", "What the filter measures (estimator.measure)", ("state", "unit", "noise std"),
+                  rows, caption="Process noise: body force std " + vector(est.process_std[:3]) + " N, torque std "
+                  + vector(est.process_std[3:]) + " N m.", align="llr"),
+            Text(f"Estimator eigenvalues (rad/s): {eigs(sorted(shown, key=lambda z: (z.real, z.imag)))}."))
 
 
 def margins(ws) -> Section:
@@ -376,6 +405,26 @@ def flight(ws) -> Section:
     blocks.append(Table("rms-table", title, ("state", "unit", "whole run", "second half"),
                         tuple((n, unit_of(n), num(fl["rms_error"][n]), num(fl["rms_error_second_half"][n]))
                               for n in STATE_NAMES), align="llrr"))
+    est = fl.get("estimation")
+    if est:
+        blocks.append(Table(
+            "estimation-table",
+            f"Estimation error x - x_hat ({est['form']} form; measured: {' '.join(est['measured'])})",
+            ("state", "unit", "RMS whole run", "RMS second half", "predicted std"),
+            tuple((n, unit_of(n), num(est["rms_error"][n]), num(est["rms_error_second_half"][n]),
+                   num(est["predicted_std"][n])) for n in STATE_NAMES),
+            caption="Predicted: the steady Kalman covariance (a priori for a sampled filter), for the noise the "
+                    "filter assumes.", align="llrrr"))
+    wind = fl.get("wind")
+    if wind:
+        from quadctl.pipeline import wind_line
+
+        line = wind_line(wind)
+        blocks.append(Text(line[0].upper() + line[1:] + "."))
+        blocks.append(Table("speeds-table", "Ground speed and airspeed", ("speed", "unit", "max", "RMS"),
+                            tuple((label, "m/s", num(wind[key]["max"]), num(wind[key]["rms"]))
+                                  for key, label in (("ground_speed", "ground speed"), ("airspeed", "airspeed"))),
+                            align="llrr"))
     ints = fl["integral"]
     if ints["states"]:
         parts = ", ".join(f"integral of {s} = {num(v)}" for s, v in ints["final"].items())
