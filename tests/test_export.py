@@ -125,15 +125,20 @@ class Controller:
         self.lib = ctypes.CDLL(str(lib))
         self.real = ctypes.c_float if single else ctypes.c_double
         nz, nl = len(exp.loop.integral_states), exp.loop.spec().n_lag
+        ny = len(exp.loop.measured)
+        nb = N_INPUTS * exp.loop.delay_samples if ny else 0  # a filter remembers the delayed commands
 
-        class State(ctypes.Structure):  # quadctl_controller of the header (l[]: a design with the rotors' lag)
-            _fields_ = [("z", self.real * max(nz, 1)), *([("l", self.real * nl)] if nl else []), ("k", ctypes.c_ulong)]
+        class State(ctypes.Structure):  # quadctl_controller of the header (l[]: a design with the rotors' lag;
+            _fields_ = [("z", self.real * max(nz, 1)),  # b[], xh[]: a Kalman filter, with and without delay)
+                        *([("l", self.real * nl)] if nl else []), *([("b", self.real * nb)] if nb else []),
+                        *([("xh", self.real * N_STATES)] if ny else []), ("k", ctypes.c_ulong)]
 
         self.state = State()
         self.lib.quadctl_init(ctypes.byref(self.state))
 
     def step(self, x) -> np.ndarray:
-        xa, ua = (self.real * N_STATES)(*x), (self.real * N_INPUTS)()
+        """``u`` from the state ``x`` (12), or from the measurements ``y`` of a Kalman filter."""
+        xa, ua = (self.real * len(x))(*x), (self.real * N_INPUTS)()
         self.lib.quadctl_step(ctypes.byref(self.state), xa, ua)
         return np.array(ua[:], dtype=float)
 
@@ -202,6 +207,113 @@ def test_the_exported_c_flies_the_loop_simulate_flies(case, tmp_path):
                 f"float: max |dx| = {dx:.3e}, max |du| = {du:.3e} ({worst:.3e} of the terms' size)"
         else:
             assert dx <= DOUBLE_TOL and du <= DOUBLE_TOL, f"double: max |dx| = {dx:.4e}, max |du| = {du:.4e}"
+
+
+# ---------------------------------------------------------------------------------------
+# LQG: the Kalman filter in the exported C
+
+LQG_SENSORS = {"pN": 0.01, "pE": 0.01, "pD": 0.01, "phi": 0.002, "theta": 0.002, "psi": 0.005,
+               "p": 0.005, "q": 0.005, "r": 0.005}
+"""Sensor noise (state units) of what the filter measures (IMU and motion capture), as tests/test_estimator.py."""
+
+
+def _mambo_lqg(delayed: bool = False):
+    """mambo-200hz (LQI on altitude, rotors) from 2 m low and tilted (the rotors clip), with process and
+    sensor noise, closed through a Kalman filter on imu + mocap; ``delayed``: 30 ms rotor lag included in
+    the design (the lag model) and 2 samples of delay."""
+    data = cfg_dict("mambo-200hz")
+    if delayed:
+        data["motors"]["time_constant"] = 0.03
+        data["controller"] = {**data["controller"], "rotor_lag": "include", "delay": {"samples": 2}}
+    data["simulation"] = {**data["simulation"], "duration": 2.0,
+                          "initial_offset": {"pD": 2.0, "phi": 0.3, "theta": -0.3, "psi": 0.5},
+                          "noise": {"seed": 3, "force": [0.005] * 3, "torque": [2e-5] * 3,
+                                    "sensor": dict(LQG_SENSORS)}}
+    data["estimator"] = {"measure": ["imu", "mocap"]}
+    return data, None
+
+
+CASES["mambo-lqg"] = _mambo_lqg
+CASES["mambo-lqg-lag-delayed"] = lambda: _mambo_lqg(delayed=True)
+LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed")
+
+
+def replay(ctl: Controller, y) -> tuple[np.ndarray, np.ndarray]:
+    """``quadctl_step`` on each row of ``y``: (the commands, the estimate ``xh`` after each step)."""
+    commands, estimates = [], []
+    for row in y:
+        commands.append(ctl.step(row))
+        estimates.append(np.array(ctl.state.xh[:], dtype=float))
+    return np.array(commands), np.array(estimates)
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("case", LQG_CASES)
+def test_the_exported_kalman_filter_gives_the_simulated_commands_and_estimates(case, tmp_path):
+    """Fed, at each sample, the measured states plus the sensor noise the simulation drew (what its
+    controller saw), the exported C returns the commands simulate computed and keeps its estimates:
+    the filter's update, the law on the updated estimate, the prediction with the applied (clipped,
+    delayed) command."""
+    from quadctl.noise import realize
+
+    exp = prepared(case)
+    setup, loop = exp.setup, exp.loop
+    assert loop.estimator is not None and loop.estimator.form == "filter"
+    plan = loop.plan(setup.duration, setup.dt)
+    ref = simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt, noise=setup.noise,
+                   max_samples=plan.n_steps + 1)
+    assert ref.status == "ok" and ref.stride == 1
+    _, sensor = realize(setup.noise, plan.n_steps, plan.dt)
+    samples = np.arange(0, plan.n_steps, plan.hold)
+    measured = [STATE_INDEX[s] for s in loop.measured]
+    y = (ref.x[samples] + sensor[samples])[:, measured]
+    n = loop.delay_samples
+    applied = ref.u[samples]  # the input held over each sample: the command of n samples before
+    prior = (ref.x_hat - ref.x_ref)[samples[1:]]  # the a priori estimate each next sample starts from
+    assert max(motors.saturation_fraction(loop.actuators, ref.u).values()) > 0.01  # clipped commands predict
+    terms = (np.abs(loop.u_trim) + np.abs(ref.x_hat - ref.x_ref) @ np.abs(loop.K).T
+             + np.abs(ref.z) @ np.abs(loop.Ki).T
+             + (np.abs(ref.lag_model) @ np.abs(loop.Kv).T if loop.Kv is not None else 0.0)).max()
+    for single in (False, True):
+        commands, estimates = replay(Controller(exp, tmp_path / case, single), y)
+        du = np.abs(commands[:len(samples) - n] - applied[n:]).max()
+        dxh = np.abs(estimates[:-1] - prior).max()
+        if single:
+            print(f"{case} float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g}), max |dxh| = {dxh:.3e}")
+            assert du <= FLOAT_INPUT_RTOL * terms and dxh <= FLOAT_STATE_TOL, \
+                f"float: max |du| = {du:.3e} ({du / terms:.3e} of the terms' size), max |dxh| = {dxh:.3e}"
+        else:
+            print(f"{case} double: max |du| = {du:.3e}, max |dxh| = {dxh:.3e}")
+            assert du <= DOUBLE_TOL and dxh <= DOUBLE_TOL, f"double: max |du| = {du:.4e}, max |dxh| = {dxh:.4e}"
+    if n:
+        np.testing.assert_array_equal(applied[:n], np.tile(loop.u_trim, (n, 1)))
+    # the noise matters: without it the same controller computes other commands
+    clean, _ = replay(Controller(exp, tmp_path / "clean", False), ref.x[samples][:, measured])
+    assert np.abs(clean[:len(samples) - n] - applied[n:]).max() > 1e3 * DOUBLE_TOL
+
+
+def test_the_lqg_header_documents_the_measurements_and_the_filter(tmp_path):
+    """quadctl_step takes y, the measured states in the header's order; the struct holds the a priori
+    estimate; the delay's commands are kept for the filter only; the constants are the filter's."""
+    res = runner.invoke(app, ["export", "--to", "c", "-c", "docs/configs/mambo-lqg.yaml", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    header = (tmp_path / cexport.HEADER).read_text()
+    for line in ("void quadctl_step(quadctl_controller *c, const quadctl_real y[QUADCTL_NY], "
+                 "quadctl_real u[QUADCTL_NU]);", "#define QUADCTL_NY 9", "#define QUADCTL_NB 0",
+                 "#define QUADCTL_Y_PN 0  /* pN (m), x[0] */", "#define QUADCTL_Y_PHI 3  /* phi (rad), x[6] */",
+                 "#define QUADCTL_Y_R 8  /* r (rad/s), x[11] */", "quadctl_real xh[QUADCTL_NX];",
+                 "MATLAB dlqe's filter form", "xc = xh + M (y - C x_ref(t) - C xh)",
+                 "xh <- Ae xc + Be (u_applied - u_trim)"):
+        assert line in header, line
+    source = (tmp_path / cexport.SOURCE).read_text()
+    assert "static const int qc_measured[QUADCTL_NY] = {0, 1, 2, 6, 7, 8, 9, 10, 11};" in source
+    assert "#define QC_LE 325  /* Le 12x9 */" in source
+    delayed = cexport.sources(prepared("mambo-lqg-lag-delayed"))
+    assert "#define QUADCTL_NB 8" in delayed[cexport.HEADER] and "quadctl_real b[8];" in delayed[cexport.HEADER]
+    assert "remembers the commands of the last 2 samples (b[], starting at" in _flat(
+        delayed[cexport.HEADER].replace(" * ", " "))
+    plain = cexport.sources(prepared("mambo-200hz"))
+    assert "#define QUADCTL_NY 0" in plain[cexport.HEADER] and "xh[" not in plain[cexport.SOURCE]
 
 
 def test_the_header_says_what_the_law_does_with_the_rotor_lag_and_the_delay():
