@@ -233,9 +233,17 @@ def _mambo_lqg(delayed: bool = False):
     return data, None
 
 
+def _mambo_lqg_emulated():
+    """The LQG config designed continuous and exported at --rate 200: the filter is the discrete one at 200 Hz."""
+    data, _ = _mambo_lqg()
+    data["controller"] = {**data["controller"], "rate": None}
+    return data, 200.0
+
+
 CASES["mambo-lqg"] = _mambo_lqg
 CASES["mambo-lqg-lag-delayed"] = lambda: _mambo_lqg(delayed=True)
-LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed")
+CASES["mambo-lqg-emulated"] = _mambo_lqg_emulated
+LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed", "mambo-lqg-emulated")
 
 
 def replay(ctl: Controller, y) -> tuple[np.ndarray, np.ndarray]:
@@ -518,6 +526,57 @@ def test_the_json_holds_the_same_fields_with_units_and_shapes(tmp_path):
     assert eig["unit"] == "z" and eig["shape"] == [13]
     assert doc["fields"]["K"]["unit"] == "input unit per state unit"
     assert doc["fields"]["subsystems"]["value"]["altitude"]["integral"] == ["pD"]
+
+
+def test_the_mat_file_carries_the_kalman_filter_that_gives_the_simulated_estimates(tmp_path):
+    """The ``estimator`` struct of an LQG export, read back with loadmat, is the loop's filter; its
+    fields alone (Ae, Be, gain M, measured_index, x_trim, x_rate, u_trim, Ts) rerun the filter on the
+    measurements simulate's controller saw and give simulate's a priori estimates."""
+    from scipy.io import loadmat
+
+    from quadctl.noise import realize
+
+    exp = prepared("mambo-lqg")
+    buf = io.BytesIO()
+    data.write_mat(buf, exp)
+    buf.seek(0)
+    d = loadmat(buf, simplify_cells=True)
+    e, kal = d["estimator"], exp.loop.estimator
+    assert e["form"] == "filter" and list(e["measured"]) == list(kal.measured) == [
+        "pN", "pE", "pD", "phi", "theta", "psi", "p", "q", "r"]
+    np.testing.assert_array_equal(e["gain"], kal.gain)
+    np.testing.assert_allclose(e["predictor_gain"], e["Ae"] @ e["gain"], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(e["C"], np.eye(N_STATES)[e["measured_index"].astype(int) - 1])
+    setup, loop = exp.setup, exp.loop
+    plan = loop.plan(setup.duration, setup.dt)
+    ref = simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt, noise=setup.noise,
+                   max_samples=plan.n_steps + 1)
+    _, sensor = realize(setup.noise, plan.n_steps, plan.dt)
+    samples = np.arange(0, plan.n_steps, plan.hold)
+    xh, worst = np.zeros(N_STATES), 0.0
+    for k, i in enumerate(samples):
+        worst = max(worst, np.abs(xh - (ref.x_hat[i] - ref.x_ref[i])).max())
+        x_ref = d["x_trim"] + d["x_rate"] * k * d["Ts"]
+        y = e["C"] @ (ref.x[i] + sensor[i])
+        xc = xh + e["gain"] @ (y - e["C"] @ x_ref - e["C"] @ xh)
+        xh = e["Ae"] @ xc + e["Be"] @ (ref.u[i] - d["u_trim"])
+    print(f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}")
+    assert worst < 1e-12, f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}"
+    assert np.ptp(ref.x_hat[:, STATE_INDEX["w"]]) > 0.1  # the unmeasured climb rate is estimated, and moves
+
+
+def test_a_continuous_lqg_export_carries_the_kalman_bucy_filter():
+    data_, _ = _mambo_lqg()
+    data_["controller"] = {**data_["controller"], "rate": None}
+    cfg = config.from_dict(data_, "lqg.yaml")
+    exp = export.prepare(resolve(cfg), need_rate=False)
+    (field,) = [f for f in data.fields(exp) if f.name == "estimator"]
+    e = field.value
+    assert e["form"] == "kalman-bucy" and e["sample_time"] == 0.0 and "intensities" in field.unit
+    np.testing.assert_array_equal(e["gain"], e["predictor_gain"])
+    np.testing.assert_array_equal(e["Ae"], exp.linear.A)
+    assert "Kalman-Bucy filter's estimate" in exp.law()
+    assert "estimator" not in {f.name for f in data.fields(prepared("mambo-200hz"))}
 
 
 def test_exported_eigenvalues_are_the_designs():
