@@ -212,6 +212,8 @@ def test_the_exported_c_flies_the_loop_simulate_flies(case, tmp_path):
 # ---------------------------------------------------------------------------------------
 # LQG: the Kalman filter in the exported C
 
+LQG_CONFIG = str(Path(__file__).resolve().parent.parent / "docs" / "configs" / "mambo-lqg.yaml")
+"""The README's LQG config (mambo-200hz measured by an IMU and motion capture)."""
 LQG_SENSORS = {"pN": 0.01, "pE": 0.01, "pD": 0.01, "phi": 0.002, "theta": 0.002, "psi": 0.005,
                "p": 0.005, "q": 0.005, "r": 0.005}
 """Sensor noise (state units) of what the filter measures (IMU and motion capture), as tests/test_estimator.py."""
@@ -303,7 +305,7 @@ def test_the_exported_kalman_filter_gives_the_simulated_commands_and_estimates(c
 def test_the_lqg_header_documents_the_measurements_and_the_filter(tmp_path):
     """quadctl_step takes y, the measured states in the header's order; the struct holds the a priori
     estimate; the delay's commands are kept for the filter only; the constants are the filter's."""
-    res = runner.invoke(app, ["export", "--to", "c", "-c", "docs/configs/mambo-lqg.yaml", "-o", str(tmp_path)])
+    res = runner.invoke(app, ["export", "--to", "c", "-c", LQG_CONFIG, "-o", str(tmp_path)])
     assert res.exit_code == 0, res.stderr
     header = (tmp_path / cexport.HEADER).read_text()
     for line in ("void quadctl_step(quadctl_controller *c, const quadctl_real y[QUADCTL_NY], "
@@ -696,8 +698,9 @@ def test_the_section_follows_the_flight_section():
 
 def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "docs").symlink_to(README.parent / "docs")  # the section's LQG config
     runs = _console_runs()
-    assert len(runs) == 5
+    assert len(runs) == 6
     for command, shown in runs:
         res = runner.invoke(app, shlex.split(command)[1:])
         failed = any(line.startswith(("quadctl: error:", "quadctl: check failed:")) for line in shown)
@@ -722,7 +725,7 @@ def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, mon
 def test_the_readme_flight_loop_compiles_and_flies(single, tmp_path):
     """The README's C snippet, with stub sensors and motors, against the crazyflie export: one tick
     from 0.5 m low asks every rotor for the same thrust, the library's, clipped."""
-    (snippet,) = _blocks("c")
+    snippet = _blocks("c")[0]
     compiler = cc()
     res = runner.invoke(app, ["export", "--to", "c", "-c", "crazyflie", "-o", str(tmp_path)])
     assert res.exit_code == 0, res.stderr
@@ -740,6 +743,63 @@ def test_the_readme_flight_loop_compiles_and_flies(single, tmp_path):
     want = np.clip(act.commands(loop.u_trim - loop.K @ (x - loop.x_trim)), act.lo, act.hi)
     np.testing.assert_allclose(thrust, want, rtol=1e-6 if single else 1e-14)
     assert np.all(thrust > 0.027 * 9.81 / 4)  # climbing
+
+
+LQG_FLIGHT_LOOP_MAIN = r"""
+#include <stdio.h>
+#include "quadctl_controller.h"
+
+void control_tick(quadctl_controller *c);
+
+static quadctl_real sent[QUADCTL_N_ROTORS];
+
+void read_sensors(quadctl_real y[QUADCTL_NY]) {  /* 0.5 m low (pD = -0.5 m), rolled 0.1 rad */
+  int i;
+  for (i = 0; i < QUADCTL_NY; ++i) y[i] = 0;
+  y[QUADCTL_Y_PD] = -0.5;
+  y[QUADCTL_Y_PHI] = 0.1;
+}
+
+void set_rotor_thrusts(const quadctl_real thrust[QUADCTL_N_ROTORS]) {
+  int i;
+  for (i = 0; i < QUADCTL_N_ROTORS; ++i) sent[i] = thrust[i];
+}
+
+int main(void) {
+  quadctl_controller c;
+  quadctl_init(&c);
+  control_tick(&c);
+  printf("%.17g %.17g %.17g %.17g\n", (double)sent[0], (double)sent[1], (double)sent[2], (double)sent[3]);
+  return 0;
+}
+"""
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
+def test_the_readme_lqg_flight_loop_compiles_and_its_first_tick_is_the_filters(single, tmp_path):
+    """The README's LQG snippet against the mambo-lqg export: the first tick is the filter's update from
+    the trim, xc = M (y - C x_trim), and the law on it, u = sat(u_trim - K xc), mixed to the rotors."""
+    snippet = _blocks("c")[1]
+    assert "quadctl_step(c, y, u)" in snippet
+    res = runner.invoke(app, ["export", "--to", "c", "-c", LQG_CONFIG, "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    (tmp_path / "flight.c").write_text(snippet)
+    (tmp_path / "main.c").write_text(LQG_FLIGHT_LOOP_MAIN)
+    exe = tmp_path / "flight"
+    build = subprocess.run([cc(), *STRICT, *(["-DQUADCTL_FLOAT"] if single else []), "flight.c", "main.c",
+                            cexport.SOURCE, "-o", str(exe), "-lm"], cwd=tmp_path, capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    thrust = np.array(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split(), float)
+    cfg = config.load(LQG_CONFIG)
+    loop = export.prepare(resolve(cfg)).loop
+    kal, act = loop.estimator, loop.actuators
+    y = np.zeros(len(kal.measured))
+    y[kal.measured.index("pD")], y[kal.measured.index("phi")] = -0.5, 0.1
+    xc = kal.gain @ (y - kal.C @ loop.x_trim)
+    want = np.clip(act.commands(loop.u_trim - loop.K @ xc), act.lo, act.hi)
+    np.testing.assert_allclose(thrust, want, rtol=1e-6 if single else 1e-14)
+    assert thrust[0] != thrust[1]  # the roll measurement moved the estimate: the rotors differ
 
 
 def test_the_readme_matlab_runs_in_octave(tmp_path):
