@@ -8,7 +8,8 @@ system (``states=``, ``inputs=``, ``outputs=``) and decides continuous or discre
   the states;
 - :func:`subsystem`: one decoupled subsystem, outputs its measured states (``C``);
 - :func:`controller`: a design's controller from the measured state deviation to the input
-  deviation, with its integrators as states (``u = -K x - Ki z``);
+  deviation, with its integrators as states (``u = -K x - Ki z``); for a loop through a Kalman
+  filter (LQG, ``estimator:``) the compensator, with the filter's estimate as states too;
 - :func:`closed_loop`: the linear closed loop of ``[x; z]``, driven by an input disturbance
   added to ``u``; ``control.feedback(plant(...), controller(...), sign=1)`` is the same loop;
 - :func:`from_statespace`: any python-control ``StateSpace`` as a :class:`Plant` quadctl designs
@@ -100,18 +101,66 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
     Returns
     -------
     control.StateSpace
-        States ``z_<state>``, inputs the 12 state names, outputs ``T A E R``.
+        States ``z_<state>``, inputs the 12 state names, outputs ``T A E R``. A
+        :class:`~quadctl.simulate.ClosedLoop` with a Kalman filter gives the LQG compensator
+        (:func:`_lqg_controller`): states ``xh_<state>`` then ``z_<state>``, the unmeasured inputs
+        unused, at the filter's sample time.
+
+    Raises
+    ------
+    ValueError
+        The design includes the rotors' lag, or an LQG loop has a delay (the filter's command
+        buffer) or is asked for another sample time than its filter's.
     """
     from quadctl import integral
 
     _control()
     K, Ki, ints = _gains(design)
+    if getattr(design, "estimator", None) is not None:
+        return _lqg_controller(design, K, Ki, ints, sample_time, name)
     Ts = getattr(design, "sample_time", None) if sample_time == "design" else sample_time
     C = integral.selector(STATE_NAMES, ints)
     nz = len(ints)
     A = np.eye(nz) if Ts else np.zeros((nz, nz))
     B = -(Ts or 1.0) * C
     return _ss(A, B, [f"z_{s}" for s in ints], STATE_NAMES, INPUT_NAMES, Ts, name, C=-Ki, D=-K)
+
+
+def _lqg_controller(loop, K, Ki, ints, sample_time, name):
+    """The LQG compensator of a loop through a Kalman filter (:func:`controller` of an LQG loop).
+
+    Inputs the 12 state deviations (only the measured ones enter, ``y = C dx``), states
+    ``[xh_<state>; z_<state>]``, outputs ``T A E R``, as :mod:`quadctl.sim.builder` runs it without
+    saturation. Discrete filter form (``M``): ``xc = (I - M C) xh + M y``, ``u = -K xc - Ki z``,
+    ``xh+ = Ae xc + Be u``, ``z+ = z - Ts S xc``. Kalman-Bucy (``L``): ``u = -K xh - Ki z``,
+    ``xh' = Ae xh + Be u + L (y - C xh)``, ``z' = -S xh``. ``S`` selects the integrated states.
+    """
+    from quadctl import integral
+
+    kal = loop.estimator
+    Ts = kal.sample_time
+    if sample_time != "design" and (sample_time or None) != Ts:
+        raise ValueError(f"sample_time = {sample_time}: an LQG controller runs at its Kalman filter's "
+                         f"{'sample time ' + format(Ts, 'g') + ' s' if Ts else 'continuous time'}; "
+                         "leave sample_time at 'design'")
+    if getattr(loop, "delay_samples", 0):
+        raise ValueError("the loop's Kalman filter predicts with the command of controller.delay samples ago: "
+                         "its buffer is not in these python-control systems; export it with quadctl export "
+                         "(C carries it), or remove controller.delay")
+    Ae, Be, C = (np.asarray(M, dtype=float) for M in (kal.A, kal.B, kal.C))
+    gain, n, nz = np.asarray(kal.gain, dtype=float), len(STATE_NAMES), len(ints)
+    S = integral.selector(STATE_NAMES, ints)
+    if Ts:
+        F, N = np.eye(n) - gain @ C, gain @ C  # xc = F xh + N dx
+        A = np.block([[(Ae - Be @ K) @ F, -Be @ Ki], [-Ts * S @ F, np.eye(nz)]])
+        B = np.vstack([(Ae - Be @ K) @ N, -Ts * S @ N])
+        Cout, D = np.hstack([-K @ F, -Ki]), -K @ N
+    else:
+        A = np.block([[Ae - Be @ K - gain @ C, -Be @ Ki], [-S, np.zeros((nz, nz))]])
+        B = np.vstack([gain @ C, np.zeros((nz, n))])
+        Cout, D = np.hstack([-K, -Ki]), np.zeros((K.shape[0], n))
+    states = [*(f"xh_{s}" for s in STATE_NAMES), *(f"z_{s}" for s in ints)]
+    return _ss(A, B, states, STATE_NAMES, INPUT_NAMES, Ts, name, C=Cout, D=D)
 
 
 def closed_loop(linear, design, *, sample_time: float | str | None = "design", name: str = "closed loop"):
@@ -138,6 +187,10 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
 
     _control()
     K, Ki, ints = _gains(design)
+    if getattr(design, "estimator", None) is not None:
+        raise ValueError("the loop closes through a Kalman filter (estimator:): closed_loop is the full-state "
+                         "loop of [x; z]; for the LQG loop use control.feedback(interop.plant(linear, "
+                         "sample_time=Ts), interop.controller(loop), sign=1)")
     Ts = getattr(design, "sample_time", None) if sample_time == "design" else sample_time
     A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, ints, Ts)
     B = np.asarray(linear.B, dtype=float) if not Ts else discrete.c2d(linear.A, linear.B, Ts)[1]

@@ -389,14 +389,6 @@ def test_margins_reports_the_lost_lqr_guarantee_next_to_the_full_state_loops(tmp
     assert not all(m["meets_lqr_guarantee"] for m in lqg.values())
 
 
-def test_the_c_export_refuses_a_loop_through_a_kalman_filter(tmp_path):
-    path = tmp_path / "lqg.yaml"
-    path.write_text(json.dumps(DISCRETE))
-    result = CliRunner().invoke(app, ["export", "-c", str(path), "--to", "c", "--out", str(tmp_path / "run")])
-    assert result.exit_code == 2
-    assert "estimator: the C controller acts on the measured full state" in result.output
-
-
 def test_the_readme_lqg_table_is_what_margins_writes(tmp_path, monkeypatch):
     """README, "State estimation (LQG)": the table's numbers are those of margins.json for
     docs/configs/mambo-lqg.yaml (coupled full-state loops against the lqg ones)."""

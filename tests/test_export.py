@@ -125,15 +125,20 @@ class Controller:
         self.lib = ctypes.CDLL(str(lib))
         self.real = ctypes.c_float if single else ctypes.c_double
         nz, nl = len(exp.loop.integral_states), exp.loop.spec().n_lag
+        ny = len(exp.loop.measured)
+        nb = N_INPUTS * exp.loop.delay_samples if ny else 0  # a filter remembers the delayed commands
 
-        class State(ctypes.Structure):  # quadctl_controller of the header (l[]: a design with the rotors' lag)
-            _fields_ = [("z", self.real * max(nz, 1)), *([("l", self.real * nl)] if nl else []), ("k", ctypes.c_ulong)]
+        class State(ctypes.Structure):  # quadctl_controller of the header (l[]: a design with the rotors' lag;
+            _fields_ = [("z", self.real * max(nz, 1)),  # b[], xh[]: a Kalman filter, with and without delay)
+                        *([("l", self.real * nl)] if nl else []), *([("b", self.real * nb)] if nb else []),
+                        *([("xh", self.real * N_STATES)] if ny else []), ("k", ctypes.c_ulong)]
 
         self.state = State()
         self.lib.quadctl_init(ctypes.byref(self.state))
 
     def step(self, x) -> np.ndarray:
-        xa, ua = (self.real * N_STATES)(*x), (self.real * N_INPUTS)()
+        """``u`` from the state ``x`` (12), or from the measurements ``y`` of a Kalman filter."""
+        xa, ua = (self.real * len(x))(*x), (self.real * N_INPUTS)()
         self.lib.quadctl_step(ctypes.byref(self.state), xa, ua)
         return np.array(ua[:], dtype=float)
 
@@ -202,6 +207,123 @@ def test_the_exported_c_flies_the_loop_simulate_flies(case, tmp_path):
                 f"float: max |dx| = {dx:.3e}, max |du| = {du:.3e} ({worst:.3e} of the terms' size)"
         else:
             assert dx <= DOUBLE_TOL and du <= DOUBLE_TOL, f"double: max |dx| = {dx:.4e}, max |du| = {du:.4e}"
+
+
+# ---------------------------------------------------------------------------------------
+# LQG: the Kalman filter in the exported C
+
+LQG_CONFIG = str(Path(__file__).resolve().parent.parent / "docs" / "configs" / "mambo-lqg.yaml")
+"""The README's LQG config (mambo-200hz measured by an IMU and motion capture)."""
+LQG_SENSORS = {"pN": 0.01, "pE": 0.01, "pD": 0.01, "phi": 0.002, "theta": 0.002, "psi": 0.005,
+               "p": 0.005, "q": 0.005, "r": 0.005}
+"""Sensor noise (state units) of what the filter measures (IMU and motion capture), as tests/test_estimator.py."""
+
+
+def _mambo_lqg(delayed: bool = False):
+    """mambo-200hz (LQI on altitude, rotors) from 2 m low and tilted (the rotors clip), with process and
+    sensor noise, closed through a Kalman filter on imu + mocap; ``delayed``: 30 ms rotor lag included in
+    the design (the lag model) and 2 samples of delay."""
+    data = cfg_dict("mambo-200hz")
+    if delayed:
+        data["motors"]["time_constant"] = 0.03
+        data["controller"] = {**data["controller"], "rotor_lag": "include", "delay": {"samples": 2}}
+    data["simulation"] = {**data["simulation"], "duration": 2.0,
+                          "initial_offset": {"pD": 2.0, "phi": 0.3, "theta": -0.3, "psi": 0.5},
+                          "noise": {"seed": 3, "force": [0.005] * 3, "torque": [2e-5] * 3,
+                                    "sensor": dict(LQG_SENSORS)}}
+    data["estimator"] = {"measure": ["imu", "mocap"]}
+    return data, None
+
+
+def _mambo_lqg_emulated():
+    """The LQG config designed continuous and exported at --rate 200: the filter is the discrete one at 200 Hz."""
+    data, _ = _mambo_lqg()
+    data["controller"] = {**data["controller"], "rate": None}
+    return data, 200.0
+
+
+CASES["mambo-lqg"] = _mambo_lqg
+CASES["mambo-lqg-lag-delayed"] = lambda: _mambo_lqg(delayed=True)
+CASES["mambo-lqg-emulated"] = _mambo_lqg_emulated
+LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed", "mambo-lqg-emulated")
+
+
+def replay(ctl: Controller, y) -> tuple[np.ndarray, np.ndarray]:
+    """``quadctl_step`` on each row of ``y``: (the commands, the estimate ``xh`` after each step)."""
+    commands, estimates = [], []
+    for row in y:
+        commands.append(ctl.step(row))
+        estimates.append(np.array(ctl.state.xh[:], dtype=float))
+    return np.array(commands), np.array(estimates)
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("case", LQG_CASES)
+def test_the_exported_kalman_filter_gives_the_simulated_commands_and_estimates(case, tmp_path):
+    """Fed, at each sample, the measured states plus the sensor noise the simulation drew (what its
+    controller saw), the exported C returns the commands simulate computed and keeps its estimates:
+    the filter's update, the law on the updated estimate, the prediction with the applied (clipped,
+    delayed) command."""
+    from quadctl.noise import realize
+
+    exp = prepared(case)
+    setup, loop = exp.setup, exp.loop
+    assert loop.estimator is not None and loop.estimator.form == "filter"
+    plan = loop.plan(setup.duration, setup.dt)
+    ref = simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt, noise=setup.noise,
+                   max_samples=plan.n_steps + 1)
+    assert ref.status == "ok" and ref.stride == 1
+    _, sensor = realize(setup.noise, plan.n_steps, plan.dt)
+    samples = np.arange(0, plan.n_steps, plan.hold)
+    measured = [STATE_INDEX[s] for s in loop.measured]
+    y = (ref.x[samples] + sensor[samples])[:, measured]
+    n = loop.delay_samples
+    applied = ref.u[samples]  # the input held over each sample: the command of n samples before
+    prior = (ref.x_hat - ref.x_ref)[samples[1:]]  # the a priori estimate each next sample starts from
+    assert max(motors.saturation_fraction(loop.actuators, ref.u).values()) > 0.01  # clipped commands predict
+    terms = (np.abs(loop.u_trim) + np.abs(ref.x_hat - ref.x_ref) @ np.abs(loop.K).T
+             + np.abs(ref.z) @ np.abs(loop.Ki).T
+             + (np.abs(ref.lag_model) @ np.abs(loop.Kv).T if loop.Kv is not None else 0.0)).max()
+    for single in (False, True):
+        commands, estimates = replay(Controller(exp, tmp_path / case, single), y)
+        du = np.abs(commands[:len(samples) - n] - applied[n:]).max()
+        dxh = np.abs(estimates[:-1] - prior).max()
+        if single:
+            print(f"{case} float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g}), max |dxh| = {dxh:.3e}")
+            assert du <= FLOAT_INPUT_RTOL * terms and dxh <= FLOAT_STATE_TOL, \
+                f"float: max |du| = {du:.3e} ({du / terms:.3e} of the terms' size), max |dxh| = {dxh:.3e}"
+        else:
+            print(f"{case} double: max |du| = {du:.3e}, max |dxh| = {dxh:.3e}")
+            assert du <= DOUBLE_TOL and dxh <= DOUBLE_TOL, f"double: max |du| = {du:.4e}, max |dxh| = {dxh:.4e}"
+    if n:
+        np.testing.assert_array_equal(applied[:n], np.tile(loop.u_trim, (n, 1)))
+    # the noise matters: without it the same controller computes other commands
+    clean, _ = replay(Controller(exp, tmp_path / "clean", False), ref.x[samples][:, measured])
+    assert np.abs(clean[:len(samples) - n] - applied[n:]).max() > 1e3 * DOUBLE_TOL
+
+
+def test_the_lqg_header_documents_the_measurements_and_the_filter(tmp_path):
+    """quadctl_step takes y, the measured states in the header's order; the struct holds the a priori
+    estimate; the delay's commands are kept for the filter only; the constants are the filter's."""
+    res = runner.invoke(app, ["export", "--to", "c", "-c", LQG_CONFIG, "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    header = (tmp_path / cexport.HEADER).read_text()
+    for line in ("void quadctl_step(quadctl_controller *c, const quadctl_real y[QUADCTL_NY], "
+                 "quadctl_real u[QUADCTL_NU]);", "#define QUADCTL_NY 9", "#define QUADCTL_NB 0",
+                 "#define QUADCTL_Y_PN 0  /* pN (m), x[0] */", "#define QUADCTL_Y_PHI 3  /* phi (rad), x[6] */",
+                 "#define QUADCTL_Y_R 8  /* r (rad/s), x[11] */", "quadctl_real xh[QUADCTL_NX];",
+                 "MATLAB dlqe's filter form", "xc = xh + M (y - C x_ref(t) - C xh)",
+                 "xh <- Ae xc + Be (u_applied - u_trim)"):
+        assert line in header, line
+    source = (tmp_path / cexport.SOURCE).read_text()
+    assert "static const int qc_measured[QUADCTL_NY] = {0, 1, 2, 6, 7, 8, 9, 10, 11};" in source
+    assert "#define QC_LE 325  /* Le 12x9 */" in source
+    delayed = cexport.sources(prepared("mambo-lqg-lag-delayed"))
+    assert "#define QUADCTL_NB 8" in delayed[cexport.HEADER] and "quadctl_real b[8];" in delayed[cexport.HEADER]
+    assert "remembers the commands of the last 2 samples (b[], starting at" in _flat(
+        delayed[cexport.HEADER].replace(" * ", " "))
+    plain = cexport.sources(prepared("mambo-200hz"))
+    assert "#define QUADCTL_NY 0" in plain[cexport.HEADER] and "xh[" not in plain[cexport.SOURCE]
 
 
 def test_the_header_says_what_the_law_does_with_the_rotor_lag_and_the_delay():
@@ -408,6 +530,57 @@ def test_the_json_holds_the_same_fields_with_units_and_shapes(tmp_path):
     assert doc["fields"]["subsystems"]["value"]["altitude"]["integral"] == ["pD"]
 
 
+def test_the_mat_file_carries_the_kalman_filter_that_gives_the_simulated_estimates(tmp_path):
+    """The ``estimator`` struct of an LQG export, read back with loadmat, is the loop's filter; its
+    fields alone (Ae, Be, gain M, measured_index, x_trim, x_rate, u_trim, Ts) rerun the filter on the
+    measurements simulate's controller saw and give simulate's a priori estimates."""
+    from scipy.io import loadmat
+
+    from quadctl.noise import realize
+
+    exp = prepared("mambo-lqg")
+    buf = io.BytesIO()
+    data.write_mat(buf, exp)
+    buf.seek(0)
+    d = loadmat(buf, simplify_cells=True)
+    e, kal = d["estimator"], exp.loop.estimator
+    assert e["form"] == "filter" and list(e["measured"]) == list(kal.measured) == [
+        "pN", "pE", "pD", "phi", "theta", "psi", "p", "q", "r"]
+    np.testing.assert_array_equal(e["gain"], kal.gain)
+    np.testing.assert_allclose(e["predictor_gain"], e["Ae"] @ e["gain"], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(e["C"], np.eye(N_STATES)[e["measured_index"].astype(int) - 1])
+    setup, loop = exp.setup, exp.loop
+    plan = loop.plan(setup.duration, setup.dt)
+    ref = simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt, noise=setup.noise,
+                   max_samples=plan.n_steps + 1)
+    _, sensor = realize(setup.noise, plan.n_steps, plan.dt)
+    samples = np.arange(0, plan.n_steps, plan.hold)
+    xh, worst = np.zeros(N_STATES), 0.0
+    for k, i in enumerate(samples):
+        worst = max(worst, np.abs(xh - (ref.x_hat[i] - ref.x_ref[i])).max())
+        x_ref = d["x_trim"] + d["x_rate"] * k * d["Ts"]
+        y = e["C"] @ (ref.x[i] + sensor[i])
+        xc = xh + e["gain"] @ (y - e["C"] @ x_ref - e["C"] @ xh)
+        xh = e["Ae"] @ xc + e["Be"] @ (ref.u[i] - d["u_trim"])
+    print(f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}")
+    assert worst < 1e-12, f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}"
+    assert np.ptp(ref.x_hat[:, STATE_INDEX["w"]]) > 0.1  # the unmeasured climb rate is estimated, and moves
+
+
+def test_a_continuous_lqg_export_carries_the_kalman_bucy_filter():
+    data_, _ = _mambo_lqg()
+    data_["controller"] = {**data_["controller"], "rate": None}
+    cfg = config.from_dict(data_, "lqg.yaml")
+    exp = export.prepare(resolve(cfg), need_rate=False)
+    (field,) = [f for f in data.fields(exp) if f.name == "estimator"]
+    e = field.value
+    assert e["form"] == "kalman-bucy" and e["sample_time"] == 0.0 and "intensities" in field.unit
+    np.testing.assert_array_equal(e["gain"], e["predictor_gain"])
+    np.testing.assert_array_equal(e["Ae"], exp.linear.A)
+    assert "Kalman-Bucy filter's estimate" in exp.law()
+    assert "estimator" not in {f.name for f in data.fields(prepared("mambo-200hz"))}
+
+
 def test_exported_eigenvalues_are_the_designs():
     cfg = config.load("mambo-200hz")
     exp = export.prepare(resolve(cfg))
@@ -525,8 +698,9 @@ def test_the_section_follows_the_flight_section():
 
 def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
+    (tmp_path / "docs").symlink_to(README.parent / "docs")  # the section's LQG config
     runs = _console_runs()
-    assert len(runs) == 5
+    assert len(runs) == 6
     for command, shown in runs:
         res = runner.invoke(app, shlex.split(command)[1:])
         failed = any(line.startswith(("quadctl: error:", "quadctl: check failed:")) for line in shown)
@@ -551,7 +725,7 @@ def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, mon
 def test_the_readme_flight_loop_compiles_and_flies(single, tmp_path):
     """The README's C snippet, with stub sensors and motors, against the crazyflie export: one tick
     from 0.5 m low asks every rotor for the same thrust, the library's, clipped."""
-    (snippet,) = _blocks("c")
+    snippet = _blocks("c")[0]
     compiler = cc()
     res = runner.invoke(app, ["export", "--to", "c", "-c", "crazyflie", "-o", str(tmp_path)])
     assert res.exit_code == 0, res.stderr
@@ -569,6 +743,63 @@ def test_the_readme_flight_loop_compiles_and_flies(single, tmp_path):
     want = np.clip(act.commands(loop.u_trim - loop.K @ (x - loop.x_trim)), act.lo, act.hi)
     np.testing.assert_allclose(thrust, want, rtol=1e-6 if single else 1e-14)
     assert np.all(thrust > 0.027 * 9.81 / 4)  # climbing
+
+
+LQG_FLIGHT_LOOP_MAIN = r"""
+#include <stdio.h>
+#include "quadctl_controller.h"
+
+void control_tick(quadctl_controller *c);
+
+static quadctl_real sent[QUADCTL_N_ROTORS];
+
+void read_sensors(quadctl_real y[QUADCTL_NY]) {  /* 0.5 m low (pD = -0.5 m), rolled 0.1 rad */
+  int i;
+  for (i = 0; i < QUADCTL_NY; ++i) y[i] = 0;
+  y[QUADCTL_Y_PD] = -0.5;
+  y[QUADCTL_Y_PHI] = 0.1;
+}
+
+void set_rotor_thrusts(const quadctl_real thrust[QUADCTL_N_ROTORS]) {
+  int i;
+  for (i = 0; i < QUADCTL_N_ROTORS; ++i) sent[i] = thrust[i];
+}
+
+int main(void) {
+  quadctl_controller c;
+  quadctl_init(&c);
+  control_tick(&c);
+  printf("%.17g %.17g %.17g %.17g\n", (double)sent[0], (double)sent[1], (double)sent[2], (double)sent[3]);
+  return 0;
+}
+"""
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
+def test_the_readme_lqg_flight_loop_compiles_and_its_first_tick_is_the_filters(single, tmp_path):
+    """The README's LQG snippet against the mambo-lqg export: the first tick is the filter's update from
+    the trim, xc = M (y - C x_trim), and the law on it, u = sat(u_trim - K xc), mixed to the rotors."""
+    snippet = _blocks("c")[1]
+    assert "quadctl_step(c, y, u)" in snippet
+    res = runner.invoke(app, ["export", "--to", "c", "-c", LQG_CONFIG, "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    (tmp_path / "flight.c").write_text(snippet)
+    (tmp_path / "main.c").write_text(LQG_FLIGHT_LOOP_MAIN)
+    exe = tmp_path / "flight"
+    build = subprocess.run([cc(), *STRICT, *(["-DQUADCTL_FLOAT"] if single else []), "flight.c", "main.c",
+                            cexport.SOURCE, "-o", str(exe), "-lm"], cwd=tmp_path, capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    thrust = np.array(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split(), float)
+    cfg = config.load(LQG_CONFIG)
+    loop = export.prepare(resolve(cfg)).loop
+    kal, act = loop.estimator, loop.actuators
+    y = np.zeros(len(kal.measured))
+    y[kal.measured.index("pD")], y[kal.measured.index("phi")] = -0.5, 0.1
+    xc = kal.gain @ (y - kal.C @ loop.x_trim)
+    want = np.clip(act.commands(loop.u_trim - loop.K @ xc), act.lo, act.hi)
+    np.testing.assert_allclose(thrust, want, rtol=1e-6 if single else 1e-14)
+    assert thrust[0] != thrust[1]  # the roll measurement moved the estimate: the rotors differ
 
 
 def test_the_readme_matlab_runs_in_octave(tmp_path):

@@ -126,3 +126,49 @@ def test_the_docstring_examples_run():
     for module in (interop, export):
         result = doctest.testmod(module)
         assert result.attempted and not result.failed, module.__name__
+
+
+# ---------------------------------------------------------------------------------------
+# LQG: the compensator of a loop through a Kalman filter
+
+LQG_SENSORS = {"pN": 0.01, "pE": 0.01, "pD": 0.01, "phi": 0.002, "theta": 0.002, "psi": 0.005,
+               "p": 0.005, "q": 0.005, "r": 0.005}
+
+
+def _lqg_loop(name: str, **changes):
+    """``name`` with noise, closed through a Kalman filter on imu + mocap: (linear model, design, loop)."""
+    from quadctl import pipeline
+
+    data = cfg_dict(name, **changes)
+    data["simulation"]["noise"] = {"seed": 3, "force": [0.005] * 3, "torque": [2e-5] * 3,
+                                   "sensor": dict(LQG_SENSORS)}
+    data["estimator"] = {"measure": ["imu", "mocap"]}
+    setup, _, linear, _, des = solve(data)
+    return linear, des, pipeline.loop_of(setup, linear, des)
+
+
+@pytest.mark.parametrize("name", ["mambo-200hz", "hover"])
+def test_the_lqg_compensator_closes_to_the_regulator_and_the_estimator(name):
+    """Separation: python-control's feedback of the plant (ZOH at the filter's period, or continuous)
+    and the LQG compensator has the full-state loop's eigenvalues and the filter's (of Ae - L C)."""
+    linear, des, loop = _lqg_loop(name)
+    kal = loop.estimator
+    assert kal.form == ("filter" if name == "mambo-200hz" else "kalman-bucy")
+    regulator = np.linalg.eigvals(closed_loop_matrix(linear.A, linear.B, des.K_block, des.Ki_block,
+                                                     des.integral_states, kal.sample_time))
+    want = np.concatenate([regulator, kal.eigenvalues])
+    ctl = interop.controller(loop)
+    assert ctl.dt == (kal.sample_time or 0) and ctl.input_labels == list(STATE_NAMES)
+    assert ctl.state_labels[:2] == ["xh_pN", "xh_pE"] and len(ctl.state_labels) == 12 + len(des.integral_states)
+    unmeasured = [STATE_NAMES.index(s) for s in ("u", "v", "w")]
+    assert not np.any(ctl.B[:, unmeasured]) and not np.any(ctl.D[:, unmeasured])  # velocity is not measured
+    fb = control.feedback(interop.plant(linear, sample_time=kal.sample_time), ctl, sign=1)
+    assert _match(fb.poles(), want) < EIG_TOL
+    with pytest.raises(ValueError, match=r"closes through a Kalman filter \(estimator:\)"):
+        interop.closed_loop(linear, loop)
+
+
+def test_an_lqg_compensator_with_a_delay_is_refused():
+    _, _, loop = _lqg_loop("mambo-200hz", controller={"rate": 200.0, "delay": {"samples": 1}})
+    with pytest.raises(ValueError, match=r"command of controller\.delay samples ago"):
+        interop.controller(loop)

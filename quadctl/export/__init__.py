@@ -217,6 +217,16 @@ def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
                 else "dl/dt = (u - u_trim - l) / tau")
         parts.append(f"{step}, tau = {tau:g} s: the controller's model l of the rotors' lag (the deviation of "
                      "[T, A, E, R] from trim), driven by its own command u, starting at 0")
+    kal = loop.estimator
+    if kal is not None:
+        y = f"y = the measured {', '.join(kal.measured)}"
+        if kal.form == "filter":
+            parts.append(f"x - x_ref(t) is the Kalman filter's estimate xc = xh + M (y - C x_ref(t) - C xh) ({y}; M "
+                         "the filter gain of dlqe), then xh <- Ae xc + Be (u - u_trim) with the applied u "
+                         "(xh the a priori estimate, starting at 0)")
+        else:
+            parts.append(f"x - x_ref(t) is the Kalman-Bucy filter's estimate xh, dxh/dt = Ae xh + Be (u - u_trim) "
+                         f"+ L (y - C x_ref(t) - C xh) ({y}), starting at 0")
     if loop.delay_samples and sample_time is not None:
         n = loop.delay_samples
         parts.append(f"the vehicle applies u {n} sample{'s' if n > 1 else ''} ({n * sample_time:.6g} s, "

@@ -69,32 +69,30 @@ def sources(exp: Export) -> dict[str, str]:
     ------
     ValueError
         ``exp`` is continuous (nothing to sample), or the law has an operation ``emit`` cannot write.
-    ConfigError
-        The loop closes through a Kalman filter (``estimator:``), which the C controller does not carry.
     """
     from quadctl.sim.emit import Dialect, emit
 
     if exp.sample_time is None:
         raise ValueError("a C controller samples: prepare the export with a rate")
     loop, Ts = exp.loop, exp.sample_time
-    if loop.estimator is not None:
-        from quadctl.errors import ConfigError
-
-        raise ConfigError("estimator: the C controller acts on the measured full state; exporting the Kalman "
-                          "filter is not built: use --to json or --to mat (design.json holds the filter), or "
-                          "remove estimator: to export the full-state law")
+    kal = loop.estimator
+    if kal is not None and kal.form != "filter":  # prepare() designs the filter at the rate the C runs at
+        raise ValueError("a C controller samples: its Kalman filter must be the discrete one (form filter)")
     if loop.rotor_time_constant is not None:  # the rotors' lag is the vehicle's, not the law's: no rotor states
         act = loop.actuators
         loop = replace(loop, actuators=replace(act, motors=replace(act.motors, time_constant=None)))
     delay = loop.delay_samples
-    loop = replace(loop, delay_samples=0)  # so is the delay: the vehicle's computer and bus add it
+    if kal is None:  # so is the delay: the vehicle's computer and bus add it
+        loop = replace(loop, delay_samples=0)
+    # With a filter, the controller keeps the last `delay` commands: its prediction takes the input the
+    # vehicle applies now (computed `delay` samples ago), as the simulation's filter does.
     spec = loop.spec(noise=False)  # a design with the rotors' lag keeps its lag model: controller states
     c = loop.constants(Ts)
-    nz, nl = len(loop.integral_states), spec.n_lag
+    nz, nl, ny, nb = len(loop.integral_states), spec.n_lag, spec.ny, spec.n_buffer
     dialect = Dialect(real="quadctl_real", literal="QUADCTL_LIT({})", call="QUADCTL_FN({})", pragma=False,
                       named=((ANTIWINDUP_TOL, "QUADCTL_ANTIWINDUP_TOL"),), mark_used=True)
     law = emit(build(spec).law, "qc_law", 1, dialect)
-    offsets = _offsets(nz, spec.lag_model)
+    offsets = _offsets(nz, spec.lag_model, ny)
     act = loop.actuators
     rotors = ""
     if act is not None and act.mode == "motors":
@@ -121,7 +119,42 @@ def sources(exp: Export) -> dict[str, str]:
         "LAG_STORE": ("  for (i = 0; i < QUADCTL_NL; ++i) c->l[i] = X_sampled[QUADCTL_NX + QUADCTL_NZ + i];\n"
                       if nl else ""),
         "LAG_DOC": _lag_doc(loop, Ts),
-        "DELAY_DOC": _delay_doc(delay, Ts),
+        "DELAY_DOC": _delay_doc(delay, Ts, kal is not None),
+        "FILTER_DOC": _filter_doc(loop),
+        "NY": str(ny), "NB": str(nb),
+        "STEP_ARG": "y" if ny else "x",
+        "STEP_WORDS": "the measurements y read" if ny else "the state measured",
+        "STEP_DOC": ("the measurements y\n * (QUADCTL_NY measured states, QUADCTL_Y_* order, state units)" if ny
+                     else "the measured state x"),
+        "STEP_PROTOTYPE": ("void quadctl_step(quadctl_controller *c, const quadctl_real "
+                           + ("y[QUADCTL_NY]" if ny else "x[QUADCTL_NX]") + ", quadctl_real u[QUADCTL_NU])"),
+        "MEASURE_DEFINES": ("/* index of each measurement in y: the measured states, in state units */\n"
+                            + "".join(f"#define QUADCTL_Y_{n.upper()} {i}  /* {n} ({STATE_UNITS[n]}), "
+                                      f"x[{STATE_NAMES.index(n)}] */\n" for i, n in enumerate(loop.measured))
+                            if ny else ""),
+        "MEASURED_TABLE": ("\n/* The state index of each measurement y[i] (C picks these rows of x). */\n"
+                           "static const int qc_measured[QUADCTL_NY] = {"
+                           + ", ".join(str(STATE_NAMES.index(n)) for n in loop.measured) + "};\n" if ny else ""),
+        "MEASUREMENT_LOAD": (("  for (i = 0; i < QUADCTL_NX; ++i) X[i] = QUADCTL_LIT(0.0);  /* the law reads only "
+                              "the measured states */\n"
+                              "  for (i = 0; i < QUADCTL_NY; ++i) X[qc_measured[i]] = y[i];\n") if ny else
+                             "  for (i = 0; i < QUADCTL_NX; ++i) X[i] = x[i];\n"),
+        "BUFFER_MEMBER": (f"  quadctl_real b[{nb}];  /* the last {delay} commands, newest first: the filter "
+                          "predicts with the one the vehicle applies now */\n" if nb else ""),
+        "BUFFER_INIT": ("  for (i = 0; i < QUADCTL_NB; ++i) c->b[i] = qc_c[QC_U_TRIM + i % QUADCTL_NU];"
+                        "  /* the trim input, as the simulation starts */\n" if nb else ""),
+        "BUFFER_LOAD": "  for (i = 0; i < QUADCTL_NB; ++i) X[QC_X_B + i] = c->b[i];\n" if nb else "",
+        "BUFFER_STORE": "  for (i = 0; i < QUADCTL_NB; ++i) c->b[i] = X_sampled[QC_X_B + i];\n" if nb else "",
+        "APPLIED_DECL": ", u_applied[QUADCTL_NU]" if nb else "",
+        "LAW_U": "u_applied" if nb else "u",
+        "COMMAND_STORE": ("  for (i = 0; i < QUADCTL_NU; ++i) u[i] = X_sampled[QC_X_B + i];  /* the new command "
+                          "(u_applied: the one the filter's model applies now) */\n" if nb else ""),
+        "ESTIMATE_MEMBER": ("  quadctl_real xh[QUADCTL_NX];  /* the filter's a priori estimate of x - x_ref(t) for "
+                            "this sample (state units) */\n" if ny else ""),
+        "ESTIMATE_INIT": ("  for (i = 0; i < QUADCTL_NX; ++i) c->xh[i] = QUADCTL_LIT(0.0);  /* the filter believes "
+                          "the trim */\n" if ny else ""),
+        "ESTIMATE_LOAD": "  for (i = 0; i < QUADCTL_NX; ++i) X[QC_X_XH + i] = c->xh[i];\n" if ny else "",
+        "ESTIMATE_STORE": "  for (i = 0; i < QUADCTL_NX; ++i) c->xh[i] = X_sampled[QC_X_XH + i];\n" if ny else "",
         "STATE_DEFINES": "".join(f"#define QUADCTL_X_{n.upper()} {i}  /* {n} ({STATE_UNITS[n]}) */\n"
                                  for i, n in enumerate(STATE_NAMES)).rstrip("\n"),
         "INPUT_DEFINES": "".join(f"#define QUADCTL_U_{n} {i}  /* {n} ({INPUT_UNITS[n]}) */\n"
@@ -165,8 +198,41 @@ def _lag_doc(loop, Ts: float) -> str:
     return "\n".join(" *   " + line for line in lines)
 
 
-def _delay_doc(delay: int, Ts: float) -> str:
+def _filter_doc(loop) -> str:
+    """The header's paragraph on the Kalman filter: its form, the measurements, one sample of it."""
+    kal = loop.estimator
+    if kal is None:
+        lines = ["None (no estimator: in the config): quadctl_step takes the full measured state x."]
+        return "\n".join(" *   " + line for line in lines)
+    rho = float(np.max(np.abs(kal.eigenvalues)))
+    lines = ["The law closes through a steady-state Kalman filter (estimator:), the discrete one of the",
+             "zero-order-hold model at Ts in MATLAB dlqe's filter form (design.json estimator, form filter):",
+             "Le = M is the filter (measurement-update) gain, the struct's xh[] the a priori estimate",
+             "x_hat[k|k-1] of the deviation x - x_ref(t) (state units, the order of x), 0 after quadctl_init",
+             "(the filter believes the trim, as `quadctl simulate` starts it). Each sample, with y the",
+             "measured states (QUADCTL_Y_*: absolute, in state units, as the sensors give them):",
+             "  xc = xh + M (y - C x_ref(t) - C xh)        update: x_hat[k|k]",
+             "  u  = the law above with x - x_ref(t) = xc  (the integrators integrate xc too)",
+             "  xh <- Ae xc + Be (u_applied - u_trim)      predict: x_hat[k+1|k] under the applied (clipped)",
+             "                                             command" + (", the one the vehicle applies now (b[])"
+                                                                       if loop.delay_samples else ""),
+             *textwrap.wrap("C picks the measured states; Ae (12 x 12), Be (12 x 4) and Le = M (12 x ny) are "
+                            "constants of qc_c (column-major). The predictor gain is Ae M; the estimator's "
+                            f"eigenvalues (of Ae - Ae M C) have |z| <= {rho:.6g}. Measured, in the order of y: "
+                            + ", ".join(f"{n} ({STATE_UNITS[n]})" for n in kal.measured) + ".", 94)]
+    return "\n".join(" *   " + line for line in lines)
+
+
+def _delay_doc(delay: int, Ts: float, filtered: bool = False) -> str:
     """The header's paragraph on the delay: the law is the law before it."""
+    if delay and filtered:
+        n = f"{delay} sample{'s' if delay > 1 else ''}"
+        lines = [f"The config's controller.delay, {n} ({delay * Ts:.6g} s) from measurement to actuation, is",
+                 "the vehicle's (its computer, bus and ESCs): quadctl_step returns the new command at once, and",
+                 f"`quadctl simulate` applies each command {n} later. The Kalman filter must predict with what",
+                 f"the vehicle applies, so the struct remembers the commands of the last {n} (b[], starting at",
+                 "u_trim) for the filter only. Do not add a buffer to u: the vehicle has the delay already."]
+        return "\n".join(" *   " + line for line in lines)
     if not delay:
         lines = ["No delay was configured (controller.delay): the simulation applies u at the instant x is",
                  "measured."]
@@ -179,10 +245,10 @@ def _delay_doc(delay: int, Ts: float) -> str:
     return "\n".join(" *   " + line for line in lines)
 
 
-def _offsets(nz: int, lag_model: bool = False) -> list[tuple[str, tuple[int, ...], int]]:
+def _offsets(nz: int, lag_model: bool = False, ny: int = 0) -> list[tuple[str, tuple[int, ...], int]]:
     """(name, shape, first index) of each block of the constant vector."""
     out, start = [], 0
-    for name, shape in constant_layout(nz, lag_model=lag_model):
+    for name, shape in constant_layout(nz, lag_model=lag_model, ny=ny):
         out.append((name, shape, start))
         start += int(np.prod(shape))
     return out

@@ -11,6 +11,9 @@ In MATLAB::
     d = load('quadctl_controller.mat');
     sys = ss(d.A, d.B, eye(12), 0, 'StateName', d.state_names, 'InputName', d.input_names);
     u = d.u_trim - d.K * (x - (d.x_trim + d.x_rate * t));   % plus - d.Ki * z with integrators
+
+An LQG config (``estimator:``) adds the struct ``estimator``: the Kalman filter the law closes
+through (its form, model, gains, covariances), the law acting on its estimate of ``x - x_ref(t)``.
 """
 
 from __future__ import annotations
@@ -76,6 +79,11 @@ def fields(exp: Export) -> list[Field]:
             "Ki": np.asarray(sub.Ki if sub.Ki is not None else np.zeros((len(sub.inputs), 0)), dtype=float),
             "eig_cl": np.asarray(sub.eigenvalues_z if sub.eigenvalues_z is not None else sub.eigenvalues)}
     units = [STATE_UNITS[s] for s in STATE_NAMES]
+    return [*_base_fields(exp, loop, des, lin, Ki, Ts, domain, subsystems, units), *_estimator_fields(loop)]
+
+
+def _base_fields(exp, loop, des, lin, Ki, Ts, domain, subsystems, units) -> list[Field]:
+    """The fields of every export (the full-state law, the trim, the names, the provenance)."""
     return [
         Field("A", np.asarray(lin.A, dtype=float), "1/s (state units per state unit)",
               "continuous linearization about the trim: d(dx)/dt = A dx + B du, dx = x - x_ref(t), du = u - u_trim"),
@@ -120,6 +128,41 @@ def fields(exp: Export) -> list[Field]:
         Field("config_hash", exp.config_hash or "", "", "sha256 of the validated config"),
         Field("quadctl_version", __version__, "", "the quadctl that exported this"),
     ]
+
+
+def _estimator_fields(loop) -> list[Field]:
+    """The Kalman filter of an LQG loop (``estimator:``) as one struct; none without a filter."""
+    kal = loop.estimator
+    if kal is None:
+        return []
+    discrete = kal.discrete
+    filt = {
+        "form": kal.form,
+        "gain_form": ("filter (measurement-update) gain M of MATLAB dlqe: x_hat[k|k] = x_hat[k|k-1] + "
+                      "M (y[k] - C x_ref(t) - C x_hat[k|k-1]); the law acts on x_hat[k|k]; then x_hat[k+1|k] = "
+                      "Ae x_hat[k|k] + Be (u - u_trim) with the applied u; predictor gain L = Ae M"
+                      if discrete else "Kalman-Bucy gain L of MATLAB lqe: dx_hat/dt = Ae x_hat + Be (u - u_trim) "
+                      "+ L (y - C x_ref(t) - C x_hat); the law acts on x_hat"),
+        "coordinates": "x_hat estimates x - x_ref(t) on the linear model about the trim; it starts at 0",
+        "measured": list(kal.measured),
+        "measured_index": np.array([STATE_NAMES.index(s) + 1 for s in kal.measured], dtype=float),
+        "sample_time": float(kal.sample_time or 0.0),
+        "Ae": np.asarray(kal.A, dtype=float), "Be": np.asarray(kal.B, dtype=float),
+        "C": np.asarray(kal.C, dtype=float), "G": np.asarray(kal.G, dtype=float),
+        "Qn": np.asarray(kal.Qn, dtype=float), "Rn": np.asarray(kal.Rn, dtype=float),
+        "gain": np.asarray(kal.gain, dtype=float), "predictor_gain": np.asarray(kal.predictor_gain, dtype=float),
+        "P": np.asarray(kal.P, dtype=float), "Z": np.asarray(kal.Z, dtype=float),
+        "eig": np.asarray(kal.eigenvalues),
+    }
+    return [Field("estimator", filt, "state units; Qn (N, N m)^2, Rn measured units^2"
+                  + (" per sample" if discrete else " x s (intensities)"),
+                  "the steady-state Kalman filter the law closes through (LQG): form (filter: discrete, "
+                  "dlqe; kalman-bucy: continuous, lqe), gain_form, measured (the states y holds, in order; "
+                  "measured_index 1-based into x), Ae (12 x 12) and Be (12 x 4) its model (the zero-order-hold "
+                  "model at Ts, or A, B), C (ny x 12), G (12 x 6) and Qn (6 x 6) the process noise (body force, "
+                  "torque), Rn (ny x ny) the sensor noise, gain (12 x ny: M, or L), predictor_gain (L = Ae M, "
+                  "or L), P (a priori, or the error covariance), Z (a posteriori P - M C P, or P), eig (of "
+                  "Ae - L C: z, or s)")]
 
 
 def mat_variables(exp: Export) -> dict[str, Any]:

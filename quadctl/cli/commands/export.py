@@ -40,7 +40,9 @@ def command(to: Annotated[Target, typer.Option(
         render.warning(w.message(exp.rate))
     paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"))
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
-    render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}",
+    kal = exp.loop.estimator
+    filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
+    render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}{filt}",
                      markup=False)
     render.out.print(f"law: {exp.law()}", markup=False)
     for path in paths:

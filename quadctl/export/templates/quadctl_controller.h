@@ -6,8 +6,8 @@
  *
  * WHEN TO CALL
  *   quadctl_init(&c) once, before the first sample: integrators and time to zero.
- *   quadctl_step(&c, x, u) once every QUADCTL_SAMPLE_TIME = ${TS} s (${RATE} Hz), with the state
- *   measured at that instant; apply u until the next call (zero-order hold). The reference moves
+ *   quadctl_step(&c, ${STEP_ARG}, u) once every QUADCTL_SAMPLE_TIME = ${TS} s (${RATE} Hz), with ${STEP_WORDS}
+ *   at that instant; apply u until the next call (zero-order hold). The reference moves
  *   with time (x_ref(t) = x_trim + x_rate t); the controller counts its own calls, t = k Ts, so
  *   call it at every sample, and quadctl_init again to restart the reference at t = 0.
  *   No allocation, no global state: everything lives in the struct; one struct per vehicle.
@@ -20,6 +20,9 @@ ${INPUT_TABLE}
  *
  * THE LAW (as `quadctl simulate` applies it)
 ${LAW}
+ *
+ * STATE ESTIMATION
+${FILTER_DOC}
  *
  * ROTOR LAG
 ${LAG_DOC}
@@ -52,26 +55,28 @@ typedef double quadctl_real;
 #define QUADCTL_NU ${NU}  /* inputs */
 #define QUADCTL_NZ ${NZ}  /* integrators (LQI) */
 #define QUADCTL_NL ${NL}  /* states of the controller's rotor lag model (controller.rotor_lag: include) */
+#define QUADCTL_NY ${NY}  /* measurements y of the Kalman filter (estimator:); 0: quadctl_step takes the state x */
+#define QUADCTL_NB ${NB}  /* commands the filter remembers for the vehicle's delay (4 per sample) */
 #define QUADCTL_RATE_HZ ${RATE}
 #define QUADCTL_SAMPLE_TIME ${TS}
 
 /* index of each state in x */
 ${STATE_DEFINES}
 /* index of each input in u */
-${INPUT_DEFINES}
+${INPUT_DEFINES}${MEASURE_DEFINES}
 ${ROTOR_DEFINES}
 /* The controller's memory: initialize with quadctl_init, then pass to quadctl_step every sample. */
 typedef struct quadctl_controller {
   quadctl_real z[${NZ_STORAGE}];  /* the integrators${INTEGRAL_DOC} */
-${LAG_MEMBER}  unsigned long k;          /* samples taken since quadctl_init: t = k Ts */
+${LAG_MEMBER}${BUFFER_MEMBER}${ESTIMATE_MEMBER}  unsigned long k;          /* samples taken since quadctl_init: t = k Ts */
 } quadctl_controller;
 
-/* Integrators (and the rotor lag model) and time to zero. */
+/* Integrators (and the rotor lag model, the filter's estimate) and time to zero. */
 void quadctl_init(quadctl_controller *c);
 
-/* One controller sample: u (the input to apply until the next sample) from the measured state x;
- * advances the integrators (and the rotor lag model) and the time by one sample. */
-void quadctl_step(quadctl_controller *c, const quadctl_real x[QUADCTL_NX], quadctl_real u[QUADCTL_NU]);
+/* One controller sample: u (the input to apply until the next sample) from ${STEP_DOC};
+ * advances the integrators (and the rotor lag model, the filter) and the time by one sample. */
+${STEP_PROTOTYPE};
 
 #ifdef QUADCTL_N_ROTORS
 /* The rotor thrusts (N) an input u corresponds to (rotor numbering above), each clipped to the
