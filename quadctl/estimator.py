@@ -7,8 +7,8 @@ the estimate in place of the measured state, ``u = u_trim - K dx_hat``. It is *o
 coupled 12-state model (not one per subsystem): the decoupled partition drops couplings the
 filter would then not know about, and the full filter costs a 12 x p gain.
 
-Two forms, after the controller's timing (MATLAB conventions, python-control issue #1173 for how
-easily they are confused):
+Two forms, after the controller's timing (MATLAB conventions; python-control's GitHub
+thread 1173 shows how easily they are confused):
 
 - sampled controller (``controller.rate``, discrete or emulated design): the discrete filter of
   the zero-order-hold model ``Ad, Bd`` at the controller period, MATLAB ``dlqe(Ad, Gd, C, Qn, Rn)``.

@@ -21,7 +21,7 @@ from quadctl import __version__, artifacts, pipeline
 from quadctl.analysis import Checks, check
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
-from quadctl.discrete import RateWarning, realizable_frequency
+from quadctl.discrete import RateWarning, realizable_frequency, unstable_when_sampled
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, STATE_NAMES, STATE_UNITS
 from quadctl.linearize import LinearModel
 from quadctl.lqr import Design
@@ -47,9 +47,21 @@ class CheckReport:
     rate_warnings: tuple[RateWarning, ...]
     vehicle_loop: pipeline.VehicleLoop | None = None
     """With rotor lag or delay configured: the design's loop flown with them (else None)."""
+    regulated: tuple[str, ...] = ()
+    """The regulated subsystems (those whose stabilizability the verdict needs)."""
 
     def __getitem__(self, name: str) -> Checks:
         return self.checks[name]
+
+    def verdict(self) -> str | None:
+        """Why the check stage fails (None when it passes): a regulated subsystem not stabilizable,
+        a continuous design unstable sampled at the controller rate, or a loop the rotors' lag and
+        the delay make unstable. ``run`` and ``report`` stop on it; ``check`` prints each part."""
+        bad = sorted(n for n in self.regulated if not self.checks[n].stabilizable)
+        if bad:
+            return f"not stabilizable: {', '.join(bad)}"
+        return (unstable_when_sampled(self.rate_warnings, self.rate or 0.0)
+                or (self.vehicle_loop.verdict() if self.vehicle_loop is not None else None))
 
 
 @dataclass(frozen=True)
@@ -229,7 +241,8 @@ class Workspace:
             "closed_loop": None if vehicle is None else {
                 **_vehicle_loop_payload(vehicle), "rotor_time_constant": self.setup.rotor_time_constant,
                 "rotor_lag": self.setup.rotor_lag, "delay_samples": timing.delay_samples}})
-        return CheckReport(checks=checks, rate=timing.rate, rate_warnings=tuple(warnings), vehicle_loop=vehicle)
+        return CheckReport(checks=checks, rate=timing.rate, rate_warnings=tuple(warnings), vehicle_loop=vehicle,
+                           regulated=tuple(sorted(regulated)))
 
     @cached_property
     def design(self) -> Design:

@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from quadctl.discrete import unstable_when_sampled
 from quadctl.errors import QuadctlError
 from quadctl.report import content
 from quadctl.report.document import Document, Section, Table, Text, to_html, to_markdown
@@ -79,16 +78,11 @@ def run_stages(ws) -> Outcome:
         why = verdict()
         return None if why is None else Outcome(tuple(done), failed=f"{name}: {why}")
 
-    regulated = lambda: {s.name for s in ws.decoupled.regulated}  # noqa: E731
     plan = (
         ("trim", lambda: ws.trim, None),
         ("linearize", lambda: ws.linear, None),
         ("decouple", lambda: ws.decoupled, None),
-        ("check", lambda: ws.checks, lambda: (
-            "not stabilizable: " + ", ".join(sorted(n for n in regulated() if not ws.checks[n].stabilizable))
-            if any(not ws.checks[n].stabilizable for n in regulated())
-            else unstable_when_sampled(ws.checks.rate_warnings, ws.checks.rate or 0.0)
-            or (ws.checks.vehicle_loop.verdict() if ws.checks.vehicle_loop is not None else None))),
+        ("check", lambda: ws.checks, lambda: ws.checks.verdict()),
         ("design", lambda: ws.design, lambda: (
             None if ws.design.stable else "unstable on the coupled 12-state model")),
         ("margins", lambda: ws.margins, None),

@@ -15,7 +15,6 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     """
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
-    from quadctl.discrete import unstable_when_sampled
 
     ws = open_workspace(config, out, fresh)
     stages = {}
@@ -30,16 +29,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
                  f"residual {ws.trim.residual:.1e}")
     done("linearize", f"A {ws.linear.A.shape}, B {ws.linear.B.shape}")
     done("decouple", f"{len(ws.decoupled.subsystems)} subsystems, {len(ws.decoupled.dropped)} terms dropped")
-    regulated = {s.name for s in ws.decoupled.regulated}
-    bad = [n for n in regulated if not ws.checks[n].stabilizable]
-    if bad:
-        raise _stop(json, stages, f"check: not stabilizable: {', '.join(bad)}")
-    sampled = unstable_when_sampled(ws.checks.rate_warnings, ws.checks.rate or 0.0)
-    if sampled:
-        raise _stop(json, stages, f"check: {sampled}")
-    vehicle = ws.checks.vehicle_loop
-    if vehicle is not None and vehicle.verdict():
-        raise _stop(json, stages, f"check: {vehicle.verdict()}")
+    why = ws.checks.verdict()
+    if why:
+        raise _stop(json, stages, f"check: {why}")
     done("check", "every regulated subsystem stabilizable")
     if not ws.design.stable:
         raise _stop(json, stages, "design: unstable on the coupled 12-state model")
