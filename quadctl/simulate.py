@@ -128,27 +128,43 @@ class ClosedLoop:
 
     def constants(self, sample_time: float | None = None) -> np.ndarray:
         """The constant vector ``c`` of this loop (:func:`quadctl.sim.builder.pack_constants`)."""
-        nz = len(self.integral_states)
-        values = dict(x_ref=self.x_trim, x_rate=self.x_rate, u_trim=self.u_trim, K=self.K,
-                      params=self.params, Ts=[sample_time or 0.0])
+        values = dict(x_ref=self.x_trim, x_rate=self.x_rate, u_trim=self.u_trim, params=self.params,
+                      Ts=[sample_time or 0.0])
         act = self.actuators
         if act is not None:
             values.update(mix=act.mix, mix_inv=act.mix_inv, lo=act.lo, hi=act.hi)
-        if nz:
-            Ki = np.asarray(self.Ki, dtype=float).reshape(len(self.u_trim), nz)
-            values.update(Ki=Ki, antiwindup=(Ki.T != 0).astype(float))
         tau = self.rotor_time_constant
         if tau is not None:
             values.update(tau=[tau])
         if self.Kv is not None:
-            values.update(Kv=self.Kv, tau_model=[self.lag_model_time_constant])
+            values.update(tau_model=[self.lag_model_time_constant])
         kal = self.estimator
         if kal is not None:
             if kal.discrete != (self.rate is not None) or (
                     kal.discrete and not math.isclose(kal.sample_time, 1.0 / self.rate, rel_tol=1e-12)):
                 raise ValueError("the Kalman filter's sample time must be the controller period (or both continuous)")
             values.update(Ae=kal.A, Be=kal.B, Le=kal.gain)
-        return pack_constants(nz, tau is not None, self.Kv is not None, len(self.measured), **values)
+        return pack_constants(*self.constant_layout, **values, **self.gain_constants())
+
+    @property
+    def constant_layout(self) -> tuple[int, bool, bool, int]:
+        """``(nz, rotors, lag_model, ny)``: the layout of :meth:`constants`
+        (:func:`quadctl.sim.builder.constant_layout`)."""
+        return (len(self.integral_states), self.rotor_time_constant is not None, self.Kv is not None,
+                len(self.measured))
+
+    def gain_constants(self) -> dict[str, np.ndarray]:
+        """The entries of :meth:`constants` that the gains set (``K``, ``Ki`` and its anti-windup
+        pattern, ``Kv``): all that differs between two loops of one structure
+        (:func:`quadctl.sim.builder.fill_constants` writes them into a copy of the other's)."""
+        out = {"K": self.K}
+        nz = len(self.integral_states)
+        if nz:
+            Ki = np.asarray(self.Ki, dtype=float).reshape(len(self.u_trim), nz)
+            out.update(Ki=Ki, antiwindup=(Ki.T != 0).astype(float))
+        if self.Kv is not None:
+            out.update(Kv=self.Kv)
+        return out
 
     def initial_loop_state(self, x0) -> np.ndarray:
         """The loop state ``[x0; f; z; l; b; xh]`` a run starts from: the rotors (if they lag) at their trim

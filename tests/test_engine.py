@@ -71,6 +71,25 @@ def _loop(data):
     return setup, pipeline.loop_of(setup, linear, des)
 
 
+@pytest.mark.parametrize("label, data, duration", FEATURES, ids=[f[0] for f in FEATURES])
+def test_a_loops_gains_written_into_another_loops_constants_give_its_constants(label, data, duration):
+    """A sweep builds each case's constants from its structure's (fill_constants of the case's
+    gain_constants): the gains must be all that differs between two loops of one structure."""
+    from dataclasses import replace
+
+    from quadctl.sim.builder import fill_constants
+
+    _, loop = _loop(data)
+    rng = np.random.default_rng(7)
+    other = replace(loop, K=rng.standard_normal(loop.K.shape),
+                    Ki=None if loop.Ki is None else rng.standard_normal(np.shape(loop.Ki)),
+                    Kv=None if loop.Kv is None else rng.standard_normal(loop.Kv.shape))
+    Ts = 1.0 / loop.rate if loop.rate else None
+    got = fill_constants(loop.constants(Ts).copy(), *other.constant_layout, **other.gain_constants())
+    assert not np.array_equal(loop.constants(Ts), other.constants(Ts))
+    assert np.array_equal(got, other.constants(Ts))
+
+
 def _clear():
     engine.runner.cache_clear()
 

@@ -156,8 +156,21 @@ def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, n
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots, template = _slots(nz, rotors, lag_model, ny)
-    out = template.copy()
+    return fill_constants(_slots(nz, rotors, lag_model, ny)[1].copy(), nz, rotors, lag_model, ny, **values)
+
+
+def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
+                   **values) -> np.ndarray:
+    """Write ``values`` into their slots of a ``c`` vector of that layout (in place; returned):
+    what :func:`pack_constants` does to the defaults, for a sweep that writes each case's gains
+    into a copy of its loop's constants.
+
+    Raises
+    ------
+    ValueError
+        An entry has the wrong shape, or is not in the layout.
+    """
+    slots = _slots(nz, rotors, lag_model, ny)[0]
     for name, value in values.items():
         if name not in slots:
             raise ValueError(f"unknown constants: {sorted(set(values) - set(slots))}")

@@ -10,6 +10,7 @@ plan, :func:`simulate_all` of :func:`quadctl.simulate.simulate` (SIMD lanes).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -221,11 +222,16 @@ def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
 def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
     from quadctl.motors import check_trim
+    from quadctl.sim.builder import fill_constants
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
     from quadctl.simulate import ClosedLoop, ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
     realized: dict[tuple, tuple] = {}  # cases with the same noise and steps share its realization
+    seen = _Seen()
+    # per loop structure, sample time and initial state: the constants and the initial loop state
+    # (cases of one structure differ only in their gains, which each case writes into a copy)
+    templates: dict[tuple, tuple] = {}
     continuous = [j for j, (prep, des) in enumerate(live) if prep.setup.timing.rate is None and des.Kv is None]
     eig_of: dict[int, tuple] = {}
     by_plant: dict[tuple, list] = {}
@@ -258,7 +264,7 @@ def loops_of(live) -> list:
             loop = pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
                                            integral_states=des.integral_states, Kv=des.Kv)
         else:
-            loop = ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
+            loop = ClosedLoop(params=seen.params(setup.plant), x_trim=linear.x_trim, u_trim=linear.u_trim,
                               x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
                               rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
                               integral_states=des.integral_states, actuators=setup.actuators,
@@ -280,7 +286,7 @@ def loops_of(live) -> list:
             out[j] = str(exc)
             continue
         noisy, windy = setup.noise is not None, setup.wind is not None
-        shape, held = _structure(loop, (noisy, windy, setup.duration))
+        shape, held = _structure(loop, (noisy, windy, setup.duration), seen)
         if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
             prep.plant.cache[shape] = (replace(loop.spec(noisy, windy), pattern=_structural_gain(prep)),
                                        *loop.bounds(setup.duration), held)
@@ -301,8 +307,13 @@ def loops_of(live) -> list:
                     realized[key] = rows
             if key is not None:
                 first, exo, period = realized[key]
-        out[j] = LaneJob(spec=spec, plan=plan, c=loop.constants(plan.sample_time),
-                         x0=loop.initial_loop_state(setup.initial_state(linear.x_trim)), lo=lo, hi=hi,
+        start = setup.initial_state(linear.x_trim)
+        key = (shape, plan.sample_time, start.tobytes())
+        if key not in templates:
+            templates[key] = (loop.constants(plan.sample_time), loop.initial_loop_state(start))
+        c, x0 = templates[key]
+        c = fill_constants(c.copy(), *loop.constant_layout, **loop.gain_constants())
+        out[j] = LaneJob(spec=spec, plan=plan, c=c, x0=x0, lo=lo, hi=hi,
                          stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
                          exo_period=period)
     return out
@@ -313,21 +324,40 @@ PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners")
 (only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`)."""
 
 
-def _structure(loop, extra: tuple) -> tuple[tuple, list]:
+class _Seen:
+    """What :func:`loops_of` derives once per object in a chunk (the cases of a chunk share their
+    trim, vehicle and actuators): each array's value key, each vehicle's parameter vector. Holds the
+    objects, so an identity stays theirs while it is a key."""
+
+    def __init__(self):
+        self.arrays: dict[int, tuple] = {}
+        self.vehicles: dict[int, tuple] = {}
+
+    def array_key(self, value: np.ndarray) -> tuple:
+        if id(value) not in self.arrays:
+            self.arrays[id(value)] = (value, (value.dtype.str, value.shape, value.tobytes()))
+        return self.arrays[id(value)][1]
+
+    def params(self, vehicle) -> np.ndarray:
+        """``vehicle.vector()``, one array per vehicle (so its key is derived once)."""
+        if id(vehicle) not in self.vehicles:
+            self.vehicles[id(vehicle)] = (vehicle, vehicle.vector())
+        return self.vehicles[id(vehicle)][1]
+
+
+def _structure(loop, extra: tuple, seen: _Seen) -> tuple[tuple, list]:
     """What a loop's lane spec and bounds depend on: ``extra`` and every field of the loop but the
     values of the gains and the spectrum (a field added to ``ClosedLoop`` is part of the key without
     a change here); arrays by value, other unhashable objects (the actuators) by identity, returned
     to be kept alive with the cached entry (an identity is unique only while its object lives)."""
-    from dataclasses import fields
-
     parts, held = [], []
-    for f in fields(loop):
-        if f.name in PER_CASE:
-            parts.append(getattr(loop, f.name) is None)
+    for name in _loop_fields():
+        if name in PER_CASE:
+            parts.append(getattr(loop, name) is None)
             continue
-        value = getattr(loop, f.name)
+        value = getattr(loop, name)
         if isinstance(value, np.ndarray):
-            parts.append((value.dtype.str, value.shape, value.tobytes()))
+            parts.append(seen.array_key(value))
             continue
         try:
             hash(value)
@@ -336,6 +366,15 @@ def _structure(loop, extra: tuple) -> tuple[tuple, list]:
             parts.append(("id", id(value)))
             held.append(value)
     return ("structure", *extra, *parts), held
+
+
+@lru_cache(maxsize=1)
+def _loop_fields() -> tuple[str, ...]:
+    from dataclasses import fields
+
+    from quadctl.simulate import ClosedLoop
+
+    return tuple(f.name for f in fields(ClosedLoop))
 
 
 def _estimator(prep):
