@@ -103,6 +103,17 @@ def assess(A_cl, K, *, sample_time: float | None = None) -> Assessment:
 def assess_stack(A_cl, K, *, sample_time: float | None = None) -> list[Assessment]:
     """:func:`assess` of stacked loops ``A_cl`` (N, n, n), ``K`` (N, m, 12), batched by marginal set."""
     A_cl = np.asarray(A_cl, dtype=float)
+    verdicts = verdict_stack(A_cl, K, sample_time=sample_time)
+    all_eig = np.linalg.eigvals(_finite_or_zero(A_cl))
+    return [Assessment(eigenvalues=_as_s(e, sample_time), eigenvalues_z=e if sample_time is not None else None,
+                       core=core, marginal=marginal, stable=stable)
+            for e, (core, marginal, stable) in zip(all_eig, verdicts)]
+
+
+def verdict_stack(A_cl, K, *, sample_time: float | None = None) -> list[tuple[np.ndarray, tuple[str, ...], bool]]:
+    """The verdict part of :func:`assess_stack` (``core``, ``marginal``, ``stable`` per loop), without
+    the whole spectrum: what a sweep's rows need of each design."""
+    A_cl = np.asarray(A_cl, dtype=float)
     K = np.asarray(K, dtype=float)
     N, n = A_cl.shape[0], A_cl.shape[1]
     discrete = sample_time is not None
@@ -110,8 +121,7 @@ def assess_stack(A_cl, K, *, sample_time: float | None = None) -> list[Assessmen
     drift = A_cl - np.eye(n) if discrete else A_cl
     free = ~np.any(K[:, :, positions] != 0, axis=1) & ~np.any(drift[:, :, positions] != 0, axis=1)
     finite = np.all(np.isfinite(A_cl), axis=(1, 2))
-    safe = np.where(finite[:, None, None], A_cl, 0.0)
-    all_eig = np.linalg.eigvals(safe)
+    safe = _finite_or_zero(A_cl)
     out: list = [None] * N
     for pattern in {tuple(row) for row in free.tolist()}:
         members = np.nonzero((free == pattern).all(axis=1))[0]
@@ -120,18 +130,21 @@ def assess_stack(A_cl, K, *, sample_time: float | None = None) -> list[Assessmen
         core = np.linalg.eigvals(safe[np.ix_(members, keep, keep)])
         ok = np.all(is_stable(core, discrete=discrete), axis=1) & finite[members]
         for j, k in enumerate(members):
-            z = all_eig[k] if discrete else None
-            out[k] = Assessment(
-                eigenvalues=_as_s(all_eig[k], sample_time), eigenvalues_z=z,
-                core=_as_s(core[j], sample_time), marginal=marginal, stable=bool(ok[j]))
+            out[k] = (_as_s(core[j], sample_time), marginal, bool(ok[j]))
     return out
+
+
+def _finite_or_zero(A_cl: np.ndarray) -> np.ndarray:
+    """The stack with every loop that has a non-finite entry zeroed (LAPACK refuses them)."""
+    finite = np.all(np.isfinite(A_cl), axis=(1, 2))
+    return A_cl if finite.all() else np.where(finite[:, None, None], A_cl, 0.0)
 
 
 def _as_s(e: np.ndarray, sample_time: float | None) -> np.ndarray:
     """Eigenvalues as ``s``: ``ln(z) / Ts`` for a discrete loop (``z = 0`` maps to ``-inf``)."""
     if sample_time is None:
         return e
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):  # log(0) = -inf, divided as complex
         return np.log(e.astype(complex)) / sample_time
 
 

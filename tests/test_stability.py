@@ -69,3 +69,20 @@ def test_stacked_assessment_equals_one_by_one():
         one = stability.assess(A[k], K[k])
         assert got.stable == one.stable and got.marginal == one.marginal
         np.testing.assert_allclose(np.sort_complex(got.core), np.sort_complex(one.core))
+
+
+@pytest.mark.parametrize("sample_time", [None, 0.005])
+def test_the_verdicts_alone_are_the_assessments_verdicts(sample_time):
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(12, 13, 13)) * 0.1 + (np.eye(13) * (0.5 if sample_time else -3.0))
+    K = rng.normal(size=(12, 4, 12))
+    A[:6, :, 1] = np.eye(13)[:, 1] if sample_time else 0.0
+    K[:6, :, 1] = 0.0  # half the stack with a free pE
+    A[3, 2, 2] = np.nan  # a loop that blew up
+    full = stability.assess_stack(A, K, sample_time=sample_time)
+    alone = stability.verdict_stack(A, K, sample_time=sample_time)
+    assert {a.marginal for a in full} == {(), ("pE",)}
+    assert [a.stable for a in full].count(False) >= 1
+    for a, (core, marginal, stable) in zip(full, alone):
+        assert (marginal, stable) == (a.marginal, a.stable)
+        np.testing.assert_array_equal(core, a.core)

@@ -166,31 +166,32 @@ def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed i
 
 
 def _assemble(items, gains, out) -> None:
-    """Block gains and coupled verdicts of the batched designs, stacked per plant and timing."""
+    """Block gains and coupled verdicts of the batched designs, stacked per plant, integrators and
+    timing."""
     by_loop: dict[tuple, list] = {}
     for k, prep in items:
-        setup, dec = prep.setup, prep.plant.decoupled
-        K = np.zeros((N_INPUTS, N_STATES))
-        columns, states = [], []
-        for sub in dec.regulated:
-            Ka = gains[(k, sub.name)]
-            n = len(sub.states)
-            rows, flat = _gain_slots(prep.plant, sub)
-            K.flat[flat] = Ka[:, :n].ravel()
-            for j, state in enumerate(setup.integral.get(sub.name, ())):
-                column = np.zeros(N_INPUTS)
-                column[rows] = Ka[:, n + j]
-                columns.append(column)
-                states.append(state)
-        Ki = np.array(columns).T.reshape(N_INPUTS, len(columns))
-        key = (id(prep.plant), tuple(states), setup.timing.design_sample_time)
-        by_loop.setdefault(key, []).append((k, prep, K, Ki))
-    for (_, states, Ts), members in by_loop.items():
+        setup = prep.setup
+        ints = tuple((sub.name, tuple(setup.integral.get(sub.name, ()))) for sub in prep.plant.decoupled.regulated)
+        by_loop.setdefault((id(prep.plant), ints, setup.timing.design_sample_time), []).append((k, prep))
+    for (_, ints, Ts), members in by_loop.items():
         plant = members[0][1].plant
-        A_cl = closed_loops(plant, np.stack([m[2] for m in members]), np.stack([m[3] for m in members]), states, Ts)
-        for (k, _, K, Ki), verdict in zip(members, stability.assess_stack(A_cl, np.stack([m[2] for m in members]),
-                                                                          sample_time=Ts)):
-            out[k] = CaseDesign(K, Ki, states, verdict.stable, verdict.core, BATCHED)
+        N = len(members)
+        K = np.zeros((N, N_INPUTS * N_STATES))
+        states = tuple(state for _, sub_ints in ints for state in sub_ints)
+        Ki = np.zeros((N, N_INPUTS, len(states)))
+        column = 0
+        for sub, (_, sub_ints) in zip(plant.decoupled.regulated, ints):
+            Ka = np.stack([gains[(k, sub.name)] for k, _ in members])  # (N, m, n + ni)
+            n = len(sub.states)
+            rows, flat = _gain_slots(plant, sub)
+            K[:, flat] = Ka[:, :, :n].reshape(N, -1)
+            for j in range(len(sub_ints)):
+                Ki[:, rows, column] = Ka[:, :, n + j]
+                column += 1
+        K = K.reshape(N, N_INPUTS, N_STATES)
+        A_cl = closed_loops(plant, K, Ki, states, Ts)
+        for i, ((k, _), (core, _, stable)) in enumerate(zip(members, stability.verdict_stack(A_cl, K, sample_time=Ts))):
+            out[k] = CaseDesign(K[i], Ki[i], states, stable, core, BATCHED)
 
 
 def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:
