@@ -162,6 +162,41 @@ def lqrd_weights_batch(A, B, Q, R, Ts, N=None):
     return phi[:, :n, :n], phi[:, :n, n:], Wd[:, :n, :n], Wd[:, n:, n:], Wd[:, :n, n:]
 
 
+class LqrdWeightMap:
+    """:func:`lqrd_weights` of one plant for any weights: the ZOH ``Ad``, ``Bd`` and the linear map
+    from ``W = [[Q, N], [N', R]]`` to its sampled ``Wd = integral of phi(t)' W phi(t) dt`` over one
+    sample, built from one Van Loan exponential per entry of ``W`` (``Wd`` is linear in ``W``).
+
+    A sweep that varies only the weights of a plant samples them with a matrix product per case
+    instead of an exponential of twice the size (the same numbers to round-off).
+    """
+
+    def __init__(self, A, B, Ts: float):
+        A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+        n, m = B.shape
+        k = n + m
+        basis = np.eye(k * k).reshape(k * k, k, k)  # W = e_p e_q', p, q = 0 .. k - 1
+        stack = (np.broadcast_to(A, (k * k, n, n)), np.broadcast_to(B, (k * k, n, m)))
+        Ad, Bd, Qd, Rd, Nd = lqrd_weights_batch(*stack, basis[:, :n, :n], basis[:, n:, n:], Ts, basis[:, :n, n:])
+        Wd = np.concatenate([np.concatenate([Qd, Nd], axis=2), np.concatenate([Nd.transpose(0, 2, 1), Rd], axis=2)],
+                            axis=1)
+        self.n, self.m = n, m
+        self.Ad, self.Bd = Ad[0], Bd[0]
+        self.map = Wd.reshape(k * k, k * k).T
+        """(k^2, k^2): ``vec(Wd) = map @ vec(W)``, row-major ``vec``, ``k = n + m``."""
+
+    def weights(self, Q, R, N=None):
+        """``(Qd, Rd, Nd)`` of stacked weights: Q (batch, n, n), R (batch, m, m), N (batch, n, m)."""
+        Q, R = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
+        batch, n = len(Q), self.n
+        N = np.zeros((batch, n, self.m)) if N is None else np.asarray(N, dtype=float)
+        W = np.concatenate([np.concatenate([Q, N], axis=2), np.concatenate([N.transpose(0, 2, 1), R], axis=2)], axis=1)
+        k = W.shape[1]
+        Wd = (W.reshape(batch, k * k) @ self.map.T).reshape(batch, k, k)
+        Wd = (Wd + Wd.transpose(0, 2, 1)) / 2
+        return Wd[:, :n, :n], Wd[:, n:, n:], Wd[:, :n, n:]
+
+
 def dlqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:
     """Discrete-time LQR (MATLAB ``dlqr``), solved by :func:`quadctl.riccati.solve`.
 

@@ -140,3 +140,24 @@ def test_zero_order_hold_simulation_follows_the_discrete_linear_loop():
         dx = Acl @ dx
     # second-order terms of a 2e-4 offset are ~1e-8; RK4 error at 2 ms on the 2 rad/s plant ~1e-12
     assert worst < 1e-6, f"Max diff is {worst:.4E}"
+
+
+@pytest.mark.parametrize("n, m", [(2, 1), (3, 1), (4, 2)])
+def test_the_weight_map_samples_any_weights_as_van_loan_does(n, m):
+    """LqrdWeightMap (a sweep's cases of one plant) gives lqrd_weights_batch's numbers to round-off."""
+    from quadctl.discrete import LqrdWeightMap, lqrd_weights_batch
+
+    rng = np.random.default_rng(n * 10 + m)
+    A, B, Ts, batch = rng.normal(size=(n, n)), rng.normal(size=(n, m)), 0.005, 40
+    Q = rng.normal(size=(batch, n, n))
+    Q = Q @ Q.transpose(0, 2, 1)
+    R = rng.uniform(1.0, 10.0, size=(batch, m, 1)) * np.eye(m)
+    N = 0.1 * rng.normal(size=(batch, n, m))
+    Ad, Bd, Qd, Rd, Nd = lqrd_weights_batch(np.broadcast_to(A, (batch, n, n)), np.broadcast_to(B, (batch, n, m)),
+                                            Q, R, Ts, N)
+    weight_map = LqrdWeightMap(A, B, Ts)
+    Qd_map, Rd_map, Nd_map = weight_map.weights(Q, R, N)
+    for got, ref in ((weight_map.Ad, Ad[0]), (weight_map.Bd, Bd[0]), (Qd_map, Qd), (Rd_map, Rd), (Nd_map, Nd)):
+        assert np.abs(got - ref).max() <= 1e-14 * np.abs(ref).max()
+    np.testing.assert_array_equal(Qd_map, Qd_map.transpose(0, 2, 1))
+    np.testing.assert_array_equal(Rd_map, Rd_map.transpose(0, 2, 1))

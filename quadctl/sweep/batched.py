@@ -123,8 +123,8 @@ def _problem(prep, sub, ints) -> tuple:
 
 def _solve(Ts, n, group, preps):
     """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems: the continuous
-    CARE, or the ZOH plant and ``lqrd`` weights and the discrete DARE, every step batched."""
-    from quadctl.discrete import lqrd_weights_batch
+    CARE, or the ZOH plant and ``lqrd`` weights (:func:`_sampled`) and the discrete DARE, every step
+    batched."""
     from quadctl.riccati import care_batch, dare_batch
 
     A = np.stack([sub.A for _, sub, _ in group])
@@ -143,7 +143,7 @@ def _solve(Ts, n, group, preps):
             Aa, Ba = (np.stack(m) for m in zip(*(integral.augment(a, b, c) for a, b, c in zip(A, B, Cs))))
         res = care_batch(Aa, Ba, Q, R)
         return res.K, res.ok
-    Ad, Bd, Qd, Rd, Nd = lqrd_weights_batch(A, B, Q[:, :n, :n], R, Ts)
+    Ad, Bd, Qd, Rd, Nd = _sampled(group, preps, Q[:, :n, :n], R, Ts)
     if same_ints:
         Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
     else:
@@ -151,6 +151,29 @@ def _solve(Ts, n, group, preps):
     Qa, Na = integral.discrete_weights(Qd, Nd, Q, Ts)
     res = dare_batch(Aa, Ba, Qa, Rd, Na)
     return res.K, res.ok
+
+
+def _sampled(group, preps, Q, R, Ts):
+    """``lqrd_weights_batch`` of a group's problems: each subsystem's plant sampled once (per
+    plant, cached), its weights by the plant's :class:`~quadctl.discrete.LqrdWeightMap`."""
+    from quadctl.discrete import LqrdWeightMap
+
+    maps, members = {}, {}
+    for j, (k, sub, _) in enumerate(group):
+        key = ("lqrd map", sub.name, Ts)
+        cache = preps[k].plant.cache
+        if key not in cache:
+            cache[key] = LqrdWeightMap(sub.A, sub.B, Ts)
+        maps[id(cache[key])] = cache[key]
+        members.setdefault(id(cache[key]), []).append(j)
+    N, n, m = len(group), Q.shape[1], R.shape[1]
+    Ad, Bd = np.empty((N, n, n)), np.empty((N, n, m))
+    Qd, Rd, Nd = np.empty((N, n, n)), np.empty((N, m, m)), np.empty((N, n, m))
+    for key, rows in members.items():
+        weight_map = maps[key]
+        Ad[rows], Bd[rows] = weight_map.Ad, weight_map.Bd
+        Qd[rows], Rd[rows], Nd[rows] = weight_map.weights(Q[rows], R[rows])
+    return Ad, Bd, Qd, Rd, Nd
 
 
 def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed its residual or stability check"):
