@@ -46,8 +46,10 @@ def command(
                                     scheduler=scheduler, resume=resume, progress=progress)
     result, summary = outcome.result, outcome.summary
     if scheduler and "casadi" in result.stats["backend"]:  # locally, the engine's own notice said so
-        render.note("the Dask workers found no working C compiler: they simulated in CasADi's "
-                    "virtual machine (same numbers, about 20x slower)")
+        from quadctl.sim.engine import VM_COST
+
+        render.note(f"the Dask workers found no working C compiler: they simulated in CasADi's virtual machine "
+                    f"({VM_COST})")
     if json:
         render.emit_json({**summary, "performance": render_sweep.sweep_performance(outcome)})
     else:
