@@ -165,6 +165,7 @@ class CaseSetups:
 
         self.task = task
         self.kinds: list | None = None
+        self._checks: dict[tuple[str, str], dict] = {}
         try:
             self.cfg = config_mod.from_dict(task.base, task.label)
         except ConfigError:  # a case's values may still make it valid: every case the reference way
@@ -203,6 +204,19 @@ class CaseSetups:
                 return ("weight", *keys[1:])
         return None
 
+    def _weight_check(self, name: str, which: str) -> dict:
+        """The arguments of :func:`quadctl.config.check_weight` for ``lqr.<name>.<which>`` but the value."""
+        key = (name, which)
+        if key not in self._checks:
+            sub, integral = self.base.partition[name], self.cfg.lqr[name].integral
+            if which == "Q":
+                size, names = len(sub.states) + len(integral), [*sub.states, *(f"integral of {s}" for s in integral)]
+            else:
+                size, names = len(sub.inputs), list(sub.inputs)
+            self._checks[key] = dict(size=size, path=f"lqr.{name}.{which}", label=self.task.label,
+                                     definite=which == "R", names=names)
+        return self._checks[key]
+
     def _varied(self, values: tuple):
         """The base setup with the case's values, or None when one fails a check."""
         import math
@@ -225,16 +239,11 @@ class CaseSetups:
             if type(entries[i]) is not float or not math.isfinite(entries[i]):
                 return None  # the schema: a strict, finite float
         for name, changed in weights.items():  # the base's own weights passed these checks already
-            sub, integral = self.base.partition[name], self.cfg.lqr[name].integral
-            try:  # as quadctl.config._check_semantics checks them
-                if "Q" in changed:
-                    check_weight(changed["Q"], len(sub.states) + len(integral), f"lqr.{name}.Q", self.task.label,
-                                 definite=False, names=[*sub.states, *(f"integral of {s}" for s in integral)])
-                if "R" in changed:
-                    check_weight(changed["R"], len(sub.inputs), f"lqr.{name}.R", self.task.label, definite=True,
-                                 names=sub.inputs)
-            except ConfigError:
-                return None
+            for which, value in changed.items():
+                try:  # as quadctl.config._check_semantics checks them
+                    check_weight(value, **self._weight_check(name, which))
+                except ConfigError:
+                    return None
         return vary(self.base, weights={n: (c.get("Q"), c.get("R")) for n, c in weights.items()}, noise_seed=seed)
 
 
@@ -317,6 +326,12 @@ def _plain(value):
     return value
 
 
+@lru_cache(maxsize=32)
+def _columns(kind: str, names: tuple[str, ...]) -> tuple[str, ...]:
+    """Row keys of a metric's values: ``settling_time.phi``, ... (the same few for every row)."""
+    return tuple(f"{kind}.{name}" for name in names)
+
+
 def _failed(head: dict, status: str, reason: str) -> dict:
     row = dict(head)
     row.update({"stable": None, "eig.fastest": None, "eig.slowest": None, "status": status,
@@ -331,12 +346,9 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
     row["eig.fastest"] = float(np.min(core_eigs.real)) if len(core_eigs) else None
     row["eig.slowest"] = float(np.max(core_eigs.real)) if len(core_eigs) else None
     if summary is not None:
-        for state, value in summary["settling_time"].items():
-            row[f"settling_time.{state}"] = value
-        for state, value in summary["overshoot"].items():
-            row[f"overshoot.{state}"] = value
-        for name, value in summary["peak"].items():
-            row[f"peak.{name}"] = value
+        for kind in ("settling_time", "overshoot", "peak"):
+            values = summary[kind]
+            row.update(zip(_columns(kind, tuple(values)), values.values()))
         row["cost"] = summary["cost"]
         row["status"] = summary["status"]
     row["dt"] = plan.dt if plan is not None else None
