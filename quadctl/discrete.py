@@ -152,7 +152,7 @@ def lqrd_weights_batch(A, B, Q, R, Ts, N=None):
     k = n + m
     F = np.zeros((batch, k, k))
     F[:, :n, :n], F[:, :n, n:] = A, B
-    W = np.concatenate([np.concatenate([Q, N], axis=2), np.concatenate([N.transpose(0, 2, 1), R], axis=2)], axis=1)
+    W = _joint(Q, R, N)
     vl = np.zeros((batch, 2 * k, 2 * k))
     vl[:, :k, :k], vl[:, :k, k:], vl[:, k:, k:] = -F.transpose(0, 2, 1), W, F
     E = scipy.linalg.expm(vl * _sample_times(Ts, batch)[:, None, None])
@@ -178,8 +178,7 @@ class LqrdWeightMap:
         basis = np.eye(k * k).reshape(k * k, k, k)  # W = e_p e_q', p, q = 0 .. k - 1
         stack = (np.broadcast_to(A, (k * k, n, n)), np.broadcast_to(B, (k * k, n, m)))
         Ad, Bd, Qd, Rd, Nd = lqrd_weights_batch(*stack, basis[:, :n, :n], basis[:, n:, n:], Ts, basis[:, :n, n:])
-        Wd = np.concatenate([np.concatenate([Qd, Nd], axis=2), np.concatenate([Nd.transpose(0, 2, 1), Rd], axis=2)],
-                            axis=1)
+        Wd = _joint(Qd, Rd, Nd)
         self.n, self.m = n, m
         self.Ad, self.Bd = Ad[0], Bd[0]
         self.map = Wd.reshape(k * k, k * k).T
@@ -190,7 +189,7 @@ class LqrdWeightMap:
         Q, R = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
         batch, n = len(Q), self.n
         N = np.zeros((batch, n, self.m)) if N is None else np.asarray(N, dtype=float)
-        W = np.concatenate([np.concatenate([Q, N], axis=2), np.concatenate([N.transpose(0, 2, 1), R], axis=2)], axis=1)
+        W = _joint(Q, R, N)
         k = W.shape[1]
         Wd = (W.reshape(batch, k * k) @ self.map.T).reshape(batch, k, k)
         Wd = (Wd + Wd.transpose(0, 2, 1)) / 2
@@ -380,6 +379,11 @@ def _fmt(e: complex) -> str:
 
 def _as2d(m) -> np.ndarray:
     return np.atleast_2d(np.asarray(m, dtype=float))
+
+
+def _joint(Q, R, N) -> np.ndarray:
+    """``[[Q, N], [N', R]]`` of stacked weights: (batch, n + m, n + m)."""
+    return np.concatenate([np.concatenate([Q, N], axis=2), np.concatenate([N.transpose(0, 2, 1), R], axis=2)], axis=1)
 
 
 def _sample_times(Ts, batch: int) -> np.ndarray:
