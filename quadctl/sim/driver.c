@@ -14,7 +14,8 @@
  * outside [lo, hi] (NaN included), and records the final state with the input the law gives
  * there (the held input between samples; the last applied input after leaving the bounds).
  * A lane that is done restarts from its x0 and runs on, discarded, until every lane is done
- * (a runaway lane would drag the vector math into its slow paths for huge or NaN arguments). */
+ * (a runaway lane would drag the vector math into its slow paths for huge or NaN arguments);
+ * its final record uses what it kept when it finished (state, last applied input). */
 #include <math.h>
 #include <string.h>
 
@@ -124,10 +125,9 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
       if (bad[l] != 0.0 || k + 1 == QC_N(l)) {
         active[l] = 0; n_active--;
         done[l] = k + 1;
-        if (bad[l] != 0.0) {
-          inb[l] = 0;
-          for (int i = 0; i < QC_NU; ++i) UF[i * QC_L + l] = UA[i * QC_L + l];
-        }
+        inb[l] = bad[l] == 0.0;
+        /* the input applied during its last step: the restarted lane overwrites UH */
+        for (int i = 0; i < QC_NU; ++i) UF[i * QC_L + l] = UA[i * QC_L + l];
         for (int i = 0; i < QC_NX; ++i) {
           XF[i * QC_L + l] = X[i * QC_L + l];
           X[i * QC_L + l] = x0[i * QC_L + l];
@@ -148,7 +148,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
     const double* uf = U;
     if (!inb[l]) uf = UF;
 #if QC_HELD
-    else if (qc_mod(last, QC_HOLD(l)) != 0) uf = UH;
+    else if (qc_mod(last, QC_HOLD(l)) != 0) uf = UF;
 #endif
     double* xr = xs + (long)l * QC_NX * rows_max + rows[l];
     double* ur = us + (long)l * QC_NU * rows_max + rows[l];
