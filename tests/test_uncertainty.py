@@ -56,6 +56,34 @@ def test_which_parameters_are_plant_side(path, rotor_lag, expected):
     assert plant_side(path, rotor_lag) is expected
 
 
+@pytest.mark.parametrize("path, values, uncertainty", [
+    ("simulation.noise.seed", [1, 2], True),
+    ("simulation.noise.period", [0.005, 0.01], False),           # the filter's sample period
+    ("simulation.noise.force[0]", [0.001, 0.002], False),        # the process noise it assumes
+    ("simulation.noise.sensor.phi", [0.001, 0.002], False),      # a measured state's noise
+    ("simulation.plant.mass", [0.06, 0.07], True),
+])
+def test_the_noise_a_kalman_filter_assumes_is_part_of_the_design(path, values, uncertainty):
+    """mambo-lqg's filter sets no noise of its own: it takes simulation.noise's, so varying that
+    changes its gain, and such a sweep is no uncertainty study (one design, many vehicles)."""
+    from pathlib import Path
+
+    lqg = config.load(str(Path(__file__).parents[1] / "docs" / "configs" / "mambo-lqg.yaml"))
+    assert lqg.estimator.force is None and not lqg.estimator.sensor
+    assert sweep.from_dict({"parameters": {path: values}}, lqg, "u.yaml").uncertainty is uncertainty
+
+
+def test_a_set_that_touches_the_estimator_makes_every_noise_value_but_the_seed_the_filters():
+    from pathlib import Path
+
+    lqg = config.load(str(Path(__file__).parents[1] / "docs" / "configs" / "mambo-lqg.yaml"))
+    for path, values, uncertainty in (("simulation.noise.force[0]", [0.001, 0.002], False),
+                                      ("simulation.noise.seed", [1, 2], True)):
+        spec = sweep.from_dict({"parameters": {path: values}, "set": {"estimator.force": [0.001, 0.001, 0.001]}},
+                               lqg, "u.yaml")
+        assert spec.uncertainty is uncertainty, path
+
+
 def test_a_sweep_is_an_uncertainty_study_when_every_parameter_is_plant_side(mambo):
     assert sweep.from_dict({"parameters": VEHICLE}, mambo, "u.yaml").monte_carlo
     mixed = {"parameters": {**VEHICLE, "lqr.roll.R[0]": [20000.0]}}

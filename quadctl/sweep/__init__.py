@@ -37,7 +37,8 @@ range is sampled uniformly on ``[from, to]`` (log-uniformly with ``scale: log``)
 
 A sweep whose parameters are all plant-side (:func:`~quadctl.sweep.spec.plant_side`: the noise
 seed, ``simulation.plant`` mass and inertia errors, the rotor time constant a design ignores, the
-delay, any ``simulation.`` key but the run's length and step) is an uncertainty study, a Monte
+delay, any ``simulation.`` key but the run's length and step and the noise a Kalman filter takes
+from it) is an uncertainty study, a Monte
 Carlo when its values are drawn (:attr:`SweepSpec.monte_carlo`): its cases share one design (the
 chunk designs each distinct problem once), run in the lanes (grouped by loop structure: one group
 per delay), and each keeps the deviation of its regulated states from the reference on a common

@@ -8,6 +8,7 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -46,14 +47,16 @@ environment: a sweep of them is no uncertainty study (its trajectories would not
 _PATH_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*)*$")
 
 
-def plant_side(keys: tuple, rotor_lag: str = "ignore", trim_wind: bool = False) -> bool:
+def plant_side(keys: tuple, rotor_lag: str = "ignore", trim_wind: bool = False, estimator=None) -> bool:
     """Whether a parameter changes only the simulated vehicle or its environment, never the design.
 
     Plant-side: every key under ``simulation.`` but :data:`RUN_KEYS` (``simulation.plant.*``, the
-    mass and inertia errors; ``simulation.noise.*``; the initial offset; ``simulation.wind.*``, but
-    the steady wind while ``trim.wind`` is true: the design is trimmed in it), ``controller.delay``
-    (the design does not see it) and ``motors.time_constant`` while ``controller.rotor_lag`` is
-    ``ignore`` (with ``include`` the design is made for it).
+    mass and inertia errors; ``simulation.noise.*``, but what a Kalman filter takes from it, see
+    :func:`filter_reads`; the initial offset; ``simulation.wind.*``, but the steady wind while
+    ``trim.wind`` is true: the design is trimmed in it), ``controller.delay`` (the design does not
+    see it) and ``motors.time_constant`` while ``controller.rotor_lag`` is ``ignore`` (with
+    ``include`` the design is made for it). ``estimator``: the config's ``estimator:`` section
+    (None: no filter).
 
     Examples
     --------
@@ -67,11 +70,32 @@ def plant_side(keys: tuple, rotor_lag: str = "ignore", trim_wind: bool = False) 
     keys = tuple(keys)
     if keys[:3] == ("simulation", "wind", "steady") and trim_wind:
         return False
+    if filter_reads(keys, estimator):
+        return False
     if keys[:1] == ("simulation",):
         return keys[:2] not in RUN_KEYS
     if keys[:2] == ("controller", "delay"):
         return True
     return keys[:2] == ("motors", "time_constant") and rotor_lag == "ignore"
+
+
+def filter_reads(keys: tuple, estimator) -> bool:
+    """Whether the Kalman filter of ``estimator:`` (a config section, or None) takes the value at
+    ``keys`` as the noise it assumes: ``simulation.noise.period`` (its sample period), and the
+    force, torque and sensor deviations it does not set itself.
+
+    >>> filter_reads(("simulation", "noise", "seed"), None), filter_reads(("simulation", "noise", "period"), None)
+    (False, False)
+    """
+    if estimator is None or tuple(keys[:2]) != ("simulation", "noise"):
+        return False
+    if len(keys) < 3 or keys[2] == "period":
+        return True
+    if keys[2] in ("force", "torque"):
+        return getattr(estimator, keys[2]) is None
+    if keys[2] == "sensor":
+        return len(keys) < 4 or keys[3] not in estimator.sensor
+    return False
 
 
 @dataclass(frozen=True)
@@ -297,12 +321,16 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
     gates = tuple(_check_gate(metric, spec, cfg, label) for metric, spec in (data.get("gates") or {}).items())
     rotor_lag = next((v for p, _, v in fixed if p == "controller.rotor_lag"), cfg.controller.rotor_lag)
     trim_wind = next((v for p, _, v in fixed if p == "trim.wind"), cfg.trim.wind)
+    estimator = cfg.estimator
+    if any(p == "estimator" or p.startswith("estimator.") for p, _, _ in fixed):
+        estimator = SimpleNamespace(force=None, torque=None, sensor={})  # set: may add one: a filter that
+                                                                         # takes every noise value
     spec = SweepSpec(label=label, mode=mode, samples=int(samples) if samples is not None else None,
                      seed=int(seed), parameters=tuple(parameters), fixed=tuple(fixed), gates=gates,
                      require_ok=require_ok, chunk_size=int(chunk) if chunk is not None else None,
                      canonical=json.loads(json.dumps({k: v for k, v in data.items() if k != "description"},
                                                      default=str)),
-                     uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind)) for p in parameters))
+                     uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind), estimator) for p in parameters))
     if mode == "grid":
         count = spec.count()
         if count > MAX_CASES:
