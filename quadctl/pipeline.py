@@ -48,10 +48,11 @@ def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, *, rate: 
 
 
 def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.ndarray | None = None,
-                   integral_states=(), Kv: np.ndarray | None = None) -> ClosedLoop:
+                   integral_states=(), Kv: np.ndarray | None = None, estimator=None) -> ClosedLoop:
     """The loop to simulate: gains ``K`` (and an LQI design's ``Ki``, ``integral_states``; a design
     with the rotors' lag's ``Kv``, fed by the controller's lag model) on the setup's plant, timing
-    and actuators.
+    and actuators; ``estimator``, the setup's Kalman filter when the caller has it already
+    (:func:`estimator_of`, computed here when None).
 
     The eigenvalues (for the RK4 step) are those of the continuous closed loop including the
     integrators (and the lag states, with ``Kv``); a sampled controller steps on the open-loop
@@ -71,7 +72,8 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
     eig, owners = eigen_owners(A_cl, owner, (*STATE_NAMES, *lag_names, *integral_states))
     check_trim(setup.actuators, linear.u_trim)
     return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
-                      estimator=estimator_of(setup, linear), x_rate=linear.x_rate, K=K, eigenvalues=eig,
+                      estimator=estimator if estimator is not None else estimator_of(setup, linear),
+                      x_rate=linear.x_rate, K=K, eigenvalues=eig,
                       owners=owners, rate=setup.timing.rate,
                       Ki=Ki if integral_states else None, integral_states=integral_states,
                       actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A),

@@ -286,7 +286,7 @@ def loops_of(live) -> list:
             from quadctl import pipeline
 
             loop = pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
-                                           integral_states=des.integral_states, Kv=des.Kv)
+                                           integral_states=des.integral_states, Kv=des.Kv, estimator=kalman)
         else:
             loop = ClosedLoop(params=seen.params(setup.plant), x_trim=linear.x_trim, u_trim=linear.u_trim,
                               x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
