@@ -98,6 +98,13 @@ def finite_number(value: Any) -> bool:
         return False
 
 
+def eig_text(e: complex) -> str:
+    """An eigenvalue as messages and tables print it: ``-2.5`` or ``-1 + 3.2j`` (5 digits, no ``-0``)."""
+    e = complex(e)
+    e = complex(e.real + 0.0, e.imag + 0.0)  # no "-0"
+    return f"{e.real:.5g}" if abs(e.imag) < 1e-9 else f"{e.real:.5g} {'+' if e.imag >= 0 else '-'} {abs(e.imag):.5g}j"
+
+
 def one_line(text: str) -> str:
     """A message on one line: the line breaks of a multi-line message (a library's, say) become
     spaces, so a log holds every error and warning on one line.

@@ -22,9 +22,11 @@ from quadctl.analysis import Checks, check
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
 from quadctl.discrete import RateWarning, realizable_frequency, unstable_when_sampled
+from quadctl.errors import DesignError
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, STATE_NAMES, STATE_UNITS
 from quadctl.linearize import LinearModel
 from quadctl.lqr import Design
+from quadctl.messages import eig_text
 from quadctl.metrics import summarize
 from quadctl.setup import resolve
 from quadctl.simulate import ClosedLoop, SimResult
@@ -38,30 +40,47 @@ CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
 
 @dataclass(frozen=True)
 class CheckReport:
-    """``check``'s result: the rank checks per subsystem (and ``"full"``); for a continuous
-    design run at a rate, the loops that rate cannot realize; with rotor lag or delay, the loop
-    the vehicle flies."""
+    """``check``'s result: the rank checks per subsystem (and ``"full"``, and ``"estimator"`` for the
+    measured set); for a continuous design run at a rate, the loops that rate cannot realize; with
+    rotor lag or delay, the loop the vehicle flies."""
 
     checks: dict[str, Checks]
+    regulated: tuple[str, ...]
+    """The regulated subsystems (those whose stabilizability the verdict needs)."""
     rate: float | None
     rate_warnings: tuple[RateWarning, ...]
     vehicle_loop: pipeline.VehicleLoop | None = None
     """With rotor lag or delay configured: the design's loop flown with them (else None)."""
-    regulated: tuple[str, ...] = ()
-    """The regulated subsystems (those whose stabilizability the verdict needs)."""
+    undetectable: str | None = None
+    """Why the estimator's measured set cannot estimate the state (else None)."""
 
     def __getitem__(self, name: str) -> Checks:
         return self.checks[name]
 
+    def failures(self) -> list[str]:
+        """Each reason the check stage fails, one line each (empty when it passes): a regulated
+        subsystem not stabilizable, a measured set that leaves a mode that is not stable unobservable,
+        a continuous design unstable sampled at the controller rate, a loop the rotors' lag and the
+        delay make unstable."""
+        out = []
+        for name in sorted(n for n in self.regulated if not self.checks[n].stabilizable):
+            mode = self.checks[name].unstabilizable_modes[0]
+            out.append(f"subsystem {name} is not stabilizable: mode {eig_text(mode.eigenvalue)} in "
+                       f"{', '.join(mode.states)}")
+        if self.undetectable:
+            out.append(self.undetectable)
+        sampled = unstable_when_sampled(self.rate_warnings, self.rate or 0.0)
+        if sampled:
+            out.append(sampled)
+        flown = self.vehicle_loop.verdict() if self.vehicle_loop is not None else None
+        if flown:
+            out.append(flown)
+        return out
+
     def verdict(self) -> str | None:
-        """Why the check stage fails (None when it passes): a regulated subsystem not stabilizable,
-        a continuous design unstable sampled at the controller rate, or a loop the rotors' lag and
-        the delay make unstable. ``run`` and ``report`` stop on it; ``check`` prints each part."""
-        bad = sorted(n for n in self.regulated if not self.checks[n].stabilizable)
-        if bad:
-            return f"not stabilizable: {', '.join(bad)}"
-        return (unstable_when_sampled(self.rate_warnings, self.rate or 0.0)
-                or (self.vehicle_loop.verdict() if self.vehicle_loop is not None else None))
+        """Why the check stage fails, on one line (None when it passes): ``run`` and ``report`` stop
+        on it; ``check`` prints each of :meth:`failures`."""
+        return "; ".join(self.failures()) or None
 
 
 @dataclass(frozen=True)
@@ -241,8 +260,16 @@ class Workspace:
             "closed_loop": None if vehicle is None else {
                 **_vehicle_loop_payload(vehicle), "rotor_time_constant": self.setup.rotor_time_constant,
                 "rotor_lag": self.setup.rotor_lag, "delay_samples": timing.delay_samples}})
-        return CheckReport(checks=checks, rate=timing.rate, rate_warnings=tuple(warnings), vehicle_loop=vehicle,
-                           regulated=tuple(sorted(regulated)))
+        undetectable = None
+        if est is not None and not checks[ESTIMATOR_CHECK].detectable:
+            from quadctl.estimator import require_detectable, selector
+
+            try:
+                require_detectable(self.linear.A, selector(est.measured), est.measured)
+            except DesignError as exc:
+                undetectable = str(exc)
+        return CheckReport(checks=checks, regulated=tuple(sorted(regulated)), rate=timing.rate,
+                           rate_warnings=tuple(warnings), vehicle_loop=vehicle, undetectable=undetectable)
 
     @cached_property
     def design(self) -> Design:

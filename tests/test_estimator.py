@@ -133,6 +133,12 @@ def test_check_reports_the_measured_sets_observability_and_fails_on_an_unobserva
     assert "check failed: estimator.measure" in failed.output and "pN, pE not observable" in failed.output
     checks = json.loads((tmp_path / "b" / "checks.json").read_text())
     assert not checks["estimator"]["detectable"]
+    # run stops at the same check, with the same reason (and --json says it on stdout)
+    run = runner.invoke(app, ["run", "-c", str(bad), "--out", str(tmp_path / "r"), "--json"])
+    assert run.exit_code == 1
+    stopped = json.loads(run.stdout)
+    assert stopped["failed"].startswith("check: estimator.measure") and "pN, pE not observable" in stopped["failed"]
+    assert "check" not in stopped["stages"] and "decouple" in stopped["stages"]
 
 
 @pytest.mark.parametrize("change, message", [

@@ -205,10 +205,11 @@ def test_a_failed_check_exits_1_after_reporting_what_was_computed(tmp_path):
     path.write_text(UNSTABILIZABLE)
     res = _report("-c", path, "-o", tmp_path / "run")
     assert res.exit_code == 1
-    assert "quadctl: check failed: check: not stabilizable: pitch, roll" in res.stderr
+    why = "subsystem pitch is not stabilizable: mode 0 in q; subsystem roll is not stabilizable: mode 0 in p"
+    assert f"quadctl: check failed: check: {why}" in res.stderr
     page = _parse(tmp_path / "run" / report.FOLDER / report.HTML)
     text = "".join(page.text)
-    assert "Stopped at check: not stabilizable: pitch, roll. Not run: design, margins, simulate." in text
+    assert f"Stopped at check: {why}. Not run: design, margins, simulate." in text
     assert [r[1] for r in page.tables["summary-table"][1:]] == ["ok"] * 3 + ["failed"] + ["not run"] * 3
     assert page.column("checks-table", "stabilizable", "roll") == "no"
     assert "design-table" not in page.tables and "metrics-table" not in page.tables and not page.srcs

@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.table import Table
 
 from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
-from quadctl.messages import one_line
+from quadctl.messages import eig_text, one_line
 
 out = Console(highlight=False)
 err = Console(stderr=True, highlight=False, soft_wrap=True)
@@ -44,10 +44,7 @@ def num(value: float, digits: int = 4) -> str:
     return f"{value:.{digits}g}"
 
 
-def eig(e: complex) -> str:
-    e = complex(e)
-    e = complex(e.real + 0.0, e.imag + 0.0)  # no "-0"
-    return f"{e.real:.5g}" if abs(e.imag) < 1e-9 else f"{e.real:.5g} {'+' if e.imag >= 0 else '-'} {abs(e.imag):.5g}j"
+eig = eig_text
 
 
 def yes(flag: bool) -> str:

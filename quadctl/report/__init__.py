@@ -40,7 +40,8 @@ class Outcome:
     done : tuple of str
         The stages computed, in order (a simulation that diverged is computed).
     failed : str or None
-        Why a check failed (``"check: not stabilizable: roll"``): what ``quadctl run`` exits 1 for.
+        Why a check failed (``"check: subsystem roll is not stabilizable: mode 0 in phi, p"``): what
+        ``quadctl run`` exits 1 for.
     error : QuadctlError or None
         An error a stage raised (its ``exit_code`` says what kind); the stages after it did not run.
     """

@@ -31,10 +31,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
 
     ws = open_workspace(config, out, fresh)
     checks = ws.checks
-    regulated = {s.name for s in ws.decoupled.regulated}
-    failed = [n for n in regulated if not checks[n].stabilizable]
+    regulated = set(checks.regulated)
     rated = [(checks.rate, checks.rate_warnings)] if checks.rate_warnings else []
-    if rate is not None and not failed:
+    what_if = None
+    if rate is not None and all(checks[n].stabilizable for n in regulated):
         from quadctl import pipeline
 
         what_if = pipeline.rate_warnings_of(ws.setup, ws.decoupled, ws.linear, rate)
@@ -53,28 +53,11 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     for hz, warnings in rated:
         for w in warnings:
             render.err.print(f"quadctl: warning: {w.message(hz)}", markup=False)
-    for name in failed:
-        mode = checks[name].unstabilizable_modes[0]
-        render.err.print(f"quadctl: check failed: subsystem {name} is not stabilizable: mode "
-                         f"{render.eig(mode.eigenvalue)} in {', '.join(mode.states)}")
-    if "estimator" in checks.checks and not checks["estimator"].detectable:
-        from quadctl.errors import DesignError
-        from quadctl.estimator import require_detectable, selector
-
-        measured = ws.setup.estimator.measured
-        try:
-            require_detectable(ws.linear.A, selector(measured), measured)
-        except DesignError as exc:
-            render.err.print(f"quadctl: check failed: {exc}", markup=False)
-            failed.append(str(exc))
-    verdict = checks.vehicle_loop.verdict() if checks.vehicle_loop is not None else None
-    if verdict:
-        render.err.print(f"quadctl: check failed: {verdict}", markup=False)
-        failed.append(verdict)
-    for hz, warnings in rated:
-        verdict = unstable_when_sampled(warnings, hz)
-        if verdict:
-            render.err.print(f"quadctl: check failed: {verdict}", markup=False)
-            failed.append(verdict)
-    if failed:
+    failures = checks.failures()
+    at_rate = unstable_when_sampled(what_if, rate) if what_if is not None else None  # --rate's own verdict
+    if at_rate and at_rate not in failures:
+        failures.append(at_rate)
+    for reason in failures:
+        render.err.print(f"quadctl: check failed: {reason}", markup=False)
+    if failures:
         raise typer.Exit(EXIT_CHECK_FAILED)
