@@ -182,7 +182,9 @@ class LqrdWeightMap:
         self.n, self.m = n, m
         self.Ad, self.Bd = Ad[0], Bd[0]
         self.map = Wd.reshape(k * k, k * k).T
-        """(k^2, k^2): ``vec(Wd) = map @ vec(W)``, row-major ``vec``, ``k = n + m``."""
+        """(k^2, k^2): ``vec(Wd) = map @ vec(W)`` for a symmetric ``W = [[Q, N], [N', R]]``
+        (row-major ``vec``, ``k = n + m``; built from the blocks of each basis entry, so not the
+        map of a general ``W``)."""
 
     def weights(self, Q, R, N=None):
         """``(Qd, Rd, Nd)`` of stacked weights: Q (batch, n, n), R (batch, m, m), N (batch, n, m)."""

@@ -148,8 +148,8 @@ class ClosedLoop:
 
     @property
     def constant_layout(self) -> tuple[int, bool, bool, int]:
-        """``(nz, rotors, lag_model, ny)``: the layout of :meth:`constants`
-        (:func:`quadctl.sim.builder.constant_layout`)."""
+        """``(nz, rotors, lag_model, ny)``: the arguments of :func:`quadctl.sim.builder.constant_layout`
+        that give the layout of :meth:`constants`."""
         return (len(self.integral_states), self.rotor_time_constant is not None, self.Kv is not None,
                 len(self.measured))
 

@@ -72,17 +72,34 @@ def test_stacked_assessment_equals_one_by_one():
 
 
 @pytest.mark.parametrize("sample_time", [None, 0.005])
-def test_the_verdicts_alone_are_the_assessments_verdicts(sample_time):
+def test_the_verdict_is_about_the_spectrum_without_the_free_positions(sample_time):
+    """verdict_stack against loops built with known eigenvalues: a loop whose pE is free (no gain on
+    it, nothing driving it) has pE's mode (s = 0, z = 1) left out, and its verdict is the rest's."""
     rng = np.random.default_rng(5)
-    A = rng.normal(size=(12, 13, 13)) * 0.1 + (np.eye(13) * (0.5 if sample_time else -3.0))
-    K = rng.normal(size=(12, 4, 12))
-    A[:6, :, 1] = np.eye(13)[:, 1] if sample_time else 0.0
-    K[:6, :, 1] = 0.0  # half the stack with a free pE
-    A[3, 2, 2] = np.nan  # a loop that blew up
-    full = stability.assess_stack(A, K, sample_time=sample_time)
-    alone = stability.verdict_stack(A, K, sample_time=sample_time)
-    assert {a.marginal for a in full} == {(), ("pE",)}
-    assert [a.stable for a in full].count(False) >= 1
-    for a, (core, marginal, stable) in zip(full, alone):
-        assert (marginal, stable) == (a.marginal, a.stable)
-        np.testing.assert_array_equal(core, a.core)
+    n = 13
+    wanted = []
+    A = np.empty((6, n, n))
+    for k in range(6):
+        # eigenvalues as s; a discrete loop gets z = exp(s Ts); loop 2 has one unstable mode
+        s = -rng.uniform(1.0, 20.0, n) + 1j * 0
+        if k == 2:
+            s[4] = 3.0
+        z = np.exp(s * sample_time) if sample_time else s
+        V = np.eye(n) + 0.1 * rng.normal(size=(n, n))
+        A[k] = (V @ np.diag(z.real) @ np.linalg.inv(V))
+        wanted.append(np.sort(s.real))
+    K = rng.normal(size=(6, 4, 12))
+    pe = 1
+    for k in range(3):  # the first three loops: pE free, its mode at s = 0 (z = 1) beside the others
+        A[k, :, pe] = 0.0
+        A[k, pe, :] = 0.0
+        A[k, pe, pe] = 1.0 if sample_time else 0.0
+        K[k, :, pe] = 0.0
+        rest = [i for i in range(n) if i != pe]
+        wanted[k] = np.sort(np.linalg.eigvals(A[k][np.ix_(rest, rest)]).real)
+        wanted[k] = np.sort(np.log(wanted[k]) / sample_time) if sample_time else wanted[k]
+    got = stability.verdict_stack(A, K, sample_time=sample_time)
+    for k, (core, marginal, stable) in enumerate(got):
+        assert marginal == (("pE",) if k < 3 else ()), k
+        np.testing.assert_allclose(np.sort(core.real), wanted[k], rtol=1e-9, atol=1e-9)
+        assert stable is (k != 2), k

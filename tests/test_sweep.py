@@ -564,3 +564,38 @@ def test_a_resumed_monte_carlo_reads_the_trajectories_from_its_journal(mambo, tm
     resumed = sweep.execute(mambo, spec, tmp_path / "cut", jobs=1, resume=True)
     assert resumed.reused == 2 and sorted(resumed.result.traces) == [2, 3]
     assert (tmp_path / "cut" / "montecarlo.npz").read_bytes() == (tmp_path / "full" / "montecarlo.npz").read_bytes()
+
+
+def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
+    """A sweep gives cases of one lane structure (batched._structure) the constants and initial
+    state of the first, with only the gains rewritten: so a change in any other field of the loop must
+    give another structure. Each field of ClosedLoop but the gains and the spectrum, changed alone."""
+    from dataclasses import fields, replace
+
+    from _solve import cfg_dict, solve
+
+    from quadctl.sweep import batched
+
+    data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include", "delay": {"samples": 1}})
+    data["motors"]["time_constant"] = 0.03
+    data["estimator"] = {"measure": ["imu", "mocap"]}
+    measured = ("pN", "pE", "pD", "phi", "theta", "psi", "p", "q", "r")
+    data["simulation"]["noise"] = {"seed": 1, "force": [0.01] * 3, "torque": [1e-5] * 3,
+                                   "sensor": {s: 0.01 for s in measured}}
+    setup, _, linear, _, des = solve(data)
+    loop = pipeline.loop_of(setup, linear, des)
+    assert loop.Kv is not None and loop.estimator is not None and loop.integral_states and loop.delay_samples
+
+    def key(lp):
+        return batched._structure(lp, (True, False, 1.0), batched._Seen())[0]
+
+    changed = {"params": loop.params * 1.01, "x_trim": loop.x_trim + 1e-3, "u_trim": loop.u_trim * 1.01,
+               "x_rate": loop.x_rate + 1e-3, "rate": 400.0, "integral_states": ("pN",),
+               "actuators": replace(loop.actuators), "open_loop_eigenvalues": loop.open_loop_eigenvalues * 2,
+               "delay_samples": 2, "lag_model_time_constant": 0.05, "estimator": replace(loop.estimator)}
+    structural = {f.name for f in fields(loop)} - set(batched.PER_CASE)
+    assert structural == set(changed), "a new ClosedLoop field: add a change of it here"
+    for name, value in changed.items():
+        assert key(replace(loop, **{name: value})) != key(loop), name
+    same = replace(loop, K=loop.K * 2, Ki=loop.Ki * 2, Kv=loop.Kv * 2, eigenvalues=loop.eigenvalues * 2, owners=[])
+    assert key(same) == key(loop)
