@@ -29,6 +29,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.analysis import UNIT_CIRCLE_MARGIN
 from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
+from quadctl.errors import DesignError
 from quadctl.riccati import LqrResult, as_stack, require_valid_weights, solve
 from quadctl.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
 
@@ -39,6 +40,13 @@ SAMPLES_PER_POLE = 10.0
 the rule of thumb of sampling at least ten times the fastest closed-loop frequency (Franklin,
 Powell & Workman, *Digital Control of Dynamic Systems*, ch. 11, recommend 10 to 40). Beyond it the
 ZOH's half-sample delay costs more than ``360 / (2 * 10) = 18`` degrees of phase at that pole."""
+
+
+VAN_LOAN_SPAN = 1.0
+"""Largest ``||A||_1 Ts`` over which :func:`lqrd_weights` integrates the weights with one Van Loan
+exponential; a longer sample is split into ``2^k`` spans and doubled back. Past a few units the
+exponential's blocks, which grow and decay in opposite directions, cancel: at 0.1 Hz the roll
+loop's sampled Q came out indefinite. At 200 Hz the report's loops are at 0.05: one exponential."""
 
 
 def c2d(A, B, Ts: float) -> tuple[np.ndarray, np.ndarray]:
@@ -93,11 +101,12 @@ def c2d_batch(A, B, Ts) -> tuple[np.ndarray, np.ndarray]:
     batch, n, m = B.shape
     F = np.zeros((batch, n + m, n + m))
     F[:, :n, :n], F[:, :n, n:] = A, B
-    E = scipy.linalg.expm(F * _sample_times(Ts, batch)[:, None, None])
+    with np.errstate(over="ignore", invalid="ignore"):  # sampled for hours, a plant overflows: inf, for the caller
+        E = scipy.linalg.expm(F * _sample_times(Ts, batch)[:, None, None])
     return E[:, :n, :n], E[:, :n, n:]
 
 
-def lqrd_weights(A, B, Q, R, Ts: float, N=None):
+def lqrd_weights(A, B, Q, R, Ts: float, N=None, *, name: str = "system"):
     """The ZOH plant and the discrete weights equivalent to the continuous cost (MATLAB ``lqrd``).
 
     ``[[Qd, Nd], [Nd', Rd]] = integral_0^Ts [[Phi, Gamma], [0, I]]' [[Q, N], [N', R]]
@@ -109,6 +118,11 @@ def lqrd_weights(A, B, Q, R, Ts: float, N=None):
     Ad, Bd, Qd, Rd, Nd : ndarray
         Shapes (n, n), (n, m), (n, n), (m, m), (n, m).
 
+    Raises
+    ------
+    DesignError
+        Naming ``name``: the sampled plant or weights overflow (a sample time of hours).
+
     Examples
     --------
     The integrator ``x' = u``: ``Qd = q Ts``, ``Nd = q Ts^2 / 2``, ``Rd = r Ts + q Ts^3 / 3``.
@@ -119,11 +133,15 @@ def lqrd_weights(A, B, Q, R, Ts: float, N=None):
     """
     A, B, Q, R = _as2d(A), _as2d(B), _as2d(Q), _as2d(R)
     out = lqrd_weights_batch(A[None], B[None], Q[None], R[None], Ts, None if N is None else _as2d(N)[None])
+    if not all(np.all(np.isfinite(M)) for M in out):
+        raise DesignError(f"{name}: sampled every {Ts:.3g} s (controller.rate {1 / Ts:.3g} Hz) its response "
+                          "overflows double precision; use a faster controller.rate")
     return tuple(M[0] for M in out)
 
 
 def lqrd_weights_batch(A, B, Q, R, Ts, N=None):
-    """:func:`lqrd_weights` of stacked problems: one ``scipy.linalg.expm`` call over the stack.
+    """:func:`lqrd_weights` of stacked problems: one ``scipy.linalg.expm`` call over the stack (over
+    a fraction of a long sample, doubled back: :data:`VAN_LOAN_SPAN`).
 
     Parameters
     ----------
@@ -150,16 +168,38 @@ def lqrd_weights_batch(A, B, Q, R, Ts, N=None):
     A, B, Q, R, N = as_stack(A, B, Q, R, N, name="lqrd_weights_batch")
     batch, n, m = B.shape
     k = n + m
+    Ts = _sample_times(Ts, batch)
+    # the exponential over a span where ||A|| h <= VAN_LOAN_SPAN, then doubled up to Ts
+    with np.errstate(divide="ignore"):
+        span = np.abs(A).sum(axis=1).max(axis=1, initial=0.0) * Ts / VAN_LOAN_SPAN
+        halvings = np.where(span > 1.0, np.ceil(np.log2(span)), 0.0).astype(int)
     F = np.zeros((batch, k, k))
     F[:, :n, :n], F[:, :n, n:] = A, B
     W = _joint(Q, R, N)
     vl = np.zeros((batch, 2 * k, 2 * k))
     vl[:, :k, :k], vl[:, :k, k:], vl[:, k:, k:] = -F.transpose(0, 2, 1), W, F
-    E = scipy.linalg.expm(vl * _sample_times(Ts, batch)[:, None, None])
-    phi = E[:, k:, k:]
-    Wd = phi.transpose(0, 2, 1) @ E[:, :k, k:]
-    Wd = (Wd + Wd.transpose(0, 2, 1)) / 2
+    with np.errstate(over="ignore", invalid="ignore"):  # sampled for hours, a plant overflows: inf, for the caller
+        E = scipy.linalg.expm(vl * (Ts / 2.0 ** halvings)[:, None, None])
+        phi = E[:, k:, k:]
+        Wd = phi.transpose(0, 2, 1) @ E[:, :k, k:]
+        Wd = _doubled(phi.copy(), (Wd + Wd.transpose(0, 2, 1)) / 2, halvings)
+        long = halvings > 0  # their ZOH plant from one exponential over the whole sample (squares compound errors)
+        if long.any():
+            phi[long] = scipy.linalg.expm(F[long] * Ts[long][:, None, None])
     return phi[:, :n, :n], phi[:, :n, n:], Wd[:, :n, :n], Wd[:, n:, n:], Wd[:, :n, n:]
+
+
+def _doubled(phi, Wd, halvings):
+    """:func:`lqrd_weights_batch`'s integrals over ``h`` doubled ``halvings`` times (per problem)."""
+    for step in range(int(halvings.max(initial=0))):
+        # over 2h: Wd(2h) = Wd(h) + phi(h)' Wd(h) phi(h), phi(2h) = phi(h)^2 (a sum of congruences:
+        # no cancellation, where the one exponential's blocks over a long span cancel to garbage)
+        more = halvings > step
+        p = phi[more]
+        Wd[more] = Wd[more] + p.transpose(0, 2, 1) @ Wd[more] @ p
+        Wd[more] = (Wd[more] + Wd[more].transpose(0, 2, 1)) / 2
+        phi[more] = p @ p
+    return Wd
 
 
 class LqrdWeightMap:
@@ -271,7 +311,7 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system", state_names=Non
         The continuous weights are invalid (checked before they are integrated), or ``dlqr`` fails.
     """
     require_valid_weights(A, B, Q, R, N, name=name)
-    Ad, Bd, Qd, Rd, Nd = lqrd_weights(A, B, Q, R, Ts, N)
+    Ad, Bd, Qd, Rd, Nd = lqrd_weights(A, B, Q, R, Ts, N, name=name)
     return dlqr(Ad, Bd, Qd, Rd, Nd, name=name, state_names=state_names)
 
 
@@ -339,8 +379,12 @@ def unstable_when_sampled(warnings, rate: float) -> str | None:
 
 
 def spectral_radius(A_cl) -> float:
-    """``max |eig(A_cl)|`` of a discrete closed loop (``>= 1``: not stable)."""
-    return float(np.abs(np.linalg.eigvals(_as2d(A_cl))).max())
+    """``max |eig(A_cl)|`` of a discrete closed loop (``>= 1``: not stable; ``inf`` when sampling it
+    overflowed, as a fast loop sampled every few hours does)."""
+    A_cl = _as2d(A_cl)
+    if not np.all(np.isfinite(A_cl)):
+        return math.inf
+    return float(np.abs(np.linalg.eigvals(A_cl)).max())
 
 
 def rate_warnings(loops, rate: float) -> list[RateWarning]:

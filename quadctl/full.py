@@ -155,7 +155,7 @@ def linear_cost(A, B, K, Ki, design, dx0) -> float:
     else:
         n_keep_x = [i for i in keep if i < N_STATES]
         Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(A[np.ix_(n_keep_x, n_keep_x)], B[n_keep_x],
-                                                   Q_all[np.ix_(n_keep_x, n_keep_x)], R, Ts)
+                                                   Q_all[np.ix_(n_keep_x, n_keep_x)], R, Ts, name="full")
         Cr = C[:, n_keep_x]
         Aa, Ba = integral.augment_discrete(Ad, Bd, Cr, Ts)
         qidx = n_keep_x + list(range(N_STATES, N_STATES + nz))

@@ -256,7 +256,7 @@ def _solve_subsystem(sub, Q, R, ints, Ts, tau=None):
         eig_s, eig_z = res.E, None
     else:
         require_stabilizable(Aa, Ba, label, names)
-        Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(A, B, Q[:n + nl, :n + nl], R, Ts)
+        Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(A, B, Q[:n + nl, :n + nl], R, Ts, name=label)
         Ada, Bda = integral.augment_discrete(Ad, Bd, C, Ts)
         Qda, Nda = integral.discrete_weights(Qd, Nd, Q, Ts)
         res = discrete.dlqr(Ada, Bda, Qda, Rd, Nda, name=label)

@@ -70,3 +70,12 @@ def test_run_stops_at_check_with_the_same_verdict(tmp_path):
     assert res.exit_code == 1, res.output
     assert f"quadctl: check failed: check: {UNSTABLE_AT_200HZ}" in flat(res.output)
     assert "✓ check" not in res.output and not (tmp_path / "sim.npz").exists()
+
+
+def test_the_slowest_rate_check_takes_is_a_verdict_not_a_crash(tmp_path):
+    """At --rate's lower bound (1e-9 Hz: a sample every 30 years) the sampled loops overflow: that
+    is an unstable loop (spectral radius inf), said in one line, exit 1."""
+    res = invoke("check", "-c", "hover", "--rate", "1e-9", "-o", tmp_path)
+    assert res.exit_code == 1
+    assert "quadctl: check failed: sampled at 1e-09 Hz the continuous design's loop(s)" in flat(res.output)
+    assert "spectral radius inf" in flat(res.output) and "Traceback" not in res.output

@@ -161,3 +161,39 @@ def test_the_weight_map_samples_any_weights_as_van_loan_does(n, m):
         assert np.abs(got - ref).max() <= 1e-14 * np.abs(ref).max()
     np.testing.assert_array_equal(Qd_map, Qd_map.transpose(0, 2, 1))
     np.testing.assert_array_equal(Rd_map, Rd_map.transpose(0, 2, 1))
+
+
+@pytest.mark.parametrize("Ts", [1.0, 10.0, 100.0])
+def test_lqrd_weights_of_a_long_sample_are_the_integral(Ts):
+    """A sample of seconds (a controller at 0.01-1 Hz): the weights are still the integral of the
+    sampled cost, positive semidefinite (one Van Loan exponential over 10 s gave an indefinite Qd)."""
+    import scipy.integrate
+
+    setup, _, _, dec, _ = solve(cfg_dict("hover"))
+    sub = next(s for s in dec.regulated if s.name == "roll")  # v, phi, p: ||A|| = g
+    n, m = sub.B.shape
+    Q, R = setup.weights["roll"]
+    Q = Q[:n, :n]
+    F = np.zeros((n + m, n + m))
+    F[:n, :n], F[:n, n:] = sub.A, sub.B
+    W = scipy.linalg.block_diag(Q, R)
+
+    def integrand(t):
+        E = scipy.linalg.expm(F * t)
+        return E.T @ W @ E
+
+    ref, _ = scipy.integrate.quad_vec(integrand, 0.0, Ts, epsrel=1e-12, epsabs=0.0)
+    Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(sub.A, sub.B, Q, R, Ts)
+    got = np.block([[Qd, Nd], [Nd.T, Rd]])
+    assert np.abs(got - ref).max() <= 1e-7 * np.abs(ref).max()
+    assert np.linalg.eigvalsh(got).min() > -1e-12 * np.abs(got).max()
+    zoh = scipy.linalg.expm(F * Ts)[:n]
+    assert np.abs(np.block([[Ad, Bd]]) - zoh).max() <= 1e-12 * np.abs(zoh).max()
+
+
+def test_a_sample_of_years_is_a_design_error_naming_the_rate():
+    from quadctl.errors import DesignError
+
+    with pytest.raises(DesignError, match=r"sampled every 1e\+09 s \(controller\.rate 1e-09 Hz\) its response "
+                                          r"overflows double precision; use a faster controller\.rate"):
+        solve(cfg_dict("hover", controller={"rate": 1e-9, "design": "discrete"}))
