@@ -506,8 +506,8 @@ def locked(folder: Path | str):
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ArtifactError(f"{folder}: cannot write artifacts there ({_reason(exc)}); "
-                            "choose another --out folder") from None
+        why = "a file, not a folder" if folder.is_file() else _reason(exc)
+        raise ArtifactError(f"{folder}: cannot write artifacts there ({why}); choose another --out folder") from None
     release = _lock_flock(folder) if fcntl is not None else _lock_exclusive(folder)
     _held[key] = 1
     try:

@@ -423,3 +423,11 @@ def test_an_unreachable_scheduler_fails_within_the_timeout(monkeypatch):
     with pytest.raises(SweepError, match=rf"^--scheduler tcp://127\.0\.0\.1:{port}: cannot reach the Dask scheduler"):
         runner_mod._dask_client(f"tcp://127.0.0.1:{port}")
     assert time.perf_counter() - start < 8
+
+
+def test_an_output_folder_that_is_a_file_is_said_to_be_one(tmp_path):
+    blocker = tmp_path / "results"
+    blocker.write_text("")
+    res = runner.invoke(app, ["trim", "-o", str(blocker)])
+    assert res.exit_code == 2
+    assert f"{blocker}: cannot write artifacts there (a file, not a folder); choose another --out folder" in res.stderr
