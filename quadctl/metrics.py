@@ -68,8 +68,9 @@ def summarize(sim, u_trim, Q, R, regulated_states) -> dict:
     Returns
     -------
     dict
-        ``settling_time`` (s), ``overshoot`` (%), ``peak_error``, ``final_error`` per state;
-        ``peak`` per input (max |u|, N or N m); ``cost``; ``status``.
+        ``settling_time`` (s; None when the run did not reach its end), ``overshoot`` (%),
+        ``peak_error``, ``final_error`` per state; ``peak`` per input (max |u|, N or N m); ``cost``;
+        ``status``.
     """
     err = sim.x - sim.x_ref
     du = sim.u - np.asarray(u_trim)
@@ -77,8 +78,8 @@ def summarize(sim, u_trim, Q, R, regulated_states) -> dict:
     for i, name in enumerate(STATE_NAMES):
         out["peak_error"][name] = float(np.abs(err[:, i]).max())
         out["final_error"][name] = float(err[-1, i])
-        if name in regulated_states:
-            out["settling_time"][name] = settling_time(sim.t, err[:, i])
+        if name in regulated_states:  # a run cut short has not shown where it settles
+            out["settling_time"][name] = settling_time(sim.t, err[:, i]) if sim.status == "ok" else None
             out["overshoot"][name] = overshoot(err[:, i])
     out["peak"] = {name: float(np.abs(sim.u[:, j]).max()) for j, name in enumerate(INPUT_NAMES)}
     cost = lqr_cost(sim.t, err, du, np.asarray(Q), np.asarray(R))
@@ -198,8 +199,8 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status) -> list[
     out = []
     for b, c in enumerate(cost.tolist()):
         out.append({
-            "settling_time": {name: 0.0 if at_once[b][i] else None if never[b][i] else settled_at[b][i]
-                              for i, name in regulated},
+            "settling_time": {name: None if never[b][i] or status[b] != "ok" else 0.0 if at_once[b][i]
+                              else settled_at[b][i] for i, name in regulated},
             "overshoot": {name: None if no_initial[b][i] else over[b][i] for i, name in regulated},
             "peak_error": dict(zip(STATE_NAMES, peaks[b])), "final_error": dict(zip(STATE_NAMES, finals[b])),
             "peak": dict(zip(INPUT_NAMES, peak_u[b])), "cost": c if math.isfinite(c) else None,

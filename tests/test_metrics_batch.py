@@ -62,3 +62,14 @@ def test_sweep_rows_do_not_depend_on_the_batch_size(monkeypatch):
     monkeypatch.setattr(MetricsBatch, "SIZE", 1)
     one = sweep.run(cfg, spec, jobs=1)
     assert json.dumps(eight.rows) == json.dumps(one.rows)
+
+
+def test_a_run_cut_short_has_no_settling_time_but_its_other_metrics():
+    """A run that left the bounds has not shown where it settles: settling is None for every state
+    (a quiet state would otherwise look settled at the step the run stopped), peaks stay."""
+    rng = np.random.default_rng(3)
+    t, err, u, u_trim, Q, R = _runs(rng, 2, 300)
+    ok, cut = metrics.summarize_errors(t, err, u, u_trim, Q, R, STATE_NAMES, ["ok", "diverged"])
+    assert ok["settling_time"]["pD"] == 0.0 and cut["settling_time"]["pD"] is None
+    assert all(v is None for v in cut["settling_time"].values())
+    assert cut["peak_error"]["phi"] == float(np.abs(err[1, 6]).max())
