@@ -161,3 +161,43 @@ def test_python_dash_m_and_version():
 
     out = subprocess.run([sys.executable, "-m", "quadctl", "--version"], capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.startswith("quadctl ")
+
+
+USAGE_ERRORS = {
+    "a rate below its bound": (["check", "--rate", "-5"],
+                               "quadctl: error: --rate -5: out of range; give --rate a value of at least 1e-09"),
+    "a rate that is no number": (["check", "--rate=fast"],
+                                 "quadctl: error: --rate fast: not a number; give --rate a number"),
+    "an export target that does not exist": (["export", "--to", "py"],
+                                             "quadctl: error: --to py: must be one of c, mat, json"),
+    "a misspelt export target": (["export", "--to", "jsn"],
+                                 "quadctl: error: --to jsn: must be one of c, mat, json; did you mean `json`?"),
+    "no export target": (["export"], "quadctl: error: quadctl export needs --to c | mat | json; add it "
+                                     "(`quadctl export --help` describes it)"),
+    "no worker": (["sweep", "-j", "0"], "quadctl: error: --jobs 0: out of range; give --jobs a value of at least 1"),
+    "an unknown option": (["trim", "--bogus"], "quadctl: error: --bogus: quadctl trim has no such option; its "
+                                               "options: --config, --out, --json, --fresh, --help"),
+    "a misspelt option": (["trim", "--jsn"], "quadctl: error: --jsn: quadctl trim has no such option; "
+                                             "did you mean `--json`?"),
+    "an option without its value": (["check", "--rate"], "quadctl: error: quadctl check: option '--rate' requires "
+                                                         "an argument; see `quadctl check --help`"),
+    "an unknown command": (["trmi"], "quadctl: error: quadctl: no such command 'trmi'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(USAGE_ERRORS))
+def test_usage_errors_are_one_line_with_the_fix_exit_2(case):
+    """click's usage block and boxed error became one stderr line naming the option, the value and the fix."""
+    args, start = USAGE_ERRORS[case]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert res.stdout == ""
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(start), res.stderr
+
+
+def test_help_still_answers_and_no_arguments_still_print_it():
+    for args in (["check", "--help"], ["-h"], []):
+        res = runner.invoke(app, args)
+        assert "Usage: quadctl" in res.output and "quadctl: error" not in res.output
+    assert runner.invoke(app, ["check", "--help"]).exit_code == 0
