@@ -70,3 +70,13 @@ def test_run_stops_at_check_with_the_same_verdict(tmp_path):
     assert res.exit_code == 1, res.output
     assert f"quadctl: check failed: check: {UNSTABLE_AT_200HZ}" in flat(res.output)
     assert "✓ check" not in res.output and not (tmp_path / "sim.npz").exists()
+
+
+@pytest.mark.parametrize("command", [("check",), ("export", "--to", "c")])
+def test_a_rate_beside_the_configs_own_is_refused_alike_by_check_and_export(tmp_path, command):
+    """check used to ignore --rate on a discrete design (mambo-200hz: 200 Hz) while export refused it."""
+    res = invoke(*command, "-c", "mambo-200hz", "--rate", 100, "-o", tmp_path)
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip() == ("quadctl: error: --rate 100: the config sets controller.rate = 200 Hz; drop --rate, "
+                                  "or remove controller.rate to run the continuous design at another rate")
+    assert not (tmp_path / "checks.json").exists()

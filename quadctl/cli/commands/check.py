@@ -12,8 +12,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
             fresh: FreshOpt = False,
             rate: Annotated[Optional[float], typer.Option(
                 "--rate", metavar="HZ", min=1e-9,
-                help="Also check the continuous design against this controller rate (a what-if; "
-                     "the config's controller.rate is checked anyway when its design is continuous).")] = None,
+                help="Also check the continuous design against this controller rate (a what-if for a config "
+                     "without controller.rate; one that sets it is checked at its own rate).")] = None,
             ) -> None:
     """Controllability, observability, PBH, stabilizability of every subsystem and the full model.
 
@@ -30,6 +30,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     from quadctl.discrete import unstable_when_sampled
 
     ws = open_workspace(config, out, fresh)
+    ws.setup.timing.refuse_other_rate(rate)
     checks = ws.checks
     regulated = set(checks.regulated)
     rated = [(checks.rate, checks.rate_warnings)] if checks.rate_warnings else []
