@@ -19,7 +19,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
 
     Warns when a continuous design has closed-loop poles faster than the controller rate can
     realize (which loop, by how much, and whether the sampled loop is still stable).
-    With an ``estimator:``, the measured set on the coupled model too (row ``estimator``).
+    With an 'estimator:' section, the measured set on the coupled model too (row 'estimator').
     With rotor lag (motors.time_constant) or delay (controller.delay), whether the design's loop
     stays stable with them, and how much damping they take.
     Exits 1 when a regulated subsystem is not stabilizable, the measured set leaves a mode that is
