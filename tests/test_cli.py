@@ -102,6 +102,19 @@ def test_run_executes_every_stage(tmp_path):
         assert (tmp_path / name).exists()
 
 
+@pytest.mark.parametrize("name,dropped", [("hover", "1 term dropped"), ("forward", "10 terms dropped")])
+def test_run_prints_each_stage_on_one_line_with_counts_in_words(tmp_path, name, dropped):
+    """Through a pipe (80 columns) the forward trim line (82 characters) wrapped mid-number; hover said
+    "1 terms dropped"."""
+    res = invoke("run", "-o", tmp_path, "-c", name)
+    assert res.exit_code == 0, res.output
+    lines = res.stdout.splitlines()
+    trim = next(line for line in lines if line.startswith("✓ trim"))
+    assert trim.endswith(f"residual {json.loads((tmp_path / 'trim.json').read_text())['residual']:.1e}")
+    assert f"✓ decouple   5 subsystems, {dropped}" in lines
+    assert all(line.startswith(("✓ ", "artifacts in")) for line in lines), lines
+
+
 def test_configs_lists_and_shows(tmp_path):
     res = invoke("configs")
     assert "forward" in res.output and "hover" in res.output
@@ -201,3 +214,22 @@ def test_help_still_answers_and_no_arguments_still_print_it():
         res = runner.invoke(app, args)
         assert "Usage: quadctl" in res.output and "quadctl: error" not in res.output
     assert runner.invoke(app, ["check", "--help"]).exit_code == 0
+
+
+def test_help_texts_show_no_rst_quotes_and_sweep_states_the_uncertainty_rule():
+    """check --help showed ``estimator:`` literally; sweep --help said a noise-seed sweep alone is a
+    Monte Carlo, though every plant-side sweep (spec.plant_side) writes montecarlo.png/.npz."""
+    from quadctl.cli.commands import COMMANDS
+    from quadctl.sweep.spec import plant_side
+
+    for module in COMMANDS:
+        res = runner.invoke(app, [module.NAME, "--help"], env={"COLUMNS": "200"})
+        assert res.exit_code == 0 and "``" not in res.output, module.NAME
+    text = " ".join(runner.invoke(app, ["sweep", "--help"], env={"COLUMNS": "200"}).output.split())
+    assert "alone is a Monte Carlo" not in text
+    assert "is an uncertainty study: one design flies every case; it also writes montecarlo.png and montecarlo.npz" \
+        in text
+    named = [("simulation", "noise", "seed"), ("simulation", "plant", "mass"), ("simulation", "plant", "inertia", 0),
+             ("simulation", "initial_offset", "pD"), ("simulation", "wind", "gusts"), ("controller", "delay"),
+             ("motors", "time_constant")]
+    assert all(plant_side(keys) for keys in named)
