@@ -31,6 +31,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
 
     ws = open_workspace(config, out, fresh)
     ws.setup.timing.refuse_other_rate(rate)
+    if ws.setup.timing.rate is not None:  # --rate is the config's own: checked as the config's (no what-if of
+        rate = None                       # the continuous design, which a discrete config does not fly)
     checks = ws.checks
     regulated = set(checks.regulated)
     rated = [(checks.rate, checks.rate_warnings)] if checks.rate_warnings else []
