@@ -278,10 +278,10 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
         if samples is None:
             raise fail("samples", "random mode needs the number of cases; add `samples: 100`, say")
     else:  # a grid runs every combination of the values given: nothing is drawn
-        for key in ("samples", "seed"):
+        for key, drawn in (("samples", "that many cases"), ("seed", "its cases from that seed")):
             if key in data:
                 raise fail(key, f"{show(data[key])}: a grid runs every combination of the parameters' values "
-                           f"and takes no {key}; remove it, or set mode: random to draw {key_draws(key)}")
+                           f"and takes no {key}; remove it, or set mode: random to draw {drawn}")
     if samples is not None and (not is_whole(samples) or samples < 1):
         raise fail("samples", f"{show(samples, exact=True)}: {whole_number(samples, 1)}")
     if samples is not None and samples > MAX_CASES:
@@ -450,11 +450,6 @@ def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
         raise SweepError(f"{where}: is a section, not a value; name one of its keys: "
                          f"{', '.join(map(str, node))}")
     return keys
-
-
-def key_draws(key: str) -> str:
-    """What a random sweep draws with ``samples`` or ``seed`` (for the grid-mode message)."""
-    return "that many cases" if key == "samples" else "its cases from that seed"
 
 
 def parse_path(path: str) -> tuple:
