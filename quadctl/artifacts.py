@@ -412,9 +412,12 @@ def read_npz(path: Path) -> tuple[dict[str, np.ndarray], dict]:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
         meta = json.loads(str(arrays.pop("meta")))
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError) as exc:
+    except OSError as exc:  # a read that failed (permissions, a disk error): say why
         raise ArtifactError(f"{path}: corrupted artifact ({_reason(exc)}); "
                             "delete it or rerun with --fresh") from None
+    except (ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError):  # not NumPy's allow_pickle advice
+        raise ArtifactError(f"{path}: corrupted artifact: not a valid quadctl artifact (an .npz of named arrays "
+                            "and its meta record); rerun with --fresh to recompute it") from None
     _check_provenance(path, meta if isinstance(meta, dict) else {})
     validate(path, arrays)
     return arrays, meta

@@ -551,7 +551,21 @@ def _expected(err: dict, loc: list) -> str:
                 "(it names the folder runs/<name>)")
     if kind == "string_too_short":
         return "must not be empty"
+    if kind == "literal_error" and field is not None:
+        choices = _literal_values(field.annotation)
+        if choices:
+            near = _hint(str(err.get("input")), choices)
+            return f"must be one of {', '.join(choices)}" + (f"; {near}" if near.startswith("did you mean") else "")
     return err["msg"]
+
+
+def _literal_values(annotation) -> list[str]:
+    """The values a ``Literal[...]`` field takes (inside ``Optional`` or ``Union`` too)."""
+    from typing import get_args, get_origin
+
+    if get_origin(annotation) is Literal:
+        return [str(v) for v in get_args(annotation)]
+    return [v for arg in get_args(annotation) for v in _literal_values(arg)]
 
 
 def _field_info(loc: list):
@@ -648,10 +662,11 @@ def _check_semantics(cfg: Config, label: str) -> None:
             fail(where, sorted(regulated), f"input `{inp}` is not assigned to any regulated subsystem; "
                  "add it to one subsystem's inputs")
     for name in cfg.lqr:
-        if name not in partition:
-            fail(f"lqr.{name}", name, _unknown(name, list(regulated), "regulated subsystem"))
+        if name not in partition:  # a key, not a value: named as an unknown key is
+            raise ConfigError(f"{label}: lqr.{name}: {_unknown(name, list(regulated), 'regulated subsystem')}")
         if not partition[name].regulate:
-            fail(f"lqr.{name}", name, "this subsystem has regulate: false; remove its weights or regulate it")
+            raise ConfigError(f"{label}: lqr.{name}: this subsystem has regulate: false; remove its weights "
+                              "or regulate it")
     for name, sub in regulated.items():
         if name not in cfg.lqr:
             fail("lqr", sorted(cfg.lqr), f"regulated subsystem `{name}` has no weights; "

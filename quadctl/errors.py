@@ -25,6 +25,13 @@ class ArtifactError(QuadctlError, OSError):
     """An artifact cannot be written, or an existing one is corrupt or foreign."""
 
 
+class ActuatorLimitError(ConfigError):
+    """The trim needs more (or less) than the configured actuator limits allow: the config's
+    values conflict, found by a stage that has numbers, not the file."""
+
+    from_config = True
+
+
 class SweepError(QuadctlError, ValueError):
     """A sweep file is invalid."""
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.errors import ConfigError
+from quadctl.errors import ActuatorLimitError
 from quadctl.layout import INPUT_INDEX, INPUT_NAMES, INPUT_UNITS, N_INPUTS
 
 SATURATED_RTOL = 1e-9
@@ -155,21 +155,28 @@ def actuators_of(motors: Motors | None = None, limits: dict | None = None) -> Ac
 
 
 def check_trim(actuators: Actuators | None, u_trim) -> None:
-    """Raise ConfigError when the trim itself is outside the actuator limits (no flight possible)."""
+    """Raise ActuatorLimitError (a ConfigError) when the trim itself is outside the actuator
+    limits (no flight possible); the message names the limit's key, its value and the fix."""
     if actuators is None:
         return
     act = actuators.commands(u_trim)
     for i, name in enumerate(actuators.names):
-        if actuators.lo[i] <= act[i] <= actuators.hi[i]:
+        lo, hi = actuators.lo[i], actuators.hi[i]
+        if lo <= act[i] <= hi:
             continue
+        above = act[i] > hi
         if actuators.mode == "motors":
-            key, unit = ("motors.max_thrust" if act[i] > actuators.hi[i] else "motors.min_thrust"), "N"
+            key, unit = ("motors.max_thrust" if above else "motors.min_thrust"), "N"
+            value = f"{hi if above else lo:.4g}"
+            fix = f"{'raise' if above else 'lower'} {key} {'above' if above else 'below'} {act[i]:.4g} N"
         else:
             key, unit = f"limits.{name}", INPUT_UNITS[name]
-        raise ConfigError(
-            f"{key}: the trim needs {name} = {act[i]:.4g} {unit}, outside the limits "
-            f"[{actuators.lo[i]:.4g}, {actuators.hi[i]:.4g}] {unit}; the vehicle cannot hold this flight "
-            "condition: raise the limit or change trim:")
+            value = f"[{lo:.4g}, {hi:.4g}]"
+            fix = f"widen {key} to include {act[i]:.4g} {unit}"
+        raise ActuatorLimitError(
+            f"{key} = {value}: the trim needs {name} = {act[i]:.4g} {unit}, outside the limits "
+            f"[{lo:.4g}, {hi:.4g}] {unit}, so the vehicle cannot hold this flight condition; {fix}, "
+            "or trim for a slower or lighter flight")
 
 
 def headroom(actuators: Actuators, u_trim) -> dict[str, tuple[float, float]]:

@@ -63,6 +63,22 @@ class Timing:
     def design_sample_time(self) -> float | None:
         return None if self.design_rate is None else 1.0 / self.design_rate
 
+    def refuse_other_rate(self, rate: float | None) -> None:
+        """Refuse a command-line rate (``--rate``, Hz) that differs from the config's own
+        ``controller.rate``: ``check`` and ``export`` run a continuous design at another rate
+        only when the config sets none.
+
+        Raises
+        ------
+        ConfigError
+            ``rate`` given, and the config sets another rate (exit 2).
+        """
+        if rate is not None and self.rate is not None and rate != self.rate:
+            from quadctl.errors import ConfigError
+
+            raise ConfigError(f"--rate {rate:g}: the config sets controller.rate = {self.rate:g} Hz; drop --rate, "
+                              "or remove controller.rate to run the continuous design at another rate")
+
 
 @dataclass(frozen=True)
 class EstimatorSpec:

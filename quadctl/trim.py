@@ -112,6 +112,7 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     newton = _in_wind(wind)
     z = np.array([0.0, 0.0, vehicle.mass * vehicle.gravity])
     total = 0
+    reached = 0.0
     # Homotopy in the speed (and the wind): solve at growing fractions of V^E, each from the last.
     for fraction in (1.0,) if _converges(newton, z, v_e, yaw, params, max_iter) else (
             0.25, 0.5, 0.75, 1.0):
@@ -119,11 +120,13 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
         z, iters, resid = _newton(newton, z, fraction * v_e, yaw, params, max_iter)
         total += iters
         if resid > RESIDUAL_TOL:
+            ramp = (f"the solver's ramp reached {reached:.0%} of it and stalled at {fraction:.0%}" if reached
+                    else f"the solver's ramp stalled at its first step, {fraction:.0%} of it")
             raise TrimError(
-                f"trim did not converge at velocity_ned {_fmt(fraction * v_e)} m/s"
-                + (f" in wind {_fmt(fraction * wind)} m/s " if wind.any() else " ") +
-                f"(residual {resid:.2e} m/s^2 after {iters} iterations); "
-                "try a lower speed or check the vehicle parameters")
+                f"trim.velocity_ned = {_fmt(v_e)} m/s" + (f" in wind {_fmt(wind)} m/s" if wind.any() else "")
+                + f": trim did not converge; {ramp.replace('%', ' %')} (residual {resid:.2e} m/s^2 after "
+                f"{iters} iterations); try a lower speed or check the vehicle parameters (vehicle.drag, vehicle.mass)")
+        reached = fraction
     phi, theta, thrust = z
     _check_physical(phi, theta, thrust, v_e, vehicle, wind)
     x = np.zeros(N_STATES)

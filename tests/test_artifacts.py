@@ -72,6 +72,27 @@ def test_corrupted_artifact_is_a_clear_error(tmp_path):
     assert Workspace(cfg, tmp_path, fresh=True).trim.residual < 1e-12  # --fresh recovers
 
 
+@pytest.mark.parametrize("content", ["pickled objects", "random bytes", "a truncated zip"])
+def test_an_npz_numpy_cannot_read_is_not_a_valid_artifact_rerun_with_fresh(tmp_path, content):
+    """NumPy's reason (its allow_pickle advice, cut off mid-word at 120 characters) gave no way out."""
+    import io
+
+    cfg = config.load("forward")
+    Workspace(cfg, tmp_path).linear  # noqa: B018
+    path = tmp_path / "linear.npz"
+    if content == "pickled objects":
+        buffer = io.BytesIO()
+        np.save(buffer, np.array([object()]), allow_pickle=True)
+        path.write_bytes(buffer.getvalue())
+    else:
+        path.write_bytes(bytes(range(256)) if content == "random bytes" else b"PK\x03\x04 truncated")
+    with pytest.raises(ArtifactError) as info:
+        artifacts.read_npz(path)
+    assert str(info.value) == (f"{path}: corrupted artifact: not a valid quadctl artifact (an .npz of named arrays and "
+                               "its meta record); rerun with --fresh to recompute it")
+    assert Workspace(cfg, tmp_path, fresh=True).linear.A.shape == (12, 12)  # --fresh recovers
+
+
 def test_foreign_format_is_refused(tmp_path):
     path = tmp_path / "trim.json"
     path.write_text(json.dumps({"format_version": 999, "quadctl_version": "9.9", "config_hash": "x"}))

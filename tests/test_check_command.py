@@ -79,3 +79,25 @@ def test_the_slowest_rate_check_takes_is_a_verdict_not_a_crash(tmp_path):
     assert res.exit_code == 1
     assert "quadctl: check failed: sampled at 1e-09 Hz the continuous design's loop(s)" in flat(res.output)
     assert "spectral radius inf" in flat(res.output) and "Traceback" not in res.output
+
+
+@pytest.mark.parametrize("command", [("check",), ("export", "--to", "c")])
+def test_a_rate_beside_the_configs_own_is_refused_alike_by_check_and_export(tmp_path, command):
+    """check used to ignore --rate on a discrete design (mambo-200hz: 200 Hz) while export refused it."""
+    res = invoke(*command, "-c", "mambo-200hz", "--rate", 100, "-o", tmp_path)
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip() == ("quadctl: error: --rate 100: the config sets controller.rate = 200 Hz; drop --rate, "
+                                  "or remove controller.rate to run the continuous design at another rate")
+    assert not (tmp_path / "checks.json").exists()
+
+
+def test_a_rate_equal_to_a_discrete_configs_own_checks_the_discrete_design(tmp_path):
+    """forward designed discrete at 200 Hz passes check; --rate 200 made check test the *continuous* design at
+    200 Hz instead (unstable: exit 1, "use a discrete design") though the config is one."""
+    text = config.resolve("forward").text.replace("name: forward\n",
+                                                  "name: forward\ncontroller: {rate: 200, design: discrete}\n")
+    (tmp_path / "c.yaml").write_text(text)
+    plain = invoke("check", "-c", tmp_path / "c.yaml", "-o", tmp_path / "a")
+    again = invoke("check", "-c", tmp_path / "c.yaml", "--rate", 200, "-o", tmp_path / "b")
+    assert plain.exit_code == again.exit_code == 0, again.output
+    assert "UNSTABLE" not in again.stderr

@@ -102,6 +102,19 @@ def test_run_executes_every_stage(tmp_path):
         assert (tmp_path / name).exists()
 
 
+@pytest.mark.parametrize("name,dropped", [("hover", "1 term dropped"), ("forward", "10 terms dropped")])
+def test_run_prints_each_stage_on_one_line_with_counts_in_words(tmp_path, name, dropped):
+    """Through a pipe (80 columns) the forward trim line (82 characters) wrapped mid-number; hover said
+    "1 terms dropped"."""
+    res = invoke("run", "-o", tmp_path, "-c", name)
+    assert res.exit_code == 0, res.output
+    lines = res.stdout.splitlines()
+    trim = next(line for line in lines if line.startswith("✓ trim"))
+    assert trim.endswith(f"residual {json.loads((tmp_path / 'trim.json').read_text())['residual']:.1e}")
+    assert f"✓ decouple   5 subsystems, {dropped}" in lines
+    assert all(line.startswith(("✓ ", "artifacts in")) for line in lines), lines
+
+
 def test_configs_lists_and_shows(tmp_path):
     res = invoke("configs")
     assert "forward" in res.output and "hover" in res.output
@@ -161,3 +174,62 @@ def test_python_dash_m_and_version():
 
     out = subprocess.run([sys.executable, "-m", "quadctl", "--version"], capture_output=True, text=True)
     assert out.returncode == 0 and out.stdout.startswith("quadctl ")
+
+
+USAGE_ERRORS = {
+    "a rate below its bound": (["check", "--rate", "-5"],
+                               "quadctl: error: --rate -5: out of range; give --rate a value of at least 1e-09"),
+    "a rate that is no number": (["check", "--rate=fast"],
+                                 "quadctl: error: --rate fast: not a number; give --rate a number"),
+    "an export target that does not exist": (["export", "--to", "py"],
+                                             "quadctl: error: --to py: must be one of c, mat, json"),
+    "a misspelt export target": (["export", "--to", "jsn"],
+                                 "quadctl: error: --to jsn: must be one of c, mat, json; did you mean `json`?"),
+    "no export target": (["export"], "quadctl: error: quadctl export needs --to c | mat | json; add it "
+                                     "(`quadctl export --help` describes it)"),
+    "no worker": (["sweep", "-j", "0"], "quadctl: error: --jobs 0: out of range; give --jobs a value of at least 1"),
+    "an unknown option": (["trim", "--bogus"], "quadctl: error: --bogus: quadctl trim has no such option; its "
+                                               "options: --config, --out, --json, --fresh, --help"),
+    "a misspelt option": (["trim", "--jsn"], "quadctl: error: --jsn: quadctl trim has no such option; "
+                                             "did you mean `--json`?"),
+    "an option without its value": (["check", "--rate"], "quadctl: error: quadctl check: option '--rate' requires "
+                                                         "an argument; see `quadctl check --help`"),
+    "an unknown command": (["trmi"], "quadctl: error: quadctl: no such command 'trmi'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(USAGE_ERRORS))
+def test_usage_errors_are_one_line_with_the_fix_exit_2(case):
+    """click's usage block and boxed error became one stderr line naming the option, the value and the fix."""
+    args, start = USAGE_ERRORS[case]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert res.stdout == ""
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(start), res.stderr
+
+
+def test_help_still_answers_and_no_arguments_still_print_it():
+    for args in (["check", "--help"], ["-h"], []):
+        res = runner.invoke(app, args)
+        assert "Usage: quadctl" in res.output and "quadctl: error" not in res.output
+    assert runner.invoke(app, ["check", "--help"]).exit_code == 0
+
+
+def test_help_texts_show_no_rst_quotes_and_sweep_states_the_uncertainty_rule():
+    """check --help showed ``estimator:`` literally; sweep --help said a noise-seed sweep alone is a
+    Monte Carlo, though every plant-side sweep (spec.plant_side) writes montecarlo.png/.npz."""
+    from quadctl.cli.commands import COMMANDS
+    from quadctl.sweep.spec import plant_side
+
+    for module in COMMANDS:
+        res = runner.invoke(app, [module.NAME, "--help"], env={"COLUMNS": "200"})
+        assert res.exit_code == 0 and "``" not in res.output, module.NAME
+    text = " ".join(runner.invoke(app, ["sweep", "--help"], env={"COLUMNS": "200"}).output.split())
+    assert "alone is a Monte Carlo" not in text
+    assert "is an uncertainty study: one design flies every case; it also writes montecarlo.png and montecarlo.npz" \
+        in text
+    named = [("simulation", "noise", "seed"), ("simulation", "plant", "mass"), ("simulation", "plant", "inertia", 0),
+             ("simulation", "initial_offset", "pD"), ("simulation", "wind", "gusts"), ("controller", "delay"),
+             ("motors", "time_constant")]
+    assert all(plant_side(keys) for keys in named)

@@ -65,7 +65,17 @@ CONFIG_CASES = {
                         r"regulated subsystem `yaw` has no weights; add lqr\.yaw with Q \(2 values\) and R \(1\)"),
     "weights for unknown": (_edit("  yaw:      {Q: [50, 1], R: [1]}\n",
                                   "  yaw:      {Q: [50, 1], R: [1]}\n  yw: {Q: [1], R: [1]}\n"),
-                            r"lqr\.yw = \"yw\": unknown regulated subsystem; did you mean `yaw`\?"),
+                            r"c\.yaml: lqr\.yw: unknown regulated subsystem; did you mean `yaw`\?$"),
+    "weights for an unregulated subsystem": (
+        _edit("  yaw:      {Q: [50, 1], R: [1]}\n",
+              "  yaw:      {Q: [50, 1], R: [1]}\n  guidance: {Q: [1, 1], R: [1]}\n"),
+        r"c\.yaml: lqr\.guidance: this subsystem has regulate: false; remove its weights or regulate it$"),
+    "misspelt design mode": (_edit("name: forward\n", "name: forward\ncontroller: {rate: 200, design: discreet}\n"),
+                             r'c\.yaml: controller\.design = "discreet": must be one of discrete, continuous; '
+                             r"did you mean `discrete`\?$"),
+    "unknown turbulence intensity": (_edit("  dt: auto", "  dt: auto\n  wind: {turbulence: {intensity: extreme}}"),
+                                     r'c\.yaml: simulation\.wind\.turbulence\.intensity = "extreme": must be one of '
+                                     r"light, moderate, severe$"),
     "duration not positive": (_edit("duration: 10.0", "duration: -1"),
                               r"simulation\.duration = -1: must be greater than 0"),
     "dt not positive": (_edit("dt: auto", "dt: 0"),

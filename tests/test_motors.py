@@ -52,12 +52,36 @@ def test_plus_layout_rolls_with_the_side_rotors_only():
 
 
 def test_a_trim_the_rotors_cannot_hold_is_refused():
+    """Hover needs m g / 4 = 0.068 * 9.81 / 4 = 0.1668 N per rotor, above max_thrust = 0.1 N."""
     data = cfg_dict("hover", motors={"max_thrust": 0.1})
     setup = resolve(config.from_dict(data))
     linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
-    with pytest.raises(ConfigError, match=r"motors.max_thrust: the trim needs rotor 1 = 0.1668 N, outside "
-                                          r"the limits \[0, 0.1\]"):
+    with pytest.raises(ConfigError, match=r"motors.max_thrust = 0.1: the trim needs rotor 1 = 0.1668 N, outside "
+                                          r"the limits \[0, 0.1\] N, .*; raise motors.max_thrust above 0.1668 N, "
+                                          r"or trim for a slower or lighter flight$"):
         pipeline.closed_loop_of(setup, linear, np.zeros((4, 12)))
+
+
+@pytest.mark.parametrize("section,key,line", [
+    ("motors: {max_thrust: 0.1}", "motors.max_thrust = 0.1",
+     "rotor 1 = 0.1668 N, outside the limits [0, 0.1] N, so the vehicle cannot hold this flight condition; "
+     "raise motors.max_thrust above 0.1668 N, or trim for a slower or lighter flight"),
+    ("limits: {T: [0, 0.5]}", "limits.T = [0, 0.5]",
+     "T = 0.6671 N, outside the limits [0, 0.5] N, so the vehicle cannot hold this flight condition; "
+     "widen limits.T to include 0.6671 N, or trim for a slower or lighter flight"),
+], ids=["rotors", "box limits"])
+def test_a_trim_outside_the_limits_names_the_file_key_value_and_fix(tmp_path, section, key, line):
+    """The error comes from the simulate stage (numbers only): the command line puts the file in front, as
+    it does for the other stage errors, and the sentence ends with the fix (it ended with "change trim:")."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    text = config.resolve("hover").text.replace("simulation:", section + "\nsimulation:")
+    (tmp_path / "c.yaml").write_text(text)
+    res = CliRunner().invoke(app, ["run", "-c", str(tmp_path / "c.yaml"), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 2, res.output
+    assert f"quadctl: error: {tmp_path / 'c.yaml'}: {key}: the trim needs {line}\n" in res.stderr
 
 
 def test_box_limits_clip_the_inputs_and_are_reported():

@@ -7,6 +7,7 @@ import csv
 import dataclasses
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -121,6 +122,32 @@ def test_sweep_file_errors_name_the_key_and_the_fix(cfg, data, message):
         sweep.from_dict(data, cfg, "s.yaml")
     text = str(info.value)
     assert text.startswith("s.yaml: ") and "\n" not in text
+
+
+@pytest.mark.parametrize("data,message", [
+    ({"mode": "grid", "samples": 10, "parameters": {"vehicle.mass": [0.06, 0.07]}},
+     r"^s\.yaml: samples: 10: a grid runs every combination of the parameters' values and takes no samples; "
+     r"remove it, or set mode: random to draw that many cases$"),
+    ({"samples": 10, "parameters": {"vehicle.mass": [0.06, 0.07]}}, r"^s\.yaml: samples: 10: a grid runs every"),
+    ({"seed": 3, "parameters": {"vehicle.mass": [0.06, 0.07]}},
+     r"^s\.yaml: seed: 3: a grid .* takes no seed; remove it, or set mode: random to draw its cases from that seed$"),
+], ids=["grid with samples", "samples, grid by default", "grid with a seed"])
+def test_a_grid_refuses_samples_and_seed(cfg, data, message):
+    """The README says a grid takes no samples, seed or distributions; samples: 10 ran silently."""
+    with pytest.raises(SweepError, match=message):
+        sweep.from_dict(data, cfg, "s.yaml")
+
+
+@pytest.mark.parametrize("path,section", [("simulation.noise.seed", "simulation.noise"),
+                                          ("simulation.wind.turbulence.seed", "simulation.wind")])
+def test_a_path_into_a_section_the_config_leaves_out_says_to_add_it(path, section):
+    """hover has no noise nor wind: it said "simulation.noise = null has no key `seed`; the path goes too deep"."""
+    hover = config.load("hover")
+    assert getattr(hover.simulation, section.split(".")[1]) is None
+    with pytest.raises(SweepError, match=rf"^s\.yaml: parameters\.{re.escape(path)}: the config has no "
+                                         rf"`{re.escape(section)}` section \(it is null\); add a "
+                                         rf"`{re.escape(section)}:` section to the config to vary its keys$"):
+        sweep.from_dict({"parameters": {path: [1, 2]}}, hover, "s.yaml")
 
 
 def test_missing_sweep_file_and_yaml_errors(cfg, tmp_path):

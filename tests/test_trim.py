@@ -62,3 +62,18 @@ def test_climb_with_body_z_drag_past_its_limit_has_no_equilibrium():
 def test_speed_beyond_the_euler_range_is_refused_with_the_angle():
     with pytest.raises(TrimError, match=r"needs pitch -8\d\.\d deg, beyond the 80 deg"):
         solve_trim([200, 0, 0], 0.0, [0, 0, 0], Vehicle())
+
+
+@pytest.mark.parametrize("speed,ramp", [
+    (3.0, r"the solver's ramp reached 25 % of it and stalled at 50 %"),
+    (5.0, r"the solver's ramp stalled at its first step, 25 % of it"),
+])
+def test_non_convergence_names_the_requested_velocity_and_how_far_the_ramp_got(speed, ramp):
+    """It named the ramp's intermediate speed ([1.25, 0, 0] for a requested [5, 0, 0]) as if requested."""
+    vehicle = Vehicle(drag=(1.0, 1.0, 1.0))
+    with pytest.raises(TrimError, match=rf"^trim\.velocity_ned = \[{speed:g}, 0, 0\] m/s: trim did not converge; "
+                                        rf"{ramp} \(residual .* m/s\^2 after \d+ iterations\); try a lower speed"):
+        solve_trim([speed, 0, 0], 0.0, [0, 0, -1], vehicle)
+    if "reached 25 %" in ramp:  # the quarter of the speed the message says was reached is an equilibrium
+        t = solve_trim([0.25 * speed, 0, 0], 0.0, [0, 0, -1], vehicle)
+        assert t.residual <= RESIDUAL_TOL

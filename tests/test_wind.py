@@ -276,11 +276,13 @@ def test_compiled_and_interpreted_loops_agree_in_wind(monkeypatch):
         with pytest.warns(engine.CompilerNotice):
             interpreted = simulate(loop, x0, 0.3, setup.dt, noise=setup.noise, wind=setup.wind)
     finally:
+        monkeypatch.delenv("QUADCTL_NO_COMPILE")  # the still-air run below compiles again (no notice)
         engine.runner.cache_clear()
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     assert np.abs(compiled.x - interpreted.x).max() < 1e-12 and np.abs(compiled.u - interpreted.u).max() < 1e-12
     np.testing.assert_array_equal(compiled.wind, interpreted.wind)
     still = simulate(loop, x0, 0.3, setup.dt, noise=setup.noise)
+    assert still.backend == "compiled"
     assert np.abs(still.x - compiled.x).max() > 1e-3  # the wind moved it
 
 

@@ -142,3 +142,137 @@ def handled(fn):
 
 
 _CTX = "quadctl_context"
+
+
+def _click_exceptions():
+    """The click exceptions module typer raises from (its own vendored copy in newer typers)."""
+    import importlib
+
+    return importlib.import_module(typer.BadParameter.__module__)
+
+
+def _number(text: str) -> str:
+    """``0.000000001`` -> ``1e-09``: every decimal number in ``text`` in its shortest form."""
+    import re
+
+    def short(m):
+        shown = f"{float(m.group()):g}"
+        return shown if len(shown) < len(m.group()) else m.group()
+
+    return re.sub(r"(?<![\w.])\d+\.\d+(?![\w.])", short, text)
+
+
+def _given(args, opts) -> str | None:
+    """The value the command line gave an option (``--rate -5``, ``--rate=-5``, ``-j0``), or None."""
+    found = None
+    args = list(args)
+    for i, tok in enumerate(args):
+        for opt in opts:
+            if tok == opt and i + 1 < len(args):
+                found = args[i + 1]
+            elif opt.startswith("--") and tok.startswith(opt + "="):
+                found = tok[len(opt) + 1:]
+            elif not opt.startswith("--") and tok.startswith(opt) and len(tok) > len(opt):
+                found = tok[len(opt):]
+    return found
+
+
+def _range_of(param) -> tuple:
+    """(min, max) of a numeric option (typer's own attributes, or click's range type), else Nones."""
+    for holder in (param, getattr(param, "type", None)):
+        lo, hi = getattr(holder, "min", None), getattr(holder, "max", None)
+        if lo is not None or hi is not None:
+            return lo, hi
+    return None, None
+
+
+def _choices_of(param) -> list[str]:
+    """The values a choice option takes (click's Choice type, or typer's type descriptor)."""
+    for holder in (getattr(param, "type", None), getattr(param, "type_descriptor", None)):
+        choices = getattr(holder, "choices", None)
+        if choices:
+            return [str(getattr(c, "value", c)) for c in choices]
+    return []
+
+
+def usage_message(exc, args, command: str = "quadctl") -> str:
+    """One line for a click usage error (an unknown option, a value out of range or not a choice, a
+    missing option): what was given, what is allowed, and where the full usage is.
+
+    ``args`` are the command-line words the failing command parsed (to quote the value given);
+    ``command`` names it when the error carries no context.
+    """
+    import difflib
+
+    from quadctl.messages import hint, one_line
+
+    exc_mod = _click_exceptions()
+    ctx = getattr(exc, "ctx", None)
+    if ctx is not None:
+        command = ctx.command_path
+    if isinstance(exc, exc_mod.NoSuchOption):
+        options = [o for p in (ctx.command.get_params(ctx) if ctx else []) for o in (*p.opts, *p.secondary_opts)
+                   if o.startswith("--")]
+        near = difflib.get_close_matches(exc.option_name, options, n=1, cutoff=0.7)
+        fix = f"did you mean `{near[0]}`?" if near else f"its options: {', '.join(options)}"
+        return f"{exc.option_name}: {command} has no such option; {fix}"
+    param = getattr(exc, "param", None)
+    key = (getattr(param, "opts", None) or [getattr(param, "name", "")])[0]
+    choices = _choices_of(param) if param is not None else []
+    if isinstance(exc, exc_mod.MissingParameter) and param is not None:
+        what = f" {' | '.join(choices)}" if choices else ""
+        return f"{command} needs {key}{what}; add it (`{command} --help` describes it)"
+    if isinstance(exc, exc_mod.BadParameter) and param is not None:
+        value = _given(args, getattr(param, "opts", ()))
+        given = f"{key} {value}" if value is not None else key
+        lo, hi = _range_of(param)
+        if choices:
+            near = hint(value, choices) if value is not None else ""
+            fix = f"; {near}" if near.startswith("did you mean") else ""
+            return f"{given}: must be one of {', '.join(choices)}{fix}"
+        if lo is not None or hi is not None:
+            try:
+                float(value)
+            except (TypeError, ValueError):
+                return f"{given}: not a number; give {key} a number"
+            bound = (f"between {lo:g} and {hi:g}" if lo is not None and hi is not None
+                     else f"of at least {lo:g}" if lo is not None else f"of at most {hi:g}")
+            return f"{given}: out of range; give {key} a value {bound}"
+        return f"{given}: {_number(one_line(exc.message)).rstrip('.')}; see `{command} --help`"
+    text = _number(one_line(exc.format_message())).rstrip(".")
+    return f"{command}: {text[:1].lower()}{text[1:]}; see `{command} --help`"
+
+
+def one_line_usage_errors(group_cls):
+    """A typer group class whose usage errors (bad options and values) print one line,
+    ``quadctl: error: ...``, and exit 2 (click prints a usage block and a boxed error)."""
+    exc_mod = _click_exceptions()
+    passed = tuple(getattr(exc_mod, name) for name in ("NoArgsIsHelpError",) if hasattr(exc_mod, name))
+
+    def refused(exc, args, command):
+        if isinstance(exc, passed) or not isinstance(exc, exc_mod.UsageError):
+            return None
+        return fail(usage_message(exc, args, command), EXIT_BAD_INPUT)
+
+    class OneLineUsageErrors(group_cls):
+        def make_context(self, info_name, args, parent=None, **extra):
+            words = list(args)
+            try:
+                return super().make_context(info_name, args, parent=parent, **extra)
+            except exc_mod.UsageError as exc:
+                out = refused(exc, words, "quadctl")
+                if out is None:
+                    raise
+                raise out from None
+
+        def invoke(self, ctx):
+            words = [*getattr(ctx, "_protected_args", ()), *ctx.args]
+            try:
+                return super().invoke(ctx)
+            except exc_mod.UsageError as exc:
+                out = refused(exc, words, " ".join([ctx.command_path, *words[:1]]))
+                if out is None:
+                    raise
+                raise out from None
+
+    return OneLineUsageErrors

@@ -123,9 +123,7 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     from quadctl import pipeline
 
     timing = setup.timing
-    if rate is not None and timing.rate is not None and rate != timing.rate:
-        raise ConfigError(f"--rate {rate:g}: the config sets controller.rate = {timing.rate:g} Hz; "
-                          "drop --rate, or remove controller.rate to run the continuous design at another rate")
+    timing.refuse_other_rate(rate)
     if rate is not None and timing.rate is None:
         setup = replace(setup, timing=Timing(rate=float(rate), discrete=False))
     elif setup.timing.rate is None and need_rate:

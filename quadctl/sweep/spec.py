@@ -277,6 +277,11 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
     if mode == "random":
         if samples is None:
             raise fail("samples", "random mode needs the number of cases; add `samples: 100`, say")
+    else:  # a grid runs every combination of the values given: nothing is drawn
+        for key, drawn in (("samples", "that many cases"), ("seed", "its cases from that seed")):
+            if key in data:
+                raise fail(key, f"{show(data[key])}: a grid runs every combination of the parameters' values "
+                           f"and takes no {key}; remove it, or set mode: random to draw {drawn}")
     if samples is not None and (not is_whole(samples) or samples < 1):
         raise fail("samples", f"{show(samples, exact=True)}: {whole_number(samples, 1)}")
     if samples is not None and samples > MAX_CASES:
@@ -426,6 +431,9 @@ def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
                                  f"(indices 0 to {len(node) - 1})")
             node = node[key]
         else:
+            if node is None and walked:  # an optional section the config leaves out (null)
+                raise SweepError(f"{where}: the config has no `{here}` section (it is null); add a `{here}:` "
+                                 "section to the config to vary its keys")
             if not isinstance(node, dict):
                 raise SweepError(f"{where}: {here} = {show(node)} has no key `{key}`; "
                                  "the path goes too deep")

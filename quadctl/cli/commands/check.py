@@ -12,14 +12,14 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
             fresh: FreshOpt = False,
             rate: Annotated[Optional[float], typer.Option(
                 "--rate", metavar="HZ", min=1e-9,
-                help="Also check the continuous design against this controller rate (a what-if; "
-                     "the config's controller.rate is checked anyway when its design is continuous).")] = None,
+                help="Also check the continuous design against this controller rate (a what-if for a config "
+                     "without controller.rate; one that sets it is checked at its own rate).")] = None,
             ) -> None:
     """Controllability, observability, PBH, stabilizability of every subsystem and the full model.
 
     Warns when a continuous design has closed-loop poles faster than the controller rate can
     realize (which loop, by how much, and whether the sampled loop is still stable).
-    With an ``estimator:``, the measured set on the coupled model too (row ``estimator``).
+    With an 'estimator:' section, the measured set on the coupled model too (row 'estimator').
     With rotor lag (motors.time_constant) or delay (controller.delay), whether the design's loop
     stays stable with them, and how much damping they take.
     Exits 1 when a regulated subsystem is not stabilizable, the measured set leaves a mode that is
@@ -30,6 +30,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     from quadctl.discrete import unstable_when_sampled
 
     ws = open_workspace(config, out, fresh)
+    ws.setup.timing.refuse_other_rate(rate)
+    if ws.setup.timing.rate is not None:  # --rate is the config's own: checked as the config's (no what-if of
+        rate = None                       # the continuous design, which a discrete config does not fly)
     checks = ws.checks
     regulated = set(checks.regulated)
     rated = [(checks.rate, checks.rate_warnings)] if checks.rate_warnings else []

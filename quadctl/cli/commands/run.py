@@ -22,13 +22,15 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     def done(stage: str, detail: str) -> None:
         stages[stage] = detail
         if not json:
-            render.out.print(f"[green]✓[/green] {stage:<10} {detail}")
+            render.out.print(f"[green]✓[/green] {stage:<10} {detail}", soft_wrap=True)  # a pipe gets whole lines
 
     phi, theta = ws.trim.x[STATE_INDEX["phi"]], ws.trim.x[STATE_INDEX["theta"]]
     done("trim", f"T = {ws.trim.u[0]:.4f} N, phi = {phi:.4f} rad, theta = {theta:.4f} rad, "
                  f"residual {ws.trim.residual:.1e}")
     done("linearize", f"A {ws.linear.A.shape}, B {ws.linear.B.shape}")
-    done("decouple", f"{len(ws.decoupled.subsystems)} subsystems, {len(ws.decoupled.dropped)} terms dropped")
+    n_subs, n_dropped = len(ws.decoupled.subsystems), len(ws.decoupled.dropped)
+    done("decouple", f"{n_subs} subsystem{'s' if n_subs != 1 else ''}, "
+                     f"{n_dropped} term{'s' if n_dropped != 1 else ''} dropped")
     why = ws.checks.verdict()
     if why:
         raise _stop(json, stages, f"check: {why}")
