@@ -119,7 +119,7 @@ def _defaults_taken(cfg: Config, label: str) -> list[Notice]:
         return []
     values = ", ".join(f"{path} = {show(value)}" for path, value in taken)
     return [Notice("note", taken[0][0], f"{label}: {', '.join(p for p, _ in taken)} not given: using the report's "
-                   f"Parrot Mambo values ({values}); give your vehicle's")]
+                   f"Parrot Mambo values ({values}); give your vehicle's own values")]
 
 
 def _rotor_lag_taken(cfg: Config, label: str) -> list[Notice]:
