@@ -224,7 +224,7 @@ def test_a_vehicle_given_in_part_says_what_it_took_from_the_mambo(tmp_path):
     assert notice_lines(res) == [
         f"quadctl: note: {tmp_path / 'c.yaml'}: vehicle.inertia, vehicle.drag not given: using the report's Parrot "
         "Mambo values (vehicle.inertia = [6.9e-05, 7.75e-05, 0.00015], vehicle.drag = [0.22, 0.22, 0]); give your "
-        "vehicle's"]
+        "vehicle's own values"]
 
 
 def test_empty_motors_say_they_are_the_mambos(tmp_path):
