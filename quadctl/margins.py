@@ -66,7 +66,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.lag import lagged as lagged  # re-exported: the lag every loop carries
-from quadctl.layout import INPUT_INDEX, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -774,12 +774,13 @@ def _saturation_notes(m, actuators, u_trim, initial_demand) -> list[str]:
     if not math.isfinite(room):
         return []
     covered = room / g_min if g_min > 0 else math.inf
-    text = (f"saturation: {m.input} has {room:.3g} of headroom from trim (other inputs at trim); the disk "
+    unit = INPUT_UNITS[m.input]
+    text = (f"saturation: {m.input} has {room:.3g} {unit} of headroom from trim (other inputs at trim); the disk "
             f"margin keeps the loop stable (circle criterion) while the effective gain stays above "
-            f"{g_min:.3g}, i.e. for commands up to {covered:.3g}")
+            f"{g_min:.3g}, i.e. for commands up to {covered:.3g} {unit}")
     demand = (initial_demand or {}).get(m.input)
     if demand is not None:
         verdict = ("within it" if demand <= covered else
                    "BEYOND it: the margins no longer guarantee stability during that saturation")
-        text += f"; the initial offset asks for {demand:.3g}, {verdict}"
+        text += f"; the initial offset asks for {demand:.3g} {unit}, {verdict}"
     return [text]

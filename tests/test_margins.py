@@ -175,3 +175,28 @@ def test_an_infinite_margin_is_a_string_in_margins_json(tmp_path):
     for m in data["loops"]:
         assert m["stable"] and m["meets_lqr_guarantee"], m["loop"]
         assert m["gain_margin_upper_db"] == "inf" and m["gain_margin_upper_freq"] is None
+
+
+def test_the_saturation_note_reads_the_disk_margin_as_a_sector_in_the_inputs_units(tmp_path):
+    """The circle criterion: a loop with disk gain margin [g_min, ...] stays stable while the rotors
+    deliver at least g_min of the command, i.e. for commands up to headroom / g_min (N or N m)."""
+    import re
+
+    from quadctl.motors import headroom
+
+    res = CliRunner().invoke(app, ["margins", "-c", "mambo-200hz", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    data = json.loads((tmp_path / "margins.json").read_text())
+    setup, _, linear, _, _ = solve(cfg_dict("mambo-200hz"))
+    room = headroom(setup.actuators, linear.u_trim)
+    for loop in (l for l in data["loops"] if l["model"] == "design"):
+        (note,) = [n for n in loop["notes"] if n.startswith("saturation:")]
+        unit = "N" if loop["input"] == "T" else "N m"
+        g_min = 10 ** (loop["disk_gain_margin_db"][0] / 20)
+        down, up = room[loop["input"]]
+        found = re.search(rf"has (\S+) {unit} of headroom .* above (\S+), i\.e\. for commands up to (\S+) {unit}; "
+                          rf"the initial offset asks for \S+ {unit}, within it", note)
+        assert found, note
+        assert float(found[1]) == pytest.approx(min(down, up), rel=1e-2)
+        assert float(found[2]) == pytest.approx(g_min, rel=1e-2)
+        assert float(found[3]) == pytest.approx(min(down, up) / g_min, rel=1e-2)
