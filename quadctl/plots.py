@@ -123,16 +123,18 @@ def margins_figure(m, *, title: str = "") -> Figure:
     if m.gain_crossover_freq is not None:
         for ax in (ax_mag, ax_ph):
             ax.axvline(m.gain_crossover_freq, color=_COLORS[2], lw=1.0, ls=":")
-        ax_ph.annotate(f"PM {m.phase_margin_deg:.3g} deg", (m.gain_crossover_freq, phase.min()),
-                       fontsize=8, color=_COLORS[2])
+        ax_ph.annotate(f"PM {m.phase_margin_deg:.3g} deg", (m.gain_crossover_freq, phase.min()), xytext=(3, 4),
+                       textcoords="offset points", fontsize=8, color=_COLORS[2], va="bottom")
     for wg, gm in zip(m.phase_crossover_freqs, m.gain_margin_db):
         if wg is not None:
             for ax in (ax_mag, ax_ph):
                 ax.axvline(wg, color=_COLORS[1], lw=1.0, ls=":")
-            ax_mag.annotate(f"GM {gm:+.3g} dB", (wg, 0.0), fontsize=8, color=_COLORS[1])
-    if m.sample_time:
+            ax_mag.annotate(f"GM {gm:+.3g} dB", (wg, 0.0), xytext=(-3, 3), textcoords="offset points",
+                            fontsize=8, color=_COLORS[1], ha="right", va="bottom")
+    if m.sample_time:  # labelled at the top: a gain margin often sits at the Nyquist frequency
         ax_mag.axvline(np.pi / m.sample_time, color="0.5", lw=0.9)
-        ax_mag.annotate("Nyquist", (np.pi / m.sample_time, 0.0), fontsize=8, color="0.4", ha="right")
+        ax_mag.annotate("Nyquist", (np.pi / m.sample_time, 1.0), xycoords=("data", "axes fraction"),
+                        xytext=(-3, -3), textcoords="offset points", fontsize=8, color="0.4", ha="right", va="top")
     for ax in (ax_mag, ax_ph):
         ax.grid(True, which="both", alpha=0.3)
     ax_ny.plot(L.real, L.imag, color=_COLORS[0], lw=1.5, label="L(jw), w > 0")
