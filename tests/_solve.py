@@ -66,3 +66,18 @@ def max_rel_diff(rows_a, rows_b, skip=("path",)) -> tuple[float, str]:
             else:
                 assert va == vb, f"case {a['case']} {key}: {va!r} vs {vb!r}"
     return worst, where
+
+
+def lane_cases(jobs, max_samples: int, noisy: bool = True):
+    """The :class:`quadctl.sim.cases.Cases` of lane jobs ``(plan, c, x0, lo, hi, exo, exo_first, noise)``
+    (a test's own cases, built as a sweep chunk builds them; ``noise`` None without one)."""
+    import numpy as np
+
+    from quadctl.sim.cases import Cases
+    from quadctl.sim.plan import record_stride
+
+    return Cases.of(np.stack([j[2] for j in jobs]), np.stack([j[1] for j in jobs]), [j[0].dt for j in jobs],
+                    [j[0].n_steps for j in jobs], [record_stride(j[0].n_steps, max_samples) for j in jobs],
+                    np.stack([j[3] for j in jobs]), np.stack([j[4] for j in jobs]),
+                    hold=[max(j[0].hold, 1) for j in jobs], exo=[j[5] for j in jobs] if noisy else None,
+                    exo_first=[j[6] for j in jobs], exo_period=[j[7].period if j[7] else 1.0 for j in jobs])

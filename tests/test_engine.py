@@ -15,13 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _solve import cfg_dict, solve
+from _solve import cfg_dict, lane_cases, solve
 
 from quadctl import pipeline
 from quadctl.sim import compile as compile_mod
 from quadctl.sim import engine
-from quadctl.sim.cases import Cases
-from quadctl.sim.plan import record_stride
 from quadctl.simulate import simulate
 
 
@@ -158,12 +156,7 @@ def test_lanes_equal_the_one_case_loop(label, data, duration):
         first, exo = NoiseStream(noise).rows(0, plan.n_steps, plan.dt) if noise else (0, None)
         x0 = vk.initial_loop_state(setup.initial_state(vk.x_trim))
         jobs.append((plan, vk.constants(plan.sample_time), x0, lo, hi, exo, first, noise))
-    cases = Cases.of(np.stack([j[2] for j in jobs]), np.stack([j[1] for j in jobs]), [j[0].dt for j in jobs],
-                     [j[0].n_steps for j in jobs], [record_stride(j[0].n_steps, setup.max_samples) for j in jobs],
-                     np.stack([j[3] for j in jobs]), np.stack([j[4] for j in jobs]),
-                     hold=[max(j[0].hold, 1) for j in jobs], exo=[j[5] for j in jobs] if spec.noise else None,
-                     exo_first=[j[6] for j in jobs],
-                     exo_period=[j[7].period if j[7] else 1.0 for j in jobs])
+    cases = lane_cases(jobs, setup.max_samples, spec.noise)
     assert run.backend == "compiled-simd"
     worst = 0.0
     for (vk, noise, dur), (done, ks, xs, us) in zip(variants, run.run(cases)):

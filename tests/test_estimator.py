@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.linalg
-from _solve import cfg_dict, max_rel_diff, solve
+from _solve import cfg_dict, lane_cases, max_rel_diff, solve
 from scipy.optimize import linear_sum_assignment
 from typer.testing import CliRunner
 
@@ -18,8 +18,6 @@ from quadctl import config, estimator, pipeline, sweep
 from quadctl.cli.app import app
 from quadctl.errors import ConfigError, DesignError
 from quadctl.sim import engine
-from quadctl.sim.cases import Cases
-from quadctl.sim.plan import record_stride
 from quadctl.simulate import simulate
 
 GAIN_RTOL = 1e-9
@@ -300,11 +298,7 @@ def test_lqg_lanes_equal_the_one_case_loop(label, data, duration):
         first, exo = NoiseStream(noise).rows(0, plan.n_steps, plan.dt)
         jobs.append((plan, vk.constants(plan.sample_time), vk.initial_loop_state(setup.initial_state(vk.x_trim)),
                      lo, hi, exo, first, noise))
-    cases = Cases.of(np.stack([j[2] for j in jobs]), np.stack([j[1] for j in jobs]), [j[0].dt for j in jobs],
-                     [j[0].n_steps for j in jobs], [record_stride(j[0].n_steps, setup.max_samples) for j in jobs],
-                     np.stack([j[3] for j in jobs]), np.stack([j[4] for j in jobs]),
-                     hold=[max(j[0].hold, 1) for j in jobs], exo=[j[5] for j in jobs],
-                     exo_first=[j[6] for j in jobs], exo_period=[j[7].period for j in jobs])
+    cases = lane_cases(jobs, setup.max_samples)
     assert run.backend == "compiled-simd"
     worst = 0.0
     for (vk, noise, dur), (done, ks, xs, us) in zip(variants, run.run(cases)):
