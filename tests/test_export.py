@@ -635,20 +635,17 @@ def test_simulate_crazyflie_reports_no_saturation(tmp_path):
 README = Path(__file__).resolve().parent.parent / "README.md"
 INLINE_COMMANDS = ("quadctl simulate -c crazyflie", "quadctl margins -c crazyflie")
 """Commands the section names in its text (not in a console block)."""
-FLIGHT_LOOP_MAIN = r"""
+def _flight_loop_main(read: str) -> str:
+    """A main.c for the README's flight loop: ``read`` (the sensor read it calls), a rotor write that
+    keeps what it was sent, and one tick whose commands it prints."""
+    return (r"""
 #include <stdio.h>
 #include "quadctl_controller.h"
 
 void control_tick(quadctl_controller *c);
 
 static quadctl_real sent[QUADCTL_N_ROTORS];
-
-void read_state(quadctl_real x[QUADCTL_NX]) {  /* hover trim, 0.5 m low */
-  int i;
-  for (i = 0; i < QUADCTL_NX; ++i) x[i] = 0;
-  x[QUADCTL_X_PD] = -0.5;
-}
-
+""" + read + r"""
 void set_rotor_thrusts(const quadctl_real thrust[QUADCTL_N_ROTORS]) {
   int i;
   for (i = 0; i < QUADCTL_N_ROTORS; ++i) sent[i] = thrust[i];
@@ -661,7 +658,16 @@ int main(void) {
   printf("%.17g %.17g %.17g %.17g\n", (double)sent[0], (double)sent[1], (double)sent[2], (double)sent[3]);
   return 0;
 }
-"""
+""")
+
+
+FLIGHT_LOOP_MAIN = _flight_loop_main(r"""
+void read_state(quadctl_real x[QUADCTL_NX]) {  /* hover trim, 0.5 m low */
+  int i;
+  for (i = 0; i < QUADCTL_NX; ++i) x[i] = 0;
+  x[QUADCTL_X_PD] = -0.5;
+}
+""")
 
 
 def _section() -> str:
@@ -745,34 +751,14 @@ def test_the_readme_flight_loop_compiles_and_flies(single, tmp_path):
     assert np.all(thrust > 0.027 * 9.81 / 4)  # climbing
 
 
-LQG_FLIGHT_LOOP_MAIN = r"""
-#include <stdio.h>
-#include "quadctl_controller.h"
-
-void control_tick(quadctl_controller *c);
-
-static quadctl_real sent[QUADCTL_N_ROTORS];
-
+LQG_FLIGHT_LOOP_MAIN = _flight_loop_main(r"""
 void read_sensors(quadctl_real y[QUADCTL_NY]) {  /* 0.5 m low (pD = -0.5 m), rolled 0.1 rad */
   int i;
   for (i = 0; i < QUADCTL_NY; ++i) y[i] = 0;
   y[QUADCTL_Y_PD] = -0.5;
   y[QUADCTL_Y_PHI] = 0.1;
 }
-
-void set_rotor_thrusts(const quadctl_real thrust[QUADCTL_N_ROTORS]) {
-  int i;
-  for (i = 0; i < QUADCTL_N_ROTORS; ++i) sent[i] = thrust[i];
-}
-
-int main(void) {
-  quadctl_controller c;
-  quadctl_init(&c);
-  control_tick(&c);
-  printf("%.17g %.17g %.17g %.17g\n", (double)sent[0], (double)sent[1], (double)sent[2], (double)sent[3]);
-  return 0;
-}
-"""
+""")
 
 
 @pytest.mark.compiler
