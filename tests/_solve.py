@@ -68,16 +68,35 @@ def max_rel_diff(rows_a, rows_b, skip=("path",)) -> tuple[float, str]:
     return worst, where
 
 
-def lane_cases(jobs, max_samples: int, noisy: bool = True):
-    """The :class:`quadctl.sim.cases.Cases` of lane jobs ``(plan, c, x0, lo, hi, exo, exo_first, noise)``
-    (a test's own cases, built as a sweep chunk builds them; ``noise`` None without one)."""
+def lanes_and_one_case_runs(setup, spec, variants):
+    """Run loop ``variants`` ``(ClosedLoop, NoiseSpec or None, duration s)`` in the SIMD lanes of
+    ``spec`` (built as a sweep chunk builds its cases) and each alone through ``simulate``: yields
+    ``((done, ks, xs, us), SimResult)`` per variant, after checking both ran the same steps."""
     import numpy as np
 
+    from quadctl.noise import NoiseStream
+    from quadctl.sim import engine
     from quadctl.sim.cases import Cases
     from quadctl.sim.plan import record_stride
+    from quadctl.simulate import simulate
 
-    return Cases.of(np.stack([j[2] for j in jobs]), np.stack([j[1] for j in jobs]), [j[0].dt for j in jobs],
-                    [j[0].n_steps for j in jobs], [record_stride(j[0].n_steps, max_samples) for j in jobs],
-                    np.stack([j[3] for j in jobs]), np.stack([j[4] for j in jobs]),
-                    hold=[max(j[0].hold, 1) for j in jobs], exo=[j[5] for j in jobs] if noisy else None,
-                    exo_first=[j[6] for j in jobs], exo_period=[j[7].period if j[7] else 1.0 for j in jobs])
+    run = engine.runner(spec, engine.LANES)
+    assert run.backend == "compiled-simd"
+    jobs = []
+    for vk, noise, dur in variants:
+        plan = vk.plan(dur, setup.dt)
+        lo, hi = vk.bounds(dur)
+        first, exo = NoiseStream(noise).rows(0, plan.n_steps, plan.dt) if noise else (0, None)
+        x0 = vk.initial_loop_state(setup.initial_state(vk.x_trim))
+        jobs.append((plan, vk.constants(plan.sample_time), x0, lo, hi, exo, first, noise))
+    cases = Cases.of(np.stack([j[2] for j in jobs]), np.stack([j[1] for j in jobs]), [j[0].dt for j in jobs],
+                     [j[0].n_steps for j in jobs], [record_stride(j[0].n_steps, setup.max_samples) for j in jobs],
+                     np.stack([j[3] for j in jobs]), np.stack([j[4] for j in jobs]),
+                     hold=[max(j[0].hold, 1) for j in jobs], exo=[j[5] for j in jobs] if spec.noise else None,
+                     exo_first=[j[6] for j in jobs], exo_period=[j[7].period if j[7] else 1.0 for j in jobs])
+    for (vk, noise, dur), lanes in zip(variants, run.run(cases)):
+        one = simulate(vk, setup.initial_state(vk.x_trim), dur, setup.dt, noise=noise, max_samples=setup.max_samples)
+        done, ks, _, _ = lanes
+        assert done == one.steps
+        np.testing.assert_array_equal(ks * one.dt, one.t)
+        yield lanes, one

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _solve import cfg_dict, lane_cases, solve
+from _solve import cfg_dict, lanes_and_one_case_runs, solve
 
 from quadctl import pipeline
 from quadctl.sim import compile as compile_mod
@@ -138,7 +138,6 @@ def test_lanes_equal_the_one_case_loop(label, data, duration):
     """Eight lanes with different gains, steps and seeds, each against its own one-case run."""
     from dataclasses import replace
 
-    from quadctl.noise import NoiseStream
 
     setup, loop = _loop(data)
     variants = []
@@ -147,23 +146,8 @@ def test_lanes_equal_the_one_case_loop(label, data, duration):
         vk = replace(loop, K=loop.K * scale, Ki=None if loop.Ki is None else loop.Ki * scale)
         noise = None if setup.noise is None else replace(setup.noise, seed=setup.noise.seed + k)
         variants.append((vk, noise, duration * (1.0 - 0.03 * k)))
-    spec = loop.spec(setup.noise is not None)
-    run = engine.runner(spec, engine.LANES)
-    jobs = []
-    for vk, noise, dur in variants:
-        plan = vk.plan(dur, setup.dt)
-        lo, hi = vk.bounds(dur)
-        first, exo = NoiseStream(noise).rows(0, plan.n_steps, plan.dt) if noise else (0, None)
-        x0 = vk.initial_loop_state(setup.initial_state(vk.x_trim))
-        jobs.append((plan, vk.constants(plan.sample_time), x0, lo, hi, exo, first, noise))
-    cases = lane_cases(jobs, setup.max_samples, spec.noise)
-    assert run.backend == "compiled-simd"
     worst = 0.0
-    for (vk, noise, dur), (done, ks, xs, us) in zip(variants, run.run(cases)):
-        one = simulate(vk, setup.initial_state(vk.x_trim), dur, setup.dt, noise=noise,
-                       max_samples=setup.max_samples)
-        assert done == one.steps
-        np.testing.assert_array_equal(ks * one.dt, one.t)
+    for (_, _, xs, us), one in lanes_and_one_case_runs(setup, loop.spec(setup.noise is not None), variants):
         kept = np.hstack([one.x, one.rotor_thrust, one.z, one.lag_model])  # [x; f; z; l], the buffer aside
         worst = max(worst, np.abs(xs[:, :kept.shape[1]] - kept).max(), np.abs(us - one.u).max())
     assert worst < 1e-12, f"Max diff is {worst:.4E}"

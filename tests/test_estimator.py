@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.linalg
-from _solve import cfg_dict, lane_cases, max_rel_diff, solve
+from _solve import cfg_dict, lanes_and_one_case_runs, max_rel_diff, solve
 from scipy.optimize import linear_sum_assignment
 from typer.testing import CliRunner
 
@@ -280,7 +280,6 @@ def test_compiled_and_interpreted_lqg_loops_agree(label, data, duration, monkeyp
 @pytest.mark.parametrize("label, data, duration", FEATURES, ids=[f[0] for f in FEATURES])
 def test_lqg_lanes_equal_the_one_case_loop(label, data, duration):
     """Eleven lanes with different gains, filter gains and seeds, each against its own one-case run."""
-    from quadctl.noise import NoiseStream
 
     setup, loop = _loop(data)
     variants = []
@@ -289,23 +288,8 @@ def test_lqg_lanes_equal_the_one_case_loop(label, data, duration):
         kal = replace(loop.estimator, gain=loop.estimator.gain * (1.0 - 0.02 * k))
         vk = replace(loop, K=loop.K * scale, Ki=None if loop.Ki is None else loop.Ki * scale, estimator=kal)
         variants.append((vk, replace(setup.noise, seed=setup.noise.seed + k), duration * (1.0 - 0.03 * k)))
-    spec = loop.spec(True)
-    run = engine.runner(spec, engine.LANES)
-    jobs = []
-    for vk, noise, dur in variants:
-        plan = vk.plan(dur, setup.dt)
-        lo, hi = vk.bounds(dur)
-        first, exo = NoiseStream(noise).rows(0, plan.n_steps, plan.dt)
-        jobs.append((plan, vk.constants(plan.sample_time), vk.initial_loop_state(setup.initial_state(vk.x_trim)),
-                     lo, hi, exo, first, noise))
-    cases = lane_cases(jobs, setup.max_samples)
-    assert run.backend == "compiled-simd"
     worst = 0.0
-    for (vk, noise, dur), (done, ks, xs, us) in zip(variants, run.run(cases)):
-        one = simulate(vk, setup.initial_state(vk.x_trim), dur, setup.dt, noise=noise,
-                       max_samples=setup.max_samples)
-        assert done == one.steps
-        np.testing.assert_array_equal(ks * one.dt, one.t)
+    for (_, _, xs, us), one in lanes_and_one_case_runs(setup, loop.spec(True), variants):
         x_hat = one.x_ref + xs[:, -12:]
         worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max(),
                     np.abs(x_hat - one.x_hat).max())
