@@ -97,12 +97,12 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
 
     from quadctl import config, pipeline
     from quadctl.model import build_model
-    from quadctl.setup import resolve
+    from quadctl.problem import setup_of
     from quadctl.sim import engine
-    from quadctl.simulate import simulate
+    from quadctl.sim.run import simulate
 
     cfg = config.load("forward")
-    setup = resolve(cfg)
+    setup = setup_of(cfg)
     linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
     des = pipeline.design_of(setup, pipeline.decoupled_of(setup, linear), linear)
     loop = pipeline.loop_of(setup, linear, des)
@@ -297,20 +297,20 @@ def the_designs(cfg, spec) -> str:
     import scipy.linalg
 
     from quadctl import pipeline, sweep
-    from quadctl.riccati import care_batch
-    from quadctl.setup import resolve
+    from quadctl.lqr.riccati import care_batch
+    from quadctl.problem import setup_of
 
     # the 4000 subsystem problems of the sweep: the report's plant, each case's weights
     base = cfg.model_dump(mode="json")
     problems: dict[tuple, list] = {}
-    setup = resolve(cfg)
+    setup = setup_of(cfg)
     linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
     dec = pipeline.decoupled_of(setup, linear)
     for case in spec.cases():
         data = base
         for p, value in zip(spec.parameters, case.values):
             data = sweep.assign(data, p.keys, value)
-        for name, (Q, R) in resolve(config_from(data)).weights.items():
+        for name, (Q, R) in setup_of(config_from(data)).weights.items():
             sub = dec[name]
             problems.setdefault(sub.B.shape, []).append((sub.A, sub.B, np.atleast_2d(Q), np.atleast_2d(R)))
     n = sum(len(v) for v in problems.values())
@@ -375,11 +375,12 @@ def lqr_sizes() -> str:
 def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
     import scipy.linalg
 
-    from quadctl import config, discrete, pipeline
-    from quadctl.riccati import dare_batch
-    from quadctl.setup import resolve
+    from quadctl import config, pipeline
+    from quadctl.lqr import discrete
+    from quadctl.lqr.riccati import dare_batch
+    from quadctl.problem import setup_of
 
-    setup = resolve(config.load("forward"))
+    setup = setup_of(config.load("forward"))
     dec = pipeline.decoupled_of(setup, pipeline.linear_of(setup, pipeline.trim_of(setup)))
     rng = np.random.default_rng(LQR_SEED)
     subs = [dec["roll"], dec["pitch"]]
@@ -418,7 +419,7 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
             ["  of which dare_batch (doubling, Newton-Hewer, checks)", f"{1e6 * dare_time / count:.1f}", ""],
             ["loop over scipy solve_discrete_are (+ gain), same weights", f"{1e6 * loop_time / count:.1f}",
              f"{loop_time / design_time:.0f}"],
-            ["loop over quadctl.discrete.lqrd (one case, first 100)", f"{1e6 * one_time / 100:.1f}",
+            ["loop over quadctl.lqr.discrete.lqrd (one case, first 100)", f"{1e6 * one_time / 100:.1f}",
              f"{one_time / 100 * count / design_time:.0f}"]]
     return table(f"Discrete LQR designs: {count} 3-state subsystems (roll and pitch of the forward config, random "
                  f"weights) at {rate:g} Hz; CPU time, best of 5 (loops: one run)",

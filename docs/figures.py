@@ -18,15 +18,15 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from quadctl import config, margins, motors, pipeline, plots
-from quadctl.setup import resolve
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
+from quadctl.problem import setup_of
 
 OUT = Path(__file__).resolve().parent / "figures"
 MAMBO = motors.Motors()
 
 
 def solve(data: dict):
-    setup = resolve(config.from_dict(data, "<docs>"))
+    setup = setup_of(config.from_dict(data, "<docs>"))
     trim = pipeline.trim_of(setup)
     linear = pipeline.linear_of(setup, trim)
     dec = pipeline.decoupled_of(setup, linear)

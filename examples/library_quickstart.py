@@ -5,9 +5,9 @@ Run: python examples/library_quickstart.py
 
 from quadctl import config, pipeline
 from quadctl.layout import STATE_NAMES
-from quadctl.setup import resolve
+from quadctl.problem import setup_of
 
-setup = resolve(config.load("forward"))             # the bundled report case (1 m/s north)
+setup = setup_of(config.load("forward"))            # the bundled report case (1 m/s north)
 trim = pipeline.trim_of(setup)                      # theta = -0.2119 rad, T = 0.6522 N
 linear = pipeline.linear_of(setup, trim)            # exact CasADi Jacobians
 decoupled = pipeline.decoupled_of(setup, linear)    # the report's five subsystems

@@ -10,20 +10,22 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.model`: the CasADi model, the only place the equations of motion live
 - :mod:`~quadctl.motors`, :mod:`~quadctl.noise`, :mod:`~quadctl.wind`: rotors and mixing; seeded noise
   streams; steady wind, gusts and Dryden turbulence
-- :mod:`~quadctl.setup`: the config resolved once into the :class:`~quadctl.setup.Setup` every stage takes
+- :mod:`~quadctl.problem`: the config made into numbers once: the :class:`~quadctl.problem.Setup`
+  every stage takes (:func:`~quadctl.problem.setup_of`)
 - :mod:`~quadctl.trim`, :mod:`~quadctl.linearize`, :mod:`~quadctl.decouple`: equilibrium,
   Jacobians (with the reference drift), the partition into subsystems and what it drops
 - :mod:`~quadctl.stability`: the one stability predicate and the one marginal-mode rule
 - :mod:`~quadctl.analysis`: controllability, observability, PBH, with a stated rank tolerance
-- :mod:`~quadctl.discrete`, :mod:`~quadctl.integral`, :mod:`~quadctl.lqr`: zero-order hold and
-  ``lqrd``; integral action (LQI); Riccati solves and the assembled decoupled design
+- :mod:`~quadctl.lqr`: the LQR family (its own map): Riccati solves (``lqr.riccati``), integral
+  action (``lqr.integral``), the rotors' lag (``lqr.lag``), zero-order hold and ``lqrd``
+  (``lqr.discrete``), the decoupled design (``lqr.decoupled``), one LQR on the coupled model
+  (``lqr.coupled``)
 - :mod:`~quadctl.estimator`: the steady-state Kalman filter of an LQG loop (discrete filter form or
   Kalman-Bucy) and the observability of the measured set
-- :mod:`~quadctl.full`, :mod:`~quadctl.margins`: the coupled (full) design; loop margins (with the
-  filter in the loop for LQG)
+- :mod:`~quadctl.margins`: loop margins (with the filter in the loop for LQG)
 - :mod:`~quadctl.sim`: the simulation engine (step planning, the one closed-loop builder, compile
-  and cache, native and interpreted runners, one case or many lanes)
-- :mod:`~quadctl.simulate`, :mod:`~quadctl.metrics`: one closed-loop run; its step-response metrics
+  and cache, native and interpreted runners, one case or many lanes; :mod:`~quadctl.sim.run`: the
+  closed loop and one run of it); :mod:`~quadctl.metrics`: a run's step-response metrics
 - :mod:`~quadctl.pipeline`: the stages chained from a setup (pure functions)
 - :mod:`~quadctl.sweep`: many designs at once (spec, batched evaluation, runner, outputs, store)
 - :mod:`~quadctl.provenance`: the software versions and the C compiler an artifact records
@@ -32,6 +34,14 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.report`: every stage of a run in one self-contained HTML page and a Markdown twin
 - :mod:`~quadctl.export`: the design to the vehicle (a C99 controller emitted from the simulation's
   own law, the design as MATLAB ``.mat`` or JSON); :mod:`~quadctl.interop`: python-control systems
+
+Old import paths still import (:mod:`~quadctl._moved`): ``quadctl.setup`` is :mod:`~quadctl.problem`
+(its ``resolve`` is ``setup_of``), ``quadctl.discrete`` and ``quadctl.riccati`` are in :mod:`~quadctl.lqr`,
+``quadctl.simulate`` is :mod:`~quadctl.sim.run`.
 """
 
+from quadctl import _moved
+
 __version__ = "0.1.0"
+
+_moved.install()

@@ -17,8 +17,8 @@ from quadctl.stability import STABILITY_MARGIN, UNIT_CIRCLE_MARGIN, is_stable  #
 
 RICCATI_RTOL = 1e-8
 """Largest accepted relative residual of a Riccati solution, continuous or discrete: the residual's
-1-norm over the sum of its terms' 1-norms (:func:`quadctl.riccati.riccati_residuals`,
-:func:`quadctl.riccati.dare_residuals`), for every solution quadctl uses (:mod:`quadctl.riccati`)."""
+1-norm over the sum of its terms' 1-norms (:func:`quadctl.lqr.riccati.riccati_residuals`,
+:func:`quadctl.lqr.riccati.dare_residuals`), for every solution quadctl uses (:mod:`quadctl.lqr.riccati`)."""
 
 
 @dataclass(frozen=True)

@@ -405,7 +405,7 @@ def bundled(name: str) -> Source:
     return Source(f"{name}.yaml", res.read_text(encoding="utf-8"))
 
 
-def resolve(spec: str | Path | None) -> Source:
+def locate(spec: str | Path | None) -> Source:
     """Find a config: a file, else a bundled name (with or without ``.yaml``).
 
     A folder is never a config. A bundled name resolves unless a file of exactly that name
@@ -445,6 +445,10 @@ def resolve(spec: str | Path | None) -> Source:
         f"bundled: {', '.join(bundled_names())}")
 
 
+resolve = locate
+"""The former name of :func:`locate` (kept for code written against it)."""
+
+
 def load(spec: str | Path | None = None) -> Config:
     """Load and validate a config from a path or a bundled name (default: ``forward``).
 
@@ -453,7 +457,7 @@ def load(spec: str | Path | None = None) -> Config:
     ConfigError
         With one line naming the file, key path, value and the fix.
     """
-    source = resolve(spec)
+    source = locate(spec)
     return parse(source.text, source.label)
 
 

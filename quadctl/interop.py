@@ -15,14 +15,14 @@ system (``states=``, ``inputs=``, ``outputs=``) and decides continuous or discre
 - :func:`from_statespace`: any python-control ``StateSpace`` as a :class:`Plant` quadctl designs
   for (``A, B``, names, and ``dt`` deciding ``lqr`` or ``dlqr``).
 
-Every matrix comes from quadctl's own stages (:mod:`quadctl.discrete` for the hold,
+Every matrix comes from quadctl's own stages (:mod:`quadctl.lqr.discrete` for the hold,
 :func:`quadctl.lqr.closed_loop_matrix` for the loop); python-control only carries them.
 
 Examples
 --------
 >>> from quadctl import config, pipeline, interop
->>> from quadctl.setup import resolve
->>> setup = resolve(config.load("crazyflie"))
+>>> from quadctl.problem import setup_of
+>>> setup = setup_of(config.load("crazyflie"))
 >>> linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
 >>> sys = interop.plant(linear)
 >>> sys.state_labels[:3], sys.input_labels
@@ -58,7 +58,7 @@ def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
     linear : quadctl.linearize.LinearModel
         ``A`` (12, 12) and ``B`` (12, 4) about the trim.
     sample_time : float, optional
-        s. Given: the zero-order-hold plant (:func:`quadctl.discrete.c2d`) with ``dt = sample_time``.
+        s. Given: the zero-order-hold plant (:func:`quadctl.lqr.discrete.c2d`) with ``dt = sample_time``.
     name : str
 
     Returns
@@ -92,7 +92,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
 
     Parameters
     ----------
-    design : quadctl.lqr.Design or quadctl.simulate.ClosedLoop
+    design : quadctl.lqr.Design or quadctl.sim.run.ClosedLoop
         Anything with ``K`` or ``K_block`` (4, 12), ``Ki``/``Ki_block`` (4, nz), ``integral_states``.
     sample_time : float, None or "design"
         s; ``"design"``: the design's own (a discrete design's, else continuous).
@@ -102,7 +102,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
     -------
     control.StateSpace
         States ``z_<state>``, inputs the 12 state names, outputs ``T A E R``. A
-        :class:`~quadctl.simulate.ClosedLoop` with a Kalman filter gives the LQG compensator
+        :class:`~quadctl.sim.run.ClosedLoop` with a Kalman filter gives the LQG compensator
         (:func:`_lqg_controller`): states ``xh_<state>`` then ``z_<state>``, the unmeasured inputs
         unused, at the filter's sample time.
 
@@ -112,7 +112,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
         The design includes the rotors' lag, or an LQG loop has a delay (the filter's command
         buffer) or is asked for another sample time than its filter's.
     """
-    from quadctl import integral
+    from quadctl.lqr import integral
 
     _control()
     K, Ki, ints = _gains(design)
@@ -135,7 +135,7 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
     ``xh+ = Ae xc + Be u``, ``z+ = z - Ts S xc``. Kalman-Bucy (``L``): ``u = -K xh - Ki z``,
     ``xh' = Ae xh + Be u + L (y - C xh)``, ``z' = -S xh``. ``S`` selects the integrated states.
     """
-    from quadctl import integral
+    from quadctl.lqr import integral
 
     kal = loop.estimator
     Ts = kal.sample_time
@@ -172,7 +172,7 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
     Parameters
     ----------
     linear : quadctl.linearize.LinearModel
-    design : quadctl.lqr.Design or quadctl.simulate.ClosedLoop
+    design : quadctl.lqr.Design or quadctl.sim.run.ClosedLoop
     sample_time : float, None or "design"
         s; ``"design"``: the design's own.
     name : str
@@ -182,8 +182,7 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
     control.StateSpace
         Its poles are the closed-loop eigenvalues (``z`` when sampled).
     """
-    from quadctl import discrete
-    from quadctl.lqr import closed_loop_matrix
+    from quadctl.lqr import closed_loop_matrix, discrete
 
     _control()
     K, Ki, ints = _gains(design)
@@ -225,9 +224,10 @@ class Plant:
         return iter((self.A, self.B))
 
     def lqr(self, Q, R):
-        """``K, P, E``: :func:`quadctl.lqr.lqr` for a continuous plant, :func:`quadctl.discrete.dlqr`
+        """``K, P, E``: :func:`quadctl.lqr.lqr` for a continuous plant, :func:`quadctl.lqr.discrete.dlqr`
         for a discrete one (decided by ``dt``, as python-control's ``lqr`` does)."""
-        from quadctl import discrete, lqr
+        from quadctl import lqr
+        from quadctl.lqr import discrete
 
         if self.dt:
             return discrete.dlqr(self.A, self.B, Q, R, name="plant")
@@ -284,7 +284,7 @@ def _gains(design):
 
 def _held(A, B, sample_time):
     """``(A, B)``, or with a sample time the zero-order-hold plant ``(Ad, Bd)``."""
-    from quadctl import discrete
+    from quadctl.lqr import discrete
 
     return discrete.c2d(A, B, sample_time) if sample_time else (np.asarray(A, float), np.asarray(B, float))
 

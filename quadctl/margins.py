@@ -65,8 +65,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.lag import lagged as lagged  # re-exported: the lag every loop carries
 from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.lqr.lag import lagged as lagged  # re-exported: the lag every loop carries
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -481,7 +481,7 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
     sampled, with ``delay_samples`` of delay on every input (:func:`delayed`);
     ``rotor_time_constant`` puts the rotors' lag on every input (:func:`lagged`).
     """
-    from quadctl import discrete, integral
+    from quadctl.lqr import discrete, integral
 
     Ts = sample_time
     for sub in design.subsystems:
@@ -524,7 +524,7 @@ def lqg_loops(design, A, B, kal):
         The continuous coupled linear model.
     kal : quadctl.estimator.Kalman
     """
-    from quadctl import integral
+    from quadctl.lqr import integral
 
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     K, ints = design.K_block, design.integral_states
@@ -584,7 +584,7 @@ def _coupled(design, A, B, Ts, rotor_time_constant=None):
     """Augmented coupled plant (with the rotors' lag) and gain ``[K, 0, Ki]`` without the positions
     nothing feeds back; a design that includes the lag appends the controller's lag model ``l``
     (:func:`with_lag_model`)."""
-    from quadctl import discrete, integral
+    from quadctl.lqr import discrete, integral
 
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     K, Ki = design.K_block, design.Ki_block
@@ -633,7 +633,7 @@ def with_lag_model(A, B, K, Kv, time_constant: float, sample_time: float | None 
     -------
     (n + m, n + m) ndarray, (n + m, m) ndarray, (m, n + m) ndarray
     """
-    from quadctl.lag import model_pole
+    from quadctl.lqr.lag import model_pole
 
     A, B, K, Kv = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (A, B, K, Kv))
     n, m = B.shape

@@ -1,7 +1,7 @@
-"""The stages chained from a resolved :class:`~quadctl.setup.Setup`: pure functions, no I/O.
+"""The stages chained from a :class:`~quadctl.problem.Setup`: pure functions, no I/O.
 
 Each takes the setup (and upstream results) and returns the stage's result object; nothing here
-reads the config (:func:`quadctl.setup.resolve` did, once).
+reads the config (:func:`quadctl.problem.setup_of` did, once).
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from quadctl.layout import INPUT_NAMES, STATE_NAMES
 from quadctl.linearize import LinearModel, linearize
 from quadctl.lqr import Design, closed_loop_matrix, design
 from quadctl.motors import check_trim
-from quadctl.setup import Setup
-from quadctl.simulate import ClosedLoop, SimResult, eigen_owners, simulate
+from quadctl.problem import Setup
+from quadctl.sim.run import ClosedLoop, SimResult, eigen_owners, simulate
 from quadctl.trim import Trim, solve_trim
 
 
@@ -183,14 +183,14 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
     """Loops of the *continuous* design that ``rate`` Hz cannot realize (``check``'s warning).
 
     Each subsystem (with its integrators) and the coupled loop are checked: the fastest
-    continuous closed-loop pole against :func:`quadctl.discrete.realizable_frequency`, and the
+    continuous closed-loop pole against :func:`quadctl.lqr.discrete.realizable_frequency`, and the
     continuous gains run through a zero-order hold at ``rate`` (stable or not).
 
     Returns
     -------
-    list of quadctl.discrete.RateWarning
+    list of quadctl.lqr.discrete.RateWarning
     """
-    from quadctl import discrete, integral
+    from quadctl.lqr import discrete, integral
 
     des = design_of(setup, decoupled, linear, rate=None)
     Ts = 1.0 / rate
@@ -333,17 +333,17 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
     Returns
     -------
     (FullDesign, dict)
-        The full design and :func:`quadctl.full.compare` of the two runs (``decoupled``, ``full``),
+        The full design and :func:`quadctl.lqr.coupled.compare` of the two runs (``decoupled``, ``full``),
         with each run's metrics and status.
     """
-    from quadctl import full
     from quadctl.errors import ConfigError
+    from quadctl.lqr import coupled
     from quadctl.metrics import summarize
 
     if des.lag_time_constant is not None:
         raise ConfigError("controller.rotor_lag = include: design --full (one coupled LQR) is built for designs "
                           "without the rotors' lag only; run it with rotor_lag: ignore, or drop --full")
-    fd = full.full_design(des, linear.A, linear.B)
+    fd = coupled.full_design(des, linear.A, linear.B)
     dx0 = setup.initial_offset
     Q = des.Q_block
     runs = {}
@@ -353,7 +353,7 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
         met = summarize(sim, linear.u_trim, Q, des.R_block, setup.regulated)
         met["peak_delta"] = {name: float(np.abs(sim.u[:, j] - linear.u_trim[j]).max())
                              for j, name in enumerate(INPUT_NAMES)}
-        met["linear_cost"] = full.linear_cost(linear.A, linear.B, K, Ki, des, dx0)
+        met["linear_cost"] = coupled.linear_cost(linear.A, linear.B, K, Ki, des, dx0)
         met["backend"] = sim.backend
         runs[label] = met
-    return fd, full.compare(runs, setup.regulated)
+    return fd, coupled.compare(runs, setup.regulated)

@@ -21,15 +21,15 @@ from quadctl import __version__, artifacts, pipeline
 from quadctl.analysis import Checks, check
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
-from quadctl.discrete import RateWarning, realizable_frequency, unstable_when_sampled
 from quadctl.errors import DesignError
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, STATE_NAMES, STATE_UNITS
 from quadctl.linearize import LinearModel
 from quadctl.lqr import Design
+from quadctl.lqr.discrete import RateWarning, realizable_frequency, unstable_when_sampled
 from quadctl.messages import eig_text
 from quadctl.metrics import summarize
-from quadctl.setup import resolve
-from quadctl.simulate import ClosedLoop, SimResult
+from quadctl.problem import setup_of
+from quadctl.sim.run import ClosedLoop, SimResult
 from quadctl.trim import Trim
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
@@ -118,7 +118,7 @@ class Workspace:
     def __init__(self, cfg: Config, out: Path | str | None = None, *, fresh: bool = False,
                  source_text: str | None = None):
         self.cfg = cfg
-        self.setup = resolve(cfg)
+        self.setup = setup_of(cfg)
         self.out = Path(out) if out is not None else default_out(cfg)
         self.fresh = fresh
         self.source_text = source_text

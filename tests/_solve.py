@@ -7,7 +7,7 @@ import json
 from functools import cache
 
 from quadctl import config, pipeline
-from quadctl.setup import resolve
+from quadctl.problem import setup_of
 
 
 def cfg_dict(bundled: str, **changes) -> dict:
@@ -19,7 +19,7 @@ def cfg_dict(bundled: str, **changes) -> dict:
 
 @cache
 def _solved(text: str):
-    setup = resolve(config.from_dict(json.loads(text), "<test>"))
+    setup = setup_of(config.from_dict(json.loads(text), "<test>"))
     trim = pipeline.trim_of(setup)
     linear = pipeline.linear_of(setup, trim)
     dec = pipeline.decoupled_of(setup, linear)
@@ -43,7 +43,7 @@ def bundled_subsystems(names=("forward", "hover", "mambo-200hz")):
     """(setup, regulated subsystem) of every bundled config in ``names``: the plants the Riccati tests
     design for."""
     for name in names:
-        setup = resolve(config.load(name))
+        setup = setup_of(config.load(name))
         linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
         for sub in pipeline.decoupled_of(setup, linear).regulated:
             yield setup, sub
@@ -78,7 +78,7 @@ def lanes_and_one_case_runs(setup, spec, variants):
     from quadctl.sim import engine
     from quadctl.sim.cases import Cases
     from quadctl.sim.plan import record_stride
-    from quadctl.simulate import simulate
+    from quadctl.sim.run import simulate
 
     run = engine.runner(spec, engine.LANES)
     assert run.backend == "compiled-simd"

@@ -14,9 +14,9 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 def forward():
     """(setup, trim, linear, decoupled, design) of the bundled forward config."""
     from quadctl import config, pipeline
-    from quadctl.setup import resolve
+    from quadctl.problem import setup_of
 
-    setup = resolve(config.load("forward"))
+    setup = setup_of(config.load("forward"))
     trim = pipeline.trim_of(setup)
     linear = pipeline.linear_of(setup, trim)
     dec = pipeline.decoupled_of(setup, linear)

@@ -58,7 +58,7 @@ def test_varied_setups_equal_the_resolved_ones(name, parameters, cases):
     setups = CaseSetups(task)
     assert setups.kinds is not None  # these keys take the quick way
     for index, values in task.cases:
-        same(setups(index, values), setups.resolved(index, values))
+        same(setups(index, values), setups.from_config(index, values))
 
 
 @pytest.mark.parametrize("values", [
@@ -75,7 +75,7 @@ def test_an_invalid_value_gives_the_error_of_the_whole_validation(values):
     task = task_of("mambo-200hz", MAMBO, [values])
     setups = CaseSetups(task)
     with pytest.raises(ConfigError) as reference:
-        setups.resolved(0, values)
+        setups.from_config(0, values)
     with pytest.raises(ConfigError) as quick:
         setups(0, values)
     assert str(quick.value) == str(reference.value)
@@ -86,6 +86,6 @@ def test_other_keys_take_the_whole_validation():
     task = task_of("mambo-200hz", {"vehicle.mass": [0.07], "lqr.roll.Q[1]": [50.0]}, [(0.07, 50.0), (-1.0, 50.0)])
     setups = CaseSetups(task)
     assert setups.kinds is None
-    same(setups(0, (0.07, 50.0)), setups.resolved(0, (0.07, 50.0)))
+    same(setups(0, (0.07, 50.0)), setups.from_config(0, (0.07, 50.0)))
     with pytest.raises(ConfigError, match=r"case 1: vehicle\.mass = -1"):
         setups(1, (-1.0, 50.0))

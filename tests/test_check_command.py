@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import config, discrete, pipeline
+from quadctl import config, pipeline
 from quadctl.cli.app import app
-from quadctl.setup import resolve
+from quadctl.lqr import discrete
+from quadctl.problem import setup_of
 
 REPORT_AT_200HZ = Path(__file__).parent.parent / "docs" / "configs" / "report-at-200hz.yaml"
 UNSTABLE_AT_200HZ = "sampled at 200 Hz the continuous design's loop(s) roll, pitch, yaw, coupled are UNSTABLE"
@@ -28,7 +29,7 @@ def flat(text: str) -> str:
 def test_the_report_gains_really_are_unstable_at_200hz():
     """The verdict's physics: the roll loop's continuous gain on the 200 Hz ZOH plant has an
     eigenvalue outside the unit circle (independently of check's own code path)."""
-    setup = resolve(config.load("forward"))
+    setup = setup_of(config.load("forward"))
     linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
     dec = pipeline.decoupled_of(setup, linear)
     des = pipeline.design_of(setup, dec, linear)
@@ -94,7 +95,7 @@ def test_a_rate_beside_the_configs_own_is_refused_alike_by_check_and_export(tmp_
 def test_a_rate_equal_to_a_discrete_configs_own_checks_the_discrete_design(tmp_path):
     """forward designed discrete at 200 Hz passes check; --rate 200 made check test the *continuous* design at
     200 Hz instead (unstable: exit 1, "use a discrete design") though the config is one."""
-    text = config.resolve("forward").text.replace("name: forward\n",
+    text = config.locate("forward").text.replace("name: forward\n",
                                                   "name: forward\ncontroller: {rate: 200, design: discrete}\n")
     (tmp_path / "c.yaml").write_text(text)
     plain = invoke("check", "-c", tmp_path / "c.yaml", "-o", tmp_path / "a")

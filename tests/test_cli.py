@@ -148,7 +148,7 @@ def test_unknown_bundled_name_lists_the_bundled_ones():
 
 def test_unstabilizable_partition_fails_check_with_exit_1(tmp_path):
     """Swap the torques: the yaw torque R cannot move the roll loop's states."""
-    text = config.resolve("hover")[1]
+    text = config.locate("hover")[1]
     text = text.replace("roll:     {states: [v, phi, p], inputs: [A]}", "roll:     {states: [v, phi, p], inputs: [R]}")
     text = text.replace("yaw:      {states: [psi, r], inputs: [R]}", "yaw:      {states: [psi, r], inputs: [A]}")
     cfg = _write(tmp_path, text)
@@ -161,7 +161,7 @@ def test_unstabilizable_partition_fails_check_with_exit_1(tmp_path):
 
 
 def test_unstable_step_is_bad_input(tmp_path):
-    text = config.resolve("forward")[1]
+    text = config.locate("forward")[1]
     cfg = _write(tmp_path, text.replace("dt: auto", "dt: 0.001"))
     res = runner.invoke(app, ["simulate", "-c", str(cfg), "-o", str(tmp_path)])
     assert res.exit_code == 2

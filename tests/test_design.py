@@ -117,9 +117,9 @@ def test_not_stabilizable_subsystem_names_the_mode():
 
 def test_design_on_report_partition_is_stable_on_hover(forward):
     from quadctl import config, pipeline
-    from quadctl.setup import resolve
+    from quadctl.problem import setup_of
 
-    setup = resolve(config.load("hover"))
+    setup = setup_of(config.load("hover"))
     linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
     des = design(decouple(linear.A, linear.B, REPORT_PARTITION), linear.A, linear.B, setup.weights)
     assert des.stable
@@ -186,7 +186,7 @@ def test_scipy_fallback_gives_the_same_design_as_quadctls_solver(forward, monkey
     both paths, on every report subsystem, give the same gain and pass the residual check."""
     import dataclasses
 
-    from quadctl.riccati import single
+    from quadctl.lqr.riccati import single
 
     _, _, _, dec, des = forward
     weights = {s.name: (s.Q, s.R) for s in des.subsystems}

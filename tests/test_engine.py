@@ -20,7 +20,7 @@ from _solve import cfg_dict, lanes_and_one_case_runs, solve
 from quadctl import pipeline
 from quadctl.sim import compile as compile_mod
 from quadctl.sim import engine
-from quadctl.simulate import simulate
+from quadctl.sim.run import simulate
 
 
 def _features():

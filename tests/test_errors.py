@@ -15,7 +15,7 @@ from quadctl import config
 from quadctl.cli.app import app
 
 runner = CliRunner()
-FORWARD = config.resolve("forward")[1]
+FORWARD = config.locate("forward")[1]
 
 
 def _edit(old: str, new: str) -> str:
@@ -93,7 +93,7 @@ CONFIG_CASES.update({
     "case of a key": (_edit("altitude: {Q: [50, 1], R: [1]}", "altitude: {q: [50, 1], R: [1]}"),
                       r"lqr\.altitude\.q: unknown key; did you mean `Q`\? \(and 1 more error\)"),
 })
-MAMBO = config.resolve("mambo-200hz")[1]
+MAMBO = config.locate("mambo-200hz")[1]
 CONFIG_CASES["not a whole number"] = (MAMBO.replace("seed: 1", "seed: 1.5"),
                                       r"simulation\.noise\.seed = 1\.5: must be a whole number")
 CONFIG_CASES["whole number written as a float"] = (_edit("dt: auto", "dt: auto\n  max_samples: 20000.0"),
@@ -186,7 +186,7 @@ def test_exponent_without_a_dot_is_a_number():
 
 @pytest.mark.parametrize("spec,label", [("forward.yml", "forward.yaml"), ("hover.yaml", "hover.yaml")])
 def test_bundled_names_with_an_extension(spec, label):
-    assert config.resolve(spec)[0] == label
+    assert config.locate(spec)[0] == label
 
 
 def test_misspelt_bundled_name_gets_a_suggestion():

@@ -18,7 +18,7 @@ from quadctl import config, estimator, pipeline, sweep
 from quadctl.cli.app import app
 from quadctl.errors import ConfigError, DesignError
 from quadctl.sim import engine
-from quadctl.simulate import simulate
+from quadctl.sim.run import simulate
 
 GAIN_RTOL = 1e-9
 """Relative agreement of gains and covariances with SciPy / python-control (both certified Riccati
@@ -94,7 +94,7 @@ def test_a_scalar_filter_has_the_closed_form_gain():
     A, G, C = np.eye(1), np.eye(1), np.eye(1)
     # through the dual LQR the package solves: one state, one measurement (padded to the 12-state API
     # would hide the closed form; the Riccati solver is the one kalman() calls)
-    from quadctl.riccati import solve as riccati
+    from quadctl.lqr.riccati import solve as riccati
 
     res = riccati(A.T, C.T, G * q, np.eye(1) * r, discrete=True)
     P = (q + np.sqrt(q * q + 4 * q * r)) / 2

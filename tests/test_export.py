@@ -29,8 +29,8 @@ from quadctl.cli.app import app
 from quadctl.export import c as cexport
 from quadctl.export import data
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
-from quadctl.setup import resolve
-from quadctl.simulate import simulate
+from quadctl.problem import setup_of
+from quadctl.sim.run import simulate
 
 runner = CliRunner()
 STRICT = ("-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror")
@@ -108,7 +108,7 @@ def cc() -> str:
 def prepared(case: str):
     cfg_data, rate = CASES[case]()
     cfg = config.from_dict(cfg_data, f"{case}.yaml")
-    return export.prepare(resolve(cfg), rate, config_hash=cfg.digest())
+    return export.prepare(setup_of(cfg), rate, config_hash=cfg.digest())
 
 
 class Controller:
@@ -483,7 +483,7 @@ def test_the_mat_file_round_trips_through_loadmat(name, tmp_path):
     assert res.exit_code == 0, res.stderr
     got = loadmat(str(tmp_path / data.MAT_FILE), simplify_cells=True)
     cfg = config.load(name)
-    exp = export.prepare(resolve(cfg), need_rate=False, config_hash=cfg.digest())
+    exp = export.prepare(setup_of(cfg), need_rate=False, config_hash=cfg.digest())
     fields = data.fields(exp)
     assert {f.name for f in fields} | {"units", "descriptions"} == {k for k in got if not k.startswith("__")}
     for f in fields:
@@ -513,7 +513,7 @@ def test_the_json_holds_the_same_fields_with_units_and_shapes(tmp_path):
     doc = json.loads((tmp_path / data.JSON_FILE).read_text())
     cfg = config.load("mambo-200hz")
     assert doc["format"] == "quadctl-controller" and doc["config_hash"] == cfg.digest()
-    exp = export.prepare(resolve(cfg), config_hash=cfg.digest())
+    exp = export.prepare(setup_of(cfg), config_hash=cfg.digest())
     assert doc["law"] == exp.law()
     for f in data.fields(exp):
         entry = doc["fields"][f.name]
@@ -571,7 +571,7 @@ def test_a_continuous_lqg_export_carries_the_kalman_bucy_filter():
     data_, _ = _mambo_lqg()
     data_["controller"] = {**data_["controller"], "rate": None}
     cfg = config.from_dict(data_, "lqg.yaml")
-    exp = export.prepare(resolve(cfg), need_rate=False)
+    exp = export.prepare(setup_of(cfg), need_rate=False)
     (field,) = [f for f in data.fields(exp) if f.name == "estimator"]
     e = field.value
     assert e["form"] == "kalman-bucy" and e["sample_time"] == 0.0 and "intensities" in field.unit
@@ -583,7 +583,7 @@ def test_a_continuous_lqg_export_carries_the_kalman_bucy_filter():
 
 def test_exported_eigenvalues_are_the_designs():
     cfg = config.load("mambo-200hz")
-    exp = export.prepare(resolve(cfg))
+    exp = export.prepare(setup_of(cfg))
     got = np.sort_complex(exp.closed_loop_eigenvalues())
     want = np.sort_complex(exp.design.full_eigenvalues_z)
     assert np.abs(got - want).max() < 1e-12
@@ -778,7 +778,7 @@ def test_the_readme_lqg_flight_loop_compiles_and_its_first_tick_is_the_filters(s
     assert build.returncode == 0, build.stderr
     thrust = np.array(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split(), float)
     cfg = config.load(LQG_CONFIG)
-    loop = export.prepare(resolve(cfg)).loop
+    loop = export.prepare(setup_of(cfg)).loop
     kal, act = loop.estimator, loop.actuators
     y = np.zeros(len(kal.measured))
     y[kal.measured.index("pD")], y[kal.measured.index("phi")] = -0.5, 0.1

@@ -167,7 +167,7 @@ def test_ctrl_c_stops_a_long_simulation_promptly(tmp_path, engine):
     from quadctl import config
 
     path = tmp_path / "long.yaml"
-    path.write_text(config.resolve("forward-script-q")[1].replace("duration: 10.0", "duration: 600.0"))
+    path.write_text(config.locate("forward-script-q")[1].replace("duration: 10.0", "duration: 600.0"))
     cmd = [sys.executable, "-m", "quadctl", "simulate", "-c", str(path), "-o", str(tmp_path / "out")]
     env = {**os.environ, **({"QUADCTL_NO_COMPILE": "1"} if engine == "casadi" else {})}
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env,

@@ -6,33 +6,33 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, solve
 
-from quadctl import config, full, pipeline
+from quadctl import config, pipeline
 from quadctl.layout import STATE_INDEX
-from quadctl.lqr import riccati_residual
-from quadctl.setup import resolve
+from quadctl.lqr import coupled, riccati_residual
+from quadctl.problem import setup_of
 
 
 @pytest.mark.parametrize("name", ["forward", "mambo-200hz"])
 def test_full_design_cost_never_exceeds_the_decoupled_one(name):
     """Both minimize the same cost; the full LQR is its optimum on the coupled linear model."""
     setup, trim, linear, _, des = solve(cfg_dict(name))
-    fd = full.full_design(des, linear.A, linear.B)
+    fd = coupled.full_design(des, linear.A, linear.B)
     assert fd.stable
     dx0 = setup.initial_offset
-    j_dec = full.linear_cost(linear.A, linear.B, des.K_block, des.Ki_block, des, dx0)
-    j_full = full.linear_cost(linear.A, linear.B, fd.K, fd.Ki, des, dx0)
+    j_dec = coupled.linear_cost(linear.A, linear.B, des.K_block, des.Ki_block, des, dx0)
+    j_full = coupled.linear_cost(linear.A, linear.B, fd.K, fd.Ki, des, dx0)
     assert j_full <= j_dec * (1 + 1e-9)
     rng = np.random.default_rng(0)
     for _ in range(5):  # any offset, not just the configured one
         dx = rng.normal(size=12) * 0.1
         dx[[STATE_INDEX["pN"], STATE_INDEX["pE"]]] = 0.0
-        assert full.linear_cost(linear.A, linear.B, fd.K, fd.Ki, des, dx) <= \
-            full.linear_cost(linear.A, linear.B, des.K_block, des.Ki_block, des, dx) * (1 + 1e-9)
+        assert coupled.linear_cost(linear.A, linear.B, fd.K, fd.Ki, des, dx) <= \
+            coupled.linear_cost(linear.A, linear.B, des.K_block, des.Ki_block, des, dx) * (1 + 1e-9)
 
 
 def test_full_design_leaves_unweighted_positions_out_and_solves_the_care():
     _, _, linear, _, des = solve(cfg_dict("forward"))
-    fd = full.full_design(des, linear.A, linear.B)
+    fd = coupled.full_design(des, linear.A, linear.B)
     assert fd.left_out == ("pN", "pE") and "pD" in fd.states
     assert not np.any(fd.K[:, [STATE_INDEX["pN"], STATE_INDEX["pE"]]])
     keep = [STATE_INDEX[s] for s in fd.states]
@@ -45,7 +45,7 @@ def test_compare_reports_a_winner_and_a_ratio_per_criterion():
     cfg, trim, linear, _, des = solve(cfg_dict("mambo-200hz"))
     data = cfg_dict("mambo-200hz")
     data["simulation"]["duration"] = 4.0
-    setup = resolve(config.from_dict(data))
+    setup = setup_of(config.from_dict(data))
     fd, comparison = pipeline.compare_full(setup, linear, des)
     assert set(comparison["designs"]) == {"decoupled", "full"}
     lin = comparison["better"]["linear_cost"]

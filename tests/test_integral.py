@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
-from quadctl import integral
 from quadctl.layout import INPUT_INDEX, STATE_INDEX
+from quadctl.lqr import integral
 
 MASS_ERROR = 1.10
 """The simulated vehicle is 10 % heavier than the design model."""

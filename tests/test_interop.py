@@ -121,9 +121,9 @@ def test_without_python_control_the_error_says_how_to_install_it():
 def test_the_docstring_examples_run():
     import doctest
 
-    from quadctl import export
+    from quadctl.export import bundle
 
-    for module in (interop, export):
+    for module in (interop, bundle):
         result = doctest.testmod(module)
         assert result.attempted and not result.failed, module.__name__
 

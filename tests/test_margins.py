@@ -12,8 +12,9 @@ import scipy.optimize
 from _solve import cfg_dict, solve
 from typer.testing import CliRunner
 
-from quadctl import discrete, margins
+from quadctl import margins
 from quadctl.cli.app import app
+from quadctl.lqr import discrete
 from quadctl.margins import BrokenLoop, loop_margins
 
 

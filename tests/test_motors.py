@@ -11,7 +11,7 @@ from _solve import cfg_dict, run
 from quadctl import config, motors, pipeline
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_INDEX
-from quadctl.setup import resolve
+from quadctl.problem import setup_of
 
 MAMBO = motors.Motors()
 MG = 0.068 * 9.81
@@ -54,7 +54,7 @@ def test_plus_layout_rolls_with_the_side_rotors_only():
 def test_a_trim_the_rotors_cannot_hold_is_refused():
     """Hover needs m g / 4 = 0.068 * 9.81 / 4 = 0.1668 N per rotor, above max_thrust = 0.1 N."""
     data = cfg_dict("hover", motors={"max_thrust": 0.1})
-    setup = resolve(config.from_dict(data))
+    setup = setup_of(config.from_dict(data))
     linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
     with pytest.raises(ConfigError, match=r"motors.max_thrust = 0.1: the trim needs rotor 1 = 0.1668 N, outside "
                                           r"the limits \[0, 0.1\] N, .*; raise motors.max_thrust above 0.1668 N, "
@@ -77,7 +77,7 @@ def test_a_trim_outside_the_limits_names_the_file_key_value_and_fix(tmp_path, se
 
     from quadctl.cli.app import app
 
-    text = config.resolve("hover").text.replace("simulation:", section + "\nsimulation:")
+    text = config.locate("hover").text.replace("simulation:", section + "\nsimulation:")
     (tmp_path / "c.yaml").write_text(text)
     res = CliRunner().invoke(app, ["run", "-c", str(tmp_path / "c.yaml"), "-o", str(tmp_path / "out")])
     assert res.exit_code == 2, res.output

@@ -13,10 +13,10 @@ from quadctl.analysis import check, is_stable
 from quadctl.cli.app import app
 from quadctl.errors import QuadctlError
 from quadctl.lqr import RICCATI_RTOL, lqr, riccati_residual
-from quadctl.setup import resolve
+from quadctl.problem import setup_of
 
 runner = CliRunner()
-FORWARD = config.resolve("forward")[1]
+FORWARD = config.locate("forward")[1]
 BASE = config.load("forward").model_dump(mode="json")
 
 finite = st.floats(allow_nan=False, allow_infinity=False)
@@ -52,7 +52,7 @@ def configs(draw):
 @given(configs())
 def test_random_valid_configs_give_a_result_or_a_quadctl_error(cfg):
     try:
-        setup = resolve(cfg)
+        setup = setup_of(cfg)
         trim = pipeline.trim_of(setup)
         linear = pipeline.linear_of(setup, trim)
         dec = pipeline.decoupled_of(setup, linear)

@@ -9,9 +9,9 @@ import scipy.linalg
 from _carex import case
 from _solve import bundled_subsystems
 
-from quadctl import discrete, integral
 from quadctl.errors import DesignError
-from quadctl.riccati import KRONECKER_MAX_N, care_batch, dare_batch, dare_residual
+from quadctl.lqr import discrete, integral
+from quadctl.lqr.riccati import KRONECKER_MAX_N, care_batch, dare_batch, dare_residual
 
 AGREEMENT = 1e-9
 """Relative difference (largest entry over the largest entry) allowed between the batched answers
@@ -208,7 +208,7 @@ def test_a_member_whose_eigenvalues_do_not_converge_fails_alone(monkeypatch):
 
 
 def test_a_stack_too_large_for_memory_is_a_design_error(monkeypatch):
-    from quadctl.riccati import stacked
+    from quadctl.lqr.riccati import stacked
 
     def out_of_memory(*args):
         raise MemoryError("Unable to allocate 2.4 GiB")

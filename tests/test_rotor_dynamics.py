@@ -15,7 +15,7 @@ from quadctl import config, margins
 from quadctl.errors import ConfigError
 from quadctl.layout import N_STATES
 from quadctl.sim.builder import build
-from quadctl.simulate import simulate
+from quadctl.sim.run import simulate
 
 EXACT = 1e-13
 """The builder's RK4 against RK4's own closed form ``R(z)^n`` on the linear lag: round-off only."""

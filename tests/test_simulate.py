@@ -19,7 +19,7 @@ from quadctl.sim.plan import (
     record_stride,
     rk4_amplification,
 )
-from quadctl.simulate import ClosedLoop, simulate
+from quadctl.sim.run import ClosedLoop, simulate
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +98,7 @@ def test_leaving_the_euler_range_is_reported(loop):
 
 def test_chunked_runs_equal_one_long_call(loop, monkeypatch):
     """Chunk boundaries (for Ctrl-C) change nothing: t = k dt from the absolute step index."""
-    import quadctl.simulate as sim_mod
+    import quadctl.sim.run as sim_mod
 
     setup, cl = loop
     x0 = setup.initial_state(cl.x_trim)
@@ -146,7 +146,7 @@ def test_vectorized_step_limits_agree_with_the_scan():
 
 def test_the_config_default_of_max_samples_is_the_library_default():
     from quadctl.config import SimulationConfig
-    from quadctl.simulate import MAX_SAMPLES
+    from quadctl.sim.run import MAX_SAMPLES
 
     assert SimulationConfig().max_samples == MAX_SAMPLES
 

@@ -126,3 +126,68 @@ def test_lazy_import_of_a_missing_module_fails_at_once():
 
     with pytest.raises(ModuleNotFoundError, match="no_such_module_for_quadctl"):
         lazy_import("no_such_module_for_quadctl")
+
+
+def test_old_import_paths_give_the_moved_modules():
+    """Code written against the old layout (the README's earlier "From Python") still runs, on the
+    one module object: no second copy of a class, a constant or a cache."""
+    code = ("import quadctl.setup, quadctl.problem, quadctl.discrete, quadctl.lqr.discrete, quadctl.riccati.stacked\n"
+            "import quadctl.lqr.riccati.stacked, quadctl.simulate, quadctl.sim.run\n"
+            "from quadctl.setup import resolve, Setup\n"
+            "from quadctl.riccati import LqrResult, care_batch, dare_batch\n"
+            "from quadctl.discrete import dlqr, lqrd, c2d_batch, lqrd_weights_batch\n"
+            "from quadctl.lqr import lqr\n"
+            "assert quadctl.setup is quadctl.problem and resolve is quadctl.problem.setup_of\n"
+            "assert quadctl.discrete is quadctl.lqr.discrete and dlqr is quadctl.lqr.discrete.dlqr\n"
+            "assert quadctl.riccati.stacked is quadctl.lqr.riccati.stacked\n"
+            "assert quadctl.simulate is quadctl.sim.run\n"
+            "assert quadctl.problem.__spec__.name == 'quadctl.problem'\n"
+            "assert lqr is quadctl.lqr.decoupled.lqr\n")
+    subprocess.run([sys.executable, "-c", code], check=True)  # a fresh process: the old path imported first
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Module -> the quadctl modules it imports, at the top or inside a function (``from pkg import
+    sub`` counts as importing ``pkg.sub``; a name from a package counts as importing the package)."""
+    modules = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+
+    def owner(name: str) -> str:
+        while name not in modules:
+            name = name.rpartition(".")[0]
+        return name
+
+    graph = {}
+    for name, path in modules.items():
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("quadctl"):
+                deps |= {f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in modules else owner(node.module)
+                         for a in node.names}
+            elif isinstance(node, ast.Import):
+                deps |= {owner(a.name) for a in node.names if a.name.startswith("quadctl.")}
+        graph[name] = deps - {name, "quadctl"}
+    return graph
+
+
+def test_no_import_cycles_not_even_inside_functions():
+    """Imports go one way: no module reaches itself again through what it imports, counting the
+    imports deferred into functions (a cycle hidden there is still a cycle)."""
+    graph, cycles = _import_graph(), []
+
+    def visit(name, trail):
+        if name in trail:
+            cycles.append(" -> ".join(trail[trail.index(name):] + [name]))
+            return
+        if name in done:
+            return
+        for dep in sorted(graph.get(name, ())):
+            visit(dep, trail + [name])
+        done.add(name)
+
+    done: set[str] = set()
+    for name in sorted(graph):
+        visit(name, [])
+    assert cycles == []

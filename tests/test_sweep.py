@@ -20,8 +20,8 @@ from quadctl import config, metrics, pipeline, sweep
 from quadctl.cli.app import app
 from quadctl.errors import DesignError, SweepError
 from quadctl.lqr import lqr, riccati_residual
-from quadctl.riccati import care_batch
-from quadctl.simulate import simulate
+from quadctl.lqr.riccati import care_batch
+from quadctl.sim.run import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = {"simulation.duration": 0.15}

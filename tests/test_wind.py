@@ -15,11 +15,11 @@ from _solve import cfg_dict, solve
 from quadctl import config, pipeline, sweep
 from quadctl.errors import ConfigError
 from quadctl.model import Vehicle, build_model
-from quadctl.setup import resolve
+from quadctl.problem import setup_of
 from quadctl.sim import engine
 from quadctl.sim.cases import Cases
 from quadctl.sim.plan import record_stride
-from quadctl.simulate import ExoStream, simulate
+from quadctl.sim.run import ExoStream, simulate
 from quadctl.trim import solve_trim
 from quadctl.wind import (
     FT,
@@ -242,7 +242,7 @@ def test_the_plant_feels_the_gust_sample_for_sample():
 
 
 def test_a_run_in_wind_is_the_same_at_any_step_and_any_chunking(monkeypatch):
-    from quadctl import simulate as simulate_mod
+    from quadctl.sim import run as simulate_mod
 
     setup, loop = _loop(_windy())
     x0 = setup.initial_state(loop.x_trim)
@@ -387,7 +387,7 @@ def test_bad_wind_keys_give_one_line_naming_the_key(wind, trim, fragment):
     data["simulation"]["wind"] = wind
     data["trim"].update(trim)
     with pytest.raises(ConfigError) as err:
-        resolve(config.from_dict(data, "w.yaml"))
+        setup_of(config.from_dict(data, "w.yaml"))
     text = str(err.value)
     assert "\n" not in text and fragment in text, text
 

@@ -38,7 +38,7 @@ def load_source(config: str | None):
     from quadctl.cli import render
     from quadctl.cli.errors import remember_config
 
-    source = config_mod.resolve(config)
+    source = config_mod.locate(config)
     if source.note:
         render.note(source.note)
     cfg = config_mod.parse(source.text, source.label)

@@ -3,7 +3,7 @@
 :func:`prepare` runs the stages of a setup once, checks that the design can leave quadctl (stable
 on the coupled model, and, for a continuous design run at a rate, stable as the flight computer
 samples it) and returns an :class:`Export`: the closed loop exactly as ``quadctl simulate`` runs
-it. The writers read only that object:
+it (:mod:`quadctl.export.bundle`). The writers read only that object:
 
 - :mod:`quadctl.export.c`: a C99 controller generated from the simulation's own control law
   (:func:`quadctl.sim.builder.build`), ``double`` or ``float``;
@@ -13,81 +13,12 @@ it. The writers read only that object:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
-import numpy as np
-
-from quadctl.decouple import Decoupled
 from quadctl.errors import CheckFailed, ConfigError
-from quadctl.linearize import LinearModel
-from quadctl.lqr import Design, closed_loop_matrix
-from quadctl.setup import Setup, Timing
-from quadctl.simulate import ClosedLoop
-
-
-@dataclass(frozen=True)
-class Export:
-    """A design ready to leave quadctl.
-
-    Attributes
-    ----------
-    setup : Setup
-        The resolved config (its timing is the exported one: a continuous design exported at
-        ``--rate`` has ``timing.mode == "emulated"``).
-    linear : LinearModel
-        The linearization at the trim (continuous ``A``, ``B``).
-    decoupled : Decoupled
-    design : Design
-    loop : ClosedLoop
-        The loop as ``quadctl simulate`` runs it (gains, trim, reference drift, integrators, actuators).
-    rate_warnings : tuple of quadctl.discrete.RateWarning
-        Loops of a continuous design that the rate realizes only approximately (still stable).
-    config_hash : str or None
-        sha256 of the config (:meth:`quadctl.config.Config.digest`): the provenance the files carry.
-    """
-
-    setup: Setup
-    linear: LinearModel
-    decoupled: Decoupled
-    design: Design
-    loop: ClosedLoop
-    rate_warnings: tuple = ()
-    config_hash: str | None = None
-
-    @property
-    def name(self) -> str:
-        return self.setup.name
-
-    @property
-    def rate(self) -> float | None:
-        """Hz the controller runs at (None: continuous feedback, a ``.mat``/JSON export only)."""
-        return self.setup.timing.rate
-
-    @property
-    def sample_time(self) -> float | None:
-        """s between controller samples (None: continuous)."""
-        return self.setup.timing.sample_time
-
-    @property
-    def mode(self) -> str:
-        """``discrete`` (designed at the rate), ``emulated`` (continuous design sampled) or ``continuous``."""
-        return self.setup.timing.mode
-
-    def closed_loop_matrix(self) -> np.ndarray:
-        """The linear closed loop of ``[x; z]`` as exported: ``z``-domain when sampled (ZOH plant).
-        A design that includes the rotors' lag: of ``[x; v; z]`` (the lag states as the design sees
-        them; the controller's lag model equals them while the model is right)."""
-        return closed_loop_matrix(self.linear.A, self.linear.B, self.loop.K, self.loop.Ki,
-                                  self.loop.integral_states, self.sample_time, Kv=self.loop.Kv,
-                                  lag_time_constant=self.loop.lag_model_time_constant)
-
-    def closed_loop_eigenvalues(self) -> np.ndarray:
-        """Eigenvalues of :meth:`closed_loop_matrix` (``z`` when sampled, ``s`` in rad/s when continuous)."""
-        return np.linalg.eigvals(self.closed_loop_matrix())
-
-    def law(self) -> str:
-        """The control law in words and symbols, with this loop's timing, integrators and saturation."""
-        return law_text(self.loop, self.sample_time)
+from quadctl.export.bundle import Export as Export
+from quadctl.export.bundle import law_text as law_text
+from quadctl.problem import Setup, Timing
 
 
 def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
@@ -185,59 +116,3 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
     if to == "json":
         return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
     raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
-
-
-def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
-    """The control law of ``loop`` in one paragraph (the C header, the ``.mat`` and the JSON say it).
-
-    Examples
-    --------
-    >>> from quadctl.simulate import ClosedLoop
-    >>> z = np.zeros(12)
-    >>> print(law_text(ClosedLoop(z, z, np.zeros(4), z, np.zeros((4, 12)), z), None))
-    u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t; continuous feedback; no input limits.
-    """
-    ints, act = loop.integral_states, loop.actuators
-    inner = "u_trim - K (x - x_ref(t))" + (" - Ki z" if ints else "") + (" - Kv l" if loop.Kv is not None else "")
-    parts = [(f"u = {inner}" if act is None else f"u = sat({inner})") + ", x_ref(t) = x_trim + x_rate t"]
-    if sample_time is None:
-        parts.append("continuous feedback")
-    else:
-        parts.append(f"sampled every Ts = {sample_time:.9g} s at t = k Ts (k counts the samples) and held "
-                     "until the next (zero-order hold)")
-    if ints:
-        step = "z <- z - Ts (x_i - x_ref_i(t))" if sample_time is not None else "dz/dt = -(x_i - x_ref_i(t))"
-        parts.append(f"{step} for i = {', '.join(ints)} (MATLAB lqi), frozen while saturation changes an input "
-                     "that its Ki drives (conditional integration)")
-    if loop.Kv is not None:
-        tau = loop.lag_model_time_constant
-        step = ("l <- a l + (1 - a) (u - u_trim), a = exp(-Ts / tau)" if sample_time is not None
-                else "dl/dt = (u - u_trim - l) / tau")
-        parts.append(f"{step}, tau = {tau:g} s: the controller's model l of the rotors' lag (the deviation of "
-                     "[T, A, E, R] from trim), driven by its own command u, starting at 0")
-    kal = loop.estimator
-    if kal is not None:
-        y = f"y = the measured {', '.join(kal.measured)}"
-        if kal.form == "filter":
-            parts.append(f"x - x_ref(t) is the Kalman filter's estimate xc = xh + M (y - C x_ref(t) - C xh) ({y}; M "
-                         "the filter gain of dlqe), then xh <- Ae xc + Be (u - u_trim) with the applied u "
-                         "(xh the a priori estimate, starting at 0)")
-        else:
-            parts.append(f"x - x_ref(t) is the Kalman-Bucy filter's estimate xh, dxh/dt = Ae xh + Be (u - u_trim) "
-                         f"+ L (y - C x_ref(t) - C xh) ({y}), starting at 0")
-    if loop.delay_samples and sample_time is not None:
-        n = loop.delay_samples
-        parts.append(f"the vehicle applies u {n} sample{'s' if n > 1 else ''} ({n * sample_time:.6g} s, "
-                     "controller.delay) after computing it: the delay is the vehicle's, not part of this law")
-    if act is None:
-        parts.append("no input limits")
-    elif act.mode == "motors":
-        m = act.motors
-        parts.append(f"sat: the command mixed to the four rotor thrusts ({m.layout} layout, arm {m.arm_length:g} m, "
-                     f"{m.torque_coefficient:g} N m of yaw torque per N), each clipped to "
-                     f"[{m.min_thrust:g}, {m.max_thrust:g}] N, mixed back")
-    else:
-        limited = [f"{n} in [{lo:g}, {hi:g}]" for n, lo, hi in zip(act.names, act.lo, act.hi)
-                   if np.isfinite(lo) or np.isfinite(hi)]
-        parts.append("sat: each input clipped to its limits (" + ", ".join(limited) + ")")
-    return "; ".join(parts) + "."

@@ -31,7 +31,7 @@ from string import Template
 import numpy as np
 
 from quadctl import __version__
-from quadctl.export import Export
+from quadctl.export.bundle import Export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
 from quadctl.motors import SPINS
 from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from quadctl import __version__
-from quadctl.export import Export
+from quadctl.export.bundle import Export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 
 FORMAT = "quadctl-controller"

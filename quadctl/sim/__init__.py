@@ -12,6 +12,8 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.sim.native`: the compiled runner (``driver.c``: 1 lane for one case, 8 for sweeps)
 - :mod:`~quadctl.sim.interpreted`: the same loop in CasADi's virtual machine, without a compiler
 - :mod:`~quadctl.sim.engine`: :func:`runner`, the fastest runner that builds here
+- :mod:`~quadctl.sim.run`: the closed loop (:class:`ClosedLoop`) and one run of it (:func:`simulate`,
+  through the engine's runner, returning a :class:`SimResult`)
 
 A new loop feature is one change to :func:`quadctl.sim.builder.build` plus its config; every
 runner, one case or many lanes, compiled or not, gets it from there.

@@ -4,7 +4,7 @@ Each function is the stacked twin of a one-case pipeline stage and is tested aga
 (``tests/test_sweep.py``): :func:`design_all` of :func:`quadctl.lqr.design` (the Riccati solves
 batched by shape, residual-checked; a case whose solve misses the check goes through the one-case
 design, which names the reason), :func:`loops_of` of :func:`quadctl.pipeline.loop_of` and the step
-plan, :func:`simulate_all` of :func:`quadctl.simulate.simulate` (SIMD lanes).
+plan, :func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes).
 """
 
 from __future__ import annotations
@@ -14,9 +14,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from quadctl import integral, stability
+from quadctl import stability
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.lqr import integral
 
 BATCHED = "batched"
 """``path`` of a row designed in the batched solve."""
@@ -125,7 +126,7 @@ def _solve(Ts, n, group, preps):
     """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems: the continuous
     CARE, or the ZOH plant and ``lqrd`` weights (:func:`_sampled`) and the discrete DARE, every step
     batched."""
-    from quadctl.riccati import care_batch, dare_batch
+    from quadctl.lqr.riccati import care_batch, dare_batch
 
     A = np.stack([sub.A for _, sub, _ in group])
     B = np.stack([sub.B for _, sub, _ in group])
@@ -155,8 +156,8 @@ def _solve(Ts, n, group, preps):
 
 def _sampled(group, preps, Q, R, Ts):
     """``lqrd_weights_batch`` of a group's problems: each subsystem's plant sampled once (per
-    plant, cached), its weights by the plant's :class:`~quadctl.discrete.LqrdWeightMap`."""
-    from quadctl.discrete import LqrdWeightMap
+    plant, cached), its weights by the plant's :class:`~quadctl.lqr.discrete.LqrdWeightMap`."""
+    from quadctl.lqr.discrete import LqrdWeightMap
 
     maps, members = {}, {}
     for j, (k, sub, _) in enumerate(group):
@@ -248,7 +249,7 @@ def loops_of(live) -> list:
     from quadctl.motors import check_trim
     from quadctl.sim.builder import fill_constants
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
-    from quadctl.simulate import ClosedLoop, ExoStream, rotor_eigenvalues
+    from quadctl.sim.run import ClosedLoop, ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
     realized: dict[tuple, tuple] = {}  # cases with the same noise and steps share its realization
@@ -344,7 +345,7 @@ def loops_of(live) -> list:
 
 
 PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners")
-"""Fields of a :class:`~quadctl.simulate.ClosedLoop` whose values its lane spec and bounds do not read
+"""Fields of a :class:`~quadctl.sim.run.ClosedLoop` whose values its lane spec and bounds do not read
 (only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`)."""
 
 
@@ -396,7 +397,7 @@ def _structure(loop, extra: tuple, seen: _Seen) -> tuple[tuple, list]:
 def _loop_fields() -> tuple[str, ...]:
     from dataclasses import fields
 
-    from quadctl.simulate import ClosedLoop
+    from quadctl.sim.run import ClosedLoop
 
     return tuple(f.name for f in fields(ClosedLoop))
 

@@ -96,7 +96,7 @@ def _threadpools():
     import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS)
     from threadpoolctl import ThreadpoolController
 
-    import quadctl.riccati  # noqa: F401
+    import quadctl.lqr.riccati  # noqa: F401
     import quadctl.sim.engine  # noqa: F401
 
     return ThreadpoolController()
@@ -147,10 +147,10 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
 
 
 class CaseSetups:
-    """The resolved :class:`~quadctl.setup.Setup` of each case of a chunk.
+    """The :class:`~quadctl.problem.Setup` of each case of a chunk.
 
-    The reference way validates the case's whole config and resolves it (~0.2 ms). When every
-    varied key is one whose effect on the setup :func:`quadctl.setup.vary` knows (an entry of a
+    The reference way validates the case's whole config and builds its setup (~0.2 ms). When every
+    varied key is one whose effect on the setup :func:`quadctl.problem.vary` knows (an entry of a
     diagonal ``lqr.<name>.Q`` or ``R``, ``simulation.noise.seed``), the case's setup is the base's
     with those values put in (~15 µs), after the checks the whole validation makes of them: the
     type the schema takes (a finite float, a whole number >= 0) and the weight checks of
@@ -161,7 +161,7 @@ class CaseSetups:
 
     def __init__(self, task: ChunkTask):
         from quadctl import config as config_mod
-        from quadctl.setup import resolve
+        from quadctl.problem import setup_of
 
         self.task = task
         self.kinds: list | None = None
@@ -170,7 +170,7 @@ class CaseSetups:
             self.cfg = config_mod.from_dict(task.base, task.label)
         except ConfigError:  # a case's values may still make it valid: every case the reference way
             return
-        self.base = resolve(self.cfg)
+        self.base = setup_of(self.cfg)
         kinds = [self._kind(keys) for keys in task.keys]
         if all(kind is not None for kind in kinds):
             self.kinds = kinds
@@ -181,17 +181,17 @@ class CaseSetups:
             setup = self._varied(values)
             if setup is not None:
                 return setup
-        return self.resolved(index, values)
+        return self.from_config(index, values)
 
-    def resolved(self, index: int, values: tuple):
-        """The reference way: the case's config assembled, validated and resolved."""
+    def from_config(self, index: int, values: tuple):
+        """The reference way: the case's config assembled, validated and made into its setup."""
         from quadctl import config as config_mod
-        from quadctl.setup import resolve
+        from quadctl.problem import setup_of
 
         data = self.task.base
         for keys, value in zip(self.task.keys, values):
             data = assign(data, keys, _plain(value))
-        return resolve(config_mod.from_dict(data, f"{self.task.label} case {index}"))
+        return setup_of(config_mod.from_dict(data, f"{self.task.label} case {index}"))
 
     def _kind(self, keys: tuple):
         """("seed",), ("weight", subsystem, "Q" or "R", index), or None (the reference way)."""
@@ -222,7 +222,7 @@ class CaseSetups:
         import math
 
         from quadctl.config import check_weight
-        from quadctl.setup import vary
+        from quadctl.problem import vary
 
         weights: dict[str, dict[str, list]] = {}  # subsystem -> the changed "Q" and "R" lists
         seed = None
@@ -258,7 +258,7 @@ class Plant:
 
     def sampled(self, Ts: float):
         """ZOH ``(Ad, Bd)`` of the coupled model at ``Ts``."""
-        from quadctl import discrete
+        from quadctl.lqr import discrete
 
         if ("zoh", Ts) not in self.cache:
             self.cache[("zoh", Ts)] = discrete.c2d(self.linear.A, self.linear.B, Ts)
@@ -454,7 +454,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
     t0 = time.perf_counter()
     batch = MetricsBatch()
     for (prep, des, job), (done, ks, xs, us), backend in batched.simulate_all(jobs):
-        from quadctl.simulate import verdict
+        from quadctl.sim.run import verdict
 
         setup, linear = prep.setup, prep.plant.linear
         plan = job.plan

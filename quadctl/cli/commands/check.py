@@ -27,7 +27,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     at --rate is unstable, or the lag and delay make the design's loop unstable.
     """
     from quadctl.cli import render
-    from quadctl.discrete import unstable_when_sampled
+    from quadctl.lqr.discrete import unstable_when_sampled
 
     ws = open_workspace(config, out, fresh)
     ws.setup.timing.refuse_other_rate(rate)

@@ -31,11 +31,11 @@ def command(to: Annotated[Target, typer.Option(
     from quadctl import artifacts, export
     from quadctl.cli import render
     from quadctl.cli.options import load_config
-    from quadctl.setup import resolve
+    from quadctl.problem import setup_of
     from quadctl.workspace import default_out
 
     cfg, _ = load_config(config)
-    exp = export.prepare(resolve(cfg), rate, need_rate=to is Target.c, config_hash=cfg.digest())
+    exp = export.prepare(setup_of(cfg), rate, need_rate=to is Target.c, config_hash=cfg.digest())
     for w in exp.rate_warnings:
         render.warning(w.message(exp.rate))
     paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"))

@@ -1,7 +1,7 @@
 """One Riccati problem: validated, solved, certified, or refused with the reason.
 
-:func:`solve` is behind :func:`quadctl.lqr.lqr` and :func:`quadctl.discrete.dlqr`: quadctl's own
-solvers first (:mod:`quadctl.riccati.stacked` for few states, numpy only; Laub's Schur method,
+:func:`solve` is behind :func:`quadctl.lqr.lqr` and :func:`quadctl.lqr.discrete.dlqr`: quadctl's own
+solvers first (:mod:`quadctl.lqr.riccati.stacked` for few states, numpy only; Laub's Schur method,
 :func:`care_schur`, for more), SciPy's where they have no certified answer, and a
 :class:`~quadctl.errors.DesignError` that names the cause when nothing is certified.
 """
@@ -16,7 +16,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.analysis import RICCATI_RTOL, STABILITY_MARGIN, UNIT_CIRCLE_MARGIN, is_stable, is_stable_z, pbh
 from quadctl.errors import DesignError
-from quadctl.riccati.stacked import (
+from quadctl.lqr.riccati.stacked import (
     KRONECKER_MAX_N,
     NEWTON_STEPS,
     ROUNDOFF_RTOL,
@@ -27,7 +27,7 @@ from quadctl.riccati.stacked import (
     newton_correction,
     without_cross,
 )
-from quadctl.riccati.weights import WeightCheck, as_problem
+from quadctl.lqr.riccati.weights import WeightCheck, as_problem
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 

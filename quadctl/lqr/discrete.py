@@ -30,8 +30,8 @@ from quadctl._lazy import lazy_import
 from quadctl.analysis import UNIT_CIRCLE_MARGIN
 from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
 from quadctl.errors import DesignError
-from quadctl.riccati import LqrResult, as_stack, require_valid_weights, solve
-from quadctl.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
+from quadctl.lqr.riccati import LqrResult, as_stack, require_valid_weights, solve
+from quadctl.lqr.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -239,9 +239,9 @@ class LqrdWeightMap:
 
 
 def dlqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:
-    """Discrete-time LQR (MATLAB ``dlqr``), solved by :func:`quadctl.riccati.solve`.
+    """Discrete-time LQR (MATLAB ``dlqr``), solved by :func:`quadctl.lqr.riccati.solve`.
 
-    Weights validated; quadctl's own residual-checked solver first (:func:`quadctl.riccati.dare_batch`:
+    Weights validated; quadctl's own residual-checked solver first (:func:`quadctl.lqr.riccati.dare_batch`:
     structure-preserving doubling and Newton-Hewer steps), SciPy's ``solve_discrete_are`` where it
     has no answer within ``RICCATI_RTOL`` and a stable loop.
 

@@ -25,10 +25,11 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from quadctl import discrete, integral, stability
+from quadctl import stability
 from quadctl._lazy import lazy_import
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.lqr import _solve_subsystem, closed_loop_matrix
+from quadctl.lqr import discrete, integral
+from quadctl.lqr.decoupled import _solve_subsystem, closed_loop_matrix
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -131,7 +132,7 @@ def linear_cost(A, B, K, Ki, design, dx0) -> float:
     """The cost ``J`` of gain ``[K, Ki]`` on the coupled linear model from offset ``dx0`` (integrators 0).
 
     Continuous: ``dx0' X dx0`` with ``A_cl' X + X A_cl + Q + K' R K = 0``. Discrete (``design.rate``):
-    the same with the sampled cost of :func:`quadctl.discrete.lqrd_weights` and a discrete
+    the same with the sampled cost of :func:`quadctl.lqr.discrete.lqrd_weights` and a discrete
     Lyapunov equation. The weights are :func:`assembled_weights` of ``design``; positions that
     neither design feeds back are left out. Infinite when the loop is unstable.
     """

@@ -3,7 +3,7 @@
 :func:`care_batch` (the stable eigenvectors of the stacked Hamiltonians) and :func:`dare_batch`
 (structure-preserving doubling), each followed by Newton steps in defect-correction form, and the
 residuals that certify every answer. An entry without an accurate stabilizing answer is marked not
-ok, never raised: the one-case solver (:mod:`quadctl.riccati.single`) says why.
+ok, never raised: the one-case solver (:mod:`quadctl.lqr.riccati.single`) says why.
 """
 
 from __future__ import annotations
@@ -16,13 +16,13 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.analysis import RICCATI_RTOL, STABILITY_MARGIN, UNIT_CIRCLE_MARGIN
 from quadctl.errors import DesignError
-from quadctl.riccati.weights import WeightCheck, as_problem, as_stack, neutral, norm1
+from quadctl.lqr.riccati.weights import WeightCheck, as_problem, as_stack, neutral, norm1
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
 NEWTON_STEPS = 2
 """Newton steps after the initial solution; both the stacked solvers and the one-case polish
-(:func:`quadctl.riccati.single.solve`) stop early once the residual is round-off (``ROUNDOFF_RTOL``).
+(:func:`quadctl.lqr.riccati.single.solve`) stop early once the residual is round-off (``ROUNDOFF_RTOL``).
 Each squares the relative error of ``P``: two take an eigenvector solution good to 1e-6 to round-off
 (seen: a mode at -7e-7 rad/s left SciPy's Schur solution at 6e-8; one step took it to 1.6e-10)."""
 KRONECKER_MAX_N = 7
@@ -37,7 +37,7 @@ eigenvectors for one case (and SciPy is loaded)."""
 ROUNDOFF_RTOL = 100 * np.finfo(float).eps
 """A relative residual below this (2.2e-14) is round-off: the stacked solvers, whose Newton steps
 are cheap batched calls, stop polishing there. The one-case polish
-(:func:`quadctl.riccati.single.solve`) stops at ``n`` times this: the worst-case rounding of the
+(:func:`quadctl.lqr.riccati.single.solve`) stops at ``n`` times this: the worst-case rounding of the
 residual's own ``n``-term products (``gamma_n = n eps``, Higham, *Accuracy and Stability of
 Numerical Algorithms*, 3.1), where each step is a Bartels-Stewart solve costing a quarter of the
 solve (seen: polishing 6.7e-14 at n = 10 to 5e-15 took lqr from 0.40 to 0.57 ms; SciPy: 0.56 ms)."""
@@ -62,7 +62,7 @@ class BatchLqr:
     ok : (batch,) bool ndarray
         The weights are valid, the solution is finite, its residual is at most ``RICCATI_RTOL``
         and its closed loop is stable. Entries that are not ok hold garbage: solve them one by one
-        (:func:`quadctl.lqr.lqr`, :func:`quadctl.discrete.dlqr`), which raises the reason.
+        (:func:`quadctl.lqr.lqr`, :func:`quadctl.lqr.discrete.dlqr`), which raises the reason.
     """
 
     K: np.ndarray

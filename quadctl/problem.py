@@ -1,7 +1,7 @@
-"""The config resolved once: a frozen :class:`Setup` that every stage takes.
+"""The problem a config poses, in numbers, once: a frozen :class:`Setup` that every stage takes.
 
 A config says things the way a user writes them (lists for diagonal weights, optional sections,
-a rate that means a discrete or an emulated design). :func:`resolve` turns it into the numbers
+a rate that means a discrete or an emulated design). :func:`setup_of` turns it into the numbers
 and decisions the stages use, once: the design vehicle and the simulated plant, the partition,
 the weights per subsystem and as blocks, the integrators, the regulated states, the timing,
 the actuators, the noise, the initial state and the simulation settings. No stage reads the
@@ -82,7 +82,7 @@ class Timing:
 
 @dataclass(frozen=True)
 class EstimatorSpec:
-    """What the Kalman filter measures and the noise it assumes (``estimator:`` resolved).
+    """What the Kalman filter measures and the noise it assumes (``estimator:`` in numbers).
 
     Attributes
     ----------
@@ -108,7 +108,7 @@ class EstimatorSpec:
 
 @dataclass(frozen=True)
 class Setup:
-    """A config resolved: what every stage reads.
+    """A config in numbers: what every stage reads.
 
     Attributes
     ----------
@@ -207,8 +207,8 @@ class Setup:
         return np.asarray(x_trim, dtype=float) + self.initial_offset
 
 
-def resolve(cfg: Config) -> Setup:
-    """Resolve a validated config into the :class:`Setup` every stage takes."""
+def setup_of(cfg: Config) -> Setup:
+    """The :class:`Setup` every stage takes, from a validated config."""
     v = cfg.vehicle
     vehicle = Vehicle(mass=v.mass, gravity=v.gravity, inertia=tuple(v.inertia), drag=tuple(v.drag))
     over = cfg.simulation.plant
@@ -245,6 +245,9 @@ def resolve(cfg: Config) -> Setup:
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing))
 
 
+resolve = setup_of
+"""The former name of :func:`setup_of` (``quadctl.setup.resolve``), kept for code written against it."""
+
 def _estimator(cfg: Config, timing: Timing) -> EstimatorSpec | None:
     """``estimator:`` with the noise it takes from ``simulation.noise`` filled in (checked by the config)."""
     est, noise = cfg.estimator, cfg.simulation.noise
@@ -263,7 +266,7 @@ def _estimator(cfg: Config, timing: Timing) -> EstimatorSpec | None:
 
 def vary(setup: Setup, weights: dict[str, tuple[list | None, list | None]] | None = None,
          noise_seed: int | None = None) -> Setup:
-    """``setup`` with some subsystems' weights or the noise seed replaced: what :func:`resolve` gives
+    """``setup`` with some subsystems' weights or the noise seed replaced: what :func:`setup_of` gives
     for the config with those values, without validating and resolving all of it again (a sweep
     builds thousands of cases from one base this way).
 
