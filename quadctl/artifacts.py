@@ -487,8 +487,10 @@ def locked(folder: Path | str):
     earlier run still simulates) would leave artifacts of two configs side by side; the second
     one is refused instead. With ``fcntl`` (Linux, macOS) the lock is ``flock`` on
     ``<folder>/.quadctl.lock``, released by the kernel however the holder ends (``kill -9``
-    included); elsewhere the file is created with ``O_EXCL`` and removed on exit (a holder killed
-    hard leaves it: the message says to delete it). Re-entrant within one process.
+    included), and the file is removed when the block ends (one left by a holder killed hard is
+    unlocked and harmless: the next quadctl takes it); elsewhere the file is created with ``O_EXCL``
+    and removed on exit (a holder killed hard leaves it: the message says to delete it).
+    Re-entrant within one process.
 
     Raises
     ------
@@ -527,27 +529,47 @@ def _in_use(folder: Path, pid: str, hint: str = "") -> ArtifactError:
 
 def _lock_flock(folder: Path):
     path = folder / LOCK_NAME
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
-    except OSError as exc:
-        raise ArtifactError(f"{path}: cannot create the run directory's lock ({_reason(exc)}); "
-                            "choose another --out folder") from None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:
+            raise ArtifactError(f"{path}: cannot create the run directory's lock ({_reason(exc)}); "
+                                "choose another --out folder") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+            os.close(fd)
+            raise _in_use(folder, pid) from None
+        if _same_file(fd, path):
+            break
+        # the holder removed the file between our open and our lock: the lock we got is on a file
+        # nobody else will open again; lock the one at the path now
         os.close(fd)
-        raise _in_use(folder, pid) from None
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
 
     def release():
-        # the file stays: removing it would let a third process lock a new file while a second
-        # one still waits on the old one
+        # removed while still locked: a process that opened it meanwhile finds, once it has the lock,
+        # that the path no longer names its file (:func:`_same_file`) and starts again on a new one
+        try:
+            path.unlink(missing_ok=True)
+        except OSError:  # a read-only folder now: the file stays, harmless (never taken for an artifact)
+            pass
         fcntl.flock(fd, fcntl.LOCK_UN)
         os.close(fd)
 
     return release
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` still names the open file ``fd`` (same device and inode)."""
+    try:
+        here = os.stat(path)
+    except FileNotFoundError:
+        return False
+    held = os.fstat(fd)
+    return (held.st_dev, held.st_ino) == (here.st_dev, here.st_ino)
 
 
 def _lock_exclusive(folder: Path):

@@ -128,3 +128,37 @@ def _sweep_file(tmp_path):
     path = tmp_path.parent / "lock-sweep.yaml"
     path.write_text("parameters:\n  lqr.roll.R[0]: [1.0, 2.0]\nset:\n  simulation.duration: 0.05\n")
     return path
+
+
+def test_the_lock_file_is_removed_when_the_holder_is_done(tmp_path, mode):
+    with artifacts.locked(tmp_path):
+        with artifacts.locked(tmp_path):
+            pass
+        assert (tmp_path / artifacts.LOCK_NAME).exists()  # the inner block does not release it
+    assert not (tmp_path / artifacts.LOCK_NAME).exists()
+    other = _holder(tmp_path, mode, seconds=0)
+    assert other.stdout.readline().strip() == "released"
+    other.wait(timeout=30)
+    assert not (tmp_path / artifacts.LOCK_NAME).exists()  # nor in a run folder after another process
+
+
+@pytest.mark.skipif(artifacts.fcntl is None, reason="flock only")
+def test_a_lock_taken_on_a_file_its_holder_removed_meanwhile_is_taken_again_on_the_new_file(tmp_path, monkeypatch):
+    """The holder's release (remove, then unlock) can fall between our open and our flock: the lock we
+    got is on a file the path no longer names, and a third process would lock a new one beside us."""
+    real_flock = artifacts.fcntl.flock
+    calls = []
+
+    def flock_after_the_holder_left(fd, op):
+        if not calls and op & artifacts.fcntl.LOCK_EX:
+            (tmp_path / artifacts.LOCK_NAME).unlink()  # the holder's release, just before our lock
+        calls.append(op)
+        return real_flock(fd, op)
+
+    monkeypatch.setattr(artifacts.fcntl, "flock", flock_after_the_holder_left)
+    with artifacts.locked(tmp_path):
+        monkeypatch.setattr(artifacts.fcntl, "flock", real_flock)
+        probe = subprocess.run([sys.executable, "-c", HOLD, str(tmp_path), "flock", "0"], capture_output=True,
+                               text=True, timeout=60)
+        assert probe.returncode != 0 and f"pid {os.getpid()}" in probe.stderr  # the path's file is ours
+    assert len([op for op in calls if op & artifacts.fcntl.LOCK_EX]) == 2  # taken again on the new file

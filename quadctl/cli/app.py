@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Optional
 
 import typer
 
@@ -34,8 +34,16 @@ def _root(
     debug: Annotated[bool, typer.Option("--debug", help="Show the traceback of an error.")] = False,
     version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
                                           help="Print the version and exit.")] = False,
+    width: Annotated[Optional[int], typer.Option(
+        "--width", metavar="COLUMNS", min=40,
+        help="Width of the tables on stdout. Default: the terminal's; in a pipe or a file, COLUMNS if set, "
+             "else wide enough that nothing is cut.")] = None,
 ) -> None:
     ctx.obj = {"debug": debug}
+    if width is not None:
+        from quadctl.cli import render
+
+        render.set_width(width)
 
 
 commands.register(app)

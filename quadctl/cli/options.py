@@ -18,39 +18,46 @@ JsonOpt = Annotated[bool, typer.Option(
 FreshOpt = Annotated[bool, typer.Option(
     "--fresh", help="Recompute every stage; ignore artifacts already in the run directory.")]
 PlotOpt = Annotated[bool, typer.Option("--plot", help="Also write PNG figures to DIR/plots/.")]
+SetOpt = Annotated[Optional[list[str]], typer.Option(
+    "--set", metavar="KEY=VALUE",
+    help="Change one config value without editing the file: a key path and a YAML value "
+         "(--set simulation.duration=30, --set vehicle.inertia=[0.02,0.02,0.04]); repeatable, "
+         "validated as the file is, recorded in DIR/config.yaml.")]
 
 
-def load_config(config: str | None):
-    """Resolve and load ``--config``; print its notes and warnings on stderr, one line each.
+def load_config(config: str | None, sets=None):
+    """Resolve and load ``--config`` with its ``--set`` values; print its notes and warnings on
+    stderr, one line each.
 
     Returns
     -------
     (Config, str) : the validated config and the file to name in messages.
     """
-    cfg, source = load_source(config)
+    cfg, source = load_source(config, sets)
     return cfg, source.label
 
 
-def load_source(config: str | None):
-    """:func:`load_config`, returning the config and its :class:`quadctl.config.Source` (label, text)."""
+def load_source(config: str | None, sets=None):
+    """:func:`load_config`, returning the config and its :class:`quadctl.config.Source` (label, text:
+    the file's, with the ``--set`` values after it as comments)."""
     from quadctl import config as config_mod
-    from quadctl import notices
+    from quadctl import notices, overrides
     from quadctl.cli import render
     from quadctl.cli.errors import remember_config
 
     source = config_mod.locate(config)
     if source.note:
         render.note(source.note)
-    cfg = config_mod.parse(source.text, source.label)
+    cfg = overrides.load(source, sets or ())
     remember_config(source.label)
     for notice in notices.notices(cfg, source.label):
         (render.note if notice.level == "note" else render.warning)(notice.message)
-    return cfg, source
+    return cfg, source._replace(text=overrides.recorded(source.text, sets or ()))
 
 
-def open_workspace(config: str | None, out: Path | None, fresh: bool = False):
-    """Load the config and open its run directory."""
+def open_workspace(config: str | None, out: Path | None, fresh: bool = False, sets=None, progress=None):
+    """Load the config (with its ``--set`` values) and open its run directory."""
     from quadctl.workspace import Workspace
 
-    cfg, source = load_source(config)
+    cfg, source = load_source(config, sets)
     return Workspace(cfg, out, fresh=fresh, source_text=source.text)

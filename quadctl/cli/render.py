@@ -12,7 +12,58 @@ from rich.table import Table
 from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
 from quadctl.messages import eig_text, one_line
 
-out = Console(highlight=False)
+WIDE = 10_000
+"""Columns of stdout when it is not a terminal and ``COLUMNS`` is unset (a pipe, a CI log, a file):
+so wide that no table is cut (``control…``) and no line is broken; rich's own default is 80."""
+
+
+class _Stdout(Console):
+    """stdout: the terminal's width on a terminal; ``COLUMNS`` or :data:`WIDE` elsewhere; ``--width``
+    (:func:`set_width`) over both. A reader that leaves (``quadctl design | head -1``) ends the output,
+    not the run: the rest goes to the null device and the command exits with its own code."""
+
+    fixed_width: int | None = None
+
+    @property
+    def size(self):
+        dims = Console.size.fget(self)
+        if self.fixed_width is not None:
+            return dims._replace(width=self.fixed_width)
+        if self.is_terminal or (self._environ.get("COLUMNS") or "").isdigit():
+            return dims
+        return dims._replace(width=WIDE)
+
+    @size.setter
+    def size(self, new_size) -> None:
+        Console.size.fset(self, new_size)
+
+    def on_broken_pipe(self) -> None:
+        self.quiet = True
+        reader_left()
+
+
+def reader_left() -> None:
+    """stdout's reader closed the pipe: send what stdout still gets to the null device (no second
+    ``BrokenPipeError`` when Python flushes it at exit), so the command finishes its work quietly."""
+    import os
+    import sys
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout is not a file (a test's captured stream)
+        pass
+    finally:
+        os.close(devnull)
+    out.quiet = True
+
+
+def set_width(columns: int) -> None:
+    """``--width``: stdout's tables and lines this many columns wide, terminal or not."""
+    out.fixed_width = columns
+
+
+out = _Stdout(highlight=False)
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 """stderr: errors, warnings, notes and the progress bar. ``soft_wrap``: a line is never broken at
 the console width (rich takes 80 columns when stderr is not a terminal, and a CI log would get
@@ -30,8 +81,11 @@ def warning(text: str) -> None:
 
 
 def emit_json(payload) -> None:
-    """Machine-readable result on stdout."""
-    print(json.dumps(payload, indent=1, sort_keys=True))
+    """Machine-readable result on stdout (nothing else goes there in ``--json`` mode)."""
+    try:
+        print(json.dumps(payload, indent=1, sort_keys=True), flush=True)
+    except BrokenPipeError:
+        reader_left()
 
 
 def num(value: float, digits: int = 4) -> str:

@@ -3,12 +3,12 @@ from typing import Annotated, Optional
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, open_workspace
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace
 
 NAME = "check"
 
 
-def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, json: JsonOpt = False,
             fresh: FreshOpt = False,
             rate: Annotated[Optional[float], typer.Option(
                 "--rate", metavar="HZ", min=1e-9,
@@ -29,7 +29,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     from quadctl.cli import render
     from quadctl.lqr.discrete import unstable_when_sampled
 
-    ws = open_workspace(config, out, fresh)
+    ws = open_workspace(config, out, fresh, sets)
     ws.setup.timing.refuse_other_rate(rate)
     if ws.setup.timing.rate is not None:  # --rate is the config's own: checked as the config's (no what-if of
         rate = None                       # the continuous design, which a discrete config does not fly)

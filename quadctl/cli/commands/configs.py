@@ -2,6 +2,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from quadctl.cli.options import SetOpt
+
 NAME = "configs"
 
 
@@ -9,6 +11,7 @@ def command(
     show: Annotated[Optional[str], typer.Option(
         "--show", metavar="PATH|NAME",
         help="Print this config, validated, with every default filled in.")] = None,
+    sets: SetOpt = None,
     schema: Annotated[bool, typer.Option(
         "--schema", help="Print the config's JSON Schema (units and defaults in the descriptions), for "
                          "editors: put `# yaml-language-server: $schema=<file>` atop a config.")] = False,
@@ -24,7 +27,7 @@ def command(
         typer.echo(json.dumps(config.json_schema(), indent=2))
         return
     if show:
-        typer.echo(load_config(show)[0].to_yaml(), nl=False)  # raw: rich would wrap long lines
+        typer.echo(load_config(show, sets)[0].to_yaml(), nl=False)  # raw: rich would wrap long lines
         return
     from rich.table import Table
 

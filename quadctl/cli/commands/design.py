@@ -3,12 +3,12 @@ from typing import Annotated
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, open_workspace
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace
 
 NAME = "design"
 
 
-def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, json: JsonOpt = False,
             fresh: FreshOpt = False,
             full: Annotated[bool, typer.Option(
                 "--full", help="Also solve one 12-state LQR on the coupled model with the same cost, simulate "
@@ -22,7 +22,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     """
     from quadctl.cli import render
 
-    ws = open_workspace(config, out, fresh)
+    ws = open_workspace(config, out, fresh, sets)
     des = ws.design
     comparison = ws.full if full else None
     if json:

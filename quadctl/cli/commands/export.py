@@ -3,7 +3,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.options import ConfigOpt, OutOpt
+from quadctl.cli.options import ConfigOpt, OutOpt, SetOpt
 
 NAME = "export"
 
@@ -17,7 +17,7 @@ class Target(str, Enum):
 def command(to: Annotated[Target, typer.Option(
                 "--to", help="c: a C99 controller (quadctl_controller.h and .c, double or float); mat: the design "
                              "as a MATLAB v5 .mat; json: the same as one self-describing JSON.")],
-            config: ConfigOpt = None, out: OutOpt = None,
+            config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
             rate: Annotated[Optional[float], typer.Option(
                 "--rate", metavar="HZ", min=1e-9,
                 help="Run a continuous design (no controller.rate) at this rate, after the check "
@@ -34,7 +34,7 @@ def command(to: Annotated[Target, typer.Option(
     from quadctl.problem import setup_of
     from quadctl.workspace import default_out
 
-    cfg, _ = load_config(config)
+    cfg, _ = load_config(config, sets)
     exp = export.prepare(setup_of(cfg), rate, need_rate=to is Target.c, config_hash=cfg.digest())
     for w in exp.rate_warnings:
         render.warning(w.message(exp.rate))

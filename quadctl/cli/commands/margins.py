@@ -3,12 +3,13 @@ from typing import Annotated
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, open_workspace
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace
 
 NAME = "margins"
 
 
-def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False, fresh: FreshOpt = False,
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, json: JsonOpt = False,
+            fresh: FreshOpt = False,
             plot: Annotated[bool, typer.Option(
                 "--plot", help="Also write a Bode and Nyquist figure per loop to DIR/plots/margins-*.png.")] = False,
             coupled: Annotated[bool, typer.Option(
@@ -23,7 +24,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
     """
     from quadctl.cli import render, render_loop
 
-    ws = open_workspace(config, out, fresh)
+    ws = open_workspace(config, out, fresh, sets)
     margins = [m for m in ws.margins if coupled or m.model == "design"]
     paths = _save_figures(ws, margins) if plot else []
     if json:

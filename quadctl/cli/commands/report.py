@@ -1,12 +1,12 @@
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, OutOpt
+from quadctl.cli.options import ConfigOpt, FreshOpt, OutOpt, SetOpt
 
 NAME = "report"
 
 
-def command(config: ConfigOpt = None, out: OutOpt = None, fresh: FreshOpt = False) -> None:
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, fresh: FreshOpt = False) -> None:
     """Every stage and the margins in one HTML page (figures inline, nothing fetched) and a Markdown twin.
 
     Writes DIR/report/report.html, report.md and its figures. Exits 1 when a check fails, as `run`
@@ -17,10 +17,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, fresh: FreshOpt = Fals
     from quadctl.cli.options import load_source
     from quadctl.workspace import Workspace
 
-    cfg, source = load_source(config)
+    cfg, source = load_source(config, sets)
     ws = Workspace(cfg, out, fresh=fresh, source_text=source.text)
     outcome = report.run_stages(ws)
-    doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh), label=source.label)
+    doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets), label=source.label)
     paths = report.write(doc, ws.out / report.FOLDER)
     render.out.print(f"report -> {paths[-1]} (and {paths[-2].name}, {len(paths) - 2} figures)")
     if outcome.error is not None:
@@ -30,9 +30,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, fresh: FreshOpt = Fals
         raise typer.Exit(EXIT_CHECK_FAILED)
 
 
-def _command_line(config, out, fresh: bool) -> str:
+def _command_line(config, out, fresh: bool, sets=None) -> str:
     """This command with the options it was given (shown in the report)."""
     import shlex
 
     words = ["quadctl", NAME] + (["--config", config] if config else []) + (["--out", str(out)] if out else [])
+    words += [word for assignment in sets or () for word in ("--set", assignment)]
     return shlex.join(words + (["--fresh"] if fresh else []))

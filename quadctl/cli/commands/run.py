@@ -1,13 +1,13 @@
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, open_workspace
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, SetOpt, open_workspace
 from quadctl.layout import STATE_INDEX
 
 NAME = "run"
 
 
-def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, plot: PlotOpt = False,
             json: JsonOpt = False, fresh: FreshOpt = False) -> None:
     """Every stage in order: trim, linearize, decouple, check, design, simulate.
 
@@ -16,7 +16,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
 
-    ws = open_workspace(config, out, fresh)
+    ws = open_workspace(config, out, fresh, sets)
     stages = {}
 
     def done(stage: str, detail: str) -> None:

@@ -1,12 +1,12 @@
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, open_workspace
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, SetOpt, open_workspace
 
 NAME = "simulate"
 
 
-def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, plot: PlotOpt = False,
             json: JsonOpt = False, fresh: FreshOpt = False) -> None:
     """Fixed-step RK4 of the full nonlinear closed loop; write sim.npz and sim.json.
 
@@ -15,7 +15,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, plot: PlotOpt = False,
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
 
-    ws = open_workspace(config, out, fresh)
+    ws = open_workspace(config, out, fresh, sets)
     flown = ws.simulation
     sim = flown.sim
     figures = save_figures(ws, sim) if plot else []

@@ -4,7 +4,7 @@ from typing import Annotated, Optional
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, JsonOpt, OutOpt
+from quadctl.cli.options import ConfigOpt, JsonOpt, OutOpt, SetOpt
 
 NAME = "sweep"
 
@@ -12,7 +12,7 @@ NAME = "sweep"
 def command(
     sweep: Annotated[Path, typer.Option("--sweep", "-s", metavar="FILE",
                                         help="Sweep file: parameters to vary, mode, gates.")],
-    config: ConfigOpt = None, out: OutOpt = None,
+    config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
     jobs: Annotated[Optional[int], typer.Option(
         "--jobs", "-j", min=1, help="Local worker processes (not with --scheduler). Default: all cores.")] = None,
     scheduler: Annotated[Optional[str], typer.Option(
@@ -43,7 +43,7 @@ def command(
         raise SweepError("--jobs and --scheduler: give one; on a cluster its workers do the work")
     if scheduler:
         check_scheduler_address(scheduler)  # before anything is loaded: a typo fails at once
-    cfg, label = load_config(config)
+    cfg, label = load_config(config, sets)
     spec = sweep_mod.load(sweep, cfg)
     with render_sweep.sweep_progress(spec.count(), quiet=json) as progress:
         outcome = sweep_mod.execute(cfg, spec, out or default_out(cfg), label=label, jobs=jobs,

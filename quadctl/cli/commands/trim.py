@@ -1,14 +1,14 @@
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, open_workspace
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace
 
 NAME = "trim"
 
 
-def command(config: ConfigOpt = None, out: OutOpt = None, json: JsonOpt = False,
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, json: JsonOpt = False,
             fresh: FreshOpt = False) -> None:
     """Solve the equilibrium for the config's flight condition; write trim.json."""
     from quadctl.cli import render
 
-    ws = open_workspace(config, out, fresh)
+    ws = open_workspace(config, out, fresh, sets)
     trim = ws.trim
     if json:
         return render.emit_json(ws.payloads["trim.json"])

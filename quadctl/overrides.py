@@ -1,0 +1,123 @@
+"""``--set KEY=VALUE``: a value put into a config's YAML at a key path, then validated with the file.
+
+A variation of a config without an edited copy (``--set simulation.duration=30``). The value is read
+as YAML (:func:`quadctl.yamlio.load`: ``30`` is a number, ``[0.02, 0.02, 0.04]`` a list, ``discrete``
+text), put into the file's data at its key path (a section the file leaves out is added), and the
+whole is validated by the one schema (:func:`quadctl.config.from_dict`): a bad key or value is refused
+as it would be in the file, naming ``--set``.
+
+Examples
+--------
+>>> cfg = load(config.bundled("hover"), ["simulation.duration=30", "vehicle.inertia=[0.02, 0.02, 0.04]"])
+>>> cfg.simulation.duration, cfg.vehicle.inertia
+(30.0, [0.02, 0.02, 0.04])
+>>> load(config.bundled("hover"), ["simulation.durtion=30"])
+Traceback (most recent call last):
+...
+quadctl.errors.ConfigError: --set: simulation.durtion: unknown key; did you mean `duration`?
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+from typing import Any, NamedTuple
+
+from quadctl import config, yamlio
+from quadctl.config import Config, Source
+from quadctl.errors import ConfigError
+from quadctl.messages import key_path, show
+
+OPTION = "--set"
+_KEY_RE = re.compile(r"^[A-Za-z_][\w-]*(\[\d+\])*(\.[A-Za-z_][\w-]*(\[\d+\])*)*$")
+EXAMPLE = "`--set simulation.duration=30`"
+
+
+class Assignment(NamedTuple):
+    """One ``--set``: the key path as written, its parts (``('lqr', 'roll', 'Q', 1)``) and the value."""
+
+    path: str
+    keys: tuple
+    value: Any
+
+
+def parse(text: str) -> Assignment:
+    """``'lqr.roll.Q[1]=50'`` -> ``Assignment('lqr.roll.Q[1]', ('lqr', 'roll', 'Q', 1), 50)``.
+
+    Raises
+    ------
+    ConfigError
+        No ``=``, a key that is not a key path, or a value that is not YAML.
+    """
+    path, eq, value = text.partition("=")
+    path = path.strip()
+    if not eq:
+        raise ConfigError(f"{OPTION} {text}: give KEY=VALUE, as {EXAMPLE}")
+    if not _KEY_RE.match(path):
+        raise ConfigError(f"{OPTION} {text}: {path or 'the key'} is not a key path; write it as "
+                          "`simulation.duration` or `lqr.roll.Q[1]`")
+    keys: list = []
+    for part in path.split("."):
+        name, *indices = part.split("[")
+        keys.append(name)
+        keys.extend(int(i.rstrip("]")) for i in indices)
+    return Assignment(path, tuple(keys), yamlio.load(value, f"{OPTION} {path}", ConfigError))
+
+
+def apply(data: Any, assignments) -> dict:
+    """A copy of the config's data (as YAML gives it) with each assignment put in, in order.
+
+    Raises
+    ------
+    ConfigError
+        A key path that goes through a value (``vehicle.mass.x``) or past the end of a list.
+    """
+    out = copy.deepcopy(data) if isinstance(data, dict) else {}
+    for a in assignments:
+        node: Any = out
+        for k, (key, nxt) in enumerate(zip(a.keys, [*a.keys[1:], None])):
+            here = key_path(list(a.keys[:k])) if k else "the config"
+            last = nxt is None
+            if isinstance(key, int):
+                if not isinstance(node, list):
+                    raise ConfigError(f"{OPTION} {a.path}: {here} is not a list; drop the [{key}]")
+                if key >= len(node):
+                    raise ConfigError(f"{OPTION} {a.path}: index {key} out of range: {here} has {len(node)} "
+                                      f"values (indices 0 to {len(node) - 1})")
+            elif not isinstance(node, dict):
+                raise ConfigError(f"{OPTION} {a.path}: {here} = {show(node)} has no key `{key}`; the path goes "
+                                  "too deep")
+            if last:
+                node[key] = a.value
+            else:
+                if isinstance(node, dict) and node.get(key) is None:  # a section the file leaves out
+                    node[key] = [] if isinstance(nxt, int) else {}
+                node = node[key]
+    return out
+
+
+def load(source: Source, sets=()) -> Config:
+    """The config of ``source`` with the ``--set`` values ``sets`` (``KEY=VALUE`` texts) put in.
+
+    Errors of the file's own keys name the file; an error that only the assignments cause names
+    ``--set`` (``--set: simulation.duration = -1: must be greater than 0 ...``).
+    """
+    if not sets:
+        return config.parse(source.text, source.label)
+    assignments = [parse(text) for text in sets]
+    data = yamlio.load(source.text, source.label, ConfigError)
+    merged = apply(data, assignments)
+    try:
+        return config.from_dict(merged, source.label)
+    except ConfigError:
+        config.from_dict(data, source.label)  # the file's own error names the file
+        return config.from_dict(merged, OPTION)  # else the values given here caused it: raises naming --set
+
+
+def recorded(text: str, sets) -> str:
+    """The config's text with the ``--set`` values after it as comments (``config.yaml``: what made the run)."""
+    if not sets:
+        return text
+    lines = "".join(f"#   {OPTION} {s}\n" for s in sets)
+    return (text if text.endswith("\n") else text + "\n") + (
+        f"# run with these values put in (config.resolved.yaml holds the result):\n{lines}")
