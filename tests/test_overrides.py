@@ -1,0 +1,100 @@
+"""`--set KEY=VALUE`: the same run as the edited file, errors naming --set, recorded in the run folder."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from quadctl import config, overrides
+from quadctl.cli.app import app
+from quadctl.errors import ConfigError
+
+runner = CliRunner()
+HOVER = yaml.safe_load(config.bundled("hover").text)
+
+
+def _edited(tmp_path, edit) -> str:
+    """hover.yaml with ``edit`` applied to its data by hand, as a file."""
+    data = copy.deepcopy(HOVER)
+    edit(data)
+    path = tmp_path / "edited.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return str(path)
+
+
+def _design(config_arg, out, *sets) -> tuple[dict, str]:
+    """design.json (without its time stamp) and config.resolved.yaml of `quadctl design`."""
+    words = ["design", "-c", config_arg, "-o", str(out)] + [w for s in sets for w in ("--set", s)]
+    res = runner.invoke(app, words, catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    payload = json.loads((out / "design.json").read_text())
+    payload.pop("created")
+    return payload, (out / "config.resolved.yaml").read_text()
+
+
+def _set_rate(data):
+    data["controller"] = {"rate": 250, "design": "continuous"}
+
+
+@pytest.mark.parametrize("sets,edit", [
+    pytest.param(["vehicle.mass=0.075"], lambda d: d["vehicle"].update(mass=0.075), id="number"),
+    pytest.param(["vehicle.inertia=[7.2e-5, 8e-5, 1.6e-4]"],
+                 lambda d: d["vehicle"].update(inertia=[7.2e-5, 8e-5, 1.6e-4]), id="list"),
+    pytest.param(["controller.rate=250", "controller.design=continuous"], _set_rate,
+                 id="text, in a section the file leaves out"),
+    pytest.param(["lqr.roll.Q[1]=80"], lambda d: d["lqr"]["roll"]["Q"].__setitem__(1, 80), id="nested key, index"),
+])
+def test_set_gives_the_artifacts_of_the_edited_file(tmp_path, sets, edit):
+    by_set = _design("hover", tmp_path / "set", *sets)
+    by_file = _design(_edited(tmp_path, edit), tmp_path / "file")
+    assert by_set == by_file
+    assert by_set[0]["config_hash"] != config.load("hover").digest()  # it changed the design's config
+    given = (tmp_path / "set" / "config.yaml").read_text()
+    assert given.startswith(config.bundled("hover").text)  # the file as given, then what was put in
+    assert given.endswith("".join(f"#   --set {s}\n" for s in sets))
+
+
+def test_the_text_value_is_what_decides_the_design():
+    """controller.design=continuous is read as the text it is: not the default (discrete)."""
+    rate_only = overrides.load(config.bundled("hover"), ["controller.rate=250"])
+    continuous = overrides.load(config.bundled("hover"), ["controller.rate=250", "controller.design=continuous"])
+    assert (rate_only.controller.design, continuous.controller.design) == ("discrete", "continuous")
+
+
+@pytest.mark.parametrize("sets,message", [
+    (["simulation.durtion=30"], r"^--set: simulation\.durtion: unknown key; did you mean `duration`\?$"),
+    (["simulation.duration=-1"], r"^--set: simulation\.duration = -1: must be greater than 0"),
+    (["simulation.duration=thirty"], r"^--set: simulation\.duration = \"thirty\": must be a number"),
+    (["vehicle.inertia=[1, 2]"], r"^--set: vehicle\.inertia = \[1, 2\]: must be a list of exactly 3 items"),
+    (["controller.design=discret"], r"^--set: controller\.design = \"discret\": must be one of discrete, "
+                                    r"continuous; did you mean `discrete`\?$"),
+    (["simulation.duration"], r"^--set simulation\.duration: give KEY=VALUE, as `--set simulation\.duration=30`$"),
+    (["vehicle..mass=1"], r"^--set vehicle\.\.mass=1: vehicle\.\.mass is not a key path; write it as"),
+    (["vehicle.mass.kg=1"], r"^--set vehicle\.mass\.kg: vehicle\.mass = 0\.068 has no key `kg`; the path goes "
+                            r"too deep$"),
+    (["lqr.roll.Q[3]=1"], r"^--set lqr\.roll\.Q\[3\]: index 3 out of range: lqr\.roll\.Q has 3 values"),
+    (["vehicle.inertia=[1,"], r"^--set vehicle\.inertia: YAML syntax error"),
+])
+def test_a_bad_key_or_value_is_refused_naming_set(sets, message):
+    with pytest.raises(ConfigError, match=message):
+        overrides.load(config.bundled("hover"), sets)
+
+
+def test_an_error_of_the_file_itself_names_the_file(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text(config.bundled("hover").text.replace("mass: 0.068", "mass: -1"))
+    with pytest.raises(ConfigError, match=r"^.*bad\.yaml: vehicle\.mass = -1: must be at least"):
+        overrides.load(config.resolve(str(path)), ["simulation.duration=3"])
+    fixed = overrides.load(config.resolve(str(path)), ["vehicle.mass=0.07"])  # a --set that fixes it is fine
+    assert fixed.vehicle.mass == 0.07
+
+
+def test_a_bad_set_exits_2_with_one_line(tmp_path):
+    res = runner.invoke(app, ["trim", "-c", "hover", "-o", str(tmp_path), "--set", "simulation.durtion=3"])
+    assert res.exit_code == 2
+    assert res.output == "quadctl: error: --set: simulation.durtion: unknown key; did you mean `duration`?\n"
+    assert not (tmp_path / "trim.json").exists()
