@@ -438,8 +438,10 @@ def locate(spec: str | Path | None) -> Source:
         return bundled(name)._replace(note=note)
     if path.is_dir():
         raise ConfigError(f"{spec}: is a folder, not a config file; give a .yaml file")
-    near = difflib.get_close_matches(name, bundled_names(), n=1)
-    guess = f"did you mean `{near[0]}`? " if near and "/" not in name else ""
+    here = "here" if str(path.parent) == "." else f"in {path.parent}"
+    near = [f"{f}` (a file {here})" for f in near_files(path)] or [
+        f"{b}`" for b in difflib.get_close_matches(name, bundled_names(), n=1) if "/" not in name]
+    guess = f"did you mean `{near[0]}? " if near else ""
     raise ConfigError(
         f"{spec}: no such file and no bundled config of that name; {guess}"
         f"bundled: {', '.join(bundled_names())}")
@@ -447,6 +449,33 @@ def locate(spec: str | Path | None) -> Source:
 
 resolve = locate
 """The former name of :func:`locate` (kept for code written against it)."""
+
+
+FOLDER_SCAN = 1000
+"""Entries of a folder looked at for a config file of a near name (a mistyped ``-c``): a bound for a
+folder of many files."""
+
+
+def near_files(path: Path) -> list[str]:
+    """The YAML file in ``path``'s folder whose name is nearest ``path``'s (``f450.yml`` -> ``f450.yaml``),
+    as a path to give ``-c``; empty when none is near.
+
+    >>> near_files(Path("no-such-folder/f450.yml"))
+    []
+    """
+    import itertools
+
+    def stem(name: str) -> str:
+        return re.sub(r"\.ya?ml$", "", name)
+
+    try:
+        entries = list(itertools.islice(os.scandir(path.parent), FOLDER_SCAN))
+    except OSError:
+        return []
+    files = {stem(e.name): e.name for e in entries
+             if re.search(r"\.ya?ml$", e.name) and e.name != path.name and e.is_file()}
+    near = difflib.get_close_matches(stem(path.name), list(files), n=1)
+    return [str(path.parent / files[near[0]])] if near else []
 
 
 def load(spec: str | Path | None = None) -> Config:

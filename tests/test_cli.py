@@ -189,12 +189,13 @@ USAGE_ERRORS = {
                                      "(`quadctl export --help` describes it)"),
     "no worker": (["sweep", "-j", "0"], "quadctl: error: --jobs 0: out of range; give --jobs a value of at least 1"),
     "an unknown option": (["trim", "--bogus"], "quadctl: error: --bogus: quadctl trim has no such option; its "
-                                               "options: --config, --out, --json, --fresh, --help"),
+                                               "options: --config, --out, --set, --json, --fresh, --help"),
     "a misspelt option": (["trim", "--jsn"], "quadctl: error: --jsn: quadctl trim has no such option; "
                                              "did you mean `--json`?"),
     "an option without its value": (["check", "--rate"], "quadctl: error: quadctl check: option '--rate' requires "
                                                          "an argument; see `quadctl check --help`"),
-    "an unknown command": (["trmi"], "quadctl: error: quadctl: no such command 'trmi'"),
+    "an unknown command": (["trmi"], "quadctl: error: no such command 'trmi'; did you mean 'trim'? "
+                                     "(`quadctl --help` lists the commands)"),
 }
 
 

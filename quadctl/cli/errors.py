@@ -243,6 +243,22 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
     return f"{command}: {text[:1].lower()}{text[1:]}; see `{command} --help`"
 
 
+def unknown_command(name: str, commands, program: str = "quadctl") -> str:
+    """The line for a mistyped command: the nearest command, else the list of them.
+
+    >>> unknown_command("simulte", ["trim", "simulate"])
+    "no such command 'simulte'; did you mean 'simulate'? (`quadctl --help` lists the commands)"
+    >>> unknown_command("zz", ["trim", "simulate"])
+    "no such command 'zz'; the commands: trim, simulate (`quadctl --help` describes them)"
+    """
+    import difflib
+
+    near = difflib.get_close_matches(name, list(commands), n=1)
+    if near:
+        return f"no such command {name!r}; did you mean {near[0]!r}? (`{program} --help` lists the commands)"
+    return f"no such command {name!r}; the commands: {', '.join(commands)} (`{program} --help` describes them)"
+
+
 def one_line_usage_errors(group_cls):
     """A typer group class whose usage errors (bad options and values) print one line,
     ``quadctl: error: ...``, and exit 2 (click prints a usage block and a boxed error)."""
@@ -264,6 +280,15 @@ def one_line_usage_errors(group_cls):
                 if out is None:
                     raise
                 raise out from None
+
+        def resolve_command(self, ctx, args):
+            try:
+                return super().resolve_command(ctx, args)
+            except exc_mod.UsageError:
+                if not args or args[0].startswith("-") or self.get_command(ctx, args[0]) is not None:
+                    raise
+                raise fail(unknown_command(args[0], self.list_commands(ctx), ctx.command_path),
+                           EXIT_BAD_INPUT) from None
 
         def invoke(self, ctx):
             words = [*getattr(ctx, "_protected_args", ()), *ctx.args]

@@ -37,6 +37,11 @@ class _Stdout(Console):
     def size(self, new_size) -> None:
         Console.size.fset(self, new_size)
 
+    @property
+    def is_wide(self) -> bool:
+        """The width is :data:`WIDE` (no screen's): a table that fills the width would fill that."""
+        return self.size.width == WIDE and self.fixed_width is None
+
     def on_broken_pipe(self) -> None:
         self.quiet = True
         reader_left()

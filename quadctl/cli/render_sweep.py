@@ -16,7 +16,7 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
-from quadctl.cli.render import err, num
+from quadctl.cli.render import err, num, out
 
 SHOWN = 5
 """Rows of the best and of the worst cases in the table."""
@@ -88,7 +88,7 @@ def sweep_tables(result, spec) -> Group:
                         (f"Worst of {len(result.rows)} cases", worst)):
         if not rows:
             continue
-        table = Table(title=title, title_justify="left", expand=True)
+        table = Table(title=title, title_justify="left", expand=not out.is_wide)  # a pipe: as wide as its rows
         table.add_column("case", justify="right")
         table.add_column("parameters", overflow="fold", ratio=3)
         for name in metrics:
