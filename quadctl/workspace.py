@@ -113,11 +113,15 @@ class Workspace:
         The YAML the config was read from (the file's text, or a bundled config's), kept as
         ``config.yaml``. Without it (a config built in Python) ``config.yaml`` is the validated
         config under a comment that says so.
+    progress : callable, optional
+        ``progress(done, total)`` in RK4 steps while the simulation stage runs (see
+        :func:`quadctl.simulate.simulate`).
     """
 
     def __init__(self, cfg: Config, out: Path | str | None = None, *, fresh: bool = False,
-                 source_text: str | None = None):
+                 source_text: str | None = None, progress=None):
         self.cfg = cfg
+        self.progress = progress
         self.setup = setup_of(cfg)
         self.out = Path(out) if out is not None else default_out(cfg)
         self.fresh = fresh
@@ -376,7 +380,7 @@ class Workspace:
         linear, setup = self.linear, self.setup
         K, Ki, ints, Kv = self.gains
         loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints, Kv=Kv)
-        sim = pipeline.simulation_of(setup, loop)
+        sim = pipeline.simulation_of(setup, loop, progress=self.progress)
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
         meta = self._meta("simulation", sim.backend)

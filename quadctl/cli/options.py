@@ -55,7 +55,7 @@ def load_source(config: str | None, sets=None):
     return cfg, source._replace(text=overrides.recorded(source.text, sets or ()))
 
 
-def open_workspace(config: str | None, out: Path | None, fresh: bool = False, sets=None, progress=None):
+def open_workspace(config: str | None, out: Path | None, fresh: bool = False, sets=None):
     """Load the config (with its ``--set`` values) and open its run directory."""
     from quadctl.workspace import Workspace
 

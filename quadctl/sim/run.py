@@ -312,7 +312,7 @@ def wind_felt(wind: WindSpec, period: float, ks, dt: float, block: int = 256) ->
 
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
              noise: NoiseSpec | None = None, wind: WindSpec | None = None,
-             max_samples: int = MAX_SAMPLES) -> SimResult:
+             max_samples: int = MAX_SAMPLES, progress=None) -> SimResult:
     """RK4 of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
@@ -331,6 +331,9 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         Steady wind, gusts and turbulence (:mod:`quadctl.wind`); the same spec gives the same run.
     max_samples : int
         Samples kept, at most: every :func:`record_stride`-th step and the last.
+    progress : callable, optional
+        ``progress(done, total)``: called with the RK4 steps done and the steps in all after each
+        chunk of the run (:func:`run_in_chunks`), for a caller that shows how far a long run is.
 
     Returns
     -------
@@ -351,7 +354,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
     exo = ExoStream(noise if noisy else None, wind if windy else None, loop.rate) if noisy or windy else None
-    done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo)
+    done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo, progress)
     wall = time.perf_counter() - start
     t = plan.dt * ks
     x_ref = loop.x_trim + np.outer(t, loop.x_rate)
@@ -372,8 +375,11 @@ CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
 Python sees Ctrl-C between calls at once."""
 
 
-def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: ExoStream | None = None):
+def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: ExoStream | None = None,
+                  progress=None):
     """Run ``n`` steps in chunks, each starting on a controller sample; the rows of one long run.
+
+    ``progress(done, n)``, if given, is called after each chunk with the steps done so far.
 
     Returns
     -------
@@ -395,6 +401,8 @@ def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise
                          exo_period=period)
         (done, ks, xs, us), = run.run(cases)
         last = k0 + m >= n or done < m
+        if progress is not None:
+            progress(k0 + done, n)
         keep = len(ks) if last else len(ks) - 1  # a chunk's final row is the next one's start
         parts_k.append(ks[:keep])
         parts_x.append(xs[:keep])

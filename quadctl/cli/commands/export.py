@@ -21,7 +21,10 @@ def command(to: Annotated[Target, typer.Option(
             rate: Annotated[Optional[float], typer.Option(
                 "--rate", metavar="HZ", min=1e-9,
                 help="Run a continuous design (no controller.rate) at this rate, after the check "
-                     "`quadctl check --rate` makes.")] = None) -> None:
+                     "`quadctl check --rate` makes.")] = None,
+            json: Annotated[bool, typer.Option(
+                "--json", help="Print what was written as JSON on stdout (with --to json, the controller's "
+                               "JSON itself under `controller`).")] = False) -> None:
     """Take the design to the vehicle: a C controller that applies it exactly as simulate does, or its matrices.
 
     Writes into the run directory: quadctl_controller.h/.c (--to c), quadctl_controller.mat or quadctl_controller.json.
@@ -39,8 +42,15 @@ def command(to: Annotated[Target, typer.Option(
     for w in exp.rate_warnings:
         render.warning(w.message(exp.rate))
     paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"))
-    timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     kal = exp.loop.estimator
+    if json:
+        written = {"config_name": cfg.name, "to": to.value, "rate": exp.rate, "design": exp.mode if exp.rate else
+                   "continuous", "law": exp.law(), "integral_states": list(exp.loop.integral_states),
+                   "estimator": list(kal.measured) if kal is not None else None, "files": [str(p) for p in paths]}
+        if to is Target.json:
+            written["controller"] = artifacts.read_json(paths[0])
+        return render.emit_json(written)
+    timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
     render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}{filt}",
                      markup=False)

@@ -1,12 +1,13 @@
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, OutOpt, SetOpt
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt
 
 NAME = "report"
 
 
-def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, fresh: FreshOpt = False) -> None:
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, fresh: FreshOpt = False,
+            json: JsonOpt = False) -> None:
     """Every stage and the margins in one HTML page (figures inline, nothing fetched) and a Markdown twin.
 
     Writes DIR/report/report.html, report.md and its figures. Exits 1 when a check fails, as `run`
@@ -22,7 +23,11 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     outcome = report.run_stages(ws)
     doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets), label=source.label)
     paths = report.write(doc, ws.out / report.FOLDER)
-    render.out.print(f"report -> {paths[-1]} (and {paths[-2].name}, {len(paths) - 2} figures)")
+    if json:
+        render.emit_json({"report": str(paths[-1]), "markdown": str(paths[-2]), "figures": [str(p) for p in paths[:-2]],
+                          "failed": outcome.failed, "error": str(outcome.error) if outcome.error else None})
+    else:
+        render.out.print(f"report -> {paths[-1]} (and {paths[-2].name}, {len(paths) - 2} figures)")
     if outcome.error is not None:
         raise outcome.error
     if outcome.failed is not None:

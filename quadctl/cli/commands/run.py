@@ -15,6 +15,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     """
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
+    from quadctl.cli.progress import simulation_progress
 
     ws = open_workspace(config, out, fresh, sets)
     stages = {}
@@ -39,7 +40,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         raise _stop(json, stages, "design: unstable on the coupled 12-state model")
     done("design", "stable on the coupled model; slowest pole "
          f"{max(e.real for e in ws.design.core_eigenvalues):.3g} rad/s")
-    sim = ws.simulation.sim
+    with simulation_progress(quiet=json) as ws.progress:
+        sim = ws.simulation.sim
     if sim.status != "ok":
         raise _stop(json, stages, f"simulate: {sim.message}")
     done("simulate", f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.steps_per_second / 1e6:.2f} M steps/s")

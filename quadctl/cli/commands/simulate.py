@@ -14,9 +14,11 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     """
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
+    from quadctl.cli.progress import simulation_progress
 
     ws = open_workspace(config, out, fresh, sets)
-    flown = ws.simulation
+    with simulation_progress(quiet=json) as ws.progress:
+        flown = ws.simulation
     sim = flown.sim
     figures = save_figures(ws, sim) if plot else []
     if json:

@@ -1,0 +1,150 @@
+"""Output for logs and terminals: table width in a pipe, --width, a closed pipe, --json on every stage,
+the simulation's progress bar, near names for a mistyped config file or command."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+from rich.console import Console
+from typer.testing import CliRunner
+
+from quadctl import config, overrides
+from quadctl.cli import progress, render
+from quadctl.cli.app import app
+from quadctl.cli.commands import COMMANDS
+from quadctl.errors import ConfigError
+from quadctl.workspace import Workspace
+
+runner = CliRunner()
+DESIGN_HEADERS = ("subsystem", "closed-loop eigenvalues", "Riccati residual")
+
+
+def _widest(text: str) -> int:
+    return max(len(line.rstrip()) for line in text.splitlines())
+
+
+@pytest.fixture(scope="module")
+def hover_run(tmp_path_factory):
+    """A run folder with hover's design, so that the commands below reuse it."""
+    out = tmp_path_factory.mktemp("hover")
+    assert runner.invoke(app, ["design", "-c", "hover", "-o", str(out)]).exit_code == 0
+    return out
+
+
+def test_a_pipe_gets_whole_tables(hover_run, monkeypatch):
+    """Not a terminal, no COLUMNS: nothing cut (`control…`) or wrapped, whatever rich's 80 would do."""
+    monkeypatch.delenv("COLUMNS", raising=False)
+    res = runner.invoke(app, ["design", "-c", "hover", "-o", str(hover_run)])
+    assert res.exit_code == 0, res.output
+    assert "…" not in res.stdout
+    header = next(line for line in res.stdout.splitlines() if "┃ subsystem" in line)
+    assert all(h in header for h in DESIGN_HEADERS)
+    assert _widest(res.stdout) > 80  # it does need more than 80 columns
+
+
+def test_columns_and_width_set_the_width(hover_run, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "70")
+    res = runner.invoke(app, ["design", "-c", "hover", "-o", str(hover_run)])
+    assert res.exit_code == 0 and _widest(res.stdout) <= 70
+    res = runner.invoke(app, ["--width", "100", "design", "-c", "hover", "-o", str(hover_run)])
+    assert res.exit_code == 0 and 80 < _widest(res.stdout) <= 100
+    render.out.fixed_width = None  # the module's console outlives the command
+
+
+def test_a_closed_pipe_ends_the_output_not_the_run(tmp_path):
+    """`quadctl design | head -1`: exit 0 (never 1, "a check failed"), nothing on stderr, the work saved."""
+    read, write = os.pipe()
+    os.close(read)  # the reader has left before the first line
+    proc = subprocess.run([sys.executable, "-m", "quadctl", "design", "-c", "hover", "-o", str(tmp_path)],
+                          stdout=write, stderr=subprocess.PIPE, text=True, timeout=300)
+    os.close(write)
+    assert (proc.returncode, proc.stderr) == (0, "")
+    assert (tmp_path / "design.json").exists()
+    assert not (tmp_path / ".quadctl.lock").exists()  # and no lock file is left behind
+
+
+def test_every_stage_command_has_json():
+    stages = [m.NAME for m in COMMANDS if m.NAME != "configs"]
+    for name in stages:
+        res = runner.invoke(app, [name, "--help"], env={"COLUMNS": "200"})
+        assert "--json" in res.output, name
+
+
+def test_export_json_is_the_artifact_and_nothing_else(hover_run):
+    res = runner.invoke(app, ["export", "--to", "json", "-c", "hover", "-o", str(hover_run), "--json"])
+    assert res.exit_code == 0, res.output
+    shown = json.loads(res.stdout)
+    written = json.loads((hover_run / "quadctl_controller.json").read_text())
+    assert shown["controller"] == written and shown["files"] == [str(hover_run / "quadctl_controller.json")]
+    assert shown["integral_states"] == [] and shown["design"] == "continuous"
+
+
+def test_the_library_reports_the_simulation_s_progress(tmp_path, monkeypatch):
+    from quadctl import simulate
+
+    monkeypatch.setitem(simulate.CHUNK_STEPS, "compiled", 500)
+    monkeypatch.setitem(simulate.CHUNK_STEPS, "casadi", 500)
+    cfg = overrides.load(config.bundled("hover"), ["simulation.duration=1"])
+    calls = []
+    ws = Workspace(cfg, tmp_path, progress=lambda done, total: calls.append((done, total)))
+    sim = ws.simulation.sim
+    n = sim.plan.n_steps
+    assert len(calls) == -(-n // 500) and calls[-1] == (sim.steps, n) == (n, n)
+    assert [d for d, _ in calls] == sorted({d for d, _ in calls})  # each chunk further on
+
+
+def _terminal(monkeypatch) -> io.StringIO:
+    buf = io.StringIO()
+    monkeypatch.setattr(render, "err", Console(file=buf, force_terminal=True, width=100))
+    return buf
+
+
+def _feed(monkeypatch, steps_per_second: float, total: int = 1000) -> None:
+    clock = iter(float(i) for i in range(100))
+    monkeypatch.setattr(progress.time, "perf_counter", lambda: next(clock))
+    with progress.simulation_progress() as update:
+        for done in range(100, total + 1, int(steps_per_second)):
+            update(done, total)
+
+
+def test_a_long_simulation_draws_a_bar_with_an_eta_on_a_terminal(monkeypatch):
+    buf = _terminal(monkeypatch)
+    _feed(monkeypatch, steps_per_second=100)  # 1000 steps at 100 per (fake) second: 10 s
+    assert "simulate" in buf.getvalue() and "ETA" in buf.getvalue()
+
+
+def test_a_short_simulation_a_pipe_or_json_get_no_bar(monkeypatch):
+    buf = _terminal(monkeypatch)
+    _feed(monkeypatch, steps_per_second=900)  # about 1 s
+    assert buf.getvalue() == ""
+    with progress.simulation_progress(quiet=True) as update:
+        assert update is None
+    monkeypatch.setattr(render, "err", Console(file=io.StringIO(), force_terminal=False))
+    with progress.simulation_progress() as update:
+        assert update is None
+
+
+def test_a_mistyped_config_file_offers_the_file_beside_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "f450.yaml").write_text(config.bundled("hover").text)
+    with pytest.raises(ConfigError, match=r"^f450\.yml: no such file and no bundled config of that name; "
+                                          r"did you mean `f450\.yaml` \(a file here\)\? bundled: "):
+        config.resolve("f450.yml")
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / "config.yaml").write_text("")
+    with pytest.raises(ConfigError, match=r"did you mean `runs/config\.yaml` \(a file in runs\)\?"):
+        config.resolve("runs/confg.yaml")
+    with pytest.raises(ConfigError, match=r"did you mean `hover`\? bundled"):  # no file near: a bundled name
+        config.resolve("hovr")
+
+
+def test_a_mistyped_command_is_one_clean_line():
+    res = runner.invoke(app, ["simulte"])
+    assert res.exit_code == 2
+    assert res.stderr == ("quadctl: error: no such command 'simulte'; did you mean 'simulate'? "
+                          "(`quadctl --help` lists the commands)\n")
