@@ -195,7 +195,7 @@ USAGE_ERRORS = {
     "an option without its value": (["check", "--rate"], "quadctl: error: quadctl check: option '--rate' requires "
                                                          "an argument; see `quadctl check --help`"),
     "an unknown command": (["trmi"], "quadctl: error: no such command 'trmi'; did you mean 'trim'? "
-                                     "(`quadctl --help` lists the commands)"),
+                                     "(quadctl --help lists the commands)"),
 }
 
 

@@ -147,4 +147,4 @@ def test_a_mistyped_command_is_one_clean_line():
     res = runner.invoke(app, ["simulte"])
     assert res.exit_code == 2
     assert res.stderr == ("quadctl: error: no such command 'simulte'; did you mean 'simulate'? "
-                          "(`quadctl --help` lists the commands)\n")
+                          "(quadctl --help lists the commands)\n")

@@ -361,7 +361,8 @@ def check_quadctl(args: list[str], command: Command) -> None:
     options = {o for p in group.params for o in getattr(p, "opts", [])}
     while args and args[0].startswith("-"):
         assert args[0] in options, f"{where}: quadctl has no option {args[0]}"
-        args = args[1:]
+        valued = any(args[0] in getattr(p, "opts", []) and not getattr(p, "is_flag", True) for p in group.params)
+        args = args[2:] if valued else args[1:]  # `quadctl --width 100 design`: 100 is --width's
     if not args or args[0] == "...":
         return
     sub = group.commands.get(args[0])

@@ -247,16 +247,16 @@ def unknown_command(name: str, commands, program: str = "quadctl") -> str:
     """The line for a mistyped command: the nearest command, else the list of them.
 
     >>> unknown_command("simulte", ["trim", "simulate"])
-    "no such command 'simulte'; did you mean 'simulate'? (`quadctl --help` lists the commands)"
+    "no such command 'simulte'; did you mean 'simulate'? (quadctl --help lists the commands)"
     >>> unknown_command("zz", ["trim", "simulate"])
-    "no such command 'zz'; the commands: trim, simulate (`quadctl --help` describes them)"
+    "no such command 'zz'; the commands: trim, simulate (quadctl --help describes them)"
     """
     import difflib
 
     near = difflib.get_close_matches(name, list(commands), n=1)
     if near:
-        return f"no such command {name!r}; did you mean {near[0]!r}? (`{program} --help` lists the commands)"
-    return f"no such command {name!r}; the commands: {', '.join(commands)} (`{program} --help` describes them)"
+        return f"no such command {name!r}; did you mean {near[0]!r}? ({program} --help lists the commands)"
+    return f"no such command {name!r}; the commands: {', '.join(commands)} ({program} --help describes them)"
 
 
 def one_line_usage_errors(group_cls):
