@@ -11,10 +11,10 @@ Examples
 >>> cfg = load(config.bundled("hover"), ["simulation.duration=30", "vehicle.inertia=[0.02, 0.02, 0.04]"])
 >>> cfg.simulation.duration, cfg.vehicle.inertia
 (30.0, [0.02, 0.02, 0.04])
->>> load(config.bundled("hover"), ["simulation.durtion=30"])
+>>> load(config.bundled("hover"), ["simulation.duration=-30"])
 Traceback (most recent call last):
 ...
-quadctl.errors.ConfigError: --set: simulation.durtion: unknown key; did you mean `duration`?
+quadctl.errors.ConfigError: --set: simulation.duration = -30: must be greater than 0.0 (s)
 """
 
 from __future__ import annotations

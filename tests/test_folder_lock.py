@@ -121,6 +121,7 @@ def test_two_commands_on_one_run_folder_are_not_run_side_by_side(tmp_path):
     res = subprocess.run([sys.executable, "-m", "quadctl", "trim", "-c", "hover", "-o", str(tmp_path)],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr  # the holder is gone: the folder is free again
+    assert not (tmp_path / artifacts.LOCK_NAME).exists()  # and the command leaves no lock file behind
     assert time.monotonic() - started < 60
 
 

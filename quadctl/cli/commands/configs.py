@@ -21,6 +21,10 @@ def command(
     from quadctl.cli import render
     from quadctl.cli.options import load_config
 
+    if sets and not show:
+        from quadctl.errors import ConfigError
+
+        raise ConfigError("--set changes the config --show prints; give --show NAME with it")
     if schema:
         import json
 

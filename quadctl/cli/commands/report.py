@@ -16,11 +16,13 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     from quadctl import report
     from quadctl.cli import render
     from quadctl.cli.options import load_source
+    from quadctl.cli.progress import simulation_progress
     from quadctl.workspace import Workspace
 
     cfg, source = load_source(config, sets)
     ws = Workspace(cfg, out, fresh=fresh, source_text=source.text)
-    outcome = report.run_stages(ws)
+    with simulation_progress(quiet=json) as ws.progress:
+        outcome = report.run_stages(ws)
     doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets), label=source.label)
     paths = report.write(doc, ws.out / report.FOLDER)
     if json:
