@@ -53,7 +53,8 @@ def test_columns_and_width_set_the_width(hover_run, monkeypatch):
     assert res.exit_code == 0 and _widest(res.stdout) <= 70
     res = runner.invoke(app, ["--width", "100", "design", "-c", "hover", "-o", str(hover_run)])
     assert res.exit_code == 0 and 80 < _widest(res.stdout) <= 100
-    render.out.fixed_width = None  # the module's console outlives the command
+    res = runner.invoke(app, ["design", "-c", "hover", "-o", str(hover_run)])
+    assert res.exit_code == 0 and _widest(res.stdout) <= 70  # the next call in this process: COLUMNS again
 
 
 def test_a_closed_pipe_ends_the_output_not_the_run(tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from typing import Annotated, Optional
 
 import typer
@@ -40,10 +41,10 @@ def _root(
              "else wide enough that nothing is cut.")] = None,
 ) -> None:
     ctx.obj = {"debug": debug}
-    if width is not None:
+    if width is not None or "quadctl.cli.render" in sys.modules:  # (not imported for --help: it takes numpy)
         from quadctl.cli import render
 
-        render.set_width(width)
+        render.set_width(width)  # None: the default again, for a second call of the app in one process
 
 
 commands.register(app)

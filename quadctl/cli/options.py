@@ -49,8 +49,9 @@ def load_source(config: str | None, sets=None):
     if source.note:
         render.note(source.note)
     cfg = overrides.load(source, sets or ())
-    remember_config(source.label)
-    for notice in notices.notices(cfg, source.label):
+    label = f"{source.label} with --set" if sets else source.label  # a value named may be one --set gave
+    remember_config(label)
+    for notice in notices.notices(cfg, label):
         (render.note if notice.level == "note" else render.warning)(notice.message)
     return cfg, source._replace(text=overrides.recorded(source.text, sets or ()))
 

@@ -63,8 +63,8 @@ def reader_left() -> None:
     out.quiet = True
 
 
-def set_width(columns: int) -> None:
-    """``--width``: stdout's tables and lines this many columns wide, terminal or not."""
+def set_width(columns: int | None) -> None:
+    """``--width``: stdout's tables and lines this many columns wide, terminal or not (None: the default)."""
     out.fixed_width = columns
 
 
