@@ -26,7 +26,7 @@ from typing import Any, NamedTuple
 from quadctl import config, yamlio
 from quadctl.config import Config, Source
 from quadctl.errors import ConfigError
-from quadctl.messages import key_path, show
+from quadctl.messages import hint, key_path, show
 
 OPTION = "--set"
 _KEY_RE = re.compile(r"^[A-Za-z_][\w-]*(\[\d+\])*(\.[A-Za-z_][\w-]*(\[\d+\])*)*$")
@@ -109,9 +109,32 @@ def load(source: Source, sets=()) -> Config:
     merged = apply(data, assignments)
     try:
         return config.from_dict(merged, source.label)
-    except ConfigError:
-        config.from_dict(data, source.label)  # the file's own error names the file
+    except ConfigError as exc:
+        tree = config.from_dict(data, source.label).model_dump(mode="json")  # the file's own error names the file
+        if "unknown key" not in str(exc):  # a name the schema takes (lqr.rol) but no part of the config has
+            for a in assignments:
+                created = _created(tree, a.keys)
+                if created is not None:
+                    path, siblings = created
+                    raise ConfigError(f"{OPTION} {a.path}: no such key in the config: `{key_path(path)}`; "
+                                      + hint(str(path[-1]), siblings)) from None
         return config.from_dict(merged, OPTION)  # else the values given here caused it: raises naming --set
+
+
+def _created(tree: Any, keys: tuple):
+    """(the key path up to the first key ``keys`` adds to a mapping of the config ``tree``, the keys there)
+    or None when every key exists (or goes into a section the config leaves out, null)."""
+    node = tree
+    for k, key in enumerate(keys):
+        if isinstance(key, int):
+            if not isinstance(node, list) or key >= len(node):
+                return None
+        elif not isinstance(node, dict):
+            return None
+        elif key not in node:
+            return keys[:k + 1], [str(x) for x in node]
+        node = node[key]
+    return None
 
 
 def recorded(text: str, sets) -> str:

@@ -76,6 +76,7 @@ def test_the_text_value_is_what_decides_the_design():
     (["vehicle..mass=1"], r"^--set vehicle\.\.mass=1: vehicle\.\.mass is not a key path; write it as"),
     (["vehicle.mass.kg=1"], r"^--set vehicle\.mass\.kg: vehicle\.mass = 0\.068 has no key `kg`; the path goes "
                             r"too deep$"),
+    (["lqr.rol.Q=[1, 50, 1]"], r"^--set lqr\.rol\.Q: no such key in the config: `lqr\.rol`; did you mean `roll`\?$"),
     (["lqr.roll.Q[3]=1"], r"^--set lqr\.roll\.Q\[3\]: index 3 out of range: lqr\.roll\.Q has 3 values"),
     (["vehicle.inertia=[1,"], r"^--set vehicle\.inertia: YAML syntax error"),
 ])
