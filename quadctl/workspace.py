@@ -115,7 +115,7 @@ class Workspace:
         config under a comment that says so.
     progress : callable, optional
         ``progress(done, total)`` in RK4 steps while the simulation stage runs (see
-        :func:`quadctl.simulate.simulate`).
+        :func:`quadctl.sim.run.simulate`).
     """
 
     def __init__(self, cfg: Config, out: Path | str | None = None, *, fresh: bool = False,

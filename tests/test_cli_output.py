@@ -86,7 +86,7 @@ def test_export_json_is_the_artifact_and_nothing_else(hover_run):
 
 
 def test_the_library_reports_the_simulation_s_progress(tmp_path, monkeypatch):
-    from quadctl import simulate
+    from quadctl.sim import run as simulate
 
     monkeypatch.setitem(simulate.CHUNK_STEPS, "compiled", 500)
     monkeypatch.setitem(simulate.CHUNK_STEPS, "casadi", 500)
@@ -135,13 +135,13 @@ def test_a_mistyped_config_file_offers_the_file_beside_it(tmp_path, monkeypatch)
     (tmp_path / "f450.yaml").write_text(config.bundled("hover").text)
     with pytest.raises(ConfigError, match=r"^f450\.yml: no such file and no bundled config of that name; "
                                           r"did you mean `f450\.yaml` \(a file here\)\? bundled: "):
-        config.resolve("f450.yml")
+        config.locate("f450.yml")
     (tmp_path / "runs").mkdir()
     (tmp_path / "runs" / "config.yaml").write_text("")
     with pytest.raises(ConfigError, match=r"did you mean `runs/config\.yaml` \(a file in runs\)\?"):
-        config.resolve("runs/confg.yaml")
+        config.locate("runs/confg.yaml")
     with pytest.raises(ConfigError, match=r"did you mean `hover`\? bundled"):  # no file near: a bundled name
-        config.resolve("hovr")
+        config.locate("hovr")
 
 
 def test_a_mistyped_command_is_one_clean_line():

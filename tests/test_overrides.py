@@ -89,8 +89,8 @@ def test_an_error_of_the_file_itself_names_the_file(tmp_path):
     path = tmp_path / "bad.yaml"
     path.write_text(config.bundled("hover").text.replace("mass: 0.068", "mass: -1"))
     with pytest.raises(ConfigError, match=r"^.*bad\.yaml: vehicle\.mass = -1: must be at least"):
-        overrides.load(config.resolve(str(path)), ["simulation.duration=3"])
-    fixed = overrides.load(config.resolve(str(path)), ["vehicle.mass=0.07"])  # a --set that fixes it is fine
+        overrides.load(config.locate(str(path)), ["simulation.duration=3"])
+    fixed = overrides.load(config.locate(str(path)), ["vehicle.mass=0.07"])  # a --set that fixes it is fine
     assert fixed.vehicle.mass == 0.07
 
 

@@ -12,7 +12,7 @@ shorter run ends before a bar would tell anything."""
 
 @contextlib.contextmanager
 def simulation_progress(quiet: bool = False):
-    """Yield ``progress(done, total)`` (RK4 steps) for :func:`quadctl.simulate.simulate`, or None.
+    """Yield ``progress(done, total)`` (RK4 steps) for :func:`quadctl.sim.run.simulate`, or None.
 
     The bar (percentage, elapsed time, ETA) goes to stderr, and only when stderr is a terminal and
     not ``quiet`` (``--json``); it appears once the run, at the rate of its chunks so far, is projected
