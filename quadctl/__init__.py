@@ -6,7 +6,8 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.layout`: state and input names, units, index maps (declared once)
 - :mod:`~quadctl.errors`: the error classes (each with its exit code) and the notice warning
 - :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs; :mod:`~quadctl.notices`: what a
-  valid config took by default or likely got in the wrong unit
+  valid config took by default or likely got in the wrong unit; :mod:`~quadctl.overrides`: values put in
+  at a key path before validation (``--set KEY=VALUE``)
 - :mod:`~quadctl.model`: the CasADi model, the only place the equations of motion live
 - :mod:`~quadctl.motors`, :mod:`~quadctl.noise`, :mod:`~quadctl.wind`: rotors and mixing; seeded noise
   streams; steady wind, gusts and Dryden turbulence
