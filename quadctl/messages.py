@@ -9,10 +9,30 @@ from __future__ import annotations
 import difflib
 import json
 import math
+import re
 from typing import Any
 
 SHOWN_CHARS = 60
 """A value shown in a message is cut to this many characters."""
+
+
+KEY_PATH = re.compile(r"^[A-Za-z_][\w-]*(\[\d+\])*(\.[A-Za-z_][\w-]*(\[\d+\])*)*$")
+"""A key path as written on the command line and in sweep files: ``vehicle.mass``, ``lqr.roll.Q[1]``."""
+
+
+def parse_key_path(path: str) -> tuple:
+    """``'lqr.roll.Q[1]'`` -> ``('lqr', 'roll', 'Q', 1)``, the inverse of :func:`key_path` (check the text
+    against :data:`KEY_PATH` first).
+
+    >>> parse_key_path('lqr.roll.Q[1]')
+    ('lqr', 'roll', 'Q', 1)
+    """
+    keys: list = []
+    for part in path.split("."):
+        name, *indices = part.split("[")
+        keys.append(name)
+        keys.extend(int(i.rstrip("]")) for i in indices)
+    return tuple(keys)
 
 
 def key_path(loc) -> str:

@@ -20,16 +20,14 @@ quadctl.errors.ConfigError: --set: simulation.duration = -30: must be greater th
 from __future__ import annotations
 
 import copy
-import re
 from typing import Any, NamedTuple
 
 from quadctl import config, yamlio
 from quadctl.config import Config, Source
 from quadctl.errors import ConfigError
-from quadctl.messages import hint, key_path, show
+from quadctl.messages import KEY_PATH, hint, key_path, parse_key_path, show
 
 OPTION = "--set"
-_KEY_RE = re.compile(r"^[A-Za-z_][\w-]*(\[\d+\])*(\.[A-Za-z_][\w-]*(\[\d+\])*)*$")
 EXAMPLE = "`--set simulation.duration=30`"
 
 
@@ -53,15 +51,10 @@ def parse(text: str) -> Assignment:
     path = path.strip()
     if not eq:
         raise ConfigError(f"{OPTION} {text}: give KEY=VALUE, as {EXAMPLE}")
-    if not _KEY_RE.match(path):
+    if not KEY_PATH.match(path):
         raise ConfigError(f"{OPTION} {text}: {path or 'the key'} is not a key path; write it as "
                           "`simulation.duration` or `lqr.roll.Q[1]`")
-    keys: list = []
-    for part in path.split("."):
-        name, *indices = part.split("[")
-        keys.append(name)
-        keys.extend(int(i.rstrip("]")) for i in indices)
-    return Assignment(path, tuple(keys), yamlio.load(value, f"{OPTION} {path}", ConfigError))
+    return Assignment(path, parse_key_path(path), yamlio.load(value, f"{OPTION} {path}", ConfigError))
 
 
 def apply(data: Any, assignments) -> dict:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from types import SimpleNamespace
@@ -16,7 +15,7 @@ import numpy as np
 from quadctl import __version__, yamlio
 from quadctl.errors import SweepError
 from quadctl.layout import STATE_NAMES
-from quadctl.messages import finite_number, hint, is_whole, key_path, show, whole_number
+from quadctl.messages import KEY_PATH, finite_number, hint, is_whole, key_path, parse_key_path, show, whole_number
 from quadctl.sweep.gates import Gate, metric_columns
 
 MODES = ("grid", "random")
@@ -44,7 +43,6 @@ MC_PARAMETER = ("simulation", "noise", "seed")
 RUN_KEYS = (("simulation", "duration"), ("simulation", "dt"), ("simulation", "max_samples"))
 """Keys under ``simulation.`` that set the run (its length, step, records), not the vehicle or its
 environment: a sweep of them is no uncertainty study (its trajectories would not share a grid)."""
-_PATH_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*(\.[A-Za-z_][A-Za-z0-9_]*(\[\d+\])*)*$")
 
 
 def plant_side(keys: tuple, rotor_lag: str = "ignore", trim_wind: bool = False, estimator=None) -> bool:
@@ -416,9 +414,9 @@ def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
     Raises SweepError naming the first part that does not exist, and the nearest valid key.
     """
     where = f"{label}: {section}.{path}"
-    if not _PATH_RE.match(path):
+    if not KEY_PATH.match(path):
         raise SweepError(f"{where}: not a key path; write it as `lqr.roll.Q[1]` or `vehicle.mass`")
-    keys = parse_path(path)
+    keys = parse_key_path(path)
     node = tree
     walked: list = []
     for k, key in enumerate(keys):
@@ -450,16 +448,6 @@ def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
         raise SweepError(f"{where}: is a section, not a value; name one of its keys: "
                          f"{', '.join(map(str, node))}")
     return keys
-
-
-def parse_path(path: str) -> tuple:
-    """``'lqr.roll.Q[1]'`` -> ``('lqr', 'roll', 'Q', 1)``."""
-    keys: list = []
-    for part in path.split("."):
-        name, *indices = re.split(r"\[", part)
-        keys.append(name)
-        keys.extend(int(i.rstrip("]")) for i in indices)
-    return tuple(keys)
 
 
 def _path_text(keys) -> str:
