@@ -15,12 +15,12 @@ nothing here imports). Modules, each importing only those above it:
   every stage takes (:func:`~quadctl.problem.setup_of`)
 - :mod:`~quadctl.trim`, :mod:`~quadctl.linearize`, :mod:`~quadctl.decouple`: equilibrium,
   Jacobians (with the reference drift), the partition into subsystems and what it drops
-- :mod:`~quadctl.stability`: the one stability predicate and the one marginal-mode rule
+- :mod:`~quadctl.stability`: the one stability test (and its margins) and the one rule for free positions
 - :mod:`~quadctl.analysis`: controllability, observability, PBH, with a stated rank tolerance
 - :mod:`~quadctl.lqr`: the LQR family (its own map): Riccati solves (``lqr.riccati``), integral
   action (``lqr.integral``), the rotors' lag (``lqr.lag``), zero-order hold and ``lqrd``
-  (``lqr.discrete``), the decoupled design (``lqr.decoupled``), one LQR on the coupled model
-  (``lqr.coupled``)
+  (``lqr.discrete``), the linear closed loop of a design (``lqr.linear_loop``), the decoupled design
+  (``lqr.decoupled``), one LQR on the coupled model (``lqr.coupled``)
 - :mod:`~quadctl.estimator`: the steady-state Kalman filter of an LQG loop (discrete filter form or
   Kalman-Bucy) and the observability of the measured set
 - :mod:`~quadctl.margins`: loop margins (with the filter in the loop for LQG)

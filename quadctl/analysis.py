@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.stability import STABILITY_MARGIN, UNIT_CIRCLE_MARGIN, is_stable  # noqa: F401 (re-exported)
+from quadctl import stability
 
 RICCATI_RTOL = 1e-8
 """Largest accepted relative residual of a Riccati solution, continuous or discrete: the residual's
@@ -69,7 +69,7 @@ class Checks:
 
     @property
     def unstabilizable_modes(self) -> tuple[ModeTest, ...]:
-        return tuple(m for m in self.pbh_ctrb if not m.passed and not is_stable(m.eigenvalue))
+        return tuple(m for m in self.pbh_ctrb if not m.passed and not stability.is_stable(m.eigenvalue))
 
 
 def numerical_rank(mat: np.ndarray) -> Rank:
@@ -97,7 +97,7 @@ def obsv(A, C) -> np.ndarray:
 
 def is_stable_z(z: complex) -> bool:
     """Strictly inside the unit circle: :func:`quadctl.stability.is_stable`, discrete."""
-    return is_stable(z, discrete=True)
+    return stability.is_stable(z, discrete=True)
 
 
 def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
@@ -167,8 +167,8 @@ def check(A, B, C=None, names=None) -> Checks:
         obsv=numerical_rank(obsv(A, C)),
         controllable=all(m.passed for m in ctrb_modes),
         observable=all(m.passed for m in obsv_modes),
-        stabilizable=all(m.passed or is_stable(m.eigenvalue) for m in ctrb_modes),
-        detectable=all(m.passed or is_stable(m.eigenvalue) for m in obsv_modes),
+        stabilizable=all(m.passed or stability.is_stable(m.eigenvalue) for m in ctrb_modes),
+        detectable=all(m.passed or stability.is_stable(m.eigenvalue) for m in obsv_modes),
         pbh_ctrb=ctrb_modes,
         pbh_obsv=obsv_modes,
     )

@@ -16,7 +16,7 @@ system (``states=``, ``inputs=``, ``outputs=``) and decides continuous or discre
   for (``A, B``, names, and ``dt`` deciding ``lqr`` or ``dlqr``).
 
 Every matrix comes from quadctl's own stages (:mod:`quadctl.lqr.discrete` for the hold,
-:func:`quadctl.lqr.closed_loop_matrix` for the loop); python-control only carries them.
+:mod:`quadctl.lqr.linear_loop` for the loop); python-control only carries them.
 
 Examples
 --------
@@ -135,7 +135,7 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
     ``xh+ = Ae xc + Be u``, ``z+ = z - Ts S xc``. Kalman-Bucy (``L``): ``u = -K xh - Ki z``,
     ``xh' = Ae xh + Be u + L (y - C xh)``, ``z' = -S xh``. ``S`` selects the integrated states.
     """
-    from quadctl.lqr import integral
+    from quadctl.lqr import integral, linear_loop
 
     kal = loop.estimator
     Ts = kal.sample_time
@@ -150,13 +150,14 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
     Ae, Be, C = (np.asarray(M, dtype=float) for M in (kal.A, kal.B, kal.C))
     gain, n, nz = np.asarray(kal.gain, dtype=float), len(STATE_NAMES), len(ints)
     S = integral.selector(STATE_NAMES, ints)
+    AeK = linear_loop.close(Ae, Be, K)  # the estimate's loop under the law
     if Ts:
         F, N = np.eye(n) - gain @ C, gain @ C  # xc = F xh + N dx
-        A = np.block([[(Ae - Be @ K) @ F, -Be @ Ki], [-Ts * S @ F, np.eye(nz)]])
-        B = np.vstack([(Ae - Be @ K) @ N, -Ts * S @ N])
+        A = np.block([[AeK @ F, -Be @ Ki], [-Ts * S @ F, np.eye(nz)]])
+        B = np.vstack([AeK @ N, -Ts * S @ N])
         Cout, D = np.hstack([-K @ F, -Ki]), -K @ N
     else:
-        A = np.block([[Ae - Be @ K - gain @ C, -Be @ Ki], [-S, np.zeros((nz, nz))]])
+        A = np.block([[AeK - gain @ C, -Be @ Ki], [-S, np.zeros((nz, nz))]])
         B = np.vstack([gain @ C, np.zeros((nz, n))])
         Cout, D = np.hstack([-K, -Ki]), np.zeros((K.shape[0], n))
     states = [*(f"xh_{s}" for s in STATE_NAMES), *(f"z_{s}" for s in ints)]
@@ -164,7 +165,7 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
 
 
 def closed_loop(linear, design, *, sample_time: float | str | None = "design", name: str = "closed loop"):
-    """The linear closed loop of ``[x; z]`` (:func:`quadctl.lqr.closed_loop_matrix`) as a StateSpace.
+    """The linear closed loop of ``[x; z]`` (:func:`quadctl.linear_loop.matrix`) as a StateSpace.
 
     Its inputs are disturbances ``T A E R`` added to the controller's input (``B``, or the hold's
     ``Bd`` when sampled), its outputs the loop states.
@@ -182,7 +183,7 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
     control.StateSpace
         Its poles are the closed-loop eigenvalues (``z`` when sampled).
     """
-    from quadctl.lqr import closed_loop_matrix, discrete
+    from quadctl.lqr import discrete, linear_loop
 
     _control()
     K, Ki, ints = _gains(design)
@@ -191,7 +192,7 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
                          "loop of [x; z]; for the LQG loop use control.feedback(interop.plant(linear, "
                          "sample_time=Ts), interop.controller(loop), sign=1)")
     Ts = getattr(design, "sample_time", None) if sample_time == "design" else sample_time
-    A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, ints, Ts)
+    A_cl = linear_loop.matrix(linear.A, linear.B, K, Ki, ints, Ts)
     B = np.asarray(linear.B, dtype=float) if not Ts else discrete.c2d(linear.A, linear.B, Ts)[1]
     B_cl = np.vstack([B, np.zeros((len(ints), B.shape[1]))])
     names = [*STATE_NAMES, *(f"z_{s}" for s in ints)]

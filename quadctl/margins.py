@@ -65,8 +65,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.lqr import linear_loop
 from quadctl.lqr.lag import lagged as lagged  # re-exported: the lag every loop carries
+from quadctl.lqr.linear_loop import delayed as delayed  # re-exported: the delay every sampled loop carries
+from quadctl.lqr.linear_loop import with_lag_model as with_lag_model  # re-exported: the controller's lag model
+from quadctl.stability import free_positions, is_stable
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -211,10 +215,7 @@ class BrokenLoop:
         return np.linalg.eigvals(self.A - gain * np.outer(self.b, self.k))
 
     def is_stable(self, gain: float = 1.0) -> bool:
-        eig = self.closed_loop_eigenvalues(gain)
-        if self.sample_time:
-            return bool(np.all(np.abs(eig) < 1 - 1e-9))
-        return bool(np.all(eig.real < -1e-9 * np.maximum(1.0, np.abs(eig))))
+        return bool(np.all(is_stable(self.closed_loop_eigenvalues(gain), discrete=bool(self.sample_time))))
 
 
 def broken_loop(A, B, K, j: int, sample_time: float | None = None) -> BrokenLoop:
@@ -232,9 +233,7 @@ def broken_loop(A, B, K, j: int, sample_time: float | None = None) -> BrokenLoop
         s; given, ``A`` and ``B`` are the ZOH plant.
     """
     A, B, K = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, K))
-    others = [i for i in range(B.shape[1]) if i != j]
-    A_o = A - B[:, others] @ K[others, :]
-    return BrokenLoop(A=A_o, b=B[:, j].copy(), k=K[j, :].copy(), sample_time=sample_time)
+    return BrokenLoop(A=linear_loop.broken(A, B, K, j), b=B[:, j].copy(), k=K[j, :].copy(), sample_time=sample_time)
 
 
 # ---------------------------------------------------------------------------------------
@@ -395,36 +394,6 @@ def _delay_margin(loop, w, Lw) -> float | None:
     return best
 
 
-def delayed(A, B, K, samples: int):
-    """``(A, B, K)`` of a discrete plant with ``samples`` of delay on every input, exactly.
-
-    The state gains ``m`` shift states per sample, ``[x; b_1; ...; b_n]``: ``x <- A x + B b_n``,
-    ``b_1 <- u``, ``b_k <- b_(k-1)``; the gain ignores them (``[K, 0]``). ``samples = 0`` returns
-    the plant unchanged.
-
-    Examples
-    --------
-    One sample on ``x <- x + u``: ``L(z) = k / (z (z - 1))``.
-
-    >>> Ad, Bd, Kd = delayed(np.eye(1), np.eye(1), np.eye(1), 1)
-    >>> Ad.tolist(), Bd.ravel().tolist(), Kd.ravel().tolist()
-    ([[1.0, 1.0], [0.0, 0.0]], [0.0, 1.0], [1.0, 0.0])
-    """
-    A, B, K = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (A, B, K))
-    if samples == 0:
-        return A, B, K
-    n, m = B.shape
-    N = n + m * samples
-    Aa = np.zeros((N, N))
-    Aa[:n, :n] = A
-    Aa[:n, N - m:] = B
-    for k in range(1, samples):  # b_(k+1) <- b_k
-        Aa[n + k * m:n + (k + 1) * m, n + (k - 1) * m:n + k * m] = np.eye(m)
-    Ba = np.zeros((N, m))
-    Ba[n:n + m] = np.eye(m)
-    return Aa, Ba, np.hstack([K, np.zeros((K.shape[0], m * samples))])
-
-
 def _disk_margin(loop, w):
     """Balanced disk margin: ``1 / max |S - 1/2|`` and where it is reached."""
     def peak(x):
@@ -481,27 +450,13 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
     sampled, with ``delay_samples`` of delay on every input (:func:`delayed`);
     ``rotor_time_constant`` puts the rotors' lag on every input (:func:`lagged`).
     """
-    from quadctl.lqr import discrete, integral
-
     Ts = sample_time
     for sub in design.subsystems:
-        dsub = decoupled[sub.name]
-        As, Bs = lagged(dsub.A, dsub.B, rotor_time_constant)
-        extra = As.shape[0] - dsub.A.shape[0]
-        C = np.hstack([integral.selector(sub.states, sub.integral), np.zeros((len(sub.integral), extra))])
-        Ks = np.hstack([sub.K, sub.Kv if sub.Kv is not None and extra else np.zeros((sub.K.shape[0], extra))])
-        Ka = np.hstack([Ks, sub.Ki]) if sub.Ki is not None else Ks
-        if Ts is None:
-            Aa, Ba = integral.augment(As, Bs, C)
-        else:
-            Ad, Bd = discrete.c2d(As, Bs, Ts)
-            Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
-            Aa, Ba, Ka = delayed(Aa, Ba, Ka, delay_samples)
+        Aa, Ba, Ka = linear_loop.subsystem(sub, decoupled[sub.name], Ts, delay_samples=delay_samples,
+                                           rotor_time_constant=rotor_time_constant)
         for j, inp in enumerate(sub.inputs):
             yield sub.name, inp, "design", broken_loop(Aa, Ba, Ka, j, Ts)
-    Af, Bf, Kf = _coupled(design, A, B, Ts, rotor_time_constant)
-    if Ts is not None:
-        Af, Bf, Kf = delayed(Af, Bf, Kf, delay_samples)
+    Af, Bf, Kf = linear_loop.vehicle(design, A, B, Ts, delay_samples, rotor_time_constant)
     for sub in design.subsystems:
         for inp in sub.inputs:
             yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
@@ -547,15 +502,14 @@ def lqg_loops(design, A, B, kal):
         Bp, Be = Bd, Bd
     T = np.eye(2 * n + nz)
     T[n:2 * n, :n], T[n:2 * n, n:2 * n] = np.eye(n), -np.eye(n)  # [x; x - x_hat; z]; T^-1 = T
-    free = [STATE_INDEX[s] for s in POSITION_STATES
-            if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]]) and s not in ints]
+    free = [STATE_INDEX[s] for s in free_positions(A, reads=(K,), integral_states=ints)]
     keep = [i for i in range(2 * n + nz) if i not in free]
     for sub in design.subsystems:
         for inp in sub.inputs:
             j = INPUT_INDEX[inp]
             others = Bp.copy()
             others[:, j] = 0.0
-            Aa = base - np.vstack([others, Be, Z((nz, Bp.shape[1]))]) @ Kc
+            Aa = linear_loop.close(base, np.vstack([others, Be, Z((nz, Bp.shape[1]))]), Kc)
             b = np.concatenate([Bp[:, j], Z(n), Z(nz)])
             At, bt, kt = T @ Aa @ T, T @ b, Kc[j] @ T
             yield sub.name, inp, "lqg", BrokenLoop(A=At[np.ix_(keep, keep)], b=bt[keep], k=kt[keep],
@@ -564,89 +518,10 @@ def lqg_loops(design, A, B, kal):
 
 def closed_loop(design, A, B, sample_time: float | None = None, delay_samples: int = 0,
                 rotor_time_constant: float | None = None) -> np.ndarray:
-    """The linear closed loop the vehicle has: the coupled model with the rotors' lag, the
-    controller's lag model (a design that includes the lag), the integrators and the delay, the
-    positions nothing feeds back left out.
-
-    Returns
-    -------
-    (n, n) ndarray
-        ``A - B K`` of :func:`design_loops`' coupled loop: continuous, or the ``z``-domain loop of
-        a controller sampled every ``sample_time`` s (with ``delay_samples`` of delay).
-    """
-    Af, Bf, Kf = _coupled(design, A, B, sample_time, rotor_time_constant)
-    if sample_time is not None:
-        Af, Bf, Kf = delayed(Af, Bf, Kf, delay_samples)
-    return Af - Bf @ Kf
-
-
-def _coupled(design, A, B, Ts, rotor_time_constant=None):
-    """Augmented coupled plant (with the rotors' lag) and gain ``[K, 0, Ki]`` without the positions
-    nothing feeds back; a design that includes the lag appends the controller's lag model ``l``
-    (:func:`with_lag_model`)."""
-    from quadctl.lqr import discrete, integral
-
-    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
-    K, Ki = design.K_block, design.Ki_block
-    nz = len(design.integral_states)
-    Al, Bl = lagged(A, B, rotor_time_constant)
-    extra = Al.shape[0] - N_STATES
-    C = np.hstack([integral.selector(STATE_NAMES, design.integral_states), np.zeros((nz, extra))])
-    if Ts is None:
-        Aa, Ba = integral.augment(Al, Bl, C)
-    else:
-        Ad, Bd = discrete.c2d(Al, Bl, Ts)
-        Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
-    Ka = np.hstack([K, np.zeros((K.shape[0], extra)), Ki.reshape(K.shape[0], nz)])
-    free = [STATE_INDEX[s] for s in POSITION_STATES
-            if not np.any(K[:, STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]])
-            and s not in design.integral_states]
-    keep = [i for i in range(N_STATES + extra + nz) if i not in free]
-    Aa, Ba, Ka = Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep]
-    if design.lag_time_constant is not None:
-        Aa, Ba, Ka = with_lag_model(Aa, Ba, Ka, design.Kv_block, design.lag_time_constant, Ts)
-    return Aa, Ba, Ka
-
-
-def with_lag_model(A, B, K, Kv, time_constant: float, sample_time: float | None = None):
-    """``(A, B, K)`` of a state-feedback loop whose controller also propagates a model ``l`` of the
-    inputs' lag from its own command and feeds it back: ``u_c = -K X - Kv l``.
-
-    ``dl/dt = (u_c - l) / tau`` (continuous), or ``l <- a l + (1 - a) u_c``, ``a = exp(-Ts / tau)``
-    (its exact ZOH, sampled). ``l`` is a controller state: its rows are in ``A`` (the command it
-    follows is the controller's, before the loop's break point) and ``B`` has none, so a loop
-    broken at an input sees the model as part of the controller (:mod:`quadctl.sim.builder` runs
-    the same model).
-
-    Parameters
-    ----------
-    A : (n, n) array_like
-    B : (n, m) array_like
-    K : (m, n) array_like
-    Kv : (m, m) array_like
-    time_constant : float
-        s of the model.
-    sample_time : float, optional
-        s of a sampled loop (``A``, ``B`` the ZOH plant).
-
-    Returns
-    -------
-    (n + m, n + m) ndarray, (n + m, m) ndarray, (m, n + m) ndarray
-    """
-    from quadctl.lqr.lag import model_pole
-
-    A, B, K, Kv = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (A, B, K, Kv))
-    n, m = B.shape
-    Aa = np.zeros((n + m, n + m))
-    Aa[:n, :n] = A
-    if sample_time is None:
-        Aa[n:, :n] = -K / time_constant
-        Aa[n:, n:] = -(np.eye(m) + Kv) / time_constant
-    else:
-        a = model_pole(time_constant, sample_time)
-        Aa[n:, :n] = -(1 - a) * K
-        Aa[n:, n:] = a * np.eye(m) - (1 - a) * Kv
-    return Aa, np.vstack([B, np.zeros((m, m))]), np.hstack([K, Kv])
+    """The linear closed loop the vehicle has (:func:`quadctl.linear_loop.vehicle_matrix`): the coupled
+    model with the rotors' lag, the controller's lag model (a design that includes the lag), the
+    integrators and the delay, the positions nothing feeds back left out."""
+    return linear_loop.vehicle_matrix(design, A, B, sample_time, delay_samples, rotor_time_constant)
 
 
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,

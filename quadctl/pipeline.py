@@ -14,7 +14,7 @@ from quadctl.analysis import Checks, check
 from quadctl.decouple import Decoupled, decouple
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 from quadctl.linearize import LinearModel, linearize
-from quadctl.lqr import Design, closed_loop_matrix, design
+from quadctl.lqr import Design, design, linear_loop
 from quadctl.motors import check_trim
 from quadctl.problem import Setup
 from quadctl.sim.run import ClosedLoop, SimResult, eigen_owners, simulate
@@ -66,18 +66,36 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
     if Kv is not None and tau is None:
         raise ValueError("Kv feeds back the controller's rotor lag model: the setup must include the lag "
                          "(controller.rotor_lag: include with motors.time_constant)")
-    A_cl = closed_loop_matrix(linear.A, linear.B, K, Ki, integral_states, Kv=Kv, lag_time_constant=tau)
+    A_cl = linear_loop.matrix(linear.A, linear.B, K, Ki, integral_states, Kv=Kv, lag_time_constant=tau)
     lag_names = tuple(f"lag of {i}" for i in INPUT_NAMES) if tau is not None else ()
     owner = {**setup.state_owner, **{f"lag of {i}": setup.input_owner(i) for i in INPUT_NAMES}}
     eig, owners = eigen_owners(A_cl, owner, (*STATE_NAMES, *lag_names, *integral_states))
     check_trim(setup.actuators, linear.u_trim)
-    return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim,
-                      estimator=estimator if estimator is not None else estimator_of(setup, linear),
-                      x_rate=linear.x_rate, K=K, eigenvalues=eig,
+    return simulated_loop(setup, linear, K, Ki=Ki, integral_states=integral_states, Kv=Kv,
+                          estimator=estimator if estimator is not None else estimator_of(setup, linear),
+                          eigenvalues=eig, owners=owners)
+
+
+def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.ndarray | None = None,
+                   integral_states=(), Kv: np.ndarray | None = None, estimator=None, eigenvalues, owners,
+                   params: np.ndarray | None = None, open_loop_eigenvalues: np.ndarray | None = None) -> ClosedLoop:
+    """The one constructor of the :class:`~quadctl.simulate.ClosedLoop` a setup flies: gains on the
+    setup's plant, trim, timing (rate, delay), actuators and the design's lag model (with ``Kv``).
+
+    ``eigenvalues`` and ``owners`` (of the continuous closed loop, for the RK4 step) are the
+    caller's; ``params`` (the plant's parameter vector) and ``open_loop_eigenvalues`` (of
+    ``linear.A``) are computed unless the caller has them cached. ``estimator`` is taken as given
+    (None: the law measures the state).
+    """
+    return ClosedLoop(params=setup.plant.vector() if params is None else params, x_trim=linear.x_trim,
+                      u_trim=linear.u_trim, estimator=estimator, x_rate=linear.x_rate, K=K, eigenvalues=eigenvalues,
                       owners=owners, rate=setup.timing.rate,
-                      Ki=Ki if integral_states else None, integral_states=integral_states,
-                      actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A),
-                      delay_samples=setup.timing.delay_samples, Kv=Kv, lag_model_time_constant=tau)
+                      Ki=Ki if integral_states else None, integral_states=tuple(integral_states),
+                      actuators=setup.actuators,
+                      open_loop_eigenvalues=(np.linalg.eigvals(linear.A) if open_loop_eigenvalues is None
+                                             else open_loop_eigenvalues),
+                      delay_samples=setup.timing.delay_samples, Kv=Kv,
+                      lag_model_time_constant=setup.design_lag_time_constant if Kv is not None else None)
 
 
 def estimator_of(setup: Setup, linear: LinearModel):
@@ -113,7 +131,7 @@ def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progres
 class VehicleLoop:
     """The linear closed loop the vehicle flies: the design's gains on the coupled model with the
     rotors' lag, the controller's lag model (a design that includes it), the integrators and the
-    delay (:func:`quadctl.margins.closed_loop`), next to the loop the design saw.
+    delay (:func:`quadctl.linear_loop.vehicle`), next to the loop the design saw.
 
     Attributes
     ----------
@@ -164,14 +182,14 @@ class VehicleLoop:
 
 def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLoop:
     """:class:`VehicleLoop` of a design flown with the setup's rotors and delay."""
-    from quadctl import margins, stability
+    from quadctl import stability
 
     timing = setup.timing
     Ts = des.sample_time or (timing.sample_time if timing.mode == "emulated" else None)
-    eig = np.linalg.eigvals(margins.closed_loop(des, linear.A, linear.B, Ts, timing.delay_samples,
-                                                setup.rotor_time_constant))
+    eig = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
+                                                       setup.rotor_time_constant))
     seen = setup.rotor_time_constant if des.lag_time_constant is not None else None
-    ideal = np.linalg.eigvals(margins.closed_loop(des, linear.A, linear.B, Ts, 0, seen))
+    ideal = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, 0, seen))
     return VehicleLoop(eigenvalues=eig, design_eigenvalues=ideal, sample_time=Ts,
                        stable=bool(np.all(stability.is_stable(eig, discrete=Ts is not None))),
                        least_damping=stability.least_damping(eig, Ts),
@@ -191,18 +209,15 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
     -------
     list of quadctl.lqr.discrete.RateWarning
     """
-    from quadctl.lqr import discrete, integral
+    from quadctl.lqr import discrete
 
     des = design_of(setup, decoupled, linear, rate=None)
     Ts = 1.0 / rate
     loops = []
     for sub in des.subsystems:
-        dsub = decoupled[sub.name]
-        Ad, Bd = discrete.c2d(dsub.A, dsub.B, Ts)
-        Aa, Ba = integral.augment_discrete(Ad, Bd, integral.selector(sub.states, sub.integral), Ts)
-        Ka = np.hstack([sub.K, sub.Ki]) if sub.Ki is not None else sub.K
-        loops.append((sub.name, sub.eigenvalues, Aa - Ba @ Ka))
-    sampled = closed_loop_matrix(linear.A, linear.B, des.K_block, des.Ki_block, des.integral_states, Ts)
+        sampled = linear_loop.close(*linear_loop.subsystem(sub, decoupled[sub.name], Ts))
+        loops.append((sub.name, sub.eigenvalues, sampled))
+    sampled = linear_loop.matrix(linear.A, linear.B, des.K_block, des.Ki_block, des.integral_states, Ts)
     keep = [i for i in range(sampled.shape[0])
             if i >= len(STATE_NAMES) or STATE_NAMES[i] not in des.marginal_states]
     loops.append(("coupled", des.core_eigenvalues, sampled[np.ix_(keep, keep)]))

@@ -4,11 +4,18 @@
 a discrete one when ``|z| < 1 - UNIT_CIRCLE_MARGIN``. Every verdict in quadctl (design, check,
 margins, sweep rows, the RK4 step plan) comes from :func:`is_stable`.
 
-**Marginal.** A position state that no gain feeds back and that nothing depends on (translation
-invariance: its column of ``A - B K`` is zero, or the unit column of a discrete loop) adds an
-exact eigenvalue at ``s = 0`` (``z = 1``). That mode is expected, not unstable: the vehicle
-holds its velocity and heading and lets its position drift. :func:`marginal_states` names those
-states; :func:`assess` leaves them out of the verdict and reports them.
+**Free positions, marginal modes.** A position state is *free* when no gain, weight or integrator
+reads it and nothing depends on it (translation invariance: its column of the loop, or of the
+plant, is zero; the unit column of a discrete loop). :func:`free_positions` is the one rule,
+for a closed loop (then its free positions are its *marginal* states) or for a plant and the
+gains and weights that will close it (the positions a design or a loop leaves out). A free
+position adds an exact eigenvalue at ``s = 0`` (``z = 1``). That mode is expected, not unstable:
+the vehicle holds its velocity and heading and lets its position drift. :func:`marginal_states`
+names those states; :func:`assess` leaves them out of the verdict and reports them.
+
+Every stability comparison in quadctl is in this module (a structure test keeps it so):
+:func:`is_stable` for verdicts, :func:`on_boundary` for a mode on the stability boundary, and
+:func:`in_open_left_half_plane` for the exact split of a Hamiltonian's spectrum.
 """
 
 from __future__ import annotations
@@ -42,8 +49,89 @@ def is_stable(eigenvalues, *, discrete: bool = False):
     return bool(out) if out.ndim == 0 else out
 
 
+def on_boundary(eigenvalue, *, discrete: bool = False) -> bool:
+    """Whether an eigenvalue lies on the stability boundary, within the margins of :func:`is_stable`:
+    ``|Re s| <= STABILITY_MARGIN max(1, |s|)``, or ``||z| - 1| <= UNIT_CIRCLE_MARGIN``."""
+    e = complex(eigenvalue)
+    if discrete:
+        return abs(abs(e) - 1.0) <= UNIT_CIRCLE_MARGIN
+    return abs(e.real) <= STABILITY_MARGIN * max(1.0, abs(e))
+
+
+def criterion(discrete: bool = False) -> str:
+    """The instability criterion of :func:`is_stable` as text, for messages."""
+    return f"|z| >= 1 - {UNIT_CIRCLE_MARGIN:g}" if discrete else f"Re s >= -{STABILITY_MARGIN:g} max(1, |s|)"
+
+
+def in_open_left_half_plane(eigenvalues) -> np.ndarray:
+    """``Re s < 0`` exactly, without a margin: which eigenvalues of a Hamiltonian form its stable
+    half (the Riccati solvers' invariant subspace), not a verdict on a loop (:func:`is_stable`)."""
+    return np.asarray(eigenvalues).real < 0
+
+
+def free_mask(A, *, reads=(), integral_states=(), discrete: bool = False) -> np.ndarray:
+    """:func:`free_positions` of a stack, as a mask: ``(..., 3)`` bool, one per :data:`POSITION_STATES`.
+
+    Parameters
+    ----------
+    A : (..., n, n) array_like
+        Plant or closed loop; its first 12 states are :data:`quadctl.layout.STATE_NAMES`.
+    reads : sequence of (..., r, >= 12) array_like
+        Gains and weights whose columns read the states (a state gain ``K``, a weight ``Q``).
+    integral_states : iterable of str
+        States an integrator reads (through ``dz/dt = -x_s``, which ``A`` may not carry).
+    discrete : bool
+        ``A`` is a discrete map: a state nothing depends on has the unit column.
+    """
+    A = np.asarray(A, dtype=float)
+    positions = [STATE_INDEX[s] for s in POSITION_STATES]
+    cols = A[..., :, positions]
+    if discrete:
+        cols = cols - np.eye(A.shape[-1])[:, positions]
+    free = ~np.any(cols != 0, axis=-2)  # nothing depends on it
+    for M in reads:  # no gain or weight reads it
+        free = free & ~np.any(np.asarray(M, dtype=float)[..., :, positions] != 0, axis=-2)
+    integrated = np.array([s in tuple(integral_states) for s in POSITION_STATES])
+    return free & ~integrated  # no integrator reads it
+
+
+def free_positions(A, *, reads=(), integral_states=(), discrete: bool = False) -> tuple[str, ...]:
+    """The position states that nothing reads and nothing depends on: the one rule for which
+    positions a loop leaves free (see the module docstring).
+
+    A position is free when its column of ``A`` is zero (of ``A - I`` when ``discrete``), its
+    column of every matrix in ``reads`` is zero, and it is not in ``integral_states``.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+        A plant (12 states first) or a closed loop of ``[x; ...]``.
+    reads : sequence of array_like
+        Gains and weights (columns index the states: ``K`` (m, 12), ``Q`` (n, n)).
+    integral_states : iterable of str
+    discrete : bool
+
+    Returns
+    -------
+    tuple of str
+        In the order of :data:`quadctl.layout.POSITION_STATES`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> A = np.zeros((12, 12)); A[0, 3] = 1.0      # pN' = u: nothing reads pN, pE or pD
+    >>> free_positions(A)
+    ('pN', 'pE', 'pD')
+    >>> A[3, 0] = -1.0                             # u' = -pN: u depends on pN
+    >>> free_positions(A)
+    ('pE', 'pD')
+    """
+    mask = free_mask(A, reads=reads, integral_states=integral_states, discrete=discrete)
+    return tuple(s for s, m in zip(POSITION_STATES, mask.tolist()) if m)
+
+
 def marginal_states(A_cl, K, *, discrete: bool = False) -> tuple[str, ...]:
-    """Position states whose mode is marginal by design (see the module docstring).
+    """Position states whose mode is marginal by design: :func:`free_positions` of a closed loop.
 
     Parameters
     ----------
@@ -54,11 +142,7 @@ def marginal_states(A_cl, K, *, discrete: bool = False) -> tuple[str, ...]:
     discrete : bool
         ``A_cl`` is a discrete loop (a free position has a unit column).
     """
-    A_cl = np.asarray(A_cl, dtype=float)
-    drift = A_cl - np.eye(len(A_cl)) if discrete else A_cl
-    K = np.asarray(K, dtype=float)
-    return tuple(s for s in POSITION_STATES
-                 if not np.any(K[:, STATE_INDEX[s]]) and not np.any(drift[:, STATE_INDEX[s]]))
+    return free_positions(A_cl, reads=(K,), discrete=discrete)
 
 
 @dataclass(frozen=True)
@@ -117,9 +201,7 @@ def verdict_stack(A_cl, K, *, sample_time: float | None = None) -> list[tuple[np
     K = np.asarray(K, dtype=float)
     N, n = A_cl.shape[0], A_cl.shape[1]
     discrete = sample_time is not None
-    positions = [STATE_INDEX[s] for s in POSITION_STATES]
-    drift = A_cl - np.eye(n) if discrete else A_cl
-    free = ~np.any(K[:, :, positions] != 0, axis=1) & ~np.any(drift[:, :, positions] != 0, axis=1)
+    free = free_mask(A_cl, reads=(K,), discrete=discrete)
     finite = np.all(np.isfinite(A_cl), axis=(1, 2))
     safe = _finite_or_zero(A_cl)
     out: list = [None] * N

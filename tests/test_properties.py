@@ -9,11 +9,12 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from quadctl import config, pipeline
-from quadctl.analysis import check, is_stable
+from quadctl.analysis import check
 from quadctl.cli.app import app
 from quadctl.errors import QuadctlError
 from quadctl.lqr import RICCATI_RTOL, lqr, riccati_residual
 from quadctl.problem import setup_of
+from quadctl.stability import is_stable
 
 runner = CliRunner()
 FORWARD = config.locate("forward")[1]

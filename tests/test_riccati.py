@@ -12,7 +12,7 @@ from _solve import bundled_subsystems
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from quadctl import analysis
+from quadctl import analysis, stability
 from quadctl.errors import DesignError
 from quadctl.lqr import discrete, integral, lqr, riccati, riccati_residual
 from quadctl.lqr.discrete import dlqr, lqrd
@@ -195,7 +195,7 @@ def test_a_large_stiff_stable_system_needs_no_kalman_matrix(monkeypatch):
 
     monkeypatch.setattr(analysis, "ctrb", no_kalman)
     K, P, E = res = lqr(A, B, Q, R)
-    assert res.residual < 1e-12 and all(analysis.is_stable(e) for e in E)
+    assert res.residual < 1e-12 and all(stability.is_stable(e) for e in E)
     reference = scipy.linalg.solve_continuous_are(A, B, Q, R)
     diff = np.abs(P - reference).max() / np.abs(reference).max()
     assert diff < AGREEMENT, f"Max diff is {diff:.4E}"

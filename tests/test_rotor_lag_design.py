@@ -23,7 +23,7 @@ from typer.testing import CliRunner
 from quadctl import config, margins, pipeline
 from quadctl.cli.app import app
 from quadctl.errors import ConfigError
-from quadctl.lqr import discrete, integral, lag
+from quadctl.lqr import discrete, integral, lag, linear_loop
 from quadctl.lqr.decoupled import _solve_subsystem
 from quadctl.lqr.riccati import riccati_residual
 from quadctl.notices import notices
@@ -145,7 +145,7 @@ def test_the_true_closed_loop_is_the_design_and_the_lag_models_error_modes():
     for data, Ts in ((_hover(), None), (_mambo("include"), 0.005)):
         setup, _, linear, _, des = solve(data)
         tau = des.lag_time_constant
-        A, B, K = margins._coupled(des, linear.A, linear.B, Ts, tau)
+        A, B, K = linear_loop.vehicle(des, linear.A, linear.B, Ts, 0, tau)
         got = np.linalg.eigvals(A - B @ K)
         model = np.full(4, lag.model_pole(tau, Ts))
         core = des.full_eigenvalues_z if Ts else des.full_eigenvalues

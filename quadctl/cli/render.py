@@ -9,6 +9,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from quadctl import stability
 from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
 from quadctl.messages import eig_text, one_line
 
@@ -193,7 +194,7 @@ def design_tables(des) -> list:
     for e in sorted(des.full_eigenvalues, key=lambda z: (z.real, z.imag)):
         zero = abs(e) < 1e-9
         verdict = ("marginal: unregulated position" if zero and des.marginal_states else
-                   ("stable" if e.real < 0 else "[red]unstable[/red]"))
+                   ("stable" if stability.is_stable(e) else "[red]unstable[/red]"))
         full.add_row(eig(e), verdict)
     return [table, matrix("K_block, transposed: a row per state, a column per input (· is zero)",
                           des.K_block.T, STATE_NAMES, INPUT_NAMES), full]

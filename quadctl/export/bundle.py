@@ -12,7 +12,7 @@ import numpy as np
 
 from quadctl.decouple import Decoupled
 from quadctl.linearize import LinearModel
-from quadctl.lqr import Design, closed_loop_matrix
+from quadctl.lqr import Design, linear_loop
 from quadctl.problem import Setup
 from quadctl.sim.run import ClosedLoop
 
@@ -69,7 +69,7 @@ class Export:
         """The linear closed loop of ``[x; z]`` as exported: ``z``-domain when sampled (ZOH plant).
         A design that includes the rotors' lag: of ``[x; v; z]`` (the lag states as the design sees
         them; the controller's lag model equals them while the model is right)."""
-        return closed_loop_matrix(self.linear.A, self.linear.B, self.loop.K, self.loop.Ki,
+        return linear_loop.matrix(self.linear.A, self.linear.B, self.loop.K, self.loop.Ki,
                                   self.loop.integral_states, self.sample_time, Kv=self.loop.Kv,
                                   lag_time_constant=self.loop.lag_model_time_constant)
 

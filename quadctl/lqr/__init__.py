@@ -7,6 +7,8 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.lqr.integral`: integral action (LQI): a plant augmented with integrators
 - :mod:`~quadctl.lqr.lag`: the rotors' first-order lag: a plant augmented with one lag state per input
 - :mod:`~quadctl.lqr.discrete`: the zero-order hold, MATLAB ``dlqr``/``lqrd``, what a rate realizes
+- :mod:`~quadctl.lqr.linear_loop`: the linear closed loop of a design, the one place ``A - B K`` is built
+  (the design's, a subsystem's, the vehicle's with lag, lag model and delay; a stack)
 - :mod:`~quadctl.lqr.decoupled`: :func:`lqr` (one case, MATLAB conventions) and the decoupled
   :func:`design` (one LQR per subsystem, assembled into the 4x12 gain)
 - :mod:`~quadctl.lqr.coupled`: one LQR on the full coupled model, to compare with the decoupled design

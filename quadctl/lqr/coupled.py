@@ -27,9 +27,9 @@ import numpy as np
 
 from quadctl import stability
 from quadctl._lazy import lazy_import
-from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.lqr import discrete, integral
-from quadctl.lqr.decoupled import _solve_subsystem, closed_loop_matrix
+from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.lqr import discrete, integral, linear_loop
+from quadctl.lqr.decoupled import _solve_subsystem
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -109,8 +109,7 @@ def full_design(design, A, B) -> FullDesign:
     """
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     Q_all, R, _ = assembled_weights(design)
-    left_out = tuple(s for s in POSITION_STATES
-                     if not np.any(Q_all[STATE_INDEX[s]]) and not np.any(A[:, STATE_INDEX[s]]))
+    left_out = stability.free_positions(A, reads=(Q_all,), integral_states=design.integral_states)
     keep = [i for i in range(N_STATES) if STATE_NAMES[i] not in left_out]
     states = tuple(STATE_NAMES[i] for i in keep)
     nz = len(design.integral_states)
@@ -121,7 +120,7 @@ def full_design(design, A, B) -> FullDesign:
     K = np.zeros((N_INPUTS, N_STATES))
     K[:, keep] = K_red
     Ki = Ki.reshape(N_INPUTS, nz)
-    A_cl = closed_loop_matrix(A, B, K, Ki, design.integral_states, design.sample_time)
+    A_cl = linear_loop.matrix(A, B, K, Ki, design.integral_states, design.sample_time)
     verdict = stability.assess(A_cl, K, sample_time=design.sample_time)
     return FullDesign(K=K, Ki=Ki, integral_states=design.integral_states, states=states, left_out=left_out,
                       Q=Q, R=R, P=P, eigenvalues=verdict.eigenvalues, core_eigenvalues=verdict.core,
@@ -140,8 +139,8 @@ def linear_cost(A, B, K, Ki, design, dx0) -> float:
     Q_all, R, _ = assembled_weights(design)
     nz = len(design.integral_states)
     Ka = np.hstack([np.asarray(K, dtype=float), np.asarray(Ki, dtype=float).reshape(N_INPUTS, nz)])
-    free = [STATE_INDEX[s] for s in POSITION_STATES
-            if not (np.any(Q_all[STATE_INDEX[s]]) or np.any(A[:, STATE_INDEX[s]]) or np.any(K[:, STATE_INDEX[s]]))]
+    ints = design.integral_states
+    free = [STATE_INDEX[s] for s in stability.free_positions(A, reads=(Q_all, K), integral_states=ints)]
     keep = [i for i in range(N_STATES + nz) if i not in free]
     C = integral.selector(STATE_NAMES, design.integral_states)
     x0 = np.concatenate([np.asarray(dx0, dtype=float), np.zeros(nz)])[keep]
@@ -149,7 +148,7 @@ def linear_cost(A, B, K, Ki, design, dx0) -> float:
     if Ts is None:
         Aa, Ba = integral.augment(A, B, C)
         Aa, Ba, Ka_r, Qa = Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep], Q_all[np.ix_(keep, keep)]
-        Acl = Aa - Ba @ Ka_r
+        Acl = linear_loop.close(Aa, Ba, Ka_r)
         if not np.all(stability.is_stable(np.linalg.eigvals(Acl))):
             return math.inf
         X = scipy.linalg.solve_continuous_lyapunov(Acl.T, -(Qa + Ka_r.T @ R @ Ka_r))
@@ -162,7 +161,7 @@ def linear_cost(A, B, K, Ki, design, dx0) -> float:
         qidx = n_keep_x + list(range(N_STATES, N_STATES + nz))
         Qa, Na = integral.discrete_weights(Qd, Nd, Q_all[np.ix_(qidx, qidx)], Ts)
         Ka_r = Ka[:, keep]
-        Acl = Aa - Ba @ Ka_r
+        Acl = linear_loop.close(Aa, Ba, Ka_r)
         if not np.all(stability.is_stable(np.linalg.eigvals(Acl), discrete=True)):
             return math.inf
         stage = Qa + Ka_r.T @ Rd @ Ka_r - Na @ Ka_r - Ka_r.T @ Na.T

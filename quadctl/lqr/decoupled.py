@@ -21,8 +21,9 @@ import numpy as np
 from quadctl import stability
 from quadctl.analysis import RICCATI_RTOL as RICCATI_RTOL  # re-exported: the tolerance lqr certifies to
 from quadctl.decouple import Decoupled
-from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_NAMES
-from quadctl.lqr import discrete, integral, lag
+from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES
+from quadctl.lqr import discrete, integral, lag, linear_loop
+from quadctl.lqr.linear_loop import matrix as closed_loop_matrix  # noqa: F401 (the old address of the design's loop)
 from quadctl.lqr.riccati import LqrResult, require_stabilizable, solve
 from quadctl.lqr.riccati import riccati_residual as riccati_residual  # re-exported: lqr's residual
 
@@ -226,7 +227,7 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
                                     K=K, P=P, eigenvalues=eig_s, residual=residual, integral=ints,
                                     Ki=Ki if ints else None, eigenvalues_z=eig_z, Kv=Kv))
     Ki_block = np.array(ki_columns).T.reshape(N_INPUTS, len(ki_columns))
-    A_cl = closed_loop_matrix(A, B, K_block, Ki_block, tuple(integral_states), Ts,
+    A_cl = linear_loop.matrix(A, B, K_block, Ki_block, tuple(integral_states), Ts,
                               Kv=Kv_block if lag_time_constant is not None else None,
                               lag_time_constant=lag_time_constant)
     verdict = stability.assess(A_cl, K_block, sample_time=Ts)
@@ -275,31 +276,3 @@ def _lag_weight(Q, n: int, nl: int) -> np.ndarray:
     out = np.zeros((Q.shape[0] + nl,) * 2)
     out[np.ix_(keep, keep)] = Q
     return out
-
-
-def closed_loop_matrix(A, B, K, Ki=None, integral_states=(), sample_time=None, *, Kv=None,
-                       lag_time_constant: float | None = None) -> np.ndarray:
-    """The coupled closed loop of ``[x; z]`` under ``u = -K x - Ki z`` (deviations from trim).
-
-    Continuous: ``[[A - B K, -B Ki], [-C, 0]]``. With ``sample_time`` (a discrete controller on
-    the ZOH plant): ``[[Ad - Bd K, -Bd Ki], [-Ts C, I]]``. ``C`` selects ``integral_states``.
-    With ``lag_time_constant`` the plant's inputs lag (:func:`quadctl.lqr.lag.lagged`): the state is
-    ``[x; v; z]`` and the gain ``[K, Kv]`` on ``[x; v]`` (``Kv`` (4, 4), zero when None).
-    """
-    if lag_time_constant is not None:
-        A, B = lag.lagged(A, B, lag_time_constant)
-        m = B.shape[1]
-        K = np.hstack([np.atleast_2d(np.asarray(K, dtype=float)),
-                       np.zeros((m, m)) if Kv is None else np.asarray(Kv, dtype=float)])
-    A, B, K = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, K))
-    nz = len(integral_states)
-    Ki = np.zeros((B.shape[1], 0)) if Ki is None else np.asarray(Ki, dtype=float).reshape(B.shape[1], nz)
-    C = np.hstack([integral.selector(STATE_NAMES, integral_states), np.zeros((nz, A.shape[0] - N_STATES))])
-    if sample_time is None:
-        top = np.hstack([A - B @ K, -B @ Ki])
-        bottom = np.hstack([-C, np.zeros((nz, nz))])
-    else:
-        Ad, Bd = discrete.c2d(A, B, sample_time)
-        top = np.hstack([Ad - Bd @ K, -Bd @ Ki])
-        bottom = np.hstack([-sample_time * C, np.eye(nz)])
-    return np.vstack([top, bottom])

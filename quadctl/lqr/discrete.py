@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl import stability
 from quadctl._lazy import lazy_import
-from quadctl.analysis import UNIT_CIRCLE_MARGIN
 from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
 from quadctl.errors import DesignError
 from quadctl.lqr.riccati import LqrResult, as_stack, require_valid_weights, solve
@@ -264,7 +264,7 @@ def dlqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrRe
     Returns
     -------
     LqrResult
-        ``E`` holds the eigenvalues ``z`` of ``A - B K`` (stable: ``|z| < 1 - UNIT_CIRCLE_MARGIN``).
+        ``E`` holds the eigenvalues ``z`` of ``A - B K`` (stable: :func:`quadctl.stability.is_stable`).
 
     Raises
     ------
@@ -357,7 +357,7 @@ class RateWarning:
 
     @property
     def sampled_stable(self) -> bool:
-        return self.sampled_radius < 1.0 - UNIT_CIRCLE_MARGIN
+        return stability.is_stable(self.sampled_radius, discrete=True)
 
     def message(self, rate: float) -> str:
         verdict = ("stays stable but its response differs from the design"
@@ -413,7 +413,7 @@ def rate_warnings(loops, rate: float) -> list[RateWarning]:
             continue
         pole = complex(finite[int(np.argmax(np.abs(finite)))])
         radius = spectral_radius(sampled)
-        if abs(pole) > limit or radius >= 1.0 - UNIT_CIRCLE_MARGIN:
+        if abs(pole) > limit or not stability.is_stable(radius, discrete=True):
             out.append(RateWarning(loop=name, pole=pole, limit=limit, factor=abs(pole) / limit,
                                    sampled_radius=radius))
     return sorted(out, key=lambda w: (w.loop == "coupled", -w.factor))

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.analysis import STABILITY_MARGIN, is_stable
 from quadctl.errors import QuadctlNotice, StepSizeError
+from quadctl.stability import is_stable
 
 ACCURACY_STEP = 0.5
 """``dt: auto`` keeps ``|dt lambda| <= 0.5`` for the fastest eigenvalue: RK4's one-step error is then
@@ -81,7 +81,7 @@ def max_stable_steps(eigenvalues) -> np.ndarray:
     out = np.zeros(flat.shape)
     mag = np.abs(flat)
     out[mag == 0] = np.inf
-    stable = flat.real < -STABILITY_MARGIN * np.maximum(1.0, mag)
+    stable = is_stable(flat)
     idx = np.nonzero(stable & (mag > 0))[0]
     if idx.size:
         direction = flat[idx] / mag[idx]

@@ -17,7 +17,7 @@ import numpy as np
 from quadctl import stability
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.lqr import integral
+from quadctl.lqr import integral, linear_loop
 
 BATCHED = "batched"
 """``path`` of a row designed in the batched solve."""
@@ -228,28 +228,19 @@ def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:
 
 
 def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
-    """:func:`quadctl.lqr.closed_loop_matrix` of stacked gains on one plant: (N, 12 + nz, 12 + nz)."""
+    """:func:`quadctl.linear_loop.matrix` of stacked gains on one plant (its ZOH cached per ``Ts``):
+    (N, 12 + nz, 12 + nz)."""
     A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
-    nz = len(integral_states)
-    C = integral.selector(STATE_NAMES, integral_states)
-    N = len(K)
-    out = np.zeros((N, N_STATES + nz, N_STATES + nz))
-    out[:, :N_STATES, :N_STATES] = A - B @ K
-    out[:, :N_STATES, N_STATES:] = -(B @ Ki)
-    if Ts is None:
-        out[:, N_STATES:, :N_STATES] = -C
-    else:
-        out[:, N_STATES:, :N_STATES] = -Ts * C
-        out[:, N_STATES:, N_STATES:] = np.eye(nz)
-    return out
+    return linear_loop.stack(A, B, K, Ki, integral_states, Ts)
 
 
 def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
+    from quadctl import pipeline
     from quadctl.motors import check_trim
     from quadctl.sim.builder import fill_constants
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
-    from quadctl.sim.run import ClosedLoop, ExoStream, rotor_eigenvalues
+    from quadctl.sim.run import ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
     realized: dict[tuple, tuple] = {}  # cases with the same noise and steps share its realization
@@ -284,17 +275,13 @@ def loops_of(live) -> list:
             continue
         eig, owners, limits = eig_of.get(j, (np.zeros(0, complex), [], None))  # held: the plan needs none
         if des.Kv is not None:  # a design with the rotors' lag: the loop (and its lag model) as simulate builds it
-            from quadctl import pipeline
-
             loop = pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
                                            integral_states=des.integral_states, Kv=des.Kv, estimator=kalman)
         else:
-            loop = ClosedLoop(params=seen.params(setup.plant), x_trim=linear.x_trim, u_trim=linear.u_trim,
-                              x_rate=linear.x_rate, K=des.K_block, eigenvalues=eig, owners=owners,
-                              rate=setup.timing.rate, Ki=des.Ki_block if des.integral_states else None,
-                              integral_states=des.integral_states, actuators=setup.actuators,
-                              open_loop_eigenvalues=prep.plant.open_loop_eigenvalues(),
-                              delay_samples=setup.timing.delay_samples, estimator=kalman)
+            loop = pipeline.simulated_loop(setup, linear, des.K_block, Ki=des.Ki_block,
+                                           integral_states=des.integral_states, estimator=kalman,
+                                           eigenvalues=eig, owners=owners, params=seen.params(setup.plant),
+                                           open_loop_eigenvalues=prep.plant.open_loop_eigenvalues())
         tau = loop.rotor_time_constant
         try:
             if loop.rate is not None:  # the open-loop plant's (and rotors'): the same for every case of a plant

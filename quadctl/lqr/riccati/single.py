@@ -13,8 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl import stability
 from quadctl._lazy import lazy_import
-from quadctl.analysis import RICCATI_RTOL, STABILITY_MARGIN, UNIT_CIRCLE_MARGIN, is_stable, is_stable_z, pbh
+from quadctl.analysis import RICCATI_RTOL, pbh
 from quadctl.errors import DesignError
 from quadctl.lqr.riccati.stacked import (
     KRONECKER_MAX_N,
@@ -234,8 +235,9 @@ def _refusal(discrete, A, B, Q, R, N, answers, failures, name, state_names) -> D
         return DesignError(_not_stabilizable(name, mode, discrete))
     # no stabilizing solution also when a mode on the stability boundary is invisible to the weight
     At, Qt, _, _ = (M[0] for M in without_cross(A[None], B[None], Q[None], R[None], N[None]))
-    on_boundary = ((lambda z: abs(abs(z) - 1.0) <= UNIT_CIRCLE_MARGIN) if discrete else
-                   (lambda s: abs(s.real) <= STABILITY_MARGIN * max(1.0, abs(s))))
+    def on_boundary(e):
+        return stability.on_boundary(e, discrete=discrete)
+
     unseen = [t for t in pbh(At, Qt, names, dual=True, keep=on_boundary) if not t.passed]
     equation = "discrete Riccati equation" if discrete else "Riccati equation"
     if unseen:
@@ -255,8 +257,7 @@ def _refusal(discrete, A, B, Q, R, N, answers, failures, name, state_names) -> D
     if best.residual > RICCATI_RTOL:
         return DesignError(f"{name}: the {equation} is too ill-conditioned to solve to {RICCATI_RTOL:g} "
                            f"(residual {best.residual:.1e}); its slowest closed-loop mode is at {where}: {fix}")
-    margin = (f"|z| >= 1 - {UNIT_CIRCLE_MARGIN:g}" if discrete else
-              f"Re s >= -{STABILITY_MARGIN:g} max(1, |s|)")
+    margin = stability.criterion(discrete)
     return DesignError(f"{name}: the {equation} is too ill-conditioned to certify a stable loop "
                        f"(residual {best.residual:.1e}); its slowest closed-loop mode is at {where}, within "
                        f"the stability margin ({margin}): give an input more authority over that mode, "
@@ -276,7 +277,7 @@ def unstabilizable_mode(A, B, state_names=None, *, discrete: bool = False, name:
     B : (n, m) array_like
     state_names : sequence of str, optional
     discrete : bool
-        Stable means ``|z| < 1 - UNIT_CIRCLE_MARGIN`` instead of the open left half-plane.
+        Stable means inside the unit circle (:func:`quadctl.stability.is_stable`) instead of the left half-plane.
     name : str
         Names the system if the test itself fails.
 
@@ -291,9 +292,8 @@ def unstabilizable_mode(A, B, state_names=None, *, discrete: bool = False, name:
     """
     A = np.atleast_2d(np.asarray(A, dtype=float))
     names = list(state_names) if state_names is not None else [f"x{i}" for i in range(A.shape[0])]
-    stable = is_stable_z if discrete else is_stable
     try:
-        tests = pbh(A, B, names, keep=lambda lam: not stable(lam))
+        tests = pbh(A, B, names, keep=lambda lam: not stability.is_stable(lam, discrete=discrete))
     except (np.linalg.LinAlgError, ValueError) as exc:
         raise DesignError(f"{name}: could not decide stabilizability ({exc}); "
                           "rescale units so the entries of A and B are comparable") from None

@@ -13,8 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl import stability
 from quadctl._lazy import lazy_import
-from quadctl.analysis import RICCATI_RTOL, STABILITY_MARGIN, UNIT_CIRCLE_MARGIN
+from quadctl.analysis import RICCATI_RTOL
 from quadctl.errors import DesignError
 from quadctl.lqr.riccati.weights import WeightCheck, as_problem, as_stack, neutral, norm1
 
@@ -189,7 +190,7 @@ def care_checked(A, B, Q, R, N, valid) -> BatchLqr:
         finite &= converged
         order = np.argsort(w.real, axis=1)[:, :n]                     # the n most stable
         U = np.take_along_axis(V, order[:, None, :], axis=2)
-        ok = valid & solved & finite & ((w.real < 0).sum(axis=1) == n)
+        ok = valid & solved & finite & (stability.in_open_left_half_plane(w).sum(axis=1) == n)
         Pt, solved = _solve(U[:, :n].transpose(0, 2, 1), U[:, n:].transpose(0, 2, 1))
         P = _sym(Pt.transpose(0, 2, 1).real)
         return _finish(False, A, B, Q, R, N, P, ok & solved)
@@ -297,11 +298,8 @@ def _finish(discrete: bool, A, B, Q, R, N, P, ok) -> BatchLqr:
 
 
 def all_stable(discrete: bool, E) -> np.ndarray:
-    """Whether every eigenvalue of each row of ``E`` (..., n) is stable: vectorized
-    :func:`quadctl.analysis.is_stable` (``is_stable_z`` for a discrete loop), same margins."""
-    if discrete:
-        return np.all(np.abs(E) < 1.0 - UNIT_CIRCLE_MARGIN, axis=-1)
-    return np.all(E.real < -STABILITY_MARGIN * np.maximum(1.0, np.abs(E)), axis=-1)
+    """Whether every eigenvalue of each row of ``E`` (..., n) is stable (:func:`quadctl.stability.is_stable`)."""
+    return np.all(stability.is_stable(E, discrete=discrete), axis=-1)
 
 
 def gain_and_residual(discrete: bool, A, B, Q, R, N, P):
