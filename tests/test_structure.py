@@ -191,3 +191,120 @@ def test_no_import_cycles_not_even_inside_functions():
     for name in sorted(graph):
         visit(name, [])
     assert cycles == []
+# ---------------------------------------------------------------------------------------------
+# One home for the linear closed loop (quadctl/lqr/linear_loop.py) and for the stability test
+# (quadctl/stability.py): the source is scanned for a second copy.
+
+LOOP_HOME = {"lqr/linear_loop.py"}
+SOLVER_LOOPS = "lqr/riccati/"
+"""The Riccati solvers close ``A - B K`` inside their Newton steps and residuals: part of solving for
+the gain, below :mod:`quadctl.lqr.linear_loop` in the import graph (which depends on them through
+:mod:`quadctl.lqr.discrete`)."""
+STABILITY_HOME = {"stability.py"}
+
+
+def _is_gain(node) -> bool:
+    """A gain: a name (or attribute, or item of one) that starts with ``K`` (``K``, ``Ka``, ``Kf``,
+    ``design.K_block``, ``K[others, :]``)."""
+    while isinstance(node, ast.Subscript):
+        node = node.value
+    name = node.id if isinstance(node, ast.Name) else node.attr if isinstance(node, ast.Attribute) else ""
+    return name.startswith("K")
+
+
+def closed_loops_built(tree) -> list[int]:
+    """Lines that build a closed loop: ``M - X @ K`` with ``M`` a matrix (not a sum, as in a cost's
+    cross term ``Q + K'RK - N K``) and ``K`` a gain."""
+    out = []
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.BinOp) and isinstance(node.op, ast.Sub) and not isinstance(node.left, ast.BinOp)
+                and isinstance(node.right, ast.BinOp) and isinstance(node.right.op, ast.MatMult)
+                and _is_gain(node.right.right)):
+            out.append(node.lineno)
+    return out
+
+
+def _is_one_minus(node) -> bool:
+    return (isinstance(node, ast.BinOp) and isinstance(node.op, ast.Sub) and isinstance(node.left, ast.Constant)
+            and node.left.value == 1)
+
+
+def _is_abs(node) -> bool:
+    return isinstance(node, ast.Call) and (
+        (isinstance(node.func, ast.Name) and node.func.id == "abs")
+        or (isinstance(node.func, ast.Attribute) and node.func.attr in ("abs", "absolute")))
+
+
+def _root_name(node) -> str:
+    while isinstance(node, (ast.Subscript, ast.Attribute, ast.Call)):
+        node = node.func if isinstance(node, ast.Call) else node.value
+    return node.id if isinstance(node, ast.Name) else ""
+
+
+def _is_real_part(node) -> bool:
+    """``x.real`` of anything but a loop's frequency response ``L`` (whose sign finds phase crossovers)."""
+    return isinstance(node, ast.Attribute) and node.attr == "real" and not _root_name(node.value).startswith("L")
+
+
+def stability_tests_made(tree) -> list[int]:
+    """Lines that test stability themselves: a comparison of a real part (``e.real < 0``), a comparison
+    with ``1 - margin`` or of a magnitude with 1 (``abs(z) < 1``), or a use of the stability margins."""
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare):
+            sides = [node.left, *node.comparators]
+            if any(map(_is_real_part, sides)) or any(map(_is_one_minus, sides)):
+                out.append(node.lineno)
+            elif any(map(_is_abs, sides)) and any(isinstance(s, ast.Constant) and s.value == 1 for s in sides):
+                out.append(node.lineno)
+        elif isinstance(node, (ast.Name, ast.Attribute, ast.alias)):
+            name = getattr(node, "id", None) or getattr(node, "attr", None) or getattr(node, "name", None)
+            if name in ("STABILITY_MARGIN", "UNIT_CIRCLE_MARGIN"):
+                out.append(node.lineno)
+    return out
+
+
+def _offenders(find, homes, skip: tuple[str, ...] = ()) -> list[str]:
+    out = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(PACKAGE)
+        if rel.as_posix() in homes or rel.as_posix().startswith(skip):
+            continue
+        out += [f"{rel}:{line}" for line in find(ast.parse(path.read_text()))]
+    return out
+
+
+def test_closed_loops_are_built_only_in_linear_loop():
+    """Every ``A - B K`` outside the Riccati solvers is :mod:`quadctl.lqr.linear_loop`'s (``close``,
+    ``matrix``, ``vehicle``, ...)."""
+    assert _offenders(closed_loops_built, LOOP_HOME, skip=(SOLVER_LOOPS,)) == []
+
+
+def test_stability_is_decided_only_in_the_stability_module():
+    """Every stability comparison and both margins live in :mod:`quadctl.stability`."""
+    assert _offenders(stability_tests_made, STABILITY_HOME) == []
+
+
+@pytest.mark.parametrize("source, loops, tests", [
+    ("A_cl = A - B @ K", 1, 0),
+    ("Acl = Aa - Ba @ Ka_r", 1, 0),
+    ("A_o = A - B[:, others] @ K[others, :]", 1, 0),
+    ("x = Ae - Be @ design.K_block - G @ C", 1, 0),
+    ("ok = e.real < -1e-9 * max(1.0, abs(e))", 0, 1),
+    ("ok = np.all(np.abs(E) < 1 - 1e-9)", 0, 1),
+    ("ok = abs(z) < 1", 0, 1),
+    ("ok = radius >= 1.0 - UNIT_CIRCLE_MARGIN", 0, 1 + 1),  # the comparison and the margin
+    ("from quadctl.analysis import STABILITY_MARGIN", 0, 1),
+    # not loops, not stability tests: an observer, a cost's cross term, a zero test, an imaginary part
+    ("Ao = A - L @ C", 0, 0),
+    ("stage = Q + K.T @ R @ K - N @ K", 0, 0),
+    ("zero = abs(e) < 1e-9", 0, 0),
+    ("real = e.imag >= 0", 0, 0),
+    ("crossing = Lc.real < 0", 0, 0),
+    ("ok = np.linalg.eigvals(A)[0].real < 0", 0, 1),
+])
+def test_the_scans_find_a_second_copy(source, loops, tests):
+    """The two scans above flag what they must and nothing else (so a copy put back fails them)."""
+    tree = ast.parse(source)
+    assert len(closed_loops_built(tree)) == loops
+    assert len(stability_tests_made(tree)) == tests
