@@ -65,7 +65,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, STATE_INDEX
 from quadctl.lqr import linear_loop
 from quadctl.lqr.lag import lagged as lagged  # re-exported: the lag every loop carries
 from quadctl.lqr.linear_loop import delayed as delayed  # re-exported: the delay every sampled loop carries
@@ -212,7 +212,7 @@ class BrokenLoop:
         return x @ self.k
 
     def closed_loop_eigenvalues(self, gain: float = 1.0) -> np.ndarray:
-        return np.linalg.eigvals(self.A - gain * np.outer(self.b, self.k))
+        return np.linalg.eigvals(linear_loop.close(self.A, self.b[:, None], gain * self.k[None, :]))
 
     def is_stable(self, gain: float = 1.0) -> bool:
         return bool(np.all(is_stable(self.closed_loop_eigenvalues(gain), discrete=bool(self.sample_time))))
@@ -479,27 +479,11 @@ def lqg_loops(design, A, B, kal):
         The continuous coupled linear model.
     kal : quadctl.estimator.Kalman
     """
-    from quadctl.lqr import integral
-
-    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    A = np.asarray(A, dtype=float)
     K, ints = design.K_block, design.integral_states
-    nz, n = len(ints), N_STATES
-    Ki = np.asarray(design.Ki_block, dtype=float).reshape(K.shape[0], nz)
-    Cz = integral.selector(STATE_NAMES, ints)
-    C, G, Ts = kal.C, kal.gain, kal.sample_time
+    nz, n, Ts = len(ints), N_STATES, kal.sample_time
     Z = np.zeros
-    if Ts is None:
-        base = np.block([[A, Z((n, n)), Z((n, nz))], [G @ C, A - G @ C, Z((n, nz))],
-                         [Z((nz, n)), -Cz, Z((nz, nz))]])
-        Kc = np.hstack([Z(K.shape), K, Ki])
-        Bp, Be = B, B
-    else:
-        Ad, Bd = kal.A, kal.B
-        Mx, Mh = G @ C, np.eye(n) - G @ C
-        base = np.block([[Ad, Z((n, n)), Z((n, nz))], [Ad @ Mx, Ad @ Mh, Z((n, nz))],
-                         [-Ts * Cz @ Mx, -Ts * Cz @ Mh, np.eye(nz)]])
-        Kc = np.hstack([K @ Mx, K @ Mh, Ki])
-        Bp, Be = Bd, Bd
+    base, Bp, Be, Kc = linear_loop.lqg(design, A, B, kal)
     T = np.eye(2 * n + nz)
     T[n:2 * n, :n], T[n:2 * n, n:2 * n] = np.eye(n), -np.eye(n)  # [x; x - x_hat; z]; T^-1 = T
     free = [STATE_INDEX[s] for s in free_positions(A, reads=(K,), integral_states=ints)]

@@ -42,6 +42,15 @@ def _variant(name: str) -> dict:
         data["controller"]["rotor_lag"] = "include"
         data["controller"]["delay"] = {"samples": 2}
         return data
+    if name.startswith("hover+LQG"):
+        data = cfg_dict("hover")
+        if name.endswith("200 Hz"):
+            data["controller"] = {"rate": 200.0}
+        data["simulation"]["noise"] = {"seed": 3, "force": [0.005] * 3, "torque": [2e-5] * 3,
+                                       "sensor": dict.fromkeys(("pN", "pE", "pD", "phi", "theta", "psi", "p", "q", "r"),
+                                                               0.01)}
+        data["estimator"] = {"measure": ["imu", "mocap"]}
+        return data
     if name == "mambo+rotor lag ignored":
         data = cfg_dict("mambo-200hz")
         data["motors"]["time_constant"] = 0.02
@@ -49,7 +58,8 @@ def _variant(name: str) -> dict:
     return cfg_dict(name)
 
 
-LOOPS = [*config.bundled_names(), "hover+lag model", "mambo+lag model+delay", "mambo+rotor lag ignored"]
+LOOPS = [*config.bundled_names(), "hover+lag model", "mambo+lag model+delay", "mambo+rotor lag ignored",
+         "hover+LQG", "hover+LQG 200 Hz"]
 
 
 def _jacobians(loop, setup):
@@ -105,6 +115,11 @@ def builder_and_linear(request):
     loop = replace(loop, params=setup.vehicle.vector())  # the design model (a config may fly another plant)
     J, Ts = _jacobians(loop, setup)
     timing = setup.timing
+    if loop.estimator is not None:  # [x; x_hat; z] here, [x; z; x_hat] in the builder
+        nz = len(des.integral_states)
+        order = [*range(N_STATES), *range(2 * N_STATES, 2 * N_STATES + nz), *range(N_STATES, 2 * N_STATES)]
+        A_lin = linear_loop.lqg_matrix(des, linear.A, linear.B, loop.estimator)[np.ix_(order, order)]
+        return request.param, J, A_lin, Ts
     A_lin = linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
                                        setup.rotor_time_constant, keep_free=True)
     act = setup.actuators
@@ -187,6 +202,22 @@ def test_the_vehicle_loop_keeps_a_position_the_plant_reads():
 # The sampled cost of a discrete design
 
 
+def _sampled_cost(step, Q, R, N, K, x0, max_steps: int = 40000) -> float:
+    """``sum_k x_k' Q x_k + u_k' R u_k + 2 x_k' N u_k`` along ``u_k = -K x_k``, ``x_(k+1) = step(x_k, u_k)``,
+    summed until the state has decayed to 1e-15 of its start (the rest adds less than 1e-30 of it)."""
+    x, J = np.asarray(x0, dtype=float), 0.0
+    stop = 1e-15 * np.abs(x).max()
+    if stop == 0:
+        return 0.0
+    for _ in range(max_steps):
+        u = -K @ x
+        J += x @ Q @ x + u @ R @ u + 2 * x @ N @ u
+        x = step(x, u)
+        if np.abs(x).max() < stop:
+            return J
+    raise AssertionError(f"the loop has not decayed in {max_steps} samples")
+
+
 def test_a_discrete_designs_sampled_cost_is_what_a_linear_simulation_accumulates():
     """The cost of a sampled loop is ``sum_k x_k' Qd x_k + u_k' Rd u_k + 2 x_k' Nd u_k`` with lqrd's
     weights (the continuous cost integrated over each sample under the hold). Simulated sample by
@@ -209,13 +240,9 @@ def test_a_discrete_designs_sampled_cost_is_what_a_linear_simulation_accumulates
     Ka = np.hstack([des.K_block[:, keep], des.Ki_block.reshape(4, nz)])
     C = integral.selector([STATE_NAMES[i] for i in keep], ints)
     dx0 = setup.initial_offset
-    x = np.concatenate([dx0[keep], np.zeros(nz)])
-    J = 0.0
-    for _ in range(20000):  # 100 s at 200 Hz: the slowest mode has decayed by far more than 1e-16
-        u = -Ka @ x
-        J += x @ Qa @ x + u @ Rd @ u + 2 * x @ Na @ u
-        x = np.concatenate([Ad @ x[:len(keep)] + Bd @ u, x[len(keep):] - Ts * C @ x[:len(keep)]])
-    assert np.abs(x).max() < 1e-12
+    n = len(keep)
+    J = _sampled_cost(lambda x, u: np.concatenate([Ad @ x[:n] + Bd @ u, x[n:] - Ts * C @ x[:n]]),
+                      Qa, Rd, Na, Ka, np.concatenate([dx0[keep], np.zeros(nz)]))
     got = coupled.linear_cost(linear.A, linear.B, des.K_block, des.Ki_block, des, dx0)
     assert got == pytest.approx(J, rel=1e-9)
     # the same loop and weights as the design's own Riccati equation (per subsystem, the same blocks)
@@ -235,8 +262,5 @@ def test_a_discrete_designs_sampled_cost_is_what_a_linear_simulation_accumulates
         Aas, Bas = integral.augment_discrete(Ads, Bds, integral.selector(sub.states, sub.integral), Ts)
         Kas = np.hstack([sub.K, sub.Ki]) if sub.Ki is not None else sub.K
         xs = np.concatenate([dx0[[STATE_INDEX[s] for s in sub.states]], np.zeros(len(sub.integral))])
-        for _ in range(20000):
-            us = -Kas @ xs
-            sub_J += xs @ Qas @ xs + us @ Rds @ us + 2 * xs @ Nas @ us
-            xs = Aas @ xs + Bas @ us
+        sub_J += _sampled_cost(lambda x, u, Aas=Aas, Bas=Bas: Aas @ x + Bas @ u, Qas, Rds, Nas, Kas, xs)
     assert decoupled_cost == pytest.approx(sub_J, rel=1e-9)

@@ -262,6 +262,57 @@ def vehicle_matrix(design, A, B, sample_time: float | None = None, delay_samples
     return close(*vehicle(design, A, B, sample_time, delay_samples, rotor_time_constant, keep_free=keep_free))
 
 
+def lqg(design, A, B, kal):
+    """``(A, Bp, Be, Kc)`` of the loop closed through a Kalman filter (LQG): ``A - [Bp; Be; 0] Kc``.
+
+    Loop state ``[x; x_hat; z]`` (``x_hat`` the a priori estimate of a discrete filter), the
+    command ``c = -Kc [x; x_hat; z]`` (continuous: ``Kc = [0, K, Ki]``; discrete: the law on
+    ``xc = M C x + (I - M C) x_hat``, ``Kc = [K M C, K (I - M C), Ki]``); ``Bp`` carries it into
+    the plant, ``Be`` into the estimator (which knows the command, not what the plant got: a loop
+    broken at the plant input keeps ``Be``). The integrators integrate the estimate (``xc``).
+    :mod:`quadctl.sim.builder` runs the same loop with the state ordered ``[x; z; x_hat]``.
+
+    Parameters
+    ----------
+    design : quadctl.lqr.Design
+    A, B : (12, 12), (12, 4) array_like
+        The continuous coupled linear model.
+    kal : quadctl.estimator.Kalman
+        Continuous (Kalman-Bucy: ``kal.gain`` is ``L``) or discrete at the controller period
+        (``kal.gain`` is ``M``, ``kal.A``, ``kal.B`` the ZOH model).
+
+    Returns
+    -------
+    (24 + nz, 24 + nz) ndarray, (12, 4) ndarray, (12, 4) ndarray, (4, 24 + nz) ndarray
+    """
+    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    K, ints = design.K_block, design.integral_states
+    nz, n = len(ints), N_STATES
+    Ki = np.asarray(design.Ki_block, dtype=float).reshape(K.shape[0], nz)
+    Cz = integral.selector(STATE_NAMES, ints)
+    C, G, Ts = kal.C, kal.gain, kal.sample_time
+    Z = np.zeros
+    if Ts is None:
+        base = np.block([[A, Z((n, n)), Z((n, nz))], [G @ C, A - G @ C, Z((n, nz))],
+                         [Z((nz, n)), -Cz, Z((nz, nz))]])
+        Kc = np.hstack([Z(K.shape), K, Ki])
+        Bp, Be = B, B
+    else:
+        Ad, Bd = kal.A, kal.B
+        Mx, Mh = G @ C, np.eye(n) - G @ C
+        base = np.block([[Ad, Z((n, n)), Z((n, nz))], [Ad @ Mx, Ad @ Mh, Z((n, nz))],
+                         [-Ts * Cz @ Mx, -Ts * Cz @ Mh, np.eye(nz)]])
+        Kc = np.hstack([K @ Mx, K @ Mh, Ki])
+        Bp, Be = Bd, Bd
+    return base, Bp, Be, Kc
+
+
+def lqg_matrix(design, A, B, kal) -> np.ndarray:
+    """The closed LQG loop of :func:`lqg` (state ``[x; x_hat; z]``, every state kept)."""
+    base, Bp, Be, Kc = lqg(design, A, B, kal)
+    return close(base, np.vstack([Bp, Be, np.zeros((len(design.integral_states), Bp.shape[1]))]), Kc)
+
+
 def broken(A, B, K, j: int) -> np.ndarray:
     """``A - B_o K_o``: the loop of ``u = -K x`` with input ``j``'s feedback removed (every other
     input's loop closed), where a loop is broken for its margins."""
