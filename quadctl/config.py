@@ -66,13 +66,32 @@ class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+INERTIA_DESCRIPTION = ("kg m^2: the diagonal [Jxx, Jyy, Jzz], or the full symmetric tensor J as 3 rows "
+                       "[[Jxx, Jxy, Jxz], [Jxy, Jyy, Jyz], [Jxz, Jyz, Jzz]] (its entries: Jxy = -integral of x y dm)")
+
+
+def inertia_parts(value: list) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """A validated ``inertia`` as its diagonal ``(Jxx, Jyy, Jzz)`` and off-diagonal ``(Jxy, Jxz, Jyz)``, kg m^2.
+
+    Examples
+    --------
+    >>> inertia_parts([1.0, 2.0, 3.0])
+    ((1.0, 2.0, 3.0), (0.0, 0.0, 0.0))
+    >>> inertia_parts([[1.0, 0.1, 0.2], [0.1, 2.0, 0.3], [0.2, 0.3, 3.0]])
+    ((1.0, 2.0, 3.0), (0.1, 0.2, 0.3))
+    """
+    if value and isinstance(value[0], list):
+        return ((float(value[0][0]), float(value[1][1]), float(value[2][2])),
+                (float(value[0][1]), float(value[0][2]), float(value[1][2])))
+    return tuple(float(v) for v in value), (0.0, 0.0, 0.0)
+
+
 class VehicleConfig(_Section):
     """Vehicle parameters, SI units."""
 
     mass: Mass = Field(0.068, description="kg")
     gravity: Gravity = Field(9.81, description="m/s^2")
-    inertia: Annotated[list[Positive], Field(min_length=3, max_length=3)] = Field(
-        [0.69e-4, 0.775e-4, 1.5e-4], description="kg m^2, diagonal [Jxx, Jyy, Jzz]")
+    inertia: Matrix = Field([0.69e-4, 0.775e-4, 1.5e-4], description=INERTIA_DESCRIPTION)
     drag: Annotated[list[Drag], Field(min_length=3, max_length=3)] = Field(
         [0.22, 0.22, 0.0], description="Kc diagonal; rotor drag force is -T Kc V_b (1/(m/s))")
 
@@ -194,8 +213,7 @@ class PlantConfig(_Section):
 
     mass: Optional[Mass] = Field(None, description="kg")
     gravity: Optional[Gravity] = Field(None, description="m/s^2")
-    inertia: Optional[Annotated[list[Positive], Field(min_length=3, max_length=3)]] = Field(
-        None, description="kg m^2, diagonal")
+    inertia: Optional[Matrix] = Field(None, description=INERTIA_DESCRIPTION)
     drag: Optional[Annotated[list[Drag], Field(min_length=3, max_length=3)]] = Field(
         None, description="Kc diagonal, 1/(m/s)")
 
@@ -538,6 +556,7 @@ UNION_HINTS = {
     "dt": "must be a positive number of seconds, or auto",
     "Q": "must be a list of numbers (the diagonal) or a list of rows (a full matrix)",
     "R": "must be a list of numbers (the diagonal) or a list of rows (a full matrix)",
+    "inertia": "must be [Jxx, Jyy, Jzz] or 3 rows [[Jxx, Jxy, Jxz], [Jxy, Jyy, Jyz], [Jxz, Jyz, Jzz]] (kg m^2)",
 }
 """Fields whose type is a union: one plain sentence instead of pydantic's per-branch errors."""
 
@@ -806,26 +825,59 @@ Jxx + Jyy = 0.979 Jzz, 2 % under the bound. 10 % takes measurement error, not a 
 
 
 def _check_inertia(cfg: Config, fail) -> None:
-    """Refuse a physically impossible inertia: the triangle inequality of the principal moments.
+    """Refuse an impossible inertia: a shape other than 3 values or 3 x 3, a tensor that is not
+    symmetric positive definite, or principal moments that break the triangle inequality.
 
     For any rigid body ``Jxx + Jyy >= Jzz`` (and the same for each axis: ``Jzz`` is the integral of
-    ``x^2 + y^2`` dm, ``Jxx + Jyy`` that of ``x^2 + y^2 + 2 z^2``). A vehicle that breaks it by more
-    than :data:`INERTIA_TRIANGLE_RTOL` does not exist: the values are a typo, a swapped or
-    mis-scaled entry, and a design for them is a design for no vehicle, so it is refused (exit 2).
-    Everything merely unusual (a heavy, long-armed, tall vehicle) is only warned about, by
-    :func:`notices`.
+    ``x^2 + y^2`` dm, ``Jxx + Jyy`` that of ``x^2 + y^2 + 2 z^2``); for a full tensor the principal
+    moments (its eigenvalues) obey it. A vehicle that breaks it by more than
+    :data:`INERTIA_TRIANGLE_RTOL` does not exist: the values are a typo, a swapped or mis-scaled
+    entry, and a design for them is a design for no vehicle, so it is refused (exit 2). Everything
+    merely unusual (a heavy, long-armed, tall vehicle) is only warned about, by :func:`notices`.
     """
     for path, inertia in (("vehicle.inertia", cfg.vehicle.inertia),
                           ("simulation.plant.inertia", cfg.simulation.plant and cfg.simulation.plant.inertia)):
-        if not inertia:
-            continue
-        for k, axis in enumerate(("Jxx", "Jyy", "Jzz")):
-            others = sum(inertia) - inertia[k]
-            if others < inertia[k] * (1 - INERTIA_TRIANGLE_RTOL):
-                names = " + ".join(a for a in ("Jxx", "Jyy", "Jzz") if a != axis)
-                fail(path, inertia, f"no rigid body has {names} = {others:.4g} below {axis} = {inertia[k]:.4g} kg m^2 "
-                     f"(the moments of inertia obey {names} >= {axis}); check the order [Jxx, Jyy, Jzz] and "
-                     "that all three are in kg m^2")
+        if inertia:
+            _check_one_inertia(path, inertia, fail)
+
+
+def _check_one_inertia(path: str, inertia: list, fail) -> None:
+    import numpy as np
+
+    nested = isinstance(inertia[0], list)
+    if nested and (len(inertia) != 3 or any(not isinstance(row, list) or len(row) != 3 for row in inertia)) \
+            or not nested and (len(inertia) != 3 or any(isinstance(v, list) for v in inertia)):
+        fail(path, inertia, UNION_HINTS["inertia"])
+    if not nested:
+        for k, value in enumerate(inertia):
+            if not value > 0:
+                fail(f"{path}[{k}]", value, f"must be greater than 0 ({INERTIA_DESCRIPTION})")
+        principal, axes = list(inertia), ("Jxx", "Jyy", "Jzz")
+        hint = "check the order [Jxx, Jyy, Jzz] and that all three are in kg m^2"
+    else:
+        tensor = np.array(inertia, dtype=float)
+        scale = float(np.abs(tensor).max())
+        for i, j in ((0, 1), (0, 2), (1, 2)):
+            if abs(tensor[i, j] - tensor[j, i]) > SYMMETRY_RTOL * scale:
+                fail(path, inertia, f"not symmetric: {path}[{i}][{j}] = {tensor[i, j]:g} but {path}[{j}][{i}] = "
+                     f"{tensor[j, i]:g}; an inertia tensor equals its transpose: give both the same value")
+        for k in range(3):
+            if not tensor[k, k] > 0:
+                fail(f"{path}[{k}][{k}]", inertia[k][k], "a moment of inertia must be greater than 0 (kg m^2)")
+        principal = [float(v) for v in np.linalg.eigvalsh(tensor)]
+        if principal[0] <= DEFINITENESS_RTOL * principal[-1]:
+            fail(path, inertia, f"not positive definite (smallest principal moment {principal[0]:.4g} kg m^2): the "
+                 "products of inertia are too large for the moments; check their units (kg m^2) and signs "
+                 "(the tensor's entry is Jxy = -integral of x y dm)")
+        axes = ("J1", "J2", "J3")
+        hint = "check the products of inertia and that every entry is in kg m^2"
+    for k, axis in enumerate(axes):
+        others = sum(principal) - principal[k]
+        if others < principal[k] * (1 - INERTIA_TRIANGLE_RTOL):
+            names = " + ".join(a for a in axes if a != axis)
+            what = "" if not nested else "the principal moments "
+            fail(path, inertia, f"no rigid body has {what}{names} = {others:.4g} below {axis} = {principal[k]:.4g} "
+                 f"kg m^2 (the moments of inertia obey {names} >= {axis}); {hint}")
 
 
 def _check_controller_and_actuators(cfg: Config, fail) -> None:

@@ -61,12 +61,14 @@ TORQUES = _block("A", 3, INPUT_NAMES)
 POSITION_STATES: tuple[str, ...] = ("pN", "pE", "pD")
 """States the dynamics never read (translation invariance): their columns of A are zero."""
 
-PARAMETER_NAMES: tuple[str, ...] = ("mass", "gravity", "Jxx", "Jyy", "Jzz", "Kx", "Ky", "Kz")
-"""Order of the vehicle parameter vector the CasADi model takes."""
+PARAMETER_NAMES: tuple[str, ...] = ("mass", "gravity", "Jxx", "Jyy", "Jzz", "Kx", "Ky", "Kz", "Jxy", "Jxz", "Jyz")
+"""Order of the vehicle parameter vector the CasADi model takes: the products of inertia (entries of
+the tensor J, zero for a diagonal J) come last, so the first eight keep their places."""
 MASS = PARAMETER_NAMES.index("mass")
 GRAVITY = PARAMETER_NAMES.index("gravity")
 INERTIA = _block("Jxx", 3, PARAMETER_NAMES)
 DRAG = _block("Kx", 3, PARAMETER_NAMES)
+PRODUCTS = _block("Jxy", 3, PARAMETER_NAMES)
 
 
 def unit_of(name: str) -> str:

@@ -41,20 +41,29 @@ class Vehicle:
     gravity : float
         m/s^2.
     inertia : (3,) tuple of float
-        Diagonal of J, kg m^2.
+        Diagonal of J, ``(Jxx, Jyy, Jzz)``, kg m^2.
     drag : (3,) tuple of float
         Diagonal of Kc; the rotor drag force is ``-T Kc (V_b - R_E^b w)`` with ``w`` the wind
         (1/(m/s), per newton of thrust).
+    products : (3,) tuple of float
+        Off-diagonal entries of the tensor J, ``(Jxy, Jxz, Jyz)``, kg m^2: J itself, not the
+        products of inertia ``∫ x y dm`` (``Jxy = -∫ x y dm``). Zero: a diagonal J.
     """
 
     mass: float = 0.068
     gravity: float = 9.81
     inertia: tuple[float, float, float] = (0.69e-4, 0.775e-4, 1.5e-4)
     drag: tuple[float, float, float] = (0.22, 0.22, 0.0)
+    products: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def vector(self) -> np.ndarray:
-        """Parameters as the (8,) vector the CasADi functions take (order: ``PARAMETER_NAMES``)."""
-        return np.array([self.mass, self.gravity, *self.inertia, *self.drag], dtype=float)
+        """Parameters as the (11,) vector the CasADi functions take (order: ``PARAMETER_NAMES``)."""
+        return np.array([self.mass, self.gravity, *self.inertia, *self.drag, *self.products], dtype=float)
+
+    def inertia_tensor(self) -> np.ndarray:
+        """J (3, 3), kg m^2."""
+        (jxx, jyy, jzz), (jxy, jxz, jyz) = self.inertia, self.products
+        return np.array([[jxx, jxy, jxz], [jxy, jyy, jyz], [jxz, jyz, jzz]], dtype=float)
 
 
 def rotation_earth_to_body(phi, theta, psi):
@@ -91,8 +100,8 @@ def dynamics_expression(x, u, params, disturbance, wind=None):
         State, ordered as ``STATE_NAMES``.
     u : (4,) casadi SX
         Input ``[T, A, E, R]`` in N and N m.
-    params : (8,) casadi SX
-        ``[mass, gravity, Jxx, Jyy, Jzz, Kx, Ky, Kz]``.
+    params : (11,) casadi SX
+        ``[mass, gravity, Jxx, Jyy, Jzz, Kx, Ky, Kz, Jxy, Jxz, Jyz]`` (``PARAMETER_NAMES``).
     disturbance : (6,) casadi SX
         Body force (N) and torque (N m) added to the vehicle's own.
     wind : (3,) casadi SX, optional
@@ -108,7 +117,7 @@ def dynamics_expression(x, u, params, disturbance, wind=None):
     omega = x[layout.BODY_RATES]
     thrust, torque = u[layout.THRUST], u[layout.TORQUES]
     mass, gravity = params[layout.MASS], params[layout.GRAVITY]
-    inertia = params[layout.INERTIA]
+    inertia, products = params[layout.INERTIA], params[layout.PRODUCTS]
     drag = params[layout.DRAG]
 
     r_eb = rotation_earth_to_body(phi, theta, psi)
@@ -133,9 +142,37 @@ def dynamics_expression(x, u, params, disturbance, wind=None):
     )
 
     moment = torque + disturbance[DISTURBANCE_TORQUE]
-    omega_dot = (moment - ca.cross(omega, inertia * omega)) / inertia
+    omega_dot = _rigid_body_rates(omega, moment, inertia, products)
     # one sin and one cos per angle: cse merges the copies made above and in the rotation
     return ca.cse(ca.vertcat(pos_dot, vel_dot, euler_dot, omega_dot))
+
+
+def _rigid_body_rates(omega, moment, diagonal, products):
+    """``J^-1 (M - omega x J omega)`` for the full tensor J, as a CasADi expression.
+
+    J = D + P with D its diagonal and P its off-diagonal part. ``J omega_dot = v`` is solved as
+    ``(I + D^-1 P) omega_dot = D^-1 v`` with the adjugate of the 3 x 3 matrix ``I + D^-1 P``. For a
+    diagonal J (P = 0) every extra term is an exact zero and the determinant exactly 1, so ``f``
+    and its Jacobians are ``v / D`` to the last bit, as before the products of inertia existed
+    (only the sign of a few zeros of A, ``-0.0`` or ``0.0``, can differ).
+    """
+    jxy, jxz, jyz = ca.vertsplit(products)
+    p, q, r = ca.vertsplit(omega)
+    # v = M - omega x (J omega) = M + (P omega) x omega - omega x (D omega); the first for P = 0 is an exact zero
+    products_omega = ca.vertcat(jxy * q + jxz * r, jxy * p + jyz * r, jxz * p + jyz * q)
+    scaled = (moment + ca.cross(products_omega, omega) - ca.cross(omega, diagonal * omega)) / diagonal  # D^-1 v
+    jxx, jyy, jzz = ca.vertsplit(diagonal)
+    a, b = jxy / jxx, jxz / jxx  # I + D^-1 P = [[1, a, b], [c, 1, d], [e, f, 1]]
+    c, d = jxy / jyy, jyz / jyy
+    e, f = jxz / jzz, jyz / jzz
+    adjugate = ca.vertcat(
+        ca.horzcat(1 - d * f, b * f - a, a * d - b),
+        ca.horzcat(d * e - c, 1 - b * e, b * c - d),
+        ca.horzcat(c * f - e, a * e - f, 1 - a * c),
+    )
+    det = (1 - d * f) - a * (c - d * e) + b * (c * f - e)
+    y0, y1, y2 = ca.vertsplit(scaled)
+    return ca.vertcat(*((adjugate[i, 0] * y0 + adjugate[i, 1] * y1 + adjugate[i, 2] * y2) / det for i in range(3)))
 
 
 @dataclass(frozen=True)
@@ -145,17 +182,17 @@ class Model:
     Attributes
     ----------
     f : casadi.Function
-        ``f(x[12], u[4], p[8]) -> xdot[12]``.
+        ``f(x[12], u[4], p[11]) -> xdot[12]``.
     f_disturbed : casadi.Function
-        ``f(x[12], u[4], p[8], d[6]) -> xdot[12]``.
+        ``f(x[12], u[4], p[11], d[6]) -> xdot[12]``.
     jacobians : casadi.Function
         ``(x, u, p) -> (A[12x12], B[12x4])``, exact automatic derivatives.
     f_wind : casadi.Function
-        ``f(x[12], u[4], p[8], w[3]) -> xdot[12]``: in a wind ``w`` (NED, m/s).
+        ``f(x[12], u[4], p[11], w[3]) -> xdot[12]``: in a wind ``w`` (NED, m/s).
     jacobians_wind : casadi.Function
         ``(x, u, p, w) -> (A[12x12], B[12x4])`` in the wind ``w`` (the linearization at a trim in wind).
     f_disturbed_wind : casadi.Function
-        ``f(x[12], u[4], p[8], d[6], w[3]) -> xdot[12]``: disturbance ``d`` and wind ``w`` (the loops with wind).
+        ``f(x[12], u[4], p[11], d[6], w[3]) -> xdot[12]``: disturbance ``d`` and wind ``w`` (the loops with wind).
     """
 
     f: ca.Function

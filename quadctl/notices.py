@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from quadctl.config import Config
+from quadctl.config import Config, inertia_parts
 from quadctl.messages import show
 
 
@@ -95,10 +95,10 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
     found += _rotor_lag_taken(cfg, label)
     found += _gyration(cfg, label)
     found += _thrust_to_weight(cfg, label)
-    jxx, jyy, jzz = cfg.vehicle.inertia
+    jxx, jyy, jzz = inertia_parts(cfg.vehicle.inertia)[0]
     if jzz < max(jxx, jyy):
         found.append(Notice("warning", "vehicle.inertia", (
-            f"{label}: vehicle.inertia = {show(list(cfg.vehicle.inertia))}: Jzz is below Jxx or Jyy, but a flat "
+            f"{label}: vehicle.inertia = {show(cfg.vehicle.inertia)}: Jzz is below Jxx or Jyy, but a flat "
             f"quadcopter has Jzz about Jxx + Jyy = {jxx + jyy:.3g} kg m^2; is the order [Jxx, Jyy, Jzz]?")))
     wind = cfg.simulation.wind
     if wind is not None and any(wind.steady) and not cfg.trim.wind:
@@ -134,7 +134,7 @@ def _rotor_lag_taken(cfg: Config, label: str) -> list[Notice]:
 
 def _gyration(cfg: Config, label: str) -> list[Notice]:
     """The radius of gyration against the arm length (or the mass): catches a slip in either."""
-    mass, inertia = cfg.vehicle.mass, list(cfg.vehicle.inertia)
+    mass, inertia = cfg.vehicle.mass, list(inertia_parts(cfg.vehicle.inertia)[0])
     axis = ("Jxx", "Jyy", "Jzz")[inertia.index(max(inertia))]
     arm = cfg.motors.arm_length if cfg.motors is not None else None
 

@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from quadctl.config import Config, SubsystemConfig, weight_matrix
+from quadctl.config import Config, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.model import Vehicle
 from quadctl.motors import Actuators, Motors, actuators_of
@@ -210,12 +210,14 @@ class Setup:
 def setup_of(cfg: Config) -> Setup:
     """The :class:`Setup` every stage takes, from a validated config."""
     v = cfg.vehicle
-    vehicle = Vehicle(mass=v.mass, gravity=v.gravity, inertia=tuple(v.inertia), drag=tuple(v.drag))
+    diagonal, products = inertia_parts(v.inertia)
+    vehicle = Vehicle(mass=v.mass, gravity=v.gravity, inertia=diagonal, drag=tuple(v.drag), products=products)
     over = cfg.simulation.plant
     overrides = over.model_dump(exclude_none=True) if over is not None else {}
+    diagonal, products = inertia_parts(overrides["inertia"]) if "inertia" in overrides else (diagonal, products)
     plant = vehicle if not overrides else Vehicle(
         mass=overrides.get("mass", vehicle.mass), gravity=overrides.get("gravity", vehicle.gravity),
-        inertia=tuple(overrides.get("inertia", vehicle.inertia)), drag=tuple(overrides.get("drag", vehicle.drag)))
+        inertia=diagonal, drag=tuple(overrides.get("drag", vehicle.drag)), products=products)
     partition = cfg.partition()
     weights = {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()}
     Q, R = _weight_blocks(partition, weights)

@@ -69,7 +69,7 @@ BAD = {
     "unknown section": (FORWARD + "simulaton: {duration: 2}\n", [], "Additional properties"),
     "wrong type": (FORWARD.replace("  mass: 0.068", '  mass: "heavy"'), ["vehicle", "mass"], "not of type"),
     "a number for a list": (FORWARD.replace("inertia: [6.9e-5, 7.75e-5, 1.5e-4]", "inertia: 6.9e-5"),
-                            ["vehicle", "inertia"], "not of type"),
+                            ["vehicle", "inertia"], "is not valid under any"),
     "out of range": (FORWARD.replace("  mass: 0.068", "  mass: 0"), ["vehicle", "mass"], "less than the minimum"),
     "not auto": (FORWARD.replace("dt: auto", "dt: fast"), ["simulation", "dt"], "is not valid under any"),
     "missing name": (FORWARD.replace("name: forward\n", ""), [], "'name' is a required property"),

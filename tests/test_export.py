@@ -317,7 +317,7 @@ def test_the_lqg_header_documents_the_measurements_and_the_filter(tmp_path):
         assert line in header, line
     source = (tmp_path / cexport.SOURCE).read_text()
     assert "static const int qc_measured[QUADCTL_NY] = {0, 1, 2, 6, 7, 8, 9, 10, 11};" in source
-    assert "#define QC_LE 325  /* Le 12x9 */" in source
+    assert "#define QC_LE 328  /* Le 12x9 */" in source
     delayed = cexport.sources(prepared("mambo-lqg-lag-delayed"))
     assert "#define QUADCTL_NB 8" in delayed[cexport.HEADER] and "quadctl_real b[8];" in delayed[cexport.HEADER]
     assert "remembers the commands of the last 2 samples (b[], starting at" in _flat(

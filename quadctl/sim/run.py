@@ -52,7 +52,7 @@ class ClosedLoop:
 
     Attributes
     ----------
-    params : (8,) ndarray
+    params : (11,) ndarray
         Vehicle parameter vector (:meth:`quadctl.model.Vehicle.vector`) of the simulated plant
         (it may differ from the design model's: model mismatch).
     x_trim : (12,) ndarray
