@@ -333,6 +333,10 @@ class Config(_Section):
     estimator: Optional[EstimatorConfig] = Field(
         None, description="state estimation (LQG): what is measured and the noise the Kalman filter assumes; "
         "absent: the controller measures the full state")
+    allow: list[Literal["implausible", "saturation"]] = Field(
+        default_factory=list, description="failed checks this vehicle accepts (each otherwise exits 1): implausible "
+        "(values that look like a unit slip: the warnings on load), saturation (a simulated design at an "
+        "actuator limit more than half the run)")
 
     def partition(self) -> dict[str, SubsystemConfig]:
         """The subsystems in force: the config's, or the report's five."""
@@ -341,13 +345,32 @@ class Config(_Section):
         return {k: SubsystemConfig(**v) for k, v in REPORT_PARTITION.items()}
 
     def digest(self) -> str:
-        """sha256 of the validated config (canonical JSON): the provenance of every artifact."""
-        text = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        """sha256 of the validated config (canonical JSON): the provenance of every artifact.
+
+        Keys added to the schema later are left out at their default (:data:`LATER_KEYS`), so a config
+        that does not use them keeps the digest it always had.
+        """
+        data = self.model_dump(mode="json")
+        for path, default in LATER_KEYS:
+            *parents, last = path
+            node = data
+            for part in parents:
+                node = node.get(part) if isinstance(node, dict) else None
+            if isinstance(node, dict) and node.get(last, default) == default:
+                node.pop(last, None)
+        text = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
 
     def to_yaml(self) -> str:
         """The validated config as YAML (all defaults filled in)."""
         return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
+
+
+LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
+    (("allow",), []),
+)
+"""Keys added to the schema after configs were already hashed, with their defaults: left out of
+:meth:`Config.digest` at that default."""
 
 
 SCHEMA_DIALECT = "http://json-schema.org/draft-07/schema#"

@@ -54,6 +54,18 @@ class DesignError(CheckFailed, ValueError):
     from_config = True
 
 
+class ImplausibleConfig(CheckFailed, ValueError):
+    """The config's values look like a unit slip (see :mod:`quadctl.notices`), and the config does
+    not accept it (``allow: [implausible]``)."""
+
+
+class SaturationFailed(CheckFailed):
+    """The simulated design sits at an actuator limit most of the run, and the config or command
+    line does not accept it (``allow: [saturation]``, ``--allow-saturation``)."""
+
+    from_config = True
+
+
 class StepSizeError(QuadctlError, ValueError):
     """A fixed step that RK4 cannot hold stable for the closed loop."""
 

@@ -33,13 +33,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.errors import ActuatorLimitError
+from quadctl.errors import ActuatorLimitError, SaturationFailed
 from quadctl.layout import INPUT_INDEX, INPUT_NAMES, INPUT_UNITS, N_INPUTS
 
 SATURATED_RTOL = 1e-9
 """A rotor (or input) counts as saturated when within ``SATURATED_RTOL * (1 + |limit|)`` of a limit."""
 SATURATION_FLAG = 0.01
 """A design is flagged as saturating when some actuator spends more than 1 % of the run at a limit."""
+SATURATION_FAIL = 0.5
+"""A design fails its check (exit 1, unless accepted) when some actuator is at a limit more than half
+the run: it no longer flies the linear design, it flies its limits."""
 SPINS = (1.0, -1.0, 1.0, -1.0)
 """Yaw reaction sign of rotors 1-4 (+1: counter-clockwise seen from above)."""
 
@@ -211,6 +214,27 @@ def saturation_fraction(actuators: Actuators, u) -> dict[str, float]:
     """
     at = actuators.at_limit(np.atleast_2d(u))
     return {name: float(at[:, i].mean()) for i, name in enumerate(actuators.names)}
+
+
+def require_within_limits(fractions: dict[str, float] | None, *, allowed: bool = False) -> None:
+    """Raise :class:`~quadctl.errors.SaturationFailed` (exit 1) when an actuator is at a limit more than
+    :data:`SATURATION_FAIL` of the run, unless ``allowed`` (``--allow-saturation``, ``allow: [saturation]``).
+
+    Parameters
+    ----------
+    fractions : dict or None
+        Actuator name -> fraction of the run at a limit (:func:`saturation_fraction`); None: no actuators.
+    """
+    if not fractions or allowed:
+        return
+    worst = max(fractions, key=fractions.get)
+    if fractions[worst] <= SATURATION_FAIL:
+        return
+    raise SaturationFailed(
+        f"the design saturates: {worst} is at a limit {fractions[worst] * 100:.3g} % of the run, more than "
+        f"{SATURATION_FAIL * 100:g} % (SATURATION_FAIL), so it flies its limits, not the design; lower the gains "
+        "(larger lqr R) or the initial offset, or give the rotors the thrust they really have (motors.max_thrust); "
+        "--allow-saturation (or allow: [saturation] in the config) accepts it")
 
 
 def saturates(fractions: dict[str, float]) -> bool:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from quadctl.config import Config, inertia_parts
+from quadctl.errors import ImplausibleConfig
 from quadctl.messages import show
 
 
@@ -60,6 +61,8 @@ THRUST_TO_WEIGHT = (1.0, 30.0)
 reach about 10 to 15. A thrust in grams-force moves it by 102 times."""
 INERTIA_SLIPS = (("g m^2", 1e-3), ("kg cm^2", 1e-4), ("kg mm^2", 1e-6), ("g cm^2", 1e-7), ("g mm^2", 1e-9))
 """Units an inertia is often written in, and their value in kg m^2."""
+ARM_SLIPS = (("mm", 1e-3), ("cm", 1e-2))
+"""Units an arm length is often written in, and their value in m."""
 GRAM = 1e-3
 GRAM_FORCE = 9.80665e-3
 """N."""
@@ -166,14 +169,36 @@ def _gyration(cfg: Config, label: str) -> list[Notice]:
         guess = (f"is it in {unit}? that is {show([j * factor for j in inertia])} kg m^2"
                  if math.isfinite(fits(mass, max(inertia) * factor)) else
                  "check its units (kg m^2) and vehicle.mass (kg)")
-    else:
-        key = "vehicle.mass"
-        guess = (f"is vehicle.mass in grams? {mass:g} g is {mass * GRAM:g} kg"
-                 if math.isfinite(fits(mass * GRAM, max(inertia))) else
-                 "check the units: vehicle.mass in kg, vehicle.inertia in kg m^2")
+    else:  # too small a radius for the arm or the mass: a mass in grams, or an arm in mm or cm
+        key, guess = "vehicle.mass", ("check the units: vehicle.mass in kg, vehicle.inertia in kg m^2" + (
+            ", motors.arm_length in m" if arm is not None else ""))
+        # the slip that lands in the middle of the band, the mass's own size (against the inertia) deciding
+        # between a mass and an arm: a mass slip also puts sqrt(J/m) / m^(1/3) out of its band
+        slips = [(fits(mass * GRAM, max(inertia)), "vehicle.mass",
+                  f"is vehicle.mass in grams? {mass:g} g is {mass * GRAM:g} kg")]
+        if arm is not None and _within(math.sqrt(max(inertia) / mass) / mass ** (1 / 3), GYRATION_TO_CUBE_ROOT_MASS):
+            slips = [(abs(math.log10(radius / (arm * factor) / middle))
+                      if _within(radius / (arm * factor), band) else math.inf, "motors.arm_length",
+                      f"is motors.arm_length in {unit}? {arm:g} {unit} is {arm * factor:g} m")
+                     for unit, factor in ARM_SLIPS]
+        distance, slip_key, slip_guess = min(slips, key=lambda s: s[0])
+        if math.isfinite(distance):
+            key, guess = slip_key, slip_guess
+    if key == "motors.arm_length":  # lead with the key that slipped
+        return [Notice("warning", key, (
+            f"{label}: motors.arm_length = {arm:g} m is {arm / radius:.3g} times the radius of gyration sqrt({axis}/m) "
+            f"= {radius:.3g} m of vehicle.inertia = {show(inertia)} kg m^2 and vehicle.mass = {mass:g} kg (a "
+            f"quadcopter's arm is {1 / band[1]:g} to {1 / band[0]:g} times it: GYRATION_TO_ARM); {guess}"))]
+    given = [f"vehicle.inertia = {show(inertia)} kg m^2", f"vehicle.mass = {mass:g} kg"]
+    if key == "vehicle.mass":  # lead with the key that slipped
+        given.reverse()
     return [Notice("warning", key, (
-        f"{label}: vehicle.inertia = {show(inertia)} kg m^2 with vehicle.mass = {mass:g} kg gives a radius of "
-        f"gyration sqrt({axis}/m) = {radius:.3g} m, but {against}; {guess}"))]
+        f"{label}: {given[0]} with {given[1]} gives a radius of gyration sqrt({axis}/m) = {radius:.3g} m, but "
+        f"{against}; {guess}"))]
+
+
+def _within(value: float, band: tuple[float, float]) -> bool:
+    return band[0] <= value <= band[1]
 
 
 def _thrust_to_weight(cfg: Config, label: str) -> list[Notice]:
@@ -199,6 +224,23 @@ def _thrust_to_weight(cfg: Config, label: str) -> list[Notice]:
             guess = f"is motors.max_thrust in grams-force? {thrust:g} gf is {thrust * GRAM_FORCE:.3g} N"
         else:
             guess = "check motors.max_thrust (N per rotor) and vehicle.mass (kg)"
+    given = [f"motors.max_thrust = {thrust:g} N per rotor", f"vehicle.mass = {mass:g} kg"]
+    if key == "vehicle.mass":  # lead with the key that slipped
+        given.reverse()
     return [Notice("warning", key, (
-        f"{label}: motors.max_thrust = {thrust:g} N per rotor with vehicle.mass = {mass:g} kg is a thrust-to-weight "
-        f"ratio of {ratio:.3g} (4 rotors); {what}; {guess}"))]
+        f"{label}: {given[0]} with {given[1]} is a thrust-to-weight ratio of {ratio:.3g} (4 rotors); {what}; {guess}"))]
+
+
+def require_plausible(cfg: Config, found: list[Notice], label: str = "<config>") -> None:
+    """Raise :class:`~quadctl.errors.ImplausibleConfig` (exit 1) when ``found`` holds a warning and the
+    config does not say ``allow: [implausible]``: a design for a unit slip is a design for no vehicle.
+
+    The warnings themselves carry the values and the fix; the error names their keys.
+    """
+    keys = list(dict.fromkeys(n.key for n in found if n.level == "warning"))
+    if not keys or "implausible" in cfg.allow:
+        return
+    raise ImplausibleConfig(
+        f"{label}: {', '.join(keys)} implausible (the warning{'s' if len(keys) > 1 else ''} above give{'' if len(keys) > 1 else 's'} "
+        "the likely slip and the fix); correct the value, or add `allow: [implausible]` to the config if the "
+        "vehicle really is so")

@@ -248,7 +248,7 @@ def test_a_vehicle_left_out_whole_is_the_reports_without_a_word():
      r"sqrt\(Jzz/m\) = 32\.9 m, but a 0\.027 kg quadcopter's is 0\.006 to 0\.18 m \(GYRATION_TO_CUBE_ROOT_MASS\); "
      r"is it in kg mm\^2\? that is \[1\.657e-05, 1\.666e-05, 2\.926e-05\] kg m\^2$"),
     ("mass: 0.068", "mass: 68", "vehicle.mass",
-     r"vehicle\.inertia = .* with vehicle\.mass = 68 kg gives a radius of gyration sqrt\(Jzz/m\) = 0\.00149 m, .*; "
+     r"vehicle\.mass = 68 kg with vehicle\.inertia = .* gives a radius of gyration sqrt\(Jzz/m\) = 0\.00149 m, .*; "
      r"is vehicle\.mass in grams\? "
      r"68 g is 0\.068 kg$"),
     ("inertia: [6.9e-5, 7.75e-5, 1.5e-4]", "inertia: [690, 775, 1500]", "vehicle.inertia",
@@ -265,7 +265,13 @@ def test_an_implausible_vehicle_is_warned_about_with_the_likely_slip(tmp_path, o
     assert [(n.level, n.key) for n in found] == [("warning", key)]
     assert re.search(r"^c\.yaml: " + pattern, found[0].message), found[0].message
     res = run(tmp_path, edit(old, new), "linearize")
-    assert res.exit_code == 0, res.stderr  # warned, not refused: unusual vehicles exist
+    assert res.exit_code == 1, res.stderr  # a check failed: a design for a unit slip is for no vehicle
+    assert notice_lines(res) == [f"quadctl: warning: {str(tmp_path / 'c.yaml')}: {found[0].message[8:]}"]
+    assert stderr_lines(res)[-1] == (
+        f"quadctl: check failed: {tmp_path / 'c.yaml'}: {key} implausible (the warning above gives the likely slip "
+        "and the fix); correct the value, or add `allow: [implausible]` to the config if the vehicle really is so")
+    res = run(tmp_path, edit(old, new) + "allow: [implausible]\n", "linearize")
+    assert res.exit_code == 0, res.stderr  # unusual vehicles exist: the config says so
     assert notice_lines(res) == [f"quadctl: warning: {str(tmp_path / 'c.yaml')}: {found[0].message[8:]}"]
 
 

@@ -17,6 +17,9 @@ JsonOpt = Annotated[bool, typer.Option(
     "--json", help="Print machine-readable JSON to stdout instead of tables.")]
 FreshOpt = Annotated[bool, typer.Option(
     "--fresh", help="Recompute every stage; ignore artifacts already in the run directory.")]
+AllowSaturationOpt = Annotated[bool, typer.Option(
+    "--allow-saturation", help="Accept a design at an actuator limit more than half the run (else exit 1); "
+                               "the config's `allow: [saturation]` does the same.")]
 PlotOpt = Annotated[bool, typer.Option("--plot", help="Also write PNG figures to DIR/plots/.")]
 SetOpt = Annotated[Optional[list[str]], typer.Option(
     "--set", metavar="KEY=VALUE",
@@ -25,7 +28,7 @@ SetOpt = Annotated[Optional[list[str]], typer.Option(
          "validated as the file is, recorded in DIR/config.yaml.")]
 
 
-def load_config(config: str | None, sets=None):
+def load_config(config: str | None, sets=None, *, plausible: bool = True):
     """Resolve and load ``--config`` with its ``--set`` values; print its notes and warnings on
     stderr, one line each.
 
@@ -33,13 +36,17 @@ def load_config(config: str | None, sets=None):
     -------
     (Config, str) : the validated config and the file to name in messages.
     """
-    cfg, source = load_source(config, sets)
+    cfg, source = load_source(config, sets, plausible=plausible)
     return cfg, source.label
 
 
-def load_source(config: str | None, sets=None):
+def load_source(config: str | None, sets=None, *, plausible: bool = True):
     """:func:`load_config`, returning the config and its :class:`quadctl.config.Source` (label, text:
-    the file's, with the ``--set`` values after it as comments)."""
+    the file's, with the ``--set`` values after it as comments).
+
+    With ``plausible`` (every command that computes), a warning on the config's values (a likely unit
+    slip) stops the command with exit 1 after the warnings, unless the config says ``allow: [implausible]``.
+    """
     from quadctl import config as config_mod
     from quadctl import notices, overrides
     from quadctl.cli import render
@@ -51,8 +58,11 @@ def load_source(config: str | None, sets=None):
     cfg = overrides.load(source, sets or ())
     label = f"{source.label} with --set" if sets else source.label  # a value named may be one --set gave
     remember_config(label)
-    for notice in notices.notices(cfg, label):
+    found = notices.notices(cfg, label)
+    for notice in found:
         (render.note if notice.level == "note" else render.warning)(notice.message)
+    if plausible:
+        notices.require_plausible(cfg, found, label)
     return cfg, source._replace(text=overrides.recorded(source.text, sets or ()))
 
 

@@ -31,7 +31,7 @@ def command(
         typer.echo(json.dumps(config.json_schema(), indent=2))
         return
     if show:
-        typer.echo(load_config(show, sets)[0].to_yaml(), nl=False)  # raw: rich would wrap long lines
+        typer.echo(load_config(show, sets, plausible=False)[0].to_yaml(), nl=False)  # raw: rich would wrap long lines
         return
     from rich.table import Table
 

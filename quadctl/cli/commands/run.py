@@ -1,14 +1,25 @@
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, SetOpt, open_workspace
+from quadctl.cli.commands.simulate import _require_within_limits
+from quadctl.cli.options import (
+    AllowSaturationOpt,
+    ConfigOpt,
+    FreshOpt,
+    JsonOpt,
+    OutOpt,
+    PlotOpt,
+    SetOpt,
+    open_workspace,
+)
 from quadctl.layout import STATE_INDEX
 
 NAME = "run"
 
 
 def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, plot: PlotOpt = False,
-            json: JsonOpt = False, fresh: FreshOpt = False) -> None:
+            json: JsonOpt = False, fresh: FreshOpt = False,
+            allow_saturation: AllowSaturationOpt = False) -> None:
     """Every stage in order: trim, linearize, decouple, check, design, simulate.
 
     Stops with exit 1 at the first failed check; artifacts of earlier stages stay whole.
@@ -45,6 +56,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if sim.status != "ok":
         raise _stop(json, stages, f"simulate: {sim.message}")
     done("simulate", f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.steps_per_second / 1e6:.2f} M steps/s")
+    _require_within_limits(ws, ws.simulation, allow_saturation)
     if plot:
         for path in save_figures(ws, sim):
             if not json:

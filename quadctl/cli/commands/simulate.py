@@ -1,13 +1,23 @@
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, SetOpt, open_workspace
+from quadctl.cli.options import (
+    AllowSaturationOpt,
+    ConfigOpt,
+    FreshOpt,
+    JsonOpt,
+    OutOpt,
+    PlotOpt,
+    SetOpt,
+    open_workspace,
+)
 
 NAME = "simulate"
 
 
 def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, plot: PlotOpt = False,
-            json: JsonOpt = False, fresh: FreshOpt = False) -> None:
+            json: JsonOpt = False, fresh: FreshOpt = False,
+            allow_saturation: AllowSaturationOpt = False) -> None:
     """Fixed-step RK4 of the full nonlinear closed loop; write sim.npz and sim.json.
 
     Exits 1 when the run diverges or leaves the model's valid range (what was computed is saved).
@@ -47,6 +57,16 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if sim.status != "ok":
         render.err.print(f"quadctl: check failed: {sim.message}")
         raise typer.Exit(EXIT_CHECK_FAILED)
+    _require_within_limits(ws, flown, allow_saturation)
+
+
+def _require_within_limits(ws, flown, allow_saturation: bool) -> None:
+    """Exit 1 (a check failed) when the design saturates most of the run and nobody accepted it."""
+    from quadctl import motors
+
+    sat = flown.flight.get("saturation")
+    motors.require_within_limits(sat["fraction"] if sat else None,
+                                 allowed=allow_saturation or "saturation" in ws.cfg.allow)
 
 
 def _print_flight(render, flown, *, before: bool) -> None:
