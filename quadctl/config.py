@@ -284,6 +284,14 @@ class MotorsConfig(_Section):
     max_thrust: Positive = Field(0.33, description="N per rotor")
     time_constant: Optional[RotorTimeConstant] = Field(
         None, description="s, first-order lag of each rotor's thrust behind its command; absent: instantaneous")
+    numbering: Union[Literal["quadctl", "crazyflie", "px4", "betaflight"], list[str]] = Field(
+        "quadctl", description="the vehicle's motor order, rotor 1 first: a flight stack's quad-x order (crazyflie = "
+        "quadctl: front_right, rear_right, rear_left, front_left; px4: front_right, rear_left, front_left, rear_right; "
+        "betaflight: rear_right, front_right, rear_left, front_left) or 4 positions (x: front_right, rear_right, "
+        "rear_left, front_left; +: front, right, rear, left)")
+    spin: Optional[Annotated[list[Literal["cw", "ccw"]], Field(min_length=4, max_length=4)]] = Field(
+        None, description="each rotor's turning direction seen from above, rotor 1 first (cw or ccw); absent: front "
+        "right (front, in +) and its diagonal ccw, the others cw, as every preset's default")
 
 
 class EstimatorConfig(_Section):
@@ -368,6 +376,8 @@ class Config(_Section):
 
 LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("allow",), []),
+    (("motors", "numbering"), "quadctl"),
+    (("motors", "spin"), None),
 )
 """Keys added to the schema after configs were already hashed, with their defaults: left out of
 :meth:`Config.digest` at that default."""
@@ -907,6 +917,8 @@ def _check_controller_and_actuators(cfg: Config, fail) -> None:
     """Controller rate and delay, motors, limits and noise: the keys that only make sense together."""
     if cfg.motors is not None and cfg.limits is not None:
         fail("limits", cfg.limits, "give either motors: (limits from the rotors) or limits:, not both")
+    if cfg.motors is not None:
+        _check_rotor_numbering(cfg.motors, fail)
     if cfg.motors is not None and cfg.motors.min_thrust >= cfg.motors.max_thrust:
         fail("motors.min_thrust", cfg.motors.min_thrust,
              f"must be below motors.max_thrust = {cfg.motors.max_thrust:g} N")
@@ -922,6 +934,39 @@ def _check_controller_and_actuators(cfg: Config, fail) -> None:
     if cfg.estimator is not None:
         _check_estimator(cfg.estimator, noise, fail)
     _check_wind(cfg, fail)
+
+
+def _check_rotor_numbering(motors: MotorsConfig, fail) -> None:
+    """``motors.numbering``: each of the layout's positions once (a preset names a quad-x order);
+    ``motors.spin``: diagonal rotors alike, neighbours opposite (else yaw is not separable from roll
+    and pitch: the mixer is singular)."""
+    from quadctl.motors import NUMBERINGS, POSITIONS
+
+    allowed = POSITIONS[motors.layout]
+    numbering = motors.numbering
+    if isinstance(numbering, str):
+        if numbering != "quadctl" and motors.layout != "x":
+            fail("motors.numbering", numbering, f"{numbering} is a quad-x order; for layout + give the 4 positions, "
+                 f"rotor 1 first ({', '.join(allowed)})")
+        order = allowed if numbering == "quadctl" else NUMBERINGS[numbering]
+    else:
+        for i, where in enumerate(numbering):
+            if where not in allowed:
+                fail(f"motors.numbering[{i}]", where,
+                     _unknown(where, allowed, f"rotor position of layout {motors.layout}"))
+        if len(numbering) != 4 or len(set(numbering)) != 4:
+            fail("motors.numbering", numbering, f"must name each of the 4 positions once, rotor 1 first: "
+                 f"{', '.join(allowed)} in the vehicle's order")
+        order = tuple(numbering)
+    if motors.spin is not None:
+        spin = dict(zip(order, motors.spin))
+        first, diagonal, *_ = ("front_right", "rear_left", "rear_right", "front_left") if motors.layout == "x" \
+            else ("front", "rear", "right", "left")
+        others = [p for p in allowed if p not in (first, diagonal)]
+        if spin[first] != spin[diagonal] or any(spin[p] == spin[first] for p in others):
+            fail("motors.spin", motors.spin, f"diagonal rotors must turn alike and neighbours opposite ({first} and "
+                 f"{diagonal} one way, {' and '.join(others)} the other), else yaw cannot be told from roll and pitch; "
+                 "check the order against motors.numbering")
 
 
 def _check_estimator(est: EstimatorConfig, noise, fail) -> None:

@@ -8,8 +8,10 @@ So
 
     [T, A, E, R]' = M f,   M = [[1, 1, 1, 1], [-y_i], [x_i], [s_i k_m]],
 
-and the mixer is ``M^-1``. Rotor numbering and spin (both layouts number clockwise seen from
-above, rotor 1 first; diagonal rotors spin alike):
+and the mixer is ``M^-1``. Rotor numbering and spin are the vehicle's own (``motors.numbering``,
+``motors.spin``): rotor ``i`` of every output (the mixer's rows, ``sim.npz``, plots, the C export) is
+the vehicle's motor ``i``. By default (``numbering: quadctl``) the rotors are numbered clockwise seen
+from above, rotor 1 first, diagonal rotors spinning alike:
 
 ====  ===========================  ====================  ====
 rotor  ``x`` layout (d = L / sqrt 2)  ``+`` layout            spin
@@ -19,6 +21,9 @@ rotor  ``x`` layout (d = L / sqrt 2)  ``+`` layout            spin
 3      rear left    (-d, -d)         rear   (-L, 0)        CCW
 4      front left   ( d, -d)         left   ( 0, -L)       CW
 ====  ===========================  ====================  ====
+
+The flight stacks' quad-X orders (:data:`NUMBERINGS`) are named presets; the spins default to the
+front-right rotor counter-clockwise (all three stacks' default), ``motors.spin`` gives others ("props out").
 
 Saturation (:mod:`quadctl.sim.builder`, mode ``motors``): the commanded ``[T, A, E, R]`` is mixed to
 rotor thrusts, each clipped to ``[min_thrust, max_thrust]``, and mixed back. Clipping one rotor
@@ -44,7 +49,37 @@ SATURATION_FAIL = 0.5
 """A design fails its check (exit 1, unless accepted) when some actuator is at a limit more than half
 the run: it no longer flies the linear design, it flies its limits."""
 SPINS = (1.0, -1.0, 1.0, -1.0)
-"""Yaw reaction sign of rotors 1-4 (+1: counter-clockwise seen from above)."""
+"""Yaw reaction sign of rotors 1-4 of quadctl's own numbering (+1: counter-clockwise seen from above)."""
+SPIN_SIGN = {"ccw": 1.0, "cw": -1.0}
+"""A rotor's spin seen from above -> the sign of its yaw reaction torque on the body (FRD, z down)."""
+POSITIONS = {
+    "x": ("front_right", "rear_right", "rear_left", "front_left"),
+    "+": ("front", "right", "rear", "left"),
+}
+"""Rotor positions of each layout, in quadctl's own numbering (clockwise seen from above)."""
+NUMBERINGS: dict[str, tuple[str, str, str, str]] = {
+    "quadctl": POSITIONS["x"],
+    # Bitcraze crazyflie-firmware, src/modules/src/power_distribution_quadrotor.c
+    # (powerDistributionForceTorque): M1 = T - roll - pitch - yaw (front right), M2 rear right,
+    # M3 rear left, M4 front left; the yaw signs make M1 and M3 counter-clockwise seen from above.
+    "crazyflie": ("front_right", "rear_right", "rear_left", "front_left"),
+    # PX4 Airframes Reference (docs.px4.io, "Quadrotor x"): motor 1 front right (CCW), 2 rear left
+    # (CCW), 3 front left (CW), 4 rear right (CW); PX4-SITL_gazebo-classic models/iris/iris.sdf.jinja
+    # has the same order and turning directions (rotor_0 front right ccw ... rotor_3 back right cw).
+    "px4": ("front_right", "rear_left", "front_left", "rear_right"),
+    # Betaflight src/main/flight/mixer.c, mixerQuadX: REAR_R (M1, CW), FRONT_R (M2, CCW), REAR_L
+    # (M3, CCW), FRONT_L (M4, CW); yaw_motors_reversed ("props out") turns every rotor the other way.
+    "betaflight": ("rear_right", "front_right", "rear_left", "front_left"),
+}
+"""Quad-X motor orders of the flight stacks, rotor 1 first. Their default spins agree: front right
+and rear left counter-clockwise seen from above."""
+
+
+def default_spins(positions) -> tuple[float, ...]:
+    """Yaw reaction signs for rotors at ``positions``: front right (x) or front (+) counter-clockwise,
+    diagonal rotors alike, neighbours opposite."""
+    ccw = {"front_right", "rear_left", "front", "rear"}
+    return tuple(1.0 if p in ccw else -1.0 for p in positions)
 
 
 @dataclass(frozen=True)
@@ -74,26 +109,49 @@ class Motors:
     min_thrust: float = 0.0
     max_thrust: float = 0.33
     time_constant: float | None = None
+    order: tuple[str, ...] | None = None
+    """Position of rotors 1-4 (``POSITIONS[layout]`` names); None: quadctl's clockwise order."""
+    spins: tuple[float, ...] | None = None
+    """Yaw reaction sign of rotors 1-4 (+1: counter-clockwise seen from above); None: :func:`default_spins`."""
 
     @classmethod
     def from_config(cls, cfg) -> Motors:
-        """From a :class:`quadctl.config.MotorsConfig`."""
-        return cls(**cfg.model_dump())
+        """From a :class:`quadctl.config.MotorsConfig` (its ``numbering`` and ``spin`` resolved)."""
+        data = cfg.model_dump()
+        numbering, spin = data.pop("numbering", "quadctl"), data.pop("spin", None)
+        order = tuple(numbering) if isinstance(numbering, list) else (
+            POSITIONS[cfg.layout] if numbering == "quadctl" else NUMBERINGS[numbering])
+        spins = tuple(SPIN_SIGN[s] for s in spin) if spin is not None else None
+        if order == POSITIONS[cfg.layout] and spins is None:
+            order = None  # quadctl's own numbering: the arrays exactly as they always were
+        return cls(**data, order=order, spins=spins)
+
+    def rotor_positions(self) -> tuple[str, ...]:
+        """Names of the positions of rotors 1-4 (``front_right``, ...)."""
+        return self.order if self.order is not None else POSITIONS[self.layout]
+
+    def rotor_spins(self) -> tuple[float, ...]:
+        """Yaw reaction sign of rotors 1-4 (+1: counter-clockwise seen from above)."""
+        if self.spins is not None:
+            return self.spins
+        return SPINS if self.order is None else default_spins(self.order)
 
     def positions(self) -> np.ndarray:
-        """(4, 2) rotor positions ``(x, y)`` in the body frame, m."""
+        """(4, 2) rotor positions ``(x, y)`` in the body frame, m, rotor 1 first (the vehicle's numbering)."""
         if self.layout == "x":
             d = self.arm_length / math.sqrt(2.0)
-            return np.array([[d, d], [-d, d], [-d, -d], [d, -d]])
-        if self.layout == "+":
+            at = {"front_right": [d, d], "rear_right": [-d, d], "rear_left": [-d, -d], "front_left": [d, -d]}
+        elif self.layout == "+":
             L = self.arm_length
-            return np.array([[L, 0.0], [0.0, L], [-L, 0.0], [0.0, -L]])
-        raise ValueError(f"layout must be 'x' or '+', got {self.layout!r}")
+            at = {"front": [L, 0.0], "right": [0.0, L], "rear": [-L, 0.0], "left": [0.0, -L]}
+        else:
+            raise ValueError(f"layout must be 'x' or '+', got {self.layout!r}")
+        return np.array([at[p] for p in self.rotor_positions()])
 
     def effectiveness(self) -> np.ndarray:
-        """``M`` (4, 4): ``[T, A, E, R] = M f`` for rotor thrusts ``f`` (N)."""
+        """``M`` (4, 4): ``[T, A, E, R] = M f`` for rotor thrusts ``f`` (N), rotor 1 first."""
         pos = self.positions()
-        return np.array([np.ones(4), -pos[:, 1], pos[:, 0], np.array(SPINS) * self.torque_coefficient])
+        return np.array([np.ones(4), -pos[:, 1], pos[:, 0], np.array(self.rotor_spins()) * self.torque_coefficient])
 
     def mixer(self) -> np.ndarray:
         """``M^-1`` (4, 4): rotor thrusts from ``[T, A, E, R]``."""

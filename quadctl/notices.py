@@ -240,7 +240,8 @@ def require_plausible(cfg: Config, found: list[Notice], label: str = "<config>")
     keys = list(dict.fromkeys(n.key for n in found if n.level == "warning"))
     if not keys or "implausible" in cfg.allow:
         return
+    warnings = "the warnings above give" if len(keys) > 1 else "the warning above gives"
     raise ImplausibleConfig(
-        f"{label}: {', '.join(keys)} implausible (the warning{'s' if len(keys) > 1 else ''} above give{'' if len(keys) > 1 else 's'} "
+        f"{label}: {', '.join(keys)} implausible ({warnings} "
         "the likely slip and the fix); correct the value, or add `allow: [implausible]` to the config if the "
         "vehicle really is so")

@@ -63,7 +63,7 @@ def test_a_trim_the_rotors_cannot_hold_is_refused():
 
 
 @pytest.mark.parametrize("section,key,line", [
-    ("motors: {max_thrust: 0.1}", "motors.max_thrust = 0.1",
+    ("motors: {max_thrust: 0.1}\nallow: [implausible]", "motors.max_thrust = 0.1",  # a warned thrust-to-weight of 0.6
      "rotor 1 = 0.1668 N, outside the limits [0, 0.1] N, so the vehicle cannot hold this flight condition; "
      "raise motors.max_thrust above 0.1668 N, or trim for a slower or lighter flight"),
     ("limits: {T: [0, 0.5]}", "limits.T = [0, 0.5]",

@@ -33,7 +33,6 @@ import numpy as np
 from quadctl import __version__
 from quadctl.export.bundle import Export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
-from quadctl.motors import SPINS
 from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout
 
 HEADER, SOURCE = "quadctl_controller.h", "quadctl_controller.c"
@@ -97,10 +96,10 @@ def sources(exp: Export) -> dict[str, str]:
     rotors = ""
     if act is not None and act.mode == "motors":
         rotors = (f"#define QUADCTL_N_ROTORS {len(act.names)}\n"
-                  "/* rotors (FRD body frame, numbered clockwise from above; thrust along body -z) */\n"
+                  "/* rotors (FRD body frame, in the vehicle's numbering: motors.numbering; thrust along body -z) */\n"
                   + "".join(f"/*   rotor {i + 1}: x = {x:+.6g} m, y = {y:+.6g} m, spins "
                             f"{'counter-clockwise' if s > 0 else 'clockwise'} seen from above */\n"
-                            for i, ((x, y), s) in enumerate(zip(act.motors.positions(), SPINS))))
+                            for i, ((x, y), s) in enumerate(zip(act.motors.positions(), act.motors.rotor_spins()))))
     tol_float = float_tolerance(act)
     values = {
         "CONFIG": exp.name, "VERSION": __version__, "CONFIG_HASH": exp.config_hash or "not recorded",
