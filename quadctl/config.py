@@ -383,6 +383,42 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
 :meth:`Config.digest` at that default."""
 
 
+def shown_yaml(cfg: Config, label: str) -> str:
+    """:meth:`Config.to_yaml` for a reader (``quadctl configs --show``): a header pointing to
+    ``quadctl init`` for a vehicle of one's own, and each key left empty (``null``) followed by what
+    its absence means (the schema's description: ``motors: null   # rotor layout and thrust limits; ...``).
+
+    Examples
+    --------
+    >>> text = shown_yaml(load("hover"), "hover.yaml")
+    >>> [line[:60] for line in text.splitlines() if line.startswith("motors:")]
+    ['motors: null   # rotor layout and thrust limits; saturates th']
+    """
+    lines = [f"# {label}, validated, every default filled in. For a vehicle of your own start from",
+             "# `quadctl init NAME --from crazyflie|mambo|iris`: every key with its unit, a named vehicle's values."]
+    path: list[tuple[int, str]] = []
+    for line in cfg.to_yaml().splitlines():
+        match = re.match(r"^( *)([A-Za-z_][\w.-]*): ?(.*)$", line)
+        if match is None:
+            lines.append(line)
+            continue
+        indent, key, value = len(match.group(1)), match.group(2), match.group(3)
+        path = [(i, k) for i, k in path if i < indent] + [(indent, key)]
+        if value == "null":
+            keys = [k for _, k in path]
+            parent = _section_model(keys[:-1])
+            field = parent.model_fields.get(key) if parent is not None else None
+            if field is not None and field.description:
+                line += f"   # {field.description}{TOP_LEVEL_ABSENT.get(key, '') if len(keys) == 1 else ''}"
+        lines.append(line)
+    return "\n".join(lines) + "\n"
+
+
+TOP_LEVEL_ABSENT = {"motors": "; absent: the inputs are not limited (`quadctl init NAME` writes motors: with units)",
+                    "limits": "; absent: none"}
+"""What an absent top-level section means, for :func:`shown_yaml`."""
+
+
 SCHEMA_DIALECT = "http://json-schema.org/draft-07/schema#"
 """The JSON Schema draft the schema declares: draft-07, the one editors validate YAML with
 (yaml-language-server); pydantic's output uses nothing newer once its ``$defs`` are renamed."""

@@ -10,6 +10,7 @@ from quadctl.cli.commands import (
     decouple,
     design,
     export,
+    init,
     linearize,
     margins,
     report,
@@ -20,7 +21,7 @@ from quadctl.cli.commands import (
 )
 from quadctl.cli.errors import handled
 
-COMMANDS = (trim, linearize, decouple, check, design, simulate, margins, export, sweep, run, report, configs)
+COMMANDS = (init, trim, linearize, decouple, check, design, simulate, margins, export, sweep, run, report, configs)
 
 
 def register(app: typer.Typer) -> None:

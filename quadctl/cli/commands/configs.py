@@ -16,7 +16,8 @@ def command(
         "--schema", help="Print the config's JSON Schema (units and defaults in the descriptions), for "
                          "editors: put `# yaml-language-server: $schema=<file>` atop a config.")] = False,
 ) -> None:
-    """List the bundled configs, print one with --show (a starting point for your own), or the schema."""
+    """List the bundled configs, print one with --show (every default filled in), or the schema. For a
+    vehicle of your own, `quadctl init NAME` writes a commented config to start from."""
     from quadctl import config
     from quadctl.cli import render
     from quadctl.cli.options import load_config
@@ -31,7 +32,8 @@ def command(
         typer.echo(json.dumps(config.json_schema(), indent=2))
         return
     if show:
-        typer.echo(load_config(show, sets, plausible=False)[0].to_yaml(), nl=False)  # raw: rich would wrap long lines
+        cfg, label = load_config(show, sets, plausible=False)
+        typer.echo(config.shown_yaml(cfg, label), nl=False)  # raw: rich would wrap long lines
         return
     from rich.table import Table
 

@@ -1,0 +1,322 @@
+"""A commented config to start a vehicle from (``quadctl init``): every key with its unit, a named
+vehicle's published values with their sources, and the partition that fits the flight condition.
+
+The units and meanings in the comments are the schema's own field descriptions (:mod:`quadctl.config`),
+so they cannot drift from what quadctl reads; the values are a :class:`Preset`'s; the LQR weights
+follow Bryson's rule from the preset's rotor headroom (:func:`bryson_weights`). The text is returned,
+not written: the command line writes it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel
+
+from quadctl import config as config_mod
+from quadctl.config import (
+    Config,
+    ControllerConfig,
+    EstimatorConfig,
+    MotorsConfig,
+    NoiseConfig,
+    PlantConfig,
+    SimulationConfig,
+    TrimConfig,
+    VehicleConfig,
+    WindConfig,
+)
+from quadctl.layout import REPORT_PARTITION, STATE_UNITS
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A vehicle with published parameters.
+
+    Attributes
+    ----------
+    title : str
+        One line naming the vehicle.
+    sources : tuple of str
+        The references, each starting with its tag (``[F] ...``).
+    vehicle, motors : dict
+        Key -> ``(value, source note)`` for the ``vehicle:`` and ``motors:`` sections (SI units).
+    rate : float or None
+        Hz, the controller rate (None: continuous feedback), and ``rate_note`` its source.
+    """
+
+    title: str
+    sources: tuple[str, ...]
+    vehicle: dict[str, tuple[Any, str]]
+    motors: dict[str, tuple[Any, str]]
+    rate: float | None
+    rate_note: str
+
+
+PRESETS: dict[str, Preset] = {
+    "crazyflie": Preset(
+        title="Bitcraze Crazyflie 2.x (27 g, brushed rotors)",
+        sources=(
+            "[F] J. Förster, \"System Identification of the Crazyflie 2.0 Nano Quadrocopter\", BA thesis, ETH "
+            "Zurich, 2015",
+            "[FW] bitcraze/crazyflie-firmware: src/platform/interface/platform_defaults_cf2.h (ARM_LENGTH), "
+            "src/modules/src/power_distribution_quadrotor.c (thrustToTorque, pwmToThrustA/B: [F]'s fit), "
+            "src/modules/interface/stabilizer_types.h (ATTITUDE_RATE)",
+            "[R] spencerfolk/rotorpy: rotorpy/vehicles/crazyflie_params.py (rotor drag k_d, \"See [F]\")",
+        ),
+        vehicle={
+            "mass": (0.027, "[F]"),
+            "inertia": ([16.571710e-6, 16.655602e-6, 29.261652e-6], "[F]; [F]'s products of inertia (0.83e-6, "
+                        "0.72e-6, 1.80e-6) can be given as the full 3x3 tensor"),
+            "drag": ([0.023473, 0.023473, 0.017297], "[F]'s K_aero = diag(10.2506, 10.2506, 7.5533)e-7 kg/rad [R] "
+                     "times the hover rotor speeds' sum 6065 rad/s, over m g"),
+        },
+        motors={
+            "layout": ("x", "[FW]"),
+            "arm_length": (0.046, "[FW] ARM_LENGTH"),
+            "thrust_coefficient": (2.8799e-8, "[F]'s C_T = 3.1582e-10 N/rpm^2 times (30/pi)^2"),
+            "torque_coefficient": (0.005964552, "[F], [FW] thrustToTorque"),
+            "min_thrust": (0.0, ""),
+            "max_thrust": (0.159166, "[FW] pwmToThrustA + pwmToThrustB at full PWM"),
+            "numbering": ("crazyflie", "[FW] M1 front right ... M4 front left"),
+        },
+        rate=500.0, rate_note="[FW] ATTITUDE_RATE",
+    ),
+    "mambo": Preset(
+        title="Parrot Mambo / Rolling Spider (68 g), the report's vehicle",
+        sources=(
+            "[Rep] the LQR design report this project started from: m, J, Kc",
+            "[MW] MathWorks Aerospace Blockset asbQuadcopter model and Parrot's RollingSpiderEdu: rotor geometry, "
+            "coefficients and the 5 ms controller sample time",
+        ),
+        vehicle={
+            "mass": (0.068, "[Rep]"),
+            "inertia": ([0.69e-4, 0.775e-4, 1.5e-4], "[Rep]"),
+            "drag": ([0.22, 0.22, 0.0], "[Rep] Kc"),
+        },
+        motors={
+            "layout": ("x", "[MW]"),
+            "arm_length": (0.0624, "[MW] 0.0441 m per axis"),
+            "thrust_coefficient": (4.72e-8, "[MW]"),
+            "torque_coefficient": (0.00241, "[MW]"),
+            "min_thrust": (0.0, ""),
+            "max_thrust": (0.33, "[MW] about 0.33 N per rotor"),
+            "numbering": ("quadctl", ""),
+        },
+        rate=200.0, rate_note="[MW] 5 ms sample time",
+    ),
+    "iris": Preset(
+        title="3DR Iris as PX4's simulator models it (1.5 kg, 450-550 mm class)",
+        sources=(
+            "[PX4] PX4/PX4-SITL_gazebo-classic: models/iris/iris.sdf.jinja (base_link inertial, rotor poses "
+            "(+-0.13, +-0.22/0.20) m, motor model: motorConstant 5.84e-06, momentConstant 0.06, maxRotVelocity "
+            "1100 rad/s, rotorDragCoefficient 0.000175, timeConstantUp 0.0125 s)",
+        ),
+        vehicle={
+            "mass": (1.5, "[PX4]"),
+            "inertia": ([0.029125, 0.029125, 0.055225], "[PX4]"),
+            "drag": ([0.037763, 0.037763, 0.0], "[PX4] rotorDragCoefficient times the hover rotor speeds' sum "
+                     "3175 rad/s, over m g (it acts across the rotor axes only)"),
+        },
+        motors={
+            "layout": ("x", "[PX4]"),
+            "arm_length": (0.2555, "[PX4] |(0.13, 0.22)| m; quadctl's x puts the rotors at 45 deg from the nose, "
+                           "[PX4]'s sit at about 59 deg"),
+            "thrust_coefficient": (5.84e-6, "[PX4] motorConstant"),
+            "torque_coefficient": (0.06, "[PX4] momentConstant"),
+            "min_thrust": (0.0, ""),
+            "max_thrust": (7.0664, "[PX4] motorConstant * maxRotVelocity^2"),
+            "numbering": ("px4", "[PX4] rotor_0 front right ccw, rotor_1 back left ccw, rotor_2 front left cw, "
+                          "rotor_3 back right cw"),
+        },
+        rate=None, rate_note="set your flight controller's loop rate for a discrete design",
+    ),
+}
+"""The vehicles ``quadctl init --from`` starts from."""
+
+FLIGHTS = ("hover", "forward")
+"""``hover``: still at 1 m; ``forward``: the report's 1 m/s north at 1 m."""
+HOVER_POSITION = {"states": ["pN", "pE"], "inputs": ["u", "v"], "regulate": False}
+"""At hover pN and pE integrate u and v (psi = 0): the unregulated block that fits it. The report's
+``guidance`` (u and psi) fits forward flight, and at hover ``check`` would find it not stabilizable."""
+BRYSON = {
+    "altitude": ((0.5, 0.5), "T", 0.4),
+    "roll": ((1.0, 0.1, 2.0), "A", 0.2),
+    "pitch": ((1.0, 0.1, 2.0), "E", 0.2),
+    "yaw": ((0.2, 2.0), "R", 0.06),
+}
+"""Per subsystem: the largest acceptable state errors (state units), its input, and the share of the
+input's headroom around the trim (``motors.headroom``) taken as its largest acceptable excursion:
+enough room that the initial offset flies without reaching a rotor limit."""
+INITIAL_OFFSET = {"pD": 0.5, "phi": 0.1, "theta": 0.1, "psi": 0.2}
+
+
+def bryson_weights(preset: Preset, velocity_ned=(0.0, 0.0, 0.0)) -> dict[str, tuple[list, list, str]]:
+    """LQR weights by Bryson's rule, ``Q_ii = 1 / e_i^2`` and ``R = 1 / du^2``, for the preset's rotors.
+
+    Returns
+    -------
+    dict
+        Subsystem -> ``(Q diagonal, R diagonal, comment)``.
+    """
+    from quadctl.model import Vehicle
+    from quadctl.motors import Motors, actuators_of, headroom
+    from quadctl.trim import solve_trim
+
+    values = {k: v for k, (v, _) in preset.vehicle.items()}
+    vehicle = Vehicle(mass=values["mass"], inertia=tuple(values["inertia"]), drag=tuple(values["drag"]))
+    trim = solve_trim(velocity_ned, 0.0, (0.0, 0.0, -1.0), vehicle)
+    rotors = {k: v for k, (v, _) in preset.motors.items() if k not in ("numbering",)}
+    room = headroom(actuators_of(Motors(**rotors)), trim.u)
+    out = {}
+    for name, (errors, input_name, share) in BRYSON.items():
+        step = _round(share * min(room[input_name]))
+        unit = "N" if input_name == "T" else "N m"
+        q = [_round(1.0 / e ** 2) for e in errors]
+        r = [_round(1.0 / step ** 2)]
+        states = REPORT_PARTITION[name]["states"]
+        largest = ", ".join(f"{e:g} {STATE_UNITS[s]}" for e, s in zip(errors, states))
+        around = min(room[input_name])
+        why = (f"Bryson: Q = 1/[{largest}]^2, R = 1/({step:g} {unit})^2, {share:.0%} of the {around:.3g} {unit} "
+               "the rotors have around the trim")
+        out[name] = (q, r, why)
+    return out
+
+
+def _round(value: float) -> float:
+    """Three significant digits."""
+    return float(f"{value:.3g}")
+
+
+def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hover") -> str:
+    """The commented YAML of a new vehicle's config.
+
+    Parameters
+    ----------
+    name : str
+        The config's name (its run folder ``runs/<name>``).
+    vehicle : {"crazyflie", "mambo", "iris"}
+        The :data:`PRESETS` entry whose values fill ``vehicle:``, ``motors:`` and the controller rate.
+    flight : {"hover", "forward"}
+        The trim and the partition that fits it (:data:`FLIGHTS`).
+
+    Returns
+    -------
+    str
+        YAML that :func:`quadctl.config.parse` accepts, every key present (optional sections commented
+        out) with its unit in a comment.
+
+    Raises
+    ------
+    ConfigError
+        ``name`` is not a valid config name, or ``vehicle``/``flight`` is unknown.
+    """
+    import re
+
+    from quadctl.errors import ConfigError
+    from quadctl.messages import unknown
+
+    if not re.match(config_mod.NAME_PATTERN, name):
+        raise ConfigError(f"NAME = {name!r}: must start with a letter, digit or '_' and use only letters, digits, "
+                          "'_', '.' and '-' (it names the file NAME.yaml and the folder runs/NAME)")
+    if vehicle not in PRESETS:
+        raise ConfigError(f"--from {vehicle}: {unknown(vehicle, tuple(PRESETS), 'vehicle')}")
+    if flight not in FLIGHTS:
+        raise ConfigError(f"--flight {flight}: {unknown(flight, FLIGHTS, 'flight condition')}")
+    preset = PRESETS[vehicle]
+    velocity = [1.0, 0.0, 0.0] if flight == "forward" else [0.0, 0.0, 0.0]
+    out = [f"# {name}: a quadctl config started from the {preset.title}, {flight} (quadctl init).",
+           "# Replace the vehicle's numbers with your own; each line says its unit. Sources of the numbers given:"]
+    out += [f"#   {s}" for s in preset.sources]
+    out += ["# Optional sections are commented out: uncomment one to use it. `quadctl configs --schema` gives the",
+            "# JSON Schema for editors; the README's \"Config reference\" explains every key.",
+            f"name: {name}",
+            f"description: {json.dumps(f'{preset.title}: {flight} at 1 m')}"]
+    out += ["vehicle:   # " + _doc(Config, "vehicle")]
+    out += _section(VehicleConfig, {"gravity": (9.81, ""), **preset.vehicle}, 2)
+    out += ["trim:   # " + _doc(Config, "trim")]
+    out += _section(TrimConfig, {"velocity_ned": (velocity, flight), "position_ned": ([0.0, 0.0, -1.0], "1 m up"),
+                                 "yaw": (0.0, ""), "wind": (False, "")}, 2)
+    out += ["subsystems:   # " + _doc(Config, "subsystems")]
+    partition = {k: v for k, v in REPORT_PARTITION.items() if k != "guidance"}
+    partition["guidance" if flight == "forward" else "position"] = (
+        REPORT_PARTITION["guidance"] if flight == "forward" else HOVER_POSITION)
+    width = max(len(k) for k in partition)
+    for key, sub in partition.items():
+        flow = f"{{states: [{', '.join(sub['states'])}], inputs: [{', '.join(sub['inputs'])}]"
+        flow += ", regulate: false}" if not sub["regulate"] else "}"
+        note = "  # analysed only: " + ("pN, pE integrate u, v at hover" if key == "position" else
+                                        "the report's guidance: pN, pE follow u and psi in forward flight") \
+            if not sub["regulate"] else ""
+        out.append(f"  {key + ':':<{width + 1}} {flow}{note}")
+    out += ["lqr:   # " + _doc(Config, "lqr") + "; Q in 1/(state unit)^2, R in 1/(input unit)^2"]
+    for key, (q, r, why) in bryson_weights(preset, velocity).items():
+        out.append(f"  {key + ':':<9} {{Q: {_flow(q)}, R: {_flow(r)}}}  # {why}")
+    out += ["simulation:   # " + _doc(Config, "simulation")]
+    out += _section(SimulationConfig, {"duration": (10.0, ""), "dt": ("auto", ""),
+                                       "initial_offset": (INITIAL_OFFSET, ""), "max_samples": (20_000, "")}, 2)
+    for key, model in (("noise", NoiseConfig), ("wind", WindConfig), ("plant", PlantConfig)):
+        out += [f"  # {key}:   # {_doc(SimulationConfig, key)}"] + _section(model, {}, 4, commented=True)
+    out += ["controller:   # " + _doc(Config, "controller")]
+    rate = (preset.rate, preset.rate_note)
+    out += _section(ControllerConfig, {"rate": rate, "design": ("discrete", ""), "rotor_lag": ("ignore", ""),
+                                       "delay": (None, "")}, 2)
+    out += ["motors:   # " + _doc(Config, "motors")]
+    out += _section(MotorsConfig, {**preset.motors, "time_constant": (None, ""), "spin": (None, "")}, 2)
+    out += [f"# limits: {{T: [0, 1], A: [-0.01, 0.01]}}   # {_doc(Config, 'limits')}",
+            f"# estimator:   # {_doc(Config, 'estimator')}"] + _section(EstimatorConfig, {}, 2, commented=True)
+    out += [f"allow: []   # {_doc(Config, 'allow')}"]
+    return "\n".join(out) + "\n"
+
+
+def _doc(model: type[BaseModel], key: str) -> str:
+    return model.model_fields[key].description or ""
+
+
+def _flow(value: Any) -> str:
+    """A value as one line of YAML flow style (``[1, 2]``, ``{a: 1}``, ``null``)."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        short = f"{value:.6g}"  # 4 for 4.0, 1.11e+08 for 111000000.0; repr where six digits do not hold it
+        return short if math.isfinite(value) and float(short) == value else repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_flow(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}: {_flow(v)}" for k, v in value.items()) + "}"
+    return str(value)
+
+
+def _section(model: type[BaseModel], given: dict[str, tuple[Any, str]], indent: int, *,
+             commented: bool = False) -> list[str]:
+    """One line per field of ``model``: the given value (or the schema's default), then the field's
+    description (its unit) and the value's source. ``commented``: every line behind ``#``, nested
+    sections spelled out the same way."""
+    lines = []
+    pad = " " * indent
+    for key, field in model.model_fields.items():
+        sub = config_mod._first_model(field.annotation)
+        if key in given:
+            value, note = given[key]
+        elif sub is not None and not commented:
+            continue  # an optional section: the caller spells it out, commented
+        elif sub is not None:
+            lines.append(f"{pad}# {key}:   # {field.description}")
+            inner = _section(sub, {}, indent + 2, commented=True)
+            if str(field.annotation).startswith(("list", "typing.Annotated[list")):  # a list of them: one item
+                inner = [line.replace("# ", "# - ", 1) if i == 0 else line.replace("# ", "#   ", 1)
+                         for i, line in enumerate(inner)]
+            lines += inner
+            continue
+        else:
+            value = field.get_default(call_default_factory=True) if not field.is_required() else "..."
+            note = ""
+        text = f"{key}: {_flow(value)}"
+        comment = field.description + (f" {note}" if note.startswith("[") else f"; {note}" if note else "")
+        lines.append(f"{pad}{'# ' if commented else ''}{text}   # {comment}")
+    return lines
