@@ -18,7 +18,7 @@ def command(
 ) -> None:
     """Start a config for your own vehicle: NAME.yaml, every key with its unit, a named vehicle's values
     (with their sources) to replace with yours. Then: quadctl run -c NAME.yaml."""
-    from quadctl import artifacts, starter
+    from quadctl import starter
     from quadctl.cli import render
     from quadctl.errors import ConfigError
 
@@ -26,6 +26,26 @@ def command(
     path = Path(f"{name}.yaml")
     if path.exists() and not force:
         raise ConfigError(f"{path}: already exists; pass --force to overwrite it, or choose another NAME")
-    artifacts.write_bytes(path, text.encode())
+    _write_atomically(path, text)
     render.out.print(f"wrote {path}: {starter.PRESETS[vehicle].title}, {flight}; replace its numbers with your "
                      f"vehicle's, then: quadctl run -c {path}", markup=False, soft_wrap=True)
+
+
+def _write_atomically(path: Path, text: str) -> None:
+    """A temporary beside ``path``, renamed over it: never a half-written config."""
+    import os
+    import tempfile
+
+    from quadctl.errors import ArtifactError
+
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except OSError as exc:
+        if "tmp" in locals():
+            Path(tmp).unlink(missing_ok=True)
+        raise ArtifactError(f"{path}: cannot write it ({exc.strerror or exc}); run quadctl init in a folder you "
+                            "can write to") from None

@@ -1,0 +1,114 @@
+"""`quadctl init`: a commented config for a new vehicle that loads, flies its flight condition within
+its rotors' limits, shows every key with its unit and the source of every physical number."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+from _solve import run
+from typer.testing import CliRunner
+
+from quadctl import analysis, config, motors, starter
+from quadctl.cli.app import app
+from quadctl.config import Config
+from quadctl.errors import ConfigError
+from quadctl.layout import STATE_INDEX
+
+runner = CliRunner()
+CASES = [(v, f) for v in starter.PRESETS for f in starter.FLIGHTS]
+
+
+def _keys(model, prefix: str = "") -> list[str]:
+    """Every key path of the schema below ``model`` (sections and their keys)."""
+    out = []
+    for key, field in model.model_fields.items():
+        out.append(prefix + key)
+        sub = config._first_model(field.annotation)
+        if sub is not None and key not in ("subsystems", "lqr", "delay"):  # named entries; a number or {samples}
+            out += _keys(sub, prefix + key + ".")
+    return out
+
+
+@pytest.mark.parametrize(("vehicle", "flight"), CASES)
+def test_the_config_loads_and_flies_its_flight_within_the_rotor_limits(vehicle, flight):
+    cfg = config.parse(starter.config_text("mine", vehicle, flight), "mine.yaml")
+    data = cfg.model_dump(mode="json")
+    data["simulation"]["duration"] = 4.0
+    setup, design, loop, sim = run(data)
+    assert sim.status == "ok", sim.message
+    assert design.stable
+    fractions = motors.saturation_fraction(loop.actuators, sim.u)
+    assert max(fractions.values()) == 0.0, fractions  # the Bryson weights leave the offset room
+    assert np.abs(sim.x[-1, STATE_INDEX["pD"]] - loop.x_trim[STATE_INDEX["pD"]]) < 0.05
+
+
+@pytest.mark.parametrize("flight", starter.FLIGHTS)
+def test_the_partition_fits_the_flight(flight):
+    """Every subsystem, the unregulated one too, is controllable by its inputs at its trim (PBH); at
+    hover the report's guidance (u, psi into pN, pE) is not, which is why hover gets u, v."""
+    cfg = config.parse(starter.config_text("mine", "mambo", flight), "mine.yaml")
+    names = set(cfg.partition())
+    assert names == {"altitude", "roll", "pitch", "yaw", "guidance" if flight == "forward" else "position"}
+    from _solve import solve
+    setup, trim, linear, dec, _ = solve(cfg.model_dump(mode="json"))
+    for sub in dec.subsystems:
+        assert analysis.check(sub.A, sub.B, names=sub.states).controllable, sub.name
+    if flight == "hover":  # pN, pE from u and psi at hover: pE does not move (psi multiplies u = 0)
+        rows = [STATE_INDEX["pN"], STATE_INDEX["pE"]]
+        b = linear.A[np.ix_(rows, [STATE_INDEX["u"], STATE_INDEX["psi"]])]
+        assert np.linalg.matrix_rank(b) == 1
+
+
+def test_every_key_is_there_with_its_unit_and_every_number_with_its_source():
+    text = starter.config_text("mine", "iris", "hover")
+    for path in _keys(Config):
+        key = path.split(".")[-1]
+        assert re.search(rf"^[ #]*(- )?{key}:", text, re.M), f"{path} is missing"
+    # each line with a value carries a comment; the schema's unit is in it
+    for line in text.splitlines():
+        if re.match(r"^ *[a-z_]+: \S", line) and not line.startswith(("name:", "description:")):
+            assert "   # " in line or line.lstrip().startswith(("altitude", "roll", "pitch", "yaw", "position")), line
+    assert "mass: 1.5   # kg [PX4]" in text
+    assert "max_thrust: 7.0664   # N per rotor [PX4]" in text
+    for key in ("inertia", "drag", "arm_length", "thrust_coefficient", "torque_coefficient", "numbering"):
+        line = next(ln for ln in text.splitlines() if ln.lstrip().startswith(f"{key}:"))
+        assert "[PX4]" in line, line
+    assert "[PX4] PX4/PX4-SITL_gazebo-classic: models/iris/iris.sdf.jinja" in text
+    assert not [ln for ln in text.splitlines() if ln.rstrip().endswith("null")]  # every null says what it means
+
+
+def test_init_is_listed_and_writes_the_file_once(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert re.search(r"init\s+Start a config for your own vehicle", runner.invoke(app, ["--help"]).output)
+    res = runner.invoke(app, ["init", "f450", "--from", "iris"])
+    assert res.exit_code == 0, res.output
+    assert res.output.startswith("wrote f450.yaml: 3DR Iris")
+    assert config.load("f450.yaml").vehicle.mass == 1.5
+    res = runner.invoke(app, ["init", "f450"])
+    assert res.exit_code == 2
+    assert res.stderr == "quadctl: error: f450.yaml: already exists; pass --force to overwrite it, or choose another NAME\n"
+    assert runner.invoke(app, ["init", "f450", "--force", "--from", "mambo"]).exit_code == 0
+    assert config.load("f450.yaml").vehicle.mass == 0.068
+    res = runner.invoke(app, ["run", "-c", "f450.yaml", "-o", "out"])
+    assert res.exit_code == 0, res.output
+
+
+@pytest.mark.parametrize(("args", "match"), [
+    (("my/quad",), r"^NAME = 'my/quad': must start with a letter"),
+    (("q", "iriss", "hover"), r"^--from iriss: unknown vehicle; did you mean `iris`\?"),
+    (("q", "iris", "climb"), r"^--flight climb: unknown flight condition"),
+])
+def test_bad_init_arguments_are_named(args, match):
+    with pytest.raises(ConfigError, match=match):
+        starter.config_text(*args)
+
+
+def test_configs_show_says_what_each_empty_section_means():
+    shown = runner.invoke(app, ["configs", "--show", "hover"]).output
+    assert shown.startswith("# hover.yaml, validated, every default filled in. For a vehicle of your own start from\n"
+                            "# `quadctl init NAME")
+    assert re.search(r"^motors: null   # rotor layout and thrust limits; .*`quadctl init NAME` writes motors: with "
+                     r"units\)$", shown, re.M)
+    assert re.search(r"^  noise: null   # process and sensor noise; absent: none$", shown, re.M)
