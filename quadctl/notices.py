@@ -166,7 +166,7 @@ def _gyration(cfg: Config, label: str) -> list[Notice]:
     if now > band[1]:
         unit, factor = min(INERTIA_SLIPS, key=lambda s: fits(mass, max(inertia) * s[1]))
         key = "vehicle.inertia"
-        guess = (f"is it in {unit}? that is {show([j * factor for j in inertia])} kg m^2"
+        guess = (f"is it in {unit}? that is {show([float(f'{j * factor:.6g}') for j in inertia])} kg m^2"
                  if math.isfinite(fits(mass, max(inertia) * factor)) else
                  "check its units (kg m^2) and vehicle.mass (kg)")
     else:  # too small a radius for the arm or the mass: a mass in grams, or an arm in mm or cm
@@ -240,7 +240,8 @@ def require_plausible(cfg: Config, found: list[Notice], label: str = "<config>")
     keys = list(dict.fromkeys(n.key for n in found if n.level == "warning"))
     if not keys or "implausible" in cfg.allow:
         return
-    warnings = "the warnings above give" if len(keys) > 1 else "the warning above gives"
+    many = sum(n.level == "warning" for n in found) > 1
+    warnings = "the warnings above give" if many else "the warning above gives"
     raise ImplausibleConfig(
         f"{label}: {', '.join(keys)} implausible ({warnings} "
         "the likely slip and the fix); correct the value, or add `allow: [implausible]` to the config if the "

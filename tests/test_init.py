@@ -88,7 +88,8 @@ def test_init_is_listed_and_writes_the_file_once(tmp_path, monkeypatch):
     assert config.load("f450.yaml").vehicle.mass == 1.5
     res = runner.invoke(app, ["init", "f450"])
     assert res.exit_code == 2
-    assert res.stderr == "quadctl: error: f450.yaml: already exists; pass --force to overwrite it, or choose another NAME\n"
+    assert res.stderr == ("quadctl: error: f450.yaml: already exists; pass --force to overwrite it, or choose another "
+                          "NAME\n")
     assert runner.invoke(app, ["init", "f450", "--force", "--from", "mambo"]).exit_code == 0
     assert config.load("f450.yaml").vehicle.mass == 0.068
     res = runner.invoke(app, ["run", "-c", "f450.yaml", "-o", "out"])

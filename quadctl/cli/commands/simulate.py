@@ -48,7 +48,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         for path in figures:
             render.out.print(f"figure -> {path}")
     sat = flown.flight.get("saturation")
-    if sat and sat["saturates"]:
+    if sat and sat["saturates"] and not _fails_on_saturation(ws, flown, allow_saturation):  # else the error says it
         worst = max(sat["fraction"], key=sat["fraction"].get)
         render.err.print(f"quadctl: warning: the design saturates: {worst} is at a limit "
                          f"{sat['fraction'][worst] * 100:.3g} % of the run (flag above "
@@ -67,6 +67,16 @@ def _require_within_limits(ws, flown, allow_saturation: bool) -> None:
     sat = flown.flight.get("saturation")
     motors.require_within_limits(sat["fraction"] if sat else None,
                                  allowed=allow_saturation or "saturation" in ws.cfg.allow)
+
+
+def _fails_on_saturation(ws, flown, allow_saturation: bool) -> bool:
+    from quadctl.errors import SaturationFailed
+
+    try:
+        _require_within_limits(ws, flown, allow_saturation)
+    except SaturationFailed:
+        return True
+    return False
 
 
 def _print_flight(render, flown, *, before: bool) -> None:
