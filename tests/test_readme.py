@@ -49,6 +49,7 @@ NOT_RUN = {
 
 PROVIDED = {
     "my.yaml": ("forward", {"simulation": {"dt": 0.001}}),  # "quadctl simulate -c my.yaml  # with simulation.dt: 0.001"
+    "slip.yaml": ("crazyflie", {"motors": {"arm_length": 46.0}}),  # "quadctl trim -c slip.yaml  # crazyflie, ... mm"
 }
 """Files the README's prose describes and its commands use: made in the folder before they run."""
 
