@@ -391,8 +391,8 @@ def shown_yaml(cfg: Config, label: str) -> str:
     Examples
     --------
     >>> text = shown_yaml(load("hover"), "hover.yaml")
-    >>> [line[:60] for line in text.splitlines() if line.startswith("motors:")]
-    ['motors: null   # rotor layout and thrust limits; saturates th']
+    >>> [line[:48] for line in text.splitlines() if line.startswith("motors:")]
+    ['motors: null   # rotor layout and thrust limits;']
     """
     lines = [f"# {label}, validated, every default filled in. For a vehicle of your own start from",
              "# `quadctl init NAME --from crazyflie|mambo|iris`: every key with its unit, a named vehicle's values."]

@@ -231,8 +231,8 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hover") ->
     out = [f"# {name}: a quadctl config started from the {preset.title}, {flight} (quadctl init).",
            "# Replace the vehicle's numbers with your own; each line says its unit. Sources of the numbers given:"]
     out += [f"#   {s}" for s in preset.sources]
-    out += ["# Optional sections are commented out: uncomment one to use it. `quadctl configs --schema` gives the",
-            "# JSON Schema for editors; the README's \"Config reference\" explains every key.",
+    out += ["# Optional sections are commented out: uncomment one to use it. The README's \"Config reference\"",
+            "# explains every key, and how an editor checks them as you type.",
             f"name: {name}",
             f"description: {json.dumps(f'{preset.title}: {flight} at 1 m')}"]
     out += ["vehicle:   # " + _doc(Config, "vehicle")]
