@@ -12,7 +12,7 @@ from quadctl.config import bundled, parse
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
 from quadctl.model import Vehicle, build_model, evaluate
-from quadctl.setup import resolve
+from quadctl.problem import setup_of
 
 FD_STEP = 1e-6
 FD_RTOL = 1e-6
@@ -131,11 +131,11 @@ def _config(inertia: str):
 
 
 def test_config_takes_a_full_tensor_and_a_diagonal_matrix_equals_the_diagonal_list():
-    full = resolve(_config("[[6.9e-5, 0.9e-5, -1.2e-5], [0.9e-5, 7.75e-5, 0.6e-5], [-1.2e-5, 0.6e-5, 1.5e-4]]"))
+    full = setup_of(_config("[[6.9e-5, 0.9e-5, -1.2e-5], [0.9e-5, 7.75e-5, 0.6e-5], [-1.2e-5, 0.6e-5, 1.5e-4]]"))
     np.testing.assert_array_equal(full.vehicle.inertia_tensor(), TILTED_J)
     assert full.plant.products == full.vehicle.products
-    as_matrix = resolve(_config("[[6.9e-5, 0, 0], [0, 7.75e-5, 0], [0, 0, 1.5e-4]]"))
-    assert np.array_equal(as_matrix.vehicle.vector(), resolve(_config("[6.9e-5, 7.75e-5, 1.5e-4]")).vehicle.vector())
+    as_matrix = setup_of(_config("[[6.9e-5, 0, 0], [0, 7.75e-5, 0], [0, 0, 1.5e-4]]"))
+    assert np.array_equal(as_matrix.vehicle.vector(), setup_of(_config("[6.9e-5, 7.75e-5, 1.5e-4]")).vehicle.vector())
 
 
 @pytest.mark.parametrize(("inertia", "match"), [

@@ -2,7 +2,6 @@ import typer
 
 from quadctl.cli.commands.simulate import _require_within_limits
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.commands.simulate import _require_within_limits
 from quadctl.cli.options import (
     AllowSaturationOpt,
     ConfigOpt,
