@@ -157,3 +157,19 @@ def test_config_takes_a_full_tensor_and_a_diagonal_matrix_equals_the_diagonal_li
 def test_impossible_tensor_is_refused_naming_the_key_value_and_fix(inertia, match):
     with pytest.raises(ConfigError, match=match):
         _config(inertia)
+
+
+def test_a_full_tensor_reaches_the_linear_model_the_decoupling_and_the_design():
+    """hover with a roll-yaw product Jxz: B's torque block is J^-1 (an independent inverse), the
+    decoupling lists the roll-yaw terms it drops, and the design is still stable on the coupled model."""
+    from _solve import solve
+
+    tensor = "[[6.9e-5, 0, 1.2e-5], [0, 7.75e-5, 0], [1.2e-5, 0, 1.5e-4]]"
+    setup, trim, linear, dec, design = solve(_config(tensor).model_dump(mode="json"))
+    j = np.array([[6.9e-5, 0, 1.2e-5], [0, 7.75e-5, 0], [1.2e-5, 0, 1.5e-4]])
+    np.testing.assert_allclose(linear.B[9:12, 1:4], np.linalg.inv(j), rtol=1e-12)
+    dropped = {(d.row, d.column) for d in dec.dropped}
+    assert ("p", "R") in dropped and ("r", "A") in dropped, dropped
+    assert design.stable
+    _, _, diagonal, dec_diagonal, _ = solve(_config("[6.9e-5, 7.75e-5, 1.5e-4]").model_dump(mode="json"))
+    assert not any(d.column in ("A", "R") and d.row in ("p", "r") for d in dec_diagonal.dropped)
