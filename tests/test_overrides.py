@@ -69,7 +69,7 @@ def test_the_text_value_is_what_decides_the_design():
     (["simulation.durtion=30"], r"^--set: simulation\.durtion: unknown key; did you mean `duration`\?$"),
     (["simulation.duration=-1"], r"^--set: simulation\.duration = -1: must be greater than 0"),
     (["simulation.duration=thirty"], r"^--set: simulation\.duration = \"thirty\": must be a number"),
-    (["vehicle.inertia=[1, 2]"], r"^--set: vehicle\.inertia = \[1, 2\]: must be a list of exactly 3 items"),
+    (["vehicle.inertia=[1, 2]"], r"^--set: vehicle\.inertia = \[1, 2\]: must be \[Jxx, Jyy, Jzz\] or 3 rows"),
     (["controller.design=discret"], r"^--set: controller\.design = \"discret\": must be one of discrete, "
                                     r"continuous; did you mean `discrete`\?$"),
     (["simulation.duration"], r"^--set simulation\.duration: give KEY=VALUE, as `--set simulation\.duration=30`$"),

@@ -3,6 +3,8 @@ from typing import Annotated
 
 import typer
 
+from quadctl.cli.options import JsonOpt
+
 NAME = "init"
 
 
@@ -15,6 +17,7 @@ def command(
         "--flight", metavar="hover|forward", help="The flight condition: its trim and the partition that fits it.")]
         = "hover",
     force: Annotated[bool, typer.Option("--force", help="Overwrite NAME.yaml if it exists.")] = False,
+    json: JsonOpt = False,
 ) -> None:
     """Start a config for your own vehicle: NAME.yaml, every key with its unit, a named vehicle's values
     (with their sources) to replace with yours. Then: quadctl run -c NAME.yaml."""
@@ -27,6 +30,9 @@ def command(
     if path.exists() and not force:
         raise ConfigError(f"{path}: already exists; pass --force to overwrite it, or choose another NAME")
     _write_atomically(path, text)
+    if json:
+        render.emit_json({"file": str(path), "vehicle": vehicle, "flight": flight})
+        return
     render.out.print(f"wrote {path}: {starter.PRESETS[vehicle].title}, {flight}; replace its numbers with your "
                      f"vehicle's, then: quadctl run -c {path}", markup=False, soft_wrap=True)
 
