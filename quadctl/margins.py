@@ -51,10 +51,11 @@ An unstable closed loop has no margin: every margin is reported as zero (gain ma
 phase margin 0 deg, disk margin ``alpha = 0`` with its 0 dB / 0 deg disk) and no frequency, so
 no number suggests robustness the loop does not have (see :func:`no_margin`).
 
-Each loop is compared with that guarantee and every shortfall is explained: the couplings the
-decoupled design ignores, the sample-and-hold of a discrete controller, or saturation (which
-lowers the effective loop gain; the circle criterion keeps the loop stable while the effective
-gain stays above the lower disk gain margin).
+Each loop of a continuous design is compared with that guarantee and every shortfall is explained:
+the couplings the decoupled design ignores, the sample-and-hold of continuous gains run at a rate,
+or saturation (which lowers the effective loop gain; the circle criterion keeps the loop stable
+while the effective gain stays above the lower disk gain margin). A discrete design's loops are
+sampled: the guarantee is not theirs (sampling does not keep it), and they are not compared with it.
 """
 
 from __future__ import annotations
@@ -587,7 +588,12 @@ def lqg_notes(m: LoopMargins, full: LoopMargins | None, kal, delay_samples: int 
 
 def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=None,
             initial_demand=None) -> list[str]:
-    """Sentences comparing ``m`` with the LQR guarantee and naming the cause of any shortfall."""
+    """Sentences comparing ``m`` with the LQR guarantee and naming the cause of any shortfall.
+
+    A discrete design's loop is not compared: the guarantee is a property of continuous state
+    feedback that sampling does not keep (:mod:`quadctl.present.loops` says so once); its note is
+    the phase the hold takes at the crossover.
+    """
     notes = []
     lower, upper = m.gain_margin_db
     if not m.stable:
@@ -595,7 +601,12 @@ def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=N
                      + (" at this rate" if m.sample_time else "")
                      + (f" with {m.delay_samples} samples of delay" if m.delay_samples else ""))
         return notes
-    if m.meets_lqr_guarantee:
+    if m.sample_time and design.rate is not None:  # a discrete design: the guarantee is not the sampled loop's
+        wc = m.gain_crossover_freq
+        if wc:
+            notes.append(f"sampled loop: the hold's half-sample delay is {math.degrees(wc * m.sample_time / 2):.3g} "
+                         f"deg of phase at the {wc:.4g} rad/s crossover")
+    elif m.meets_lqr_guarantee:
         notes.append("meets the continuous LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg)")
     else:
         short = []
@@ -610,12 +621,8 @@ def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=N
             wc = m.gain_crossover_freq
             lag = f"; the hold's half-sample delay alone costs {math.degrees(wc * m.sample_time / 2):.3g} deg " \
                   f"at the {wc:.4g} rad/s crossover" if wc else ""
-            if design.rate is None and emulated_rate is not None:
-                notes.append(f"cause: continuous gains run at {emulated_rate:g} Hz (sample and hold); the "
-                             f"guarantee assumes instantaneous continuous feedback{lag}")
-            else:
-                notes.append("cause: discrete design: the LQR guarantee holds for continuous feedback only; a "
-                             f"sampled loop has no such bound{lag}")
+            notes.append(f"cause: continuous gains run at {emulated_rate:g} Hz (sample and hold); the "
+                         f"guarantee assumes instantaneous continuous feedback{lag}")
         elif m.model == "coupled":
             notes.append("cause: couplings the decoupled design ignores (the guarantee holds on the "
                          "subsystem it was designed on)")

@@ -118,11 +118,18 @@ def finite_number(value: Any) -> bool:
         return False
 
 
-def eig_text(e: complex) -> str:
-    """An eigenvalue as messages and tables print it: ``-2.5`` or ``-1 + 3.2j`` (5 digits, no ``-0``)."""
+def eig_text(e: complex, digits: int = 5) -> str:
+    """An eigenvalue as every message and table prints it: ``-2.5`` or ``-1 + 3.2j`` (``digits``
+    significant digits, no ``-0``; an imaginary part below 1e-9 is left out).
+
+    >>> eig_text(-2.5 + 0j), eig_text(-1 - 3.21234j), eig_text(-14492.84, digits=6)
+    ('-2.5', '-1 - 3.2123j', '-14492.8')
+    """
     e = complex(e)
     e = complex(e.real + 0.0, e.imag + 0.0)  # no "-0"
-    return f"{e.real:.5g}" if abs(e.imag) < 1e-9 else f"{e.real:.5g} {'+' if e.imag >= 0 else '-'} {abs(e.imag):.5g}j"
+    if abs(e.imag) < 1e-9:
+        return f"{e.real:.{digits}g}"
+    return f"{e.real:.{digits}g} {'+' if e.imag >= 0 else '-'} {abs(e.imag):.{digits}g}j"
 
 
 def one_line(text: str) -> str:

@@ -254,3 +254,50 @@ def least_damping(eigenvalues, sample_time: float | None = None) -> float:
         e = np.log(e) / sample_time
     e = e[np.abs(e) > 0]
     return float((-e.real / np.abs(e)).min()) if e.size else float("inf")
+
+
+@dataclass(frozen=True)
+class Damp:
+    """Natural frequency, damping and time constant of each mode (MATLAB ``damp``), slowest first.
+
+    Attributes
+    ----------
+    s : (n,) complex ndarray
+        The poles as ``s`` (rad/s); a discrete loop's ``ln(z) / Ts`` (``-inf`` for ``z = 0``).
+    z : (n,) complex ndarray or None
+        A discrete loop's poles.
+    wn : (n,) ndarray
+        Natural frequency ``|s|``, rad/s.
+    zeta : (n,) ndarray
+        Damping ratio ``-Re(s) / |s|`` (NaN for a pole at ``s = 0``; 1 for ``z = 0``).
+    tau : (n,) ndarray
+        Time constant ``-1 / Re(s)``, s (negative for an unstable mode, ``inf`` on the imaginary
+        axis, 0 for ``z = 0``).
+    """
+
+    s: np.ndarray
+    z: np.ndarray | None
+    wn: np.ndarray
+    zeta: np.ndarray
+    tau: np.ndarray
+
+
+def damp(eigenvalues, sample_time: float | None = None) -> Damp:
+    """:class:`Damp` of a loop's poles: ``s`` (rad/s), or with ``sample_time`` its ``z``, read as
+    ``s = ln(z) / Ts`` as MATLAB's ``damp`` reads a discrete system; sorted by ``wn``, then ``Im(s)``.
+
+    >>> d = damp([-3 + 4j, -3 - 4j])
+    >>> d.wn.tolist(), d.zeta.tolist(), d.tau.tolist()
+    ([5.0, 5.0], [0.6, 0.6], [0.3333333333333333, 0.3333333333333333])
+    """
+    e = np.asarray(eigenvalues, dtype=complex).ravel()
+    s = _as_s(e, sample_time)
+    deadbeat = np.isinf(s.real)  # z = 0: ln(0) = -inf (its imaginary part NaN)
+    s = np.where(deadbeat, complex(-np.inf, 0.0), s)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wn = np.abs(s)
+        zeta = np.where(deadbeat, 1.0, -s.real / wn)
+        tau = np.where(deadbeat, 0.0, np.where(s.real == 0, np.inf, -1.0 / s.real))
+    order = np.lexsort((s.imag, wn))
+    return Damp(s=s[order], z=None if sample_time is None else e[order], wn=wn[order], zeta=zeta[order],
+                tau=tau[order])

@@ -1,17 +1,19 @@
-"""Rich renderings of stage results for the terminal (stdout), and the notice line (stderr)."""
+"""The terminal: presented tables and sentences (:mod:`quadctl.present`) in rich, and the notice line (stderr).
+
+Styling only: every number and word comes from :mod:`quadctl.present`, as in the report.
+"""
 
 from __future__ import annotations
 
 import json
-import math
 
-import numpy as np
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
-from quadctl import stability
-from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
-from quadctl.messages import eig_text, one_line
+from quadctl import present
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.messages import one_line
 
 WIDE = 10_000
 """Columns of stdout when it is not a terminal and ``COLUMNS`` is unset (a pipe, a CI log, a file):
@@ -94,21 +96,34 @@ def emit_json(payload) -> None:
         reader_left()
 
 
-def num(value: float, digits: int = 4) -> str:
-    if value is None:
-        return "-"
-    if isinstance(value, complex) or isinstance(value, np.complexfloating):
-        return eig(value)
-    if not math.isfinite(value):
-        return str(value)
-    return f"{value:.{digits}g}"
+num = present.num
+eig = present.eig
+STYLE = {"ok": "green", "warning": "yellow", "fail": "red"}
+"""How a verdict (:class:`quadctl.present.Mark`) is coloured on the terminal."""
 
 
-eig = eig_text
+def cell(text: str) -> Text:
+    """A presented cell or sentence as rich text: never parsed as markup, a verdict coloured."""
+    return Text(str(text), style=STYLE.get(getattr(text, "kind", ""), ""))
 
 
-def yes(flag: bool) -> str:
-    return "[green]yes[/green]" if flag else "[red]no[/red]"
+def table(t: present.Table) -> Table:
+    """A presented table on the terminal: the same title, headers, cells and caption as the report."""
+    out_table = Table(title=Text(t.title), title_justify="left", caption=Text(t.caption) if t.caption else None,
+                      caption_justify="left")
+    for name, align in zip(t.columns, t.alignment()):
+        out_table.add_column(Text(name), justify="right" if align == "r" else "left")
+    for row in t.rows:
+        out_table.add_row(*(cell(c) for c in row))
+    return out_table
+
+
+def show(*blocks) -> None:
+    """Print presented blocks in order: tables, sentences (a verdict coloured); None is skipped."""
+    for block in blocks:
+        if block is None:
+            continue
+        out.print(table(block) if isinstance(block, present.Table) else cell(block))
 
 
 def matrix(title: str, mat, rows, cols) -> Table:
@@ -121,102 +136,6 @@ def matrix(title: str, mat, rows, cols) -> Table:
     return table
 
 
-def trim_table(trim) -> Table:
-    table = Table(title="Trim", title_justify="left")
-    for col in ("quantity", "value", "unit"):
-        table.add_column(col, justify="right" if col == "value" else "left")
-    for i, name in enumerate(STATE_NAMES):
-        table.add_row(name, f"{trim.x[i]:.6g}", unit_of(name))
-    for j, name in enumerate(INPUT_NAMES):
-        table.add_row(f"[bold]{name}[/bold]", f"{trim.u[j]:.6g}", unit_of(name))
-    return table
-
-
 def linear_tables(linear) -> list[Table]:
     return [matrix("A = df/dx at the trim (· is an exact zero)", linear.A, STATE_NAMES, STATE_NAMES),
             matrix("B = df/du at the trim", linear.B, STATE_NAMES, INPUT_NAMES)]
-
-
-def subsystems_table(dec) -> Table:
-    table = Table(title="Subsystems (diagonal blocks of A, matching columns of B)", title_justify="left")
-    for col in ("subsystem", "states", "inputs", "regulated", "open-loop eigenvalues"):
-        table.add_column(col)
-    for s in dec.subsystems:
-        eigs = ", ".join(eig(e) for e in np.linalg.eigvals(s.A))
-        src = "" if s.regulated else " (from A)"
-        table.add_row(s.name, " ".join(s.states), " ".join(s.inputs) + src, yes(s.regulated), eigs)
-    return table
-
-
-def dropped_table(dec, top: int = 8) -> Table:
-    table = Table(title=f"Largest coupling terms the partition drops (top {top} of A and of B; "
-                        f"{len(dec.dropped)} in all)", title_justify="left")
-    for col in ("term", "matrix", "value", "unit", "|value| / max|matrix|"):
-        table.add_column(col, justify="right" if col in ("value", "|value| / max|matrix|") else "left")
-    for kind in ("A", "B"):
-        for d in [d for d in dec.dropped if d.matrix == kind][:top]:
-            table.add_row(d.name, d.matrix, f"{d.value:.4g}", d.unit, f"{d.relative:.2e}")
-    return table
-
-
-def checks_table(checks: dict, regulated: set[str]) -> Table:
-    table = Table(title="Controllability and observability", title_justify="left", caption=(
-        "ctrb/obsv: Kalman matrix rank by SVD, counting singular values > tol = max(shape) * eps * "
-        f"sigma_max (eps = {np.finfo(float).eps:.3g}); verdicts by PBH at each eigenvalue; "
-        "stable means Re < 0; * analysed only"), caption_justify="left")
-    for col, right in (("system", False), ("ctrb", True), ("obsv", True), ("tol", True),
-                       ("controllable", False), ("observable", False), ("stabilizable", False),
-                       ("detectable", False)):
-        table.add_column(col, justify="right" if right else "left")
-    for name, c in checks.items():
-        label = name if name == "full" or name in regulated else f"{name}*"
-        table.add_row(label, f"{c.ctrb.rank}/{c.n}", f"{c.obsv.rank}/{c.n}", f"{c.ctrb.tolerance:.0e}",
-                      yes(c.controllable), yes(c.observable), yes(c.stabilizable), yes(c.detectable))
-    return table
-
-
-def design_tables(des) -> list:
-    table = Table(title="LQR per subsystem (u = -K x, K = R^-1 B' P)", title_justify="left")
-    lagged = des.lag_time_constant is not None
-    for col in ("subsystem", "states", "input", "K", *(["Kv (lag)"] if lagged else []), "closed-loop eigenvalues",
-                "Riccati residual"):
-        table.add_column(col)
-    for s in des.subsystems:
-        kv = ["[" + ", ".join(f"{k:.4g}" for k in s.Kv.ravel()) + "]"] if lagged else []
-        table.add_row(s.name, " ".join(s.states), " ".join(s.inputs),
-                      "[" + ", ".join(f"{k:.4g}" for k in s.K.ravel()) + "]", *kv,
-                      ", ".join(eig(e) for e in s.eigenvalues), f"{s.residual:.1e}")
-    title = ("Coupled closed loop with the rotors' lag, [x; v]: A - B [K_block, Kv_block]" if lagged else
-             "Coupled 12-state closed loop A - B K_block")
-    full = Table(title=title, title_justify="left")
-    full.add_column("eigenvalue (rad/s)", justify="right")
-    full.add_column("verdict")
-    for e in sorted(des.full_eigenvalues, key=lambda z: (z.real, z.imag)):
-        zero = abs(e) < 1e-9
-        verdict = ("marginal: unregulated position" if zero and des.marginal_states else
-                   ("stable" if stability.is_stable(e) else "[red]unstable[/red]"))
-        full.add_row(eig(e), verdict)
-    return [table, matrix("K_block, transposed: a row per state, a column per input (· is zero)",
-                          des.K_block.T, STATE_NAMES, INPUT_NAMES), full]
-
-
-def metrics_table(metrics: dict) -> Table:
-    table = Table(title="Closed-loop response (error from the reference)", title_justify="left",
-                  caption="settling: within 2 % of the state's largest error; '-' never settled or n/a",
-                  caption_justify="left")
-    for col in ("state", "unit", "settling (s)", "overshoot (%)", "peak |error|", "final error"):
-        table.add_column(col, justify="left" if col in ("state", "unit") else "right")
-    for name in STATE_NAMES:
-        table.add_row(name, unit_of(name), num(metrics["settling_time"].get(name)),
-                      num(metrics["overshoot"].get(name), 3), num(metrics["peak_error"][name]),
-                      num(metrics["final_error"][name]))
-    return table
-
-
-def peaks_table(metrics: dict, u_trim) -> Table:
-    table = Table(title="Inputs", title_justify="left")
-    for col in ("input", "unit", "trim", "peak magnitude"):
-        table.add_column(col, justify="left" if col in ("input", "unit") else "right")
-    for j, name in enumerate(INPUT_NAMES):
-        table.add_row(name, unit_of(name), num(u_trim[j]), num(metrics["peak"][name]))
-    return table

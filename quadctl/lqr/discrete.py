@@ -32,6 +32,7 @@ from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the disc
 from quadctl.errors import DesignError
 from quadctl.lqr.riccati import LqrResult, as_stack, require_valid_weights, solve
 from quadctl.lqr.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
+from quadctl.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -362,7 +363,7 @@ class RateWarning:
     def message(self, rate: float) -> str:
         verdict = ("stays stable but its response differs from the design"
                    if self.sampled_stable else "is UNSTABLE")
-        return (f"{self.loop}: closed-loop pole {_fmt(self.pole)} rad/s is {self.factor:.3g}x faster than "
+        return (f"{self.loop}: closed-loop pole {eig_text(self.pole)} rad/s is {self.factor:.3g}x faster than "
                 f"{rate:g} Hz realizes (|s| <= 2 pi rate / {SAMPLES_PER_POLE:g} = {self.limit:.4g} rad/s); "
                 f"sampled at {rate:g} Hz this loop {verdict} (spectral radius {self.sampled_radius:.3g}); "
                 "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
@@ -417,10 +418,6 @@ def rate_warnings(loops, rate: float) -> list[RateWarning]:
             out.append(RateWarning(loop=name, pole=pole, limit=limit, factor=abs(pole) / limit,
                                    sampled_radius=radius))
     return sorted(out, key=lambda w: (w.loop == "coupled", -w.factor))
-
-
-def _fmt(e: complex) -> str:
-    return f"{e.real:.5g}" if abs(e.imag) < 1e-9 else f"{e.real:.5g}{e.imag:+.5g}j"
 
 
 def _as2d(m) -> np.ndarray:

@@ -168,11 +168,9 @@ def _detail(ws, stage: str) -> str:
         return (f"stable on the coupled model; slowest pole "
                 f"{max(e.real for e in ws.design.core_eigenvalues):.3g} rad/s")
     if stage == "margins":
-        loops = ws.margins
-        met = sum(m.meets_lqr_guarantee for m in loops)
-        unstable = [f"{m.loop} ({m.model})" for m in loops if not m.stable]
-        return (f"{met} of {len(loops)} loops meet the continuous LQR guarantee"
-                + (f"; unstable: {', '.join(unstable)}" if unstable else ""))
+        from quadctl.present import loops
+
+        return loops.summary(ws.margins, discrete=ws.design.rate is not None)
     sim = ws.simulation.sim
     return f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.backend}: {sim.status}"
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from string import Template
 
+from quadctl.present.cells import Table as Table  # the presented table: rows the terminal shows too
+
 
 @dataclass(frozen=True)
 class Text:
@@ -36,25 +38,6 @@ class Code:
 
     caption: str
     text: str
-
-
-@dataclass(frozen=True)
-class Table:
-    """A table of text cells under a title.
-
-    ``align``: a letter per column, ``l`` left, ``r`` right (numbers), ``w`` left and wrapping
-    (long text); default the first left, the rest right. ``id`` names the table in the HTML.
-    """
-
-    id: str
-    title: str
-    columns: tuple[str, ...]
-    rows: tuple[tuple[str, ...], ...]
-    caption: str = ""
-    align: str = ""
-
-    def alignment(self) -> str:
-        return self.align or "l" + "r" * (len(self.columns) - 1)
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.errors import QuadctlNotice, StepSizeError
+from quadctl.messages import eig_text
 from quadctl.stability import is_stable
 
 ACCURACY_STEP = 0.5
@@ -155,7 +156,7 @@ def plan_step(eigenvalues, owners, duration: float, dt="auto", *, limits=None) -
         k = int(np.argmin(np.where(stable_modes, limits, np.inf)))
         raise StepSizeError(
             f"simulation.dt = {dt:g} s is unstable for RK4: the closed-loop eigenvalue "
-            f"{_fmt_eig(eig[k])} rad/s (subsystem {owners[k]}) needs dt <= {h_max:.3g} s; "
+            f"{eig_text(eig[k], 6)} rad/s (subsystem {owners[k]}) needs dt <= {h_max:.3g} s; "
             f"use dt: auto or a step of at most {_round_down(h_max):g} s")
     return StepPlan(dt, step_count(duration, dt, fastest, owner), h_max, fastest, owner, False)
 
@@ -219,12 +220,12 @@ def step_count(duration: float, step: float, fastest: complex, owner: str) -> in
         raise StepSizeError(
             f"simulation.duration = {duration:g} s at an RK4 step of {step:.3g} s is {count:.3g} steps, more "
             f"than the {MAX_STEPS:.0e} quadctl runs (the step follows the fastest eigenvalue, "
-            f"{_fmt_eig(fastest)} rad/s in {owner}); shorten simulation.duration, or check the units of "
+            f"{eig_text(fastest, 6)} rad/s in {owner}); shorten simulation.duration, or check the units of "
             "vehicle.inertia and the weights (a slip by 1e6 makes the loop that much faster)")
     n = max(1, math.ceil(count - 1e-9))
     if n > ANNOUNCE_STEPS:
         warnings.warn(QuadctlNotice(
-            f"simulating {n:.3g} RK4 steps of {step:.3g} s (fastest eigenvalue {_fmt_eig(fastest)} rad/s in "
+            f"simulating {n:.3g} RK4 steps of {step:.3g} s (fastest eigenvalue {eig_text(fastest, 6)} rad/s in "
             f"{owner}): about {n / 4e6 / 60:.0f} min compiled; Ctrl-C stops it and keeps nothing"), stacklevel=3)
     return n
 
@@ -233,10 +234,6 @@ def record_stride(n_steps: int, max_samples: int) -> int:
     """The smallest stride whose records (steps ``0, stride, 2 stride, ...`` and the last, see
     :func:`quadctl.sim.cases.record_rows`) number at most ``max_samples`` (>= 2) for ``n_steps``."""
     return (n_steps - 1) // (max_samples - 1) + 1 if n_steps > 1 else 1
-
-
-def _fmt_eig(e: complex) -> str:
-    return f"{e.real:.6g}" if abs(e.imag) < 1e-9 else f"{e.real:.6g}{e.imag:+.6g}j"
 
 
 def _round_down(h: float) -> float:

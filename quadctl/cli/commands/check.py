@@ -49,7 +49,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
                 w.message(rate) for hz, found in rated if hz == rate for w in found]}}
         render.emit_json(payload)
     else:
-        render.out.print(render.checks_table(checks.checks, regulated))
+        from quadctl.present import stages
+
+        render.show(stages.checks_table(checks.checks, regulated))
         if checks.vehicle_loop is not None:
             render.out.print(checks.vehicle_loop.summary(), markup=False)
         render.out.print(f"-> {ws.path('checks.json')}")

@@ -12,6 +12,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     dec = ws.decoupled
     if json:
         return render.emit_json(ws.payloads["subsystems.json"])
-    render.out.print(render.subsystems_table(dec))
-    render.out.print(render.dropped_table(dec))
+    from quadctl.present import stages
+
+    render.show(stages.subsystems_table(dec), stages.dropped_table(dec))
     render.out.print(f"-> {ws.path('subsystems.json')}")

@@ -29,21 +29,15 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         payload = ws.payloads["design.json"]
         render.emit_json({**payload, "full": ws.payloads["design_full.json"]} if full else payload)
     else:
-        if des.rate:
-            render.out.print(f"discrete design at {des.rate:g} Hz (lqrd: ZOH plant, cost integrated over "
-                             f"{1e3 / des.rate:.4g} ms); eigenvalues shown as ln(z)/Ts in rad/s")
-        tau = ws.setup.rotor_time_constant
-        if tau is not None and des.lag_time_constant is None:
-            render.out.print(f"rotor lag {tau * 1e3:.4g} ms: ignored by the design (controller.rotor_lag: "
-                             f"{ws.setup.rotor_lag}); simulated in the plant")
-        elif tau is not None:
-            render.out.print(f"rotor lag {tau * 1e3:.4g} ms: included in the design (controller.rotor_lag: include; "
-                             "each subsystem's inputs lag, Kv feeds back the controller's lag model)")
-        for table in render.design_tables(des):
-            render.out.print(table)
-        est = ws.payloads["design.json"].get("estimator")
-        if est:
-            render.out.print(_estimator_line(est, render))
+        from quadctl import pipeline
+        from quadctl.present import design as shown
+
+        lag_or_delay = ws.setup.rotor_time_constant is not None or ws.setup.timing.delay_samples
+        render.show(shown.discrete_sentence(des), shown.plant_and_timing(ws.setup) if lag_or_delay else None,
+                    shown.gains_table(des), shown.gain_matrix_table(des), shown.damp_table(des))
+        kal = pipeline.estimator_of(ws.setup, ws.linear)
+        if kal is not None:
+            render.show(*shown.estimator_blocks(ws.setup, kal))
         render.out.print(f"-> {ws.path('design.json')}")
         if comparison is not None:
             from quadctl.cli import render_loop
@@ -56,18 +50,6 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
                          "gain is UNSTABLE on the coupled 12-state model (the dropped couplings matter)")
         raise typer.Exit(EXIT_CHECK_FAILED)
     if not json:
-        marg = f" (marginal by design: {', '.join(des.marginal_states)})" if des.marginal_states else ""
-        render.out.print(f"[green]stable[/green] on the coupled 12-state linear model{marg}")
+        from quadctl.present import design as shown
 
-
-def _estimator_line(est: dict, render) -> str:
-    """One line on the Kalman filter design.json holds: its form, what it measures, its slowest pole."""
-    eig = [complex(re, im) for re, im in est["eigenvalues"]]
-    if est["form"] == "filter":
-        slowest = max(eig, key=abs)
-        how = (f"discrete filter at {1 / est['sample_time']:g} Hz, gain M (measurement update; predictor "
-               f"L = Ad M), slowest pole |z| = {abs(slowest):.4g}")
-    else:
-        slowest = max(eig, key=lambda e: e.real)
-        how = f"Kalman-Bucy filter, gain L, slowest pole {render.eig(slowest)} rad/s"
-    return f"estimator (LQG) on {' '.join(est['measured'])}: {how}"
+        render.show(shown.stability_sentence(des))

@@ -18,11 +18,12 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
             ) -> None:
     """Gain, phase and disk margins of every regulated loop, broken at its plant input; write margins.json.
 
-    Compares each loop with the continuous LQR guarantee (gain margin -6 dB to infinity, phase
-    margin 60 deg) and explains shortfalls (coupling, sampling, saturation). With a controller
-    rate the loops are the sampled ones the flight computer closes. Exits 1 when a loop is unstable.
+    A continuous design's loops are compared with the continuous LQR guarantee (gain margin -6 dB
+    to infinity, phase margin 60 deg), shortfalls explained (coupling, sampling, saturation). A
+    discrete design's loops are the sampled ones the flight computer closes: sampling does not keep
+    that guarantee, so their own margins are shown without it. Exits 1 when a loop is unstable.
     """
-    from quadctl.cli import render, render_loop
+    from quadctl.cli import render
 
     ws = open_workspace(config, out, fresh, sets)
     margins = [m for m in ws.margins if coupled or m.model == "design"]
@@ -30,11 +31,14 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     if json:
         render.emit_json(ws.payloads["margins.json"])
     else:
-        for table in render_loop.margins_table(margins, ws.setup.timing.rate):
-            render.out.print(table)
-        for line in render_loop.margin_notes(margins):
+        from quadctl.present import loops
+
+        discrete = ws.design.rate is not None
+        render.show(loops.classical_table(margins, ws.setup.timing.rate), loops.disk_table(margins, discrete),
+                    loops.guarantee_sentence(margins, discrete))
+        for line in loops.notes(margins):
             render.out.print(f"  {line}", markup=False)
-        render.out.print(render_loop.closed_loop_line(ws.payloads["margins.json"]), markup=False)
+        render.show(loops.closed_loop_sentence(ws.payloads["margins.json"]))
         render.out.print(f"-> {ws.path('margins.json')}")
         for path in paths:
             render.out.print(f"figure -> {path}")

@@ -12,6 +12,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     trim = ws.trim
     if json:
         return render.emit_json(ws.payloads["trim.json"])
-    render.out.print(render.trim_table(trim))
+    from quadctl.present import stages
+
+    render.show(*stages.trim_tables(trim))
     render.out.print(f"equilibrium residual max|dx/dt| = {trim.residual:.2e} (non-position states), "
                      f"{trim.iterations} Newton iterations -> {ws.path('trim.json')}")

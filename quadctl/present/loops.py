@@ -1,0 +1,147 @@
+"""Margins as rows and sentences: classical, disk and delay margins of every loop, and how they
+stand against the continuous LQR guarantee.
+
+The guarantee (gain margin [1/2, inf), i.e. -6.02 dB to +inf, phase margin >= 60 deg) is a property
+of continuous state feedback. A continuous design's loops are checked against it, loop by loop. A
+discrete design's loops are sampled: sampling does not keep the guarantee, so they are not held to
+it; that is said once (:func:`guarantee_sentence`), and the margins the sampled loops do have are
+shown instead of a verdict against it.
+"""
+
+from __future__ import annotations
+
+import re
+
+from quadctl.present.cells import Mark, Table, db, gain_range_db, num
+
+GUARANTEE = "gain margin [1/2, inf), i.e. -6.02 dB to +inf, phase margin >= 60 deg"
+"""The continuous LQR guarantee, in words (:data:`quadctl.margins.LQR_GAIN_MARGIN_DB`, ``LQR_PHASE_MARGIN_DEG``)."""
+
+
+def domain(rate) -> str:
+    """How the loops are evaluated: ``sampled at 200 Hz (L(z), hold included)`` or ``continuous (L(s))``."""
+    return f"sampled at {rate:g} Hz (L(z), hold included)" if rate else "continuous (L(s))"
+
+
+def _label(m) -> str:
+    return f"{m.loop} ({m.input})"
+
+
+def classical_table(margins, rate=None) -> Table:
+    rows = []
+    for m in margins:
+        lo, hi = m.gain_margin_db
+        at = " / ".join(num(w, 3) for w in m.phase_crossover_freqs if w is not None) or "-"
+        rows.append((_label(m), m.model, f"{db(lo)} / {db(hi)}", at, num(m.phase_margin_deg, 3),
+                     num(m.gain_crossover_freq, 3)))
+    return Table("margins-table", f"Stability margins, each loop broken at its plant input; {domain(rate)}",
+                 ("loop", "model", "GM dB", "at rad/s", "PM deg", "at rad/s "), tuple(rows),
+                 caption="GM: lower / upper gain margin in dB (inf: no critical gain on that side), at the phase "
+                         "crossovers; PM at the gain crossover; an unstable loop has no margin (0)", align="llrrrr")
+
+
+def guarantee_verdict(m) -> Mark:
+    """A continuous design's loop against the guarantee: met, short, or unstable."""
+    if m.meets_lqr_guarantee:
+        return Mark("met", "ok")
+    return Mark("unstable", "fail") if not m.stable else Mark("short", "warning")
+
+
+def disk_table(margins, discrete: bool) -> Table:
+    """Disk margins; a continuous design's loops also against the guarantee, a discrete design's
+    with the closed loop's verdict only (the guarantee is not theirs)."""
+    rows = []
+    for m in margins:
+        d_lo, d_hi = m.disk_gain_db
+        verdict = (Mark("stable", "ok") if m.stable else Mark("unstable", "fail")) if discrete else guarantee_verdict(m)
+        rows.append((_label(m), m.model, num(m.disk_alpha, 3), gain_range_db(d_lo, d_hi), num(m.disk_phase_deg, 3),
+                     num(m.min_return_difference, 3), verdict))
+    if discrete:
+        return Table("disk-table", "Disk margins of the sampled loops",
+                     ("loop", "model", "alpha", "disk GM dB", "disk PM deg", "min|1+L|", "closed loop"), tuple(rows),
+                     caption="alpha: balanced disk margin; the loop tolerates gain and phase changes together "
+                             "within disk GM and disk PM", align="llrrrrl")
+    return Table("disk-table", "Disk margins and the continuous LQR guarantee",
+                 ("loop", "model", "alpha", "disk GM dB", "disk PM deg", "min|1+L|", "guarantee"), tuple(rows),
+                 caption="continuous LQR guarantees GM <= -6.02 / inf dB, PM >= 60 deg, |1+L| >= 1",
+                 align="llrrrrl")
+
+
+def delay_table(margins) -> Table:
+    return Table(
+        "delay-margin-table", "Delay margins: the extra delay each loop tolerates (PM / crossover frequency)",
+        ("loop", "model", "configured delay (samples)", "delay margin ms", "samples"),
+        tuple((_label(m), m.model, str(m.delay_samples),
+               num(None if m.delay_margin is None else m.delay_margin * 1e3, 3), num(m.delay_margin_samples, 3))
+              for m in margins),
+        caption="Beyond the configured delay (controller.delay), already in every loop; '-': |L| never crosses 1.",
+        align="llrrr")
+
+
+def least_margins(margins) -> str | None:
+    """The smallest phase margin and the smallest disk margin of the stable loops, with their loops."""
+    stable = [m for m in margins if m.stable]
+    if not stable:
+        return None
+    pm = min(stable, key=lambda m: m.phase_margin_deg)
+    disk = min(stable, key=lambda m: m.disk_alpha)
+    return (f"least phase margin {num(pm.phase_margin_deg, 3)} deg ({pm.loop}, {pm.model}), least disk margin "
+            f"{gain_range_db(*disk.disk_gain_db)} dB, {num(disk.disk_phase_deg, 3)} deg ({disk.loop}, {disk.model})")
+
+
+def guarantee_sentence(margins, discrete: bool) -> str:
+    """What the margins are compared with, said once: the guarantee, or why a sampled design is not held to it."""
+    if discrete:
+        least = least_margins(margins)
+        return (f"The continuous LQR guarantee ({GUARANTEE}) is a property of continuous state feedback that "
+                "sampling does not keep, so a discrete design's loops are not held to it; the margins shown are "
+                "those the sampled loops have" + (f": {least}." if least else "."))
+    met = sum(m.meets_lqr_guarantee for m in margins)
+    return f"{met} of {len(margins)} loops meet the continuous LQR guarantee ({GUARANTEE})."
+
+
+def summary(margins, discrete: bool) -> str:
+    """One line for a report's summary: the loops' verdict, without repeating the reasons."""
+    unstable = [f"{m.loop} ({m.model})" for m in margins if not m.stable]
+    if discrete:
+        least = least_margins(margins)
+        text = f"{len(margins) - len(unstable)} of {len(margins)} sampled loops stable" + (
+            f"; {least}" if least else "")
+    else:
+        met = sum(m.meets_lqr_guarantee for m in margins)
+        text = f"{met} of {len(margins)} loops meet the continuous LQR guarantee"
+    return text + (f"; unstable: {', '.join(unstable)}" if unstable else "")
+
+
+def unstable_sentence(margins) -> Mark | None:
+    unstable = [f"{m.loop} ({m.model})" for m in margins if not m.stable]
+    return Mark(f"Unstable loop(s): {', '.join(unstable)}.", "fail") if unstable else None
+
+
+def notes(margins) -> tuple[str, ...]:
+    """Each loop's notes; a coupled loop's only where they differ from its design loop's (numbers aside)."""
+    def shape(lines):
+        return tuple(re.sub(r"[-+]?\d[\d.e+-]*", "#", n) for n in lines)
+
+    design = {(m.loop, m.input): shape(m.notes) for m in margins if m.model == "design"}
+    lines = [f"{m.loop} ({m.model}, {m.input}): {note}" for m in margins
+             if not (m.model == "coupled" and design.get((m.loop, m.input)) == shape(m.notes)) for note in m.notes]
+    if lines and any(m.model == "coupled" for m in margins):
+        lines.append("coupled loops not listed read as their design loops (the same verdict and causes)")
+    return tuple(lines)
+
+
+def closed_loop_sentence(payload: dict) -> Mark:
+    """margins.json's ``closed_loop``: the loop the vehicle has (lag, lag model, delay), stable or not."""
+    cl = payload["closed_loop"]
+    parts = []
+    if payload.get("rotor_time_constant"):
+        lag = payload.get("rotor_lag", "ignore")
+        parts.append(f"a {payload['rotor_time_constant'] * 1e3:.4g} ms rotor lag ({lag}d by the design)")
+    if payload.get("delay_samples"):
+        parts.append(f"{payload['delay_samples']} samples of delay")
+    what = "closed loop" + (" with " + " and ".join(parts) if parts else "")
+    size = (f"spectral radius {cl['spectral_radius']:.6g}" if cl["domain"] == "z" else
+            f"slowest pole {cl['slowest_real_part']:.4g} rad/s")
+    verdict = "stable" if cl["stable"] else "UNSTABLE"
+    return Mark(f"{what}: {verdict} ({len(cl['eigenvalues'])} eigenvalues, {size})", "ok" if cl["stable"] else "fail")

@@ -1,0 +1,77 @@
+"""The first stages as rows: the trim, the decoupling, controllability and observability."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
+from quadctl.present.cells import Mark, Table, eig, eigs, num, vector, yes
+
+TOP_DROPPED = 8
+"""Dropped coupling terms listed, per matrix (A, B), largest first."""
+
+
+def trim_tables(trim) -> tuple[Table, Table]:
+    """The state (value, unit, residual dx/dt) and the input at the trim; values with 6 digits."""
+    states = tuple((n, f"{trim.x[i]:.6g}", unit_of(n), num(trim.xdot[i], 3)) for i, n in enumerate(STATE_NAMES))
+    inputs = tuple((n, f"{trim.u[j]:.6g}", unit_of(n)) for j, n in enumerate(INPUT_NAMES))
+    return (Table("trim-state-table", "State at the trim", ("state", "value", "unit", "dx/dt"), states,
+                  caption="dx/dt: the residual; the positions move at the flight velocity.", align="lrlr"),
+            Table("trim-input-table", "Input at the trim", ("input", "value", "unit"), inputs, align="lrl"))
+
+
+def trim_sentence(trim, velocity_ned) -> str:
+    """The equilibrium in one sentence: velocity, thrust, pitch, residual, iterations."""
+    return (f"Equilibrium at velocity_ned {vector(velocity_ned)} m/s: thrust T = {trim.u[0]:.6g} N, pitch theta = "
+            f"{trim.x[7]:.6g} rad. Residual max|dx/dt| = {trim.residual:.2e} (non-position states) after "
+            f"{trim.iterations} Newton iterations.")
+
+
+def subsystems_table(dec) -> Table:
+    rows = tuple((s.name, " ".join(s.states), " ".join(s.inputs) + ("" if s.regulated else " (from A)"),
+                  yes(s.regulated), eigs(np.linalg.eigvals(s.A))) for s in dec.subsystems)
+    return Table("subsystems-table", "Subsystems (diagonal blocks of A, matching columns of B)",
+                 ("subsystem", "states", "inputs", "regulated", "open-loop eigenvalues (rad/s)"), rows,
+                 align="llllw")
+
+
+def dropped_table(dec, top: int = TOP_DROPPED) -> Table:
+    dropped = [d for kind in ("A", "B") for d in [d for d in dec.dropped if d.matrix == kind][:top]]
+    return Table("dropped-table", f"Largest coupling terms the partition drops (top {top} of A and of B; "
+                                  f"{len(dec.dropped)} in all)",
+                 ("term", "matrix", "value", "unit", "|value| / max|matrix|"),
+                 tuple((d.name, d.matrix, f"{d.value:.4g}", d.unit, f"{d.relative:.2e}") for d in dropped),
+                 caption="d(w)/d(theta) reads: the derivative of dw/dt with respect to theta.", align="llrlr")
+
+
+def dropped_sentence(dec) -> str:
+    """How much the partition drops: the largest term against its matrix."""
+    if not dec.dropped:
+        return "The partition drops no coupling term: the subsystems are exactly decoupled."
+    worst = max(dec.dropped, key=lambda d: d.relative)
+    return (f"The partition drops {len(dec.dropped)} coupling terms of A and B; the largest, {worst.name} = "
+            f"{worst.value:.4g} {worst.unit}, is {worst.relative * 100:.3g} % of the largest entry of "
+            f"{worst.matrix}. The design is checked on the coupled model.")
+
+
+def checks_table(checks: dict, regulated) -> Table:
+    """A row per subsystem (``*``: analysed only) and the full model: ranks, tolerance, verdicts."""
+    rows = []
+    for name, c in checks.items():
+        label = name if name == "full" or name in regulated else f"{name}*"
+        rows.append((label, f"{c.ctrb.rank}/{c.n}", f"{c.obsv.rank}/{c.n}", f"{c.ctrb.tolerance:.0e}",
+                     yes(c.controllable), yes(c.observable), yes(c.stabilizable), yes(c.detectable)))
+    return Table("checks-table", "Controllability and observability",
+                 ("system", "ctrb", "obsv", "tol", "controllable", "observable", "stabilizable", "detectable"),
+                 tuple(rows), caption="ctrb/obsv: Kalman matrix rank by SVD, counting singular values > tol = "
+                 f"max(shape) * eps * sigma_max (eps = {np.finfo(float).eps:.3g}); verdicts by PBH at each "
+                 "eigenvalue; stable means Re < 0; * analysed only", align="lrrrllll")
+
+
+def stabilizable_sentence(checks: dict, regulated) -> Mark:
+    failed = [n for n in regulated if not checks[n].stabilizable]
+    if not failed:
+        return Mark("Every regulated subsystem is stabilizable.", "ok")
+    return Mark("Not stabilizable: " + "; ".join(
+        f"{n} (mode {eig(checks[n].unstabilizable_modes[0].eigenvalue)} in "
+        f"{', '.join(checks[n].unstabilizable_modes[0].states)})" for n in failed), "fail")
