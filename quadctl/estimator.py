@@ -42,6 +42,7 @@ import numpy as np
 from quadctl.analysis import check
 from quadctl.errors import DesignError
 from quadctl.layout import N_STATES, SENSOR_GROUPS, STATE_INDEX, STATE_NAMES
+from quadctl.messages import eig_text
 from quadctl.model import N_DISTURBANCES, Vehicle, build_model
 from quadctl.stability import is_stable
 
@@ -139,8 +140,7 @@ def require_detectable(A, C, measured, key: str = "estimator.measure") -> None:
     if not bad:
         return
     states = sorted({s for m in bad for s in _unobserved_states(A, C, m.eigenvalue)}, key=STATE_INDEX.get)
-    modes = ", ".join(f"{m.eigenvalue.real:.3g}" + (f"{m.eigenvalue.imag:+.3g}j" if m.eigenvalue.imag else "")
-                      for m in bad)
+    modes = ", ".join(eig_text(m.eigenvalue, 3) for m in bad)
     groups = [g for g, ss in SENSOR_GROUPS.items() if set(states) & set(ss)]
     raise DesignError(
         f"{key} = {list(measured)}: {', '.join(states)} not observable (modes at s = {modes}, not stable): "

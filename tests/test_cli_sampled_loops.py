@@ -40,7 +40,12 @@ def test_margins_command_writes_the_table_json_and_figures(tmp_path):
         (s, k) for s in ("altitude", "roll", "pitch", "yaw") for k in ("design", "coupled")}
     pngs = sorted((tmp_path / "plots").glob("margins-*.png"))
     assert len(pngs) == 8 and all(p.stat().st_size < 150_000 for p in pngs)
-    assert "cause: discrete design" in res.output
+    out = flat(res.output)
+    assert ("The continuous LQR guarantee (gain margin [1/2, inf), i.e. -6.02 dB to +inf, phase margin >= 60 deg) "
+            "is a property of continuous state feedback that sampling does not keep") in out
+    assert "short" not in out and "Disk margins of the sampled loops" in out
+    least = min(data["loops"], key=lambda m: m["phase_margin_deg"])
+    assert f"least phase margin {least['phase_margin_deg']:.3g} deg ({least['loop']}, {least['model']})" in out
 
 
 def test_margins_of_the_report_gains_run_at_200hz_fail(tmp_path):

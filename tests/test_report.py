@@ -140,8 +140,11 @@ def test_report_of_every_bundled_config_holds_what_the_stages_print(name, report
     for sub, d in design["subsystems"].items():
         k = [v for row in d["K"] for v in row]
         assert page.column("design-table", "K", sub) == "[" + ", ".join(f"{v:.4g}" for v in k) + "]"
-    k_block = design["K_block"]
-    assert page.row("kblock-table", "T")[1:13] == [f"{v + 0.0:.4g}" for v in k_block[0]]
+    k_block = design["K_block"]  # a row per state, a column per input, as `quadctl design` prints it
+    states = [row[0] for row in page.tables["kblock-table"][1:13]]
+    assert page.tables["kblock-table"][0][1:] == ["T", "A", "E", "R"]
+    assert [page.column("kblock-table", "T", s) for s in states] == [
+        "·" if v == 0 else f"{v:.4g}" for v in k_block[0]]
     margins = _artifact(out, "margins.json")  # the table `quadctl margins` prints
     assert len(margins["loops"]) == len(page.tables["margins-table"]) - 1
     for m in margins["loops"]:
@@ -181,8 +184,39 @@ def test_the_markdown_twin_shows_the_figures_beside_it(name, reports):
     design = _artifact(out, "design.json")
     for sub, d in design["subsystems"].items():
         k = [v for row in d["K"] for v in row]
-        assert f"| {sub} | [" + ", ".join(f"{v:.4g}" for v in k) + "] |" in md
+        gains = f" | {' '.join(d['inputs'])} | [" + ", ".join(f"{v:.4g}" for v in k) + "] |"
+        assert any(line.startswith(f"| {sub} | ") and gains in line for line in md.splitlines()), sub
     assert "## Margins" in md and "## Flight numbers" in md and config.bundled(name).text.rstrip() in md
+
+
+def test_the_terminal_and_the_report_show_the_same_rows(reports, monkeypatch):
+    """The stage commands run on a report's run folder print the tables the report holds, cell for
+    cell: one presenter (quadctl.present) makes both (a discrete LQI design with rotors and noise)."""
+    from quadctl import present
+    from quadctl.cli import render
+
+    out, _ = reports["mambo-200hz"]
+    page = _parse(out / report.FOLDER / report.HTML)
+    printed = []
+    show = render.show
+    monkeypatch.setattr(render, "show", lambda *blocks: (printed.extend(blocks), show(*blocks)))
+    for command in ("trim", "decouple", "check", "design", "margins", "simulate"):
+        before = len(printed)
+        res = runner.invoke(app, [command, "-c", "mambo-200hz", "-o", str(out)])
+        assert res.exit_code == 0, res.output
+        text = " ".join(res.stdout.split())
+        for table in (t for t in printed[before:] if isinstance(t, present.Table)):
+            assert table.id in page.tables, f"{command} prints {table.id}, which the report does not hold"
+            assert " ".join(table.title.split()[:3]) in text  # printed, to this terminal
+    tables = {t.id: t for t in printed if isinstance(t, present.Table)}
+    assert set(tables) >= {"trim-state-table", "trim-input-table", "subsystems-table", "dropped-table",
+                           "checks-table", "design-table", "kblock-table", "damp-table", "margins-table",
+                           "disk-table", "metrics-table", "inputs-table", "headroom-table", "rms-table"}
+    for name, table in tables.items():
+        assert page.tables[name] == [[c.strip() for c in table.columns]] + [list(r) for r in table.rows], name
+    sentences = " ".join(" ".join(page.text).split())
+    for line in (b for b in printed if isinstance(b, str)):
+        assert present.cells.sentence(" ".join(line.split())) in sentences or " ".join(line.split()) in sentences
 
 
 UNSTABILIZABLE = """name: swapped
@@ -287,7 +321,7 @@ def test_the_report_shows_the_rotor_lag_the_delay_and_the_delay_margins(path, la
         assert page.column("delay-margin-table", "configured delay (samples)", *loop) == str(m["delay_samples"])
     if "include" in path:
         design = _artifact(tmp_path, "design.json")
-        assert design["rotor_lag"]["mode"] == "include" and len(page.tables["design-table"][0]) == 6  # Kv shown
+        assert design["rotor_lag"]["mode"] == "include" and page.tables["design-table"][0][3:6] == ["K", "Ki", "Kv"]
 
 
 def _lqg_in_wind(tmp_path: Path) -> Path:

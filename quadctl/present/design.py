@@ -101,7 +101,7 @@ def damp_table(des) -> Table:
         else:
             verdict = Mark("unstable", "fail")
         zeta = "-" if math.isnan(d.zeta[i]) else f"{d.zeta[i] + 0.0:.3g}"
-        rows.append((*([eig(d.z[i])] if discrete else []), eig(s), num(d.wn[i]), zeta, num(d.tau[i]), verdict))
+        rows.append((*([eig(d.z[i])] if discrete else []), eig(s), num(d.wn[i], 5), zeta, num(d.tau[i]), verdict))
     where = ("with the rotors' lag, [x; v" + ("; z]" if des.integral_states else "]") + ": A - B [K_block, Kv_block]"
              if des.lag_time_constant is not None else
              "[x; z]: A - B [K_block, Ki_block]" if des.integral_states else "A - B K_block")
@@ -110,6 +110,11 @@ def damp_table(des) -> Table:
                  tuple(rows), caption=("s = ln(z)/Ts; " if discrete else "")
                  + "wn = |s|, zeta = -Re(s)/|s|, tau = -1/Re(s); slowest first",
                  align="r" * (4 + discrete) + "l")
+
+
+def summary(des) -> str:
+    """A stable design in one line: ``stable on the coupled model; slowest pole -2.39 rad/s``."""
+    return f"stable on the coupled model; slowest pole {max(e.real for e in des.core_eigenvalues):.3g} rad/s"
 
 
 def stability_sentence(des) -> Mark:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
+from quadctl.layout import INPUT_NAMES, STATE_INDEX, STATE_NAMES, unit_of
 from quadctl.present.cells import Mark, Table, eig, eigs, num, vector, yes
 
 TOP_DROPPED = 8
@@ -75,3 +75,19 @@ def stabilizable_sentence(checks: dict, regulated) -> Mark:
     return Mark("Not stabilizable: " + "; ".join(
         f"{n} (mode {eig(checks[n].unstabilizable_modes[0].eigenvalue)} in "
         f"{', '.join(checks[n].unstabilizable_modes[0].states)})" for n in failed), "fail")
+
+
+CHECKS_PASSED = "every regulated subsystem stabilizable"
+"""A passed check stage in one line (``quadctl run``, the report's summary)."""
+
+
+def trim_summary(trim) -> str:
+    """The trim in one line: ``T = 0.6522 N, phi = 0.0000 rad, theta = -0.2119 rad, residual 1.6e-15``."""
+    phi, theta = trim.x[STATE_INDEX["phi"]], trim.x[STATE_INDEX["theta"]]
+    return f"T = {trim.u[0]:.4f} N, phi = {phi:.4f} rad, theta = {theta:.4f} rad, residual {trim.residual:.1e}"
+
+
+def decouple_summary(dec) -> str:
+    """``5 subsystems, 10 terms dropped``."""
+    n_subs, n_dropped = len(dec.subsystems), len(dec.dropped)
+    return f"{n_subs} subsystem{'s' if n_subs != 1 else ''}, {n_dropped} term{'s' if n_dropped != 1 else ''} dropped"

@@ -155,21 +155,19 @@ def _summary(ws, outcome: Outcome) -> Section:
 
 
 def _detail(ws, stage: str) -> str:
+    from quadctl.present import design, loops, stages
+
     if stage == "trim":
-        t = ws.trim
-        return f"T = {t.u[0]:.4f} N, theta = {t.x[7]:.4f} rad, residual {t.residual:.1e}"
+        return stages.trim_summary(ws.trim)
     if stage == "linearize":
         return f"A {ws.linear.A.shape}, B {ws.linear.B.shape}"
     if stage == "decouple":
-        return f"{len(ws.decoupled.subsystems)} subsystems, {len(ws.decoupled.dropped)} terms dropped"
+        return stages.decouple_summary(ws.decoupled)
     if stage == "check":
-        return "every regulated subsystem stabilizable"
+        return stages.CHECKS_PASSED
     if stage == "design":
-        return (f"stable on the coupled model; slowest pole "
-                f"{max(e.real for e in ws.design.core_eigenvalues):.3g} rad/s")
+        return design.summary(ws.design)
     if stage == "margins":
-        from quadctl.present import loops
-
         return loops.summary(ws.margins, discrete=ws.design.rate is not None)
     sim = ws.simulation.sim
     return f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.backend}: {sim.status}"

@@ -103,7 +103,8 @@ def margins(ws) -> Section:
               Text(f"Each regulated loop broken at its plant input, {loops.domain(rate)}, on the subsystem it was "
                    "designed on (design) and on the coupled model with the other loops closed (coupled)."),
               loops.classical_table(margins, rate), loops.disk_table(margins, discrete),
-              Text(loops.guarantee_sentence(margins, discrete)), loops.delay_table(margins)]
+              Text(loops.guarantee_sentence(margins, discrete)), loops.delay_table(margins),
+              _text(loops.closed_loop_sentence(ws.payloads["margins.json"]))]
     unstable = loops.unstable_sentence(margins)
     if unstable:
         blocks.append(_text(unstable))

@@ -12,7 +12,6 @@ from quadctl.cli.options import (
     SetOpt,
     open_workspace,
 )
-from quadctl.layout import STATE_INDEX
 
 NAME = "run"
 
@@ -36,21 +35,19 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         if not json:
             render.out.print(f"[green]✓[/green] {stage:<10} {detail}", soft_wrap=True)  # a pipe gets whole lines
 
-    phi, theta = ws.trim.x[STATE_INDEX["phi"]], ws.trim.x[STATE_INDEX["theta"]]
-    done("trim", f"T = {ws.trim.u[0]:.4f} N, phi = {phi:.4f} rad, theta = {theta:.4f} rad, "
-                 f"residual {ws.trim.residual:.1e}")
+    from quadctl.present import design as shown_design
+    from quadctl.present import stages as shown
+
+    done("trim", shown.trim_summary(ws.trim))
     done("linearize", f"A {ws.linear.A.shape}, B {ws.linear.B.shape}")
-    n_subs, n_dropped = len(ws.decoupled.subsystems), len(ws.decoupled.dropped)
-    done("decouple", f"{n_subs} subsystem{'s' if n_subs != 1 else ''}, "
-                     f"{n_dropped} term{'s' if n_dropped != 1 else ''} dropped")
+    done("decouple", shown.decouple_summary(ws.decoupled))
     why = ws.checks.verdict()
     if why:
         raise _stop(json, stages, f"check: {why}")
-    done("check", "every regulated subsystem stabilizable")
+    done("check", shown.CHECKS_PASSED)
     if not ws.design.stable:
         raise _stop(json, stages, "design: unstable on the coupled 12-state model")
-    done("design", "stable on the coupled model; slowest pole "
-         f"{max(e.real for e in ws.design.core_eigenvalues):.3g} rad/s")
+    done("design", shown_design.summary(ws.design))
     with simulation_progress(quiet=json) as ws.progress:
         sim = ws.simulation.sim
     if sim.status != "ok":

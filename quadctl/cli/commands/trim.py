@@ -14,6 +14,5 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         return render.emit_json(ws.payloads["trim.json"])
     from quadctl.present import stages
 
-    render.show(*stages.trim_tables(trim))
-    render.out.print(f"equilibrium residual max|dx/dt| = {trim.residual:.2e} (non-position states), "
-                     f"{trim.iterations} Newton iterations -> {ws.path('trim.json')}")
+    render.show(*stages.trim_tables(trim), stages.trim_sentence(trim, ws.setup.velocity_ned))
+    render.out.print(f"-> {ws.path('trim.json')}")

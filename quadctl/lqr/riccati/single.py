@@ -17,6 +17,7 @@ from quadctl import stability
 from quadctl._lazy import lazy_import
 from quadctl.analysis import RICCATI_RTOL, pbh
 from quadctl.errors import DesignError
+from quadctl.messages import eig_text
 from quadctl.lqr.riccati.stacked import (
     KRONECKER_MAX_N,
     NEWTON_STEPS,
@@ -322,10 +323,9 @@ def _not_stabilizable(name: str, mode, discrete: bool) -> str:
 
 
 def _fmt(e: complex, discrete: bool = False, digits: int = 4) -> str:
-    """``-2.147e-06``, ``-5e-13+1j``; discrete: ``z = 0.99`` (10 significant digits near the unit circle)."""
+    """``-2.147e-06``, ``-5e-13 + 1j`` (:func:`quadctl.messages.eig_text`); discrete: ``z = 0.99`` (10 significant
+    digits near the unit circle)."""
     e = complex(e)
     digits = 10 if discrete and abs(abs(e) - 1) < 1e-3 else digits
-    text = f"{e.real:.{digits}g}"
-    if abs(e.imag) >= 1e-12 * max(1.0, abs(e)):
-        text += f"{e.imag:+.{digits}g}j"
+    text = eig_text(e, digits)
     return f"z = {text}" if discrete else text
