@@ -32,6 +32,8 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.provenance`: the software versions and the C compiler an artifact records
 - :mod:`~quadctl.artifacts`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`: the run directory
   (atomic, with provenance), artifact-backed stages, figures (they read results only)
+- :mod:`~quadctl.present`: each stage result as tables and sentences, written once: what the terminal
+  (:mod:`quadctl.cli`, rich styling only) and the report (escaping and markup only) both render
 - :mod:`~quadctl.report`: every stage of a run in one self-contained HTML page and a Markdown twin
 - :mod:`~quadctl.export`: the design to the vehicle (a C99 controller emitted from the simulation's
   own law, the design as MATLAB ``.mat`` or JSON); :mod:`~quadctl.interop`: python-control systems

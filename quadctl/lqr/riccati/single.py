@@ -17,7 +17,6 @@ from quadctl import stability
 from quadctl._lazy import lazy_import
 from quadctl.analysis import RICCATI_RTOL, pbh
 from quadctl.errors import DesignError
-from quadctl.messages import eig_text
 from quadctl.lqr.riccati.stacked import (
     KRONECKER_MAX_N,
     NEWTON_STEPS,
@@ -30,6 +29,7 @@ from quadctl.lqr.riccati.stacked import (
     without_cross,
 )
 from quadctl.lqr.riccati.weights import WeightCheck, as_problem
+from quadctl.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
