@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadctl import stability
 from quadctl.layout import INPUT_NAMES, STATE_INDEX, STATE_NAMES, unit_of
 from quadctl.present.cells import Mark, Table, eig, eigs, num, vector, yes
 
@@ -65,7 +66,7 @@ def checks_table(checks: dict, regulated) -> Table:
                  ("system", "ctrb", "obsv", "tol", "controllable", "observable", "stabilizable", "detectable"),
                  tuple(rows), caption="ctrb/obsv: Kalman matrix rank by SVD, counting singular values > tol = "
                  f"max(shape) * eps * sigma_max (eps = {np.finfo(float).eps:.3g}); verdicts by PBH at each "
-                 "eigenvalue; stable means Re < 0; * analysed only", align="lrrrllll")
+                 f"eigenvalue; a mode is unstable when {stability.criterion()}; * analysed only", align="lrrrllll")
 
 
 def stabilizable_sentence(checks: dict, regulated) -> Mark:
