@@ -68,6 +68,30 @@ def max_rel_diff(rows_a, rows_b, skip=("path",)) -> tuple[float, str]:
     return worst, where
 
 
+LANE_RTOL = 1e-12
+"""Agreement of the SIMD lanes with the one-case loop, relative to each quantity's size (at least 1).
+
+The two differ only in sin and cos: the lanes call glibc's vector math (libmvec, up to 4 ulp)
+where the one-case loop calls the scalar libm (under 1 ulp); built without the vector
+declarations, the lanes equal the one-case loop bit for bit on every loop feature. A few ulps of
+difference in one step is carried forward by the loop like any perturbation of its state: it
+decays in a stable loop and grows with the state in a diverging one, so it stays a fixed
+fraction of each quantity, about n_steps x 5 ulp at most (580 steps: 6e-13); an absolute bound
+would fail on a loop that diverges to 1e5 (the forward design emulated at 2 kHz: 1.7e-10 there,
+1.3e-15 of its size)."""
+
+
+def lane_gap(got, want) -> float:
+    """Largest ``|got - want|`` of two (rows, columns) records, each column divided by its size
+    in ``want`` (its largest magnitude, at least 1): what :data:`LANE_RTOL` bounds."""
+    import numpy as np
+
+    want = np.asarray(want)
+    if want.size == 0:
+        return 0.0
+    return float((np.abs(np.asarray(got) - want) / np.maximum(1.0, np.abs(want).max(axis=0))).max())
+
+
 def lanes_and_one_case_runs(setup, spec, variants):
     """Run loop ``variants`` ``(ClosedLoop, NoiseSpec or None, duration s)`` in the SIMD lanes of
     ``spec`` (built as a sweep chunk builds its cases) and each alone through ``simulate``: yields
