@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ast
 import re
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -43,6 +44,20 @@ def _module_file(name: str) -> Path | None:
     return package if package.exists() else None
 
 
+@cache
+def _direct_imports(path: Path) -> tuple[Path, ...]:
+    """The quadctl files ``path`` itself imports, at any depth of the file (lazy imports too)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("quadctl"):
+            names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+        found += [f for f in map(_module_file, (n for n in names if n.startswith("quadctl"))) if f]
+    return tuple(found)
+
+
 def _imports(path: Path) -> set[Path]:
     """The quadctl files ``path`` imports, at any depth of the file (lazy imports too), and on."""
     seen, todo = set(), [path]
@@ -51,13 +66,7 @@ def _imports(path: Path) -> set[Path]:
         if here in seen:
             continue
         seen.add(here)
-        for node in ast.walk(ast.parse(here.read_text())):
-            names = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("quadctl"):
-                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
-            todo += [f for f in map(_module_file, (n for n in names if n.startswith("quadctl"))) if f]
+        todo += _direct_imports(here)
     return seen
 
 
