@@ -161,16 +161,26 @@ def _failing_compiler(tmp_path: Path) -> str:
     return str(cc)
 
 
-@pytest.mark.parametrize("broken", ["missing", "failing"])
-@pytest.mark.parametrize("command", ["run", "simulate", "design --full", "sweep"])
+@pytest.fixture(scope="module")
+def compiled_runs():
+    """command -> its run folder with the compiler working (the session's compile cache), made once
+    for both ways of breaking the compiler."""
+    return {}
+
+
+@pytest.mark.parametrize("command, broken", [
+    *[(command, "missing") for command in ("run", "simulate", "design --full", "sweep")],
+    ("simulate", "failing"),  # by default one command meets a failing compiler: all reach it through one engine
+    *[pytest.param(command, "failing", marks=pytest.mark.slow) for command in ("run", "design --full", "sweep")],
+])
 def test_every_command_without_a_working_compiler_gives_one_notice_and_the_same_numbers(
-        command, broken, tmp_path):
+        command, broken, tmp_path, tmp_path_factory, compiled_runs):
     import subprocess
     import sys
 
     cfg = "mambo-200hz"
     env = {**os.environ, "QUADCTL_CACHE": str(tmp_path / "cache")}
-    sweep_file = tmp_path / "s.yaml"
+    sweep_file = tmp_path_factory.getbasetemp() / "no-compiler-sweep.yaml"
     sweep_file.write_text("parameters:\n  lqr.roll.R[0]: [20000, 40000]\nset:\n  simulation.duration: 1.0\n")
     args = command.split() + ["-c", cfg]
     if command == "sweep":
@@ -182,7 +192,10 @@ def test_every_command_without_a_working_compiler_gives_one_notice_and_the_same_
         assert res.returncode == 0, res.stderr
         return res
 
-    quadctl(tmp_path / "good", {})
+    if command not in compiled_runs:
+        compiled_runs[command] = tmp_path_factory.mktemp("compiled")
+        quadctl(compiled_runs[command], {"QUADCTL_CACHE": os.environ["QUADCTL_CACHE"]})
+    good_folder = compiled_runs[command]
     bad_env = ({"QUADCTL_NO_COMPILE": "1"} if broken == "missing"
                else {"CC": _failing_compiler(tmp_path), "PATH": str(tmp_path)
                      + os.pathsep + os.environ["PATH"]})
@@ -195,7 +208,7 @@ def test_every_command_without_a_working_compiler_gives_one_notice_and_the_same_
     if command == "sweep":
         import csv
 
-        rows = [list(csv.DictReader(open(tmp_path / d / "sweep.csv"))) for d in ("good", "bad")]
+        rows = [list(csv.DictReader(open(d / "sweep.csv"))) for d in (good_folder, tmp_path / "bad")]
         for a, b in zip(*rows):
             for key in ("cost", "peak.A", "settling_time.phi"):
                 assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-9, abs=1e-12), key
@@ -203,12 +216,12 @@ def test_every_command_without_a_working_compiler_gives_one_notice_and_the_same_
     if command == "design --full":
         import json
 
-        good, bad_ = (json.loads((tmp_path / d / "design_full.json").read_text())["comparison"]
-                      for d in ("good", "bad"))
+        good, bad_ = (json.loads((d / "design_full.json").read_text())["comparison"]
+                      for d in (good_folder, tmp_path / "bad"))
         for design in ("decoupled", "full"):
             assert good["designs"][design]["cost"] == pytest.approx(bad_["designs"][design]["cost"], rel=1e-9)
         return
-    good_sim, bad_sim = (np.load(tmp_path / d / "sim.npz") for d in ("good", "bad"))
+    good_sim, bad_sim = (np.load(d / "sim.npz") for d in (good_folder, tmp_path / "bad"))
     diff = max(np.abs(good_sim["x"] - bad_sim["x"]).max(), np.abs(good_sim["u"] - bad_sim["u"]).max())
     assert diff < 1e-9, f"Max diff is {diff:.4E}"
 

@@ -109,15 +109,23 @@ def _report(*args):
     return runner.invoke(app, ["report", *map(str, args)])
 
 
+class _Reports(dict):
+    """Bundled config name -> (run folder, result) of its `quadctl report -c NAME`, made when first asked for."""
+
+    def __init__(self, tmp_path_factory):
+        super().__init__()
+        self._tmp = tmp_path_factory
+
+    def __missing__(self, name: str):
+        folder = self._tmp.mktemp(name)
+        self[name] = (folder, _report("-c", name, "-o", folder))
+        return self[name]
+
+
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory):
-    """`quadctl report -c NAME` of every bundled config, as `quadctl configs` lists them."""
-    out = {}
-    for name in config.bundled_names():
-        folder = tmp_path_factory.mktemp(name)
-        res = _report("-c", name, "-o", folder)
-        out[name] = (folder, res)
-    return out
+    """`quadctl report -c NAME` of the bundled configs (each made once for the module's tests)."""
+    return _Reports(tmp_path_factory)
 
 
 @pytest.mark.parametrize("name", config.bundled_names())
@@ -263,10 +271,11 @@ def test_an_error_in_a_stage_keeps_its_exit_code_and_still_reports(tmp_path):
     assert "Stopped at trim: no equilibrium" in "".join(page.text)
 
 
-def test_the_report_reuses_fresh_artifacts_and_drops_stale_figures(tmp_path):
+def test_the_report_reuses_fresh_artifacts_and_drops_stale_figures(tmp_path, reports):
+    import shutil
+
     cfg = config.load("hover")
-    first = Workspace(cfg, tmp_path)
-    report.write(report.build(first, report.run_stages(first)), tmp_path / report.FOLDER)
+    shutil.copytree(reports["hover"][0], tmp_path, dirs_exist_ok=True)  # a report of every stage
     (tmp_path / report.FOLDER / "margins-old.png").write_bytes(b"stale")
     again = Workspace(cfg, tmp_path)
     outcome = report.run_stages(again)
