@@ -24,10 +24,18 @@ def forward():
     return setup, trim, linear, dec, des
 
 
+@pytest.fixture(scope="session")
+def _compile_cache(tmp_path_factory) -> str:
+    """The test run's compile cache: one folder for the whole run, shared by pytest-xdist's workers
+    (each worker's temporary folder is one below the run's; the cache's writes are atomic)."""
+    base = tmp_path_factory.getbasetemp()
+    return str((base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "qc-cache")
+
+
 @pytest.fixture(autouse=True)
-def _cache_in_tmp(tmp_path_factory, monkeypatch):
-    """Compiled steps go to one session-wide temporary cache, never the user's."""
-    monkeypatch.setenv("QUADCTL_CACHE", str(tmp_path_factory.getbasetemp() / "qc-cache"))
+def _cache_in_tmp(_compile_cache, monkeypatch):
+    """Compiled steps go to one temporary cache per test run, never the user's."""
+    monkeypatch.setenv("QUADCTL_CACHE", _compile_cache)
 
 
 def pytest_collection_modifyitems(config, items):
