@@ -9,6 +9,16 @@ import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
+BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+if os.environ.get("PYTEST_XDIST_WORKER") and not any(v in os.environ for v in BLAS_THREADS):
+    # one BLAS thread per pytest-xdist worker (there is one worker per core), in the commands it starts
+    # too: more OpenBLAS threads than free cores spin against each other (a large CAREX case on a busy
+    # 2-core machine: 14.4 s of CPU with two threads, 2.3 s with one)
+    os.environ.update(dict.fromkeys(BLAS_THREADS, "1"))
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)  # a BLAS already loaded
+
 
 @pytest.fixture(scope="session")
 def forward():
