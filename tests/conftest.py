@@ -9,6 +9,16 @@ import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
+RUN_COLUMNS = "QUADCTL_TESTS_RUN_COLUMNS"
+"""COLUMNS of the environment pytest was started in, for its pytest-xdist workers."""
+if not os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ[RUN_COLUMNS] = os.environ.get("COLUMNS", "")
+elif os.environ.get(RUN_COLUMNS) == "":
+    # a worker starts with COLUMNS=80 and LINES=24 that the run did not have: without them a command's
+    # stdout in a test is as wide as in a pipe (quadctl.cli.render.WIDE), as in one process
+    os.environ.pop("COLUMNS", None)
+    os.environ.pop("LINES", None)
+
 BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 if os.environ.get("PYTEST_XDIST_WORKER") and not any(v in os.environ for v in BLAS_THREADS):
     # one BLAS thread per pytest-xdist worker (there is one worker per core), in the commands it starts
