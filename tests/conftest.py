@@ -1,5 +1,7 @@
-"""Shared fixtures (the report's configs solved once per session, a temporary compile cache) and
-the ``compiler`` marker: tests that need a C compiler skip, saying why, where there is none."""
+"""Shared fixtures (the report's configs solved once per session, a temporary compile cache for the
+whole run) and the ``compiler`` marker: tests that need a C compiler skip, saying why, where there is
+none. The suite runs in pytest-xdist workers (``addopts`` in pyproject.toml): each worker keeps to one
+BLAS thread and sees the run's own ``COLUMNS``."""
 
 from __future__ import annotations
 
