@@ -169,7 +169,8 @@ def test_config_error_is_one_line_exit_2(tmp_path, case):
 
 @pytest.mark.parametrize("args,pattern", [
     (["-c", "no/such.yaml"],
-     r"no/such\.yaml: no such file and no bundled config of that name; bundled: crazyflie, crazyflie-wind, drake-hover, forward"),
+     r"no/such\.yaml: no such file and no bundled config of that name; "
+     r"bundled: crazyflie, crazyflie-wind, drake-hover, forward"),
     (["-c", "."], r"\.: is a folder, not a config file"),
 ])
 def test_config_file_errors(args, pattern):
