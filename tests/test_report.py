@@ -139,7 +139,10 @@ def test_report_of_every_bundled_config_holds_what_the_stages_print(name, report
     page = _parse(page_path)
     _self_contained(page, text)
     figures = sorted((out / report.FOLDER).glob("*.png"))
-    assert len(page.srcs) == len(figures) >= 5  # a figure per subsystem, the inputs, a margins plot per loop
+    assert len(page.srcs) == len(figures)  # a figure per subsystem, the inputs, a margins plot per loop
+    regulated = [n for n, sub in config.load(name).partition().items() if sub.regulate]
+    assert {f"sim-{n}.png" for n in regulated} | {f"margins-{n}.png" for n in regulated} | {"sim-inputs.png"} \
+        <= {f.name for f in figures}
 
     trim = _artifact(out, "trim.json")  # `quadctl trim` prints the thrust with 6 digits
     assert page.column("trim-input-table", "value", "T") == f"{trim['u'][0]:.6g}"
