@@ -193,7 +193,8 @@ class TurbulenceConfig(_Section):
     length_scale: Optional[Annotated[list[Annotated[float, Field(
         strict=True, allow_inf_nan=False, ge=TURBULENCE_LENGTH[0], le=TURBULENCE_LENGTH[1])]],
         Field(min_length=3, max_length=3)]] = Field(
-        None, description="m, [L_u, L_v, L_w] of MIL-HDBK-1797's Dryden form")
+        None, description="m, [L_u, L_v, L_w] of MIL-HDBK-1797's \"2L\" Dryden form (L_v, L_w half of "
+        "MIL-F-8785C's)")
     airspeed: Optional[Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=100)]] = Field(
         None, description="m/s turning the spatial spectra into time; default the trim's airspeed, at least 1 m/s")
     seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description="random seed; same seed, same wind")

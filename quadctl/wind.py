@@ -11,16 +11,20 @@ the velocity relative to the air (:func:`quadctl.model.dynamics_expression`). ``
   for ever: a hold past the run's end), and falls back over ``length`` seconds as the mirror image. With
   ``hold = 0`` it is the full ``(V_m / 2)(1 - cos(pi (t - start) / length))`` over ``2 length``;
 - **Dryden turbulence**, the low-altitude model of MIL-HDBK-1797 (§B.4.4.1, after MIL-F-8785C
-  §3.7.2), in the handbook's form and length scales (``h`` in ft, below 1000 ft)::
+  §3.7.2), in the handbook's "2L" form and length scales (``h`` in ft, below 1000 ft)::
 
       Phi_u(W) = sigma_u^2 (2 L_u / pi) / (1 + (L_u W)^2)
       Phi_v(W) = sigma_v^2 (2 L_v / pi) (1 + 12 (L_v W)^2) / (1 + 4 (L_v W)^2)^2      (w alike)
       sigma_w = 0.1 W20,  sigma_u / sigma_w = sigma_v / sigma_w = 1 / (0.177 + 0.000823 h)^0.4
-      L_w = h,  L_u = 2 L_v = h / (0.177 + 0.000823 h)^1.2
+      L_u = 2 L_v = h / (0.177 + 0.000823 h)^1.2,  2 L_w = h
 
   with ``W`` the spatial frequency (rad/m) and ``W20`` the wind speed at 20 ft: 15 kt light,
   30 kt moderate, 45 kt severe (MIL-HDBK-1797 figure 262). ``u`` is along the mean wind's horizontal
-  direction (north when there is none), ``v`` horizontal to its right, ``w`` down.
+  direction (north when there is none), ``v`` horizontal to its right, ``w`` down. These are the
+  spectra of MIL-F-8785C §3.7.2.1 (``Phi_v = sigma_v^2 (L_v / pi) (1 + 3 (L_v W)^2) / (1 +
+  (L_v W)^2)^2`` with ``L_v = L_u``, ``L_w = h``) written with half its lateral and vertical scales:
+  every ``L`` here (and in ``turbulence.length_scale``) is MIL-HDBK-1797's, so ``L_v`` and ``L_w``
+  are half of MIL-F-8785C's.
 
 The spectra are spatial; a vehicle at airspeed ``V`` sees ``omega = V W``, i.e. ``Phi(omega) =
 Phi(W) / V`` (Taylor's frozen field). A hovering vehicle has no airspeed of its own, so the reference
@@ -62,10 +66,11 @@ MAX_ALTITUDE_FT = 1000.0
 MIN_REFERENCE_SPEED = 1.0
 """m/s: the floor of the reference speed that turns the spatial spectra into time. A hovering vehicle
 in still mean air has none; at 1 m/s the vertical turbulence at 10 ft stays correlated for
-``L_w / V`` = 3 s, slower than every loop quadctl designs."""
+``2 L_w / V`` = 3 s (its double pole is at ``V / (2 L_w)``), slower than every loop quadctl designs."""
 TURBULENCE_PERIOD = 0.01
 """s between turbulence samples (linear in between). At the fastest reference speeds a config allows
-(50 m/s at ``L`` >= 3 m: 2.6 Hz corner), 100 Hz resolves the spectrum to 40 times its corner."""
+(50 m/s at 10 ft, where ``2 L_w = h`` = 3.05 m puts the vertical spectrum's double pole ``V / (2 L_w)``
+at 2.6 Hz), 100 Hz resolves the spectrum to 40 times its corner."""
 AXES = ("n", "e", "d")
 """Components of the wind, NED."""
 
@@ -194,6 +199,10 @@ def _transition(A: np.ndarray, T: float) -> np.ndarray:
 def low_altitude(intensity: str, altitude: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """``(sigma, L)`` per axis (m/s, m) of the MIL-HDBK-1797 low-altitude model.
 
+    MIL-HDBK-1797 §B.4.4.1 (its "2L" form of the Dryden spectra): ``L_u = 2 L_v = h / (0.177 +
+    0.000823 h)^1.2`` and ``2 L_w = h`` (h in ft); both lateral and vertical scales are half of
+    MIL-F-8785C §3.7.2.3's ``L_v = L_u``, ``L_w = h``, which go with its own form of the spectra.
+
     Parameters
     ----------
     intensity : {"light", "moderate", "severe"}
@@ -204,13 +213,13 @@ def low_altitude(intensity: str, altitude: float) -> tuple[tuple[float, float, f
     --------
     >>> sigma, L = low_altitude("moderate", 30 * 0.3048)
     >>> round(sigma[2], 3), round(L[2] / 0.3048, 1)
-    (1.543, 30.0)
+    (1.543, 15.0)
     """
     h = max(altitude / FT, MIN_ALTITUDE_FT)
     sigma_w = 0.1 * W20[intensity]
     sigma_u = sigma_w / (0.177 + 0.000823 * h) ** 0.4
     L_u = h / (0.177 + 0.000823 * h) ** 1.2 * FT
-    return (sigma_u, sigma_u, sigma_w), (L_u, L_u / 2.0, h * FT)
+    return (sigma_u, sigma_u, sigma_w), (L_u, L_u / 2.0, h / 2.0 * FT)
 
 
 def reference_speed(trim_velocity_ned, steady_ned) -> float:
