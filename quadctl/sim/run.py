@@ -256,8 +256,11 @@ class SimResult:
     wind_seed: int | None = None
     """The turbulence's seed (None: no turbulence)."""
     x_hat: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-    """(N+1, 12) the Kalman filter's estimate of ``x`` (``x_ref`` plus its deviation estimate; a held
-    loop's a priori estimate for the coming sample) of an LQG loop; else empty."""
+    """(N+1, 12) the Kalman filter's estimate of ``x`` (``x_ref`` plus its deviation estimate) of an
+    LQG loop; else empty. A held (sampled) loop records the a priori estimate ``x_hat[k|k-1]``:
+    predicted at sample ``k - 1``, held over the steps up to and including sample ``k``'s time (the
+    updated ``x_hat[k|k]`` the law acts on is not recorded), so ``x - x_hat`` at the samples has the
+    a priori covariance ``P``. A continuous loop records the Kalman-Bucy estimate at each step."""
 
     @property
     def steps_per_second(self) -> float:
