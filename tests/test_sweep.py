@@ -342,6 +342,28 @@ def test_gates_and_ranking(cfg):
     assert "peak.T <= 3 (got" in result.rows[0]["failed_gates"]
 
 
+@pytest.mark.parametrize("gates, slacks, worst", [
+    # hand-computed relative slacks: (value - min) / |min| and (max - value) / |max|, the smallest of a row's
+    ({"eig.slowest": {"min": -4.0}}, [(-1.0 + 4.0) / 4.0, (-3.0 + 4.0) / 4.0], 1),
+    ({"peak.T": {"min": 0.5}}, [(0.7 - 0.5) / 0.5, (0.9 - 0.5) / 0.5], 0),
+    ({"peak.T": {"min": 0.5, "max": 0.8}}, [min(0.4, (0.8 - 0.7) / 0.8), min(0.8, (0.8 - 0.9) / 0.8)], 1),
+])
+def test_rows_rank_by_their_hand_computed_slack_on_min_and_max_bounds(gates, slacks, worst):
+    """Two rows inside (or outside) a ``min`` bound: the one nearer the bound ranks worse. The rows'
+    ``eig.slowest`` are -1 and -3 rad/s, their ``peak.T`` 0.7 and 0.9 N."""
+    from quadctl.sweep.gates import Gate, margin
+    from quadctl.sweep.runner import SweepResult
+
+    rows = [{"case": 0, "status": "ok", "stable": True, "eig.slowest": -1.0, "peak.T": 0.7},
+            {"case": 1, "status": "ok", "stable": True, "eig.slowest": -3.0, "peak.T": 0.9}]
+    parsed = tuple(Gate(metric=m, **bounds) for m, bounds in gates.items())
+    for row, want in zip(rows, slacks):
+        assert margin(row, parsed, True) == pytest.approx(want, rel=1e-12)
+        assert parsed[0].passes(row[parsed[0].metric]) == (want >= 0)
+    result = SweepResult(rows=rows, columns=[], computed=2, wall_time=0.0, stats={}, gates=parsed)
+    assert [r["case"] for r in result.ranked()] == [worst, 1 - worst]
+
+
 def test_local_processes_give_the_same_rows(cfg):
     spec = spec_of(cfg, mode="random", samples=20, seed=3, chunk_size=8,
                    parameters={"lqr.pitch.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}})
