@@ -1,6 +1,8 @@
 """Figures of a simulation, like the report's figures 2-4, as matplotlib Figures.
 
-The caller saves them. Angles and rates are shown in degrees (artifacts keep radians).
+The caller saves them. Angles and rates are shown in degrees (artifacts keep radians), and ``pD``
+as the height ``-pD`` (up positive; artifacts keep NED). Bode phase is drawn in (-360, 0] deg at
+the gain crossover, where the -180 deg line and the phase margin are read.
 """
 
 from __future__ import annotations
@@ -14,11 +16,46 @@ _DEGREES = {"phi", "theta", "psi", "p", "q", "r"}
 _COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
 
 
+_HEIGHT = "pD"
+"""Drawn as the height ``-pD`` (m, up positive): NED's down-positive altitude reads upside down."""
+
+
 def _display(name: str, values: np.ndarray) -> tuple[np.ndarray, str]:
+    """``values`` of state ``name`` as plotted, and their unit (degrees for angles, height for pD)."""
     if name in _DEGREES:
         unit = unit_of(name).replace("rad", "deg")
         return np.rad2deg(values), unit
+    if name == _HEIGHT:
+        return -np.asarray(values), unit_of(name)
     return values, unit_of(name)
+
+
+def _label(name: str) -> str:
+    """The axis label of state ``name`` as :func:`_display` shows it."""
+    return "height (-pD)" if name == _HEIGHT else name
+
+
+def phase_about_minus_180(response, anchor: int | None = None) -> np.ndarray:
+    """The phase (deg) of a frequency response, unwrapped and shifted by whole turns so that it
+    lies in (-360, 0] at sample ``anchor`` (the gain crossover), or, without one, so that the middle
+    of its range does: the -180 deg line a phase margin is read from then runs through the plot.
+
+    Parameters
+    ----------
+    response : (n,) complex array_like
+    anchor : int, optional
+        Index of the frequency whose phase is placed in (-360, 0].
+
+    Examples
+    --------
+    >>> phase_about_minus_180(np.exp(1j * np.deg2rad([140.0, 200.0, 260.0]))).round(6).tolist()
+    [-220.0, -160.0, -100.0]
+    """
+    phase = np.rad2deg(np.unwrap(np.angle(np.asarray(response, dtype=complex))))
+    if not phase.size:
+        return phase
+    at = phase[anchor] if anchor is not None else (phase.min() + phase.max()) / 2
+    return phase - 360.0 * np.ceil(at / 360.0)
 
 
 def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
@@ -37,9 +74,9 @@ def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
         i = STATE_INDEX[state]
         y, unit = _display(state, sim.x[:, i])
         ref, _ = _display(state, sim.x_ref[:, i])
-        ax.plot(sim.t, y, color=color, lw=1.6, label=state)
+        ax.plot(sim.t, y, color=color, lw=1.6, label=_label(state))
         ax.plot(sim.t, ref, color="0.35", lw=1.0, ls="--", label="reference")
-        ax.set_ylabel(f"{state} [{unit}]")
+        ax.set_ylabel(f"{_label(state)} [{unit}]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8, frameon=False)
     axes[-1].set_xlabel("time [s]")
@@ -48,28 +85,82 @@ def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
     return fig
 
 
-def inputs_figure(sim, u_trim=None, *, title: str = "") -> Figure:
-    """The four inputs T, A, E, R against time, with their trim values dashed.
+def input_limits(actuators) -> tuple[np.ndarray, np.ndarray]:
+    """(4,) lowest and (4,) highest value each of ``T, A, E, R`` can take within the actuator limits
+    (N, N m; infinite where unlimited). Box limits are themselves; rotor limits bound each input over
+    every rotor thrust in ``[min_thrust, max_thrust]`` (the others free): ``T`` in ``[4 min, 4 max]``,
+    a torque at the rotors' full differential thrust.
+
+    Examples
+    --------
+    >>> from quadctl.motors import Motors, actuators_of
+    >>> lo, hi = input_limits(actuators_of(Motors(min_thrust=0.0, max_thrust=0.33)))
+    >>> lo[0].round(6).tolist(), hi[0].round(6).tolist()
+    (0.0, 1.32)
+    """
+    lo, hi = np.asarray(actuators.lo, dtype=float), np.asarray(actuators.hi, dtype=float)
+    if actuators.mode == "box":
+        return lo.copy(), hi.copy()
+    eff = np.asarray(actuators.mix_inv, dtype=float)  # actuator commands -> [T, A, E, R]
+    with np.errstate(invalid="ignore"):  # 0 * inf of an unlimited rotor: that rotor adds nothing
+        at_lo, at_hi = np.nan_to_num(eff * lo, nan=0.0), np.nan_to_num(eff * hi, nan=0.0)
+    return np.minimum(at_lo, at_hi).sum(axis=1), np.maximum(at_lo, at_hi).sum(axis=1)
+
+
+def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figure:
+    """The four inputs T, A, E, R against time, with their trim values dashed and, given
+    ``actuators``, their limits (:func:`input_limits`) as red lines.
 
     Left: linear time. Right: the same on a log time axis, where the fast transients of the
-    rate loops (milliseconds or less) are visible.
+    rate loops (milliseconds or less) are visible. With rotors (``actuators.mode == "motors"``) a
+    last row shows each rotor's thrust (what the applied inputs ask of it) between its
+    ``min_thrust`` and ``max_thrust``, where a saturation shows.
+
+    Parameters
+    ----------
+    sim : SimResult
+    u_trim : (4,) array_like, optional
+        N, N m.
+    actuators : quadctl.motors.Actuators, optional
+        The simulated vehicle's limits (``setup.actuators``); None: no limit lines.
     """
-    fig = Figure(figsize=(10.0, 7.0), layout="constrained")
-    axes = fig.subplots(len(INPUT_NAMES), 2, sharex="col")
+    rotors = actuators is not None and actuators.mode == "motors"
+    rows = len(INPUT_NAMES) + (1 if rotors else 0)
+    fig = Figure(figsize=(10.0, 7.0 * rows / len(INPUT_NAMES)), layout="constrained")
+    axes = fig.subplots(rows, 2, sharex="col")
     later = sim.t > 0
+    lo, hi = input_limits(actuators) if actuators is not None else (np.full(4, -np.inf), np.full(4, np.inf))
     for j, (row, name, color) in enumerate(zip(axes, INPUT_NAMES, _COLORS)):
         for ax, t, u in ((row[0], sim.t, sim.u[:, j]), (row[1], sim.t[later], sim.u[later, j])):
             ax.plot(t, u, color=color, lw=1.6, label=name)
             if u_trim is not None:
                 ax.axhline(u_trim[j], color="0.35", lw=1.0, ls="--", label="trim")
+            _limit_lines(ax, (lo[j], hi[j]), "rotor limits" if rotors else "limit")
             ax.grid(True, alpha=0.3)
         row[0].set_ylabel(f"{name} [{unit_of(name)}]")
         row[0].legend(loc="best", fontsize=8, frameon=False)
         row[1].set_xscale("log")
+    if rotors:
+        thrust = actuators.commands(sim.u)
+        for ax, keep in ((axes[-1, 0], slice(None)), (axes[-1, 1], later)):
+            for i, (rotor, color) in enumerate(zip(actuators.names, _COLORS)):
+                ax.plot(sim.t[keep], thrust[keep, i], color=color, lw=1.2, label=rotor)
+            _limit_lines(ax, (actuators.lo[0], actuators.hi[0]), "min / max thrust")
+            ax.grid(True, alpha=0.3)
+        axes[-1, 0].set_ylabel("rotor thrust [N]")
+        axes[-1, 0].legend(loc="best", fontsize=7, frameon=False, ncols=3)
+        axes[-1, 1].set_xscale("log")
     axes[-1, 0].set_xlabel("time [s]")
     axes[-1, 1].set_xlabel("time [s], log scale")
     fig.suptitle(f"{title}: inputs" if title else "inputs")
     return fig
+
+
+def _limit_lines(ax, bounds, label: str) -> None:
+    """Red lines at the finite ``bounds`` (low, high), labelled once."""
+    finite = [b for b in bounds if np.isfinite(b)]
+    for k, bound in enumerate(finite):
+        ax.axhline(bound, color=_COLORS[1], lw=1.0, ls="-.", alpha=0.8, label=label if k == 0 else None)
 
 
 def wind_figure(sim, *, title: str = "") -> Figure:
@@ -86,12 +177,13 @@ def wind_figure(sim, *, title: str = "") -> Figure:
     return fig
 
 
-def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "") -> dict[str, Figure]:
-    """A figure per subsystem (in partition order), one of the inputs and, in wind, one of the wind,
-    keyed by file stem."""
+def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "",
+                       actuators=None) -> dict[str, Figure]:
+    """A figure per subsystem (in partition order), one of the inputs (with ``actuators``' limits,
+    :func:`inputs_figure`) and, in wind, one of the wind, keyed by file stem."""
     figs = {name: subsystem_figure(sim, name, sub.states, title=title)
             for name, sub in partition.items()}
-    figs["inputs"] = inputs_figure(sim, u_trim, title=title)
+    figs["inputs"] = inputs_figure(sim, u_trim, title=title, actuators=actuators)
     if len(getattr(sim, "wind", ())):
         figs["wind"] = wind_figure(sim, title=title)
     return figs
@@ -110,7 +202,8 @@ def margins_figure(m, *, title: str = "") -> Figure:
     ax_ph = fig.add_subplot(grid[1, 0], sharex=ax_mag)
     ax_ny = fig.add_subplot(grid[:, 1])
     w, L = m.freq, m.response
-    phase = np.rad2deg(np.unwrap(np.angle(L)))
+    crossover = None if m.gain_crossover_freq is None else int(np.argmin(np.abs(np.log(w / m.gain_crossover_freq))))
+    phase = phase_about_minus_180(L, crossover)
     ax_mag.semilogx(w, 20 * np.log10(np.abs(L)), color=_COLORS[0], lw=1.5)
     ax_mag.axhline(0.0, color="0.35", lw=0.9, ls="--")
     ax_mag.set_ylabel("|L| [dB]")
@@ -256,7 +349,7 @@ def montecarlo_figure(bands, groups: dict, *, title: str = "", varied: tuple = (
                 ax.axhline(0.0, color="0.35", lw=0.8, ls="--")
                 ax.grid(True, alpha=0.3)
             top.plot(bands.t, p[50], color=color, lw=1.4, label="median")
-            top.set_ylabel(f"Δ{states[c]} [{unit}]")
+            top.set_ylabel(f"Δ{_label(states[c])} [{unit}]")
             below.set_ylabel(f"about median [{unit}]", fontsize=8)
             below.tick_params(labelsize=7)
             if c == 0:

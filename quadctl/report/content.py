@@ -134,10 +134,14 @@ def simulation(ws) -> Section:
     u_trim = ws.linear.u_trim
     blocks += [shown_flight.metrics_table(metrics), shown_flight.inputs_table(metrics, u_trim, fl["peak_delta"]),
                Text(shown_flight.cost_sentence(metrics))]
-    for name, fig in plots.simulation_figures(sim, ws.setup.partition, u_trim, title=ws.setup.name).items():
-        what = "the four inputs against time, trim dashed" if name == "inputs" else \
+    for name, fig in plots.simulation_figures(sim, ws.setup.partition, u_trim, title=ws.setup.name,
+                                              actuators=ws.setup.actuators).items():
+        limits = ", actuator limits red" if ws.setup.actuators is not None else ""
+        height = ", pD drawn as the height -pD" if name in ws.setup.partition and \
+            "pD" in ws.setup.partition[name].states else ""
+        what = f"the four inputs against time, trim dashed{limits}" if name == "inputs" else \
             "the wind the plant felt against time (NED, m/s)" if name == "wind" else \
-            f"the {name} subsystem's states and their reference against time (angles in degrees)"
+            f"the {name} subsystem's states and their reference against time (angles in degrees{height})"
         blocks.append(Figure(f"sim-{name}", f"Simulation: {what}.", _png(fig, SIM_DPI)))
     return Section("simulation", "Simulation", tuple(blocks))
 
