@@ -218,11 +218,11 @@ def test_the_recorded_wind_has_the_dryden_spectrum_of_mil_f_8785c(turbulence, re
     (a vertical spectrum 0.5-0.6 of it above the corner, twice it below)."""
     from scipy.signal import welch
 
-    from quadctl.simulate import wind_felt
+    from quadctl.sim.run import wind_felt
 
     data = cfg_dict("hover")
     data["simulation"]["wind"] = {"turbulence": {**turbulence, "seed": 4}}
-    wind = resolve(config.from_dict(data, "dryden.yaml")).wind
+    wind = setup_of(config.from_dict(data, "dryden.yaml")).wind
     period, n = 0.01, 2 ** 19
     recorded = wind_felt(wind, period, np.arange(n), period, block=4096)
     f, P = welch(recorded, fs=1 / period, nperseg=4096, axis=0)
