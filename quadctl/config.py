@@ -275,7 +275,7 @@ class ControllerConfig(_Section):
 
 
 class MotorsConfig(_Section):
-    """Four rotors; defaults: the Parrot Mambo (MODEL.md, "Motors")."""
+    """Four rotors; defaults: the Parrot Mambo (docs/model.md, "Motors")."""
 
     layout: Literal["x", "+"] = Field("x", description="x: rotors at +-45 deg from the nose; +: on the axes")
     arm_length: Positive = Field(0.0624, description="m, from the centre to each rotor axis")

@@ -1,7 +1,7 @@
 """The state and input layout: names, units and index maps, declared once.
 
 Every other module takes names, units and indices from here; no module hard-codes
-a size or an index (MODEL.md, "Frames, states, inputs").
+a size or an index (docs/model.md, "States and inputs").
 """
 
 from __future__ import annotations
@@ -83,4 +83,4 @@ REPORT_PARTITION: dict[str, dict] = {
     "yaw": {"states": ["psi", "r"], "inputs": ["R"], "regulate": True},
     "guidance": {"states": ["pN", "pE"], "inputs": ["u", "psi"], "regulate": False},
 }
-"""The report's five subsystems (MODEL.md, "Decoupling"); ``guidance`` takes states as inputs."""
+"""The report's five subsystems (docs/model.md, "Decoupling"); ``guidance`` takes states as inputs."""

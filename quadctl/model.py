@@ -1,4 +1,4 @@
-"""The 12-state nonlinear quadcopter model of MODEL.md, as CasADi functions.
+"""The 12-state nonlinear quadcopter model of docs/model.md, as CasADi functions.
 
 This is the only place the equations of motion live. Everything numeric (trim,
 Jacobians, the compiled simulation) is generated from the functions built here.
@@ -78,7 +78,7 @@ def rotation_earth_to_body(phi, theta, psi):
 
 
 def euler_rates_matrix(phi, theta):
-    """``H(phi, theta)`` with ``omega = H [phi_dot, theta_dot, psi_dot]`` (MODEL.md; report eq. 7 corrected)."""
+    """``H(phi, theta)`` with ``omega = H [phi_dot, theta_dot, psi_dot]`` (docs/model.md; report eq. 7 corrected)."""
     cph, sph = ca.cos(phi), ca.sin(phi)
     cth, sth = ca.cos(theta), ca.sin(theta)
     return ca.vertcat(
@@ -89,10 +89,10 @@ def euler_rates_matrix(phi, theta):
 
 
 def dynamics_expression(x, u, params, disturbance, wind=None):
-    """Right-hand side ``f(x, u)`` of MODEL.md eqs. 1-8 as a CasADi expression.
+    """Right-hand side ``f(x, u)`` of docs/model.md (the report's eqs. 1-8) as a CasADi expression.
 
     The rotor drag acts on the velocity relative to the air, ``V_b - R_E^b w``: in still air
-    (``wind`` None or zero) it is MODEL.md's ``-T Kc V_b``; a vehicle moving with the wind feels none.
+    (``wind`` None or zero) it is docs/model.md's ``-T Kc V_b``; a vehicle moving with the wind feels none.
 
     Parameters
     ----------

@@ -84,7 +84,7 @@ def default_spins(positions) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class Motors:
-    """Four rotors (defaults: the Parrot Mambo of MODEL.md).
+    """Four rotors (defaults: the Parrot Mambo of docs/model.md).
 
     Parameters
     ----------

@@ -15,7 +15,7 @@ from quadctl.lqr import design, lqr, riccati_residual
 
 
 def test_linear_model_report_entries(forward):
-    """Entries a hand derivation gives at the report's trim (MODEL.md equations)."""
+    """Entries a hand derivation gives at the report's trim (docs/model.md equations)."""
     _, trim, linear, _, _ = forward
     theta = trim.x[7]
     i = STATE_NAMES.index

@@ -39,7 +39,7 @@ def test_jacobians_match_central_differences(seed):
 
 
 def test_euler_rate_inverse_matches_H():
-    """The closed-form H^-1 in the dynamics inverts MODEL.md's H: H @ (dphi, dtheta, dpsi) = omega."""
+    """The closed-form H^-1 in the dynamics inverts docs/model.md's H: H @ (dphi, dtheta, dpsi) = omega."""
     rng = np.random.default_rng(1)
     for _ in range(20):
         x, u = _random_point(rng)
@@ -68,7 +68,7 @@ def test_thrust_points_up_and_hover_balances():
 
 
 def test_report_equilibrium_balances_only_with_corrected_thrust_sign():
-    """MODEL.md: the report's trim (theta = -0.2119, T = m g cos theta) is exact with -T, not with +T."""
+    """docs/model.md: the report's trim (theta = -0.2119, T = m g cos theta) is exact with -T, not with +T."""
     v = Vehicle()
     theta = -0.2119
     x = np.zeros(12)

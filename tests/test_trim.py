@@ -18,7 +18,7 @@ def test_report_forward_trim_to_four_digits():
     assert round(t.x[STATE_INDEX["theta"]], 4) == -0.2119
     assert round(t.u[0], 4) == 0.6522
     theta = t.x[STATE_INDEX["theta"]]
-    # closed forms of the balance (MODEL.md): T = m g cos(theta) and 0.22 cos^2(theta) = -sin(theta)
+    # closed forms of the balance (docs/model.md): T = m g cos(theta) and 0.22 cos^2(theta) = -sin(theta)
     assert t.u[0] == pytest.approx(0.068 * 9.81 * math.cos(theta), rel=1e-12)
     assert 0.22 * math.cos(theta) ** 2 == pytest.approx(-math.sin(theta), rel=1e-12)
     np.testing.assert_allclose(t.x[[3, 5]], [math.cos(theta), math.sin(theta)], rtol=1e-12)
