@@ -59,7 +59,7 @@ KNOT = 1852.0 / 3600.0
 W20 = {"light": 15 * KNOT, "moderate": 30 * KNOT, "severe": 45 * KNOT}
 """Wind speed at 20 ft (m/s) of each turbulence intensity, MIL-HDBK-1797 figure 262 (MIL-F-8785C §3.7.2.3)."""
 MIN_ALTITUDE_FT = 10.0
-"""ft: the low-altitude scales are taken at no less than this. ``L_w = h`` goes to zero at the ground
+"""ft: the low-altitude scales are taken at no less than this. ``L_w = h / 2`` goes to zero at the ground
 (white turbulence); 10 ft is half the 20 ft reference height the intensities are given at."""
 MAX_ALTITUDE_FT = 1000.0
 """ft: the top of the low-altitude model (MIL-HDBK-1797 §B.4.4.1)."""
