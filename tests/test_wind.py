@@ -209,13 +209,13 @@ def _low_altitude_8785c(intensity, h_ft):
 ], ids=["explicit", "light", "moderate", "severe"])
 def test_the_recorded_wind_has_the_dryden_spectrum_of_mil_f_8785c(turbulence, reference):
     """The wind a run records (``wind_felt``, what ``sim.npz``'s ``wind`` holds) of a config's
-    turbulence, 2^19 samples on a 100 Hz clock (5243 s), against the closed-form Dryden PSD of
+    turbulence, 2^18 samples on a 100 Hz clock (2621 s), against the closed-form Dryden PSD of
     MIL-F-8785C with its own scales (the same spectra as MIL-HDBK-1797's "2L" form with 2 L_w = h).
-    Welch, 4096-sample Hann segments (255 with half overlap: about 6.6 % standard error per bin),
-    averaged over octave bands from 0.05 to 5 Hz (the corners V / L are 0.07 to 0.5 Hz; linear
-    interpolation and the 100 Hz clock take under 2 % at 5 Hz): each band within 12 %, more than three
-    standard errors of the lowest band's four bins (3.5 %) and far from what a scale off by two gives
-    (a vertical spectrum 0.5-0.6 of it above the corner, twice it below)."""
+    Welch, 4096-sample Hann segments (127 with half overlap: about 9 % standard error per bin),
+    averaged over octave bands from 0.1 to 6.4 Hz (the corners V / L are 0.07 to 0.5 Hz), each band
+    within 15 %: the lowest band's four bins hold about 6 % standard error, the others less; over
+    eight seeds per case the worst band of the 18 was 10 % off. A scale off by two puts the vertical
+    spectrum at 0.5-0.6 of it above its corner and twice it below."""
     from scipy.signal import welch
 
     from quadctl.sim.run import wind_felt
@@ -223,16 +223,16 @@ def test_the_recorded_wind_has_the_dryden_spectrum_of_mil_f_8785c(turbulence, re
     data = cfg_dict("hover")
     data["simulation"]["wind"] = {"turbulence": {**turbulence, "seed": 4}}
     wind = setup_of(config.from_dict(data, "dryden.yaml")).wind
-    period, n = 0.01, 2 ** 19
+    period, n = 0.01, 2 ** 18
     recorded = wind_felt(wind, period, np.arange(n), period, block=4096)
     f, P = welch(recorded, fs=1 / period, nperseg=4096, axis=0)
     sigma, scales, speed = reference
     S = _mil_f_8785c_psd(f, sigma, scales, speed)
-    edges = np.array([0.05, 0.15, 0.3, 0.6, 1.2, 2.5, 5.0])
+    edges = 0.1 * 2.0 ** np.arange(7)  # 0.1 to 6.4 Hz
     ratios = np.array([P[(f >= lo) & (f < hi)].mean(axis=0) / S[(f >= lo) & (f < hi)].mean(axis=0)
                        for lo, hi in zip(edges[:-1], edges[1:])])
     worst = np.abs(ratios - 1).max()
-    assert worst < 0.12, f"band PSD / Dryden (rows: octave bands; columns u, v, w):\n{np.round(ratios, 3)}"
+    assert worst < 0.15, f"band PSD / Dryden (rows: octave bands; columns u, v, w):\n{np.round(ratios, 3)}"
 
 
 def test_dryden_realization_has_the_configured_variance(realization):
