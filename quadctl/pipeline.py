@@ -95,7 +95,8 @@ def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
                       open_loop_eigenvalues=(np.linalg.eigvals(linear.A) if open_loop_eigenvalues is None
                                              else open_loop_eigenvalues),
                       delay_samples=setup.timing.delay_samples, Kv=Kv,
-                      lag_model_time_constant=setup.design_lag_time_constant if Kv is not None else None)
+                      lag_model_time_constant=setup.design_lag_time_constant if Kv is not None else None,
+                      jacobians=(linear.A, linear.B))
 
 
 def estimator_of(setup: Setup, linear: LinearModel):

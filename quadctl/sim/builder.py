@@ -81,6 +81,15 @@ from quadctl.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 SATURATION_MODES = ("none", "box", "motors")
+METHODS = ("rk4", "etdrk4")
+"""Integrators of a loop with continuous feedback: classical RK4, or the exponential Runge-Kutta method
+of Cox and Matthews (ETDRK4; :data:`PHI_LAYOUT`), exact on the loop's linear part."""
+PHI_LAYOUT: tuple[str, ...] = ("lin", "E_half", "P_half", "E_full", "F1", "F2", "F3")
+"""The ETDRK4 constants (each (nx, nx), column-major, after the loop's others), for one step ``h`` and
+the loop's linear part ``L`` (:func:`quadctl.sim.schedule.phi_constants`): ``lin`` = ``L``,
+``E_half`` = ``e^(hL/2)``, ``P_half`` = ``h/2 phi1(hL/2)``, ``E_full`` = ``e^(hL)``, and the weights
+``F1 = h (phi1 - 3 phi2 + 4 phi3)``, ``F2 = h (phi2 - 2 phi3)``, ``F3 = h (4 phi3 - phi2)`` of
+``phi_k = phi_k(hL)``."""
 ANTIWINDUP_TOL = 1e-10
 """An input counts as saturated when clipping changed it by more than this (N or N m): far above
 the round-off of mixing and unmixing (~1e-15), far below any clip that matters."""
@@ -225,6 +234,12 @@ class LoopSpec:
         The loop takes the wind (:data:`WIND_LAYOUT`) every step, after the noise's channels.
     measured : tuple of int
         State indices a Kalman filter measures (LQG); empty: the law measures the full state.
+    method : {"rk4", "etdrk4"}
+        The integrator of ``step`` (continuous feedback; a held loop's plant is RK4's).
+    phi_pattern : tuple of bool
+        ETDRK4 only: the sparsity of its (nx, nx) constants (:data:`PHI_LAYOUT`), column-major,
+        the union over them: entries outside it are baked in as zero (a decoupled design's loop
+        keeps its blocks). Empty: dense.
     """
 
     pattern: tuple[bool, ...]
@@ -237,8 +252,16 @@ class LoopSpec:
     lag_model: bool = False
     wind: bool = False
     measured: tuple[int, ...] = ()
+    method: str = "rk4"
+    phi_pattern: tuple[bool, ...] = ()
 
     def __post_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.method != "rk4" and self.held:
+            raise ValueError("ETDRK4 integrates a loop with continuous feedback; a held loop's plant steps by RK4")
+        if self.phi_pattern and len(self.phi_pattern) != self.nx * self.nx:
+            raise ValueError(f"phi_pattern: expected {self.nx * self.nx} entries, got {len(self.phi_pattern)}")
         if len(self.pattern) != N_INPUTS * N_STATES:
             raise ValueError(f"pattern: expected {N_INPUTS * N_STATES} entries, got {len(self.pattern)}")
         if self.saturation not in SATURATION_MODES:
@@ -290,7 +313,13 @@ class LoopSpec:
 
     @property
     def n_constants(self) -> int:
-        return constant_size(self.nz, self.rotors, self.lag_model, self.ny)
+        """Length of ``c``: the loop's constants, then (ETDRK4) the :data:`PHI_LAYOUT` block."""
+        return constant_size(self.nz, self.rotors, self.lag_model, self.ny) + self.n_phi
+
+    @property
+    def n_phi(self) -> int:
+        """Entries of the ETDRK4 block at the end of ``c`` (0 for RK4)."""
+        return len(PHI_LAYOUT) * self.nx * self.nx if self.method == "etdrk4" else 0
 
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
@@ -299,7 +328,9 @@ class LoopSpec:
                 f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
                 + (f" delay={self.delay}" if self.delay else "") + (" lag_model=1" if self.lag_model else "")
                 + (" wind=1" if self.wind else "")
-                + (f" measured={','.join(map(str, self.measured))}" if self.measured else ""))
+                + (f" measured={','.join(map(str, self.measured))}" if self.measured else "")
+                + (f" method={self.method}" if self.method != "rk4" else "")
+                + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -460,6 +491,53 @@ def build(spec: LoopSpec) -> LoopFunctions:
             xdot = ca.vertcat(xdot, xh_dot)
         return xdot
 
-    step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([rk4(closed_rhs, X), u_now]),
+    if spec.method == "etdrk4":
+        X_next = etdrk4(closed_rhs, X, t, dt, phi_block(c, spec))
+    else:
+        X_next = rk4(closed_rhs, X)
+    step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([X_next, u_now]),
                        ["X", "t", "dt", "c", "e"], ["X_next", "u"])
     return LoopFunctions(spec=spec, law=law, step=step)
+
+
+def phi_block(c, spec: LoopSpec) -> dict:
+    """The ETDRK4 matrices of :data:`PHI_LAYOUT` in ``c`` (after the loop's constants), with the
+    entries outside ``spec.phi_pattern`` zero."""
+    nx = spec.nx
+    offset = spec.n_constants - spec.n_phi
+    mask = (ca.DM(np.reshape(np.asarray(spec.phi_pattern, dtype=float), (nx, nx), order="F"))
+            if spec.phi_pattern else None)
+    out = {}
+    for name in PHI_LAYOUT:
+        M = ca.reshape(c[offset:offset + nx * nx], nx, nx)
+        out[name] = M * mask if mask is not None else M
+        offset += nx * nx
+    return out
+
+
+def etdrk4(rhs, X, t, h, phi: dict):
+    """One step of Cox and Matthews' ETDRK4 (J. Comput. Phys. 176, 2002) of ``X' = rhs(X, t)`` split as
+    ``L X + N(X, t)``, ``N = rhs - L X``, with ``L`` and the matrices of ``h`` in ``phi``
+    (:data:`PHI_LAYOUT`)::
+
+        a = E_half X + P_half N(X, t)
+        b = E_half X + P_half N(a, t + h/2)
+        d = E_half a + P_half (2 N(b, t + h/2) - N(X, t))
+        X+ = E_full X + F1 N(X, t) + 2 F2 (N(a) + N(b)) + F3 N(d, t + h)
+
+    Exact when ``N`` is affine in ``t`` along the solution (a linear loop: ``L`` is its matrix).
+    """
+    L = phi["lin"]
+
+    def N(Y, ts):
+        return rhs(Y, ts) - L @ Y
+
+    n_x = N(X, t)
+    half = phi["E_half"] @ X
+    a = half + phi["P_half"] @ n_x
+    n_a = N(a, t + h / 2)
+    b = half + phi["P_half"] @ n_a
+    n_b = N(b, t + h / 2)
+    d = phi["E_half"] @ a + phi["P_half"] @ (2 * n_b - n_x)
+    n_d = N(d, t + h)
+    return phi["E_full"] @ X + phi["F1"] @ n_x + phi["F2"] @ (2 * (n_a + n_b)) + phi["F3"] @ n_d

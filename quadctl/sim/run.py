@@ -21,6 +21,7 @@ from quadctl.sim.builder import LoopSpec, pack_constants
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
+from quadctl.sim.schedule import DEFAULT_TOLERANCE
 from quadctl.wind import WindSpec, WindStream
 
 MAX_SAMPLES = 20_000
@@ -91,6 +92,9 @@ class ClosedLoop:
     """s of the controller's rotor lag model (the design's; None: no model)."""
     estimator: object | None = None
     """:class:`quadctl.estimator.Kalman` the law closes through (LQG); None: the measured state."""
+    jacobians: tuple | None = None
+    """``(A, B)`` of the design model at the trim: the exponential integrator's linear part
+    (:meth:`linear_part`); None: only RK4 runs the loop."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -111,10 +115,31 @@ class ClosedLoop:
                          [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
                           *["estimator"] * len(est)], duration, dt)
 
-    def spec(self, noise: bool = False, wind: bool = False) -> LoopSpec:
+    def linear_part(self) -> np.ndarray:
+        """The loop linearized at the reference in the loop state's order (:func:`quadctl.lqr.linear_loop.simulated`).
+
+        Raises
+        ------
+        ValueError
+            The loop was built without its ``jacobians``.
+        """
+        from quadctl.lqr import linear_loop
+
+        if self.jacobians is None:
+            raise ValueError("this ClosedLoop has no jacobians (A, B): build it with quadctl.pipeline.closed_loop_of")
+        A, B = self.jacobians
+        act = self.actuators
+        return linear_loop.simulated(A, B, self.K, Ki=self.Ki, integral_states=self.integral_states, Kv=self.Kv,
+                                     lag_time_constant=self.lag_model_time_constant,
+                                     rotor_time_constant=self.rotor_time_constant,
+                                     mix=act.mix if act is not None else None, estimator=self.estimator)
+
+    def spec(self, noise: bool = False, wind: bool = False, method: str = "rk4",
+             phi_pattern: tuple[bool, ...] = ()) -> LoopSpec:
         """The structure of this loop's generated code."""
         act = self.actuators
         return LoopSpec.of_gain(self.K, saturation=act.mode if act is not None else "none",
+                                method=method, phi_pattern=phi_pattern,
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
@@ -315,8 +340,9 @@ def wind_felt(wind: WindSpec, period: float, ks, dt: float, block: int = 256) ->
 
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
              noise: NoiseSpec | None = None, wind: WindSpec | None = None,
-             max_samples: int = MAX_SAMPLES, progress=None) -> SimResult:
-    """RK4 of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
+             max_samples: int = MAX_SAMPLES, progress=None, method: str = "rk4",
+             tolerance: float = DEFAULT_TOLERANCE) -> SimResult:
+    """RK4 (or ETDRK4) of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
     ----------
@@ -337,12 +363,22 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     progress : callable, optional
         ``progress(done, total)``: called with the RK4 steps done and the steps in all after each
         chunk of the run (:func:`run_in_chunks`), for a caller that shows how far a long run is.
+    method : {"rk4", "etdrk4"}
+        ``etdrk4``: the exponential integrator on the loop's linear part (continuous feedback only;
+        :mod:`quadctl.sim.schedule`), ``dt: auto`` its graded schedule.
+    tolerance : float
+        The error ETDRK4's ``dt: auto`` aims at.
 
     Returns
     -------
     SimResult
         A diverging run stops at the first bad state and keeps everything before it.
     """
+    if method == "etdrk4":
+        return _simulate_exponential(loop, x0, duration, dt, noise=noise, wind=wind, max_samples=max_samples,
+                                     progress=progress, tolerance=tolerance)
+    if method != "rk4":
+        raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
     plan = loop.plan(duration, dt)
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
@@ -350,9 +386,6 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     c = loop.constants(plan.sample_time)
     lo, hi = loop.bounds(duration)
     x0_all = loop.initial_loop_state(x0)
-    nz = len(loop.integral_states)
-    spec = loop.spec()
-    n_plant, n_lag, ne = spec.n_plant, spec.n_lag, spec.n_estimate
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
@@ -360,17 +393,71 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo, progress)
     wall = time.perf_counter() - start
     t = plan.dt * ks
+    return _result(loop, plan, run.backend, t, xs, us, done, stride, wall, lo, hi, noise if noisy else None,
+                   wind if windy else None, exo, ks, plan.dt)
+
+
+def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int, stride: int, wall: float,
+            lo, hi, noise, wind, exo, ks, dt: float) -> SimResult:
+    """The :class:`SimResult` of a run's recorded rows (``t`` s; the wind felt at steps ``ks`` of ``dt``)."""
+    spec = loop.spec()
+    nz, n_plant, n_lag, ne = spec.nz, spec.n_plant, spec.n_lag, spec.n_estimate
     x_ref = loop.x_trim + np.outer(t, loop.x_rate)
-    status, message = verdict(xs[:, :N_STATES], t, done, n, lo, hi)
+    status, message = verdict(xs[:, :N_STATES], t, done, plan.n_steps, lo, hi)
     return SimResult(t=t, x=np.ascontiguousarray(xs[:, :N_STATES]), u=us, x_ref=x_ref, dt=plan.dt,
-                     status=status, message=message, wall_time=wall, backend=run.backend, plan=plan,
+                     status=status, message=message, wall_time=wall, backend=backend, plan=plan,
                      steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:n_plant + nz]),
                      rotor_thrust=np.ascontiguousarray(xs[:, N_STATES:n_plant]),
-                     noise_seed=noise.seed if noisy else None,
+                     noise_seed=noise.seed if noise is not None else None,
                      lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
-                     wind=wind_felt(wind, exo.period, ks, plan.dt) if windy else np.zeros((0, 3)),
-                     wind_seed=wind.seed if windy else None,
+                     wind=wind_felt(wind, exo.period, ks, dt) if wind is not None else np.zeros((0, 3)),
+                     wind_seed=wind.seed if wind is not None else None,
                      x_hat=x_ref + xs[:, xs.shape[1] - ne:] if ne else np.zeros((0, 0)))
+
+
+def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, wind, max_samples: int,
+                          progress, tolerance: float) -> SimResult:
+    """:func:`simulate` by ETDRK4 over the segments of its schedule (each with its own matrices)."""
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule
+
+    if loop.rate is not None:
+        raise ValueError("ETDRK4 needs continuous feedback: a sampled controller (controller.rate) runs with "
+                         "simulation.method: rk4")
+    noisy = noise is not None and noise.active
+    windy = wind is not None and wind.active
+    exo = ExoStream(noise if noisy else None, wind if windy else None, loop.rate) if noisy or windy else None
+    L = loop.linear_part()
+    eig = np.linalg.eigvals(L)
+    plan = plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance,
+                         period=exo.period if exo is not None else None)
+    ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
+    spec = loop.spec(noisy, windy, method="etdrk4", phi_pattern=phi_pattern(ladder))
+    run = runner(spec, 1)
+    base = loop.constants(None)
+    lo, hi = loop.bounds(duration)
+    x = loop.initial_loop_state(x0)
+    n = plan.n_steps
+    stride = record_stride(n, max(2, max_samples - len(plan.schedule)))
+    start = time.perf_counter()
+    parts_t, parts_x, parts_u, total = [], [], [], 0
+    for i, seg in enumerate(plan.schedule):
+        c = np.concatenate([base, phi_constants(ladder[seg.dt])])
+        sub = StepPlan(seg.dt, seg.n, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto)
+        report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
+        done, ks, xs, us = run_in_chunks(run, x, c, sub, seg.n, stride, lo, hi, exo, report, k_start=seg.k0)
+        total += done
+        last = i == len(plan.schedule) - 1 or done < seg.n
+        keep = len(ks) if last else len(ks) - 1  # a segment's final row is the next one's start
+        parts_t.append(seg.dt * ks[:keep])
+        parts_x.append(xs[:keep])
+        parts_u.append(us[:keep])
+        if last:
+            break
+        x = np.ascontiguousarray(xs[-1])
+    wall = time.perf_counter() - start
+    t, xs, us = np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
+    return _result(loop, plan, run.backend, t, xs, us, total, stride, wall, lo, hi, noise if noisy else None,
+                   wind if windy else None, exo, t, 1.0)
 
 
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
@@ -379,10 +466,12 @@ Python sees Ctrl-C between calls at once."""
 
 
 def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: ExoStream | None = None,
-                  progress=None):
+                  progress=None, k_start: int = 0):
     """Run ``n`` steps in chunks, each starting on a controller sample; the rows of one long run.
 
     ``progress(done, n)``, if given, is called after each chunk with the steps done so far.
+    ``k_start``: the absolute index of the first step (a segment of a schedule starting at
+    ``k_start dt`` s).
 
     Returns
     -------
@@ -393,7 +482,8 @@ def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise
     chunk = max(hold, CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]) // hold * hold)
     parts_k, parts_x, parts_u = [], [], []
     x = np.ascontiguousarray(x0, dtype=float)
-    k0 = 0
+    k0 = k_start
+    n = n + k_start
     while True:
         m = min(chunk, n - k0)
         exo, first, period = None, 0, 1.0
@@ -405,13 +495,13 @@ def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise
         (done, ks, xs, us), = run.run(cases)
         last = k0 + m >= n or done < m
         if progress is not None:
-            progress(k0 + done, n)
+            progress(k0 + done - k_start, n - k_start)
         keep = len(ks) if last else len(ks) - 1  # a chunk's final row is the next one's start
         parts_k.append(ks[:keep])
         parts_x.append(xs[:keep])
         parts_u.append(us[:keep])
         if last:
-            return k0 + done, np.concatenate(parts_k), np.concatenate(parts_x), np.concatenate(parts_u)
+            return k0 + done - k_start, np.concatenate(parts_k), np.concatenate(parts_x), np.concatenate(parts_u)
         x = np.ascontiguousarray(xs[-1])
         k0 += m
 
