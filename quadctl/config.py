@@ -232,6 +232,12 @@ class SimulationConfig(_Section):
         None, description="simulated vehicle parameters that differ from vehicle: (model mismatch)")
     max_samples: Annotated[int, Field(strict=True, ge=2)] = Field(
         20_000, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
+    method: Literal["rk4", "etdrk4"] = Field(
+        "rk4", description="rk4: classical Runge-Kutta, its step held stable by the fastest loop; etdrk4: "
+        "exponential Runge-Kutta (Cox-Matthews) exact on the loop's linearization, dt: auto a graded step "
+        "schedule (continuous feedback only)")
+    tolerance: Optional[Annotated[Positive, Field(ge=1e-14, le=1e-2)]] = Field(
+        None, description="etdrk4 with dt: auto: the error the step schedule aims at (state units); absent: 1e-8")
 
 
 MAX_DELAY_SAMPLES = 100
@@ -828,9 +834,26 @@ def _check_semantics(cfg: Config, label: str) -> None:
     _check_inertia(cfg, fail)
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
+    _check_method(cfg, fail)
     if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
         fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
              "or use rotor_lag: ignore")
+
+
+def _check_method(cfg: Config, fail) -> None:
+    """``simulation.method: etdrk4`` integrates continuous feedback (its linear part is the continuous loop)."""
+    sim = cfg.simulation
+    if sim.method == "rk4":
+        if sim.tolerance is not None:
+            fail("simulation.tolerance", sim.tolerance, "sets the step schedule of method etdrk4: set "
+                 "simulation.method: etdrk4, or remove the tolerance")
+        return
+    if cfg.controller.rate is not None:
+        fail("simulation.method", sim.method, "integrates continuous feedback; a sampled controller "
+             "(controller.rate) runs with method: rk4")
+    if cfg.estimator is not None and cfg.motors is not None and cfg.motors.time_constant is not None:
+        fail("simulation.method", sim.method, "has no linear part for a Kalman filter with the rotors' lag: "
+             "use method: rk4, or remove motors.time_constant")
 
 
 def _check_delay(cfg: Config, fail) -> None:

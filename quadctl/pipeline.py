@@ -123,9 +123,12 @@ def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progress=None) -> SimResult:
     """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise;
     the wind, a condition of the flight, stays); ``progress(done, total)`` as :func:`simulate` calls it."""
+    extra = {"method": setup.method}
+    if setup.tolerance is not None:
+        extra["tolerance"] = setup.tolerance
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
                     noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples,
-                    progress=progress)
+                    progress=progress, **extra)
 
 
 @dataclass(frozen=True)

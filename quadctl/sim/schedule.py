@@ -260,5 +260,8 @@ def _rk4_limit(eig) -> float:
 
 
 def summary(plan: StepPlan) -> list[dict]:
-    """The schedule as sim.json reports it: per segment its step (s), steps, start and end (s)."""
-    return [{"dt": s.dt, "steps": s.n, "start": s.start, "end": s.end} for s in plan.schedule]
+    """The steps as sim.json reports them: per segment of uniform steps its step (s), steps, start
+    and end (s); RK4's plan is one segment."""
+    segments = plan.schedule or (Segment(plan.dt, plan.n_steps, 0),)
+    return [{"dt": s.dt, "steps": s.n, "start": s.start, "end": s.end} for s in segments]
+
