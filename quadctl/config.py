@@ -237,7 +237,7 @@ class SimulationConfig(_Section):
         "exponential Runge-Kutta (Cox-Matthews) exact on the loop's linearization, dt: auto a graded step "
         "schedule (continuous feedback only)")
     tolerance: Optional[Annotated[Positive, Field(ge=1e-14, le=1e-2)]] = Field(
-        None, description="etdrk4 with dt: auto: the error the step schedule aims at (state units); absent: 1e-8")
+        None, description="etdrk4 with dt: auto: the error the step schedule aims at (state units); absent: 1e-08")
 
 
 MAX_DELAY_SAMPLES = 100
