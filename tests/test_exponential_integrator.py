@@ -305,3 +305,16 @@ def test_a_sweep_refuses_etdrk4():
 def test_the_default_tolerance_is_the_one_the_schema_states():
     field = config.SimulationConfig.model_fields["tolerance"]
     assert f"absent: {schedule.DEFAULT_TOLERANCE:g}" in field.description
+
+
+def test_the_method_enters_the_digest_only_when_used():
+    """A config without the new keys keeps its digest (tests/test_reference_runs.py holds the old
+    ones); choosing etdrk4 or a tolerance changes it (a run folder of RK4 is not reused)."""
+    base = config.from_dict(cfg_dict("hover"), "<test>")
+    data = cfg_dict("hover")
+    data["simulation"]["method"] = "rk4"
+    assert config.from_dict(data, "<test>").digest() == base.digest()
+    data["simulation"]["method"] = "etdrk4"
+    etd = config.from_dict(data, "<test>").digest()
+    data["simulation"]["tolerance"] = 1e-9
+    assert len({base.digest(), etd, config.from_dict(data, "<test>").digest()}) == 3
