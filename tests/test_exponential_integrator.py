@@ -318,3 +318,30 @@ def test_the_method_enters_the_digest_only_when_used():
     etd = config.from_dict(data, "<test>").digest()
     data["simulation"]["tolerance"] = 1e-9
     assert len({base.digest(), etd, config.from_dict(data, "<test>").digest()}) == 3
+
+
+@pytest.mark.compiler
+def test_lanes_equal_the_one_case_loop():
+    """Eleven designs (gains scaled, so each has its own linear part and schedule; two groups of
+    eight lanes, the last padded) in the SIMD lanes, each against its own one-case run."""
+    from dataclasses import replace
+
+    from quadctl.sim.run import exponential_lanes
+
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    loops = [replace(loop, K=loop.K * (1.0 + 0.1 * k)) for k in range(11)]
+    lanes = exponential_lanes(loops, [x0] * len(loops), 0.3, tolerance=1e-8)
+    worst, schedules = 0.0, set()
+    for one_loop, (done, t, xs, us) in zip(loops, lanes):
+        one = simulate(one_loop, x0, 0.3, "auto", method="etdrk4", tolerance=1e-8)
+        assert done == one.steps and np.array_equal(t, one.t)
+        worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max())
+        schedules.add(one.plan.schedule)
+    assert len(schedules) > 1  # the lanes really ran different schedules
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
+    with pytest.raises(ValueError, match="one structure"):
+        K = loop.K.copy()
+        K[0, 0] = 1.0 if K[0, 0] == 0 else 0.0
+        exponential_lanes([loop, replace(loop, K=K)], [x0, x0], 0.1)

@@ -460,6 +460,81 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
                    wind if windy else None, exo, t, 1.0)
 
 
+def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                      max_samples: int = MAX_SAMPLES) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """ETDRK4 runs of several loops of one structure in the SIMD lanes (:data:`quadctl.sim.engine.LANES`
+    at a time), without noise or wind: each its own linear part and schedule, the lanes stepping
+    through their schedules' segments together (segment ``i`` of every case per call).
+
+    Parameters
+    ----------
+    loops : sequence of ClosedLoop
+        Continuous feedback, one :meth:`ClosedLoop.spec` (gain pattern, saturation, integrators ...).
+    x0s : sequence of (12,) array_like
+    duration : float
+        s.
+    dt : float or "auto"
+    tolerance : float
+    max_samples : int
+
+    Returns
+    -------
+    list of (done, t, xs, us)
+        Per loop: steps completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as
+        :func:`simulate` records them.
+
+    Raises
+    ------
+    ValueError
+        Loops of different structures, or a sampled controller.
+    """
+    from quadctl.sim.engine import LANES
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule
+
+    loops = list(loops)
+    if any(loop.rate is not None for loop in loops):
+        raise ValueError("ETDRK4 needs continuous feedback: a sampled controller runs with method rk4")
+    if len({loop.spec() for loop in loops}) > 1:
+        raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
+    Ls = [loop.linear_part() for loop in loops]
+    plans = [plan_schedule(np.linalg.eigvals(L), ["loop"] * len(L), duration, dt, tolerance=tolerance) for L in Ls]
+    ladders = [phi_ladder(L, [seg.dt for seg in plan.schedule]) for L, plan in zip(Ls, plans)]
+    patterns = np.array([phi_pattern(ladder) for ladder in ladders])
+    run = runner(loops[0].spec(method="etdrk4", phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
+    out = []
+    for start in range(0, len(loops), LANES):
+        group = range(start, min(start + LANES, len(loops)))
+        bounds = [loops[i].bounds(duration) for i in group]
+        x = [loops[i].initial_loop_state(x0s[i]) for i in group]
+        base = [loops[i].constants(None) for i in group]
+        strides = [record_stride(plans[i].n_steps, max(2, max_samples - len(plans[i].schedule))) for i in group]
+        parts = [([], [], []) for _ in group]
+        total, alive = [0] * len(group), [True] * len(group)
+        for k in range(max(len(plans[i].schedule) for i in group)):
+            segs = [plans[i].schedule[k] if alive[j] and k < len(plans[i].schedule) else None
+                    for j, i in enumerate(group)]
+            c = [np.concatenate([base[j], phi_constants(ladders[i][seg.dt] if seg else
+                                                         next(iter(ladders[i].values())))])
+                 for j, (i, seg) in enumerate(zip(group, segs))]
+            cases = Cases.of(np.array(x), np.array(c), [s.dt if s else 1.0 for s in segs],
+                             [s.n if s else 0 for s in segs], strides, np.array([b[0] for b in bounds]),
+                             np.array([b[1] for b in bounds]), k0=[s.k0 if s else 0 for s in segs])
+            for j, (done, ks, xs, us) in enumerate(run.run(cases)):
+                seg = segs[j]
+                if seg is None:
+                    continue
+                total[j] += done
+                last = k == len(plans[group[j]].schedule) - 1 or done < seg.n
+                keep = len(ks) if last else len(ks) - 1
+                parts[j][0].append(seg.dt * ks[:keep])
+                parts[j][1].append(xs[:keep])
+                parts[j][2].append(us[:keep])
+                x[j] = xs[-1]
+                alive[j] = not last
+        out.extend((total[j], *(np.concatenate(p) for p in parts[j])) for j in range(len(group)))
+    return out
+
+
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
 """Steps per call into the runner, by backend (~5 M and ~0.2 M steps/s): 0.05 to 0.1 s each, so
 Python sees Ctrl-C between calls at once."""
