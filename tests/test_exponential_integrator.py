@@ -237,6 +237,18 @@ def test_the_schedule_grades_and_aligns():
     assert tighter.n_steps > plan.n_steps and tighter.schedule[0].dt < plan.schedule[0].dt
 
 
+def test_records_are_equally_spaced():
+    """Metrics and plots take the records as equally spaced (time averages are plain means): the
+    graded schedule records at multiples of its largest step only, and the end."""
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    sim = simulate(loop, setup.initial_state(loop.x_trim), 2.0, "auto", method="etdrk4", max_samples=101)
+    gaps = np.diff(sim.t)
+    assert len(sim.t) <= 101 and len(sim.plan.schedule) > 5
+    assert np.allclose(gaps, gaps[0], rtol=1e-9, atol=0) and gaps[0] >= sim.plan.dt
+    assert sim.t[-1] == pytest.approx(2.0, rel=1e-12)
+
+
 def test_a_given_step_is_uniform():
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)

@@ -1,4 +1,4 @@
-"""The one closed-loop definition: CasADi functions of one RK4 step of plant and controller.
+"""The one closed-loop definition: CasADi functions of one step (RK4, or ETDRK4) of plant and controller.
 
 Every runner is generated from what this module builds: the compiled one-case loop and the
 compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
@@ -56,6 +56,11 @@ the filter gain ``Le = M``, acts on ``xc = xh + M (y - C xh)`` and predicts ``xh
 Kalman-Bucy filter ``dxh/dt = Ae xh + Be du + Le (y - C xh)`` is integrated in the RK4 stages.
 Runs start with ``xh = 0`` (the filter believes the trim).
 
+
+Integrator (:attr:`LoopSpec.method`, continuous feedback): classical RK4, or the exponential
+Runge-Kutta method of Cox and Matthews (:func:`etdrk4`), whose linear part ``L`` is the loop
+linearized at the reference (:func:`quadctl.lqr.linear_loop.simulated`) and whose matrices of one
+step (:data:`PHI_LAYOUT`, from :mod:`quadctl.sim.schedule`) end the constant vector ``c``.
 
 Exogenous inputs (:func:`exo_layout`): per step, when :attr:`LoopSpec.noise`, a body force and
 torque added to the plant and the sensor noise added to what the controller measures
@@ -342,8 +347,8 @@ class LoopSpec:
 class LoopFunctions:
     """The CasADi functions of one spec (arguments in this order, all column vectors).
 
-    ``step(X, t, dt, c, e) -> (X_next, u)``: one RK4 step with continuous feedback, and the
-    input at its start (continuous specs).
+    ``step(X, t, dt, c, e) -> (X_next, u)``: one RK4 (or ETDRK4, :attr:`LoopSpec.method`) step with
+    continuous feedback, and the input at its start (continuous specs).
     ``law(X, t, c, e) -> (u, X_sampled)``: the control law at ``X``, and ``X`` with its controller
     states advanced by one controller period (held specs; the input part serves both).
     ``plant(X, u, dt, c, e) -> X_next``: one RK4 step of the plant under a held ``u``; the

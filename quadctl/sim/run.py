@@ -247,9 +247,10 @@ class SimResult:
     wall_time : float
         s spent integrating (excludes compilation).
     steps : int
-        RK4 steps taken.
+        Steps taken (RK4's, or ETDRK4's over its schedule).
     stride : int
-        Samples are every ``stride``-th step (and the last); see ``max_samples``.
+        Samples are every ``stride``-th step (and the last); see ``max_samples``. ETDRK4: of the
+        largest step (:func:`quadctl.sim.schedule.record_strides`), so samples are equally spaced.
     backend : str
         ``compiled`` or ``casadi`` (no C compiler).
     plan : StepPlan
@@ -418,7 +419,7 @@ def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int
 def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, wind, max_samples: int,
                           progress, tolerance: float) -> SimResult:
     """:func:`simulate` by ETDRK4 over the segments of its schedule (each with its own matrices)."""
-    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
 
     if loop.rate is not None:
         raise ValueError("ETDRK4 needs continuous feedback: a sampled controller (controller.rate) runs with "
@@ -437,10 +438,10 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     lo, hi = loop.bounds(duration)
     x = loop.initial_loop_state(x0)
     n = plan.n_steps
-    stride = record_stride(n, max(2, max_samples - len(plan.schedule)))
+    strides = record_strides(plan, max_samples)
     start = time.perf_counter()
     parts_t, parts_x, parts_u, total = [], [], [], 0
-    for i, seg in enumerate(plan.schedule):
+    for i, (seg, stride) in enumerate(zip(plan.schedule, strides)):
         c = np.concatenate([base, phi_constants(ladder[seg.dt])])
         sub = StepPlan(seg.dt, seg.n, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto)
         report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
@@ -456,7 +457,7 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
         x = np.ascontiguousarray(xs[-1])
     wall = time.perf_counter() - start
     t, xs, us = np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
-    return _result(loop, plan, run.backend, t, xs, us, total, stride, wall, lo, hi, noise if noisy else None,
+    return _result(loop, plan, run.backend, t, xs, us, total, strides[-1], wall, lo, hi, noise if noisy else None,
                    wind if windy else None, exo, t, 1.0)
 
 
@@ -489,7 +490,7 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
         Loops of different structures, or a sampled controller.
     """
     from quadctl.sim.engine import LANES
-    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
 
     loops = list(loops)
     if any(loop.rate is not None for loop in loops):
@@ -507,7 +508,7 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
         bounds = [loops[i].bounds(duration) for i in group]
         x = [loops[i].initial_loop_state(x0s[i]) for i in group]
         base = [loops[i].constants(None) for i in group]
-        strides = [record_stride(plans[i].n_steps, max(2, max_samples - len(plans[i].schedule))) for i in group]
+        strides = [record_strides(plans[i], max_samples) for i in group]
         parts = [([], [], []) for _ in group]
         total, alive = [0] * len(group), [True] * len(group)
         for k in range(max(len(plans[i].schedule) for i in group)):
@@ -517,8 +518,10 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
                                                          next(iter(ladders[i].values())))])
                  for j, (i, seg) in enumerate(zip(group, segs))]
             cases = Cases.of(np.array(x), np.array(c), [s.dt if s else 1.0 for s in segs],
-                             [s.n if s else 0 for s in segs], strides, np.array([b[0] for b in bounds]),
-                             np.array([b[1] for b in bounds]), k0=[s.k0 if s else 0 for s in segs])
+                             [s.n if s else 0 for s in segs],
+                             [strides[j][k] if segs[j] else 1 for j in range(len(group))],
+                             np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
+                             k0=[s.k0 if s else 0 for s in segs])
             for j, (done, ks, xs, us) in enumerate(run.run(cases)):
                 seg = segs[j]
                 if seg is None:

@@ -26,7 +26,7 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl.sim.builder import PHI_LAYOUT
-from quadctl.sim.plan import StepPlan, max_stable_steps, step_count
+from quadctl.sim.plan import StepPlan, max_stable_steps, record_stride, step_count
 
 SAFETY = 1.0
 """The constant of ``h(t)``: measured on the report's ``forward`` loop (benchmarks/bench.py), where
@@ -250,6 +250,16 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     step_count(total * top, top, fastest, owner)  # refuses (or announces) a runaway plan
     return StepPlan(segments[-1].dt, total, _rk4_limit(eig), fastest, owner, True, method="etdrk4",
                     schedule=tuple(segments))
+
+
+def record_strides(plan: StepPlan, max_samples: int) -> list[int]:
+    """Per segment of ``plan``, the stride that records at the same times in every segment: the
+    multiples of ``m h_top`` (``h_top`` the largest step; ``m`` the smallest that keeps at most
+    ``max_samples`` records), so records are equally spaced, as metrics and plots take them. Every
+    step is ``h_top / 2^j`` and starts on a multiple of itself, so these times are steps' starts."""
+    top = max(s.dt for s in plan.schedule)
+    m = record_stride(max(1, round(max(s.end for s in plan.schedule) / top)), max_samples)
+    return [m * round(top / s.dt) for s in plan.schedule]
 
 
 def _rk4_limit(eig) -> float:
