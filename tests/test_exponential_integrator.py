@@ -58,6 +58,20 @@ def test_phi_functions_equal_their_closed_forms():
         assert np.abs(got[k] - ref).max() < 1e-12 * max(1.0, np.abs(ref).max()), k
 
 
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 30.0, 3e4])
+def test_the_exponential_is_scipys(scale):
+    """quadctl's scaling and squaring against SciPy's expm (Pade 13): stable, non-normal, up to stiff
+    (a 1-norm of 5e5: nineteen squarings)."""
+    rng = np.random.default_rng(4)
+    V = np.eye(12) + np.triu(rng.standard_normal((12, 12)), 1)  # non-normal: V far from orthogonal
+    D = np.diag(-scale * np.linspace(0.05, 5.0, 12))
+    M = V @ D @ np.linalg.inv(V)
+    ref = scipy.linalg.expm(M)
+    assert np.abs(schedule.expm(M) - ref).max() < 1e-12 * max(1.0, np.abs(ref).max())
+    exact = V @ np.diag(np.exp(np.diag(D))) @ np.linalg.inv(V)
+    assert np.abs(schedule.expm(M) - exact).max() < 1e-11 * max(1.0, np.abs(exact).max())
+
+
 def test_the_ladder_equals_direct_exponentials():
     rng = np.random.default_rng(2)
     L = rng.standard_normal((6, 6)) * 50 - 2000 * np.diag(rng.random(6))
