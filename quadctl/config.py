@@ -850,6 +850,9 @@ def _check_method(cfg: Config, fail) -> None:
             fail("simulation.tolerance", sim.tolerance, "sets the step schedule of method etdrk4: set "
                  "simulation.method: etdrk4, or remove the tolerance")
         return
+    if sim.tolerance is not None and sim.dt != "auto":
+        fail("simulation.tolerance", sim.tolerance, f"sets the step schedule of dt: auto, and simulation.dt is "
+             f"{sim.dt:g} s: remove one of them")
     if cfg.controller.rate is not None:
         fail("simulation.method", sim.method, "integrates continuous feedback; a sampled controller "
              "(controller.rate) runs with method: rk4")

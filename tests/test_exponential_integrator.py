@@ -317,6 +317,9 @@ def test_a_tolerance_without_etdrk4_is_refused():
     data["simulation"]["tolerance"] = 1e-9
     with pytest.raises(ConfigError, match=r"simulation\.tolerance.*method: etdrk4"):
         config.from_dict(data, "<test>")
+    data["simulation"].update(method="etdrk4", dt=0.001)
+    with pytest.raises(ConfigError, match=r"simulation\.tolerance = 1e-09: sets the step schedule of dt: auto"):
+        config.from_dict(data, "<test>")
 
 
 def test_a_sweep_refuses_etdrk4():
