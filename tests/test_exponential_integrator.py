@@ -374,3 +374,14 @@ def test_lanes_equal_the_one_case_loop():
         K = loop.K.copy()
         K[0, 0] = 1.0 if K[0, 0] == 0 else 0.0
         exponential_lanes([loop, replace(loop, K=K)], [x0, x0], 0.1)
+
+
+def test_the_presenter_names_the_method_and_its_schedule():
+    from quadctl.present import flight
+
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    sim = simulate(loop, setup.initial_state(loop.x_trim), 1.0, "auto", method="etdrk4")
+    text = flight.step_text(sim)
+    assert flight.integrator_name(sim) == "ETDRK4"
+    assert f"in {len(sim.plan.schedule)} segments (auto; RK4 would be stable up to 0.0001922 s" in text
