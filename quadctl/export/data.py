@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from quadctl import __version__
+from quadctl.escape import matlab_field
 from quadctl.export.bundle import Export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 
@@ -72,7 +73,7 @@ def fields(exp: Export) -> list[Field]:
     domain = "z (sampled loop on the zero-order-hold plant)" if Ts else "s, rad/s (continuous loop)"
     subsystems = {}
     for sub in des.subsystems:
-        subsystems[sub.name] = {
+        subsystems[matlab_field(sub.name)] = {
             "states": list(sub.states), "inputs": list(sub.inputs), "integral": list(sub.integral),
             "Q": np.asarray(sub.Q, dtype=float), "R": np.asarray(sub.R, dtype=float),
             "K": np.asarray(sub.K, dtype=float),

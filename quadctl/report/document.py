@@ -9,11 +9,12 @@ The page layout and the style are package files (``quadctl/report/templates``), 
 from __future__ import annotations
 
 import base64
-import html
+import re
 from dataclasses import dataclass, field
 from importlib import resources
 from string import Template
 
+from quadctl.escape import html_text, markdown_fence, markdown_text
 from quadctl.present.cells import Table as Table  # the presented table: rows the terminal shows too
 
 
@@ -92,7 +93,7 @@ def _template(name: str) -> str:
 
 # -- HTML ---------------------------------------------------------------------------------
 
-_e = html.escape
+_e = html_text
 
 
 def _html_block(block) -> str:
@@ -132,10 +133,18 @@ def to_html(doc: Document) -> str:
 
 
 # -- Markdown -----------------------------------------------------------------------------
+# Every text goes through markdown_text (quadctl's own and a config's alike: a name, a description, a
+# file name), code through a fence longer than any run of backticks in it.
+
+_md = markdown_text
+
+
+def _md_inline(text: str, wrapped: bool = False) -> str:
+    return markdown_text(text, block=False, wrapped=wrapped)
 
 
 def _md_cell(text: str) -> str:
-    return text.replace("|", "\\|").replace("\n", " ") or " "
+    return _md_inline(text).replace("|", "\\|") or " "
 
 
 def _md_block(block) -> str:
@@ -143,31 +152,44 @@ def _md_block(block) -> str:
         return "\n\n".join(_md_block(b) for b in block.blocks)
     if isinstance(block, Text):
         mark = {"ok": "✓ ", "warning": "⚠ ", "fail": "✗ "}.get(block.kind, "")
-        return f"{mark}{block.text}"
+        return f"{mark}{_md(block.text)}"
     if isinstance(block, Items):
-        return "\n".join(f"- {item}" for item in block.items)
+        return "\n".join(f"- {_md(item)}" for item in block.items)
     if isinstance(block, Code):
-        fence = "````" if "```" in block.text else "```"
-        return f"{block.caption}:\n\n{fence}yaml\n{block.text.rstrip()}\n{fence}"
+        fence = markdown_fence(block.text)
+        return f"{_md(block.caption)}:\n\n{fence}yaml\n{block.text.rstrip()}\n{fence}"
     if isinstance(block, Table):
         rule = {"l": "---", "w": "---", "r": "---:"}
-        lines = [f"**{block.title}**", "",
+        lines = [f"**{_md_inline(block.title, wrapped=True)}**", "",
                  "| " + " | ".join(_md_cell(c) for c in block.columns) + " |",
                  "|" + "|".join(rule[a] for a in block.alignment()) + "|"]
         lines += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in block.rows]
         if block.caption:
-            lines += ["", f"*{block.caption}*"]
+            lines += ["", f"*{_md_inline(block.caption, wrapped=True)}*"]
         return "\n".join(lines)
     if isinstance(block, Figure):
-        return f"![{block.caption}]({block.file})"
+        return f"![{_md_inline(block.caption, wrapped=True)}]({block.file})"
     raise TypeError(f"no Markdown for {type(block).__name__}")
+
+
+_FIGURE_LINE = re.compile(r"^!\[.*\]\((?P<file>[A-Za-z0-9_][A-Za-z0-9_.+-]*\.png)\)$", re.MULTILINE)
+
+
+def figure_files(markdown: str) -> set[str]:
+    r"""The figure files a Markdown report made by :func:`to_markdown` shows (its ``![...](x.png)``
+    lines): what a later report may remove, as the files an earlier one wrote.
+
+    >>> sorted(figure_files("![roll step](roll.png)\ntext ![x](y.png) inline"))
+    ['roll.png']
+    """
+    return {m["file"] for m in _FIGURE_LINE.finditer(markdown)}
 
 
 def to_markdown(doc: Document) -> str:
     """The same report in Markdown; its figures are the files ``Figure.file`` beside it."""
-    toc = "\n".join(f"- [{s.title}](#{s.id})" for s in doc.sections)
-    body = "\n\n".join(f'<a id="{s.id}"></a>\n\n## {s.title}\n\n' + "\n\n".join(_md_block(b) for b in s.blocks)
-                       for s in doc.sections)
+    toc = "\n".join(f"- [{_md_inline(s.title, wrapped=True)}](#{_e(s.id)})" for s in doc.sections)
+    body = "\n\n".join(f'<a id="{_e(s.id)}"></a>\n\n## {_md(s.title)}\n\n'
+                       + "\n\n".join(_md_block(b) for b in s.blocks) for s in doc.sections)
     return Template(_template("report.md")).substitute(
-        title=doc.title, subtitle=doc.subtitle, status=_md_block(doc.status), toc=toc, body=body,
-        generator=doc.generator)
+        title=_md(doc.title), subtitle=_md(doc.subtitle), status=_md_block(doc.status), toc=toc, body=body,
+        generator=_md_inline(doc.generator, wrapped=True))
