@@ -166,18 +166,69 @@ def plot_path(folder: Path | str, stem: str) -> Path:
     return Path(folder) / PLOTS / name
 
 
-def _check_name(path: Path) -> None:
-    """An artifact path is ``<run dir>/<registered name>`` or ``<run dir>/<subfolder>/<name>``.
+def _subfolder(path: Path) -> Path | None:
+    """The artifact folder ``path`` is in (``plots/``, ``report/``, ``sweep.parts/``), or None at the
+    top of the run directory.
 
+    An artifact path is ``<run dir>/<registered name>`` or ``<run dir>/<subfolder>/<name>``.
     Artifact names are constants (and figure names pass :func:`plot_path`), so a path that is
-    neither is a bug: it is refused before anything is written.
+    neither is a bug: ValueError, before anything is written or deleted.
     """
     if path.name in ARTIFACT_NAMES:
-        return
+        return None
     pattern = SUBFOLDER_NAMES.get(path.parent.name)
     if pattern is not None and pattern.fullmatch(path.name):
-        return
+        return path.parent
     raise ValueError(f"{path}: not an artifact name quadctl writes (ARTIFACT_NAMES, SUBFOLDER_NAMES)")
+
+
+def _safe_place(path: Path) -> Path:
+    """``path``, checked to be a place quadctl may write or delete: a registered artifact name in the
+    run directory or in one of its artifact folders, where that folder is not a symbolic link.
+
+    The safe-write layer's one rule: every write (:func:`_atomic_write`, :func:`write_together`)
+    and every delete (:func:`remove`) goes through here, so nothing quadctl does follows a link
+    out of the run directory. A link in place of an artifact *file* is replaced by the rename
+    (never followed, its target untouched); a link in place of an artifact *folder* is refused.
+
+    Raises
+    ------
+    ArtifactError
+        The artifact folder is a symbolic link (exit code 2, the message names it).
+    ValueError
+        Not a name quadctl writes (a bug).
+    """
+    path = Path(path)
+    sub = _subfolder(path)
+    if sub is not None and os.path.islink(sub):
+        raise ArtifactError(_LINK.format(path=sub))
+    return path
+
+
+_LINK = ("{path}: is a symbolic link where quadctl keeps its own folder; quadctl never writes or deletes through "
+         "a link: remove the link, or choose another --out folder")
+
+
+def check_folder(folder: Path | str) -> Path:
+    """``folder``, an artifact folder (``plots``, ``report``, ``sweep.parts``), checked not to be a
+    symbolic link before quadctl lists, reads or deletes anything in it; ArtifactError (exit 2)
+    naming it otherwise."""
+    folder = Path(folder)
+    if folder.name not in SUBFOLDER_NAMES:
+        raise ValueError(f"{folder}: not an artifact folder quadctl writes (SUBFOLDER_NAMES)")
+    if os.path.islink(folder):
+        raise ArtifactError(_LINK.format(path=folder))
+    return folder
+
+
+def _refuse_link(path: Path) -> None:
+    """A file quadctl reads back as its own artifact must not be a link (to anything, anywhere)."""
+    if os.path.islink(path):
+        raise ArtifactError(f"{path}: is a symbolic link, not an artifact quadctl wrote; remove it or rerun "
+                            "with --fresh (quadctl replaces it)")
+    sub = path.parent
+    if sub.name in SUBFOLDER_NAMES and os.path.islink(sub):
+        raise ArtifactError(_LINK.format(path=sub))
 
 
 # ---------------------------------------------------------------------------------------
@@ -193,8 +244,52 @@ def _atomic_write(path: Path, data: bytes) -> None:
         The folder cannot be made or written, or ``path`` is a directory (exit code 2: the
         message names the path and the way out).
     """
-    path = Path(path)
-    _check_name(path)
+    write_together({path: data})
+
+
+def write_together(files: dict[Path, bytes]) -> list[Path]:
+    """Write a set of artifacts that belong together: every temporary first, then the renames.
+
+    Each file is written to a tagged temporary in its folder and fsynced; only when all of them
+    are whole are they renamed into place, one after the other. A failure (or Ctrl-C) before the
+    renames leaves every old file as it was and no temporary; a ``kill -9`` between two renames
+    can still leave a new file beside an old one, so files read together must also carry a
+    check of each other (the C export's ``QUADCTL_PAIR``, :mod:`quadctl.export.c`). The
+    temporaries of a killed writer are removed by :func:`remove_stale_temporaries`.
+
+    Every path passes :func:`_safe_place` first (a link in place of a file is replaced, never
+    followed; a link in place of an artifact folder is refused).
+
+    Raises
+    ------
+    ArtifactError
+        A folder cannot be made or written, a path is a directory, or an artifact folder is a
+        symbolic link (exit code 2: the message names the path and the way out).
+    """
+    paths = [_safe_place(p) for p in files]
+    written: list[tuple[str, Path]] = []
+    path = paths[0] if paths else None
+    try:
+        for path, data in zip(paths, files.values()):
+            written.append((_temporary(path, data), path))
+        for tmp, path in written:
+            os.replace(tmp, path)
+    except OSError as exc:
+        _discard(written)
+        if isinstance(exc, ArtifactError):
+            raise
+        if path.is_dir() and not path.is_symlink():
+            raise ArtifactError(_IS_A_DIRECTORY.format(path=path)) from None
+        raise ArtifactError(f"{path}: cannot write the artifact ({_reason(exc)}); free the space or the "
+                            "permission it needs, or choose another --out folder") from None
+    except BaseException:
+        _discard(written)
+        raise
+    return paths
+
+
+def _temporary(path: Path, data: bytes) -> str:
+    """``data`` in a new tagged temporary beside ``path``, fsynced; its name."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{TEMPORARY_TAG}-", suffix=".tmp", dir=path.parent)
@@ -211,31 +306,49 @@ def _atomic_write(path: Path, data: bytes) -> None:
             os.fsync(fh.fileno())
         if not hasattr(os, "fchmod"):
             os.chmod(tmp, mode)
-        os.replace(tmp, path)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        if path.is_dir():
-            raise ArtifactError(_IS_A_DIRECTORY.format(path=path)) from None
-        raise ArtifactError(f"{path}: cannot write the artifact ({_reason(exc)}); free the space or the "
-                            "permission it needs, or choose another --out folder") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    return tmp
+
+
+def _discard(written) -> None:
+    for tmp, _ in written:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def remove(path: Path | str) -> bool:
+    """Delete an artifact quadctl wrote (a figure of an earlier report, a sweep's chunk); True if one went.
+
+    Only a registered artifact name in the run directory or one of its artifact folders (not a
+    link), the file itself: a link in its place is removed, never its target.
+    """
+    path = _safe_place(Path(path))
+    try:
+        path.unlink()
+    except FileNotFoundError:
+        return False
+    except OSError as exc:
+        raise ArtifactError(f"{path}: cannot remove the old artifact ({_reason(exc)}); remove it, or choose "
+                            "another --out folder") from None
+    return True
 
 
 STALE_TEMPORARY_AGE = 60.0
 """s; a temporary older than this was left by a killed run (a live write takes milliseconds)."""
 
 
-def remove_stale_temporaries(folder: Path) -> list[Path]:
+def remove_stale_temporaries(folder: Path, age: float = STALE_TEMPORARY_AGE) -> list[Path]:
     """Delete the temporaries a killed quadctl left in ``folder``; return them.
 
     Only what quadctl can prove it wrote goes: a regular file named
     ``.<artifact>.quadctl-<random>.tmp`` (:data:`TEMPORARY_TAG`) whose ``<artifact>`` is a name
     quadctl writes in that very folder (:data:`ARTIFACT_NAMES` at the top, the
-    :data:`SUBFOLDER_NAMES` patterns in ``plots/`` and ``sweep.parts/``), older than
-    :data:`STALE_TEMPORARY_AGE`. Never recursive: a user's ``.notes.tmp``, a
-    ``.sim.npz.mine.tmp`` or anything in a folder of their own stays.
+    :data:`SUBFOLDER_NAMES` patterns in ``plots/`` and ``sweep.parts/``), older than ``age`` (s,
+    default :data:`STALE_TEMPORARY_AGE`; a writer that holds the folder's lock, :func:`locked`, knows
+    every temporary there is a dead writer's and passes 0). Never recursive, never through a link:
+    a user's ``.notes.tmp``, a ``.sim.npz.mine.tmp``, anything in a folder of their own or in the
+    folder a linked ``plots`` points to stays.
     """
     import time
 
@@ -245,6 +358,8 @@ def remove_stale_temporaries(folder: Path) -> list[Path]:
     places = [(folder, ARTIFACT_NAMES.__contains__)]
     places += [(folder / sub, pattern.fullmatch) for sub, pattern in SUBFOLDER_NAMES.items()]
     for where, is_ours in places:
+        if os.path.islink(where):
+            continue
         try:
             entries = list(os.scandir(where))
         except OSError:  # no such folder (or unreadable): nothing of ours to remove
@@ -254,7 +369,7 @@ def remove_stale_temporaries(folder: Path) -> list[Path]:
             if not match or not is_ours(match["name"]) or not entry.is_file(follow_symlinks=False):
                 continue
             try:
-                if now - entry.stat(follow_symlinks=False).st_mtime > STALE_TEMPORARY_AGE:
+                if now - entry.stat(follow_symlinks=False).st_mtime >= age:
                     os.unlink(entry.path)
                     stale.append(Path(entry.path))
             except OSError:  # gone meanwhile, or a read-only folder: leave it
@@ -424,6 +539,7 @@ def read_npz(path: Path) -> tuple[dict[str, np.ndarray], dict]:
 
 
 def _refuse_directory(path) -> None:
+    _refuse_link(Path(path))
     if Path(path).is_dir():
         raise ArtifactError(_IS_A_DIRECTORY.format(path=path))
 
@@ -455,6 +571,8 @@ def is_fresh(path: Path, cfg) -> bool:
         It exists but is corrupt or of a foreign format.
     """
     path = Path(path)
+    if os.path.islink(path):  # never read through a link: recomputed, and the write replaces the link
+        return False
     if not path.exists():
         return False
     try:
@@ -522,6 +640,10 @@ def locked(folder: Path | str):
         release()
 
 
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+_LINK_LOCK = "{path}: is a symbolic link, not quadctl's lock file; remove it (quadctl never writes through a link)"
+
+
 def _in_use(folder: Path, pid: str, hint: str = "") -> ArtifactError:
     return ArtifactError(f"{folder} is in use by another quadctl (pid {pid or 'unknown'}); wait for it or "
                          f"use -o another folder{hint}")
@@ -531,8 +653,10 @@ def _lock_flock(folder: Path):
     path = folder / LOCK_NAME
     while True:
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o666)
         except OSError as exc:
+            if os.path.islink(path):
+                raise ArtifactError(_LINK_LOCK.format(path=path)) from None
             raise ArtifactError(f"{path}: cannot create the run directory's lock ({_reason(exc)}); "
                                 "choose another --out folder") from None
         try:
@@ -577,6 +701,8 @@ def _lock_exclusive(folder: Path):
     try:
         fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
     except FileExistsError:
+        if os.path.islink(path):
+            raise ArtifactError(_LINK_LOCK.format(path=path)) from None
         try:
             pid = path.read_text(encoding="ascii", errors="replace").strip()
         except OSError:

@@ -275,17 +275,23 @@ def test_an_error_in_a_stage_keeps_its_exit_code_and_still_reports(tmp_path):
 
 
 def test_the_report_reuses_fresh_artifacts_and_drops_stale_figures(tmp_path, reports):
+    """A figure the earlier report showed (its report.md names it) and this one does not goes; a
+    .png of the user's in the same folder stays."""
     import shutil
 
     cfg = config.load("hover")
     shutil.copytree(reports["hover"][0], tmp_path, dirs_exist_ok=True)  # a report of every stage
     (tmp_path / report.FOLDER / "margins-old.png").write_bytes(b"stale")
+    with open(tmp_path / report.FOLDER / report.MARKDOWN, "a", encoding="utf-8") as fh:
+        fh.write("\n![an earlier report's figure](margins-old.png)\n")
+    (tmp_path / report.FOLDER / "mine.png").write_bytes(b"the user's")
     again = Workspace(cfg, tmp_path)
     outcome = report.run_stages(again)
     assert outcome.done == report.STAGES and outcome.stopped_at is None
     assert {p.name for p in again.reused} >= {"trim.json", "linear.npz"}
     report.write(report.build(again, outcome), tmp_path / report.FOLDER)
     assert not (tmp_path / report.FOLDER / "margins-old.png").exists()
+    assert (tmp_path / report.FOLDER / "mine.png").read_bytes() == b"the user's"
     page = _parse(tmp_path / report.FOLDER / report.HTML)
     assert "Command line: (library call)" in "".join(page.text)
     assert html.unescape(page.pres[0]).startswith("# built in Python")  # no YAML text was given

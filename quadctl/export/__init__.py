@@ -44,7 +44,8 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     Raises
     ------
     ConfigError
-        No rate where one is needed, or ``rate`` given for a config that has its own (exit 2).
+        No rate where one is needed, ``rate`` given for a config that has its own, or outside
+        ``controller.rate``'s bounds (exit 2).
     CheckFailed
         The design is unstable on the coupled model, or the sampled loop of a continuous design
         is unstable at ``rate`` (exit 1; the message says which loop and why).
@@ -52,7 +53,10 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
         A subsystem cannot be designed (exit 1).
     """
     from quadctl import pipeline
+    from quadctl.config import check_override
 
+    if rate is not None:  # the bounds of controller.rate, which it stands for
+        rate = check_override("rate", rate, key="controller.rate")
     timing = setup.timing
     timing.refuse_other_rate(rate)
     if rate is not None and timing.rate is None:
@@ -91,7 +95,8 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
     exp : Export
     to : {"c", "mat", "json"}
     folder : path
-        Created if missing.
+        Created if missing. Held (:func:`quadctl.artifacts.locked`) while it is written; the
+        temporaries an earlier, killed writer left there are removed first.
     meta : dict, optional
         Provenance for the JSON (:func:`quadctl.artifacts.metadata`).
 
@@ -99,6 +104,12 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
     -------
     list of pathlib.Path
         ``quadctl_controller.h`` and ``.c``; or ``quadctl_controller.mat``; or ``quadctl_controller.json``.
+
+    Notes
+    -----
+    The two C files are written together (:func:`quadctl.artifacts.write_together`: both
+    temporaries whole before either rename) and each carries the other's ``QUADCTL_PAIR``: a pair
+    that a kill between the renames leaves half-replaced does not compile.
     """
     import io
     from pathlib import Path
@@ -106,13 +117,17 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
     from quadctl import artifacts
     from quadctl.export import c, data
 
+    if to not in TARGETS:
+        raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
     folder = Path(folder)
     if to == "c":
-        return [artifacts.write_bytes(folder / name, text.encode()) for name, text in c.sources(exp).items()]
-    if to == "mat":
+        files = {folder / name: text.encode() for name, text in c.sources(exp).items()}
+    elif to == "mat":
         buf = io.BytesIO()
         data.write_mat(buf, exp)
-        return [artifacts.write_bytes(folder / data.MAT_FILE, buf.getvalue())]
-    if to == "json":
-        return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
-    raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
+        files = {folder / data.MAT_FILE: buf.getvalue()}
+    with artifacts.locked(folder):  # one quadctl writes a folder at a time: a temporary here is a dead one's
+        artifacts.remove_stale_temporaries(folder, age=0.0)
+        if to == "json":
+            return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
+        return artifacts.write_together(files)

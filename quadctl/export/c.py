@@ -31,6 +31,7 @@ from string import Template
 import numpy as np
 
 from quadctl import __version__
+from quadctl.escape import c_comment, c_identifier
 from quadctl.export.bundle import Export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
 from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout
@@ -102,11 +103,11 @@ def sources(exp: Export) -> dict[str, str]:
                             for i, ((x, y), s) in enumerate(zip(act.motors.positions(), act.motors.rotor_spins()))))
     tol_float = float_tolerance(act)
     values = {
-        "CONFIG": exp.name, "VERSION": __version__, "CONFIG_HASH": exp.config_hash or "not recorded",
+        "CONFIG": c_comment(exp.name), "VERSION": __version__, "CONFIG_HASH": exp.config_hash or "not recorded",
         "TS": repr(Ts), "RATE": repr(float(exp.rate)),
         "STATE_TABLE": _table(STATE_NAMES, STATE_UNITS, loop.x_trim, loop.x_rate, "x"),
         "INPUT_TABLE": _table(INPUT_NAMES, INPUT_UNITS, loop.u_trim, None, "u"),
-        "LAW": "\n".join(" *   " + line for line in textwrap.wrap(exp.law(), 94)),
+        "LAW": "\n".join(" *   " + line for line in textwrap.wrap(c_comment(exp.law()), 94)),
         "TOL_FLOAT": repr(tol_float), "TOL_DOUBLE": repr(ANTIWINDUP_TOL),
         "FLOAT_EXACT_S": f"{2 ** 24 * Ts:.4g}", "ULONG_DAYS": f"{2 ** 32 * Ts / 86400:.4g}",
         "NX": str(N_STATES), "NU": str(N_INPUTS), "NZ": str(nz), "NZ_STORAGE": str(max(nz, 1)),
@@ -128,7 +129,7 @@ def sources(exp: Export) -> dict[str, str]:
         "STEP_PROTOTYPE": ("void quadctl_step(quadctl_controller *c, const quadctl_real "
                            + ("y[QUADCTL_NY]" if ny else "x[QUADCTL_NX]") + ", quadctl_real u[QUADCTL_NU])"),
         "MEASURE_DEFINES": ("/* index of each measurement in y: the measured states, in state units */\n"
-                            + "".join(f"#define QUADCTL_Y_{n.upper()} {i}  /* {n} ({STATE_UNITS[n]}), "
+                            + "".join(f"#define QUADCTL_Y_{c_identifier(n.upper())} {i}  /* {n} ({STATE_UNITS[n]}), "
                                       f"x[{STATE_NAMES.index(n)}] */\n" for i, n in enumerate(loop.measured))
                             if ny else ""),
         "MEASURED_TABLE": ("\n/* The state index of each measurement y[i] (C picks these rows of x). */\n"
@@ -154,9 +155,9 @@ def sources(exp: Export) -> dict[str, str]:
                           "the trim */\n" if ny else ""),
         "ESTIMATE_LOAD": "  for (i = 0; i < QUADCTL_NX; ++i) X[QC_X_XH + i] = c->xh[i];\n" if ny else "",
         "ESTIMATE_STORE": "  for (i = 0; i < QUADCTL_NX; ++i) c->xh[i] = X_sampled[QC_X_XH + i];\n" if ny else "",
-        "STATE_DEFINES": "".join(f"#define QUADCTL_X_{n.upper()} {i}  /* {n} ({STATE_UNITS[n]}) */\n"
+        "STATE_DEFINES": "".join(f"#define QUADCTL_X_{c_identifier(n.upper())} {i}  /* {n} ({STATE_UNITS[n]}) */\n"
                                  for i, n in enumerate(STATE_NAMES)).rstrip("\n"),
-        "INPUT_DEFINES": "".join(f"#define QUADCTL_U_{n} {i}  /* {n} ({INPUT_UNITS[n]}) */\n"
+        "INPUT_DEFINES": "".join(f"#define QUADCTL_U_{c_identifier(n)} {i}  /* {n} ({INPUT_UNITS[n]}) */\n"
                                  for i, n in enumerate(INPUT_NAMES)),
         "ROTOR_DEFINES": rotors,
         "INTEGRAL_DOC": (": of " + ", ".join(f"-(x[{n}] - x_ref_{n})" for n in loop.integral_states)
@@ -167,8 +168,31 @@ def sources(exp: Export) -> dict[str, str]:
         "LAW_FUNCTION": law,
     }
     package = resources.files("quadctl")
-    return {name: Template(package.joinpath(f"{TEMPLATES}/{name}").read_text(encoding="utf-8")).substitute(values)
-            for name in (HEADER, SOURCE)}
+    templates = {name: Template(package.joinpath(f"{TEMPLATES}/{name}").read_text(encoding="utf-8"))
+                 for name in (HEADER, SOURCE)}
+    unpaired = {name: t.substitute(values, PAIR=PAIR_PLACEHOLDER) for name, t in templates.items()}
+    pair = pair_id(unpaired)
+    return {name: text.replace(PAIR_PLACEHOLDER, pair) for name, text in unpaired.items()}
+
+
+PAIR_PLACEHOLDER = "QUADCTL_PAIR_ID"
+
+
+def pair_id(files: dict[str, str]) -> str:
+    """The number both C files carry (``QUADCTL_PAIR``): the first 32 bits of the sha256 of both
+    texts (with the number itself left out), as a C literal. The source compiles only beside the
+    header of the same export: a kill between the two renames, or an old file copied beside a new
+    one, is a compile error (``#error``), never a controller whose header describes another law.
+
+    >>> pair_id({"a.h": "x", "a.c": "y"})
+    '0xee924d18UL'
+    """
+    import hashlib
+
+    digest = hashlib.sha256()
+    for name in sorted(files):
+        digest.update(name.encode() + b"\0" + files[name].encode() + b"\0")
+    return f"0x{digest.hexdigest()[:8]}UL"
 
 
 def float_tolerance(actuators) -> float:

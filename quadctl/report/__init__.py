@@ -174,17 +174,35 @@ def _detail(ws, stage: str) -> str:
 
 
 def write(doc: Document, folder: Path | str) -> list[Path]:
-    """Write ``report.html``, ``report.md`` and the figures into ``folder``, atomically; the paths."""
+    """Write ``report.html``, ``report.md`` and the figures into ``folder``, atomically; the paths.
+
+    The figures of an earlier report that this one does not show go: those the earlier
+    ``report.md`` names (:func:`~quadctl.report.document.figure_files`), never another file.
+    """
     from quadctl import artifacts
 
-    folder = Path(folder)
+    folder = artifacts.check_folder(Path(folder))
+    earlier = _earlier_figures(folder / MARKDOWN)
     paths = [artifacts.write_bytes(folder / fig.file, fig.png) for fig in doc.figures]
-    for old in folder.glob("*.png"):  # figures of an earlier report that this one does not show
-        if old not in paths:
-            old.unlink(missing_ok=True)
+    for name in sorted(earlier - {p.name for p in paths}):
+        artifacts.remove(folder / name)
     paths.append(artifacts.write_bytes(folder / MARKDOWN, to_markdown(doc).encode("utf-8")))
     paths.append(artifacts.write_bytes(folder / HTML, to_html(doc).encode("utf-8")))
     return paths
+
+
+def _earlier_figures(markdown: Path) -> set[str]:
+    """The figure files an earlier report in this folder wrote (its ``report.md`` names them)."""
+    import os
+
+    from quadctl.report.document import figure_files
+
+    if os.path.islink(markdown) or not markdown.is_file():
+        return set()
+    try:
+        return figure_files(markdown.read_text(encoding="utf-8", errors="replace"))
+    except OSError:
+        return set()
 
 
 __all__ = ["FOLDER", "HTML", "MARKDOWN", "STAGES", "Document", "Outcome", "Section", "Table", "build",

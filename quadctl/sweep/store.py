@@ -62,10 +62,13 @@ class SweepStore:
         from quadctl import artifacts
 
         artifacts.remove_stale_temporaries(self.out)  # what a killed run was writing
-        files = sorted(self.parts.glob("chunk-*.json")) if self.parts.is_dir() else []
+        artifacts.check_folder(self.parts)
+        ours = artifacts.SUBFOLDER_NAMES[PARTS]
+        files = sorted(p for p in self.parts.glob("chunk-*.json") if ours.fullmatch(p.name)) \
+            if self.parts.is_dir() else []
         if not resume:
             for path in files:
-                path.unlink()
+                artifacts.remove(path)
             return {}
         done: dict[int, dict] = {}
         for path in files:
@@ -143,7 +146,7 @@ class SweepStore:
         traces = {**self.traces, **result.traces} if self.trace else {}
         if not traces:
             for name in MC_FILES:
-                (self.out / name).unlink(missing_ok=True)
+                artifacts.remove(self.out / name)
             return None
         duration = _lookup(base_of(self.cfg, self.spec), ("simulation", "duration"))
         bands = montecarlo_bands(traces, self.trace, duration, [r["case"] for r in result.rows])

@@ -10,6 +10,10 @@
 
 #include "quadctl_controller.h"
 
+#if !defined(QUADCTL_PAIR) || QUADCTL_PAIR != ${PAIR}
+#error "quadctl_controller.h and quadctl_controller.c come from different exports: export again (quadctl export --to c)"
+#endif
+
 #ifdef QUADCTL_FLOAT
 #define QUADCTL_LIT(x) x##f    /* a float literal */
 #define QUADCTL_FN(name) name##f  /* the float math function: sinf, cosf, ... */

@@ -41,6 +41,10 @@ ${DELAY_DOC}
 #ifndef QUADCTL_CONTROLLER_H
 #define QUADCTL_CONTROLLER_H
 
+/* This header and quadctl_controller.c are one export: the source refuses to compile with a header
+ * of another export (a pair half-replaced, files mixed by hand). */
+#define QUADCTL_PAIR ${PAIR}
+
 #ifdef __cplusplus
 extern "C" {
 #endif
