@@ -34,6 +34,11 @@ DEFAULT_CONFIG = "forward"
 NAME_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"
 """A config's name: one folder name inside ``runs/`` (no separator, not ``.`` or ``..``)."""
 
+SUBSYSTEM_NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_]{0,62}$"
+"""A subsystem's name: a letter, then letters, digits or ``_``, at most 63 characters. One rule for
+everything that uses the name: file names (``plots/<name>.png``, the report's figures), HTML ids,
+C identifiers and MATLAB struct fields (``.mat``: at most 63 characters)."""
+
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
 NonNegative = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
@@ -605,6 +610,57 @@ def from_dict(data: Any, label: str = "<config>") -> Config:
     return cfg
 
 
+OVERRIDES = {"--rate": "controller.rate"}
+"""Command-line options that stand for a config key: each takes the key's own declaration (its type,
+bounds, unit and messages) through :func:`check_override`."""
+
+
+def key_field(key: str):
+    """The schema's declaration (pydantic ``FieldInfo``) of a config key path (``controller.rate``)."""
+    *parents, leaf = key.split(".")
+    model = _section_model(parents)
+    if model is None or leaf not in model.model_fields:
+        raise KeyError(f"{key}: not a config key")
+    return model.model_fields[leaf]
+
+
+def check_override(option: str, value: Any, key: str | None = None) -> Any:
+    """Validate ``value``, given on the command line as ``option``, against the config key it
+    overrides (:data:`OVERRIDES`, or ``key``): the same bounds and words as that key in a file.
+
+    Returns
+    -------
+    The value as the key holds it.
+
+    Raises
+    ------
+    ConfigError
+        ``--rate = inf: must be a finite number (not NaN or infinity); --rate is controller.rate``:
+        one line naming the option, the value, what is allowed and the key.
+
+    Examples
+    --------
+    >>> check_override("--rate", 200.0)
+    200.0
+    >>> try:
+    ...     check_override("--rate", 1e12)
+    ... except ConfigError as exc:
+    ...     print(str(exc)[:48])
+    --rate = 1000000000000: must be at most 100000 (
+    """
+    from pydantic import TypeAdapter
+
+    key = key or OVERRIDES[option]
+    field = key_field(key)
+    try:
+        kind = Annotated[(field.annotation, *field.metadata)] if field.metadata else field.annotation
+        return TypeAdapter(kind).validate_python(value)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = key.split(".") + [p for p in err["loc"] if not _is_union_tag(p)]
+        raise ConfigError(f"{option} = {show(value)}: {_expected(err, loc)}; {option} is {key}") from None
+
+
 def _describe(exc: ValidationError, data: Any, label: str) -> str:
     """One line for the first pydantic error: file, key path, value, what is allowed."""
     # an unknown key usually explains the errors after it (a misspelt required key): say it first
@@ -754,10 +810,21 @@ def _lookup(data: Any, loc: list) -> Any:
 # Checks across fields
 
 
+def _safe_name(name: str) -> str:
+    """A name close to ``name`` that :data:`SUBSYSTEM_NAME_PATTERN` allows (for the message's fix)."""
+    safe = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_") or "subsystem"
+    return (safe if safe[0].isalpha() else f"s_{safe}")[:63]
+
+
 def _check_semantics(cfg: Config, label: str) -> None:
     def fail(path: str, value: Any, why: str) -> None:
         raise ConfigError(f"{label}: {path} = {show(value)}: {why}")
 
+    for name in cfg.subsystems or {}:
+        if not re.fullmatch(SUBSYSTEM_NAME_PATTERN, name):
+            raise ConfigError(f"{label}: subsystems: {name!r} is not a usable subsystem name: it must start with a "
+                              "letter and use only letters, digits and '_' (at most 63 characters: it names "
+                              f"files, C and MATLAB fields); rename it, e.g. `{_safe_name(name)}`")
     partition = cfg.partition()
     where = "subsystems" if cfg.subsystems is not None else "subsystems (the report's default)"
     seen_states: dict[str, str] = {}

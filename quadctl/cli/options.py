@@ -28,6 +28,29 @@ SetOpt = Annotated[Optional[list[str]], typer.Option(
          "validated as the file is, recorded in DIR/config.yaml.")]
 
 
+def rate_option(help: str):
+    """``--rate HZ``: stands for ``controller.rate`` (:data:`quadctl.config.OVERRIDES`); its bounds
+    are that key's, checked by :func:`override` in the command (not typer's ``min``/``max``)."""
+    return Annotated[Optional[float], typer.Option("--rate", metavar="HZ", help=help)]
+
+
+def override(option: str, value):
+    """A command-line ``value`` that stands for a config key, checked against that key's own
+    declaration (:func:`quadctl.config.check_override`: the same bounds and words as in a file);
+    None stays None.
+
+    Raises
+    ------
+    ConfigError
+        One line naming the option, the value, the bound and the key (exit 2).
+    """
+    if value is None:
+        return None
+    from quadctl import config
+
+    return config.check_override(option, value)
+
+
 def load_config(config: str | None, sets=None, *, plausible: bool = True):
     """Resolve and load ``--config`` with its ``--set`` values; print its notes and warnings on
     stderr, one line each.

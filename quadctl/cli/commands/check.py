@@ -1,19 +1,19 @@
-from typing import Annotated, Optional
 
 import typer
 
 from quadctl.cli.errors import EXIT_CHECK_FAILED
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace
+from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace, override, rate_option
+
+RateOpt = rate_option(
+    help="Also check the continuous design against this controller rate (a what-if for a config "
+         "without controller.rate; one that sets it is checked at its own rate).")
 
 NAME = "check"
 
 
 def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, json: JsonOpt = False,
             fresh: FreshOpt = False,
-            rate: Annotated[Optional[float], typer.Option(
-                "--rate", metavar="HZ", min=1e-9,
-                help="Also check the continuous design against this controller rate (a what-if for a config "
-                     "without controller.rate; one that sets it is checked at its own rate).")] = None,
+            rate: RateOpt = None,
             ) -> None:
     """Controllability, observability, PBH, stabilizability of every subsystem and the full model.
 
@@ -29,6 +29,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     from quadctl.cli import render
     from quadctl.lqr.discrete import unstable_when_sampled
 
+    rate = override("--rate", rate)
     ws = open_workspace(config, out, fresh, sets)
     ws.setup.timing.refuse_other_rate(rate)
     if ws.setup.timing.rate is not None:  # --rate is the config's own: checked as the config's (no what-if of

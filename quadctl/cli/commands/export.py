@@ -1,9 +1,13 @@
 from enum import Enum
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
-from quadctl.cli.options import ConfigOpt, OutOpt, SetOpt
+from quadctl.cli.options import ConfigOpt, OutOpt, SetOpt, rate_option
+
+RateOpt = rate_option(
+    help="Run a continuous design (no controller.rate) at this rate, after the check "
+         "`quadctl check --rate` makes.")
 
 NAME = "export"
 
@@ -18,10 +22,7 @@ def command(to: Annotated[Target, typer.Option(
                 "--to", help="c: a C99 controller (quadctl_controller.h and .c, double or float); mat: the design "
                              "as a MATLAB v5 .mat; json: the same as one self-describing JSON.")],
             config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
-            rate: Annotated[Optional[float], typer.Option(
-                "--rate", metavar="HZ", min=1e-9,
-                help="Run a continuous design (no controller.rate) at this rate, after the check "
-                     "`quadctl check --rate` makes.")] = None,
+            rate: RateOpt = None,
             json: Annotated[bool, typer.Option(
                 "--json", help="Print what was written as JSON on stdout (with --to json, the controller's "
                                "JSON itself under `controller`).")] = False) -> None:
@@ -33,10 +34,11 @@ def command(to: Annotated[Target, typer.Option(
     """
     from quadctl import artifacts, export
     from quadctl.cli import render
-    from quadctl.cli.options import load_config
+    from quadctl.cli.options import load_config, override
     from quadctl.problem import setup_of
     from quadctl.workspace import default_out
 
+    rate = override("--rate", rate)
     cfg, _ = load_config(config, sets)
     exp = export.prepare(setup_of(cfg), rate, need_rate=to is Target.c, config_hash=cfg.digest())
     for w in exp.rate_warnings:

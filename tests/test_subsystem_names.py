@@ -1,0 +1,60 @@
+"""A subsystem's name is checked once, at load, against everything that uses it (a file name, an
+HTML id, a C identifier, a MATLAB field): one rule, one line naming the key, the value and the fix."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+import yaml
+
+from quadctl import artifacts, config, escape
+from quadctl.errors import ConfigError
+
+BAD = ["yaw axis", "<b>yaw</b>", "..", "../escaped", "1st", "yaw-axis", "yaw.x", "_yaw", "yåw", "x" * 64]
+GOOD = ["heading", "Yaw_2", "r", "x" * 63]
+
+
+def _renamed(new: str) -> dict:
+    data = config.load("hover").model_dump(mode="json")
+    data["subsystems"][new] = data["subsystems"].pop("yaw")
+    data["lqr"][new] = data["lqr"].pop("yaw")
+    return data
+
+
+@pytest.mark.parametrize("name", BAD)
+def test_a_name_no_stage_can_use_is_refused_at_load(name):
+    with pytest.raises(ConfigError, match=rf"^c\.yaml: subsystems: {re.escape(repr(name))} is not a usable "
+                                          r"subsystem name: .*; rename it, e\.g\. `[A-Za-z][A-Za-z0-9_]*`$"):
+        config.from_dict(_renamed(name), "c.yaml")
+
+
+@pytest.mark.parametrize("name", GOOD)
+def test_a_name_the_rule_allows_is_usable_everywhere(name):
+    """What the load accepts, every stage can use: a figure's file name, a C identifier, a .mat field."""
+    cfg = config.from_dict(_renamed(name), "c.yaml")
+    assert name in cfg.partition()
+    assert artifacts.plot_path("run", name).name == f"{name}.png"
+    assert escape.c_identifier(name) == escape.matlab_field(name) == name
+
+
+def test_the_suggested_name_is_itself_allowed():
+    for name in BAD:
+        message = str(pytest.raises(ConfigError, config.from_dict, _renamed(name), "c.yaml").value)
+        suggestion = re.search(r"e\.g\. `([^`]*)`", message)[1]
+        config.from_dict(_renamed(suggestion), "c.yaml")
+
+
+def test_report_refuses_a_spaced_name_at_once_with_exit_2(tmp_path):
+    """The issue's case: a name with a space used to pass design, run, margins and export, then crash report."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(_renamed("yaw axis")))
+    for command in (["report"], ["design"], ["export", "--to", "json"]):
+        res = CliRunner().invoke(app, [*command, "-c", str(path), "-o", str(tmp_path / "out")])
+        assert res.exit_code == 2, res.output
+        assert res.stderr.count("\n") == 1 and "subsystems: 'yaw axis' is not a usable subsystem name" in res.stderr
+    assert not (tmp_path / "out" / "report").exists()
