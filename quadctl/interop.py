@@ -66,8 +66,12 @@ def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
     control.StateSpace
         States and outputs named ``pN ... r``, inputs ``T A E R`` (deviations from the trim).
     """
+    from quadctl.lqr.riccati import real_array
+
     _control()
-    A, B = _held(linear.A, linear.B, sample_time)
+    A, B = _held(linear.A, linear.B, sample_time, "plant")
+    A = real_array(A, "linear.A", name="plant", error=ValueError, shape=(len(STATE_NAMES), len(STATE_NAMES)))
+    B = real_array(B, "linear.B", name="plant", error=ValueError, shape=(len(STATE_NAMES), len(INPUT_NAMES)))
     return _ss(A, B, STATE_NAMES, INPUT_NAMES, STATE_NAMES, sample_time, name)
 
 
@@ -78,9 +82,14 @@ def subsystem(sub, *, sample_time: float | None = None):
     zero-order-hold discretization.
     """
     _control()
-    C = np.asarray(sub.C, dtype=float)
+    from quadctl.lqr.riccati import real_array
+
+    A, B = _held(sub.A, sub.B, sample_time, "subsystem")
+    C = real_array(sub.C, "sub.C", name="subsystem", error=ValueError, ndim=2, shape=(None, A.shape[0]))
+    if A.shape[0] != len(sub.states) or B.shape[1] != len(sub.inputs):
+        raise ValueError(f"subsystem: A is {A.shape[0]} x {A.shape[0]} and B has {B.shape[1]} columns for "
+                         f"{len(sub.states)} states and {len(sub.inputs)} inputs")
     outputs = [sub.states[int(np.argmax(np.abs(row)))] for row in C]
-    A, B = _held(sub.A, sub.B, sample_time)
     return _ss(A, B, sub.states, sub.inputs, outputs, sample_time, sub.name, C=C)
 
 
@@ -118,7 +127,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
     K, Ki, ints = _gains(design)
     if getattr(design, "estimator", None) is not None:
         return _lqg_controller(design, K, Ki, ints, sample_time, name)
-    Ts = getattr(design, "sample_time", None) if sample_time == "design" else sample_time
+    Ts = getattr(design, "sample_time", None) if sample_time == "design" else _sample_time(sample_time, "controller")
     C = integral.selector(STATE_NAMES, ints)
     nz = len(ints)
     A = np.eye(nz) if Ts else np.zeros((nz, nz))
@@ -184,6 +193,7 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
         Its poles are the closed-loop eigenvalues (``z`` when sampled).
     """
     from quadctl.lqr import discrete, linear_loop
+    from quadctl.lqr.riccati import real_array
 
     _control()
     K, Ki, ints = _gains(design)
@@ -191,9 +201,13 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
         raise ValueError("the loop closes through a Kalman filter (estimator:): closed_loop is the full-state "
                          "loop of [x; z]; for the LQG loop use control.feedback(interop.plant(linear, "
                          "sample_time=Ts), interop.controller(loop), sign=1)")
-    Ts = getattr(design, "sample_time", None) if sample_time == "design" else sample_time
-    A_cl = linear_loop.matrix(linear.A, linear.B, K, Ki, ints, Ts)
-    B = np.asarray(linear.B, dtype=float) if not Ts else discrete.c2d(linear.A, linear.B, Ts)[1]
+    Ts = getattr(design, "sample_time", None) if sample_time == "design" else _sample_time(sample_time, "closed_loop")
+    A, B = _held(linear.A, linear.B, None, "closed_loop")
+    n, m = len(STATE_NAMES), len(INPUT_NAMES)
+    A = real_array(A, "linear.A", name="closed_loop", error=ValueError, shape=(n, n))
+    B = real_array(B, "linear.B", name="closed_loop", error=ValueError, shape=(n, m))
+    A_cl = linear_loop.matrix(A, B, K, Ki, ints, Ts)
+    B = B if not Ts else discrete.c2d(A, B, Ts)[1]
     B_cl = np.vstack([B, np.zeros((len(ints), B.shape[1]))])
     names = [*STATE_NAMES, *(f"z_{s}" for s in ints)]
     return _ss(A_cl, B_cl, names, INPUT_NAMES, names, Ts, name)
@@ -254,7 +268,10 @@ def from_statespace(sys) -> Plant:
     """
     if not all(hasattr(sys, attr) for attr in ("A", "B", "state_labels", "input_labels")):
         raise ValueError(f"expected a control.StateSpace, got {type(sys).__name__}; convert it with control.ss(sys)")
-    A, B = np.atleast_2d(np.asarray(sys.A, dtype=float)), np.atleast_2d(np.asarray(sys.B, dtype=float))
+    from quadctl.lqr.riccati import real_array
+
+    A = real_array(sys.A, "sys.A", name="from_statespace", error=ValueError, ndim=2)
+    B = real_array(sys.B, "sys.B", name="from_statespace", error=ValueError, ndim=2)
     n = A.shape[0]
     if n == 0:
         raise ValueError("the system has no states: nothing to regulate")
@@ -276,18 +293,47 @@ def _gains(design):
         raise ValueError("the design includes the rotors' lag (controller.rotor_lag: include): its controller has "
                          "lag-model states these python-control systems do not carry; export it with "
                          "quadctl export (C, .mat or JSON: Kv and the law), or design with rotor_lag: ignore")
-    K = np.asarray(getattr(design, "K_block", getattr(design, "K", None)), dtype=float)
+    from quadctl.lqr.riccati import real_array
+
+    label = "K_block" if hasattr(design, "K_block") else "K"
+    if not hasattr(design, label) or not hasattr(design, "integral_states"):
+        raise TypeError(f"design must be a quadctl.lqr.Design or a quadctl.sim.run.ClosedLoop (K or K_block, "
+                        f"integral_states), got {type(design).__name__}")
+    n, m = len(STATE_NAMES), len(INPUT_NAMES)
+    K = real_array(getattr(design, label), f"design.{label}", name="interop", error=ValueError, shape=(m, n))
     ints = tuple(design.integral_states)
-    Ki = getattr(design, "Ki_block", getattr(design, "Ki", None))
-    Ki = np.zeros((K.shape[0], 0)) if Ki is None or not ints else np.asarray(Ki, dtype=float)
-    return K, Ki.reshape(K.shape[0], len(ints)), ints
+    unknown = [s for s in ints if s not in STATE_NAMES]
+    if unknown:
+        raise ValueError(f"interop: design.integral_states names {unknown[0]!r}, not a state ({' '.join(STATE_NAMES)})")
+    ki_label = "Ki_block" if hasattr(design, "Ki_block") else "Ki"
+    Ki = getattr(design, ki_label, None)
+    if Ki is None or not ints:
+        return K, np.zeros((m, 0)), ints
+    Ki = real_array(Ki, f"design.{ki_label}", name="interop", error=ValueError, ndim=2, shape=(m, len(ints)))
+    return K, Ki, ints
 
 
-def _held(A, B, sample_time):
-    """``(A, B)``, or with a sample time the zero-order-hold plant ``(Ad, Bd)``."""
+def _held(A, B, sample_time, who: str = "interop"):
+    """``(A, B)`` checked (real, ``A`` n x n, ``B`` n x m), or with a sample time the zero-order-hold
+    plant ``(Ad, Bd)``."""
     from quadctl.lqr import discrete
+    from quadctl.lqr.riccati import real_array
 
-    return discrete.c2d(A, B, sample_time) if sample_time else (np.asarray(A, float), np.asarray(B, float))
+    A = real_array(A, "A", name=who, error=ValueError, ndim=2)
+    A = real_array(A, "A", name=who, error=ValueError, shape=(A.shape[0], A.shape[0]))
+    B = real_array(B, "B", name=who, error=ValueError, ndim=2, shape=(A.shape[0], None))
+    return discrete.c2d(A, B, _sample_time(sample_time, who)) if sample_time else (A, B)
+
+
+def _sample_time(sample_time, who: str):
+    """A sample time argument: None or 0 (continuous), else a positive finite number of seconds."""
+    if sample_time is None or sample_time == 0:
+        return None
+    if isinstance(sample_time, bool) or not isinstance(sample_time, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(sample_time) or sample_time < 0:
+        raise ValueError(f"{who}: sample_time = {sample_time!r}: must be a positive finite number of seconds, "
+                         "or None for continuous time")
+    return float(sample_time)
 
 
 def _ss(A, B, states, inputs, outputs, sample_time, name, C=None, D=None):

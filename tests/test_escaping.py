@@ -120,10 +120,10 @@ def test_a_c_comment_cannot_be_closed_from_the_text():
 @pytest.fixture(scope="module")
 def exported():
     from quadctl import config, export
-    from quadctl.setup import resolve
+    from quadctl.problem import setup_of
 
     cfg = config.load("crazyflie")
-    return export.prepare(resolve(cfg), config_hash=cfg.digest())
+    return export.prepare(setup_of(cfg), config_hash=cfg.digest())
 
 
 def test_the_c_export_escapes_the_config_name_in_its_comments(exported, tmp_path):

@@ -33,10 +33,10 @@ PNG = b"\x89PNG\r\n\x1a\n" + b"\x00" * 16 + b"IEND\xaeB`\x82"
 @pytest.fixture(scope="module")
 def crazyflie_export():
     from quadctl import export
-    from quadctl.setup import resolve
+    from quadctl.problem import setup_of
 
     cfg = config.load("crazyflie")
-    return export.prepare(resolve(cfg), config_hash=cfg.digest()), cfg
+    return export.prepare(setup_of(cfg), config_hash=cfg.digest()), cfg
 
 
 def _doc() -> Document:

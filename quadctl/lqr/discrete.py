@@ -30,7 +30,7 @@ from quadctl import stability
 from quadctl._lazy import lazy_import
 from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
 from quadctl.errors import DesignError
-from quadctl.lqr.riccati import LqrResult, as_stack, require_valid_weights, solve
+from quadctl.lqr.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
 from quadctl.lqr.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
 from quadctl.messages import eig_text
 
@@ -73,7 +73,7 @@ def c2d(A, B, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     >>> np.round(Ad, 12).tolist(), np.round(Bd, 12).ravel().tolist()
     ([[1.0, 0.1], [0.0, 1.0]], [0.005, 0.1])
     """
-    Ad, Bd = c2d_batch(_as2d(A)[None], _as2d(B)[None], Ts)
+    Ad, Bd = c2d_batch(_as2d(A, "A", "c2d")[None], _as2d(B, "B", "c2d")[None], Ts)
     return Ad[0], Bd[0]
 
 
@@ -132,8 +132,8 @@ def lqrd_weights(A, B, Q, R, Ts: float, N=None, *, name: str = "system"):
     >>> [round(float(v), 12) for v in (Qd[0, 0], Nd[0, 0], Rd[0, 0])]
     [1.5, 0.375, 1.125]
     """
-    A, B, Q, R = _as2d(A), _as2d(B), _as2d(Q), _as2d(R)
-    out = lqrd_weights_batch(A[None], B[None], Q[None], R[None], Ts, None if N is None else _as2d(N)[None])
+    A, B, Q, R = (_as2d(M, label, name) for M, label in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R")))
+    out = lqrd_weights_batch(A[None], B[None], Q[None], R[None], Ts, None if N is None else _as2d(N, "N", name)[None])
     if not all(np.all(np.isfinite(M)) for M in out):
         raise DesignError(f"{name}: sampled every {Ts:.3g} s (controller.rate {1 / Ts:.3g} Hz) its response "
                           "overflows double precision; use a faster controller.rate")
@@ -213,7 +213,9 @@ class LqrdWeightMap:
     """
 
     def __init__(self, A, B, Ts: float):
-        A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+        A = real_array(A, "A", name="LqrdWeightMap", ndim=2)
+        A = real_array(A, "A", name="LqrdWeightMap", shape=(A.shape[0], A.shape[0]))
+        B = real_array(B, "B", name="LqrdWeightMap", ndim=2, shape=(A.shape[0], None))
         n, m = B.shape
         k = n + m
         basis = np.eye(k * k).reshape(k * k, k, k)  # W = e_p e_q', p, q = 0 .. k - 1
@@ -229,9 +231,12 @@ class LqrdWeightMap:
 
     def weights(self, Q, R, N=None):
         """``(Qd, Rd, Nd)`` of stacked weights: Q (batch, n, n), R (batch, m, m), N (batch, n, m)."""
-        Q, R = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
-        batch, n = len(Q), self.n
-        N = np.zeros((batch, n, self.m)) if N is None else np.asarray(N, dtype=float)
+        n, m = self.n, self.m
+        Q = real_array(Q, "Q", name="LqrdWeightMap.weights", shape=(None, n, n))
+        R = real_array(R, "R", name="LqrdWeightMap.weights", shape=(len(Q), m, m))
+        batch = len(Q)
+        N = np.zeros((batch, n, m)) if N is None else real_array(N, "N", name="LqrdWeightMap.weights",
+                                                                  shape=(batch, n, m))
         W = _joint(Q, R, N)
         k = W.shape[1]
         Wd = (W.reshape(batch, k * k) @ self.map.T).reshape(batch, k, k)
@@ -420,8 +425,8 @@ def rate_warnings(loops, rate: float) -> list[RateWarning]:
     return sorted(out, key=lambda w: (w.loop == "coupled", -w.factor))
 
 
-def _as2d(m) -> np.ndarray:
-    return np.atleast_2d(np.asarray(m, dtype=float))
+def _as2d(m, label: str = "matrix", name: str = "system") -> np.ndarray:
+    return real_array(m, label, name=name, ndim=2)
 
 
 def _joint(Q, R, N) -> np.ndarray:

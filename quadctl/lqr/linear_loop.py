@@ -139,15 +139,30 @@ def matrix(A, B, K, Ki=None, integral_states=(), sample_time=None, *, Kv=None,
     Returns
     -------
     (12 + nv + nz, 12 + nv + nz) ndarray
+
+    Raises
+    ------
+    DesignError
+        A matrix that is complex, not numeric, or of a shape that does not fit (named).
     """
+    from quadctl.errors import DesignError
+    from quadctl.lqr.riccati import real_array
+
+    who = "closed_loop_matrix"  # its public name (quadctl.lqr.closed_loop_matrix)
+    A = real_array(A, "A", name=who, ndim=2)
+    n = A.shape[0]
+    A = real_array(A, "A", name=who, shape=(n, n))
+    B = real_array(B, "B", name=who, ndim=2, shape=(n, None))
+    m = B.shape[1]
+    K = real_array(K, "K", name=who, ndim=2, shape=(m, n))
     if lag_time_constant is not None:
         A, B = lag.lagged(A, B, lag_time_constant)
-        m = B.shape[1]
-        K = np.hstack([np.atleast_2d(np.asarray(K, dtype=float)),
-                       np.zeros((m, m)) if Kv is None else np.asarray(Kv, dtype=float)])
-    A, B, K = (np.atleast_2d(np.asarray(M, dtype=float)) for M in (A, B, K))
+        K = np.hstack([K, np.zeros((m, m)) if Kv is None else real_array(Kv, "Kv", name=who, shape=(m, m))])
     nz = len(integral_states)
-    Ki = np.zeros((B.shape[1], 0)) if Ki is None else np.asarray(Ki, dtype=float).reshape(B.shape[1], nz)
+    Ki = np.zeros((m, 0)) if Ki is None else real_array(Ki, "Ki", name=who)
+    if Ki.size != m * nz:
+        raise DesignError(f"{who}: Ki has shape {Ki.shape}, expected {m} x {nz} (inputs x integral_states)")
+    Ki = Ki.reshape(m, nz)
     if sample_time is not None:
         A, B = discrete.c2d(A, B, sample_time)
     return stack(A, B, K, Ki, integral_states, sample_time)

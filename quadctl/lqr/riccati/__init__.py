@@ -40,9 +40,16 @@ from quadctl.lqr.riccati.stacked import (
     riccati_residual,
     riccati_residuals,
 )
-from quadctl.lqr.riccati.weights import SEMIDEFINITE_RTOL, WeightCheck, as_problem, as_stack, require_valid_weights
+from quadctl.lqr.riccati.weights import (
+    SEMIDEFINITE_RTOL,
+    WeightCheck,
+    as_problem,
+    as_stack,
+    real_array,
+    require_valid_weights,
+)
 
 __all__ = ["KRONECKER_MAX_N", "NEWTON_STEPS", "ROUNDOFF_RTOL", "SDA_STEPS", "SEMIDEFINITE_RTOL", "BatchLqr",
-           "LqrResult", "WeightCheck", "as_problem", "as_stack", "care_batch", "care_schur", "dare_batch",
+           "LqrResult", "WeightCheck", "as_problem", "as_stack", "real_array", "care_batch", "care_schur", "dare_batch",
            "dare_residual", "dare_residuals", "require_stabilizable", "require_valid_weights", "riccati_residual",
            "riccati_residuals", "solve", "unstabilizable_mode"]

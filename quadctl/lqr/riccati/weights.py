@@ -23,6 +23,58 @@ checks quadctl's own subsystems); a weight that is really indefinite is far belo
 against 0.23)."""
 
 
+def real_array(M, label: str, *, name: str = "system", shape: tuple | None = None, ndim: int | None = None,
+               error: type[Exception] = DesignError) -> np.ndarray:
+    """``M`` as a float array, refusing what a float conversion would change or lose.
+
+    The one check of a matrix argument for every public function that takes one (the Riccati
+    solvers, :mod:`quadctl.discrete`, :func:`quadctl.lqr.closed_loop_matrix`, :mod:`quadctl.interop`):
+    quadctl's solvers are real-only, so a complex matrix is refused (NumPy's conversion would drop
+    its imaginary part with only a ``ComplexWarning`` and the answer would be certified for another
+    problem), as are text, objects and ragged lists. ``ndim`` pads with leading axes
+    (:func:`numpy.atleast_2d` for 2); ``shape`` is then checked, ``None`` entries free.
+
+    Parameters
+    ----------
+    M : array_like
+    label : str
+        The argument's name in the message (``A``, ``K_block``).
+    name : str
+        The system or function the message names first.
+    shape : tuple of int or None, optional
+    ndim : int, optional
+    error : exception class
+        Raised with the message (default :class:`~quadctl.errors.DesignError`).
+
+    Examples
+    --------
+    >>> real_array([[1, 2]], "B", shape=(1, 2)).dtype
+    dtype('float64')
+    >>> try:
+    ...     real_array([[2, 1 - 2j], [0, -3j]], "A", name="dlqr")
+    ... except DesignError as exc:
+    ...     print(str(exc)[:72])
+    dlqr: A is complex (dtype complex128); quadctl solves real problems only
+    """
+    try:
+        arr = np.asarray(M)
+    except (TypeError, ValueError) as exc:
+        raise error(f"{name}: {label} is not a numeric matrix ({exc}); give an array of numbers") from None
+    if arr.dtype.kind == "c":
+        raise error(f"{name}: {label} is complex (dtype {arr.dtype}); quadctl solves real problems only: give the "
+                    "real matrix (SciPy's solve_continuous_are and solve_discrete_are take complex ones)")
+    if arr.dtype.kind not in "biuf":
+        raise error(f"{name}: {label} is not a numeric matrix (dtype {arr.dtype}); give an array of numbers")
+    arr = arr.astype(float)
+    if ndim is not None and arr.ndim < ndim:
+        arr = arr.reshape((1,) * (ndim - arr.ndim) + arr.shape)
+    if shape is not None and (arr.ndim != len(shape)
+                              or any(e is not None and e != d for e, d in zip(shape, arr.shape))):
+        want = " x ".join("?" if e is None else str(e) for e in shape)
+        raise error(f"{name}: {label} has shape {arr.shape}, expected {want}")
+    return arr
+
+
 def as_problem(A, B, Q, R, N=None, *, name: str = "system"):
     """``(A, B, Q, R, N)`` as float 2-D arrays of consistent shapes (``N`` zero when not given).
 
@@ -31,14 +83,8 @@ def as_problem(A, B, Q, R, N=None, *, name: str = "system"):
     DesignError
         A matrix is not numeric, or its shape does not fit (the message names it).
     """
-    mats = {}
-    for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R), ("N", N)):
-        if M is None:
-            continue
-        try:
-            mats[label] = np.atleast_2d(np.asarray(M, dtype=float))
-        except (TypeError, ValueError) as exc:
-            raise DesignError(f"{name}: {label} is not a numeric matrix ({exc}); give an array of numbers") from None
+    mats = {label: real_array(M, label, name=name, ndim=2)
+            for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R), ("N", N)) if M is not None}
     n, m = mats["A"].shape[0], mats["B"].shape[-1]
     mats.setdefault("N", np.zeros((n, m)))
     _check_shapes(mats, (), n, m, name)
@@ -54,13 +100,13 @@ def as_stack(A, B, Q=None, R=None, N=None, *, name: str):
     DesignError
         The shapes do not stack (the message names the matrix and ``name``).
     """
-    mats = {label: np.asarray(M, dtype=float) for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R))
+    mats = {label: real_array(M, label, name=name) for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R))
             if M is not None}
     if mats["B"].ndim != 3:
         raise DesignError(f"{name}: B has shape {mats['B'].shape}; stack the problems as A (batch, n, n), "
                           "B (batch, n, m), Q (batch, n, n), R (batch, m, m)")
     batch, n, m = mats["B"].shape
-    mats["N"] = np.zeros((batch, n, m)) if N is None else np.asarray(N, dtype=float)
+    mats["N"] = np.zeros((batch, n, m)) if N is None else real_array(N, "N", name=name)
     _check_shapes(mats, (batch,), n, m, name)
     return tuple(mats.get(k) for k in "ABQRN")
 

@@ -1,0 +1,178 @@
+"""Every public function that takes matrices checks their shape and dtype and names the argument
+(SciPy's ``_are_validate_args``), through one helper (:func:`quadctl.riccati.real_array`): quadctl's
+solvers are real-only, and say so, rather than drop an imaginary part and certify another problem."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from quadctl import interop, lqr
+from quadctl.errors import DesignError
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.lqr import discrete, riccati
+
+A_SCIPY = np.array([[2, 1 - 2j], [0, -3j]])
+"""SciPy's own complex DARE test case (scipy/linalg/tests/test_solvers.py, solve_discrete_are)."""
+B2, Q2, R2 = np.eye(2), np.eye(2), np.eye(2)
+COMPLEX = "is complex .*quadctl solves real problems only"
+
+
+@pytest.fixture(autouse=True)
+def _no_complex_warning():
+    """A ComplexWarning (an imaginary part silently dropped) fails the test."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", np.exceptions.ComplexWarning)
+        yield
+
+
+ONE = {
+    "lqr": lambda A, B: lqr.lqr(A, B, Q2, R2),
+    "dlqr": lambda A, B: discrete.dlqr(A, B, Q2, R2),
+    "lqrd": lambda A, B: discrete.lqrd(A, B, Q2, R2, 0.01),
+    "riccati.solve": lambda A, B: riccati.solve(A, B, Q2, R2, discrete=True),
+    "care_schur": lambda A, B: riccati.care_schur(A, B, Q2, R2),
+    "c2d": lambda A, B: discrete.c2d(A, B, 0.01),
+    "lqrd_weights": lambda A, B: discrete.lqrd_weights(A, B, Q2, R2, 0.01),
+    "riccati_residual": lambda A, B: riccati.riccati_residual(A, B, Q2, R2, Q2),
+    "dare_residual": lambda A, B: riccati.dare_residual(A, B, Q2, R2, Q2),
+    "closed_loop_matrix": lambda A, B: lqr.closed_loop_matrix(A, B, np.zeros((2, 2))),
+    "LqrdWeightMap": lambda A, B: discrete.LqrdWeightMap(A, B, 0.01),
+}
+BATCH = {
+    "care_batch": lambda A, B: riccati.care_batch(A, B, Q2[None], R2[None]),
+    "dare_batch": lambda A, B: riccati.dare_batch(A, B, Q2[None], R2[None]),
+    "c2d_batch": lambda A, B: discrete.c2d_batch(A, B, 0.01),
+    "lqrd_weights_batch": lambda A, B: discrete.lqrd_weights_batch(A, B, Q2[None], R2[None], 0.01),
+    "riccati_residuals": lambda A, B: riccati.riccati_residuals(A, B, Q2[None], R2[None], Q2[None]),
+    "dare_residuals": lambda A, B: riccati.dare_residuals(A, B, Q2[None], R2[None], Q2[None]),
+}
+
+
+@pytest.mark.parametrize("solver", ONE)
+def test_a_complex_a_is_refused_by_name_not_solved_as_another_problem(solver):
+    with pytest.raises(DesignError, match=rf": A {COMPLEX}"):
+        ONE[solver](A_SCIPY, B2)
+
+
+@pytest.mark.parametrize("solver", ONE)
+def test_a_complex_b_with_zero_real_part_is_refused_as_complex_not_unstabilizable(solver):
+    with pytest.raises(DesignError, match=rf": B {COMPLEX}"):
+        ONE[solver](np.diag([0.5, -0.5]), 1j * B2)
+
+
+@pytest.mark.parametrize("solver", BATCH)
+def test_the_batched_solvers_refuse_complex_stacks(solver):
+    with pytest.raises(DesignError, match=rf"^{solver}: A {COMPLEX}"):
+        BATCH[solver](A_SCIPY[None], B2[None])
+
+
+@pytest.mark.parametrize("bad, match", [
+    (np.array([["1", "2"], ["3", "4"]]), "A is not a numeric matrix"),
+    (np.array([[1, None], [0, 1]], dtype=object), "A is not a numeric matrix"),
+    ([[1, 2], [3]], "A is not a numeric matrix"),
+])
+def test_text_objects_and_ragged_lists_are_no_matrices(bad, match):
+    with pytest.raises(DesignError, match=match):
+        lqr.lqr(bad, B2, Q2, R2)
+
+
+def test_the_real_problem_still_solves_to_scipys_answer():
+    """The check refuses only what it must: the real part of SciPy's case solves as SciPy does."""
+    from scipy.linalg import solve_discrete_are
+
+    A = A_SCIPY.real
+    K, P, _ = discrete.dlqr(A, B2, Q2, R2)
+    np.testing.assert_allclose(P, solve_discrete_are(A, B2, Q2, R2), rtol=1e-10)
+
+
+# ---------------------------------------------------------------------------------------
+# quadctl.interop
+
+
+def _design(K=None, Ki=None, ints=()):
+    return SimpleNamespace(K_block=np.zeros((4, 12)) if K is None else K, Ki_block=Ki, integral_states=ints,
+                           sample_time=None)
+
+
+def _linear(A=None, B=None):
+    return SimpleNamespace(A=np.zeros((12, 12)) if A is None else A, B=np.zeros((12, 4)) if B is None else B)
+
+
+INTEROP = {
+    "closed_loop K 3x12": (lambda: interop.closed_loop(_linear(), _design(np.zeros((3, 12)))),
+                           r"^interop: design\.K_block has shape \(3, 12\), expected 4 x 12$"),
+    "closed_loop complex A": (lambda: interop.closed_loop(_linear(A=np.eye(12) * 1j), _design()),
+                              rf"^closed_loop: A {COMPLEX}"),
+    "closed_loop B 12x3": (lambda: interop.closed_loop(_linear(B=np.zeros((12, 3))), _design()),
+                           r"^closed_loop: linear\.B has shape \(12, 3\), expected 12 x 4$"),
+    "closed_loop sample_time inf": (lambda: interop.closed_loop(_linear(), _design(), sample_time=math.inf),
+                                    r"^closed_loop: sample_time = inf: must be a positive finite number"),
+    "controller Ki wrong": (lambda: interop.controller(_design(Ki=np.zeros((4, 2)), ints=("pD",))),
+                            r"^interop: design\.Ki_block has shape \(4, 2\), expected 4 x 1$"),
+    "controller unknown state": (lambda: interop.controller(_design(Ki=np.zeros((4, 1)), ints=("height",))),
+                                 r"^interop: design\.integral_states names 'height', not a state"),
+    "controller complex K": (lambda: interop.controller(_design(np.zeros((4, 12), complex))),
+                             rf"^interop: design\.K_block {COMPLEX}"),
+    "controller sample_time -1": (lambda: interop.controller(_design(), sample_time=-1.0),
+                                  r"^controller: sample_time = -1\.0: must be a positive finite number"),
+    "plant complex B": (lambda: interop.plant(_linear(B=np.zeros((12, 4), complex))), rf"^plant: B {COMPLEX}"),
+    "plant A 11x12": (lambda: interop.plant(_linear(A=np.zeros((11, 12)))),
+                      r"^plant: A has shape \(11, 12\), expected 11 x 11$"),
+    "plant 2 states": (lambda: interop.plant(_linear(A=np.zeros((2, 2)), B=np.zeros((2, 4)))),
+                       r"^plant: linear\.A has shape \(2, 2\), expected 12 x 12$"),
+    "plant sample_time nan": (lambda: interop.plant(_linear(), sample_time=math.nan),
+                              r"^plant: sample_time = nan: must be a positive finite number"),
+    "subsystem C wrong": (lambda: interop.subsystem(SimpleNamespace(
+        A=np.zeros((2, 2)), B=np.zeros((2, 1)), C=np.zeros((1, 3)), states=("pD", "w"), inputs=("T",), name="s")),
+        r"^subsystem: sub\.C has shape \(1, 3\), expected \? x 2$"),
+    "subsystem states": (lambda: interop.subsystem(SimpleNamespace(
+        A=np.zeros((2, 2)), B=np.zeros((2, 1)), C=np.eye(2), states=("pD",), inputs=("T",), name="s")),
+        r"^subsystem: A is 2 x 2 and B has 1 columns for 1 states and 1 inputs$"),
+    "from_statespace complex": (lambda: interop.from_statespace(SimpleNamespace(
+        A=A_SCIPY, B=B2, state_labels=["a", "b"], input_labels=["u", "v"], dt=0)),
+        rf"^from_statespace: sys\.A {COMPLEX}"),
+    "design not a design": (lambda: interop.controller(object()),
+                            r"^design must be a quadctl\.lqr\.Design or a quadctl\.sim\.run\.ClosedLoop"),
+}
+
+
+@pytest.mark.parametrize("case", INTEROP)
+def test_every_interop_function_names_the_argument_it_refuses(case):
+    pytest.importorskip("control")
+    call, match = INTEROP[case]
+    with pytest.raises((ValueError, TypeError), match=match):
+        call()
+
+
+def test_interop_accepts_what_quadctl_designs(forward):
+    control = pytest.importorskip("control")
+    _, _, linear, _, design = forward
+    sys = interop.closed_loop(linear, design)
+    assert isinstance(sys, control.StateSpace) and sys.nstates == 12
+    assert list(sys.input_labels) == list(INPUT_NAMES) and list(sys.state_labels) == list(STATE_NAMES)
+
+
+# ---------------------------------------------------------------------------------------
+# The export API
+
+
+def test_the_export_writer_names_a_target_it_does_not_know(tmp_path):
+    from quadctl import export
+
+    with pytest.raises(ValueError, match=r"^to must be one of \('c', 'mat', 'json'\), got 'pdf'$"):
+        export.write(SimpleNamespace(), "pdf", tmp_path)
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_c_export_of_a_continuous_design_is_refused(forward):
+    from quadctl import export
+    from quadctl.export import c as cexport
+
+    exp = export.prepare(forward[0], need_rate=False)
+    with pytest.raises(ValueError, match="a C controller samples: prepare the export with a rate"):
+        cexport.sources(exp)
