@@ -178,7 +178,8 @@ def test_python_dash_m_and_version():
 
 USAGE_ERRORS = {
     "a rate below its bound": (["check", "--rate", "-5"],
-                               "quadctl: error: --rate -5: out of range; give --rate a value of at least 1e-09"),
+                               "quadctl: error: --rate = -5: must be greater than 0.0 (Hz; absent: continuous "
+                               "feedback, as in the report); --rate is controller.rate"),
     "a rate that is no number": (["check", "--rate=fast"],
                                  "quadctl: error: --rate fast: not a number; give --rate a number"),
     "an export target that does not exist": (["export", "--to", "py"],

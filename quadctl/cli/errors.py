@@ -186,6 +186,13 @@ def _range_of(param) -> tuple:
     return None, None
 
 
+def _is_numeric(param) -> bool:
+    """Whether an option takes a number (click's FLOAT or INT type, or typer's type descriptor)."""
+    kind = getattr(getattr(param, "type", None), "name", "")
+    annotation = getattr(getattr(param, "type_descriptor", None), "annotation", None)
+    return kind in ("float", "integer") or annotation in (float, int)
+
+
 def _choices_of(param) -> list[str]:
     """The values a choice option takes (click's Choice type, or typer's type descriptor)."""
     for holder in (getattr(param, "type", None), getattr(param, "type_descriptor", None)):
@@ -230,11 +237,13 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
             near = hint(value, choices) if value is not None else ""
             fix = f"; {near}" if near.startswith("did you mean") else ""
             return f"{given}: must be one of {', '.join(choices)}{fix}"
-        if lo is not None or hi is not None:
+        numeric = _is_numeric(param)
+        if numeric or lo is not None or hi is not None:
             try:
                 float(value)
             except (TypeError, ValueError):
                 return f"{given}: not a number; give {key} a number"
+        if lo is not None or hi is not None:
             bound = (f"between {lo:g} and {hi:g}" if lo is not None and hi is not None
                      else f"of at least {lo:g}" if lo is not None else f"of at most {hi:g}")
             return f"{given}: out of range; give {key} a value {bound}"
