@@ -136,6 +136,8 @@ INTEROP = {
     "from_statespace complex": (lambda: interop.from_statespace(SimpleNamespace(
         A=A_SCIPY, B=B2, state_labels=["a", "b"], input_labels=["u", "v"], dt=0)),
         rf"^from_statespace: sys\.A {COMPLEX}"),
+    "Plant.lqr complex": (lambda: interop.Plant(A=A_SCIPY, B=B2, state_names=("a", "b"), input_names=("u", "v"),
+                                                dt=0.1).lqr(Q2, R2), rf"^plant: A {COMPLEX}"),
     "design not a design": (lambda: interop.controller(object()),
                             r"^design must be a quadctl\.lqr\.Design or a quadctl\.sim\.run\.ClosedLoop"),
 }
@@ -166,6 +168,24 @@ def test_the_export_writer_names_a_target_it_does_not_know(tmp_path):
 
     with pytest.raises(ValueError, match=r"^to must be one of \('c', 'mat', 'json'\), got 'pdf'$"):
         export.write(SimpleNamespace(), "pdf", tmp_path)
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("who", ["write", "sources", "fields", "mat_variables", "json_payload", "write_mat"])
+def test_the_export_writers_name_an_argument_that_is_no_export(tmp_path, who):
+    import io
+
+    from quadctl import export
+    from quadctl.export import c as cexport
+    from quadctl.export import data
+
+    calls = {"write": lambda x: export.write(x, "json", tmp_path), "sources": cexport.sources, "fields": data.fields,
+             "mat_variables": data.mat_variables, "json_payload": data.json_payload,
+             "write_mat": lambda x: data.write_mat(io.BytesIO(), x)}
+    name = "mat_variables" if who == "write_mat" else who
+    with pytest.raises(TypeError, match=rf"^{name}: exp must be a quadctl\.export\.Export \(from "
+                                        r"quadctl\.export\.prepare\), got dict$"):
+        calls[who]({"K": np.zeros((4, 12))})
     assert not any(tmp_path.iterdir())
 
 

@@ -195,6 +195,17 @@ def test_the_report_removes_only_figures_an_earlier_report_wrote(tmp_path):
     assert sorted(p.name for p in folder.glob("*.png")) == ["mine.png", "roll.png"]
 
 
+def test_remove_deletes_a_link_in_place_of_an_artifact_never_its_target(tmp_path):
+    """What a sweep does with an earlier Monte Carlo's files, and a report with an earlier figure."""
+    user = tmp_path / "photo.png"
+    user.write_bytes(b"the user's")
+    (tmp_path / "run" / report.FOLDER).mkdir(parents=True)
+    for where in (tmp_path / "run" / "montecarlo.png", tmp_path / "run" / report.FOLDER / "roll.png"):
+        where.symlink_to(user)
+        assert artifacts.remove(where) and not where.is_symlink()
+    assert user.read_bytes() == b"the user's"
+
+
 def test_remove_refuses_what_is_not_an_artifact(tmp_path):
     (tmp_path / "notes.txt").write_text("x")
     with pytest.raises(ValueError, match="not an artifact name quadctl writes"):

@@ -18,6 +18,7 @@ from dataclasses import replace
 from quadctl.errors import CheckFailed, ConfigError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
+from quadctl.export.bundle import require_export
 from quadctl.problem import Setup, Timing
 
 
@@ -119,6 +120,7 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
 
     if to not in TARGETS:
         raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
+    require_export(exp, "write")
     folder = Path(folder)
     if to == "c":
         files = {folder / name: text.encode() for name, text in c.sources(exp).items()}

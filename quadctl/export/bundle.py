@@ -83,6 +83,21 @@ class Export:
 
 
 
+def require_export(exp, who: str) -> Export:
+    """``exp``, checked to be an :class:`Export` (what :func:`quadctl.export.prepare` returns); a
+    TypeError naming ``who`` and what was given otherwise.
+
+    >>> require_export(None, "sources")
+    Traceback (most recent call last):
+    ...
+    TypeError: sources: exp must be a quadctl.export.Export (from quadctl.export.prepare), got NoneType
+    """
+    if not isinstance(exp, Export):
+        raise TypeError(f"{who}: exp must be a quadctl.export.Export (from quadctl.export.prepare), "
+                        f"got {type(exp).__name__}")
+    return exp
+
+
 def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
     """The control law of ``loop`` in one paragraph (the C header, the ``.mat`` and the JSON say it).
 

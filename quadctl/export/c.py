@@ -32,7 +32,7 @@ import numpy as np
 
 from quadctl import __version__
 from quadctl.escape import c_comment, c_identifier
-from quadctl.export.bundle import Export
+from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
 from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout
 
@@ -72,6 +72,7 @@ def sources(exp: Export) -> dict[str, str]:
     """
     from quadctl.sim.emit import Dialect, emit
 
+    require_export(exp, "sources")
     if exp.sample_time is None:
         raise ValueError("a C controller samples: prepare the export with a rate")
     loop, Ts = exp.loop, exp.sample_time

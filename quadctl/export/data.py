@@ -25,7 +25,7 @@ import numpy as np
 
 from quadctl import __version__
 from quadctl.escape import matlab_field
-from quadctl.export.bundle import Export
+from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 
 FORMAT = "quadctl-controller"
@@ -66,6 +66,7 @@ def fields(exp: Export) -> list[Field]:
     -------
     list of Field
     """
+    require_export(exp, "fields")
     loop, des, lin = exp.loop, exp.design, exp.linear
     nz = len(loop.integral_states)
     Ki = np.asarray(loop.Ki if nz else np.zeros((len(INPUT_NAMES), 0)), dtype=float).reshape(len(INPUT_NAMES), nz)
@@ -168,6 +169,7 @@ def _estimator_fields(loop) -> list[Field]:
 
 def mat_variables(exp: Export) -> dict[str, Any]:
     """The variables of the ``.mat`` (for :func:`scipy.io.savemat` with ``oned_as="column"``)."""
+    require_export(exp, "mat_variables")
     out = {f.name: _mat(f.value) for f in fields(exp)}
     out["units"] = {f.name: f.unit for f in fields(exp)}
     out["descriptions"] = {f.name: f.description for f in fields(exp)}
@@ -201,6 +203,7 @@ def json_payload(exp: Export, meta: dict | None = None) -> dict:
     meta : dict, optional
         Provenance to put at the top (:func:`quadctl.artifacts.metadata`).
     """
+    require_export(exp, "json_payload")
     from quadctl.artifacts import jsonable
 
     body = {}
