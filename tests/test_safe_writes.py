@@ -120,7 +120,8 @@ def test_a_link_in_place_of_an_artifact_folder_is_refused(tmp_path, crazyflie_ex
 
 
 def test_report_into_a_linked_report_folder_exits_2_and_touches_nothing_there(tmp_path):
-    """The issue's case, end to end: ``out/report`` a link to a user's folder of photos."""
+    """The issue's case, end to end: ``out/report`` a link to a user's folder of photos. Refused before
+    any stage runs: nothing written anywhere, nothing deleted."""
     from typer.testing import CliRunner
 
     from quadctl.cli.app import app
@@ -131,17 +132,14 @@ def test_report_into_a_linked_report_folder_exits_2_and_touches_nothing_there(tm
     out = tmp_path / "out"
     out.mkdir()
     (out / "report").symlink_to(photos, target_is_directory=True)
-    cfg = tmp_path / "short.yaml"
-    data = config.load("hover").model_dump(mode="json")
-    data["simulation"]["duration"] = 0.05
-    import yaml
-
-    cfg.write_text(yaml.safe_dump(data))
-    res = CliRunner().invoke(app, ["report", "-c", str(cfg), "-o", str(out)])
+    res = CliRunner().invoke(app, ["report", "-c", "crazyflie", "-o", str(out)])
     assert res.exit_code == 2, res.output
-    assert f"{out / 'report'}: is a symbolic link" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert res.stderr == (f"quadctl: error: {out / 'report'}: is a symbolic link where quadctl keeps its own folder; "
+                          "quadctl never writes or deletes through a link: remove the link, or choose another "
+                          "--out folder\n")
     assert sorted(p.name for p in photos.iterdir()) == ["holiday.png"]
     assert (photos / "holiday.png").read_bytes() == b"a photo"
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["report"]
 
 
 def test_the_lock_file_is_never_written_through_a_link(tmp_path):

@@ -13,7 +13,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     Writes DIR/report/report.html, report.md and its figures. Exits 1 when a check fails, as `run`
     does, after writing the report of what was computed (it says where it stopped).
     """
-    from quadctl import report
+    from quadctl import artifacts, report
     from quadctl.cli import render
     from quadctl.cli.options import load_source
     from quadctl.cli.progress import simulation_progress
@@ -21,6 +21,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
 
     cfg, source = load_source(config, sets)
     ws = Workspace(cfg, out, fresh=fresh, source_text=source.text)
+    artifacts.check_folder(ws.out / report.FOLDER)  # a link there: refused now, not after the stages
     with simulation_progress(quiet=json) as ws.progress:
         outcome = report.run_stages(ws)
     doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets), label=source.label)
