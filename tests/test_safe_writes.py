@@ -247,22 +247,39 @@ main()
 """
 
 
+def _export(cfg: str, out: Path, kill: int = 0) -> subprocess.CompletedProcess:
+    """``quadctl export --to c`` in a new process, killed (SIGKILL) after its ``kill``-th write step
+    (a temporary written, or a rename done; 0: never)."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(__file__).parents[1]),
+                                                                      os.environ.get("PYTHONPATH")]))}
+    return subprocess.run([sys.executable, "-c", KILLED_EXPORT, str(kill), cfg, str(out)], env=env,
+                          capture_output=True, text=True, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def old_pair(tmp_path_factory) -> Path:
+    """A run folder holding crazyflie's exported C pair (the files an export replaces)."""
+    out = tmp_path_factory.mktemp("old-pair")
+    assert _export("crazyflie", out).returncode == 0
+    return out
+
+
 @pytest.mark.parametrize("kill_after", [1, 2, 3], ids=["first temporary", "both temporaries", "first rename"])
-def test_a_kill_between_the_c_files_leaves_no_pair_that_compiles_and_the_next_export_cleans_up(tmp_path, kill_after):
+def test_a_kill_between_the_c_files_leaves_no_pair_that_compiles_and_the_next_export_cleans_up(tmp_path, kill_after,
+                                                                                              old_pair):
     """``kill -9`` aimed after each write of ``export --to c`` but the last: the files on disk are the
     old pair, or a mixed pair whose source refuses the header (#error); the temporaries left behind
     are removed by the next export, which writes a matched pair."""
+    import shutil
+
     from quadctl.sim.compile import find_compiler
 
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(Path(__file__).parents[1]),
-                                                                      os.environ.get("PYTHONPATH")]))}
     out = tmp_path / "run"
+    shutil.copytree(old_pair, out)
 
     def export(cfg: str, kill: int = 0):
-        return subprocess.run([sys.executable, "-c", KILLED_EXPORT, str(kill), cfg, str(out)], env=env,
-                              capture_output=True, text=True, timeout=120)
+        return _export(cfg, out, kill)
 
-    assert export("crazyflie").returncode == 0
     old = _pair(out)
     assert old[0] == old[1]
     killed = export("mambo-200hz", kill_after)
