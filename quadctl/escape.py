@@ -51,7 +51,7 @@ _MD_BLOCK_START = re.compile(r"^(#{1,6}(?=\s|$)|>|[-+](?=\s|$|-)|\d{1,9}[.)](?=\
 _MD_NEWLINES = re.compile(r"\s*[\r\n]+\s*")
 
 
-def markdown_text(text: str, *, block: bool = True, wrapped: bool = False) -> str:
+def markdown_text(text: str, *, block: bool = True, wrapped: bool = False, link: bool = False) -> str:
     """``text`` as literal Markdown text on one line.
 
     Line breaks become spaces (a config's line cannot start a block); every character that could
@@ -59,8 +59,9 @@ def markdown_text(text: str, *, block: bool = True, wrapped: bool = False) -> st
     returned unchanged. ``block``: the text starts a line (a paragraph, a heading's text, a list
     item's), where ``# ``, ``> ``, ``- ``, ``1. `` and leading spaces make blocks too; False inside
     a line (a table cell, a link's text, an emphasis). ``wrapped``: the text stands inside markup
-    of its own (``**title**``, ``*caption*``, a link's or an image's ``[text]``), whose delimiters
-    a lone ``*`` or bracket in it could close.
+    of its own (``**title**``, ``*caption*``), whose delimiters a lone ``*`` in it could close.
+    ``link``: the text is a link's or an image's ``[text]``, which any unmatched bracket in it would
+    end early (every bracket is escaped; implies ``wrapped``).
 
     Examples
     --------
@@ -72,9 +73,9 @@ def markdown_text(text: str, *, block: bool = True, wrapped: bool = False) -> st
     text = _MD_NEWLINES.sub(" ", str(text))
     text = _MD_ENTITY.sub("&amp;", text)
     text = _MD_ALWAYS.sub(lambda m: "\\" + m.group(0), text)
-    text = _escape_emphasis(text, wrapped)
+    text = _escape_emphasis(text, wrapped or link)
     text = _MD_TAG.sub("&lt;", text)
-    text = (_MD_BRACKET if wrapped else _MD_LINK).sub(lambda m: "\\" + m.group(0), text)
+    text = (_MD_BRACKET if link else _MD_LINK).sub(lambda m: "\\" + m.group(0), text)
     if not block:
         return text
     return _MD_BLOCK_START.sub(_escape_block_start, text.lstrip())

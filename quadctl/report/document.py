@@ -139,8 +139,8 @@ def to_html(doc: Document) -> str:
 _md = markdown_text
 
 
-def _md_inline(text: str, wrapped: bool = False) -> str:
-    return markdown_text(text, block=False, wrapped=wrapped)
+def _md_inline(text: str, wrapped: bool = False, link: bool = False) -> str:
+    return markdown_text(text, block=False, wrapped=wrapped, link=link)
 
 
 def _md_cell(text: str) -> str:
@@ -168,7 +168,7 @@ def _md_block(block) -> str:
             lines += ["", f"*{_md_inline(block.caption, wrapped=True)}*"]
         return "\n".join(lines)
     if isinstance(block, Figure):
-        return f"![{_md_inline(block.caption, wrapped=True)}]({block.file})"
+        return f"![{_md_inline(block.caption, link=True)}]({block.file})"
     raise TypeError(f"no Markdown for {type(block).__name__}")
 
 
@@ -187,7 +187,7 @@ def figure_files(markdown: str) -> set[str]:
 
 def to_markdown(doc: Document) -> str:
     """The same report in Markdown; its figures are the files ``Figure.file`` beside it."""
-    toc = "\n".join(f"- [{_md_inline(s.title, wrapped=True)}](#{_e(s.id)})" for s in doc.sections)
+    toc = "\n".join(f"- [{_md_inline(s.title, link=True)}](#{_e(s.id)})" for s in doc.sections)
     body = "\n\n".join(f'<a id="{_e(s.id)}"></a>\n\n## {_md(s.title)}\n\n'
                        + "\n\n".join(_md_block(b) for b in s.blocks) for s in doc.sections)
     return Template(_template("report.md")).substitute(
