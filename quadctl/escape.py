@@ -41,13 +41,15 @@ _MD_TAG = re.compile(r"<(?=[A-Za-z/!?])")
 """``<`` starts an HTML tag, comment or autolink only before a letter, ``/``, ``!`` or ``?``."""
 _MD_ENTITY = re.compile(r"&(?=#?[A-Za-z0-9]+;)")
 """``&`` starts a character reference only before ``name;`` or ``#digits;``."""
-_MD_LINK = re.compile(r"\](?=[(\[:])|!(?=\[)|\[(?=\^)")
-"""``](``, ``][`` and ``]:`` make links and link definitions; ``![`` an image; ``[^`` a footnote."""
+_MD_LINK = re.compile(r"\](?=[(\[])|!(?=\[)|\[(?=\^)")
+"""``](`` and ``][`` make links; ``![`` an image; ``[^`` a footnote (a line that starts ``[x]:``, a
+link definition, is :data:`_MD_BLOCK_START`'s)."""
 _MD_BRACKET = re.compile(r"[\[\]]|!(?=\[)")
 """Inside a link's or an image's text every bracket is escaped: an unmatched one would pair with the
 enclosing markup's own."""
-_MD_BLOCK_START = re.compile(r"^(#{1,6}(?=\s|$)|>|[-+](?=\s|$|-)|\d{1,9}[.)](?=\s|$))")
-"""What makes a paragraph's first line a heading, a quote, a list item or a thematic break."""
+_MD_BLOCK_START = re.compile(r"^(#{1,6}(?=\s|$)|>|[-+](?=\s|$|-)|\d{1,9}[.)](?=\s|$)|\[(?=[^\]]*\]:))")
+"""What makes a paragraph's first line a heading, a quote, a list item, a thematic break or a link
+definition (``[x]: url``)."""
 _MD_NEWLINES = re.compile(r"\s*[\r\n]+\s*")
 
 

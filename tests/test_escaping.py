@@ -22,6 +22,7 @@ HOSTILE = [
     "**bold** _it_ `code` ~~gone~~ [link](http://x.y) ![i](j.png) <b>b</b> &amp; \\* # h",
     "# heading\n- item\n> quote\n1. first\n\n<script>alert(1)</script>",
     "a | b | c */ d /* e",
+    "[x]: http://evil.example",
 ]
 
 
