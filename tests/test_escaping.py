@@ -80,6 +80,15 @@ def test_config_text_stays_text_in_the_markdown_report(text):
     assert "<script" not in page and "<b>" not in page and "onerror" not in "".join(tags.tags)
 
 
+@pytest.mark.parametrize("text", HOSTILE)
+def test_a_paragraph_of_config_text_renders_whole(text):
+    """The description alone on its line (the subtitle): no block (heading, list, link definition) starts."""
+    page = _markdown_html(to_markdown(Document(title="t", subtitle=text, status=Text("ok"), sections=(),
+                                               generator="g")))
+    paragraphs = [html.unescape(p) for p in page.split("<p>")[1:]]
+    assert paragraphs[0].startswith(" ".join(text.split()) + "</p>"), page
+
+
 @pytest.mark.parametrize("fence", ["```", "````", "`````", "``````````"])
 def test_a_config_with_backtick_runs_stays_inside_its_code_block(fence):
     code = f"name: x\n{fence}\n# not a heading\n<img src=x onerror=alert(1)>\ndescription: after\n"
