@@ -219,6 +219,35 @@ class PlantConfig(_Section):
         None, description="Kc diagonal, 1/(m/s)")
 
 
+class SetpointConfig(_Section):
+    """A step of the reference at time ``t``: any of position, velocity and yaw (the others continue)."""
+
+    t: NonNegative = Field(description="s, from the start of the run; increasing along the list")
+    position: Optional[Vector3] = Field(None, description="m, NED")
+    velocity: Optional[Vector3] = Field(None, description="m/s, NED")
+    yaw: Optional[Number] = Field(None, description="rad")
+
+
+class WaypointConfig(_Section):
+    """A waypoint of a mission, flown to in order."""
+
+    position: Vector3 = Field(description="m, NED")
+    yaw: Optional[Number] = Field(None, description="rad; absent: the previous waypoint's (or the trim's)")
+    hold: NonNegative = Field(0.0, description="s to stay at the waypoint before the next leg")
+
+
+class ReferenceConfig(_Section):
+    """A reference to fly: setpoint steps, or a waypoint mission with its feedforward."""
+
+    setpoints: Optional[list[SetpointConfig]] = Field(
+        None, description="steps of position, velocity and yaw at given times")
+    waypoints: Optional[list[WaypointConfig]] = Field(None, description="a mission from the trim position, in order")
+    speed: Positive = Field(1.0, description="m/s: the peak speed of each leg of a mission")
+    tolerance: Positive = Field(0.1, description="m: a waypoint counts as reached within this distance")
+    trajectory: Literal["minimum-jerk", "minimum-snap", "step"] = Field(
+        "minimum-jerk", description="the shape of each leg (step: the reference jumps to the waypoint)")
+
+
 class SimulationConfig(_Section):
     """Closed-loop simulation settings."""
 
@@ -232,6 +261,8 @@ class SimulationConfig(_Section):
         None, description="simulated vehicle parameters that differ from vehicle: (model mismatch)")
     max_samples: Annotated[int, Field(strict=True, ge=2)] = Field(
         20_000, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
+    reference: Optional[ReferenceConfig] = Field(
+        None, description="setpoints or waypoints to fly; absent: hold the trim (moving with its velocity)")
 
 
 MAX_DELAY_SAMPLES = 100
@@ -804,6 +835,7 @@ def _check_semantics(cfg: Config, label: str) -> None:
                      definite=False, names=[*sub.states, *(f"integral of {s}" for s in weights.integral)])
         check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
                      names=sub.inputs)
+    _check_reference(cfg.simulation.reference, fail)
     for state, value in cfg.simulation.initial_offset.items():
         if state not in STATE_NAMES:
             fail(f"simulation.initial_offset.{state}", value, _unknown(state, STATE_NAMES, "state"))
@@ -831,6 +863,24 @@ def _check_semantics(cfg: Config, label: str) -> None:
     if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
         fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
              "or use rotor_lag: ignore")
+
+
+def _check_reference(ref: ReferenceConfig | None, fail) -> None:
+    """``simulation.reference``: setpoints or waypoints (not both, not neither), setpoints in time order."""
+    if ref is None:
+        return
+    where = "simulation.reference"
+    if (ref.setpoints is None) == (ref.waypoints is None):
+        fail(where, "both" if ref.setpoints is not None else "neither",
+             "give either setpoints (steps at times t) or waypoints (a mission), one of the two")
+    if not (ref.setpoints or ref.waypoints):
+        fail(f"{where}.{'setpoints' if ref.setpoints is not None else 'waypoints'}", [], "empty; list at least one")
+    for i, sp in enumerate(ref.setpoints or []):
+        if sp.position is None and sp.velocity is None and sp.yaw is None:
+            fail(f"{where}.setpoints[{i}]", {"t": sp.t}, "sets nothing; give position, velocity or yaw")
+        if i and sp.t <= ref.setpoints[i - 1].t:
+            fail(f"{where}.setpoints[{i}].t", sp.t,
+                 f"not after setpoints[{i - 1}].t = {show(ref.setpoints[i - 1].t)}; list setpoints in increasing t")
 
 
 def _check_delay(cfg: Config, fail) -> None:

@@ -124,7 +124,41 @@ def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progres
     the wind, a condition of the flight, stays); ``progress(done, total)`` as :func:`simulate` calls it."""
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
                     noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples,
-                    progress=progress)
+                    progress=progress, reference=flown_reference(setup))
+
+
+def flown_reference(setup: Setup):
+    """The setup's reference with the design model's feedforward
+    (:class:`quadctl.sim.reference.FlownReference`); None without ``simulation.reference``."""
+    if setup.reference is None:
+        return None
+    from quadctl.sim.reference import FlownReference
+
+    return FlownReference(setup.reference, setup.vehicle.vector())
+
+
+def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:
+    """``sim.json``'s ``reference``: the position tracking error ``|p - p_ref|`` (m; RMS over time and
+    peak) and, for a mission, each waypoint with the time it was first reached within the tolerance
+    (in order; None: never); None without a reference."""
+    ref = setup.reference
+    if ref is None or len(sim.t) == 0:
+        return None
+    from quadctl import trajectory
+
+    err = np.linalg.norm(sim.x[:, :3] - sim.x_ref[:, :3], axis=1)
+    out = {"kind": "waypoints" if ref.legs else "setpoints",
+           "position_error": {"rms": float(np.sqrt(np.mean(err ** 2))), "peak": float(err.max()),
+                              "final": float(err[-1]), "units": "m"}}
+    if ref.legs:
+        reached = trajectory.waypoint_times(ref, sim.t, sim.x[:, :3])
+        out["tolerance"] = ref.tolerance
+        out["waypoints"] = [{"position": list(leg.position), "yaw": leg.yaw, "leg_start": leg.start,
+                             "leg_end": leg.end, "hold": leg.hold, "reached": r}
+                            for leg, r in zip(ref.legs, reached)]
+        out["all_reached"] = all(r is not None for r in reached)
+        out["mission_end"] = ref.end
+    return out
 
 
 @dataclass(frozen=True)
@@ -243,7 +277,8 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         (seed and period, or None), ``wind`` (:func:`wind_summary`, or None), ``estimation`` (LQG
         only: RMS of ``x - x_hat`` per state, whole run and second half, and the steady filter's
         predicted standard deviation), ``integral`` (states and final integrator values), ``plant``
-        (the simulated vehicle's parameters when they differ from the design model).
+        (the simulated vehicle's parameters when they differ from the design model), ``reference``
+        (:func:`tracking_summary`: tracking error and waypoints; None without a reference).
     """
     from quadctl import motors, noise
 
@@ -258,7 +293,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         "saturation": None, "noise": None, "wind": wind_summary(setup, sim), "estimation": None,
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
-        "plant": setup.plant_overrides or None,
+        "plant": setup.plant_overrides or None, "reference": tracking_summary(setup, sim),
     }
     act = loop.actuators
     if act is not None:

@@ -463,12 +463,19 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         status, message = verdict(x, t, done, plan.n_steps, job.lo, job.hi)
         stats["steps"] += done
         stats["backend"].add(backend)
+        x_ref = None
+        if setup.reference is not None:  # the reference the lanes flew: their exogenous rows
+            from quadctl import pipeline
+
+            flown = pipeline.flown_reference(setup)
+            rows_at = np.floor(ks * plan.dt / job.exo_period + 1e-9).astype(np.int64)
+            x_ref = flown.flown(flown.rows(rows_at, job.exo_period), t)[0]
         for (p, d, j, steps, msg), summary in batch.add(t, x, us, setup, linear, status,
-                                                         (prep, des, job, done, message)):
+                                                         (prep, des, job, done, message), x_ref):
             rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps, "" if summary["status"] == "ok"
                                  else msg, d.path)
         if trace and status == "ok":
-            x_ref = linear.x_trim + np.outer(t, linear.x_rate)
+            x_ref = linear.x_trim + np.outer(t, linear.x_rate) if x_ref is None else x_ref
             traces[prep.index] = resample_deviation(t, x, x_ref, trace, setup.duration)
     for (p, d, j, steps, msg), summary in batch.flush():
         rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps,
@@ -498,8 +505,9 @@ class MetricsBatch:
         self.key = None
         self.items: list = []
 
-    def add(self, t, x, u, setup, linear, status, item) -> list:
-        """Gather one run (``x`` (r, 12), ``u`` (r, 4)); returns the ``(item, summary)`` pairs of the
+    def add(self, t, x, u, setup, linear, status, item, x_ref=None) -> list:
+        """Gather one run (``x`` (r, 12), ``u`` (r, 4); ``x_ref`` (r, 12) the reference it flew, None:
+        the trim moving at its velocity); returns the ``(item, summary)`` pairs of the
         batch this completes or closes (else none)."""
         key = (len(t), setup.regulated, (setup.Q_block != 0).tobytes(), (setup.R_block != 0).tobytes())
         done = self.flush() if key != self.key else []
@@ -514,7 +522,10 @@ class MetricsBatch:
 
         b = len(self.items)
         self.t[b] = t
-        error_into(self.err[b], t, x.T, linear.x_trim, linear.x_rate)
+        if x_ref is None:
+            error_into(self.err[b], t, x.T, linear.x_trim, linear.x_rate)
+        else:
+            np.subtract(x.T, x_ref.T, out=self.err[b])
         self.u[b] = u.T
         self.u_trim.append(linear.u_trim)
         self.Q.append(setup.Q_block)
