@@ -114,8 +114,10 @@ WIND_LAYOUT: tuple[tuple[str, int], ...] = (
 REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("ref_t", 1),                       # s: the time t_j the row's reference is expanded about
     ("ref_x", N_STATES),                # x_ref(t_j)
-    ("ref_rate", N_STATES),             # d x_ref / dt at t_j: x_ref(t) = ref_x + ref_rate (t - t_j)
-    ("ref_u", N_INPUTS),                # u_ref over the row (the feedforward)
+    ("ref_rate", N_STATES),             # d x_ref / dt at t_j
+    ("ref_curvature", N_STATES),        # x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), s = t - t_j
+    ("ref_u", N_INPUTS),                # u_ref(t_j)
+    ("ref_u_rate", N_INPUTS),           # u_ref(t) = ref_u + s ref_u_rate (the feedforward)
 )
 """Exogenous channels of one step after the wind's, when the loop flies a reference
 (:mod:`quadctl.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law."""
@@ -393,10 +395,16 @@ def build(spec: LoopSpec) -> LoopFunctions:
         """The reference state at ``t``: the row's expansion, or the trim drifting at ``x_rate``."""
         if not spec.reference:
             return parts["x_ref"] + parts["x_rate"] * t
-        ref = e[n_wind_end:]
-        return ref[1:1 + N_STATES] + ref[1 + N_STATES:1 + 2 * N_STATES] * (t - ref[0])
+        ref, s = e[n_wind_end:], t - e[n_wind_end]
+        return ref[1:1 + N_STATES] + s * (ref[1 + N_STATES:1 + 2 * N_STATES]
+                                          + s / 2 * ref[1 + 2 * N_STATES:1 + 3 * N_STATES])
 
-    u_ref = e[spec.n_exo - N_INPUTS:] if spec.reference else parts["u_trim"]
+    def u_ref(t):
+        """The feedforward input at ``t``: the row's, or the trim input."""
+        if not spec.reference:
+            return parts["u_trim"]
+        ref = e[n_wind_end + 1 + 3 * N_STATES:]
+        return ref[:N_INPUTS] + (t - e[n_wind_end]) * ref[N_INPUTS:]
 
     def innovation(X, t):
         """``y - C xh``: the measured deviation less its estimate."""
@@ -415,7 +423,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         """(u, dz/dt) at loop state ``X`` and time ``t``."""
         z = X[npl:npl + nz]
         err = deviation(X, t)
-        cmd = u_ref - gain @ err
+        cmd = u_ref(t) - gain @ err
         if nl:
             cmd = cmd - parts["Kv"] @ X[npl + nz:npl + nz + nl]
         if nz == 0:
@@ -463,7 +471,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
     if ne and spec.held:  # predict from the updated estimate under the applied input
         xc = deviation(X, t)
-        X_sampled = ca.vertcat(X_sampled, parts["Ae"] @ xc + parts["Be"] @ (u_now - u_ref))
+        X_sampled = ca.vertcat(X_sampled, parts["Ae"] @ xc + parts["Be"] @ (u_now - u_ref(t)))
     elif ne:
         X_sampled = ca.vertcat(X_sampled, X[nx - ne:])
     law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
@@ -483,7 +491,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         xdot = ca.vertcat(xdot, lag_rate(Y, u)) if nl else xdot
         if ne:  # Kalman-Bucy
             xh = Y[nx - ne:]
-            xh_dot = parts["Ae"] @ xh + parts["Be"] @ (u - u_ref) + parts["Le"] @ innovation(Y, ts)
+            xh_dot = parts["Ae"] @ xh + parts["Be"] @ (u - u_ref(ts)) + parts["Le"] @ innovation(Y, ts)
             xdot = ca.vertcat(xdot, xh_dot)
         return xdot
 

@@ -5,10 +5,11 @@ controller's, else :data:`quadctl.noise.DEFAULT_PERIOD`), as the noise and the w
 compiled one-case loop, the lanes and the interpreted runner take it through the same rows and
 agree to round-off. Row ``j`` holds over ``[t_j, t_j + period)``, ``t_j = j period``:
 
-- ``x_ref(t) = x_ref(t_j) + (t - t_j) f(x_ref(t_j), u_ref(t_j))``, the first-order expansion (``f``
-  the model: along a flat path it is ``d x_ref / dt``, :mod:`quadctl.flatness`);
-- ``u_ref = u_ref(t_j + period / 2)``: the feedforward at the row's midpoint, whose zero-order hold
-  is second-order accurate over the row.
+- ``x_ref(t) = x_ref(t_j) + s r_j + s^2 (r_(j+1) - r_j) / (2 period)``, ``s = t - t_j``, with
+  ``r_j = f(x_ref(t_j), u_ref(t_j))`` the model's rate (along a flat path, ``d x_ref / dt``:
+  :mod:`quadctl.flatness`): the quadratic whose slope runs from ``r_j`` to ``r_(j+1)``, third-order
+  accurate over the row;
+- ``u_ref(t) = u_ref(t_j) + s (u_ref(t_(j+1)) - u_ref(t_j)) / period``: the feedforward interpolated.
 
 Tabulated rather than evaluated in the generated code: a mission's pieces, shapes and the Newton
 solve of the flatness map stay in one place (Python, from the model), the generated code gains
@@ -40,20 +41,22 @@ class FlownReference:
         return feedforward(self.path.flat(t), self.params)
 
     def rows(self, j, period: float) -> np.ndarray:
-        """``(len(j), 29)``: the exogenous reference rows of the absolute row indices ``j``."""
+        """``(len(j), 45)``: the exogenous reference rows of the absolute row indices ``j``."""
         j = np.asarray(j, dtype=float)
-        t0 = j * period
-        x, u = self.exact(np.concatenate([t0, t0 + period / 2]))
         n = len(j)
-        x0, u_mid = x[:n], u[n:]
-        rate = np.asarray(build_model().f.map(n)(x0.T, u[:n].T, self.params), dtype=float).T
-        return np.hstack([t0[:, None], x0, rate, u_mid])
+        t0 = j * period
+        x, u = self.exact(np.concatenate([t0, t0 + period]))
+        rate = np.asarray(build_model().f.map(2 * n)(x.T, u.T, self.params), dtype=float).T
+        return np.hstack([t0[:, None], x[:n], rate[:n], (rate[n:] - rate[:n]) / period,
+                          u[:n], (u[n:] - u[:n]) / period])
 
     def flown(self, rows: np.ndarray, t) -> tuple[np.ndarray, np.ndarray]:
         """((n, 12), (n, 4)): the reference the law used at times ``t`` under their ``rows``."""
-        t = np.asarray(t, dtype=float)
-        x = rows[:, 1:1 + N_STATES] + rows[:, 1 + N_STATES:1 + 2 * N_STATES] * (t - rows[:, 0])[:, None]
-        return x, rows[:, 1 + 2 * N_STATES:]
+        s = (np.asarray(t, dtype=float) - rows[:, 0])[:, None]
+        n = N_STATES
+        x = rows[:, 1:1 + n] + s * (rows[:, 1 + n:1 + 2 * n] + s / 2 * rows[:, 1 + 2 * n:1 + 3 * n])
+        u = rows[:, 1 + 3 * n:5 + 3 * n] + s * rows[:, 5 + 3 * n:]
+        return x, u
 
     def position_range(self, duration: float, samples: int = 2001) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) (3,) m: the extent of the reference's position over ``[0, duration]``."""
