@@ -141,17 +141,22 @@ def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:
     """``sim.json``'s ``reference``: the position tracking error ``|p - p_ref|`` (m; RMS over time and
     peak) and, for a mission, each waypoint with the time it was first reached within the tolerance
     (in order; None: never); None without a reference."""
-    ref = setup.reference
-    if ref is None or len(sim.t) == 0:
+    if setup.reference is None or len(sim.t) == 0:
         return None
+    return tracking_of(setup.reference, sim.t, sim.x, sim.x_ref)
+
+
+def tracking_of(ref, t, x, x_ref) -> dict:
+    """:func:`tracking_summary` of the path ``ref`` (:class:`quadctl.trajectory.Reference`) flown as
+    ``x`` ((n, 12), at the times ``t``) against the reference ``x_ref`` the law used."""
     from quadctl import trajectory
 
-    err = np.linalg.norm(sim.x[:, :3] - sim.x_ref[:, :3], axis=1)
+    err = np.linalg.norm(x[:, :3] - x_ref[:, :3], axis=1)
     out = {"kind": "waypoints" if ref.legs else "setpoints",
            "position_error": {"rms": float(np.sqrt(np.mean(err ** 2))), "peak": float(err.max()),
                               "final": float(err[-1]), "units": "m"}}
     if ref.legs:
-        reached = trajectory.waypoint_times(ref, sim.t, sim.x[:, :3])
+        reached = trajectory.waypoint_times(ref, t, x[:, :3])
         out["tolerance"] = ref.tolerance
         out["waypoints"] = [{"position": list(leg.position), "yaw": leg.yaw, "leg_start": leg.start,
                              "leg_end": leg.end, "hold": leg.hold, "reached": r}

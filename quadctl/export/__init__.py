@@ -44,7 +44,8 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     Raises
     ------
     ConfigError
-        No rate where one is needed, or ``rate`` given for a config that has its own (exit 2).
+        No rate where one is needed, or ``rate`` given for a config that has its own, or a reference
+        to fly in a C export (exit 2).
     CheckFailed
         The design is unstable on the coupled model, or the sampled loop of a continuous design
         is unstable at ``rate`` (exit 1; the message says which loop and why).
@@ -53,6 +54,10 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     """
     from quadctl import pipeline
 
+    if need_rate and setup.reference is not None:
+        raise ConfigError("simulation.reference: the exported C controller holds the trim (x_trim + x_rate t) and "
+                          "takes no reference input yet; export the design from a config without "
+                          "simulation.reference, or fly the reference with quadctl simulate")
     timing = setup.timing
     timing.refuse_other_rate(rate)
     if rate is not None and timing.rate is None:

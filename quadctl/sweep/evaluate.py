@@ -21,7 +21,7 @@ import numpy as np
 
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
 from quadctl.layout import N_STATES, STATE_INDEX
-from quadctl.sweep.gates import judge
+from quadctl.sweep.gates import judge, tracking_columns
 from quadctl.sweep.spec import assign
 
 MC_POINTS = 201
@@ -389,6 +389,7 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
     summary = metrics.summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
     row = _row(prep.head, des.stable, des.core_eigenvalues, sim.plan, summary, sim.steps,
                "" if sim.status == "ok" else sim.message, "one-by-one")
+    row.update(tracking_columns(pipeline.tracking_summary(setup, sim)))
     kept = None
     if trace and sim.status == "ok":
         kept = resample_deviation(sim.t, sim.x, sim.x_ref, trace, setup.duration)
@@ -431,6 +432,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
 
     rows: dict[int, dict] = {}
     traces: dict[int, np.ndarray] = {}
+    tracked: dict[int, dict] = {}  # case -> its tracking columns (cases that fly a reference)
     t0, c0 = time.perf_counter(), time.process_time()
     designs = batched.design_all(preps, stats)
     stats["design_time"] += time.perf_counter() - t0
@@ -470,6 +472,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             flown = pipeline.flown_reference(setup)
             rows_at = np.floor(ks * plan.dt / job.exo_period + 1e-9).astype(np.int64)
             x_ref = flown.flown(flown.rows(rows_at, job.exo_period), t)[0]
+            tracked[prep.index] = tracking_columns(pipeline.tracking_of(setup.reference, t, x, x_ref))
         for (p, d, j, steps, msg), summary in batch.add(t, x, us, setup, linear, status,
                                                          (prep, des, job, done, message), x_ref):
             rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps, "" if summary["status"] == "ok"
@@ -481,6 +484,8 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps,
                              "" if summary["status"] == "ok" else msg, d.path)
     stats["simulate_time"] += time.perf_counter() - t0
+    for index, columns in tracked.items():
+        rows[index].update(columns)
     return rows, traces
 
 
