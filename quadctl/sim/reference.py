@@ -42,13 +42,13 @@ class FlownReference:
 
     def rows(self, j, period: float) -> np.ndarray:
         """``(len(j), 45)``: the exogenous reference rows of the absolute row indices ``j``."""
-        j = np.asarray(j, dtype=float)
-        n = len(j)
-        t0 = j * period
-        x, u = self.exact(np.concatenate([t0, t0 + period]))
-        rate = np.asarray(build_model().f.map(2 * n)(x.T, u.T, self.params), dtype=float).T
-        return np.hstack([t0[:, None], x[:n], rate[:n], (rate[n:] - rate[:n]) / period,
-                          u[:n], (u[n:] - u[:n]) / period])
+        j = np.asarray(j, dtype=np.int64)
+        ends, where = np.unique(np.concatenate([j, j + 1]), return_inverse=True)  # a row's end: the next's start
+        x, u = self.exact(ends * period)
+        rate = np.asarray(build_model().f.map(len(ends))(x.T, u.T, self.params), dtype=float).T
+        a, b = where[:len(j)], where[len(j):]
+        return np.hstack([(j * period)[:, None], x[a], rate[a], (rate[b] - rate[a]) / period,
+                          u[a], (u[b] - u[a]) / period])
 
     def flown(self, rows: np.ndarray, t) -> tuple[np.ndarray, np.ndarray]:
         """((n, 12), (n, 4)): the reference the law used at times ``t`` under their ``rows``."""
