@@ -62,7 +62,8 @@ def test_feedforward_is_the_trim_at_constant_velocity_and_consistent_along_a_pat
                                         "minimum-snap")
     t, h = np.linspace(0.05, path.end - 0.05, 40), 1e-5
     x, u = feedforward(path.flat(t), vehicle.vector())
-    slope = (feedforward(path.flat(t + h), vehicle.vector())[0] - feedforward(path.flat(t - h), vehicle.vector())[0]) / (2 * h)
+    ahead, behind = (feedforward(path.flat(t + k * h), vehicle.vector())[0] for k in (1, -1))
+    slope = (ahead - behind) / (2 * h)
     f = np.asarray(build_model().f.map(len(t))(x.T, u.T, vehicle.vector())).T
     assert np.abs(f).max() > 0.1 and np.abs(slope - f).max() < 1e-7
 
@@ -175,7 +176,7 @@ def test_lanes_equal_the_one_case_loop_with_a_reference(square):
                      np.stack([j[3] for j in jobs]), np.stack([j[4] for j in jobs]), exo=[j[5] for j in jobs],
                      exo_first=[j[6] for j in jobs], exo_period=[j[7] for j in jobs])
     worst = 0.0
-    for (vk, dur), (done, ks, xs, us) in zip(variants, run.run(cases)):
+    for (vk, dur), (done, _, xs, us) in zip(variants, run.run(cases)):
         one = simulate(vk, vk.x_trim, dur, reference=ref, max_samples=setup.max_samples)
         assert done == one.steps
         worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max())
