@@ -380,6 +380,31 @@ def wind_line(wind: dict) -> str:
     return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"
 
 
+def tracking_lines(tracking: dict) -> list[str]:
+    """A run's reference (:func:`tracking_summary`): the position tracking error and, for a
+    mission, when each waypoint was reached (``simulate`` prints them)."""
+    err = tracking["position_error"]
+    lines = [f"tracking error |p - p_ref|: rms {err['rms']:.3g} m, peak {err['peak']:.3g} m, final {err['final']:.3g} m"]
+    if "waypoints" in tracking:
+        times = ", ".join("never" if w["reached"] is None else f"{w['reached']:.3f} s" for w in tracking["waypoints"])
+        reached = sum(w["reached"] is not None for w in tracking["waypoints"])
+        lines.insert(0, f"waypoints: {reached} of {len(tracking['waypoints'])} reached within "
+                        f"{tracking['tolerance']:g} m, at {times} (mission ends at {tracking['mission_end']:.4g} s)")
+    return lines
+
+
+def missed_waypoints(tracking: dict | None) -> str | None:
+    """A warning naming the first waypoint a run never reached, and what to change; None: none missed."""
+    missed = [i for i, w in enumerate((tracking or {}).get("waypoints", [])) if w["reached"] is None]
+    if not missed:
+        return None
+    wp = tracking["waypoints"][missed[0]]
+    return (f"simulation.reference.waypoints[{missed[0]}] [{', '.join(f'{c:g}' for c in wp['position'])}] was never "
+            f"reached within {tracking['tolerance']:g} m ({len(missed)} of {len(tracking['waypoints'])} missed; the "
+            f"mission ends at {tracking['mission_end']:.4g} s): lengthen simulation.duration or loosen "
+            "simulation.reference.tolerance")
+
+
 def compare_full(setup: Setup, linear: LinearModel, des: Design):
     """``design --full``: one coupled LQR with the same cost, both simulated on the nonlinear model.
 

@@ -5,6 +5,7 @@ position step settling as its slowest pole says, the bundled mission), and every
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +17,9 @@ from quadctl.problem import setup_of
 from quadctl.sim.reference import FlownReference
 from quadctl.sim.run import simulate
 from quadctl.trim import solve_trim
+
+HOVER_HOLD = Path(__file__).resolve().parent.parent / "docs" / "configs" / "hover-hold.yaml"
+"""Hover holding position: the square mission's design, without the mission."""
 
 
 @pytest.fixture(scope="module")
@@ -69,7 +73,7 @@ def test_feedforward_is_the_trim_at_constant_velocity_and_consistent_along_a_pat
 
 
 def test_a_position_step_settles_as_its_slowest_pole_predicts():
-    setup = setup_of(config.load("hover-hold"))
+    setup = setup_of(config.load(HOVER_HOLD))
     trim = pipeline.trim_of(setup)
     linear = pipeline.linear_of(setup, trim)
     loop = pipeline.loop_of(setup, linear, pipeline.design_of(setup, pipeline.decoupled_of(setup, linear), linear))
@@ -195,7 +199,7 @@ BAD = [
 
 @pytest.mark.parametrize("block, message", BAD)
 def test_bad_references_name_the_key(block, message):
-    text = config.resources.files("quadctl.configs").joinpath("hover-hold.yaml").read_text()
+    text = HOVER_HOLD.read_text()
     if block.startswith("setpoints"):
         block = "{" + block + "}"
     with pytest.raises(ConfigError, match=message):
