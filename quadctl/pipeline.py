@@ -384,7 +384,8 @@ def tracking_lines(tracking: dict) -> list[str]:
     """A run's reference (:func:`tracking_summary`): the position tracking error and, for a
     mission, when each waypoint was reached (``simulate`` prints them)."""
     err = tracking["position_error"]
-    lines = [f"tracking error |p - p_ref|: rms {err['rms']:.3g} m, peak {err['peak']:.3g} m, final {err['final']:.3g} m"]
+    lines = [f"tracking error |p - p_ref|: rms {err['rms']:.3g} m, peak {err['peak']:.3g} m, "
+             f"final {err['final']:.3g} m"]
     if "waypoints" in tracking:
         times = ", ".join("never" if w["reached"] is None else f"{w['reached']:.3f} s" for w in tracking["waypoints"])
         reached = sum(w["reached"] is not None for w in tracking["waypoints"])
