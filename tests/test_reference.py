@@ -190,9 +190,13 @@ def test_lanes_equal_the_one_case_loop_with_a_reference(square):
 BAD = [
     ("setpoints: [{t: 2.0, yaw: 0.5}, {t: 1.0, yaw: 0.0}]",
      r"simulation\.reference\.setpoints\[1\]\.t = 1.*list setpoints in increasing t"),
-    ("{waypoints: [{position: [1, 0, -1], hold: -1}]}", r"simulation\.reference\.waypoints\[0\]\.hold"),
-    ("{speed: 0, waypoints: [{position: [1, 0, -1]}]}", r"simulation\.reference\.speed"),
-    ("{waypoints: [], setpoints: [{t: 0, yaw: 1}]}", r"simulation\.reference.*either setpoints"),
+    ("{waypoints: [{position: [1, 0, -1], hold: -1}]}",
+     r"simulation\.reference\.waypoints\[0\]\.hold = -1: must be at least 0"),
+    ("{speed: 0, waypoints: [{position: [1, 0, -1]}]}",
+     r"simulation\.reference\.speed = 0: must be greater than 0"),
+    ("{waypoints: [{position: [1, 0, -1]}], setpoints: [{t: 0, yaw: 1}]}",
+     r"simulation\.reference = \"both\": give either setpoints \(steps at times t\) or waypoints"),
+    ("{waypoints: []}", r"simulation\.reference\.waypoints = \[\]: empty; list at least one"),
     ("{setpoints: [{t: 0}]}", r"simulation\.reference\.setpoints\[0\].*sets nothing"),
 ]
 
