@@ -90,9 +90,16 @@ def test_a_position_step_settles_as_its_slowest_pole_predicts():
     assert outside.max() < predicted, (outside.max(), predicted)
 
 
-def test_the_square_mission_passes_every_waypoint_in_order_and_holds_the_last(square):
+@pytest.fixture(scope="module")
+def square_run(square):
+    """The configured run of the square mission."""
     setup, loop = square
-    sim = pipeline.simulation_of(setup, loop)
+    return pipeline.simulation_of(setup, loop)
+
+
+def test_the_square_mission_passes_every_waypoint_in_order_and_holds_the_last(square, square_run):
+    setup, loop = square
+    sim = square_run
     summary = pipeline.tracking_summary(setup, sim)
     reached = [w["reached"] for w in summary["waypoints"]]
     assert sim.status == "ok" and summary["all_reached"] and len(reached) == 4
@@ -127,6 +134,26 @@ def test_the_feedforward_tracks_a_flat_reference_to_the_tabulation_error(square)
 
     with_ff, without = peak(flown), peak(SetpointOnly(flown.path, flown.params))
     assert with_ff < 5e-5 and without > 0.02 and with_ff < 1e-3 * without, (with_ff, without)
+
+
+def test_a_flown_reference_has_its_path_and_error_figures(square_run):
+    from quadctl import plots
+
+    figs = plots.simulation_figures(square_run, {}, title="square")
+    assert {"path", "tracking"} <= set(figs)
+    plane, altitude = figs["path"].axes
+    assert (plane.get_xlabel(), plane.get_ylabel(), altitude.get_ylabel()) == ("east [m]", "north [m]",
+                                                                                "altitude -pD [m]")
+    north = plane.lines[1].get_ydata()  # the flown path: east right, north up
+    assert np.allclose(north, square_run.x[:, 0])
+
+
+def test_the_c_export_refuses_a_reference(square):
+    from quadctl import export
+
+    with pytest.raises(ConfigError, match=r"^simulation\.reference: the exported C controller holds the trim .* "
+                                          r"takes no reference input yet"):
+        export.prepare(square[0], 500.0)
 
 
 def _short(setup, loop):
