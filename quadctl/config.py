@@ -410,6 +410,7 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("allow",), []),
     (("motors", "numbering"), "quadctl"),
     (("motors", "spin"), None),
+    (("simulation", "reference"), None),
 )
 """Keys added to the schema after configs were already hashed, with their defaults: left out of
 :meth:`Config.digest` at that default."""
