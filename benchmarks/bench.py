@@ -12,6 +12,9 @@
    and python-control's input_output_response on the same closed loop (the CasADi model called
    from Python), at tolerances that reach the same final-state accuracy.
    Also the same loop without a C compiler (CasADi's virtual machine, the fallback).
+1b. The same loop at dt: auto (the stiff case: rate poles near -14 500 rad/s): ETDRK4's graded
+   schedule at tolerance 1e-8 against RK4 at its stability-held step and LSODA at rtol 1e-10, CPU
+   time of whole library calls, best of several.
 2. A sweep of 1000 random designs (benchmarks/random-1000.yaml, no two alike) x 10 000 RK4 steps:
    on both cores, on one, through the command line, and the one-case-at-a-time pipeline; and a
    sweep of 1000 random designs of mambo-200hz (benchmarks/mambo-1000.yaml: 200 Hz discrete
@@ -92,11 +95,9 @@ def table(title: str, header: list[str], rows: list[list[str]]) -> str:
 
 
 def one_simulation(skip_slow: bool, cli_python: str) -> str:
-    import casadi as ca
     from scipy.integrate import solve_ivp
 
     from quadctl import config, pipeline
-    from quadctl.model import build_model
     from quadctl.problem import setup_of
     from quadctl.sim import engine
     from quadctl.sim.run import simulate
@@ -109,13 +110,7 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
     x0 = setup.initial_state(linear.x_trim)
     simulate(loop, x0, 0.01, DT)  # compile (or load the cached library) before timing
 
-    # the closed loop as one CasADi function, called from Python by the ODE solvers
-    x, t = ca.SX.sym("x", 12), ca.SX.sym("t")
-    u = loop.u_trim - ca.DM(loop.K) @ (x - (loop.x_trim + loop.x_rate * t))
-    rhs_fn = ca.Function("closed_loop", [t, x], [build_model().f(x, u, loop.params)])
-
-    def rhs(tt, xx):
-        return rhs_fn(tt, xx).full().ravel()
+    rhs = closed_loop_rhs(loop)  # the closed loop as one CasADi function, called by the ODE solvers
 
     # reference: an independent method at a far tighter tolerance
     ref = solve_ivp(rhs, (0, DURATION), x0, method="LSODA", rtol=1e-12, atol=1e-14).y[:, -1]
@@ -198,6 +193,106 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
                           f"CLI's {cli:.3f} s, {floor:.3f} s is Python starting and importing typer, numpy, "
                           "pydantic, rich and yaml (`python -c '...'`): the floor of any command on "
                           f"these dependencies, with that interpreter ({cli_python}).")
+
+
+# ---------------------------------------------------------------------------------------
+# 1b. The stiff loop at dt: auto: ETDRK4 against RK4 and LSODA
+
+
+def closed_loop_rhs(loop):
+    """The forward loop's right-hand side ``rhs(t, x)`` for solve_ivp: one CasADi function of the
+    model (:func:`quadctl.model.build_model`, the one copy of the equations) under the loop's law
+    ``u = u_trim - K (x - x_ref(t))``, called from Python."""
+    import casadi as ca
+
+    from quadctl.model import build_model
+
+    x, t = ca.SX.sym("x", 12), ca.SX.sym("t")
+    u = loop.u_trim - ca.DM(loop.K) @ (x - (loop.x_trim + loop.x_rate * t))
+    rhs_fn = ca.Function("closed_loop", [t, x], [build_model().f(x, u, loop.params)])
+
+    def rhs(tt, xx):
+        return rhs_fn(tt, xx).full().ravel()
+
+    return rhs
+
+
+def cpu_best(fn, repeat: int):
+    """(best process CPU time in s, last result): CPU time, so other processes on the machine do not count."""
+    best, out = np.inf, None
+    for _ in range(repeat):
+        start = time.process_time()
+        out = fn()
+        best = min(best, time.process_time() - start)
+    return best, out
+
+
+def child_cpu_best(fn, repeat: int) -> float:
+    """Best CPU time (s, user + system) of the child processes ``fn`` runs."""
+    best = np.inf
+    for _ in range(repeat):
+        before = os.times()
+        fn()
+        after = os.times()
+        best = min(best, (after.children_user - before.children_user)
+                   + (after.children_system - before.children_system))
+    return best
+
+
+def stiff_simulation(cli_python: str) -> str:
+    """The report's 10 s forward loop at dt: auto: ETDRK4's graded schedule (tolerance 1e-8) against
+    RK4 at its stability-held step and SciPy's LSODA at rtol 1e-10, each a whole library call (ETDRK4:
+    linear part, φ-functions, schedule and run), CPU time, best of several."""
+    from scipy.integrate import solve_ivp
+
+    from quadctl import config, pipeline
+    from quadctl.problem import setup_of
+    from quadctl.sim.run import simulate
+
+    setup = setup_of(config.load("forward"))
+    linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
+    des = pipeline.design_of(setup, pipeline.decoupled_of(setup, linear), linear)
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(linear.x_trim)
+    rhs = closed_loop_rhs(loop)
+    ref = solve_ivp(rhs, (0, DURATION), x0, method="LSODA", rtol=1e-12, atol=1e-14).y[:, -1]
+
+    def error(x_end):
+        return float(np.max(np.abs(np.asarray(x_end) - ref)))
+
+    simulate(loop, x0, 0.01, "auto", method="etdrk4")  # compile (or load) both loops before timing
+    simulate(loop, x0, 0.01, "auto")
+    etd_cpu, etd = cpu_best(lambda: simulate(loop, x0, DURATION, "auto", method="etdrk4", tolerance=1e-8), 20)
+    rk4_cpu, rk4 = cpu_best(lambda: simulate(loop, x0, DURATION, "auto"), 5)
+    lsoda_cpu, sol = cpu_best(lambda: solve_ivp(rhs, (0, DURATION), x0, method="LSODA", rtol=1e-10,
+                                                atol=1e-12), 5)
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [cli_python, "-m", "quadctl", "simulate", "-c", "forward", "--set", "simulation.method=etdrk4",
+               "-o", str(Path(tmp) / "run")]
+        subprocess.run(cmd, check=True, capture_output=True)  # designs once, warms the OS file cache
+        cli_cpu = child_cpu_best(lambda: subprocess.run(cmd, check=True, capture_output=True), REPEAT)
+        with np.load(Path(tmp) / "run" / "sim.npz") as npz:
+            cli_err = error(npz["x"][-1])
+        floor_cpu = child_cpu_best(lambda: subprocess.run([cli_python, "-c", LIBRARY_IMPORTS], check=True), REPEAT)
+    segs = etd.plan.schedule
+    rows = [["quadctl ETDRK4, dt: auto, tolerance 1e-8 (library)", f"{etd_cpu * 1e3:.2f}",
+             f"{etd.steps:,} steps, {len(segs)} segments, {segs[0].dt:.2g} .. {segs[-1].dt:.2g} s",
+             f"{error(etd.x[-1]):.1e}", "1"],
+            ["quadctl RK4, dt: auto (library)", f"{rk4_cpu * 1e3:.2f}", f"{rk4.steps:,} steps of {rk4.dt:.3g} s",
+             f"{error(rk4.x[-1]):.1e}", f"{rk4_cpu / etd_cpu:.1f}"],
+            ["scipy solve_ivp LSODA (rtol 1e-10)", f"{lsoda_cpu * 1e3:.2f}", f"{sol.nfev:,} RHS calls",
+             f"{error(sol.y[:, -1]):.1e}", f"{lsoda_cpu / etd_cpu:.1f}"],
+            ["quadctl simulate --set simulation.method=etdrk4, CLI end to end", f"{cli_cpu * 1e3:.2f}",
+             "a fresh process", f"{cli_err:.1e}", f"{cli_cpu / etd_cpu:.1f}"],
+            ["Python's import floor + LSODA (rtol 1e-10)", f"{(floor_cpu + lsoda_cpu) * 1e3:.2f}",
+             "`python -c '...'` + the row above", "-", f"{(floor_cpu + lsoda_cpu) / etd_cpu:.1f}"]]
+    return table(f"The stiff loop: forward config, {DURATION:g} s at dt: auto (fastest pole "
+                 f"{abs(rk4.plan.fastest_eigenvalue):,.0f} rad/s)",
+                 ["method", "CPU (ms)", "work", "final error", "CPU / ETDRK4"], rows) + (
+        "\n\nCPU time of the calling process (best of 20 for ETDRK4, of 5 for the others; of the child "
+        "process for the CLI rows), so the other work on a loaded machine does not count; ETDRK4's includes "
+        "its linear part, φ-functions and schedule. The CLI row reuses the trim and design of an earlier "
+        "run. 'final error': largest final-state difference (state units) from LSODA at rtol 1e-12.")
 
 
 # ---------------------------------------------------------------------------------------
@@ -426,7 +521,7 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
                  ["solver", "µs CPU per design", "time / batched"], rows)
 
 
-SECTIONS = ("simulation", "sweep", "flying-sweep", "designs", "lqr", "discrete")
+SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "designs", "lqr", "discrete")
 """What ``--only`` may name: the numbered sections of the module docstring (the designs are the
 plain sweep's)."""
 
@@ -454,6 +549,8 @@ def main() -> None:
           f"numpy {np.__version__}, casadi {casadi.__version__}; load average {load:.2f} at start")
     if "simulation" in only:
         print(one_simulation(args.skip_slow, args.cli_python))
+    if "stiff" in only:
+        print(stiff_simulation(args.cli_python))
     cfg_spec = None
     if "sweep" in only:
         text, cfg_spec = the_sweep()

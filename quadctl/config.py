@@ -263,6 +263,12 @@ class SimulationConfig(_Section):
         20_000, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
     reference: Optional[ReferenceConfig] = Field(
         None, description="setpoints or waypoints to fly; absent: hold the trim (moving with its velocity)")
+    method: Literal["rk4", "etdrk4"] = Field(
+        "rk4", description="rk4: classical Runge-Kutta, its step held stable by the fastest loop; etdrk4: "
+        "exponential Runge-Kutta (Cox-Matthews) exact on the loop's linearization, dt: auto a graded step "
+        "schedule (continuous feedback only)")
+    tolerance: Optional[Annotated[Positive, Field(ge=1e-14, le=1e-2)]] = Field(
+        None, description="etdrk4 with dt: auto: the error the step schedule aims at (state units); absent: 1e-08")
 
 
 MAX_DELAY_SAMPLES = 100
@@ -411,6 +417,8 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("motors", "numbering"), "quadctl"),
     (("motors", "spin"), None),
     (("simulation", "reference"), None),
+    (("simulation", "method"), "rk4"),
+    (("simulation", "tolerance"), None),
 )
 """Keys added to the schema after configs were already hashed, with their defaults: left out of
 :meth:`Config.digest` at that default."""
@@ -861,6 +869,7 @@ def _check_semantics(cfg: Config, label: str) -> None:
     _check_inertia(cfg, fail)
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
+    _check_method(cfg, fail)
     if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
         fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
              "or use rotor_lag: ignore")
@@ -882,6 +891,28 @@ def _check_reference(ref: ReferenceConfig | None, fail) -> None:
         if i and sp.t <= ref.setpoints[i - 1].t:
             fail(f"{where}.setpoints[{i}].t", sp.t,
                  f"not after setpoints[{i - 1}].t = {show(ref.setpoints[i - 1].t)}; list setpoints in increasing t")
+
+
+def _check_method(cfg: Config, fail) -> None:
+    """``simulation.method: etdrk4`` integrates continuous feedback (its linear part is the continuous loop)."""
+    sim = cfg.simulation
+    if sim.method == "rk4":
+        if sim.tolerance is not None:
+            fail("simulation.tolerance", sim.tolerance, "sets the step schedule of method etdrk4: set "
+                 "simulation.method: etdrk4, or remove the tolerance")
+        return
+    if sim.tolerance is not None and sim.dt != "auto":
+        fail("simulation.tolerance", sim.tolerance, f"sets the step schedule of dt: auto, and simulation.dt is "
+             f"{sim.dt:g} s: remove one of them")
+    if sim.reference is not None:
+        fail("simulation.method", sim.method, "does not fly a reference yet (simulation.reference): use "
+             "method: rk4 for a mission or setpoints")
+    if cfg.controller.rate is not None:
+        fail("simulation.method", sim.method, "integrates continuous feedback; a sampled controller "
+             "(controller.rate) runs with method: rk4")
+    if cfg.estimator is not None and cfg.motors is not None and cfg.motors.time_constant is not None:
+        fail("simulation.method", sim.method, "has no linear part for a Kalman filter with the rotors' lag: "
+             "use method: rk4, or remove motors.time_constant")
 
 
 def _check_delay(cfg: Config, fail) -> None:

@@ -95,7 +95,8 @@ def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
                       open_loop_eigenvalues=(np.linalg.eigvals(linear.A) if open_loop_eigenvalues is None
                                              else open_loop_eigenvalues),
                       delay_samples=setup.timing.delay_samples, Kv=Kv,
-                      lag_model_time_constant=setup.design_lag_time_constant if Kv is not None else None)
+                      lag_model_time_constant=setup.design_lag_time_constant if Kv is not None else None,
+                      jacobians=(linear.A, linear.B))
 
 
 def estimator_of(setup: Setup, linear: LinearModel):
@@ -122,9 +123,12 @@ def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progress=None) -> SimResult:
     """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise;
     the wind, a condition of the flight, stays); ``progress(done, total)`` as :func:`simulate` calls it."""
+    extra = {"method": setup.method}
+    if setup.tolerance is not None:
+        extra["tolerance"] = setup.tolerance
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
                     noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples,
-                    progress=progress, reference=flown_reference(setup))
+                    progress=progress, reference=flown_reference(setup), **extra)
 
 
 def flown_reference(setup: Setup):

@@ -149,6 +149,10 @@ class Setup:
         s.
     dt : float or "auto"
     max_samples : int
+    method : {"rk4", "etdrk4"}
+        The integrator (``simulation.method``).
+    tolerance : float or None
+        ETDRK4's ``dt: auto`` aim (``simulation.tolerance``; None: the default).
     plant_overrides : dict
         The ``simulation.plant`` values given (empty: the plant is the design model).
     rotor_lag : {"ignore", "include"}
@@ -185,6 +189,8 @@ class Setup:
     rotor_lag: str = "ignore"
     estimator: EstimatorSpec | None = None
     reference: object | None = None
+    method: str = "rk4"
+    tolerance: float | None = None
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -248,7 +254,7 @@ def setup_of(cfg: Config) -> Setup:
         timing=timing, actuators=actuators, noise=noise, wind=wind, trim_wind=trim_wind, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
-        reference=_reference(cfg))
+        reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance)
 
 
 resolve = setup_of

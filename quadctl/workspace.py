@@ -29,6 +29,7 @@ from quadctl.lqr.discrete import RateWarning, realizable_frequency, unstable_whe
 from quadctl.messages import eig_text
 from quadctl.metrics import summarize
 from quadctl.problem import setup_of
+from quadctl.sim import schedule
 from quadctl.sim.run import ClosedLoop, SimResult
 from quadctl.trim import Trim
 
@@ -401,7 +402,8 @@ class Workspace:
             "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,
             "stride": sim.stride, "samples": len(sim.t),
             "duration": float(sim.t[-1]), "backend": sim.backend,
-            "dt_auto": sim.plan.auto, "max_stable_dt": sim.plan.max_stable_dt,
+            "dt_auto": sim.plan.auto, "max_stable_dt": sim.plan.max_stable_dt, "method": sim.plan.method,
+            "schedule": schedule.summary(sim.plan),
             "fastest_eigenvalue": sim.plan.fastest_eigenvalue,
             "fastest_subsystem": sim.plan.fastest_owner,
             "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **flight}, sim.backend)

@@ -388,3 +388,55 @@ def with_lag_model(A, B, K, Kv, time_constant: float, sample_time: float | None 
         Aa[n:, :n] = -(1 - a) * K
         Aa[n:, n:] = a * np.eye(m) - (1 - a) * Kv
     return Aa, np.vstack([B, np.zeros((m, m))]), np.hstack([K, Kv])
+
+
+def simulated(A, B, K, *, Ki=None, integral_states=(), Kv=None, lag_time_constant: float | None = None,
+              rotor_time_constant: float | None = None, mix=None, estimator=None) -> np.ndarray:
+    """The continuous loop :mod:`quadctl.sim.builder` simulates, linearized at the reference, in its state
+    order ``[x; f; z; l; xh]`` (every state kept): the linear part of its exponential integrator.
+
+    It is :func:`vehicle_matrix` (or :func:`lqg_matrix`, reordered from ``[x; x_hat; z]``) with the
+    rotors' lag in the builder's coordinates, the thrusts ``f = mix v`` (deviations from trim).
+
+    Parameters
+    ----------
+    A, B : (12, 12), (12, 4) array_like
+        The continuous coupled linear model.
+    K : (4, 12) array_like
+    Ki : (4, nz) array_like, optional
+    integral_states : sequence of str
+    Kv : (4, 4) array_like, optional
+        Gain on the controller's lag model (with ``lag_time_constant``, s).
+    rotor_time_constant : float, optional
+        s of the rotors' lag; ``mix`` (4, 4) maps ``[T, A, E, R]`` to the rotor thrusts.
+    estimator : quadctl.estimator.Kalman, optional
+        A continuous (Kalman-Bucy) filter the law closes through.
+
+    Returns
+    -------
+    (nx, nx) ndarray
+
+    Raises
+    ------
+    ValueError
+        A discrete filter, or a filter with the rotors' lag (no such loop here).
+    """
+    from types import SimpleNamespace
+
+    K = np.atleast_2d(np.asarray(K, dtype=float))
+    nz = len(integral_states)
+    Ki = np.zeros((K.shape[0], 0)) if Ki is None else np.asarray(Ki, dtype=float).reshape(K.shape[0], nz)
+    design = SimpleNamespace(K_block=K, Ki_block=Ki, integral_states=tuple(integral_states),
+                             lag_time_constant=lag_time_constant if Kv is not None else None, Kv_block=Kv)
+    if estimator is not None:
+        if estimator.sample_time is not None or rotor_time_constant is not None:
+            raise ValueError("the simulated LQG loop is linearized here for a continuous filter, without rotor lag")
+        n = N_STATES
+        order = [*range(n), *range(2 * n, 2 * n + nz), *range(n, 2 * n)]
+        return lqg_matrix(design, A, B, estimator)[np.ix_(order, order)]
+    M = vehicle_matrix(design, A, B, None, 0, rotor_time_constant, keep_free=True)
+    if rotor_time_constant is not None:
+        T = np.eye(len(M))
+        T[N_STATES:N_STATES + 4, N_STATES:N_STATES + 4] = mix
+        M = T @ M @ np.linalg.inv(T)
+    return M

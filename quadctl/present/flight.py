@@ -10,10 +10,22 @@ from quadctl.present.cells import Mark, Table, eig, num, percent
 
 
 def step_text(sim) -> str:
-    """The RK4 step and why: ``dt = 3.45e-05 s (auto; stable up to ..., fastest eigenvalue ... in roll)``."""
+    """The RK4 step and why: ``dt = 3.45e-05 s (auto; stable up to ..., fastest eigenvalue ... in roll)``;
+    ETDRK4's schedule: ``dt from 6.1e-07 s to 0.01 s in 15 segments (auto; RK4 would be stable up to ...)``."""
     plan = sim.plan
+    if plan.method == "etdrk4":
+        steps = [s.dt for s in plan.schedule]
+        span = (f"dt = {steps[0]:.4g} s" if len(steps) == 1 else
+                f"dt from {min(steps):.3g} s to {max(steps):.3g} s in {len(steps)} segments")
+        return (f"{span} ({'auto' if plan.auto else 'given'}; RK4 would be stable up to {plan.max_stable_dt:.4g} s, "
+                f"fastest eigenvalue {eig(plan.fastest_eigenvalue)} rad/s)")
     return (f"dt = {sim.dt:.4g} s ({'auto' if plan.auto else 'given'}; stable up to {plan.max_stable_dt:.4g} s, "
             f"fastest eigenvalue {eig(plan.fastest_eigenvalue)} rad/s in {plan.fastest_owner})")
+
+
+def integrator_name(sim) -> str:
+    """``RK4`` or ``ETDRK4`` (``simulation.method``)."""
+    return "ETDRK4" if sim.plan.method == "etdrk4" else "RK4"
 
 
 def controller_text(flight: dict, sim) -> str | None:

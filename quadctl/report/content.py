@@ -125,7 +125,8 @@ def simulation(ws) -> Section:
 
     flown = ws.simulation
     sim, metrics, fl = flown.sim, flown.metrics, flown.flight
-    blocks = [Text(f"Fixed-step RK4 of the full nonlinear closed loop: {shown_flight.step_text(sim)}, {sim.steps} "
+    blocks = [Text(f"Fixed-step {shown_flight.integrator_name(sim)} of the full nonlinear closed loop: "
+                   f"{shown_flight.step_text(sim)}, {sim.steps} "
                    f"steps to t = {float(sim.t[-1]):.4g} s, {sim.backend} loop.")]
     controller = shown_flight.controller_text(fl, sim)
     if controller:

@@ -6,6 +6,7 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.sim.builder`: the one closed-loop definition (:class:`LoopSpec` -> CasADi functions
   of one step: plant, sample-and-hold, the control law with integrators, saturation, noise inputs)
   and its one constant layout
+- :mod:`~quadctl.sim.schedule`: the exponential integrator's step schedule and its φ-functions
 - :mod:`~quadctl.sim.emit`: those functions as C over ``lanes`` cases at once
 - :mod:`~quadctl.sim.compile`: compile once per machine, cached in the platform's cache folder
 - :mod:`~quadctl.sim.cases`: the loop contract's inputs (:class:`Cases`) and record counts

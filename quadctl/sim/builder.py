@@ -1,4 +1,4 @@
-"""The one closed-loop definition: CasADi functions of one RK4 step of plant and controller.
+"""The one closed-loop definition: CasADi functions of one step (RK4, or ETDRK4) of plant and controller.
 
 Every runner is generated from what this module builds: the compiled one-case loop and the
 compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
@@ -61,6 +61,11 @@ Kalman-Bucy filter ``dxh/dt = Ae xh + Be du + Le (y - C xh)`` is integrated in t
 Runs start with ``xh = 0`` (the filter believes the trim).
 
 
+Integrator (:attr:`LoopSpec.method`, continuous feedback): classical RK4, or the exponential
+Runge-Kutta method of Cox and Matthews (:func:`etdrk4`), whose linear part ``L`` is the loop
+linearized at the reference (:func:`quadctl.lqr.linear_loop.simulated`) and whose matrices of one
+step (:data:`PHI_LAYOUT`, from :mod:`quadctl.sim.schedule`) end the constant vector ``c``.
+
 Exogenous inputs (:func:`exo_layout`): per step, when :attr:`LoopSpec.noise`, a body force and
 torque added to the plant and the sensor noise added to what the controller measures
 (:data:`EXO_LAYOUT`); then, when :attr:`LoopSpec.wind`, the wind (NED, m/s) the rotor drag sees
@@ -85,6 +90,15 @@ from quadctl.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 SATURATION_MODES = ("none", "box", "motors")
+METHODS = ("rk4", "etdrk4")
+"""Integrators of a loop with continuous feedback: classical RK4, or the exponential Runge-Kutta method
+of Cox and Matthews (ETDRK4; :data:`PHI_LAYOUT`), exact on the loop's linear part."""
+PHI_LAYOUT: tuple[str, ...] = ("lin", "E_half", "P_half", "E_full", "F1", "F2", "F3")
+"""The ETDRK4 constants (each (nx, nx), column-major, after the loop's others), for one step ``h`` and
+the loop's linear part ``L`` (:func:`quadctl.sim.schedule.phi_constants`): ``lin`` = ``L``,
+``E_half`` = ``e^(hL/2)``, ``P_half`` = ``h/2 phi1(hL/2)``, ``E_full`` = ``e^(hL)``, and the weights
+``F1 = h (phi1 - 3 phi2 + 4 phi3)``, ``F2 = h (phi2 - 2 phi3)``, ``F3 = h (4 phi3 - phi2)`` of
+``phi_k = phi_k(hL)``."""
 ANTIWINDUP_TOL = 1e-10
 """An input counts as saturated when clipping changed it by more than this (N or N m): far above
 the round-off of mixing and unmixing (~1e-15), far below any clip that matters."""
@@ -242,6 +256,12 @@ class LoopSpec:
         State indices a Kalman filter measures (LQG); empty: the law measures the full state.
     reference : bool
         The loop takes a reference (:data:`REFERENCE_LAYOUT`) every step, after the wind's channels.
+    method : {"rk4", "etdrk4"}
+        The integrator of ``step`` (continuous feedback; a held loop's plant is RK4's).
+    phi_pattern : tuple of bool
+        ETDRK4 only: the sparsity of its (nx, nx) constants (:data:`PHI_LAYOUT`), column-major,
+        the union over them: entries outside it are baked in as zero (a decoupled design's loop
+        keeps its blocks). Empty: dense.
     """
 
     pattern: tuple[bool, ...]
@@ -255,8 +275,18 @@ class LoopSpec:
     wind: bool = False
     measured: tuple[int, ...] = ()
     reference: bool = False
+    method: str = "rk4"
+    phi_pattern: tuple[bool, ...] = ()
 
     def __post_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.method != "rk4" and self.reference:
+            raise ValueError("ETDRK4 does not fly a reference yet: a loop with a reference steps by RK4")
+        if self.method != "rk4" and self.held:
+            raise ValueError("ETDRK4 integrates a loop with continuous feedback; a held loop's plant steps by RK4")
+        if self.phi_pattern and len(self.phi_pattern) != self.nx * self.nx:
+            raise ValueError(f"phi_pattern: expected {self.nx * self.nx} entries, got {len(self.phi_pattern)}")
         if len(self.pattern) != N_INPUTS * N_STATES:
             raise ValueError(f"pattern: expected {N_INPUTS * N_STATES} entries, got {len(self.pattern)}")
         if self.saturation not in SATURATION_MODES:
@@ -308,7 +338,13 @@ class LoopSpec:
 
     @property
     def n_constants(self) -> int:
-        return constant_size(self.nz, self.rotors, self.lag_model, self.ny)
+        """Length of ``c``: the loop's constants, then (ETDRK4) the :data:`PHI_LAYOUT` block."""
+        return constant_size(self.nz, self.rotors, self.lag_model, self.ny) + self.n_phi
+
+    @property
+    def n_phi(self) -> int:
+        """Entries of the ETDRK4 block at the end of ``c`` (0 for RK4)."""
+        return len(PHI_LAYOUT) * self.nx * self.nx if self.method == "etdrk4" else 0
 
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
@@ -318,7 +354,9 @@ class LoopSpec:
                 + (f" delay={self.delay}" if self.delay else "") + (" lag_model=1" if self.lag_model else "")
                 + (" wind=1" if self.wind else "")
                 + (f" measured={','.join(map(str, self.measured))}" if self.measured else "")
-                + (" reference=1" if self.reference else ""))
+                + (" reference=1" if self.reference else "")
+                + (f" method={self.method}" if self.method != "rk4" else "")
+                + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -330,8 +368,8 @@ class LoopSpec:
 class LoopFunctions:
     """The CasADi functions of one spec (arguments in this order, all column vectors).
 
-    ``step(X, t, dt, c, e) -> (X_next, u)``: one RK4 step with continuous feedback, and the
-    input at its start (continuous specs).
+    ``step(X, t, dt, c, e) -> (X_next, u)``: one RK4 (or ETDRK4, :attr:`LoopSpec.method`) step with
+    continuous feedback, and the input at its start (continuous specs).
     ``law(X, t, c, e) -> (u, X_sampled)``: the control law at ``X``, and ``X`` with its controller
     states advanced by one controller period (held specs; the input part serves both).
     ``plant(X, u, dt, c, e) -> X_next``: one RK4 step of the plant under a held ``u``; the
@@ -495,6 +533,53 @@ def build(spec: LoopSpec) -> LoopFunctions:
             xdot = ca.vertcat(xdot, xh_dot)
         return xdot
 
-    step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([rk4(closed_rhs, X), u_now]),
+    if spec.method == "etdrk4":
+        X_next = etdrk4(closed_rhs, X, t, dt, phi_block(c, spec))
+    else:
+        X_next = rk4(closed_rhs, X)
+    step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([X_next, u_now]),
                        ["X", "t", "dt", "c", "e"], ["X_next", "u"])
     return LoopFunctions(spec=spec, law=law, step=step)
+
+
+def phi_block(c, spec: LoopSpec) -> dict:
+    """The ETDRK4 matrices of :data:`PHI_LAYOUT` in ``c`` (after the loop's constants), with the
+    entries outside ``spec.phi_pattern`` zero."""
+    nx = spec.nx
+    offset = spec.n_constants - spec.n_phi
+    mask = (ca.DM(np.reshape(np.asarray(spec.phi_pattern, dtype=float), (nx, nx), order="F"))
+            if spec.phi_pattern else None)
+    out = {}
+    for name in PHI_LAYOUT:
+        M = ca.reshape(c[offset:offset + nx * nx], nx, nx)
+        out[name] = M * mask if mask is not None else M
+        offset += nx * nx
+    return out
+
+
+def etdrk4(rhs, X, t, h, phi: dict):
+    """One step of Cox and Matthews' ETDRK4 (J. Comput. Phys. 176, 2002) of ``X' = rhs(X, t)`` split as
+    ``L X + N(X, t)``, ``N = rhs - L X``, with ``L`` and the matrices of ``h`` in ``phi``
+    (:data:`PHI_LAYOUT`)::
+
+        a = E_half X + P_half N(X, t)
+        b = E_half X + P_half N(a, t + h/2)
+        d = E_half a + P_half (2 N(b, t + h/2) - N(X, t))
+        X+ = E_full X + F1 N(X, t) + 2 F2 (N(a) + N(b)) + F3 N(d, t + h)
+
+    Exact when ``N`` is affine in ``t`` along the solution (a linear loop: ``L`` is its matrix).
+    """
+    L = phi["lin"]
+
+    def N(Y, ts):
+        return rhs(Y, ts) - L @ Y
+
+    n_x = N(X, t)
+    half = phi["E_half"] @ X
+    a = half + phi["P_half"] @ n_x
+    n_a = N(a, t + h / 2)
+    b = half + phi["P_half"] @ n_a
+    n_b = N(b, t + h / 2)
+    d = phi["E_half"] @ a + phi["P_half"] @ (2 * n_b - n_x)
+    n_d = N(d, t + h)
+    return phi["E_full"] @ X + phi["F1"] @ n_x + phi["F2"] @ (2 * (n_a + n_b)) + phi["F3"] @ n_d

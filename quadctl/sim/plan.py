@@ -116,6 +116,10 @@ class StepPlan:
     auto: bool
     hold: int = 0
     sample_time: float | None = None
+    method: str = "rk4"
+    """The integrator: ``rk4``, or ``etdrk4`` (:mod:`quadctl.sim.schedule`)."""
+    schedule: tuple = ()
+    """ETDRK4: its :class:`quadctl.sim.schedule.Segment` s, in order; RK4: empty (``n_steps`` of ``dt``)."""
 
 
 def plan_step(eigenvalues, owners, duration: float, dt="auto", *, limits=None) -> StepPlan:

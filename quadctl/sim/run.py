@@ -21,6 +21,7 @@ from quadctl.sim.builder import LoopSpec, pack_constants
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
+from quadctl.sim.schedule import DEFAULT_TOLERANCE
 from quadctl.wind import WindSpec, WindStream
 
 MAX_SAMPLES = 20_000
@@ -91,6 +92,9 @@ class ClosedLoop:
     """s of the controller's rotor lag model (the design's; None: no model)."""
     estimator: object | None = None
     """:class:`quadctl.estimator.Kalman` the law closes through (LQG); None: the measured state."""
+    jacobians: tuple | None = None
+    """``(A, B)`` of the design model at the trim: the exponential integrator's linear part
+    (:meth:`linear_part`); None: only RK4 runs the loop."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -111,10 +115,31 @@ class ClosedLoop:
                          [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
                           *["estimator"] * len(est)], duration, dt)
 
-    def spec(self, noise: bool = False, wind: bool = False, reference: bool = False) -> LoopSpec:
+    def linear_part(self) -> np.ndarray:
+        """The loop linearized at the reference in the loop state's order (:func:`quadctl.lqr.linear_loop.simulated`).
+
+        Raises
+        ------
+        ValueError
+            The loop was built without its ``jacobians``.
+        """
+        from quadctl.lqr import linear_loop
+
+        if self.jacobians is None:
+            raise ValueError("this ClosedLoop has no jacobians (A, B): build it with quadctl.pipeline.closed_loop_of")
+        A, B = self.jacobians
+        act = self.actuators
+        return linear_loop.simulated(A, B, self.K, Ki=self.Ki, integral_states=self.integral_states, Kv=self.Kv,
+                                     lag_time_constant=self.lag_model_time_constant,
+                                     rotor_time_constant=self.rotor_time_constant,
+                                     mix=act.mix if act is not None else None, estimator=self.estimator)
+
+    def spec(self, noise: bool = False, wind: bool = False, reference: bool = False, method: str = "rk4",
+             phi_pattern: tuple[bool, ...] = ()) -> LoopSpec:
         """The structure of this loop's generated code (``reference``: it flies a reference)."""
         act = self.actuators
         return LoopSpec.of_gain(self.K, saturation=act.mode if act is not None else "none",
+                                method=method, phi_pattern=phi_pattern,
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
@@ -227,9 +252,10 @@ class SimResult:
     wall_time : float
         s spent integrating (excludes compilation).
     steps : int
-        RK4 steps taken.
+        Steps taken (RK4's, or ETDRK4's over its schedule).
     stride : int
-        Samples are every ``stride``-th step (and the last); see ``max_samples``.
+        Samples are every ``stride``-th step (and the last); see ``max_samples``. ETDRK4: of the
+        largest step (:func:`quadctl.sim.schedule.record_strides`), so samples are equally spaced.
     backend : str
         ``compiled`` or ``casadi`` (no C compiler).
     plan : StepPlan
@@ -327,8 +353,9 @@ def wind_felt(wind: WindSpec, period: float, ks, dt: float, block: int = 256) ->
 
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
              noise: NoiseSpec | None = None, wind: WindSpec | None = None,
-             max_samples: int = MAX_SAMPLES, progress=None, reference=None) -> SimResult:
-    """RK4 of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
+             max_samples: int = MAX_SAMPLES, progress=None, reference=None, method: str = "rk4",
+             tolerance: float = DEFAULT_TOLERANCE) -> SimResult:
+    """RK4 (or ETDRK4) of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
     ----------
@@ -353,12 +380,24 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         A reference to fly (:mod:`quadctl.sim.reference`): ``x_ref(t)`` and the feedforward
         ``u_ref(t)`` in place of ``x_trim + x_rate t`` and ``u_trim``; ``SimResult.x_ref`` is then the
         reference the law used.
+    method : {"rk4", "etdrk4"}
+        ``etdrk4``: the exponential integrator on the loop's linear part (continuous feedback only;
+        :mod:`quadctl.sim.schedule`), ``dt: auto`` its graded schedule.
+    tolerance : float
+        The error ETDRK4's ``dt: auto`` aims at.
 
     Returns
     -------
     SimResult
         A diverging run stops at the first bad state and keeps everything before it.
     """
+    if method == "etdrk4":
+        if reference is not None:
+            raise ValueError("ETDRK4 does not fly a reference yet: run a reference with method 'rk4'")
+        return _simulate_exponential(loop, x0, duration, dt, noise=noise, wind=wind, max_samples=max_samples,
+                                     progress=progress, tolerance=tolerance)
+    if method != "rk4":
+        raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
     plan = loop.plan(duration, dt)
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
@@ -366,9 +405,6 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     c = loop.constants(plan.sample_time)
     lo, hi = loop.bounds(duration, reference)
     x0_all = loop.initial_loop_state(x0)
-    nz = len(loop.integral_states)
-    spec = loop.spec()
-    n_plant, n_lag, ne = spec.n_plant, spec.n_lag, spec.n_estimate
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
@@ -377,21 +413,153 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo, progress)
     wall = time.perf_counter() - start
     t = plan.dt * ks
+    return _result(loop, plan, run.backend, t, xs, us, done, stride, wall, lo, hi, noise if noisy else None,
+                   wind if windy else None, exo, ks, plan.dt, reference)
+
+
+def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int, stride: int, wall: float,
+            lo, hi, noise, wind, exo, ks, dt: float, reference=None) -> SimResult:
+    """The :class:`SimResult` of a run's recorded rows (``t`` s; the wind felt and the reference flown at
+    steps ``ks`` of ``dt``)."""
+    spec = loop.spec()
+    nz, n_plant, n_lag, ne = spec.nz, spec.n_plant, spec.n_lag, spec.n_estimate
     u_ref = np.zeros((0, len(loop.u_trim)))
     if reference is None:
         x_ref = loop.x_trim + np.outer(t, loop.x_rate)
     else:
-        x_ref, u_ref = reference.flown(reference.rows(exo.index(ks, plan.dt), exo.period), t)
-    status, message = verdict(xs[:, :N_STATES], t, done, n, lo, hi)
+        x_ref, u_ref = reference.flown(reference.rows(exo.index(ks, dt), exo.period), t)
+    status, message = verdict(xs[:, :N_STATES], t, done, plan.n_steps, lo, hi)
     return SimResult(t=t, x=np.ascontiguousarray(xs[:, :N_STATES]), u=us, x_ref=x_ref, dt=plan.dt,
-                     status=status, message=message, wall_time=wall, backend=run.backend, plan=plan,
+                     status=status, message=message, wall_time=wall, backend=backend, plan=plan,
                      steps=done, stride=stride, z=np.ascontiguousarray(xs[:, n_plant:n_plant + nz]),
                      rotor_thrust=np.ascontiguousarray(xs[:, N_STATES:n_plant]),
-                     noise_seed=noise.seed if noisy else None,
+                     noise_seed=noise.seed if noise is not None else None,
                      lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
-                     wind=wind_felt(wind, exo.period, ks, plan.dt) if windy else np.zeros((0, 3)),
-                     wind_seed=wind.seed if windy else None,
+                     wind=wind_felt(wind, exo.period, ks, dt) if wind is not None else np.zeros((0, 3)),
+                     wind_seed=wind.seed if wind is not None else None,
                      x_hat=x_ref + xs[:, xs.shape[1] - ne:] if ne else np.zeros((0, 0)), u_ref=u_ref)
+
+
+def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, wind, max_samples: int,
+                          progress, tolerance: float) -> SimResult:
+    """:func:`simulate` by ETDRK4 over the segments of its schedule (each with its own matrices)."""
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
+
+    if loop.rate is not None:
+        raise ValueError("ETDRK4 needs continuous feedback: a sampled controller (controller.rate) runs with "
+                         "simulation.method: rk4")
+    noisy = noise is not None and noise.active
+    windy = wind is not None and wind.active
+    exo = ExoStream(noise if noisy else None, wind if windy else None, loop.rate) if noisy or windy else None
+    L = loop.linear_part()
+    eig = np.linalg.eigvals(L)
+    plan = plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance,
+                         period=exo.period if exo is not None else None)
+    ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
+    spec = loop.spec(noisy, windy, method="etdrk4", phi_pattern=phi_pattern(ladder))
+    run = runner(spec, 1)
+    base = loop.constants(None)
+    lo, hi = loop.bounds(duration)
+    x = loop.initial_loop_state(x0)
+    n = plan.n_steps
+    strides = record_strides(plan, max_samples)
+    start = time.perf_counter()
+    parts_t, parts_x, parts_u, total = [], [], [], 0
+    for i, (seg, stride) in enumerate(zip(plan.schedule, strides)):
+        c = np.concatenate([base, phi_constants(ladder[seg.dt])])
+        sub = StepPlan(seg.dt, seg.n, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto)
+        report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
+        done, ks, xs, us = run_in_chunks(run, x, c, sub, seg.n, stride, lo, hi, exo, report, k_start=seg.k0)
+        total += done
+        last = i == len(plan.schedule) - 1 or done < seg.n
+        keep = len(ks) if last else len(ks) - 1  # a segment's final row is the next one's start
+        parts_t.append(seg.dt * ks[:keep])
+        parts_x.append(xs[:keep])
+        parts_u.append(us[:keep])
+        if last:
+            break
+        x = np.ascontiguousarray(xs[-1])
+    wall = time.perf_counter() - start
+    t, xs, us = np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
+    return _result(loop, plan, run.backend, t, xs, us, total, strides[-1], wall, lo, hi, noise if noisy else None,
+                   wind if windy else None, exo, t, 1.0)
+
+
+def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                      max_samples: int = MAX_SAMPLES) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """ETDRK4 runs of several loops of one structure in the SIMD lanes (:data:`quadctl.sim.engine.LANES`
+    at a time), without noise or wind: each its own linear part and schedule, the lanes stepping
+    through their schedules' segments together (segment ``i`` of every case per call).
+
+    Parameters
+    ----------
+    loops : sequence of ClosedLoop
+        Continuous feedback, one :meth:`ClosedLoop.spec` (gain pattern, saturation, integrators ...).
+    x0s : sequence of (12,) array_like
+    duration : float
+        s.
+    dt : float or "auto"
+    tolerance : float
+    max_samples : int
+
+    Returns
+    -------
+    list of (done, t, xs, us)
+        Per loop: steps completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as
+        :func:`simulate` records them.
+
+    Raises
+    ------
+    ValueError
+        Loops of different structures, or a sampled controller.
+    """
+    from quadctl.sim.engine import LANES
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
+
+    loops = list(loops)
+    if any(loop.rate is not None for loop in loops):
+        raise ValueError("ETDRK4 needs continuous feedback: a sampled controller runs with method rk4")
+    if len({loop.spec() for loop in loops}) > 1:
+        raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
+    Ls = [loop.linear_part() for loop in loops]
+    plans = [plan_schedule(np.linalg.eigvals(L), ["loop"] * len(L), duration, dt, tolerance=tolerance) for L in Ls]
+    ladders = [phi_ladder(L, [seg.dt for seg in plan.schedule]) for L, plan in zip(Ls, plans)]
+    patterns = np.array([phi_pattern(ladder) for ladder in ladders])
+    run = runner(loops[0].spec(method="etdrk4", phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
+    out = []
+    for start in range(0, len(loops), LANES):
+        group = range(start, min(start + LANES, len(loops)))
+        bounds = [loops[i].bounds(duration) for i in group]
+        x = [loops[i].initial_loop_state(x0s[i]) for i in group]
+        base = [loops[i].constants(None) for i in group]
+        strides = [record_strides(plans[i], max_samples) for i in group]
+        parts = [([], [], []) for _ in group]
+        total, alive = [0] * len(group), [True] * len(group)
+        for k in range(max(len(plans[i].schedule) for i in group)):
+            segs = [plans[i].schedule[k] if alive[j] and k < len(plans[i].schedule) else None
+                    for j, i in enumerate(group)]
+            c = [np.concatenate([base[j], phi_constants(ladders[i][seg.dt] if seg else
+                                                         next(iter(ladders[i].values())))])
+                 for j, (i, seg) in enumerate(zip(group, segs))]
+            cases = Cases.of(np.array(x), np.array(c), [s.dt if s else 1.0 for s in segs],
+                             [s.n if s else 0 for s in segs],
+                             [strides[j][k] if segs[j] else 1 for j in range(len(group))],
+                             np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
+                             k0=[s.k0 if s else 0 for s in segs])
+            for j, (done, ks, xs, us) in enumerate(run.run(cases)):
+                seg = segs[j]
+                if seg is None:
+                    continue
+                total[j] += done
+                last = k == len(plans[group[j]].schedule) - 1 or done < seg.n
+                keep = len(ks) if last else len(ks) - 1
+                parts[j][0].append(seg.dt * ks[:keep])
+                parts[j][1].append(xs[:keep])
+                parts[j][2].append(us[:keep])
+                x[j] = xs[-1]
+                alive[j] = not last
+        out.extend((total[j], *(np.concatenate(p) for p in parts[j])) for j in range(len(group)))
+    return out
 
 
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
@@ -400,10 +568,12 @@ Python sees Ctrl-C between calls at once."""
 
 
 def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: ExoStream | None = None,
-                  progress=None):
+                  progress=None, k_start: int = 0):
     """Run ``n`` steps in chunks, each starting on a controller sample; the rows of one long run.
 
     ``progress(done, n)``, if given, is called after each chunk with the steps done so far.
+    ``k_start``: the absolute index of the first step (a segment of a schedule starting at
+    ``k_start dt`` s).
 
     Returns
     -------
@@ -414,7 +584,8 @@ def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise
     chunk = max(hold, CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]) // hold * hold)
     parts_k, parts_x, parts_u = [], [], []
     x = np.ascontiguousarray(x0, dtype=float)
-    k0 = 0
+    k0 = k_start
+    n = n + k_start
     while True:
         m = min(chunk, n - k0)
         exo, first, period = None, 0, 1.0
@@ -426,13 +597,13 @@ def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise
         (done, ks, xs, us), = run.run(cases)
         last = k0 + m >= n or done < m
         if progress is not None:
-            progress(k0 + done, n)
+            progress(k0 + done - k_start, n - k_start)
         keep = len(ks) if last else len(ks) - 1  # a chunk's final row is the next one's start
         parts_k.append(ks[:keep])
         parts_x.append(xs[:keep])
         parts_u.append(us[:keep])
         if last:
-            return k0 + done, np.concatenate(parts_k), np.concatenate(parts_x), np.concatenate(parts_u)
+            return k0 + done - k_start, np.concatenate(parts_k), np.concatenate(parts_x), np.concatenate(parts_u)
         x = np.ascontiguousarray(xs[-1])
         k0 += m
 

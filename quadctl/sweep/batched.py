@@ -333,9 +333,10 @@ def loops_of(live) -> list:
     return out
 
 
-PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners")
+PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners", "jacobians")
 """Fields of a :class:`~quadctl.sim.run.ClosedLoop` whose values its lane spec and bounds do not read
-(only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`)."""
+(only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`;
+``jacobians`` only ETDRK4 reads, which sweeps do not run)."""
 
 
 class _Seen:

@@ -40,7 +40,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         from quadctl.present import flight as shown
 
         fl = flown.flight
-        render.out.print(f"RK4 {shown.step_text(sim)}, {sim.steps} steps in {sim.wall_time * 1e3:.1f} ms: "
+        render.out.print(f"{shown.integrator_name(sim)} {shown.step_text(sim)}, {sim.steps} steps in "
+                         f"{sim.wall_time * 1e3:.1f} ms: "
                          f"[bold]{sim.steps_per_second / 1e6:.2f} M steps/s[/bold] ({sim.backend})")
         render.show(shown.controller_text(fl, sim), shown.metrics_table(flown.metrics),
                     shown.inputs_table(flown.metrics, ws.linear.u_trim, fl["peak_delta"]),

@@ -1,0 +1,295 @@
+"""The step schedule and the φ-functions of the exponential integrator (ETDRK4, :mod:`quadctl.sim.builder`).
+
+ETDRK4 integrates the loop's linearization at the reference ``L`` exactly (its matrix exponential),
+so its step is not held to the fast loops' stability limit as RK4's is: what limits it is the
+nonlinear remainder ``N = f - L X``, which varies on the time scale of the modes still excited.
+A mode ``lambda`` that decays at ``sigma = -Re lambda`` from ``t = 0`` drives ``N`` with
+derivatives of size ``|lambda|^k e^(-sigma t)``, so a fourth-order step ``h`` leaves an error
+about ``(h |lambda|)^4 e^(-sigma t)`` of it. ``dt: auto`` keeps that below ``tolerance`` for
+every mode:
+
+    h(t) = SAFETY tolerance^(1/4) min_lambda e^(sigma t / 4) / |lambda|
+
+small steps over the first time constants of the fast modes, growing geometrically as they decay,
+up to the step the slow modes allow (and never past :data:`MAX_STEP`, the exogenous inputs' period,
+or the run). The schedule is deterministic, a few segments of uniform steps ``h_top / 2^j``: every
+step starts at a whole multiple of its own size, so a step never straddles an exogenous sample
+(``h_top`` divides its period) and the runners' clock ``t = dt (k0 + k)`` is exact per segment.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from quadctl.sim.builder import PHI_LAYOUT
+from quadctl.sim.plan import StepPlan, max_stable_steps, record_stride, step_count
+
+SAFETY = 1.0
+"""The constant of ``h(t)``: measured on the report's ``forward`` loop (benchmarks/bench.py), where
+``tolerance`` 1e-8 gives a final-state error below 1e-8 against LSODA at rtol 1e-12."""
+MAX_STEP = 0.01
+"""s: the largest step ``dt: auto`` takes (100 samples a second for plots and metrics)."""
+DEFAULT_TOLERANCE = 1e-8
+"""Default of ``simulation.tolerance``: the error ``dt: auto`` aims at (state units, about the
+final-state error of a 10 s run)."""
+PHI_ACCURACY = 1e-15
+"""The φ-functions come from one matrix exponential of a block matrix (:func:`phi_functions`) by
+scaling and squaring (:func:`expm`): the matrix scaled by ``2^-s`` to a 1-norm of at most 1/8,
+Taylor's series to degree :data:`TAYLOR_DEGREE` (truncation below ``(1/8)^11 / 11! = 2.9e-18``
+relative, under round-off), squared ``s`` times; the forward error of each entry is round-off
+times the exponential's condition number (tested against SciPy's ``expm`` and the φ-functions'
+closed forms to 1e-12)."""
+TAYLOR_DEGREE = 10
+TAYLOR_NORM = 0.125
+
+
+def expm(M) -> np.ndarray:
+    """``e^M`` by scaling and squaring with a degree-10 Taylor polynomial (:data:`PHI_ACCURACY`).
+
+    Written here, not SciPy's, so a simulation does not import SciPy (about 0.3 s of a command).
+    """
+    M = np.asarray(M, dtype=float)
+    norm = float(np.abs(M).sum(axis=0).max()) if M.size else 0.0
+    s = max(0, math.ceil(math.log2(norm / TAYLOR_NORM))) if norm > TAYLOR_NORM else 0
+    A = M / 2.0 ** s
+    eye = np.eye(len(M))
+    E = eye.copy()
+    for k in range(TAYLOR_DEGREE, 0, -1):  # Horner: I + A/1 (I + A/2 (I + ...))
+        E = eye + (A @ E) / k
+    for _ in range(s):
+        E = E @ E
+    return E
+
+
+def phi_functions(L, h: float, order: int = 3) -> list[np.ndarray]:
+    """``[e^(hL), φ_1(hL), ..., φ_order(hL)]``, ``φ_k(Z) = sum_j Z^j / (j + k)!``, from one
+    ``expm`` of the block matrix ``[[hL, I, 0..], [0, 0, I, ..], ..., [0 .. 0]]`` whose first block
+    row is exactly these (Al-Mohy and Higham, SIAM J. Sci. Comput. 33, 2011, Thm 2.1; accuracy
+    :data:`PHI_ACCURACY`). One BLAS thread: on matrices this small, BLAS's threads only cost (on a
+    loaded 2-core machine, 20 ms against 0.1 ms for a 48 x 48 exponential).
+
+    Parameters
+    ----------
+    L : (n, n) array_like
+    h : float
+        s.
+    order : int
+
+    Returns
+    -------
+    list of (n, n) ndarray
+    """
+    L = np.asarray(L, dtype=float)
+    n = L.shape[0]
+    aug = np.zeros(((order + 1) * n, (order + 1) * n))
+    aug[:n, :n] = h * L
+    for k in range(order):
+        aug[k * n:(k + 1) * n, (k + 1) * n:(k + 2) * n] = np.eye(n)
+    with _blas().limit(limits=1, user_api="blas"):
+        top = expm(aug)[:n]
+    return [top[:, k * n:(k + 1) * n] for k in range(order + 1)]
+
+
+@lru_cache(maxsize=1)
+def _blas():
+    """The process's thread pools (numpy's BLAS), found once (a search costs about a millisecond)."""
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
+
+
+def doubled(phis: list[np.ndarray]) -> list[np.ndarray]:
+    """``[e^(2Z), φ_1(2Z), φ_2(2Z), φ_3(2Z)]`` from the same of ``Z`` (the squaring of scaling and
+    squaring, carried to the φ-functions; Skaflestad and Wright, Appl. Numer. Math. 59, 2009)::
+
+        φ_k(2Z) = 2^-k (e^Z φ_k(Z) + sum_{j=1..k} φ_j(Z) / (k - j)!)
+    """
+    E, p1, p2, p3 = phis
+    return [E @ E, (E @ p1 + p1) / 2, (E @ p2 + p1 + p2) / 4, (E @ p3 + p1 / 2 + p2 + p3) / 8]
+
+
+RESEED = 3
+"""Doublings (:func:`doubled`) between two direct :func:`phi_functions` on the ladder: each doubling
+about doubles the relative error (measured on the ``forward`` loop: 3.5e-9 after 25), so 3 keep it
+within 8 times expm's."""
+
+
+def phi_ladder(L, steps) -> dict[float, dict[str, np.ndarray]]:
+    """The ETDRK4 matrices (:data:`quadctl.sim.builder.PHI_LAYOUT`) of each step in ``steps``, which
+    are ``h_min 2^j``: :func:`phi_functions` at ``h_min / 2``, then up the ladder by :func:`doubled`,
+    from a direct :func:`phi_functions` every :data:`RESEED` doublings.
+
+    Raises
+    ------
+    ValueError
+        A step that is not ``h_min`` times a power of two.
+    """
+    steps = sorted(set(float(h) for h in steps))
+    L = np.asarray(L, dtype=float)
+    h = steps[0] / 2
+    phis = phi_functions(L, h)
+    out: dict[float, dict[str, np.ndarray]] = {}
+    level = 0
+    for target in steps:
+        while h < target * (1 - 1e-12):
+            level += 1
+            half, h = phis, 2 * h
+            phis = phi_functions(L, h) if level % RESEED == 0 else doubled(phis)
+            if h > target * (1 + 1e-12):
+                raise ValueError(f"step {target!r} s is not {steps[0]!r} s times a power of two")
+            if math.isclose(h, target, rel_tol=1e-12):
+                E, p1, p2, p3 = phis
+                out[target] = {"lin": L, "E_half": half[0], "P_half": h / 2 * half[1], "E_full": E,
+                               "F1": h * (p1 - 3 * p2 + 4 * p3), "F2": h * (p2 - 2 * p3), "F3": h * (4 * p3 - p2)}
+    return out
+
+
+def phi_constants(matrices: dict[str, np.ndarray]) -> np.ndarray:
+    """ETDRK4 matrices of one step as the block that ends the loop's ``c`` (column-major, in order)."""
+    return np.concatenate([matrices[name].ravel(order="F") for name in PHI_LAYOUT])
+
+
+def phi_pattern(ladder: dict[float, dict[str, np.ndarray]]) -> tuple[bool, ...]:
+    """The union of the nonzeros of every ETDRK4 matrix of the ladder (column-major)."""
+    nz = None
+    for mats in ladder.values():
+        for M in mats.values():
+            nz = (M != 0) if nz is None else nz | (M != 0)
+    return tuple(bool(b) for b in nz.ravel(order="F"))
+
+
+@dataclass(frozen=True)
+class Segment:
+    """``n`` steps of ``dt`` s starting at ``k0 dt`` s (``k0`` whole)."""
+
+    dt: float
+    n: int
+    k0: int
+
+    @property
+    def start(self) -> float:
+        return self.dt * self.k0
+
+    @property
+    def end(self) -> float:
+        return self.dt * (self.k0 + self.n)
+
+
+def auto_step(t: float, eigenvalues, tolerance: float) -> float:
+    """``h(t)`` of the module's rule (s): the step every mode allows at ``t``."""
+    lam = np.asarray(eigenvalues, dtype=complex)
+    lam = lam[np.abs(lam) > 0]
+    if lam.size == 0:
+        return math.inf
+    sigma = np.maximum(-lam.real, 0.0)
+    return float(SAFETY * tolerance ** 0.25 * np.min(np.exp(np.minimum(sigma * t / 4, 700)) / np.abs(lam)))
+
+
+def allows(h: float, eigenvalues, tolerance: float) -> float:
+    """The first time (s) at which :func:`auto_step` reaches ``h`` (inf: never), in closed form:
+    the latest over the modes of ``(4 / sigma) ln(h |lambda| / (SAFETY tolerance^(1/4)))``."""
+    lam = np.asarray(eigenvalues, dtype=complex)
+    lam = lam[np.abs(lam) > 0]
+    if lam.size == 0:
+        return 0.0
+    ratio = h * np.abs(lam) / (SAFETY * tolerance ** 0.25)
+    sigma = -lam.real
+    if np.any((ratio > 1) & (sigma <= 0)):
+        return math.inf
+    with np.errstate(divide="ignore"):
+        times = np.where(ratio > 1, 4.0 / np.where(sigma > 0, sigma, 1.0) * np.log(np.maximum(ratio, 1.0)), 0.0)
+    return float(times.max())
+
+
+def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                  period: float | None = None) -> StepPlan:
+    """The ETDRK4 steps of a run: uniform ``dt``, or the graded schedule of ``dt: auto``.
+
+    Parameters
+    ----------
+    eigenvalues : (n,) array_like
+        Of the loop's linear part (rad/s).
+    owners : sequence of str
+        The subsystem of each eigenvalue (for the plan's report).
+    duration : float
+        s.
+    dt : float or "auto"
+    tolerance : float
+        The error ``dt: auto`` aims at.
+    period : float, optional
+        s of the exogenous inputs (noise, wind): steps divide it.
+
+    Returns
+    -------
+    StepPlan
+        ``method = "etdrk4"``, ``schedule`` its segments; ``dt`` the last segment's step.
+    """
+    eig = np.asarray(eigenvalues, dtype=complex)
+    k_fast = int(np.argmax(np.abs(eig))) if eig.size else 0
+    fastest = complex(eig[k_fast]) if eig.size else 0j
+    owner = owners[k_fast] if eig.size else ""
+    if dt != "auto":
+        n = step_count(duration, float(dt), fastest, owner)
+        h = duration / n
+        return StepPlan(h, n, _rk4_limit(eig), fastest, owner, False, method="etdrk4",
+                        schedule=(Segment(h, n, 0),))
+    cap = min(MAX_STEP, duration, auto_step(math.inf, eig, tolerance))
+    if period is not None:
+        top = period / math.ceil(period / cap - 1e-9)
+    else:
+        top = duration / math.ceil(duration / cap - 1e-9)
+    segments, t, level = [], 0.0, 0
+    while top / 2 ** level > auto_step(0.0, eig, tolerance) and level < 60:
+        level += 1
+    while True:
+        h = top / 2 ** level
+        remaining = math.ceil((duration - t) / h - 1e-9)
+        if level == 0:
+            segments.append(Segment(h, remaining, round(t / h)))
+            break
+        # the first multiple of 2h at which h(t) allows 2h
+        allowed = allows(2 * h, eig, tolerance)
+        if allowed >= duration:
+            segments.append(Segment(h, remaining, round(t / h)))
+            break
+        switch = math.ceil(max(allowed, t) / (2 * h) - 1e-9) * 2 * h
+        n = min(round((switch - t) / h), remaining)
+        if n > 0:
+            segments.append(Segment(h, n, round(t / h)))
+        t = switch
+        level -= 1
+        if t >= duration - 1e-12 * duration:
+            break
+    total = sum(s.n for s in segments)
+    step_count(total * top, top, fastest, owner)  # refuses (or announces) a runaway plan
+    return StepPlan(segments[-1].dt, total, _rk4_limit(eig), fastest, owner, True, method="etdrk4",
+                    schedule=tuple(segments))
+
+
+def record_strides(plan: StepPlan, max_samples: int) -> list[int]:
+    """Per segment of ``plan``, the stride that records at the same times in every segment: the
+    multiples of ``m h_top`` (``h_top`` the largest step; ``m`` the smallest that keeps at most
+    ``max_samples`` records), so records are equally spaced, as metrics and plots take them. Every
+    step is ``h_top / 2^j`` and starts on a multiple of itself, so these times are steps' starts."""
+    top = max(s.dt for s in plan.schedule)
+    m = record_stride(max(1, round(max(s.end for s in plan.schedule) / top)), max_samples)
+    return [m * round(top / s.dt) for s in plan.schedule]
+
+
+def _rk4_limit(eig) -> float:
+    """RK4's largest stable step for these eigenvalues (s; reported beside the schedule)."""
+    limits = max_stable_steps(eig)
+    stable = limits[np.isfinite(limits) & (limits > 0)]
+    return float(stable.min()) if stable.size else math.inf
+
+
+def summary(plan: StepPlan) -> list[dict]:
+    """The steps as sim.json reports them: per segment of uniform steps its step (s), steps, start
+    and end (s); RK4's plan is one segment."""
+    segments = plan.schedule or (Segment(plan.dt, plan.n_steps, 0),)
+    return [{"dt": s.dt, "steps": s.n, "start": s.start, "end": s.end} for s in segments]
+

@@ -1,0 +1,387 @@
+"""ETDRK4, the exponential integrator beside RK4 (quadctl.sim.builder.etdrk4, quadctl.sim.schedule),
+against independent references.
+
+- The φ-functions from one matrix exponential equal their closed forms on a diagonalizable matrix,
+  and the step ladder (doublings between direct exponentials) equals direct exponentials.
+- On a linear system with an affine-in-time forcing, ETDRK4 with the system's matrix as its linear
+  part is exact: the matrix exponential's solution to round-off, at any step, stiff or not.
+- Fourth order on a smooth nonlinear system: the error falls ~16x when the step halves (reference:
+  SciPy's DOP853 at rtol 1e-13).
+- The loop's linear part (ClosedLoop.linear_part, from quadctl.lqr.linear_loop) is the Jacobian of
+  the builder's own right-hand side at the reference (CasADi), with rotors, a lag model, LQI, LQG.
+- On every bundled config with continuous feedback, ETDRK4 at dt: auto agrees with RK4 at a small
+  step to 1e-9 (short runs); with noise and wind too (their rows indexed by time on the graded grid).
+- The schedule: contiguous segments of doubling steps, each starting on a multiple of its step,
+  within the step the rule allows, dividing the exogenous period; deterministic.
+- Compiled and interpreted runners agree; configs and sweeps that cannot take it say so.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+from _solve import cfg_dict, solve
+from scipy.integrate import solve_ivp
+
+from quadctl import config, pipeline
+from quadctl.errors import ConfigError
+from quadctl.sim import engine, schedule
+from quadctl.sim.builder import PHI_LAYOUT, LoopSpec, build, etdrk4
+from quadctl.sim.run import simulate
+
+ca = pytest.importorskip("casadi")
+
+
+def _phi_closed(z: np.ndarray, k: int) -> np.ndarray:
+    """φ_k(z) of scalars: the closed form ``(e^z - sum_{j<k} z^j/j!) / z^k`` where it does not cancel
+    (|z| >= 1), else the series ``sum_j z^j / (j + k)!`` (40 terms)."""
+    z = np.asarray(z, dtype=float)
+    partial = sum(z ** j / math.factorial(j) for j in range(k))
+    with np.errstate(all="ignore"):
+        closed = (np.exp(z) - partial) / z ** k
+    series = sum(z ** j / math.factorial(j + k) for j in range(40))
+    return np.where(np.abs(z) >= 1, closed, series)
+
+
+def test_phi_functions_equal_their_closed_forms():
+    rng = np.random.default_rng(1)
+    lam = np.array([-3e4, -250.0, -3.0, -0.7])
+    V = rng.standard_normal((4, 4)) + 3 * np.eye(4)
+    L = V @ np.diag(lam) @ np.linalg.inv(V)
+    h = 1e-3
+    got = schedule.phi_functions(L, h)
+    for k in range(4):
+        ref = V @ np.diag(np.exp(h * lam) if k == 0 else _phi_closed(h * lam, k)) @ np.linalg.inv(V)
+        assert np.abs(got[k] - ref).max() < 1e-12 * max(1.0, np.abs(ref).max()), k
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 30.0, 3e4])
+def test_the_exponential_is_scipys(scale):
+    """quadctl's scaling and squaring against SciPy's expm (Pade 13): stable, non-normal, up to stiff
+    (a 1-norm of 5e5: nineteen squarings)."""
+    rng = np.random.default_rng(4)
+    V = np.eye(12) + np.triu(rng.standard_normal((12, 12)), 1)  # non-normal: V far from orthogonal
+    D = np.diag(-scale * np.linspace(0.05, 5.0, 12))
+    M = V @ D @ np.linalg.inv(V)
+    ref = scipy.linalg.expm(M)
+    assert np.abs(schedule.expm(M) - ref).max() < 1e-12 * max(1.0, np.abs(ref).max())
+    exact = V @ np.diag(np.exp(np.diag(D))) @ np.linalg.inv(V)
+    assert np.abs(schedule.expm(M) - exact).max() < 1e-11 * max(1.0, np.abs(exact).max())
+
+
+def test_the_ladder_equals_direct_exponentials():
+    rng = np.random.default_rng(2)
+    L = rng.standard_normal((6, 6)) * 50 - 2000 * np.diag(rng.random(6))
+    steps = [1e-6 * 2 ** j for j in range(12)]
+    ladder = schedule.phi_ladder(L, steps)
+    for h in steps[::3]:
+        E, p1, p2, p3 = schedule.phi_functions(L, h)
+        Eh, p1h = schedule.phi_functions(L, h / 2, order=1)
+        ref = {"E_full": E, "E_half": Eh, "P_half": h / 2 * p1h, "F1": h * (p1 - 3 * p2 + 4 * p3),
+               "F2": h * (p2 - 2 * p3), "F3": h * (4 * p3 - p2)}
+        for name, M in ref.items():
+            assert np.abs(ladder[h][name] - M).max() < 1e-13 * max(1.0, np.abs(M).max()), (h, name)
+    with pytest.raises(ValueError, match="not .* times a power of two"):
+        schedule.phi_ladder(L, [1e-6, 3e-6])
+
+
+def _etdrk4_function(rhs, n: int, L: np.ndarray):
+    """CasADi function (X, t, h) -> one builder ETDRK4 step of ``rhs`` with linear part ``L``, its
+    matrices computed per ``h`` in Python (the order test calls it with a few steps)."""
+    X, t, h = ca.SX.sym("X", n), ca.SX.sym("t"), ca.SX.sym("h")
+    mats = {name: ca.SX.sym(name, n, n) for name in PHI_LAYOUT}
+    fn = ca.Function("etd", [X, t, h, *mats.values()], [etdrk4(rhs, X, t, h, mats)])
+
+    def step(x, tt, hh):
+        ladder = schedule.phi_ladder(L, [hh])[hh]
+        return np.asarray(fn(x, tt, hh, *[ladder[name] for name in PHI_LAYOUT])).ravel()
+
+    return step
+
+
+def test_exact_on_a_linear_loop_with_affine_forcing():
+    """``x' = A x + b + c t``, ``A`` stiff (eigenvalues -2e4 .. -0.5, a complex pair): ETDRK4 with
+    ``L = A`` gives the exact solution, ``expm`` of the augmented system ``[x; 1; t]``, to round-off
+    whatever the step (here 50 steps of 0.02 s, 400 times RK4's stability limit)."""
+    rng = np.random.default_rng(3)
+    V = rng.standard_normal((4, 4)) + 4 * np.eye(4)
+    D = np.array([[-2e4, 0, 0, 0], [0, -0.5, 3.0, 0], [0, -3.0, -0.5, 0], [0, 0, 0, -40.0]])
+    A = V @ D @ np.linalg.inv(V)
+    b, c = rng.standard_normal(4), rng.standard_normal(4)
+    step = _etdrk4_function(lambda X, t: ca.DM(A) @ X + ca.DM(b) + ca.DM(c) * t, 4, A)
+    x0 = rng.standard_normal(4)
+    x, h = x0.copy(), 0.02
+    for k in range(50):
+        x = step(x, k * h, h)
+    aug = np.zeros((6, 6))
+    aug[:4, :4], aug[:4, 4], aug[:4, 5], aug[5, 4] = A, b, c, 1.0
+    exact = (scipy.linalg.expm(aug * 1.0) @ np.concatenate([x0, [1.0, 0.0]]))[:4]
+    assert np.abs(x - exact).max() < 1e-11 * max(1.0, np.abs(exact).max())  # RK4: unstable here
+
+
+def test_fourth_order_on_a_smooth_nonlinear_system():
+    """A damped oscillator with a quadratic and a sine coupling, linear part its Jacobian at 0: the
+    final error after 1 s falls by ~2^4 each time the step halves."""
+    L = np.array([[-1.0, 4.0, 0.0], [-4.0, -1.0, 1.0], [0.0, 0.0, -3.0]])
+
+    def f_np(t, x):
+        return L @ x + np.array([0.5 * x[1] ** 2, np.sin(x[0]) - x[0], -x[0] * x[1]]) + np.array([0, 0, np.cos(t)])
+
+    def f_ca(X, t):
+        return ca.DM(L) @ X + ca.vertcat(0.5 * X[1] ** 2, ca.sin(X[0]) - X[0], -X[0] * X[1]) \
+            + ca.vertcat(0, 0, ca.cos(t))
+
+    x0 = np.array([0.8, -0.5, 0.3])
+    ref = solve_ivp(f_np, (0, 1), x0, method="DOP853", rtol=1e-13, atol=1e-15).y[:, -1]
+    # the nonlinear part only: ETDRK4's linear part leaves out a part of the Jacobian, so the
+    # remainder N is not small (a real test of the nonlinear stages)
+    step = _etdrk4_function(f_ca, 3, L)
+    errors = []
+    for n in (10, 20, 40):
+        x, h = x0.copy(), 1.0 / n
+        for k in range(n):
+            x = step(x, k * h, h)
+        errors.append(np.abs(x - ref).max())
+    ratios = [errors[0] / errors[1], errors[1] / errors[2]]
+    assert all(12 < r < 20 for r in ratios), (errors, ratios)
+
+
+def _builder_jacobian(loop, e):
+    """d X'/dX of the builder's continuous loop at the reference (d/dh at h = 0 of its RK4 step's
+    Jacobian: each RK4 stage is the right-hand side there)."""
+    spec = loop.spec(noise=False, wind=True)
+    fns = build(spec)
+    X, h = ca.SX.sym("X", spec.nx), ca.SX.sym("h")
+    J = ca.jacobian(fns.step(X, 0.0, h, loop.constants(None), ca.DM(e))[0], X)
+    dJ = ca.reshape(ca.jacobian(ca.vec(J), h), J.shape[0], J.shape[1])
+    return np.asarray(ca.Function("J", [X, h], [dJ])(loop.initial_loop_state(loop.x_trim), 0.0))
+
+
+def _variant(name: str) -> dict:
+    if name == "hover+rotors+lag model+LQI":
+        data = cfg_dict("hover", motors={"time_constant": 0.02})
+        data["controller"]["rotor_lag"] = "include"
+        data["lqr"]["altitude"].update(Q=[50, 1, 1], integral=["pD"])
+        return data
+    if name == "hover+LQG":
+        data = cfg_dict("hover")
+        data["simulation"]["noise"] = {"seed": 3, "force": [0.005] * 3, "torque": [2e-5] * 3,
+                                       "sensor": dict.fromkeys(("pN", "pE", "pD", "phi", "theta", "psi", "p", "q",
+                                                                "r"), 0.01)}
+        data["estimator"] = {"measure": ["imu", "mocap"]}
+        return data
+    if name.startswith("hover+noise") or name == "hover+wind":
+        data = cfg_dict("hover")
+        if "noise" in name:
+            data["simulation"]["noise"] = {"seed": 5, "force": [0.01] * 3, "torque": [5e-5] * 3,
+                                           "sensor": {"phi": 0.01, "p": 0.05}}
+        if "wind" in name:
+            data["simulation"]["wind"] = {"steady": [1.0, -0.5, 0.0], "turbulence": {"intensity": "light", "seed": 2}}
+        return data
+    return cfg_dict(name)
+
+
+LINEAR_PARTS = ["forward", "hover+rotors+lag model+LQI", "hover+LQG"]
+
+
+@pytest.mark.parametrize("name", LINEAR_PARTS)
+def test_the_linear_part_is_the_builders_jacobian(name):
+    setup, _, linear, _, des = solve(_variant(name))
+    loop = pipeline.loop_of(setup, linear, des)
+    from dataclasses import replace
+
+    loop = replace(loop, params=setup.vehicle.vector())  # the design model (the linear part's plant)
+    J = _builder_jacobian(loop, setup.trim_wind)
+    L = loop.linear_part()
+    assert L.shape == J.shape
+    assert np.abs(L - J).max() < 1e-9 * max(1.0, np.abs(J).max())
+
+
+CONTINUOUS = [n for n in config.bundled_names() if config.load(n).controller.rate is None]
+HELD = [n for n in config.bundled_names() if config.load(n).controller.rate is not None]
+
+
+NOISE_AGREE = 1e-8
+"""ETDRK4 against RK4 with noise: each noise sample (every 5 ms here) steps the sensor noise and
+re-excites the fast modes, which the schedule grades for at t = 0 only: measured 2.0e-9 on 0.2 s of
+hover with noise and wind at tolerance 1e-12 (without noise: below 1e-9)."""
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("name", [*CONTINUOUS, "hover+wind", "hover+noise+wind"])
+def test_etdrk4_agrees_with_rk4_at_a_small_step(name):
+    """0.2 s from the configured offset: ETDRK4 at dt: auto (tolerance 1e-12) against RK4 at 2.5e-5 s
+    (a step that divides the exogenous period, so both see the exogenous rows change at the same times)."""
+    setup, _, linear, _, des = solve(_variant(name))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    kw = dict(noise=setup.noise, wind=setup.wind)
+    rk4 = simulate(loop, x0, 0.2, 2.5e-5, **kw)
+    etd = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-12, **kw)
+    assert etd.status == rk4.status == "ok"
+    assert etd.t[-1] == pytest.approx(0.2, abs=1e-15)
+    assert np.abs(etd.x[-1] - rk4.x[-1]).max() < (NOISE_AGREE if setup.noise is not None else 1e-9)
+    if setup.wind is not None:  # the wind felt, by time, on the graded grid
+        assert np.all(np.diff(etd.t) > 0)
+        assert np.abs(np.interp(0.1, etd.t, etd.wind[:, 0]) - np.interp(0.1, rk4.t, rk4.wind[:, 0])) < 0.05
+
+
+def test_the_schedule_grades_and_aligns():
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    eig = np.linalg.eigvals(loop.linear_part())
+    for period in (None, 0.005):
+        plan = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
+        assert plan == schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
+        segs = plan.schedule
+        assert segs[0].start == 0.0 and segs[-1].end == pytest.approx(10.0, rel=1e-12)
+        assert sum(s.n for s in segs) == plan.n_steps
+        for a, b in zip(segs, segs[1:]):
+            assert a.end == b.start and b.dt == 2 * a.dt  # contiguous, doubling
+        for s in segs:
+            assert s.dt <= schedule.auto_step(s.start, eig, 1e-8) * (1 + 1e-12)  # within the rule
+        if period is not None:
+            top = max(s.dt for s in segs)
+            assert period / top == pytest.approx(round(period / top), abs=1e-9)
+        assert segs[0].dt < 1e-6 and segs[-1].dt == min(schedule.MAX_STEP, period or 1.0)  # graded
+    tighter = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-10)
+    assert tighter.n_steps > plan.n_steps and tighter.schedule[0].dt < plan.schedule[0].dt
+
+
+def test_records_are_equally_spaced():
+    """Metrics and plots take the records as equally spaced (time averages are plain means): the
+    graded schedule records at multiples of its largest step only, and the end."""
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    sim = simulate(loop, setup.initial_state(loop.x_trim), 2.0, "auto", method="etdrk4", max_samples=101)
+    gaps = np.diff(sim.t)
+    assert len(sim.t) <= 101 and len(sim.plan.schedule) > 5
+    assert np.allclose(gaps, gaps[0], rtol=1e-9, atol=0) and gaps[0] >= sim.plan.dt
+    assert sim.t[-1] == pytest.approx(2.0, rel=1e-12)
+
+
+def test_a_given_step_is_uniform():
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    sim = simulate(loop, setup.initial_state(loop.x_trim), 0.1, 1e-3, method="etdrk4")
+    assert sim.plan.schedule == (schedule.Segment(1e-3, 100, 0),) and sim.steps == 100
+    assert np.allclose(np.diff(sim.t), 1e-3)
+
+
+@pytest.mark.compiler
+def test_compiled_and_interpreted_etdrk4_agree(monkeypatch):
+    setup, _, linear, _, des = solve(_variant("hover+noise+wind"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4")
+    compiled = simulate(loop, x0, 0.05, "auto", **kw)
+    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
+    engine.runner.cache_clear()
+    try:
+        with pytest.warns(engine.CompilerNotice):
+            interpreted = simulate(loop, x0, 0.05, "auto", **kw)
+    finally:
+        engine.runner.cache_clear()
+    assert compiled.backend == "compiled" and interpreted.backend == "casadi"
+    assert compiled.steps == interpreted.steps and np.array_equal(compiled.t, interpreted.t)
+    assert np.abs(compiled.x - interpreted.x).max() < 1e-12
+    assert np.abs(compiled.u - interpreted.u).max() < 1e-12
+
+
+def test_the_phi_pattern_keeps_a_decoupled_loops_blocks():
+    """The forward design is decoupled: its loop's exponential has exact zeros, baked into the code."""
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    L = loop.linear_part()
+    pattern = schedule.phi_pattern(schedule.phi_ladder(L, [1e-3]))
+    assert 0 < sum(pattern) < len(pattern)
+    spec = loop.spec(method="etdrk4", phi_pattern=pattern)
+    assert spec.n_phi == len(PHI_LAYOUT) * spec.nx ** 2 and "method=etdrk4" in spec.key()
+    with pytest.raises(ValueError, match="held loop"):
+        LoopSpec(spec.pattern, held=True, method="etdrk4")
+
+
+@pytest.mark.parametrize("name", HELD)
+def test_a_sampled_controller_refuses_etdrk4(name):
+    data = cfg_dict(name)
+    data["simulation"]["method"] = "etdrk4"
+    with pytest.raises(ConfigError, match=r"simulation\.method.*etdrk4.*controller\.rate.*method: rk4"):
+        config.from_dict(data, "<test>")
+
+
+def test_a_tolerance_without_etdrk4_is_refused():
+    data = cfg_dict("hover")
+    data["simulation"]["tolerance"] = 1e-9
+    with pytest.raises(ConfigError, match=r"simulation\.tolerance.*method: etdrk4"):
+        config.from_dict(data, "<test>")
+    data["simulation"].update(method="etdrk4", dt=0.001)
+    with pytest.raises(ConfigError, match=r"simulation\.tolerance = 1e-09: sets the step schedule of dt: auto"):
+        config.from_dict(data, "<test>")
+
+
+def test_a_sweep_refuses_etdrk4():
+    from quadctl.sweep.spec import SweepError, from_dict
+
+    cfg = config.from_dict({**cfg_dict("hover"), "simulation": {**cfg_dict("hover")["simulation"],
+                                                                "method": "etdrk4"}}, "<test>")
+    with pytest.raises(SweepError, match=r"simulation\.method = \"etdrk4\": a sweep's lanes run RK4 only"):
+        from_dict({"parameters": {"lqr.roll.R[0]": [1, 2]}}, cfg)
+
+
+def test_the_default_tolerance_is_the_one_the_schema_states():
+    field = config.SimulationConfig.model_fields["tolerance"]
+    assert f"absent: {schedule.DEFAULT_TOLERANCE:g}" in field.description
+
+
+def test_the_method_enters_the_digest_only_when_used():
+    """A config without the new keys keeps its digest (tests/test_reference_runs.py holds the old
+    ones); choosing etdrk4 or a tolerance changes it (a run folder of RK4 is not reused)."""
+    base = config.from_dict(cfg_dict("hover"), "<test>")
+    data = cfg_dict("hover")
+    data["simulation"]["method"] = "rk4"
+    assert config.from_dict(data, "<test>").digest() == base.digest()
+    data["simulation"]["method"] = "etdrk4"
+    etd = config.from_dict(data, "<test>").digest()
+    data["simulation"]["tolerance"] = 1e-9
+    assert len({base.digest(), etd, config.from_dict(data, "<test>").digest()}) == 3
+
+
+@pytest.mark.compiler
+def test_lanes_equal_the_one_case_loop():
+    """Eleven designs (gains scaled, so each has its own linear part and schedule; two groups of
+    eight lanes, the last padded) in the SIMD lanes, each against its own one-case run."""
+    from dataclasses import replace
+
+    from quadctl.sim.run import exponential_lanes
+
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    loops = [replace(loop, K=loop.K * (1.0 + 0.1 * k)) for k in range(11)]
+    lanes = exponential_lanes(loops, [x0] * len(loops), 0.3, tolerance=1e-8)
+    worst, schedules = 0.0, set()
+    for one_loop, (done, t, xs, us) in zip(loops, lanes):
+        one = simulate(one_loop, x0, 0.3, "auto", method="etdrk4", tolerance=1e-8)
+        assert done == one.steps and np.array_equal(t, one.t)
+        worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max())
+        schedules.add(one.plan.schedule)
+    assert len(schedules) > 1  # the lanes really ran different schedules
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
+    with pytest.raises(ValueError, match="one structure"):
+        K = loop.K.copy()
+        K[0, 0] = 1.0 if K[0, 0] == 0 else 0.0
+        exponential_lanes([loop, replace(loop, K=K)], [x0, x0], 0.1)
+
+
+def test_the_presenter_names_the_method_and_its_schedule():
+    from quadctl.present import flight
+
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    sim = simulate(loop, setup.initial_state(loop.x_trim), 1.0, "auto", method="etdrk4")
+    text = flight.step_text(sim)
+    assert flight.integrator_name(sim) == "ETDRK4"
+    assert f"in {len(sim.plan.schedule)} segments (auto; RK4 would be stable up to 0.0001922 s" in text
