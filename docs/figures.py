@@ -248,7 +248,20 @@ def lag_delay_runs() -> dict:
     return runs
 
 
+def mission_figure() -> Figure:
+    """The bundled square mission: the path in the horizontal plane and the altitude."""
+    setup, *_, sim = solve(config.load("square").model_dump(mode="json"))
+    summary = pipeline.tracking_summary(setup, sim)
+    error = summary["position_error"]
+    print("square: reached " + ", ".join(f"{w['reached']:.3f} s" for w in summary["waypoints"])
+          + f"; tracking error rms {error['rms']:.3g} m, peak {error['peak']:.3g} m")
+    return plots.path_figure(sim, [leg.position for leg in setup.reference.legs], title="square")
+
+
 def main() -> int:
+    if sys.argv[1:] == ["mission"]:
+        save(mission_figure(), "square-mission.png")
+        return 0
     if sys.argv[1:] == ["lqg"]:
         make_lqg_figure()
         return 0
@@ -298,6 +311,7 @@ def main() -> int:
     save(uncertainty_figure(), "uncertainty-bands.png")
     save(gust_figure(gust_runs()), "crazyflie-gust.png")
     make_lqg_figure()
+    save(mission_figure(), "square-mission.png")
     return 0
 
 

@@ -224,6 +224,35 @@ class PlantConfig(_Section):
         None, description="Kc diagonal, 1/(m/s)")
 
 
+class SetpointConfig(_Section):
+    """A step of the reference at time ``t``: any of position, velocity and yaw (the others continue)."""
+
+    t: NonNegative = Field(description="s, from the start of the run; increasing along the list")
+    position: Optional[Vector3] = Field(None, description="m, NED")
+    velocity: Optional[Vector3] = Field(None, description="m/s, NED")
+    yaw: Optional[Number] = Field(None, description="rad")
+
+
+class WaypointConfig(_Section):
+    """A waypoint of a mission, flown to in order."""
+
+    position: Vector3 = Field(description="m, NED")
+    yaw: Optional[Number] = Field(None, description="rad; absent: the previous waypoint's (or the trim's)")
+    hold: NonNegative = Field(0.0, description="s to stay at the waypoint before the next leg")
+
+
+class ReferenceConfig(_Section):
+    """A reference to fly: setpoint steps, or a waypoint mission with its feedforward."""
+
+    setpoints: Optional[list[SetpointConfig]] = Field(
+        None, description="steps of position, velocity and yaw at given times")
+    waypoints: Optional[list[WaypointConfig]] = Field(None, description="a mission from the trim position, in order")
+    speed: Positive = Field(1.0, description="m/s: the peak speed of each leg of a mission")
+    tolerance: Positive = Field(0.1, description="m: a waypoint counts as reached within this distance")
+    trajectory: Literal["minimum-jerk", "minimum-snap", "step"] = Field(
+        "minimum-jerk", description="the shape of each leg (step: the reference jumps to the waypoint)")
+
+
 class SimulationConfig(_Section):
     """Closed-loop simulation settings."""
 
@@ -237,6 +266,8 @@ class SimulationConfig(_Section):
         None, description="simulated vehicle parameters that differ from vehicle: (model mismatch)")
     max_samples: Annotated[int, Field(strict=True, ge=2)] = Field(
         20_000, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
+    reference: Optional[ReferenceConfig] = Field(
+        None, description="setpoints or waypoints to fly; absent: hold the trim (moving with its velocity)")
     method: Literal["rk4", "etdrk4"] = Field(
         "rk4", description="rk4: classical Runge-Kutta, its step held stable by the fastest loop; etdrk4: "
         "exponential Runge-Kutta (Cox-Matthews) exact on the loop's linearization, dt: auto a graded step "
@@ -390,6 +421,7 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("allow",), []),
     (("motors", "numbering"), "quadctl"),
     (("motors", "spin"), None),
+    (("simulation", "reference"), None),
     (("simulation", "method"), "rk4"),
     (("simulation", "tolerance"), None),
 )
@@ -879,6 +911,7 @@ def _check_semantics(cfg: Config, label: str) -> None:
                      definite=False, names=[*sub.states, *(f"integral of {s}" for s in weights.integral)])
         check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
                      names=sub.inputs)
+    _check_reference(cfg.simulation.reference, fail)
     for state, value in cfg.simulation.initial_offset.items():
         if state not in STATE_NAMES:
             fail(f"simulation.initial_offset.{state}", value, _unknown(state, STATE_NAMES, "state"))
@@ -909,6 +942,24 @@ def _check_semantics(cfg: Config, label: str) -> None:
              "or use rotor_lag: ignore")
 
 
+def _check_reference(ref: ReferenceConfig | None, fail) -> None:
+    """``simulation.reference``: setpoints or waypoints (not both, not neither), setpoints in time order."""
+    if ref is None:
+        return
+    where = "simulation.reference"
+    if (ref.setpoints is None) == (ref.waypoints is None):
+        fail(where, "both" if ref.setpoints is not None else "neither",
+             "give either setpoints (steps at times t) or waypoints (a mission), one of the two")
+    if not (ref.setpoints or ref.waypoints):
+        fail(f"{where}.{'setpoints' if ref.setpoints is not None else 'waypoints'}", [], "empty; list at least one")
+    for i, sp in enumerate(ref.setpoints or []):
+        if sp.position is None and sp.velocity is None and sp.yaw is None:
+            fail(f"{where}.setpoints[{i}]", {"t": sp.t}, "sets nothing; give position, velocity or yaw")
+        if i and sp.t <= ref.setpoints[i - 1].t:
+            fail(f"{where}.setpoints[{i}].t", sp.t,
+                 f"not after setpoints[{i - 1}].t = {show(ref.setpoints[i - 1].t)}; list setpoints in increasing t")
+
+
 def _check_method(cfg: Config, fail) -> None:
     """``simulation.method: etdrk4`` integrates continuous feedback (its linear part is the continuous loop)."""
     sim = cfg.simulation
@@ -920,6 +971,9 @@ def _check_method(cfg: Config, fail) -> None:
     if sim.tolerance is not None and sim.dt != "auto":
         fail("simulation.tolerance", sim.tolerance, f"sets the step schedule of dt: auto, and simulation.dt is "
              f"{sim.dt:g} s: remove one of them")
+    if sim.reference is not None:
+        fail("simulation.method", sim.method, "does not fly a reference yet (simulation.reference): use "
+             "method: rk4 for a mission or setpoints")
     if cfg.controller.rate is not None:
         fail("simulation.method", sim.method, "integrates continuous feedback; a sampled controller "
              "(controller.rate) runs with method: rk4")

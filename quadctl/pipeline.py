@@ -128,7 +128,46 @@ def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progres
         extra["tolerance"] = setup.tolerance
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
                     noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples,
-                    progress=progress, **extra)
+                    progress=progress, reference=flown_reference(setup), **extra)
+
+
+def flown_reference(setup: Setup):
+    """The setup's reference with the design model's feedforward
+    (:class:`quadctl.sim.reference.FlownReference`); None without ``simulation.reference``."""
+    if setup.reference is None:
+        return None
+    from quadctl.sim.reference import FlownReference
+
+    return FlownReference(setup.reference, setup.vehicle.vector())
+
+
+def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:
+    """``sim.json``'s ``reference``: the position tracking error ``|p - p_ref|`` (m; RMS over time and
+    peak) and, for a mission, each waypoint with the time it was first reached within the tolerance
+    (in order; None: never); None without a reference."""
+    if setup.reference is None or len(sim.t) == 0:
+        return None
+    return tracking_of(setup.reference, sim.t, sim.x, sim.x_ref)
+
+
+def tracking_of(ref, t, x, x_ref) -> dict:
+    """:func:`tracking_summary` of the path ``ref`` (:class:`quadctl.trajectory.Reference`) flown as
+    ``x`` ((n, 12), at the times ``t``) against the reference ``x_ref`` the law used."""
+    from quadctl import trajectory
+
+    err = np.linalg.norm(x[:, :3] - x_ref[:, :3], axis=1)
+    out = {"kind": "waypoints" if ref.legs else "setpoints",
+           "position_error": {"rms": float(np.sqrt(np.mean(err ** 2))), "peak": float(err.max()),
+                              "final": float(err[-1]), "units": "m"}}
+    if ref.legs:
+        reached = trajectory.waypoint_times(ref, t, x[:, :3])
+        out["tolerance"] = ref.tolerance
+        out["waypoints"] = [{"position": list(leg.position), "yaw": leg.yaw, "leg_start": leg.start,
+                             "leg_end": leg.end, "hold": leg.hold, "reached": r}
+                            for leg, r in zip(ref.legs, reached)]
+        out["all_reached"] = all(r is not None for r in reached)
+        out["mission_end"] = ref.end
+    return out
 
 
 @dataclass(frozen=True)
@@ -247,7 +286,8 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         (seed and period, or None), ``wind`` (:func:`wind_summary`, or None), ``estimation`` (LQG
         only: RMS of ``x - x_hat`` per state, whole run and second half, and the steady filter's
         predicted standard deviation), ``integral`` (states and final integrator values), ``plant``
-        (the simulated vehicle's parameters when they differ from the design model).
+        (the simulated vehicle's parameters when they differ from the design model), ``reference``
+        (:func:`tracking_summary`: tracking error and waypoints; None without a reference).
     """
     from quadctl import motors, noise
 
@@ -262,7 +302,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         "saturation": None, "noise": None, "wind": wind_summary(setup, sim), "estimation": None,
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
-        "plant": setup.plant_overrides or None,
+        "plant": setup.plant_overrides or None, "reference": tracking_summary(setup, sim),
     }
     act = loop.actuators
     if act is not None:
@@ -342,6 +382,32 @@ def wind_line(wind: dict) -> str:
                      f"(seed {turb['seed']})")
     trimmed = "trimmed in the steady wind" if wind["trim_in_wind"] else "trimmed in still air"
     return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"
+
+
+def tracking_lines(tracking: dict) -> list[str]:
+    """A run's reference (:func:`tracking_summary`): the position tracking error and, for a
+    mission, when each waypoint was reached (``simulate`` prints them)."""
+    err = tracking["position_error"]
+    lines = [f"tracking error |p - p_ref|: rms {err['rms']:.3g} m, peak {err['peak']:.3g} m, "
+             f"final {err['final']:.3g} m"]
+    if "waypoints" in tracking:
+        times = ", ".join("never" if w["reached"] is None else f"{w['reached']:.3f} s" for w in tracking["waypoints"])
+        reached = sum(w["reached"] is not None for w in tracking["waypoints"])
+        lines.insert(0, f"waypoints: {reached} of {len(tracking['waypoints'])} reached within "
+                        f"{tracking['tolerance']:g} m, at {times} (mission ends at {tracking['mission_end']:.4g} s)")
+    return lines
+
+
+def missed_waypoints(tracking: dict | None) -> str | None:
+    """A warning naming the first waypoint a run never reached, and what to change; None: none missed."""
+    missed = [i for i, w in enumerate((tracking or {}).get("waypoints", [])) if w["reached"] is None]
+    if not missed:
+        return None
+    wp = tracking["waypoints"][missed[0]]
+    return (f"simulation.reference.waypoints[{missed[0]}] [{', '.join(f'{c:g}' for c in wp['position'])}] was never "
+            f"reached within {tracking['tolerance']:g} m ({len(missed)} of {len(tracking['waypoints'])} missed; the "
+            f"mission ends at {tracking['mission_end']:.4g} s): lengthen simulation.duration or loosen "
+            "simulation.reference.tolerance")
 
 
 def compare_full(setup: Setup, linear: LinearModel, des: Design):

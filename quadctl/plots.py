@@ -177,15 +177,74 @@ def wind_figure(sim, *, title: str = "") -> Figure:
     return fig
 
 
+def path_figure(sim, waypoints=(), *, title: str = "") -> Figure:
+    """The flown path against the reference: the horizontal plane (east right, north up, equal
+    scales) with the waypoints, and the altitude ``-pD`` against time.
+
+    Parameters
+    ----------
+    sim : SimResult
+    waypoints : sequence of (3,) array_like, optional
+        NED positions (m) to mark, numbered in order.
+    """
+    fig = Figure(figsize=(10.0, 4.6), layout="constrained")
+    plane, alt = fig.subplots(1, 2, width_ratios=(1.0, 1.3))
+    n, e, d = (STATE_INDEX[s] for s in ("pN", "pE", "pD"))
+    plane.plot(sim.x_ref[:, e], sim.x_ref[:, n], color="0.35", lw=1.0, ls="--", label="reference")
+    plane.plot(sim.x[:, e], sim.x[:, n], color=_COLORS[0], lw=1.6, label="flown")
+    plane.plot(sim.x[0, e], sim.x[0, n], "o", color=_COLORS[2], ms=6, label="start")
+    for k, wp in enumerate(waypoints):
+        plane.plot(wp[1], wp[0], "s", color=_COLORS[1], ms=6, label="waypoint" if k == 0 else None)
+        plane.annotate(str(k + 1), (wp[1], wp[0]), textcoords="offset points", xytext=(6, 6), fontsize=9)
+    plane.set_aspect("equal", adjustable="datalim")
+    plane.set_xlabel("east [m]")
+    plane.set_ylabel("north [m]")
+    plane.grid(True, alpha=0.3)
+    plane.legend(loc="best", fontsize=8, frameon=False)
+    alt.plot(sim.t, -sim.x_ref[:, d], color="0.35", lw=1.0, ls="--", label="reference")
+    alt.plot(sim.t, -sim.x[:, d], color=_COLORS[0], lw=1.6, label="flown")
+    alt.ticklabel_format(axis="y", useOffset=False)
+    low, high = alt.get_ylim()
+    middle = (low + high) / 2
+    alt.set_ylim(min(low, middle - 0.25), max(high, middle + 0.25))  # a flat path shows flat, not its round-off
+    alt.set_xlabel("time [s]")
+    alt.set_ylabel("altitude -pD [m]")
+    alt.grid(True, alpha=0.3)
+    alt.legend(loc="best", fontsize=8, frameon=False)
+    status = "" if sim.status == "ok" else f" ({sim.status})"
+    fig.suptitle(f"{title}: path{status}" if title else f"path{status}")
+    return fig
+
+
+def tracking_error_figure(sim, *, title: str = "") -> Figure:
+    """The position tracking error against time: north, east and down, and its norm ``|p - p_ref|``."""
+    fig = Figure(figsize=(10.0, 3.8), layout="constrained")
+    ax = fig.subplots()
+    err = sim.x[:, :3] - sim.x_ref[:, :3]
+    for i, (name, color) in enumerate(zip(("pN", "pE", "pD"), _COLORS)):
+        ax.plot(sim.t, err[:, i], color=color, lw=1.2, label=f"{name} - reference")
+    ax.plot(sim.t, np.linalg.norm(err, axis=1), color="k", lw=1.0, ls=":", label="|p - p_ref|")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("position error [m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8, frameon=False)
+    fig.suptitle(f"{title}: tracking error" if title else "tracking error")
+    return fig
+
+
 def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "",
                        actuators=None) -> dict[str, Figure]:
     """A figure per subsystem (in partition order), one of the inputs (with ``actuators``' limits,
-    :func:`inputs_figure`) and, in wind, one of the wind, keyed by file stem."""
+    :func:`inputs_figure`), in wind one of the wind and, flying a reference, the path and the
+    tracking error, keyed by file stem."""
     figs = {name: subsystem_figure(sim, name, sub.states, title=title)
             for name, sub in partition.items()}
     figs["inputs"] = inputs_figure(sim, u_trim, title=title, actuators=actuators)
     if len(getattr(sim, "wind", ())):
         figs["wind"] = wind_figure(sim, title=title)
+    if len(getattr(sim, "u_ref", ())):
+        figs["path"] = path_figure(sim, title=title)
+        figs["tracking"] = tracking_error_figure(sim, title=title)
     return figs
 
 

@@ -159,6 +159,8 @@ class Setup:
         What the design does with the rotors' lag (``controller.rotor_lag``).
     estimator : EstimatorSpec or None
         The Kalman filter's measurements and noise (``estimator:``); None: full-state feedback.
+    reference : quadctl.trajectory.Reference or None
+        The path to fly (``simulation.reference``); None: hold the trim.
     """
 
     name: str
@@ -186,6 +188,7 @@ class Setup:
     plant_overrides: dict = field(default_factory=dict)
     rotor_lag: str = "ignore"
     estimator: EstimatorSpec | None = None
+    reference: object | None = None
     method: str = "rk4"
     tolerance: float | None = None
 
@@ -251,11 +254,26 @@ def setup_of(cfg: Config) -> Setup:
         timing=timing, actuators=actuators, noise=noise, wind=wind, trim_wind=trim_wind, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
-        method=cfg.simulation.method, tolerance=cfg.simulation.tolerance)
+        reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance)
 
 
 resolve = setup_of
 """The former name of :func:`setup_of` (``quadctl.setup.resolve``), kept for code written against it."""
+
+def _reference(cfg: Config):
+    """The path of ``simulation.reference`` (:mod:`quadctl.trajectory`), from the trim's position,
+    velocity and yaw; None without one."""
+    ref = cfg.simulation.reference
+    if ref is None:
+        return None
+    from quadctl import trajectory
+
+    if ref.setpoints is not None:
+        return trajectory.setpoint_reference([sp.model_dump() for sp in ref.setpoints], cfg.trim.position_ned,
+                                             cfg.trim.velocity_ned, cfg.trim.yaw)
+    return trajectory.mission_reference([wp.model_dump() for wp in ref.waypoints], cfg.trim.position_ned,
+                                        cfg.trim.yaw, ref.speed, ref.tolerance, ref.trajectory)
+
 
 def _estimator(cfg: Config, timing: Timing) -> EstimatorSpec | None:
     """``estimator:`` with the noise it takes from ``simulation.noise`` filled in (checked by the config)."""

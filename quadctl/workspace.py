@@ -393,6 +393,7 @@ class Workspace:
             "integral_states": np.array(loop.integral_states, dtype=str),
             "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
             "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str),
+            "u_ref": sim.u_ref,  # empty without simulation.reference: the feedforward input (N, N m)
             "x_hat": sim.x_hat,  # empty without an estimator: x_hat[k|k-1] held (sampled) or Kalman-Bucy's
             "wind": sim.wind, "wind_unit": np.array("m/s"),  # empty: still air
             "wind_names": np.array(["wind N", "wind E", "wind D"] if len(sim.wind) else [], dtype=str)},

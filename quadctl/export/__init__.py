@@ -45,8 +45,8 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     Raises
     ------
     ConfigError
-        No rate where one is needed, ``rate`` given for a config that has its own, or outside
-        ``controller.rate``'s bounds (exit 2).
+        No rate where one is needed, ``rate`` given for a config that has its own, outside
+        ``controller.rate``'s bounds, or a reference to fly in a C export (exit 2).
     CheckFailed
         The design is unstable on the coupled model, or the sampled loop of a continuous design
         is unstable at ``rate`` (exit 1; the message says which loop and why).
@@ -58,6 +58,10 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
 
     if rate is not None:  # the bounds of controller.rate, which it stands for
         rate = check_override("rate", rate, key="controller.rate")
+    if need_rate and setup.reference is not None:
+        raise ConfigError("simulation.reference: the exported C controller holds the trim (x_trim + x_rate t) and "
+                          "takes no reference input yet; export the design from a config without "
+                          "simulation.reference, or fly the reference with quadctl simulate")
     timing = setup.timing
     timing.refuse_other_rate(rate)
     if rate is not None and timing.rate is None:

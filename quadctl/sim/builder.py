@@ -12,7 +12,11 @@ the ``nz`` integrators of an LQI law, the four states ``l`` of the controller's 
 samples of delay (:attr:`LoopSpec.delay`), then the 12 states ``xh`` of a Kalman filter (LQG).
 The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant` states. The control law is
 
-    u = sat(u_trim - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,
+    u = sat(u_ref - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,  u_ref = u_trim,
+
+or, in a loop that flies a reference (:attr:`LoopSpec.reference`), ``x_ref(t)`` and ``u_ref`` from
+the step's exogenous row (:data:`REFERENCE_LAYOUT`: the reference tabulated on the exogenous clock
+as the noise and wind are, so every runner takes it the same way),
 
 with ``x_m = x + n_s`` the measured state (sensor noise ``n_s``) and ``sat`` the actuator
 clipping (``box`` on ``T, A, E, R``; ``motors``: mixed to rotor thrusts, clipped, mixed back).
@@ -49,7 +53,7 @@ Runs start with the buffer at the trim input. Exact: the delay is a whole number
 State estimation (:attr:`LoopSpec.measured`, LQG; :mod:`quadctl.estimator`): the last 12 loop
 states are the Kalman filter's estimate ``xh`` of the deviation ``x - x_ref(t)`` on the linear
 model about the trim (``Ae, Be``), from ``y = C (x_m - x_ref(t))`` (``C`` picks the measured
-states, baked in), under the applied input deviation ``u - u_trim``; the law uses the estimate in
+states, baked in), under the applied input deviation ``u - u_ref``; the law uses the estimate in
 place of ``x_m - x_ref``. Held loops: ``xh`` is the a priori estimate, and ``law`` updates it with
 the filter gain ``Le = M``, acts on ``xc = xh + M (y - C xh)`` and predicts ``xh <- Ae xc + Be du``
 (``Ae, Be`` the zero-order-hold model at the controller period). Continuous loops: the
@@ -121,11 +125,22 @@ WIND_LAYOUT: tuple[tuple[str, int], ...] = (
     ("wind", N_WIND),                   # the air's velocity over the ground, NED (m/s)
 )
 """Exogenous channels of one step after the noise's, when the loop has wind."""
+REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
+    ("ref_t", 1),                       # s: the time t_j the row's reference is expanded about
+    ("ref_x", N_STATES),                # x_ref(t_j)
+    ("ref_rate", N_STATES),             # d x_ref / dt at t_j
+    ("ref_curvature", N_STATES),        # x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), s = t - t_j
+    ("ref_u", N_INPUTS),                # u_ref(t_j)
+    ("ref_u_rate", N_INPUTS),           # u_ref(t) = ref_u + s ref_u_rate (the feedforward)
+)
+"""Exogenous channels of one step after the wind's, when the loop flies a reference
+(:mod:`quadctl.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law."""
+N_REFERENCE = sum(size for _, size in REFERENCE_LAYOUT)
 
 
-def exo_layout(noise: bool, wind: bool) -> tuple[tuple[str, int], ...]:
+def exo_layout(noise: bool, wind: bool, reference: bool = False) -> tuple[tuple[str, int], ...]:
     """The exogenous channels of a loop (name, size), in the order of one step's row."""
-    return (EXO_LAYOUT if noise else ()) + (WIND_LAYOUT if wind else ())
+    return (EXO_LAYOUT if noise else ()) + (WIND_LAYOUT if wind else ()) + (REFERENCE_LAYOUT if reference else ())
 
 
 N_ROTORS = 4
@@ -239,6 +254,8 @@ class LoopSpec:
         The loop takes the wind (:data:`WIND_LAYOUT`) every step, after the noise's channels.
     measured : tuple of int
         State indices a Kalman filter measures (LQG); empty: the law measures the full state.
+    reference : bool
+        The loop takes a reference (:data:`REFERENCE_LAYOUT`) every step, after the wind's channels.
     method : {"rk4", "etdrk4"}
         The integrator of ``step`` (continuous feedback; a held loop's plant is RK4's).
     phi_pattern : tuple of bool
@@ -257,12 +274,15 @@ class LoopSpec:
     lag_model: bool = False
     wind: bool = False
     measured: tuple[int, ...] = ()
+    reference: bool = False
     method: str = "rk4"
     phi_pattern: tuple[bool, ...] = ()
 
     def __post_init__(self):
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.method != "rk4" and self.reference:
+            raise ValueError("ETDRK4 does not fly a reference yet: a loop with a reference steps by RK4")
         if self.method != "rk4" and self.held:
             raise ValueError("ETDRK4 integrates a loop with continuous feedback; a held loop's plant steps by RK4")
         if self.phi_pattern and len(self.phi_pattern) != self.nx * self.nx:
@@ -314,7 +334,7 @@ class LoopSpec:
     @property
     def n_exo(self) -> int:
         """Exogenous channels per step."""
-        return sum(size for _, size in exo_layout(self.noise, self.wind))
+        return sum(size for _, size in exo_layout(self.noise, self.wind, self.reference))
 
     @property
     def n_constants(self) -> int:
@@ -334,6 +354,7 @@ class LoopSpec:
                 + (f" delay={self.delay}" if self.delay else "") + (" lag_model=1" if self.lag_model else "")
                 + (" wind=1" if self.wind else "")
                 + (f" measured={','.join(map(str, self.measured))}" if self.measured else "")
+                + (" reference=1" if self.reference else "")
                 + (f" method={self.method}" if self.method != "rk4" else "")
                 + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else ""))
 
@@ -388,8 +409,9 @@ def build(spec: LoopSpec) -> LoopFunctions:
         sensor = e[N_DISTURBANCES:N_EXO]
     else:
         disturbance, sensor = ca.DM.zeros(N_DISTURBANCES), ca.DM.zeros(N_STATES)
+    n_wind_end = spec.n_exo - (N_REFERENCE if spec.reference else 0)
     if spec.wind:
-        wind = e[spec.n_exo - N_WIND:]
+        wind = e[n_wind_end - N_WIND:n_wind_end]
 
         def f(x, u, p, d):
             return model.f_disturbed_wind(x, u, p, d, wind)
@@ -407,16 +429,31 @@ def build(spec: LoopSpec) -> LoopFunctions:
     ne = spec.n_estimate
     measured = list(spec.measured)
 
+    def x_ref(t):
+        """The reference state at ``t``: the row's expansion, or the trim drifting at ``x_rate``."""
+        if not spec.reference:
+            return parts["x_ref"] + parts["x_rate"] * t
+        ref, s = e[n_wind_end:], t - e[n_wind_end]
+        return ref[1:1 + N_STATES] + s * (ref[1 + N_STATES:1 + 2 * N_STATES]
+                                          + s / 2 * ref[1 + 2 * N_STATES:1 + 3 * N_STATES])
+
+    def u_ref(t):
+        """The feedforward input at ``t``: the row's, or the trim input."""
+        if not spec.reference:
+            return parts["u_trim"]
+        ref = e[n_wind_end + 1 + 3 * N_STATES:]
+        return ref[:N_INPUTS] + (t - e[n_wind_end]) * ref[N_INPUTS:]
+
     def innovation(X, t):
         """``y - C xh``: the measured deviation less its estimate."""
         x, xh = X[:N_STATES], X[nx - ne:]
-        y = (x + sensor - (parts["x_ref"] + parts["x_rate"] * t))[measured]
+        y = (x + sensor - x_ref(t))[measured]
         return y - xh[measured]
 
     def deviation(X, t):
         """What the law acts on: the measured deviation, or the filter's (updated, held) estimate."""
         if not ne:
-            return X[:N_STATES] + sensor - (parts["x_ref"] + parts["x_rate"] * t)
+            return X[:N_STATES] + sensor - x_ref(t)
         xh = X[nx - ne:]
         return xh + parts["Le"] @ innovation(X, t) if spec.held else xh
 
@@ -424,7 +461,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         """(u, dz/dt) at loop state ``X`` and time ``t``."""
         z = X[npl:npl + nz]
         err = deviation(X, t)
-        cmd = parts["u_trim"] - gain @ err
+        cmd = u_ref(t) - gain @ err
         if nl:
             cmd = cmd - parts["Kv"] @ X[npl + nz:npl + nz + nl]
         if nz == 0:
@@ -472,7 +509,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
     if ne and spec.held:  # predict from the updated estimate under the applied input
         xc = deviation(X, t)
-        X_sampled = ca.vertcat(X_sampled, parts["Ae"] @ xc + parts["Be"] @ (u_now - parts["u_trim"]))
+        X_sampled = ca.vertcat(X_sampled, parts["Ae"] @ xc + parts["Be"] @ (u_now - u_ref(t)))
     elif ne:
         X_sampled = ca.vertcat(X_sampled, X[nx - ne:])
     law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
@@ -492,7 +529,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         xdot = ca.vertcat(xdot, lag_rate(Y, u)) if nl else xdot
         if ne:  # Kalman-Bucy
             xh = Y[nx - ne:]
-            xh_dot = parts["Ae"] @ xh + parts["Be"] @ (u - parts["u_trim"]) + parts["Le"] @ innovation(Y, ts)
+            xh_dot = parts["Ae"] @ xh + parts["Be"] @ (u - u_ref(ts)) + parts["Le"] @ innovation(Y, ts)
             xdot = ca.vertcat(xdot, xh_dot)
         return xdot
 

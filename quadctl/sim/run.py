@@ -134,9 +134,9 @@ class ClosedLoop:
                                      rotor_time_constant=self.rotor_time_constant,
                                      mix=act.mix if act is not None else None, estimator=self.estimator)
 
-    def spec(self, noise: bool = False, wind: bool = False, method: str = "rk4",
+    def spec(self, noise: bool = False, wind: bool = False, reference: bool = False, method: str = "rk4",
              phi_pattern: tuple[bool, ...] = ()) -> LoopSpec:
-        """The structure of this loop's generated code."""
+        """The structure of this loop's generated code (``reference``: it flies a reference)."""
         act = self.actuators
         return LoopSpec.of_gain(self.K, saturation=act.mode if act is not None else "none",
                                 method=method, phi_pattern=phi_pattern,
@@ -144,7 +144,7 @@ class ClosedLoop:
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
                                 lag_model=self.Kv is not None, wind=wind,
-                                measured=tuple(STATE_INDEX[s] for s in self.measured))
+                                measured=tuple(STATE_INDEX[s] for s in self.measured), reference=reference)
 
     @property
     def measured(self) -> tuple[str, ...]:
@@ -203,10 +203,11 @@ class ClosedLoop:
         parts.append(np.zeros(N_STATES if self.estimator is not None else 0))
         return np.concatenate(parts)
 
-    def bounds(self, duration: float) -> tuple[np.ndarray, np.ndarray]:
+    def bounds(self, duration: float, reference=None) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) of the loop state ``[x; f; z]`` past which a run stops (:data:`RUNAWAY`).
 
-        Positions drift with the reference: they are bounded around its farthest point; rotor
+        Positions drift with the reference: they are bounded around its farthest point (a flown
+        ``reference``, :class:`quadctl.sim.reference.FlownReference`: its extent); rotor
         thrusts and integrators are unbounded (a NaN still stops the run).
         """
         bound = np.array([RUNAWAY[s] for s in STATE_NAMES])
@@ -214,6 +215,10 @@ class ClosedLoop:
         theta = STATE_INDEX["theta"]
         lo[theta], hi[theta] = -VALID_PITCH, VALID_PITCH
         drift = np.abs(self.x_rate) * duration
+        if reference is not None:
+            low, high = reference.position_range(duration)
+            drift = np.zeros(N_STATES)
+            lo[:3], hi[:3] = low - bound[:3], high + bound[:3]
         free = len(self.initial_loop_state(self.x_trim)) - N_STATES
         return (np.concatenate([lo - drift, np.full(free, -np.inf)]),
                 np.concatenate([hi + drift, np.full(free, np.inf)]))
@@ -287,6 +292,8 @@ class SimResult:
     predicted at sample ``k - 1``, held over the steps up to and including sample ``k``'s time (the
     updated ``x_hat[k|k]`` the law acts on is not recorded), so ``x - x_hat`` at the samples has the
     a priori covariance ``P``. A continuous loop records the Kalman-Bucy estimate at each step."""
+    u_ref: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    """(N+1, 4) the feedforward input the law used (a run that flies a reference); else empty (``u_trim``)."""
 
     @property
     def steps_per_second(self) -> float:
@@ -302,10 +309,13 @@ class ExoStream:
     :data:`quadctl.noise.DEFAULT_PERIOD`: never the RK4 step, so a seed gives the same run at any ``dt``.
     """
 
-    def __init__(self, noise: NoiseSpec | None, wind: WindSpec | None, rate: float | None = None):
+    def __init__(self, noise: NoiseSpec | None, wind: WindSpec | None, rate: float | None = None,
+                 reference=None):
         self.period = noise.period if noise is not None else (1.0 / rate if rate else DEFAULT_PERIOD)
         self.noise = NoiseStream(noise) if noise is not None else None
         self.wind = WindStream(wind, self.period) if wind is not None else None
+        self.reference = reference
+        """:class:`quadctl.sim.reference.FlownReference` whose rows end each row, or None."""
 
     def index(self, steps, dt: float) -> np.ndarray:
         """The row each absolute RK4 step of ``dt`` takes (as the runners count)."""
@@ -318,6 +328,8 @@ class ExoStream:
             parts.append(self.noise.samples(first, last))
         if self.wind is not None:
             parts.append(self.wind.samples(first, last))
+        if self.reference is not None:
+            parts.append(self.reference.rows(np.arange(first, last + 1), self.period))
         return np.hstack(parts)
 
     def rows(self, k0: int, m: int, dt: float) -> tuple[int, np.ndarray]:
@@ -341,7 +353,7 @@ def wind_felt(wind: WindSpec, period: float, ks, dt: float, block: int = 256) ->
 
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
              noise: NoiseSpec | None = None, wind: WindSpec | None = None,
-             max_samples: int = MAX_SAMPLES, progress=None, method: str = "rk4",
+             max_samples: int = MAX_SAMPLES, progress=None, reference=None, method: str = "rk4",
              tolerance: float = DEFAULT_TOLERANCE) -> SimResult:
     """RK4 (or ETDRK4) of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
@@ -364,6 +376,10 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     progress : callable, optional
         ``progress(done, total)``: called with the RK4 steps done and the steps in all after each
         chunk of the run (:func:`run_in_chunks`), for a caller that shows how far a long run is.
+    reference : FlownReference, optional
+        A reference to fly (:mod:`quadctl.sim.reference`): ``x_ref(t)`` and the feedforward
+        ``u_ref(t)`` in place of ``x_trim + x_rate t`` and ``u_trim``; ``SimResult.x_ref`` is then the
+        reference the law used.
     method : {"rk4", "etdrk4"}
         ``etdrk4``: the exponential integrator on the loop's linear part (continuous feedback only;
         :mod:`quadctl.sim.schedule`), ``dt: auto`` its graded schedule.
@@ -376,6 +392,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         A diverging run stops at the first bad state and keeps everything before it.
     """
     if method == "etdrk4":
+        if reference is not None:
+            raise ValueError("ETDRK4 does not fly a reference yet: run a reference with method 'rk4'")
         return _simulate_exponential(loop, x0, duration, dt, noise=noise, wind=wind, max_samples=max_samples,
                                      progress=progress, tolerance=tolerance)
     if method != "rk4":
@@ -383,27 +401,33 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     plan = loop.plan(duration, dt)
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
-    run = runner(loop.spec(noisy, windy), 1)
+    run = runner(loop.spec(noisy, windy, reference is not None), 1)
     c = loop.constants(plan.sample_time)
-    lo, hi = loop.bounds(duration)
+    lo, hi = loop.bounds(duration, reference)
     x0_all = loop.initial_loop_state(x0)
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
-    exo = ExoStream(noise if noisy else None, wind if windy else None, loop.rate) if noisy or windy else None
+    exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
+           if noisy or windy or reference is not None else None)
     done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo, progress)
     wall = time.perf_counter() - start
     t = plan.dt * ks
     return _result(loop, plan, run.backend, t, xs, us, done, stride, wall, lo, hi, noise if noisy else None,
-                   wind if windy else None, exo, ks, plan.dt)
+                   wind if windy else None, exo, ks, plan.dt, reference)
 
 
 def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int, stride: int, wall: float,
-            lo, hi, noise, wind, exo, ks, dt: float) -> SimResult:
-    """The :class:`SimResult` of a run's recorded rows (``t`` s; the wind felt at steps ``ks`` of ``dt``)."""
+            lo, hi, noise, wind, exo, ks, dt: float, reference=None) -> SimResult:
+    """The :class:`SimResult` of a run's recorded rows (``t`` s; the wind felt and the reference flown at
+    steps ``ks`` of ``dt``)."""
     spec = loop.spec()
     nz, n_plant, n_lag, ne = spec.nz, spec.n_plant, spec.n_lag, spec.n_estimate
-    x_ref = loop.x_trim + np.outer(t, loop.x_rate)
+    u_ref = np.zeros((0, len(loop.u_trim)))
+    if reference is None:
+        x_ref = loop.x_trim + np.outer(t, loop.x_rate)
+    else:
+        x_ref, u_ref = reference.flown(reference.rows(exo.index(ks, dt), exo.period), t)
     status, message = verdict(xs[:, :N_STATES], t, done, plan.n_steps, lo, hi)
     return SimResult(t=t, x=np.ascontiguousarray(xs[:, :N_STATES]), u=us, x_ref=x_ref, dt=plan.dt,
                      status=status, message=message, wall_time=wall, backend=backend, plan=plan,
@@ -413,7 +437,7 @@ def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int
                      lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
                      wind=wind_felt(wind, exo.period, ks, dt) if wind is not None else np.zeros((0, 3)),
                      wind_seed=wind.seed if wind is not None else None,
-                     x_hat=x_ref + xs[:, xs.shape[1] - ne:] if ne else np.zeros((0, 0)))
+                     x_hat=x_ref + xs[:, xs.shape[1] - ne:] if ne else np.zeros((0, 0)), u_ref=u_ref)
 
 
 def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, wind, max_samples: int,

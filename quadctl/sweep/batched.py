@@ -298,20 +298,22 @@ def loops_of(live) -> list:
             out[j] = str(exc)
             continue
         noisy, windy = setup.noise is not None, setup.wind is not None
-        shape, held = _structure(loop, (noisy, windy, setup.duration), seen)
+        flown = pipeline.flown_reference(setup)  # a reference: one more exogenous input, as simulate takes it
+        shape, held = _structure(loop, (noisy, windy, setup.duration, id(setup.reference)), seen)
         if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
-            prep.plant.cache[shape] = (replace(loop.spec(noisy, windy), pattern=_structural_gain(prep)),
-                                       *loop.bounds(setup.duration), held)
+            prep.plant.cache[shape] = (replace(loop.spec(noisy, windy, flown is not None),
+                                               pattern=_structural_gain(prep)),
+                                       *loop.bounds(setup.duration, flown), [*held, setup.reference])
         spec, lo, hi, _ = prep.plant.cache[shape]
         exo, first, period = None, 0, 1.0
-        if setup.noise is not None or setup.wind is not None:  # the rows simulate's ExoStream gives, at once
+        if setup.noise is not None or setup.wind is not None or flown is not None:  # simulate's rows, at once
             key = None
-            if setup.wind is None:
+            if setup.wind is None and flown is None:
                 noise = setup.noise
                 key = (noise.seed, noise.process_std.tobytes(), noise.sensor_std.tobytes(), noise.period,
                        setup.timing.rate, plan.n_steps, plan.dt)
             if key is None or key not in realized:
-                stream = ExoStream(setup.noise, setup.wind, setup.timing.rate)
+                stream = ExoStream(setup.noise, setup.wind, setup.timing.rate, flown)
                 rows = (*stream.rows(0, plan.n_steps, plan.dt), stream.period)
                 if key is None:
                     first, exo, period = rows

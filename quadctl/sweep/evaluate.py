@@ -21,7 +21,7 @@ import numpy as np
 
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
 from quadctl.layout import N_STATES, STATE_INDEX
-from quadctl.sweep.gates import judge
+from quadctl.sweep.gates import judge, tracking_columns
 from quadctl.sweep.spec import assign
 
 MC_POINTS = 201
@@ -389,6 +389,7 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
     summary = metrics.summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
     row = _row(prep.head, des.stable, des.core_eigenvalues, sim.plan, summary, sim.steps,
                "" if sim.status == "ok" else sim.message, "one-by-one")
+    row.update(tracking_columns(pipeline.tracking_summary(setup, sim)))
     kept = None
     if trace and sim.status == "ok":
         kept = resample_deviation(sim.t, sim.x, sim.x_ref, trace, setup.duration)
@@ -431,6 +432,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
 
     rows: dict[int, dict] = {}
     traces: dict[int, np.ndarray] = {}
+    tracked: dict[int, dict] = {}  # case -> its tracking columns (cases that fly a reference)
     t0, c0 = time.perf_counter(), time.process_time()
     designs = batched.design_all(preps, stats)
     stats["design_time"] += time.perf_counter() - t0
@@ -463,17 +465,27 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         status, message = verdict(x, t, done, plan.n_steps, job.lo, job.hi)
         stats["steps"] += done
         stats["backend"].add(backend)
+        x_ref = None
+        if setup.reference is not None:  # the reference the lanes flew: their exogenous rows
+            from quadctl import pipeline
+
+            flown = pipeline.flown_reference(setup)
+            rows_at = np.floor(ks * plan.dt / job.exo_period + 1e-9).astype(np.int64)
+            x_ref = flown.flown(flown.rows(rows_at, job.exo_period), t)[0]
+            tracked[prep.index] = tracking_columns(pipeline.tracking_of(setup.reference, t, x, x_ref))
         for (p, d, j, steps, msg), summary in batch.add(t, x, us, setup, linear, status,
-                                                         (prep, des, job, done, message)):
+                                                         (prep, des, job, done, message), x_ref):
             rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps, "" if summary["status"] == "ok"
                                  else msg, d.path)
         if trace and status == "ok":
-            x_ref = linear.x_trim + np.outer(t, linear.x_rate)
+            x_ref = linear.x_trim + np.outer(t, linear.x_rate) if x_ref is None else x_ref
             traces[prep.index] = resample_deviation(t, x, x_ref, trace, setup.duration)
     for (p, d, j, steps, msg), summary in batch.flush():
         rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps,
                              "" if summary["status"] == "ok" else msg, d.path)
     stats["simulate_time"] += time.perf_counter() - t0
+    for index, columns in tracked.items():
+        rows[index].update(columns)
     return rows, traces
 
 
@@ -498,8 +510,9 @@ class MetricsBatch:
         self.key = None
         self.items: list = []
 
-    def add(self, t, x, u, setup, linear, status, item) -> list:
-        """Gather one run (``x`` (r, 12), ``u`` (r, 4)); returns the ``(item, summary)`` pairs of the
+    def add(self, t, x, u, setup, linear, status, item, x_ref=None) -> list:
+        """Gather one run (``x`` (r, 12), ``u`` (r, 4); ``x_ref`` (r, 12) the reference it flew, None:
+        the trim moving at its velocity); returns the ``(item, summary)`` pairs of the
         batch this completes or closes (else none)."""
         key = (len(t), setup.regulated, (setup.Q_block != 0).tobytes(), (setup.R_block != 0).tobytes())
         done = self.flush() if key != self.key else []
@@ -514,7 +527,10 @@ class MetricsBatch:
 
         b = len(self.items)
         self.t[b] = t
-        error_into(self.err[b], t, x.T, linear.x_trim, linear.x_rate)
+        if x_ref is None:
+            error_into(self.err[b], t, x.T, linear.x_trim, linear.x_rate)
+        else:
+            np.subtract(x.T, x_ref.T, out=self.err[b])
         self.u[b] = u.T
         self.u_trim.append(linear.u_trim)
         self.Q.append(setup.Q_block)

@@ -59,12 +59,30 @@ def metric_columns(cfg) -> list[str]:
     regulated state ``settling_time.<state>`` (s, 2 % band) and ``overshoot.<state>`` (%), per
     input ``peak.<input>`` (max |u|: N or N m), ``cost`` (the LQR cost integral), ``status``
     (the simulation's: ok, diverged, left_valid_range; or why the case has no simulation),
-    ``dt`` (s) and ``steps``.
+    ``dt`` (s) and ``steps``; with ``simulation.reference``, after the peaks, :data:`TRACKING_COLUMNS`
+    (a mission's, with ``waypoints.reached``).
     """
     states = regulated_states(cfg)
+    ref = cfg.simulation.reference
+    tracking = [] if ref is None else list(TRACKING_COLUMNS[:3 if ref.waypoints is not None else 2])
     return (["stable", "eig.fastest", "eig.slowest"] + [f"settling_time.{s}" for s in states]
-            + [f"overshoot.{s}" for s in states] + [f"peak.{i}" for i in INPUT_NAMES]
+            + [f"overshoot.{s}" for s in states] + [f"peak.{i}" for i in INPUT_NAMES] + tracking
             + ["cost", "status", "dt", "steps"])
+
+
+TRACKING_COLUMNS = ("tracking.rms", "tracking.peak", "waypoints.reached")
+"""Columns of a case that flies a reference: the position tracking error's RMS and peak (m), and
+a mission's waypoints reached in order within its tolerance (a count)."""
+
+
+def tracking_columns(tracking: dict | None) -> dict:
+    """:data:`TRACKING_COLUMNS` from :func:`quadctl.pipeline.tracking_of` (none without a reference)."""
+    if tracking is None:
+        return {}
+    out = {"tracking.rms": tracking["position_error"]["rms"], "tracking.peak": tracking["position_error"]["peak"]}
+    if "waypoints" in tracking:
+        out["waypoints.reached"] = sum(w["reached"] is not None for w in tracking["waypoints"])
+    return out
 
 
 def regulated_states(cfg) -> list[str]:

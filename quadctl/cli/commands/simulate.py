@@ -25,6 +25,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
     from quadctl.cli.progress import simulation_progress
+    from quadctl.pipeline import missed_waypoints
     from quadctl.present.flight import saturation_text as shown_saturation
 
     ws = open_workspace(config, out, fresh, sets)
@@ -35,7 +36,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if json:
         render.emit_json(ws.payloads["sim.json"])
     else:
-        from quadctl.pipeline import wind_line
+        from quadctl.pipeline import tracking_lines, wind_line
         from quadctl.present import flight as shown
 
         fl = flown.flight
@@ -47,13 +48,17 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
                     shown.headroom_table(fl, ws.linear.u_trim),
                     shown.rms_table(fl) if fl.get("noise") or fl.get("wind") else None,
                     shown.estimation_table(fl), wind_line(fl["wind"]) if fl.get("wind") else None,
-                    shown.speeds_table(fl) if fl.get("wind") else None, shown.integral_text(fl))
+                    shown.speeds_table(fl) if fl.get("wind") else None, shown.integral_text(fl),
+                    *(tracking_lines(fl["reference"]) if fl.get("reference") else ()))
         render.out.print(f"{sim.status}: {sim.message} -> {ws.path('sim.npz')}")
         for path in figures:
             render.out.print(f"figure -> {path}")
     saturates = shown_saturation(flown.flight)
     if saturates and not _fails_on_saturation(ws, flown, allow_saturation):  # else the error says it
         render.warning(saturates)
+    missed = missed_waypoints(flown.flight.get("reference"))
+    if missed:
+        render.warning(missed)
     if sim.status != "ok":
         render.err.print(f"quadctl: check failed: {sim.message}")
         raise typer.Exit(EXIT_CHECK_FAILED)

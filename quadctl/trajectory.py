@@ -1,0 +1,199 @@
+"""References to fly: setpoint steps and waypoint missions, as flat outputs of time.
+
+A reference is a path of the quadrotor's flat outputs, position ``p(t)`` (NED, m) and yaw
+``psi(t)`` (rad), with their derivatives up to snap (position) and yaw acceleration:
+:mod:`quadctl.flatness` turns them into the full reference state and input the controller flies
+(the differential-flatness feedforward). A path is a list of :class:`Piece`\\ s,
+
+    p(t) = p0 + v0 (t - t0) + dp s((t - t0) / T),   psi(t) = psi0 + dpsi s((t - t0) / T),
+
+with ``s`` a rest-to-rest shape on ``[0, 1]`` (:data:`SHAPES`: 0 to 1 with zero velocity,
+acceleration (and jerk) at both ends) or a step.
+
+- ``setpoints``: at each ``t`` the position, velocity and yaw given step (the others continue):
+  pieces of constant velocity.
+- ``waypoints``: from the trim position and yaw, one leg to each waypoint in order, then its
+  ``hold``; a leg lasts ``peak * distance / speed`` (its peak speed is ``speed``; ``peak`` the
+  shape's peak of ``s'``), at least ``peak * |dpsi| / YAW_RATE``; after the last, the reference
+  holds it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+SHAPES: dict[str, tuple[float, ...]] = {
+    "minimum-jerk": (0.0, 0.0, 0.0, 10.0, -15.0, 6.0),
+    "minimum-snap": (0.0, 0.0, 0.0, 0.0, 35.0, -84.0, 70.0, -20.0),
+}
+"""Rest-to-rest shapes ``s(tau)``, polynomial coefficients in ascending powers: the quintic of least
+integrated squared jerk and the septic of least integrated squared snap between rest states."""
+TRAJECTORIES = ("minimum-jerk", "minimum-snap", "step")
+"""``simulation.reference.trajectory`` values (``step``: the reference jumps to each waypoint)."""
+YAW_RATE = 1.0
+"""rad/s: the peak yaw rate of a waypoint leg (a leg that only turns lasts ``peak |dpsi| / YAW_RATE``)."""
+ORDER = 5
+"""Derivatives of position a path gives (0 to 4: position to snap)."""
+
+
+def shape_derivatives(kind: str, tau) -> np.ndarray:
+    """``(5, n)``: ``s, s', s'', s''', s''''`` of the shape ``kind`` at ``tau`` (clipped to [0, 1]).
+
+    A ``step`` is 0 before ``tau = 0`` and 1 from it on, with zero derivatives.
+    """
+    tau = np.atleast_1d(np.asarray(tau, dtype=float))
+    out = np.zeros((ORDER, tau.size))
+    if kind == "step":
+        out[0] = (tau >= 0).astype(float)
+        return out
+    coef = np.polynomial.Polynomial(SHAPES[kind])
+    clipped = np.clip(tau, 0.0, 1.0)
+    for k in range(ORDER):
+        out[k] = coef.deriv(k)(clipped) if k else coef(clipped)
+    out[1:, (tau < 0) | (tau > 1)] = 0.0
+    return out
+
+
+def peak_rate(kind: str) -> float:
+    """``max s'`` of a shape (at ``tau = 1/2`` by symmetry; 1 for a step): a leg's peak speed over its average."""
+    return 1.0 if kind == "step" else float(np.polynomial.Polynomial(SHAPES[kind]).deriv()(0.5))
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One piece of a path from ``t0`` (s) on (see the module's formula); ``T`` s (0: a step)."""
+
+    t0: float
+    p0: tuple[float, float, float]
+    v0: tuple[float, float, float]
+    dp: tuple[float, float, float]
+    psi0: float
+    dpsi: float
+    T: float
+    shape: str
+
+
+@dataclass(frozen=True)
+class FlatPath:
+    """Flat outputs sampled at ``n`` times.
+
+    Attributes
+    ----------
+    t : (n,) ndarray, s
+    position : (5, n, 3) ndarray
+        Position and its derivatives (m, m/s, m/s^2, m/s^3, m/s^4), NED.
+    yaw : (3, n) ndarray
+        Yaw and its rate and acceleration (rad, rad/s, rad/s^2).
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    yaw: np.ndarray
+
+
+@dataclass(frozen=True)
+class Leg:
+    """A waypoint leg: flown from ``start`` to ``end`` (s), then held until ``end + hold``."""
+
+    start: float
+    end: float
+    hold: float
+    position: tuple[float, float, float]
+    yaw: float
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A path of pieces (:class:`Piece`, in time order) and, for a mission, its legs and tolerance (m)."""
+
+    pieces: tuple[Piece, ...]
+    legs: tuple[Leg, ...] = ()
+    tolerance: float | None = None
+
+    def flat(self, t) -> FlatPath:
+        """The flat outputs at the times ``t`` (s)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        starts = np.array([p.t0 for p in self.pieces])
+        which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.pieces) - 1)
+        pos = np.zeros((ORDER, t.size, 3))
+        yaw = np.zeros((3, t.size))
+        for i, piece in enumerate(self.pieces):
+            sel = which == i
+            if not sel.any():
+                continue
+            dt = t[sel] - piece.t0
+            if piece.T > 0:
+                s = shape_derivatives(piece.shape, dt / piece.T) / piece.T ** np.arange(ORDER)[:, None]
+            else:
+                s = shape_derivatives("step", dt)
+            pos[:, sel] = s[:, :, None] * np.asarray(piece.dp)
+            pos[0, sel] += np.asarray(piece.p0) + np.outer(dt, piece.v0)
+            pos[1, sel] += np.asarray(piece.v0)
+            yaw[:, sel] = s[:3] * piece.dpsi
+            yaw[0, sel] += piece.psi0
+        return FlatPath(t=t, position=pos, yaw=yaw)
+
+    @property
+    def end(self) -> float:
+        """s: when the last leg reaches its waypoint (0 without legs)."""
+        return self.legs[-1].end if self.legs else 0.0
+
+
+def setpoint_reference(setpoints, position0, velocity0, yaw0: float) -> Reference:
+    """The steps of ``setpoints`` (dicts with ``t`` and any of ``position``, ``velocity``, ``yaw``;
+    ``t`` increasing) from the trim's ``position0``, ``velocity0`` (m, m/s, NED) and ``yaw0`` (rad)."""
+    p, v, psi, t_last = np.asarray(position0, float), np.asarray(velocity0, float), float(yaw0), 0.0
+    pieces = []
+    if not setpoints or setpoints[0]["t"] > 0:
+        pieces.append(Piece(0.0, tuple(p), tuple(v), (0.0, 0.0, 0.0), psi, 0.0, 0.0, "step"))
+    for sp in setpoints:
+        t = float(sp["t"])
+        p = p + v * (t - t_last)
+        if sp.get("position") is not None:
+            p = np.asarray(sp["position"], float)
+        if sp.get("velocity") is not None:
+            v = np.asarray(sp["velocity"], float)
+        if sp.get("yaw") is not None:
+            psi = float(sp["yaw"])
+        pieces.append(Piece(t, tuple(p), tuple(v), (0.0, 0.0, 0.0), psi, 0.0, 0.0, "step"))
+        t_last = t
+    return Reference(tuple(pieces))
+
+
+def mission_reference(waypoints, position0, yaw0: float, speed: float, tolerance: float,
+                      trajectory: str = "minimum-jerk") -> Reference:
+    """The mission through ``waypoints`` (dicts with ``position``, optional ``yaw`` (default: the
+    previous) and ``hold`` (s, default 0)) from ``position0`` (m) and ``yaw0`` (rad) at ``t = 0``,
+    legs at peak speed ``speed`` (m/s) shaped by ``trajectory`` (:data:`TRAJECTORIES`)."""
+    peak = peak_rate(trajectory)
+    p, psi, t = np.asarray(position0, float), float(yaw0), 0.0
+    pieces, legs = [], []
+    for wp in waypoints:
+        target = np.asarray(wp["position"], float)
+        yaw = psi if wp.get("yaw") is None else float(wp["yaw"])
+        T = max(peak * float(np.linalg.norm(target - p)) / speed, peak * abs(yaw - psi) / YAW_RATE)
+        shape = "step" if trajectory == "step" else trajectory
+        pieces.append(Piece(t, tuple(p), (0.0, 0.0, 0.0), tuple(target - p), psi, yaw - psi,
+                            0.0 if shape == "step" else T, shape))
+        hold = float(wp.get("hold") or 0.0)
+        legs.append(Leg(start=t, end=t + T, hold=hold, position=tuple(target), yaw=yaw))
+        p, psi, t = target, yaw, t + T + hold
+    return Reference(tuple(pieces), tuple(legs), tolerance)
+
+
+def waypoint_times(ref: Reference, t, position) -> list[float | None]:
+    """Per leg, the first time (s) from its start that ``position`` ((n, 3) m at times ``t``) is
+    within the tolerance of its waypoint, and not before the last waypoint reached; None: never."""
+    t = np.asarray(t, float)
+    position = np.asarray(position, float)
+    out: list[float | None] = []
+    after = -math.inf
+    for leg in ref.legs:
+        near = np.linalg.norm(position - np.asarray(leg.position), axis=1) <= ref.tolerance
+        hit = np.nonzero(near & (t >= leg.start) & (t >= after))[0]
+        out.append(float(t[hit[0]]) if hit.size else None)
+        after = out[-1] if out[-1] is not None else after
+    return out
