@@ -274,6 +274,41 @@ def test_debug_prints_the_traceback_and_keeps_the_exit_code(debug):
         assert "quadctl.errors.ConfigError: nope: no such file" in res.stderr
 
 
+
+@pytest.mark.parametrize("debug", [False, True])
+def test_failed_checks_are_one_line_each_and_exit_1_decided_in_one_place(monkeypatch, debug):
+    """A command says *that* its checks failed and why (FailedChecks); the errors module prints each
+    reason as one line and picks the exit code, with no traceback even under --debug (a verdict)."""
+    import typer
+
+    from quadctl.cli.errors import EXIT_CHECK_FAILED, FailedChecks, handled
+
+    monkeypatch.setenv("QUADCTL_DEBUG", "1" if debug else "0")
+    demo = typer.Typer()
+
+    @demo.command()
+    @handled
+    def verdict():
+        typer.echo("the result, on stdout first")
+        raise FailedChecks("roll is not stabilizable", "a loop sampled at 50 Hz is\n unstable")
+
+    res = CliRunner().invoke(demo, [])
+    assert res.exit_code == EXIT_CHECK_FAILED == 1
+    assert res.stdout == "the result, on stdout first\n"
+    assert res.stderr.splitlines() == ["quadctl: check failed: roll is not stabilizable",
+                                       "quadctl: check failed: a loop sampled at 50 Hz is unstable"]
+
+
+def test_only_the_errors_module_decides_exit_codes():
+    """No command module raises an exit code of its own: they raise FailedChecks or a QuadctlError."""
+    from pathlib import Path
+
+    import quadctl.cli.commands as commands
+
+    offenders = [path.name for path in Path(commands.__file__).parent.glob("*.py")
+                 if "EXIT_" in path.read_text() or re.search(r"typer\.Exit\(\w", path.read_text())]
+    assert offenders == []
+
 def test_json_stdout_stays_parseable_when_a_check_fails(tmp_path):
     import json
 

@@ -33,6 +33,19 @@ def debug_enabled(ctx: typer.Context | None) -> bool:
     return bool(root is not None and isinstance(root.obj, dict) and root.obj.get("debug"))
 
 
+class FailedChecks(Exception):
+    """What a command raises when its checks fail (valid input, a design that fails a check).
+
+    The command decides *that* they failed and why; :func:`handled` prints one
+    ``quadctl: check failed: <reason>`` line per reason on stderr and exits
+    :data:`EXIT_CHECK_FAILED`: the exit code is decided here, not in each command.
+    """
+
+    def __init__(self, *reasons: str):
+        super().__init__(*reasons)
+        self.reasons = reasons
+
+
 def fail(message: str, code: int) -> typer.Exit:
     """Print the one stderr line of a failure and return the Exit to raise: ``quadctl: check failed:``
     for a check that failed (exit 1, as ``check`` and ``run`` print it), else ``quadctl: error:``."""
@@ -108,6 +121,9 @@ def handled(fn):
                 return fn(*args, **kwargs)
         except (typer.Exit, typer.Abort, SystemExit):
             raise
+        except FailedChecks as verdict:  # a verdict, not an error: no traceback with --debug
+            exits = [fail(reason, EXIT_CHECK_FAILED) for reason in verdict.reasons]
+            raise exits[-1] from None
         except QuadctlError as exc:  # the class decides the exit code, with or without --debug
             if debug_enabled(ctx):
                 _traceback()

@@ -1,7 +1,6 @@
 
-import typer
 
-from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace, override, rate_option
 
 RateOpt = rate_option(
@@ -63,7 +62,5 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     at_rate = unstable_when_sampled(what_if, rate) if what_if is not None else None  # --rate's own verdict
     if at_rate and at_rate not in failures:
         failures.append(at_rate)
-    for reason in failures:
-        render.err.print(f"quadctl: check failed: {reason}", markup=False)
     if failures:
-        raise typer.Exit(EXIT_CHECK_FAILED)
+        raise FailedChecks(*failures)

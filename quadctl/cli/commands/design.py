@@ -2,7 +2,7 @@ from typing import Annotated
 
 import typer
 
-from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace
 
 NAME = "design"
@@ -46,9 +46,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
                 render.out.print(item)
             render.out.print(f"-> {ws.path('design_full.json')}")
     if not des.stable:
-        render.err.print("quadctl: check failed: every subsystem is stable alone, but the assembled "
-                         "gain is UNSTABLE on the coupled 12-state model (the dropped couplings matter)")
-        raise typer.Exit(EXIT_CHECK_FAILED)
+        raise FailedChecks("every subsystem is stable alone, but the assembled gain is UNSTABLE on the "
+                           "coupled 12-state model (the dropped couplings matter)")
     if not json:
         from quadctl.present import design as shown
 

@@ -2,7 +2,7 @@ from typing import Annotated
 
 import typer
 
-from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace
 
 NAME = "margins"
@@ -45,8 +45,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     unstable = [m for m in margins if not m.stable]
     if unstable:
         names = ", ".join(f"{m.loop} ({m.model})" for m in unstable)
-        render.err.print(f"quadctl: check failed: unstable loop(s): {names}")
-        raise typer.Exit(EXIT_CHECK_FAILED)
+        raise FailedChecks(f"unstable loop(s): {names}")
 
 
 def _save_figures(ws, margins):

@@ -1,6 +1,5 @@
-import typer
 
-from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt
 
 NAME = "report"
@@ -34,8 +33,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     if outcome.error is not None:
         raise outcome.error
     if outcome.failed is not None:
-        render.err.print(f"quadctl: check failed: {outcome.failed}", markup=False)
-        raise typer.Exit(EXIT_CHECK_FAILED)
+        raise FailedChecks(outcome.failed)
 
 
 def _command_line(config, out, fresh: bool, sets=None) -> str:

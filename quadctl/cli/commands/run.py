@@ -1,7 +1,6 @@
-import typer
 
 from quadctl.cli.commands.simulate import _require_within_limits
-from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import (
     AllowSaturationOpt,
     ConfigOpt,
@@ -64,10 +63,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         render.out.print(f"artifacts in {ws.out}/")
 
 
-def _stop(json: bool, stages: dict, why: str) -> typer.Exit:
+def _stop(json: bool, stages: dict, why: str) -> FailedChecks:
     from quadctl.cli import render
 
     if json:
         render.emit_json({"stages": stages, "ok": False, "failed": why})
-    render.err.print(f"quadctl: check failed: {why}")
-    return typer.Exit(EXIT_CHECK_FAILED)
+    return FailedChecks(why)

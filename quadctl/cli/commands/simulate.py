@@ -1,6 +1,5 @@
-import typer
 
-from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import (
     AllowSaturationOpt,
     ConfigOpt,
@@ -60,8 +59,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if missed:
         render.warning(missed)
     if sim.status != "ok":
-        render.err.print(f"quadctl: check failed: {sim.message}")
-        raise typer.Exit(EXIT_CHECK_FAILED)
+        raise FailedChecks(sim.message)
     _require_within_limits(ws, flown, allow_saturation)
 
 

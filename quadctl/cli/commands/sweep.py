@@ -3,7 +3,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.errors import EXIT_CHECK_FAILED
+from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import ConfigOpt, JsonOpt, OutOpt, SetOpt
 
 NAME = "sweep"
@@ -65,6 +65,5 @@ def command(
         if not json:
             for line in render_sweep.worst_lines(result):
                 render.out.print(line, markup=False)
-        render.err.print(f"quadctl: check failed: {len(result.failed)} of {len(result.rows)} cases fail: "
-                         + render_sweep.sweep_failures(summary), markup=False)
-        raise typer.Exit(EXIT_CHECK_FAILED)
+        raise FailedChecks(f"{len(result.failed)} of {len(result.rows)} cases fail: "
+                           + render_sweep.sweep_failures(summary))
