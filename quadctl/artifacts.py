@@ -15,6 +15,7 @@ import math
 import os
 import re
 import tempfile
+import warnings
 import zipfile
 from contextlib import contextmanager
 from datetime import datetime, timezone
@@ -24,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from quadctl import __version__
-from quadctl.errors import ArtifactError
+from quadctl.errors import ArtifactError, QuadctlNotice
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
 
 FORMAT_VERSION = 1
@@ -427,6 +428,12 @@ class InvalidArtifact(ArtifactError):
     Uncaught it is a bad-input error (exit 2) that names the file, the key and the way out.
     """
 
+    def __init__(self, path: Path | str, problem: str):
+        super().__init__(f"{path}: invalid artifact: {problem}; delete it or rerun with --fresh")
+        self.path = Path(path)
+        self.problem = problem
+        """What is wrong, in a few words (``K_block is 3×12, expected 4×12``)."""
+
 
 NAMES = "state names"
 """Schema entry: a list of state names."""
@@ -460,7 +467,7 @@ def validate(path: Path | str, data: dict) -> None:
     ...                                           "Ki_block": [[]] * 4})
     ... except InvalidArtifact as exc:
     ...     print(exc)
-    runs/forward/design.json: invalid artifact: K_block is 3 x 12, expected 4 x 12; delete it or rerun with --fresh
+    runs/forward/design.json: invalid artifact: K_block is 3×12, expected 4×12; delete it or rerun with --fresh
     """
     schema = SCHEMAS.get(Path(path).name)
     if schema is None:
@@ -468,7 +475,7 @@ def validate(path: Path | str, data: dict) -> None:
     for key, spec in schema.items():
         problem = _problem(data, key, spec)
         if problem:
-            raise InvalidArtifact(f"{path}: invalid artifact: {problem}; delete it or rerun with --fresh")
+            raise InvalidArtifact(path, problem)
 
 
 def _problem(data: dict, key: str, spec) -> str | None:
@@ -496,7 +503,7 @@ def _problem(data: dict, key: str, spec) -> str | None:
 
 
 def _shape(shape: tuple) -> str:
-    return "a scalar" if not shape else " x ".join(str(n) for n in shape)
+    return "a scalar" if not shape else "×".join(str(n) for n in shape)
 
 
 def read_json(path: Path) -> dict:
@@ -563,7 +570,10 @@ def is_fresh(path: Path, cfg) -> bool:
     """True if ``path`` exists, was made from this exact config by this quadctl version, and
     holds what quadctl writes (:func:`validate`): then a stage may reuse it.
 
-    False for a missing, stale or invalid artifact (recompute it).
+    False for a missing, stale or invalid artifact (recompute it). An invalid one is named first,
+    in a :class:`~quadctl.errors.QuadctlNotice` (the command line prints it as ``quadctl: note:
+    design.json in runs/forward is damaged (K_block is 3×12, expected 4×12); recomputed``): the
+    result does not change, but the user learns that a file in their run folder was wrong.
 
     Raises
     ------
@@ -577,7 +587,9 @@ def is_fresh(path: Path, cfg) -> bool:
         return False
     try:
         meta = read_npz(path)[1] if path.suffix == ".npz" else read_json(path)
-    except InvalidArtifact:
+    except InvalidArtifact as exc:
+        warnings.warn(f"{path.name} in {path.parent} is damaged ({exc.problem}); recomputed", QuadctlNotice,
+                      stacklevel=2)
         return False
     return meta.get("config_hash") == cfg.digest() and meta.get("quadctl_version") == __version__
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from quadctl import artifacts, config
-from quadctl.errors import ArtifactError
+from quadctl.errors import ArtifactError, QuadctlNotice
 from quadctl.workspace import Workspace
 
 ALL = ("trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
@@ -265,8 +265,8 @@ def _break(path, kind):
 
 
 BROKEN = [("trim.json", "missing x", r"x is missing"),
-          ("design.json", "K_block 3 x 12", r"K_block is 3 x 12, expected 4 x 12"),
-          ("linear.npz", "A 3 x 3", r"A is 3 x 3, expected 12 x 12")]
+          ("design.json", "K_block 3 x 12", r"K_block is 3×12, expected 4×12"),
+          ("linear.npz", "A 3 x 3", r"A is 3×3, expected 12×12")]
 
 
 @pytest.mark.parametrize("name, kind, problem", BROKEN, ids=[b[1] for b in BROKEN])
@@ -287,11 +287,13 @@ def test_a_broken_artifact_with_intact_provenance_is_invalid_not_fresh(tmp_path,
     with pytest.raises(artifacts.InvalidArtifact, match=rf"{name}: invalid artifact: {problem}; "
                                                         "delete it or rerun with --fresh"):
         reader(path)
-    assert not artifacts.is_fresh(path, cfg)
+    with pytest.warns(QuadctlNotice) as notes:
+        assert not artifacts.is_fresh(path, cfg)
+    assert [str(n.message) for n in notes] == [f"{name} in {tmp_path} is damaged ({problem}); recomputed"]
 
 
 @pytest.mark.parametrize("name, kind, problem", BROKEN, ids=[b[1] for b in BROKEN])
-def test_a_later_stage_recomputes_a_broken_artifact(tmp_path, name, kind, problem):
+def test_a_later_stage_names_a_damaged_artifact_then_recomputes_it(tmp_path, name, kind, problem):
     """Each of these crashed a later stage (exit 3) before; now the stage that reads it recomputes it
     (`simulate` reads the linear model and the gains; the trim is read by `trim` and `linearize`)."""
     from typer.testing import CliRunner
@@ -300,15 +302,23 @@ def test_a_later_stage_recomputes_a_broken_artifact(tmp_path, name, kind, proble
 
     cfg = config.load("hover")
     Workspace(cfg, tmp_path).design  # noqa: B018
+    reader = artifacts.read_npz if name.endswith(".npz") else artifacts.read_json
+    before = reader(tmp_path / name)
     _break(tmp_path / name, kind)
     command = "trim" if name == "trim.json" else "simulate"
     res = CliRunner().invoke(app, [command, "-c", "hover", "-o", str(tmp_path)])
     assert res.exit_code == 0, res.output
-    assert artifacts.is_fresh(tmp_path / name, cfg)  # rewritten whole
+    assert f"quadctl: note: {name} in {tmp_path} is damaged ({problem}); recomputed" in res.stderr.splitlines()
+    assert res.stderr.count("is damaged") == 1  # named once, then recomputed
+    after = reader(tmp_path / name)  # rewritten whole, with the same numbers (nothing else changes)
+    key = {"trim.json": "x", "design.json": "K_block", "linear.npz": "A"}[name]
+    first, second = (r[0] if name.endswith(".npz") else r for r in (before, after))
+    assert np.array_equal(np.asarray(first[key]), np.asarray(second[key]))
+    assert artifacts.is_fresh(tmp_path / name, cfg)
 
 
 @pytest.mark.parametrize("value, problem", [
-    ([0.0] * 11, "x is 11, expected 12"), ([[0.0] * 12], "x is 1 x 12, expected 12"),
+    ([0.0] * 11, "x is 11, expected 12"), ([[0.0] * 12], "x is 1×12, expected 12"),
     ([None] + [0.0] * 11, "x has values that are not finite"), (["1.5"] + [0.0] * 11, "x is not an array of numbers"),
     ("x", "x is not an array of numbers")])
 def test_the_reader_names_what_is_wrong(value, problem):
@@ -320,7 +330,7 @@ def test_the_reader_names_what_is_wrong(value, problem):
 def test_integrators_set_the_shape_of_ki_block():
     ok = {"K_block": [[0.0] * 12] * 4, "integral_states": ["pD"], "Ki_block": [[1.0]] * 4}
     artifacts.validate("design.json", ok)
-    with pytest.raises(artifacts.InvalidArtifact, match="Ki_block is 4 x 0, expected 4 x 1"):
+    with pytest.raises(artifacts.InvalidArtifact, match="Ki_block is 4×0, expected 4×1"):
         artifacts.validate("design.json", {**ok, "Ki_block": [[]] * 4})
     with pytest.raises(artifacts.InvalidArtifact, match="integral_states is not a list of state names"):
         artifacts.validate("design.json", {**ok, "integral_states": ["altitude"]})
