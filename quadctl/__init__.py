@@ -27,7 +27,8 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.sim`: the simulation engine (step planning, the one closed-loop builder, compile
   and cache, native and interpreted runners, one case or many lanes; :mod:`~quadctl.sim.run`: the
   closed loop and one run of it); :mod:`~quadctl.metrics`: a run's step-response metrics
-- :mod:`~quadctl.pipeline`: the stages chained from a setup (pure functions)
+- :mod:`~quadctl.pipeline`: the stages chained from a setup (pure functions; :class:`~quadctl.pipeline.Stages`,
+  the one chain each stage computed once, that the workspace and the export take)
 - :mod:`~quadctl.sweep`: many designs at once (spec, batched evaluation, runner, outputs, store)
 - :mod:`~quadctl.provenance`: the software versions and the C compiler an artifact records
 - :mod:`~quadctl.artifacts`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`: the run directory

@@ -1,12 +1,15 @@
 """The stages chained from a :class:`~quadctl.problem.Setup`: pure functions, no I/O.
 
 Each takes the setup (and upstream results) and returns the stage's result object; nothing here
-reads the config (:func:`quadctl.problem.setup_of` did, once).
+reads the config (:func:`quadctl.problem.setup_of` did, once). :class:`Stages` is the one chain of
+them, each computed once on first use: the run folder's :class:`~quadctl.workspace.Workspace` and
+:func:`quadctl.export.prepare` take it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -40,10 +43,16 @@ def checks_of(decoupled: Decoupled, linear: LinearModel) -> dict[str, Checks]:
     return out
 
 
-def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, *, rate: float | None | str = "setup") -> Design:
-    """The decoupled LQR design at the setup's design rate (``rate`` overrides it; None: continuous)."""
-    return design(decoupled, linear.A, linear.B, setup.weights,
-                  rate=setup.timing.design_rate if rate == "setup" else rate, integral=setup.integral,
+def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel) -> Design:
+    """The decoupled LQR design the setup asks for: discrete at its design rate, else continuous
+    (the design says which: :attr:`~quadctl.lqr.Design.sample_time`)."""
+    return design_at(setup, decoupled, linear, setup.timing.design_rate)
+
+
+def design_at(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float | None) -> Design:
+    """The setup's decoupled LQR design computed at ``rate`` Hz (MATLAB ``lqrd``), or continuous for
+    None, whatever the setup's own timing (``check`` compares a continuous design with a rate)."""
+    return design(decoupled, linear.A, linear.B, setup.weights, rate=rate, integral=setup.integral,
                   lag_time_constant=setup.design_lag_time_constant)
 
 
@@ -170,6 +179,56 @@ def tracking_of(ref, t, x, x_ref) -> dict:
     return out
 
 
+class Stages:
+    """The chain of stages of one setup, each computed on first use and once (no I/O).
+
+    trim -> linear -> decoupled -> design -> loop, and, for a continuous design run sampled at the
+    controller rate, :attr:`rate_warnings`. :func:`quadctl.export.prepare` takes it as it is;
+    :class:`quadctl.workspace.Workspace` (the command line, the report) is this chain with a run
+    folder: it reuses and writes each stage's artifact.
+
+    Examples
+    --------
+    >>> from quadctl import config
+    >>> from quadctl.problem import setup_of
+    >>> stages = Stages(setup_of(config.load("hover")))
+    >>> stages.design.K_block.shape, stages.design.sample_time, stages.rate_warnings
+    ((4, 12), None, ())
+    """
+
+    def __init__(self, setup: Setup):
+        self.setup = setup
+
+    @cached_property
+    def trim(self) -> Trim:
+        return trim_of(self.setup)
+
+    @cached_property
+    def linear(self) -> LinearModel:
+        return linear_of(self.setup, self.trim)
+
+    @cached_property
+    def decoupled(self) -> Decoupled:
+        return decoupled_of(self.setup, self.linear)
+
+    @cached_property
+    def design(self) -> Design:
+        return design_of(self.setup, self.decoupled, self.linear)
+
+    @cached_property
+    def rate_warnings(self) -> tuple:
+        """:func:`rate_warnings_of` the controller rate when it runs a continuous design (emulation);
+        ``()`` for a continuous or a discrete controller. Needs every regulated subsystem stabilizable."""
+        timing = self.setup.timing
+        if timing.mode != "emulated":
+            return ()
+        return tuple(rate_warnings_of(self.setup, self.decoupled, self.linear, timing.rate))
+
+    @cached_property
+    def loop(self) -> ClosedLoop:
+        return loop_of(self.setup, self.linear, self.design)
+
+
 @dataclass(frozen=True)
 class VehicleLoop:
     """The linear closed loop the vehicle flies: the design's gains on the coupled model with the
@@ -254,7 +313,7 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
     """
     from quadctl.lqr import discrete
 
-    des = design_of(setup, decoupled, linear, rate=None)
+    des = design_at(setup, decoupled, linear, None)
     Ts = 1.0 / rate
     loops = []
     for sub in des.subsystems:

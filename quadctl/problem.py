@@ -32,32 +32,34 @@ class Timing:
     ----------
     rate : float or None
         Hz of a sampled controller (zero-order hold); None: continuous feedback.
-    discrete : bool
-        With a rate: designed at that rate (MATLAB ``lqrd``); else the continuous design is run at
-        the rate (emulation).
+    design_rate : float or None
+        Hz the design is computed at: the controller's ``rate`` for a discrete design (MATLAB
+        ``lqrd``, ``controller.design: discrete``); None for a continuous design, which a ``rate``
+        then runs sampled (emulation). The design it gives says which it is
+        (:attr:`quadctl.lqr.Design.sample_time`), as python-control's systems carry their ``dt``.
     delay_samples : int
         Controller samples from measurement to actuation (``controller.delay``; 0: none).
     """
 
     rate: float | None = None
-    discrete: bool = False
+    design_rate: float | None = None
     delay_samples: int = 0
+
+    def __post_init__(self):
+        if self.design_rate is not None and self.design_rate != self.rate:
+            raise ValueError(f"design_rate {self.design_rate:g} Hz: a discrete design is computed at the "
+                             f"controller's rate ({self.rate} Hz)")
 
     @property
     def mode(self) -> Literal["continuous", "discrete", "emulated"]:
         if self.rate is None:
             return "continuous"
-        return "discrete" if self.discrete else "emulated"
+        return "discrete" if self.design_rate is not None else "emulated"
 
     @property
     def sample_time(self) -> float | None:
         """s between controller samples; None for continuous feedback."""
         return None if self.rate is None else 1.0 / self.rate
-
-    @property
-    def design_rate(self) -> float | None:
-        """Hz the design is computed at: the rate of a discrete design, else None (continuous)."""
-        return self.rate if self.mode == "discrete" else None
 
     @property
     def design_sample_time(self) -> float | None:
@@ -234,7 +236,7 @@ def setup_of(cfg: Config) -> Setup:
     for state, value in cfg.simulation.initial_offset.items():
         offset[STATE_INDEX[state]] += value
     ctl = cfg.controller
-    timing = Timing(rate=ctl.rate, discrete=ctl.rate is not None and ctl.design == "discrete",
+    timing = Timing(rate=ctl.rate, design_rate=ctl.rate if ctl.design == "discrete" else None,
                     delay_samples=ctl.delay_samples())
     noise = None
     if cfg.simulation.noise is not None:

@@ -100,8 +100,9 @@ def default_out(cfg: Config) -> Path:
     return Path("runs") / cfg.name
 
 
-class Workspace:
-    """Stages of one config in one run directory.
+class Workspace(pipeline.Stages):
+    """Stages of one config in one run directory: :class:`quadctl.pipeline.Stages` that reuses
+    each stage's fresh artifact and writes the ones it computes.
 
     Parameters
     ----------
@@ -121,9 +122,9 @@ class Workspace:
 
     def __init__(self, cfg: Config, out: Path | str | None = None, *, fresh: bool = False,
                  source_text: str | None = None, progress=None):
+        super().__init__(setup_of(cfg))
         self.cfg = cfg
         self.progress = progress
-        self.setup = setup_of(cfg)
         self.out = Path(out) if out is not None else default_out(cfg)
         self.fresh = fresh
         self.source_text = source_text
@@ -197,7 +198,7 @@ class Workspace:
             data = self.payloads[TRIM]
             return Trim(x=np.array(data["x"]), u=np.array(data["u"]), xdot=np.array(data["xdot"]),
                         residual=float(data["residual"]), iterations=int(data["iterations"]))
-        trim = pipeline.trim_of(self.setup)
+        trim = super().trim
         self._write_json(TRIM, "trim", {
             "x": trim.x, "u": trim.u, "xdot": trim.xdot, "residual": trim.residual,
             "iterations": trim.iterations, "velocity_ned": self.setup.velocity_ned,
@@ -212,7 +213,7 @@ class Workspace:
             arrays, _ = artifacts.read_npz(self.path(LINEAR))
             return LinearModel(A=arrays["A"], B=arrays["B"], x_trim=arrays["x_trim"],
                                u_trim=arrays["u_trim"], x_rate=arrays["x_rate"])
-        linear = pipeline.linear_of(self.setup, self.trim)
+        linear = super().linear
         self._write_npz(LINEAR, {
             "A": linear.A, "B": linear.B, "x_trim": linear.x_trim, "u_trim": linear.u_trim,
             "x_rate": linear.x_rate,
@@ -222,7 +223,7 @@ class Workspace:
 
     @cached_property
     def decoupled(self) -> Decoupled:
-        dec = pipeline.decoupled_of(self.setup, self.linear)
+        dec = super().decoupled
         self._write_json(SUBSYSTEMS, "subsystems", {
             "subsystems": {s.name: {"states": s.states, "inputs": s.inputs, "A": s.A, "B": s.B,
                                     "C": s.C, "regulated": s.regulated} for s in dec.subsystems},
@@ -245,8 +246,7 @@ class Workspace:
         warnings: list[RateWarning] = []
         vehicle = None
         if all(checks[n].stabilizable for n in regulated):
-            if timing.mode == "emulated":
-                warnings = pipeline.rate_warnings_of(self.setup, self.decoupled, self.linear, timing.rate)
+            warnings = list(self.rate_warnings)
             if self.setup.rotor_time_constant is not None or timing.delay_samples:
                 des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
                 vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
@@ -257,7 +257,7 @@ class Workspace:
             ESTIMATOR_CHECK: None if est is None else {
                 "measured": est.measured, **_checks_payload(checks[ESTIMATOR_CHECK], False)},
             "rate": None if timing.rate is None else {
-                "rate": timing.rate, "design": "discrete" if timing.discrete else "continuous",
+                "rate": timing.rate, "design": "discrete" if timing.design_rate is not None else "continuous",
                 "realizable_frequency": realizable_frequency(timing.rate),
                 "warnings": [{"loop": w.loop, "pole": w.pole, "factor": w.factor,
                               "sampled_spectral_radius": w.sampled_radius, "sampled_stable": w.sampled_stable,
@@ -278,7 +278,7 @@ class Workspace:
 
     @cached_property
     def design(self) -> Design:
-        des = pipeline.design_of(self.setup, self.decoupled, self.linear)
+        des = super().design
         self._write_json(DESIGN, "design", {
             "subsystems": {s.name: {"states": s.states, "inputs": s.inputs, "Q": s.Q, "R": s.R,
                                     "K": s.K, "P": s.P, "closed_loop_eigenvalues": _c(s.eigenvalues),

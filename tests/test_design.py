@@ -209,3 +209,26 @@ def test_scipy_fallback_gives_the_same_design_as_quadctls_solver(forward, monkey
 def test_mismatched_shapes_are_a_design_error_naming_the_matrix():
     with pytest.raises(DesignError, match=r"roll: R has shape \(2, 2\), expected \(1, 1\)"):
         lqr(np.eye(2), [[0.0], [1.0]], np.eye(2), np.eye(2), name="roll")
+
+
+@pytest.mark.parametrize("design_kind, expected_mode", [("discrete", "discrete"), ("continuous", "emulated")])
+def test_discrete_or_continuous_is_the_designs_own_property(design_kind, expected_mode):
+    """The setup says what to design at; the design it gives carries its own sample time (as a
+    python-control system carries its dt), and the chain's emulated-rate check runs only for a
+    continuous design that a rate samples."""
+    from _solve import cfg_dict
+
+    from quadctl import config, pipeline
+    from quadctl.problem import Timing, setup_of
+
+    data = cfg_dict("mambo-200hz")
+    data["controller"].update(design=design_kind, rate=20.0)  # slower than the continuous design's fast loops
+    stages = pipeline.Stages(setup_of(config.from_dict(data)))
+    assert stages.setup.timing.mode == expected_mode and stages.setup.timing.rate == 20
+    assert stages.design.sample_time == (1 / 20 if design_kind == "discrete" else None)
+    assert stages.design.rate == (20 if design_kind == "discrete" else None)
+    assert (stages.rate_warnings == ()) == (design_kind == "discrete")  # 20 Hz cannot realize the fast loops
+    continuous = pipeline.design_at(stages.setup, stages.decoupled, stages.linear, None)
+    assert continuous.sample_time is None
+    with pytest.raises(ValueError, match="design_rate 100 Hz: a discrete design is computed at the controller's"):
+        Timing(rate=20.0, design_rate=100.0)

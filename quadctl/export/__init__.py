@@ -19,6 +19,7 @@ from quadctl.errors import CheckFailed, ConfigError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
+from quadctl.pipeline import Stages
 from quadctl.problem import Setup, Timing
 
 
@@ -53,7 +54,6 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     DesignError
         A subsystem cannot be designed (exit 1).
     """
-    from quadctl import pipeline
     from quadctl.config import check_override
 
     if rate is not None:  # the bounds of controller.rate, which it stands for
@@ -64,28 +64,21 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
                           "simulation.reference, or fly the reference with quadctl simulate")
     timing = setup.timing
     timing.refuse_other_rate(rate)
-    if rate is not None and timing.rate is None:
-        setup = replace(setup, timing=Timing(rate=float(rate), discrete=False))
+    if rate is not None and timing.rate is None:  # the continuous design, run at that rate
+        setup = replace(setup, timing=Timing(rate=float(rate)))
     elif setup.timing.rate is None and need_rate:
         raise ConfigError("the design is continuous (no controller.rate) and a flight computer samples: "
                           "give --rate HZ to run it at that rate, or set controller.rate "
                           "(with controller.design: discrete to design for it)")
-    trim = pipeline.trim_of(setup)
-    linear = pipeline.linear_of(setup, trim)
-    decoupled = pipeline.decoupled_of(setup, linear)
-    design = pipeline.design_of(setup, decoupled, linear)
-    if not design.stable:
+    stages = Stages(setup)
+    if not stages.design.stable:
         raise CheckFailed("the design is unstable on the coupled 12-state model (every subsystem is stable "
                           "alone: the dropped couplings matter); `quadctl design` shows its eigenvalues")
-    warnings: list = []
-    if setup.timing.mode == "emulated":
-        warnings = pipeline.rate_warnings_of(setup, decoupled, linear, setup.timing.rate)
-        unstable = [w for w in warnings if not w.sampled_stable]
-        if unstable:
-            raise CheckFailed(f"not exported: {unstable[0].message(setup.timing.rate)}")
-    loop = pipeline.loop_of(setup, linear, design)
-    return Export(setup=setup, linear=linear, decoupled=decoupled, design=design, loop=loop,
-                  rate_warnings=tuple(warnings), config_hash=config_hash)
+    unstable = [w for w in stages.rate_warnings if not w.sampled_stable]
+    if unstable:
+        raise CheckFailed(f"not exported: {unstable[0].message(setup.timing.rate)}")
+    return Export(setup=setup, linear=stages.linear, decoupled=stages.decoupled, design=stages.design,
+                  loop=stages.loop, rate_warnings=stages.rate_warnings, config_hash=config_hash)
 
 
 TARGETS = ("c", "mat", "json")
