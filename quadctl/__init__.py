@@ -31,8 +31,9 @@ nothing here imports). Modules, each importing only those above it:
   the one chain each stage computed once, that the workspace and the export take)
 - :mod:`~quadctl.sweep`: many designs at once (spec, batched evaluation, runner, outputs, store)
 - :mod:`~quadctl.provenance`: the software versions and the C compiler an artifact records
-- :mod:`~quadctl.artifacts`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`: the run directory
-  (atomic, with provenance), artifact-backed stages, figures (they read results only)
+- :mod:`~quadctl.artifacts`, :mod:`~quadctl.payloads`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`:
+  the run directory (atomic, with provenance), what each artifact holds, the chain of stages with a
+  run folder, figures (they read results only)
 - :mod:`~quadctl.present`: each stage result as tables and sentences, written once: what the terminal
   (:mod:`quadctl.cli`, rich styling only) and the report (escaping and markup only) both render
 - :mod:`~quadctl.report`: every stage of a run in one self-contained HTML page and a Markdown twin

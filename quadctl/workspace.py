@@ -1,5 +1,8 @@
 """Artifact-backed stages: run a stage, write its artifact, reuse upstream artifacts.
 
+:class:`Workspace` is :class:`quadctl.pipeline.Stages` with a run folder; what each artifact holds
+is :mod:`quadctl.payloads`.
+
 A :class:`Workspace` couples a config to a run directory. Each stage writes its artifact
 atomically; an upstream artifact is reused only when its ``config_hash`` and quadctl
 version match, otherwise it is recomputed and rewritten (never a stale result). The first
@@ -17,19 +20,19 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import __version__, artifacts, pipeline
+from quadctl import __version__, artifacts, payloads, pipeline
 from quadctl.analysis import Checks, check
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
 from quadctl.errors import DesignError
-from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, STATE_NAMES, STATE_UNITS
+from quadctl.layout import N_INPUTS, STATE_NAMES
 from quadctl.linearize import LinearModel
 from quadctl.lqr import Design
-from quadctl.lqr.discrete import RateWarning, realizable_frequency, unstable_when_sampled
+from quadctl.lqr.discrete import RateWarning, unstable_when_sampled
 from quadctl.messages import eig_text
 from quadctl.metrics import summarize
+from quadctl.payloads import ESTIMATOR_CHECK
 from quadctl.problem import setup_of
-from quadctl.sim import schedule
 from quadctl.sim.run import ClosedLoop, SimResult
 from quadctl.trim import Trim
 
@@ -92,7 +95,6 @@ class Flight:
     loop: ClosedLoop
     metrics: dict
     flight: dict
-_c = artifacts.complex_values  # eigenvalues: [re, im] pairs in JSON even when all are real
 
 
 def default_out(cfg: Config) -> Path:
@@ -199,12 +201,7 @@ class Workspace(pipeline.Stages):
             return Trim(x=np.array(data["x"]), u=np.array(data["u"]), xdot=np.array(data["xdot"]),
                         residual=float(data["residual"]), iterations=int(data["iterations"]))
         trim = super().trim
-        self._write_json(TRIM, "trim", {
-            "x": trim.x, "u": trim.u, "xdot": trim.xdot, "residual": trim.residual,
-            "iterations": trim.iterations, "velocity_ned": self.setup.velocity_ned,
-            "wind_ned": self.setup.trim_wind,  # m/s: the steady wind trimmed in (trim.wind), else zero
-            "state": dict(zip(STATE_NAMES, trim.x)), "input": dict(zip(INPUT_NAMES, trim.u)),
-            "units": {**STATE_UNITS, **INPUT_UNITS}})
+        self._write_json(TRIM, "trim", payloads.trim(self.setup, trim))
         return trim
 
     @cached_property
@@ -214,22 +211,13 @@ class Workspace(pipeline.Stages):
             return LinearModel(A=arrays["A"], B=arrays["B"], x_trim=arrays["x_trim"],
                                u_trim=arrays["u_trim"], x_rate=arrays["x_rate"])
         linear = super().linear
-        self._write_npz(LINEAR, {
-            "A": linear.A, "B": linear.B, "x_trim": linear.x_trim, "u_trim": linear.u_trim,
-            "x_rate": linear.x_rate,
-            "state_names": np.array(STATE_NAMES), "input_names": np.array(INPUT_NAMES)},
-            self._meta("linear"))
+        self._write_npz(LINEAR, payloads.linear(linear), self._meta("linear"))
         return linear
 
     @cached_property
     def decoupled(self) -> Decoupled:
         dec = super().decoupled
-        self._write_json(SUBSYSTEMS, "subsystems", {
-            "subsystems": {s.name: {"states": s.states, "inputs": s.inputs, "A": s.A, "B": s.B,
-                                    "C": s.C, "regulated": s.regulated} for s in dec.subsystems},
-            "dropped": [{"name": d.name, "matrix": d.matrix, "row": d.row, "column": d.column,
-                         "value": d.value, "relative": d.relative, "unit": d.unit}
-                        for d in dec.dropped]})
+        self._write_json(SUBSYSTEMS, "subsystems", payloads.subsystems(dec))
         return dec
 
     @cached_property
@@ -250,21 +238,7 @@ class Workspace(pipeline.Stages):
             if self.setup.rotor_time_constant is not None or timing.delay_samples:
                 des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
                 vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
-        self._write_json(CHECKS, "checks", {
-            "subsystems": {n: _checks_payload(c, n in regulated) for n, c in checks.items()
-                           if n not in ("full", ESTIMATOR_CHECK)},
-            "full": _checks_payload(checks["full"], True),
-            ESTIMATOR_CHECK: None if est is None else {
-                "measured": est.measured, **_checks_payload(checks[ESTIMATOR_CHECK], False)},
-            "rate": None if timing.rate is None else {
-                "rate": timing.rate, "design": "discrete" if timing.design_rate is not None else "continuous",
-                "realizable_frequency": realizable_frequency(timing.rate),
-                "warnings": [{"loop": w.loop, "pole": w.pole, "factor": w.factor,
-                              "sampled_spectral_radius": w.sampled_radius, "sampled_stable": w.sampled_stable,
-                              "message": w.message(timing.rate)} for w in warnings]},
-            "closed_loop": None if vehicle is None else {
-                **_vehicle_loop_payload(vehicle), "rotor_time_constant": self.setup.rotor_time_constant,
-                "rotor_lag": self.setup.rotor_lag, "delay_samples": timing.delay_samples}})
+        self._write_json(CHECKS, "checks", payloads.checks(self.setup, checks, regulated, warnings, vehicle))
         undetectable = None
         if est is not None and not checks[ESTIMATOR_CHECK].detectable:
             from quadctl.estimator import require_detectable, selector
@@ -279,45 +253,9 @@ class Workspace(pipeline.Stages):
     @cached_property
     def design(self) -> Design:
         des = super().design
-        self._write_json(DESIGN, "design", {
-            "subsystems": {s.name: {"states": s.states, "inputs": s.inputs, "Q": s.Q, "R": s.R,
-                                    "K": s.K, "P": s.P, "closed_loop_eigenvalues": _c(s.eigenvalues),
-                                    "riccati_residual": s.residual} for s in des.subsystems},
-            "K_block": des.K_block, "Q_block": des.Q_block, "R_block": des.R_block,
-            "full_closed_loop_eigenvalues": _c(des.full_eigenvalues),
-            "marginal_states": des.marginal_states, "stable": des.stable,
-            "rotor_lag": {"mode": self.setup.rotor_lag, "time_constant": self.setup.rotor_time_constant,
-                          "design_time_constant": des.lag_time_constant,
-                          "Kv_block": des.Kv_block if des.lag_time_constant is not None else None,
-                          "measured": ("the controller's own model of the lag, propagated from its commands"
-                                       if des.lag_time_constant is not None else None)},
-            **_flight_design_payload(des), "estimator": self._estimator_payload()})
-        return des
-
-    def _estimator_payload(self) -> dict | None:
-        """design.json's ``estimator``: the Kalman filter, its form stated (None without ``estimator:``)."""
         kal = pipeline.estimator_of(self.setup, self.linear)
-        if kal is None:
-            return None
-        discrete = kal.discrete
-        return {
-            "form": kal.form,
-            "gain_form": ("filter (measurement-update) gain M of MATLAB dlqe: x_hat[k|k] = x_hat[k|k-1] + "
-                          "M (y[k] - C x_hat[k|k-1]); the law acts on x_hat[k|k]; predictor gain L = Ad M"
-                          if discrete else "Kalman-Bucy gain L of MATLAB lqe: dx_hat/dt = A x_hat + B du + "
-                          "L (y - C x_hat)"),
-            "coordinates": "deviation from the trim reference x_ref(t), on the linear model about the trim",
-            "measured": kal.measured, "sample_time": kal.sample_time,
-            "A": kal.A, "B": kal.B, "C": kal.C, "G": kal.G, "Qn": kal.Qn, "Rn": kal.Rn,
-            "noise_convention": ("covariance per sample (noise held over each controller period)" if discrete
-                                 else "intensity sigma^2 * noise period (held noise's low-frequency spectrum)"),
-            "gain": kal.gain, "predictor_gain": kal.predictor_gain,
-            "P": kal.P, "Z": kal.Z,
-            "covariance": ("P a priori, Z = P - M C P a posteriori" if discrete else "P = Z error covariance"),
-            "eigenvalues": _c(kal.eigenvalues),
-            "eigenvalues_of": "Ad - L C (z)" if discrete else "A - L C (s)",
-            "riccati_residual": kal.residual,
-        }
+        self._write_json(DESIGN, "design", payloads.design(self.setup, des, kal))
+        return des
 
     @cached_property
     def gains(self) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray | None]:
@@ -348,31 +286,15 @@ class Workspace(pipeline.Stages):
             rotor_time_constant=self.setup.rotor_time_constant,
             estimator=pipeline.estimator_of(self.setup, linear))
         vehicle = pipeline.vehicle_loop_of(self.setup, linear, des)
-        self._write_json(MARGINS, "margins", {
-            "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
-            "delay_samples": timing.delay_samples, "rotor_time_constant": self.setup.rotor_time_constant,
-            "rotor_lag": self.setup.rotor_lag,
-            "closed_loop": _vehicle_loop_payload(vehicle),
-            "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
-                          "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
-            "estimator": None if self.setup.estimator is None else {
-                "measured": self.setup.estimator.measured, "model": "lqg",
-                "broken": "at the plant input, Kalman filter in the loop fed the commanded input"},
-            "loops": [m.as_dict() for m in result]})
+        self._write_json(MARGINS, "margins", payloads.margins(self.setup, des, result, vehicle))
         return result
 
     @cached_property
     def full(self):
         """``design --full``: (FullDesign, comparison); writes design_full.json."""
         fd, comparison = pipeline.compare_full(self.setup, self.linear, self.design)
-        self._write_json(DESIGN_FULL, "design_full", {
-            "K": fd.K, "Ki": fd.Ki, "integral_states": fd.integral_states, "states": fd.states,
-            "left_out": fd.left_out, "Q": fd.Q, "R": fd.R, "P": fd.P,
-            "closed_loop_eigenvalues": _c(fd.eigenvalues), "stable": fd.stable, "rate": fd.rate,
-            "riccati_residual": fd.residual,
-            "position": ("left out: " + ", ".join(fd.left_out) + " (no weight, no dynamics); "
-                         if fd.left_out else "") + "weighted positions regulated about the moving reference",
-            "comparison": comparison}, [d["backend"] for d in comparison["designs"].values()])
+        self._write_json(DESIGN_FULL, "design_full", payloads.design_full(fd, comparison),
+                         [d["backend"] for d in comparison["designs"].values()])
         return fd, comparison
 
     @cached_property
@@ -385,69 +307,7 @@ class Workspace(pipeline.Stages):
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
         meta = self._meta("simulation", sim.backend)
-        self._write_npz(SIM_NPZ, {
-            "t": sim.t, "x": sim.x, "u": sim.u, "x_ref": sim.x_ref, "dt": np.array(sim.dt),
-            "stride": np.array(sim.stride),
-            "status": np.array(sim.status), "state_names": np.array(STATE_NAMES),
-            "input_names": np.array(INPUT_NAMES), "z": sim.z,
-            "integral_states": np.array(loop.integral_states, dtype=str),
-            "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
-            "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str),
-            "u_ref": sim.u_ref,  # empty without simulation.reference: the feedforward input (N, N m)
-            "x_hat": sim.x_hat,  # empty without an estimator: x_hat[k|k-1] held (sampled) or Kalman-Bucy's
-            "wind": sim.wind, "wind_unit": np.array("m/s"),  # empty: still air
-            "wind_names": np.array(["wind N", "wind E", "wind D"] if len(sim.wind) else [], dtype=str)},
-            meta)
-        self._write_json(SIM_JSON, "simulation", {
-            "status": sim.status, "message": sim.message, "dt": sim.dt, "steps": sim.steps,
-            "stride": sim.stride, "samples": len(sim.t),
-            "duration": float(sim.t[-1]), "backend": sim.backend,
-            "dt_auto": sim.plan.auto, "max_stable_dt": sim.plan.max_stable_dt, "method": sim.plan.method,
-            "schedule": schedule.summary(sim.plan),
-            "fastest_eigenvalue": sim.plan.fastest_eigenvalue,
-            "fastest_subsystem": sim.plan.fastest_owner,
-            "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **flight}, sim.backend)
+        self._write_npz(SIM_NPZ, payloads.simulation_arrays(sim, loop), meta)
+        self._write_json(SIM_JSON, "simulation", payloads.simulation(sim, summary, flight), sim.backend)
         return Flight(sim=sim, loop=loop, metrics=summary, flight=flight)
 
-
-ESTIMATOR_CHECK = "estimator"
-"""checks' key of the measured set (``estimator.measure``) on the coupled model."""
-
-
-def _flight_design_payload(des: Design) -> dict:
-    """design.json keys of sampled and LQI designs: rate, integrators, discrete eigenvalues."""
-    return {
-        "rate": des.rate, "discrete": des.rate is not None,
-        "Ki_block": des.Ki_block, "integral_states": des.integral_states,
-        "full_closed_loop_eigenvalues_z": _c(des.full_eigenvalues_z),
-        "subsystem_integrals": {s.name: {"integral": s.integral, "Ki": s.Ki,
-                                         "closed_loop_eigenvalues_z": _c(s.eigenvalues_z)}
-                                for s in des.subsystems},
-    }
-
-
-def _checks_payload(c: Checks, regulated: bool) -> dict:
-    return {
-        "n_states": c.n, "regulated": regulated,
-        "ctrb_rank": c.ctrb.rank, "obsv_rank": c.obsv.rank,
-        "ctrb_singular_values": c.ctrb.singular_values, "obsv_singular_values": c.obsv.singular_values,
-        "tolerance": {"ctrb": c.ctrb.tolerance, "obsv": c.obsv.tolerance,
-                      "rule": "singular values > max(shape) * eps * sigma_max"},
-        "controllable": c.controllable, "observable": c.observable,
-        "stabilizable": c.stabilizable, "detectable": c.detectable,
-        "pbh": [{"eigenvalue": m.eigenvalue, "ctrb_rank": m.rank, "controllable": m.passed,
-                 "states": m.states} for m in c.pbh_ctrb],
-        "pbh_obsv": [{"eigenvalue": m.eigenvalue, "obsv_rank": m.rank, "observable": m.passed,
-                      "states": m.states} for m in c.pbh_obsv],
-    }
-
-
-def _vehicle_loop_payload(loop) -> dict:
-    """margins.json's and checks.json's ``closed_loop``: the loop the vehicle flies (:class:`pipeline.VehicleLoop`)."""
-    Ts, eig = loop.sample_time, loop.eigenvalues
-    return {
-        "what": "the coupled linear loop with the rotors' lag, the controller's lag model (include), the "
-                "integrators and the delay; free positions left out",
-        "domain": "z" if Ts else "s", "eigenvalues": _c(eig), "stable": loop.stable,
-        "spectral_radius" if Ts else "slowest_real_part": float(np.abs(eig).max() if Ts else eig.real.max()),
-        "least_damping": loop.least_damping, "design_least_damping": loop.design_least_damping}
