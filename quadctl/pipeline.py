@@ -194,10 +194,16 @@ class Stages:
     >>> stages = Stages(setup_of(config.load("hover")))
     >>> stages.design.K_block.shape, stages.design.sample_time, stages.rate_warnings
     ((4, 12), None, ())
+
+    A sweep's cases that fly one flight condition share its upstream stages: pass them
+    (``Stages(setup, linear=..., decoupled=...)``) and the chain starts from there.
     """
 
-    def __init__(self, setup: Setup):
+    def __init__(self, setup: Setup, *, trim: Trim | None = None, linear: LinearModel | None = None,
+                 decoupled: Decoupled | None = None):
         self.setup = setup
+        given = {"trim": trim, "linear": linear, "decoupled": decoupled}
+        self.__dict__.update({stage: result for stage, result in given.items() if result is not None})
 
     @cached_property
     def trim(self) -> Trim:

@@ -359,7 +359,8 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
 
 
 def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict, np.ndarray | None]:
-    """One case through the pipeline, as ``quadctl simulate`` runs it (the reference path).
+    """One case through the chain of stages (:class:`quadctl.pipeline.Stages`, from its plant's
+    shared linear model and partition), as ``quadctl simulate`` runs it (the reference path).
 
     Returns the row and, when ``trace`` names states and the run reached its end, their
     deviations resampled by :func:`resample_deviation` (else None).
@@ -367,15 +368,16 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
     from quadctl import metrics, pipeline
 
     setup, linear = prep.setup, prep.plant.linear
+    stages = pipeline.Stages(setup, linear=linear, decoupled=prep.plant.decoupled)
     try:
         t0, c0 = time.perf_counter(), time.process_time()
-        des = pipeline.design_of(setup, prep.plant.decoupled, linear)
+        des = stages.design
         stats["design_time"] += time.perf_counter() - t0
         stats["design_cpu"] += time.process_time() - c0
         stats["designs"] += len(prep.plant.decoupled.regulated)
     except DesignError as exc:
         return _failed(prep.head, "design_failed", str(exc)), None
-    loop = pipeline.loop_of(setup, linear, des)
+    loop = stages.loop
     try:
         t0 = time.perf_counter()
         sim = pipeline.simulation_of(setup, loop)
