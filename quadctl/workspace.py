@@ -278,7 +278,7 @@ class Workspace(pipeline.Stages):
         from quadctl import margins
 
         des, timing, linear = self.design, self.setup.timing, self.linear
-        emulated = timing.rate if timing.mode == "emulated" else None
+        emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)
         result = margins.all_margins(
             des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
             actuators=self.setup.actuators, u_trim=linear.u_trim,
