@@ -258,7 +258,7 @@ def least_damping(eigenvalues, sample_time: float | None = None) -> float:
 
 @dataclass(frozen=True)
 class Damp:
-    """Natural frequency, damping and time constant of each mode (MATLAB ``damp``), slowest first.
+    """Natural frequency, damping and time constant of each mode (MATLAB ``damp``), lowest natural frequency first.
 
     Attributes
     ----------

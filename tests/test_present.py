@@ -79,7 +79,7 @@ def test_damp_of_a_second_order_pair_and_a_real_pole():
     wn, zeta = 5.0, 0.6
     pair = -zeta * wn + np.array([1j, -1j]) * wn * math.sqrt(1 - zeta ** 2)
     d = stability.damp([-10.0, *pair, 0.0])
-    assert d.wn == pytest.approx([0.0, wn, wn, 10.0])  # slowest first
+    assert d.wn == pytest.approx([0.0, wn, wn, 10.0])  # lowest natural frequency first
     assert np.isnan(d.zeta[0]) and d.zeta[1:] == pytest.approx([zeta, zeta, 1.0])
     assert d.tau == pytest.approx([math.inf, 1 / (zeta * wn), 1 / (zeta * wn), 0.1])
     assert d.s[1].imag < 0 < d.s[2].imag and d.z is None

@@ -81,7 +81,7 @@ def gain_matrix_table(des) -> Table:
 
 
 def damp_table(des) -> Table:
-    """The coupled closed loop's poles as MATLAB's ``damp`` gives them, slowest first.
+    """The coupled closed loop's poles as MATLAB's ``damp`` gives them, lowest natural frequency first.
 
     A discrete design's poles are its ``z``, read as ``s = ln(z) / Ts``; the verdict is
     :func:`quadctl.stability.is_stable`'s, a free position's pole at 0 is marginal by design.
@@ -108,7 +108,7 @@ def damp_table(des) -> Table:
     return Table("damp-table", f"Coupled closed loop {where}: poles, natural frequency, damping (MATLAB damp)",
                  (*(["pole z"] if discrete else []), "pole (rad/s)", "wn (rad/s)", "zeta", "tau (s)", "verdict"),
                  tuple(rows), caption=("s = ln(z)/Ts; " if discrete else "")
-                 + "wn = |s|, zeta = -Re(s)/|s|, tau = -1/Re(s); slowest first",
+                 + "wn = |s|, zeta = -Re(s)/|s|, tau = -1/Re(s); lowest wn first, as MATLAB's damp",
                  align="r" * (4 + discrete) + "l")
 
 

@@ -139,7 +139,7 @@ def closed_loop_sentence(payload: dict) -> Mark:
         lag = payload.get("rotor_lag", "ignore")
         parts.append(f"a {payload['rotor_time_constant'] * 1e3:.4g} ms rotor lag ({lag}d by the design)")
     if payload.get("delay_samples"):
-        parts.append(f"{payload['delay_samples']} samples of delay")
+        parts.append(f"{payload['delay_samples']} sample{'s' if payload['delay_samples'] != 1 else ''} of delay")
     what = "closed loop" + (" with " + " and ".join(parts) if parts else "")
     size = (f"spectral radius {cl['spectral_radius']:.6g}" if cl["domain"] == "z" else
             f"slowest pole {cl['slowest_real_part']:.4g} rad/s")
