@@ -24,6 +24,7 @@ from quadctl.config import (
     MotorsConfig,
     NoiseConfig,
     PlantConfig,
+    ReferenceConfig,
     SimulationConfig,
     TrimConfig,
     VehicleConfig,
@@ -258,7 +259,8 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hover") ->
     out += ["simulation:   # " + _doc(Config, "simulation")]
     out += _section(SimulationConfig, {"duration": (10.0, ""), "dt": ("auto", ""),
                                        "initial_offset": (INITIAL_OFFSET, ""), "max_samples": (20_000, "")}, 2)
-    for key, model in (("noise", NoiseConfig), ("wind", WindConfig), ("plant", PlantConfig)):
+    for key, model in (("noise", NoiseConfig), ("wind", WindConfig), ("plant", PlantConfig),
+                       ("reference", ReferenceConfig)):
         out += [f"  # {key}:   # {_doc(SimulationConfig, key)}"] + _section(model, {}, 4, commented=True)
     out += ["controller:   # " + _doc(Config, "controller")]
     rate = (preset.rate, preset.rate_note)
@@ -308,7 +310,7 @@ def _section(model: type[BaseModel], given: dict[str, tuple[Any, str]], indent: 
         elif sub is not None:
             lines.append(f"{pad}# {key}:   # {field.description}")
             inner = _section(sub, {}, indent + 2, commented=True)
-            if str(field.annotation).startswith(("list", "typing.Annotated[list")):  # a list of them: one item
+            if "list[" in str(field.annotation):  # a list of them (optional or not): one item
                 inner = [line.replace("# ", "# - ", 1) if i == 0 else line.replace("# ", "#   ", 1)
                          for i, line in enumerate(inner)]
             lines += inner
