@@ -300,10 +300,9 @@ def plant_of(setup):
     if key in _plants:
         _plants.move_to_end(key)
         return _plants[key]
-    try:
-        trim = pipeline.trim_of(setup)
-        linear = pipeline.linear_of(setup, trim)
-        plant = Plant(linear, pipeline.decoupled_of(setup, linear))
+    try:  # the upstream part of the one chain of stages; the designs follow batched (design_all)
+        stages = pipeline.Stages(setup)
+        plant = Plant(stages.linear, stages.decoupled)
     except TrimError as exc:
         plant = exc
     _plants[key] = plant
