@@ -7,6 +7,8 @@ the gain crossover, where the -180 deg line and the phase margin are read.
 
 from __future__ import annotations
 
+import io
+
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -18,6 +20,91 @@ _COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
 
 _HEIGHT = "pD"
 """Drawn as the height ``-pD`` (m, up positive): NED's down-positive altitude reads upside down."""
+
+
+DPI = 110
+"""The resolution (dots per inch) figures are drawn for: their time series keep every pixel column's
+extremes (:func:`pixel_envelope`) at this or any lower resolution. ``quadctl`` saves at it or below."""
+
+
+def pixel_envelope(x, y, columns: int, *, log: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The samples of a time series a line drawn ``columns`` pixels wide shows: per column of equal
+    width in ``x`` (in ``log10(x)`` with ``log``), its first, lowest, highest and last sample, in order.
+
+    A line through them covers, in every column, the same vertical extent as the line through
+    all samples and enters and leaves it at the same points: peaks and spikes one sample wide
+    survive, and the data limits (first and last ``x``, lowest and highest ``y``) stay the same.
+    A series of at most ``4 columns`` samples, with a non-finite value, or whose ``x`` is not
+    increasing (or, with ``log``, not positive) is returned whole.
+
+    Parameters
+    ----------
+    x : (n,) array_like
+        Increasing, such as time (s).
+    y : (n,) array_like
+    columns : int
+        Columns across ``x[0]..x[-1]``: at least the drawn width in pixels.
+    log : bool
+        Columns of equal width in ``log10(x)`` (a log-scaled axis).
+
+    Returns
+    -------
+    x, y : (k,) ndarray
+        The kept samples, ``k <= 4 columns``.
+
+    Examples
+    --------
+    >>> t = np.arange(1000.0)
+    >>> y = np.zeros(1000); y[123] = 5.0
+    >>> tk, yk = pixel_envelope(t, y, 10)
+    >>> len(tk), float(yk.max()), float(tk[yk.argmax()])
+    (30, 5.0, 123.0)
+    """
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    n = len(x)
+    if n <= 4 * columns or not (np.isfinite(x).all() and np.isfinite(y).all()):
+        return x, y
+    if log and x[0] <= 0:
+        return x, y
+    pos = np.log10(x) if log else x
+    span = pos[-1] - pos[0]
+    if not span > 0 or (np.diff(pos) < 0).any():
+        return x, y
+    column = np.minimum(((pos - pos[0]) * (columns / span)).astype(np.intp), columns - 1)
+    first = np.flatnonzero(np.r_[True, column[1:] != column[:-1]])
+    last = np.r_[first[1:], n] - 1
+    size = last - first + 1
+    keep = np.zeros(n, dtype=bool)
+    keep[first] = keep[last] = True
+    for extreme in (np.minimum, np.maximum):
+        hit = np.flatnonzero(y == np.repeat(extreme.reduceat(y, first), size))
+        keep[hit[np.r_[True, column[hit][1:] != column[hit][:-1]]]] = True  # the first hit of each column
+    return x[keep], y[keep]
+
+
+def _trace(ax, x, y, *args, log: bool = False, **kwargs):
+    """``ax.plot(x, y, ...)`` of a time series, thinned to the figure's pixel columns at :data:`DPI`
+    (:func:`pixel_envelope`)."""
+    columns = int(np.ceil(ax.get_figure(root=True).get_figwidth() * DPI))
+    return ax.plot(*pixel_envelope(x, y, columns, log=log), *args, **kwargs)
+
+
+def png_bytes(fig: Figure, dpi: float = DPI) -> bytes:
+    """``fig`` as PNG bytes at ``dpi``: the pixels ``fig.savefig(buf, format="png", dpi=dpi)`` writes,
+    drawn once.
+
+    ``savefig`` draws a figure with a layout engine twice (once to lay it out, once to render);
+    here one draw does both, then the RGBA buffer is encoded as ``savefig`` encodes it.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.image import imsave
+
+    fig.set_dpi(dpi)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    buf = io.BytesIO()
+    imsave(buf, canvas.buffer_rgba(), format="png", origin="upper", dpi=fig.dpi)
+    return buf.getvalue()
 
 
 def _display(name: str, values: np.ndarray) -> tuple[np.ndarray, str]:
@@ -74,8 +161,8 @@ def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
         i = STATE_INDEX[state]
         y, unit = _display(state, sim.x[:, i])
         ref, _ = _display(state, sim.x_ref[:, i])
-        ax.plot(sim.t, y, color=color, lw=1.6, label=_label(state))
-        ax.plot(sim.t, ref, color="0.35", lw=1.0, ls="--", label="reference")
+        _trace(ax, sim.t, y, color=color, lw=1.6, label=_label(state))
+        _trace(ax, sim.t, ref, color="0.35", lw=1.0, ls="--", label="reference")
         ax.set_ylabel(f"{_label(state)} [{unit}]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8, frameon=False)
@@ -131,8 +218,8 @@ def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figur
     later = sim.t > 0
     lo, hi = input_limits(actuators) if actuators is not None else (np.full(4, -np.inf), np.full(4, np.inf))
     for j, (row, name, color) in enumerate(zip(axes, INPUT_NAMES, _COLORS)):
-        for ax, t, u in ((row[0], sim.t, sim.u[:, j]), (row[1], sim.t[later], sim.u[later, j])):
-            ax.plot(t, u, color=color, lw=1.6, label=name)
+        for ax, t, u, log in ((row[0], sim.t, sim.u[:, j], False), (row[1], sim.t[later], sim.u[later, j], True)):
+            _trace(ax, t, u, color=color, lw=1.6, label=name, log=log)
             if u_trim is not None:
                 ax.axhline(u_trim[j], color="0.35", lw=1.0, ls="--", label="trim")
             _limit_lines(ax, (lo[j], hi[j]), "rotor limits" if rotors else "limit")
@@ -142,9 +229,9 @@ def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figur
         row[1].set_xscale("log")
     if rotors:
         thrust = actuators.commands(sim.u)
-        for ax, keep in ((axes[-1, 0], slice(None)), (axes[-1, 1], later)):
+        for ax, keep, log in ((axes[-1, 0], slice(None), False), (axes[-1, 1], later, True)):
             for i, (rotor, color) in enumerate(zip(actuators.names, _COLORS)):
-                ax.plot(sim.t[keep], thrust[keep, i], color=color, lw=1.2, label=rotor)
+                _trace(ax, sim.t[keep], thrust[keep, i], color=color, lw=1.2, label=rotor, log=log)
             _limit_lines(ax, (actuators.lo[0], actuators.hi[0]), "min / max thrust")
             ax.grid(True, alpha=0.3)
         axes[-1, 0].set_ylabel("rotor thrust [N]")
@@ -168,7 +255,7 @@ def wind_figure(sim, *, title: str = "") -> Figure:
     fig = Figure(figsize=(10.0, 3.5), layout="constrained")
     ax = fig.subplots()
     for i, (name, color) in enumerate(zip(("wind N", "wind E", "wind D"), _COLORS)):
-        ax.plot(sim.t, sim.wind[:, i], color=color, lw=1.2, label=name)
+        _trace(ax, sim.t, sim.wind[:, i], color=color, lw=1.2, label=name)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("wind [m/s], NED")
     ax.grid(True, alpha=0.3)
@@ -201,8 +288,8 @@ def path_figure(sim, waypoints=(), *, title: str = "") -> Figure:
     plane.set_ylabel("north [m]")
     plane.grid(True, alpha=0.3)
     plane.legend(loc="best", fontsize=8, frameon=False)
-    alt.plot(sim.t, -sim.x_ref[:, d], color="0.35", lw=1.0, ls="--", label="reference")
-    alt.plot(sim.t, -sim.x[:, d], color=_COLORS[0], lw=1.6, label="flown")
+    _trace(alt, sim.t, -sim.x_ref[:, d], color="0.35", lw=1.0, ls="--", label="reference")
+    _trace(alt, sim.t, -sim.x[:, d], color=_COLORS[0], lw=1.6, label="flown")
     alt.ticklabel_format(axis="y", useOffset=False)
     low, high = alt.get_ylim()
     middle = (low + high) / 2
@@ -222,8 +309,8 @@ def tracking_error_figure(sim, *, title: str = "") -> Figure:
     ax = fig.subplots()
     err = sim.x[:, :3] - sim.x_ref[:, :3]
     for i, (name, color) in enumerate(zip(("pN", "pE", "pD"), _COLORS)):
-        ax.plot(sim.t, err[:, i], color=color, lw=1.2, label=f"{name} - reference")
-    ax.plot(sim.t, np.linalg.norm(err, axis=1), color="k", lw=1.0, ls=":", label="|p - p_ref|")
+        _trace(ax, sim.t, err[:, i], color=color, lw=1.2, label=f"{name} - reference")
+    _trace(ax, sim.t, np.linalg.norm(err, axis=1), color="k", lw=1.0, ls=":", label="|p - p_ref|")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("position error [m]")
     ax.grid(True, alpha=0.3)

@@ -108,3 +108,102 @@ def test_the_input_plot_draws_box_limits_and_none_without_limits():
     assert _limit_values(left[INPUT_INDEX["E"]]) == []  # unlimited: no line
     assert len(left) == N_INPUTS
     assert all(_limit_values(ax) == [] for ax in plots.inputs_figure(_sim()).axes)
+
+
+def _columns_of(x, columns, log=False):
+    """Column of each sample, computed on its own: equal widths across x[0]..x[-1] (in log10 x with log)."""
+    pos = np.log10(x) if log else np.asarray(x)
+    edges = np.linspace(pos[0], pos[-1], columns + 1)
+    return np.clip(np.searchsorted(edges, pos, side="right") - 1, 0, columns - 1)
+
+
+@pytest.mark.parametrize("log", [False, True])
+def test_the_pixel_envelope_keeps_every_columns_lowest_and_highest_sample(log):
+    rng = np.random.default_rng(7)
+    n, columns = 20_000, 300
+    t = np.logspace(-5, 1, n) if log else np.linspace(0.0, 10.0, n)
+    y = np.cumsum(rng.normal(size=n)) + np.where(rng.random(n) < 0.002, 50.0 * rng.normal(size=n), 0.0)  # spikes
+    y[5000:5400] = 1.0  # a flat stretch: ties
+    tk, yk = plots.pixel_envelope(t, y, columns, log=log)
+    assert len(tk) <= 4 * columns and len(tk) < n
+    kept = np.flatnonzero(np.isin(t, tk))
+    assert len(kept) == len(tk)
+    np.testing.assert_array_equal(t[kept], tk)  # samples of the series, in order
+    np.testing.assert_array_equal(y[kept], yk)
+    col, col_kept = _columns_of(t, columns, log), _columns_of(tk, columns, log)
+    for c in np.unique(col):
+        mine, theirs = y[col == c], yk[col_kept == c]
+        assert theirs.min() == mine.min() and theirs.max() == mine.max(), c
+        assert theirs[0] == mine[0] and theirs[-1] == mine[-1], c  # enters and leaves the column where the series does
+    assert (tk[0], tk[-1], yk.min(), yk.max()) == (t[0], t[-1], y.min(), y.max())
+
+
+def test_the_pixel_envelope_leaves_short_or_non_finite_series_whole():
+    t = np.linspace(0.0, 1.0, 1000)
+    y = np.sin(t)
+    for series in (y[:400], np.where(t > 0.5, np.nan, y)):
+        tk, yk = plots.pixel_envelope(t[: len(series)], series, 100)
+        assert len(tk) == len(series)
+        np.testing.assert_array_equal(yk, series)
+
+
+def _content(fig):
+    """What a reader sees of a figure, drawn: per axes its lines (label, style, color, data range), labels,
+    scales, limits and legend (texts and place)."""
+    plots.png_bytes(fig, plots.DPI)
+    out = []
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        lines = [(ln.get_label(), ln.get_linestyle(), ln.get_color(), ln.get_linewidth(),
+                  *np.round([np.nanmin(ln.get_xdata()), np.nanmax(ln.get_xdata()),
+                             np.nanmin(ln.get_ydata()), np.nanmax(ln.get_ydata())], 12)) for ln in ax.get_lines()]
+        out.append((lines, ax.get_xlabel(), ax.get_ylabel(), ax.get_xscale(), ax.get_xlim(), ax.get_ylim(),
+                    [tick.get_text() for tick in ax.get_yticklabels()],
+                    None if legend is None else ([t.get_text() for t in legend.get_texts()],
+                                                 tuple(np.round(legend.get_window_extent().bounds, 6)))))
+    return [fig.get_suptitle(), *out]
+
+
+def _noisy_flight(n=20_000):
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 10.0, n)
+    x = np.cumsum(rng.normal(scale=0.01, size=(n, N_STATES)), axis=0)
+    x[n // 3, :] += 0.5  # a one-sample spike in every state
+    return SimpleNamespace(t=t, x=x, x_ref=0.2 * x, u=0.6 + np.cumsum(rng.normal(scale=1e-3, size=(n, 4)), axis=0),
+                           wind=np.cumsum(rng.normal(scale=0.02, size=(n, 3)), axis=0), u_ref=np.zeros((n, 4)),
+                           status="ok")
+
+
+@pytest.fixture(scope="module")
+def forward_flight(tmp_path_factory):
+    from quadctl import config
+    from quadctl.workspace import Workspace
+
+    with Workspace(config.load("forward"), tmp_path_factory.mktemp("forward")) as ws:
+        return ws.simulation.sim, ws.setup, ws.linear.u_trim
+
+
+@pytest.mark.parametrize("case", ["forward", "noisy"])
+def test_the_figures_of_thinned_lines_show_what_those_of_every_sample_show(case, forward_flight, monkeypatch):
+    """Every figure drawn from pixel envelopes has the lines, labels, limits, ticks and legends (texts and
+    place) of the same figure drawn from every sample."""
+    if case == "forward":
+        sim, setup, u_trim = forward_flight
+        partition, actuators = setup.partition, setup.actuators
+        assert len(sim.t) > 4 * 1100  # long enough to be thinned
+    else:
+        sim, u_trim = _noisy_flight(), [0.6, 0.0, 0.0, 0.0]
+        partition = {"altitude": SimpleNamespace(states=["pD", "w"])}
+        actuators = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))
+    thinned = plots.simulation_figures(sim, partition, u_trim, actuators=actuators)
+    assert sum(len(ln.get_xdata()) for f in thinned.values() for ax in f.axes for ln in ax.get_lines()) < \
+        0.5 * sum(len(sim.t) for f in thinned.values() for ax in f.axes for ln in ax.get_lines())
+    monkeypatch.setattr(plots, "pixel_envelope", lambda x, y, columns, log=False: (np.asarray(x), np.asarray(y)))
+    whole = plots.simulation_figures(sim, partition, u_trim, actuators=actuators)
+    assert thinned.keys() == whole.keys()
+    for name in whole:
+        assert _content(thinned[name]) == _content(whole[name]), name
+        for ax, ax_whole in zip(thinned[name].axes, whole[name].axes):
+            width = ax.get_window_extent().width  # pixels at DPI: at least a column each
+            for line, line_whole in zip(ax.get_lines(), ax_whole.get_lines()):
+                assert len(line.get_xdata()) >= min(len(line_whole.get_xdata()), width), name

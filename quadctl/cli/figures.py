@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 
@@ -13,7 +12,5 @@ def save_figures(ws, sim) -> list[Path]:
     paths = []
     for name, fig in plots.simulation_figures(sim, ws.setup.partition, ws.linear.u_trim,
                                               title=ws.setup.name, actuators=ws.setup.actuators).items():
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=110)
-        paths.append(artifacts.write_bytes(artifacts.plot_path(ws.out, name), buf.getvalue()))
+        paths.append(artifacts.write_bytes(artifacts.plot_path(ws.out, name), plots.png_bytes(fig, plots.DPI)))
     return paths

@@ -6,8 +6,6 @@ a value read in the report is the one the stage command prints, from the same co
 
 from __future__ import annotations
 
-import io
-
 from quadctl.present import cells, loops, stages
 from quadctl.present import design as shown_design
 from quadctl.present import flight as shown_flight
@@ -25,9 +23,9 @@ def _text(sentence) -> Text:
 
 
 def _png(fig, dpi: int) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()
+    from quadctl.plots import png_bytes
+
+    return png_bytes(fig, dpi)
 
 
 # -- sections ---------------------------------------------------------------------------------

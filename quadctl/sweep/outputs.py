@@ -102,9 +102,7 @@ def montecarlo_png(bands: MonteCarloBands, cfg, varied=()) -> bytes:
     groups = {name: [s for s in sub.states if s in bands.states]
               for name, sub in cfg.partition().items() if sub.regulate}
     fig = plots.montecarlo_figure(bands, groups, title=cfg.name, varied=tuple(varied))
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    return buf.getvalue()
+    return plots.png_bytes(fig, plots.DPI)
 
 
 def to_csv(result: SweepResult) -> str:
@@ -186,6 +184,4 @@ def tradeoff_png(result: SweepResult, cfg) -> bytes:
 
     x, y = tradeoff_axes(result)
     fig = plots.sweep_tradeoff_figure(result.rows, x, y, result.gates, title=cfg.name)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    return buf.getvalue()
+    return plots.png_bytes(fig, plots.DPI)

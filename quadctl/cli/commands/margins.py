@@ -49,15 +49,11 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
 
 
 def _save_figures(ws, margins):
-    import io
-
     from quadctl import artifacts, plots
 
     paths = []
     for m in margins:
         fig = plots.margins_figure(m, title=ws.setup.name)
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=90)
         paths.append(artifacts.write_bytes(artifacts.plot_path(ws.out, f"margins-{m.loop}-{m.model}"),
-                                           buf.getvalue()))
+                                           plots.png_bytes(fig, 90)))
     return paths
