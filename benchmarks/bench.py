@@ -26,6 +26,9 @@
 5. Discrete designs of 1000 3-state subsystems (the report's roll and pitch loops at 200 Hz, random
    weights): the batched lqrd (lqrd_weights_batch, dare_batch) against a Python loop over
    scipy.linalg.solve_discrete_are.
+6. Figures: `quadctl run --plot` on the forward config, a fresh process end to end, with the run
+   folder's stage artifacts there (they are reused) and --fresh; the same without --plot; the six
+   figures drawn in the library; the sweep's trade-off figure of the 1000 random designs.
 
 Not a test: it asserts nothing, it prints what it measured and the machine's load while it ran
 (other processes on a 2-core machine change every number here). Each quadctl timing is the best of
@@ -521,9 +524,49 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
                  ["solver", "µs CPU per design", "time / batched"], rows)
 
 
-SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "designs", "lqr", "discrete")
+SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "designs", "lqr", "discrete", "figures")
 """What ``--only`` may name: the numbered sections of the module docstring (the designs are the
 plain sweep's)."""
+
+
+# ---------------------------------------------------------------------------------------
+# 6. Figures
+
+
+def figures(cli_python: str) -> str:
+    """`quadctl run --plot` end to end against `quadctl run`, the figures in the library, the sweep's figure."""
+    from quadctl import config, plots, sweep
+    from quadctl.sweep.outputs import tradeoff_png
+    from quadctl.workspace import Workspace
+
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        run = [cli_python, "-m", "quadctl", "run", "-c", "forward", "-o", str(Path(tmp) / "run")]
+        subprocess.run([*run, "--plot"], check=True, capture_output=True)  # the stages' artifacts, warm caches
+        for name, cmd, repeat in (("quadctl run --plot, CLI end to end (stage artifacts reused)", [*run, "--plot"],
+                                   REPEAT),
+                                  ("quadctl run, CLI end to end (stage artifacts reused)", run, REPEAT),  # no figure
+                                  ("quadctl run --plot --fresh, CLI end to end", [*run, "--plot", "--fresh"], 3),
+                                  ("quadctl run --fresh, CLI end to end", [*run, "--fresh"], 3)):
+            wall, _ = timed(lambda c=cmd: subprocess.run(c, check=True, capture_output=True), repeat=repeat)
+            rows.append([name, f"{wall:.3f}", f"best of {repeat}"])
+        with Workspace(config.load("forward"), Path(tmp) / "run") as ws:
+            sim, setup, u_trim = ws.simulation.sim, ws.setup, ws.linear.u_trim
+
+        def draw():
+            return [plots.png_bytes(fig) for fig in plots.simulation_figures(
+                sim, setup.partition, u_trim, title=setup.name, actuators=setup.actuators).values()]
+
+        wall, pngs = timed(draw, repeat=REPEAT)
+        rows.append([f"the {len(pngs)} figures of that run, drawn to PNG, library",
+                     f"{wall:.3f}", f"best of {REPEAT}"])
+    cfg = config.load("forward")
+    result = sweep.run(cfg, sweep.load(SWEEP_FILE, cfg), jobs=2)
+    wall, _ = timed(lambda: tradeoff_png(result, cfg), repeat=REPEAT)
+    rows.append([f"the sweep's figure (sweep.png), {len(result.rows)} cases, library", f"{wall:.3f}",
+                 f"best of {REPEAT}"])
+    return table(f"Figures: the forward config ({len(sim.t):,} samples a time series)",
+                 ["run", "wall (s)", "runs"], rows)
 
 
 def config_from(data):
@@ -568,6 +611,8 @@ def main() -> None:
         print(lqr_sizes())
     if "discrete" in only:
         print(discrete_designs())
+    if "figures" in only:
+        print(figures(args.cli_python))
     end = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {end:.2f} at the end (2 cores: above ~0.3, other work shared the machine)")
 

@@ -8,6 +8,8 @@ the gain crossover, where the -180 deg line and the phase margin are read.
 from __future__ import annotations
 
 import io
+from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -324,15 +326,22 @@ def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "",
     """A figure per subsystem (in partition order), one of the inputs (with ``actuators``' limits,
     :func:`inputs_figure`), in wind one of the wind and, flying a reference, the path and the
     tracking error, keyed by file stem."""
-    figs = {name: subsystem_figure(sim, name, sub.states, title=title)
-            for name, sub in partition.items()}
-    figs["inputs"] = inputs_figure(sim, u_trim, title=title, actuators=actuators)
+    return {name: make() for name, make in simulation_figure_makers(sim, partition, u_trim, title=title,
+                                                                     actuators=actuators).items()}
+
+
+def simulation_figure_makers(sim, partition: dict, u_trim=None, *, title: str = "",
+                             actuators=None) -> dict[str, Callable[[], Figure]]:
+    """The figures of :func:`simulation_figures`, each not yet made: file stem -> a function that
+    makes it (so that a caller can make, draw and drop one at a time, or share them out)."""
+    makers = {name: partial(subsystem_figure, sim, name, sub.states, title=title) for name, sub in partition.items()}
+    makers["inputs"] = partial(inputs_figure, sim, u_trim, title=title, actuators=actuators)
     if len(getattr(sim, "wind", ())):
-        figs["wind"] = wind_figure(sim, title=title)
+        makers["wind"] = partial(wind_figure, sim, title=title)
     if len(getattr(sim, "u_ref", ())):
-        figs["path"] = path_figure(sim, title=title)
-        figs["tracking"] = tracking_error_figure(sim, title=title)
-    return figs
+        makers["path"] = partial(path_figure, sim, title=title)
+        makers["tracking"] = partial(tracking_error_figure, sim, title=title)
+    return makers
 
 
 def margins_figure(m, *, title: str = "") -> Figure:

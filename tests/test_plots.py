@@ -6,6 +6,7 @@ full differential thrust)."""
 from __future__ import annotations
 
 import math
+import os
 from types import SimpleNamespace
 
 import numpy as np
@@ -207,3 +208,40 @@ def test_the_figures_of_thinned_lines_show_what_those_of_every_sample_show(case,
             width = ax.get_window_extent().width  # pixels at DPI: at least a column each
             for line, line_whole in zip(ax.get_lines(), ax_whole.get_lines()):
                 assert len(line.get_xdata()) >= min(len(line_whole.get_xdata()), width), name
+
+
+def _figure_files(folder):
+    return {p.name: p.read_bytes() for p in sorted((folder / "plots").glob("*.png"))}
+
+
+def test_the_cli_draws_the_same_figures_on_two_cores_and_redraws_what_a_failed_child_did_not(tmp_path, monkeypatch):
+    """`run --plot` shares the figures out to a child process: the same files as drawn in one process,
+    and all of them (drawn by the parent) when the child fails."""
+    from quadctl.cli import figures
+
+    if not hasattr(os, "fork"):
+        pytest.skip("no os.fork here: figures are drawn in one process")
+    sim = SimpleNamespace(**{**vars(_noisy_flight(3000)), "wind": (), "u_ref": ()})
+    setup = SimpleNamespace(partition={"altitude": SimpleNamespace(states=["pD", "w"]),
+                                       "roll": SimpleNamespace(states=["phi", "p"])},
+                            actuators=None, name="noisy")
+
+    def saved(name, can_fork):
+        monkeypatch.setattr(figures, "_can_fork", lambda: can_fork)
+        ws = SimpleNamespace(setup=setup, linear=SimpleNamespace(u_trim=[0.6, 0.0, 0.0, 0.0]), out=tmp_path / name)
+        paths = figures.save_figures(ws, sim)
+        assert [p.name for p in paths] == ["altitude.png", "roll.png", "inputs.png"]
+        return _figure_files(tmp_path / name)
+
+    one = saved("one", False)
+    assert figures._share(plots.simulation_figure_makers(sim, setup.partition), SimpleNamespace(setup=setup))
+    assert saved("two", True) == one
+    parent, png = os.getpid(), plots.png_bytes
+
+    def fails_in_the_child(fig, dpi=plots.DPI):
+        if os.getpid() != parent:
+            raise RuntimeError("the child fails")
+        return png(fig, dpi)
+
+    monkeypatch.setattr(plots, "png_bytes", fails_in_the_child)
+    assert saved("failed", True) == one

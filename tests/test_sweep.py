@@ -512,12 +512,17 @@ def test_cli_gate_failure_exits_1_and_lists_the_worst(tmp_path):
     assert "case 0: peak.T <= 3 (got" in res.output
 
 
-def test_cli_json_output_is_parseable(tmp_path):
+def test_cli_json_output_is_parseable_and_no_plot_draws_no_figure(tmp_path):
     sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [50]}, "set": SHORT})
-    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out"), "-j", "1", "--json"])
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "sweep.png").write_bytes(b"an earlier run's figure")
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(out), "-j", "1", "--json", "--no-plot"])
     assert res.exit_code == 0
     payload = json.loads(res.stdout)
     assert payload["cases"] == 1 and payload["performance"]["simulated_steps"] > 0
+    assert "plot" not in payload["files"] and not (out / "sweep.png").exists()  # not mistaken for this run's
+    assert (out / "sweep.csv").exists() and json.loads((out / "sweep.json").read_text())["cases"] == 1
 
 
 @pytest.mark.parametrize("data,code,message", [

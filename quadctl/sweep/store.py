@@ -44,12 +44,16 @@ class SweepStore:
         The run directory.
     cfg : Config
     spec : SweepSpec
+    plot : bool
+        Draw the figures (``sweep.png``, ``montecarlo.png``); without, an earlier run's in this
+        folder go, so none is mistaken for this one's.
     """
 
-    def __init__(self, out: Path | str, cfg, spec: SweepSpec):
+    def __init__(self, out: Path | str, cfg, spec: SweepSpec, *, plot: bool = True):
         self.out = Path(out)
         self.cfg = cfg
         self.spec = spec
+        self.plot = plot
         self.parts = self.out / PARTS
         self.digest = spec.digest(cfg)
         self.trace = tuple(regulated_states(cfg)) if spec.monte_carlo else ()
@@ -121,7 +125,7 @@ class SweepStore:
 
         csv_path = artifacts.write_bytes(self.out / "sweep.csv", to_csv(result).encode())
         summary = summarize(result, self.cfg, self.spec)
-        summary["files"] = {"table": csv_path.name, "plot": "sweep.png", "chunks": PARTS}
+        summary["files"] = {"table": csv_path.name, **({"plot": "sweep.png"} if self.plot else {}), "chunks": PARTS}
         bands = self.finish_montecarlo(result)
         if self.trace:
             summary["montecarlo"] = {
@@ -129,12 +133,15 @@ class SweepStore:
                 "percentiles": list(MC_PERCENTILES), "states": list(self.trace), "parameters": list(self.spec.names),
                 "left_out": [r["case"] for r in result.rows] if bands is None else list(bands.left_out)}
         if bands is not None:
-            summary["files"]["montecarlo"] = list(MC_FILES)
+            summary["files"]["montecarlo"] = [name for name in MC_FILES if self.plot or not name.endswith(".png")]
         backends = result.stats.get("backend", ())
         payload = artifacts.jsonable({**artifacts.metadata(self.cfg, "sweep", backends), **summary,
                                       "sweep_digest": self.digest})
         artifacts.write_json(self.out / "sweep.json", payload)
-        artifacts.write_bytes(self.out / "sweep.png", tradeoff_png(result, self.cfg))
+        if self.plot:
+            artifacts.write_bytes(self.out / "sweep.png", tradeoff_png(result, self.cfg))
+        else:
+            artifacts.remove(self.out / "sweep.png")
         return payload
 
     def finish_montecarlo(self, result: SweepResult) -> MonteCarloBands | None:
@@ -160,7 +167,10 @@ class SweepStore:
                              "bands": bands.bands, "states": np.array(bands.states),
                              "units": np.array([unit_of(s) for s in bands.states]), "cases": bands.cases,
                              "traces": bands.traces, "parameters": np.array(self.spec.names)}, meta)
-        artifacts.write_bytes(self.out / "montecarlo.png", montecarlo_png(bands, self.cfg, self.spec.names))
+        if self.plot:
+            artifacts.write_bytes(self.out / "montecarlo.png", montecarlo_png(bands, self.cfg, self.spec.names))
+        else:
+            artifacts.remove(self.out / "montecarlo.png")
         return bands
 
 
@@ -178,7 +188,7 @@ class SweepOutcome:
 
 def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, jobs: int | None = None,
             scheduler: str | None = None, resume: bool = False,
-            progress: Callable[[int, int], None] | None = None) -> SweepOutcome:
+            progress: Callable[[int, int], None] | None = None, plot: bool = True) -> SweepOutcome:
     """Run a sweep into a run directory: journal each chunk, resume, write the outputs.
 
     Parameters
@@ -192,6 +202,9 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
         As :func:`run`.
     resume : bool
         Keep the rows of an earlier, interrupted run of this same sweep and compute only the rest.
+    plot : bool
+        Draw ``sweep.png`` (and a Monte Carlo's ``montecarlo.png``); False: no figure (an earlier
+        run's in ``out`` goes).
 
     Returns
     -------
@@ -204,13 +217,13 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     """
     from quadctl import artifacts
 
-    store = SweepStore(out, cfg, spec)
+    store = SweepStore(out, cfg, spec, plot=plot)
     with artifacts.locked(store.out):  # one run writes a folder at a time
         done = store.start(resume)
         result = run(cfg, spec, label=label, jobs=jobs, scheduler=scheduler, done=done,
                      on_chunk=store.save_chunk, progress=progress)
         summary = store.finish(result)
-    files = [store.out / "sweep.csv", store.out / "sweep.json", store.out / "sweep.png"]
+    files = [store.out / "sweep.csv", store.out / "sweep.json"] + ([store.out / "sweep.png"] if plot else [])
     files += [store.out / name for name in summary["files"].get("montecarlo", [])]
     return SweepOutcome(result=result, summary=summary, out=store.out, reused=len(done), files=files)
 

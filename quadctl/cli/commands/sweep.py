@@ -20,6 +20,8 @@ def command(
     resume: Annotated[bool, typer.Option(
         "--resume", help="Keep the rows an interrupted run of this sweep finished; compute the rest.")] = False,
     json: JsonOpt = False,
+    no_plot: Annotated[bool, typer.Option(
+        "--no-plot", help="Write no figure (sweep.png, montecarlo.png): the tables and sweep.json only.")] = False,
 ) -> None:
     """Design, simulate and score many variants of a config; write sweep.csv, sweep.json, sweep.png.
 
@@ -47,7 +49,8 @@ def command(
     spec = sweep_mod.load(sweep, cfg)
     with render_sweep.sweep_progress(spec.count(), quiet=json) as progress:
         outcome = sweep_mod.execute(cfg, spec, out or default_out(cfg), label=label, jobs=jobs,
-                                    scheduler=scheduler, resume=resume, progress=progress)
+                                    scheduler=scheduler, resume=resume, progress=progress,
+                                    plot=not no_plot)
     result, summary = outcome.result, outcome.summary
     if scheduler and "casadi" in result.stats["backend"]:  # locally, the engine's own notice said so
         from quadctl.sim.engine import VM_COST
