@@ -96,16 +96,22 @@ def png_bytes(fig: Figure, dpi: float = DPI) -> bytes:
     drawn once.
 
     ``savefig`` draws a figure with a layout engine twice (once to lay it out, once to render);
-    here one draw does both, then the RGBA buffer is encoded as ``savefig`` encodes it.
+    here one draw does both, then the RGBA buffer is encoded as ``savefig`` encodes it. As with
+    ``savefig``, the figure keeps its own resolution and canvas afterwards.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.image import imsave
 
-    fig.set_dpi(dpi)
-    canvas = FigureCanvasAgg(fig)
-    canvas.draw()
-    buf = io.BytesIO()
-    imsave(buf, canvas.buffer_rgba(), format="png", origin="upper", dpi=fig.dpi)
+    canvas, resolution = fig.canvas, fig.dpi
+    try:
+        fig.set_dpi(dpi)
+        drawn = FigureCanvasAgg(fig)
+        drawn.draw()
+        buf = io.BytesIO()
+        imsave(buf, drawn.buffer_rgba(), format="png", origin="upper", dpi=dpi)
+    finally:
+        fig.set_dpi(resolution)
+        fig.set_canvas(canvas)
     return buf.getvalue()
 
 
