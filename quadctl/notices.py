@@ -63,6 +63,11 @@ INERTIA_SLIPS = (("g m^2", 1e-3), ("kg cm^2", 1e-4), ("kg mm^2", 1e-6), ("g cm^2
 """Units an inertia is often written in, and their value in kg m^2."""
 ARM_SLIPS = (("mm", 1e-3), ("cm", 1e-2))
 """Units an arm length is often written in, and their value in m."""
+CONTROLLER_RATES = (20.0, 1e5)
+"""Hz: plausible ``controller.rate`` of a loop that stabilizes attitude. Flight computers close it
+at 100 Hz to 8 kHz (the report's Mambo at 200 Hz, the Crazyflie firmware at 500 Hz, Betaflight's
+gyro loop up to 8 kHz); below 20 Hz it is most likely kHz given as Hz (0.2 for 200 Hz). The upper
+end is the schema's own bound."""
 GRAM = 1e-3
 GRAM_FORCE = 9.80665e-3
 """N."""
@@ -84,7 +89,8 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
         the report's Mambo values, then a ``warning`` for each implausible quantity, naming the
         likely unit slip: the radius of gyration ``sqrt(J/m)`` against the arm length (or, with no
         motors, against the mass), the thrust-to-weight ratio, and Jzz below Jxx or Jyy; a ``note``
-        when a steady wind is simulated but the trim is in still air (``trim.wind: false``). An
+        when a steady wind is simulated but the trim is in still air (``trim.wind: false``); a
+        ``warning`` for a controller rate below any attitude loop's (kHz given as Hz). An
         impossible inertia is refused on load instead (see ``quadctl.config._check_inertia``).
 
     Examples
@@ -103,6 +109,7 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
         found.append(Notice("warning", "vehicle.inertia", (
             f"{label}: vehicle.inertia = {show(cfg.vehicle.inertia)}: Jzz is below Jxx or Jyy, but a flat "
             f"quadcopter has Jzz about Jxx + Jyy = {jxx + jyy:.3g} kg m^2; is the order [Jxx, Jyy, Jzz]?")))
+    found += _controller_rate(cfg, label)
     wind = cfg.simulation.wind
     if wind is not None and any(wind.steady) and not cfg.trim.wind:
         found.append(Notice("note", "trim.wind", (
@@ -195,6 +202,18 @@ def _gyration(cfg: Config, label: str) -> list[Notice]:
     return [Notice("warning", key, (
         f"{label}: {given[0]} with {given[1]} gives a radius of gyration sqrt({axis}/m) = {radius:.3g} m, but "
         f"{against}; {guess}"))]
+
+
+def _controller_rate(cfg: Config, label: str) -> list[Notice]:
+    """A controller rate too slow for an attitude loop: kHz given as Hz, most likely."""
+    rate = cfg.controller.rate
+    if rate is None or rate >= CONTROLLER_RATES[0]:
+        return []
+    guess = (f"is controller.rate in kHz? {rate:g} kHz is {rate * 1e3:g} Hz" if _within(rate * 1e3, (100.0, 8e3))
+             else "check controller.rate (Hz)")
+    return [Notice("warning", "controller.rate", (
+        f"{label}: controller.rate = {rate:g} Hz is below the {CONTROLLER_RATES[0]:g} Hz of the slowest attitude "
+        f"loop a flight computer closes (100 Hz to 8 kHz: CONTROLLER_RATES); {guess}"))]
 
 
 def _within(value: float, band: tuple[float, float]) -> bool:

@@ -33,6 +33,10 @@ SLIPS = {
     "inertia in kg mm^2": ("inertia: [0.029125, 0.029125, 0.055225]", "inertia: [29125, 29125, 55225]",
                            "vehicle.inertia", r"^c\.yaml: vehicle\.inertia = \[29125, 29125, 55225\] kg m\^2 .*; is "
                            r"it in kg mm\^2\? that is \[0\.029125, 0\.029125, 0\.055225\] kg m\^2$"),
+    "controller rate in kHz": ("rate: null", "rate: 0.25", "controller.rate",
+                               r"^c\.yaml: controller\.rate = 0\.25 Hz is below the 20 Hz of the slowest attitude loop "
+                               r"a flight computer closes \(100 Hz to 8 kHz: CONTROLLER_RATES\); "
+                               r"is controller\.rate in kHz\? 0\.25 kHz is 250 Hz$"),
 }
 
 
@@ -55,7 +59,8 @@ def test_the_original_vehicle_earns_no_warning():
     assert notices.notices(config.parse(IRIS, "c.yaml"), "c.yaml") == []
 
 
-@pytest.mark.parametrize("name", ["arm in mm", "thrust in grams-force", "mass in grams", "inertia in kg mm^2"])
+@pytest.mark.parametrize("name", ["arm in mm", "thrust in grams-force", "mass in grams", "inertia in kg mm^2",
+                                  "controller rate in kHz"])
 def test_a_slip_is_a_failed_check_unless_the_config_accepts_it(tmp_path, name):
     key = SLIPS[name][2]
     path = tmp_path / "c.yaml"
