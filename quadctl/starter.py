@@ -57,6 +57,13 @@ class Preset:
     rate_note: str
 
 
+def _bundled(name: str, section: str, notes: dict[str, str]) -> dict[str, tuple[Any, str]]:
+    """The values of ``section`` keys of bundled config ``name`` (one home for a vehicle's published
+    numbers: the bundled config), each with its source note."""
+    given = getattr(config_mod.load(name), section)
+    return {key: (getattr(given, key), note) for key, note in notes.items()}
+
+
 PRESETS: dict[str, Preset] = {
     "crazyflie": Preset(
         title="Bitcraze Crazyflie 2.x (27 g, brushed rotors)",
@@ -68,20 +75,21 @@ PRESETS: dict[str, Preset] = {
             "src/modules/interface/stabilizer_types.h (ATTITUDE_RATE)",
             "[R] spencerfolk/rotorpy: rotorpy/vehicles/crazyflie_params.py (rotor drag k_d, \"See [F]\")",
         ),
-        vehicle={
-            "mass": (0.027, "[F]"),
-            "inertia": ([16.571710e-6, 16.655602e-6, 29.261652e-6], "[F]; [F]'s products of inertia (0.83e-6, "
-                        "0.72e-6, 1.80e-6) can be given as the full 3x3 tensor"),
-            "drag": ([0.023473, 0.023473, 0.017297], "[F]'s K_aero = diag(10.2506, 10.2506, 7.5533)e-7 kg/rad [R] "
-                     "times the hover rotor speeds' sum 6065 rad/s, over m g"),
-        },
+        vehicle=_bundled("crazyflie", "vehicle", {
+            "mass": "[F]",
+            "inertia": "[F]; [F]'s products of inertia (0.83e-6, 0.72e-6, 1.80e-6) can be given as the full 3x3 tensor",
+            "drag": "[F]'s K_aero = diag(10.2506, 10.2506, 7.5533)e-7 kg/rad [R] times the hover rotor speeds' sum "
+                    "6065 rad/s, over m g",
+        }),
         motors={
-            "layout": ("x", "[FW]"),
-            "arm_length": (0.046, "[FW] ARM_LENGTH"),
-            "thrust_coefficient": (2.8799e-8, "[F]'s C_T = 3.1582e-10 N/rpm^2 times (30/pi)^2"),
-            "torque_coefficient": (0.005964552, "[F], [FW] thrustToTorque"),
-            "min_thrust": (0.0, ""),
-            "max_thrust": (0.159166, "[FW] pwmToThrustA + pwmToThrustB at full PWM"),
+            **_bundled("crazyflie", "motors", {
+                "layout": "[FW]",
+                "arm_length": "[FW] ARM_LENGTH",
+                "thrust_coefficient": "[F]'s C_T = 3.1582e-10 N/rpm^2 times (30/pi)^2",
+                "torque_coefficient": "[F], [FW] thrustToTorque",
+                "min_thrust": "",
+                "max_thrust": "[FW] pwmToThrustA + pwmToThrustB at full PWM",
+            }),
             "numbering": ("crazyflie", "[FW] M1 front right ... M4 front left"),
         },
         rate=500.0, rate_note="[FW] ATTITUDE_RATE",
@@ -93,18 +101,16 @@ PRESETS: dict[str, Preset] = {
             "[MW] MathWorks Aerospace Blockset asbQuadcopter model and Parrot's RollingSpiderEdu: rotor geometry, "
             "coefficients and the 5 ms controller sample time",
         ),
-        vehicle={
-            "mass": (0.068, "[Rep]"),
-            "inertia": ([0.69e-4, 0.775e-4, 1.5e-4], "[Rep]"),
-            "drag": ([0.22, 0.22, 0.0], "[Rep] Kc"),
-        },
+        vehicle=_bundled("mambo-200hz", "vehicle", {"mass": "[Rep]", "inertia": "[Rep]", "drag": "[Rep] Kc"}),
         motors={
-            "layout": ("x", "[MW]"),
-            "arm_length": (0.0624, "[MW] 0.0441 m per axis"),
-            "thrust_coefficient": (4.72e-8, "[MW]"),
-            "torque_coefficient": (0.00241, "[MW]"),
-            "min_thrust": (0.0, ""),
-            "max_thrust": (0.33, "[MW] about 0.33 N per rotor"),
+            **_bundled("mambo-200hz", "motors", {
+                "layout": "[MW]",
+                "arm_length": "[MW] 0.0441 m per axis",
+                "thrust_coefficient": "[MW]",
+                "torque_coefficient": "[MW]",
+                "min_thrust": "",
+                "max_thrust": "[MW] about 0.33 N per rotor",
+            }),
             "numbering": ("quadctl", ""),
         },
         rate=200.0, rate_note="[MW] 5 ms sample time",
