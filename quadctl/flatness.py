@@ -24,7 +24,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.errors import TrimError
-from quadctl.layout import N_INPUTS, N_STATES
+from quadctl.layout import GRAVITY, MASS, N_INPUTS, N_STATES
 from quadctl.model import N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
 from quadctl.trajectory import FlatPath
 
@@ -103,7 +103,7 @@ def feedforward(path: FlatPath, params) -> tuple[np.ndarray, np.ndarray]:
     sd = np.vstack([P[2].T, path.yaw[1][None], P[3].T])
     sdd = np.vstack([P[3].T, path.yaw[2][None], P[4].T])
     params = np.asarray(params, dtype=float)
-    z = np.tile(np.array([[0.0], [0.0], [params[0] * params[1]]]), (1, n))
+    z = np.tile(np.array([[0.0], [0.0], [params[MASS] * params[GRAVITY]]]), (1, n))  # start at hover thrust
     bal = balance.map(n)
     for _ in range(MAX_ITER):
         G, J = (np.asarray(m, dtype=float) for m in bal(z, s, params))
