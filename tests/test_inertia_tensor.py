@@ -6,6 +6,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
+from _finite_differences import assert_jacobians_match_central_differences
 
 from quadctl import layout
 from quadctl.config import bundled, parse
@@ -13,10 +14,6 @@ from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
 from quadctl.model import Vehicle, build_model, evaluate
 from quadctl.problem import setup_of
-
-FD_STEP = 1e-6
-FD_RTOL = 1e-6
-"""As tests/test_model.py: central differences, truncation ~h^2, round-off ~eps/h (scaled)."""
 
 # Förster (2015), the Crazyflie 2.0's identified tensor, kg m^2 (the entries of J as he gives them)
 CRAZYFLIE_J = np.array([[16.571710, 0.830806, 0.718277],
@@ -56,14 +53,7 @@ def test_jacobians_match_central_differences_with_full_tensor(seed):
     rng = np.random.default_rng(seed)
     x, u = _random_point(rng)
     vehicle = _full(TILTED_J, drag=(0.22, 0.3, 0.1))
-    a, b = (np.asarray(m) for m in build_model().jacobians(x, u, vehicle.vector()))
-    a_fd = np.column_stack([(evaluate(x + FD_STEP * e, u, vehicle) - evaluate(x - FD_STEP * e, u, vehicle))
-                            / (2 * FD_STEP) for e in np.eye(12)])
-    b_fd = np.column_stack([(evaluate(x, u + FD_STEP * e, vehicle) - evaluate(x, u - FD_STEP * e, vehicle))
-                            / (2 * FD_STEP) for e in np.eye(4)])
-    for exact, approx, name in ((a, a_fd, "A"), (b, b_fd, "B")):
-        err = np.abs(exact - approx).max() / max(1.0, np.abs(exact).max())
-        assert err < FD_RTOL, f"{name}: max diff {err:.4E}"
+    a, b = assert_jacobians_match_central_differences(x, u, vehicle)
     # the products couple the rate rows: B's torque block is J^-1, not a diagonal
     np.testing.assert_allclose(b[9:12, 1:4], np.linalg.inv(TILTED_J), rtol=1e-12)
 

@@ -7,13 +7,10 @@ import math
 import casadi as ca
 import numpy as np
 import pytest
+from _finite_differences import assert_jacobians_match_central_differences
 
 from quadctl.layout import STATE_INDEX
 from quadctl.model import Vehicle, build_model, euler_rates_matrix, evaluate, rotation_earth_to_body
-
-FD_STEP = 1e-6
-"""Central differences: truncation ~ h^2 |f'''| ~ 1e-12, round-off ~ eps |f| / h ~ 1e-10 (scaled)."""
-FD_RTOL = 1e-6
 
 
 def _random_point(rng):
@@ -27,15 +24,7 @@ def _random_point(rng):
 def test_jacobians_match_central_differences(seed):
     rng = np.random.default_rng(seed)
     x, u = _random_point(rng)
-    vehicle = Vehicle(drag=(0.22, 0.3, 0.1))  # a nonzero Kz exercises every drag term
-    a, b = (np.asarray(m) for m in build_model().jacobians(x, u, vehicle.vector()))
-    a_fd = np.column_stack([(evaluate(x + FD_STEP * e, u, vehicle) - evaluate(x - FD_STEP * e, u, vehicle))
-                            / (2 * FD_STEP) for e in np.eye(12)])
-    b_fd = np.column_stack([(evaluate(x, u + FD_STEP * e, vehicle) - evaluate(x, u - FD_STEP * e, vehicle))
-                            / (2 * FD_STEP) for e in np.eye(4)])
-    for exact, approx, name in ((a, a_fd, "A"), (b, b_fd, "B")):
-        err = np.abs(exact - approx).max() / max(1.0, np.abs(exact).max())
-        assert err < FD_RTOL, f"{name}: max diff {err:.4E}"
+    assert_jacobians_match_central_differences(x, u, Vehicle(drag=(0.22, 0.3, 0.1)))  # a nonzero Kz: every drag term
 
 
 def test_euler_rate_inverse_matches_H():
