@@ -12,6 +12,8 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.lqr.decoupled`: :func:`lqr` (one case, MATLAB conventions) and the decoupled
   :func:`design` (one LQR per subsystem, assembled into the 4x12 gain)
 - :mod:`~quadctl.lqr.coupled`: one LQR on the full coupled model, to compare with the decoupled design
+- :mod:`~quadctl.lqr.gain_table`: a gain schedule's table (gains at the values of one scheduling
+  variable, interpolated nearest, linear or cubic) and the scheduling variable read from a state
 
 ``from quadctl.lqr import lqr`` is the one-case entry point (MATLAB ``lqr``: ``K, P, E``).
 """
