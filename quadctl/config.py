@@ -161,6 +161,8 @@ MAX_WIND = 50.0
 turbulence's 45 kt at 20 ft; larger is a unit slip (km/h, knots)."""
 MAX_GUSTS = 100
 """Gusts of one run: a gust every 0.1 s of a 10 s run; more belongs in turbulence."""
+MAX_SCHEDULE_POINTS = 1000
+"""Most values a gain schedule may list (each is a trim and a design)."""
 MAX_TURBULENCE_SIGMA = 20.0
 """m/s: above the severe low-altitude intensity (4.5 m/s vertical, 9 m/s along the wind at 10 ft)."""
 TURBULENCE_LENGTH = (1.0, 1e4)
@@ -291,6 +293,19 @@ class DelaySamples(_Section):
         description="controller samples from measurement to actuation")
 
 
+class ScheduleConfig(_Section):
+    """A gain schedule (``quadctl schedule``): trim and design at each value of one variable."""
+
+    variable: Literal["speed", "climb", "yaw"] = Field(description=(
+        "speed: m/s along the trim's heading; climb: m/s, up positive; yaw: rad"))
+    values: Annotated[list[Number], Field(min_length=2, max_length=MAX_SCHEDULE_POINTS)] = Field(
+        description="the scheduling values to trim and design at, increasing (the variable's unit)")
+    interpolation: Literal["nearest", "linear", "cubic"] = Field(
+        "linear", description="how gains are interpolated between values; outside them the end point's gain holds")
+    check: Annotated[int, Field(strict=True, ge=1, le=64)] = Field(
+        4, description="the frozen-point stability check splits each interval between values into this many")
+
+
 class ControllerConfig(_Section):
     """How the controller runs on the flight computer."""
 
@@ -384,6 +399,8 @@ class Config(_Section):
     estimator: Optional[EstimatorConfig] = Field(
         None, description="state estimation (LQG): what is measured and the noise the Kalman filter assumes; "
         "absent: the controller measures the full state")
+    schedule: Optional[ScheduleConfig] = Field(
+        None, description="a gain schedule across the envelope (quadctl schedule); absent: one design")
     allow: list[Literal["implausible", "saturation"]] = Field(
         default_factory=list, description="failed checks this vehicle accepts (each otherwise exits 1): implausible "
         "(values that look like a unit slip: the warnings on load), saturation (a simulated design at an "
@@ -424,6 +441,7 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("simulation", "reference"), None),
     (("simulation", "method"), "rk4"),
     (("simulation", "tolerance"), None),
+    (("schedule",), None),
 )
 """Keys added to the schema after configs were already hashed, with their defaults: left out of
 :meth:`Config.digest` at that default."""
@@ -912,6 +930,7 @@ def _check_semantics(cfg: Config, label: str) -> None:
         check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
                      names=sub.inputs)
     _check_reference(cfg.simulation.reference, fail)
+    _check_schedule(cfg.schedule, fail)
     for state, value in cfg.simulation.initial_offset.items():
         if state not in STATE_NAMES:
             fail(f"simulation.initial_offset.{state}", value, _unknown(state, STATE_NAMES, "state"))
@@ -940,6 +959,16 @@ def _check_semantics(cfg: Config, label: str) -> None:
     if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
         fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
              "or use rotor_lag: ignore")
+
+
+def _check_schedule(schedule: ScheduleConfig | None, fail) -> None:
+    """``schedule.values``: strictly increasing."""
+    if schedule is None:
+        return
+    for i in range(1, len(schedule.values)):
+        if schedule.values[i] <= schedule.values[i - 1]:
+            fail(f"schedule.values[{i}]", schedule.values[i],
+                 f"not above values[{i - 1}] = {show(schedule.values[i - 1])}; list the values increasing, each once")
 
 
 def _check_reference(ref: ReferenceConfig | None, fail) -> None:

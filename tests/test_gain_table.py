@@ -72,3 +72,14 @@ def test_symbolic_value_equals_the_numeric(variable):
     sym = ca.SX.sym("x", 12)
     f = ca.Function("f", [sym], [scheduling_value(variable, sym, 0.3, lib=ca)])
     assert float(f(x)) == pytest.approx(float(scheduling_value(variable, x, 0.3)), abs=1e-14)
+
+
+def test_config_schedule_section_refuses_values_out_of_order():
+    from quadctl.config import from_dict
+    from quadctl.errors import ConfigError
+
+    cfg = {"name": "s", "lqr": {"altitude": {"Q": [1, 1], "R": [1]}},
+           "subsystems": {"altitude": {"states": ["pD", "w"], "inputs": ["T"]}},
+           "schedule": {"variable": "speed", "values": [0.0, 2.0, 1.0]}}
+    with pytest.raises(ConfigError, match=r"schedule.values\[2\] = 1: not above values\[1\] = 2"):
+        from_dict(cfg)
