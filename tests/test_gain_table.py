@@ -75,11 +75,12 @@ def test_symbolic_value_equals_the_numeric(variable):
 
 
 def test_config_schedule_section_refuses_values_out_of_order():
-    from quadctl.config import from_dict
+    import yaml
+
+    from quadctl.config import bundled, from_dict
     from quadctl.errors import ConfigError
 
-    cfg = {"name": "s", "lqr": {"altitude": {"Q": [1, 1], "R": [1]}},
-           "subsystems": {"altitude": {"states": ["pD", "w"], "inputs": ["T"]}},
-           "schedule": {"variable": "speed", "values": [0.0, 2.0, 1.0]}}
+    cfg = yaml.safe_load(bundled("hover").text)
+    cfg["schedule"] = {"variable": "speed", "values": [0.0, 2.0, 1.0]}
     with pytest.raises(ConfigError, match=r"schedule.values\[2\] = 1: not above values\[1\] = 2"):
         from_dict(cfg)
