@@ -47,6 +47,34 @@ def key_path(loc) -> str:
     return out or "<top level>"
 
 
+class KeyPathError(ValueError):
+    """A key path that does not fit the tree it walks; the message is the reason, worded for the user."""
+
+
+def child(node: Any, key, walked) -> Any:
+    """``node[key]``: one step of a key path through a config's data (YAML's dicts and lists).
+
+    ``walked`` is the part of the path already walked (``()`` at the top). A key a mapping lacks
+    raises ``KeyError``, for the caller to decide (an error, or a section to add).
+
+    Raises
+    ------
+    KeyPathError
+        An index into what is not a list, past the end of a list, or a name into what is not a mapping.
+    """
+    here = key_path(list(walked)) if walked else "the config"
+    if isinstance(key, int):
+        if not isinstance(node, list):
+            raise KeyPathError(f"{here} is not a list; drop the [{key}]")
+        if key >= len(node):
+            raise KeyPathError(f"index {key} out of range: {here} has {len(node)} values "
+                               f"(indices 0 to {len(node) - 1})")
+        return node[key]
+    if not isinstance(node, dict):
+        raise KeyPathError(f"{here} = {show(node)} has no key `{key}`; the path goes too deep")
+    return node[key]
+
+
 def show(value: Any, exact: bool = False) -> str:
     """A value as the user wrote it: whole floats without ``.0`` (unless ``exact``: where a whole
     number is due, ``1e3`` is shown as ``1000.0``), text quoted, cut to 60 characters.

@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 from quadctl import config, yamlio
 from quadctl.config import Config, Source
 from quadctl.errors import ConfigError
-from quadctl.messages import KEY_PATH, hint, key_path, parse_key_path, show
+from quadctl.messages import KEY_PATH, KeyPathError, child, hint, key_path, parse_key_path
 
 OPTION = "--set"
 EXAMPLE = "`--set simulation.duration=30`"
@@ -68,26 +68,18 @@ def apply(data: Any, assignments) -> dict:
     out = copy.deepcopy(data) if isinstance(data, dict) else {}
     for a in assignments:
         node: Any = out
-        for k, (key, nxt) in enumerate(zip(a.keys, [*a.keys[1:], None])):
-            here = key_path(list(a.keys[:k])) if k else "the config"
-            last = nxt is None
-            if isinstance(key, int):
-                if not isinstance(node, list):
-                    raise ConfigError(f"{OPTION} {a.path}: {here} is not a list; drop the [{key}]")
-                if key >= len(node):
-                    raise ConfigError(f"{OPTION} {a.path}: index {key} out of range: {here} has {len(node)} "
-                                      f"values (indices 0 to {len(node) - 1})")
-            elif not isinstance(node, dict):
-                raise ConfigError(f"{OPTION} {a.path}: {here} = {show(node)} has no key `{key}`; the path goes "
-                                  "too deep")
-            if last:
-                node[key] = a.value
-            else:
+        *parents, last = a.keys
+        try:
+            for k, key in enumerate(parents):
                 if isinstance(node, dict) and node.get(key) is None:  # a section the file leaves out
-                    node[key] = [] if isinstance(nxt, int) else {}
-                node = node[key]
+                    node[key] = [] if isinstance(a.keys[k + 1], int) else {}
+                node = child(node, key, a.keys[:k])
+            if isinstance(last, int) or not isinstance(node, dict):
+                child(node, last, parents)  # the list and its index exist, or the path goes too deep
+        except KeyPathError as exc:
+            raise ConfigError(f"{OPTION} {a.path}: {exc}") from None
+        node[last] = a.value
     return out
-
 
 def load(source: Source, sets=()) -> Config:
     """The config of ``source`` with the ``--set`` values ``sets`` (``KEY=VALUE`` texts) put in.
@@ -119,16 +111,13 @@ def _created(tree: Any, keys: tuple):
     or None when every key exists (or goes into a section the config leaves out, null)."""
     node = tree
     for k, key in enumerate(keys):
-        if isinstance(key, int):
-            if not isinstance(node, list) or key >= len(node):
-                return None
-        elif not isinstance(node, dict):
+        try:
+            node = child(node, key, keys[:k])
+        except KeyPathError:
             return None
-        elif key not in node:
+        except KeyError:
             return keys[:k + 1], [str(x) for x in node]
-        node = node[key]
     return None
-
 
 def recorded(text: str, sets) -> str:
     """The config's text with the ``--set`` values after it as comments (``config.yaml``: what made the run)."""

@@ -78,6 +78,8 @@ def test_the_text_value_is_what_decides_the_design():
                             r"too deep$"),
     (["lqr.rol.Q=[1, 50, 1]"], r"^--set lqr\.rol\.Q: no such key in the config: `lqr\.rol`; did you mean `roll`\?$"),
     (["lqr.roll.Q[3]=1"], r"^--set lqr\.roll\.Q\[3\]: index 3 out of range: lqr\.roll\.Q has 3 values"),
+    (["vehicle.mass[0]=1"], r"^--set vehicle\.mass\[0\]: vehicle\.mass is not a list; drop the \[0\]$"),
+    (["vehicle.inertia[0][1]=1"], r"^--set vehicle\.inertia\[0\]\[1\]: vehicle\.inertia\[0\] is not a list; drop the"),
     (["vehicle.inertia=[1,"], r"^--set vehicle\.inertia: YAML syntax error"),
 ])
 def test_a_bad_key_or_value_is_refused_naming_set(sets, message):

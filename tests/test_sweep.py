@@ -92,6 +92,7 @@ def test_random_mode_same_seed_same_cases_and_within_bounds(cfg):
     ({"parameters": {"vehicle.mas": [1]}}, r"`vehicle\.mas`; did you mean `mass`\?"),
     ({"parameters": {"lqr.roll": [1]}}, r"is a section, not a value; name one of its keys: Q, R"),
     ({"parameters": {"vehicle.mass.x": [1]}}, r"has no key `x`; the path goes too deep"),
+    ({"parameters": {"vehicle.mass[0]": [1]}}, r"vehicle\.mass is not a list; drop the \[0\]"),
     ({"parameters": {"lqr..roll": [1]}}, r"not a key path"),
     ({"parameters": {"vehicle.inertia": {"from": 1, "to": 2, "num": 2}}}, r"is a list .* index one entry"),
     ({"parameters": {"vehicle.mass": []}}, r"parameters\.vehicle\.mass: empty list; give at least one value"),

@@ -15,7 +15,18 @@ import numpy as np
 from quadctl import __version__, yamlio
 from quadctl.errors import SweepError
 from quadctl.layout import STATE_NAMES
-from quadctl.messages import KEY_PATH, finite_number, hint, is_whole, key_path, parse_key_path, show, whole_number
+from quadctl.messages import (
+    KEY_PATH,
+    KeyPathError,
+    child,
+    finite_number,
+    hint,
+    is_whole,
+    key_path,
+    parse_key_path,
+    show,
+    whole_number,
+)
 from quadctl.sweep.gates import Gate, metric_columns
 
 MODES = ("grid", "random")
@@ -422,32 +433,23 @@ def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
         raise SweepError(f"{where}: not a key path; write it as `lqr.roll.Q[1]` or `vehicle.mass`")
     keys = parse_key_path(path)
     node = tree
-    walked: list = []
     for k, key in enumerate(keys):
-        here = _path_text(walked) or "the config"
-        if isinstance(key, int):
-            if not isinstance(node, list):
-                raise SweepError(f"{where}: {here} is not a list; drop the [{key}]")
-            if key >= len(node):
-                raise SweepError(f"{where}: index {key} out of range: {here} has {len(node)} values "
-                                 f"(indices 0 to {len(node) - 1})")
-            node = node[key]
-        else:
-            if node is None and walked:  # an optional section the config leaves out (null)
-                raise SweepError(f"{where}: the config has no `{here}` section (it is null); add a `{here}:` "
-                                 "section to the config to vary its keys")
-            if not isinstance(node, dict):
-                raise SweepError(f"{where}: {here} = {show(node)} has no key `{key}`; "
-                                 "the path goes too deep")
-            if key not in node:
-                if tuple(walked) in FREE_MAPPINGS and k == len(keys) - 1:
-                    if key not in STATE_NAMES:  # a new key of a free mapping: another state's offset
-                        raise SweepError(f"{where}: `{key}` is not a state; " + hint(key, STATE_NAMES))
-                    return keys
-                raise SweepError(f"{where}: no such key in the config: `{_path_text([*walked, key])}`; "
-                                 + hint(key, [str(x) for x in node]))
-            node = node[key]
-        walked.append(key)
+        walked = keys[:k]
+        if node is None and walked:  # an optional section the config leaves out (null)
+            here = _path_text(walked)
+            raise SweepError(f"{where}: the config has no `{here}` section (it is null); add a `{here}:` "
+                             "section to the config to vary its keys")
+        try:
+            node = child(node, key, walked)
+        except KeyPathError as exc:
+            raise SweepError(f"{where}: {exc}") from None
+        except KeyError:
+            if tuple(walked) in FREE_MAPPINGS and k == len(keys) - 1:
+                if key not in STATE_NAMES:  # a new key of a free mapping: another state's offset
+                    raise SweepError(f"{where}: `{key}` is not a state; " + hint(key, STATE_NAMES)) from None
+                return keys
+            raise SweepError(f"{where}: no such key in the config: `{_path_text([*walked, key])}`; "
+                             + hint(key, [str(x) for x in node])) from None
     if isinstance(node, dict):
         raise SweepError(f"{where}: is a section, not a value; name one of its keys: "
                          f"{', '.join(map(str, node))}")
