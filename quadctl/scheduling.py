@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from quadctl import pipeline, stability
-from quadctl.errors import ConfigError, QuadctlError, TrimError
+from quadctl.errors import ConfigError, QuadctlError, ScheduleError, TrimError
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linearize import LinearModel
 from quadctl.lqr import linear_loop
@@ -117,6 +117,8 @@ class FrozenChecks:
         The eigenvalue with that largest real part; NaN where no trim.
     reasons : tuple of (str or None)
         Why a fine value has no trim (None where it trims).
+    refinement : int
+        Parts each interval between the table's values is split into (``schedule.check``).
     """
 
     values: np.ndarray
@@ -126,6 +128,7 @@ class FrozenChecks:
     least_damping: np.ndarray
     worst: np.ndarray
     reasons: tuple
+    refinement: int = 1
 
     @property
     def passed(self) -> bool:
@@ -282,10 +285,10 @@ def schedule_of(setup: Setup) -> Schedule:
     """
     spec = setup.schedule
     if spec is None:
-        raise ConfigError("schedule: missing; add a schedule section (schedule: {variable: speed, values: "
+        raise ScheduleError("schedule: missing; add a schedule section (schedule: {variable: speed, values: "
                           "[0, 1, 2]}) to trim and design across the envelope")
     if setup.design_lag_time_constant is not None:
-        raise ConfigError("controller.rotor_lag = include: a gain schedule tables the state and integrator "
+        raise ScheduleError("controller.rotor_lag = include: a gain schedule tables the state and integrator "
                           "gains only; set controller.rotor_lag: ignore to schedule this design")
     heading = heading_of(setup)
     values = [float(v) for v in spec.values]
@@ -293,13 +296,14 @@ def schedule_of(setup: Setup) -> Schedule:
     good = [p for p in points if p.designed]
     unit = VARIABLES[spec.variable]
     if len(good) < 2:
-        why = "; ".join(f"{p.value:g} {unit}: {p.reason}" for p in points if not p.designed)
-        raise ConfigError(f"schedule.values: {len(good)} of {len(values)} values trim and design, a schedule "
-                          f"needs two ({why}); narrow schedule.values to the envelope the vehicle can fly")
+        bad = [p for p in points if not p.designed]
+        raise ScheduleError(f"schedule.values: {len(good)} of {len(values)} values trim and design, a schedule needs "
+                            f"two (at {bad[0].value:g} {unit}: {bad[0].reason}); narrow schedule.values to the "
+                            "envelope the vehicle can fly")
     own = own_value(setup, heading)
     if not good[0].value <= own <= good[-1].value:
         key = {"speed": "trim.velocity_ned", "climb": "trim.velocity_ned", "yaw": "trim.yaw"}[spec.variable]
-        raise ConfigError(f"schedule.values: the config's own flight condition ({key}: {spec.variable} {own:g} "
+        raise ScheduleError(f"schedule.values: the config's own flight condition ({key}: {spec.variable} {own:g} "
                           f"{unit}) is outside the envelope that trims, [{good[0].value:g}, {good[-1].value:g}] "
                           f"{unit}; list values around {own:g} {unit} in schedule.values, or change {key}")
     ints = _integral_states(setup)
@@ -421,4 +425,4 @@ def frozen_checks(setup: Setup, table: GainTable, integral_states, check: int, h
             worst[i], slowest[i] = core[k], core[k].real
             damping[i] = stability.least_damping(core)
     return FrozenChecks(values=fine, stable=stable, eigenvalues=eig, slowest=slowest, least_damping=damping,
-                        worst=worst, reasons=tuple(reasons))
+                        worst=worst, reasons=tuple(reasons), refinement=check)
