@@ -225,7 +225,7 @@ def point_setup(setup: Setup, value: float, heading: float | None = None) -> Set
         h = heading_of(setup) if heading is None else heading
         return replace(setup, velocity_ned=(float(value * np.cos(h)), float(value * np.sin(h)), vd))
     if variable == "climb":
-        return replace(setup, velocity_ned=(vn, ve, -float(value)))
+        return replace(setup, velocity_ned=(vn, ve, 0.0 - float(value)))
     return replace(setup, yaw=float(value))
 
 
@@ -237,7 +237,7 @@ def own_value(setup: Setup, heading: float) -> float:
     c, s = np.cos(setup.yaw), np.sin(setup.yaw)  # body velocity of a level vehicle at that yaw
     vn, ve, vd = setup.velocity_ned
     x[STATE_INDEX["u"]], x[STATE_INDEX["v"]], x[STATE_INDEX["w"]] = c * vn + s * ve, -s * vn + c * ve, vd
-    return float(scheduling_value(setup.schedule.variable, x, heading))
+    return float(scheduling_value(setup.schedule.variable, x, heading)) + 0.0  # no -0 in messages
 
 
 def _flight_condition(setup: Setup):
