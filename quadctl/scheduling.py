@@ -240,18 +240,32 @@ def own_value(setup: Setup, heading: float) -> float:
     return float(scheduling_value(setup.schedule.variable, x, heading)) + 0.0  # no -0 in messages
 
 
-def _flight_condition(setup: Setup):
-    """(Trim, LinearModel, actuator commands) of a setup's flight condition, or the trim stage's
-    refusal (a TrimError, or the ActuatorLimitError of a trim outside the actuator limits)."""
+def _flight_conditions(setups: list[Setup]) -> list:
+    """Per setup (one config's, at different values of its variable): (Trim, LinearModel, actuator
+    commands), or the trim stage's refusal (a TrimError, or the ActuatorLimitError of a trim outside
+    the actuator limits). :func:`quadctl.pipeline.trim_of` of every setup, batched
+    (:func:`quadctl.trim.solve_trims`: the same Newton, the same checks)."""
     from quadctl.motors import check_trim
+    from quadctl.trim import solve_trims
 
-    try:
-        trim = pipeline.trim_of(setup)
-        check_trim(setup.actuators, trim.u)
-    except (TrimError, ConfigError) as exc:
-        return exc
-    act = None if setup.actuators is None else setup.actuators.commands(trim.u)
-    return trim, pipeline.linear_of(setup, trim), act
+    if not setups:
+        return []
+    base = setups[0]
+    trims = solve_trims([s.velocity_ned for s in setups], [s.yaw for s in setups], base.position_ned,
+                        base.vehicle, wind_ned=base.trim_wind)
+    out: list = []
+    for ps, trim in zip(setups, trims):
+        if isinstance(trim, TrimError):
+            out.append(trim)
+            continue
+        try:
+            check_trim(ps.actuators, trim.u)
+        except ConfigError as exc:
+            out.append(exc)
+            continue
+        act = None if ps.actuators is None else ps.actuators.commands(trim.u)
+        out.append((trim, pipeline.linear_of(ps, trim), act))
+    return out
 
 
 def schedule_of(setup: Setup) -> Schedule:
@@ -283,6 +297,13 @@ def schedule_of(setup: Setup) -> Schedule:
     >>> sched.table.gains.shape, sched.envelope, sched.checks.passed
     ((3, 4, 12), (0.0, 2.0), True)
     """
+    from quadctl.sweep.evaluate import _threadpools
+
+    with _threadpools().limit(limits=1):  # small matrices: BLAS threads cost 100x on a busy 2-core machine
+        return _schedule(setup)
+
+
+def _schedule(setup: Setup) -> Schedule:
     spec = setup.schedule
     if spec is None:
         raise ScheduleError("schedule: missing; add a schedule section (schedule: {variable: speed, values: "
@@ -328,10 +349,9 @@ def _points(setup: Setup, values: list[float], heading: float) -> list[ScheduleP
 
     points: list[SchedulePoint] = []
     preps, where = [], []
-    for value in values:
-        ps = point_setup(setup, value, heading)
+    setups = [point_setup(setup, value, heading) for value in values]
+    for value, ps, found in zip(values, setups, _flight_conditions(setups)):
         base = SchedulePoint(value=value, velocity_ned=ps.velocity_ned, yaw=ps.yaw)
-        found = _flight_condition(ps)
         if isinstance(found, QuadctlError):
             points.append(replace(base, reason=str(found)))
             continue
@@ -390,12 +410,11 @@ def frozen_checks(setup: Setup, table: GainTable, integral_states, check: int, h
     A = np.zeros((len(fine), N_STATES, N_STATES))
     B = np.zeros((len(fine), N_STATES, N_INPUTS))
     reasons: list = [None] * len(fine)
+    new = [i for i, v in enumerate(fine) if float(v) not in known]
     for i, v in enumerate(fine):
-        point = known.get(float(v))
-        if point is not None:
-            A[i], B[i] = point.linear.A, point.linear.B
-            continue
-        found = _flight_condition(point_setup(setup, v, heading))
+        if float(v) in known:
+            A[i], B[i] = known[float(v)].linear.A, known[float(v)].linear.B
+    for i, found in zip(new, _flight_conditions([point_setup(setup, fine[i], heading) for i in new])):
         if isinstance(found, QuadctlError):
             reasons[i] = str(found)
             continue
