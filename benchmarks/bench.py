@@ -29,6 +29,10 @@
 6. Figures: `quadctl run --plot` on the forward config, a fresh process end to end, with the run
    folder's stage artifacts there (they are reused) and --fresh; the same without --plot; the six
    figures drawn in the library; the sweep's trade-off figure of the 1000 random designs.
+7. A 50-point gain schedule (the bundled schedule config at 50 speeds from 0 to 10 m/s, and
+   mambo-200hz's discrete LQI design at the same speeds): trims, batched designs and the frozen-point
+   checks on a 4x finer grid (197 loops), in the library and through the command line; against
+   the same done point by point through the one-case pipeline.
 
 Not a test: it asserts nothing, it prints what it measured and the machine's load while it ran
 (other processes on a 2-core machine change every number here). Each quadctl timing is the best of
@@ -524,7 +528,7 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
                  ["solver", "µs CPU per design", "time / batched"], rows)
 
 
-SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "designs", "lqr", "discrete", "figures")
+SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "designs", "lqr", "discrete", "figures", "schedule")
 """What ``--only`` may name: the numbered sections of the module docstring (the designs are the
 plain sweep's)."""
 
@@ -567,6 +571,63 @@ def figures(cli_python: str) -> str:
                  f"best of {REPEAT}"])
     return table(f"Figures: the forward config ({len(sim.t):,} samples a time series)",
                  ["run", "wall (s)", "runs"], rows)
+
+
+# ---------------------------------------------------------------------------------------
+# 7. A gain schedule
+
+
+SCHEDULE_POINTS = 50
+SCHEDULE_TOP = 10.0  # m/s
+
+
+def the_schedule(cli_python: str) -> str:
+    """A 50-point schedule: the library, the command line end to end, and point by point."""
+    from quadctl import config, pipeline
+    from quadctl.lqr import linear_loop
+    from quadctl.problem import setup_of
+    from quadctl.scheduling import fine_values, point_setup, schedule_of
+    from quadctl.trim import TrimError
+
+    values = np.linspace(0.0, SCHEDULE_TOP, SCHEDULE_POINTS).round(6).tolist()
+    rows = []
+    for name in ("schedule", "mambo-200hz"):
+        data = config.load(name).model_dump()
+        data["schedule"] = {"variable": "speed", "values": values, "interpolation": "linear", "check": 4}
+        setup = setup_of(config.from_dict(data, name))
+        wall, sched = timed(lambda s=setup: schedule_of(s), repeat=REPEAT)
+        kind = "discrete 200 Hz, LQI" if sched.sample_time else "continuous"
+        rows.append([f"{name} ({kind}): schedule_of, library", f"{wall:.3f}", f"best of {REPEAT}",
+                     f"{len(sched.checks.values)} loops, passed {sched.passed}"])
+
+        def one_by_one(s=setup, sched=sched):  # the pipeline a point at a time, the checks' loops one by one
+            for v in values:
+                _ = pipeline.Stages(point_setup(s, v)).design
+            Ts = sched.sample_time
+            for v, G in zip(sched.checks.values, sched.table.at(sched.checks.values)):
+                try:
+                    stages = pipeline.Stages(point_setup(s, v))
+                    A = linear_loop.matrix(stages.linear.A, stages.linear.B, G[:, :12], G[:, 12:],
+                                           sched.integral_states, Ts)
+                    np.linalg.eigvals(A)
+                except TrimError:
+                    pass
+
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(1):  # as schedule_of runs (BLAS threads cost far more on these small matrices)
+            loop_wall, _ = timed(one_by_one)
+        rows.append([f"  the same point by point (pipeline.Stages, {len(fine_values(values, 4))} trims, one thread)",
+                     f"{loop_wall:.3f}", "one run", f"{loop_wall / wall:.0f}x the library"])
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [cli_python, "-m", "quadctl", "schedule", "-c", "schedule", "-o", str(Path(tmp) / "run"),
+               "--set", f"schedule.values={values}"]
+        wall, _ = timed(lambda: subprocess.run(cmd, check=True, capture_output=True), repeat=3)
+        rows.append(["quadctl schedule -c schedule (50 values), CLI end to end", f"{wall:.3f}", "best of 3", ""])
+        wall, _ = timed(lambda: subprocess.run([*cmd, "--plot"], check=True, capture_output=True), repeat=3)
+        rows.append(["  the same with --plot (the envelope figure)", f"{wall:.3f}", "best of 3", ""])
+    return table(f"A {SCHEDULE_POINTS}-point gain schedule over speed 0-{SCHEDULE_TOP:g} m/s, frozen-point checks on a "
+                 "4x finer grid", ["run", "wall (s)", "runs", "note"], rows)
 
 
 def config_from(data):
@@ -613,6 +674,8 @@ def main() -> None:
         print(discrete_designs())
     if "figures" in only:
         print(figures(args.cli_python))
+    if "schedule" in only:
+        print(the_schedule(args.cli_python))
     end = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {end:.2f} at the end (2 cores: above ~0.3, other work shared the machine)")
 

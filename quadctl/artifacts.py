@@ -132,7 +132,7 @@ _FROM_JSON = {text: number for number, text in INFINITY.items()}
 ARTIFACT_NAMES = frozenset({
     "config.yaml", "config.resolved.yaml",
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json",
-    "margins.json", "design_full.json",
+    "margins.json", "design_full.json", "schedule.json", "schedule.npz",
     "sweep.csv", "sweep.json", "sweep.png", "montecarlo.npz", "montecarlo.png",
     "quadctl_controller.h", "quadctl_controller.c", "quadctl_controller.mat", "quadctl_controller.json",
 })

@@ -36,6 +36,13 @@ class SweepError(QuadctlError, ValueError):
     """A sweep file is invalid."""
 
 
+class ScheduleError(ConfigError):
+    """A gain schedule the config's values cannot make (too few values trim, or the config's own
+    flight condition outside the envelope): found by the schedule stage, which has numbers, not the file."""
+
+    from_config = True
+
+
 class TrimError(QuadctlError, ValueError):
     """No equilibrium exists for the flight condition, or the solver did not find it."""
 

@@ -209,3 +209,64 @@ def _vehicle_loop_payload(loop) -> dict:
         "domain": "z" if Ts else "s", "eigenvalues": _c(eig), "stable": loop.stable,
         "spectral_radius" if Ts else "slowest_real_part": float(np.abs(eig).max() if Ts else eig.real.max()),
         "least_damping": loop.least_damping, "design_least_damping": loop.design_least_damping}
+
+
+def gain_schedule(sched) -> dict:
+    """``schedule.json``: the gain schedule (:class:`quadctl.scheduling.Schedule`): each point's trim
+    (``x``, ``u`` and by name, as ``trim.json``), its 4x12 gain ``K`` in ``design.json``'s state and
+    input order (and ``Ki``, columns ``integral_states``), its verdicts or why it has no trim; the
+    interpolation, what holds outside the grid, and the frozen-point checks on the finer grid."""
+    checks = sched.checks
+    return {
+        "variable": sched.variable, "unit": sched.unit, "heading": sched.heading,
+        "interpolation": sched.interpolation, "outside": sched.outside,
+        "envelope": list(sched.envelope), "own_value": sched.own_value,
+        "design": "discrete" if sched.sample_time is not None else "continuous", "sample_time": sched.sample_time,
+        "integral_states": sched.integral_states,
+        "units": {**STATE_UNITS, **INPUT_UNITS},
+        "points": [_schedule_point(p) for p in sched.points],
+        "checks": {
+            "refinement": checks.refinement,
+            "values": checks.values, "stable": checks.stable, "slowest_pole": checks.slowest,
+            "least_damping": checks.least_damping, "passed": checks.passed,
+            "failures": [{"value": v, "reason": why,
+                          "worst_eigenvalue": None if why is not None else _c(np.array([w]))[0]}
+                         for v, ok, w, why in zip(checks.values, checks.stable, checks.worst, checks.reasons)
+                         if not ok]},
+        "passed": sched.passed, "verdict": sched.verdict()}
+
+
+def _schedule_point(p) -> dict:
+    out = {"value": p.value, "velocity_ned": p.velocity_ned, "yaw": p.yaw, "trimmed": p.trimmed,
+           "designed": p.designed, "reason": p.reason}
+    if p.trimmed:
+        out.update({"x": p.trim.x, "u": p.trim.u, "residual": p.trim.residual,
+                    "state": dict(zip(STATE_NAMES, p.trim.x)), "input": dict(zip(INPUT_NAMES, p.trim.u)),
+                    "actuator_commands": p.actuator_commands,
+                    "within_limits": True})  # a trim outside the actuator limits is no trim (its reason says so)
+    if p.designed:
+        out.update({"K": p.K, "Ki": p.Ki, "stable": p.stable, "closed_loop_eigenvalues": _c(p.core_eigenvalues)})
+    return out
+
+
+def gain_schedule_arrays(sched) -> dict:
+    """``schedule.npz``'s arrays: the table (``values``, ``K`` (n, 4, 12), ``Ki``, the trims, the
+    piecewise cubic's ``breaks`` and ``coefficients``), and the fine grid's values, eigenvalues
+    (s, rad/s; NaN where no trim) and verdicts. ``values`` are the table's (the points that trim and
+    design); ``point_values`` every value of ``schedule.values``."""
+    good = [p for p in sched.points if p.designed]
+    table, checks = sched.table, sched.checks
+    nz = len(sched.integral_states)
+    return {
+        "variable": np.array(sched.variable), "unit": np.array(sched.unit),
+        "interpolation": np.array(sched.interpolation), "heading": np.array(sched.heading),
+        "values": table.values, "gains": table.gains,
+        "K": table.gains[:, :, :len(STATE_NAMES)], "Ki": table.gains[:, :, len(STATE_NAMES):].reshape(len(good), 4, nz),
+        "x_trim": np.array([p.trim.x for p in good]), "u_trim": np.array([p.trim.u for p in good]),
+        "breaks": table.breaks, "coefficients": table.coefficients,
+        "point_values": np.array([p.value for p in sched.points]),
+        "point_trimmed": np.array([p.trimmed for p in sched.points]),
+        "fine_values": checks.values, "fine_eigenvalues": checks.eigenvalues, "fine_stable": checks.stable,
+        "fine_slowest_pole": checks.slowest, "fine_least_damping": checks.least_damping,
+        "state_names": np.array(STATE_NAMES), "input_names": np.array(INPUT_NAMES),
+        "integral_states": np.array(sched.integral_states, dtype=str)}

@@ -535,3 +535,85 @@ def montecarlo_figure(bands, groups: dict, *, title: str = "", varied: tuple = (
         return fig
     fig.suptitle(f"{title}: {head}" if title else head)
     return fig
+
+
+def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
+    """The envelope of a gain schedule (:class:`quadctl.scheduling.Schedule`) against its variable.
+
+    Four panels: the block gain's nonzero entries (each over its largest magnitude: markers at the
+    points, the interpolated table between them); the slowest pole and the least damping of the
+    frozen-point loops along the fine grid (failures in red); the trim attitude (deg); the trim
+    thrust (each rotor's, between ``min_thrust`` and ``max_thrust``, with ``motors:``; else ``T``
+    and any ``limits:``). Values with no trim are marked by red dotted lines.
+
+    Parameters
+    ----------
+    sched : quadctl.scheduling.Schedule
+    actuators : quadctl.motors.Actuators, optional
+        The setup's limits: drawn as lines on the thrust panel.
+    """
+    from quadctl.layout import STATE_NAMES
+
+    fig = Figure(figsize=(11.0, 7.5), layout="constrained")
+    (ax_k, ax_p), (ax_a, ax_t) = fig.subplots(2, 2, sharex=True)
+    good = [p for p in sched.points if p.designed]
+    v = np.array([p.value for p in good])
+    c = sched.checks
+    K = sched.table.gains[:, :, :len(STATE_NAMES)]
+    fine_K = sched.table.at(c.values)[:, :, :len(STATE_NAMES)]
+    entries = [(i, j) for i in range(K.shape[1]) for j in range(K.shape[2]) if np.abs(K[:, i, j]).max() > 0]
+    for n, (i, j) in enumerate(entries):
+        scale = np.abs(K[:, i, j]).max()
+        color = f"C{n % 10}"
+        ax_k.plot(c.values, fine_K[:, i, j] / scale, color=color, lw=1.0,
+                  label=f"K[{INPUT_NAMES[i]},{STATE_NAMES[j]}] ({scale:.3g})")
+        ax_k.plot(v, K[:, i, j] / scale, "o", color=color, ms=3)
+    ax_k.set_ylabel("gain / max |gain|")
+    ax_k.set_title(f"gains ({sched.interpolation} between the points)", fontsize=9)
+    ax_k.legend(loc="best", fontsize=6, frameon=False, ncols=2)
+    ax_p.plot(c.values, c.slowest, color=_COLORS[0], lw=1.4, label="slowest pole")
+    bad = ~c.stable & np.isfinite(c.slowest)
+    if bad.any():
+        ax_p.plot(c.values[bad], c.slowest[bad], "x", color=_COLORS[1], ms=7, label="frozen loop UNSTABLE")
+    ax_p.axhline(0.0, color="0.35", lw=0.8)
+    ax_p.set_ylabel("slowest pole Re(s) [rad/s]")
+    twin = ax_p.twinx()
+    twin.plot(c.values, c.least_damping, color=_COLORS[2], lw=1.2, ls="--", label="least damping")
+    twin.set_ylabel("least damping ratio")
+    lines = ax_p.get_legend_handles_labels()
+    more = twin.get_legend_handles_labels()
+    ax_p.legend(lines[0] + more[0], lines[1] + more[1], loc="best", fontsize=7, frameon=False)
+    ax_p.set_title(f"frozen-point loops, grid {c.refinement}x finer", fontsize=9)
+    trimmed = [p for p in sched.points if p.trimmed]
+    tv = np.array([p.value for p in trimmed])
+    for name, color in (("theta", _COLORS[0]), ("phi", _COLORS[1]), ("psi", _COLORS[2])):
+        ax_a.plot(tv, np.rad2deg([p.trim.x[STATE_INDEX[name]] for p in trimmed]), "o-", color=color, ms=3,
+                  lw=1.2, label=name)
+    ax_a.set_ylabel("trim attitude [deg]")
+    ax_a.legend(loc="best", fontsize=7, frameon=False)
+    rotors = actuators is not None and actuators.mode == "motors"
+    if rotors:
+        thrust = np.array([p.actuator_commands for p in trimmed])
+        for i, (rotor, color) in enumerate(zip(actuators.names, _COLORS)):
+            ax_t.plot(tv, thrust[:, i], "o-", color=color, ms=3, lw=1.2, label=rotor)
+        _limit_lines(ax_t, (actuators.lo[0], actuators.hi[0]), "min / max thrust")
+        ax_t.set_ylabel("trim rotor thrust [N]")
+    else:
+        ax_t.plot(tv, [p.trim.u[0] for p in trimmed], "o-", color=_COLORS[0], ms=3, lw=1.2, label="T")
+        if actuators is not None:
+            _limit_lines(ax_t, input_limits(actuators)[0][:1].tolist() + input_limits(actuators)[1][:1].tolist(),
+                         "limit")
+        ax_t.set_ylabel("trim thrust T [N]")
+    ax_t.legend(loc="best", fontsize=7, frameon=False)
+    missing = [p.value for p in sched.points if not p.designed]
+    for ax in (ax_k, ax_p, ax_a, ax_t):
+        for k, value in enumerate(missing):
+            ax.axvline(value, color=_COLORS[1], lw=0.9, ls=":", label="no trim" if k == 0 and ax is ax_a else None)
+        ax.grid(True, alpha=0.3)
+    if missing:
+        ax_a.legend(loc="best", fontsize=7, frameon=False)
+    for ax in (ax_a, ax_t):
+        ax.set_xlabel(f"{sched.variable} [{sched.unit}]")
+    head = f"gain schedule over {sched.variable}"
+    fig.suptitle(f"{title}: {head}" if title else head)
+    return fig

@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from quadctl.config import Config, SubsystemConfig, inertia_parts, weight_matrix
+from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.model import Vehicle
 from quadctl.motors import Actuators, Motors, actuators_of
@@ -163,6 +163,8 @@ class Setup:
         The Kalman filter's measurements and noise (``estimator:``); None: full-state feedback.
     reference : quadctl.trajectory.Reference or None
         The path to fly (``simulation.reference``); None: hold the trim.
+    schedule : quadctl.config.ScheduleConfig or None
+        The gain schedule (``schedule:``: variable, values, interpolation, check); None: one design.
     """
 
     name: str
@@ -193,6 +195,7 @@ class Setup:
     reference: object | None = None
     method: str = "rk4"
     tolerance: float | None = None
+    schedule: ScheduleConfig | None = None
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -256,7 +259,8 @@ def setup_of(cfg: Config) -> Setup:
         timing=timing, actuators=actuators, noise=noise, wind=wind, trim_wind=trim_wind, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
-        reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance)
+        reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
+        schedule=cfg.schedule)
 
 
 resolve = setup_of

@@ -127,18 +127,128 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
                 + f": trim did not converge; {ramp.replace('%', ' %')} (residual {resid:.2e} m/s^2 after "
                 f"{iters} iterations); try a lower speed or check the vehicle parameters (vehicle.drag, vehicle.mass)")
         reached = fraction
-    phi, theta, thrust = z
-    _check_physical(phi, theta, thrust, v_e, vehicle, wind)
-    x = np.zeros(N_STATES)
-    x[_POSITION] = np.asarray(position_ned, dtype=float)
-    r_eb = np.asarray(rotation_earth_to_body(phi, theta, yaw), dtype=float)
-    x[[STATE_INDEX[s] for s in ("u", "v", "w")]] = r_eb @ v_e
-    x[STATE_INDEX["phi"]], x[STATE_INDEX["theta"]], x[STATE_INDEX["psi"]] = phi, theta, yaw
-    u = np.zeros(N_INPUTS)
-    u[INPUT_INDEX["T"]] = thrust
-    xdot = np.asarray(build_model().f_wind(x, u, params, wind), dtype=float).ravel()
-    residual = float(np.abs(xdot[_NON_POSITION]).max())
-    return Trim(x=x, u=u, xdot=xdot, residual=residual, iterations=total)
+    found = _trims_at(np.reshape(z, (1, 3)), v_e[None], [yaw], position_ned, vehicle, wind, [total])[0]
+    if isinstance(found, TrimError):
+        raise found
+    return found
+
+
+def solve_trims(velocities_ned, yaws, position_ned, vehicle: Vehicle, *, wind_ned=None,
+                max_iter: int = 50) -> list:
+    """:func:`solve_trim` of many flight conditions at once: a Trim, or the TrimError it raises, each.
+
+    The damped Newton of :func:`solve_trim` runs on every point together (the force balance mapped
+    over the points: one CasADi call an iteration), each point taking its own steps and
+    backtracking, so a point converges to what :func:`solve_trim` finds from the same start. A
+    point it does not converge goes through :func:`solve_trim` itself (its homotopy in the speed,
+    its error), and every point passes the same physical checks.
+
+    Parameters
+    ----------
+    velocities_ned : (N, 3) array_like
+        m/s, NED.
+    yaws : (N,) array_like
+        rad.
+    position_ned : (3,) array_like
+    vehicle : Vehicle
+    wind_ned : (3,) array_like, optional
+        m/s, one steady wind for every point.
+
+    Returns
+    -------
+    list of (Trim or TrimError)
+    """
+    V = np.atleast_2d(np.asarray(velocities_ned, dtype=float))
+    psi = np.asarray(yaws, dtype=float).ravel()
+    N = len(V)
+    wind = np.zeros(3) if wind_ned is None else np.asarray(wind_ned, dtype=float)
+    params = vehicle.vector()
+    balance = _mapped_balance(N)
+
+    def residuals(z):
+        g, jac = balance(z.T, V.T, psi[None, :], params, wind)
+        return np.asarray(g, dtype=float).T, np.asarray(jac, dtype=float).reshape(3, N, 3).transpose(1, 0, 2)
+
+    z = np.tile([0.0, 0.0, vehicle.mass * vehicle.gravity], (N, 1))
+    done = np.zeros(N, bool)  # converged (or given up: stalled below)
+    stalled = np.zeros(N, bool)
+    iterations = np.full(N, max_iter)
+    for it in range(1, max_iter + 1):
+        g, jac = residuals(z)
+        resid = np.abs(g).max(axis=1)
+        newly = ~done & (resid <= RESIDUAL_TOL * 1e-2)
+        iterations[newly] = it - 1
+        done |= newly
+        if done.all():
+            break
+        live = np.nonzero(~done)[0]
+        try:
+            step = np.linalg.solve(jac[live], -g[live][..., None])[..., 0]
+        except np.linalg.LinAlgError:  # a singular Jacobian: those points go one by one
+            stalled[live], done[live] = True, True
+            break
+        moved = np.zeros(len(live), bool)
+        for scale in (1.0, 0.5, 0.25, 0.125, 0.0625):
+            trial = z.copy()
+            trial[live] = z[live] + scale * step
+            inside = (np.abs(trial[live, 1]) < np.pi / 2) & (np.abs(trial[live, 0]) < np.pi)
+            better = inside & ~moved & (np.abs(residuals(trial)[0][live]).max(axis=1) < resid[live])
+            z[live[better]] = trial[live[better]]
+            moved |= better
+            if moved.all():
+                break
+        stalled[live[~moved]], done[live[~moved]] = True, True
+    g = residuals(z)[0]
+    converged = ~stalled & (np.abs(g).max(axis=1) <= RESIDUAL_TOL)
+    out: list = [None] * N
+    ok = np.nonzero(converged)[0]
+    if ok.size:
+        for k, found in zip(ok, _trims_at(z[ok], V[ok], psi[ok], position_ned, vehicle, wind, iterations[ok])):
+            out[k] = found
+    for k in np.nonzero(~converged)[0]:
+        try:
+            out[k] = solve_trim(V[k], psi[k], position_ned, vehicle, wind_ned=wind_ned, max_iter=max_iter)
+        except TrimError as exc:
+            out[k] = exc
+    return out
+
+
+@lru_cache(maxsize=8)
+def _mapped_balance(n: int):
+    """The force balance of :func:`_force_balance` mapped over ``n`` points (the wind and the
+    parameters shared)."""
+    return _force_balance().map(n)
+
+
+def _trims_at(z, V, psi, position_ned, vehicle: Vehicle, wind, iterations) -> list:
+    """The Trim of each converged force balance ``z[k] = [phi, theta, T]`` (N, 3), or the TrimError of
+    its physical checks: the states and their residuals in one mapped call of :func:`_trim_state`."""
+    N = len(z)
+    x, xdot = (np.asarray(a, dtype=float).T for a in _trim_state(N)(
+        z.T, V.T, np.reshape(psi, (1, N)), np.asarray(position_ned, dtype=float), vehicle.vector(), wind))
+    out: list = []
+    for k in range(N):
+        try:
+            _check_physical(*z[k], V[k], vehicle, wind)
+        except TrimError as exc:
+            out.append(exc)
+            continue
+        u = np.zeros(N_INPUTS)
+        u[INPUT_INDEX["T"]] = z[k, 2]
+        out.append(Trim(x=x[k], u=u, xdot=xdot[k], residual=float(np.abs(xdot[k, _NON_POSITION]).max()),
+                        iterations=int(iterations[k])))
+    return out
+
+
+@lru_cache(maxsize=8)
+def _trim_state(n: int) -> ca.Function:
+    """``(z=[phi, theta, T], v_e, psi, position, params, wind) -> (x, f(x, u))`` of a trim, mapped over ``n`` points."""
+    z, v_e, pos, wind = ca.SX.sym("z", 3), ca.SX.sym("v_e", 3), ca.SX.sym("pos", 3), ca.SX.sym("w", 3)
+    psi, params = ca.SX.sym("psi"), ca.SX.sym("p", N_PARAMS)
+    x = ca.vertcat(pos, rotation_earth_to_body(z[0], z[1], psi) @ v_e, z[0], z[1], psi, ca.DM.zeros(3))
+    u = ca.vertcat(z[2], ca.DM.zeros(3))
+    one = ca.Function("trim_state", [z, v_e, psi, pos, params, wind], [x, build_model().f_wind(x, u, params, wind)])
+    return one if n == 1 else one.map(n)
 
 
 def _in_wind(wind):

@@ -39,6 +39,7 @@ from quadctl.trim import Trim
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
 MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
+SCHEDULE_JSON, SCHEDULE_NPZ = "schedule.json", "schedule.npz"
 CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
 
 
@@ -311,3 +312,13 @@ class Workspace(pipeline.Stages):
         self._write_json(SIM_JSON, "simulation", payloads.simulation(sim, summary, flight), sim.backend)
         return Flight(sim=sim, loop=loop, metrics=summary, flight=flight)
 
+
+    @cached_property
+    def schedule(self):
+        """The gain schedule (:func:`quadctl.scheduling.schedule_of`); writes schedule.json and schedule.npz."""
+        from quadctl.scheduling import schedule_of
+
+        sched = schedule_of(self.setup)
+        self._write_npz(SCHEDULE_NPZ, payloads.gain_schedule_arrays(sched), self._meta("schedule"))
+        self._write_json(SCHEDULE_JSON, "schedule", payloads.gain_schedule(sched))
+        return sched

@@ -77,3 +77,31 @@ def test_non_convergence_names_the_requested_velocity_and_how_far_the_ramp_got(s
     if "reached 25 %" in ramp:  # the quarter of the speed the message says was reached is an equilibrium
         t = solve_trim([0.25 * speed, 0, 0], 0.0, [0, 0, -1], vehicle)
         assert t.residual <= RESIDUAL_TOL
+
+
+@pytest.mark.parametrize("wind", [None, [2.0, -1.0, 0.5]])
+def test_batched_trims_are_the_one_point_trims(wind):
+    """solve_trims runs the same damped Newton on all points at once: the same trims, bit for bit and
+    in as many iterations, and the same refusal where there is none (a tilt beyond the model's, a
+    speed the direct Newton misses and the homotopy solves)."""
+    from quadctl.errors import TrimError
+    from quadctl.trim import solve_trims
+
+    V = [[s * np.cos(0.3), s * np.sin(0.3), vd] for s in np.linspace(0.0, 30.0, 12) for vd in (-2.0, 0.0, 1.5)]
+    V += [[200.0, 0.0, 0.0], [0.0, 0.0, 50.0], [120.0, 0.0, 0.0]]
+    yaws = np.linspace(-1.0, 1.0, len(V))
+    yaws[-3] = yaws[-1] = 0.0
+    found = solve_trims(V, yaws, [0.0, 0.0, -1.0], Vehicle(), wind_ned=wind)
+    refused = 0
+    for v, yaw, got in zip(V, yaws, found):
+        try:
+            ref = solve_trim(v, yaw, [0.0, 0.0, -1.0], Vehicle(), wind_ned=wind)
+        except TrimError as exc:
+            assert isinstance(got, TrimError) and str(got) == str(exc)
+            refused += 1
+            continue
+        np.testing.assert_array_equal(got.x, ref.x)
+        np.testing.assert_array_equal(got.u, ref.u)
+        np.testing.assert_array_equal(got.xdot, ref.xdot)
+        assert (got.iterations, got.residual) == (ref.iterations, ref.residual)
+    assert refused == 1  # 200 m/s; in still air 120 m/s is solved by the homotopy (the direct Newton misses it)

@@ -15,13 +15,15 @@ from quadctl.cli.commands import (
     margins,
     report,
     run,
+    schedule,
     simulate,
     sweep,
     trim,
 )
 from quadctl.cli.errors import handled
 
-COMMANDS = (init, trim, linearize, decouple, check, design, simulate, margins, export, sweep, run, report, configs)
+COMMANDS = (init, trim, linearize, decouple, check, design, schedule, simulate, margins, export, sweep, run, report,
+            configs)
 
 
 def register(app: typer.Typer) -> None:

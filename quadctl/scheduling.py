@@ -1,0 +1,447 @@
+"""A gain schedule across the envelope: trim and design at each value of one variable (no I/O).
+
+``schedule:`` names a scheduling variable (:data:`quadctl.lqr.gain_table.VARIABLES`) and the
+values to design at. At each value the config's flight condition is changed in that variable
+only (:func:`point_setup`):
+
+- ``speed``: the trim velocity's horizontal part becomes ``value`` along the trim heading (the
+  horizontal direction of ``trim.velocity_ned``, or ``trim.yaw`` when the trim is a hover); its
+  vertical part is kept;
+- ``climb``: ``vD = -value``, the horizontal velocity kept;
+- ``yaw``: ``trim.yaw = value``.
+
+Each point is trimmed, linearized and decoupled by the one chain of stages
+(:mod:`quadctl.pipeline`), and the points' designs are made together, batched as a sweep's are
+(:func:`quadctl.sweep.batched.design_all`: the Riccati solves stacked, each residual-checked, the
+coupled verdicts stacked). A value with no trim (the trim stage's own refusal: no equilibrium,
+a tilt the model does not support, or a trim outside the actuator limits) says why and the
+schedule goes on with the others; the *envelope* is the range of values that trim and design.
+
+The points' gains make the :class:`~quadctl.lqr.gain_table.GainTable`. Its interpolated gains
+are then checked on a grid ``check`` times finer (:class:`FrozenChecks`): at each fine value the
+model is trimmed and linearized again, the loop closed with the interpolated gain
+(:func:`quadctl.lqr.linear_loop.stack`) and judged by the one stability predicate
+(:func:`quadctl.stability.verdict_stack`). Outside the grid the table holds the end point's gain
+(:data:`quadctl.lqr.gain_table.OUTSIDE`).
+
+:func:`schedule_of` is the entry point: ``schedule_of(setup).table`` is what a loop flies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from quadctl import pipeline, stability
+from quadctl.errors import ConfigError, QuadctlError, ScheduleError, TrimError
+from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
+from quadctl.linearize import LinearModel
+from quadctl.lqr import linear_loop
+from quadctl.lqr.gain_table import OUTSIDE, VARIABLES, GainTable, scheduling_value
+from quadctl.problem import Setup
+from quadctl.trim import Trim
+
+
+@dataclass(frozen=True)
+class SchedulePoint:
+    """One scheduling value: its trim and design, or why it has none.
+
+    Attributes
+    ----------
+    value : float
+        The scheduling variable's value (its unit: :data:`~quadctl.lqr.gain_table.VARIABLES`).
+    velocity_ned : (3,) tuple of float
+        m/s, the flight condition trimmed at (NED).
+    yaw : float
+        rad.
+    trim : Trim or None
+        None when no trim exists (``reason`` says why).
+    linear : LinearModel or None
+    K : (4, 12) ndarray or None
+        The block gain, columns in ``STATE_NAMES`` order (``design.json``'s ``K_block``).
+    Ki : (4, nz) ndarray or None
+        The integrator gains (columns: :attr:`Schedule.integral_states`).
+    stable : bool
+        The design's closed loop on the coupled model is stable (marginal positions left out).
+    core_eigenvalues : (k,) ndarray
+        That loop's eigenvalues without the marginal modes (s, rad/s).
+    actuator_commands : (4,) ndarray or None
+        The trim's actuator commands (N per rotor with ``motors:``; the inputs with ``limits:``);
+        None without actuators.
+    reason : str or None
+        Why the point has no trim or no design (None: it has both).
+    """
+
+    value: float
+    velocity_ned: tuple[float, float, float]
+    yaw: float
+    trim: Trim | None = None
+    linear: LinearModel | None = None
+    K: np.ndarray | None = None
+    Ki: np.ndarray | None = None
+    stable: bool = False
+    core_eigenvalues: np.ndarray | None = None
+    actuator_commands: np.ndarray | None = None
+    reason: str | None = None
+
+    @property
+    def trimmed(self) -> bool:
+        return self.trim is not None
+
+    @property
+    def designed(self) -> bool:
+        return self.K is not None
+
+
+@dataclass(frozen=True)
+class FrozenChecks:
+    """The table's interpolated gains, each closed on the model frozen at its value.
+
+    Attributes
+    ----------
+    values : (k,) ndarray
+        The fine grid: each interval between the table's values split into ``check`` (the table's
+        values included).
+    stable : (k,) bool ndarray
+        The frozen loop is stable (:func:`quadctl.stability.verdict_stack`); False where no trim.
+    eigenvalues : (k, n) complex ndarray
+        Every eigenvalue of each frozen loop, as ``s`` (rad/s; ``ln z / Ts`` of a discrete design's
+        loop); NaN where no trim.
+    slowest : (k,) ndarray
+        The largest real part of the loop's eigenvalues, marginal positions left out (rad/s): the
+        slowest pole, positive when unstable; NaN where no trim.
+    least_damping : (k,) ndarray
+        :func:`quadctl.stability.least_damping` of the same eigenvalues; NaN where no trim.
+    worst : (k,) complex ndarray
+        The eigenvalue with that largest real part; NaN where no trim.
+    reasons : tuple of (str or None)
+        Why a fine value has no trim (None where it trims).
+    refinement : int
+        Parts each interval between the table's values is split into (``schedule.check``).
+    """
+
+    values: np.ndarray
+    stable: np.ndarray
+    eigenvalues: np.ndarray
+    slowest: np.ndarray
+    least_damping: np.ndarray
+    worst: np.ndarray
+    reasons: tuple
+    refinement: int = 1
+
+    @property
+    def passed(self) -> bool:
+        return bool(np.all(self.stable))
+
+    def failures(self, unit: str = "") -> list[str]:
+        """One line per fine value where the check fails: unstable (with its worst eigenvalue) or no trim."""
+        from quadctl.messages import eig_text
+
+        out = []
+        for v, ok, worst, why in zip(self.values, self.stable, self.worst, self.reasons):
+            if ok:
+                continue
+            at = f"{v:.6g} {unit}".rstrip()
+            out.append(f"at {at}: no trim inside the envelope ({why})" if why is not None else
+                       f"at {at}: the interpolated gain's frozen loop is UNSTABLE (eigenvalue {eig_text(worst)})")
+        return out
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """A gain schedule: its points, the table of their gains, and the frozen-point checks.
+
+    Attributes
+    ----------
+    variable : str
+        ``speed``, ``climb`` or ``yaw``.
+    unit : str
+        The variable's unit.
+    heading : float
+        rad from north: the direction ``speed`` is measured along (the trim velocity's horizontal
+        direction, or ``trim.yaw`` at hover); what :func:`quadctl.lqr.gain_table.scheduling_value`
+        takes to read the variable from a state.
+    interpolation : str
+    outside : str
+        What the table gives outside its values (:data:`~quadctl.lqr.gain_table.OUTSIDE`).
+    points : tuple of SchedulePoint
+        One per ``schedule.values`` entry, in order.
+    table : GainTable
+        The gains of the points that trim and design, ``[K, Ki]`` (4, 12 + nz) each.
+    checks : FrozenChecks
+    integral_states : tuple of str
+        The states the integrators integrate (the table's columns after the 12 states).
+    sample_time : float or None
+        s of a discrete design (its gains, its loops); None: continuous.
+    own_value : float
+        The config's own flight condition's value of the variable.
+    """
+
+    variable: str
+    unit: str
+    heading: float
+    interpolation: str
+    outside: str
+    points: tuple[SchedulePoint, ...]
+    table: GainTable
+    checks: FrozenChecks
+    integral_states: tuple[str, ...]
+    sample_time: float | None
+    own_value: float
+
+    @property
+    def envelope(self) -> tuple[float, float]:
+        """(lowest, highest) value of the table: the range that trims and designs."""
+        return float(self.table.values[0]), float(self.table.values[-1])
+
+    @property
+    def passed(self) -> bool:
+        """Every point designed stable and every frozen-point check stable."""
+        return self.checks.passed and all(p.stable for p in self.points if p.designed)
+
+    def verdict(self) -> str | None:
+        """Why the schedule fails, one line (None when it passes)."""
+        parts = [f"the design at {p.value:.6g} {self.unit} is UNSTABLE on the coupled model"
+                 for p in self.points if p.designed and not p.stable]
+        fails = self.checks.failures(self.unit)
+        if fails:
+            parts.append(f"{len(fails)} of {len(self.checks.values)} frozen-point checks fail: " + "; ".join(fails[:3])
+                         + ("; ..." if len(fails) > 3 else ""))
+        return "; ".join(parts) or None
+
+
+def heading_of(setup: Setup) -> float:
+    """rad from north: the trim velocity's horizontal direction, or ``trim.yaw`` at hover."""
+    vn, ve, _ = setup.velocity_ned
+    return float(np.arctan2(ve, vn)) if (vn or ve) else float(setup.yaw)
+
+
+def point_setup(setup: Setup, value: float, heading: float | None = None) -> Setup:
+    """``setup`` flying ``value`` of its schedule's variable (the other flight conditions kept)."""
+    variable = setup.schedule.variable
+    vn, ve, vd = setup.velocity_ned
+    if variable == "speed":
+        h = heading_of(setup) if heading is None else heading
+        return replace(setup, velocity_ned=(float(value * np.cos(h)), float(value * np.sin(h)), vd))
+    if variable == "climb":
+        return replace(setup, velocity_ned=(vn, ve, 0.0 - float(value)))
+    return replace(setup, yaw=float(value))
+
+
+def own_value(setup: Setup, heading: float) -> float:
+    """The config's own flight condition's value of the scheduling variable
+    (:func:`~quadctl.lqr.gain_table.scheduling_value` of a state that flies it)."""
+    x = np.zeros(N_STATES)
+    x[STATE_INDEX["psi"]] = setup.yaw
+    c, s = np.cos(setup.yaw), np.sin(setup.yaw)  # body velocity of a level vehicle at that yaw
+    vn, ve, vd = setup.velocity_ned
+    x[STATE_INDEX["u"]], x[STATE_INDEX["v"]], x[STATE_INDEX["w"]] = c * vn + s * ve, -s * vn + c * ve, vd
+    return float(scheduling_value(setup.schedule.variable, x, heading)) + 0.0  # no -0 in messages
+
+
+def _flight_conditions(setups: list[Setup]) -> list:
+    """Per setup (one config's, at different values of its variable): (Trim, LinearModel, actuator
+    commands), or the trim stage's refusal (a TrimError, or the ActuatorLimitError of a trim outside
+    the actuator limits). :func:`quadctl.pipeline.trim_of` of every setup, batched
+    (:func:`quadctl.trim.solve_trims`: the same Newton, the same checks)."""
+    from quadctl.motors import check_trim
+    from quadctl.trim import solve_trims
+
+    if not setups:
+        return []
+    base = setups[0]
+    trims = solve_trims([s.velocity_ned for s in setups], [s.yaw for s in setups], base.position_ned,
+                        base.vehicle, wind_ned=base.trim_wind)
+    out: list = []
+    for ps, trim in zip(setups, trims):
+        if isinstance(trim, TrimError):
+            out.append(trim)
+            continue
+        try:
+            check_trim(ps.actuators, trim.u)
+        except ConfigError as exc:
+            out.append(exc)
+            continue
+        act = None if ps.actuators is None else ps.actuators.commands(trim.u)
+        out.append((trim, pipeline.linear_of(ps, trim), act))
+    return out
+
+
+def schedule_of(setup: Setup) -> Schedule:
+    """The gain schedule of a setup whose config has ``schedule:``.
+
+    Parameters
+    ----------
+    setup : Setup
+        With :attr:`~quadctl.problem.Setup.schedule`.
+
+    Returns
+    -------
+    Schedule
+
+    Raises
+    ------
+    ConfigError
+        No ``schedule:`` section; a design that includes the rotors' lag; fewer than two values
+        trim and design; the config's own flight condition outside the envelope (each names the
+        key and the fix: exit 2).
+
+    Examples
+    --------
+    >>> from quadctl import config
+    >>> from quadctl.problem import setup_of
+    >>> cfg = config.load("hover").model_copy(update={"schedule": config.ScheduleConfig(
+    ...     variable="speed", values=[0, 1, 2])})
+    >>> sched = schedule_of(setup_of(cfg))
+    >>> sched.table.gains.shape, sched.envelope, sched.checks.passed
+    ((3, 4, 12), (0.0, 2.0), True)
+    """
+    from quadctl.sweep.evaluate import _threadpools
+
+    with _threadpools().limit(limits=1):  # small matrices: BLAS threads cost 100x on a busy 2-core machine
+        return _schedule(setup)
+
+
+def _schedule(setup: Setup) -> Schedule:
+    spec = setup.schedule
+    if spec is None:
+        raise ScheduleError("schedule: missing; add a schedule section (schedule: {variable: speed, values: "
+                          "[0, 1, 2]}) to trim and design across the envelope")
+    if setup.design_lag_time_constant is not None:
+        raise ScheduleError("controller.rotor_lag = include: a gain schedule tables the state and integrator "
+                          "gains only; set controller.rotor_lag: ignore to schedule this design")
+    heading = heading_of(setup)
+    values = [float(v) for v in spec.values]
+    points = _points(setup, values, heading)
+    good = [p for p in points if p.designed]
+    unit = VARIABLES[spec.variable]
+    if len(good) < 2:
+        bad = [p for p in points if not p.designed]
+        raise ScheduleError(f"schedule.values: {len(good)} of {len(values)} values trim and design, a schedule needs "
+                            f"two (at {bad[0].value:g} {unit}: {bad[0].reason}); narrow schedule.values to the "
+                            "envelope the vehicle can fly")
+    own = own_value(setup, heading)
+    if not good[0].value <= own <= good[-1].value:
+        key = {"speed": "trim.velocity_ned", "climb": "trim.velocity_ned", "yaw": "trim.yaw"}[spec.variable]
+        raise ScheduleError(f"schedule.values: the config's own flight condition ({key}: {spec.variable} {own:g} "
+                          f"{unit}) is outside the envelope that trims, [{good[0].value:g}, {good[-1].value:g}] "
+                          f"{unit}; list values around {own:g} {unit} in schedule.values, or change {key}")
+    ints = _integral_states(setup)
+    gains = np.stack([np.hstack([p.K, p.Ki]) for p in good])
+    table = GainTable.of(spec.variable, [p.value for p in good], gains, spec.interpolation)
+    Ts = setup.timing.design_sample_time
+    checks = frozen_checks(setup, table, ints, spec.check, heading, {p.value: p for p in good}, Ts)
+    return Schedule(variable=spec.variable, unit=unit, heading=heading, interpolation=spec.interpolation,
+                    outside=OUTSIDE, points=tuple(points), table=table, checks=checks, integral_states=ints,
+                    sample_time=Ts, own_value=own)
+
+
+def _integral_states(setup: Setup) -> tuple[str, ...]:
+    """The integrated states in the design's order (regulated subsystems in partition order)."""
+    return tuple(s for name, sub in setup.partition.items() if sub.regulate for s in setup.integral.get(name, ()))
+
+
+def _points(setup: Setup, values: list[float], heading: float) -> list[SchedulePoint]:
+    """Each value trimmed, linearized, decoupled, and all designed together (batched)."""
+    from quadctl.sweep import batched
+    from quadctl.sweep.evaluate import Plant, Prepared
+
+    points: list[SchedulePoint] = []
+    preps, where = [], []
+    setups = [point_setup(setup, value, heading) for value in values]
+    for value, ps, found in zip(values, setups, _flight_conditions(setups)):
+        base = SchedulePoint(value=value, velocity_ned=ps.velocity_ned, yaw=ps.yaw)
+        if isinstance(found, QuadctlError):
+            points.append(replace(base, reason=str(found)))
+            continue
+        trim, linear, act = found
+        points.append(replace(base, trim=trim, linear=linear, actuator_commands=act))
+        preps.append(Prepared(len(preps), {}, ps, Plant(linear, pipeline.decoupled_of(ps, linear))))
+        where.append(len(points) - 1)
+    stats = {"designs": 0, "fallbacks": 0}
+    for k, des in zip(where, batched.design_all(preps, stats)):
+        if isinstance(des, str):
+            points[k] = replace(points[k], reason=des)
+        else:
+            points[k] = replace(points[k], K=des.K_block, Ki=des.Ki_block, stable=bool(des.stable),
+                                core_eigenvalues=des.core)
+    return points
+
+
+def fine_values(values, check: int) -> np.ndarray:
+    """Each interval between ``values`` split into ``check`` equal parts, the values included:
+    ``(len(values) - 1) * check + 1`` increasing values."""
+    values = np.asarray(values, dtype=float)
+    steps = np.arange(check) / check
+    inner = (values[:-1, None] + np.diff(values)[:, None] * steps).ravel()
+    return np.append(inner, values[-1])
+
+
+def frozen_checks(setup: Setup, table: GainTable, integral_states, check: int, heading: float,
+                  known: dict | None = None, sample_time: float | None = None) -> FrozenChecks:
+    """The table's gains interpolated on a grid ``check`` times finer, each closed on the model
+    trimmed and linearized at its value (frozen), and judged.
+
+    Parameters
+    ----------
+    setup : Setup
+        With ``schedule``.
+    table : GainTable
+        Gains ``[K, Ki]`` (n, 4, 12 + nz).
+    integral_states : tuple of str
+    check : int
+        Parts each interval is split into.
+    heading : float
+        rad (:func:`heading_of`).
+    known : dict, optional
+        value -> :class:`SchedulePoint` whose linear model is reused (the table's own points).
+    sample_time : float, optional
+        s: the gains are a discrete design's, closed on the zero-order hold of each model.
+
+    Returns
+    -------
+    FrozenChecks
+    """
+    known = known or {}
+    fine = fine_values(table.values, check)
+    nz = len(integral_states)
+    n = N_STATES + nz
+    A = np.zeros((len(fine), N_STATES, N_STATES))
+    B = np.zeros((len(fine), N_STATES, N_INPUTS))
+    reasons: list = [None] * len(fine)
+    new = [i for i, v in enumerate(fine) if float(v) not in known]
+    for i, v in enumerate(fine):
+        if float(v) in known:
+            A[i], B[i] = known[float(v)].linear.A, known[float(v)].linear.B
+    for i, found in zip(new, _flight_conditions([point_setup(setup, fine[i], heading) for i in new])):
+        if isinstance(found, QuadctlError):
+            reasons[i] = str(found)
+            continue
+        A[i], B[i] = found[1].A, found[1].B
+    G = table.at(fine)
+    K, Ki = G[:, :, :N_STATES], G[:, :, N_STATES:]
+    if sample_time is not None:
+        from quadctl.lqr.discrete import c2d_batch
+
+        A, B = c2d_batch(A, B, sample_time)
+    A_cl = linear_loop.stack(A, B, K, Ki, tuple(integral_states), sample_time)
+    trimmed = np.array([r is None for r in reasons])
+    stable = np.zeros(len(fine), bool)
+    eig = np.full((len(fine), n), np.nan, complex)
+    slowest = np.full(len(fine), np.nan)
+    damping = np.full(len(fine), np.nan)
+    worst = np.full(len(fine), np.nan, complex)
+    rows = np.nonzero(trimmed)[0]
+    if rows.size:
+        all_eig = np.linalg.eigvals(A_cl[rows])
+        for j, i in enumerate(rows):
+            e = all_eig[j]
+            eig[i] = e if sample_time is None else np.log(e.astype(complex)) / sample_time
+        for i, (core, _, ok) in zip(rows, stability.verdict_stack(A_cl[rows], K[rows], sample_time=sample_time)):
+            stable[i] = ok
+            k = int(np.argmax(core.real))
+            worst[i], slowest[i] = core[k], core[k].real
+            damping[i] = stability.least_damping(core)
+    return FrozenChecks(values=fine, stable=stable, eigenvalues=eig, slowest=slowest, least_damping=damping,
+                        worst=worst, reasons=tuple(reasons), refinement=check)
