@@ -2,7 +2,8 @@
 "Wind" and "State estimation (LQG)".
 
 Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers);
-python docs/figures.py lqg   writes only the LQG figure; python docs/figures.py lag   only the lag and delay one.
+python docs/figures.py lqg   writes only the LQG figure; python docs/figures.py lag   only the lag and delay one;
+python docs/figures.py schedule   only the gain schedule's envelope.
 
 Every number and curve comes from the library (the same calls the CLI makes); nothing is stored.
 """
@@ -258,7 +259,21 @@ def mission_figure() -> Figure:
     return plots.path_figure(sim, [leg.position for leg in setup.reference.legs], title="square")
 
 
+def schedule_figure() -> Figure:
+    """The bundled schedule's envelope: gains, frozen-point loops, trim attitude and rotor thrust against speed."""
+    from quadctl.scheduling import schedule_of
+
+    setup = setup_of(config.load("schedule"))
+    sched = schedule_of(setup)
+    print(f"schedule: envelope {sched.envelope} m/s, frozen-point checks passed {sched.checks.passed}, least damping "
+          f"{np.nanmin(sched.checks.least_damping):.3g}")
+    return plots.schedule_figure(sched, setup.actuators, title="schedule")
+
+
 def main() -> int:
+    if sys.argv[1:] == ["schedule"]:
+        save(schedule_figure(), "schedule-envelope.png")
+        return 0
     if sys.argv[1:] == ["mission"]:
         save(mission_figure(), "square-mission.png")
         return 0
@@ -312,6 +327,7 @@ def main() -> int:
     save(gust_figure(gust_runs()), "crazyflie-gust.png")
     make_lqg_figure()
     save(mission_figure(), "square-mission.png")
+    save(schedule_figure(), "schedule-envelope.png")
     return 0
 
 
