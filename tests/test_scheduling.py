@@ -171,6 +171,25 @@ def test_a_value_outside_the_motor_limits_says_why_and_the_envelope_is_the_rest(
     assert all(np.all(p.actuator_commands >= 0.16) for p in sched.points if p.trimmed)
 
 
+def test_the_envelope_figure_draws_the_rotor_limits_and_marks_the_values_with_no_trim():
+    from quadctl import plots
+
+    data = config.load("mambo-200hz").model_dump()
+    data["motors"]["min_thrust"] = 0.16
+    data["schedule"] = {"variable": "speed", "values": [0.0, 1.0, 2.0, 3.0]}
+    setup = setup_of(config.from_dict(data, "tight rotors"))
+    sched = schedule_of(setup)
+    fig = plots.schedule_figure(sched, setup.actuators, title="tight")
+    _, poles, attitude, thrust = fig.axes[:4]  # (then the damping axis, twin of the poles)
+    rotor = thrust.get_lines()[0]
+    np.testing.assert_allclose(rotor.get_ydata(), [p.actuator_commands[0] for p in sched.points[:2]])
+    levels = {line.get_ydata()[0] for line in thrust.get_lines() if line.get_linestyle() == "-."}
+    assert levels == {0.16, 0.33}
+    marked = sorted(line.get_xdata()[0] for line in attitude.get_lines() if line.get_linestyle() == ":")
+    assert marked == [2.0, 3.0]
+    np.testing.assert_allclose(poles.get_lines()[0].get_ydata(), sched.checks.slowest)
+
+
 def test_a_value_beyond_the_models_tilt_says_why():
     sched = schedule_of(setup_of(with_schedule("hover", {"variable": "speed", "values": [0.0, 1.0, 200.0]})))
     assert sched.envelope == (0.0, 1.0)
