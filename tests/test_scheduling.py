@@ -158,6 +158,46 @@ def test_the_frozen_loops_close_the_interpolated_gain(interpolation):
         assert sched.checks.slowest[i] == pytest.approx(ref.real.max(), abs=1e-9)
 
 
+def test_a_discrete_integrating_schedule_checks_its_sampled_loops(schedules):
+    """mambo-200hz (lqrd at 200 Hz, an integrator on pD), scheduled on climb: each fine loop is the
+    zero-order hold of the model trimmed there (SciPy's expm of the augmented matrix), closed by the
+    interpolated ``[K, Ki]`` with the accumulator ``z <- z - Ts pD``; its eigenvalues as ``ln z / Ts``."""
+    from scipy.linalg import expm
+
+    cfg, sched = schedules["mambo climb"]
+    Ts = 1 / 200
+    assert sched.sample_time == Ts and sched.integral_states == ("pD",)
+    for i in (1, 3, 6):  # between the points
+        v = sched.checks.values[i]
+        data = cfg.model_dump()
+        data.pop("schedule")
+        data["trim"]["velocity_ned"] = [1.0, 0.0, -v]  # the config's 1 m/s north kept
+        linear = pipeline.Stages(setup_of(config.from_dict(data, "frozen"))).linear
+        M = np.zeros((16, 16))
+        M[:12, :12], M[:12, 12:] = linear.A, linear.B
+        E = expm(M * Ts)
+        Ad, Bd = E[:12, :12], E[:12, 12:]
+        G = interp1d(sched.table.values, sched.table.gains, axis=0)(v)
+        K, Ki = G[:, :12], G[:, 12:]
+        loop = np.zeros((13, 13))
+        loop[:12, :12], loop[:12, 12:] = Ad - Bd @ K, -Bd @ Ki
+        loop[12, STATE_INDEX["pD"]], loop[12, 12] = -Ts, 1.0
+        keep = [k for k in range(13) if k not in (STATE_INDEX["pN"], STATE_INDEX["pE"])]
+        s = np.log(np.linalg.eigvals(loop[np.ix_(keep, keep)]).astype(complex)) / Ts
+        assert sched.checks.slowest[i] == pytest.approx(s.real.max(), abs=1e-8)
+        assert sched.checks.stable[i]
+
+
+def test_a_design_with_the_rotors_lag_is_refused():
+    data = config.load("mambo-200hz").model_dump()
+    data["motors"]["time_constant"] = 0.02
+    data["controller"]["rotor_lag"] = "include"
+    data["schedule"] = {"variable": "speed", "values": [0.0, 1.0]}
+    with pytest.raises(ScheduleError, match=r"^controller\.rotor_lag = include: a gain schedule tables the state and "
+                                            r"integrator gains only; set controller\.rotor_lag: ignore"):
+        schedule_of(setup_of(config.from_dict(data, "lag")))
+
+
 def test_a_value_outside_the_motor_limits_says_why_and_the_envelope_is_the_rest():
     """Mambo rotors that cannot idle below 0.16 N: the thrust a faster trim needs falls under it."""
     data = config.load("mambo-200hz").model_dump()
