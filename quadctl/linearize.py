@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.layout import POSITION
+from quadctl.layout import N_INPUTS, N_STATES, POSITION
 from quadctl.model import Vehicle, build_model
 
 
@@ -51,17 +51,44 @@ def linearize(x_trim, u_trim, vehicle: Vehicle, wind_ned=None) -> LinearModel:
     -------
     LinearModel
     """
-    x_trim = np.asarray(x_trim, dtype=float)
-    u_trim = np.asarray(u_trim, dtype=float)
+    return linearize_all(np.asarray(x_trim, dtype=float)[None], np.asarray(u_trim, dtype=float)[None], vehicle,
+                         wind_ned)[0]
+
+
+def linearize_all(x_trims, u_trims, vehicle: Vehicle, wind_ned=None) -> list[LinearModel]:
+    """:func:`linearize` at many operating points of one vehicle (and one steady wind): the Jacobian
+    functions mapped over the points, one CasADi call.
+
+    Parameters
+    ----------
+    x_trims : (N, 12) array_like
+    u_trims : (N, 4) array_like
+    vehicle : Vehicle
+    wind_ned : (3,) array_like, optional
+
+    Returns
+    -------
+    list of LinearModel
+    """
+    x = np.asarray(x_trims, dtype=float)
+    u = np.asarray(u_trims, dtype=float)
+    n = len(x)
+    if n == 0:
+        return []
     model = build_model()
     if wind_ned is None or not np.any(wind_ned):
-        a, b = model.jacobians(x_trim, u_trim, vehicle.vector())
-        xdot = np.asarray(model.f(x_trim, u_trim, vehicle.vector()), dtype=float).ravel()
+        jac, f, extra = model.jacobians, model.f, ()
     else:
-        wind = np.asarray(wind_ned, dtype=float)
-        a, b = model.jacobians_wind(x_trim, u_trim, vehicle.vector(), wind)
-        xdot = np.asarray(model.f_wind(x_trim, u_trim, vehicle.vector(), wind), dtype=float).ravel()
-    x_rate = np.zeros_like(xdot)
-    x_rate[POSITION] = xdot[POSITION]
-    return LinearModel(A=np.asarray(a, dtype=float), B=np.asarray(b, dtype=float),
-                       x_trim=x_trim, u_trim=u_trim, x_rate=x_rate)
+        jac, f, extra = model.jacobians_wind, model.f_wind, (np.asarray(wind_ned, dtype=float),)
+    if n > 1:
+        jac, f = jac.map(n), f.map(n)
+    a, b = (np.asarray(m, dtype=float) for m in jac(x.T, u.T, vehicle.vector(), *extra))
+    xdot = np.asarray(f(x.T, u.T, vehicle.vector(), *extra), dtype=float).T
+    A = a.reshape(N_STATES, n, N_STATES).transpose(1, 0, 2)
+    B = b.reshape(N_STATES, n, N_INPUTS).transpose(1, 0, 2)
+    out = []
+    for k in range(n):
+        x_rate = np.zeros(N_STATES)
+        x_rate[POSITION] = xdot[k, POSITION]
+        out.append(LinearModel(A=A[k].copy(), B=B[k].copy(), x_trim=x[k], u_trim=u[k], x_rate=x_rate))
+    return out

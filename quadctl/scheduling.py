@@ -36,7 +36,7 @@ import numpy as np
 from quadctl import pipeline, stability
 from quadctl.errors import ConfigError, QuadctlError, ScheduleError, TrimError
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
-from quadctl.linearize import LinearModel
+from quadctl.linearize import LinearModel, linearize_all
 from quadctl.lqr import linear_loop
 from quadctl.lqr.gain_table import OUTSIDE, VARIABLES, GainTable, scheduling_value
 from quadctl.problem import Setup
@@ -243,8 +243,9 @@ def own_value(setup: Setup, heading: float) -> float:
 def _flight_conditions(setups: list[Setup]) -> list:
     """Per setup (one config's, at different values of its variable): (Trim, LinearModel, actuator
     commands), or the trim stage's refusal (a TrimError, or the ActuatorLimitError of a trim outside
-    the actuator limits). :func:`quadctl.pipeline.trim_of` of every setup, batched
-    (:func:`quadctl.trim.solve_trims`: the same Newton, the same checks)."""
+    the actuator limits). :func:`quadctl.pipeline.trim_of` and :func:`~quadctl.pipeline.linear_of` of
+    every setup, batched (:func:`quadctl.trim.solve_trims`: the same Newton, the same checks;
+    :func:`quadctl.linearize.linearize_all`: the same Jacobians)."""
     from quadctl.motors import check_trim
     from quadctl.trim import solve_trims
 
@@ -255,16 +256,17 @@ def _flight_conditions(setups: list[Setup]) -> list:
                         base.vehicle, wind_ned=base.trim_wind)
     out: list = []
     for ps, trim in zip(setups, trims):
-        if isinstance(trim, TrimError):
-            out.append(trim)
-            continue
-        try:
-            check_trim(ps.actuators, trim.u)
-        except ConfigError as exc:
-            out.append(exc)
-            continue
-        act = None if ps.actuators is None else ps.actuators.commands(trim.u)
-        out.append((trim, pipeline.linear_of(ps, trim), act))
+        if not isinstance(trim, TrimError):
+            try:
+                check_trim(ps.actuators, trim.u)
+            except ConfigError as exc:
+                trim = exc
+        out.append(trim)
+    flown = [k for k, trim in enumerate(out) if isinstance(trim, Trim)]
+    linear = linearize_all([out[k].x for k in flown], [out[k].u for k in flown], base.vehicle, base.trim_wind)
+    for k, lin in zip(flown, linear):  # pipeline.linear_of of each, in one call
+        act = None if base.actuators is None else base.actuators.commands(out[k].u)
+        out[k] = (out[k], lin, act)
     return out
 
 

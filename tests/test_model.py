@@ -106,3 +106,19 @@ def test_free_fall_conserves_mechanical_energy_while_tumbling():
         return 0.5 * s[3:6] @ s[3:6] - v.gravity * s[STATE_INDEX["pD"]]
 
     assert energy(end) == pytest.approx(energy(x), rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.parametrize("wind", [None, [1.0, -2.0, 0.3]])
+def test_linearize_all_is_linearize_at_each_point(wind):
+    """The Jacobians mapped over points are each point's own, bit for bit, with its drift ``x_rate``."""
+    from quadctl.linearize import linearize, linearize_all
+
+    rng = np.random.default_rng(7)
+    points = [_random_point(rng) for _ in range(6)]
+    many = linearize_all([x for x, _ in points], [u for _, u in points], Vehicle(), wind)
+    assert linearize_all(np.zeros((0, 12)), np.zeros((0, 4)), Vehicle()) == []
+    for (x, u), lin in zip(points, many):
+        one = linearize(x, u, Vehicle(), wind)
+        for name in ("A", "B", "x_trim", "u_trim", "x_rate"):
+            np.testing.assert_array_equal(getattr(lin, name), getattr(one, name))
+        assert np.any(lin.x_rate[:3]) and not np.any(lin.x_rate[3:])
