@@ -16,6 +16,7 @@ module             presents
 ``design``         gains (K, Ki, Kv), K_block, the coupled closed loop as a damp table
 ``loops``          margins: classical, disk, delay; the LQR guarantee and the sampled loop
 ``flight``         a simulation's metrics, inputs, saturation, noise, estimation, wind, integrators
+``schedule``       a gain schedule's points, its envelope and its frozen-point checks
 =================  ==========================================================================
 """
 
