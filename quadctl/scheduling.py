@@ -284,8 +284,8 @@ def schedule_of(setup: Setup) -> Schedule:
 
     Raises
     ------
-    ConfigError
-        No ``schedule:`` section; a design that includes the rotors' lag; fewer than two values
+    ScheduleError
+        (a ConfigError) No ``schedule:`` section; a design that includes the rotors' lag; fewer than two values
         trim and design; the config's own flight condition outside the envelope (each names the
         key and the fix: exit 2).
 
@@ -309,13 +309,13 @@ def _schedule(setup: Setup) -> Schedule:
     spec = setup.schedule
     if spec is None:
         raise ScheduleError("schedule: missing; add a schedule section (schedule: {variable: speed, values: "
-                          "[0, 1, 2]}) to trim and design across the envelope")
+                            "[0, 1, 2]}) to trim and design across the envelope")
     if setup.design_lag_time_constant is not None:
         raise ScheduleError("controller.rotor_lag = include: a gain schedule tables the state and integrator "
-                          "gains only; set controller.rotor_lag: ignore to schedule this design")
+                            "gains only; set controller.rotor_lag: ignore to schedule this design")
     heading = heading_of(setup)
     values = [float(v) for v in spec.values]
-    points = _points(setup, values, heading)
+    points, ints = _points(setup, values, heading)
     good = [p for p in points if p.designed]
     unit = VARIABLES[spec.variable]
     if len(good) < 2:
@@ -327,9 +327,8 @@ def _schedule(setup: Setup) -> Schedule:
     if not good[0].value <= own <= good[-1].value:
         key = {"speed": "trim.velocity_ned", "climb": "trim.velocity_ned", "yaw": "trim.yaw"}[spec.variable]
         raise ScheduleError(f"schedule.values: the config's own flight condition ({key}: {spec.variable} {own:g} "
-                          f"{unit}) is outside the envelope that trims, [{good[0].value:g}, {good[-1].value:g}] "
-                          f"{unit}; list values around {own:g} {unit} in schedule.values, or change {key}")
-    ints = _integral_states(setup)
+                            f"{unit}) is outside the envelope that trims, [{good[0].value:g}, {good[-1].value:g}] "
+                            f"{unit}; list values around {own:g} {unit} in schedule.values, or change {key}")
     gains = np.stack([np.hstack([p.K, p.Ki]) for p in good])
     table = GainTable.of(spec.variable, [p.value for p in good], gains, spec.interpolation)
     Ts = setup.timing.design_sample_time
@@ -339,13 +338,9 @@ def _schedule(setup: Setup) -> Schedule:
                     sample_time=Ts, own_value=own)
 
 
-def _integral_states(setup: Setup) -> tuple[str, ...]:
-    """The integrated states in the design's order (regulated subsystems in partition order)."""
-    return tuple(s for name, sub in setup.partition.items() if sub.regulate for s in setup.integral.get(name, ()))
-
-
-def _points(setup: Setup, values: list[float], heading: float) -> list[SchedulePoint]:
-    """Each value trimmed, linearized, decoupled, and all designed together (batched)."""
+def _points(setup: Setup, values: list[float], heading: float) -> tuple[list[SchedulePoint], tuple[str, ...]]:
+    """Each value trimmed, linearized, decoupled, and all designed together (batched); and the
+    states the designs integrate (the columns of ``Ki``, the same for every point)."""
     from quadctl.sweep import batched
     from quadctl.sweep.evaluate import Plant, Prepared
 
@@ -362,13 +357,15 @@ def _points(setup: Setup, values: list[float], heading: float) -> list[ScheduleP
         preps.append(Prepared(len(preps), {}, ps, Plant(linear, pipeline.decoupled_of(ps, linear))))
         where.append(len(points) - 1)
     stats = {"designs": 0, "fallbacks": 0}
+    ints: tuple[str, ...] = ()
     for k, des in zip(where, batched.design_all(preps, stats)):
         if isinstance(des, str):
             points[k] = replace(points[k], reason=des)
         else:
             points[k] = replace(points[k], K=des.K_block, Ki=des.Ki_block, stable=bool(des.stable),
                                 core_eigenvalues=des.core)
-    return points
+            ints = des.integral_states
+    return points, ints
 
 
 def fine_values(values, check: int) -> np.ndarray:
