@@ -40,6 +40,7 @@ from quadctl.linearize import LinearModel, linearize_all
 from quadctl.lqr import linear_loop
 from quadctl.lqr.gain_table import OUTSIDE, VARIABLES, GainTable, scheduling_value
 from quadctl.problem import Setup
+from quadctl.threads import one_thread
 from quadctl.trim import Trim
 
 
@@ -299,9 +300,7 @@ def schedule_of(setup: Setup) -> Schedule:
     >>> sched.table.gains.shape, sched.envelope, sched.checks.passed
     ((3, 4, 12), (0.0, 2.0), True)
     """
-    from quadctl.sweep.evaluate import _threadpools
-
-    with _threadpools().limit(limits=1):  # small matrices: BLAS threads cost 100x on a busy 2-core machine
+    with one_thread():
         return _schedule(setup)
 
 

@@ -23,6 +23,7 @@ from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.sweep.gates import judge, tracking_columns
 from quadctl.sweep.spec import assign
+from quadctl.threads import one_thread
 
 MC_POINTS = 201
 """A Monte Carlo case keeps its regulated states at this many evenly spaced times (float32): with
@@ -85,21 +86,8 @@ def evaluate_chunk(task: ChunkTask) -> ChunkResult:
     one thread meanwhile: the workers are the parallelism, and the matrices here are too small for
     threads to pay (on 2 cores, BLAS threads on top of two workers made a sweep 6 to 16x slower).
     """
-    with _threadpools().limit(limits=1):
+    with one_thread():
         return _evaluate_chunk(task)
-
-
-@lru_cache(maxsize=1)
-def _threadpools():
-    """The process's BLAS and OpenMP thread pools, found once (a search costs ~1 ms, a chunk each
-    time), after loading every library a chunk uses (a pool loaded later would not be limited)."""
-    import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS)
-    from threadpoolctl import ThreadpoolController
-
-    import quadctl.lqr.riccati  # noqa: F401
-    import quadctl.sim.engine  # noqa: F401
-
-    return ThreadpoolController()
 
 
 def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
