@@ -48,7 +48,7 @@ def scheduling_value(variable: str, x, heading: float, lib=np):
         ``climb``: ``-vD`` (m/s, up positive); ``yaw``: ``psi`` (rad).
     x : (12,) array or CasADi column
         The state in ``STATE_NAMES`` order (body velocities ``u, v, w`` and ZYX Euler angles).
-    heading : float
+    heading : float or CasADi scalar
         rad from north, the direction ``speed`` is measured along.
     lib : module
         ``numpy`` (returns a float) or ``casadi`` (returns an expression). The rotation is the
@@ -63,7 +63,7 @@ def scheduling_value(variable: str, x, heading: float, lib=np):
         velocity_ned = np.asarray(velocity_ned, dtype=float).ravel()
     if variable == "climb":
         return -velocity_ned[2]
-    return np.cos(heading) * velocity_ned[0] + np.sin(heading) * velocity_ned[1]
+    return lib.cos(heading) * velocity_ned[0] + lib.sin(heading) * velocity_ned[1]
 
 @dataclass(frozen=True)
 class GainTable:

@@ -71,6 +71,14 @@ torque added to the plant and the sensor noise added to what the controller meas
 (:data:`EXO_LAYOUT`); then, when :attr:`LoopSpec.wind`, the wind (NED, m/s) the rotor drag sees
 through the air-relative velocity (:data:`WIND_LAYOUT`; :mod:`quadctl.wind`).
 
+Gain schedule (:attr:`LoopSpec.schedule`): the gain is ``G(v)``, the piecewise cubic of a
+:class:`quadctl.lqr.gain_table.GainTable` (its ``breaks`` and ``coefficients`` in ``c``, held at
+the ends; :func:`scheduled_gain`) at ``v = scheduling_value(variable, x_ref(t), heading)``: scheduled
+on the reference the law uses (the commanded state, as python-control's gain-scheduled state
+feedback schedules by default), not on the measured state, so the gain moves with the command and
+the loop at a frozen reference is the linear loop of ``G(v)``. ``G`` replaces ``K`` (and ``Ki``
+when the table carries the integrator gains).
+
 Constants (:func:`constant_layout`): everything numeric a case carries (trim, gains, vehicle,
 mixing, limits) is one vector ``c``; the gain's sparsity, the saturation mode and the integrated
 states are baked into the generated code, so a block-diagonal gain costs only its nonzeros.
@@ -148,7 +156,7 @@ N_ROTORS = 4
 
 
 def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
-                    ny: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
+                    ny: int = 0, schedule: tuple[int, ...] = ()) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
@@ -156,8 +164,11 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
     (loops with rotor dynamics); ``Kv`` (4, 4) the gain on the controller's rotor lag model and
     ``tau_model`` (s) the model's time constant (loops with a lag model); ``Ae`` (12, 12), ``Be``
     (12, 4) and ``Le`` (12, ny) are the Kalman filter's model and gain of a loop with ``ny``
-    measurements (LQG). Matrices are stored
-    column-major.
+    measurements (LQG). A loop with a gain schedule of ``schedule = (p, m)``, ``p`` pieces of ``m``
+    gain columns (:attr:`LoopSpec.schedule`), ends with ``schedule_heading`` (rad, the direction
+    ``speed`` is measured along), ``schedule_breaks`` (p + 1,) and ``schedule_coefficients``
+    (4, p, 4, m): :class:`quadctl.lqr.gain_table.GainTable`'s ``breaks`` and ``coefficients``.
+    Matrices (and the coefficients) are stored column-major.
     """
     out = _BASE_LAYOUT
     if nz:
@@ -168,16 +179,22 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
         out = out + (("Kv", (N_INPUTS, N_INPUTS)), ("tau_model", (1,)))
     if ny:
         out = out + (("Ae", (N_STATES, N_STATES)), ("Be", (N_STATES, N_INPUTS)), ("Le", (N_STATES, ny)))
+    if schedule:
+        pieces, columns = schedule
+        out = out + (("schedule_heading", (1,)), ("schedule_breaks", (pieces + 1,)),
+                     ("schedule_coefficients", (4, pieces, N_INPUTS, columns)))
     return out
 
 
-def constant_size(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0) -> int:
-    """Length of ``c`` for ``nz`` integrators (and rotor dynamics, a lag model, ``ny`` measurements)."""
-    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model, ny))
+def constant_size(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
+                  schedule: tuple[int, ...] = ()) -> int:
+    """Length of ``c`` for ``nz`` integrators (and rotor dynamics, a lag model, ``ny`` measurements,
+    a gain schedule's ``(pieces, columns)``)."""
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model, ny, schedule))
 
 
 def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                   **values) -> np.ndarray:
+                   schedule: tuple[int, ...] = (), **values) -> np.ndarray:
     """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
 
     Raises
@@ -185,11 +202,12 @@ def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, n
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    return fill_constants(_slots(nz, rotors, lag_model, ny)[1].copy(), nz, rotors, lag_model, ny, **values)
+    return fill_constants(_slots(nz, rotors, lag_model, ny, tuple(schedule))[1].copy(), nz, rotors, lag_model, ny,
+                          schedule, **values)
 
 
 def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                   **values) -> np.ndarray:
+                   schedule: tuple[int, ...] = (), **values) -> np.ndarray:
     """Write ``values`` into their slots of a ``c`` vector of that layout (in place; returned):
     what :func:`pack_constants` does to the defaults, for a sweep that writes each case's gains
     into a copy of its loop's constants.
@@ -199,7 +217,7 @@ def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots = _slots(nz, rotors, lag_model, ny)[0]
+    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule))[0]
     for name, value in values.items():
         if name not in slots:
             raise ValueError(f"unknown constants: {sorted(set(values) - set(slots))}")
@@ -212,11 +230,11 @@ def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model
 
 
 @lru_cache(maxsize=16)
-def _slots(nz: int, rotors: bool = False, lag_model: bool = False,
-           ny: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+def _slots(nz: int, rotors: bool = False, lag_model: bool = False, ny: int = 0,
+           schedule: tuple[int, ...] = ()) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
-    for name, shape in constant_layout(nz, rotors, lag_model, ny):
+    for name, shape in constant_layout(nz, rotors, lag_model, ny, schedule):
         size = int(np.prod(shape))
         slots[name] = (slice(offset, offset + size), shape)
         offset += size
@@ -262,6 +280,11 @@ class LoopSpec:
         ETDRK4 only: the sparsity of its (nx, nx) constants (:data:`PHI_LAYOUT`), column-major,
         the union over them: entries outside it are baked in as zero (a decoupled design's loop
         keeps its blocks). Empty: dense.
+    schedule : tuple
+        ``(variable, pieces, columns)`` of a loop that flies a gain schedule (:func:`scheduled_gain`),
+        else empty: the scheduling variable (:data:`quadctl.lqr.gain_table.VARIABLES`), the number of
+        pieces of the table's piecewise cubic and its gain columns (12: the state gain; ``12 + nz``:
+        the integrator gains too). ``pattern`` is then the union of the table's state-gain nonzeros.
     """
 
     pattern: tuple[bool, ...]
@@ -277,10 +300,13 @@ class LoopSpec:
     reference: bool = False
     method: str = "rk4"
     phi_pattern: tuple[bool, ...] = ()
+    schedule: tuple = ()
 
     def __post_init__(self):
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.schedule:
+            _check_schedule(self)
         if self.method != "rk4" and self.reference:
             raise ValueError("ETDRK4 does not fly a reference yet: a loop with a reference steps by RK4")
         if self.method != "rk4" and self.held:
@@ -337,9 +363,14 @@ class LoopSpec:
         return sum(size for _, size in exo_layout(self.noise, self.wind, self.reference))
 
     @property
+    def schedule_shape(self) -> tuple[int, ...]:
+        """``(pieces, columns)`` of the gain schedule's constants (empty: no schedule)."""
+        return tuple(self.schedule[1:])
+
+    @property
     def n_constants(self) -> int:
         """Length of ``c``: the loop's constants, then (ETDRK4) the :data:`PHI_LAYOUT` block."""
-        return constant_size(self.nz, self.rotors, self.lag_model, self.ny) + self.n_phi
+        return constant_size(self.nz, self.rotors, self.lag_model, self.ny, self.schedule_shape) + self.n_phi
 
     @property
     def n_phi(self) -> int:
@@ -356,12 +387,78 @@ class LoopSpec:
                 + (f" measured={','.join(map(str, self.measured))}" if self.measured else "")
                 + (" reference=1" if self.reference else "")
                 + (f" method={self.method}" if self.method != "rk4" else "")
-                + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else ""))
+                + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else "")
+                + (" schedule={}:{}:{}".format(*self.schedule) if self.schedule else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
         """The spec whose pattern is the nonzeros of ``K`` (4, 12)."""
         return cls(tuple(bool(v) for v in (np.asarray(K) != 0).ravel(order="F")), **kwargs)
+
+
+def _check_schedule(spec: LoopSpec) -> None:
+    """Refuse a gain schedule the loop cannot fly (:attr:`LoopSpec.schedule`)."""
+    from quadctl.lqr.gain_table import VARIABLES
+
+    variable, pieces, columns = spec.schedule
+    if variable not in VARIABLES:
+        raise ValueError(f"schedule: unknown scheduling variable {variable!r}: use one of {', '.join(VARIABLES)}")
+    if int(pieces) != pieces or pieces < 1:
+        raise ValueError(f"schedule: a whole number of pieces >= 1, got {pieces!r}")
+    if columns not in (N_STATES, N_STATES + spec.nz):
+        raise ValueError(f"schedule: {columns} gain columns; a loop with {spec.nz} integrators schedules "
+                         f"{N_STATES} (the state gain) or {N_STATES + spec.nz} (with the integrator gains)")
+    if spec.method != "rk4":
+        raise ValueError("ETDRK4 does not fly a gain schedule: a scheduled loop steps by RK4 (simulation.method: rk4)")
+
+
+def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray):
+    """The table's gain ``G(v)`` (4, m) as CasADi expressions of the scheduling value ``v``.
+
+    ``v`` is held to ``[breaks[0], breaks[pieces]]``; the piece ``i`` with ``breaks[i] <= v <
+    breaks[i + 1]`` (the last piece also at its end, as :meth:`quadctl.lqr.gain_table.GainTable.at`)
+    is chosen by a sum over pieces of ``if_else(indicator, coefficient, 0)``, exactly one term
+    nonzero, so the selected coefficients are the table's, bit for bit; then Horner's rule in
+    ``s = v - breaks[i]``. Only comparisons, ``if_else``, ``fmin``/``fmax`` and arithmetic: every
+    runner (the emitted C of one case and of the lanes, CasADi's virtual machine) takes it alike.
+
+    Parameters
+    ----------
+    v : CasADi scalar
+        The scheduling value (:func:`quadctl.lqr.gain_table.scheduling_value`).
+    breaks : CasADi column (pieces + 1,)
+    coefficients : CasADi column
+        The (4, pieces, 4, m) coefficients, column-major.
+    pieces : int
+    mask : (4, m) ndarray of bool
+        Entries that may be nonzero; the others are structural zeros of the result.
+    """
+    m = mask.shape[1]
+    vc = ca.fmin(ca.fmax(v, breaks[0]), breaks[pieces])
+    inside = []
+    for i in range(pieces):
+        lower = vc >= breaks[i] if i else None
+        upper = vc < breaks[i + 1] if i < pieces - 1 else None
+        inside.append(upper if lower is None else (lower if upper is None else ca.logic_and(lower, upper)))
+
+    def select(values):
+        if pieces == 1:
+            return values[0]
+        out = ca.if_else(inside[0], values[0], 0)
+        for i in range(1, pieces):
+            out = out + ca.if_else(inside[i], values[i], 0)
+        return out
+
+    s = vc - select([breaks[i] for i in range(pieces)])
+    G = ca.SX(N_INPUTS, m)
+    for col in range(m):
+        for r in range(N_INPUTS):
+            if not mask[r, col]:
+                continue
+            coef = [select([coefficients[k + 4 * (i + pieces * (r + N_INPUTS * col))] for i in range(pieces)])
+                    for k in range(4)]
+            G[r, col] = ((coef[0] * s + coef[1]) * s + coef[2]) * s + coef[3]
+    return G
 
 
 @dataclass(frozen=True)
@@ -396,7 +493,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
     nz, nx, npl, nl = spec.nz, spec.nx, spec.n_plant, spec.n_lag
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
-    for name, shape in constant_layout(nz, spec.rotors, spec.lag_model, spec.ny):
+    for name, shape in constant_layout(nz, spec.rotors, spec.lag_model, spec.ny, spec.schedule_shape):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -457,16 +554,31 @@ def build(spec: LoopSpec) -> LoopFunctions:
         xh = X[nx - ne:]
         return xh + parts["Le"] @ innovation(X, t) if spec.held else xh
 
+    def gains(t):
+        """(state gain (4, 12), integrator gain (4, nz)) at ``t``: the constants, or the schedule's
+        ``G(v)`` at the scheduling value of the reference the law uses."""
+        if not spec.schedule:
+            return gain, parts.get("Ki")
+        from quadctl.lqr.gain_table import scheduling_value
+
+        variable, pieces, columns = spec.schedule
+        v = scheduling_value(variable, x_ref(t), parts["schedule_heading"], lib=ca)
+        mask = np.hstack([np.reshape(np.asarray(spec.pattern, dtype=bool), (N_INPUTS, N_STATES), order="F"),
+                          np.ones((N_INPUTS, columns - N_STATES), dtype=bool)])
+        G = scheduled_gain(v, parts["schedule_breaks"], parts["schedule_coefficients"], pieces, mask)
+        return G[:, :N_STATES], (G[:, N_STATES:] if columns > N_STATES else parts.get("Ki"))
+
     def control(X, t):
         """(u, dz/dt) at loop state ``X`` and time ``t``."""
         z = X[npl:npl + nz]
         err = deviation(X, t)
-        cmd = u_ref(t) - gain @ err
+        state_gain, integral_gain = gains(t)
+        cmd = u_ref(t) - state_gain @ err
         if nl:
             cmd = cmd - parts["Kv"] @ X[npl + nz:npl + nz + nl]
         if nz == 0:
             return saturate(cmd), ca.SX(0, 1)
-        cmd = cmd - parts["Ki"] @ z
+        cmd = cmd - integral_gain @ z
         u = saturate(cmd)
         rate = -ca.vertcat(*[err[i] for i in spec.integral])  # MATLAB lqi: dz/dt = r - y
         if spec.saturation != "none":

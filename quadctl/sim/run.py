@@ -95,6 +95,12 @@ class ClosedLoop:
     jacobians: tuple | None = None
     """``(A, B)`` of the design model at the trim: the exponential integrator's linear part
     (:meth:`linear_part`); None: only RK4 runs the loop."""
+    schedule: object | None = None
+    """:class:`quadctl.lqr.gain_table.GainTable` the law flies: ``G(v)`` in place of ``K`` (and of ``Ki``
+    when the table has the integrator gains), ``v`` read from the reference (:mod:`quadctl.sim.builder`,
+    "Gain schedule"); None: the fixed gains. ``K`` stays the design at the trim (the step plan's)."""
+    schedule_heading: float = 0.0
+    """rad: the heading a ``speed`` schedule measures along (the trim's yaw)."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -138,8 +144,11 @@ class ClosedLoop:
              phi_pattern: tuple[bool, ...] = ()) -> LoopSpec:
         """The structure of this loop's generated code (``reference``: it flies a reference)."""
         act = self.actuators
-        return LoopSpec.of_gain(self.K, saturation=act.mode if act is not None else "none",
+        table = self.schedule
+        K = self.K if table is None else np.any(table.coefficients[..., :N_STATES] != 0, axis=(0, 1))
+        return LoopSpec.of_gain(K, saturation=act.mode if act is not None else "none",
                                 method=method, phi_pattern=phi_pattern,
+                                schedule=(table.variable, *self.schedule_shape) if table is not None else (),
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
@@ -172,11 +181,17 @@ class ClosedLoop:
         return pack_constants(*self.constant_layout, **values, **self.gain_constants())
 
     @property
-    def constant_layout(self) -> tuple[int, bool, bool, int]:
-        """``(nz, rotors, lag_model, ny)``: the arguments of :func:`quadctl.sim.builder.constant_layout`
-        that give the layout of :meth:`constants`."""
+    def constant_layout(self) -> tuple[int, bool, bool, int, tuple[int, ...]]:
+        """``(nz, rotors, lag_model, ny, schedule)``: the arguments of
+        :func:`quadctl.sim.builder.constant_layout` that give the layout of :meth:`constants`."""
         return (len(self.integral_states), self.rotor_time_constant is not None, self.Kv is not None,
-                len(self.measured))
+                len(self.measured), self.schedule_shape)
+
+    @property
+    def schedule_shape(self) -> tuple[int, ...]:
+        """``(pieces, columns)`` of the gain schedule (empty without one)."""
+        table = self.schedule
+        return () if table is None else (len(table.breaks) - 1, table.coefficients.shape[-1])
 
     def gain_constants(self) -> dict[str, np.ndarray]:
         """The entries of :meth:`constants` that the gains set (``K``, ``Ki`` and its anti-windup
@@ -189,6 +204,12 @@ class ClosedLoop:
             out.update(Ki=Ki, antiwindup=(Ki.T != 0).astype(float))
         if self.Kv is not None:
             out.update(Kv=self.Kv)
+        table = self.schedule
+        if table is not None:
+            out.update(schedule_heading=[self.schedule_heading], schedule_breaks=table.breaks,
+                       schedule_coefficients=table.coefficients)
+            if nz and table.coefficients.shape[-1] > N_STATES:  # the integrators the table's Ki drives
+                out["antiwindup"] = np.any(table.coefficients[..., N_STATES:] != 0, axis=(0, 1)).T.astype(float)
         return out
 
     def initial_loop_state(self, x0) -> np.ndarray:
