@@ -129,6 +129,79 @@ def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
                           Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
+def at_schedule_value(setup: Setup, value: float) -> Setup:
+    """``setup`` trimmed at ``value`` of its schedule's variable: the horizontal speed along the trim's
+    heading (``speed``, m/s; the climb kept), the climb rate (``climb``, m/s up; the horizontal velocity
+    kept) or the yaw (``yaw``, rad; the velocity kept)."""
+    from dataclasses import replace
+
+    variable = setup.schedule.variable
+    vN, vE, vD = setup.velocity_ned
+    if variable == "speed":
+        heading = setup.yaw
+        return replace(setup, velocity_ned=(value * np.cos(heading), value * np.sin(heading), vD))
+    if variable == "climb":
+        return replace(setup, velocity_ned=(vN, vE, -value))
+    return replace(setup, yaw=value)
+
+
+def schedule_table_of(setup: Setup):
+    """The setup's gain table (:class:`quadctl.lqr.gain_table.GainTable`): the setup's design trimmed
+    at each of ``schedule.values`` (:func:`at_schedule_value`), its state gain and integrator gains,
+    interpolated as ``schedule.interpolation``."""
+    from quadctl.lqr.gain_table import GainTable
+
+    sched = setup.schedule
+    gains = []
+    for value in sched.values:
+        des = Stages(at_schedule_value(setup, float(value))).design
+        gains.append(np.hstack([des.K_block, des.Ki_block]) if des.integral_states else des.K_block)
+    return GainTable.of(sched.variable, sched.values, np.array(gains), sched.interpolation)
+
+
+def scheduled_loop(setup: Setup, loop: ClosedLoop, table) -> ClosedLoop:
+    """``loop`` flying the gain table ``table`` (:class:`quadctl.lqr.gain_table.GainTable`), scheduled on
+    the reference the law uses (:mod:`quadctl.sim.builder`, "Gain schedule"), ``speed`` measured along
+    the setup's yaw. The table's gains replace ``K`` (and ``Ki`` with the integrators' columns); ``K``
+    stays the loop's own for the step plan.
+
+    Raises
+    ------
+    ConfigError
+        ``simulation.method: etdrk4`` (a scheduled loop steps by RK4).
+    """
+    from dataclasses import replace
+
+    from quadctl.errors import ConfigError
+
+    if setup.method != "rk4":
+        raise ConfigError(f"simulation.method = {setup.method}: a gain schedule (schedule:) is flown by RK4; "
+                          "set simulation.method: rk4")
+    return replace(loop, schedule=table, schedule_heading=float(setup.yaw))
+
+
+def flown_loop(setup: Setup, loop: ClosedLoop) -> ClosedLoop:
+    """The loop a run flies: ``loop`` (the design at the trim), or with ``schedule:`` the same loop
+    flying the schedule's gains (:func:`scheduled_loop`)."""
+    if setup.schedule is None:
+        return loop
+    return scheduled_loop(setup, loop, schedule_table_of(setup))
+
+
+def schedule_summary(loop: ClosedLoop) -> dict | None:
+    """``sim.json``'s ``schedule``: the gain table the loop flew (variable, unit, values,
+    interpolation, what holds outside them, what the variable is read from); None: fixed gains."""
+    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+
+    table = loop.schedule
+    if table is None:
+        return None
+    return {"variable": table.variable, "units": VARIABLES[table.variable], "values": table.values.tolist(),
+            "interpolation": table.interpolation, "outside": OUTSIDE, "heading": loop.schedule_heading,
+            "scheduled_on": "the reference the law uses (x_ref(t))",
+            "integrator_gains": bool(table.coefficients.shape[-1] > len(STATE_NAMES))}
+
+
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progress=None) -> SimResult:
     """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise;
     the wind, a condition of the flight, stays); ``progress(done, total)`` as :func:`simulate` calls it."""
@@ -352,7 +425,8 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         only: RMS of ``x - x_hat`` per state, whole run and second half, and the steady filter's
         predicted standard deviation), ``integral`` (states and final integrator values), ``plant``
         (the simulated vehicle's parameters when they differ from the design model), ``reference``
-        (:func:`tracking_summary`: tracking error and waypoints; None without a reference).
+        (:func:`tracking_summary`: tracking error and waypoints; None without a reference),
+        ``schedule`` (:func:`schedule_summary`: the gain table flown; None: fixed gains).
     """
     from quadctl import motors, noise
 
@@ -368,6 +442,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
         "plant": setup.plant_overrides or None, "reference": tracking_summary(setup, sim),
+        "schedule": schedule_summary(loop),
     }
     act = loop.actuators
     if act is not None:
@@ -447,6 +522,13 @@ def wind_line(wind: dict) -> str:
                      f"(seed {turb['seed']})")
     trimmed = "trimmed in the steady wind" if wind["trim_in_wind"] else "trimmed in still air"
     return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"
+
+
+def schedule_line(schedule: dict) -> str:
+    """A run's gain schedule (:func:`schedule_summary`) in one line (``simulate`` prints it)."""
+    values = ", ".join(f"{v:g}" for v in schedule["values"])
+    return (f"gains scheduled on {schedule['variable']} ({schedule['units']}) at {values}, {schedule['interpolation']} "
+            f"between them, read from the reference; outside them {schedule['outside']}")
 
 
 def tracking_lines(tracking: dict) -> list[str]:

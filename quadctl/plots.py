@@ -327,6 +327,58 @@ def tracking_error_figure(sim, *, title: str = "") -> Figure:
     return fig
 
 
+def transition_figure(transition, *, title: str = "") -> Figure:
+    """A transition flown with a gain schedule and with one fixed design (:class:`quadctl.transition.Transition`).
+
+    Top: the scheduling variable flown by each and the reference's, with the schedule's grid
+    values dotted. Middle: the pitch angle. Bottom: the thrust of the most loaded rotor
+    (or the largest ``|u - u_ref|`` share of the limits without rotors) against its limits. A run
+    that stopped early ends with a cross.
+    """
+    from quadctl.lqr.gain_table import VARIABLES, scheduling_value
+
+    runs, loop = transition.runs(), transition.loops["scheduled"]
+    table, heading = loop.schedule, loop.schedule_heading
+    fig = Figure(figsize=(10.0, 7.5), layout="constrained")
+    speed_ax, angle_ax, rotor_ax = fig.subplots(3, 1, sharex=True)
+
+    def variable(x):
+        return np.array([scheduling_value(table.variable, row, heading) for row in x])
+
+    first = runs["scheduled"]
+    _trace(speed_ax, first.t, variable(first.x_ref), color="0.35", lw=1.0, ls="--", label="reference")
+    for value in table.values:
+        speed_ax.axhline(value, color="0.7", lw=0.6, ls=":")
+    act = loop.actuators
+    for (label, sim), color in zip(runs.items(), _COLORS):
+        ended = sim.status != "ok"
+        _trace(speed_ax, sim.t, variable(sim.x), color=color, lw=1.6, label=f"{label} ({sim.status})")
+        _trace(angle_ax, sim.t, np.rad2deg(sim.x[:, STATE_INDEX["theta"]]), color=color, lw=1.3, label=label)
+        if act is not None and act.mode == "motors":
+            load = act.commands(sim.u).max(axis=1)
+        else:
+            load = np.abs(sim.u - (sim.u_ref if len(sim.u_ref) else loop.u_trim)).max(axis=1)
+        _trace(rotor_ax, sim.t, load, color=color, lw=1.2, label=label)
+        if ended:
+            for ax, y in ((speed_ax, variable(sim.x[-1:])[0]), (angle_ax, np.rad2deg(sim.x[-1, STATE_INDEX["theta"]])),
+                          (rotor_ax, load[-1])):
+                ax.plot(sim.t[-1], y, "x", color=color, ms=9, mew=2)
+    if act is not None and act.mode == "motors":
+        _limit_lines(rotor_ax, (act.lo[0], act.hi[0]), "min / max thrust")
+        rotor_ax.set_ylabel("most loaded rotor [N]")
+    else:
+        rotor_ax.set_ylabel("largest |u - u_ref|")
+    speed_ax.set_ylabel(f"{table.variable} [{VARIABLES[table.variable]}]")
+    angle_ax.set_ylabel("pitch theta [deg]")
+    rotor_ax.set_xlabel("time [s]")
+    for ax in (speed_ax, angle_ax, rotor_ax):
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8, frameon=False, ncols=2)
+    what = f"{table.variable} schedule ({table.interpolation}) against one fixed design"
+    fig.suptitle(f"{title}: {what}" if title else what)
+    return fig
+
+
 def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "",
                        actuators=None) -> dict[str, Figure]:
     """A figure per subsystem (in partition order), one of the inputs (with ``actuators``' limits,

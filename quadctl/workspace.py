@@ -303,7 +303,7 @@ class Workspace(pipeline.Stages):
         """The configured run with the design's gains; writes sim.npz and sim.json."""
         linear, setup = self.linear, self.setup
         K, Ki, ints, Kv = self.gains
-        loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints, Kv=Kv)
+        loop = pipeline.flown_loop(setup, pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints, Kv=Kv))
         sim = pipeline.simulation_of(setup, loop, progress=self.progress)
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)

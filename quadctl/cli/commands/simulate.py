@@ -35,7 +35,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if json:
         render.emit_json(ws.payloads["sim.json"])
     else:
-        from quadctl.pipeline import tracking_lines, wind_line
+        from quadctl.pipeline import schedule_line, tracking_lines, wind_line
         from quadctl.present import flight as shown
 
         fl = flown.flight
@@ -47,6 +47,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
                     shown.headroom_table(fl, ws.linear.u_trim),
                     shown.rms_table(fl) if fl.get("noise") or fl.get("wind") else None,
                     shown.estimation_table(fl), wind_line(fl["wind"]) if fl.get("wind") else None,
+                    schedule_line(fl["schedule"]) if fl.get("schedule") else None,
                     shown.speeds_table(fl) if fl.get("wind") else None, shown.integral_text(fl),
                     *(tracking_lines(fl["reference"]) if fl.get("reference") else ()))
         render.out.print(f"{sim.status}: {sim.message} -> {ws.path('sim.npz')}")
