@@ -83,7 +83,8 @@ def fly_transition(setup: Setup, table=None) -> Transition:
 
 
 def scheduling_values(setup: Setup, x) -> np.ndarray:
-    """(n,) the schedule's variable at each state of ``x`` (n, 12) (:func:`~quadctl.lqr.gain_table.scheduling_value`)."""
+    """(n,) the schedule's variable at each state of ``x`` (n, 12) (:func:`~quadctl.lqr.gain_table.scheduling_value`,
+    measured along the setup's yaw)."""
     from quadctl.lqr.gain_table import scheduling_value
 
     return np.array([scheduling_value(setup.schedule.variable, row, setup.yaw) for row in np.asarray(x)])

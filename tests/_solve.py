@@ -124,3 +124,21 @@ def lanes_and_one_case_runs(setup, spec, variants):
         assert done == one.steps
         np.testing.assert_array_equal(ks * one.dt, one.t)
         yield lanes, one
+
+
+def designed_table(name: str, values, interpolation: str = "linear", **changes):
+    """A speed schedule's :class:`~quadctl.lqr.gain_table.GainTable` of bundled config ``name``: at each
+    speed (m/s, north) the config's own design trimmed there (a one-point design of the config with
+    ``trim.velocity_ned = [v, 0, w]``, w its climb; the state gain, then any integrator gains), built
+    apart from :func:`quadctl.pipeline.schedule_table_of`."""
+    import numpy as np
+
+    from quadctl.lqr.gain_table import GainTable
+
+    gains = []
+    for v in values:
+        data = cfg_dict(name, **changes)
+        data["trim"]["velocity_ned"] = [float(v), 0.0, data["trim"]["velocity_ned"][2]]
+        des = solve(data)[-1]
+        gains.append(np.hstack([des.K_block, des.Ki_block]) if des.integral_states else des.K_block)
+    return GainTable.of("speed", values, np.array(gains), interpolation)

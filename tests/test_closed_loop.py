@@ -264,3 +264,28 @@ def test_a_discrete_designs_sampled_cost_is_what_a_linear_simulation_accumulates
         xs = np.concatenate([dx0[[STATE_INDEX[s] for s in sub.states]], np.zeros(len(sub.integral))])
         sub_J += _sampled_cost(lambda x, u, Aas=Aas, Bas=Bas: Aas @ x + Bas @ u, Qas, Rds, Nas, Kas, xs)
     assert decoupled_cost == pytest.approx(sub_J, rel=1e-9)
+
+
+# ---------------------------------------------------------------------------------------------
+# A gain schedule at a frozen reference
+
+@pytest.mark.parametrize("name, grid, speed", [("hover", [0.0, 4.0, 8.0], 3.0),
+                                               ("crazyflie-speed-schedule", [0.0, 10.0, 20.0], 6.0)])
+def test_a_scheduled_loop_at_a_frozen_reference_is_the_linear_loop_of_its_gain(name, grid, speed):
+    """A speed schedule (designs at the ``grid`` speeds, linear between) flown at the trim of ``speed`` m/s,
+    between two of its points: the reference's speed is constant, so the builder's loop linearized
+    there is the linear loop of the interpolated gain ``G(speed)``, not of the design at that trim
+    (hover: continuous feedback; the Crazyflie: 500 Hz, rotor limits)."""
+    from _solve import designed_table
+
+    table = designed_table(name, grid)
+    data = cfg_dict(name)
+    data["trim"]["velocity_ned"] = [speed, 0.0, 0.0]
+    setup, _, linear, _, des = solve(data)
+    loop = replace(pipeline.loop_of(setup, linear, des), schedule=table, params=setup.vehicle.vector())
+    J, Ts = _jacobians(loop, setup)
+    G = table.at(speed)
+    A_lin = linear_loop.matrix(linear.A, linear.B, G, sample_time=Ts)
+    assert np.abs(G - des.K_block).max() > 1e-3 * np.abs(G).max()  # the schedule's gain, not the trim's design
+    err = np.abs(J - A_lin).max() / max(1.0, np.abs(A_lin).max())
+    assert err < AGREE, f"{name}: max diff {err:.3e}"

@@ -1,0 +1,216 @@
+"""Loops that fly a gain schedule (quadctl.sim.builder, "Gain schedule") against independent references.
+
+- The law's gain at a scheduling value is the table's (:meth:`GainTable.at`, SciPy's layout evaluated
+  in NumPy), at many values, at the breaks and outside the grid, for every interpolation.
+- A schedule whose points all hold one design flies that fixed design.
+- The SIMD lanes against the one-case loop, and the compiled loop against CasADi's virtual machine.
+- Each point of the pipeline's table is a one-point design of the config trimmed there.
+- The bundled transition: the fixed hover design leaves the model's valid range, saturating its
+  rotors; the schedule flies the whole transition within them.
+
+The Jacobian of a scheduled loop at a frozen reference is in tests/test_closed_loop.py.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from _solve import cfg_dict, designed_table, solve
+
+from quadctl import config, pipeline
+from quadctl.errors import ConfigError
+from quadctl.layout import N_STATES, STATE_INDEX
+from quadctl.lqr.gain_table import GainTable
+from quadctl.problem import setup_of
+from quadctl.sim.builder import LoopSpec, build
+from quadctl.sim.run import simulate
+
+AGREE = 1e-12
+"""The schedule's coefficients are selected exactly (one nonzero term of a sum) and evaluated by the
+same Horner sequence as GainTable.at: the same double operations; compiled and interpreted round alike."""
+TRANSITION = "crazyflie-speed-schedule"
+
+
+def _law_gain(loop, x_ref_row, t: float = 0.0):
+    """(4, nx) the law's Jacobian ``du/dX`` at time ``t`` at ``X = [x_ref; 0...]``, the reference there being
+    ``x_ref_row``: ``-G(v)`` on the states (and the integrators), the loop's generated law differentiated
+    by CasADi."""
+    import casadi as ca
+
+    spec = loop.spec()
+    fns = build(spec)
+    c = loop.constants(1.0 / loop.rate if loop.rate else None)
+    X = ca.SX.sym("X", spec.nx)
+    u, _ = fns.law(X, t, c, ca.DM.zeros(spec.n_exo, 1))
+    return np.asarray(ca.Function("J", [X], [ca.jacobian(u, X)])(loop.initial_loop_state(x_ref_row)))
+
+
+@pytest.mark.parametrize("name, interpolation", [("hover", "cubic"), ("hover", "nearest"),
+                                                 ("mambo-200hz", "linear"), ("mambo-200hz", "cubic")])
+def test_the_laws_gain_is_the_tables_at_every_value(name, interpolation):
+    """hover: continuous, state gain only; mambo-200hz: sampled, rotors, and the integrator's gain in
+    the table (13 columns). The reference is set to fly north at ``v`` (level, heading 0, so the
+    scheduling value is ``v`` exactly), at values across the grid, its breaks and beyond its ends."""
+    values = [0.0, 1.5, 3.0, 4.5]
+    table = designed_table(name, values, interpolation)
+    setup, _, linear, _, des = solve(cfg_dict(name))
+    loop = replace(pipeline.loop_of(setup, linear, des), schedule=table)
+    assert loop.spec().schedule == ("speed", len(table.breaks) - 1, table.gains.shape[2])
+    probes = np.concatenate([np.linspace(-1.0, 5.5, 53), table.breaks, np.nextafter(table.breaks, -np.inf)])
+    worst = 0.0
+    for v in probes:
+        row = np.zeros(N_STATES)
+        row[STATE_INDEX["u"]] = v
+        J = _law_gain(replace(loop, x_trim=row, x_rate=np.zeros(N_STATES)), row)
+        G = table.at(v)
+        got = -J[:, :G.shape[1]]
+        worst = max(worst, np.abs(got - G).max() / np.abs(G).max())
+    assert worst < AGREE, f"{name} {interpolation}: max rel diff {worst:.3e}"
+
+
+def test_the_gain_follows_the_heading_a_speed_is_measured_along():
+    """Flying at 3 m/s on a heading of 0.7 rad, with the table measuring speed along 0.7 rad: the gain
+    at 3 m/s; along north instead (heading 0), at 3 cos(0.7) m/s."""
+    table = designed_table("hover", [0.0, 2.0, 4.0], "linear")
+    setup, _, linear, _, des = solve(cfg_dict("hover"))
+    row = np.zeros(N_STATES)
+    row[STATE_INDEX["u"]], row[STATE_INDEX["psi"]] = 3.0, 0.7
+    for heading, speed in ((0.7, 3.0), (0.0, 3.0 * np.cos(0.7))):
+        loop = replace(pipeline.loop_of(setup, linear, des), schedule=table, schedule_heading=heading,
+                       x_trim=row, x_rate=np.zeros(N_STATES))
+        got = -_law_gain(loop, row)[:, :N_STATES]
+        assert np.abs(got - table.at(speed)).max() < 1e-12 * np.abs(table.at(speed)).max()
+
+
+def test_the_gain_moves_with_the_reference():
+    """A reference speeding up north at 1 m/s^2 from hover (``x_rate`` on ``u``): at t = 1.3 s and
+    3.1 s the law's gain is the table's at 1.3 and 3.1 m/s, not at the trim's 0."""
+    table = designed_table("hover", [0.0, 2.0, 4.0], "cubic")
+    setup, _, linear, _, des = solve(cfg_dict("hover"))
+    rate = np.zeros(N_STATES)
+    rate[STATE_INDEX["u"]] = 1.0
+    loop = replace(pipeline.loop_of(setup, linear, des), schedule=table, x_rate=rate)
+    for t in (1.3, 3.1):
+        got = -_law_gain(loop, loop.x_trim + rate * t, t)[:, :N_STATES]
+        assert np.abs(got - table.at(t)).max() < AGREE * np.abs(table.at(t)).max()
+
+
+@pytest.fixture(scope="module")
+def transition():
+    """(setup, fixed loop, table) of the bundled transition config, the table built apart from the pipeline's."""
+    setup = setup_of(config.load(TRANSITION))
+    stages = pipeline.Stages(setup)
+    return setup, stages.loop, designed_table(TRANSITION, setup.schedule.values)
+
+
+def _short_reference(setup, duration: float = 3.0):
+    """The config's reference for ``duration`` s (3 s: hover, then 2, 4, 6 m/s north at 1, 2, 3 s)."""
+    return pipeline.flown_reference(setup), duration
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("interpolation", ["linear", "cubic"])
+def test_a_schedule_of_one_design_flies_that_design(transition, interpolation):
+    setup, fixed, _ = transition
+    gains = np.repeat(fixed.K[None], 4, axis=0)
+    table = GainTable.of("speed", [0.0, 1.0, 2.0, 20.0], gains, interpolation)  # the run crosses three pieces
+    ref, duration = _short_reference(setup)
+    one = simulate(fixed, fixed.x_trim, duration, reference=ref)
+    scheduled = simulate(pipeline.scheduled_loop(setup, fixed, table), fixed.x_trim, duration, reference=ref)
+    assert one.status == scheduled.status == "ok" and np.ptp(one.x[:, STATE_INDEX["u"]]) > 2.5
+    diff = max(np.abs(one.x - scheduled.x).max(), np.abs(one.u - scheduled.u).max())
+    assert diff < AGREE, diff
+
+
+@pytest.mark.compiler
+def test_compiled_and_interpreted_loops_fly_a_schedule_alike(transition, monkeypatch):
+    from quadctl.sim import engine
+
+    setup, fixed, table = transition
+    loop = pipeline.scheduled_loop(setup, fixed, table)
+    ref, duration = _short_reference(setup, 1.5)
+    compiled = simulate(loop, loop.x_trim, duration, reference=ref)
+    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
+    engine.runner.cache_clear()
+    try:
+        with pytest.warns(engine.CompilerNotice):
+            interpreted = simulate(loop, loop.x_trim, duration, reference=ref)
+    finally:
+        engine.runner.cache_clear()
+    assert compiled.backend == "compiled" and interpreted.backend == "casadi"
+    assert np.ptp(compiled.x[:, STATE_INDEX["u"]]) > 0.5
+    diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max())
+    assert diff < AGREE, diff
+
+
+@pytest.mark.compiler
+def test_lanes_equal_the_one_case_loop_with_a_schedule(transition):
+    """Three lanes, each its own table (the coefficients scaled), one compiled structure."""
+    from quadctl.sim import engine
+    from quadctl.sim.cases import Cases
+    from quadctl.sim.plan import record_stride
+    from quadctl.sim.run import ExoStream
+
+    setup, fixed, table = transition
+    ref, duration = _short_reference(setup)
+    variants = []
+    for k in range(3):
+        scaled = replace(table, gains=table.gains * (1 + 0.05 * k), coefficients=table.coefficients * (1 + 0.05 * k))
+        variants.append((pipeline.scheduled_loop(setup, fixed, scaled), duration - 0.2 * k))
+    run = engine.runner(variants[0][0].spec(reference=True), engine.LANES)
+    assert run.backend == "compiled-simd" and len({v.spec() for v, _ in variants}) == 1
+    jobs = []
+    for vk, dur in variants:
+        plan = vk.plan(dur)
+        stream = ExoStream(None, None, vk.rate, ref)
+        first, rows = stream.rows(0, plan.n_steps, plan.dt)
+        jobs.append((plan, vk.constants(plan.sample_time), vk.initial_loop_state(vk.x_trim), *vk.bounds(dur, ref),
+                     rows, first, stream.period))
+    cases = Cases.of(np.stack([j[2] for j in jobs]), np.stack([j[1] for j in jobs]), [j[0].dt for j in jobs],
+                     [j[0].n_steps for j in jobs], [record_stride(j[0].n_steps, setup.max_samples) for j in jobs],
+                     np.stack([j[3] for j in jobs]), np.stack([j[4] for j in jobs]),
+                     hold=[j[0].hold for j in jobs], exo=[j[5] for j in jobs],
+                     exo_first=[j[6] for j in jobs], exo_period=[j[7] for j in jobs])
+    worst = 0.0
+    for (vk, dur), (done, _, xs, us) in zip(variants, run.run(cases)):
+        one = simulate(vk, vk.x_trim, dur, reference=ref, max_samples=setup.max_samples)
+        assert done == one.steps and one.status == "ok"
+        worst = max(worst, np.abs(xs[:, :N_STATES] - one.x).max(), np.abs(us - one.u).max())
+    assert worst < AGREE, worst
+
+
+def test_each_point_of_the_pipelines_table_is_a_design_at_that_trim(transition):
+    setup, _, table = transition
+    made = pipeline.schedule_table_of(setup)
+    assert made.variable == "speed" and made.interpolation == "linear"
+    assert np.array_equal(made.values, table.values)
+    assert np.abs(made.gains - table.gains).max() < 1e-9 * np.abs(table.gains).max()
+
+
+@pytest.mark.compiler
+def test_the_fixed_design_leaves_the_valid_range_where_the_schedule_flies(transition):
+    """The bundled transition: the hover design alone, asked for 2 m/s more each second, pitches past
+    85 deg near 18 m/s with its rotors at a limit; the schedule completes the way up and back within them."""
+    from quadctl.transition import fly_transition
+
+    setup, _, table = transition
+    result = fly_transition(setup, table)
+    fixed, scheduled = result.summary["fixed"], result.summary["scheduled"]
+    assert fixed["status"] == "left_valid_range" and fixed["saturates"] and fixed["peak_attitude"] > 85
+    assert scheduled["completed"] and not scheduled["saturates"] and scheduled["peak_attitude"] < 40
+    assert scheduled["on_grid"] and scheduled["flown_range"][1] > 0.9 * setup.schedule.values[-1]
+    assert result.scheduled.x[-1, STATE_INDEX["u"]] < 0.5  # back near hover
+    assert fixed["flown_range"][1] > 15  # it failed at speed, not at the first step
+
+
+def test_a_scheduled_loop_is_flown_by_rk4_only(transition):
+    setup, fixed, table = transition
+    with pytest.raises(ConfigError, match=r"^simulation\.method = etdrk4: a gain schedule \(schedule:\) is flown "
+                                          r"by RK4; set simulation\.method: rk4$"):
+        pipeline.scheduled_loop(replace(setup, method="etdrk4"), fixed, table)
+    with pytest.raises(ValueError, match="^ETDRK4 does not fly a gain schedule"):
+        LoopSpec.of_gain(fixed.K, method="etdrk4", schedule=("speed", 5, 12))
+    with pytest.raises(ValueError, match=r"^schedule: 13 gain columns; a loop with 0 integrators schedules 12"):
+        LoopSpec.of_gain(fixed.K, schedule=("speed", 5, 13))
