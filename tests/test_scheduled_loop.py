@@ -214,3 +214,25 @@ def test_a_scheduled_loop_is_flown_by_rk4_only(transition):
         LoopSpec.of_gain(fixed.K, method="etdrk4", schedule=("speed", 5, 12))
     with pytest.raises(ValueError, match=r"^schedule: 13 gain columns; a loop with 0 integrators schedules 12"):
         LoopSpec.of_gain(fixed.K, schedule=("speed", 5, 13))
+
+
+def test_a_config_with_a_schedule_refuses_etdrk4():
+    data = cfg_dict("hover", schedule={"variable": "speed", "values": [0.0, 2.0]})
+    data["simulation"]["method"] = "etdrk4"
+    with pytest.raises(ConfigError, match=r'^h\.yaml: simulation\.method = "etdrk4": does not fly a gain schedule '
+                                          r'\(schedule:\): use method: rk4$'):
+        config.from_dict(data, "h.yaml")
+
+
+@pytest.mark.compiler
+def test_simulate_flies_the_schedule_and_sim_json_says_so(tmp_path):
+    import json
+
+    from quadctl.workspace import Workspace
+
+    with Workspace(config.load(TRANSITION), tmp_path) as ws:
+        flown = ws.simulation
+    assert flown.loop.schedule is not None and flown.sim.status == "ok"
+    saved = json.loads((tmp_path / "sim.json").read_text())["schedule"]
+    assert saved["variable"] == "speed" and saved["values"] == [0, 4, 8, 12, 16, 20]
+    assert saved["interpolation"] == "linear" and saved["scheduled_on"].startswith("the reference")
