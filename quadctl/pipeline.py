@@ -189,7 +189,7 @@ def flown_loop(setup: Setup, loop: ClosedLoop) -> ClosedLoop:
 
 
 def schedule_summary(loop: ClosedLoop) -> dict | None:
-    """``sim.json``'s ``schedule``: the gain table the loop flew (variable, unit, values,
+    """``sim.json``'s ``gain_schedule``: the gain table the loop flew (variable, unit, values,
     interpolation, what holds outside them, what the variable is read from); None: fixed gains."""
     from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
 
@@ -426,7 +426,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         predicted standard deviation), ``integral`` (states and final integrator values), ``plant``
         (the simulated vehicle's parameters when they differ from the design model), ``reference``
         (:func:`tracking_summary`: tracking error and waypoints; None without a reference),
-        ``schedule`` (:func:`schedule_summary`: the gain table flown; None: fixed gains).
+        ``gain_schedule`` (:func:`schedule_summary`: the gain table flown; None: fixed gains).
     """
     from quadctl import motors, noise
 
@@ -442,7 +442,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         "integral": {"states": list(loop.integral_states),
                      "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
         "plant": setup.plant_overrides or None, "reference": tracking_summary(setup, sim),
-        "schedule": schedule_summary(loop),
+        "gain_schedule": schedule_summary(loop),
     }
     act = loop.actuators
     if act is not None:

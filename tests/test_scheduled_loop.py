@@ -233,6 +233,8 @@ def test_simulate_flies_the_schedule_and_sim_json_says_so(tmp_path):
     with Workspace(config.load(TRANSITION), tmp_path) as ws:
         flown = ws.simulation
     assert flown.loop.schedule is not None and flown.sim.status == "ok"
-    saved = json.loads((tmp_path / "sim.json").read_text())["schedule"]
+    payload = json.loads((tmp_path / "sim.json").read_text())
+    saved = payload["gain_schedule"]
+    assert payload["schedule"][0]["steps"] == flown.sim.steps  # the step schedule (RK4's one segment) stays
     assert saved["variable"] == "speed" and saved["values"] == [0, 4, 8, 12, 16, 20]
     assert saved["interpolation"] == "linear" and saved["scheduled_on"].startswith("the reference")

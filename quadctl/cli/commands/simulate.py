@@ -47,7 +47,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
                     shown.headroom_table(fl, ws.linear.u_trim),
                     shown.rms_table(fl) if fl.get("noise") or fl.get("wind") else None,
                     shown.estimation_table(fl), wind_line(fl["wind"]) if fl.get("wind") else None,
-                    schedule_line(fl["schedule"]) if fl.get("schedule") else None,
+                    schedule_line(fl["gain_schedule"]) if fl.get("gain_schedule") else None,
                     shown.speeds_table(fl) if fl.get("wind") else None, shown.integral_text(fl),
                     *(tracking_lines(fl["reference"]) if fl.get("reference") else ()))
         render.out.print(f"{sim.status}: {sim.message} -> {ws.path('sim.npz')}")
