@@ -1,9 +1,10 @@
 """Regenerate the figures of the README sections "From the report's design to one that flies",
-"Wind" and "State estimation (LQG)".
+"Wind", "State estimation (LQG)", "Fly somewhere" and "Gain scheduling in flight".
 
 Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers);
 python docs/figures.py lqg   writes only the LQG figure; python docs/figures.py lag   only the lag and delay one;
-python docs/figures.py schedule   only the gain schedule's envelope.
+python docs/figures.py schedule   only the gain schedule's envelope; python docs/figures.py transition   only the
+gain schedule's transition.
 
 Every number and curve comes from the library (the same calls the CLI makes); nothing is stored.
 """
@@ -270,9 +271,22 @@ def schedule_figure() -> Figure:
     return plots.schedule_figure(sched, setup.actuators, title="schedule")
 
 
+def transition_figure() -> Figure:
+    """The bundled crazyflie-speed-schedule: hover to 20 m/s and back with the schedule and with the hover design."""
+    from quadctl.transition import fly_transition, transition_lines
+
+    result = fly_transition(setup_of(config.load("crazyflie-speed-schedule")))
+    print("\n".join(transition_lines(result.summary)))
+    print("fixed:", result.fixed.message)
+    return plots.transition_figure(result, title="crazyflie-speed-schedule")
+
+
 def main() -> int:
     if sys.argv[1:] == ["schedule"]:
         save(schedule_figure(), "schedule-envelope.png")
+        return 0
+    if sys.argv[1:] == ["transition"]:
+        save(transition_figure(), "speed-schedule-transition.png")
         return 0
     if sys.argv[1:] == ["mission"]:
         save(mission_figure(), "square-mission.png")
@@ -328,6 +342,7 @@ def main() -> int:
     make_lqg_figure()
     save(mission_figure(), "square-mission.png")
     save(schedule_figure(), "schedule-envelope.png")
+    save(transition_figure(), "speed-schedule-transition.png")
     return 0
 
 

@@ -527,8 +527,8 @@ def wind_line(wind: dict) -> str:
 def schedule_line(schedule: dict) -> str:
     """A run's gain schedule (:func:`schedule_summary`) in one line (``simulate`` prints it)."""
     values = ", ".join(f"{v:g}" for v in schedule["values"])
-    return (f"gains scheduled on {schedule['variable']} ({schedule['units']}) at {values}, {schedule['interpolation']} "
-            f"between them, read from the reference; outside them {schedule['outside']}")
+    return (f"gains scheduled on {schedule['variable']} at {values} {schedule['units']} ({schedule['interpolation']}, "
+            "held outside), read from the reference")
 
 
 def tracking_lines(tracking: dict) -> list[str]:
