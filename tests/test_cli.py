@@ -143,7 +143,8 @@ def test_bad_config_is_one_line_exit_2(tmp_path):
 def test_unknown_bundled_name_lists_the_bundled_ones():
     res = runner.invoke(app, ["trim", "-c", "fowrard"])
     assert res.exit_code == 2
-    assert "bundled: crazyflie, crazyflie-wind, drake-hover, forward, forward-script-q, hover" in res.stderr
+    assert ("bundled: crazyflie, crazyflie-speed-schedule, crazyflie-wind, drake-hover, forward, forward-script-q, "
+            "hover") in res.stderr
 
 
 def test_unstabilizable_partition_fails_check_with_exit_1(tmp_path):

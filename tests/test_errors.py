@@ -170,7 +170,7 @@ def test_config_error_is_one_line_exit_2(tmp_path, case):
 @pytest.mark.parametrize("args,pattern", [
     (["-c", "no/such.yaml"],
      r"no/such\.yaml: no such file and no bundled config of that name; "
-     r"bundled: crazyflie, crazyflie-wind, drake-hover, forward"),
+     r"bundled: crazyflie, crazyflie-speed-schedule, crazyflie-wind, drake-hover, forward"),
     (["-c", "."], r"\.: is a folder, not a config file"),
 ])
 def test_config_file_errors(args, pattern):
