@@ -129,41 +129,12 @@ def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
                           Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
-def at_schedule_value(setup: Setup, value: float) -> Setup:
-    """``setup`` trimmed at ``value`` of its schedule's variable: the horizontal speed along the trim's
-    heading (``speed``, m/s; the climb kept), the climb rate (``climb``, m/s up; the horizontal velocity
-    kept) or the yaw (``yaw``, rad; the velocity kept)."""
-    from dataclasses import replace
-
-    variable = setup.schedule.variable
-    vN, vE, vD = setup.velocity_ned
-    if variable == "speed":
-        heading = setup.yaw
-        return replace(setup, velocity_ned=(value * np.cos(heading), value * np.sin(heading), vD))
-    if variable == "climb":
-        return replace(setup, velocity_ned=(vN, vE, -value))
-    return replace(setup, yaw=value)
-
-
-def schedule_table_of(setup: Setup):
-    """The setup's gain table (:class:`quadctl.lqr.gain_table.GainTable`): the setup's design trimmed
-    at each of ``schedule.values`` (:func:`at_schedule_value`), its state gain and integrator gains,
-    interpolated as ``schedule.interpolation``."""
-    from quadctl.lqr.gain_table import GainTable
-
-    sched = setup.schedule
-    gains = []
-    for value in sched.values:
-        des = Stages(at_schedule_value(setup, float(value))).design
-        gains.append(np.hstack([des.K_block, des.Ki_block]) if des.integral_states else des.K_block)
-    return GainTable.of(sched.variable, sched.values, np.array(gains), sched.interpolation)
-
-
-def scheduled_loop(setup: Setup, loop: ClosedLoop, table) -> ClosedLoop:
+def scheduled_loop(setup: Setup, loop: ClosedLoop, table, heading: float) -> ClosedLoop:
     """``loop`` flying the gain table ``table`` (:class:`quadctl.lqr.gain_table.GainTable`), scheduled on
     the reference the law uses (:mod:`quadctl.sim.builder`, "Gain schedule"), ``speed`` measured along
-    the setup's yaw. The table's gains replace ``K`` (and ``Ki`` with the integrators' columns); ``K``
-    stays the loop's own for the step plan.
+    ``heading`` (rad; the schedule's, :attr:`quadctl.scheduling.Schedule.heading`). The table's gains
+    replace ``K`` (and ``Ki`` with the integrators' columns); ``K`` stays the loop's own for the step plan.
+    ``run`` and ``simulate`` fly ``schedule_of(setup)``'s table this way.
 
     Raises
     ------
@@ -177,15 +148,7 @@ def scheduled_loop(setup: Setup, loop: ClosedLoop, table) -> ClosedLoop:
     if setup.method != "rk4":
         raise ConfigError(f"simulation.method = {setup.method}: a gain schedule (schedule:) is flown by RK4; "
                           "set simulation.method: rk4")
-    return replace(loop, schedule=table, schedule_heading=float(setup.yaw))
-
-
-def flown_loop(setup: Setup, loop: ClosedLoop) -> ClosedLoop:
-    """The loop a run flies: ``loop`` (the design at the trim), or with ``schedule:`` the same loop
-    flying the schedule's gains (:func:`scheduled_loop`)."""
-    if setup.schedule is None:
-        return loop
-    return scheduled_loop(setup, loop, schedule_table_of(setup))
+    return replace(loop, schedule=table, schedule_heading=float(heading))
 
 
 def schedule_summary(loop: ClosedLoop) -> dict | None:

@@ -18,7 +18,9 @@ import numpy as np
 
 from quadctl import pipeline
 from quadctl.layout import STATE_INDEX
+from quadctl.lqr.gain_table import scheduling_value
 from quadctl.problem import Setup
+from quadctl.scheduling import heading_of, schedule_of
 from quadctl.sim.run import ClosedLoop, SimResult
 
 ON_GRID_MARGIN = 0.1
@@ -61,8 +63,8 @@ def fly_transition(setup: Setup, table=None) -> Transition:
     setup : Setup
         With ``schedule:`` and ``simulation.reference`` (a transition across the schedule's grid).
     table : GainTable, optional
-        The schedule's gains (:class:`quadctl.lqr.gain_table.GainTable`); default
-        :func:`quadctl.pipeline.schedule_table_of` the setup.
+        The schedule's gains (:class:`quadctl.lqr.gain_table.GainTable`); default the setup's
+        (:func:`quadctl.scheduling.schedule_of`).
 
     Raises
     ------
@@ -73,8 +75,8 @@ def fly_transition(setup: Setup, table=None) -> Transition:
         raise ValueError("a transition flies a schedule (schedule:) along a reference (simulation.reference)")
     stages = pipeline.Stages(setup)
     fixed = stages.loop
-    table = pipeline.schedule_table_of(setup) if table is None else table
-    loops = {"scheduled": pipeline.scheduled_loop(setup, fixed, table), "fixed": fixed}
+    table = schedule_of(setup).table if table is None else table
+    loops = {"scheduled": pipeline.scheduled_loop(setup, fixed, table, heading_of(setup)), "fixed": fixed}
     sims = {label: pipeline.simulation_of(setup, loop, noise=False) for label, loop in loops.items()}
     grid = (float(table.values[0]), float(table.values[-1]))
     summary = {"variable": table.variable, "grid": list(grid),
@@ -84,10 +86,9 @@ def fly_transition(setup: Setup, table=None) -> Transition:
 
 def scheduling_values(setup: Setup, x) -> np.ndarray:
     """(n,) the schedule's variable at each state of ``x`` (n, 12) (:func:`~quadctl.lqr.gain_table.scheduling_value`,
-    measured along the setup's yaw)."""
-    from quadctl.lqr.gain_table import scheduling_value
-
-    return np.array([scheduling_value(setup.schedule.variable, row, setup.yaw) for row in np.asarray(x)])
+    measured along the schedule's heading, :func:`quadctl.scheduling.heading_of`)."""
+    heading = heading_of(setup)
+    return np.array([scheduling_value(setup.schedule.variable, row, heading) for row in np.asarray(x)])
 
 
 def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[float, float]) -> dict:

@@ -4,7 +4,7 @@
   in NumPy), at many values, at the breaks and outside the grid, for every interpolation.
 - A schedule whose points all hold one design flies that fixed design.
 - The SIMD lanes against the one-case loop, and the compiled loop against CasADi's virtual machine.
-- Each point of the pipeline's table is a one-point design of the config trimmed there.
+- The table the tests build point by point is the schedule stage's, which ``simulate`` flies.
 - The bundled transition: the fixed hover design leaves the model's valid range, saturating its
   rotors; the schedule flies the whole transition within them.
 
@@ -118,7 +118,7 @@ def test_a_schedule_of_one_design_flies_that_design(transition, interpolation):
     table = GainTable.of("speed", [0.0, 1.0, 2.0, 20.0], gains, interpolation)  # the run crosses three pieces
     ref, duration = _short_reference(setup)
     one = simulate(fixed, fixed.x_trim, duration, reference=ref)
-    scheduled = simulate(pipeline.scheduled_loop(setup, fixed, table), fixed.x_trim, duration, reference=ref)
+    scheduled = simulate(pipeline.scheduled_loop(setup, fixed, table, 0.0), fixed.x_trim, duration, reference=ref)
     assert one.status == scheduled.status == "ok" and np.ptp(one.x[:, STATE_INDEX["u"]]) > 2.5
     diff = max(np.abs(one.x - scheduled.x).max(), np.abs(one.u - scheduled.u).max())
     assert diff < AGREE, diff
@@ -129,7 +129,7 @@ def test_compiled_and_interpreted_loops_fly_a_schedule_alike(transition, monkeyp
     from quadctl.sim import engine
 
     setup, fixed, table = transition
-    loop = pipeline.scheduled_loop(setup, fixed, table)
+    loop = pipeline.scheduled_loop(setup, fixed, table, 0.0)
     ref, duration = _short_reference(setup, 1.5)
     compiled = simulate(loop, loop.x_trim, duration, reference=ref)
     monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
@@ -158,7 +158,7 @@ def test_lanes_equal_the_one_case_loop_with_a_schedule(transition):
     variants = []
     for k in range(3):
         scaled = replace(table, gains=table.gains * (1 + 0.05 * k), coefficients=table.coefficients * (1 + 0.05 * k))
-        variants.append((pipeline.scheduled_loop(setup, fixed, scaled), duration - 0.2 * k))
+        variants.append((pipeline.scheduled_loop(setup, fixed, scaled, 0.0), duration - 0.2 * k))
     run = engine.runner(variants[0][0].spec(reference=True), engine.LANES)
     assert run.backend == "compiled-simd" and len({v.spec() for v, _ in variants}) == 1
     jobs = []
@@ -181,9 +181,12 @@ def test_lanes_equal_the_one_case_loop_with_a_schedule(transition):
     assert worst < AGREE, worst
 
 
-def test_each_point_of_the_pipelines_table_is_a_design_at_that_trim(transition):
+def test_the_table_these_tests_build_is_the_schedule_stages(transition):
+    """What ``simulate`` flies (quadctl.scheduling.schedule_of) is what the tests above build apart."""
+    from quadctl.scheduling import schedule_of
+
     setup, _, table = transition
-    made = pipeline.schedule_table_of(setup)
+    made = schedule_of(setup).table
     assert made.variable == "speed" and made.interpolation == "linear"
     assert np.array_equal(made.values, table.values)
     assert np.abs(made.gains - table.gains).max() < 1e-9 * np.abs(table.gains).max()
@@ -209,7 +212,7 @@ def test_a_scheduled_loop_is_flown_by_rk4_only(transition):
     setup, fixed, table = transition
     with pytest.raises(ConfigError, match=r"^simulation\.method = etdrk4: a gain schedule \(schedule:\) is flown "
                                           r"by RK4; set simulation\.method: rk4$"):
-        pipeline.scheduled_loop(replace(setup, method="etdrk4"), fixed, table)
+        pipeline.scheduled_loop(replace(setup, method="etdrk4"), fixed, table, 0.0)
     with pytest.raises(ValueError, match="^ETDRK4 does not fly a gain schedule"):
         LoopSpec.of_gain(fixed.K, method="etdrk4", schedule=("speed", 5, 12))
     with pytest.raises(ValueError, match=r"^schedule: 13 gain columns; a loop with 0 integrators schedules 12"):
