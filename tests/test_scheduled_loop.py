@@ -57,7 +57,8 @@ def test_the_laws_gain_is_the_tables_at_every_value(name, interpolation):
     table = designed_table(name, values, interpolation)
     setup, _, linear, _, des = solve(cfg_dict(name))
     loop = replace(pipeline.loop_of(setup, linear, des), schedule=table)
-    assert loop.spec().schedule == ("speed", len(table.breaks) - 1, table.gains.shape[2])
+    degree = {"nearest": 0, "linear": 1, "cubic": 3}[interpolation]
+    assert loop.spec().schedule == ("speed", len(table.breaks) - 1, table.gains.shape[2], degree)
     probes = np.concatenate([np.linspace(-1.0, 5.5, 53), table.breaks, np.nextafter(table.breaks, -np.inf)])
     worst = 0.0
     for v in probes:
@@ -214,9 +215,9 @@ def test_a_scheduled_loop_is_flown_by_rk4_only(transition):
                                           r"by RK4; set simulation\.method: rk4$"):
         pipeline.scheduled_loop(replace(setup, method="etdrk4"), fixed, table, 0.0)
     with pytest.raises(ValueError, match="^ETDRK4 does not fly a gain schedule"):
-        LoopSpec.of_gain(fixed.K, method="etdrk4", schedule=("speed", 5, 12))
+        LoopSpec.of_gain(fixed.K, method="etdrk4", schedule=("speed", 5, 12, 1))
     with pytest.raises(ValueError, match=r"^schedule: 13 gain columns; a loop with 0 integrators schedules 12"):
-        LoopSpec.of_gain(fixed.K, schedule=("speed", 5, 13))
+        LoopSpec.of_gain(fixed.K, schedule=("speed", 5, 13, 1))
 
 
 def test_a_config_with_a_schedule_refuses_etdrk4():

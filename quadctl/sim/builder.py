@@ -281,10 +281,13 @@ class LoopSpec:
         the union over them: entries outside it are baked in as zero (a decoupled design's loop
         keeps its blocks). Empty: dense.
     schedule : tuple
-        ``(variable, pieces, columns)`` of a loop that flies a gain schedule (:func:`scheduled_gain`),
-        else empty: the scheduling variable (:data:`quadctl.lqr.gain_table.VARIABLES`), the number of
-        pieces of the table's piecewise cubic and its gain columns (12: the state gain; ``12 + nz``:
-        the integrator gains too). ``pattern`` is then the union of the table's state-gain nonzeros.
+        ``(variable, pieces, columns, degree)`` of a loop that flies a gain schedule
+        (:func:`scheduled_gain`), else empty: the scheduling variable
+        (:data:`quadctl.lqr.gain_table.VARIABLES`), the number of pieces of the table's piecewise
+        cubic, its gain columns (12: the state gain; ``12 + nz``: the integrator gains too) and the
+        highest power of ``v`` whose coefficients are not all zero (0: ``nearest``, 1: ``linear``,
+        at most 3: ``cubic``; the others are not read). ``pattern`` is then the union of the table's
+        state-gain nonzeros.
     """
 
     pattern: tuple[bool, ...]
@@ -365,7 +368,7 @@ class LoopSpec:
     @property
     def schedule_shape(self) -> tuple[int, ...]:
         """``(pieces, columns)`` of the gain schedule's constants (empty: no schedule)."""
-        return tuple(self.schedule[1:])
+        return tuple(self.schedule[1:3])
 
     @property
     def n_constants(self) -> int:
@@ -388,7 +391,7 @@ class LoopSpec:
                 + (" reference=1" if self.reference else "")
                 + (f" method={self.method}" if self.method != "rk4" else "")
                 + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else "")
-                + (" schedule={}:{}:{}".format(*self.schedule) if self.schedule else ""))
+                + (" schedule={}:{}:{}:{}".format(*self.schedule) if self.schedule else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -400,7 +403,9 @@ def _check_schedule(spec: LoopSpec) -> None:
     """Refuse a gain schedule the loop cannot fly (:attr:`LoopSpec.schedule`)."""
     from quadctl.lqr.gain_table import VARIABLES
 
-    variable, pieces, columns = spec.schedule
+    variable, pieces, columns, degree = spec.schedule
+    if degree not in (0, 1, 2, 3):
+        raise ValueError(f"schedule: the degree of a piecewise cubic is 0 to 3, got {degree!r}")
     if variable not in VARIABLES:
         raise ValueError(f"schedule: unknown scheduling variable {variable!r}: use one of {', '.join(VARIABLES)}")
     if int(pieces) != pieces or pieces < 1:
@@ -412,7 +417,7 @@ def _check_schedule(spec: LoopSpec) -> None:
         raise ValueError("ETDRK4 does not fly a gain schedule: a scheduled loop steps by RK4 (simulation.method: rk4)")
 
 
-def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray):
+def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray, degree: int = 3):
     """The table's gain ``G(v)`` (4, m) as CasADi expressions of the scheduling value ``v``.
 
     ``v`` is held to ``[breaks[0], breaks[pieces]]``; the piece ``i`` with ``breaks[i] <= v <
@@ -432,6 +437,9 @@ def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray):
     pieces : int
     mask : (4, m) ndarray of bool
         Entries that may be nonzero; the others are structural zeros of the result.
+    degree : int
+        The highest power of ``s`` read (the table's higher coefficients are all zero): Horner's rule
+        from there gives the bits of the full cubic's (``(0 s + 0) s + c = c``) for less work.
     """
     m = mask.shape[1]
     vc = ca.fmin(ca.fmax(v, breaks[0]), breaks[pieces])
@@ -456,8 +464,11 @@ def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray):
             if not mask[r, col]:
                 continue
             coef = [select([coefficients[k + 4 * (i + pieces * (r + N_INPUTS * col))] for i in range(pieces)])
-                    for k in range(4)]
-            G[r, col] = ((coef[0] * s + coef[1]) * s + coef[2]) * s + coef[3]
+                    for k in range(3 - degree, 4)]
+            value = coef[0]
+            for c in coef[1:]:
+                value = value * s + c
+            G[r, col] = value
     return G
 
 
@@ -561,11 +572,11 @@ def build(spec: LoopSpec) -> LoopFunctions:
             return gain, parts.get("Ki")
         from quadctl.lqr.gain_table import scheduling_value
 
-        variable, pieces, columns = spec.schedule
+        variable, pieces, columns, degree = spec.schedule
         v = scheduling_value(variable, x_ref(t), parts["schedule_heading"], lib=ca)
         mask = np.hstack([np.reshape(np.asarray(spec.pattern, dtype=bool), (N_INPUTS, N_STATES), order="F"),
                           np.ones((N_INPUTS, columns - N_STATES), dtype=bool)])
-        G = scheduled_gain(v, parts["schedule_breaks"], parts["schedule_coefficients"], pieces, mask)
+        G = scheduled_gain(v, parts["schedule_breaks"], parts["schedule_coefficients"], pieces, mask, degree)
         return G[:, :N_STATES], (G[:, N_STATES:] if columns > N_STATES else parts.get("Ki"))
 
     def control(X, t):

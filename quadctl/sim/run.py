@@ -148,7 +148,8 @@ class ClosedLoop:
         K = self.K if table is None else np.any(table.coefficients[..., :N_STATES] != 0, axis=(0, 1))
         return LoopSpec.of_gain(K, saturation=act.mode if act is not None else "none",
                                 method=method, phi_pattern=phi_pattern,
-                                schedule=(table.variable, *self.schedule_shape) if table is not None else (),
+                                schedule=(table.variable, *self.schedule_shape, self.schedule_degree)
+                                if table is not None else (),
                                 integral=tuple(STATE_INDEX[s] for s in self.integral_states),
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
@@ -186,6 +187,15 @@ class ClosedLoop:
         :func:`quadctl.sim.builder.constant_layout` that give the layout of :meth:`constants`."""
         return (len(self.integral_states), self.rotor_time_constant is not None, self.Kv is not None,
                 len(self.measured), self.schedule_shape)
+
+    @property
+    def schedule_degree(self) -> int:
+        """The highest power of the schedule's pieces with a nonzero coefficient (0 without a schedule)."""
+        table = self.schedule
+        if table is None:
+            return 0
+        nonzero = [k for k in range(4) if np.any(table.coefficients[k] != 0)]
+        return 3 - nonzero[0] if nonzero else 0
 
     @property
     def schedule_shape(self) -> tuple[int, ...]:
