@@ -335,7 +335,7 @@ def transition_figure(transition, *, title: str = "") -> Figure:
     (or the largest ``|u - u_ref|`` share of the limits without rotors) against its limits. A run
     that stopped early ends with a cross.
     """
-    from quadctl.lqr.gain_table import VARIABLES, scheduling_value
+    from quadctl.lqr.gain_table import VARIABLES, scheduling_values
 
     runs, loop = transition.runs(), transition.loops["scheduled"]
     table, heading = loop.schedule, loop.schedule_heading
@@ -343,7 +343,7 @@ def transition_figure(transition, *, title: str = "") -> Figure:
     speed_ax, angle_ax, rotor_ax = fig.subplots(3, 1, sharex=True)
 
     def variable(x):
-        return np.array([scheduling_value(table.variable, row, heading) for row in x])
+        return scheduling_values(table.variable, x, heading)
 
     first = runs["scheduled"]
     _trace(speed_ax, first.t, variable(first.x_ref), color="0.35", lw=1.0, ls="--", label="reference")

@@ -18,7 +18,7 @@ import numpy as np
 
 from quadctl import pipeline
 from quadctl.layout import STATE_INDEX
-from quadctl.lqr.gain_table import scheduling_value
+from quadctl.lqr.gain_table import scheduling_values
 from quadctl.problem import Setup
 from quadctl.scheduling import heading_of, schedule_of
 from quadctl.sim.run import ClosedLoop, SimResult
@@ -84,13 +84,6 @@ def fly_transition(setup: Setup, table=None) -> Transition:
     return Transition(scheduled=sims["scheduled"], fixed=sims["fixed"], loops=loops, summary=summary)
 
 
-def scheduling_values(setup: Setup, x) -> np.ndarray:
-    """(n,) the schedule's variable at each state of ``x`` (n, 12) (:func:`~quadctl.lqr.gain_table.scheduling_value`,
-    measured along the schedule's heading, :func:`quadctl.scheduling.heading_of`)."""
-    heading = heading_of(setup)
-    return np.array([scheduling_value(setup.schedule.variable, row, heading) for row in np.asarray(x)])
-
-
 def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[float, float]) -> dict:
     """One run's numbers: ``status`` and ``message`` (:func:`quadctl.sim.run.verdict`),
     ``position_error`` (peak ``|p - p_ref|``, m), ``velocity_error`` (peak ``|V - V_ref|`` of the body
@@ -106,7 +99,7 @@ def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[floa
     act = loop.actuators
     fraction = max(motors.saturation_fraction(act, sim.u).values()) if act is not None else 0.0
     attitude = np.abs(sim.x[:, [STATE_INDEX["phi"], STATE_INDEX["theta"]]]).max()
-    flown = scheduling_values(setup, sim.x)
+    flown = scheduling_values(setup.schedule.variable, sim.x, heading_of(setup))
     margin = ON_GRID_MARGIN * (grid[1] - grid[0])
     return {"status": sim.status, "message": sim.message, "completed": sim.status == "ok",
             "duration": float(sim.t[-1]), "position_error": float(pos.max()), "velocity_error": float(vel.max()),

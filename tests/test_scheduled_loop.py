@@ -193,20 +193,40 @@ def test_the_table_these_tests_build_is_the_schedule_stages(transition):
     assert np.abs(made.gains - table.gains).max() < 1e-9 * np.abs(table.gains).max()
 
 
-@pytest.mark.compiler
-def test_the_fixed_design_leaves_the_valid_range_where_the_schedule_flies(transition):
-    """The bundled transition: the hover design alone, asked for 2 m/s more each second, pitches past
-    85 deg near 18 m/s with its rotors at a limit; the schedule completes the way up and back within them."""
+@pytest.fixture(scope="module")
+def flown_transition(transition):
+    """The bundled transition flown with the schedule and with the fixed design (quadctl.transition)."""
     from quadctl.transition import fly_transition
 
     setup, _, table = transition
-    result = fly_transition(setup, table)
+    return fly_transition(setup, table)
+
+
+@pytest.mark.compiler
+def test_the_fixed_design_leaves_the_valid_range_where_the_schedule_flies(transition, flown_transition):
+    """The bundled transition: the hover design alone, asked for 2 m/s more each second, pitches past
+    85 deg near 18 m/s with its rotors at a limit; the schedule completes the way up and back within them."""
+    setup, result = transition[0], flown_transition
     fixed, scheduled = result.summary["fixed"], result.summary["scheduled"]
     assert fixed["status"] == "left_valid_range" and fixed["saturates"] and fixed["peak_attitude"] > 85
     assert scheduled["completed"] and not scheduled["saturates"] and scheduled["peak_attitude"] < 40
     assert scheduled["on_grid"] and scheduled["flown_range"][1] > 0.9 * setup.schedule.values[-1]
     assert result.scheduled.x[-1, STATE_INDEX["u"]] < 0.5  # back near hover
     assert fixed["flown_range"][1] > 15  # it failed at speed, not at the first step
+
+
+@pytest.mark.compiler
+def test_the_transition_figure_shows_both_runs_and_where_one_stopped(flown_transition):
+    from quadctl import plots
+
+    fig = plots.transition_figure(flown_transition, title=TRANSITION)
+    speed, pitch, rotor = fig.axes
+    labels = [line.get_label() for line in speed.get_lines()]
+    assert "scheduled (ok)" in labels and "fixed (left_valid_range)" in labels
+    ends = [line for line in pitch.get_lines() if line.get_marker() == "x"]
+    assert len(ends) == 1 and ends[0].get_xdata()[0] == pytest.approx(flown_transition.fixed.t[-1])
+    assert ends[0].get_ydata()[0] < -85
+    assert plots.png_bytes(fig)[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_a_scheduled_loop_is_flown_by_rk4_only(transition):
@@ -242,3 +262,12 @@ def test_simulate_flies_the_schedule_and_sim_json_says_so(tmp_path):
     assert payload["schedule"][0]["steps"] == flown.sim.steps  # the step schedule (RK4's one segment) stays
     assert saved["variable"] == "speed" and saved["values"] == [0, 4, 8, 12, 16, 20]
     assert saved["interpolation"] == "linear" and saved["scheduled_on"].startswith("the reference")
+
+
+@pytest.mark.parametrize("variable", ["speed", "climb", "yaw"])
+def test_scheduling_values_of_a_run_are_the_variable_row_by_row(variable):
+    from quadctl.lqr.gain_table import scheduling_value, scheduling_values
+
+    xs = np.random.default_rng(4).normal(size=(7, N_STATES))
+    one_by_one = [scheduling_value(variable, x, 0.3) for x in xs]
+    assert np.abs(scheduling_values(variable, xs, 0.3) - one_by_one).max() < 1e-14

@@ -22,6 +22,7 @@ heading (m/s), ``climb`` rate (m/s, up positive) or ``yaw`` (rad).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -64,6 +65,21 @@ def scheduling_value(variable: str, x, heading: float, lib=np):
     if variable == "climb":
         return -velocity_ned[2]
     return lib.cos(heading) * velocity_ned[0] + lib.sin(heading) * velocity_ned[1]
+
+def scheduling_values(variable: str, xs, heading: float) -> np.ndarray:
+    """(n,) :func:`scheduling_value` of each row of ``xs`` (n, 12) (a run's states), by one mapped
+    CasADi function of the same expression."""
+    xs = np.atleast_2d(np.asarray(xs, dtype=float))
+    return np.asarray(_mapped_value(variable, len(xs))(xs.T, heading), dtype=float).ravel()
+
+
+@lru_cache(maxsize=8)
+def _mapped_value(variable: str, n: int):
+    import casadi as ca
+
+    x, heading = ca.SX.sym("x", len(STATE_NAMES)), ca.SX.sym("heading")
+    return ca.Function("scheduling_value", [x, heading], [scheduling_value(variable, x, heading, lib=ca)]).map(n)
+
 
 @dataclass(frozen=True)
 class GainTable:
