@@ -25,6 +25,7 @@ from quadctl.config import (
     NoiseConfig,
     PlantConfig,
     ReferenceConfig,
+    ScheduleConfig,
     SimulationConfig,
     TrimConfig,
     VehicleConfig,
@@ -276,6 +277,7 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hover") ->
     out += _section(MotorsConfig, {**preset.motors, "time_constant": (None, ""), "spin": (None, "")}, 2)
     out += [f"# limits: {{T: [0, 1], A: [-0.01, 0.01]}}   # {_doc(Config, 'limits')}",
             f"# estimator:   # {_doc(Config, 'estimator')}"] + _section(EstimatorConfig, {}, 2, commented=True)
+    out += [f"# schedule:   # {_doc(Config, 'schedule')}"] + _section(ScheduleConfig, {}, 2, commented=True)
     out += [f"allow: []   # {_doc(Config, 'allow')}"]
     return "\n".join(out) + "\n"
 
