@@ -75,8 +75,13 @@ def fly_transition(setup: Setup, table=None) -> Transition:
         raise ValueError("a transition flies a schedule (schedule:) along a reference (simulation.reference)")
     stages = pipeline.Stages(setup)
     fixed = stages.loop
-    table = schedule_of(setup).table if table is None else table
-    loops = {"scheduled": pipeline.scheduled_loop(setup, fixed, table, heading_of(setup)), "fixed": fixed}
+    if table is None:
+        schedule = schedule_of(setup)
+        table, eigenvalues = schedule.table, schedule.checks.eigenvalues
+    else:
+        eigenvalues = ()
+    loops = {"scheduled": pipeline.scheduled_loop(setup, fixed, table, heading_of(setup), eigenvalues),
+             "fixed": fixed}
     sims = {label: pipeline.simulation_of(setup, loop, noise=False) for label, loop in loops.items()}
     grid = (float(table.values[0]), float(table.values[-1]))
     summary = {"variable": table.variable, "grid": list(grid),

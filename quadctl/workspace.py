@@ -306,7 +306,8 @@ class Workspace(pipeline.Stages):
         K, Ki, ints, Kv = self.gains
         loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints, Kv=Kv)
         if setup.schedule is not None:  # fly the schedule's gains (and write schedule.json beside)
-            loop = pipeline.scheduled_loop(setup, loop, self.schedule.table, self.schedule.heading)
+            sched = self.schedule
+            loop = pipeline.scheduled_loop(setup, loop, sched.table, sched.heading, sched.checks.eigenvalues)
         sim = pipeline.simulation_of(setup, loop, progress=self.progress)
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)

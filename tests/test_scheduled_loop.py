@@ -271,3 +271,22 @@ def test_scheduling_values_of_a_run_are_the_variable_row_by_row(variable):
     xs = np.random.default_rng(4).normal(size=(7, N_STATES))
     one_by_one = [scheduling_value(variable, x, 0.3) for x in xs]
     assert np.abs(scheduling_values(variable, xs, 0.3) - one_by_one).max() < 1e-14
+
+
+def test_the_rk4_step_holds_every_frozen_loop_of_the_schedule():
+    """A continuous scheduled loop's step is planned over the schedule's frozen loops too: a frozen
+    eigenvalue faster than the design's own governs the step, named as the gain schedule's."""
+    from quadctl.scheduling import schedule_of
+
+    setup = setup_of(config.load("schedule"))
+    loop = pipeline.Stages(setup).loop
+    sched = schedule_of(setup)
+    own = loop.plan(setup.duration)
+    scheduled = pipeline.scheduled_loop(setup, loop, sched.table, sched.heading, sched.checks.eigenvalues)
+    plan = scheduled.plan(setup.duration)
+    frozen = sched.checks.eigenvalues[np.isfinite(sched.checks.eigenvalues)]
+    assert np.all(np.abs(plan.dt * frozen) <= 0.5 + 1e-12)
+    fast = pipeline.scheduled_loop(setup, loop, sched.table, sched.heading, [10 * own.fastest_eigenvalue, np.nan])
+    plan = fast.plan(setup.duration)
+    assert plan.fastest_owner == "gain schedule"
+    assert plan.dt == pytest.approx(own.dt / 10, rel=0.05)

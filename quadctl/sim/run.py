@@ -101,6 +101,9 @@ class ClosedLoop:
     "Gain schedule"); None: the fixed gains. ``K`` stays the design at the trim (the step plan's)."""
     schedule_heading: float = 0.0
     """rad: the heading a ``speed`` schedule measures along (the trim's yaw)."""
+    schedule_eigenvalues: np.ndarray | None = None
+    """rad/s: the eigenvalues of the schedule's frozen loops (its interpolated gains on the model at
+    each value), which the continuous loop's RK4 step holds stable too; None: the loop's own only."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -117,9 +120,10 @@ class ClosedLoop:
             return plan_held_step(np.concatenate([ol, lag]), self.rate, duration, dt)
         est = self.estimator.eigenvalues if self.estimator is not None else np.zeros(0)
         model = rotor_eigenvalues(self.lag_model_time_constant) if self.Kv is not None else np.zeros(0)
-        return plan_step(np.concatenate([self.eigenvalues, lag, model, est]),
+        sched = self.schedule_eigenvalues if self.schedule_eigenvalues is not None else np.zeros(0)
+        return plan_step(np.concatenate([self.eigenvalues, lag, model, est, sched]),
                          [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
-                          *["estimator"] * len(est)], duration, dt)
+                          *["estimator"] * len(est), *["gain schedule"] * len(sched)], duration, dt)
 
     def linear_part(self) -> np.ndarray:
         """The loop linearized at the reference in the loop state's order (:func:`quadctl.lqr.linear_loop.simulated`).
