@@ -272,8 +272,8 @@ class SimulationConfig(_Section):
         None, description="setpoints or waypoints to fly; absent: hold the trim (moving with its velocity)")
     method: Literal["rk4", "etdrk4"] = Field(
         "rk4", description="rk4: classical Runge-Kutta, its step held stable by the fastest loop; etdrk4: "
-        "exponential Runge-Kutta (Cox-Matthews) exact on the loop's linearization, dt: auto a graded step "
-        "schedule (continuous feedback only)")
+        "exponential Runge-Kutta (Hochbruck-Ostermann, order 4) exact on the loop's linearization, dt: auto a "
+        "graded step schedule (continuous feedback only)")
     tolerance: Optional[Annotated[Positive, Field(ge=1e-14, le=1e-2)]] = Field(
         None, description="etdrk4 with dt: auto: the error the step schedule aims at (state units); absent: 1e-08")
 

@@ -78,10 +78,8 @@ def test_the_ladder_equals_direct_exponentials():
     steps = [1e-6 * 2 ** j for j in range(12)]
     ladder = schedule.phi_ladder(L, steps)
     for h in steps[::3]:
-        E, p1, p2, p3 = schedule.phi_functions(L, h)
-        Eh, p1h = schedule.phi_functions(L, h / 2, order=1)
-        ref = {"E_full": E, "E_half": Eh, "P_half": h / 2 * p1h, "F1": h * (p1 - 3 * p2 + 4 * p3),
-               "F2": h * (p2 - 2 * p3), "F3": h * (4 * p3 - p2)}
+        ref = schedule.step_matrices(L, h, schedule.phi_functions(L, h / 2), schedule.phi_functions(L, h))
+        assert set(ref) == set(PHI_LAYOUT)
         for name, M in ref.items():
             assert np.abs(ladder[h][name] - M).max() < 1e-13 * max(1.0, np.abs(M).max()), (h, name)
     with pytest.raises(ValueError, match="not .* times a power of two"):
@@ -218,7 +216,7 @@ def test_etdrk4_agrees_with_rk4_at_a_small_step(name):
     setup, _, linear, _, des = solve(_variant(name))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
-    kw = dict(noise=setup.noise, wind=setup.wind)
+    kw = dict(noise=setup.noise, wind=setup.wind, reference=pipeline.flown_reference(setup))
     rk4 = simulate(loop, x0, 0.2, 2.5e-5, **kw)
     etd = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-12, **kw)
     assert etd.status == rk4.status == "ok"
@@ -227,6 +225,40 @@ def test_etdrk4_agrees_with_rk4_at_a_small_step(name):
     if setup.wind is not None:  # the wind felt, by time, on the graded grid
         assert np.all(np.diff(etd.t) > 0)
         assert np.abs(np.interp(0.1, etd.t, etd.wind[:, 0]) - np.interp(0.1, rk4.t, rk4.wind[:, 0])) < 0.05
+
+
+@pytest.mark.compiler
+def test_a_mission_agrees_with_rk4_at_a_small_step():
+    """The bundled ``square`` mission, its whole 15 s (the reference's rows and its pieces' ends, where
+    its higher derivatives jump): ETDRK4 at dt: auto, tolerance 1e-10, against RK4 at 2.5e-5 s (a step
+    that divides the rows' period), at a tenth of RK4's steps at its own stable step. (Cox and Matthews'
+    four-stage ETDRK4 on this loop: 3e-5; its order falls at steps past the fast modes.)"""
+    setup, _, linear, _, des = solve(cfg_dict("square"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0, ref = setup.initial_state(loop.x_trim), pipeline.flown_reference(setup)
+    T = setup.duration
+    rk4 = simulate(loop, x0, T, 2.5e-5, reference=ref)
+    etd = simulate(loop, x0, T, "auto", method="etdrk4", tolerance=1e-10, reference=ref)
+    assert etd.status == rk4.status == "ok"
+    assert np.abs(etd.x[-1] - rk4.x[-1]).max() < 1e-9
+    assert np.abs(etd.x_ref[-1] - rk4.x_ref[-1]).max() < 1e-12  # the same reference, flown
+    assert etd.steps * 10 < simulate(loop, x0, T, "auto", reference=ref).steps
+
+
+def test_a_reference_caps_the_step_and_keeps_its_rows():
+    """With a reference, the schedule's steps divide the rows' period (a step never straddles a row's
+    boundary, where the reference's curvature jumps), and the largest is the forced step the tolerance
+    allows; without one, the largest is MAX_STEP."""
+    setup, _, linear, _, des = solve(cfg_dict("square"))
+    eig = np.linalg.eigvals(pipeline.loop_of(setup, linear, des).linear_part())
+    slowest = np.abs(eig)[np.abs(eig) > 0].min()
+    for tol in (1e-8, 1e-10):
+        plan = schedule.plan_schedule(eig, ["loop"] * len(eig), 15.0, tolerance=tol, period=0.005, forced=True)
+        top = plan.schedule[-1].dt
+        assert 0.005 / top == round(0.005 / top)
+        assert top <= schedule.SAFETY * tol ** 0.25 / slowest < 2 * top
+    free = schedule.plan_schedule(eig, ["loop"] * len(eig), 15.0, tolerance=1e-10, period=0.005)
+    assert free.schedule[-1].dt == 0.005 and free.n_steps < plan.n_steps
 
 
 def test_the_schedule_grades_and_aligns():
@@ -272,11 +304,12 @@ def test_a_given_step_is_uniform():
 
 
 @pytest.mark.compiler
-def test_compiled_and_interpreted_etdrk4_agree(monkeypatch):
-    setup, _, linear, _, des = solve(_variant("hover+noise+wind"))
+@pytest.mark.parametrize("name", ["hover+noise+wind", "square"])
+def test_compiled_and_interpreted_etdrk4_agree(monkeypatch, name):
+    setup, _, linear, _, des = solve(_variant(name))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
-    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4")
+    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4", reference=pipeline.flown_reference(setup))
     compiled = simulate(loop, x0, 0.05, "auto", **kw)
     monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
     engine.runner.cache_clear()
@@ -287,7 +320,7 @@ def test_compiled_and_interpreted_etdrk4_agree(monkeypatch):
         engine.runner.cache_clear()
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     assert compiled.steps == interpreted.steps and np.array_equal(compiled.t, interpreted.t)
-    assert np.abs(compiled.x - interpreted.x).max() < 1e-12
+    assert np.abs(compiled.x - interpreted.x).max() < 1e-12 and np.abs(compiled.x[-1] - x0).max() > 1e-6
     assert np.abs(compiled.u - interpreted.u).max() < 1e-12
 
 
@@ -374,6 +407,28 @@ def test_lanes_equal_the_one_case_loop():
         K = loop.K.copy()
         K[0, 0] = 1.0 if K[0, 0] == 0 else 0.0
         exponential_lanes([loop, replace(loop, K=K)], [x0, x0], 0.1)
+
+
+@pytest.mark.compiler
+def test_lanes_fly_a_reference_as_the_one_case_loop():
+    """Nine designs of the ``square`` mission (gains scaled) flying its reference in the lanes, each
+    against its own one-case run: the same steps, the same reference rows, to 1e-12."""
+    from dataclasses import replace
+
+    from quadctl.sim.run import exponential_lanes
+
+    setup, _, linear, _, des = solve(cfg_dict("square"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0, ref = setup.initial_state(loop.x_trim), pipeline.flown_reference(setup)
+    loops = [replace(loop, K=loop.K * (1.0 + 0.05 * k)) for k in range(9)]
+    lanes = exponential_lanes(loops, [x0] * len(loops), 0.5, tolerance=1e-8, reference=ref)
+    worst = 0.0
+    for one_loop, (done, t, xs, us) in zip(loops, lanes):
+        one = simulate(one_loop, x0, 0.5, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
+        assert done == one.steps and np.array_equal(t, one.t)
+        worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max())
+    assert np.abs(lanes[0][2][-1, :2] - x0[:2]).max() > 0.01  # they flew
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
 
 
 def test_the_presenter_names_the_method_and_its_schedule():

@@ -237,18 +237,12 @@ def test_bad_references_name_the_key(block, message):
         config.parse(text + f"  reference: {block}\n", "c.yaml")
 
 
-def test_etdrk4_refuses_a_reference_in_the_config_and_the_library():
-    """ETDRK4's schedule does not take the reference rows yet: one line naming the key, not a wrong run."""
+def test_etdrk4_flies_a_reference():
+    """The config takes ``simulation.method: etdrk4`` with a reference (tests/test_exponential_integrator.py
+    holds its agreement with RK4)."""
     data = config.load("square").model_dump(mode="json")
     data["simulation"]["method"] = "etdrk4"
-    refused = r'^square\.yaml: simulation\.method = "etdrk4": does not fly a reference yet'
-    with pytest.raises(ConfigError, match=refused):
-        config.from_dict(data, "square.yaml")
-    setup = setup_of(config.load("square"))
-    loop = pipeline.loop_of(setup, *_linear_and_design(setup))
-    with pytest.raises(ValueError, match="ETDRK4 does not fly a reference yet"):
-        simulate(loop, setup.initial_state(loop.x_trim), 0.1, reference=pipeline.flown_reference(setup),
-                 method="etdrk4")
+    assert config.from_dict(data, "square.yaml").simulation.method == "etdrk4"
 
 
 def _linear_and_design(setup):

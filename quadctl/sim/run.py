@@ -427,10 +427,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         A diverging run stops at the first bad state and keeps everything before it.
     """
     if method == "etdrk4":
-        if reference is not None:
-            raise ValueError("ETDRK4 does not fly a reference yet: run a reference with method 'rk4'")
         return _simulate_exponential(loop, x0, duration, dt, noise=noise, wind=wind, max_samples=max_samples,
-                                     progress=progress, tolerance=tolerance)
+                                     progress=progress, tolerance=tolerance, reference=reference)
     if method != "rk4":
         raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
     plan = loop.plan(duration, dt)
@@ -476,8 +474,16 @@ def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int
 
 
 def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, wind, max_samples: int,
-                          progress, tolerance: float) -> SimResult:
-    """:func:`simulate` by ETDRK4 over the segments of its schedule (each with its own matrices)."""
+                          progress, tolerance: float, reference=None) -> SimResult:
+    """:func:`simulate` by ETDRK4 over the segments of its schedule (each with its own matrices).
+
+    A reference enters as the RK4 loop's does, through the exogenous rows; the linear part stays the
+    loop linearized at the trim, and the nonlinear remainder ``N = f - L X`` carries the rest (the
+    reference's ``x_ref(t)``, ``u_ref(t)`` and the loop's distance from the trim). Within a row the
+    reference is a quadratic in ``t``, so ``N`` is smooth over a step; at a row's boundary its second
+    derivative jumps, and every step of the schedule divides the exogenous period (a step never
+    straddles a boundary), so the method keeps its order.
+    """
     from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
 
     if loop.rate is not None:
@@ -485,16 +491,17 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
                          "simulation.method: rk4")
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
-    exo = ExoStream(noise if noisy else None, wind if windy else None, loop.rate) if noisy or windy else None
+    exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
+           if noisy or windy or reference is not None else None)
     L = loop.linear_part()
     eig = np.linalg.eigvals(L)
     plan = plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance,
-                         period=exo.period if exo is not None else None)
+                         period=exo.period if exo is not None else None, forced=reference is not None)
     ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
-    spec = loop.spec(noisy, windy, method="etdrk4", phi_pattern=phi_pattern(ladder))
+    spec = loop.spec(noisy, windy, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
     run = runner(spec, 1)
     base = loop.constants(None)
-    lo, hi = loop.bounds(duration)
+    lo, hi = loop.bounds(duration, reference)
     x = loop.initial_loop_state(x0)
     n = plan.n_steps
     strides = record_strides(plan, max_samples)
@@ -517,14 +524,17 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     wall = time.perf_counter() - start
     t, xs, us = np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
     return _result(loop, plan, run.backend, t, xs, us, total, strides[-1], wall, lo, hi, noise if noisy else None,
-                   wind if windy else None, exo, t, 1.0)
+                   wind if windy else None, exo, t, 1.0, reference)
 
 
 def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                      max_samples: int = MAX_SAMPLES) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+                      max_samples: int = MAX_SAMPLES,
+                      reference=None) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
     """ETDRK4 runs of several loops of one structure in the SIMD lanes (:data:`quadctl.sim.engine.LANES`
     at a time), without noise or wind: each its own linear part and schedule, the lanes stepping
-    through their schedules' segments together (segment ``i`` of every case per call).
+    through their schedules' segments together (segment ``i`` of every case per call). With a
+    ``reference`` (:class:`quadctl.sim.reference.FlownReference`), every loop flies it: its rows are
+    tabulated once for the run and every lane reads them, as :func:`simulate` does.
 
     Parameters
     ----------
@@ -536,6 +546,7 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
     dt : float or "auto"
     tolerance : float
     max_samples : int
+    reference : FlownReference, optional
 
     Returns
     -------
@@ -557,14 +568,19 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
     if len({loop.spec() for loop in loops}) > 1:
         raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
     Ls = [loop.linear_part() for loop in loops]
-    plans = [plan_schedule(np.linalg.eigvals(L), ["loop"] * len(L), duration, dt, tolerance=tolerance) for L in Ls]
+    exo = ExoStream(None, None, None, reference) if reference is not None else None
+    period = exo.period if exo is not None else None
+    plans = [plan_schedule(np.linalg.eigvals(L), ["loop"] * len(L), duration, dt, tolerance=tolerance,
+                           period=period, forced=reference is not None) for L in Ls]
     ladders = [phi_ladder(L, [seg.dt for seg in plan.schedule]) for L, plan in zip(Ls, plans)]
     patterns = np.array([phi_pattern(ladder) for ladder in ladders])
-    run = runner(loops[0].spec(method="etdrk4", phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
+    run = runner(loops[0].spec(reference=reference is not None, method="etdrk4",
+                               phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
+    rows = exo.samples(0, math.ceil(duration / period + 1e-9)) if exo is not None else None
     out = []
     for start in range(0, len(loops), LANES):
         group = range(start, min(start + LANES, len(loops)))
-        bounds = [loops[i].bounds(duration) for i in group]
+        bounds = [loops[i].bounds(duration, reference) for i in group]
         x = [loops[i].initial_loop_state(x0s[i]) for i in group]
         base = [loops[i].constants(None) for i in group]
         strides = [record_strides(plans[i], max_samples) for i in group]
@@ -580,7 +596,8 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
                              [s.n if s else 0 for s in segs],
                              [strides[j][k] if segs[j] else 1 for j in range(len(group))],
                              np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
-                             k0=[s.k0 if s else 0 for s in segs])
+                             k0=[s.k0 if s else 0 for s in segs],
+                             exo=None if rows is None else [rows] * len(group), exo_period=period or 1.0)
             for j, (done, ks, xs, us) in enumerate(run.run(cases)):
                 seg = segs[j]
                 if seg is None:

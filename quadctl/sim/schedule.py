@@ -12,7 +12,7 @@ every mode:
 
 small steps over the first time constants of the fast modes, growing geometrically as they decay,
 up to the step the slow modes allow (and never past :data:`MAX_STEP`, the exogenous inputs' period,
-or the run). The schedule is deterministic, a few segments of uniform steps ``h_top / 2^j``: every
+or the run; with a reference, which keeps the loop moving, never past :func:`forced_step`). The schedule is deterministic, a few segments of uniform steps ``h_top / 2^j``: every
 step starts at a whole multiple of its own size, so a step never straddles an exogenous sample
 (``h_top`` divides its period) and the runners' clock ``t = dt (k0 + k)`` is exact per segment.
 """
@@ -142,10 +142,21 @@ def phi_ladder(L, steps) -> dict[float, dict[str, np.ndarray]]:
             if h > target * (1 + 1e-12):
                 raise ValueError(f"step {target!r} s is not {steps[0]!r} s times a power of two")
             if math.isclose(h, target, rel_tol=1e-12):
-                E, p1, p2, p3 = phis
-                out[target] = {"lin": L, "E_half": half[0], "P_half": h / 2 * half[1], "E_full": E,
-                               "F1": h * (p1 - 3 * p2 + 4 * p3), "F2": h * (p2 - 2 * p3), "F3": h * (4 * p3 - p2)}
+                out[target] = step_matrices(L, h, half, phis)
     return out
+
+
+def step_matrices(L, h: float, half: list[np.ndarray], full: list[np.ndarray]) -> dict[str, np.ndarray]:
+    """The matrices of one ETDRK4 step ``h`` (:data:`quadctl.sim.builder.PHI_LAYOUT`) from
+    ``half = [e^(hL/2), φ_1, φ_2, φ_3 (hL/2)]`` and ``full``, the same of ``hL``."""
+    Eh, q1, q2, q3 = half
+    E, p1, p2, p3 = full
+    a52 = h * (q2 / 2 - p3 + p2 / 4 - q3 / 2)
+    a54 = h * q2 / 4 - a52
+    return {"lin": np.asarray(L, dtype=float), "E_half": Eh, "E_full": E, "A21": h * q1 / 2,
+            "A31": h * (q1 / 2 - q2), "A32": h * q2, "A41": h * (p1 - 2 * p2), "A42": h * p2,
+            "A51": h * q1 / 2 - 2 * a52 - a54, "A52": a52, "A54": a54,
+            "B1": h * (p1 - 3 * p2 + 4 * p3), "B4": h * (4 * p3 - p2), "B5": h * (4 * p2 - 8 * p3)}
 
 
 def phi_constants(matrices: dict[str, np.ndarray]) -> np.ndarray:
@@ -205,8 +216,17 @@ def allows(h: float, eigenvalues, tolerance: float) -> float:
     return float(times.max())
 
 
+def forced_step(eigenvalues, tolerance: float) -> float:
+    """The largest step (s) of a run that flies a reference: the reference keeps the loop moving for the
+    whole run, so the slowest mode's term of ``h(t)`` does not grow (its excitation does not decay):
+    ``SAFETY tolerance^(1/4) / |lambda_slow|``, ``lambda_slow`` the slowest nonzero eigenvalue (inf: none)."""
+    mag = np.abs(np.asarray(eigenvalues, dtype=complex))
+    mag = mag[mag > 0]
+    return float(SAFETY * tolerance ** 0.25 / mag.min()) if mag.size else math.inf
+
+
 def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                  period: float | None = None) -> StepPlan:
+                  period: float | None = None, forced: bool = False) -> StepPlan:
     """The ETDRK4 steps of a run: uniform ``dt``, or the graded schedule of ``dt: auto``.
 
     Parameters
@@ -221,7 +241,9 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     tolerance : float
         The error ``dt: auto`` aims at.
     period : float, optional
-        s of the exogenous inputs (noise, wind): steps divide it.
+        s of the exogenous inputs (noise, wind, a reference): steps divide it.
+    forced : bool
+        The run flies a reference: the largest step is at most :func:`forced_step`.
 
     Returns
     -------
@@ -238,6 +260,8 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
         return StepPlan(h, n, _rk4_limit(eig), fastest, owner, False, method="etdrk4",
                         schedule=(Segment(h, n, 0),))
     cap = min(MAX_STEP, duration, auto_step(math.inf, eig, tolerance))
+    if forced:
+        cap = min(cap, forced_step(eig, tolerance))
     if period is not None:
         top = period / math.ceil(period / cap - 1e-9)
     else:
