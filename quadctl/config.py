@@ -273,7 +273,7 @@ class SimulationConfig(_Section):
     method: Literal["rk4", "etdrk4"] = Field(
         "rk4", description="rk4: classical Runge-Kutta, its step held stable by the fastest loop; etdrk4: "
         "exponential Runge-Kutta (Hochbruck-Ostermann, order 4) exact on the loop's linearization, dt: auto a "
-        "graded step schedule (continuous feedback only)")
+        "graded step schedule (a sampled controller's plant between samples)")
     tolerance: Optional[Annotated[Positive, Field(ge=1e-14, le=1e-2)]] = Field(
         None, description="etdrk4 with dt: auto: the error the step schedule aims at (state units); absent: 1e-08")
 
@@ -990,7 +990,8 @@ def _check_reference(ref: ReferenceConfig | None, fail) -> None:
 
 
 def _check_method(cfg: Config, fail) -> None:
-    """``simulation.method: etdrk4`` integrates continuous feedback (its linear part is the continuous loop)."""
+    """``simulation.method: etdrk4``: its tolerance only with ``dt: auto``; a continuous loop with a Kalman
+    filter and the rotors' lag has no linear part (a sampled one's is the plant's)."""
     sim = cfg.simulation
     if sim.method == "rk4":
         if sim.tolerance is not None:
@@ -1000,15 +1001,10 @@ def _check_method(cfg: Config, fail) -> None:
     if sim.tolerance is not None and sim.dt != "auto":
         fail("simulation.tolerance", sim.tolerance, f"sets the step schedule of dt: auto, and simulation.dt is "
              f"{sim.dt:g} s: remove one of them")
-    if cfg.controller.rate is not None:
-        fail("simulation.method", sim.method, "integrates continuous feedback; a sampled controller "
-             "(controller.rate) runs with method: rk4")
-    if sim.reference is not None:
-        fail("simulation.method", sim.method, "does not fly a reference yet (simulation.reference): use "
-             "method: rk4 for a mission or setpoints")
     if cfg.schedule is not None:
         fail("simulation.method", sim.method, "does not fly a gain schedule (schedule:): use method: rk4")
-    if cfg.estimator is not None and cfg.motors is not None and cfg.motors.time_constant is not None:
+    if (cfg.controller.rate is None and cfg.estimator is not None and cfg.motors is not None
+            and cfg.motors.time_constant is not None):
         fail("simulation.method", sim.method, "has no linear part for a Kalman filter with the rotors' lag: "
              "use method: rk4, or remove motors.time_constant")
 

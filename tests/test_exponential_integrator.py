@@ -27,9 +27,9 @@ from _solve import cfg_dict, solve
 from scipy.integrate import solve_ivp
 
 from quadctl import config, pipeline
-from quadctl.errors import ConfigError
+from quadctl.errors import ConfigError, StepSizeError
 from quadctl.sim import engine, schedule
-from quadctl.sim.builder import PHI_LAYOUT, LoopSpec, build, etdrk4
+from quadctl.sim.builder import PHI_LAYOUT, build, etdrk4
 from quadctl.sim.run import simulate
 
 ca = pytest.importorskip("casadi")
@@ -179,6 +179,17 @@ def _variant(name: str) -> dict:
         if "wind" in name:
             data["simulation"]["wind"] = {"steady": [1.0, -0.5, 0.0], "turbulence": {"intensity": "light", "seed": 2}}
         return data
+    if name.startswith("mambo+"):
+        data = cfg_dict("mambo-200hz")
+        if "delay" in name:
+            data["controller"]["delay"] = 0.01  # two samples
+        if "rotors" in name:
+            data["motors"]["time_constant"] = 0.02
+            data["controller"]["rotor_lag"] = "include"
+        if "LQG" in name:
+            data["estimator"] = {"measure": ["imu", "mocap"]}
+            data["simulation"]["noise"]["sensor"].update(pN=0.01, pE=0.01)
+        return data
     return cfg_dict(name)
 
 
@@ -245,6 +256,39 @@ def test_a_mission_agrees_with_rk4_at_a_small_step():
     assert etd.steps * 10 < simulate(loop, x0, T, "auto", reference=ref).steps
 
 
+@pytest.mark.compiler
+@pytest.mark.parametrize("name", [*HELD, "mambo+delay", "mambo+rotors+lag model", "mambo+LQG"])
+def test_a_sampled_controller_agrees_with_rk4_at_a_small_step(name):
+    """1 s of each bundled sampled controller (and the held loop's delay, rotor lag with the lag model,
+    Kalman filter), noise and wind as configured: ETDRK4 at dt: auto, tolerance 1e-10, against RK4 at
+    a fortieth of the controller period. The law runs at the same samples: the inputs agree too, and
+    every segment starts on a sample."""
+    setup, _, linear, _, des = solve(_variant(name))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    Ts = 1.0 / loop.rate
+    kw = dict(noise=setup.noise, wind=setup.wind, reference=pipeline.flown_reference(setup))
+    rk4 = simulate(loop, x0, 1.0, Ts / 40, max_samples=10**6, **kw)
+    etd = simulate(loop, x0, 1.0, "auto", method="etdrk4", tolerance=1e-10, max_samples=10**6, **kw)
+    assert etd.status == rk4.status == "ok"
+    assert np.abs(etd.x[-1] - rk4.x[-1]).max() < 1e-9
+    k = np.round(etd.t / (Ts / 40)).astype(int)
+    assert np.abs(etd.u - rk4.u[k]).max() < 1e-9
+    for seg in etd.plan.schedule:
+        assert seg.start / Ts == pytest.approx(round(seg.start / Ts), abs=1e-9)
+        assert Ts / seg.dt == round(Ts / seg.dt)
+
+
+def test_a_sampled_controllers_given_step_divides_its_period():
+    setup, _, linear, _, des = solve(cfg_dict("mambo-200hz"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    sim = simulate(loop, x0, 0.05, 0.0025, method="etdrk4")
+    assert sim.plan.hold == 2 and sim.steps == 20
+    with pytest.raises(StepSizeError, match=r"simulation\.dt = 0\.003 s does not divide the controller period"):
+        simulate(loop, x0, 0.05, 0.003, method="etdrk4")
+
+
 def test_a_reference_caps_the_step_and_keeps_its_rows():
     """With a reference, the schedule's steps divide the rows' period (a step never straddles a row's
     boundary, where the reference's curvature jumps), and the largest is the forced step the tolerance
@@ -304,7 +348,7 @@ def test_a_given_step_is_uniform():
 
 
 @pytest.mark.compiler
-@pytest.mark.parametrize("name", ["hover+noise+wind", "square"])
+@pytest.mark.parametrize("name", ["hover+noise+wind", "square", "mambo+rotors+lag model"])
 def test_compiled_and_interpreted_etdrk4_agree(monkeypatch, name):
     setup, _, linear, _, des = solve(_variant(name))
     loop = pipeline.loop_of(setup, linear, des)
@@ -333,16 +377,6 @@ def test_the_phi_pattern_keeps_a_decoupled_loops_blocks():
     assert 0 < sum(pattern) < len(pattern)
     spec = loop.spec(method="etdrk4", phi_pattern=pattern)
     assert spec.n_phi == len(PHI_LAYOUT) * spec.nx ** 2 and "method=etdrk4" in spec.key()
-    with pytest.raises(ValueError, match="held loop"):
-        LoopSpec(spec.pattern, held=True, method="etdrk4")
-
-
-@pytest.mark.parametrize("name", HELD)
-def test_a_sampled_controller_refuses_etdrk4(name):
-    data = cfg_dict(name)
-    data["simulation"]["method"] = "etdrk4"
-    with pytest.raises(ConfigError, match=r"simulation\.method.*etdrk4.*controller\.rate.*method: rk4"):
-        config.from_dict(data, "<test>")
 
 
 def test_a_tolerance_without_etdrk4_is_refused():
@@ -428,6 +462,30 @@ def test_lanes_fly_a_reference_as_the_one_case_loop():
         assert done == one.steps and np.array_equal(t, one.t)
         worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max())
     assert np.abs(lanes[0][2][-1, :2] - x0[:2]).max() > 0.01  # they flew
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
+
+
+@pytest.mark.compiler
+def test_lanes_run_a_sampled_controller_as_the_one_case_loop():
+    """Nine designs of mambo-200hz (gains scaled; noise, LQI, rotor limits) in the lanes, each against
+    its own one-case run: the same steps and samples, to 1e-12."""
+    from dataclasses import replace
+
+    from quadctl.sim.run import exponential_lanes
+
+    setup, _, linear, _, des = solve(cfg_dict("mambo-200hz"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    loops = [replace(loop, K=loop.K * (1.0 + 0.05 * k), eigenvalues=loop.eigenvalues * (1.0 + 0.2 * k))
+             for k in range(9)]  # scaled modes: each its own schedule
+    lanes = exponential_lanes(loops, [x0] * len(loops), 0.5, tolerance=1e-8, noise=setup.noise)
+    worst, schedules = 0.0, set()
+    for one_loop, (done, t, xs, us) in zip(loops, lanes):
+        one = simulate(one_loop, x0, 0.5, "auto", method="etdrk4", tolerance=1e-8, noise=setup.noise)
+        assert done == one.steps and np.array_equal(t, one.t)
+        worst = max(worst, np.abs(xs[:, :12] - one.x).max(), np.abs(us - one.u).max())
+        schedules.add(one.plan.schedule)
+    assert len(schedules) > 1
     assert worst < 1e-12, f"Max diff is {worst:.4E}"
 
 

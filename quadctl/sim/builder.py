@@ -61,7 +61,7 @@ Kalman-Bucy filter ``dxh/dt = Ae xh + Be du + Le (y - C xh)`` is integrated in t
 Runs start with ``xh = 0`` (the filter believes the trim).
 
 
-Integrator (:attr:`LoopSpec.method`, continuous feedback): classical RK4, or the exponential
+Integrator (:attr:`LoopSpec.method`; a held loop's plant between samples too): classical RK4, or the exponential
 Runge-Kutta method of order 4 of Hochbruck and Ostermann (:func:`etdrk4`), whose linear part ``L`` is the loop
 linearized at the reference (:func:`quadctl.lqr.linear_loop.simulated`) and whose matrices of one
 step (:data:`PHI_LAYOUT`, from :mod:`quadctl.sim.schedule`) end the constant vector ``c``.
@@ -278,7 +278,8 @@ class LoopSpec:
     reference : bool
         The loop takes a reference (:data:`REFERENCE_LAYOUT`) every step, after the wind's channels.
     method : {"rk4", "etdrk4"}
-        The integrator of ``step`` (continuous feedback; a held loop's plant is RK4's).
+        The integrator of ``step`` (continuous feedback), or of ``plant`` between a held loop's samples
+        (its linear part the plant's, :meth:`quadctl.sim.run.ClosedLoop.plant_linear_part`).
     phi_pattern : tuple of bool
         ETDRK4 only: the sparsity of its (nx, nx) constants (:data:`PHI_LAYOUT`), column-major,
         the union over them: entries outside it are baked in as zero (a decoupled design's loop
@@ -313,8 +314,6 @@ class LoopSpec:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.schedule:
             _check_schedule(self)
-        if self.method != "rk4" and self.held:
-            raise ValueError("ETDRK4 integrates a loop with continuous feedback; a held loop's plant steps by RK4")
         if self.phi_pattern and len(self.phi_pattern) != self.nx * self.nx:
             raise ValueError(f"phi_pattern: expected {self.nx * self.nx} entries, got {len(self.phi_pattern)}")
         if len(self.pattern) != N_INPUTS * N_STATES:
@@ -642,7 +641,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
             xdot = body(Y, u_held)
             return ca.vertcat(xdot, ca.DM.zeros(nx - npl)) if nx > npl else xdot
 
-        plant = ca.Function("qc_plant", [X, u_held, dt, c, e], [ca.cse(rk4(plant_rhs, X))],
+        X_next = etdrk4(plant_rhs, X, t, dt, phi_block(c, spec)) if spec.method == "etdrk4" else rk4(plant_rhs, X)
+        plant = ca.Function("qc_plant", [X, u_held, dt, c, e], [ca.cse(X_next)],
                             ["X", "u", "dt", "c", "e"], ["X_next"])
         return LoopFunctions(spec=spec, law=law, plant=plant)
 

@@ -144,6 +144,30 @@ class ClosedLoop:
                                      rotor_time_constant=self.rotor_time_constant,
                                      mix=act.mix if act is not None else None, estimator=self.estimator)
 
+    def plant_linear_part(self) -> np.ndarray:
+        """The plant linearized at the trim under a held input, in the loop state's order: what ETDRK4
+        integrates exactly between a sampled controller's samples. ``[x; f]``: ``A`` (and, with rotor
+        dynamics, ``B mix_inv`` from the rotor thrusts and ``-1/tau`` on them); the controller states
+        do not move between samples (zero rows).
+
+        Raises
+        ------
+        ValueError
+            The loop was built without its ``jacobians``.
+        """
+        if self.jacobians is None:
+            raise ValueError("this ClosedLoop has no jacobians (A, B): build it with quadctl.pipeline.closed_loop_of")
+        A, B = (np.asarray(M, dtype=float) for M in self.jacobians)
+        nx = len(self.initial_loop_state(self.x_trim))
+        L = np.zeros((nx, nx))
+        L[:N_STATES, :N_STATES] = A
+        tau = self.rotor_time_constant
+        if tau is not None:
+            rotors = slice(N_STATES, N_STATES + len(self.u_trim))
+            L[:N_STATES, rotors] = B @ self.actuators.mix_inv
+            L[rotors, rotors] = -np.eye(len(self.u_trim)) / tau
+        return L
+
     def spec(self, noise: bool = False, wind: bool = False, reference: bool = False, method: str = "rk4",
              phi_pattern: tuple[bool, ...] = ()) -> LoopSpec:
         """The structure of this loop's generated code (``reference``: it flies a reference)."""
@@ -477,6 +501,11 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
                           progress, tolerance: float, reference=None) -> SimResult:
     """:func:`simulate` by ETDRK4 over the segments of its schedule (each with its own matrices).
 
+    A sampled controller's law runs at every sample as with RK4, and the plant between samples by
+    exponential steps of its linearization under the held input (:meth:`ClosedLoop.plant_linear_part`;
+    the rest, smooth over a sample, is the nonlinear remainder): a whole number of steps per sample,
+    every segment starting on a sample, so the hold points stay exact.
+
     A reference enters as the RK4 loop's does, through the exogenous rows; the linear part stays the
     loop linearized at the trim, and the nonlinear remainder ``N = f - L X`` carries the rest (the
     reference's ``x_ref(t)``, ``u_ref(t)`` and the loop's distance from the trim). Within a row the
@@ -486,21 +515,24 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     """
     from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
 
-    if loop.rate is not None:
-        raise ValueError("ETDRK4 needs continuous feedback: a sampled controller (controller.rate) runs with "
-                         "simulation.method: rk4")
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
     exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
            if noisy or windy or reference is not None else None)
-    L = loop.linear_part()
-    eig = np.linalg.eigvals(L)
-    plan = plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance,
-                         period=exo.period if exo is not None else None, forced=reference is not None)
+    held = loop.rate is not None
+    if held:  # the plant between samples; the loop's modes, which move it, grade the steps
+        L, eig, owners = loop.plant_linear_part(), np.asarray(loop.eigenvalues), list(loop.owners)
+        period = 1.0 / loop.rate
+    else:
+        L = loop.linear_part()
+        eig = np.linalg.eigvals(L)
+        owners, period = ["loop"] * len(eig), exo.period if exo is not None else None
+    plan = plan_schedule(eig, owners or ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=period,
+                         forced=reference is not None, held=held)
     ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
     spec = loop.spec(noisy, windy, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
     run = runner(spec, 1)
-    base = loop.constants(None)
+    base = loop.constants(period if held else None)
     lo, hi = loop.bounds(duration, reference)
     x = loop.initial_loop_state(x0)
     n = plan.n_steps
@@ -509,7 +541,8 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     parts_t, parts_x, parts_u, total = [], [], [], 0
     for i, (seg, stride) in enumerate(zip(plan.schedule, strides)):
         c = np.concatenate([base, phi_constants(ladder[seg.dt])])
-        sub = StepPlan(seg.dt, seg.n, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto)
+        sub = StepPlan(seg.dt, seg.n, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto,
+                       hold=round(period / seg.dt) if held else 0, sample_time=period if held else None)
         report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
         done, ks, xs, us = run_in_chunks(run, x, c, sub, seg.n, stride, lo, hi, exo, report, k_start=seg.k0)
         total += done
@@ -528,18 +561,18 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
 
 
 def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                      max_samples: int = MAX_SAMPLES,
-                      reference=None) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+                      max_samples: int = MAX_SAMPLES, reference=None, noise: NoiseSpec | None = None,
+                      wind: WindSpec | None = None) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
     """ETDRK4 runs of several loops of one structure in the SIMD lanes (:data:`quadctl.sim.engine.LANES`
-    at a time), without noise or wind: each its own linear part and schedule, the lanes stepping
-    through their schedules' segments together (segment ``i`` of every case per call). With a
-    ``reference`` (:class:`quadctl.sim.reference.FlownReference`), every loop flies it: its rows are
-    tabulated once for the run and every lane reads them, as :func:`simulate` does.
+    at a time), each its own linear part and schedule, the lanes stepping through their schedules'
+    segments together (segment ``i`` of every case per call), as :func:`simulate` runs each (sampled
+    controllers too). Every loop takes the same exogenous inputs: a ``reference``
+    (:class:`quadctl.sim.reference.FlownReference`), noise and wind, tabulated once for the run.
 
     Parameters
     ----------
     loops : sequence of ClosedLoop
-        Continuous feedback, one :meth:`ClosedLoop.spec` (gain pattern, saturation, integrators ...).
+        One :meth:`ClosedLoop.spec` (gain pattern, saturation, integrators, sampling ...).
     x0s : sequence of (12,) array_like
     duration : float
         s.
@@ -547,6 +580,8 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
     tolerance : float
     max_samples : int
     reference : FlownReference, optional
+    noise : NoiseSpec, optional
+    wind : WindSpec, optional
 
     Returns
     -------
@@ -557,32 +592,38 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
     Raises
     ------
     ValueError
-        Loops of different structures, or a sampled controller.
+        Loops of different structures or controller rates.
     """
     from quadctl.sim.engine import LANES
     from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
 
     loops = list(loops)
-    if any(loop.rate is not None for loop in loops):
-        raise ValueError("ETDRK4 needs continuous feedback: a sampled controller runs with method rk4")
     if len({loop.spec() for loop in loops}) > 1:
         raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
-    Ls = [loop.linear_part() for loop in loops]
-    exo = ExoStream(None, None, None, reference) if reference is not None else None
-    period = exo.period if exo is not None else None
-    plans = [plan_schedule(np.linalg.eigvals(L), ["loop"] * len(L), duration, dt, tolerance=tolerance,
-                           period=period, forced=reference is not None) for L in Ls]
+    rate = loops[0].rate
+    if any(loop.rate != rate for loop in loops):
+        raise ValueError("the lanes run loops of one controller rate: group the loops by loop.rate")
+    noisy = noise is not None and noise.active
+    windy = wind is not None and wind.active
+    exo = (ExoStream(noise if noisy else None, wind if windy else None, rate, reference)
+           if noisy or windy or reference is not None else None)
+    held = rate is not None
+    period = 1.0 / rate if held else (exo.period if exo is not None else None)
+    Ls = [loop.plant_linear_part() if held else loop.linear_part() for loop in loops]
+    eigs = [np.asarray(loop.eigenvalues) if held else np.linalg.eigvals(L) for loop, L in zip(loops, Ls)]
+    plans = [plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=period,
+                           forced=reference is not None, held=held) for eig in eigs]
     ladders = [phi_ladder(L, [seg.dt for seg in plan.schedule]) for L, plan in zip(Ls, plans)]
     patterns = np.array([phi_pattern(ladder) for ladder in ladders])
-    run = runner(loops[0].spec(reference=reference is not None, method="etdrk4",
+    run = runner(loops[0].spec(noisy, windy, reference is not None, method="etdrk4",
                                phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
-    rows = exo.samples(0, math.ceil(duration / period + 1e-9)) if exo is not None else None
+    rows = exo.samples(0, math.ceil(duration / exo.period + 1e-9)) if exo is not None else None
     out = []
     for start in range(0, len(loops), LANES):
         group = range(start, min(start + LANES, len(loops)))
         bounds = [loops[i].bounds(duration, reference) for i in group]
         x = [loops[i].initial_loop_state(x0s[i]) for i in group]
-        base = [loops[i].constants(None) for i in group]
+        base = [loops[i].constants(period if held else None) for i in group]
         strides = [record_strides(plans[i], max_samples) for i in group]
         parts = [([], [], []) for _ in group]
         total, alive = [0] * len(group), [True] * len(group)
@@ -597,7 +638,9 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
                              [strides[j][k] if segs[j] else 1 for j in range(len(group))],
                              np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
                              k0=[s.k0 if s else 0 for s in segs],
-                             exo=None if rows is None else [rows] * len(group), exo_period=period or 1.0)
+                             hold=[round(period / s.dt) if held and s else 1 for s in segs],
+                             exo=None if rows is None else [rows] * len(group),
+                             exo_period=exo.period if exo is not None else 1.0)
             for j, (done, ks, xs, us) in enumerate(run.run(cases)):
                 seg = segs[j]
                 if seg is None:

@@ -12,7 +12,8 @@ every mode:
 
 small steps over the first time constants of the fast modes, growing geometrically as they decay,
 up to the step the slow modes allow (and never past :data:`MAX_STEP`, the exogenous inputs' period,
-or the run; with a reference, which keeps the loop moving, never past :func:`forced_step`). The schedule is deterministic, a few segments of uniform steps ``h_top / 2^j``: every
+or the run; with a reference, which keeps the loop moving, never past :func:`forced_step`). The
+schedule is deterministic, a few segments of uniform steps ``h_top / 2^j``: every
 step starts at a whole multiple of its own size, so a step never straddles an exogenous sample
 (``h_top`` divides its period) and the runners' clock ``t = dt (k0 + k)`` is exact per segment.
 """
@@ -226,7 +227,7 @@ def forced_step(eigenvalues, tolerance: float) -> float:
 
 
 def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                  period: float | None = None, forced: bool = False) -> StepPlan:
+                  period: float | None = None, forced: bool = False, held: bool = False) -> StepPlan:
     """The ETDRK4 steps of a run: uniform ``dt``, or the graded schedule of ``dt: auto``.
 
     Parameters
@@ -244,6 +245,14 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
         s of the exogenous inputs (noise, wind, a reference): steps divide it.
     forced : bool
         The run flies a reference: the largest step is at most :func:`forced_step`.
+    held : bool
+        A sampled controller whose period is ``period``: every segment starts on a sample (the law
+        runs there), and the plan's ``hold``/``sample_time`` are its last segment's.
+
+    Raises
+    ------
+    StepSizeError
+        ``held`` and a given step that does not divide the controller period.
 
     Returns
     -------
@@ -255,6 +264,18 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     fastest = complex(eig[k_fast]) if eig.size else 0j
     owner = owners[k_fast] if eig.size else ""
     if dt != "auto":
+        if held:
+            hold = max(1, round(period / float(dt)))
+            if abs(hold * float(dt) - period) > 1e-9 * period:
+                from quadctl.errors import StepSizeError
+
+                raise StepSizeError(
+                    f"simulation.dt = {float(dt):g} s does not divide the controller period 1/rate = {period:g} s; "
+                    f"use dt: auto or {period / max(1, math.ceil(period / float(dt))):.6g} s")
+            h = period / hold
+            n = step_count(duration, h, fastest, owner)
+            return StepPlan(h, n, _rk4_limit(eig), fastest, owner, False, hold=hold, sample_time=period,
+                            method="etdrk4", schedule=(Segment(h, n, 0),))
         n = step_count(duration, float(dt), fastest, owner)
         h = duration / n
         return StepPlan(h, n, _rk4_limit(eig), fastest, owner, False, method="etdrk4",
@@ -280,7 +301,8 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
         if allowed >= duration:
             segments.append(Segment(h, remaining, round(t / h)))
             break
-        switch = math.ceil(max(allowed, t) / (2 * h) - 1e-9) * 2 * h
+        unit = period if held else 2 * h  # a held loop's segments start on a sample
+        switch = math.ceil(max(allowed, t) / unit - 1e-9) * unit
         n = min(round((switch - t) / h), remaining)
         if n > 0:
             segments.append(Segment(h, n, round(t / h)))
@@ -290,8 +312,9 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
             break
     total = sum(s.n for s in segments)
     step_count(total * top, top, fastest, owner)  # refuses (or announces) a runaway plan
+    held_at = dict(hold=round(period / segments[-1].dt), sample_time=period) if held else {}
     return StepPlan(segments[-1].dt, total, _rk4_limit(eig), fastest, owner, True, method="etdrk4",
-                    schedule=tuple(segments))
+                    schedule=tuple(segments), **held_at)
 
 
 def record_strides(plan: StepPlan, max_samples: int) -> list[int]:
