@@ -33,8 +33,11 @@ def controller_text(flight: dict, sim) -> str | None:
     ctl = flight["controller"]
     if not ctl.get("rate"):
         return None
+    if sim.plan.method == "etdrk4" and len(sim.plan.schedule) > 1:
+        return (f"controller: {ctl['design']} design at {ctl['rate']:g} Hz, zero-order hold: ETDRK4 steps of the "
+                f"plant between samples, {ctl['hold_steps']} of {sim.dt:.4g} s per sample at the end")
     return (f"controller: {ctl['design']} design at {ctl['rate']:g} Hz, zero-order hold: one sample every "
-            f"{ctl['hold_steps']} RK4 steps of {sim.dt:.4g} s")
+            f"{ctl['hold_steps']} {integrator_name(sim)} steps of {sim.dt:.4g} s")
 
 
 def metrics_table(metrics: dict) -> Table:

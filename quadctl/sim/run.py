@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -529,6 +529,10 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
         owners, period = ["loop"] * len(eig), exo.period if exo is not None else None
     plan = plan_schedule(eig, owners or ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=period,
                          forced=reference is not None, held=held)
+    if held:  # the plan reports RK4's limit on the plant between samples, as RK4's plan does
+        rk4 = loop.plan(duration, "auto")
+        plan = replace(plan, max_stable_dt=rk4.max_stable_dt, fastest_eigenvalue=rk4.fastest_eigenvalue,
+                       fastest_owner=rk4.fastest_owner)
     ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
     spec = loop.spec(noisy, windy, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
     run = runner(spec, 1)
