@@ -567,11 +567,29 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
 def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
                       max_samples: int = MAX_SAMPLES, reference=None, noise: NoiseSpec | None = None,
                       wind: WindSpec | None = None) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """ETDRK4 runs of several loops of one structure in the SIMD lanes: :func:`exponential_runs`'
+    runs (the same arguments).
+
+    Returns
+    -------
+    list of (done, t, xs, us)
+        Per loop: steps completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as
+        :func:`simulate` records them.
+    """
+    return exponential_runs(loops, x0s, duration, dt, tolerance=tolerance, max_samples=max_samples,
+                            reference=reference, noise=noise, wind=wind)[2]
+
+
+def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                     max_samples: int = MAX_SAMPLES, reference=None, noise: NoiseSpec | None = None,
+                     wind: WindSpec | None = None) -> tuple[list[StepPlan], str, list]:
     """ETDRK4 runs of several loops of one structure in the SIMD lanes (:data:`quadctl.sim.engine.LANES`
-    at a time), each its own linear part and schedule, the lanes stepping through their schedules'
-    segments together (segment ``i`` of every case per call), as :func:`simulate` runs each (sampled
-    controllers too). Every loop takes the same exogenous inputs: a ``reference``
-    (:class:`quadctl.sim.reference.FlownReference`), noise and wind, tabulated once for the run.
+    at a time), each its own linear part and schedule (per lane: each case steps as its one-case run
+    does), the lanes stepping through their schedules' segments together (segment ``i`` of every
+    case per call), as :func:`simulate` runs each (sampled controllers too). The φ-functions of all
+    the loops' linear parts are computed together, on the stack of them. Every loop takes the same
+    exogenous inputs: a ``reference`` (:class:`quadctl.sim.reference.FlownReference`), noise and wind,
+    tabulated once for the run.
 
     Parameters
     ----------
@@ -589,9 +607,10 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
 
     Returns
     -------
-    list of (done, t, xs, us)
-        Per loop: steps completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as
-        :func:`simulate` records them.
+    (plans, backend, runs)
+        Each loop's :class:`StepPlan`, the runner's backend, and per loop ``(done, t, xs, us)``: steps
+        completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as :func:`simulate`
+        records them.
 
     Raises
     ------
@@ -617,8 +636,18 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
     eigs = [np.asarray(loop.eigenvalues) if held else np.linalg.eigvals(L) for loop, L in zip(loops, Ls)]
     plans = [plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=period,
                            forced=reference is not None, held=held) for eig in eigs]
-    ladders = [phi_ladder(L, [seg.dt for seg in plan.schedule]) for L, plan in zip(Ls, plans)]
-    patterns = np.array([phi_pattern(ladder) for ladder in ladders])
+    # the loops whose schedules start at one step share a ladder (the stack of theirs: each matrix as
+    # its one-case run computes it, from that step up)
+    rung: dict[float, list[int]] = {}
+    for i, plan in enumerate(plans):
+        rung.setdefault(min(seg.dt for seg in plan.schedule), []).append(i)
+    ladders: list = [None] * len(loops)
+    for members in rung.values():
+        shared = phi_ladder(np.stack([Ls[i] for i in members]),
+                            [seg.dt for i in members for seg in plans[i].schedule])
+        for row, i in enumerate(members):
+            ladders[i] = (shared, row)
+    patterns = np.array([phi_pattern(ladder) for ladder, _ in {id(lad[0]): lad for lad in ladders}.values()])
     run = runner(loops[0].spec(noisy, windy, reference is not None, method="etdrk4",
                                phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
     rows = exo.samples(0, math.ceil(duration / exo.period + 1e-9)) if exo is not None else None
@@ -634,8 +663,8 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
         for k in range(max(len(plans[i].schedule) for i in group)):
             segs = [plans[i].schedule[k] if alive[j] and k < len(plans[i].schedule) else None
                     for j, i in enumerate(group)]
-            c = [np.concatenate([base[j], phi_constants(ladders[i][seg.dt] if seg else
-                                                         next(iter(ladders[i].values())))])
+            c = [np.concatenate([base[j], phi_constants(ladders[i][0][seg.dt] if seg else
+                                                         next(iter(ladders[i][0].values())), ladders[i][1])])
                  for j, (i, seg) in enumerate(zip(group, segs))]
             cases = Cases.of(np.array(x), np.array(c), [s.dt if s else 1.0 for s in segs],
                              [s.n if s else 0 for s in segs],
@@ -658,7 +687,7 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
                 x[j] = xs[-1]
                 alive[j] = not last
         out.extend((total[j], *(np.concatenate(p) for p in parts[j])) for j in range(len(group)))
-    return out
+    return plans, run.backend, out
 
 
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}

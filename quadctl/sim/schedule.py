@@ -49,20 +49,27 @@ TAYLOR_NORM = 0.125
 
 
 def expm(M) -> np.ndarray:
-    """``e^M`` by scaling and squaring with a degree-10 Taylor polynomial (:data:`PHI_ACCURACY`).
+    """``e^M`` by scaling and squaring with a degree-10 Taylor polynomial (:data:`PHI_ACCURACY`); ``M``
+    (n, n), or a stack (N, n, n), each matrix scaled and squared by its own norm (the same numbers as
+    alone).
 
     Written here, not SciPy's, so a simulation does not import SciPy (about 0.3 s of a command).
     """
     M = np.asarray(M, dtype=float)
-    norm = float(np.abs(M).sum(axis=0).max()) if M.size else 0.0
-    s = max(0, math.ceil(math.log2(norm / TAYLOR_NORM))) if norm > TAYLOR_NORM else 0
-    A = M / 2.0 ** s
-    eye = np.eye(len(M))
-    E = eye.copy()
+    if M.ndim == 2:
+        return expm(M[None])[0]
+    norm = np.abs(M).sum(axis=-2).max(axis=-1) if M.size else np.zeros(len(M))
+    with np.errstate(divide="ignore"):
+        s = np.where(norm > TAYLOR_NORM, np.ceil(np.log2(np.maximum(norm, TAYLOR_NORM) / TAYLOR_NORM)), 0)
+    s = s.astype(int)
+    A = M / (2.0 ** s)[:, None, None]
+    eye = np.eye(M.shape[-1])
+    E = np.broadcast_to(eye, M.shape).copy()
     for k in range(TAYLOR_DEGREE, 0, -1):  # Horner: I + A/1 (I + A/2 (I + ...))
         E = eye + (A @ E) / k
-    for _ in range(s):
-        E = E @ E
+    for level in range(int(s.max()) if s.size else 0):
+        more = s > level
+        E[more] = E[more] @ E[more]
     return E
 
 
@@ -75,24 +82,24 @@ def phi_functions(L, h: float, order: int = 3) -> list[np.ndarray]:
 
     Parameters
     ----------
-    L : (n, n) array_like
+    L : (n, n) array_like, or a stack (N, n, n)
     h : float
         s.
     order : int
 
     Returns
     -------
-    list of (n, n) ndarray
+    list of (n, n) ndarray (or (N, n, n), of each matrix of the stack)
     """
     L = np.asarray(L, dtype=float)
-    n = L.shape[0]
-    aug = np.zeros(((order + 1) * n, (order + 1) * n))
-    aug[:n, :n] = h * L
+    n = L.shape[-1]
+    aug = np.zeros((*L.shape[:-2], (order + 1) * n, (order + 1) * n))
+    aug[..., :n, :n] = h * L
     for k in range(order):
-        aug[k * n:(k + 1) * n, (k + 1) * n:(k + 2) * n] = np.eye(n)
+        aug[..., k * n:(k + 1) * n, (k + 1) * n:(k + 2) * n] = np.eye(n)
     with _blas().limit(limits=1, user_api="blas"):
-        top = expm(aug)[:n]
-    return [top[:, k * n:(k + 1) * n] for k in range(order + 1)]
+        top = expm(aug)[..., :n, :]
+    return [top[..., k * n:(k + 1) * n] for k in range(order + 1)]
 
 
 @lru_cache(maxsize=1)
@@ -122,7 +129,9 @@ within 8 times expm's."""
 def phi_ladder(L, steps) -> dict[float, dict[str, np.ndarray]]:
     """The ETDRK4 matrices (:data:`quadctl.sim.builder.PHI_LAYOUT`) of each step in ``steps``, which
     are ``h_min 2^j``: :func:`phi_functions` at ``h_min / 2``, then up the ladder by :func:`doubled`,
-    from a direct :func:`phi_functions` every :data:`RESEED` doublings.
+    from a direct :func:`phi_functions` every :data:`RESEED` doublings. ``L`` (n, n), or a stack
+    (N, n, n) of linear parts: each matrix of the ladder is then the stack of theirs (the same numbers
+    as each alone, computed together).
 
     Raises
     ------
@@ -160,17 +169,21 @@ def step_matrices(L, h: float, half: list[np.ndarray], full: list[np.ndarray]) -
             "B1": h * (p1 - 3 * p2 + 4 * p3), "B4": h * (4 * p3 - p2), "B5": h * (4 * p2 - 8 * p3)}
 
 
-def phi_constants(matrices: dict[str, np.ndarray]) -> np.ndarray:
-    """ETDRK4 matrices of one step as the block that ends the loop's ``c`` (column-major, in order)."""
-    return np.concatenate([matrices[name].ravel(order="F") for name in PHI_LAYOUT])
+def phi_constants(matrices: dict[str, np.ndarray], case: int | None = None) -> np.ndarray:
+    """ETDRK4 matrices of one step as the block that ends the loop's ``c`` (column-major, in order);
+    ``case``: of that matrix of a stacked ladder."""
+    pick = (lambda M: M) if case is None else (lambda M: M[case])
+    return np.concatenate([pick(matrices[name]).ravel(order="F") for name in PHI_LAYOUT])
 
 
 def phi_pattern(ladder: dict[float, dict[str, np.ndarray]]) -> tuple[bool, ...]:
-    """The union of the nonzeros of every ETDRK4 matrix of the ladder (column-major)."""
+    """The union of the nonzeros of every ETDRK4 matrix of the ladder (column-major; of every
+    matrix of a stacked one)."""
     nz = None
     for mats in ladder.values():
         for M in mats.values():
-            nz = (M != 0) if nz is None else nz | (M != 0)
+            M = (M != 0).reshape(-1, *M.shape[-2:]).any(axis=0)
+            nz = M if nz is None else nz | M
     return tuple(bool(b) for b in nz.ravel(order="F"))
 
 
