@@ -389,13 +389,46 @@ def test_a_tolerance_without_etdrk4_is_refused():
         config.from_dict(data, "<test>")
 
 
-def test_a_sweep_refuses_etdrk4():
+def test_a_sweep_runs_one_method():
     from quadctl.sweep.spec import SweepError, from_dict
 
-    cfg = config.from_dict({**cfg_dict("hover"), "simulation": {**cfg_dict("hover")["simulation"],
-                                                                "method": "etdrk4"}}, "<test>")
-    with pytest.raises(SweepError, match=r"simulation\.method = \"etdrk4\": a sweep's lanes run RK4 only"):
-        from_dict({"parameters": {"lqr.roll.R[0]": [1, 2]}}, cfg)
+    cfg = config.load("hover")
+    with pytest.raises(SweepError, match=r"parameters\.simulation\.method: a sweep runs one integrator"):
+        from_dict({"parameters": {"simulation.method": ["rk4", "etdrk4"]}}, cfg)
+
+
+SWEEPS = {
+    "forward": ({"lqr.roll.Q[1]": [10, 200], "lqr.altitude.R[0]": [0.3, 3.0], "vehicle.mass": [0.06, 0.075]},
+                {"simulation.duration": 0.5}),
+    "mambo-200hz": ({"lqr.roll.R[0]": [20000, 80000], "lqr.altitude.Q[2]": [0.5, 2.0],
+                     "simulation.noise.seed": [1, 2]}, {"simulation.duration": 0.5}),
+    "square": ({"lqr.roll.Q[2]": [20, 50, 80], "lqr.pitch.R[0]": [0.5, 2.0]}, {"simulation.duration": 3.0}),
+}
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("name", list(SWEEPS))
+def test_a_sweep_in_the_lanes_matches_the_one_case_runs(name):
+    """``quadctl sweep`` with etdrk4: the lanes' rows (each case on its own schedule, the φ-functions of
+    the stack of linear parts) are the one-by-one path's (``simulate`` per case), steps and all."""
+    from _solve import max_rel_diff
+
+    from quadctl import sweep
+
+    cfg = config.load(name)
+    parameters, fixed = SWEEPS[name]
+    spec = sweep.from_dict({"parameters": parameters, "set": {**fixed, "simulation.method": "etdrk4"}}, cfg, "t.yaml")
+    fast = sweep.run(cfg, spec, jobs=1)
+    slow = sweep.run(cfg, spec, jobs=1, fast=False)
+    assert fast.stats["backend"] == ["compiled-simd"] and slow.stats["backend"] == ["compiled"]
+    assert {r["status"] for r in fast.rows} == {"ok"}
+    assert len({r["steps"] for r in fast.rows}) > 1  # the cases ran their own schedules
+    tracking = tuple(k for k in fast.rows[0] if k.startswith("tracking."))  # m, near zero: absolute
+    worst, where = max_rel_diff(fast.rows, slow.rows, skip=("path", *tracking))
+    assert worst < 1e-9, f"Max diff is {worst:.4E} at {where}"
+    for a, b in zip(fast.rows, slow.rows):
+        for key in tracking:
+            assert a[key] == pytest.approx(b[key], abs=1e-12), key
 
 
 def test_the_default_tolerance_is_the_one_the_schema_states():

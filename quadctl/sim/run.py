@@ -513,26 +513,16 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     derivative jumps, and every step of the schedule divides the exogenous period (a step never
     straddles a boundary), so the method keeps its order.
     """
-    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, record_strides
 
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
     exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
            if noisy or windy or reference is not None else None)
     held = loop.rate is not None
-    if held:  # the plant between samples; the loop's modes, which move it, grade the steps
-        L, eig, owners = loop.plant_linear_part(), np.asarray(loop.eigenvalues), list(loop.owners)
-        period = 1.0 / loop.rate
-    else:
-        L = loop.linear_part()
-        eig = np.linalg.eigvals(L)
-        owners, period = ["loop"] * len(eig), exo.period if exo is not None else None
-    plan = plan_schedule(eig, owners or ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=period,
-                         forced=reference is not None, held=held)
-    if held:  # the plan reports RK4's limit on the plant between samples, as RK4's plan does
-        rk4 = loop.plan(duration, "auto")
-        plan = replace(plan, max_stable_dt=rk4.max_stable_dt, fastest_eigenvalue=rk4.fastest_eigenvalue,
-                       fastest_owner=rk4.fastest_owner)
+    period = 1.0 / loop.rate if held else (exo.period if exo is not None else None)
+    L, plan = exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
+                               exo_period=exo.period if exo is not None else None)
     ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
     spec = loop.spec(noisy, windy, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
     run = runner(spec, 1)
@@ -562,6 +552,35 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     t, xs, us = np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
     return _result(loop, plan, run.backend, t, xs, us, total, strides[-1], wall, lo, hi, noise if noisy else None,
                    wind if windy else None, exo, t, 1.0, reference)
+
+
+def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                     reference=None, exo_period: float | None = None) -> tuple[np.ndarray, StepPlan]:
+    """ETDRK4's linear part and steps for ``loop``: the closed loop's (:meth:`ClosedLoop.linear_part`)
+    graded by its modes, steps dividing the exogenous period ``exo_period`` (s; None: no exogenous
+    inputs); a sampled controller's plant (:meth:`ClosedLoop.plant_linear_part`) graded by the
+    closed loop's modes, which move it, in segments that start on samples
+    (:func:`quadctl.sim.schedule.plan_schedule`).
+
+    Raises
+    ------
+    StepSizeError
+        A given step a sampled controller's period does not hold whole, or a runaway plan.
+    """
+    from quadctl.sim.schedule import plan_schedule
+
+    if loop.rate is not None:
+        L, eig = loop.plant_linear_part(), np.asarray(loop.eigenvalues)
+        owners = list(loop.owners) or ["loop"] * len(eig)
+        plan = plan_schedule(eig, owners, duration, dt, tolerance=tolerance, period=1.0 / loop.rate,
+                             forced=reference is not None, held=True)
+        rk4 = loop.plan(duration, "auto")  # reported: RK4's limit on the plant between samples
+        return L, replace(plan, max_stable_dt=rk4.max_stable_dt, fastest_eigenvalue=rk4.fastest_eigenvalue,
+                          fastest_owner=rk4.fastest_owner)
+    L = loop.linear_part()
+    eig = np.linalg.eigvals(L)
+    return L, plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=exo_period,
+                            forced=reference is not None)
 
 
 def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
@@ -618,7 +637,7 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
         Loops of different structures or controller rates.
     """
     from quadctl.sim.engine import LANES
-    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, plan_schedule, record_strides
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, record_strides
 
     loops = list(loops)
     if len({loop.spec() for loop in loops}) > 1:
@@ -632,10 +651,8 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
            if noisy or windy or reference is not None else None)
     held = rate is not None
     period = 1.0 / rate if held else (exo.period if exo is not None else None)
-    Ls = [loop.plant_linear_part() if held else loop.linear_part() for loop in loops]
-    eigs = [np.asarray(loop.eigenvalues) if held else np.linalg.eigvals(L) for loop, L in zip(loops, Ls)]
-    plans = [plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=period,
-                           forced=reference is not None, held=held) for eig in eigs]
+    Ls, plans = zip(*(exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
+                                       exo_period=exo.period if exo is not None else None) for loop in loops))
     # the loops whose schedules start at one step share a ladder (the stack of theirs: each matrix as
     # its one-case run computes it, from that step up)
     rung: dict[float, list[int]] = {}

@@ -432,8 +432,11 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             rows[prep.index] = _failed(prep.head, "design_failed", des)
         else:
             live.append((prep, des))
+    exponential = bool(live) and live[0][0].setup.method == "etdrk4"  # a sweep runs one method
+    if exponential:
+        from quadctl.sweep import exponential as lanes
     jobs = []
-    for (prep, des), job in zip(live, batched.loops_of(live)):
+    for (prep, des), job in zip(live, lanes.jobs_of(live) if exponential else batched.loops_of(live)):
         if isinstance(job, str):
             row = _row(prep.head, des.stable, des.core, None, None, 0, job, des.path)
             row["status"] = "step_refused"
@@ -444,7 +447,8 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             jobs.append((prep, des, job))
     t0 = time.perf_counter()
     batch = MetricsBatch()
-    for (prep, des, job), (done, ks, xs, us), backend in batched.simulate_all(jobs):
+    for (prep, des, job), (done, ks, xs, us), backend in (lanes.simulate_all(jobs) if exponential
+                                                           else batched.simulate_all(jobs)):
         from quadctl.sim.run import verdict
 
         setup, linear = prep.setup, prep.plant.linear

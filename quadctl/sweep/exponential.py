@@ -1,0 +1,95 @@
+"""The ETDRK4 path of a sweep chunk (``simulation.method: etdrk4``): the twin of
+:func:`quadctl.sweep.batched.loops_of` and :func:`~quadctl.sweep.batched.simulate_all` for the
+exponential integrator.
+
+Each case's loop is :func:`quadctl.pipeline.closed_loop_of`'s (with the linearization ETDRK4 takes as
+its linear part); the cases of one structure and one set of exogenous inputs (noise, wind, reference,
+duration, step and tolerance) run together in the SIMD lanes by
+:func:`quadctl.sim.run.exponential_runs`: the φ-functions of their linear parts computed on the stack
+of them, and **each case on its own graded schedule** (per lane: segment ``i`` of every case per
+call, a case's numbers those of its one-case run), deterministic whatever the chunk.
+"""
+
+from __future__ import annotations
+
+import pickle
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from quadctl.errors import QuadctlError
+
+
+@dataclass(frozen=True)
+class ExponentialJob:
+    """A case ready for the exponential lanes (what the evaluation reads of a job: ``plan``, ``lo``,
+    ``hi``, ``exo_period``)."""
+
+    loop: object
+    x0: np.ndarray
+    plan: object
+    lo: np.ndarray
+    hi: np.ndarray
+    exo_period: float
+    group: tuple
+    """The cases that can share lanes: structure, rate and simulation inputs (by value)."""
+
+
+def jobs_of(live) -> list:
+    """Per (prep, design): an :class:`ExponentialJob`, a refused step's message, or a QuadctlError."""
+    from quadctl import pipeline
+    from quadctl.errors import StepSizeError
+    from quadctl.motors import check_trim
+    from quadctl.noise import DEFAULT_PERIOD
+    from quadctl.sim.run import exponential_plan
+    from quadctl.sweep.batched import _estimator
+
+    out: list = []
+    for prep, des in live:
+        setup, linear = prep.setup, prep.plant.linear
+        try:
+            check_trim(setup.actuators, linear.u_trim)
+            loop = pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
+                                           integral_states=des.integral_states, Kv=des.Kv,
+                                           estimator=_estimator(prep))
+        except QuadctlError as exc:
+            out.append(exc)
+            continue
+        noise = setup.noise if setup.noise is not None and setup.noise.active else None
+        wind = setup.wind if setup.wind is not None and setup.wind.active else None
+        flown = pipeline.flown_reference(setup)
+        exogenous = noise is not None or wind is not None or flown is not None
+        period = noise.period if noise is not None else (1.0 / loop.rate if loop.rate else DEFAULT_PERIOD)
+        tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
+        try:
+            _, plan = exponential_plan(loop, setup.duration, setup.dt, reference=flown,
+                                       exo_period=period if exogenous else None, **tolerance)
+        except StepSizeError as exc:
+            out.append(str(exc))
+            continue
+        lo, hi = loop.bounds(setup.duration, flown)
+        inputs = pickle.dumps((noise, wind, setup.reference, flown.params.tobytes() if flown else None))
+        group = (loop.spec(), loop.rate, setup.duration, setup.dt, setup.tolerance, setup.max_samples, inputs)
+        out.append(ExponentialJob(loop, setup.initial_state(linear.x_trim), plan, lo, hi, period, group))
+    return out
+
+
+def simulate_all(jobs):
+    """Yield ``((prep, design, job), (done, ks, xs, us), backend)`` as
+    :func:`quadctl.sweep.batched.simulate_all` does, ``ks`` the recorded times in units of the job's
+    ``plan.dt`` (``t = plan.dt ks``: whole numbers at the records of a graded schedule's largest step)."""
+    from quadctl import pipeline
+    from quadctl.sim.run import exponential_runs
+
+    groups: dict = {}
+    for item in jobs:
+        groups.setdefault(item[2].group, []).append(item)
+    for items in groups.values():
+        setup = items[0][0].setup
+        tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
+        plans, backend, runs = exponential_runs(
+            [job.loop for _, _, job in items], [job.x0 for _, _, job in items], setup.duration, setup.dt,
+            max_samples=setup.max_samples, reference=pipeline.flown_reference(setup), noise=setup.noise,
+            wind=setup.wind, **tolerance)
+        for (prep, des, job), plan, (done, t, xs, us) in zip(items, plans, runs):
+            yield (prep, des, replace(job, plan=plan)), (done, t / plan.dt, xs, us), backend
