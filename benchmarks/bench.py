@@ -14,7 +14,8 @@
    Also the same loop without a C compiler (CasADi's virtual machine, the fallback).
 1b. The same loop at dt: auto (the stiff case: rate poles near -14 500 rad/s): ETDRK4's graded
    schedule at tolerance 1e-8 against RK4 at its stability-held step and LSODA at rtol 1e-10, CPU
-   time of whole library calls, best of several.
+   time of whole library calls, best of several; and a sweep of the 1000 random designs of
+   benchmarks/random-1000.yaml for 10 s at dt: auto, ETDRK4 against RK4 (steps per case, cases/s).
 2. A sweep of 1000 random designs (benchmarks/random-1000.yaml, no two alike) x 10 000 RK4 steps:
    on both cores, on one, through the command line, and the one-case-at-a-time pipeline; and a
    sweep of 1000 random designs of mambo-200hz (benchmarks/mambo-1000.yaml: 200 Hz discrete
@@ -300,6 +301,44 @@ def stiff_simulation(cli_python: str) -> str:
         "process for the CLI rows), so the other work on a loaded machine does not count; ETDRK4's includes "
         "its linear part, φ-functions and schedule. The CLI row reuses the trim and design of an earlier "
         "run. 'final error': largest final-state difference (state units) from LSODA at rtol 1e-12.")
+
+
+STIFF_SWEEP_DURATION = 10.0
+"""s: the stiff sweep runs the report's whole 10 s per case (RK4 at its stability-held step)."""
+
+
+def stiff_sweep() -> str:
+    """1000 random designs of the forward loops (benchmarks/random-1000.yaml) at dt: auto for the
+    report's 10 s: ETDRK4 (each case on its own graded schedule, tolerance 1e-8) against RK4 (each at
+    its stability-held step), the library on both cores, measured in the same run (one timed run
+    each, after a warm-up that compiles both lane libraries)."""
+    import dataclasses
+
+    import yaml
+
+    from quadctl import config, sweep
+
+    cfg = config.load("forward")
+    data = yaml.safe_load(SWEEP_FILE.read_text())
+    rows = []
+    for method in ("etdrk4", "rk4"):
+        data["set"] = {"simulation.dt": "auto", "simulation.duration": STIFF_SWEEP_DURATION,
+                       "simulation.method": method}
+        spec = sweep.from_dict(data, cfg, SWEEP_FILE.name)
+        sweep.run(cfg, dataclasses.replace(spec, samples=16), jobs=2)  # warm: imports, lane library
+        wall, result = timed(lambda s=spec: sweep.run(cfg, s, jobs=2))
+        steps = np.array([r["steps"] for r in result.rows])
+        ok = sum(r["status"] == "ok" for r in result.rows)
+        rows.append([f"quadctl sweep {method.upper()}, dt: auto, library, --jobs 2", f"{wall:.2f}",
+                     f"{len(result.rows) / wall:,.0f}", f"{steps.mean():,.0f} ({steps.min():,} .. {steps.max():,})",
+                     f"{result.stats['steps'] / wall / 1e6:.2f} M", f"{ok}"])
+    speedup = float(rows[1][1]) / float(rows[0][1])
+    return table(f"Stiff sweep: 1000 random designs of the forward loops, {STIFF_SWEEP_DURATION:g} s each at dt: auto "
+                 "(benchmarks/random-1000.yaml's weights)",
+                 ["run", "wall (s)", "cases/s", "steps per case (min .. max)", "steps/s", "ok"], rows) + (
+        f"\n\nETDRK4 {speedup:.1f}x the cases/s of RK4 in the same run: each case on its own graded schedule "
+        "(tolerance 1e-8), the φ-functions of the cases' linear parts computed together; RK4 at each case's "
+        "stability-held step.")
 
 
 # ---------------------------------------------------------------------------------------
@@ -655,6 +694,7 @@ def main() -> None:
         print(one_simulation(args.skip_slow, args.cli_python))
     if "stiff" in only:
         print(stiff_simulation(args.cli_python))
+        print(stiff_sweep())
     cfg_spec = None
     if "sweep" in only:
         text, cfg_spec = the_sweep()

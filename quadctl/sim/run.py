@@ -555,12 +555,14 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
 
 
 def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                     reference=None, exo_period: float | None = None) -> tuple[np.ndarray, StepPlan]:
+                     reference=None, exo_period: float | None = None, linear_part=None,
+                     max_stable_dt: float | None = None) -> tuple[np.ndarray, StepPlan]:
     """ETDRK4's linear part and steps for ``loop``: the closed loop's (:meth:`ClosedLoop.linear_part`)
     graded by its modes, steps dividing the exogenous period ``exo_period`` (s; None: no exogenous
     inputs); a sampled controller's plant (:meth:`ClosedLoop.plant_linear_part`) graded by the
     closed loop's modes, which move it, in segments that start on samples
-    (:func:`quadctl.sim.schedule.plan_schedule`).
+    (:func:`quadctl.sim.schedule.plan_schedule`). ``linear_part`` and RK4's ``max_stable_dt`` (which
+    the plan reports), when the caller has them (a sweep computes them for many loops at once).
 
     Raises
     ------
@@ -577,10 +579,10 @@ def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance:
         rk4 = loop.plan(duration, "auto")  # reported: RK4's limit on the plant between samples
         return L, replace(plan, max_stable_dt=rk4.max_stable_dt, fastest_eigenvalue=rk4.fastest_eigenvalue,
                           fastest_owner=rk4.fastest_owner)
-    L = loop.linear_part()
+    L = loop.linear_part() if linear_part is None else linear_part
     eig = np.linalg.eigvals(L)
     return L, plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=exo_period,
-                            forced=reference is not None)
+                            forced=reference is not None, max_stable_dt=max_stable_dt)
 
 
 def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
@@ -601,7 +603,7 @@ def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: floa
 
 def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
                      max_samples: int = MAX_SAMPLES, reference=None, noise: NoiseSpec | None = None,
-                     wind: WindSpec | None = None) -> tuple[list[StepPlan], str, list]:
+                     wind: WindSpec | None = None, planned=None) -> tuple[list[StepPlan], str, list]:
     """ETDRK4 runs of several loops of one structure in the SIMD lanes (:data:`quadctl.sim.engine.LANES`
     at a time), each its own linear part and schedule (per lane: each case steps as its one-case run
     does), the lanes stepping through their schedules' segments together (segment ``i`` of every
@@ -623,6 +625,8 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
     reference : FlownReference, optional
     noise : NoiseSpec, optional
     wind : WindSpec, optional
+    planned : sequence of (L, StepPlan), optional
+        Each loop's :func:`exponential_plan` of these arguments, when the caller has them.
 
     Returns
     -------
@@ -637,7 +641,7 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
         Loops of different structures or controller rates.
     """
     from quadctl.sim.engine import LANES
-    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, record_strides
+    from quadctl.sim.schedule import phi_constant_rows, phi_ladder, phi_pattern, record_strides
 
     loops = list(loops)
     if len({loop.spec() for loop in loops}) > 1:
@@ -651,8 +655,9 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
            if noisy or windy or reference is not None else None)
     held = rate is not None
     period = 1.0 / rate if held else (exo.period if exo is not None else None)
-    Ls, plans = zip(*(exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
-                                       exo_period=exo.period if exo is not None else None) for loop in loops))
+    Ls, plans = zip(*(planned or [exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
+                                                   exo_period=exo.period if exo is not None else None)
+                                  for loop in loops]))
     # the loops whose schedules start at one step share a ladder (the stack of theirs: each matrix as
     # its one-case run computes it, from that step up)
     rung: dict[float, list[int]] = {}
@@ -662,9 +667,10 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
     for members in rung.values():
         shared = phi_ladder(np.stack([Ls[i] for i in members]),
                             [seg.dt for i in members for seg in plans[i].schedule])
+        blocks = {h: phi_constant_rows(mats) for h, mats in shared.items()}
         for row, i in enumerate(members):
-            ladders[i] = (shared, row)
-    patterns = np.array([phi_pattern(ladder) for ladder, _ in {id(lad[0]): lad for lad in ladders}.values()])
+            ladders[i] = (shared, row, blocks)
+    patterns = np.array([phi_pattern(lad[0]) for lad in {id(lad[0]): lad for lad in ladders}.values()])
     run = runner(loops[0].spec(noisy, windy, reference is not None, method="etdrk4",
                                phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
     rows = exo.samples(0, math.ceil(duration / exo.period + 1e-9)) if exo is not None else None
@@ -680,8 +686,7 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
         for k in range(max(len(plans[i].schedule) for i in group)):
             segs = [plans[i].schedule[k] if alive[j] and k < len(plans[i].schedule) else None
                     for j, i in enumerate(group)]
-            c = [np.concatenate([base[j], phi_constants(ladders[i][0][seg.dt] if seg else
-                                                         next(iter(ladders[i][0].values())), ladders[i][1])])
+            c = [np.concatenate([base[j], ladders[i][2][seg.dt if seg else next(iter(ladders[i][2]))][ladders[i][1]]])
                  for j, (i, seg) in enumerate(zip(group, segs))]
             cases = Cases.of(np.array(x), np.array(c), [s.dt if s else 1.0 for s in segs],
                              [s.n if s else 0 for s in segs],

@@ -176,6 +176,12 @@ def phi_constants(matrices: dict[str, np.ndarray], case: int | None = None) -> n
     return np.concatenate([pick(matrices[name]).ravel(order="F") for name in PHI_LAYOUT])
 
 
+def phi_constant_rows(matrices: dict[str, np.ndarray]) -> np.ndarray:
+    """(N, 14 n^2): :func:`phi_constants` of every matrix of a stacked ladder's step, at once."""
+    return np.concatenate([np.swapaxes(matrices[name], -1, -2).reshape(len(matrices[name]), -1)
+                           for name in PHI_LAYOUT], axis=1)
+
+
 def phi_pattern(ladder: dict[float, dict[str, np.ndarray]]) -> tuple[bool, ...]:
     """The union of the nonzeros of every ETDRK4 matrix of the ladder (column-major; of every
     matrix of a stacked one)."""
@@ -240,7 +246,8 @@ def forced_step(eigenvalues, tolerance: float) -> float:
 
 
 def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                  period: float | None = None, forced: bool = False, held: bool = False) -> StepPlan:
+                  period: float | None = None, forced: bool = False, held: bool = False,
+                  max_stable_dt: float | None = None) -> StepPlan:
     """The ETDRK4 steps of a run: uniform ``dt``, or the graded schedule of ``dt: auto``.
 
     Parameters
@@ -261,6 +268,9 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     held : bool
         A sampled controller whose period is ``period``: every segment starts on a sample (the law
         runs there), and the plan's ``hold``/``sample_time`` are its last segment's.
+    max_stable_dt : float, optional
+        RK4's largest stable step (s) the plan reports, when the caller has it (computed from
+        ``eigenvalues`` when None).
 
     Raises
     ------
@@ -276,6 +286,7 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     k_fast = int(np.argmax(np.abs(eig))) if eig.size else 0
     fastest = complex(eig[k_fast]) if eig.size else 0j
     owner = owners[k_fast] if eig.size else ""
+    limit = _rk4_limit(eig) if max_stable_dt is None else max_stable_dt
     if dt != "auto":
         if held:
             hold = max(1, round(period / float(dt)))
@@ -287,11 +298,11 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
                     f"use dt: auto or {period / max(1, math.ceil(period / float(dt))):.6g} s")
             h = period / hold
             n = step_count(duration, h, fastest, owner)
-            return StepPlan(h, n, _rk4_limit(eig), fastest, owner, False, hold=hold, sample_time=period,
+            return StepPlan(h, n, limit, fastest, owner, False, hold=hold, sample_time=period,
                             method="etdrk4", schedule=(Segment(h, n, 0),))
         n = step_count(duration, float(dt), fastest, owner)
         h = duration / n
-        return StepPlan(h, n, _rk4_limit(eig), fastest, owner, False, method="etdrk4",
+        return StepPlan(h, n, limit, fastest, owner, False, method="etdrk4",
                         schedule=(Segment(h, n, 0),))
     cap = min(MAX_STEP, duration, auto_step(math.inf, eig, tolerance))
     if forced:
@@ -301,7 +312,8 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     else:
         top = duration / math.ceil(duration / cap - 1e-9)
     segments, t, level = [], 0.0, 0
-    while top / 2 ** level > auto_step(0.0, eig, tolerance) and level < 60:
+    first = auto_step(0.0, eig, tolerance)
+    while top / 2 ** level > first and level < 60:
         level += 1
     while True:
         h = top / 2 ** level
@@ -326,7 +338,7 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     total = sum(s.n for s in segments)
     step_count(total * top, top, fastest, owner)  # refuses (or announces) a runaway plan
     held_at = dict(hold=round(period / segments[-1].dt), sample_time=period) if held else {}
-    return StepPlan(segments[-1].dt, total, _rk4_limit(eig), fastest, owner, True, method="etdrk4",
+    return StepPlan(segments[-1].dt, total, limit, fastest, owner, True, method="etdrk4",
                     schedule=tuple(segments), **held_at)
 
 
@@ -342,9 +354,13 @@ def record_strides(plan: StepPlan, max_samples: int) -> list[int]:
 
 def _rk4_limit(eig) -> float:
     """RK4's largest stable step for these eigenvalues (s; reported beside the schedule)."""
-    limits = max_stable_steps(eig)
-    stable = limits[np.isfinite(limits) & (limits > 0)]
-    return float(stable.min()) if stable.size else math.inf
+    return float(rk4_limits(np.asarray(eig)[None])[0])
+
+
+def rk4_limits(eigenvalues) -> np.ndarray:
+    """(N,) RK4's largest stable step (s) for each row of eigenvalues (N, n), in one vectorized pass."""
+    limits = max_stable_steps(eigenvalues)
+    return np.where(np.isfinite(limits) & (limits > 0), limits, np.inf).min(axis=-1)
 
 
 def summary(plan: StepPlan) -> list[dict]:

@@ -33,6 +33,8 @@ class ExponentialJob:
     exo_period: float
     group: tuple
     """The cases that can share lanes: structure, rate and simulation inputs (by value)."""
+    linear_part: np.ndarray
+    """ETDRK4's linear part of the loop (:func:`quadctl.sim.run.exponential_plan`)."""
 
 
 def jobs_of(live) -> list:
@@ -42,18 +44,34 @@ def jobs_of(live) -> list:
     from quadctl.motors import check_trim
     from quadctl.noise import DEFAULT_PERIOD
     from quadctl.sim.run import exponential_plan
+    from quadctl.sim.schedule import rk4_limits
     from quadctl.sweep.batched import _estimator
 
     out: list = []
+    loops: list = []
     for prep, des in live:
         setup, linear = prep.setup, prep.plant.linear
         try:
             check_trim(setup.actuators, linear.u_trim)
-            loop = pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
-                                           integral_states=des.integral_states, Kv=des.Kv,
-                                           estimator=_estimator(prep))
+            loops.append(pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
+                                                 integral_states=des.integral_states, Kv=des.Kv,
+                                                 estimator=_estimator(prep)))
         except QuadctlError as exc:
-            out.append(exc)
+            loops.append(exc)
+    # the linear parts, and RK4's limit each plan reports, of all the continuous loops at once
+    parts, limits = {}, {}
+    shapes: dict = {}
+    for k, loop in enumerate(loops):
+        if not isinstance(loop, QuadctlError) and loop.rate is None:
+            parts[k] = loop.linear_part()
+            shapes.setdefault(parts[k].shape, []).append(k)
+    for members in shapes.values():
+        eig = np.linalg.eigvals(np.stack([parts[k] for k in members]))
+        limits.update(zip(members, rk4_limits(eig)))
+    for k, ((prep, _), loop) in enumerate(zip(live, loops)):
+        setup, linear = prep.setup, prep.plant.linear
+        if isinstance(loop, QuadctlError):
+            out.append(loop)
             continue
         noise = setup.noise if setup.noise is not None and setup.noise.active else None
         wind = setup.wind if setup.wind is not None and setup.wind.active else None
@@ -62,15 +80,16 @@ def jobs_of(live) -> list:
         period = noise.period if noise is not None else (1.0 / loop.rate if loop.rate else DEFAULT_PERIOD)
         tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
         try:
-            _, plan = exponential_plan(loop, setup.duration, setup.dt, reference=flown,
-                                       exo_period=period if exogenous else None, **tolerance)
+            L, plan = exponential_plan(loop, setup.duration, setup.dt, reference=flown,
+                                       exo_period=period if exogenous else None, linear_part=parts.get(k),
+                                       max_stable_dt=limits.get(k), **tolerance)
         except StepSizeError as exc:
             out.append(str(exc))
             continue
         lo, hi = loop.bounds(setup.duration, flown)
         inputs = pickle.dumps((noise, wind, setup.reference, flown.params.tobytes() if flown else None))
         group = (loop.spec(), loop.rate, setup.duration, setup.dt, setup.tolerance, setup.max_samples, inputs)
-        out.append(ExponentialJob(loop, setup.initial_state(linear.x_trim), plan, lo, hi, period, group))
+        out.append(ExponentialJob(loop, setup.initial_state(linear.x_trim), plan, lo, hi, period, group, L))
     return out
 
 
@@ -90,6 +109,6 @@ def simulate_all(jobs):
         plans, backend, runs = exponential_runs(
             [job.loop for _, _, job in items], [job.x0 for _, _, job in items], setup.duration, setup.dt,
             max_samples=setup.max_samples, reference=pipeline.flown_reference(setup), noise=setup.noise,
-            wind=setup.wind, **tolerance)
+            wind=setup.wind, planned=[(job.linear_part, job.plan) for _, _, job in items], **tolerance)
         for (prep, des, job), plan, (done, t, xs, us) in zip(items, plans, runs):
             yield (prep, des, replace(job, plan=plan)), (done, t / plan.dt, xs, us), backend
