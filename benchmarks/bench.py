@@ -64,6 +64,8 @@ ALTERNATED = 8
 """Runs of each sweep, the plain and the flying one alternated, for their ratio on both cores."""
 LIBRARY_IMPORTS = "import typer._adapters, numpy, pydantic, rich.console, rich.table, yaml"
 """What any quadctl command imports before it does any work (typer imports pydantic to parse)."""
+LSODA_IMPORTS = "import numpy, scipy.integrate"
+"""What a script that runs LSODA imports before it integrates (its right-hand side aside)."""
 TOLERANCES = {"RK45": (1e-8, 1e-10), "LSODA": (1e-10, 1e-12)}
 """(rtol, atol) per solve_ivp method: the loosest that reach the final-state error of quadctl's RK4
 at dt = 1e-5 s (about 1e-9 in state units, against the reference) on this problem."""
@@ -282,6 +284,7 @@ def stiff_simulation(cli_python: str) -> str:
         with np.load(Path(tmp) / "run" / "sim.npz") as npz:
             cli_err = error(npz["x"][-1])
         floor_cpu = child_cpu_best(lambda: subprocess.run([cli_python, "-c", LIBRARY_IMPORTS], check=True), REPEAT)
+        scipy_cpu = child_cpu_best(lambda: subprocess.run([cli_python, "-c", LSODA_IMPORTS], check=True), REPEAT)
     segs = etd.plan.schedule
     rows = [["quadctl ETDRK4, dt: auto, tolerance 1e-8 (library)", f"{etd_cpu * 1e3:.2f}",
              f"{etd.steps:,} steps, {len(segs)} segments, {segs[0].dt:.2g} .. {segs[-1].dt:.2g} s",
@@ -293,7 +296,9 @@ def stiff_simulation(cli_python: str) -> str:
             ["quadctl simulate --set simulation.method=etdrk4, CLI end to end", f"{cli_cpu * 1e3:.2f}",
              "a fresh process", f"{cli_err:.1e}", f"{cli_cpu / etd_cpu:.1f}"],
             ["Python's import floor + LSODA (rtol 1e-10)", f"{(floor_cpu + lsoda_cpu) * 1e3:.2f}",
-             "`python -c '...'` + the row above", "-", f"{(floor_cpu + lsoda_cpu) / etd_cpu:.1f}"]]
+             "`python -c '...'` + the row above", "-", f"{(floor_cpu + lsoda_cpu) / etd_cpu:.1f}"],
+            ["LSODA's script: Python, numpy + scipy.integrate + LSODA", f"{(scipy_cpu + lsoda_cpu) * 1e3:.2f}",
+             f"`python -c '{LSODA_IMPORTS}'` + LSODA", "-", f"{(scipy_cpu + lsoda_cpu) / etd_cpu:.1f}"]]
     return table(f"The stiff loop: forward config, {DURATION:g} s at dt: auto (fastest pole "
                  f"{abs(rk4.plan.fastest_eigenvalue):,.0f} rad/s)",
                  ["method", "CPU (ms)", "work", "final error", "CPU / ETDRK4"], rows) + (
