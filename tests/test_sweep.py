@@ -629,6 +629,7 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
 
     from _solve import cfg_dict, solve
 
+    from quadctl.lqr.gain_table import GainTable
     from quadctl.sweep import batched
 
     data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include", "delay": {"samples": 1}})
@@ -647,7 +648,9 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
     changed = {"params": loop.params * 1.01, "x_trim": loop.x_trim + 1e-3, "u_trim": loop.u_trim * 1.01,
                "x_rate": loop.x_rate + 1e-3, "rate": 400.0, "integral_states": ("pN",),
                "actuators": replace(loop.actuators), "open_loop_eigenvalues": loop.open_loop_eigenvalues * 2,
-               "delay_samples": 2, "lag_model_time_constant": 0.05, "estimator": replace(loop.estimator)}
+               "delay_samples": 2, "lag_model_time_constant": 0.05, "estimator": replace(loop.estimator),
+               "schedule": GainTable.of("speed", [0.0, 1.0], np.stack([loop.K, loop.K])),
+               "schedule_heading": 0.5, "schedule_eigenvalues": np.array([-1.0 + 0j])}
     structural = {f.name for f in fields(loop)} - set(batched.PER_CASE)
     assert structural == set(changed), "a new ClosedLoop field: add a change of it here"
     for name, value in changed.items():

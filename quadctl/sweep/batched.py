@@ -336,7 +336,7 @@ def loops_of(live) -> list:
 PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners", "jacobians")
 """Fields of a :class:`~quadctl.sim.run.ClosedLoop` whose values its lane spec and bounds do not read
 (only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`;
-``jacobians`` only ETDRK4 reads, which sweeps do not run)."""
+``jacobians``, ETDRK4's linear part, only through each lane's own φ matrices: :mod:`quadctl.sweep.exponential`)."""
 
 
 class _Seen:
