@@ -5,12 +5,18 @@ nothing here imports). Modules, each importing only those above it:
 
 - :mod:`~quadctl.layout`: state and input names, units, index maps (declared once)
 - :mod:`~quadctl.errors`: the error classes (each with its exit code) and the notice warning
+- helpers that import nothing of quadctl's or only the above: :mod:`~quadctl.messages` (values, key
+  paths and hints as messages show them), :mod:`~quadctl.yamlio` (YAML read with line numbers),
+  :mod:`~quadctl.escape` (text made safe per output format), :mod:`~quadctl.threads` (one BLAS
+  thread over many small matrices), :mod:`~quadctl._lazy` (modules loaded on first use)
 - :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs; :mod:`~quadctl.notices`: what a
   valid config took by default or likely got in the wrong unit; :mod:`~quadctl.overrides`: values put in
   at a key path before validation (``--set KEY=VALUE``)
 - :mod:`~quadctl.model`: the CasADi model, the only place the equations of motion live
 - :mod:`~quadctl.motors`, :mod:`~quadctl.noise`, :mod:`~quadctl.wind`: rotors and mixing; seeded noise
   streams; steady wind, gusts and Dryden turbulence
+- :mod:`~quadctl.trajectory`, :mod:`~quadctl.flatness`: a reference's path (setpoints, a waypoint
+  mission's minimum-jerk or minimum-snap legs) and its differential-flatness feedforward
 - :mod:`~quadctl.problem`: the config made into numbers once: the :class:`~quadctl.problem.Setup`
   every stage takes (:func:`~quadctl.problem.setup_of`)
 - :mod:`~quadctl.trim`, :mod:`~quadctl.linearize`, :mod:`~quadctl.decouple`: equilibrium,
@@ -30,6 +36,10 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.pipeline`: the stages chained from a setup (pure functions; :class:`~quadctl.pipeline.Stages`,
   the one chain each stage computed once, that the workspace and the export take)
 - :mod:`~quadctl.sweep`: many designs at once (spec, batched evaluation, runner, outputs, store)
+- :mod:`~quadctl.scheduling`: a gain schedule across the envelope (trims and batched designs at each
+  value, the gain table, the frozen-point checks); :mod:`~quadctl.transition`: a reference flown with
+  the schedule and with the fixed design
+- :mod:`~quadctl.starter`: a commented config to start a vehicle from (``quadctl init``)
 - :mod:`~quadctl.provenance`: the software versions and the C compiler an artifact records
 - :mod:`~quadctl.artifacts`, :mod:`~quadctl.payloads`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`:
   the run directory (atomic, with provenance), what each artifact holds, the chain of stages with a
