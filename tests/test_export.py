@@ -142,6 +142,25 @@ class Controller:
         self.lib.quadctl_step(ctypes.byref(self.state), xa, ua)
         return np.array(ua[:], dtype=float)
 
+    def step_ref(self, x, x_ref, u_ref) -> np.ndarray:
+        """``u`` from ``x`` (or ``y``) and the reference at the sample (``quadctl_step_ref``)."""
+        class Reference(ctypes.Structure):  # quadctl_reference of the header
+            _fields_ = [("x", self.real * N_STATES), ("u", self.real * N_INPUTS)]
+
+        xa, ua = (self.real * len(x))(*x), (self.real * N_INPUTS)()
+        ref = Reference((self.real * N_STATES)(*x_ref), (self.real * N_INPUTS)(*u_ref))
+        self.lib.quadctl_step_ref(ctypes.byref(self.state), xa, ctypes.byref(ref), ua)
+        return np.array(ua[:], dtype=float)
+
+    def reference_trim(self) -> tuple[np.ndarray, np.ndarray]:
+        """(x, u) of ``quadctl_reference_trim``."""
+        class Reference(ctypes.Structure):
+            _fields_ = [("x", self.real * N_STATES), ("u", self.real * N_INPUTS)]
+
+        ref = Reference()
+        self.lib.quadctl_reference_trim(ctypes.byref(ref))
+        return np.array(ref.x[:], dtype=float), np.array(ref.u[:], dtype=float)
+
     def mix(self, u) -> np.ndarray:
         ua, fa = (self.real * N_INPUTS)(*u), (self.real * N_INPUTS)()
         self.lib.quadctl_mix(ua, fa)
@@ -300,6 +319,101 @@ def test_the_exported_kalman_filter_gives_the_simulated_commands_and_estimates(c
     # the noise matters: without it the same controller computes other commands
     clean, _ = replay(Controller(exp, tmp_path / "clean", False), ref.x[samples][:, measured])
     assert np.abs(clean[:len(samples) - n] - applied[n:]).max() > 1e3 * DOUBLE_TOL
+
+
+# ---------------------------------------------------------------------------------------
+# A reference: the exported C takes x_ref(t) and u_ref(t) at each sample
+
+
+def _square(lqg: bool = False):
+    """The bundled square mission designed at 200 Hz (lqrd; its continuous design is far too fast to
+    sample at any rate a flight computer runs). ``lqg``: on the Mambo's rotors, with LQI on altitude,
+    1 m low and rolled (the rotors clip, the integrator freezes), 6 s of the mission under process and
+    sensor noise drawn every 2 ms (so most samples fall inside a reference row: the law's ``x_ref(t)``
+    is the row's expansion, not its tabulated value), closed through a Kalman filter on imu + mocap."""
+    data = cfg_dict("square", controller={"rate": 200, "design": "discrete"})
+    if lqg:
+        data["motors"] = cfg_dict("mambo-200hz")["motors"]
+        data["lqr"]["altitude"] = {"Q": [50, 1, 10], "R": [1], "integral": ["pD"]}
+        data["simulation"] = {**data["simulation"], "duration": 6.0, "initial_offset": {"pD": 1.0, "phi": 0.3},
+                              "noise": {"seed": 3, "period": 0.002, "force": [0.005] * 3, "torque": [2e-5] * 3,
+                                        "sensor": dict(LQG_SENSORS)}}
+        data["estimator"] = {"measure": ["imu", "mocap"]}
+    return data, None
+
+
+CASES["square"] = _square
+CASES["square-lqg"] = lambda: _square(lqg=True)
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("case", ["square", "square-lqg"])
+def test_the_exported_c_fed_the_reference_gives_the_simulated_commands(case, tmp_path):
+    """``quadctl_step_ref`` fed, at each sample, what the simulation's law was fed (the measured
+    state, or the measurements with the sensor noise drawn; the reference ``x_ref(t)``, ``u_ref(t)``
+    the run recorded) returns the inputs the simulation applied: to round-off in double, to the float
+    sums' round-off in float."""
+    from quadctl.noise import realize
+    from quadctl.pipeline import simulation_of
+
+    exp = prepared(case)
+    setup, loop = exp.setup, exp.loop
+    assert exp.flies_reference and loop.delay_samples == 0
+    plan = loop.plan(setup.duration, setup.dt)
+    ref = simulation_of(setup, loop)
+    assert ref.status == "ok" and ref.stride == 1 and len(ref.t) == plan.n_steps + 1
+    samples = np.arange(0, plan.n_steps, plan.hold)
+    x = ref.x[samples]
+    if loop.estimator is not None:
+        _, sensor = realize(setup.noise, plan.n_steps, plan.dt)
+        x = (x + sensor[samples])[:, [STATE_INDEX[s] for s in loop.measured]]
+        assert max(motors.saturation_fraction(loop.actuators, ref.u).values()) > 0.01  # clipped: frozen, predicted
+    x_ref, u_ref, applied = ref.x_ref[samples], ref.u_ref[samples], ref.u[samples]
+    assert np.ptp(x_ref[:, STATE_INDEX["pN"]]) > 1.0 and np.ptp(u_ref[:, 1:], axis=0).min() > 0  # a path, its torques
+    dev = (ref.x_hat - ref.x_ref)[samples] if loop.estimator is not None else x_ref - ref.x[samples]
+    terms = (np.abs(u_ref) + np.abs(dev) @ np.abs(loop.K).T
+             + (np.abs(ref.z[samples]) @ np.abs(loop.Ki).T if loop.integral_states else 0.0)).max()
+    for single in (False, True):
+        ctl = Controller(exp, tmp_path / case, single)
+        commands = np.array([ctl.step_ref(*row) for row in zip(x, x_ref, u_ref)])
+        du = np.abs(commands - applied).max()
+        if single:
+            print(f"{case} float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g})")
+            assert du <= FLOAT_INPUT_RTOL * terms, f"float: max |du| = {du:.3e} ({du / terms:.3e} of the terms' size)"
+        else:
+            print(f"{case} double: max |du| = {du:.3e}")
+            assert du <= DOUBLE_TOL, f"double: max |du| = {du:.4e}"
+    # the reference matters: fed the trim instead, the same controller computes other commands
+    trim_x, trim_u = Controller(exp, tmp_path / "trim", False).reference_trim()
+    np.testing.assert_array_equal(trim_x, loop.x_trim)
+    np.testing.assert_array_equal(trim_u, loop.u_trim)
+    held = Controller(exp, tmp_path / "held", False)
+    still = np.array([held.step_ref(row, trim_x, trim_u) for row in x])
+    assert np.abs(still - applied).max() > 1e3 * DOUBLE_TOL
+
+
+def test_the_reference_header_documents_the_reference_input():
+    """A config with simulation.reference exports quadctl_step_ref and quadctl_reference (x_ref, u_ref
+    in the order and units of x and u), says so in the law, and has no quadctl_step; one without keeps
+    quadctl_step and knows nothing of a reference."""
+    files = cexport.sources(prepared("square"))
+    header, source = files[cexport.HEADER], files[cexport.SOURCE]
+    for line in ("void quadctl_step_ref(quadctl_controller *c, const quadctl_real x[QUADCTL_NX], "
+                 "const quadctl_reference *ref, quadctl_real u[QUADCTL_NU]);",
+                 "void quadctl_reference_trim(quadctl_reference *ref);",
+                 "quadctl_real x[QUADCTL_NX];  /* x_ref(t): the commanded state (order and units of x: QUADCTL_X_*) */",
+                 "quadctl_real u[QUADCTL_NU];  /* u_ref(t): the feedforward input (order and units of u: "
+                 "QUADCTL_U_*) */",
+                 "read x; quadctl_step_ref(&c, x, &ref, u); apply u", "u = u_ref(t) - K (x - x_ref(t))"):
+        assert line in header, line
+    assert "void quadctl_step(" not in header and "THE REFERENCE" in header
+    assert "#define QC_E_REF_U 37  /* ref_u (4) */" in source and "#define QC_NE 45" in source
+    lqg = cexport.sources(prepared("square-lqg"))[cexport.HEADER]
+    assert "const quadctl_real y[QUADCTL_NY], const quadctl_reference *ref" in lqg
+    assert "xh <- Ae xc + Be (u_applied - u_ref(t))    predict" in lqg
+    plain = cexport.sources(prepared("crazyflie"))
+    assert "quadctl_reference" not in plain[cexport.HEADER] + plain[cexport.SOURCE]
+    assert "qc_law(X, &t, qc_c, NULL, u, X_sampled);" in plain[cexport.SOURCE]
 
 
 def test_the_lqg_header_documents_the_measurements_and_the_filter(tmp_path):

@@ -148,14 +148,6 @@ def test_a_flown_reference_has_its_path_and_error_figures(square_run):
     assert np.allclose(north, square_run.x[:, 0])
 
 
-def test_the_c_export_refuses_a_reference(square):
-    from quadctl import export
-
-    with pytest.raises(ConfigError, match=r"^simulation\.reference: the exported C controller holds the trim .* "
-                                          r"takes no reference input yet"):
-        export.prepare(square[0], 500.0)
-
-
 def _short(setup, loop):
     return FlownReference(trajectory.mission_reference([{"position": [1.0, 0.5, -1.2], "yaw": 0.4}],
                                                        loop.x_trim[:3], 0.0, 2.0, 0.05, "minimum-jerk"),

@@ -6,7 +6,8 @@ samples it) and returns an :class:`Export`: the closed loop exactly as ``quadctl
 it (:mod:`quadctl.export.bundle`). The writers read only that object:
 
 - :mod:`quadctl.export.c`: a C99 controller generated from the simulation's own control law
-  (:func:`quadctl.sim.builder.build`), ``double`` or ``float``;
+  (:func:`quadctl.sim.builder.build`), ``double`` or ``float``; a config that flies a reference
+  (``simulation.reference``) gives one that takes the reference at each sample;
 - :mod:`quadctl.export.data`: the design as named, unit-carrying fields, written as a MATLAB v5
   ``.mat`` (:func:`scipy.io.savemat`) or as one self-describing JSON.
 """
@@ -47,7 +48,7 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     ------
     ConfigError
         No rate where one is needed, ``rate`` given for a config that has its own, outside
-        ``controller.rate``'s bounds, or a reference to fly in a C export (exit 2).
+        ``controller.rate``'s bounds (exit 2).
     CheckFailed
         The design is unstable on the coupled model, or the sampled loop of a continuous design
         is unstable at ``rate`` (exit 1; the message says which loop and why).
@@ -58,10 +59,6 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
 
     if rate is not None:  # the bounds of controller.rate, which it stands for
         rate = check_override("rate", rate, key="controller.rate")
-    if need_rate and setup.reference is not None:
-        raise ConfigError("simulation.reference: the exported C controller holds the trim (x_trim + x_rate t) and "
-                          "takes no reference input yet; export the design from a config without "
-                          "simulation.reference, or fly the reference with quadctl simulate")
     timing = setup.timing
     timing.refuse_other_rate(rate)
     if rate is not None and timing.rate is None:  # the continuous design, run at that rate

@@ -77,9 +77,15 @@ class Export:
         """Eigenvalues of :meth:`closed_loop_matrix` (``z`` when sampled, ``s`` in rad/s when continuous)."""
         return np.linalg.eigvals(self.closed_loop_matrix())
 
+    @property
+    def flies_reference(self) -> bool:
+        """The loop flies a reference (``simulation.reference``): ``x_ref`` and ``u_ref`` are inputs of
+        the law at each sample (:data:`quadctl.sim.builder.REFERENCE_LAYOUT`), not the trim."""
+        return self.setup.reference is not None
+
     def law(self) -> str:
         """The control law in words and symbols, with this loop's timing, integrators and saturation."""
-        return law_text(self.loop, self.sample_time)
+        return law_text(self.loop, self.sample_time, reference=self.flies_reference)
 
 
 
@@ -98,8 +104,9 @@ def require_export(exp, who: str) -> Export:
     return exp
 
 
-def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
-    """The control law of ``loop`` in one paragraph (the C header, the ``.mat`` and the JSON say it).
+def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = False) -> str:
+    """The control law of ``loop`` in one paragraph (the C header, the ``.mat`` and the JSON say it);
+    ``reference``: the loop flies a reference, ``x_ref(t)`` and ``u_ref(t)`` given, not the trim.
 
     Examples
     --------
@@ -109,8 +116,12 @@ def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
     u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t; continuous feedback; no input limits.
     """
     ints, act = loop.integral_states, loop.actuators
-    inner = "u_trim - K (x - x_ref(t))" + (" - Ki z" if ints else "") + (" - Kv l" if loop.Kv is not None else "")
-    parts = [(f"u = {inner}" if act is None else f"u = sat({inner})") + ", x_ref(t) = x_trim + x_rate t"]
+    u_ref = "u_ref(t)" if reference else "u_trim"
+    inner = f"{u_ref} - K (x - x_ref(t))" + (" - Ki z" if ints else "") + (" - Kv l" if loop.Kv is not None else "")
+    parts = [(f"u = {inner}" if act is None else f"u = sat({inner})")
+             + (", x_ref(t) and u_ref(t) the reference flown (simulation.reference): the commanded state and its "
+                "feedforward input (the differential-flatness trim along the path)" if reference
+                else ", x_ref(t) = x_trim + x_rate t")]
     if sample_time is None:
         parts.append("continuous feedback")
     else:
@@ -131,10 +142,10 @@ def law_text(loop: ClosedLoop, sample_time: float | None) -> str:
         y = f"y = the measured {', '.join(kal.measured)}"
         if kal.form == "filter":
             parts.append(f"x - x_ref(t) is the Kalman filter's estimate xc = xh + M (y - C x_ref(t) - C xh) ({y}; M "
-                         "the filter gain of dlqe), then xh <- Ae xc + Be (u - u_trim) with the applied u "
+                         f"the filter gain of dlqe), then xh <- Ae xc + Be (u - {u_ref}) with the applied u "
                          "(xh the a priori estimate, starting at 0)")
         else:
-            parts.append(f"x - x_ref(t) is the Kalman-Bucy filter's estimate xh, dxh/dt = Ae xh + Be (u - u_trim) "
+            parts.append(f"x - x_ref(t) is the Kalman-Bucy filter's estimate xh, dxh/dt = Ae xh + Be (u - {u_ref}) "
                          f"+ L (y - C x_ref(t) - C xh) ({y}), starting at 0")
     if loop.delay_samples and sample_time is not None:
         n = loop.delay_samples

@@ -34,7 +34,7 @@ from quadctl import __version__
 from quadctl.escape import c_comment, c_identifier
 from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
-from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout
+from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout, exo_layout
 
 HEADER, SOURCE = "quadctl_controller.h", "quadctl_controller.c"
 """The two files of the exported controller."""
@@ -87,7 +87,8 @@ def sources(exp: Export) -> dict[str, str]:
         loop = replace(loop, delay_samples=0)
     # With a filter, the controller keeps the last `delay` commands: its prediction takes the input the
     # vehicle applies now (computed `delay` samples ago), as the simulation's filter does.
-    spec = loop.spec(noise=False)  # a design with the rotors' lag keeps its lag model: controller states
+    reference = exp.flies_reference  # x_ref(t) and u_ref(t): inputs of each sample (quadctl_step_ref)
+    spec = loop.spec(noise=False, reference=reference)  # with the rotors' lag: its lag model, controller states
     c = loop.constants(Ts)
     nz, nl, ny, nb = len(loop.integral_states), spec.n_lag, spec.ny, spec.n_buffer
     dialect = Dialect(real="quadctl_real", literal="QUADCTL_LIT({})", call="QUADCTL_FN({})", pragma=False,
@@ -121,14 +122,16 @@ def sources(exp: Export) -> dict[str, str]:
                       if nl else ""),
         "LAG_DOC": _lag_doc(loop, Ts),
         "DELAY_DOC": _delay_doc(delay, Ts, kal is not None),
-        "FILTER_DOC": _filter_doc(loop),
+        "FILTER_DOC": _filter_doc(loop, reference),
         "NY": str(ny), "NB": str(nb),
         "STEP_ARG": "y" if ny else "x",
-        "STEP_WORDS": "the measurements y read" if ny else "the state measured",
         "STEP_DOC": ("the measurements y\n * (QUADCTL_NY measured states, QUADCTL_Y_* order, state units)" if ny
-                     else "the measured state x"),
-        "STEP_PROTOTYPE": ("void quadctl_step(quadctl_controller *c, const quadctl_real "
-                           + ("y[QUADCTL_NY]" if ny else "x[QUADCTL_NX]") + ", quadctl_real u[QUADCTL_NU])"),
+                     else "the measured state x")
+                    + ("\n * and the reference ref (x_ref(t), u_ref(t))" if reference else ""),
+        "STEP_PROTOTYPE": (f"void quadctl_step{'_ref' if reference else ''}(quadctl_controller *c, const quadctl_real "
+                           + ("y[QUADCTL_NY]" if ny else "x[QUADCTL_NX]")
+                           + (", const quadctl_reference *ref" if reference else "") + ", quadctl_real u[QUADCTL_NU])"),
+        **_reference_values(reference, "y" if ny else "x", Ts, exp.rate),
         "MEASURE_DEFINES": ("/* index of each measurement in y: the measured states, in state units */\n"
                             + "".join(f"#define QUADCTL_Y_{c_identifier(n.upper())} {i}  /* {n} ({STATE_UNITS[n]}), "
                                       f"x[{STATE_NAMES.index(n)}] */\n" for i, n in enumerate(loop.measured))
@@ -206,6 +209,103 @@ def float_tolerance(actuators) -> float:
     return float(f"{FLOAT_ROUNDOFF_ULPS * FLT_EPSILON * scale:.2g}")
 
 
+def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict[str, str]:
+    """The template's text that differs between a law that holds the trim and one that flies a reference.
+
+    A reference is the law's exogenous row (:data:`quadctl.sim.builder.REFERENCE_LAYOUT`: the
+    reference expanded about a time ``t_j``), which the simulation tabulates and ``quadctl_step_ref``
+    fills from the ``quadctl_reference`` it is given, expanded about the sample itself (``t_j = t``,
+    no rates): the law then reads ``x_ref(t) = ref->x`` and ``u_ref(t) = ref->u``.
+    """
+    what = "the measurements y read" if arg == "y" else "the state measured"
+    if not reference:
+        return {"CALL_DOC": _doc([
+                    "quadctl_init(&c) once, before the first sample: integrators and time to zero.",
+                    f"quadctl_step(&c, {arg}, u) once every QUADCTL_SAMPLE_TIME = {Ts!r} s ({float(rate)!r} Hz), "
+                    f"with {what} at that instant; apply u until the next call (zero-order hold). The reference "
+                    "moves with time (x_ref(t) = x_trim + x_rate t); the controller counts its own calls, t = k Ts, "
+                    "so call it at every sample, and quadctl_init again to restart the reference at t = 0.",
+                    _NO_ALLOCATION]),
+                "REFERENCE_DOC": "", "REFERENCE_TYPES": "", "REFERENCE_FUNCTIONS": "", "REFERENCE_DEFINITIONS": "",
+                "EXO_DEFINES": "", "EXO_DECL": "", "EXO_LOAD": "", "LAW_E": "NULL"}
+    n_arg = f"QUADCTL_N{arg.upper()}"
+    doc = _doc([
+        "This design flies a reference (simulation.reference): each sample takes it as a quadctl_reference,",
+        "  ref.x = x_ref(t), the commanded state: all 12, in the order and units of x (QUADCTL_X_*);",
+        "  ref.u = u_ref(t), the feedforward input, in the order and units of u (QUADCTL_U_*);",
+        "both at the sample's instant t. Along a smooth path they are its differential-flatness trim: "
+        "position, velocity, attitude and body rates along the path, and the thrust and torques that fly it "
+        "(quadctl.flatness.feedforward: what `quadctl simulate` gives its law; sim.npz holds the run's x_ref "
+        "and u_ref). The law reads nothing else of the path (no rates, no time): sample your path generator "
+        "at each sample's time and hand the two vectors over. A hover trim moved to another position "
+        "(u_ref = u_trim) holds that point; quadctl_reference_trim gives the trim to start from.",
+        "",
+        "Example: hold 1 m north of the trim and 0.5 m higher.",
+        "  quadctl_controller c;",
+        "  quadctl_reference ref;",
+        f"  quadctl_real {arg}[{n_arg}], u[QUADCTL_NU];",
+        "  quadctl_init(&c);",
+        "  quadctl_reference_trim(&ref);",
+        "  ref.x[QUADCTL_X_PN] += 1.0;  // m north",
+        "  ref.x[QUADCTL_X_PD] -= 0.5;  // m down: 0.5 m up",
+        f"  every QUADCTL_SAMPLE_TIME: read {arg}; quadctl_step_ref(&c, {arg}, &ref, u); apply u",
+    ])
+    defines, start = [], 0
+    for name, size in exo_layout(noise=False, wind=False, reference=True):
+        defines.append(f"#define QC_E_{name.upper()} {start}  /* {name} ({size}) */")
+        start += size
+    return {
+        "CALL_DOC": _doc([
+            "quadctl_init(&c) once, before the first sample: integrators to zero.",
+            f"quadctl_step_ref(&c, {arg}, &ref, u) once every QUADCTL_SAMPLE_TIME = {Ts!r} s ({float(rate)!r} Hz), "
+            f"with {what} and the reference ref at that instant (THE REFERENCE below); apply u until the next "
+            "call (zero-order hold).",
+            _NO_ALLOCATION]),
+        "REFERENCE_DOC": " *\n * THE REFERENCE\n" + doc + "\n",
+        "REFERENCE_TYPES": (
+            "\n/* The reference at one sample: what quadctl_step_ref regulates to. */\n"
+            "typedef struct quadctl_reference {\n"
+            "  quadctl_real x[QUADCTL_NX];  /* x_ref(t): the commanded state (order and units of x: QUADCTL_X_*) */\n"
+            "  quadctl_real u[QUADCTL_NU];  /* u_ref(t): the feedforward input (order and units of u: QUADCTL_U_*) */\n"
+            "} quadctl_reference;\n"),
+        "REFERENCE_FUNCTIONS": (
+            "\n/* ref = the design's trim: x = x_trim (at t = 0), u = u_trim. A reference to edit: a hover trim\n"
+            " * at another position (ref->x[QUADCTL_X_PN], ...) holds that position. */\n"
+            "void quadctl_reference_trim(quadctl_reference *ref);\n"),
+        "REFERENCE_DEFINITIONS": (
+            "void quadctl_reference_trim(quadctl_reference *ref) {\n"
+            "  int i;\n"
+            "  for (i = 0; i < QUADCTL_NX; ++i) ref->x[i] = qc_c[QC_X_REF + i];\n"
+            "  for (i = 0; i < QUADCTL_NU; ++i) ref->u[i] = qc_c[QC_U_TRIM + i];\n"
+            "}\n\n"),
+        "EXO_DEFINES": (
+            "\n/* The law's exogenous row: the reference expanded about a time t_j\n"
+            " * (quadctl.sim.builder.REFERENCE_LAYOUT), s = t - t_j:\n"
+            " *   x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), u_ref(t) = ref_u + s ref_u_rate.\n"
+            " * quadctl_step_ref expands about the sample itself (t_j = t, s = 0, no rates):\n"
+            " *   x_ref(t) = ref->x, u_ref(t) = ref->u. */\n"
+            + "\n".join(defines) + f"\n#define QC_NE {start}\n"),
+        "EXO_DECL": ", e[QC_NE]",
+        "EXO_LOAD": ("  for (i = 0; i < QC_NE; ++i) e[i] = QUADCTL_LIT(0.0);\n"
+                     "  e[QC_E_REF_T] = t;\n"
+                     "  for (i = 0; i < QUADCTL_NX; ++i) e[QC_E_REF_X + i] = ref->x[i];\n"
+                     "  for (i = 0; i < QUADCTL_NU; ++i) e[QC_E_REF_U + i] = ref->u[i];\n"),
+        "LAW_E": "e",
+    }
+
+
+_NO_ALLOCATION = "No allocation, no global state: everything lives in the struct; one struct per vehicle."
+
+
+def _doc(lines) -> str:
+    """Lines of a header comment (each wrapped at 94 columns, keeping its indent)."""
+    out = []
+    for line in lines:
+        indent = " " * (len(line) - len(line.lstrip(" ")))
+        out += textwrap.wrap(line, 94, subsequent_indent=indent) or [""]
+    return "\n".join((" *   " + line).rstrip() for line in out)
+
+
 def _lag_doc(loop, Ts: float) -> str:
     """The header's paragraph on the rotors' lag: what the law does with it."""
     tau = loop.lag_model_time_constant
@@ -222,11 +322,13 @@ def _lag_doc(loop, Ts: float) -> str:
     return "\n".join(" *   " + line for line in lines)
 
 
-def _filter_doc(loop) -> str:
-    """The header's paragraph on the Kalman filter: its form, the measurements, one sample of it."""
+def _filter_doc(loop, reference: bool = False) -> str:
+    """The header's paragraph on the Kalman filter: its form, the measurements, one sample of it
+    (``reference``: the law flies a reference, its filter predicts about ``u_ref(t)``)."""
     kal = loop.estimator
+    step = "quadctl_step_ref" if reference else "quadctl_step"
     if kal is None:
-        lines = ["None (no estimator: in the config): quadctl_step takes the full measured state x."]
+        lines = [f"None (no estimator: in the config): {step} takes the full measured state x."]
         return "\n".join(" *   " + line for line in lines)
     rho = float(np.max(np.abs(kal.eigenvalues)))
     lines = ["The law closes through a steady-state Kalman filter (estimator:), the discrete one of the",
@@ -237,7 +339,8 @@ def _filter_doc(loop) -> str:
              "measured states (QUADCTL_Y_*: absolute, in state units, as the sensors give them):",
              "  xc = xh + M (y - C x_ref(t) - C xh)        update: x_hat[k|k]",
              "  u  = the law above with x - x_ref(t) = xc  (the integrators integrate xc too)",
-             "  xh <- Ae xc + Be (u_applied - u_trim)      predict: x_hat[k+1|k] under the applied (clipped)",
+             f"  xh <- Ae xc + Be (u_applied - {'u_ref(t)' if reference else 'u_trim'})".ljust(45)
+             + "predict: x_hat[k+1|k] under the applied (clipped)",
              "                                             command" + (", the one the vehicle applies now (b[])"
                                                                        if loop.delay_samples else ""),
              *textwrap.wrap("C picks the measured states; Ae (12 x 12), Be (12 x 4) and Le = M (12 x ny) are "

@@ -48,12 +48,15 @@ def command(to: Annotated[Target, typer.Option(
     if json:
         written = {"config_name": cfg.name, "to": to.value, "rate": exp.rate, "design": exp.mode if exp.rate else
                    "continuous", "law": exp.law(), "integral_states": list(exp.loop.integral_states),
-                   "estimator": list(kal.measured) if kal is not None else None, "files": [str(p) for p in paths]}
+                   "estimator": list(kal.measured) if kal is not None else None, "reference": exp.flies_reference,
+                   "files": [str(p) for p in paths]}
         if to is Target.json:
             written["controller"] = artifacts.read_json(paths[0])
         return render.emit_json(written)
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
+    if exp.flies_reference:
+        filt += "; reference: an input at each sample" + (" (quadctl_step_ref)" if to is Target.c else "")
     render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}{filt}",
                      markup=False)
     render.out.print(f"law: {exp.law()}", markup=False)

@@ -31,7 +31,7 @@
 /* Offsets of the constants in qc_c; matrices are column-major. */
 ${CONSTANT_DEFINES}
 #define QC_NC ${NC}
-
+${EXO_DEFINES}
 static const quadctl_real qc_c[QC_NC] = {
 ${CONSTANTS}
 };
@@ -45,17 +45,17 @@ ${LAG_INIT}${BUFFER_INIT}${ESTIMATE_INIT}  c->k = 0;
 }
 
 ${STEP_PROTOTYPE} {
-  quadctl_real X[QC_NX_LOOP], X_sampled[QC_NX_LOOP], t${APPLIED_DECL};
+  quadctl_real X[QC_NX_LOOP], X_sampled[QC_NX_LOOP], t${APPLIED_DECL}${EXO_DECL};
   int i;
 ${MEASUREMENT_LOAD}  for (i = QUADCTL_NX; i < QUADCTL_NX + QUADCTL_NZ; ++i) X[i] = c->z[i - QUADCTL_NX];
 ${LAG_LOAD}${BUFFER_LOAD}${ESTIMATE_LOAD}  t = (quadctl_real)c->k * qc_c[QC_TS];
-  qc_law(X, &t, qc_c, NULL, ${LAW_U}, X_sampled);
+${EXO_LOAD}  qc_law(X, &t, qc_c, ${LAW_E}, ${LAW_U}, X_sampled);
 ${COMMAND_STORE}  for (i = QUADCTL_NX; i < QUADCTL_NX + QUADCTL_NZ; ++i) c->z[i - QUADCTL_NX] = X_sampled[i];
 ${LAG_STORE}${BUFFER_STORE}${ESTIMATE_STORE}
   c->k++;
 }
 
-#ifdef QUADCTL_N_ROTORS
+${REFERENCE_DEFINITIONS}#ifdef QUADCTL_N_ROTORS
 void quadctl_mix(const quadctl_real u[QUADCTL_NU], quadctl_real thrust[QUADCTL_N_ROTORS]) {
   int i, j;
   for (i = 0; i < QUADCTL_N_ROTORS; ++i) {

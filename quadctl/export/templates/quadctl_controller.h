@@ -5,12 +5,7 @@
  * Config sha256: ${CONFIG_HASH}
  *
  * WHEN TO CALL
- *   quadctl_init(&c) once, before the first sample: integrators and time to zero.
- *   quadctl_step(&c, ${STEP_ARG}, u) once every QUADCTL_SAMPLE_TIME = ${TS} s (${RATE} Hz), with ${STEP_WORDS}
- *   at that instant; apply u until the next call (zero-order hold). The reference moves
- *   with time (x_ref(t) = x_trim + x_rate t); the controller counts its own calls, t = k Ts, so
- *   call it at every sample, and quadctl_init again to restart the reference at t = 0.
- *   No allocation, no global state: everything lives in the struct; one struct per vehicle.
+${CALL_DOC}
  *
  * STATE x[QUADCTL_NX] (NED earth frame, down positive; FRD body frame; 3-2-1 Euler angles)
 ${STATE_TABLE}
@@ -20,7 +15,7 @@ ${INPUT_TABLE}
  *
  * THE LAW (as `quadctl simulate` applies it)
 ${LAW}
- *
+${REFERENCE_DOC} *
  * STATE ESTIMATION
 ${FILTER_DOC}
  *
@@ -74,17 +69,17 @@ typedef struct quadctl_controller {
   quadctl_real z[${NZ_STORAGE}];  /* the integrators${INTEGRAL_DOC} */
 ${LAG_MEMBER}${BUFFER_MEMBER}${ESTIMATE_MEMBER}  unsigned long k;          /* samples taken since quadctl_init: t = k Ts */
 } quadctl_controller;
-
+${REFERENCE_TYPES}
 /* Integrators (and the rotor lag model, the filter's estimate) and time to zero. */
 void quadctl_init(quadctl_controller *c);
 
 /* One controller sample: u (the input to apply until the next sample) from ${STEP_DOC};
  * advances the integrators (and the rotor lag model, the filter) and the time by one sample. */
 ${STEP_PROTOTYPE};
-
+${REFERENCE_FUNCTIONS}
 #ifdef QUADCTL_N_ROTORS
 /* The rotor thrusts (N) an input u corresponds to (rotor numbering above), each clipped to the
- * rotor's limits: after quadctl_step, the thrust each motor must make. */
+ * rotor's limits: after each step, the thrust each motor must make. */
 void quadctl_mix(const quadctl_real u[QUADCTL_NU], quadctl_real thrust[QUADCTL_N_ROTORS]);
 #endif
 
