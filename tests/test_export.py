@@ -820,7 +820,7 @@ def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, mon
     monkeypatch.chdir(tmp_path)
     (tmp_path / "docs").symlink_to(README.parent / "docs")  # the section's LQG config
     runs = _console_runs()
-    assert len(runs) == 6
+    assert len(runs) == 7
     for command, shown in runs:
         res = runner.invoke(app, shlex.split(command)[1:])
         failed = any(line.startswith(("quadctl: error:", "quadctl: check failed:")) for line in shown)
@@ -900,6 +900,74 @@ def test_the_readme_lqg_flight_loop_compiles_and_its_first_tick_is_the_filters(s
     want = np.clip(act.commands(loop.u_trim - loop.K @ xc), act.lo, act.hi)
     np.testing.assert_allclose(thrust, want, rtol=1e-6 if single else 1e-14)
     assert thrust[0] != thrust[1]  # the roll measurement moved the estimate: the rotors differ
+
+
+REFERENCE_FLIGHT_LOOP_MAIN = r"""
+#include <stdio.h>
+#include "quadctl_controller.h"
+
+void control_tick(quadctl_controller *c, double t);
+
+static quadctl_real applied[QUADCTL_NU];
+
+void read_state(quadctl_real x[QUADCTL_NX]) {  /* the trim, 0.2 m east and 0.3 m low */
+  quadctl_reference trim;
+  int i;
+  quadctl_reference_trim(&trim);
+  for (i = 0; i < QUADCTL_NX; ++i) x[i] = trim.x[i];
+  x[QUADCTL_X_PE] += 0.2;
+  x[QUADCTL_X_PD] += 0.3;
+}
+
+void path_at(double t, quadctl_reference *ref) {  /* the trim moving north at 1 m/s, pitching 0.05 rad */
+  quadctl_reference_trim(ref);
+  ref->x[QUADCTL_X_PN] += (quadctl_real)t;
+  ref->x[QUADCTL_X_U] = 1;
+  ref->x[QUADCTL_X_THETA] = -0.05;
+  ref->u[QUADCTL_U_E] = 0.001;
+}
+
+void apply_inputs(const quadctl_real u[QUADCTL_NU]) {
+  int i;
+  for (i = 0; i < QUADCTL_NU; ++i) applied[i] = u[i];
+}
+
+int main(void) {
+  quadctl_controller c;
+  quadctl_init(&c);
+  control_tick(&c, 0.5);
+  printf("%.17g %.17g %.17g %.17g\n", (double)applied[0], (double)applied[1], (double)applied[2], (double)applied[3]);
+  return 0;
+}
+"""
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
+def test_the_readme_reference_flight_loop_compiles_and_regulates_to_the_reference(single, tmp_path):
+    """The README's reference snippet against the square's export at 200 Hz: one tick is
+    u = u_ref - K (x - x_ref) with the reference the path gave (no limits in this config)."""
+    snippet = _blocks("c")[2]
+    assert "quadctl_step_ref(c, x, &ref, u)" in snippet
+    res = runner.invoke(app, ["export", "--to", "c", "-c", "square", "--set", "controller.rate=200",
+                              "--set", "controller.design=discrete", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.stderr
+    (tmp_path / "flight.c").write_text(snippet)
+    (tmp_path / "main.c").write_text(REFERENCE_FLIGHT_LOOP_MAIN)
+    exe = tmp_path / "flight"
+    build = subprocess.run([cc(), *STRICT, *(["-DQUADCTL_FLOAT"] if single else []), "flight.c", "main.c",
+                            cexport.SOURCE, "-o", str(exe), "-lm"], cwd=tmp_path, capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    u = np.array(subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split(), float)
+    loop = prepared("square").loop
+    x, x_ref, u_ref = loop.x_trim.copy(), loop.x_trim.copy(), loop.u_trim.copy()
+    x[STATE_INDEX["pE"]] += 0.2
+    x[STATE_INDEX["pD"]] += 0.3
+    x_ref[STATE_INDEX["pN"]] += 0.5
+    x_ref[STATE_INDEX["u"]], x_ref[STATE_INDEX["theta"]], u_ref[2] = 1.0, -0.05, 0.001
+    want = u_ref - loop.K @ (x - x_ref)
+    np.testing.assert_allclose(u, want, rtol=1e-6 if single else 1e-14, atol=1e-7 if single else 1e-15)
+    assert u[0] > loop.u_trim[0] and u[1] != 0 and u[2] != 0  # 0.3 m low: it climbs; it rolls and pitches
 
 
 def test_the_readme_matlab_runs_in_octave(tmp_path):
