@@ -230,7 +230,7 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
                 "EXO_DEFINES": "", "EXO_DECL": "", "EXO_LOAD": "", "LAW_E": "NULL"}
     n_arg = f"QUADCTL_N{arg.upper()}"
     doc = _doc([
-        "This design flies a reference (simulation.reference): each sample takes it as a quadctl_reference,",
+        "Each sample takes the reference (simulation.reference) as a quadctl_reference:",
         "  ref.x = x_ref(t), the commanded state: all 12, in the order and units of x (QUADCTL_X_*);",
         "  ref.u = u_ref(t), the feedforward input, in the order and units of u (QUADCTL_U_*);",
         "both at the sample's instant t. Along a smooth path they are its differential-flatness trim: "
