@@ -26,6 +26,7 @@ from typer.testing import CliRunner
 
 from quadctl import config, export, motors
 from quadctl.cli.app import app
+from quadctl.errors import CheckFailed
 from quadctl.export import c as cexport
 from quadctl.export import data
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
@@ -390,6 +391,79 @@ def test_the_exported_c_fed_the_reference_gives_the_simulated_commands(case, tmp
     held = Controller(exp, tmp_path / "held", False)
     still = np.array([held.step_ref(row, trim_x, trim_u) for row in x])
     assert np.abs(still - applied).max() > 1e3 * DOUBLE_TOL
+
+
+@pytest.mark.compiler
+def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
+    """The bundled crazyflie-speed-schedule (hover to 20 m/s and back on velocity setpoints, the gains
+    scheduled on the commanded speed, linear between designs at 0, 4, ..., 20 m/s): its export, fed at
+    each sample the measured state and the reference the simulation's law used, returns the inputs
+    simulate applied, across every piece of the table; the constant gain of the trim's design, fed the
+    same, does not."""
+    from dataclasses import replace
+
+    from quadctl.lqr.gain_table import scheduling_value
+    from quadctl.pipeline import flown_reference
+    from quadctl.sim.builder import constant_layout
+
+    cfg = config.load("crazyflie-speed-schedule")
+    exp = export.prepare(setup_of(cfg), config_hash=cfg.digest())
+    setup, loop = exp.setup, exp.loop
+    table = loop.schedule
+    assert table is not None and exp.flies_reference
+    duration = 11.0  # s: the climb to 20 m/s (reached at 10 s), every piece of the table
+    plan = loop.plan(duration, setup.dt)
+    ref = simulate(loop, setup.initial_state(loop.x_trim), duration, setup.dt, noise=None,
+                   reference=flown_reference(setup), max_samples=plan.n_steps + 1)
+    assert ref.status == "ok" and ref.stride == 1
+    samples = np.arange(0, plan.n_steps, plan.hold)
+    x, x_ref, u_ref, applied = ref.x[samples], ref.x_ref[samples], ref.u_ref[samples], ref.u[samples]
+    speed = np.array([scheduling_value("speed", row, loop.schedule_heading) for row in x_ref])  # commanded
+    assert speed.min() == 0 and speed.max() == pytest.approx(20.0)  # every piece of the table is flown
+    source = cexport.sources(exp)[cexport.SOURCE]
+    start = sum(int(np.prod(shape)) for name, shape in constant_layout(*loop.constant_layout)
+                if name not in ("schedule_heading", "schedule_breaks", "schedule_coefficients"))
+    assert f"#define QC_SCHEDULE_HEADING {start}  /* schedule_heading 1 */" in source
+    terms = (np.abs(u_ref) + np.abs(x - x_ref) @ np.abs(table.gains).max(axis=0).T).max()
+    for single in (False, True):
+        ctl = Controller(exp, tmp_path / "schedule", single)
+        commands = np.array([ctl.step_ref(*row) for row in zip(x, x_ref, u_ref)])
+        du = np.abs(commands - applied).max()
+        if single:
+            print(f"schedule float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g})")
+            assert du <= FLOAT_INPUT_RTOL * terms, f"float: max |du| = {du:.3e} ({du / terms:.3e} of the terms' size)"
+        else:
+            print(f"schedule double: max |du| = {du:.3e}")
+            assert du <= DOUBLE_TOL, f"double: max |du| = {du:.4e}"
+    header = " ".join(cexport.sources(exp)[cexport.HEADER].replace(" * ", " ").split())
+    for text in ("K = G(v), the gain schedule on speed v (m/s) of x_ref(t): the designs at v = 0, 4, 8, 12, 16, 20, "
+                 "linear between them, held outside them", "v is the horizontal velocity of x_ref(t) along the "
+                 "heading 0 rad (m/s), x_ref(t) being ref->x, the reference given", "5 pieces"):
+        assert text in header, text
+    (field,) = [f for f in data.fields(exp) if f.name == "schedule"]  # the .mat and the JSON carry the table
+    np.testing.assert_array_equal(field.value["coefficients"], table.coefficients)
+    assert field.value["variable"] == "speed" and "schedule" not in {f.name for f in data.fields(prepared("square"))}
+    fixed = Controller(replace(exp, loop=replace(loop, schedule=None)), tmp_path / "fixed", False)
+    unscheduled = np.array([fixed.step_ref(*row) for row in zip(x, x_ref, u_ref)])
+    assert np.abs(unscheduled - applied).max() > 1e3 * DOUBLE_TOL
+
+
+def test_a_schedule_that_fails_its_checks_is_not_exported(monkeypatch):
+    """What fails `quadctl schedule` does not leave quadctl (exit 1, the schedule's own verdict)."""
+    from dataclasses import replace
+
+    from quadctl import scheduling
+
+    real = scheduling.schedule_of
+
+    def failing(setup):
+        sched = real(setup)
+        return replace(sched, checks=replace(sched.checks, stable=np.zeros_like(sched.checks.stable)))
+
+    monkeypatch.setattr(scheduling, "schedule_of", failing)
+    with pytest.raises(CheckFailed, match=r"^not exported: the gain schedule fails its checks: .* frozen-point "
+                                          r"checks fail: .*\(`quadctl schedule` shows them\)$"):
+        export.prepare(setup_of(config.load("crazyflie-speed-schedule")))
 
 
 def test_the_reference_header_documents_the_reference_input():
@@ -820,7 +894,7 @@ def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, mon
     monkeypatch.chdir(tmp_path)
     (tmp_path / "docs").symlink_to(README.parent / "docs")  # the section's LQG config
     runs = _console_runs()
-    assert len(runs) == 7
+    assert len(runs) == 8
     for command, shown in runs:
         res = runner.invoke(app, shlex.split(command)[1:])
         failed = any(line.startswith(("quadctl: error:", "quadctl: check failed:")) for line in shown)

@@ -43,6 +43,8 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     Returns
     -------
     Export
+        Its loop is the one ``quadctl simulate`` flies: with ``schedule:``, the schedule's gain table
+        (:func:`quadctl.scheduling.schedule_of`).
 
     Raises
     ------
@@ -50,8 +52,9 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
         No rate where one is needed, ``rate`` given for a config that has its own, outside
         ``controller.rate``'s bounds (exit 2).
     CheckFailed
-        The design is unstable on the coupled model, or the sampled loop of a continuous design
-        is unstable at ``rate`` (exit 1; the message says which loop and why).
+        The design is unstable on the coupled model, the sampled loop of a continuous design is
+        unstable at ``rate``, or a gain schedule fails its checks (exit 1; the message says which
+        loop and why).
     DesignError
         A subsystem cannot be designed (exit 1).
     """
@@ -75,7 +78,23 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     if unstable:
         raise CheckFailed(f"not exported: {unstable[0].message(setup.timing.rate)}")
     return Export(setup=setup, linear=stages.linear, decoupled=stages.decoupled, design=stages.design,
-                  loop=stages.loop, rate_warnings=stages.rate_warnings, config_hash=config_hash)
+                  loop=_flown(setup, stages.loop), rate_warnings=stages.rate_warnings, config_hash=config_hash)
+
+
+def _flown(setup: Setup, loop):
+    """The loop ``quadctl simulate`` flies: ``loop``, or with ``schedule:`` the schedule's gains
+    (:func:`quadctl.scheduling.schedule_of`, flown as :func:`quadctl.pipeline.scheduled_loop`), which
+    must pass the schedule's checks to leave quadctl."""
+    if setup.schedule is None:
+        return loop
+    from quadctl.pipeline import scheduled_loop
+    from quadctl.scheduling import schedule_of
+
+    schedule = schedule_of(setup)
+    if not schedule.passed:
+        raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule.verdict()} "
+                          "(`quadctl schedule` shows them)")
+    return scheduled_loop(setup, loop, schedule.table, schedule.heading)
 
 
 TARGETS = ("c", "mat", "json")

@@ -122,6 +122,14 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
              + (", x_ref(t) and u_ref(t) the reference flown (simulation.reference): the commanded state and its "
                 "feedforward input (the differential-flatness trim along the path)" if reference
                 else ", x_ref(t) = x_trim + x_rate t")]
+    table = loop.schedule
+    if table is not None:
+        from quadctl.lqr.gain_table import VARIABLES
+
+        gains = "K and Ki" if ints and table.coefficients.shape[-1] > len(loop.x_trim) else "K"
+        parts.append(f"{gains} = G(v), the gain schedule on {table.variable} v ({VARIABLES[table.variable]}) of "
+                     f"x_ref(t): the designs at v = {', '.join(f'{v:g}' for v in table.values)}, "
+                     f"{table.interpolation} between them, held outside them")
     if sample_time is None:
         parts.append("continuous feedback")
     else:

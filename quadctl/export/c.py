@@ -94,7 +94,7 @@ def sources(exp: Export) -> dict[str, str]:
     dialect = Dialect(real="quadctl_real", literal="QUADCTL_LIT({})", call="QUADCTL_FN({})", pragma=False,
                       named=((ANTIWINDUP_TOL, "QUADCTL_ANTIWINDUP_TOL"),), mark_used=True)
     law = emit(build(spec).law, "qc_law", 1, dialect)
-    offsets = _offsets(nz, spec.lag_model, ny)
+    offsets = _offsets(nz, spec.lag_model, ny, spec.schedule_shape)
     act = loop.actuators
     rotors = ""
     if act is not None and act.mode == "motors":
@@ -123,6 +123,7 @@ def sources(exp: Export) -> dict[str, str]:
         "LAG_DOC": _lag_doc(loop, Ts),
         "DELAY_DOC": _delay_doc(delay, Ts, kal is not None),
         "FILTER_DOC": _filter_doc(loop, reference),
+        "SCHEDULE_DOC": _schedule_doc(loop, reference),
         "NY": str(ny), "NB": str(nb),
         "STEP_ARG": "y" if ny else "x",
         "STEP_DOC": ("the measurements y\n * (QUADCTL_NY measured states, QUADCTL_Y_* order, state units)" if ny
@@ -306,6 +307,33 @@ def _doc(lines) -> str:
     return "\n".join((" *   " + line).rstrip() for line in out)
 
 
+def _schedule_doc(loop, reference: bool) -> str:
+    """The header's paragraph on the gain schedule: the table, where it lives, how the law reads it."""
+    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+
+    table = loop.schedule
+    if table is None:
+        return " *   None: the gains are constants (K, Ki in qc_c)."
+    unit = VARIABLES[table.variable]
+    pieces, columns = len(table.breaks) - 1, table.coefficients.shape[-1]
+    read = {"speed": f"the horizontal velocity of x_ref(t) along the heading {loop.schedule_heading:g} rad (m/s)",
+            "climb": "the climb rate of x_ref(t), -vD (m/s, up positive)",
+            "yaw": "the yaw psi of x_ref(t) (rad)"}[table.variable]
+    source = "ref->x, the reference given" if reference else "x_trim + x_rate t"
+    text = (f"The gains are scheduled on {table.variable} ({unit}): designs at v = "
+            + ", ".join(f"{v:g}" for v in table.values)
+            + f" {unit}, {table.interpolation} interpolation between them; outside them {OUTSIDE}. v is {read}, "
+            f"x_ref(t) being {source}: the gain moves with the command, not with the measured state. "
+            f"G(v) (4 x {columns}: K" + (", then Ki" if columns > N_STATES else "") + ") replaces the constant "
+            f"gain{'s' if columns > N_STATES else ''} of the law: the piecewise cubic G(v) = sum_k "
+            "schedule_coefficients[k, i] (v - schedule_breaks[i])^(3 - k) on the piece i with schedule_breaks[i] "
+            f"<= v < schedule_breaks[i + 1] (v held to [{table.breaks[0]:g}, {table.breaks[-1]:g}]), {pieces} "
+            f"pieces, its breaks and coefficients ({4} x {pieces} x 4 x {columns}, column-major) constants of qc_c "
+            "(quadctl.lqr.gain_table.GainTable, the one `quadctl simulate` flies). qc_law evaluates it at "
+            "each sample.")
+    return "\n".join(" *   " + line for line in textwrap.wrap(c_comment(text), 94))
+
+
 def _lag_doc(loop, Ts: float) -> str:
     """The header's paragraph on the rotors' lag: what the law does with it."""
     tau = loop.lag_model_time_constant
@@ -372,10 +400,11 @@ def _delay_doc(delay: int, Ts: float, filtered: bool = False) -> str:
     return "\n".join(" *   " + line for line in lines)
 
 
-def _offsets(nz: int, lag_model: bool = False, ny: int = 0) -> list[tuple[str, tuple[int, ...], int]]:
+def _offsets(nz: int, lag_model: bool = False, ny: int = 0,
+             schedule: tuple[int, ...] = ()) -> list[tuple[str, tuple[int, ...], int]]:
     """(name, shape, first index) of each block of the constant vector."""
     out, start = [], 0
-    for name, shape in constant_layout(nz, lag_model=lag_model, ny=ny):
+    for name, shape in constant_layout(nz, lag_model=lag_model, ny=ny, schedule=schedule):
         out.append((name, shape, start))
         start += int(np.prod(shape))
     return out

@@ -81,7 +81,8 @@ def fields(exp: Export) -> list[Field]:
             "Ki": np.asarray(sub.Ki if sub.Ki is not None else np.zeros((len(sub.inputs), 0)), dtype=float),
             "eig_cl": np.asarray(sub.eigenvalues_z if sub.eigenvalues_z is not None else sub.eigenvalues)}
     units = [STATE_UNITS[s] for s in STATE_NAMES]
-    return [*_base_fields(exp, loop, des, lin, Ki, Ts, domain, subsystems, units), *_estimator_fields(loop)]
+    return [*_base_fields(exp, loop, des, lin, Ki, Ts, domain, subsystems, units), *_estimator_fields(loop),
+            *_schedule_fields(loop)]
 
 
 def _base_fields(exp, loop, des, lin, Ki, Ts, domain, subsystems, units) -> list[Field]:
@@ -165,6 +166,25 @@ def _estimator_fields(loop) -> list[Field]:
                   "torque), Rn (ny x ny) the sensor noise, gain (12 x ny: M, or L), predictor_gain (L = Ae M, "
                   "or L), P (a priori, or the error covariance), Z (a posteriori P - M C P, or P), eig (of "
                   "Ae - L C: z, or s)")]
+
+
+def _schedule_fields(loop) -> list[Field]:
+    """The gain table of a scheduled loop (``schedule:``) as one struct; none with fixed gains."""
+    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+
+    table = loop.schedule
+    if table is None:
+        return []
+    value = {"variable": table.variable, "interpolation": table.interpolation, "outside": OUTSIDE,
+             "heading": float(loop.schedule_heading), "values": np.asarray(table.values, dtype=float),
+             "gains": np.asarray(table.gains, dtype=float), "breaks": np.asarray(table.breaks, dtype=float),
+             "coefficients": np.asarray(table.coefficients, dtype=float)}
+    return [Field("schedule", value, f"values and breaks {VARIABLES[table.variable]}; gains as K (then Ki)",
+                  "the gain schedule the law flies in place of K (and Ki when gains has 12 + nz columns): "
+                  "G(v) at v, the variable (speed along heading rad, climb, yaw) of x_ref(t); gains (n x 4 x m) "
+                  "the designs at values, interpolated as one piecewise cubic, G(v) = sum_k coefficients(k, i) "
+                  "(v - breaks(i))^(3 - k) on the piece i that holds v (k, i 0-based here), v held to "
+                  "[breaks(1), breaks(end)]")]
 
 
 def mat_variables(exp: Export) -> dict[str, Any]:

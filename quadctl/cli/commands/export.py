@@ -49,6 +49,7 @@ def command(to: Annotated[Target, typer.Option(
         written = {"config_name": cfg.name, "to": to.value, "rate": exp.rate, "design": exp.mode if exp.rate else
                    "continuous", "law": exp.law(), "integral_states": list(exp.loop.integral_states),
                    "estimator": list(kal.measured) if kal is not None else None, "reference": exp.flies_reference,
+                   "schedule": exp.loop.schedule.variable if exp.loop.schedule is not None else None,
                    "files": [str(p) for p in paths]}
         if to is Target.json:
             written["controller"] = artifacts.read_json(paths[0])
@@ -57,6 +58,9 @@ def command(to: Annotated[Target, typer.Option(
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
     if exp.flies_reference:
         filt += "; reference: an input at each sample" + (" (quadctl_step_ref)" if to is Target.c else "")
+    table = exp.loop.schedule
+    if table is not None:
+        filt += f"; gains scheduled on {table.variable} ({len(table.values)} designs, {table.interpolation})"
     render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}{filt}",
                      markup=False)
     render.out.print(f"law: {exp.law()}", markup=False)

@@ -16,6 +16,9 @@ ${INPUT_TABLE}
  * THE LAW (as `quadctl simulate` applies it)
 ${LAW}
 ${REFERENCE_DOC} *
+ * GAIN SCHEDULE
+${SCHEDULE_DOC}
+ *
  * STATE ESTIMATION
 ${FILTER_DOC}
  *
