@@ -94,7 +94,7 @@ def _flown(setup: Setup, loop):
     if not schedule.passed:
         raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule.verdict()} "
                           "(`quadctl schedule` shows them)")
-    return scheduled_loop(setup, loop, schedule.table, schedule.heading)
+    return scheduled_loop(setup, loop, schedule.table, schedule.heading, schedule.checks.eigenvalues)
 
 
 TARGETS = ("c", "mat", "json")
