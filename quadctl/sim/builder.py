@@ -483,18 +483,21 @@ class LoopFunctions:
     ``plant(X, u, dt, c, e) -> X_next``: one RK4 step of the plant under a held ``u``; the
     controller states pass through (held specs).
     ``u`` is always the (clipped) command; with rotor dynamics the body gets ``mix_inv f``.
+    ``ref(t, c, e) -> x_ref``: the reference state the law regulates to at ``t`` (what the metrics
+    of a run measure the error against).
     """
 
     spec: LoopSpec
     law: ca.Function
     step: ca.Function | None = None
     plant: ca.Function | None = None
+    ref: ca.Function | None = None
 
     def functions(self) -> tuple[tuple[str, ca.Function], ...]:
         """(C name, function) of every function the driver calls."""
         named = [("qc_law", self.law)]
         named.append(("qc_plant", self.plant) if self.spec.held else ("qc_step", self.step))
-        return tuple(named)
+        return (*named, ("qc_ref", self.ref))
 
 
 @lru_cache(maxsize=32)
@@ -636,6 +639,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
     elif ne:
         X_sampled = ca.vertcat(X_sampled, X[nx - ne:])
     law = ca.Function("qc_law", [X, t, c, e], ca.cse([u_now, X_sampled]), ["X", "t", "c", "e"], ["u", "X_sampled"])
+    ref = ca.Function("qc_ref", [t, c, e], [x_ref(t)], ["t", "c", "e"], ["x_ref"])
     if spec.held:
         def plant_rhs(Y, ts):
             xdot = body(Y, u_held)
@@ -644,7 +648,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         X_next = etdrk4(plant_rhs, X, t, dt, phi_block(c, spec)) if spec.method == "etdrk4" else rk4(plant_rhs, X)
         plant = ca.Function("qc_plant", [X, u_held, dt, c, e], [ca.cse(X_next)],
                             ["X", "u", "dt", "c", "e"], ["X_next"])
-        return LoopFunctions(spec=spec, law=law, plant=plant)
+        return LoopFunctions(spec=spec, law=law, plant=plant, ref=ref)
 
     def closed_rhs(Y, ts):
         u, rate = control(Y, ts)
@@ -663,7 +667,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         X_next = rk4(closed_rhs, X)
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([X_next, u_now]),
                        ["X", "t", "dt", "c", "e"], ["X_next", "u"])
-    return LoopFunctions(spec=spec, law=law, step=step)
+    return LoopFunctions(spec=spec, law=law, step=step, ref=ref)
 
 
 def phi_block(c, spec: LoopSpec) -> dict:

@@ -6,6 +6,9 @@
  *   qc_law(X, t, c, e, u, X_sampled)   the control law (and the controller states' update)
  *   qc_step(X, t, dt, c, e, X_next, u) one RK4 step with continuous feedback   (QC_HELD == 0)
  *   qc_plant(X, u, dt, c, e, X_next)   one RK4 step under a held input        (QC_HELD == 1)
+ *   qc_ref(t, c, e, x_ref)             the reference state the law regulates to (QC_NS states)
+ * and the metrics' constants (QC_BAND, QC_FLOOR: quadctl.metrics; QC_SETTLE_NONE, QC_SETTLE_PENDING:
+ * quadctl.sim.lane_metrics).
  * Every argument is lane-major: element j of lane l is at [j * QC_L + l].
  *
  * One call runs up to QC_L cases ("lanes"), each with its own constants, step, step count and
@@ -15,7 +18,14 @@
  * there (the held input between samples; the last applied input after leaving the bounds).
  * A lane that is done restarts from its x0 and runs on, discarded, until every lane is done
  * (a runaway lane would drag the vector math into its slow paths for huge or NaN arguments);
- * its final record uses what it kept when it finished (state, last applied input). */
+ * its final record uses what it kept when it finished (state, last applied input).
+ *
+ * With keep == 0 only the final record is written (row 0): a sweep that needs no trajectory.
+ * With mq != NULL the lanes also summarize every record as it is made (quadctl/sim/lane_metrics.py
+ * reads the sums): the error e = x - x_ref(t) of the QC_NS rigid-body states against the reference
+ * the law regulates to (qc_ref), its first, last, lowest, highest and largest |e|, the settling
+ * record, the largest |u|, the LQR cost by the trapezoid rule, the position tracking error and the
+ * waypoints reached, as quadctl.metrics and quadctl.pipeline.tracking_of define them. */
 #include <math.h>
 #include <string.h>
 
@@ -41,18 +51,121 @@ static void qc_exo_row(const double* exo, long exo_rows, const double* lane_d, c
   for (int i = 0; i < QC_NE; ++i) e[i * QC_L + l] = row[i];
 }
 
+/* ---- the metrics of the records (mq != NULL); the slots of macc [QC_M(...)][QC_L] ---- */
+#define QC_SLOT(k, i) (((k) * QC_NS + (i)) * QC_L)
+enum { QC_E0, QC_ELAST, QC_EMIN, QC_EMAX, QC_PEAK, QC_SETTLE, QC_PER_STATE };
+#define QC_UMAX (QC_PER_STATE * QC_NS)         /* QC_NU slots: largest |u| */
+#define QC_COST (QC_UMAX + QC_NU)              /* trapezoid sum of (I_k + I_k-1)(t_k - t_k-1) */
+#define QC_ILAST (QC_COST + 1)                 /* the last record's integrand */
+#define QC_TLAST (QC_COST + 2)                 /* the last record's time, s */
+#define QC_TRACK2 (QC_COST + 3)                /* sum of |p - p_ref|^2 over the records */
+#define QC_TRACKMAX (QC_COST + 4)              /* largest |p - p_ref| */
+#define QC_NREC (QC_COST + 5)                  /* records summarized */
+#define QC_REACHED (QC_COST + 6)               /* one slot per leg: the time it was reached, or -1 */
+
+static double qc_nanmax(double a, double b) { return (b > a || b != b) ? b : a; }  /* numpy's max: NaN wins */
+static double qc_nanmin(double a, double b) { return (b < a || b != b) ? b : a; }
+
+/* mq: [n_q, q_i[n_q], q_j[n_q], n_r, r_i[n_r], r_j[n_r], n_legs, track];
+ * mv [rows][QC_L]: u_trim[QC_NU], q[n_q], r[n_r], tolerance, then per leg start, N, E, D. */
+static void qc_metric_init(const long* mq, double* macc) {
+  const long nq = mq[0], nr = mq[1 + 2 * nq], n_legs = mq[2 + 2 * nq + 2 * nr];
+  for (int l = 0; l < QC_L; ++l) {
+    for (int i = 0; i < QC_NS; ++i) {
+      macc[QC_SLOT(QC_EMIN, i) + l] = INFINITY;
+      macc[QC_SLOT(QC_EMAX, i) + l] = -INFINITY;
+      macc[QC_SLOT(QC_PEAK, i) + l] = 0.0;
+      macc[QC_SLOT(QC_SETTLE, i) + l] = QC_SETTLE_NONE;
+    }
+    for (int j = 0; j < QC_NU; ++j) macc[(QC_UMAX + j) * QC_L + l] = 0.0;
+    for (int k = QC_COST; k < QC_REACHED; ++k) macc[k * QC_L + l] = 0.0;
+    for (long m = 0; m < n_legs; ++m) macc[(QC_REACHED + m) * QC_L + l] = -1.0;
+  }
+}
+
+/* one record of the lanes with on[l] != 0: absolute step kk[l] at time t[l], state X, input U,
+ * reference R (each [.][QC_L]) */
+static void qc_metric(const long* mq, const double* mv, double* macc, const int* on, const long* kk,
+                      const double* t, const double* X, const double* U, const double* R) {
+  const long nq = mq[0], *qi = mq + 1, *qj = mq + 1 + nq;
+  const long nr = mq[1 + 2 * nq], *ri = mq + 2 + 2 * nq, *rj = mq + 2 + 2 * nq + nr;
+  const long n_legs = mq[2 + 2 * nq + 2 * nr], track = mq[3 + 2 * nq + 2 * nr];
+  const double* q = mv + QC_NU * QC_L;
+  const double* r = q + nq * QC_L;
+  const double* legs = r + nr * QC_L;  /* tolerance, then 4 rows a leg */
+  for (int l = 0; l < QC_L; ++l) {
+    if (!on[l]) continue;
+    double e[QC_NS], du[QC_NU];
+    int first = macc[QC_NREC * QC_L + l] == 0.0;
+    for (int i = 0; i < QC_NS; ++i) {
+      double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
+      e[i] = v;
+      if (first) macc[QC_SLOT(QC_E0, i) + l] = v;
+      macc[QC_SLOT(QC_ELAST, i) + l] = v;
+      macc[QC_SLOT(QC_EMIN, i) + l] = qc_nanmin(macc[QC_SLOT(QC_EMIN, i) + l], v);
+      macc[QC_SLOT(QC_EMAX, i) + l] = qc_nanmax(macc[QC_SLOT(QC_EMAX, i) + l], v);
+      /* settling against the largest |e| so far: exact for the whole run, since the record that
+         sets the final peak is outside its band and every later record sees the final band */
+      double peak = qc_nanmax(macc[QC_SLOT(QC_PEAK, i) + l], a);
+      macc[QC_SLOT(QC_PEAK, i) + l] = peak;
+      double band = QC_BAND * peak > QC_FLOOR ? QC_BAND * peak : QC_FLOOR;
+      double* settle = macc + QC_SLOT(QC_SETTLE, i) + l;
+      if (a > band) *settle = QC_SETTLE_PENDING;
+      else if (*settle == QC_SETTLE_PENDING) *settle = (double)kk[l];
+    }
+    for (int j = 0; j < QC_NU; ++j) {
+      du[j] = U[j * QC_L + l] - mv[j * QC_L + l];
+      macc[(QC_UMAX + j) * QC_L + l] = qc_nanmax(macc[(QC_UMAX + j) * QC_L + l], fabs(U[j * QC_L + l]));
+    }
+    /* e' Q e + du' R du, term by term over the nonzeros in row-major order (quadctl.metrics._quadratic) */
+    double iq = 0.0, ir = 0.0;
+    for (long k = 0; k < nq; ++k) iq += e[qi[k]] * e[qj[k]] * q[k * QC_L + l];
+    for (long k = 0; k < nr; ++k) ir += du[ri[k]] * du[rj[k]] * r[k * QC_L + l];
+    double integrand = iq + ir;
+    if (!first)
+      macc[QC_COST * QC_L + l] += (integrand + macc[QC_ILAST * QC_L + l]) * (t[l] - macc[QC_TLAST * QC_L + l]);
+    macc[QC_ILAST * QC_L + l] = integrand;
+    macc[QC_TLAST * QC_L + l] = t[l];
+    macc[QC_NREC * QC_L + l] += 1.0;
+    if (!track) continue;
+    double d2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2], d = sqrt(d2);
+    macc[QC_TRACK2 * QC_L + l] += d * d;
+    macc[QC_TRACKMAX * QC_L + l] = qc_nanmax(macc[QC_TRACKMAX * QC_L + l], d);
+    /* quadctl.trajectory.waypoint_times: a leg counts from its start and from the last leg reached
+       before it; a leg reached (for now) clears the later legs' earlier hits */
+    double tol = legs[l];
+    for (long m = 0; m < n_legs; ++m) {
+      const double* leg = legs + (1 + 4 * m) * QC_L + l;
+      double* reached = macc + (QC_REACHED + m) * QC_L + l;
+      if (*reached >= 0.0 || t[l] < leg[0]) continue;
+      double dx = X[0 * QC_L + l] - leg[1 * QC_L], dy = X[1 * QC_L + l] - leg[2 * QC_L],
+             dz = X[2 * QC_L + l] - leg[3 * QC_L];
+      if (sqrt(dx * dx + dy * dy + dz * dz) <= tol) {
+        *reached = t[l];
+        for (long n = m + 1; n < n_legs; ++n)
+          if (macc[(QC_REACHED + n) * QC_L + l] < t[l]) macc[(QC_REACHED + n) * QC_L + l] = -1.0;
+      }
+    }
+  }
+}
+
 static long qc_mod(long a, long m) { return m > 0 ? ((a % m) + m) % m : 0; }
 
 /* x0, lo, hi: [QC_NX][QC_L]; c: [QC_NC][QC_L]; exo: [QC_L][exo_rows][QC_NE] (or NULL).
  * Records into xs [QC_L][QC_NX][rows_max], us [QC_L][QC_NU][rows_max], ks [QC_L][rows_max];
- * n_rec[l]: rows written; done[l]: steps completed (n when every state stayed in bounds). */
+ * n_rec[l]: rows written; done[l]: steps completed (n when every state stayed in bounds).
+ * keep: store every record (else only the final one, in row 0); mq, mv, macc: the metrics (or
+ * mq == NULL: none), see qc_metric. */
 void qc_run(const double* x0, const double* c, const double* lane_d, const long* lane_i,
             const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
-            double* xs, double* us, long* ks, long* n_rec, long* done) {
+            double* xs, double* us, long* ks, long* n_rec, long* done,
+            long keep, const long* mq, const double* mv, double* macc) {
   double X[QC_NX * QC_L], XN[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
   double U[QC_NU * QC_L], UH[QC_NU * QC_L], UF[QC_NU * QC_L], T[QC_L], DT[QC_L], E[QC_NE1 * QC_L];
-  long rec_in[QC_L], hold_in[QC_L], rows[QC_L];
-  int active[QC_L], inb[QC_L], n_active = 0;
+  double XR[QC_NS * QC_L];
+  long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L];
+  int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
+  if (mq) qc_metric_init(mq, macc);
   memcpy(X, x0, sizeof X);
   memcpy(XF, x0, sizeof XF);
   memset(E, 0, sizeof E);
@@ -91,7 +204,15 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
     qc_step(X, T, DT, c, E, XN, U);
     const double* UA = U;
 #endif
-    if (rec) {
+    if (rec && mq) {
+      for (int l = 0; l < QC_L; ++l) {
+        on[l] = active[l] && rec_in[l] == 0;
+        kk[l] = QC_K0(l) + k;
+      }
+      qc_ref(T, c, E, XR);
+      qc_metric(mq, mv, macc, on, kk, T, X, UA, XR);
+    }
+    if (rec && keep) {
       for (int l = 0; l < QC_L; ++l) {
         if (!active[l] || rec_in[l] != 0) continue;
         double* xr = xs + (long)l * QC_NX * rows_max + rows[l];
@@ -150,11 +271,22 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
 #if QC_HELD
     else if (qc_mod(last, QC_HOLD(l)) != 0) uf = UF;
 #endif
+    if (uf == UF)
+      for (int i = 0; i < QC_NU; ++i) U[i * QC_L + l] = UF[i * QC_L + l];  /* the final input, every lane */
     double* xr = xs + (long)l * QC_NX * rows_max + rows[l];
     double* ur = us + (long)l * QC_NU * rows_max + rows[l];
     for (int i = 0; i < QC_NX; ++i) xr[i * rows_max] = XF[i * QC_L + l];
     for (int i = 0; i < QC_NU; ++i) ur[i * rows_max] = uf[i * QC_L + l];
     ks[(long)l * rows_max + rows[l]] = last;
     n_rec[l] = rows[l] + 1;
+  }
+  if (mq) {  /* the final record: the reference at its own step's row (as the one-case run's x_ref) */
+    for (int l = 0; l < QC_L; ++l) {
+      kk[l] = QC_K0(l) + done[l];
+      on[l] = 1;
+      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk[l], E);
+    }
+    qc_ref(T, c, E, XR);
+    qc_metric(mq, mv, macc, on, kk, T, XF, U, XR);
   }
 }

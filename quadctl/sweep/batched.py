@@ -314,7 +314,9 @@ def loops_of(live) -> list:
                        setup.timing.rate, plan.n_steps, plan.dt)
             if key is None or key not in realized:
                 stream = ExoStream(setup.noise, setup.wind, setup.timing.rate, flown)
-                rows = (*stream.rows(0, plan.n_steps, plan.dt), stream.period)
+                # a reference's rows through the final step's (the lanes measure the final record
+                # against the reference there, as simulate's x_ref does)
+                rows = (*stream.rows(0, plan.n_steps + (flown is not None), plan.dt), stream.period)
                 if key is None:
                     first, exo, period = rows
                 else:
@@ -416,9 +418,20 @@ def _structural_gain(prep) -> tuple[bool, ...]:
     return prep.plant.cache["pattern"]
 
 
+def _cases_of(spec, group):
+    """The :class:`~quadctl.sim.cases.Cases` of a group of ``(prep, design, job)`` of one lane spec."""
+    from quadctl.sim.cases import Cases
+
+    js = [g[2] for g in group]
+    return Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
+                    [j.plan.n_steps for j in js], [j.stride for j in js], np.stack([j.lo for j in js]),
+                    np.stack([j.hi for j in js]), hold=[max(j.plan.hold, 1) for j in js],
+                    exo=[j.exo for j in js] if spec.n_exo else None,
+                    exo_first=[j.exo_first for j in js], exo_period=[j.exo_period for j in js])
+
+
 def simulate_all(jobs):
     """Yield ``((prep, design, job), (done, ks, xs, us), backend)``, lanes grouped by loop spec."""
-    from quadctl.sim.cases import Cases
     from quadctl.sim.engine import LANES, runner
 
     by_spec: dict = {}
@@ -426,11 +439,33 @@ def simulate_all(jobs):
         by_spec.setdefault(item[2].spec, []).append(item)
     for spec, group in by_spec.items():
         run = runner(spec, LANES)
-        js = [g[2] for g in group]
-        cases = Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
-                         [j.plan.n_steps for j in js], [j.stride for j in js], np.stack([j.lo for j in js]),
-                         np.stack([j.hi for j in js]), hold=[max(j.plan.hold, 1) for j in js],
-                         exo=[j.exo for j in js] if spec.n_exo else None,
-                         exo_first=[j.exo_first for j in js], exo_period=[j.exo_period for j in js])
-        for i, done, ks, xs, us in run.iter_run(cases):
+        for i, done, ks, xs, us in run.iter_run(_cases_of(spec, group)):
             yield group[i], (done, ks, xs, us), run.backend
+
+
+def summarize_all(jobs):
+    """Yield ``((prep, design, job), (done, k_end, x_end, u_end, sums), backend)``: each run summed in the
+    lanes as it steps (:mod:`quadctl.sim.lane_metrics`), lanes grouped by loop spec and by what the
+    sums need (the weights' sparsity, a reference and its legs); ``sums`` is None where the runner
+    keeps records instead (CasADi's VM): then ``(done, ks, xs, us)``."""
+    from quadctl.sim.engine import LANES, runner
+    from quadctl.sim.lane_metrics import MetricSpec, case_values
+
+    by_spec: dict = {}
+    for item in jobs:
+        setup = item[0].setup
+        ref = setup.reference
+        metrics = MetricSpec.of(setup.Q_block, setup.R_block, ref is not None, len(ref.legs) if ref is not None else 0)
+        by_spec.setdefault((item[2].spec, metrics), []).append(item)
+    for (spec, metrics), group in by_spec.items():
+        run = runner(spec, LANES)
+        cases = _cases_of(spec, group)
+        if not hasattr(run, "iter_summaries"):
+            for i, done, ks, xs, us in run.iter_run(cases):
+                yield group[i], (done, ks, xs, us, None), run.backend
+            continue
+        values = np.stack([case_values(metrics, prep.plant.linear.u_trim, prep.setup.Q_block, prep.setup.R_block,
+                                       *((prep.setup.reference.tolerance, prep.setup.reference.legs)
+                                         if metrics.legs else ())) for prep, _, _ in group])
+        for i, done, k_end, x_end, u_end, sums in run.iter_summaries(cases, metrics, values):
+            yield group[i], (done, k_end, x_end, u_end, sums), run.backend

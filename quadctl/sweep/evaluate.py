@@ -447,10 +447,10 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             jobs.append((prep, des, job))
     t0 = time.perf_counter()
     batch = MetricsBatch()
-    for (prep, des, job), (done, ks, xs, us), backend in (lanes.simulate_all(jobs) if exponential
-                                                           else batched.simulate_all(jobs)):
-        from quadctl.sim.run import verdict
+    summed: list = []  # (prep, design, job, done, status, message, sums) of the runs summed in the lanes
+    from quadctl.sim.run import verdict
 
+    def recorded(prep, des, job, done, ks, xs, us, backend):
         setup, linear = prep.setup, prep.plant.linear
         plan = job.plan
         t = plan.dt * ks
@@ -473,13 +473,55 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         if trace and status == "ok":
             x_ref = linear.x_trim + np.outer(t, linear.x_rate) if x_ref is None else x_ref
             traces[prep.index] = resample_deviation(t, x, x_ref, trace, setup.duration)
+
+    if trace or exponential:  # a Monte Carlo keeps each trajectory; ETDRK4's lanes keep records
+        for (prep, des, job), (done, ks, xs, us), backend in (lanes.simulate_all(jobs) if exponential
+                                                               else batched.simulate_all(jobs)):
+            recorded(prep, des, job, done, ks, xs, us, backend)
+    else:
+        for (prep, des, job), result, backend in batched.summarize_all(jobs):
+            done = result[0]
+            if result[-1] is None:  # a runner that keeps records (CasADi's VM)
+                recorded(prep, des, job, *result[:4], backend)
+                continue
+            _, k_end, x_end, _, sums = result
+            t_end = job.plan.dt * k_end
+            status, message = verdict(x_end[None, :N_STATES], np.array([t_end]), done, job.plan.n_steps, job.lo,
+                                      job.hi)
+            stats["steps"] += done
+            stats["backend"].add(backend)
+            summed.append((prep, des, job, done, status, message, sums.copy()))
     for (p, d, j, steps, msg), summary in batch.flush():
         rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps,
                              "" if summary["status"] == "ok" else msg, d.path)
+    _summed_rows(summed, rows, tracked)
     stats["simulate_time"] += time.perf_counter() - t0
     for index, columns in tracked.items():
         rows[index].update(columns)
     return rows, traces
+
+
+def _summed_rows(summed: list, rows: dict, tracked: dict) -> None:
+    """Rows (and tracking columns) of the runs summed in the lanes: ``(prep, design, job, done, status,
+    message, sums)`` each, read back together per set of regulated states."""
+    from quadctl.sim.lane_metrics import summaries, tracking
+
+    groups: dict[tuple, list] = {}
+    for item in summed:
+        groups.setdefault(item[0].setup.regulated, []).append(item)
+    for regulated, items in groups.items():
+        out = summaries(np.stack([it[6] for it in items]), [it[2].plan.dt for it in items], regulated,
+                        [it[4] for it in items])
+        for (prep, des, job, done, _, message, sums), summary in zip(items, out):
+            rows[prep.index] = _row(prep.head, des.stable, des.core, job.plan, summary, done,
+                                    "" if summary["status"] == "ok" else message, des.path)
+            ref = prep.setup.reference
+            if ref is not None:
+                got = tracking(sums, len(ref.legs))
+                columns = {"position_error": {"rms": got["rms"], "peak": got["peak"]}}
+                if ref.legs:
+                    columns["waypoints"] = [{"reached": r} for r in got["reached"]]
+                tracked[prep.index] = tracking_columns(columns)
 
 
 class MetricsBatch:

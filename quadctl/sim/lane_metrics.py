@@ -1,0 +1,150 @@
+"""A run's metrics summed in the lanes as they step (``driver.c``'s ``qc_metric``), and read back.
+
+A sweep needs of each run its metrics (:func:`quadctl.metrics.summarize_errors`: settling,
+overshoot, input peaks, LQR cost) and, flying a reference, its tracking error and the waypoints
+reached (:func:`quadctl.pipeline.tracking_of`), not its trajectory. The lanes keep per case a few
+running sums over the records a one-case run would keep (the same steps: every ``stride``-th and
+the last), from the error ``e = x - x_ref(t)`` against the reference the law regulates to (the
+builder's ``ref``): first, last, lowest and highest ``e``, largest ``|e|``, the record after the last
+one outside the settling band (the band of the largest ``|e|`` so far: exact, as the record that
+sets the final largest is outside its own band and every later one is judged by the final band),
+largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du`` (the same products in the same order),
+and the position error's sum of squares, largest value and the waypoint times. Storing and
+reading back 10 000 records a case cost more than the simulation itself.
+
+The slots (:data:`SLOTS`) are those of ``driver.c``; ``tests/test_lane_metrics.py`` holds the sums
+read back against :func:`quadctl.metrics.summarize` and ``tracking_of`` of the same run's records.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
+from quadctl.metrics import ERROR_FLOOR
+
+PER_STATE = ("e0", "e_last", "e_min", "e_max", "peak", "settle")
+"""Per-state sums, each :data:`N_STATES` slots, in ``driver.c``'s order."""
+SETTLE_NONE = -2.0
+"""``settle``: no record was outside the band (settled at once)."""
+SETTLE_PENDING = -1.0
+"""``settle``: the last record was outside the band (never settled)."""
+SCALARS = ("cost", "integrand_last", "t_last", "track_sq", "track_max", "records")
+"""The sums after the per-state ones and the :data:`N_INPUTS` input peaks; one slot per leg follows."""
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    """What the lanes of one group sum: the nonzeros of ``Q`` (12 x 12) and ``R`` (4 x 4), row-major
+    (the same in every case of the group), and, flying a reference, the position error and the
+    number of mission legs whose waypoint times they find.
+
+    Attributes
+    ----------
+    q_pairs, r_pairs : tuple of (int, int)
+    track : bool
+    legs : int
+    """
+
+    q_pairs: tuple[tuple[int, int], ...]
+    r_pairs: tuple[tuple[int, int], ...]
+    track: bool = False
+    legs: int = 0
+
+    @classmethod
+    def of(cls, Q, R, track: bool = False, legs: int = 0) -> MetricSpec:
+        """The spec of weights with the sparsity of ``Q`` and ``R``."""
+        return cls(tuple(zip(*(v.tolist() for v in np.nonzero(np.asarray(Q))))),
+                   tuple(zip(*(v.tolist() for v in np.nonzero(np.asarray(R))))), bool(track), int(legs))
+
+    def header(self) -> np.ndarray:
+        """``driver.c``'s ``mq``: counts and index pairs (C long)."""
+        from quadctl.sim.cases import C_LONG
+
+        q, r = np.array(self.q_pairs, dtype=int).reshape(-1, 2), np.array(self.r_pairs, dtype=int).reshape(-1, 2)
+        return np.concatenate([[len(q)], q[:, 0], q[:, 1], [len(r)], r[:, 0], r[:, 1],
+                               [self.legs, int(self.track)]]).astype(C_LONG)
+
+    @property
+    def n_values(self) -> int:
+        """Per-case values: ``u_trim``, the weights' nonzeros, the tolerance, 4 a leg."""
+        return N_INPUTS + len(self.q_pairs) + len(self.r_pairs) + 1 + 4 * self.legs
+
+    @property
+    def n_sums(self) -> int:
+        """Slots a case's sums take."""
+        return len(PER_STATE) * N_STATES + N_INPUTS + len(SCALARS) + self.legs
+
+
+def case_values(spec: MetricSpec, u_trim, Q, R, tolerance: float = 0.0, legs=()) -> np.ndarray:
+    """One case's ``mv`` column: ``u_trim`` (4,), the entries of ``Q`` and ``R`` at the spec's
+    pairs, the waypoint tolerance (m) and per leg its start (s) and waypoint (N, E, D m)."""
+    Q, R = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
+    parts = [np.asarray(u_trim, dtype=float), [Q[i, j] for i, j in spec.q_pairs], [R[i, j] for i, j in spec.r_pairs],
+             [tolerance]]
+    parts += [[leg.start, *leg.position] for leg in legs]
+    return np.concatenate([np.asarray(p, dtype=float).ravel() for p in parts])
+
+
+def _slot(name: str, i: int = 0) -> int:
+    if name in PER_STATE:
+        return PER_STATE.index(name) * N_STATES + i
+    if name == "u_max":
+        return len(PER_STATE) * N_STATES + i
+    if name == "reached":
+        return len(PER_STATE) * N_STATES + N_INPUTS + len(SCALARS) + i
+    return len(PER_STATE) * N_STATES + N_INPUTS + SCALARS.index(name)
+
+
+def summaries(sums: np.ndarray, dt, regulated_states, status) -> list[dict]:
+    """The :func:`quadctl.metrics.summarize_errors` dicts of ``B`` runs from their lane sums.
+
+    Parameters
+    ----------
+    sums : (B, n_sums) ndarray
+    dt : (B,) array_like
+        s: the runs' steps (a settling record's time is ``dt`` times its step).
+    regulated_states : iterable of str
+    status : sequence of B str
+    """
+    sums = np.asarray(sums, dtype=float)
+    B = len(sums)
+    per = sums[:, :len(PER_STATE) * N_STATES].reshape(B, len(PER_STATE), N_STATES)
+    e0, e_last, low, high, peak, settle = (per[:, k] for k in range(len(PER_STATE)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        past = np.where(e0 > 0, -low, np.where(e0 < 0, high, 0.0))  # as summarize_errors
+        over = (np.maximum(0.0, past) / np.abs(e0) * 100.0).tolist()
+    no_initial = (np.abs(e0) <= ERROR_FLOOR).tolist()
+    settled_at = (np.asarray(dt, dtype=float)[:, None] * np.maximum(settle, 0.0)).tolist()
+    settle = settle.tolist()
+    u_max = sums[:, _slot("u_max"):_slot("u_max") + N_INPUTS].tolist()
+    cost = (sums[:, _slot("cost")] / 2).tolist()
+    peaks, finals = peak.tolist(), e_last.tolist()
+    regulated = [(i, name) for i, name in enumerate(STATE_NAMES) if name in set(regulated_states)]
+    out = []
+    for b in range(B):
+        def settling(i):
+            if settle[b][i] == SETTLE_PENDING or status[b] != "ok":
+                return None
+            return 0.0 if settle[b][i] == SETTLE_NONE else settled_at[b][i]
+
+        c = cost[b]
+        out.append({
+            "settling_time": {name: settling(i) for i, name in regulated},
+            "overshoot": {name: None if no_initial[b][i] else over[b][i] for i, name in regulated},
+            "peak_error": dict(zip(STATE_NAMES, peaks[b])), "final_error": dict(zip(STATE_NAMES, finals[b])),
+            "peak": dict(zip(INPUT_NAMES, u_max[b])), "cost": c if math.isfinite(c) else None,
+            "status": status[b]})
+    return out
+
+
+def tracking(sums: np.ndarray, legs: int) -> dict:
+    """A run's position tracking error (m: ``rms``, ``peak``) and, for a mission, the time each of
+    its ``legs`` waypoints was reached (s, or None), from its lane sums (n_sums,)."""
+    n = sums[_slot("records")]
+    reached = [None if r < 0 else float(r) for r in sums[_slot("reached"):_slot("reached") + legs]]
+    return {"rms": float(math.sqrt(sums[_slot("track_sq")] / n)), "peak": float(sums[_slot("track_max")]),
+            "reached": reached}
