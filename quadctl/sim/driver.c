@@ -40,13 +40,16 @@
 #define QC_EXO_FIRST(l) lane_i[4 * QC_L + (l)]  /* absolute index of the first exogenous row given */
 #define QC_EXO_N(l) lane_i[5 * QC_L + (l)]      /* exogenous rows given */
 
-/* the exogenous row of absolute step kk: sample floor(kk dt / period), as quadctl.noise counts */
+/* the exogenous row of absolute step kk: sample floor(kk dt / period), as quadctl.noise counts;
+ * *held is the row lane l holds in e (-1: none), not copied again (a row lasts many steps) */
 static void qc_exo_row(const double* exo, long exo_rows, const double* lane_d, const long* lane_i,
-                       int l, long kk, double* e) {
+                       int l, long kk, double* e, long* held) {
   if (QC_NE == 0 || exo == NULL) return;
   long j = (long)floor((double)kk * QC_DT(l) / QC_PERIOD(l) + 1e-9) - QC_EXO_FIRST(l);
   if (j > QC_EXO_N(l) - 1) j = QC_EXO_N(l) - 1;
   if (j < 0) j = 0;
+  if (j == *held) return;
+  *held = j;
   const double* row = exo + ((long)l * exo_rows + j) * QC_NE;
   for (int i = 0; i < QC_NE; ++i) e[i * QC_L + l] = row[i];
 }
@@ -84,8 +87,9 @@ static void qc_metric_init(const long* mq, double* macc) {
 }
 
 /* one record of the lanes with on[l] != 0: absolute step kk[l] at time t[l], state X, input U,
- * reference R (each [.][QC_L]) */
-static void qc_metric(const long* mq, const double* mv, double* macc, const int* on, const long* kk,
+ * reference R (each [.][QC_L]); every loop runs over the lanes, a lane that does not record keeps
+ * its sums (so the compiler vectorizes them) */
+static void qc_metric(const long* mq, const double* mv, double* macc, const int* on_, const long* kk_,
                       const double* t, const double* X, const double* U, const double* R) {
   const long nq = mq[0], *qi = mq + 1, *qj = mq + 1 + nq;
   const long nr = mq[1 + 2 * nq], *ri = mq + 2 + 2 * nq, *rj = mq + 2 + 2 * nq + nr;
@@ -93,58 +97,91 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
   const double* q = mv + QC_NU * QC_L;
   const double* r = q + nq * QC_L;
   const double* legs = r + nr * QC_L;  /* tolerance, then 4 rows a leg */
+  double e[QC_NS * QC_L], du[QC_NU * QC_L], on[QC_L], first[QC_L], kk[QC_L], iq[QC_L], ir[QC_L];
+  double* n_rec = macc + QC_NREC * QC_L;
   for (int l = 0; l < QC_L; ++l) {
-    if (!on[l]) continue;
-    double e[QC_NS], du[QC_NU];
-    int first = macc[QC_NREC * QC_L + l] == 0.0;
-    for (int i = 0; i < QC_NS; ++i) {
+    on[l] = on_[l] ? 1.0 : 0.0;
+    first[l] = on_[l] && n_rec[l] == 0.0 ? 1.0 : 0.0;
+    kk[l] = (double)kk_[l];
+    iq[l] = 0.0;
+    ir[l] = 0.0;
+  }
+  for (int i = 0; i < QC_NS; ++i) {
+    double *e0 = macc + QC_SLOT(QC_E0, i), *e_last = macc + QC_SLOT(QC_ELAST, i);
+    double *e_min = macc + QC_SLOT(QC_EMIN, i), *e_max = macc + QC_SLOT(QC_EMAX, i);
+    double *peak = macc + QC_SLOT(QC_PEAK, i), *settle = macc + QC_SLOT(QC_SETTLE, i);
+#pragma omp simd
+    for (int l = 0; l < QC_L; ++l) {
       double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
-      e[i] = v;
-      if (first) macc[QC_SLOT(QC_E0, i) + l] = v;
-      macc[QC_SLOT(QC_ELAST, i) + l] = v;
-      macc[QC_SLOT(QC_EMIN, i) + l] = qc_nanmin(macc[QC_SLOT(QC_EMIN, i) + l], v);
-      macc[QC_SLOT(QC_EMAX, i) + l] = qc_nanmax(macc[QC_SLOT(QC_EMAX, i) + l], v);
+      int o = on[l] != 0.0;
+      e[i * QC_L + l] = v;
+      e0[l] = first[l] != 0.0 ? v : e0[l];
+      e_last[l] = o ? v : e_last[l];
+      e_min[l] = o ? qc_nanmin(e_min[l], v) : e_min[l];
+      e_max[l] = o ? qc_nanmax(e_max[l], v) : e_max[l];
       /* settling against the largest |e| so far: exact for the whole run, since the record that
-         sets the final peak is outside its band and every later record sees the final band */
-      double peak = qc_nanmax(macc[QC_SLOT(QC_PEAK, i) + l], a);
-      macc[QC_SLOT(QC_PEAK, i) + l] = peak;
-      double band = QC_BAND * peak > QC_FLOOR ? QC_BAND * peak : QC_FLOOR;
-      double* settle = macc + QC_SLOT(QC_SETTLE, i) + l;
-      if (a > band) *settle = QC_SETTLE_PENDING;
-      else if (*settle == QC_SETTLE_PENDING) *settle = (double)kk[l];
+         sets the final largest is outside its own band and every later record sees the final band */
+      double p = qc_nanmax(peak[l], a);
+      double band = QC_BAND * p > QC_FLOOR ? QC_BAND * p : QC_FLOOR;
+      double s = a > band ? QC_SETTLE_PENDING : (settle[l] == QC_SETTLE_PENDING ? kk[l] : settle[l]);
+      peak[l] = o ? p : peak[l];
+      settle[l] = o ? s : settle[l];
     }
-    for (int j = 0; j < QC_NU; ++j) {
-      du[j] = U[j * QC_L + l] - mv[j * QC_L + l];
-      macc[(QC_UMAX + j) * QC_L + l] = qc_nanmax(macc[(QC_UMAX + j) * QC_L + l], fabs(U[j * QC_L + l]));
+  }
+  for (int j = 0; j < QC_NU; ++j) {
+    double* u_max = macc + (QC_UMAX + j) * QC_L;
+#pragma omp simd
+    for (int l = 0; l < QC_L; ++l) {
+      du[j * QC_L + l] = U[j * QC_L + l] - mv[j * QC_L + l];
+      u_max[l] = on[l] != 0.0 ? qc_nanmax(u_max[l], fabs(U[j * QC_L + l])) : u_max[l];
     }
-    /* e' Q e + du' R du, term by term over the nonzeros in row-major order (quadctl.metrics._quadratic) */
-    double iq = 0.0, ir = 0.0;
-    for (long k = 0; k < nq; ++k) iq += e[qi[k]] * e[qj[k]] * q[k * QC_L + l];
-    for (long k = 0; k < nr; ++k) ir += du[ri[k]] * du[rj[k]] * r[k * QC_L + l];
-    double integrand = iq + ir;
-    if (!first)
-      macc[QC_COST * QC_L + l] += (integrand + macc[QC_ILAST * QC_L + l]) * (t[l] - macc[QC_TLAST * QC_L + l]);
-    macc[QC_ILAST * QC_L + l] = integrand;
-    macc[QC_TLAST * QC_L + l] = t[l];
-    macc[QC_NREC * QC_L + l] += 1.0;
-    if (!track) continue;
-    double d2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2], d = sqrt(d2);
-    macc[QC_TRACK2 * QC_L + l] += d * d;
-    macc[QC_TRACKMAX * QC_L + l] = qc_nanmax(macc[QC_TRACKMAX * QC_L + l], d);
-    /* quadctl.trajectory.waypoint_times: a leg counts from its start and from the last leg reached
-       before it; a leg reached (for now) clears the later legs' earlier hits */
-    double tol = legs[l];
-    for (long m = 0; m < n_legs; ++m) {
-      const double* leg = legs + (1 + 4 * m) * QC_L + l;
-      double* reached = macc + (QC_REACHED + m) * QC_L + l;
-      if (*reached >= 0.0 || t[l] < leg[0]) continue;
-      double dx = X[0 * QC_L + l] - leg[1 * QC_L], dy = X[1 * QC_L + l] - leg[2 * QC_L],
-             dz = X[2 * QC_L + l] - leg[3 * QC_L];
-      if (sqrt(dx * dx + dy * dy + dz * dz) <= tol) {
-        *reached = t[l];
-        for (long n = m + 1; n < n_legs; ++n)
-          if (macc[(QC_REACHED + n) * QC_L + l] < t[l]) macc[(QC_REACHED + n) * QC_L + l] = -1.0;
-      }
+  }
+  /* e' Q e + du' R du, term by term over the nonzeros in row-major order (quadctl.metrics._quadratic) */
+  for (long k = 0; k < nq; ++k)
+#pragma omp simd
+    for (int l = 0; l < QC_L; ++l) iq[l] += e[qi[k] * QC_L + l] * e[qj[k] * QC_L + l] * q[k * QC_L + l];
+  for (long k = 0; k < nr; ++k)
+#pragma omp simd
+    for (int l = 0; l < QC_L; ++l) ir[l] += du[ri[k] * QC_L + l] * du[rj[k] * QC_L + l] * r[k * QC_L + l];
+  double *cost = macc + QC_COST * QC_L, *i_last = macc + QC_ILAST * QC_L, *t_last = macc + QC_TLAST * QC_L;
+#pragma omp simd
+  for (int l = 0; l < QC_L; ++l) {
+    double integrand = iq[l] + ir[l];
+    int o = on[l] != 0.0;
+    cost[l] = o && first[l] == 0.0 ? cost[l] + (integrand + i_last[l]) * (t[l] - t_last[l]) : cost[l];
+    i_last[l] = o ? integrand : i_last[l];
+    t_last[l] = o ? t[l] : t_last[l];
+    n_rec[l] += on[l];
+  }
+  if (!track) return;
+  double *sq = macc + QC_TRACK2 * QC_L, *top = macc + QC_TRACKMAX * QC_L;
+#pragma omp simd
+  for (int l = 0; l < QC_L; ++l) {
+    double d = sqrt(e[0 * QC_L + l] * e[0 * QC_L + l] + e[1 * QC_L + l] * e[1 * QC_L + l]
+                    + e[2 * QC_L + l] * e[2 * QC_L + l]);
+    int o = on[l] != 0.0;
+    sq[l] = o ? sq[l] + d * d : sq[l];
+    top[l] = o ? qc_nanmax(top[l], d) : top[l];
+  }
+  /* quadctl.trajectory.waypoint_times: a leg counts from its start and from the last leg reached
+     before it; a leg reached (for now) clears the later legs' earlier hits */
+  const double* tol = legs;
+  for (long m = 0; m < n_legs; ++m) {
+    const double* leg = legs + (1 + 4 * m) * QC_L;
+    double* reached = macc + (QC_REACHED + m) * QC_L;
+    double hit[QC_L];
+#pragma omp simd
+    for (int l = 0; l < QC_L; ++l) {
+      double dx = X[0 * QC_L + l] - leg[1 * QC_L + l], dy = X[1 * QC_L + l] - leg[2 * QC_L + l],
+             dz = X[2 * QC_L + l] - leg[3 * QC_L + l];
+      int h = on[l] != 0.0 && reached[l] < 0.0 && t[l] >= leg[l] && sqrt(dx * dx + dy * dy + dz * dz) <= tol[l];
+      hit[l] = h ? 1.0 : 0.0;
+      reached[l] = h ? t[l] : reached[l];
+    }
+    for (long n = m + 1; n < n_legs; ++n) {
+      double* later = macc + (QC_REACHED + n) * QC_L;
+#pragma omp simd
+      for (int l = 0; l < QC_L; ++l) later[l] = hit[l] != 0.0 && later[l] < t[l] ? -1.0 : later[l];
     }
   }
 }
@@ -163,7 +200,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
   double X[QC_NX * QC_L], XN[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
   double U[QC_NU * QC_L], UH[QC_NU * QC_L], UF[QC_NU * QC_L], T[QC_L], DT[QC_L], E[QC_NE1 * QC_L];
   double XR[QC_NS * QC_L];
-  long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L];
+  long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L];
   int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
   if (mq) qc_metric_init(mq, macc);
   memcpy(X, x0, sizeof X);
@@ -174,7 +211,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
   memset(UF, 0, sizeof UF);
   (void)XS; (void)hold_in;
   for (int l = 0; l < QC_L; ++l) {
-    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = 0; done[l] = 0;
+    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = 0; done[l] = 0; held[l] = -1;
     rec_in[l] = qc_mod(-QC_K0(l), QC_STRIDE(l));   /* steps until the next recorded one */
     hold_in[l] = qc_mod(-QC_K0(l), QC_HOLD(l));    /* steps until the next controller sample */
     DT[l] = QC_DT(l);
@@ -187,7 +224,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
       T[l] = QC_DT(l) * (double)(QC_K0(l) + k);
       bad[l] = 0.0;
       rec |= active[l] && rec_in[l] == 0;
-      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, E);
+      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, E, held + l);
     }
 #if QC_HELD
     int sample = 0;
@@ -261,7 +298,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
   for (int l = 0; l < QC_L; ++l) {
     long last = QC_K0(l) + done[l];
     T[l] = QC_DT(l) * (double)last;
-    qc_exo_row(exo, exo_rows, lane_d, lane_i, l, last > 0 ? last - 1 : 0, E);
+    qc_exo_row(exo, exo_rows, lane_d, lane_i, l, last > 0 ? last - 1 : 0, E, held + l);
   }
   qc_law(XF, T, c, E, U, XS);
   for (int l = 0; l < QC_L; ++l) {
@@ -284,7 +321,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
     for (int l = 0; l < QC_L; ++l) {
       kk[l] = QC_K0(l) + done[l];
       on[l] = 1;
-      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk[l], E);
+      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk[l], E, held + l);
     }
     qc_ref(T, c, E, XR);
     qc_metric(mq, mv, macc, on, kk, T, XF, U, XR);

@@ -51,9 +51,11 @@ second two cores manage it is already a 20-minute run; ``samples: 1000000000`` w
 memory before the first case ran."""
 MC_PARAMETER = ("simulation", "noise", "seed")
 """The key path of a Monte Carlo over noise seeds: one kind of uncertainty study (see :func:`plant_side`)."""
-RUN_KEYS = (("simulation", "duration"), ("simulation", "dt"), ("simulation", "max_samples"))
-"""Keys under ``simulation.`` that set the run (its length, step, records), not the vehicle or its
-environment: a sweep of them is no uncertainty study (its trajectories would not share a grid)."""
+RUN_KEYS = (("simulation", "duration"), ("simulation", "dt"), ("simulation", "max_samples"),
+            ("simulation", "reference"))
+"""Keys under ``simulation.`` that set the run (its length, step, records, the reference it is
+commanded to fly), not the vehicle or its environment: a sweep of them is no uncertainty study
+(its trajectories would not share a grid, or fly different commands)."""
 
 
 def plant_side(keys: tuple, rotor_lag: str = "ignore", trim_wind: bool = False, estimator=None) -> bool:
