@@ -96,7 +96,9 @@ def feedforward(path: FlatPath, params) -> tuple[np.ndarray, np.ndarray]:
     TrimError
         No roll, pitch and thrust produce the path's acceleration (Newton did not converge).
     """
-    balance, feed = _functions()
+    from quadctl.sim.mapped import mapped
+
+    balance, feed = (mapped(fn) for fn in _functions())  # compiled over the points (CasADi's map without a compiler)
     n = len(path.t)
     P = path.position
     s = np.vstack([P[1].T, path.yaw[0][None], P[2].T])
@@ -104,23 +106,22 @@ def feedforward(path: FlatPath, params) -> tuple[np.ndarray, np.ndarray]:
     sdd = np.vstack([P[3].T, path.yaw[2][None], P[4].T])
     params = np.asarray(params, dtype=float)
     z = np.tile(np.array([[0.0], [0.0], [params[MASS] * params[GRAVITY]]]), (1, n))  # start at hover thrust
-    bal = balance.map(n)
+    s, sd, sdd, z = s.T, sd.T, sdd.T, z.T  # a row a point
     for _ in range(MAX_ITER):
-        G, J = (np.asarray(m, dtype=float) for m in bal(z, s, params))
-        resid = np.abs(G).max(axis=0)
+        G, J = balance(z, s, params)
+        resid = np.abs(G).max(axis=1)
         if resid.max() <= NEWTON_TOL:
             break
-        jac = J.reshape(3, n, 3).transpose(1, 0, 2)  # map stacks the (3, 3) blocks side by side
-        step = np.linalg.solve(jac, -G.T[:, :, None])[:, :, 0].T
-        z = z + step
+        jac = J.reshape(n, 3, 3).transpose(0, 2, 1)  # each point's (3, 3) column-major
+        z = z + np.linalg.solve(jac, -G[:, :, None])[:, :, 0]
     else:
         worst = int(np.argmax(resid))
         raise TrimError(
             f"simulation.reference: no roll, pitch and thrust fly the reference at t = {path.t[worst]:.4g} s "
             f"(acceleration {_fmt(P[2][worst])} m/s^2 at velocity {_fmt(P[1][worst])} m/s); lower "
             "simulation.reference.speed or space the waypoints further apart")
-    x, u = feed.map(n)(z, s, sd, sdd, P[0].T, params)
-    return np.asarray(x, dtype=float).T.reshape(n, N_STATES), np.asarray(u, dtype=float).T.reshape(n, N_INPUTS)
+    x, u = feed(z, s, sd, sdd, P[0], params)
+    return x.reshape(n, N_STATES), u.reshape(n, N_INPUTS)
 
 
 def _fmt(v) -> str:

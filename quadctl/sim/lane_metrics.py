@@ -126,14 +126,10 @@ def summaries(sums: np.ndarray, dt, regulated_states, status) -> list[dict]:
     regulated = [(i, name) for i, name in enumerate(STATE_NAMES) if name in set(regulated_states)]
     out = []
     for b in range(B):
-        def settling(i):
-            if settle[b][i] == SETTLE_PENDING or status[b] != "ok":
-                return None
-            return 0.0 if settle[b][i] == SETTLE_NONE else settled_at[b][i]
-
         c = cost[b]
         out.append({
-            "settling_time": {name: settling(i) for i, name in regulated},
+            "settling_time": {name: None if settle[b][i] == SETTLE_PENDING or status[b] != "ok" else
+                              0.0 if settle[b][i] == SETTLE_NONE else settled_at[b][i] for i, name in regulated},
             "overshoot": {name: None if no_initial[b][i] else over[b][i] for i, name in regulated},
             "peak_error": dict(zip(STATE_NAMES, peaks[b])), "final_error": dict(zip(STATE_NAMES, finals[b])),
             "peak": dict(zip(INPUT_NAMES, u_max[b])), "cost": c if math.isfinite(c) else None,

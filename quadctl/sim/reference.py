@@ -25,6 +25,7 @@ import numpy as np
 from quadctl.flatness import feedforward
 from quadctl.layout import N_STATES
 from quadctl.model import build_model
+from quadctl.sim.mapped import mapped
 from quadctl.trajectory import Reference
 
 
@@ -45,7 +46,7 @@ class FlownReference:
         j = np.asarray(j, dtype=np.int64)
         ends, where = np.unique(np.concatenate([j, j + 1]), return_inverse=True)  # a row's end: the next's start
         x, u = self.exact(ends * period)
-        rate = np.asarray(build_model().f.map(len(ends))(x.T, u.T, self.params), dtype=float).T
+        rate = mapped(build_model().f)(x, u, self.params)[0]
         a, b = where[:len(j)], where[len(j):]
         return np.hstack([(j * period)[:, None], x[a], rate[a], (rate[b] - rate[a]) / period,
                           u[a], (u[b] - u[a]) / period])
