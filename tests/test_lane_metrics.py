@@ -1,0 +1,152 @@
+"""A run's metrics summed in the SIMD lanes as they step (quadctl.sim.lane_metrics, driver.c's
+qc_metric), and a sweep over a mission's speed that gates on them, checked against independent
+computations: quadctl.metrics and quadctl.pipeline.tracking_of of the same lanes' records, and the
+one-case ``simulate`` of each case (its settling and overshoot against the reference it flew)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from quadctl import config, metrics, pipeline, sweep
+from quadctl.layout import N_STATES, STATE_INDEX
+from quadctl.problem import setup_of
+from quadctl.sim.engine import LANES, runner
+from quadctl.sim.lane_metrics import MetricSpec, case_values, summaries, tracking
+from quadctl.sweep import batched, evaluate
+
+pytestmark = pytest.mark.compiler
+
+SPEEDS = (2.0, 2.5, 3.0)
+"""m/s: the square mission's peak speed in the sweep (it ends within its 15 s at each)."""
+GATE = 3e-5
+"""m: the tracking-error gate, between the slowest and the fastest case's RMS (about 9e-6 and 5e-5)."""
+TRACK_ATOL = 1e-12
+"""m: tracking errors of ~1e-5 m are differences of positions of ~2 m: the lanes' vector sin and cos
+(libmvec, up to 4 ulp) against the one-case loop's scalar ones move them by ~1e-15 m a step, over
+~400 000 steps (a relative tolerance on a difference this small would test the round-off of the
+positions, not the metric)."""
+
+
+def square_with(speed: float):
+    data = config.load("square").model_dump(mode="json")
+    return config.from_dict(sweep.assign(data, ("simulation", "reference", "speed"), speed), "square")
+
+
+def lane_group(cfgs):
+    """The sweep's lane jobs of ``cfgs`` (one lane group), their runner and metric spec."""
+    preps = []
+    for k, cfg in enumerate(cfgs):
+        setup = setup_of(cfg)
+        preps.append(evaluate.Prepared(k, {"case": k}, setup, evaluate.plant_of(setup)))
+    live = list(zip(preps, batched.design_all(preps, {"designs": 0, "fallbacks": 0})))
+    items = [(prep, des, job) for (prep, des), job in zip(live, batched.loops_of(live))]
+    spec = items[0][2].spec
+    assert all(job.spec == spec for _, _, job in items)
+    ref = preps[0].setup.reference
+    legs = len(ref.legs) if ref is not None else 0
+    mspec = MetricSpec.of(preps[0].setup.Q_block, preps[0].setup.R_block, ref is not None, legs)
+    values = np.stack([case_values(mspec, p.plant.linear.u_trim, p.setup.Q_block, p.setup.R_block,
+                                   *((ref.tolerance, p.setup.reference.legs) if legs else ())) for p in preps])
+    return items, runner(spec, LANES), batched._cases_of(spec, items), mspec, values
+
+
+@pytest.mark.parametrize("which", ["forward", "square"])
+def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
+    """Summed in the lanes (nothing stored) or computed by quadctl.metrics and tracking_of from the
+    records the same lanes keep: the same numbers (the cost to round-off of its summation order)."""
+    if which == "forward":
+        base = config.load("forward").model_dump(mode="json")
+        cfgs = [config.from_dict(sweep.assign(sweep.assign(base, ("lqr", "roll", "Q", 1), q),
+                                              ("simulation", "duration"), 0.15), "forward") for q in (10.0, 200.0)]
+    else:
+        cfgs = [square_with(s) for s in SPEEDS]
+    items, run, cases, mspec, values = lane_group(cfgs)
+    assert run.backend == "compiled-simd"
+    recorded = run.run(cases)
+    summed = [(done, k_end, x_end.copy(), sums.copy())
+              for _, done, k_end, x_end, _, sums in run.iter_summaries(cases, mspec, values)]
+    for (prep, _, job), (done, ks, xs, us), (done2, k_end, x_end, sums) in zip(items, recorded, summed):
+        setup, linear = prep.setup, prep.plant.linear
+        assert (done2, k_end) == (done, ks[-1]) and done == job.plan.n_steps
+        np.testing.assert_array_equal(x_end, xs[-1])
+        t, x = job.plan.dt * ks, xs[:, :N_STATES]
+        if setup.reference is None:
+            x_ref = linear.x_trim + np.outer(t, linear.x_rate)
+        else:  # the reference the rows tabulate, evaluated in Python at each record's row
+            flown = pipeline.flown_reference(setup)
+            rows = flown.rows(np.floor(ks * job.plan.dt / job.exo_period + 1e-9).astype(np.int64), job.exo_period)
+            x_ref = flown.flown(rows, t)[0]
+        want = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,
+                                 setup.regulated)
+        got = summaries(sums[None], [job.plan.dt], setup.regulated, ["ok"])[0]
+        for key in ("settling_time", "overshoot", "peak"):
+            assert got[key].keys() == want[key].keys()
+            for name, value in want[key].items():
+                assert got[key][name] == (None if value is None else pytest.approx(value, rel=1e-12, abs=1e-15)), \
+                    (key, name)
+        assert got["cost"] == pytest.approx(want["cost"], rel=1e-12)
+        if setup.reference is not None:
+            track = pipeline.tracking_of(setup.reference, t, x, x_ref)
+            lanes = tracking(sums, len(setup.reference.legs))
+            assert lanes["rms"] == pytest.approx(track["position_error"]["rms"], rel=1e-12)
+            assert lanes["peak"] == track["position_error"]["peak"]
+            assert lanes["reached"] == [w["reached"] for w in track["waypoints"]]
+
+
+class _Run:
+    """The fields of a SimResult that metrics.summarize reads."""
+
+    def __init__(self, t, x, u, x_ref, status):
+        self.t, self.x, self.u, self.x_ref, self.status = t, x, u, x_ref, status
+
+
+@pytest.fixture(scope="module")
+def speed_sweep():
+    cfg = config.load("square")
+    spec = sweep.from_dict({"parameters": {"simulation.reference.speed": list(SPEEDS)},
+                            "gates": {"tracking.rms": {"max": GATE}}}, cfg, "square-speed.yaml")
+    assert not spec.monte_carlo  # a reference is the run's command: no trajectories kept
+    result = sweep.run(cfg, spec, jobs=1)
+    ones = []
+    for speed in SPEEDS:  # each case alone, as `quadctl simulate` runs it
+        setup = setup_of(square_with(speed))
+        stages = pipeline.Stages(setup)
+        sim = pipeline.simulation_of(setup, stages.loop)
+        ones.append((setup, stages, sim))
+    return result, ones
+
+
+def test_a_sweep_over_a_missions_speed_gates_on_the_one_case_tracking_error(speed_sweep):
+    result, ones = speed_sweep
+    assert {r["path"] for r in result.rows} == {"batched"} and result.stats["backend"] == ["compiled-simd"]
+    for row, (setup, _, sim) in zip(result.rows, ones):
+        track = pipeline.tracking_summary(setup, sim)
+        assert row["tracking.rms"] == pytest.approx(track["position_error"]["rms"], rel=1e-9, abs=TRACK_ATOL)
+        assert row["tracking.peak"] == pytest.approx(track["position_error"]["peak"], rel=1e-9, abs=TRACK_ATOL)
+        assert row["waypoints.reached"] == sum(w["reached"] is not None for w in track["waypoints"]) == 4
+        assert row["pass"] == (track["position_error"]["rms"] <= GATE)
+        assert row["status"] == sim.status == "ok" and row["steps"] == sim.steps
+    assert [r["pass"] for r in result.rows] == [True, True, False]  # the gate splits the cases
+    assert "tracking.rms <= 3e-05" in result.rows[-1]["failed_gates"]
+
+
+def test_a_mission_sweeps_settling_and_overshoot_are_against_the_reference(speed_sweep):
+    """The settling and overshoot columns measure the state against the reference it flew (the
+    one-case run's ``x - x_ref``), not against the trim it started from."""
+    result, ones = speed_sweep
+    for row, (setup, stages, sim) in zip(result.rows, ones):
+        against_trim = 0
+        for name in setup.regulated:
+            i = STATE_INDEX[name]
+            want = metrics.settling_time(sim.t, sim.x[:, i] - sim.x_ref[:, i])
+            assert row[f"settling_time.{name}"] == (None if want is None else pytest.approx(want, rel=1e-9)), name
+            over = metrics.overshoot(sim.x[:, i] - sim.x_ref[:, i])
+            assert row[f"overshoot.{name}"] == (None if over is None else pytest.approx(over, rel=1e-6, abs=1e-6))
+            trim = metrics.settling_time(sim.t, sim.x[:, i] - stages.linear.x_trim[i])
+            got = row[f"settling_time.{name}"]
+            against_trim += (trim is None) != (got is None) or (got is not None and not math.isclose(trim, got,
+                                                                                                    rel_tol=1e-9))
+        assert against_trim >= 3  # the positions (and more) settle elsewhere measured from the trim
