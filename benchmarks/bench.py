@@ -19,7 +19,9 @@
 2. A sweep of 1000 random designs (benchmarks/random-1000.yaml, no two alike) x 10 000 RK4 steps:
    on both cores, on one, through the command line, and the one-case-at-a-time pipeline; and a
    sweep of 1000 random designs of mambo-200hz (benchmarks/mambo-1000.yaml: 200 Hz discrete
-   design, rotors, LQI, noise; 2 000 steps each), the configs that fly, at the same lane speed.
+   design, rotors, LQI, noise; 2 000 steps each), the configs that fly, at the same lane speed; and a
+   sweep of the bundled square mission over its speed (benchmarks/square-speed.yaml: 48 cases, each
+   its own reference, a tracking-error gate), at the same lane speed.
 3. The LQR designs of that sweep (4000 small subsystems): quadctl's batched solver against a
    Python loop over scipy.linalg.solve_continuous_are.
 4. quadctl.lqr.lqr on one larger random system (n = 10, 50, 100, 200) against
@@ -56,6 +58,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 SWEEP_FILE = HERE / "random-1000.yaml"
 FLYING_SWEEP_FILE = HERE / "mambo-1000.yaml"
+MISSION_SWEEP_FILE = HERE / "square-speed.yaml"
 DURATION = 10.0       # s
 DT = 1e-5             # s: 1 000 000 RK4 steps
 REPEAT = 5
@@ -394,6 +397,40 @@ def the_flying_sweep(plain: list | None = None) -> str:
                   "designs redone one by one"], rows) + "\n\n" + "; ".join(notes)
 
 
+def the_mission_sweep(plain: list | None = None) -> str:
+    """Sweep 2b: the square mission over its speed in the lanes (each case its own reference and
+    feedforward, the tracking error summed in the lanes); with ``plain`` (the plain sweep's ``[cfg,
+    spec]``) also alternated with it on both cores, for their ratio."""
+    import dataclasses
+
+    from quadctl import config, sweep
+
+    cfg = config.load("square")
+    spec = sweep.load(MISSION_SWEEP_FILE, cfg)
+    sweep.run(cfg, dataclasses.replace(spec, samples=2), jobs=1)  # warm: imports, lane and map libraries
+    rows, notes = [], []
+    for jobs in (2, 1):
+        wall, result = timed(lambda j=jobs: sweep.run(cfg, spec, jobs=j), repeat=3)
+        st = result.stats
+        passed = sum(r["pass"] for r in result.rows)
+        rows.append([f"quadctl sweep, library, --jobs {jobs}", f"{wall:.2f}", f"{st['steps'] / wall / 1e6:.2f} M",
+                     f"{len(result.rows) / wall:,.1f}", f"{st['steps'] / len(result.rows):,.0f}",
+                     f"{passed} of {len(result.rows)}"])
+    if plain:
+        best = {"plain": 0.0, "mission": 0.0}
+        for _ in range(ALTERNATED // 2):
+            for which, (c, s) in (("plain", plain), ("mission", (cfg, spec))):
+                wall, result = timed(lambda c=c, s=s: sweep.run(c, s, jobs=2))
+                best[which] = max(best[which], result.stats["steps"] / wall)
+        notes.append(f"simulated steps/s on both cores against the plain (forward) sweep's, best of "
+                     f"{ALTERNATED // 2} runs of each, alternated: {best['mission'] / 1e6:.2f} M / "
+                     f"{best['plain'] / 1e6:.2f} M = {best['mission'] / best['plain']:.2f}")
+    return table(f"Sweep: the square mission at {spec.count()} random speeds (benchmarks/square-speed.yaml: a "
+                 "reference and its feedforward per case, gated on the tracking error; best of 3)",
+                 ["run", "wall (s)", "simulated steps/s", "cases/s", "steps per case", "pass the gates"],
+                 rows) + ("\n\n" + "; ".join(notes) if notes else "")
+
+
 def the_sweep() -> tuple[str, list]:
     """Sweep 1: 1000 random designs of the forward config; (text, [cfg, spec])."""
     import dataclasses
@@ -572,7 +609,8 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
                  ["solver", "µs CPU per design", "time / batched"], rows)
 
 
-SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "designs", "lqr", "discrete", "figures", "schedule")
+SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "mission-sweep", "designs", "lqr", "discrete",
+            "figures", "schedule")
 """What ``--only`` may name: the numbered sections of the module docstring (the designs are the
 plain sweep's)."""
 
@@ -706,6 +744,8 @@ def main() -> None:
         print(text)
     if "flying-sweep" in only:
         print(the_flying_sweep(cfg_spec))
+    if "mission-sweep" in only:
+        print(the_mission_sweep(cfg_spec))
     if "designs" in only:
         if cfg_spec is None:
             from quadctl import config, sweep

@@ -105,7 +105,8 @@ class SweepStore:
             payload["traces"] = {"states": list(self.trace), "points": MC_POINTS, "dtype": "<f4",
                                  "cases": {str(k): base64.b64encode(np.ascontiguousarray(v, "<f4").tobytes())
                                            .decode("ascii") for k, v in traces.items()}}
-        return artifacts.write_json(self.parts / f"chunk-{first:07d}.json", payload)
+        # compact: a journal read back by --resume, not a file to read (1000 rows: 0.2 s indented)
+        return artifacts.write_json(self.parts / f"chunk-{first:07d}.json", payload, indent=None)
 
     def _decode(self, path: Path, block) -> dict[int, np.ndarray]:
         """A chunk's trajectories, checked to have this sweep's layout."""
