@@ -47,7 +47,8 @@ def lane_group(cfgs):
     assert all(job.spec == spec for _, _, job in items)
     ref = preps[0].setup.reference
     legs = len(ref.legs) if ref is not None else 0
-    mspec = MetricSpec.of(preps[0].setup.Q_block, preps[0].setup.R_block, ref is not None, legs)
+    mspec = MetricSpec.of(preps[0].setup.regulated, preps[0].setup.Q_block, preps[0].setup.R_block, ref is not None,
+                          legs)
     values = np.stack([case_values(mspec, p.plant.linear.u_trim, p.setup.Q_block, p.setup.R_block,
                                    *((ref.tolerance, p.setup.reference.legs) if legs else ())) for p in preps])
     return items, runner(spec, LANES), batched._cases_of(spec, items), mspec, values

@@ -69,12 +69,19 @@ enum { QC_E0, QC_ELAST, QC_EMIN, QC_EMAX, QC_PEAK, QC_SETTLE, QC_PER_STATE };
 static double qc_nanmax(double a, double b) { return (b > a || b != b) ? b : a; }  /* numpy's max: NaN wins */
 static double qc_nanmin(double a, double b) { return (b < a || b != b) ? b : a; }
 
-/* mq: [n_q, q_i[n_q], q_j[n_q], n_r, r_i[n_r], r_j[n_r], n_legs, track];
+/* mq: [n_s, s[n_s], n_q, q_i[n_q], q_j[n_q], n_r, r_i[n_r], r_j[n_r], n_legs, track]: the states
+ * summarized (every state the weights or the tracking error read among them), the weights'
+ * nonzeros, the mission's legs and whether to sum the position error;
  * mv [rows][QC_L]: u_trim[QC_NU], q[n_q], r[n_r], tolerance, then per leg start, N, E, D. */
+#define QC_MQ_Q(mq) ((mq) + 1 + (mq)[0])
+#define QC_MQ_R(mq) (QC_MQ_Q(mq) + 1 + 2 * QC_MQ_Q(mq)[0])
+#define QC_MQ_LEGS(mq) (QC_MQ_R(mq) + 1 + 2 * QC_MQ_R(mq)[0])
 static void qc_metric_init(const long* mq, double* macc) {
-  const long nq = mq[0], nr = mq[1 + 2 * nq], n_legs = mq[2 + 2 * nq + 2 * nr];
+  const long n_legs = QC_MQ_LEGS(mq)[0];
   for (int l = 0; l < QC_L; ++l) {
     for (int i = 0; i < QC_NS; ++i) {
+      macc[QC_SLOT(QC_E0, i) + l] = NAN;  /* a state not summarized reads NaN */
+      macc[QC_SLOT(QC_ELAST, i) + l] = NAN;
       macc[QC_SLOT(QC_EMIN, i) + l] = INFINITY;
       macc[QC_SLOT(QC_EMAX, i) + l] = -INFINITY;
       macc[QC_SLOT(QC_PEAK, i) + l] = 0.0;
@@ -87,27 +94,31 @@ static void qc_metric_init(const long* mq, double* macc) {
 }
 
 /* one record of the lanes with on[l] != 0: absolute step kk[l] at time t[l], state X, input U,
- * reference R (each [.][QC_L]); every loop runs over the lanes, a lane that does not record keeps
- * its sums (so the compiler vectorizes them) */
+ * reference R (each [.][QC_L]); final: the run's last record (its error is kept). Every loop runs
+ * over the lanes, a lane that does not record keeps its sums (so the compiler vectorizes them). */
 static void qc_metric(const long* mq, const double* mv, double* macc, const int* on_, const long* kk_,
-                      const double* t, const double* X, const double* U, const double* R) {
-  const long nq = mq[0], *qi = mq + 1, *qj = mq + 1 + nq;
-  const long nr = mq[1 + 2 * nq], *ri = mq + 2 + 2 * nq, *rj = mq + 2 + 2 * nq + nr;
-  const long n_legs = mq[2 + 2 * nq + 2 * nr], track = mq[3 + 2 * nq + 2 * nr];
+                      const double* t, const double* X, const double* U, const double* R, int final) {
+  const long ns = mq[0], *st = mq + 1;
+  const long* mqq = QC_MQ_Q(mq), *mqr = QC_MQ_R(mq), *mql = QC_MQ_LEGS(mq);
+  const long nq = mqq[0], *qi = mqq + 1, *qj = mqq + 1 + nq;
+  const long nr = mqr[0], *ri = mqr + 1, *rj = mqr + 1 + nr;
+  const long n_legs = mql[0], track = mql[1];
   const double* q = mv + QC_NU * QC_L;
   const double* r = q + nq * QC_L;
   const double* legs = r + nr * QC_L;  /* tolerance, then 4 rows a leg */
   double e[QC_NS * QC_L], du[QC_NU * QC_L], on[QC_L], first[QC_L], kk[QC_L], iq[QC_L], ir[QC_L];
   double* n_rec = macc + QC_NREC * QC_L;
+  int any_first = 0;
   for (int l = 0; l < QC_L; ++l) {
     on[l] = on_[l] ? 1.0 : 0.0;
     first[l] = on_[l] && n_rec[l] == 0.0 ? 1.0 : 0.0;
+    any_first |= first[l] != 0.0;
     kk[l] = (double)kk_[l];
     iq[l] = 0.0;
     ir[l] = 0.0;
   }
-  for (int i = 0; i < QC_NS; ++i) {
-    double *e0 = macc + QC_SLOT(QC_E0, i), *e_last = macc + QC_SLOT(QC_ELAST, i);
+  for (long a = 0; a < ns; ++a) {
+    const long i = st[a];
     double *e_min = macc + QC_SLOT(QC_EMIN, i), *e_max = macc + QC_SLOT(QC_EMAX, i);
     double *peak = macc + QC_SLOT(QC_PEAK, i), *settle = macc + QC_SLOT(QC_SETTLE, i);
 #pragma omp simd
@@ -115,8 +126,6 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
       double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
       int o = on[l] != 0.0;
       e[i * QC_L + l] = v;
-      e0[l] = first[l] != 0.0 ? v : e0[l];
-      e_last[l] = o ? v : e_last[l];
       e_min[l] = o ? qc_nanmin(e_min[l], v) : e_min[l];
       e_max[l] = o ? qc_nanmax(e_max[l], v) : e_max[l];
       /* settling against the largest |e| so far: exact for the whole run, since the record that
@@ -126,6 +135,14 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
       double s = a > band ? QC_SETTLE_PENDING : (settle[l] == QC_SETTLE_PENDING ? kk[l] : settle[l]);
       peak[l] = o ? p : peak[l];
       settle[l] = o ? s : settle[l];
+    }
+    if (any_first) {
+      double* e0 = macc + QC_SLOT(QC_E0, i);
+      for (int l = 0; l < QC_L; ++l) e0[l] = first[l] != 0.0 ? e[i * QC_L + l] : e0[l];
+    }
+    if (final) {
+      double* e_last = macc + QC_SLOT(QC_ELAST, i);
+      for (int l = 0; l < QC_L; ++l) e_last[l] = e[i * QC_L + l];
     }
   }
   for (int j = 0; j < QC_NU; ++j) {
@@ -247,7 +264,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
         kk[l] = QC_K0(l) + k;
       }
       qc_ref(T, c, E, XR);
-      qc_metric(mq, mv, macc, on, kk, T, X, UA, XR);
+      qc_metric(mq, mv, macc, on, kk, T, X, UA, XR, 0);
     }
     if (rec && keep) {
       for (int l = 0; l < QC_L; ++l) {
@@ -324,6 +341,6 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
       qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk[l], E, held + l);
     }
     qc_ref(T, c, E, XR);
-    qc_metric(mq, mv, macc, on, kk, T, XF, U, XR);
+    qc_metric(mq, mv, macc, on, kk, T, XF, U, XR, 1);
   }
 }

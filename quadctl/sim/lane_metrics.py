@@ -38,35 +38,42 @@ SCALARS = ("cost", "integrand_last", "t_last", "track_sq", "track_max", "records
 
 @dataclass(frozen=True)
 class MetricSpec:
-    """What the lanes of one group sum: the nonzeros of ``Q`` (12 x 12) and ``R`` (4 x 4), row-major
-    (the same in every case of the group), and, flying a reference, the position error and the
-    number of mission legs whose waypoint times they find.
+    """What the lanes of one group sum: the states summarized (the regulated ones, and those the
+    weights and the tracking error read), the nonzeros of ``Q`` (12 x 12) and ``R`` (4 x 4),
+    row-major (the same in every case of the group), and, flying a reference, the position error
+    and the number of mission legs whose waypoint times they find.
 
     Attributes
     ----------
+    states : tuple of int
+        Indices of the states summarized, increasing (the others' sums read NaN).
     q_pairs, r_pairs : tuple of (int, int)
     track : bool
     legs : int
     """
 
+    states: tuple[int, ...]
     q_pairs: tuple[tuple[int, int], ...]
     r_pairs: tuple[tuple[int, int], ...]
     track: bool = False
     legs: int = 0
 
     @classmethod
-    def of(cls, Q, R, track: bool = False, legs: int = 0) -> MetricSpec:
-        """The spec of weights with the sparsity of ``Q`` and ``R``."""
-        return cls(tuple(zip(*(v.tolist() for v in np.nonzero(np.asarray(Q))))),
-                   tuple(zip(*(v.tolist() for v in np.nonzero(np.asarray(R))))), bool(track), int(legs))
+    def of(cls, regulated_states, Q, R, track: bool = False, legs: int = 0) -> MetricSpec:
+        """The spec of the ``regulated_states`` (names) and weights with the sparsity of ``Q`` and ``R``."""
+        q_pairs = tuple(zip(*(v.tolist() for v in np.nonzero(np.asarray(Q)))))
+        states = {STATE_NAMES.index(name) for name in regulated_states} | {i for pair in q_pairs for i in pair}
+        states |= {0, 1, 2} if track else set()
+        return cls(tuple(sorted(states)), q_pairs, tuple(zip(*(v.tolist() for v in np.nonzero(np.asarray(R))))),
+                   bool(track), int(legs))
 
     def header(self) -> np.ndarray:
-        """``driver.c``'s ``mq``: counts and index pairs (C long)."""
+        """``driver.c``'s ``mq``: the states, counts and index pairs (C long)."""
         from quadctl.sim.cases import C_LONG
 
         q, r = np.array(self.q_pairs, dtype=int).reshape(-1, 2), np.array(self.r_pairs, dtype=int).reshape(-1, 2)
-        return np.concatenate([[len(q)], q[:, 0], q[:, 1], [len(r)], r[:, 0], r[:, 1],
-                               [self.legs, int(self.track)]]).astype(C_LONG)
+        return np.concatenate([[len(self.states)], self.states, [len(q)], q[:, 0], q[:, 1], [len(r)], r[:, 0],
+                               r[:, 1], [self.legs, int(self.track)]]).astype(C_LONG)
 
     @property
     def n_values(self) -> int:
@@ -100,7 +107,8 @@ def _slot(name: str, i: int = 0) -> int:
 
 
 def summaries(sums: np.ndarray, dt, regulated_states, status) -> list[dict]:
-    """The :func:`quadctl.metrics.summarize_errors` dicts of ``B`` runs from their lane sums.
+    """The :func:`quadctl.metrics.summarize_errors` dicts of ``B`` runs from their lane sums (a state
+    the lanes did not summarize has NaN for its ``peak_error`` and ``final_error``).
 
     Parameters
     ----------

@@ -455,7 +455,8 @@ def summarize_all(jobs):
     for item in jobs:
         setup = item[0].setup
         ref = setup.reference
-        metrics = MetricSpec.of(setup.Q_block, setup.R_block, ref is not None, len(ref.legs) if ref is not None else 0)
+        metrics = MetricSpec.of(setup.regulated, setup.Q_block, setup.R_block, ref is not None,
+                                len(ref.legs) if ref is not None else 0)
         by_spec.setdefault((item[2].spec, metrics), []).append(item)
     for (spec, metrics), group in by_spec.items():
         run = runner(spec, LANES)
