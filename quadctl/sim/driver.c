@@ -84,7 +84,7 @@ static void qc_metric_init(const long* mq, double* macc) {
       macc[QC_SLOT(QC_ELAST, i) + l] = NAN;
       macc[QC_SLOT(QC_EMIN, i) + l] = INFINITY;
       macc[QC_SLOT(QC_EMAX, i) + l] = -INFINITY;
-      macc[QC_SLOT(QC_PEAK, i) + l] = 0.0;
+      macc[QC_SLOT(QC_PEAK, i) + l] = NAN;  /* set at the final record */
       macc[QC_SLOT(QC_SETTLE, i) + l] = QC_SETTLE_NONE;
     }
     for (int j = 0; j < QC_NU; ++j) macc[(QC_UMAX + j) * QC_L + l] = 0.0;
@@ -108,11 +108,12 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
   const double* legs = r + nr * QC_L;  /* tolerance, then 4 rows a leg */
   double e[QC_NS * QC_L], du[QC_NU * QC_L], on[QC_L], first[QC_L], kk[QC_L], iq[QC_L], ir[QC_L];
   double* n_rec = macc + QC_NREC * QC_L;
-  int any_first = 0;
+  int any_first = 0, all_on = 1;
   for (int l = 0; l < QC_L; ++l) {
     on[l] = on_[l] ? 1.0 : 0.0;
     first[l] = on_[l] && n_rec[l] == 0.0 ? 1.0 : 0.0;
     any_first |= first[l] != 0.0;
+    all_on &= on_[l] != 0;
     kk[l] = (double)kk_[l];
     iq[l] = 0.0;
     ir[l] = 0.0;
@@ -120,29 +121,45 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
   for (long a = 0; a < ns; ++a) {
     const long i = st[a];
     double *e_min = macc + QC_SLOT(QC_EMIN, i), *e_max = macc + QC_SLOT(QC_EMAX, i);
-    double *peak = macc + QC_SLOT(QC_PEAK, i), *settle = macc + QC_SLOT(QC_SETTLE, i);
+    double* settle = macc + QC_SLOT(QC_SETTLE, i);
+    /* settling against the largest |e| so far (max(e_max, -e_min)): exact for the whole run, since
+       the record that sets the final largest is outside its own band and every later record sees
+       the final band */
+    if (all_on) {
 #pragma omp simd
-    for (int l = 0; l < QC_L; ++l) {
-      double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
-      int o = on[l] != 0.0;
-      e[i * QC_L + l] = v;
-      e_min[l] = o ? qc_nanmin(e_min[l], v) : e_min[l];
-      e_max[l] = o ? qc_nanmax(e_max[l], v) : e_max[l];
-      /* settling against the largest |e| so far: exact for the whole run, since the record that
-         sets the final largest is outside its own band and every later record sees the final band */
-      double p = qc_nanmax(peak[l], a);
-      double band = QC_BAND * p > QC_FLOOR ? QC_BAND * p : QC_FLOOR;
-      double s = a > band ? QC_SETTLE_PENDING : (settle[l] == QC_SETTLE_PENDING ? kk[l] : settle[l]);
-      peak[l] = o ? p : peak[l];
-      settle[l] = o ? s : settle[l];
+      for (int l = 0; l < QC_L; ++l) {
+        double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
+        e[i * QC_L + l] = v;
+        double lo = qc_nanmin(e_min[l], v), hi = qc_nanmax(e_max[l], v), p = qc_nanmax(hi, -lo);
+        double band = QC_BAND * p > QC_FLOOR ? QC_BAND * p : QC_FLOOR;
+        e_min[l] = lo;
+        e_max[l] = hi;
+        settle[l] = a > band ? QC_SETTLE_PENDING : (settle[l] == QC_SETTLE_PENDING ? kk[l] : settle[l]);
+      }
+    } else {
+#pragma omp simd
+      for (int l = 0; l < QC_L; ++l) {
+        double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
+        int o = on[l] != 0.0;
+        e[i * QC_L + l] = v;
+        double lo = qc_nanmin(e_min[l], v), hi = qc_nanmax(e_max[l], v), p = qc_nanmax(hi, -lo);
+        double band = QC_BAND * p > QC_FLOOR ? QC_BAND * p : QC_FLOOR;
+        double s = a > band ? QC_SETTLE_PENDING : (settle[l] == QC_SETTLE_PENDING ? kk[l] : settle[l]);
+        e_min[l] = o ? lo : e_min[l];
+        e_max[l] = o ? hi : e_max[l];
+        settle[l] = o ? s : settle[l];
+      }
     }
     if (any_first) {
       double* e0 = macc + QC_SLOT(QC_E0, i);
       for (int l = 0; l < QC_L; ++l) e0[l] = first[l] != 0.0 ? e[i * QC_L + l] : e0[l];
     }
     if (final) {
-      double* e_last = macc + QC_SLOT(QC_ELAST, i);
-      for (int l = 0; l < QC_L; ++l) e_last[l] = e[i * QC_L + l];
+      double *e_last = macc + QC_SLOT(QC_ELAST, i), *peak = macc + QC_SLOT(QC_PEAK, i);
+      for (int l = 0; l < QC_L; ++l) {
+        e_last[l] = e[i * QC_L + l];
+        peak[l] = qc_nanmax(e_max[l], -e_min[l]);
+      }
     }
   }
   for (int j = 0; j < QC_NU; ++j) {
