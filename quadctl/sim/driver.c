@@ -125,12 +125,12 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
     /* settling against the largest |e| so far (max(e_max, -e_min)): exact for the whole run, since
        the record that sets the final largest is outside its own band and every later record sees
        the final band */
-    if (all_on) {
+    if (all_on && !final) {  /* a record before the last is inside the bounds: no NaN */
 #pragma omp simd
       for (int l = 0; l < QC_L; ++l) {
         double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
         e[i * QC_L + l] = v;
-        double lo = qc_nanmin(e_min[l], v), hi = qc_nanmax(e_max[l], v), p = qc_nanmax(hi, -lo);
+        double lo = v < e_min[l] ? v : e_min[l], hi = v > e_max[l] ? v : e_max[l], p = hi > -lo ? hi : -lo;
         double band = QC_BAND * p > QC_FLOOR ? QC_BAND * p : QC_FLOOR;
         e_min[l] = lo;
         e_max[l] = hi;

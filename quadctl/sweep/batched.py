@@ -452,12 +452,15 @@ def summarize_all(jobs):
     from quadctl.sim.lane_metrics import MetricSpec, case_values
 
     by_spec: dict = {}
+    specs: dict[tuple, MetricSpec] = {}  # what a metric spec depends on -> the spec, once a chunk
     for item in jobs:
         setup = item[0].setup
         ref = setup.reference
-        metrics = MetricSpec.of(setup.regulated, setup.Q_block, setup.R_block, ref is not None,
-                                len(ref.legs) if ref is not None else 0)
-        by_spec.setdefault((item[2].spec, metrics), []).append(item)
+        legs = len(ref.legs) if ref is not None else 0
+        key = (setup.regulated, (setup.Q_block != 0).tobytes(), (setup.R_block != 0).tobytes(), ref is not None, legs)
+        if key not in specs:
+            specs[key] = MetricSpec.of(setup.regulated, setup.Q_block, setup.R_block, ref is not None, legs)
+        by_spec.setdefault((item[2].spec, specs[key]), []).append(item)
     for (spec, metrics), group in by_spec.items():
         run = runner(spec, LANES)
         cases = _cases_of(spec, group)
