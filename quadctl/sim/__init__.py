@@ -10,6 +10,8 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.sim.emit`: those functions as C over ``lanes`` cases at once
 - :mod:`~quadctl.sim.compile`: compile once per machine, cached in the platform's cache folder
 - :mod:`~quadctl.sim.cases`: the loop contract's inputs (:class:`Cases`) and record counts
+- :mod:`~quadctl.sim.mapped`: a CasADi function compiled over many points (a reference's rows)
+- :mod:`~quadctl.sim.lane_metrics`: a run's metrics summed in the lanes as they step, read back
 - :mod:`~quadctl.sim.native`: the compiled runner (``driver.c``: 1 lane for one case, 8 for sweeps)
 - :mod:`~quadctl.sim.interpreted`: the same loop in CasADi's virtual machine, without a compiler
 - :mod:`~quadctl.sim.engine`: :func:`runner`, the fastest runner that builds here
