@@ -8,7 +8,8 @@ nothing here imports). Modules, each importing only those above it:
 - helpers that import nothing of quadctl's or only the above: :mod:`~quadctl.messages` (values, key
   paths and hints as messages show them), :mod:`~quadctl.yamlio` (YAML read with line numbers),
   :mod:`~quadctl.escape` (text made safe per output format), :mod:`~quadctl.threads` (one BLAS
-  thread over many small matrices), :mod:`~quadctl._lazy` (modules loaded on first use)
+  thread over many small matrices), :mod:`~quadctl._lazy` (modules loaded on first use),
+  :mod:`~quadctl.pointwise` (a CasADi function over many points, a row a point)
 - :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs; :mod:`~quadctl.notices`: what a
   valid config took by default or likely got in the wrong unit; :mod:`~quadctl.overrides`: values put in
   at a key path before validation (``--set KEY=VALUE``)

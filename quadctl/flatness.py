@@ -26,6 +26,7 @@ from quadctl._lazy import lazy_import
 from quadctl.errors import TrimError
 from quadctl.layout import GRAVITY, MASS, N_INPUTS, N_STATES
 from quadctl.model import N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
+from quadctl.pointwise import Pointwise
 from quadctl.trajectory import FlatPath
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
@@ -76,7 +77,7 @@ def _functions():
     return balance, feed
 
 
-def feedforward(path: FlatPath, params) -> tuple[np.ndarray, np.ndarray]:
+def feedforward(path: FlatPath, params, pointwise=Pointwise) -> tuple[np.ndarray, np.ndarray]:
     """The reference state and input along ``path``.
 
     Parameters
@@ -85,6 +86,10 @@ def feedforward(path: FlatPath, params) -> tuple[np.ndarray, np.ndarray]:
         ``n`` samples of position (and derivatives to snap) and yaw (and two derivatives).
     params : (8,) array_like
         :meth:`quadctl.model.Vehicle.vector` of the model the controller assumes.
+    pointwise : callable
+        ``pointwise(fn)`` evaluates a CasADi function over the points (a row a point):
+        :class:`quadctl.pointwise.Pointwise` (CasADi's ``map``), or the compiled
+        :func:`quadctl.sim.mapped.mapped` (the same numbers).
 
     Returns
     -------
@@ -96,9 +101,7 @@ def feedforward(path: FlatPath, params) -> tuple[np.ndarray, np.ndarray]:
     TrimError
         No roll, pitch and thrust produce the path's acceleration (Newton did not converge).
     """
-    from quadctl.sim.mapped import mapped
-
-    balance, feed = (mapped(fn) for fn in _functions())  # compiled over the points (CasADi's map without a compiler)
+    balance, feed = (pointwise(fn) for fn in _functions())
     n = len(path.t)
     P = path.position
     s = np.vstack([P[1].T, path.yaw[0][None], P[2].T])

@@ -6,7 +6,7 @@ solves, the feedforward, the model's rates) took 0.14 s a case, ten times the ca
 the lanes. :func:`mapped` emits the one-point function as C (:mod:`quadctl.sim.emit`, the
 portable build: scalar libm, no contraction, so the numbers are the VM's), loops it over the
 points in C, and compiles it once per machine (:mod:`quadctl.sim.compile`). Without a working
-compiler it falls back to ``fn.map`` (the same numbers, slower).
+compiler it is :class:`quadctl.pointwise.Pointwise` (``fn.map``: the same numbers, slower).
 """
 
 from __future__ import annotations
@@ -17,23 +17,21 @@ from functools import lru_cache
 
 import numpy as np
 
+from quadctl.pointwise import Pointwise, rows_of
 from quadctl.sim.cases import C_LONG
 from quadctl.sim.compile import PORTABLE_FLAGS, CompileError, compile_cached
 from quadctl.sim.emit import emit
 
 
 class Mapped:
-    """``fn`` on ``n`` points: ``self(*args) -> outputs``.
-
-    Each argument is ``(n, size)`` (one row a point) or ``(size,)`` (the same for every point);
-    each output ``(n, size)``, a matrix output's entries column-major, as CasADi stores them.
-    """
+    """``fn`` on ``n`` points: ``self(*args) -> outputs``, as :class:`quadctl.pointwise.Pointwise`
+    (its rows convention and, without a compiler, itself)."""
 
     def __init__(self, fn):
         self.fn = fn
         self.in_sizes = [fn.numel_in(k) for k in range(fn.n_in())]
         self.out_sizes = [fn.numel_out(k) for k in range(fn.n_out())]
-        self._map = None
+        self._vm = Pointwise(fn)
         try:
             library = compile_cached(lambda: self._source(), PORTABLE_FLAGS, f"mapped {self._key()}")
             self._lib = ctypes.CDLL(str(library))
@@ -55,22 +53,14 @@ class Mapped:
                 f"  for (long e = 0; e < n; ++e) qc_fn({', '.join(args)});\n}}\n")
 
     def __call__(self, *args) -> list[np.ndarray]:
-        arrays = [np.ascontiguousarray(a, dtype=float) for a in args]
-        n = max((len(a) for a in arrays if a.ndim == 2), default=1)
+        if self._lib is None:
+            return self._vm(*args)
+        arrays, n = rows_of(args)
         for a, size in zip(arrays, self.in_sizes):
             if a.shape[-1] != size or (a.ndim == 2 and len(a) != n):
                 raise ValueError(f"{self.fn.name()}: an argument of shape {a.shape}, expected ({n}, {size}) "
                                  f"or ({size},)")
         outs = [np.empty((n, size)) for size in self.out_sizes]
-        if self._lib is None:
-            if self._map is None or self._map[0] != n:
-                self._map = (n, self.fn.map(n))
-            got = self._map[1](*[a.T if a.ndim == 2 else a for a in arrays])
-            got = got if isinstance(got, (list, tuple)) else [got]
-            for k, (out, value) in enumerate(zip(outs, got)):  # map sets the points' blocks side by side
-                rows, cols = self.fn.size_out(k)
-                out[:] = np.asarray(value, dtype=float).reshape(rows, n, cols).transpose(1, 2, 0).reshape(n, -1)
-            return outs
         ins = (ctypes.c_void_p * len(arrays))(*[a.ctypes.data for a in arrays])
         stride = np.array([a.shape[-1] if a.ndim == 2 else 0 for a in arrays], dtype=C_LONG)
         res = (ctypes.c_void_p * len(outs))(*[o.ctypes.data for o in outs])
