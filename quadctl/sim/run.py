@@ -125,6 +125,13 @@ class ClosedLoop:
                          [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
                           *["estimator"] * len(est), *["gain schedule"] * len(sched)], duration, dt)
 
+    def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(A, B)`` of the design model at the trim, or ValueError naming how to build a loop with them."""
+        if self.jacobians is None:
+            raise ValueError("this ClosedLoop has no jacobians (A, B): build it with quadctl.pipeline.closed_loop_of")
+        A, B = self.jacobians
+        return np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+
     def linear_part(self) -> np.ndarray:
         """The loop linearized at the reference in the loop state's order (:func:`quadctl.lqr.linear_loop.simulated`).
 
@@ -135,9 +142,7 @@ class ClosedLoop:
         """
         from quadctl.lqr import linear_loop
 
-        if self.jacobians is None:
-            raise ValueError("this ClosedLoop has no jacobians (A, B): build it with quadctl.pipeline.closed_loop_of")
-        A, B = self.jacobians
+        A, B = self._jacobians()
         act = self.actuators
         return linear_loop.simulated(A, B, self.K, Ki=self.Ki, integral_states=self.integral_states, Kv=self.Kv,
                                      lag_time_constant=self.lag_model_time_constant,
@@ -155,9 +160,7 @@ class ClosedLoop:
         ValueError
             The loop was built without its ``jacobians``.
         """
-        if self.jacobians is None:
-            raise ValueError("this ClosedLoop has no jacobians (A, B): build it with quadctl.pipeline.closed_loop_of")
-        A, B = (np.asarray(M, dtype=float) for M in self.jacobians)
+        A, B = self._jacobians()
         nx = len(self.initial_loop_state(self.x_trim))
         L = np.zeros((nx, nx))
         L[:N_STATES, :N_STATES] = A
