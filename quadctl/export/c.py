@@ -129,7 +129,8 @@ def sources(exp: Export) -> dict[str, str]:
         "STEP_DOC": ("the measurements y\n * (QUADCTL_NY measured states, QUADCTL_Y_* order, state units)" if ny
                      else "the measured state x")
                     + ("\n * and the reference ref (x_ref(t), u_ref(t))" if reference else ""),
-        "STEP_PROTOTYPE": (f"void quadctl_step{'_ref' if reference else ''}(quadctl_controller *c, const quadctl_real "
+        "STEP_NAME": step_name(reference),
+        "STEP_PROTOTYPE": (f"void {step_name(reference)}(quadctl_controller *c, const quadctl_real "
                            + ("y[QUADCTL_NY]" if ny else "x[QUADCTL_NX]")
                            + (", const quadctl_reference *ref" if reference else "") + ", quadctl_real u[QUADCTL_NU])"),
         **_reference_values(reference, "y" if ny else "x", Ts, exp.rate),
@@ -350,11 +351,17 @@ def _lag_doc(loop, Ts: float) -> str:
     return "\n".join(" *   " + line for line in lines)
 
 
+def step_name(reference: bool) -> str:
+    """The C function a sample calls: ``quadctl_step_ref`` when the law flies a reference (it takes one),
+    else ``quadctl_step`` (it holds the trim)."""
+    return "quadctl_step_ref" if reference else "quadctl_step"
+
+
 def _filter_doc(loop, reference: bool = False) -> str:
     """The header's paragraph on the Kalman filter: its form, the measurements, one sample of it
     (``reference``: the law flies a reference, its filter predicts about ``u_ref(t)``)."""
     kal = loop.estimator
-    step = "quadctl_step_ref" if reference else "quadctl_step"
+    step = step_name(reference)
     if kal is None:
         lines = [f"None (no estimator: in the config): {step} takes the full measured state x."]
         return "\n".join(" *   " + line for line in lines)

@@ -112,7 +112,8 @@ def _base_fields(exp, loop, des, lin, Ki, Ts, domain, subsystems, units) -> list
         Field("x_trim", np.asarray(loop.x_trim, dtype=float), "state units", "the trim state: x_ref(0)"),
         Field("u_trim", np.asarray(loop.u_trim, dtype=float), "input units", "the trim input"),
         Field("x_rate", np.asarray(loop.x_rate, dtype=float), "state units / s",
-              "drift of the reference: x_ref(t) = x_trim + x_rate t (the trim velocity on positions)"),
+              "drift of the trim reference: x_ref(t) = x_trim + x_rate t (the trim velocity on positions); a "
+              "config that flies simulation.reference takes x_ref(t) from it instead (see law)"),
         Field("Ts", float(Ts or 0.0), "s", "controller sample time; 0: continuous feedback (MATLAB's convention)"),
         Field("rate", float(exp.rate or 0.0), "Hz", "controller rate; 0: continuous feedback"),
         Field("design", exp.mode, "",

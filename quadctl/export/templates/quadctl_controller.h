@@ -57,7 +57,7 @@ typedef double quadctl_real;
 #define QUADCTL_NU ${NU}  /* inputs */
 #define QUADCTL_NZ ${NZ}  /* integrators (LQI) */
 #define QUADCTL_NL ${NL}  /* states of the controller's rotor lag model (controller.rotor_lag: include) */
-#define QUADCTL_NY ${NY}  /* measurements y of the Kalman filter (estimator:); 0: quadctl_step takes the state x */
+#define QUADCTL_NY ${NY}  /* measurements y of the Kalman filter (estimator:); 0: ${STEP_NAME} takes the state x */
 #define QUADCTL_NB ${NB}  /* commands the filter remembers for the vehicle's delay (4 per sample) */
 #define QUADCTL_RATE_HZ ${RATE}
 #define QUADCTL_SAMPLE_TIME ${TS}
@@ -67,7 +67,7 @@ ${STATE_DEFINES}
 /* index of each input in u */
 ${INPUT_DEFINES}${MEASURE_DEFINES}
 ${ROTOR_DEFINES}
-/* The controller's memory: initialize with quadctl_init, then pass to quadctl_step every sample. */
+/* The controller's memory: initialize with quadctl_init, then pass to ${STEP_NAME} every sample. */
 typedef struct quadctl_controller {
   quadctl_real z[${NZ_STORAGE}];  /* the integrators${INTEGRAL_DOC} */
 ${LAG_MEMBER}${BUFFER_MEMBER}${ESTIMATE_MEMBER}  unsigned long k;          /* samples taken since quadctl_init: t = k Ts */
