@@ -20,7 +20,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
             allow_saturation: AllowSaturationOpt = False) -> None:
     """Every stage in order: trim, linearize, decouple, check, design, simulate.
 
-    Stops with exit 1 at the first failed check; artifacts of earlier stages stay whole.
+    With a schedule: section, simulate flies the gain schedule (as quadctl schedule writes it). Stops
+    with exit 1 at the first failed check; artifacts of earlier stages stay whole.
     """
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures

@@ -19,6 +19,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
             allow_saturation: AllowSaturationOpt = False) -> None:
     """Fixed-step RK4 of the full nonlinear closed loop; write sim.npz and sim.json.
 
+    The loop flies simulation.reference (setpoints or a mission) when the config gives one, and the
+    gain schedule when it has a schedule: section (schedule.json and schedule.npz written beside).
     Exits 1 when the run diverges or leaves the model's valid range (what was computed is saved).
     """
     from quadctl.cli import render
