@@ -320,6 +320,17 @@ def test_a_partial_envelope_is_a_warning_naming_the_values_and_the_fix(tmp_path)
     ("schedule: {variable: climb, values: [0.5, 1]}\n",
      r"c\.yaml: schedule\.values: the config's own flight condition \(trim\.velocity_ned: climb 0 m/s\) is outside"),
     ("schedule: {variable: roll, values: [0, 1]}\n", r"c\.yaml: schedule\.variable"),
+    ("schedule: {variable: Speed, values: [0, 1]}\n",
+     r'c\.yaml: schedule\.variable = "Speed": must be one of speed, climb, yaw; did you mean `speed`\?$'),
+    ("schedule: {values: [0, 1]}\n",
+     r"c\.yaml: schedule\.variable: required key is missing; add it: speed, climb or yaw \(speed: m/s along"),
+    ("schedule: {variable: speed, values: [0, 5, 3]}\n",
+     r"c\.yaml: schedule\.values\[2\] = 3: not above values\[1\] = 5; list the values increasing, each once$"),
+    ("schedule: {variable: speed, values: [3]}\n",
+     r"c\.yaml: schedule\.values = \[3\]: must be a list of 2 to \d+ items \(the scheduling values to trim and design "
+     r"at, in increasing order, in the variable's unit\)$"),
+    ("schedule: {variable: speed, values: [0, 1], interpolation: linaer}\n",
+     r'c\.yaml: schedule\.interpolation = "linaer": must be one of nearest, linear, cubic; did you mean `linear`\?$'),
 ])
 def test_bad_schedules_are_one_line_with_exit_2(tmp_path, schedule, pattern):
     res = runner.invoke(app, ["schedule", "-c", write(tmp_path, schedule), "-o", str(tmp_path / "out")])
