@@ -254,3 +254,17 @@ def test_help_wraps_at_the_terminal_not_at_the_docstring_line_breaks():
         for paragraph in paragraphs:
             assert paragraph in lines, (module.NAME, paragraph)
         assert paragraphs[0] in listing, module.NAME
+
+
+def test_help_loses_no_bracketed_text_to_rich_markup():
+    """The help is rich markup: `allow: [saturation]` showed as `allow: ` (the bracket read as a
+    style tag). Every help text of every command and option renders whole (an escaped \\[ as [)."""
+    import typer
+    from rich.text import Text
+
+    root = typer.main.get_command(app)
+    for command in (root, *root.commands.values()):
+        for text in (command.help or "", *(getattr(p, "help", None) or "" for p in command.params)):
+            assert Text.from_markup(text).plain == text.replace("\\[", "["), (command.name, text)
+    res = runner.invoke(app, ["simulate", "--help"], env={"COLUMNS": "1000"})
+    assert "the config's `allow: [saturation]` does the same" in res.output
