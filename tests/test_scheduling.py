@@ -313,6 +313,22 @@ def test_a_partial_envelope_is_a_warning_naming_the_values_and_the_fix(tmp_path)
     assert "the envelope is [0, 1] m/s: narrow schedule.values to it" in res.stderr
 
 
+@pytest.mark.parametrize("command", ["simulate", "run"])
+def test_flying_a_schedule_that_fails_its_checks_warns(tmp_path, command):
+    """`quadctl schedule` exits 1 on a design unstable at 22 m/s and warns of a value with no trim;
+    `simulate` and `run`, which fly the same table, said nothing of either."""
+    path = write(tmp_path, "schedule: {variable: speed, values: [0, 22, 200]}\n")
+    res = runner.invoke(app, [command, "-c", path, "-o", str(tmp_path / "out"), "--set", "simulation.duration=0.05"])
+    assert res.exit_code == 0, res.output
+    warnings = [line for line in res.stderr.splitlines() if line.startswith("quadctl: warning: schedule")]
+    assert len(warnings) == 2, res.stderr
+    assert warnings[0].startswith("quadctl: warning: schedule.values: 1 of 3 values have no trim or design (200 m/s")
+    assert warnings[1].startswith("quadctl: warning: schedule: the gains flown fail their checks (the design at "
+                                  "22 m/s is UNSTABLE; at 22 m/s: the interpolated gain's frozen loop is UNSTABLE")
+    assert warnings[1].endswith("`quadctl schedule` lists them: narrow schedule.values to where they pass, "
+                                "or change the weights")
+
+
 @pytest.mark.parametrize(("schedule", "pattern"), [
     ("", r"c\.yaml: schedule: missing; add a schedule section"),
     ("schedule: {variable: speed, values: [150, 200]}\n",

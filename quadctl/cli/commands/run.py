@@ -1,5 +1,5 @@
 
-from quadctl.cli.commands.simulate import _require_within_limits
+from quadctl.cli.commands.simulate import _require_within_limits, warn_of_the_schedule
 from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import (
     AllowSaturationOpt,
@@ -53,6 +53,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if sim.status != "ok":
         raise _stop(json, stages, f"simulate: {sim.message}")
     done("simulate", f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.steps_per_second / 1e6:.2f} M steps/s")
+    warn_of_the_schedule(ws)
     _require_within_limits(ws, ws.simulation, allow_saturation)
     if plot:
         for path in save_figures(ws, sim):

@@ -61,9 +61,20 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     missed = missed_waypoints(flown.flight.get("reference"))
     if missed:
         render.warning(missed)
+    warn_of_the_schedule(ws)
     if sim.status != "ok":
         raise FailedChecks(sim.message)
     _require_within_limits(ws, flown, allow_saturation)
+
+
+def warn_of_the_schedule(ws) -> None:
+    """With ``schedule:``, the warnings on the gains flown: values with no trim, checks that fail."""
+    if ws.setup.schedule is not None:
+        from quadctl.cli import render
+        from quadctl.present.schedule import flight_warnings
+
+        for line in flight_warnings(ws.schedule):
+            render.warning(line)
 
 
 def _require_within_limits(ws, flown, allow_saturation: bool) -> None:
