@@ -299,9 +299,10 @@ class ScheduleConfig(_Section):
     variable: Literal["speed", "climb", "yaw"] = Field(description=(
         "speed: m/s along the trim's heading; climb: m/s, up positive; yaw: rad"))
     values: Annotated[list[Number], Field(min_length=2, max_length=MAX_SCHEDULE_POINTS)] = Field(
-        description="the scheduling values to trim and design at, increasing (the variable's unit)")
+        description="the scheduling values to trim and design at, in increasing order, in the variable's unit")
     interpolation: Literal["nearest", "linear", "cubic"] = Field(
-        "linear", description="how gains are interpolated between values; outside them the end point's gain holds")
+        "linear", description="nearest, linear or cubic (a not-a-knot spline): how gains are interpolated between "
+        "values; outside them the end point's gain holds")
     check: Annotated[int, Field(strict=True, ge=1, le=64)] = Field(
         4, description="the frozen-point stability check splits each interval between values into this many")
 
@@ -729,11 +730,21 @@ def _describe(exc: ValidationError, data: Any, label: str) -> str:
         allowed = sorted(parent.model_fields) if parent else []
         return f"{label}: {path}: unknown key; {_hint(str(loc[-1]), allowed)}{more}"
     if kind == "missing":
-        return f"{label}: {path}: required key is missing; add it{more}"
+        return f"{label}: {path}: required key is missing; add it{_what_it_takes(loc)}{more}"
     value = _lookup(data, loc)
     if kind in ("int_type", "int_from_float") and isinstance(value, float) and value.is_integer():
         return f"{label}: {path} = {value!r}: must be a whole number; write {int(value)}{more}"
     return f"{label}: {path} = {show(value)}: {_expected(err, loc)}{more}"
+
+
+def _what_it_takes(loc: list) -> str:
+    """For a missing key: the values it takes (a choice) or its description in brackets, else ''."""
+    field = _field_info(loc)
+    if field is None:
+        return ""
+    choices = _literal_values(field.annotation)
+    described = f" ({field.description})" if field.description else ""
+    return f": {', '.join(choices[:-1])} or {choices[-1]}{described}" if choices else described
 
 
 UNION_HINTS = {

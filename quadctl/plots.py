@@ -336,6 +336,7 @@ def transition_figure(transition, *, title: str = "") -> Figure:
     that stopped early ends with a cross.
     """
     from quadctl.lqr.gain_table import VARIABLES, scheduling_values
+    from quadctl.sim.run import STATUS_WORDS
 
     runs, loop = transition.runs(), transition.loops["scheduled"]
     table, heading = loop.schedule, loop.schedule_heading
@@ -352,7 +353,7 @@ def transition_figure(transition, *, title: str = "") -> Figure:
     act = loop.actuators
     for (label, sim), color in zip(runs.items(), _COLORS):
         ended = sim.status != "ok"
-        _trace(speed_ax, sim.t, variable(sim.x), color=color, lw=1.6, label=f"{label} ({sim.status})")
+        _trace(speed_ax, sim.t, variable(sim.x), color=color, lw=1.6, label=f"{label} ({STATUS_WORDS[sim.status]})")
         _trace(angle_ax, sim.t, np.rad2deg(sim.x[:, STATE_INDEX["theta"]]), color=color, lw=1.3, label=label)
         if act is not None and act.mode == "motors":
             load = act.commands(sim.u).max(axis=1)

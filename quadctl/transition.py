@@ -18,10 +18,10 @@ import numpy as np
 
 from quadctl import pipeline
 from quadctl.layout import STATE_INDEX
-from quadctl.lqr.gain_table import scheduling_values
+from quadctl.lqr.gain_table import VARIABLES, scheduling_values
 from quadctl.problem import Setup
 from quadctl.scheduling import heading_of, schedule_of
-from quadctl.sim.run import ClosedLoop, SimResult
+from quadctl.sim.run import STATUS_WORDS, ClosedLoop, SimResult
 
 ON_GRID_MARGIN = 0.1
 """A run stays on the schedule's grid while its scheduling value is within the grid's span widened by
@@ -119,9 +119,9 @@ def transition_lines(summary: dict) -> list[str]:
     lines = []
     for label in LABELS:
         run = summary[label]
-        lines.append(f"{label}: {run['status']} ({run['duration']:.3g} s), peak velocity error "
+        lines.append(f"{label}: {STATUS_WORDS[run['status']]} ({run['duration']:.3g} s), peak velocity error "
                      f"{run['velocity_error']:.3g} m/s, at a limit {100 * run['saturation']:.3g} % of the run, "
                      f"peak attitude {run['peak_attitude']:.3g} deg, {summary['variable']} flown "
-                     f"{run['flown_range'][0]:.3g} to {run['flown_range'][1]:.3g}"
+                     f"{run['flown_range'][0]:.3g} to {run['flown_range'][1]:.3g} {VARIABLES[summary['variable']]}"
                      + ("" if run["on_grid"] else " (off the grid)"))
     return lines

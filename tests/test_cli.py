@@ -236,3 +236,35 @@ def test_help_texts_show_no_rst_quotes_and_sweep_states_the_uncertainty_rule():
              ("simulation", "initial_offset", "pD"), ("simulation", "wind", "gusts"), ("controller", "delay"),
              ("motors", "time_constant")]
     assert all(plant_side(keys) for keys in named)
+
+
+def test_help_wraps_at_the_terminal_not_at_the_docstring_line_breaks():
+    """The help's rich markup kept each docstring's line breaks: on an 80-column terminal a sentence
+    broke where the source did ("controller rate can" / "realize"), and the command list showed
+    "write" alone on a line. Each paragraph is now one line, which only the terminal wraps."""
+    import inspect
+
+    from quadctl.cli.commands import COMMANDS
+
+    listing = " ".join(runner.invoke(app, ["--help"], env={"COLUMNS": "1000"}).output.split("\n"))
+    for module in COMMANDS:
+        paragraphs = [" ".join(p.split()) for p in inspect.cleandoc(module.command.__doc__).split("\n\n")]
+        lines = [line.strip(" │") for line in
+                 runner.invoke(app, [module.NAME, "--help"], env={"COLUMNS": "1000"}).output.splitlines()]
+        for paragraph in paragraphs:
+            assert paragraph in lines, (module.NAME, paragraph)
+        assert paragraphs[0] in listing, module.NAME
+
+
+def test_help_loses_no_bracketed_text_to_rich_markup():
+    """The help is rich markup: `allow: [saturation]` showed as `allow: ` (the bracket read as a
+    style tag). Every help text of every command and option renders whole (an escaped \\[ as [)."""
+    import typer
+    from rich.text import Text
+
+    root = typer.main.get_command(app)
+    for command in (root, *root.commands.values()):
+        for text in (command.help or "", *(getattr(p, "help", None) or "" for p in command.params)):
+            assert Text.from_markup(text).plain == text.replace("\\[", "["), (command.name, text)
+    res = runner.invoke(app, ["simulate", "--help"], env={"COLUMNS": "1000"})
+    assert "the config's `allow: [saturation]` does the same" in res.output

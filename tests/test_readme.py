@@ -263,6 +263,18 @@ def test_the_readme_has_blocks_to_run():
     assert {"bash", "console", "python", "yaml"} <= kinds, kinds
 
 
+def test_the_walkthrough_names_every_bundled_config():
+    """`--config` takes a bundled name: the walkthrough's paragraph that lists them named all but
+    `schedule`. Every bundled config is named there, in backticks."""
+    from quadctl import config
+
+    text = README.read_text(encoding="utf-8")
+    start = text.index("`--config` takes a file, or the name of a bundled config:")
+    paragraph = text[start:text.index("\n\n", start)]
+    missing = [name for name in config.bundled_names() if f"`{name}`" not in paragraph]
+    assert not missing, f"README's list of bundled configs leaves out {missing}"
+
+
 def _param(block: Block):
     """A block whose shown output comes from the compiled backend needs a compiler to print it."""
     compiled = "(compiled" in block.text

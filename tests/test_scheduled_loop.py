@@ -213,6 +213,11 @@ def test_the_fixed_design_leaves_the_valid_range_where_the_schedule_flies(transi
     assert scheduled["on_grid"] and scheduled["flown_range"][1] > 0.9 * setup.schedule.values[-1]
     assert result.scheduled.x[-1, STATE_INDEX["u"]] < 0.5  # back near hover
     assert fixed["flown_range"][1] > 15  # it failed at speed, not at the first step
+    from quadctl.transition import transition_lines
+
+    scheduled_line, fixed_line = transition_lines(result.summary)  # in words, the range with its unit
+    assert scheduled_line.startswith("scheduled: completed (25 s)") and scheduled_line.endswith(" m/s")
+    assert fixed_line.startswith("fixed: left the valid range (10.6 s)") and " speed flown 0 to 17.8 m/s" in fixed_line
 
 
 @pytest.mark.compiler
@@ -222,7 +227,7 @@ def test_the_transition_figure_shows_both_runs_and_where_one_stopped(flown_trans
     fig = plots.transition_figure(flown_transition, title=TRANSITION)
     speed, pitch, rotor = fig.axes
     labels = [line.get_label() for line in speed.get_lines()]
-    assert "scheduled (ok)" in labels and "fixed (left_valid_range)" in labels
+    assert "scheduled (completed)" in labels and "fixed (left the valid range)" in labels
     ends = [line for line in pitch.get_lines() if line.get_marker() == "x"]
     assert len(ends) == 1 and ends[0].get_xdata()[0] == pytest.approx(flown_transition.fixed.t[-1])
     assert ends[0].get_ydata()[0] < -85

@@ -313,6 +313,22 @@ def test_a_partial_envelope_is_a_warning_naming_the_values_and_the_fix(tmp_path)
     assert "the envelope is [0, 1] m/s: narrow schedule.values to it" in res.stderr
 
 
+@pytest.mark.parametrize("command", ["simulate", "run"])
+def test_flying_a_schedule_that_fails_its_checks_warns(tmp_path, command):
+    """`quadctl schedule` exits 1 on a design unstable at 22 m/s and warns of a value with no trim;
+    `simulate` and `run`, which fly the same table, said nothing of either."""
+    path = write(tmp_path, "schedule: {variable: speed, values: [0, 22, 200]}\n")
+    res = runner.invoke(app, [command, "-c", path, "-o", str(tmp_path / "out"), "--set", "simulation.duration=0.05"])
+    assert res.exit_code == 0, res.output
+    warnings = [line for line in res.stderr.splitlines() if line.startswith("quadctl: warning: schedule")]
+    assert len(warnings) == 2, res.stderr
+    assert warnings[0].startswith("quadctl: warning: schedule.values: 1 of 3 values have no trim or design (200 m/s")
+    assert warnings[1].startswith("quadctl: warning: schedule: the gains flown fail their checks (the design at "
+                                  "22 m/s is UNSTABLE; at 22 m/s: the interpolated gain's frozen loop is UNSTABLE")
+    assert warnings[1].endswith("`quadctl schedule` lists them: narrow schedule.values to where they pass, "
+                                "or change the weights")
+
+
 @pytest.mark.parametrize(("schedule", "pattern"), [
     ("", r"c\.yaml: schedule: missing; add a schedule section"),
     ("schedule: {variable: speed, values: [150, 200]}\n",
@@ -320,6 +336,17 @@ def test_a_partial_envelope_is_a_warning_naming_the_values_and_the_fix(tmp_path)
     ("schedule: {variable: climb, values: [0.5, 1]}\n",
      r"c\.yaml: schedule\.values: the config's own flight condition \(trim\.velocity_ned: climb 0 m/s\) is outside"),
     ("schedule: {variable: roll, values: [0, 1]}\n", r"c\.yaml: schedule\.variable"),
+    ("schedule: {variable: Speed, values: [0, 1]}\n",
+     r'c\.yaml: schedule\.variable = "Speed": must be one of speed, climb, yaw; did you mean `speed`\?$'),
+    ("schedule: {values: [0, 1]}\n",
+     r"c\.yaml: schedule\.variable: required key is missing; add it: speed, climb or yaw \(speed: m/s along"),
+    ("schedule: {variable: speed, values: [0, 5, 3]}\n",
+     r"c\.yaml: schedule\.values\[2\] = 3: not above values\[1\] = 5; list the values increasing, each once$"),
+    ("schedule: {variable: speed, values: [3]}\n",
+     r"c\.yaml: schedule\.values = \[3\]: must be a list of 2 to \d+ items \(the scheduling values to trim and design "
+     r"at, in increasing order, in the variable's unit\)$"),
+    ("schedule: {variable: speed, values: [0, 1], interpolation: linaer}\n",
+     r'c\.yaml: schedule\.interpolation = "linaer": must be one of nearest, linear, cubic; did you mean `linear`\?$'),
 ])
 def test_bad_schedules_are_one_line_with_exit_2(tmp_path, schedule, pattern):
     res = runner.invoke(app, ["schedule", "-c", write(tmp_path, schedule), "-o", str(tmp_path / "out")])

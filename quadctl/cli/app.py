@@ -15,7 +15,7 @@ app = typer.Typer(
     name="quadctl",
     cls=one_line_usage_errors(typer.core.TyperGroup),
     help="Design and verify LQR controllers for quadcopters: trim, linearize, decouple, check, "
-         f"design, simulate; sweep many designs at once.\n\n{EXIT_CODES_HELP}",
+         f"design, simulate; schedule the gains across an envelope; sweep many designs at once.\n\n{EXIT_CODES_HELP}",
     no_args_is_help=True,
     add_completion=True,
     rich_markup_mode="rich",

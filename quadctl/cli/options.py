@@ -19,7 +19,7 @@ FreshOpt = Annotated[bool, typer.Option(
     "--fresh", help="Recompute every stage; ignore artifacts already in the run directory.")]
 AllowSaturationOpt = Annotated[bool, typer.Option(
     "--allow-saturation", help="Accept a design at an actuator limit more than half the run (else exit 1); "
-                               "the config's `allow: [saturation]` does the same.")]
+                               "the config's `allow: \\[saturation]` does the same.")]  # \\[: not rich markup
 PlotOpt = Annotated[bool, typer.Option("--plot", help="Also write PNG figures to DIR/plots/.")]
 SetOpt = Annotated[Optional[list[str]], typer.Option(
     "--set", metavar="KEY=VALUE",

@@ -40,6 +40,31 @@ def _short(reason: str | None, limit: int = 100) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
+def missing_warning(sched) -> str | None:
+    """The values with no trim or design, the first one's reason and the fix (None: every value designs)."""
+    missing = [p for p in sched.points if not p.designed]
+    if not missing:
+        return None
+    lo, hi = sched.envelope
+    return (f"schedule.values: {len(missing)} of {len(sched.points)} values have no trim or design "
+            f"({', '.join(f'{p.value:g}' for p in missing)} {sched.unit}; the first: {missing[0].reason}); "
+            f"the envelope is [{lo:g}, {hi:g}] {sched.unit}: narrow schedule.values to it")
+
+
+def flight_warnings(sched) -> list[str]:
+    """What a run that flies ``sched`` says about it: the values with no trim, and a schedule that fails
+    the checks ``quadctl schedule`` exits 1 on (a design or a frozen-point loop unstable), flown anyway."""
+    warnings = [w for w in (missing_warning(sched),) if w]
+    if not sched.passed:
+        unstable = [f"{p.value:g}" for p in sched.points if p.designed and not p.stable]
+        fails = sched.checks.failures(sched.unit)
+        where = "; ".join(([f"the design at {', '.join(unstable)} {sched.unit} is UNSTABLE"] if unstable else [])
+                          + fails[:3] + (["..."] if len(fails) > 3 else []))
+        warnings.append(f"schedule: the gains flown fail their checks ({where}); `quadctl schedule` lists "
+                        "them: narrow schedule.values to where they pass, or change the weights")
+    return warnings
+
+
 def envelope_sentence(sched) -> str:
     """The envelope, what holds outside it, and the values with no trim."""
     lo, hi = sched.envelope

@@ -761,6 +761,10 @@ def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise
         k0 += m
 
 
+STATUS_WORDS = {"ok": "completed", "diverged": "diverged", "left_valid_range": "left the valid range"}
+"""Each :func:`verdict` status in words, for a figure's legend or a summary line."""
+
+
 def verdict(xs, t, done, n, lo, hi) -> tuple[str, str]:
     """(status, message) of a run: ``ok``, ``diverged`` or ``left_valid_range``."""
     if done == n:

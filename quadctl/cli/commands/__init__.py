@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
+
 import typer
 
 from quadctl.cli.commands import (
@@ -29,4 +31,12 @@ COMMANDS = (init, trim, linearize, decouple, check, design, schedule, simulate, 
 def register(app: typer.Typer) -> None:
     """Add every command, each wrapped by the one error handler."""
     for module in COMMANDS:
-        app.command(module.NAME, help=module.command.__doc__)(handled(module.command))
+        app.command(module.NAME, help=reflowed(module.command.__doc__))(handled(module.command))
+
+
+def reflowed(doc: str) -> str:
+    """``doc`` with each paragraph on one line, paragraphs still apart: the help's rich markup keeps
+    a docstring's line breaks, so an 80-column terminal broke its lines mid-sentence where the source
+    did, after wrapping them where it had to. One line per paragraph lets the terminal wrap alone."""
+    paragraphs = inspect.cleandoc(doc).split("\n\n")
+    return "\n\n".join(" ".join(p.split()) for p in paragraphs)

@@ -21,6 +21,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     With an 'estimator:' section, the measured set on the coupled model too (row 'estimator').
     With rotor lag (motors.time_constant) or delay (controller.delay), whether the design's loop
     stays stable with them, and how much damping they take.
+
     Exits 1 when a regulated subsystem is not stabilizable, the measured set leaves a mode that is
     not stable unobservable, a loop sampled at the config's controller.rate (continuous design) or
     at --rate is unstable, or the lag and delay make the design's loop unstable.

@@ -29,8 +29,9 @@ def command(to: Annotated[Target, typer.Option(
     """Take the design to the vehicle: a C controller that applies it exactly as simulate does, or its matrices.
 
     Writes into the run directory: quadctl_controller.h/.c (--to c), quadctl_controller.mat or quadctl_controller.json.
-    Exits 1 when the design is unstable, or when a continuous design's loop is unstable sampled at --rate;
-    2 when --to c has no rate (give --rate or set controller.rate).
+    Exits 1 when the design is unstable, when the gain schedule (schedule:) fails its checks, or when a
+    continuous design's loop is unstable sampled at --rate; 2 when --to c has no rate (give --rate or set
+    controller.rate).
     """
     from quadctl import artifacts, export
     from quadctl.cli import render

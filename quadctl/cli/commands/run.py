@@ -1,5 +1,5 @@
 
-from quadctl.cli.commands.simulate import _require_within_limits
+from quadctl.cli.commands.simulate import _require_within_limits, warn_of_the_schedule
 from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import (
     AllowSaturationOpt,
@@ -20,7 +20,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
             allow_saturation: AllowSaturationOpt = False) -> None:
     """Every stage in order: trim, linearize, decouple, check, design, simulate.
 
-    Stops with exit 1 at the first failed check; artifacts of earlier stages stay whole.
+    With a schedule: section, simulate flies the gain schedule (as quadctl schedule writes it). Stops
+    with exit 1 at the first failed check; artifacts of earlier stages stay whole.
     """
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
@@ -52,6 +53,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if sim.status != "ok":
         raise _stop(json, stages, f"simulate: {sim.message}")
     done("simulate", f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.steps_per_second / 1e6:.2f} M steps/s")
+    warn_of_the_schedule(ws)
     _require_within_limits(ws, ws.simulation, allow_saturation)
     if plot:
         for path in save_figures(ws, sim):

@@ -17,15 +17,13 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     or a frozen-point check is unstable.
     """
     from quadctl.cli import render
+    from quadctl.present import schedule as shown
 
     ws = open_workspace(config, out, fresh, sets)
     sched = ws.schedule
-    missing = [p for p in sched.points if not p.designed]
+    missing = shown.missing_warning(sched)
     if missing:
-        lo, hi = sched.envelope
-        render.warning(f"schedule.values: {len(missing)} of {len(sched.points)} values have no trim or design "
-                       f"({', '.join(f'{p.value:g}' for p in missing)} {sched.unit}; the first: {missing[0].reason}); "
-                       f"the envelope is [{lo:g}, {hi:g}] {sched.unit}: narrow schedule.values to it")
+        render.warning(missing)
     path = None
     if plot:
         from quadctl import artifacts, plots
@@ -35,8 +33,6 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     if json:
         render.emit_json(ws.payloads["schedule.json"])
     else:
-        from quadctl.present import schedule as shown
-
         render.show(shown.points_table(sched), shown.envelope_sentence(sched), shown.failures_table(sched),
                     shown.checks_sentence(sched))
         render.out.print(f"-> {ws.path('schedule.json')}, {ws.path('schedule.npz')}")

@@ -19,6 +19,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
             allow_saturation: AllowSaturationOpt = False) -> None:
     """Fixed-step RK4 of the full nonlinear closed loop; write sim.npz and sim.json.
 
+    The loop flies simulation.reference (setpoints or a mission) when the config gives one, and the
+    gain schedule when it has a schedule: section (schedule.json and schedule.npz written beside).
     Exits 1 when the run diverges or leaves the model's valid range (what was computed is saved).
     """
     from quadctl.cli import render
@@ -59,9 +61,20 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     missed = missed_waypoints(flown.flight.get("reference"))
     if missed:
         render.warning(missed)
+    warn_of_the_schedule(ws)
     if sim.status != "ok":
         raise FailedChecks(sim.message)
     _require_within_limits(ws, flown, allow_saturation)
+
+
+def warn_of_the_schedule(ws) -> None:
+    """With ``schedule:``, the warnings on the gains flown: values with no trim, checks that fail."""
+    if ws.setup.schedule is not None:
+        from quadctl.cli import render
+        from quadctl.present.schedule import flight_warnings
+
+        for line in flight_warnings(ws.schedule):
+            render.warning(line)
 
 
 def _require_within_limits(ws, flown, allow_saturation: bool) -> None:

@@ -28,6 +28,7 @@ def command(
     Each case is the config with the sweep file's values put in at their key paths (lqr.roll.Q[1], vehicle.mass).
     Every case is trimmed, designed, simulated on the nonlinear model and scored.
     Exits 1 when a case fails a gate (or, with require_ok, fails to design, is unstable or diverges).
+
     A sweep whose parameters all change the simulated vehicle, never the design
     (the noise seed, simulation.plant mass and inertia errors, the initial
     offset, the wind, controller.delay, motors.time_constant while
