@@ -393,3 +393,20 @@ def test_report_stops_where_run_does_when_the_lag_destabilizes_the_design(tmp_pa
     verdict = "check: with the rotors' 30 ms lag (ignored by the design) and 2 samples of delay the design's closed"
     for res in (ran, reported):
         assert f"quadctl: check failed: {verdict}" in " ".join(res.stderr.split()), res.stderr
+
+
+@pytest.mark.parametrize("name", [n for n in config.bundled_names() if config.load(n).schedule is not None])
+def test_the_report_shows_the_gain_schedule_the_run_flew(name, reports):
+    """A config with schedule: reports its points as `quadctl schedule` prints them (schedule.json's
+    gains, 4 digits), its frozen-point verdict and its envelope figure."""
+    out, res = reports[name]
+    assert res.exit_code == 0, res.output
+    page = _parse(out / report.FOLDER / report.HTML)
+    sched = _artifact(out, "schedule.json")
+    header = page.tables["schedule-table"][0]
+    for p in sched["points"]:
+        row = page.row("schedule-table", f"{p['value']:.4g}")
+        assert row[header.index("K[T,pD]")] == f"{p['K'][0][2]:.4g}"
+        assert row[header.index("stable")] == ("yes" if p["stable"] else "no")
+    assert any("Frozen-point checks" in t for t in page.text)
+    assert (out / report.FOLDER / "schedule.png").is_file()

@@ -46,7 +46,8 @@ def missing_warning(sched) -> str | None:
     if not missing:
         return None
     lo, hi = sched.envelope
-    return (f"schedule.values: {len(missing)} of {len(sched.points)} values have no trim or design "
+    verb = "has" if len(missing) == 1 else "have"
+    return (f"schedule.values: {len(missing)} of {len(sched.points)} values {verb} no trim or design "
             f"({', '.join(f'{p.value:g}' for p in missing)} {sched.unit}; the first: {missing[0].reason}); "
             f"the envelope is [{lo:g}, {hi:g}] {sched.unit}: narrow schedule.values to it")
 

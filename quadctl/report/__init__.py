@@ -120,6 +120,8 @@ def build(ws, outcome: Outcome, *, command_line: str = "", label: str | None = N
                         ("simulate", content.simulation), ("simulate", content.flight)):
         if stage in done:
             sections.append(make(ws))
+        if make is content.design and ws.setup.schedule is not None and "simulate" in done:
+            sections.append(content.schedule(ws))  # the schedule the flight flew (computed with it)
     sections.append(content.configuration(ws, label))
     backends = [ws.simulation.sim.backend] if "simulate" in done else []
     meta = artifacts.metadata(ws.cfg, "report", backends)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from quadctl.present import cells, loops, stages
 from quadctl.present import design as shown_design
 from quadctl.present import flight as shown_flight
+from quadctl.present import schedule as shown_schedule
 from quadctl.report.document import Code, Figure, Items, Row, Section, Table, Text
 
 TOP_DROPPED = stages.TOP_DROPPED
@@ -89,6 +90,24 @@ def design(ws) -> Section:
     if kal is not None:
         blocks += [b if isinstance(b, cells.Table) else Text(b) for b in shown_design.estimator_blocks(ws.setup, kal)]
     return Section("design", "Design", tuple(blocks))
+
+
+def schedule(ws) -> Section:
+    """The gain schedule the run flew (a config with ``schedule:``): the points, the envelope, the
+    frozen-point checks, as ``quadctl schedule`` prints them, and its envelope figure."""
+    from quadctl import plots
+
+    sched = ws.schedule
+    blocks = [shown_schedule.points_table(sched), Text(shown_schedule.envelope_sentence(sched))]
+    failures = shown_schedule.failures_table(sched)
+    if failures is not None:
+        blocks.append(failures)
+    blocks.append(_text(shown_schedule.checks_sentence(sched)))
+    fig = plots.schedule_figure(sched, ws.setup.actuators, title=ws.setup.name)
+    blocks.append(Figure("schedule", f"The gain schedule against {sched.variable}: the gains, the frozen-point "
+                                     "loops' slowest pole and least damping, the trim attitude and thrust.",
+                         _png(fig, SIM_DPI)))
+    return Section("schedule", "Gain schedule", tuple(blocks))
 
 
 def margins(ws) -> Section:
