@@ -308,7 +308,7 @@ def test_a_partial_envelope_is_a_warning_naming_the_values_and_the_fix(tmp_path)
     res = runner.invoke(app, ["schedule", "-c", write(tmp_path, "schedule: {variable: speed, values: [0, 1, 200]}\n"),
                               "-o", str(tmp_path / "out")])
     assert res.exit_code == 0, res.output
-    assert ("quadctl: warning: schedule.values: 1 of 3 values have no trim or design (200 m/s; the first: no usable "
+    assert ("quadctl: warning: schedule.values: 1 of 3 values has no trim or design (200 m/s; the first: no usable "
             "equilibrium") in res.stderr
     assert "the envelope is [0, 1] m/s: narrow schedule.values to it" in res.stderr
 
@@ -322,7 +322,7 @@ def test_flying_a_schedule_that_fails_its_checks_warns(tmp_path, command):
     assert res.exit_code == 0, res.output
     warnings = [line for line in res.stderr.splitlines() if line.startswith("quadctl: warning: schedule")]
     assert len(warnings) == 2, res.stderr
-    assert warnings[0].startswith("quadctl: warning: schedule.values: 1 of 3 values have no trim or design (200 m/s")
+    assert warnings[0].startswith("quadctl: warning: schedule.values: 1 of 3 values has no trim or design (200 m/s")
     assert warnings[1].startswith("quadctl: warning: schedule: the gains flown fail their checks (the design at "
                                   "22 m/s is UNSTABLE; at 22 m/s: the interpolated gain's frozen loop is UNSTABLE")
     assert warnings[1].endswith("`quadctl schedule` lists them: narrow schedule.values to where they pass, "
