@@ -302,6 +302,8 @@ def test_the_command_fails_a_schedule_whose_design_or_check_is_unstable(tmp_path
     assert res.exit_code == 1, res.output
     assert res.stderr.startswith("quadctl: check failed: the design at 22 m/s is UNSTABLE on the coupled model; ")
     assert "frozen-point checks fail: " in res.stderr
+    failing = res.stdout[res.stdout.index("Frozen-point checks that fail"):]
+    assert "UNSTABLE" in failing and "right half-plane" in failing
 
 
 def test_a_partial_envelope_is_a_warning_naming_the_values_and_the_fix(tmp_path):

@@ -98,7 +98,8 @@ def failures_table(sched) -> Table | None:
     """Each fine value where the frozen-point check fails, with its worst eigenvalue (None: none fails)."""
     c = sched.checks
     rows = tuple((num(v), Mark("no trim", "fail") if why else Mark("UNSTABLE", "fail"),
-                  "-" if why else eig(w), _short(why) if why else "")
+                  "-" if why else eig(w), _short(why) if why else
+                  "the interpolated gain, closed on the model trimmed here, has this pole in the right half-plane")
                  for v, ok, w, why in zip(c.values, c.stable, c.worst, c.reasons) if not ok)
     if not rows:
         return None
