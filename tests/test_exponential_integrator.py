@@ -315,16 +315,36 @@ def test_the_schedule_grades_and_aligns():
         segs = plan.schedule
         assert segs[0].start == 0.0 and segs[-1].end == pytest.approx(10.0, rel=1e-12)
         assert sum(s.n for s in segs) == plan.n_steps
-        for a, b in zip(segs, segs[1:]):
-            assert a.end == b.start and b.dt == 2 * a.dt  # contiguous, doubling
+        for a, b in zip(segs, segs[1:]):  # contiguous, coarser by powers of two
+            assert a.end == b.start and b.dt / a.dt == 2 ** round(np.log2(b.dt / a.dt)) >= 2
+        safety = schedule.FREE_SAFETY if period is None else schedule.SAFETY  # no exogenous inputs: a free run
         for s in segs:
-            assert s.dt <= schedule.auto_step(s.start, eig, 1e-8) * (1 + 1e-12)  # within the rule
+            assert s.dt <= schedule.auto_step(s.start, eig, 1e-8, safety) * (1 + 1e-12)  # within the rule
         if period is not None:
             top = max(s.dt for s in segs)
             assert period / top == pytest.approx(round(period / top), abs=1e-9)
-        assert segs[0].dt < 1e-6 and segs[-1].dt == min(schedule.MAX_STEP, period or 1.0)  # graded
+        assert segs[0].dt < 1e-6 * safety and segs[-1].dt == min(schedule.MAX_STEP, period or 1.0)  # graded
+    plan = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8)
     tighter = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-10)
     assert tighter.n_steps > plan.n_steps and tighter.schedule[0].dt < plan.schedule[0].dt
+
+
+def test_short_segments_merge_into_the_finer_step(monkeypatch):
+    """A coarser segment that would save at most MERGE_STEPS steps is run at the finer step: fewer
+    segments, at most MERGE_STEPS more steps for each segment fewer, the same span and alignment."""
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    eig = np.linalg.eigvals(pipeline.loop_of(setup, linear, des).linear_part())
+    for period in (None, 0.005):
+        merged = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
+        monkeypatch.setattr(schedule, "MERGE_STEPS", 0)
+        every = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
+        monkeypatch.undo()
+        fewer = len(every.schedule) - len(merged.schedule)
+        assert fewer >= 3
+        assert every.n_steps < merged.n_steps <= every.n_steps + schedule.MERGE_STEPS * fewer
+        assert merged.schedule[0] == every.schedule[0] and merged.schedule[-1].end == every.schedule[-1].end
+        for seg in merged.schedule:
+            assert seg.k0 == round(seg.k0) and seg in every.schedule or seg.dt < every.schedule[-1].dt
 
 
 def test_records_are_equally_spaced():

@@ -10,10 +10,13 @@ every mode:
 
     h(t) = SAFETY tolerance^(1/4) min_lambda e^(sigma t / 4) / |lambda|
 
+(:data:`FREE_SAFETY` in place of :data:`SAFETY` for a free run: continuous feedback, no exogenous inputs)
+
 small steps over the first time constants of the fast modes, growing geometrically as they decay,
 up to the step the slow modes allow (and never past :data:`MAX_STEP`, the exogenous inputs' period,
 or the run; with a reference, which keeps the loop moving, never past :func:`forced_step`). The
-schedule is deterministic, a few segments of uniform steps ``h_top / 2^j``: every
+schedule is deterministic, a few segments of uniform steps ``h_top / 2^j`` (a short one merged into
+the finer one before it, :data:`MERGE_STEPS`): every
 step starts at a whole multiple of its own size, so a step never straddles an exogenous sample
 (``h_top`` divides its period) and the runners' clock ``t = dt (k0 + k)`` is exact per segment.
 """
@@ -30,12 +33,26 @@ from quadctl.sim.builder import PHI_LAYOUT
 from quadctl.sim.plan import StepPlan, max_stable_steps, record_stride, step_count
 
 SAFETY = 1.0
-"""The constant of ``h(t)`` and of :func:`forced_step`: measured on the report's ``forward`` loop
+"""The constant of ``h(t)`` (runs with exogenous inputs or a sampled controller; a free run takes
+:data:`FREE_SAFETY`) and of :func:`forced_step`: measured on the report's ``forward`` loop
 (benchmarks/bench.py), where ``tolerance`` 1e-8 gives a final-state error of 2.4e-10 against LSODA at
 rtol 1e-12 (2.0: 1 563 steps against 2 266 to the same error), and on the bundled ``square`` mission
 (15 s), where 1e-8 and 1e-10 give 4.6e-10 and 5.9e-11 against RK4 at a 2.5e-5 s step (2.0: 4.6e-10
 at 1e-10). With noise, whose every sample re-excites the fast modes (the schedule grades for
 ``t = 0`` only), 2.0 multiplies the error by 10 to 15 (hover with sensor noise, 0.2 s)."""
+FREE_SAFETY = 2.0
+"""The constant of ``h(t)`` for a free run (continuous feedback, no noise, wind or reference: only the
+initial state excites the fast modes, the case the rule's ``t = 0`` grading describes). Measured
+against RK4 at a 2.5e-5 s step over 3 s of the bundled ``forward``, ``hover``, ``drake-hover`` and
+``forward-script-q`` (tolerance 1e-8 and 1e-10), the final-state error is the same at 1, 2 and 3
+(5e-13 to 2e-10, RK4's own floor); on the report's 10 s ``forward`` loop against LSODA at rtol 1e-12
+it is 2.4e-10, 2.3e-10, 1.9e-10 and 1.6e-10 at 1, 2, 3 and 4, and 4.6e-9 at 6: 2 keeps a factor of 3
+in step below that rise. Runs with exogenous inputs or a sampled controller keep :data:`SAFETY`."""
+MERGE_STEPS = 64
+"""A graded segment that would save at most this many steps over the finer step before it is not
+taken: the finer segment runs on. Each segment costs a call into the runner and its records,
+about 100 steps' time (measured: 75 us a segment against 0.66 us a step of the compiled ``forward``
+loop), so this only trades calls for (more accurate) steps."""
 MAX_STEP = 0.01
 """s: the largest step ``dt: auto`` takes (100 samples a second for plots and metrics)."""
 DEFAULT_TOLERANCE = 1e-8
@@ -190,12 +207,8 @@ def phi_constant_rows(matrices: dict[str, np.ndarray]) -> np.ndarray:
 def phi_pattern(ladder: dict[float, dict[str, np.ndarray]]) -> tuple[bool, ...]:
     """The union of the nonzeros of every ETDRK4 matrix of the ladder (column-major; of every
     matrix of a stacked one)."""
-    nz = None
-    for mats in ladder.values():
-        for M in mats.values():
-            M = (M != 0).reshape(-1, *M.shape[-2:]).any(axis=0)
-            nz = M if nz is None else nz | M
-    return tuple(bool(b) for b in nz.ravel(order="F"))
+    stack = np.concatenate([M.reshape(-1, *M.shape[-2:]) for mats in ladder.values() for M in mats.values()])
+    return tuple((stack != 0).any(axis=0).ravel(order="F").tolist())
 
 
 @dataclass(frozen=True)
@@ -215,24 +228,24 @@ class Segment:
         return self.dt * (self.k0 + self.n)
 
 
-def auto_step(t: float, eigenvalues, tolerance: float) -> float:
-    """``h(t)`` of the module's rule (s): the step every mode allows at ``t``."""
+def auto_step(t: float, eigenvalues, tolerance: float, safety: float = SAFETY) -> float:
+    """``h(t)`` of the module's rule (s): the step every mode allows at ``t`` (``safety``: its constant)."""
     lam = np.asarray(eigenvalues, dtype=complex)
     lam = lam[np.abs(lam) > 0]
     if lam.size == 0:
         return math.inf
     sigma = np.maximum(-lam.real, 0.0)
-    return float(SAFETY * tolerance ** 0.25 * np.min(np.exp(np.minimum(sigma * t / 4, 700)) / np.abs(lam)))
+    return float(safety * tolerance ** 0.25 * np.min(np.exp(np.minimum(sigma * t / 4, 700)) / np.abs(lam)))
 
 
-def allows(h: float, eigenvalues, tolerance: float) -> float:
+def allows(h: float, eigenvalues, tolerance: float, safety: float = SAFETY) -> float:
     """The first time (s) at which :func:`auto_step` reaches ``h`` (inf: never), in closed form:
-    the latest over the modes of ``(4 / sigma) ln(h |lambda| / (SAFETY tolerance^(1/4)))``."""
+    the latest over the modes of ``(4 / sigma) ln(h |lambda| / (safety tolerance^(1/4)))``."""
     lam = np.asarray(eigenvalues, dtype=complex)
     lam = lam[np.abs(lam) > 0]
     if lam.size == 0:
         return 0.0
-    ratio = h * np.abs(lam) / (SAFETY * tolerance ** 0.25)
+    ratio = h * np.abs(lam) / (safety * tolerance ** 0.25)
     sigma = -lam.real
     if np.any((ratio > 1) & (sigma <= 0)):
         return math.inf
@@ -267,7 +280,8 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     tolerance : float
         The error ``dt: auto`` aims at.
     period : float, optional
-        s of the exogenous inputs (noise, wind, a reference): steps divide it.
+        s of the exogenous inputs (noise, wind, a reference): steps divide it. None (no exogenous
+        inputs) and neither ``forced`` nor ``held``: a free run, graded with :data:`FREE_SAFETY`.
     forced : bool
         The run flies a reference: the largest step is at most :func:`forced_step`.
     held : bool
@@ -309,7 +323,8 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
         h = duration / n
         return StepPlan(h, n, limit, fastest, owner, False, method="etdrk4",
                         schedule=(Segment(h, n, 0),))
-    cap = min(MAX_STEP, duration, auto_step(math.inf, eig, tolerance))
+    safety = FREE_SAFETY if period is None and not forced and not held else SAFETY
+    cap = min(MAX_STEP, duration, auto_step(math.inf, eig, tolerance, safety))
     if forced:
         cap = min(cap, forced_step(eig, tolerance))
     if period is not None:
@@ -317,27 +332,37 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     else:
         top = duration / math.ceil(duration / cap - 1e-9)
     segments, t, level = [], 0.0, 0
-    first = auto_step(0.0, eig, tolerance)
+    first = auto_step(0.0, eig, tolerance, safety)
     while top / 2 ** level > first and level < 60:
         level += 1
+    def switch_at(h: float, t: float) -> float:
+        """The first time at or after ``t`` on the grid of ``2h`` (a held loop's samples) at which
+        ``h(t)`` allows ``2h``; inf: not within the run."""
+        allowed = allows(2 * h, eig, tolerance, safety)
+        if allowed >= duration:
+            return math.inf
+        unit = period if held else 2 * h  # a held loop's segments start on a sample
+        return math.ceil(max(allowed, t) / unit - 1e-9) * unit
+
     while True:
         h = top / 2 ** level
         remaining = math.ceil((duration - t) / h - 1e-9)
-        if level == 0:
+        switch, after_level, coarse = (switch_at(h, t) if level else math.inf), level - 1, 2 * h
+        # a coarser segment that would save fewer than MERGE_STEPS steps is taken at h (one call less)
+        while switch < duration and after_level > 0:
+            after = switch_at(coarse, switch)
+            span = min(after, duration) - switch
+            if span / h - span / coarse > MERGE_STEPS:
+                break
+            switch, after_level, coarse = after, after_level - 1, 2 * coarse
+        if switch >= duration:
             segments.append(Segment(h, remaining, round(t / h)))
             break
-        # the first multiple of 2h at which h(t) allows 2h
-        allowed = allows(2 * h, eig, tolerance)
-        if allowed >= duration:
-            segments.append(Segment(h, remaining, round(t / h)))
-            break
-        unit = period if held else 2 * h  # a held loop's segments start on a sample
-        switch = math.ceil(max(allowed, t) / unit - 1e-9) * unit
         n = min(round((switch - t) / h), remaining)
         if n > 0:
             segments.append(Segment(h, n, round(t / h)))
         t = switch
-        level -= 1
+        level = after_level
         if t >= duration - 1e-12 * duration:
             break
     total = sum(s.n for s in segments)
