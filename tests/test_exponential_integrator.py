@@ -318,6 +318,7 @@ def test_the_schedule_grades_and_aligns():
         for a, b in zip(segs, segs[1:]):  # contiguous, coarser by powers of two
             assert a.end == b.start and b.dt / a.dt == 2 ** round(np.log2(b.dt / a.dt)) >= 2
         safety = schedule.FREE_SAFETY if period is None else schedule.SAFETY  # no exogenous inputs: a free run
+        assert segs[0].dt > schedule.auto_step(0.0, eig, 1e-8, safety) / 2  # the largest the rule allows
         for s in segs:
             assert s.dt <= schedule.auto_step(s.start, eig, 1e-8, safety) * (1 + 1e-12)  # within the rule
         if period is not None:

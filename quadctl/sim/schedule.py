@@ -178,17 +178,29 @@ def phi_ladder(L, steps) -> dict[float, dict[str, np.ndarray]]:
     return out
 
 
+STAGE_WEIGHTS = np.array([
+    # psi1   psi2   psi3  phi1  phi2  phi3        (each times h)
+    [1 / 2, 0, 0, 0, 0, 0],                      # A21
+    [1 / 2, -1, 0, 0, 0, 0],                     # A31
+    [0, 1, 0, 0, 0, 0],                          # A32
+    [0, 0, 0, 1, -2, 0],                         # A41
+    [0, 0, 0, 0, 1, 0],                          # A42
+    [1 / 2, -3 / 4, 1 / 2, 0, -1 / 4, 1],        # A51 = h psi1 / 2 - 2 A52 - A54
+    [0, 1 / 2, -1 / 2, 0, 1 / 4, -1],            # A52
+    [0, -1 / 4, 1 / 2, 0, -1 / 4, 1],            # A54 = h psi2 / 4 - A52
+    [0, 0, 0, 1, -3, 4],                         # B1
+    [0, 0, 0, 0, -1, 4],                         # B4
+    [0, 0, 0, 0, 4, -8]])                        # B5
+"""The stage and step weights of :data:`quadctl.sim.builder.PHI_LAYOUT` after ``E_full`` as rows of
+coefficients of ``(psi1, psi2, psi3, phi1, phi2, phi3)`` (``psi_k = phi_k(hL/2)``), each times ``h``."""
+
+
 def step_matrices(L, h: float, half: list[np.ndarray], full: list[np.ndarray]) -> dict[str, np.ndarray]:
     """The matrices of one ETDRK4 step ``h`` (:data:`quadctl.sim.builder.PHI_LAYOUT`) from
-    ``half = [e^(hL/2), φ_1, φ_2, φ_3 (hL/2)]`` and ``full``, the same of ``hL``."""
-    Eh, q1, q2, q3 = half
-    E, p1, p2, p3 = full
-    a52 = h * (q2 / 2 - p3 + p2 / 4 - q3 / 2)
-    a54 = h * q2 / 4 - a52
-    return {"lin": np.asarray(L, dtype=float), "E_half": Eh, "E_full": E, "A21": h * q1 / 2,
-            "A31": h * (q1 / 2 - q2), "A32": h * q2, "A41": h * (p1 - 2 * p2), "A42": h * p2,
-            "A51": h * q1 / 2 - 2 * a52 - a54, "A52": a52, "A54": a54,
-            "B1": h * (p1 - 3 * p2 + 4 * p3), "B4": h * (4 * p3 - p2), "B5": h * (4 * p2 - 8 * p3)}
+    ``half = [e^(hL/2), φ_1, φ_2, φ_3 (hL/2)]`` and ``full``, the same of ``hL`` (each (n, n), or a
+    stack): the weights :data:`STAGE_WEIGHTS` in one product."""
+    weights = np.tensordot(h * STAGE_WEIGHTS, np.stack([*half[1:], *full[1:]]), axes=1)
+    return dict(zip(PHI_LAYOUT, [np.asarray(L, dtype=float), half[0], full[0], *weights]))
 
 
 def phi_constants(matrices: dict[str, np.ndarray], case: int | None = None) -> np.ndarray:
@@ -238,20 +250,20 @@ def auto_step(t: float, eigenvalues, tolerance: float, safety: float = SAFETY) -
     return float(safety * tolerance ** 0.25 * np.min(np.exp(np.minimum(sigma * t / 4, 700)) / np.abs(lam)))
 
 
-def allows(h: float, eigenvalues, tolerance: float, safety: float = SAFETY) -> float:
+def allows(h, eigenvalues, tolerance: float, safety: float = SAFETY):
     """The first time (s) at which :func:`auto_step` reaches ``h`` (inf: never), in closed form:
-    the latest over the modes of ``(4 / sigma) ln(h |lambda| / (safety tolerance^(1/4)))``."""
+    the latest over the modes of ``(4 / sigma) ln(h |lambda| / (safety tolerance^(1/4)))``. ``h``
+    a float (returns a float) or an array of steps (returns the array of their times)."""
     lam = np.asarray(eigenvalues, dtype=complex)
     lam = lam[np.abs(lam) > 0]
     if lam.size == 0:
-        return 0.0
-    ratio = h * np.abs(lam) / (safety * tolerance ** 0.25)
+        return 0.0 if np.ndim(h) == 0 else np.zeros(np.shape(h))
+    ratio = np.multiply.outer(h, np.abs(lam)) / (safety * tolerance ** 0.25)
     sigma = -lam.real
-    if np.any((ratio > 1) & (sigma <= 0)):
-        return math.inf
     with np.errstate(divide="ignore"):
         times = np.where(ratio > 1, 4.0 / np.where(sigma > 0, sigma, 1.0) * np.log(np.maximum(ratio, 1.0)), 0.0)
-    return float(times.max())
+    times = np.where(np.any((ratio > 1) & (sigma <= 0), axis=-1), math.inf, times.max(axis=-1))
+    return float(times) if np.ndim(h) == 0 else times
 
 
 def forced_step(eigenvalues, tolerance: float) -> float:
@@ -335,10 +347,12 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     first = auto_step(0.0, eig, tolerance, safety)
     while top / 2 ** level > first and level < 60:
         level += 1
+    allowed_at = allows(2 * top / 2.0 ** np.arange(level + 1), eig, tolerance, safety)  # of 2h, each level
+
     def switch_at(h: float, t: float) -> float:
         """The first time at or after ``t`` on the grid of ``2h`` (a held loop's samples) at which
         ``h(t)`` allows ``2h``; inf: not within the run."""
-        allowed = allows(2 * h, eig, tolerance, safety)
+        allowed = allowed_at[round(math.log2(top / h))]
         if allowed >= duration:
             return math.inf
         unit = period if held else 2 * h  # a held loop's segments start on a sample
