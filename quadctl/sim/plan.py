@@ -59,6 +59,10 @@ _BRACKET = (2.5, 3.0)
 ``|z|`` between 2.6155 and 2.9601 (scanned on 2001 directions, 64001 radii each): bisection
 on this bracket finds the same boundary point that :func:`max_stable_step`
 finds by its grid scan (tested)."""
+BISECTIONS = 52
+"""Halvings of :data:`_BRACKET` (width 1/2) in :func:`max_stable_steps`: after 50 the bracket is one
+ulp of ``|z|`` in [2, 4) (2^-51), and every later halving leaves it as it is (checked bit for bit
+against 64 on 21 000 eigenvalues); 52 keeps two to spare."""
 _LEVEL = 1.0 + 1e-12
 """The amplification level :func:`max_stable_step` calls unstable."""
 
@@ -90,7 +94,7 @@ def max_stable_steps(eigenvalues) -> np.ndarray:
         hi = np.full(idx.size, _BRACKET[1])
         bracketed = ((rk4_amplification(lo * direction) <= _LEVEL)
                      & (rk4_amplification(hi * direction) > _LEVEL))
-        for _ in range(64):
+        for _ in range(BISECTIONS):
             mid = (lo + hi) / 2
             inside = rk4_amplification(mid * direction) <= _LEVEL
             lo = np.where(inside, mid, lo)
