@@ -162,7 +162,7 @@ def doubled(phis: list[np.ndarray]) -> list[np.ndarray]:
     for k in range(1, len(phis)):
         acc = E @ phis[k]
         for j in range(1, k + 1):
-            acc = acc + phis[j] / math.factorial(k - j)
+            acc = acc + (phis[j] if k - j < 2 else phis[j] / math.factorial(k - j))
         out.append(acc / 2 ** k)
     return out
 
@@ -189,14 +189,17 @@ def phi_ladder(L, steps) -> dict[float, dict[str, np.ndarray]]:
     steps = sorted(set(float(h) for h in steps))
     L = np.asarray(L, dtype=float)
     h = steps[0] / 2
-    phis = phi_functions(L, h)
+    # the direct rungs (the first and every RESEED-th) in one stacked call: 2^level L at h is hL exactly
+    seeds = range(0, max(0, math.ceil(math.log2(steps[-1] / h) - 1e-9)) + 1, RESEED)
+    direct = phi_functions(np.stack([L * 2.0 ** level for level in seeds]), h)
+    phis = [M[0] for M in direct]
     out: dict[float, dict[str, np.ndarray]] = {}
     level = 0
     for target in steps:
         while h < target * (1 - 1e-12):
             level += 1
             half, h = phis, 2 * h
-            phis = phi_functions(L, h) if level % RESEED == 0 else doubled(phis)
+            phis = [M[level // RESEED] for M in direct] if level % RESEED == 0 else doubled(phis)
             if h > target * (1 + 1e-12):
                 raise ValueError(f"step {target!r} s is not {steps[0]!r} s times a power of two")
             if math.isclose(h, target, rel_tol=1e-12):
