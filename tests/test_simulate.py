@@ -38,6 +38,17 @@ def test_rk4_real_axis_limit():
     assert rk4_amplification(1.01 * h * (-3 + 4j)) > 1.0
 
 
+def test_the_real_axis_limit_is_the_bisections():
+    """A real eigenvalue takes REAL_AXIS without bisecting: the value the bisection finds off the axis
+    by a hair, and the scan of max_stable_step on it, and RK4's amplification crosses 1 + 1e-12 there."""
+    from quadctl.sim.plan import REAL_AXIS
+
+    assert max_stable_steps(np.array([-2.0]))[0] == REAL_AXIS / 2
+    nearby = max_stable_steps(np.array([-1.0 + 1e-300j]))[0]  # not on the axis: bisected
+    assert nearby == REAL_AXIS == max_stable_step(-1.0)
+    assert rk4_amplification(-REAL_AXIS) <= 1.0 + 1e-12 < rk4_amplification(-np.nextafter(REAL_AXIS, 3.0))
+
+
 def test_auto_step_is_stable_and_accurate(loop):
     _, cl = loop
     plan = plan_step(cl.eigenvalues, cl.owners, 10.0, "auto")

@@ -30,7 +30,8 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl.sim.builder import PHI_LAYOUT
-from quadctl.sim.plan import StepPlan, max_stable_steps, record_stride, step_count
+from quadctl.sim.plan import _BRACKET, StepPlan, max_stable_steps, record_stride, step_count
+from quadctl.stability import is_stable
 
 SAFETY = 1.0
 """The constant of ``h(t)`` (runs with exogenous inputs or a sampled controller; a free run takes
@@ -426,8 +427,13 @@ def record_strides(plan: StepPlan, max_samples: int) -> list[int]:
 
 
 def _rk4_limit(eig) -> float:
-    """RK4's largest stable step for these eigenvalues (s; reported beside the schedule)."""
-    return float(rk4_limits(np.asarray(eig)[None])[0])
+    """RK4's largest stable step for these eigenvalues (s; reported beside the schedule): of the
+    stable ones fast enough to set it (each limit is ``|z| / |lambda|`` with ``|z|`` within the
+    bisection's bracket, so a mode slower than ``bracket[0] / bracket[1]`` of the fastest cannot)."""
+    eig = np.asarray(eig, dtype=complex)
+    mag = np.where(is_stable(eig), np.abs(eig), 0.0)
+    lo, hi = _BRACKET
+    return float(rk4_limits(eig[(mag > 0) & (mag >= mag.max(initial=0.0) * lo / hi)][None])[0])
 
 
 def rk4_limits(eigenvalues) -> np.ndarray:
