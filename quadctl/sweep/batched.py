@@ -349,6 +349,8 @@ class _Seen:
     def __init__(self):
         self.arrays: dict[int, tuple] = {}
         self.vehicles: dict[int, tuple] = {}
+        self.structures: dict[tuple, tuple] = {}
+        """The field objects' identities -> (the objects, the key's parts, the unhashable objects)."""
 
     def array_key(self, value: np.ndarray) -> tuple:
         if id(value) not in self.arrays:
@@ -366,23 +368,36 @@ def _structure(loop, extra: tuple, seen: _Seen) -> tuple[tuple, list]:
     """What a loop's lane spec and bounds depend on: ``extra`` and every field of the loop but the
     values of the gains and the spectrum (a field added to ``ClosedLoop`` is part of the key without
     a change here); arrays by value, other unhashable objects (the actuators) by identity, returned
-    to be kept alive with the cached entry (an identity is unique only while its object lives)."""
-    parts, held = [], []
-    for name in _loop_fields():
-        if name in PER_CASE:
-            parts.append(getattr(loop, name) is None)
-            continue
-        value = getattr(loop, name)
-        if isinstance(value, np.ndarray):
-            parts.append(seen.array_key(value))
-            continue
-        try:
-            hash(value)
-            parts.append(value)
-        except TypeError:
-            parts.append(("id", id(value)))
-            held.append(value)
+    to be kept alive with the cached entry (an identity is unique only while its object lives).
+    Derived once per set of field objects (:attr:`_Seen.structures`: the cases of a chunk share them)."""
+    shared, per_case = _loop_getters()
+    values = shared(loop)
+    ids = (*map(id, values), *(v is None for v in per_case(loop)))
+    if ids not in seen.structures:
+        parts, held = [], []
+        for value in values:
+            if isinstance(value, np.ndarray):
+                parts.append(seen.array_key(value))
+                continue
+            try:
+                hash(value)
+                parts.append(value)
+            except TypeError:
+                parts.append(("id", id(value)))
+                held.append(value)
+        seen.structures[ids] = (values, (*parts, *ids[len(values):]), held)  # values: the ids stay theirs
+    _, parts, held = seen.structures[ids]
     return ("structure", *extra, *parts), held
+
+
+@lru_cache(maxsize=1)
+def _loop_getters():
+    """(the fields of a loop its lane spec reads the values of, those of :data:`PER_CASE`), as getters
+    of a tuple."""
+    from operator import attrgetter
+
+    names = _loop_fields()
+    return (attrgetter(*(n for n in names if n not in PER_CASE)), attrgetter(*(n for n in names if n in PER_CASE)))
 
 
 @lru_cache(maxsize=1)
