@@ -110,8 +110,8 @@ class NativeRunner:
               header=None, values=None, sums=None):
         L, pad = self.lanes, self.lanes - used
 
-        def lanes(arr, fill=None):
-            arr = arr[sl]
+        def lanes(arr, fill=None, sliced=False):
+            arr = arr if sliced else arr[sl]
             if pad:
                 filler = arr[:1] if fill is None else np.broadcast_to(fill, (1, *arr.shape[1:]))
                 arr = np.concatenate([arr, np.repeat(filler, pad, axis=0)])
@@ -120,8 +120,8 @@ class NativeRunner:
         lane_d = np.concatenate([lanes(cases.dt), lanes(cases.exo_period)])
         lane_i = np.concatenate([lanes(cases.k0), lanes(cases.n, 0), lanes(cases.stride), lanes(cases.hold),
                                  lanes(cases.exo_first),
-                                 lanes(np.array([len(e) for e in cases.exo], dtype=C_LONG) if cases.exo
-                                       else np.ones(len(cases), dtype=C_LONG))]).astype(C_LONG)
+                                 lanes(np.array([len(e) for e in cases.exo[sl]], dtype=C_LONG) if cases.exo
+                                       else np.ones(used, dtype=C_LONG), sliced=True)]).astype(C_LONG)
         exo = None
         if self.spec.n_exo:
             exo = np.zeros((L, exo_rows, self.spec.n_exo))

@@ -483,8 +483,13 @@ def summarize_all(jobs):
             for i, done, ks, xs, us in run.iter_run(cases):
                 yield group[i], (done, ks, xs, us, None), run.backend
             continue
-        values = np.stack([case_values(metrics, prep.plant.linear.u_trim, prep.setup.Q_block, prep.setup.R_block,
-                                       *((prep.setup.reference.tolerance, prep.setup.reference.legs)
-                                         if metrics.legs else ())) for prep, _, _ in group])
+        if metrics.legs:  # each case's tolerance and legs
+            values = np.stack([case_values(metrics, prep.plant.linear.u_trim, prep.setup.Q_block, prep.setup.R_block,
+                                           prep.setup.reference.tolerance, prep.setup.reference.legs)
+                               for prep, _, _ in group])
+        else:
+            values = case_values(metrics, np.stack([prep.plant.linear.u_trim for prep, _, _ in group]),
+                                 np.stack([prep.setup.Q_block for prep, _, _ in group]),
+                                 np.stack([prep.setup.R_block for prep, _, _ in group]))
         for i, done, k_end, x_end, u_end, sums in run.iter_summaries(cases, metrics, values):
             yield group[i], (done, k_end, x_end, u_end, sums), run.backend
