@@ -9,6 +9,7 @@ plan, :func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 from functools import lru_cache
 
@@ -243,7 +244,6 @@ def loops_of(live) -> list:
     from quadctl.sim.run import ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
-    realized: dict[tuple, tuple] = {}  # cases with the same noise and steps share its realization
     seen = _Seen()
     # per loop structure, sample time and initial state: the constants and the initial loop state
     # (cases of one structure differ only in their gains, which each case writes into a copy)
@@ -312,17 +312,17 @@ def loops_of(live) -> list:
                 noise = setup.noise
                 key = (noise.seed, noise.process_std.tobytes(), noise.sensor_std.tobytes(), noise.period,
                        setup.timing.rate, plan.n_steps, plan.dt)
-            if key is None or key not in realized:
+            if key is not None and key in _realized:
+                _realized.move_to_end(key)
+                first, exo, period = _realized[key]
+            else:
                 stream = ExoStream(setup.noise, setup.wind, setup.timing.rate, flown)
                 # a reference's rows through the final step's (the lanes measure the final record
                 # against the reference there, as simulate's x_ref does)
-                rows = (*stream.rows(0, plan.n_steps + (flown is not None), plan.dt), stream.period)
-                if key is None:
-                    first, exo, period = rows
-                else:
-                    realized[key] = rows
-            if key is not None:
-                first, exo, period = realized[key]
+                first, exo, period = rows = (*stream.rows(0, plan.n_steps + (flown is not None), plan.dt),
+                                             stream.period)
+                if key is not None:
+                    _keep_realization(key, rows)
         start = setup.initial_state(linear.x_trim)
         key = (shape, plan.sample_time, start.tobytes())
         if key not in templates:
@@ -333,6 +333,24 @@ def loops_of(live) -> list:
                          stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
                          exo_period=period)
     return out
+
+
+REALIZATION_BYTES = 32 * 2**20
+"""Bytes of noise realizations a process keeps (:func:`loops_of`), the last used: the cases of a sweep
+that draw one seed, in every chunk, share its exogenous rows (a 2 s run at 200 Hz: 58 kB, ~0.1 ms
+to draw)."""
+_realized: OrderedDict[tuple, tuple] = OrderedDict()
+"""Every value the rows depend on (the noise spec's, the rate, the steps) -> (first, rows, period)."""
+
+
+def _keep_realization(key: tuple, rows: tuple) -> None:
+    """Keep a realization (not one larger than the whole budget), dropping the least recently used."""
+    if rows[1].nbytes > REALIZATION_BYTES:
+        return
+    _realized[key] = rows
+    total = sum(kept[1].nbytes for kept in _realized.values())
+    while total > REALIZATION_BYTES:
+        total -= _realized.popitem(last=False)[1][1].nbytes
 
 
 PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners", "jacobians")
