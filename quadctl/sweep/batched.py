@@ -265,10 +265,21 @@ def loops_of(live) -> list:
         for i, j in enumerate(members):
             owner_of = live[j][0].setup.state_owner
             eig_of[j] = (eigs[i], [owner_of.get(names[r], "unassigned") for r in largest[i]], limits[i])
+    trims: dict[tuple, QuadctlError | None] = {}  # (actuators, u_trim) by identity -> check_trim's verdict
+    starts: dict[tuple, tuple] = {}  # (initial offset, x_trim) by identity -> the initial state, its bytes
     for j, (prep, des) in enumerate(live):
         setup, linear = prep.setup, prep.plant.linear
+        trim_key = (id(setup.actuators), id(linear.u_trim))  # the objects live as long as live does
+        if trim_key not in trims:
+            try:
+                check_trim(setup.actuators, linear.u_trim)
+                trims[trim_key] = None
+            except QuadctlError as exc:
+                trims[trim_key] = exc
+        if trims[trim_key] is not None:
+            out[j] = trims[trim_key]
+            continue
         try:
-            check_trim(setup.actuators, linear.u_trim)
             kalman = _estimator(prep)
         except QuadctlError as exc:
             out[j] = exc
@@ -323,8 +334,12 @@ def loops_of(live) -> list:
                                              stream.period)
                 if key is not None:
                     _keep_realization(key, rows)
-        start = setup.initial_state(linear.x_trim)
-        key = (shape, plan.sample_time, start.tobytes())
+        start_key = (id(setup.initial_offset), id(linear.x_trim))
+        if start_key not in starts:
+            start = setup.initial_state(linear.x_trim)
+            starts[start_key] = (start, start.tobytes())
+        start, start_bytes = starts[start_key]
+        key = (shape, plan.sample_time, start_bytes)
         if key not in templates:
             templates[key] = (loop.constants(plan.sample_time), loop.initial_loop_state(start))
         c, x0 = templates[key]

@@ -355,8 +355,9 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
          path: str = "") -> dict:
     row = dict(head)
     row["stable"] = bool(stable)
-    row["eig.fastest"] = float(np.min(core_eigs.real)) if len(core_eigs) else None
-    row["eig.slowest"] = float(np.max(core_eigs.real)) if len(core_eigs) else None
+    real = np.asarray(core_eigs).real
+    row["eig.fastest"] = float(real.min()) if len(real) else None
+    row["eig.slowest"] = float(real.max()) if len(real) else None
     if summary is not None:
         for kind in ("settling_time", "overshoot", "peak"):
             values = summary[kind]
