@@ -129,8 +129,12 @@ def _solve(Ts, n, group, preps):
     batched."""
     from quadctl.lqr.riccati import care_batch, dare_batch
 
-    A = np.stack([sub.A for _, sub, _ in group])
-    B = np.stack([sub.B for _, sub, _ in group])
+    first = group[0][1]
+    if all(sub is first for _, sub, _ in group):  # one plant (a sweep of the weights): its matrices repeated
+        A, B = np.repeat(first.A[None], len(group), axis=0), np.repeat(first.B[None], len(group), axis=0)
+    else:
+        A = np.stack([sub.A for _, sub, _ in group])
+        B = np.stack([sub.B for _, sub, _ in group])
     Q = np.stack([preps[k].setup.weights[sub.name][0] for k, sub, _ in group])
     R = np.stack([preps[k].setup.weights[sub.name][1] for k, sub, _ in group])
     C = integral.selector(group[0][1].states, group[0][2])
