@@ -297,32 +297,42 @@ def _estimator(cfg: Config, timing: Timing) -> EstimatorSpec | None:
                          process_std=np.array([*force, *torque], float), period=float(period))
 
 
-def vary(setup: Setup, weights: dict[str, tuple[list | None, list | None]] | None = None,
-         noise_seed: int | None = None) -> Setup:
-    """``setup`` with some subsystems' weights or the noise seed replaced: what :func:`setup_of` gives
-    for the config with those values, without validating and resolving all of it again (a sweep
-    builds thousands of cases from one base this way).
+def vary(setup: Setup, n: int, weights: dict[str, tuple[np.ndarray | None, np.ndarray | None]] | None = None,
+         noise_seeds=None) -> list[Setup]:
+    """``n`` copies of ``setup``, each with some subsystems' weights or the noise seed replaced: what
+    :func:`setup_of` gives for the config with those values, without validating and resolving all
+    of it again (a sweep builds thousands of cases from one base this way, a chunk at once).
 
     Parameters
     ----------
     setup : Setup
+    n : int
+        Setups to make.
     weights : dict of str -> (Q, R), optional
-        Per subsystem, its ``lqr.<name>.Q`` and ``R`` as the config writes them (lists; None: as in
+        Per subsystem, its weight matrices, one a case: ``(n, size, size)`` arrays (None: as in
         ``setup``), already checked (:func:`quadctl.config.check_weight`): the caller validates.
-    noise_seed : int, optional
-        ``simulation.noise.seed`` (a whole number >= 0).
+        Each setup holds its case's slice of them.
+    noise_seeds : sequence of int, optional
+        Per case, ``simulation.noise.seed`` (a whole number >= 0).
     """
-    changes: dict = {}
+    cases: list[dict] = [{} for _ in range(n)]
     if weights:
-        merged = dict(setup.weights)
-        for name, (Q, R) in weights.items():
-            old_Q, old_R = merged[name]
-            merged[name] = (old_Q if Q is None else weight_matrix(Q, 0), old_R if R is None else weight_matrix(R, 0))
-        changes["weights"] = merged
-        changes["Q_block"], changes["R_block"] = _weight_blocks(setup.partition, merged, setup, weights)
-    if noise_seed is not None and setup.noise is not None:
-        changes["noise"] = replace(setup.noise, seed=int(noise_seed))
-    return _replaced(setup, changes) if changes else setup
+        Q_block, R_block = _weight_blocks(setup.partition, weights, setup, n)
+        names = list(weights)
+        for k, changes in enumerate(cases):
+            merged = dict(setup.weights)
+            for name in names:
+                Q, R = weights[name]
+                old_Q, old_R = merged[name]
+                merged[name] = (old_Q if Q is None else Q[k], old_R if R is None else R[k])
+            changes.update(weights=merged, Q_block=Q_block[k], R_block=R_block[k])
+    if noise_seeds is not None and setup.noise is not None:
+        noises: dict[int, NoiseSpec] = {}  # frozen: cases drawing one seed share it
+        for seed, changes in zip(noise_seeds, cases):
+            if seed not in noises:
+                noises[seed] = replace(setup.noise, seed=int(seed))
+            changes["noise"] = noises[seed]
+    return [_replaced(setup, changes) if changes else setup for changes in cases]
 
 
 def _replaced(setup: Setup, changes: dict) -> Setup:
@@ -336,20 +346,25 @@ def _replaced(setup: Setup, changes: dict) -> Setup:
     return new
 
 
-def _weight_blocks(partition, weights, base: Setup | None = None, changed=None) -> tuple[np.ndarray, np.ndarray]:
+def _weight_blocks(partition, weights, base: Setup | None = None, n: int | None = None):
     """(Q (12, 12), R (4, 4)): the regulated subsystems' plant-state weights assembled; with a
-    ``base`` setup, its blocks with only the ``changed`` subsystems' rewritten (the subsystems'
+    ``base`` setup, ``n`` cases' (Q (n, 12, 12), R (n, 4, 4)): its blocks with only the subsystems
+    in ``weights`` rewritten (their (n, size, size) matrices, or None: unchanged; the subsystems'
     blocks do not overlap: a state belongs to one subsystem, an input drives one)."""
     if base is None:
         Q, R = np.zeros((N_STATES, N_STATES)), np.zeros((N_INPUTS, N_INPUTS))
+        lead: tuple = ()
     else:
-        Q, R = base.Q_block.copy(), base.R_block.copy()
+        Q, R = np.repeat(base.Q_block[None], n, axis=0), np.repeat(base.R_block[None], n, axis=0)
+        lead = (slice(None),)
     for name, sub in partition.items():
-        if name in weights and (changed is None or name in changed):
-            (qi, qj, n), (ri, rj) = _block_index(tuple(sub.states), tuple(sub.inputs))
+        if name in weights:
+            (qi, qj, size), (ri, rj) = _block_index(tuple(sub.states), tuple(sub.inputs))
             Qw, Rw = weights[name]
-            Q[qi, qj] = Qw[:n, :n]
-            R[ri, rj] = Rw
+            if Qw is not None:
+                Q[(*lead, qi, qj)] = Qw[..., :size, :size]
+            if Rw is not None:
+                R[(*lead, ri, rj)] = Rw
     return Q, R
 
 

@@ -210,9 +210,10 @@ def verdict_stack(A_cl, K, *, sample_time: float | None = None) -> list[tuple[np
         marginal = tuple(s for s, m in zip(POSITION_STATES, pattern) if m)
         keep = [i for i in range(n) if i >= N_STATES or STATE_NAMES[i] not in marginal]
         core = np.linalg.eigvals(safe[np.ix_(members, keep, keep)])
-        ok = np.all(is_stable(core, discrete=discrete), axis=1) & finite[members]
-        for j, k in enumerate(members):
-            out[k] = (_as_s(core[j], sample_time), marginal, bool(ok[j]))
+        ok = (np.all(is_stable(core, discrete=discrete), axis=1) & finite[members]).tolist()
+        core_s = _as_s(core, sample_time)  # elementwise: the stack at once
+        for j, k in enumerate(members.tolist()):
+            out[k] = (core_s[j], marginal, ok[j])
     return out
 
 

@@ -7,7 +7,7 @@ schedule's zero-order holds 500 times slower (1.7 s against 3 ms for 197 loops).
 
 from __future__ import annotations
 
-from contextlib import AbstractContextManager
+from contextlib import AbstractContextManager, nullcontext
 from functools import lru_cache
 
 
@@ -25,5 +25,14 @@ def _controller():
 
 
 def one_thread() -> AbstractContextManager:
-    """A context in which BLAS and OpenMP run one thread (``with one_thread(): ...``)."""
-    return _controller().limit(limits=1)
+    """A context in which BLAS and OpenMP run one thread (``with one_thread(): ...``).
+
+    Nothing to do when every pool runs one thread already: a sweep's worker forked inside this
+    context (:func:`quadctl.sweep.runner.run`) then never sets a count. Setting one in a forked
+    child makes OpenBLAS start its thread pool anew, whose threads spin ~0.1 s of CPU before they
+    sleep: half the first chunk's time in each worker of a mambo-200hz sweep.
+    """
+    controller = _controller()
+    if all(lib.num_threads == 1 for lib in controller.lib_controllers):
+        return nullcontext()
+    return controller.limit(limits=1)

@@ -89,3 +89,29 @@ def test_other_keys_take_the_whole_validation():
     same(setups(0, (0.07, 50.0)), setups.from_config(0, (0.07, 50.0)))
     with pytest.raises(ConfigError, match=r"case 1: vehicle\.mass = -1"):
         setups(1, (-1.0, 50.0))
+
+
+@pytest.mark.parametrize("definite", [True, False])
+def test_the_stacked_weight_check_passes_what_check_weight_passes(definite):
+    """Each row of diagonal_weights_pass's verdict is whether check_weight raises for that diagonal:
+    edges of WEIGHT_RANGE, zeros, negatives and the definiteness floor (relative to the largest)."""
+    edges = [0.0, -0.0, 1e-15, 9.99e-16, 1e15, 1.01e15, -1e-15, 1.0, -1.0, 2.5, 1e-13, -1e-13, 1e-12, 5e-3]
+    rng = np.random.default_rng(7)
+    rows = []
+    for _ in range(400):  # positive weights, one entry an edge
+        row = list(10.0 ** rng.uniform(-3, 3, size=3))
+        row[rng.integers(3)] = rng.choice(edges)
+        rows.append(row)
+    rows += [[1.0, 1e-12, 1.0], [1.0, 1.0001e-12, 1.0], [1.0, -1e-12, 1.0], [1.0, -1.0001e-12, 1.0]]
+
+    def passes(row):
+        try:
+            config.check_weight([float(v) for v in row], 3, "lqr.roll.Q", "c.yaml", definite=definite,
+                                names=["a", "b", "c"])
+        except ConfigError:
+            return False
+        return True
+
+    expected = [passes(row) for row in rows]
+    assert 50 < sum(expected) < len(rows) - 50  # both verdicts well represented
+    assert config.diagonal_weights_pass(np.array(rows), definite=definite).tolist() == expected

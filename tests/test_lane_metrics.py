@@ -151,3 +151,21 @@ def test_a_mission_sweeps_settling_and_overshoot_are_against_the_reference(speed
             against_trim += (trim is None) != (got is None) or (got is not None and not math.isclose(trim, got,
                                                                                                     rel_tol=1e-9))
         assert against_trim >= 3  # the positions (and more) settle elsewhere measured from the trim
+
+
+def test_case_values_of_stacks_are_each_case_s_values():
+    """Given the stacked trims and weights of a group, case_values gives each case's own row: u_trim,
+    the weights at the spec's pairs (read by hand from Q and R) and the tolerance."""
+    rng = np.random.default_rng(3)
+    Q = np.zeros((5, N_STATES, N_STATES))
+    Q[:, [0, 6, 7], [0, 6, 7]] = rng.uniform(1, 9, (5, 3))
+    R = np.zeros((5, 4, 4))
+    R[:, [1, 3], [1, 3]] = rng.uniform(1, 9, (5, 2))
+    u = rng.uniform(0, 1, (5, 4))
+    mspec = MetricSpec.of(("phi", "theta"), Q[0], R[0])
+    stacked = case_values(mspec, u, Q, R)
+    assert stacked.shape == (5, mspec.n_values)
+    for k in range(5):
+        expected = [*u[k], Q[k, 0, 0], Q[k, 6, 6], Q[k, 7, 7], R[k, 1, 1], R[k, 3, 3], 0.0]
+        assert stacked[k].tolist() == expected
+        assert case_values(mspec, u[k], Q[k], R[k]).tolist() == expected

@@ -88,12 +88,17 @@ class MetricSpec:
 
 def case_values(spec: MetricSpec, u_trim, Q, R, tolerance: float = 0.0, legs=()) -> np.ndarray:
     """One case's ``mv`` column: ``u_trim`` (4,), the entries of ``Q`` and ``R`` at the spec's
-    pairs, the waypoint tolerance (m) and per leg its start (s) and waypoint (N, E, D m)."""
+    pairs, the waypoint tolerance (m) and per leg its start (s) and waypoint (N, E, D m); or, given
+    stacks (``u_trim`` (N, 4), ``Q`` (N, 12, 12), ``R`` (N, 4, 4)), N cases' rows at once (the same
+    ``tolerance`` and ``legs`` for all)."""
+    u = np.asarray(u_trim, dtype=float)
     Q, R = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
-    parts = [np.asarray(u_trim, dtype=float), [Q[i, j] for i, j in spec.q_pairs], [R[i, j] for i, j in spec.r_pairs],
-             [tolerance]]
-    parts += [[leg.start, *leg.position] for leg in legs]
-    return np.concatenate([np.asarray(p, dtype=float).ravel() for p in parts])
+    q = np.array(spec.q_pairs, dtype=int).reshape(-1, 2)
+    r = np.array(spec.r_pairs, dtype=int).reshape(-1, 2)
+    lead = u.shape[:-1]
+    parts = [u, Q[..., q[:, 0], q[:, 1]], R[..., r[:, 0], r[:, 1]], np.full((*lead, 1), float(tolerance))]
+    parts += [np.broadcast_to(np.array([leg.start, *leg.position], dtype=float), (*lead, 4)) for leg in legs]
+    return np.concatenate(parts, axis=-1)
 
 
 def _slot(name: str, i: int = 0) -> int:

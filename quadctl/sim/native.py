@@ -64,10 +64,11 @@ class NativeRunner:
         done = np.empty(L, dtype=C_LONG)
         noise = self.spec.n_exo > 0
         exo_rows = max(len(e) for e in cases.exo) if noise else 0
+        blocks = self._blocks(cases)
         for start in range(0, N, L):
             sl = slice(start, min(start + L, N))
             used = sl.stop - sl.start
-            self._call(cases, sl, used, exo_rows, rows_max, xs, us, ks, n_rec, done)
+            self._call(cases, sl, used, exo_rows, rows_max, xs, us, ks, n_rec, done, blocks=blocks)
             for lane in range(used):
                 r = int(n_rec[lane])
                 yield start + lane, int(done[lane]), ks[lane, :r], xs[lane, :, :r].T, us[lane, :, :r].T
@@ -91,13 +92,14 @@ class NativeRunner:
         header = metrics.header()
         noise = self.spec.n_exo > 0
         exo_rows = max(len(e) for e in cases.exo) if noise else 0
+        blocks = self._blocks(cases)
         for start in range(0, N, L):
             sl = slice(start, min(start + L, N))
             used = sl.stop - sl.start
             mv = values[sl]
             if used < L:
                 mv = np.concatenate([mv, np.repeat(mv[:1], L - used, axis=0)])
-            self._call(cases, sl, used, exo_rows, 1, xs, us, ks, n_rec, done, keep=0, header=header,
+            self._call(cases, sl, used, exo_rows, 1, xs, us, ks, n_rec, done, keep=0, header=header, blocks=blocks,
                        values=np.ascontiguousarray(mv.T), sums=sums)
             for lane in range(used):
                 yield start + lane, int(done[lane]), int(ks[lane, 0]), xs[lane, :, 0], us[lane, :, 0], sums[:, lane]
@@ -106,28 +108,40 @@ class NativeRunner:
         """``(done, ks, xs, us)`` per case, as copies."""
         return [(done, ks.copy(), xs.copy(), us.copy()) for _, done, ks, xs, us in self.iter_run(cases)]
 
-    def _call(self, cases: Cases, sl: slice, used: int, exo_rows, rows_max, xs, us, ks, n_rec, done, keep=1,
-              header=None, values=None, sums=None):
-        L, pad = self.lanes, self.lanes - used
+    def _blocks(self, cases: Cases) -> list[list[np.ndarray]]:
+        """Per call (``lanes`` cases, the last padded with copies of its first case, which take no
+        steps), the C arrays of its cases: ``x0``, ``c``, the doubles (``dt``, ``exo_period``), the
+        longs (``k0``, ``n``, ``stride``, ``hold``, ``exo_first``, exogenous rows), ``lo``, ``hi``; a
+        per-case vector lane-minor. Made for all the calls at once."""
+        L, N = self.lanes, len(cases)
+        G = -(-N // L)
+        pad = G * L - N
 
         def lanes(arr, fill=None):
-            arr = arr[sl]
+            arr = np.asarray(arr)
             if pad:
-                filler = arr[:1] if fill is None else np.broadcast_to(fill, (1, *arr.shape[1:]))
+                filler = arr[(G - 1) * L:(G - 1) * L + 1] if fill is None else \
+                    np.broadcast_to(fill, (1, *arr.shape[1:]))
                 arr = np.concatenate([arr, np.repeat(filler, pad, axis=0)])
-            return np.ascontiguousarray(arr.T) if arr.ndim == 2 else np.ascontiguousarray(arr)
+            arr = arr.reshape(G, L, *arr.shape[1:])
+            return np.ascontiguousarray(arr.transpose(0, 2, 1) if arr.ndim == 3 else arr)
 
-        lane_d = np.concatenate([lanes(cases.dt), lanes(cases.exo_period)])
+        counts = np.array([len(e) for e in cases.exo], dtype=C_LONG) if cases.exo else np.ones(N, dtype=C_LONG)
+        lane_d = np.concatenate([lanes(cases.dt), lanes(cases.exo_period)], axis=1)
         lane_i = np.concatenate([lanes(cases.k0), lanes(cases.n, 0), lanes(cases.stride), lanes(cases.hold),
-                                 lanes(cases.exo_first),
-                                 lanes(np.array([len(e) for e in cases.exo], dtype=C_LONG) if cases.exo
-                                       else np.ones(len(cases), dtype=C_LONG))]).astype(C_LONG)
+                                 lanes(cases.exo_first), lanes(counts)], axis=1).astype(C_LONG)
+        return [list(group) for group in zip(lanes(cases.x0), lanes(cases.c), lane_d, lane_i, lanes(cases.lo),
+                                             lanes(cases.hi))]
+
+    def _call(self, cases: Cases, sl: slice, used: int, exo_rows, rows_max, xs, us, ks, n_rec, done, keep=1,
+              header=None, values=None, sums=None, blocks=None):
+        L = self.lanes
+        arrays = (blocks if blocks is not None else self._blocks(cases))[sl.start // L]
         exo = None
         if self.spec.n_exo:
             exo = np.zeros((L, exo_rows, self.spec.n_exo))
             for lane, e in enumerate(cases.exo[sl]):
                 exo[lane, :len(e)] = e
-        arrays = [lanes(cases.x0), lanes(cases.c), lane_d, lane_i, lanes(cases.lo), lanes(cases.hi)]
         dp, lp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_long)
 
         def p(a, kind=dp):

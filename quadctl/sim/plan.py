@@ -155,7 +155,7 @@ def plan_step(eigenvalues, owners, duration: float, dt="auto", *, limits=None) -
     """
     eig = np.asarray(eigenvalues, dtype=complex)
     limits = max_stable_steps(eig) if limits is None else np.asarray(limits, dtype=float)
-    stable_modes = np.array([is_stable(e) for e in eig], dtype=bool)
+    stable_modes = np.asarray(is_stable(eig), dtype=bool)  # eig is 1-d: one verdict each
     h_max = float(limits[stable_modes].min()) if stable_modes.any() else math.inf
     k_fast = int(np.argmax(np.abs(eig))) if eig.size else 0
     fastest = complex(eig[k_fast]) if eig.size else 0j
@@ -199,7 +199,7 @@ def plan_held_step(open_loop_eigenvalues, rate: float, duration: float, dt="auto
     """
     Ts = 1.0 / rate
     eig = np.asarray(open_loop_eigenvalues, dtype=complex)
-    stable_modes = np.array([is_stable(e) for e in eig], dtype=bool)
+    stable_modes = np.asarray(is_stable(eig), dtype=bool)  # eig is 1-d: one verdict each
     limits = max_stable_steps(eig)
     h_max = float(limits[stable_modes].min()) if stable_modes.any() else math.inf
     fastest = complex(eig[int(np.argmax(np.abs(eig)))]) if eig.size else 0j

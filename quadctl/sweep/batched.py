@@ -9,6 +9,7 @@ plan, :func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes).
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 from functools import lru_cache
 
@@ -128,8 +129,12 @@ def _solve(Ts, n, group, preps):
     batched."""
     from quadctl.lqr.riccati import care_batch, dare_batch
 
-    A = np.stack([sub.A for _, sub, _ in group])
-    B = np.stack([sub.B for _, sub, _ in group])
+    first = group[0][1]
+    if all(sub is first for _, sub, _ in group):  # one plant (a sweep of the weights): its matrices repeated
+        A, B = np.repeat(first.A[None], len(group), axis=0), np.repeat(first.B[None], len(group), axis=0)
+    else:
+        A = np.stack([sub.A for _, sub, _ in group])
+        B = np.stack([sub.B for _, sub, _ in group])
     Q = np.stack([preps[k].setup.weights[sub.name][0] for k, sub, _ in group])
     R = np.stack([preps[k].setup.weights[sub.name][1] for k, sub, _ in group])
     C = integral.selector(group[0][1].states, group[0][2])
@@ -243,7 +248,6 @@ def loops_of(live) -> list:
     from quadctl.sim.run import ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
-    realized: dict[tuple, tuple] = {}  # cases with the same noise and steps share its realization
     seen = _Seen()
     # per loop structure, sample time and initial state: the constants and the initial loop state
     # (cases of one structure differ only in their gains, which each case writes into a copy)
@@ -265,10 +269,21 @@ def loops_of(live) -> list:
         for i, j in enumerate(members):
             owner_of = live[j][0].setup.state_owner
             eig_of[j] = (eigs[i], [owner_of.get(names[r], "unassigned") for r in largest[i]], limits[i])
+    trims: dict[tuple, QuadctlError | None] = {}  # (actuators, u_trim) by identity -> check_trim's verdict
+    starts: dict[tuple, tuple] = {}  # (initial offset, x_trim) by identity -> the initial state, its bytes
     for j, (prep, des) in enumerate(live):
         setup, linear = prep.setup, prep.plant.linear
+        trim_key = (id(setup.actuators), id(linear.u_trim))  # the objects live as long as live does
+        if trim_key not in trims:
+            try:
+                check_trim(setup.actuators, linear.u_trim)
+                trims[trim_key] = None
+            except QuadctlError as exc:
+                trims[trim_key] = exc
+        if trims[trim_key] is not None:
+            out[j] = trims[trim_key]
+            continue
         try:
-            check_trim(setup.actuators, linear.u_trim)
             kalman = _estimator(prep)
         except QuadctlError as exc:
             out[j] = exc
@@ -312,19 +327,23 @@ def loops_of(live) -> list:
                 noise = setup.noise
                 key = (noise.seed, noise.process_std.tobytes(), noise.sensor_std.tobytes(), noise.period,
                        setup.timing.rate, plan.n_steps, plan.dt)
-            if key is None or key not in realized:
+            if key is not None and key in _realized:
+                _realized.move_to_end(key)
+                first, exo, period = _realized[key]
+            else:
                 stream = ExoStream(setup.noise, setup.wind, setup.timing.rate, flown)
                 # a reference's rows through the final step's (the lanes measure the final record
                 # against the reference there, as simulate's x_ref does)
-                rows = (*stream.rows(0, plan.n_steps + (flown is not None), plan.dt), stream.period)
-                if key is None:
-                    first, exo, period = rows
-                else:
-                    realized[key] = rows
-            if key is not None:
-                first, exo, period = realized[key]
-        start = setup.initial_state(linear.x_trim)
-        key = (shape, plan.sample_time, start.tobytes())
+                first, exo, period = rows = (*stream.rows(0, plan.n_steps + (flown is not None), plan.dt),
+                                             stream.period)
+                if key is not None:
+                    _keep_realization(key, rows)
+        start_key = (id(setup.initial_offset), id(linear.x_trim))
+        if start_key not in starts:
+            start = setup.initial_state(linear.x_trim)
+            starts[start_key] = (start, start.tobytes())
+        start, start_bytes = starts[start_key]
+        key = (shape, plan.sample_time, start_bytes)
         if key not in templates:
             templates[key] = (loop.constants(plan.sample_time), loop.initial_loop_state(start))
         c, x0 = templates[key]
@@ -333,6 +352,24 @@ def loops_of(live) -> list:
                          stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
                          exo_period=period)
     return out
+
+
+REALIZATION_BYTES = 32 * 2**20
+"""Bytes of noise realizations a process keeps (:func:`loops_of`), the last used: the cases of a sweep
+that draw one seed, in every chunk, share its exogenous rows (a 2 s run at 200 Hz: 58 kB, ~0.1 ms
+to draw)."""
+_realized: OrderedDict[tuple, tuple] = OrderedDict()
+"""Every value the rows depend on (the noise spec's, the rate, the steps) -> (first, rows, period)."""
+
+
+def _keep_realization(key: tuple, rows: tuple) -> None:
+    """Keep a realization (not one larger than the whole budget), dropping the least recently used."""
+    if rows[1].nbytes > REALIZATION_BYTES:
+        return
+    _realized[key] = rows
+    total = sum(kept[1].nbytes for kept in _realized.values())
+    while total > REALIZATION_BYTES:
+        total -= _realized.popitem(last=False)[1][1].nbytes
 
 
 PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners", "jacobians")
@@ -349,6 +386,8 @@ class _Seen:
     def __init__(self):
         self.arrays: dict[int, tuple] = {}
         self.vehicles: dict[int, tuple] = {}
+        self.structures: dict[tuple, tuple] = {}
+        """The field objects' identities -> (the objects, the key's parts, the unhashable objects)."""
 
     def array_key(self, value: np.ndarray) -> tuple:
         if id(value) not in self.arrays:
@@ -366,23 +405,36 @@ def _structure(loop, extra: tuple, seen: _Seen) -> tuple[tuple, list]:
     """What a loop's lane spec and bounds depend on: ``extra`` and every field of the loop but the
     values of the gains and the spectrum (a field added to ``ClosedLoop`` is part of the key without
     a change here); arrays by value, other unhashable objects (the actuators) by identity, returned
-    to be kept alive with the cached entry (an identity is unique only while its object lives)."""
-    parts, held = [], []
-    for name in _loop_fields():
-        if name in PER_CASE:
-            parts.append(getattr(loop, name) is None)
-            continue
-        value = getattr(loop, name)
-        if isinstance(value, np.ndarray):
-            parts.append(seen.array_key(value))
-            continue
-        try:
-            hash(value)
-            parts.append(value)
-        except TypeError:
-            parts.append(("id", id(value)))
-            held.append(value)
+    to be kept alive with the cached entry (an identity is unique only while its object lives).
+    Derived once per set of field objects (:attr:`_Seen.structures`: the cases of a chunk share them)."""
+    shared, per_case = _loop_getters()
+    values = shared(loop)
+    ids = (*map(id, values), *(v is None for v in per_case(loop)))
+    if ids not in seen.structures:
+        parts, held = [], []
+        for value in values:
+            if isinstance(value, np.ndarray):
+                parts.append(seen.array_key(value))
+                continue
+            try:
+                hash(value)
+                parts.append(value)
+            except TypeError:
+                parts.append(("id", id(value)))
+                held.append(value)
+        seen.structures[ids] = (values, (*parts, *ids[len(values):]), held)  # values: the ids stay theirs
+    _, parts, held = seen.structures[ids]
     return ("structure", *extra, *parts), held
+
+
+@lru_cache(maxsize=1)
+def _loop_getters():
+    """(the fields of a loop its lane spec reads the values of, those of :data:`PER_CASE`), as getters
+    of a tuple."""
+    from operator import attrgetter
+
+    names = _loop_fields()
+    return (attrgetter(*(n for n in names if n not in PER_CASE)), attrgetter(*(n for n in names if n in PER_CASE)))
 
 
 @lru_cache(maxsize=1)
@@ -468,8 +520,13 @@ def summarize_all(jobs):
             for i, done, ks, xs, us in run.iter_run(cases):
                 yield group[i], (done, ks, xs, us, None), run.backend
             continue
-        values = np.stack([case_values(metrics, prep.plant.linear.u_trim, prep.setup.Q_block, prep.setup.R_block,
-                                       *((prep.setup.reference.tolerance, prep.setup.reference.legs)
-                                         if metrics.legs else ())) for prep, _, _ in group])
+        if metrics.legs:  # each case's tolerance and legs
+            values = np.stack([case_values(metrics, prep.plant.linear.u_trim, prep.setup.Q_block, prep.setup.R_block,
+                                           prep.setup.reference.tolerance, prep.setup.reference.legs)
+                               for prep, _, _ in group])
+        else:
+            values = case_values(metrics, np.stack([prep.plant.linear.u_trim for prep, _, _ in group]),
+                                 np.stack([prep.setup.Q_block for prep, _, _ in group]),
+                                 np.stack([prep.setup.R_block for prep, _, _ in group]))
         for i, done, k_end, x_end, u_end, sums in run.iter_summaries(cases, metrics, values):
             yield group[i], (done, k_end, x_end, u_end, sums), run.backend

@@ -22,7 +22,7 @@ import numpy as np
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.sweep.gates import judge, tracking_columns
-from quadctl.sweep.spec import assign
+from quadctl.sweep.spec import _like, assign
 from quadctl.threads import one_thread
 
 MC_POINTS = 201
@@ -97,15 +97,18 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
     rows: dict[int, dict] = {}
     traces: dict[int, np.ndarray] = {}
     ready = []
-    setup_of = CaseSetups(task)
-    for index, values in task.cases:
+    setups = CaseSetups(task)
+    base_plant = None  # the plant of the cases derived from the base's setup (they fly its condition)
+    for (index, values), (setup, derived) in zip(task.cases, setups.all(task.cases)):
         head = {"case": index, **dict(zip(task.names, values))}
-        try:
-            setup = setup_of(index, values)
-        except ConfigError as exc:
-            rows[index] = _failed(head, "invalid_config", str(exc))
+        if isinstance(setup, ConfigError):
+            rows[index] = _failed(head, "invalid_config", str(setup))
             continue
-        plant = plant_of(setup)
+        if derived:
+            base_plant = plant_of(setups.base) if base_plant is None else base_plant
+            plant = base_plant
+        else:
+            plant = plant_of(setup)
         if isinstance(plant, TrimError):
             rows[index] = _failed(head, "no_trim", str(plant))
             continue
@@ -139,12 +142,13 @@ class CaseSetups:
 
     The reference way validates the case's whole config and builds its setup (~0.2 ms). When every
     varied key is one whose effect on the setup :func:`quadctl.problem.vary` knows (an entry of a
-    diagonal ``lqr.<name>.Q`` or ``R``, ``simulation.noise.seed``), the case's setup is the base's
-    with those values put in (~15 µs), after the checks the whole validation makes of them: the
-    type the schema takes (a finite float, a whole number >= 0) and the weight checks of
-    :func:`quadctl.config.check_weight`. A value that fails any check goes the reference way, which
-    words the error, so an invalid value gives the same one-line error either way
-    (``tests/test_case_setups.py`` checks that both ways give the same setups and messages).
+    diagonal ``lqr.<name>.Q`` or ``R``, ``simulation.noise.seed``), the cases' setups are the base's
+    with their values put in, the whole chunk at once (a few µs a case), after the checks the whole
+    validation makes of them: the type the schema takes (a finite float, a whole number >= 0) and
+    the weight checks of :func:`quadctl.config.check_weight` (:func:`~quadctl.config.diagonal_weights_pass`).
+    A case whose value fails any check goes the reference way, which words the error, so an invalid
+    value gives the same one-line error either way (``tests/test_case_setups.py`` checks that both
+    ways give the same setups and messages).
     """
 
     def __init__(self, task: ChunkTask):
@@ -153,7 +157,8 @@ class CaseSetups:
 
         self.task = task
         self.kinds: list | None = None
-        self._checks: dict[tuple[str, str], dict] = {}
+        self.base = None
+        self._sizes: dict[tuple[str, str], int] = {}
         try:
             self.cfg = config_mod.from_dict(task.base, task.label)
         except ConfigError:  # a case's values may still make it valid: every case the reference way
@@ -165,11 +170,27 @@ class CaseSetups:
 
     def __call__(self, index: int, values: tuple):
         """The setup of case ``index``; raises ConfigError (one line) when its config is invalid."""
+        setup = self.all([(index, values)])[0][0]
+        if isinstance(setup, ConfigError):
+            raise setup
+        return setup
+
+    def all(self, cases) -> list[tuple[Any, bool]]:
+        """Per ``(index, values)`` of ``cases``: ``(setup, derived)``, the setup a ConfigError (one line)
+        when the case's config is invalid; ``derived``: the base's setup with the values put in (it
+        flies the base's plant)."""
+        out: list = [None] * len(cases)
         if self.kinds is not None:
-            setup = self._varied(values)
-            if setup is not None:
-                return setup
-        return self.from_config(index, values)
+            for k, setup in enumerate(self._varied(cases)):
+                if setup is not None:
+                    out[k] = (setup, True)
+        for k, (index, values) in enumerate(cases):
+            if out[k] is None:
+                try:
+                    out[k] = (self.from_config(index, values), False)
+                except ConfigError as exc:
+                    out[k] = (exc, False)
+        return out
 
     def from_config(self, index: int, values: tuple):
         """The reference way: the case's config assembled, validated and made into its setup."""
@@ -192,47 +213,51 @@ class CaseSetups:
                 return ("weight", *keys[1:])
         return None
 
-    def _weight_check(self, name: str, which: str) -> dict:
-        """The arguments of :func:`quadctl.config.check_weight` for ``lqr.<name>.<which>`` but the value."""
-        key = (name, which)
-        if key not in self._checks:
-            sub, integral = self.base.partition[name], self.cfg.lqr[name].integral
-            if which == "Q":
-                size, names = len(sub.states) + len(integral), [*sub.states, *(f"integral of {s}" for s in integral)]
-            else:
-                size, names = len(sub.inputs), list(sub.inputs)
-            self._checks[key] = dict(size=size, path=f"lqr.{name}.{which}", label=self.task.label,
-                                     definite=which == "R", names=names)
-        return self._checks[key]
-
-    def _varied(self, values: tuple):
-        """The base setup with the case's values, or None when one fails a check."""
+    def _varied(self, cases) -> list:
+        """Per case, the base setup with its values, or None when one fails a check."""
         import math
 
-        from quadctl.config import check_weight
+        from quadctl.config import diagonal_weights_pass
         from quadctl.problem import vary
 
-        weights: dict[str, dict[str, list]] = {}  # subsystem -> the changed "Q" and "R" lists
-        seed = None
-        for kind, value in zip(self.kinds, values):
+        n = len(cases)
+        ok = np.ones(n, dtype=bool)
+        seeds = None
+        columns: dict[tuple[str, str], list] = {}  # (subsystem, "Q" or "R") -> [(entry, values)]
+        base_seed = self.cfg.simulation.noise.seed if self.cfg.simulation.noise is not None else None
+        for p, kind in enumerate(self.kinds):
             if kind[0] == "seed":
-                seed = assign({"seed": self.cfg.simulation.noise.seed}, ("seed",), _plain(value))["seed"]
-                if type(seed) is not int or seed < 0:  # the schema: a strict int >= 0
-                    return None
+                seeds = [base_seed] * n
+                for k, (_, values) in enumerate(cases):
+                    seed = _like(base_seed, _plain(values[p]))
+                    if type(seed) is not int or seed < 0:  # the schema: a strict int >= 0
+                        ok[k] = False
+                    else:
+                        seeds[k] = seed
                 continue
             _, name, which, i = kind
-            changed = weights.setdefault(name, {})
-            entries = changed[which] = assign(changed.get(which, getattr(self.cfg.lqr[name], which)), (i,),
-                                              _plain(value))
-            if type(entries[i]) is not float or not math.isfinite(entries[i]):
-                return None  # the schema: a strict, finite float
-        for name, changed in weights.items():  # the base's own weights passed these checks already
-            for which, value in changed.items():
-                try:  # as quadctl.config._check_semantics checks them
-                    check_weight(value, **self._weight_check(name, which))
-                except ConfigError:
-                    return None
-        return vary(self.base, weights={n: (c.get("Q"), c.get("R")) for n, c in weights.items()}, noise_seed=seed)
+            old = getattr(self.cfg.lqr[name], which)[i]
+            drawn = np.full(n, float(old))
+            for k, (_, values) in enumerate(cases):
+                value = _like(old, _plain(values[p]))
+                if type(value) is not float or not math.isfinite(value):  # the schema: a strict, finite float
+                    ok[k] = False
+                else:
+                    drawn[k] = value
+            columns.setdefault((name, which), []).append((i, drawn))
+        weights: dict[str, list] = {}
+        for (name, which), entries in columns.items():
+            diagonal = np.array(getattr(self.cfg.lqr[name], which), dtype=float)
+            drawn = np.repeat(diagonal[None], n, axis=0)
+            for i, values in entries:  # in the parameters' order: a later one of the same entry wins
+                drawn[:, i] = values
+            ok &= diagonal_weights_pass(drawn, definite=which == "R")  # the base's own passed already
+            size = diagonal.size
+            matrices = np.zeros((n, size, size))
+            matrices[:, np.arange(size), np.arange(size)] = drawn
+            weights.setdefault(name, [None, None])["QR".index(which)] = matrices
+        setups = vary(self.base, n, weights={name: tuple(pair) for name, pair in weights.items()}, noise_seeds=seeds)
+        return [setup if good else None for setup, good in zip(setups, ok.tolist())]
 
 
 class Plant:
@@ -330,8 +355,9 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
          path: str = "") -> dict:
     row = dict(head)
     row["stable"] = bool(stable)
-    row["eig.fastest"] = float(np.min(core_eigs.real)) if len(core_eigs) else None
-    row["eig.slowest"] = float(np.max(core_eigs.real)) if len(core_eigs) else None
+    real = np.asarray(core_eigs).real
+    row["eig.fastest"] = float(real.min()) if len(real) else None
+    row["eig.slowest"] = float(real.max()) if len(real) else None
     if summary is not None:
         for kind in ("settling_time", "overshoot", "peak"):
             values = summary[kind]

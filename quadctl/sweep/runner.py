@@ -20,6 +20,7 @@ from quadctl.errors import SweepError
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import margin, metric_columns, regulated_states
 from quadctl.sweep.spec import Case, SweepSpec, assign, with_sections
+from quadctl.threads import one_thread
 
 
 @dataclass
@@ -259,6 +260,8 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
     # (the progress bar runs no thread, so nothing is forked mid-lock); spawn elsewhere (macOS's
     # system libraries are not fork-safe)
     ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+    threads = one_thread()  # held while the workers fork: they start with one BLAS thread (threads.py)
+    threads.__enter__()
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init)
     pending = set()
     finished_all = False
@@ -285,6 +288,7 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
             for process in list(getattr(pool, "_processes", {}).values()):
                 process.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
+        threads.__exit__(None, None, None)
 
 
 SCHEDULER_TIMEOUT = "10s"
