@@ -1275,9 +1275,33 @@ def weight_matrix(value: list, size: int):
     return np.diag(arr) if arr.ndim == 1 else arr
 
 
+def _out_of_range(magnitudes):
+    """Where a weight's magnitude is neither 0 nor within :data:`WEIGHT_RANGE` (any shape, elementwise)."""
+    import numpy as np
+
+    mag = np.asarray(magnitudes, dtype=float)
+    return (mag != 0) & ~((mag >= WEIGHT_RANGE[0]) & (mag <= WEIGHT_RANGE[1]))
+
+
+def _definite(low, top, definite: bool):
+    """Whether a weight whose smallest eigenvalue is ``low`` and largest magnitude ``top`` (arrays of
+    many weights, or floats) is positive definite (``definite``, for R) or semidefinite (Q), up to the
+    floor :data:`DEFINITENESS_RTOL` of its scale."""
+    import numpy as np
+
+    floor = DEFINITENESS_RTOL * np.maximum(top, 1e-300)
+    return low > floor if definite else low >= -floor
+
+
 def check_weight(value: list, size: int, path: str, label: str, *, definite: bool,
                  names: list[str]) -> None:
-    """Check Q (PSD) or R (PD): size, symmetry, definiteness; raise ConfigError naming ``path``."""
+    """Check Q (PSD) or R (PD): size, symmetry, definiteness; raise ConfigError naming ``path``.
+
+    The range and definiteness rules are :func:`_out_of_range` and :func:`_definite`, which
+    :func:`diagonal_weights_pass` applies to many diagonals at once.
+    """
+    import numpy as np
+
     nested = bool(value) and isinstance(value[0], list)
     if nested and any(not isinstance(row, list) for row in value):
         raise ConfigError(f"{label}: {path}: mixes numbers and rows; give a list (diagonal) or a list of rows")
@@ -1287,46 +1311,33 @@ def check_weight(value: list, size: int, path: str, label: str, *, definite: boo
         expect = f"{size} value{'s' if size != 1 else ''} (one per {', '.join(names)}) or a {size}x{size} matrix"
         got = "x".join(map(str, shape)) if nested else f"{len(value)} values"
         raise ConfigError(f"{label}: {path} = {show(value)}: expected {expect}, got {got}")
-    flat = [abs(float(v)) for row in (value if nested else [value]) for v in row]  # plain floats: a sweep
-    for k, mag in enumerate(flat):                                                 # checks thousands
-        if mag != 0 and not WEIGHT_RANGE[0] <= mag <= WEIGHT_RANGE[1]:
-            where = f"{path}[{k}]" if not nested else f"{path}[{k // size}][{k % size}]"
-            entry = value[k] if not nested else value[k // size][k % size]
-            raise ConfigError(f"{label}: {where} = {show(entry)}: a weight must be 0 or between {WEIGHT_RANGE[0]:g} "
-                              f"and {WEIGHT_RANGE[1]:g} in magnitude (WEIGHT_RANGE); the gains depend only on the "
-                              "ratios of the weights: scale Q and R together")
-    if not nested:  # a diagonal is symmetric and its eigenvalues are its entries
-        low, top = min(value), max(flat)
-        floor = DEFINITENESS_RTOL * max(top, 1e-300)
-        if definite and low <= floor:
-            raise ConfigError(f"{label}: {path} = {show(value)}: must be positive definite "
-                              f"(smallest eigenvalue {low:.3g}); use positive weights")
-        if not definite and low < -floor:
-            raise ConfigError(f"{label}: {path} = {show(value)}: must be positive semidefinite "
-                              f"(smallest eigenvalue {low:.3g}); use nonnegative weights")
-        return
-    import numpy as np
-
-    mat = weight_matrix(value, size)
-    scale = max(float(np.abs(mat).max()), 1.0)
-    if not np.allclose(mat, mat.T, rtol=0, atol=SYMMETRY_RTOL * scale):
-        raise ConfigError(f"{label}: {path} = {show(value)}: not symmetric; make it equal to its transpose")
-    eig = np.linalg.eigvalsh((mat + mat.T) / 2)
-    floor = DEFINITENESS_RTOL * max(float(np.abs(eig).max()), 1e-300)
-    if definite and eig.min() <= floor:
-        raise ConfigError(f"{label}: {path} = {show(value)}: must be positive definite "
-                          f"(smallest eigenvalue {eig.min():.3g}); use positive weights")
-    if not definite and eig.min() < -floor:
-        raise ConfigError(f"{label}: {path} = {show(value)}: must be positive semidefinite "
-                          f"(smallest eigenvalue {eig.min():.3g}); use nonnegative weights")
+    flat = np.abs(np.array(value, dtype=float)).ravel()
+    bad = np.flatnonzero(_out_of_range(flat))
+    if bad.size:
+        k = int(bad[0])
+        where = f"{path}[{k}]" if not nested else f"{path}[{k // size}][{k % size}]"
+        entry = value[k] if not nested else value[k // size][k % size]
+        raise ConfigError(f"{label}: {where} = {show(entry)}: a weight must be 0 or between {WEIGHT_RANGE[0]:g} "
+                          f"and {WEIGHT_RANGE[1]:g} in magnitude (WEIGHT_RANGE); the gains depend only on the "
+                          "ratios of the weights: scale Q and R together")
+    if nested:
+        mat = weight_matrix(value, size)
+        scale = max(float(np.abs(mat).max()), 1.0)
+        if not np.allclose(mat, mat.T, rtol=0, atol=SYMMETRY_RTOL * scale):
+            raise ConfigError(f"{label}: {path} = {show(value)}: not symmetric; make it equal to its transpose")
+        eig = np.linalg.eigvalsh((mat + mat.T) / 2)
+        low, top = float(eig.min()), float(np.abs(eig).max())
+    else:  # a diagonal is symmetric and its eigenvalues are its entries
+        low, top = float(min(value)), float(flat.max())
+    if not _definite(low, top, definite):
+        kind, fix = ("positive definite", "positive") if definite else ("positive semidefinite", "nonnegative")
+        raise ConfigError(f"{label}: {path} = {show(value)}: must be {kind} "
+                          f"(smallest eigenvalue {low:.3g}); use {fix} weights")
 
 
 def diagonal_weights_pass(values, *, definite: bool):
-    """Which of many diagonal weights :func:`check_weight` passes, at once (a sweep checks thousands).
-
-    The same checks as its diagonal branch, in the same arithmetic (IEEE doubles, entry by entry):
-    every nonzero magnitude in :data:`WEIGHT_RANGE`, the smallest entry above the definiteness floor
-    (positive definite, ``definite``) or not below its negative (semidefinite).
+    """Which of many diagonal weights :func:`check_weight` passes, at once (a sweep checks thousands):
+    the same rules (:func:`_out_of_range`, :func:`_definite`) on each row.
 
     Parameters
     ----------
@@ -1343,7 +1354,4 @@ def diagonal_weights_pass(values, *, definite: bool):
 
     w = np.asarray(values, dtype=float)
     mag = np.abs(w)
-    in_range = ((mag == 0) | ((mag >= WEIGHT_RANGE[0]) & (mag <= WEIGHT_RANGE[1]))).all(axis=1)
-    floor = DEFINITENESS_RTOL * np.maximum(mag.max(axis=1), 1e-300)
-    low = w.min(axis=1)
-    return in_range & (low > floor if definite else low >= -floor)
+    return ~_out_of_range(mag).any(axis=1) & _definite(w.min(axis=1), mag.max(axis=1), definite)
