@@ -75,6 +75,15 @@ def jsonable(value: Any) -> Any:
 
     :func:`decode_floats` turns the strings back into floats.
     """
+    kind = type(value)
+    if kind is float:
+        return value if value - value == 0.0 else _non_finite(value)
+    if kind in _AS_IS:
+        return value
+    if kind is dict:  # a sweep's rows: ~50 plain scalars each, kept without a call (1000 rows: 0.04 -> 0.008 s)
+        return {k if type(k) is str else str(k):
+                v if type(v) in _AS_IS or (type(v) is float and v - v == 0.0) else jsonable(v)
+                for k, v in value.items()}
     if isinstance(value, dict):
         return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -91,8 +100,17 @@ def jsonable(value: Any) -> Any:
         value = float(value)
         if math.isfinite(value):
             return value
-        return None if math.isnan(value) else INFINITY[value]
+        return _non_finite(value)
     return value
+
+
+_AS_IS = frozenset({str, int, bool, type(None)})
+"""The types :func:`jsonable` returns unchanged (exactly these: a subclass such as ``np.float64``
+or an ``IntEnum`` is converted)."""
+
+
+def _non_finite(value: float):
+    return None if math.isnan(value) else INFINITY[value]
 
 
 def complex_values(values) -> np.ndarray | None:
