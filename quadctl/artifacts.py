@@ -32,6 +32,11 @@ FORMAT_VERSION = 1
 """Bumped when the layout of an artifact changes incompatibly."""
 
 
+def default_out(cfg) -> Path:
+    """The run directory of a config when none is given: ``runs/<config name>``."""
+    return Path("runs") / cfg.name
+
+
 def metadata(cfg, kind: str, backends=()) -> dict:
     """Provenance fields every artifact carries.
 

@@ -3,12 +3,26 @@
 The matrices of a sweep's chunk or a schedule's points are 12x12 to 30x30: too small for threads
 to pay, and on a busy 2-core machine BLAS threads made a sweep 6 to 16 times slower and a
 schedule's zero-order holds 500 times slower (1.7 s against 3 ms for 197 loops).
+
+:func:`one_thread` is the context for work done in the caller's process (its pools get their
+thread counts back after). A sweep's worker processes fork inside :func:`loaded_one_thread` (the
+pools loaded so far, SciPy's not loaded for it) and then run :func:`one_thread_for_good`: every
+pool runs one thread for the life of the worker, those loaded later too, and :func:`one_thread`
+has nothing left to do (and never loads SciPy only to find its pool: ~0.2 s a worker).
 """
 
 from __future__ import annotations
 
+import os
 from contextlib import AbstractContextManager, nullcontext
 from functools import lru_cache
+
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
+                    "VECLIB_MAXIMUM_THREADS")
+"""The environment variables BLAS and OpenMP libraries read, when they load, for their thread count."""
+
+_for_good = False
+"""True once :func:`one_thread_for_good` ran in this process."""
 
 
 @lru_cache(maxsize=1)
@@ -27,12 +41,40 @@ def _controller():
 def one_thread() -> AbstractContextManager:
     """A context in which BLAS and OpenMP run one thread (``with one_thread(): ...``).
 
-    Nothing to do when every pool runs one thread already: a sweep's worker forked inside this
-    context (:func:`quadctl.sweep.runner.run`) then never sets a count. Setting one in a forked
-    child makes OpenBLAS start its thread pool anew, whose threads spin ~0.1 s of CPU before they
-    sleep: half the first chunk's time in each worker of a mambo-200hz sweep.
+    Nothing to do when every pool runs one thread already: a sweep's worker forked inside
+    :func:`loaded_one_thread` then never sets a count. Setting one in a forked child makes OpenBLAS
+    start its thread pool anew, whose threads spin ~0.1 s of CPU before they sleep: half the first
+    chunk's time in each worker of a mambo-200hz sweep.
     """
-    controller = _controller()
+    if _for_good:
+        return nullcontext()
+    return _limited(_controller())
+
+
+def loaded_one_thread() -> AbstractContextManager:
+    """:func:`one_thread` for the pools loaded so far only (SciPy's is not loaded for it, ~0.2 s):
+    held while a sweep's workers fork, so that they start with one thread in each."""
+    from threadpoolctl import ThreadpoolController
+
+    return _limited(ThreadpoolController())
+
+
+def _limited(controller) -> AbstractContextManager:
     if all(lib.num_threads == 1 for lib in controller.lib_controllers):
         return nullcontext()
     return controller.limit(limits=1)
+
+
+def one_thread_for_good() -> None:
+    """Every BLAS and OpenMP pool of this process runs one thread from now on: one that loads later
+    (SciPy's, when a chunk first needs ``scipy.linalg``) reads :data:`THREAD_VARIABLES`, set here,
+    as it loads; those loaded now are limited, unless they run one already (a worker forked inside
+    :func:`loaded_one_thread` sets no count: see :func:`one_thread`).
+
+    For a process that only works on small matrices (a sweep's worker process). Its environment then
+    also asks one thread of the processes it starts.
+    """
+    global _for_good
+    os.environ.update(dict.fromkeys(THREAD_VARIABLES, "1"))
+    loaded_one_thread().__enter__()  # not left: for good
+    _for_good = True

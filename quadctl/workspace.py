@@ -22,6 +22,7 @@ import numpy as np
 
 from quadctl import __version__, artifacts, payloads, pipeline
 from quadctl.analysis import Checks, check
+from quadctl.artifacts import default_out
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
 from quadctl.errors import DesignError
@@ -96,11 +97,6 @@ class Flight:
     loop: ClosedLoop
     metrics: dict
     flight: dict
-
-
-def default_out(cfg: Config) -> Path:
-    """``runs/<config name>``."""
-    return Path("runs") / cfg.name
 
 
 class Workspace(pipeline.Stages):

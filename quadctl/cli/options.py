@@ -72,21 +72,28 @@ def load_source(config: str | None, sets=None, *, plausible: bool = True):
     """
     from quadctl import config as config_mod
     from quadctl import notices, overrides
-    from quadctl.cli import render
     from quadctl.cli.errors import remember_config
 
     source = config_mod.locate(config)
     if source.note:
-        render.note(source.note)
+        _render().note(source.note)
     cfg = overrides.load(source, sets or ())
     label = f"{source.label} with --set" if sets else source.label  # a value named may be one --set gave
     remember_config(label)
     found = notices.notices(cfg, label)
     for notice in found:
-        (render.note if notice.level == "note" else render.warning)(notice.message)
+        (_render().note if notice.level == "note" else _render().warning)(notice.message)
     if plausible:
         notices.require_plausible(cfg, found, label)
     return cfg, source._replace(text=overrides.recorded(source.text, sets or ()))
+
+
+def _render():
+    """:mod:`quadctl.cli.render`, imported when a note is printed: a sweep's worker processes start
+    before it is needed (it takes rich)."""
+    from quadctl.cli import render
+
+    return render
 
 
 def open_workspace(config: str | None, out: Path | None, fresh: bool = False, sets=None):

@@ -1,4 +1,5 @@
-"""The simulation's progress bar: on stderr, only on a terminal, only for a run that takes a while."""
+"""Progress bars on stderr: the simulation's (only on a terminal, only for a run that takes a while)
+and the sweep's. Both import rich on first use."""
 
 from __future__ import annotations
 
@@ -43,7 +44,7 @@ def simulation_progress(quiet: bool = False):
     try:
         yield update
     finally:
-        if shown:
+        if "bar" in shown:
             shown["bar"].stop()
 
 
@@ -59,3 +60,34 @@ def _bar(console):
 
     return Progress(TextColumn("simulate"), BarColumn(), TaskProgressColumn(), TimeElapsedColumn(),
                     TextColumn("ETA"), TimeRemainingColumn(), console=console, transient=True, auto_refresh=False)
+
+
+@contextlib.contextmanager
+def sweep_progress(quiet: bool = False):
+    """Yield ``progress(done, total)`` (cases) for :func:`quadctl.sweep.execute`, or None when ``quiet``
+    (``--json``).
+
+    The bar (:func:`quadctl.cli.render_sweep.sweep_bar`) is made at the first call, which comes once
+    the sweep's worker processes run: importing rich and drawing the bar overlap their work, and they
+    fork from a process without either. That call's ``done`` are the rows kept from an interrupted
+    run (``--resume``): the rate counts the others.
+    """
+    if quiet:
+        yield None
+        return
+    shown: dict = {}
+
+    def update(done: int, total: int) -> None:
+        if not shown:
+            from quadctl.cli.render_sweep import sweep_bar
+
+            shown["bar"] = bar = sweep_bar()
+            bar.start()
+            shown["task"] = bar.add_task("sweep", total=total, resumed=done)
+        shown["bar"].update(shown["task"], completed=done, total=total, refresh=True)
+
+    try:
+        yield update
+    finally:
+        if shown:
+            shown["bar"].stop()

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
-
 from rich.console import Group
 from rich.progress import (
     BarColumn,
@@ -47,27 +45,11 @@ def _rate(task) -> float | None:
     return done / elapsed if elapsed and done > 0 else None
 
 
-@contextlib.contextmanager
-def sweep_progress(total: int, quiet: bool = False):
-    """A rich progress bar on stderr (rate and ETA); yields ``progress(done, total)`` for the library.
-
-    No refresh thread: the bar is redrawn as chunks land, so worker processes fork from a
-    process without one.
-    """
-    if quiet:
-        yield None
-        return
-    bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), _RateColumn(),
-                   TimeElapsedColumn(), _EtaColumn(), console=err, auto_refresh=False)
-    task = bar.add_task("sweep", total=total, resumed=None)
-
-    def update(done: int, all_cases: int) -> None:
-        if bar.tasks[0].fields["resumed"] is None:  # the first call: rows kept from before
-            bar.update(task, resumed=done)
-        bar.update(task, completed=done, total=all_cases, refresh=True)
-
-    with bar:
-        yield update
+def sweep_bar() -> Progress:
+    """The sweep's progress bar on stderr (cases done, rate and ETA), not started; no refresh thread
+    (:func:`quadctl.cli.progress.sweep_progress` redraws it as chunks land)."""
+    return Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), _RateColumn(),
+                    TimeElapsedColumn(), _EtaColumn(), console=err, auto_refresh=False)
 
 
 def _shown_metrics(result, spec) -> list[str]:

@@ -27,6 +27,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable
+from contextlib import contextmanager
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -175,27 +176,57 @@ def compile_cached(make_source: Callable[[], str], flags: tuple[str, ...], key: 
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise CompileError(f"cannot create the compile cache {folder}: {exc.strerror}") from None
-        fd, src_name = tempfile.mkstemp(prefix=f"{library.stem}.", suffix=".c", dir=folder)
-        src, tmp_lib = Path(src_name), Path(src_name).with_suffix(suffix + ".tmp")
-        try:
-            with os.fdopen(fd, "w") as fh:
-                fh.write(make_source())
-            try:
-                proc = subprocess.run([compiler, *flags, str(src), "-o", str(tmp_lib), "-lm"],
-                                      capture_output=True, text=True, timeout=600)
-            except (OSError, subprocess.SubprocessError) as exc:
-                _FAILED[tried] = f"the C compiler {compiler} could not run ({exc})"
-                raise CompileError(_FAILED[tried]) from None
-            if proc.returncode != 0:
-                said = " ".join((proc.stderr or proc.stdout or "").split())[:300] or "no message"
-                _FAILED[tried] = f"the C compiler {compiler} failed (exit {proc.returncode}: {said})"
-                raise CompileError(_FAILED[tried])
-            os.replace(tmp_lib, library)
-        finally:
-            src.unlink(missing_ok=True)
-            tmp_lib.unlink(missing_ok=True)
+        with _machine_lock(library):
+            if library.exists():  # another process compiled it while this one waited
+                _touch(library)
+                return library
+            _compile(make_source, flags, compiler, library)
         evict_stale(folder)
     return library
+
+
+def _compile(make_source: Callable[[], str], flags: tuple[str, ...], compiler: str, library: Path) -> None:
+    """Compile ``make_source()`` to ``library`` under a temporary name, renamed into place."""
+    folder, suffix, tried = library.parent, library.suffix, (compiler, flags)
+    fd, src_name = tempfile.mkstemp(prefix=f"{library.stem}.", suffix=".c", dir=folder)
+    src, tmp_lib = Path(src_name), Path(src_name).with_suffix(suffix + ".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(make_source())
+        try:
+            proc = subprocess.run([compiler, *flags, str(src), "-o", str(tmp_lib), "-lm"],
+                                  capture_output=True, text=True, timeout=600)
+        except (OSError, subprocess.SubprocessError) as exc:
+            _FAILED[tried] = f"the C compiler {compiler} could not run ({exc})"
+            raise CompileError(_FAILED[tried]) from None
+        if proc.returncode != 0:
+            said = " ".join((proc.stderr or proc.stdout or "").split())[:300] or "no message"
+            _FAILED[tried] = f"the C compiler {compiler} failed (exit {proc.returncode}: {said})"
+            raise CompileError(_FAILED[tried])
+        os.replace(tmp_lib, library)
+    finally:
+        src.unlink(missing_ok=True)
+        tmp_lib.unlink(missing_ok=True)
+
+
+@contextmanager
+def _machine_lock(library: Path):
+    """Held while ``library`` is compiled, by one process of the machine at a time (POSIX
+    ``flock``; elsewhere no lock: two processes may then both compile it, and either's file is
+    good): a sweep's worker processes wait for one to compile and then load its library."""
+    try:
+        import fcntl
+    except ImportError:  # Windows
+        yield
+        return
+    lock = library.with_name(library.name + ".lock")
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        lock.unlink(missing_ok=True)  # a process waiting on it re-checks for the library once it has the lock
+        os.close(fd)
 
 
 def evict_stale(folder: Path, now: float | None = None) -> list[Path]:

@@ -12,6 +12,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,7 +21,7 @@ from quadctl.errors import SweepError
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import margin, metric_columns, regulated_states
 from quadctl.sweep.spec import Case, SweepSpec, assign, with_sections
-from quadctl.threads import one_thread
+from quadctl.threads import loaded_one_thread
 
 
 @dataclass
@@ -173,26 +174,26 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
             stats["executor"] = "local" if workers == 1 else f"local processes ({workers})"
         stats["workers"] = workers
         tasks = tasks_for(cfg, spec, todo, label, spec.chunk_size or default_chunk(len(todo), workers), fast)
-        if client is None and tasks and workers > 1:
-            _warm_up(tasks[0])
-        results = _dask_results(client, tasks) if client is not None else _local_results(tasks, workers)
         rows = dict(done)
         traces: dict[int, np.ndarray] = {}
         total = len(cases)
         start = time.perf_counter()
-        if progress:
-            progress(len(rows), total)
-        for result in results:
-            for row in result.rows:
-                rows[row["case"]] = row
-            traces.update(result.traces)
-            for key in ("designs", "design_time", "design_cpu", "simulate_time", "steps", "fallbacks"):
-                stats[key] += result.stats[key]
-            stats["backend"].update(result.stats["backend"])
-            if on_chunk:
-                on_chunk(result.rows, result.traces)
+        # the workers start first: what this process does next (the progress bar) overlaps their work
+        with (nullcontext(_dask_results(client, tasks)) if client is not None
+              else _local_results(tasks, workers)) as results:
             if progress:
                 progress(len(rows), total)
+            for result in results:
+                for row in result.rows:
+                    rows[row["case"]] = row
+                traces.update(result.traces)
+                for key in ("designs", "design_time", "design_cpu", "simulate_time", "steps", "fallbacks"):
+                    stats[key] += result.stats[key]
+                stats["backend"].update(result.stats["backend"])
+                if on_chunk:
+                    on_chunk(result.rows, result.traces)
+                if progress:
+                    progress(len(rows), total)
         wall = time.perf_counter() - start
     finally:
         if client is not None:
@@ -210,18 +211,14 @@ def columns_of(cfg, spec: SweepSpec) -> list[str]:
     return ["case", *spec.names, *metric_columns(cfg), "pass", "failed_gates", "reason", "path"]
 
 
-def _warm_up(task: ChunkTask) -> None:
-    """Evaluate the first case here, so the lane library is built (and compiled, once per machine)
-    before the workers fork from this process."""
-    from dataclasses import replace
-
-    evaluate_chunk(replace(task, cases=task.cases[:1]))
-
-
 def _worker_init() -> None:
     """A worker ignores Ctrl-C (the parent handles it and stops the pool) and, on Linux, dies with
-    its parent: a killed sweep leaves no worker computing for nobody."""
+    its parent: a killed sweep leaves no worker computing for nobody. It works on small matrices
+    only: one BLAS thread for good (:func:`quadctl.threads.one_thread_for_good`)."""
+    from quadctl.threads import one_thread_for_good
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    one_thread_for_good()
     if sys.platform.startswith("linux"):
         import ctypes
 
@@ -251,27 +248,35 @@ def _keep_freed_memory() -> None:
         mallopt(param, value)
 
 
-def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
+@contextmanager
+def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[Iterator[ChunkResult]]:
+    """The chunks' results as they finish, from ``jobs`` worker processes (``jobs == 1``: computed
+    here, one by one as the iterator is read).
+
+    The workers start on entering (they compute while the caller does its own work) and stop on
+    leaving: at once, if the caller leaves before the last result (Ctrl-C, an error).
+    """
     if jobs == 1:
-        for task in tasks:
-            yield evaluate_chunk(task)
+        yield (evaluate_chunk(task) for task in tasks)
         return
-    # fork on Linux: workers start at once with everything imported and the lane library loaded
-    # (the progress bar runs no thread, so nothing is forked mid-lock); spawn elsewhere (macOS's
-    # system libraries are not fork-safe)
+    # fork on Linux: workers start at once with everything imported so far (the progress bar runs no
+    # thread, so nothing is forked mid-lock); spawn elsewhere (macOS's system libraries are not fork-safe)
     ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-    threads = one_thread()  # held while the workers fork: they start with one BLAS thread (threads.py)
+    threads = loaded_one_thread()  # held while the workers fork: they start with one BLAS thread (threads.py)
     threads.__enter__()
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init)
-    pending = set()
-    finished_all = False
-    try:
-        queue = list(tasks)
-        # keep two tasks per worker in flight: a stop (Ctrl-C) leaves little half-done work
-        while queue or pending:
-            while queue and len(pending) < 2 * jobs:
-                pending.add(pool.submit(evaluate_chunk, queue.pop(0)))
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+    queue, pending = list(tasks), set()
+
+    def fill() -> None:
+        # two tasks per worker in flight: a stop (Ctrl-C) leaves little half-done work
+        while queue and len(pending) < 2 * jobs:
+            pending.add(pool.submit(evaluate_chunk, queue.pop(0)))
+
+    def results() -> Iterator[ChunkResult]:
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            pending.difference_update(finished)
+            fill()  # before the caller handles these: no worker waits for it
             for fut in finished:
                 try:
                     result = fut.result()
@@ -280,11 +285,14 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[ChunkResult]:
                                        "finished before are kept: rerun with --resume (--jobs 1 shows "
                                        "any error in this process)") from None
                 yield result
-        finished_all = True
+
+    try:
+        fill()
+        yield results()
     finally:
         for fut in pending:
             fut.cancel()
-        if not finished_all:  # Ctrl-C or an error: stop the running chunks now, not when they end
+        if pending or queue:  # Ctrl-C or an error: stop the running chunks now, not when they end
             for process in list(getattr(pool, "_processes", {}).values()):
                 process.terminate()
         pool.shutdown(wait=True, cancel_futures=True)

@@ -35,12 +35,14 @@ def command(
     controller.rotor_lag is ignore) is an uncertainty study: one design flies
     every case; it also writes montecarlo.png and montecarlo.npz (bands).
     """
+    # only what the worker processes need starts before them (they fork from this process): the
+    # terminal's output (rich) is imported as they run
     from quadctl import sweep as sweep_mod
-    from quadctl.cli import render, render_sweep
+    from quadctl.artifacts import default_out
     from quadctl.cli.options import load_config
+    from quadctl.cli.progress import sweep_progress
     from quadctl.errors import SweepError
     from quadctl.sweep.runner import check_scheduler_address
-    from quadctl.workspace import default_out
 
     if jobs is not None and scheduler:
         raise SweepError("--jobs and --scheduler: give one; on a cluster its workers do the work")
@@ -48,10 +50,12 @@ def command(
         check_scheduler_address(scheduler)  # before anything is loaded: a typo fails at once
     cfg, label = load_config(config, sets)
     spec = sweep_mod.load(sweep, cfg)
-    with render_sweep.sweep_progress(spec.count(), quiet=json) as progress:
+    with sweep_progress(quiet=json) as progress:
         outcome = sweep_mod.execute(cfg, spec, out or default_out(cfg), label=label, jobs=jobs,
                                     scheduler=scheduler, resume=resume, progress=progress,
                                     plot=not no_plot)
+    from quadctl.cli import render, render_sweep
+
     result, summary = outcome.result, outcome.summary
     if scheduler and "casadi" in result.stats["backend"]:  # locally, the engine's own notice said so
         from quadctl.sim.engine import VM_COST
