@@ -301,6 +301,38 @@ def test_threads_compile_one_library_without_touching_the_working_directory(tmp_
     assert {r.backend for r in runners} == {"compiled"} and os.getcwd() == cwd
 
 
+_RACE = """
+import sys, time
+from pathlib import Path
+from quadctl.sim import compile as compile_mod
+log = Path(sys.argv[1])
+def source():
+    with log.open("a") as fh:
+        fh.write("made\\n")
+    time.sleep(0.5)  # the other process asks meanwhile
+    return "double qc_answer(void) { return 42.0; }\\n"
+print(compile_mod.compile_cached(source, ("-O1", "-fPIC", "-shared"), "raced"))
+"""
+
+
+@pytest.mark.compiler
+@pytest.mark.skipif(os.name != "posix", reason="the machine-wide lock is flock")
+def test_processes_compile_one_library_once(tmp_path):
+    """A sweep's worker processes on a cold cache: one compiles, the other waits and loads its library."""
+    import subprocess
+    import sys
+
+    env = {**os.environ, "QUADCTL_CACHE": str(tmp_path / "cache")}
+    log = tmp_path / "made.log"
+    procs = [subprocess.Popen([sys.executable, "-c", _RACE, str(log)], env=env, stdout=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    paths = {p.communicate(timeout=120)[0].strip() for p in procs}
+    assert all(p.returncode == 0 for p in procs)
+    assert len(paths) == 1 and Path(paths.pop()).exists()
+    assert log.read_text().count("made") == 1
+    assert sorted(p.suffix for p in (tmp_path / "cache").iterdir()) == [".so"]  # no lock or temporary left
+
+
 def test_no_library_module_changes_directory_or_calls_fchmod_unguarded():
     root = Path(compile_mod.__file__).parents[1]
     for path in root.rglob("*.py"):
