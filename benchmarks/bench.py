@@ -450,15 +450,18 @@ def the_sweep() -> tuple[str, list]:
         steps = result.stats["steps"]
         rows.append([f"quadctl sweep, library, --jobs {jobs}", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
                      f"{len(result.rows) / wall:,.0f}", f"{result.stats['steps'] / len(result.rows):,.0f}"])
-    with tempfile.TemporaryDirectory() as tmp:
-        cmd = [sys.executable, "-m", "quadctl", "sweep", "-c", "forward", "-s", str(SWEEP_FILE), "-o", tmp,
-               "-j", "2"]
-        wall, proc = timed(lambda: subprocess.run(cmd, capture_output=True, text=True), repeat=2)
-        if proc.returncode not in (0, 1):
-            raise RuntimeError(proc.stderr)
     steps = results[2].stats["steps"]
-    rows.append(["quadctl sweep, CLI end to end, -j 2", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
-                 f"{1000 / wall:,.0f}", "(same cases)"])
+    # the CLI from a fresh process: --no-plot (the tables, sweep.csv and sweep.json: what CI runs), and
+    # as it runs by default, with the trade-off figure (sweep.png, matplotlib)
+    for label, extra in (("--no-plot", ["--no-plot"]), ("with its figure", [])):
+        with tempfile.TemporaryDirectory() as tmp:
+            cmd = [sys.executable, "-m", "quadctl", "sweep", "-c", "forward", "-s", str(SWEEP_FILE), "-o", tmp,
+                   "-j", "2", *extra]
+            wall, proc = timed(lambda c=cmd: subprocess.run(c, capture_output=True, text=True), repeat=REPEAT)
+            if proc.returncode not in (0, 1):
+                raise RuntimeError(proc.stderr)
+        rows.append([f"quadctl sweep {label}, CLI end to end, -j 2", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
+                     f"{1000 / wall:,.0f}", "(same cases)"])
     # the obvious alternative: each case through the pipeline, one at a time (trim, linearization,
     # quadctl.lqr per subsystem, the compiled scalar loop, metrics.summarize), on the first 100 cases
     subset = dataclasses.replace(spec, samples=100)
