@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import math
 import multiprocessing
 import os
@@ -287,7 +288,7 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[Iterator[Chunk
                 yield result
 
     try:
-        fill()
+        _forking(fill, ctx.get_start_method() == "fork")
         yield results()
     finally:
         for fut in pending:
@@ -297,6 +298,21 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[Iterator[Chunk
                 process.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
         threads.__exit__(None, None, None)
+
+
+def _forking(start: Callable[[], None], fork: bool) -> None:
+    """``start()`` the workers; by ``fork``, with every object so far out of the garbage collector's
+    sight (``gc.freeze``) meanwhile: a worker's collections then do not write to, and so copy, each
+    page of objects it shares with this process (forward sweep: 8 000 -> 5 700 page faults a worker,
+    0.02 s of CPU). This process gets its objects back to collect after."""
+    if not fork:
+        start()
+        return
+    gc.freeze()
+    try:
+        start()
+    finally:
+        gc.unfreeze()
 
 
 SCHEDULER_TIMEOUT = "10s"
