@@ -263,41 +263,40 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[Iterator[Chunk
     # fork on Linux: workers start at once with everything imported so far (the progress bar runs no
     # thread, so nothing is forked mid-lock); spawn elsewhere (macOS's system libraries are not fork-safe)
     ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-    threads = loaded_one_thread()  # held while the workers fork: they start with one BLAS thread (threads.py)
-    threads.__enter__()
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init)
-    queue, pending = list(tasks), set()
+    # held while the workers fork and run: they start with one BLAS thread and set no count (threads.py)
+    with loaded_one_thread():
+        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init)
+        queue, pending = list(tasks), set()
 
-    def fill() -> None:
-        # two tasks per worker in flight: a stop (Ctrl-C) leaves little half-done work
-        while queue and len(pending) < 2 * jobs:
-            pending.add(pool.submit(evaluate_chunk, queue.pop(0)))
+        def fill() -> None:
+            # two tasks per worker in flight: a stop (Ctrl-C) leaves little half-done work
+            while queue and len(pending) < 2 * jobs:
+                pending.add(pool.submit(evaluate_chunk, queue.pop(0)))
 
-    def results() -> Iterator[ChunkResult]:
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            pending.difference_update(finished)
-            fill()  # before the caller handles these: no worker waits for it
-            for fut in finished:
-                try:
-                    result = fut.result()
-                except BrokenProcessPool:
-                    raise RuntimeError("a sweep worker process died (killed, or out of memory); the chunks "
-                                       "finished before are kept: rerun with --resume (--jobs 1 shows "
-                                       "any error in this process)") from None
-                yield result
+        def results() -> Iterator[ChunkResult]:
+            while pending:
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                pending.difference_update(finished)
+                fill()  # before the caller handles these: no worker waits for it
+                for fut in finished:
+                    try:
+                        result = fut.result()
+                    except BrokenProcessPool:
+                        raise RuntimeError("a sweep worker process died (killed, or out of memory); the chunks "
+                                           "finished before are kept: rerun with --resume (--jobs 1 shows "
+                                           "any error in this process)") from None
+                    yield result
 
-    try:
-        _forking(fill, ctx.get_start_method() == "fork")
-        yield results()
-    finally:
-        for fut in pending:
-            fut.cancel()
-        if pending or queue:  # Ctrl-C or an error: stop the running chunks now, not when they end
-            for process in list(getattr(pool, "_processes", {}).values()):
-                process.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
-        threads.__exit__(None, None, None)
+        try:
+            _forking(fill, ctx.get_start_method() == "fork")
+            yield results()
+        finally:
+            for fut in pending:
+                fut.cancel()
+            if pending or queue:  # Ctrl-C or an error: stop the running chunks now, not when they end
+                for process in list(getattr(pool, "_processes", {}).values()):
+                    process.terminate()
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _forking(start: Callable[[], None], fork: bool) -> None:
