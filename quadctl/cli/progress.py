@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import time
+from collections.abc import Callable
 
 SHOWN_FROM = 2.0
 """s of wall time a run is projected to take (from its first chunks) before a bar is drawn: a
@@ -63,31 +64,37 @@ def _bar(console):
 
 
 @contextlib.contextmanager
-def sweep_progress(quiet: bool = False):
-    """Yield ``progress(done, total)`` (cases) for :func:`quadctl.sweep.execute`, or None when ``quiet``
-    (``--json``).
+def sweep_progress(quiet: bool = False, meanwhile: Callable[[], object] | None = None):
+    """Yield ``progress(done, total)`` (cases) for :func:`quadctl.sweep.execute`; None when ``quiet``
+    (``--json``) and there is nothing to do ``meanwhile``.
 
-    The bar (:func:`quadctl.cli.render_sweep.sweep_bar`) is made at the first call, which comes once
-    the sweep's worker processes run: importing rich and drawing the bar overlap their work, and they
-    fork from a process without either. That call's ``done`` are the rows kept from an interrupted
-    run (``--resume``): the rate counts the others.
+    The first call comes once the sweep's worker processes run (they fork from a process without
+    rich). It calls ``meanwhile()``, work this process needs after the sweep (the figure's imports),
+    and makes the bar (:func:`quadctl.cli.render_sweep.sweep_bar`, unless ``quiet``), so both overlap
+    the workers' computing. That call's ``done`` are the rows kept from an interrupted run
+    (``--resume``): the rate counts the others.
     """
-    if quiet:
+    if quiet and meanwhile is None:
         yield None
         return
     shown: dict = {}
 
     def update(done: int, total: int) -> None:
         if not shown:
-            from quadctl.cli.render_sweep import sweep_bar
+            shown["started"] = True
+            if meanwhile is not None:
+                meanwhile()
+            if not quiet:
+                from quadctl.cli.render_sweep import sweep_bar
 
-            shown["bar"] = bar = sweep_bar()
-            bar.start()
-            shown["task"] = bar.add_task("sweep", total=total, resumed=done)
-        shown["bar"].update(shown["task"], completed=done, total=total, refresh=True)
+                shown["bar"] = sweep_bar()
+                shown["bar"].start()
+                shown["task"] = shown["bar"].add_task("sweep", total=total, resumed=done)
+        if "bar" in shown:
+            shown["bar"].update(shown["task"], completed=done, total=total, refresh=True)
 
     try:
         yield update
     finally:
-        if shown:
+        if "bar" in shown:
             shown["bar"].stop()

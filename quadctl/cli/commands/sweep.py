@@ -50,7 +50,7 @@ def command(
         check_scheduler_address(scheduler)  # before anything is loaded: a typo fails at once
     cfg, label = load_config(config, sets)
     spec = sweep_mod.load(sweep, cfg)
-    with sweep_progress(quiet=json) as progress:
+    with sweep_progress(quiet=json, meanwhile=None if no_plot else _import_plots) as progress:
         outcome = sweep_mod.execute(cfg, spec, out or default_out(cfg), label=label, jobs=jobs,
                                     scheduler=scheduler, resume=resume, progress=progress,
                                     plot=not no_plot)
@@ -75,3 +75,9 @@ def command(
                 render.out.print(line, markup=False)
         raise FailedChecks(f"{len(result.failed)} of {len(result.rows)} cases fail: "
                            + render_sweep.sweep_failures(summary))
+
+
+def _import_plots() -> None:
+    """matplotlib for the figures (~0.3 s), imported while the workers compute rather than after them
+    (the forward sweep of 1000 cases with its figure: 0.97 -> 0.89 s)."""
+    import quadctl.plots  # noqa: F401
