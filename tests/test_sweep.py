@@ -504,6 +504,14 @@ def test_cli_gate_pass_exits_0(tmp_path):
     assert (tmp_path / "out" / "sweep.csv").exists()
 
 
+def test_cli_line_names_the_integrator_the_lanes_ran(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [25, 50]},
+                                              "set": {**SHORT, "simulation.method": "etdrk4"}})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out"), "-j", "1", "--no-plot"])
+    assert res.exit_code == 0, res.output
+    assert "M ETDRK4 steps/s" in res.output and "RK4 steps/s" not in res.output.replace("ETDRK4", "")
+
+
 def test_cli_gate_failure_exits_1_and_lists_the_worst(tmp_path):
     sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.altitude.R[0]": [0.2, 1.0, 5.0]},
                                               "set": SHORT, "gates": {"peak.T": {"max": 3.0}}})

@@ -140,14 +140,14 @@ def sweep_performance(outcome) -> dict:
     }
 
 
-def sweep_line(outcome) -> str:
-    """One line: what ran, how fast, and the verdict."""
+def sweep_line(outcome, method: str = "rk4") -> str:
+    """One line: what ran, how fast (steps of ``method``, the integrator the lanes ran), and the verdict."""
     perf = sweep_performance(outcome)
     result = outcome.result
     resumed = f", {perf['resumed']} resumed" if perf["resumed"] else ""
     speed = ""
     if perf["steps_per_second"]:
-        speed = (f": [bold]{perf['steps_per_second'] / 1e6:.2f} M RK4 steps/s[/bold], "
+        speed = (f": [bold]{perf['steps_per_second'] / 1e6:.2f} M {method.upper()} steps/s[/bold], "
                  f"{perf['designs_per_second']:.0f} designs/s")
     if perf["us_per_subsystem_design"] is not None:
         speed += f", {perf['us_per_subsystem_design']:.1f} µs CPU per subsystem LQR"

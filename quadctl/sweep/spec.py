@@ -338,8 +338,8 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
     if any(p.path == "simulation.method" for p in parameters):
         raise SweepError(f"{label}: parameters.simulation.method: a sweep runs one integrator in its lanes; "
                          "set it under `set:` (or in the config), and sweep the methods as two sweeps")
-    rotor_lag = next((v for p, _, v in fixed if p == "controller.rotor_lag"), cfg.controller.rotor_lag)
-    trim_wind = next((v for p, _, v in fixed if p == "trim.wind"), cfg.trim.wind)
+    rotor_lag = fixed_value(fixed, "controller.rotor_lag", cfg.controller.rotor_lag)
+    trim_wind = fixed_value(fixed, "trim.wind", cfg.trim.wind)
     estimator = cfg.estimator
     if any(p == "estimator" or p.startswith("estimator.") for p, _, _ in fixed):
         estimator = SimpleNamespace(force=None, torque=None, sensor={})  # set: may add one: a filter that
@@ -422,6 +422,11 @@ def _check_values(spec, path: str, mode: str, label: str) -> str:
     if mode == "random" and spec["from"] == spec["to"]:
         raise SweepError(f"{where}: empty range: from equals to; give a list for one value")
     return "range"
+
+
+def fixed_value(fixed, path: str, default):
+    """The value the sweep's ``set:`` gives the key ``path`` (``fixed``: :attr:`SweepSpec.fixed`), else ``default``."""
+    return next((v for p, _, v in fixed if p == path), default)
 
 
 def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
