@@ -665,3 +665,16 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
         assert key(replace(loop, **{name: value})) != key(loop), name
     same = replace(loop, K=loop.K * 2, Ki=loop.Ki * 2, Kv=loop.Kv * 2, eigenvalues=loop.eigenvalues * 2, owners=[])
     assert key(same) == key(loop)
+
+
+def test_a_sweep_into_a_pipe_draws_no_progress_bar(tmp_path):
+    """stderr not a terminal (a CI log, `2> file`): the summary line on stdout only, no bar frames."""
+    import subprocess
+    import sys
+
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [25, 50]}, "set": SHORT})
+    proc = subprocess.run([sys.executable, "-m", "quadctl", "sweep", "-s", str(sweep_file), "-o", str(tmp_path / "o"),
+                           "-j", "1", "--no-plot"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "all pass" in proc.stdout
+    assert proc.stderr == ""

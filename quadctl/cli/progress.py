@@ -1,4 +1,4 @@
-"""Progress bars on stderr: the simulation's (only on a terminal, only for a run that takes a while)
+"""Progress bars on stderr, only on a terminal: the simulation's (only for a run that takes a while)
 and the sweep's. Both import rich on first use."""
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ def sweep_progress(quiet: bool = False, meanwhile: Callable[[], object] | None =
 
     The first call comes once the sweep's worker processes run (they fork from a process without
     rich). It calls ``meanwhile()``, work this process needs after the sweep (the figure's imports),
-    and makes the bar (:func:`quadctl.cli.render_sweep.sweep_bar`, unless ``quiet``), so both overlap
+    and makes the bar (:func:`quadctl.cli.render_sweep.sweep_bar`, on a terminal unless ``quiet``), so both overlap
     the workers' computing. That call's ``done`` are the rows kept from an interrupted run
     (``--resume``): the rate counts the others.
     """
@@ -84,7 +84,9 @@ def sweep_progress(quiet: bool = False, meanwhile: Callable[[], object] | None =
             shown["started"] = True
             if meanwhile is not None:
                 meanwhile()
-            if not quiet:
+            from quadctl.cli.render import err
+
+            if not quiet and err.is_terminal:  # a pipe or a CI log gets the summary line only
                 from quadctl.cli.render_sweep import sweep_bar
 
                 shown["bar"] = sweep_bar()
