@@ -306,13 +306,17 @@ def test_the_command_fails_a_schedule_whose_design_or_check_is_unstable(tmp_path
     assert "UNSTABLE" in failing and "right half-plane" in failing
 
 
-def test_a_partial_envelope_is_a_warning_naming_the_values_and_the_fix(tmp_path):
+def test_a_value_with_no_trim_exits_2_naming_the_values_and_the_fix_after_writing_the_envelope(tmp_path):
     res = runner.invoke(app, ["schedule", "-c", write(tmp_path, "schedule: {variable: speed, values: [0, 1, 200]}\n"),
-                              "-o", str(tmp_path / "out")])
-    assert res.exit_code == 0, res.output
-    assert ("quadctl: warning: schedule.values: 1 of 3 values has no trim or design (200 m/s; the first: no usable "
-            "equilibrium") in res.stderr
-    assert "the envelope is [0, 1] m/s: narrow schedule.values to it" in res.stderr
+                              "-o", str(tmp_path / "out"), "--plot"])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.startswith(f"quadctl: error: {tmp_path / 'c.yaml'}: schedule.values: 1 of 3 values has no "
+                                 "trim or design (200 m/s; the first: no usable equilibrium")
+    assert res.stderr.rstrip().endswith("the envelope is [0, 1] m/s: narrow schedule.values to it")
+    assert len(res.stderr.strip().splitlines()) == 1
+    saved = json.loads((tmp_path / "out" / "schedule.json").read_text())  # nothing lost: the points and why
+    assert [p["designed"] for p in saved["points"]] == [True, True, False]
+    assert (tmp_path / "out" / "plots" / "schedule.png").is_file()
 
 
 @pytest.mark.parametrize("command", ["simulate", "run"])

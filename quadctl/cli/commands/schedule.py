@@ -1,5 +1,6 @@
 from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, PlotOpt, SetOpt, open_workspace
+from quadctl.errors import ScheduleError
 
 NAME = "schedule"
 
@@ -13,17 +14,15 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     designs are made together (batched), their gains tabled and interpolated (schedule.interpolation:
     nearest, linear or cubic; outside the values the end point's gain holds), and each interpolated
     gain is closed on the model trimmed at its value on a grid schedule.check times finer. A value
-    with no trim says why; --plot draws the envelope (DIR/plots/schedule.png). Exits 1 when a design
-    or a frozen-point check is unstable.
+    with no trim says why in its row, and the command then exits 2 (narrow schedule.values to the
+    envelope); --plot draws the envelope (DIR/plots/schedule.png). Exits 1 when a design or a
+    frozen-point check is unstable.
     """
     from quadctl.cli import render
     from quadctl.present import schedule as shown
 
     ws = open_workspace(config, out, fresh, sets)
     sched = ws.schedule
-    missing = shown.missing_warning(sched)
-    if missing:
-        render.warning(missing)
     path = None
     if plot:
         from quadctl import artifacts, plots
@@ -38,6 +37,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         render.out.print(f"-> {ws.path('schedule.json')}, {ws.path('schedule.npz')}")
         if path is not None:
             render.out.print(f"figure -> {path}")
+    missing = shown.missing_warning(sched)
+    if missing:  # bad input, refused once the points, their reasons and the envelope are written and shown
+        raise ScheduleError(missing)
     verdict = sched.verdict()
     if verdict:
         raise FailedChecks(verdict)
