@@ -77,16 +77,18 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     unstable = [w for w in stages.rate_warnings if not w.sampled_stable]
     if unstable:
         raise CheckFailed(f"not exported: {unstable[0].message(setup.timing.rate)}")
+    loop, schedule = _flown(setup, stages.loop)
     return Export(setup=setup, linear=stages.linear, decoupled=stages.decoupled, design=stages.design,
-                  loop=_flown(setup, stages.loop), rate_warnings=stages.rate_warnings, config_hash=config_hash)
+                  loop=loop, rate_warnings=stages.rate_warnings, config_hash=config_hash, schedule=schedule)
 
 
 def _flown(setup: Setup, loop):
-    """The loop ``quadctl simulate`` flies: ``loop``, or with ``schedule:`` the schedule's gains
-    (:func:`quadctl.scheduling.schedule_of`, flown as :func:`quadctl.pipeline.scheduled_loop`), which
-    must pass the schedule's checks to leave quadctl."""
+    """(the loop ``quadctl simulate`` flies, its schedule): ``(loop, None)``, or with ``schedule:`` the
+    schedule's gains (:func:`quadctl.scheduling.schedule_of`, flown as
+    :func:`quadctl.pipeline.scheduled_loop`), which must pass the schedule's checks to leave quadctl,
+    and that schedule."""
     if setup.schedule is None:
-        return loop
+        return loop, None
     from quadctl.pipeline import scheduled_loop
     from quadctl.scheduling import schedule_of
 
@@ -94,7 +96,7 @@ def _flown(setup: Setup, loop):
     if not schedule.passed:
         raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule.verdict()} "
                           "(`quadctl schedule` shows them)")
-    return scheduled_loop(setup, loop, schedule.table, schedule.heading, schedule.checks.eigenvalues)
+    return scheduled_loop(setup, loop, schedule.table, schedule.heading, schedule.checks.eigenvalues), schedule
 
 
 TARGETS = ("c", "mat", "json")

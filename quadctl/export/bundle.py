@@ -36,6 +36,9 @@ class Export:
         Loops of a continuous design that the rate realizes only approximately (still stable).
     config_hash : str or None
         sha256 of the config (:meth:`quadctl.config.Config.digest`): the provenance the files carry.
+    schedule : quadctl.scheduling.Schedule or None
+        The gain schedule whose table ``loop`` flies (``schedule:``; its values with no trim are left
+        out of the table); None without one.
     """
 
     setup: Setup
@@ -45,6 +48,7 @@ class Export:
     loop: ClosedLoop
     rate_warnings: tuple = ()
     config_hash: str | None = None
+    schedule: object = None
 
     @property
     def name(self) -> str:
