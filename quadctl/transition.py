@@ -91,16 +91,17 @@ def fly_transition(setup: Setup, table=None) -> Transition:
 
 def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[float, float]) -> dict:
     """One run's numbers: ``status`` and ``message`` (:func:`quadctl.sim.run.verdict`),
-    ``position_error`` (peak ``|p - p_ref|``, m), ``velocity_error`` (peak ``|V - V_ref|`` of the body
-    velocities, m/s), ``saturation`` (the largest fraction of the run any actuator spent at a limit;
+    ``position_error`` (peak ``|p - p_ref|``, m), ``velocity_error`` (peak ``|V - V_ref|`` of the earth-frame
+    velocities, m/s: the model's position rates, so an attitude error is not read as one of velocity),
+    ``saturation`` (the largest fraction of the run any actuator spent at a limit;
     0 without limits), ``saturates`` (above :data:`quadctl.motors.SATURATION_FLAG`), ``peak_attitude``
     (deg, largest ``|phi|`` and ``|theta|``), ``flown_range`` (the scheduling variable's extent) and
     ``on_grid`` (it stays within the grid, :data:`ON_GRID_MARGIN`)."""
     from quadctl import motors
 
     pos = np.linalg.norm(sim.x[:, :3] - sim.x_ref[:, :3], axis=1)
-    uvw = slice(STATE_INDEX["u"], STATE_INDEX["w"] + 1)
-    vel = np.linalg.norm(sim.x[:, uvw] - sim.x_ref[:, uvw], axis=1)
+    vel = np.linalg.norm(_velocity_ned(sim.x, sim.u, loop.params) - _velocity_ned(sim.x_ref, sim.u, loop.params),
+                         axis=1)
     act = loop.actuators
     fraction = max(motors.saturation_fraction(act, sim.u).values()) if act is not None else 0.0
     attitude = np.abs(sim.x[:, [STATE_INDEX["phi"], STATE_INDEX["theta"]]]).max()
@@ -112,6 +113,15 @@ def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[floa
             "peak_attitude": math.degrees(float(attitude)),
             "flown_range": [float(flown.min()), float(flown.max())],
             "on_grid": bool(flown.min() >= grid[0] - margin and flown.max() <= grid[1] + margin)}
+
+
+def _velocity_ned(x, u, params) -> np.ndarray:
+    """(n, 3) m/s: the earth-frame (NED) velocity of each state row, the model's position rates (which
+    read neither the input nor the parameters)."""
+    from quadctl.model import build_model
+    from quadctl.sim.mapped import mapped
+
+    return mapped(build_model().f)(x, u, params)[0][:, :3]
 
 
 def transition_lines(summary: dict) -> list[str]:
