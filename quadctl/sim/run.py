@@ -1,7 +1,10 @@
-"""Fixed-step RK4 simulation of the full nonlinear closed loop, one case.
+"""Simulation of the full nonlinear closed loop, one case: RK4 at a fixed step, or ETDRK4
+(``simulation.method: etdrk4``) on a graded schedule of steps (:mod:`quadctl.sim.schedule`).
 
-``u = u_trim - K (x - x_ref(t))`` with ``x_ref(t) = x_trim + x_rate t`` (positions drift at
-the trim velocity), with the integrators, sampling, saturation and noise the loop has, run by
+``u = u_ref(t) - K (x - x_ref(t))``: by default ``x_ref(t) = x_trim + x_rate t`` (positions drift at
+the trim velocity) and ``u_ref = u_trim``; with ``simulation.reference`` the reference flown and its
+feedforward; with a gain schedule ``K = G(v)`` (:mod:`quadctl.sim.builder`, "Gain schedule"). With
+the integrators, sampling, saturation, noise and wind the loop has, run by
 the engine of :mod:`quadctl.sim` (compiled where a C compiler works). The step comes from
 :mod:`quadctl.sim.plan`; the run goes in chunks so Ctrl-C stops it at once, and noise and wind are
 drawn chunk by chunk (:class:`ExoStream`), so memory does not grow with the duration.

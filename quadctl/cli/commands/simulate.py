@@ -17,7 +17,7 @@ NAME = "simulate"
 def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, plot: PlotOpt = False,
             json: JsonOpt = False, fresh: FreshOpt = False,
             allow_saturation: AllowSaturationOpt = False) -> None:
-    """Fixed-step RK4 of the full nonlinear closed loop; write sim.npz and sim.json.
+    """Simulate the full nonlinear closed loop (RK4, or ETDRK4: simulation.method); write sim.npz and sim.json.
 
     The loop flies simulation.reference (setpoints or a mission) when the config gives one, and the
     gain schedule when it has a schedule: section (schedule.json and schedule.npz written beside).
