@@ -301,7 +301,9 @@ def test_a_sampled_controllers_given_step_divides_its_period():
     x0 = setup.initial_state(loop.x_trim)
     sim = simulate(loop, x0, 0.05, 0.0025, method="etdrk4")
     assert sim.plan.hold == 2 and sim.steps == 20
-    with pytest.raises(StepSizeError, match=r"simulation\.dt = 0\.003 s does not divide the controller period"):
+    with pytest.raises(StepSizeError, match=r"^simulation\.dt = 0\.003 s does not divide the controller period "
+                                            r"1/rate = 0\.005 s \(controller\.rate = 200 Hz\); use dt: auto or "
+                                            r"0\.0025 s$"):  # RK4's words (plan.steps_per_sample), one rule
         simulate(loop, x0, 0.05, 0.003, method="etdrk4")
 
 

@@ -209,12 +209,7 @@ def plan_held_step(open_loop_eigenvalues, rate: float, duration: float, dt="auto
         hold = max(1, math.ceil(Ts / h - 1e-9))
     else:
         dt = float(dt)
-        hold = max(1, round(Ts / dt))
-        if abs(hold * dt - Ts) > 1e-9 * Ts:
-            good = Ts / max(1, math.ceil(Ts / dt))
-            raise StepSizeError(
-                f"simulation.dt = {dt:g} s does not divide the controller period 1/rate = {Ts:g} s "
-                f"(controller.rate = {rate:g} Hz); use dt: auto or {good:.6g} s")
+        hold = steps_per_sample(dt, Ts)
         if dt > h_max:
             raise StepSizeError(
                 f"simulation.dt = {dt:g} s is unstable for RK4 on the open-loop plant between "
@@ -222,6 +217,24 @@ def plan_held_step(open_loop_eigenvalues, rate: float, duration: float, dt="auto
     step = Ts / hold
     n = step_count(duration, step, fastest, "the open-loop plant")
     return StepPlan(step, n, h_max, fastest, "open loop (held input)", dt == "auto", hold, Ts)
+
+
+def steps_per_sample(dt: float, Ts: float) -> int:
+    """The whole number of steps of ``dt`` s in the controller period ``Ts`` s (what RK4 and ETDRK4
+    take of a sampled controller's given step).
+
+    Raises
+    ------
+    StepSizeError
+        ``dt`` does not divide ``Ts``.
+    """
+    hold = max(1, round(Ts / dt))
+    if abs(hold * dt - Ts) > 1e-9 * Ts:
+        good = Ts / max(1, math.ceil(Ts / dt))
+        raise StepSizeError(
+            f"simulation.dt = {dt:g} s does not divide the controller period 1/rate = {Ts:g} s "
+            f"(controller.rate = {1.0 / Ts:g} Hz); use dt: auto or {good:.6g} s")
+    return hold
 
 
 def step_count(duration: float, step: float, fastest: complex, owner: str) -> int:

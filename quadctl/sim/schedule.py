@@ -30,7 +30,7 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl.sim.builder import PHI_LAYOUT
-from quadctl.sim.plan import _BRACKET, StepPlan, max_stable_steps, record_stride, step_count
+from quadctl.sim.plan import _BRACKET, StepPlan, max_stable_steps, record_stride, step_count, steps_per_sample
 from quadctl.stability import is_stable
 
 SAFETY = 1.0
@@ -350,13 +350,7 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     limit = _rk4_limit(eig) if max_stable_dt is None else max_stable_dt
     if dt != "auto":
         if held:
-            hold = max(1, round(period / float(dt)))
-            if abs(hold * float(dt) - period) > 1e-9 * period:
-                from quadctl.errors import StepSizeError
-
-                raise StepSizeError(
-                    f"simulation.dt = {float(dt):g} s does not divide the controller period 1/rate = {period:g} s; "
-                    f"use dt: auto or {period / max(1, math.ceil(period / float(dt))):.6g} s")
+            hold = steps_per_sample(float(dt), period)
             h = period / hold
             n = step_count(duration, h, fastest, owner)
             return StepPlan(h, n, limit, fastest, owner, False, hold=hold, sample_time=period,
