@@ -148,6 +148,11 @@ class FrozenChecks:
                        f"at {at}: the interpolated gain's frozen loop is UNSTABLE (eigenvalue {eig_text(worst)})")
         return out
 
+    def failures_text(self, unit: str = "", shown: int = 3) -> str:
+        """The first ``shown`` :meth:`failures` joined by ``; ``, and ``; ...`` when there are more."""
+        fails = self.failures(unit)
+        return "; ".join(fails[:shown] + (["..."] if len(fails) > shown else []))
+
 
 @dataclass(frozen=True)
 class Schedule:
@@ -207,8 +212,8 @@ class Schedule:
                  for p in self.points if p.designed and not p.stable]
         fails = self.checks.failures(self.unit)
         if fails:
-            parts.append(f"{len(fails)} of {len(self.checks.values)} frozen-point checks fail: " + "; ".join(fails[:3])
-                         + ("; ..." if len(fails) > 3 else ""))
+            parts.append(f"{len(fails)} of {len(self.checks.values)} frozen-point checks fail: "
+                         + self.checks.failures_text(self.unit))
         return "; ".join(parts) or None
 
 

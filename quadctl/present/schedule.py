@@ -58,9 +58,8 @@ def flight_warnings(sched) -> list[str]:
     warnings = [w for w in (missing_warning(sched),) if w]
     if not sched.passed:
         unstable = [f"{p.value:g}" for p in sched.points if p.designed and not p.stable]
-        fails = sched.checks.failures(sched.unit)
         where = "; ".join(([f"the design at {', '.join(unstable)} {sched.unit} is UNSTABLE"] if unstable else [])
-                          + fails[:3] + (["..."] if len(fails) > 3 else []))
+                          + ([sched.checks.failures_text(sched.unit)] if not sched.checks.passed else []))
         warnings.append(f"schedule: the gains flown fail their checks ({where}); `quadctl schedule` lists "
                         "them: narrow schedule.values to where they pass, or change the weights")
     return warnings
@@ -89,9 +88,8 @@ def checks_sentence(sched) -> Mark:
         return Mark(f"Frozen-point checks: the interpolated gains are stable at all {n} values of a grid "
                     f"{c.refinement}x finer than the schedule; slowest pole {c.slowest[k]:.3g} rad/s at "
                     f"{c.values[k]:g} {sched.unit}, least damping {np.nanmin(c.least_damping):.3g}.", "ok")
-    fails = c.failures(sched.unit)
-    worst = "; ".join(fails[:3]) + ("; ..." if len(fails) > 3 else "")
-    return Mark(f"Frozen-point checks FAIL at {len(fails)} of {n} values: {worst}.", "fail")
+    return Mark(f"Frozen-point checks FAIL at {len(c.failures())} of {n} values: {c.failures_text(sched.unit)}.",
+                "fail")
 
 
 def failures_table(sched) -> Table | None:
