@@ -440,7 +440,7 @@ def frozen_checks(setup: Setup, table: GainTable, integral_states, check: int, h
         all_eig = np.linalg.eigvals(A_cl[rows])
         for j, i in enumerate(rows):
             e = all_eig[j]
-            eig[i] = e if sample_time is None else np.log(e.astype(complex)) / sample_time
+            eig[i] = stability.s_plane(e, sample_time)
         for i, (core, _, ok) in zip(rows, stability.verdict_stack(A_cl[rows], K[rows], sample_time=sample_time)):
             stable[i] = ok
             k = int(np.argmax(core.real))

@@ -189,7 +189,7 @@ def assess_stack(A_cl, K, *, sample_time: float | None = None) -> list[Assessmen
     A_cl = np.asarray(A_cl, dtype=float)
     verdicts = verdict_stack(A_cl, K, sample_time=sample_time)
     all_eig = np.linalg.eigvals(_finite_or_zero(A_cl))
-    return [Assessment(eigenvalues=_as_s(e, sample_time), eigenvalues_z=e if sample_time is not None else None,
+    return [Assessment(eigenvalues=s_plane(e, sample_time), eigenvalues_z=e if sample_time is not None else None,
                        core=core, marginal=marginal, stable=stable)
             for e, (core, marginal, stable) in zip(all_eig, verdicts)]
 
@@ -211,7 +211,7 @@ def verdict_stack(A_cl, K, *, sample_time: float | None = None) -> list[tuple[np
         keep = [i for i in range(n) if i >= N_STATES or STATE_NAMES[i] not in marginal]
         core = np.linalg.eigvals(safe[np.ix_(members, keep, keep)])
         ok = (np.all(is_stable(core, discrete=discrete), axis=1) & finite[members]).tolist()
-        core_s = _as_s(core, sample_time)  # elementwise: the stack at once
+        core_s = s_plane(core, sample_time)  # elementwise: the stack at once
         for j, k in enumerate(members.tolist()):
             out[k] = (core_s[j], marginal, ok[j])
     return out
@@ -223,7 +223,7 @@ def _finite_or_zero(A_cl: np.ndarray) -> np.ndarray:
     return A_cl if finite.all() else np.where(finite[:, None, None], A_cl, 0.0)
 
 
-def _as_s(e: np.ndarray, sample_time: float | None) -> np.ndarray:
+def s_plane(e: np.ndarray, sample_time: float | None) -> np.ndarray:
     """Eigenvalues as ``s``: ``ln(z) / Ts`` for a discrete loop (``z = 0`` maps to ``-inf``)."""
     if sample_time is None:
         return e
@@ -292,7 +292,7 @@ def damp(eigenvalues, sample_time: float | None = None) -> Damp:
     ([5.0, 5.0], [0.6, 0.6], [0.3333333333333333, 0.3333333333333333])
     """
     e = np.asarray(eigenvalues, dtype=complex).ravel()
-    s = _as_s(e, sample_time)
+    s = s_plane(e, sample_time)
     deadbeat = np.isinf(s.real)  # z = 0: ln(0) = -inf (its imaginary part NaN)
     s = np.where(deadbeat, complex(-np.inf, 0.0), s)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -85,8 +85,10 @@ def checks_sentence(sched) -> Mark:
     n = len(c.values)
     if c.passed:
         k = int(np.nanargmax(c.slowest))
-        return Mark(f"Frozen-point checks: the interpolated gains are stable at all {n} values of a grid "
-                    f"{c.refinement}x finer than the schedule; slowest pole {c.slowest[k]:.3g} rad/s at "
+        grid = (f"a grid {c.refinement}x finer than the schedule" if c.refinement > 1 else
+                "the schedule's own values (schedule.check: 1)")
+        return Mark(f"Frozen-point checks: the interpolated gains are stable at all {n} values of {grid}; "
+                    f"slowest pole {c.slowest[k]:.3g} rad/s at "
                     f"{c.values[k]:g} {sched.unit}, least damping {np.nanmin(c.least_damping):.3g}.", "ok")
     return Mark(f"Frozen-point checks FAIL at {len(c.failures())} of {n} values: {c.failures_text(sched.unit)}.",
                 "fail")
