@@ -319,17 +319,17 @@ def test_a_value_with_no_trim_exits_2_naming_the_values_and_the_fix_after_writin
     assert (tmp_path / "out" / "plots" / "schedule.png").is_file()
 
 
-def test_export_warns_of_the_values_its_table_leaves_out(tmp_path):
-    """The exported table holds the values that trim (0 and 1 m/s); export dropped 200 m/s silently,
-    where `schedule` and `simulate` warn of it."""
+def test_export_refuses_a_table_that_leaves_values_out(tmp_path):
+    """A value with no trim (200 m/s): the table would hold 0 and 1 m/s only, so export writes nothing
+    and exits 2 as `quadctl schedule` does (it exported the smaller table silently)."""
+    out = tmp_path / "out"
     res = runner.invoke(app, ["export", "--to", "json", "-c", write(tmp_path, "schedule: {variable: speed, values: "
-                              "[0, 1, 200]}\n"), "-o", str(tmp_path / "out")])
-    assert res.exit_code == 0, res.output
-    warnings = [line for line in res.stderr.splitlines() if line.startswith("quadctl: warning: schedule")]
-    assert len(warnings) == 1, res.stderr
-    assert warnings[0].startswith("quadctl: warning: schedule.values: 1 of 3 values has no trim or design (200 m/s")
-    assert warnings[0].endswith("the envelope is [0, 1] m/s: narrow schedule.values to it")
-    assert "gains scheduled on speed (2 designs, linear)" in res.stdout
+                              "[0, 1, 200]}\n"), "-o", str(out)])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.startswith(f"quadctl: error: {tmp_path / 'c.yaml'}: schedule.values: 1 of 3 values has no "
+                                 "trim or design (200 m/s")
+    assert res.stderr.rstrip().endswith("the envelope is [0, 1] m/s: narrow schedule.values to it")
+    assert not (out / "quadctl_controller.json").exists()
 
 
 @pytest.mark.parametrize("command", ["simulate", "run"])
