@@ -4,8 +4,10 @@
  * QC_NP plant states, QC_NU inputs, QC_NE exogenous channels, QC_NC constants, QC_HELD) and the
  * functions emitted by quadctl/sim/emit.py from the builder's CasADi functions:
  *   qc_law(X, t, c, e, u, X_sampled)   the control law (and the controller states' update)
- *   qc_step(X, t, dt, c, e, X_next, u) one RK4 step with continuous feedback   (QC_HELD == 0)
- *   qc_plant(X, u, dt, c, e, X_next)   one RK4 step under a held input        (QC_HELD == 1)
+ *   qc_step(X, t, dt, c, e, X_next, u, P) one RK4 step with continuous feedback   (QC_HELD == 0)
+ *   qc_plant(X, u, dt, c, e, X_next, P)   one RK4 step under a held input        (QC_HELD == 1)
+ * (P: what the step computes from dt and c alone, computed once a run by qc_step_pre / qc_plant_pre
+ * into qc_step_nh / qc_plant_nh values a lane)
  *   qc_ref(t, c, e, x_ref)             the reference state the law regulates to (QC_NS states)
  * and the metrics' constants (QC_BAND, QC_FLOOR: quadctl.metrics; QC_SETTLE_NONE, QC_SETTLE_PENDING:
  * quadctl.sim.lane_metrics).
@@ -93,6 +95,20 @@ static void qc_metric_init(const long* mq, double* macc) {
   }
 }
 
+/* s[l] += the sum over k < n of v[i[k]][l] v[j[k]][l] w[k][l], term by term in k's order, four terms a
+ * pass (each pass adds them left to right: the same sums, a quarter of the trips through memory) */
+static void qc_quadratic(double* s, const double* v, const long* i, const long* j, const double* w, long n) {
+#define QC_TERM(k) v[i[k] * QC_L + l] * v[j[k] * QC_L + l] * w[(k) * QC_L + l]
+  long k = 0;
+  for (; k + 4 <= n; k += 4)
+#pragma omp simd
+    for (int l = 0; l < QC_L; ++l) s[l] = s[l] + QC_TERM(k) + QC_TERM(k + 1) + QC_TERM(k + 2) + QC_TERM(k + 3);
+  for (; k < n; ++k)
+#pragma omp simd
+    for (int l = 0; l < QC_L; ++l) s[l] += QC_TERM(k);
+#undef QC_TERM
+}
+
 /* one record of the lanes with on[l] != 0: absolute step kk[l] at time t[l], state X, input U,
  * reference R (each [.][QC_L]); final: the run's last record (its error is kept). Every loop runs
  * over the lanes, a lane that does not record keeps its sums (so the compiler vectorizes them). */
@@ -171,12 +187,8 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
     }
   }
   /* e' Q e + du' R du, term by term over the nonzeros in row-major order (quadctl.metrics._quadratic) */
-  for (long k = 0; k < nq; ++k)
-#pragma omp simd
-    for (int l = 0; l < QC_L; ++l) iq[l] += e[qi[k] * QC_L + l] * e[qj[k] * QC_L + l] * q[k * QC_L + l];
-  for (long k = 0; k < nr; ++k)
-#pragma omp simd
-    for (int l = 0; l < QC_L; ++l) ir[l] += du[ri[k] * QC_L + l] * du[rj[k] * QC_L + l] * r[k * QC_L + l];
+  qc_quadratic(iq, e, qi, qj, q, nq);
+  qc_quadratic(ir, du, ri, rj, r, nr);
   double *cost = macc + QC_COST * QC_L, *i_last = macc + QC_ILAST * QC_L, *t_last = macc + QC_TLAST * QC_L;
 #pragma omp simd
   for (int l = 0; l < QC_L; ++l) {
@@ -237,6 +249,11 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
   long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L];
   int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
   if (mq) qc_metric_init(mq, macc);
+#if QC_HELD
+  double P[qc_plant_nh * QC_L];
+#else
+  double P[qc_step_nh * QC_L];
+#endif
   memcpy(X, x0, sizeof X);
   memcpy(XF, x0, sizeof XF);
   memset(E, 0, sizeof E);
@@ -251,6 +268,11 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
     DT[l] = QC_DT(l);
     n_active += active[l];
   }
+#if QC_HELD
+  qc_plant_pre(X, U, DT, c, E, P);
+#else
+  qc_step_pre(X, T, DT, c, E, P);
+#endif
   for (long k = 0; n_active > 0; ++k) {
     double bad[QC_L];
     int rec = 0;
@@ -272,7 +294,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
     }
     const double* UA = UH;
 #else
-    qc_step(X, T, DT, c, E, XN, U);
+    qc_step(X, T, DT, c, E, XN, U, P);
     const double* UA = U;
 #endif
     if (rec && mq) {
@@ -301,7 +323,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
         for (int i = QC_NP; i < QC_NX; ++i) X[i * QC_L + l] = XS[i * QC_L + l];
       }
     }
-    qc_plant(X, UH, DT, c, E, XN);
+    qc_plant(X, UH, DT, c, E, XN, P);
 #endif
     /* bounds of every lane at once (NaN compares false, so it counts as out) */
     for (int i = 0; i < QC_NX; ++i)

@@ -110,8 +110,14 @@ def _templates() -> dict[int, str]:
     }
 
 
-def emit(fn, name: str, lanes: int, dialect: Dialect = ENGINE) -> str:
+def emit(fn, name: str, lanes: int, dialect: Dialect = ENGINE, invariant: tuple[int, ...] = ()) -> str:
     """C source of the SX function ``fn`` as ``static void name(args...)`` over ``lanes`` cases.
+
+    With ``invariant`` (indices of inputs that keep their values over many calls: a case's step and
+    constants), the operations computed from those inputs alone are hoisted: ``name_pre(inputs...,
+    p)`` computes them once into ``p`` (``name_nh`` values a lane, a macro), and ``name(args..., p)``
+    reads them there instead of computing them at every call: the same operations on the same
+    operands, so the same numbers.
 
     Parameters
     ----------
@@ -123,6 +129,8 @@ def emit(fn, name: str, lanes: int, dialect: Dialect = ENGINE) -> str:
         Cases per call (1: the one-case function).
     dialect : Dialect
         How the C spells its scalars (default: the engine's ``double``).
+    invariant : tuple of int
+        Inputs the hoisted operations may read (none: nothing hoisted, one function).
 
     Raises
     ------
@@ -133,27 +141,45 @@ def emit(fn, name: str, lanes: int, dialect: Dialect = ENGINE) -> str:
     real = dialect.real
     args = [f"const {real}* restrict i{k}" for k in range(fn.n_in())]
     args += [f"{real}* restrict o{k}" for k in range(fn.n_out())]
-    body = []
+    body, pre, hoisted = [], [], 0
+    fixed = {}  # work slot -> its value depends on the invariant inputs alone
     for k in range(fn.n_instructions()):
         op = fn.instruction_id(k)
         ins = fn.instruction_input(k)
         out = fn.instruction_output(k)
         if op == ca.OP_INPUT:
             line = f"w{out[0]} = i{ins[0]}[{ins[1]} * {lanes} + l];"
+            fixed[out[0]] = ins[0] in invariant
+            if fixed[out[0]]:
+                pre.append("    " + line)
         elif op == ca.OP_OUTPUT:
             line = f"o{out[0]}[{out[1]} * {lanes} + l] = w{ins[0]};"
         elif op == ca.OP_CONST:
             line = f"w{out[0]} = {dialect.constant(fn.instruction_constant(k))};"
+            fixed[out[0]] = True
+            pre.append("    " + line)
         elif op in templates:
             a = f"w{ins[0]}"
             b = f"w{ins[1]}" if len(ins) > 1 else ""
             line = f"w{out[0]} = {templates[op].format(a=a, b=b)};"
+            fixed[out[0]] = bool(invariant) and all(fixed.get(i, False) for i in ins)
+            if fixed[out[0]]:
+                pre.append(f"    {line} p[{hoisted} * {lanes} + l] = w{out[0]};")
+                line = f"w{out[0]} = p[{hoisted} * {lanes} + l];"
+                hoisted += 1
         else:
             raise ValueError(f"{name}: CasADi operation {op} has no C form in quadctl.sim.emit")
         body.append("    " + line)
     work = ", ".join(f"w{i}" for i in range(max(fn.sz_w(), 1)))
     used = "".join(f"  (void)i{k};\n" for k in range(fn.n_in())) if dialect.mark_used else ""
-    return (f"static void {name}({', '.join(args)}) {{\n" + used
-            + ("#pragma omp simd\n" if dialect.pragma else "")
-            + f"  for (int l = 0; l < {lanes}; ++l) {{\n"
-            f"    {real} {work};\n" + "\n".join(body) + "\n  }\n}\n")
+    loop = ("#pragma omp simd\n" if dialect.pragma else "") + f"  for (int l = 0; l < {lanes}; ++l) {{\n"
+    if not invariant:
+        return (f"static void {name}({', '.join(args)}) {{\n" + used + loop
+                + f"    {real} {work};\n" + "\n".join(body) + "\n  }\n}\n")
+    inputs = args[:fn.n_in()]
+    return (f"#define {name}_nh {max(hoisted, 1)}\n"
+            f"static void {name}_pre({', '.join([*inputs, f'{real}* restrict p'])}) {{\n"
+            + "".join(f"  (void)i{k};\n" for k in range(fn.n_in())) + loop
+            + f"    {real} {work};\n" + "\n".join(pre) + "\n  }\n}\n"
+            f"static void {name}({', '.join([*args, f'const {real}* restrict p'])}) {{\n" + used
+            + "  (void)p;\n" + loop + f"    {real} {work};\n" + "\n".join(body) + "\n  }\n}\n")

@@ -15,6 +15,11 @@ from quadctl.sim.compile import DRIVER_SOURCE
 from quadctl.sim.emit import SIMD_DECLARATIONS, emit
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec
 
+STEPPERS = ("qc_step", "qc_plant")
+"""The step functions ``driver.c`` calls with their work on a case's step and constants hoisted."""
+STEP_INVARIANT = (2, 3)
+"""Their inputs ``dt`` and ``c``: the same at every step of a run (:func:`quadctl.sim.emit.emit`)."""
+
 
 def library_source(funcs: LoopFunctions, lanes: int, simd: bool) -> str:
     """The C file of one spec at ``lanes`` cases per call: sizes, emitted functions, driver."""
@@ -29,7 +34,8 @@ def library_source(funcs: LoopFunctions, lanes: int, simd: bool) -> str:
             f"#define QC_SETTLE_NONE ({SETTLE_NONE!r})\n#define QC_SETTLE_PENDING ({SETTLE_PENDING!r})\n")
     if simd:
         head += SIMD_DECLARATIONS
-    body = "".join(emit(fn, name, lanes) for name, fn in funcs.functions())
+    body = "".join(emit(fn, name, lanes, invariant=STEP_INVARIANT if name in STEPPERS else ())
+                   for name, fn in funcs.functions())
     return head + body + DRIVER_SOURCE
 
 
