@@ -7,9 +7,8 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.errors`: the error classes (each with its exit code) and the notice warning
 - helpers that import nothing of quadctl's or only the above: :mod:`~quadctl.messages` (values, key
   paths and hints as messages show them), :mod:`~quadctl.yamlio` (YAML read with line numbers),
-  :mod:`~quadctl.escape` (text made safe per output format), :mod:`~quadctl.threads` (one BLAS
-  thread over many small matrices), :mod:`~quadctl._lazy` (modules loaded on first use),
-  :mod:`~quadctl.pointwise` (a CasADi function over many points, a row a point)
+  :mod:`~quadctl.escape` (text made safe per output format), :mod:`~quadctl._lazy` (modules loaded
+  on first use), :mod:`~quadctl.pointwise` (a CasADi function over many points, a row a point)
 - :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs; :mod:`~quadctl.notices`: what a
   valid config took by default or likely got in the wrong unit; :mod:`~quadctl.overrides`: values put in
   at a key path before validation (``--set KEY=VALUE``)
@@ -36,6 +35,8 @@ nothing here imports). Modules, each importing only those above it:
   closed loop and one run of it); :mod:`~quadctl.metrics`: a run's step-response metrics
 - :mod:`~quadctl.pipeline`: the stages chained from a setup (pure functions; :class:`~quadctl.pipeline.Stages`,
   the one chain each stage computed once, that the workspace and the export take)
+- :mod:`~quadctl.threads`: one BLAS thread while many small matrices are solved (it loads the
+  libraries whose pools it limits: SciPy's, the Riccati solvers', the simulation engine's)
 - :mod:`~quadctl.sweep`: many designs at once (spec, batched evaluation, runner, outputs, store)
 - :mod:`~quadctl.scheduling`: a gain schedule across the envelope (trims and batched designs at each
   value, the gain table, the frozen-point checks); :mod:`~quadctl.transition`: a reference flown with
