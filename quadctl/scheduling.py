@@ -35,10 +35,10 @@ import numpy as np
 
 from quadctl import pipeline, stability
 from quadctl.errors import ConfigError, QuadctlError, ScheduleError, TrimError
-from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
+from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.linearize import LinearModel, linearize_all
 from quadctl.lqr import linear_loop
-from quadctl.lqr.gain_table import OUTSIDE, VARIABLES, GainTable, scheduling_value
+from quadctl.lqr.gain_table import OUTSIDE, VARIABLES, GainTable, flight_value
 from quadctl.problem import Setup
 from quadctl.threads import one_thread
 from quadctl.trim import Trim
@@ -237,13 +237,9 @@ def point_setup(setup: Setup, value: float, heading: float | None = None) -> Set
 
 def own_value(setup: Setup, heading: float) -> float:
     """The config's own flight condition's value of the scheduling variable
-    (:func:`~quadctl.lqr.gain_table.scheduling_value` of a state that flies it)."""
-    x = np.zeros(N_STATES)
-    x[STATE_INDEX["psi"]] = setup.yaw
-    c, s = np.cos(setup.yaw), np.sin(setup.yaw)  # body velocity of a level vehicle at that yaw
-    vn, ve, vd = setup.velocity_ned
-    x[STATE_INDEX["u"]], x[STATE_INDEX["v"]], x[STATE_INDEX["w"]] = c * vn + s * ve, -s * vn + c * ve, vd
-    return float(scheduling_value(setup.schedule.variable, x, heading)) + 0.0  # no -0 in messages
+    (:func:`~quadctl.lqr.gain_table.flight_value`, the rule the law reads from its reference)."""
+    value = flight_value(setup.schedule.variable, np.asarray(setup.velocity_ned, dtype=float), setup.yaw, heading)
+    return float(value) + 0.0  # no -0 in messages
 
 
 def _flight_conditions(setups: list[Setup]) -> list:

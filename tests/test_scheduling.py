@@ -17,7 +17,7 @@ from quadctl.errors import ScheduleError
 from quadctl.layout import STATE_INDEX
 from quadctl.lqr.gain_table import OUTSIDE, GainTable, scheduling_value
 from quadctl.problem import setup_of
-from quadctl.scheduling import fine_values, frozen_checks, heading_of, schedule_of
+from quadctl.scheduling import fine_values, frozen_checks, heading_of, own_value, schedule_of
 from quadctl.workspace import Workspace
 
 runner = CliRunner()
@@ -381,3 +381,13 @@ def test_help_reads_well():
     res = runner.invoke(app, ["schedule", "--help"])
     assert res.exit_code == 0
     assert "Trim and design at each value of the config's schedule" in res.stdout and "--plot" in res.stdout
+
+
+@pytest.mark.parametrize(("variable", "trim", "expected"), [
+    ("speed", {"velocity_ned": [3.0, 4.0, -0.5], "yaw": 2.0}, 5.0),  # along its own horizontal direction
+    ("climb", {"velocity_ned": [3.0, 4.0, -0.5], "yaw": 2.0}, 0.5),  # up positive
+    ("yaw", {"velocity_ned": [0.0, 0.0, 0.0], "yaw": -1.2}, -1.2),
+])
+def test_the_configs_own_value_of_the_variable(variable, trim, expected):
+    setup = setup_of(with_schedule("forward", {"variable": variable, "values": [0.0, 1.0]}, **trim))
+    assert own_value(setup, heading_of(setup)) == pytest.approx(expected, abs=1e-12)

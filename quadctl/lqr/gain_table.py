@@ -57,14 +57,24 @@ def scheduling_value(variable: str, x, heading: float, lib=np):
     """
     if variable not in VARIABLES:
         raise ValueError(f"unknown scheduling variable {variable!r}: use one of {', '.join(VARIABLES)}")
+    psi = x[_PHI + 2]
     if variable == "yaw":
-        return x[_PHI + 2]
-    velocity_ned = rotation_earth_to_body(x[_PHI], x[_PHI + 1], x[_PHI + 2]).T @ x[_U:_U + 3]
+        return psi
+    velocity_ned = rotation_earth_to_body(x[_PHI], x[_PHI + 1], psi).T @ x[_U:_U + 3]
     if lib is np:
         velocity_ned = np.asarray(velocity_ned, dtype=float).ravel()
+    return flight_value(variable, velocity_ned, psi, heading, lib)
+
+
+def flight_value(variable: str, velocity_ned, yaw, heading: float, lib=np):
+    """The scheduling variable of a flight condition: its earth-frame velocity ``velocity_ned`` (3,)
+    m/s and ``yaw`` rad (``speed``: along ``heading``; ``climb``: ``-vD``; ``yaw``: ``yaw``)."""
+    if variable == "yaw":
+        return yaw
     if variable == "climb":
         return -velocity_ned[2]
     return lib.cos(heading) * velocity_ned[0] + lib.sin(heading) * velocity_ned[1]
+
 
 def scheduling_values(variable: str, xs, heading: float) -> np.ndarray:
     """(n,) :func:`scheduling_value` of each row of ``xs`` (n, 12) (a run's states), by one mapped
