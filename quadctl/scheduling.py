@@ -206,6 +206,18 @@ class Schedule:
         """Every point designed stable and every frozen-point check stable."""
         return self.checks.passed and all(p.stable for p in self.points if p.designed)
 
+    def missing(self) -> str | None:
+        """The values with no trim or design, the first one's reason and the fix, one line (None: every
+        value designs): what ``quadctl schedule`` and ``export`` refuse (exit 2), ``simulate`` warns of."""
+        missing = [p for p in self.points if not p.designed]
+        if not missing:
+            return None
+        lo, hi = self.envelope
+        verb = "has" if len(missing) == 1 else "have"
+        return (f"schedule.values: {len(missing)} of {len(self.points)} values {verb} no trim or design "
+                f"({', '.join(f'{p.value:g}' for p in missing)} {self.unit}; the first: {missing[0].reason}); "
+                f"the envelope is [{lo:g}, {hi:g}] {self.unit}: narrow schedule.values to it")
+
     def verdict(self) -> str | None:
         """Why the schedule fails, one line (None when it passes)."""
         parts = [f"the design at {p.value:.6g} {self.unit} is UNSTABLE on the coupled model"

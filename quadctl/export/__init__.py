@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from quadctl.errors import CheckFailed, ConfigError
+from quadctl.errors import CheckFailed, ConfigError, ScheduleError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
@@ -50,7 +50,8 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     ------
     ConfigError
         No rate where one is needed, ``rate`` given for a config that has its own, outside
-        ``controller.rate``'s bounds (exit 2).
+        ``controller.rate``'s bounds, or a gain schedule with values that do not trim
+        (:class:`~quadctl.errors.ScheduleError`; exit 2).
     CheckFailed
         The design is unstable on the coupled model, the sampled loop of a continuous design is
         unstable at ``rate``, or a gain schedule fails its checks (exit 1; the message says which
@@ -93,6 +94,8 @@ def _flown(setup: Setup, loop):
     from quadctl.scheduling import schedule_of
 
     schedule = schedule_of(setup)
+    if schedule.missing():  # a controller for the vehicle covers every value asked, or none is made
+        raise ScheduleError(schedule.missing())
     if not schedule.passed:
         raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule.verdict()} "
                           "(`quadctl schedule` shows them)")

@@ -40,22 +40,10 @@ def _short(reason: str | None, limit: int = 100) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
-def missing_warning(sched) -> str | None:
-    """The values with no trim or design, the first one's reason and the fix (None: every value designs)."""
-    missing = [p for p in sched.points if not p.designed]
-    if not missing:
-        return None
-    lo, hi = sched.envelope
-    verb = "has" if len(missing) == 1 else "have"
-    return (f"schedule.values: {len(missing)} of {len(sched.points)} values {verb} no trim or design "
-            f"({', '.join(f'{p.value:g}' for p in missing)} {sched.unit}; the first: {missing[0].reason}); "
-            f"the envelope is [{lo:g}, {hi:g}] {sched.unit}: narrow schedule.values to it")
-
-
 def flight_warnings(sched) -> list[str]:
     """What a run that flies ``sched`` says about it: the values with no trim, and a schedule that fails
     the checks ``quadctl schedule`` exits 1 on (a design or a frozen-point loop unstable), flown anyway."""
-    warnings = [w for w in (missing_warning(sched),) if w]
+    warnings = [w for w in (sched.missing(),) if w]
     if not sched.passed:
         unstable = [f"{p.value:g}" for p in sched.points if p.designed and not p.stable]
         where = "; ".join(([f"the design at {', '.join(unstable)} {sched.unit} is UNSTABLE"] if unstable else [])

@@ -44,13 +44,6 @@ def command(to: Annotated[Target, typer.Option(
     exp = export.prepare(setup_of(cfg), rate, need_rate=to is Target.c, config_hash=cfg.digest())
     for w in exp.rate_warnings:
         render.warning(w.message(exp.rate))
-    if exp.schedule is not None:  # a controller for the vehicle covers every value asked, or none is written
-        from quadctl.errors import ScheduleError
-        from quadctl.present.schedule import missing_warning
-
-        missing = missing_warning(exp.schedule)
-        if missing:
-            raise ScheduleError(missing)
     paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"))
     kal = exp.loop.estimator
     if json:

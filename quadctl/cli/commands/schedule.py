@@ -37,7 +37,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         render.out.print(f"-> {ws.path('schedule.json')}, {ws.path('schedule.npz')}")
         if path is not None:
             render.out.print(f"figure -> {path}")
-    missing = shown.missing_warning(sched)
+    missing = sched.missing()
     if missing:  # bad input, refused once the points, their reasons and the envelope are written and shown
         raise ScheduleError(missing)
     verdict = sched.verdict()
