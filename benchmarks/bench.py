@@ -383,18 +383,25 @@ def the_flying_sweep(plain: list | None = None) -> str:
                  f"{st['steps'] / wall / 1e6:.2f} M", f"{100 / wall:,.0f}",
                  f"{1e6 * st['design_cpu'] / st['designs']:.1f}", "-"])
     if plain:
-        best = {"plain": 0.0, "flying": 0.0}
-        for _ in range(ALTERNATED):
-            for which, (c, s) in (("plain", plain), ("flying", (cfg, spec))):
-                wall, result = timed(lambda c=c, s=s: sweep.run(c, s, jobs=2))
-                best[which] = max(best[which], result.stats["steps"] / wall)
-        notes.append(f"simulated steps/s on both cores against the plain (forward) sweep's, best of {ALTERNATED} "
-                     f"runs of each, alternated: {best['flying'] / 1e6:.2f} M / {best['plain'] / 1e6:.2f} M = "
-                     f"{best['flying'] / best['plain']:.2f}")
+        notes.append(against_plain(plain, (cfg, spec), ALTERNATED))
     return table(f"Sweep: 1000 random mambo-200hz designs x 2,000 RK4 steps (benchmarks/mambo-1000.yaml: "
                  f"200 Hz discrete design, rotors, LQI, noise; best of {REPEAT})",
                  ["run", "wall (s)", "simulated steps/s", "designs/s", "µs CPU per subsystem design",
                   "designs redone one by one"], rows) + "\n\n" + "; ".join(notes)
+
+
+def against_plain(plain: list, other: tuple, runs: int) -> str:
+    """The note of ``other``'s (``(cfg, spec)``) simulated steps/s on both cores against the plain
+    sweep's (``plain``), the best of ``runs`` runs of each, alternated so both see the same machine."""
+    from quadctl import sweep
+
+    best = [0.0, 0.0]
+    for _ in range(runs):
+        for k, (c, s) in enumerate((plain, other)):
+            wall, result = timed(lambda c=c, s=s: sweep.run(c, s, jobs=2))
+            best[k] = max(best[k], result.stats["steps"] / wall)
+    return (f"simulated steps/s on both cores against the plain (forward) sweep's, best of {runs} runs of each, "
+            f"alternated: {best[1] / 1e6:.2f} M / {best[0] / 1e6:.2f} M = {best[1] / best[0]:.2f}")
 
 
 def the_mission_sweep(plain: list | None = None) -> str:
@@ -417,14 +424,7 @@ def the_mission_sweep(plain: list | None = None) -> str:
                      f"{len(result.rows) / wall:,.1f}", f"{st['steps'] / len(result.rows):,.0f}",
                      f"{passed} of {len(result.rows)}"])
     if plain:
-        best = {"plain": 0.0, "mission": 0.0}
-        for _ in range(ALTERNATED // 2):
-            for which, (c, s) in (("plain", plain), ("mission", (cfg, spec))):
-                wall, result = timed(lambda c=c, s=s: sweep.run(c, s, jobs=2))
-                best[which] = max(best[which], result.stats["steps"] / wall)
-        notes.append(f"simulated steps/s on both cores against the plain (forward) sweep's, best of "
-                     f"{ALTERNATED // 2} runs of each, alternated: {best['mission'] / 1e6:.2f} M / "
-                     f"{best['plain'] / 1e6:.2f} M = {best['mission'] / best['plain']:.2f}")
+        notes.append(against_plain(plain, (cfg, spec), ALTERNATED // 2))
     return table(f"Sweep: the square mission at {spec.count()} random speeds (benchmarks/square-speed.yaml: a "
                  "reference and its feedforward per case, gated on the tracking error; best of 3)",
                  ["run", "wall (s)", "simulated steps/s", "cases/s", "steps per case", "pass the gates"],
