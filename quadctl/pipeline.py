@@ -129,29 +129,23 @@ def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
                           Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
-def scheduled_loop(setup: Setup, loop: ClosedLoop, table, heading: float, eigenvalues=()) -> ClosedLoop:
+def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
+                   jacobians: tuple | None = None) -> ClosedLoop:
     """``loop`` flying the gain table ``table`` (:class:`quadctl.lqr.gain_table.GainTable`), scheduled on
     the reference the law uses (:mod:`quadctl.sim.builder`, "Gain schedule"), ``speed`` measured along
     ``heading`` (rad; the schedule's, :attr:`quadctl.scheduling.Schedule.heading`). The table's gains
     replace ``K`` (and ``Ki`` with the integrators' columns). ``eigenvalues`` (rad/s, any shape; NaN
     ignored): the frozen loops of the interpolated gains (:class:`quadctl.scheduling.FrozenChecks`),
-    which a continuous loop's RK4 step must hold stable as well as the loop's own.
+    which a continuous loop's RK4 step must hold stable as well as the loop's own. ``jacobians``:
+    ``(A, B)`` of the model at each of the table's values (:attr:`quadctl.scheduling.Schedule.jacobians`),
+    the linear parts ETDRK4 flies a continuous loop on (:attr:`ClosedLoop.schedule_jacobians`).
     ``run`` and ``simulate`` fly ``schedule_of(setup)``'s table this way.
-
-    Raises
-    ------
-    ConfigError
-        ``simulation.method: etdrk4`` (a scheduled loop steps by RK4).
     """
     from dataclasses import replace
 
-    from quadctl.errors import ConfigError
-
-    if setup.method != "rk4":
-        raise ConfigError(f"simulation.method = {setup.method}: a gain schedule (schedule:) is flown by RK4; "
-                          "set simulation.method: rk4")
     eig = np.asarray(eigenvalues, dtype=complex).ravel()
-    return replace(loop, schedule=table, schedule_heading=float(heading), schedule_eigenvalues=eig[np.isfinite(eig)])
+    return replace(loop, schedule=table, schedule_heading=float(heading), schedule_eigenvalues=eig[np.isfinite(eig)],
+                   schedule_jacobians=jacobians)
 
 
 def schedule_summary(loop: ClosedLoop) -> dict | None:

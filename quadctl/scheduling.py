@@ -202,6 +202,13 @@ class Schedule:
         return float(self.table.values[0]), float(self.table.values[-1])
 
     @property
+    def jacobians(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(A, B)``, (P, 12, 12) and (P, 12, 4): the model linearized at each of the table's values
+        (the points that designed), for :func:`quadctl.pipeline.scheduled_loop`."""
+        good = [p for p in self.points if p.designed]
+        return np.stack([p.linear.A for p in good]), np.stack([p.linear.B for p in good])
+
+    @property
     def passed(self) -> bool:
         """Every point designed stable and every frozen-point check stable."""
         return self.checks.passed and all(p.stable for p in self.points if p.designed)

@@ -122,24 +122,43 @@ class Reference:
         yaw = np.zeros((3, t.size))
         for i, piece in enumerate(self.pieces):
             sel = which == i
-            if not sel.any():
-                continue
-            dt = t[sel] - piece.t0
-            if piece.T > 0:
-                s = shape_derivatives(piece.shape, dt / piece.T) / piece.T ** np.arange(ORDER)[:, None]
-            else:
-                s = shape_derivatives("step", dt)
-            pos[:, sel] = s[:, :, None] * np.asarray(piece.dp)
-            pos[0, sel] += np.asarray(piece.p0) + np.outer(dt, piece.v0)
-            pos[1, sel] += np.asarray(piece.v0)
-            yaw[:, sel] = s[:3] * piece.dpsi
-            yaw[0, sel] += piece.psi0
+            if sel.any():
+                pos[:, sel], yaw[:, sel] = _piece_outputs(piece, t[sel])
         return FlatPath(t=t, position=pos, yaw=yaw)
+
+    @property
+    def jumps(self) -> tuple[float, ...]:
+        """s: the times after 0 at which the path's position, velocity, acceleration, yaw, yaw rate or
+        yaw acceleration step (a setpoint, a step leg): where the feedforward jumps and the loop is
+        kicked; a shaped leg's ends, where only jerk and snap change, are not among them."""
+        out = []
+        for before, piece in zip(self.pieces, self.pieces[1:]):
+            t = np.array([piece.t0])
+            (p0, y0), (p1, y1) = _piece_outputs(before, t), _piece_outputs(piece, t)
+            if not (np.allclose(p0[:3], p1[:3], rtol=0, atol=1e-12) and np.allclose(y0, y1, rtol=0, atol=1e-12)):
+                out.append(piece.t0)
+        return tuple(out)
 
     @property
     def end(self) -> float:
         """s: when the last leg reaches its waypoint (0 without legs)."""
         return self.legs[-1].end if self.legs else 0.0
+
+
+def _piece_outputs(piece: Piece, t) -> tuple[np.ndarray, np.ndarray]:
+    """``(position (5, n, 3), yaw (3, n))`` of ``piece`` at the times ``t`` (n,) s (its shape held at
+    its ends outside ``[t0, t0 + T]``)."""
+    dt = np.asarray(t, dtype=float) - piece.t0
+    if piece.T > 0:
+        s = shape_derivatives(piece.shape, dt / piece.T) / piece.T ** np.arange(ORDER)[:, None]
+    else:
+        s = shape_derivatives("step", dt)
+    pos = s[:, :, None] * np.asarray(piece.dp)
+    pos[0] += np.asarray(piece.p0) + np.outer(dt, piece.v0)
+    pos[1] += np.asarray(piece.v0)
+    yaw = s[:3] * piece.dpsi
+    yaw[0] += piece.psi0
+    return pos, yaw
 
 
 def setpoint_reference(setpoints, position0, velocity0, yaw0: float) -> Reference:

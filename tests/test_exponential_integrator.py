@@ -273,6 +273,46 @@ def test_a_mission_agrees_with_rk4_at_a_small_step():
 
 
 @pytest.mark.compiler
+def test_setpoint_steps_are_graded_like_the_start(monkeypatch):
+    """Each setpoint steps the reference and kicks the fast loops as the initial offset does, so dt: auto
+    grades again from each (Reference.jumps): the report's forward loop, velocity steps at 0.5 and 1 s,
+    within the tolerance 1e-8 of RK4 at 1/256 of the rows' period. Graded from t = 0 only, the steps
+    after a setpoint are too long for the kicked rate loops: over 1e-6."""
+    from quadctl.trajectory import Reference
+
+    data = cfg_dict("forward")
+    data["simulation"]["reference"] = {"setpoints": [{"t": 0.5, "velocity": [2.0, 0.0, 0.0]},
+                                                     {"t": 1.0, "velocity": [3.0, 1.0, 0.0]}]}
+    setup, _, linear, _, des = solve(data)
+    loop = pipeline.loop_of(setup, linear, des)
+    x0, ref = setup.initial_state(loop.x_trim), pipeline.flown_reference(setup)
+    assert ref.path.jumps == (0.5, 1.0)
+    truth = simulate(loop, x0, 1.5, 0.005 / 256, reference=ref)
+    etd = simulate(loop, x0, 1.5, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
+    assert etd.status == truth.status == "ok"
+    assert np.abs(etd.x[-1] - truth.x[-1]).max() < 1e-8
+    finest = etd.plan.schedule[0].dt
+    assert [s.dt for s in etd.plan.schedule if s.start in (0.5, 1.0)] == [finest, finest]
+    monkeypatch.setattr(Reference, "jumps", ())
+    once = simulate(loop, x0, 1.5, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
+    assert once.steps < etd.steps and np.abs(once.x[-1] - truth.x[-1]).max() > 1e-6
+
+
+def test_a_reference_jumps_where_its_position_velocity_or_yaw_steps():
+    """Setpoints and step legs jump; a shaped leg's ends (where only jerk and snap change) do not."""
+    from quadctl.trajectory import mission_reference, setpoint_reference
+
+    steps = setpoint_reference([{"t": 0.0, "velocity": [1.0, 0, 0]}, {"t": 1.0, "yaw": 0.5},
+                                {"t": 2.0, "velocity": [1.0, 0, 0]}, {"t": 3.0, "position": [5.0, 0, 0]}],
+                               (0, 0, -1), (0, 0, 0), 0.0)
+    assert steps.jumps == (1.0, 3.0)  # at 2 s the velocity given is the one flown: no step
+    waypoints = [{"position": [2.0, 0, -1]}, {"position": [2.0, 2.0, -1], "hold": 1.0}, {"position": [0, 0, -1]}]
+    assert mission_reference(waypoints, (0, 0, -1), 0.0, 1.0, 0.1, "minimum-snap").jumps == ()
+    legs = mission_reference(waypoints, (0, 0, -1), 0.0, 1.0, 0.1, "step")
+    assert legs.jumps == tuple(p.t0 for p in legs.pieces[1:])
+
+
+@pytest.mark.compiler
 @pytest.mark.parametrize("name", [*HELD, "mambo+delay", "mambo+rotors+lag model", "mambo+LQG"])
 def test_a_sampled_controller_agrees_with_rk4_at_a_small_step(name):
     """1 s of each bundled sampled controller (and the held loop's delay, rotor lag with the lag model,

@@ -119,7 +119,7 @@ def test_a_schedule_of_one_design_flies_that_design(transition, interpolation):
     table = GainTable.of("speed", [0.0, 1.0, 2.0, 20.0], gains, interpolation)  # the run crosses three pieces
     ref, duration = _short_reference(setup)
     one = simulate(fixed, fixed.x_trim, duration, reference=ref)
-    scheduled = simulate(pipeline.scheduled_loop(setup, fixed, table, 0.0), fixed.x_trim, duration, reference=ref)
+    scheduled = simulate(pipeline.scheduled_loop(fixed, table, 0.0), fixed.x_trim, duration, reference=ref)
     assert one.status == scheduled.status == "ok" and np.ptp(one.x[:, STATE_INDEX["u"]]) > 2.5
     diff = max(np.abs(one.x - scheduled.x).max(), np.abs(one.u - scheduled.u).max())
     assert diff < AGREE, diff
@@ -130,7 +130,7 @@ def test_compiled_and_interpreted_loops_fly_a_schedule_alike(transition, monkeyp
     from quadctl.sim import engine
 
     setup, fixed, table = transition
-    loop = pipeline.scheduled_loop(setup, fixed, table, 0.0)
+    loop = pipeline.scheduled_loop(fixed, table, 0.0)
     ref, duration = _short_reference(setup, 1.5)
     compiled = simulate(loop, loop.x_trim, duration, reference=ref)
     monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
@@ -159,7 +159,7 @@ def test_lanes_equal_the_one_case_loop_with_a_schedule(transition):
     variants = []
     for k in range(3):
         scaled = replace(table, gains=table.gains * (1 + 0.05 * k), coefficients=table.coefficients * (1 + 0.05 * k))
-        variants.append((pipeline.scheduled_loop(setup, fixed, scaled, 0.0), duration - 0.2 * k))
+        variants.append((pipeline.scheduled_loop(fixed, scaled, 0.0), duration - 0.2 * k))
     run = engine.runner(variants[0][0].spec(reference=True), engine.LANES)
     assert run.backend == "compiled-simd" and len({v.spec() for v, _ in variants}) == 1
     jobs = []
@@ -245,15 +245,91 @@ def test_the_transition_figure_shows_both_runs_and_where_one_stopped(flown_trans
     assert plots.png_bytes(fig)[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_a_scheduled_loop_is_flown_by_rk4_only(transition):
-    setup, fixed, table = transition
-    with pytest.raises(ConfigError, match=r"^simulation\.method = etdrk4: a gain schedule \(schedule:\) is flown "
-                                          r"by RK4; set simulation\.method: rk4$"):
-        pipeline.scheduled_loop(replace(setup, method="etdrk4"), fixed, table, 0.0)
-    with pytest.raises(ValueError, match="^ETDRK4 does not fly a gain schedule"):
-        LoopSpec.of_gain(fixed.K, method="etdrk4", schedule=("speed", 5, 12, 1))
+def test_a_schedule_takes_the_gain_columns_of_its_integrators(transition):
+    _, fixed, _ = transition
     with pytest.raises(ValueError, match=r"^schedule: 13 gain columns; a loop with 0 integrators schedules 12"):
         LoopSpec.of_gain(fixed.K, schedule=("speed", 5, 13, 1))
+
+
+SETPOINT_SPEEDS = (2.0, 4.0, 6.0, 8.0, 10.0)
+"""m/s north at 1, 2, .. 5 s of a 6 s run: the bundled ``schedule`` config (continuous, the report's
+stiff rate loops) flown across its values, hover to 10 m/s."""
+SETPOINT_RUN = 6.0
+"""s."""
+
+
+@pytest.fixture(scope="module")
+def speed_steps():
+    """(loop on the schedule's gains, its schedule, reference, x0, RK4 at 1/256 of the rows' period:
+    a step dividing it, so the reference's rows change at steps' starts)."""
+    from quadctl.scheduling import schedule_of
+
+    data = cfg_dict("schedule")
+    data["simulation"].update(duration=SETPOINT_RUN, reference={"setpoints": [
+        {"t": 1.0 + i, "velocity": [v, 0.0, 0.0]} for i, v in enumerate(SETPOINT_SPEEDS)]})
+    setup, _, linear, _, des = solve(data)
+    sched = schedule_of(setup)
+    loop = pipeline.scheduled_loop(pipeline.loop_of(setup, linear, des), sched.table, sched.heading,
+                                   sched.checks.eigenvalues, sched.jacobians)
+    ref, x0 = pipeline.flown_reference(setup), setup.initial_state(loop.x_trim)
+    truth = simulate(loop, x0, SETPOINT_RUN, 0.005 / 256, reference=ref)
+    return loop, sched, ref, x0, truth
+
+
+@pytest.mark.compiler
+def test_etdrk4_flies_a_gain_schedule_on_the_loop_closed_at_the_nearest_value(speed_steps):
+    """ETDRK4 at dt: auto, tolerance 1e-8, against RK4 at a small step: each step's linear part is the
+    loop closed at the schedule's value nearest the commanded speed (its Jacobians and gains there), so
+    the rate loops the gains move stay in the exactly integrated part: 2.1e-9 (9 540 steps; RK4 at its
+    stable step: 173 914). On the trim's linear part alone (no schedule_jacobians) the remainder
+    carries them: 2.3e-7, over the tolerance."""
+    from quadctl.sim.run import _linear_pieces, exponential_plan
+    from quadctl.sim.schedule import record_strides
+
+    loop, sched, ref, x0, truth = speed_steps
+    etd = simulate(loop, x0, SETPOINT_RUN, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
+    assert etd.status == truth.status == "ok" and truth.x[-1, STATE_INDEX["u"]] > 4
+    err = np.abs(etd.x[-1] - truth.x[-1]).max()
+    assert err < 1e-8, err
+    trim_only = simulate(replace(loop, schedule_jacobians=None), x0, SETPOINT_RUN, "auto", method="etdrk4",
+                         tolerance=1e-8, reference=ref)
+    assert np.abs(trim_only.x[-1] - truth.x[-1]).max() > 30 * err
+    _, plan = exponential_plan(loop, SETPOINT_RUN, tolerance=1e-8, reference=ref, exo_period=0.005)
+    pieces = _linear_pieces(loop, plan, record_strides(plan, 10**6), ref)
+    values = [float(sched.table.values[p]) for _, _, p in pieces]
+    assert values[0] == 0.0 and values[-1] == SETPOINT_SPEEDS[-1] and set(values) == {0.0, 2.0, 4.0, 6.0, 8.0, 10.0}
+    assert [s.k0 * s.dt for s, _, _ in pieces[1:]] == pytest.approx([s.end for s, _, _ in pieces[:-1]])
+    assert sum(s.n for s, _, _ in pieces) == plan.n_steps
+
+
+@pytest.mark.compiler
+def test_etdrk4_flies_a_sampled_controllers_schedule(transition):
+    """The transition config's 500 Hz schedule, its first 3 s (hover, then 2, 4, 6 m/s): ETDRK4 steps
+    the plant between the samples at which the law takes G(v), as RK4 does at a fortieth of the period."""
+    setup, fixed, table = transition
+    loop = pipeline.scheduled_loop(fixed, table, 0.0)
+    ref, duration = _short_reference(setup)
+    Ts = 1.0 / loop.rate
+    rk4 = simulate(loop, fixed.x_trim, duration, Ts / 40, reference=ref, max_samples=10**6)
+    etd = simulate(loop, fixed.x_trim, duration, "auto", method="etdrk4", tolerance=1e-10, reference=ref,
+                   max_samples=10**6)
+    assert etd.status == rk4.status == "ok" and np.ptp(rk4.x[:, STATE_INDEX["u"]]) > 2.5
+    assert np.abs(etd.x[-1] - rk4.x[-1]).max() < 1e-9
+    k = np.round(etd.t / (Ts / 40)).astype(int)
+    assert np.abs(etd.u - rk4.u[k]).max() < 1e-8
+
+
+def test_the_linear_part_at_a_point_is_the_frozen_loop_there(speed_steps):
+    """ClosedLoop.linear_part(p): the model's Jacobians at the p-th value closed with the table's gains
+    there; its eigenvalues are the schedule's frozen-point check at that value."""
+    loop, sched, *_ = speed_steps
+    checks = sched.checks
+    for p, v in enumerate(sched.table.values):
+        got = np.sort_complex(np.linalg.eigvals(loop.linear_part(p)))
+        row = checks.eigenvalues[list(checks.values).index(v)]
+        assert np.abs(got - np.sort_complex(row[np.isfinite(row)])).max() < 1e-6 * np.abs(got).max()
+    with pytest.raises(ValueError, match="no schedule_jacobians"):
+        replace(loop, schedule_jacobians=None).linear_part(0)
 
 
 def test_a_config_with_a_schedule_refuses_etdrk4():
@@ -298,11 +374,11 @@ def test_the_rk4_step_holds_every_frozen_loop_of_the_schedule():
     loop = pipeline.Stages(setup).loop
     sched = schedule_of(setup)
     own = loop.plan(setup.duration)
-    scheduled = pipeline.scheduled_loop(setup, loop, sched.table, sched.heading, sched.checks.eigenvalues)
+    scheduled = pipeline.scheduled_loop(loop, sched.table, sched.heading, sched.checks.eigenvalues)
     plan = scheduled.plan(setup.duration)
     frozen = sched.checks.eigenvalues[np.isfinite(sched.checks.eigenvalues)]
     assert np.all(np.abs(plan.dt * frozen) <= 0.5 + 1e-12)
-    fast = pipeline.scheduled_loop(setup, loop, sched.table, sched.heading, [10 * own.fastest_eigenvalue, np.nan])
+    fast = pipeline.scheduled_loop(loop, sched.table, sched.heading, [10 * own.fastest_eigenvalue, np.nan])
     plan = fast.plan(setup.duration)
     assert plan.fastest_owner == "gain schedule"
     assert plan.dt == pytest.approx(own.dt / 10, rel=0.05)

@@ -99,7 +99,8 @@ def _flown(setup: Setup, loop):
     if not schedule.passed:
         raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule.verdict()} "
                           "(`quadctl schedule` shows them)")
-    return scheduled_loop(setup, loop, schedule.table, schedule.heading, schedule.checks.eigenvalues), schedule
+    return scheduled_loop(loop, schedule.table, schedule.heading, schedule.checks.eigenvalues,
+                          schedule.jacobians), schedule
 
 
 TARGETS = ("c", "mat", "json")

@@ -413,8 +413,6 @@ def _check_schedule(spec: LoopSpec) -> None:
     if columns not in (N_STATES, N_STATES + spec.nz):
         raise ValueError(f"schedule: {columns} gain columns; a loop with {spec.nz} integrators schedules "
                          f"{N_STATES} (the state gain) or {N_STATES + spec.nz} (with the integrator gains)")
-    if spec.method != "rk4":
-        raise ValueError("ETDRK4 does not fly a gain schedule: a scheduled loop steps by RK4 (simulation.method: rk4)")
 
 
 def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray, degree: int = 3):

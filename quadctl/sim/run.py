@@ -107,6 +107,10 @@ class ClosedLoop:
     schedule_eigenvalues: np.ndarray | None = None
     """rad/s: the eigenvalues of the schedule's frozen loops (its interpolated gains on the model at
     each value), which the continuous loop's RK4 step holds stable too; None: the loop's own only."""
+    schedule_jacobians: tuple | None = None
+    """``(A, B)``, (P, 12, 12) and (P, 12, 4): the design model trimmed and linearized at each of the
+    schedule's values, whose loops closed with the table's gains are ETDRK4's linear parts
+    (:meth:`linear_part`); None: a continuous scheduled loop's ETDRK4 takes the trim's."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -135,19 +139,30 @@ class ClosedLoop:
         A, B = self.jacobians
         return np.asarray(A, dtype=float), np.asarray(B, dtype=float)
 
-    def linear_part(self) -> np.ndarray:
-        """The loop linearized at the reference in the loop state's order (:func:`quadctl.lqr.linear_loop.simulated`).
+    def linear_part(self, point: int | None = None) -> np.ndarray:
+        """The loop linearized at the reference in the loop state's order (:func:`quadctl.lqr.linear_loop.simulated`);
+        ``point``: at the gain schedule's ``point``-th value instead, closed with the table's gains there
+        (:attr:`schedule_jacobians`).
 
         Raises
         ------
         ValueError
-            The loop was built without its ``jacobians``.
+            The loop was built without its ``jacobians`` (or ``schedule_jacobians``, for a ``point``).
         """
         from quadctl.lqr import linear_loop
 
         A, B = self._jacobians()
+        K, Ki = self.K, self.Ki
+        if point is not None:
+            if self.schedule_jacobians is None:
+                raise ValueError("this ClosedLoop has no schedule_jacobians: build it with "
+                                 "quadctl.pipeline.scheduled_loop and the schedule's points")
+            A, B = (np.asarray(M[point], dtype=float) for M in self.schedule_jacobians)
+            G = self.schedule.gains[point]
+            K = G[:, :N_STATES]
+            Ki = G[:, N_STATES:] if G.shape[1] > N_STATES else Ki
         act = self.actuators
-        return linear_loop.simulated(A, B, self.K, Ki=self.Ki, integral_states=self.integral_states, Kv=self.Kv,
+        return linear_loop.simulated(A, B, K, Ki=Ki, integral_states=self.integral_states, Kv=self.Kv,
                                      lag_time_constant=self.lag_model_time_constant,
                                      rotor_time_constant=self.rotor_time_constant,
                                      mix=act.mix if act is not None else None, estimator=self.estimator)
@@ -517,7 +532,8 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     reference's ``x_ref(t)``, ``u_ref(t)`` and the loop's distance from the trim). Within a row the
     reference is a quadratic in ``t``, so ``N`` is smooth over a step; at a row's boundary its second
     derivative jumps, and every step of the schedule divides the exogenous period (a step never
-    straddles a boundary), so the method keeps its order.
+    straddles a boundary), so the method keeps its order. A gain schedule's continuous loop flies each
+    stretch on the loop closed at the schedule value nearest the commanded one (:func:`_linear_pieces`).
     """
     from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, record_strides
 
@@ -529,6 +545,11 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     period = 1.0 / loop.rate if held else (exo.period if exo is not None else None)
     L, plan = exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
                                exo_period=exo.period if exo is not None else None)
+    strides = record_strides(plan, max_samples)
+    pieces = _linear_pieces(loop, plan, strides, reference)
+    points = sorted({p for _, _, p in pieces if p is not None})
+    if points:  # a gain schedule: each piece on the loop closed at its nearest value
+        L = np.stack([loop.linear_part(p) for p in points])
     ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
     spec = loop.spec(noisy, windy, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
     run = runner(spec, 1)
@@ -536,17 +557,16 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     lo, hi = loop.bounds(duration, reference)
     x = loop.initial_loop_state(x0)
     n = plan.n_steps
-    strides = record_strides(plan, max_samples)
     start = time.perf_counter()
     parts_t, parts_x, parts_u, total = [], [], [], 0
-    for i, (seg, stride) in enumerate(zip(plan.schedule, strides)):
-        c = np.concatenate([base, phi_constants(ladder[seg.dt])])
+    for i, (seg, stride, point) in enumerate(pieces):
+        c = np.concatenate([base, phi_constants(ladder[seg.dt], None if point is None else points.index(point))])
         sub = StepPlan(seg.dt, seg.n, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto,
                        hold=round(period / seg.dt) if held else 0, sample_time=period if held else None)
         report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
         done, ks, xs, us = run_in_chunks(run, x, c, sub, seg.n, stride, lo, hi, exo, report, k_start=seg.k0)
         total += done
-        last = i == len(plan.schedule) - 1 or done < seg.n
+        last = i == len(pieces) - 1 or done < seg.n
         keep = len(ks) if last else len(ks) - 1  # a segment's final row is the next one's start
         parts_t.append(seg.dt * ks[:keep])
         parts_x.append(xs[:keep])
@@ -558,6 +578,39 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     t, xs, us = np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
     return _result(loop, plan, run.backend, t, xs, us, total, strides[-1], wall, lo, hi, noise if noisy else None,
                    wind if windy else None, exo, t, 1.0, reference)
+
+
+def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list[tuple]:
+    """``(segment, stride, point)``: the plan's segments with their record strides, a continuous gain
+    schedule's cut where the schedule value nearest the commanded one changes (``point``: its index; at
+    records only, so records stay equally spaced), each flown on the loop closed there; ``point`` None:
+    on the loop's own linear part (fixed gains, a sampled controller's plant, or no schedule_jacobians).
+
+    A step's linear part may be any matrix (the nonlinear remainder carries the difference) without
+    costing the method its order; the nearest point's keeps the remainder free of the fast modes that
+    the gains move (the rate loops), so the steps the plan grades by stay stable along the schedule.
+    """
+    from quadctl.lqr.gain_table import scheduling_value, scheduling_values
+    from quadctl.sim.schedule import Segment
+
+    table = loop.schedule
+    if table is None or loop.rate is not None or loop.schedule_jacobians is None:
+        return [(seg, stride, None) for seg, stride in zip(plan.schedule, strides)]
+    values = np.asarray(table.values, dtype=float)
+    if reference is None:  # the law's reference is the trim (drifting in position): one value
+        v = scheduling_value(table.variable, np.asarray(loop.x_trim, dtype=float), loop.schedule_heading)
+        point = int(np.argmin(np.abs(values - v)))
+        return [(seg, stride, point) for seg, stride in zip(plan.schedule, strides)]
+    pieces = []
+    for seg, stride in zip(plan.schedule, strides):
+        ks = np.arange(seg.k0, seg.k0 + seg.n, stride)  # absolute record indices: where a piece may start
+        v = scheduling_values(table.variable, reference.exact(ks * seg.dt)[0], loop.schedule_heading)
+        nearest = np.argmin(np.abs(v[:, None] - values[None, :]), axis=1)
+        cuts = [0, *np.flatnonzero(np.diff(nearest)) + 1]
+        for a, b in zip(cuts, [*cuts[1:], len(ks)]):
+            k_end = seg.k0 + seg.n if b == len(ks) else int(ks[b])
+            pieces.append((Segment(seg.dt, k_end - int(ks[a]), int(ks[a])), stride, int(nearest[a])))
+    return pieces
 
 
 def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
@@ -577,18 +630,22 @@ def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance:
     """
     from quadctl.sim.schedule import plan_schedule
 
+    kicks = reference.path.jumps if reference is not None else ()
     if loop.rate is not None:
         L, eig = loop.plant_linear_part(), np.asarray(loop.eigenvalues)
         owners = list(loop.owners) or ["loop"] * len(eig)
         plan = plan_schedule(eig, owners, duration, dt, tolerance=tolerance, period=1.0 / loop.rate,
-                             forced=reference is not None, held=True)
+                             forced=reference is not None, held=True, kicks=kicks)
         rk4 = loop.plan(duration, "auto")  # reported: RK4's limit on the plant between samples
         return L, replace(plan, max_stable_dt=rk4.max_stable_dt, fastest_eigenvalue=rk4.fastest_eigenvalue,
                           fastest_owner=rk4.fastest_owner)
     L = loop.linear_part() if linear_part is None else linear_part
     eig = np.linalg.eigvals(L)
+    if loop.schedule is not None and loop.schedule_jacobians is not None:  # graded by every point's modes
+        points = [loop.linear_part(p) for p in range(len(loop.schedule.values))]
+        eig = np.concatenate([eig, np.linalg.eigvals(np.stack(points)).ravel()])
     return L, plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=exo_period,
-                            forced=reference is not None, max_stable_dt=max_stable_dt)
+                            forced=reference is not None, max_stable_dt=max_stable_dt, kicks=kicks)
 
 
 def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,

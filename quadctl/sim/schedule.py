@@ -14,7 +14,9 @@ every mode:
 
 small steps over the first time constants of the fast modes, growing geometrically as they decay,
 up to the step the slow modes allow (and never past :data:`MAX_STEP`, the exogenous inputs' period,
-or the run; with a reference, which keeps the loop moving, never past :func:`forced_step`). The
+or the run; with a reference, which keeps the loop moving, never past :func:`forced_step`; a step
+of the reference kicks the fast modes as the initial state does, and the grading starts again
+there: ``kicks`` of :func:`plan_schedule`). The
 schedule is deterministic, a few segments of uniform steps ``h_top / 2^j`` (a short one merged into
 the finer one before it, :data:`MERGE_STEPS`): every
 step starts at a whole multiple of its own size, so a step never straddles an exogenous sample
@@ -307,7 +309,7 @@ def forced_step(eigenvalues, tolerance: float) -> float:
 
 def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
                   period: float | None = None, forced: bool = False, held: bool = False,
-                  max_stable_dt: float | None = None) -> StepPlan:
+                  max_stable_dt: float | None = None, kicks=()) -> StepPlan:
     """The ETDRK4 steps of a run: uniform ``dt``, or the graded schedule of ``dt: auto``.
 
     Parameters
@@ -332,6 +334,10 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     max_stable_dt : float, optional
         RK4's largest stable step (s) the plan reports, when the caller has it (computed from
         ``eigenvalues`` when None).
+    kicks : sequence of float
+        s: when the inputs step (a reference's setpoints), each exciting the fast modes again as the
+        initial state does at ``t = 0``: ``dt: auto`` grades again from each, from the start of the
+        ``period`` it falls in (so every step still starts on a multiple of itself).
 
     Raises
     ------
@@ -367,48 +373,61 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
         top = period / math.ceil(period / cap - 1e-9)
     else:
         top = duration / math.ceil(duration / cap - 1e-9)
-    segments, t, level = [], 0.0, 0
+    level = 0
     first = auto_step(0.0, eig, tolerance, safety)
     while top / 2 ** level > first and level < 60:
         level += 1
     allowed_at = allows(2 * top / 2.0 ** np.arange(level + 1), eig, tolerance, safety)  # of 2h, each level
-
-    def switch_at(h: float, t: float) -> float:
-        """The first time at or after ``t`` on the grid of ``2h`` (a held loop's samples) at which
-        ``h(t)`` allows ``2h``; inf: not within the run."""
-        allowed = allowed_at[round(math.log2(top / h))]
-        if allowed >= duration:
-            return math.inf
-        unit = period if held else 2 * h  # a held loop's segments start on a sample
-        return math.ceil(max(allowed, t) / unit - 1e-9) * unit
-
-    while True:
-        h = top / 2 ** level
-        remaining = math.ceil((duration - t) / h - 1e-9)
-        switch, after_level, coarse = (switch_at(h, t) if level else math.inf), level - 1, 2 * h
-        # a coarser segment that would save fewer than MERGE_STEPS steps is taken at h (one call less)
-        while switch < duration and after_level > 0:
-            after = switch_at(coarse, switch)
-            span = min(after, duration) - switch
-            if span / h - span / coarse > MERGE_STEPS:
-                break
-            switch, after_level, coarse = after, after_level - 1, 2 * coarse
-        if switch >= duration:
-            segments.append(Segment(h, remaining, round(t / h)))
-            break
-        n = min(round((switch - t) / h), remaining)
-        if n > 0:
-            segments.append(Segment(h, n, round(t / h)))
-        t = switch
-        level = after_level
-        if t >= duration - 1e-12 * duration:
-            break
+    grid = period if period is not None else top
+    starts = sorted({0.0, *(math.floor(k / grid + 1e-9) * grid for k in kicks if 0 < k < duration)})
+    segments = []
+    for start, end in zip(starts, [*starts[1:], duration]):
+        segments += [Segment(seg.dt, seg.n, seg.k0 + round(start / seg.dt))
+                     for seg in _graded(end - start, top, level, allowed_at, period if held else None)]
     total = sum(s.n for s in segments)
     step_count(total * top, top, fastest, owner)  # refuses (or announces) a runaway plan
     held_at = dict(hold=round(period / segments[-1].dt), sample_time=period) if held else {}
     return StepPlan(segments[-1].dt, total, limit, fastest, owner, True, method="etdrk4",
                     schedule=tuple(segments), **held_at)
 
+
+
+def _graded(span: float, top: float, level: int, allowed_at, held_period: float | None) -> list[Segment]:
+    """The segments of ``span`` s graded from its start: steps ``top / 2^level`` first, each level up
+    from where :func:`allows` lets ``h(t)`` take twice the step (``allowed_at``: those times, of ``2h``,
+    for each level from ``top``); ``held_period``: a sampled controller's period, on which segments start."""
+    segments, t = [], 0.0
+
+    def switch_at(h: float, t: float) -> float:
+        """The first time at or after ``t`` on the grid of ``2h`` (a held loop's samples) at which
+        ``h(t)`` allows ``2h``; inf: not within the span."""
+        allowed = allowed_at[round(math.log2(top / h))]
+        if allowed >= span:
+            return math.inf
+        unit = held_period if held_period is not None else 2 * h  # a held loop's segments start on a sample
+        return math.ceil(max(allowed, t) / unit - 1e-9) * unit
+
+    while True:
+        h = top / 2 ** level
+        remaining = math.ceil((span - t) / h - 1e-9)
+        switch, after_level, coarse = (switch_at(h, t) if level else math.inf), level - 1, 2 * h
+        # a coarser segment that would save fewer than MERGE_STEPS steps is taken at h (one call less)
+        while switch < span and after_level > 0:
+            after = switch_at(coarse, switch)
+            span_after = min(after, span) - switch
+            if span_after / h - span_after / coarse > MERGE_STEPS:
+                break
+            switch, after_level, coarse = after, after_level - 1, 2 * coarse
+        if switch >= span:
+            segments.append(Segment(h, remaining, round(t / h)))
+            return segments
+        n = min(round((switch - t) / h), remaining)
+        if n > 0:
+            segments.append(Segment(h, n, round(t / h)))
+        t = switch
+        level = after_level
+        if t >= span - 1e-12 * span:
+            return segments
 
 def record_strides(plan: StepPlan, max_samples: int) -> list[int]:
     """Per segment of ``plan``, the stride that records at the same times in every segment: the
