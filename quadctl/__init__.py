@@ -9,9 +9,11 @@ nothing here imports). Modules, each importing only those above it:
   paths and hints as messages show them), :mod:`~quadctl.yamlio` (YAML read with line numbers),
   :mod:`~quadctl.escape` (text made safe per output format), :mod:`~quadctl._lazy` (modules loaded
   on first use), :mod:`~quadctl.pointwise` (a CasADi function over many points, a row a point)
-- :mod:`~quadctl.config`: the YAML schema, loading, the bundled configs; :mod:`~quadctl.notices`: what a
-  valid config took by default or likely got in the wrong unit; :mod:`~quadctl.overrides`: values put in
-  at a key path before validation (``--set KEY=VALUE``)
+- :mod:`~quadctl.config`: the YAML config (its own map): the schema (``config.schema``), the weight
+  rules (``config.weights``), a schema error in one line (``config.describe``), the checks across fields
+  (``config.checks``), the schema shown (``config.render``), finding and loading a config and the bundled
+  ones (``config.loading``); :mod:`~quadctl.notices`: what a valid config took by default or likely got in
+  the wrong unit; :mod:`~quadctl.overrides`: values put in at a key path before validation (``--set KEY=VALUE``)
 - :mod:`~quadctl.model`: the CasADi model, the only place the equations of motion live
 - :mod:`~quadctl.motors`, :mod:`~quadctl.noise`, :mod:`~quadctl.wind`: rotors and mixing; seeded noise
   streams; steady wind, gusts and Dryden turbulence

@@ -310,7 +310,7 @@ def _section(model: type[BaseModel], given: dict[str, tuple[Any, str]], indent: 
     lines = []
     pad = " " * indent
     for key, field in model.model_fields.items():
-        sub = config_mod._first_model(field.annotation)
+        sub = config_mod.first_model(field.annotation)
         if key in given:
             value, note = given[key]
         elif sub is not None and not commented:

@@ -138,7 +138,7 @@ def _in_schema(parts: list[str]) -> bool:
         if model is None or part not in model.model_fields:
             return False
         annotation = model.model_fields[part].annotation
-        model, free = config._first_model(annotation), "dict" in str(annotation)
+        model, free = config.first_model(annotation), "dict" in str(annotation)
     return True
 
 

@@ -25,7 +25,7 @@ def _keys(model, prefix: str = "") -> list[str]:
     out = []
     for key, field in model.model_fields.items():
         out.append(prefix + key)
-        sub = config._first_model(field.annotation)
+        sub = config.first_model(field.annotation)
         if sub is not None and key not in ("subsystems", "lqr", "delay"):  # named entries; a number or {samples}
             out += _keys(sub, prefix + key + ".")
     return out

@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 from quadctl import config
 from quadctl.cli.app import app
 from quadctl.errors import ConfigError
+from quadctl.messages import show
 
 VALUES = [math.inf, -math.inf, math.nan, 0.0, -1.0, 1e12, config.MAX_RATE * (1 + 1e-12)]
 
@@ -34,7 +35,7 @@ def _leaf_keys(model=config.Config, prefix: str = "") -> dict[str, str]:
 
     keys = {}
     for name, field in model.model_fields.items():
-        inner = config._first_model(field.annotation)
+        inner = config.first_model(field.annotation)
         if inner is not None and isinstance(inner, type) and issubclass(inner, BaseModel) and "dict" not in str(
                 field.annotation):
             keys.update(_leaf_keys(inner, f"{prefix}{name}."))
@@ -73,7 +74,7 @@ def test_an_option_outside_its_keys_bounds_is_refused_as_the_key_would_be(option
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 2, res.output
     why = _config_message(key, value)
-    assert res.stderr == f"quadctl: error: {option} = {config.show(value)}: {why}; {option} is {key}\n"
+    assert res.stderr == f"quadctl: error: {option} = {show(value)}: {why}; {option} is {key}\n"
 
 
 def test_check_override_keeps_a_value_inside_the_bounds():

@@ -1,0 +1,107 @@
+"""The YAML config: schema, validation, loading and the bundled configs.
+
+A config is validated whole on load: unknown keys are refused (with the nearest valid
+key suggested), numbers must be finite, names must exist, and every error is one
+:class:`~quadctl.errors.ConfigError` line naming the file, the key path, the value
+and what is allowed.
+
+Modules, each importing only those above it (``from quadctl import config`` gives every public
+name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``, ``config.MAX_DURATION``):
+
+- :mod:`~quadctl.config.schema`: the sections (frozen pydantic models) with the limits and units of
+  their keys, the whole :class:`Config` (its digest, its YAML), and the walk from a key path to its section
+- :mod:`~quadctl.config.weights`: the rules an LQR weight (Q or R) obeys, for one weight and for
+  many diagonals at once (a sweep's)
+- :mod:`~quadctl.config.describe`: a pydantic ``ValidationError`` as the one line a user reads
+  (imported only when a config fails the schema)
+- :mod:`~quadctl.config.checks`: the checks after the schema: rules across fields (the partition,
+  the weights' sizes, inertia, rotors, estimator, wind, delay, method) and bounds in context
+- :mod:`~quadctl.config.render`: the schema shown to people and editors (``quadctl configs --show``,
+  ``--schema``)
+- :mod:`~quadctl.config.loading`: finding a config (a file or a bundled name), loading and
+  validating it, and a command-line value checked against the key it overrides
+"""
+
+from quadctl.config.checks import DELAY_SAMPLES_TOL as DELAY_SAMPLES_TOL
+from quadctl.config.checks import INERTIA_TRIANGLE_RTOL as INERTIA_TRIANGLE_RTOL
+from quadctl.config.checks import MAX_DURATION as MAX_DURATION
+from quadctl.config.checks import MAX_DURATION_ENV as MAX_DURATION_ENV
+from quadctl.config.checks import MAX_OFFSET as MAX_OFFSET
+from quadctl.config.checks import MAX_TILT_OFFSET as MAX_TILT_OFFSET
+from quadctl.config.checks import MAX_TRIM as MAX_TRIM
+from quadctl.config.checks import max_duration_s as max_duration_s
+from quadctl.config.loading import DEFAULT_CONFIG as DEFAULT_CONFIG
+from quadctl.config.loading import FOLDER_SCAN as FOLDER_SCAN
+from quadctl.config.loading import OVERRIDES as OVERRIDES
+from quadctl.config.loading import Source as Source
+from quadctl.config.loading import bundled as bundled
+from quadctl.config.loading import bundled_names as bundled_names
+from quadctl.config.loading import check_override as check_override
+from quadctl.config.loading import from_dict as from_dict
+from quadctl.config.loading import key_field as key_field
+from quadctl.config.loading import load as load
+from quadctl.config.loading import locate as locate
+from quadctl.config.loading import near_files as near_files
+from quadctl.config.loading import parse as parse
+from quadctl.config.loading import resolve as resolve
+from quadctl.config.render import SCHEMA_DIALECT as SCHEMA_DIALECT
+from quadctl.config.render import TOP_LEVEL_ABSENT as TOP_LEVEL_ABSENT
+from quadctl.config.render import json_schema as json_schema
+from quadctl.config.render import shown_yaml as shown_yaml
+from quadctl.config.schema import INERTIA_DESCRIPTION as INERTIA_DESCRIPTION
+from quadctl.config.schema import LATER_KEYS as LATER_KEYS
+from quadctl.config.schema import MASS_RANGE as MASS_RANGE
+from quadctl.config.schema import MAX_DELAY_SAMPLES as MAX_DELAY_SAMPLES
+from quadctl.config.schema import MAX_DRAG as MAX_DRAG
+from quadctl.config.schema import MAX_GRAVITY as MAX_GRAVITY
+from quadctl.config.schema import MAX_GUSTS as MAX_GUSTS
+from quadctl.config.schema import MAX_NOISE as MAX_NOISE
+from quadctl.config.schema import MAX_RATE as MAX_RATE
+from quadctl.config.schema import MAX_ROTOR_TIME_CONSTANT as MAX_ROTOR_TIME_CONSTANT
+from quadctl.config.schema import MAX_SCHEDULE_POINTS as MAX_SCHEDULE_POINTS
+from quadctl.config.schema import MAX_TURBULENCE_SIGMA as MAX_TURBULENCE_SIGMA
+from quadctl.config.schema import MAX_WIND as MAX_WIND
+from quadctl.config.schema import MAX_WIND_ALTITUDE as MAX_WIND_ALTITUDE
+from quadctl.config.schema import NAME_PATTERN as NAME_PATTERN
+from quadctl.config.schema import SUBSYSTEM_NAME_PATTERN as SUBSYSTEM_NAME_PATTERN
+from quadctl.config.schema import TURBULENCE_LENGTH as TURBULENCE_LENGTH
+from quadctl.config.schema import Config as Config
+from quadctl.config.schema import ControllerConfig as ControllerConfig
+from quadctl.config.schema import DelaySamples as DelaySamples
+from quadctl.config.schema import Drag as Drag
+from quadctl.config.schema import EstimatorConfig as EstimatorConfig
+from quadctl.config.schema import Gravity as Gravity
+from quadctl.config.schema import GustConfig as GustConfig
+from quadctl.config.schema import InputLimits as InputLimits
+from quadctl.config.schema import LqrWeights as LqrWeights
+from quadctl.config.schema import Mass as Mass
+from quadctl.config.schema import Matrix as Matrix
+from quadctl.config.schema import MotorsConfig as MotorsConfig
+from quadctl.config.schema import NoiseConfig as NoiseConfig
+from quadctl.config.schema import NonNegative as NonNegative
+from quadctl.config.schema import Number as Number
+from quadctl.config.schema import PlantConfig as PlantConfig
+from quadctl.config.schema import Positive as Positive
+from quadctl.config.schema import ReferenceConfig as ReferenceConfig
+from quadctl.config.schema import RotorTimeConstant as RotorTimeConstant
+from quadctl.config.schema import ScheduleConfig as ScheduleConfig
+from quadctl.config.schema import SetpointConfig as SetpointConfig
+from quadctl.config.schema import SimulationConfig as SimulationConfig
+from quadctl.config.schema import SubsystemConfig as SubsystemConfig
+from quadctl.config.schema import TrimConfig as TrimConfig
+from quadctl.config.schema import TurbulenceConfig as TurbulenceConfig
+from quadctl.config.schema import Vector3 as Vector3
+from quadctl.config.schema import VehicleConfig as VehicleConfig
+from quadctl.config.schema import WaypointConfig as WaypointConfig
+from quadctl.config.schema import WindComponent as WindComponent
+from quadctl.config.schema import WindConfig as WindConfig
+from quadctl.config.schema import WindVector as WindVector
+from quadctl.config.schema import first_model as first_model
+from quadctl.config.schema import inertia_parts as inertia_parts
+from quadctl.config.schema import section_model as section_model
+from quadctl.config.weights import DEFINITENESS_RTOL as DEFINITENESS_RTOL
+from quadctl.config.weights import SYMMETRY_RTOL as SYMMETRY_RTOL
+from quadctl.config.weights import WEIGHT_RANGE as WEIGHT_RANGE
+from quadctl.config.weights import check_weight as check_weight
+from quadctl.config.weights import diagonal_weights_pass as diagonal_weights_pass
+from quadctl.config.weights import weight_matrix as weight_matrix

@@ -1,0 +1,419 @@
+"""The checks after the schema: rules across fields, names that must exist, bounds in context.
+
+:func:`check_semantics` runs on every validated config; each failure is one
+:class:`~quadctl.errors.ConfigError` line naming the file, the key path, the value and the fix.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from typing import Any
+
+from quadctl.config.schema import (
+    INERTIA_DESCRIPTION,
+    MAX_DELAY_SAMPLES,
+    MAX_WIND_ALTITUDE,
+    SUBSYSTEM_NAME_PATTERN,
+    Config,
+    DelaySamples,
+    EstimatorConfig,
+    MotorsConfig,
+    ReferenceConfig,
+    ScheduleConfig,
+)
+from quadctl.config.weights import DEFINITENESS_RTOL, SYMMETRY_RTOL, check_weight
+from quadctl.errors import ConfigError
+from quadctl.layout import INPUT_NAMES, SENSOR_GROUPS, STATE_NAMES, STATE_UNITS
+from quadctl.messages import show
+from quadctl.messages import unknown as _unknown
+
+DELAY_SAMPLES_TOL = 1e-9
+"""A delay in seconds is a whole number of samples when ``delay * rate`` is within this (relative)
+of an integer: float round-off of ``0.005 * 200``, never a real fraction of a sample."""
+
+
+def _safe_name(name: str) -> str:
+    """A name close to ``name`` that :data:`SUBSYSTEM_NAME_PATTERN` allows (for the message's fix)."""
+    safe = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_") or "subsystem"
+    return (safe if safe[0].isalpha() else f"s_{safe}")[:63]
+
+
+def check_semantics(cfg: Config, label: str) -> None:
+    def fail(path: str, value: Any, why: str) -> None:
+        raise ConfigError(f"{label}: {path} = {show(value)}: {why}")
+
+    for name in cfg.subsystems or {}:
+        if not re.fullmatch(SUBSYSTEM_NAME_PATTERN, name):
+            raise ConfigError(f"{label}: subsystems: {name!r} is not a usable subsystem name: it must start with a "
+                              "letter and use only letters, digits and '_' (at most 63 characters: it names "
+                              f"files, C and MATLAB fields); rename it, e.g. `{_safe_name(name)}`")
+    partition = cfg.partition()
+    where = "subsystems" if cfg.subsystems is not None else "subsystems (the report's default)"
+    seen_states: dict[str, str] = {}
+    seen_inputs: dict[str, str] = {}
+    for name, sub in partition.items():
+        for i, state in enumerate(sub.states):
+            if state not in STATE_NAMES:
+                fail(f"subsystems.{name}.states[{i}]", state, _unknown(state, STATE_NAMES, "state"))
+            if state in seen_states:
+                fail(f"subsystems.{name}.states[{i}]", state,
+                     f"state already in subsystem `{seen_states[state]}`; each state belongs to one subsystem")
+            seen_states[state] = name
+        allowed = INPUT_NAMES if sub.regulate else INPUT_NAMES + STATE_NAMES
+        for i, inp in enumerate(sub.inputs):
+            if inp not in allowed:
+                kind = "input" if sub.regulate else "input or state"
+                fail(f"subsystems.{name}.inputs[{i}]", inp, _unknown(inp, allowed, kind))
+            if inp in INPUT_NAMES:
+                if inp in seen_inputs:
+                    fail(f"subsystems.{name}.inputs[{i}]", inp,
+                         f"input already drives subsystem `{seen_inputs[inp]}`; give each input to one subsystem")
+                seen_inputs[inp] = name
+            elif inp in sub.states:
+                fail(f"subsystems.{name}.inputs[{i}]", inp, "a subsystem's own state cannot be its input")
+        for i, out in enumerate(sub.outputs or []):
+            if out not in sub.states:
+                fail(f"subsystems.{name}.outputs[{i}]", out,
+                     f"outputs must be states of this subsystem: {', '.join(sub.states)}")
+    regulated = {n: s for n, s in partition.items() if s.regulate}
+    for inp in INPUT_NAMES:
+        if inp not in seen_inputs:
+            fail(where, sorted(regulated), f"input `{inp}` is not assigned to any regulated subsystem; "
+                 "add it to one subsystem's inputs")
+    for name in cfg.lqr:
+        if name not in partition:  # a key, not a value: named as an unknown key is
+            raise ConfigError(f"{label}: lqr.{name}: {_unknown(name, list(regulated), 'regulated subsystem')}")
+        if not partition[name].regulate:
+            raise ConfigError(f"{label}: lqr.{name}: this subsystem has regulate: false; remove its weights "
+                              "or regulate it")
+    for name, sub in regulated.items():
+        if name not in cfg.lqr:
+            fail("lqr", sorted(cfg.lqr), f"regulated subsystem `{name}` has no weights; "
+                 f"add lqr.{name} with Q ({len(sub.states)} values) and R ({len(sub.inputs)})")
+        weights = cfg.lqr[name]
+        for i, state in enumerate(weights.integral):
+            if state not in sub.states:
+                fail(f"lqr.{name}.integral[{i}]", state,
+                     f"not a state of subsystem `{name}`; integrate one of {', '.join(sub.states)}")
+            if state in weights.integral[:i]:
+                fail(f"lqr.{name}.integral[{i}]", state, "listed twice; integrate each state once")
+        check_weight(weights.Q, len(sub.states) + len(weights.integral), f"lqr.{name}.Q", label,
+                     definite=False, names=[*sub.states, *(f"integral of {s}" for s in weights.integral)])
+        check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
+                     names=sub.inputs)
+    _check_reference(cfg.simulation.reference, fail)
+    _check_schedule(cfg.schedule, fail)
+    for state, value in cfg.simulation.initial_offset.items():
+        if state not in STATE_NAMES:
+            fail(f"simulation.initial_offset.{state}", value, _unknown(state, STATE_NAMES, "state"))
+        limit = MAX_TILT_OFFSET if state in ("phi", "theta") else 2 * math.pi if state == "psi" else None
+        if limit is not None and abs(value) >= limit:
+            fail(f"simulation.initial_offset.{state}", value, _degrees_hint(value, limit))
+        unit = STATE_UNITS[state]
+        if unit in MAX_OFFSET and abs(value) > MAX_OFFSET[unit]:
+            fail(f"simulation.initial_offset.{state}", value,
+                 f"must be at most {MAX_OFFSET[unit]:g} {unit} from the trim (MAX_OFFSET)")
+    if abs(cfg.trim.yaw) > 2 * math.pi:
+        fail("trim.yaw", cfg.trim.yaw, _degrees_hint(cfg.trim.yaw, 2 * math.pi))
+    for key in ("velocity_ned", "position_ned"):
+        unit = "m/s" if key == "velocity_ned" else "m"
+        for i, value in enumerate(getattr(cfg.trim, key)):
+            if abs(value) > MAX_TRIM[unit]:
+                fail(f"trim.{key}[{i}]", value, f"must be at most {MAX_TRIM[unit]:g} {unit} in magnitude (MAX_TRIM)")
+    max_duration = max_duration_s()
+    if cfg.simulation.duration > max_duration:
+        fail("simulation.duration", cfg.simulation.duration,
+             f"must be at most {max_duration:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to allow longer)")
+    _check_inertia(cfg, fail)
+    _check_controller_and_actuators(cfg, fail)
+    _check_delay(cfg, fail)
+    _check_method(cfg, fail)
+    if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
+        fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
+             "or use rotor_lag: ignore")
+
+
+def _check_schedule(schedule: ScheduleConfig | None, fail) -> None:
+    """``schedule.values``: strictly increasing."""
+    if schedule is None:
+        return
+    for i in range(1, len(schedule.values)):
+        if schedule.values[i] <= schedule.values[i - 1]:
+            fail(f"schedule.values[{i}]", schedule.values[i],
+                 f"not above values[{i - 1}] = {show(schedule.values[i - 1])}; list the values increasing, each once")
+
+
+def _check_reference(ref: ReferenceConfig | None, fail) -> None:
+    """``simulation.reference``: setpoints or waypoints (not both, not neither), setpoints in time order."""
+    if ref is None:
+        return
+    where = "simulation.reference"
+    if (ref.setpoints is None) == (ref.waypoints is None):
+        fail(where, "both" if ref.setpoints is not None else "neither",
+             "give either setpoints (steps at times t) or waypoints (a mission), one of the two")
+    if not (ref.setpoints or ref.waypoints):
+        fail(f"{where}.{'setpoints' if ref.setpoints is not None else 'waypoints'}", [], "empty; list at least one")
+    for i, sp in enumerate(ref.setpoints or []):
+        if sp.position is None and sp.velocity is None and sp.yaw is None:
+            fail(f"{where}.setpoints[{i}]", {"t": sp.t}, "sets nothing; give position, velocity or yaw")
+        if i and sp.t <= ref.setpoints[i - 1].t:
+            fail(f"{where}.setpoints[{i}].t", sp.t,
+                 f"not after setpoints[{i - 1}].t = {show(ref.setpoints[i - 1].t)}; list setpoints in increasing t")
+
+
+def _check_method(cfg: Config, fail) -> None:
+    """``simulation.method: etdrk4``: its tolerance only with ``dt: auto``; a continuous loop with a Kalman
+    filter and the rotors' lag has no linear part (a sampled one's is the plant's)."""
+    sim = cfg.simulation
+    if sim.method == "rk4":
+        if sim.tolerance is not None:
+            fail("simulation.tolerance", sim.tolerance, "sets the step schedule of method etdrk4: set "
+                 "simulation.method: etdrk4, or remove the tolerance")
+        return
+    if sim.tolerance is not None and sim.dt != "auto":
+        fail("simulation.tolerance", sim.tolerance, f"sets the step schedule of dt: auto, and simulation.dt is "
+             f"{sim.dt:g} s: remove one of them")
+    if cfg.schedule is not None:
+        fail("simulation.method", sim.method, "does not fly a gain schedule (schedule:): use method: rk4")
+    if (cfg.controller.rate is None and cfg.estimator is not None and cfg.motors is not None
+            and cfg.motors.time_constant is not None):
+        fail("simulation.method", sim.method, "has no linear part for a Kalman filter with the rotors' lag: "
+             "use method: rk4, or remove motors.time_constant")
+
+
+def _check_delay(cfg: Config, fail) -> None:
+    """``controller.delay``: needs a rate, and is a whole number of samples at it."""
+    delay, rate = cfg.controller.delay, cfg.controller.rate
+    if delay is None:
+        return
+    shown = delay.model_dump() if isinstance(delay, DelaySamples) else delay
+    if rate is None:
+        fail("controller.delay", shown, "a delay is counted in controller samples: set controller.rate (Hz), "
+             "or remove the delay")
+    if isinstance(delay, DelaySamples):
+        return
+    n = delay * rate
+    whole = round(n)
+    if abs(n - whole) > DELAY_SAMPLES_TOL * max(1.0, n):
+        lo, hi = math.floor(n), math.ceil(n)
+        fail("controller.delay", delay,
+             f"is {n:.6g} samples at {rate:g} Hz; the simulated delay is a whole number of samples: use "
+             f"{lo / rate:.6g} s ({{samples: {lo}}}) or {hi / rate:.6g} s ({{samples: {hi}}})")
+    if whole > MAX_DELAY_SAMPLES:
+        fail("controller.delay", delay, f"is {whole} samples at {rate:g} Hz, more than MAX_DELAY_SAMPLES = "
+             f"{MAX_DELAY_SAMPLES}; shorten it")
+
+
+MAX_DURATION = 86_400.0
+"""s: the longest simulation (one day). A controller settles in seconds and a long hold is
+minutes; ``1e300`` is a typo that no step count can honour. Raise it with the environment
+variable :data:`MAX_DURATION_ENV` (seconds); the engine bounds the number of RK4 steps on its own."""
+MAX_DURATION_ENV = "QUADCTL_MAX_DURATION"
+
+
+def max_duration_s() -> float:
+    """The bound on ``simulation.duration`` in force: :data:`MAX_DURATION`, or the environment's."""
+    text = os.environ.get(MAX_DURATION_ENV)
+    if text is None:
+        return MAX_DURATION
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError(f"{MAX_DURATION_ENV}={text}: must be a positive number of seconds; unset it for "
+                          f"the default {MAX_DURATION:g} s")
+    return value
+
+
+MAX_OFFSET = {"m": 1e4, "m/s": 1e2, "rad/s": 1e2}
+"""Largest initial offset from the trim, by state unit (angles have their own bounds): 10 km,
+100 m/s and 100 rad/s (16 turns a second) are past any flight yet at least ten times inside
+the simulation's run-away bounds, so a run never starts out diverged, and no arithmetic on the
+state overflows (an offset of 1e308 did, with numpy warnings)."""
+MAX_TRIM = {"m": 1e6, "m/s": 1e3}
+"""Largest trim position (1000 km) and velocity (1000 m/s, three times the speed of sound): past
+them the trim and the reference it drifts along lose their digits."""
+
+
+INERTIA_TRIANGLE_RTOL = 0.10
+"""Slack on the triangle inequality of the principal moments of inertia. Measured inertias
+(pendulum tests, CAD) carry errors of a few percent: the report's Mambo itself has
+Jxx + Jyy = 0.979 Jzz, 2 % under the bound. 10 % takes measurement error, not a swapped axis."""
+
+
+def _check_inertia(cfg: Config, fail) -> None:
+    """Refuse an impossible inertia: a shape other than 3 values or 3 x 3, a tensor that is not
+    symmetric positive definite, or principal moments that break the triangle inequality.
+
+    For any rigid body ``Jxx + Jyy >= Jzz`` (and the same for each axis: ``Jzz`` is the integral of
+    ``x^2 + y^2`` dm, ``Jxx + Jyy`` that of ``x^2 + y^2 + 2 z^2``); for a full tensor the principal
+    moments (its eigenvalues) obey it. A vehicle that breaks it by more than
+    :data:`INERTIA_TRIANGLE_RTOL` does not exist: the values are a typo, a swapped or mis-scaled
+    entry, and a design for them is a design for no vehicle, so it is refused (exit 2). Everything
+    merely unusual (a heavy, long-armed, tall vehicle) is only warned about, by :func:`quadctl.notices.notices`.
+    """
+    for path, inertia in (("vehicle.inertia", cfg.vehicle.inertia),
+                          ("simulation.plant.inertia", cfg.simulation.plant and cfg.simulation.plant.inertia)):
+        if inertia:
+            _check_one_inertia(path, inertia, fail)
+
+
+def _check_one_inertia(path: str, inertia: list, fail) -> None:
+    import numpy as np
+
+    nested = isinstance(inertia[0], list)
+    if nested and (len(inertia) != 3 or any(not isinstance(row, list) or len(row) != 3 for row in inertia)) \
+            or not nested and (len(inertia) != 3 or any(isinstance(v, list) for v in inertia)):
+        from quadctl.config.describe import UNION_HINTS
+
+        fail(path, inertia, UNION_HINTS["inertia"])
+    if not nested:
+        for k, value in enumerate(inertia):
+            if not value > 0:
+                fail(f"{path}[{k}]", value, f"must be greater than 0 ({INERTIA_DESCRIPTION})")
+        principal, axes = list(inertia), ("Jxx", "Jyy", "Jzz")
+        hint = "check the order [Jxx, Jyy, Jzz] and that all three are in kg m^2"
+    else:
+        tensor = np.array(inertia, dtype=float)
+        scale = float(np.abs(tensor).max())
+        for i, j in ((0, 1), (0, 2), (1, 2)):
+            if abs(tensor[i, j] - tensor[j, i]) > SYMMETRY_RTOL * scale:
+                fail(path, inertia, f"not symmetric: {path}[{i}][{j}] = {tensor[i, j]:g} but {path}[{j}][{i}] = "
+                     f"{tensor[j, i]:g}; an inertia tensor equals its transpose: give both the same value")
+        for k in range(3):
+            if not tensor[k, k] > 0:
+                fail(f"{path}[{k}][{k}]", inertia[k][k], "a moment of inertia must be greater than 0 (kg m^2)")
+        principal = [float(v) for v in np.linalg.eigvalsh(tensor)]
+        if principal[0] <= DEFINITENESS_RTOL * principal[-1]:
+            fail(path, inertia, f"not positive definite (smallest principal moment {principal[0]:.4g} kg m^2): the "
+                 "products of inertia are too large for the moments; check their units (kg m^2) and signs "
+                 "(the tensor's entry is Jxy = -integral of x y dm)")
+        axes = ("J1", "J2", "J3")
+        hint = "check the products of inertia and that every entry is in kg m^2"
+    for k, axis in enumerate(axes):
+        others = sum(principal) - principal[k]
+        if others < principal[k] * (1 - INERTIA_TRIANGLE_RTOL):
+            names = " + ".join(a for a in axes if a != axis)
+            what = "" if not nested else "the principal moments "
+            fail(path, inertia, f"no rigid body has {what}{names} = {others:.4g} below {axis} = {principal[k]:.4g} "
+                 f"kg m^2 (the moments of inertia obey {names} >= {axis}); {hint}")
+
+
+def _check_controller_and_actuators(cfg: Config, fail) -> None:
+    """Controller rate and delay, motors, limits and noise: the keys that only make sense together."""
+    if cfg.motors is not None and cfg.limits is not None:
+        fail("limits", cfg.limits, "give either motors: (limits from the rotors) or limits:, not both")
+    if cfg.motors is not None:
+        _check_rotor_numbering(cfg.motors, fail)
+    if cfg.motors is not None and cfg.motors.min_thrust >= cfg.motors.max_thrust:
+        fail("motors.min_thrust", cfg.motors.min_thrust,
+             f"must be below motors.max_thrust = {cfg.motors.max_thrust:g} N")
+    for name, (low, high) in (cfg.limits or {}).items():
+        if name not in INPUT_NAMES:
+            fail(f"limits.{name}", [low, high], _unknown(name, INPUT_NAMES, "input"))
+        if not low < high:
+            fail(f"limits.{name}", [low, high], "must be [low, high] with low < high")
+    noise = cfg.simulation.noise
+    for state, value in (noise.sensor if noise else {}).items():
+        if state not in STATE_NAMES:
+            fail(f"simulation.noise.sensor.{state}", value, _unknown(state, STATE_NAMES, "state"))
+    if cfg.estimator is not None:
+        _check_estimator(cfg.estimator, noise, fail)
+    _check_wind(cfg, fail)
+
+
+def _check_rotor_numbering(motors: MotorsConfig, fail) -> None:
+    """``motors.numbering``: each of the layout's positions once (a preset names a quad-x order);
+    ``motors.spin``: diagonal rotors alike, neighbours opposite (else yaw is not separable from roll
+    and pitch: the mixer is singular)."""
+    from quadctl.motors import NUMBERINGS, POSITIONS
+
+    allowed = POSITIONS[motors.layout]
+    numbering = motors.numbering
+    if isinstance(numbering, str):
+        if numbering != "quadctl" and motors.layout != "x":
+            fail("motors.numbering", numbering, f"{numbering} is a quad-x order; for layout + give the 4 positions, "
+                 f"rotor 1 first ({', '.join(allowed)})")
+        order = allowed if numbering == "quadctl" else NUMBERINGS[numbering]
+    else:
+        for i, where in enumerate(numbering):
+            if where not in allowed:
+                fail(f"motors.numbering[{i}]", where,
+                     _unknown(where, allowed, f"rotor position of layout {motors.layout}"))
+        if len(numbering) != 4 or len(set(numbering)) != 4:
+            fail("motors.numbering", numbering, f"must name each of the 4 positions once, rotor 1 first: "
+                 f"{', '.join(allowed)} in the vehicle's order")
+        order = tuple(numbering)
+    if motors.spin is not None:
+        spin = dict(zip(order, motors.spin))
+        first, diagonal, *_ = ("front_right", "rear_left", "rear_right", "front_left") if motors.layout == "x" \
+            else ("front", "rear", "right", "left")
+        others = [p for p in allowed if p not in (first, diagonal)]
+        if spin[first] != spin[diagonal] or any(spin[p] == spin[first] for p in others):
+            fail("motors.spin", motors.spin, f"diagonal rotors must turn alike and neighbours opposite ({first} and "
+                 f"{diagonal} one way, {' and '.join(others)} the other), else yaw cannot be told from roll and pitch; "
+                 "check the order against motors.numbering")
+
+
+def _check_estimator(est: EstimatorConfig, noise, fail) -> None:
+    """Known names, a sensor noise for every measured state, some process noise."""
+    known = tuple(SENSOR_GROUPS) + STATE_NAMES
+    for i, item in enumerate(est.measure):
+        if item not in known:
+            fail(f"estimator.measure[{i}]", item, _unknown(item, known, "state or sensor group"))
+    for state, value in est.sensor.items():
+        if state not in STATE_NAMES:
+            fail(f"estimator.sensor.{state}", value, _unknown(state, STATE_NAMES, "state"))
+    given = noise.sensor if noise is not None else {}
+    for state in est.measured():
+        if est.sensor.get(state, given.get(state, 0.0)) <= 0:
+            fail("estimator.measure", est.measure,
+                 f"{state} is measured but has no sensor noise: give estimator.sensor.{state} or "
+                 f"simulation.noise.sensor.{state} (> 0, {STATE_UNITS[state]})")
+    force = est.force if est.force is not None else (noise.force if noise is not None else [0.0] * 3)
+    torque = est.torque if est.torque is not None else (noise.torque if noise is not None else [0.0] * 3)
+    if not any(v > 0 for v in (*force, *torque)):
+        fail("estimator.force", force, "the filter needs process noise: give estimator.force and estimator.torque "
+             "(N, N m) or simulation.noise.force/torque; with none it would trust its model and ignore every sensor")
+
+
+def _check_wind(cfg: Config, fail) -> None:
+    """``simulation.wind`` and ``trim.wind``: the keys that only make sense together."""
+    wind = cfg.simulation.wind
+    if cfg.trim.wind and (wind is None or not any(wind.steady)):
+        fail("trim.wind", True, "needs a steady wind to trim in: set simulation.wind.steady, or trim.wind: false")
+    turb = wind.turbulence if wind is not None else None
+    if turb is None:
+        return
+    where = "simulation.wind.turbulence"
+    explicit = turb.sigma is not None or turb.length_scale is not None
+    if turb.intensity is not None and explicit:
+        fail(f"{where}.intensity", turb.intensity, "give either intensity (with altitude) or sigma and "
+             "length_scale, not both")
+    if turb.intensity is None and not explicit:
+        fail(where, turb.model_dump(exclude_none=True), "needs intensity: light|moderate|severe, or sigma and "
+             "length_scale")
+    if explicit and (turb.sigma is None or turb.length_scale is None):
+        missing = "sigma" if turb.sigma is None else "length_scale"
+        fail(f"{where}.{missing}", None, "sigma and length_scale go together: give both (or intensity)")
+    if explicit and turb.altitude is not None:
+        fail(f"{where}.altitude", turb.altitude, "sets the scales of an intensity only; remove it with sigma")
+    if turb.intensity is not None and turb.altitude is None and -cfg.trim.position_ned[2] <= 0:
+        fail(f"{where}.altitude", None, f"the trim's altitude {-cfg.trim.position_ned[2]:g} m is not above "
+             "ground: give the turbulence's altitude (m)")
+    if turb.intensity is not None and turb.altitude is None and -cfg.trim.position_ned[2] > MAX_WIND_ALTITUDE:
+        fail(f"{where}.altitude", None, f"the trim's altitude {-cfg.trim.position_ned[2]:g} m is above the "
+             f"low-altitude model's {MAX_WIND_ALTITUDE:g} m (1000 ft): give sigma and length_scale instead")
+
+
+MAX_TILT_OFFSET = math.radians(85.0)
+"""Roll or pitch offsets at or past 85 deg start outside the Euler model's valid range."""
+
+
+def _degrees_hint(value: float, limit: float) -> str:
+    """Angles are in rad: say what the value would be, and what the user likely meant."""
+    return (f"that is {math.degrees(value):.0f} deg, beyond {math.degrees(limit):.0f} deg; angles are in rad: "
+            f"for {value:g} deg write {math.radians(value):.4g}")

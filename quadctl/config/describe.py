@@ -1,0 +1,141 @@
+"""A pydantic ``ValidationError`` as the one line a user reads: file, key path, value, what is allowed.
+
+Imported only when a config (or a value for one of its keys) fails the schema.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import ValidationError
+
+from quadctl.config.schema import DelaySamples, section_model
+from quadctl.messages import hint as _hint
+from quadctl.messages import key_path, show
+
+
+def describe(exc: ValidationError, data: Any, label: str) -> str:
+    """One line for the first pydantic error: file, key path, value, what is allowed."""
+    # an unknown key usually explains the errors after it (a misspelt required key): say it first
+    # and a mapping given where a number or a section is allowed (controller.delay) was meant as the section
+    errors = sorted(exc.errors(), key=lambda e: (e["type"] != "extra_forbidden",
+                                                 e["type"] == "float_type" and isinstance(e.get("input"), dict)))
+    err = errors[0]
+    loc = [part for part in err["loc"] if not is_union_tag(part)]
+    path = key_path(loc)
+    distinct = {tuple(p for p in e["loc"] if not is_union_tag(p)) for e in exc.errors()}
+    n_more = len(distinct) - 1
+    more = f" (and {n_more} more error{'s' if n_more > 1 else ''})" if n_more else ""
+    kind = err["type"]
+    if kind == "extra_forbidden":
+        parent = section_model(loc[:-1])
+        allowed = sorted(parent.model_fields) if parent else []
+        return f"{label}: {path}: unknown key; {_hint(str(loc[-1]), allowed)}{more}"
+    if kind == "missing":
+        return f"{label}: {path}: required key is missing; add it{_what_it_takes(loc)}{more}"
+    value = _lookup(data, loc)
+    if kind in ("int_type", "int_from_float") and isinstance(value, float) and value.is_integer():
+        return f"{label}: {path} = {value!r}: must be a whole number; write {int(value)}{more}"
+    return f"{label}: {path} = {show(value)}: {expected(err, loc)}{more}"
+
+
+def _what_it_takes(loc: list) -> str:
+    """For a missing key: the values it takes (a choice) or its description in brackets, else ''."""
+    field = _field_info(loc)
+    if field is None:
+        return ""
+    choices = _literal_values(field.annotation)
+    described = f" ({field.description})" if field.description else ""
+    return f": {', '.join(choices[:-1])} or {choices[-1]}{described}" if choices else described
+
+
+UNION_HINTS = {
+    "dt": "must be a positive number of seconds, or auto",
+    "Q": "must be a list of numbers (the diagonal) or a list of rows (a full matrix)",
+    "R": "must be a list of numbers (the diagonal) or a list of rows (a full matrix)",
+    "inertia": "must be [Jxx, Jyy, Jzz] or 3 rows [[Jxx, Jxy, Jxz], [Jxy, Jyy, Jyz], [Jxz, Jyz, Jzz]] (kg m^2)",
+}
+"""Fields whose type is a union: one plain sentence instead of pydantic's per-branch errors."""
+
+
+def expected(err: dict, loc: list) -> str:
+    """What the value should be, in words, with the field's unit from the schema."""
+    kind, ctx = err["type"], err.get("ctx") or {}
+    names = [p for p in loc if isinstance(p, str)]
+    if names and names[-1] in UNION_HINTS:
+        return UNION_HINTS[names[-1]]
+    field = _field_info(loc)
+    unit = f" ({field.description})" if field is not None and field.description else ""
+    if kind == "finite_number":
+        return "must be a finite number (not NaN or infinity)"
+    if kind == "greater_than":
+        return f"must be greater than {ctx.get('gt')}{unit}"
+    if kind == "greater_than_equal":
+        return f"must be at least {ctx.get('ge')}{unit}"
+    if kind == "less_than_equal":
+        return f"must be at most {ctx.get('le'):g}{unit}"
+    if kind in ("int_type", "int_parsing", "int_from_float"):
+        return f"must be a whole number{unit}"
+    if kind in ("float_type", "float_parsing"):
+        return f"must be a number{unit}"
+    if kind in ("too_short", "too_long"):
+        lo, hi = ctx.get("min_length"), ctx.get("max_length")
+        if field is not None:
+            meta = {type(m).__name__: m for m in field.metadata}
+            lo = getattr(meta.get("MinLen"), "min_length", lo)
+            hi = getattr(meta.get("MaxLen"), "max_length", hi)
+        count = f"exactly {lo}" if lo is not None and lo == hi else f"at least {lo}" if hi is None else \
+            f"{lo} to {hi}"
+        return f"must be a list of {count} items{unit}"
+    if kind == "list_type":
+        return f"must be a list{unit}"
+    if kind in ("string_type",):
+        return "must be text"
+    if kind in ("bool_type", "bool_parsing"):
+        return "must be true or false"
+    if kind in ("dict_type", "model_type", "model_attributes_type"):
+        return "must be a mapping of keys"
+    if kind == "string_pattern_mismatch":
+        return ("must start with a letter, digit or '_' and use only letters, digits, '_', '.' and '-' "
+                "(it names the folder runs/<name>)")
+    if kind == "string_too_short":
+        return "must not be empty"
+    if kind == "literal_error" and field is not None:
+        choices = _literal_values(field.annotation)
+        if choices:
+            near = _hint(str(err.get("input")), choices)
+            return f"must be one of {', '.join(choices)}" + (f"; {near}" if near.startswith("did you mean") else "")
+    return err["msg"]
+
+
+def _literal_values(annotation) -> list[str]:
+    """The values a ``Literal[...]`` field takes (inside ``Optional`` or ``Union`` too)."""
+    from typing import get_args, get_origin
+
+    if get_origin(annotation) is Literal:
+        return [str(v) for v in get_args(annotation)]
+    return [v for arg in get_args(annotation) for v in _literal_values(arg)]
+
+
+def _field_info(loc: list):
+    """The pydantic FieldInfo a key path ends at (None inside dict values and lists)."""
+    parent = section_model([p for p in loc if not isinstance(p, int)][:-1])
+    name = next((p for p in reversed(loc) if isinstance(p, str)), None)
+    return parent.model_fields.get(name) if parent is not None and name else None
+
+
+def is_union_tag(part: Any) -> bool:
+    return isinstance(part, str) and (part.startswith("list[") or part in ("literal['auto']",)
+                                      or part.startswith("function-") or part == "float"
+                                      or part.startswith("constrained-") or part == DelaySamples.__name__)
+
+
+
+
+def _lookup(data: Any, loc: list) -> Any:
+    for part in loc:
+        try:
+            data = data[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
