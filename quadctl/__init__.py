@@ -46,7 +46,8 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.starter`: a commented config to start a vehicle from (``quadctl init``)
 - :mod:`~quadctl.provenance`: the software versions and the C compiler an artifact records
 - :mod:`~quadctl.artifacts`, :mod:`~quadctl.payloads`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`:
-  the run directory (atomic, with provenance), what each artifact holds, the chain of stages with a
+  the run directory (its own map: provenance record, JSON values, places and names, atomic writing,
+  checked reading, the folder's lock), what each artifact holds, the chain of stages with a
   run folder, figures (they read results only)
 - :mod:`~quadctl.present`: each stage result as tables and sentences, written once: what the terminal
   (:mod:`quadctl.cli`, rich styling only) and the report (escaping and markup only) both render

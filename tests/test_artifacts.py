@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from quadctl import artifacts, config
+from quadctl.artifacts import writing
 from quadctl.errors import ArtifactError, QuadctlNotice
 from quadctl.workspace import Workspace
 
@@ -107,7 +108,7 @@ def test_atomic_write_leaves_old_file_whole_on_failure(tmp_path, monkeypatch):
     def boom(*_):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(artifacts.os, "replace", boom)
+    monkeypatch.setattr(writing.os, "replace", boom)
     with pytest.raises(KeyboardInterrupt):
         artifacts.write_json(path, {"v": 2})
     assert json.loads(path.read_text()) == {"v": 1}
@@ -184,7 +185,7 @@ def test_every_eigenvalue_in_every_json_artifact_is_a_pair(tmp_path):
 @pytest.mark.parametrize("fchmod", [True, False], ids=["os.fchmod", "no os.fchmod (Windows, Python < 3.13)"])
 def test_artifacts_follow_the_umask_with_or_without_fchmod(tmp_path, monkeypatch, fchmod):
     if not fchmod:
-        monkeypatch.delattr(artifacts.os, "fchmod", raising=False)
+        monkeypatch.delattr(writing.os, "fchmod", raising=False)
     old = os.umask(0o027)
     try:
         path = artifacts.write_json(tmp_path / "trim.json", {"v": 1})
@@ -364,7 +365,7 @@ def test_a_folder_that_refuses_writes_is_bad_input(tmp_path, monkeypatch):
     def refuse(*_, **__):
         raise PermissionError(13, "Permission denied")
 
-    monkeypatch.setattr(artifacts.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(writing.tempfile, "mkstemp", refuse)
     res = _cli("trim", "-c", "hover", "-o", tmp_path)
     assert res.exit_code == 2, res.output
     assert f"quadctl: error: {tmp_path}: cannot write artifacts there (Permission denied); choose another " \
@@ -389,7 +390,7 @@ def test_a_failing_disk_is_bad_input_naming_the_artifact(tmp_path, monkeypatch):
     def full(*_):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(artifacts.os, "fsync", full)
+    monkeypatch.setattr(writing.os, "fsync", full)
     with pytest.raises(ArtifactError, match=r"trim.json: cannot write the artifact \(No space left on device\); "
                                             "free the space or the permission it needs, or choose another --out"):
         artifacts.write_json(tmp_path / "trim.json", {})

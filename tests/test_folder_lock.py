@@ -10,13 +10,15 @@ import textwrap
 import pytest
 
 from quadctl import artifacts
+from quadctl.artifacts import lock
 from quadctl.errors import ArtifactError
 
 HOLD = textwrap.dedent("""
     import sys, time
     from quadctl import artifacts
+    from quadctl.artifacts import lock
     if sys.argv[2] == "exclusive":
-        artifacts.fcntl = None
+        lock.fcntl = None
     with artifacts.locked(sys.argv[1]):
         print("held", flush=True)
         time.sleep(float(sys.argv[3]))
@@ -38,8 +40,8 @@ MODES = ["flock", pytest.param("exclusive", id="O_EXCL (no fcntl)")]
 @pytest.fixture(params=MODES)
 def mode(request, monkeypatch):
     if request.param == "exclusive":
-        monkeypatch.setattr(artifacts, "fcntl", None)
-    elif artifacts.fcntl is None:
+        monkeypatch.setattr(lock, "fcntl", None)
+    elif lock.fcntl is None:
         pytest.skip("no fcntl on this platform")
     return request.param
 
@@ -143,23 +145,23 @@ def test_the_lock_file_is_removed_when_the_holder_is_done(tmp_path, mode):
     assert not (tmp_path / artifacts.LOCK_NAME).exists()  # nor in a run folder after another process
 
 
-@pytest.mark.skipif(artifacts.fcntl is None, reason="flock only")
+@pytest.mark.skipif(lock.fcntl is None, reason="flock only")
 def test_a_lock_taken_on_a_file_its_holder_removed_meanwhile_is_taken_again_on_the_new_file(tmp_path, monkeypatch):
     """The holder's release (remove, then unlock) can fall between our open and our flock: the lock we
     got is on a file the path no longer names, and a third process would lock a new one beside us."""
-    real_flock = artifacts.fcntl.flock
+    real_flock = lock.fcntl.flock
     calls = []
 
     def flock_after_the_holder_left(fd, op):
-        if not calls and op & artifacts.fcntl.LOCK_EX:
+        if not calls and op & lock.fcntl.LOCK_EX:
             (tmp_path / artifacts.LOCK_NAME).unlink()  # the holder's release, just before our lock
         calls.append(op)
         return real_flock(fd, op)
 
-    monkeypatch.setattr(artifacts.fcntl, "flock", flock_after_the_holder_left)
+    monkeypatch.setattr(lock.fcntl, "flock", flock_after_the_holder_left)
     with artifacts.locked(tmp_path):
-        monkeypatch.setattr(artifacts.fcntl, "flock", real_flock)
+        monkeypatch.setattr(lock.fcntl, "flock", real_flock)
         probe = subprocess.run([sys.executable, "-c", HOLD, str(tmp_path), "flock", "0"], capture_output=True,
                                text=True, timeout=60)
         assert probe.returncode != 0 and f"pid {os.getpid()}" in probe.stderr  # the path's file is ours
-    assert len([op for op in calls if op & artifacts.fcntl.LOCK_EX]) == 2  # taken again on the new file
+    assert len([op for op in calls if op & lock.fcntl.LOCK_EX]) == 2  # taken again on the new file

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from quadctl import artifacts, config, report
+from quadctl.artifacts import writing
 from quadctl.errors import ArtifactError
 from quadctl.report.document import Document, Figure, Section, Text
 
@@ -226,13 +227,13 @@ def _pair(folder: Path) -> tuple[str, str]:
 
 KILLED_EXPORT = """
 import os, signal, sys
-from quadctl import artifacts
+from quadctl.artifacts import writing
 steps, kill_at = [0], int(sys.argv[1])
 def step():
     steps[0] += 1
     if steps[0] == kill_at:
         os.kill(os.getpid(), signal.SIGKILL)
-temporary, replace = artifacts._temporary, os.replace
+temporary, replace = writing._temporary, os.replace
 def counted_temporary(*a):
     out = temporary(*a)
     step()
@@ -240,7 +241,7 @@ def counted_temporary(*a):
 def counted_replace(*a):
     replace(*a)
     step()
-artifacts._temporary, artifacts.os.replace = counted_temporary, counted_replace
+writing._temporary, writing.os.replace = counted_temporary, counted_replace
 sys.argv = ["quadctl", "export", "--to", "c", "-c", sys.argv[2], "-o", sys.argv[3]]
 from quadctl.cli.entry import main
 main()
@@ -308,14 +309,14 @@ def test_write_together_renames_only_when_every_file_is_whole(tmp_path, monkeypa
     a, b = tmp_path / "quadctl_controller.h", tmp_path / "quadctl_controller.c"
     a.write_text("old h")
     b.write_text("old c")
-    temporary = artifacts._temporary
+    temporary = writing._temporary
 
     def failing(path, data):
         if path == b:
             raise OSError(28, "No space left on device")
         return temporary(path, data)
 
-    monkeypatch.setattr(artifacts, "_temporary", failing)
+    monkeypatch.setattr(writing, "_temporary", failing)
     with pytest.raises(ArtifactError, match=r"quadctl_controller\.c: cannot write the artifact \(No space left"):
         artifacts.write_together({a: b"new h", b: b"new c"})
     assert a.read_text() == "old h" and b.read_text() == "old c"

@@ -130,8 +130,6 @@ def is_union_tag(part: Any) -> bool:
                                       or part.startswith("constrained-") or part == DelaySamples.__name__)
 
 
-
-
 def _lookup(data: Any, loc: list) -> Any:
     for part in loc:
         try:

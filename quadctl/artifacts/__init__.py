@@ -1,0 +1,53 @@
+"""The run directory: writing and reading artifacts atomically, with provenance.
+
+Every artifact carries ``quadctl_version``, ``config_hash``, ``config_name``, ``state_names``,
+``input_names``; JSON artifacts also a ``created`` timestamp, the only field that differs
+between two runs of the same config (NPZ artifacts are byte-identical). JSON is written
+with sorted keys and NPZ with fixed zip timestamps, so the same config gives byte-identical
+artifacts apart from ``created``.
+
+Modules, each importing only those above it (``from quadctl import artifacts`` gives the public
+names of all of them: ``artifacts.write_json``, ``artifacts.read_npz``, ``artifacts.locked``, ...):
+
+- :mod:`~quadctl.artifacts.meta`: the provenance record every artifact carries (:func:`metadata`)
+  and the format version it is checked against
+- :mod:`~quadctl.artifacts.json_values`: values as JSON holds them (arrays, complex numbers,
+  infinities) and back
+- :mod:`~quadctl.artifacts.places`: the run directory, the names quadctl writes there, and the
+  rule that keeps every write, read and delete on them and off symbolic links
+- :mod:`~quadctl.artifacts.writing`: atomic writes (tagged temporaries, fsync, rename; a set written
+  together), removing quadctl's own files and the temporaries of a killed run
+- :mod:`~quadctl.artifacts.reading`: reading back with provenance and content checked, and whether
+  an artifact may be reused (:func:`is_fresh`)
+- :mod:`~quadctl.artifacts.lock`: one quadctl per run directory (:func:`locked`)
+"""
+
+from quadctl.artifacts.json_values import INFINITY as INFINITY
+from quadctl.artifacts.json_values import complex_values as complex_values
+from quadctl.artifacts.json_values import decode_floats as decode_floats
+from quadctl.artifacts.json_values import jsonable as jsonable
+from quadctl.artifacts.lock import LOCK_NAME as LOCK_NAME
+from quadctl.artifacts.lock import locked as locked
+from quadctl.artifacts.meta import FORMAT_VERSION as FORMAT_VERSION
+from quadctl.artifacts.meta import metadata as metadata
+from quadctl.artifacts.places import ARTIFACT_NAMES as ARTIFACT_NAMES
+from quadctl.artifacts.places import PLOTS as PLOTS
+from quadctl.artifacts.places import SUBFOLDER_NAMES as SUBFOLDER_NAMES
+from quadctl.artifacts.places import check_folder as check_folder
+from quadctl.artifacts.places import default_out as default_out
+from quadctl.artifacts.places import plot_path as plot_path
+from quadctl.artifacts.reading import NAMES as NAMES
+from quadctl.artifacts.reading import SCHEMAS as SCHEMAS
+from quadctl.artifacts.reading import InvalidArtifact as InvalidArtifact
+from quadctl.artifacts.reading import is_fresh as is_fresh
+from quadctl.artifacts.reading import read_json as read_json
+from quadctl.artifacts.reading import read_npz as read_npz
+from quadctl.artifacts.reading import validate as validate
+from quadctl.artifacts.writing import STALE_TEMPORARY_AGE as STALE_TEMPORARY_AGE
+from quadctl.artifacts.writing import TEMPORARY_TAG as TEMPORARY_TAG
+from quadctl.artifacts.writing import remove as remove
+from quadctl.artifacts.writing import remove_stale_temporaries as remove_stale_temporaries
+from quadctl.artifacts.writing import write_bytes as write_bytes
+from quadctl.artifacts.writing import write_json as write_json
+from quadctl.artifacts.writing import write_npz as write_npz
+from quadctl.artifacts.writing import write_together as write_together

@@ -1,0 +1,145 @@
+"""One quadctl per run directory: the folder's lock (``flock``, or an ``O_EXCL`` file where there is no
+``fcntl``), re-entrant within a process."""
+
+from __future__ import annotations
+
+import os
+from contextlib import contextmanager
+from pathlib import Path
+
+from quadctl.artifacts.places import reason_of
+from quadctl.errors import ArtifactError
+
+LOCK_NAME = ".quadctl.lock"
+"""The lock file in a run directory (it holds the pid of the quadctl that has the folder)."""
+
+try:
+    import fcntl
+except ImportError:  # Windows: an O_EXCL lock file instead
+    fcntl = None
+
+_held: dict[str, int] = {}
+"""Folders this process holds, with a count (:func:`locked` is re-entrant within a process)."""
+
+
+@contextmanager
+def locked(folder: Path | str):
+    """Hold ``folder`` (a run directory) for this process while the block runs.
+
+    Another quadctl writing the same folder at the same time (a config edited and rerun while an
+    earlier run still simulates) would leave artifacts of two configs side by side; the second
+    one is refused instead. With ``fcntl`` (Linux, macOS) the lock is ``flock`` on
+    ``<folder>/.quadctl.lock``, released by the kernel however the holder ends (``kill -9``
+    included), and the file is removed when the block ends (one left by a holder killed hard is
+    unlocked and harmless: the next quadctl takes it); elsewhere the file is created with ``O_EXCL``
+    and removed on exit (a holder killed hard leaves it: the message says to delete it).
+    Re-entrant within one process.
+
+    Raises
+    ------
+    ArtifactError
+        The folder is held by another process (exit code 2): ``runs/x is in use by another
+        quadctl (pid N); wait for it or use -o another folder``; or it cannot be created.
+    """
+    folder = Path(folder)
+    key = os.path.abspath(folder)
+    if key in _held:
+        _held[key] += 1
+        try:
+            yield folder
+        finally:
+            if key in _held:  # holders may be released in any order (a workspace closed at exit)
+                _held[key] -= 1
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        why = "a file, not a folder" if folder.is_file() else reason_of(exc)
+        raise ArtifactError(f"{folder}: cannot write artifacts there ({why}); choose another --out folder") from None
+    release = _lock_flock(folder) if fcntl is not None else _lock_exclusive(folder)
+    _held[key] = 1
+    try:
+        yield folder
+    finally:
+        _held.pop(key, None)
+        release()
+
+
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+_LINK_LOCK = "{path}: is a symbolic link, not quadctl's lock file; remove it (quadctl never writes through a link)"
+
+
+def _in_use(folder: Path, pid: str, hint: str = "") -> ArtifactError:
+    return ArtifactError(f"{folder} is in use by another quadctl (pid {pid or 'unknown'}); wait for it or "
+                         f"use -o another folder{hint}")
+
+
+def _lock_flock(folder: Path):
+    path = folder / LOCK_NAME
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | _NOFOLLOW, 0o666)
+        except OSError as exc:
+            if os.path.islink(path):
+                raise ArtifactError(_LINK_LOCK.format(path=path)) from None
+            raise ArtifactError(f"{path}: cannot create the run directory's lock ({reason_of(exc)}); "
+                                "choose another --out folder") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+            os.close(fd)
+            raise _in_use(folder, pid) from None
+        if _same_file(fd, path):
+            break
+        # the holder removed the file between our open and our lock: the lock we got is on a file
+        # nobody else will open again; lock the one at the path now
+        os.close(fd)
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+
+    def release():
+        # removed while still locked: a process that opened it meanwhile finds, once it has the lock,
+        # that the path no longer names its file (:func:`_same_file`) and starts again on a new one
+        try:
+            path.unlink(missing_ok=True)
+        except OSError:  # a read-only folder now: the file stays, harmless (never taken for an artifact)
+            pass
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
+
+    return release
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` still names the open file ``fd`` (same device and inode)."""
+    try:
+        here = os.stat(path)
+    except FileNotFoundError:
+        return False
+    held = os.fstat(fd)
+    return (held.st_dev, held.st_ino) == (here.st_dev, here.st_ino)
+
+
+def _lock_exclusive(folder: Path):
+    path = folder / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    except FileExistsError:
+        if os.path.islink(path):
+            raise ArtifactError(_LINK_LOCK.format(path=path)) from None
+        try:
+            pid = path.read_text(encoding="ascii", errors="replace").strip()
+        except OSError:
+            pid = ""
+        raise _in_use(folder, pid, f" (if no quadctl runs there, delete {path})") from None
+    except OSError as exc:
+        raise ArtifactError(f"{path}: cannot create the run directory's lock ({reason_of(exc)}); "
+                            "choose another --out folder") from None
+    with os.fdopen(fd, "w", encoding="ascii") as fh:
+        fh.write(f"{os.getpid()}\n")
+
+    def release():
+        path.unlink(missing_ok=True)
+
+    return release

@@ -1,0 +1,33 @@
+"""An artifact's ``meta`` record: the provenance every artifact carries, and its format's version."""
+
+from __future__ import annotations
+
+from datetime import datetime, timezone
+
+from quadctl import __version__
+from quadctl.layout import INPUT_NAMES, STATE_NAMES
+
+FORMAT_VERSION = 1
+"""Bumped when the layout of an artifact changes incompatibly."""
+
+
+def metadata(cfg, kind: str, backends=()) -> dict:
+    """Provenance fields every artifact carries.
+
+    ``backends``: the simulation backends the stage ran (``SimResult.backend``), which decide the
+    ``compiler`` field (see :func:`quadctl.provenance.compiler`); empty when it ran no loop.
+    """
+    from quadctl import provenance
+
+    return {
+        "artifact": kind,
+        "format_version": FORMAT_VERSION,
+        "quadctl_version": __version__,
+        "config_name": cfg.name,
+        "config_hash": cfg.digest(),
+        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "state_names": list(STATE_NAMES),
+        "input_names": list(INPUT_NAMES),
+        "software": provenance.software(),
+        "compiler": provenance.compiler(backends),
+    }
