@@ -48,7 +48,7 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.artifacts`, :mod:`~quadctl.payloads`, :mod:`~quadctl.workspace`, :mod:`~quadctl.plots`:
   the run directory (its own map: provenance record, JSON values, places and names, atomic writing,
   checked reading, the folder's lock), what each artifact holds, the chain of stages with a
-  run folder, figures (they read results only)
+  run folder, figures (they read results only; :mod:`~quadctl.plots` has its own map)
 - :mod:`~quadctl.present`: each stage result as tables and sentences, written once: what the terminal
   (:mod:`quadctl.cli`, rich styling only) and the report (escaping and markup only) both render
 - :mod:`~quadctl.report`: every stage of a run in one self-contained HTML page and a Markdown twin

@@ -199,7 +199,8 @@ def test_the_figures_of_thinned_lines_show_what_those_of_every_sample_show(case,
     thinned = plots.simulation_figures(sim, partition, u_trim, actuators=actuators)
     assert sum(len(ln.get_xdata()) for f in thinned.values() for ax in f.axes for ln in ax.get_lines()) < \
         0.5 * sum(len(sim.t) for f in thinned.values() for ax in f.axes for ln in ax.get_lines())
-    monkeypatch.setattr(plots, "pixel_envelope", lambda x, y, columns, log=False: (np.asarray(x), np.asarray(y)))
+    monkeypatch.setattr(plots.drawing, "pixel_envelope",  # what the figures draw through
+                        lambda x, y, columns, log=False: (np.asarray(x), np.asarray(y)))
     whole = plots.simulation_figures(sim, partition, u_trim, actuators=actuators)
     assert thinned.keys() == whole.keys()
     for name in whole:

@@ -1,0 +1,155 @@
+"""What every figure shares: its resolution and colours, a state as drawn (degrees, the height), a time
+series thinned to the figure's pixel columns, the PNG bytes of a figure, and the inputs' limits.
+"""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from quadctl.layout import unit_of
+
+_DEGREES = {"phi", "theta", "psi", "p", "q", "r"}
+COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd")
+"""The lines' colours, in order (the second, red, also marks limits and failures)."""
+
+
+_HEIGHT = "pD"
+"""Drawn as the height ``-pD`` (m, up positive): NED's down-positive altitude reads upside down."""
+
+
+DPI = 110
+"""The resolution (dots per inch) figures are drawn for: their time series keep every pixel column's
+extremes (:func:`pixel_envelope`) at this or any lower resolution. ``quadctl`` saves at it or below."""
+
+
+def pixel_envelope(x, y, columns: int, *, log: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The samples of a time series a line drawn ``columns`` pixels wide shows: per column of equal
+    width in ``x`` (in ``log10(x)`` with ``log``), its first, lowest, highest and last sample, in order.
+
+    A line through them covers, in every column, the same vertical extent as the line through
+    all samples and enters and leaves it at the same points: peaks and spikes one sample wide
+    survive, and the data limits (first and last ``x``, lowest and highest ``y``) stay the same.
+    A series of at most ``4 columns`` samples, with a non-finite value, or whose ``x`` is not
+    increasing (or, with ``log``, not positive) is returned whole.
+
+    Parameters
+    ----------
+    x : (n,) array_like
+        Increasing, such as time (s).
+    y : (n,) array_like
+    columns : int
+        Columns across ``x[0]..x[-1]``: at least the drawn width in pixels.
+    log : bool
+        Columns of equal width in ``log10(x)`` (a log-scaled axis).
+
+    Returns
+    -------
+    x, y : (k,) ndarray
+        The kept samples, ``k <= 4 columns``.
+
+    Examples
+    --------
+    >>> t = np.arange(1000.0)
+    >>> y = np.zeros(1000); y[123] = 5.0
+    >>> tk, yk = pixel_envelope(t, y, 10)
+    >>> len(tk), float(yk.max()), float(tk[yk.argmax()])  # a flat column keeps 2 samples, the spike's 3
+    (21, 5.0, 123.0)
+    """
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    n = len(x)
+    if n <= 4 * columns or not (np.isfinite(x).all() and np.isfinite(y).all()):
+        return x, y
+    if log and x[0] <= 0:
+        return x, y
+    pos = np.log10(x) if log else x
+    span = pos[-1] - pos[0]
+    if not span > 0 or (np.diff(pos) < 0).any():
+        return x, y
+    column = np.minimum(((pos - pos[0]) * (columns / span)).astype(np.intp), columns - 1)
+    first = np.flatnonzero(np.r_[True, column[1:] != column[:-1]])
+    last = np.r_[first[1:], n] - 1
+    size = last - first + 1
+    keep = np.zeros(n, dtype=bool)
+    keep[first] = keep[last] = True
+    for extreme in (np.minimum, np.maximum):
+        hit = np.flatnonzero(y == np.repeat(extreme.reduceat(y, first), size))
+        keep[hit[np.r_[True, column[hit][1:] != column[hit][:-1]]]] = True  # the first hit of each column
+    return x[keep], y[keep]
+
+
+def trace(ax, x, y, *args, log: bool = False, **kwargs):
+    """``ax.plot(x, y, ...)`` of a time series, thinned to the figure's pixel columns at :data:`DPI`
+    (:func:`pixel_envelope`)."""
+    columns = int(np.ceil(ax.get_figure(root=True).get_figwidth() * DPI))
+    return ax.plot(*pixel_envelope(x, y, columns, log=log), *args, **kwargs)
+
+
+def png_bytes(fig: Figure, dpi: float = DPI) -> bytes:
+    """``fig`` as PNG bytes at ``dpi``: the pixels ``fig.savefig(buf, format="png", dpi=dpi)`` writes,
+    drawn once.
+
+    ``savefig`` draws a figure with a layout engine twice (once to lay it out, once to render);
+    here one draw does both, then the RGBA buffer is encoded as ``savefig`` encodes it. As with
+    ``savefig``, the figure keeps its own resolution and canvas afterwards.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.image import imsave
+
+    canvas, resolution = fig.canvas, fig.dpi
+    try:
+        fig.set_dpi(dpi)
+        drawn = FigureCanvasAgg(fig)
+        drawn.draw()
+        buf = io.BytesIO()
+        imsave(buf, drawn.buffer_rgba(), format="png", origin="upper", dpi=dpi)
+    finally:
+        fig.set_dpi(resolution)
+        fig.set_canvas(canvas)
+    return buf.getvalue()
+
+
+def displayed(name: str, values: np.ndarray) -> tuple[np.ndarray, str]:
+    """``values`` of state ``name`` as plotted, and their unit (degrees for angles, height for pD)."""
+    if name in _DEGREES:
+        unit = unit_of(name).replace("rad", "deg")
+        return np.rad2deg(values), unit
+    if name == _HEIGHT:
+        return -np.asarray(values), unit_of(name)
+    return values, unit_of(name)
+
+
+def axis_label(name: str) -> str:
+    """The axis label of state ``name`` as :func:`displayed` shows it."""
+    return "height (-pD)" if name == _HEIGHT else name
+
+
+def input_limits(actuators) -> tuple[np.ndarray, np.ndarray]:
+    """(4,) lowest and (4,) highest value each of ``T, A, E, R`` can take within the actuator limits
+    (N, N m; infinite where unlimited). Box limits are themselves; rotor limits bound each input over
+    every rotor thrust in ``[min_thrust, max_thrust]`` (the others free): ``T`` in ``[4 min, 4 max]``,
+    a torque at the rotors' full differential thrust.
+
+    Examples
+    --------
+    >>> from quadctl.motors import Motors, actuators_of
+    >>> lo, hi = input_limits(actuators_of(Motors(min_thrust=0.0, max_thrust=0.33)))
+    >>> lo[0].round(6).tolist(), hi[0].round(6).tolist()
+    (0.0, 1.32)
+    """
+    lo, hi = np.asarray(actuators.lo, dtype=float), np.asarray(actuators.hi, dtype=float)
+    if actuators.mode == "box":
+        return lo.copy(), hi.copy()
+    eff = np.asarray(actuators.mix_inv, dtype=float)  # actuator commands -> [T, A, E, R]
+    with np.errstate(invalid="ignore"):  # 0 * inf of an unlimited rotor: that rotor adds nothing
+        at_lo, at_hi = np.nan_to_num(eff * lo, nan=0.0), np.nan_to_num(eff * hi, nan=0.0)
+    return np.minimum(at_lo, at_hi).sum(axis=1), np.maximum(at_lo, at_hi).sum(axis=1)
+
+
+def limit_lines(ax, bounds, label: str) -> None:
+    """Red lines at the finite ``bounds`` (low, high), labelled once."""
+    finite = [b for b in bounds if np.isfinite(b)]
+    for k, bound in enumerate(finite):
+        ax.axhline(bound, color=COLORS[1], lw=1.0, ls="-.", alpha=0.8, label=label if k == 0 else None)

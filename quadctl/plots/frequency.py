@@ -1,0 +1,92 @@
+"""A broken loop's frequency response: Bode (magnitude, phase) and Nyquist, with its margins marked."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from quadctl.plots.drawing import COLORS
+
+
+def phase_about_minus_180(response, anchor: int | None = None) -> np.ndarray:
+    """The phase (deg) of a frequency response, unwrapped and shifted by whole turns so that it
+    lies in (-360, 0] at sample ``anchor`` (the gain crossover), or, without one, so that the middle
+    of its range does: the -180 deg line a phase margin is read from then runs through the plot.
+
+    Parameters
+    ----------
+    response : (n,) complex array_like
+    anchor : int, optional
+        Index of the frequency whose phase is placed in (-360, 0].
+
+    Examples
+    --------
+    >>> phase_about_minus_180(np.exp(1j * np.deg2rad([140.0, 200.0, 260.0]))).round(6).tolist()
+    [-220.0, -160.0, -100.0]
+    """
+    phase = np.rad2deg(np.unwrap(np.angle(np.asarray(response, dtype=complex))))
+    if not phase.size:
+        return phase
+    at = phase[anchor] if anchor is not None else (phase.min() + phase.max()) / 2
+    return phase - 360.0 * np.ceil(at / 360.0)
+
+
+def margins_figure(m, *, title: str = "") -> Figure:
+    """Bode (magnitude, phase) and Nyquist plot of one broken loop, with its margins marked.
+
+    Parameters
+    ----------
+    m : quadctl.margins.LoopMargins
+    """
+    fig = Figure(figsize=(10.0, 5.2), layout="constrained")
+    grid = fig.add_gridspec(2, 2, width_ratios=(1.25, 1.0))
+    ax_mag = fig.add_subplot(grid[0, 0])
+    ax_ph = fig.add_subplot(grid[1, 0], sharex=ax_mag)
+    ax_ny = fig.add_subplot(grid[:, 1])
+    w, L = m.freq, m.response
+    crossover = None if m.gain_crossover_freq is None else int(np.argmin(np.abs(np.log(w / m.gain_crossover_freq))))
+    phase = phase_about_minus_180(L, crossover)
+    ax_mag.semilogx(w, 20 * np.log10(np.abs(L)), color=COLORS[0], lw=1.5)
+    ax_mag.axhline(0.0, color="0.35", lw=0.9, ls="--")
+    ax_mag.set_ylabel("|L| [dB]")
+    ax_ph.semilogx(w, phase, color=COLORS[0], lw=1.5)
+    for k in range(-3, 2):
+        if phase.min() - 10 <= -180 + 360 * k <= phase.max() + 10:
+            ax_ph.axhline(-180 + 360 * k, color="0.35", lw=0.9, ls="--")
+    ax_ph.set_ylabel("phase of L [deg]")
+    ax_ph.set_xlabel("frequency [rad/s]")
+    if m.gain_crossover_freq is not None:
+        for ax in (ax_mag, ax_ph):
+            ax.axvline(m.gain_crossover_freq, color=COLORS[2], lw=1.0, ls=":")
+        ax_ph.annotate(f"PM {m.phase_margin_deg:.3g} deg", (m.gain_crossover_freq, phase.min()), xytext=(3, 4),
+                       textcoords="offset points", fontsize=8, color=COLORS[2], va="bottom")
+    for wg, gm in zip(m.phase_crossover_freqs, m.gain_margin_db):
+        if wg is not None:
+            for ax in (ax_mag, ax_ph):
+                ax.axvline(wg, color=COLORS[1], lw=1.0, ls=":")
+            ax_mag.annotate(f"GM {gm:+.3g} dB", (wg, 0.0), xytext=(-3, 3), textcoords="offset points",
+                            fontsize=8, color=COLORS[1], ha="right", va="bottom")
+    if m.sample_time:  # labelled at the top: a gain margin often sits at the Nyquist frequency
+        ax_mag.axvline(np.pi / m.sample_time, color="0.5", lw=0.9)
+        ax_mag.annotate("Nyquist", (np.pi / m.sample_time, 1.0), xycoords=("data", "axes fraction"),
+                        xytext=(-3, -3), textcoords="offset points", fontsize=8, color="0.4", ha="right", va="top")
+    for ax in (ax_mag, ax_ph):
+        ax.grid(True, which="both", alpha=0.3)
+    ax_ny.plot(L.real, L.imag, color=COLORS[0], lw=1.5, label="L(jw), w > 0")
+    ax_ny.plot(L.real, -L.imag, color=COLORS[0], lw=1.0, ls="--", alpha=0.6, label="w < 0")
+    circle = np.exp(1j * np.linspace(0, 2 * np.pi, 361))
+    ax_ny.plot(circle.real, circle.imag, color="0.6", lw=0.8)
+    disk = -1 + m.min_return_difference * circle  # L never enters this disk around -1
+    ax_ny.plot(disk.real, disk.imag, color=COLORS[3], lw=1.0, label=f"min |1+L| = {m.min_return_difference:.3g}")
+    ax_ny.plot(-1, 0, "x", color=COLORS[1], ms=9, mew=2)
+    ax_ny.set_xlim(-3, 2)
+    ax_ny.set_ylim(-2.5, 2.5)
+    ax_ny.set_aspect("equal", adjustable="box")
+    ax_ny.set_xlabel("Re L")
+    ax_ny.set_ylabel("Im L")
+    ax_ny.grid(True, alpha=0.3)
+    ax_ny.legend(loc="lower right", fontsize=7, frameon=False)
+    kind = f"sampled, Ts = {m.sample_time * 1e3:.3g} ms" if m.sample_time else "continuous"
+    head = f"{m.loop} loop broken at {m.input} ({m.model} model, {kind})"
+    fig.suptitle(f"{title}: {head}" if title else head)
+    return fig

@@ -1,0 +1,181 @@
+"""Figures of a simulation, like the report's figures 2-4: a subsystem's states, the inputs, the wind,
+the path flown and its tracking error."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import partial
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from quadctl.layout import INPUT_NAMES, STATE_INDEX, unit_of
+from quadctl.plots.drawing import COLORS, axis_label, displayed, input_limits, limit_lines, trace
+
+
+def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
+    """One panel per state of a subsystem: the state and its reference against time.
+
+    Parameters
+    ----------
+    sim : SimResult
+    name : str
+        Subsystem name (figure title).
+    states : sequence of str
+    """
+    fig = Figure(figsize=(7.5, 1.9 * len(states) + 0.8), layout="constrained")
+    axes = fig.subplots(len(states), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, state, color in zip(axes, states, COLORS * 3):
+        i = STATE_INDEX[state]
+        y, unit = displayed(state, sim.x[:, i])
+        ref, _ = displayed(state, sim.x_ref[:, i])
+        trace(ax, sim.t, y, color=color, lw=1.6, label=axis_label(state))
+        trace(ax, sim.t, ref, color="0.35", lw=1.0, ls="--", label="reference")
+        ax.set_ylabel(f"{axis_label(state)} [{unit}]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8, frameon=False)
+    axes[-1].set_xlabel("time [s]")
+    status = "" if sim.status == "ok" else f" ({sim.status})"
+    fig.suptitle(f"{title}: {name} subsystem{status}" if title else f"{name} subsystem{status}")
+    return fig
+
+
+def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figure:
+    """The four inputs T, A, E, R against time, with their trim values dashed and, given
+    ``actuators``, their limits (:func:`input_limits`) as red lines.
+
+    Left: linear time. Right: the same on a log time axis, where the fast transients of the
+    rate loops (milliseconds or less) are visible. With rotors (``actuators.mode == "motors"``) a
+    last row shows each rotor's thrust (what the applied inputs ask of it) between its
+    ``min_thrust`` and ``max_thrust``, where a saturation shows.
+
+    Parameters
+    ----------
+    sim : SimResult
+    u_trim : (4,) array_like, optional
+        N, N m.
+    actuators : quadctl.motors.Actuators, optional
+        The simulated vehicle's limits (``setup.actuators``); None: no limit lines.
+    """
+    rotors = actuators is not None and actuators.mode == "motors"
+    rows = len(INPUT_NAMES) + (1 if rotors else 0)
+    fig = Figure(figsize=(10.0, 7.0 * rows / len(INPUT_NAMES)), layout="constrained")
+    axes = fig.subplots(rows, 2, sharex="col")
+    later = sim.t > 0
+    lo, hi = input_limits(actuators) if actuators is not None else (np.full(4, -np.inf), np.full(4, np.inf))
+    for j, (row, name, color) in enumerate(zip(axes, INPUT_NAMES, COLORS)):
+        for ax, t, u, log in ((row[0], sim.t, sim.u[:, j], False), (row[1], sim.t[later], sim.u[later, j], True)):
+            trace(ax, t, u, color=color, lw=1.6, label=name, log=log)
+            if u_trim is not None:
+                ax.axhline(u_trim[j], color="0.35", lw=1.0, ls="--", label="trim")
+            limit_lines(ax, (lo[j], hi[j]), "rotor limits" if rotors else "limit")
+            ax.grid(True, alpha=0.3)
+        row[0].set_ylabel(f"{name} [{unit_of(name)}]")
+        row[0].legend(loc="best", fontsize=8, frameon=False)
+        row[1].set_xscale("log")
+    if rotors:
+        thrust = actuators.commands(sim.u)
+        for ax, keep, log in ((axes[-1, 0], slice(None), False), (axes[-1, 1], later, True)):
+            for i, (rotor, color) in enumerate(zip(actuators.names, COLORS)):
+                trace(ax, sim.t[keep], thrust[keep, i], color=color, lw=1.2, label=rotor, log=log)
+            limit_lines(ax, (actuators.lo[0], actuators.hi[0]), "min / max thrust")
+            ax.grid(True, alpha=0.3)
+        axes[-1, 0].set_ylabel("rotor thrust [N]")
+        axes[-1, 0].legend(loc="best", fontsize=7, frameon=False, ncols=3)
+        axes[-1, 1].set_xscale("log")
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[-1, 1].set_xlabel("time [s], log scale")
+    fig.suptitle(f"{title}: inputs" if title else "inputs")
+    return fig
+
+
+def wind_figure(sim, *, title: str = "") -> Figure:
+    """The wind the plant felt (N, E, D components, m/s) against time."""
+    fig = Figure(figsize=(10.0, 3.5), layout="constrained")
+    ax = fig.subplots()
+    for i, (name, color) in enumerate(zip(("wind N", "wind E", "wind D"), COLORS)):
+        trace(ax, sim.t, sim.wind[:, i], color=color, lw=1.2, label=name)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("wind [m/s], NED")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8, frameon=False)
+    fig.suptitle(f"{title}: wind" if title else "wind")
+    return fig
+
+
+def path_figure(sim, waypoints=(), *, title: str = "") -> Figure:
+    """The flown path against the reference: the horizontal plane (east right, north up, equal
+    scales) with the waypoints, and the altitude ``-pD`` against time.
+
+    Parameters
+    ----------
+    sim : SimResult
+    waypoints : sequence of (3,) array_like, optional
+        NED positions (m) to mark, numbered in order.
+    """
+    fig = Figure(figsize=(10.0, 4.6), layout="constrained")
+    plane, alt = fig.subplots(1, 2, width_ratios=(1.0, 1.3))
+    n, e, d = (STATE_INDEX[s] for s in ("pN", "pE", "pD"))
+    plane.plot(sim.x_ref[:, e], sim.x_ref[:, n], color="0.35", lw=1.0, ls="--", label="reference")
+    plane.plot(sim.x[:, e], sim.x[:, n], color=COLORS[0], lw=1.6, label="flown")
+    plane.plot(sim.x[0, e], sim.x[0, n], "o", color=COLORS[2], ms=6, label="start")
+    for k, wp in enumerate(waypoints):
+        plane.plot(wp[1], wp[0], "s", color=COLORS[1], ms=6, label="waypoint" if k == 0 else None)
+        plane.annotate(str(k + 1), (wp[1], wp[0]), textcoords="offset points", xytext=(6, 6), fontsize=9)
+    plane.set_aspect("equal", adjustable="datalim")
+    plane.set_xlabel("east [m]")
+    plane.set_ylabel("north [m]")
+    plane.grid(True, alpha=0.3)
+    plane.legend(loc="best", fontsize=8, frameon=False)
+    trace(alt, sim.t, -sim.x_ref[:, d], color="0.35", lw=1.0, ls="--", label="reference")
+    trace(alt, sim.t, -sim.x[:, d], color=COLORS[0], lw=1.6, label="flown")
+    alt.ticklabel_format(axis="y", useOffset=False)
+    low, high = alt.get_ylim()
+    middle = (low + high) / 2
+    alt.set_ylim(min(low, middle - 0.25), max(high, middle + 0.25))  # a flat path shows flat, not its round-off
+    alt.set_xlabel("time [s]")
+    alt.set_ylabel("altitude -pD [m]")
+    alt.grid(True, alpha=0.3)
+    alt.legend(loc="best", fontsize=8, frameon=False)
+    status = "" if sim.status == "ok" else f" ({sim.status})"
+    fig.suptitle(f"{title}: path{status}" if title else f"path{status}")
+    return fig
+
+
+def tracking_error_figure(sim, *, title: str = "") -> Figure:
+    """The position tracking error against time: north, east and down, and its norm ``|p - p_ref|``."""
+    fig = Figure(figsize=(10.0, 3.8), layout="constrained")
+    ax = fig.subplots()
+    err = sim.x[:, :3] - sim.x_ref[:, :3]
+    for i, (name, color) in enumerate(zip(("pN", "pE", "pD"), COLORS)):
+        trace(ax, sim.t, err[:, i], color=color, lw=1.2, label=f"{name} - reference")
+    trace(ax, sim.t, np.linalg.norm(err, axis=1), color="k", lw=1.0, ls=":", label="|p - p_ref|")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("position error [m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8, frameon=False)
+    fig.suptitle(f"{title}: tracking error" if title else "tracking error")
+    return fig
+
+
+def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "",
+                       actuators=None) -> dict[str, Figure]:
+    """A figure per subsystem (in partition order), one of the inputs (with ``actuators``' limits,
+    :func:`inputs_figure`), in wind one of the wind and, flying a reference, the path and the
+    tracking error, keyed by file stem."""
+    return {name: make() for name, make in simulation_figure_makers(sim, partition, u_trim, title=title,
+                                                                     actuators=actuators).items()}
+
+
+def simulation_figure_makers(sim, partition: dict, u_trim=None, *, title: str = "",
+                             actuators=None) -> dict[str, Callable[[], Figure]]:
+    """The figures of :func:`simulation_figures`, each not yet made: file stem -> a function that
+    makes it (so that a caller can make, draw and drop one at a time, or share them out)."""
+    makers = {name: partial(subsystem_figure, sim, name, sub.states, title=title) for name, sub in partition.items()}
+    makers["inputs"] = partial(inputs_figure, sim, u_trim, title=title, actuators=actuators)
+    if len(getattr(sim, "wind", ())):
+        makers["wind"] = partial(wind_figure, sim, title=title)
+    if len(getattr(sim, "u_ref", ())):
+        makers["path"] = partial(path_figure, sim, title=title)
+        makers["tracking"] = partial(tracking_error_figure, sim, title=title)
+    return makers
