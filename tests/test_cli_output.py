@@ -130,6 +130,26 @@ def test_a_short_simulation_a_pipe_or_json_get_no_bar(monkeypatch):
         assert update is None
 
 
+
+def test_a_sweep_draws_its_bar_on_a_terminal_and_does_its_work_meanwhile_once(monkeypatch):
+    """The first call runs ``meanwhile`` (the figure's imports) and starts the bar; later calls advance it."""
+    from quadctl.cli import render_sweep
+
+    buf = _terminal(monkeypatch)
+    monkeypatch.setattr(render_sweep, "err", render.err)
+    calls = []
+    with progress.sweep_progress(meanwhile=lambda: calls.append("meanwhile")) as update:
+        for done in (3, 40, 100):
+            update(done, 100)
+    assert calls == ["meanwhile"]
+    assert "sweep" in buf.getvalue() and "100/100" in buf.getvalue()
+    with progress.sweep_progress(quiet=True, meanwhile=lambda: calls.append("quiet")) as update:
+        update(0, 10)
+        update(10, 10)
+    assert calls == ["meanwhile", "quiet"] and "10/10" not in buf.getvalue()
+    with progress.sweep_progress(quiet=True) as update:
+        assert update is None
+
 def test_a_mistyped_config_file_offers_the_file_beside_it(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "f450.yaml").write_text(config.bundled("hover").text)

@@ -1,5 +1,6 @@
 """Progress bars on stderr, only on a terminal: the simulation's (only for a run that takes a while)
-and the sweep's. Both import rich on first use."""
+and the sweep's. Both import rich on first use, and each says only when its bar appears: one helper
+(:func:`_shown_when`) starts, advances and stops either."""
 
 from __future__ import annotations
 
@@ -26,26 +27,46 @@ def simulation_progress(quiet: bool = False):
         yield None
         return
     first: list = []
+
+    def make(done: int, total: int):
+        now = time.perf_counter()
+        if not first:  # the first chunk: the rate is measured from here (compiling is over)
+            first.extend((now, done))
+            return None
+        rate = (done - first[1]) / (now - first[0]) if now > first[0] else 0.0
+        if done >= total or rate <= 0 or (total - first[1]) / rate < SHOWN_FROM:
+            return None
+        return _bar(err), "simulate", {}
+
+    with _shown_when(make) as update:
+        yield update
+
+
+@contextlib.contextmanager
+def _shown_when(make: Callable[[int, int], tuple | None]):
+    """Yield ``progress(done, total)`` that draws a bar once ``make`` gives one: the one place a bar is
+    started, advanced and stopped.
+
+    Until a bar is shown, each call asks ``make(done, total)`` for one: a rich ``Progress`` not yet
+    started, its task's description and the task's fields, or None (not now). Once shown, each call
+    advances it to ``done`` of ``total`` and redraws it; it is stopped (cleared) when the block ends.
+    """
     shown: dict = {}
 
     def update(done: int, total: int) -> None:
         if not shown:
-            now = time.perf_counter()
-            if not first:  # the first chunk: the rate is measured from here (compiling is over)
-                first.extend((now, done))
+            made = make(done, total)
+            if made is None:
                 return
-            rate = (done - first[1]) / (now - first[0]) if now > first[0] else 0.0
-            if done >= total or rate <= 0 or (total - first[1]) / rate < SHOWN_FROM:
-                return
-            shown["bar"] = bar = _bar(err)
+            bar, description, fields = made
             bar.start()
-            shown["task"] = bar.add_task("simulate", total=total)
+            shown.update(bar=bar, task=bar.add_task(description, total=total, **fields))
         shown["bar"].update(shown["task"], completed=done, total=total, refresh=True)
 
     try:
         yield update
     finally:
-        if "bar" in shown:
+        if shown:
             shown["bar"].stop()
 
 
@@ -77,26 +98,21 @@ def sweep_progress(quiet: bool = False, meanwhile: Callable[[], object] | None =
     if quiet and meanwhile is None:
         yield None
         return
-    shown: dict = {}
+    asked: list = []
 
-    def update(done: int, total: int) -> None:
-        if not shown:
-            shown["started"] = True
-            if meanwhile is not None:
-                meanwhile()
-            from quadctl.cli.render import err
+    def make(done: int, total: int):
+        if asked:  # asked once, at the first call: no bar then, none later
+            return None
+        asked.append(True)
+        if meanwhile is not None:
+            meanwhile()
+        from quadctl.cli.render import err
 
-            if not quiet and err.is_terminal:  # a pipe or a CI log gets the summary line only
-                from quadctl.cli.render_sweep import sweep_bar
+        if quiet or not err.is_terminal:  # a pipe or a CI log gets the summary line only
+            return None
+        from quadctl.cli.render_sweep import sweep_bar
 
-                shown["bar"] = sweep_bar()
-                shown["bar"].start()
-                shown["task"] = shown["bar"].add_task("sweep", total=total, resumed=done)
-        if "bar" in shown:
-            shown["bar"].update(shown["task"], completed=done, total=total, refresh=True)
+        return sweep_bar(), "sweep", {"resumed": done}
 
-    try:
+    with _shown_when(make) as update:
         yield update
-    finally:
-        if "bar" in shown:
-            shown["bar"].stop()
