@@ -244,7 +244,7 @@ def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
     from quadctl import pipeline
     from quadctl.motors import check_trim
-    from quadctl.sim.builder import fill_constants
+    from quadctl.sim.builder import fill_constants_stack
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
     from quadctl.sim.run import ExoStream, rotor_eigenvalues
 
@@ -346,12 +346,17 @@ def loops_of(live) -> list:
         start, start_bytes = starts[start_key]
         key = (shape, plan.sample_time, start_bytes)
         if key not in templates:
-            templates[key] = (loop.constants(plan.sample_time), loop.initial_loop_state(start))
-        c, x0 = templates[key]
-        c = fill_constants(c.copy(), *loop.constant_layout, **loop.gain_constants())
-        out[j] = LaneJob(spec=spec, plan=plan, c=c, x0=x0, lo=lo, hi=hi,
-                         stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
-                         exo_period=period)
+            templates[key] = (loop.constants(plan.sample_time), loop.initial_loop_state(start), loop.constant_layout,
+                              [])
+        templates[key][3].append((j, loop.gain_constants(), dict(spec=spec, plan=plan, x0=templates[key][1], lo=lo,
+                                  hi=hi, stride=record_stride(plan.n_steps, setup.max_samples), exo=exo,
+                                  exo_first=first, exo_period=period)))
+    for c, _, layout, members in templates.values():  # each case's gains written into its copy of the constants
+        gains = members[0][1]
+        C = fill_constants_stack(np.repeat(c[None], len(members), axis=0), *layout,
+                                 **{name: np.stack([m[1][name] for m in members]) for name in gains})
+        for (j, _, fields), row in zip(members, C):
+            out[j] = LaneJob(c=row, **fields)
     return out
 
 
