@@ -154,7 +154,8 @@ def _readings(sums, dt, regulated_states, status) -> tuple:
     sums = np.asarray(sums, dtype=float)
     wanted = set(regulated_states)
     index = [i for i, name in enumerate(STATE_NAMES) if name in wanted]
-    e0, low, high, settle = (_per_state(sums)[:, PER_STATE.index(k)][:, index] for k in ("e0", "e_min", "e_max", "settle"))
+    per = _per_state(sums)[:, :, index]
+    e0, low, high, settle = (per[:, PER_STATE.index(k)] for k in ("e0", "e_min", "e_max", "settle"))
     with np.errstate(invalid="ignore", divide="ignore"):
         past = np.where(e0 > 0, -low, np.where(e0 < 0, high, 0.0))  # as summarize_errors
         over = np.maximum(0.0, past) / np.abs(e0) * 100.0
