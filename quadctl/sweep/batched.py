@@ -36,6 +36,20 @@ class CaseDesign:
     path: str
     Kv: np.ndarray | None = None
     """(4, 4) gain on the controller's rotor lag model (a design that includes the lag); else None."""
+    extremes: tuple | None = None
+    """(fastest, slowest): the least and the largest real part of ``core`` (None for an empty core),
+    when computed with the stack's (else from ``core``: :meth:`eig_extremes`)."""
+
+    def eig_extremes(self) -> tuple:
+        """(fastest, slowest) of ``core`` (:func:`core_extremes`)."""
+        return self.extremes if self.extremes is not None else core_extremes(self.core)
+
+
+def core_extremes(core) -> tuple:
+    """(fastest, slowest): the least and the largest real part of a loop's core eigenvalues, as
+    floats (None, None for an empty core): a row's ``eig.fastest`` and ``eig.slowest``."""
+    real = np.asarray(core).real
+    return (float(real.min()), float(real.max())) if len(real) else (None, None)
 
 
 @dataclass(frozen=True)
@@ -220,8 +234,19 @@ def _assemble(items, gains, out, any_order: bool, integrators: dict) -> None:
         K = K.reshape(N, N_INPUTS, N_STATES)
         A_cl = closed_loops(plant, K, Ki, states, Ts)
         verdicts = stability.verdict_stack(A_cl, K, sample_time=Ts, any_order=any_order)
+        extremes = _extremes([core for core, _, _ in verdicts])
         for i, ((k, _), (core, _, stable)) in enumerate(zip(members, verdicts)):
-            out[k] = CaseDesign(K[i], Ki[i], states, stable, core, BATCHED)
+            out[k] = CaseDesign(K[i], Ki[i], states, stable, core, BATCHED, extremes=extremes[i])
+
+
+def _extremes(cores: list) -> list:
+    """:func:`core_extremes` of each core, the stack at once (cores of one length; else each alone)."""
+    if not cores or len({len(core) for core in cores}) != 1:
+        return [core_extremes(core) for core in cores]
+    if len(cores[0]) == 0:
+        return [(None, None)] * len(cores)
+    real = np.array(cores).real
+    return list(zip(real.min(axis=1).tolist(), real.max(axis=1).tolist()))
 
 
 def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:

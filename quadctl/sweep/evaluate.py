@@ -355,14 +355,16 @@ def _failed(head: dict, status: str, reason: str) -> dict:
 
 def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps: int, reason: str = "",
          path: str = "", flat: tuple | None = None) -> dict:
-    """A case's row: its head, design verdict, metrics and run. The metrics from ``summary`` (the
-    dict of :func:`quadctl.metrics.summarize`) or ``flat``, (column names, values) as
-    :func:`quadctl.sim.lane_metrics.row_values` gives them (the same columns)."""
+    """A case's row: its head, design verdict, metrics and run. ``core_eigs``: the core eigenvalues,
+    or a :class:`~quadctl.sweep.batched.CaseDesign` (its :meth:`eig_extremes`). The metrics from
+    ``summary`` (the dict of :func:`quadctl.metrics.summarize`) or ``flat``, (column names, values)
+    as :func:`quadctl.sim.lane_metrics.row_values` gives them (the same columns)."""
     row = dict(head)
     row["stable"] = bool(stable)
-    real = np.asarray(core_eigs).real
-    row["eig.fastest"] = float(real.min()) if len(real) else None
-    row["eig.slowest"] = float(real.max()) if len(real) else None
+    from quadctl.sweep.batched import CaseDesign, core_extremes
+
+    row["eig.fastest"], row["eig.slowest"] = (core_eigs.eig_extremes() if isinstance(core_eigs, CaseDesign)
+                                              else core_extremes(core_eigs))
     if flat is not None:
         row.update(zip(*flat))
     elif summary is not None:
@@ -546,7 +548,7 @@ def _summed_rows(summed: list, rows: dict, tracked: dict) -> None:
         names, out = row_values(np.stack([it[6] for it in items]), [it[2].plan.dt for it in items], regulated,
                                 [it[4] for it in items])
         for (prep, des, job, done, status, message, sums), values in zip(items, out):
-            rows[prep.index] = _row(prep.head, des.stable, des.core, job.plan, None, done,
+            rows[prep.index] = _row(prep.head, des.stable, des, job.plan, None, done,
                                     "" if status == "ok" else message, des.path, flat=(names, values))
             ref = prep.setup.reference
             if ref is not None:
