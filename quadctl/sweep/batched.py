@@ -68,7 +68,7 @@ class LaneJob:
     exo_period: float
 
 
-def design_all(preps, stats, any_order: bool = False) -> list:
+def design_all(preps, stats, any_order: bool = False, compiled: bool = False) -> list:
     """A :class:`CaseDesign` per case, or the one-line reason its design failed.
 
     Cases whose design problems are identical (the same plant, weights, integrators and design
@@ -76,7 +76,9 @@ def design_all(preps, stats, any_order: bool = False) -> list:
     problem that several distinct cases pose (a subsystem whose weights no case varies) is solved
     once. A design that includes the rotors' lag is made by the one-case design
     (:func:`quadctl.lqr.design`). ``any_order``: each design's ``core`` eigenvalues in any order
-    (:func:`quadctl.stability.verdict_stack`), for a caller that reads only their extremes.
+    (:func:`quadctl.stability.verdict_stack`), for a caller that reads only their extremes;
+    ``compiled``: the discrete designs' doubling steps in C (:func:`quadctl.lqr.riccati.dare_batch`),
+    the same gains to round-off.
     """
     problems: dict[tuple, int] = {}  # a subsystem problem -> its number
     posed: list[tuple] = []  # per problem number: (its group, the first case posing it, the subsystem, integrators)
@@ -118,7 +120,7 @@ def design_all(preps, stats, any_order: bool = False) -> list:
         groups.setdefault(group, []).append(number)
     gain_of: dict[int, np.ndarray | None] = {}  # problem number -> its gain (None: the batched solve missed)
     for (Ts, n, _, _), numbers in groups.items():
-        K, ok = _solve(Ts, n, [posed[i][1:] for i in numbers], preps)
+        K, ok = _solve(Ts, n, [posed[i][1:] for i in numbers], preps, compiled)
         for i, number in enumerate(numbers):
             gain_of[number] = K[i] if ok[i] else None
     gains: dict[tuple[int, str], np.ndarray] = {}
@@ -136,7 +138,7 @@ def design_all(preps, stats, any_order: bool = False) -> list:
     return [designs[k] for k in first]
 
 
-def _solve(Ts, n, group, preps):
+def _solve(Ts, n, group, preps, compiled: bool = False):
     """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems: the continuous
     CARE, or the ZOH plant and ``lqrd`` weights (:func:`_sampled`) and the discrete DARE, every step
     batched."""
@@ -168,7 +170,7 @@ def _solve(Ts, n, group, preps):
     else:
         Aa, Ba = (np.stack(m) for m in zip(*(integral.augment_discrete(a, b, c, Ts) for a, b, c in zip(Ad, Bd, Cs))))
     Qa, Na = integral.discrete_weights(Qd, Nd, Q, Ts)
-    res = dare_batch(Aa, Ba, Qa, Rd, Na)
+    res = dare_batch(Aa, Ba, Qa, Rd, Na, compiled=compiled)
     return res.K, res.ok
 
 

@@ -458,7 +458,8 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
     traces: dict[int, np.ndarray] = {}
     tracked: dict[int, dict] = {}  # case -> its tracking columns (cases that fly a reference)
     t0, c0 = time.perf_counter(), time.process_time()
-    designs = batched.design_all(preps, stats, any_order=True)  # rows read the extremes of each core
+    # rows read the extremes of each core, and take its gains to round-off
+    designs = batched.design_all(preps, stats, any_order=True, compiled=True)
     stats["design_time"] += time.perf_counter() - t0
     stats["design_cpu"] += time.process_time() - c0
     live = []
