@@ -46,11 +46,11 @@ class NativeRunner:
     def __init__(self, library: Path, spec: LoopSpec, lanes: int, backend: str):
         self.spec, self.lanes, self.backend = spec, lanes, backend
         self._lib = ctypes.CDLL(str(library))
-        dp, lp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_long)
+        ptr, long = ctypes.c_void_p, ctypes.c_long  # arrays by address (_address): their dtypes are made here
         self._run = self._lib.qc_run
         self._run.restype = None
-        self._run.argtypes = [dp, dp, dp, lp, dp, dp, dp, ctypes.c_long, ctypes.c_long, dp, dp, lp, lp, lp,
-                              ctypes.c_long, lp, dp, dp]
+        self._run.argtypes = [ptr, ptr, ptr, ptr, ptr, ptr, ptr, long, long, ptr, ptr, ptr, ptr, ptr, long, ptr, ptr,
+                              ptr]
 
     def iter_run(self, cases: Cases):
         """Yield ``(index, done, ks, xs, us)`` per case.
@@ -126,8 +126,9 @@ class NativeRunner:
     def _calls(self, cases: Cases, rows_max: int) -> _Calls:
         """What the calls of one run of ``cases`` share: see :class:`_Calls`."""
         L, nx = self.lanes, self.spec.nx
+        blocks = self._blocks(cases)
         return _Calls(cases=cases, groups=[(start, min(L, len(cases) - start)) for start in range(0, len(cases), L)],
-                      blocks=self._blocks(cases), rows_max=rows_max,
+                      blocks=blocks, addresses=[[_address(a) for a in arrays] for arrays in blocks], rows_max=rows_max,
                       exo_rows=max(len(e) for e in cases.exo) if self.spec.n_exo > 0 else 0,
                       xs=np.empty((L, nx, rows_max)), us=np.empty((L, N_INPUTS, rows_max)),
                       ks=np.empty((L, rows_max), dtype=C_LONG), n_rec=np.empty(L, dtype=C_LONG),
@@ -136,20 +137,21 @@ class NativeRunner:
     def _call(self, calls: _Calls, start: int, used: int, keep=1, header=None, values=None, sums=None):
         """Run the group of ``lanes`` cases from case ``start`` (``used`` of them real) into ``calls``' buffers."""
         L = self.lanes
-        arrays = calls.blocks[start // L]
         exo = None
         if self.spec.n_exo:
             exo = np.zeros((L, calls.exo_rows, self.spec.n_exo))
             for lane, e in enumerate(calls.cases.exo[start:start + used]):
                 exo[lane, :len(e)] = e
-        dp, lp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_long)
+        if calls.outputs is None:
+            calls.outputs = [_address(a) for a in (calls.xs, calls.us, calls.ks, calls.n_rec, calls.done)]
+        xs, us, ks, n_rec, done = calls.outputs
+        self._run(*calls.addresses[start // L], _address(exo), calls.exo_rows, calls.rows_max, xs, us, ks, n_rec,
+                  done, keep, _address(header), _address(values), _address(sums))
 
-        def p(a, kind=dp):
-            return None if a is None else a.ctypes.data_as(kind)
 
-        self._run(p(arrays[0]), p(arrays[1]), p(arrays[2]), p(arrays[3], lp), p(arrays[4]), p(arrays[5]),
-                  p(exo), calls.exo_rows, calls.rows_max, p(calls.xs), p(calls.us), p(calls.ks, lp),
-                  p(calls.n_rec, lp), p(calls.done, lp), keep, p(header, lp), p(values), p(sums))
+def _address(a: np.ndarray | None) -> int | None:
+    """The address of a C-contiguous array's data (None: a NULL pointer)."""
+    return None if a is None else a.ctypes.data
 
 
 @dataclass
@@ -165,6 +167,8 @@ class _Calls:
     cases: Cases
     groups: list
     blocks: list
+    addresses: list
+    """Per call, its C arrays' addresses (the arrays are ``blocks``'s: held while these are used)."""
     rows_max: int
     exo_rows: int
     xs: np.ndarray
@@ -172,3 +176,5 @@ class _Calls:
     ks: np.ndarray
     n_rec: np.ndarray
     done: np.ndarray
+    outputs: list | None = None
+    """The output buffers' addresses, taken at the first call."""
