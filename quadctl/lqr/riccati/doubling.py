@@ -54,7 +54,7 @@ static void lu_solve(long n, long r, double* W, double* X) {
       for (long j = 0; j < r; ++j) X[i * r + j] -= f * X[k * r + j];
     }
   }
-  for (long k = n - 1; k >= 0; --k) {
+  for (long k = n - 1; k >= 0; k -= 1) {
     for (long j = 0; j < r; ++j) {
       double s = X[k * r + j];
       for (long i = k + 1; i < n; ++i) s -= W[k * n + i] * X[i * r + j];
