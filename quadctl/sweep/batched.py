@@ -81,7 +81,7 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
     the same gains to round-off.
     """
     problems: dict[tuple, int] = {}  # a subsystem problem -> its number
-    posed: list[tuple] = []  # per problem number: (its group, the first case posing it, the subsystem, integrators)
+    posed: dict[int, tuple] = {}  # problem number -> (its group, the first owner posing it, the subsystem, integrators)
     cases: dict[tuple, int] = {}  # a case's whole problem -> the first case posing it (its owner)
     first: list[int] = []
     slots_of: dict[int, tuple] = {}  # owner -> its subsystems' problem numbers
@@ -109,14 +109,14 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
             continue
         slots_of[k] = slots
         for sub, ints, number in zip(plant.regulated, ints_of, slots):
-            if number == len(posed):  # posed here first
-                posed.append(((Ts, len(sub.states), len(sub.inputs), len(ints)), k, sub, ints))
+            if number not in posed:  # a case designed one by one (the lag) may have numbered it first
+                posed[number] = ((Ts, len(sub.states), len(sub.inputs), len(ints)), k, sub, ints)
     designs: dict[int, object] = {}
     for k in cases.values():
         if preps[k].setup.design_lag_time_constant is not None:
             designs[k] = _one_by_one(preps[k], "one-by-one: the design includes the rotors' lag")
     groups: dict[tuple, list[int]] = {}
-    for number, (group, *_rest) in enumerate(posed):
+    for number, (group, *_rest) in posed.items():
         groups.setdefault(group, []).append(number)
     gain_of: dict[int, np.ndarray | None] = {}  # problem number -> its gain (None: the batched solve missed)
     for (Ts, n, _, _), numbers in groups.items():
