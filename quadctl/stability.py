@@ -231,7 +231,8 @@ def stack_eigenvalues(M: np.ndarray) -> np.ndarray:
     strongly connected components of the graph of the stack's nonzero entries (:func:`diagonal_blocks`).
     The eigenvalues are those of the blocks, each block of the whole stack in one LAPACK call (a 1 x 1
     block is its entry): the same values as ``np.linalg.eigvals(M)`` to round-off, in another order,
-    at a fraction of the cost (the mambo-200hz loops, 11 x 11: blocks of 6, 3 and 2 states).
+    for less (the mambo-200hz loops, 11 x 11, are blocks of 6, 3 and 2 states: a sweep's verdicts
+    took 7.3 us a loop against 9.1).
 
     Parameters
     ----------
