@@ -75,6 +75,10 @@ static void qc_exo_next(const double* exo, long exo_rows, const double* lane_d, 
     return;
   }
   double guess = ceil(((double)(sample + 1) - 1e-9) * QC_PERIOD(l) / QC_DT(l));
+  if (!(guess < 0.5 * (double)LONG_MAX)) {  /* no later step in range (or NaN): look it up each step */
+    *until = kk + 1;
+    return;
+  }
   long c = guess > (double)kk + 1.0 ? (long)guess : kk + 1;
   while (c - 1 > kk && qc_exo_sample(lane_d, l, c - 1) > sample) c -= 1;
   while (qc_exo_sample(lane_d, l, c) <= sample) c += 1;
