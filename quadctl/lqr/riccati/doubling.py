@@ -63,16 +63,12 @@ static void lu_solve(long n, long r, double* W, double* X) {
   }
 }
 
-/* batch problems of n states, A, G, H (batch, n, n) row-major, stepped in place; steps[b]: the
-   doubling steps problem b took */
-void qc_doubling(long batch, long n, long max_steps, double roundoff, double* A, double* G, double* H,
-                 long* steps) {
+/* batch problems of n states, A, G, H (batch, n, n) row-major, stepped in place */
+void qc_doubling(long batch, long n, long max_steps, double roundoff, double* A, double* G, double* H) {
   double W[NMAX * NMAX], X[NMAX * 2 * NMAX], T[NMAX * NMAX], S[NMAX * NMAX], N2[NMAX * NMAX];
   for (long b = 0; b < batch; ++b) {
     double* a = A + b * n * n; double* g = G + b * n * n; double* h = H + b * n * n;
-    long k = 0;
-    while (k < max_steps) {
-      ++k;
+    for (long k = 0; k < max_steps; ++k) {
       for (long i = 0; i < n; ++i)            /* W = I + G H */
         for (long j = 0; j < n; ++j) {
           double s = i == j ? 1.0 : 0.0;
@@ -128,7 +124,6 @@ void qc_doubling(long batch, long n, long max_steps, double roundoff, double* A,
       for (long i = 0; i < n * n; ++i) a[i] = T[i];
       if (nan || !(step_max > roundoff * DBL_EPSILON * h_max)) break;  /* NaN: failed, decided after */
     }
-    steps[b] = k;
   }
 }
 """
@@ -144,10 +139,7 @@ def doubling(A: np.ndarray, G: np.ndarray, H: np.ndarray, max_steps: int) -> np.
     if run is None:
         return None
     A, G, H = (np.array(M, dtype=float, order="C") for M in (A, G, H))  # copies: stepped in place
-    steps = np.zeros(len(A), dtype=np.dtype(f"i{ctypes.sizeof(ctypes.c_long)}"))
-    dp, lp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_long)
-    run(len(A), n, max_steps, float(ROUNDOFF_STEPS), A.ctypes.data_as(dp), G.ctypes.data_as(dp),
-        H.ctypes.data_as(dp), steps.ctypes.data_as(lp))
+    run(len(A), n, max_steps, float(ROUNDOFF_STEPS), A.ctypes.data, G.ctypes.data, H.ctypes.data)
     return H
 
 
@@ -162,7 +154,7 @@ def _compiled():
     except CompileError:
         return None
     fn = ctypes.CDLL(str(library)).qc_doubling
-    dp, lp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_long)
     fn.restype = None
-    fn.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_double, dp, dp, dp, lp]
+    fn.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
+                   ctypes.c_void_p]  # the stacks by address: float64, C order (doubling makes them so)
     return fn
