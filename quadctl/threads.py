@@ -65,16 +65,20 @@ def _limited(controller) -> AbstractContextManager:
     return controller.limit(limits=1)
 
 
-def one_thread_for_good() -> None:
+def one_thread_for_good(forked_limited: bool = False) -> None:
     """Every BLAS and OpenMP pool of this process runs one thread from now on: one that loads later
     (SciPy's, when a chunk first needs ``scipy.linalg``) reads :data:`THREAD_VARIABLES`, set here,
     as it loads; those loaded now are limited, unless they run one already (a worker forked inside
     :func:`loaded_one_thread` sets no count: see :func:`one_thread`).
+
+    ``forked_limited``: this process was forked inside :func:`loaded_one_thread`, so every pool it
+    has runs one thread: they are not searched for again (~1.2 ms a worker).
 
     For a process that only works on small matrices (a sweep's worker process). Its environment then
     also asks one thread of the processes it starts.
     """
     global _for_good
     os.environ.update(dict.fromkeys(THREAD_VARIABLES, "1"))
-    loaded_one_thread().__enter__()  # not left: for good
+    if not forked_limited:
+        loaded_one_thread().__enter__()  # not left: for good
     _for_good = True

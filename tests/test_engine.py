@@ -75,7 +75,7 @@ def test_a_loops_gains_written_into_another_loops_constants_give_its_constants(l
     gain_constants): the gains must be all that differs between two loops of one structure."""
     from dataclasses import replace
 
-    from quadctl.sim.builder import fill_constants
+    from quadctl.sim.builder import fill_constants, fill_constants_stack
 
     _, loop = _loop(data)
     rng = np.random.default_rng(7)
@@ -86,6 +86,15 @@ def test_a_loops_gains_written_into_another_loops_constants_give_its_constants(l
     got = fill_constants(loop.constants(Ts).copy(), *other.constant_layout, **other.gain_constants())
     assert not np.array_equal(loop.constants(Ts), other.constants(Ts))
     assert np.array_equal(got, other.constants(Ts))
+    # a chunk's cases at once (fill_constants_stack): each row is that case's constants
+    others = [other, *(replace(loop, K=rng.standard_normal(loop.K.shape),
+                               Ki=None if loop.Ki is None else rng.standard_normal(np.shape(loop.Ki)),
+                               Kv=None if loop.Kv is None else rng.standard_normal(loop.Kv.shape)) for _ in range(2))]
+    gains = [o.gain_constants() for o in others]
+    stacked = fill_constants_stack(np.repeat(loop.constants(Ts)[None], 3, axis=0), *loop.constant_layout,
+                                   **{name: np.stack([g[name] for g in gains]) for name in gains[0]})
+    for row, o in zip(stacked, others):
+        assert np.array_equal(row, o.constants(Ts))
 
 
 def _clear():

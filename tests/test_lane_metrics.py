@@ -14,7 +14,7 @@ from quadctl import config, metrics, pipeline, sweep
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.problem import setup_of
 from quadctl.sim.engine import LANES, runner
-from quadctl.sim.lane_metrics import MetricSpec, case_values, summaries, tracking
+from quadctl.sim.lane_metrics import MetricSpec, case_values, row_values, summaries, tracking
 from quadctl.sweep import batched, evaluate
 
 pytestmark = pytest.mark.compiler
@@ -89,6 +89,10 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
                 assert got[key][name] == (None if value is None else pytest.approx(value, rel=1e-12, abs=1e-15)), \
                     (key, name)
         assert got["cost"] == pytest.approx(want["cost"], rel=1e-12)
+        names, (flat,) = row_values(sums[None], [job.plan.dt], setup.regulated, ["ok"])
+        assert dict(zip(names, flat)) == {**{f"{key}.{name}": value for key in ("settling_time", "overshoot", "peak")
+                                             for name, value in got[key].items()},
+                                          "cost": got["cost"], "status": "ok"}
         if setup.reference is not None:
             track = pipeline.tracking_of(setup.reference, t, x, x_ref)
             lanes = tracking(sums, len(setup.reference.legs))
@@ -169,3 +173,27 @@ def test_case_values_of_stacks_are_each_case_s_values():
         expected = [*u[k], Q[k, 0, 0], Q[k, 6, 6], Q[k, 7, 7], R[k, 1, 1], R[k, 3, 3], 0.0]
         assert stacked[k].tolist() == expected
         assert case_values(mspec, u[k], Q[k], R[k]).tolist() == expected
+
+
+def test_row_values_are_the_summaries_flattened_for_every_settling_and_status():
+    """row_values (the sweep's row columns) against summaries of the same sums, in the row's column
+    order, with every settling marker (never left the band, never settled, a step) and a run that did
+    not finish (no settling times), and an undefined overshoot (no initial error)."""
+    rng = np.random.default_rng(5)
+    mspec = MetricSpec.of(("phi", "p", "v"), np.eye(N_STATES), np.eye(4))
+    sums = rng.uniform(-1, 1, (4, mspec.n_sums))
+    settle = slice(5 * N_STATES, 6 * N_STATES)  # PER_STATE's "settle"
+    sums[:, settle] = rng.choice([-2.0, -1.0, 17.0, 250.0], (4, N_STATES))
+    sums[1, STATE_INDEX["phi"]] = 0.0  # e0: no initial error, no overshoot
+    status = ["ok", "ok", "diverged", "ok"]
+    dt = [1e-3, 2e-3, 1e-3, 5e-4]
+    want = summaries(sums, dt, ("phi", "p", "v"), status)
+    names, values = row_values(sums, dt, ("phi", "p", "v"), status)
+    assert names == ("settling_time.v", "settling_time.phi", "settling_time.p", "overshoot.v", "overshoot.phi",
+                     "overshoot.p", "peak.T", "peak.A", "peak.E", "peak.R", "cost", "status")
+    for w, got in zip(want, values):
+        flat = {f"{key}.{name}": value for key in ("settling_time", "overshoot", "peak")
+                for name, value in w[key].items()}
+        assert dict(zip(names, got)) == {**flat, "cost": w["cost"], "status": w["status"]}
+    assert values[2][:3] == [None, None, None]  # diverged: no settling time
+    assert values[1][4] is None  # phi started at its reference

@@ -217,3 +217,59 @@ def test_a_stack_too_large_for_memory_is_a_design_error(monkeypatch):
     with pytest.raises(DesignError, match=r"care_batch: out of memory for 3 problems of 2 states and 1 inputs "
                                           r"\(Unable to allocate 2\.4 GiB\); solve them in smaller stacks"):
         care_batch(np.zeros((3, 2, 2)), np.ones((3, 2, 1)), np.ones((3, 1, 1)) * np.eye(2), np.ones((3, 1, 1)))
+
+
+ROUNDOFF_AGREEMENT = 1e-12
+"""Relative difference (largest entry over the largest entry) between the compiled doubling steps and
+numpy's: the same steps, rounded in another order, each answer polished and residual-checked."""
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("n, m", [(1, 1), (2, 1), (3, 1), (3, 2), (4, 2), (9, 2)])
+def test_compiled_doubling_gives_numpys_solution_to_round_off(n, m):
+    """dare_batch with its doubling steps in C (a sweep's designs) against numpy's stacked steps, on
+    random plants with a cross term and on quadctl's own subsystems at 200 Hz (with an integrator):
+    the same P and K to round-off, the same verdicts, and SciPy's P."""
+    from quadctl.lqr.riccati import doubling
+
+    assert doubling._compiled() is not None
+    rng = np.random.default_rng(100 + 10 * n + m)
+    A, B = rng.normal(size=(30, n, n)) * 0.7, rng.normal(size=(30, n, m))
+    Q, R, N = _random_weights(rng, 30, n, m)
+    stacks = [(A, B, Q, R, N)]
+    for group in _shapes(_subsystem_problems((200.0,))).values():
+        if group[0][1].shape == (n, m):
+            stacks.append(_lqrd_stack(group))
+    for A, B, Q, R, N in stacks:
+        fast, slow = dare_batch(A, B, Q, R, N, compiled=True), dare_batch(A, B, Q, R, N)
+        assert fast.ok.all() and slow.ok.all()
+        for k in range(len(A)):
+            assert np.abs(fast.P[k] - slow.P[k]).max() <= ROUNDOFF_AGREEMENT * np.abs(slow.P[k]).max()
+            assert np.abs(fast.K[k] - slow.K[k]).max() <= ROUNDOFF_AGREEMENT * np.abs(slow.K[k]).max()
+            _close(fast.P[k], scipy.linalg.solve_discrete_are(A[k], B[k], Q[k], R[k], s=N[k]), f"P[{k}] against SciPy")
+
+
+@pytest.mark.compiler
+def test_compiled_doubling_flags_what_has_no_stabilizing_solution():
+    A = np.array([np.diag([1.5, 0.5]), [[1.0, 0.1], [0.0, 1.0]]])
+    B = np.array([[[0.0], [1.0]], [[0.005], [0.1]]])
+    Q = np.array([np.eye(2), np.diag([0.0, 1.0])])
+    assert not dare_batch(A, B, Q, np.ones((2, 1, 1)), compiled=True).ok.any()
+
+
+def _shapes(problems) -> dict:
+    by_shape: dict[tuple, list] = {}
+    for p in problems:
+        by_shape.setdefault((p[1].shape, p[4].shape), []).append(p)
+    return by_shape
+
+
+def _lqrd_stack(group):
+    """(Aa, Ba, Qa, Rd, Na) of a group of one shape, lqrd-sampled and augmented as a sweep stacks them."""
+    A, B, Qa, R, C = (np.stack([p[k] for p in group]) for k in range(5))
+    Ts = group[0][5]
+    n = A.shape[1]
+    Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights_batch(A, B, Qa[:, :n, :n], R, Ts)
+    Aa, Ba = integral.augment_discrete(Ad, Bd, C[0], Ts)
+    Qda, Nda = integral.discrete_weights(Qd, Nd, Qa, Ts)
+    return Aa, Ba, Qda, Rd, Nda

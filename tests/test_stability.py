@@ -103,3 +103,37 @@ def test_the_verdict_is_about_the_spectrum_without_the_free_positions(sample_tim
         assert marginal == (("pE",) if k < 3 else ()), k
         np.testing.assert_allclose(np.sort(core.real), wanted[k], rtol=1e-9, atol=1e-9)
         assert stable is (k != 2), k
+
+
+def test_diagonal_blocks_are_the_strongly_connected_components():
+    """A hand-made pattern: {0, 2} feed each other, 1 alone (it feeds 0 only), {3, 4, 5} a cycle
+    fed by 2; the blocks are those sets whatever the order of the states."""
+    pattern = np.zeros((6, 6), dtype=bool)
+    for i, j in [(0, 2), (2, 0), (0, 1), (3, 2), (4, 3), (5, 4), (3, 5)]:
+        pattern[i, j] = True  # entry (i, j): state i depends on state j
+    assert stability.diagonal_blocks(pattern) == [[0, 2], [1], [3, 4, 5]]
+    perm = np.array([4, 0, 5, 1, 3, 2])
+    blocks = stability.diagonal_blocks(pattern[np.ix_(perm, perm)])
+    assert sorted(sorted(perm[b].tolist()) for b in blocks) == [[0, 2], [1], [3, 4, 5]]
+
+
+@pytest.mark.parametrize("coupled", [False, True])
+def test_stack_eigenvalues_by_blocks_are_the_whole_matrices_eigenvalues(coupled):
+    """Loops that share a block triangular sparsity (permuted): the eigenvalues by diagonal blocks
+    are numpy's of each whole matrix, to 1e-12 (matched by sorting); a pattern with one block
+    (``coupled``) is the plain call."""
+    rng = np.random.default_rng(7)
+    n, N = 9, 40
+    pattern = np.zeros((n, n), dtype=bool)
+    for block in ([0, 1, 2, 3], [4, 5, 6], [7], [8]):
+        pattern[np.ix_(block, block)] = True
+    pattern[0, 5] = pattern[4, 7] = pattern[7, 8] = True  # couplings one way only
+    if coupled:
+        pattern[8, 0] = True  # closes a cycle through every block
+    perm = rng.permutation(n)
+    M = rng.standard_normal((N, n, n)) * pattern[np.ix_(perm, perm)]
+    got = stability.stack_eigenvalues(M)
+    want = np.linalg.eigvals(M)
+    assert got.shape == want.shape and got.dtype == complex
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(np.sort_complex(g), np.sort_complex(w), rtol=0, atol=1e-12 * np.abs(w).max())

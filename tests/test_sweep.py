@@ -679,3 +679,23 @@ def test_a_sweep_into_a_pipe_draws_no_progress_bar(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "all pass" in proc.stdout
     assert proc.stderr == ""
+
+
+@pytest.mark.compiler
+def test_a_chunk_mixing_designs_with_and_without_the_rotor_lag_designs_each_as_the_pipeline():
+    """Cases whose design includes the rotors' lag (designed one by one) between cases batched in one
+    chunk, each with its own weights: the batched ones still solve their own problems (path
+    ``batched``), and every row is the one-by-one path's."""
+    cfg = config.load("mambo-200hz")
+    spec = spec_of(cfg, mode="random", samples=8, seed=3, chunk_size=8,
+                   parameters={"controller.rotor_lag": {"distribution": "choice", "values": ["include", "ignore"]},
+                               "lqr.roll.R[0]": {"distribution": "loguniform", "low": 20000, "high": 80000}},
+                   set={"simulation.duration": 0.3, "motors.time_constant": 0.02})
+    lags = [c.values[0] for c in spec.cases()]
+    assert lags.index("include") < len(lags) - 1 - lags[::-1].index("ignore")  # a lag case before a batched one
+    fast = sweep.run(cfg, spec, jobs=1)
+    slow = sweep.run(cfg, spec, jobs=1, fast=False)
+    for row, lag in zip(fast.rows, lags):
+        assert row["path"] == ("batched" if lag == "ignore" else "one-by-one: the design includes the rotors' lag")
+    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert worst < MATCH_RTOL, f"Max diff is {worst:.4E} at {where}"

@@ -222,14 +222,42 @@ def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model
     """
     slots = _slots(nz, rotors, lag_model, ny, tuple(schedule))[0]
     for name, value in values.items():
-        if name not in slots:
-            raise ValueError(f"unknown constants: {sorted(set(values) - set(slots))}")
-        where, shape = slots[name]
+        where, shape = _slot_of(slots, name, values)
         arr = np.asarray(value, dtype=float)
         if arr.size != where.stop - where.start or (arr.ndim > 1 and arr.shape != shape):
             raise ValueError(f"{name}: expected shape {shape}, got {arr.shape}")
         out[where] = arr.reshape(shape).ravel(order="F")
     return out
+
+
+def fill_constants_stack(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
+                         schedule: tuple[int, ...] = (), **values) -> np.ndarray:
+    """:func:`fill_constants` of ``N`` cases at once: ``out`` (N, nc), each of ``values`` the ``N``
+    cases' entries stacked, (N, *shape) (or (N, size)); in place, returned. Each row is what
+    :func:`fill_constants` writes into that row alone.
+
+    Raises
+    ------
+    ValueError
+        An entry has the wrong shape, or is not in the layout.
+    """
+    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule))[0]
+    N = len(out)
+    for name, value in values.items():
+        where, shape = _slot_of(slots, name, values)
+        arr = np.asarray(value, dtype=float)
+        size = where.stop - where.start
+        if arr.shape[:1] != (N,) or arr[0].size != size or (arr.ndim > 2 and arr.shape[1:] != shape):
+            raise ValueError(f"{name}: expected {N} entries of shape {shape}, got {arr.shape}")
+        arr = arr.reshape(N, *shape)
+        out[:, where] = arr.transpose(0, *range(arr.ndim - 1, 0, -1)).reshape(N, -1)  # each entry column-major
+    return out
+
+
+def _slot_of(slots: dict, name: str, values: dict) -> tuple[slice, tuple[int, ...]]:
+    if name not in slots:
+        raise ValueError(f"unknown constants: {sorted(set(values) - set(slots))}")
+    return slots[name]
 
 
 @lru_cache(maxsize=16)

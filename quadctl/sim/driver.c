@@ -28,6 +28,7 @@
  * the law regulates to (qc_ref), its first, last, lowest, highest and largest |e|, the settling
  * record, the largest |u|, the LQR cost by the trapezoid rule, the position tracking error and the
  * waypoints reached, as quadctl.metrics and quadctl.pipeline.tracking_of define them. */
+#include <limits.h>
 #include <math.h>
 #include <string.h>
 
@@ -42,18 +43,46 @@
 #define QC_EXO_FIRST(l) lane_i[4 * QC_L + (l)]  /* absolute index of the first exogenous row given */
 #define QC_EXO_N(l) lane_i[5 * QC_L + (l)]      /* exogenous rows given */
 
-/* the exogenous row of absolute step kk: sample floor(kk dt / period), as quadctl.noise counts;
- * *held is the row lane l holds in e (-1: none), not copied again (a row lasts many steps) */
+/* the absolute exogenous sample of step kk: floor(kk dt / period), as quadctl.noise counts */
+static long qc_exo_sample(const double* lane_d, int l, long kk) {
+  return (long)floor((double)kk * QC_DT(l) / QC_PERIOD(l) + 1e-9);
+}
+
+/* the exogenous row of absolute step kk (its sample, clipped to the rows given); *held is the row
+ * lane l holds in e (-1: none), not copied again (a row lasts many steps) */
 static void qc_exo_row(const double* exo, long exo_rows, const double* lane_d, const long* lane_i,
                        int l, long kk, double* e, long* held) {
   if (QC_NE == 0 || exo == NULL) return;
-  long j = (long)floor((double)kk * QC_DT(l) / QC_PERIOD(l) + 1e-9) - QC_EXO_FIRST(l);
+  long j = qc_exo_sample(lane_d, l, kk) - QC_EXO_FIRST(l);
   if (j > QC_EXO_N(l) - 1) j = QC_EXO_N(l) - 1;
   if (j < 0) j = 0;
   if (j == *held) return;
   *held = j;
   const double* row = exo + ((long)l * exo_rows + j) * QC_NE;
   for (int i = 0; i < QC_NE; ++i) e[i * QC_L + l] = row[i];
+}
+
+/* qc_exo_row of step kk in a run whose steps increase, and *until: the first later step whose
+ * sample is another (LONG_MAX: the rows given end first), so the steps before it need no row
+ * (a sample lasts many steps). Found from an estimate, then by the same formula as each step's:
+ * the sample is nondecreasing in kk, so the step found is exactly the first that changes it. */
+static void qc_exo_next(const double* exo, long exo_rows, const double* lane_d, const long* lane_i,
+                        int l, long kk, double* e, long* held, long* until) {
+  qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk, e, held);
+  long sample = qc_exo_sample(lane_d, l, kk);
+  if (QC_NE == 0 || exo == NULL || sample - QC_EXO_FIRST(l) >= QC_EXO_N(l) - 1) {
+    *until = LONG_MAX;
+    return;
+  }
+  double guess = ceil(((double)(sample + 1) - 1e-9) * QC_PERIOD(l) / QC_DT(l));
+  if (!(guess < 0.5 * (double)LONG_MAX)) {  /* no later step in range (or NaN): look it up each step */
+    *until = kk + 1;
+    return;
+  }
+  long c = guess > (double)kk + 1.0 ? (long)guess : kk + 1;
+  while (c - 1 > kk && qc_exo_sample(lane_d, l, c - 1) > sample) c -= 1;
+  while (qc_exo_sample(lane_d, l, c) <= sample) c += 1;
+  *until = c;
 }
 
 /* ---- the metrics of the records (mq != NULL); the slots of macc [QC_M(...)][QC_L] ---- */
@@ -246,7 +275,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
   double X[QC_NX * QC_L], XN[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
   double U[QC_NU * QC_L], UH[QC_NU * QC_L], UF[QC_NU * QC_L], T[QC_L], DT[QC_L], E[QC_NE1 * QC_L];
   double XR[QC_NS * QC_L];
-  long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L];
+  long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L], until[QC_L];
   int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
   if (mq) qc_metric_init(mq, macc);
 #if QC_HELD
@@ -262,7 +291,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
   memset(UF, 0, sizeof UF);
   (void)XS; (void)hold_in;
   for (int l = 0; l < QC_L; ++l) {
-    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = 0; done[l] = 0; held[l] = -1;
+    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = 0; done[l] = 0; held[l] = -1; until[l] = LONG_MIN;
     rec_in[l] = qc_mod(-QC_K0(l), QC_STRIDE(l));   /* steps until the next recorded one */
     hold_in[l] = qc_mod(-QC_K0(l), QC_HOLD(l));    /* steps until the next controller sample */
     DT[l] = QC_DT(l);
@@ -280,7 +309,8 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
       T[l] = QC_DT(l) * (double)(QC_K0(l) + k);
       bad[l] = 0.0;
       rec |= active[l] && rec_in[l] == 0;
-      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, E, held + l);
+      if (QC_K0(l) + k >= until[l])
+        qc_exo_next(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, E, held + l, until + l);
     }
 #if QC_HELD
     int sample = 0;

@@ -123,31 +123,51 @@ def summaries(sums: np.ndarray, dt, regulated_states, status) -> list[dict]:
     regulated_states : iterable of str
     status : sequence of B str
     """
+    names, settling, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status)
+    per = _per_state(np.asarray(sums, dtype=float))
+    peaks, finals = per[:, PER_STATE.index("peak")].tolist(), per[:, PER_STATE.index("e_last")].tolist()
+    return [{"settling_time": dict(zip(names, settling[b])), "overshoot": dict(zip(names, overshoot[b])),
+             "peak_error": dict(zip(STATE_NAMES, peaks[b])), "final_error": dict(zip(STATE_NAMES, finals[b])),
+             "peak": dict(zip(INPUT_NAMES, u_max[b])), "cost": cost[b], "status": status[b]}
+            for b in range(len(cost))]
+
+
+def row_values(sums: np.ndarray, dt, regulated_states, status) -> tuple[tuple[str, ...], list[list]]:
+    """The metric columns of a sweep's rows (``settling_time.<state>``, ``overshoot.<state>``,
+    ``peak.<input>``, ``cost``, ``status``) of ``B`` runs from their lane sums, flat: the values of
+    :func:`summaries` (arguments alike) without a dict per metric. Returns (the column names, per
+    run its values in that order)."""
+    names, settling, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status)
+    columns = (*(f"settling_time.{n}" for n in names), *(f"overshoot.{n}" for n in names),
+               *(f"peak.{n}" for n in INPUT_NAMES), "cost", "status")
+    return columns, [[*settling[b], *overshoot[b], *u_max[b], cost[b], status[b]] for b in range(len(cost))]
+
+
+def _per_state(sums: np.ndarray) -> np.ndarray:
+    """(B, len(PER_STATE), 12): the per-state sums of (B, n_sums) ``sums``."""
+    return sums[:, :len(PER_STATE) * N_STATES].reshape(len(sums), len(PER_STATE), N_STATES)
+
+
+def _readings(sums, dt, regulated_states, status) -> tuple:
+    """The regulated states' names (in state order) and, per run, their settling times and
+    overshoots, its input peaks (4) and cost, as :func:`summaries` reads them."""
     sums = np.asarray(sums, dtype=float)
-    B = len(sums)
-    per = sums[:, :len(PER_STATE) * N_STATES].reshape(B, len(PER_STATE), N_STATES)
-    e0, e_last, low, high, peak, settle = (per[:, k] for k in range(len(PER_STATE)))
+    wanted = set(regulated_states)
+    index = [i for i, name in enumerate(STATE_NAMES) if name in wanted]
+    per = _per_state(sums)[:, :, index]
+    e0, low, high, settle = (per[:, PER_STATE.index(k)] for k in ("e0", "e_min", "e_max", "settle"))
     with np.errstate(invalid="ignore", divide="ignore"):
         past = np.where(e0 > 0, -low, np.where(e0 < 0, high, 0.0))  # as summarize_errors
-        over = (np.maximum(0.0, past) / np.abs(e0) * 100.0).tolist()
-    no_initial = (np.abs(e0) <= ERROR_FLOOR).tolist()
-    settled_at = (np.asarray(dt, dtype=float)[:, None] * np.maximum(settle, 0.0)).tolist()
-    settle = settle.tolist()
+        over = np.maximum(0.0, past) / np.abs(e0) * 100.0
+    # settled at the record after the last one outside the band; at once; never (or not a full run)
+    settled_at = np.asarray(dt, dtype=float)[:, None] * np.maximum(settle, 0.0)
+    settling = np.where(settle == SETTLE_NONE, 0.0, settled_at).astype(object)
+    settling[(settle == SETTLE_PENDING) | (np.asarray(status) != "ok")[:, None]] = None
+    overshoot = over.astype(object)
+    overshoot[np.abs(e0) <= ERROR_FLOOR] = None
     u_max = sums[:, _slot("u_max"):_slot("u_max") + N_INPUTS].tolist()
-    cost = (sums[:, _slot("cost")] / 2).tolist()
-    peaks, finals = peak.tolist(), e_last.tolist()
-    regulated = [(i, name) for i, name in enumerate(STATE_NAMES) if name in set(regulated_states)]
-    out = []
-    for b in range(B):
-        c = cost[b]
-        out.append({
-            "settling_time": {name: None if settle[b][i] == SETTLE_PENDING or status[b] != "ok" else
-                              0.0 if settle[b][i] == SETTLE_NONE else settled_at[b][i] for i, name in regulated},
-            "overshoot": {name: None if no_initial[b][i] else over[b][i] for i, name in regulated},
-            "peak_error": dict(zip(STATE_NAMES, peaks[b])), "final_error": dict(zip(STATE_NAMES, finals[b])),
-            "peak": dict(zip(INPUT_NAMES, u_max[b])), "cost": c if math.isfinite(c) else None,
-            "status": status[b]})
-    return out
+    cost = [c if math.isfinite(c) else None for c in (sums[:, _slot("cost")] / 2).tolist()]
+    return tuple(STATE_NAMES[i] for i in index), settling.tolist(), overshoot.tolist(), u_max, cost
 
 
 def tracking(sums: np.ndarray, legs: int) -> dict:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -45,11 +46,11 @@ class NativeRunner:
     def __init__(self, library: Path, spec: LoopSpec, lanes: int, backend: str):
         self.spec, self.lanes, self.backend = spec, lanes, backend
         self._lib = ctypes.CDLL(str(library))
-        dp, lp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_long)
+        ptr, long = ctypes.c_void_p, ctypes.c_long  # arrays by address (_address): their dtypes are made here
         self._run = self._lib.qc_run
         self._run.restype = None
-        self._run.argtypes = [dp, dp, dp, lp, dp, dp, dp, ctypes.c_long, ctypes.c_long, dp, dp, lp, lp, lp,
-                              ctypes.c_long, lp, dp, dp]
+        self._run.argtypes = [ptr, ptr, ptr, ptr, ptr, ptr, ptr, long, long, ptr, ptr, ptr, ptr, ptr, long, ptr, ptr,
+                              ptr]
 
     def iter_run(self, cases: Cases):
         """Yield ``(index, done, ks, xs, us)`` per case.
@@ -58,26 +59,16 @@ class NativeRunner:
         ``us`` (r, 4) are transposes of state-major buffers (``xs.T`` is contiguous) that the
         next group of ``lanes`` cases overwrites: use or copy them before asking for the next.
         """
-        N = len(cases)
-        if N == 0:
+        if len(cases) == 0:
             return
-        L, nx = self.lanes, self.spec.nx
-        rows_max = max(record_rows(int(k), int(m), int(s)) for k, m, s in zip(cases.k0, cases.n, cases.stride))
-        xs = np.empty((L, nx, rows_max))
-        us = np.empty((L, N_INPUTS, rows_max))
-        ks = np.empty((L, rows_max), dtype=C_LONG)
-        n_rec = np.empty(L, dtype=C_LONG)
-        done = np.empty(L, dtype=C_LONG)
-        noise = self.spec.n_exo > 0
-        exo_rows = max(len(e) for e in cases.exo) if noise else 0
-        blocks = self._blocks(cases)
-        for start in range(0, N, L):
-            sl = slice(start, min(start + L, N))
-            used = sl.stop - sl.start
-            self._call(cases, sl, used, exo_rows, rows_max, xs, us, ks, n_rec, done, blocks=blocks)
+        calls = self._calls(cases, max(record_rows(int(k), int(m), int(s))
+                                       for k, m, s in zip(cases.k0, cases.n, cases.stride)))
+        for start, used in calls.groups:
+            self._call(calls, start, used)
             for lane in range(used):
-                r = int(n_rec[lane])
-                yield start + lane, int(done[lane]), ks[lane, :r], xs[lane, :, :r].T, us[lane, :, :r].T
+                r = int(calls.n_rec[lane])
+                yield (start + lane, int(calls.done[lane]), calls.ks[lane, :r], calls.xs[lane, :, :r].T,
+                       calls.us[lane, :, :r].T)
 
     def iter_summaries(self, cases: Cases, metrics: MetricSpec, values: np.ndarray):
         """Yield ``(index, done, k_end, x_end, u_end, sums)`` per case: the run summarized in the
@@ -88,27 +79,20 @@ class NativeRunner:
         record, ``sums`` (metrics.n_sums,) what :func:`~quadctl.sim.lane_metrics.summaries` reads.
         The arrays are overwritten by the next group of ``lanes`` cases.
         """
-        N = len(cases)
-        if N == 0:
+        if len(cases) == 0:
             return
-        L, nx = self.lanes, self.spec.nx
-        xs, us = np.empty((L, nx, 1)), np.empty((L, N_INPUTS, 1))
-        ks, n_rec, done = np.empty((L, 1), dtype=C_LONG), np.empty(L, dtype=C_LONG), np.empty(L, dtype=C_LONG)
+        L = self.lanes
+        calls = self._calls(cases, 1)
         sums = np.empty((metrics.n_sums, L))
         header = metrics.header()
-        noise = self.spec.n_exo > 0
-        exo_rows = max(len(e) for e in cases.exo) if noise else 0
-        blocks = self._blocks(cases)
-        for start in range(0, N, L):
-            sl = slice(start, min(start + L, N))
-            used = sl.stop - sl.start
-            mv = values[sl]
+        for start, used in calls.groups:
+            mv = values[start:start + used]
             if used < L:
                 mv = np.concatenate([mv, np.repeat(mv[:1], L - used, axis=0)])
-            self._call(cases, sl, used, exo_rows, 1, xs, us, ks, n_rec, done, keep=0, header=header, blocks=blocks,
-                       values=np.ascontiguousarray(mv.T), sums=sums)
+            self._call(calls, start, used, keep=0, header=header, values=np.ascontiguousarray(mv.T), sums=sums)
             for lane in range(used):
-                yield start + lane, int(done[lane]), int(ks[lane, 0]), xs[lane, :, 0], us[lane, :, 0], sums[:, lane]
+                yield (start + lane, int(calls.done[lane]), int(calls.ks[lane, 0]), calls.xs[lane, :, 0],
+                       calls.us[lane, :, 0], sums[:, lane])
 
     def run(self, cases: Cases) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
         """``(done, ks, xs, us)`` per case, as copies."""
@@ -139,20 +123,58 @@ class NativeRunner:
         return [list(group) for group in zip(lanes(cases.x0), lanes(cases.c), lane_d, lane_i, lanes(cases.lo),
                                              lanes(cases.hi))]
 
-    def _call(self, cases: Cases, sl: slice, used: int, exo_rows, rows_max, xs, us, ks, n_rec, done, keep=1,
-              header=None, values=None, sums=None, blocks=None):
+    def _calls(self, cases: Cases, rows_max: int) -> _Calls:
+        """What the calls of one run of ``cases`` share: see :class:`_Calls`."""
+        L, nx = self.lanes, self.spec.nx
+        blocks = self._blocks(cases)
+        return _Calls(cases=cases, groups=[(start, min(L, len(cases) - start)) for start in range(0, len(cases), L)],
+                      blocks=blocks, addresses=[[_address(a) for a in arrays] for arrays in blocks], rows_max=rows_max,
+                      exo_rows=max(len(e) for e in cases.exo) if self.spec.n_exo > 0 else 0,
+                      xs=np.empty((L, nx, rows_max)), us=np.empty((L, N_INPUTS, rows_max)),
+                      ks=np.empty((L, rows_max), dtype=C_LONG), n_rec=np.empty(L, dtype=C_LONG),
+                      done=np.empty(L, dtype=C_LONG))
+
+    def _call(self, calls: _Calls, start: int, used: int, keep=1, header=None, values=None, sums=None):
+        """Run the group of ``lanes`` cases from case ``start`` (``used`` of them real) into ``calls``' buffers."""
         L = self.lanes
-        arrays = (blocks if blocks is not None else self._blocks(cases))[sl.start // L]
         exo = None
         if self.spec.n_exo:
-            exo = np.zeros((L, exo_rows, self.spec.n_exo))
-            for lane, e in enumerate(cases.exo[sl]):
+            exo = np.zeros((L, calls.exo_rows, self.spec.n_exo))
+            for lane, e in enumerate(calls.cases.exo[start:start + used]):
                 exo[lane, :len(e)] = e
-        dp, lp = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_long)
+        if calls.outputs is None:
+            calls.outputs = [_address(a) for a in (calls.xs, calls.us, calls.ks, calls.n_rec, calls.done)]
+        xs, us, ks, n_rec, done = calls.outputs
+        self._run(*calls.addresses[start // L], _address(exo), calls.exo_rows, calls.rows_max, xs, us, ks, n_rec,
+                  done, keep, _address(header), _address(values), _address(sums))
 
-        def p(a, kind=dp):
-            return None if a is None else a.ctypes.data_as(kind)
 
-        self._run(p(arrays[0]), p(arrays[1]), p(arrays[2]), p(arrays[3], lp), p(arrays[4]), p(arrays[5]),
-                  p(exo), exo_rows, rows_max, p(xs), p(us), p(ks, lp), p(n_rec, lp), p(done, lp), keep,
-                  p(header, lp), p(values), p(sums))
+def _address(a: np.ndarray | None) -> int | None:
+    """The address of a C-contiguous array's data (None: a NULL pointer)."""
+    return None if a is None else a.ctypes.data
+
+
+@dataclass
+class _Calls:
+    """The calls of one run of ``cases`` in a library (:meth:`NativeRunner.iter_run` and
+    :meth:`NativeRunner.iter_summaries` set them up alike): ``groups``, per call the index of its
+    first case and how many of its ``lanes`` are cases (the last call's others copy its first case and
+    take no steps); ``blocks``, per call its C arrays (:meth:`NativeRunner._blocks`); the exogenous
+    rows a lane takes (the most any case has); and the buffers each call writes, ``rows_max`` records
+    a lane: ``xs`` (L, nx, rows_max), ``us`` (L, 4, rows_max), ``ks`` (L, rows_max), ``n_rec`` and
+    ``done`` (L,)."""
+
+    cases: Cases
+    groups: list
+    blocks: list
+    addresses: list
+    """Per call, its C arrays' addresses (the arrays are ``blocks``'s: held while these are used)."""
+    rows_max: int
+    exo_rows: int
+    xs: np.ndarray
+    us: np.ndarray
+    ks: np.ndarray
+    n_rec: np.ndarray
+    done: np.ndarray
+    outputs: list | None = None
+    """The output buffers' addresses, taken at the first call."""

@@ -36,6 +36,20 @@ class CaseDesign:
     path: str
     Kv: np.ndarray | None = None
     """(4, 4) gain on the controller's rotor lag model (a design that includes the lag); else None."""
+    extremes: tuple | None = None
+    """(fastest, slowest): the least and the largest real part of ``core`` (None for an empty core),
+    when computed with the stack's (else from ``core``: :meth:`eig_extremes`)."""
+
+    def eig_extremes(self) -> tuple:
+        """(fastest, slowest) of ``core`` (:func:`core_extremes`)."""
+        return self.extremes if self.extremes is not None else core_extremes(self.core)
+
+
+def core_extremes(core) -> tuple:
+    """(fastest, slowest): the least and the largest real part of a loop's core eigenvalues, as
+    floats (None, None for an empty core): a row's ``eig.fastest`` and ``eig.slowest``."""
+    real = np.asarray(core).real
+    return (float(real.min()), float(real.max())) if len(real) else (None, None)
 
 
 @dataclass(frozen=True)
@@ -54,76 +68,77 @@ class LaneJob:
     exo_period: float
 
 
-def design_all(preps, stats) -> list:
+def design_all(preps, stats, any_order: bool = False, compiled: bool = False) -> list:
     """A :class:`CaseDesign` per case, or the one-line reason its design failed.
 
     Cases whose design problems are identical (the same plant, weights, integrators and design
-    rate: an uncertainty study varies only the simulated vehicle) share one design. A design that
-    includes the rotors' lag is made by the one-case design (:func:`quadctl.lqr.design`).
+    rate: an uncertainty study varies only the simulated vehicle) share one design, and a subsystem
+    problem that several distinct cases pose (a subsystem whose weights no case varies) is solved
+    once. A design that includes the rotors' lag is made by the one-case design
+    (:func:`quadctl.lqr.design`). ``any_order``: each design's ``core`` eigenvalues in any order
+    (:func:`quadctl.stability.verdict_stack`), for a caller that reads only their extremes;
+    ``compiled``: the discrete designs' doubling steps in C (:func:`quadctl.lqr.riccati.dare_batch`),
+    the same gains to round-off.
     """
-    unique: dict[tuple, int] = {}
-    first = [unique.setdefault(_problem_key(prep), k) for k, prep in enumerate(preps)]
-    owners = sorted(set(first))
-    designs = _design_unique([preps[k] for k in owners], stats)
-    by_owner = dict(zip(owners, designs))
-    return [by_owner[k] for k in first]
-
-
-def _problem_key(prep) -> tuple:
-    """What a case's design depends on: its plant (the design vehicle's linear model), weights,
-    integrators, design rate and the rotor lag the design includes."""
-    setup = prep.setup
-    weights = tuple((name, Q.tobytes(), R.tobytes()) for name, (Q, R) in sorted(setup.weights.items()))
-    return (id(prep.plant), weights, tuple(sorted(setup.integral.items())), setup.timing.design_sample_time,
-            setup.design_lag_time_constant)
-
-
-def _design_unique(preps, stats) -> list:
-    """:func:`design_all` of distinct problems."""
-    groups: dict[tuple, list] = {}
-    out: list = [None] * len(preps)
+    problems: dict[tuple, int] = {}  # a subsystem problem -> its number
+    posed: dict[int, tuple] = {}  # problem number -> (its group, the first owner posing it, the subsystem, integrators)
+    cases: dict[tuple, int] = {}  # a case's whole problem -> the first case posing it (its owner)
+    first: list[int] = []
+    slots_of: dict[int, tuple] = {}  # owner -> its subsystems' problem numbers
+    integrators: dict[tuple, tuple] = {}  # (plant, integral config) by identity -> per subsystem its integrators
     for k, prep in enumerate(preps):
-        if prep.setup.design_lag_time_constant is not None:
-            stats["designs"] += len(prep.plant.decoupled.regulated)
-            out[k] = _one_by_one(prep, "one-by-one: the design includes the rotors' lag")
-    for k, prep in enumerate(preps):
-        if out[k] is not None:
+        setup, plant = prep.setup, prep.plant
+        key = (id(plant), id(setup.integral))
+        if key not in integrators:
+            integrators[key] = (setup.integral, tuple(tuple(setup.integral.get(sub.name, ()))
+                                                       for sub in plant.regulated))
+        ints_of = integrators[key][1]
+        Ts = setup.timing.design_sample_time
+        slots = []
+        for sub, ints in zip(plant.regulated, ints_of):
+            Q, R = setup.weights[sub.name]
+            slots.append(problems.setdefault((id(plant), Ts, sub.name, ints, Q.tobytes(), R.tobytes()), len(problems)))
+        slots = tuple(slots)
+        lag = setup.design_lag_time_constant
+        owner = cases.setdefault((id(plant), Ts, lag, slots), k)  # the slots: the weights and integrators
+        first.append(owner)
+        if owner != k:
             continue
-        Ts = prep.setup.timing.design_sample_time
-        for sub in prep.plant.decoupled.regulated:
-            ints = prep.setup.integral.get(sub.name, ())
-            groups.setdefault((Ts, len(sub.states), len(sub.inputs), len(ints)), []).append((k, sub, ints))
+        stats["designs"] += len(slots)  # the designs the distinct cases get (a shared one counts for each)
+        if lag is not None:
+            continue
+        slots_of[k] = slots
+        for sub, ints, number in zip(plant.regulated, ints_of, slots):
+            if number not in posed:  # a case designed one by one (the lag) may have numbered it first
+                posed[number] = ((Ts, len(sub.states), len(sub.inputs), len(ints)), k, sub, ints)
+    designs: dict[int, object] = {}
+    for k in cases.values():
+        if preps[k].setup.design_lag_time_constant is not None:
+            designs[k] = _one_by_one(preps[k], "one-by-one: the design includes the rotors' lag")
+    groups: dict[tuple, list[int]] = {}
+    for number, (group, *_rest) in posed.items():
+        groups.setdefault(group, []).append(number)
+    gain_of: dict[int, np.ndarray | None] = {}  # problem number -> its gain (None: the batched solve missed)
+    for (Ts, n, _, _), numbers in groups.items():
+        K, ok = _solve(Ts, n, [posed[i][1:] for i in numbers], preps, compiled)
+        for i, number in enumerate(numbers):
+            gain_of[number] = K[i] if ok[i] else None
     gains: dict[tuple[int, str], np.ndarray] = {}
-    missed: set[int] = set()
-    for (Ts, n, _, _), group in groups.items():
-        # the same problem (a subsystem whose weights no case varies) is solved once
-        first: dict[tuple, int] = {}
-        slot = [first.setdefault(_problem(preps[k], sub, ints), j) for j, (k, sub, ints) in enumerate(group)]
-        unique = sorted(first.values())
-        K, ok = _solve(Ts, n, [group[j] for j in unique], preps)
-        row = {j: i for i, j in enumerate(unique)}
-        for j, (k, sub, _) in enumerate(group):
-            if ok[row[slot[j]]]:
-                gains[(k, sub.name)] = K[row[slot[j]]]
-            else:
-                missed.add(k)
-        stats["designs"] += len(group)  # the designs the distinct cases get (a shared one counts for each)
-    for k, prep in enumerate(preps):
-        if k in missed:
+    batched = []
+    for k, slots in slots_of.items():
+        found = [gain_of.get(number) for number in slots]
+        if any(K is None for K in found):
             stats["fallbacks"] += 1
-            out[k] = _one_by_one(prep)
-    _assemble([(k, p) for k, p in enumerate(preps) if out[k] is None], gains, out)
-    return out
+            designs[k] = _one_by_one(preps[k])
+            continue
+        for sub, K in zip(preps[k].plant.regulated, found):
+            gains[(k, sub.name)] = K
+        batched.append((k, preps[k]))
+    _assemble(batched, gains, designs, any_order, {key: ints for key, (_, ints) in integrators.items()})
+    return [designs[k] for k in first]
 
 
-def _problem(prep, sub, ints) -> tuple:
-    """What a subsystem's design depends on: its plant, its weights and integrators (the timing is
-    the group's)."""
-    Q, R = prep.setup.weights[sub.name]
-    return id(prep.plant), sub.name, ints, Q.tobytes(), R.tobytes()
-
-
-def _solve(Ts, n, group, preps):
+def _solve(Ts, n, group, preps, compiled: bool = False):
     """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems: the continuous
     CARE, or the ZOH plant and ``lqrd`` weights (:func:`_sampled`) and the discrete DARE, every step
     batched."""
@@ -155,7 +170,7 @@ def _solve(Ts, n, group, preps):
     else:
         Aa, Ba = (np.stack(m) for m in zip(*(integral.augment_discrete(a, b, c, Ts) for a, b, c in zip(Ad, Bd, Cs))))
     Qa, Na = integral.discrete_weights(Qd, Nd, Q, Ts)
-    res = dare_batch(Aa, Ba, Qa, Rd, Na)
+    res = dare_batch(Aa, Ba, Qa, Rd, Na, compiled=compiled)
     return res.K, res.ok
 
 
@@ -194,22 +209,23 @@ def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed i
                       Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
-def _assemble(items, gains, out) -> None:
+def _assemble(items, gains, out, any_order: bool, integrators: dict) -> None:
     """Block gains and coupled verdicts of the batched designs, stacked per plant, integrators and
-    timing."""
+    timing; ``integrators``: per (plant, integral config) by identity, each regulated subsystem's
+    integrators."""
     by_loop: dict[tuple, list] = {}
     for k, prep in items:
         setup = prep.setup
-        ints = tuple((sub.name, tuple(setup.integral.get(sub.name, ()))) for sub in prep.plant.decoupled.regulated)
+        ints = integrators[(id(prep.plant), id(setup.integral))]
         by_loop.setdefault((id(prep.plant), ints, setup.timing.design_sample_time), []).append((k, prep))
     for (_, ints, Ts), members in by_loop.items():
         plant = members[0][1].plant
         N = len(members)
         K = np.zeros((N, N_INPUTS * N_STATES))
-        states = tuple(state for _, sub_ints in ints for state in sub_ints)
+        states = tuple(state for sub_ints in ints for state in sub_ints)
         Ki = np.zeros((N, N_INPUTS, len(states)))
         column = 0
-        for sub, (_, sub_ints) in zip(plant.decoupled.regulated, ints):
+        for sub, sub_ints in zip(plant.regulated, ints):
             Ka = np.stack([gains[(k, sub.name)] for k, _ in members])  # (N, m, n + ni)
             n = len(sub.states)
             rows, flat = _gain_slots(plant, sub)
@@ -219,8 +235,20 @@ def _assemble(items, gains, out) -> None:
                 column += 1
         K = K.reshape(N, N_INPUTS, N_STATES)
         A_cl = closed_loops(plant, K, Ki, states, Ts)
-        for i, ((k, _), (core, _, stable)) in enumerate(zip(members, stability.verdict_stack(A_cl, K, sample_time=Ts))):
-            out[k] = CaseDesign(K[i], Ki[i], states, stable, core, BATCHED)
+        verdicts = stability.verdict_stack(A_cl, K, sample_time=Ts, any_order=any_order)
+        extremes = _extremes([core for core, _, _ in verdicts])
+        for i, ((k, _), (core, _, stable)) in enumerate(zip(members, verdicts)):
+            out[k] = CaseDesign(K[i], Ki[i], states, stable, core, BATCHED, extremes=extremes[i])
+
+
+def _extremes(cores: list) -> list:
+    """:func:`core_extremes` of each core, the stack at once (cores of one length; else each alone)."""
+    if not cores or len({len(core) for core in cores}) != 1:
+        return [core_extremes(core) for core in cores]
+    if len(cores[0]) == 0:
+        return [(None, None)] * len(cores)
+    real = np.array(cores).real
+    return list(zip(real.min(axis=1).tolist(), real.max(axis=1).tolist()))
 
 
 def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:
@@ -243,7 +271,7 @@ def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
     from quadctl import pipeline
     from quadctl.motors import check_trim
-    from quadctl.sim.builder import fill_constants
+    from quadctl.sim.builder import fill_constants_stack
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
     from quadctl.sim.run import ExoStream, rotor_eigenvalues
 
@@ -345,12 +373,17 @@ def loops_of(live) -> list:
         start, start_bytes = starts[start_key]
         key = (shape, plan.sample_time, start_bytes)
         if key not in templates:
-            templates[key] = (loop.constants(plan.sample_time), loop.initial_loop_state(start))
-        c, x0 = templates[key]
-        c = fill_constants(c.copy(), *loop.constant_layout, **loop.gain_constants())
-        out[j] = LaneJob(spec=spec, plan=plan, c=c, x0=x0, lo=lo, hi=hi,
-                         stride=record_stride(plan.n_steps, setup.max_samples), exo=exo, exo_first=first,
-                         exo_period=period)
+            templates[key] = (loop.constants(plan.sample_time), loop.initial_loop_state(start), loop.constant_layout,
+                              [])
+        templates[key][3].append((j, loop.gain_constants(), dict(spec=spec, plan=plan, x0=templates[key][1], lo=lo,
+                                  hi=hi, stride=record_stride(plan.n_steps, setup.max_samples), exo=exo,
+                                  exo_first=first, exo_period=period)))
+    for c, _, layout, members in templates.values():  # each case's gains written into its copy of the constants
+        gains = members[0][1]
+        C = fill_constants_stack(np.repeat(c[None], len(members), axis=0), *layout,
+                                 **{name: np.stack([m[1][name] for m in members]) for name in gains})
+        for (j, _, fields), row in zip(members, C):
+            out[j] = LaneJob(c=row, **fields)
     return out
 
 
@@ -464,7 +497,7 @@ def _structural_gain(prep) -> tuple[bool, ...]:
     happens to be zero share the lanes of their structure (a zero gain computes the same numbers)."""
     if "pattern" not in prep.plant.cache:
         mask = np.zeros((N_INPUTS, N_STATES), dtype=bool)
-        for sub in prep.plant.decoupled.regulated:
+        for sub in prep.plant.regulated:
             mask[np.ix_([INPUT_INDEX[i] for i in sub.inputs], [STATE_INDEX[s] for s in sub.states])] = True
         prep.plant.cache["pattern"] = tuple(bool(v) for v in mask.ravel(order="F"))
     return prep.plant.cache["pattern"]

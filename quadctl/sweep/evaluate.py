@@ -267,6 +267,8 @@ class Plant:
     def __init__(self, linear, decoupled):
         self.linear = linear
         self.decoupled = decoupled
+        self.regulated = decoupled.regulated
+        """The regulated subsystems (``decoupled.regulated``, which builds its tuple at each call)."""
         self.cache: dict = {}
 
     def sampled(self, Ts: float):
@@ -352,13 +354,20 @@ def _failed(head: dict, status: str, reason: str) -> dict:
 
 
 def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps: int, reason: str = "",
-         path: str = "") -> dict:
+         path: str = "", flat: tuple | None = None) -> dict:
+    """A case's row: its head, design verdict, metrics and run. ``core_eigs``: the core eigenvalues,
+    or a :class:`~quadctl.sweep.batched.CaseDesign` (its :meth:`eig_extremes`). The metrics from
+    ``summary`` (the dict of :func:`quadctl.metrics.summarize`) or ``flat``, (column names, values)
+    as :func:`quadctl.sim.lane_metrics.row_values` gives them (the same columns)."""
     row = dict(head)
     row["stable"] = bool(stable)
-    real = np.asarray(core_eigs).real
-    row["eig.fastest"] = float(real.min()) if len(real) else None
-    row["eig.slowest"] = float(real.max()) if len(real) else None
-    if summary is not None:
+    from quadctl.sweep.batched import CaseDesign, core_extremes
+
+    row["eig.fastest"], row["eig.slowest"] = (core_eigs.eig_extremes() if isinstance(core_eigs, CaseDesign)
+                                              else core_extremes(core_eigs))
+    if flat is not None:
+        row.update(zip(*flat))
+    elif summary is not None:
         for kind in ("settling_time", "overshoot", "peak"):
             values = summary[kind]
             row.update(zip(_columns(kind, tuple(values)), values.values()))
@@ -449,7 +458,8 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
     traces: dict[int, np.ndarray] = {}
     tracked: dict[int, dict] = {}  # case -> its tracking columns (cases that fly a reference)
     t0, c0 = time.perf_counter(), time.process_time()
-    designs = batched.design_all(preps, stats)
+    # rows read the extremes of each core, and take its gains to round-off
+    designs = batched.design_all(preps, stats, any_order=True, compiled=True)
     stats["design_time"] += time.perf_counter() - t0
     stats["design_cpu"] += time.process_time() - c0
     live = []
@@ -530,17 +540,17 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
 def _summed_rows(summed: list, rows: dict, tracked: dict) -> None:
     """Rows (and tracking columns) of the runs summed in the lanes: ``(prep, design, job, done, status,
     message, sums)`` each, read back together per set of regulated states."""
-    from quadctl.sim.lane_metrics import summaries, tracking
+    from quadctl.sim.lane_metrics import row_values, tracking
 
     groups: dict[tuple, list] = {}
     for item in summed:
         groups.setdefault(item[0].setup.regulated, []).append(item)
     for regulated, items in groups.items():
-        out = summaries(np.stack([it[6] for it in items]), [it[2].plan.dt for it in items], regulated,
-                        [it[4] for it in items])
-        for (prep, des, job, done, _, message, sums), summary in zip(items, out):
-            rows[prep.index] = _row(prep.head, des.stable, des.core, job.plan, summary, done,
-                                    "" if summary["status"] == "ok" else message, des.path)
+        names, out = row_values(np.stack([it[6] for it in items]), [it[2].plan.dt for it in items], regulated,
+                                [it[4] for it in items])
+        for (prep, des, job, done, status, message, sums), values in zip(items, out):
+            rows[prep.index] = _row(prep.head, des.stable, des, job.plan, None, done,
+                                    "" if status == "ok" else message, des.path, flat=(names, values))
             ref = prep.setup.reference
             if ref is not None:
                 got = tracking(sums, len(ref.legs))

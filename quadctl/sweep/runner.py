@@ -212,14 +212,15 @@ def columns_of(cfg, spec: SweepSpec) -> list[str]:
     return ["case", *spec.names, *metric_columns(cfg), "pass", "failed_gates", "reason", "path"]
 
 
-def _worker_init() -> None:
+def _worker_init(forked: bool = False) -> None:
     """A worker ignores Ctrl-C (the parent handles it and stops the pool) and, on Linux, dies with
     its parent: a killed sweep leaves no worker computing for nobody. It works on small matrices
-    only: one BLAS thread for good (:func:`quadctl.threads.one_thread_for_good`)."""
+    only: one BLAS thread for good (:func:`quadctl.threads.one_thread_for_good`; ``forked``: inside
+    :func:`quadctl.threads.loaded_one_thread`, its pools run one thread already)."""
     from quadctl.threads import one_thread_for_good
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    one_thread_for_good()
+    one_thread_for_good(forked_limited=forked)
     if sys.platform.startswith("linux"):
         import ctypes
 
@@ -265,7 +266,8 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[Iterator[Chunk
     ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
     # held while the workers fork and run: they start with one BLAS thread and set no count (threads.py)
     with loaded_one_thread():
-        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init)
+        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init,
+                                   initargs=(ctx.get_start_method() == "fork",))
         queue, pending = list(tasks), set()
 
         def fill() -> None:
