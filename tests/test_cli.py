@@ -268,3 +268,28 @@ def test_help_loses_no_bracketed_text_to_rich_markup():
             assert Text.from_markup(text).plain == text.replace("\\[", "["), (command.name, text)
     res = runner.invoke(app, ["simulate", "--help"], env={"COLUMNS": "1000"})
     assert "the config's `allow: [saturation]` does the same" in res.output
+
+
+def _warnings(text: str) -> list[str]:
+    return [line for line in text.splitlines() if line.startswith("quadctl: warning:")]
+
+
+def test_run_warns_as_the_stages_do(tmp_path):
+    """``run`` prints the warnings ``simulate`` and ``check`` print on the same config: a design at a
+    rotor limit for a part of the run (a small vehicle's default rotors) and loops a rate cannot realize."""
+    sets = ["--set", "controller.rate=20000", "--set", "controller.design=continuous"]
+    ran = invoke("run", "-c", "docs/configs/report-on-mambo.yaml", "-o", tmp_path / "run", *sets)
+    assert ran.exit_code == 0, ran.output
+    alone = [invoke(stage, "-c", "docs/configs/report-on-mambo.yaml", "-o", tmp_path / stage, *sets)
+             for stage in ("check", "simulate")]
+    expected = _warnings(alone[0].stderr) + _warnings(alone[1].stderr)
+    assert any("realizes" in w for w in expected) and any("saturates" in w for w in expected)
+    assert _warnings(ran.stderr) == expected
+
+
+def test_run_marks_no_stage_that_fails_its_gate(tmp_path):
+    res = invoke("run", "-o", tmp_path, "--set", "limits={R: [-1.0e-7, 1.0e-7]}")
+    assert res.exit_code == 1
+    assert "✓ design" in res.stdout and "simulate" not in res.stdout
+    assert "the design saturates: R is at a limit 100 % of the run" in res.stderr
+    assert (tmp_path / "sim.npz").exists()  # what was computed is saved

@@ -23,6 +23,12 @@ def step_text(sim) -> str:
             f"fastest eigenvalue {eig(plan.fastest_eigenvalue)} rad/s in {plan.fastest_owner})")
 
 
+def step_span(sim) -> str:
+    """The steps in short: ``dt 3.45e-05 s``, or ETDRK4's graded ``dt 6.1e-07 .. 0.01 s``."""
+    steps = [s.dt for s in sim.plan.schedule] if sim.plan.method == "etdrk4" else [sim.dt]
+    return f"dt {steps[0]:.3g} s" if len(set(steps)) == 1 else f"dt {min(steps):.3g} .. {max(steps):.3g} s"
+
+
 def integrator_name(sim) -> str:
     """``RK4`` or ``ETDRK4`` (``simulation.method``)."""
     return "ETDRK4" if sim.plan.method == "etdrk4" else "RK4"

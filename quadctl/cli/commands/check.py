@@ -57,11 +57,18 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
             render.out.print(checks.vehicle_loop.summary(), markup=False)
         render.out.print(f"-> {ws.path('checks.json')}")
     for hz, warnings in rated:
-        for w in warnings:
-            render.err.print(f"quadctl: warning: {w.message(hz)}", markup=False)
+        warn_of_the_rate(hz, warnings)
     failures = checks.failures()
     at_rate = unstable_when_sampled(what_if, rate) if what_if is not None else None  # --rate's own verdict
     if at_rate and at_rate not in failures:
         failures.append(at_rate)
     if failures:
         raise FailedChecks(*failures)
+
+
+def warn_of_the_rate(rate: float, warnings) -> None:
+    """A continuous design's loops that ``rate`` (Hz) cannot realize, a warning each (``check`` and ``run``)."""
+    from quadctl.cli import render
+
+    for w in warnings:
+        render.warning(w.message(rate))

@@ -1,5 +1,6 @@
 
-from quadctl.cli.commands.simulate import _require_within_limits, warn_of_the_schedule
+from quadctl.cli.commands.check import warn_of_the_rate
+from quadctl.cli.commands.simulate import _require_within_limits, warn_of_the_flight
 from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import (
     AllowSaturationOpt,
@@ -35,7 +36,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         if not json:
             render.out.print(f"[green]✓[/green] {stage:<10} {detail}", soft_wrap=True)  # a pipe gets whole lines
 
+    from quadctl.errors import SaturationFailed
     from quadctl.present import design as shown_design
+    from quadctl.present import flight as shown_flight
     from quadctl.present import stages as shown
 
     done("trim", shown.trim_summary(ws.trim))
@@ -45,16 +48,22 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if why:
         raise _stop(json, stages, f"check: {why}")
     done("check", shown.CHECKS_PASSED)
+    warn_of_the_rate(ws.checks.rate, ws.checks.rate_warnings)
     if not ws.design.stable:
         raise _stop(json, stages, "design: unstable on the coupled 12-state model")
     done("design", shown_design.summary(ws.design))
     with simulation_progress(quiet=json) as ws.progress:
-        sim = ws.simulation.sim
+        flown = ws.simulation
+    sim = flown.sim
+    warn_of_the_flight(ws, flown, allow_saturation)
     if sim.status != "ok":
         raise _stop(json, stages, f"simulate: {sim.message}")
-    done("simulate", f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.steps_per_second / 1e6:.2f} M steps/s")
-    warn_of_the_schedule(ws)
-    _require_within_limits(ws, ws.simulation, allow_saturation)
+    try:
+        _require_within_limits(ws, flown, allow_saturation)
+    except SaturationFailed as exc:
+        raise _stop(json, stages, f"simulate: {exc}", exc) from None
+    done("simulate", f"{sim.steps} {shown_flight.integrator_name(sim)} steps, {shown_flight.step_span(sim)}, "
+                     f"{sim.steps_per_second / 1e6:.2f} M steps/s")
     if plot:
         for path in save_figures(ws, sim):
             if not json:
@@ -65,9 +74,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         render.out.print(f"artifacts in {ws.out}/")
 
 
-def _stop(json: bool, stages: dict, why: str) -> FailedChecks:
+def _stop(json: bool, stages: dict, why: str, error: Exception | None = None) -> Exception:
+    """The error ``run`` stops with at a failed stage (``error``, else a failed check), its JSON first."""
     from quadctl.cli import render
 
     if json:
         render.emit_json({"stages": stages, "ok": False, "failed": why})
-    return FailedChecks(why)
+    return error if error is not None else FailedChecks(why)

@@ -26,8 +26,6 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
     from quadctl.cli.progress import simulation_progress
-    from quadctl.pipeline import missed_waypoints
-    from quadctl.present.flight import saturation_text as shown_saturation
 
     ws = open_workspace(config, out, fresh, sets)
     with simulation_progress(quiet=json) as ws.progress:
@@ -55,16 +53,26 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         render.out.print(f"{sim.status}: {sim.message} -> {ws.path('sim.npz')}")
         for path in figures:
             render.out.print(f"figure -> {path}")
-    saturates = shown_saturation(flown.flight)
+    warn_of_the_flight(ws, flown, allow_saturation)
+    if sim.status != "ok":
+        raise FailedChecks(sim.message)
+    _require_within_limits(ws, flown, allow_saturation)
+
+
+def warn_of_the_flight(ws, flown, allow_saturation: bool) -> None:
+    """The warnings on a flight (``simulate`` and ``run`` alike): inputs at a limit for a part of the
+    run the gate lets through, waypoints never reached, the gain schedule's."""
+    from quadctl.cli import render
+    from quadctl.pipeline import missed_waypoints
+    from quadctl.present.flight import saturation_text
+
+    saturates = saturation_text(flown.flight)
     if saturates and not _fails_on_saturation(ws, flown, allow_saturation):  # else the error says it
         render.warning(saturates)
     missed = missed_waypoints(flown.flight.get("reference"))
     if missed:
         render.warning(missed)
     warn_of_the_schedule(ws)
-    if sim.status != "ok":
-        raise FailedChecks(sim.message)
-    _require_within_limits(ws, flown, allow_saturation)
 
 
 def warn_of_the_schedule(ws) -> None:
