@@ -20,7 +20,6 @@ import pytest
 from _solve import cfg_dict, designed_table, solve
 
 from quadctl import config, pipeline
-from quadctl.errors import ConfigError
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.lqr.gain_table import GainTable
 from quadctl.problem import setup_of
@@ -332,12 +331,25 @@ def test_the_linear_part_at_a_point_is_the_frozen_loop_there(speed_steps):
         replace(loop, schedule_jacobians=None).linear_part(0)
 
 
-def test_a_config_with_a_schedule_refuses_etdrk4():
-    data = cfg_dict("hover", schedule={"variable": "speed", "values": [0.0, 2.0]})
-    data["simulation"]["method"] = "etdrk4"
-    with pytest.raises(ConfigError, match=r'^h\.yaml: simulation\.method = "etdrk4": does not fly a gain schedule '
-                                          r'\(schedule:\): use method: rk4$'):
-        config.from_dict(data, "h.yaml")
+@pytest.mark.compiler
+def test_the_workspace_flies_a_continuous_schedule_by_etdrk4_on_its_points(tmp_path):
+    """A config with schedule: and simulation.method: etdrk4 (the bundled continuous ``schedule`` config
+    flown toward 6 m/s): the loop carries the schedule's Jacobians, and the run equals the library's."""
+    from quadctl.workspace import Workspace
+
+    data = cfg_dict("schedule")
+    data["simulation"].update(method="etdrk4", duration=2.0,
+                              reference={"setpoints": [{"t": 0.5, "velocity": [6.0, 0.0, 0.0]}]})
+    cfg = config.from_dict(data)
+    with Workspace(cfg, tmp_path) as ws:
+        flown = ws.simulation
+        sched = ws.schedule
+    assert flown.sim.status == "ok" and flown.sim.plan.method == "etdrk4"
+    A, B = flown.loop.schedule_jacobians
+    assert A.shape == (len(sched.table.values), N_STATES, N_STATES) and np.array_equal(A, sched.jacobians[0])
+    again = simulate(flown.loop, setup_of(cfg).initial_state(flown.loop.x_trim), 2.0, method="etdrk4",
+                     reference=pipeline.flown_reference(setup_of(cfg)))
+    assert np.array_equal(again.x[-1], flown.sim.x[-1])
 
 
 @pytest.mark.compiler

@@ -175,8 +175,6 @@ def _check_method(cfg: Config, fail) -> None:
     if sim.tolerance is not None and sim.dt != "auto":
         fail("simulation.tolerance", sim.tolerance, f"sets the step schedule of dt: auto, and simulation.dt is "
              f"{sim.dt:g} s: remove one of them")
-    if cfg.schedule is not None:
-        fail("simulation.method", sim.method, "does not fly a gain schedule (schedule:): use method: rk4")
     if (cfg.controller.rate is None and cfg.estimator is not None and cfg.motors is not None
             and cfg.motors.time_constant is not None):
         fail("simulation.method", sim.method, "has no linear part for a Kalman filter with the rotors' lag: "
