@@ -7,7 +7,10 @@ A :class:`Workspace` couples a config to a run directory. Each stage writes its 
 atomically; an upstream artifact is reused only when its ``config_hash`` and quadctl
 version match, otherwise it is recomputed and rewritten (never a stale result). The first
 write of a session also writes the config as given (``config.yaml``) and as resolved
-(``config.resolved.yaml``), so a run directory always says what made it.
+(``config.resolved.yaml``), so a run directory always says what made it; the stage artifacts
+another config made are then removed (:data:`STAGE_FILES`), so no file in the folder disagrees
+with its config. Every write of a session can be undone (:meth:`Workspace.roll_back`): a command
+that refuses its input after some stages ran puts the folder back as it found it.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from quadctl.analysis import Checks, check
 from quadctl.artifacts import default_out
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
-from quadctl.errors import DesignError
+from quadctl.errors import ArtifactError, DesignError
 from quadctl.layout import N_INPUTS, STATE_NAMES
 from quadctl.linearize import LinearModel
 from quadctl.lqr import Design
@@ -42,6 +45,9 @@ TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
 MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
 SCHEDULE_JSON, SCHEDULE_NPZ = "schedule.json", "schedule.npz"
 CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
+STAGE_FILES = (TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON, MARGINS, DESIGN_FULL, SCHEDULE_JSON,
+               SCHEDULE_NPZ)
+"""The artifacts the stages write (each carries the ``config_hash`` it was made from)."""
 
 
 @dataclass(frozen=True)
@@ -129,6 +135,8 @@ class Workspace(pipeline.Stages):
         self.source_text = source_text
         self._config_written = False
         self.written: list[Path] = []
+        self._undo: list[tuple[Path, bytes | None]] | None = []
+        """Each file the session wrote or removed, and what it held before (None: absent); None: kept."""
         self.reused: list[Path] = []
         self.payloads: dict[str, dict] = {}
         """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
@@ -166,14 +174,39 @@ class Workspace(pipeline.Stages):
     def _meta(self, kind: str, backends=()) -> dict:
         return artifacts.metadata(self.cfg, kind, backends)
 
+    def roll_back(self) -> None:
+        """Put back every file this session wrote or removed as it was before (the command refused its
+        input: nothing it computed is kept); after :meth:`keep`, nothing."""
+        for path, before in reversed(self._undo or []):
+            try:
+                if before is not None:
+                    artifacts.write_bytes(path, before)
+                elif path.is_file() or path.is_symlink():  # made by the session (never a folder in its way)
+                    path.unlink()
+            except OSError:  # best effort: the error that stopped the command is the one to report
+                continue
+        self._undo = []
+        self.written.clear()
+
+    def keep(self) -> None:
+        """Keep what this session wrote, whatever follows (:meth:`roll_back` does nothing after this)."""
+        self._undo = None
+
+    def _before_change(self, path: Path) -> None:
+        """Remember what ``path`` holds (once a session) before it is written or removed."""
+        if self._undo is not None and all(path != p for p, _ in self._undo):
+            self._undo.append((path, path.read_bytes() if path.is_file() and not path.is_symlink() else None))
+
     def _write_json(self, name: str, kind: str, payload: dict, backends=()) -> None:
         self._write_config_files()
         full = artifacts.jsonable({**self._meta(kind, backends), **payload})
         self.payloads[name] = full
+        self._before_change(self.path(name))
         self.written.append(artifacts.write_json(self.path(name), full))
 
     def _write_npz(self, name: str, arrays: dict, meta: dict) -> None:
         self._write_config_files()
+        self._before_change(self.path(name))
         self.written.append(artifacts.write_npz(self.path(name), arrays, meta))
 
     def _write_config_files(self) -> None:
@@ -185,9 +218,35 @@ class Workspace(pipeline.Stages):
             "# built in Python, not read from a file: the validated config\n" + resolved)
         head = (f"# the config as quadctl {__version__} validated it, every default filled in "
                 f"(config_hash {self.cfg.digest()})\n")
-        self.written.append(artifacts.write_bytes(self.path(CONFIG_GIVEN), given.encode("utf-8")))
-        self.written.append(artifacts.write_bytes(self.path(CONFIG_RESOLVED), (head + resolved).encode("utf-8")))
+        if self._folder_digest() != self.cfg.digest():
+            self._remove_stale()
+        for name, text in ((CONFIG_GIVEN, given), (CONFIG_RESOLVED, head + resolved)):
+            self._before_change(self.path(name))
+            self.written.append(artifacts.write_bytes(self.path(name), text.encode("utf-8")))
         self._config_written = True
+
+    def _folder_digest(self) -> str | None:
+        """The ``config_hash`` the folder's ``config.resolved.yaml`` names (None: none readable)."""
+        try:
+            with open(self.path(CONFIG_RESOLVED), encoding="utf-8") as f:
+                first = f.readline()
+        except (OSError, UnicodeDecodeError):
+            return None
+        found = first.rpartition("(config_hash ")[2].rstrip().rstrip(")")
+        return found or None
+
+    def _remove_stale(self) -> None:
+        """Remove the stage artifacts another config (or quadctl version) made: quadctl never reuses them,
+        and beside this config they would say what it did not make. A damaged one is left to its notice."""
+        for name in STAGE_FILES:
+            path = self.path(name)
+            try:
+                stale = path.is_file() and not path.is_symlink() and not artifacts.is_fresh(path, self.cfg)
+            except ArtifactError:
+                continue
+            if stale:
+                self._before_change(path)
+                path.unlink()
 
     # -- stages ---------------------------------------------------------------------------
 

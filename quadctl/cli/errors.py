@@ -91,6 +91,20 @@ def remember_config(label: str) -> None:
         state["config"] = label
 
 
+def remember_workspace(ws) -> None:
+    """Note the run folder this command writes, so that :func:`handled` can put it back when the
+    command refuses its input (exit 2) after some stages wrote there (:meth:`Workspace.roll_back`)."""
+    state = _COMMAND.get(None)
+    if state is not None:
+        state["workspace"] = ws
+
+
+def _roll_back() -> None:
+    ws = (_COMMAND.get(None) or {}).get("workspace")
+    if ws is not None:
+        ws.roll_back()
+
+
 def message_of(exc) -> str:
     """The error's message, with the config file in front when the config caused it."""
     text = str(exc)
@@ -127,6 +141,8 @@ def handled(fn):
         except QuadctlError as exc:  # the class decides the exit code, with or without --debug
             if debug_enabled(ctx):
                 _traceback()
+            if exc.exit_code == EXIT_BAD_INPUT:  # refused: the run folder as it was
+                _roll_back()
             raise fail(message_of(exc), exc.exit_code) from None
         except BrokenPipeError:  # `quadctl ... --json | head`: the reader left; the work is saved
             devnull = os.open(os.devnull, os.O_WRONLY)

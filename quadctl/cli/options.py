@@ -98,7 +98,10 @@ def _render():
 
 def open_workspace(config: str | None, out: Path | None, fresh: bool = False, sets=None):
     """Load the config (with its ``--set`` values) and open its run directory."""
+    from quadctl.cli.errors import remember_workspace
     from quadctl.workspace import Workspace
 
     cfg, source = load_source(config, sets)
-    return Workspace(cfg, out, fresh=fresh, source_text=source.text)
+    ws = Workspace(cfg, out, fresh=fresh, source_text=source.text)
+    remember_workspace(ws)
+    return ws

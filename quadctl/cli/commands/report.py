@@ -14,12 +14,14 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     """
     from quadctl import artifacts, report
     from quadctl.cli import render
+    from quadctl.cli.errors import remember_workspace
     from quadctl.cli.options import load_source
     from quadctl.cli.progress import simulation_progress
     from quadctl.workspace import Workspace
 
     cfg, source = load_source(config, sets)
     ws = Workspace(cfg, out, fresh=fresh, source_text=source.text)
+    remember_workspace(ws)
     artifacts.check_folder(ws.out / report.FOLDER)  # a link there: refused now, not after the stages
     with simulation_progress(quiet=json) as ws.progress:
         outcome = report.run_stages(ws)

@@ -39,6 +39,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
             render.out.print(f"figure -> {path}")
     missing = sched.missing()
     if missing:  # bad input, refused once the points, their reasons and the envelope are written and shown
+        ws.keep()
         raise ScheduleError(missing)
     verdict = sched.verdict()
     if verdict:

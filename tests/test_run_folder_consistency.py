@@ -1,0 +1,63 @@
+"""A run folder agrees with its config: a command that refuses its input (exit 2) after some stages
+wrote puts the folder back byte for byte; a new config removes the stage artifacts an earlier one made,
+so none is left beside a config that did not make it (quadctl.workspace)."""
+
+from __future__ import annotations
+
+import json
+
+from typer.testing import CliRunner
+
+from quadctl import config
+from quadctl.cli.app import app
+from quadctl.workspace import STAGE_FILES, Workspace
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args], catch_exceptions=False)
+
+
+def _contents(folder):
+    return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")}
+
+
+def test_a_refused_command_leaves_the_folder_as_it_was(tmp_path):
+    """The RK4 step is refused at the simulation stage, after trim, linear model and design of the
+    changed config were computed: none of them, nor the config it was given, stays."""
+    assert invoke("run", "-c", "hover", "-o", tmp_path).exit_code == 0
+    before = _contents(tmp_path)
+    res = invoke("simulate", "-c", "hover", "-o", tmp_path, "--set", "simulation.dt=0.001")
+    assert res.exit_code == 2 and "is unstable for RK4" in res.stderr
+    assert _contents(tmp_path) == before
+
+
+def test_a_new_config_removes_what_the_old_one_made(tmp_path):
+    """A config whose check fails (exit 1) keeps what it computed, and the old design and run, made from
+    another config, are gone: every stage artifact left names the config.yaml beside it."""
+    assert invoke("run", "-c", "hover", "-o", tmp_path).exit_code == 0
+    res = invoke("run", "-c", "hover", "-o", tmp_path, "--set", "controller.rate=200",
+                 "--set", "controller.design=continuous")
+    assert res.exit_code == 1
+    left = {p.name for p in tmp_path.iterdir()}
+    assert {"trim.json", "checks.json"} <= left and not left & {"design.json", "sim.npz", "sim.json"}
+    digest = (tmp_path / "config.resolved.yaml").read_text().splitlines()[0].rsplit(" ", 1)[1].rstrip(")")
+    for name in left & {"trim.json", "subsystems.json", "checks.json"}:
+        assert json.loads((tmp_path / name).read_text())["config_hash"] == digest, name
+
+
+def test_roll_back_restores_what_was_overwritten_and_removes_what_was_new(tmp_path):
+    hover, forward = config.load("hover"), config.load("forward")
+    with Workspace(hover, tmp_path) as ws:
+        assert ws.trim.residual < 1e-9
+    before = _contents(tmp_path)
+    with Workspace(forward, tmp_path) as ws:
+        assert ws.design.stable
+        assert {"design.json", "linear.npz"} <= {p.name for p in tmp_path.iterdir()}
+        ws.roll_back()
+    assert _contents(tmp_path) == before
+    with Workspace(forward, tmp_path) as ws:
+        assert ws.trim.residual < 1e-9
+        ws.keep()
+        ws.roll_back()  # kept: nothing undone
+    assert json.loads((tmp_path / "trim.json").read_text())["config_hash"] == forward.digest()
+    assert set(STAGE_FILES) >= set(_contents(tmp_path)) - {"config.yaml", "config.resolved.yaml"}
