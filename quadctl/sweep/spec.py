@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from quadctl import __version__, yamlio
+from quadctl.config.schema import PLANT, default_at
 from quadctl.errors import SweepError
 from quadctl.layout import STATE_NAMES
 from quadctl.messages import (
@@ -513,9 +514,7 @@ def with_sections(base: dict, paths) -> dict:
     if base.get("simulation", {}).get("plant") is not None or not any(
             str(p).startswith("simulation.plant.") for p in paths):
         return base
-    vehicle = base["vehicle"]
-    plant = {key: vehicle[key] for key in ("mass", "gravity", "inertia", "drag")}
-    return assign(base, ("simulation", "plant"), plant)
+    return assign(base, PLANT, default_at(base, PLANT))
 
 
 def assign(tree: Any, keys: tuple, value) -> Any:
