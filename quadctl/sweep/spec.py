@@ -15,6 +15,7 @@ import numpy as np
 from quadctl import __version__, yamlio
 from quadctl.config.schema import PLANT, default_at
 from quadctl.errors import SweepError
+from quadctl.filekinds import misplaced
 from quadctl.layout import STATE_NAMES
 from quadctl.messages import (
     KEY_PATH,
@@ -281,7 +282,8 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
                          "give at least `parameters:` (see examples/ci-sweep.yaml)")
     for key in data:
         if key not in TOP_KEYS:
-            raise fail(str(key), "unknown key; " + hint(str(key), TOP_KEYS))
+            raise SweepError(misplaced(data, label, "sweep") or f"{label}: {key}: unknown key; "
+                             + hint(str(key), TOP_KEYS))
     mode = data.get("mode", "grid")
     if mode not in MODES:
         raise fail("mode", f"{show(mode)} is not a mode; use grid or random")
