@@ -36,12 +36,9 @@ def kind_of(data: Any) -> str | None:
 
     if not isinstance(data, dict):
         return None
-    def has(keys) -> bool:
-        return all(key in data for key in keys)
-
-    if has(IDENTITY_KEYS):
+    if all(key in data for key in IDENTITY_KEYS):
         return "artifact"
-    config, sweep = has(config_keys()), has(SWEEP_KEYS)
+    config, sweep = (all(key in data for key in keys) for keys in (config_keys(), SWEEP_KEYS))
     if sweep and not config:
         return "sweep"
     if config and not sweep:
