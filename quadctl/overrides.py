@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 from quadctl import config, yamlio
 from quadctl.config import Config, Source
 from quadctl.errors import ConfigError
-from quadctl.messages import KEY_PATH, KeyPathError, child, hint, key_path, parse_key_path
+from quadctl.messages import KEY_PATH, KeyPathError, child, hint, key_path, parse_key_path, show
 
 OPTION = "--set"
 EXAMPLE = "`--set simulation.duration=30`"
@@ -71,8 +71,8 @@ def apply(data: Any, assignments) -> dict:
         *parents, last = a.keys
         try:
             for k, key in enumerate(parents):
-                if isinstance(node, dict) and node.get(key) is None:  # a section the file leaves out
-                    node[key] = [] if isinstance(a.keys[k + 1], int) else {}
+                if isinstance(node, dict) and node.get(key) is None:  # a section or list the file leaves out
+                    node[key] = _absent(out, a, k)
                 node = child(node, key, a.keys[:k])
             if isinstance(last, int) or not isinstance(node, dict):
                 child(node, last, parents)  # the list and its index exist, or the path goes too deep
@@ -80,6 +80,29 @@ def apply(data: Any, assignments) -> dict:
             raise ConfigError(f"{OPTION} {a.path}: {exc}") from None
         node[last] = a.value
     return out
+
+def _absent(data: dict, a: Assignment, k: int):
+    """What ``a`` walks into at its ``k``-th key, which ``data`` leaves out: a new section, or the list
+    the config holds there when it is left out (:func:`quadctl.config.default_at`: the design vehicle's
+    ``simulation.plant.inertia``, the schema's ``[0, 0, 0]`` of ``simulation.noise.force``).
+
+    Raises
+    ------
+    ConfigError
+        An index into a list the config does not hold (no default): the whole list is to be given.
+    """
+    if not isinstance(a.keys[k + 1], int):
+        return {}
+    default = config.default_at(data, a.keys[:k + 1])
+    index = a.keys[k + 1]
+    if isinstance(default, list) and index < len(default):
+        return default
+    here = key_path(list(a.keys[:k + 1]))
+    why = (f"its default {show(default)} has no [{index}]" if isinstance(default, list)
+           else "it has no default list")
+    raise ConfigError(f"{OPTION} {a.path} = {show(a.value)}: the config leaves `{here}` out and {why}; "
+                      f"set the whole list: {OPTION} {here}=[...]")
+
 
 def load(source: Source, sets=()) -> Config:
     """The config of ``source`` with the ``--set`` values ``sets`` (``KEY=VALUE`` texts) put in.
@@ -99,7 +122,8 @@ def load(source: Source, sets=()) -> Config:
         if "unknown key" not in str(exc):  # a name the schema takes (lqr.rol) but no part of the config has
             for a in assignments:
                 created = _created(tree, a.keys)
-                if created is not None:
+                if created is not None and f": {key_path(created[0])} = " not in str(exc):  # (else the
+                    # checks name that key themselves, with the names allowed there: `unknown state; allowed: ...`)
                     path, siblings = created
                     raise ConfigError(f"{OPTION} {a.path}: no such key in the config: `{key_path(path)}`; "
                                       + hint(str(path[-1]), siblings)) from None

@@ -293,3 +293,31 @@ def test_run_marks_no_stage_that_fails_its_gate(tmp_path):
     assert "✓ design" in res.stdout and "simulate" not in res.stdout
     assert "the design saturates: R is at a limit 100 % of the run" in res.stderr
     assert (tmp_path / "sim.npz").exists()  # what was computed is saved
+
+
+def test_flags_show_no_value_placeholder_in_help():
+    """typer 0.29 showed `--plot <bool>`, `--json <bool>`, `--help -h <bool>`, as if the flag took a value
+    (`--plot true` is refused); options that take one keep theirs (`--out DIR`, `--set KEY=VALUE`)."""
+    import re
+
+    from quadctl.cli.commands import COMMANDS
+
+    rows = {re.split(r"\s{2,}", line.strip(" │"))[0]: line
+            for line in runner.invoke(app, ["simulate", "--help"], env={"COLUMNS": "200"}).output.splitlines()
+            if line.strip(" │").startswith("--")}
+    assert re.search(r"--plot\s+Also write PNG figures", rows["--plot"])
+    assert re.search(r"--help\s+-h\s+Show this message", rows["--help"])
+    assert re.search(r"--out\s+-o\s+DIR\s+Run directory", rows["--out"])
+    assert "KEY=VALUE" in rows["--set"]
+    for args in (["--help"], *([m.NAME, "--help"] for m in COMMANDS)):
+        res = runner.invoke(app, args, env={"COLUMNS": "200"})
+        assert res.exit_code == 0 and "<bool>" not in res.output, args
+
+
+def test_the_set_help_of_configs_names_what_it_changes_not_a_run_directory():
+    """configs --help said --set is "recorded in DIR/config.yaml", but configs writes no run directory."""
+    text = " ".join(runner.invoke(app, ["configs", "--help"], env={"COLUMNS": "200"}).output.split())
+    assert "DIR" not in text
+    assert "validated as the file is; put into the config --show prints (give --show with it)." in text
+    trim = " ".join(runner.invoke(app, ["trim", "--help"], env={"COLUMNS": "200"}).output.split())
+    assert "validated as the file is; recorded in DIR/config.yaml." in trim

@@ -705,15 +705,17 @@ def test_the_json_holds_the_same_fields_with_units_and_shapes(tmp_path):
     assert doc["law"] == exp.law()
     for f in data.fields(exp):
         entry = doc["fields"][f.name]
-        assert set(entry) >= {"value", "unit", "description"}, f.name
-        if isinstance(f.value, np.ndarray):
+        array = isinstance(f.value, np.ndarray)  # the keys the README names: shape and complex for arrays only
+        assert set(entry) == {"value", "unit", "description"} | ({"shape", "complex"} if array else set()), f.name
+        if array:
             assert entry["shape"] == list(f.value.shape), f.name
             value = np.array(entry["value"], dtype=float)
             if entry["complex"]:
                 value = value[..., 0] + 1j * value[..., 1]
             np.testing.assert_array_equal(value.reshape(f.value.shape), f.value, err_msg=f.name)
     eig = doc["fields"]["eig_cl"]
-    assert eig["unit"] == "z" and eig["shape"] == [13]
+    assert eig["unit"] == "z" and eig["shape"] == [13] and eig["complex"] is True
+    assert doc["fields"]["K"]["complex"] is False and doc["fields"]["K"]["shape"] == [4, 12]
     assert doc["fields"]["K"]["unit"] == "input unit per state unit"
     assert doc["fields"]["subsystems"]["value"]["altitude"]["integral"] == ["pD"]
 

@@ -101,3 +101,46 @@ def test_a_bad_set_exits_2_with_one_line(tmp_path):
     assert res.exit_code == 2
     assert res.output == "quadctl: error: --set: simulation.durtion: unknown key; did you mean `duration`?\n"
     assert not (tmp_path / "trim.json").exists()
+
+
+def _plant_inertia(data):
+    data["simulation"]["plant"] = {"inertia": [7e-5] + HOVER["vehicle"]["inertia"][1:]}
+
+
+@pytest.mark.parametrize("given,edit", [
+    pytest.param("simulation.plant.inertia[0]=7e-5", _plant_inertia, id="plant: the design vehicle's list"),
+    pytest.param("simulation.plant.drag[1]=0.3",
+                 lambda d: d["simulation"].update(plant={"drag": [HOVER["vehicle"]["drag"][0], 0.3,
+                                                                  HOVER["vehicle"]["drag"][2]]}), id="plant drag"),
+    pytest.param("simulation.noise.force[0]=0.01",
+                 lambda d: d["simulation"].update(noise={"force": [0.01, 0, 0]}), id="noise: the schema's [0, 0, 0]"),
+    pytest.param("simulation.wind.steady[0]=3",
+                 lambda d: d["simulation"].update(wind={"steady": [3, 0, 0]}), id="wind: the schema's [0, 0, 0]"),
+])
+def test_an_index_into_a_list_of_a_section_the_file_leaves_out_starts_from_its_default(given, edit):
+    """hover has no plant, noise or wind: `--set simulation.plant.inertia[0]=7e-5` said "index 0 out of
+    range: simulation.plant.inertia has 0 values (indices 0 to -1)", though a sweep varies that path."""
+    for section in ("plant", "noise", "wind"):
+        assert HOVER["simulation"].get(section) is None
+    data = copy.deepcopy(HOVER)
+    edit(data)
+    assert overrides.load(config.bundled("hover"), [given]) == config.from_dict(data, "edited.yaml")
+
+
+@pytest.mark.parametrize("given,message", [
+    ("simulation.wind.gusts[0]=1", r"^--set simulation\.wind\.gusts\[0\] = 1: the config leaves "
+     r"`simulation\.wind\.gusts` out and its default \[\] has no \[0\]; set the whole list: "
+     r"--set simulation\.wind\.gusts=\[\.\.\.\]$"),
+    ("simulation.noise.force[3]=0.01", r"^--set simulation\.noise\.force\[3\] = 0\.01: the config leaves "
+     r"`simulation\.noise\.force` out and its default \[0, 0, 0\] has no \[3\]; set the whole list"),
+    ("simulation.wind.turbulence.sigma[0]=1", r"^--set simulation\.wind\.turbulence\.sigma\[0\] = 1: the config "
+     r"leaves `simulation\.wind\.turbulence\.sigma` out and it has no default list; set the whole list: "
+     r"--set simulation\.wind\.turbulence\.sigma=\[\.\.\.\]$"),
+    ("simulation.initial_offset.foo=1", r"^--set: simulation\.initial_offset\.foo = 1: unknown state; allowed: "
+     r"pN, pE, pD, u, v, w, phi, theta, psi, p, q, r$"),
+])
+def test_an_index_with_no_list_to_go_into_and_a_new_state_name_the_fix(given, message):
+    """No list by default: the key and the fix, not "indices 0 to -1"; a new initial_offset key is checked
+    as in a file (every state named), not against the keys hover happens to hold (pD, phi, theta, psi)."""
+    with pytest.raises(ConfigError, match=message):
+        overrides.load(config.bundled("hover"), [given])

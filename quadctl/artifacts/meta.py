@@ -9,6 +9,9 @@ from quadctl.layout import INPUT_NAMES, STATE_NAMES
 
 FORMAT_VERSION = 1
 """Bumped when the layout of an artifact changes incompatibly."""
+IDENTITY_KEYS = ("artifact", "config_hash")
+"""Keys of :func:`metadata` that every artifact carries and no input file has: what tells an artifact
+(given where a config goes, say) apart."""
 
 
 def metadata(cfg, kind: str, backends=()) -> dict:

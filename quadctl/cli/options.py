@@ -21,11 +21,37 @@ AllowSaturationOpt = Annotated[bool, typer.Option(
     "--allow-saturation", help="Accept a design at an actuator limit more than half the run (else exit 1); "
                                "the config's `allow: \\[saturation]` does the same.")]  # \\[: not rich markup
 PlotOpt = Annotated[bool, typer.Option("--plot", help="Also write PNG figures to DIR/plots/.")]
-SetOpt = Annotated[Optional[list[str]], typer.Option(
-    "--set", metavar="KEY=VALUE",
-    help="Change one config value without editing the file: a key path and a YAML value "
-         "(--set simulation.duration=30, --set vehicle.inertia=[0.02,0.02,0.04]); repeatable, "
-         "validated as the file is, recorded in DIR/config.yaml.")]
+SET_HELP = ("Change one config value without editing the file: a key path and a YAML value "
+            "(--set simulation.duration=30, --set vehicle.inertia=[0.02,0.02,0.04]); repeatable, "
+            "validated as the file is")
+
+
+def set_option(after: str):
+    """``--set KEY=VALUE`` (repeatable), its help ending with ``after``: what becomes of the values."""
+    return Annotated[Optional[list[str]], typer.Option("--set", metavar="KEY=VALUE", help=f"{SET_HELP}; {after}")]
+
+
+SetOpt = set_option("recorded in DIR/config.yaml.")
+"""``--set`` of a command that writes a run directory (DIR): the values are recorded there."""
+
+
+def flags_without_placeholder(command_cls):
+    """A typer command (or group) class whose boolean flags show no value placeholder in ``--help``.
+
+    typer 0.29 writes the type of every option beside it, a flag's too (``--plot <bool>``,
+    ``--help -h <bool>``), which reads as if the flag took a value (``--plot true`` is refused): an
+    empty metavar, given here to every flag of every command and of the app, shows nothing there.
+    """
+
+    class FlagsWithoutPlaceholder(command_cls):
+        def get_params(self, ctx):
+            params = super().get_params(ctx)
+            for param in params:
+                if getattr(param, "is_flag", False) and param.metavar is None:
+                    param.metavar = ""
+            return params
+
+    return FlagsWithoutPlaceholder
 
 
 def rate_option(help: str):

@@ -63,6 +63,7 @@ from quadctl.config.schema import MAX_TURBULENCE_SIGMA as MAX_TURBULENCE_SIGMA
 from quadctl.config.schema import MAX_WIND as MAX_WIND
 from quadctl.config.schema import MAX_WIND_ALTITUDE as MAX_WIND_ALTITUDE
 from quadctl.config.schema import NAME_PATTERN as NAME_PATTERN
+from quadctl.config.schema import PLANT as PLANT
 from quadctl.config.schema import SUBSYSTEM_NAME_PATTERN as SUBSYSTEM_NAME_PATTERN
 from quadctl.config.schema import TURBULENCE_LENGTH as TURBULENCE_LENGTH
 from quadctl.config.schema import Config as Config
@@ -96,6 +97,7 @@ from quadctl.config.schema import WaypointConfig as WaypointConfig
 from quadctl.config.schema import WindComponent as WindComponent
 from quadctl.config.schema import WindConfig as WindConfig
 from quadctl.config.schema import WindVector as WindVector
+from quadctl.config.schema import default_at as default_at
 from quadctl.config.schema import first_model as first_model
 from quadctl.config.schema import inertia_parts as inertia_parts
 from quadctl.config.schema import section_model as section_model

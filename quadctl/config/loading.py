@@ -146,8 +146,9 @@ def from_dict(data: Any, label: str = "<config>") -> Config:
         cfg = Config.model_validate(data)
     except ValidationError as exc:
         from quadctl.config.describe import describe
+        from quadctl.filekinds import misplaced
 
-        raise ConfigError(describe(exc, data, label)) from None
+        raise ConfigError(misplaced(data, label, "config") or describe(exc, data, label)) from None
     check_semantics(cfg, label)
     return cfg
 

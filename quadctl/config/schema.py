@@ -8,6 +8,7 @@ Rules across fields are :mod:`quadctl.config.checks`'s.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 from typing import Annotated, Any, Literal, Optional, Union
@@ -459,3 +460,59 @@ def first_model(annotation: Any) -> Any:
         if found is not None:
             return found
     return None
+
+
+PLANT = ("simulation", "plant")
+"""The key path of the simulated vehicle: absent, or any of its keys absent, it is the design vehicle."""
+
+
+def default_at(tree: Any, keys) -> Any:
+    """The value the config holds at the key path ``keys`` where ``tree`` leaves it (or a section on
+    the way) out; ``tree`` is a config's data, as YAML gives it or as dumped.
+
+    What an absent value stands for, declared once: in ``simulation.plant`` the design vehicle's
+    value (``vehicle:``, itself with the schema's defaults), elsewhere the schema's default (a section
+    that takes no required key: all its defaults). None where there is none (``simulation.wind.gusts[0]``).
+
+    Examples
+    --------
+    >>> default_at({}, ("simulation", "noise", "force"))
+    [0.0, 0.0, 0.0]
+    >>> default_at({"vehicle": {"mass": 0.5}}, ("simulation", "plant", "mass"))
+    0.5
+    >>> default_at({}, ("simulation", "wind", "gusts", 0)) is None
+    True
+    """
+    keys = tuple(keys)
+    node = tree
+    for k, key in enumerate(keys):
+        if isinstance(node, dict):
+            value = node.get(key)
+        elif isinstance(node, list) and isinstance(key, int) and 0 <= key < len(node):
+            value = node[key]
+        else:
+            return None
+        node = _absent(tree, keys[:k + 1]) if value is None else value
+    return copy.deepcopy(node)  # a copy: the caller may change it, never ``tree``
+
+
+def _absent(tree: Any, loc: tuple) -> Any:
+    """What the value at ``loc`` stands for when the config leaves it out, or None."""
+    if loc[:2] == PLANT and len(loc) <= 3:
+        given = tree.get("vehicle") if isinstance(tree, dict) else None
+        vehicle = {**VehicleConfig().model_dump(mode="json"), **(given if isinstance(given, dict) else {})}
+        plant = {key: vehicle.get(key) for key in PlantConfig.model_fields}
+        return plant if len(loc) == 2 else plant.get(loc[2])
+    if not loc or isinstance(loc[-1], int):
+        return None
+    model = section_model(list(loc[:-1]))
+    field = model.model_fields.get(loc[-1]) if model is not None else None
+    if field is None or field.is_required():
+        return None
+    default = field.get_default(call_default_factory=True)
+    if default is None:
+        inner = first_model(field.annotation)
+        if inner is None or any(f.is_required() for f in inner.model_fields.values()):
+            return None
+        return inner().model_dump(mode="json")
+    return default.model_dump(mode="json") if isinstance(default, BaseModel) else default

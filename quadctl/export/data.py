@@ -216,7 +216,8 @@ def write_mat(path, exp: Export) -> None:
 
 
 def json_payload(exp: Export, meta: dict | None = None) -> dict:
-    """The JSON of ``exp``: ``fields`` (each with ``value``, ``unit``, ``shape``, ``description``).
+    """The JSON of ``exp``: ``fields``, each with ``value``, ``unit`` and ``description``, and an array
+    field also its ``shape`` (numpy's) and ``complex`` (its values are ``[re, im]`` pairs).
 
     Parameters
     ----------

@@ -13,7 +13,9 @@ from typing import Any
 import numpy as np
 
 from quadctl import __version__, yamlio
+from quadctl.config.schema import PLANT, default_at
 from quadctl.errors import SweepError
+from quadctl.filekinds import misplaced
 from quadctl.layout import STATE_NAMES
 from quadctl.messages import (
     KEY_PATH,
@@ -280,7 +282,8 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
                          "give at least `parameters:` (see examples/ci-sweep.yaml)")
     for key in data:
         if key not in TOP_KEYS:
-            raise fail(str(key), "unknown key; " + hint(str(key), TOP_KEYS))
+            raise SweepError(misplaced(data, label, "sweep") or f"{label}: {key}: unknown key; "
+                             + hint(str(key), TOP_KEYS))
     mode = data.get("mode", "grid")
     if mode not in MODES:
         raise fail("mode", f"{show(mode)} is not a mode; use grid or random")
@@ -513,9 +516,7 @@ def with_sections(base: dict, paths) -> dict:
     if base.get("simulation", {}).get("plant") is not None or not any(
             str(p).startswith("simulation.plant.") for p in paths):
         return base
-    vehicle = base["vehicle"]
-    plant = {key: vehicle[key] for key in ("mass", "gravity", "inertia", "drag")}
-    return assign(base, ("simulation", "plant"), plant)
+    return assign(base, PLANT, default_at(base, PLANT))
 
 
 def assign(tree: Any, keys: tuple, value) -> Any:

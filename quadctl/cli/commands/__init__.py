@@ -23,6 +23,10 @@ from quadctl.cli.commands import (
     trim,
 )
 from quadctl.cli.errors import handled
+from quadctl.cli.options import flags_without_placeholder
+
+COMMAND_CLASS = flags_without_placeholder(typer.core.TyperCommand)
+"""Every command's class: its flags show no value placeholder in ``--help``."""
 
 COMMANDS = (init, trim, linearize, decouple, check, design, schedule, simulate, margins, export, sweep, run, report,
             configs)
@@ -31,7 +35,7 @@ COMMANDS = (init, trim, linearize, decouple, check, design, schedule, simulate, 
 def register(app: typer.Typer) -> None:
     """Add every command, each wrapped by the one error handler."""
     for module in COMMANDS:
-        app.command(module.NAME, help=reflowed(module.command.__doc__))(handled(module.command))
+        app.command(module.NAME, cls=COMMAND_CLASS, help=reflowed(module.command.__doc__))(handled(module.command))
 
 
 def reflowed(doc: str) -> str:

@@ -2,7 +2,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.options import SetOpt
+from quadctl.cli.options import set_option
 
 NAME = "configs"
 
@@ -11,7 +11,7 @@ def command(
     show: Annotated[Optional[str], typer.Option(
         "--show", metavar="PATH|NAME",
         help="Print this config, validated, with every default filled in.")] = None,
-    sets: SetOpt = None,
+    sets: set_option("put into the config --show prints (give --show with it).") = None,
     schema: Annotated[bool, typer.Option(
         "--schema", help="Print the config's JSON Schema (units and defaults in the descriptions), for "
                          "editors: put `# yaml-language-server: $schema=<file>` atop a config.")] = False,
