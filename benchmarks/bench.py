@@ -15,7 +15,10 @@
 1b. The same loop at dt: auto (the stiff case: rate poles near -14 500 rad/s): ETDRK4's graded
    schedule at tolerance 1e-8 against RK4 at its stability-held step and LSODA at rtol 1e-10, CPU
    time of whole library calls, best of several; and a sweep of the 1000 random designs of
-   benchmarks/random-1000.yaml for 10 s at dt: auto, ETDRK4 against RK4 (steps per case, cases/s).
+   benchmarks/random-1000.yaml for 10 s at dt: auto, ETDRK4 against RK4 (steps per case, cases/s);
+   and ETDRK4 across the steps of a reference (velocity setpoints on the forward loop) and across a
+   gain schedule (the bundled schedule config flown from hover to 10 m/s), against RK4 at a small
+   step that divides the reference's rows.
 2. A sweep of 1000 random designs (benchmarks/random-1000.yaml, no two alike) x 10 000 RK4 steps:
    on both cores, on one, through the command line, and the one-case-at-a-time pipeline; and a
    sweep of 1000 random designs of mambo-200hz (benchmarks/mambo-1000.yaml: 200 Hz discrete
@@ -313,6 +316,68 @@ def stiff_simulation(cli_python: str) -> str:
 
 STIFF_SWEEP_DURATION = 10.0
 """s: the stiff sweep runs the report's whole 10 s per case (RK4 at its stability-held step)."""
+
+
+def stiff_references() -> str:
+    """ETDRK4 (dt: auto, tolerance 1e-8) where the reference steps: the forward loop with velocity
+    setpoints at 0.5 and 1 s (1.5 s), graded again after each (and, for comparison, from t = 0 only);
+    the schedule config flown from hover to 10 m/s in 2 m/s setpoints (6 s), each stretch on the loop
+    closed at the nearest schedule value (and on the trim's loop only). Errors against RK4 at 1/256 of
+    the rows' period (a step that divides it); RK4 at its stable step beside."""
+    import dataclasses
+    from unittest import mock
+
+    from quadctl import config, pipeline
+    from quadctl.problem import setup_of
+    from quadctl.scheduling import schedule_of
+    from quadctl.sim.run import simulate
+    from quadctl.trajectory import Reference
+
+    def flight(name: str, speeds, start: float, duration: float):
+        data = config.load(name).model_dump(exclude_none=True)
+        data["simulation"].update(duration=duration, reference={"setpoints": [
+            {"t": start + 0.5 * i if name == "forward" else start + i, "velocity": [v, 0.0, 0.0]}
+            for i, v in enumerate(speeds)]})
+        setup = setup_of(config.from_dict(data))
+        stages = pipeline.Stages(setup)
+        loop = stages.loop
+        if setup.schedule is not None:
+            sched = schedule_of(setup)
+            loop = pipeline.scheduled_loop(loop, sched.table, sched.heading, sched.checks.eigenvalues,
+                                           sched.jacobians)
+        return loop, setup.initial_state(loop.x_trim), pipeline.flown_reference(setup), duration
+
+    rows = []
+    flights = [("forward, velocity setpoints at 0.5 and 1 s (1.5 s)", flight("forward", (2.0, 3.0), 0.5, 1.5),
+                "graded from t = 0 only"),
+               ("schedule config, 0 to 10 m/s in 2 m/s setpoints (6 s)",
+                flight("schedule", (2.0, 4.0, 6.0, 8.0, 10.0), 1.0, 6.0), "on the trim's loop only")]
+    for label, (loop, x0, ref, T), other in flights:
+        truth = simulate(loop, x0, T, 0.005 / 256, reference=ref)
+
+        def err(run, truth=truth):
+            return f"{np.max(np.abs(run.x[-1] - truth.x[-1])):.1e}"
+
+        def etd(lp=loop, x0=x0, ref=ref, T=T):
+            return simulate(lp, x0, T, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
+
+        etd()  # compiled before timing
+        cpu, run = cpu_best(etd, 5)
+        rows.append([label, "ETDRK4, dt: auto, tolerance 1e-8", f"{run.steps:,}", f"{cpu * 1e3:.1f}", err(run)])
+        if loop.schedule is None:  # the steps of the reference not graded for
+            with mock.patch.object(Reference, "jumps", ()):
+                cpu_o, alt = cpu_best(etd, 5)
+        else:
+            trim_only = dataclasses.replace(loop, schedule_jacobians=None)
+            cpu_o, alt = cpu_best(lambda lp=trim_only: etd(lp), 5)
+        rows.append(["", f"ETDRK4, {other}", f"{alt.steps:,}", f"{cpu_o * 1e3:.1f}", err(alt)])
+        cpu_r, rk4 = cpu_best(lambda lp=loop, x0=x0, ref=ref, T=T: simulate(lp, x0, T, "auto", reference=ref), 3)
+        rows.append(["", "RK4, dt: auto (its stable step)", f"{rk4.steps:,}", f"{cpu_r * 1e3:.1f}", err(rk4)])
+    return table("ETDRK4 across the steps of a reference and a gain schedule",
+                 ["flight", "method", "steps", "CPU (ms)", "final error"], rows) + (
+        "\n\nCPU time of whole library calls, best of 5 (RK4: of 3). 'final error': largest final-state "
+        "difference (state units) from RK4 at 1/256 of the reference rows' 5 ms period. RK4 at its stable "
+        "step straddles the rows, so a setpoint acts at the next step's start.")
 
 
 def stiff_sweep() -> str:
@@ -740,6 +805,7 @@ def main() -> None:
         print(one_simulation(args.skip_slow, args.cli_python))
     if "stiff" in only:
         print(stiff_simulation(args.cli_python))
+        print(stiff_references())
         print(stiff_sweep())
     cfg_spec = None
     if "sweep" in only:
