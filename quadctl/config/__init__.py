@@ -18,6 +18,8 @@ name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``
   the weights' sizes, inertia, rotors, estimator, wind, delay, method) and bounds in context
 - :mod:`~quadctl.config.render`: the schema shown to people and editors (``quadctl configs --show``,
   ``--schema``)
+- :mod:`~quadctl.config.kinds`: what a file that fails is instead (a sweep file, an artifact), told
+  by its top-level keys, for the one line that says how to pass it
 - :mod:`~quadctl.config.loading`: finding a config (a file or a bundled name), loading and
   validating it, and a command-line value checked against the key it overrides
 """

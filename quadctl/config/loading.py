@@ -146,7 +146,7 @@ def from_dict(data: Any, label: str = "<config>") -> Config:
         cfg = Config.model_validate(data)
     except ValidationError as exc:
         from quadctl.config.describe import describe
-        from quadctl.filekinds import misplaced
+        from quadctl.config.kinds import misplaced
 
         raise ConfigError(misplaced(data, label, "config") or describe(exc, data, label)) from None
     check_semantics(cfg, label)

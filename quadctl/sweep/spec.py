@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 
 from quadctl import __version__, yamlio
+from quadctl.config.kinds import misplaced
 from quadctl.config.schema import PLANT, default_at
 from quadctl.errors import SweepError
-from quadctl.filekinds import misplaced
 from quadctl.layout import STATE_NAMES
 from quadctl.messages import (
     KEY_PATH,
