@@ -58,7 +58,9 @@ def parse(text: str) -> Assignment:
 
 
 def apply(data: Any, assignments) -> dict:
-    """A copy of the config's data (as YAML gives it) with each assignment put in, in order.
+    """A copy of the config's data (as YAML gives it) with each assignment put in, in order, those
+    under ``simulation.plant`` last: a plant the file leaves out stands for the design vehicle, so an
+    index into it starts from the vehicle as every other assignment leaves it, whatever their order.
 
     Raises
     ------
@@ -66,7 +68,7 @@ def apply(data: Any, assignments) -> dict:
         A key path that goes through a value (``vehicle.mass.x``) or past the end of a list.
     """
     out = copy.deepcopy(data) if isinstance(data, dict) else {}
-    for a in assignments:
+    for a in sorted(assignments, key=lambda a: list(a.keys[:2]) == ["simulation", "plant"]):  # stable
         node: Any = out
         *parents, last = a.keys
         try:
@@ -80,6 +82,7 @@ def apply(data: Any, assignments) -> dict:
             raise ConfigError(f"{OPTION} {a.path}: {exc}") from None
         node[last] = a.value
     return out
+
 
 def _absent(data: dict, a: Assignment, k: int):
     """What ``a`` walks into at its ``k``-th key, which ``data`` leaves out: a new section, or the list

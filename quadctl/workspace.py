@@ -8,14 +8,17 @@ atomically; an upstream artifact is reused only when its ``config_hash`` and qua
 version match, otherwise it is recomputed and rewritten (never a stale result). The first
 write of a session also writes the config as given (``config.yaml``) and as resolved
 (``config.resolved.yaml``), so a run directory always says what made it; the stage artifacts
-another config made are then removed (:data:`STAGE_FILES`), so no file in the folder disagrees
-with its config. Every write of a session can be undone (:meth:`Workspace.roll_back`): a command
-that refuses its input after some stages ran puts the folder back as it found it.
+another config made are then removed (:data:`STAGE_FILES`, with a notice naming them; figures,
+reports and exports are the commands' own and stay). Every write of a session can be undone
+(:meth:`Workspace.roll_back`): a command that refuses its input after some stages ran puts the
+folder back as it found it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
+import warnings
 import weakref
 from dataclasses import dataclass
 from functools import cached_property
@@ -28,7 +31,7 @@ from quadctl.analysis import Checks, check
 from quadctl.artifacts import default_out
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
-from quadctl.errors import ArtifactError, DesignError
+from quadctl.errors import ArtifactError, DesignError, QuadctlNotice
 from quadctl.layout import N_INPUTS, STATE_NAMES
 from quadctl.linearize import LinearModel
 from quadctl.lqr import Design
@@ -45,9 +48,24 @@ TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
 MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
 SCHEDULE_JSON, SCHEDULE_NPZ = "schedule.json", "schedule.npz"
 CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
+HASH_NOTE = " (config_hash {})"
+"""How ``config.resolved.yaml``'s first line ends: the digest of the config (:func:`config_hash_of`)."""
 STAGE_FILES = (TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON, MARGINS, DESIGN_FULL, SCHEDULE_JSON,
                SCHEDULE_NPZ)
 """The artifacts the stages write (each carries the ``config_hash`` it was made from)."""
+
+
+def config_hash_of(folder: Path | str) -> str | None:
+    """The ``config_hash`` a run folder's ``config.resolved.yaml`` names (None: none there, or unreadable)."""
+    try:
+        with open(Path(folder) / CONFIG_RESOLVED, encoding="utf-8") as f:
+            first = f.readline().rstrip("\n")
+    except (OSError, UnicodeDecodeError):
+        return None
+    head, _, tail = HASH_NOTE.partition("{}")
+    if not first.endswith(tail) or head not in first:
+        return None
+    return first.rpartition(head)[2][:-len(tail)] or None
 
 
 @dataclass(frozen=True)
@@ -179,7 +197,10 @@ class Workspace(pipeline.Stages):
         input: nothing it computed is kept); after :meth:`keep`, nothing."""
         for path, before in reversed(self._undo or []):
             try:
-                if before is not None:
+                if isinstance(before, str):  # a link the session replaced
+                    path.unlink(missing_ok=True)
+                    os.symlink(before[3:], path)
+                elif before is not None:
                     artifacts.write_bytes(path, before)
                 elif path.is_file() or path.is_symlink():  # made by the session (never a folder in its way)
                     path.unlink()
@@ -193,9 +214,16 @@ class Workspace(pipeline.Stages):
         self._undo = None
 
     def _before_change(self, path: Path) -> None:
-        """Remember what ``path`` holds (once a session) before it is written or removed."""
-        if self._undo is not None and all(path != p for p, _ in self._undo):
-            self._undo.append((path, path.read_bytes() if path.is_file() and not path.is_symlink() else None))
+        """Remember what ``path`` holds (once a session) before it is written or removed: its bytes, a
+        link's target (``"-> target"``), or None (absent, or unreadable: it cannot be put back)."""
+        if self._undo is None or any(path == p for p, _ in self._undo):
+            return
+        try:
+            before = (f"-> {os.readlink(path)}" if path.is_symlink()
+                      else path.read_bytes() if path.is_file() else None)
+        except OSError:
+            before = None
+        self._undo.append((path, before))
 
     def _write_json(self, name: str, kind: str, payload: dict, backends=()) -> None:
         self._write_config_files()
@@ -216,8 +244,8 @@ class Workspace(pipeline.Stages):
         resolved = self.cfg.to_yaml()
         given = self.source_text if self.source_text is not None else (
             "# built in Python, not read from a file: the validated config\n" + resolved)
-        head = (f"# the config as quadctl {__version__} validated it, every default filled in "
-                f"(config_hash {self.cfg.digest()})\n")
+        head = (f"# the config as quadctl {__version__} validated it, every default filled in"
+                f"{HASH_NOTE.format(self.cfg.digest())}\n")
         if self._folder_digest() != self.cfg.digest():
             self._remove_stale()
         for name, text in ((CONFIG_GIVEN, given), (CONFIG_RESOLVED, head + resolved)):
@@ -226,27 +254,30 @@ class Workspace(pipeline.Stages):
         self._config_written = True
 
     def _folder_digest(self) -> str | None:
-        """The ``config_hash`` the folder's ``config.resolved.yaml`` names (None: none readable)."""
-        try:
-            with open(self.path(CONFIG_RESOLVED), encoding="utf-8") as f:
-                first = f.readline()
-        except (OSError, UnicodeDecodeError):
-            return None
-        found = first.rpartition("(config_hash ")[2].rstrip().rstrip(")")
-        return found or None
+        return config_hash_of(self.out)
 
     def _remove_stale(self) -> None:
-        """Remove the stage artifacts another config (or quadctl version) made: quadctl never reuses them,
-        and beside this config they would say what it did not make. A damaged one is left to its notice."""
+        """Remove the stage artifacts another config made, with a notice naming them: quadctl never reuses
+        them, and beside this config they would say what it did not make. A file whose provenance cannot
+        be read (damaged, foreign) is left to the stage that reads it."""
+        removed = []
         for name in STAGE_FILES:
             path = self.path(name)
-            try:
-                stale = path.is_file() and not path.is_symlink() and not artifacts.is_fresh(path, self.cfg)
-            except ArtifactError:
-                continue
-            if stale:
+            if path.is_file() and not path.is_symlink() and self._made_by_another_config(path):
                 self._before_change(path)
                 path.unlink()
+                removed.append(name)
+        if removed:
+            warnings.warn(QuadctlNotice(f"{self.out}: removed {', '.join(removed)}, made by another config "
+                                        f"(config_hash {config_hash_of(self.out) or 'unknown'})"), stacklevel=2)
+
+    def _made_by_another_config(self, path: Path) -> bool:
+        try:
+            meta = artifacts.read_npz(path)[1] if path.suffix == ".npz" else artifacts.read_json(path)
+        except (ArtifactError, OSError, ValueError):
+            return False
+        found = meta.get("config_hash") if isinstance(meta, dict) else None
+        return isinstance(found, str) and found != self.cfg.digest()
 
     # -- stages ---------------------------------------------------------------------------
 

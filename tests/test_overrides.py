@@ -127,6 +127,18 @@ def test_an_index_into_a_list_of_a_section_the_file_leaves_out_starts_from_its_d
     assert overrides.load(config.bundled("hover"), [given]) == config.from_dict(data, "edited.yaml")
 
 
+def test_a_left_out_plant_starts_from_the_vehicle_every_set_leaves_whatever_their_order():
+    """The plant's list is filled from the vehicle after the vehicle's own --set values: given before or
+    after them, the same config (before: the plant took the file's vehicle, a mismatch nobody asked for)."""
+    sets = ["simulation.plant.inertia[0]=1e-4", "vehicle.inertia[1]=2e-4"]
+    data = copy.deepcopy(HOVER)
+    data["vehicle"]["inertia"][1] = 2e-4
+    data["simulation"]["plant"] = {"inertia": [1e-4, 2e-4, HOVER["vehicle"]["inertia"][2]]}
+    expected = config.from_dict(data, "edited.yaml")
+    assert overrides.load(config.bundled("hover"), sets) == expected
+    assert overrides.load(config.bundled("hover"), sets[::-1]) == expected
+
+
 @pytest.mark.parametrize("given,message", [
     ("simulation.wind.gusts[0]=1", r"^--set simulation\.wind\.gusts\[0\] = 1: the config leaves "
      r"`simulation\.wind\.gusts` out and its default \[\] has no \[0\]; set the whole list: "

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from quadctl import config
 from quadctl.cli.app import app
-from quadctl.workspace import STAGE_FILES, Workspace
+from quadctl.workspace import STAGE_FILES, Workspace, config_hash_of
 
 
 def invoke(*args):
@@ -40,7 +40,10 @@ def test_a_new_config_removes_what_the_old_one_made(tmp_path):
     assert res.exit_code == 1
     left = {p.name for p in tmp_path.iterdir()}
     assert {"trim.json", "checks.json"} <= left and not left & {"design.json", "sim.npz", "sim.json"}
-    digest = (tmp_path / "config.resolved.yaml").read_text().splitlines()[0].rsplit(" ", 1)[1].rstrip(")")
+    removed = "trim.json, linear.npz, subsystems.json, checks.json, design.json, sim.npz, sim.json"
+    assert f"removed {removed}, made by another config" in " ".join(res.stderr.split())
+    digest = config_hash_of(tmp_path)
+    assert digest is not None and digest != config.load("hover").digest()
     for name in left & {"trim.json", "subsystems.json", "checks.json"}:
         assert json.loads((tmp_path / name).read_text())["config_hash"] == digest, name
 
@@ -61,3 +64,36 @@ def test_roll_back_restores_what_was_overwritten_and_removes_what_was_new(tmp_pa
         ws.roll_back()  # kept: nothing undone
     assert json.loads((tmp_path / "trim.json").read_text())["config_hash"] == forward.digest()
     assert set(STAGE_FILES) >= set(_contents(tmp_path)) - {"config.yaml", "config.resolved.yaml"}
+
+
+def test_a_damaged_artifact_is_left_to_the_stage_that_reads_it(tmp_path):
+    """Stale removal reads each artifact's provenance; one it cannot read is not removed (nor said to be)."""
+    assert invoke("design", "-c", "hover", "-o", tmp_path).exit_code == 0
+    (tmp_path / "design.json").write_text("{ not json")
+    res = invoke("trim", "-c", "forward", "-o", tmp_path)
+    assert res.exit_code == 0
+    assert (tmp_path / "design.json").read_text() == "{ not json" and not (tmp_path / "linear.npz").exists()
+
+
+def test_a_refused_report_keeps_the_report_and_what_it_shows(tmp_path):
+    """report writes the report of a run that stops on bad input (the error is in it): the report and the
+    stage artifacts it shows stay together, with the config that made them."""
+    res = invoke("report", "-c", "hover", "-o", tmp_path, "--set", "simulation.dt=0.001")
+    assert res.exit_code == 2
+    assert (tmp_path / "report" / "report.html").exists() and (tmp_path / "design.json").exists()
+    design = json.loads((tmp_path / "design.json").read_text())
+    assert design["config_hash"] == config_hash_of(tmp_path)
+
+
+def test_roll_back_puts_a_replaced_link_back(tmp_path):
+    elsewhere = tmp_path / "elsewhere.json"
+    elsewhere.write_text("{}")
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "trim.json").symlink_to(elsewhere)
+    with Workspace(config.load("hover"), run) as ws:
+        assert ws.trim.residual < 1e-9
+        assert not (run / "trim.json").is_symlink()  # never written through a link: replaced
+        ws.roll_back()
+    assert (run / "trim.json").is_symlink() and (run / "trim.json").resolve() == elsewhere.resolve()
+    assert elsewhere.read_text() == "{}"
