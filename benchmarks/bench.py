@@ -343,8 +343,7 @@ def stiff_references() -> str:
         loop = stages.loop
         if setup.schedule is not None:
             sched = schedule_of(setup)
-            loop = pipeline.scheduled_loop(loop, sched.table, sched.heading, sched.checks.eigenvalues,
-                                           sched.jacobians)
+            loop = sched.flown_by(loop)
         return loop, setup.initial_state(loop.x_trim), pipeline.flown_reference(setup), duration
 
     rows = []

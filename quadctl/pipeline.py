@@ -143,6 +143,8 @@ def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
     """
     from dataclasses import replace
 
+    if jacobians is not None and len(jacobians[0]) != len(table.values):
+        raise ValueError(f"jacobians: {len(jacobians[0])} points for a table of {len(table.values)} values")
     eig = np.asarray(eigenvalues, dtype=complex).ravel()
     return replace(loop, schedule=table, schedule_heading=float(heading), schedule_eigenvalues=eig[np.isfinite(eig)],
                    schedule_jacobians=jacobians)

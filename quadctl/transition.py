@@ -77,11 +77,10 @@ def fly_transition(setup: Setup, table=None) -> Transition:
     fixed = stages.loop
     if table is None:
         schedule = schedule_of(setup)
-        table, eigenvalues, jacobians = schedule.table, schedule.checks.eigenvalues, schedule.jacobians
+        scheduled, table = schedule.flown_by(fixed), schedule.table
     else:
-        eigenvalues, jacobians = (), None
-    loops = {"scheduled": pipeline.scheduled_loop(fixed, table, heading_of(setup), eigenvalues, jacobians),
-             "fixed": fixed}
+        scheduled = pipeline.scheduled_loop(fixed, table, heading_of(setup))
+    loops = {"scheduled": scheduled, "fixed": fixed}
     sims = {label: pipeline.simulation_of(setup, loop, noise=False) for label, loop in loops.items()}
     grid = (float(table.values[0]), float(table.values[-1]))
     summary = {"variable": table.variable, "grid": list(grid),

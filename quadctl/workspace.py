@@ -393,7 +393,7 @@ class Workspace(pipeline.Stages):
         loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints, Kv=Kv)
         if setup.schedule is not None:  # fly the schedule's gains (and write schedule.json beside)
             sched = self.schedule
-            loop = pipeline.scheduled_loop(loop, sched.table, sched.heading, sched.checks.eigenvalues, sched.jacobians)
+            loop = sched.flown_by(loop)
         sim = pipeline.simulation_of(setup, loop, progress=self.progress)
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)

@@ -90,7 +90,6 @@ def _flown(setup: Setup, loop):
     and that schedule."""
     if setup.schedule is None:
         return loop, None
-    from quadctl.pipeline import scheduled_loop
     from quadctl.scheduling import schedule_of
 
     schedule = schedule_of(setup)
@@ -99,8 +98,7 @@ def _flown(setup: Setup, loop):
     if not schedule.passed:
         raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule.verdict()} "
                           "(`quadctl schedule` shows them)")
-    return scheduled_loop(loop, schedule.table, schedule.heading, schedule.checks.eigenvalues,
-                          schedule.jacobians), schedule
+    return schedule.flown_by(loop), schedule
 
 
 TARGETS = ("c", "mat", "json")
