@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -166,6 +167,11 @@ class ClosedLoop:
                                      lag_time_constant=self.lag_model_time_constant,
                                      rotor_time_constant=self.rotor_time_constant,
                                      mix=act.mix if act is not None else None, estimator=self.estimator)
+
+    @cached_property
+    def point_linear_parts(self) -> np.ndarray:
+        """(P, n, n): :meth:`linear_part` at each of the gain schedule's values (its ``schedule_jacobians``)."""
+        return np.stack([self.linear_part(p) for p in range(len(self.schedule.values))])
 
     def plant_linear_part(self) -> np.ndarray:
         """The plant linearized at the trim under a held input, in the loop state's order: what ETDRK4
@@ -549,7 +555,7 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     pieces = _linear_pieces(loop, plan, strides, reference)
     points = sorted({p for _, _, p in pieces if p is not None})
     if points:  # a gain schedule: each piece on the loop closed at its nearest value
-        L = np.stack([loop.linear_part(p) for p in points])
+        L = loop.point_linear_parts[points]
     ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
     spec = loop.spec(noisy, windy, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
     run = runner(spec, 1)
@@ -601,11 +607,14 @@ def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list
         v = scheduling_value(table.variable, np.asarray(loop.x_trim, dtype=float), loop.schedule_heading)
         point = int(np.argmin(np.abs(values - v)))
         return [(seg, stride, point) for seg, stride in zip(plan.schedule, strides)]
+    starts = [np.arange(seg.k0, seg.k0 + seg.n, stride) for seg, stride in zip(plan.schedule, strides)]
+    t = np.concatenate([ks * seg.dt for ks, seg in zip(starts, plan.schedule)])  # where a piece may start
+    v = scheduling_values(table.variable, reference.exact(t)[0], loop.schedule_heading)  # one mapped call
+    nearest_all = np.argmin(np.abs(v[:, None] - values[None, :]), axis=1)
+    bounds = np.cumsum([0, *map(len, starts)])
     pieces = []
-    for seg, stride in zip(plan.schedule, strides):
-        ks = np.arange(seg.k0, seg.k0 + seg.n, stride)  # absolute record indices: where a piece may start
-        v = scheduling_values(table.variable, reference.exact(ks * seg.dt)[0], loop.schedule_heading)
-        nearest = np.argmin(np.abs(v[:, None] - values[None, :]), axis=1)
+    for i, (seg, stride, ks) in enumerate(zip(plan.schedule, strides, starts)):
+        nearest = nearest_all[bounds[i]:bounds[i + 1]]
         cuts = [0, *np.flatnonzero(np.diff(nearest)) + 1]
         for a, b in zip(cuts, [*cuts[1:], len(ks)]):
             k_end = seg.k0 + seg.n if b == len(ks) else int(ks[b])
@@ -642,8 +651,7 @@ def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance:
     L = loop.linear_part() if linear_part is None else linear_part
     eig = np.linalg.eigvals(L)
     if loop.schedule is not None and loop.schedule_jacobians is not None:  # graded by every point's modes
-        points = [loop.linear_part(p) for p in range(len(loop.schedule.values))]
-        eig = np.concatenate([eig, np.linalg.eigvals(np.stack(points)).ravel()])
+        eig = np.concatenate([eig, np.linalg.eigvals(loop.point_linear_parts).ravel()])
     return L, plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=exo_period,
                             forced=reference is not None, max_stable_dt=max_stable_dt, kicks=kicks)
 
