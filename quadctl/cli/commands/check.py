@@ -2,6 +2,7 @@
 
 from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt, open_workspace, override, rate_option
+from quadctl.cli.stage_warnings import warn_of_the_rate
 
 RateOpt = rate_option(
     help="Also check the continuous design against this controller rate (a what-if for a config "
@@ -64,11 +65,3 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         failures.append(at_rate)
     if failures:
         raise FailedChecks(*failures)
-
-
-def warn_of_the_rate(rate: float, warnings) -> None:
-    """A continuous design's loops that ``rate`` (Hz) cannot realize, a warning each (``check`` and ``run``)."""
-    from quadctl.cli import render
-
-    for w in warnings:
-        render.warning(w.message(rate))

@@ -1,6 +1,4 @@
 
-from quadctl.cli.commands.check import warn_of_the_rate
-from quadctl.cli.commands.simulate import _require_within_limits, warn_of_the_flight
 from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import (
     AllowSaturationOpt,
@@ -12,6 +10,7 @@ from quadctl.cli.options import (
     SetOpt,
     open_workspace,
 )
+from quadctl.cli.stage_warnings import require_within_limits, warn_of_the_flight, warn_of_the_rate
 
 NAME = "run"
 
@@ -59,7 +58,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if sim.status != "ok":
         raise _stop(json, stages, f"simulate: {sim.message}")
     try:
-        _require_within_limits(ws, flown, allow_saturation)
+        require_within_limits(ws, flown, allow_saturation)
     except SaturationFailed as exc:
         raise _stop(json, stages, f"simulate: {exc}", exc) from None
     done("simulate", f"{sim.steps} {shown_flight.integrator_name(sim)} steps, {shown_flight.step_span(sim)}, "

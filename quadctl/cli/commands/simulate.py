@@ -10,6 +10,7 @@ from quadctl.cli.options import (
     SetOpt,
     open_workspace,
 )
+from quadctl.cli.stage_warnings import require_within_limits, warn_of_the_flight
 
 NAME = "simulate"
 
@@ -56,49 +57,4 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     warn_of_the_flight(ws, flown, allow_saturation)
     if sim.status != "ok":
         raise FailedChecks(sim.message)
-    _require_within_limits(ws, flown, allow_saturation)
-
-
-def warn_of_the_flight(ws, flown, allow_saturation: bool) -> None:
-    """The warnings on a flight (``simulate`` and ``run`` alike): inputs at a limit for a part of the
-    run the gate lets through, waypoints never reached, the gain schedule's."""
-    from quadctl.cli import render
-    from quadctl.pipeline import missed_waypoints
-    from quadctl.present.flight import saturation_text
-
-    saturates = saturation_text(flown.flight)
-    if saturates and not _fails_on_saturation(ws, flown, allow_saturation):  # else the error says it
-        render.warning(saturates)
-    missed = missed_waypoints(flown.flight.get("reference"))
-    if missed:
-        render.warning(missed)
-    warn_of_the_schedule(ws)
-
-
-def warn_of_the_schedule(ws) -> None:
-    """With ``schedule:``, the warnings on the gains flown: values with no trim, checks that fail."""
-    if ws.setup.schedule is not None:
-        from quadctl.cli import render
-        from quadctl.present.schedule import flight_warnings
-
-        for line in flight_warnings(ws.schedule):
-            render.warning(line)
-
-
-def _require_within_limits(ws, flown, allow_saturation: bool) -> None:
-    """Exit 1 (a check failed) when the design saturates most of the run and nobody accepted it."""
-    from quadctl import motors
-
-    sat = flown.flight.get("saturation")
-    motors.require_within_limits(sat["fraction"] if sat else None,
-                                 allowed=allow_saturation or "saturation" in ws.cfg.allow)
-
-
-def _fails_on_saturation(ws, flown, allow_saturation: bool) -> bool:
-    from quadctl.errors import SaturationFailed
-
-    try:
-        _require_within_limits(ws, flown, allow_saturation)
-    except SaturationFailed:
-        return True
-    return False
+    require_within_limits(ws, flown, allow_saturation)

@@ -1,0 +1,57 @@
+"""The warnings and the gate on a stage's result that every command running the stage gives alike
+(``simulate``, ``check`` and ``run``): the verdicts are the library's, this only prints them."""
+
+from __future__ import annotations
+
+
+def warn_of_the_flight(ws, flown, allow_saturation: bool) -> None:
+    """The warnings on a flight (``simulate`` and ``run`` alike): inputs at a limit for a part of the
+    run the gate lets through, waypoints never reached, the gain schedule's."""
+    from quadctl.cli import render
+    from quadctl.pipeline import missed_waypoints
+    from quadctl.present.flight import saturation_text
+
+    saturates = saturation_text(flown.flight)
+    if saturates and not _fails_on_saturation(ws, flown, allow_saturation):  # else the error says it
+        render.warning(saturates)
+    missed = missed_waypoints(flown.flight.get("reference"))
+    if missed:
+        render.warning(missed)
+    warn_of_the_schedule(ws)
+
+
+def warn_of_the_schedule(ws) -> None:
+    """With ``schedule:``, the warnings on the gains flown: values with no trim, checks that fail."""
+    if ws.setup.schedule is not None:
+        from quadctl.cli import render
+        from quadctl.present.schedule import flight_warnings
+
+        for line in flight_warnings(ws.schedule):
+            render.warning(line)
+
+
+def require_within_limits(ws, flown, allow_saturation: bool) -> None:
+    """Exit 1 (a check failed) when the design saturates most of the run and nobody accepted it."""
+    from quadctl import motors
+
+    sat = flown.flight.get("saturation")
+    motors.require_within_limits(sat["fraction"] if sat else None,
+                                 allowed=allow_saturation or "saturation" in ws.cfg.allow)
+
+
+def _fails_on_saturation(ws, flown, allow_saturation: bool) -> bool:
+    from quadctl.errors import SaturationFailed
+
+    try:
+        require_within_limits(ws, flown, allow_saturation)
+    except SaturationFailed:
+        return True
+    return False
+
+
+def warn_of_the_rate(rate: float, warnings) -> None:
+    """A continuous design's loops that ``rate`` (Hz) cannot realize, a warning each (``check`` and ``run``)."""
+    from quadctl.cli import render
+
+    for w in warnings:
+        render.warning(w.message(rate))
