@@ -391,7 +391,6 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
                     schedule=tuple(segments), **held_at)
 
 
-
 def _graded(span: float, top: float, level: int, allowed_at, held_period: float | None) -> list[Segment]:
     """The segments of ``span`` s graded from its start: steps ``top / 2^level`` first, each level up
     from where :func:`allows` lets ``h(t)`` take twice the step (``allowed_at``: those times, of ``2h``,
@@ -428,6 +427,7 @@ def _graded(span: float, top: float, level: int, allowed_at, held_period: float 
         level = after_level
         if t >= span - 1e-12 * span:
             return segments
+
 
 def record_strides(plan: StepPlan, max_samples: int) -> list[int]:
     """Per segment of ``plan``, the stride that records at the same times in every segment: the
