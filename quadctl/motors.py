@@ -274,7 +274,8 @@ def saturation_fraction(actuators: Actuators, u) -> dict[str, float]:
     return {name: float(at[:, i].mean()) for i, name in enumerate(actuators.names)}
 
 
-def require_within_limits(fractions: dict[str, float] | None, *, allowed: bool = False) -> None:
+def require_within_limits(fractions: dict[str, float] | None, mode: str | None, *,
+                          allowed: bool = False) -> None:
     """Raise :class:`~quadctl.errors.SaturationFailed` (exit 1) when an actuator is at a limit more than
     :data:`SATURATION_FAIL` of the run, unless ``allowed`` (``--allow-saturation``, ``allow: [saturation]``).
 
@@ -282,16 +283,21 @@ def require_within_limits(fractions: dict[str, float] | None, *, allowed: bool =
     ----------
     fractions : dict or None
         Actuator name -> fraction of the run at a limit (:func:`saturation_fraction`); None: no actuators.
+    mode : {"motors", "box"} or None
+        The :attr:`Actuators.mode` that clipped: the message names its key (``motors.max_thrust``, or the
+        box of the input at its limit, ``limits.R``).
     """
     if not fractions or allowed:
         return
     worst = max(fractions, key=fractions.get)
     if fractions[worst] <= SATURATION_FAIL:
         return
+    really = ("give the rotors the thrust they really have (motors.max_thrust)" if mode == "motors" else
+              f"give {worst} the range the vehicle really has (limits.{worst})")
     raise SaturationFailed(
         f"the design saturates: {worst} is at a limit {fractions[worst] * 100:.3g} % of the run, more than "
         f"{SATURATION_FAIL * 100:g} % (SATURATION_FAIL), so it flies its limits, not the design; lower the gains "
-        "(larger lqr R) or the initial offset, or give the rotors the thrust they really have (motors.max_thrust); "
+        f"(larger lqr R) or the initial offset, or {really}; "
         "--allow-saturation (or allow: [saturation] in the config) accepts it")
 
 

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
 from quadctl import config, motors, pipeline
-from quadctl.errors import ConfigError
+from quadctl.errors import ConfigError, SaturationFailed
 from quadctl.layout import INPUT_INDEX
 from quadctl.problem import setup_of
 
@@ -93,6 +94,20 @@ def test_box_limits_clip_the_inputs_and_are_reported():
         assert np.abs(sim.u[:, INPUT_INDEX[name]]).max() <= 0.05 + 1e-15
     fractions = motors.saturation_fraction(loop.actuators, sim.u)
     assert fractions["T"] == 0.0 and fractions["R"] > 0.0  # the report's yaw gain asks for 1.4 N m
+
+
+@pytest.mark.parametrize("mode, fractions, way_out", [
+    ("motors", {"rotor 1": 0.2, "rotor 2": 0.9, "rotor 3": 0.0, "rotor 4": 0.0},
+     "give the rotors the thrust they really have (motors.max_thrust)"),
+    ("box", {"T": 0.0, "A": 0.3, "E": 0.0, "R": 1.0}, "give R the range the vehicle really has (limits.R)"),
+])
+def test_a_design_at_its_limits_most_of_the_run_is_told_the_key_of_those_limits(mode, fractions, way_out):
+    worst = max(fractions, key=fractions.get)
+    with pytest.raises(SaturationFailed, match=rf"^the design saturates: {worst} is at a limit .* initial offset, "
+                                               rf"or {re.escape(way_out)}; --allow-saturation"):
+        motors.require_within_limits(fractions, mode)
+    motors.require_within_limits(fractions, mode, allowed=True)  # accepted: no failure
+    motors.require_within_limits({k: min(v, 0.5) for k, v in fractions.items()}, mode)  # half the run: within
 
 
 def test_the_reports_design_saturates_the_mambo_rotors_and_is_flagged():

@@ -16,6 +16,7 @@ from quadctl import margins, present, stability
 from quadctl.messages import eig_text
 from quadctl.present import cells, loops
 from quadctl.present import design as shown
+from quadctl.present import flight as shown_flight
 
 PACKAGE = quadctl.__file__.rsplit("/", 1)[0]
 
@@ -72,6 +73,20 @@ def test_eigenvalues_are_formatted_only_by_messages_eig_text():
                     and isinstance(node.value, ast.Attribute) and node.value.attr == "imag"):
                 offenders.append(f"{path.name}:{node.lineno}")
     assert offenders == []
+
+
+def test_headroom_used_is_a_share_from_0_to_100_percent_each_way():
+    """R at trim 0 in a box [-1e-7, 1e-7] N m, held at the lower limit the whole run: it used none of its room
+    up and all of its room down. A (trim 0, box [-2, 2]) went to -0.5 and 1.5: 75 % up, 25 % down."""
+    inf = math.inf
+    sat = {"mode": "box", "actuators": ["T", "A", "E", "R"], "flag_above": 0.01,
+           "fraction": {"T": 0.0, "A": 0.0, "E": 0.0, "R": 1.0},
+           "low": [-inf, -2.0, -inf, -1e-7], "high": [inf, 2.0, inf, 1e-7],
+           "peak_command": {"T": 0.7, "A": 1.5, "E": 0.0, "R": -1e-7},
+           "min_command": {"T": 0.6, "A": -0.5, "E": 0.0, "R": -1e-7}}
+    table = shown_flight.headroom_table({"saturation": sat}, [0.65, 0.0, 0.0, 0.0])
+    used = {row[0]: row[4] for row in table.rows}
+    assert used == {"T": "- / -", "A": "75 % / 25 %", "E": "- / -", "R": "0 % / 100 %"}
 
 
 def test_damp_of_a_second_order_pair_and_a_real_pole():

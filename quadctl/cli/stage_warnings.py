@@ -35,7 +35,8 @@ def require_within_limits(ws, flown, allow_saturation: bool) -> None:
     from quadctl import motors
 
     sat = flown.flight.get("saturation")
-    motors.require_within_limits(sat["fraction"] if sat else None,
+    fractions, mode = (sat["fraction"], sat["mode"]) if sat else (None, None)
+    motors.require_within_limits(fractions, mode,
                                  allowed=allow_saturation or "saturation" in ws.cfg.allow)
 
 

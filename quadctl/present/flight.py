@@ -77,8 +77,9 @@ def headroom_table(flight: dict, u_trim) -> Table | None:
         unit = "N" if motors else unit_of(name)
         lo, hi, trim_i = sat["low"][i], sat["high"][i], trims[i]
         peak, low_cmd = sat["peak_command"][name], sat["min_command"][name]
-        up = (peak - trim_i) / (hi - trim_i) if math.isfinite(hi) and hi > trim_i else None
-        down = (trim_i - low_cmd) / (trim_i - lo) if math.isfinite(lo) and trim_i > lo else None
+        # a command that never rose above the trim used none of the room up (0 %, not a negative share)
+        up = max(peak - trim_i, 0.0) / (hi - trim_i) if math.isfinite(hi) and hi > trim_i else None
+        down = max(trim_i - low_cmd, 0.0) / (trim_i - lo) if math.isfinite(lo) and trim_i > lo else None
         frac = sat["fraction"][name]
         row = [name, f"{num(lo)} to {num(hi)} {unit}", num(trim_i), f"{num(low_cmd)} / {num(peak)}",
                f"{percent(up)} / {percent(down)}", Mark(percent(frac), "fail" if frac > sat["flag_above"] else "")]
