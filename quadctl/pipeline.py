@@ -500,10 +500,17 @@ def tracking_lines(tracking: dict) -> list[str]:
     lines = [f"tracking error |p - p_ref|: rms {err['rms']:.3g} m, peak {err['peak']:.3g} m, "
              f"final {err['final']:.3g} m"]
     if "waypoints" in tracking:
-        times = ", ".join("never" if w["reached"] is None else f"{w['reached']:.3f} s" for w in tracking["waypoints"])
-        reached = sum(w["reached"] is not None for w in tracking["waypoints"])
-        lines.insert(0, f"waypoints: {reached} of {len(tracking['waypoints'])} reached within "
-                        f"{tracking['tolerance']:g} m, at {times} (mission ends at {tracking['mission_end']:.4g} s)")
+        wps = tracking["waypoints"]
+        reached = [(i, w["reached"]) for i, w in enumerate(wps) if w["reached"] is not None]
+        within = f"within {tracking['tolerance']:g} m"
+        if not reached:
+            said = f"none of {len(wps)} reached {within}"
+        elif len(reached) == len(wps):
+            said = f"{len(wps)} of {len(wps)} reached {within}, at " + ", ".join(f"{t:.3f} s" for _, t in reached)
+        else:  # name the ones reached: the others are the warning's
+            said = (f"{len(reached)} of {len(wps)} reached {within}: "
+                    + ", ".join(f"waypoints[{i}] at {t:.3f} s" for i, t in reached))
+        lines.insert(0, f"waypoints: {said} (mission ends at {tracking['mission_end']:.4g} s)")
     return lines
 
 

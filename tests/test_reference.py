@@ -110,6 +110,25 @@ def test_the_square_mission_passes_every_waypoint_in_order_and_holds_the_last(sq
     assert np.abs(sim.x[-1, 3:6]).max() < 1e-3  # at rest on the last waypoint
 
 
+@pytest.mark.parametrize("reached, said", [
+    ([1.785, 5.497, 8.409, 12.12], "4 of 4 reached within 0.05 m, at 1.785 s, 5.497 s, 8.409 s, 12.120 s"),
+    ([1.785, None, 8.409, None], "2 of 4 reached within 0.05 m: waypoints[0] at 1.785 s, waypoints[2] at 8.409 s"),
+    ([None] * 4, "none of 4 reached within 0.05 m"),
+])
+def test_the_waypoints_line_names_the_times_of_those_reached(reached, said):
+    tracking = {"position_error": {"rms": 0.01, "peak": 0.1, "final": 0.0}, "tolerance": 0.05,
+                "mission_end": 12.75, "waypoints": [{"position": [0.0, 0.0, -1.0], "reached": r} for r in reached]}
+    assert pipeline.tracking_lines(tracking)[0] == f"waypoints: {said} (mission ends at 12.75 s)"
+
+
+def test_a_mission_flown_outside_a_tight_tolerance_reaches_none(square, square_run):
+    setup, _ = square
+    ref = replace(setup.reference, tolerance=1e-9)
+    tracking = pipeline.tracking_of(ref, square_run.t, square_run.x, square_run.x_ref)
+    assert pipeline.tracking_lines(tracking)[0].startswith("waypoints: none of 4 reached within 1e-09 m (mission ")
+    assert pipeline.missed_waypoints(tracking).startswith("simulation.reference.waypoints[0] [")
+
+
 def test_the_feedforward_tracks_a_flat_reference_to_the_tabulation_error(square):
     """From x_ref(0), no noise: the feedback sees only the error of tabulating the reference on the
     5 ms exogenous clock (it shrinks with the clock); a moving setpoint alone (position and velocity,
