@@ -41,6 +41,8 @@ CONFIG_CASES = {
                       r"vehicle\.drag\[1\] = -0\.1: must be at least 0"),
     "vector length": (_edit("velocity_ned: [1.0, 0.0, 0.0]", "velocity_ned: [1.0, 0.0]"),
                       r"trim\.velocity_ned = \[1, 0\]: must be a list of exactly 3 items"),
+    "empty state list": (_edit("states: [v, phi, p]", "states: []"),
+                         r"subsystems\.roll\.states = \[\]: must be a list of at least 1 item \("),
     "unknown state": (_edit("states: [v, phi, p]", "states: [v, phi, pp]"),
                       r"subsystems\.roll\.states\[2\] = \"pp\": unknown state; did you mean `p`\?"),
     "unknown input": (_edit("inputs: [E]", "inputs: [El]"),

@@ -86,7 +86,8 @@ def expected(err: dict, loc: list) -> str:
             hi = getattr(meta.get("MaxLen"), "max_length", hi)
         count = f"exactly {lo}" if lo is not None and lo == hi else f"at least {lo}" if hi is None else \
             f"{lo} to {hi}"
-        return f"must be a list of {count} items{unit}"
+        items = "item" if (hi if hi is not None else lo) == 1 else "items"
+        return f"must be a list of {count} {items}{unit}"
     if kind == "list_type":
         return f"must be a list{unit}"
     if kind in ("string_type",):
