@@ -207,12 +207,32 @@ def load(text: str, label: str, error: type[QuadctlError] = ConfigError) -> Any:
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         kind = "syntax error" if isinstance(exc, (yaml.scanner.ScannerError, yaml.parser.ParserError,
                                                   yaml.reader.ReaderError)) else "error"
-        raise error(f"{label}: YAML {kind}{where}: {problem}; fix the YAML") from None
+        raise error(f"{label}: YAML {kind}{where}: {_in_plain_words(text, mark, problem)}") from None
     except RecursionError:  # MAX_DEPTH keeps the composer shallow; this is the last line of defence
         raise error(f"{label}: nested too deeply to read; check the brackets") from None
     finally:
         if loader is not None:
             loader.dispose()
+
+
+_KEY_WITHOUT_SPACE = re.compile(r"^\s*(?:-\s+)?[A-Za-z_][\w-]*:[^\s:/]\S*")
+"""A line that starts ``key:value`` (no space after the colon): YAML reads it as one word, not a key."""
+
+
+def _in_plain_words(text: str, mark, problem: str) -> str:
+    """The parser's ``problem`` with the fix of its common causes in plain words: a tab where YAML
+    wants spaces, or a ``key:value`` line (the nearest at or above the error) missing its space."""
+    lines = text.splitlines()
+    if mark is None or mark.line >= len(lines):
+        return f"{problem}; fix the YAML"
+    if lines[mark.line][mark.column:mark.column + 1] == "\t":
+        return "a tab character; YAML indents with spaces, not tabs: replace the tab with spaces"
+    for number in range(mark.line, -1, -1):
+        found = _KEY_WITHOUT_SPACE.match(lines[number])
+        if found:
+            return (f"{problem}; line {number + 1} has `{found.group().strip()}`, one word to YAML: write "
+                    "`key: value` with a space after the colon")
+    return f"{problem}; fix the YAML"
 
 
 def read_text(path: str | Path, label: str, what: str, error: type[QuadctlError] = ConfigError) -> str:

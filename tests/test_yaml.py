@@ -125,6 +125,23 @@ def test_yaml_errors_are_one_line(text, message):
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.parametrize("text,message", [
+    ("vehicle:\n  mass: 0.068\n\tgravity: 9.81\n",
+     "c.yaml: YAML syntax error at line 3, column 1: a tab character; YAML indents with spaces, not tabs: "
+     "replace the tab with spaces"),
+    ("vehicle:\n  mass:0.068      # kg\n  gravity: 9.81\n",
+     "c.yaml: YAML syntax error at line 3, column 3: expected <block end>, but found '<block mapping start>'; "
+     "line 2 has `mass:0.068`, one word to YAML: write `key: value` with a space after the colon"),
+    ("name:forward\ndescription: a\n",
+     "c.yaml: YAML syntax error at line 2, column 12: mapping values are not allowed here; line 1 has "
+     "`name:forward`, one word to YAML: write `key: value` with a space after the colon"),
+])
+def test_a_tab_or_a_missing_space_after_a_colon_is_told_in_plain_words(text, message):
+    with pytest.raises(ConfigError) as info:
+        load(text)
+    assert str(info.value) == message
+
+
 def test_text_longer_than_the_cap_is_refused():
     with pytest.raises(ConfigError, match=r"^c\.yaml: 1,000,001 characters, more than the 1,000,000 quadctl reads "
                                           r"\(MAX_BYTES\)"):
