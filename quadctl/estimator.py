@@ -42,7 +42,7 @@ import numpy as np
 from quadctl.analysis import check
 from quadctl.errors import DesignError
 from quadctl.layout import N_STATES, SENSOR_GROUPS, STATE_INDEX, STATE_NAMES
-from quadctl.messages import eig_text
+from quadctl.messages import eig_text, show
 from quadctl.model import N_DISTURBANCES, Vehicle, build_model
 from quadctl.stability import is_stable
 
@@ -143,7 +143,7 @@ def require_detectable(A, C, measured, key: str = "estimator.measure") -> None:
     modes = ", ".join(eig_text(m.eigenvalue, 3) for m in bad)
     groups = [g for g, ss in SENSOR_GROUPS.items() if set(states) & set(ss)]
     raise DesignError(
-        f"{key} = {list(measured)}: {', '.join(states)} not observable (modes at s = {modes}, not stable): "
+        f"{key} = {show(list(measured))}: {', '.join(states)} not observable (modes at s = {modes}, not stable): "
         f"measure {' and '.join(states)}" + (f" (e.g. add {' or '.join(groups)})" if groups else ""))
 
 
