@@ -32,6 +32,13 @@ class ActuatorLimitError(ConfigError):
     from_config = True
 
 
+class RateError(ConfigError):
+    """A command's rate (``--rate``) and the config's ``controller.rate`` disagree, or a command that
+    samples (``export --to c``) gets neither: found from the setup, not the file."""
+
+    from_config = True
+
+
 class SweepError(QuadctlError, ValueError):
     """A sweep file is invalid."""
 

@@ -72,14 +72,14 @@ class Timing:
 
         Raises
         ------
-        ConfigError
+        RateError
             ``rate`` given, and the config sets another rate (exit 2).
         """
         if rate is not None and self.rate is not None and rate != self.rate:
-            from quadctl.errors import ConfigError
+            from quadctl.errors import RateError
 
-            raise ConfigError(f"--rate {rate:g}: the config sets controller.rate = {self.rate:g} Hz; drop --rate, "
-                              "or remove controller.rate to run the continuous design at another rate")
+            raise RateError(f"--rate {rate:g}: the config sets controller.rate = {self.rate:g} Hz; drop --rate, "
+                            "or remove controller.rate to run the continuous design at another rate")
 
 
 @dataclass(frozen=True)

@@ -87,8 +87,9 @@ def test_a_rate_beside_the_configs_own_is_refused_alike_by_check_and_export(tmp_
     """check used to ignore --rate on a discrete design (mambo-200hz: 200 Hz) while export refused it."""
     res = invoke(*command, "-c", "mambo-200hz", "--rate", 100, "-o", tmp_path)
     assert res.exit_code == 2, res.output
-    assert res.stderr.strip() == ("quadctl: error: --rate 100: the config sets controller.rate = 200 Hz; drop --rate, "
-                                  "or remove controller.rate to run the continuous design at another rate")
+    assert res.stderr.strip() == ("quadctl: error: mambo-200hz.yaml: --rate 100: the config sets controller.rate "
+                                  "= 200 Hz; drop --rate, or remove controller.rate to run the continuous design at "
+                                  "another rate")
     assert not (tmp_path / "checks.json").exists()
 
 

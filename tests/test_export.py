@@ -602,7 +602,7 @@ def test_a_continuous_design_needs_a_rate(tmp_path):
     res = runner.invoke(app, ["export", "--to", "c", "-c", "hover", "-o", str(tmp_path)])
     assert res.exit_code == 2
     assert res.stderr.strip() == (
-        "quadctl: error: the design is continuous (no controller.rate) and a flight computer samples: give "
+        "quadctl: error: hover.yaml: the design is continuous (no controller.rate) and a flight computer samples: give "
         "--rate HZ to run it at that rate, or set controller.rate (with controller.design: discrete to design "
         "for it)")
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from quadctl.errors import CheckFailed, ConfigError, ScheduleError
+from quadctl.errors import CheckFailed, RateError, ScheduleError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
@@ -49,7 +49,8 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     Raises
     ------
     ConfigError
-        No rate where one is needed, ``rate`` given for a config that has its own, outside
+        No rate where one is needed or ``rate`` given for a config that has its own
+        (:class:`~quadctl.errors.RateError`), outside
         ``controller.rate``'s bounds, or a gain schedule with values that do not trim
         (:class:`~quadctl.errors.ScheduleError`; exit 2).
     CheckFailed
@@ -68,9 +69,9 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     if rate is not None and timing.rate is None:  # the continuous design, run at that rate
         setup = replace(setup, timing=Timing(rate=float(rate)))
     elif setup.timing.rate is None and need_rate:
-        raise ConfigError("the design is continuous (no controller.rate) and a flight computer samples: "
-                          "give --rate HZ to run it at that rate, or set controller.rate "
-                          "(with controller.design: discrete to design for it)")
+        raise RateError("the design is continuous (no controller.rate) and a flight computer samples: "
+                        "give --rate HZ to run it at that rate, or set controller.rate "
+                        "(with controller.design: discrete to design for it)")
     stages = Stages(setup)
     if not stages.design.stable:
         raise CheckFailed("the design is unstable on the coupled 12-state model (every subsystem is stable "
