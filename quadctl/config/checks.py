@@ -201,7 +201,8 @@ def _check_delay(cfg: Config, fail) -> None:
              f"{lo / rate:.6g} s ({{samples: {lo}}}) or {hi / rate:.6g} s ({{samples: {hi}}})")
     if whole > MAX_DELAY_SAMPLES:
         fail("controller.delay", delay, f"is {whole} samples at {rate:g} Hz, more than MAX_DELAY_SAMPLES = "
-             f"{MAX_DELAY_SAMPLES}; shorten it")
+             f"{MAX_DELAY_SAMPLES} ({MAX_DELAY_SAMPLES / rate:g} s); controller.delay is in seconds (5 ms is "
+             "0.005): shorten it")
 
 
 MAX_DURATION = 86_400.0
