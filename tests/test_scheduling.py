@@ -230,6 +230,34 @@ def test_the_envelope_figure_draws_the_rotor_limits_and_marks_the_values_with_no
     np.testing.assert_allclose(poles.get_lines()[0].get_ydata(), sched.checks.slowest)
 
 
+def test_the_gain_legend_sits_beside_the_curves_and_tells_coincident_ones_apart():
+    """The bundled `schedule` case: 10 nonzero gains, roll and pitch designed alike (K[A,phi] and
+    K[E,theta] on one normalized curve), several constant gains on +1."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from quadctl import plots
+
+    sched = schedule_of(setup_of(config.load("schedule")))
+    fig = plots.schedule_figure(sched, title="schedule")
+    FigureCanvasAgg(fig).draw()
+    gains = fig.axes[0]
+    legend, box = gains.get_legend(), gains.get_window_extent()
+    beside = legend.get_window_extent()
+    assert box.x1 <= beside.x0 and beside.x1 <= fig.axes[1].get_window_extent().x0  # between the two panels
+    curves = {line.get_label().split(" ")[0]: line for line in gains.get_lines() if line.get_label()[0] == "K"}
+    assert len(curves) == 10
+    dashes = {}  # input -> the dash patterns (offset, on-off sequence) of its entries' lines
+    for name, line in curves.items():
+        offset, sequence = line._unscaled_dash_pattern
+        dashes.setdefault(name[2], set()).add((offset, tuple(sequence or ())))
+    assert sorted(dashes) == ["A", "E", "R", "T"] and all(len(d) == 1 for d in dashes.values())
+    assert len({d for ds in dashes.values() for d in ds}) == 4  # one pattern per input, no two alike
+    roll, pitch = curves["K[A,phi]"], curves["K[E,theta]"]
+    np.testing.assert_allclose(pitch.get_ydata(), roll.get_ydata(), atol=1e-3)  # one curve: two styles
+    assert pitch.get_label().endswith(", on K[A,phi]'s curve")
+    assert not curves["K[A,v]"].get_label().endswith("curve")
+
+
 def test_a_value_beyond_the_models_tilt_says_why():
     sched = schedule_of(setup_of(with_schedule("hover", {"variable": "speed", "values": [0.0, 1.0, 200.0]})))
     assert sched.envelope == (0.0, 1.0)

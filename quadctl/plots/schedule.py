@@ -9,6 +9,17 @@ from matplotlib.figure import Figure
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
 from quadctl.plots.drawing import COLORS, input_limits, limit_lines, trace
 
+GAIN_COLORS = tuple(f"C{n}" for n in range(10)) + ("black", "0.55")
+"""Colours of the gain entries in turn (a decoupled design has 10 to 12 nonzero entries)."""
+INPUT_STYLES = ("-", (0, (5, 5)), (5, (5, 5)), (0, (1, 2)))
+"""Line style of a gain entry by its input (T, A, E, R): A's and E's dashes alternate, so a roll gain
+and a pitch gain on one curve show both colours."""
+SAME_CURVE = 5e-3
+"""Two normalized gain curves (each over its largest magnitude) closer than this everywhere draw as one
+line (a pixel of the panel's -1 to 1 is about 0.006): the legend names the first."""
+INPUT_MARKERS = ("o", "s", "^", "D")
+"""Marker of a gain entry's design points by its input (T, A, E, R)."""
+
 
 def transition_figure(transition, *, title: str = "") -> Figure:
     """A transition flown with a gain schedule and with one fixed design (:class:`quadctl.transition.Transition`).
@@ -67,7 +78,8 @@ def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
     """The envelope of a gain schedule (:class:`quadctl.scheduling.Schedule`) against its variable.
 
     Four panels: the block gain's nonzero entries (each over its largest magnitude: markers at the
-    points, the interpolated table between them); the slowest pole and the least damping of the
+    points, the interpolated table between them; one line style and marker per input, the legend
+    beside the panel, naming the curves that coincide); the slowest pole and the least damping of the
     frozen-point loops along the fine grid (failures in red); the trim attitude (deg); the trim
     thrust (each rotor's, between ``min_thrust`` and ``max_thrust``, with ``motors:``; else ``T``
     and any ``limits:``). Values with no trim are marked by red dotted lines.
@@ -80,7 +92,7 @@ def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
     """
     from quadctl.layout import STATE_NAMES
 
-    fig = Figure(figsize=(11.0, 7.5), layout="constrained")
+    fig = Figure(figsize=(12.5, 7.5), layout="constrained")
     (ax_k, ax_p), (ax_a, ax_t) = fig.subplots(2, 2, sharex=True)
     good = [p for p in sched.points if p.designed]
     v = np.array([p.value for p in good])
@@ -88,15 +100,23 @@ def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
     K = sched.table.gains[:, :, :len(STATE_NAMES)]
     fine_K = sched.table.at(c.values)[:, :, :len(STATE_NAMES)]
     entries = [(i, j) for i in range(K.shape[1]) for j in range(K.shape[2]) if np.abs(K[:, i, j]).max() > 0]
+    drawn: list[tuple[str, np.ndarray]] = []
     for n, (i, j) in enumerate(entries):
         scale = np.abs(K[:, i, j]).max()
-        color = f"C{n % 10}"
-        ax_k.plot(c.values, fine_K[:, i, j] / scale, color=color, lw=1.0,
-                  label=f"K[{INPUT_NAMES[i]},{STATE_NAMES[j]}] ({scale:.3g})")
-        ax_k.plot(v, K[:, i, j] / scale, "o", color=color, ms=3)
+        name, curve = f"K[{INPUT_NAMES[i]},{STATE_NAMES[j]}]", fine_K[:, i, j] / scale
+        # one line style and marker per input, so that the entries of different inputs stay apart where
+        # their curves coincide (roll and pitch designed alike, constant gains at +-1); the legend says so
+        same = next((other for other, seen in drawn if np.allclose(curve, seen, rtol=0.0, atol=SAME_CURVE)), None)
+        drawn.append((name, curve))
+        color, style, marker = GAIN_COLORS[n % len(GAIN_COLORS)], INPUT_STYLES[i], INPUT_MARKERS[i]
+        ax_k.plot(c.values, curve, color=color, lw=1.2, ls=style,
+                  label=f"{name} ({scale:.3g})" + (f", on {same}'s curve" if same else ""))
+        ax_k.plot(v, K[:, i, j] / scale, marker, color=color, ms=3.5, mfc="none")
     ax_k.set_ylabel("gain / max |gain|")
     ax_k.set_title(f"gains ({sched.interpolation} between the points)", fontsize=9)
-    ax_k.legend(loc="best", fontsize=6, frameon=False, ncols=2)
+    # beside the panel, not over its curves (the layout makes room for it)
+    ax_k.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False, handlelength=3.0,
+                title="entry (max |gain|)", title_fontsize=7)
     ax_p.plot(c.values, c.slowest, color=COLORS[0], lw=1.4, label="slowest pole")
     bad = ~c.stable & np.isfinite(c.slowest)
     if bad.any():
