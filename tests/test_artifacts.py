@@ -58,7 +58,9 @@ def test_upstream_reused_only_when_config_hash_matches(tmp_path):
     # a different config in the same folder: recomputed, never stale
     other = config.from_dict({**cfg.model_dump(mode="json"), "vehicle": {"mass": 0.08}}, "x")
     ws2 = Workspace(other, tmp_path)
-    assert ws2.trim.u[0] == pytest.approx(0.08 * 9.81 * np.cos(ws2.trim.x[7]))
+    with pytest.warns(QuadctlNotice, match=r": removed trim\.json, linear\.npz, subsystems\.json, design\.json, "
+                                           r"made by another config \(config_hash "):
+        assert ws2.trim.u[0] == pytest.approx(0.08 * 9.81 * np.cos(ws2.trim.x[7]))
     ws2.linear  # noqa: B018
     assert tmp_path / "linear.npz" not in ws2.reused
     assert artifacts.read_npz(tmp_path / "linear.npz")[1]["config_hash"] == other.digest()

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from typer.testing import CliRunner
 
 from quadctl import config
 from quadctl.cli.app import app
+from quadctl.errors import QuadctlNotice
 from quadctl.workspace import STAGE_FILES, Workspace, config_hash_of
 
 
@@ -53,12 +55,12 @@ def test_roll_back_restores_what_was_overwritten_and_removes_what_was_new(tmp_pa
     with Workspace(hover, tmp_path) as ws:
         assert ws.trim.residual < 1e-9
     before = _contents(tmp_path)
-    with Workspace(forward, tmp_path) as ws:
+    with Workspace(forward, tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json, made by another"):
         assert ws.design.stable
         assert {"design.json", "linear.npz"} <= {p.name for p in tmp_path.iterdir()}
         ws.roll_back()
     assert _contents(tmp_path) == before
-    with Workspace(forward, tmp_path) as ws:
+    with Workspace(forward, tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json"):
         assert ws.trim.residual < 1e-9
         ws.keep()
         ws.roll_back()  # kept: nothing undone
