@@ -20,6 +20,9 @@ class QuadctlError(Exception):
 class ConfigError(QuadctlError, ValueError):
     """A config file or value is invalid (names the file, key path, value and fix)."""
 
+    key: str | None = None
+    """The key path the message is about, when one key is (``simulation.initial_offset.foo``)."""
+
 
 class ArtifactError(QuadctlError, OSError):
     """An artifact cannot be written, or an existing one is corrupt or foreign."""

@@ -125,8 +125,8 @@ def load(source: Source, sets=()) -> Config:
         if "unknown key" not in str(exc):  # a name the schema takes (lqr.rol) but no part of the config has
             for a in assignments:
                 created = _created(tree, a.keys)
-                if created is not None and f": {key_path(created[0])} = " not in str(exc):  # (else the
-                    # checks name that key themselves, with the names allowed there: `unknown state; allowed: ...`)
+                if created is not None and exc.key != key_path(created[0]):  # (else the checks name that
+                    # key themselves, with the names allowed there: `unknown state; allowed: ...`)
                     path, siblings = created
                     raise ConfigError(f"{OPTION} {a.path}: no such key in the config: `{key_path(path)}`; "
                                       + hint(str(path[-1]), siblings)) from None

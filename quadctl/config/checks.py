@@ -42,7 +42,9 @@ def _safe_name(name: str) -> str:
 
 def check_semantics(cfg: Config, label: str) -> None:
     def fail(path: str, value: Any, why: str) -> None:
-        raise ConfigError(f"{label}: {path} = {show(value)}: {why}")
+        error = ConfigError(f"{label}: {path} = {show(value)}: {why}")
+        error.key = path
+        raise error
 
     for name in cfg.subsystems or {}:
         if not re.fullmatch(SUBSYSTEM_NAME_PATTERN, name):
