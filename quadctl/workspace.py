@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import secrets
 import warnings
 import weakref
 from dataclasses import dataclass
@@ -153,8 +154,8 @@ class Workspace(pipeline.Stages):
         self.source_text = source_text
         self._config_written = False
         self.written: list[Path] = []
-        self._undo: list[tuple[Path, bytes | None]] | None = []
-        """Each file the session wrote or removed, and what it held before (None: absent); None: kept."""
+        self._undo: list[tuple[Path, Path | bytes | str | None]] | None = []
+        """Each file the session wrote or removed, and what it held before (:meth:`_before_change`); None: kept."""
         self.reused: list[Path] = []
         self.payloads: dict[str, dict] = {}
         """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
@@ -200,6 +201,8 @@ class Workspace(pipeline.Stages):
                 if isinstance(before, str):  # a link the session replaced
                     path.unlink(missing_ok=True)
                     os.symlink(before[3:], path)
+                elif isinstance(before, Path):  # the file itself, set aside
+                    os.replace(before, path)
                 elif before is not None:
                     artifacts.write_bytes(path, before)
                 elif path.is_file() or path.is_symlink():  # made by the session (never a folder in its way)
@@ -214,16 +217,30 @@ class Workspace(pipeline.Stages):
         self._undo = None
 
     def _before_change(self, path: Path) -> None:
-        """Remember what ``path`` holds (once a session) before it is written or removed: its bytes, a
-        link's target (``"-> target"``), or None (absent, or unreadable: it cannot be put back)."""
+        """Remember what ``path`` holds (once a session) before it is written or removed: the file set
+        aside (:meth:`_set_aside`), a link's target (``"-> target"``), or None (absent, or unreadable:
+        it cannot be put back)."""
         if self._undo is None or any(path == p for p, _ in self._undo):
             return
         try:
             before = (f"-> {os.readlink(path)}" if path.is_symlink()
-                      else path.read_bytes() if path.is_file() else None)
+                      else self._set_aside(path) if path.is_file() else None)
         except OSError:
             before = None
         self._undo.append((path, before))
+
+    def _set_aside(self, path: Path) -> Path | bytes:
+        """The file at ``path`` kept for :meth:`roll_back` without copying it: a second name in the folder
+        (a hard link; the atomic write gives ``path`` a new file, so this name keeps the old bytes), removed
+        when the workspace closes and named as a temporary a killed run leaves for the next to clean up;
+        its bytes where the file system has no hard links."""
+        aside = path.parent / f".{path.name}.{artifacts.TEMPORARY_TAG}-undo{secrets.token_hex(4)}.tmp"
+        try:
+            os.link(path, aside)
+        except OSError:
+            return path.read_bytes()
+        self._hold.callback(aside.unlink, missing_ok=True)
+        return aside
 
     def _write_json(self, name: str, kind: str, payload: dict, backends=()) -> None:
         self._write_config_files()

@@ -30,7 +30,7 @@ def test_a_refused_command_leaves_the_folder_as_it_was(tmp_path):
     before = _contents(tmp_path)
     res = invoke("simulate", "-c", "hover", "-o", tmp_path, "--set", "simulation.dt=0.001")
     assert res.exit_code == 2 and "is unstable for RK4" in res.stderr
-    assert _contents(tmp_path) == before
+    assert _contents(tmp_path) == before and not list(tmp_path.glob(".*.tmp"))
 
 
 def test_a_new_config_removes_what_the_old_one_made(tmp_path):
@@ -60,11 +60,13 @@ def test_roll_back_restores_what_was_overwritten_and_removes_what_was_new(tmp_pa
         assert {"design.json", "linear.npz"} <= {p.name for p in tmp_path.iterdir()}
         ws.roll_back()
     assert _contents(tmp_path) == before
+    assert not list(tmp_path.glob(".*.tmp"))  # the files set aside went back, none is left
     with Workspace(forward, tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json"):
         assert ws.trim.residual < 1e-9
         ws.keep()
         ws.roll_back()  # kept: nothing undone
     assert json.loads((tmp_path / "trim.json").read_text())["config_hash"] == forward.digest()
+    assert not list(tmp_path.glob(".*.tmp"))  # kept: the old files set aside are gone with the workspace
     assert set(STAGE_FILES) >= set(_contents(tmp_path)) - {"config.yaml", "config.resolved.yaml"}
 
 
@@ -99,3 +101,20 @@ def test_roll_back_puts_a_replaced_link_back(tmp_path):
         ws.roll_back()
     assert (run / "trim.json").is_symlink() and (run / "trim.json").resolve() == elsewhere.resolve()
     assert elsewhere.read_text() == "{}"
+
+
+def test_roll_back_without_hard_links_keeps_the_bytes(tmp_path, monkeypatch):
+    """A file system with no hard links: the files are kept as their bytes, and put back the same."""
+    import quadctl.workspace as workspace
+
+    def no_links(*_):
+        raise OSError(1, "Operation not permitted")
+
+    with Workspace(config.load("hover"), tmp_path) as ws:
+        assert ws.trim.residual < 1e-9
+    before = _contents(tmp_path)
+    monkeypatch.setattr(workspace.os, "link", no_links)
+    with Workspace(config.load("forward"), tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json"):
+        assert ws.design.stable
+        ws.roll_back()
+    assert _contents(tmp_path) == before and not list(tmp_path.glob(".*.tmp"))
