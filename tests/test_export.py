@@ -346,6 +346,22 @@ def _square(lqg: bool = False):
 CASES["square"] = _square
 CASES["square-lqg"] = lambda: _square(lqg=True)
 
+def _assert_fed_commands(exp, folder, label: str, fed, applied, terms: float) -> None:
+    """The export in double and in float, fed each sample's ``fed`` = (measured state, x_ref, u_ref),
+    returns the inputs the simulation applied: within DOUBLE_TOL in double, within FLOAT_INPUT_RTOL of
+    the law's terms' size ``terms`` in float."""
+    for single in (False, True):
+        ctl = Controller(exp, folder, single)
+        commands = np.array([ctl.step_ref(*row) for row in zip(*fed)])
+        du = np.abs(commands - applied).max()
+        if single:
+            print(f"{label} float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g})")
+            assert du <= FLOAT_INPUT_RTOL * terms, f"float: max |du| = {du:.3e} ({du / terms:.3e} of the terms' size)"
+        else:
+            print(f"{label} double: max |du| = {du:.3e}")
+            assert du <= DOUBLE_TOL, f"double: max |du| = {du:.4e}"
+
+
 
 @pytest.mark.compiler
 @pytest.mark.parametrize("case", ["square", "square-lqg"])
@@ -374,16 +390,7 @@ def test_the_exported_c_fed_the_reference_gives_the_simulated_commands(case, tmp
     dev = (ref.x_hat - ref.x_ref)[samples] if loop.estimator is not None else x_ref - ref.x[samples]
     terms = (np.abs(u_ref) + np.abs(dev) @ np.abs(loop.K).T
              + (np.abs(ref.z[samples]) @ np.abs(loop.Ki).T if loop.integral_states else 0.0)).max()
-    for single in (False, True):
-        ctl = Controller(exp, tmp_path / case, single)
-        commands = np.array([ctl.step_ref(*row) for row in zip(x, x_ref, u_ref)])
-        du = np.abs(commands - applied).max()
-        if single:
-            print(f"{case} float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g})")
-            assert du <= FLOAT_INPUT_RTOL * terms, f"float: max |du| = {du:.3e} ({du / terms:.3e} of the terms' size)"
-        else:
-            print(f"{case} double: max |du| = {du:.3e}")
-            assert du <= DOUBLE_TOL, f"double: max |du| = {du:.4e}"
+    _assert_fed_commands(exp, tmp_path / case, case, (x, x_ref, u_ref), applied, terms)
     # the reference matters: fed the trim instead, the same controller computes other commands
     trim_x, trim_u = Controller(exp, tmp_path / "trim", False).reference_trim()
     np.testing.assert_array_equal(trim_x, loop.x_trim)
@@ -425,16 +432,7 @@ def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
                 if name not in ("schedule_heading", "schedule_breaks", "schedule_coefficients"))
     assert f"#define QC_SCHEDULE_HEADING {start}  /* schedule_heading 1 */" in source
     terms = (np.abs(u_ref) + np.abs(x - x_ref) @ np.abs(table.gains).max(axis=0).T).max()
-    for single in (False, True):
-        ctl = Controller(exp, tmp_path / "schedule", single)
-        commands = np.array([ctl.step_ref(*row) for row in zip(x, x_ref, u_ref)])
-        du = np.abs(commands - applied).max()
-        if single:
-            print(f"schedule float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g})")
-            assert du <= FLOAT_INPUT_RTOL * terms, f"float: max |du| = {du:.3e} ({du / terms:.3e} of the terms' size)"
-        else:
-            print(f"schedule double: max |du| = {du:.3e}")
-            assert du <= DOUBLE_TOL, f"double: max |du| = {du:.4e}"
+    _assert_fed_commands(exp, tmp_path / "schedule", "schedule", (x, x_ref, u_ref), applied, terms)
     header = " ".join(cexport.sources(exp)[cexport.HEADER].replace(" * ", " ").split())
     for text in ("K = G(v), the gain schedule on speed v (m/s) of x_ref(t): the designs at v = 0, 4, 8, 12, 16, 20, "
                  "linear between them, held outside them", "v is the horizontal velocity of x_ref(t) along the "
