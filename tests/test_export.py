@@ -346,6 +346,7 @@ def _square(lqg: bool = False):
 CASES["square"] = _square
 CASES["square-lqg"] = lambda: _square(lqg=True)
 
+
 def _assert_fed_commands(exp, folder, label: str, fed, applied, terms: float) -> None:
     """The export in double and in float, fed each sample's ``fed`` = (measured state, x_ref, u_ref),
     returns the inputs the simulation applied: within DOUBLE_TOL in double, within FLOAT_INPUT_RTOL of
