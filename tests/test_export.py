@@ -363,7 +363,6 @@ def _assert_fed_commands(exp, folder, label: str, fed, applied, terms: float) ->
             assert du <= DOUBLE_TOL, f"double: max |du| = {du:.4e}"
 
 
-
 @pytest.mark.compiler
 @pytest.mark.parametrize("case", ["square", "square-lqg"])
 def test_the_exported_c_fed_the_reference_gives_the_simulated_commands(case, tmp_path):
