@@ -91,16 +91,10 @@ def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figur
 
 def wind_figure(sim, *, title: str = "") -> Figure:
     """The wind the plant felt (N, E, D components, m/s) against time."""
-    fig = Figure(figsize=(10.0, 3.5), layout="constrained")
-    ax = fig.subplots()
+    fig, ax = _over_time(3.5)
     for i, (name, color) in enumerate(zip(("wind N", "wind E", "wind D"), COLORS)):
         trace(ax, sim.t, sim.wind[:, i], color=color, lw=1.2, label=name)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("wind [m/s], NED")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=8, frameon=False)
-    fig.suptitle(f"{title}: wind" if title else "wind")
-    return fig
+    return _finished(fig, ax, "wind [m/s], NED", "wind", title)
 
 
 def path_figure(sim, waypoints=(), *, title: str = "") -> Figure:
@@ -144,17 +138,27 @@ def path_figure(sim, waypoints=(), *, title: str = "") -> Figure:
 
 def tracking_error_figure(sim, *, title: str = "") -> Figure:
     """The position tracking error against time: north, east and down, and its norm ``|p - p_ref|``."""
-    fig = Figure(figsize=(10.0, 3.8), layout="constrained")
-    ax = fig.subplots()
+    fig, ax = _over_time(3.8)
     err = sim.x[:, :3] - sim.x_ref[:, :3]
     for i, (name, color) in enumerate(zip(("pN", "pE", "pD"), COLORS)):
         trace(ax, sim.t, err[:, i], color=color, lw=1.2, label=f"{name} - reference")
     trace(ax, sim.t, np.linalg.norm(err, axis=1), color="k", lw=1.0, ls=":", label="|p - p_ref|")
+    return _finished(fig, ax, "position error [m]", "tracking error", title)
+
+
+def _over_time(height: float) -> tuple[Figure, object]:
+    """A full-width figure ``height`` inches tall with one axes, for quantities against time."""
+    fig = Figure(figsize=(10.0, height), layout="constrained")
+    return fig, fig.subplots()
+
+
+def _finished(fig: Figure, ax, ylabel: str, what: str, title: str) -> Figure:
+    """``fig`` with its time axis, ``ylabel``, grid, legend and title (``title: what``)."""
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("position error [m]")
+    ax.set_ylabel(ylabel)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8, frameon=False)
-    fig.suptitle(f"{title}: tracking error" if title else "tracking error")
+    fig.suptitle(f"{title}: {what}" if title else what)
     return fig
 
 
