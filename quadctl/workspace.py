@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import secrets
 import warnings
 import weakref
 from dataclasses import dataclass
@@ -234,7 +233,7 @@ class Workspace(pipeline.Stages):
         (a hard link; the atomic write gives ``path`` a new file, so this name keeps the old bytes), removed
         when the workspace closes and named as a temporary a killed run leaves for the next to clean up;
         its bytes where the file system has no hard links."""
-        aside = path.parent / f".{path.name}.{artifacts.TEMPORARY_TAG}-undo{secrets.token_hex(4)}.tmp"
+        aside = path.parent / f".{path.name}.{artifacts.TEMPORARY_TAG}-undo{os.urandom(4).hex()}.tmp"
         try:
             os.link(path, aside)
         except OSError:
