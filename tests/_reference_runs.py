@@ -2,8 +2,9 @@
 
 The reference (``tests/data/reference_runs.json``) holds what quadctl wrote before a change that
 must not move any number: each JSON artifact with its volatile fields (times, versions, compiler,
-speeds, paths) left out, and each ``.npz`` array (whole when it has few rows, else 33 evenly spaced rows,
-the first and the last among them). Remake it only when a change is meant to move numbers, and say which in the commit (``python tests/_reference_runs.py --write``).
+speeds, paths) left out, and each ``.npz`` array (whole when it has few rows, else 33 evenly spaced
+rows, the first and the last among them). Remake it only when a change is meant to move numbers,
+and say which in the commit (``python tests/_reference_runs.py --write``).
 
 The comparison holds on any CPU: each number to a tolerance from its own conditioning (see
 :func:`differences`), so another BLAS kernel's rounding passes and a gain moved by 1e-9 of
