@@ -147,8 +147,8 @@ def test_a_path_into_a_section_the_config_leaves_out_says_to_add_it(path, sectio
     assert getattr(hover.simulation, section.split(".")[1]) is None
     with pytest.raises(SweepError, match=rf"^s\.yaml: parameters\.{re.escape(path)}: the config has no "
                                          rf"`{re.escape(section)}` section \(it is null\); add a "
-                                         rf"`{re.escape(section)}:` section to the config, or give it under the sweep's "
-                                         rf"`set:`, to vary its keys$"):
+                                         rf"`{re.escape(section)}:` section to the config, or give it under the "
+                                         rf"sweep's `set:`, to vary its keys$"):
         sweep.from_dict({"parameters": {path: [1, 2]}}, hover, "s.yaml")
 
 

@@ -121,24 +121,26 @@ REFERENCE_SLIPS = {
     "yaw schedule in degrees": (["schedule={variable: yaw, values: [0, 45, 90]}"],
                                 r"^--set: schedule\.values\[1\] = 45: that is 2578 deg, beyond 720 deg; angles are in "
                                 r"rad: for 45 deg write 0\.7854$"),
-    "waypoint 10 km away": (["simulation.reference.waypoints[0].position=[10000, 0, -1]"],
-                            r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[10000, 0, -1\]: 10000 m from "
-                            r"the start along the mission, more than 10 times the 30 m that simulation\.reference\.speed"
-                            r" = 2 m/s covers in simulation\.duration = 15 s \(MAX_REACH\); positions are in m: for "
-                            r"millimetres write \[10, 0, -0\.001\], else correct the slip, or raise the speed or the "
-                            r"duration$"),
-    "waypoints in millimetres": ([f"simulation.reference.waypoints[{i}].position={p}" for i, p in
-                                  enumerate(("[2000, 0, -1000]", "[2000, 2000, -1500]"))],
-                                 r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[2000, 0, -1000\]: 2235\.6 m "
-                                 r"from the start .*: for millimetres write \[2, 0, -1\], else correct the slip"),
+    "waypoint 10 km away": (
+        ["simulation.reference.waypoints[0].position=[10000, 0, -1]"],
+        r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[10000, 0, -1\]: 10000 m from the start along "
+        r"the mission, more than 10 times the 30 m that simulation\.reference\.speed = 2 m/s covers in "
+        r"simulation\.duration = 15 s \(MAX_REACH\); positions are in m: for millimetres write \[10, 0, -0\.001\], "
+        r"else correct the slip, or raise the speed or the duration$"),
+    "waypoints in millimetres": (
+        [f"simulation.reference.waypoints[{i}].position={p}"
+         for i, p in enumerate(("[2000, 0, -1000]", "[2000, 2000, -1500]"))],
+        r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[2000, 0, -1000\]: 2235\.6 m "
+        r"from the start .*: for millimetres write \[2, 0, -1\], else correct the slip"),
     "a later waypoint out of reach along the mission": (
         ["simulation.reference.waypoints[2].position=[0, 400, -1.5]"],
-        r"^--set: simulation\.reference\.waypoints\[2\]\.position = \[0, 400, -1\.5\]: 402\.07 m from the start along "
-        r"the mission, more than 10 times the 30 m .*; positions are in m: for millimetres write \[0, 0\.4, -0\.0015\]"),
-    "a position beyond any millimetre": (["simulation.reference.waypoints[0].position=[1e300, 0, -1]"],
-                                         r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[1e\+300, 0, -1\]: "
-                                         r"1e\+300 m from the start .*\(MAX_REACH\); positions are in m: correct the slip, "
-                                         r"or raise the speed or the duration$"),
+        r"^--set: simulation\.reference\.waypoints\[2\]\.position = \[0, 400, -1\.5\]: 402\.07 m from the start "
+        r"along the mission, more than 10 times the 30 m .*; positions are in m: for millimetres write "
+        r"\[0, 0\.4, -0\.0015\]"),
+    "a position beyond any millimetre": (
+        ["simulation.reference.waypoints[0].position=[1e300, 0, -1]"],
+        r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[1e\+300, 0, -1\]: 1e\+300 m from the start "
+        r".*\(MAX_REACH\); positions are in m: correct the slip, or raise the speed or the duration$"),
 }
 
 
