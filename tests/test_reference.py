@@ -17,6 +17,7 @@ from quadctl.problem import setup_of
 from quadctl.sim.reference import FlownReference
 from quadctl.sim.run import simulate
 from quadctl.trim import solve_trim
+from quadctl.present import mission
 
 HOVER_HOLD = Path(__file__).resolve().parent.parent / "docs" / "configs" / "hover-hold.yaml"
 """Hover holding position: the square mission's design, without the mission."""
@@ -118,14 +119,14 @@ def test_the_square_mission_passes_every_waypoint_in_order_and_holds_the_last(sq
 def test_the_waypoints_line_names_the_times_of_those_reached(reached, said):
     tracking = {"position_error": {"rms": 0.01, "peak": 0.1, "final": 0.0}, "tolerance": 0.05,
                 "mission_end": 12.75, "waypoints": [{"position": [0.0, 0.0, -1.0], "reached": r} for r in reached]}
-    assert pipeline.tracking_lines(tracking)[0] == f"waypoints: {said} (mission ends at 12.75 s)"
+    assert mission.tracking_lines(tracking)[0] == f"waypoints: {said} (mission ends at 12.75 s)"
 
 
 def test_a_mission_flown_outside_a_tight_tolerance_reaches_none(square, square_run):
     setup, _ = square
     ref = replace(setup.reference, tolerance=1e-9)
     tracking = pipeline.tracking_of(ref, square_run.t, square_run.x, square_run.x_ref)
-    assert pipeline.tracking_lines(tracking)[0].startswith("waypoints: none of 4 reached within 1e-09 m (mission ")
+    assert mission.tracking_lines(tracking)[0].startswith("waypoints: none of 4 reached within 1e-09 m (mission ")
     assert pipeline.missed_waypoints(tracking).startswith("simulation.reference.waypoints[0] [")
 
 

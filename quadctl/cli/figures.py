@@ -16,7 +16,8 @@ def save_figures(ws, sim) -> list[Path]:
     from quadctl import artifacts, plots
 
     makers = plots.simulation_figure_makers(sim, ws.setup.partition, ws.linear.u_trim,
-                                            title=ws.setup.name, actuators=ws.setup.actuators)
+                                            title=ws.setup.name, actuators=ws.setup.actuators,
+                                            tracking=ws.simulation.flight.get("reference"))
     paths = {name: artifacts.plot_path(ws.out, name) for name in makers}  # every name checked first
 
     def draw(names) -> None:
