@@ -32,7 +32,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     with simulation_progress(quiet=json) as ws.progress:
         flown = ws.simulation
     sim = flown.sim
-    figures = save_figures(ws, sim) if plot else []
+    figures = save_figures(ws, sim, flown.flight.get("reference")) if plot else []
     if json:
         render.emit_json(ws.payloads["sim.json"])
     else:
