@@ -100,8 +100,8 @@ def wind_figure(sim, *, title: str = "") -> Figure:
 
 def path_figure(sim, waypoints=(), *, reached=None, tolerance: float | None = None, title: str = "") -> Figure:
     """The flown path over the reference: the horizontal plane (east right, north up, equal scales)
-    with the start and the waypoints numbered in order, and the altitude ``-pD`` against time with
-    each waypoint where it was reached.
+    with the start, the end and the waypoints numbered in order, and the altitude ``-pD`` against
+    time with each waypoint where it was reached.
 
     The reference is drawn wide and pale under the flown path, so that both show where they agree.
 
@@ -125,6 +125,7 @@ def path_figure(sim, waypoints=(), *, reached=None, tolerance: float | None = No
     plane.plot(sim.x[:, e], sim.x[:, n], color=COLORS[0], lw=1.4, label="flown", zorder=2)
     plane.plot(sim.x[0, e], sim.x[0, n], "o", mfc="none", mec=COLORS[2], ms=13, mew=2.0, label="start",
                zorder=6)  # a ring: a mission that ends where it began shows its last waypoint inside
+    plane.plot(sim.x[-1, e], sim.x[-1, n], "o", color=COLORS[0], ms=5, label="end", zorder=3)
     judged = reached is not None
     reached = list(reached) if judged else [None] * len(waypoints)
     labelled: set[str] = set()

@@ -188,9 +188,10 @@ def mission(ws) -> Section | None:
     blocks.append(_text(shown_mission.tracking_sentence(tracking)))
     makers = plots.simulation_figure_makers(ws.simulation.sim, ws.setup.partition, title=ws.setup.name,
                                             tracking=tracking)
-    marks = (f"the start ringed green, the waypoints numbered in the order flown (filled: reached within "
-             f"{tracking['tolerance']:g} m, its circle dotted; a red cross: missed)" if "waypoints" in tracking
-             else "the start ringed green")
+    marks = "the start ringed green, the end a blue dot"
+    if "waypoints" in tracking:
+        marks += (f", the waypoints numbered in the order flown (filled: reached within {tracking['tolerance']:g} m, "
+                  "its circle dotted; a red cross: missed)")
     blocks.append(Figure("sim-path", f"The path flown (blue) over the reference (wide, grey): left, north against "
                                      f"east, {marks}; right, the altitude -pD against time"
                                      + (", each waypoint where it was reached." if "waypoints" in tracking else "."),
