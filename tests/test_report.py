@@ -260,8 +260,8 @@ def test_a_missions_report_shows_its_waypoints_and_tracking_as_the_terminal_does
     md = (out / report.FOLDER / report.MARKDOWN).read_text(encoding="utf-8")
     assert "## Mission" in md and "subsystem's states" not in md.split("## Mission")[1].split("## Flight")[0]
     assert re.search(r"!\[The path flown \(blue\) over the reference \(wide, grey\): left, north against east, "
-                     r"the start ringed green, the end a blue dot, the waypoints numbered in the order flown \(filled: reached within "
-                     r"0\.05 m, .*\]\(sim-path\.png\)", md)
+                     r"the start ringed green, the end a blue dot, the waypoints numbered in the order flown "
+                     r"\(filled: reached within 0\.05 m, .*\]\(sim-path\.png\)", md)
     assert re.search(r"!\[The position tracking error p - p_ref against time: .*\]\(sim-tracking\.png\)", md)
     assert "the path subsystem" not in md and "the tracking subsystem" not in md
 
