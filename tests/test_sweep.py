@@ -739,6 +739,19 @@ def test_set_makes_the_section_its_parameters_vary(square_without_mission):
     assert result.rows[0]["tracking.rms"] < result.rows[1]["tracking.rms"]  # slower flies closer
 
 
+def test_a_mission_set_gives_brings_its_columns_where_only_the_cases_make_it_valid(square_without_mission):
+    """A waypoint 200 m out is past what the config's own 15 s can reach (MAX_REACH), not the cases'
+    30 and 60 s: the mission's columns and gates still come with it."""
+    far = {"waypoints": [{"position": [200.0, 0.0, -1.0]}], "speed": 1.0}
+    data = {"set": {"simulation.reference": far}, "parameters": {"simulation.duration": [30.0, 60.0]},
+            "gates": {"waypoints.reached": {"min": 1}, "tracking.rms": {"max": 1.0}}}
+    spec = sweep.from_dict(data, square_without_mission, "s.yaml")
+    assert {"tracking.rms", "tracking.peak", "waypoints.reached"} <= set(spec.metrics)
+    assert [g.metric for g in spec.gates] == ["waypoints.reached", "tracking.rms"]
+    assert not {"tracking.rms", "waypoints.reached"} & set(sweep.from_dict(
+        {"parameters": {"simulation.duration": [30.0]}}, square_without_mission, "s.yaml").metrics)
+
+
 @pytest.mark.parametrize("fixed,section,expected", [
     pytest.param({"simulation.initial_offset": {"pN": 0.5}}, ("simulation", "initial_offset"), {"pN": 0.5},
                  id="a section replaced whole, not merged"),

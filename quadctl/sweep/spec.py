@@ -211,6 +211,9 @@ class SweepSpec:
     canonical: dict
     uncertainty: bool = False
     """Every parameter is :func:`plant_side`: one design, many vehicles (see :attr:`monte_carlo`)."""
+    metrics: tuple[str, ...] = ()
+    """The metric columns (:func:`quadctl.sweep.gates.metric_columns`) of the config the cases start
+    from (:func:`configured`): a mission that ``set:`` gives adds its tracking columns."""
 
     @property
     def names(self) -> list[str]:
@@ -326,7 +329,6 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
             raise fail(f"set.{path}", "is also a parameter; keep it in one place")
         fixed.append((str(path), keys, value))
     base = with_set(base, fixed)  # the parameters vary the config as set: leaves it (a section it made)
-    start = configured(cfg, fixed, label)
     parameters = []
     for path, spec in params.items():
         keys = check_path(base, str(path), label, "parameters")
@@ -336,6 +338,7 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
             raise fail(f"parameters.{path}", f"is a list ({show(leaf)}) here, a range gives numbers; "
                        f"index one entry, as `{path}[0]`")
         parameters.append(Parameter(str(path), keys, kind, spec))
+    start = configured(cfg, fixed, label, [(p.keys, _representative(p)) for p in parameters])
     if data.get("gates") is not None and not isinstance(data.get("gates"), dict):
         raise fail("gates", "must be a mapping of metric -> {min, max}")
     gates = tuple(_check_gate(metric, spec, start, label) for metric, spec in (data.get("gates") or {}).items())
@@ -353,7 +356,8 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
                      require_ok=require_ok, chunk_size=int(chunk) if chunk is not None else None,
                      canonical=json.loads(json.dumps({k: v for k, v in data.items() if k != "description"},
                                                      default=str)),
-                     uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind), estimator) for p in parameters))
+                     uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind), estimator) for p in parameters),
+                     metrics=tuple(metric_columns(start)))
     if mode == "grid":
         count = spec.count()
         if count > MAX_CASES:
@@ -536,11 +540,13 @@ def with_set(base: dict, fixed) -> dict:
     return base
 
 
-def configured(cfg, fixed, label: str = "<sweep>"):
-    """The config every case starts from: ``cfg`` with the ``set:`` values ``fixed`` in, validated.
+def configured(cfg, fixed, label: str = "<sweep>", varied=()):
+    """The config the cases start from: ``cfg`` with the ``set:`` values ``fixed`` in, validated.
 
-    ``cfg`` itself where they do not make a valid config on their own (a case's values may; each
-    case is validated when it runs), except that a key no config takes is refused at once.
+    Where they do not make a valid config on their own, the same with the values ``varied``
+    (``(keys, value)`` pairs: one value of each parameter, :func:`_representative`) in too, as a
+    case's values may make it valid; else ``cfg`` itself (each case is validated when it runs). A
+    key no config takes is refused at once.
 
     Raises
     ------
@@ -552,13 +558,30 @@ def configured(cfg, fixed, label: str = "<sweep>"):
 
     if not fixed:
         return cfg
+    data = with_set(with_sections(cfg.model_dump(mode="json"), [p for p, _, _ in fixed]), fixed)
     try:
-        return config.from_dict(with_set(with_sections(cfg.model_dump(mode="json"), [p for p, _, _ in fixed]),
-                                         fixed), f"{label}: set")
+        return config.from_dict(data, f"{label}: set")
     except ConfigError as exc:
         if "unknown key" in str(exc):  # no parameter makes an unknown key known: the set: value's slip
             raise SweepError(str(exc)) from None
+    for keys, value in varied:
+        data = assign(data, keys, value)
+    try:
+        return config.from_dict(data, label)
+    except ConfigError:
         return cfg
+
+
+def _representative(p: Parameter):
+    """One value of the parameter ``p``, without drawing: its first value, a range's ``from``, a
+    distribution's ``low``, ``mean`` or first choice."""
+    spec = p.spec
+    if p.kind == "values":
+        return spec[0]
+    if p.kind == "range":
+        return spec["from"]
+    return {"uniform": spec.get("low"), "loguniform": spec.get("low"), "normal": spec.get("mean"),
+            "choice": (spec.get("values") or [None])[0]}[spec["distribution"]]
 
 
 def assign(tree: Any, keys: tuple, value) -> Any:
