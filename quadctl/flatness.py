@@ -27,8 +27,8 @@ from quadctl.errors import TrimError
 from quadctl.layout import GRAVITY, MASS, N_INPUTS, N_STATES
 from quadctl.model import N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
 from quadctl.pointwise import Pointwise
-from quadctl.trim import MAX_TILT
 from quadctl.trajectory import FlatPath
+from quadctl.trim import MAX_TILT
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 

@@ -40,8 +40,9 @@ SAFETY = 1.0
 """The constant of ``h(t)`` (runs with exogenous inputs or a sampled controller; a free run takes
 :data:`FREE_SAFETY`; a reference's largest step :func:`forced_step`): measured on the report's
 ``forward`` loop (benchmarks/bench.py), where ``tolerance`` 1e-8 gives a final-state error of 2.4e-10
-against LSODA at rtol 1e-12 (2.0: 1 563 steps against 2 266 to the same error). With noise, whose every sample re-excites the fast modes (the schedule grades for
-``t = 0`` only), 2.0 multiplies the error by 10 to 15 (hover with sensor noise, 0.2 s)."""
+against LSODA at rtol 1e-12 (2.0: 1 563 steps against 2 266 to the same error). With noise, whose
+every sample re-excites the fast modes (the schedule grades for ``t = 0`` only), 2.0 multiplies the
+error by 10 to 15 (hover with sensor noise, 0.2 s)."""
 FREE_SAFETY = 2.0
 """The constant of ``h(t)`` for a free run (continuous feedback, no noise, wind or reference: only the
 initial state excites the fast modes, the case the rule's ``t = 0`` grading describes). Measured
