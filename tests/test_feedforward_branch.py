@@ -143,3 +143,19 @@ def test_the_refusal_is_one_line_and_exit_2(tmp_path):
     lines = got.output.strip().splitlines()
     assert len(lines) == 1 and "the reference asks an acceleration of [24.3, 0, 0] m/s^2" in lines[0], got.output
     assert "Traceback" not in got.output
+
+
+def test_a_references_rows_do_not_depend_on_how_they_are_tabulated():
+    """The runners ask for a reference's rows in chunks of their own (a segment, a chunk of steps):
+    each chunk's feedforward starts from hover, so its roots must not keep the trace of where Newton
+    started. The rows' curvature, a difference of the model's rates over a 5 ms row, multiplies what
+    is left of the force balance by 200: the same rows in one piece and in chunks of 7 agree to
+    round-off (with the 1e-12 m/s^2 Newton accepts left in: 4e-10)."""
+    from quadctl import config, pipeline
+    from quadctl.problem import setup_of
+
+    flown = pipeline.flown_reference(setup_of(config.load("square")))
+    j = np.arange(3000)
+    whole = flown.rows(j, 0.005)
+    chunked = np.vstack([flown.rows(j[k:k + 7], 0.005) for k in range(0, len(j), 7)])
+    assert np.abs(chunked - whole).max() < 1e-11, np.abs(chunked - whole).max()
