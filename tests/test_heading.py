@@ -10,13 +10,13 @@ import math
 import casadi as ca
 import numpy as np
 import pytest
+from _solve import cfg_dict, max_rel_diff, run, solve
 
 from quadctl import pipeline, sweep, trajectory
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.sim.builder import heading_frame, wrap_angle
 from quadctl.sim.reference import FlownReference
 from quadctl.sim.run import simulate
-from _solve import cfg_dict, max_rel_diff, run, solve
 
 PN, PE, PSI = STATE_INDEX["pN"], STATE_INDEX["pE"], STATE_INDEX["psi"]
 TURN_TOL = 1e-9
