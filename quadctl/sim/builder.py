@@ -21,7 +21,8 @@ as the noise and wind are, so every runner takes it the same way),
 with ``x_m = x + n_s`` the measured state (sensor noise ``n_s``), the deviation ``x_m - x_ref(t)`` taken in
 the reference's heading frame (:func:`heading_frame`: ``pN, pE`` turned by the reference's yaw less the
 yaw the gain was designed at, ``psi`` wrapped into ``(-pi, pi]``), so a design made at the trim's yaw flies
-any heading, and ``sat`` the actuator clipping (``box`` on ``T, A, E, R``; ``motors``: mixed to rotor thrusts, clipped, mixed back).
+any heading, and ``sat`` the actuator clipping (``box`` on ``T, A, E, R``; ``motors``: mixed to rotor
+thrusts, clipped, mixed back).
 Integrators follow MATLAB ``lqi``, ``dz/dt = -(x_i - x_ref,i)``, frozen while saturation alters
 an input they drive (conditional integration).
 
