@@ -641,8 +641,13 @@ def build(spec: LoopSpec) -> LoopFunctions:
         return psi_ref - design_yaw(psi_ref)
 
     def measured_deviation(X, t):
-        """``x_m - x_ref(t)`` in the reference's heading frame (:func:`heading_frame`)."""
-        return heading_frame(X[:N_STATES] + sensor - x_ref(t), heading_offset(t))
+        """``x_m - x_ref(t)`` in the reference's heading frame (:func:`heading_frame`). A loop without a
+        reference holds the trim, whose yaw is the design's: only its yaw error is wrapped (turning by
+        a zero angle would cost a sine and a cosine per stage for the same bits)."""
+        dx = X[:N_STATES] + sensor - x_ref(t)
+        if not spec.reference:
+            return ca.vertcat(dx[:_PSI], wrap_angle(dx[_PSI], ca), dx[_PSI + 1:])
+        return heading_frame(dx, heading_offset(t))
 
     def innovation(X, t):
         """``y - C xh``: the measured deviation less its estimate."""
@@ -664,7 +669,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
         from quadctl.lqr.gain_table import scheduling_value
 
         variable, pieces, columns, degree = spec.schedule
-        heading = parts["schedule_heading"] if variable == "yaw" else parts["schedule_heading"] + heading_offset(t)
+        heading = (parts["schedule_heading"] + heading_offset(t) if spec.reference and variable != "yaw"
+                   else parts["schedule_heading"])
         v = scheduling_value(variable, x_ref(t), heading, lib=ca)
         mask = np.hstack([np.reshape(np.asarray(spec.pattern, dtype=bool), (N_INPUTS, N_STATES), order="F"),
                           np.ones((N_INPUTS, columns - N_STATES), dtype=bool)])

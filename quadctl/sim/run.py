@@ -531,13 +531,17 @@ def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int
                      lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
                      wind=wind_felt(wind, exo.period, ks, dt) if wind is not None else np.zeros((0, 3)),
                      wind_seed=wind.seed if wind is not None else None,
-                     x_hat=_estimate(loop, x_ref, xs[:, xs.shape[1] - ne:]) if ne else np.zeros((0, 0)),
+                     x_hat=_estimate(loop, x_ref, xs[:, xs.shape[1] - ne:], reference is not None) if ne
+                     else np.zeros((0, 0)),
                      u_ref=u_ref)
 
 
-def _estimate(loop: ClosedLoop, x_ref: np.ndarray, deviation: np.ndarray) -> np.ndarray:
-    """(n, 12) the filter's estimate of ``x``: ``x_ref`` plus its deviation estimate, which the filter
-    keeps in the reference's heading frame (:func:`quadctl.sim.builder.heading_frame`): turned back."""
+def _estimate(loop: ClosedLoop, x_ref: np.ndarray, deviation: np.ndarray, reference: bool) -> np.ndarray:
+    """(n, 12) the filter's estimate of ``x``: ``x_ref`` plus its deviation estimate, which the filter of a
+    loop flying a ``reference`` keeps in its heading frame (:func:`quadctl.sim.builder.heading_frame`):
+    turned back."""
+    if not reference:
+        return x_ref + deviation
     return x_ref + heading_frame(deviation, -loop.heading_offset(x_ref), lib=np)
 
 
