@@ -451,12 +451,14 @@ _PN, _PE, _PSI = STATE_INDEX["pN"], STATE_INDEX["pE"], STATE_INDEX["psi"]
 
 def wrap_angle(angle, lib=np):
     """``angle`` (rad) wrapped into ``(-pi, pi]``: ``angle + 2 pi floor((pi - angle) / (2 pi))``, so
-    an angle already there is returned bit for bit (``+ 0``), however many turns it is off.
+    an angle already there is returned bit for bit (``+ 0``), however many turns it is off. (The
+    division is a product by ``0.5 / pi``: the floor sits on the law's path in every RK4 stage, and a
+    divide there is a visible part of a continuous loop's step.)
 
     >>> float(wrap_angle(-np.pi)), float(wrap_angle(np.pi)), float(wrap_angle(0.25 + 6 * np.pi))
     (3.141592653589793, 3.141592653589793, 0.25)
     """
-    return angle + 2 * np.pi * lib.floor((np.pi - angle) / (2 * np.pi))
+    return angle + 2 * np.pi * lib.floor((np.pi - angle) * (0.5 / np.pi))
 
 
 def heading_frame(dx, offset, lib=ca):
