@@ -180,5 +180,6 @@ def mission_text(tracking: dict | None) -> str | None:
                  f"simulation.duration to at least {end:.4g} s")
     else:
         cause = (f"the whole mission was flown (it ends at {end:.4g} s) and the vehicle stayed off: loosen "
-                 "simulation.reference.tolerance, or weigh the position errors more (lqr Q on pN, pE, pD)")
+                 "simulation.reference.tolerance, give the waypoint a hold, or weigh the position errors more "
+                 "(lqr Q on pN, pE, pD)")
     return f"{what}: {cause}"
