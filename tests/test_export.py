@@ -387,6 +387,8 @@ def test_the_exported_c_fed_the_reference_gives_the_simulated_commands(case, tmp
         assert max(motors.saturation_fraction(loop.actuators, ref.u).values()) > 0.01  # clipped: frozen, predicted
     x_ref, u_ref, applied = ref.x_ref[samples], ref.u_ref[samples], ref.u[samples]
     assert np.ptp(x_ref[:, STATE_INDEX["pN"]]) > 1.0 and np.ptp(u_ref[:, 1:], axis=0).min() > 0  # a path, its torques
+    # samples flown a quarter turn from the trim's heading: the law's heading frame, in C too
+    assert np.count_nonzero(np.abs(x_ref[:, STATE_INDEX["psi"]] - loop.x_trim[STATE_INDEX["psi"]]) > 1.5) > 100
     dev = (ref.x_hat - ref.x_ref)[samples] if loop.estimator is not None else x_ref - ref.x[samples]
     terms = (np.abs(u_ref) + np.abs(dev) @ np.abs(loop.K).T
              + (np.abs(ref.z[samples]) @ np.abs(loop.Ki).T if loop.integral_states else 0.0)).max()
@@ -436,7 +438,8 @@ def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
     header = " ".join(cexport.sources(exp)[cexport.HEADER].replace(" * ", " ").split())
     for text in ("K = G(v), the gain schedule on speed v (m/s) of x_ref(t): the designs at v = 0, 4, 8, 12, 16, 20, "
                  "linear between them, held outside them", "v is the horizontal velocity of x_ref(t) along the "
-                 "heading 0 rad (m/s), x_ref(t) being ref->x, the reference given", "5 pieces"):
+                 "heading 0 rad (m/s), turned with the reference's yaw (its yaw less the trim's added), x_ref(t) "
+                 "being ref->x, the reference given", "5 pieces"):
         assert text in header, text
     (field,) = [f for f in data.fields(exp) if f.name == "schedule"]  # the .mat and the JSON carry the table
     np.testing.assert_array_equal(field.value["coefficients"], table.coefficients)
