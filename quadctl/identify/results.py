@@ -1,0 +1,146 @@
+"""One identification from logs and a config: the stages run, ``identified.json`` and the identified config."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from quadctl.identify import estimate as est
+from quadctl.identify import windows as win
+
+
+@dataclass
+class Identification:
+    """The stages' fits (``thrust``, ``attitude``, ``yaw``), the refused stages and the logs."""
+
+    logs: list
+    fits: dict
+    refused: dict
+    stage_logs: dict  # stage -> log index
+    airframe: est.Airframe
+    config_name: str
+
+    def max_thrust(self) -> float:
+        """N: a rotor's thrust at full command (the curve at 1)."""
+        th = self.fits["thrust"]
+        return th.value("c0") + th.value("c1") + th.value("c2")
+
+
+def identify(logs, config, windows=None, delay: bool = False) -> Identification:
+    """Run every stage the logs support (:func:`quadctl.identify.windows.plan`).
+
+    Parameters
+    ----------
+    logs : list of FlightLog
+    config : quadctl.config.Config
+        Mass, geometry, numbering; the inertia and torque coefficient a stage holds fixed.
+    windows : list, optional
+        Per log, its ``(t0, t1)`` windows or None (automatic).
+    delay : bool
+        Fit a pure delay beside the motor lag.
+    """
+    airframe = est.Airframe.from_config(config)
+    p = win.plan(logs, windows)
+    grids = {}
+
+    def grid(i):
+        if i not in grids:
+            grids[i] = est.on_grid(logs[i])
+        return grids[i]
+
+    fits = {}
+    i, w = p.chosen["thrust"]
+    est.require_window(grid(i), w, logs[i].path, "thrust")
+    fits["thrust"] = est.fit_thrust(grid(i), w, airframe, delay=delay)
+    if "attitude" in p.chosen:
+        i, w = p.chosen["attitude"]
+        fits["attitude"] = est.fit_attitude(grid(i), w, airframe, fits["thrust"])
+    if "yaw" in p.chosen:
+        i, w = p.chosen["yaw"]
+        fits["yaw"] = est.fit_yaw(grid(i), w, airframe, fits["thrust"], fits.get("attitude"))
+    return Identification(logs=list(logs), fits=fits, refused=p.refused,
+                          stage_logs={s: c[0] for s, c in p.chosen.items()}, airframe=airframe,
+                          config_name=config.name)
+
+
+def payload(ident: Identification, config_label: str) -> dict:
+    """``identified.json``: values, 95 % intervals, units, windows, residuals, the logs' provenance."""
+    stages = {}
+    for stage, fit in ident.fits.items():
+        params = {}
+        for k, name in enumerate(fit.names):
+            lo, hi = fit.interval(name)
+            params[name] = {"value": float(fit.values[k]), "interval95": [lo, hi], "std": float(fit.std[k]),
+                            "unit": est.UNITS[name], "meaning": est.MEANING[name]}
+        stages[stage] = {
+            "log": ident.logs[ident.stage_logs[stage]].path, "windows_s": [list(w) for w in fit.windows],
+            "samples": int(fit.t.size), "parameters": params, "residual_rms": fit.rms,
+            "residual_unit": "N" if stage == "thrust" else "N m",
+            "residual_correlation_s": fit.bandwidth / 2 * float(np.median(np.diff(fit.t))),
+            **{k: v for k, v in fit.extra.items()}}
+    return {"config": config_label, "logs": [log.provenance() for log in ident.logs], "stages": stages,
+            "refused": dict(ident.refused),
+            "held": {"mass_kg": ident.airframe.mass, "rotor_positions_m": ident.airframe.positions.tolist(),
+                     "Jzz_kg_m2": float(ident.airframe.inertia[2])},
+            "structure": "each rotor's command lags first-order through T_m (after the pure delay, when fitted); "
+                         "its thrust is c0 + c1 z + c2 z^2 of the lagged command z"}
+
+
+def changes(ident: Identification) -> dict:
+    """``{(section, key): (yaml value, comment)}``: what the identified config sets, and where each came from."""
+    out = {}
+    th = ident.fits["thrust"]
+    src = ident.logs[ident.stage_logs["thrust"]].name
+    span = ",".join(f"{a:.4g}:{b:.4g}" for a, b in th.windows)
+    lo, hi = th.interval("T_m")
+    out[("motors", "time_constant")] = (f"{th.value('T_m'):.4g}", f"s, identified from {src} t {span} s "
+                                        f"(95 %: {lo:.4g}-{hi:.4g}); the lag of the command, see the README")
+    out[("motors", "max_thrust")] = (f"{ident.max_thrust():.4g}", f"N per rotor, the thrust curve at full command, "
+                                     f"identified from {src} t {span} s")
+    inertia = list(ident.airframe.inertia)
+    if "attitude" in ident.fits:
+        att = ident.fits["attitude"]
+        inertia[0], inertia[1] = att.value("Jxx"), att.value("Jyy")
+        src_a = ident.logs[ident.stage_logs["attitude"]].name
+        span_a = ",".join(f"{a:.4g}:{b:.4g}" for a, b in att.windows)
+        out[("vehicle", "inertia")] = (
+            "[" + ", ".join(f"{v:.4g}" for v in inertia) + "]",
+            f"kg m^2, Jxx Jyy identified from {src_a} t {span_a} s with this config's rotor positions; Jzz kept")
+    if "yaw" in ident.fits:
+        yaw = ident.fits["yaw"]
+        src_y = ident.logs[ident.stage_logs["yaw"]].name
+        span_y = ",".join(f"{a:.4g}:{b:.4g}" for a, b in yaw.windows)
+        out[("motors", "torque_coefficient")] = (
+            f"{yaw.value('k_m'):.4g}", f"N m per N, identified from {src_y} t {span_y} s with this config's Jzz")
+    return out
+
+
+def identified_config(text: str, ident: Identification, name: str) -> str:
+    """The config's YAML ``text`` with the identified values set, each changed line saying where it came from.
+
+    Only the changed lines move: a key's line (and the comment lines continuing it) is replaced in its
+    section, or added at the section's top; a missing section is appended.
+    """
+    lines = text.splitlines()
+    lines = [f"name: {name}" if re.match(r"^name:\s", ln) else ln for ln in lines]
+    for (section, key), (value, comment) in changes(ident).items():
+        new = f"  {key}: {value}  # {comment}"
+        start = next((k for k, ln in enumerate(lines) if re.match(rf"^{section}:\s*(#.*)?$", ln)), None)
+        if start is None:
+            lines += [f"{section}:", new]
+            continue
+        end = next((k for k in range(start + 1, len(lines)) if re.match(r"^\S", lines[k])), len(lines))
+        at = next((k for k in range(start + 1, end) if re.match(rf"^\s+{key}:", lines[k])), None)
+        if at is None:
+            lines.insert(start + 1, new)
+            continue
+        indent = len(lines[at]) - len(lines[at].lstrip())
+        drop = at + 1
+        while drop < end and lines[drop].strip().startswith("#") and \
+                len(lines[drop]) - len(lines[drop].lstrip()) > indent + 2:
+            drop += 1  # the old value's continued comment
+        lines[at:drop] = [" " * indent + new.lstrip()]
+    head = f"# Identified by quadctl identify from {', '.join(log.name for log in ident.logs)}: see identified.json"
+    return head + "\n" + "\n".join(lines) + "\n"
