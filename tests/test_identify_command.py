@@ -1,0 +1,65 @@
+"""`quadctl identify`: the artifacts, the identified config that `design` takes, and bad input (exit 2)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from quadctl.cli.app import app
+
+FLIGHTS = Path(__file__).parent / "data" / "crazyflie-flights"
+
+
+@pytest.fixture(scope="module")
+def identified(tmp_path_factory):
+    out = tmp_path_factory.mktemp("identified")
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "35:65",
+                                   "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    return out, res.output
+
+
+def test_identify_writes_values_intervals_and_provenance(identified):
+    out, text = identified
+    payload = json.loads((out / "identified.json").read_text())
+    thrust = payload["stages"]["thrust"]
+    assert thrust["windows_s"] == [[35.0, 65.0]]
+    lo, hi = thrust["parameters"]["T_m"]["interval95"]
+    assert lo < thrust["parameters"]["T_m"]["value"] < hi
+    assert payload["logs"][0]["sha256"] == __import__("hashlib").sha256((FLIGHTS / "log10").read_bytes()).hexdigest()
+    assert "attitude" in payload["refused"] and "yaw" in payload["refused"]  # log10 is a thrust log
+    assert (out / "identify.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_identified_config_says_where_each_value_came_from_and_designs(identified):
+    out, _ = identified
+    text = (out / "identified.yaml").read_text()
+    assert "time_constant: 0.07" in text and "identified from log10 t 35:65 s" in text
+    res = CliRunner().invoke(app, ["design", "-c", str(out / "identified.yaml"), "-o", str(out / "design")])
+    assert res.exit_code == 0, res.output
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1"),
+    (["--window", "0:5"], "nothing to identify"),
+])
+def test_identify_refuses_bad_windows(tmp_path, args, match):
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "-o", str(tmp_path / "o"),
+                                   *args])
+    assert res.exit_code == 2
+    assert match in res.output
+    assert not (tmp_path / "o").exists()  # nothing half-written
+
+
+def test_identify_refuses_a_corrupted_log(tmp_path):
+    bad = tmp_path / "log10"
+    data = bytearray((FLIGHTS / "log10").read_bytes())
+    data[1000] ^= 0xFF
+    bad.write_bytes(bytes(data))
+    res = CliRunner().invoke(app, ["identify", str(bad), "-c", "crazyflie", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2
+    assert "log10: the CRC-32 at the end does not match" in res.output
+    assert len(res.output.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
