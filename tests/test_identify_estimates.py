@@ -186,3 +186,12 @@ def test_real_log15_inertia_with_the_papers_geometry(real):
     att = est.fit_attitude(est.on_grid(read_log(FLIGHTS / "log15")), [(55.0, 90.0)], paper, thrust)
     assert att.value("Jxx") == pytest.approx(PAPER_INERTIA[0], rel=0.10)
     assert att.value("Jyy") == pytest.approx(PAPER_INERTIA[1], rel=0.10)
+
+
+def test_csv_of_the_binary_log_gives_the_same_estimates(real, tmp_path):
+    paper, thrust = real
+    path = tmp_path / "log10.csv"
+    read_log(FLIGHTS / "log10").to_csv(path)
+    again = est.fit_thrust(est.on_grid(read_log(path)), [(35.0, 65.0)], paper)
+    np.testing.assert_allclose(again.values, thrust.values, rtol=1e-9)
+    np.testing.assert_allclose(again.std, thrust.std, rtol=1e-6)
