@@ -49,6 +49,9 @@ ANGULAR_ACCELERATION_CUTOFF = 20.0
 model's torque goes through the same filter, so the fit compares like with like."""
 Z95 = 1.959963984540054
 """The normal 97.5 % quantile: a 95 % two-sided interval is ``value +- Z95 std``."""
+LEAD_IN = 2.0
+"""s of the log before (and after) a window that a fit computes through: the lag's memory (its
+time constant, tens of ms) and the low-pass filter's settle in it to far below the noise."""
 _LAG_DELAY_STEP = 1e-4
 """s: the central difference of the lag in the delay (exact for a linearly interpolated command)."""
 
@@ -172,6 +175,15 @@ class Grid:
     alpha: np.ndarray
     cmd: np.ndarray
 
+    def around(self, windows, margin: float = LEAD_IN) -> Grid:
+        """The grid from ``margin`` s before the first window to ``margin`` after the last (the lag and
+        the low-pass filter settle in the margin; nothing outside it changes the fit)."""
+        t0 = min(a for a, _ in windows) - margin
+        t1 = max(b for _, b in windows) + margin
+        keep = slice(int(np.searchsorted(self.t, t0)), int(np.searchsorted(self.t, t1, side="right")))
+        return Grid(t=self.t[keep], dt=self.dt, acc=self.acc[keep], gyro=self.gyro[keep], alpha=self.alpha[keep],
+                    cmd=self.cmd[keep])
+
     def lowpass(self, values: np.ndarray) -> np.ndarray:
         """The zero-phase filter applied to the gyro, on axis 0 of ``values``."""
         b, a = _butter(self.dt)
@@ -197,13 +209,14 @@ def on_grid(log, rate: float | None = None) -> Grid:
     return Grid(t=t, dt=dt, acc=acc, gyro=gyro, alpha=alpha, cmd=grid.cmd)
 
 
-def lagged(cmd: np.ndarray, dt: float, time_constant: float, delay: float = 0.0):
+def lagged(cmd: np.ndarray, dt: float, time_constant: float, delay: float = 0.0, *, in_delay: bool = True):
     """The commands delayed by ``delay`` and lagged through ``time_constant`` (exact for held steps).
 
     Returns
     -------
     z, dz_dT, dz_dd : (N, 4) ndarray
-        The lagged commands and their derivatives in the time constant and the delay (1/s).
+        The lagged commands and their derivatives in the time constant and the delay (1/s; None
+        without ``in_delay``).
     """
     a = math.exp(-dt / time_constant)
     da = a * dt / time_constant ** 2
@@ -218,6 +231,8 @@ def lagged(cmd: np.ndarray, dt: float, time_constant: float, delay: float = 0.0)
     # dz_k/da = a dz_{k-1}/da + z_{k-1} - u_{k-1}
     drive = np.vstack([np.zeros((1, 4)), z[:-1] - shifted[:-1]])
     dz_da = scipy.signal.lfilter([1.0], [1.0, -a], drive, axis=0)
+    if not in_delay:
+        return z, dz_da * da, None
     h = _LAG_DELAY_STEP
     dz_dd = (run(delay + h)[0] - run(max(delay - h, 0.0))[0]) / (delay + h - max(delay - h, 0.0))
     return z, dz_da * da, dz_dd
@@ -356,7 +371,7 @@ def _levenberg_marquardt(residual_and_jacobian, x0: np.ndarray, scale: np.ndarra
         r_t, j_t = residual_and_jacobian(trial)
         cost_t = float(np.sum(r_t ** 2))
         if cost_t < cost:
-            done = cost - cost_t < 1e-12 * cost and np.all(np.abs(trial - x) <= 1e-8 * np.abs(scale))
+            done = cost - cost_t < 1e-9 * cost  # a relative 1e-9 of the cost: far inside any interval
             x, r, j, cost, mu = trial, r_t, j_t, cost_t, max(mu / 5.0, 1e-9)
             if done:
                 break
@@ -383,13 +398,14 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
     time_constant : float
         s, the starting guess of ``T_m``.
     """
+    grid = grid.around(windows)
     mask = window_mask(grid.t, windows)
     meas = airframe.mass * grid.acc[mask, 2]
     omega = grid.gyro[mask]
     names = ("c0", "c1", "c2", "T_m") + (("delay",) if delay else ())
 
     def rj(x):
-        z, dz_dT, dz_dd = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0)
+        z, dz_dT, dz_dd = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0, in_delay=delay)
         theta = airframe.theta(c0=x[0], c1=x[1], c2=x[2])
         y, jt, jz = predict(z[mask], omega, theta, airframe, rows=(2,), names=names[:3])
         jac = [-jt[:, 0, :]]
@@ -399,7 +415,7 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
         return meas - y[:, 0], np.hstack(jac)
 
     # the curve from a linear fit at the starting lag, then all together
-    z0 = lagged(grid.cmd, grid.dt, time_constant)[0][mask]
+    z0 = lagged(grid.cmd, grid.dt, time_constant, in_delay=False)[0][mask]
     regress = np.column_stack([np.full(z0.shape[0], -4.0), -z0.sum(1), -(z0 ** 2).sum(1)])
     c_start = np.linalg.lstsq(regress, meas, rcond=None)[0]
     x0 = np.r_[c_start, time_constant, [0.005] if delay else []]
@@ -413,7 +429,7 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
                                               -(grid.cmd[mask] ** 2).sum(1)]), meas, rcond=None)
     rms_no_lag = float(np.sqrt(np.mean((meas - np.column_stack([np.full(mask.sum(), -4.0), -grid.cmd[mask].sum(1),
                                                                  -(grid.cmd[mask] ** 2).sum(1)]) @ no_lag[0]) ** 2)))
-    z = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0)[0][mask]
+    z = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0, in_delay=False)[0][mask]
     return Estimate(stage="thrust", names=names, values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=-meas[:, None], predicted=(-(meas - r))[:, None],
                     rows=("thrust (N)",), rms=float(np.sqrt(np.mean(r ** 2))), bandwidth=bandwidth,
@@ -427,13 +443,14 @@ def _torque_fit(stage, grid, windows, airframe, thrust: Estimate, names, axes, g
     The rotors come from ``thrust``; its uncertainty is carried into this fit's covariance (the
     sensitivity of this fit's values to the thrust stage's, by one-sided differences of one std).
     """
+    grid = grid.around(windows)
     mask = window_mask(grid.t, windows)
     rows = tuple(3 + a for a in axes)
     x0 = np.array([airframe.theta(**given)[PARAMETERS.index(n)] for n in names])
     axis_of = {"Jxx": 0, "Jyy": 1, "Jzz": 2}
 
     def rj(x, rotors):
-        z = lagged(grid.cmd, grid.dt, rotors["T_m"], rotors.get("delay", 0.0))[0]
+        z = lagged(grid.cmd, grid.dt, rotors["T_m"], rotors.get("delay", 0.0), in_delay=False)[0]
         curve = {n: rotors[n] for n in ("c0", "c1", "c2")}
         theta = airframe.theta(**curve, **given, **dict(zip(names, x)))
         y, jt, _ = predict(z, grid.gyro, theta, airframe, rows=rows, names=tuple(names))
@@ -447,9 +464,8 @@ def _torque_fit(stage, grid, windows, airframe, thrust: Estimate, names, axes, g
         jac_pred = grid.lowpass(jt.reshape(z.shape[0], -1)).reshape(z.shape[0], len(axes), -1)
         return (measured - pred)[mask], (d_measured - jac_pred)[mask], measured[mask], pred[mask]
 
-    def solve(rotors):
-        x = x0
-        for _ in range(8):  # Gauss-Newton: the torque is linear in these parameters, two steps settle it
+    def solve(rotors, x, steps=8):
+        for _ in range(steps):  # Gauss-Newton: the torque is linear in these parameters, one step settles it
             r, j, _, _ = rj(x, rotors)
             step = -np.linalg.lstsq(j.reshape(-1, len(names)), r.reshape(-1), rcond=None)[0]
             x = x + step
@@ -458,13 +474,13 @@ def _torque_fit(stage, grid, windows, airframe, thrust: Estimate, names, axes, g
         return x
 
     rotors = dict(zip(thrust.names, thrust.values))
-    x = solve(rotors)
+    x = solve(rotors, x0)
     r, j, measured, pred = rj(x, rotors)
     cov, bandwidth = sandwich(j, r)
     sensitivity = np.zeros((len(names), len(thrust.names)))
     for i, n in enumerate(thrust.names):
         nudged = dict(rotors, **{n: rotors[n] + thrust.std[i]})
-        sensitivity[:, i] = (solve(nudged) - x) / thrust.std[i]
+        sensitivity[:, i] = (solve(nudged, x, steps=1) - x) / thrust.std[i]  # linear: one step is exact
     cov = cov + sensitivity @ thrust.covariance @ sensitivity.T
     return Estimate(stage=stage, names=tuple(names), values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=measured, predicted=pred,
