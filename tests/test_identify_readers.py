@@ -123,3 +123,25 @@ def test_columns_option_refuses_unknown_names(tmp_path):
     path.write_text(",".join(CSV_COLUMNS) + "\n")
     with pytest.raises(LogError, match=r"--columns names time, not a column of the CSV format"):
         read_csv(path, {"time": "t"})
+
+
+ULOG = Path(__file__).parent / "data" / "px4-ulog" / "sample_px4_events.ulg"
+
+
+def test_ulog_read_through_pyulog():
+    pytest.importorskip("pyulog")
+    log = read_log(ULOG)
+    assert log.format == "ulog" and log.t.size > 7000
+    assert np.all(np.diff(log.t) > 0)
+    assert np.median(log.acc, axis=0) == pytest.approx([0, 0, -9.81], abs=0.2)  # FRD, as PX4 logs it
+    flying = log.cmd.mean(axis=1) > 0.3
+    assert flying.sum() > 1000 and np.median(log.acc[flying, 2]) == pytest.approx(-9.81, abs=0.5)  # hover
+    assert 0.4 < np.median(log.cmd[flying]) < 0.7
+
+
+def test_ulog_without_pyulog_says_how_to_install(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "pyulog", None)
+    with pytest.raises(LogError, match=r"sample_px4_events.ulg: reading a ULog needs the pyulog package; pip install"):
+        read_log(ULOG)

@@ -11,7 +11,7 @@ STAGE_TITLES = {"thrust": "thrust curve and motor lag", "attitude": "roll and pi
 def values_table(payload: dict) -> Table:
     """Every identified value with its 95 % interval, unit, log and window (from ``identified.json``)."""
     rows = []
-    for stage, s in payload["stages"].items():
+    for s in payload["stages"].values():
         log = s["log"].rsplit("/", 1)[-1]
         span = ", ".join(f"{a:.4g}-{b:.4g}" for a, b in s["windows_s"])
         for name, p in s["parameters"].items():
