@@ -45,6 +45,7 @@ def test_identified_config_says_where_each_value_came_from_and_designs(identifie
 @pytest.mark.parametrize("args, match", [
     (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1"),
     (["--window", "0:5"], "nothing to identify"),
+    (["--window", "35:65", "--window", "1:2"], "--window given 2 times for 1 log(s); give it once per LOG"),
 ])
 def test_identify_refuses_bad_windows(tmp_path, args, match):
     res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "-o", str(tmp_path / "o"),
@@ -63,3 +64,12 @@ def test_identify_refuses_a_corrupted_log(tmp_path):
     assert res.exit_code == 2
     assert "log10: the CRC-32 at the end does not match" in res.output
     assert len(res.output.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+
+
+def test_identify_refuses_a_csv_without_a_column(tmp_path):
+    path = tmp_path / "flight.csv"
+    path.write_text("t,acc_x,acc_y,acc_z,gyro_p,gyro_q,gyro_r,cmd_1,cmd_2,cmd_3\n0,0,0,0,0,0,0,0,0,0\n")
+    res = CliRunner().invoke(app, ["identify", str(path), "-c", "crazyflie", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2
+    assert "flight.csv: no column 'cmd_4'" in res.output and "--columns cmd_4=YOUR_NAME" in res.output
+    assert not (tmp_path / "o").exists()

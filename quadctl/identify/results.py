@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl.errors import LogError
 from quadctl.identify import estimate as est
 from quadctl.identify import windows as win
 
@@ -26,6 +27,21 @@ class Identification:
         """N: a rotor's thrust at full command (the curve at 1)."""
         th = self.fits["thrust"]
         return th.value("c0") + th.value("c1") + th.value("c2")
+
+
+def windows_per_log(texts, count: int):
+    """The ``--window`` values, one per log, as lists of ``(t0, t1)``; None when none are given.
+
+    Raises
+    ------
+    LogError
+        Not one per log, or one not ``t0:t1``.
+    """
+    if not texts:
+        return None
+    if len(texts) != count:
+        raise LogError(f"--window given {len(texts)} times for {count} log(s); give it once per LOG, in order")
+    return [win.parse_window(t) for t in texts]
 
 
 def identify(logs, config, windows=None, delay: bool = False) -> Identification:
@@ -145,4 +161,8 @@ def identified_config(text: str, ident: Identification, name: str) -> str:
             drop += 1  # the old value's continued comment
         lines[at:drop] = [" " * indent + new.lstrip()]
     head = f"# Identified by quadctl identify from {', '.join(log.name for log in ident.logs)}: see identified.json"
-    return head + "\n" + "\n".join(lines) + "\n"
+    out = head + "\n" + "\n".join(lines) + "\n"
+    from quadctl.config import parse
+
+    parse(out, f"the identified config of {name}")  # what it writes loads (ConfigError otherwise)
+    return out

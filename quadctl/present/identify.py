@@ -8,6 +8,13 @@ STAGE_TITLES = {"thrust": "thrust curve and motor lag", "attitude": "roll and pi
                 "yaw": "yaw torque coefficient"}
 
 
+def log_sentences(payload: dict) -> list[str]:
+    """Per log: its format, samples and rate, and what the reader converted."""
+    return [f"{log['path'].rsplit('/', 1)[-1]}: {log['format']}, {log['samples']} samples at {log['rate_hz']:.0f} Hz, "
+            f"t {log['t_start']:.4g} to {log['t_end']:.4g} s; {'; '.join(log['conversions'])}."
+            for log in payload["logs"]]
+
+
 def values_table(payload: dict) -> Table:
     """Every identified value with its 95 % interval, unit, log and window (from ``identified.json``)."""
     rows = []

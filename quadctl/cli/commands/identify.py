@@ -24,33 +24,24 @@ def command(logs: Annotated[list[Path], typer.Argument(
     (values, 95 % intervals, windows, residuals, the logs' sha256), identified.yaml (the config with
     the identified values, each line saying where it came from) and identify.png.
     """
+    import json as _json
+
     from quadctl.artifacts.writing import write_together
     from quadctl.cli import render
     from quadctl.config import locate, parse
-    from quadctl.errors import LogError
     from quadctl.identify import readers, results
-    from quadctl.identify.windows import parse_window
     from quadctl.plots.identify import fit_figure
     from quadctl.present import identify as shown
 
     source = locate(config)
     cfg = parse(source.text, source.label)
-    mapping = readers.parse_columns(columns)
-    read = [readers.read_log(p, mapping) for p in logs]
-    spans = None
-    if window:
-        if len(window) != len(logs):
-            raise LogError(f"--window given {len(window)} times for {len(logs)} logs; give it once per LOG, in order")
-        spans = [parse_window(w) for w in window]
-    ident = results.identify(read, cfg, spans, delay=delay)
+    read = [readers.read_log(p, readers.parse_columns(columns)) for p in logs]
+    ident = results.identify(read, cfg, results.windows_per_log(window, len(logs)), delay=delay)
     payload = results.payload(ident, source.label)
     folder = out or Path("runs") / f"{cfg.name}-identified"
     text = results.identified_config(source.text, ident, f"{cfg.name}-identified")
-    import json as _json
-
-    parse(text, str(folder / "identified.yaml"))  # the written config must load
     write_together({folder / "identified.json": _json.dumps(payload, indent=1).encode(),
                     folder / "identified.yaml": text.encode(), folder / "identify.png": fit_figure(ident)})
-    render.show(shown.values_table(payload), *shown.sentences(payload))
+    render.show(*shown.log_sentences(payload), shown.values_table(payload), *shown.sentences(payload))
     for name in ("identified.json", "identified.yaml", "identify.png"):
         render.out.print(f"-> {folder / name}")
