@@ -231,11 +231,12 @@ def lagged(cmd: np.ndarray, dt: float, time_constant: float, delay: float = 0.0,
     # dz_k/da = a dz_{k-1}/da + z_{k-1} - u_{k-1}
     drive = np.vstack([np.zeros((1, 4)), z[:-1] - shifted[:-1]])
     dz_da = scipy.signal.lfilter([1.0], [1.0, -a], drive, axis=0)
+    dz_dt = dz_da * da
     if not in_delay:
-        return z, dz_da * da, None
+        return z, dz_dt, None
     h = _LAG_DELAY_STEP
     dz_dd = (run(delay + h)[0] - run(max(delay - h, 0.0))[0]) / (delay + h - max(delay - h, 0.0))
-    return z, dz_da * da, dz_dd
+    return z, dz_dt, dz_dd
 
 
 def _delayed(cmd: np.ndarray, shift: float) -> np.ndarray:
@@ -414,26 +415,26 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
             jac.append(-np.einsum("nj,nj->n", jz[:, 0, :], dz_dd[mask])[:, None])
         return meas - y[:, 0], np.hstack(jac)
 
-    # the curve from a linear fit at the starting lag, then all together
-    z0 = lagged(grid.cmd, grid.dt, time_constant, in_delay=False)[0][mask]
-    regress = np.column_stack([np.full(z0.shape[0], -4.0), -z0.sum(1), -(z0 ** 2).sum(1)])
-    c_start = np.linalg.lstsq(regress, meas, rcond=None)[0]
+    def curve(z):
+        """The thrust curve by linear least squares for given rotor commands (the model is linear in it)."""
+        _, jt, _ = predict(z, omega, airframe.theta(), airframe, rows=(2,), names=names[:3])
+        c, *_ = np.linalg.lstsq(jt[:, 0, :], meas, rcond=None)
+        return c, float(np.sqrt(np.mean((meas - jt[:, 0, :] @ c) ** 2)))
+
+    # the curve at the starting lag, then everything together
+    c_start, _ = curve(lagged(grid.cmd, grid.dt, time_constant, in_delay=False)[0][mask])
     x0 = np.r_[c_start, time_constant, [0.005] if delay else []]
     scale = np.r_[0.01, 0.01, 0.1, 0.01, [0.005] if delay else []]
     lower = np.r_[-np.inf, -np.inf, -np.inf, 2 * grid.dt, [0.0] if delay else []]
     x = _levenberg_marquardt(rj, x0, scale, lower)
     r, j = rj(x)
     cov, bandwidth = sandwich(j[:, None, :], r[:, None])
-    # the same curve with no lag (the paper's comparison)
-    no_lag = np.linalg.lstsq(np.column_stack([np.full(mask.sum(), -4.0), -grid.cmd[mask].sum(1),
-                                              -(grid.cmd[mask] ** 2).sum(1)]), meas, rcond=None)
-    rms_no_lag = float(np.sqrt(np.mean((meas - np.column_stack([np.full(mask.sum(), -4.0), -grid.cmd[mask].sum(1),
-                                                                 -(grid.cmd[mask] ** 2).sum(1)]) @ no_lag[0]) ** 2)))
+    no_lag, rms_no_lag = curve(grid.cmd[mask])  # the same curve with no lag (the paper's comparison)
     z = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0, in_delay=False)[0][mask]
     return Estimate(stage="thrust", names=names, values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=-meas[:, None], predicted=(-(meas - r))[:, None],
                     rows=("thrust (N)",), rms=float(np.sqrt(np.mean(r ** 2))), bandwidth=bandwidth,
-                    extra={"rms_without_lag": rms_no_lag, "curve_without_lag": [float(v) for v in no_lag[0]],
+                    extra={"rms_without_lag": rms_no_lag, "curve_without_lag": [float(v) for v in no_lag],
                            "commands_flown": [float(np.quantile(z, 0.01)), float(np.quantile(z, 0.99))]})
 
 

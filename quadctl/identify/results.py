@@ -72,9 +72,11 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
     fits["thrust"] = est.fit_thrust(grid(i), w, airframe, delay=delay)
     if "attitude" in p.chosen:
         i, w = p.chosen["attitude"]
+        est.require_window(grid(i), w, logs[i].path, "attitude")
         fits["attitude"] = est.fit_attitude(grid(i), w, airframe, fits["thrust"])
     if "yaw" in p.chosen:
         i, w = p.chosen["yaw"]
+        est.require_window(grid(i), w, logs[i].path, "yaw")
         fits["yaw"] = est.fit_yaw(grid(i), w, airframe, fits["thrust"], fits.get("attitude"))
     return Identification(logs=list(logs), fits=fits, refused=p.refused,
                           stage_logs={s: c[0] for s, c in p.chosen.items()}, airframe=airframe,
