@@ -83,8 +83,9 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
                           config_name=config.name)
 
 
-def payload(ident: Identification, config_label: str) -> dict:
-    """``identified.json``: values, 95 % intervals, units, windows, residuals, the logs' provenance."""
+def payload(ident: Identification, config_label: str, config=None) -> dict:
+    """``identified.json``: values, 95 % intervals, units, windows, residuals, the logs' provenance
+    (and, given the ``config``, the provenance every quadctl artifact carries)."""
     stages = {}
     for stage, fit in ident.fits.items():
         params = {}
@@ -98,7 +99,10 @@ def payload(ident: Identification, config_label: str) -> dict:
             "residual_unit": "N" if stage == "thrust" else "N m",
             "residual_correlation_s": fit.bandwidth / 2 * float(np.median(np.diff(fit.t))),
             **{k: v for k, v in fit.extra.items()}}
-    return {"config": config_label, "logs": [log.provenance() for log in ident.logs], "stages": stages,
+    from quadctl.artifacts.meta import metadata
+
+    meta = metadata(config, "identified.json") if config is not None else {}
+    return {**meta, "config": config_label, "logs": [log.provenance() for log in ident.logs], "stages": stages,
             "refused": dict(ident.refused),
             "held": {"mass_kg": ident.airframe.mass, "rotor_positions_m": ident.airframe.positions.tolist(),
                      "Jzz_kg_m2": float(ident.airframe.inertia[2])},

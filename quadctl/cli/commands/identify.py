@@ -37,7 +37,7 @@ def command(logs: Annotated[list[Path], typer.Argument(
     cfg = parse(source.text, source.label)
     read = [readers.read_log(p, readers.parse_columns(columns)) for p in logs]
     ident = results.identify(read, cfg, results.windows_per_log(window, len(logs)), delay=delay)
-    payload = results.payload(ident, source.label)
+    payload = results.payload(ident, source.label, cfg)
     folder = out or Path("runs") / f"{cfg.name}-identified"
     text = results.identified_config(source.text, ident, f"{cfg.name}-identified")
     write_together({folder / "identified.json": _json.dumps(payload, indent=1).encode(),
