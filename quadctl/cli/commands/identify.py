@@ -3,14 +3,18 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.options import ConfigOpt, OutOpt
+from quadctl.cli.options import ConfigOpt
 
 NAME = "identify"
 
 
-def command(logs: Annotated[list[Path], typer.Argument(
-                metavar="LOG...", help="Flight logs: Crazyflie microSD binary, PX4 ULog (pyulog) or CSV.")],
-            config: ConfigOpt = None, out: OutOpt = None,
+def command(logs: Annotated[list[str], typer.Argument(
+                metavar="LOG", show_default=False,
+                help="Flight logs: Crazyflie microSD binary, PX4 ULog (pyulog) or CSV; one or more.")],
+            config: ConfigOpt = None,
+            out: Annotated[Optional[Path], typer.Option(
+                "--out", "-o", metavar="DIR", help="Folder for the results. Default: runs/<config name>-identified."
+            )] = None,
             window: Annotated[Optional[list[str]], typer.Option(
                 "--window", metavar="T0:T1", help="The stretch of a log to fit, s (t0:t1, or t0:t1,t2:t3); once "
                 "per LOG, in order. Default: chosen from the excitation.")] = None,
