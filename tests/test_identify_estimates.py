@@ -30,24 +30,18 @@ def airframe(arm=PAPER_ARM, inertia=(1.05e-5, 1.12e-5, 2.0e-5), k_m=0.006):
 
 
 def simulated_log(rng, *, seconds=4.0, rate=1000.0, tm=0.07, delay=0.0, curve=PAPER_CURVE, inertia=(1.05e-5, 1.12e-5,
-                  2.0e-5), k_m=0.006, acc_noise=0.3, gyro_noise=0.02, ar=0.9, with_rates=True):
+                  2.0e-5), k_m=0.006, acc_noise=0.3, gyro_noise=0.002, torque_noise=2e-5, ar=0.9,
+                  with_rates=True):
     """A log from the model with known parameters: held random commands, the paper's lag on the
     command, rotor thrusts mixed by quadctl.motors, the rates integrated (RK4) through the CasADi
-    model's f; AR(1) sensor noise (``ar``: its sample-to-sample correlation)."""
+    model's f under a torque error (``torque_noise``, N m: the rotors' thrust not quite the curve's, where
+    the attitude fit takes a log's error to be); AR(1) noise (``ar``: its sample-to-sample correlation)
+    on the accelerometer, the gyro and that torque."""
     n = int(seconds * rate)
     t = np.arange(n) / rate
     hold = int(0.05 * rate)
     steps = rng.uniform(-0.25, 0.25, size=(n // hold + 1, 1)) + rng.uniform(-0.06, 0.06, size=(n // hold + 1, 4))
     cmd = np.clip(0.6 + np.repeat(steps, hold, axis=0)[:n], 0.0, 1.0)
-    z = est.lagged(cmd, 1.0 / rate, tm, delay)[0]
-    thrust = curve[0] + curve[1] * z + curve[2] * z ** 2
-    motors = Motors(layout="x", arm_length=PAPER_ARM, torque_coefficient=k_m)
-    inputs = thrust @ motors.effectiveness().T  # [T, A, E, R] per sample
-    vehicle = Vehicle(mass=MASS, gravity=0.0, inertia=tuple(inertia), drag=(0.0, 0.0, 0.0))
-    omega = rates_of(inputs, vehicle, 1.0 / rate) if with_rates else np.zeros((n, 3))
-    acc = np.zeros((n, 3))
-    acc[:, 2] = -thrust.sum(axis=1) / MASS
-
     def colored(scale, shape):
         e = rng.normal(size=shape) * scale * np.sqrt(1 - ar ** 2)
         out = np.empty(shape)
@@ -56,6 +50,15 @@ def simulated_log(rng, *, seconds=4.0, rate=1000.0, tm=0.07, delay=0.0, curve=PA
             out[k] = ar * out[k - 1] + e[k]
         return out
 
+    z = est.lagged(cmd, 1.0 / rate, tm, delay)[0]
+    thrust = curve[0] + curve[1] * z + curve[2] * z ** 2
+    motors = Motors(layout="x", arm_length=PAPER_ARM, torque_coefficient=k_m)
+    inputs = thrust @ motors.effectiveness().T  # [T, A, E, R] per sample
+    inputs[:, 1:] += colored(torque_noise, (n, 3))
+    vehicle = Vehicle(mass=MASS, gravity=0.0, inertia=tuple(inertia), drag=(0.0, 0.0, 0.0))
+    omega = rates_of(inputs, vehicle, 1.0 / rate) if with_rates else np.zeros((n, 3))
+    acc = np.zeros((n, 3))
+    acc[:, 2] = -thrust.sum(axis=1) / MASS
     return FlightLog(t=t, acc=acc + colored(acc_noise, (n, 3)), gyro=omega + colored(gyro_noise, (n, 3)), cmd=cmd,
                      path="simulated", format="csv", sha256="")
 
@@ -149,7 +152,7 @@ def test_thrust_intervals_cover_the_truth_about_95_percent():
 def test_inertia_and_torque_coefficient_within_their_intervals():
     rng = np.random.default_rng(7)
     inertia, k_m = (1.05e-5, 1.12e-5, 2.0e-5), 0.006
-    log = simulated_log(rng, seconds=6.0, inertia=inertia, k_m=k_m, gyro_noise=0.05)
+    log = simulated_log(rng, seconds=6.0, inertia=inertia, k_m=k_m)
     grid = est.on_grid(log)
     af = airframe(inertia=(2e-5, 2e-5, inertia[2]), k_m=0.004)  # wrong starting values, the true Jzz
     thrust = est.fit_thrust(grid, [(0.3, 5.9)], af)

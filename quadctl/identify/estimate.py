@@ -47,6 +47,8 @@ MEANING = {"c0": "rotor thrust at command 0", "c1": "rotor thrust, linear in the
 ANGULAR_ACCELERATION_CUTOFF = 20.0
 """Hz: the gyro is low-passed (zero phase, 2nd-order Butterworth) before it is differentiated; the
 model's torque goes through the same filter, so the fit compares like with like."""
+BANDWIDTH_FACTOR = 2
+"""The Newey-West sum runs to this many times the residual's correlation length."""
 Z95 = 1.959963984540054
 """The normal 97.5 % quantile: a 95 % two-sided interval is ``value +- Z95 std``."""
 LEAD_IN = 2.0
@@ -333,7 +335,7 @@ def sandwich(jac: np.ndarray, res: np.ndarray) -> tuple[np.ndarray, int]:
     scores = np.einsum("nrk,nr->nk", jac, res)
     flat = jac.reshape(-1, jac.shape[2])
     hess_inv = np.linalg.inv(flat.T @ flat)
-    bandwidth = 2 * correlation_length(res)
+    bandwidth = BANDWIDTH_FACTOR * correlation_length(res)
     size = 1 << int(math.ceil(math.log2(n + bandwidth + 1)))
     spec = np.fft.rfft(scores, size, axis=0)
     # gamma[l, a, b] = sum_t scores[t + l, a] scores[t, b], every lag at once
