@@ -73,3 +73,40 @@ def test_identify_refuses_a_csv_without_a_column(tmp_path):
     assert res.exit_code == 2
     assert "flight.csv: no column 'cmd_4'" in res.output and "--columns cmd_4=YOUR_NAME" in res.output
     assert not (tmp_path / "o").exists()
+
+
+def _fit(stage, names, values, windows=((1.0, 2.0),)):
+    import numpy as np
+
+    from quadctl.identify.estimate import Estimate
+
+    k = len(names)
+    return Estimate(stage=stage, names=tuple(names), values=np.array(values, float), std=np.full(k, 1e-9),
+                    covariance=np.eye(k) * 1e-18, windows=list(windows), t=np.zeros(2), measured=np.zeros((2, 1)),
+                    predicted=np.zeros((2, 1)), rows=("x",), rms=0.0, bandwidth=1)
+
+
+@pytest.mark.parametrize("jzz, lowered", [(3e-5, True), (2e-5, False)])
+def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
+    """Jxx + Jyy identified below the config's Jzz: Jzz goes down to their sum, and the torque
+    coefficient with it (a yaw log fixes k_m / Jzz)."""
+    import numpy as np
+
+    from quadctl.identify import estimate as est
+    from quadctl.identify.readers import FlightLog
+    from quadctl.identify.results import Identification, changes
+
+    log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
+                    path="log", format="csv", sha256="")
+    airframe = est.Airframe(mass=0.027, positions=np.zeros((4, 2)), spins=np.ones(4),
+                            inertia=np.array([1e-5, 1e-5, jzz]), torque_coefficient=0.006)
+    fits = {"thrust": _fit("thrust", ("c0", "c1", "c2", "T_m"), (0.02, -0.01, 0.12, 0.07)),
+            "attitude": _fit("attitude", ("Jxx", "Jyy"), (1.2e-5, 1.3e-5)),
+            "yaw": _fit("yaw", ("k_m",), (0.006,))}
+    ident = Identification(logs=[log], fits=fits, refused={}, stage_logs={"thrust": 0, "attitude": 0, "yaw": 0},
+                           airframe=airframe, config_name="x")
+    got = changes(ident)
+    want_jzz = 2.5e-5 if lowered else jzz
+    assert got[("vehicle", "inertia")][0] == f"[1.2e-05, 1.3e-05, {want_jzz:.4g}]"
+    assert ("Jzz lowered to Jxx + Jyy" in got[("vehicle", "inertia")][1]) is lowered
+    assert float(got[("motors", "torque_coefficient")][0]) == pytest.approx(0.006 * want_jzz / jzz, rel=1e-3)

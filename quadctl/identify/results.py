@@ -123,22 +123,37 @@ def changes(ident: Identification) -> dict:
                                          "(ignore: instantaneous rotors, and the lag only in the flown plant)")
     out[("motors", "max_thrust")] = (f"{ident.max_thrust():.4g}", f"N per rotor, the thrust curve at full command, "
                                      f"identified from {src} t {span} s")
-    inertia = list(ident.airframe.inertia)
+    inertia, lowered = identified_inertia(ident)
     if "attitude" in ident.fits:
         att = ident.fits["attitude"]
-        inertia[0], inertia[1] = att.value("Jxx"), att.value("Jyy")
         src_a = ident.logs[ident.stage_logs["attitude"]].name
         span_a = ",".join(f"{a:.4g}:{b:.4g}" for a, b in att.windows)
+        jzz = ("Jzz lowered to Jxx + Jyy (the config's Jzz was above it, which no rigid body allows; a log gives "
+               "Jzz only over the torque coefficient)") if lowered else "Jzz kept"
         out[("vehicle", "inertia")] = (
             "[" + ", ".join(f"{v:.4g}" for v in inertia) + "]",
-            f"kg m^2, Jxx Jyy identified from {src_a} t {span_a} s with this config's rotor positions; Jzz kept")
+            f"kg m^2, Jxx Jyy identified from {src_a} t {span_a} s with this config's rotor positions; {jzz}")
     if "yaw" in ident.fits:
         yaw = ident.fits["yaw"]
         src_y = ident.logs[ident.stage_logs["yaw"]].name
         span_y = ",".join(f"{a:.4g}:{b:.4g}" for a, b in yaw.windows)
+        k_m = yaw.value("k_m") * inertia[2] / ident.airframe.inertia[2]  # the log fixes k_m / Jzz
         out[("motors", "torque_coefficient")] = (
-            f"{yaw.value('k_m'):.4g}", f"N m per N, identified from {src_y} t {span_y} s with this config's Jzz")
+            f"{k_m:.4g}", f"N m per N, identified from {src_y} t {span_y} s (k_m / Jzz, with the Jzz above)")
     return out
+
+
+def identified_inertia(ident: Identification) -> tuple[list, bool]:
+    """``([Jxx, Jyy, Jzz], lowered)``: the identified Jxx and Jyy (the config's without the attitude stage)
+    and the config's Jzz, lowered to Jxx + Jyy when above it (the flat body's bound: no rigid body has
+    Jzz > Jxx + Jyy, and a yaw log gives Jzz only over the torque coefficient)."""
+    inertia = [float(v) for v in ident.airframe.inertia]
+    if "attitude" in ident.fits:
+        inertia[0], inertia[1] = ident.fits["attitude"].value("Jxx"), ident.fits["attitude"].value("Jyy")
+    lowered = "attitude" in ident.fits and inertia[2] > inertia[0] + inertia[1]
+    if lowered:
+        inertia[2] = inertia[0] + inertia[1]
+    return inertia, lowered
 
 
 def identified_config(text: str, ident: Identification, name: str) -> str:
