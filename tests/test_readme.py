@@ -36,8 +36,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
-SHARED = ("docs", "examples", "benchmarks")
-"""Folders of the checkout the README's commands name by relative path."""
+SHARED = ("docs", "examples", "benchmarks", "tests")
+"""Folders of the checkout the README's commands name by relative path (``tests/data``: the flight logs)."""
 
 NOT_RUN = {
     "pytest": "the test suite itself: running it from inside itself would recurse",
