@@ -50,6 +50,7 @@ SHARED = ("configs", "docs", "examples", "benchmarks")
 NOT_RUN = {
     "pytest": "the test suite itself: running it from inside itself would recurse",
     "python benchmarks/bench.py": "the benchmark takes about a minute of timed runs; its options are parsed instead",
+    "sphinx-build": "builds the site: tests/test_doc_site.py runs the same build (docs extra installed)",
     "python docs/figures.py": "rewrites the checkout's docs/figures/*.png; tests/test_examples.py runs the library "
                               "calls it makes",
 }

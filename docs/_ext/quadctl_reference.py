@@ -33,7 +33,8 @@ def _cell(text: Any) -> str:
 
 def _text(text: Any) -> str:
     """Prose for a table cell: one line, and ``<`` kept as text (Markdown reads ``<name>`` as HTML)."""
-    return _cell(text).replace("<", "&lt;")
+    parts = re.split(r"(`[^`]*`)", _cell(text))  # inside a code span a `<` is shown as it is
+    return "".join(part if part.startswith("`") else part.replace("<", "&lt;") for part in parts)
 
 
 def _plain(help_text: str) -> str:
@@ -48,7 +49,7 @@ def _command_section(name: str, command, level: int) -> list[str]:
     ctx = command.context_class(command, info_name=name)
     out += ["```text", command.get_usage(ctx).strip(), "```", ""]
     if command.help:
-        out += [_plain(command.help).strip().replace("<", "&lt;"), ""]
+        out += ["\n".join(_text(line) if line.strip() else "" for line in _plain(command.help).strip().split("\n")), ""]
     for kind, title in (("argument", "argument"), ("option", "option")):
         records = [(p, p.get_help_record(ctx)) for p in command.params
                    if p.param_type_name == kind and not getattr(p, "hidden", False)]
