@@ -19,8 +19,8 @@ sys.path.insert(0, str(HERE.parent))  # the checkout's quadctl, ahead of an inst
 import quadctl  # noqa: E402
 
 project = "quadctl"
-author = "the quadctl authors"
-copyright = "the quadctl authors, MIT licence"
+author = "the quadctl developers"
+copyright = "2026, the quadctl developers (MIT licence)"
 release = version = quadctl.__version__
 
 extensions = [
