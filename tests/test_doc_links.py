@@ -1,7 +1,7 @@
-"""Every link of the README and of the site's pages (docs/**/*.md) finds its target in the repository: a relative path to a
-file of the checkout (never outside it: a clone has nothing beside it), a ``#anchor`` to a heading of
-the target page (GitHub's heading anchors); an external ``http(s)`` link is only checked for syntax,
-never fetched."""
+"""Every link of the README and of the site's pages (docs/**/*.md) finds its target in the repository:
+a relative path to a file of the checkout (never outside it: a clone has nothing beside it), a
+``#anchor`` to a heading of the target page (GitHub's heading anchors); an external ``http(s)`` link
+is only checked for syntax, never fetched."""
 
 from __future__ import annotations
 

@@ -343,9 +343,18 @@ def _param(block: Block):
     return pytest.param(block, id=_id(block), marks=[pytest.mark.compiler] if compiled else [])
 
 
-@pytest.mark.parametrize("block", [_param(b) for b in RUNNABLE])
+def in_guide(block: Block) -> bool:
+    """The Guide's pages run in tests/test_guide_pages.py: the pages' blocks in two files, one per worker."""
+    return block.page.startswith("docs/guide/")
+
+
+@pytest.mark.parametrize("block", [_param(b) for b in RUNNABLE if not in_guide(b)])
 def test_page_block(block, folders):
-    folder = folders(block.page)
+    run_block(block, folders(block.page))
+
+
+def run_block(block: Block, folder: Path) -> None:
+    """One fenced block, run in its page's folder."""
     if block.lang in ("bash", "sh", "shell", "console"):
         commands = commands_of(block)
         assert commands, f"{block.where}: a {block.lang} block without a command"

@@ -20,7 +20,8 @@ DOCS = ROOT / "docs"
 sys.path.insert(0, str(DOCS / "_ext"))
 import quadctl_reference  # noqa: E402
 
-ASSET = re.compile(r"""<(?:script|img|link|iframe|source|video|audio)\b[^>]*?\b(?:src|href)=["']?(?:https?:)?//""", re.I)
+ASSET = re.compile(r"""<(?:script|img|link|iframe|source|video|audio)\b[^>]*?\b(?:src|href)=["']?(?:https?:)?//""",
+                   re.I)
 """An element that makes a browser fetch from the network: a script, image, stylesheet, frame or media
 from an http(s) or protocol-relative address (a plain link ``<a href>`` is only followed when clicked)."""
 CSS_URL = re.compile(r"""url\(\s*["']?(?:https?:)?//""", re.I)
@@ -150,8 +151,7 @@ def test_the_config_reference_has_every_key_with_its_default_and_unit():
     table = {key: (default.strip(), meaning.strip()) for key, default, meaning in keys}
 
     def walk(model, prefix):
-        for name, field in model.model_fields.items():
-            yield f"{prefix}{name}"
+        return [f"{prefix}{name}" for name in model.model_fields]
 
     from quadctl.config.schema import Config, ControllerConfig, SimulationConfig, VehicleConfig
 
