@@ -58,3 +58,5 @@ html_last_updated_fmt = None
 html_show_sourcelink = False
 html_copy_source = False
 html_show_sphinx = False  # the footer links to sphinx-doc.org and the theme's site: the site links nowhere outside
+# no typographic quotes and dashes: "--set" in a help text stays two hyphens, as it is typed
+smartquotes = False

@@ -18,7 +18,9 @@ page's own (so no page depends on another having run first) that sees the checko
 A page that needs a file its prose describes declares it in a comment, which neither GitHub nor
 the site shows: ``<!-- page-test-file: my.yaml forward simulation.dt=0.001 -->`` is the bundled
 ``forward`` config with that value changed (each ``KEY=VALUE`` read as YAML), written as
-``my.yaml`` in the page's folder before its blocks run.
+``my.yaml`` in the page's folder before its blocks run. A block that repeats what an earlier block of
+its page already ran (the README's walkthrough runs the command its install line ran) is marked
+``<!-- page-test: slow -->`` on the line before it: it runs with the slow tests (``pytest -m slow``).
 
 ``pip install`` is never run (it would change this environment): it must install this checkout
 (``.``, with extras ``pyproject.toml`` declares). Inline ``quadctl ...`` commands in the prose are
@@ -90,6 +92,7 @@ class Block:
     line: int
     text: str
     page: str = "README.md"
+    slow: bool = False
 
     @property
     def where(self) -> str:
@@ -112,14 +115,20 @@ class Command:
         return shlex.split(self.text, comments=True)
 
 
+SLOW_MARK = "<!-- page-test: slow -->"
+"""On the line before a block: the block repeats an earlier one of its page, and runs with ``pytest -m slow``."""
+
+
 def fenced_blocks(text: str, page: str = "README.md") -> list[Block]:
     blocks, lang, start, body = [], None, 0, []
-    for i, line in enumerate(text.splitlines(), 1):
+    lines = text.splitlines()
+    for i, line in enumerate(lines, 1):
         fence = re.match(r"^```\s*(\S*)\s*$", line)
         if fence and lang is None:
             lang, start, body = fence.group(1) or "text", i, []
         elif line.startswith("```") and lang is not None:
-            blocks.append(Block(lang, start, "\n".join(body) + "\n", page))
+            blocks.append(Block(lang, start, "\n".join(body) + "\n", page,
+                                slow=start >= 2 and lines[start - 2].strip() == SLOW_MARK))
             lang = None
         elif lang is not None:
             body.append(line)
@@ -338,9 +347,10 @@ def test_the_walkthrough_names_every_bundled_config():
 
 
 def _param(block: Block):
-    """A block whose shown output comes from the compiled backend needs a compiler to print it."""
-    compiled = "(compiled" in block.text
-    return pytest.param(block, id=_id(block), marks=[pytest.mark.compiler] if compiled else [])
+    """A block whose shown output comes from the compiled backend needs a compiler to print it; a
+    block marked as a repeat runs with the slow tests."""
+    marks = [pytest.mark.compiler] if "(compiled" in block.text else []
+    return pytest.param(block, id=_id(block), marks=[*marks, *([pytest.mark.slow] if block.slow else [])])
 
 
 def in_guide(block: Block) -> bool:
@@ -465,3 +475,10 @@ def check_quadctl(args: list[str], command: Command) -> None:
         except Exception as exc:  # typer's own click: its exception classes are not click's
             if "does not exist" not in str(exc):  # a file the prose describes (mc.yaml) need not be here
                 raise AssertionError(f"{where}: {exc}") from None
+
+
+def test_a_block_marked_as_a_repeat_is_slow_and_others_are_not():
+    text = "```bash\nquadctl trim\n```\n\n<!-- page-test: slow -->\n```console\n$ quadctl trim\n```\n"
+    first, second = fenced_blocks(text, "page.md")
+    assert (first.slow, second.slow) == (False, True)
+    assert [m.name for m in _param(second).marks] == ["slow"] and not _param(first).marks
