@@ -137,12 +137,19 @@ def _default(node: dict, path: tuple[str, ...]) -> str:
     return f"`{json.dumps(value)}`"
 
 
-def _meaning(node: dict, definitions: dict, default: str) -> str:
-    """The unit and meaning from the key's description, without the default it repeats."""
+def _meaning(node: dict, definitions: dict, default: str, path: tuple[str, ...] = ()) -> str:
+    """The unit and meaning from the key's description, without the default it repeats, and what its
+    absence means where the description does not say."""
+    from quadctl.config.schema import PLANT
+
     text = node.get("description", "") or _resolve(node, definitions).get("description", "")
+    if tuple(path[:2]) == tuple(PLANT) and len(path) == 3:  # the simulated vehicle: the design vehicle's value
+        text = f"{text}; absent: the design vehicle's `vehicle.{path[2]}`"
+    if tuple(path) == tuple(PLANT):
+        text = f"{text}; absent: the simulated vehicle is the design vehicle"
     if default.startswith("`"):
         text = re.sub(r";? ?default " + re.escape(default.strip("`")) + r"$", "", text)
-    if default == "absent" and "absent" not in text:
+    if default == "absent" and "absent" not in text and "default" not in text:
         text = f"{text}; absent: not used" if text else "absent: not used"
     return text
 
@@ -179,20 +186,18 @@ def config_markdown() -> str:
     sections = {path[0] for path, _, _ in rows if len(path) > 1}
     rows = [r for r in rows if r[0][0] not in sections] + [r for r in rows if r[0][0] in sections]
     out: list[str] = ["### Top level", "", *header]
-    current = None
     for path, node, required in rows:
         top = path[0]
-        if top in sections and top != current:
-            current = top
-            out += ["", f"### `{top}`", ""]
-            described = node.get("description", "")
-            if described:
-                out += [_text(described[:1].upper() + described[1:]) + ("" if described.endswith(".") else "."), ""]
-            out += header
-        key = ".".join(path).replace(".[i]", "[i]")
         default = "required" if required else _default(node, path)
+        if top in sections and len(path) == 1:  # a section: its sentence and what its absence means, then its keys
+            described = _meaning(node, definitions, default, path)
+            absence = {"required": " Required.", "its keys' defaults": " Absent: each key below takes its default."}
+            out += ["", f"### `{top}`", "", _text(described[:1].upper() + described[1:]).rstrip(".") + "."
+                    + absence.get(default, ""), "", *header]
+            continue
+        key = ".".join(path).replace(".[i]", "[i]")
         out.append(f"| `{key}` | {_text(_type(node, definitions))} | {_cell(default)} "
-                   f"| {_text(_meaning(node, definitions, default))} |")
+                   f"| {_text(_meaning(node, definitions, default, path))} |")
     return "\n".join(out) + "\n"
 
 
