@@ -267,11 +267,11 @@ static long qc_mod(long a, long m) { return m > 0 ? ((a % m) + m) % m : 0; }
  * Records into xs [QC_L][QC_NX][rows_max], us [QC_L][QC_NU][rows_max], ks [QC_L][rows_max];
  * n_rec[l]: rows written; done[l]: steps completed (n when every state stayed in bounds).
  * keep: store every record (else only the final one, in row 0); mq, mv, macc: the metrics (or
- * mq == NULL: none), see qc_metric. */
-void qc_run(const double* x0, const double* c, const double* lane_d, const long* lane_i,
-            const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
-            double* xs, double* us, long* ks, long* n_rec, long* done,
-            long keep, const long* mq, const double* mv, double* macc) {
+ * mq == NULL: none), see qc_metric; row0 (or NULL: 0): each lane's first row. */
+static void qc_run_at(const double* x0, const double* c, const double* lane_d, const long* lane_i,
+                      const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
+                      double* xs, double* us, long* ks, long* n_rec, long* done,
+                      long keep, const long* mq, const double* mv, double* macc, const long* row0) {
   double X[QC_NX * QC_L], XN[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
   double U[QC_NU * QC_L], UH[QC_NU * QC_L], UF[QC_NU * QC_L], T[QC_L], DT[QC_L], E[QC_NE1 * QC_L];
   double XR[QC_NS * QC_L];
@@ -291,7 +291,7 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
   memset(UF, 0, sizeof UF);
   (void)XS; (void)hold_in;
   for (int l = 0; l < QC_L; ++l) {
-    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = 0; done[l] = 0; held[l] = -1; until[l] = LONG_MIN;
+    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = row0 ? row0[l] : 0; done[l] = 0; held[l] = -1; until[l] = LONG_MIN;
     rec_in[l] = qc_mod(-QC_K0(l), QC_STRIDE(l));   /* steps until the next recorded one */
     hold_in[l] = qc_mod(-QC_K0(l), QC_HOLD(l));    /* steps until the next controller sample */
     DT[l] = QC_DT(l);
@@ -411,5 +411,64 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
     }
     qc_ref(T, c, E, XR);
     qc_metric(mq, mv, macc, on, kk, T, XF, U, XR, 1);
+  }
+}
+
+void qc_run(const double* x0, const double* c, const double* lane_d, const long* lane_i,
+            const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
+            double* xs, double* us, long* ks, long* n_rec, long* done,
+            long keep, const long* mq, const double* mv, double* macc) {
+  qc_run_at(x0, c, lane_d, lane_i, lo, hi, exo, exo_rows, rows_max, xs, us, ks, n_rec, done, keep, mq, mv, macc,
+            NULL);
+}
+
+/* n_seg segments run one after another in one call (ETDRK4's graded schedule), each lane from where
+ * its last segment ended: segment s's c [QC_NC][QC_L], lane_d [2][QC_L] and lane_i [6][QC_L] at
+ * c + s QC_NC QC_L, lane_d + 2 s QC_L, lane_i + 6 s QC_L (QC_N(l) == 0: lane l has no segment s).
+ * A segment's final record is overwritten by the next segment's first (the same state and time); a
+ * lane stops at its last segment or where a segment stops early (it left its bounds). Records as
+ * qc_run's, all segments' in one row range (rows_max counts one more, a spare row the lanes done
+ * write into); first[s][l]: the row segment s of lane l starts at (-1: none); done[l]: the steps of
+ * all its segments. */
+void qc_run_segments(long n_seg, const double* x0, const double* c, const double* lane_d, const long* lane_i,
+                     const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
+                     double* xs, double* us, long* ks, long* n_rec, long* done, long* first) {
+  double X[QC_NX * QC_L];
+  long li[6 * QC_L], row0[QC_L], rows[QC_L], seg_done[QC_L], last[QC_L];
+  int live[QC_L];
+  memcpy(X, x0, sizeof X);
+  for (int l = 0; l < QC_L; ++l) {
+    last[l] = -1;
+    for (long s = 0; s < n_seg; ++s)
+      if (lane_i[(6 * s + 1) * QC_L + l] > 0) last[l] = s;
+    live[l] = last[l] >= 0;
+    row0[l] = live[l] ? 0 : rows_max - 1;
+    done[l] = 0;
+    n_rec[l] = 1;
+  }
+  for (long s = 0; s < n_seg; ++s) {
+    int any = 0;
+    memcpy(li, lane_i + 6 * s * QC_L, sizeof li);
+    for (int l = 0; l < QC_L; ++l) {
+      first[s * QC_L + l] = live[l] ? row0[l] : -1;
+      if (!live[l]) li[1 * QC_L + l] = 0;  /* QC_N: a lane done takes no steps, records into the spare row */
+      any |= live[l];
+    }
+    if (!any) continue;
+    qc_run_at(X, c + s * QC_NC * QC_L, lane_d + 2 * s * QC_L, li, lo, hi, exo, exo_rows, rows_max, xs, us, ks,
+              rows, seg_done, 1, NULL, NULL, NULL, row0);
+    for (int l = 0; l < QC_L; ++l) {
+      if (!live[l]) continue;
+      long end = rows[l] - 1;  /* the segment's final record */
+      done[l] += seg_done[l];
+      for (int i = 0; i < QC_NX; ++i) X[i * QC_L + l] = xs[((long)l * QC_NX + i) * rows_max + end];
+      if (s == last[l] || seg_done[l] < li[1 * QC_L + l]) {
+        live[l] = 0;
+        n_rec[l] = rows[l];
+        row0[l] = rows_max - 1;
+      } else {
+        row0[l] = end;
+      }
+    }
   }
 }

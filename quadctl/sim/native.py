@@ -11,7 +11,7 @@ import numpy as np
 from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
 from quadctl.sim.builder import LoopFunctions, LoopSpec
-from quadctl.sim.cases import C_LONG, Cases, record_rows
+from quadctl.sim.cases import C_LONG, Cases, Segments, record_rows
 from quadctl.sim.compile import DRIVER_SOURCE
 from quadctl.sim.emit import SIMD_DECLARATIONS, emit
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec
@@ -51,6 +51,9 @@ class NativeRunner:
         self._run.restype = None
         self._run.argtypes = [ptr, ptr, ptr, ptr, ptr, ptr, ptr, long, long, ptr, ptr, ptr, ptr, ptr, long, ptr, ptr,
                               ptr]
+        self._segments = self._lib.qc_run_segments
+        self._segments.restype = None
+        self._segments.argtypes = [long, ptr, ptr, ptr, ptr, ptr, ptr, ptr, long, long, ptr, ptr, ptr, ptr, ptr, ptr]
 
     def iter_run(self, cases: Cases):
         """Yield ``(index, done, ks, xs, us)`` per case.
@@ -93,6 +96,77 @@ class NativeRunner:
             for lane in range(used):
                 yield (start + lane, int(calls.done[lane]), int(calls.ks[lane, 0]), calls.xs[lane, :, 0],
                        calls.us[lane, :, 0], sums[:, lane])
+
+    def run_segments(self, segments: Segments, x0) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+        """Per case ``(done, t, xs, us)`` of its run through its ``segments`` from ``x0`` (N, nx), as
+        :func:`quadctl.sim.cases.run_segments_by_calls` gives them, in one C call per ``lanes`` cases
+        (``qc_run_segments``: the segments walked in C). The marshalled arrays of ``segments`` are
+        kept with it (:meth:`Segments.memo`), so a second run of the same segments only copies ``x0``."""
+        L, nx = self.lanes, self.spec.nx
+        x0 = np.array(x0, dtype=float, ndmin=2)
+        N = len(segments)
+        calls = segments.memo(("native", L), lambda: self._segment_calls(segments))
+        G = len(calls.groups)
+        x0_lanes = np.zeros((G * L, nx))
+        x0_lanes[:N] = x0
+        x0_lanes[N:] = x0[(G - 1) * L] if N < G * L else 0.0
+        x0_lanes = np.ascontiguousarray(x0_lanes.reshape(G, L, nx).transpose(0, 2, 1))
+        out = []
+        S = segments.n.shape[0]
+        for g, (start, used) in enumerate(calls.groups):
+            exo = None
+            if self.spec.n_exo:
+                exo = np.zeros((L, calls.exo_rows, self.spec.n_exo))
+                for lane, e in enumerate(segments.exo[start:start + used]):
+                    exo[lane, :len(e)] = e
+            xs, us, ks = (np.empty((L, nx, calls.rows_max)), np.empty((L, N_INPUTS, calls.rows_max)),
+                          np.empty((L, calls.rows_max), dtype=C_LONG))
+            n_rec, done, first = np.empty(L, dtype=C_LONG), np.empty(L, dtype=C_LONG), np.empty((S, L), dtype=C_LONG)
+            self._segments(S, _address(x0_lanes[g]), *calls.addresses[g], _address(exo), calls.exo_rows,
+                           calls.rows_max, _address(xs), _address(us), _address(ks), _address(n_rec), _address(done),
+                           _address(first))
+            for lane in range(used):
+                i, r = start + lane, int(n_rec[lane])
+                starts = first[:, lane]
+                taken = starts >= 0
+                counts = np.diff(np.append(starts[taken], r))
+                dt = np.repeat(segments.dt[taken, i], counts)
+                out.append((int(done[lane]), dt * ks[lane, :r], xs[lane, :, :r].T.copy(), us[lane, :, :r].T.copy()))
+        return out
+
+    def _segment_calls(self, segments: Segments) -> _SegmentCalls:
+        """The C arrays of :meth:`run_segments`' calls: per group of ``lanes`` cases (the last padded with
+        copies of its first case, which take no steps) ``c`` (S, nc, L), the doubles (S, 2, L), the longs
+        (S, 6, L), ``lo`` and ``hi`` (nx, L); the rows a lane records (every segment's, one more spare)."""
+        L, N = self.lanes, len(segments)
+        S = segments.n.shape[0]
+        G = -(-N // L)
+        pad = G * L - N
+
+        def lanes(arr, fill=None):  # (S, N, ...) -> (G, S, ..., L)
+            arr = np.asarray(arr)
+            if pad:
+                filler = arr[:, (G - 1) * L:(G - 1) * L + 1] if fill is None else \
+                    np.broadcast_to(fill, (arr.shape[0], 1, *arr.shape[2:]))
+                arr = np.concatenate([arr, np.repeat(filler, pad, axis=1)], axis=1)
+            arr = arr.reshape(arr.shape[0], G, L, *arr.shape[2:])
+            arr = np.moveaxis(arr, 2, -1)  # (S, G, ..., L)
+            return np.ascontiguousarray(np.moveaxis(arr, 1, 0))
+
+        per_case = np.broadcast_to
+        counts = np.array([len(e) for e in segments.exo], dtype=C_LONG) if segments.exo else np.ones(N, dtype=C_LONG)
+        lane_d = np.stack([lanes(segments.dt), lanes(per_case(segments.exo_period, (S, N)))], axis=2)
+        lane_i = np.stack([lanes(segments.k0), lanes(segments.n, 0), lanes(segments.stride), lanes(segments.hold),
+                           lanes(per_case(segments.exo_first, (S, N))), lanes(per_case(counts, (S, N)))],
+                          axis=2).astype(C_LONG)
+        c = lanes(segments.c)
+        bounds = [lanes(b[None])[:, 0] for b in (segments.lo, segments.hi)]
+        blocks = [[np.ascontiguousarray(a[g]) for a in (c, lane_d, lane_i, *bounds)] for g in range(G)]
+        rows = max(sum(record_rows(int(segments.k0[s, i]), int(segments.n[s, i]), int(segments.stride[s, i]))
+                       for s in range(S) if segments.n[s, i] > 0) for i in range(N)) + 1
+        return _SegmentCalls(groups=[(start, min(L, N - start)) for start in range(0, N, L)], blocks=blocks,
+                             addresses=[[_address(a) for a in arrays] for arrays in blocks], rows_max=rows,
+                             exo_rows=max(len(e) for e in segments.exo) if self.spec.n_exo > 0 else 0)
 
     def run(self, cases: Cases) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
         """``(done, ks, xs, us)`` per case, as copies."""
@@ -178,3 +252,15 @@ class _Calls:
     done: np.ndarray
     outputs: list | None = None
     """The output buffers' addresses, taken at the first call."""
+
+
+@dataclass
+class _SegmentCalls:
+    """The calls of :meth:`NativeRunner.run_segments` (see :meth:`NativeRunner._segment_calls`)."""
+
+    groups: list
+    blocks: list
+    addresses: list
+    """Per call, the addresses of ``c``, the doubles, the longs, ``lo`` and ``hi`` (``blocks``' arrays)."""
+    rows_max: int
+    exo_rows: int
