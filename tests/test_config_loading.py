@@ -140,9 +140,9 @@ def test_folder_names_are_fine(name):
     ("{pD: 0.5,", "{r: -1e3, pD: 0.5,", r"simulation\.initial_offset\.r = -1000: must be at most 100 rad/s"),
     ("{pD: 0.5,", "{w: 1e200, pD: 0.5,", r"simulation\.initial_offset\.w = 1e\+200: must be at most 100 m/s"),
     ("position_ned: [0.0, 0.0, -1.0]", "position_ned: [0.0, 0.0, -1e308]",
-     r"trim\.position_ned\[2\] = -1e\+308: must be at most 1e\+06 m in magnitude \(MAX_TRIM\)$"),
+     r"trim\.position_ned\[2\] = -1e\+308: must be at most 1e\+06 m in magnitude \(UNIT_LIMITS\)$"),
     ("velocity_ned: [1.0, 0.0, 0.0]", "velocity_ned: [1e300, 0.0, 0.0]",
-     r"trim\.velocity_ned\[0\] = 1e\+300: must be at most 1000 m/s in magnitude \(MAX_TRIM\)$"),
+     r"trim\.velocity_ned\[0\] = 1e\+300: must be at most 1000 m/s in magnitude \(UNIT_LIMITS\)$"),
 ])
 def test_extreme_numbers_are_refused_by_the_schema(tmp_path, old, new, pattern):
     one_error(run(tmp_path, edit(old, new), "simulate"), r"^quadctl: error: .*c\.yaml: " + pattern)

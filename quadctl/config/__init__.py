@@ -30,7 +30,8 @@ from quadctl.config.checks import MAX_DURATION as MAX_DURATION
 from quadctl.config.checks import MAX_DURATION_ENV as MAX_DURATION_ENV
 from quadctl.config.checks import MAX_OFFSET as MAX_OFFSET
 from quadctl.config.checks import MAX_TILT_OFFSET as MAX_TILT_OFFSET
-from quadctl.config.checks import MAX_TRIM as MAX_TRIM
+from quadctl.config.checks import UNIT_KEYS as UNIT_KEYS
+from quadctl.config.checks import UNIT_LIMITS as UNIT_LIMITS
 from quadctl.config.checks import max_duration_s as max_duration_s
 from quadctl.config.loading import DEFAULT_CONFIG as DEFAULT_CONFIG
 from quadctl.config.loading import FOLDER_SCAN as FOLDER_SCAN

@@ -117,13 +117,7 @@ def check_semantics(cfg: Config, label: str) -> None:
         if unit in MAX_OFFSET and abs(value) > MAX_OFFSET[unit]:
             fail(f"simulation.initial_offset.{state}", value,
                  f"must be at most {MAX_OFFSET[unit]:g} {unit} from the trim (MAX_OFFSET)")
-    if abs(cfg.trim.yaw) > 2 * math.pi:
-        fail("trim.yaw", cfg.trim.yaw, _degrees_hint(cfg.trim.yaw, 2 * math.pi))
-    for key in ("velocity_ned", "position_ned"):
-        unit = "m/s" if key == "velocity_ned" else "m"
-        for i, value in enumerate(getattr(cfg.trim, key)):
-            if abs(value) > MAX_TRIM[unit]:
-                fail(f"trim.{key}[{i}]", value, f"must be at most {MAX_TRIM[unit]:g} {unit} in magnitude (MAX_TRIM)")
+    _check_unit_limits(cfg, fail)
     max_duration = max_duration_s()
     if cfg.simulation.duration > max_duration:
         fail("simulation.duration", cfg.simulation.duration,
@@ -234,9 +228,58 @@ MAX_OFFSET = {"m": 1e4, "m/s": 1e2, "rad/s": 1e2}
 100 m/s and 100 rad/s (16 turns a second) are past any flight yet at least ten times inside
 the simulation's run-away bounds, so a run never starts out diverged, and no arithmetic on the
 state overflows (an offset of 1e308 did, with numpy warnings)."""
-MAX_TRIM = {"m": 1e6, "m/s": 1e3}
-"""Largest trim position (1000 km) and velocity (1000 m/s, three times the speed of sound): past
-them the trim and the reference it drifts along lose their digits."""
+UNIT_LIMITS = {"m": 1e6, "m/s": 1e3, "rad": 2 * math.pi}
+"""Largest magnitude of a position (1000 km), a velocity or speed (1000 m/s, three times the speed of
+sound) and a heading (one turn) wherever the config gives one (:data:`UNIT_KEYS`): past them the
+trim and the reference lose their digits (a reference 1e300 m away overflowed the run's error
+statistics), and a heading past a turn is an angle in degrees."""
+
+UNIT_KEYS: tuple[tuple[str, str], ...] = (
+    ("trim.position_ned[*]", "m"),
+    ("trim.velocity_ned[*]", "m/s"),
+    ("trim.yaw", "rad"),
+    ("simulation.reference.setpoints[*].position[*]", "m"),
+    ("simulation.reference.setpoints[*].velocity[*]", "m/s"),
+    ("simulation.reference.setpoints[*].yaw", "rad"),
+    ("simulation.reference.waypoints[*].position[*]", "m"),
+    ("simulation.reference.waypoints[*].yaw", "rad"),
+    ("simulation.reference.speed", "m/s"),
+    ("simulation.reference.tolerance", "m"),
+    ("schedule.values[*]", "schedule.variable"),
+    ("motors.arm_length", "m"),
+)
+"""Every key whose value is a position, a velocity or a heading, with its unit (``[*]``: each item of
+a list); ``schedule.values`` take the unit of ``schedule.variable`` (:data:`SCHEDULE_UNITS`). Each is
+held to :data:`UNIT_LIMITS` by :func:`_check_unit_limits`: one rule per unit."""
+SCHEDULE_UNITS = {"speed": "m/s", "climb": "m/s", "yaw": "rad"}
+"""The unit of each ``schedule.variable``'s values."""
+
+
+def _check_unit_limits(cfg: Config, fail) -> None:
+    """Each value of :data:`UNIT_KEYS` within its unit's :data:`UNIT_LIMITS`; a heading past a turn is
+    named as the angle in degrees it most likely is."""
+    data = cfg.model_dump(mode="json")
+    for pattern, unit in UNIT_KEYS:
+        for path, value in _values_at(data, pattern.replace("[*]", ".*").split("."), ""):
+            unit_here = SCHEDULE_UNITS[data["schedule"]["variable"]] if unit == "schedule.variable" else unit
+            limit = UNIT_LIMITS[unit_here]
+            if isinstance(value, (int, float)) and abs(value) > limit:
+                fail(path, value, _degrees_hint(value, limit) if unit_here == "rad" else
+                     f"must be at most {limit:g} {unit_here} in magnitude (UNIT_LIMITS)")
+
+
+def _values_at(node: Any, parts: list[str], path: str):
+    """``(key path, value)`` of each value the pattern ``parts`` (``*``: every item of a list) reaches
+    in ``node``; a section or list the config leaves out (null) reaches none."""
+    if not parts:
+        yield path, node
+        return
+    head, *rest = parts
+    if head == "*":
+        for i, item in enumerate(node if isinstance(node, list) else []):
+            yield from _values_at(item, rest, f"{path}[{i}]")
+    elif isinstance(node, dict) and node.get(head) is not None:
+        yield from _values_at(node[head], rest, f"{path}.{head}" if path else head)
 
 
 INERTIA_TRIANGLE_RTOL = 0.10
