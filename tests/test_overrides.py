@@ -156,3 +156,19 @@ def test_an_index_with_no_list_to_go_into_and_a_new_state_name_the_fix(given, me
     as in a file (every state named), not against the keys hover happens to hold (pD, phi, theta, psi)."""
     with pytest.raises(ConfigError, match=message):
         overrides.load(config.bundled("hover"), [given])
+
+
+@pytest.mark.parametrize("bad,message", [
+    ("simulation.initial_offset.zz=1", r"^--set: simulation\.initial_offset\.zz = 1: unknown state; allowed: "
+     r"pN, pE, pD, u, v, w, phi, theta, psi, p, q, r$"),
+    ("lqr.rol.Q=[1, 50, 1]", r"^--set lqr\.rol\.Q: no such key in the config: `lqr\.rol`; did you mean `roll`\?$"),
+])
+@pytest.mark.parametrize("good", ["simulation.initial_offset.u=0.1", "simulation.initial_offset.r=0.2"])
+@pytest.mark.parametrize("first", ["good", "bad"])
+def test_of_several_new_keys_the_refused_one_is_named(bad, message, good, first):
+    """Two --set values each adding a key, one of them accepted (a state hover's initial_offset lacks): the
+    error names the other, never "allowed: pD, phi, theta, psi" against the accepted one."""
+    assert overrides.load(config.bundled("hover"), [good]) is not None
+    sets = [good, bad] if first == "good" else [bad, good]
+    with pytest.raises(ConfigError, match=message):
+        overrides.load(config.bundled("hover"), sets)
