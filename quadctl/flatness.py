@@ -77,7 +77,7 @@ def _functions():
     return balance, feed
 
 
-def feedforward(path: FlatPath, params, pointwise=Pointwise) -> tuple[np.ndarray, np.ndarray]:
+def feedforward(path: FlatPath, params, pointwise=Pointwise, remedy=None) -> tuple[np.ndarray, np.ndarray]:
     """The reference state and input along ``path``.
 
     Parameters
@@ -90,6 +90,9 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise) -> tuple[np.ndarray
         ``pointwise(fn)`` evaluates a CasADi function over the points (a row a point):
         :class:`quadctl.pointwise.Pointwise` (CasADi's ``map``), or the compiled
         :func:`quadctl.sim.mapped.mapped` (the same numbers).
+    remedy : callable, optional
+        ``remedy(t)``: the fix a refusal at ``t`` s names (:meth:`quadctl.trajectory.Reference.remedy`: a
+        setpoint's velocity, a mission's speed); default a mission's.
 
     Returns
     -------
@@ -121,8 +124,9 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise) -> tuple[np.ndarray
         worst = int(np.argmax(resid))
         raise TrimError(
             f"simulation.reference: no roll, pitch and thrust fly the reference at t = {path.t[worst]:.4g} s "
-            f"(acceleration {_fmt(P[2][worst])} m/s^2 at velocity {_fmt(P[1][worst])} m/s); lower "
-            "simulation.reference.speed or space the waypoints further apart")
+            f"(acceleration {_fmt(P[2][worst])} m/s^2 at velocity {_fmt(P[1][worst])} m/s); "
+            + (remedy(float(path.t[worst])) if remedy is not None else
+               "lower simulation.reference.speed or space the waypoints further apart"))
     x, u = feed(z, s, sd, sdd, P[0], params)
     return x.reshape(n, N_STATES), u.reshape(n, N_INPUTS)
 
