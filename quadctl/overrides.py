@@ -157,9 +157,19 @@ def _created(tree: Any, keys: tuple):
     return None
 
 def recorded(text: str, sets) -> str:
-    """The config's text with the ``--set`` values after it as comments (``config.yaml``: what made the run)."""
+    """The config's text with the ``--set`` values after it as comments (``config.yaml``: what made the run).
+
+    A value that spans lines is commented on each of them (split where YAML, or Python, breaks a line:
+    ``\\r`` and the Unicode line separators too), so the file still reads as the config alone.
+
+    >>> print(recorded("name: x\\n", ["description=a\\nb"]), end="")
+    name: x
+    # run with these values put in (config.resolved.yaml holds the result):
+    #   --set description=a
+    #     b
+    """
     if not sets:
         return text
-    lines = "".join(f"#   {OPTION} {s}\n" for s in sets)
+    lines = "".join(f"#   {OPTION} " + "\n#     ".join(s.splitlines() or [""]) + "\n" for s in sets)
     return (text if text.endswith("\n") else text + "\n") + (
         f"# run with these values put in (config.resolved.yaml holds the result):\n{lines}")
