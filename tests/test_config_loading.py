@@ -104,20 +104,22 @@ def test_configs_lists_the_bundled_configs_whatever_files_are_here(tmp_path, mon
 # The name is one folder inside runs/
 
 
-@pytest.mark.parametrize("name", ["..", ".", "'../../etc'", "a/b", "'a\\\\b'", ".hidden", "-x", "''"])
+@pytest.mark.parametrize("name", ["..", ".", "'../../etc'", "a/b", "'a\\\\b'", ".hidden", "-x", "''", "\"abc\\n\"",
+                                  "a" * (config.MAX_NAME_LENGTH + 1), "a" * 300, "b" * 256])
 def test_a_name_that_is_not_one_folder_name_is_refused(tmp_path, monkeypatch, name):
+    """Not a folder name, or longer than a file name may be (300 characters ended in an internal error)."""
     monkeypatch.chdir(tmp_path)
     path = tmp_path / "c.yaml"
     path.write_text(edit("name: forward", f"name: {name}"))
     res = runner.invoke(app, ["trim", "-c", str(path)])  # no -o: the default would be runs/<name>
     line = one_error(res, r"c\.yaml: name = ")
     assert ("must not be empty" in line) if name == "''" else line.endswith(
-        "must start with a letter, digit or '_' and use only letters, digits, '_', '.' and '-' "
-        "(it names the folder runs/<name>)")
+        "must start with a letter, digit or '_', use only letters, digits, '_', '.' and '-', and have at most 128 "
+        "characters (it names the folder runs/<name>)")
     assert list(tmp_path.iterdir()) == [path]  # nothing written, inside runs/ or out of it
 
 
-@pytest.mark.parametrize("name", ["forward", "my_quad.v2", "x-1", "_tmp"])
+@pytest.mark.parametrize("name", ["forward", "my_quad.v2", "x-1", "_tmp", "a" * config.MAX_NAME_LENGTH])
 def test_folder_names_are_fine(name):
     assert config.parse(edit("name: forward", f"name: {name}"), "c.yaml").name == name
 

@@ -4,8 +4,8 @@ position step settling as its slowest pole says, the bundled mission), and every
 
 from __future__ import annotations
 
-from dataclasses import replace
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np

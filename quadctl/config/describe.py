@@ -9,7 +9,7 @@ from typing import Any, Literal
 
 from pydantic import ValidationError
 
-from quadctl.config.schema import DelaySamples, section_model
+from quadctl.config.schema import NAME_RULE, DelaySamples, section_model
 from quadctl.messages import hint as _hint
 from quadctl.messages import key_path, show
 
@@ -101,9 +101,8 @@ def expected(err: dict, loc: list) -> str:
         return "must be true or false"
     if kind in ("dict_type", "model_type", "model_attributes_type"):
         return "must be a mapping of keys"
-    if kind == "string_pattern_mismatch":
-        return ("must start with a letter, digit or '_' and use only letters, digits, '_', '.' and '-' "
-                "(it names the folder runs/<name>)")
+    if kind in ("string_pattern_mismatch", "string_too_long"):  # the config's name, the one text with either
+        return f"{NAME_RULE} (it names the folder runs/<name>)"
     if kind == "string_too_short":
         return "must not be empty"
     if kind == "literal_error" and field is not None:
