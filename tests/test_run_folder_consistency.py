@@ -118,3 +118,73 @@ def test_roll_back_without_hard_links_keeps_the_bytes(tmp_path, monkeypatch):
         assert ws.design.stable
         ws.roll_back()
     assert _contents(tmp_path) == before and not list(tmp_path.glob(".*.tmp"))
+
+
+def _tree(folder):
+    """Every file below ``folder`` (hidden ones too: a file set aside, a temporary) with its bytes, and
+    every folder: what "the folder as it was" compares."""
+    import gc
+
+    from quadctl.artifacts import LOCK_NAME
+
+    gc.collect()  # a command's workspace, released (its lock and its files set aside go with it)
+    if not folder.exists():
+        return None
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else "folder") for p in folder.rglob("*")
+            if p.name != LOCK_NAME}
+
+
+def _full_disk_at(monkeypatch, name):
+    """The disk fills up when ``name`` is written (as test_safe_writes does: the temporary's write fails)."""
+    from quadctl.artifacts import writing
+
+    temporary = writing._temporary
+
+    def failing(path, data):
+        if path.name == name:
+            raise OSError(28, "No space left on device")
+        return temporary(path, data)
+
+    monkeypatch.setattr(writing, "_temporary", failing)
+
+
+@pytest.fixture(scope="module")
+def earlier_report(tmp_path_factory):
+    """A folder with the report of another config (the square mission: a path figure hover has not)."""
+    folder = tmp_path_factory.mktemp("earlier") / "run"
+    res = invoke("report", "-c", "square", "-o", folder, "--set", "simulation.duration=1")
+    assert res.exit_code == 0, res.output
+    assert (folder / "report" / "sim-path.png").exists()
+    return folder
+
+
+@pytest.mark.parametrize("start,full_at", [("none", "report.html"), ("earlier", "report.md"),
+                                           ("earlier", "sim-roll.png")])
+def test_a_report_the_disk_cannot_hold_leaves_the_folder_as_it_was(tmp_path, monkeypatch, earlier_report, start,
+                                                                  full_at):
+    """report on a full disk exits 2 and puts back every file it wrote or removed (stage artifacts, figures,
+    report.md), as simulate does: never a report.md and figures without report.html."""
+    import shutil
+
+    folder = tmp_path / "run"
+    if start == "earlier":
+        shutil.copytree(earlier_report, folder)
+    before = _tree(folder)
+    _full_disk_at(monkeypatch, full_at)
+    res = invoke("report", "-c", "hover", "-o", folder, "--set", "simulation.duration=1")
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines()[-1] == (
+        f"quadctl: error: {folder / 'report' / full_at}: cannot write the artifact (No space left on device); free "
+        "the space or the permission it needs, or choose another --out folder")
+    assert _tree(folder) == (before or {})  # none: the folder the lock made, empty
+
+
+def test_figures_the_disk_cannot_hold_leave_the_folder_as_it_was(tmp_path, monkeypatch):
+    """simulate --plot: the figures drawn before the disk filled up go too, with the run's artifacts."""
+    assert invoke("simulate", "-c", "hover", "-o", tmp_path, "--set", "simulation.duration=1").exit_code == 0
+    before = _tree(tmp_path)
+    _full_disk_at(monkeypatch, "yaw.png")
+    res = invoke("simulate", "-c", "forward", "-o", tmp_path, "--plot", "--set", "simulation.duration=1")
+    assert res.exit_code == 2, res.output
+    assert "yaw.png: cannot write the artifact (No space left on device)" in res.stderr
+    assert _tree(tmp_path) == before

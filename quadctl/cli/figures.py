@@ -18,6 +18,7 @@ def save_figures(ws, sim) -> list[Path]:
     makers = plots.simulation_figure_makers(sim, ws.setup.partition, ws.linear.u_trim,
                                             title=ws.setup.name, actuators=ws.setup.actuators)
     paths = {name: artifacts.plot_path(ws.out, name) for name in makers}  # every name checked first
+    ws.remember(*paths.values())  # before the child draws its share: a roll-back puts every figure back
 
     def draw(names) -> None:
         for name in names:
