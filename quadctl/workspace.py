@@ -164,9 +164,12 @@ class Workspace(pipeline.Stages):
         """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
         a reused artifact is parsed once, here."""
         self._hold = contextlib.ExitStack()
+        first = not artifacts.held(self.out)
         self._hold.enter_context(artifacts.locked(self.out))  # one run writes a folder at a time
         weakref.finalize(self, self._hold.close)
-        artifacts.remove_stale_temporaries(self.out)
+        if first:  # no other process holds the folder, and none of this one: every quadctl temporary there,
+            # a file set aside for a roll-back too (it keeps its file's time: an age tells nothing), is a dead run's
+            artifacts.remove_stale_temporaries(self.out, age=0.0)
 
     def close(self) -> None:
         """Release the run folder (the process's end releases it too)."""

@@ -5,6 +5,9 @@ so none is left beside a config that did not make it (quadctl.workspace)."""
 from __future__ import annotations
 
 import json
+import os
+import time
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -188,3 +191,80 @@ def test_figures_the_disk_cannot_hold_leave_the_folder_as_it_was(tmp_path, monke
     assert res.exit_code == 2, res.output
     assert "yaw.png: cannot write the artifact (No space left on device)" in res.stderr
     assert _tree(tmp_path) == before
+
+
+KILLED = """
+import os, signal, sys
+from quadctl import config
+from quadctl.workspace import Workspace
+ws = Workspace(config.load(sys.argv[2]), sys.argv[1], fresh=True)
+ws.design  # trim.json ... design.json rewritten: each set aside first, for a roll-back
+ws.write_bytes(ws.out / "report" / "report.md", b"# half a report")  # the earlier report's, set aside too
+print(sorted(p.name for p in ws.out.rglob(".*undo*")), flush=True)
+os.kill(os.getpid(), signal.SIGKILL)  # as a kill -9 during report --fresh
+"""
+
+
+def _set_aside(folder):
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob(".*quadctl-undo*.tmp"))
+
+
+def _killed_mid_session(folder, name="hover"):
+    """A process that rewrote some artifacts of ``folder`` and was killed (SIGKILL) before its workspace
+    closed: the files it set aside for a roll-back are left."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", KILLED, str(folder), name], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)})
+    assert proc.returncode == -9, proc.stderr
+    left = _set_aside(folder)
+    assert len(left) >= 5, (left, proc.stdout)
+    return left
+
+
+@pytest.mark.parametrize("command", [["trim"], ["design"], ["export", "--to", "json"]])
+def test_files_set_aside_by_a_killed_run_are_removed_by_the_next_command(tmp_path, command):
+    """A kill -9 mid-session leaves `.checks.json.quadctl-undo….tmp` and its kind; the next command that
+    holds the folder (no other process does) removes every one, however old the file it kept."""
+    folder = tmp_path / "run"
+    assert invoke("report", "-c", "hover", "-o", folder, "--set", "simulation.duration=1").exit_code == 0
+    assert "report/.report.md.quadctl-undo" in " ".join(_killed_mid_session(folder))
+    res = invoke(*command, "-c", "hover", "-o", folder)
+    assert res.exit_code == 0, res.output
+    assert _set_aside(folder) == []
+    assert (folder / "report" / "report.md").read_bytes() == b"# half a report"  # what the killed run wrote stays
+
+
+def test_files_set_aside_are_left_while_another_process_holds_the_folder(tmp_path):
+    folder = tmp_path / "run"
+    assert invoke("design", "-c", "hover", "-o", folder).exit_code == 0
+    left = _killed_mid_session(folder)
+    from test_folder_lock import _holder
+
+    other = _holder(folder)
+    try:
+        res = invoke("trim", "-c", "hover", "-o", folder)
+        assert res.exit_code == 2 and "is in use by another quadctl" in res.stderr
+        assert _set_aside(folder) == left
+    finally:
+        other.kill()
+        other.wait()
+
+
+def test_a_second_workspace_of_the_process_leaves_the_first_ones_files_set_aside(tmp_path):
+    """Re-entrant in one process: the second holder removes nothing, so the first still rolls back, however
+    old the files it set aside (a set-aside name keeps its file's time)."""
+    with Workspace(config.load("hover"), tmp_path) as ws:
+        assert ws.design.stable
+    before = _contents(tmp_path)
+    old = time.time() - 3600
+    for path in tmp_path.iterdir():
+        os.utime(path, (old, old))
+    with Workspace(config.load("forward"), tmp_path) as first, \
+            pytest.warns(QuadctlNotice, match="removed trim.json"):
+        assert first.trim.residual < 1e-9
+        with Workspace(config.load("forward"), tmp_path) as second:
+            assert second.out == first.out
+        first.roll_back()
+    assert _contents(tmp_path) == before
