@@ -118,10 +118,6 @@ def check_semantics(cfg: Config, label: str) -> None:
             fail(f"simulation.initial_offset.{state}", value,
                  f"must be at most {MAX_OFFSET[unit]:g} {unit} from the trim (MAX_OFFSET)")
     _check_unit_limits(cfg, fail)
-    max_duration = max_duration_s()
-    if cfg.simulation.duration > max_duration:
-        fail("simulation.duration", cfg.simulation.duration,
-             f"must be at most {max_duration:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to allow longer)")
     _check_inertia(cfg, fail)
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
@@ -228,11 +224,12 @@ MAX_OFFSET = {"m": 1e4, "m/s": 1e2, "rad/s": 1e2}
 100 m/s and 100 rad/s (16 turns a second) are past any flight yet at least ten times inside
 the simulation's run-away bounds, so a run never starts out diverged, and no arithmetic on the
 state overflows (an offset of 1e308 did, with numpy warnings)."""
-UNIT_LIMITS = {"m": 1e6, "m/s": 1e3, "rad": 2 * math.pi}
+UNIT_LIMITS = {"m": 1e6, "m/s": 1e3, "rad": 2 * math.pi, "s": MAX_DURATION}
 """Largest magnitude of a position (1000 km), a velocity or speed (1000 m/s, three times the speed of
-sound) and a heading (one turn) wherever the config gives one (:data:`UNIT_KEYS`): past them the
-trim and the reference lose their digits (a reference 1e300 m away overflowed the run's error
-statistics), and a heading past a turn is an angle in degrees."""
+sound), a heading (one turn) and a time (the longest run, :data:`MAX_DURATION`, or the environment's:
+:func:`max_duration_s`) wherever the config gives one (:data:`UNIT_KEYS`): past them the trim and the
+reference lose their digits (a reference 1e300 m away overflowed the run's error statistics), a heading
+past a turn is an angle in degrees, and a time past a day is a slip no run reaches."""
 
 UNIT_KEYS: tuple[tuple[str, str], ...] = (
     ("trim.position_ned[*]", "m"),
@@ -247,6 +244,13 @@ UNIT_KEYS: tuple[tuple[str, str], ...] = (
     ("simulation.reference.tolerance", "m"),
     ("schedule.values[*]", "schedule.variable"),
     ("motors.arm_length", "m"),
+    ("simulation.duration", "s"),
+    ("simulation.dt", "s"),
+    ("simulation.noise.period", "s"),
+    ("simulation.wind.gusts[*].start", "s"),
+    ("simulation.reference.setpoints[*].t", "s"),
+    ("simulation.reference.waypoints[*].hold", "s"),
+    ("controller.delay", "s"),
 )
 """Every key whose value is a position, a velocity or a heading, with its unit (``[*]``: each item of
 a list); ``schedule.values`` take the unit of ``schedule.variable`` (:data:`SCHEDULE_UNITS`). Each is
@@ -262,10 +266,15 @@ def _check_unit_limits(cfg: Config, fail) -> None:
     for pattern, unit in UNIT_KEYS:
         for path, value in _values_at(data, pattern.replace("[*]", ".*").split("."), ""):
             unit_here = SCHEDULE_UNITS[data["schedule"]["variable"]] if unit == "schedule.variable" else unit
-            limit = UNIT_LIMITS[unit_here]
-            if isinstance(value, (int, float)) and abs(value) > limit:
-                fail(path, value, _degrees_hint(value, limit) if unit_here == "rad" else
-                     f"must be at most {limit:g} {unit_here} in magnitude (UNIT_LIMITS)")
+            limit = max_duration_s() if unit_here == "s" else UNIT_LIMITS[unit_here]
+            if not isinstance(value, (int, float)) or abs(value) <= limit:  # (``dt: auto``, ``{samples: n}``)
+                continue
+            if unit_here == "rad":
+                fail(path, value, _degrees_hint(value, limit))
+            if unit_here == "s":
+                fail(path, value, f"must be at most {limit:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to "
+                     "allow longer)")
+            fail(path, value, f"must be at most {limit:g} {unit_here} in magnitude (UNIT_LIMITS)")
 
 
 def _values_at(node: Any, parts: list[str], path: str):
