@@ -144,7 +144,7 @@ def _field_info(loc: list):
 
 
 def is_union_tag(part: Any) -> bool:
-    return isinstance(part, str) and (part.startswith(("list[", "literal[")) or part in ("literal['auto']",)
+    return isinstance(part, str) and (part.startswith(("list[", "literal["))
                                       or part.startswith("function-") or part == "float"
                                       or part.startswith("constrained-") or part == DelaySamples.__name__)
 
