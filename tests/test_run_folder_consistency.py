@@ -182,14 +182,16 @@ def test_a_report_the_disk_cannot_hold_leaves_the_folder_as_it_was(tmp_path, mon
     assert _tree(folder) == (before or {})  # none: the folder the lock made, empty
 
 
-def test_figures_the_disk_cannot_hold_leave_the_folder_as_it_was(tmp_path, monkeypatch):
-    """simulate --plot: the figures drawn before the disk filled up go too, with the run's artifacts."""
+@pytest.mark.parametrize("command,full_at", [("simulate", "yaw.png"), ("margins", "margins-pitch-design.png")])
+def test_figures_the_disk_cannot_hold_leave_the_folder_as_it_was(tmp_path, monkeypatch, command, full_at):
+    """simulate --plot, margins --plot: the figures drawn before the disk filled up go too, with the stages'
+    artifacts and the plots/ folder the command made."""
     assert invoke("simulate", "-c", "hover", "-o", tmp_path, "--set", "simulation.duration=1").exit_code == 0
     before = _tree(tmp_path)
-    _full_disk_at(monkeypatch, "yaw.png")
-    res = invoke("simulate", "-c", "forward", "-o", tmp_path, "--plot", "--set", "simulation.duration=1")
+    _full_disk_at(monkeypatch, full_at)
+    res = invoke(command, "-c", "forward", "-o", tmp_path, "--plot", "--set", "simulation.duration=1")
     assert res.exit_code == 2, res.output
-    assert "yaw.png: cannot write the artifact (No space left on device)" in res.stderr
+    assert f"{full_at}: cannot write the artifact (No space left on device)" in res.stderr
     assert _tree(tmp_path) == before
 
 
