@@ -230,7 +230,9 @@ def test_files_set_aside_by_a_killed_run_are_removed_by_the_next_command(tmp_pat
     """A kill -9 mid-session leaves `.checks.json.quadctl-undo….tmp` and its kind; the next command that
     holds the folder (no other process does) removes every one, however old the file it kept."""
     folder = tmp_path / "run"
-    assert invoke("report", "-c", "hover", "-o", folder, "--set", "simulation.duration=1").exit_code == 0
+    assert invoke("design", "-c", "hover", "-o", folder).exit_code == 0
+    (folder / "report").mkdir()
+    (folder / "report" / "report.md").write_text("# an earlier report\n")
     assert "report/.report.md.quadctl-undo" in " ".join(_killed_mid_session(folder))
     res = invoke(*command, "-c", "hover", "-o", folder)
     assert res.exit_code == 0, res.output
