@@ -725,3 +725,22 @@ def test_a_loop_keeps_its_exponential_setup():
     fresh = pickle.loads(pickle.dumps(loop))
     assert "_exponential_setups" not in fresh.__dict__
     assert fresh.exponential_setup(0.2, tolerance=1e-8).plan == kept.plan
+
+
+@pytest.mark.parametrize("name", ["hover+noise+wind", "square"])
+def test_a_long_run_in_chunks_is_the_one_call_run(monkeypatch, name):
+    """A run past the runner's chunk (segment after segment, each in chunks, the exogenous rows drawn as
+    it goes) gives the one-call run's records (the whole run's rows at once) to round-off."""
+    from quadctl.sim import run as run_module
+
+    setup, _, linear, _, des = solve(_variant(name))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4", reference=pipeline.flown_reference(setup))
+    once = simulate(loop, x0, 0.3, "auto", **kw)
+    monkeypatch.setattr(run_module, "CHUNK_STEPS", {"compiled": 40, "casadi": 40})
+    chunked = simulate(loop, x0, 0.3, "auto", **kw)
+    assert once.steps == chunked.steps > 40 and np.array_equal(once.t, chunked.t)
+    assert len(once.plan.schedule) > 1
+    worst = max(np.abs(once.x - chunked.x).max(), np.abs(once.u - chunked.u).max())
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
