@@ -7,7 +7,9 @@
  *   qc_step(X, t, dt, c, e, X_next, u, P) one RK4 step with continuous feedback   (QC_HELD == 0)
  *   qc_plant(X, u, dt, c, e, X_next, P)   one RK4 step under a held input        (QC_HELD == 1)
  * (P: what the step computes from dt and c alone, computed once a run by qc_step_pre / qc_plant_pre
- * into qc_step_nh / qc_plant_nh values a lane)
+ * into qc_step_nh / qc_plant_nh values a lane); or, for one case of ETDRK4 (QC_ETD), in their place
+ *   qc_rem(X, t, c, e, N, u, P) / qc_rem(X, u, c, e, N, P)  the nonlinear remainder N = rhs - L X
+ * whose stages qc_etd combines here (P: what it computes from c alone, by qc_rem_pre)
  *   qc_ref(t, c, e, x_ref)             the reference state the law regulates to (QC_NS states)
  * and the metrics' constants (QC_BAND, QC_FLOOR: quadctl.metrics; QC_SETTLE_NONE, QC_SETTLE_PENDING:
  * quadctl.sim.lane_metrics).
@@ -261,6 +263,65 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
   }
 }
 
+#if QC_ETD
+/* One case (QC_L == 1) of quadctl.sim.builder.etdrk4: its stages' remainders by qc_rem, their
+ * matrix-vector products here, each a column at a time over the rows (the order of CasADi's product,
+ * so the same sums; the compiler vectorizes the rows), the sums in the order etdrk4 writes them. The
+ * matrices are the PHI_LAYOUT blocks that end c, column-major. */
+#define QC_PHI (QC_NC - 14 * QC_NX * QC_NX)
+enum { QC_LIN, QC_EHALF, QC_EFULL, QC_A21, QC_A31, QC_A32, QC_A41, QC_A42, QC_A51, QC_A52, QC_A54, QC_B1, QC_B4,
+       QC_B5 };
+static void qc_mv(const double* restrict c, int k, const double* restrict v, double* restrict y) {
+  const double* M = c + QC_PHI + (long)k * QC_NX * QC_NX;
+  for (int i = 0; i < QC_NX; ++i) y[i] = M[i] * v[0];
+  for (int j = 1; j < QC_NX; ++j)
+    for (int i = 0; i < QC_NX; ++i) y[i] = y[i] + M[j * QC_NX + i] * v[j];
+}
+#if QC_HELD
+#define QC_REM(Y, ts, N, U) qc_rem(Y, U, c, e, N, P)
+#else
+#define QC_REM(Y, ts, N, U) qc_rem(Y, ts, c, e, N, U, P)
+#endif
+/* X_next = one step h from X at t; u: the input at X (continuous feedback), or the held one */
+static void qc_etd(const double* X, const double* t, const double* h, const double* c, const double* e,
+                   double* XN, double* u, const double* P) {
+  double n1[QC_NX], n2[QC_NX], n3[QC_NX], n4[QC_NX], n5[QC_NX], n23[QC_NX], half[QC_NX], full[QC_NX];
+  double a[QC_NX], b[QC_NX], d[QC_NX], Y[QC_NX], uu[QC_NU];
+  double th[1] = {t[0] + h[0] / 2}, tf[1] = {t[0] + h[0]};
+  (void)uu; (void)th; (void)tf;
+  QC_REM(X, t, n1, u);
+  qc_mv(c, QC_EHALF, X, half);
+  qc_mv(c, QC_EFULL, X, full);
+  qc_mv(c, QC_A21, n1, a);
+  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i];
+#if QC_HELD
+#define QC_U u
+#else
+#define QC_U uu
+#endif
+  QC_REM(Y, th, n2, QC_U);
+  qc_mv(c, QC_A31, n1, a);
+  qc_mv(c, QC_A32, n2, b);
+  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i] + b[i];
+  QC_REM(Y, th, n3, QC_U);
+  for (int i = 0; i < QC_NX; ++i) n23[i] = n2[i] + n3[i];
+  qc_mv(c, QC_A41, n1, a);
+  qc_mv(c, QC_A42, n23, b);
+  for (int i = 0; i < QC_NX; ++i) Y[i] = full[i] + a[i] + b[i];
+  QC_REM(Y, tf, n4, QC_U);
+  qc_mv(c, QC_A51, n1, a);
+  qc_mv(c, QC_A52, n23, b);
+  qc_mv(c, QC_A54, n4, d);
+  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i] + b[i] + d[i];
+  QC_REM(Y, th, n5, QC_U);
+  qc_mv(c, QC_B1, n1, a);
+  qc_mv(c, QC_B4, n4, b);
+  qc_mv(c, QC_B5, n5, d);
+  for (int i = 0; i < QC_NX; ++i) XN[i] = full[i] + a[i] + b[i] + d[i];
+#undef QC_U
+}
+#endif
+
 static long qc_mod(long a, long m) { return m > 0 ? ((a % m) + m) % m : 0; }
 
 /* x0, lo, hi: [QC_NX][QC_L]; c: [QC_NC][QC_L]; exo: [QC_L][exo_rows][QC_NE] (or NULL).
@@ -278,7 +339,9 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
   long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L], until[QC_L];
   int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
   if (mq) qc_metric_init(mq, macc);
-#if QC_HELD
+#if QC_ETD
+  double P[qc_rem_nh * QC_L];
+#elif QC_HELD
   double P[qc_plant_nh * QC_L];
 #else
   double P[qc_step_nh * QC_L];
@@ -297,7 +360,11 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     DT[l] = QC_DT(l);
     n_active += active[l];
   }
-#if QC_HELD
+#if QC_ETD && QC_HELD
+  qc_rem_pre(X, U, c, E, P);
+#elif QC_ETD
+  qc_rem_pre(X, T, c, E, P);
+#elif QC_HELD
   qc_plant_pre(X, U, DT, c, E, P);
 #else
   qc_step_pre(X, T, DT, c, E, P);
@@ -323,6 +390,9 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
       }
     }
     const double* UA = UH;
+#elif QC_ETD
+    qc_etd(X, T, DT, c, E, XN, U, P);
+    const double* UA = U;
 #else
     qc_step(X, T, DT, c, E, XN, U, P);
     const double* UA = U;
@@ -353,7 +423,11 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
         for (int i = QC_NP; i < QC_NX; ++i) X[i * QC_L + l] = XS[i * QC_L + l];
       }
     }
+#if QC_ETD
+    qc_etd(X, T, DT, c, E, XN, UH, P);
+#else
     qc_plant(X, UH, DT, c, E, XN, P);
+#endif
 #endif
     /* bounds of every lane at once (NaN compares false, so it counts as out) */
     for (int i = 0; i < QC_NX; ++i)

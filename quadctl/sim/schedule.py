@@ -54,8 +54,8 @@ in step below that rise. Runs with exogenous inputs or a sampled controller keep
 MERGE_STEPS = 1
 """A graded segment that would save at most this many steps over the finer step before it is not
 taken: the finer segment runs on. All the segments of a run go in one call into the runner
-(``qc_run_segments``), where a segment costs its step's setup and one record, less than a step
-(measured: 0.46 us a segment against 0.70 us a step of the compiled ``forward`` loop); so only a
+(``qc_run_segments``), where a segment costs its step's setup and one record, about a step
+(measured: 0.46 us a segment against 0.55 us a step of the compiled ``forward`` loop); so only a
 segment that saves no step whole is merged."""
 MAX_STEP = 0.01
 """s: the largest step ``dt: auto`` takes (100 samples a second for plots and metrics)."""
