@@ -265,8 +265,8 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
 
 #if QC_ETD
 /* One case (QC_L == 1) of quadctl.sim.builder.etdrk4: its stages' remainders by qc_rem, their
- * matrix-vector products here, each a column at a time over the rows (the order of CasADi's product,
- * so the same sums; the compiler vectorizes the rows), the sums in the order etdrk4 writes them. The
+ * matrix-vector products here, dense, each a column at a time over the rows (the order of CasADi's
+ * product: the same sums, its structural zeros adding zeros), the sums in the order etdrk4 writes them. The
  * matrices are the PHI_LAYOUT blocks that end c, column-major. */
 #define QC_PHI (QC_NC - 14 * QC_NX * QC_NX)
 enum { QC_LIN, QC_EHALF, QC_EFULL, QC_A21, QC_A31, QC_A32, QC_A41, QC_A42, QC_A51, QC_A52, QC_A54, QC_B1, QC_B4,
