@@ -674,6 +674,7 @@ def the_ceiling(cfg, spec) -> tuple:
         if subprocess.run([*base[:1], "-fopenmp", *base[1:]], capture_output=True).returncode != 0:
             subprocess.run([*base[:1], "-fopenmp-simd", *base[1:]], check=True, capture_output=True)
             threads = "one thread (no OpenMP)"
+        os.environ.setdefault("OMP_NUM_THREADS", "2")  # read when OpenMP loads: both cores
         ceiling = ctypes.CDLL(str(lib)).ceiling
     ptr = ctypes.c_void_p
     ceiling.argtypes = [ctypes.c_long, ptr, ptr, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_long]
@@ -692,7 +693,6 @@ def the_ceiling(cfg, spec) -> tuple:
         ceiling(n, K.ctypes.data, x.ctypes.data, *(c.ctypes.data for c in consts), dt, m)
         return x
 
-    os.environ.setdefault("OMP_NUM_THREADS", "2")
     check = simulate(loop, x0, dt * 2000, dt).x[-1]
     err = float(np.abs(run(2000)[0, :, 0] - check).max())
     if err > 1e-8:
