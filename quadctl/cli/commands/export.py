@@ -16,13 +16,33 @@ class Target(str, Enum):
     c = "c"
     mat = "mat"
     json = "json"
+    crazyflie = "crazyflie"
+
+
+class Setpoint(str, Enum):
+    position = "position"
+    velocity = "velocity"
+
+
+class Mode(str, Enum):
+    force = "force"
+    force_torque = "force-torque"
 
 
 def command(to: Annotated[Target, typer.Option(
                 "--to", help="c: a C99 controller (quadctl_controller.h and .c, double or float); mat: the design "
-                             "as a MATLAB v5 .mat; json: the same as one self-describing JSON.")],
+                             "as a MATLAB v5 .mat; json: the same as one self-describing JSON; crazyflie: a "
+                             "Crazyflie out-of-tree controller app (the C controller in float, its adapter, "
+                             "build files).")],
             config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
             rate: RateOpt = None,
+            setpoint: Annotated[Setpoint, typer.Option(
+                "--setpoint", help="--to crazyflie: the commander's setpoints the app follows: position (x, y, z, "
+                                   "yaw) or velocity (the hover setpoint: vx, vy, z or vz, yaw rate).")]
+            = Setpoint.position,
+            mode: Annotated[Mode, typer.Option(
+                "--mode", help="--to crazyflie: force (each motor's thrust, mixed and clipped as the simulation "
+                               "does) or force-torque (thrust and torques, mixed by the firmware).")] = Mode.force,
             json: Annotated[bool, typer.Option(
                 "--json", help="Print what was written as JSON on stdout (with --to json, the controller's "
                                "JSON itself under `controller`).")] = False) -> None:
@@ -31,7 +51,8 @@ def command(to: Annotated[Target, typer.Option(
     Writes into the run directory: quadctl_controller.h/.c (--to c), quadctl_controller.mat or quadctl_controller.json.
     Exits 1 when the design is unstable, when the gain schedule (schedule:) fails its checks, or when a
     continuous design's loop is unstable sampled at --rate; 2 when --to c has no rate (give --rate or set
-    controller.rate).
+    controller.rate), or when --to crazyflie cannot serve the config (a rate that does not divide the
+    firmware's 1 kHz loop, a setpoint the partition leaves free, rotors numbered unlike the firmware's).
     """
     from quadctl import artifacts, export
     from quadctl.cli import render
@@ -41,10 +62,18 @@ def command(to: Annotated[Target, typer.Option(
 
     rate = override("--rate", rate)
     cfg, _ = load_config(config, sets)
-    exp = export.prepare(setup_of(cfg), rate, need_rate=to is Target.c, config_hash=cfg.digest())
+    exp = export.prepare(setup_of(cfg), rate, need_rate=to in (Target.c, Target.crazyflie),
+                         config_hash=cfg.digest())
     for w in exp.rate_warnings:
         render.warning(w.message(exp.rate))
-    paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"))
+    paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"),
+                         setpoint=setpoint.value, mode=mode.value)
+    if to is Target.crazyflie:
+        from quadctl.export import crazyflie
+        from quadctl.present.platform import platform_sentences
+
+        for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE):
+            render.note(line)
     kal = exp.loop.estimator
     if json:
         written = {"config_name": cfg.name, "to": to.value, "rate": exp.rate, "design": exp.mode if exp.rate else
