@@ -334,3 +334,76 @@ def test_the_test_firmware_view_agrees_with_the_hand_made_states(case):
     view = firmware_view(x)[0]
     q = {"nose up": (S[1], 0, -S[0], 0), "rolled right": (S[1], S[0], 0, 0), "yawed left": (S[1], 0, 0, S[0])}[case]
     assert view[6:10] == pytest.approx(q, abs=1e-12)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--set", "controller.rate=300", "--setpoint", "velocity"],
+     r"^quadctl: error: controller.rate = 300 Hz does not divide the Crazyflie's 1000 Hz stabilizer loop"),
+    ([], r"^quadctl: error: subsystems: the partition leaves pN, pE free \(in no regulated subsystem\), so a "
+         r"position setpoint cannot be followed"),
+    (["--set", "motors.numbering=px4", "--setpoint", "velocity"],
+     r"^quadctl: error: motors.numbering: rotors 1-4 are front_right, rear_left, front_left, rear_right spinning "
+     r"ccw, ccw, cw, cw, not the Crazyflie's motors M1-M4"),
+])
+def test_an_app_the_adapter_cannot_serve_is_refused_with_one_line_and_nothing_written(tmp_path, args, message):
+    out = tmp_path / "app"
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "-o", str(out), *args])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and re.match(message, lines[0]), res.output
+    assert not out.exists()
+
+
+def test_the_vehicle_is_compared_with_the_firmware_platform_defaults(tmp_path):
+    """crazyflie's Förster numbers against the CF 2.1+ defaults: the mass, the maximum thrust and the torque
+    coefficient differ (by the percentages of the two sources), the arm agrees; identify is named."""
+    from quadctl.export import prepare
+    from quadctl.present.platform import platform_sentences
+    from quadctl.problem import setup_of
+
+    exp = prepare(setup_of(config.load("crazyflie")))
+    rows = {r[0]: r for r in crazyflie.platform_rows(exp)}
+    assert rows["mass"][2:4] == (0.027, crazyflie.FIRMWARE.mass)
+    text = "\n".join(platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE))
+    for quantity, key in [("mass", "vehicle.mass"), ("maximum rotor thrust", "motors.max_thrust"),
+                          ("torque coefficient", "motors.torque_coefficient")]:
+        _, _, mine, theirs, _ = rows[quantity]
+        assert f"{quantity}: {key} = " in text and f"({(mine - theirs) / theirs * 100:+.1f} %)" in text
+    assert "agrees with the firmware's defaults: arm length" in text
+    assert "`quadctl identify`" in text and crazyflie.FIRMWARE.commit[:12] in text
+
+
+ARM_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", "-Os", "-Wall", "-Wextra",
+             "-Werror", "-Wdouble-promotion", "-std=gnu11", "-ffunction-sections", "-fdata-sections"]
+"""The Crazyflie firmware's target and warning flags for the Cortex-M4 (its FPU single precision only)."""
+
+
+@pytest.mark.parametrize("mode", ["force", "force-torque"])
+def test_the_app_cross_compiles_for_the_cortex_m4_without_double_precision_calls(tmp_path, mode):
+    gcc = shutil.which("arm-none-eabi-gcc")
+    if gcc is None:
+        pytest.skip("arm-none-eabi-gcc is not installed (Debian: apt-get install gcc-arm-none-eabi; .ci/run "
+                    "installs it as root): the cross-compile is not checked here")
+    size = shutil.which("arm-none-eabi-size")
+    nm = shutil.which("arm-none-eabi-nm")
+    cfg = crazyflie_config(tmp_path)
+    export_app(cfg, tmp_path / "app", "--setpoint", "velocity", "--mode", mode)
+    inc = tmp_path / "firmware"
+    inc.mkdir()
+    for name, text in FIRMWARE_HEADERS.items():
+        (inc / name).write_text(text)
+    total = 0
+    for name in ("quadctl_controller", "quadctl_crazyflie"):
+        obj = tmp_path / f"{name}.o"
+        out = subprocess.run([gcc, *ARM_FLAGS, "-DQUADCTL_FLOAT", f"-I{inc}", f"-I{tmp_path / 'app' / 'src'}", "-c",
+                              str(tmp_path / "app" / "src" / f"{name}.c"), "-o", str(obj)],
+                             capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        undefined = subprocess.run([nm, "-u", str(obj)], capture_output=True, text=True, check=True).stdout
+        assert "__aeabi_d" not in undefined, f"{name}.o calls double-precision helpers:\n{undefined}"
+        sizes = subprocess.run([size, str(obj)], capture_output=True, text=True, check=True).stdout.split("\n")[1]
+        text, data, bss = (int(v) for v in sizes.split()[:3])
+        total += text + data
+        print(f"{mode}: {name}.o text {text} B, data {data} B, bss {bss} B")
+    print(f"{mode}: the app's controller and adapter: {total} B of flash")
+    assert total < 16384  # a few kB on a 1 MB flash
