@@ -407,3 +407,35 @@ def test_the_app_cross_compiles_for_the_cortex_m4_without_double_precision_calls
         print(f"{mode}: {name}.o text {text} B, data {data} B, bss {bss} B")
     print(f"{mode}: the app's controller and adapter: {total} B of flash")
     assert total < 16384  # a few kB on a 1 MB flash
+
+
+def test_the_c_header_gives_the_trim_as_macros_and_quadctl_trim(tmp_path):
+    """The trim is in the header as numbers a program can use (not only a comment): the macros and
+    quadctl_trim() give crazyflie's hover at 1 m (pD = -1) and its trim thrust m g."""
+    res = CliRunner().invoke(app, ["export", "--to", "c", "-c", "crazyflie", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    (tmp_path / "main.c").write_text(r"""
+#include <stdio.h>
+#include "quadctl_controller.h"
+int main(void) {
+  quadctl_real x[QUADCTL_NX], u[QUADCTL_NU];
+  const quadctl_real x0[QUADCTL_NX] = QUADCTL_TRIM_X_INIT, u0[QUADCTL_NU] = QUADCTL_TRIM_U_INIT;
+  int i;
+  quadctl_trim(x, u);
+  for (i = 0; i < QUADCTL_NX; ++i) if (x[i] != x0[i]) return 1;
+  for (i = 0; i < QUADCTL_NU; ++i) if (u[i] != u0[i]) return 1;
+  printf("%.17g %.17g %.17g\n", QUADCTL_TRIM_X_PD, QUADCTL_TRIM_U_T, QUADCTL_RATE_X_PN);
+  return 0;
+}
+""")
+    exe = tmp_path / "main"
+    out = subprocess.run([compiler(), "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", f"-I{tmp_path}",
+                          str(tmp_path / "main.c"), str(tmp_path / "quadctl_controller.c"), "-lm", "-o", str(exe)],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    run = subprocess.run([str(exe)], capture_output=True, text=True)
+    assert run.returncode == 0
+    pD, T, rate = (float(v) for v in run.stdout.split())
+    cfg = config.load("crazyflie")
+    assert pD == -1.0 and rate == 0.0
+    assert T == pytest.approx(cfg.vehicle.mass * cfg.vehicle.gravity, rel=1e-9)

@@ -680,6 +680,11 @@ def test_the_mat_file_round_trips_through_loadmat(name, tmp_path):
     assert got["units"]["K"] == "input unit per state unit"
     assert got["Ts"] == (0.005 if name == "mambo-200hz" else 0.0)
     assert got["K"].shape == (4, 12) and got["x_trim"].shape == (12,)
+    # every number is a double: MATLAB's int64 * double is int64, so an integer delay_samples * Ts was 0
+    raw = loadmat(str(tmp_path / data.MAT_FILE))
+    numeric = {k: v for k, v in raw.items() if isinstance(v, np.ndarray) and v.dtype.kind in "iuf"}
+    assert "delay_samples" in numeric and all(v.dtype == np.float64 for v in numeric.values()), {
+        k: v.dtype for k, v in numeric.items() if v.dtype != np.float64}
 
 
 def test_the_mat_file_loads_in_octave(tmp_path):

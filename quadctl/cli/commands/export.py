@@ -86,13 +86,16 @@ def command(to: Annotated[Target, typer.Option(
         return render.emit_json(written)
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
-    if exp.flies_reference:
+    if to is Target.crazyflie:
+        filt += f"; reference: the commander's {setpoint.value} setpoints; output: {mode.value} mode"
+    elif exp.flies_reference:
         filt += "; reference: an input at each sample" + (" (quadctl_step_ref)" if to is Target.c else "")
     table = exp.loop.schedule
     if table is not None:
         filt += f"; gains scheduled on {table.variable} ({len(table.values)} designs, {table.interpolation})"
     render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}{filt}",
                      markup=False)
-    render.out.print(f"law: {exp.law()}", markup=False)
+    law = export.law_text(exp.loop, exp.sample_time, reference=True) if to is Target.crazyflie else exp.law()
+    render.out.print(f"law: {law}", markup=False)
     for path in paths:
         render.out.print(f"-> {path}", markup=False)
