@@ -231,27 +231,65 @@ def mission_simulation():
                                         {"position": [0.0, 0.0, -1.0], "yaw": 0.0}]}}
 
 
-def test_the_adapter_writes_the_simulated_hover_holds_motor_forces(tmp_path):
-    """crazyflie, hover hold from its initial offset: the velocity setpoint (vx = vy = 0), z = 1 m and
-    yaw 0, the firmware's state of each simulated millisecond; the forces are the simulation's."""
-    cfg = crazyflie_config(tmp_path)
-    sim = simulated(cfg, tmp_path / "run")
-    export_app(cfg, tmp_path / "app", "--setpoint", "velocity")
-    exe = build_harness(tmp_path / "app", tmp_path)
-    x, n = sim["x"], len(sim["t"])
+def hover_setpoints(n: int) -> np.ndarray:
+    """The velocity setpoint (vx = vy = 0), z = 1 m and yaw 0, ``n`` calls."""
     setpoints = np.zeros((n, 13))
     setpoints[:, 0:4] = [MODE_VELOCITY, MODE_VELOCITY, MODE_ABS, MODE_ABS]
     setpoints[:, 7] = 1.0  # z = 1 m up
-    got = run_harness(exe, records(firmware_view(x), setpoints))
-    assert np.all(got[:, 0] == 2)  # controlModeForce
+    return setpoints
+
+
+@pytest.fixture(scope="module")
+def hover(tmp_path_factory):
+    """crazyflie's hover hold from its initial offset, simulated, and its app in both output modes, built."""
+    tmp = tmp_path_factory.mktemp("cf-hover")
+    cfg = crazyflie_config(tmp)
+    sim = simulated(cfg, tmp / "run")
     from quadctl.export import prepare
     from quadctl.problem import setup_of
 
     act = prepare(setup_of(config.load(cfg))).loop.actuators
-    want = act.commands(sim["u"])
-    err = np.max(np.abs(got[:, 1:] * THRUST_MAX - want))
-    assert err < 1e-6, f"max |force - simulated rotor thrust| = {err:.3e} N"
-    assert np.ptp(want[:, 0]) > 1e-3  # the run moves the rotors: the comparison is not of constants
+    exes = {}
+    for mode in ("force", "force-torque"):
+        export_app(cfg, tmp / mode, "--setpoint", "velocity", "--mode", mode)
+        (tmp / f"build-{mode}").mkdir()
+        exes[mode] = build_harness(tmp / mode, tmp / f"build-{mode}")
+    return sim, act, exes
+
+
+@pytest.mark.parametrize("mode", ["force", "force-torque"])
+def test_the_adapter_writes_the_simulated_hover_holds_motor_forces(hover, mode):
+    """crazyflie, hover hold from its initial offset, the firmware's state of each simulated millisecond:
+    force mode writes the simulation's rotor thrusts (over the firmware's maximum), force-torque mode its
+    thrust and torques in the firmware's body axes (x forward, y left, z up)."""
+    sim, act, exes = hover
+    x, n = sim["x"], len(sim["t"])
+    got = run_harness(exes[mode], records(firmware_view(x), hover_setpoints(n)))
+    if mode == "force":
+        assert np.all(got[:, 0] == 2)  # controlModeForce
+        want, got_si = act.commands(sim["u"]), got[:, 1:] * THRUST_MAX
+        assert np.ptp(want[:, 0]) > 1e-3  # the run moves the rotors: the comparison is not of constants
+    else:
+        assert np.all(got[:, 0] == 1)  # controlModeForceTorque
+        want, got_si = sim["u"] * [1.0, 1.0, -1.0, -1.0], got[:, 1:]
+    err = np.max(np.abs(got_si - want))
+    assert err < 1e-6, f"max |output - simulated| = {err:.3e} (N, N m)"
+
+
+def test_a_stop_zeroes_the_motors_and_the_next_start_is_afresh(hover):
+    """51 ms of flight (an odd count: mid-sample), 10 ms without an altitude setpoint (the commander
+    stopped: forces 0), then the run again from its start: the controller restarted (its sampling
+    phase, clock, held yaw and position), so the forces are the simulation's from its first sample."""
+    sim, act, exes = hover
+    x, n = sim["x"], 400
+    view, sp = firmware_view(x[:n]), hover_setpoints(n)
+    stopped = hover_setpoints(10)
+    stopped[:, 2] = 0  # mode.z = modeDisable
+    data = records(view[:51], sp[:51]) + records(view[:10], stopped) + records(view, sp)
+    got = run_harness(exes["force"], data)
+    assert np.all(got[51:61, 1:] == 0.0)
+    err = np.max(np.abs(got[61:, 1:] * THRUST_MAX - act.commands(sim["u"][:n])))
+    assert err < 1e-6, f"after the restart: max |force - simulated| = {err:.3e} N"
 
 
 def test_the_adapter_flies_the_simulated_waypoint_mission(tmp_path):
