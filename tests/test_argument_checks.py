@@ -166,7 +166,7 @@ def test_interop_accepts_what_quadctl_designs(forward):
 def test_the_export_writer_names_a_target_it_does_not_know(tmp_path):
     from quadctl import export
 
-    with pytest.raises(ValueError, match=r"^to must be one of \('c', 'mat', 'json'\), got 'pdf'$"):
+    with pytest.raises(ValueError, match=r"^to must be one of \('c', 'mat', 'json', 'crazyflie'\), got 'pdf'$"):
         export.write(SimpleNamespace(), "pdf", tmp_path)
     assert not any(tmp_path.iterdir())
 
