@@ -96,6 +96,23 @@ APP_FILES = ("Makefile", "Kbuild", "app-config", "README.md", "src/Kbuild", "src
 TEMPLATES = "export/templates/crazyflie"
 
 
+def quadrants(positions) -> tuple[str, ...]:
+    """Where each rotor is, from its body position ``(x, y)`` (FRD, m): ``front_right`` (x > 0, y > 0),
+    ``rear_right``, ``rear_left``, ``front_left``; ``on_axis`` for a rotor on the x or y axis (a ``+``
+    layout), which no firmware motor is.
+
+    >>> quadrants([[0.03, 0.03], [-0.03, 0.03], [-0.03, -0.03], [0.03, -0.03]])
+    ('front_right', 'rear_right', 'rear_left', 'front_left')
+    """
+    out = []
+    for x, y in np.asarray(positions, dtype=float):
+        if x == 0.0 or y == 0.0:
+            out.append("on_axis")
+        else:
+            out.append(("front" if x > 0 else "rear") + ("_right" if y > 0 else "_left"))
+    return tuple(out)
+
+
 def divider(rate: float) -> int:
     """Firmware loop calls per controller sample: ``1000 / rate``.
 
@@ -145,11 +162,11 @@ def check(exp: Export, setpoint: str = "position", mode: str = "force") -> None:
                               "rotors (motors: with layout x, arm_length, max_thrust), or export with "
                               "--mode force-torque")
         motors = act.motors
-        have = tuple(motors.rotor_positions()), tuple(motors.rotor_spins())
-        if motors.layout != "x" or have != (NUMBERING, SPINS):
-            spins = ", ".join("ccw" if s > 0 else "cw" for s in have[1])
+        where, spins = quadrants(motors.positions()), tuple(float(v) for v in motors.rotor_spins())
+        if where != NUMBERING or spins != SPINS:
+            turn = ", ".join("ccw" if v > 0 else "cw" for v in spins)
             raise ConfigError(
-                f"motors.numbering: rotors 1-4 are {', '.join(have[0])} spinning {spins}, not the Crazyflie's "
+                f"motors.numbering: rotors 1-4 are {', '.join(where)} spinning {turn}, not the Crazyflie's "
                 "motors M1-M4 (front_right, rear_right, rear_left, front_left spinning ccw, cw, ccw, cw): set "
                 "motors.layout: x and motors.numbering: crazyflie (and no motors.spin)")
     if loop.estimator is not None:
