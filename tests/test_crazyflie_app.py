@@ -477,3 +477,20 @@ int main(void) {
     cfg = config.load("crazyflie")
     assert pD == -1.0 and rate == 0.0
     assert T == pytest.approx(cfg.vehicle.mass * cfg.vehicle.gravity, rel=1e-9)
+
+
+def test_the_app_is_whole_and_states_its_licence(tmp_path):
+    """The files the firmware's out-of-tree build reads, each generated file under MIT, and a README
+    with the two commands that build and flash it; nothing of the firmware's code in it."""
+    out = tmp_path / "app"
+    export_app(crazyflie_config(tmp_path), out, "--setpoint", "velocity")
+    files = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
+    assert files == sorted([*crazyflie.APP_FILES, "src/quadctl_controller.c", "src/quadctl_controller.h"])
+    for name in ("Makefile", "src/quadctl_app.c", "src/quadctl_crazyflie.c", "src/quadctl_crazyflie.h"):
+        assert "SPDX-License-Identifier: MIT" in (out / name).read_text(), name
+    readme = (out / "README.md").read_text()
+    assert "make -j CRAZYFLIE_BASE=" in readme and "make cload CRAZYFLIE_BASE=" in readme and "MIT" in readme
+    assert "CONFIG_CONTROLLER_OOT=y" in (out / "app-config").read_text()
+    assert "include $(CRAZYFLIE_BASE)/tools/make/oot.mk" in (out / "Makefile").read_text()
+    src = (out / "src" / "quadctl_crazyflie.c").read_text()
+    assert "Bitcraze AB" not in src and "GNU General Public License" not in src
