@@ -409,6 +409,14 @@ def test_the_vehicle_is_compared_with_the_firmware_platform_defaults(tmp_path):
         assert f"{quantity}: {key} = " in text and f"({(mine - theirs) / theirs * 100:+.1f} %)" in text
     assert "agrees with the firmware's defaults: arm length" in text
     assert "`quadctl identify`" in text and crazyflie.FIRMWARE.commit[:12] in text
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "--setpoint", "velocity",
+                                   "-o", str(tmp_path / "app"), "--json"])
+    assert res.exit_code == 0, res.output
+    import json
+
+    got = json.loads(res.stdout)["crazyflie"]
+    assert got["calls_per_sample"] == 2 and got["firmware"]["commit"] == crazyflie.FIRMWARE.commit
+    assert {r["key"]: r["firmware"] for r in got["platform"]}["motors.max_thrust"] == 0.12
 
 
 ARM_FLAGS = ["-mcpu=cortex-m4", "-mthumb", "-mfloat-abi=hard", "-mfpu=fpv4-sp-d16", "-Os", "-Wall", "-Wextra",

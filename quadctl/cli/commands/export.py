@@ -83,6 +83,14 @@ def command(to: Annotated[Target, typer.Option(
                    "files": [str(p) for p in paths]}
         if to is Target.json:
             written["controller"] = artifacts.read_json(paths[0])
+        if to is Target.crazyflie:
+            from quadctl.export import crazyflie
+
+            written["crazyflie"] = {
+                "setpoint": setpoint.value, "mode": mode.value, "calls_per_sample": crazyflie.divider(exp.rate),
+                "firmware": {"commit": crazyflie.FIRMWARE.commit, "source": crazyflie.FIRMWARE.source},
+                "platform": [{"quantity": q, "key": k, "value": v, "firmware": f, "unit": u}
+                             for q, k, v, f, u in crazyflie.platform_rows(exp)]}
         return render.emit_json(written)
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
