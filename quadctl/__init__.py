@@ -54,14 +54,6 @@ nothing here imports). Modules, each importing only those above it:
 - :mod:`~quadctl.report`: every stage of a run in one self-contained HTML page and a Markdown twin
 - :mod:`~quadctl.export`: the design to the vehicle (a C99 controller emitted from the simulation's
   own law, the design as MATLAB ``.mat`` or JSON); :mod:`~quadctl.interop`: python-control systems
-
-Old import paths still import (:mod:`~quadctl._moved`): ``quadctl.setup`` is :mod:`~quadctl.problem`
-(its ``resolve`` is ``setup_of``), ``quadctl.discrete`` and ``quadctl.riccati`` are in :mod:`~quadctl.lqr`,
-``quadctl.simulate`` is :mod:`~quadctl.sim.run`.
 """
 
-from quadctl import _moved
-
 __version__ = "0.1.0"
-
-_moved.install()

@@ -174,7 +174,7 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
 
 
 def closed_loop(linear, design, *, sample_time: float | str | None = "design", name: str = "closed loop"):
-    """The linear closed loop of ``[x; z]`` (:func:`quadctl.linear_loop.matrix`) as a StateSpace.
+    """The linear closed loop of ``[x; z]`` (:func:`quadctl.lqr.linear_loop.matrix`) as a StateSpace.
 
     Its inputs are disturbances ``T A E R`` added to the controller's input (``B``, or the hold's
     ``Bd`` when sampled), its outputs the loop states.

@@ -12,7 +12,7 @@ plant is augmented with ``n`` shift states per input (``b_1 <- u``, ``b_k <- b_(
 driven by ``b_n``), which is ``z^-n`` on every input: exact, no Pade approximation. The delay
 margin is then the delay the loop tolerates beyond the configured one. Rotors that lag
 (``motors.time_constant``) are in the loops too: every input reaches the plant through
-``1 / (tau s + 1)`` (:func:`lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
+``1 / (tau s + 1)`` (:func:`quadctl.lqr.lag.lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
 before the hold is applied. A design that ignores the lag (``controller.rotor_lag: ignore``) does
 not know of it. One that includes it (``include``) feeds back the lag states ``v`` through ``Kv``:
 on the design model (``model = "design"``) they are the augmented plant's states, the loop the
@@ -68,9 +68,6 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, STATE_INDEX
 from quadctl.lqr import linear_loop
-from quadctl.lqr.lag import lagged as lagged  # re-exported: the lag every loop carries
-from quadctl.lqr.linear_loop import delayed as delayed  # re-exported: the delay every sampled loop carries
-from quadctl.lqr.linear_loop import with_lag_model as with_lag_model  # re-exported: the controller's lag model
 from quadctl.stability import free_positions, is_stable
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -448,8 +445,8 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
     is about. ``model = "coupled"``: the 12-state linear model, every other loop closed, position
     states that nothing feeds back left out. With ``sample_time`` (s: the controller's period, the
     design's own for a discrete design, or the rate a continuous design is run at) the loops are
-    sampled, with ``delay_samples`` of delay on every input (:func:`delayed`);
-    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`lagged`).
+    sampled, with ``delay_samples`` of delay on every input (:func:`quadctl.lqr.linear_loop.delayed`);
+    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`quadctl.lqr.lag.lagged`).
     """
     Ts = sample_time
     for sub in design.subsystems:
@@ -499,14 +496,6 @@ def lqg_loops(design, A, B, kal):
             At, bt, kt = T @ Aa @ T, T @ b, Kc[j] @ T
             yield sub.name, inp, "lqg", BrokenLoop(A=At[np.ix_(keep, keep)], b=bt[keep], k=kt[keep],
                                                    sample_time=Ts)
-
-
-def closed_loop(design, A, B, sample_time: float | None = None, delay_samples: int = 0,
-                rotor_time_constant: float | None = None) -> np.ndarray:
-    """The linear closed loop the vehicle has (:func:`quadctl.linear_loop.vehicle_matrix`): the coupled
-    model with the rotors' lag, the controller's lag model (a design that includes the lag), the
-    integrators and the delay, the positions nothing feeds back left out."""
-    return linear_loop.vehicle_matrix(design, A, B, sample_time, delay_samples, rotor_time_constant)
 
 
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,

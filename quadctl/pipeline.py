@@ -88,7 +88,7 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
 def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.ndarray | None = None,
                    integral_states=(), Kv: np.ndarray | None = None, estimator=None, eigenvalues, owners,
                    params: np.ndarray | None = None, open_loop_eigenvalues: np.ndarray | None = None) -> ClosedLoop:
-    """The one constructor of the :class:`~quadctl.simulate.ClosedLoop` a setup flies: gains on the
+    """The one constructor of the :class:`~quadctl.sim.run.ClosedLoop` a setup flies: gains on the
     setup's plant, trim, timing (rate, delay), actuators and the design's lag model (with ``Kv``).
 
     ``eigenvalues`` and ``owners`` (of the continuous closed loop, for the RK4 step) are the
@@ -274,7 +274,7 @@ class Stages:
 class VehicleLoop:
     """The linear closed loop the vehicle flies: the design's gains on the coupled model with the
     rotors' lag, the controller's lag model (a design that includes it), the integrators and the
-    delay (:func:`quadctl.linear_loop.vehicle`), next to the loop the design saw.
+    delay (:func:`quadctl.lqr.linear_loop.vehicle_matrix`), next to the loop the design saw.
 
     Attributes
     ----------

@@ -263,9 +263,6 @@ def setup_of(cfg: Config) -> Setup:
         schedule=cfg.schedule)
 
 
-resolve = setup_of
-"""The former name of :func:`setup_of` (``quadctl.setup.resolve``), kept for code written against it."""
-
 def _reference(cfg: Config):
     """The path of ``simulation.reference`` (:mod:`quadctl.trajectory`), from the trim's position,
     velocity and yaw; None without one."""

@@ -1,5 +1,5 @@
 """Every public function that takes matrices checks their shape and dtype and names the argument
-(SciPy's ``_are_validate_args``), through one helper (:func:`quadctl.riccati.real_array`): quadctl's
+(SciPy's ``_are_validate_args``), through one helper (:func:`quadctl.lqr.riccati.real_array`): quadctl's
 solvers are real-only, and say so, rather than drop an imaginary part and certify another problem."""
 
 from __future__ import annotations

@@ -5,7 +5,7 @@
   the controller's lag model and a delay.
 - The free-position rule (quadctl.stability.free_positions): a position no gain reads but another
   state depends on is not free, so its mode stays in the verdict.
-- The sampled cost of a discrete design (quadctl.coupled.linear_cost) equals the cost a linear
+- The sampled cost of a discrete design (quadctl.lqr.coupled.linear_cost) equals the cost a linear
   simulation accumulates, and the design's own DARE cost.
 """
 
@@ -221,7 +221,7 @@ def _sampled_cost(step, Q, R, N, K, x0, max_steps: int = 40000) -> float:
 def test_a_discrete_designs_sampled_cost_is_what_a_linear_simulation_accumulates():
     """The cost of a sampled loop is ``sum_k x_k' Qd x_k + u_k' Rd u_k + 2 x_k' Nd u_k`` with lqrd's
     weights (the continuous cost integrated over each sample under the hold). Simulated sample by
-    sample, it equals ``x0' P x0`` of the design's own DARE, and :func:`quadctl.coupled.linear_cost`.
+    sample, it equals ``x0' P x0`` of the design's own DARE, and :func:`quadctl.lqr.coupled.linear_cost`.
     mambo-200hz: a discrete design with an integrator (pD); the offset moves every regulated state."""
     from quadctl.lqr import discrete, integral
 

@@ -11,7 +11,7 @@ from _solve import cfg_dict, run, solve
 
 from quadctl import pipeline
 from quadctl.errors import StepSizeError
-from quadctl.lqr import discrete, lqr
+from quadctl.lqr import discrete, lqr, riccati
 from quadctl.sim.run import plan_held_step
 
 RESIDUAL_TOL = 1e-10
@@ -57,7 +57,7 @@ def test_dlqr_with_cross_term_agrees_with_solve_discrete_are_and_matlab_gain_for
     P_scipy = scipy.linalg.solve_discrete_are(A, B, Q, R, s=N)
     np.testing.assert_allclose(P, P_scipy, rtol=1e-10)
     np.testing.assert_allclose(K, np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A + N.T), rtol=1e-10)
-    assert discrete.dare_residual(A, B, Q, R, P, N) < RESIDUAL_TOL
+    assert riccati.dare_residual(A, B, Q, R, P, N) < RESIDUAL_TOL
     assert np.all(np.abs(E) < 1)
 
 

@@ -98,7 +98,7 @@ CASES = {
 
 
 def cc() -> str:
-    from quadctl.sim.compile import find_compiler
+    from quadctl.native.compile import find_compiler
 
     compiler = find_compiler()
     if compiler is None:

@@ -27,7 +27,7 @@ def test_a_bare_pytest_collects_the_docstring_examples_and_the_readme():
 def test_compiler_tests_skip_with_the_reason_where_there_is_no_compiler():
     out = _pytest("-q", "-rs", "-n0", "tests/test_engine.py", "-k", "cached_library or compile_cache_key",
                   QUADCTL_NO_COMPILE="1")
-    assert "2 skipped" in out and "needs a C compiler: quadctl.sim.compile.find_compiler() found none" in out, out
+    assert "2 skipped" in out and "needs a C compiler: quadctl.native.compile.find_compiler() found none" in out, out
 
 
 def test_every_test_that_names_the_compiled_backend_is_marked():

@@ -168,7 +168,7 @@ def test_the_augmented_loop_meets_the_lqr_guarantee_and_the_model_in_the_control
     q, r, tau = 100.0, 1.0, 0.05
     kx, kv = lag.scalar_integrator_gain(q, r, tau)
     Al, Bl = lag.lagged(np.zeros((1, 1)), np.ones((1, 1)), tau)
-    A, B, K = margins.with_lag_model(Al, Bl, np.array([[kx, 0.0]]), np.array([[kv]]), tau)
+    A, B, K = linear_loop.with_lag_model(Al, Bl, np.array([[kx, 0.0]]), np.array([[kv]]), tau)
     m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], K[0]))
     b = (1 + kv) ** 2  # tau^2 w^4 + (1 + kv)^2 w^2 - kx^2 = 0 at the crossover
     wc = math.sqrt((-b + math.sqrt(b * b + 4 * tau ** 2 * kx ** 2)) / (2 * tau ** 2))

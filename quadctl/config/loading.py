@@ -88,10 +88,6 @@ def locate(spec: str | Path | None) -> Source:
         f"bundled: {', '.join(bundled_names())}")
 
 
-resolve = locate
-"""The former name of :func:`locate` (kept for code written against it)."""
-
-
 FOLDER_SCAN = 1000
 """Entries of a folder looked at for a config file of a near name (a mistyped ``-c``): a bound for a
 folder of many files."""

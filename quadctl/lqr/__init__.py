@@ -18,11 +18,11 @@ Modules, each importing only those above it:
 ``from quadctl.lqr import lqr`` is the one-case entry point (MATLAB ``lqr``: ``K, P, E``).
 """
 
-from quadctl.lqr.decoupled import RICCATI_RTOL as RICCATI_RTOL
+from quadctl.analysis import RICCATI_RTOL as RICCATI_RTOL
 from quadctl.lqr.decoupled import Design as Design
-from quadctl.lqr.decoupled import LqrResult as LqrResult
 from quadctl.lqr.decoupled import SubsystemDesign as SubsystemDesign
-from quadctl.lqr.decoupled import closed_loop_matrix as closed_loop_matrix
 from quadctl.lqr.decoupled import design as design
 from quadctl.lqr.decoupled import lqr as lqr
-from quadctl.lqr.decoupled import riccati_residual as riccati_residual
+from quadctl.lqr.linear_loop import matrix as closed_loop_matrix
+from quadctl.lqr.riccati import LqrResult as LqrResult
+from quadctl.lqr.riccati import riccati_residual as riccati_residual

@@ -19,13 +19,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl import stability
-from quadctl.analysis import RICCATI_RTOL as RICCATI_RTOL  # re-exported: the tolerance lqr certifies to
 from quadctl.decouple import Decoupled
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES
 from quadctl.lqr import discrete, integral, lag, linear_loop
-from quadctl.lqr.linear_loop import matrix as closed_loop_matrix  # noqa: F401 (the old address of the design's loop)
 from quadctl.lqr.riccati import LqrResult, require_stabilizable, solve
-from quadctl.lqr.riccati import riccati_residual as riccati_residual  # re-exported: lqr's residual
 
 
 def lqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:

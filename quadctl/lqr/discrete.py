@@ -28,10 +28,8 @@ import numpy as np
 
 from quadctl import stability
 from quadctl._lazy import lazy_import
-from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
 from quadctl.errors import DesignError
 from quadctl.lqr.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
-from quadctl.lqr.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
 from quadctl.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy

@@ -261,7 +261,7 @@ def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:
 
 
 def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
-    """:func:`quadctl.linear_loop.matrix` of stacked gains on one plant (its ZOH cached per ``Ts``):
+    """:func:`quadctl.lqr.linear_loop.matrix` of stacked gains on one plant (its ZOH cached per ``Ts``):
     (N, 12 + nz, 12 + nz)."""
     A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
     return linear_loop.stack(A, B, K, Ki, integral_states, Ts)

@@ -42,7 +42,7 @@ SIMD_FLAGS = PORTABLE_FLAGS[:1] + ("-march=native", "-fno-builtin-sin", "-fno-bu
 EVICT_AFTER_DAYS = 30
 """Cached libraries of another fingerprint unused for this long are deleted."""
 GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "sim/builder.py", "sim/emit.py", "sim/cases.py",
-                     "sim/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
+                     "native/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
                      "lqr/gain_table.py", "metrics.py", "sim/mapped.py",
                      "pointwise.py")
 """The files a library's C is generated from (``tests/test_structure.py`` checks that this lists
