@@ -21,17 +21,17 @@ nothing here imports). Modules, each importing only those above it:
   mission's minimum-jerk or minimum-snap legs) and its differential-flatness feedforward
 - :mod:`~quadctl.problem`: the config made into numbers once: the :class:`~quadctl.problem.Setup`
   every stage takes (:func:`~quadctl.problem.setup_of`)
-- :mod:`~quadctl.trim`, :mod:`~quadctl.linearize`, :mod:`~quadctl.decouple`: equilibrium,
+- :mod:`~quadctl.linear.trim`, :mod:`~quadctl.linear.linearize`, :mod:`~quadctl.decouple`: equilibrium,
   Jacobians (with the reference drift), the partition into subsystems and what it drops
 - :mod:`~quadctl.stability`: the one stability test (and its margins) and the one rule for free positions
 - :mod:`~quadctl.analysis`: controllability, observability, PBH, with a stated rank tolerance
-- :mod:`~quadctl.lqr`: the LQR family (its own map): Riccati solves (``lqr.riccati``), integral
+- :mod:`~quadctl.design`: the LQR family (its own map): Riccati solves (``lqr.riccati``), integral
   action (``lqr.integral``), the rotors' lag (``lqr.lag``), zero-order hold and ``lqrd``
   (``lqr.discrete``), the linear closed loop of a design (``lqr.linear_loop``), the decoupled design
   (``lqr.decoupled``), one LQR on the coupled model (``lqr.coupled``)
 - :mod:`~quadctl.estimator`: the steady-state Kalman filter of an LQG loop (discrete filter form or
   Kalman-Bucy) and the observability of the measured set
-- :mod:`~quadctl.margins`: loop margins (with the filter in the loop for LQG)
+- :mod:`~quadctl.design.margins`: loop margins (with the filter in the loop for LQG)
 - :mod:`~quadctl.sim`: the simulation engine (step planning, the one closed-loop builder, compile
   and cache, native and interpreted runners, one case or many lanes; :mod:`~quadctl.sim.run`: the
   closed loop and one run of it); :mod:`~quadctl.metrics`: a run's step-response metrics

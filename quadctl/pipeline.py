@@ -15,13 +15,13 @@ import numpy as np
 
 from quadctl.analysis import Checks, check
 from quadctl.decouple import Decoupled, decouple
+from quadctl.design import Design, design, linear_loop
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
-from quadctl.linearize import LinearModel, linearize
-from quadctl.lqr import Design, design, linear_loop
+from quadctl.linear.linearize import LinearModel, linearize
+from quadctl.linear.trim import Trim, solve_trim
 from quadctl.motors import check_trim
 from quadctl.problem import Setup
 from quadctl.sim.run import ClosedLoop, SimResult, eigen_owners, simulate
-from quadctl.trim import Trim, solve_trim
 
 
 def trim_of(setup: Setup) -> Trim:
@@ -45,7 +45,7 @@ def checks_of(decoupled: Decoupled, linear: LinearModel) -> dict[str, Checks]:
 
 def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel) -> Design:
     """The decoupled LQR design the setup asks for: discrete at its design rate, else continuous
-    (the design says which: :attr:`~quadctl.lqr.Design.sample_time`)."""
+    (the design says which: :attr:`~quadctl.design.Design.sample_time`)."""
     return design_at(setup, decoupled, linear, setup.timing.design_rate)
 
 
@@ -131,7 +131,7 @@ def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
 
 def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
                    jacobians: tuple | None = None) -> ClosedLoop:
-    """``loop`` flying the gain table ``table`` (:class:`quadctl.lqr.gain_table.GainTable`), scheduled on
+    """``loop`` flying the gain table ``table`` (:class:`quadctl.design.gain_table.GainTable`), scheduled on
     the reference the law uses (:mod:`quadctl.sim.builder`, "Gain schedule"), ``speed`` measured along
     ``heading`` (rad; the schedule's, :attr:`quadctl.scheduling.Schedule.heading`). The table's gains
     replace ``K`` (and ``Ki`` with the integrators' columns). ``eigenvalues`` (rad/s, any shape; NaN
@@ -153,7 +153,7 @@ def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
 def schedule_summary(loop: ClosedLoop) -> dict | None:
     """``sim.json``'s ``gain_schedule``: the gain table the loop flew (variable, unit, values,
     interpolation, what holds outside them, what the variable is read from); None: fixed gains."""
-    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:
@@ -274,7 +274,7 @@ class Stages:
 class VehicleLoop:
     """The linear closed loop the vehicle flies: the design's gains on the coupled model with the
     rotors' lag, the controller's lag model (a design that includes it), the integrators and the
-    delay (:func:`quadctl.lqr.linear_loop.vehicle_matrix`), next to the loop the design saw.
+    delay (:func:`quadctl.design.linear_loop.vehicle_matrix`), next to the loop the design saw.
 
     Attributes
     ----------
@@ -345,14 +345,14 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
     """Loops of the *continuous* design that ``rate`` Hz cannot realize (``check``'s warning).
 
     Each subsystem (with its integrators) and the coupled loop are checked: the fastest
-    continuous closed-loop pole against :func:`quadctl.lqr.discrete.realizable_frequency`, and the
+    continuous closed-loop pole against :func:`quadctl.design.discrete.realizable_frequency`, and the
     continuous gains run through a zero-order hold at ``rate`` (stable or not).
 
     Returns
     -------
-    list of quadctl.lqr.discrete.RateWarning
+    list of quadctl.design.discrete.RateWarning
     """
-    from quadctl.lqr import discrete
+    from quadctl.design import discrete
 
     des = design_at(setup, decoupled, linear, None)
     Ts = 1.0 / rate
@@ -535,11 +535,11 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
     Returns
     -------
     (FullDesign, dict)
-        The full design and :func:`quadctl.lqr.coupled.compare` of the two runs (``decoupled``, ``full``),
+        The full design and :func:`quadctl.design.coupled.compare` of the two runs (``decoupled``, ``full``),
         with each run's metrics and status.
     """
+    from quadctl.design import coupled
     from quadctl.errors import ConfigError
-    from quadctl.lqr import coupled
     from quadctl.metrics import summarize
 
     if des.lag_time_constant is not None:

@@ -36,7 +36,7 @@ class Timing:
         Hz the design is computed at: the controller's ``rate`` for a discrete design (MATLAB
         ``lqrd``, ``controller.design: discrete``); None for a continuous design, which a ``rate``
         then runs sampled (emulation). The design it gives says which it is
-        (:attr:`quadctl.lqr.Design.sample_time`), as python-control's systems carry their ``dt``.
+        (:attr:`quadctl.design.Design.sample_time`), as python-control's systems carry their ``dt``.
     delay_samples : int
         Controller samples from measurement to actuation (``controller.delay``; 0: none).
     """

@@ -10,8 +10,8 @@ import scipy.linalg
 from _solve import cfg_dict, run, solve
 
 from quadctl import pipeline
+from quadctl.design import discrete, lqr, riccati
 from quadctl.errors import StepSizeError
-from quadctl.lqr import discrete, lqr, riccati
 from quadctl.sim.run import plan_held_step
 
 RESIDUAL_TOL = 1e-10
@@ -145,7 +145,7 @@ def test_zero_order_hold_simulation_follows_the_discrete_linear_loop():
 @pytest.mark.parametrize("n, m", [(2, 1), (3, 1), (4, 2)])
 def test_the_weight_map_samples_any_weights_as_van_loan_does(n, m):
     """LqrdWeightMap (a sweep's cases of one plant) gives lqrd_weights_batch's numbers to round-off."""
-    from quadctl.lqr.discrete import LqrdWeightMap, lqrd_weights_batch
+    from quadctl.design.discrete import LqrdWeightMap, lqrd_weights_batch
 
     rng = np.random.default_rng(n * 10 + m)
     A, B, Ts, batch = rng.normal(size=(n, n)), rng.normal(size=(n, m)), 0.005, 40

@@ -18,8 +18,8 @@ def _pytest(*args: str, **env: str) -> str:
 
 def test_a_bare_pytest_collects_the_docstring_examples_and_the_readme():
     out = _pytest("--collect-only", "-q")
-    for item in ("tests/test_doctests.py::test_docstring_examples[quadctl.margins]",
-                 "tests/test_doctests.py::test_docstring_examples[quadctl.lqr.decoupled]",
+    for item in ("tests/test_doctests.py::test_docstring_examples[quadctl.design.margins]",
+                 "tests/test_doctests.py::test_docstring_examples[quadctl.design.decoupled]",
                  "tests/test_readme.py::test_readme_block"):
         assert item in out, out[-2000:]
 

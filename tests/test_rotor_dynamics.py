@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
-from quadctl import config, margins
+from quadctl import config
+from quadctl.design import lag, margins
 from quadctl.errors import ConfigError
 from quadctl.layout import N_STATES
-from quadctl.lqr import lag
 from quadctl.sim.builder import build
 from quadctl.sim.run import simulate
 

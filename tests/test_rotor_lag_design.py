@@ -20,12 +20,12 @@ import scipy.linalg
 from _solve import cfg_dict, solve
 from typer.testing import CliRunner
 
-from quadctl import config, margins, pipeline
+from quadctl import config, pipeline
 from quadctl.cli.app import app
+from quadctl.design import discrete, integral, lag, linear_loop, margins
+from quadctl.design.decoupled import _solve_subsystem
+from quadctl.design.riccati import riccati_residual
 from quadctl.errors import ConfigError
-from quadctl.lqr import discrete, integral, lag, linear_loop
-from quadctl.lqr.decoupled import _solve_subsystem
-from quadctl.lqr.riccati import riccati_residual
 from quadctl.notices import notices
 from quadctl.sim.run import simulate
 
@@ -77,7 +77,7 @@ def test_a_lagged_integrator_gain_has_its_closed_form(q, r, tau):
 
 
 def test_each_subsystem_of_a_continuous_included_design_solves_its_riccati_equation():
-    """On ``[x; v; z]``: the lagged plant (:func:`quadctl.lqr.lag.lagged`) with its integrators, Q zero on ``v``."""
+    """On ``[x; v; z]``: the lagged plant (:func:`quadctl.design.lag.lagged`) with its integrators, Q zero on ``v``."""
     setup, _, _, dec, des = solve(_hover())
     assert des.lag_time_constant == 0.02
     for sub in des.subsystems:

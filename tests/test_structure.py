@@ -174,14 +174,14 @@ def test_no_import_cycles_not_even_inside_functions():
         visit(name, [])
     assert cycles == []
 # ---------------------------------------------------------------------------------------------
-# One home for the linear closed loop (quadctl/lqr/linear_loop.py) and for the stability test
+# One home for the linear closed loop (quadctl/design/linear_loop.py) and for the stability test
 # (quadctl/stability.py): the source is scanned for a second copy.
 
-LOOP_HOME = {"lqr/linear_loop.py"}
-SOLVER_LOOPS = "lqr/riccati/"
+LOOP_HOME = {"design/linear_loop.py"}
+SOLVER_LOOPS = "design/riccati/"
 """The Riccati solvers close ``A - B K`` inside their Newton steps and residuals: part of solving for
-the gain, below :mod:`quadctl.lqr.linear_loop` in the import graph (which depends on them through
-:mod:`quadctl.lqr.discrete`)."""
+the gain, below :mod:`quadctl.design.linear_loop` in the import graph (which depends on them through
+:mod:`quadctl.design.discrete`)."""
 STABILITY_HOME = {"stability.py"}
 
 
@@ -257,7 +257,7 @@ def _offenders(find, homes, skip: tuple[str, ...] = ()) -> list[str]:
 
 
 def test_closed_loops_are_built_only_in_linear_loop():
-    """Every ``A - B K`` outside the Riccati solvers is :mod:`quadctl.lqr.linear_loop`'s (``close``,
+    """Every ``A - B K`` outside the Riccati solvers is :mod:`quadctl.design.linear_loop`'s (``close``,
     ``matrix``, ``vehicle``, ...)."""
     assert _offenders(closed_loops_built, LOOP_HOME, skip=(SOLVER_LOOPS,)) == []
 

@@ -4,5 +4,5 @@
   load the library (:func:`~quadctl.native.compile.compile_cached`)
 
 It imports nothing of quadctl's: the simulation's runners (:mod:`quadctl.sim`), the Riccati
-doubling kernel (:mod:`quadctl.lqr.riccati.doubling`) and a run's provenance all stand on it.
+doubling kernel (:mod:`quadctl.design.riccati.doubling`) and a run's provenance all stand on it.
 """

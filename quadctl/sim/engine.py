@@ -12,8 +12,8 @@ import warnings
 from functools import lru_cache
 
 from quadctl.errors import QuadctlNotice
-from quadctl.sim.builder import LoopSpec, build
 from quadctl.native.compile import PORTABLE_FLAGS, SIMD_FLAGS, CompileError, compile_cached, cpu_tag
+from quadctl.sim.builder import LoopSpec, build
 from quadctl.sim.interpreted import InterpretedRunner
 from quadctl.sim.native import NativeRunner, library_source
 

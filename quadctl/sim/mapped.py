@@ -17,9 +17,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from quadctl.native.compile import PORTABLE_FLAGS, CompileError, compile_cached
 from quadctl.pointwise import Pointwise, rows_of
 from quadctl.sim.cases import C_LONG
-from quadctl.native.compile import PORTABLE_FLAGS, CompileError, compile_cached
 from quadctl.sim.emit import emit
 
 

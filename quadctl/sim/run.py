@@ -100,7 +100,7 @@ class ClosedLoop:
     """``(A, B)`` of the design model at the trim: the exponential integrator's linear part
     (:meth:`linear_part`); None: only RK4 runs the loop."""
     schedule: object | None = None
-    """:class:`quadctl.lqr.gain_table.GainTable` the law flies: ``G(v)`` in place of ``K`` (and of ``Ki``
+    """:class:`quadctl.design.gain_table.GainTable` the law flies: ``G(v)`` in place of ``K`` (and of ``Ki``
     when the table has the integrator gains), ``v`` read from the reference (:mod:`quadctl.sim.builder`,
     "Gain schedule"); None: the fixed gains. ``K`` stays the design at the trim (the step plan's)."""
     schedule_heading: float = 0.0
@@ -141,7 +141,8 @@ class ClosedLoop:
         return np.asarray(A, dtype=float), np.asarray(B, dtype=float)
 
     def linear_part(self, point: int | None = None) -> np.ndarray:
-        """The loop linearized at the reference in the loop state's order (:func:`quadctl.lqr.linear_loop.simulated`);
+        """The loop linearized at the reference in the loop state's order
+        (:func:`quadctl.design.linear_loop.simulated`);
         ``point``: at the gain schedule's ``point``-th value instead, closed with the table's gains there
         (:attr:`schedule_jacobians`).
 
@@ -150,7 +151,7 @@ class ClosedLoop:
         ValueError
             The loop was built without its ``jacobians`` (or ``schedule_jacobians``, for a ``point``).
         """
-        from quadctl.lqr import linear_loop
+        from quadctl.design import linear_loop
 
         A, B = self._jacobians()
         K, Ki = self.K, self.Ki
@@ -596,7 +597,7 @@ def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list
     costing the method its order; the nearest point's keeps the remainder free of the fast modes that
     the gains move (the rate loops), so the steps the plan grades by stay stable along the schedule.
     """
-    from quadctl.lqr.gain_table import scheduling_value, scheduling_values
+    from quadctl.design.gain_table import scheduling_value, scheduling_values
     from quadctl.sim.schedule import Segment
 
     table = loop.schedule

@@ -1,4 +1,4 @@
-"""The doubling steps of :func:`quadctl.lqr.riccati.stacked.dare_batch`, compiled.
+"""The doubling steps of :func:`quadctl.design.riccati.stacked.dare_batch`, compiled.
 
 Structure-preserving doubling on a stack of small problems: from ``A0``, ``G0``, ``H0``, with
 ``W = I + Gk Hk``::
@@ -28,7 +28,7 @@ COMPILED_MAX_N = 16
 the numpy steps, whose per-matrix overhead no longer dominates."""
 ROUNDOFF_STEPS = 4
 """A doubling step at most this many ``eps`` of ``max |H|`` (entrywise) is round-off: done (the
-numpy steps of :func:`quadctl.lqr.riccati.stacked.dare_batch` take the same rule)."""
+numpy steps of :func:`quadctl.design.riccati.stacked.dare_batch` take the same rule)."""
 
 SOURCE = r"""
 #include <math.h>

@@ -12,7 +12,7 @@ plant is augmented with ``n`` shift states per input (``b_1 <- u``, ``b_k <- b_(
 driven by ``b_n``), which is ``z^-n`` on every input: exact, no Pade approximation. The delay
 margin is then the delay the loop tolerates beyond the configured one. Rotors that lag
 (``motors.time_constant``) are in the loops too: every input reaches the plant through
-``1 / (tau s + 1)`` (:func:`quadctl.lqr.lag.lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
+``1 / (tau s + 1)`` (:func:`quadctl.design.lag.lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
 before the hold is applied. A design that ignores the lag (``controller.rotor_lag: ignore``) does
 not know of it. One that includes it (``include``) feeds back the lag states ``v`` through ``Kv``:
 on the design model (``model = "design"``) they are the augmented plant's states, the loop the
@@ -66,8 +66,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl._lazy import lazy_import
+from quadctl.design import linear_loop
 from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, STATE_INDEX
-from quadctl.lqr import linear_loop
 from quadctl.stability import free_positions, is_stable
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -445,8 +445,8 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
     is about. ``model = "coupled"``: the 12-state linear model, every other loop closed, position
     states that nothing feeds back left out. With ``sample_time`` (s: the controller's period, the
     design's own for a discrete design, or the rate a continuous design is run at) the loops are
-    sampled, with ``delay_samples`` of delay on every input (:func:`quadctl.lqr.linear_loop.delayed`);
-    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`quadctl.lqr.lag.lagged`).
+    sampled, with ``delay_samples`` of delay on every input (:func:`quadctl.design.linear_loop.delayed`);
+    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`quadctl.design.lag.lagged`).
     """
     Ts = sample_time
     for sub in design.subsystems:
@@ -472,7 +472,7 @@ def lqg_loops(design, A, B, kal):
 
     Parameters
     ----------
-    design : quadctl.lqr.Design
+    design : quadctl.design.Design
     A, B : (12, 12), (12, 4) array_like
         The continuous coupled linear model.
     kal : quadctl.estimator.Kalman
@@ -506,7 +506,7 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
 
     Parameters
     ----------
-    design : quadctl.lqr.Design
+    design : quadctl.design.Design
     decoupled : quadctl.decouple.Decoupled
     A, B : array_like
         The coupled 12-state linear model.

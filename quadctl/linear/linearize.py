@@ -45,7 +45,7 @@ def linearize(x_trim, u_trim, vehicle: Vehicle, wind_ned=None) -> LinearModel:
     u_trim : (4,) array_like
     vehicle : Vehicle
     wind_ned : (3,) array_like, optional
-        m/s NED: the steady wind of a trim in wind (:func:`quadctl.trim.solve_trim`); None: still air.
+        m/s NED: the steady wind of a trim in wind (:func:`quadctl.linear.trim.solve_trim`); None: still air.
 
     Returns
     -------

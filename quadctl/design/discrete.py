@@ -28,8 +28,8 @@ import numpy as np
 
 from quadctl import stability
 from quadctl._lazy import lazy_import
+from quadctl.design.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
 from quadctl.errors import DesignError
-from quadctl.lqr.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
 from quadctl.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -243,9 +243,9 @@ class LqrdWeightMap:
 
 
 def dlqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:
-    """Discrete-time LQR (MATLAB ``dlqr``), solved by :func:`quadctl.lqr.riccati.solve`.
+    """Discrete-time LQR (MATLAB ``dlqr``), solved by :func:`quadctl.design.riccati.solve`.
 
-    Weights validated; quadctl's own residual-checked solver first (:func:`quadctl.lqr.riccati.dare_batch`:
+    Weights validated; quadctl's own residual-checked solver first (:func:`quadctl.design.riccati.dare_batch`:
     structure-preserving doubling and Newton-Hewer steps), SciPy's ``solve_discrete_are`` where it
     has no answer within ``RICCATI_RTOL`` and a stable loop.
 
