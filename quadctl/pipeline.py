@@ -222,11 +222,17 @@ class Stages:
     :class:`quadctl.workspace.Workspace` (the command line, the report) is this chain with a run
     folder: it reuses and writes each stage's artifact.
 
+    Parameters
+    ----------
+    setup : Setup
+        :func:`quadctl.problem.setup_of` a config.
+    trim, linear, decoupled : optional
+        Upstream stages already computed for this setup's flight condition: the chain starts there.
+
     Examples
     --------
-    >>> from quadctl import config
-    >>> from quadctl.problem import setup_of
-    >>> stages = Stages(setup_of(config.load("hover")))
+    >>> import quadctl as qc
+    >>> stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
     >>> stages.design.K_block.shape, stages.design.sample_time, stages.rate_warnings
     ((4, 12), None, ())
 

@@ -165,6 +165,13 @@ class Setup:
         The path to fly (``simulation.reference``); None: hold the trim.
     schedule : quadctl.config.ScheduleConfig or None
         The gain schedule (``schedule:``: variable, values, interpolation, check); None: one design.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> setup = qc.setup_of(qc.load_config("hover"))
+    >>> setup.regulated[:2], setup.duration, float(setup.initial_state(np.zeros(12))[2])
+    (('pD', 'w'), 10.0, 0.5)
     """
 
     name: str
@@ -222,7 +229,25 @@ class Setup:
 
 
 def setup_of(cfg: Config) -> Setup:
-    """The :class:`Setup` every stage takes, from a validated config."""
+    """The :class:`Setup` every stage takes, from a validated config.
+
+    Parameters
+    ----------
+    cfg : Config
+        A validated config (:func:`quadctl.config.loading.load`).
+
+    Returns
+    -------
+    Setup
+        Every value the stages read, resolved once.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> setup = qc.setup_of(qc.load_config("hover"))
+    >>> setup.timing.mode, setup.Q_block.shape, list(setup.weights)
+    ('continuous', (12, 12), ['altitude', 'roll', 'pitch', 'yaw'])
+    """
     v = cfg.vehicle
     diagonal, products = inertia_parts(v.inertia)
     vehicle = Vehicle(mass=v.mass, gravity=v.gravity, inertia=diagonal, drag=tuple(v.drag), products=products)

@@ -131,6 +131,13 @@ class Design:
     lag_time_constant : float or None
         s of the rotors' lag the design model includes (``controller.rotor_lag: include``); None:
         instantaneous rotors. With it, ``full_eigenvalues`` are those of ``[x; v; z]``.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> design = qc.Stages(qc.setup_of(qc.load_config("hover"))).design
+    >>> design.K_block.shape, design.stable, [s.name for s in design.subsystems]
+    ((4, 12), True, ['altitude', 'roll', 'pitch', 'yaw'])
     """
 
     subsystems: tuple[SubsystemDesign, ...]

@@ -313,6 +313,16 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system", state_names=Non
     ------
     DesignError
         The continuous weights are invalid (checked before they are integrated), or ``dlqr`` fails.
+
+    Examples
+    --------
+    The scalar integrator ``x' = u`` at 10 Hz: the sampled gain is a little below the continuous
+    ``sqrt(Q / R) = 1``, and the discrete closed-loop pole ``z`` a little off ``exp(-Ts)``.
+
+    >>> import quadctl as qc
+    >>> K, S, E = qc.lqrd([[0.0]], [[1.0]], [[1.0]], [[1.0]], 0.1)
+    >>> round(float(K[0, 0]), 4), round(float(E[0].real), 4)
+    (0.952, 0.9048)
     """
     require_valid_weights(A, B, Q, R, N, name=name)
     Ad, Bd, Qd, Rd, Nd = lqrd_weights(A, B, Q, R, Ts, N, name=name)

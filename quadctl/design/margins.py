@@ -131,6 +131,14 @@ class LoopMargins:
         s of extra delay before instability (None: ``|L|`` never crosses 1, or unstable).
     delay_samples : int
         Samples of configured delay included in the loop.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    >>> roll = qc.margins(stages.design, stages.decoupled, stages.linear.A, stages.linear.B)[1]
+    >>> roll.loop, roll.input, roll.gain_margin_db, roll.phase_margin_deg > 60
+    ('roll', 'A', (-inf, inf), True)
     """
 
     loop: str
@@ -530,6 +538,14 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     -------
     list of LoopMargins
         Design-model loops first, then coupled ones, then LQG ones, each with :func:`explain` notes.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    >>> loops = qc.margins(stages.design, stages.decoupled, stages.linear.A, stages.linear.B)
+    >>> [(m.loop, m.model) for m in loops][:2], all(m.meets_lqr_guarantee for m in loops)
+    ([('altitude', 'design'), ('roll', 'design')], True)
     """
     from dataclasses import replace
 
