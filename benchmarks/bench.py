@@ -734,7 +734,7 @@ def the_schedule(cli_python: str) -> str:
     """A 50-point schedule: the library, the command line end to end, and point by point."""
     from quadctl import config, pipeline
     from quadctl.design import linear_loop
-    from quadctl.linear.trim import TrimError
+    from quadctl.errors import TrimError
     from quadctl.problem import setup_of
     from quadctl.scheduling import fine_values, point_setup, schedule_of
 
