@@ -37,7 +37,8 @@ def test_the_package_keeps_its_floors():
 
 @pytest.mark.parametrize("module, line, broken", [
     # the Riccati solver's compiled kernel reaching up into the simulation engine for its compiler
-    ("design/riccati/doubling.py", "from quadctl.sim import engine", "quadctl.design.riccati.doubling -> quadctl.sim.engine"),
+    ("design/riccati/doubling.py", "from quadctl.sim import engine",
+     "quadctl.design.riccati.doubling -> quadctl.sim.engine"),
     # the one stability test reaching up for a sentence (sentences live in present/, above the core)
     ("stability.py", "from quadctl.present import stages", "quadctl.stability -> quadctl.present.stages"),
     # two modules of one "|" floor: the Riccati design does not import the simulation, nor the reverse
