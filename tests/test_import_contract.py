@@ -41,7 +41,7 @@ def test_the_package_keeps_its_floors():
      "quadctl.design.riccati.doubling -> quadctl.sim.engine"),
     # the one stability test reaching up for a sentence (sentences live in present/, above the core)
     ("stability.py", "from quadctl.present import stages", "quadctl.stability -> quadctl.present.stages"),
-    # two modules of one "|" floor: the Riccati design does not import the simulation, nor the reverse
+    # two modules of one "|" floor: the simulation does not import the Kalman filter (a loop carries one)
     ("sim/run.py", "import quadctl.estimator", "quadctl.sim.run -> quadctl.estimator"),
     # the library importing the command line
     ("design/margins.py", "from quadctl.cli import app", "quadctl.design.margins -> quadctl.cli.app"),
