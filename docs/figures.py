@@ -258,7 +258,9 @@ def mission_figure() -> Figure:
     error = summary["position_error"]
     print("square: reached " + ", ".join(f"{w['reached']:.3f} s" for w in summary["waypoints"])
           + f"; tracking error rms {error['rms']:.3g} m, peak {error['peak']:.3g} m")
-    return plots.path_figure(sim, [leg.position for leg in setup.reference.legs], title="square")
+    return plots.path_figure(sim, [w["position"] for w in summary["waypoints"]],
+                             reached=[w["reached"] for w in summary["waypoints"]], tolerance=summary["tolerance"],
+                             title="square")
 
 
 def schedule_figure() -> Figure:

@@ -25,6 +25,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.errors import TrimError
 from quadctl.layout import GRAVITY, MASS, N_INPUTS, N_STATES
+from quadctl.linear.trim import MAX_TILT
 from quadctl.model import N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
 from quadctl.pointwise import Pointwise
 from quadctl.trajectory import FlatPath
@@ -77,8 +78,20 @@ def _functions():
     return balance, feed
 
 
-def feedforward(path: FlatPath, params, pointwise=Pointwise) -> tuple[np.ndarray, np.ndarray]:
-    """The reference state and input along ``path``.
+def feedforward(path: FlatPath, params, pointwise=Pointwise, *,
+                fix: str = "lower simulation.reference.speed or space the waypoints further apart",
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The reference state and input along ``path``, on the physical branch of the flatness map.
+
+    The force balance ``G(z, s) = 0`` has more than one root (at 10.5 m/s north on the report's
+    vehicle: pitch -0.9386 rad with thrust +0.3942 N, and pitch -2.2030 rad with -0.3942 N, upside
+    down). The physical one is the root continued along the path from hover: the points are solved in
+    time order, in blocks of :data:`BLOCK`, each block by Newton from the root of the point before it
+    (the first from hover at its heading, a root of ``G`` at zero velocity and acceleration), and where
+    Newton does not land on a root with positive thrust and roll and pitch within +-90 deg (a step of
+    the reference, the first point), by continuation: the flight condition moved from the last point's
+    to the point's in steps, each solved from the one before (:func:`_continued`). Roll and pitch stay
+    within +-90 deg, so they are continuous along the path (never wrapped); yaw is the path's.
 
     Parameters
     ----------
@@ -90,6 +103,8 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise) -> tuple[np.ndarray
         ``pointwise(fn)`` evaluates a CasADi function over the points (a row a point):
         :class:`quadctl.pointwise.Pointwise` (CasADi's ``map``), or the compiled
         :func:`quadctl.sim.mapped.mapped` (the same numbers).
+    fix : str
+        What the refusal tells the user to change (the reference's key: a mission's speed, a setpoint).
 
     Returns
     -------
@@ -99,32 +114,131 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise) -> tuple[np.ndarray
     Raises
     ------
     TrimError
-        No roll, pitch and thrust produce the path's acceleration (Newton did not converge).
+        At some point no roll and pitch within :data:`quadctl.linear.trim.MAX_TILT` of level (and positive
+        thrust) fly the path's acceleration: the message names the time (the steepest point's), the
+        acceleration and velocity asked and the attitude they need.
+
+    Examples
+    --------
+    >>> from quadctl.model import Vehicle
+    >>> from quadctl.trajectory import setpoint_reference
+    >>> ref = setpoint_reference([{"t": 0.0, "velocity": [10.5, 0.0, 0.0]}], [0, 0, -1], [0, 0, 0], 0.0)
+    >>> x, u = feedforward(ref.flat([1.0]), Vehicle().vector())
+    >>> round(float(x[0, 7]), 4), round(float(u[0, 0]), 4)
+    (-0.9386, 0.3942)
     """
     balance, feed = (pointwise(fn) for fn in _functions())
     n = len(path.t)
     P = path.position
-    s = np.vstack([P[1].T, path.yaw[0][None], P[2].T])
-    sd = np.vstack([P[2].T, path.yaw[1][None], P[3].T])
-    sdd = np.vstack([P[3].T, path.yaw[2][None], P[4].T])
+    s = np.vstack([P[1].T, path.yaw[0][None], P[2].T]).T  # a row a point
+    sd = np.vstack([P[2].T, path.yaw[1][None], P[3].T]).T
+    sdd = np.vstack([P[3].T, path.yaw[2][None], P[4].T]).T
     params = np.asarray(params, dtype=float)
-    z = np.tile(np.array([[0.0], [0.0], [params[MASS] * params[GRAVITY]]]), (1, n))  # start at hover thrust
-    s, sd, sdd, z = s.T, sd.T, sdd.T, z.T  # a row a point
-    for _ in range(MAX_ITER):
-        G, J = balance(z, s, params)
-        resid = np.abs(G).max(axis=1)
-        if resid.max() <= NEWTON_TOL:
-            break
-        jac = J.reshape(n, 3, 3).transpose(0, 2, 1)  # each point's (3, 3) column-major
-        z = z + np.linalg.solve(jac, -G[:, :, None])[:, :, 0]
-    else:
-        worst = int(np.argmax(resid))
-        raise TrimError(
-            f"simulation.reference: no roll, pitch and thrust fly the reference at t = {path.t[worst]:.4g} s "
-            f"(acceleration {_fmt(P[2][worst])} m/s^2 at velocity {_fmt(P[1][worst])} m/s); lower "
-            "simulation.reference.speed or space the waypoints further apart")
+    order = np.argsort(path.t, kind="stable")
+    z = np.empty((n, 3))
+    z_prev = np.array([0.0, 0.0, params[MASS] * params[GRAVITY]])  # hover: a root at zero velocity and acceleration
+    s_prev = np.zeros(7)
+    s_prev[3] = s[order[0], 3] if n else 0.0  # hover at the first point's heading
+    for start in range(0, n, BLOCK):
+        rows = order[start:start + BLOCK]
+        got, lost = _continued(balance, z_prev, s_prev, s[rows], params)
+        if lost is not None:
+            _refuse(path, rows[lost], None, fix)
+        z[rows] = got
+        z_prev, s_prev = got[-1], s[rows[-1]].copy()
+    steepness = np.maximum(np.abs(z[:, 0]), np.abs(z[:, 1]))
+    if n and steepness.max() > MAX_TILT:
+        worst = int(np.argmax(steepness))
+        _refuse(path, worst, z[worst], fix)
     x, u = feed(z, s, sd, sdd, P[0], params)
     return x.reshape(n, N_STATES), u.reshape(n, N_INPUTS)
+
+
+BLOCK = 64
+"""Points solved together (0.32 s of a reference on the 5 ms clock), each block from the root of the
+point before it: Newton's start is then within a block's motion of every point's root."""
+MIN_FRACTION = 2.0 ** -20
+"""The smallest step of :func:`_continued`'s continuation (a fraction of the way between two points'
+flight conditions); below it, the physical root has left the region: the reference is refused."""
+
+
+def _physical(z) -> np.ndarray:
+    """(m,) bool: the roots ``z`` (m, 3) with positive thrust and roll and pitch within +-90 deg (not
+    inverted): the branch of the flatness map a quadrotor flies."""
+    return (z[:, 2] > 0) & (np.abs(z[:, 0]) < np.pi / 2) & (np.abs(z[:, 1]) < np.pi / 2) & np.isfinite(z).all(axis=1)
+
+
+def _newton(balance, z, s, params) -> tuple[np.ndarray, np.ndarray]:
+    """Newton on ``G(z, s) = 0`` from ``z`` (m, 3) at ``s`` (m, 7), all rows at once: ``(z, converged)``,
+    ``converged`` (m,) the rows within :data:`NEWTON_TOL` on the physical branch (:func:`_physical`); a
+    row that leaves it stops there. A row within the tolerance takes one step more, which leaves it at
+    round-off (Newton's convergence is quadratic): its root then does not depend on where Newton
+    started (a reference's rows tabulated in any chunks are the same numbers; with the residual of
+    the tolerance left in, the model's rates of two tabulations differed by 2e-12 m/s^2, their
+    curvature over a 5 ms row by 4e-10)."""
+    z = z.copy()
+    m = len(z)
+    going = np.ones(m, dtype=bool)
+    done = np.zeros(m, dtype=bool)
+    for _ in range(MAX_ITER):
+        idx = np.flatnonzero(going)
+        if not idx.size:
+            break
+        G, J = balance(z[idx], s[idx], params)
+        jac = J.reshape(len(idx), 3, 3).transpose(0, 2, 1)  # each point's (3, 3) column-major
+        with np.errstate(all="ignore"):
+            step = np.linalg.solve(jac, -G[:, :, None])[:, :, 0] if np.isfinite(jac).all() else np.full_like(G, np.nan)
+        z[idx] = z[idx] + step  # on a row within the tolerance, one step more: its root to round-off
+        ok = np.abs(G).max(axis=1) <= NEWTON_TOL
+        done[idx[ok]] = True
+        going[idx[ok]] = False
+        going[idx[~_physical(z[idx])]] = False
+    return z, done & _physical(z)
+
+
+def _continued(balance, z0, s0, s, params) -> tuple[np.ndarray, int | None]:
+    """The physical roots at the points ``s`` (m, 7), continued from the root ``z0`` (3,) at ``s0`` (7,):
+    Newton from ``z0``; a point where it fails is approached along ``s0 + lam (s - s0)``, ``lam`` from
+    0 to 1 in steps halved on a failure and doubled on a success, each from the last root reached.
+
+    Returns
+    -------
+    z : (m, 3) ndarray
+    lost : int or None
+        The first point (in order) whose root left the physical branch on the way (its step fell below
+        :data:`MIN_FRACTION`); None: all found.
+    """
+    m = len(s)
+    z = np.tile(z0, (m, 1))
+    lam, step = np.zeros(m), np.ones(m)
+    while True:
+        active = np.flatnonzero(lam < 1)
+        if not active.size:
+            return z, None
+        if (step[active] < MIN_FRACTION).any():
+            return z, int(active[step[active] < MIN_FRACTION][0])
+        trial = np.minimum(lam[active] + step[active], 1.0)
+        got, ok = _newton(balance, z[active], s0 + trial[:, None] * (s[active] - s0), params)
+        win, lose = active[ok], active[~ok]
+        z[win], lam[win] = got[ok], trial[ok]
+        step[win] = np.minimum(2 * step[win], 1.0)
+        step[lose] /= 2
+
+
+def _refuse(path: FlatPath, k: int, z, fix: str):
+    """Raise the refusal of point ``k``: its time, acceleration and velocity, and the roll and pitch
+    they need (``z``; None: beyond 90 deg, or no positive thrust)."""
+    P = path.position
+    asked = (f"at t = {path.t[k]:.4g} s the reference asks an acceleration of {_fmt(P[2][k])} m/s^2 at velocity "
+             f"{_fmt(P[1][k])} m/s")
+    limit = f"{np.rad2deg(MAX_TILT):.0f} deg"
+    if z is None:
+        needs = "a tilt of 90 deg or more (no attitude with upward thrust flies it)"
+    else:
+        tilt = np.rad2deg(np.arccos(np.clip(np.cos(z[0]) * np.cos(z[1]), -1.0, 1.0)))
+        needs = f"roll {np.rad2deg(z[0]):.1f} deg and pitch {np.rad2deg(z[1]):.1f} deg (a tilt of {tilt:.1f} deg)"
+    raise TrimError(f"simulation.reference: {asked}, which needs {needs}, beyond the {limit} of roll or pitch "
+                    f"the Euler-angle model supports; {fix}")
 
 
 def _fmt(v) -> str:

@@ -186,9 +186,10 @@ def flown_reference(setup: Setup):
 
 
 def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:
-    """``sim.json``'s ``reference``: the position tracking error ``|p - p_ref|`` (m; RMS over time and
-    peak) and, for a mission, each waypoint with the time it was first reached within the tolerance
-    (in order; None: never); None without a reference."""
+    """``sim.json``'s ``reference``: the position tracking error ``|p - p_ref|`` (m; RMS over time,
+    peak and final) and, for a mission, each waypoint with the time it was first reached within the
+    tolerance (in order; None: never) and its closest approach (m) and when (s)
+    (:class:`quadctl.trajectory.Approach`); None without a reference."""
     if setup.reference is None or len(sim.t) == 0:
         return None
     return tracking_of(setup.reference, sim.t, sim.x, sim.x_ref)
@@ -204,12 +205,13 @@ def tracking_of(ref, t, x, x_ref) -> dict:
            "position_error": {"rms": float(np.sqrt(np.mean(err ** 2))), "peak": float(err.max()),
                               "final": float(err[-1]), "units": "m"}}
     if ref.legs:
-        reached = trajectory.waypoint_times(ref, t, x[:, :3])
+        met = trajectory.waypoint_approaches(ref, t, x[:, :3])
         out["tolerance"] = ref.tolerance
         out["waypoints"] = [{"position": list(leg.position), "yaw": leg.yaw, "leg_start": leg.start,
-                             "leg_end": leg.end, "hold": leg.hold, "reached": r}
-                            for leg, r in zip(ref.legs, reached)]
-        out["all_reached"] = all(r is not None for r in reached)
+                             "leg_end": leg.end, "hold": leg.hold, "reached": a.reached, "closest": a.closest,
+                             "closest_at": a.closest_at}
+                            for leg, a in zip(ref.legs, met)]
+        out["all_reached"] = all(a.reached is not None for a in met)
         out["mission_end"] = ref.end
     return out
 
@@ -497,27 +499,6 @@ def schedule_line(schedule: dict) -> str:
     values = ", ".join(f"{v:g}" for v in schedule["values"])
     return (f"gains scheduled on {schedule['variable']} at {values} {schedule['units']} ({schedule['interpolation']}, "
             "held outside), read from the reference")
-
-
-def tracking_lines(tracking: dict) -> list[str]:
-    """A run's reference (:func:`tracking_summary`): the position tracking error and, for a
-    mission, when each waypoint was reached (``simulate`` prints them)."""
-    err = tracking["position_error"]
-    lines = [f"tracking error |p - p_ref|: rms {err['rms']:.3g} m, peak {err['peak']:.3g} m, "
-             f"final {err['final']:.3g} m"]
-    if "waypoints" in tracking:
-        wps = tracking["waypoints"]
-        reached = [(i, w["reached"]) for i, w in enumerate(wps) if w["reached"] is not None]
-        within = f"within {tracking['tolerance']:g} m"
-        if not reached:
-            said = f"none of {len(wps)} reached {within}"
-        elif len(reached) == len(wps):
-            said = f"{len(wps)} of {len(wps)} reached {within}, at " + ", ".join(f"{t:.3f} s" for _, t in reached)
-        else:  # name the ones reached: the others are the warning's
-            said = (f"{len(reached)} of {len(wps)} reached {within}: "
-                    + ", ".join(f"waypoints[{i}] at {t:.3f} s" for i, t in reached))
-        lines.insert(0, f"waypoints: {said} (mission ends at {tracking['mission_end']:.4g} s)")
-    return lines
 
 
 def missed_waypoints(tracking: dict | None) -> str | None:

@@ -206,13 +206,36 @@ def mission_reference(waypoints, position0, yaw0: float, speed: float, tolerance
 def waypoint_times(ref: Reference, t, position) -> list[float | None]:
     """Per leg, the first time (s) from its start that ``position`` ((n, 3) m at times ``t``) is
     within the tolerance of its waypoint, and not before the last waypoint reached; None: never."""
+    return [a.reached for a in waypoint_approaches(ref, t, position)]
+
+
+@dataclass(frozen=True)
+class Approach:
+    """How a flown path met one waypoint, over the span it is sought in (from its leg's start, and
+    not before the waypoint before it was reached): ``reached`` the first time (s) within the
+    tolerance (None: never), ``closest`` the least distance (m) and ``closest_at`` when (s); both
+    None when the span is empty (the run ended first)."""
+
+    reached: float | None
+    closest: float | None
+    closest_at: float | None
+
+
+def waypoint_approaches(ref: Reference, t, position) -> list[Approach]:
+    """Per leg of ``ref``, how ``position`` ((n, 3) m at the times ``t``, s) met its waypoint
+    (:class:`Approach`)."""
     t = np.asarray(t, float)
     position = np.asarray(position, float)
-    out: list[float | None] = []
+    out: list[Approach] = []
     after = -math.inf
     for leg in ref.legs:
-        near = np.linalg.norm(position - np.asarray(leg.position), axis=1) <= ref.tolerance
-        hit = np.nonzero(near & (t >= leg.start) & (t >= after))[0]
-        out.append(float(t[hit[0]]) if hit.size else None)
-        after = out[-1] if out[-1] is not None else after
+        dist = np.linalg.norm(position - np.asarray(leg.position), axis=1)
+        span = np.nonzero((t >= leg.start) & (t >= after))[0]
+        if not span.size:
+            out.append(Approach(None, None, None))
+            continue
+        hit = span[dist[span] <= ref.tolerance]
+        nearest = span[np.argmin(dist[span])]
+        out.append(Approach(float(t[hit[0]]) if hit.size else None, float(dist[nearest]), float(t[nearest])))
+        after = out[-1].reached if out[-1].reached is not None else after
     return out

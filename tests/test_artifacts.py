@@ -215,15 +215,18 @@ def test_every_name_the_stages_write_is_registered():
     assert all(artifacts.SUBFOLDER_NAMES[report.FOLDER].fullmatch(n) for n in (report.HTML, report.MARKDOWN))
 
 
-@pytest.mark.parametrize("name", ["notes.json", "plots/../../x.png", "sweep.parts/a.json", "plots/trim.png/x"])
+@pytest.mark.parametrize("name", ["notes.json", "plots/../../x.png", "sweep.parts/a.json", "plots/trim.png/x",
+                                  "plots/trim.png.json", "sweep.parts/chunk-1.json.png", "report/report.html.json"])
 def test_a_name_quadctl_does_not_write_is_refused_before_writing(tmp_path, name):
     with pytest.raises(ValueError, match="not an artifact name quadctl writes"):
         artifacts.write_json(tmp_path / "out" / name, {})
     assert not any(tmp_path.rglob("*.json"))
 
 
-@pytest.mark.parametrize("stem", ["../../x/roll", "a/b", "..", ".hidden", "a\\b"])
+@pytest.mark.parametrize("stem", ["../../x/roll", "a/b", "..", ".hidden", "a\\b", "roll.png/x", "roll.png/../../x",
+                                  "roll\n", "roll.png\x00"])
 def test_a_figure_name_from_a_config_cannot_leave_the_run_directory(tmp_path, stem):
+    """The whole name is matched: ``roll.png/x`` starts like a figure's name and is none."""
     with pytest.raises(ArtifactError, match=r"cannot name a figure in .*plots .*rename it in the config"):
         artifacts.plot_path(tmp_path, stem)
 

@@ -156,3 +156,16 @@ def test_an_index_with_no_list_to_go_into_and_a_new_state_name_the_fix(given, me
     as in a file (every state named), not against the keys hover happens to hold (pD, phi, theta, psi)."""
     with pytest.raises(ConfigError, match=message):
         overrides.load(config.bundled("hover"), [given])
+
+
+@pytest.mark.parametrize("text,value", [
+    ("description=a=b", "a=b"),
+    ("description=speed = 2 m/s, tolerance = 5 cm", "speed = 2 m/s, tolerance = 5 cm"),
+    ("description=x==y", "x==y"),
+    ("description='k=v=w'", "k=v=w"),
+])
+def test_a_value_may_contain_equals_signs_the_key_ends_at_the_first(text, value):
+    """The key path ends at the first ``=``: a parser splitting at the last would make ``description=a``
+    the key and refuse it as no key path."""
+    assert overrides.parse(text) == overrides.Assignment("description", ("description",), value)
+    assert overrides.load(config.bundled("hover"), [text]).description == value

@@ -4,6 +4,7 @@ position step settling as its slowest pole says, the bundled mission), and every
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from quadctl import config, pipeline, trajectory
 from quadctl.errors import ConfigError
 from quadctl.linear.trim import solve_trim
 from quadctl.model import Vehicle, build_model
+from quadctl.present import mission
 from quadctl.problem import setup_of
 from quadctl.sim.reference import FlownReference
 from quadctl.sim.run import simulate
@@ -118,14 +120,14 @@ def test_the_square_mission_passes_every_waypoint_in_order_and_holds_the_last(sq
 def test_the_waypoints_line_names_the_times_of_those_reached(reached, said):
     tracking = {"position_error": {"rms": 0.01, "peak": 0.1, "final": 0.0}, "tolerance": 0.05,
                 "mission_end": 12.75, "waypoints": [{"position": [0.0, 0.0, -1.0], "reached": r} for r in reached]}
-    assert pipeline.tracking_lines(tracking)[0] == f"waypoints: {said} (mission ends at 12.75 s)"
+    assert mission.tracking_lines(tracking)[0] == f"waypoints: {said} (mission ends at 12.75 s)"
 
 
 def test_a_mission_flown_outside_a_tight_tolerance_reaches_none(square, square_run):
     setup, _ = square
     ref = replace(setup.reference, tolerance=1e-9)
     tracking = pipeline.tracking_of(ref, square_run.t, square_run.x, square_run.x_ref)
-    assert pipeline.tracking_lines(tracking)[0].startswith("waypoints: none of 4 reached within 1e-09 m (mission ")
+    assert mission.tracking_lines(tracking)[0].startswith("waypoints: none of 4 reached within 1e-09 m (mission ")
     assert pipeline.missed_waypoints(tracking).startswith("simulation.reference.waypoints[0] [")
 
 
@@ -153,6 +155,94 @@ def test_the_feedforward_tracks_a_flat_reference_to_the_tabulation_error(square)
 
     with_ff, without = peak(flown), peak(SetpointOnly(flown.path, flown.params))
     assert with_ff < 5e-5 and without > 0.02 and with_ff < 1e-3 * without, (with_ff, without)
+
+
+def _brute_approach(t, x, leg_start, after, waypoint, tolerance):
+    """(reached, closest, closest_at) sample by sample, in plain Python: the span from the leg's start
+    and not before ``after``."""
+    reached, best = None, (math.inf, None)
+    for ti, p in zip(t, x[:, :3]):
+        if ti < leg_start or ti < after:
+            continue
+        d = math.dist(p, waypoint)
+        if reached is None and d <= tolerance:
+            reached = float(ti)
+        best = min(best, (d, float(ti)), key=lambda b: b[0])
+    return reached, *(best if best[1] is not None else (None, None))
+
+
+@pytest.mark.parametrize("duration, tolerance", [(15.0, 0.05), (6.0, 0.05), (15.0, 1e-9), (15.0, 1.0)])
+def test_each_waypoints_reach_and_closest_approach_are_the_samples(square, square_run, duration, tolerance):
+    """Against a sample-by-sample reading of the run: the first time within the tolerance and the
+    least distance over the same span; a leg the run never began has neither (the 6 s cut)."""
+    setup, _ = square
+    keep = square_run.t <= duration
+    t, x = square_run.t[keep], square_run.x[keep]
+    ref = replace(setup.reference, tolerance=tolerance)
+    got = trajectory.waypoint_approaches(ref, t, x[:, :3])
+    after = -math.inf
+    for leg, a in zip(ref.legs, got):
+        expected = _brute_approach(t, x, leg.start, after, leg.position, tolerance)
+        for value, want in zip((a.reached, a.closest, a.closest_at), expected):
+            assert value == want or math.isclose(value, want, rel_tol=1e-12, abs_tol=1e-15), (leg, value, want)
+        if a.reached is not None:
+            assert a.closest <= tolerance and a.closest_at >= leg.start
+            after = a.reached
+        elif a.closest is not None:
+            assert a.closest > tolerance
+    if duration == 6.0:  # the third leg starts at 6.6 s: not flown, nor the fourth
+        assert [a.closest for a in got[2:]] == [None, None]
+    if tolerance == 0.05 and duration == 15.0:  # the last waypoint is held: closest at most the final error
+        assert got[-1].closest <= np.linalg.norm(x[-1, :3] - ref.legs[-1].position)
+
+
+def test_the_waypoint_table_says_where_when_and_how_close():
+    wps = [{"position": [2.0, 0.0, -1.0], "yaw": 0.0, "leg_end": 2.188, "reached": 1.785, "closest": 4.65e-8,
+            "closest_at": 2.174},
+           {"position": [2.0, 2.0, -1.5], "yaw": 1.5708, "leg_end": 6.124, "reached": None, "closest": 0.31,
+            "closest_at": 6.0},
+           {"position": [0.0, 2.0, -1.5], "yaw": 1.5708, "leg_end": 8.811, "reached": None, "closest": None,
+            "closest_at": None}]
+    tracking = {"position_error": {"rms": 0.0123, "peak": 0.31, "final": 0.3}, "tolerance": 0.05,
+                "mission_end": 8.811, "waypoints": wps}
+    table = mission.waypoints_table(tracking)
+    assert table.title == "Waypoints, reached within 0.05 m (simulation.reference.tolerance)"
+    assert table.columns == ("waypoint", "position N, E, D (m)", "yaw (rad)", "reference arrives (s)",
+                             "reached at (s)", "closest approach (m)")
+    assert table.rows == (
+        ("waypoints[0]", "2, 0, -1", "0 (0 deg)", "2.188", "1.785", "4.65e-08 at 2.174 s"),
+        ("waypoints[1]", "2, 2, -1.5", "1.571 (90 deg)", "6.124", "never", "0.31 at 6 s"),
+        ("waypoints[2]", "0, 2, -1.5", "1.571 (90 deg)", "8.811", "never", "leg not flown"))
+    assert [r[4].kind for r in table.rows] == ["ok", "fail", "fail"]
+    assert mission.tracking_lines(tracking) == [
+        "waypoints: 1 of 3 reached within 0.05 m: waypoints[0] at 1.785 s (mission ends at 8.811 s)",
+        "tracking error |p - p_ref|: rms 0.0123 m, peak 0.31 m, final 0.3 m"]
+    assert mission.tracking_lines(tracking)[0].kind == "fail"
+    setpoints = {"position_error": tracking["position_error"]}
+    assert mission.waypoints_table(setpoints) is None and len(mission.tracking_lines(setpoints)) == 1
+
+
+@pytest.mark.parametrize("reached", [(1.785, 5.497, 8.409, 12.12), (1.785, None, 8.409, None), None])
+def test_the_path_figure_marks_each_waypoint_reached_or_missed(square, square_run, reached):
+    from quadctl import plots
+
+    setup, _ = square
+    positions = [leg.position for leg in setup.reference.legs]
+    fig = plots.path_figure(square_run, positions, reached=reached, tolerance=0.05, title="square")
+    plane, altitude = fig.axes
+    marked = [(line.get_marker(), float(line.get_xdata()[0]), float(line.get_ydata()[0]))
+              for line in plane.lines if line.get_marker() in ("s", "X")]
+    expected = ["s" if reached is None or r is not None else "X" for r in (reached or [None] * 4)]
+    assert marked == [(m, p[1], p[0]) for m, p in zip(expected, positions)]  # east right, north up
+    assert [a.get_text() for a in plane.texts] == ["1", "2", "3", "4"]
+    when = [(float(line.get_xdata()[0]), float(line.get_ydata()[0])) for line in altitude.lines
+            if line.get_marker() == "s"]
+    assert when == [(r, -p[2]) for r, p in zip(reached or (), positions) if r is not None]
+    labels = plane.get_legend_handles_labels()[1]
+    assert ("reached within 0.05 m" in labels) == (reached is not None)
+    assert ("missed" in labels) == (reached is not None and None in reached)
+    count = "" if reached is None else f", {sum(r is not None for r in reached)} of 4 waypoints reached"
+    assert fig._suptitle.get_text() == f"square: path{count}"
 
 
 def test_a_flown_reference_has_its_path_and_error_figures(square_run):

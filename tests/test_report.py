@@ -230,6 +230,42 @@ def test_the_terminal_and_the_report_show_the_same_rows(reports, monkeypatch):
         assert present.cells.sentence(" ".join(line.split())) in sentences or " ".join(line.split()) in sentences
 
 
+def test_a_missions_report_shows_its_waypoints_and_tracking_as_the_terminal_does(reports, monkeypatch):
+    """The square mission: the waypoint table and the tracking sentences `quadctl simulate` prints are
+    the report's, cell for cell; the path figure is the mission's, under a caption that says what it
+    shows, and sim.json's numbers are in the table."""
+    from quadctl import present
+    from quadctl.cli import render
+
+    out, res = reports["square"]
+    assert res.exit_code == 0, res.output
+    page = _parse(out / report.FOLDER / report.HTML)
+    printed = []
+    show = render.show
+    monkeypatch.setattr(render, "show", lambda *blocks: (printed.extend(blocks), show(*blocks)))
+    res = runner.invoke(app, ["simulate", "-c", "square", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    table = next(b for b in printed if isinstance(b, present.Table) and b.id == "waypoints-table")
+    assert page.tables["waypoints-table"] == [list(table.columns)] + [list(r) for r in table.rows]
+    sentences = " ".join(" ".join(page.text).split())
+    lines = [b for b in printed if isinstance(b, str) and str(b).startswith(("waypoints:", "tracking error"))]
+    assert len(lines) == 2 and all(present.cells.sentence(line) in sentences for line in lines), lines
+    tracking = _artifact(out, "sim.json")["reference"]
+    err = tracking["position_error"]
+    assert f"rms {err['rms']:.3g} m, peak {err['peak']:.3g} m, final {err['final']:.3g} m" in lines[1]
+    for i, w in enumerate(tracking["waypoints"]):
+        assert page.column("waypoints-table", "reached at (s)", f"waypoints[{i}]") == f"{w['reached']:.4g}"
+        assert page.column("waypoints-table", "closest approach (m)", f"waypoints[{i}]") == (
+            f"{w['closest']:.3g} at {w['closest_at']:.4g} s")
+    md = (out / report.FOLDER / report.MARKDOWN).read_text(encoding="utf-8")
+    assert "## Mission" in md and "subsystem's states" not in md.split("## Mission")[1].split("## Flight")[0]
+    assert re.search(r"!\[The path flown \(blue\) over the reference \(wide, grey\): left, north against east, "
+                     r"the start ringed green, the end a blue dot, the waypoints numbered in the order flown "
+                     r"\(filled: reached within 0\.05 m, .*\]\(sim-path\.png\)", md)
+    assert re.search(r"!\[The position tracking error p - p_ref against time: .*\]\(sim-tracking\.png\)", md)
+    assert "the path subsystem" not in md and "the tracking subsystem" not in md
+
+
 UNSTABILIZABLE = """name: swapped
 subsystems:  # A drives pitch and E roll: neither input reaches its subsystem's angle
   altitude: {states: [pD, w], inputs: [T]}

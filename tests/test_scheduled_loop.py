@@ -278,9 +278,10 @@ def speed_steps():
 def test_etdrk4_flies_a_gain_schedule_on_the_loop_closed_at_the_nearest_value(speed_steps):
     """ETDRK4 at dt: auto, tolerance 1e-8, against RK4 at a small step: each step's linear part is the
     loop closed at the schedule's value nearest the commanded speed (its Jacobians and gains there), so
-    the rate loops the gains move stay in the exactly integrated part: 2.1e-9 (9 540 steps; RK4 at its
-    stable step: 173 914). On the trim's linear part alone (no schedule_jacobians) the remainder
-    carries them: 2.3e-7, over the tolerance."""
+    the rate loops the gains move stay in the exactly integrated part: 2.1e-9 (RK4 at its stable step:
+    173 914 steps). On the trim's linear part alone (no schedule_jacobians) the remainder carries them:
+    9.1e-9, four times that (2.3e-7 on steps graded on tolerance^(1/4), where a reference's largest
+    step was 6.6 times as long: quadctl.sim.schedule.forced_step)."""
     from quadctl.sim.run import _linear_pieces, exponential_plan
     from quadctl.sim.schedule import record_strides
 
@@ -291,7 +292,7 @@ def test_etdrk4_flies_a_gain_schedule_on_the_loop_closed_at_the_nearest_value(sp
     assert err < 1e-8, err
     trim_only = simulate(replace(loop, schedule_jacobians=None), x0, SETPOINT_RUN, "auto", method="etdrk4",
                          tolerance=1e-8, reference=ref)
-    assert np.abs(trim_only.x[-1] - truth.x[-1]).max() > 30 * err
+    assert np.abs(trim_only.x[-1] - truth.x[-1]).max() > 3 * err
     _, plan = exponential_plan(loop, SETPOINT_RUN, tolerance=1e-8, reference=ref, exo_period=0.005)
     pieces = _linear_pieces(loop, plan, record_strides(plan, 10**6), ref)
     values = [float(sched.table.values[p]) for _, _, p in pieces]

@@ -147,7 +147,8 @@ def test_a_path_into_a_section_the_config_leaves_out_says_to_add_it(path, sectio
     assert getattr(hover.simulation, section.split(".")[1]) is None
     with pytest.raises(SweepError, match=rf"^s\.yaml: parameters\.{re.escape(path)}: the config has no "
                                          rf"`{re.escape(section)}` section \(it is null\); add a "
-                                         rf"`{re.escape(section)}:` section to the config to vary its keys$"):
+                                         rf"`{re.escape(section)}:` section to the config, or give it under the "
+                                         rf"sweep's `set:`, to vary its keys$"):
         sweep.from_dict({"parameters": {path: [1, 2]}}, hover, "s.yaml")
 
 
@@ -699,3 +700,114 @@ def test_a_chunk_mixing_designs_with_and_without_the_rotor_lag_designs_each_as_t
         assert row["path"] == ("batched" if lag == "ignore" else "one-by-one: the design includes the rotors' lag")
     worst, where = max_rel_diff(fast.rows, slow.rows)
     assert worst < MATCH_RTOL, f"Max diff is {worst:.4E} at {where}"
+
+
+# ---------------------------------------------------------------------------------------
+# set: makes the section its parameters vary, and sets a section whole
+
+MISSION = {"waypoints": [{"position": [0.3, 0.0, -1.0]}], "tolerance": 0.05}
+
+
+@pytest.fixture(scope="module")
+def square_without_mission():
+    from quadctl import overrides
+
+    return overrides.load(config.bundled("square"), ["simulation.reference=null"])
+
+
+def test_set_makes_the_section_its_parameters_vary(square_without_mission):
+    """The config has no mission: set: gives one, the parameters vary its speed (a key set: leaves to
+    its default), a gate reads its waypoints; each row is the one-case run of the same config."""
+    from quadctl import overrides
+    from quadctl.problem import setup_of
+
+    cfg = square_without_mission
+    spec = sweep.from_dict({"set": {"simulation.reference": MISSION, "simulation.duration": 2.0},
+                            "parameters": {"simulation.reference.speed": [0.5, 1.0]},
+                            "gates": {"waypoints.reached": {"min": 1}}}, cfg, "s.yaml")
+    result = sweep.run(cfg, spec, jobs=1)
+    assert {"tracking.rms", "tracking.peak", "waypoints.reached"} <= set(result.columns)
+    for row in result.rows:
+        assert row["status"] == "ok" and row["pass"] and row["waypoints.reached"] == 1, row
+        one = overrides.load(config.bundled("square"), [f"simulation.reference={json.dumps(MISSION)}",
+                                                        "simulation.duration=2",
+                                                        f"simulation.reference.speed={row['simulation.reference.speed']}"])
+        setup = setup_of(one)
+        track = pipeline.tracking_summary(setup, pipeline.simulation_of(setup, pipeline.Stages(setup).loop))
+        for column, key in (("tracking.rms", "rms"), ("tracking.peak", "peak")):
+            assert row[column] == pytest.approx(track["position_error"][key], rel=MATCH_RTOL, abs=1e-15)
+    assert result.rows[0]["tracking.rms"] < result.rows[1]["tracking.rms"]  # slower flies closer
+
+
+def test_a_mission_set_gives_brings_its_columns_where_only_the_cases_make_it_valid(square_without_mission):
+    """A waypoint 200 m out is past what the config's own 15 s can reach (MAX_REACH), not the cases'
+    30 and 60 s: the mission's columns and gates still come with it."""
+    far = {"waypoints": [{"position": [200.0, 0.0, -1.0]}], "speed": 1.0}
+    data = {"set": {"simulation.reference": far}, "parameters": {"simulation.duration": [30.0, 60.0]},
+            "gates": {"waypoints.reached": {"min": 1}, "tracking.rms": {"max": 1.0}}}
+    spec = sweep.from_dict(data, square_without_mission, "s.yaml")
+    assert {"tracking.rms", "tracking.peak", "waypoints.reached"} <= set(spec.metrics)
+    assert [g.metric for g in spec.gates] == ["waypoints.reached", "tracking.rms"]
+    assert not {"tracking.rms", "waypoints.reached"} & set(sweep.from_dict(
+        {"parameters": {"simulation.duration": [30.0]}}, square_without_mission, "s.yaml").metrics)
+
+
+@pytest.mark.parametrize("fixed,section,expected", [
+    pytest.param({"simulation.initial_offset": {"pN": 0.5}}, ("simulation", "initial_offset"), {"pN": 0.5},
+                 id="a section replaced whole, not merged"),
+    pytest.param({"simulation.initial_offset": {}}, ("simulation", "initial_offset"), {}, id="emptied"),
+    pytest.param({"simulation.wind": {"steady": [1.0, 0.0, 0.0]}}, ("simulation", "wind", "steady"), [1.0, 0.0, 0.0],
+                 id="a section the config leaves out, given whole"),
+    pytest.param({"simulation.wind.steady": [0.0, 2.0, 0.0]}, ("simulation", "wind", "steady"), [0.0, 2.0, 0.0],
+                 id="a section the config leaves out, made by one of its keys"),
+])
+def test_set_may_set_a_section_whole_or_make_it(cfg, fixed, section, expected):
+    from quadctl.sweep.runner import base_of
+
+    spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [10, 50]}, set={**SHORT, **fixed})
+    case = config.from_dict(base_of(cfg, spec), "case")
+    node = case.model_dump(mode="json")
+    for key in section:
+        node = node[key]
+    assert node == expected
+    assert cfg.simulation.initial_offset != {"pN": 0.5} and cfg.simulation.wind is None  # the config had others
+
+
+def test_a_parameter_may_vary_a_key_of_a_section_set_makes(cfg):
+    from quadctl.sweep.runner import base_of
+
+    spec = spec_of(cfg, parameters={"simulation.wind.steady[1]": [1.0, 2.0]},
+                   set={**SHORT, "simulation.wind": {"steady": [3.0, 0.0, 0.0]}})
+    assert spec.parameters[0].keys == ("simulation", "wind", "steady", 1)
+    assert base_of(cfg, spec)["simulation"]["wind"] == {"steady": [3.0, 0.0, 0.0]}
+
+
+@pytest.mark.parametrize("data,message", [
+    ({"parameters": {"simulation.reference.speed": [1, 2]}},
+     r"^s\.yaml: parameters\.simulation\.reference\.speed: the config has no `simulation\.reference` section \(it is "
+     r"null\); add a `simulation\.reference:` section to the config, or give it under the sweep's `set:`, to vary its "
+     r"keys$"),
+    ({"set": {"simulation.reference": {"waypoints": [{"position": [1, 0, -1]}], "sped": 2}},
+      "parameters": {"lqr.roll.Q[0]": [1]}},
+     r"^s\.yaml: set: simulation\.reference\.sped: unknown key; did you mean `speed`\?$"),
+    ({"set": {"simulation.reference.sped": 2}, "parameters": {"lqr.roll.Q[0]": [1]}},
+     r"^s\.yaml: set\.simulation\.reference\.sped: no such key in the config: `simulation\.reference\.sped`; did you "
+     r"mean `speed`\?$"),
+    ({"set": {"simulation.reference": {"waypoints": [{"position": [1, 0, -1]}]}},
+      "parameters": {"simulation.reference.waypoints[0].hod": [1]}},
+     r"^s\.yaml: parameters\.simulation\.reference\.waypoints\[0\]\.hod: no such key in the config: "
+     r"`simulation\.reference\.waypoints\[0\]\.hod`; did you mean `hold`\?$"),
+    ({"set": {"simulation.reference": {"waypoints": [{"position": [1, 0, -1]}]}},
+      "parameters": {"simulation.reference.waypoints[1].hold": [1]}},
+     r"^s\.yaml: parameters\.simulation\.reference\.waypoints\[1\]\.hold: index 1 out of range"),
+    ({"parameters": {"simulation.initial_offset": [{"pN": 1}]}},
+     r"^s\.yaml: parameters\.simulation\.initial_offset: is a section, not a value; name one of its keys: pD, phi, "
+     r"theta, psi, or set it whole under the sweep's `set:`$"),
+    ({"set": {"simulation.reference": {"waypoints": [{"position": [1, 0, -1]}]}},
+      "parameters": {"simulation.reference.waypoints[0]": [1]}},
+     r"^s\.yaml: parameters\.simulation\.reference\.waypoints\[0\]: is a section, not a value; name one of its keys: "
+     r"position, or set it whole under the sweep's `set:`$"),
+])
+def test_set_and_its_sections_errors_name_the_key_and_the_fix(data, message):
+    with pytest.raises(SweepError, match=message):
+        sweep.from_dict(data, config.load("hover"), "s.yaml")

@@ -9,8 +9,9 @@ import re
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import config, notices, starter
+from quadctl import config, notices, overrides, starter
 from quadctl.cli.app import app
+from quadctl.errors import ConfigError
 
 runner = CliRunner()
 IRIS = starter.config_text("slip", "iris", "hover")
@@ -101,3 +102,82 @@ def test_a_design_at_its_rotor_limits_most_of_the_run_fails_unless_accepted(tmp_
     res = runner.invoke(app, ["simulate", "-c", str(path), "-o", out])
     assert res.exit_code == 0, res.output
     assert "quadctl: warning: the design saturates: rotor" in res.stderr
+
+
+# -- a reference's units: yaws in degrees, positions in millimetres ---------------------------------
+
+SQUARE = config.bundled("square")
+WAYPOINT_YAW = r"simulation\.reference\.waypoints\[1\]\.yaw"
+REFERENCE_SLIPS = {
+    "waypoint yaw in degrees": (["simulation.reference.waypoints[1].yaw=90"],
+                                rf"^--set: {WAYPOINT_YAW} = 90: that is 5157 deg, beyond 720 deg; angles are in rad: "
+                                r"for 90 deg write 1\.571$"),
+    "negative waypoint yaw in degrees": (["simulation.reference.waypoints[1].yaw=-30"],
+                                         rf"^--set: {WAYPOINT_YAW} = -30: that is -1719 deg, beyond 720 deg; .* "
+                                         r"for -30 deg write -0\.5236$"),
+    "setpoint yaw in degrees": (["simulation.reference={setpoints: [{t: 1, yaw: 45}]}"],
+                                r"^--set: simulation\.reference\.setpoints\[0\]\.yaw = 45: that is 2578 deg, beyond "
+                                r"720 deg; angles are in rad: for 45 deg write 0\.7854$"),
+    "yaw schedule in degrees": (["schedule={variable: yaw, values: [0, 45, 90]}"],
+                                r"^--set: schedule\.values\[1\] = 45: that is 2578 deg, beyond 720 deg; angles are in "
+                                r"rad: for 45 deg write 0\.7854$"),
+    "waypoint 10 km away": (
+        ["simulation.reference.waypoints[0].position=[10000, 0, -1]"],
+        r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[10000, 0, -1\]: 10000 m from the start along "
+        r"the mission, more than 10 times the 30 m that simulation\.reference\.speed = 2 m/s covers in "
+        r"simulation\.duration = 15 s \(MAX_REACH\); positions are in m: for millimetres write \[10, 0, -0\.001\], "
+        r"else correct the slip, or raise the speed or the duration$"),
+    "waypoints in millimetres": (
+        [f"simulation.reference.waypoints[{i}].position={p}"
+         for i, p in enumerate(("[2000, 0, -1000]", "[2000, 2000, -1500]"))],
+        r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[2000, 0, -1000\]: 2235\.6 m "
+        r"from the start .*: for millimetres write \[2, 0, -1\], else correct the slip"),
+    "a later waypoint out of reach along the mission": (
+        ["simulation.reference.waypoints[2].position=[0, 400, -1.5]"],
+        r"^--set: simulation\.reference\.waypoints\[2\]\.position = \[0, 400, -1\.5\]: 402\.07 m from the start "
+        r"along the mission, more than 10 times the 30 m .*; positions are in m: for millimetres write "
+        r"\[0, 0\.4, -0\.0015\]"),
+    "a position beyond any millimetre": (
+        ["simulation.reference.waypoints[0].position=[1e300, 0, -1]"],
+        r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[1e\+300, 0, -1\]: 1e\+300 m from the start "
+        r".*\(MAX_REACH\); positions are in m: correct the slip, or raise the speed or the duration$"),
+}
+
+
+@pytest.mark.parametrize("name", REFERENCE_SLIPS)
+def test_a_reference_slip_is_refused_naming_its_key_and_the_fix(name):
+    sets, pattern = REFERENCE_SLIPS[name]
+    with pytest.raises(ConfigError, match=pattern):
+        overrides.load(SQUARE, sets)
+
+
+@pytest.mark.parametrize("sets", [
+    ["simulation.reference.waypoints[1].yaw=12.5"],  # two turns, less a little: a mission may circle twice
+    ["simulation.reference.waypoints[1].yaw=-12.5"],
+    ["schedule={variable: yaw, values: [-6.2832, 0, 12.5]}"],
+    ["simulation.reference={setpoints: [{t: 1, yaw: 12.5}]}"],
+    # 10 times the 30 m the run can fly, along the legs (from [0, 0, -1]: 150 + 150 m), less a little
+    ["simulation.reference.waypoints[0].position=[150, 0, -1]", "simulation.reference.waypoints[1].position=[0, 0, -1]",
+     "simulation.reference.waypoints[2].position=[0, 0, -1]", "simulation.reference.waypoints[3].position=[0, 0, -1]"],
+    ["simulation.reference.waypoints[0].position=[3000, 0, -1]", "simulation.duration=1500"],  # far, and flown long
+])
+def test_a_reference_within_its_ranges_is_taken(sets):
+    overrides.load(SQUARE, sets)
+
+
+def test_the_reach_is_counted_along_the_mission():
+    """There and back, 150 m each way, is 300 m flown: one metre more is past the 300 m the rule allows."""
+    sets = ["simulation.reference.waypoints[0].position=[150, 0, -1]",
+            "simulation.reference.waypoints[1].position=[0, 0, -1]"]
+    overrides.load(SQUARE, [*sets, "simulation.reference.waypoints[2].position=[0, 0, -1]"])
+    with pytest.raises(ConfigError, match=r"waypoints\[2\]\.position = \[0, 1, -1\]: 301 m from the start"):
+        overrides.load(SQUARE, [*sets, "simulation.reference.waypoints[2].position=[0, 1, -1]"])
+
+
+def test_a_reference_slip_is_one_line_and_exit_2(tmp_path):
+    res = runner.invoke(app, ["simulate", "-c", "square", "-o", str(tmp_path / "out"),
+                              "--set", "simulation.reference.waypoints[1].yaw=90"])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines() == [
+        "quadctl: error: --set: simulation.reference.waypoints[1].yaw = 90: that is 5157 deg, beyond 720 deg; "
+        "angles are in rad: for 90 deg write 1.571"]

@@ -6,8 +6,9 @@ import os
 from pathlib import Path
 
 
-def save_figures(ws, sim) -> list[Path]:
+def save_figures(ws, sim, tracking: dict | None = None) -> list[Path]:
     """Render every figure of ``sim`` to ``ws.out/plots/*.png``; return the paths (in figure order).
+    ``tracking``: the run's reference summary (``sim.json``'s ``reference``), whose waypoints the path marks.
 
     With more than one core (and ``os.fork``), a child process draws about half of them (by
     :func:`_cost`) while this one draws the rest; should the child fail, this process draws its
@@ -16,7 +17,8 @@ def save_figures(ws, sim) -> list[Path]:
     from quadctl import artifacts, plots
 
     makers = plots.simulation_figure_makers(sim, ws.setup.partition, ws.linear.u_trim,
-                                            title=ws.setup.name, actuators=ws.setup.actuators)
+                                            title=ws.setup.name, actuators=ws.setup.actuators,
+                                            tracking=tracking)
     paths = {name: artifacts.plot_path(ws.out, name) for name in makers}  # every name checked first
 
     def draw(names) -> None:

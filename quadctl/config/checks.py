@@ -106,19 +106,19 @@ def check_semantics(cfg: Config, label: str) -> None:
         check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
                      names=sub.inputs)
     _check_reference(cfg.simulation.reference, fail)
+    _check_reach(cfg, fail)
     _check_schedule(cfg.schedule, fail)
     for state, value in cfg.simulation.initial_offset.items():
         if state not in STATE_NAMES:
             fail(f"simulation.initial_offset.{state}", value, _unknown(state, STATE_NAMES, "state"))
         limit = MAX_TILT_OFFSET if state in ("phi", "theta") else 2 * math.pi if state == "psi" else None
-        if limit is not None and abs(value) >= limit:
-            fail(f"simulation.initial_offset.{state}", value, _degrees_hint(value, limit))
+        if limit is not None:
+            _check_angle(f"simulation.initial_offset.{state}", value, limit, fail, at_limit=True)
         unit = STATE_UNITS[state]
         if unit in MAX_OFFSET and abs(value) > MAX_OFFSET[unit]:
             fail(f"simulation.initial_offset.{state}", value,
                  f"must be at most {MAX_OFFSET[unit]:g} {unit} from the trim (MAX_OFFSET)")
-    if abs(cfg.trim.yaw) > 2 * math.pi:
-        fail("trim.yaw", cfg.trim.yaw, _degrees_hint(cfg.trim.yaw, 2 * math.pi))
+    _check_angle("trim.yaw", cfg.trim.yaw, 2 * math.pi, fail)
     for key in ("velocity_ned", "position_ned"):
         unit = "m/s" if key == "velocity_ned" else "m"
         for i, value in enumerate(getattr(cfg.trim, key)):
@@ -141,6 +141,9 @@ def _check_schedule(schedule: ScheduleConfig | None, fail) -> None:
     """``schedule.values``: strictly increasing."""
     if schedule is None:
         return
+    if schedule.variable == "yaw":
+        for i, value in enumerate(schedule.values):
+            _check_angle(f"schedule.values[{i}]", value, MAX_YAW_TURNS * 2 * math.pi, fail)
     for i in range(1, len(schedule.values)):
         if schedule.values[i] <= schedule.values[i - 1]:
             fail(f"schedule.values[{i}]", schedule.values[i],
@@ -157,12 +160,53 @@ def _check_reference(ref: ReferenceConfig | None, fail) -> None:
              "give either setpoints (steps at times t) or waypoints (a mission), one of the two")
     if not (ref.setpoints or ref.waypoints):
         fail(f"{where}.{'setpoints' if ref.setpoints is not None else 'waypoints'}", [], "empty; list at least one")
+    for kind in ("setpoints", "waypoints"):
+        for i, point in enumerate(getattr(ref, kind) or []):
+            if point.yaw is not None:
+                _check_angle(f"{where}.{kind}[{i}].yaw", point.yaw, MAX_YAW_TURNS * 2 * math.pi, fail)
     for i, sp in enumerate(ref.setpoints or []):
         if sp.position is None and sp.velocity is None and sp.yaw is None:
             fail(f"{where}.setpoints[{i}]", {"t": sp.t}, "sets nothing; give position, velocity or yaw")
         if i and sp.t <= ref.setpoints[i - 1].t:
             fail(f"{where}.setpoints[{i}].t", sp.t,
                  f"not after setpoints[{i - 1}].t = {show(ref.setpoints[i - 1].t)}; list setpoints in increasing t")
+
+
+MAX_YAW_TURNS = 2
+"""Turns a reference's yaw may wind (a waypoint's, a setpoint's, a yaw schedule's values, in rad): a
+mission may circle past one turn, and beyond two the number is degrees (``yaw: 90``, 14 turns), as
+a trim's yaw beyond one turn is."""
+MAX_REACH = 10.0
+"""How far a mission's waypoint may lie along the mission from its start, in units of what its peak
+speed covers in the run (``speed * duration``): a waypoint ten times past what the run can fly is a
+position in millimetres or a slipped digit, not a mission (one run short of it is the verdict's)."""
+
+
+def _check_angle(path: str, value: float, limit: float, fail, *, at_limit: bool = False) -> None:
+    """The range rule of an angle in rad: beyond ``limit`` (at it too, ``at_limit``) it reads as degrees."""
+    if abs(value) > limit or (at_limit and abs(value) >= limit):
+        fail(path, value, _degrees_hint(value, limit))
+
+
+def _check_reach(cfg: Config, fail) -> None:
+    """The range rule of a mission's positions: each waypoint within :data:`MAX_REACH` times
+    ``speed * duration`` of the trim position, along the legs before it."""
+    ref = cfg.simulation.reference
+    if ref is None or not ref.waypoints:
+        return
+    reach = ref.speed * cfg.simulation.duration
+    here, along = cfg.trim.position_ned, 0.0
+    for i, wp in enumerate(ref.waypoints):
+        along += math.dist(here, wp.position)  # overflow-safe: a slip of 1e300 m is named, not inf
+        here = wp.position
+        if along > MAX_REACH * reach:
+            metres = ", ".join(f"{c / 1000:.4g}" for c in wp.position)
+            mm = f"for millimetres write [{metres}], else " if along / 1000 <= MAX_REACH * reach else ""
+            fail(f"simulation.reference.waypoints[{i}].position", wp.position,
+                 f"{along:.5g} m from the start along the mission, more than {MAX_REACH:g} times the {reach:.4g} m "
+                 f"that simulation.reference.speed = {ref.speed:g} m/s covers in simulation.duration = "
+                 f"{cfg.simulation.duration:g} s (MAX_REACH); positions are in m: {mm}correct the slip, or raise "
+                 "the speed or the duration")
 
 
 def _check_method(cfg: Config, fail) -> None:

@@ -8,6 +8,7 @@ from functools import partial
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Circle
 
 from quadctl.layout import INPUT_NAMES, STATE_INDEX, unit_of
 from quadctl.plots.drawing import COLORS, axis_label, displayed, input_limits, limit_lines, trace
@@ -97,42 +98,77 @@ def wind_figure(sim, *, title: str = "") -> Figure:
     return _finished(fig, ax, "wind [m/s], NED", "wind", title)
 
 
-def path_figure(sim, waypoints=(), *, title: str = "") -> Figure:
-    """The flown path against the reference: the horizontal plane (east right, north up, equal
-    scales) with the waypoints, and the altitude ``-pD`` against time.
+def path_figure(sim, waypoints=(), *, reached=None, tolerance: float | None = None, title: str = "") -> Figure:
+    """The flown path over the reference: the horizontal plane (east right, north up, equal scales)
+    with the start, the end and the waypoints numbered in order, and the altitude ``-pD`` against
+    time with each waypoint where it was reached.
+
+    The reference is drawn wide and pale under the flown path, so that both show where they agree.
 
     Parameters
     ----------
     sim : SimResult
     waypoints : sequence of (3,) array_like, optional
-        NED positions (m) to mark, numbered in order.
+        NED positions (m) to mark, numbered from 1 in order.
+    reached : sequence of (float or None), optional
+        Per waypoint, when it was reached (s; None: never): a reached waypoint is a filled square,
+        marked at that time on the altitude panel too; a missed one a red cross. Absent: every
+        waypoint a hollow square (not judged).
+    tolerance : float, optional
+        m: the radius within which a waypoint counts as reached, drawn around each.
     """
     fig = Figure(figsize=(10.0, 4.6), layout="constrained")
     plane, alt = fig.subplots(1, 2, width_ratios=(1.0, 1.3))
     n, e, d = (STATE_INDEX[s] for s in ("pN", "pE", "pD"))
-    plane.plot(sim.x_ref[:, e], sim.x_ref[:, n], color="0.35", lw=1.0, ls="--", label="reference")
-    plane.plot(sim.x[:, e], sim.x[:, n], color=COLORS[0], lw=1.6, label="flown")
-    plane.plot(sim.x[0, e], sim.x[0, n], "o", color=COLORS[2], ms=6, label="start")
-    for k, wp in enumerate(waypoints):
-        plane.plot(wp[1], wp[0], "s", color=COLORS[1], ms=6, label="waypoint" if k == 0 else None)
-        plane.annotate(str(k + 1), (wp[1], wp[0]), textcoords="offset points", xytext=(6, 6), fontsize=9)
+    pale = {"color": "0.72", "lw": 4.0, "solid_capstyle": "round", "label": "reference"}
+    plane.plot(sim.x_ref[:, e], sim.x_ref[:, n], zorder=1, **pale)
+    plane.plot(sim.x[:, e], sim.x[:, n], color=COLORS[0], lw=1.4, label="flown", zorder=2)
+    plane.plot(sim.x[0, e], sim.x[0, n], "o", mfc="none", mec=COLORS[2], ms=13, mew=2.0, label="start",
+               zorder=6)  # a ring: a mission that ends where it began shows its last waypoint inside
+    plane.plot(sim.x[-1, e], sim.x[-1, n], "o", color=COLORS[0], ms=5, label="end", zorder=3)
+    judged = reached is not None
+    reached = list(reached) if judged else [None] * len(waypoints)
+    labelled: set[str] = set()
+    for k, (wp, when) in enumerate(zip(waypoints, reached)):
+        kind = "waypoint" if not judged else "reached" if when is not None else "missed"
+        style = {"waypoint": {"marker": "s", "mfc": "white", "mec": COLORS[3]},
+                 "reached": {"marker": "s", "mfc": COLORS[3], "mec": COLORS[3]},
+                 "missed": {"marker": "X", "mfc": COLORS[1], "mec": COLORS[1]}}[kind]
+        label = None if kind in labelled else f"reached within {tolerance:g} m" if kind == "reached" and \
+            tolerance else kind
+        labelled.add(kind)
+        plane.plot(wp[1], wp[0], ls="none", ms=8, mew=1.5, zorder=4, label=label, **style)
+        if tolerance:
+            plane.add_patch(Circle((wp[1], wp[0]), tolerance, fill=False, color=style["mec"], lw=0.8, ls=":",
+                                   zorder=4))
+        plane.annotate(str(k + 1), (wp[1], wp[0]), textcoords="offset points", xytext=(7, 7), fontsize=9,
+                       fontweight="bold", color=style["mec"], zorder=5)
+        if when is not None:
+            alt.plot(when, -wp[2], ls="none", ms=7, zorder=4, **style)
+            alt.axvline(when, color=style["mec"], lw=0.6, ls=":", zorder=0)
+            alt.annotate(str(k + 1), (when, -wp[2]), textcoords="offset points", xytext=(5, 6), fontsize=9,
+                         fontweight="bold", color=style["mec"])
     plane.set_aspect("equal", adjustable="datalim")
+    plane.margins(0.08)
     plane.set_xlabel("east [m]")
     plane.set_ylabel("north [m]")
     plane.grid(True, alpha=0.3)
-    plane.legend(loc="best", fontsize=8, frameon=False)
-    trace(alt, sim.t, -sim.x_ref[:, d], color="0.35", lw=1.0, ls="--", label="reference")
-    trace(alt, sim.t, -sim.x[:, d], color=COLORS[0], lw=1.6, label="flown")
+    plane.legend(loc="best", fontsize=8, framealpha=0.85)
+    trace(alt, sim.t, -sim.x_ref[:, d], zorder=1, **pale)
+    trace(alt, sim.t, -sim.x[:, d], color=COLORS[0], lw=1.4, label="flown", zorder=2)
     alt.ticklabel_format(axis="y", useOffset=False)
     low, high = alt.get_ylim()
     middle = (low + high) / 2
-    alt.set_ylim(min(low, middle - 0.25), max(high, middle + 0.25))  # a flat path shows flat, not its round-off
+    low, high = min(low, middle - 0.25), max(high, middle + 0.25)  # a flat path shows flat, not its round-off
+    alt.set_ylim(low, high + 0.06 * (high - low))  # room for the waypoints' numbers
     alt.set_xlabel("time [s]")
     alt.set_ylabel("altitude -pD [m]")
     alt.grid(True, alpha=0.3)
-    alt.legend(loc="best", fontsize=8, frameon=False)
+    alt.legend(loc="best", fontsize=8, framealpha=0.85)
     status = "" if sim.status == "ok" else f" ({sim.status})"
-    fig.suptitle(f"{title}: path{status}" if title else f"path{status}")
+    count = "" if not judged or not len(waypoints) else \
+        f", {sum(r is not None for r in reached)} of {len(reached)} waypoints reached"
+    fig.suptitle(f"{title}: path{count}{status}" if title else f"path{count}{status}")
     return fig
 
 
@@ -162,17 +198,18 @@ def _finished(fig: Figure, ax, ylabel: str, what: str, title: str) -> Figure:
     return fig
 
 
-def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "",
-                       actuators=None) -> dict[str, Figure]:
+def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "", actuators=None,
+                       tracking: dict | None = None) -> dict[str, Figure]:
     """A figure per subsystem (in partition order), one of the inputs (with ``actuators``' limits,
-    :func:`inputs_figure`), in wind one of the wind and, flying a reference, the path and the
-    tracking error, keyed by file stem."""
+    :func:`inputs_figure`), in wind one of the wind and, flying a reference, the path (a mission's
+    waypoints from ``tracking``, :func:`quadctl.pipeline.tracking_of`) and the tracking error,
+    keyed by file stem."""
     return {name: make() for name, make in simulation_figure_makers(sim, partition, u_trim, title=title,
-                                                                     actuators=actuators).items()}
+                                                                     actuators=actuators, tracking=tracking).items()}
 
 
-def simulation_figure_makers(sim, partition: dict, u_trim=None, *, title: str = "",
-                             actuators=None) -> dict[str, Callable[[], Figure]]:
+def simulation_figure_makers(sim, partition: dict, u_trim=None, *, title: str = "", actuators=None,
+                             tracking: dict | None = None) -> dict[str, Callable[[], Figure]]:
     """The figures of :func:`simulation_figures`, each not yet made: file stem -> a function that
     makes it (so that a caller can make, draw and drop one at a time, or share them out)."""
     makers = {name: partial(subsystem_figure, sim, name, sub.states, title=title) for name, sub in partition.items()}
@@ -180,6 +217,9 @@ def simulation_figure_makers(sim, partition: dict, u_trim=None, *, title: str = 
     if len(getattr(sim, "wind", ())):
         makers["wind"] = partial(wind_figure, sim, title=title)
     if len(getattr(sim, "u_ref", ())):
-        makers["path"] = partial(path_figure, sim, title=title)
+        wps = (tracking or {}).get("waypoints")
+        mission = {} if not wps else {"waypoints": [w["position"] for w in wps],
+                                      "reached": [w["reached"] for w in wps], "tolerance": tracking["tolerance"]}
+        makers["path"] = partial(path_figure, sim, title=title, **mission)
         makers["tracking"] = partial(tracking_error_figure, sim, title=title)
     return makers

@@ -17,6 +17,7 @@ module             presents
 ``loops``          margins: classical, disk, delay; the LQR guarantee and the sampled loop
 ``flight``         a simulation's metrics, inputs, saturation, noise, estimation, wind, integrators
 ``schedule``       a gain schedule's points, its envelope and its frozen-point checks
+``mission``        a flown reference: waypoints reached, closest approaches, the tracking error
 =================  ==========================================================================
 """
 

@@ -117,9 +117,10 @@ def build(ws, outcome: Outcome, *, command_line: str = "", label: str | None = N
     sections = [_summary(ws, outcome)]
     for stage, make in (("trim", content.trim), ("decouple", content.decoupling), ("check", content.checks),
                         ("design", content.design), ("margins", content.margins),
-                        ("simulate", content.simulation), ("simulate", content.flight)):
-        if stage in done:
-            sections.append(make(ws))
+                        ("simulate", content.simulation), ("simulate", content.mission), ("simulate", content.flight)):
+        section = make(ws) if stage in done else None
+        if section is not None:  # (a run without a reference has no mission)
+            sections.append(section)
         if make is content.design and ws.setup.schedule is not None and "simulate" in done:
             sections.append(content.schedule(ws))  # the schedule the flight flew (computed with it)
     sections.append(content.configuration(ws, label))

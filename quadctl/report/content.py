@@ -152,8 +152,12 @@ def simulation(ws) -> Section:
     u_trim = ws.linear.u_trim
     blocks += [shown_flight.metrics_table(metrics), shown_flight.inputs_table(metrics, u_trim, fl["peak_delta"]),
                Text(shown_flight.cost_sentence(metrics))]
-    for name, fig in plots.simulation_figures(sim, ws.setup.partition, u_trim, title=ws.setup.name,
-                                              actuators=ws.setup.actuators).items():
+    makers = plots.simulation_figure_makers(sim, ws.setup.partition, u_trim, title=ws.setup.name,
+                                            actuators=ws.setup.actuators)
+    for name, make in makers.items():
+        if name in REFERENCE_FIGURES:  # the reference's section shows them
+            continue
+        fig = make()
         limits = ", actuator limits red" if ws.setup.actuators is not None else ""
         height = ", pD drawn as the height -pD" if name in ws.setup.partition and \
             "pD" in ws.setup.partition[name].states else ""
@@ -162,6 +166,39 @@ def simulation(ws) -> Section:
             f"the {name} subsystem's states and their reference against time (angles in degrees{height})"
         blocks.append(Figure(f"sim-{name}", f"Simulation: {what}.", _png(fig, SIM_DPI)))
     return Section("simulation", "Simulation", tuple(blocks))
+
+
+REFERENCE_FIGURES = ("path", "tracking")
+"""The figures of a flown reference, shown in its section (:func:`mission`), not among the simulation's."""
+
+
+def mission(ws) -> Section | None:
+    """A flown reference: for a mission, its waypoints (reached at, closest approach) in a sentence and a
+    table; the tracking error; the path with the waypoints marked, and the tracking error against
+    time. None without ``simulation.reference``."""
+    from quadctl import plots
+    from quadctl.present import mission as shown_mission
+
+    tracking = ws.simulation.flight.get("reference")
+    if not tracking:
+        return None
+    blocks = []
+    if "waypoints" in tracking:
+        blocks += [_text(shown_mission.waypoints_sentence(tracking)), shown_mission.waypoints_table(tracking)]
+    blocks.append(_text(shown_mission.tracking_sentence(tracking)))
+    makers = plots.simulation_figure_makers(ws.simulation.sim, ws.setup.partition, title=ws.setup.name,
+                                            tracking=tracking)
+    marks = "the start ringed green, the end a blue dot"
+    if "waypoints" in tracking:
+        marks += (f", the waypoints numbered in the order flown (filled: reached within {tracking['tolerance']:g} m, "
+                  "its circle dotted; a red cross: missed)")
+    blocks.append(Figure("sim-path", f"The path flown (blue) over the reference (wide, grey): left, north against "
+                                     f"east, {marks}; right, the altitude -pD against time"
+                                     + (", each waypoint where it was reached." if "waypoints" in tracking else "."),
+                         _png(makers["path"](), SIM_DPI)))
+    blocks.append(Figure("sim-tracking", "The position tracking error p - p_ref against time: north, east and down, "
+                                         "and its norm |p - p_ref| (m).", _png(makers["tracking"](), SIM_DPI)))
+    return Section("mission", "Mission" if "waypoints" in tracking else "Reference", tuple(blocks))
 
 
 def flight(ws) -> Section:

@@ -20,8 +20,8 @@ import numpy as np
 
 from quadctl.errors import SweepError
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
-from quadctl.sweep.gates import margin, metric_columns, regulated_states
-from quadctl.sweep.spec import Case, SweepSpec, assign, with_sections
+from quadctl.sweep.gates import margin, regulated_states
+from quadctl.sweep.spec import Case, SweepSpec, with_sections, with_set
 from quadctl.threads import loaded_one_thread
 
 
@@ -116,9 +116,7 @@ def tasks_for(cfg, spec: SweepSpec, cases: Iterable[Case], label: str, size: int
 def base_of(cfg, spec: SweepSpec) -> dict:
     """The config every case starts from, as a mapping: ``cfg`` with the ``set:`` values in."""
     base = with_sections(cfg.model_dump(mode="json"), [*spec.names, *(path for path, _, _ in spec.fixed)])
-    for _, keys, value in spec.fixed:
-        base = assign(base, keys, value)
-    return base
+    return with_set(base, spec.fixed)
 
 
 def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = None,
@@ -201,15 +199,15 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
             client.close()
     stats["backend"] = sorted(stats["backend"])
     ordered = [rows[c.index] for c in cases]
-    return SweepResult(rows=ordered, columns=columns_of(cfg, spec), computed=len(todo), wall_time=wall,
+    return SweepResult(rows=ordered, columns=columns_of(spec), computed=len(todo), wall_time=wall,
                        stats=stats, gates=spec.gates, require_ok=spec.require_ok,
                        traces={c.index: traces[c.index] for c in cases if c.index in traces})
 
 
-def columns_of(cfg, spec: SweepSpec) -> list[str]:
+def columns_of(spec: SweepSpec) -> list[str]:
     """Table columns: ``case``, the parameters, the metrics, ``pass``, ``failed_gates``, ``reason``,
     and ``path`` (batched, or one-by-one and why)."""
-    return ["case", *spec.names, *metric_columns(cfg), "pass", "failed_gates", "reason", "path"]
+    return ["case", *spec.names, *spec.metrics, "pass", "failed_gates", "reason", "path"]
 
 
 def _worker_init(forked: bool = False) -> None:

@@ -14,7 +14,7 @@ import numpy as np
 
 from quadctl import __version__, yamlio
 from quadctl.config.kinds import misplaced
-from quadctl.config.schema import PLANT, default_at
+from quadctl.config.schema import PLANT, default_at, section_model
 from quadctl.errors import SweepError
 from quadctl.layout import STATE_NAMES
 from quadctl.messages import (
@@ -211,6 +211,9 @@ class SweepSpec:
     canonical: dict
     uncertainty: bool = False
     """Every parameter is :func:`plant_side`: one design, many vehicles (see :attr:`monte_carlo`)."""
+    metrics: tuple[str, ...] = ()
+    """The metric columns (:func:`quadctl.sweep.gates.metric_columns`) of the config the cases start
+    from (:func:`configured`): a mission that ``set:`` gives adds its tracking columns."""
 
     @property
     def names(self) -> list[str]:
@@ -316,8 +319,16 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
         raise fail("parameters", "nothing to vary; add at least one key path, "
                    "such as `lqr.roll.Q[1]: [10, 50, 100]`")
     sets = data.get("set") or {}
-    base = with_sections(cfg.model_dump(mode="json"),
-                         [str(p) for p in params] + ([str(p) for p in sets] if isinstance(sets, dict) else []))
+    if not isinstance(sets, dict):
+        raise fail("set", "must be a mapping of key path -> value")
+    base = with_sections(cfg.model_dump(mode="json"), [str(p) for p in params] + [str(p) for p in sets])
+    fixed = []
+    for path, value in sets.items():
+        keys = check_path(base, str(path), label, "set")
+        if str(path) in params:
+            raise fail(f"set.{path}", "is also a parameter; keep it in one place")
+        fixed.append((str(path), keys, value))
+    base = with_set(base, fixed)  # the parameters vary the config as set: leaves it (a section it made)
     parameters = []
     for path, spec in params.items():
         keys = check_path(base, str(path), label, "parameters")
@@ -327,17 +338,10 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
             raise fail(f"parameters.{path}", f"is a list ({show(leaf)}) here, a range gives numbers; "
                        f"index one entry, as `{path}[0]`")
         parameters.append(Parameter(str(path), keys, kind, spec))
-    fixed = []
-    if not isinstance(sets, dict):
-        raise fail("set", "must be a mapping of key path -> value")
-    for path, value in sets.items():
-        keys = check_path(base, str(path), label, "set")
-        if str(path) in params:
-            raise fail(f"set.{path}", "is also a parameter; keep it in one place")
-        fixed.append((str(path), keys, value))
+    start = configured(cfg, fixed, label, [(p.keys, _representative(p)) for p in parameters])
     if data.get("gates") is not None and not isinstance(data.get("gates"), dict):
         raise fail("gates", "must be a mapping of metric -> {min, max}")
-    gates = tuple(_check_gate(metric, spec, cfg, label) for metric, spec in (data.get("gates") or {}).items())
+    gates = tuple(_check_gate(metric, spec, start, label) for metric, spec in (data.get("gates") or {}).items())
     if any(p.path == "simulation.method" for p in parameters):
         raise SweepError(f"{label}: parameters.simulation.method: a sweep runs one integrator in its lanes; "
                          "set it under `set:` (or in the config), and sweep the methods as two sweeps")
@@ -352,7 +356,8 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
                      require_ok=require_ok, chunk_size=int(chunk) if chunk is not None else None,
                      canonical=json.loads(json.dumps({k: v for k, v in data.items() if k != "description"},
                                                      default=str)),
-                     uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind), estimator) for p in parameters))
+                     uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind), estimator) for p in parameters),
+                     metrics=tuple(metric_columns(start)))
     if mode == "grid":
         count = spec.count()
         if count > MAX_CASES:
@@ -433,7 +438,9 @@ def fixed_value(fixed, path: str, default):
 
 
 def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
-    """Parse ``path`` and check that it names a value of the config ``tree``.
+    """Parse ``path`` and check that it names a value of the config ``tree`` (``section``
+    ``parameters``) or a value or a whole section (``set``, which may also make a section the config
+    leaves out). A key the schema takes that a section given by ``set:`` leaves out is its default.
 
     Raises SweepError naming the first part that does not exist, and the nearest valid key.
     """
@@ -446,8 +453,10 @@ def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
         walked = keys[:k]
         if node is None and walked:  # an optional section the config leaves out (null)
             here = _path_text(walked)
-            raise SweepError(f"{where}: the config has no `{here}` section (it is null); add a `{here}:` "
-                             "section to the config to vary its keys")
+            if section != "set" or section_model(list(walked)) is None:
+                raise SweepError(f"{where}: the config has no `{here}` section (it is null); add a `{here}:` "
+                                 f"section to the config, or give it under the sweep's `set:`, to vary its keys")
+            node = {}  # set: makes it
         try:
             node = child(node, key, walked)
         except KeyPathError as exc:
@@ -457,11 +466,15 @@ def check_path(tree: dict, path: str, label: str, section: str) -> tuple:
                 if key not in STATE_NAMES:  # a new key of a free mapping: another state's offset
                     raise SweepError(f"{where}: `{key}` is not a state; " + hint(key, STATE_NAMES)) from None
                 return keys
-            raise SweepError(f"{where}: no such key in the config: `{_path_text([*walked, key])}`; "
-                             + hint(key, [str(x) for x in node])) from None
-    if isinstance(node, dict):
+            model = section_model(list(walked))
+            known = [str(x) for x in node] + [f for f in (model.model_fields if model else ()) if f not in node]
+            if model is None or key not in model.model_fields:
+                raise SweepError(f"{where}: no such key in the config: `{_path_text([*walked, key])}`; "
+                                 + hint(key, known)) from None
+            node = default_at(tree, keys[:k + 1])  # a key a section given by set: leaves out
+    if isinstance(node, dict) and section != "set":
         raise SweepError(f"{where}: is a section, not a value; name one of its keys: "
-                         f"{', '.join(map(str, node))}")
+                         f"{', '.join(map(str, node))}, or set it whole under the sweep's `set:`")
     return keys
 
 
@@ -519,11 +532,66 @@ def with_sections(base: dict, paths) -> dict:
     return assign(base, PLANT, default_at(base, PLANT))
 
 
+def with_set(base: dict, fixed) -> dict:
+    """The config mapping ``base`` with the sweep's ``set:`` values (:attr:`SweepSpec.fixed`) in, in
+    order: a section given whole replaces the config's, and one the config leaves out is made."""
+    for _, keys, value in fixed:
+        base = assign(base, keys, value)
+    return base
+
+
+def configured(cfg, fixed, label: str = "<sweep>", varied=()):
+    """The config the cases start from: ``cfg`` with the ``set:`` values ``fixed`` in, validated.
+
+    Where they do not make a valid config on their own, the same with the values ``varied``
+    (``(keys, value)`` pairs: one value of each parameter, :func:`_representative`) in too, as a
+    case's values may make it valid; else ``cfg`` itself (each case is validated when it runs). A
+    key no config takes is refused at once.
+
+    Raises
+    ------
+    SweepError
+        A ``set:`` value holds a key the config does not take (``set.simulation.reference.sped``).
+    """
+    from quadctl import config
+    from quadctl.errors import ConfigError
+
+    if not fixed:
+        return cfg
+    data = with_set(with_sections(cfg.model_dump(mode="json"), [p for p, _, _ in fixed]), fixed)
+    try:
+        return config.from_dict(data, f"{label}: set")
+    except ConfigError as exc:
+        if "unknown key" in str(exc):  # no parameter makes an unknown key known: the set: value's slip
+            raise SweepError(str(exc)) from None
+    for keys, value in varied:
+        data = assign(data, keys, value)
+    try:
+        return config.from_dict(data, label)
+    except ConfigError:
+        return cfg
+
+
+def _representative(p: Parameter):
+    """One value of the parameter ``p``, without drawing: its first value, a range's ``from``, a
+    distribution's ``low``, ``mean`` or first choice."""
+    spec = p.spec
+    if p.kind == "values":
+        return spec[0]
+    if p.kind == "range":
+        return spec["from"]
+    return {"uniform": spec.get("low"), "loguniform": spec.get("low"), "normal": spec.get("mean"),
+            "choice": (spec.get("values") or [None])[0]}[spec["distribution"]]
+
+
 def assign(tree: Any, keys: tuple, value) -> Any:
-    """A copy of ``tree`` with the value at ``keys`` replaced (only the path is copied)."""
+    """A copy of ``tree`` with the value at ``keys`` replaced (only the path is copied); a section on
+    the way that ``tree`` leaves out (absent or null) is made."""
     if not keys:
         return value
     head, rest = keys[0], keys[1:]
+    if tree is None and isinstance(head, str):
+        tree = {}
     if isinstance(tree, dict):
         out = dict(tree)
         out[head] = assign(tree.get(head), rest, value) if rest else _like(tree.get(head), value)

@@ -64,7 +64,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     done("simulate", f"{sim.steps} {shown_flight.integrator_name(sim)} steps, {shown_flight.step_span(sim)}, "
                      f"{sim.steps_per_second / 1e6:.2f} M steps/s")
     if plot:
-        for path in save_figures(ws, sim):
+        for path in save_figures(ws, sim, flown.flight.get("reference")):
             if not json:
                 render.out.print(f"figure -> {path}")
     if json:

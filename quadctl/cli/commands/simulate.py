@@ -32,12 +32,13 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     with simulation_progress(quiet=json) as ws.progress:
         flown = ws.simulation
     sim = flown.sim
-    figures = save_figures(ws, sim) if plot else []
+    figures = save_figures(ws, sim, flown.flight.get("reference")) if plot else []
     if json:
         render.emit_json(ws.payloads["sim.json"])
     else:
-        from quadctl.pipeline import schedule_line, tracking_lines, wind_line
+        from quadctl.pipeline import schedule_line, wind_line
         from quadctl.present import flight as shown
+        from quadctl.present import mission
 
         fl = flown.flight
         render.out.print(f"{shown.integrator_name(sim)} {shown.step_text(sim)}, {sim.steps} steps in "
@@ -50,7 +51,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
                     shown.estimation_table(fl), wind_line(fl["wind"]) if fl.get("wind") else None,
                     schedule_line(fl["gain_schedule"]) if fl.get("gain_schedule") else None,
                     shown.speeds_table(fl) if fl.get("wind") else None, shown.integral_text(fl),
-                    *(tracking_lines(fl["reference"]) if fl.get("reference") else ()))
+                    *((mission.waypoints_table(fl["reference"]), *mission.tracking_lines(fl["reference"]))
+                      if fl.get("reference") else ()))
         render.out.print(f"{sim.status}: {sim.message} -> {ws.path('sim.npz')}")
         for path in figures:
             render.out.print(f"figure -> {path}")

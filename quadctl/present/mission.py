@@ -1,0 +1,68 @@
+"""A flown reference as rows and sentences: the waypoints of a mission (where, when reached, how
+close) and the position tracking error, from a run's tracking summary
+(:func:`quadctl.pipeline.tracking_of`, ``sim.json``'s ``reference``)."""
+
+from __future__ import annotations
+
+import math
+
+from quadctl.present.cells import Mark, Table, num
+
+
+def tracking_sentence(tracking: dict) -> str:
+    """The position tracking error ``|p - p_ref|``: its RMS over the run, peak and final value."""
+    err = tracking["position_error"]
+    return (f"tracking error |p - p_ref|: rms {err['rms']:.3g} m, peak {err['peak']:.3g} m, "
+            f"final {err['final']:.3g} m")
+
+
+def waypoints_sentence(tracking: dict) -> Mark:
+    """How many of a mission's waypoints were reached, in order, within its tolerance, and when; a
+    verdict: ``ok`` every one, ``fail`` one or more missed."""
+    wps = tracking["waypoints"]
+    reached = [(i, w["reached"]) for i, w in enumerate(wps) if w["reached"] is not None]
+    within = f"within {tracking['tolerance']:g} m"
+    if not reached:
+        said = f"none of {len(wps)} reached {within}"
+    elif len(reached) == len(wps):
+        said = f"{len(wps)} of {len(wps)} reached {within}, at " + ", ".join(f"{t:.3f} s" for _, t in reached)
+    else:  # name the ones reached: the others are the warning's
+        said = (f"{len(reached)} of {len(wps)} reached {within}: "
+                + ", ".join(f"waypoints[{i}] at {t:.3f} s" for i, t in reached))
+    return Mark(f"waypoints: {said} (mission ends at {tracking['mission_end']:.4g} s)",
+                "ok" if len(reached) == len(wps) else "fail")
+
+
+def tracking_lines(tracking: dict) -> list[str]:
+    """A run's reference in sentences: for a mission, its waypoints (:func:`waypoints_sentence`),
+    then the tracking error (:func:`tracking_sentence`)."""
+    lines: list[str] = [tracking_sentence(tracking)]
+    if "waypoints" in tracking:
+        lines.insert(0, waypoints_sentence(tracking))
+    return lines
+
+
+def waypoints_table(tracking: dict) -> Table | None:
+    """A mission's waypoints, one row each: the position and yaw flown to, when the reference
+    arrives (the leg's end), when the vehicle reached it within the tolerance and its closest
+    approach (:class:`quadctl.trajectory.Approach`); None for setpoints. A waypoint never reached is
+    marked ``fail`` in both columns."""
+    if "waypoints" not in tracking:
+        return None
+    tol = tracking["tolerance"]
+    rows = []
+    for i, w in enumerate(tracking["waypoints"]):
+        missed = w["reached"] is None
+        closest = w.get("closest")
+        near = "leg not flown" if closest is None else f"{num(closest, 3)} at {num(w['closest_at'], 4)} s"
+        rows.append((f"waypoints[{i}]", ", ".join(num(c) for c in w["position"]),
+                     f"{num(w['yaw'], 4)} ({num(math.degrees(w['yaw']), 4)} deg)", num(w["leg_end"], 4),
+                     Mark("never" if missed else num(w["reached"], 4), "fail" if missed else "ok"),
+                     Mark(near, "fail" if missed else "")))
+    return Table("waypoints-table", f"Waypoints, reached within {tol:g} m (simulation.reference.tolerance)",
+                 ("waypoint", "position N, E, D (m)", "yaw (rad)", "reference arrives (s)", "reached at (s)",
+                  "closest approach (m)"), tuple(rows),
+                 caption="reached at: the first time within the tolerance, from the leg's start and not before the "
+                         "waypoint before it was reached; closest approach: the least distance over the same span, "
+                         "and when (leg not flown: the run ended before the leg began)",
+                 align="llrrrr")
