@@ -39,6 +39,10 @@
    mambo-200hz's discrete LQI design at the same speeds): trims, batched designs and the frozen-point
    checks on a 4x finer grid (197 loops), in the library and through the command line; against
    the same done point by point through the one-case pipeline.
+8. Identification from real Crazyflie flights (tests/data/crazyflie-flights): log10, 50 s at about
+   1 kHz, read and identified (thrust curve, motor lag, intervals; the window from the excitation), in
+   the library and through the command line; log10 and log15 together (the thrust stage, then Ixx
+   and Iyy); log10 with a pure delay as well.
 
 Not a test: it asserts nothing, it prints what it measured and the machine's load while it ran
 (other processes on a 2-core machine change every number here). Each quadctl timing is the best of
@@ -732,7 +736,7 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
 
 
 SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "mission-sweep", "designs", "lqr", "discrete",
-            "figures", "schedule")
+            "figures", "schedule", "identify")
 """What ``--only`` may name: the numbered sections of the module docstring (the designs are the
 plain sweep's)."""
 
@@ -834,6 +838,33 @@ def the_schedule(cli_python: str) -> str:
                  "4x finer grid", ["run", "wall (s)", "runs", "note"], rows)
 
 
+def identification(cli_python: str) -> str:
+    """Section 8: ``quadctl identify`` on the real logs, CPU time of whole library calls, best of 3."""
+    from quadctl import config
+    from quadctl.identify import readers, results
+
+    flights = HERE.parent / "tests" / "data" / "crazyflie-flights"
+    cfg = config.load("crazyflie")
+    rows = []
+    for label, names, delay in (("log10 (50 s at 1 kHz): read and identified", ["log10"], False),
+                                ("log10 with a pure delay", ["log10"], True),
+                                ("log10 and log15 (112 s): thrust, then Ixx and Iyy", ["log10", "log15"], False)):
+        def run(names=names, delay=delay):
+            logs = [readers.read_log(flights / n) for n in names]
+            return results.identify(logs, cfg, delay=delay)
+
+        cpu, ident = cpu_best(run, 3)
+        tm = ident.fits["thrust"].value("T_m")
+        rows.append([label, f"{cpu:.2f}", ", ".join(ident.fits), f"{tm * 1e3:.1f}"])
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [cli_python, "-m", "quadctl", "identify", str(flights / "log10"), "-c", "crazyflie", "-o", tmp]
+        cpu = child_cpu_best(lambda: subprocess.run(cmd, check=True, capture_output=True), 3)
+        rows.append(["quadctl identify log10 -c crazyflie, CLI end to end (figure included)", f"{cpu:.2f}",
+                     "thrust", ""])
+    return table("Identification from real Crazyflie flights (CPU time, best of 3)",
+                 ["run", "CPU (s)", "stages", "T_m (ms)"], rows)
+
+
 def config_from(data):
     from quadctl import config
 
@@ -884,6 +915,8 @@ def main() -> None:
         print(figures(args.cli_python))
     if "schedule" in only:
         print(the_schedule(args.cli_python))
+    if "identify" in only:
+        print(identification(args.cli_python))
     end = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"\nload average {end:.2f} at the end (2 cores: above ~0.3, other work shared the machine)")
 

@@ -91,6 +91,12 @@ class TrimError(QuadctlError, ValueError):
     from_config = True
 
 
+class LogError(QuadctlError, ValueError):
+    """A flight log cannot be read (truncated, corrupted, a column missing) or cannot support the
+    identification asked of it (no excitation, saturated motors, a dropped sensor): the message
+    names the file and the fix."""
+
+
 class CheckFailed(QuadctlError):
     """The input is valid but the design fails a check (rank, stability, divergence)."""
 

@@ -9,6 +9,7 @@ them, each computed once on first use: the run folder's :class:`~quadctl.workspa
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
 from functools import cached_property
 
 import numpy as np
@@ -428,6 +429,11 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
             sat["peak_rotor_speed"] = {n: float(speeds[:, i].max()) for i, n in enumerate(act.names)}
             sat["trim_rotor_thrust"] = list(act.commands(loop.u_trim))
         out["saturation"] = sat
+    if out["reference"] is not None and "waypoints" in out["reference"]:
+        sat = out["saturation"]
+        out["reference"].update(mission_check(
+            out["reference"], status=sim.status, saturates=bool(sat and sat["saturates"]),
+            unregulated=unregulated_positions(setup), duration=setup.duration))
     kal = loop.estimator
     if kal is not None and sim.x_hat.size:
         predicted = np.sqrt(np.maximum(np.diag(kal.P), 0.0))
@@ -501,16 +507,78 @@ def schedule_line(schedule: dict) -> str:
             "held outside), read from the reference")
 
 
-def missed_waypoints(tracking: dict | None) -> str | None:
-    """A warning naming the first waypoint a run never reached, and what to change; None: none missed."""
-    missed = [i for i, w in enumerate((tracking or {}).get("waypoints", [])) if w["reached"] is None]
-    if not missed:
-        return None
-    wp = tracking["waypoints"][missed[0]]
-    return (f"simulation.reference.waypoints[{missed[0]}] [{', '.join(f'{c:g}' for c in wp['position'])}] was never "
-            f"reached within {tracking['tolerance']:g} m ({len(missed)} of {len(tracking['waypoints'])} missed; the "
-            f"mission ends at {tracking['mission_end']:.4g} s): lengthen simulation.duration or loosen "
-            "simulation.reference.tolerance")
+class MissionVerdict(str, Enum):
+    """How a mission ended (``sim.json``'s ``reference.verdict``): every waypoint reached and the final
+    tracking error within the tolerance, or the first cause of a failure the run shows, in this order
+    (:func:`mission_check`). Its sentence: :func:`quadctl.present.mission.mission_text`."""
+
+    REACHED = "reached"
+    """Every waypoint reached within the tolerance, the final tracking error within it."""
+    NOT_REGULATED = "position_not_regulated"
+    """A position the mission flies is in no regulated subsystem: no gain acts on its error."""
+    LEFT_VALID_RANGE = "left_valid_range"
+    """The run stopped early: the vehicle left the model's valid range (or diverged)."""
+    SATURATED = "saturated"
+    """The inputs were at their limits for more than :data:`quadctl.motors.SATURATION_FLAG` of the run."""
+    RUN_ENDS_BEFORE_MISSION = "run_ends_before_mission"
+    """``simulation.duration`` ends before the mission's last leg and hold."""
+    MISSED = "missed"
+    """None of the causes above: the vehicle flew the whole mission and stayed farther than the tolerance."""
+
+
+def unregulated_positions(setup: Setup) -> tuple[str, ...]:
+    """The position states (``pN``, ``pE``, ``pD``) in no regulated subsystem of the partition that a
+    mission (``setup.reference`` with waypoints) moves along: a waypoint off the trim's position there."""
+    ref = setup.reference
+    legs = ref.legs if ref is not None else ()
+    offsets = np.abs(np.array([leg.position for leg in legs]).reshape(-1, 3) - np.asarray(setup.position_ned))
+    return tuple(s for i, s in enumerate(STATE_NAMES[:3])
+                 if s not in setup.regulated and (not legs or offsets[:, i].max() > 0))
+
+
+def mission_check(tracking: dict, *, status: str = "ok", saturates: bool = False,
+                  unregulated: tuple[str, ...] = (), duration: float | None = None) -> dict:
+    """The verdict on a mission flown (:func:`tracking_summary`'s ``tracking``, with ``waypoints``): a
+    waypoint never reached, or a final tracking error above the tolerance, fails; the cause is the first
+    the run shows of :class:`MissionVerdict`'s.
+
+    Parameters
+    ----------
+    tracking : dict
+        ``waypoints`` (each with ``reached``: s, or None), ``tolerance`` (m), ``mission_end`` (s) and,
+        when known, ``position_error.final`` (m; a sweep's lanes do not keep it).
+    status : str
+        The run's (:func:`quadctl.sim.run.verdict`): ``ok``, ``diverged`` or ``left_valid_range``.
+    saturates : bool
+        Some input at a limit for more than 1 % of the run.
+    unregulated : tuple of str
+        :func:`unregulated_positions` of the design.
+    duration : float, optional
+        s, the configured run (``simulation.duration``).
+
+    Returns
+    -------
+    dict
+        ``verdict`` (a :class:`MissionVerdict` value), ``missed`` (indices of the waypoints never
+        reached), ``final_above_tolerance`` (bool), ``unregulated`` (list) and ``duration``.
+    """
+    missed = [i for i, w in enumerate(tracking["waypoints"]) if w["reached"] is None]
+    final = tracking.get("position_error", {}).get("final")
+    above = final is not None and not final <= tracking["tolerance"]
+    if not missed and not above:
+        verdict = MissionVerdict.REACHED
+    elif unregulated:
+        verdict = MissionVerdict.NOT_REGULATED
+    elif status != "ok":
+        verdict = MissionVerdict.LEFT_VALID_RANGE
+    elif saturates:
+        verdict = MissionVerdict.SATURATED
+    elif duration is not None and duration < tracking["mission_end"]:
+        verdict = MissionVerdict.RUN_ENDS_BEFORE_MISSION
+    else:
+        verdict = MissionVerdict.MISSED
+    return {"verdict": verdict.value, "missed": missed, "final_above_tolerance": bool(above),
+            "unregulated": list(unregulated), "duration": duration}
 
 
 def compare_full(setup: Setup, linear: LinearModel, des: Design):

@@ -26,7 +26,7 @@ def _is_config(path: Path) -> bool:
     return isinstance(data, dict) and "lqr" in data
 
 
-CONFIG_FILES = sorted([*(ROOT / "quadctl" / "configs").glob("*.yaml"), *(ROOT / "docs" / "configs").glob("*.yaml"),
+CONFIG_FILES = sorted([*(ROOT / "configs").glob("*.yaml"), *(ROOT / "docs" / "configs").glob("*.yaml"),
                        *(p for p in (ROOT / "examples").glob("*.yaml") if _is_config(p))])
 IDS = [p.relative_to(ROOT).as_posix() for p in CONFIG_FILES]
 

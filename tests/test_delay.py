@@ -52,7 +52,7 @@ def test_each_sample_of_delay_takes_one_sample_of_margin():
 
 
 def test_with_a_30ms_rotor_lag_one_sample_of_delay_leaves_0_73_and_two_are_unstable():
-    """README, 9: the lag's margin (1.73 samples) less the delay; both in the loop at once."""
+    """docs/guide/flying.md, 9: the lag's margin (1.73 samples) less the delay; both in the loop at once."""
     found = {}
     for n in (1, 2):
         data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "delay": {"samples": n}})
@@ -131,12 +131,12 @@ def test_a_delay_in_seconds_and_in_samples_are_the_same_loop():
 
 
 def _plant_section() -> str:
-    text = (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
+    text = (Path(__file__).resolve().parent.parent / "docs" / "guide" / "flying.md").read_text(encoding="utf-8")
     return text[text.index("**9. The plant a vehicle really is"):text.index("**10. Designing with the rotors' lag")]
 
 
-def test_the_readme_plant_section_commands_run_and_print_its_numbers(tmp_path, monkeypatch):
-    """README, "From the report's design to one that flies", 9: every command runs, and the table's
+def test_the_plant_section_commands_run_and_print_its_numbers(tmp_path, monkeypatch):
+    """docs/guide/flying.md ("A design that flies"), 9: every command runs, and the table's
     numbers are those of its margins.json (roll, design model) and sim.json."""
     monkeypatch.chdir(Path(__file__).resolve().parent.parent)  # the configs' paths are the repository's
     section = _plant_section()

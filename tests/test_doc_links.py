@@ -1,7 +1,7 @@
-"""Every link of the README and of docs/*.md finds its target in the repository: a relative path to a
-file of the checkout (never outside it: a clone has nothing beside it), a ``#anchor`` to a heading of
-the target page (GitHub's heading anchors); an external ``http(s)`` link is only checked for syntax,
-never fetched."""
+"""Every link of the README and of the site's pages (docs/**/*.md) finds its target in the repository:
+a relative path to a file of the checkout (never outside it: a clone has nothing beside it), a
+``#anchor`` to a heading of the target page (GitHub's heading anchors); an external ``http(s)`` link
+is only checked for syntax, never fetched."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from urllib.parse import unquote, urlsplit
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+PAGES = [ROOT / "README.md", *sorted(p for p in (ROOT / "docs").rglob("*.md") if "_build" not in p.parts)]
 
 FENCE = re.compile(r"^(```|~~~).*?^\1[^\n]*$", re.S | re.M)
 CODE_SPAN = re.compile(r"(`+)(?:(?!\1).)+?\1", re.S)
@@ -89,10 +89,14 @@ def _cases():
 
 
 def test_the_pages_have_links_to_check():
-    found = {page.name: links(page.read_text(encoding="utf-8")) for page in PAGES}
-    assert "model.md" in found, "docs/model.md is missing"
+    found = {page.relative_to(ROOT).as_posix(): links(page.read_text(encoding="utf-8")) for page in PAGES}
+    assert "docs/model.md" in found, "docs/model.md is missing"
     assert any("docs/model.md" in t for t in found["README.md"])
-    assert len(found["README.md"]) >= 15 and len(found["model.md"]) >= 5
+    assert len(found["README.md"]) >= 10 and len(found["docs/model.md"]) >= 5 and len(found["docs/index.md"]) >= 15
+    site = [name for name in found if name.startswith("docs/") and name != "docs/index.md"]
+    unlinked = [name for name in site if not any(name in t for t in found["README.md"]) and
+                not any(name.removeprefix("docs/") in t for t in found["docs/index.md"])]
+    assert not unlinked, f"pages neither the README nor the site's home page links to: {unlinked}"
 
 
 @pytest.mark.parametrize("page, target", list(_cases()))
@@ -109,22 +113,24 @@ def test_no_page_points_outside_the_repository_even_in_code():
 
 
 @pytest.mark.parametrize("target, why", [
-    ("../shared/MODEL.md", "leaves the repository"),
-    ("docs/nothing.md", "no such file"),
+    ("../../shared/MODEL.md", "leaves the repository"),
+    ("nothing.md", "no such file"),
     ("#no-such-heading", "no heading with the anchor #no-such-heading"),
-    ("docs/model.md#nowhere", "no heading with the anchor #nowhere in docs/model.md"),
-    ("docs/figures/crazyflie-gust.png#x", "not Markdown"),
+    ("guide/wind.md#nowhere", "no heading with the anchor #nowhere in docs/guide/wind.md"),
+    ("figures/crazyflie-gust.png#x", "not Markdown"),
     ("/etc/passwd", "an absolute path"),
     ("https//example.com", "no such file"),
     ("http://", "not a well-formed"),
     ("ftp://example.com/x", "neither http(s) nor a path"),
-    ("docs/model.md#motors", None),
+    ("model.md#motors", None),
     ("#what-quadctl-corrects-in-the-report", None),
+    ("guide/flying.md#flight-config-keys", None),
+    ("../configs/hover.yaml", None),
     ("https://www.example.com/a(b)", None),
 ])
 def test_a_broken_link_is_found(target, why):
-    """The check is not blind: each kind of broken link is named, and good ones pass."""
-    got = problem(ROOT / "README.md", target)
+    """The check is not blind: each kind of broken link is named, and good ones pass (from docs/model.md)."""
+    got = problem(ROOT / "docs" / "model.md", target)
     assert (got is None) if why is None else (got is not None and why in got), got
 
 

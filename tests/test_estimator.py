@@ -399,15 +399,14 @@ def test_margins_reports_the_lost_lqr_guarantee_next_to_the_full_state_loops(tmp
     assert not all(m["meets_lqr_guarantee"] for m in lqg.values())
 
 
-def test_the_readme_lqg_table_is_what_margins_writes(tmp_path, monkeypatch):
-    """README, "State estimation (LQG)": the table's numbers are those of margins.json for
+def test_the_lqg_table_is_what_margins_writes(tmp_path, monkeypatch):
+    """docs/guide/estimation.md: the table's numbers are those of margins.json for
     docs/configs/mambo-lqg.yaml (coupled full-state loops against the lqg ones)."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
     monkeypatch.chdir(root)
-    text = (root / "README.md").read_text(encoding="utf-8")
-    section = text[text.index("### State estimation (LQG)"):text.index("## Take it to the vehicle")]
+    section = (root / "docs" / "guide" / "estimation.md").read_text(encoding="utf-8")
     result = CliRunner().invoke(app, ["margins", "-c", "docs/configs/mambo-lqg.yaml", "-o", str(tmp_path / "m")])
     assert result.exit_code == 0, result.output
     loops = json.loads((tmp_path / "m" / "margins.json").read_text())["loops"]

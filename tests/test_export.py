@@ -233,7 +233,7 @@ def test_the_exported_c_flies_the_loop_simulate_flies(case, tmp_path):
 # LQG: the Kalman filter in the exported C
 
 LQG_CONFIG = str(Path(__file__).resolve().parent.parent / "docs" / "configs" / "mambo-lqg.yaml")
-"""The README's LQG config (mambo-200hz measured by an IMU and motion capture)."""
+"""The export page's LQG config (mambo-200hz measured by an IMU and motion capture)."""
 LQG_SENSORS = {"pN": 0.01, "pE": 0.01, "pD": 0.01, "phi": 0.002, "theta": 0.002, "psi": 0.005,
                "p": 0.005, "q": 0.005, "r": 0.005}
 """Sensor noise (state units) of what the filter measures (IMU and motion capture), as tests/test_estimator.py."""
@@ -387,6 +387,8 @@ def test_the_exported_c_fed_the_reference_gives_the_simulated_commands(case, tmp
         assert max(motors.saturation_fraction(loop.actuators, ref.u).values()) > 0.01  # clipped: frozen, predicted
     x_ref, u_ref, applied = ref.x_ref[samples], ref.u_ref[samples], ref.u[samples]
     assert np.ptp(x_ref[:, STATE_INDEX["pN"]]) > 1.0 and np.ptp(u_ref[:, 1:], axis=0).min() > 0  # a path, its torques
+    # samples flown a quarter turn from the trim's heading: the law's heading frame, in C too
+    assert np.count_nonzero(np.abs(x_ref[:, STATE_INDEX["psi"]] - loop.x_trim[STATE_INDEX["psi"]]) > 1.5) > 100
     dev = (ref.x_hat - ref.x_ref)[samples] if loop.estimator is not None else x_ref - ref.x[samples]
     terms = (np.abs(u_ref) + np.abs(dev) @ np.abs(loop.K).T
              + (np.abs(ref.z[samples]) @ np.abs(loop.Ki).T if loop.integral_states else 0.0)).max()
@@ -436,7 +438,8 @@ def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
     header = " ".join(cexport.sources(exp)[cexport.HEADER].replace(" * ", " ").split())
     for text in ("K = G(v), the gain schedule on speed v (m/s) of x_ref(t): the designs at v = 0, 4, 8, 12, 16, 20, "
                  "linear between them, held outside them", "v is the horizontal velocity of x_ref(t) along the "
-                 "heading 0 rad (m/s), x_ref(t) being ref->x, the reference given", "5 pieces"):
+                 "heading 0 rad (m/s), turned with the reference's yaw (its yaw less the trim's added), x_ref(t) "
+                 "being ref->x, the reference given", "5 pieces"):
         assert text in header, text
     (field,) = [f for f in data.fields(exp) if f.name == "schedule"]  # the .mat and the JSON carry the table
     np.testing.assert_array_equal(field.value["coefficients"], table.coefficients)
@@ -703,7 +706,7 @@ def test_the_json_holds_the_same_fields_with_units_and_shapes(tmp_path):
     assert doc["law"] == exp.law()
     for f in data.fields(exp):
         entry = doc["fields"][f.name]
-        array = isinstance(f.value, np.ndarray)  # the keys the README names: shape and complex for arrays only
+        array = isinstance(f.value, np.ndarray)  # the keys the export page names: shape and complex for arrays only
         assert set(entry) == {"value", "unit", "description"} | ({"shape", "complex"} if array else set()), f.name
         if array:
             assert entry["shape"] == list(f.value.shape), f.name
@@ -818,13 +821,16 @@ def test_simulate_crazyflie_reports_no_saturation(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------
-# README, "Take it to the vehicle": every command and code block runs, and prints what it shows
+# docs/guide/export.md ("Take it to the vehicle"): every command and code block runs, and prints what it shows
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+ROOT = Path(__file__).resolve().parent.parent
+PAGE = ROOT / "docs" / "guide" / "export.md"
 INLINE_COMMANDS = ("quadctl simulate -c crazyflie", "quadctl margins -c crazyflie")
 """Commands the section names in its text (not in a console block)."""
+
+
 def _flight_loop_main(read: str) -> str:
-    """A main.c for the README's flight loop: ``read`` (the sensor read it calls), a rotor write that
+    """A main.c for the export page's flight loop: ``read`` (the sensor read it calls), a rotor write that
     keeps what it was sent, and one tick whose commands it prints."""
     return (r"""
 #include <stdio.h>
@@ -859,9 +865,7 @@ void read_state(quadctl_real x[QUADCTL_NX]) {  /* hover trim, 0.5 m low */
 
 
 def _section() -> str:
-    text = README.read_text(encoding="utf-8")
-    start = text.index("\n## Take it to the vehicle\n")
-    return text[start:text.index("\n## ", start + 1)]
+    return PAGE.read_text(encoding="utf-8")
 
 
 def _blocks(lang: str) -> list[str]:
@@ -884,15 +888,15 @@ def _flat(text: str) -> str:
     return " ".join(text.split())
 
 
-def test_the_section_follows_the_flight_section():
-    headings = re.findall(r"^## .*$", README.read_text(encoding="utf-8"), re.M)
-    at = headings.index("## From the report's design to one that flies")
-    assert headings[at + 1] == "## Take it to the vehicle"
+def test_the_page_comes_after_the_flight_page():
+    """The export page builds on the designs of the flight page: the guide's order reads that one first."""
+    order = re.findall(r"^guide/(\S+)$", (ROOT / "docs" / "index.md").read_text(encoding="utf-8"), re.M)
+    assert order.index("export") > order.index("flying")
 
 
-def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, monkeypatch):
+def test_the_page_commands_print_what_it_shows_and_its_code_runs(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "docs").symlink_to(README.parent / "docs")  # the section's LQG config
+    (tmp_path / "docs").symlink_to(ROOT / "docs")  # the section's LQG config
     runs = _console_runs()
     assert len(runs) == 8
     for command, shown in runs:
@@ -911,13 +915,13 @@ def test_the_readme_commands_print_what_it_shows_and_its_code_runs(tmp_path, mon
                     if line.startswith("print(") and "  # " in line]
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
-            exec(compile(block, "README.md", "exec"), {})
+            exec(compile(block, str(PAGE), "exec"), {})
         assert out.getvalue().splitlines() == expected
 
 
 @pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
-def test_the_readme_flight_loop_compiles_and_flies(single, tmp_path):
-    """The README's C snippet, with stub sensors and motors, against the crazyflie export: one tick
+def test_the_flight_loop_compiles_and_flies(single, tmp_path):
+    """The export page's C snippet, with stub sensors and motors, against the crazyflie export: one tick
     from 0.5 m low asks every rotor for the same thrust, the library's, clipped."""
     snippet = _blocks("c")[0]
     compiler = cc()
@@ -952,7 +956,7 @@ void read_sensors(quadctl_real y[QUADCTL_NY]) {  /* 0.5 m low (pD = -0.5 m), rol
 @pytest.mark.compiler
 @pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
 def test_the_readme_lqg_flight_loop_compiles_and_its_first_tick_is_the_filters(single, tmp_path):
-    """The README's LQG snippet against the mambo-lqg export: the first tick is the filter's update from
+    """The export page's LQG snippet against the mambo-lqg export: the first tick is the filter's update from
     the trim, xc = M (y - C x_trim), and the law on it, u = sat(u_trim - K xc), mixed to the rotors."""
     snippet = _blocks("c")[1]
     assert "quadctl_step(c, y, u)" in snippet
@@ -1019,7 +1023,7 @@ int main(void) {
 @pytest.mark.compiler
 @pytest.mark.parametrize("single", [False, True], ids=["double", "float"])
 def test_the_readme_reference_flight_loop_compiles_and_regulates_to_the_reference(single, tmp_path):
-    """The README's reference snippet against the square's export at 200 Hz: one tick is
+    """The export page's reference snippet against the square's export at 200 Hz: one tick is
     u = u_ref - K (x - x_ref) with the reference the path gave (no limits in this config)."""
     snippet = _blocks("c")[2]
     assert "quadctl_step_ref(c, x, &ref, u)" in snippet

@@ -149,18 +149,20 @@ def test_lqrd_of_the_scalar_integrator_is_its_closed_form(q, r, Ts):
 
 def _readme_python_section() -> list[str]:
     text = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = re.split(r"\n##+ ", text.split("\n### From Python\n", 1)[1], maxsplit=1)[0]
+    section = re.split(r"\n#+ ", re.split(r"\n#+ From Python\n", text, maxsplit=1)[1], maxsplit=1)[0]
     return re.findall(r"```python\n(.*?)```", section, re.S)
 
 
-def test_the_readmes_python_section_runs(tmp_path, monkeypatch):
-    """Its blocks run as written, on the public face, and the numbers its comments state hold."""
+def test_the_readmes_python_section_runs(tmp_path, monkeypatch, capsys):
+    """Its block runs as written, on the public face, and prints what its comments say."""
     blocks = _readme_python_section()
-    assert blocks and all("import quadctl as qc" in b for b in blocks[:1])
+    assert blocks and blocks[0].startswith("import quadctl as qc\n")
     monkeypatch.chdir(tmp_path)
     names: dict = {}
     for code in blocks:
         exec(compile(code, "README.md (From Python)", "exec"), names)
-    assert names["K"].round(2).tolist() == [[7.07, 3.89]]  # "K = [7.07, 3.89]"
-    assert names["design"].K_block.shape == (4, 12) and names["run"].status == "ok"
-    assert names["linear"].A.shape == (12, 12) and names["linear"].B.shape == (12, 4)
+    assert names["K"].round(2).tolist() == [[7.07, 3.89]]  # "[[7.07 3.89]]"
+    assert names["stages"].design.K_block.shape == (4, 12)  # "the (4, 12) gain, discrete at 5 ms"
+    assert names["stages"].design.sample_time == pytest.approx(0.005)
+    assert names["run"].status == "ok" and names["run"].x.shape[1] == 12
+    assert "[[7.07 3.89]]" in capsys.readouterr().out

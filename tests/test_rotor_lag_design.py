@@ -227,12 +227,12 @@ def test_a_time_constant_without_rotor_lag_says_which_the_design_took(given, not
 
 
 def _lag_section() -> str:
-    text = (Path(__file__).resolve().parent.parent / "README.md").read_text(encoding="utf-8")
-    return text[text.index("**10. Designing with the rotors' lag"):text.index("### Flight config keys")]
+    text = (Path(__file__).resolve().parent.parent / "docs" / "guide" / "flying.md").read_text(encoding="utf-8")
+    return text[text.index("**10. Designing with the rotors' lag"):text.index("## Flight config keys")]
 
 
-def test_the_readme_rotor_lag_table_is_what_the_commands_write(tmp_path, monkeypatch):
-    """README, 10: the table's numbers are those of margins.json (roll: design and coupled) and sim.json
+def test_the_rotor_lag_table_is_what_the_commands_write(tmp_path, monkeypatch):
+    """docs/guide/flying.md, 10: the table's numbers are those of margins.json (roll: design and coupled) and sim.json
     of the ignore and include configs."""
     root = Path(__file__).resolve().parent.parent
     monkeypatch.chdir(root)

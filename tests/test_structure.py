@@ -77,8 +77,8 @@ def test_compile_cache_key_covers_everything_the_generators_import():
 @pytest.mark.compiler  # the interpreted fallback is CasADi itself
 def test_simulate_on_fresh_artifacts_imports_neither_casadi_nor_scipy(tmp_path):
     """The warm path (artifacts and compiled loop cached) is numpy and the compiled loop only:
-    CasADi and SciPy would cost more than integrating a million steps (README, Performance)."""
-    cfg = Path(__file__).parent.parent / "quadctl" / "configs" / "hover.yaml"
+    CasADi and SciPy would cost more than integrating a million steps (docs/performance.md)."""
+    cfg = Path(__file__).parent.parent / "configs" / "hover.yaml"
     env = {**__import__("os").environ, "QUADCTL_CACHE": str(tmp_path / "cache")}
     run = [sys.executable, "-m", "quadctl", "simulate", "-c", str(cfg), "-o", str(tmp_path / "run")]
     subprocess.run(run, capture_output=True, check=True, env=env)  # designs, compiles, caches

@@ -134,7 +134,7 @@ def test_sweep_file_errors_name_the_key_and_the_fix(cfg, data, message):
      r"^s\.yaml: seed: 3: a grid .* takes no seed; remove it, or set mode: random to draw its cases from that seed$"),
 ], ids=["grid with samples", "samples, grid by default", "grid with a seed"])
 def test_a_grid_refuses_samples_and_seed(cfg, data, message):
-    """The README says a grid takes no samples, seed or distributions; samples: 10 ran silently."""
+    """docs/guide/sweeps.md says a grid takes no samples, seed or distributions; samples: 10 ran silently."""
     with pytest.raises(SweepError, match=message):
         sweep.from_dict(data, cfg, "s.yaml")
 

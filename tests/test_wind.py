@@ -466,7 +466,7 @@ def test_the_bundled_wind_config_trims_tilted_into_its_wind():
 
 
 def test_the_readme_gust_numbers():
-    """README, "Wind": the gust alone moves crazyflie-wind 0.24 m and 0.72 deg, the turbulence 2.5 m and 5.2 deg;
+    """docs/guide/wind.md: the gust alone moves crazyflie-wind 0.24 m and 0.72 deg, the turbulence 2.5 m and 5.2 deg;
     the trim rolls it -0.2266 rad."""
     for turbulence, drift, pitch in ((False, 0.24, 0.72), (True, 2.5, 5.2)):
         data = cfg_dict("crazyflie-wind")

@@ -21,6 +21,7 @@ ARTIFACT_NAMES = frozenset({
     "margins.json", "design_full.json", "schedule.json", "schedule.npz",
     "sweep.csv", "sweep.json", "sweep.png", "montecarlo.npz", "montecarlo.png",
     "quadctl_controller.h", "quadctl_controller.c", "quadctl_controller.mat", "quadctl_controller.json",
+    "identified.json", "identified.yaml", "identify.png",
 })
 """Every file quadctl writes at the top of a run directory (tests check the workspace's, the
 sweep's and the exports' names are among them)."""

@@ -6,18 +6,23 @@ from __future__ import annotations
 
 def warn_of_the_flight(ws, flown, allow_saturation: bool) -> None:
     """The warnings on a flight (``simulate`` and ``run`` alike): inputs at a limit for a part of the
-    run the gate lets through, waypoints never reached, the gain schedule's."""
+    run the gate lets through, the gain schedule's (a mission that fails is a failed check:
+    :func:`mission_failure`)."""
     from quadctl.cli import render
-    from quadctl.pipeline import missed_waypoints
     from quadctl.present.flight import saturation_text
 
     saturates = saturation_text(flown.flight)
     if saturates and not _fails_on_saturation(ws, flown, allow_saturation):  # else the error says it
         render.warning(saturates)
-    missed = missed_waypoints(flown.flight.get("reference"))
-    if missed:
-        render.warning(missed)
     warn_of_the_schedule(ws)
+
+
+def mission_failure(flown) -> str | None:
+    """Why the flight's mission failed (a waypoint never reached, a final error above the tolerance), in
+    a sentence; None: it did not (or there is no mission)."""
+    from quadctl.present.mission import mission_text
+
+    return mission_text(flown.flight.get("reference"))
 
 
 def warn_of_the_schedule(ws) -> None:

@@ -34,15 +34,25 @@ class Source(NamedTuple):
     note: str | None = None
 
 
+def bundled_folder():
+    """Where the bundled configs are: the installed package's ``configs`` (a wheel is built with the
+    repository's ``configs/`` copied in), else the ``configs/`` folder at the top of the checkout the
+    package is imported from (a clone, an editable install)."""
+    packaged = resources.files("quadctl") / "configs"
+    if packaged.is_dir():
+        return packaged
+    return Path(__file__).resolve().parent.parent.parent / "configs"
+
+
 def bundled_names() -> list[str]:
     """Names of the configs that ship with quadctl (without ``.yaml``)."""
-    folder = resources.files("quadctl") / "configs"
+    folder = bundled_folder()
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
 def bundled(name: str) -> Source:
     """A bundled config by name (``forward``), whatever files the working folder holds."""
-    res = resources.files("quadctl") / "configs" / f"{name}.yaml"
+    res = bundled_folder() / f"{name}.yaml"
     return Source(f"{name}.yaml", res.read_text(encoding="utf-8"))
 
 

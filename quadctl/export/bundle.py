@@ -117,15 +117,19 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
     >>> from quadctl.sim.run import ClosedLoop
     >>> z = np.zeros(12)
     >>> print(law_text(ClosedLoop(z, z, np.zeros(4), z, np.zeros((4, 12)), z), None))
-    u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t; continuous feedback; no input limits.
+    u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t; the yaw error wrapped into (-pi, pi]; ...
     """
     ints, act = loop.integral_states, loop.actuators
     u_ref = "u_ref(t)" if reference else "u_trim"
     inner = f"{u_ref} - K (x - x_ref(t))" + (" - Ki z" if ints else "") + (" - Kv l" if loop.Kv is not None else "")
     parts = [(f"u = {inner}" if act is None else f"u = sat({inner})")
              + (", x_ref(t) and u_ref(t) the reference flown (simulation.reference): the commanded state and its "
-                "feedforward input (the differential-flatness trim along the path)" if reference
-                else ", x_ref(t) = x_trim + x_rate t")]
+                "feedforward input (the differential-flatness trim along the path); x - x_ref(t) is taken in the "
+                "reference's heading frame, its pN, pE turned by -(psi_ref(t) - psi_d), psi_d the yaw the gain was "
+                "designed at (the trim's" + (", or a yaw schedule's value held to its ends" if loop.schedule is not None
+                                              and loop.schedule.variable == "yaw" else "")
+                + "), so the design holds at any heading" if reference
+                else ", x_ref(t) = x_trim + x_rate t") + "; the yaw error wrapped into (-pi, pi]"]
     table = loop.schedule
     if table is not None:
         from quadctl.design.gain_table import VARIABLES

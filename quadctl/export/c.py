@@ -317,7 +317,8 @@ def _schedule_doc(loop, reference: bool) -> str:
         return " *   None: the gains are constants (K, Ki in qc_c)."
     unit = VARIABLES[table.variable]
     pieces, columns = len(table.breaks) - 1, table.coefficients.shape[-1]
-    read = {"speed": f"the horizontal velocity of x_ref(t) along the heading {loop.schedule_heading:g} rad (m/s)",
+    read = {"speed": f"the horizontal velocity of x_ref(t) along the heading {loop.schedule_heading:g} rad (m/s)"
+                     + (", turned with the reference's yaw (its yaw less the trim's added)" if reference else ""),
             "climb": "the climb rate of x_ref(t), -vD (m/s, up positive)",
             "yaw": "the yaw psi of x_ref(t) (rad)"}[table.variable]
     source = "ref->x, the reference given" if reference else "x_trim + x_rate t"

@@ -66,3 +66,41 @@ def waypoints_table(tracking: dict) -> Table | None:
                          "waypoint before it was reached; closest approach: the least distance over the same span, "
                          "and when (leg not flown: the run ended before the leg began)",
                  align="llrrrr")
+
+
+def mission_text(tracking: dict | None) -> str | None:
+    """Why a mission failed (:func:`quadctl.pipeline.mission_check`'s verdict in ``tracking``): what was
+    missed, then the cause the run shows and its fix; None: every waypoint reached (or no mission)."""
+    from quadctl.pipeline import MissionVerdict
+
+    if not tracking or tracking.get("verdict", MissionVerdict.REACHED.value) == MissionVerdict.REACHED.value:
+        return None
+    verdict, tol, end = MissionVerdict(tracking["verdict"]), tracking["tolerance"], tracking["mission_end"]
+    waypoints, missed = tracking["waypoints"], tracking["missed"]
+    if missed:
+        wp = waypoints[missed[0]]
+        what = (f"simulation.reference.waypoints[{missed[0]}] [{', '.join(f'{c:g}' for c in wp['position'])}] was "
+                f"never reached within {tol:g} m ({len(missed)} of {len(waypoints)} missed)")
+    else:
+        what = (f"the final tracking error {tracking['position_error']['final']:.3g} m is above "
+                f"simulation.reference.tolerance {tol:g} m")
+    if verdict is MissionVerdict.NOT_REGULATED:
+        states = tracking["unregulated"]
+        named = ", ".join(states)
+        are, its = ("are", "their errors") if len(states) > 1 else ("is", "its error")
+        cause = (f"position {named} {are} in no regulated subsystem of the partition, so no gain acts on {its}: "
+                 f"add {named} to a regulated subsystem's states (as docs/configs/hover-hold.yaml does: pN with "
+                 "pitch, pE with roll, pD with altitude)")
+    elif verdict is MissionVerdict.LEFT_VALID_RANGE:
+        cause = "the vehicle left the model's valid range before the mission ended (the run's message says where)"
+    elif verdict is MissionVerdict.SATURATED:
+        cause = ("the inputs were at their limits for part of the run (see the saturation): lower "
+                 "simulation.reference.speed, or weigh the inputs more (lqr R)")
+    elif verdict is MissionVerdict.RUN_ENDS_BEFORE_MISSION:
+        cause = (f"the run ends at {tracking['duration']:.4g} s, before the mission does ({end:.4g} s): lengthen "
+                 f"simulation.duration to at least {end:.4g} s")
+    else:
+        cause = (f"the whole mission was flown (it ends at {end:.4g} s) and the vehicle stayed off: loosen "
+                 "simulation.reference.tolerance, give the waypoint a hold, or weigh the position errors more "
+                 "(lqr Q on pN, pE, pD)")
+    return f"{what}: {cause}"

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from quadctl.errors import QuadctlError
+from quadctl.present.mission import mission_text
 from quadctl.report import content
 from quadctl.report.document import Document, Section, Table, Text, to_html, to_markdown
 
@@ -64,7 +65,8 @@ def run_stages(ws) -> Outcome:
     A check fails when a regulated subsystem is not stabilizable, a continuous design is unstable
     sampled at the controller's rate, or the rotors' lag and the delay make the design's loop unstable
     (the verdicts ``check`` and ``run`` give), the assembled design is unstable
-    on the coupled model, or the simulation does not finish (diverged, left the valid range); a
+    on the coupled model, the simulation does not finish (diverged, left the valid range), or its
+    mission misses a waypoint or ends farther than the tolerance from it; a
     :class:`~quadctl.errors.QuadctlError` a stage raises stops the stages too. Neither is raised:
     both are in the returned :class:`Outcome`, so that what was computed can still be reported.
     """
@@ -88,7 +90,8 @@ def run_stages(ws) -> Outcome:
             None if ws.design.stable else "unstable on the coupled 12-state model")),
         ("margins", lambda: ws.margins, None),
         ("simulate", lambda: ws.simulation, lambda: (
-            None if ws.simulation.sim.status == "ok" else ws.simulation.sim.message)),
+            mission_text(ws.simulation.flight.get("reference")) if ws.simulation.sim.status == "ok"
+            else ws.simulation.sim.message)),
     )
     for name, compute, verdict in plan:
         stop = step(name, compute, verdict or (lambda: None))

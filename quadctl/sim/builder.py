@@ -18,8 +18,11 @@ or, in a loop that flies a reference (:attr:`LoopSpec.reference`), ``x_ref(t)`` 
 the step's exogenous row (:data:`REFERENCE_LAYOUT`: the reference tabulated on the exogenous clock
 as the noise and wind are, so every runner takes it the same way),
 
-with ``x_m = x + n_s`` the measured state (sensor noise ``n_s``) and ``sat`` the actuator
-clipping (``box`` on ``T, A, E, R``; ``motors``: mixed to rotor thrusts, clipped, mixed back).
+with ``x_m = x + n_s`` the measured state (sensor noise ``n_s``), the deviation ``x_m - x_ref(t)`` taken in
+the reference's heading frame (:func:`heading_frame`: ``pN, pE`` turned by the reference's yaw less the
+yaw the gain was designed at, ``psi`` wrapped into ``(-pi, pi]``), so a design made at the trim's yaw flies
+any heading, and ``sat`` the actuator clipping (``box`` on ``T, A, E, R``; ``motors``: mixed to rotor
+thrusts, clipped, mixed back).
 Integrators follow MATLAB ``lqi``, ``dz/dt = -(x_i - x_ref,i)``, frozen while saturation alters
 an input they drive (conditional integration).
 
@@ -92,7 +95,7 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.layout import N_INPUTS, N_STATES
+from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
@@ -443,6 +446,51 @@ def _check_schedule(spec: LoopSpec) -> None:
                          f"{N_STATES} (the state gain) or {N_STATES + spec.nz} (with the integrator gains)")
 
 
+_PN, _PE, _PSI = STATE_INDEX["pN"], STATE_INDEX["pE"], STATE_INDEX["psi"]
+
+
+def wrap_angle(angle, lib=np):
+    """``angle`` (rad) wrapped into ``(-pi, pi]``: ``angle + 2 pi floor((pi - angle) / (2 pi))``, so
+    an angle already there is returned bit for bit (``+ 0``), however many turns it is off. (The
+    division is a product by ``0.5 / pi``: the floor sits on the law's path in every RK4 stage, and a
+    divide there is a visible part of a continuous loop's step.)
+
+    >>> float(wrap_angle(-np.pi)), float(wrap_angle(np.pi)), float(wrap_angle(0.25 + 6 * np.pi))
+    (3.141592653589793, 3.141592653589793, 0.25)
+    """
+    return angle + 2 * np.pi * lib.floor((np.pi - angle) * (0.5 / np.pi))
+
+
+def heading_frame(dx, offset, lib=ca):
+    """The deviation ``dx = x - x_ref`` (12,) as the law takes it: its ``pN, pE`` rotated into the
+    reference's heading frame, ``offset`` (rad) the reference's yaw less the design's, and its
+    ``psi`` wrapped into ``(-pi, pi]`` (:func:`wrap_angle`).
+
+    The heading is a symmetry of the model: turning the vehicle and its reference by ``a`` about the
+    vertical leaves the body velocities ``u, v, w``, the roll, pitch and rates unchanged and turns the
+    horizontal position by ``a``, so ``R(-a) [dpN, dpE]`` is the position error the design saw at its
+    own heading. At ``offset = 0`` every entry is ``dx``'s, bit for bit (``1 e + 0 e'``).
+
+    Parameters
+    ----------
+    dx : (12,) CasADi column, or (..., 12) ndarray with ``lib=numpy``
+    offset : CasADi scalar, or float or (...,) ndarray
+    lib : module
+        ``casadi`` or ``numpy``.
+    """
+    if lib is np:
+        out = np.array(dx, dtype=float, copy=True)
+        c, s = np.cos(offset), np.sin(offset)
+        out[..., _PN] = c * dx[..., _PN] + s * dx[..., _PE]
+        out[..., _PE] = c * dx[..., _PE] - s * dx[..., _PN]
+        out[..., _PSI] = wrap_angle(out[..., _PSI])
+        return out
+    c, s = ca.cos(offset), ca.sin(offset)
+    north = c * dx[_PN] + s * dx[_PE]
+    east = c * dx[_PE] - s * dx[_PN]
+    return ca.vertcat(north, east, dx[_PN + 2:_PSI], wrap_angle(dx[_PSI], ca), dx[_PSI + 1:])
+
+
 def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray, degree: int = 3):
     """The table's gain ``G(v)`` (4, m) as CasADi expressions of the scheduling value ``v``.
 
@@ -581,16 +629,37 @@ def build(spec: LoopSpec) -> LoopFunctions:
         ref = e[n_wind_end + 1 + 3 * N_STATES:]
         return ref[:N_INPUTS] + (t - e[n_wind_end]) * ref[N_INPUTS:]
 
+    def design_yaw(psi_ref):
+        """The yaw the gain acting at reference yaw ``psi_ref`` was designed at: the trim's, or a yaw
+        schedule's value held to its ends (inside them the design's own yaw: no rotation)."""
+        if spec.schedule and spec.schedule[0] == "yaw":
+            pieces = spec.schedule[1]
+            return ca.fmin(ca.fmax(psi_ref, parts["schedule_breaks"][0]), parts["schedule_breaks"][pieces])
+        return parts["x_ref"][_PSI]
+
+    def heading_offset(t):
+        """rad: the reference's yaw less the yaw its gain was designed at (0 at the trim's heading)."""
+        psi_ref = x_ref(t)[_PSI]
+        return psi_ref - design_yaw(psi_ref)
+
+    def measured_deviation(X, t):
+        """``x_m - x_ref(t)`` in the reference's heading frame (:func:`heading_frame`). A loop without a
+        reference holds the trim, whose yaw is the design's: only its yaw error is wrapped (turning by
+        a zero angle would cost a sine and a cosine per stage for the same bits)."""
+        dx = X[:N_STATES] + sensor - x_ref(t)
+        if not spec.reference:
+            return ca.vertcat(dx[:_PSI], wrap_angle(dx[_PSI], ca), dx[_PSI + 1:])
+        return heading_frame(dx, heading_offset(t))
+
     def innovation(X, t):
         """``y - C xh``: the measured deviation less its estimate."""
-        x, xh = X[:N_STATES], X[nx - ne:]
-        y = (x + sensor - x_ref(t))[measured]
-        return y - xh[measured]
+        xh = X[nx - ne:]
+        return measured_deviation(X, t)[measured] - xh[measured]
 
     def deviation(X, t):
         """What the law acts on: the measured deviation, or the filter's (updated, held) estimate."""
         if not ne:
-            return X[:N_STATES] + sensor - x_ref(t)
+            return measured_deviation(X, t)
         xh = X[nx - ne:]
         return xh + parts["Le"] @ innovation(X, t) if spec.held else xh
 
@@ -602,7 +671,9 @@ def build(spec: LoopSpec) -> LoopFunctions:
         from quadctl.design.gain_table import scheduling_value
 
         variable, pieces, columns, degree = spec.schedule
-        v = scheduling_value(variable, x_ref(t), parts["schedule_heading"], lib=ca)
+        heading = (parts["schedule_heading"] + heading_offset(t) if spec.reference and variable != "yaw"
+                   else parts["schedule_heading"])
+        v = scheduling_value(variable, x_ref(t), heading, lib=ca)
         mask = np.hstack([np.reshape(np.asarray(spec.pattern, dtype=bool), (N_INPUTS, N_STATES), order="F"),
                           np.ones((N_INPUTS, columns - N_STATES), dtype=bool)])
         G = scheduled_gain(v, parts["schedule_breaks"], parts["schedule_coefficients"], pieces, mask, degree)

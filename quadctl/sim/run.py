@@ -21,7 +21,7 @@ import numpy as np
 
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.noise import DEFAULT_PERIOD, NoiseSpec, NoiseStream
-from quadctl.sim.builder import LoopSpec, pack_constants
+from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
@@ -288,6 +288,16 @@ class ClosedLoop:
                 out["antiwindup"] = np.any(table.coefficients[..., N_STATES:] != 0, axis=(0, 1)).T.astype(float)
         return out
 
+    def heading_offset(self, x_ref) -> np.ndarray:
+        """(n,) rad: the yaw of each reference state ``x_ref`` (n, 12) less the yaw its gain was designed
+        at (the trim's; a yaw schedule's value held to its ends): the angle the law turns the position
+        error by (:func:`quadctl.sim.builder.heading_frame`)."""
+        psi = np.asarray(x_ref, dtype=float)[..., STATE_INDEX["psi"]]
+        table = self.schedule
+        if table is not None and table.variable == "yaw":
+            return psi - np.clip(psi, table.breaks[0], table.breaks[-1])
+        return psi - self.x_trim[STATE_INDEX["psi"]]
+
     def initial_loop_state(self, x0) -> np.ndarray:
         """The loop state ``[x0; f; z; l; b; xh]`` a run starts from: the rotors (if they lag) at their trim
         thrusts ``mix u_trim``, the integrators and the lag model (deviation from trim) at zero, the
@@ -552,7 +562,18 @@ def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int
                      lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
                      wind=wind_felt(wind, exo.period, ks, dt) if wind is not None else np.zeros((0, 3)),
                      wind_seed=wind.seed if wind is not None else None,
-                     x_hat=x_ref + xs[:, xs.shape[1] - ne:] if ne else np.zeros((0, 0)), u_ref=u_ref)
+                     x_hat=_estimate(loop, x_ref, xs[:, xs.shape[1] - ne:], reference is not None) if ne
+                     else np.zeros((0, 0)),
+                     u_ref=u_ref)
+
+
+def _estimate(loop: ClosedLoop, x_ref: np.ndarray, deviation: np.ndarray, reference: bool) -> np.ndarray:
+    """(n, 12) the filter's estimate of ``x``: ``x_ref`` plus its deviation estimate, which the filter of a
+    loop flying a ``reference`` keeps in its heading frame (:func:`quadctl.sim.builder.heading_frame`):
+    turned back."""
+    if not reference:
+        return x_ref + deviation
+    return x_ref + heading_frame(deviation, -loop.heading_offset(x_ref), lib=np)
 
 
 def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, wind, max_samples: int,

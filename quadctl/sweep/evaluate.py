@@ -380,6 +380,24 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
     return row
 
 
+def mission_reason(setup, reached, status: str) -> str:
+    """A row's ``reason`` for a mission (``setup.reference`` with waypoints) whose waypoints were
+    ``reached`` (s each, or None) in a run that ended ``status``: the sentence ``simulate`` fails with
+    (:func:`quadctl.present.mission.mission_text`), or empty (reached; a run that did not finish says
+    so itself). A sweep's lanes keep no final error: only the missed waypoints count here."""
+    from quadctl import pipeline
+    from quadctl.present.mission import mission_text
+
+    ref = setup.reference
+    if ref is None or not ref.legs or status != "ok":
+        return ""
+    tracking = {"waypoints": [{"position": list(leg.position), "reached": r} for leg, r in zip(ref.legs, reached)],
+                "tolerance": ref.tolerance, "mission_end": ref.end}
+    tracking.update(pipeline.mission_check(tracking, status=status, unregulated=pipeline.unregulated_positions(setup),
+                                           duration=setup.duration))
+    return mission_text(tracking) or ""
+
+
 def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict, np.ndarray | None]:
     """One case through the chain of stages (:class:`quadctl.pipeline.Stages`, from its plant's
     shared linear model and partition), as ``quadctl simulate`` runs it (the reference path).
@@ -413,7 +431,10 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
     summary = metrics.summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
     row = _row(prep.head, des.stable, des.core_eigenvalues, sim.plan, summary, sim.steps,
                "" if sim.status == "ok" else sim.message, "one-by-one")
-    row.update(tracking_columns(pipeline.tracking_summary(setup, sim)))
+    tracking = pipeline.tracking_summary(setup, sim)
+    row.update(tracking_columns(tracking))
+    if tracking is not None and "waypoints" in tracking and sim.status == "ok":
+        row["reason"] = mission_reason(setup, [w["reached"] for w in tracking["waypoints"]], sim.status)
     kept = None
     if trace and sim.status == "ok":
         kept = resample_deviation(sim.t, sim.x, sim.x_ref, trace, setup.duration)
@@ -457,6 +478,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
     rows: dict[int, dict] = {}
     traces: dict[int, np.ndarray] = {}
     tracked: dict[int, dict] = {}  # case -> its tracking columns (cases that fly a reference)
+    reasons: dict[int, str] = {}  # case -> why its mission failed (cases that fly waypoints and finish)
     t0, c0 = time.perf_counter(), time.process_time()
     # rows read the extremes of each core, and take its gains to round-off
     designs = batched.design_all(preps, stats, any_order=True, compiled=True)
@@ -501,7 +523,10 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             flown = pipeline.flown_reference(setup)
             rows_at = np.floor(ks * plan.dt / job.exo_period + 1e-9).astype(np.int64)
             x_ref = flown.flown(flown.rows(rows_at, job.exo_period), t)[0]
-            tracked[prep.index] = tracking_columns(pipeline.tracking_of(setup.reference, t, x, x_ref))
+            tracking = pipeline.tracking_of(setup.reference, t, x, x_ref)
+            tracked[prep.index] = tracking_columns(tracking)
+            if "waypoints" in tracking:
+                reasons[prep.index] = mission_reason(setup, [w["reached"] for w in tracking["waypoints"]], status)
         for (p, d, j, steps, msg), summary in batch.add(t, x, us, setup, linear, status,
                                                          (prep, des, job, done, message), x_ref):
             rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps, "" if summary["status"] == "ok"
@@ -530,16 +555,19 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
     for (p, d, j, steps, msg), summary in batch.flush():
         rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps,
                              "" if summary["status"] == "ok" else msg, d.path)
-    _summed_rows(summed, rows, tracked)
+    _summed_rows(summed, rows, tracked, reasons)
     stats["simulate_time"] += time.perf_counter() - t0
     for index, columns in tracked.items():
         rows[index].update(columns)
+    for index, reason in reasons.items():
+        if reason:
+            rows[index]["reason"] = reason
     return rows, traces
 
 
-def _summed_rows(summed: list, rows: dict, tracked: dict) -> None:
-    """Rows (and tracking columns) of the runs summed in the lanes: ``(prep, design, job, done, status,
-    message, sums)`` each, read back together per set of regulated states."""
+def _summed_rows(summed: list, rows: dict, tracked: dict, reasons: dict) -> None:
+    """Rows (and tracking columns, and a mission's reason) of the runs summed in the lanes: ``(prep,
+    design, job, done, status, message, sums)`` each, read back together per set of regulated states."""
     from quadctl.sim.lane_metrics import row_values, tracking
 
     groups: dict[tuple, list] = {}
@@ -557,6 +585,7 @@ def _summed_rows(summed: list, rows: dict, tracked: dict) -> None:
                 columns = {"position_error": {"rms": got["rms"], "peak": got["peak"]}}
                 if ref.legs:
                     columns["waypoints"] = [{"reached": r} for r in got["reached"]]
+                    reasons[prep.index] = mission_reason(prep.setup, got["reached"], status)
                 tracked[prep.index] = tracking_columns(columns)
 
 

@@ -12,6 +12,7 @@ from quadctl.cli.commands import (
     decouple,
     design,
     export,
+    identify,
     init,
     linearize,
     margins,
@@ -29,7 +30,7 @@ COMMAND_CLASS = flags_without_placeholder(typer.core.TyperCommand)
 """Every command's class: its flags show no value placeholder in ``--help``."""
 
 COMMANDS = (init, trim, linearize, decouple, check, design, schedule, simulate, margins, export, sweep, run, report,
-            configs)
+            identify, configs)
 
 
 def register(app: typer.Typer) -> None:

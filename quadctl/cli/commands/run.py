@@ -10,7 +10,12 @@ from quadctl.cli.options import (
     SetOpt,
     open_workspace,
 )
-from quadctl.cli.stage_warnings import require_within_limits, warn_of_the_flight, warn_of_the_rate
+from quadctl.cli.stage_warnings import (
+    mission_failure,
+    require_within_limits,
+    warn_of_the_flight,
+    warn_of_the_rate,
+)
 
 NAME = "run"
 
@@ -61,6 +66,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         require_within_limits(ws, flown, allow_saturation)
     except SaturationFailed as exc:
         raise _stop(json, stages, f"simulate: {exc}", exc) from None
+    mission = mission_failure(flown)
+    if mission:
+        raise _stop(json, stages, f"simulate: {mission}")
     done("simulate", f"{sim.steps} {shown_flight.integrator_name(sim)} steps, {shown_flight.step_span(sim)}, "
                      f"{sim.steps_per_second / 1e6:.2f} M steps/s")
     if plot:

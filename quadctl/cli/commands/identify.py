@@ -1,0 +1,51 @@
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from quadctl.cli.options import ConfigOpt
+
+NAME = "identify"
+
+
+def command(logs: Annotated[list[str], typer.Argument(
+                metavar="LOG", show_default=False,
+                help="Flight logs: Crazyflie microSD binary, PX4 ULog (pyulog) or CSV; one or more.")],
+            config: ConfigOpt = None,
+            out: Annotated[Optional[Path], typer.Option(
+                "--out", "-o", metavar="DIR", help="Folder for the results. Default: runs/<config name>-identified."
+            )] = None,
+            window: Annotated[Optional[list[str]], typer.Option(
+                "--window", metavar="T0:T1", help="The stretch of a log to fit, s (t0:t1, or t0:t1,t2:t3); once "
+                "per LOG, in order. Default: chosen from the excitation.")] = None,
+            columns: Annotated[Optional[list[str]], typer.Option(
+                "--columns", metavar="NAME=COLUMN", help="A CSV's column names (t=time_s,cmd_1=m1).")] = None,
+            delay: Annotated[bool, typer.Option(
+                "--delay", help="Fit a pure delay of the commands beside the motor lag.")] = False) -> None:
+    """Identify the rotors' thrust curve and lag, Ixx and Iyy, and the torque coefficient from flight logs.
+
+    The config gives what a log cannot (mass, rotor positions and numbering). Writes identified.json
+    (values, 95 % intervals, windows, residuals, the logs' sha256), identified.yaml (the config with
+    the identified values, each line saying where it came from) and identify.png.
+    """
+    import json as _json
+
+    from quadctl.artifacts.writing import write_together
+    from quadctl.cli import render
+    from quadctl.config import locate, parse
+    from quadctl.identify import readers, results
+    from quadctl.plots.identify import fit_figure
+    from quadctl.present import identify as shown
+
+    source = locate(config)
+    cfg = parse(source.text, source.label)
+    read = [readers.read_log(p, readers.parse_columns(columns)) for p in logs]
+    ident = results.identify(read, cfg, results.windows_per_log(window, len(logs)), delay=delay)
+    payload = results.payload(ident, source.label, cfg)
+    folder = out or Path("runs") / f"{cfg.name}-identified"
+    text = results.identified_config(source.text, ident, f"{cfg.name}-identified")
+    write_together({folder / "identified.json": _json.dumps(payload, indent=1).encode(),
+                    folder / "identified.yaml": text.encode(), folder / "identify.png": fit_figure(ident)})
+    render.show(*shown.log_sentences(payload), shown.values_table(payload), *shown.sentences(payload))
+    for name in ("identified.json", "identified.yaml", "identify.png"):
+        render.out.print(f"-> {folder / name}")

@@ -1,0 +1,1 @@
+"""Identification from a flight log: readers, the estimator, windows from the excitation, results."""

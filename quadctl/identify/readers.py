@@ -1,0 +1,341 @@
+"""Flight-log readers: every format into one :class:`FlightLog` in SI units and quadctl's frames.
+
+A :class:`FlightLog` holds time (s), the accelerometer's specific force (m/s^2) and the gyro's body
+rates (rad/s) in the FRD body frame (x forward, y right, z down; an accelerometer at hover reads
+``-g`` on z), and the four rotor commands normalized to [0, 1], rotor 1 first in the config's
+numbering. Each reader says what it converted (:attr:`FlightLog.conversions`).
+
+Formats
+-------
+``crazyflie``
+    The Crazyflie microSD deck's "fixedFrequency" binary log (read from its published layout):
+    byte 0 ``0xBC``; uint16 version; uint16 number of event types; per event type a uint16 id,
+    a NUL-terminated name, a uint16 variable count and NUL-terminated variable names, each ending
+    in its type letter (``acc.x(f)``); then records of a uint16 event id, a uint64 timestamp (us)
+    and the variables (little endian); a CRC-32 (zlib) of everything before it closes the file.
+    ``acc.*`` are in g and ``gyro.*`` in deg/s in the Crazyflie's FLU frame (x forward, y left,
+    z up); ``motor.m1..m4`` are PWM commands 0-65535 in the Crazyflie's motor order.
+``csv``
+    Columns ``t`` (s), ``acc_x acc_y acc_z`` (m/s^2, FRD), ``gyro_p gyro_q gyro_r`` (rad/s, FRD),
+    ``cmd_1 .. cmd_4`` (normalized to [0, 1]), other names through a column map.
+``ulog``
+    PX4's ULog through the optional ``pyulog`` package (``pip install quadctl[identify]``).
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import math
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from quadctl.errors import LogError
+
+STANDARD_GRAVITY = 9.80665
+"""m/s^2 per g: the Crazyflie's accelerometer reads in units of g."""
+CSV_COLUMNS = ("t", "acc_x", "acc_y", "acc_z", "gyro_p", "gyro_q", "gyro_r", "cmd_1", "cmd_2", "cmd_3", "cmd_4")
+"""The CSV's columns (units and frame: the module's docstring)."""
+CRAZYFLIE_MAGIC = 0xBC
+CRAZYFLIE_PWM_MAX = 65535
+CRAZYFLIE_EVENT = 0xFFFF
+"""The event id of the fixed-frequency records."""
+_CRAZYFLIE_TYPES = {"b": "<i1", "B": "<u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4", "f": "<f4",
+                    "q": "<i8", "Q": "<u8", "d": "<f8"}
+_CRAZYFLIE_NEEDS = ("acc.x", "acc.y", "acc.z", "gyro.x", "gyro.y", "gyro.z",
+                    "motor.m1", "motor.m2", "motor.m3", "motor.m4")
+
+
+@dataclass(frozen=True)
+class FlightLog:
+    """One flight, in SI units and the FRD body frame.
+
+    Attributes
+    ----------
+    t : (N,) ndarray
+        s, strictly increasing.
+    acc : (N, 3) ndarray
+        Specific force, m/s^2, FRD (``-g`` on z at hover).
+    gyro : (N, 3) ndarray
+        Body rates ``p, q, r``, rad/s, FRD.
+    cmd : (N, 4) ndarray
+        Rotor commands in [0, 1], rotor 1 first.
+    path : str
+    format : str
+        ``crazyflie``, ``csv`` or ``ulog``.
+    sha256 : str
+        Of the file's bytes.
+    conversions : tuple of str
+        What the reader converted (units, frame, numbering), one phrase each.
+    """
+
+    t: np.ndarray
+    acc: np.ndarray
+    gyro: np.ndarray
+    cmd: np.ndarray
+    path: str
+    format: str
+    sha256: str
+    conversions: tuple[str, ...] = field(default=())
+
+    @property
+    def name(self) -> str:
+        return Path(self.path).name
+
+    def provenance(self) -> dict:
+        """The log's identity for ``identified.json``."""
+        return {"path": self.path, "format": self.format, "sha256": self.sha256, "samples": int(self.t.size),
+                "t_start": float(self.t[0]), "t_end": float(self.t[-1]),
+                "rate_hz": float((self.t.size - 1) / (self.t[-1] - self.t[0])), "conversions": list(self.conversions)}
+
+    def to_csv(self, path) -> None:
+        """Write the log as the CSV format's columns (:data:`CSV_COLUMNS`), full precision."""
+        data = np.column_stack([self.t, self.acc, self.gyro, self.cmd])
+        with open(path, "w", newline="") as fh:
+            fh.write(",".join(CSV_COLUMNS) + "\n")
+            np.savetxt(fh, data, delimiter=",", fmt="%.17g")
+
+
+def _fail(path, what: str, fix: str) -> LogError:
+    return LogError(f"{path}: {what}; {fix}")
+
+
+def _checked(path, t, acc, gyro, cmd, fmt, digest, conversions) -> FlightLog:
+    """The arrays as a FlightLog, after the checks every format shares."""
+    if t.size < 2:
+        raise _fail(path, f"{t.size} sample(s), too few to identify anything", "give a log of a flight")
+    arrays = {"time": t, "accelerometer": acc, "gyro": gyro, "motor commands": cmd}
+    for what, values in arrays.items():
+        if not np.all(np.isfinite(values)):
+            k = int(np.argwhere(~np.isfinite(np.atleast_2d(values.T).T))[0][0])
+            raise _fail(path, f"a non-finite {what} value in sample {k + 1}", "repair or cut the log there")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        k = int(np.argmax(steps <= 0))
+        raise _fail(path, f"time does not increase at sample {k + 2} (t = {t[k + 1]:.6g} s after {t[k]:.6g} s)",
+                    "sort the samples by time or drop the repeated ones")
+    if np.any(cmd < -1e-9) or np.any(cmd > 1 + 1e-9):
+        raise _fail(path, f"rotor commands outside [0, 1] (from {cmd.min():.4g} to {cmd.max():.4g})",
+                    "normalize the commands to [0, 1] (a PWM 0-65535 divided by 65535)")
+    return FlightLog(t=t, acc=acc, gyro=gyro, cmd=cmd, path=str(path), format=fmt, sha256=digest,
+                     conversions=tuple(conversions))
+
+
+def read_crazyflie(path) -> FlightLog:
+    """Read a Crazyflie microSD "fixedFrequency" binary log (layout: the module's docstring).
+
+    Converts g to m/s^2 (x 9.80665), deg/s to rad/s, the Crazyflie's FLU body frame to FRD (y and z
+    negated) and PWM 0-65535 to [0, 1]; ``motor.m1..m4`` become rotors 1-4 (the Crazyflie's order is
+    front right, rear right, rear left, front left: ``motors.numbering: crazyflie``).
+
+    Raises
+    ------
+    LogError
+        Not such a log, truncated, a failed CRC, or a variable missing.
+    """
+    data = Path(path).read_bytes()
+    digest = hashlib.sha256(data).hexdigest()
+    if len(data) < 9 or data[0] != CRAZYFLIE_MAGIC:
+        raise _fail(path, "not a Crazyflie microSD log (its first byte is not 0xBC)",
+                    "give a log the microSD deck wrote, or convert it to the CSV format (quadctl identify --help)")
+    body, trailer = data[:-4], data[-4:]
+    if zlib.crc32(body) != struct.unpack("<I", trailer)[0]:
+        raise _fail(path, "the CRC-32 at the end does not match the log (truncated or corrupted)",
+                    "copy the file from the microSD card again; a log cut short has no valid end")
+    try:
+        events, offset = _crazyflie_header(body)
+    except (struct.error, ValueError, UnicodeDecodeError):
+        raise _fail(path, "the header of the Crazyflie log is malformed", "copy the file from the card again") from None
+    if CRAZYFLIE_EVENT not in events:
+        raise _fail(path, "no fixedFrequency records in the log", "log with the microSD deck's fixedFrequency mode")
+    names = events[CRAZYFLIE_EVENT]
+    missing = [n for n in _CRAZYFLIE_NEEDS if n not in dict(names)]
+    if missing:
+        raise _fail(path, f"the log has no {', '.join(missing)}",
+                    "add them to the microSD deck's config.txt (acc.x, acc.y, acc.z, gyro.x, gyro.y, gyro.z, "
+                    "motor.m1 .. motor.m4) and fly again")
+    if len(events) > 1:
+        raise _fail(path, "event-triggered records besides the fixed-frequency ones",
+                    "log the fixedFrequency mode alone, or convert the log to the CSV format")
+    dtype = np.dtype([("event", "<u2"), ("us", "<u8")] + [(n, _CRAZYFLIE_TYPES[k]) for n, k in names])
+    size = len(body) - offset
+    if size % dtype.itemsize:
+        raise _fail(path, f"{size} bytes of records is not a whole number of {dtype.itemsize}-byte records",
+                    "copy the file from the microSD card again")
+    rec = np.frombuffer(body, dtype=dtype, offset=offset)
+    if np.any(rec["event"] != CRAZYFLIE_EVENT):
+        raise _fail(path, "a record with an unknown event id (the records are misaligned)",
+                    "copy the file from the microSD card again")
+    t = rec["us"].astype(float) * 1e-6
+    flu_to_frd = np.array([1.0, -1.0, -1.0])
+    acc = np.column_stack([rec[f"acc.{a}"] for a in "xyz"]).astype(float) * STANDARD_GRAVITY * flu_to_frd
+    gyro = np.column_stack([rec[f"gyro.{a}"] for a in "xyz"]).astype(float) * (math.pi / 180.0) * flu_to_frd
+    cmd = np.column_stack([rec[f"motor.m{i}"] for i in range(1, 5)]).astype(float) / CRAZYFLIE_PWM_MAX
+    return _checked(path, t, acc, gyro, cmd, "crazyflie", digest, (
+        "time: us -> s", "acc: g -> m/s^2 (x 9.80665), FLU -> FRD (y, z negated)",
+        "gyro: deg/s -> rad/s, FLU -> FRD (q, r negated)", "motor.m1..m4: PWM / 65535 -> cmd_1..cmd_4"))
+
+
+def _crazyflie_header(body: bytes):
+    """``({event id: [(variable, type letter), ...]}, offset of the first record)``."""
+    (count,) = struct.unpack_from("<H", body, 3)
+    offset, events = 5, {}
+    for _ in range(count):
+        (event,) = struct.unpack_from("<H", body, offset)
+        end = body.index(b"\0", offset + 2)
+        offset = end + 1
+        (n,) = struct.unpack_from("<H", body, offset)
+        offset += 2
+        names = []
+        for _ in range(n):
+            end = body.index(b"\0", offset)
+            text = body[offset:end].decode("ascii")
+            offset = end + 1
+            if not (text.endswith(")") and text[-3] == "(" and text[-2] in _CRAZYFLIE_TYPES):
+                raise ValueError(text)
+            names.append((text[:-3], text[-2]))
+        events[event] = names
+    return events, offset
+
+
+def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
+    """Read the CSV format (:data:`CSV_COLUMNS`; units and frame: the module's docstring).
+
+    Parameters
+    ----------
+    columns : dict, optional
+        quadctl's column name -> the file's (``{"t": "time_s"}``); the others keep their names.
+
+    Raises
+    ------
+    LogError
+        A column missing, a value that is not a number.
+    """
+    columns = dict(columns or {})
+    unknown = sorted(set(columns) - set(CSV_COLUMNS))
+    if unknown:
+        raise LogError(f"--columns names {', '.join(unknown)}, not a column of the CSV format; "
+                       f"map these: {', '.join(CSV_COLUMNS)}")
+    raw = Path(path).read_bytes()
+    lines = [line for line in raw.decode("utf-8", errors="replace").splitlines()
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise _fail(path, "an empty CSV", f"write a header line with {', '.join(CSV_COLUMNS)} and the samples")
+    header = [h.strip() for h in next(csv.reader(lines[:1]))]
+    where = {}
+    for name in CSV_COLUMNS:
+        given = columns.get(name, name)
+        if given not in header:
+            via = f" (mapped from {name})" if name in columns else ""
+            raise _fail(path, f"no column {given!r}{via} (the header has {', '.join(header)})",
+                        f"rename the column or map it: --columns {name}=YOUR_NAME")
+        where[name] = header.index(given)
+    try:
+        values = np.loadtxt(lines[1:], delimiter=",", usecols=[where[n] for n in CSV_COLUMNS], ndmin=2)
+    except (ValueError, IndexError):
+        rows = csv.reader(lines[1:])
+        bad = next((i for i, row in enumerate(rows) if not _numeric_row(row, where.values())), 0)
+        raise _fail(path, f"data line {bad + 1} is not {len(header)} numbers", "repair or remove that line") from None
+    values = values.reshape(-1, len(CSV_COLUMNS))
+    return _checked(path, values[:, 0], values[:, 1:4], values[:, 4:7], values[:, 7:11], "csv",
+                    hashlib.sha256(raw).hexdigest(), ("as written: s, m/s^2 and rad/s in FRD, commands in [0, 1]",))
+
+
+def _numeric_row(row, indices) -> bool:
+    try:
+        [float(row[i]) for i in indices]
+    except (ValueError, IndexError):
+        return False
+    return True
+
+
+ULOG_TOPICS = {"sensor_combined": ("accelerometer_m_s2", "gyro_rad"), "actuator_motors": "control"}
+"""The ULog topics read: the IMU's specific force (m/s^2, FRD) and rates (rad/s, FRD), and the
+motor commands ``control[0..3]`` in [0, 1] (PX4's motor order)."""
+
+
+def read_ulog(path) -> FlightLog:
+    """Read a PX4 ULog through the optional ``pyulog`` package (:data:`ULOG_TOPICS`).
+
+    The motor commands are interpolated onto the IMU's time stamps (held, not blended: a command
+    is a step). PX4 already logs FRD and SI units; its motor order is ``motors.numbering: px4``.
+
+    Raises
+    ------
+    LogError
+        ``pyulog`` not installed, or a topic missing.
+    """
+    try:
+        from pyulog import ULog
+    except ImportError:
+        raise LogError(f"{path}: reading a ULog needs the pyulog package; pip install 'quadctl[identify]' "
+                       "or convert the log to the CSV format") from None
+    raw = Path(path).read_bytes()
+    try:
+        ulog = ULog(str(path), list(ULOG_TOPICS))
+    except Exception as exc:  # pyulog raises plain exceptions for a broken file
+        raise _fail(path, f"not a readable ULog ({exc})", "copy the log from the vehicle again") from None
+    topics = {d.name: d.data for d in ulog.data_list if d.multi_id == 0}
+    for topic in ULOG_TOPICS:
+        if topic not in topics:
+            raise _fail(path, f"the ULog has no {topic} topic",
+                        "log it (SDLOG_PROFILE: system identification) or convert the log to the CSV format")
+    imu, motors = topics["sensor_combined"], topics["actuator_motors"]
+    t = imu["timestamp"].astype(float) * 1e-6
+    acc = np.column_stack([imu[f"accelerometer_m_s2[{i}]"] for i in range(3)]).astype(float)
+    gyro = np.column_stack([imu[f"gyro_rad[{i}]"] for i in range(3)]).astype(float)
+    tm = motors["timestamp"].astype(float) * 1e-6
+    idx = np.clip(np.searchsorted(tm, t, side="right") - 1, 0, tm.size - 1)
+    cmd = np.column_stack([np.nan_to_num(motors[f"control[{i}]"].astype(float))[idx] for i in range(4)])
+    keep = t >= tm[0]
+    return _checked(path, t[keep], acc[keep], gyro[keep], np.clip(cmd[keep], 0.0, 1.0), "ulog",
+                    hashlib.sha256(raw).hexdigest(),
+                    ("time: us -> s", "sensor_combined: m/s^2 and rad/s, FRD, as logged",
+                     "actuator_motors.control[0..3] held onto the IMU's samples, clipped to [0, 1]"))
+
+
+def read_log(path, columns: dict[str, str] | None = None) -> FlightLog:
+    """Read a log of any supported format, told apart by its first bytes and then its suffix.
+
+    Raises
+    ------
+    LogError
+        The file is missing, empty or of no supported format.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise LogError(f"{path}: no such file; give the path of a flight log")
+    with open(p, "rb") as fh:
+        head = fh.read(8)
+    if not head:
+        raise _fail(path, "an empty file", "give the log the vehicle wrote")
+    if head[:7] == b"ULog\x01\x12\x35":
+        return read_ulog(path)
+    if head[0] == CRAZYFLIE_MAGIC:
+        return read_crazyflie(path)
+    if p.suffix.lower() in (".csv", ".txt") or b"," in head:
+        return read_csv(path, columns)
+    raise _fail(path, "not a Crazyflie microSD log, a ULog nor a CSV",
+                f"convert it to a CSV with the columns {', '.join(CSV_COLUMNS)}")
+
+
+def parse_columns(items) -> dict[str, str]:
+    """``["t=time", "cmd_1=m1"]`` -> ``{"t": "time", "cmd_1": "m1"}`` (the ``--columns`` option).
+
+    Raises
+    ------
+    LogError
+        An item without ``=``.
+    """
+    out = {}
+    for item in items or ():
+        for part in item.split(","):
+            name, eq, given = part.partition("=")
+            if not eq or not name.strip() or not given.strip():
+                raise LogError(f"--columns {part!r} is not NAME=COLUMN; write e.g. --columns t=time_s,cmd_1=m1")
+            out[name.strip()] = given.strip()
+    return out

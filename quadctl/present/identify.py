@@ -1,0 +1,42 @@
+"""An identification as a table of values with their intervals, and its sentences."""
+
+from __future__ import annotations
+
+from quadctl.present.cells import Table
+
+STAGE_TITLES = {"thrust": "thrust curve and motor lag", "attitude": "roll and pitch inertia",
+                "yaw": "yaw torque coefficient"}
+
+
+def log_sentences(payload: dict) -> list[str]:
+    """Per log: its format, samples and rate, and what the reader converted."""
+    return [f"{log['path'].rsplit('/', 1)[-1]}: {log['format']}, {log['samples']} samples at {log['rate_hz']:.0f} Hz, "
+            f"t {log['t_start']:.4g} to {log['t_end']:.4g} s; {'; '.join(log['conversions'])}."
+            for log in payload["logs"]]
+
+
+def values_table(payload: dict) -> Table:
+    """Every identified value with its 95 % interval, unit, log and window (from ``identified.json``)."""
+    rows = []
+    for s in payload["stages"].values():
+        log = s["log"].rsplit("/", 1)[-1]
+        span = ", ".join(f"{a:.4g}-{b:.4g}" for a, b in s["windows_s"])
+        for name, p in s["parameters"].items():
+            lo, hi = p["interval95"]
+            rows.append((name, f"{p['value']:.4g}", f"{lo:.4g} .. {hi:.4g}", p["unit"], p["meaning"], log, span))
+    return Table(id="identified", title="Identified (95 % intervals from the fit's covariance, residual "
+                 "autocorrelation included)", columns=("parameter", "value", "95 % interval", "unit", "meaning",
+                                                       "log", "window (s)"), rows=tuple(rows), align="lrrlwll")
+
+
+def sentences(payload: dict) -> list[str]:
+    """The fit's quality and what was refused, one sentence each."""
+    out = []
+    th = payload["stages"].get("thrust")
+    if th:
+        out.append(f"Thrust fit: residual {th['residual_rms']:.4g} N RMS with the motor lag, "
+                   f"{th['rms_without_lag']:.4g} N without (the lag explains "
+                   f"{(1 - th['residual_rms'] / th['rms_without_lag']) * 100:.0f} % of the error).")
+    for stage, reason in payload["refused"].items():
+        out.append(f"Not identified, {STAGE_TITLES[stage]}: {reason}.")
+    return out
