@@ -20,7 +20,7 @@ def test_a_bare_pytest_collects_the_docstring_examples_and_the_readme():
     out = _pytest("--collect-only", "-q")
     for item in ("tests/test_doctests.py::test_docstring_examples[quadctl.design.margins]",
                  "tests/test_doctests.py::test_docstring_examples[quadctl.design.decoupled]",
-                 "tests/test_readme.py::test_readme_block"):
+                 "tests/test_doc_pages.py::test_page_block"):
         assert item in out, out[-2000:]
 
 

@@ -146,8 +146,10 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
         buf = io.BytesIO()
         data.write_mat(buf, exp)
         files = {folder / data.MAT_FILE: buf.getvalue()}
+    first = not artifacts.held(folder)  # (a workspace of this process holding it keeps the files it set aside)
     with artifacts.locked(folder):  # one quadctl writes a folder at a time: a temporary here is a dead one's
-        artifacts.remove_stale_temporaries(folder, age=0.0)
+        if first:
+            artifacts.remove_stale_temporaries(folder, age=0.0)
         if to == "json":
             return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
         return artifacts.write_together(files)

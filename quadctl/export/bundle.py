@@ -116,8 +116,12 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
     --------
     >>> from quadctl.sim.run import ClosedLoop
     >>> z = np.zeros(12)
-    >>> print(law_text(ClosedLoop(z, z, np.zeros(4), z, np.zeros((4, 12)), z), None))
-    u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t; the yaw error wrapped into (-pi, pi]; ...
+    >>> for part in law_text(ClosedLoop(z, z, np.zeros(4), z, np.zeros((4, 12)), z), None).split("; "):
+    ...     print(part)
+    u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t
+    the yaw error wrapped into (-pi, pi]
+    continuous feedback
+    no input limits.
     """
     ints, act = loop.integral_states, loop.actuators
     u_ref = "u_ref(t)" if reference else "u_trim"
