@@ -98,7 +98,7 @@ CASES = {
 
 
 def cc() -> str:
-    from quadctl.sim.compile import find_compiler
+    from quadctl.native.compile import find_compiler
 
     compiler = find_compiler()
     if compiler is None:
@@ -411,7 +411,7 @@ def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
     same, does not."""
     from dataclasses import replace
 
-    from quadctl.lqr.gain_table import scheduling_value
+    from quadctl.design.gain_table import scheduling_value
     from quadctl.pipeline import flown_reference
     from quadctl.sim.builder import constant_layout
 

@@ -316,7 +316,7 @@ def _doc(lines) -> str:
 
 def _schedule_doc(loop, reference: bool) -> str:
     """The header's paragraph on the gain schedule: the table, where it lives, how the law reads it."""
-    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:
@@ -337,7 +337,7 @@ def _schedule_doc(loop, reference: bool) -> str:
             "schedule_coefficients[k, i] (v - schedule_breaks[i])^(3 - k) on the piece i with schedule_breaks[i] "
             f"<= v < schedule_breaks[i + 1] (v held to [{table.breaks[0]:g}, {table.breaks[-1]:g}]), {pieces} "
             f"pieces, its breaks and coefficients ({4} x {pieces} x 4 x {columns}, column-major) constants of qc_c "
-            "(quadctl.lqr.gain_table.GainTable, the one `quadctl simulate` flies). qc_law evaluates it at "
+            "(quadctl.design.gain_table.GainTable, the one `quadctl simulate` flies). qc_law evaluates it at "
             "each sample.")
     return "\n".join(" *   " + line for line in textwrap.wrap(c_comment(text), 94))
 

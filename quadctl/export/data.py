@@ -171,7 +171,7 @@ def _estimator_fields(loop) -> list[Field]:
 
 def _schedule_fields(loop) -> list[Field]:
     """The gain table of a scheduled loop (``schedule:``) as one struct; none with fixed gains."""
-    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:
