@@ -25,10 +25,10 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.errors import TrimError
 from quadctl.layout import GRAVITY, MASS, N_INPUTS, N_STATES
+from quadctl.linear.trim import MAX_TILT
 from quadctl.model import N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
 from quadctl.pointwise import Pointwise
 from quadctl.trajectory import FlatPath
-from quadctl.trim import MAX_TILT
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -113,7 +113,7 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, remedy=None) -> tup
     Raises
     ------
     TrimError
-        At some point no roll and pitch within :data:`quadctl.trim.MAX_TILT` of level (and positive
+        At some point no roll and pitch within :data:`quadctl.linear.trim.MAX_TILT` of level (and positive
         thrust) fly the path's acceleration: the message names the time (the steepest point's), the
         acceleration and velocity asked and the attitude they need.
 

@@ -170,9 +170,9 @@ def bryson_weights(preset: Preset, velocity_ned=(0.0, 0.0, 0.0)) -> dict[str, tu
     dict
         Subsystem -> ``(Q diagonal, R diagonal, comment)``.
     """
+    from quadctl.linear.trim import solve_trim
     from quadctl.model import Vehicle
     from quadctl.motors import Motors, actuators_of, headroom
-    from quadctl.trim import solve_trim
 
     values = {k: v for k, (v, _) in preset.vehicle.items()}
     vehicle = Vehicle(mass=values["mass"], inertia=tuple(values["inertia"]), drag=tuple(values["drag"]))

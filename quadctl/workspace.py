@@ -31,17 +31,17 @@ from quadctl.analysis import Checks, check
 from quadctl.artifacts import default_out
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
+from quadctl.design import Design
+from quadctl.design.discrete import RateWarning, unstable_when_sampled
 from quadctl.errors import ArtifactError, DesignError, QuadctlNotice
 from quadctl.layout import N_INPUTS, STATE_NAMES
-from quadctl.linearize import LinearModel
-from quadctl.lqr import Design
-from quadctl.lqr.discrete import RateWarning, unstable_when_sampled
+from quadctl.linear.linearize import LinearModel
+from quadctl.linear.trim import Trim
 from quadctl.messages import eig_text
 from quadctl.metrics import summarize
 from quadctl.payloads import ESTIMATOR_CHECK
 from quadctl.problem import setup_of
 from quadctl.sim.run import ClosedLoop, SimResult
-from quadctl.trim import Trim
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
@@ -415,7 +415,7 @@ class Workspace(pipeline.Stages):
     @cached_property
     def margins(self) -> list:
         """Margins of every regulated loop (design model and coupled); writes margins.json."""
-        from quadctl import margins
+        from quadctl.design import margins
 
         des, timing, linear = self.design, self.setup.timing, self.linear
         emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)

@@ -14,13 +14,13 @@ import pytest
 
 from quadctl import config, pipeline, trajectory
 from quadctl.errors import ConfigError
+from quadctl.linear.trim import solve_trim
 from quadctl.model import Vehicle, build_model
 from quadctl.present import mission
 from quadctl.present.mission import mission_text
 from quadctl.problem import setup_of
 from quadctl.sim.reference import FlownReference
 from quadctl.sim.run import simulate
-from quadctl.trim import solve_trim
 
 HOVER_HOLD = Path(__file__).resolve().parent.parent / "docs" / "configs" / "hover-hold.yaml"
 """Hover holding position: the square mission's design, without the mission."""

@@ -153,10 +153,11 @@ def _full_disk_at(monkeypatch, name):
 
 @pytest.fixture(scope="module")
 def earlier_report(tmp_path_factory):
-    """A folder with the report of another config (the square mission: a path figure hover has not)."""
+    """A folder with the report of another config (the square mission: a path figure hover has not), its
+    run cut to 1 s: the report is written, and fails the mission it cannot finish (exit 1)."""
     folder = tmp_path_factory.mktemp("earlier") / "run"
     res = invoke("report", "-c", "square", "-o", folder, "--set", "simulation.duration=1")
-    assert res.exit_code == 0, res.output
+    assert res.exit_code == 1 and "the run ends at 1 s, before the mission does" in res.output, res.output
     assert (folder / "report" / "sim-path.png").exists()
     return folder
 

@@ -372,7 +372,15 @@ InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]
 
 
 class Config(_Section):
-    """A whole quadctl config (see the README's config reference)."""
+    """A whole quadctl config (see the README's config reference).
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> cfg = qc.load_config("hover")
+    >>> cfg.controller.rate is None, cfg.simulation.duration
+    (True, 10.0)
+    """
 
     name: Annotated[str, Field(min_length=1, max_length=MAX_NAME_LENGTH, pattern=NAME_PATTERN)] = Field(
         description="names the run directory runs/<name>")

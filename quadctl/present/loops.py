@@ -15,7 +15,8 @@ import re
 from quadctl.present.cells import Mark, Table, db, gain_range_db, num
 
 GUARANTEE = "gain margin [1/2, inf), i.e. -6.02 dB to +inf, phase margin >= 60 deg"
-"""The continuous LQR guarantee, in words (:data:`quadctl.margins.LQR_GAIN_MARGIN_DB`, ``LQR_PHASE_MARGIN_DEG``)."""
+"""The continuous LQR guarantee, in words (:data:`quadctl.design.margins.LQR_GAIN_MARGIN_DB`,
+``LQR_PHASE_MARGIN_DEG``)."""
 
 
 def domain(rate) -> str:
