@@ -577,10 +577,10 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
 
 
 def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int, stride: int, wall: float,
-            lo, hi, noise, wind, exo, ks, dt: float, reference=None) -> SimResult:
+            lo, hi, noise, wind, exo, ks, dt: float, reference=None, spec: LoopSpec | None = None) -> SimResult:
     """The :class:`SimResult` of a run's recorded rows (``t`` s; the wind felt and the reference flown at
-    steps ``ks`` of ``dt``)."""
-    spec = loop.spec()
+    steps ``ks`` of ``dt``); ``spec``: the loop's (its state layout), when the caller has it."""
+    spec = loop.spec() if spec is None else spec
     nz, n_plant, n_lag, ne = spec.nz, spec.n_plant, spec.n_lag, spec.n_estimate
     u_ref = np.zeros((0, len(loop.u_trim)))
     if reference is None:
@@ -649,7 +649,7 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
         total, t, xs, us = _exponential_in_chunks(prep, run, x, exo, progress)
     wall = time.perf_counter() - start
     return _result(loop, plan, run.backend, t, xs, us, total, prep.strides[-1], wall, prep.lo, prep.hi,
-                   noise if noisy else None, wind if windy else None, exo, t, 1.0, reference)
+                   noise if noisy else None, wind if windy else None, exo, t, 1.0, reference, prep.spec)
 
 
 def _exponential_in_chunks(prep: ExponentialSetup, run, x, exo, progress):
