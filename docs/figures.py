@@ -3,7 +3,8 @@
 
 Run from the repository root:  python docs/figures.py   (writes docs/figures/*.png, prints the numbers);
 python docs/figures.py lqg   writes only the LQG figure; python docs/figures.py lag   only the lag and delay one;
-python docs/figures.py schedule   only the gain schedule's envelope; python docs/figures.py transition   only the
+python docs/figures.py schedule   only the gain schedule's envelope; python docs/figures.py identify   only
+the Crazyflie's identification fit; python docs/figures.py transition   only the
 gain schedule's transition.
 
 Every number and curve comes from the library (the same calls the CLI makes); nothing is stored.
@@ -284,7 +285,22 @@ def transition_figure() -> Figure:
     return plots.transition_figure(result, title="crazyflie-speed-schedule")
 
 
+def identify_figure() -> bytes:
+    """The Crazyflie's thrust and roll/pitch fits from its flight logs (log10 t 35-65 s, log15 t 55-90 s)."""
+    from quadctl.identify import readers, results
+    from quadctl.plots.identify import fit_figure
+
+    flights = Path(__file__).resolve().parent.parent / "tests" / "data" / "crazyflie-flights"
+    logs = [readers.read_log(flights / name, readers.parse_columns(None)) for name in ("log10", "log15")]
+    ident = results.identify(logs, config.load("crazyflie"), results.windows_per_log(["35:65", "55:90"], 2))
+    return fit_figure(ident)
+
+
 def main() -> int:
+    if sys.argv[1:] == ["identify"]:
+        (OUT / "crazyflie-identified.png").write_bytes(identify_figure())
+        print("wrote docs/figures/crazyflie-identified.png")
+        return 0
     if sys.argv[1:] == ["schedule"]:
         save(schedule_figure(), "schedule-envelope.png")
         return 0
