@@ -144,7 +144,7 @@ def make_lqg_figure() -> None:
     lqg_data = config.load(str(Path(__file__).resolve().parent / "configs" / "mambo-lqg.yaml")).model_dump(
         mode="json")
     lqg = solve(lqg_data)
-    for label, (setup, _, _, _, loop, sim) in (("full state", full), ("LQG", lqg)):
+    for label, (_setup, _, _, _, _loop, sim) in (("full state", full), ("LQG", lqg)):
         half = sim.t[-1] / 2
         rms = rms_deviation(sim.t, sim.x, sim.x_ref, half)
         print(f"{label}: {sim.status}; RMS second half: pD {rms['pD'] * 100:.3g} cm, phi "
