@@ -22,6 +22,9 @@ rotor  ``x`` layout (d = L / sqrt 2)  ``+`` layout            spin
 4      front left   ( d, -d)         left   ( 0, -L)       CW
 ====  ===========================  ====================  ====
 
+The two layouts are shorthands for ``motors.positions``: any other geometry (a stretched X, rotors at
+``(+-a, +-b)``) is given as each rotor's ``(x, y)`` with its spin, and ``M`` is built from it the same way.
+
 The flight stacks' quad-X orders (:data:`NUMBERINGS`) are named presets; the spins default to the
 front-right rotor counter-clockwise (all three stacks' default), ``motors.spin`` gives others ("props out").
 
@@ -113,12 +116,20 @@ class Motors:
     """Position of rotors 1-4 (``POSITIONS[layout]`` names); None: quadctl's clockwise order."""
     spins: tuple[float, ...] | None = None
     """Yaw reaction sign of rotors 1-4 (+1: counter-clockwise seen from above); None: :func:`default_spins`."""
+    xy: tuple[tuple[float, float], ...] | None = None
+    """Rotor positions ``(x, y)`` (m, body frame), rotor 1 first (``motors.positions``); None: from
+    ``layout`` and ``arm_length``."""
 
     @classmethod
     def from_config(cls, cfg) -> Motors:
         """From a :class:`quadctl.config.MotorsConfig` (its ``numbering`` and ``spin`` resolved)."""
         data = cfg.model_dump()
         numbering, spin = data.pop("numbering", "quadctl"), data.pop("spin", None)
+        xy = data.pop("positions", None)
+        data.pop("saturation", None)
+        if xy is not None:  # the geometry as built: the positions in the vehicle's order, spins given
+            return cls(**data, spins=tuple(SPIN_SIGN[s] for s in spin),
+                       xy=tuple((float(x), float(y)) for x, y in xy))
         order = tuple(numbering) if isinstance(numbering, list) else (
             POSITIONS[cfg.layout] if numbering == "quadctl" else NUMBERINGS[numbering])
         spins = tuple(SPIN_SIGN[s] for s in spin) if spin is not None else None
@@ -127,7 +138,9 @@ class Motors:
         return cls(**data, order=order, spins=spins)
 
     def rotor_positions(self) -> tuple[str, ...]:
-        """Names of the positions of rotors 1-4 (``front_right``, ...)."""
+        """Names of the positions of rotors 1-4 (``front_right``, ...); ``(x, y)`` when given as positions."""
+        if self.xy is not None:
+            return tuple(f"({x:g}, {y:g})" for x, y in self.xy)
         return self.order if self.order is not None else POSITIONS[self.layout]
 
     def rotor_spins(self) -> tuple[float, ...]:
@@ -137,7 +150,13 @@ class Motors:
         return SPINS if self.order is None else default_spins(self.order)
 
     def positions(self) -> np.ndarray:
-        """(4, 2) rotor positions ``(x, y)`` in the body frame, m, rotor 1 first (the vehicle's numbering)."""
+        """(4, 2) rotor positions ``(x, y)`` in the body frame, m, rotor 1 first (the vehicle's numbering).
+
+        The ``x`` and ``+`` layouts are shorthands: ``x`` puts each rotor at ``(+-L / sqrt 2, +-L / sqrt 2)``,
+        ``+`` on the axes; ``motors.positions`` gives any other geometry (a stretched X).
+        """
+        if self.xy is not None:
+            return np.array(self.xy, dtype=float)
         if self.layout == "x":
             d = self.arm_length / math.sqrt(2.0)
             at = {"front_right": [d, d], "rear_right": [-d, d], "rear_left": [-d, -d], "front_left": [d, -d]}
@@ -154,8 +173,15 @@ class Motors:
         return np.array([np.ones(4), -pos[:, 1], pos[:, 0], np.array(self.rotor_spins()) * self.torque_coefficient])
 
     def mixer(self) -> np.ndarray:
-        """``M^-1`` (4, 4): rotor thrusts from ``[T, A, E, R]``."""
+        """``M^-1`` (4, 4): rotor thrusts from ``[T, A, E, R]``; the one mixer every consumer takes
+        (through :func:`actuators_of`: the simulated loop, the lanes, the C export, margins, reports)."""
         return np.linalg.inv(self.effectiveness())
+
+    def describe(self) -> str:
+        """The geometry in a few words: the preset and its arm, or the rotor positions."""
+        if self.xy is None:
+            return f"{self.layout} layout, arm {self.arm_length:g} m"
+        return "rotors at " + ", ".join(f"({x:g}, {y:g})" for x, y in self.xy) + " m"
 
     def speed(self, thrust) -> np.ndarray:
         """Rotor speed (rad/s) for rotor thrust (N): ``sqrt(f / k)``."""

@@ -316,6 +316,9 @@ class ControllerConfig(_Section):
         return round(self.delay * self.rate) if self.rate is not None else 0
 
 
+RotorPosition = Annotated[list[Number], Field(min_length=2, max_length=2)]
+
+
 class MotorsConfig(_Section):
     """Four rotors; defaults: the Parrot Mambo (docs/model.md, "Motors")."""
 
@@ -335,6 +338,9 @@ class MotorsConfig(_Section):
     spin: Optional[Annotated[list[Literal["cw", "ccw"]], Field(min_length=4, max_length=4)]] = Field(
         None, description="each rotor's turning direction seen from above, rotor 1 first (cw or ccw); absent: front "
         "right (front, in +) and its diagonal ccw, the others cw, as every preset's default")
+    positions: Optional[Annotated[list[RotorPosition], Field(min_length=4, max_length=4)]] = Field(
+        None, description="m, each rotor's [x, y] in the body frame (x forward, y right, from the centre of mass), "
+        "rotor 1 first; needs spin; absent: from layout and arm_length (x: [+-L/sqrt 2, +-L/sqrt 2]; +: on the axes)")
 
 
 class EstimatorConfig(_Section):
@@ -423,6 +429,7 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("allow",), []),
     (("motors", "numbering"), "quadctl"),
     (("motors", "spin"), None),
+    (("motors", "positions"), None),
     (("simulation", "reference"), None),
     (("simulation", "method"), "rk4"),
     (("simulation", "tolerance"), None),

@@ -171,7 +171,7 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
         parts.append("no input limits")
     elif act.mode == "motors":
         m = act.motors
-        parts.append(f"sat: the command mixed to the four rotor thrusts ({m.layout} layout, arm {m.arm_length:g} m, "
+        parts.append(f"sat: the command mixed to the four rotor thrusts ({m.describe()}, "
                      f"{m.torque_coefficient:g} N m of yaw torque per N), each clipped to "
                      f"[{m.min_thrust:g}, {m.max_thrust:g}] N, mixed back")
     else:
