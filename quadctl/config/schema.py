@@ -338,6 +338,10 @@ class MotorsConfig(_Section):
     spin: Optional[Annotated[list[Literal["cw", "ccw"]], Field(min_length=4, max_length=4)]] = Field(
         None, description="each rotor's turning direction seen from above, rotor 1 first (cw or ccw); absent: front "
         "right (front, in +) and its diagonal ccw, the others cw, as every preset's default")
+    saturation: Literal["prioritize", "clip"] = Field(
+        "prioritize", description="a command the rotors cannot produce: prioritize keeps the roll and pitch torques, "
+        "then the collective thrust, and gives up yaw first (as PX4 and Betaflight do); clip clips each rotor and "
+        "mixes back (every input moves)")
     positions: Optional[Annotated[list[RotorPosition], Field(min_length=4, max_length=4)]] = Field(
         None, description="m, each rotor's [x, y] in the body frame (x forward, y right, from the centre of mass), "
         "rotor 1 first; needs spin; absent: from layout and arm_length (x: [+-L/sqrt 2, +-L/sqrt 2]; +: on the axes)")
@@ -430,6 +434,7 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("motors", "numbering"), "quadctl"),
     (("motors", "spin"), None),
     (("motors", "positions"), None),
+    (("motors", "saturation"), "prioritize"),
     (("simulation", "reference"), None),
     (("simulation", "method"), "rk4"),
     (("simulation", "tolerance"), None),
