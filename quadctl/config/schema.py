@@ -396,10 +396,11 @@ class Config(_Section):
         "absent: the controller measures the full state")
     schedule: Optional[ScheduleConfig] = Field(
         None, description="a gain schedule across the envelope (quadctl schedule); absent: one design")
-    allow: list[Literal["implausible", "saturation"]] = Field(
+    allow: list[Literal["implausible", "saturation", "thin-margins"]] = Field(
         default_factory=list, description="failed checks this vehicle accepts (each otherwise exits 1): implausible "
         "(values that look like a unit slip: the warnings on load), saturation (a simulated design at an "
-        "actuator limit more than half the run)")
+        "actuator limit more than half the run), thin-margins (a loop below 6 dB of gain margin or 30 deg of "
+        "phase margin, MIL-F-9490D)")
 
     def partition(self) -> dict[str, SubsystemConfig]:
         """The subsystems in force: the config's, or the report's five."""
