@@ -422,7 +422,8 @@ class LoopSpec:
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
         bits = "".join("1" if b else "0" for b in self.pattern)
-        return (f"{bits} sat={self.saturation}{'+priority' if self.priority else ''} int={','.join(map(str, self.integral))} "
+        sat = self.saturation + ("+priority" if self.priority else "")
+        return (f"{bits} sat={sat} int={','.join(map(str, self.integral))} "
                 f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
                 + (f" delay={self.delay}" if self.delay else "") + (" lag_model=1" if self.lag_model else "")
                 + (" wind=1" if self.wind else "")

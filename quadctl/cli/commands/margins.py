@@ -23,7 +23,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     discrete design's loops are the sampled ones the flight computer closes: sampling does not keep
     that guarantee, so their own margins are shown without it. Exits 1 when a loop is unstable, or
     has less than 6 dB of gain margin or 30 deg of phase margin (MIL-F-9490D) unless the config
-    says allow: [thin-margins].
+    lists thin-margins under allow.
     """
     from quadctl.cli import render
 
