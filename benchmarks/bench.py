@@ -27,7 +27,7 @@
    its own reference, a tracking-error gate), at the same lane speed.
 3. The LQR designs of that sweep (4000 small subsystems): quadctl's batched solver against a
    Python loop over scipy.linalg.solve_continuous_are.
-4. quadctl.lqr.lqr on one larger random system (n = 10, 50, 100, 200) against
+4. quadctl.design.lqr on one larger random system (n = 10, 50, 100, 200) against
    scipy.linalg.solve_continuous_are on the same problem.
 5. Discrete designs of 1000 3-state subsystems (the report's roll and pitch loops at 200 Hz, random
    weights): the batched lqrd (lqrd_weights_batch, dare_batch) against a Python loop over
@@ -586,7 +586,7 @@ def the_sweep() -> tuple[str, list]:
         rows.append([f"quadctl sweep {label}, CLI end to end, -j 2", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
                      f"{1000 / wall:,.0f}", "(same cases)"])
     # the obvious alternative: each case through the pipeline, one at a time (trim, linearization,
-    # quadctl.lqr per subsystem, the compiled scalar loop, metrics.summarize), on the first 100 cases
+    # quadctl.design per subsystem, the compiled scalar loop, metrics.summarize), on the first 100 cases
     subset = dataclasses.replace(spec, samples=100)
     wall, slow = timed(lambda: sweep.run(cfg, subset, jobs=1, fast=False))
     rows.append(["one case at a time (pipeline), --jobs 1, 100 cases", f"{wall:.2f}",
@@ -606,7 +606,7 @@ def the_designs(cfg, spec) -> str:
     import scipy.linalg
 
     from quadctl import pipeline, sweep
-    from quadctl.lqr.riccati import care_batch
+    from quadctl.design.riccati import care_batch
     from quadctl.problem import setup_of
 
     # the 4000 subsystem problems of the sweep: the report's plant, each case's weights
@@ -657,7 +657,7 @@ LQR_SEED = 2024
 def lqr_sizes() -> str:
     import scipy.linalg
 
-    from quadctl.lqr import lqr, riccati_residual
+    from quadctl.design import lqr, riccati_residual
 
     rng = np.random.default_rng(LQR_SEED)
     rows = []
@@ -672,7 +672,7 @@ def lqr_sizes() -> str:
         theirs, P = timed(lambda p=problem: scipy.linalg.solve_continuous_are(*p), repeat=repeat)
         rows.append([f"{n} x {m}", f"{1e3 * ours:.2f}", f"{1e3 * theirs:.2f}", f"{theirs / ours:.2f}",
                      f"{res.residual:.0e}", f"{riccati_residual(A, B, Q, R, P):.0e}"])
-    return table(f"quadctl.lqr.lqr against scipy.linalg.solve_continuous_are (random problems, seed {LQR_SEED}; "
+    return table(f"quadctl.design.lqr against scipy.linalg.solve_continuous_are (random problems, seed {LQR_SEED}; "
                  "best wall time of 5-20)",
                  ["n x m", "lqr (ms)", "SciPy (ms)", "SciPy / lqr", "lqr residual", "SciPy residual"], rows) + (
         "\n\nlqr's time includes what SciPy's does not do: the weight checks, the gain, the closed-loop "
@@ -685,8 +685,8 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
     import scipy.linalg
 
     from quadctl import config, pipeline
-    from quadctl.lqr import discrete
-    from quadctl.lqr.riccati import dare_batch
+    from quadctl.design import discrete
+    from quadctl.design.riccati import dare_batch
     from quadctl.problem import setup_of
 
     setup = setup_of(config.load("forward"))
@@ -728,7 +728,7 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
             ["  of which dare_batch (doubling, Newton-Hewer, checks)", f"{1e6 * dare_time / count:.1f}", ""],
             ["loop over scipy solve_discrete_are (+ gain), same weights", f"{1e6 * loop_time / count:.1f}",
              f"{loop_time / design_time:.0f}"],
-            ["loop over quadctl.lqr.discrete.lqrd (one case, first 100)", f"{1e6 * one_time / 100:.1f}",
+            ["loop over quadctl.design.discrete.lqrd (one case, first 100)", f"{1e6 * one_time / 100:.1f}",
              f"{one_time / 100 * count / design_time:.0f}"]]
     return table(f"Discrete LQR designs: {count} 3-state subsystems (roll and pitch of the forward config, random "
                  f"weights) at {rate:g} Hz; CPU time, best of 5 (loops: one run)",
@@ -792,10 +792,10 @@ SCHEDULE_TOP = 10.0  # m/s
 def the_schedule(cli_python: str) -> str:
     """A 50-point schedule: the library, the command line end to end, and point by point."""
     from quadctl import config, pipeline
-    from quadctl.lqr import linear_loop
+    from quadctl.design import linear_loop
+    from quadctl.errors import TrimError
     from quadctl.problem import setup_of
     from quadctl.scheduling import fine_values, point_setup, schedule_of
-    from quadctl.trim import TrimError
 
     values = np.linspace(0.0, SCHEDULE_TOP, SCHEDULE_POINTS).round(6).tolist()
     rows = []

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from quadctl import config, margins, motors, pipeline, plots
+from quadctl import config, motors, pipeline, plots
+from quadctl.design import margins
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
 from quadctl.problem import setup_of
 

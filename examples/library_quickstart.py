@@ -3,15 +3,14 @@
 Run: python examples/library_quickstart.py
 """
 
-from quadctl import config, pipeline
+import quadctl as qc
+from quadctl import pipeline
 from quadctl.layout import STATE_NAMES
-from quadctl.problem import setup_of
 
-setup = setup_of(config.load("forward"))            # the bundled report case (1 m/s north)
-trim = pipeline.trim_of(setup)                      # theta = -0.2119 rad, T = 0.6522 N
-linear = pipeline.linear_of(setup, trim)            # exact CasADi Jacobians
-decoupled = pipeline.decoupled_of(setup, linear)    # the report's five subsystems
-design = pipeline.design_of(setup, decoupled, linear)
+stages = qc.Stages(qc.setup_of(qc.load_config("forward")))  # the bundled report case (1 m/s north)
+trim = stages.trim                                          # theta = -0.2119 rad, T = 0.6522 N
+decoupled = stages.decoupled                                # the report's five subsystems
+design = stages.design                                      # exact CasADi Jacobians, one LQR per subsystem
 
 print(f"trim: theta = {trim.x[STATE_NAMES.index('theta')]:.4f} rad, T = {trim.u[0]:.4f} N")
 for sub in design.subsystems:
@@ -19,7 +18,6 @@ for sub in design.subsystems:
 print("largest dropped coupling:", decoupled.dropped[0].name, f"{decoupled.dropped[0].value:.3f}")
 print("stable on the coupled model:", design.stable)
 
-loop = pipeline.loop_of(setup, linear, design)
-sim = pipeline.simulation_of(setup, loop)
+sim = pipeline.simulation_of(stages.setup, stages.loop)    # the configured run (noise, wind, reference)
 print(f"simulated {sim.steps} RK4 steps (dt = {sim.dt:.3g} s): {sim.status}, "
       f"{sim.steps_per_second / 1e6:.1f} M steps/s")

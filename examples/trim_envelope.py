@@ -9,8 +9,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from quadctl.errors import TrimError
+from quadctl.linear.trim import solve_trim
 from quadctl.model import Vehicle
-from quadctl.trim import solve_trim
 
 vehicle = Vehicle()
 speeds = np.linspace(0.0, 12.0, 49)

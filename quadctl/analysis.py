@@ -17,8 +17,8 @@ from quadctl import stability
 
 RICCATI_RTOL = 1e-8
 """Largest accepted relative residual of a Riccati solution, continuous or discrete: the residual's
-1-norm over the sum of its terms' 1-norms (:func:`quadctl.lqr.riccati.riccati_residuals`,
-:func:`quadctl.lqr.riccati.dare_residuals`), for every solution quadctl uses (:mod:`quadctl.lqr.riccati`)."""
+1-norm over the sum of its terms' 1-norms (:func:`quadctl.design.riccati.riccati_residuals`,
+:func:`quadctl.design.riccati.dare_residuals`), for every solution quadctl uses (:mod:`quadctl.design.riccati`)."""
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,19 @@ from __future__ import annotations
 
 
 class QuadctlError(Exception):
-    """Base class of every error quadctl raises on purpose."""
+    """Base class of every error quadctl raises on purpose.
+
+    Examples
+    --------
+    Catch it to handle any input quadctl refuses; ``exit_code`` is what the command line returns.
+
+    >>> import quadctl as qc
+    >>> try:
+    ...     qc.load_config("no-such-config")
+    ... except qc.QuadctlError as exc:
+    ...     print(type(exc).__name__, exc.exit_code)
+    ConfigError 2
+    """
 
     exit_code = 2
     from_config = False
@@ -18,7 +30,16 @@ class QuadctlError(Exception):
 
 
 class ConfigError(QuadctlError, ValueError):
-    """A config file or value is invalid (names the file, key path, value and fix)."""
+    """A config file or value is invalid (names the file, key path, value and fix).
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> qc.load_config("hoover")
+    Traceback (most recent call last):
+    ...
+    quadctl.errors.ConfigError: hoover: no such file and no bundled config of that name; did you mean `hover`? ...
+    """
 
     key: str | None = None
     """The key path the message is about, when one key is (``simulation.initial_offset.foo``)."""
@@ -54,7 +75,18 @@ class ScheduleError(ConfigError):
 
 
 class TrimError(QuadctlError, ValueError):
-    """No equilibrium exists for the flight condition, or the solver did not find it."""
+    """No equilibrium exists for the flight condition, or the solver did not find it.
+
+    Examples
+    --------
+    A climb so fast that the rotor drag along body z outgrows the thrust has no equilibrium:
+
+    >>> import quadctl as qc
+    >>> qc.trim([0, 0, -10], 0.0, [0, 0, 0], qc.Vehicle(drag=(0.2, 0.2, 0.2)))
+    Traceback (most recent call last):
+    ...
+    quadctl.errors.TrimError: no equilibrium at velocity_ned [0, 0, -10] m/s: it needs thrust ... <= 0 ...
+    """
 
     from_config = True
 
@@ -72,7 +104,16 @@ class CheckFailed(QuadctlError):
 
 
 class DesignError(CheckFailed, ValueError):
-    """A subsystem is not stabilizable, or a Riccati solve failed."""
+    """A subsystem is not stabilizable, or a Riccati solve failed.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> qc.lqr([[1.0]], [[0.0]], [[1.0]], [[1.0]])  # an unstable mode no input reaches
+    Traceback (most recent call last):
+    ...
+    quadctl.errors.DesignError: ...
+    """
 
     from_config = True
 

@@ -26,7 +26,7 @@ thread 1173 shows how easily they are confused):
   stage. The intensities of held noise of std ``sigma`` and period ``tau`` are ``sigma^2 tau``
   (their spectrum at low frequency).
 
-Both Riccati equations are solved as the dual LQR problem by :func:`quadctl.lqr.riccati.solve`
+Both Riccati equations are solved as the dual LQR problem by :func:`quadctl.design.riccati.solve`
 (validated, residual-checked). The measured set must leave every mode that is not stable
 observable (PBH, :func:`quadctl.analysis.check`, rank tolerance ``max(shape) eps sigma_max``);
 else :func:`kalman` refuses with the modes and the states they live in.
@@ -190,8 +190,8 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
     DesignError
         A mode that is not stable is unobservable from ``measured``, or the Riccati equation is refused.
     """
-    from quadctl.lqr import discrete as dsc
-    from quadctl.lqr.riccati import solve
+    from quadctl.design import discrete as dsc
+    from quadctl.design.riccati import solve
 
     A, B, G = (np.asarray(M, dtype=float) for M in (A, B, G))
     measured = tuple(measured)

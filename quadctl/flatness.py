@@ -25,10 +25,10 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.errors import TrimError
 from quadctl.layout import GRAVITY, MASS, N_INPUTS, N_STATES
+from quadctl.linear.trim import MAX_TILT
 from quadctl.model import N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
 from quadctl.pointwise import Pointwise
 from quadctl.trajectory import FlatPath
-from quadctl.trim import MAX_TILT
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -78,9 +78,7 @@ def _functions():
     return balance, feed
 
 
-def feedforward(path: FlatPath, params, pointwise=Pointwise, *,
-                fix: str = "lower simulation.reference.speed or space the waypoints further apart",
-                ) -> tuple[np.ndarray, np.ndarray]:
+def feedforward(path: FlatPath, params, pointwise=Pointwise, remedy=None) -> tuple[np.ndarray, np.ndarray]:
     """The reference state and input along ``path``, on the physical branch of the flatness map.
 
     The force balance ``G(z, s) = 0`` has more than one root (at 10.5 m/s north on the report's
@@ -103,8 +101,9 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, *,
         ``pointwise(fn)`` evaluates a CasADi function over the points (a row a point):
         :class:`quadctl.pointwise.Pointwise` (CasADi's ``map``), or the compiled
         :func:`quadctl.sim.mapped.mapped` (the same numbers).
-    fix : str
-        What the refusal tells the user to change (the reference's key: a mission's speed, a setpoint).
+    remedy : callable, optional
+        ``remedy(t)``: the fix a refusal at ``t`` s names (:meth:`quadctl.trajectory.Reference.remedy`: a
+        setpoint's velocity, a mission's speed); default a mission's.
 
     Returns
     -------
@@ -114,7 +113,7 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, *,
     Raises
     ------
     TrimError
-        At some point no roll and pitch within :data:`quadctl.trim.MAX_TILT` of level (and positive
+        At some point no roll and pitch within :data:`quadctl.linear.trim.MAX_TILT` of level (and positive
         thrust) fly the path's acceleration: the message names the time (the steepest point's), the
         acceleration and velocity asked and the attitude they need.
 
@@ -143,13 +142,13 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, *,
         rows = order[start:start + BLOCK]
         got, lost = _continued(balance, z_prev, s_prev, s[rows], params)
         if lost is not None:
-            _refuse(path, rows[lost], None, fix)
+            _refuse(path, rows[lost], None, remedy)
         z[rows] = got
         z_prev, s_prev = got[-1], s[rows[-1]].copy()
     steepness = np.maximum(np.abs(z[:, 0]), np.abs(z[:, 1]))
     if n and steepness.max() > MAX_TILT:
         worst = int(np.argmax(steepness))
-        _refuse(path, worst, z[worst], fix)
+        _refuse(path, worst, z[worst], remedy)
     x, u = feed(z, s, sd, sdd, P[0], params)
     return x.reshape(n, N_STATES), u.reshape(n, N_INPUTS)
 
@@ -225,10 +224,12 @@ def _continued(balance, z0, s0, s, params) -> tuple[np.ndarray, int | None]:
         step[lose] /= 2
 
 
-def _refuse(path: FlatPath, k: int, z, fix: str):
+def _refuse(path: FlatPath, k: int, z, remedy):
     """Raise the refusal of point ``k``: its time, acceleration and velocity, and the roll and pitch
-    they need (``z``; None: beyond 90 deg, or no positive thrust)."""
+    they need (``z``; None: beyond 90 deg, or no positive thrust), and ``remedy(t)``'s fix."""
     P = path.position
+    fix = (remedy(float(path.t[k])) if remedy is not None
+           else "lower simulation.reference.speed or space the waypoints further apart")
     asked = (f"at t = {path.t[k]:.4g} s the reference asks an acceleration of {_fmt(P[2][k])} m/s^2 at velocity "
              f"{_fmt(P[1][k])} m/s")
     limit = f"{np.rad2deg(MAX_TILT):.0f} deg"

@@ -15,8 +15,8 @@ system (``states=``, ``inputs=``, ``outputs=``) and decides continuous or discre
 - :func:`from_statespace`: any python-control ``StateSpace`` as a :class:`Plant` quadctl designs
   for (``A, B``, names, and ``dt`` deciding ``lqr`` or ``dlqr``).
 
-Every matrix comes from quadctl's own stages (:mod:`quadctl.lqr.discrete` for the hold,
-:mod:`quadctl.lqr.linear_loop` for the loop); python-control only carries them.
+Every matrix comes from quadctl's own stages (:mod:`quadctl.design.discrete` for the hold,
+:mod:`quadctl.design.linear_loop` for the loop); python-control only carries them.
 
 Examples
 --------
@@ -55,10 +55,10 @@ def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
 
     Parameters
     ----------
-    linear : quadctl.linearize.LinearModel
+    linear : quadctl.linear.linearize.LinearModel
         ``A`` (12, 12) and ``B`` (12, 4) about the trim.
     sample_time : float, optional
-        s. Given: the zero-order-hold plant (:func:`quadctl.lqr.discrete.c2d`) with ``dt = sample_time``.
+        s. Given: the zero-order-hold plant (:func:`quadctl.design.discrete.c2d`) with ``dt = sample_time``.
     name : str
 
     Returns
@@ -66,7 +66,7 @@ def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
     control.StateSpace
         States and outputs named ``pN ... r``, inputs ``T A E R`` (deviations from the trim).
     """
-    from quadctl.lqr.riccati import real_array
+    from quadctl.design.riccati import real_array
 
     _control()
     A, B = _held(linear.A, linear.B, sample_time, "plant")
@@ -82,7 +82,7 @@ def subsystem(sub, *, sample_time: float | None = None):
     zero-order-hold discretization.
     """
     _control()
-    from quadctl.lqr.riccati import real_array
+    from quadctl.design.riccati import real_array
 
     A, B = _held(sub.A, sub.B, sample_time, "subsystem")
     C = real_array(sub.C, "sub.C", name="subsystem", error=ValueError, ndim=2, shape=(None, A.shape[0]))
@@ -101,7 +101,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
 
     Parameters
     ----------
-    design : quadctl.lqr.Design or quadctl.sim.run.ClosedLoop
+    design : quadctl.design.Design or quadctl.sim.run.ClosedLoop
         Anything with ``K`` or ``K_block`` (4, 12), ``Ki``/``Ki_block`` (4, nz), ``integral_states``.
     sample_time : float, None or "design"
         s; ``"design"``: the design's own (a discrete design's, else continuous).
@@ -121,7 +121,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
         The design includes the rotors' lag, or an LQG loop has a delay (the filter's command
         buffer) or is asked for another sample time than its filter's.
     """
-    from quadctl.lqr import integral
+    from quadctl.design import integral
 
     _control()
     K, Ki, ints = _gains(design)
@@ -144,7 +144,7 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
     ``xh+ = Ae xc + Be u``, ``z+ = z - Ts S xc``. Kalman-Bucy (``L``): ``u = -K xh - Ki z``,
     ``xh' = Ae xh + Be u + L (y - C xh)``, ``z' = -S xh``. ``S`` selects the integrated states.
     """
-    from quadctl.lqr import integral, linear_loop
+    from quadctl.design import integral, linear_loop
 
     kal = loop.estimator
     Ts = kal.sample_time
@@ -174,15 +174,15 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
 
 
 def closed_loop(linear, design, *, sample_time: float | str | None = "design", name: str = "closed loop"):
-    """The linear closed loop of ``[x; z]`` (:func:`quadctl.linear_loop.matrix`) as a StateSpace.
+    """The linear closed loop of ``[x; z]`` (:func:`quadctl.design.linear_loop.matrix`) as a StateSpace.
 
     Its inputs are disturbances ``T A E R`` added to the controller's input (``B``, or the hold's
     ``Bd`` when sampled), its outputs the loop states.
 
     Parameters
     ----------
-    linear : quadctl.linearize.LinearModel
-    design : quadctl.lqr.Design or quadctl.sim.run.ClosedLoop
+    linear : quadctl.linear.linearize.LinearModel
+    design : quadctl.design.Design or quadctl.sim.run.ClosedLoop
     sample_time : float, None or "design"
         s; ``"design"``: the design's own.
     name : str
@@ -192,8 +192,8 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
     control.StateSpace
         Its poles are the closed-loop eigenvalues (``z`` when sampled).
     """
-    from quadctl.lqr import discrete, linear_loop
-    from quadctl.lqr.riccati import real_array
+    from quadctl.design import discrete, linear_loop
+    from quadctl.design.riccati import real_array
 
     _control()
     K, Ki, ints = _gains(design)
@@ -217,7 +217,7 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
 class Plant:
     """A linear plant from python-control, checked, for quadctl to design for.
 
-    Unpacks like :class:`quadctl.linearize.LinearModel`: ``A, B = plant``.
+    Unpacks like :class:`quadctl.linear.linearize.LinearModel`: ``A, B = plant``.
 
     Attributes
     ----------
@@ -239,14 +239,13 @@ class Plant:
         return iter((self.A, self.B))
 
     def lqr(self, Q, R):
-        """``K, P, E``: :func:`quadctl.lqr.lqr` for a continuous plant, :func:`quadctl.lqr.discrete.dlqr`
+        """``K, P, E``: :func:`quadctl.design.lqr` for a continuous plant, :func:`quadctl.design.discrete.dlqr`
         for a discrete one (decided by ``dt``, as python-control's ``lqr`` does)."""
-        from quadctl import lqr
-        from quadctl.lqr import discrete
+        from quadctl.design import discrete, lqr
 
         if self.dt:
             return discrete.dlqr(self.A, self.B, Q, R, name="plant")
-        return lqr.lqr(self.A, self.B, Q, R, name="plant", state_names=self.state_names)
+        return lqr(self.A, self.B, Q, R, name="plant", state_names=self.state_names)
 
 
 def from_statespace(sys) -> Plant:
@@ -268,7 +267,7 @@ def from_statespace(sys) -> Plant:
     """
     if not all(hasattr(sys, attr) for attr in ("A", "B", "state_labels", "input_labels")):
         raise ValueError(f"expected a control.StateSpace, got {type(sys).__name__}; convert it with control.ss(sys)")
-    from quadctl.lqr.riccati import real_array
+    from quadctl.design.riccati import real_array
 
     A = real_array(sys.A, "sys.A", name="from_statespace", error=ValueError, ndim=2)
     B = real_array(sys.B, "sys.B", name="from_statespace", error=ValueError, ndim=2)
@@ -293,11 +292,11 @@ def _gains(design):
         raise ValueError("the design includes the rotors' lag (controller.rotor_lag: include): its controller has "
                          "lag-model states these python-control systems do not carry; export it with "
                          "quadctl export (C, .mat or JSON: Kv and the law), or design with rotor_lag: ignore")
-    from quadctl.lqr.riccati import real_array
+    from quadctl.design.riccati import real_array
 
     label = "K_block" if hasattr(design, "K_block") else "K"
     if not hasattr(design, label) or not hasattr(design, "integral_states"):
-        raise TypeError(f"design must be a quadctl.lqr.Design or a quadctl.sim.run.ClosedLoop (K or K_block, "
+        raise TypeError(f"design must be a quadctl.design.Design or a quadctl.sim.run.ClosedLoop (K or K_block, "
                         f"integral_states), got {type(design).__name__}")
     n, m = len(STATE_NAMES), len(INPUT_NAMES)
     K = real_array(getattr(design, label), f"design.{label}", name="interop", error=ValueError, shape=(m, n))
@@ -316,8 +315,8 @@ def _gains(design):
 def _held(A, B, sample_time, who: str = "interop"):
     """``(A, B)`` checked (real, ``A`` n x n, ``B`` n x m), or with a sample time the zero-order-hold
     plant ``(Ad, Bd)``."""
-    from quadctl.lqr import discrete
-    from quadctl.lqr.riccati import real_array
+    from quadctl.design import discrete
+    from quadctl.design.riccati import real_array
 
     A = real_array(A, "A", name=who, error=ValueError, ndim=2)
     A = real_array(A, "A", name=who, error=ValueError, shape=(A.shape[0], A.shape[0]))

@@ -48,6 +48,14 @@ class Vehicle:
     products : (3,) tuple of float
         Off-diagonal entries of the tensor J, ``(Jxy, Jxz, Jyz)``, kg m^2: J itself, not the
         products of inertia ``∫ x y dm`` (``Jxy = -∫ x y dm``). Zero: a diagonal J.
+
+    Examples
+    --------
+    The defaults are the Parrot Mambo's; a config's ``vehicle:`` gives another:
+
+    >>> import quadctl as qc
+    >>> qc.Vehicle().mass, qc.Vehicle(mass=0.5).inertia_tensor().shape
+    (0.068, (3, 3))
     """
 
     mass: float = 0.068

@@ -123,14 +123,24 @@ def load(source: Source, sets=()) -> Config:
     except ConfigError as exc:
         tree = config.from_dict(data, source.label).model_dump(mode="json")  # the file's own error names the file
         if "unknown key" not in str(exc):  # a name the schema takes (lqr.rol) but no part of the config has
-            for a in assignments:
-                created = _created(tree, a.keys)
-                if created is not None and exc.key != key_path(created[0]):  # (else the checks name that
-                    # key themselves, with the names allowed there: `unknown state; allowed: ...`)
-                    path, siblings = created
-                    raise ConfigError(f"{OPTION} {a.path}: no such key in the config: `{key_path(path)}`; "
-                                      + hint(str(path[-1]), siblings)) from None
+            created = [(a, c) for a in assignments if (c := _created(tree, a.keys)) is not None]
+            named = {key_path(c[0]) for _, c in created}
+            if exc.key not in named:  # (else the checks name that key themselves, with the names allowed
+                # there: `unknown state; allowed: ...`, whatever other keys the --set values add)
+                for a, (path, siblings) in created:
+                    if _refused(data, a, source.label):  # the key this one adds is the one refused
+                        raise ConfigError(f"{OPTION} {a.path}: no such key in the config: `{key_path(path)}`; "
+                                          + hint(str(path[-1]), siblings)) from None
         return config.from_dict(merged, OPTION)  # else the values given here caused it: raises naming --set
+
+
+def _refused(data: Any, a: Assignment, label: str) -> bool:
+    """Whether the config's data with ``a`` alone put in fails validation."""
+    try:
+        config.from_dict(apply(data, [a]), label)
+    except ConfigError:
+        return True
+    return False
 
 
 def _created(tree: Any, keys: tuple):
@@ -147,9 +157,19 @@ def _created(tree: Any, keys: tuple):
     return None
 
 def recorded(text: str, sets) -> str:
-    """The config's text with the ``--set`` values after it as comments (``config.yaml``: what made the run)."""
+    """The config's text with the ``--set`` values after it as comments (``config.yaml``: what made the run).
+
+    A value that spans lines is commented on each of them (split where YAML, or Python, breaks a line:
+    ``\\r`` and the Unicode line separators too), so the file still reads as the config alone.
+
+    >>> print(recorded("name: x\\n", ["description=a\\nb"]), end="")
+    name: x
+    # run with these values put in (config.resolved.yaml holds the result):
+    #   --set description=a
+    #     b
+    """
     if not sets:
         return text
-    lines = "".join(f"#   {OPTION} {s}\n" for s in sets)
+    lines = "".join(f"#   {OPTION} " + "\n#     ".join(s.splitlines() or [""]) + "\n" for s in sets)
     return (text if text.endswith("\n") else text + "\n") + (
         f"# run with these values put in (config.resolved.yaml holds the result):\n{lines}")

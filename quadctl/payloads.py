@@ -12,9 +12,9 @@ import numpy as np
 
 from quadctl import artifacts
 from quadctl.analysis import Checks
+from quadctl.design import Design
+from quadctl.design.discrete import realizable_frequency
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
-from quadctl.lqr import Design
-from quadctl.lqr.discrete import realizable_frequency
 from quadctl.sim import schedule
 
 ESTIMATOR_CHECK = "estimator"
@@ -90,7 +90,7 @@ def design(setup, des: Design, kal) -> dict:
 
 def margins(setup, des: Design, result, vehicle) -> dict:
     """``margins.json``: every loop's margins (``result``) and the vehicle's loop."""
-    from quadctl import margins  # SciPy's signal tools: loaded only by the runs that compute margins
+    from quadctl.design import margins  # SciPy's signal tools: loaded only by the runs that compute margins
 
     timing = setup.timing
     return {

@@ -16,13 +16,13 @@ import numpy as np
 
 from quadctl.analysis import Checks, check
 from quadctl.decouple import Decoupled, decouple
+from quadctl.design import Design, design, linear_loop
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
-from quadctl.linearize import LinearModel, linearize
-from quadctl.lqr import Design, design, linear_loop
+from quadctl.linear.linearize import LinearModel, linearize
+from quadctl.linear.trim import Trim, solve_trim
 from quadctl.motors import check_trim
 from quadctl.problem import Setup
 from quadctl.sim.run import ClosedLoop, SimResult, eigen_owners, simulate
-from quadctl.trim import Trim, solve_trim
 
 
 def trim_of(setup: Setup) -> Trim:
@@ -46,7 +46,7 @@ def checks_of(decoupled: Decoupled, linear: LinearModel) -> dict[str, Checks]:
 
 def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel) -> Design:
     """The decoupled LQR design the setup asks for: discrete at its design rate, else continuous
-    (the design says which: :attr:`~quadctl.lqr.Design.sample_time`)."""
+    (the design says which: :attr:`~quadctl.design.Design.sample_time`)."""
     return design_at(setup, decoupled, linear, setup.timing.design_rate)
 
 
@@ -89,7 +89,7 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
 def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.ndarray | None = None,
                    integral_states=(), Kv: np.ndarray | None = None, estimator=None, eigenvalues, owners,
                    params: np.ndarray | None = None, open_loop_eigenvalues: np.ndarray | None = None) -> ClosedLoop:
-    """The one constructor of the :class:`~quadctl.simulate.ClosedLoop` a setup flies: gains on the
+    """The one constructor of the :class:`~quadctl.sim.run.ClosedLoop` a setup flies: gains on the
     setup's plant, trim, timing (rate, delay), actuators and the design's lag model (with ``Kv``).
 
     ``eigenvalues`` and ``owners`` (of the continuous closed loop, for the RK4 step) are the
@@ -132,7 +132,7 @@ def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
 
 def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
                    jacobians: tuple | None = None) -> ClosedLoop:
-    """``loop`` flying the gain table ``table`` (:class:`quadctl.lqr.gain_table.GainTable`), scheduled on
+    """``loop`` flying the gain table ``table`` (:class:`quadctl.design.gain_table.GainTable`), scheduled on
     the reference the law uses (:mod:`quadctl.sim.builder`, "Gain schedule"), ``speed`` measured along
     ``heading`` (rad; the schedule's, :attr:`quadctl.scheduling.Schedule.heading`). The table's gains
     replace ``K`` (and ``Ki`` with the integrators' columns). ``eigenvalues`` (rad/s, any shape; NaN
@@ -154,7 +154,7 @@ def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
 def schedule_summary(loop: ClosedLoop) -> dict | None:
     """``sim.json``'s ``gain_schedule``: the gain table the loop flew (variable, unit, values,
     interpolation, what holds outside them, what the variable is read from); None: fixed gains."""
-    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:
@@ -225,11 +225,17 @@ class Stages:
     :class:`quadctl.workspace.Workspace` (the command line, the report) is this chain with a run
     folder: it reuses and writes each stage's artifact.
 
+    Parameters
+    ----------
+    setup : Setup
+        :func:`quadctl.problem.setup_of` a config.
+    trim, linear, decoupled : optional
+        Upstream stages already computed for this setup's flight condition: the chain starts there.
+
     Examples
     --------
-    >>> from quadctl import config
-    >>> from quadctl.problem import setup_of
-    >>> stages = Stages(setup_of(config.load("hover")))
+    >>> import quadctl as qc
+    >>> stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
     >>> stages.design.K_block.shape, stages.design.sample_time, stages.rate_warnings
     ((4, 12), None, ())
 
@@ -277,7 +283,7 @@ class Stages:
 class VehicleLoop:
     """The linear closed loop the vehicle flies: the design's gains on the coupled model with the
     rotors' lag, the controller's lag model (a design that includes it), the integrators and the
-    delay (:func:`quadctl.linear_loop.vehicle`), next to the loop the design saw.
+    delay (:func:`quadctl.design.linear_loop.vehicle_matrix`), next to the loop the design saw.
 
     Attributes
     ----------
@@ -348,14 +354,14 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
     """Loops of the *continuous* design that ``rate`` Hz cannot realize (``check``'s warning).
 
     Each subsystem (with its integrators) and the coupled loop are checked: the fastest
-    continuous closed-loop pole against :func:`quadctl.lqr.discrete.realizable_frequency`, and the
+    continuous closed-loop pole against :func:`quadctl.design.discrete.realizable_frequency`, and the
     continuous gains run through a zero-order hold at ``rate`` (stable or not).
 
     Returns
     -------
-    list of quadctl.lqr.discrete.RateWarning
+    list of quadctl.design.discrete.RateWarning
     """
-    from quadctl.lqr import discrete
+    from quadctl.design import discrete
 
     des = design_at(setup, decoupled, linear, None)
     Ts = 1.0 / rate
@@ -584,11 +590,11 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
     Returns
     -------
     (FullDesign, dict)
-        The full design and :func:`quadctl.lqr.coupled.compare` of the two runs (``decoupled``, ``full``),
+        The full design and :func:`quadctl.design.coupled.compare` of the two runs (``decoupled``, ``full``),
         with each run's metrics and status.
     """
+    from quadctl.design import coupled
     from quadctl.errors import ConfigError
-    from quadctl.lqr import coupled
     from quadctl.metrics import summarize
 
     if des.lag_time_constant is not None:

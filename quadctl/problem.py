@@ -36,7 +36,7 @@ class Timing:
         Hz the design is computed at: the controller's ``rate`` for a discrete design (MATLAB
         ``lqrd``, ``controller.design: discrete``); None for a continuous design, which a ``rate``
         then runs sampled (emulation). The design it gives says which it is
-        (:attr:`quadctl.lqr.Design.sample_time`), as python-control's systems carry their ``dt``.
+        (:attr:`quadctl.design.Design.sample_time`), as python-control's systems carry their ``dt``.
     delay_samples : int
         Controller samples from measurement to actuation (``controller.delay``; 0: none).
     """
@@ -165,6 +165,13 @@ class Setup:
         The path to fly (``simulation.reference``); None: hold the trim.
     schedule : quadctl.config.ScheduleConfig or None
         The gain schedule (``schedule:``: variable, values, interpolation, check); None: one design.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> setup = qc.setup_of(qc.load_config("hover"))
+    >>> setup.regulated[:2], setup.duration, float(setup.initial_state(np.zeros(12))[2])
+    (('pD', 'w'), 10.0, 0.5)
     """
 
     name: str
@@ -222,7 +229,25 @@ class Setup:
 
 
 def setup_of(cfg: Config) -> Setup:
-    """The :class:`Setup` every stage takes, from a validated config."""
+    """The :class:`Setup` every stage takes, from a validated config.
+
+    Parameters
+    ----------
+    cfg : Config
+        A validated config (:func:`quadctl.config.loading.load`).
+
+    Returns
+    -------
+    Setup
+        Every value the stages read, resolved once.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> setup = qc.setup_of(qc.load_config("hover"))
+    >>> setup.timing.mode, setup.Q_block.shape, list(setup.weights)
+    ('continuous', (12, 12), ['altitude', 'roll', 'pitch', 'yaw'])
+    """
     v = cfg.vehicle
     diagonal, products = inertia_parts(v.inertia)
     vehicle = Vehicle(mass=v.mass, gravity=v.gravity, inertia=diagonal, drag=tuple(v.drag), products=products)
@@ -262,9 +287,6 @@ def setup_of(cfg: Config) -> Setup:
         reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
         schedule=cfg.schedule)
 
-
-resolve = setup_of
-"""The former name of :func:`setup_of` (``quadctl.setup.resolve``), kept for code written against it."""
 
 def _reference(cfg: Config):
     """The path of ``simulation.reference`` (:mod:`quadctl.trajectory`), from the trim's position,

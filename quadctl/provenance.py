@@ -74,7 +74,7 @@ def compiler(backends=()) -> dict[str, str] | str:
         return NOT_USED
     if not any(b.startswith("compiled") for b in backends):
         return INTERPRETED
-    from quadctl.sim.compile import find_compiler  # imported already: a loop was compiled
+    from quadctl.native.compile import find_compiler  # imported already: a loop was compiled
 
     path = find_compiler()
     if path is None:  # QUADCTL_NO_COMPILE set after the library was loaded: the loop still ran compiled

@@ -1,6 +1,6 @@
 """A gain schedule across the envelope: trim and design at each value of one variable (no I/O).
 
-``schedule:`` names a scheduling variable (:data:`quadctl.lqr.gain_table.VARIABLES`) and the
+``schedule:`` names a scheduling variable (:data:`quadctl.design.gain_table.VARIABLES`) and the
 values to design at. At each value the config's flight condition is changed in that variable
 only (:func:`point_setup`):
 
@@ -17,12 +17,12 @@ coupled verdicts stacked). A value with no trim (the trim stage's own refusal: n
 a tilt the model does not support, or a trim outside the actuator limits) says why and the
 schedule goes on with the others; the *envelope* is the range of values that trim and design.
 
-The points' gains make the :class:`~quadctl.lqr.gain_table.GainTable`. Its interpolated gains
+The points' gains make the :class:`~quadctl.design.gain_table.GainTable`. Its interpolated gains
 are then checked on a grid ``check`` times finer (:class:`FrozenChecks`): at each fine value the
 model is trimmed and linearized again, the loop closed with the interpolated gain
-(:func:`quadctl.lqr.linear_loop.stack`) and judged by the one stability predicate
+(:func:`quadctl.design.linear_loop.stack`) and judged by the one stability predicate
 (:func:`quadctl.stability.verdict_stack`). Outside the grid the table holds the end point's gain
-(:data:`quadctl.lqr.gain_table.OUTSIDE`).
+(:data:`quadctl.design.gain_table.OUTSIDE`).
 
 :func:`schedule_of` is the entry point: ``schedule_of(setup).table`` is what a loop flies.
 """
@@ -34,14 +34,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from quadctl import pipeline, stability
+from quadctl.design import linear_loop
+from quadctl.design.gain_table import OUTSIDE, VARIABLES, GainTable, flight_value
 from quadctl.errors import ConfigError, QuadctlError, ScheduleError, TrimError
 from quadctl.layout import N_INPUTS, N_STATES
-from quadctl.linearize import LinearModel, linearize_all
-from quadctl.lqr import linear_loop
-from quadctl.lqr.gain_table import OUTSIDE, VARIABLES, GainTable, flight_value
+from quadctl.linear.linearize import LinearModel, linearize_all
+from quadctl.linear.trim import Trim
 from quadctl.problem import Setup
 from quadctl.threads import one_thread
-from quadctl.trim import Trim
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,7 @@ class SchedulePoint:
     Attributes
     ----------
     value : float
-        The scheduling variable's value (its unit: :data:`~quadctl.lqr.gain_table.VARIABLES`).
+        The scheduling variable's value (its unit: :data:`~quadctl.design.gain_table.VARIABLES`).
     velocity_ned : (3,) tuple of float
         m/s, the flight condition trimmed at (NED).
     yaw : float
@@ -166,11 +166,11 @@ class Schedule:
         The variable's unit.
     heading : float
         rad from north: the direction ``speed`` is measured along (the trim velocity's horizontal
-        direction, or ``trim.yaw`` at hover); what :func:`quadctl.lqr.gain_table.scheduling_value`
+        direction, or ``trim.yaw`` at hover); what :func:`quadctl.design.gain_table.scheduling_value`
         takes to read the variable from a state.
     interpolation : str
     outside : str
-        What the table gives outside its values (:data:`~quadctl.lqr.gain_table.OUTSIDE`).
+        What the table gives outside its values (:data:`~quadctl.design.gain_table.OUTSIDE`).
     points : tuple of SchedulePoint
         One per ``schedule.values`` entry, in order.
     table : GainTable
@@ -262,7 +262,7 @@ def point_setup(setup: Setup, value: float, heading: float | None = None) -> Set
 
 def own_value(setup: Setup, heading: float) -> float:
     """The config's own flight condition's value of the scheduling variable
-    (:func:`~quadctl.lqr.gain_table.flight_value`, the rule the law reads from its reference)."""
+    (:func:`~quadctl.design.gain_table.flight_value`, the rule the law reads from its reference)."""
     value = flight_value(setup.schedule.variable, np.asarray(setup.velocity_ned, dtype=float), setup.yaw, heading)
     return float(value) + 0.0  # no -0 in messages
 
@@ -271,10 +271,10 @@ def _flight_conditions(setups: list[Setup]) -> list:
     """Per setup (one config's, at different values of its variable): (Trim, LinearModel, actuator
     commands), or the trim stage's refusal (a TrimError, or the ActuatorLimitError of a trim outside
     the actuator limits). :func:`quadctl.pipeline.trim_of` and :func:`~quadctl.pipeline.linear_of` of
-    every setup, batched (:func:`quadctl.trim.solve_trims`: the same Newton, the same checks;
-    :func:`quadctl.linearize.linearize_all`: the same Jacobians)."""
+    every setup, batched (:func:`quadctl.linear.trim.solve_trims`: the same Newton, the same checks;
+    :func:`quadctl.linear.linearize.linearize_all`: the same Jacobians)."""
+    from quadctl.linear.trim import solve_trims
     from quadctl.motors import check_trim
-    from quadctl.trim import solve_trims
 
     if not setups:
         return []
@@ -446,7 +446,7 @@ def frozen_checks(setup: Setup, table: GainTable, integral_states, check: int, h
     G = table.at(fine)
     K, Ki = G[:, :, :N_STATES], G[:, :, N_STATES:]
     if sample_time is not None:
-        from quadctl.lqr.discrete import c2d_batch
+        from quadctl.design.discrete import c2d_batch
 
         A, B = c2d_batch(A, B, sample_time)
     A_cl = linear_loop.stack(A, B, K, Ki, tuple(integral_states), sample_time)

@@ -180,9 +180,9 @@ def bryson_weights(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = Fa
     dict
         Subsystem -> ``(Q diagonal, R diagonal, comment)``.
     """
+    from quadctl.linear.trim import solve_trim
     from quadctl.model import Vehicle
     from quadctl.motors import Motors, actuators_of, headroom
-    from quadctl.trim import solve_trim
 
     values = {k: v for k, (v, _) in preset.vehicle.items()}
     vehicle = Vehicle(mass=values["mass"], inertia=tuple(values["inertia"]), drag=tuple(values["drag"]))
@@ -237,11 +237,13 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     import re
 
     from quadctl.errors import ConfigError
-    from quadctl.messages import unknown
+    from quadctl.messages import SHOWN_CHARS, unknown
 
-    if not re.match(config_mod.NAME_PATTERN, name):
-        raise ConfigError(f"NAME = {name!r}: must start with a letter, digit or '_' and use only letters, digits, "
-                          "'_', '.' and '-' (it names the file NAME.yaml and the folder runs/NAME)")
+    if not re.fullmatch(config_mod.NAME_PATTERN, name) or len(name) > config_mod.MAX_NAME_LENGTH:  # the schema's
+        # rule (fullmatch: a `$` alone would take a name ending in a newline)
+        shown = repr(name) if len(name) <= SHOWN_CHARS else f"{name[:SHOWN_CHARS]!r}... ({len(name)} characters)"
+        raise ConfigError(f"NAME = {shown}: {config_mod.NAME_RULE} (it names the file NAME.yaml and the folder "
+                          "runs/NAME)")
     if vehicle not in PRESETS:
         raise ConfigError(f"--from {vehicle}: {unknown(vehicle, tuple(PRESETS), 'vehicle')}")
     if flight not in FLIGHTS:

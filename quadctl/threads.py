@@ -32,7 +32,7 @@ def _controller():
     import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS)
     from threadpoolctl import ThreadpoolController
 
-    import quadctl.lqr.riccati  # noqa: F401
+    import quadctl.design.riccati  # noqa: F401
     import quadctl.sim.engine  # noqa: F401
 
     return ThreadpoolController()

@@ -112,6 +112,18 @@ class Reference:
     pieces: tuple[Piece, ...]
     legs: tuple[Leg, ...] = ()
     tolerance: float | None = None
+    velocity_keys: tuple[str, ...] = ()
+    """Setpoints: for each piece, the config key whose velocity it flies (``trim.velocity_ned`` until a
+    setpoint gives one), for a refusal to name."""
+
+    def remedy(self, t: float) -> str:
+        """What to change in the config so that the vehicle can fly the path at ``t`` s (a refusal's fix):
+        a setpoint's velocity, or a mission's speed and spacing."""
+        if self.legs or not self.velocity_keys:
+            return "lower simulation.reference.speed or space the waypoints further apart"
+        starts = np.array([p.t0 for p in self.pieces])
+        k = int(np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.pieces) - 1))
+        return f"lower {self.velocity_keys[k]}: no attitude holds that velocity against the rotor drag"
 
     def flat(self, t) -> FlatPath:
         """The flat outputs at the times ``t`` (s)."""
@@ -165,21 +177,24 @@ def setpoint_reference(setpoints, position0, velocity0, yaw0: float) -> Referenc
     """The steps of ``setpoints`` (dicts with ``t`` and any of ``position``, ``velocity``, ``yaw``;
     ``t`` increasing) from the trim's ``position0``, ``velocity0`` (m, m/s, NED) and ``yaw0`` (rad)."""
     p, v, psi, t_last = np.asarray(position0, float), np.asarray(velocity0, float), float(yaw0), 0.0
-    pieces = []
+    pieces, keys, key = [], [], "trim.velocity_ned"
     if not setpoints or setpoints[0]["t"] > 0:
         pieces.append(Piece(0.0, tuple(p), tuple(v), (0.0, 0.0, 0.0), psi, 0.0, 0.0, "step"))
-    for sp in setpoints:
+        keys.append(key)
+    for i, sp in enumerate(setpoints):
         t = float(sp["t"])
         p = p + v * (t - t_last)
         if sp.get("position") is not None:
             p = np.asarray(sp["position"], float)
         if sp.get("velocity") is not None:
             v = np.asarray(sp["velocity"], float)
+            key = f"simulation.reference.setpoints[{i}].velocity"
         if sp.get("yaw") is not None:
             psi = float(sp["yaw"])
         pieces.append(Piece(t, tuple(p), tuple(v), (0.0, 0.0, 0.0), psi, 0.0, 0.0, "step"))
+        keys.append(key)
         t_last = t
-    return Reference(tuple(pieces))
+    return Reference(tuple(pieces), velocity_keys=tuple(keys))
 
 
 def mission_reference(waypoints, position0, yaw0: float, speed: float, tolerance: float,

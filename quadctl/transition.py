@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl import pipeline
+from quadctl.design.gain_table import VARIABLES, scheduling_values
 from quadctl.layout import STATE_INDEX
-from quadctl.lqr.gain_table import VARIABLES, scheduling_values
 from quadctl.problem import Setup
 from quadctl.scheduling import heading_of, schedule_of
 from quadctl.sim.run import STATUS_WORDS, ClosedLoop, SimResult
@@ -63,7 +63,7 @@ def fly_transition(setup: Setup, table=None) -> Transition:
     setup : Setup
         With ``schedule:`` and ``simulation.reference`` (a transition across the schedule's grid).
     table : GainTable, optional
-        The schedule's gains (:class:`quadctl.lqr.gain_table.GainTable`); default the setup's
+        The schedule's gains (:class:`quadctl.design.gain_table.GainTable`); default the setup's
         (:func:`quadctl.scheduling.schedule_of`).
 
     Raises

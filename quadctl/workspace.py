@@ -31,17 +31,17 @@ from quadctl.analysis import Checks, check
 from quadctl.artifacts import default_out
 from quadctl.config import Config
 from quadctl.decouple import Decoupled
+from quadctl.design import Design
+from quadctl.design.discrete import RateWarning, unstable_when_sampled
 from quadctl.errors import ArtifactError, DesignError, QuadctlNotice
 from quadctl.layout import N_INPUTS, STATE_NAMES
-from quadctl.linearize import LinearModel
-from quadctl.lqr import Design
-from quadctl.lqr.discrete import RateWarning, unstable_when_sampled
+from quadctl.linear.linearize import LinearModel
+from quadctl.linear.trim import Trim
 from quadctl.messages import eig_text
 from quadctl.metrics import summarize
 from quadctl.payloads import ESTIMATOR_CHECK
 from quadctl.problem import setup_of
 from quadctl.sim.run import ClosedLoop, SimResult
-from quadctl.trim import Trim
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
@@ -66,6 +66,10 @@ def config_hash_of(folder: Path | str) -> str | None:
     if not first.endswith(tail) or head not in first:
         return None
     return first.rpartition(head)[2][:-len(tail)] or None
+
+
+_NEW_FOLDER = object()
+"""What a session's undo record holds for an artifact folder it made (:meth:`Workspace.roll_back`)."""
 
 
 @dataclass(frozen=True)
@@ -153,16 +157,19 @@ class Workspace(pipeline.Stages):
         self.source_text = source_text
         self._config_written = False
         self.written: list[Path] = []
-        self._undo: list[tuple[Path, Path | bytes | str | None]] | None = []
+        self._undo: list[tuple[Path, Path | bytes | str | object | None]] | None = []
         """Each file the session wrote or removed, and what it held before (:meth:`_before_change`); None: kept."""
         self.reused: list[Path] = []
         self.payloads: dict[str, dict] = {}
         """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
         a reused artifact is parsed once, here."""
         self._hold = contextlib.ExitStack()
+        first = not artifacts.held(self.out)
         self._hold.enter_context(artifacts.locked(self.out))  # one run writes a folder at a time
         weakref.finalize(self, self._hold.close)
-        artifacts.remove_stale_temporaries(self.out)
+        if first:  # no other process holds the folder, and none of this one: every quadctl temporary there,
+            # a file set aside for a roll-back too (it keeps its file's time: an age tells nothing), is a dead run's
+            artifacts.remove_stale_temporaries(self.out, age=0.0)
 
     def close(self) -> None:
         """Release the run folder (the process's end releases it too)."""
@@ -192,16 +199,43 @@ class Workspace(pipeline.Stages):
     def _meta(self, kind: str, backends=()) -> dict:
         return artifacts.metadata(self.cfg, kind, backends)
 
+    def write_bytes(self, path: Path | str, data: bytes) -> Path:
+        """Write a file of the command's own into the run folder (a figure, the report), atomically as an
+        artifact is, remembering what it replaces: :meth:`roll_back` puts it back with the stages' artifacts,
+        so a command has one way to put its folder back."""
+        path = Path(path)
+        self._before_change(path)
+        self.written.append(artifacts.write_bytes(path, data))
+        return path
+
+    def remember(self, *paths: Path | str) -> None:
+        """Remember what each of ``paths`` holds before the command writes it by other means (a drawing
+        process of its own), for :meth:`roll_back`, as :meth:`write_bytes` does."""
+        for path in paths:
+            self._before_change(Path(path))
+
+    def remove(self, path: Path | str) -> bool:
+        """Remove a file of the command's own (an earlier report's figure), remembered for :meth:`roll_back`
+        as :meth:`write_bytes` remembers; True if one went."""
+        path = Path(path)
+        self._before_change(path)
+        return artifacts.remove(path)
+
     def roll_back(self) -> None:
         """Put back every file this session wrote or removed as it was before (the command refused its
-        input: nothing it computed is kept); after :meth:`keep`, nothing."""
+        input: nothing it computed is kept), and remove the artifact folders it made, if empty again;
+        after :meth:`keep`, nothing."""
         for path, before in reversed(self._undo or []):
             try:
-                if isinstance(before, str):  # a link the session replaced
+                if before is _NEW_FOLDER:  # an artifact folder (plots/, report/) the session made
+                    path.rmdir()
+                elif isinstance(before, str):  # a link the session replaced
                     path.unlink(missing_ok=True)
                     os.symlink(before[3:], path)
                 elif isinstance(before, Path):  # the file itself, set aside
                     os.replace(before, path)
+                    before.unlink(missing_ok=True)  # still there when the write never came: a rename between
+                    # two names of one file does nothing
                 elif before is not None:
                     artifacts.write_bytes(path, before)
                 elif path.is_file() or path.is_symlink():  # made by the session (never a folder in its way)
@@ -221,6 +255,9 @@ class Workspace(pipeline.Stages):
         it cannot be put back)."""
         if self._undo is None or any(path == p for p, _ in self._undo):
             return
+        if (path.parent != self.out and not os.path.lexists(path.parent)  # an artifact folder it will make
+                and not any(path.parent == p for p, _ in self._undo)):
+            self._undo.append((path.parent, _NEW_FOLDER))
         try:
             before = (f"-> {os.readlink(path)}" if path.is_symlink()
                       else self._set_aside(path) if path.is_file() else None)
@@ -378,7 +415,7 @@ class Workspace(pipeline.Stages):
     @cached_property
     def margins(self) -> list:
         """Margins of every regulated loop (design model and coupled); writes margins.json."""
-        from quadctl import margins
+        from quadctl.design import margins
 
         des, timing, linear = self.design, self.setup.timing, self.linear
         emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)

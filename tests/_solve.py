@@ -127,13 +127,13 @@ def lanes_and_one_case_runs(setup, spec, variants):
 
 
 def designed_table(name: str, values, interpolation: str = "linear", **changes):
-    """A speed schedule's :class:`~quadctl.lqr.gain_table.GainTable` of bundled config ``name``: at each
+    """A speed schedule's :class:`~quadctl.design.gain_table.GainTable` of bundled config ``name``: at each
     speed (m/s, north) the config's own design trimmed there (a one-point design of the config with
     ``trim.velocity_ned = [v, 0, w]``, w its climb; the state gain, then any integrator gains), built
     apart from :func:`quadctl.scheduling.schedule_of`."""
     import numpy as np
 
-    from quadctl.lqr.gain_table import GainTable
+    from quadctl.design.gain_table import GainTable
 
     gains = []
     for v in values:

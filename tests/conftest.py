@@ -65,10 +65,10 @@ def pytest_collection_modifyitems(config, items):
     marked = [item for item in items if item.get_closest_marker("compiler")]
     if not marked:
         return
-    from quadctl.sim.compile import find_compiler
+    from quadctl.native.compile import find_compiler
 
     if find_compiler() is None:
-        skip = pytest.mark.skip(reason="needs a C compiler: quadctl.sim.compile.find_compiler() found none "
+        skip = pytest.mark.skip(reason="needs a C compiler: quadctl.native.compile.find_compiler() found none "
                                        "($CC, cc, gcc, clang; or QUADCTL_NO_COMPILE=1 is set)")
         for item in marked:
             item.add_marker(skip)

@@ -1,5 +1,5 @@
 """Every public function that takes matrices checks their shape and dtype and names the argument
-(SciPy's ``_are_validate_args``), through one helper (:func:`quadctl.riccati.real_array`): quadctl's
+(SciPy's ``_are_validate_args``), through one helper (:func:`quadctl.design.riccati.real_array`): quadctl's
 solvers are real-only, and say so, rather than drop an imaginary part and certify another problem."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from quadctl import interop, lqr
+from quadctl import interop
+from quadctl.design import closed_loop_matrix, discrete, lqr, riccati
 from quadctl.errors import DesignError
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
-from quadctl.lqr import discrete, riccati
 
 A_SCIPY = np.array([[2, 1 - 2j], [0, -3j]])
 """SciPy's own complex DARE test case (scipy/linalg/tests/test_solvers.py, solve_discrete_are)."""
@@ -31,7 +31,7 @@ def _no_complex_warning():
 
 
 ONE = {
-    "lqr": lambda A, B: lqr.lqr(A, B, Q2, R2),
+    "lqr": lambda A, B: lqr(A, B, Q2, R2),
     "dlqr": lambda A, B: discrete.dlqr(A, B, Q2, R2),
     "lqrd": lambda A, B: discrete.lqrd(A, B, Q2, R2, 0.01),
     "riccati.solve": lambda A, B: riccati.solve(A, B, Q2, R2, discrete=True),
@@ -40,7 +40,7 @@ ONE = {
     "lqrd_weights": lambda A, B: discrete.lqrd_weights(A, B, Q2, R2, 0.01),
     "riccati_residual": lambda A, B: riccati.riccati_residual(A, B, Q2, R2, Q2),
     "dare_residual": lambda A, B: riccati.dare_residual(A, B, Q2, R2, Q2),
-    "closed_loop_matrix": lambda A, B: lqr.closed_loop_matrix(A, B, np.zeros((2, 2))),
+    "closed_loop_matrix": lambda A, B: closed_loop_matrix(A, B, np.zeros((2, 2))),
     "LqrdWeightMap": lambda A, B: discrete.LqrdWeightMap(A, B, 0.01),
 }
 BATCH = {
@@ -78,7 +78,7 @@ def test_the_batched_solvers_refuse_complex_stacks(solver):
 ])
 def test_text_objects_and_ragged_lists_are_no_matrices(bad, match):
     with pytest.raises(DesignError, match=match):
-        lqr.lqr(bad, B2, Q2, R2)
+        lqr(bad, B2, Q2, R2)
 
 
 def test_the_real_problem_still_solves_to_scipys_answer():
@@ -139,7 +139,7 @@ INTEROP = {
     "Plant.lqr complex": (lambda: interop.Plant(A=A_SCIPY, B=B2, state_names=("a", "b"), input_names=("u", "v"),
                                                 dt=0.1).lqr(Q2, R2), rf"^plant: A {COMPLEX}"),
     "design not a design": (lambda: interop.controller(object()),
-                            r"^design must be a quadctl\.lqr\.Design or a quadctl\.sim\.run\.ClosedLoop"),
+                            r"^design must be a quadctl\.design\.Design or a quadctl\.sim\.run\.ClosedLoop"),
 }
 
 
@@ -166,7 +166,7 @@ def test_interop_accepts_what_quadctl_designs(forward):
 def test_the_export_writer_names_a_target_it_does_not_know(tmp_path):
     from quadctl import export
 
-    with pytest.raises(ValueError, match=r"^to must be one of \('c', 'mat', 'json'\), got 'pdf'$"):
+    with pytest.raises(ValueError, match=r"^to must be one of \('c', 'mat', 'json', 'crazyflie'\), got 'pdf'$"):
         export.write(SimpleNamespace(), "pdf", tmp_path)
     assert not any(tmp_path.iterdir())
 

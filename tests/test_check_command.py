@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from quadctl import config, pipeline
 from quadctl.cli.app import app
-from quadctl.lqr import discrete
+from quadctl.design import discrete
 from quadctl.problem import setup_of
 
 REPORT_AT_200HZ = Path(__file__).parent.parent / "docs" / "configs" / "report-at-200hz.yaml"

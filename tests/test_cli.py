@@ -184,10 +184,11 @@ USAGE_ERRORS = {
     "a rate that is no number": (["check", "--rate=fast"],
                                  "quadctl: error: --rate fast: not a number; give --rate a number"),
     "an export target that does not exist": (["export", "--to", "py"],
-                                             "quadctl: error: --to py: must be one of c, mat, json"),
+                                             "quadctl: error: --to py: must be one of c, mat, json, crazyflie"),
     "a misspelt export target": (["export", "--to", "jsn"],
-                                 "quadctl: error: --to jsn: must be one of c, mat, json; did you mean `json`?"),
-    "no export target": (["export"], "quadctl: error: quadctl export needs --to c | mat | json; add it "
+                                 "quadctl: error: --to jsn: must be one of c, mat, json, crazyflie; "
+                                 "did you mean `json`?"),
+    "no export target": (["export"], "quadctl: error: quadctl export needs --to c | mat | json | crazyflie; add it "
                                      "(`quadctl export --help` describes it)"),
     "no worker": (["sweep", "-j", "0"], "quadctl: error: --jobs 0: out of range; give --jobs a value of at least 1"),
     "an unknown option": (["trim", "--bogus"], "quadctl: error: --bogus: quadctl trim has no such option; its "

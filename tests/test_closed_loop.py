@@ -1,11 +1,11 @@
-"""The linear closed loop (quadctl.lqr.linear_loop) against independent references.
+"""The linear closed loop (quadctl.design.linear_loop) against independent references.
 
 - The nonlinear loop the simulation runs (quadctl.sim.builder) linearized by CasADi at the
   reference equals the linear loop, for every bundled config and for loops with the rotors' lag,
   the controller's lag model and a delay.
 - The free-position rule (quadctl.stability.free_positions): a position no gain reads but another
   state depends on is not free, so its mode stays in the verdict.
-- The sampled cost of a discrete design (quadctl.coupled.linear_cost) equals the cost a linear
+- The sampled cost of a discrete design (quadctl.design.coupled.linear_cost) equals the cost a linear
   simulation accumulates, and the design's own DARE cost.
 """
 
@@ -19,8 +19,8 @@ import scipy.linalg
 from _solve import cfg_dict, solve
 
 from quadctl import config, pipeline, stability
+from quadctl.design import coupled, linear_loop
 from quadctl.layout import INPUT_NAMES, N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.lqr import coupled, linear_loop
 from quadctl.sim.builder import build
 
 AGREE = 1e-9
@@ -132,7 +132,7 @@ def builder_and_linear(request):
 
 def test_the_simulated_loop_linearized_is_the_linear_loop(builder_and_linear):
     """Same state order ``[x; f; z; l; b]``, same entries: the builder's Jacobian at the reference equals
-    :func:`quadctl.lqr.linear_loop.vehicle_matrix` (every state kept) to round-off."""
+    :func:`quadctl.design.linear_loop.vehicle_matrix` (every state kept) to round-off."""
     name, J, A_lin, Ts = builder_and_linear
     assert J.shape == A_lin.shape, name
     err = np.abs(J - A_lin).max() / max(1.0, np.abs(A_lin).max())
@@ -221,9 +221,9 @@ def _sampled_cost(step, Q, R, N, K, x0, max_steps: int = 40000) -> float:
 def test_a_discrete_designs_sampled_cost_is_what_a_linear_simulation_accumulates():
     """The cost of a sampled loop is ``sum_k x_k' Qd x_k + u_k' Rd u_k + 2 x_k' Nd u_k`` with lqrd's
     weights (the continuous cost integrated over each sample under the hold). Simulated sample by
-    sample, it equals ``x0' P x0`` of the design's own DARE, and :func:`quadctl.coupled.linear_cost`.
+    sample, it equals ``x0' P x0`` of the design's own DARE, and :func:`quadctl.design.coupled.linear_cost`.
     mambo-200hz: a discrete design with an integrator (pD); the offset moves every regulated state."""
-    from quadctl.lqr import discrete, integral
+    from quadctl.design import discrete, integral
 
     setup, _, linear, _, des = solve(cfg_dict("mambo-200hz"))
     Ts = des.sample_time

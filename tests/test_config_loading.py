@@ -104,20 +104,22 @@ def test_configs_lists_the_bundled_configs_whatever_files_are_here(tmp_path, mon
 # The name is one folder inside runs/
 
 
-@pytest.mark.parametrize("name", ["..", ".", "'../../etc'", "a/b", "'a\\\\b'", ".hidden", "-x", "''"])
+@pytest.mark.parametrize("name", ["..", ".", "'../../etc'", "a/b", "'a\\\\b'", ".hidden", "-x", "''", "\"abc\\n\"",
+                                  "a" * (config.MAX_NAME_LENGTH + 1), "a" * 300, "b" * 256])
 def test_a_name_that_is_not_one_folder_name_is_refused(tmp_path, monkeypatch, name):
+    """Not a folder name, or longer than a file name may be (300 characters ended in an internal error)."""
     monkeypatch.chdir(tmp_path)
     path = tmp_path / "c.yaml"
     path.write_text(edit("name: forward", f"name: {name}"))
     res = runner.invoke(app, ["trim", "-c", str(path)])  # no -o: the default would be runs/<name>
     line = one_error(res, r"c\.yaml: name = ")
     assert ("must not be empty" in line) if name == "''" else line.endswith(
-        "must start with a letter, digit or '_' and use only letters, digits, '_', '.' and '-' "
-        "(it names the folder runs/<name>)")
+        "must start with a letter, digit or '_', use only letters, digits, '_', '.' and '-', and have at most 128 "
+        "characters (it names the folder runs/<name>)")
     assert list(tmp_path.iterdir()) == [path]  # nothing written, inside runs/ or out of it
 
 
-@pytest.mark.parametrize("name", ["forward", "my_quad.v2", "x-1", "_tmp"])
+@pytest.mark.parametrize("name", ["forward", "my_quad.v2", "x-1", "_tmp", "a" * config.MAX_NAME_LENGTH])
 def test_folder_names_are_fine(name):
     assert config.parse(edit("name: forward", f"name: {name}"), "c.yaml").name == name
 
@@ -140,9 +142,9 @@ def test_folder_names_are_fine(name):
     ("{pD: 0.5,", "{r: -1e3, pD: 0.5,", r"simulation\.initial_offset\.r = -1000: must be at most 100 rad/s"),
     ("{pD: 0.5,", "{w: 1e200, pD: 0.5,", r"simulation\.initial_offset\.w = 1e\+200: must be at most 100 m/s"),
     ("position_ned: [0.0, 0.0, -1.0]", "position_ned: [0.0, 0.0, -1e308]",
-     r"trim\.position_ned\[2\] = -1e\+308: must be at most 1e\+06 m in magnitude \(MAX_TRIM\)$"),
+     r"trim\.position_ned\[2\] = -1e\+308: must be at most 1e\+06 m in magnitude \(UNIT_LIMITS\)$"),
     ("velocity_ned: [1.0, 0.0, 0.0]", "velocity_ned: [1e300, 0.0, 0.0]",
-     r"trim\.velocity_ned\[0\] = 1e\+300: must be at most 1000 m/s in magnitude \(MAX_TRIM\)$"),
+     r"trim\.velocity_ned\[0\] = 1e\+300: must be at most 1000 m/s in magnitude \(UNIT_LIMITS\)$"),
 ])
 def test_extreme_numbers_are_refused_by_the_schema(tmp_path, old, new, pattern):
     one_error(run(tmp_path, edit(old, new), "simulate"), r"^quadctl: error: .*c\.yaml: " + pattern)

@@ -18,8 +18,9 @@ import yaml
 from _solve import cfg_dict, run, solve
 from typer.testing import CliRunner
 
-from quadctl import config, margins
+from quadctl import config
 from quadctl.cli.app import app
+from quadctl.design import margins
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
 

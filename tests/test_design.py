@@ -9,9 +9,9 @@ import pytest
 
 from quadctl.analysis import check
 from quadctl.decouple import decouple
+from quadctl.design import design, lqr, riccati_residual
 from quadctl.errors import DesignError
 from quadctl.layout import REPORT_PARTITION, STATE_NAMES
-from quadctl.lqr import design, lqr, riccati_residual
 
 
 def test_linear_model_report_entries(forward):
@@ -186,7 +186,7 @@ def test_scipy_fallback_gives_the_same_design_as_quadctls_solver(forward, monkey
     both paths, on every report subsystem, give the same gain and pass the residual check."""
     import dataclasses
 
-    from quadctl.lqr.riccati import single
+    from quadctl.design.riccati import single
 
     _, _, _, dec, des = forward
     weights = {s.name: (s.Q, s.R) for s in des.subsystems}

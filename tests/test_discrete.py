@@ -10,8 +10,8 @@ import scipy.linalg
 from _solve import cfg_dict, run, solve
 
 from quadctl import pipeline
+from quadctl.design import discrete, lqr, riccati
 from quadctl.errors import StepSizeError
-from quadctl.lqr import discrete, lqr
 from quadctl.sim.run import plan_held_step
 
 RESIDUAL_TOL = 1e-10
@@ -57,7 +57,7 @@ def test_dlqr_with_cross_term_agrees_with_solve_discrete_are_and_matlab_gain_for
     P_scipy = scipy.linalg.solve_discrete_are(A, B, Q, R, s=N)
     np.testing.assert_allclose(P, P_scipy, rtol=1e-10)
     np.testing.assert_allclose(K, np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A + N.T), rtol=1e-10)
-    assert discrete.dare_residual(A, B, Q, R, P, N) < RESIDUAL_TOL
+    assert riccati.dare_residual(A, B, Q, R, P, N) < RESIDUAL_TOL
     assert np.all(np.abs(E) < 1)
 
 
@@ -145,7 +145,7 @@ def test_zero_order_hold_simulation_follows_the_discrete_linear_loop():
 @pytest.mark.parametrize("n, m", [(2, 1), (3, 1), (4, 2)])
 def test_the_weight_map_samples_any_weights_as_van_loan_does(n, m):
     """LqrdWeightMap (a sweep's cases of one plant) gives lqrd_weights_batch's numbers to round-off."""
-    from quadctl.lqr.discrete import LqrdWeightMap, lqrd_weights_batch
+    from quadctl.design.discrete import LqrdWeightMap, lqrd_weights_batch
 
     rng = np.random.default_rng(n * 10 + m)
     A, B, Ts, batch = rng.normal(size=(n, n)), rng.normal(size=(n, m)), 0.005, 40

@@ -36,5 +36,5 @@ def test_docstring_examples(name):
 def test_the_examples_are_found():
     """The modules whose docstrings show examples (a test that finds none would pass for nothing)."""
     with_examples = {m for m in MODULES if _examples(m)}
-    assert {"quadctl.artifacts.json_values", "quadctl.lqr.decoupled", "quadctl.margins", "quadctl.lqr.discrete",
-            "quadctl.trim"} <= with_examples
+    assert {"quadctl.artifacts.json_values", "quadctl.design.decoupled", "quadctl.design.margins",
+            "quadctl.design.discrete", "quadctl.linear.trim"} <= with_examples

@@ -18,7 +18,7 @@ import pytest
 from _solve import LANE_RTOL, cfg_dict, lane_gap, lanes_and_one_case_runs, solve
 
 from quadctl import pipeline
-from quadctl.sim import compile as compile_mod
+from quadctl.native import compile as compile_mod
 from quadctl.sim import engine
 from quadctl.sim.run import simulate
 
@@ -313,7 +313,7 @@ def test_threads_compile_one_library_without_touching_the_working_directory(tmp_
 _RACE = """
 import sys, time
 from pathlib import Path
-from quadctl.sim import compile as compile_mod
+from quadctl.native import compile as compile_mod
 log = Path(sys.argv[1])
 def source():
     with log.open("a") as fh:

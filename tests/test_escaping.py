@@ -138,7 +138,7 @@ def exported():
 
 def test_the_c_export_escapes_the_config_name_in_its_comments(exported, tmp_path):
     from quadctl.export import c as cexport
-    from quadctl.sim.compile import find_compiler
+    from quadctl.native.compile import find_compiler
 
     hostile = replace(exported, setup=replace(exported.setup, name="x */ int evil; /*"))
     files = cexport.sources(hostile)

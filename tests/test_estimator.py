@@ -94,7 +94,7 @@ def test_a_scalar_filter_has_the_closed_form_gain():
     A, G, C = np.eye(1), np.eye(1), np.eye(1)
     # through the dual LQR the package solves: one state, one measurement (padded to the 12-state API
     # would hide the closed form; the Riccati solver is the one kalman() calls)
-    from quadctl.lqr.riccati import solve as riccati
+    from quadctl.design.riccati import solve as riccati
 
     res = riccati(A.T, C.T, G * q, np.eye(1) * r, discrete=True)
     P = (q + np.sqrt(q * q + 4 * q * r)) / 2
@@ -362,7 +362,7 @@ def test_simulate_reports_the_estimation_error_and_records_x_hat(tmp_path):
 def test_each_lqg_broken_loop_closes_to_the_regulator_and_the_estimator(data):
     """Closing any input's LQG loop (v = c_j) gives back the LQG loop: its eigenvalues are the regulator's
     (A - B K, without the positions nothing feeds back) and the estimator's, to 1e-9."""
-    from quadctl import margins
+    from quadctl.design import margins
 
     setup, linear, des, kal = _filter(data)
     A, B = (kal.A, kal.B) if kal.discrete else (linear.A, linear.B)

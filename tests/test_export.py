@@ -98,7 +98,7 @@ CASES = {
 
 
 def cc() -> str:
-    from quadctl.sim.compile import find_compiler
+    from quadctl.native.compile import find_compiler
 
     compiler = find_compiler()
     if compiler is None:
@@ -411,7 +411,7 @@ def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
     same, does not."""
     from dataclasses import replace
 
-    from quadctl.lqr.gain_table import scheduling_value
+    from quadctl.design.gain_table import scheduling_value
     from quadctl.pipeline import flown_reference
     from quadctl.sim.builder import constant_layout
 
@@ -680,6 +680,11 @@ def test_the_mat_file_round_trips_through_loadmat(name, tmp_path):
     assert got["units"]["K"] == "input unit per state unit"
     assert got["Ts"] == (0.005 if name == "mambo-200hz" else 0.0)
     assert got["K"].shape == (4, 12) and got["x_trim"].shape == (12,)
+    # every number is a double: MATLAB's int64 * double is int64, so an integer delay_samples * Ts was 0
+    raw = loadmat(str(tmp_path / data.MAT_FILE))
+    numeric = {k: v for k, v in raw.items() if isinstance(v, np.ndarray) and v.dtype.kind in "iuf"}
+    assert "delay_samples" in numeric and all(v.dtype == np.float64 for v in numeric.values()), {
+        k: v.dtype for k, v in numeric.items() if v.dtype != np.float64}
 
 
 def test_the_mat_file_loads_in_octave(tmp_path):
@@ -898,7 +903,7 @@ def test_the_page_commands_print_what_it_shows_and_its_code_runs(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     (tmp_path / "docs").symlink_to(ROOT / "docs")  # the section's LQG config
     runs = _console_runs()
-    assert len(runs) == 8
+    assert len(runs) == 10
     for command, shown in runs:
         res = runner.invoke(app, shlex.split(command)[1:])
         failed = any(line.startswith(("quadctl: error:", "quadctl: check failed:")) for line in shown)

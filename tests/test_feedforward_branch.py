@@ -16,8 +16,8 @@ import pytest
 from quadctl import trajectory
 from quadctl.errors import TrimError
 from quadctl.flatness import feedforward
+from quadctl.linear.trim import MAX_TILT
 from quadctl.model import Vehicle
-from quadctl.trim import MAX_TILT
 
 VEHICLE = Vehicle()  # the report's vehicle: the bundled forward and schedule configs fly it
 AGREE = 1e-9

@@ -7,8 +7,8 @@ import pytest
 from _solve import cfg_dict, solve
 
 from quadctl import config, pipeline
+from quadctl.design import coupled, riccati_residual
 from quadctl.layout import STATE_INDEX
-from quadctl.lqr import coupled, riccati_residual
 from quadctl.problem import setup_of
 
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.interpolate import interp1d
 
+from quadctl.design.gain_table import INTERPOLATIONS, GainTable, scheduling_value
 from quadctl.layout import STATE_NAMES
-from quadctl.lqr.gain_table import INTERPOLATIONS, GainTable, scheduling_value
 
 VALUES = np.array([0.0, 1.0, 2.5, 4.0, 5.0])
 GAINS = np.random.default_rng(3).normal(size=(5, 4, 14))

@@ -110,3 +110,11 @@ def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
     assert got[("vehicle", "inertia")][0] == f"[1.2e-05, 1.3e-05, {want_jzz:.4g}]"
     assert ("Jzz lowered to Jxx + Jyy" in got[("vehicle", "inertia")][1]) is lowered
     assert float(got[("motors", "torque_coefficient")][0]) == pytest.approx(0.006 * want_jzz / jzz, rel=1e-3)
+
+
+def test_identify_json_is_the_artifact_and_nothing_else(identified, tmp_path):
+    out, _ = identified
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "35:65",
+                                   "-o", str(tmp_path), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout) == json.loads((tmp_path / "identified.json").read_text())

@@ -110,6 +110,34 @@ def test_bad_init_arguments_are_named(args, match):
         starter.config_text(*args)
 
 
+@pytest.mark.parametrize("name", ["abc\n", "abc\r", "abc\n\n", "\nabc", "a b", "a" * (config.MAX_NAME_LENGTH + 1),
+                                  "a" * 300, ""])
+def test_a_name_no_config_takes_is_refused_by_init_in_one_line_and_writes_nothing(tmp_path, monkeypatch, name):
+    """A name ending in a newline once wrote `abc\\n.yaml`; one of 300 characters ended in an internal error."""
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["init", name])
+    assert res.exit_code == 2, res.output
+    shown = repr(name) if len(name) <= 60 else rf"{name[:60]!r}\.\.\. \({len(name)} characters\)"
+    assert re.fullmatch(rf"quadctl: error: NAME = {re.escape(shown) if len(name) <= 60 else shown}: must start "
+                        r"with a letter, digit or '_', use only letters, digits, '_', '\.' and '-', and have at most "
+                        r"128 characters \(it names the file NAME\.yaml and the folder runs/NAME\)\n", res.stderr), \
+        res.stderr
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ConfigError):  # the config's own rule refuses it too
+        config.from_dict({**config.load("hover").model_dump(mode="json"), "name": name}, "c.yaml")
+
+
+def test_the_longest_name_init_takes_makes_a_config_that_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    name = "q" * config.MAX_NAME_LENGTH
+    res = runner.invoke(app, ["init", name])
+    assert res.exit_code == 0, res.output
+    assert config.load(f"{name}.yaml").name == name
+    res = runner.invoke(app, ["trim", "-c", f"{name}.yaml"])  # into runs/<name>
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "runs" / name / "trim.json").is_file()
+
+
 def test_configs_show_says_what_each_empty_section_means():
     shown = runner.invoke(app, ["configs", "--show", "hover"]).output
     assert shown.startswith("# hover.yaml, validated, every default filled in. For a vehicle of your own start from\n"

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run, solve
 
+from quadctl.design import integral
 from quadctl.layout import INPUT_INDEX, STATE_INDEX
-from quadctl.lqr import integral
 
 MASS_ERROR = 1.10
 """The simulated vehicle is 10 % heavier than the design model."""
@@ -83,7 +83,7 @@ def test_the_discrete_lqi_gain_tends_to_the_continuous_one_as_the_rate_rises():
     without ``Ts``, leave the gap from 1 to 10 kHz shrinking 0.2 to 5 times, not 10."""
     import scipy.linalg
 
-    from quadctl.lqr import design
+    from quadctl.design import design
 
     setup, trim, linear, dec, _ = solve(cfg_dict("mambo-200hz"))
     sub = dec["altitude"]

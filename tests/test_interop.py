@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, solve
 
-from quadctl import interop, margins
+from quadctl import interop
+from quadctl.design import closed_loop_matrix, lqr, margins
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
-from quadctl.lqr import closed_loop_matrix, lqr
 
 control = pytest.importorskip("control")
 
@@ -54,7 +54,7 @@ def test_the_loops_reproduce_quadctls_closed_loop_eigenvalues(name):
 
 def test_one_loop_has_quadctls_margins():
     """The Crazyflie's roll loop, sampled at 500 Hz and broken at its input: python-control's
-    stability_margins of K * subsystem agree with quadctl.margins (lower gain margin, phase margin
+    stability_margins of K * subsystem agree with quadctl.design.margins (lower gain margin, phase margin
     and its crossover).
 
     On its frequency response (1 rad/s to Nyquist, 20001 points, crossings interpolated) it agrees

@@ -12,10 +12,9 @@ import scipy.optimize
 from _solve import cfg_dict, solve
 from typer.testing import CliRunner
 
-from quadctl import margins
 from quadctl.cli.app import app
-from quadctl.lqr import discrete
-from quadctl.margins import BrokenLoop, loop_margins
+from quadctl.design import discrete, margins
+from quadctl.design.margins import BrokenLoop, loop_margins
 
 
 def integrator_with_lag(k: float, tau: float) -> BrokenLoop:

@@ -111,7 +111,7 @@ def test_free_fall_conserves_mechanical_energy_while_tumbling():
 @pytest.mark.parametrize("wind", [None, [1.0, -2.0, 0.3]])
 def test_linearize_all_is_linearize_at_each_point(wind):
     """The Jacobians mapped over points are each point's own, bit for bit, with its drift ``x_rate``."""
-    from quadctl.linearize import linearize, linearize_all
+    from quadctl.linear.linearize import linearize, linearize_all
 
     rng = np.random.default_rng(7)
     points = [_random_point(rng) for _ in range(6)]

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, solve
 
-from quadctl import margins, plots
+from quadctl import plots
+from quadctl.design import margins
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.motors import Motors, actuators_of
 
@@ -42,7 +43,7 @@ def test_the_phase_of_a_known_loop_is_its_closed_form_in_minus_360_to_0():
 
 def test_a_loops_bode_phase_shows_its_phase_margin_above_minus_180():
     """mambo-200hz's roll loop (sampled, the one docs/guide/flying.md shows): the plotted phase at the gain
-    crossover is ``-180 + PM`` (PM from quadctl.margins, which never reads the plot), within the grid's
+    crossover is ``-180 + PM`` (PM from quadctl.design.margins, which never reads the plot), within the grid's
     spacing, and the whole curve lies in (-360, 0]."""
     setup, trim, linear, dec, des = solve(cfg_dict("mambo-200hz"))
     roll = next(m for m in margins.all_margins(des, dec, linear.A, linear.B) if m.loop == "roll"
@@ -229,7 +230,8 @@ def test_the_cli_draws_the_same_figures_on_two_cores_and_redraws_what_a_failed_c
 
     def saved(name, can_fork):
         monkeypatch.setattr(figures, "_can_fork", lambda: can_fork)
-        ws = SimpleNamespace(setup=setup, linear=SimpleNamespace(u_trim=[0.6, 0.0, 0.0, 0.0]), out=tmp_path / name)
+        ws = SimpleNamespace(setup=setup, linear=SimpleNamespace(u_trim=[0.6, 0.0, 0.0, 0.0]), out=tmp_path / name,
+                             remember=lambda *paths: None)  # (a workspace's record for its roll-back)
         paths = figures.save_figures(ws, sim)
         assert [p.name for p in paths] == ["altitude.png", "roll.png", "inputs.png"]
         return _figure_files(tmp_path / name)

@@ -12,7 +12,8 @@ import pytest
 from _solve import cfg_dict, solve
 
 import quadctl
-from quadctl import margins, present, stability
+from quadctl import present, stability
+from quadctl.design import margins
 from quadctl.messages import eig_text
 from quadctl.present import cells, loops
 from quadctl.present import design as shown

@@ -11,8 +11,8 @@ from typer.testing import CliRunner
 from quadctl import config, pipeline
 from quadctl.analysis import check
 from quadctl.cli.app import app
+from quadctl.design import RICCATI_RTOL, lqr, riccati_residual
 from quadctl.errors import QuadctlError
-from quadctl.lqr import RICCATI_RTOL, lqr, riccati_residual
 from quadctl.problem import setup_of
 from quadctl.stability import is_stable
 

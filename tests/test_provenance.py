@@ -85,7 +85,7 @@ def test_every_artifact_records_the_software_versions_and_the_compiler(tmp_path)
     assert metas["trim.json"]["compiler"] == metas["design.json"]["compiler"] == provenance.NOT_USED
     sim = json.loads((tmp_path / "sim.json").read_text())
     if sim["backend"].startswith("compiled"):
-        from quadctl.sim.compile import find_compiler
+        from quadctl.native.compile import find_compiler
 
         assert sim["compiler"]["path"] == find_compiler()
         assert sim["compiler"]["version"] and not sim["compiler"]["version"].startswith("unknown")
@@ -116,7 +116,7 @@ def test_the_compiler_is_asked_once_per_process(monkeypatch):
     monkeypatch.setattr(provenance.subprocess, "run", counting)
     assert provenance.compiler(()) == "not used" and provenance.compiler("casadi") == "none"
     assert calls == []  # nothing compiled: the compiler is never asked
-    from quadctl.sim.compile import find_compiler
+    from quadctl.native.compile import find_compiler
 
     if find_compiler() is None:
         pytest.skip("no C compiler here")

@@ -18,16 +18,16 @@ def _pytest(*args: str, **env: str) -> str:
 
 def test_a_bare_pytest_collects_the_docstring_examples_and_the_readme():
     out = _pytest("--collect-only", "-q")
-    for item in ("tests/test_doctests.py::test_docstring_examples[quadctl.margins]",
-                 "tests/test_doctests.py::test_docstring_examples[quadctl.lqr.decoupled]",
-                 "tests/test_readme.py::test_readme_block"):
+    for item in ("tests/test_doctests.py::test_docstring_examples[quadctl.design.margins]",
+                 "tests/test_doctests.py::test_docstring_examples[quadctl.design.decoupled]",
+                 "tests/test_doc_pages.py::test_page_block"):
         assert item in out, out[-2000:]
 
 
 def test_compiler_tests_skip_with_the_reason_where_there_is_no_compiler():
     out = _pytest("-q", "-rs", "-n0", "tests/test_engine.py", "-k", "cached_library or compile_cache_key",
                   QUADCTL_NO_COMPILE="1")
-    assert "2 skipped" in out and "needs a C compiler: quadctl.sim.compile.find_compiler() found none" in out, out
+    assert "2 skipped" in out and "needs a C compiler: quadctl.native.compile.find_compiler() found none" in out, out
 
 
 def test_every_test_that_names_the_compiled_backend_is_marked():

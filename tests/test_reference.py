@@ -5,6 +5,7 @@ position step settling as its slowest pole says, the bundled mission), and every
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -13,13 +14,13 @@ import pytest
 
 from quadctl import config, pipeline, trajectory
 from quadctl.errors import ConfigError
+from quadctl.linear.trim import solve_trim
 from quadctl.model import Vehicle, build_model
 from quadctl.present import mission
 from quadctl.present.mission import mission_text
 from quadctl.problem import setup_of
 from quadctl.sim.reference import FlownReference
 from quadctl.sim.run import simulate
-from quadctl.trim import solve_trim
 
 HOVER_HOLD = Path(__file__).resolve().parent.parent / "docs" / "configs" / "hover-hold.yaml"
 """Hover holding position: the square mission's design, without the mission."""
@@ -354,3 +355,34 @@ def _linear_and_design(setup):
     trim = pipeline.trim_of(setup)
     linear = pipeline.linear_of(setup, trim)
     return linear, pipeline.design_of(setup, pipeline.decoupled_of(setup, linear), linear)
+
+
+@pytest.mark.parametrize("setpoints,key", [
+    ("[{t: 1, velocity: [0, 600, 0]}]", "simulation.reference.setpoints[0].velocity"),
+    ("[{t: 0.5, yaw: 0.1}, {t: 1, velocity: [0, 600, 0]}]", "simulation.reference.setpoints[1].velocity"),
+    ("[{t: 1, velocity: [600, 0, 0]}, {t: 1.5, yaw: 0.1}]", "simulation.reference.setpoints[0].velocity"),
+    ("[{t: 0.5, velocity: [0, 0, 1]}, {t: 1, velocity: [0, 600, 0]}, {t: 2, position: [0, 0, -1]}]",
+     "simulation.reference.setpoints[1].velocity"),
+])
+def test_a_setpoint_velocity_no_attitude_holds_is_refused_naming_that_setpoint(setpoints, key):
+    """A mission's fix (its speed) is no fix for setpoints, which have none: the refusal names the setpoint
+    whose velocity is flown when the force balance fails."""
+    cfg = config.parse(HOVER_HOLD.read_text() + f"  reference: {{setpoints: {setpoints}}}\n", "c.yaml")
+    flown = FlownReference(setup_of(cfg).reference, setup_of(cfg).vehicle.vector())
+    refusal = r"^simulation\.reference: at t = .* beyond the 80 deg of roll or pitch the Euler-angle model supports; "
+    with pytest.raises(Exception, match=refusal + "lower " + re.escape(key) + ": no attitude holds that velocity "
+                                        r"against the rotor drag$") as err:
+        flown.exact(np.linspace(0.0, 3.0, 31))
+    assert "simulation.reference.speed" not in str(err.value)
+
+
+@pytest.mark.parametrize("t,key", [(0.0, "trim.velocity_ned"), (0.99, "trim.velocity_ned"),
+                                   (1.0, "simulation.reference.setpoints[0].velocity"),
+                                   (2.5, "simulation.reference.setpoints[0].velocity"),
+                                   (3.0, "simulation.reference.setpoints[2].velocity")])
+def test_each_time_is_flown_with_the_velocity_of_the_last_setpoint_that_gave_one(t, key):
+    ref = trajectory.setpoint_reference([{"t": 1.0, "velocity": [1, 0, 0]}, {"t": 2.0, "yaw": 0.3},
+                                         {"t": 3.0, "velocity": [0, 0, 0]}], [0, 0, -1], [0, 0, 0], 0.0)
+    assert ref.remedy(t).startswith(f"lower {key}: ")
+    mission = trajectory.mission_reference([{"position": [1, 0, -1]}], [0, 0, -1], 0.0, 1.0, 0.1)
+    assert mission.remedy(t) == "lower simulation.reference.speed or space the waypoints further apart"

@@ -13,10 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from quadctl import analysis, stability
+from quadctl.design import discrete, integral, lqr, riccati, riccati_residual
+from quadctl.design.discrete import dlqr, lqrd
+from quadctl.design.riccati import ROUNDOFF_RTOL, SEMIDEFINITE_RTOL, WeightCheck, care_batch, dare_batch
 from quadctl.errors import DesignError
-from quadctl.lqr import discrete, integral, lqr, riccati, riccati_residual
-from quadctl.lqr.discrete import dlqr, lqrd
-from quadctl.lqr.riccati import ROUNDOFF_RTOL, SEMIDEFINITE_RTOL, WeightCheck, care_batch, dare_batch
 
 AGREEMENT = 1e-8
 """Relative difference of ``P`` allowed against SciPy's on well-posed problems: both are certified
@@ -229,7 +229,7 @@ def test_larger_random_systems_agree_with_scipy(n):
 
 
 def test_numerical_failures_become_design_errors_with_the_reason(monkeypatch):
-    from quadctl.lqr.riccati import single
+    from quadctl.design.riccati import single
 
     def out_of_memory(*args):
         raise MemoryError("Unable to allocate 2.4 GiB")

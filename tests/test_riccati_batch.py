@@ -9,9 +9,9 @@ import scipy.linalg
 from _carex import case
 from _solve import bundled_subsystems
 
+from quadctl.design import discrete, integral
+from quadctl.design.riccati import KRONECKER_MAX_N, care_batch, dare_batch, dare_residual
 from quadctl.errors import DesignError
-from quadctl.lqr import discrete, integral
-from quadctl.lqr.riccati import KRONECKER_MAX_N, care_batch, dare_batch, dare_residual
 
 AGREEMENT = 1e-9
 """Relative difference (largest entry over the largest entry) allowed between the batched answers
@@ -208,7 +208,7 @@ def test_a_member_whose_eigenvalues_do_not_converge_fails_alone(monkeypatch):
 
 
 def test_a_stack_too_large_for_memory_is_a_design_error(monkeypatch):
-    from quadctl.lqr.riccati import stacked
+    from quadctl.design.riccati import stacked
 
     def out_of_memory(*args):
         raise MemoryError("Unable to allocate 2.4 GiB")
@@ -230,7 +230,7 @@ def test_compiled_doubling_gives_numpys_solution_to_round_off(n, m):
     """dare_batch with its doubling steps in C (a sweep's designs) against numpy's stacked steps, on
     random plants with a cross term and on quadctl's own subsystems at 200 Hz (with an integrator):
     the same P and K to round-off, the same verdicts, and SciPy's P."""
-    from quadctl.lqr.riccati import doubling
+    from quadctl.design.riccati import doubling
 
     assert doubling._compiled() is not None
     rng = np.random.default_rng(100 + 10 * n + m)

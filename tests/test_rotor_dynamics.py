@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
-from quadctl import config, margins
+from quadctl import config
+from quadctl.design import lag, margins
 from quadctl.errors import ConfigError
 from quadctl.layout import N_STATES
 from quadctl.sim.builder import build
@@ -93,7 +94,7 @@ def test_a_vanishing_lag_approaches_the_instantaneous_loop():
 def test_the_margins_see_the_lag_an_integrator_loop_loses_atan_wc_tau(k, tau):
     """``L = k / (s (tau s + 1))``: ``|L| = 1`` at ``w_c`` with ``k = w_c sqrt(1 + (w_c tau)^2)``,
     phase margin ``90 deg - atan(w_c tau)``."""
-    A, B = margins.lagged(np.zeros((1, 1)), np.ones((1, 1)), tau)
+    A, B = lag.lagged(np.zeros((1, 1)), np.ones((1, 1)), tau)
     m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], np.array([k, 0.0])))
     wc = np.sqrt((np.sqrt(1 + 4 * (k * tau) ** 2) - 1) / (2 * tau ** 2))
     assert m.gain_crossover_freq == pytest.approx(wc, rel=1e-9)

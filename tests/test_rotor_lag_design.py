@@ -20,12 +20,12 @@ import scipy.linalg
 from _solve import cfg_dict, solve
 from typer.testing import CliRunner
 
-from quadctl import config, margins, pipeline
+from quadctl import config, pipeline
 from quadctl.cli.app import app
+from quadctl.design import discrete, integral, lag, linear_loop, margins
+from quadctl.design.decoupled import _solve_subsystem
+from quadctl.design.riccati import riccati_residual
 from quadctl.errors import ConfigError
-from quadctl.lqr import discrete, integral, lag, linear_loop
-from quadctl.lqr.decoupled import _solve_subsystem
-from quadctl.lqr.riccati import riccati_residual
 from quadctl.notices import notices
 from quadctl.sim.run import simulate
 
@@ -77,7 +77,7 @@ def test_a_lagged_integrator_gain_has_its_closed_form(q, r, tau):
 
 
 def test_each_subsystem_of_a_continuous_included_design_solves_its_riccati_equation():
-    """On ``[x; v; z]``: the lagged plant (:func:`quadctl.lqr.lag.lagged`) with its integrators, Q zero on ``v``."""
+    """On ``[x; v; z]``: the lagged plant (:func:`quadctl.design.lag.lagged`) with its integrators, Q zero on ``v``."""
     setup, _, _, dec, des = solve(_hover())
     assert des.lag_time_constant == 0.02
     for sub in des.subsystems:
@@ -168,7 +168,7 @@ def test_the_augmented_loop_meets_the_lqr_guarantee_and_the_model_in_the_control
     q, r, tau = 100.0, 1.0, 0.05
     kx, kv = lag.scalar_integrator_gain(q, r, tau)
     Al, Bl = lag.lagged(np.zeros((1, 1)), np.ones((1, 1)), tau)
-    A, B, K = margins.with_lag_model(Al, Bl, np.array([[kx, 0.0]]), np.array([[kv]]), tau)
+    A, B, K = linear_loop.with_lag_model(Al, Bl, np.array([[kx, 0.0]]), np.array([[kv]]), tau)
     m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], K[0]))
     b = (1 + kv) ** 2  # tau^2 w^4 + (1 + kv)^2 w^2 - kx^2 = 0 at the crossover
     wc = math.sqrt((-b + math.sqrt(b * b + 4 * tau ** 2 * kx ** 2)) / (2 * tau ** 2))

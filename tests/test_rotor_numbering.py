@@ -86,6 +86,17 @@ def test_the_default_numbering_leaves_the_config_digest_as_it_was():
      r"rear_left one way"),
     ({"layout": "+", "numbering": "px4"}, r"^c\.yaml: motors\.numbering = \"px4\": px4 is a quad-x order; for "
                                            r"layout \+ give the 4 positions"),
+    ({"numbering": "ardupilot"}, r"^c\.yaml: motors\.numbering = \"ardupilot\": must be one of quadctl, crazyflie, "
+                                 r"px4, betaflight, or a list of the 4 rotor positions, rotor 1 first$"),
+    ({"numbering": "px5"}, r"^c\.yaml: motors\.numbering = \"px5\": must be one of quadctl, crazyflie, px4, "
+                           r"betaflight, or a list of the 4 rotor positions, rotor 1 first; did you mean `px4`\?$"),
+    ({"numbering": 4},
+     r"^c\.yaml: motors\.numbering = 4: must be one of quadctl, .*, rotor 1 first; did you mean `px4`\?$"),
+    ({"numbering": {"x": 1}},
+     r"^c\.yaml: motors\.numbering = \{\"x\": 1\}: must be one of quadctl, .*, rotor 1 first$"),
+    ({"numbering": [1, 2, 3, 4]}, r"^c\.yaml: motors\.numbering\[0\] = 1: must be text \(and 3 more errors\)$"),
+    ({"spin": ["cw", "ccw", "cw", "clockwise"]},
+     r"^c\.yaml: motors\.spin\[3\] = \"clockwise\": must be one of cw, ccw; did you mean `ccw`\?$"),
 ])
 def test_a_bad_numbering_is_refused_naming_the_key_and_fix(motors_keys, match):
     data = cfg_dict("mambo-200hz")

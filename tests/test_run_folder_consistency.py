@@ -5,6 +5,9 @@ so none is left beside a config that did not make it (quadctl.workspace)."""
 from __future__ import annotations
 
 import json
+import os
+import time
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -118,3 +121,155 @@ def test_roll_back_without_hard_links_keeps_the_bytes(tmp_path, monkeypatch):
         assert ws.design.stable
         ws.roll_back()
     assert _contents(tmp_path) == before and not list(tmp_path.glob(".*.tmp"))
+
+
+def _tree(folder):
+    """Every file below ``folder`` (hidden ones too: a file set aside, a temporary) with its bytes, and
+    every folder: what "the folder as it was" compares."""
+    import gc
+
+    from quadctl.artifacts import LOCK_NAME
+
+    gc.collect()  # a command's workspace, released (its lock and its files set aside go with it)
+    if not folder.exists():
+        return None
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else "folder") for p in folder.rglob("*")
+            if p.name != LOCK_NAME}
+
+
+def _full_disk_at(monkeypatch, name):
+    """The disk fills up when ``name`` is written (as test_safe_writes does: the temporary's write fails)."""
+    from quadctl.artifacts import writing
+
+    temporary = writing._temporary
+
+    def failing(path, data):
+        if path.name == name:
+            raise OSError(28, "No space left on device")
+        return temporary(path, data)
+
+    monkeypatch.setattr(writing, "_temporary", failing)
+
+
+@pytest.fixture(scope="module")
+def earlier_report(tmp_path_factory):
+    """A folder with the report of another config (the square mission: a path figure hover has not), its
+    run cut to 1 s: the report is written, and fails the mission it cannot finish (exit 1)."""
+    folder = tmp_path_factory.mktemp("earlier") / "run"
+    res = invoke("report", "-c", "square", "-o", folder, "--set", "simulation.duration=1")
+    assert res.exit_code == 1 and "the run ends at 1 s, before the mission does" in res.output, res.output
+    assert (folder / "report" / "sim-path.png").exists()
+    return folder
+
+
+@pytest.mark.parametrize("start,full_at", [("none", "report.html"), ("earlier", "report.md"),
+                                           ("earlier", "sim-roll.png")])
+def test_a_report_the_disk_cannot_hold_leaves_the_folder_as_it_was(tmp_path, monkeypatch, earlier_report, start,
+                                                                  full_at):
+    """report on a full disk exits 2 and puts back every file it wrote or removed (stage artifacts, figures,
+    report.md), as simulate does: never a report.md and figures without report.html."""
+    import shutil
+
+    folder = tmp_path / "run"
+    if start == "earlier":
+        shutil.copytree(earlier_report, folder)
+    before = _tree(folder)
+    _full_disk_at(monkeypatch, full_at)
+    res = invoke("report", "-c", "hover", "-o", folder, "--set", "simulation.duration=1")
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines()[-1] == (
+        f"quadctl: error: {folder / 'report' / full_at}: cannot write the artifact (No space left on device); free "
+        "the space or the permission it needs, or choose another --out folder")
+    assert _tree(folder) == (before or {})  # none: the folder the lock made, empty
+
+
+@pytest.mark.parametrize("command,full_at", [("simulate", "yaw.png"), ("margins", "margins-pitch-design.png")])
+def test_figures_the_disk_cannot_hold_leave_the_folder_as_it_was(tmp_path, monkeypatch, command, full_at):
+    """simulate --plot, margins --plot: the figures drawn before the disk filled up go too, with the stages'
+    artifacts and the plots/ folder the command made."""
+    assert invoke("simulate", "-c", "hover", "-o", tmp_path, "--set", "simulation.duration=1").exit_code == 0
+    before = _tree(tmp_path)
+    _full_disk_at(monkeypatch, full_at)
+    res = invoke(command, "-c", "forward", "-o", tmp_path, "--plot", "--set", "simulation.duration=1")
+    assert res.exit_code == 2, res.output
+    assert f"{full_at}: cannot write the artifact (No space left on device)" in res.stderr
+    assert _tree(tmp_path) == before
+
+
+KILLED = """
+import os, signal, sys
+from quadctl import config
+from quadctl.workspace import Workspace
+ws = Workspace(config.load(sys.argv[2]), sys.argv[1], fresh=True)
+ws.design  # trim.json ... design.json rewritten: each set aside first, for a roll-back
+ws.write_bytes(ws.out / "report" / "report.md", b"# half a report")  # the earlier report's, set aside too
+print(sorted(p.name for p in ws.out.rglob(".*undo*")), flush=True)
+os.kill(os.getpid(), signal.SIGKILL)  # as a kill -9 during report --fresh
+"""
+
+
+def _set_aside(folder):
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob(".*quadctl-undo*.tmp"))
+
+
+def _killed_mid_session(folder, name="hover"):
+    """A process that rewrote some artifacts of ``folder`` and was killed (SIGKILL) before its workspace
+    closed: the files it set aside for a roll-back are left."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", KILLED, str(folder), name], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent.parent)})
+    assert proc.returncode == -9, proc.stderr
+    left = _set_aside(folder)
+    assert len(left) >= 5, (left, proc.stdout)
+    return left
+
+
+@pytest.mark.parametrize("command", [["trim"], ["design"], ["export", "--to", "json"]])
+def test_files_set_aside_by_a_killed_run_are_removed_by_the_next_command(tmp_path, command):
+    """A kill -9 mid-session leaves `.checks.json.quadctl-undo….tmp` and its kind; the next command that
+    holds the folder (no other process does) removes every one, however old the file it kept."""
+    folder = tmp_path / "run"
+    assert invoke("design", "-c", "hover", "-o", folder).exit_code == 0
+    (folder / "report").mkdir()
+    (folder / "report" / "report.md").write_text("# an earlier report\n")
+    assert "report/.report.md.quadctl-undo" in " ".join(_killed_mid_session(folder))
+    res = invoke(*command, "-c", "hover", "-o", folder)
+    assert res.exit_code == 0, res.output
+    assert _set_aside(folder) == []
+    assert (folder / "report" / "report.md").read_bytes() == b"# half a report"  # what the killed run wrote stays
+
+
+def test_files_set_aside_are_left_while_another_process_holds_the_folder(tmp_path):
+    folder = tmp_path / "run"
+    assert invoke("design", "-c", "hover", "-o", folder).exit_code == 0
+    left = _killed_mid_session(folder)
+    from test_folder_lock import _holder
+
+    other = _holder(folder)
+    try:
+        res = invoke("trim", "-c", "hover", "-o", folder)
+        assert res.exit_code == 2 and "is in use by another quadctl" in res.stderr
+        assert _set_aside(folder) == left
+    finally:
+        other.kill()
+        other.wait()
+
+
+def test_a_second_workspace_of_the_process_leaves_the_first_ones_files_set_aside(tmp_path):
+    """Re-entrant in one process: the second holder removes nothing, so the first still rolls back, however
+    old the files it set aside (a set-aside name keeps its file's time)."""
+    with Workspace(config.load("hover"), tmp_path) as ws:
+        assert ws.design.stable
+    before = _contents(tmp_path)
+    old = time.time() - 3600
+    for path in tmp_path.iterdir():
+        os.utime(path, (old, old))
+    with Workspace(config.load("forward"), tmp_path) as first, \
+            pytest.warns(QuadctlNotice, match="removed trim.json"):
+        assert first.trim.residual < 1e-9
+        with Workspace(config.load("forward"), tmp_path) as second:
+            assert second.out == first.out
+        first.roll_back()
+    assert _contents(tmp_path) == before

@@ -273,7 +273,7 @@ def test_a_kill_between_the_c_files_leaves_no_pair_that_compiles_and_the_next_ex
     are removed by the next export, which writes a matched pair."""
     import shutil
 
-    from quadctl.sim.compile import find_compiler
+    from quadctl.native.compile import find_compiler
 
     out = tmp_path / "run"
     shutil.copytree(old_pair, out)

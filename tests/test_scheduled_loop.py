@@ -20,8 +20,8 @@ import pytest
 from _solve import cfg_dict, designed_table, solve
 
 from quadctl import config, pipeline
+from quadctl.design.gain_table import GainTable
 from quadctl.layout import N_STATES, STATE_INDEX
-from quadctl.lqr.gain_table import GainTable
 from quadctl.problem import setup_of
 from quadctl.sim.builder import LoopSpec, build
 from quadctl.sim.run import simulate
@@ -370,7 +370,7 @@ def test_simulate_flies_the_schedule_and_sim_json_says_so(tmp_path):
 
 @pytest.mark.parametrize("variable", ["speed", "climb", "yaw"])
 def test_scheduling_values_of_a_run_are_the_variable_row_by_row(variable):
-    from quadctl.lqr.gain_table import scheduling_value, scheduling_values
+    from quadctl.design.gain_table import scheduling_value, scheduling_values
 
     xs = np.random.default_rng(4).normal(size=(7, N_STATES))
     one_by_one = [scheduling_value(variable, x, 0.3) for x in xs]

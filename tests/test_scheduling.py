@@ -13,9 +13,9 @@ from typer.testing import CliRunner
 
 from quadctl import config, pipeline, stability
 from quadctl.cli.app import app
+from quadctl.design.gain_table import OUTSIDE, GainTable, scheduling_value
 from quadctl.errors import ScheduleError
 from quadctl.layout import STATE_INDEX
-from quadctl.lqr.gain_table import OUTSIDE, GainTable, scheduling_value
 from quadctl.problem import setup_of
 from quadctl.scheduling import fine_values, frozen_checks, heading_of, own_value, schedule_of
 from quadctl.workspace import Workspace

@@ -178,3 +178,22 @@ def test_an_absurd_step_count_is_refused_and_a_long_one_announced(loop):
     with pytest.warns(QuadctlNotice, match=r"simulating 2e\+08 RK4 steps"):
         plan = plan_step(cl.eigenvalues, cl.owners, 2 * ANNOUNCE_STEPS * step)
     assert ANNOUNCE_STEPS < plan.n_steps < MAX_STEPS
+
+
+@pytest.mark.parametrize("config_name", ["hover", "mambo-200hz"])  # continuous feedback; a sampled controller
+@pytest.mark.parametrize("method", ["rk4", "etdrk4"])
+@pytest.mark.parametrize("dt", [1e-300, 1e-12])
+def test_a_step_too_small_to_run_is_refused_naming_simulation_dt(tmp_path, config_name, method, dt):
+    """A tiny ``simulation.dt`` is the user's slip: the refusal names it and the way out, not the duration."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, ["simulate", "-c", config_name, "-o", str(out), "--set", f"simulation.dt={dt!r}",
+                                   "--set", f"simulation.method={method}"])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines() == [
+        f"quadctl: error: {config_name}.yaml with --set: simulation.dt = {dt:g} s makes simulation.duration = 10 s "
+        f"{10 / dt:.3g} steps, more than the 1e+10 quadctl runs; use dt: auto, or a step of at least 1e-09 s"]
+    assert not [p for p in out.iterdir() if not p.name.startswith(".")]  # the folder as it was: empty

@@ -66,10 +66,10 @@ def _quadctl_imports(module: str) -> set[str]:
 def test_compile_cache_key_covers_everything_the_generators_import():
     """A cached library is found by a hash of the generator's sources, not of the generated C: a
     module the generators import but the hash leaves out could change the C and load a stale library."""
-    from quadctl.sim.compile import GENERATOR_SOURCES
+    from quadctl.native.compile import GENERATOR_SOURCES
 
     used = _quadctl_imports("quadctl.sim.native") | {"sim/driver.c"}  # native.library_source writes the C
-    used -= {"sim/__init__.py"}  # the package map: no code
+    used -= {"sim/__init__.py", "native/__init__.py"}  # the package maps: no code
     assert used <= set(GENERATOR_SOURCES), sorted(used - set(GENERATOR_SOURCES))
     assert all((PACKAGE / name).exists() for name in GENERATOR_SOURCES)
 
@@ -128,24 +128,6 @@ def test_lazy_import_of_a_missing_module_fails_at_once():
         lazy_import("no_such_module_for_quadctl")
 
 
-def test_old_import_paths_give_the_moved_modules():
-    """Code written against the old layout (the README's earlier "From Python") still runs, on the
-    one module object: no second copy of a class, a constant or a cache."""
-    code = ("import quadctl.setup, quadctl.problem, quadctl.discrete, quadctl.lqr.discrete, quadctl.riccati.stacked\n"
-            "import quadctl.lqr.riccati.stacked, quadctl.simulate, quadctl.sim.run\n"
-            "from quadctl.setup import resolve, Setup\n"
-            "from quadctl.riccati import LqrResult, care_batch, dare_batch\n"
-            "from quadctl.discrete import dlqr, lqrd, c2d_batch, lqrd_weights_batch\n"
-            "from quadctl.lqr import lqr\n"
-            "assert quadctl.setup is quadctl.problem and resolve is quadctl.problem.setup_of\n"
-            "assert quadctl.discrete is quadctl.lqr.discrete and dlqr is quadctl.lqr.discrete.dlqr\n"
-            "assert quadctl.riccati.stacked is quadctl.lqr.riccati.stacked\n"
-            "assert quadctl.simulate is quadctl.sim.run\n"
-            "assert quadctl.problem.__spec__.name == 'quadctl.problem'\n"
-            "assert lqr is quadctl.lqr.decoupled.lqr\n")
-    subprocess.run([sys.executable, "-c", code], check=True)  # a fresh process: the old path imported first
-
-
 def _import_graph() -> dict[str, set[str]]:
     """Module -> the quadctl modules it imports, at the top or inside a function (``from pkg import
     sub`` counts as importing ``pkg.sub``; a name from a package counts as importing the package)."""
@@ -192,14 +174,14 @@ def test_no_import_cycles_not_even_inside_functions():
         visit(name, [])
     assert cycles == []
 # ---------------------------------------------------------------------------------------------
-# One home for the linear closed loop (quadctl/lqr/linear_loop.py) and for the stability test
+# One home for the linear closed loop (quadctl/design/linear_loop.py) and for the stability test
 # (quadctl/stability.py): the source is scanned for a second copy.
 
-LOOP_HOME = {"lqr/linear_loop.py"}
-SOLVER_LOOPS = "lqr/riccati/"
+LOOP_HOME = {"design/linear_loop.py"}
+SOLVER_LOOPS = "design/riccati/"
 """The Riccati solvers close ``A - B K`` inside their Newton steps and residuals: part of solving for
-the gain, below :mod:`quadctl.lqr.linear_loop` in the import graph (which depends on them through
-:mod:`quadctl.lqr.discrete`)."""
+the gain, below :mod:`quadctl.design.linear_loop` in the import graph (which depends on them through
+:mod:`quadctl.design.discrete`)."""
 STABILITY_HOME = {"stability.py"}
 
 
@@ -275,7 +257,7 @@ def _offenders(find, homes, skip: tuple[str, ...] = ()) -> list[str]:
 
 
 def test_closed_loops_are_built_only_in_linear_loop():
-    """Every ``A - B K`` outside the Riccati solvers is :mod:`quadctl.lqr.linear_loop`'s (``close``,
+    """Every ``A - B K`` outside the Riccati solvers is :mod:`quadctl.design.linear_loop`'s (``close``,
     ``matrix``, ``vehicle``, ...)."""
     assert _offenders(closed_loops_built, LOOP_HOME, skip=(SOLVER_LOOPS,)) == []
 

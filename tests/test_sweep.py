@@ -18,9 +18,9 @@ from typer.testing import CliRunner
 
 from quadctl import config, metrics, pipeline, sweep
 from quadctl.cli.app import app
+from quadctl.design import lqr, riccati_residual
+from quadctl.design.riccati import care_batch
 from quadctl.errors import DesignError, SweepError
-from quadctl.lqr import lqr, riccati_residual
-from quadctl.lqr.riccati import care_batch
 from quadctl.sim.run import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -642,7 +642,7 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
 
     from _solve import cfg_dict, solve
 
-    from quadctl.lqr.gain_table import GainTable
+    from quadctl.design.gain_table import GainTable
     from quadctl.sweep import batched
 
     data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include", "delay": {"samples": 1}})

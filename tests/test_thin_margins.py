@@ -10,8 +10,9 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from quadctl import config, margins
+from quadctl import config
 from quadctl.cli.app import app
+from quadctl.design import margins
 from quadctl.present.loops import thin_sentence
 
 runner = CliRunner()

@@ -9,8 +9,8 @@ import pytest
 
 from quadctl.errors import TrimError
 from quadctl.layout import STATE_INDEX
+from quadctl.linear.trim import RESIDUAL_TOL, solve_trim
 from quadctl.model import Vehicle, evaluate
-from quadctl.trim import RESIDUAL_TOL, solve_trim
 
 
 def test_report_forward_trim_to_four_digits():
@@ -85,7 +85,7 @@ def test_batched_trims_are_the_one_point_trims(wind):
     in as many iterations, and the same refusal where there is none (a tilt beyond the model's, a
     speed the direct Newton misses and the homotopy solves)."""
     from quadctl.errors import TrimError
-    from quadctl.trim import solve_trims
+    from quadctl.linear.trim import solve_trims
 
     V = [[s * np.cos(0.3), s * np.sin(0.3), vd] for s in np.linspace(0.0, 30.0, 12) for vd in (-2.0, 0.0, 1.5)]
     V += [[200.0, 0.0, 0.0], [0.0, 0.0, 50.0], [120.0, 0.0, 0.0]]

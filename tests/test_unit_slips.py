@@ -138,9 +138,13 @@ REFERENCE_SLIPS = {
         r"along the mission, more than 10 times the 30 m .*; positions are in m: for millimetres write "
         r"\[0, 0\.4, -0\.0015\]"),
     "a position beyond any millimetre": (
-        ["simulation.reference.waypoints[0].position=[1e300, 0, -1]"],
-        r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[1e\+300, 0, -1\]: 1e\+300 m from the start "
+        ["simulation.reference.waypoints[0].position=[5e5, 0, -1]"],
+        r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[500000, 0, -1\]: 5e\+05 m from the start "
         r".*\(MAX_REACH\); positions are in m: correct the slip, or raise the speed or the duration$"),
+    "a position past the unit's limit": (
+        ["simulation.reference.waypoints[0].position=[1e300, 0, -1]"],
+        r"^--set: simulation\.reference\.waypoints\[0\]\.position\[0\] = 1e\+300: must be at most 1e\+06 m in "
+        r"magnitude \(UNIT_LIMITS\)$"),
 }
 
 

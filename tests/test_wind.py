@@ -14,13 +14,13 @@ from _solve import cfg_dict, solve
 
 from quadctl import config, pipeline, sweep
 from quadctl.errors import ConfigError
+from quadctl.linear.trim import solve_trim
 from quadctl.model import Vehicle, build_model
 from quadctl.problem import setup_of
 from quadctl.sim import engine
 from quadctl.sim.cases import Cases
 from quadctl.sim.plan import record_stride
 from quadctl.sim.run import ExoStream, simulate
-from quadctl.trim import solve_trim
 from quadctl.wind import (
     FT,
     KNOT,
@@ -98,7 +98,7 @@ def test_trim_in_any_wind_is_an_equilibrium_and_holds_its_ground_velocity():
 
 
 def test_the_linear_model_in_wind_is_the_jacobian_of_the_model_in_wind():
-    from quadctl.linearize import linearize
+    from quadctl.linear.linearize import linearize
 
     v, wind = Vehicle(), np.array([2.0, -1.0, 0.0])
     t = solve_trim([0, 0, 0], 0.3, [0, 0, -1], v, wind_ned=wind)

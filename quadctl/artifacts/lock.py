@@ -65,6 +65,13 @@ def locked(folder: Path | str):
         release()
 
 
+def held(folder: Path | str) -> bool:
+    """Whether this process holds ``folder`` (:func:`locked`): a second holder here must leave the files
+    the first set aside (its roll-back needs them), while the first knows every quadctl temporary there
+    is a dead run's (no other process holds the folder, and none here did before)."""
+    return os.path.abspath(folder) in _held
+
+
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 _LINK_LOCK = "{path}: is a symbolic link, not quadctl's lock file; remove it (quadctl never writes through a link)"
 

@@ -22,6 +22,7 @@ ARTIFACT_NAMES = frozenset({
     "sweep.csv", "sweep.json", "sweep.png", "montecarlo.npz", "montecarlo.png",
     "quadctl_controller.h", "quadctl_controller.c", "quadctl_controller.mat", "quadctl_controller.json",
     "identified.json", "identified.yaml", "identify.png",
+    "Makefile", "Kbuild", "app-config", "README.md",  # the Crazyflie app (quadctl.export.crazyflie)
 })
 """Every file quadctl writes at the top of a run directory (tests check the workspace's, the
 sweep's and the exports' names are among them)."""
@@ -30,6 +31,7 @@ SUBFOLDER_NAMES = {
     PLOTS: re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]*\.png"),
     "sweep.parts": re.compile(r"chunk-[0-9]+\.json"),
     "report": re.compile(r"report\.(html|md)|[A-Za-z0-9_][A-Za-z0-9_.+-]*\.png"),
+    "src": re.compile(r"Kbuild|quadctl_(controller|crazyflie)\.[ch]|quadctl_app\.c"),  # the Crazyflie app's
 }
 """The subfolders quadctl writes into, and the names it writes there."""
 

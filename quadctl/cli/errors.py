@@ -93,7 +93,8 @@ def remember_config(label: str) -> None:
 
 def remember_workspace(ws) -> None:
     """Note the run folder this command writes, so that :func:`handled` can put it back when the
-    command refuses its input (exit 2) after some stages wrote there (:meth:`Workspace.roll_back`)."""
+    command refuses its input (exit 2) after some stages wrote there (:meth:`Workspace.roll_back`),
+    and release it when the command ends."""
     state = _COMMAND.get(None)
     if state is not None:
         state["workspace"] = ws
@@ -164,6 +165,9 @@ def handled(fn):
                        "rerun with --debug for the traceback and please report it",
                        EXIT_INTERNAL) from None
         finally:
+            ws = _COMMAND.get({}).get("workspace")
+            if ws is not None:  # the command is over: its run folder is released (its lock, the files it
+                ws.close()  # set aside), not left to the garbage collector of a process that goes on
             _COMMAND.reset(token)
 
     # typer hands the context to a parameter annotated typer.Context: add one to the signature

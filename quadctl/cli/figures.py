@@ -20,6 +20,7 @@ def save_figures(ws, sim, tracking: dict | None = None) -> list[Path]:
                                             title=ws.setup.name, actuators=ws.setup.actuators,
                                             tracking=tracking)
     paths = {name: artifacts.plot_path(ws.out, name) for name in makers}  # every name checked first
+    ws.remember(*paths.values())  # before the child draws its share: a roll-back puts every figure back
 
     def draw(names) -> None:
         for name in names:

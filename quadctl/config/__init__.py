@@ -30,7 +30,8 @@ from quadctl.config.checks import MAX_DURATION as MAX_DURATION
 from quadctl.config.checks import MAX_DURATION_ENV as MAX_DURATION_ENV
 from quadctl.config.checks import MAX_OFFSET as MAX_OFFSET
 from quadctl.config.checks import MAX_TILT_OFFSET as MAX_TILT_OFFSET
-from quadctl.config.checks import MAX_TRIM as MAX_TRIM
+from quadctl.config.checks import UNIT_KEYS as UNIT_KEYS
+from quadctl.config.checks import UNIT_LIMITS as UNIT_LIMITS
 from quadctl.config.checks import max_duration_s as max_duration_s
 from quadctl.config.loading import DEFAULT_CONFIG as DEFAULT_CONFIG
 from quadctl.config.loading import FOLDER_SCAN as FOLDER_SCAN
@@ -45,7 +46,6 @@ from quadctl.config.loading import load as load
 from quadctl.config.loading import locate as locate
 from quadctl.config.loading import near_files as near_files
 from quadctl.config.loading import parse as parse
-from quadctl.config.loading import resolve as resolve
 from quadctl.config.render import SCHEMA_DIALECT as SCHEMA_DIALECT
 from quadctl.config.render import TOP_LEVEL_ABSENT as TOP_LEVEL_ABSENT
 from quadctl.config.render import json_schema as json_schema
@@ -57,6 +57,7 @@ from quadctl.config.schema import MAX_DELAY_SAMPLES as MAX_DELAY_SAMPLES
 from quadctl.config.schema import MAX_DRAG as MAX_DRAG
 from quadctl.config.schema import MAX_GRAVITY as MAX_GRAVITY
 from quadctl.config.schema import MAX_GUSTS as MAX_GUSTS
+from quadctl.config.schema import MAX_NAME_LENGTH as MAX_NAME_LENGTH
 from quadctl.config.schema import MAX_NOISE as MAX_NOISE
 from quadctl.config.schema import MAX_RATE as MAX_RATE
 from quadctl.config.schema import MAX_ROTOR_TIME_CONSTANT as MAX_ROTOR_TIME_CONSTANT
@@ -65,6 +66,7 @@ from quadctl.config.schema import MAX_TURBULENCE_SIGMA as MAX_TURBULENCE_SIGMA
 from quadctl.config.schema import MAX_WIND as MAX_WIND
 from quadctl.config.schema import MAX_WIND_ALTITUDE as MAX_WIND_ALTITUDE
 from quadctl.config.schema import NAME_PATTERN as NAME_PATTERN
+from quadctl.config.schema import NAME_RULE as NAME_RULE
 from quadctl.config.schema import PLANT as PLANT
 from quadctl.config.schema import SUBSYSTEM_NAME_PATTERN as SUBSYSTEM_NAME_PATTERN
 from quadctl.config.schema import TURBULENCE_LENGTH as TURBULENCE_LENGTH

@@ -106,6 +106,7 @@ def check_semantics(cfg: Config, label: str) -> None:
         check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
                      names=sub.inputs)
     _check_reference(cfg.simulation.reference, fail)
+    _check_unit_limits(cfg, fail)  # the absolute rule of each unit before the mission's reach, relative to it
     _check_reach(cfg, fail)
     _check_schedule(cfg.schedule, fail)
     for state, value in cfg.simulation.initial_offset.items():
@@ -118,16 +119,6 @@ def check_semantics(cfg: Config, label: str) -> None:
         if unit in MAX_OFFSET and abs(value) > MAX_OFFSET[unit]:
             fail(f"simulation.initial_offset.{state}", value,
                  f"must be at most {MAX_OFFSET[unit]:g} {unit} from the trim (MAX_OFFSET)")
-    _check_angle("trim.yaw", cfg.trim.yaw, 2 * math.pi, fail)
-    for key in ("velocity_ned", "position_ned"):
-        unit = "m/s" if key == "velocity_ned" else "m"
-        for i, value in enumerate(getattr(cfg.trim, key)):
-            if abs(value) > MAX_TRIM[unit]:
-                fail(f"trim.{key}[{i}]", value, f"must be at most {MAX_TRIM[unit]:g} {unit} in magnitude (MAX_TRIM)")
-    max_duration = max_duration_s()
-    if cfg.simulation.duration > max_duration:
-        fail("simulation.duration", cfg.simulation.duration,
-             f"must be at most {max_duration:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to allow longer)")
     _check_inertia(cfg, fail)
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
@@ -141,9 +132,6 @@ def _check_schedule(schedule: ScheduleConfig | None, fail) -> None:
     """``schedule.values``: strictly increasing."""
     if schedule is None:
         return
-    if schedule.variable == "yaw":
-        for i, value in enumerate(schedule.values):
-            _check_angle(f"schedule.values[{i}]", value, MAX_YAW_TURNS * 2 * math.pi, fail)
     for i in range(1, len(schedule.values)):
         if schedule.values[i] <= schedule.values[i - 1]:
             fail(f"schedule.values[{i}]", schedule.values[i],
@@ -160,10 +148,6 @@ def _check_reference(ref: ReferenceConfig | None, fail) -> None:
              "give either setpoints (steps at times t) or waypoints (a mission), one of the two")
     if not (ref.setpoints or ref.waypoints):
         fail(f"{where}.{'setpoints' if ref.setpoints is not None else 'waypoints'}", [], "empty; list at least one")
-    for kind in ("setpoints", "waypoints"):
-        for i, point in enumerate(getattr(ref, kind) or []):
-            if point.yaw is not None:
-                _check_angle(f"{where}.{kind}[{i}].yaw", point.yaw, MAX_YAW_TURNS * 2 * math.pi, fail)
     for i, sp in enumerate(ref.setpoints or []):
         if sp.position is None and sp.velocity is None and sp.yaw is None:
             fail(f"{where}.setpoints[{i}]", {"t": sp.t}, "sets nothing; give position, velocity or yaw")
@@ -278,9 +262,75 @@ MAX_OFFSET = {"m": 1e4, "m/s": 1e2, "rad/s": 1e2}
 100 m/s and 100 rad/s (16 turns a second) are past any flight yet at least ten times inside
 the simulation's run-away bounds, so a run never starts out diverged, and no arithmetic on the
 state overflows (an offset of 1e308 did, with numpy warnings)."""
-MAX_TRIM = {"m": 1e6, "m/s": 1e3}
-"""Largest trim position (1000 km) and velocity (1000 m/s, three times the speed of sound): past
-them the trim and the reference it drifts along lose their digits."""
+UNIT_LIMITS = {"m": 1e6, "m/s": 1e3, "rad": 2 * math.pi, "rad along a path": MAX_YAW_TURNS * 2 * math.pi,
+               "s": MAX_DURATION}
+"""Largest magnitude of a position (1000 km), a velocity or speed (1000 m/s, three times the speed of
+sound), a heading (one turn; a reference's, which a mission may wind past one, :data:`MAX_YAW_TURNS`)
+and a time (the longest run, :data:`MAX_DURATION`, or the environment's: :func:`max_duration_s`)
+wherever the config gives one (:data:`UNIT_KEYS`): past them the trim and the reference lose their
+digits (a reference 1e300 m away overflowed the run's error statistics), a heading past a turn is an
+angle in degrees, and a time past a day is a slip no run reaches."""
+
+UNIT_KEYS: tuple[tuple[str, str], ...] = (
+    ("trim.position_ned[*]", "m"),
+    ("trim.velocity_ned[*]", "m/s"),
+    ("trim.yaw", "rad"),
+    ("simulation.reference.setpoints[*].position[*]", "m"),
+    ("simulation.reference.setpoints[*].velocity[*]", "m/s"),
+    ("simulation.reference.setpoints[*].yaw", "rad along a path"),
+    ("simulation.reference.waypoints[*].position[*]", "m"),
+    ("simulation.reference.waypoints[*].yaw", "rad along a path"),
+    ("simulation.reference.speed", "m/s"),
+    ("simulation.reference.tolerance", "m"),
+    ("schedule.values[*]", "schedule.variable"),
+    ("motors.arm_length", "m"),
+    ("simulation.duration", "s"),
+    ("simulation.dt", "s"),
+    ("simulation.noise.period", "s"),
+    ("simulation.wind.gusts[*].start", "s"),
+    ("simulation.reference.setpoints[*].t", "s"),
+    ("simulation.reference.waypoints[*].hold", "s"),
+    ("controller.delay", "s"),
+)
+"""Every key whose value is a position, a velocity, a heading or a time, with its unit (``[*]``: each
+item of a list) and no tighter bound in the schema; ``schedule.values`` take the unit of
+``schedule.variable`` (:data:`SCHEDULE_UNITS`). Each is held to :data:`UNIT_LIMITS` by
+:func:`_check_unit_limits`: one rule per unit (``tests/test_unit_limits.py`` finds a key of the schema
+with such a unit that is missing here)."""
+SCHEDULE_UNITS = {"speed": "m/s", "climb": "m/s", "yaw": "rad along a path"}
+"""The unit of each ``schedule.variable``'s values."""
+
+
+def _check_unit_limits(cfg: Config, fail) -> None:
+    """Each value of :data:`UNIT_KEYS` within its unit's :data:`UNIT_LIMITS`; a heading past a turn is
+    named as the angle in degrees it most likely is."""
+    data = cfg.model_dump(mode="json")
+    for pattern, unit in UNIT_KEYS:
+        for path, value in _values_at(data, pattern.replace("[*]", ".*").split("."), ""):
+            unit_here = SCHEDULE_UNITS[data["schedule"]["variable"]] if unit == "schedule.variable" else unit
+            limit = max_duration_s() if unit_here == "s" else UNIT_LIMITS[unit_here]
+            if not isinstance(value, (int, float)) or abs(value) <= limit:  # (``dt: auto``, ``{samples: n}``)
+                continue
+            if unit_here.startswith("rad"):
+                fail(path, value, _degrees_hint(value, limit))
+            if unit_here == "s":
+                fail(path, value, f"must be at most {limit:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to "
+                     "allow longer)")
+            fail(path, value, f"must be at most {limit:g} {unit_here} in magnitude (UNIT_LIMITS)")
+
+
+def _values_at(node: Any, parts: list[str], path: str):
+    """``(key path, value)`` of each value the pattern ``parts`` (``*``: every item of a list) reaches
+    in ``node``; a section or list the config leaves out (null) reaches none."""
+    if not parts:
+        yield path, node
+        return
+    head, *rest = parts
+    if head == "*":
+        for i, item in enumerate(node if isinstance(node, list) else []):
+            yield from _values_at(item, rest, f"{path}[{i}]")
+    elif isinstance(node, dict) and node.get(head) is not None:
+        yield from _values_at(node[head], rest, f"{path}.{head}" if path else head)
 
 
 INERTIA_TRIANGLE_RTOL = 0.10

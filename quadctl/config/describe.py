@@ -9,7 +9,7 @@ from typing import Any, Literal
 
 from pydantic import ValidationError
 
-from quadctl.config.schema import DelaySamples, section_model
+from quadctl.config.schema import NAME_RULE, DelaySamples, section_model
 from quadctl.messages import hint as _hint
 from quadctl.messages import key_path, show
 
@@ -18,12 +18,15 @@ def describe(exc: ValidationError, data: Any, label: str) -> str:
     """One line for the first pydantic error: file, key path, value, what is allowed."""
     # an unknown key usually explains the errors after it (a misspelt required key): say it first
     # and a mapping given where a number or a section is allowed (controller.delay) was meant as the section
-    errors = sorted(exc.errors(), key=lambda e: (e["type"] != "extra_forbidden",
-                                                 e["type"] == "float_type" and isinstance(e.get("input"), dict)))
+    # a list never is one of a union's literal choices: that branch's error says nothing
+    found = [e for e in exc.errors()
+             if not (e["type"] == "literal_error" and isinstance(e.get("input"), list))] or exc.errors()
+    errors = sorted(found, key=lambda e: (e["type"] != "extra_forbidden",
+                                          e["type"] == "float_type" and isinstance(e.get("input"), dict)))
     err = errors[0]
     loc = [part for part in err["loc"] if not is_union_tag(part)]
     path = key_path(loc)
-    distinct = {tuple(p for p in e["loc"] if not is_union_tag(p)) for e in exc.errors()}
+    distinct = {tuple(p for p in e["loc"] if not is_union_tag(p)) for e in found}
     n_more = len(distinct) - 1
     more = f" (and {n_more} more error{'s' if n_more > 1 else ''})" if n_more else ""
     kind = err["type"]
@@ -56,6 +59,8 @@ UNION_HINTS = {
     "inertia": "must be [Jxx, Jyy, Jzz] or 3 rows [[Jxx, Jxy, Jxz], [Jxy, Jyy, Jyz], [Jxz, Jyz, Jzz]] (kg m^2)",
 }
 """Fields whose type is a union: one plain sentence instead of pydantic's per-branch errors."""
+LIST_BRANCHES = {"numbering": "the 4 rotor positions, rotor 1 first"}
+"""Fields that take a choice or a list: what the list holds, said after the choices."""
 
 
 def expected(err: dict, loc: list) -> str:
@@ -96,16 +101,18 @@ def expected(err: dict, loc: list) -> str:
         return "must be true or false"
     if kind in ("dict_type", "model_type", "model_attributes_type"):
         return "must be a mapping of keys"
-    if kind == "string_pattern_mismatch":
-        return ("must start with a letter, digit or '_' and use only letters, digits, '_', '.' and '-' "
-                "(it names the folder runs/<name>)")
+    if kind in ("string_pattern_mismatch", "string_too_long"):  # the config's name, the one text with either
+        return f"{NAME_RULE} (it names the folder runs/<name>)"
     if kind == "string_too_short":
         return "must not be empty"
     if kind == "literal_error" and field is not None:
         choices = _literal_values(field.annotation)
         if choices:
             near = _hint(str(err.get("input")), choices)
-            return f"must be one of {', '.join(choices)}" + (f"; {near}" if near.startswith("did you mean") else "")
+            listed = f", or a list of {LIST_BRANCHES.get(names[-1], 'values')}" if _admits_list(field.annotation) \
+                else ""
+            return f"must be one of {', '.join(choices)}{listed}" + (
+                f"; {near}" if near.startswith("did you mean") else "")
     return err["msg"]
 
 
@@ -118,6 +125,17 @@ def _literal_values(annotation) -> list[str]:
     return [v for arg in get_args(annotation) for v in _literal_values(arg)]
 
 
+def _admits_list(annotation) -> bool:
+    """Whether a union annotation has a ``Literal`` branch and a ``list[...]`` branch (a choice or a list)."""
+    from typing import Annotated, Union, get_args, get_origin
+
+    if get_origin(annotation) is not Union:
+        return False
+    branches = [get_args(a)[0] if get_origin(a) is Annotated else a for a in get_args(annotation)]
+    return (any(get_origin(b) is Literal for b in branches)
+            and any(get_origin(b) is list for b in branches))
+
+
 def _field_info(loc: list):
     """The pydantic FieldInfo a key path ends at (None inside dict values and lists)."""
     parent = section_model([p for p in loc if not isinstance(p, int)][:-1])
@@ -126,7 +144,7 @@ def _field_info(loc: list):
 
 
 def is_union_tag(part: Any) -> bool:
-    return isinstance(part, str) and (part.startswith("list[") or part in ("literal['auto']",)
+    return isinstance(part, str) and (part.startswith(("list[", "literal["))
                                       or part.startswith("function-") or part == "float"
                                       or part.startswith("constrained-") or part == DelaySamples.__name__)
 

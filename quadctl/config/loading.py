@@ -98,10 +98,6 @@ def locate(spec: str | Path | None) -> Source:
         f"bundled: {', '.join(bundled_names())}")
 
 
-resolve = locate
-"""The former name of :func:`locate` (kept for code written against it)."""
-
-
 FOLDER_SCAN = 1000
 """Entries of a folder looked at for a config file of a near name (a mistyped ``-c``): a bound for a
 folder of many files."""
@@ -132,10 +128,27 @@ def near_files(path: Path) -> list[str]:
 def load(spec: str | Path | None = None) -> Config:
     """Load and validate a config from a path or a bundled name (default: ``forward``).
 
+    Parameters
+    ----------
+    spec : str or Path, optional
+        A YAML file, or the name of a bundled config (``quadctl configs`` lists them); None: ``forward``.
+
+    Returns
+    -------
+    Config
+        Validated, every default filled in.
+
     Raises
     ------
     ConfigError
         With one line naming the file, key path, value and the fix.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> cfg = qc.load_config("hover")
+    >>> cfg.name, cfg.vehicle.mass, list(cfg.lqr)
+    ('hover', 0.068, ['altitude', 'roll', 'pitch', 'yaw'])
     """
     source = locate(spec)
     return parse(source.text, source.label)

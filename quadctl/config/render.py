@@ -89,5 +89,6 @@ def json_schema() -> dict:
                 visit(value)
 
     visit(schema)
+    schema["description"] = schema["description"].split("\n\n")[0]  # the docstring's summary, not its example
     return {"$schema": SCHEMA_DIALECT, "title": "quadctl config", **{k: v for k, v in schema.items()
                                                                      if k != "title"}}

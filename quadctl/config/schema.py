@@ -20,6 +20,13 @@ from quadctl.layout import REPORT_PARTITION, SENSOR_GROUPS, STATE_NAMES
 
 NAME_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"
 """A config's name: one folder name inside ``runs/`` (no separator, not ``.`` or ``..``)."""
+MAX_NAME_LENGTH = 128
+"""Characters of a config's name: it names the folder ``runs/<name>`` and ``quadctl init``'s file
+``<name>.yaml`` (with its temporary ``.<name>.yaml.<random>.tmp`` beside it); file systems stop a
+file name at 255 bytes (the name is ASCII: a byte a character), so 128 leaves room."""
+NAME_RULE = ("must start with a letter, digit or '_', use only letters, digits, '_', '.' and '-', and have at "
+             f"most {MAX_NAME_LENGTH} characters")
+"""What :data:`NAME_PATTERN` and :data:`MAX_NAME_LENGTH` ask, in words (the config's error and ``init``'s)."""
 
 SUBSYSTEM_NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_]{0,62}$"
 """A subsystem's name: a letter, then letters, digits or ``_``, at most 63 characters. One rule for
@@ -375,9 +382,17 @@ InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]
 
 
 class Config(_Section):
-    """A whole quadctl config (see the README's config reference)."""
+    """A whole quadctl config (see the README's config reference).
 
-    name: Annotated[str, Field(min_length=1, pattern=NAME_PATTERN)] = Field(
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> cfg = qc.load_config("hover")
+    >>> cfg.controller.rate is None, cfg.simulation.duration
+    (True, 10.0)
+    """
+
+    name: Annotated[str, Field(min_length=1, max_length=MAX_NAME_LENGTH, pattern=NAME_PATTERN)] = Field(
         description="names the run directory runs/<name>")
     description: str = Field("", description="one line, shown by `quadctl configs`")
     vehicle: VehicleConfig = Field(VehicleConfig(), description="vehicle parameters, SI units")

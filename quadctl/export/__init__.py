@@ -102,27 +102,38 @@ def _flown(setup: Setup, loop):
     return schedule.flown_by(loop), schedule
 
 
-TARGETS = ("c", "mat", "json")
-"""What :func:`write` writes: the C controller, the MATLAB ``.mat``, the JSON."""
+TARGETS = ("c", "mat", "json", "crazyflie")
+"""What :func:`write` writes: the C controller, the MATLAB ``.mat``, the JSON, the Crazyflie app."""
 
 
-def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
+def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: str = "position",
+          mode: str = "force") -> list:
     """Write the export ``to`` (one of :data:`TARGETS`) into ``folder``, atomically; the paths.
 
     Parameters
     ----------
     exp : Export
-    to : {"c", "mat", "json"}
+    to : {"c", "mat", "json", "crazyflie"}
     folder : path
         Created if missing. Held (:func:`quadctl.artifacts.locked`) while it is written; the
         temporaries an earlier, killed writer left there are removed first.
     meta : dict, optional
         Provenance for the JSON (:func:`quadctl.artifacts.metadata`).
+    setpoint, mode : str
+        The Crazyflie app's setpoints and output mode (:func:`quadctl.export.crazyflie.sources`).
 
     Returns
     -------
     list of pathlib.Path
-        ``quadctl_controller.h`` and ``.c``; or ``quadctl_controller.mat``; or ``quadctl_controller.json``.
+        ``quadctl_controller.h`` and ``.c``; or ``quadctl_controller.mat``; or ``quadctl_controller.json``;
+        or the Crazyflie app's files (:data:`quadctl.export.crazyflie.APP_FILES` and the controller
+        in ``src/``).
+
+    Raises
+    ------
+    ConfigError
+        The Crazyflie app cannot serve the config (:func:`quadctl.export.crazyflie.check`):
+        nothing is written.
 
     Notes
     -----
@@ -134,7 +145,7 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
     from pathlib import Path
 
     from quadctl import artifacts
-    from quadctl.export import c, data
+    from quadctl.export import c, crazyflie, data
 
     if to not in TARGETS:
         raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
@@ -142,12 +153,16 @@ def write(exp: Export, to: str, folder, meta: dict | None = None) -> list:
     folder = Path(folder)
     if to == "c":
         files = {folder / name: text.encode() for name, text in c.sources(exp).items()}
+    elif to == "crazyflie":  # checked whole before the folder is touched
+        files = {folder / name: text.encode() for name, text in crazyflie.sources(exp, setpoint, mode).items()}
     elif to == "mat":
         buf = io.BytesIO()
         data.write_mat(buf, exp)
         files = {folder / data.MAT_FILE: buf.getvalue()}
+    first = not artifacts.held(folder)  # (a workspace of this process holding it keeps the files it set aside)
     with artifacts.locked(folder):  # one quadctl writes a folder at a time: a temporary here is a dead one's
-        artifacts.remove_stale_temporaries(folder, age=0.0)
+        if first:
+            artifacts.remove_stale_temporaries(folder, age=0.0)
         if to == "json":
             return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
         return artifacts.write_together(files)

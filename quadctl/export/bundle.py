@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.decouple import Decoupled
-from quadctl.linearize import LinearModel
-from quadctl.lqr import Design, linear_loop
+from quadctl.design import Design, linear_loop
+from quadctl.linear.linearize import LinearModel
 from quadctl.problem import Setup
 from quadctl.sim.run import ClosedLoop
 
@@ -32,7 +32,7 @@ class Export:
     design : Design
     loop : ClosedLoop
         The loop as ``quadctl simulate`` runs it (gains, trim, reference drift, integrators, actuators).
-    rate_warnings : tuple of quadctl.lqr.discrete.RateWarning
+    rate_warnings : tuple of quadctl.design.discrete.RateWarning
         Loops of a continuous design that the rate realizes only approximately (still stable).
     config_hash : str or None
         sha256 of the config (:meth:`quadctl.config.Config.digest`): the provenance the files carry.
@@ -116,8 +116,12 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
     --------
     >>> from quadctl.sim.run import ClosedLoop
     >>> z = np.zeros(12)
-    >>> print(law_text(ClosedLoop(z, z, np.zeros(4), z, np.zeros((4, 12)), z), None))
-    u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t; the yaw error wrapped into (-pi, pi]; ...
+    >>> for part in law_text(ClosedLoop(z, z, np.zeros(4), z, np.zeros((4, 12)), z), None).split("; "):
+    ...     print(part)
+    u = u_trim - K (x - x_ref(t)), x_ref(t) = x_trim + x_rate t
+    the yaw error wrapped into (-pi, pi]
+    continuous feedback
+    no input limits.
     """
     ints, act = loop.integral_states, loop.actuators
     u_ref = "u_ref(t)" if reference else "u_trim"
@@ -132,7 +136,7 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
                 else ", x_ref(t) = x_trim + x_rate t") + "; the yaw error wrapped into (-pi, pi]"]
     table = loop.schedule
     if table is not None:
-        from quadctl.lqr.gain_table import VARIABLES
+        from quadctl.design.gain_table import VARIABLES
 
         gains = "K and Ki" if ints and table.coefficients.shape[-1] > len(loop.x_trim) else "K"
         parts.append(f"{gains} = G(v), the gain schedule on {table.variable} v ({VARIABLES[table.variable]}) of "

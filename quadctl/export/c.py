@@ -52,13 +52,17 @@ FLT_EPSILON = 2.0 ** -23
 TEMPLATES = "export/templates"
 
 
-def sources(exp: Export) -> dict[str, str]:
+def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
     """The C files of the exported controller: ``{file name: text}``.
 
     Parameters
     ----------
     exp : Export
         A sampled design (``exp.rate`` set: :func:`quadctl.export.prepare` with a rate).
+    reference : bool, optional
+        Write the controller that takes the reference at each sample (``quadctl_step_ref``);
+        None: when the config flies one (``simulation.reference``). A flight stack whose commander
+        gives the setpoints wants it for any config.
 
     Returns
     -------
@@ -87,7 +91,8 @@ def sources(exp: Export) -> dict[str, str]:
         loop = replace(loop, delay_samples=0)
     # With a filter, the controller keeps the last `delay` commands: its prediction takes the input the
     # vehicle applies now (computed `delay` samples ago), as the simulation's filter does.
-    reference = exp.flies_reference  # x_ref(t) and u_ref(t): inputs of each sample (quadctl_step_ref)
+    if reference is None:  # x_ref(t) and u_ref(t): inputs of each sample (quadctl_step_ref)
+        reference = exp.flies_reference
     spec = loop.spec(noise=False, reference=reference)  # with the rotors' lag: its lag model, controller states
     c = loop.constants(Ts)
     nz, nl, ny, nb = len(loop.integral_states), spec.n_lag, spec.ny, spec.n_buffer
@@ -166,6 +171,7 @@ def sources(exp: Export) -> dict[str, str]:
         "INPUT_DEFINES": "".join(f"#define QUADCTL_U_{c_identifier(n)} {i}  /* {n} ({INPUT_UNITS[n]}) */\n"
                                  for i, n in enumerate(INPUT_NAMES)),
         "ROTOR_DEFINES": rotors,
+        "TRIM_DEFINES": _trim_defines(loop.x_trim, loop.x_rate, loop.u_trim),
         "INTEGRAL_DOC": (": of " + ", ".join(f"-(x[{n}] - x_ref_{n})" for n in loop.integral_states)
                          + " (state units x s)") if nz else " (none in this design: unused)",
         "CONSTANT_DEFINES": "\n".join(f"#define QC_{name.upper()} {start}  /* {name} {'x'.join(map(str, shape))} */"
@@ -310,7 +316,7 @@ def _doc(lines) -> str:
 
 def _schedule_doc(loop, reference: bool) -> str:
     """The header's paragraph on the gain schedule: the table, where it lives, how the law reads it."""
-    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:
@@ -331,7 +337,7 @@ def _schedule_doc(loop, reference: bool) -> str:
             "schedule_coefficients[k, i] (v - schedule_breaks[i])^(3 - k) on the piece i with schedule_breaks[i] "
             f"<= v < schedule_breaks[i + 1] (v held to [{table.breaks[0]:g}, {table.breaks[-1]:g}]), {pieces} "
             f"pieces, its breaks and coefficients ({4} x {pieces} x 4 x {columns}, column-major) constants of qc_c "
-            "(quadctl.lqr.gain_table.GainTable, the one `quadctl simulate` flies). qc_law evaluates it at "
+            "(quadctl.design.gain_table.GainTable, the one `quadctl simulate` flies). qc_law evaluates it at "
             "each sample.")
     return "\n".join(" *   " + line for line in textwrap.wrap(c_comment(text), 94))
 
@@ -416,6 +422,25 @@ def _offsets(nz: int, lag_model: bool = False, ny: int = 0,
         out.append((name, shape, start))
         start += int(np.prod(shape))
     return out
+
+
+def _trim_defines(x_trim, x_rate, u_trim) -> str:
+    """The header's trim as macros: one per state and input, and brace initializers of the vectors."""
+    def lit(v):
+        return f"({float(v)!r})"
+    lines = ["/* The trim the design holds: x_ref(t) = x_trim + x_rate t (state units), u_trim (input units).",
+             " * QUADCTL_TRIM_X_<STATE>, QUADCTL_RATE_X_<STATE>, QUADCTL_TRIM_U_<INPUT>; the vectors as",
+             " * initializers: quadctl_real x0[QUADCTL_NX] = QUADCTL_TRIM_X_INIT; quadctl_trim() copies both. */"]
+    lines += [f"#define QUADCTL_TRIM_X_{c_identifier(n.upper())} {lit(v)}" for n, v in zip(STATE_NAMES, x_trim)]
+    lines += [f"#define QUADCTL_RATE_X_{c_identifier(n.upper())} {lit(v)}" for n, v in zip(STATE_NAMES, x_rate)]
+    lines += [f"#define QUADCTL_TRIM_U_{c_identifier(n)} {lit(v)}" for n, v in zip(INPUT_NAMES, u_trim)]
+    lines.append("#define QUADCTL_TRIM_X_INIT {" + ", ".join(f"QUADCTL_TRIM_X_{c_identifier(n.upper())}"
+                                                           for n in STATE_NAMES) + "}")
+    lines.append("#define QUADCTL_RATE_X_INIT {" + ", ".join(f"QUADCTL_RATE_X_{c_identifier(n.upper())}"
+                                                           for n in STATE_NAMES) + "}")
+    lines.append("#define QUADCTL_TRIM_U_INIT {" + ", ".join(f"QUADCTL_TRIM_U_{c_identifier(n)}"
+                                                           for n in INPUT_NAMES) + "}")
+    return "\n".join(lines) + "\n"
 
 
 def _literal(v: float) -> str:

@@ -171,7 +171,7 @@ def _estimator_fields(loop) -> list[Field]:
 
 def _schedule_fields(loop) -> list[Field]:
     """The gain table of a scheduled loop (``schedule:``) as one struct; none with fixed gains."""
-    from quadctl.lqr.gain_table import OUTSIDE, VARIABLES
+    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:
@@ -205,6 +205,10 @@ def _mat(value):
         for i, v in enumerate(value):
             cell[i, 0] = v
         return cell
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        return float(value)  # MATLAB: int64 * double is int64 (d.delay_samples * d.Ts would be 0): doubles only
+    if isinstance(value, np.ndarray) and np.issubdtype(value.dtype, np.integer):
+        return value.astype(float)
     return value
 
 

@@ -36,7 +36,7 @@ def margins_figure(m, *, title: str = "") -> Figure:
 
     Parameters
     ----------
-    m : quadctl.margins.LoopMargins
+    m : quadctl.design.margins.LoopMargins
     """
     fig = Figure(figsize=(10.0, 5.2), layout="constrained")
     grid = fig.add_gridspec(2, 2, width_ratios=(1.25, 1.0))

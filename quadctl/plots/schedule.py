@@ -29,7 +29,7 @@ def transition_figure(transition, *, title: str = "") -> Figure:
     (or the largest ``|u - u_ref|`` share of the limits without rotors) against its limits. A run
     that stopped early ends with a cross.
     """
-    from quadctl.lqr.gain_table import VARIABLES, scheduling_values
+    from quadctl.design.gain_table import VARIABLES, scheduling_values
     from quadctl.sim.run import STATUS_WORDS
 
     runs, loop = transition.runs(), transition.loops["scheduled"]

@@ -15,7 +15,8 @@ import re
 from quadctl.present.cells import Mark, Table, db, gain_range_db, num
 
 GUARANTEE = "gain margin [1/2, inf), i.e. -6.02 dB to +inf, phase margin >= 60 deg"
-"""The continuous LQR guarantee, in words (:data:`quadctl.margins.LQR_GAIN_MARGIN_DB`, ``LQR_PHASE_MARGIN_DEG``)."""
+"""The continuous LQR guarantee, in words (:data:`quadctl.design.margins.LQR_GAIN_MARGIN_DB`,
+``LQR_PHASE_MARGIN_DEG``)."""
 
 
 def domain(rate) -> str:
@@ -92,7 +93,7 @@ def least_margins(margins) -> str | None:
 def thin_sentence(margins, accepted: bool = False) -> str | None:
     """The loops below the classical requirement (6 dB, 30 deg: MIL-F-9490D), what is thin and the way out
     (or that the config accepts it: ``allow: [thin-margins]``); None when every stable loop meets it."""
-    from quadctl.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG, thin_loops
+    from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG, thin_loops
 
     thin = thin_loops(margins)
     if not thin:

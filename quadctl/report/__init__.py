@@ -68,7 +68,7 @@ def run_stages(ws) -> Outcome:
     (the verdicts ``check`` and ``run`` give), the assembled design is unstable
     on the coupled model, the simulation does not finish (diverged, left the valid range), or its
     mission misses a waypoint or ends farther than the tolerance from it, or (after the flight) a loop has a thin
-    margin (:func:`quadctl.margins.thin_loops`) the config does not accept (``allow: [thin-margins]``); a
+    margin (:func:`quadctl.design.margins.thin_loops`) the config does not accept (``allow: [thin-margins]``); a
     :class:`~quadctl.errors.QuadctlError` a stage raises stops the stages too. Neither is raised:
     both are in the returned :class:`Outcome`, so that what was computed can still be reported.
     """
@@ -184,21 +184,27 @@ def _detail(ws, stage: str) -> str:
     return f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.backend}: {sim.status}"
 
 
-def write(doc: Document, folder: Path | str) -> list[Path]:
+def write(doc: Document, folder: Path | str, store=None) -> list[Path]:
     """Write ``report.html``, ``report.md`` and the figures into ``folder``, atomically; the paths.
 
     The figures of an earlier report that this one does not show go: those the earlier
     ``report.md`` names (:func:`~quadctl.report.document.figure_files`), never another file.
+
+    ``store`` writes and removes the files (``write_bytes(path, data)``, ``remove(path)``): the run folder's
+    :class:`~quadctl.workspace.Workspace`, so that a command that fails on the way (a full disk) puts
+    every file back as its stages' artifacts (:meth:`~quadctl.workspace.Workspace.roll_back`); default
+    :mod:`quadctl.artifacts` (each file atomic, nothing put back).
     """
     from quadctl import artifacts
 
+    store = artifacts if store is None else store
     folder = artifacts.check_folder(Path(folder))
     earlier = _earlier_figures(folder / MARKDOWN)
-    paths = [artifacts.write_bytes(folder / fig.file, fig.png) for fig in doc.figures]
+    paths = [store.write_bytes(folder / fig.file, fig.png) for fig in doc.figures]
     for name in sorted(earlier - {p.name for p in paths}):
-        artifacts.remove(folder / name)
-    paths.append(artifacts.write_bytes(folder / MARKDOWN, to_markdown(doc).encode("utf-8")))
-    paths.append(artifacts.write_bytes(folder / HTML, to_html(doc).encode("utf-8")))
+        store.remove(folder / name)
+    paths.append(store.write_bytes(folder / MARKDOWN, to_markdown(doc).encode("utf-8")))
+    paths.append(store.write_bytes(folder / HTML, to_html(doc).encode("utf-8")))
     return paths
 
 

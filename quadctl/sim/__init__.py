@@ -8,7 +8,6 @@ Modules, each importing only those above it:
   and its one constant layout
 - :mod:`~quadctl.sim.schedule`: the exponential integrator's step schedule and its φ-functions
 - :mod:`~quadctl.sim.emit`: those functions as C over ``lanes`` cases at once
-- :mod:`~quadctl.sim.compile`: compile once per machine, cached in the platform's cache folder
 - :mod:`~quadctl.sim.cases`: the loop contract's inputs (:class:`Cases`) and record counts
 - :mod:`~quadctl.sim.mapped`: a CasADi function compiled over many points (a reference's rows)
 - :mod:`~quadctl.sim.lane_metrics`: a run's metrics summed in the lanes as they step, read back
@@ -19,5 +18,6 @@ Modules, each importing only those above it:
   through the engine's runner, returning a :class:`SimResult`)
 
 A new loop feature is one change to :func:`quadctl.sim.builder.build` plus its config; every
-runner, one case or many lanes, compiled or not, gets it from there.
+runner, one case or many lanes, compiled or not, gets it from there. The C is compiled and cached
+by :mod:`quadctl.native`.
 """

@@ -67,7 +67,7 @@ Runs start with ``xh = 0`` (the filter believes the trim).
 
 Integrator (:attr:`LoopSpec.method`; a held loop's plant between samples too): classical RK4, or the exponential
 Runge-Kutta method of order 4 of Hochbruck and Ostermann (:func:`etdrk4`), whose linear part ``L`` is the loop
-linearized at the reference (:func:`quadctl.lqr.linear_loop.simulated`) and whose matrices of one
+linearized at the reference (:func:`quadctl.design.linear_loop.simulated`) and whose matrices of one
 step (:data:`PHI_LAYOUT`, from :mod:`quadctl.sim.schedule`) end the constant vector ``c``.
 
 Exogenous inputs (:func:`exo_layout`): per step, when :attr:`LoopSpec.noise`, a body force and
@@ -76,7 +76,7 @@ torque added to the plant and the sensor noise added to what the controller meas
 through the air-relative velocity (:data:`WIND_LAYOUT`; :mod:`quadctl.wind`).
 
 Gain schedule (:attr:`LoopSpec.schedule`): the gain is ``G(v)``, the piecewise cubic of a
-:class:`quadctl.lqr.gain_table.GainTable` (its ``breaks`` and ``coefficients`` in ``c``, held at
+:class:`quadctl.design.gain_table.GainTable` (its ``breaks`` and ``coefficients`` in ``c``, held at
 the ends; :func:`scheduled_gain`) at ``v = scheduling_value(variable, x_ref(t), heading)``: scheduled
 on the reference the law uses (the commanded state, as python-control's gain-scheduled state
 feedback schedules by default), not on the measured state, so the gain moves with the command and
@@ -175,7 +175,7 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
     measurements (LQG). A loop with a gain schedule of ``schedule = (p, m)``, ``p`` pieces of ``m``
     gain columns (:attr:`LoopSpec.schedule`), ends with ``schedule_heading`` (rad, the direction
     ``speed`` is measured along), ``schedule_breaks`` (p + 1,) and ``schedule_coefficients``
-    (4, p, 4, m): :class:`quadctl.lqr.gain_table.GainTable`'s ``breaks`` and ``coefficients``.
+    (4, p, 4, m): :class:`quadctl.design.gain_table.GainTable`'s ``breaks`` and ``coefficients``.
     Matrices (and the coefficients) are stored column-major.
     """
     out = _BASE_LAYOUT
@@ -323,7 +323,7 @@ class LoopSpec:
     schedule : tuple
         ``(variable, pieces, columns, degree)`` of a loop that flies a gain schedule
         (:func:`scheduled_gain`), else empty: the scheduling variable
-        (:data:`quadctl.lqr.gain_table.VARIABLES`), the number of pieces of the table's piecewise
+        (:data:`quadctl.design.gain_table.VARIABLES`), the number of pieces of the table's piecewise
         cubic, its gain columns (12: the state gain; ``12 + nz``: the integrator gains too) and the
         highest power of ``v`` whose coefficients are not all zero (0: ``nearest``, 1: ``linear``,
         at most 3: ``cubic``; the others are not read). ``pattern`` is then the union of the table's
@@ -441,7 +441,7 @@ class LoopSpec:
 
 def _check_schedule(spec: LoopSpec) -> None:
     """Refuse a gain schedule the loop cannot fly (:attr:`LoopSpec.schedule`)."""
-    from quadctl.lqr.gain_table import VARIABLES
+    from quadctl.design.gain_table import VARIABLES
 
     variable, pieces, columns, degree = spec.schedule
     if degree not in (0, 1, 2, 3):
@@ -504,7 +504,7 @@ def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray, degre
     """The table's gain ``G(v)`` (4, m) as CasADi expressions of the scheduling value ``v``.
 
     ``v`` is held to ``[breaks[0], breaks[pieces]]``; the piece ``i`` with ``breaks[i] <= v <
-    breaks[i + 1]`` (the last piece also at its end, as :meth:`quadctl.lqr.gain_table.GainTable.at`)
+    breaks[i + 1]`` (the last piece also at its end, as :meth:`quadctl.design.gain_table.GainTable.at`)
     is chosen by a sum over pieces of ``if_else(indicator, coefficient, 0)``, exactly one term
     nonzero, so the selected coefficients are the table's, bit for bit; then Horner's rule in
     ``s = v - breaks[i]``. Only comparisons, ``if_else``, ``fmin``/``fmax`` and arithmetic: every
@@ -513,7 +513,7 @@ def scheduled_gain(v, breaks, coefficients, pieces: int, mask: np.ndarray, degre
     Parameters
     ----------
     v : CasADi scalar
-        The scheduling value (:func:`quadctl.lqr.gain_table.scheduling_value`).
+        The scheduling value (:func:`quadctl.design.gain_table.scheduling_value`).
     breaks : CasADi column (pieces + 1,)
     coefficients : CasADi column
         The (4, pieces, 4, m) coefficients, column-major.
@@ -679,7 +679,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         ``G(v)`` at the scheduling value of the reference the law uses."""
         if not spec.schedule:
             return gain, parts.get("Ki")
-        from quadctl.lqr.gain_table import scheduling_value
+        from quadctl.design.gain_table import scheduling_value
 
         variable, pieces, columns, degree = spec.schedule
         heading = (parts["schedule_heading"] + heading_offset(t) if spec.reference and variable != "yaw"

@@ -1,6 +1,6 @@
 /* quadctl loop driver: iterates the closed-loop functions of quadctl/sim/builder.py.
  *
- * No dynamics here. quadctl/sim/compile.py prepends the sizes (QC_L lanes, QC_NX loop states,
+ * No dynamics here. quadctl/native/compile.py prepends the sizes (QC_L lanes, QC_NX loop states,
  * QC_NP plant states, QC_NU inputs, QC_NE exogenous channels, QC_NC constants, QC_HELD) and the
  * functions emitted by quadctl/sim/emit.py from the builder's CasADi functions:
  *   qc_law(X, t, c, e, u, X_sampled)   the control law (and the controller states' update)

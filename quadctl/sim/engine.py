@@ -12,8 +12,8 @@ import warnings
 from functools import lru_cache
 
 from quadctl.errors import QuadctlNotice
+from quadctl.native.compile import PORTABLE_FLAGS, SIMD_FLAGS, CompileError, compile_cached, cpu_tag
 from quadctl.sim.builder import LoopSpec, build
-from quadctl.sim.compile import PORTABLE_FLAGS, SIMD_FLAGS, CompileError, compile_cached, cpu_tag
 from quadctl.sim.interpreted import InterpretedRunner
 from quadctl.sim.native import NativeRunner, library_source
 
@@ -35,7 +35,7 @@ def runner(spec: LoopSpec, lanes: int = 1):
     """A :class:`NativeRunner` (``backend`` ``"compiled"`` or ``"compiled-simd"``) or, when no C
     compiler works, an :class:`InterpretedRunner` (``"casadi"``), after a :class:`CompilerNotice`.
 
-    Compiles at most once per spec and lane count per machine (see :mod:`quadctl.sim.compile`).
+    Compiles at most once per spec and lane count per machine (see :mod:`quadctl.native.compile`).
     """
     variants = [(False, PORTABLE_FLAGS, "compiled")]
     if lanes > 1:

@@ -5,7 +5,7 @@
 solves, the feedforward, the model's rates) took 0.14 s a case, ten times the case's simulation in
 the lanes. :func:`mapped` emits the one-point function as C (:mod:`quadctl.sim.emit`, the
 portable build: scalar libm, no contraction, so the numbers are the VM's), loops it over the
-points in C, and compiles it once per machine (:mod:`quadctl.sim.compile`). Without a working
+points in C, and compiles it once per machine (:mod:`quadctl.native.compile`). Without a working
 compiler it is :class:`quadctl.pointwise.Pointwise` (``fn.map``: the same numbers, slower).
 """
 
@@ -17,9 +17,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from quadctl.native.compile import PORTABLE_FLAGS, CompileError, compile_cached
 from quadctl.pointwise import Pointwise, rows_of
 from quadctl.sim.cases import C_LONG
-from quadctl.sim.compile import PORTABLE_FLAGS, CompileError, compile_cached
 from quadctl.sim.emit import emit
 
 

@@ -10,9 +10,9 @@ import numpy as np
 
 from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
+from quadctl.native.compile import DRIVER_SOURCE
 from quadctl.sim.builder import LoopFunctions, LoopSpec
 from quadctl.sim.cases import C_LONG, Cases, record_rows
-from quadctl.sim.compile import DRIVER_SOURCE
 from quadctl.sim.emit import SIMD_DECLARATIONS, emit
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec
 

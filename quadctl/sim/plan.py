@@ -172,7 +172,7 @@ def plan_step(eigenvalues, owners, duration: float, dt="auto", *, limits=None) -
             f"simulation.dt = {dt:g} s is unstable for RK4: the closed-loop eigenvalue "
             f"{eig_text(eig[k], 6)} rad/s (subsystem {owners[k]}) needs dt <= {h_max:.3g} s; "
             f"use dt: auto or a step of at most {_round_down(h_max):g} s")
-    return StepPlan(dt, step_count(duration, dt, fastest, owner), h_max, fastest, owner, False)
+    return StepPlan(dt, step_count(duration, dt, fastest, owner, given=dt), h_max, fastest, owner, False)
 
 
 def plan_held_step(open_loop_eigenvalues, rate: float, duration: float, dt="auto") -> StepPlan:
@@ -215,7 +215,7 @@ def plan_held_step(open_loop_eigenvalues, rate: float, duration: float, dt="auto
                 f"simulation.dt = {dt:g} s is unstable for RK4 on the open-loop plant between "
                 f"controller samples (needs dt <= {h_max:.3g} s); use dt: auto or {Ts / math.ceil(Ts / h_max):.6g} s")
     step = Ts / hold
-    n = step_count(duration, step, fastest, "the open-loop plant")
+    n = step_count(duration, step, fastest, "the open-loop plant", given=None if dt == "auto" else dt)
     return StepPlan(step, n, h_max, fastest, "open loop (held input)", dt == "auto", hold, Ts)
 
 
@@ -237,12 +237,18 @@ def steps_per_sample(dt: float, Ts: float) -> int:
     return hold
 
 
-def step_count(duration: float, step: float, fastest: complex, owner: str) -> int:
+def step_count(duration: float, step: float, fastest: complex, owner: str, *, given: float | None = None) -> int:
     """RK4 steps of ``step`` s covering ``duration`` s, or a StepSizeError past :data:`MAX_STEPS`.
 
-    A plan past :data:`ANNOUNCE_STEPS` is announced (a :class:`quadctl.errors.QuadctlNotice`).
+    ``given``: the user's ``simulation.dt`` (s) the step comes from (None: ``dt: auto`` chose it), which
+    the refusal then names. A plan past :data:`ANNOUNCE_STEPS` is announced (a
+    :class:`quadctl.errors.QuadctlNotice`).
     """
     count = duration / step
+    if not count <= MAX_STEPS and given is not None:
+        raise StepSizeError(
+            f"simulation.dt = {given:g} s makes simulation.duration = {duration:g} s {count:.3g} steps, more than "
+            f"the {MAX_STEPS:.0e} quadctl runs; use dt: auto, or a step of at least {duration / MAX_STEPS:.3g} s")
     if not count <= MAX_STEPS:
         raise StepSizeError(
             f"simulation.duration = {duration:g} s at an RK4 step of {step:.3g} s is {count:.3g} steps, more "

@@ -39,15 +39,7 @@ class FlownReference:
 
     def exact(self, t) -> tuple[np.ndarray, np.ndarray]:
         """((n, 12), (n, 4)): the reference state and input at the times ``t`` (s)."""
-        return feedforward(self.path.flat(t), self.params, mapped, fix=self.fix)  # compiled over the points
-
-    @property
-    def fix(self) -> str:
-        """What to change where no attitude flies the path (:func:`quadctl.flatness.feedforward`'s refusal)."""
-        if self.path.legs:
-            return "lower simulation.reference.speed or space the waypoints further apart"
-        return "give simulation.reference.setpoints a lower velocity"
-
+        return feedforward(self.path.flat(t), self.params, mapped, self.path.remedy)  # compiled over the points
 
     def rows(self, j, period: float) -> np.ndarray:
         """``(len(j), 45)``: the exogenous reference rows of the absolute row indices ``j``."""

@@ -378,10 +378,10 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
         if held:
             hold = steps_per_sample(float(dt), period)
             h = period / hold
-            n = step_count(duration, h, fastest, owner)
+            n = step_count(duration, h, fastest, owner, given=float(dt))
             return StepPlan(h, n, limit, fastest, owner, False, hold=hold, sample_time=period,
                             method="etdrk4", schedule=(Segment(h, n, 0),))
-        n = step_count(duration, float(dt), fastest, owner)
+        n = step_count(duration, float(dt), fastest, owner, given=float(dt))
         h = duration / n
         return StepPlan(h, n, limit, fastest, owner, False, method="etdrk4",
                         schedule=(Segment(h, n, 0),))

@@ -1,7 +1,7 @@
 """The batched path of a sweep chunk: designs, verdicts and lane simulations of many cases at once.
 
 Each function is the stacked twin of a one-case pipeline stage and is tested against it
-(``tests/test_sweep.py``): :func:`design_all` of :func:`quadctl.lqr.design` (the Riccati solves
+(``tests/test_sweep.py``): :func:`design_all` of :func:`quadctl.design.design` (the Riccati solves
 batched by shape, residual-checked; a case whose solve misses the check goes through the one-case
 design, which names the reason), :func:`loops_of` of :func:`quadctl.pipeline.loop_of` and the step
 plan, :func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes).
@@ -16,9 +16,9 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl import stability
+from quadctl.design import integral, linear_loop
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.lqr import integral, linear_loop
 
 BATCHED = "batched"
 """``path`` of a row designed in the batched solve."""
@@ -75,9 +75,9 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
     rate: an uncertainty study varies only the simulated vehicle) share one design, and a subsystem
     problem that several distinct cases pose (a subsystem whose weights no case varies) is solved
     once. A design that includes the rotors' lag is made by the one-case design
-    (:func:`quadctl.lqr.design`). ``any_order``: each design's ``core`` eigenvalues in any order
+    (:func:`quadctl.design.design`). ``any_order``: each design's ``core`` eigenvalues in any order
     (:func:`quadctl.stability.verdict_stack`), for a caller that reads only their extremes;
-    ``compiled``: the discrete designs' doubling steps in C (:func:`quadctl.lqr.riccati.dare_batch`),
+    ``compiled``: the discrete designs' doubling steps in C (:func:`quadctl.design.riccati.dare_batch`),
     the same gains to round-off.
     """
     problems: dict[tuple, int] = {}  # a subsystem problem -> its number
@@ -142,7 +142,7 @@ def _solve(Ts, n, group, preps, compiled: bool = False):
     """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems: the continuous
     CARE, or the ZOH plant and ``lqrd`` weights (:func:`_sampled`) and the discrete DARE, every step
     batched."""
-    from quadctl.lqr.riccati import care_batch, dare_batch
+    from quadctl.design.riccati import care_batch, dare_batch
 
     first = group[0][1]
     if all(sub is first for _, sub, _ in group):  # one plant (a sweep of the weights): its matrices repeated
@@ -176,8 +176,8 @@ def _solve(Ts, n, group, preps, compiled: bool = False):
 
 def _sampled(group, preps, Q, R, Ts):
     """``lqrd_weights_batch`` of a group's problems: each subsystem's plant sampled once (per
-    plant, cached), its weights by the plant's :class:`~quadctl.lqr.discrete.LqrdWeightMap`."""
-    from quadctl.lqr.discrete import LqrdWeightMap
+    plant, cached), its weights by the plant's :class:`~quadctl.design.discrete.LqrdWeightMap`."""
+    from quadctl.design.discrete import LqrdWeightMap
 
     maps, members = {}, {}
     for j, (k, sub, _) in enumerate(group):
@@ -261,7 +261,7 @@ def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:
 
 
 def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
-    """:func:`quadctl.linear_loop.matrix` of stacked gains on one plant (its ZOH cached per ``Ts``):
+    """:func:`quadctl.design.linear_loop.matrix` of stacked gains on one plant (its ZOH cached per ``Ts``):
     (N, 12 + nz, 12 + nz)."""
     A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
     return linear_loop.stack(A, B, K, Ki, integral_states, Ts)

@@ -273,7 +273,7 @@ class Plant:
 
     def sampled(self, Ts: float):
         """ZOH ``(Ad, Bd)`` of the coupled model at ``Ts``."""
-        from quadctl.lqr import discrete
+        from quadctl.design import discrete
 
         if ("zoh", Ts) not in self.cache:
             self.cache[("zoh", Ts)] = discrete.c2d(self.linear.A, self.linear.B, Ts)

@@ -28,7 +28,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     at --rate is unstable, or the lag and delay make the design's loop unstable.
     """
     from quadctl.cli import render
-    from quadctl.lqr.discrete import unstable_when_sampled
+    from quadctl.design.discrete import unstable_when_sampled
 
     rate = override("--rate", rate)
     ws = open_workspace(config, out, fresh, sets)

@@ -16,13 +16,33 @@ class Target(str, Enum):
     c = "c"
     mat = "mat"
     json = "json"
+    crazyflie = "crazyflie"
+
+
+class Setpoint(str, Enum):
+    position = "position"
+    velocity = "velocity"
+
+
+class Mode(str, Enum):
+    force = "force"
+    force_torque = "force-torque"
 
 
 def command(to: Annotated[Target, typer.Option(
                 "--to", help="c: a C99 controller (quadctl_controller.h and .c, double or float); mat: the design "
-                             "as a MATLAB v5 .mat; json: the same as one self-describing JSON.")],
+                             "as a MATLAB v5 .mat; json: the same as one self-describing JSON; crazyflie: a "
+                             "Crazyflie out-of-tree controller app (the C controller in float, its adapter, "
+                             "build files).")],
             config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
             rate: RateOpt = None,
+            setpoint: Annotated[Setpoint, typer.Option(
+                "--setpoint", help="--to crazyflie: the commander's setpoints the app follows: position (x, y, z, "
+                                   "yaw) or velocity (the hover setpoint: vx, vy, z or vz, yaw rate).")]
+            = Setpoint.position,
+            mode: Annotated[Mode, typer.Option(
+                "--mode", help="--to crazyflie: force (each motor's thrust, mixed and clipped as the simulation "
+                               "does) or force-torque (thrust and torques, mixed by the firmware).")] = Mode.force,
             json: Annotated[bool, typer.Option(
                 "--json", help="Print what was written as JSON on stdout (with --to json, the controller's "
                                "JSON itself under `controller`).")] = False) -> None:
@@ -31,7 +51,8 @@ def command(to: Annotated[Target, typer.Option(
     Writes into the run directory: quadctl_controller.h/.c (--to c), quadctl_controller.mat or quadctl_controller.json.
     Exits 1 when the design is unstable, when the gain schedule (schedule:) fails its checks, or when a
     continuous design's loop is unstable sampled at --rate; 2 when --to c has no rate (give --rate or set
-    controller.rate).
+    controller.rate), or when --to crazyflie cannot serve the config (a rate that does not divide the
+    firmware's 1 kHz loop, a setpoint the partition leaves free, rotors numbered unlike the firmware's).
     """
     from quadctl import artifacts, export
     from quadctl.cli import render
@@ -41,10 +62,18 @@ def command(to: Annotated[Target, typer.Option(
 
     rate = override("--rate", rate)
     cfg, _ = load_config(config, sets)
-    exp = export.prepare(setup_of(cfg), rate, need_rate=to is Target.c, config_hash=cfg.digest())
+    exp = export.prepare(setup_of(cfg), rate, need_rate=to in (Target.c, Target.crazyflie),
+                         config_hash=cfg.digest())
     for w in exp.rate_warnings:
         render.warning(w.message(exp.rate))
-    paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"))
+    paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"),
+                         setpoint=setpoint.value, mode=mode.value)
+    if to is Target.crazyflie:
+        from quadctl.export import crazyflie
+        from quadctl.present.platform import platform_sentences
+
+        for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE):
+            render.note(line)
     kal = exp.loop.estimator
     if json:
         written = {"config_name": cfg.name, "to": to.value, "rate": exp.rate, "design": exp.mode if exp.rate else
@@ -54,16 +83,27 @@ def command(to: Annotated[Target, typer.Option(
                    "files": [str(p) for p in paths]}
         if to is Target.json:
             written["controller"] = artifacts.read_json(paths[0])
+        if to is Target.crazyflie:
+            from quadctl.export import crazyflie
+
+            written["crazyflie"] = {
+                "setpoint": setpoint.value, "mode": mode.value, "calls_per_sample": crazyflie.divider(exp.rate),
+                "firmware": {"commit": crazyflie.FIRMWARE.commit, "source": crazyflie.FIRMWARE.source},
+                "platform": [{"quantity": q, "key": k, "value": v, "firmware": f, "unit": u}
+                             for q, k, v, f, u in crazyflie.platform_rows(exp)]}
         return render.emit_json(written)
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
-    if exp.flies_reference:
+    if to is Target.crazyflie:
+        filt += f"; reference: the commander's {setpoint.value} setpoints; output: {mode.value} mode"
+    elif exp.flies_reference:
         filt += "; reference: an input at each sample" + (" (quadctl_step_ref)" if to is Target.c else "")
     table = exp.loop.schedule
     if table is not None:
         filt += f"; gains scheduled on {table.variable} ({len(table.values)} designs, {table.interpolation})"
     render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}{filt}",
                      markup=False)
-    render.out.print(f"law: {exp.law()}", markup=False)
+    law = export.law_text(exp.loop, exp.sample_time, reference=True) if to is Target.crazyflie else exp.law()
+    render.out.print(f"law: {law}", markup=False)
     for path in paths:
         render.out.print(f"-> {path}", markup=False)

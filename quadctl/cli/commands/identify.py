@@ -3,7 +3,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.options import ConfigOpt
+from quadctl.cli.options import ConfigOpt, JsonOpt
 
 NAME = "identify"
 
@@ -21,7 +21,8 @@ def command(logs: Annotated[list[str], typer.Argument(
             columns: Annotated[Optional[list[str]], typer.Option(
                 "--columns", metavar="NAME=COLUMN", help="A CSV's column names (t=time_s,cmd_1=m1).")] = None,
             delay: Annotated[bool, typer.Option(
-                "--delay", help="Fit a pure delay of the commands beside the motor lag.")] = False) -> None:
+                "--delay", help="Fit a pure delay of the commands beside the motor lag.")] = False,
+            json: JsonOpt = False) -> None:
     """Identify the rotors' thrust curve and lag, Ixx and Iyy, and the torque coefficient from flight logs.
 
     The config gives what a log cannot (mass, rotor positions and numbering). Writes identified.json
@@ -46,6 +47,9 @@ def command(logs: Annotated[list[str], typer.Argument(
     text = results.identified_config(source.text, ident, f"{cfg.name}-identified")
     write_together({folder / "identified.json": _json.dumps(payload, indent=1).encode(),
                     folder / "identified.yaml": text.encode(), folder / "identify.png": fit_figure(ident)})
+    if json:
+        render.emit_json(payload)
+        return
     render.show(*shown.log_sentences(payload), shown.values_table(payload), *shown.sentences(payload))
     for name in ("identified.json", "identified.yaml", "identify.png"):
         render.out.print(f"-> {folder / name}")

@@ -62,6 +62,6 @@ def _save_figures(ws, margins):
     paths = []
     for m in margins:
         fig = plots.margins_figure(m, title=ws.setup.name)
-        paths.append(artifacts.write_bytes(artifacts.plot_path(ws.out, f"margins-{m.loop}-{m.model}"),
-                                           plots.png_bytes(fig, 90)))
+        paths.append(ws.write_bytes(artifacts.plot_path(ws.out, f"margins-{m.loop}-{m.model}"),
+                                    plots.png_bytes(fig, 90)))
     return paths

@@ -26,8 +26,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     with simulation_progress(quiet=json) as ws.progress:
         outcome = report.run_stages(ws)
     doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets), label=source.label)
+    paths = report.write(doc, ws.out / report.FOLDER, store=ws)  # a failed write (a full disk): all put back
     ws.keep()  # the report says what ran and why it stopped: it and the artifacts it shows stay together
-    paths = report.write(doc, ws.out / report.FOLDER)
     if json:
         render.emit_json({"report": str(paths[-1]), "markdown": str(paths[-2]), "figures": [str(p) for p in paths[:-2]],
                           "failed": outcome.failed, "error": str(outcome.error) if outcome.error else None})

@@ -28,7 +28,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         from quadctl import artifacts, plots
 
         fig = plots.schedule_figure(sched, ws.setup.actuators, title=ws.setup.name)
-        path = artifacts.write_bytes(artifacts.plot_path(ws.out, "schedule"), plots.png_bytes(fig, plots.DPI))
+        path = ws.write_bytes(artifacts.plot_path(ws.out, "schedule"), plots.png_bytes(fig, plots.DPI))
     if json:
         render.emit_json(ws.payloads["schedule.json"])
     else:

@@ -55,7 +55,13 @@ ${LAG_STORE}${BUFFER_STORE}${ESTIMATE_STORE}
   c->k++;
 }
 
-${REFERENCE_DEFINITIONS}#ifdef QUADCTL_N_ROTORS
+${REFERENCE_DEFINITIONS}void quadctl_trim(quadctl_real x[QUADCTL_NX], quadctl_real u[QUADCTL_NU]) {
+  int i;
+  for (i = 0; i < QUADCTL_NX; ++i) x[i] = qc_c[QC_X_REF + i];
+  for (i = 0; i < QUADCTL_NU; ++i) u[i] = qc_c[QC_U_TRIM + i];
+}
+
+#ifdef QUADCTL_N_ROTORS
 void quadctl_mix(const quadctl_real u[QUADCTL_NU], quadctl_real thrust[QUADCTL_N_ROTORS]) {
   int i, j;
   for (i = 0; i < QUADCTL_N_ROTORS; ++i) {

@@ -66,6 +66,7 @@ typedef double quadctl_real;
 ${STATE_DEFINES}
 /* index of each input in u */
 ${INPUT_DEFINES}${MEASURE_DEFINES}
+${TRIM_DEFINES}
 ${ROTOR_DEFINES}
 /* The controller's memory: initialize with quadctl_init, then pass to ${STEP_NAME} every sample. */
 typedef struct quadctl_controller {
@@ -80,6 +81,9 @@ void quadctl_init(quadctl_controller *c);
  * advances the integrators (and the rotor lag model, the filter) and the time by one sample. */
 ${STEP_PROTOTYPE};
 ${REFERENCE_FUNCTIONS}
+/* The trim: x = x_trim (x_ref at t = 0), u = u_trim (the numbers of QUADCTL_TRIM_*). */
+void quadctl_trim(quadctl_real x[QUADCTL_NX], quadctl_real u[QUADCTL_NU]);
+
 #ifdef QUADCTL_N_ROTORS
 /* The rotor thrusts (N) an input u corresponds to (rotor numbering above), each clipped to the
  * rotor's limits: after each step, the thrust each motor must make. */

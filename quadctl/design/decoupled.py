@@ -2,13 +2,13 @@
 
 MATLAB ``lqr`` conventions: ``u = -K x``, ``K = R^-1 B^T P``, ``P`` the stabilizing solution of
 ``A^T P + P A - P B R^-1 B^T P + Q = 0``. The Riccati solvers, the weight checks and the refusals
-live in :mod:`quadctl.lqr.riccati`; :func:`lqr` is its one-case continuous entry point.
+live in :mod:`quadctl.design.riccati`; :func:`lqr` is its one-case continuous entry point.
 
 With a controller rate, :func:`design` solves the discrete problem instead (MATLAB ``lqrd``, see
-:mod:`quadctl.lqr.discrete`); with ``integral`` states, each subsystem is augmented with their
-integrals first (MATLAB ``lqi``, see :mod:`quadctl.lqr.integral`). With a rotor time constant
+:mod:`quadctl.design.discrete`); with ``integral`` states, each subsystem is augmented with their
+integrals first (MATLAB ``lqi``, see :mod:`quadctl.design.integral`). With a rotor time constant
 (``controller.rotor_lag: include``), each subsystem is first augmented with the lag of its inputs
-(:mod:`quadctl.lqr.lag`): the gain then also feeds back the achieved virtual inputs ``v``, ``u = -K x -
+(:mod:`quadctl.design.lag`): the gain then also feeds back the achieved virtual inputs ``v``, ``u = -K x -
 Kv (v - u_trim) - Ki z``.
 """
 
@@ -19,20 +19,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl import stability
-from quadctl.analysis import RICCATI_RTOL as RICCATI_RTOL  # re-exported: the tolerance lqr certifies to
 from quadctl.decouple import Decoupled
+from quadctl.design import discrete, integral, lag, linear_loop
+from quadctl.design.riccati import LqrResult, require_stabilizable, solve
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES
-from quadctl.lqr import discrete, integral, lag, linear_loop
-from quadctl.lqr.linear_loop import matrix as closed_loop_matrix  # noqa: F401 (the old address of the design's loop)
-from quadctl.lqr.riccati import LqrResult, require_stabilizable, solve
-from quadctl.lqr.riccati import riccati_residual as riccati_residual  # re-exported: lqr's residual
 
 
 def lqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:
     """Continuous-time LQR (MATLAB ``lqr``): ``u = -K x`` minimizing ``integral x'Qx + u'Ru + 2 x'Nu dt``.
 
     ``K = R^-1 (B'P + N')``, ``P`` the stabilizing solution of
-    ``A'P + PA - (PB + N) R^-1 (B'P + N') + Q = 0``. Solved by :func:`quadctl.lqr.riccati.solve`:
+    ``A'P + PA - (PB + N) R^-1 (B'P + N') + Q = 0``. Solved by :func:`quadctl.design.riccati.solve`:
     weights validated; quadctl's own residual-checked solver first (stable Hamiltonian
     eigenvectors and Newton-Kleinman, numpy only, up to ``KRONECKER_MAX_N`` states; Laub's Schur
     method and Bartels-Stewart Newton steps above, several times faster than SciPy), SciPy's
@@ -83,7 +80,7 @@ class SubsystemDesign:
     integrators of ``integral`` and ``Q``, ``P`` are those of the augmented ``[x; z]``. For a
     discrete design, ``eigenvalues`` are the ``s``-equivalents ``ln(z) / Ts`` of ``eigenvalues_z``.
     A design with the rotors' lag has ``Kv`` (m, m), the gain on the lag states ``v`` of the inputs
-    (:mod:`quadctl.lqr.lag`); ``Q``, ``P`` are then those of ``[x; v; z]`` (``Q`` zero on ``v``).
+    (:mod:`quadctl.design.lag`); ``Q``, ``P`` are then those of ``[x; v; z]`` (``Q`` zero on ``v``).
     """
 
     name: str
@@ -134,6 +131,13 @@ class Design:
     lag_time_constant : float or None
         s of the rotors' lag the design model includes (``controller.rotor_lag: include``); None:
         instantaneous rotors. With it, ``full_eigenvalues`` are those of ``[x; v; z]``.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> design = qc.Stages(qc.setup_of(qc.load_config("hover"))).design
+    >>> design.K_block.shape, design.stable, [s.name for s in design.subsystems]
+    ((4, 12), True, ['altitude', 'roll', 'pitch', 'yaw'])
     """
 
     subsystems: tuple[SubsystemDesign, ...]
@@ -181,10 +185,10 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
         Hz. Given: a discrete design at ``Ts = 1 / rate`` (MATLAB ``lqrd``: ZOH plant, weights
         integrated over a sample), checked on the ZOH discretization of ``(A, B)``.
     integral : dict, optional
-        ``subsystem name -> states`` to integrate (LQI); see :mod:`quadctl.lqr.integral`.
+        ``subsystem name -> states`` to integrate (LQI); see :mod:`quadctl.design.integral`.
     lag_time_constant : float, optional
         s. Given: every subsystem's inputs lag through ``1 / (tau s + 1)`` in the design model
-        (:func:`quadctl.lqr.lag.lagged`; ZOH of that for a discrete design), and the gain feeds back the
+        (:func:`quadctl.design.lag.lagged`; ZOH of that for a discrete design), and the gain feeds back the
         lag states too (``Kv``); the coupled check is on the lagged ``(A, B)``.
 
     Returns
@@ -241,7 +245,7 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
 def _solve_subsystem(sub, Q, R, ints, Ts, tau=None):
     """(K, Kv or None, Ki, P, eigenvalues s, eigenvalues z or None, residual) of one subsystem.
 
-    With a lag time constant ``tau`` the plant is :func:`quadctl.lqr.lag.lagged` (state ``[x; v]``)
+    With a lag time constant ``tau`` the plant is :func:`quadctl.design.lag.lagged` (state ``[x; v]``)
     and ``Q`` gets zero rows and columns for ``v`` (the lag is weighed through the states it moves).
     """
     n = len(sub.states)

@@ -27,9 +27,9 @@ import numpy as np
 
 from quadctl import stability
 from quadctl._lazy import lazy_import
+from quadctl.design import discrete, integral, linear_loop
+from quadctl.design.decoupled import _solve_subsystem
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.lqr import discrete, integral, linear_loop
-from quadctl.lqr.decoupled import _solve_subsystem
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -97,7 +97,7 @@ def full_design(design, A, B) -> FullDesign:
 
     Parameters
     ----------
-    design : quadctl.lqr.Design
+    design : quadctl.design.Design
         The decoupled design whose weights, integral states and rate are reused.
     A : (12, 12) array_like
     B : (12, 4) array_like
@@ -131,7 +131,7 @@ def linear_cost(A, B, K, Ki, design, dx0) -> float:
     """The cost ``J`` of gain ``[K, Ki]`` on the coupled linear model from offset ``dx0`` (integrators 0).
 
     Continuous: ``dx0' X dx0`` with ``A_cl' X + X A_cl + Q + K' R K = 0``. Discrete (``design.rate``):
-    the same with the sampled cost of :func:`quadctl.lqr.discrete.lqrd_weights` and a discrete
+    the same with the sampled cost of :func:`quadctl.design.discrete.lqrd_weights` and a discrete
     Lyapunov equation. The weights are :func:`assembled_weights` of ``design``; positions that
     neither design feeds back are left out. Infinite when the loop is unstable.
     """

@@ -1,4 +1,4 @@
-"""The doubling steps of :func:`quadctl.lqr.riccati.stacked.dare_batch`, compiled.
+"""The doubling steps of :func:`quadctl.design.riccati.stacked.dare_batch`, compiled.
 
 Structure-preserving doubling on a stack of small problems: from ``A0``, ``G0``, ``H0``, with
 ``W = I + Gk Hk``::
@@ -9,7 +9,7 @@ until the step of ``H`` is round-off of it. In numpy each step is a few stacked 
 matmul calls whose cost, for 2 x 2 and 3 x 3 problems, is their per-matrix overhead (a 200 Hz
 mambo-200hz sweep: 512 roll and pitch problems of 3 states, 13 steps, 4.3 ms). The same steps in C,
 one problem at a time (each stops when its own step is round-off), take a tenth of that: the C is
-compiled once per machine (:func:`quadctl.sim.compile.compile_cached`, portable flags: no FMA, so
+compiled once per machine (:func:`quadctl.native.compile.compile_cached`, portable flags: no FMA, so
 it rounds as written). Without a compiler the caller takes the numpy steps. Both give ``H`` to
 round-off of each other (``tests/test_riccati_batch.py``); the caller's Newton steps and residual
 check certify it either way.
@@ -28,7 +28,7 @@ COMPILED_MAX_N = 16
 the numpy steps, whose per-matrix overhead no longer dominates."""
 ROUNDOFF_STEPS = 4
 """A doubling step at most this many ``eps`` of ``max |H|`` (entrywise) is round-off: done (the
-numpy steps of :func:`quadctl.lqr.riccati.stacked.dare_batch` take the same rule)."""
+numpy steps of :func:`quadctl.design.riccati.stacked.dare_batch` take the same rule)."""
 
 SOURCE = r"""
 #include <math.h>
@@ -145,8 +145,8 @@ def doubling(A: np.ndarray, G: np.ndarray, H: np.ndarray, max_steps: int) -> np.
 
 @lru_cache(maxsize=1)
 def _compiled():
-    """The compiled ``qc_doubling``, or None (no compiler: :class:`quadctl.sim.compile.CompileError`)."""
-    from quadctl.sim.compile import PORTABLE_FLAGS, CompileError, compile_cached
+    """The compiled ``qc_doubling``, or None (no compiler: :class:`quadctl.native.compile.CompileError`)."""
+    from quadctl.native.compile import PORTABLE_FLAGS, CompileError, compile_cached
 
     try:
         library = compile_cached(lambda: SOURCE, PORTABLE_FLAGS,

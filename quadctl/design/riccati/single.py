@@ -1,7 +1,7 @@
 """One Riccati problem: validated, solved, certified, or refused with the reason.
 
-:func:`solve` is behind :func:`quadctl.lqr.lqr` and :func:`quadctl.lqr.discrete.dlqr`: quadctl's own
-solvers first (:mod:`quadctl.lqr.riccati.stacked` for few states, numpy only; Laub's Schur method,
+:func:`solve` is behind :func:`quadctl.design.lqr` and :func:`quadctl.design.discrete.dlqr`: quadctl's own
+solvers first (:mod:`quadctl.design.riccati.stacked` for few states, numpy only; Laub's Schur method,
 :func:`care_schur`, for more), SciPy's where they have no certified answer, and a
 :class:`~quadctl.errors.DesignError` that names the cause when nothing is certified.
 """
@@ -16,8 +16,7 @@ import numpy as np
 from quadctl import stability
 from quadctl._lazy import lazy_import
 from quadctl.analysis import RICCATI_RTOL, pbh
-from quadctl.errors import DesignError
-from quadctl.lqr.riccati.stacked import (
+from quadctl.design.riccati.stacked import (
     KRONECKER_MAX_N,
     NEWTON_STEPS,
     ROUNDOFF_RTOL,
@@ -28,7 +27,8 @@ from quadctl.lqr.riccati.stacked import (
     newton_correction,
     without_cross,
 )
-from quadctl.lqr.riccati.weights import WeightCheck, as_problem
+from quadctl.design.riccati.weights import WeightCheck, as_problem
+from quadctl.errors import DesignError
 from quadctl.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -48,6 +48,14 @@ class LqrResult:
         Eigenvalues of ``A - B K``: ``s`` (rad/s) for a continuous design, ``z`` for a discrete one.
     residual : float
         Relative residual (:func:`riccati_residual` or :func:`dare_residual`), at most ``RICCATI_RTOL``.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> result = qc.lqr([[0.0]], [[1.0]], [[9.0]], [[1.0]])
+    >>> K, S, E = result  # python-control's names: S is the Riccati solution, result.P
+    >>> float(K[0, 0]), float(result.P[0, 0]), result.residual < 1e-12
+    (3.0, 3.0, True)
     """
 
     K: np.ndarray

@@ -1,17 +1,17 @@
 """The linear closed loop of a design: the one place a loop ``A - B K`` is built, one case or a stack.
 
 A loop is a plant ``(A, B)`` about the trim (deviations ``x``, ``u``), continuous or held by a
-zero-order hold at ``sample_time`` (:func:`quadctl.lqr.discrete.c2d`), closed by
+zero-order hold at ``sample_time`` (:func:`quadctl.design.discrete.c2d`), closed by
 
     u = -K x - Kv l - Ki z
 
 Its state, in the order :mod:`quadctl.sim.builder` keeps the nonlinear loop's ``[x; f; z; l; b]``:
 
 - ``x``: the 12 plant states (or a subsystem's);
-- ``v``: the rotors' lag on every input, ``dv/dt = (u - v) / tau`` (:func:`quadctl.lqr.lag.lagged`;
+- ``v``: the rotors' lag on every input, ``dv/dt = (u - v) / tau`` (:func:`quadctl.design.lag.lagged`;
   the builder's rotor thrusts are ``f = mix (u_trim + v)``);
 - ``z``: integrators of ``integral_states`` (MATLAB ``lqi``): ``dz/dt = -x_s``, or sampled
-  ``z <- z - Ts x_s`` (:mod:`quadctl.lqr.integral`);
+  ``z <- z - Ts x_s`` (:mod:`quadctl.design.integral`);
 - ``l``: the controller's model of the rotors' lag, fed back through ``Kv``
   (:func:`with_lag_model`);
 - ``b``: ``delay_samples`` of command buffer of a sampled loop (:func:`delayed`).
@@ -19,8 +19,8 @@ Its state, in the order :mod:`quadctl.sim.builder` keeps the nonlinear loop's ``
 Position states that nothing reads and nothing depends on (:func:`quadctl.stability.free_positions`)
 add a marginal mode; the vehicle's loop leaves them out unless asked to keep every state.
 
-Who takes it: the design and its verdict (:mod:`quadctl.lqr.decoupled`, :func:`matrix`), the full-model
-comparison (:mod:`quadctl.lqr.coupled`), margins and the check stage's vehicle loop (:func:`vehicle`),
+Who takes it: the design and its verdict (:mod:`quadctl.design.decoupled`, :func:`matrix`), the full-model
+comparison (:mod:`quadctl.design.coupled`), margins and the check stage's vehicle loop (:func:`vehicle`),
 the sweep's verdicts (:func:`matrix` of a stack), the rate check (:func:`subsystem`) and
 :mod:`quadctl.interop`.
 """
@@ -30,8 +30,8 @@ from __future__ import annotations
 import numpy as np
 
 from quadctl import stability
+from quadctl.design import discrete, integral, lag
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.lqr import discrete, integral, lag
 
 
 def close(A, B, K) -> np.ndarray:
@@ -119,7 +119,7 @@ def matrix(A, B, K, Ki=None, integral_states=(), sample_time=None, *, Kv=None,
 
     Continuous: ``[[A - B K, -B Ki], [-C, 0]]``. With ``sample_time`` (a discrete controller on
     the ZOH plant): ``[[Ad - Bd K, -Bd Ki], [-Ts C, I]]``. ``C`` selects ``integral_states``.
-    With ``lag_time_constant`` the plant's inputs lag (:func:`quadctl.lqr.lag.lagged`): the state is
+    With ``lag_time_constant`` the plant's inputs lag (:func:`quadctl.design.lag.lagged`): the state is
     ``[x; v; z]`` and the gain ``[K, Kv]`` on ``[x; v]`` (``Kv`` (4, 4), zero when None): the loop a
     design that includes the lag sees.
 
@@ -145,10 +145,10 @@ def matrix(A, B, K, Ki=None, integral_states=(), sample_time=None, *, Kv=None,
     DesignError
         A matrix that is complex, not numeric, or of a shape that does not fit (named).
     """
+    from quadctl.design.riccati import real_array
     from quadctl.errors import DesignError
-    from quadctl.lqr.riccati import real_array
 
-    who = "closed_loop_matrix"  # its public name (quadctl.lqr.closed_loop_matrix)
+    who = "closed_loop_matrix"  # its public name (quadctl.design.closed_loop_matrix)
     A = real_array(A, "A", name=who, ndim=2)
     n = A.shape[0]
     A = real_array(A, "A", name=who, shape=(n, n))
@@ -210,7 +210,7 @@ def subsystem(sub, plant, sample_time: float | None = None, *, delay_samples: in
 
     Parameters
     ----------
-    sub : quadctl.lqr.decoupled.SubsystemDesign
+    sub : quadctl.design.decoupled.SubsystemDesign
     plant : quadctl.decouple.Subsystem
         Its ``A``, ``B``.
     sample_time : float, optional
@@ -235,7 +235,7 @@ def vehicle(design, A, B, sample_time: float | None = None, delay_samples: int =
 
     Parameters
     ----------
-    design : quadctl.lqr.decoupled.Design
+    design : quadctl.design.decoupled.Design
         ``K_block``, ``Ki_block``, ``integral_states``, ``lag_time_constant``, ``Kv_block``.
     A : (12, 12) array_like
     B : (12, 4) array_like
@@ -289,7 +289,7 @@ def lqg(design, A, B, kal):
 
     Parameters
     ----------
-    design : quadctl.lqr.Design
+    design : quadctl.design.Design
     A, B : (12, 12), (12, 4) array_like
         The continuous coupled linear model.
     kal : quadctl.estimator.Kalman

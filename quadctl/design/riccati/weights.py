@@ -17,7 +17,7 @@ SEMIDEFINITE_RTOL = 1e-12
 is above ``-SEMIDEFINITE_RTOL`` times the scale of the cost, the largest eigenvalue magnitude of
 ``[[Q, N], [N', R]]``: room for the round-off of computed weights, measured against that scale
 because a weight that is zero (``Q = 0``) is computed as noise of the other weights' size.
-Van Loan's integrals (:func:`quadctl.lqr.discrete.lqrd_weights`) of 20 000 random stiff problems
+Van Loan's integrals (:func:`quadctl.design.discrete.lqrd_weights`) of 20 000 random stiff problems
 (``|eig(A)| Ts <= 10``, rank-deficient ``Q``) came out at -4.7e-16 at worst (``tests/test_riccati.py``
 checks quadctl's own subsystems); a weight that is really indefinite is far below (CAREX 2.5: -13.2
 against 0.23)."""
@@ -28,7 +28,7 @@ def real_array(M, label: str, *, name: str = "system", shape: tuple | None = Non
     """``M`` as a float array, refusing what a float conversion would change or lose.
 
     The one check of a matrix argument for every public function that takes one (the Riccati
-    solvers, :mod:`quadctl.discrete`, :func:`quadctl.lqr.closed_loop_matrix`, :mod:`quadctl.interop`):
+    solvers, :mod:`quadctl.design.discrete`, :func:`quadctl.design.closed_loop_matrix`, :mod:`quadctl.interop`):
     quadctl's solvers are real-only, so a complex matrix is refused (NumPy's conversion would drop
     its imaginary part with only a ``ComplexWarning`` and the answer would be certified for another
     problem), as are text, objects and ragged lists. ``ndim`` pads with leading axes

@@ -46,6 +46,16 @@ class Trim:
         ``max |xdot|`` over the non-position states.
     iterations : int
         Newton iterations used.
+
+    Examples
+    --------
+    A hover holds the weight: thrust ``m g``, level.
+
+    >>> import quadctl as qc
+    >>> hover = qc.trim([0, 0, 0], 0.0, [0, 0, -1], qc.Vehicle())
+    >>> round(float(hover.u[0]), 5), hover.residual
+    (0.66708, 0.0)
+    >>> x, u = hover  # unpacks as (x, u)
     """
 
     x: np.ndarray

@@ -21,13 +21,13 @@ Methods. Substituting ``u = v - R^-1 N' x`` removes the cross term (``A - B R^-1
 each followed by :data:`NEWTON_STEPS` Newton steps (Kleinman's Lyapunov, Hewer's Stein
 equation), which square the error. Every answer is residual-checked (``RICCATI_RTOL``) and its
 loop stability-checked; the stacked solvers flag what fails (``ok``), :func:`solve` (behind
-:func:`quadctl.lqr.lqr` and :func:`quadctl.lqr.discrete.dlqr`) falls back to SciPy's Schur solvers and
+:func:`quadctl.design.lqr` and :func:`quadctl.design.discrete.dlqr`) falls back to SciPy's Schur solvers and
 otherwise raises a :class:`~quadctl.errors.DesignError` that says why: invalid weights, a mode no
 input reaches, a marginal mode ``Q`` does not see, or an ill-conditioned equation.
 """
 
-from quadctl.lqr.riccati.single import LqrResult, care_schur, require_stabilizable, solve, unstabilizable_mode
-from quadctl.lqr.riccati.stacked import (
+from quadctl.design.riccati.single import LqrResult, care_schur, require_stabilizable, solve, unstabilizable_mode
+from quadctl.design.riccati.stacked import (
     KRONECKER_MAX_N,
     NEWTON_STEPS,
     ROUNDOFF_RTOL,
@@ -40,7 +40,7 @@ from quadctl.lqr.riccati.stacked import (
     riccati_residual,
     riccati_residuals,
 )
-from quadctl.lqr.riccati.weights import (
+from quadctl.design.riccati.weights import (
     SEMIDEFINITE_RTOL,
     WeightCheck,
     as_problem,

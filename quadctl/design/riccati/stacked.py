@@ -3,7 +3,7 @@
 :func:`care_batch` (the stable eigenvectors of the stacked Hamiltonians) and :func:`dare_batch`
 (structure-preserving doubling), each followed by Newton steps in defect-correction form, and the
 residuals that certify every answer. An entry without an accurate stabilizing answer is marked not
-ok, never raised: the one-case solver (:mod:`quadctl.lqr.riccati.single`) says why.
+ok, never raised: the one-case solver (:mod:`quadctl.design.riccati.single`) says why.
 """
 
 from __future__ import annotations
@@ -16,15 +16,15 @@ import numpy as np
 from quadctl import stability
 from quadctl._lazy import lazy_import
 from quadctl.analysis import RICCATI_RTOL
+from quadctl.design.riccati.doubling import ROUNDOFF_STEPS, doubling
+from quadctl.design.riccati.weights import WeightCheck, as_problem, as_stack, neutral, norm1
 from quadctl.errors import DesignError
-from quadctl.lqr.riccati.doubling import ROUNDOFF_STEPS, doubling
-from quadctl.lqr.riccati.weights import WeightCheck, as_problem, as_stack, neutral, norm1
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
 NEWTON_STEPS = 2
 """Newton steps after the initial solution; both the stacked solvers and the one-case polish
-(:func:`quadctl.lqr.riccati.single.solve`) stop early once the residual is round-off (``ROUNDOFF_RTOL``).
+(:func:`quadctl.design.riccati.single.solve`) stop early once the residual is round-off (``ROUNDOFF_RTOL``).
 Each squares the relative error of ``P``: two take an eigenvector solution good to 1e-6 to round-off
 (seen: a mode at -7e-7 rad/s left SciPy's Schur solution at 6e-8; one step took it to 1.6e-10)."""
 KRONECKER_MAX_N = 7
@@ -39,7 +39,7 @@ eigenvectors for one case (and SciPy is loaded)."""
 ROUNDOFF_RTOL = 100 * np.finfo(float).eps
 """A relative residual below this (2.2e-14) is round-off: the stacked solvers, whose Newton steps
 are cheap batched calls, stop polishing there. The one-case polish
-(:func:`quadctl.lqr.riccati.single.solve`) stops at ``n`` times this: the worst-case rounding of the
+(:func:`quadctl.design.riccati.single.solve`) stops at ``n`` times this: the worst-case rounding of the
 residual's own ``n``-term products (``gamma_n = n eps``, Higham, *Accuracy and Stability of
 Numerical Algorithms*, 3.1), where each step is a Bartels-Stewart solve costing a quarter of the
 solve (seen: polishing 6.7e-14 at n = 10 to 5e-15 took lqr from 0.40 to 0.57 ms; SciPy: 0.56 ms)."""
@@ -64,7 +64,7 @@ class BatchLqr:
     ok : (batch,) bool ndarray
         The weights are valid, the solution is finite, its residual is at most ``RICCATI_RTOL``
         and its closed loop is stable. Entries that are not ok hold garbage: solve them one by one
-        (:func:`quadctl.lqr.lqr`, :func:`quadctl.lqr.discrete.dlqr`), which raises the reason.
+        (:func:`quadctl.design.lqr`, :func:`quadctl.design.discrete.dlqr`), which raises the reason.
     """
 
     K: np.ndarray
@@ -223,7 +223,7 @@ def dare_batch(A, B, Q, R, N=None, *, compiled: bool = False) -> BatchLqr:
         Cross weight; ``[[Q, N], [N', R]]`` positive semidefinite.
     compiled : bool
         Take the doubling steps in compiled C when a C compiler is at hand
-        (:mod:`quadctl.lqr.riccati.doubling`: a tenth of numpy's time on 2- and 3-state problems; the
+        (:mod:`quadctl.design.riccati.doubling`: a tenth of numpy's time on 2- and 3-state problems; the
         same ``P`` to round-off). A sweep's designs do; a one-case design keeps numpy's steps, so
         its numbers (and the order LAPACK gives its loop's eigenvalues) stay those of earlier runs.
 

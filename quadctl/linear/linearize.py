@@ -24,6 +24,13 @@ class LinearModel:
         Drift of the operating point: the trim's position rates (its earth velocity, m/s),
         zero elsewhere. Position is not an equilibrium in forward flight; the reference the
         controller regulates to is ``x_trim + x_rate t``.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> A, B = qc.linearize(np.zeros(12), [0.66708, 0, 0, 0], qc.Vehicle())  # unpacks as (A, B)
+    >>> A.shape, B.shape
+    ((12, 12), (12, 4))
     """
 
     A: np.ndarray
@@ -45,11 +52,23 @@ def linearize(x_trim, u_trim, vehicle: Vehicle, wind_ned=None) -> LinearModel:
     u_trim : (4,) array_like
     vehicle : Vehicle
     wind_ned : (3,) array_like, optional
-        m/s NED: the steady wind of a trim in wind (:func:`quadctl.trim.solve_trim`); None: still air.
+        m/s NED: the steady wind of a trim in wind (:func:`quadctl.linear.trim.solve_trim`); None: still air.
 
     Returns
     -------
     LinearModel
+
+    Examples
+    --------
+    About a hover the thrust only lifts: ``dw/dT = -1/m`` (NED, down positive), and the pitch tilts
+    the thrust into forward acceleration, ``du/dtheta = -g``.
+
+    >>> import quadctl as qc
+    >>> vehicle = qc.Vehicle()
+    >>> hover = qc.trim([0, 0, 0], 0.0, [0, 0, -1], vehicle)
+    >>> lin = qc.linearize(hover.x, hover.u, vehicle)
+    >>> round(float(lin.B[5, 0] * vehicle.mass), 12), round(float(lin.A[3, 7]), 12)
+    (-1.0, -9.81)
     """
     return linearize_all(np.asarray(x_trim, dtype=float)[None], np.asarray(u_trim, dtype=float)[None], vehicle,
                          wind_ned)[0]

@@ -42,8 +42,8 @@ SIMD_FLAGS = PORTABLE_FLAGS[:1] + ("-march=native", "-fno-builtin-sin", "-fno-bu
 EVICT_AFTER_DAYS = 30
 """Cached libraries of another fingerprint unused for this long are deleted."""
 GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "sim/builder.py", "sim/emit.py", "sim/cases.py",
-                     "sim/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
-                     "lqr/gain_table.py", "metrics.py", "sim/mapped.py",
+                     "native/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
+                     "design/gain_table.py", "metrics.py", "sim/mapped.py",
                      "pointwise.py", "motors.py", "errors.py")
 """The files a library's C is generated from (``tests/test_structure.py`` checks that this lists
 everything those modules import from quadctl). Read once, when this module is imported: the cache

@@ -12,7 +12,7 @@ plant is augmented with ``n`` shift states per input (``b_1 <- u``, ``b_k <- b_(
 driven by ``b_n``), which is ``z^-n`` on every input: exact, no Pade approximation. The delay
 margin is then the delay the loop tolerates beyond the configured one. Rotors that lag
 (``motors.time_constant``) are in the loops too: every input reaches the plant through
-``1 / (tau s + 1)`` (:func:`lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
+``1 / (tau s + 1)`` (:func:`quadctl.design.lag.lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
 before the hold is applied. A design that ignores the lag (``controller.rotor_lag: ignore``) does
 not know of it. One that includes it (``include``) feeds back the lag states ``v`` through ``Kv``:
 on the design model (``model = "design"``) they are the augmented plant's states, the loop the
@@ -66,11 +66,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl._lazy import lazy_import
+from quadctl.design import linear_loop
 from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, STATE_INDEX
-from quadctl.lqr import linear_loop
-from quadctl.lqr.lag import lagged as lagged  # re-exported: the lag every loop carries
-from quadctl.lqr.linear_loop import delayed as delayed  # re-exported: the delay every sampled loop carries
-from quadctl.lqr.linear_loop import with_lag_model as with_lag_model  # re-exported: the controller's lag model
 from quadctl.stability import free_positions, is_stable
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -143,6 +140,14 @@ class LoopMargins:
         s of extra delay before instability (None: ``|L|`` never crosses 1, or unstable).
     delay_samples : int
         Samples of configured delay included in the loop.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    >>> roll = qc.margins(stages.design, stages.decoupled, stages.linear.A, stages.linear.B)[1]
+    >>> roll.loop, roll.input, roll.gain_margin_db, roll.phase_margin_deg > 60
+    ('roll', 'A', (-inf, inf), True)
     """
 
     loop: str
@@ -477,8 +482,8 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
     is about. ``model = "coupled"``: the 12-state linear model, every other loop closed, position
     states that nothing feeds back left out. With ``sample_time`` (s: the controller's period, the
     design's own for a discrete design, or the rate a continuous design is run at) the loops are
-    sampled, with ``delay_samples`` of delay on every input (:func:`delayed`);
-    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`lagged`).
+    sampled, with ``delay_samples`` of delay on every input (:func:`quadctl.design.linear_loop.delayed`);
+    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`quadctl.design.lag.lagged`).
     """
     Ts = sample_time
     for sub in design.subsystems:
@@ -504,7 +509,7 @@ def lqg_loops(design, A, B, kal):
 
     Parameters
     ----------
-    design : quadctl.lqr.Design
+    design : quadctl.design.Design
     A, B : (12, 12), (12, 4) array_like
         The continuous coupled linear model.
     kal : quadctl.estimator.Kalman
@@ -530,14 +535,6 @@ def lqg_loops(design, A, B, kal):
                                                    sample_time=Ts)
 
 
-def closed_loop(design, A, B, sample_time: float | None = None, delay_samples: int = 0,
-                rotor_time_constant: float | None = None) -> np.ndarray:
-    """The linear closed loop the vehicle has (:func:`quadctl.linear_loop.vehicle_matrix`): the coupled
-    model with the rotors' lag, the controller's lag model (a design that includes the lag), the
-    integrators and the delay, the positions nothing feeds back left out."""
-    return linear_loop.vehicle_matrix(design, A, B, sample_time, delay_samples, rotor_time_constant)
-
-
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,
                 u_trim=None, initial_demand: dict | None = None, delay_samples: int = 0,
                 rotor_time_constant: float | None = None, estimator=None) -> list[LoopMargins]:
@@ -546,7 +543,7 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
 
     Parameters
     ----------
-    design : quadctl.lqr.Design
+    design : quadctl.design.Design
     decoupled : quadctl.decouple.Decoupled
     A, B : array_like
         The coupled 12-state linear model.
@@ -570,6 +567,14 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     -------
     list of LoopMargins
         Design-model loops first, then coupled ones, then LQG ones, each with :func:`explain` notes.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    >>> loops = qc.margins(stages.design, stages.decoupled, stages.linear.A, stages.linear.B)
+    >>> [(m.loop, m.model) for m in loops][:2], all(m.meets_lqr_guarantee for m in loops)
+    ([('altitude', 'design'), ('roll', 'design')], True)
     """
     from dataclasses import replace
 

@@ -28,10 +28,8 @@ import numpy as np
 
 from quadctl import stability
 from quadctl._lazy import lazy_import
-from quadctl.analysis import is_stable_z as is_stable_z  # re-exported: the discrete stability predicate
+from quadctl.design.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
 from quadctl.errors import DesignError
-from quadctl.lqr.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
-from quadctl.lqr.riccati import dare_residual as dare_residual  # re-exported: dlqr's residual
 from quadctl.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -245,9 +243,9 @@ class LqrdWeightMap:
 
 
 def dlqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:
-    """Discrete-time LQR (MATLAB ``dlqr``), solved by :func:`quadctl.lqr.riccati.solve`.
+    """Discrete-time LQR (MATLAB ``dlqr``), solved by :func:`quadctl.design.riccati.solve`.
 
-    Weights validated; quadctl's own residual-checked solver first (:func:`quadctl.lqr.riccati.dare_batch`:
+    Weights validated; quadctl's own residual-checked solver first (:func:`quadctl.design.riccati.dare_batch`:
     structure-preserving doubling and Newton-Hewer steps), SciPy's ``solve_discrete_are`` where it
     has no answer within ``RICCATI_RTOL`` and a stable loop.
 
@@ -315,6 +313,16 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system", state_names=Non
     ------
     DesignError
         The continuous weights are invalid (checked before they are integrated), or ``dlqr`` fails.
+
+    Examples
+    --------
+    The scalar integrator ``x' = u`` at 10 Hz: the sampled gain is a little below the continuous
+    ``sqrt(Q / R) = 1``, and the discrete closed-loop pole ``z`` a little off ``exp(-Ts)``.
+
+    >>> import quadctl as qc
+    >>> K, S, E = qc.lqrd([[0.0]], [[1.0]], [[1.0]], [[1.0]], 0.1)
+    >>> round(float(K[0, 0]), 4), round(float(E[0].real), 4)
+    (0.952, 0.9048)
     """
     require_valid_weights(A, B, Q, R, N, name=name)
     Ad, Bd, Qd, Rd, Nd = lqrd_weights(A, B, Q, R, Ts, N, name=name)

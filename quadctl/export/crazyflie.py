@@ -1,0 +1,257 @@
+"""The exported controller as a Crazyflie out-of-tree controller app.
+
+:func:`sources` writes a complete app for the Bitcraze Crazyflie firmware's out-of-tree (OOT)
+controller interface: the exported C controller (:func:`quadctl.export.c.sources`, in float, the
+variant that takes a reference at each sample), an adapter implementing the three functions the
+firmware calls (``controllerOutOfTreeInit``, ``controllerOutOfTreeTest``, ``controllerOutOfTree``,
+declared in the firmware's ``controller.h``), the build files (``Makefile``, ``Kbuild``,
+``app-config``) and a README. The adapter is written from the firmware's documented interface
+(``docs/development/oot.md``, ``controller.h``, ``stabilizer_types.h``); no firmware code is in it.
+
+What the adapter does, at the firmware's 1 kHz stabilizer loop:
+
+- samples the law every ``1000 / controller.rate`` calls (the rate must divide 1000) and holds the
+  rotor forces between samples;
+- converts the firmware's state to quadctl's (:data:`FRAMES`): world x forward, y left, z up to
+  NED; the world velocity to body ``u, v, w`` by the attitude quaternion, then y and z flipped;
+  attitude from degrees, the pitch in the firmware's legacy sign (nose up positive, as quadctl's
+  theta); gyro deg/s FLU to rad/s FRD; yaw negated and wrapped;
+- takes the commander's setpoint as the law's reference: position (``modeAbs``) or velocity
+  (``modeVelocity``, world or body) per axis, yaw or yaw rate; a velocity moves the position held;
+- outputs in force mode (each rotor's thrust, from the exported mixer and saturation
+  ``quadctl_mix``, divided by the firmware's maximum rotor thrust) or, with ``mode="force-torque"``,
+  the law's thrust and torques in SI (the firmware then mixes with its own constants);
+- stops: no altitude setpoint (``mode.z`` disabled, as the commander gives when it stops) zeroes
+  the outputs and restarts the controller (``quadctl_init``) and its reference.
+
+:func:`check` refuses at export time what the app cannot serve (exit 2). :func:`platform_rows`
+compares the vehicle's numbers with the firmware platform's defaults (:data:`FIRMWARE`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from string import Template
+
+import numpy as np
+
+from quadctl import __version__
+from quadctl.errors import ConfigError
+from quadctl.escape import c_comment
+from quadctl.export.bundle import Export, require_export
+
+LOOP_HZ = 1000
+"""The firmware's stabilizer loop (``RATE_MAIN_LOOP`` in ``stabilizer_types.h``): the controller is
+called at this rate."""
+SETPOINTS = ("position", "velocity")
+"""What the app follows: ``position`` (x, y, z and yaw held where the commander says, the
+high-level commander's go-to), ``velocity`` (the hover setpoint: vx, vy, z (or vz) and yaw rate)."""
+MODES = ("force", "force-torque")
+"""The firmware's ``control_t`` modes the app can write."""
+NUMBERING = ("front_right", "rear_right", "rear_left", "front_left")
+"""The firmware's motors M1-M4 (quad-X): the numbering the app writes ``normalizedForces`` in."""
+SPINS = (1.0, -1.0, 1.0, -1.0)
+"""Their yaw reaction signs (+1: counter-clockwise seen from above): M1 and M3 counter-clockwise."""
+
+
+@dataclass(frozen=True)
+class Platform:
+    """The firmware platform defaults the app is compared with."""
+
+    name: str
+    commit: str
+    source: str
+    mass: float
+    arm_length: float
+    max_thrust: float
+    torque_coefficient: float
+
+
+FIRMWARE = Platform(
+    name="Crazyflie 2.1+ (the firmware's default propellers)",
+    commit="2a18fc299d7b48cf094d26c38a79f33dec64b5d7",
+    source="src/platform/interface/platform_defaults_cf2.h",
+    mass=0.029,                                   # CF_MASS, kg
+    arm_length=0.046,                             # ARM_LENGTH, m
+    max_thrust=0.12,                              # THRUST_MAX, N per motor
+    torque_coefficient=0.0069928948992470565,     # THRUST2TORQUE, m (N m per N)
+)
+"""bitcraze/crazyflie-firmware at :attr:`Platform.commit` (2026-08-21), :attr:`Platform.source`:
+``CF_MASS``, ``ARM_LENGTH``, ``THRUST_MAX``, ``THRUST2TORQUE`` of the default (2.1+) propellers."""
+
+FRAMES = (
+    ("pN, pE, pD", "state->position x, y, z (m, world x forward, y left, z up)", "pN = x, pE = -y, pD = -z"),
+    ("u, v, w", "state->velocity (m/s, world) and state->attitudeQuaternion",
+     "body velocity = R(q)^T velocity (FLU), then v and w negated"),
+    ("phi, theta, psi", "state->attitude roll, pitch, yaw (deg; pitch in the legacy sign, nose up positive)",
+     "phi = roll, theta = pitch, psi = -yaw, in rad, psi wrapped into (-pi, pi]"),
+    ("p, q, r", "sensors->gyro x, y, z (deg/s, body x forward, y left, z up)", "p = x, q = -y, r = -z, in rad/s"),
+)
+"""Each conversion the adapter makes: (quadctl states, the firmware's fields, the conversion)."""
+
+APP_FILES = ("Makefile", "Kbuild", "app-config", "README.md", "src/Kbuild", "src/quadctl_app.c",
+             "src/quadctl_crazyflie.c", "src/quadctl_crazyflie.h")
+"""The app's own files (beside ``src/quadctl_controller.h`` and ``.c``)."""
+TEMPLATES = "export/templates/crazyflie"
+
+
+def quadrants(positions) -> tuple[str, ...]:
+    """Where each rotor is, from its body position ``(x, y)`` (FRD, m): ``front_right`` (x > 0, y > 0),
+    ``rear_right``, ``rear_left``, ``front_left``; ``on_axis`` for a rotor on the x or y axis (a ``+``
+    layout), which no firmware motor is.
+
+    >>> quadrants([[0.03, 0.03], [-0.03, 0.03], [-0.03, -0.03], [0.03, -0.03]])
+    ('front_right', 'rear_right', 'rear_left', 'front_left')
+    """
+    out = []
+    for x, y in np.asarray(positions, dtype=float):
+        if x == 0.0 or y == 0.0:
+            out.append("on_axis")
+        else:
+            out.append(("front" if x > 0 else "rear") + ("_right" if y > 0 else "_left"))
+    return tuple(out)
+
+
+def divider(rate: float) -> int:
+    """Firmware loop calls per controller sample: ``1000 / rate``.
+
+    Raises
+    ------
+    ConfigError
+        ``rate`` does not divide the firmware's 1 kHz loop.
+    """
+    n = LOOP_HZ / float(rate)
+    if n < 1 or abs(n - round(n)) > 1e-9:
+        near = [r for r in (1000, 500, 250, 200, 100) if r <= 2 * rate]
+        raise ConfigError(f"controller.rate = {rate:g} Hz does not divide the Crazyflie's {LOOP_HZ} Hz stabilizer "
+                          f"loop: set controller.rate to a divisor of {LOOP_HZ} (e.g. {near[0] if near else 100})")
+    return int(round(n))
+
+
+def check(exp: Export, setpoint: str = "position", mode: str = "force") -> None:
+    """Refuse what the app cannot serve (:class:`~quadctl.errors.ConfigError`, exit 2).
+
+    Parameters
+    ----------
+    exp : Export
+        Prepared with a rate.
+    setpoint : {"position", "velocity"}
+        What the commander gives (:data:`SETPOINTS`).
+    mode : {"force", "force-torque"}
+
+    Raises
+    ------
+    ConfigError
+        The rate does not divide 1 kHz; force mode without rotors (``motors:``) or with a rotor
+        numbering other than the firmware's; a Kalman filter (``estimator:``; the firmware estimates
+        the state); a trim that is not a hover (the commander's setpoints are about a hover); a
+        setpoint that needs a state the partition leaves free.
+    """
+    require_export(exp, "check")
+    if setpoint not in SETPOINTS:
+        raise ValueError(f"setpoint must be one of {SETPOINTS}, got {setpoint!r}")
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    divider(exp.rate)
+    loop, setup = exp.loop, exp.setup
+    act = loop.actuators
+    if mode == "force":
+        if act is None or act.mode != "motors":
+            raise ConfigError("motors: is absent: force mode writes each rotor's thrust, so the config needs its "
+                              "rotors (motors: with layout x, arm_length, max_thrust), or export with "
+                              "--mode force-torque")
+        motors = act.motors
+        where, spins = quadrants(motors.positions()), tuple(float(v) for v in motors.rotor_spins())
+        if where != NUMBERING or spins != SPINS:
+            turn = ", ".join("ccw" if v > 0 else "cw" for v in spins)
+            raise ConfigError(
+                f"motors.numbering: rotors 1-4 are {', '.join(where)} spinning {turn}, not the Crazyflie's "
+                "motors M1-M4 (front_right, rear_right, rear_left, front_left spinning ccw, cw, ccw, cw): set "
+                "motors.layout: x and motors.numbering: crazyflie (and no motors.spin)")
+    if loop.estimator is not None:
+        raise ConfigError("estimator: the app takes the firmware's state estimate (its Kalman filter): remove "
+                          "estimator: from the config to export the full-state law for the Crazyflie")
+    if np.any(np.asarray(loop.x_rate) != 0.0):
+        raise ConfigError("trim.velocity_ned is not zero: the commander's setpoints are positions and velocities "
+                          "about a hover; trim at velocity_ned: [0, 0, 0]")
+    need = {"position": ("pN", "pE", "pD", "psi"), "velocity": ("u", "v", "pD", "psi")}[setpoint]
+    free = [s for s in need if s not in setup.regulated]
+    if free:
+        other = ("--setpoint velocity (the hover setpoint: vx, vy, z, yaw rate)" if setpoint == "position"
+                 else "--setpoint position")
+        raise ConfigError(f"subsystems: the partition leaves {', '.join(free)} free (in no regulated subsystem), so "
+                          f"a {setpoint} setpoint cannot be followed: regulate {', '.join(free)} (add them to a "
+                          f"subsystem with regulate: true) or export with {other}")
+
+
+def platform_rows(exp: Export, platform: Platform = FIRMWARE) -> list[tuple[str, str, float, float, str]]:
+    """The vehicle's numbers beside the firmware platform's defaults.
+
+    Returns
+    -------
+    list of (quantity, config key, config value, firmware value, unit)
+        Mass, arm length, maximum rotor thrust and torque coefficient (the rotor rows only with
+        ``motors:``).
+    """
+    require_export(exp, "platform_rows")
+    setup = exp.setup
+    rows = [("mass", "vehicle.mass", float(setup.vehicle.mass), platform.mass, "kg")]
+    act = exp.loop.actuators
+    if act is not None and act.mode == "motors":
+        m = act.motors
+        rows += [("arm length", "motors.arm_length", float(m.arm_length), platform.arm_length, "m"),
+                 ("maximum rotor thrust", "motors.max_thrust", float(m.max_thrust), platform.max_thrust, "N"),
+                 ("torque coefficient", "motors.torque_coefficient", float(m.torque_coefficient),
+                  platform.torque_coefficient, "N m/N")]
+    return rows
+
+
+def _mass(exp: Export) -> float:
+    return float(exp.setup.vehicle.mass)
+
+
+def _c_float(v: float) -> str:
+    return f"{float(v)!r}f"
+
+
+def sources(exp: Export, setpoint: str = "position", mode: str = "force") -> dict[str, str]:
+    """The app's files: ``{path relative to the app folder: text}``.
+
+    The controller is :func:`quadctl.export.c.sources` with the reference as an input
+    (``quadctl_step_ref``): the commander's setpoint is the law's reference.
+
+    Raises
+    ------
+    ConfigError
+        What :func:`check` refuses.
+    """
+    from quadctl.export import c
+
+    check(exp, setpoint, mode)
+    loop = exp.loop
+    ctrl = c.sources(exp, reference=True)
+    n = divider(exp.rate)
+    x_trim = np.asarray(loop.x_trim, dtype=float)
+    u_trim = np.asarray(loop.u_trim, dtype=float)
+    values = {
+        "CONFIG": c_comment(exp.name), "VERSION": __version__, "CONFIG_HASH": exp.config_hash or "not recorded",
+        "RATE": f"{float(exp.rate):g}", "DIVIDER": str(n), "LOOP_HZ": str(LOOP_HZ),
+        "MODE": mode, "MODE_MACRO": "QUADCTL_CF_FORCE_TORQUE" if mode == "force-torque" else "QUADCTL_CF_FORCE",
+        "SETPOINT": setpoint,
+        "HOLDS_POSITION": "1" if all(s in exp.setup.regulated for s in ("pN", "pE")) else "0",
+        "TRIM_PN": _c_float(x_trim[0]), "TRIM_PE": _c_float(x_trim[1]), "TRIM_PD": _c_float(x_trim[2]),
+        "TRIM_PSI": _c_float(x_trim[8]), "TRIM_T": _c_float(u_trim[0]),
+        "COMMIT": FIRMWARE.commit, "PLATFORM_SOURCE": FIRMWARE.source,
+        "FW_ARM": f"{FIRMWARE.arm_length:g}", "FW_TORQUE": f"{FIRMWARE.torque_coefficient:g}",
+        "FW_MAX": f"{FIRMWARE.max_thrust:g}", "MASS": f"{_mass(exp):g}",
+    }
+    files = {}
+    base = resources.files("quadctl").joinpath(TEMPLATES)
+    for name in APP_FILES:
+        text = base.joinpath(name.replace("/", "__")).read_text(encoding="utf-8")
+        files[name] = Template(text).substitute(values)
+    for name, text in ctrl.items():
+        files[f"src/{name}"] = text
+    return files
+
