@@ -295,7 +295,9 @@ def desaturate(cmd, mix, lo, hi, lib=np):
             t_hi = ops.min(t_hi, ops.where(k > flat, bound, UNBOUNDED))
             t_lo = ops.max(t_lo, ops.where(k < -flat, bound, -UNBOUNDED))
     T2 = ops.min(ops.max(T, t_lo), t_hi)
-    y_lo, y_hi = r0, r1
+    # the yaw torques that fit T2 meet the segment [0, R] (step 2 chose T2 so): the one closest to R is in it.
+    # Not clamped to the segment itself, whose ends tie at R = 0 and would blur the law's derivative there.
+    y_lo, y_hi = -UNBOUNDED, UNBOUNDED
     for (alpha, beta), (gamma, delta) in zip(lowers[1:], uppers[1:]):
         y_lo = ops.max(y_lo, alpha + beta * T2)
         y_hi = ops.min(y_hi, gamma + delta * T2)
