@@ -20,7 +20,9 @@
    gain schedule (the bundled schedule config flown from hover to 10 m/s), against RK4 at a small
    step that divides the reference's rows.
 2. A sweep of 1000 random designs (benchmarks/random-1000.yaml, no two alike) x 10 000 RK4 steps:
-   on both cores, on one, through the command line, and the one-case-at-a-time pipeline; and a
+   on both cores, on one, through the command line, and the one-case-at-a-time pipeline, against
+   the machine's ceiling (a hand-written structure-of-arrays C RK4 of the same loop, 64 cases a chunk,
+   OpenMP over both cores, compiled at bench time from CEILING_SOURCE); and a
    sweep of 1000 random designs of mambo-200hz (benchmarks/mambo-1000.yaml: 200 Hz discrete
    design, rotors, LQI, noise; 2 000 steps each), the configs that fly, at the same lane speed; and a
    sweep of the bundled square mission over its speed (benchmarks/square-speed.yaml: 48 cases, each
@@ -311,8 +313,12 @@ def child_cpu_best(fn, repeat: int) -> float:
 
 def stiff_simulation(cli_python: str) -> str:
     """The report's 10 s forward loop at dt: auto: ETDRK4's graded schedule (tolerance 1e-8) against
-    RK4 at its stability-held step and SciPy's LSODA at rtol 1e-10, each a whole library call (ETDRK4:
-    linear part, φ-functions, schedule and run), CPU time, best of several."""
+    RK4 at its stability-held step and SciPy's LSODA at rtol 1e-10 (on a lean scalar Python right-hand
+    side, and on the CasADi model's), each a whole library call (ETDRK4: the public call after a
+    warm-up, and a loop's first run with its linear part, φ-functions and schedule), CPU time, best
+    of several."""
+    import dataclasses
+
     from scipy.integrate import solve_ivp
 
     from quadctl import config, pipeline
@@ -333,7 +339,10 @@ def stiff_simulation(cli_python: str) -> str:
 
     simulate(loop, x0, 0.01, "auto", method="etdrk4")  # compile (or load) both loops before timing
     simulate(loop, x0, 0.01, "auto")
-    etd_cpu, etd = cpu_best(lambda: simulate(loop, x0, DURATION, "auto", method="etdrk4", tolerance=1e-8), 20)
+    public = dataclasses.replace(setup, method="etdrk4", tolerance=1e-8)
+    pipeline.simulation_of(public, loop)  # the warm-up: the loop keeps its plan, φ-functions and constants
+    etd_cpu, etd = cpu_best(lambda: pipeline.simulation_of(public, loop), 20)
+    first_cpu, _ = cpu_best(lambda: pipeline.simulation_of(public, dataclasses.replace(loop)), 10)  # a fresh loop
     rk4_cpu, rk4 = cpu_best(lambda: simulate(loop, x0, DURATION, "auto"), 5)
     lsoda_cpu, sol = cpu_best(lambda: solve_ivp(rhs, (0, DURATION), x0, method="LSODA", rtol=1e-10,
                                                 atol=1e-12), 5)
@@ -349,9 +358,11 @@ def stiff_simulation(cli_python: str) -> str:
         floor_cpu = child_cpu_best(lambda: subprocess.run([cli_python, "-c", LIBRARY_IMPORTS], check=True), REPEAT)
         scipy_cpu = child_cpu_best(lambda: subprocess.run([cli_python, "-c", LSODA_IMPORTS], check=True), REPEAT)
     segs = etd.plan.schedule
-    rows = [["quadctl ETDRK4, dt: auto, tolerance 1e-8 (library)", f"{etd_cpu * 1e3:.2f}",
+    rows = [["quadctl ETDRK4, dt: auto, tolerance 1e-8 (pipeline.simulation_of)", f"{etd_cpu * 1e3:.2f}",
              f"{etd.steps:,} steps, {len(segs)} segments, {segs[0].dt:.2g} .. {segs[-1].dt:.2g} s",
              f"{error(etd.x[-1]):.1e}", "1"],
+            ["the same, a loop's first run (its plan, φ-functions, constants)", f"{first_cpu * 1e3:.2f}",
+             "the row above and its setup", f"{error(etd.x[-1]):.1e}", f"{first_cpu / etd_cpu:.1f}"],
             ["quadctl RK4, dt: auto (library)", f"{rk4_cpu * 1e3:.2f}", f"{rk4.steps:,} steps of {rk4.dt:.3g} s",
              f"{error(rk4.x[-1]):.1e}", f"{rk4_cpu / etd_cpu:.1f}"],
             ["scipy solve_ivp LSODA (rtol 1e-10), lean scalar Python RHS", f"{lean_cpu * 1e3:.2f}",
@@ -368,9 +379,10 @@ def stiff_simulation(cli_python: str) -> str:
                  f"{abs(rk4.plan.fastest_eigenvalue):,.0f} rad/s)",
                  ["method", "CPU (ms)", "work", "final error", "CPU / ETDRK4"], rows) + (
         "\n\nCPU time of the calling process (best of 20 for ETDRK4, of 5 for the others; of the child "
-        "process for the CLI rows), so the other work on a loaded machine does not count; ETDRK4's includes "
-        "its linear part, φ-functions and schedule. The CLI row reuses the trim and design of an earlier "
-        "run. 'final error': largest final-state difference (state units) from LSODA at rtol 1e-12.")
+        "process for the CLI rows), so the other work on a loaded machine does not count; ETDRK4's is the "
+        "public call after a warm-up, which leaves the loop its plan, φ-functions and constants (the second "
+        "row computes them, on a fresh copy of the loop each run). The CLI row reuses the trim and design "
+        "of an earlier run. 'final error': largest final-state difference (state units) from LSODA at rtol 1e-12.")
 
 
 STIFF_SWEEP_DURATION = 10.0
@@ -554,6 +566,154 @@ def the_mission_sweep(plain: list | None = None) -> str:
                  rows) + ("\n\n" + "; ".join(notes) if notes else "")
 
 
+CEILING_CHUNK = 64
+"""Cases a chunk of the hand-written C loop (:data:`CEILING_SOURCE`): 64 lanes, structure of arrays."""
+CEILING_SOURCE = r"""
+#include <math.h>
+#define W 64
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+double sin(double) __attribute__((simd("notinbranch"), const, nothrow));
+double cos(double) __attribute__((simd("notinbranch"), const, nothrow));
+#endif
+/* the forward closed loop, RK4, W cases a chunk (structure of arrays: state i of case l at x[i][l]),
+   u = u0 - K (x - x0 - xr t); the model's equations written out (diagonal inertia, rotor drag) */
+static void rhs(double x[12][W], const double K[4][12][W], const double* p, const double* u0,
+                const double* xr0, const double* xr, double t, double f[12][W]) {
+  const double m = p[0], g = p[1], jxx = p[2], jyy = p[3], jzz = p[4], kx = p[5], ky = p[6], kz = p[7];
+  const double iyz = (jyy - jzz) / jxx, izx = (jzz - jxx) / jyy, ixy = (jxx - jyy) / jzz;
+#pragma omp simd
+  for (int l = 0; l < W; ++l) {
+    double e[12], u[4];
+    for (int i = 0; i < 12; ++i) e[i] = x[i][l] - xr0[i] - xr[i] * t;
+    for (int j = 0; j < 4; ++j) {
+      double s = u0[j];
+      for (int i = 0; i < 12; ++i) s -= K[j][i][l] * e[i];
+      u[j] = s;
+    }
+    double vu = x[3][l], vv = x[4][l], vw = x[5][l], ph = x[6][l], th = x[7][l], ps = x[8][l];
+    double P = x[9][l], Q = x[10][l], R = x[11][l];
+    double cph = cos(ph), sph = sin(ph), cth = cos(th), sth = sin(th), cps = cos(ps), sps = sin(ps);
+    double r00 = cth * cps, r01 = cth * sps, r02 = -sth;
+    double r10 = sph * sth * cps - cph * sps, r11 = sph * sth * sps + cph * cps, r12 = sph * cth;
+    double r20 = cph * sth * cps + sph * sps, r21 = cph * sth * sps - sph * cps, r22 = cph * cth;
+    double tm = u[0] / m, yp = (Q * sph + R * cph) / cth;
+    f[0][l] = r00 * vu + r10 * vv + r20 * vw;
+    f[1][l] = r01 * vu + r11 * vv + r21 * vw;
+    f[2][l] = r02 * vu + r12 * vv + r22 * vw;
+    f[3][l] = -tm * kx * vu + g * r02 - (Q * vw - R * vv);
+    f[4][l] = -tm * ky * vv + g * r12 - (R * vu - P * vw);
+    f[5][l] = -tm - tm * kz * vw + g * r22 - (P * vv - Q * vu);
+    f[6][l] = P + yp * sth;
+    f[7][l] = Q * cph - R * sph;
+    f[8][l] = yp;
+    f[9][l] = u[1] / jxx + iyz * Q * R;
+    f[10][l] = u[2] / jyy + izx * R * P;
+    f[11][l] = u[3] / jzz + ixy * P * Q;
+  }
+}
+
+/* n cases (a multiple of W): K [n/W][4][12][W], x [n/W][12][W] (advanced in place) */
+void ceiling(long n, const double* K, double* x, const double* p, const double* u0, const double* xr0,
+             const double* xr, double dt, long steps) {
+#pragma omp parallel for schedule(static)
+  for (long c = 0; c < n / W; ++c) {
+    double (*X)[W] = (double (*)[W])(x + c * 12 * W);
+    const double (*KK)[12][W] = (const double (*)[12][W])(K + c * 48 * W);
+    double k1[12][W], k2[12][W], k3[12][W], k4[12][W], y[12][W];
+    for (long s = 0; s < steps; ++s) {
+      double t = dt * (double)s;
+      rhs(X, KK, p, u0, xr0, xr, t, k1);
+      for (int i = 0; i < 12; ++i)
+        for (int l = 0; l < W; ++l) y[i][l] = X[i][l] + 0.5 * dt * k1[i][l];
+      rhs(y, KK, p, u0, xr0, xr, t + 0.5 * dt, k2);
+      for (int i = 0; i < 12; ++i)
+        for (int l = 0; l < W; ++l) y[i][l] = X[i][l] + 0.5 * dt * k2[i][l];
+      rhs(y, KK, p, u0, xr0, xr, t + 0.5 * dt, k3);
+      for (int i = 0; i < 12; ++i)
+        for (int l = 0; l < W; ++l) y[i][l] = X[i][l] + dt * k3[i][l];
+      rhs(y, KK, p, u0, xr0, xr, t + dt, k4);
+      for (int i = 0; i < 12; ++i)
+        for (int l = 0; l < W; ++l) X[i][l] += dt / 6.0 * (k1[i][l] + 2.0 * k2[i][l] + 2.0 * k3[i][l] + k4[i][l]);
+    }
+  }
+}
+"""
+"""The machine's ceiling for the plain sweep (:func:`the_ceiling`): a hand-written structure-of-arrays
+RK4 of the same 12-state closed loop, :data:`CEILING_CHUNK` cases a chunk (the lane loop vectorized,
+sin and cos by glibc's vector math), OpenMP over the chunks. The benchmark's yardstick, compiled here
+from this string: not quadctl's code (which generates its loops from the CasADi model)."""
+
+
+def the_ceiling(cfg, spec) -> tuple:
+    """(run, steps, what ran): ``run()`` runs :data:`CEILING_SOURCE` on the plain sweep's work (its
+    cases' count rounded up to whole chunks, each its own gains: the forward design's scaled by up to
+    +-10 %, its step and step count from benchmarks/random-1000.yaml) on both cores, ``steps`` in
+    all; checked against quadctl's RK4 of the unscaled loop first (the same loop, or the ratio means
+    nothing)."""
+    import ctypes
+
+    import yaml
+
+    from quadctl import pipeline
+    from quadctl.problem import setup_of
+    from quadctl.sim.run import simulate
+
+    setup = setup_of(cfg)
+    linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
+    loop = pipeline.loop_of(setup, linear, pipeline.design_of(setup, pipeline.decoupled_of(setup, linear), linear))
+    fixed = yaml.safe_load(SWEEP_FILE.read_text())["set"]
+    dt = float(fixed["simulation.dt"])
+    steps = round(float(fixed["simulation.duration"]) / dt)
+    n = -(-spec.count() // CEILING_CHUNK) * CEILING_CHUNK
+    with tempfile.TemporaryDirectory() as tmp:
+        src, lib = Path(tmp) / "ceiling.c", Path(tmp) / "ceiling.so"
+        src.write_text(CEILING_SOURCE)
+        base = ["cc", "-O3", "-march=native", "-fno-math-errno", "-fno-builtin-sin", "-fno-builtin-cos", "-fPIC",
+                "-shared", str(src), "-o", str(lib), "-lm"]
+        threads = "OpenMP, 2 threads"
+        if subprocess.run([*base[:1], "-fopenmp", *base[1:]], capture_output=True).returncode != 0:
+            subprocess.run([*base[:1], "-fopenmp-simd", *base[1:]], check=True, capture_output=True)
+            threads = "one thread (no OpenMP)"
+        os.environ.setdefault("OMP_NUM_THREADS", "2")  # read when OpenMP loads: both cores
+        ceiling = ctypes.CDLL(str(lib)).ceiling
+    ptr = ctypes.c_void_p
+    ceiling.argtypes = [ctypes.c_long, ptr, ptr, ptr, ptr, ptr, ptr, ctypes.c_double, ctypes.c_long]
+    ceiling.restype = None
+    rng = np.random.default_rng(1)
+    scale = 1.0 + 0.1 * rng.uniform(-1, 1, size=n)
+    scale[0] = 1.0
+    K = np.asarray(loop.K)[None] * scale[:, None, None]
+    K = np.ascontiguousarray(K.reshape(n // CEILING_CHUNK, CEILING_CHUNK, 4, 12).transpose(0, 2, 3, 1))
+    x0 = setup.initial_state(loop.x_trim)
+    consts = [np.ascontiguousarray(np.asarray(v, dtype=float).ravel()) for v in
+              (loop.params, loop.u_trim, loop.x_trim, loop.x_rate)]
+
+    def run(m=steps):
+        x = np.ascontiguousarray(np.broadcast_to(x0[None, :, None], (n // CEILING_CHUNK, 12, CEILING_CHUNK)))
+        ceiling(n, K.ctypes.data, x.ctypes.data, *(c.ctypes.data for c in consts), dt, m)
+        return x
+
+    check = simulate(loop, x0, dt * 2000, dt).x[-1]
+    err = float(np.abs(run(2000)[0, :, 0] - check).max())
+    if err > 1e-8:
+        raise AssertionError(f"the C ceiling's loop differs from quadctl's by {err:.2e} after 2000 steps")
+    return run, n * steps, f"{n} cases x {steps:,} steps, {CEILING_CHUNK} a chunk, {threads}"
+
+
+def against_ceiling(cfg, spec, runs: int) -> tuple[float, float, int, str]:
+    """(ceiling's steps/s, the library sweep's on both cores, the ceiling's steps, what it ran): each
+    the best of ``runs``, alternated so both see the same machine."""
+    from quadctl import sweep
+
+    run_ceiling, ceiling_steps, what = the_ceiling(cfg, spec)
+    best = [0.0, 0.0]
+    for _ in range(runs):
+        best[0] = max(best[0], ceiling_steps / timed(run_ceiling)[0])
+        wall, result = timed(lambda: sweep.run(cfg, spec, jobs=2))
+        best[1] = max(best[1], result.stats["steps"] / wall)
+    return best[0], best[1], ceiling_steps, what
+
+
 def the_sweep() -> tuple[str, list]:
     """Sweep 1: 1000 random designs of the forward config; (text, [cfg, spec])."""
     import dataclasses
@@ -574,6 +734,9 @@ def the_sweep() -> tuple[str, list]:
         rows.append([f"quadctl sweep, library, --jobs {jobs}", f"{wall:.2f}", f"{steps / wall / 1e6:.2f} M",
                      f"{len(result.rows) / wall:,.0f}", f"{result.stats['steps'] / len(result.rows):,.0f}"])
     steps = results[2].stats["steps"]
+    ceiling, library, ceiling_steps, what = against_ceiling(cfg, spec, ALTERNATED // 2)
+    rows.append([f"hand-written C RK4 of the same loop ({what}): the machine's ceiling",
+                 f"{ceiling_steps / ceiling:.2f}", f"{ceiling / 1e6:.2f} M", "-", "10,000"])
     # the CLI from a fresh process: --no-plot (the tables, sweep.csv and sweep.json: what CI runs), and
     # as it runs by default, with the trade-off figure (sweep.png, matplotlib)
     for label, extra in (("--no-plot", ["--no-plot"]), ("with its figure", [])):
@@ -593,6 +756,11 @@ def the_sweep() -> tuple[str, list]:
                  f"{slow.stats['steps'] / wall / 1e6:.2f} M", f"{100 / wall:,.0f}", "10,000"])
     text = table(f"Sweep: 1000 random designs x 10,000 RK4 steps (benchmarks/random-1000.yaml; best of {REPEAT})",
                  ["run", "wall (s)", "simulated steps/s", "designs/s", "steps per case"], rows)
+    text += (f"\n\nThe library sweep on both cores at {library / 1e6:.2f} M / {ceiling / 1e6:.2f} M = "
+             f"{library / ceiling:.2f} of the hand-written C ceiling's simulated steps/s, best of "
+             f"{ALTERNATED // 2} runs of each, alternated (benchmarks/bench.py CEILING_SOURCE: the same loop's "
+             "RK4 and nothing else, no design, metrics or records; compiled here with -O3 -march=native and "
+             "OpenMP).")
     for jobs, result in results.items():
         st = result.stats
         text += (f"\n\n--jobs {jobs}: the design stage (stacking, batched Riccati solves, fallbacks) took "

@@ -429,14 +429,17 @@ def test_the_schedule_grades_and_aligns():
 
 def test_short_segments_merge_into_the_finer_step(monkeypatch):
     """A coarser segment that would save at most MERGE_STEPS steps is run at the finer step: fewer
-    segments, at most MERGE_STEPS more steps for each segment fewer, the same span and alignment."""
+    segments, at most MERGE_STEPS more steps for each segment fewer, the same span and alignment
+    (at 64, where the rule merges several of the forward loop's; the default merges only those that
+    save no step whole)."""
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     eig = np.linalg.eigvals(pipeline.loop_of(setup, linear, des).linear_part())
     for period in (None, 0.005):
+        monkeypatch.setattr(schedule, "MERGE_STEPS", 64)
         merged = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
         monkeypatch.setattr(schedule, "MERGE_STEPS", 0)
         every = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
-        monkeypatch.undo()
+        monkeypatch.setattr(schedule, "MERGE_STEPS", 64)
         fewer = len(every.schedule) - len(merged.schedule)
         assert fewer >= 3
         assert every.n_steps < merged.n_steps <= every.n_steps + schedule.MERGE_STEPS * fewer
@@ -649,3 +652,95 @@ def test_the_presenter_names_the_method_and_its_schedule():
     text = flight.step_text(sim)
     assert flight.integrator_name(sim) == "ETDRK4"
     assert f"in {len(sim.plan.schedule)} segments (auto; RK4 would be stable up to 0.0001922 s" in text
+
+
+def _segments_of(loops, x0s, duration, noise=None, reference=None):
+    """The :class:`Segments` of ``loops``' ETDRK4 runs (each its own schedule and constants), as the
+    lanes run them, and their runner's spec."""
+    from quadctl.sim.cases import Segments
+
+    preps = [loop.exponential_setup(duration, tolerance=1e-8, max_samples=400) for loop in loops]
+    S = max(p.segments.n.shape[0] for p in preps)
+
+    def padded(p, name, empty):
+        arr = getattr(p.segments, name)[:, 0]
+        return np.concatenate([arr, np.repeat(np.broadcast_to(empty, (1, *arr.shape[1:])), S - len(arr), axis=0)])
+
+    fields = {name: np.stack([padded(p, name, empty if name != "c" else p.segments.c[-1, 0])
+                              for p in preps], axis=1)
+              for name, empty in (("c", 0.0), ("dt", 1.0), ("n", 0), ("stride", 1), ("k0", 0), ("hold", 1))}
+    return Segments.of(fields["c"], fields["dt"], fields["n"], fields["stride"], fields["k0"],
+                       np.concatenate([p.segments.lo for p in preps]), np.concatenate([p.segments.hi for p in preps]),
+                       hold=fields["hold"]), preps[0].spec
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("lanes", [1, 8])
+def test_one_call_walks_the_segments_as_a_call_each(lanes):
+    """The compiled segment walk (qc_run_segments: every segment of every lane in one C call) gives
+    the numbers of one runner call per segment, to the bit: records, times, steps; with lanes of
+    different schedules (the last group padded) and a lane that leaves its bounds in its third
+    segment (it stops there, the others run on)."""
+    from dataclasses import replace
+
+    from quadctl.sim.cases import run_segments_by_calls
+
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    loops = [replace(loop, K=loop.K * (1.0 + 0.1 * k)) for k in range(lanes + 3 if lanes > 1 else 1)]
+    segments, spec = _segments_of(loops, [x0] * len(loops), 0.3)
+    states = np.array([lp.initial_loop_state(x0) for lp in loops])
+    run = engine.runner(spec, lanes)
+    if lanes > 1:  # case 1's north bound where it flies (at the trim's speed) in the middle of its third segment
+        middle = segments.dt[2, 1] * (segments.k0[2, 1] + segments.n[2, 1] / 2)
+        hi = segments.hi.copy()
+        hi[1, 0] = x0[0] + loop.x_rate[0] * middle
+        segments = replace(segments, hi=hi)
+    walked = run.run_segments(segments, states)
+    called = run_segments_by_calls(run, segments, states)
+    assert len({tuple(segments.n[:, i]) for i in range(len(loops))}) > 1 or lanes == 1
+    for (done, t, xs, us), (done_c, t_c, xs_c, us_c) in zip(walked, called):
+        assert done == done_c and np.array_equal(t, t_c)
+        assert np.array_equal(xs, xs_c) and np.array_equal(us, us_c)
+    if lanes > 1:
+        assert segments.n[:2, 1].sum() < walked[1][0] < segments.n[:3, 1].sum()  # stopped in its third
+        assert walked[0][0] == segments.n[:, 0].sum()
+
+
+def test_a_loop_keeps_its_exponential_setup():
+    """A second run of a loop with the same settings takes the setup it kept (no plan or φ-functions
+    computed again) and gives the same numbers; other settings get their own; a pickled loop carries none."""
+    import pickle
+
+    setup, _, linear, _, des = solve(cfg_dict("forward"))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    first = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-8)
+    kept = loop.exponential_setup(0.2, tolerance=1e-8)
+    assert loop.exponential_setup(0.2, tolerance=1e-8) is kept
+    assert loop.exponential_setup(0.2, tolerance=1e-9) is not kept
+    again = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-8)
+    assert np.array_equal(first.x, again.x) and np.array_equal(first.t, again.t) and first.plan == again.plan
+    fresh = pickle.loads(pickle.dumps(loop))
+    assert "_exponential_setups" not in fresh.__dict__
+    assert fresh.exponential_setup(0.2, tolerance=1e-8).plan == kept.plan
+
+
+@pytest.mark.parametrize("name", ["hover+noise+wind", "square"])
+def test_a_long_run_in_chunks_is_the_one_call_run(monkeypatch, name):
+    """A run past the runner's chunk (segment after segment, each in chunks, the exogenous rows drawn as
+    it goes) gives the one-call run's records (the whole run's rows at once) to round-off."""
+    from quadctl.sim import run as run_module
+
+    setup, _, linear, _, des = solve(_variant(name))
+    loop = pipeline.loop_of(setup, linear, des)
+    x0 = setup.initial_state(loop.x_trim)
+    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4", reference=pipeline.flown_reference(setup))
+    once = simulate(loop, x0, 0.3, "auto", **kw)
+    monkeypatch.setattr(run_module, "CHUNK_STEPS", {"compiled": 40, "casadi": 40})
+    chunked = simulate(loop, x0, 0.3, "auto", **kw)
+    assert once.steps == chunked.steps > 40 and np.array_equal(once.t, chunked.t)
+    assert len(once.plan.schedule) > 1
+    worst = max(np.abs(once.x - chunked.x).max(), np.abs(once.u - chunked.u).max())
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"

@@ -575,6 +575,11 @@ class LoopFunctions:
     step: ca.Function | None = None
     plant: ca.Function | None = None
     ref: ca.Function | None = None
+    remainder: ca.Function | None = None
+    """ETDRK4 only: the nonlinear remainder ``N = rhs - L X`` of :func:`etdrk4`'s stages,
+    ``(X, t, c, e) -> (N, u)`` (``u`` the input at ``X``) with continuous feedback, ``(X, u, c, e) -> N``
+    under a held input: what a one-case compiled loop evaluates, its stages' products in
+    ``driver.c`` (``qc_etd``, the same operations in the same order)."""
 
     def functions(self) -> tuple[tuple[str, ca.Function], ...]:
         """(C name, function) of every function the driver calls."""
@@ -756,7 +761,11 @@ def build(spec: LoopSpec) -> LoopFunctions:
         X_next = etdrk4(plant_rhs, X, t, dt, phi_block(c, spec)) if spec.method == "etdrk4" else rk4(plant_rhs, X)
         plant = ca.Function("qc_plant", [X, u_held, dt, c, e], [ca.cse(X_next)],
                             ["X", "u", "dt", "c", "e"], ["X_next"])
-        return LoopFunctions(spec=spec, law=law, plant=plant, ref=ref)
+        remainder = None
+        if spec.method == "etdrk4":
+            N = plant_rhs(X, t) - phi_block(c, spec)["lin"] @ X
+            remainder = ca.Function("qc_rem", [X, u_held, c, e], [ca.cse(N)], ["X", "u", "c", "e"], ["N"])
+        return LoopFunctions(spec=spec, law=law, plant=plant, ref=ref, remainder=remainder)
 
     def closed_rhs(Y, ts):
         u, rate = control(Y, ts)
@@ -769,13 +778,16 @@ def build(spec: LoopSpec) -> LoopFunctions:
             xdot = ca.vertcat(xdot, xh_dot)
         return xdot
 
+    remainder = None
     if spec.method == "etdrk4":
         X_next = etdrk4(closed_rhs, X, t, dt, phi_block(c, spec))
+        N = closed_rhs(X, t) - phi_block(c, spec)["lin"] @ X
+        remainder = ca.Function("qc_rem", [X, t, c, e], ca.cse([N, u_now]), ["X", "t", "c", "e"], ["N", "u"])
     else:
         X_next = rk4(closed_rhs, X)
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([X_next, u_now]),
                        ["X", "t", "dt", "c", "e"], ["X_next", "u"])
-    return LoopFunctions(spec=spec, law=law, step=step, ref=ref)
+    return LoopFunctions(spec=spec, law=law, step=step, ref=ref, remainder=remainder)
 
 
 def phi_block(c, spec: LoopSpec) -> dict:

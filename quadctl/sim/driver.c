@@ -7,7 +7,9 @@
  *   qc_step(X, t, dt, c, e, X_next, u, P) one RK4 step with continuous feedback   (QC_HELD == 0)
  *   qc_plant(X, u, dt, c, e, X_next, P)   one RK4 step under a held input        (QC_HELD == 1)
  * (P: what the step computes from dt and c alone, computed once a run by qc_step_pre / qc_plant_pre
- * into qc_step_nh / qc_plant_nh values a lane)
+ * into qc_step_nh / qc_plant_nh values a lane); or, for one case of ETDRK4 (QC_ETD), in their place
+ *   qc_rem(X, t, c, e, N, u, P) / qc_rem(X, u, c, e, N, P)  the nonlinear remainder N = rhs - L X
+ * whose stages qc_etd combines here (P: what it computes from c alone, by qc_rem_pre)
  *   qc_ref(t, c, e, x_ref)             the reference state the law regulates to (QC_NS states)
  * and the metrics' constants (QC_BAND, QC_FLOOR: quadctl.metrics; QC_SETTLE_NONE, QC_SETTLE_PENDING:
  * quadctl.sim.lane_metrics).
@@ -261,24 +263,85 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
   }
 }
 
+#if QC_ETD
+/* One case (QC_L == 1) of quadctl.sim.builder.etdrk4: its stages' remainders by qc_rem, their
+ * matrix-vector products here, dense, each a column at a time over the rows (the order of CasADi's
+ * product: the same sums, its structural zeros adding zeros), the sums in the order etdrk4 writes them. The
+ * matrices are the PHI_LAYOUT blocks that end c, column-major. */
+#define QC_PHI (QC_NC - 14 * QC_NX * QC_NX)
+enum { QC_LIN, QC_EHALF, QC_EFULL, QC_A21, QC_A31, QC_A32, QC_A41, QC_A42, QC_A51, QC_A52, QC_A54, QC_B1, QC_B4,
+       QC_B5 };
+static void qc_mv(const double* restrict c, int k, const double* restrict v, double* restrict y) {
+  const double* M = c + QC_PHI + (long)k * QC_NX * QC_NX;
+  for (int i = 0; i < QC_NX; ++i) y[i] = M[i] * v[0];
+  for (int j = 1; j < QC_NX; ++j)
+    for (int i = 0; i < QC_NX; ++i) y[i] = y[i] + M[j * QC_NX + i] * v[j];
+}
+#if QC_HELD
+#define QC_REM(Y, ts, N, U) qc_rem(Y, U, c, e, N, P)
+#else
+#define QC_REM(Y, ts, N, U) qc_rem(Y, ts, c, e, N, U, P)
+#endif
+/* X_next = one step h from X at t; u: the input at X (continuous feedback), or the held one */
+static void qc_etd(const double* X, const double* t, const double* h, const double* c, const double* e,
+                   double* XN, double* u, const double* P) {
+  double n1[QC_NX], n2[QC_NX], n3[QC_NX], n4[QC_NX], n5[QC_NX], n23[QC_NX], half[QC_NX], full[QC_NX];
+  double a[QC_NX], b[QC_NX], d[QC_NX], Y[QC_NX], uu[QC_NU];
+  double th[1] = {t[0] + h[0] / 2}, tf[1] = {t[0] + h[0]};
+  (void)uu; (void)th; (void)tf;
+  QC_REM(X, t, n1, u);
+  qc_mv(c, QC_EHALF, X, half);
+  qc_mv(c, QC_EFULL, X, full);
+  qc_mv(c, QC_A21, n1, a);
+  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i];
+#if QC_HELD
+#define QC_U u
+#else
+#define QC_U uu
+#endif
+  QC_REM(Y, th, n2, QC_U);
+  qc_mv(c, QC_A31, n1, a);
+  qc_mv(c, QC_A32, n2, b);
+  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i] + b[i];
+  QC_REM(Y, th, n3, QC_U);
+  for (int i = 0; i < QC_NX; ++i) n23[i] = n2[i] + n3[i];
+  qc_mv(c, QC_A41, n1, a);
+  qc_mv(c, QC_A42, n23, b);
+  for (int i = 0; i < QC_NX; ++i) Y[i] = full[i] + a[i] + b[i];
+  QC_REM(Y, tf, n4, QC_U);
+  qc_mv(c, QC_A51, n1, a);
+  qc_mv(c, QC_A52, n23, b);
+  qc_mv(c, QC_A54, n4, d);
+  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i] + b[i] + d[i];
+  QC_REM(Y, th, n5, QC_U);
+  qc_mv(c, QC_B1, n1, a);
+  qc_mv(c, QC_B4, n4, b);
+  qc_mv(c, QC_B5, n5, d);
+  for (int i = 0; i < QC_NX; ++i) XN[i] = full[i] + a[i] + b[i] + d[i];
+#undef QC_U
+}
+#endif
+
 static long qc_mod(long a, long m) { return m > 0 ? ((a % m) + m) % m : 0; }
 
 /* x0, lo, hi: [QC_NX][QC_L]; c: [QC_NC][QC_L]; exo: [QC_L][exo_rows][QC_NE] (or NULL).
  * Records into xs [QC_L][QC_NX][rows_max], us [QC_L][QC_NU][rows_max], ks [QC_L][rows_max];
  * n_rec[l]: rows written; done[l]: steps completed (n when every state stayed in bounds).
  * keep: store every record (else only the final one, in row 0); mq, mv, macc: the metrics (or
- * mq == NULL: none), see qc_metric. */
-void qc_run(const double* x0, const double* c, const double* lane_d, const long* lane_i,
-            const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
-            double* xs, double* us, long* ks, long* n_rec, long* done,
-            long keep, const long* mq, const double* mv, double* macc) {
+ * mq == NULL: none), see qc_metric; row0 (or NULL: 0): each lane's first row. */
+static void qc_run_at(const double* x0, const double* c, const double* lane_d, const long* lane_i,
+                      const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
+                      double* xs, double* us, long* ks, long* n_rec, long* done,
+                      long keep, const long* mq, const double* mv, double* macc, const long* row0) {
   double X[QC_NX * QC_L], XN[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
   double U[QC_NU * QC_L], UH[QC_NU * QC_L], UF[QC_NU * QC_L], T[QC_L], DT[QC_L], E[QC_NE1 * QC_L];
   double XR[QC_NS * QC_L];
   long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L], until[QC_L];
   int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
   if (mq) qc_metric_init(mq, macc);
-#if QC_HELD
+#if QC_ETD
+  double P[qc_rem_nh * QC_L];
+#elif QC_HELD
   double P[qc_plant_nh * QC_L];
 #else
   double P[qc_step_nh * QC_L];
@@ -291,13 +354,17 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
   memset(UF, 0, sizeof UF);
   (void)XS; (void)hold_in;
   for (int l = 0; l < QC_L; ++l) {
-    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = 0; done[l] = 0; held[l] = -1; until[l] = LONG_MIN;
+    active[l] = QC_N(l) > 0; inb[l] = 1; rows[l] = row0 ? row0[l] : 0; done[l] = 0; held[l] = -1; until[l] = LONG_MIN;
     rec_in[l] = qc_mod(-QC_K0(l), QC_STRIDE(l));   /* steps until the next recorded one */
     hold_in[l] = qc_mod(-QC_K0(l), QC_HOLD(l));    /* steps until the next controller sample */
     DT[l] = QC_DT(l);
     n_active += active[l];
   }
-#if QC_HELD
+#if QC_ETD && QC_HELD
+  qc_rem_pre(X, U, c, E, P);
+#elif QC_ETD
+  qc_rem_pre(X, T, c, E, P);
+#elif QC_HELD
   qc_plant_pre(X, U, DT, c, E, P);
 #else
   qc_step_pre(X, T, DT, c, E, P);
@@ -323,6 +390,9 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
       }
     }
     const double* UA = UH;
+#elif QC_ETD
+    qc_etd(X, T, DT, c, E, XN, U, P);
+    const double* UA = U;
 #else
     qc_step(X, T, DT, c, E, XN, U, P);
     const double* UA = U;
@@ -353,7 +423,11 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
         for (int i = QC_NP; i < QC_NX; ++i) X[i * QC_L + l] = XS[i * QC_L + l];
       }
     }
+#if QC_ETD
+    qc_etd(X, T, DT, c, E, XN, UH, P);
+#else
     qc_plant(X, UH, DT, c, E, XN, P);
+#endif
 #endif
     /* bounds of every lane at once (NaN compares false, so it counts as out) */
     for (int i = 0; i < QC_NX; ++i)
@@ -411,5 +485,64 @@ void qc_run(const double* x0, const double* c, const double* lane_d, const long*
     }
     qc_ref(T, c, E, XR);
     qc_metric(mq, mv, macc, on, kk, T, XF, U, XR, 1);
+  }
+}
+
+void qc_run(const double* x0, const double* c, const double* lane_d, const long* lane_i,
+            const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
+            double* xs, double* us, long* ks, long* n_rec, long* done,
+            long keep, const long* mq, const double* mv, double* macc) {
+  qc_run_at(x0, c, lane_d, lane_i, lo, hi, exo, exo_rows, rows_max, xs, us, ks, n_rec, done, keep, mq, mv, macc,
+            NULL);
+}
+
+/* n_seg segments run one after another in one call (ETDRK4's graded schedule), each lane from where
+ * its last segment ended: segment s's c [QC_NC][QC_L], lane_d [2][QC_L] and lane_i [6][QC_L] at
+ * c + s QC_NC QC_L, lane_d + 2 s QC_L, lane_i + 6 s QC_L (QC_N(l) == 0: lane l has no segment s).
+ * A segment's final record is overwritten by the next segment's first (the same state and time); a
+ * lane stops at its last segment or where a segment stops early (it left its bounds). Records as
+ * qc_run's, all segments' in one row range (rows_max counts one more, a spare row the lanes done
+ * write into); first[s][l]: the row segment s of lane l starts at (-1: none); done[l]: the steps of
+ * all its segments. */
+void qc_run_segments(long n_seg, const double* x0, const double* c, const double* lane_d, const long* lane_i,
+                     const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
+                     double* xs, double* us, long* ks, long* n_rec, long* done, long* first) {
+  double X[QC_NX * QC_L];
+  long li[6 * QC_L], row0[QC_L], rows[QC_L], seg_done[QC_L], last[QC_L];
+  int live[QC_L];
+  memcpy(X, x0, sizeof X);
+  for (int l = 0; l < QC_L; ++l) {
+    last[l] = -1;
+    for (long s = 0; s < n_seg; ++s)
+      if (lane_i[(6 * s + 1) * QC_L + l] > 0) last[l] = s;
+    live[l] = last[l] >= 0;
+    row0[l] = live[l] ? 0 : rows_max - 1;
+    done[l] = 0;
+    n_rec[l] = 1;
+  }
+  for (long s = 0; s < n_seg; ++s) {
+    int any = 0;
+    memcpy(li, lane_i + 6 * s * QC_L, sizeof li);
+    for (int l = 0; l < QC_L; ++l) {
+      first[s * QC_L + l] = live[l] ? row0[l] : -1;
+      if (!live[l]) li[1 * QC_L + l] = 0;  /* QC_N: a lane done takes no steps, records into the spare row */
+      any |= live[l];
+    }
+    if (!any) continue;
+    qc_run_at(X, c + s * QC_NC * QC_L, lane_d + 2 * s * QC_L, li, lo, hi, exo, exo_rows, rows_max, xs, us, ks,
+              rows, seg_done, 1, NULL, NULL, NULL, row0);
+    for (int l = 0; l < QC_L; ++l) {
+      if (!live[l]) continue;
+      long end = rows[l] - 1;  /* the segment's final record */
+      done[l] += seg_done[l];
+      for (int i = 0; i < QC_NX; ++i) X[i * QC_L + l] = xs[((long)l * QC_NX + i) * rows_max + end];
+      if (s == last[l] || seg_done[l] < li[1 * QC_L + l]) {
+        live[l] = 0;
+        n_rec[l] = rows[l];
+        row0[l] = rows_max - 1;
+      } else {
+        row0[l] = end;
+      }
+    }
   }
 }

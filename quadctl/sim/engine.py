@@ -12,7 +12,7 @@ import warnings
 from functools import lru_cache
 
 from quadctl.errors import QuadctlNotice
-from quadctl.native.compile import PORTABLE_FLAGS, SIMD_FLAGS, CompileError, compile_cached, cpu_tag
+from quadctl.native.compile import NATIVE_FLAGS, PORTABLE_FLAGS, SIMD_FLAGS, CompileError, compile_cached, cpu_tag
 from quadctl.sim.builder import LoopSpec, build
 from quadctl.sim.interpreted import InterpretedRunner
 from quadctl.sim.native import NativeRunner, library_source
@@ -40,15 +40,18 @@ def runner(spec: LoopSpec, lanes: int = 1):
     variants = [(False, PORTABLE_FLAGS, "compiled")]
     if lanes > 1:
         variants.insert(0, (True, SIMD_FLAGS, "compiled-simd"))
+    elif spec.method == "etdrk4":  # one case for this CPU (NATIVE_FLAGS), else the portable build
+        variants.insert(0, (False, NATIVE_FLAGS, "compiled"))
     reason = ""
     for simd, flags, backend in variants:
-        key = f"{spec.key()} lanes={lanes} simd={int(simd)} {cpu_tag() if simd else ''}"
+        native = flags is not PORTABLE_FLAGS
+        key = f"{spec.key()} lanes={lanes} simd={int(simd)} {cpu_tag() if native else ''}"
         try:
             library = compile_cached(lambda s=simd: library_source(build(spec), lanes, s), flags, key)
             return NativeRunner(library, spec, lanes, backend)
         except CompileError as exc:
             reason = str(exc)
-            if not simd:
+            if not native:
                 break
         except OSError as exc:  # built but does not load (a foreign or broken library)
             reason = f"the compiled loop does not load ({exc})"

@@ -24,7 +24,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS
 from quadctl.sim.builder import LoopFunctions, LoopSpec, build
-from quadctl.sim.cases import Cases
+from quadctl.sim.cases import Cases, Segments, run_segments_by_calls
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -153,6 +153,10 @@ class InterpretedRunner:
 
     def run(self, cases: Cases):
         return [result for _, *result in self.iter_run(cases)]
+
+    def run_segments(self, segments: Segments, x0):
+        """Same contract as :meth:`quadctl.sim.native.NativeRunner.run_segments` (a call a segment)."""
+        return run_segments_by_calls(self, segments, x0)
 
     def _one(self, cases: Cases, i: int):
         spec = self.spec

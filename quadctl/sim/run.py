@@ -22,7 +22,7 @@ import numpy as np
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.noise import DEFAULT_PERIOD, NoiseSpec, NoiseStream
 from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
-from quadctl.sim.cases import Cases
+from quadctl.sim.cases import Cases, Segments
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
 from quadctl.sim.schedule import DEFAULT_TOLERANCE
@@ -34,6 +34,8 @@ MAX_SAMPLES = 20_000
 a sample every 0.5 ms: finer than any settling time or plot needs, and 4.5 MB of sim.npz."""
 VALID_PITCH = math.radians(85.0)
 """Beyond this pitch the Euler kinematics (``1/cos theta``) are near singular: the run stops."""
+SETUPS_KEPT = 4
+"""ETDRK4 setups a loop keeps (:meth:`ClosedLoop.exponential_setup`): one per run settings, the latest."""
 RUNAWAY = {"pN": 1e5, "pE": 1e5, "pD": 1e5, "u": 1e3, "v": 1e3, "w": 1e3,
            "phi": 1e3, "theta": VALID_PITCH, "psi": 1e3, "p": 1e4, "q": 1e4, "r": 1e4}
 """Bounds on |x - x_ref| (state units) past which a run counts as diverged; theta's is the model's range."""
@@ -178,6 +180,38 @@ class ClosedLoop:
                                      lag_time_constant=self.lag_model_time_constant,
                                      rotor_time_constant=self.rotor_time_constant,
                                      mix=act.mix if act is not None else None, estimator=self.estimator)
+
+    def __getstate__(self):
+        """The loop's fields (a pickle carries no kept setup: its runner is this process's)."""
+        state = dict(self.__dict__)
+        state.pop("_exponential_setups", None)
+        return state
+
+    def exponential_setup(self, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                          max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
+                          noise: bool = False, wind: bool = False):
+        """:func:`exponential_setup` of this loop, kept with it (the :data:`SETUPS_KEPT` latest settings):
+        a second run with the same settings computes no plan, φ-functions or constants again.
+
+        A :class:`~quadctl.sim.reference.FlownReference` counts as the same when it flies the same
+        path object, with the same steps (``jumps``) and parameters (its position range and, for a gain
+        schedule, the pieces the plan is cut into are read from it).
+        """
+        key = (float(duration), dt if dt == "auto" else float(dt), float(tolerance), int(max_samples),
+               exo_period, bool(noise), bool(wind),
+               None if reference is None else (id(reference.path), tuple(reference.path.jumps),
+                                                 np.asarray(reference.params).tobytes()))
+        kept = self.__dict__.setdefault("_exponential_setups", {})
+        if key in kept:
+            path, found = kept.pop(key)
+            kept[key] = (path, found)  # the latest used last
+            return found
+        found = exponential_setup(self, duration, dt, tolerance=tolerance, max_samples=max_samples,
+                                  reference=reference, exo_period=exo_period, noise=noise, wind=wind)
+        kept[key] = (None if reference is None else reference.path, found)  # the path held: its id stays its own
+        while len(kept) > SETUPS_KEPT:
+            kept.pop(next(iter(kept)))
+        return found
 
     @cached_property
     def point_linear_parts(self) -> np.ndarray:
@@ -544,10 +578,10 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
 
 
 def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int, stride: int, wall: float,
-            lo, hi, noise, wind, exo, ks, dt: float, reference=None) -> SimResult:
+            lo, hi, noise, wind, exo, ks, dt: float, reference=None, spec: LoopSpec | None = None) -> SimResult:
     """The :class:`SimResult` of a run's recorded rows (``t`` s; the wind felt and the reference flown at
-    steps ``ks`` of ``dt``)."""
-    spec = loop.spec()
+    steps ``ks`` of ``dt``); ``spec``: the loop's (its state layout), when the caller has it."""
+    spec = loop.spec() if spec is None else spec
     nz, n_plant, n_lag, ne = spec.nz, spec.n_plant, spec.n_lag, spec.n_estimate
     u_ref = np.zeros((0, len(loop.u_trim)))
     if reference is None:
@@ -594,49 +628,102 @@ def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, w
     straddles a boundary), so the method keeps its order. A gain schedule's continuous loop flies each
     stretch on the loop closed at the schedule value nearest the commanded one (:func:`_linear_pieces`).
     """
-    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, record_strides
-
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
     exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
            if noisy or windy or reference is not None else None)
+    prep = loop.exponential_setup(duration, dt, tolerance=tolerance, max_samples=max_samples, reference=reference,
+                                  exo_period=exo.period if exo is not None else None, noise=noisy, wind=windy)
+    plan, run, segments = prep.plan, runner(prep.spec, 1), prep.segments
+    x = loop.initial_loop_state(x0)
+    n = plan.n_steps
+    start = time.perf_counter()
+    if n <= CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]):  # the whole run in one call
+        exo_rows = None
+        if exo is not None:
+            exo_rows = [exo.samples(0, math.ceil(duration / exo.period + 1e-9))]
+            segments = replace(segments, exo=exo_rows)
+        (total, t, xs, us), = run.run_segments(segments, x[None])
+        if progress is not None:
+            progress(total, n)
+    else:  # a long run: each segment in chunks (Ctrl-C between them, the exogenous rows drawn as it goes)
+        total, t, xs, us = _exponential_in_chunks(prep, run, x, exo, progress)
+    wall = time.perf_counter() - start
+    return _result(loop, plan, run.backend, t, xs, us, total, prep.strides[-1], wall, prep.lo, prep.hi,
+                   noise if noisy else None, wind if windy else None, exo, t, 1.0, reference, prep.spec)
+
+
+def _exponential_in_chunks(prep: ExponentialSetup, run, x, exo, progress):
+    """``(done, t, xs, us)`` of a long ETDRK4 run: segment after segment, each in chunks (:func:`run_in_chunks`)."""
+    plan, segments = prep.plan, prep.segments
+    held = plan.sample_time is not None and plan.hold > 0
+    n = plan.n_steps
+    parts_t, parts_x, parts_u, total = [], [], [], 0
+    for i in range(segments.n.shape[0]):
+        dt, m, k0 = float(segments.dt[i, 0]), int(segments.n[i, 0]), int(segments.k0[i, 0])
+        sub = StepPlan(dt, m, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto,
+                       hold=int(segments.hold[i, 0]) if held else 0, sample_time=plan.sample_time if held else None)
+        report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
+        done, ks, xs, us = run_in_chunks(run, x, segments.c[i, 0], sub, m, int(segments.stride[i, 0]),
+                                         prep.lo, prep.hi, exo, report, k_start=k0)
+        total += done
+        last = i == segments.n.shape[0] - 1 or done < m
+        keep = len(ks) if last else len(ks) - 1  # a segment's final row is the next one's start
+        parts_t.append(dt * ks[:keep])
+        parts_x.append(xs[:keep])
+        parts_u.append(us[:keep])
+        if last:
+            break
+        x = np.ascontiguousarray(xs[-1])
+    return total, np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
+
+
+@dataclass(frozen=True)
+class ExponentialSetup:
+    """What an ETDRK4 run of a loop computes before its first step, from the loop and the run's
+    settings alone (:meth:`ClosedLoop.exponential_setup`, kept with the loop): its linear part and
+    step plan, the records' strides, the loop's generated code (its spec: the runner is
+    :func:`quadctl.sim.engine.runner`'s), the bounds, and the :class:`~quadctl.sim.cases.Segments`
+    (each segment's constants: the loop's, then the φ-functions of its step and linear part)."""
+
+    plan: StepPlan
+    strides: list
+    spec: LoopSpec
+    lo: np.ndarray
+    hi: np.ndarray
+    segments: Segments
+
+
+def exponential_setup(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                      max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
+                      noise: bool = False, wind: bool = False) -> ExponentialSetup:
+    """The :class:`ExponentialSetup` of one ETDRK4 run of ``loop`` (``noise``, ``wind``: the run has
+    them; ``exo_period``: s of its exogenous rows, None: none). A sampled controller's segments start on
+    its samples; a gain schedule's continuous loop flies each stretch on the loop closed at the schedule
+    value nearest the commanded one (:func:`_linear_pieces`)."""
+    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, record_strides
+
     held = loop.rate is not None
-    period = 1.0 / loop.rate if held else (exo.period if exo is not None else None)
-    L, plan = exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
-                               exo_period=exo.period if exo is not None else None)
+    period = 1.0 / loop.rate if held else exo_period
+    L, plan = exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference, exo_period=exo_period)
     strides = record_strides(plan, max_samples)
     pieces = _linear_pieces(loop, plan, strides, reference)
     points = sorted({p for _, _, p in pieces if p is not None})
     if points:  # a gain schedule: each piece on the loop closed at its nearest value
         L = loop.point_linear_parts[points]
     ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
-    spec = loop.spec(noisy, windy, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
-    run = runner(spec, 1)
+    spec = loop.spec(noise, wind, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
     base = loop.constants(period if held else None)
     lo, hi = loop.bounds(duration, reference)
-    x = loop.initial_loop_state(x0)
-    n = plan.n_steps
-    start = time.perf_counter()
-    parts_t, parts_x, parts_u, total = [], [], [], 0
-    for i, (seg, stride, point) in enumerate(pieces):
-        c = np.concatenate([base, phi_constants(ladder[seg.dt], None if point is None else points.index(point))])
-        sub = StepPlan(seg.dt, seg.n, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto,
-                       hold=round(period / seg.dt) if held else 0, sample_time=period if held else None)
-        report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
-        done, ks, xs, us = run_in_chunks(run, x, c, sub, seg.n, stride, lo, hi, exo, report, k_start=seg.k0)
-        total += done
-        last = i == len(pieces) - 1 or done < seg.n
-        keep = len(ks) if last else len(ks) - 1  # a segment's final row is the next one's start
-        parts_t.append(seg.dt * ks[:keep])
-        parts_x.append(xs[:keep])
-        parts_u.append(us[:keep])
-        if last:
-            break
-        x = np.ascontiguousarray(xs[-1])
-    wall = time.perf_counter() - start
-    t, xs, us = np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
-    return _result(loop, plan, run.backend, t, xs, us, total, strides[-1], wall, lo, hi, noise if noisy else None,
-                   wind if windy else None, exo, t, 1.0, reference)
+    blocks = {}
+    c = [np.concatenate([base, blocks.setdefault((seg.dt, point), phi_constants(
+        ladder[seg.dt], None if point is None else points.index(point)))]) for seg, _, point in pieces]
+    segs = [seg for seg, _, _ in pieces]
+    segments = Segments.of(np.array(c)[:, None], [[s.dt] for s in segs], [[s.n] for s in segs],
+                           [[stride] for _, stride, _ in pieces], [[s.k0] for s in segs], lo, hi,
+                           hold=[[round(period / s.dt) if held else 1] for s in segs],
+                           exo_period=exo_period if exo_period is not None else 1.0)
+    return ExponentialSetup(plan=plan, strides=strides, spec=spec, lo=lo, hi=hi, segments=segments)
 
 
 def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list[tuple]:
@@ -798,41 +885,27 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
     run = runner(loops[0].spec(noisy, windy, reference is not None, method="etdrk4",
                                phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
     rows = exo.samples(0, math.ceil(duration / exo.period + 1e-9)) if exo is not None else None
-    out = []
-    for start in range(0, len(loops), LANES):
-        group = range(start, min(start + LANES, len(loops)))
-        bounds = [loops[i].bounds(duration, reference) for i in group]
-        x = [loops[i].initial_loop_state(x0s[i]) for i in group]
-        base = [loops[i].constants(period if held else None) for i in group]
-        strides = [record_strides(plans[i], max_samples) for i in group]
-        parts = [([], [], []) for _ in group]
-        total, alive = [0] * len(group), [True] * len(group)
-        for k in range(max(len(plans[i].schedule) for i in group)):
-            segs = [plans[i].schedule[k] if alive[j] and k < len(plans[i].schedule) else None
-                    for j, i in enumerate(group)]
-            c = [np.concatenate([base[j], ladders[i][2][seg.dt if seg else next(iter(ladders[i][2]))][ladders[i][1]]])
-                 for j, (i, seg) in enumerate(zip(group, segs))]
-            cases = Cases.of(np.array(x), np.array(c), [s.dt if s else 1.0 for s in segs],
-                             [s.n if s else 0 for s in segs],
-                             [strides[j][k] if segs[j] else 1 for j in range(len(group))],
-                             np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
-                             k0=[s.k0 if s else 0 for s in segs],
-                             hold=[round(period / s.dt) if held and s else 1 for s in segs],
-                             exo=None if rows is None else [rows] * len(group),
-                             exo_period=exo.period if exo is not None else 1.0)
-            for j, (done, ks, xs, us) in enumerate(run.run(cases)):
-                seg = segs[j]
-                if seg is None:
-                    continue
-                total[j] += done
-                last = k == len(plans[group[j]].schedule) - 1 or done < seg.n
-                keep = len(ks) if last else len(ks) - 1
-                parts[j][0].append(seg.dt * ks[:keep])
-                parts[j][1].append(xs[:keep])
-                parts[j][2].append(us[:keep])
-                x[j] = xs[-1]
-                alive[j] = not last
-        out.extend((total[j], *(np.concatenate(p) for p in parts[j])) for j in range(len(group)))
+    S = max(len(plan.schedule) for plan in plans)
+    bounds = [loop.bounds(duration, reference) for loop in loops]
+    base = [loop.constants(period if held else None) for loop in loops]
+    strides = [record_strides(plan, max_samples) for plan in plans]
+    pad = [next(iter(ladder[2])) for ladder in ladders]  # any step's block: a segment a case does not have
+
+    def per_segment(value, empty):
+        return [[value(i, plans[i].schedule[k], k) if k < len(plans[i].schedule) else empty(i)
+                 for i in range(len(loops))] for k in range(S)]
+
+    c = np.array(per_segment(lambda i, seg, k: np.concatenate([base[i], ladders[i][2][seg.dt][ladders[i][1]]]),
+                             lambda i: np.concatenate([base[i], ladders[i][2][pad[i]][ladders[i][1]]])))
+    segments = Segments.of(c, per_segment(lambda i, seg, k: seg.dt, lambda i: 1.0),
+                           per_segment(lambda i, seg, k: seg.n, lambda i: 0),
+                           per_segment(lambda i, seg, k: strides[i][k], lambda i: 1),
+                           per_segment(lambda i, seg, k: seg.k0, lambda i: 0),
+                           np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
+                           hold=per_segment(lambda i, seg, k: round(period / seg.dt) if held else 1, lambda i: 1),
+                           exo=None if rows is None else [rows] * len(loops),
+                           exo_period=exo.period if exo is not None else 1.0)
+    out = run.run_segments(segments, np.array([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)]))
     return plans, run.backend, out
 
 

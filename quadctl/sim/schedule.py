@@ -51,11 +51,12 @@ against RK4 at a 2.5e-5 s step over 3 s of the bundled ``forward``, ``hover``, `
 (5e-13 to 2e-10, RK4's own floor); on the report's 10 s ``forward`` loop against LSODA at rtol 1e-12
 it is 2.4e-10, 2.3e-10, 1.9e-10 and 1.6e-10 at 1, 2, 3 and 4, and 4.6e-9 at 6: 2 keeps a factor of 3
 in step below that rise. Runs with exogenous inputs or a sampled controller keep :data:`SAFETY`."""
-MERGE_STEPS = 64
+MERGE_STEPS = 1
 """A graded segment that would save at most this many steps over the finer step before it is not
-taken: the finer segment runs on. Each segment costs a call into the runner and its records,
-about 100 steps' time (measured: 75 us a segment against 0.66 us a step of the compiled ``forward``
-loop), so this only trades calls for (more accurate) steps."""
+taken: the finer segment runs on. All the segments of a run go in one call into the runner
+(``qc_run_segments``), where a segment costs its step's setup and one record, about a step
+(measured: 0.46 us a segment against 0.55 us a step of the compiled ``forward`` loop); so only a
+segment that saves no step whole is merged."""
 MAX_STEP = 0.01
 """s: the largest step ``dt: auto`` takes (100 samples a second for plots and metrics)."""
 DEFAULT_TOLERANCE = 1e-8
@@ -430,7 +431,7 @@ def _graded(span: float, top: float, level: int, allowed_at, held_period: float 
         h = top / 2 ** level
         remaining = math.ceil((span - t) / h - 1e-9)
         switch, after_level, coarse = (switch_at(h, t) if level else math.inf), level - 1, 2 * h
-        # a coarser segment that would save fewer than MERGE_STEPS steps is taken at h (one call less)
+        # a coarser segment that would save at most MERGE_STEPS steps is taken at h (one segment less)
         while switch < span and after_level > 0:
             after = switch_at(coarse, switch)
             span_after = min(after, span) - switch
