@@ -22,13 +22,26 @@ rotor  ``x`` layout (d = L / sqrt 2)  ``+`` layout            spin
 4      front left   ( d, -d)         left   ( 0, -L)       CW
 ====  ===========================  ====================  ====
 
+The two layouts are shorthands for ``motors.positions``: any other geometry (a stretched X, rotors at
+``(+-a, +-b)``) is given as each rotor's ``(x, y)`` with its spin, and ``M`` is built from it the same way.
+
 The flight stacks' quad-X orders (:data:`NUMBERINGS`) are named presets; the spins default to the
 front-right rotor counter-clockwise (all three stacks' default), ``motors.spin`` gives others ("props out").
 
-Saturation (:mod:`quadctl.sim.builder`, mode ``motors``): the commanded ``[T, A, E, R]`` is mixed to
-rotor thrusts, each clipped to ``[min_thrust, max_thrust]``, and mixed back. Clipping one rotor
-changes every input it contributes to (there is no priority between thrust and torques, as in
-the simplest flight-controller mixers). Without motors, box limits clip ``T, A, E, R`` directly.
+Saturation (:mod:`quadctl.sim.builder`, mode ``motors``), ``motors.saturation``:
+
+- ``prioritize`` (:func:`desaturate`; what flight stacks do: PX4's control allocator with
+  ``MC_YAW_WEIGHT``, Betaflight's airmode): the roll and pitch torques are kept, then the collective
+  thrust, and the yaw torque is given up first. (1) ``A, E`` are kept whole if some thrust fits them
+  inside the rotors' limits with no yaw, else both are scaled by the one factor that just fits (the
+  direction of the torque kept); (2) ``T`` is moved the least that fits them; (3) ``R`` is moved the
+  least that fits the rest. The rotors then lie inside their limits, and an input is changed only
+  when no command closer to it fits.
+- ``clip``: the command is mixed to rotor thrusts, each clipped to ``[min_thrust, max_thrust]``, and
+  mixed back. Clipping one rotor changes every input it contributes to (no priority between thrust
+  and torques, as in the simplest mixers): a yaw torque appears with no yaw error.
+
+Without motors, box limits clip ``T, A, E, R`` directly.
 """
 
 from __future__ import annotations
@@ -113,12 +126,21 @@ class Motors:
     """Position of rotors 1-4 (``POSITIONS[layout]`` names); None: quadctl's clockwise order."""
     spins: tuple[float, ...] | None = None
     """Yaw reaction sign of rotors 1-4 (+1: counter-clockwise seen from above); None: :func:`default_spins`."""
+    saturation: str = "prioritize"
+    """``prioritize`` (roll and pitch, then thrust, yaw given up first: :func:`desaturate`) or ``clip``."""
+    xy: tuple[tuple[float, float], ...] | None = None
+    """Rotor positions ``(x, y)`` (m, body frame), rotor 1 first (``motors.positions``); None: from
+    ``layout`` and ``arm_length``."""
 
     @classmethod
     def from_config(cls, cfg) -> Motors:
         """From a :class:`quadctl.config.MotorsConfig` (its ``numbering`` and ``spin`` resolved)."""
         data = cfg.model_dump()
         numbering, spin = data.pop("numbering", "quadctl"), data.pop("spin", None)
+        xy = data.pop("positions", None)
+        if xy is not None:  # the geometry as built: the positions in the vehicle's order, spins given
+            return cls(**data, spins=tuple(SPIN_SIGN[s] for s in spin),
+                       xy=tuple((float(x), float(y)) for x, y in xy))
         order = tuple(numbering) if isinstance(numbering, list) else (
             POSITIONS[cfg.layout] if numbering == "quadctl" else NUMBERINGS[numbering])
         spins = tuple(SPIN_SIGN[s] for s in spin) if spin is not None else None
@@ -127,7 +149,9 @@ class Motors:
         return cls(**data, order=order, spins=spins)
 
     def rotor_positions(self) -> tuple[str, ...]:
-        """Names of the positions of rotors 1-4 (``front_right``, ...)."""
+        """Names of the positions of rotors 1-4 (``front_right``, ...); ``(x, y)`` when given as positions."""
+        if self.xy is not None:
+            return tuple(f"({x:g}, {y:g})" for x, y in self.xy)
         return self.order if self.order is not None else POSITIONS[self.layout]
 
     def rotor_spins(self) -> tuple[float, ...]:
@@ -137,7 +161,13 @@ class Motors:
         return SPINS if self.order is None else default_spins(self.order)
 
     def positions(self) -> np.ndarray:
-        """(4, 2) rotor positions ``(x, y)`` in the body frame, m, rotor 1 first (the vehicle's numbering)."""
+        """(4, 2) rotor positions ``(x, y)`` in the body frame, m, rotor 1 first (the vehicle's numbering).
+
+        The ``x`` and ``+`` layouts are shorthands: ``x`` puts each rotor at ``(+-L / sqrt 2, +-L / sqrt 2)``,
+        ``+`` on the axes; ``motors.positions`` gives any other geometry (a stretched X).
+        """
+        if self.xy is not None:
+            return np.array(self.xy, dtype=float)
         if self.layout == "x":
             d = self.arm_length / math.sqrt(2.0)
             at = {"front_right": [d, d], "rear_right": [-d, d], "rear_left": [-d, -d], "front_left": [d, -d]}
@@ -154,12 +184,127 @@ class Motors:
         return np.array([np.ones(4), -pos[:, 1], pos[:, 0], np.array(self.rotor_spins()) * self.torque_coefficient])
 
     def mixer(self) -> np.ndarray:
-        """``M^-1`` (4, 4): rotor thrusts from ``[T, A, E, R]``."""
+        """``M^-1`` (4, 4): rotor thrusts from ``[T, A, E, R]``; the one mixer every consumer takes
+        (through :func:`actuators_of`: the simulated loop, the lanes, the C export, margins, reports)."""
         return np.linalg.inv(self.effectiveness())
+
+    def describe(self) -> str:
+        """The geometry in a few words: the preset and its arm, or the rotor positions."""
+        if self.xy is None:
+            return f"{self.layout} layout, arm {self.arm_length:g} m"
+        return "rotors at " + ", ".join(f"({x:g}, {y:g})" for x, y in self.xy) + " m"
 
     def speed(self, thrust) -> np.ndarray:
         """Rotor speed (rad/s) for rotor thrust (N): ``sqrt(f / k)``."""
         return np.sqrt(np.maximum(np.asarray(thrust, dtype=float), 0.0) / self.thrust_coefficient)
+
+
+UNBOUNDED = 1e30
+"""N m: the yaw bound of a rotor that gives no yaw torque (a finite stand-in for infinity, which the generated
+C has no literal for; inside single precision, far past any torque)."""
+PARALLEL_RTOL = 1e-9
+"""Two of the yaw bounds in :func:`desaturate` are parallel (rotors turning alike) when their slopes differ by
+less than this, relative: their difference is then round-off, and dividing by it would throw the thrust away."""
+SATURATION_RULES = ("prioritize", "clip")
+"""``motors.saturation``: how a command the rotors cannot produce is brought inside their limits."""
+
+
+class _Ops:
+    """min, max and select, elementwise, of numpy or of CasADi (one rule for both)."""
+
+    def __init__(self, lib):
+        if lib is np:
+            self.min, self.max, self.where = np.minimum, np.maximum, np.where
+        else:
+            self.min, self.max, self.where = lib.fmin, lib.fmax, lib.if_else
+
+
+def desaturate(cmd, mix, lo, hi, lib=np):
+    """The command ``[T, A, E, R]`` brought inside the rotors' limits by priority: roll and pitch torques
+    kept, then collective thrust, yaw given up first.
+
+    Parameters
+    ----------
+    cmd : (4,) array or CasADi column
+        Commanded ``[T, A, E, R]`` (N, N m x3).
+    mix : (4, 4) array or CasADi matrix
+        The mixer ``M^-1`` (rotor thrusts from ``[T, A, E, R]``); its thrust column must be positive
+        (the centre of mass inside the rotors).
+    lo, hi : (4,) array or CasADi column
+        N, each rotor's thrust limits.
+    lib : module
+        ``numpy`` or ``casadi``: the same rule builds the simulated loop's expressions (and so the lanes'
+        and the exported C's code) and evaluates on arrays.
+
+    Returns
+    -------
+    u : (4,) array or CasADi column
+        ``[T', A', E', R']``:
+
+        1. ``A' = s A, E' = s E`` with ``s`` the largest in ``[0, 1]`` for which some thrust fits them with
+           no yaw torque (no yaw is invented to make room);
+        2. ``T'`` the thrust closest to ``T`` for which some yaw torque between 0 and ``R`` fits ``T', A', E'``;
+        3. ``R'`` the yaw torque closest to ``R`` that fits ``T', A', E'`` (between 0 and ``R``: yaw is given
+           up towards zero, never reversed or amplified).
+
+        A command the rotors can produce is returned unchanged where the largest spread of roll and pitch
+        thrusts lies between rotors that turn alike (every x, stretched x and + geometry).
+
+    Notes
+    -----
+    Rotor ``i``'s thrust is ``c_i T + g_i + r_i R`` with ``c, a, e, r`` the mixer's columns and
+    ``g_i = a_i A + e_i E``. Step 1: a thrust fits ``s g`` when ``(lo_i - s g_i) / c_i <= (hi_j - s g_j) / c_j``
+    for every pair, so ``s`` is the least of 1 and ``(hi_j / c_j - lo_i / c_i) / (g_i / c_i - g_j / c_j)`` over
+    the pairs whose denominator is positive. Step 2 eliminates ``R`` (Fourier-Motzkin): each rotor bounds
+    ``R`` from below and above by a line in ``T``, as do 0 and ``R``; every lower bound below every upper
+    bound is an interval of ``T``.
+    """
+    ops = _Ops(lib)
+    n = 4
+    T, A, E, R = cmd[0], cmd[1], cmd[2], cmd[3]
+    c = [mix[i, 0] for i in range(n)]
+    r = [mix[i, 3] for i in range(n)]
+    g = [mix[i, 1] * A + mix[i, 2] * E for i in range(n)]
+    s = 1.0
+    for i in range(n):
+        for j in range(n):
+            if i != j:
+                den = g[i] / c[i] - g[j] / c[j]
+                bound = (hi[j] / c[j] - lo[i] / c[i]) / ops.where(den > 0, den, 1.0)
+                s = ops.min(s, ops.where(den > 0, ops.max(bound, 0.0), 1.0))
+    A2, E2 = s * A, s * E
+    g = [mix[i, 1] * A2 + mix[i, 2] * E2 for i in range(n)]
+    r0, r1 = ops.min(R, 0.0), ops.max(R, 0.0)
+    # R >= alpha + beta T (lowers), R <= gamma + delta T (uppers); a rotor without yaw bounds T directly
+    lowers, uppers = [(r0, 0.0)], [(r1, 0.0)]
+    t_lo, t_hi = -UNBOUNDED, UNBOUNDED
+    for i in range(n):
+        pos, neg, none = r[i] > 0, r[i] < 0, r[i] == 0
+        safe = ops.where(none, 1.0, r[i])
+        slope = ops.where(none, 0.0, -c[i] / safe)
+        at_lo, at_hi = (lo[i] - g[i]) / safe, (hi[i] - g[i]) / safe
+        lowers.append((ops.where(pos, at_lo, ops.where(neg, at_hi, -UNBOUNDED)), slope))
+        uppers.append((ops.where(pos, at_hi, ops.where(neg, at_lo, UNBOUNDED)), slope))
+        t_lo = ops.max(t_lo, ops.where(none, (lo[i] - g[i]) / c[i], -UNBOUNDED))
+        t_hi = ops.min(t_hi, ops.where(none, (hi[i] - g[i]) / c[i], UNBOUNDED))
+    for alpha, beta in lowers:
+        for gamma, delta in uppers:
+            k, rhs = beta - delta, gamma - alpha  # alpha + beta T <= gamma + delta T  <=>  k T <= rhs
+            flat = PARALLEL_RTOL * (ops.max(beta, -beta) + ops.max(delta, -delta))
+            bound = rhs / ops.where(k > flat, k, ops.where(k < -flat, k, 1.0))
+            t_hi = ops.min(t_hi, ops.where(k > flat, bound, UNBOUNDED))
+            t_lo = ops.max(t_lo, ops.where(k < -flat, bound, -UNBOUNDED))
+    T2 = ops.min(ops.max(T, t_lo), t_hi)
+    # the yaw torques that fit T2 meet the segment [0, R] (step 2 chose T2 so): the one closest to R is in it.
+    # Not clamped to the segment itself, whose ends tie at R = 0 and would blur the law's derivative there.
+    y_lo, y_hi = -UNBOUNDED, UNBOUNDED
+    for (alpha, beta), (gamma, delta) in zip(lowers[1:], uppers[1:]):
+        y_lo = ops.max(y_lo, alpha + beta * T2)
+        y_hi = ops.min(y_hi, gamma + delta * T2)
+    R2 = ops.min(ops.max(R, y_lo), y_hi)
+    if lib is np:
+        return np.array([T2, A2, E2, R2], dtype=float)
+    return lib.vertcat(T2, A2, E2, R2)
 
 
 @dataclass(frozen=True)
@@ -177,6 +322,9 @@ class Actuators:
     lo, hi : (4,) ndarray
         Actuator limits (N per rotor, or N / N m; infinite where unlimited).
     motors : Motors or None
+    priority : bool
+        Rotor saturation by priority (:func:`desaturate`, ``motors.saturation: prioritize``); else each
+        rotor clipped and mixed back.
     """
 
     mode: str
@@ -186,6 +334,7 @@ class Actuators:
     lo: np.ndarray
     hi: np.ndarray
     motors: Motors | None = None
+    priority: bool = False
 
     def commands(self, u) -> np.ndarray:
         """Actuator commands (..., 4) for inputs ``u`` (..., 4)."""
@@ -205,7 +354,8 @@ def actuators_of(motors: Motors | None = None, limits: dict | None = None) -> Ac
         mix = motors.mixer()
         return Actuators(mode="motors", names=tuple(f"rotor {i + 1}" for i in range(4)), mix=mix,
                          mix_inv=motors.effectiveness(), lo=np.full(4, motors.min_thrust),
-                         hi=np.full(4, motors.max_thrust), motors=motors)
+                         hi=np.full(4, motors.max_thrust), motors=motors,
+                         priority=motors.saturation == "prioritize")
     if limits:
         lo, hi = np.full(N_INPUTS, -np.inf), np.full(N_INPUTS, np.inf)
         for name, (low, high) in limits.items():

@@ -146,7 +146,8 @@ def _gyration(cfg: Config, label: str) -> list[Notice]:
     """The radius of gyration against the arm length (or the mass): catches a slip in either."""
     mass, inertia = cfg.vehicle.mass, list(inertia_parts(cfg.vehicle.inertia)[0])
     axis = ("Jxx", "Jyy", "Jzz")[inertia.index(max(inertia))]
-    arm = cfg.motors.arm_length if cfg.motors is not None else None
+    # the arm length is the preset's (motors.positions give the geometry itself: the mass alone is the check)
+    arm = cfg.motors.arm_length if cfg.motors is not None and cfg.motors.positions is None else None
 
     def ratio(m: float, j: float) -> float:
         radius = math.sqrt(j / m)

@@ -145,8 +145,16 @@ PRESETS: dict[str, Preset] = {
 }
 """The vehicles ``quadctl init --from`` starts from."""
 
-FLIGHTS = ("hover", "forward")
-"""``hover``: still at 1 m; ``forward``: the report's 1 m/s north at 1 m."""
+FLIGHTS = ("hold", "hover", "forward")
+"""``hold``: still at 1 m, holding north and east position (the default: a waypoint is reached); ``hover``:
+still at 1 m, the position left free; ``forward``: the report's 1 m/s north at 1 m."""
+HOLD = {
+    "roll": {"states": ["pE", "v", "phi", "p"], "inputs": ["A"], "regulate": True},
+    "pitch": {"states": ["pN", "u", "theta", "q"], "inputs": ["E"], "regulate": True},
+}
+"""At ``hold`` roll regulates east and pitch north (with the velocity, attitude and rate under them)."""
+HOLD_POSITION_ERROR = 1.0
+"""m: the largest acceptable position error of ``hold``'s Bryson weights."""
 HOVER_POSITION = {"states": ["pN", "pE"], "inputs": ["u", "v"], "regulate": False}
 """At hover pN and pE integrate u and v (psi = 0): the unregulated block that fits it. The report's
 ``guidance`` (u and psi) fits forward flight, and at hover ``check`` would find it not stabilizable."""
@@ -162,8 +170,10 @@ enough room that the initial offset flies without reaching a rotor limit."""
 INITIAL_OFFSET = {"pD": 0.5, "phi": 0.1, "theta": 0.1, "psi": 0.2}
 
 
-def bryson_weights(preset: Preset, velocity_ned=(0.0, 0.0, 0.0)) -> dict[str, tuple[list, list, str]]:
-    """LQR weights by Bryson's rule, ``Q_ii = 1 / e_i^2`` and ``R = 1 / du^2``, for the preset's rotors.
+def bryson_weights(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = False
+                   ) -> dict[str, tuple[list, list, str]]:
+    """LQR weights by Bryson's rule, ``Q_ii = 1 / e_i^2`` and ``R = 1 / du^2``, for the preset's rotors
+    (``hold``: roll and pitch weigh the east and north position too, :data:`HOLD_POSITION_ERROR`).
 
     Returns
     -------
@@ -183,9 +193,11 @@ def bryson_weights(preset: Preset, velocity_ned=(0.0, 0.0, 0.0)) -> dict[str, tu
     for name, (errors, input_name, share) in BRYSON.items():
         step = _round(share * min(room[input_name]))
         unit = "N" if input_name == "T" else "N m"
+        states = REPORT_PARTITION[name]["states"]
+        if hold and name in HOLD:
+            errors, states = (HOLD_POSITION_ERROR, *errors), HOLD[name]["states"]
         q = [_round(1.0 / e ** 2) for e in errors]
         r = [_round(1.0 / step ** 2)]
-        states = REPORT_PARTITION[name]["states"]
         largest = ", ".join(f"{e:g} {STATE_UNITS[s]}" for e, s in zip(errors, states))
         around = min(room[input_name])
         why = (f"Bryson: Q = 1/[{largest}]^2, R = 1/({step:g} {unit})^2, {share:.0%} of the {around:.3g} {unit} "
@@ -199,7 +211,7 @@ def _round(value: float) -> float:
     return float(f"{value:.3g}")
 
 
-def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hover") -> str:
+def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> str:
     """The commented YAML of a new vehicle's config.
 
     Parameters
@@ -208,7 +220,7 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hover") ->
         The config's name (its run folder ``runs/<name>``).
     vehicle : {"crazyflie", "mambo", "iris"}
         The :data:`PRESETS` entry whose values fill ``vehicle:``, ``motors:`` and the controller rate.
-    flight : {"hover", "forward"}
+    flight : {"hold", "hover", "forward"}
         The trim and the partition that fits it (:data:`FLIGHTS`).
 
     Returns
@@ -252,8 +264,11 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hover") ->
                                  "yaw": (0.0, ""), "wind": (False, "")}, 2)
     out += ["subsystems:   # " + _doc(Config, "subsystems")]
     partition = {k: v for k, v in REPORT_PARTITION.items() if k != "guidance"}
-    partition["guidance" if flight == "forward" else "position"] = (
-        REPORT_PARTITION["guidance"] if flight == "forward" else HOVER_POSITION)
+    if flight == "hold":
+        partition.update(HOLD)
+    else:
+        partition["guidance" if flight == "forward" else "position"] = (
+            REPORT_PARTITION["guidance"] if flight == "forward" else HOVER_POSITION)
     width = max(len(k) for k in partition)
     for key, sub in partition.items():
         flow = f"{{states: [{', '.join(sub['states'])}], inputs: [{', '.join(sub['inputs'])}]"
@@ -263,7 +278,7 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hover") ->
             if not sub["regulate"] else ""
         out.append(f"  {key + ':':<{width + 1}} {flow}{note}")
     out += ["lqr:   # " + _doc(Config, "lqr") + "; Q in 1/(state unit)^2, R in 1/(input unit)^2"]
-    for key, (q, r, why) in bryson_weights(preset, velocity).items():
+    for key, (q, r, why) in bryson_weights(preset, velocity, hold=flight == "hold").items():
         out.append(f"  {key + ':':<9} {{Q: {_flow(q)}, R: {_flow(r)}}}  # {why}")
     out += ["simulation:   # " + _doc(Config, "simulation")]
     out += _section(SimulationConfig, {"duration": (10.0, ""), "dt": ("auto", ""),

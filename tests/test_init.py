@@ -50,7 +50,11 @@ def test_the_partition_fits_the_flight(flight):
     hover the report's guidance (u, psi into pN, pE) is not, which is why hover gets u, v."""
     cfg = config.parse(starter.config_text("mine", "mambo", flight), "mine.yaml")
     names = set(cfg.partition())
-    assert names == {"altitude", "roll", "pitch", "yaw", "guidance" if flight == "forward" else "position"}
+    assert names == {"altitude", "roll", "pitch", "yaw"} | ({"guidance"} if flight == "forward" else
+                                                            set() if flight == "hold" else {"position"})
+    if flight == "hold":  # every state regulated: a waypoint is reached
+        regulated = {s for sub in cfg.partition().values() if sub.regulate for s in sub.states}
+        assert {"pN", "pE"} <= regulated and len(regulated) == 12
     from _solve import solve
     setup, trim, linear, dec, _ = solve(cfg.model_dump(mode="json"))
     for sub in dec.subsystems:
@@ -141,3 +145,17 @@ def test_configs_show_says_what_each_empty_section_means():
     assert re.search(r"^motors: null   # rotor layout and thrust limits; .*`quadctl init NAME` writes motors: with "
                      r"units\)$", shown, re.M)
     assert re.search(r"^  noise: null   # process and sensor noise; absent: none$", shown, re.M)
+
+
+@pytest.mark.parametrize("vehicle", starter.PRESETS)
+def test_hold_brings_the_vehicle_back_to_its_position(vehicle):
+    """``--flight hold`` (the default) regulates north and east: from 0.5 m off it returns, where ``hover``
+    would leave the position where the offset put it."""
+    cfg = config.parse(starter.config_text("mine", vehicle), "mine.yaml")
+    data = cfg.model_dump(mode="json")
+    data["simulation"].update(duration=12.0, initial_offset={"pN": 0.5, "pE": -0.5})
+    _, _, loop, sim = run(data)
+    assert sim.status == "ok", sim.message
+    for state in ("pN", "pE"):
+        i = STATE_INDEX[state]
+        assert abs(sim.x[-1, i] - loop.x_trim[i]) < 0.05, (state, sim.x[-1, i])

@@ -242,7 +242,8 @@ def test_the_rotor_lag_table_is_what_the_commands_write(tmp_path, monkeypatch):
         out = tmp_path / name
         for command in ("margins", "simulate"):
             res = CliRunner().invoke(app, [command, "-c", f"docs/configs/{name}.yaml", "-o", str(out)])
-            assert res.exit_code == 0, res.output
+            thin = command == "margins" and name == "mambo-rotor-lag"  # 17.4 deg: below 30, a failed check
+            assert res.exit_code == (1 if thin else 0), res.output
         loops = json.loads((out / "margins.json").read_text())["loops"]
         roll = {m["model"]: m for m in loops if m["loop"] == "roll"}
         metrics = json.loads((out / "sim.json").read_text())["metrics"]
@@ -269,7 +270,8 @@ def test_two_samples_of_delay_with_the_lag_are_unstable_unless_the_design_includ
     path = tmp_path / "c.yaml"
     path.write_text(yaml.safe_dump(_mambo(rotor_lag, delay=2)))
     res = CliRunner().invoke(app, ["margins", "-c", str(path), "-o", str(tmp_path / "out")])
-    assert res.exit_code == (0 if stable else 1), res.output
+    thin = any(m["thin"] for m in json.loads((tmp_path / "out" / "margins.json").read_text())["loops"])
+    assert res.exit_code == (0 if stable and not thin else 1), res.output  # thin margins fail the check too
     closed = json.loads((tmp_path / "out" / "margins.json").read_text())["closed_loop"]
     radius = max(math.hypot(*e) for e in closed["eigenvalues"])
     assert closed["stable"] is stable and closed["domain"] == "z"

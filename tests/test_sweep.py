@@ -290,6 +290,10 @@ BATCHED_CASES = {
               {"simulation.duration": 0.6}),
     # runs that end between two controller samples, in lanes beside longer ones: the last record
     # holds the input the case applied, not the one its finished lane goes on computing
+    # the rotors' saturation rule is the lanes' structure: each rule its own lanes, the rows the pipeline's
+    "saturation rules": ({"motors.saturation": ["clip", "prioritize"], "motors.max_thrust": [0.2, 0.33]},
+                         {"simulation.duration": 1.0,
+                          "simulation.initial_offset": {"pD": 1.0, "phi": 0.4, "psi": 0.8}}),
     "ends between samples": ({"controller.rate": [200.0, 300.0], "lqr.roll.R[0]": [20000, 80000]},
                              {"simulation.duration": 0.501}),
 }

@@ -426,6 +426,9 @@ def _check_rotor_numbering(motors: MotorsConfig, fail) -> None:
     and pitch: the mixer is singular)."""
     from quadctl.motors import NUMBERINGS, POSITIONS
 
+    if motors.positions is not None:
+        _check_rotor_positions(motors, fail)
+        return
     allowed = POSITIONS[motors.layout]
     numbering = motors.numbering
     if isinstance(numbering, str):
@@ -451,6 +454,38 @@ def _check_rotor_numbering(motors: MotorsConfig, fail) -> None:
             fail("motors.spin", motors.spin, f"diagonal rotors must turn alike and neighbours opposite ({first} and "
                  f"{diagonal} one way, {' and '.join(others)} the other), else yaw cannot be told from roll and pitch; "
                  "check the order against motors.numbering")
+
+
+MIXER_RCOND = 1e-6
+"""The rotors' effectiveness matrix (thrust, roll, pitch and yaw from the four thrusts, each row scaled to its
+largest entry) must have a reciprocal condition number above this: below, one axis (yaw, usually: spins that
+are not alternate) cannot be commanded apart from the others and the mixer's thrusts run to infinity."""
+
+
+def _check_rotor_positions(motors: MotorsConfig, fail) -> None:
+    """``motors.positions``: given with the spins, in the vehicle's own order (no preset numbering), and a
+    geometry that commands thrust, roll, pitch and yaw independently."""
+    import numpy as np
+
+    from quadctl.motors import Motors
+
+    if motors.spin is None:
+        fail("motors.spin", None, "motors.positions needs each rotor's turning direction, rotor 1 first: "
+             "spin: [ccw, cw, ccw, cw] (seen from above; diagonal rotors alike)")
+    if motors.numbering != "quadctl":
+        fail("motors.numbering", motors.numbering, "motors.positions are already in the vehicle's order, rotor 1 "
+             "first; remove motors.numbering")
+    for i, (x, y) in enumerate(motors.positions):
+        if x == 0.0 and y == 0.0:
+            fail(f"motors.positions[{i}]", [x, y], "a rotor at the centre of mass gives no torque; give its "
+                 "[x, y] in m (x forward, y right)")
+    m = Motors.from_config(motors).effectiveness()
+    largest = np.max(np.abs(m), axis=1, keepdims=True)
+    rcond = 0.0 if not np.all(largest > 0) else 1.0 / np.linalg.cond(m / largest)
+    if not rcond > MIXER_RCOND:
+        fail("motors.positions", motors.positions, f"with motors.spin = {motors.spin} the rotors cannot command "
+             f"thrust, roll, pitch and yaw independently (reciprocal condition {rcond:.2g} <= MIXER_RCOND = "
+             f"{MIXER_RCOND:g}); put the rotors around the centre of mass, diagonal rotors turning alike")
 
 
 def _check_estimator(est: EstimatorConfig, noise, fail) -> None:

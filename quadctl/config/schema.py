@@ -323,6 +323,9 @@ class ControllerConfig(_Section):
         return round(self.delay * self.rate) if self.rate is not None else 0
 
 
+RotorPosition = Annotated[list[Number], Field(min_length=2, max_length=2)]
+
+
 class MotorsConfig(_Section):
     """Four rotors; defaults: the Parrot Mambo (docs/model.md, "Motors")."""
 
@@ -342,6 +345,13 @@ class MotorsConfig(_Section):
     spin: Optional[Annotated[list[Literal["cw", "ccw"]], Field(min_length=4, max_length=4)]] = Field(
         None, description="each rotor's turning direction seen from above, rotor 1 first (cw or ccw); absent: front "
         "right (front, in +) and its diagonal ccw, the others cw, as every preset's default")
+    saturation: Literal["prioritize", "clip"] = Field(
+        "prioritize", description="a command the rotors cannot produce: prioritize keeps the roll and pitch torques, "
+        "then the collective thrust, and gives up yaw first (as PX4 and Betaflight do); clip clips each rotor and "
+        "mixes back (every input moves)")
+    positions: Optional[Annotated[list[RotorPosition], Field(min_length=4, max_length=4)]] = Field(
+        None, description="m, each rotor's [x, y] in the body frame (x forward, y right, from the centre of mass), "
+        "rotor 1 first; needs spin; absent: from layout and arm_length (x: [+-L/sqrt 2, +-L/sqrt 2]; +: on the axes)")
 
 
 class EstimatorConfig(_Section):
@@ -401,10 +411,11 @@ class Config(_Section):
         "absent: the controller measures the full state")
     schedule: Optional[ScheduleConfig] = Field(
         None, description="a gain schedule across the envelope (quadctl schedule); absent: one design")
-    allow: list[Literal["implausible", "saturation"]] = Field(
+    allow: list[Literal["implausible", "saturation", "thin-margins"]] = Field(
         default_factory=list, description="failed checks this vehicle accepts (each otherwise exits 1): implausible "
         "(values that look like a unit slip: the warnings on load), saturation (a simulated design at an "
-        "actuator limit more than half the run)")
+        "actuator limit more than half the run), thin-margins (a loop below 6 dB of gain margin or 30 deg of "
+        "phase margin, MIL-F-9490D)")
 
     def partition(self) -> dict[str, SubsystemConfig]:
         """The subsystems in force: the config's, or the report's five."""
@@ -438,6 +449,8 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("allow",), []),
     (("motors", "numbering"), "quadctl"),
     (("motors", "spin"), None),
+    (("motors", "positions"), None),
+    (("motors", "saturation"), "prioritize"),
     (("simulation", "reference"), None),
     (("simulation", "method"), "rk4"),
     (("simulation", "tolerance"), None),

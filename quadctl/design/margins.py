@@ -76,6 +76,15 @@ LQR_GAIN_MARGIN_DB = (20 * math.log10(0.5), math.inf)
 """Guaranteed gain margin of continuous LQR: from -6.02 dB to infinity."""
 LQR_PHASE_MARGIN_DEG = 60.0
 """Guaranteed phase margin of continuous LQR (single input, ``R`` diagonal)."""
+THIN_GAIN_MARGIN_DB = 6.0
+"""dB: a loop whose gain can rise (or fall) by less than this before it goes unstable has a thin gain margin.
+The classical requirement on flight control loops: MIL-F-9490D ("Flight Control Systems - Design,
+Installation and Test of Piloted Aircraft, General Specification for", 1975, 3.1.3.6) asks +-6 dB of
+gain margin of a loop between 0.06 Hz and the first aeroelastic mode."""
+THIN_PHASE_MARGIN_DEG = 30.0
+"""deg: a loop with less phase margin than this has a thin phase margin: MIL-F-9490D's least (its low
+frequency band; 45 deg between 0.06 Hz and the first aeroelastic mode), the floor a flight stack's rate loop
+is tuned well above."""
 GUARANTEE_TOL = 1e-6
 """Relative slack when comparing with the guarantee (the guarantee is met with equality at high
 frequency for a loop whose ``|1 + L|`` tends to 1)."""
@@ -176,6 +185,21 @@ class LoopMargins:
         pm_ok = self.phase_margin_deg >= LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL)
         return self.stable and gm_ok and pm_ok
 
+    @property
+    def thin(self) -> tuple[str, ...]:
+        """Which margins of a stable loop are below the classical requirement: ``"gain"`` (a gain change
+        of less than :data:`THIN_GAIN_MARGIN_DB` either way), ``"phase"`` (less than
+        :data:`THIN_PHASE_MARGIN_DEG`). An unstable loop has none to speak of (it fails as unstable)."""
+        if not self.stable:
+            return ()
+        lower, upper = self.gain_margin_db
+        out = []
+        if upper < THIN_GAIN_MARGIN_DB or lower > -THIN_GAIN_MARGIN_DB:
+            out.append("gain")
+        if self.phase_margin_deg < THIN_PHASE_MARGIN_DEG:
+            out.append("phase")
+        return tuple(out)
+
     def as_dict(self) -> dict:
         """JSON-ready summary (the curves left out); infinite margins stay ``inf`` floats (the
         artifact writer spells them ``"inf"``), a frequency that does not apply is None."""
@@ -191,8 +215,13 @@ class LoopMargins:
             "min_return_difference": self.min_return_difference,
             "delay_samples": self.delay_samples,
             "delay_margin": {"s": self.delay_margin, "samples": self.delay_margin_samples},
-            "meets_lqr_guarantee": self.meets_lqr_guarantee, "notes": list(self.notes),
+            "meets_lqr_guarantee": self.meets_lqr_guarantee, "thin": list(self.thin), "notes": list(self.notes),
         }
+
+
+def thin_loops(margins) -> list[LoopMargins]:
+    """The stable loops with a gain or phase margin below the classical requirement (:attr:`LoopMargins.thin`)."""
+    return [m for m in margins if m.thin]
 
 
 # ---------------------------------------------------------------------------------------

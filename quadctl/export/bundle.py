@@ -175,9 +175,13 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
         parts.append("no input limits")
     elif act.mode == "motors":
         m = act.motors
-        parts.append(f"sat: the command mixed to the four rotor thrusts ({m.layout} layout, arm {m.arm_length:g} m, "
-                     f"{m.torque_coefficient:g} N m of yaw torque per N), each clipped to "
-                     f"[{m.min_thrust:g}, {m.max_thrust:g}] N, mixed back")
+        rotors = (f"four rotors ({m.describe()}, {m.torque_coefficient:g} N m of yaw torque per N, each within "
+                  f"[{m.min_thrust:g}, {m.max_thrust:g}] N)")
+        if act.priority:
+            parts.append(f"sat: by priority on the {rotors}: the roll and pitch torques kept (scaled together when "
+                         "no thrust fits them), then the thrust, the yaw torque given up first")
+        else:
+            parts.append(f"sat: the command mixed to the {rotors}, each clipped, mixed back")
     else:
         limited = [f"{n} in [{lo:g}, {hi:g}]" for n, lo, hi in zip(act.names, act.lo, act.hi)
                    if np.isfinite(lo) or np.isfinite(hi)]

@@ -90,6 +90,29 @@ def least_margins(margins) -> str | None:
             f"{gain_range_db(*disk.disk_gain_db)} dB, {num(disk.disk_phase_deg, 3)} deg ({disk.loop}, {disk.model})")
 
 
+def thin_sentence(margins, accepted: bool = False) -> str | None:
+    """The loops below the classical requirement (6 dB, 30 deg: MIL-F-9490D), what is thin and the way out
+    (or that the config accepts it: ``allow: [thin-margins]``); None when every stable loop meets it."""
+    from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG, thin_loops
+
+    thin = thin_loops(margins)
+    if not thin:
+        return None
+    parts = []
+    for m in thin:
+        lo, hi = m.gain_margin_db
+        said = []
+        if "gain" in m.thin:
+            said.append(f"gain margin {db(lo)} / {db(hi)} dB")
+        if "phase" in m.thin:
+            said.append(f"phase margin {num(m.phase_margin_deg, 3)} deg")
+        parts.append(f"{m.loop} ({m.model}): {', '.join(said)}")
+    return (f"thin margins, below {THIN_GAIN_MARGIN_DB:g} dB of gain margin or {THIN_PHASE_MARGIN_DEG:g} deg of phase "
+            f"margin (MIL-F-9490D): {'; '.join(parts)}" + (" (accepted: allow: [thin-margins])" if accepted else
+            "; slow the loop (larger lqr R), design with the rotors' lag (controller.rotor_lag: include) or at a "
+            "faster controller.rate; allow: [thin-margins] in the config accepts it"))
+
+
 def guarantee_sentence(margins, discrete: bool) -> str:
     """What the margins are compared with, said once: the guarantee, or why a sampled design is not held to it."""
     if discrete:

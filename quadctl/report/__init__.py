@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from quadctl.errors import QuadctlError
+from quadctl.present.loops import thin_sentence
 from quadctl.present.mission import mission_text
 from quadctl.report import content
 from quadctl.report.document import Document, Section, Table, Text, to_html, to_markdown
@@ -66,7 +67,8 @@ def run_stages(ws) -> Outcome:
     sampled at the controller's rate, or the rotors' lag and the delay make the design's loop unstable
     (the verdicts ``check`` and ``run`` give), the assembled design is unstable
     on the coupled model, the simulation does not finish (diverged, left the valid range), or its
-    mission misses a waypoint or ends farther than the tolerance from it; a
+    mission misses a waypoint or ends farther than the tolerance from it, or (after the flight) a loop has a thin
+    margin (:func:`quadctl.design.margins.thin_loops`) the config does not accept (``allow: [thin-margins]``); a
     :class:`~quadctl.errors.QuadctlError` a stage raises stops the stages too. Neither is raised:
     both are in the returned :class:`Outcome`, so that what was computed can still be reported.
     """
@@ -97,6 +99,9 @@ def run_stages(ws) -> Outcome:
         stop = step(name, compute, verdict or (lambda: None))
         if stop is not None:
             return stop
+    thin = thin_sentence(ws.margins) if "thin-margins" not in ws.cfg.allow else None
+    if thin is not None:  # after the flight: thin margins fail the check, the flight is still worth reporting
+        return Outcome(tuple(done), failed=f"margins: {thin}")
     return Outcome(tuple(done))
 
 

@@ -122,6 +122,9 @@ def margins(ws) -> Section:
               loops.classical_table(margins, rate), loops.disk_table(margins, discrete),
               Text(loops.guarantee_sentence(margins, discrete)), loops.delay_table(margins),
               _text(loops.closed_loop_sentence(ws.payloads["margins.json"]))]
+    thin = loops.thin_sentence(margins, accepted="thin-margins" in ws.cfg.allow)
+    if thin is not None:
+        blocks.append(_text(cells.Mark(thin, "warning" if "thin-margins" in ws.cfg.allow else "fail")))
     unstable = loops.unstable_sentence(margins)
     if unstable:
         blocks.append(_text(unstable))

@@ -21,7 +21,8 @@ as the noise and wind are, so every runner takes it the same way),
 with ``x_m = x + n_s`` the measured state (sensor noise ``n_s``), the deviation ``x_m - x_ref(t)`` taken in
 the reference's heading frame (:func:`heading_frame`: ``pN, pE`` turned by the reference's yaw less the
 yaw the gain was designed at, ``psi`` wrapped into ``(-pi, pi]``), so a design made at the trim's yaw flies
-any heading, and ``sat`` the actuator clipping (``box`` on ``T, A, E, R``; ``motors``: mixed to rotor
+any heading, and ``sat`` the actuator saturation (``box`` on ``T, A, E, R``; ``motors``: by priority,
+:attr:`LoopSpec.priority`, roll and pitch kept, then thrust, yaw given up first, or mixed to rotor
 thrusts, clipped, mixed back).
 Integrators follow MATLAB ``lqi``, ``dz/dt = -(x_i - x_ref,i)``, frozen while saturation alters
 an input they drive (conditional integration).
@@ -97,6 +98,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
+from quadctl.motors import desaturate
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -290,6 +292,9 @@ class LoopSpec:
     pattern : tuple of 48 bool
         Sparsity of the (4, 12) state gain, column-major.
     saturation : {"none", "box", "motors"}
+    priority : bool
+        Rotor saturation by priority (saturation ``motors`` only; :func:`quadctl.motors.desaturate`): roll
+        and pitch torques kept, then thrust, yaw given up first; else each rotor clipped and mixed back.
     integral : tuple of int
         Plant-state index that each controller integrator integrates.
     held : bool
@@ -327,6 +332,7 @@ class LoopSpec:
 
     pattern: tuple[bool, ...]
     saturation: str = "none"
+    priority: bool = False
     integral: tuple[int, ...] = ()
     held: bool = False
     noise: bool = False
@@ -351,6 +357,8 @@ class LoopSpec:
             raise ValueError(f"pattern: expected {N_INPUTS * N_STATES} entries, got {len(self.pattern)}")
         if self.saturation not in SATURATION_MODES:
             raise ValueError(f"saturation must be one of {SATURATION_MODES}, got {self.saturation!r}")
+        if self.priority and self.saturation != "motors":
+            raise ValueError("saturation by priority needs the rotors' mixing: saturation 'motors'")
         if self.rotors and self.saturation != "motors":
             raise ValueError("rotor dynamics need the rotors' mixing: saturation 'motors'")
         if self.delay < 0 or (self.delay and not self.held):
@@ -414,7 +422,8 @@ class LoopSpec:
     def key(self) -> str:
         """A text naming the spec (part of the compile cache key)."""
         bits = "".join("1" if b else "0" for b in self.pattern)
-        return (f"{bits} sat={self.saturation} int={','.join(map(str, self.integral))} "
+        sat = self.saturation + ("+priority" if self.priority else "")
+        return (f"{bits} sat={sat} int={','.join(map(str, self.integral))} "
                 f"held={int(self.held)} noise={int(self.noise)}" + (" rotors=1" if self.rotors else "")
                 + (f" delay={self.delay}" if self.delay else "") + (" lag_model=1" if self.lag_model else "")
                 + (" wind=1" if self.wind else "")
@@ -611,6 +620,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
     def saturate(cmd):
         if spec.saturation == "none":
             return cmd
+        if spec.priority:  # roll and pitch kept, then thrust, yaw given up first (quadctl.motors.desaturate)
+            return desaturate(cmd, parts["mix"], parts["lo"], parts["hi"], lib=ca)
         act = parts["mix"] @ cmd if spec.saturation == "motors" else cmd
         act = ca.if_else(act < parts["lo"], parts["lo"], act)
         act = ca.if_else(act > parts["hi"], parts["hi"], act)

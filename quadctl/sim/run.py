@@ -247,6 +247,7 @@ class ClosedLoop:
         table = self.schedule
         K = self.K if table is None else np.any(table.coefficients[..., :N_STATES] != 0, axis=(0, 1))
         return LoopSpec.of_gain(K, saturation=act.mode if act is not None else "none",
+                                priority=act is not None and act.priority,
                                 method=method, phi_pattern=phi_pattern,
                                 schedule=(table.variable, *self.schedule_shape, self.schedule_degree)
                                 if table is not None else (),

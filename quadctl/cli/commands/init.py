@@ -14,8 +14,10 @@ def command(
         "--from", metavar="crazyflie|mambo|iris",
         help="The vehicle whose published values fill vehicle:, motors: and the controller rate.")] = "crazyflie",
     flight: Annotated[str, typer.Option(
-        "--flight", metavar="hover|forward", help="The flight condition: its trim and the partition that fits it.")]
-        = "hover",
+        "--flight", metavar="hold|hover|forward",
+        help="The flight condition: its trim and the partition that fits it (hold: hover holding position; "
+             "hover: the position left free; forward: 1 m/s north).")]
+        = "hold",
     force: Annotated[bool, typer.Option("--force", help="Overwrite NAME.yaml if it exists.")] = False,
     json: JsonOpt = False,
 ) -> None:

@@ -21,7 +21,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     A continuous design's loops are compared with the continuous LQR guarantee (gain margin -6 dB
     to infinity, phase margin 60 deg), shortfalls explained (coupling, sampling, saturation). A
     discrete design's loops are the sampled ones the flight computer closes: sampling does not keep
-    that guarantee, so their own margins are shown without it. Exits 1 when a loop is unstable.
+    that guarantee, so their own margins are shown without it. Exits 1 when a loop is unstable, or
+    has less than 6 dB of gain margin or 30 deg of phase margin (MIL-F-9490D) unless the config
+    lists thin-margins under allow.
     """
     from quadctl.cli import render
 
@@ -42,10 +44,16 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         render.out.print(f"-> {ws.path('margins.json')}")
         for path in paths:
             render.out.print(f"figure -> {path}")
+    from quadctl.present.loops import thin_sentence
+
     unstable = [m for m in margins if not m.stable]
-    if unstable:
+    thin = thin_sentence(margins, accepted="thin-margins" in ws.cfg.allow)
+    if thin and "thin-margins" in ws.cfg.allow:
+        render.warning(thin)
+        thin = None
+    if unstable or thin:
         names = ", ".join(f"{m.loop} ({m.model})" for m in unstable)
-        raise FailedChecks(f"unstable loop(s): {names}")
+        raise FailedChecks(*([f"unstable loop(s): {names}"] if unstable else []), *([thin] if thin else []))
 
 
 def _save_figures(ws, margins):
