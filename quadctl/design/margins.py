@@ -79,12 +79,11 @@ LQR_PHASE_MARGIN_DEG = 60.0
 THIN_GAIN_MARGIN_DB = 6.0
 """dB: a loop whose gain can rise (or fall) by less than this before it goes unstable has a thin gain margin.
 The classical requirement on flight control loops: MIL-F-9490D ("Flight Control Systems - Design,
-Installation and Test of Piloted Aircraft, General Specification for", 1975, 3.1.3.6) asks +-6 dB of
-gain margin of a loop between 0.06 Hz and the first aeroelastic mode."""
+Installation and Test of Piloted Aircraft, General Specification for", 1975) asks 6 dB of gain margin
+and 45 deg of phase margin."""
 THIN_PHASE_MARGIN_DEG = 30.0
-"""deg: a loop with less phase margin than this has a thin phase margin: MIL-F-9490D's least (its low
-frequency band; 45 deg between 0.06 Hz and the first aeroelastic mode), the floor a flight stack's rate loop
-is tuned well above."""
+"""deg: a loop with less phase margin than this has a thin phase margin: a lower bar than MIL-F-9490D's
+45 deg, the least a flight stack's rate loop is commonly tuned to; a loop between the two is not flagged."""
 GUARANTEE_TOL = 1e-6
 """Relative slack when comparing with the guarantee (the guarantee is met with equality at high
 frequency for a loop whose ``|1 + L|`` tends to 1)."""
