@@ -77,7 +77,7 @@ def test_only_a_position_the_mission_moves_along_is_named():
     """The partition is blamed for the axes the waypoints leave the trim along, not for every free one."""
     from quadctl.problem import setup_of
 
-    data = config.parse(config_text("free"), "free.yaml").model_dump(mode="json")
+    data = config.parse(config_text("free", flight="hover"), "free.yaml").model_dump(mode="json")
     start = data["trim"]["position_ned"]
     data["simulation"]["reference"] = {"waypoints": [{"position": [start[0] + 1.0, start[1], start[2]]}]}
     assert pipeline.unregulated_positions(setup_of(config.from_dict(data, "free.yaml"))) == ("pN",)
@@ -89,10 +89,10 @@ def test_only_a_position_the_mission_moves_along_is_named():
 
 @pytest.fixture(scope="module")
 def free(tmp_path_factory):
-    """``quadctl init``'s default config (pN, pE analysed only) told to fly to a waypoint 1 m north."""
+    """``quadctl init --flight hover``'s config (pN, pE analysed only) told to fly to a waypoint 1 m north."""
     folder = tmp_path_factory.mktemp("free")
     path = folder / "free.yaml"
-    path.write_text(config_text("free"))
+    path.write_text(config_text("free", flight="hover"))
     return path
 
 

@@ -25,6 +25,8 @@ SCAFFOLD = {
     "waypoints": {"simulation": {"reference": {"waypoints": [{"position": [1.0, 0.0, -1.0], "yaw": 0.0}]}}},
     "schedule": {"schedule": {"variable": "speed", "values": [0.0, 1.0]}},
     "gusts": {"simulation": {"wind": {"gusts": [{"start": 1.0, "length": 1.0, "amplitude": [1.0, 0.0, 0.0]}]}}},
+    "positions": {"motors": {"positions": [[0.03, 0.04], [-0.03, 0.04], [-0.03, -0.04], [0.03, -0.04]],
+                             "spin": ["ccw", "cw", "ccw", "cw"]}},
 }
 """The section each pattern of UNIT_KEYS needs, added to the hover config."""
 
@@ -122,8 +124,8 @@ def _unit_fields(model, prefix=""):
     UNIT_LIMITS and that the schema does not bound itself."""
     for name, field in model.model_fields.items():
         inner = schema.first_model(field.annotation)
-        listed = "list[" in str(field.annotation)
-        path = f"{prefix}{name}" + ("[*]" if listed else "")
+        depth = str(field.annotation).count("list[")  # a list of lists (rotor positions): each item's items
+        path = f"{prefix}{name}" + "[*]" * depth
         if inner is not None:
             yield from _unit_fields(inner, path + ".")
             continue

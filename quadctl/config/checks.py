@@ -284,6 +284,7 @@ UNIT_KEYS: tuple[tuple[str, str], ...] = (
     ("simulation.reference.tolerance", "m"),
     ("schedule.values[*]", "schedule.variable"),
     ("motors.arm_length", "m"),
+    ("motors.positions[*][*]", "m"),
     ("simulation.duration", "s"),
     ("simulation.dt", "s"),
     ("simulation.noise.period", "s"),
