@@ -178,7 +178,8 @@ def compiled_runs():
 
 
 @pytest.mark.parametrize("command, broken", [
-    *[(command, "missing") for command in ("run", "simulate", "design --full", "sweep")],
+    ("simulate", "missing"),
+    *[pytest.param(command, "missing", marks=pytest.mark.slow) for command in ("run", "design --full", "sweep")],
     ("simulate", "failing"),  # by default one command meets a failing compiler: all reach it through one engine
     *[pytest.param(command, "failing", marks=pytest.mark.slow) for command in ("run", "design --full", "sweep")],
 ])

@@ -96,7 +96,7 @@ def free(tmp_path_factory):
     return path
 
 
-@pytest.mark.parametrize("command", ["simulate", "run", "report"])
+@pytest.mark.parametrize("command", ["simulate", pytest.param("run", marks=pytest.mark.slow), "report"])
 def test_a_free_position_design_told_to_reach_a_waypoint_fails_naming_the_partition(free, command, tmp_path):
     res = invoke(command, "-c", free, "-o", tmp_path, "--set",
                  "simulation.reference={waypoints: [{position: [1, 0, -1]}]}")

@@ -185,7 +185,7 @@ def forward_flight(tmp_path_factory):
         return ws.simulation.sim, ws.setup, ws.linear.u_trim
 
 
-@pytest.mark.parametrize("case", ["forward", "noisy"])
+@pytest.mark.parametrize("case", [pytest.param("forward", marks=pytest.mark.slow), "noisy"])
 def test_the_figures_of_thinned_lines_show_what_those_of_every_sample_show(case, forward_flight, monkeypatch):
     """Every figure drawn from pixel envelopes has the lines, labels, limits, ticks and legends (texts and
     place) of the same figure drawn from every sample."""

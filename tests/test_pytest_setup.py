@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -16,6 +18,7 @@ def _pytest(*args: str, **env: str) -> str:
     return res.stdout + res.stderr
 
 
+@pytest.mark.slow
 def test_a_bare_pytest_collects_the_docstring_examples_and_the_readme():
     out = _pytest("--collect-only", "-q")
     for item in ("tests/test_doctests.py::test_docstring_examples[quadctl.design.margins]",

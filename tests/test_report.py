@@ -128,7 +128,13 @@ def reports(tmp_path_factory):
     return _Reports(tmp_path_factory)
 
 
-@pytest.mark.parametrize("name", config.bundled_names())
+EVERY_RUN = ("forward", "crazyflie-wind", "square")
+"""The bundled configs whose reports the default run checks (a continuous design, a sampled one in wind,
+a mission); the others' repeat them with more configs and run with the slow tests."""
+
+
+@pytest.mark.parametrize("name", [name if name in EVERY_RUN else pytest.param(name, marks=pytest.mark.slow)
+                                  for name in config.bundled_names()])
 def test_report_of_every_bundled_config_holds_what_the_stages_print(name, reports):
     out, res = reports[name]
     assert res.exit_code == 0, res.output
@@ -356,8 +362,8 @@ def test_report_stops_where_run_does_on_a_loop_unstable_at_its_rate(tmp_path):
 @pytest.mark.parametrize("path, lag, delay", [
     ("docs/configs/mambo-rotor-lag-include.yaml", "Rotor time constant 30 ms (motors.time_constant), included in the "
                                                   "design (controller.rotor_lag: include", "no delay"),
-    ("docs/configs/mambo-rotor-lag.yaml", "Rotor time constant 30 ms (motors.time_constant), ignored by the design "
-                                          "(controller.rotor_lag: ignore)", "no delay"),
+    pytest.param("docs/configs/mambo-rotor-lag.yaml", "Rotor time constant 30 ms (motors.time_constant), ignored by "
+                 "the design (controller.rotor_lag: ignore)", "no delay", marks=pytest.mark.slow),
     ("docs/configs/mambo-delay.yaml", "Rotors: instantaneous", "delay 1 sample (5 ms) from measurement to actuation"),
 ])
 def test_the_report_shows_the_rotor_lag_the_delay_and_the_delay_margins(path, lag, delay, tmp_path):

@@ -162,7 +162,8 @@ def earlier_report(tmp_path_factory):
     return folder
 
 
-@pytest.mark.parametrize("start,full_at", [("none", "report.html"), ("earlier", "report.md"),
+@pytest.mark.parametrize("start,full_at", [("none", "report.html"),
+                                           pytest.param("earlier", "report.md", marks=pytest.mark.slow),
                                            ("earlier", "sim-roll.png")])
 def test_a_report_the_disk_cannot_hold_leaves_the_folder_as_it_was(tmp_path, monkeypatch, earlier_report, start,
                                                                   full_at):
@@ -183,7 +184,9 @@ def test_a_report_the_disk_cannot_hold_leaves_the_folder_as_it_was(tmp_path, mon
     assert _tree(folder) == (before or {})  # none: the folder the lock made, empty
 
 
-@pytest.mark.parametrize("command,full_at", [("simulate", "yaw.png"), ("margins", "margins-pitch-design.png")])
+@pytest.mark.parametrize("command,full_at", [("simulate", "yaw.png"),
+                                             pytest.param("margins", "margins-pitch-design.png",
+                                                          marks=pytest.mark.slow)])
 def test_figures_the_disk_cannot_hold_leave_the_folder_as_it_was(tmp_path, monkeypatch, command, full_at):
     """simulate --plot, margins --plot: the figures drawn before the disk filled up go too, with the stages'
     artifacts and the plots/ folder the command made."""
