@@ -429,17 +429,24 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     qc_plant(X, UH, DT, c, E, XN, P);
 #endif
 #endif
-    /* bounds of every lane at once (NaN compares false, so it counts as out) */
-    for (int i = 0; i < QC_NX; ++i)
-      for (int l = 0; l < QC_L; ++l) {
+    /* bounds, lane by lane (NaN compares false, so it counts as out) */
+    for (int l = 0; l < QC_L; ++l) {
+      int out = 0;
+      for (int i = 0; i < QC_NX; ++i) {
         double v = XN[i * QC_L + l];
-        bad[l] += (v >= lo[i * QC_L + l] && v <= hi[i * QC_L + l]) ? 0.0 : 1.0;
+        out |= !(v >= lo[i * QC_L + l]) | !(v <= hi[i * QC_L + l]);
       }
+      bad[l] = out;
+    }
     memcpy(X, XN, sizeof X);
     for (int l = 0; l < QC_L; ++l) {
       rec_in[l] = rec_in[l] == 0 ? QC_STRIDE(l) - 1 : rec_in[l] - 1;
       hold_in[l] = hold_in[l] == 0 ? QC_HOLD(l) - 1 : hold_in[l] - 1;
-      if (!active[l]) continue;
+      if (!active[l]) {  /* a lane done (or with no steps) restarts each step from x0: a lane that is
+                            not run never drifts to inf or NaN beside the lanes that are */
+        for (int i = 0; i < QC_NX; ++i) X[i * QC_L + l] = x0[i * QC_L + l];
+        continue;
+      }
       if (bad[l] != 0.0 || k + 1 == QC_N(l)) {
         active[l] = 0; n_active--;
         done[l] = k + 1;

@@ -889,7 +889,7 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
     bounds = [loop.bounds(duration, reference) for loop in loops]
     base = [loop.constants(period if held else None) for loop in loops]
     strides = [record_strides(plan, max_samples) for plan in plans]
-    pad = [next(iter(ladder[2])) for ladder in ladders]  # any step's block: a segment a case does not have
+    pad = [plan.schedule[-1].dt for plan in plans]  # a segment a case does not have: its last step's block
 
     def per_segment(value, empty):
         return [[value(i, plans[i].schedule[k], k) if k < len(plans[i].schedule) else empty(i)
@@ -897,7 +897,7 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
 
     c = np.array(per_segment(lambda i, seg, k: np.concatenate([base[i], ladders[i][2][seg.dt][ladders[i][1]]]),
                              lambda i: np.concatenate([base[i], ladders[i][2][pad[i]][ladders[i][1]]])))
-    segments = Segments.of(c, per_segment(lambda i, seg, k: seg.dt, lambda i: 1.0),
+    segments = Segments.of(c, per_segment(lambda i, seg, k: seg.dt, lambda i: pad[i]),
                            per_segment(lambda i, seg, k: seg.n, lambda i: 0),
                            per_segment(lambda i, seg, k: strides[i][k], lambda i: 1),
                            per_segment(lambda i, seg, k: seg.k0, lambda i: 0),
