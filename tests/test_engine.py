@@ -62,6 +62,11 @@ def _features():
 
 
 FEATURES = _features()
+COVERED = ("held, rotors with lag, LQI, noise", "held, rotors with lag included in the design, LQI, noise",
+           "continuous, rotors with lag")
+"""Features whose loops the default run flies inside another feature's (with a delay, or with the lag
+in the design too): their compiled and lane runs repeat with the slow tests."""
+RUNS = [pytest.param(*f, id=f[0], marks=[pytest.mark.slow] if f[0] in COVERED else []) for f in FEATURES]
 
 
 def _loop(data):
@@ -102,7 +107,7 @@ def _clear():
 
 
 @pytest.mark.compiler
-@pytest.mark.parametrize("label, data, duration", FEATURES, ids=[f[0] for f in FEATURES])
+@pytest.mark.parametrize("label, data, duration", RUNS)
 def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch):
     setup, loop = _loop(data)
     x0 = setup.initial_state(loop.x_trim)
@@ -142,7 +147,7 @@ def test_compiled_and_interpreted_loops_agree(label, data, duration, monkeypatch
 
 
 @pytest.mark.compiler
-@pytest.mark.parametrize("label, data, duration", FEATURES, ids=[f[0] for f in FEATURES])
+@pytest.mark.parametrize("label, data, duration", RUNS)
 def test_lanes_equal_the_one_case_loop(label, data, duration):
     """Eight lanes with different gains, steps and seeds, each against its own one-case run."""
     from dataclasses import replace

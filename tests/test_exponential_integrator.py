@@ -213,6 +213,12 @@ CONTINUOUS = [n for n in config.bundled_names() if config.load(n).controller.rat
 HELD = [n for n in config.bundled_names() if config.load(n).controller.rate is not None]
 
 
+def _default_run(names, chosen=("forward", "square", "mambo-200hz", "crazyflie-wind")):
+    """``names`` as parameters, the bundled configs not ``chosen`` marked slow (more configs, one path)."""
+    return [n if n in chosen or n not in config.bundled_names() else pytest.param(n, marks=pytest.mark.slow)
+            for n in names]
+
+
 NOISE_AGREE = 1e-8
 """ETDRK4 against RK4 with noise: each noise sample (every 5 ms here) steps the sensor noise and
 re-excites the fast modes, which the schedule grades for at t = 0 only: measured 2.0e-9 on 0.2 s of
@@ -220,7 +226,7 @@ hover with noise and wind at tolerance 1e-12 (without noise: below 1e-9)."""
 
 
 @pytest.mark.compiler
-@pytest.mark.parametrize("name", [*CONTINUOUS, "hover+wind", "hover+noise+wind"])
+@pytest.mark.parametrize("name", _default_run([*CONTINUOUS, "hover+wind", "hover+noise+wind"]))
 def test_etdrk4_agrees_with_rk4_at_a_small_step(name):
     """0.2 s from the configured offset: ETDRK4 at dt: auto (tolerance 1e-12) against RK4 at 2.5e-5 s
     (a step that divides the exogenous period, so both see the exogenous rows change at the same times)."""
@@ -352,7 +358,7 @@ def test_a_reference_jumps_where_its_position_velocity_or_yaw_steps():
 
 
 @pytest.mark.compiler
-@pytest.mark.parametrize("name", [*HELD, "mambo+delay", "mambo+rotors+lag model", "mambo+LQG"])
+@pytest.mark.parametrize("name", _default_run([*HELD, "mambo+delay", "mambo+rotors+lag model", "mambo+LQG"]))
 def test_a_sampled_controller_agrees_with_rk4_at_a_small_step(name):
     """1 s of each bundled sampled controller (and the held loop's delay, rotor lag with the lag model,
     Kalman filter), noise and wind as configured: ETDRK4 at dt: auto, tolerance 1e-10, against RK4 at

@@ -198,7 +198,8 @@ def fly(exp, ctl: Controller, x0, plan):
     return xs, us, np.array(commands)
 
 
-@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow)  # each flown with a delay by default
+                                  if c in ("mambo-lag-ignored", "mambo-lag-included") else c for c in CASES])
 def test_the_exported_c_flies_the_loop_simulate_flies(case, tmp_path):
     exp = prepared(case)
     setup, loop = exp.setup, exp.loop

@@ -59,6 +59,8 @@ AFTER_THE_SIMULATION = pytest.mark.compiler  # interpreted, its 1.8 M steps take
 
 def _window(earlier: str, later: str, pause: float):
     marks = [AFTER_THE_SIMULATION] if later != "sim.npz" else []
+    if earlier in ("trim.json", "plots/roll.png"):  # the windows beside the default ones: with the slow tests
+        marks.append(pytest.mark.slow)
     return pytest.param(earlier, later, pause, id=f"after {earlier}", marks=marks)
 
 

@@ -111,6 +111,8 @@ def test_a_run_shorter_than_the_mission_fails_and_says_to_lengthen_it(command, t
     assert res.exit_code == 1, res.output
     assert "the run ends at 5 s, before the mission does (12.75 s): lengthen simulation.duration to at least " \
            "12.75 s" in res.stderr
+    if command == "simulate":  # its last line: the run completed, its mission did not
+        assert "mission not flown: completed" in res.stdout and "ok: completed" not in res.stdout
 
 
 def test_a_fixed_design_holds_a_waypoint_a_quarter_turn_from_its_trim(tmp_path):

@@ -194,7 +194,7 @@ def test_the_figures_of_thinned_lines_show_what_those_of_every_sample_show(case,
         partition, actuators = setup.partition, setup.actuators
         assert len(sim.t) > 4 * 1100  # long enough to be thinned
     else:
-        sim, u_trim = _noisy_flight(), [0.6, 0.0, 0.0, 0.0]
+        sim, u_trim = _noisy_flight(8000), [0.6, 0.0, 0.0, 0.0]  # 7 samples a pixel column
         partition = {"altitude": SimpleNamespace(states=["pD", "w"])}
         actuators = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))
     thinned = plots.simulation_figures(sim, partition, u_trim, actuators=actuators)

@@ -133,8 +133,12 @@ EVERY_RUN = ("forward", "crazyflie-wind", "square")
 a mission); the others' repeat them with more configs and run with the slow tests."""
 
 
-@pytest.mark.parametrize("name", [name if name in EVERY_RUN else pytest.param(name, marks=pytest.mark.slow)
-                                  for name in config.bundled_names()])
+def _default_run(names, chosen=EVERY_RUN):
+    """``names`` as parameters, those not ``chosen`` marked slow (their repeats run with the slow tests)."""
+    return [name if name in chosen else pytest.param(name, marks=pytest.mark.slow) for name in names]
+
+
+@pytest.mark.parametrize("name", _default_run(config.bundled_names()))
 def test_report_of_every_bundled_config_holds_what_the_stages_print(name, reports):
     out, res = reports[name]
     assert res.exit_code == 0, res.output
@@ -190,7 +194,7 @@ def test_report_of_every_bundled_config_holds_what_the_stages_print(name, report
     assert f"Command line: quadctl report --config {name} --out {out}" in "".join(page.text)
 
 
-@pytest.mark.parametrize("name", config.bundled_names())
+@pytest.mark.parametrize("name", _default_run(config.bundled_names()))
 def test_the_markdown_twin_shows_the_figures_beside_it(name, reports):
     out, _ = reports[name]
     folder = out / report.FOLDER
@@ -321,8 +325,8 @@ def test_the_report_reuses_fresh_artifacts_and_drops_stale_figures(tmp_path, rep
     .png of the user's in the same folder stays."""
     import shutil
 
-    cfg = config.load("hover")
-    shutil.copytree(reports["hover"][0], tmp_path, dirs_exist_ok=True)  # a report of every stage
+    cfg = config.load("forward")
+    shutil.copytree(reports["forward"][0], tmp_path, dirs_exist_ok=True)  # a report of every stage
     (tmp_path / report.FOLDER / "margins-old.png").write_bytes(b"stale")
     with open(tmp_path / report.FOLDER / report.MARKDOWN, "a", encoding="utf-8") as fh:
         fh.write("\n![an earlier report's figure](margins-old.png)\n")
@@ -439,7 +443,8 @@ def test_report_stops_where_run_does_when_the_lag_destabilizes_the_design(tmp_pa
         assert f"quadctl: check failed: {verdict}" in " ".join(res.stderr.split()), res.stderr
 
 
-@pytest.mark.parametrize("name", [n for n in config.bundled_names() if config.load(n).schedule is not None])
+@pytest.mark.parametrize("name", _default_run([n for n in config.bundled_names()
+                                               if config.load(n).schedule is not None], chosen=("schedule",)))
 def test_the_report_shows_the_gain_schedule_the_run_flew(name, reports):
     """A config with schedule: reports its points as `quadctl schedule` prints them (schedule.json's
     gains, 4 digits), its frozen-point verdict and its envelope figure."""

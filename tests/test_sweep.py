@@ -300,7 +300,8 @@ BATCHED_CASES = {
 
 
 @pytest.mark.compiler
-@pytest.mark.parametrize("name", list(BATCHED_CASES))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in ("emulated", "rotor lag", "delay")
+                                  else n for n in BATCHED_CASES])  # their loops: tests/test_engine.py's lanes
 def test_batched_path_matches_the_pipeline(name):
     """Every config simulate accepts runs in the lanes, and its rows are the one-by-one path's."""
     cfg = config.load(name if name in ("forward", "mambo-200hz") else "mambo-200hz")

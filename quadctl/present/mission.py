@@ -104,3 +104,9 @@ def mission_text(tracking: dict | None) -> str | None:
                  "simulation.reference.tolerance, give the waypoint a hold, or weigh the position errors more "
                  "(lqr Q on pN, pE, pD)")
     return f"{what}: {cause}"
+
+
+def run_line(status: str, message: str, mission_failed: bool) -> str:
+    """The line that closes a simulation's output: its status and what it says; a run that completed
+    but did not fly its mission is not called ok (the failed check follows it)."""
+    return f"{'mission not flown' if status == 'ok' and mission_failed else status}: {message}"

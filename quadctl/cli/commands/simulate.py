@@ -54,7 +54,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
                     shown.speeds_table(fl) if fl.get("wind") else None, shown.integral_text(fl),
                     *((mission.waypoints_table(fl["reference"]), *mission.tracking_lines(fl["reference"]))
                       if fl.get("reference") else ()))
-        render.out.print(f"{sim.status}: {sim.message} -> {ws.path('sim.npz')}")
+        render.out.print(f"{mission.run_line(sim.status, sim.message, mission_failure(flown) is not None)} -> "
+                         f"{ws.path('sim.npz')}")
         for path in figures:
             render.out.print(f"figure -> {path}")
     warn_of_the_flight(ws, flown, allow_saturation)
