@@ -30,6 +30,12 @@ DEFAULT_PERIOD = 0.005
 """s between noise samples when the controller is continuous (the Mambo's 200 Hz sensor loop)."""
 
 
+def exogenous_period(period: float | None, rate: float | None) -> float:
+    """s between the samples of the exogenous inputs (noise, wind, a reference's rows): the noise's
+    own ``period`` if given, else the controller's sample time, else :data:`DEFAULT_PERIOD`."""
+    return float(period or (1.0 / rate if rate else DEFAULT_PERIOD))
+
+
 @dataclass(frozen=True)
 class NoiseSpec:
     """Noise intensities and the seed.
@@ -56,7 +62,7 @@ class NoiseSpec:
         sensor = np.zeros(N_STATES)
         for name, std in noise_cfg.sensor.items():
             sensor[STATE_INDEX[name]] = std
-        period = noise_cfg.period or (1.0 / rate if rate else DEFAULT_PERIOD)
+        period = exogenous_period(noise_cfg.period, rate)
         return cls(seed=int(noise_cfg.seed), process_std=np.array([*noise_cfg.force, *noise_cfg.torque], float),
                    sensor_std=sensor, period=float(period))
 

@@ -20,7 +20,7 @@ from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_part
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.model import Vehicle
 from quadctl.motors import Actuators, Motors, actuators_of
-from quadctl.noise import DEFAULT_PERIOD, NoiseSpec
+from quadctl.noise import NoiseSpec, exogenous_period
 from quadctl.wind import WindSpec, wind_of
 
 
@@ -313,7 +313,7 @@ def _estimator(cfg: Config, timing: Timing) -> EstimatorSpec | None:
     zeros = [0.0, 0.0, 0.0]
     force = est.force if est.force is not None else (noise.force if noise is not None else zeros)
     torque = est.torque if est.torque is not None else (noise.torque if noise is not None else zeros)
-    period = (noise.period if noise is not None else None) or timing.sample_time or DEFAULT_PERIOD
+    period = exogenous_period(noise.period if noise is not None else None, timing.rate)
     return EstimatorSpec(measured=measured,
                          sensor_std=np.array([est.sensor.get(s, given.get(s, 0.0)) for s in measured], float),
                          process_std=np.array([*force, *torque], float), period=float(period))

@@ -155,13 +155,6 @@ def test_vectorized_step_limits_agree_with_the_scan():
         plan_step(eig[:3], ["x"] * 3, 2.0, 10.0, limits=fast[:3])
 
 
-def test_the_config_default_of_max_samples_is_the_library_default():
-    from quadctl.config import SimulationConfig
-    from quadctl.sim.run import MAX_SAMPLES
-
-    assert SimulationConfig().max_samples == MAX_SAMPLES
-
-
 def test_an_absurd_step_count_is_refused_and_a_long_one_announced(loop):
     """An inertia in the wrong unit makes the loop 1e6 times faster: the plan says so before it runs."""
     from quadctl.errors import QuadctlNotice

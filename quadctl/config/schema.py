@@ -17,6 +17,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field
 
 from quadctl.layout import REPORT_PARTITION, SENSOR_GROUPS, STATE_NAMES
+from quadctl.metrics import MAX_SAMPLES
 
 NAME_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"
 """A config's name: one folder name inside ``runs/`` (no separator, not ``.`` or ``..``)."""
@@ -261,7 +262,7 @@ class SimulationConfig(_Section):
     plant: Optional[PlantConfig] = Field(
         None, description="simulated vehicle parameters that differ from vehicle: (model mismatch)")
     max_samples: Annotated[int, Field(strict=True, ge=2)] = Field(
-        20_000, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
+        MAX_SAMPLES, description="samples kept (every k-th RK4 step and the last) for sim.npz, metrics and plots")
     reference: Optional[ReferenceConfig] = Field(
         None, description="setpoints or waypoints to fly; absent: hold the trim (moving with its velocity)")
     method: Literal["rk4", "etdrk4"] = Field(

@@ -21,6 +21,7 @@ from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
 from quadctl.pipeline import Stages
+from quadctl.present.stages import UNSTABLE_DESIGN
 from quadctl.problem import Setup, Timing
 
 
@@ -74,7 +75,7 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
                         "(with controller.design: discrete to design for it)")
     stages = Stages(setup)
     if not stages.design.stable:
-        raise CheckFailed("the design is unstable on the coupled 12-state model (every subsystem is stable "
+        raise CheckFailed(f"the design is {UNSTABLE_DESIGN} (every subsystem is stable "
                           "alone: the dropped couplings matter); `quadctl design` shows its eigenvalues")
     unstable = [w for w in stages.rate_warnings if not w.sampled_stable]
     if unstable:

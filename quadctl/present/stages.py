@@ -80,6 +80,8 @@ def stabilizable_sentence(checks: dict, regulated) -> Mark:
 
 CHECKS_PASSED = "every regulated subsystem stabilizable"
 """A passed check stage in one line (``quadctl run``, the report's summary)."""
+UNSTABLE_DESIGN = "unstable on the coupled 12-state model"
+"""Why ``run``, ``report`` and ``export`` stop after the design stage."""
 
 
 def trim_summary(trim) -> str:

@@ -23,6 +23,7 @@ from pathlib import Path
 from quadctl.errors import QuadctlError
 from quadctl.present.loops import thin_sentence
 from quadctl.present.mission import mission_text
+from quadctl.present.stages import UNSTABLE_DESIGN
 from quadctl.report import content
 from quadctl.report.document import Document, Section, Table, Text, to_html, to_markdown
 
@@ -89,7 +90,7 @@ def run_stages(ws) -> Outcome:
         ("decouple", lambda: ws.decoupled, None),
         ("check", lambda: ws.checks, lambda: ws.checks.verdict()),
         ("design", lambda: ws.design, lambda: (
-            None if ws.design.stable else "unstable on the coupled 12-state model")),
+            None if ws.design.stable else UNSTABLE_DESIGN)),
         ("margins", lambda: ws.margins, None),
         ("simulate", lambda: ws.simulation, lambda: (
             mission_text(ws.simulation.flight.get("reference")) if ws.simulation.sim.status == "ok"

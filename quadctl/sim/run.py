@@ -20,7 +20,8 @@ from functools import cached_property
 import numpy as np
 
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.noise import DEFAULT_PERIOD, NoiseSpec, NoiseStream
+from quadctl.metrics import MAX_SAMPLES
+from quadctl.noise import NoiseSpec, NoiseStream, exogenous_period
 from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
 from quadctl.sim.cases import Cases, Segments
 from quadctl.sim.engine import runner
@@ -28,10 +29,6 @@ from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
 from quadctl.sim.schedule import DEFAULT_TOLERANCE
 from quadctl.wind import WindSpec, WindStream
 
-MAX_SAMPLES = 20_000
-"""Default of ``simulation.max_samples``: a run keeps at most this many samples (every
-``stride``-th step, and always the last). 10 s at the report's auto step (290 000 steps) is then
-a sample every 0.5 ms: finer than any settling time or plot needs, and 4.5 MB of sim.npz."""
 VALID_PITCH = math.radians(85.0)
 """Beyond this pitch the Euler kinematics (``1/cos theta``) are near singular: the run stops."""
 SETUPS_KEPT = 4
@@ -461,7 +458,7 @@ class ExoStream:
 
     def __init__(self, noise: NoiseSpec | None, wind: WindSpec | None, rate: float | None = None,
                  reference=None):
-        self.period = noise.period if noise is not None else (1.0 / rate if rate else DEFAULT_PERIOD)
+        self.period = exogenous_period(noise.period if noise is not None else None, rate)
         self.noise = NoiseStream(noise) if noise is not None else None
         self.wind = WindStream(wind, self.period) if wind is not None else None
         self.reference = reference

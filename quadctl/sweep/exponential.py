@@ -42,7 +42,7 @@ def jobs_of(live) -> list:
     from quadctl import pipeline
     from quadctl.errors import StepSizeError
     from quadctl.motors import check_trim
-    from quadctl.noise import DEFAULT_PERIOD
+    from quadctl.noise import exogenous_period
     from quadctl.sim.run import exponential_plan
     from quadctl.sim.schedule import rk4_limits
     from quadctl.sweep.batched import _estimator
@@ -77,7 +77,7 @@ def jobs_of(live) -> list:
         wind = setup.wind if setup.wind is not None and setup.wind.active else None
         flown = pipeline.flown_reference(setup)
         exogenous = noise is not None or wind is not None or flown is not None
-        period = noise.period if noise is not None else (1.0 / loop.rate if loop.rate else DEFAULT_PERIOD)
+        period = exogenous_period(noise.period if noise is not None else None, loop.rate)
         tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
         try:
             L, plan = exponential_plan(loop, setup.duration, setup.dt, reference=flown,

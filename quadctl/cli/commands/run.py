@@ -54,7 +54,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     done("check", shown.CHECKS_PASSED)
     warn_of_the_rate(ws.checks.rate, ws.checks.rate_warnings)
     if not ws.design.stable:
-        raise _stop(json, stages, "design: unstable on the coupled 12-state model")
+        raise _stop(json, stages, f"design: {shown.UNSTABLE_DESIGN}")
     done("design", shown_design.summary(ws.design))
     with simulation_progress(quiet=json) as ws.progress:
         flown = ws.simulation
