@@ -35,7 +35,7 @@ PARAMETERS: tuple[tuple[str, str], ...] = (
     ("rate_yaw_kd", "rate PID yaw D (on the measured rate)"),
     ("rate_yaw_ilimit", "rate PID yaw integrator limit; 0: none"),
     ("rate_output_limit", "the rate PIDs' output limit: int16 command (Crazyflie) or normalized torque (PX4)"),
-    ("rate_dfilter_hz", "Hz: first-order low-pass on the rate PIDs' derivative; 0: none"),
+    ("rate_dfilter_hz", "Hz: second-order Butterworth low-pass on the rate PIDs' derivative; 0: none"),
     ("gyro_lpf_hz", "Hz: second-order Butterworth low-pass on the body rates the rate PIDs measure; 0: none"),
     ("att_roll_kp", "attitude roll P: 1/s (rate setpoint per angle error)"),
     ("att_roll_ki", "attitude roll I: 1/s^2"),

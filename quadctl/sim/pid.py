@@ -15,7 +15,7 @@ Every PID, on an error ``e`` and a measurement ``y`` with period ``T``::
 
     i <- clamp(i + e T, +-ilimit)          (backward Euler; ilimit 0: no limit)
     d  = -(y - y_prev) / T                  (on the measurement: no kick on a setpoint step)
-    out = kp e + ki i + kd d                (rate loop: d low-passed first when rate_dfilter_hz > 0)
+    out = kp e + ki i + kd d                (rate loop: d low-passed first when rate_dfilter_hz > 0, second-order Butterworth)
 
 The loop (all in the stack's angle unit, ``deg`` or ``rad``; positions and velocities in the yaw-turned
 frame the Crazyflie uses, ``z`` up):
@@ -64,7 +64,7 @@ STATE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("rate_setpoint", 3),    # angle unit/s: held between attitude updates
     ("rate_integral", 3),    # angle unit
     ("rate_previous", 3),    # angle unit/s
-    ("rate_derivative", 3),  # angle unit/s^2: the filtered D term (rate_dfilter_hz > 0)
+    ("rate_derivative", 6),  # angle unit/s^2: the D-term low-pass's two delay elements per axis (rate_dfilter_hz > 0)
     ("gyro_filter", 6),      # angle unit/s: the gyro low-pass's two delay elements per axis (gyro_lpf_hz > 0)
 )
 """The law's states, in order, in the loop state after the plant's."""
@@ -250,9 +250,13 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     il_r = [v["rate_roll_ilimit"], v["rate_pitch_ilimit"], v["rate_yaw_ilimit"]]
     i_rate = ca.vertcat(*[_clamp(part["rate_integral"][k] + e_rate[k] * Ts, il_r[k]) for k in range(3)])
     d_rate = -(rates - part["rate_previous"]) / Ts
-    if dfilter:
-        alpha = Ts / (Ts + 1 / (2 * math.pi * v["rate_dfilter_hz"]))
-        d_rate = part["rate_derivative"] + alpha * (d_rate - part["rate_derivative"])
+    d_next = part["rate_derivative"]
+    if dfilter:  # the D-term low-pass: second-order Butterworth at the base rate
+        b0, b1, b2, a1, a2 = butterworth2(v["rate_dfilter_hz"] * Ts)
+        e1, e2 = part["rate_derivative"][0:3], part["rate_derivative"][3:6]
+        e0 = d_rate - a1 * e1 - a2 * e2
+        d_rate = b0 * e0 + b1 * e1 + b2 * e2
+        d_next = ca.vertcat(e0, e1)
     out = kp_r * e_rate + ki_r * i_rate + kd_r * d_rate
     out = ca.vertcat(*[_clamp(out[k], v["rate_output_limit"]) for k in range(3)])
 
@@ -268,7 +272,7 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
                              *[out[k] * _largest(mix_inv[k + 1, :], hi) for k in range(3)])
     phase = ca.if_else(phase + 1 > n_pos - 0.5, 0, phase + 1)
     s_next = ca.vertcat(phase, i_pos, i_vel, vel_prev, att_sp, thrust_sp, i_att, att_prev, rate_sp, i_rate,
-                        rates, d_rate if dfilter else part["rate_derivative"], gyro_next)
+                        rates, d_next, gyro_next)
     return command, s_next
 
 
