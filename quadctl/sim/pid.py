@@ -94,8 +94,25 @@ def n_constants(structure: tuple) -> int:
     return len(NAMES)
 
 
-def _clamp(value, limit):
+def integrate(integral, error, period, limit, lib=ca):
+    """The stacks' integrator: ``clamp(integral + error period, +-limit)`` (backward Euler; ``limit`` 0: none)."""
+    return _clamp(integral + error * period, limit, lib)
+
+
+def derivative(measured, previous, period):
+    """The stacks' D input: ``-(measured - previous) / period``, on the measurement (no setpoint kick)."""
+    return -(measured - previous) / period
+
+
+def pid_output(kp, ki, kd, error, integral, deriv):
+    """``kp error + ki integral + kd deriv``: one PID's output from its (updated) integral and D input."""
+    return kp * error + ki * integral + kd * deriv
+
+
+def _clamp(value, limit, lib=ca):
     """``value`` within ``+-limit``; ``limit`` 0 (or less): no limit."""
+    if lib is not ca:
+        return np.clip(value, -limit, limit) if limit > 0 else value
     return ca.if_else(limit > 0, ca.fmin(ca.fmax(value, -limit), limit), value)
 
 
@@ -187,20 +204,20 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     e_pos = ca.vertcat(e_xy, -(x_ref[2] - x_m[2]))
     v_ff_ned = _earth_velocity(x_ref)
     v_ff = ca.vertcat(turn(v_ff_ned[0:2]), -v_ff_ned[2])
-    i_pos = _clamp(part["pos_integral"] + e_pos * T_pos, v["pos_ilimit"])
+    i_pos = integrate(part["pos_integral"], e_pos, T_pos, v["pos_ilimit"])
     kp_pos = ca.vertcat(v["pos_xy_kp"], v["pos_xy_kp"], v["pos_z_kp"])
     ki_pos = ca.vertcat(v["pos_xy_ki"], v["pos_xy_ki"], v["pos_z_ki"])
-    v_sp = kp_pos * e_pos + ki_pos * i_pos + v_ff
+    v_sp = pid_output(kp_pos, ki_pos, 0, e_pos, i_pos, 0) + v_ff
     v_sp = ca.vertcat(_clamp(v_sp[0], v["pos_vel_limit_xy"]), _clamp(v_sp[1], v["pos_vel_limit_xy"]),
                       ca.fmin(ca.fmax(v_sp[2], -v["pos_vel_limit_down"]), v["pos_vel_limit_up"]))
     # velocity: PID, D on the measured velocity
     e_vel = v_sp - vel
-    i_vel = _clamp(part["vel_integral"] + e_vel * T_pos, v["vel_ilimit"])
-    d_vel = -(vel - part["vel_previous"]) / T_pos
+    i_vel = integrate(part["vel_integral"], e_vel, T_pos, v["vel_ilimit"])
+    d_vel = derivative(vel, part["vel_previous"], T_pos)
     kp_v = ca.vertcat(v["vel_xy_kp"], v["vel_xy_kp"], v["vel_z_kp"])
     ki_v = ca.vertcat(v["vel_xy_ki"], v["vel_xy_ki"], v["vel_z_ki"])
     kd_v = ca.vertcat(v["vel_xy_kd"], v["vel_xy_kd"], v["vel_z_kd"])
-    o = kp_v * e_vel + ki_v * i_vel + kd_v * d_vel
+    o = pid_output(kp_v, ki_v, kd_v, e_vel, i_vel, d_vel)
     yaw_sp = x_ref[STATE_INDEX["psi"]] * scale
     if vel_out == "angles":
         tilt = v["tilt_limit"]
@@ -234,8 +251,8 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     ki_a = ca.vertcat(v["att_roll_ki"], v["att_pitch_ki"], v["att_yaw_ki"])
     kd_a = ca.vertcat(v["att_roll_kd"], v["att_pitch_kd"], v["att_yaw_kd"])
     il_a = [v["att_roll_ilimit"], v["att_pitch_ilimit"], v["att_yaw_ilimit"]]
-    i_att = ca.vertcat(*[_clamp(part["att_integral"][k] + e_att[k] * T_att, il_a[k]) for k in range(3)])
-    rate_sp = kp_a * e_att + ki_a * i_att - kd_a * delta / T_att
+    i_att = ca.vertcat(*[integrate(part["att_integral"][k], e_att[k], T_att, il_a[k]) for k in range(3)])
+    rate_sp = pid_output(kp_a, ki_a, kd_a, e_att, i_att, -delta / T_att)
     limits = [v["att_rate_limit_rp"], v["att_rate_limit_rp"], v["att_rate_limit_yaw"]]
     rate_sp = ca.vertcat(*[_clamp(rate_sp[k], limits[k]) for k in range(3)])
     rate_sp = ca.if_else(run_att, rate_sp, part["rate_setpoint"])
@@ -248,8 +265,8 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     ki_r = ca.vertcat(v["rate_roll_ki"], v["rate_pitch_ki"], v["rate_yaw_ki"])
     kd_r = ca.vertcat(v["rate_roll_kd"], v["rate_pitch_kd"], v["rate_yaw_kd"])
     il_r = [v["rate_roll_ilimit"], v["rate_pitch_ilimit"], v["rate_yaw_ilimit"]]
-    i_rate = ca.vertcat(*[_clamp(part["rate_integral"][k] + e_rate[k] * Ts, il_r[k]) for k in range(3)])
-    d_rate = -(rates - part["rate_previous"]) / Ts
+    i_rate = ca.vertcat(*[integrate(part["rate_integral"][k], e_rate[k], Ts, il_r[k]) for k in range(3)])
+    d_rate = derivative(rates, part["rate_previous"], Ts)
     d_next = part["rate_derivative"]
     if dfilter:  # the D-term low-pass: second-order Butterworth at the base rate
         b0, b1, b2, a1, a2 = butterworth2(v["rate_dfilter_hz"] * Ts)
@@ -257,7 +274,7 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
         e0 = d_rate - a1 * e1 - a2 * e2
         d_rate = b0 * e0 + b1 * e1 + b2 * e2
         d_next = ca.vertcat(e0, e1)
-    out = kp_r * e_rate + ki_r * i_rate + kd_r * d_rate
+    out = pid_output(kp_r, ki_r, kd_r, e_rate, i_rate, d_rate)
     out = ca.vertcat(*[_clamp(out[k], v["rate_output_limit"]) for k in range(3)])
 
     if torque_out == "pwm":
