@@ -523,7 +523,7 @@ def wind_felt(wind: WindSpec, period: float, ks, dt: float, block: int = 256) ->
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
              noise: NoiseSpec | None = None, wind: WindSpec | None = None,
              max_samples: int = MAX_SAMPLES, progress=None, reference=None, method: str = "rk4",
-             tolerance: float = DEFAULT_TOLERANCE) -> SimResult:
+             tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None) -> SimResult:
     """RK4 (or ETDRK4) of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
@@ -554,6 +554,9 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         :mod:`quadctl.sim.schedule`), ``dt: auto`` its graded schedule.
     tolerance : float
         The error ETDRK4's ``dt: auto`` aims at.
+    exo_rate : float, optional
+        Hz of the exogenous clock when there is no noise (:class:`ExoStream`; None: the controller's
+        rate): loops of different rates flown with one ``exo_rate`` feel the same wind (RK4 only).
 
     Returns
     -------
@@ -587,7 +590,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
-    exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
+    exo = (ExoStream(noise if noisy else None, wind if windy else None, exo_rate or loop.rate, reference)
            if noisy or windy or reference is not None else None)
     done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo, progress)
     wall = time.perf_counter() - start
