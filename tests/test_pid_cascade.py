@@ -128,3 +128,40 @@ def test_the_crazyflie_cascade_with_one_gain_sign_flipped_does_not_recover(crazy
     _, run = fly(crazyflie, gains.with_values(**{flip: -gains[flip]}), duration=4.0)
     err = np.abs(run.x[-1] - run.x_ref[-1])
     assert run.status != "ok" or err.max() > 0.5, (flip, run.status, err)
+
+
+@pytest.mark.compiler
+def test_the_cascade_flies_alike_in_the_one_case_loop_the_simd_lanes_and_the_interpreter(crazyflie):
+    """Every runner is generated from the one builder: eight lanes of eight gain sets (the firmware's,
+    scaled) give, lane by lane, the one-case compiled run of that gain set, and CasADi's virtual machine
+    the first, to round-off (the SIMD build and the virtual machine may order or fuse operations
+    differently: ~1e-14 relative over 250 samples of a loop whose PWM states are ~3e4)."""
+    from quadctl.config.pid import resolve
+    from quadctl.pipeline import pid_loop_of
+    from quadctl.sim.cases import Cases
+    from quadctl.sim.engine import LANES, runner
+    from quadctl.sim.interpreted import InterpretedRunner
+
+    base = resolve("crazyflie")
+    loops = [pid_loop_of(crazyflie.setup, crazyflie.linear,
+                         base.with_values(rate_roll_kp=base["rate_roll_kp"] * (1 + 0.05 * k),
+                                          att_pitch_kp=base["att_pitch_kp"] * (1 - 0.04 * k)))
+             for k in range(LANES)]
+    plan = loops[0].plan(0.5)
+    x0 = crazyflie.setup.initial_state(loops[0].x_trim)
+    lo, hi = loops[0].bounds(0.5)
+    spec = loops[0].spec()
+    assert len({loop.spec() for loop in loops}) == 1  # gains are constants: one compiled loop for all
+
+    def cases(chosen):
+        return Cases.of(np.array([loop.initial_loop_state(x0) for loop in chosen]),
+                        np.array([loop.constants(plan.sample_time) for loop in chosen]), plan.dt, plan.n_steps, 50,
+                        lo, hi, hold=plan.hold)
+
+    lanes = runner(spec, LANES).run(cases(loops))
+    for loop, (done, ks, xs, us) in zip(loops, lanes):
+        (done1, ks1, xs1, us1), = runner(spec, 1).run(cases([loop]))
+        assert done == done1 == plan.n_steps
+        np.testing.assert_allclose(xs, xs1, rtol=1e-9, atol=1e-9)
+    (_, _, xs_vm, _), = InterpretedRunner(spec).run(cases(loops[:1]))
+    np.testing.assert_allclose(xs_vm, lanes[0][2], rtol=1e-9, atol=1e-9)
