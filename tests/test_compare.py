@@ -24,8 +24,9 @@ def gusty_crazyflie(request):
     if request.param == "wind+noise":
         data["simulation"]["noise"] = {"seed": 7, "force": [0.002, 0.002, 0.002],
                                        "sensor": {"pD": 0.005, "phi": 0.002, "p": 0.01}}
-    data["simulation"].update(duration=2.0, wind={"gusts": [{"start": 0.5, "length": 0.5, "amplitude": [1.0, 0.5, 0.0]}],
-                                    "turbulence": {"intensity": "light", "seed": 3}})
+    data["simulation"].update(
+        duration=2.0, wind={"gusts": [{"start": 0.5, "length": 0.5, "amplitude": [1.0, 0.5, 0.0]}],
+                            "turbulence": {"intensity": "light", "seed": 3}})
     return qc.Stages(qc.setup_of(Config(**data)))
 
 

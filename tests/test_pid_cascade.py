@@ -29,7 +29,8 @@ def assert_same_poles(A, roots, extra=()):
     assert len(got) == len(want)
     for g in got:  # each pole matched by the nearest root (sets, not sorted order)
         k = int(np.argmin(np.abs(want - g)))
-        assert abs(want[k] - g) <= POLE_TOL * max(1.0, abs(g)), f"pole {g} vs {want[k]}: max diff {abs(want[k] - g):.4E}"
+        diff = abs(want[k] - g)
+        assert diff <= POLE_TOL * max(1.0, abs(g)), f"pole {g} vs {want[k]}: max diff {diff:.4E}"
         want = np.delete(want, k)
 
 
@@ -159,8 +160,8 @@ def test_the_cascade_flies_alike_in_the_one_case_loop_the_simd_lanes_and_the_int
                         lo, hi, hold=plan.hold)
 
     lanes = runner(spec, LANES).run(cases(loops))
-    for loop, (done, ks, xs, us) in zip(loops, lanes):
-        (done1, ks1, xs1, us1), = runner(spec, 1).run(cases([loop]))
+    for loop, (done, _, xs, _) in zip(loops, lanes):
+        (done1, _, xs1, _), = runner(spec, 1).run(cases([loop]))
         assert done == done1 == plan.n_steps
         np.testing.assert_allclose(xs, xs1, rtol=1e-9, atol=1e-9)
     (_, _, xs_vm, _), = InterpretedRunner(spec).run(cases(loops[:1]))

@@ -83,6 +83,12 @@ feedback schedules by default), not on the measured state, so the gain moves wit
 the loop at a frozen reference is the linear loop of ``G(v)``. ``G`` replaces ``K`` (and ``Ki``
 when the table carries the integrator gains).
 
+Other laws (:attr:`LoopSpec.law`): a flight stack's PID cascade (:mod:`quadctl.sim.pid`) takes the place of
+the LQR law above in a held loop: at each sample it maps the measured state, the reference and its own states
+``s`` (after the plant's: ``X = [x; f; s; b]``) to the command and its next states; the saturation, the delay's
+buffer, the plant, noise, wind and reference are the loop's as for LQR. An empty ``law`` is LQR, whose code,
+constants and cache key are what they were.
+
 Constants (:func:`constant_layout`): everything numeric a case carries (trim, gains, vehicle,
 mixing, limits) is one vector ``c``; the gain's sparsity, the saturation mode and the integrated
 states are baked into the generated code, so a block-diagonal gain costs only its nonzeros.
@@ -163,8 +169,8 @@ N_ROTORS = 4
 """Rotor thrust states of a loop with rotor dynamics (one per rotor, N)."""
 
 
-def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
-                    ny: int = 0, schedule: tuple[int, ...] = (), n_law: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
+def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
+                    schedule: tuple[int, ...] = (), n_law: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
@@ -269,8 +275,8 @@ def _slot_of(slots: dict, name: str, values: dict) -> tuple[slice, tuple[int, ..
 
 
 @lru_cache(maxsize=16)
-def _slots(nz: int, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-           schedule: tuple[int, ...] = (), n_law: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+def _slots(nz: int, rotors: bool = False, lag_model: bool = False, ny: int = 0, schedule: tuple[int, ...] = (),
+           n_law: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
     for name, shape in constant_layout(nz, rotors, lag_model, ny, schedule, n_law):

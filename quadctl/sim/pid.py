@@ -15,7 +15,7 @@ Every PID, on an error ``e`` and a measurement ``y`` with period ``T``::
 
     i <- clamp(i + e T, +-ilimit)          (backward Euler; ilimit 0: no limit)
     d  = -(y - y_prev) / T                  (on the measurement: no kick on a setpoint step)
-    out = kp e + ki i + kd d                (rate loop: d low-passed first when rate_dfilter_hz > 0, second-order Butterworth)
+    out = kp e + ki i + kd d                (rate loop: d low-passed first, rate_dfilter_hz > 0)
 
 The loop (all in the stack's angle unit, ``deg`` or ``rad``; positions and velocities in the yaw-turned
 frame the Crazyflie uses, ``z`` up):
