@@ -126,7 +126,7 @@ def pid_loop_of(setup: Setup, linear: LinearModel, gains=None) -> ClosedLoop:
 
     gains = setup.pid if gains is None else gains
     if setup.actuators is None or setup.actuators.mode != "motors":
-        raise ConfigError("controller.law: pid: a PID cascade commands the rotors: add motors: to the config")
+        raise ConfigError("controller.flies: pid: a PID cascade commands the rotors: add motors: to the config")
     rate = float(gains["rate_hz"])
     delay = 0
     if setup.timing.delay_samples:
@@ -308,7 +308,7 @@ class Stages:
 
     @cached_property
     def loop(self) -> ClosedLoop:
-        """The loop that flies: the LQR design's (:attr:`lqr_loop`), or the PID cascade's with ``law: pid``."""
+        """The loop that flies: the LQR design's (:attr:`lqr_loop`), or the PID cascade's (``controller.flies: pid``)."""
         if self.setup.law == "pid":
             return pid_loop_of(self.setup, self.linear)
         return self.lqr_loop

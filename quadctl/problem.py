@@ -204,10 +204,10 @@ class Setup:
     tolerance: float | None = None
     schedule: ScheduleConfig | None = None
     law: str = "lqr"
-    """The law that flies: ``lqr`` (the design) or ``pid`` (:attr:`pid`)."""
+    """The law that flies (``controller.flies``): ``lqr`` (the design) or ``pid`` (:attr:`pid`)."""
     pid: object | None = None
     """:class:`quadctl.config.pid.PidGains`: the config's PID cascade (``controller.pid``, else the
-    ``crazyflie`` preset): what ``law: pid`` and ``quadctl compare`` fly."""
+    ``crazyflie`` preset): what ``controller.flies: pid`` and ``quadctl compare`` fly."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -290,7 +290,7 @@ def setup_of(cfg: Config) -> Setup:
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
         reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
-        schedule=cfg.schedule, law=ctl.law, pid=_pid(cfg))
+        schedule=cfg.schedule, law=ctl.flies, pid=_pid(cfg))
 
 
 def _pid(cfg: Config):

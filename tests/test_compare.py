@@ -57,7 +57,8 @@ def test_without_one_clock_the_wind_rows_of_loops_of_different_rates_differ(gust
 
 
 def test_compare_command_writes_the_table_and_json_with_units(tmp_path):
-    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--duration", "1", "-o", str(tmp_path), "--json"],
+    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--set", "simulation.duration=1", "-o", str(tmp_path),
+                                   "--json"],
                              catch_exceptions=False)
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)

@@ -237,7 +237,7 @@ def _check_delay(cfg: Config, fail) -> None:
 
 
 def _check_pid(cfg: Config, fail) -> None:
-    """``controller.law: pid`` and ``controller.pid``: rotors to command, rates that nest, a delay whole at them."""
+    """``controller.flies: pid`` and ``controller.pid``: rotors to command, rates that nest, a delay whole at them."""
     from quadctl.config.pid import rate_problem, resolve
 
     ctl = cfg.controller
@@ -250,9 +250,9 @@ def _check_pid(cfg: Config, fail) -> None:
         problem = rate_problem(gains)
         if problem:
             fail("controller.pid.values", ctl.pid.values, problem + ": change the rates")
-    if ctl.law == "pid" and cfg.motors is None:
-        fail("controller.law", "pid", "a PID cascade commands the rotors: add motors: (the rotors' layout and "
-             "thrust limits), or use law: lqr")
+    if ctl.flies == "pid" and cfg.motors is None:
+        fail("controller.flies", "pid", "a PID cascade commands the rotors: add motors: (the rotors' layout and "
+             "thrust limits), or fly lqr")
 
 
 MAX_DURATION = 86_400.0

@@ -336,11 +336,11 @@ class ControllerConfig(_Section):
     delay: Optional[Union[NonNegative, DelaySamples]] = Field(
         None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
         "actuation; needs a rate; absent: none")
-    law: Literal["lqr", "pid"] = Field(
-        "lqr", description="lqr: the LQR design of lqr: flies (as the report); pid: the PID cascade of pid: "
-        "(position P, velocity PID, attitude PID, rate PID, each at its own rate) flies instead, at its own rate")
+    flies: Literal["lqr", "pid"] = Field(
+        "lqr", description="the law that flies: lqr, the LQR design of lqr: (as the report); pid, the PID cascade "
+        "of pid: (position P, velocity PID, attitude PID, rate PID, each at its own rate) instead, at its own rate")
     pid: Optional[PidConfig] = Field(
-        None, description="the PID cascade flown with law: pid, and by quadctl compare; absent: the crazyflie "
+        None, description="the PID cascade flown with flies: pid, and by quadctl compare; absent: the crazyflie "
         "preset")
 
     def delay_samples(self) -> int:
@@ -484,7 +484,7 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("simulation", "method"), "rk4"),
     (("simulation", "tolerance"), None),
     (("schedule",), None),
-    (("controller", "law"), "lqr"),
+    (("controller", "flies"), "lqr"),
     (("controller", "pid"), None),
 )
 """Keys added to the schema after configs were already hashed, with their defaults: left out of

@@ -12,8 +12,6 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
                 "--law", help="A law to fly beside the LQR design: pid:crazyflie or pid:px4 (the flight stacks' "
                 "published defaults; controller.pid's values apply to its own preset). Repeat for more; "
                 "default pid:crazyflie.")] = None,
-            duration: Annotated[Optional[float], typer.Option(
-                "--duration", min=0.001, help="s to fly (default: simulation.duration).")] = None,
             plot: Annotated[bool, typer.Option(
                 "--plot", help="Also write one figure per quantity, the laws overlaid, to DIR/plots/compare-*.png.")]
             = False) -> None:
@@ -37,7 +35,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         except ValueError as exc:
             raise ConfigError(f"--law: {exc}") from None
     ws = open_workspace(config, out, False, sets)
-    result = compare(ws, laws, duration)
+    result = compare(ws, laws)
     data = payload(result)
     data["meta"] = artifacts.metadata(ws.cfg, "compare")
     text = jsonlib.dumps(artifacts.jsonable(data), indent=1, sort_keys=True) + "\n"
