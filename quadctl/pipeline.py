@@ -308,7 +308,7 @@ class Stages:
 
     @cached_property
     def loop(self) -> ClosedLoop:
-        """The loop that flies: the LQR design's (:attr:`lqr_loop`), or the PID cascade's (``controller.flies: pid``)."""
+        """The loop that flies: the LQR design's (:attr:`lqr_loop`), or the cascade's (``controller.flies: pid``)."""
         if self.setup.law == "pid":
             return pid_loop_of(self.setup, self.linear)
         return self.lqr_loop
