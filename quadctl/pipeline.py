@@ -109,6 +109,38 @@ def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
                       jacobians=(linear.A, linear.B))
 
 
+def pid_loop_of(setup: Setup, linear: LinearModel, gains=None) -> ClosedLoop:
+    """The loop of a PID cascade (:mod:`quadctl.sim.pid`; ``gains`` a
+    :class:`quadctl.config.pid.PidGains`, None: the setup's) on the setup's plant, trim, rotors and delay,
+    sampled at the cascade's base rate (``rate_hz``). The delay, counted in the setup's controller
+    samples, is kept in seconds: a whole number of the cascade's samples.
+
+    Raises
+    ------
+    RateError
+        The delay is not a whole number of the cascade's samples.
+    ConfigError
+        The setup has no rotors (``motors:``) to command.
+    """
+    from quadctl.errors import ConfigError, RateError
+
+    gains = setup.pid if gains is None else gains
+    if setup.actuators is None or setup.actuators.mode != "motors":
+        raise ConfigError("controller.flies: pid: a PID cascade commands the rotors: add motors: to the config")
+    rate = float(gains["rate_hz"])
+    delay = 0
+    if setup.timing.delay_samples:
+        n = setup.timing.delay_samples / setup.timing.rate * rate
+        delay = round(n)
+        if abs(n - delay) > 1e-9 * max(1.0, n):
+            raise RateError(f"controller.delay: {setup.timing.delay_samples / setup.timing.rate:g} s is {n:.6g} "
+                            f"samples of the PID cascade's {rate:g} Hz: make it a whole number of both rates")
+    return ClosedLoop(params=setup.plant.vector(), x_trim=linear.x_trim, u_trim=linear.u_trim, x_rate=linear.x_rate,
+                      K=np.zeros((len(INPUT_NAMES), len(STATE_NAMES))), eigenvalues=np.zeros(0), owners=[],
+                      rate=rate, actuators=setup.actuators, open_loop_eigenvalues=np.linalg.eigvals(linear.A),
+                      delay_samples=delay, jacobians=(linear.A, linear.B), law=gains)
+
+
 def estimator_of(setup: Setup, linear: LinearModel):
     """The setup's steady-state Kalman filter (:func:`quadctl.estimator.kalman`) at the controller's
     timing (discrete at the controller period when sampled, Kalman-Bucy when continuous); None
@@ -276,6 +308,14 @@ class Stages:
 
     @cached_property
     def loop(self) -> ClosedLoop:
+        """The loop that flies: the LQR design's (:attr:`lqr_loop`), or the cascade's (``controller.flies: pid``)."""
+        if self.setup.law == "pid":
+            return pid_loop_of(self.setup, self.linear)
+        return self.lqr_loop
+
+    @cached_property
+    def lqr_loop(self) -> ClosedLoop:
+        """The LQR design's loop, whatever law flies."""
         return loop_of(self.setup, self.linear, self.design)
 
 

@@ -203,6 +203,11 @@ class Setup:
     method: str = "rk4"
     tolerance: float | None = None
     schedule: ScheduleConfig | None = None
+    law: str = "lqr"
+    """The law that flies (``controller.flies``): ``lqr`` (the design) or ``pid`` (:attr:`pid`)."""
+    pid: object | None = None
+    """:class:`quadctl.config.pid.PidGains`: the config's PID cascade (``controller.pid``, else the
+    ``crazyflie`` preset): what ``controller.flies: pid`` and ``quadctl compare`` fly."""
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -285,7 +290,15 @@ def setup_of(cfg: Config) -> Setup:
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
         reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
-        schedule=cfg.schedule)
+        schedule=cfg.schedule, law=ctl.flies, pid=_pid(cfg))
+
+
+def _pid(cfg: Config):
+    """The config's PID cascade (:func:`quadctl.config.pid.resolve`), checked on load."""
+    from quadctl.config.pid import resolve
+
+    pid = cfg.controller.pid
+    return resolve(pid.preset, pid.values) if pid is not None else resolve("crazyflie")
 
 
 def _reference(cfg: Config):

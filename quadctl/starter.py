@@ -23,6 +23,7 @@ from quadctl.config import (
     EstimatorConfig,
     MotorsConfig,
     NoiseConfig,
+    PidConfig,
     PlantConfig,
     ReferenceConfig,
     ScheduleConfig,
@@ -290,6 +291,7 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     rate = (preset.rate, preset.rate_note)
     out += _section(ControllerConfig, {"rate": rate, "design": ("discrete", ""), "rotor_lag": ("ignore", ""),
                                        "delay": (None, "")}, 2)
+    out += [f"  # pid:   # {_doc(ControllerConfig, 'pid')}"] + _section(PidConfig, {}, 4, commented=True)
     out += ["motors:   # " + _doc(Config, "motors")]
     out += _section(MotorsConfig, {**preset.motors, "time_constant": (None, ""), "spin": (None, "")}, 2)
     out += [f"# limits: {{T: [0, 1], A: [-0.01, 0.01]}}   # {_doc(Config, 'limits')}",

@@ -439,14 +439,16 @@ class Workspace(pipeline.Stages):
 
     @cached_property
     def simulation(self) -> Flight:
-        """The configured run with the design's gains (with ``schedule:``, the schedule's); writes sim.npz
-        and sim.json."""
+        """The configured run with the design's gains (with ``schedule:``, the schedule's; with ``controller.flies:
+        pid``, the PID cascade instead); writes sim.npz and sim.json."""
         linear, setup = self.linear, self.setup
         K, Ki, ints, Kv = self.gains
         loop = pipeline.closed_loop_of(setup, linear, K, Ki=Ki, integral_states=ints, Kv=Kv)
         if setup.schedule is not None:  # fly the schedule's gains (and write schedule.json beside)
             sched = self.schedule
             loop = sched.flown_by(loop)
+        if setup.law == "pid":  # the PID cascade flies in place of the design (controller.flies: pid)
+            loop = pipeline.pid_loop_of(setup, linear)
         sim = pipeline.simulation_of(setup, loop, progress=self.progress)
         flight = pipeline.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)

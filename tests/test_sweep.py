@@ -643,6 +643,7 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
 
     from _solve import cfg_dict, solve
 
+    from quadctl.config.pid import resolve
     from quadctl.design.gain_table import GainTable
     from quadctl.sweep import batched
 
@@ -665,7 +666,8 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
                "delay_samples": 2, "lag_model_time_constant": 0.05, "estimator": replace(loop.estimator),
                "schedule": GainTable.of("speed", [0.0, 1.0], np.stack([loop.K, loop.K])),
                "schedule_heading": 0.5, "schedule_eigenvalues": np.array([-1.0 + 0j]),
-               "schedule_jacobians": (np.zeros((2, 12, 12)), np.zeros((2, 12, 4)))}
+               "schedule_jacobians": (np.zeros((2, 12, 12)), np.zeros((2, 12, 4))),
+               "law": resolve("crazyflie")}
     structural = {f.name for f in fields(loop)} - set(batched.PER_CASE)
     assert structural == set(changed), "a new ClosedLoop field: add a change of it here"
     for name, value in changed.items():

@@ -18,7 +18,7 @@ def default_out(cfg) -> Path:
 ARTIFACT_NAMES = frozenset({
     "config.yaml", "config.resolved.yaml",
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json",
-    "margins.json", "design_full.json", "schedule.json", "schedule.npz",
+    "margins.json", "design_full.json", "schedule.json", "schedule.npz", "compare.json",
     "sweep.csv", "sweep.json", "sweep.png", "montecarlo.npz", "montecarlo.png",
     "quadctl_controller.h", "quadctl_controller.c", "quadctl_controller.mat", "quadctl_controller.json",
     "identified.json", "identified.yaml", "identify.png",

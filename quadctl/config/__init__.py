@@ -85,6 +85,7 @@ from quadctl.config.schema import MotorsConfig as MotorsConfig
 from quadctl.config.schema import NoiseConfig as NoiseConfig
 from quadctl.config.schema import NonNegative as NonNegative
 from quadctl.config.schema import Number as Number
+from quadctl.config.schema import PidConfig as PidConfig
 from quadctl.config.schema import PlantConfig as PlantConfig
 from quadctl.config.schema import Positive as Positive
 from quadctl.config.schema import ReferenceConfig as ReferenceConfig

@@ -122,6 +122,7 @@ def check_semantics(cfg: Config, label: str) -> None:
     _check_inertia(cfg, fail)
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
+    _check_pid(cfg, fail)
     _check_method(cfg, fail)
     if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
         fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
@@ -233,6 +234,25 @@ def _check_delay(cfg: Config, fail) -> None:
         fail("controller.delay", delay, f"is {whole} samples at {rate:g} Hz, more than MAX_DELAY_SAMPLES = "
              f"{MAX_DELAY_SAMPLES} ({MAX_DELAY_SAMPLES / rate:g} s); controller.delay is in seconds (5 ms is "
              "0.005): shorten it")
+
+
+def _check_pid(cfg: Config, fail) -> None:
+    """``controller.flies: pid`` and ``controller.pid``: rotors to command, rates that nest, a delay whole at them."""
+    from quadctl.config.pid import rate_problem, resolve
+
+    ctl = cfg.controller
+    if ctl.pid is not None:
+        gains = resolve(ctl.pid.preset)
+        try:
+            gains = gains.with_values(**ctl.pid.values)
+        except ValueError as exc:
+            fail("controller.pid.values", ctl.pid.values, str(exc))
+        problem = rate_problem(gains)
+        if problem:
+            fail("controller.pid.values", ctl.pid.values, problem + ": change the rates")
+    if ctl.flies == "pid" and cfg.motors is None:
+        fail("controller.flies", "pid", "a PID cascade commands the rotors: add motors: (the rotors' layout and "
+             "thrust limits), or fly lqr")
 
 
 MAX_DURATION = 86_400.0

@@ -14,7 +14,7 @@ import json
 from typing import Annotated, Any, Literal, Optional, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from quadctl.layout import REPORT_PARTITION, SENSOR_GROUPS, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
@@ -299,6 +299,29 @@ class ScheduleConfig(_Section):
         4, description="the frozen-point stability check splits each interval between values into this many")
 
 
+class PidConfig(_Section):
+    """A flight stack's PID cascade (quadctl.config.pid): a preset of its published defaults, and overrides."""
+
+    preset: Literal["crazyflie", "px4"] = Field(
+        "crazyflie", description="crazyflie: controller_pid of bitcraze/crazyflie-firmware (angles in deg, "
+        "500 Hz attitude and rate, 100 Hz position and velocity, PWM out); px4: PX4's mc_pos_control, "
+        "mc_att_control and mc_rate_control (rad, 400/200/100 Hz, normalized torques out)")
+    values: dict[str, Number] = Field(
+        default_factory=dict, description="name -> value in the stack's units, replacing the preset's "
+        "(rate_roll_kp, att_roll_kp, vel_xy_kp, pos_z_ki, rate_hz ...: `quadctl compare --help` lists them with "
+        "their units)")
+
+    @field_validator("values")
+    @classmethod
+    def _known(cls, values: dict) -> dict:
+        from quadctl.config.pid import NAMES
+
+        unknown = sorted(set(values) - set(NAMES))
+        if unknown:
+            raise ValueError(f"unknown PID value {unknown[0]!r}: use one of {', '.join(NAMES)}")
+        return values
+
+
 class ControllerConfig(_Section):
     """How the controller runs on the flight computer."""
 
@@ -314,6 +337,12 @@ class ControllerConfig(_Section):
     delay: Optional[Union[NonNegative, DelaySamples]] = Field(
         None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
         "actuation; needs a rate; absent: none")
+    flies: Literal["lqr", "pid"] = Field(
+        "lqr", description="the law that flies: lqr, the LQR design of lqr: (as the report); pid, the PID cascade "
+        "of pid: (position P, velocity PID, attitude PID, rate PID, each at its own rate) instead, at its own rate")
+    pid: Optional[PidConfig] = Field(
+        None, description="the PID cascade flown with flies: pid, and by quadctl compare; absent: the crazyflie "
+        "preset")
 
     def delay_samples(self) -> int:
         """Samples of delay (0 when none); :func:`quadctl.config.checks._check_delay` has checked it is whole."""
@@ -456,6 +485,8 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("simulation", "method"), "rk4"),
     (("simulation", "tolerance"), None),
     (("schedule",), None),
+    (("controller", "flies"), "lqr"),
+    (("controller", "pid"), None),
 )
 """Keys added to the schema after configs were already hashed, with their defaults: left out of
 :meth:`Config.digest` at that default."""

@@ -83,6 +83,12 @@ feedback schedules by default), not on the measured state, so the gain moves wit
 the loop at a frozen reference is the linear loop of ``G(v)``. ``G`` replaces ``K`` (and ``Ki``
 when the table carries the integrator gains).
 
+Other laws (:attr:`LoopSpec.law`): a flight stack's PID cascade (:mod:`quadctl.sim.pid`) takes the place of
+the LQR law above in a held loop: at each sample it maps the measured state, the reference and its own states
+``s`` (after the plant's: ``X = [x; f; s; b]``) to the command and its next states; the saturation, the delay's
+buffer, the plant, noise, wind and reference are the loop's as for LQR. An empty ``law`` is LQR, whose code,
+constants and cache key are what they were.
+
 Constants (:func:`constant_layout`): everything numeric a case carries (trim, gains, vehicle,
 mixing, limits) is one vector ``c``; the gain's sparsity, the saturation mode and the integrated
 states are baked into the generated code, so a block-diagonal gain costs only its nonzeros.
@@ -96,7 +102,7 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
+from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 from quadctl.motors import desaturate
 
@@ -163,8 +169,8 @@ N_ROTORS = 4
 """Rotor thrust states of a loop with rotor dynamics (one per rotor, N)."""
 
 
-def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
-                    ny: int = 0, schedule: tuple[int, ...] = ()) -> tuple[tuple[str, tuple[int, ...]], ...]:
+def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
+                    schedule: tuple[int, ...] = (), n_law: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
@@ -176,7 +182,8 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
     gain columns (:attr:`LoopSpec.schedule`), ends with ``schedule_heading`` (rad, the direction
     ``speed`` is measured along), ``schedule_breaks`` (p + 1,) and ``schedule_coefficients``
     (4, p, 4, m): :class:`quadctl.design.gain_table.GainTable`'s ``breaks`` and ``coefficients``.
-    Matrices (and the coefficients) are stored column-major.
+    A loop flying a law other than LQR (:attr:`LoopSpec.law`) ends with its ``law`` constants (``n_law``
+    of them). Matrices (and the coefficients) are stored column-major.
     """
     out = _BASE_LAYOUT
     if nz:
@@ -191,18 +198,20 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False,
         pieces, columns = schedule
         out = out + (("schedule_heading", (1,)), ("schedule_breaks", (pieces + 1,)),
                      ("schedule_coefficients", (4, pieces, N_INPUTS, columns)))
+    if n_law:
+        out = out + (("law", (n_law,)),)
     return out
 
 
 def constant_size(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                  schedule: tuple[int, ...] = ()) -> int:
+                  schedule: tuple[int, ...] = (), n_law: int = 0) -> int:
     """Length of ``c`` for ``nz`` integrators (and rotor dynamics, a lag model, ``ny`` measurements,
     a gain schedule's ``(pieces, columns)``)."""
-    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model, ny, schedule))
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model, ny, schedule, n_law))
 
 
 def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                   schedule: tuple[int, ...] = (), **values) -> np.ndarray:
+                   schedule: tuple[int, ...] = (), n_law: int = 0, **values) -> np.ndarray:
     """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
 
     Raises
@@ -210,12 +219,12 @@ def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, n
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    return fill_constants(_slots(nz, rotors, lag_model, ny, tuple(schedule))[1].copy(), nz, rotors, lag_model, ny,
-                          schedule, **values)
+    return fill_constants(_slots(nz, rotors, lag_model, ny, tuple(schedule), n_law)[1].copy(), nz, rotors,
+                          lag_model, ny, schedule, n_law, **values)
 
 
 def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                   schedule: tuple[int, ...] = (), **values) -> np.ndarray:
+                   schedule: tuple[int, ...] = (), n_law: int = 0, **values) -> np.ndarray:
     """Write ``values`` into their slots of a ``c`` vector of that layout (in place; returned):
     what :func:`pack_constants` does to the defaults, for a sweep that writes each case's gains
     into a copy of its loop's constants.
@@ -225,7 +234,7 @@ def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule))[0]
+    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule), n_law)[0]
     for name, value in values.items():
         where, shape = _slot_of(slots, name, values)
         arr = np.asarray(value, dtype=float)
@@ -236,7 +245,7 @@ def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model
 
 
 def fill_constants_stack(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                         schedule: tuple[int, ...] = (), **values) -> np.ndarray:
+                         schedule: tuple[int, ...] = (), n_law: int = 0, **values) -> np.ndarray:
     """:func:`fill_constants` of ``N`` cases at once: ``out`` (N, nc), each of ``values`` the ``N``
     cases' entries stacked, (N, *shape) (or (N, size)); in place, returned. Each row is what
     :func:`fill_constants` writes into that row alone.
@@ -246,7 +255,7 @@ def fill_constants_stack(out: np.ndarray, nz: int = 0, rotors: bool = False, lag
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule))[0]
+    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule), n_law)[0]
     N = len(out)
     for name, value in values.items():
         where, shape = _slot_of(slots, name, values)
@@ -266,11 +275,11 @@ def _slot_of(slots: dict, name: str, values: dict) -> tuple[slice, tuple[int, ..
 
 
 @lru_cache(maxsize=16)
-def _slots(nz: int, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-           schedule: tuple[int, ...] = ()) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+def _slots(nz: int, rotors: bool = False, lag_model: bool = False, ny: int = 0, schedule: tuple[int, ...] = (),
+           n_law: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
-    for name, shape in constant_layout(nz, rotors, lag_model, ny, schedule):
+    for name, shape in constant_layout(nz, rotors, lag_model, ny, schedule, n_law):
         size = int(np.prod(shape))
         slots[name] = (slice(offset, offset + size), shape)
         offset += size
@@ -328,6 +337,11 @@ class LoopSpec:
         highest power of ``v`` whose coefficients are not all zero (0: ``nearest``, 1: ``linear``,
         at most 3: ``cubic``; the others are not read). ``pattern`` is then the union of the table's
         state-gain nonzeros.
+    law : tuple
+        The control law, when it is not LQR (empty): its structure, baked into the code (a PID cascade's,
+        :func:`quadctl.sim.pid.structure_of`). The law's states follow the plant's in the loop state; its
+        numbers are the ``law`` constants. Such a law is sampled (``held``) and measures the full state
+        (no integrators, lag model, filter or gain schedule of an LQR design; ``pattern`` all false).
     """
 
     pattern: tuple[bool, ...]
@@ -345,6 +359,7 @@ class LoopSpec:
     method: str = "rk4"
     phi_pattern: tuple[bool, ...] = ()
     schedule: tuple = ()
+    law: tuple = ()
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -363,6 +378,8 @@ class LoopSpec:
             raise ValueError("rotor dynamics need the rotors' mixing: saturation 'motors'")
         if self.delay < 0 or (self.delay and not self.held):
             raise ValueError(f"delay: a whole number of samples >= 0 of a held loop, got {self.delay!r}")
+        if self.law:
+            _check_law(self)
 
     @property
     def nz(self) -> int:
@@ -395,9 +412,27 @@ class LoopSpec:
         return N_STATES if self.measured else 0
 
     @property
+    def n_law(self) -> int:
+        """States of a law other than LQR (:attr:`law`), after the plant's; 0 for LQR."""
+        if not self.law:
+            return 0
+        from quadctl.sim.pid import N_LAW_STATES
+
+        return N_LAW_STATES
+
+    @property
+    def n_law_constants(self) -> int:
+        """Constants of a law other than LQR (its ``law`` entry of ``c``); 0 for LQR."""
+        if not self.law:
+            return 0
+        from quadctl.sim.pid import n_constants
+
+        return n_constants(self.law)
+
+    @property
     def nx(self) -> int:
-        """Loop states ``[x; f; z; l; b; xh]``."""
-        return self.n_plant + self.nz + self.n_lag + self.n_buffer + self.n_estimate
+        """Loop states ``[x; f; z; l; s; b; xh]`` (``s``: a law's own states, :attr:`n_law`)."""
+        return self.n_plant + self.nz + self.n_lag + self.n_law + self.n_buffer + self.n_estimate
 
     @property
     def n_exo(self) -> int:
@@ -412,7 +447,8 @@ class LoopSpec:
     @property
     def n_constants(self) -> int:
         """Length of ``c``: the loop's constants, then (ETDRK4) the :data:`PHI_LAYOUT` block."""
-        return constant_size(self.nz, self.rotors, self.lag_model, self.ny, self.schedule_shape) + self.n_phi
+        return constant_size(self.nz, self.rotors, self.lag_model, self.ny, self.schedule_shape,
+                             self.n_law_constants) + self.n_phi
 
     @property
     def n_phi(self) -> int:
@@ -431,7 +467,8 @@ class LoopSpec:
                 + (" reference=1" if self.reference else "")
                 + (f" method={self.method}" if self.method != "rk4" else "")
                 + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else "")
-                + (" schedule={}:{}:{}:{}".format(*self.schedule) if self.schedule else ""))
+                + (" schedule={}:{}:{}:{}".format(*self.schedule) if self.schedule else "")
+                + (" law=" + ":".join(map(str, self.law)) if self.law else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -453,6 +490,19 @@ def _check_schedule(spec: LoopSpec) -> None:
     if columns not in (N_STATES, N_STATES + spec.nz):
         raise ValueError(f"schedule: {columns} gain columns; a loop with {spec.nz} integrators schedules "
                          f"{N_STATES} (the state gain) or {N_STATES + spec.nz} (with the integrator gains)")
+
+
+def _check_law(spec: LoopSpec) -> None:
+    """Refuse a law other than LQR in a loop it cannot fly (:attr:`LoopSpec.law`)."""
+    if spec.law[0] != "pid":
+        raise ValueError(f"law: unknown control law {spec.law[0]!r}: use a PID cascade's structure")
+    if not spec.held:
+        raise ValueError("law: a PID cascade runs sampled, at its own rate: held=True")
+    if spec.saturation != "motors":
+        raise ValueError("law: a PID cascade makes rotor commands: saturation 'motors' (the config's motors:)")
+    if spec.nz or spec.lag_model or spec.measured or spec.schedule or spec.method != "rk4" or any(spec.pattern):
+        raise ValueError("law: a PID cascade has no LQR gain, integrators, lag model, Kalman filter or gain "
+                         "schedule, and runs with RK4")
 
 
 _PN, _PE, _PSI = STATE_INDEX["pN"], STATE_INDEX["pE"], STATE_INDEX["psi"]
@@ -595,7 +645,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
     nz, nx, npl, nl = spec.nz, spec.nx, spec.n_plant, spec.n_lag
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
-    for name, shape in constant_layout(nz, spec.rotors, spec.lag_model, spec.ny, spec.schedule_shape):
+    for name, shape in constant_layout(nz, spec.rotors, spec.lag_model, spec.ny, spec.schedule_shape,
+                                       spec.n_law_constants):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -738,13 +789,23 @@ def build(spec: LoopSpec) -> LoopFunctions:
         """dl/dt of the controller's lag model under its command ``u``."""
         return (u - parts["u_trim"] - Y[npl + nz:npl + nz + nl]) / parts["tau_model"]
 
-    u_now, z_rate = control(X, t)
-    X_sampled = ca.vertcat(X[:npl], X[npl:npl + nz] + parts["Ts"] * z_rate) if nz else X[:npl]
+    n_law = spec.n_law
+    if spec.law:  # a PID cascade (quadctl.sim.pid): its own states after the plant's
+        from quadctl.sim import pid
+
+        command, s_next = pid.law(spec.law, X[npl:npl + n_law], X[:N_STATES] + sensor, x_ref(t), u_ref(t),
+                                  parts["law"], parts["mix"], parts["mix_inv"], parts["hi"], parts["Ts"],
+                                  params[GRAVITY])
+        u_now, X_sampled = saturate(command), ca.vertcat(X[:npl], s_next)
+    else:
+        u_now, z_rate = control(X, t)
+        X_sampled = ca.vertcat(X[:npl], X[npl:npl + nz] + parts["Ts"] * z_rate) if nz else X[:npl]
     if nl:  # the lag model's exact ZOH over one sample under the held command
         a = ca.exp(-parts["Ts"] / parts["tau_model"])
         X_sampled = ca.vertcat(X_sampled, a * X[npl + nz:npl + nz + nl] + (1 - a) * (u_now - parts["u_trim"]))
     if spec.delay:  # apply the oldest command, shift the newest in
-        buffer, nb = X[npl + nz + nl:npl + nz + nl + spec.n_buffer], spec.n_buffer
+        b0, nb = npl + nz + nl + n_law, spec.n_buffer
+        buffer = X[b0:b0 + nb]
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
     if ne and spec.held:  # predict from the updated estimate under the applied input
         xc = deviation(X, t)

@@ -99,6 +99,7 @@ def _templates() -> dict[int, str]:
         ca.OP_NEG: "-{a}", ca.OP_TWICE: "2.0 * {a}", ca.OP_SQ: "{a} * {a}", ca.OP_INV: "1.0 / {a}",
         ca.OP_SIN: "sin({a})", ca.OP_COS: "cos({a})", ca.OP_TAN: "tan({a})", ca.OP_SQRT: "sqrt({a})",
         ca.OP_FABS: "fabs({a})", ca.OP_EXP: "exp({a})", ca.OP_LOG: "log({a})", ca.OP_FLOOR: "floor({a})",
+        ca.OP_ATAN: "atan({a})", ca.OP_ATAN2: "atan2({a}, {b})",
         ca.OP_FMIN: "fmin({a}, {b})", ca.OP_FMAX: "fmax({a}, {b})",
         ca.OP_POW: "pow({a}, {b})", ca.OP_CONSTPOW: "pow({a}, {b})",
         ca.OP_LT: "({a} < {b}) ? 1.0 : 0.0", ca.OP_LE: "({a} <= {b}) ? 1.0 : 0.0",

@@ -117,6 +117,9 @@ class ClosedLoop:
     schedule_eigenvalues: np.ndarray | None = None
     """rad/s: the eigenvalues of the schedule's frozen loops (its interpolated gains on the model at
     each value), which the continuous loop's RK4 step holds stable too; None: the loop's own only."""
+    law: object | None = None
+    """:class:`quadctl.config.pid.PidGains` of the PID cascade that flies in place of the LQR gains
+    (:mod:`quadctl.sim.pid`; ``K`` is then zero and ``rate`` the cascade's base rate); None: LQR."""
     schedule_jacobians: tuple | None = None
     """``(A, B)``, (P, 12, 12) and (P, 12, 4): the design model trimmed and linearized at each of the
     schedule's values, whose loops closed with the table's gains are ETDRK4's linear parts
@@ -252,7 +255,17 @@ class ClosedLoop:
                                 held=self.rate is not None, noise=noise,
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
                                 lag_model=self.Kv is not None, wind=wind,
-                                measured=tuple(STATE_INDEX[s] for s in self.measured), reference=reference)
+                                measured=tuple(STATE_INDEX[s] for s in self.measured), reference=reference,
+                                law=self.law_structure)
+
+    @property
+    def law_structure(self) -> tuple:
+        """The law's structure baked into the code (:attr:`quadctl.sim.builder.LoopSpec.law`); empty: LQR."""
+        if self.law is None:
+            return ()
+        from quadctl.sim.pid import structure_of
+
+        return structure_of(self.law)
 
     @property
     def measured(self) -> tuple[str, ...]:
@@ -280,11 +293,11 @@ class ClosedLoop:
         return pack_constants(*self.constant_layout, **values, **self.gain_constants())
 
     @property
-    def constant_layout(self) -> tuple[int, bool, bool, int, tuple[int, ...]]:
-        """``(nz, rotors, lag_model, ny, schedule)``: the arguments of
+    def constant_layout(self) -> tuple[int, bool, bool, int, tuple[int, ...], int]:
+        """``(nz, rotors, lag_model, ny, schedule, law)``: the arguments of
         :func:`quadctl.sim.builder.constant_layout` that give the layout of :meth:`constants`."""
         return (len(self.integral_states), self.rotor_time_constant is not None, self.Kv is not None,
-                len(self.measured), self.schedule_shape)
+                len(self.measured), self.schedule_shape, len(self.law.values) if self.law is not None else 0)
 
     @property
     def schedule_degree(self) -> int:
@@ -306,6 +319,8 @@ class ClosedLoop:
         pattern, ``Kv``): all that differs between two loops of one structure
         (:func:`quadctl.sim.builder.fill_constants` writes them into a copy of the other's)."""
         out = {"K": self.K}
+        if self.law is not None:
+            out["law"] = np.asarray(self.law.values, dtype=float)
         nz = len(self.integral_states)
         if nz:
             Ki = np.asarray(self.Ki, dtype=float).reshape(len(self.u_trim), nz)
@@ -331,13 +346,17 @@ class ClosedLoop:
         return psi - self.x_trim[STATE_INDEX["psi"]]
 
     def initial_loop_state(self, x0) -> np.ndarray:
-        """The loop state ``[x0; f; z; l; b; xh]`` a run starts from: the rotors (if they lag) at their trim
-        thrusts ``mix u_trim``, the integrators and the lag model (deviation from trim) at zero, the
-        delay's buffer at the trim input."""
+        """The loop state ``[x0; f; z; l; s; b; xh]`` a run starts from: the rotors (if they lag) at their trim
+        thrusts ``mix u_trim``, the integrators and the lag model (deviation from trim) at zero, a PID
+        cascade's states (:func:`quadctl.sim.pid.initial_states`), the delay's buffer at the trim input."""
         parts = [np.asarray(x0, dtype=float)]
         if self.rotor_time_constant is not None:
             parts.append(self.actuators.commands(self.u_trim))
         parts.append(np.zeros(len(self.integral_states) + (len(self.u_trim) if self.Kv is not None else 0)))
+        if self.law is not None:
+            from quadctl.sim.pid import initial_states
+
+            parts.append(initial_states(self.law, x0, self.u_trim))
         parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
         parts.append(np.zeros(N_STATES if self.estimator is not None else 0))
         return np.concatenate(parts)
@@ -501,7 +520,7 @@ def wind_felt(wind: WindSpec, period: float, ks, dt: float, block: int = 256) ->
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
              noise: NoiseSpec | None = None, wind: WindSpec | None = None,
              max_samples: int = MAX_SAMPLES, progress=None, reference=None, method: str = "rk4",
-             tolerance: float = DEFAULT_TOLERANCE) -> SimResult:
+             tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None) -> SimResult:
     """RK4 (or ETDRK4) of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
@@ -532,6 +551,9 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         :mod:`quadctl.sim.schedule`), ``dt: auto`` its graded schedule.
     tolerance : float
         The error ETDRK4's ``dt: auto`` aims at.
+    exo_rate : float, optional
+        Hz of the exogenous clock when there is no noise (:class:`ExoStream`; None: the controller's
+        rate): loops of different rates flown with one ``exo_rate`` feel the same wind (RK4 only).
 
     Returns
     -------
@@ -565,7 +587,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     n = plan.n_steps
     stride = record_stride(n, max_samples)
     start = time.perf_counter()
-    exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
+    exo = (ExoStream(noise if noisy else None, wind if windy else None, exo_rate or loop.rate, reference)
            if noisy or windy or reference is not None else None)
     done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo, progress)
     wall = time.perf_counter() - start

@@ -8,6 +8,7 @@ import typer
 
 from quadctl.cli.commands import (
     check,
+    compare,
     configs,
     decouple,
     design,
@@ -29,8 +30,8 @@ from quadctl.cli.options import flags_without_placeholder
 COMMAND_CLASS = flags_without_placeholder(typer.core.TyperCommand)
 """Every command's class: its flags show no value placeholder in ``--help``."""
 
-COMMANDS = (init, trim, linearize, decouple, check, design, schedule, simulate, margins, export, sweep, run, report,
-            identify, configs)
+COMMANDS = (init, trim, linearize, decouple, check, design, schedule, simulate, compare, margins, export, sweep, run,
+            report, identify, configs)
 
 
 def register(app: typer.Typer) -> None:

@@ -1,0 +1,59 @@
+from typing import Annotated, Optional
+
+import typer
+
+from quadctl.cli.options import ConfigOpt, JsonOpt, OutOpt, SetOpt, open_workspace
+
+NAME = "compare"
+
+
+def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, json: JsonOpt = False,
+            law: Annotated[Optional[list[str]], typer.Option(
+                "--law", help="A law to fly beside the LQR design: pid:crazyflie or pid:px4 (the flight stacks' "
+                "published defaults; controller.pid's values apply to its own preset). Repeat for more; "
+                "default pid:crazyflie.")] = None,
+            plot: Annotated[bool, typer.Option(
+                "--plot", help="Also write one figure per quantity, the laws overlaid, to DIR/plots/compare-*.png.")]
+            = False) -> None:
+    """Fly the config's LQR design and flight stacks' PID cascades side by side; write compare.json.
+
+    Every law flies the same plant from the same initial offset, along the same reference, through the
+    same wind and noise (one realization, read by all). The table shows tracking error, settling,
+    overshoot, rotor use, time at a rotor limit and the cost on the config's LQR weights.
+    """
+    import json as jsonlib
+
+    from quadctl import artifacts
+    from quadctl.cli import render
+    from quadctl.compare import compare, parse_law, payload
+    from quadctl.errors import ConfigError
+
+    laws = law or ["pid:crazyflie"]
+    for text in laws:
+        try:
+            parse_law(text)
+        except ValueError as exc:
+            raise ConfigError(f"--law: {exc}") from None
+    ws = open_workspace(config, out, False, sets)
+    result = compare(ws, laws)
+    data = payload(result)
+    data["meta"] = artifacts.metadata(ws.cfg, "compare")
+    text = jsonlib.dumps(artifacts.jsonable(data), indent=1, sort_keys=True) + "\n"
+    path = ws.write_bytes(ws.path("compare.json"), text.encode())
+    figures = []
+    if plot:
+        from quadctl import plots
+        from quadctl.plots.compare import comparison_figures
+
+        for stem, fig in comparison_figures(result.laws, title=ws.setup.name).items():
+            figures.append(ws.write_bytes(artifacts.plot_path(ws.out, f"compare-{stem}"), plots.png_bytes(fig, 90)))
+    if json:
+        render.emit_json(data)
+        return
+    from quadctl.present import compare as words
+
+    render.show(words.table(result), words.disturbance_sentence(result),
+                words.free_position_sentence(ws.setup.regulated))
+    render.out.print(f"-> {path}")
+    for fig_path in figures:
+        render.out.print(f"figure -> {fig_path}")

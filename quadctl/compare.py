@@ -1,0 +1,194 @@
+"""Laws side by side: the config's LQR design and flight stacks' PID cascades on one plant.
+
+Every law flies the same plant (the setup's, with its rotors and delay), from the same initial
+offset, along the same reference (a mission), through the same wind and the same noise: one
+exogenous clock for all (the noise's period, else the LQR controller's, else the default), so each
+run reads the same realization (:attr:`Comparison.disturbances` holds its digest, per law). Each
+run is summarized by the same metrics (:data:`METRICS`), its cost on the config's LQR weights.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from quadctl.layout import STATE_INDEX
+from quadctl.metrics import lqr_cost, overshoot, settling_time
+from quadctl.noise import DEFAULT_PERIOD
+from quadctl.pipeline import Stages, flown_reference, pid_loop_of
+from quadctl.sim.run import ClosedLoop, ExoStream, SimResult, simulate
+
+METRICS: tuple[tuple[str, str, str], ...] = (
+    ("position_rms", "m", "RMS over the run of |p - p_ref|"),
+    ("position_peak", "m", "largest |p - p_ref|"),
+    ("attitude_rms", "rad", "RMS over the run of |(phi, theta, psi) - reference|"),
+    ("settling", "s", "time after which |p - p_ref| stays within 2 % of its peak (None: never)"),
+    ("altitude_overshoot", "%", "largest excursion of pD past its reference, in % of the initial error"),
+    ("rotor_peak", "1", "largest rotor thrust over the rotors' largest (motors.max_thrust)"),
+    ("rotor_rms", "1", "RMS over the run and the rotors of thrust over the largest"),
+    ("saturated", "s", "time with a rotor at a thrust limit (within 0.1 % of its range)"),
+    ("cost", "1", "integral of e' Q e + du' R du dt on the config's LQR weights"),
+)
+"""Each metric of a run: name, unit, meaning."""
+SATURATION_BAND = 1e-3
+"""A rotor counts as at its limit within this fraction of its thrust range."""
+
+
+@dataclass(frozen=True)
+class LawRun:
+    """One law's run in a comparison.
+
+    Attributes
+    ----------
+    name : str
+        ``lqr`` or ``pid:<preset>``.
+    title : str
+    rate : float or None
+        Hz of the law's base loop (None: continuous).
+    loop : ClosedLoop
+    run : SimResult
+    metrics : dict
+        :data:`METRICS` by name.
+    disturbances : str
+        sha256 of the exogenous rows (noise, wind) the run read, over its duration.
+    """
+
+    name: str
+    title: str
+    rate: float | None
+    loop: ClosedLoop
+    run: SimResult
+    metrics: dict
+    disturbances: str
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Every law's run, and what they shared."""
+
+    config: str
+    duration: float
+    exo_period: float
+    laws: tuple[LawRun, ...]
+    noise_seed: int | None
+    wind_seed: int | None
+
+    @property
+    def identical_disturbances(self) -> bool:
+        """Every law read the same noise and wind rows."""
+        return len({law.disturbances for law in self.laws}) == 1
+
+
+def parse_law(text: str) -> tuple[str, str | None]:
+    """``lqr`` or ``pid:<preset>`` as ``(kind, preset)``.
+
+    Raises
+    ------
+    ValueError
+        Anything else.
+    """
+    from quadctl.config.pid import PRESET_NAMES
+
+    kind, _, preset = text.partition(":")
+    if kind == "lqr" and not preset:
+        return "lqr", None
+    if kind == "pid" and preset in PRESET_NAMES:
+        return "pid", preset
+    raise ValueError(f"law {text!r}: use lqr or pid:<preset> with a preset of {', '.join(PRESET_NAMES)}")
+
+
+def compare(stages: Stages, laws=("pid:crazyflie",), duration: float | None = None) -> Comparison:
+    """The config's LQR design and each of ``laws`` flown on the setup's plant, side by side.
+
+    Parameters
+    ----------
+    stages : Stages
+        The config's stages (its setup, trim and LQR design).
+    laws : sequence of str
+        ``pid:<preset>`` (the config's ``controller.pid`` values apply to its own preset) or ``lqr``;
+        the LQR design always flies first.
+    duration : float, optional
+        s; None: the config's.
+
+    Returns
+    -------
+    Comparison
+    """
+    from quadctl.config.pid import resolve
+
+    setup = stages.setup
+    duration = setup.duration if duration is None else float(duration)
+    lqr = stages.lqr_loop
+    noise, wind = setup.noise, setup.wind
+    period = noise.period if noise is not None else (1.0 / lqr.rate if lqr.rate else DEFAULT_PERIOD)
+    reference = flown_reference(setup)
+    names = ["lqr", *[law for law in laws if parse_law(law)[0] != "lqr"]]
+    out = []
+    for name in dict.fromkeys(names):
+        kind, preset = parse_law(name)
+        if kind == "lqr":
+            loop, title = lqr, "LQR (" + ("continuous" if lqr.rate is None else f"{lqr.rate:g} Hz") + ")"
+        else:
+            own = setup.pid if setup.pid is not None and setup.pid.preset == preset else resolve(preset)
+            loop, title = pid_loop_of(setup, stages.linear, own), f"{own.title} PID"
+        run = simulate(loop, setup.initial_state(loop.x_trim), duration, setup.dt, noise=noise, wind=wind,
+                       max_samples=setup.max_samples, reference=reference, exo_rate=1.0 / period)
+        out.append(LawRun(name=name, title=title, rate=loop.rate, loop=loop, run=run,
+                          metrics=metrics_of(run, loop, setup.Q_block, setup.R_block),
+                          disturbances=disturbance_digest(noise, wind, loop.rate, period, duration)))
+    return Comparison(config=setup.name, duration=duration, exo_period=period, laws=tuple(out),
+                      noise_seed=noise.seed if noise is not None else None,
+                      wind_seed=wind.seed if wind is not None else None)
+
+
+def disturbance_digest(noise, wind, rate, period: float, duration: float) -> str:
+    """sha256 of the noise and wind rows a run of ``duration`` s on the exogenous clock of ``period``
+    reads (as :func:`quadctl.sim.run.simulate` draws them for a loop of ``rate`` Hz with that clock)."""
+    active = (noise is not None and noise.active) or (wind is not None and wind.active)
+    if not active:
+        return hashlib.sha256(b"none").hexdigest()
+    stream = ExoStream(noise if noise is not None and noise.active else None,
+                       wind if wind is not None and wind.active else None, 1.0 / period)
+    rows = stream.samples(0, int(np.ceil(duration / period)))
+    return hashlib.sha256(np.ascontiguousarray(rows, dtype=float).tobytes()).hexdigest()
+
+
+def metrics_of(run: SimResult, loop: ClosedLoop, Q, R) -> dict:
+    """:data:`METRICS` of one run."""
+    t = run.t
+    err = run.x - run.x_ref
+    pos = np.linalg.norm(err[:, :3], axis=1)
+    att = np.linalg.norm(err[:, STATE_INDEX["phi"]:STATE_INDEX["psi"] + 1], axis=1)
+    act = loop.actuators
+    rotors = run.u @ act.mix.T
+    top = float(np.max(act.hi))
+    span = act.hi - act.lo
+    at_limit = np.any((rotors <= act.lo + SATURATION_BAND * span) | (rotors >= act.hi - SATURATION_BAND * span),
+                      axis=1)
+    dt = np.diff(t, append=t[-1])
+    cost = lqr_cost(t, err, run.u - loop.u_trim, np.asarray(Q), np.asarray(R))
+
+    def rms(v):
+        return float(np.sqrt(np.trapezoid(v * v, t) / (t[-1] - t[0]))) if t[-1] > t[0] else float(abs(v[0]))
+
+    return {"position_rms": rms(pos), "position_peak": float(pos.max()), "attitude_rms": rms(att),
+            "settling": settling_time(t, pos) if run.status == "ok" else None,
+            "altitude_overshoot": overshoot(err[:, STATE_INDEX["pD"]]),
+            "rotor_peak": float(rotors.max() / top), "rotor_rms": rms(np.sqrt(np.mean((rotors / top) ** 2, axis=1))),
+            "saturated": float(np.sum(dt[at_limit])), "cost": cost if np.isfinite(cost) else None,
+            "status": run.status}
+
+
+def payload(comparison: Comparison) -> dict:
+    """``compare.json``: each law's metrics with the units, and the disturbances they shared."""
+    return {
+        "config": comparison.config, "duration": comparison.duration,
+        "units": {name: unit for name, unit, _ in METRICS} | {"duration": "s", "exo_period": "s", "rate": "Hz"},
+        "meaning": {name: meaning for name, _, meaning in METRICS},
+        "exo_period": comparison.exo_period, "noise_seed": comparison.noise_seed, "wind_seed": comparison.wind_seed,
+        "identical_disturbances": comparison.identical_disturbances,
+        "laws": [{"name": law.name, "title": law.title, "rate": law.rate, "disturbances": law.disturbances,
+                  **law.metrics} for law in comparison.laws],
+    }

@@ -1,0 +1,54 @@
+"""Laws overlaid (:mod:`quadctl.compare`): one figure per quantity, each law a line."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from quadctl.layout import STATE_INDEX
+from quadctl.plots.drawing import COLORS, trace
+
+QUANTITIES: tuple[tuple[str, str], ...] = (
+    ("position-error", "|p - p_ref| [m]"),
+    ("altitude", "pD - reference [m]"),
+    ("attitude-error", "|attitude - reference| [rad]"),
+    ("rotor-use", "largest rotor thrust / max [1]"),
+)
+"""Each figure: file stem and axis label."""
+
+
+def _values(name: str, run, loop) -> np.ndarray:
+    err = run.x - run.x_ref
+    if name == "position-error":
+        return np.linalg.norm(err[:, :3], axis=1)
+    if name == "altitude":
+        return err[:, STATE_INDEX["pD"]]
+    if name == "attitude-error":
+        return np.linalg.norm(err[:, STATE_INDEX["phi"]:STATE_INDEX["psi"] + 1], axis=1)
+    act = loop.actuators
+    return (run.u @ act.mix.T).max(axis=1) / float(np.max(act.hi))
+
+
+def comparison_figures(laws, *, title: str = "") -> dict[str, Figure]:
+    """``{stem: figure}``: each of :data:`QUANTITIES` against time, the laws overlaid.
+
+    Parameters
+    ----------
+    laws : sequence
+        Each with ``name``, ``run`` (a SimResult) and ``loop`` (its ClosedLoop).
+    """
+    out = {}
+    for stem, label in QUANTITIES:
+        fig = Figure(figsize=(10.0, 3.6), layout="constrained")
+        ax = fig.subplots()
+        for k, law in enumerate(laws):
+            trace(ax, law.run.t, _values(stem, law.run, law.loop), color=COLORS[k % len(COLORS)], lw=1.2,
+                  label=law.name)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8, frameon=False)
+        what = stem.replace("-", " ")
+        fig.suptitle(f"{title}: {what}" if title else what)
+        out[stem] = fig
+    return out

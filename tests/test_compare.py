@@ -1,0 +1,74 @@
+"""``quadctl compare``: the LQR design and the stacks' PID cascades flown through one disturbance realization."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from quadctl.cli.app import app
+
+pytestmark = pytest.mark.compiler
+
+
+@pytest.fixture(scope="module", params=["wind", "wind+noise"])
+def gusty_crazyflie(request):
+    """The bundled crazyflie config with a gust and turbulence (and sensor and process noise, whose
+    period then sets the clock; without noise the clock is the LQR controller's)."""
+    import quadctl as qc
+    from quadctl.config import Config
+
+    data = qc.load_config("crazyflie").model_dump(mode="json")
+    if request.param == "wind+noise":
+        data["simulation"]["noise"] = {"seed": 7, "force": [0.002, 0.002, 0.002],
+                                       "sensor": {"pD": 0.005, "phi": 0.002, "p": 0.01}}
+    data["simulation"].update(
+        duration=2.0, wind={"gusts": [{"start": 0.5, "length": 0.5, "amplitude": [1.0, 0.5, 0.0]}],
+                            "turbulence": {"intensity": "light", "seed": 3}})
+    return qc.Stages(qc.setup_of(Config(**data)))
+
+
+def test_compare_feeds_every_law_the_same_noise_and_wind(gusty_crazyflie):
+    from quadctl.compare import compare
+
+    result = compare(gusty_crazyflie, ["pid:crazyflie", "pid:px4"])
+    assert [law.name for law in result.laws] == ["lqr", "pid:crazyflie", "pid:px4"]
+    assert result.identical_disturbances
+    # the wind each plant felt, at the instants all three runs recorded (500, 500 and 400 Hz loops)
+    times = [np.round(law.run.t, 9) for law in result.laws]
+    common = sorted(set(times[0]).intersection(*map(set, times[1:])))
+    assert len(common) > 50
+    felt = [law.run.wind[np.searchsorted(t, common)] for law, t in zip(result.laws, times)]
+    assert np.abs(felt[0]).max() > 0.5  # the gust is in there
+    for other in felt[1:]:
+        np.testing.assert_array_equal(other, felt[0])
+
+
+def test_without_one_clock_the_wind_rows_of_loops_of_different_rates_differ(gusty_crazyflie):
+    """What the shared clock prevents: a 400 Hz loop on its own clock reads other turbulence rows."""
+    from quadctl.compare import disturbance_digest
+
+    setup = gusty_crazyflie.setup
+    own = disturbance_digest(None, setup.wind, 400.0, 1 / 400.0, 2.0)
+    shared = disturbance_digest(None, setup.wind, 400.0, 1 / 500.0, 2.0)
+    assert own != shared
+
+
+def test_compare_command_writes_the_table_and_json_with_units(tmp_path):
+    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--set", "simulation.duration=1", "-o", str(tmp_path),
+                                   "--json"],
+                             catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert data["identical_disturbances"] is True
+    assert [law["name"] for law in data["laws"]] == ["lqr", "pid:crazyflie"]
+    assert data["units"]["position_rms"] == "m" and data["units"]["saturated"] == "s"
+    assert json.loads((tmp_path / "compare.json").read_text())["laws"][1]["rate"] == 500.0
+
+
+def test_compare_refuses_an_unknown_law_in_one_line(tmp_path):
+    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--law", "pid:betaflight", "-o", str(tmp_path)])
+    assert res.exit_code == 2
+    assert "pid:<preset>" in res.output and "Traceback" not in res.output

@@ -1,0 +1,168 @@
+"""PID loops against closed forms, and the flight stacks' cascades flown on the full nonlinear model.
+
+The axis loops (:func:`quadctl.design.pid.axis_loop`) must have the roots of their characteristic
+polynomials written out by hand (continuous, and sampled through the zero-order hold's transfer
+function ``T^2 (z + 1) / (2 m (z - 1)^2)``); the simulation law's PID arithmetic
+(:mod:`quadctl.sim.pid`) must be the sampled loop's. The Crazyflie's cascade with its firmware's
+defaults must hold the bundled ``crazyflie`` config's hover from its initial offset within the rotor
+limits, and fail with one gain's sign flipped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from quadctl.design.pid import axis_loop
+
+POLE_TOL = 1e-9
+"""Relative: the roots of a cubic or quartic with well-separated roots, and the eigenvalues of a 3x3 or
+4x4 matrix of entries of order one, agree to ~1e-13; 1e-9 leaves room for any LAPACK."""
+
+M, T = 0.027, 0.002  # kg (the Crazyflie's mass), s (its 500 Hz attitude loop)
+
+
+def assert_same_poles(A, roots, extra=()):
+    """The eigenvalues of ``A`` are ``roots`` (with ``extra``), as sets, each to POLE_TOL of its size."""
+    want = np.sort_complex(np.concatenate([np.roots(roots), np.asarray(extra, dtype=complex)]))
+    got = np.sort_complex(np.linalg.eigvals(A))
+    assert len(got) == len(want)
+    for g in got:  # each pole matched by the nearest root (sets, not sorted order)
+        k = int(np.argmin(np.abs(want - g)))
+        diff = abs(want[k] - g)
+        assert diff <= POLE_TOL * max(1.0, abs(g)), f"pole {g} vs {want[k]}: max diff {diff:.4E}"
+        want = np.delete(want, k)
+
+
+@pytest.mark.parametrize("kp, ki, kd", [(2.0, 0.5, 0.3), (25.0, 15.0, 0.0), (0.8, 0.0, 0.2)])
+def test_continuous_pid_on_a_double_integrator_has_the_poles_of_m_s3_kd_s2_kp_s_ki(kp, ki, kd):
+    assert_same_poles(axis_loop(M, kp, ki, kd), [M, kd, kp, ki])
+
+
+@pytest.mark.parametrize("kp, ki, kd", [(2.0, 0.5, 0.3), (25.0, 15.0, 0.001), (0.8, 0.0, 0.002)])
+def test_sampled_pid_on_a_double_integrator_has_the_poles_of_its_z_domain_polynomial(kp, ki, kd):
+    # 1 + P C = 0, P = T^2 (z + 1) / (2 m (z - 1)^2), C = kp + ki T z / (z - 1) + kd (z - 1) / (T z):
+    # 2 m (z - 1)^3 z + T^2 (z + 1) (kp z (z - 1) + ki T z^2 + kd (z - 1)^2 / T) = 0
+    z1, z = np.array([1.0, -1.0]), np.array([1.0, 0.0])
+    controller = np.polyadd(np.polyadd(kp * np.polymul(z, z1), ki * T * np.polymul(z, z)),
+                            kd / T * np.polymul(z1, z1))
+    poly = np.polyadd(2 * M * np.polymul(np.polymul(np.polymul(z1, z1), z1), z),
+                      T * T * np.polymul([1.0, 1.0], controller))
+    assert_same_poles(axis_loop(M, kp, ki, kd, sample_time=T), poly)
+
+
+@pytest.mark.parametrize("outer, kp, ki", [(2.0, 25.0, 15.0), (0.95, 4.0, 2.0)])
+def test_continuous_p_over_pi_cascade_has_the_poles_of_its_cubic(outer, kp, ki):
+    # m s^2 X = (kp + ki / s)(-outer X - s X)  =>  m s^3 + kp s^2 + (kp outer + ki) s + ki outer = 0
+    assert_same_poles(axis_loop(M, kp, ki, outer=outer), [M, kp, kp * outer + ki, ki * outer])
+
+
+@pytest.mark.parametrize("outer, kp, ki", [(2.0, 25.0, 15.0), (0.95, 4.0, 2.0)])
+def test_sampled_p_over_pi_cascade_has_the_poles_of_its_z_domain_polynomial(outer, kp, ki):
+    # E = -outer X - V, X = T^2 (z + 1) U / (2 m (z - 1)^2), V = T U / (m (z - 1)), U = (kp + ki T z / (z - 1)) E:
+    # 2 m (z - 1)^3 + (kp (z - 1) + ki T z)(outer T^2 (z + 1) + 2 T (z - 1)) = 0; the unused previous
+    # measurement (no D) adds a pole at 0
+    z1 = np.array([1.0, -1.0])
+    poly = np.polyadd(2 * M * np.polymul(np.polymul(z1, z1), z1),
+                      np.polymul(np.polyadd(kp * z1, [ki * T, 0.0]),
+                                 np.polyadd(outer * T * T * np.array([1.0, 1.0]), 2 * T * z1)))
+    assert_same_poles(axis_loop(M, kp, ki, outer=outer, sample_time=T), poly, extra=[0.0])
+
+
+def test_the_simulation_law_pid_is_the_sampled_axis_loop():
+    """The law's PID arithmetic (integrate, derivative, pid_output of quadctl.sim.pid) on the axis state
+    gives axis_loop's sampled matrix column by column (the map is linear: its columns are the images
+    of the unit vectors)."""
+    from quadctl.sim.pid import derivative, integrate, pid_output
+
+    kp, ki, kd = 2.0, 0.5, 0.3
+
+    def step(s):
+        x, v, i, y_prev = s
+        e = -x
+        i_new = integrate(i, e, T, 0.0, lib=np)
+        u = pid_output(kp, ki, kd, e, i_new, derivative(x, y_prev, T))
+        return np.array([x + T * v + T * T / (2 * M) * u, v + T / M * u, i_new, x])
+
+    A = np.column_stack([step(col) for col in np.eye(4)])
+    np.testing.assert_allclose(A, axis_loop(M, kp, ki, kd, sample_time=T), rtol=1e-14, atol=1e-14)
+
+
+@pytest.fixture(scope="module")
+def crazyflie():
+    import quadctl as qc
+
+    return qc.Stages(qc.setup_of(qc.load_config("crazyflie")))
+
+
+def fly(stages, gains, duration=8.0):
+    import quadctl as qc
+    from quadctl.pipeline import pid_loop_of
+
+    loop = pid_loop_of(stages.setup, stages.linear, gains)
+    return loop, qc.simulate(loop, stages.setup.initial_state(loop.x_trim), duration)
+
+
+@pytest.mark.compiler
+def test_the_crazyflie_cascade_with_firmware_defaults_recovers_hover_within_rotor_limits(crazyflie):
+    from quadctl.config.pid import resolve
+
+    loop, run = fly(crazyflie, resolve("crazyflie"))
+    assert run.status == "ok", run.message
+    offset = np.abs(crazyflie.setup.initial_offset)
+    err = np.abs(run.x[-1] - run.x_ref[-1])
+    # back to within 5 % of each offset (pD 0.5 m, phi and theta 0.1 rad, psi 0.2 rad) and 2 cm in position
+    # (the altitude closes slowly: the firmware's position z integrator, KI 0.5)
+    assert np.all(err[offset > 0] < 0.05 * offset[offset > 0]), err
+    assert np.all(err[:3] < 0.02), err[:3]
+    rotors = run.u @ loop.actuators.mix.T  # each rotor's thrust (N)
+    act = loop.actuators
+    assert rotors.min() >= act.lo.min() - 1e-12 and rotors.max() <= act.hi.max() + 1e-12
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("flip", ["rate_roll_kp", "att_pitch_kp", "vel_z_kp"])
+def test_the_crazyflie_cascade_with_one_gain_sign_flipped_does_not_recover(crazyflie, flip):
+    from quadctl.config.pid import resolve
+
+    gains = resolve("crazyflie")
+    _, run = fly(crazyflie, gains.with_values(**{flip: -gains[flip]}), duration=4.0)
+    err = np.abs(run.x[-1] - run.x_ref[-1])
+    assert run.status != "ok" or err.max() > 0.5, (flip, run.status, err)
+
+
+@pytest.mark.compiler
+def test_the_cascade_flies_alike_in_the_one_case_loop_the_simd_lanes_and_the_interpreter(crazyflie):
+    """Every runner is generated from the one builder: eight lanes of eight gain sets (the firmware's,
+    scaled) give, lane by lane, the one-case compiled run of that gain set, and CasADi's virtual machine
+    the first, to round-off (the SIMD build and the virtual machine may order or fuse operations
+    differently: ~1e-14 relative over 250 samples of a loop whose PWM states are ~3e4)."""
+    from quadctl.config.pid import resolve
+    from quadctl.pipeline import pid_loop_of
+    from quadctl.sim.cases import Cases
+    from quadctl.sim.engine import LANES, runner
+    from quadctl.sim.interpreted import InterpretedRunner
+
+    base = resolve("crazyflie")
+    loops = [pid_loop_of(crazyflie.setup, crazyflie.linear,
+                         base.with_values(rate_roll_kp=base["rate_roll_kp"] * (1 + 0.05 * k),
+                                          att_pitch_kp=base["att_pitch_kp"] * (1 - 0.04 * k)))
+             for k in range(LANES)]
+    plan = loops[0].plan(0.5)
+    x0 = crazyflie.setup.initial_state(loops[0].x_trim)
+    lo, hi = loops[0].bounds(0.5)
+    spec = loops[0].spec()
+    assert len({loop.spec() for loop in loops}) == 1  # gains are constants: one compiled loop for all
+
+    def cases(chosen):
+        return Cases.of(np.array([loop.initial_loop_state(x0) for loop in chosen]),
+                        np.array([loop.constants(plan.sample_time) for loop in chosen]), plan.dt, plan.n_steps, 50,
+                        lo, hi, hold=plan.hold)
+
+    lanes = runner(spec, LANES).run(cases(loops))
+    for loop, (done, _, xs, _) in zip(loops, lanes):
+        (done1, _, xs1, _), = runner(spec, 1).run(cases([loop]))
+        assert done == done1 == plan.n_steps
+        np.testing.assert_allclose(xs, xs1, rtol=1e-9, atol=1e-9)
+    (_, _, xs_vm, _), = InterpretedRunner(spec).run(cases(loops[:1]))
+    np.testing.assert_allclose(xs_vm, lanes[0][2], rtol=1e-9, atol=1e-9)
