@@ -166,3 +166,17 @@ def test_the_cascade_flies_alike_in_the_one_case_loop_the_simd_lanes_and_the_int
         np.testing.assert_allclose(xs, xs1, rtol=1e-9, atol=1e-9)
     (_, _, xs_vm, _), = InterpretedRunner(spec).run(cases(loops[:1]))
     np.testing.assert_allclose(xs_vm, lanes[0][2], rtol=1e-9, atol=1e-9)
+
+
+def test_a_cascade_told_to_fly_with_etdrk4_is_refused_naming_the_key():
+    """ETDRK4's linear part is the LQR loop's: a PID cascade with it is one config error, not a traceback."""
+    from _solve import cfg_dict
+
+    from quadctl import config
+    from quadctl.errors import ConfigError
+
+    data = cfg_dict("crazyflie")
+    data["controller"]["flies"] = "pid"
+    data["simulation"]["method"] = "etdrk4"
+    with pytest.raises(ConfigError, match=r"simulation\.method.*a PID cascade flies with RK4"):
+        config.from_dict(data, "pid-etd.yaml")

@@ -253,6 +253,9 @@ def _check_pid(cfg: Config, fail) -> None:
     if ctl.flies == "pid" and cfg.motors is None:
         fail("controller.flies", "pid", "a PID cascade commands the rotors: add motors: (the rotors' layout and "
              "thrust limits), or fly lqr")
+    if ctl.flies == "pid" and cfg.simulation.method == "etdrk4":
+        fail("simulation.method", "etdrk4", "ETDRK4 integrates the LQR loop's linear part exactly; a PID cascade "
+             "flies with RK4: set simulation.method: rk4 (or remove it), or fly lqr")
 
 
 MAX_DURATION = 86_400.0
