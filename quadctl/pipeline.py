@@ -106,7 +106,7 @@ def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
                                              else open_loop_eigenvalues),
                       delay_samples=setup.timing.delay_samples, Kv=Kv,
                       lag_model_time_constant=setup.design_lag_time_constant if Kv is not None else None,
-                      jacobians=(linear.A, linear.B))
+                      jacobians=(linear.A, linear.B), rate_filter=setup.rate_filter)
 
 
 def estimator_of(setup: Setup, linear: LinearModel):
@@ -338,8 +338,9 @@ def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLo
 
     timing = setup.timing
     Ts = des.sample_time or (timing.sample_time if timing.mode == "emulated" else None)
+    form = setup.rate_filter.form(Ts) if setup.rate_filter is not None else None
     eig = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
-                                                       setup.rotor_time_constant))
+                                                       setup.rotor_time_constant, rate_filter=form))
     seen = setup.rotor_time_constant if des.lag_time_constant is not None else None
     ideal = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, 0, seen))
     return VehicleLoop(eigenvalues=eig, design_eigenvalues=ideal, sample_time=Ts,

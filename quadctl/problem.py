@@ -18,6 +18,7 @@ import numpy as np
 
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
+from quadctl.linear.filters import RateFilter, rate_filter_of
 from quadctl.model import Vehicle
 from quadctl.motors import Actuators, Motors, actuators_of
 from quadctl.noise import DEFAULT_PERIOD, NoiseSpec
@@ -165,6 +166,10 @@ class Setup:
         The path to fly (``simulation.reference``); None: hold the trim.
     schedule : quadctl.config.ScheduleConfig or None
         The gain schedule (``schedule:``: variable, values, interpolation, check); None: one design.
+    rate_filter : quadctl.linear.filters.RateFilter or None
+        The filters on the gyro (``controller.filters``), in the loop the vehicle has; None: raw rates.
+    filter_design : {"ignore", "include"}
+        What the design does with them (``controller.filters.design``).
 
     Examples
     --------
@@ -203,6 +208,8 @@ class Setup:
     method: str = "rk4"
     tolerance: float | None = None
     schedule: ScheduleConfig | None = None
+    rate_filter: RateFilter | None = None
+    filter_design: str = "ignore"
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -285,7 +292,8 @@ def setup_of(cfg: Config) -> Setup:
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
         reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
-        schedule=cfg.schedule)
+        schedule=cfg.schedule, rate_filter=rate_filter_of(ctl.filters),
+        filter_design=ctl.filters.design if ctl.filters is not None else "ignore")
 
 
 def _reference(cfg: Config):

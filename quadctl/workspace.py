@@ -424,7 +424,7 @@ class Workspace(pipeline.Stages):
             actuators=self.setup.actuators, u_trim=linear.u_trim,
             initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
             rotor_time_constant=self.setup.rotor_time_constant,
-            estimator=pipeline.estimator_of(self.setup, linear))
+            estimator=pipeline.estimator_of(self.setup, linear), rate_filter=self.setup.rate_filter)
         vehicle = pipeline.vehicle_loop_of(self.setup, linear, des)
         self._write_json(MARGINS, "margins", payloads.margins(self.setup, des, result, vehicle))
         return result

@@ -122,6 +122,7 @@ def check_semantics(cfg: Config, label: str) -> None:
     _check_inertia(cfg, fail)
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
+    _check_filters(cfg, fail)
     _check_method(cfg, fail)
     if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
         fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
@@ -209,6 +210,31 @@ def _check_method(cfg: Config, fail) -> None:
             and cfg.motors.time_constant is not None):
         fail("simulation.method", sim.method, "has no linear part for a Kalman filter with the rotors' lag: "
              "use method: rk4, or remove motors.time_constant")
+
+
+def _check_filters(cfg: Config, fail) -> None:
+    """``controller.filters``: each frequency below the Nyquist frequency of a sampled controller, a
+    notch narrower than twice its centre, no Kalman filter beside them, and a gyro filter to design with."""
+    filters, rate = cfg.controller.filters, cfg.controller.rate
+    if filters is None:
+        return
+    for key, section, field in (("gyro", filters.gyro, "cutoff"), ("notch", filters.notch, "center"),
+                                ("d_term", filters.d_term, "cutoff")):
+        value = getattr(section, field) if section is not None else None
+        if value is not None and rate is not None and value >= rate / 2:
+            fail(f"controller.filters.{key}.{field}", value, f"Hz is not below the Nyquist frequency of the "
+                 f"controller's {rate:g} Hz ({rate / 2:g} Hz): a sampled filter cannot reach it; lower it, or "
+                 "raise controller.rate")
+    if filters.notch is not None and filters.notch.bandwidth >= 2 * filters.notch.center:
+        fail("controller.filters.notch.bandwidth", filters.notch.bandwidth,
+             f"Hz is not below twice the centre ({2 * filters.notch.center:g} Hz): the notch would cut down to "
+             "0 Hz; narrow it")
+    if cfg.estimator is not None and (filters.gyro is not None or filters.notch is not None):
+        fail("controller.filters", "gyro/notch", "with a Kalman filter (estimator:) the law takes the estimate, "
+             "not the gyro: the gyro's filters are not modelled in an LQG loop; remove estimator: or the filters")
+    if filters.design == "include" and filters.gyro is None and filters.notch is None:
+        fail("controller.filters.design", "include", "has no gyro filter to design with: set filters.gyro or "
+             "filters.notch, or use design: ignore")
 
 
 def _check_delay(cfg: Config, fail) -> None:

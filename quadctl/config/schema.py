@@ -298,6 +298,38 @@ class ScheduleConfig(_Section):
         4, description="the frozen-point stability check splits each interval between values into this many")
 
 
+class LowPassConfig(_Section):
+    """A low-pass filter: first order, or a second-order Butterworth."""
+
+    cutoff: Positive = Field(description="Hz: the -3 dB frequency; below half the controller's rate")
+    order: Literal[1, 2] = Field(2, description=(
+        "1: first order (sampled: the PT1 with its exact pole exp(-2 pi cutoff Ts)); 2: Butterworth "
+        "(sampled: the biquad of the bilinear transform prewarped at the cutoff, as PX4's LowPassFilter2p)"))
+
+
+class NotchConfig(_Section):
+    """A notch filter (sampled: the bilinear biquad prewarped at its centre, as PX4's NotchFilter)."""
+
+    center: Positive = Field(description="Hz: the frequency removed; below half the controller's rate")
+    bandwidth: Positive = Field(description="Hz: the width between its -3 dB points (Q = center / bandwidth)")
+
+
+class FiltersConfig(_Section):
+    """The filters the flight stack runs on its sensors, in the simulated loop, the margins and the C export."""
+
+    gyro: Optional[LowPassConfig] = Field(None, description=(
+        "low-pass on the gyro: the law takes the filtered body rates p, q, r in place of the measured ones "
+        "(PX4: 40 Hz, second order; Crazyflie: 30 Hz); absent: none"))
+    notch: Optional[NotchConfig] = Field(None, description=(
+        "notch on the gyro, after the low-pass (a frame's resonance or the rotors' frequency); absent: none"))
+    d_term: Optional[LowPassConfig] = Field(None, description=(
+        "low-pass on the rate derivative of a law with a D term (PX4: 30 Hz); the LQR law has none (its "
+        "rate feedback is proportional), so the lqr law does not use it"))
+    design: Literal["ignore", "include"] = Field("ignore", description=(
+        "ignore: the LQR is designed without the filters (they are still in the simulated loop, the margins "
+        "and the export); include: designed on the plant with the gyro filter's states, as rotor_lag: include"))
+
+
 class ControllerConfig(_Section):
     """How the controller runs on the flight computer."""
 
@@ -313,6 +345,8 @@ class ControllerConfig(_Section):
     delay: Optional[Union[NonNegative, DelaySamples]] = Field(
         None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
         "actuation; needs a rate; absent: none")
+    filters: Optional[FiltersConfig] = Field(
+        None, description="the sensor filters the flight stack runs (gyro low-pass, notch); absent: raw rates")
 
     def delay_samples(self) -> int:
         """Samples of delay (0 when none); :func:`quadctl.config.checks._check_delay` has checked it is whole."""
