@@ -168,8 +168,6 @@ class Setup:
         The gain schedule (``schedule:``: variable, values, interpolation, check); None: one design.
     rate_filter : quadctl.linear.filters.RateFilter or None
         The filters on the gyro (``controller.filters``), in the loop the vehicle has; None: raw rates.
-    filter_design : {"ignore", "include"}
-        What the design does with them (``controller.filters.design``).
 
     Examples
     --------
@@ -209,7 +207,6 @@ class Setup:
     tolerance: float | None = None
     schedule: ScheduleConfig | None = None
     rate_filter: RateFilter | None = None
-    filter_design: str = "ignore"
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -292,8 +289,7 @@ def setup_of(cfg: Config) -> Setup:
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
         reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
-        schedule=cfg.schedule, rate_filter=rate_filter_of(ctl.filters),
-        filter_design=ctl.filters.design if ctl.filters is not None else "ignore")
+        schedule=cfg.schedule, rate_filter=rate_filter_of(ctl.filters))
 
 
 def _reference(cfg: Config):

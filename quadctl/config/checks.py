@@ -214,7 +214,7 @@ def _check_method(cfg: Config, fail) -> None:
 
 def _check_filters(cfg: Config, fail) -> None:
     """``controller.filters``: each frequency below the Nyquist frequency of a sampled controller, a
-    notch narrower than twice its centre, no Kalman filter beside them, and a gyro filter to design with."""
+    notch narrower than twice its centre, and no Kalman filter beside them."""
     filters, rate = cfg.controller.filters, cfg.controller.rate
     if filters is None:
         return
@@ -232,9 +232,6 @@ def _check_filters(cfg: Config, fail) -> None:
     if cfg.estimator is not None and (filters.gyro is not None or filters.notch is not None):
         fail("controller.filters", "gyro/notch", "with a Kalman filter (estimator:) the law takes the estimate, "
              "not the gyro: the gyro's filters are not modelled in an LQG loop; remove estimator: or the filters")
-    if filters.design == "include" and filters.gyro is None and filters.notch is None:
-        fail("controller.filters.design", "include", "has no gyro filter to design with: set filters.gyro or "
-             "filters.notch, or use design: ignore")
 
 
 def _check_delay(cfg: Config, fail) -> None:

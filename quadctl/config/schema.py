@@ -315,7 +315,11 @@ class NotchConfig(_Section):
 
 
 class FiltersConfig(_Section):
-    """The filters the flight stack runs on its sensors, in the simulated loop, the margins and the C export."""
+    """The filters the flight stack runs on its sensors, in the simulated loop, the margins and the C export.
+
+    The LQR is designed without them (on the rigid body, with the rotors' lag when included): a full-state
+    gain on the filter's states would need the raw rates the filter is there to keep out of the law. The
+    margins and the vehicle's loop show what the filters cost."""
 
     gyro: Optional[LowPassConfig] = Field(None, description=(
         "low-pass on the gyro: the law takes the filtered body rates p, q, r in place of the measured ones "
@@ -325,9 +329,6 @@ class FiltersConfig(_Section):
     d_term: Optional[LowPassConfig] = Field(None, description=(
         "low-pass on the rate derivative of a law with a D term (PX4: 30 Hz); the LQR law has none (its "
         "rate feedback is proportional), so the lqr law does not use it"))
-    design: Literal["ignore", "include"] = Field("ignore", description=(
-        "ignore: the LQR is designed without the filters (they are still in the simulated loop, the margins "
-        "and the export); include: designed on the plant with the gyro filter's states, as rotor_lag: include"))
 
 
 class ControllerConfig(_Section):

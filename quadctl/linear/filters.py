@@ -13,11 +13,12 @@ Discrete forms, at the controller's period ``Ts``:
 - first-order low-pass at ``fc``: the PT1 with the exact (step-invariant, ZOH) pole
   ``a = exp(-2 pi fc Ts)``, ``y_k = a y_(k-1) + (1 - a) r_k`` (Betaflight's PT1 with its pole
   matched; unit gain at DC). Its phase at ``w`` is ``-atan2(a sin(w Ts), 1 - a cos(w Ts))``.
-- second-order (Butterworth) low-pass and notch: the biquads of the bilinear transform prewarped at
-  the cutoff (or the notch's centre), ``K = tan(pi f Ts)`` (PX4's ``LowPassFilter2p`` and
-  ``NotchFilter``; Bristow-Johnson's audio-EQ cookbook), run in direct form II transposed. The
-  prewarp keeps the -3 dB point (the notch's zero) exactly at the configured frequency, and the
-  bilinear map keeps the notch a true zero on the unit circle, which a ZOH equivalent does not.
+- second-order (Butterworth) low-pass and notch: the biquads of the bilinear transform, prewarped
+  at the cutoff, ``K = tan(pi fc Ts)`` (PX4's ``LowPassFilter2p``, SciPy's ``butter``), and at the
+  notch's centre and bandwidth (PX4's ``NotchFilter``, SciPy's ``iirnotch``), run in direct form II
+  transposed. The prewarp keeps the -3 dB point (the notch's zero and width) exactly where
+  configured, and the bilinear map keeps the notch a true zero on the unit circle, which a ZOH
+  equivalent does not.
 
 All filters start at rest (zero state): the filtered rate starts at ``d r_0``.
 """
@@ -119,15 +120,16 @@ def lowpass2(cutoff: float, sample_time: float | None) -> StateSpace:
 
 def notch(center: float, bandwidth: float, sample_time: float | None) -> StateSpace:
     """Notch at ``center`` Hz, ``bandwidth`` Hz wide at -3 dB (``Q = center / bandwidth``):
-    ``(s^2 + w0^2) / (s^2 + (w0 / Q) s + w0^2)``, or its bilinear biquad prewarped at ``center``."""
+    ``(s^2 + w0^2) / (s^2 + (w0 / Q) s + w0^2)``, or its bilinear biquad with the centre and the
+    bandwidth prewarped (PX4's ``NotchFilter``, SciPy's ``iirnotch``): ``alpha = tan(pi bandwidth Ts)``,
+    ``beta = -cos(2 pi center Ts)``, ``(1 + 2 beta z^-1 + z^-2) / ((1 + alpha) + 2 beta z^-1 + (1 - alpha) z^-2)``."""
     w0, Q = 2 * math.pi * center, center / bandwidth
     if sample_time is None:
         return StateSpace(np.array([[0.0, 1.0], [-w0 * w0, -w0 / Q]]), np.array([0.0, 1.0]),
                           np.array([0.0, -w0 / Q]), 1.0)
-    K = math.tan(math.pi * center * sample_time)
-    norm = 1.0 / (1.0 + K / Q + K * K)
-    b0, b1 = (1 + K * K) * norm, 2 * (K * K - 1) * norm
-    return _biquad(b0, b1, b0, b1, (1 - K / Q + K * K) * norm, sample_time)
+    alpha, beta = math.tan(math.pi * bandwidth * sample_time), -math.cos(2 * math.pi * center * sample_time)
+    b0 = 1.0 / (1.0 + alpha)
+    return _biquad(b0, 2 * beta * b0, b0, 2 * beta * b0, (1 - alpha) * b0, sample_time)
 
 
 def cascade(first: StateSpace, then: StateSpace) -> StateSpace:
