@@ -306,9 +306,13 @@ class VehicleLoop:
     rotor_time_constant: float | None = None
     rotor_lag: str = "ignore"
     delay_samples: int = 0
+    gyro_filter: str = ""
+    """What the gyro filter in the loop is (:meth:`quadctl.linear.filters.RateFilter.describe`); empty: none."""
 
     def _what(self) -> str:
         parts = []
+        if self.gyro_filter:
+            parts.append(f"the gyro's {self.gyro_filter}")
         if self.rotor_time_constant is not None:
             how = "included in" if self.rotor_lag == "include" else "ignored by"
             parts.append(f"the rotors' {self.rotor_time_constant * 1e3:g} ms lag ({how} the design)")
@@ -328,6 +332,8 @@ class VehicleLoop:
             return None
         fix = ("include the lag in the design (controller.rotor_lag: include), or lower the gains (larger R)"
                if self.rotor_time_constant is not None and self.rotor_lag == "ignore"
+               else "raise the gyro filter's cutoff (controller.filters) or lower the gains (larger R)"
+               if self.gyro_filter and not self.delay_samples
                else "lower the gains (larger R) or shorten the delay")
         return f"with {self._what()} the design's closed loop is UNSTABLE; {fix}"
 
@@ -348,7 +354,8 @@ def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLo
                        least_damping=stability.least_damping(eig, Ts),
                        design_least_damping=stability.least_damping(ideal, Ts),
                        rotor_time_constant=setup.rotor_time_constant, rotor_lag=setup.rotor_lag,
-                       delay_samples=timing.delay_samples)
+                       delay_samples=timing.delay_samples,
+                       gyro_filter=setup.rate_filter.describe() if setup.rate_filter is not None else "")
 
 
 def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float):

@@ -375,7 +375,7 @@ class Workspace(pipeline.Stages):
         vehicle = None
         if all(checks[n].stabilizable for n in regulated):
             warnings = list(self.rate_warnings)
-            if self.setup.rotor_time_constant is not None or timing.delay_samples:
+            if self.setup.rotor_time_constant is not None or timing.delay_samples or self.setup.rate_filter is not None:
                 des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
                 vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
         self._write_json(CHECKS, "checks", payloads.checks(self.setup, checks, regulated, warnings, vehicle))

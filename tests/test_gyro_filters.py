@@ -245,3 +245,12 @@ def test_filters_a_sampled_controller_cannot_run_are_refused():
         from_dict(config("mambo-200hz", filters={"gyro": {"cutoff": 100.0}}))
     with pytest.raises(ConfigError, match=r"controller.filters.notch.bandwidth"):
         from_dict(config("mambo-200hz", filters={"notch": {"center": 30.0, "bandwidth": 70.0}}))
+
+
+def test_a_d_term_filter_on_the_lqr_law_is_a_notice_and_changes_nothing():
+    from quadctl.notices import notices
+
+    cfg = from_dict(config("mambo-200hz", filters={"d_term": {"cutoff": 30.0}}))
+    found = [n for n in notices(cfg, "c.yaml") if n.key == "controller.filters.d_term"]
+    assert len(found) == 1 and "no D term" in found[0].message
+    assert setup_of(cfg).rate_filter is None

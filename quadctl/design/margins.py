@@ -16,7 +16,8 @@ margin is then the delay the loop tolerates beyond the configured one. Rotors th
 before the hold is applied. The gyro filter (``controller.filters``) is in the controller: the law
 takes the body rates through it (:func:`quadctl.linear.filters.with_rate_filter`, its states rows of
 ``A`` driven by the plant's rates, none of ``B``), so the loop broken at the plant input sees its
-phase lag; its discrete form at a sampled loop's period, its continuous one otherwise. A design that ignores the lag (``controller.rotor_lag: ignore``) does
+phase lag; its discrete form at a sampled loop's period, its continuous one otherwise. A design
+that ignores the lag (``controller.rotor_lag: ignore``) does
 not know of it. One that includes it (``include``) feeds back the lag states ``v`` through ``Kv``:
 on the design model (``model = "design"``) they are the augmented plant's states, the loop the
 LQR guarantee is about; on the coupled model the controller's own lag model supplies them, a

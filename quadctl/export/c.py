@@ -406,10 +406,11 @@ def _gyro_doc(loop, Ts: float) -> str:
         return _doc(["No gyro filter was configured (controller.filters): the law takes the measured rates p, q, r",
                      "as they are; filter them before quadctl_step only if the simulation did."])
     form = loop.filter_form
-    return _doc([f"The law runs the config's gyro filter (controller.filters: {loop.rate_filter.describe()}) on the",
-                 f"measured rates p, q, r, at {1 / Ts:g} Hz: y = c g + d r, g <- A g + b r on each rate (the g member,",
-                 f"{form.order} states per rate; qc_c's filter_A, filter_b, filter_c, filter_d), and uses y in place of",
-                 "r, as `quadctl simulate` does. Give quadctl_step the raw gyro rates: do not filter them again."])
+    return _doc([f"The law runs the config's gyro filter (controller.filters: {loop.rate_filter.describe()}) "
+                 f"on the measured rates p, q, r, at {1 / Ts:g} Hz: y = c g + d r, g <- A g + b r on each rate "
+                 f"(the g member, {form.order} states per rate; qc_c's filter_A, filter_b, filter_c, filter_d), "
+                 "and uses y in place of r, as `quadctl simulate` does. Give quadctl_step the raw gyro rates: do "
+                 "not filter them again."])
 
 
 def _delay_doc(delay: int, Ts: float, filtered: bool = False) -> str:
