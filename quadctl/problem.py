@@ -262,7 +262,13 @@ def setup_of(cfg: Config) -> Setup:
         mass=overrides.get("mass", vehicle.mass), gravity=overrides.get("gravity", vehicle.gravity),
         inertia=diagonal, drag=tuple(overrides.get("drag", vehicle.drag)), products=products)
     partition = cfg.partition()
-    weights = {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()}
+    trim_wind = tuple(float(w) for w in cfg.simulation.wind.steady) if cfg.trim.wind else (0.0, 0.0, 0.0)
+    motors = Motors.from_config(cfg.motors) if cfg.motors is not None else None
+    actuators = _rotors(motors) if motors is not None else actuators_of(None, cfg.limits)
+    weights = {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()
+               if w.bryson is None}
+    weights.update(bryson_weights(cfg, vehicle, actuators, trim_wind))
+    weights = {name: weights[name] for name in cfg.lqr}  # in the config's order
     Q, R = _weight_blocks(partition, weights)
     offset = np.zeros(N_STATES)
     for state, value in cfg.simulation.initial_offset.items():
@@ -275,9 +281,6 @@ def setup_of(cfg: Config) -> Setup:
         spec = NoiseSpec.from_config(cfg.simulation.noise, timing.rate)
         noise = spec if spec.active else None
     wind = wind_of(cfg.simulation.wind, cfg.trim.velocity_ned, -cfg.trim.position_ned[2])
-    trim_wind = tuple(float(w) for w in cfg.simulation.wind.steady) if cfg.trim.wind else (0.0, 0.0, 0.0)
-    motors = Motors.from_config(cfg.motors) if cfg.motors is not None else None
-    actuators = _rotors(motors) if motors is not None else actuators_of(None, cfg.limits)
     return Setup(
         name=cfg.name, vehicle=vehicle, plant=plant, velocity_ned=tuple(cfg.trim.velocity_ned),
         position_ned=tuple(cfg.trim.position_ned), yaw=cfg.trim.yaw, partition=partition,
@@ -290,6 +293,41 @@ def setup_of(cfg: Config) -> Setup:
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
         reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
         schedule=cfg.schedule, rate_filter=rate_filter_of(ctl.filters))
+
+
+def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,
+                   trim_wind=(0.0, 0.0, 0.0)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """``(Q, R)`` of each subsystem whose weights are Bryson's rule (``lqr.<name>.bryson``), on this vehicle.
+
+    ``Q = diag(1 / e^2)`` of the largest acceptable errors ``e``; ``R = diag(1 / du^2)`` with ``du`` the
+    rule's ``headroom`` share of each input's room around the trim (:func:`quadctl.motors.headroom`, the
+    nearer side), the trim solved for the config's flight condition on ``vehicle``.
+
+    Raises
+    ------
+    ConfigError
+        An input with no room around the trim (its rotors at a limit there).
+    """
+    rules = {name: w for name, w in cfg.lqr.items() if w.bryson is not None}
+    if not rules:
+        return {}
+    from quadctl.errors import ConfigError
+    from quadctl.linear.trim import solve_trim
+    from quadctl.motors import headroom
+
+    trim = solve_trim(cfg.trim.velocity_ned, cfg.trim.yaw, cfg.trim.position_ned, vehicle, wind_ned=trim_wind)
+    room = headroom(actuators, trim.u)
+    out = {}
+    for name, w in rules.items():
+        steps = []
+        for inp in cfg.partition()[name].inputs:
+            step = w.bryson.headroom * min(room[inp])
+            if not step > 0:
+                raise ConfigError(f"{cfg.name}: lqr.{name}.bryson: {inp} has no room around the trim (a rotor "
+                                  f"at its limit there): give Q and R, or motors that can hold the trim")
+            steps.append(step)
+        out[name] = (np.diag(1.0 / np.square(w.bryson.errors)), np.diag(1.0 / np.square(steps)))
+    return out
 
 
 def _reference(cfg: Config):

@@ -101,6 +101,14 @@ def check_semantics(cfg: Config, label: str) -> None:
                      f"not a state of subsystem `{name}`; integrate one of {', '.join(sub.states)}")
             if state in weights.integral[:i]:
                 fail(f"lqr.{name}.integral[{i}]", state, "listed twice; integrate each state once")
+        if weights.bryson is not None:
+            _check_bryson(cfg, name, sub, weights, fail)
+            continue
+        for key in ("Q", "R"):
+            if getattr(weights, key) is None:
+                fail(f"lqr.{name}", weights.model_dump(exclude_none=True),
+                     f"has no {key}: give Q ({len(sub.states) + len(weights.integral)} values) and R "
+                     f"({len(sub.inputs)}), or the rule bryson: {{errors: [...], headroom: 0.2}}")
         check_weight(weights.Q, len(sub.states) + len(weights.integral), f"lqr.{name}.Q", label,
                      definite=False, names=[*sub.states, *(f"integral of {s}" for s in weights.integral)])
         check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
@@ -127,6 +135,25 @@ def check_semantics(cfg: Config, label: str) -> None:
     if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
         fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
              "or use rotor_lag: ignore")
+
+
+def _check_bryson(cfg: Config, name: str, sub, weights, fail) -> None:
+    """``lqr.<name>.bryson``: in place of Q and R, one error per state and integral, and inputs with a range."""
+    if weights.Q is not None or weights.R is not None:
+        fail(f"lqr.{name}.bryson", weights.bryson.model_dump(), "gives Q and R from the vehicle: remove Q and R, "
+             "or remove bryson")
+    n = len(sub.states) + len(weights.integral)
+    names = [*sub.states, *(f"integral of {s}" for s in weights.integral)]
+    if len(weights.bryson.errors) != n:
+        fail(f"lqr.{name}.bryson.errors", weights.bryson.errors,
+             f"expected {n} values (the largest acceptable error of {', '.join(names)}), got "
+             f"{len(weights.bryson.errors)}")
+    unbounded = [i for i in sub.inputs if cfg.motors is None and (
+        cfg.limits is None or i not in cfg.limits or not all(math.isfinite(v) for v in cfg.limits[i]))]
+    if unbounded:
+        fail(f"lqr.{name}.bryson", weights.bryson.model_dump(),
+             f"takes R from the headroom of {', '.join(unbounded)}, which nothing limits: set motors: (or limits: "
+             f"for {', '.join(unbounded)}), or give Q and R")
 
 
 def _check_schedule(schedule: ScheduleConfig | None, fail) -> None:
