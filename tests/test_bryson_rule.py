@@ -83,3 +83,55 @@ def test_a_rule_needs_a_range_to_take_r_from():
     data["controller"]["rotor_lag"] = "ignore"
     with pytest.raises(ConfigError, match=r"nothing limits"):
         config.from_dict(data)
+
+
+AGILICIOUS_EDITS = {
+    ("description",), ("vehicle", "mass"), ("vehicle", "inertia"), ("vehicle", "drag"), ("controller", "rate"),
+    ("motors", "thrust_coefficient"), ("motors", "torque_coefficient"), ("motors", "max_thrust"),
+    ("motors", "time_constant"), ("motors", "numbering"), ("motors", "spin"), ("motors", "positions"),
+    ("started_from", "vehicle_digest"),
+}
+"""The edits docs/guide/vehicle.md makes to `quadctl init agilicious --from iris` (and the digest the note asks for)."""
+
+
+def _leaves(data, prefix=()):
+    if isinstance(data, dict):
+        for key, value in data.items():
+            yield from _leaves(value, (*prefix, key))
+    else:
+        yield prefix, data
+
+
+def test_the_agilicious_is_the_iris_template_with_the_pages_few_edits():
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "docs" / "configs" / "agilicious.yaml"
+    ours = config.load(str(path))
+    start = config.parse(starter.config_text("agilicious", "iris", "hold"), "agilicious.yaml")
+    a, b = dict(_leaves(start.model_dump(mode="json"))), dict(_leaves(ours.model_dump(mode="json")))
+    changed = {key for key in a.keys() | b.keys() if a.get(key) != b.get(key)}
+    assert changed == AGILICIOUS_EDITS, changed ^ AGILICIOUS_EDITS
+    assert ours.vehicle_digest() == ours.started_from.vehicle_digest  # no note left
+    assert ours.motors.time_constant == 0.033 and ours.controller.rotor_lag == "include"
+    assert ours.controller.rate == 500 and ours.vehicle.mass == 0.752
+
+
+def test_the_agilicious_keeps_its_margins_with_its_geometry_and_motor_lag_in_the_loop():
+    from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG
+    from quadctl.pipeline import Stages
+
+    from pathlib import Path
+
+    setup = setup_of(config.load(str(Path(__file__).resolve().parent.parent / "docs" / "configs" / "agilicious.yaml")))
+    st = Stages(setup)
+    assert setup.rotor_time_constant == 0.033 and st.design.lag_time_constant == 0.033
+    mix = setup.actuators.mix_inv  # roll arm 0.10 m, pitch arm 0.075 m
+    np.testing.assert_allclose(np.abs(mix[1]), 0.10, rtol=1e-15)
+    np.testing.assert_allclose(np.abs(mix[2]), 0.075, rtol=1e-15)
+    from quadctl.design import margins
+
+    found = margins.all_margins(st.design, st.decoupled, st.linear.A, st.linear.B,
+                                rotor_time_constant=setup.rotor_time_constant)
+    assert all(not m.thin for m in found), [(m.loop, m.model, m.thin) for m in found if m.thin]
+    assert min(m.phase_margin_deg for m in found) > THIN_PHASE_MARGIN_DEG
+    assert min(min(abs(g) for g in m.gain_margin_db) for m in found) > THIN_GAIN_MARGIN_DB
