@@ -304,8 +304,9 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     out += [f"allow: []   # {_doc(Config, 'allow')}"]
     text = "\n".join(out) + "\n"
     digest = config_mod.parse(text, f"{name}.yaml").vehicle_digest()
+    recorded = {"template": (vehicle, ""), "vehicle_digest": (json.dumps(digest), "quoted: a string")}
     return "\n".join([text + f"started_from:   # {_doc(Config, 'started_from')}",
-                      *_section(StartedFrom, {"template": (vehicle, ""), "vehicle_digest": (json.dumps(digest), "quoted: a string")}, 2)]) + "\n"
+                      *_section(StartedFrom, recorded, 2)]) + "\n"
 
 
 def _doc(model: type[BaseModel], key: str) -> str:

@@ -117,10 +117,10 @@ def test_the_agilicious_is_the_iris_template_with_the_pages_few_edits():
 
 
 def test_the_agilicious_keeps_its_margins_with_its_geometry_and_motor_lag_in_the_loop():
+    from pathlib import Path
+
     from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG
     from quadctl.pipeline import Stages
-
-    from pathlib import Path
 
     setup = setup_of(config.load(str(Path(__file__).resolve().parent.parent / "docs" / "configs" / "agilicious.yaml")))
     st = Stages(setup)
