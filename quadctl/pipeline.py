@@ -384,6 +384,23 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
     return discrete.rate_warnings(loops, rate)
 
 
+def margins_of(setup: Setup, linear: LinearModel, decoupled: Decoupled, des: Design) -> list:
+    """The margins of every regulated loop of a design as the setup flies it
+    (:func:`quadctl.design.margins.all_margins`): sampled at the controller's rate (a continuous
+    design's gains emulated there), with the rotors' lag, the delay, the gyro filter and the setup's
+    Kalman filter; what ``quadctl margins`` reports and a sweep's ``margin.*`` columns
+    (:data:`quadctl.sweep.gates.MARGIN_COLUMNS`) take."""
+    from quadctl.design import margins
+
+    timing = setup.timing
+    emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)
+    return margins.all_margins(
+        des, decoupled, linear.A, linear.B, emulated_rate=emulated, actuators=setup.actuators, u_trim=linear.u_trim,
+        initial_demand=initial_demand(setup, des), delay_samples=timing.delay_samples,
+        rotor_time_constant=setup.rotor_time_constant, estimator=estimator_of(setup, linear),
+        rate_filter=setup.rate_filter)
+
+
 def initial_demand(setup: Setup, des: Design) -> dict[str, float]:
     """``|K (x0 - x_trim)|`` per input: what the configured initial offset asks for at t = 0."""
     du = des.K_block @ setup.initial_offset

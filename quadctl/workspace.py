@@ -415,16 +415,8 @@ class Workspace(pipeline.Stages):
     @cached_property
     def margins(self) -> list:
         """Margins of every regulated loop (design model and coupled); writes margins.json."""
-        from quadctl.design import margins
-
-        des, timing, linear = self.design, self.setup.timing, self.linear
-        emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)
-        result = margins.all_margins(
-            des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
-            actuators=self.setup.actuators, u_trim=linear.u_trim,
-            initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
-            rotor_time_constant=self.setup.rotor_time_constant,
-            estimator=pipeline.estimator_of(self.setup, linear), rate_filter=self.setup.rate_filter)
+        des, linear = self.design, self.linear
+        result = pipeline.margins_of(self.setup, linear, self.decoupled, des)
         vehicle = pipeline.vehicle_loop_of(self.setup, linear, des)
         self._write_json(MARGINS, "margins", payloads.margins(self.setup, des, result, vehicle))
         return result

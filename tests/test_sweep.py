@@ -818,3 +818,28 @@ def test_a_parameter_may_vary_a_key_of_a_section_set_makes(cfg):
 def test_set_and_its_sections_errors_name_the_key_and_the_fix(data, message):
     with pytest.raises(SweepError, match=message):
         sweep.from_dict(data, config.load("hover"), "s.yaml")
+
+
+def test_margin_columns_are_the_margins_command_s_and_gate_thin_loops():
+    """A gate on margin.gain_db / margin.phase_deg adds the columns: the least margins over the loops that
+    ``quadctl margins`` reports (the rotors' lag in them); the 30 ms lag's thin roll loop fails."""
+    from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG
+    from quadctl.problem import setup_of
+
+    cfg = config.load("mambo-200hz")
+    spec = spec_of(cfg, parameters={"motors.time_constant": [0.01, 0.03]}, set={"simulation.duration": 0.3},
+                   gates={"margin.gain_db": {"min": THIN_GAIN_MARGIN_DB},
+                          "margin.phase_deg": {"min": THIN_PHASE_MARGIN_DEG}})
+    assert "margin.phase_deg" in spec.metrics
+    rows = sweep.run(cfg, spec, jobs=1).rows
+    for row, tau in zip(rows, (0.01, 0.03)):
+        data = cfg.model_dump(mode="json")
+        data["motors"]["time_constant"] = tau
+        st = pipeline.Stages(setup_of(config.from_dict(data)))
+        found = pipeline.margins_of(st.setup, st.linear, st.decoupled, st.design)
+        assert row["margin.phase_deg"] == min(m.phase_margin_deg for m in found)
+        assert row["margin.gain_db"] == min(min(-m.gain_margin_db[0], m.gain_margin_db[1]) for m in found)
+    assert [r["pass"] for r in rows] == [True, False]
+    assert "margin.phase_deg" in rows[1]["failed_gates"]
+    plain = spec_of(cfg, parameters={"motors.time_constant": [0.01]}, set={"simulation.duration": 0.3})
+    assert "margin.phase_deg" not in plain.metrics  # computed only when gated
