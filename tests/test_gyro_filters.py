@@ -254,3 +254,16 @@ def test_a_d_term_filter_on_the_lqr_law_is_a_notice_and_changes_nothing():
     found = [n for n in notices(cfg, "c.yaml") if n.key == "controller.filters.d_term"]
     assert len(found) == 1 and "no D term" in found[0].message
     assert setup_of(cfg).rate_filter is None
+
+
+def test_the_margins_notes_give_the_filters_lag_at_each_rate_loops_crossover(filtered_mambo):
+    st = filtered_mambo
+    found = margins.all_margins(st.design, st.decoupled, st.linear.A, st.linear.B, rate_filter=st.setup.rate_filter)
+    form = st.setup.rate_filter.form(st.design.sample_time)
+    for m in found:
+        notes = [n for n in m.notes if n.startswith("gyro filter")]
+        if m.loop == "altitude":  # no rate in its loop
+            assert not notes
+            continue
+        lag = -math.degrees(np.angle(form.response(m.gain_crossover_freq)[0]))
+        assert len(notes) == 1 and f"{lag:.3g} deg of phase lag" in notes[0], (m.loop, notes)

@@ -595,7 +595,7 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
                                                rotor_time_constant, rate_filter):
         m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)
         out.append(replace(m, notes=tuple(explain(m, design, emulated_rate, actuators, u_trim,
-                                                  initial_demand))))
+                                                  initial_demand, rate_filter))))
     if estimator is not None:
         full_state = {m.input: m for m in out if m.model == "coupled"}
         for name, inp, model, loop in lqg_loops(design, A, B, estimator):
@@ -629,7 +629,7 @@ def lqg_notes(m: LoopMargins, full: LoopMargins | None, kal, delay_samples: int 
 
 
 def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=None,
-            initial_demand=None) -> list[str]:
+            initial_demand=None, rate_filter=None) -> list[str]:
     """Sentences comparing ``m`` with the LQR guarantee and naming the cause of any shortfall.
 
     A discrete design's loop is not compared: the guarantee is a property of continuous state
@@ -668,9 +668,20 @@ def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=N
         elif m.model == "coupled":
             notes.append("cause: couplings the decoupled design ignores (the guarantee holds on the "
                          "subsystem it was designed on)")
+    notes.extend(_filter_notes(m, design, rate_filter))
     if actuators is not None and u_trim is not None:
         notes.extend(_saturation_notes(m, actuators, u_trim, initial_demand))
     return notes
+
+
+def _filter_notes(m: LoopMargins, design, rate_filter) -> list[str]:
+    """The gyro filter's phase lag at the crossover of a loop whose subsystem feeds back a body rate."""
+    wc = m.gain_crossover_freq
+    subs = {sub.name: sub for sub in design.subsystems}
+    if rate_filter is None or not wc or m.loop not in subs or not set(subs[m.loop].states) & {"p", "q", "r"}:
+        return []
+    lag = -math.degrees(float(np.angle(rate_filter.form(m.sample_time).response(wc)[0])))
+    return [f"gyro filter ({rate_filter.describe()}): {lag:.3g} deg of phase lag at the {wc:.4g} rad/s crossover"]
 
 
 def _saturation_notes(m, actuators, u_trim, initial_demand) -> list[str]:
