@@ -267,3 +267,27 @@ def test_the_margins_notes_give_the_filters_lag_at_each_rate_loops_crossover(fil
             continue
         lag = -math.degrees(np.angle(form.response(m.gain_crossover_freq)[0]))
         assert len(notes) == 1 and f"{lag:.3g} deg of phase lag" in notes[0], (m.loop, notes)
+
+
+def test_python_control_closes_the_same_loop_with_the_filter(filtered_mambo):
+    """interop.controller of a filtered loop carries the filter: python-control's feedback of the ZOH plant
+    and it has the eigenvalues of the vehicle's loop with the filter (as sets)."""
+    control = pytest.importorskip("control")
+    from quadctl import interop
+    from quadctl.design import linear_loop
+
+    st = filtered_mambo
+    loop, des, lin = st.loop, st.design, st.linear
+    Ts = des.sample_time
+    ctl = interop.controller(loop, sample_time=Ts)
+    assert ctl.nstates == len(des.integral_states) + 3 * st.setup.rate_filter.order
+    fb = control.feedback(interop.plant(lin, sample_time=Ts), ctl, sign=1)
+    want = np.linalg.eigvals(linear_loop.vehicle_matrix(des, lin.A, lin.B, Ts, keep_free=True,
+                                                        rate_filter=st.setup.rate_filter.form(Ts)))
+    got = list(fb.poles())
+    assert len(got) == len(want)
+    for w in want:
+        k = int(np.argmin([abs(g - w) for g in got]))
+        assert abs(got.pop(k) - w) < 1e-9 * max(1.0, abs(w)), w
+    with pytest.raises(ValueError, match="gyro filter"):
+        interop.closed_loop(lin, loop)
