@@ -53,6 +53,10 @@ def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel) -> Design
 def design_at(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float | None) -> Design:
     """The setup's decoupled LQR design computed at ``rate`` Hz (MATLAB ``lqrd``), or continuous for
     None, whatever the setup's own timing (``check`` compares a continuous design with a rate)."""
+    if setup.weight_error is not None:
+        from quadctl.errors import ConfigError
+
+        raise ConfigError(setup.weight_error)
     return design(decoupled, linear.A, linear.B, setup.weights, rate=rate, integral=setup.integral,
                   lag_time_constant=setup.design_lag_time_constant)
 

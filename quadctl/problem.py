@@ -10,6 +10,7 @@ config after that.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Literal
@@ -168,6 +169,9 @@ class Setup:
         The gain schedule (``schedule:``: variable, values, interpolation, check); None: one design.
     rate_filter : quadctl.linear.filters.RateFilter or None
         The filters on the gyro (``controller.filters``), in the loop the vehicle has; None: raw rates.
+    weight_error : str or None
+        Why a Bryson rule (``lqr.<name>.bryson``) has no weights on this vehicle (:func:`weight_error`):
+        the design refuses the setup with it; None: every weight is a number.
 
     Examples
     --------
@@ -207,6 +211,7 @@ class Setup:
     tolerance: float | None = None
     schedule: ScheduleConfig | None = None
     rate_filter: RateFilter | None = None
+    weight_error: str | None = None
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -269,6 +274,7 @@ def setup_of(cfg: Config) -> Setup:
                if w.bryson is None}
     weights.update(bryson_weights(cfg, vehicle, actuators, trim_wind))
     weights = {name: weights[name] for name in cfg.lqr}  # in the config's order
+    unweighted = weight_error(cfg, weights)
     Q, R = _weight_blocks(partition, weights)
     offset = np.zeros(N_STATES)
     for state, value in cfg.simulation.initial_offset.items():
@@ -292,7 +298,7 @@ def setup_of(cfg: Config) -> Setup:
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
         reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
-        schedule=cfg.schedule, rate_filter=rate_filter_of(ctl.filters))
+        schedule=cfg.schedule, rate_filter=rate_filter_of(ctl.filters), weight_error=unweighted)
 
 
 def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,
@@ -303,31 +309,39 @@ def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,
     rule's ``headroom`` share of each input's room around the trim (:func:`quadctl.motors.headroom`, the
     nearer side), the trim solved for the config's flight condition on ``vehicle``.
 
-    Raises
-    ------
-    ConfigError
-        An input with no room around the trim (its rotors at a limit there).
+    An input with no room around the trim (its rotors at a limit there), or a flight condition with no
+    trim, gives NaN in ``R``: the stages that need no weights (trim, linearize) still run, and the design
+    refuses them (:attr:`Setup.weight_error`, :func:`weight_error`).
     """
     rules = {name: w for name, w in cfg.lqr.items() if w.bryson is not None}
     if not rules:
         return {}
-    from quadctl.errors import ConfigError
+    from quadctl.errors import TrimError
     from quadctl.linear.trim import solve_trim
     from quadctl.motors import headroom
 
-    trim = solve_trim(cfg.trim.velocity_ned, cfg.trim.yaw, cfg.trim.position_ned, vehicle, wind_ned=trim_wind)
-    room = headroom(actuators, trim.u)
+    try:
+        trim = solve_trim(cfg.trim.velocity_ned, cfg.trim.yaw, cfg.trim.position_ned, vehicle, wind_ned=trim_wind)
+        room = headroom(actuators, trim.u)
+    except TrimError:  # the trim stage says why
+        room = None
     out = {}
     for name, w in rules.items():
-        steps = []
-        for inp in cfg.partition()[name].inputs:
-            step = w.bryson.headroom * min(room[inp])
-            if not step > 0:
-                raise ConfigError(f"{cfg.name}: lqr.{name}.bryson: {inp} has no room around the trim (a rotor "
-                                  f"at its limit there): give Q and R, or motors that can hold the trim")
-            steps.append(step)
-        out[name] = (np.diag(1.0 / np.square(w.bryson.errors)), np.diag(1.0 / np.square(steps)))
+        steps = [w.bryson.headroom * min(room[inp]) if room is not None else math.nan
+                 for inp in cfg.partition()[name].inputs]
+        out[name] = (np.diag(1.0 / np.square(w.bryson.errors)),
+                     np.diag([1.0 / s ** 2 if s > 0 else math.nan for s in steps]))
     return out
+
+
+def weight_error(cfg: Config, weights: dict) -> str | None:
+    """The one line that says why a Bryson rule has no weights on this vehicle (None: every weight is a number)."""
+    for name, (_, R) in weights.items():
+        if cfg.lqr[name].bryson is not None and np.isnan(np.diag(R)).any():
+            inputs = ", ".join(cfg.partition()[name].inputs)
+            return (f"{cfg.name}: lqr.{name}.bryson: {inputs} has no room around the trim (a rotor at its limit "
+                    "there, or no trim): give Q and R, or motors that can hold the trim")
+    return None
 
 
 def _reference(cfg: Config):

@@ -135,3 +135,15 @@ def test_the_agilicious_keeps_its_margins_with_its_geometry_and_motor_lag_in_the
     assert all(not m.thin for m in found), [(m.loop, m.model, m.thin) for m in found if m.thin]
     assert min(m.phase_margin_deg for m in found) > THIN_PHASE_MARGIN_DEG
     assert min(min(abs(g) for g in m.gain_margin_db) for m in found) > THIN_GAIN_MARGIN_DB
+
+
+def test_a_vehicle_the_rule_finds_no_room_on_trims_but_does_not_design():
+    """A vehicle too heavy for its rotors: the stages without weights run, the design is refused in one line."""
+    from quadctl import pipeline
+
+    setup = setup_of(config.from_dict(iris(vehicle__mass=50.0)))
+    assert setup.weight_error is not None and "lqr.altitude.bryson: T has no room" in setup.weight_error
+    st = pipeline.Stages(setup)
+    assert st.linear.A.shape == (12, 12)
+    with pytest.raises(ConfigError, match="no room around the trim"):
+        _ = st.design

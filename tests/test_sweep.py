@@ -642,10 +642,12 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
     state of the first, with only the gains rewritten: so a change in any other field of the loop must
     give another structure. Each field of ClosedLoop but the gains and the spectrum, changed alone."""
     from dataclasses import fields, replace
+    from types import SimpleNamespace
 
     from _solve import cfg_dict, solve
 
     from quadctl.design.gain_table import GainTable
+    from quadctl.linear.filters import rate_filter_of
     from quadctl.sweep import batched
 
     data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include", "delay": {"samples": 1}})
@@ -667,7 +669,9 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
                "delay_samples": 2, "lag_model_time_constant": 0.05, "estimator": replace(loop.estimator),
                "schedule": GainTable.of("speed", [0.0, 1.0], np.stack([loop.K, loop.K])),
                "schedule_heading": 0.5, "schedule_eigenvalues": np.array([-1.0 + 0j]),
-               "schedule_jacobians": (np.zeros((2, 12, 12)), np.zeros((2, 12, 4)))}
+               "schedule_jacobians": (np.zeros((2, 12, 12)), np.zeros((2, 12, 4))),
+               "rate_filter": rate_filter_of(SimpleNamespace(gyro=SimpleNamespace(cutoff=30.0, order=2),
+                                                             notch=None))}
     structural = {f.name for f in fields(loop)} - set(batched.PER_CASE)
     assert structural == set(changed), "a new ClosedLoop field: add a change of it here"
     for name, value in changed.items():

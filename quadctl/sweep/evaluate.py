@@ -104,6 +104,9 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
         if isinstance(setup, ConfigError):
             rows[index] = _failed(head, "invalid_config", str(setup))
             continue
+        if setup.weight_error is not None:  # a Bryson rule with no room on this case's vehicle
+            rows[index] = _failed(head, "invalid_config", setup.weight_error)
+            continue
         if derived:
             base_plant = plant_of(setups.base) if base_plant is None else base_plant
             plant = base_plant
