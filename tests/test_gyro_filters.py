@@ -291,3 +291,16 @@ def test_python_control_closes_the_same_loop_with_the_filter(filtered_mambo):
         assert abs(got.pop(k) - w) < 1e-9 * max(1.0, abs(w)), w
     with pytest.raises(ValueError, match="gyro filter"):
         interop.closed_loop(lin, loop)
+
+
+def test_the_mat_and_json_export_carry_the_filter_the_law_runs(filtered_mambo):
+    from quadctl import export
+    from quadctl.export import data
+
+    exp = export.prepare(filtered_mambo.setup)
+    found = {f.name: f for f in data.fields(exp)}
+    value = found["gyro_filter"].value
+    form = filtered_mambo.loop.filter_form
+    for key in ("A", "b", "c"):
+        np.testing.assert_array_equal(value[key], getattr(form, key))
+    assert value["d"] == form.d and "through its filter (second-order low-pass at 30 Hz" in exp.law()
