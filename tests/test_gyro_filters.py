@@ -304,3 +304,10 @@ def test_the_mat_and_json_export_carry_the_filter_the_law_runs(filtered_mambo):
     for key in ("A", "b", "c"):
         np.testing.assert_array_equal(value[key], getattr(form, key))
     assert value["d"] == form.d and "through its filter (second-order low-pass at 30 Hz" in exp.law()
+
+
+def test_an_integrator_on_a_filtered_rate_is_refused():
+    data = config("mambo-200hz", filters={"gyro": {"cutoff": 30.0}})
+    data["lqr"]["yaw"] = {**data["lqr"]["yaw"], "Q": [25, 0.25, 1.0], "integral": ["r"]}
+    with pytest.raises(ConfigError, match=r"lqr.yaw.integral\[0\].*integrates a body rate"):
+        from_dict(data)

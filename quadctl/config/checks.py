@@ -256,6 +256,13 @@ def _check_filters(cfg: Config, fail) -> None:
         fail("controller.filters.notch.bandwidth", filters.notch.bandwidth,
              f"Hz is not below twice the centre ({2 * filters.notch.center:g} Hz): the notch would cut down to "
              "0 Hz; narrow it")
+    if filters.gyro is not None or filters.notch is not None:
+        for name, weights in cfg.lqr.items():
+            for i, state in enumerate(weights.integral):
+                if state in ("p", "q", "r"):
+                    fail(f"lqr.{name}.integral[{i}]", state, "integrates a body rate, which the law takes through "
+                         "controller.filters' gyro filter: its integrator is not modelled on the filtered rate; "
+                         "integrate an angle or a position, or remove the gyro filter")
     if cfg.estimator is not None and (filters.gyro is not None or filters.notch is not None):
         fail("controller.filters", "gyro/notch", "with a Kalman filter (estimator:) the law takes the estimate, "
              "not the gyro: the gyro's filters are not modelled in an LQG loop; remove estimator: or the filters")
