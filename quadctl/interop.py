@@ -132,7 +132,36 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
     nz = len(ints)
     A = np.eye(nz) if Ts else np.zeros((nz, nz))
     B = -(Ts or 1.0) * C
+    rate_filter = getattr(design, "rate_filter", None)
+    if rate_filter is not None:  # the law's gyro filter: its states after the integrators'
+        return _filtered_controller(A, B, K, Ki, ints, rate_filter.form(Ts), Ts, name)
     return _ss(A, B, [f"z_{s}" for s in ints], STATE_NAMES, INPUT_NAMES, Ts, name, C=-Ki, D=-K)
+
+
+def _filtered_controller(A, B, K, Ki, ints, form, Ts, name):
+    """The controller of a loop whose law takes the body rates through its gyro filter ``form``
+    (:func:`quadctl.linear.filters.with_rate_filter`): states ``[z; g]`` (``g_<rate>_<i>``, ``form.order``
+    per rate), ``g' = A_f g + b_f r`` (or ``g+``), ``u = -K' x - K_r c_f g - Ki z`` with ``K'`` the gain whose
+    rate columns are ``d_f K_r``."""
+    from quadctl.layout import STATE_INDEX
+    from quadctl.linear.filters import RATE_STATES
+
+    nz, k = len(ints), form.order
+    ng = k * len(RATE_STATES)
+    Aa = np.zeros((nz + ng, nz + ng))
+    Aa[:nz, :nz] = A
+    Ba = np.vstack([B, np.zeros((ng, len(STATE_NAMES)))])
+    Cg = np.zeros((K.shape[0], ng))
+    D = -K.copy()
+    names = [f"z_{s}" for s in ints]
+    for j, rate in enumerate(RATE_STATES):
+        i, g = STATE_INDEX[rate], slice(nz + j * k, nz + (j + 1) * k)
+        Aa[g, g] = form.A
+        Ba[g, i] = form.b
+        Cg[:, j * k:(j + 1) * k] = -np.outer(K[:, i], form.c)
+        D[:, i] *= form.d
+        names += [f"g_{rate}_{m}" for m in range(k)]
+    return _ss(Aa, Ba, names, STATE_NAMES, INPUT_NAMES, Ts, name, C=np.hstack([-Ki, Cg]), D=D)
 
 
 def _lqg_controller(loop, K, Ki, ints, sample_time, name):
@@ -197,6 +226,10 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
 
     _control()
     K, Ki, ints = _gains(design)
+    if getattr(design, "rate_filter", None) is not None:
+        raise ValueError("the law takes the body rates through its gyro filter (controller.filters): closed_loop "
+                         "is the loop of [x; z]; for the loop with the filter use control.feedback(interop.plant("
+                         "linear, sample_time=Ts), interop.controller(loop), sign=1)")
     if getattr(design, "estimator", None) is not None:
         raise ValueError("the loop closes through a Kalman filter (estimator:): closed_loop is the full-state "
                          "loop of [x; z]; for the LQG loop use control.feedback(interop.plant(linear, "

@@ -102,6 +102,8 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
     """
     found = _defaults_taken(cfg, label)
     found += _rotor_lag_taken(cfg, label)
+    found += _d_term_unused(cfg, label)
+    found += _template_changed(cfg, label)
     found += _gyration(cfg, label)
     found += _thrust_to_weight(cfg, label)
     jxx, jyy, jzz = inertia_parts(cfg.vehicle.inertia)[0]
@@ -140,6 +142,29 @@ def _rotor_lag_taken(cfg: Config, label: str) -> list[Notice]:
         f"{label}: motors.time_constant = {cfg.motors.time_constant:g} s with controller.rotor_lag not given: the "
         f"design ignores the lag (rotor_lag: ignore, the default) and only the simulated plant has it; set "
         f"rotor_lag: include to design with it, or ignore to silence this"))]
+
+
+def _template_changed(cfg: Config, label: str) -> list[Notice]:
+    """A config started from an ``init`` template whose vehicle's numbers changed: its description may still
+    name the template's vehicle."""
+    start = cfg.started_from
+    if start is None or cfg.vehicle_digest() == start.vehicle_digest:
+        return []
+    return [Notice("note", "description", (
+        f"{label}: started from quadctl init's {start.template} template, and vehicle: or motors: no longer hold "
+        f"its numbers: check that description ({cfg.description!r}) names your vehicle, then set "
+        f"started_from.vehicle_digest: {cfg.vehicle_digest()} (or remove started_from) to silence this"))]
+
+
+def _d_term_unused(cfg: Config, label: str) -> list[Notice]:
+    """``controller.filters.d_term`` on the LQR law, which has no D term: say it does nothing."""
+    filters = cfg.controller.filters
+    if filters is None or filters.d_term is None:
+        return []
+    return [Notice("note", "controller.filters.d_term", (
+        f"{label}: controller.filters.d_term = {filters.d_term.cutoff:g} Hz: the LQR law has no D term (its rate "
+        "feedback is proportional, filtered by controller.filters.gyro), so this filter is not in the loop; "
+        "remove it, or filter the gyro instead"))]
 
 
 def _gyration(cfg: Config, label: str) -> list[Notice]:

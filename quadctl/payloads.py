@@ -97,6 +97,7 @@ def margins(setup, des: Design, result, vehicle) -> dict:
         "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
         "delay_samples": timing.delay_samples, "rotor_time_constant": setup.rotor_time_constant,
         "rotor_lag": setup.rotor_lag,
+        **({"gyro_filter": setup.rate_filter.describe()} if setup.rate_filter is not None else {}),
         "closed_loop": _vehicle_loop_payload(vehicle),
         "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
                       "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},

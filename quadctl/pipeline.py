@@ -53,6 +53,10 @@ def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel) -> Design
 def design_at(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float | None) -> Design:
     """The setup's decoupled LQR design computed at ``rate`` Hz (MATLAB ``lqrd``), or continuous for
     None, whatever the setup's own timing (``check`` compares a continuous design with a rate)."""
+    if setup.weight_error is not None:
+        from quadctl.errors import ConfigError
+
+        raise ConfigError(setup.weight_error)
     return design(decoupled, linear.A, linear.B, setup.weights, rate=rate, integral=setup.integral,
                   lag_time_constant=setup.design_lag_time_constant)
 
@@ -106,7 +110,7 @@ def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
                                              else open_loop_eigenvalues),
                       delay_samples=setup.timing.delay_samples, Kv=Kv,
                       lag_model_time_constant=setup.design_lag_time_constant if Kv is not None else None,
-                      jacobians=(linear.A, linear.B))
+                      jacobians=(linear.A, linear.B), rate_filter=setup.rate_filter)
 
 
 def pid_loop_of(setup: Setup, linear: LinearModel, gains=None) -> ClosedLoop:
@@ -346,9 +350,13 @@ class VehicleLoop:
     rotor_time_constant: float | None = None
     rotor_lag: str = "ignore"
     delay_samples: int = 0
+    gyro_filter: str = ""
+    """What the gyro filter in the loop is (:meth:`quadctl.linear.filters.RateFilter.describe`); empty: none."""
 
     def _what(self) -> str:
         parts = []
+        if self.gyro_filter:
+            parts.append(f"the gyro's {self.gyro_filter}")
         if self.rotor_time_constant is not None:
             how = "included in" if self.rotor_lag == "include" else "ignored by"
             parts.append(f"the rotors' {self.rotor_time_constant * 1e3:g} ms lag ({how} the design)")
@@ -368,6 +376,8 @@ class VehicleLoop:
             return None
         fix = ("include the lag in the design (controller.rotor_lag: include), or lower the gains (larger R)"
                if self.rotor_time_constant is not None and self.rotor_lag == "ignore"
+               else "raise the gyro filter's cutoff (controller.filters) or lower the gains (larger R)"
+               if self.gyro_filter and not self.delay_samples
                else "lower the gains (larger R) or shorten the delay")
         return f"with {self._what()} the design's closed loop is UNSTABLE; {fix}"
 
@@ -378,8 +388,9 @@ def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLo
 
     timing = setup.timing
     Ts = des.sample_time or (timing.sample_time if timing.mode == "emulated" else None)
+    form = setup.rate_filter.form(Ts) if setup.rate_filter is not None else None
     eig = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
-                                                       setup.rotor_time_constant))
+                                                       setup.rotor_time_constant, rate_filter=form))
     seen = setup.rotor_time_constant if des.lag_time_constant is not None else None
     ideal = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, 0, seen))
     return VehicleLoop(eigenvalues=eig, design_eigenvalues=ideal, sample_time=Ts,
@@ -387,7 +398,8 @@ def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLo
                        least_damping=stability.least_damping(eig, Ts),
                        design_least_damping=stability.least_damping(ideal, Ts),
                        rotor_time_constant=setup.rotor_time_constant, rotor_lag=setup.rotor_lag,
-                       delay_samples=timing.delay_samples)
+                       delay_samples=timing.delay_samples,
+                       gyro_filter=setup.rate_filter.describe() if setup.rate_filter is not None else "")
 
 
 def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float):
@@ -414,6 +426,23 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
             if i >= len(STATE_NAMES) or STATE_NAMES[i] not in des.marginal_states]
     loops.append(("coupled", des.core_eigenvalues, sampled[np.ix_(keep, keep)]))
     return discrete.rate_warnings(loops, rate)
+
+
+def margins_of(setup: Setup, linear: LinearModel, decoupled: Decoupled, des: Design) -> list:
+    """The margins of every regulated loop of a design as the setup flies it
+    (:func:`quadctl.design.margins.all_margins`): sampled at the controller's rate (a continuous
+    design's gains emulated there), with the rotors' lag, the delay, the gyro filter and the setup's
+    Kalman filter; what ``quadctl margins`` reports and a sweep's ``margin.*`` columns
+    (:data:`quadctl.sweep.gates.MARGIN_COLUMNS`) take."""
+    from quadctl.design import margins
+
+    timing = setup.timing
+    emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)
+    return margins.all_margins(
+        des, decoupled, linear.A, linear.B, emulated_rate=emulated, actuators=setup.actuators, u_trim=linear.u_trim,
+        initial_demand=initial_demand(setup, des), delay_samples=timing.delay_samples,
+        rotor_time_constant=setup.rotor_time_constant, estimator=estimator_of(setup, linear),
+        rate_filter=setup.rate_filter)
 
 
 def initial_demand(setup: Setup, des: Design) -> dict[str, float]:

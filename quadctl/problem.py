@@ -10,6 +10,7 @@ config after that.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Literal
@@ -18,6 +19,7 @@ import numpy as np
 
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
+from quadctl.linear.filters import RateFilter, rate_filter_of
 from quadctl.model import Vehicle
 from quadctl.motors import Actuators, Motors, actuators_of
 from quadctl.noise import NoiseSpec, exogenous_period
@@ -165,6 +167,11 @@ class Setup:
         The path to fly (``simulation.reference``); None: hold the trim.
     schedule : quadctl.config.ScheduleConfig or None
         The gain schedule (``schedule:``: variable, values, interpolation, check); None: one design.
+    rate_filter : quadctl.linear.filters.RateFilter or None
+        The filters on the gyro (``controller.filters``), in the loop the vehicle has; None: raw rates.
+    weight_error : str or None
+        Why a Bryson rule (``lqr.<name>.bryson``) has no weights on this vehicle (:func:`weight_error`):
+        the design refuses the setup with it; None: every weight is a number.
 
     Examples
     --------
@@ -208,6 +215,8 @@ class Setup:
     pid: object | None = None
     """:class:`quadctl.config.pid.PidGains`: the config's PID cascade (``controller.pid``, else the
     ``crazyflie`` preset): what ``controller.flies: pid`` and ``quadctl compare`` fly."""
+    rate_filter: RateFilter | None = None
+    weight_error: str | None = None
 
     @property
     def rotor_time_constant(self) -> float | None:
@@ -263,7 +272,14 @@ def setup_of(cfg: Config) -> Setup:
         mass=overrides.get("mass", vehicle.mass), gravity=overrides.get("gravity", vehicle.gravity),
         inertia=diagonal, drag=tuple(overrides.get("drag", vehicle.drag)), products=products)
     partition = cfg.partition()
-    weights = {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()}
+    trim_wind = tuple(float(w) for w in cfg.simulation.wind.steady) if cfg.trim.wind else (0.0, 0.0, 0.0)
+    motors = Motors.from_config(cfg.motors) if cfg.motors is not None else None
+    actuators = _rotors(motors) if motors is not None else actuators_of(None, cfg.limits)
+    weights = {name: (weight_matrix(w.Q, 0), weight_matrix(w.R, 0)) for name, w in cfg.lqr.items()
+               if w.bryson is None}
+    weights.update(bryson_weights(cfg, vehicle, actuators, trim_wind))
+    weights = {name: weights[name] for name in cfg.lqr}  # in the config's order
+    unweighted = weight_error(cfg, weights)
     Q, R = _weight_blocks(partition, weights)
     offset = np.zeros(N_STATES)
     for state, value in cfg.simulation.initial_offset.items():
@@ -276,9 +292,6 @@ def setup_of(cfg: Config) -> Setup:
         spec = NoiseSpec.from_config(cfg.simulation.noise, timing.rate)
         noise = spec if spec.active else None
     wind = wind_of(cfg.simulation.wind, cfg.trim.velocity_ned, -cfg.trim.position_ned[2])
-    trim_wind = tuple(float(w) for w in cfg.simulation.wind.steady) if cfg.trim.wind else (0.0, 0.0, 0.0)
-    motors = Motors.from_config(cfg.motors) if cfg.motors is not None else None
-    actuators = _rotors(motors) if motors is not None else actuators_of(None, cfg.limits)
     return Setup(
         name=cfg.name, vehicle=vehicle, plant=plant, velocity_ned=tuple(cfg.trim.velocity_ned),
         position_ned=tuple(cfg.trim.position_ned), yaw=cfg.trim.yaw, partition=partition,
@@ -290,7 +303,8 @@ def setup_of(cfg: Config) -> Setup:
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
         reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
-        schedule=cfg.schedule, law=ctl.flies, pid=_pid(cfg))
+        schedule=cfg.schedule, law=ctl.flies, pid=_pid(cfg), rate_filter=rate_filter_of(ctl.filters),
+        weight_error=unweighted)
 
 
 def _pid(cfg: Config):
@@ -299,6 +313,49 @@ def _pid(cfg: Config):
 
     pid = cfg.controller.pid
     return resolve(pid.preset, pid.values) if pid is not None else resolve("crazyflie")
+
+
+def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,
+                   trim_wind=(0.0, 0.0, 0.0)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """``(Q, R)`` of each subsystem whose weights are Bryson's rule (``lqr.<name>.bryson``), on this vehicle.
+
+    ``Q = diag(1 / e^2)`` of the largest acceptable errors ``e``; ``R = diag(1 / du^2)`` with ``du`` the
+    rule's ``headroom`` share of each input's room around the trim (:func:`quadctl.motors.headroom`, the
+    nearer side), the trim solved for the config's flight condition on ``vehicle``.
+
+    An input with no room around the trim (its rotors at a limit there), or a flight condition with no
+    trim, gives NaN in ``R``: the stages that need no weights (trim, linearize) still run, and the design
+    refuses them (:attr:`Setup.weight_error`, :func:`weight_error`).
+    """
+    rules = {name: w for name, w in cfg.lqr.items() if w.bryson is not None}
+    if not rules:
+        return {}
+    from quadctl.errors import TrimError
+    from quadctl.linear.trim import solve_trim
+    from quadctl.motors import headroom
+
+    try:
+        trim = solve_trim(cfg.trim.velocity_ned, cfg.trim.yaw, cfg.trim.position_ned, vehicle, wind_ned=trim_wind)
+        room = headroom(actuators, trim.u)
+    except TrimError:  # the trim stage says why
+        room = None
+    out = {}
+    for name, w in rules.items():
+        steps = [w.bryson.headroom * min(room[inp]) if room is not None else math.nan
+                 for inp in cfg.partition()[name].inputs]
+        out[name] = (np.diag(1.0 / np.square(w.bryson.errors)),
+                     np.diag([1.0 / s ** 2 if s > 0 else math.nan for s in steps]))
+    return out
+
+
+def weight_error(cfg: Config, weights: dict) -> str | None:
+    """The one line that says why a Bryson rule has no weights on this vehicle (None: every weight is a number)."""
+    for name, (_, R) in weights.items():
+        if cfg.lqr[name].bryson is not None and np.isnan(np.diag(R)).any():
+            inputs = ", ".join(cfg.partition()[name].inputs)
+            return (f"{cfg.name}: lqr.{name}.bryson: {inputs} has no room around the trim (a rotor at its limit "
+                    "there, or no trim): give Q and R, or motors that can hold the trim")
+    return None
 
 
 def _reference(cfg: Config):

@@ -3,7 +3,7 @@ vehicle's published values with their sources, and the partition that fits the f
 
 The units and meanings in the comments are the schema's own field descriptions (:mod:`quadctl.config`),
 so they cannot drift from what quadctl reads; the values are a :class:`Preset`'s; the LQR weights
-follow Bryson's rule from the preset's rotor headroom (:func:`bryson_weights`). The text is returned,
+are Bryson's rule (:func:`bryson_rules`), which ``design`` evaluates on the vehicle it loads. The text is returned,
 not written: the command line writes it.
 """
 
@@ -21,6 +21,7 @@ from quadctl.config import (
     Config,
     ControllerConfig,
     EstimatorConfig,
+    FiltersConfig,
     MotorsConfig,
     NoiseConfig,
     PidConfig,
@@ -28,6 +29,7 @@ from quadctl.config import (
     ReferenceConfig,
     ScheduleConfig,
     SimulationConfig,
+    StartedFrom,
     TrimConfig,
     VehicleConfig,
     WindConfig,
@@ -138,6 +140,7 @@ PRESETS: dict[str, Preset] = {
             "torque_coefficient": (0.06, "[PX4] momentConstant"),
             "min_thrust": (0.0, ""),
             "max_thrust": (7.0664, "[PX4] motorConstant * maxRotVelocity^2"),
+            "time_constant": (0.0125, "[PX4] timeConstantUp (its timeConstantDown is 0.025 s)"),
             "numbering": ("px4", "[PX4] rotor_0 front right ccw, rotor_1 back left ccw, rotor_2 front left cw, "
                           "rotor_3 back right cw"),
         },
@@ -171,15 +174,17 @@ enough room that the initial offset flies without reaching a rotor limit."""
 INITIAL_OFFSET = {"pD": 0.5, "phi": 0.1, "theta": 0.1, "psi": 0.2}
 
 
-def bryson_weights(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = False
-                   ) -> dict[str, tuple[list, list, str]]:
-    """LQR weights by Bryson's rule, ``Q_ii = 1 / e_i^2`` and ``R = 1 / du^2``, for the preset's rotors
-    (``hold``: roll and pitch weigh the east and north position too, :data:`HOLD_POSITION_ERROR`).
+def bryson_rules(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = False
+                 ) -> dict[str, tuple[dict, str]]:
+    """The LQR weights as Bryson's rule (``lqr.<name>.bryson``, :func:`quadctl.problem.bryson_weights`
+    evaluates it on the vehicle the config describes), with a comment giving what it comes to on the
+    preset's vehicle (``hold``: roll and pitch weigh the east and north position too,
+    :data:`HOLD_POSITION_ERROR`).
 
     Returns
     -------
     dict
-        Subsystem -> ``(Q diagonal, R diagonal, comment)``.
+        Subsystem -> ``(bryson rule, comment)``.
     """
     from quadctl.linear.trim import solve_trim
     from quadctl.model import Vehicle
@@ -192,18 +197,16 @@ def bryson_weights(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = Fa
     room = headroom(actuators_of(Motors(**rotors)), trim.u)
     out = {}
     for name, (errors, input_name, share) in BRYSON.items():
-        step = _round(share * min(room[input_name]))
         unit = "N" if input_name == "T" else "N m"
         states = REPORT_PARTITION[name]["states"]
         if hold and name in HOLD:
             errors, states = (HOLD_POSITION_ERROR, *errors), HOLD[name]["states"]
-        q = [_round(1.0 / e ** 2) for e in errors]
-        r = [_round(1.0 / step ** 2)]
         largest = ", ".join(f"{e:g} {STATE_UNITS[s]}" for e, s in zip(errors, states))
         around = min(room[input_name])
-        why = (f"Bryson: Q = 1/[{largest}]^2, R = 1/({step:g} {unit})^2, {share:.0%} of the {around:.3g} {unit} "
-               "the rotors have around the trim")
-        out[name] = (q, r, why)
+        why = (f"Bryson: Q = 1/[{largest}]^2, R = 1/du^2, du {share:.0%} of the room {input_name} has around the "
+               f"trim (the template's vehicle: {around:.3g} {unit}, du = {_round(share * around):g} "
+               f"{unit})")
+        out[name] = ({"errors": list(errors), "headroom": share}, why)
     return out
 
 
@@ -257,7 +260,7 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     out += ["# Optional sections are commented out: uncomment one to use it. The README's \"Config reference\"",
             "# explains every key, and how an editor checks them as you type.",
             f"name: {name}",
-            f"description: {json.dumps(f'{preset.title}: {flight} at 1 m')}"]
+            f"description: {json.dumps(f'Started from the {preset.title} template (quadctl init): {flight} at 1 m')}"]
     out += ["vehicle:   # " + _doc(Config, "vehicle")]
     out += _section(VehicleConfig, {"gravity": (9.81, ""), **preset.vehicle}, 2)
     out += ["trim:   # " + _doc(Config, "trim")]
@@ -279,8 +282,8 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
             if not sub["regulate"] else ""
         out.append(f"  {key + ':':<{width + 1}} {flow}{note}")
     out += ["lqr:   # " + _doc(Config, "lqr") + "; Q in 1/(state unit)^2, R in 1/(input unit)^2"]
-    for key, (q, r, why) in bryson_weights(preset, velocity, hold=flight == "hold").items():
-        out.append(f"  {key + ':':<9} {{Q: {_flow(q)}, R: {_flow(r)}}}  # {why}")
+    for key, (rule, why) in bryson_rules(preset, velocity, hold=flight == "hold").items():
+        out.append(f"  {key + ':':<9} {{bryson: {_flow(rule)}}}  # {why}")
     out += ["simulation:   # " + _doc(Config, "simulation")]
     out += _section(SimulationConfig, {"duration": (10.0, ""), "dt": ("auto", ""),
                                        "initial_offset": (INITIAL_OFFSET, ""), "max_samples": (20_000, "")}, 2)
@@ -289,16 +292,23 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
         out += [f"  # {key}:   # {_doc(SimulationConfig, key)}"] + _section(model, {}, 4, commented=True)
     out += ["controller:   # " + _doc(Config, "controller")]
     rate = (preset.rate, preset.rate_note)
-    out += _section(ControllerConfig, {"rate": rate, "design": ("discrete", ""), "rotor_lag": ("ignore", ""),
-                                       "delay": (None, "")}, 2)
+    lagged = preset.motors.get("time_constant", (None, ""))[0] is not None
+    out += _section(ControllerConfig, {"rate": rate, "design": ("discrete", ""), "rotor_lag": (
+        "include" if lagged else "ignore", "the template's rotors lag (motors.time_constant)" if lagged else ""),
+        "delay": (None, "")}, 2)
+    out += [f"  # filters:   # {_doc(ControllerConfig, 'filters')}"] + _section(FiltersConfig, {}, 4, commented=True)
     out += [f"  # pid:   # {_doc(ControllerConfig, 'pid')}"] + _section(PidConfig, {}, 4, commented=True)
     out += ["motors:   # " + _doc(Config, "motors")]
-    out += _section(MotorsConfig, {**preset.motors, "time_constant": (None, ""), "spin": (None, "")}, 2)
+    out += _section(MotorsConfig, {"time_constant": (None, ""), **preset.motors, "spin": (None, "")}, 2)
     out += [f"# limits: {{T: [0, 1], A: [-0.01, 0.01]}}   # {_doc(Config, 'limits')}",
             f"# estimator:   # {_doc(Config, 'estimator')}"] + _section(EstimatorConfig, {}, 2, commented=True)
     out += [f"# schedule:   # {_doc(Config, 'schedule')}"] + _section(ScheduleConfig, {}, 2, commented=True)
     out += [f"allow: []   # {_doc(Config, 'allow')}"]
-    return "\n".join(out) + "\n"
+    text = "\n".join(out) + "\n"
+    digest = config_mod.parse(text, f"{name}.yaml").vehicle_digest()
+    recorded = {"template": (vehicle, ""), "vehicle_digest": (json.dumps(digest), "quoted: a string")}
+    return "\n".join([text + f"started_from:   # {_doc(Config, 'started_from')}",
+                      *_section(StartedFrom, recorded, 2)]) + "\n"
 
 
 def _doc(model: type[BaseModel], key: str) -> str:

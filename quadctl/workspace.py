@@ -375,7 +375,7 @@ class Workspace(pipeline.Stages):
         vehicle = None
         if all(checks[n].stabilizable for n in regulated):
             warnings = list(self.rate_warnings)
-            if self.setup.rotor_time_constant is not None or timing.delay_samples:
+            if self.setup.rotor_time_constant is not None or timing.delay_samples or self.setup.rate_filter is not None:
                 des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
                 vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
         self._write_json(CHECKS, "checks", payloads.checks(self.setup, checks, regulated, warnings, vehicle))
@@ -415,16 +415,8 @@ class Workspace(pipeline.Stages):
     @cached_property
     def margins(self) -> list:
         """Margins of every regulated loop (design model and coupled); writes margins.json."""
-        from quadctl.design import margins
-
-        des, timing, linear = self.design, self.setup.timing, self.linear
-        emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)
-        result = margins.all_margins(
-            des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
-            actuators=self.setup.actuators, u_trim=linear.u_trim,
-            initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
-            rotor_time_constant=self.setup.rotor_time_constant,
-            estimator=pipeline.estimator_of(self.setup, linear))
+        des, linear = self.design, self.linear
+        result = pipeline.margins_of(self.setup, linear, self.decoupled, des)
         vehicle = pipeline.vehicle_loop_of(self.setup, linear, des)
         self._write_json(MARGINS, "margins", payloads.margins(self.setup, des, result, vehicle))
         return result

@@ -84,6 +84,15 @@ def _mambo_lagged(rotor_lag: str, delay: int = 0):
     return data, None
 
 
+def _mambo_gyro_filtered():
+    """mambo-200hz with the rotors' 30 ms lag included, one sample of delay, and the gyro filtered (second-order
+    low-pass at 40 Hz, a notch at 70 Hz), tilted so the rotors clip."""
+    data, _ = _mambo_lagged("include", 1)
+    data["controller"]["filters"] = {"gyro": {"cutoff": 40.0, "order": 2}, "notch": {"center": 70.0, "bandwidth": 30.0}}
+    data["simulation"]["duration"] = 2.0
+    return data, None
+
+
 CASES = {
     "mambo-200hz": lambda: (cfg_dict("mambo-200hz"), None),  # LQI on altitude, rotors, 200 Hz
     "crazyflie": lambda: (cfg_dict("crazyflie"), None),       # no integrator, 500 Hz
@@ -94,6 +103,7 @@ CASES = {
     "mambo-lag-included": lambda: _mambo_lagged("include"),
     "mambo-lag-included-delayed": lambda: _mambo_lagged("include", 2),
     "mambo-lag-ignored-delayed": lambda: _mambo_lagged("ignore", 1),
+    "mambo-gyro-filtered": _mambo_gyro_filtered,
 }
 
 
@@ -128,10 +138,12 @@ class Controller:
         nz, nl = len(exp.loop.integral_states), exp.loop.spec().n_lag
         ny = len(exp.loop.measured)
         nb = N_INPUTS * exp.loop.delay_samples if ny else 0  # a filter remembers the delayed commands
+        ng = exp.loop.spec().n_filter
 
         class State(ctypes.Structure):  # quadctl_controller of the header (l[]: a design with the rotors' lag;
-            _fields_ = [("z", self.real * max(nz, 1)),  # b[], xh[]: a Kalman filter, with and without delay)
+            _fields_ = [("z", self.real * max(nz, 1)),  # b[], xh[]: a Kalman filter, with and without delay;
                         *([("l", self.real * nl)] if nl else []), *([("b", self.real * nb)] if nb else []),
+                        *([("g", self.real * ng)] if ng else []),  # g[]: the gyro filter)
                         *([("xh", self.real * N_STATES)] if ny else []), ("k", ctypes.c_ulong)]
 
         self.state = State()

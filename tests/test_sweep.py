@@ -296,6 +296,9 @@ BATCHED_CASES = {
                           "simulation.initial_offset": {"pD": 1.0, "phi": 0.4, "psi": 0.8}}),
     "ends between samples": ({"controller.rate": [200.0, 300.0], "lqr.roll.R[0]": [20000, 80000]},
                              {"simulation.duration": 0.501}),
+    # the gyro filter: its order is the lanes' structure, its coefficients each case's constants
+    "gyro filter": ({"controller.filters.gyro.cutoff": [20.0, 40.0], "lqr.roll.R[0]": [20000, 80000]},
+                    {"simulation.duration": 0.4, "controller.filters": {"gyro": {"cutoff": 30.0}}}),
 }
 
 
@@ -640,11 +643,13 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
     state of the first, with only the gains rewritten: so a change in any other field of the loop must
     give another structure. Each field of ClosedLoop but the gains and the spectrum, changed alone."""
     from dataclasses import fields, replace
+    from types import SimpleNamespace
 
     from _solve import cfg_dict, solve
 
     from quadctl.config.pid import resolve
     from quadctl.design.gain_table import GainTable
+    from quadctl.linear.filters import rate_filter_of
     from quadctl.sweep import batched
 
     data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include", "delay": {"samples": 1}})
@@ -667,7 +672,9 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
                "schedule": GainTable.of("speed", [0.0, 1.0], np.stack([loop.K, loop.K])),
                "schedule_heading": 0.5, "schedule_eigenvalues": np.array([-1.0 + 0j]),
                "schedule_jacobians": (np.zeros((2, 12, 12)), np.zeros((2, 12, 4))),
-               "law": resolve("crazyflie")}
+               "law": resolve("crazyflie"),
+               "rate_filter": rate_filter_of(SimpleNamespace(gyro=SimpleNamespace(cutoff=30.0, order=2),
+                                                             notch=None))}
     structural = {f.name for f in fields(loop)} - set(batched.PER_CASE)
     assert structural == set(changed), "a new ClosedLoop field: add a change of it here"
     for name, value in changed.items():
@@ -818,3 +825,28 @@ def test_a_parameter_may_vary_a_key_of_a_section_set_makes(cfg):
 def test_set_and_its_sections_errors_name_the_key_and_the_fix(data, message):
     with pytest.raises(SweepError, match=message):
         sweep.from_dict(data, config.load("hover"), "s.yaml")
+
+
+def test_margin_columns_are_the_margins_command_s_and_gate_thin_loops():
+    """A gate on margin.gain_db / margin.phase_deg adds the columns: the least margins over the loops that
+    ``quadctl margins`` reports (the rotors' lag in them); the 30 ms lag's thin roll loop fails."""
+    from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG
+    from quadctl.problem import setup_of
+
+    cfg = config.load("mambo-200hz")
+    spec = spec_of(cfg, parameters={"motors.time_constant": [0.01, 0.03]}, set={"simulation.duration": 0.3},
+                   gates={"margin.gain_db": {"min": THIN_GAIN_MARGIN_DB},
+                          "margin.phase_deg": {"min": THIN_PHASE_MARGIN_DEG}})
+    assert "margin.phase_deg" in spec.metrics
+    rows = sweep.run(cfg, spec, jobs=1).rows
+    for row, tau in zip(rows, (0.01, 0.03)):
+        data = cfg.model_dump(mode="json")
+        data["motors"]["time_constant"] = tau
+        st = pipeline.Stages(setup_of(config.from_dict(data)))
+        found = pipeline.margins_of(st.setup, st.linear, st.decoupled, st.design)
+        assert row["margin.phase_deg"] == min(m.phase_margin_deg for m in found)
+        assert row["margin.gain_db"] == min(min(-m.gain_margin_db[0], m.gain_margin_db[1]) for m in found)
+    assert [r["pass"] for r in rows] == [True, False]
+    assert "margin.phase_deg" in rows[1]["failed_gates"]
+    plain = spec_of(cfg, parameters={"motors.time_constant": [0.01]}, set={"simulation.duration": 0.3})
+    assert "margin.phase_deg" not in plain.metrics  # computed only when gated

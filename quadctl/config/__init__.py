@@ -75,6 +75,7 @@ from quadctl.config.schema import ControllerConfig as ControllerConfig
 from quadctl.config.schema import DelaySamples as DelaySamples
 from quadctl.config.schema import Drag as Drag
 from quadctl.config.schema import EstimatorConfig as EstimatorConfig
+from quadctl.config.schema import FiltersConfig as FiltersConfig
 from quadctl.config.schema import Gravity as Gravity
 from quadctl.config.schema import GustConfig as GustConfig
 from quadctl.config.schema import InputLimits as InputLimits
@@ -93,6 +94,7 @@ from quadctl.config.schema import RotorTimeConstant as RotorTimeConstant
 from quadctl.config.schema import ScheduleConfig as ScheduleConfig
 from quadctl.config.schema import SetpointConfig as SetpointConfig
 from quadctl.config.schema import SimulationConfig as SimulationConfig
+from quadctl.config.schema import StartedFrom as StartedFrom
 from quadctl.config.schema import SubsystemConfig as SubsystemConfig
 from quadctl.config.schema import TrimConfig as TrimConfig
 from quadctl.config.schema import TurbulenceConfig as TurbulenceConfig

@@ -101,6 +101,14 @@ def check_semantics(cfg: Config, label: str) -> None:
                      f"not a state of subsystem `{name}`; integrate one of {', '.join(sub.states)}")
             if state in weights.integral[:i]:
                 fail(f"lqr.{name}.integral[{i}]", state, "listed twice; integrate each state once")
+        if weights.bryson is not None:
+            _check_bryson(cfg, name, sub, weights, fail)
+            continue
+        for key in ("Q", "R"):
+            if getattr(weights, key) is None:
+                fail(f"lqr.{name}", weights.model_dump(exclude_none=True),
+                     f"has no {key}: give Q ({len(sub.states) + len(weights.integral)} values) and R "
+                     f"({len(sub.inputs)}), or the rule bryson: {{errors: [...], headroom: 0.2}}")
         check_weight(weights.Q, len(sub.states) + len(weights.integral), f"lqr.{name}.Q", label,
                      definite=False, names=[*sub.states, *(f"integral of {s}" for s in weights.integral)])
         check_weight(weights.R, len(sub.inputs), f"lqr.{name}.R", label, definite=True,
@@ -123,10 +131,30 @@ def check_semantics(cfg: Config, label: str) -> None:
     _check_controller_and_actuators(cfg, fail)
     _check_delay(cfg, fail)
     _check_pid(cfg, fail)
+    _check_filters(cfg, fail)
     _check_method(cfg, fail)
     if cfg.controller.rotor_lag == "include" and (cfg.motors is None or cfg.motors.time_constant is None):
         fail("controller.rotor_lag", "include", "needs the rotors' lag to include: set motors.time_constant (s), "
              "or use rotor_lag: ignore")
+
+
+def _check_bryson(cfg: Config, name: str, sub, weights, fail) -> None:
+    """``lqr.<name>.bryson``: in place of Q and R, one error per state and integral, and inputs with a range."""
+    if weights.Q is not None or weights.R is not None:
+        fail(f"lqr.{name}.bryson", weights.bryson.model_dump(), "gives Q and R from the vehicle: remove Q and R, "
+             "or remove bryson")
+    n = len(sub.states) + len(weights.integral)
+    names = [*sub.states, *(f"integral of {s}" for s in weights.integral)]
+    if len(weights.bryson.errors) != n:
+        fail(f"lqr.{name}.bryson.errors", weights.bryson.errors,
+             f"expected {n} values (the largest acceptable error of {', '.join(names)}), got "
+             f"{len(weights.bryson.errors)}")
+    unbounded = [i for i in sub.inputs if cfg.motors is None and (
+        cfg.limits is None or i not in cfg.limits or not all(math.isfinite(v) for v in cfg.limits[i]))]
+    if unbounded:
+        fail(f"lqr.{name}.bryson", weights.bryson.model_dump(),
+             f"takes R from the headroom of {', '.join(unbounded)}, which nothing limits: set motors: (or limits: "
+             f"for {', '.join(unbounded)}), or give Q and R")
 
 
 def _check_schedule(schedule: ScheduleConfig | None, fail) -> None:
@@ -212,6 +240,35 @@ def _check_method(cfg: Config, fail) -> None:
              "use method: rk4, or remove motors.time_constant")
 
 
+def _check_filters(cfg: Config, fail) -> None:
+    """``controller.filters``: each frequency below the Nyquist frequency of a sampled controller, a
+    notch narrower than twice its centre, and no Kalman filter beside them."""
+    filters, rate = cfg.controller.filters, cfg.controller.rate
+    if filters is None:
+        return
+    for key, section, field in (("gyro", filters.gyro, "cutoff"), ("notch", filters.notch, "center"),
+                                ("d_term", filters.d_term, "cutoff")):
+        value = getattr(section, field) if section is not None else None
+        if value is not None and rate is not None and value >= rate / 2:
+            fail(f"controller.filters.{key}.{field}", value, f"Hz is not below the Nyquist frequency of the "
+                 f"controller's {rate:g} Hz ({rate / 2:g} Hz): a sampled filter cannot reach it; lower it, or "
+                 "raise controller.rate")
+    if filters.notch is not None and filters.notch.bandwidth >= 2 * filters.notch.center:
+        fail("controller.filters.notch.bandwidth", filters.notch.bandwidth,
+             f"Hz is not below twice the centre ({2 * filters.notch.center:g} Hz): the notch would cut down to "
+             "0 Hz; narrow it")
+    if filters.gyro is not None or filters.notch is not None:
+        for name, weights in cfg.lqr.items():
+            for i, state in enumerate(weights.integral):
+                if state in ("p", "q", "r"):
+                    fail(f"lqr.{name}.integral[{i}]", state, "integrates a body rate, which the law takes through "
+                         "controller.filters' gyro filter: its integrator is not modelled on the filtered rate; "
+                         "integrate an angle or a position, or remove the gyro filter")
+    if cfg.estimator is not None and (filters.gyro is not None or filters.notch is not None):
+        fail("controller.filters", "gyro/notch", "with a Kalman filter (estimator:) the law takes the estimate, "
+             "not the gyro: the gyro's filters are not modelled in an LQG loop; remove estimator: or the filters")
+
+
 def _check_delay(cfg: Config, fail) -> None:
     """``controller.delay``: needs a rate, and is a whole number of samples at it."""
     delay, rate = cfg.controller.delay, cfg.controller.rate
@@ -253,6 +310,9 @@ def _check_pid(cfg: Config, fail) -> None:
     if ctl.flies == "pid" and cfg.motors is None:
         fail("controller.flies", "pid", "a PID cascade commands the rotors: add motors: (the rotors' layout and "
              "thrust limits), or fly lqr")
+    if ctl.flies == "pid" and ctl.filters is not None:
+        fail("controller.filters", "(set)", "a PID cascade runs its flight stack's own gyro and D-term filters "
+             "(controller.pid's preset): remove controller.filters, or fly lqr")
     if ctl.flies == "pid" and cfg.simulation.method == "etdrk4":
         fail("simulation.method", "etdrk4", "ETDRK4 integrates the LQR loop's linear part exactly; a PID cascade "
              "flies with RK4: set simulation.method: rk4 (or remove it), or fly lqr")

@@ -119,19 +119,36 @@ class SubsystemConfig(_Section):
     outputs: list[str] | None = Field(None, description="measured states (C rows); default all")
 
 
+Share = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=1)]
+
+
+class BrysonRule(_Section):
+    """Bryson's rule, evaluated on the vehicle the config describes when it is loaded for a design."""
+
+    errors: list[Positive] = Field(description=(
+        "the largest acceptable error of each state (state units), then of each integral: Q = diag(1 / errors^2)"))
+    headroom: Share = Field(description=(
+        "the share of each input's headroom around the trim (how far the rotors or limits let it move, the "
+        "nearer side) taken as its largest acceptable excursion du: R = diag(1 / du^2)"))
+
+
 class LqrWeights(_Section):
-    """LQR weights of one subsystem: a list is a diagonal, a nested list a full matrix.
+    """LQR weights of one subsystem: ``Q`` and ``R`` (a list is a diagonal, a nested list a full matrix), or
+    the rule ``bryson`` that gives them from the vehicle.
 
     With ``integral`` (LQI, as MATLAB ``lqi``), ``Q`` weighs ``[states; integrals]``: it has one
     entry more per integrated state, in the order of ``integral``.
     """
 
-    Q: Matrix = Field(description=(
+    Q: Optional[Matrix] = Field(None, description=(
         "state weights, 1/(state unit)^2 (Bryson: 1 / largest acceptable error^2): a list is the diagonal "
         "(one per state, then one per integral), a list of rows the symmetric positive semidefinite matrix"))
-    R: Matrix = Field(description=(
+    R: Optional[Matrix] = Field(None, description=(
         "input weights, 1/(input unit)^2, i.e. 1/N^2 or 1/(N m)^2: a list is the diagonal, a list of rows "
         "the symmetric positive definite matrix"))
+    bryson: Optional[BrysonRule] = Field(None, description=(
+        "in place of Q and R: Bryson's rule on the vehicle as loaded (its trim and its rotors' or limits' "
+        "headroom), so the weights follow the vehicle's numbers when they change"))
     integral: list[str] = Field(
         default_factory=list, description="states of this subsystem whose error is integrated (LQI)")
 
@@ -322,6 +339,39 @@ class PidConfig(_Section):
         return values
 
 
+class LowPassConfig(_Section):
+    """A low-pass filter: first order, or a second-order Butterworth."""
+
+    cutoff: Positive = Field(description="Hz: the -3 dB frequency; below half the controller's rate")
+    order: Literal[1, 2] = Field(2, description=(
+        "1: first order (sampled: the PT1 with its exact pole exp(-2 pi cutoff Ts)); 2: Butterworth "
+        "(sampled: the biquad of the bilinear transform prewarped at the cutoff, as PX4's LowPassFilter2p)"))
+
+
+class NotchConfig(_Section):
+    """A notch filter (sampled: the bilinear biquad prewarped at its centre, as PX4's NotchFilter)."""
+
+    center: Positive = Field(description="Hz: the frequency removed; below half the controller's rate")
+    bandwidth: Positive = Field(description="Hz: the width between its -3 dB points (Q = center / bandwidth)")
+
+
+class FiltersConfig(_Section):
+    """The filters the flight stack runs on its sensors, in the simulated loop, the margins and the C export.
+
+    The LQR is designed without them (on the rigid body, with the rotors' lag when included): a full-state
+    gain on the filter's states would need the raw rates the filter is there to keep out of the law. The
+    margins and the vehicle's loop show what the filters cost."""
+
+    gyro: Optional[LowPassConfig] = Field(None, description=(
+        "low-pass on the gyro: the law takes the filtered body rates p, q, r in place of the measured ones "
+        "(PX4: 40 Hz, second order; Crazyflie: 30 Hz); absent: none"))
+    notch: Optional[NotchConfig] = Field(None, description=(
+        "notch on the gyro, after the low-pass (a frame's resonance or the rotors' frequency); absent: none"))
+    d_term: Optional[LowPassConfig] = Field(None, description=(
+        "low-pass on the rate derivative of a law with a D term (PX4: 30 Hz); the LQR law has none (its "
+        "rate feedback is proportional), so the lqr law does not use it"))
+
+
 class ControllerConfig(_Section):
     """How the controller runs on the flight computer."""
 
@@ -343,6 +393,8 @@ class ControllerConfig(_Section):
     pid: Optional[PidConfig] = Field(
         None, description="the PID cascade flown with flies: pid, and by quadctl compare; absent: the crazyflie "
         "preset")
+    filters: Optional[FiltersConfig] = Field(
+        None, description="the sensor filters the flight stack runs (gyro low-pass, notch); absent: raw rates")
 
     def delay_samples(self) -> int:
         """Samples of delay (0 when none); :func:`quadctl.config.checks._check_delay` has checked it is whole."""
@@ -411,6 +463,15 @@ class EstimatorConfig(_Section):
 InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]
 
 
+class StartedFrom(_Section):
+    """The ``quadctl init`` template a config was started from, and its vehicle's numbers as written."""
+
+    template: str = Field(description="the vehicle template (quadctl init --from)")
+    vehicle_digest: str = Field(description=(
+        "the template's vehicle: and motors: numbers (Config.vehicle_digest); when yours differ, a note asks "
+        "you to check the description still names your vehicle"))
+
+
 class Config(_Section):
     """A whole quadctl config (see the README's config reference).
 
@@ -429,7 +490,8 @@ class Config(_Section):
     trim: TrimConfig = Field(TrimConfig(), description="the flight condition to trim about")
     subsystems: dict[str, SubsystemConfig] | None = Field(
         None, description="subsystem name -> states and inputs; absent: the report's five (replaced whole)")
-    lqr: dict[str, LqrWeights] = Field(description="regulated subsystem name -> its LQR weights Q and R")
+    lqr: dict[str, LqrWeights] = Field(description="regulated subsystem name -> its LQR weights Q and R (or the "
+                                       "Bryson rule that gives them)")
     simulation: SimulationConfig = Field(SimulationConfig(), description="closed-loop simulation settings")
     controller: ControllerConfig = Field(
         ControllerConfig(), description="how the controller runs on the flight computer")
@@ -441,11 +503,20 @@ class Config(_Section):
         "absent: the controller measures the full state")
     schedule: Optional[ScheduleConfig] = Field(
         None, description="a gain schedule across the envelope (quadctl schedule); absent: one design")
+    started_from: Optional[StartedFrom] = Field(
+        None, description="the quadctl init template this config was started from (written by init); absent: none")
     allow: list[Literal["implausible", "saturation", "thin-margins"]] = Field(
         default_factory=list, description="failed checks this vehicle accepts (each otherwise exits 1): implausible "
         "(values that look like a unit slip: the warnings on load), saturation (a simulated design at an "
         "actuator limit more than half the run), thin-margins (a loop below 6 dB of gain margin or 30 deg of "
         "phase margin, MIL-F-9490D)")
+
+    def vehicle_digest(self) -> str:
+        """sha256 (first 12 hex digits) of the vehicle's numbers (``vehicle:`` and ``motors:``, canonical JSON):
+        what ``started_from`` records of the template's vehicle."""
+        data = {"vehicle": self.vehicle.model_dump(mode="json"),
+                "motors": self.motors.model_dump(mode="json") if self.motors is not None else None}
+        return hashlib.sha256(json.dumps(data, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:12]
 
     def partition(self) -> dict[str, SubsystemConfig]:
         """The subsystems in force: the config's, or the report's five."""
@@ -467,6 +538,9 @@ class Config(_Section):
                 node = node.get(part) if isinstance(node, dict) else None
             if isinstance(node, dict) and node.get(last, default) == default:
                 node.pop(last, None)
+        for weights in (data.get("lqr") or {}).values():  # lqr.<name>.bryson, added later: named entries
+            if isinstance(weights, dict) and weights.get("bryson") is None:
+                weights.pop("bryson", None)
         text = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
 
@@ -487,6 +561,8 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("schedule",), None),
     (("controller", "flies"), "lqr"),
     (("controller", "pid"), None),
+    (("controller", "filters"), None),
+    (("started_from",), None),
 )
 """Keys added to the schema after configs were already hashed, with their defaults: left out of
 :meth:`Config.digest` at that default."""

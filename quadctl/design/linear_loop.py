@@ -14,7 +14,9 @@ Its state, in the order :mod:`quadctl.sim.builder` keeps the nonlinear loop's ``
   ``z <- z - Ts x_s`` (:mod:`quadctl.design.integral`);
 - ``l``: the controller's model of the rotors' lag, fed back through ``Kv``
   (:func:`with_lag_model`);
-- ``b``: ``delay_samples`` of command buffer of a sampled loop (:func:`delayed`).
+- ``b``: ``delay_samples`` of command buffer of a sampled loop (:func:`delayed`);
+- ``g``: the gyro filter's states, the law taking the filtered rates
+  (:func:`quadctl.linear.filters.with_rate_filter`).
 
 Position states that nothing reads and nothing depends on (:func:`quadctl.stability.free_positions`)
 add a marginal mode; the vehicle's loop leaves them out unless asked to keep every state.
@@ -32,6 +34,7 @@ import numpy as np
 from quadctl import stability
 from quadctl.design import discrete, integral, lag
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.linear.filters import RATE_STATES, with_rate_filter
 
 
 def close(A, B, K) -> np.ndarray:
@@ -203,7 +206,8 @@ def stack(A, B, K, Ki, integral_states, sample_time=None) -> np.ndarray:
 
 
 def subsystem(sub, plant, sample_time: float | None = None, *, delay_samples: int = 0,
-              rotor_time_constant: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+              rotor_time_constant: float | None = None,
+              rate_filter=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(A, B, K)`` of one subsystem's loop on its own model: the plant with the rotors' lag, the
     hold and the delay, the gain ``[K, Kv, Ki]`` (the lag states fed back only by a design that
     includes the lag).
@@ -217,6 +221,8 @@ def subsystem(sub, plant, sample_time: float | None = None, *, delay_samples: in
     delay_samples : int
         Of a sampled loop.
     rotor_time_constant : float, optional
+    rate_filter : quadctl.linear.filters.StateSpace, optional
+        The gyro filter at the loop's timing: the law takes the subsystem's rates through it.
     """
     As, Bs = open_loop(plant.A, plant.B, sub.integral, sample_time, rotor_time_constant=rotor_time_constant,
                        states=sub.states)
@@ -224,11 +230,11 @@ def subsystem(sub, plant, sample_time: float | None = None, *, delay_samples: in
     Ka = gain(sub.K, sub.Ki, sub.Kv if n_lag else None, n_lag=n_lag)
     if sample_time is not None:
         As, Bs, Ka = delayed(As, Bs, Ka, delay_samples)
-    return As, Bs, Ka
+    return with_rate_filter(As, Bs, Ka, rate_filter, [i for i, s in enumerate(sub.states) if s in RATE_STATES])
 
 
 def vehicle(design, A, B, sample_time: float | None = None, delay_samples: int = 0,
-            rotor_time_constant: float | None = None, *, keep_free: bool = False):
+            rotor_time_constant: float | None = None, *, keep_free: bool = False, rate_filter=None):
     """``(A, B, K)`` of the loop the vehicle has: the design's gains on the coupled model with the
     rotors' lag, the integrators, the controller's lag model (a design that includes the lag) and
     the delay; the positions left free (:func:`quadctl.stability.free_positions`) left out.
@@ -247,7 +253,10 @@ def vehicle(design, A, B, sample_time: float | None = None, delay_samples: int =
     rotor_time_constant : float, optional
         s of the rotors' lag.
     keep_free : bool
-        Keep every state (the loop state is then :mod:`quadctl.sim.builder`'s ``[x; f; z; l; b]``).
+        Keep every state (the loop state is then :mod:`quadctl.sim.builder`'s ``[x; f; z; l; b; g]``).
+    rate_filter : quadctl.linear.filters.StateSpace, optional
+        The gyro filter at the loop's timing (continuous, or at ``sample_time``): the law takes the
+        body rates through it.
 
     Returns
     -------
@@ -259,22 +268,26 @@ def vehicle(design, A, B, sample_time: float | None = None, delay_samples: int =
     Aa, Ba = open_loop(A, B, ints, sample_time, rotor_time_constant=rotor_time_constant)
     n_lag = Aa.shape[0] - N_STATES - len(ints)
     Ka = gain(K, design.Ki_block, n_lag=n_lag)
+    keep = list(range(Aa.shape[0]))
     if not keep_free:
         free = [STATE_INDEX[s] for s in stability.free_positions(A, reads=(K,), integral_states=ints)]
         keep = [i for i in range(Aa.shape[0]) if i not in free]
         Aa, Ba, Ka = Aa[np.ix_(keep, keep)], Ba[keep], Ka[:, keep]
+    rates = [keep.index(STATE_INDEX[s]) for s in RATE_STATES]
     if design.lag_time_constant is not None:
         Aa, Ba, Ka = with_lag_model(Aa, Ba, Ka, design.Kv_block, design.lag_time_constant, sample_time)
     if sample_time is not None:
         Aa, Ba, Ka = delayed(Aa, Ba, Ka, delay_samples)
-    return Aa, Ba, Ka
+    return with_rate_filter(Aa, Ba, Ka, rate_filter, rates)
 
 
 def vehicle_matrix(design, A, B, sample_time: float | None = None, delay_samples: int = 0,
-                   rotor_time_constant: float | None = None, *, keep_free: bool = False) -> np.ndarray:
+                   rotor_time_constant: float | None = None, *, keep_free: bool = False,
+                   rate_filter=None) -> np.ndarray:
     """``A - B K`` of :func:`vehicle`: continuous, or the ``z``-domain loop of a controller sampled
-    every ``sample_time`` s (with ``delay_samples`` of delay)."""
-    return close(*vehicle(design, A, B, sample_time, delay_samples, rotor_time_constant, keep_free=keep_free))
+    every ``sample_time`` s (with ``delay_samples`` of delay, and the gyro filter ``rate_filter``)."""
+    return close(*vehicle(design, A, B, sample_time, delay_samples, rotor_time_constant, keep_free=keep_free,
+                          rate_filter=rate_filter))
 
 
 def lqg(design, A, B, kal):
@@ -406,9 +419,9 @@ def with_lag_model(A, B, K, Kv, time_constant: float, sample_time: float | None 
 
 
 def simulated(A, B, K, *, Ki=None, integral_states=(), Kv=None, lag_time_constant: float | None = None,
-              rotor_time_constant: float | None = None, mix=None, estimator=None) -> np.ndarray:
+              rotor_time_constant: float | None = None, mix=None, estimator=None, rate_filter=None) -> np.ndarray:
     """The continuous loop :mod:`quadctl.sim.builder` simulates, linearized at the reference, in its state
-    order ``[x; f; z; l; xh]`` (every state kept): the linear part of its exponential integrator.
+    order ``[x; f; z; l; g; xh]`` (every state kept): the linear part of its exponential integrator.
 
     It is :func:`vehicle_matrix` (or :func:`lqg_matrix`, reordered from ``[x; x_hat; z]``) with the
     rotors' lag in the builder's coordinates, the thrusts ``f = mix v`` (deviations from trim).
@@ -426,6 +439,8 @@ def simulated(A, B, K, *, Ki=None, integral_states=(), Kv=None, lag_time_constan
         s of the rotors' lag; ``mix`` (4, 4) maps ``[T, A, E, R]`` to the rotor thrusts.
     estimator : quadctl.estimator.Kalman, optional
         A continuous (Kalman-Bucy) filter the law closes through.
+    rate_filter : quadctl.linear.filters.StateSpace, optional
+        The continuous gyro filter the law takes the rates through (state ``[x; f; z; l; g]``).
 
     Returns
     -------
@@ -444,12 +459,12 @@ def simulated(A, B, K, *, Ki=None, integral_states=(), Kv=None, lag_time_constan
     design = SimpleNamespace(K_block=K, Ki_block=Ki, integral_states=tuple(integral_states),
                              lag_time_constant=lag_time_constant if Kv is not None else None, Kv_block=Kv)
     if estimator is not None:
-        if estimator.sample_time is not None or rotor_time_constant is not None:
+        if estimator.sample_time is not None or rotor_time_constant is not None or rate_filter is not None:
             raise ValueError("the simulated LQG loop is linearized here for a continuous filter, without rotor lag")
         n = N_STATES
         order = [*range(n), *range(2 * n, 2 * n + nz), *range(n, 2 * n)]
         return lqg_matrix(design, A, B, estimator)[np.ix_(order, order)]
-    M = vehicle_matrix(design, A, B, None, 0, rotor_time_constant, keep_free=True)
+    M = vehicle_matrix(design, A, B, None, 0, rotor_time_constant, keep_free=True, rate_filter=rate_filter)
     if rotor_time_constant is not None:
         T = np.eye(len(M))
         T[N_STATES:N_STATES + 4, N_STATES:N_STATES + 4] = mix

@@ -13,7 +13,11 @@ driven by ``b_n``), which is ``z^-n`` on every input: exact, no Pade approximati
 margin is then the delay the loop tolerates beyond the configured one. Rotors that lag
 (``motors.time_constant``) are in the loops too: every input reaches the plant through
 ``1 / (tau s + 1)`` (:func:`quadctl.design.lag.lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
-before the hold is applied. A design that ignores the lag (``controller.rotor_lag: ignore``) does
+before the hold is applied. The gyro filter (``controller.filters``) is in the controller: the law
+takes the body rates through it (:func:`quadctl.linear.filters.with_rate_filter`, its states rows of
+``A`` driven by the plant's rates, none of ``B``), so the loop broken at the plant input sees its
+phase lag; its discrete form at a sampled loop's period, its continuous one otherwise. A design
+that ignores the lag (``controller.rotor_lag: ignore``) does
 not know of it. One that includes it (``include``) feeds back the lag states ``v`` through ``Kv``:
 on the design model (``model = "design"``) they are the augmented plant's states, the loop the
 LQR guarantee is about; on the coupled model the controller's own lag model supplies them, a
@@ -474,7 +478,7 @@ def _db(g: float) -> float:
 
 
 def design_loops(design, decoupled, A, B, sample_time: float | None = None, delay_samples: int = 0,
-                 rotor_time_constant: float | None = None):
+                 rotor_time_constant: float | None = None, rate_filter=None):
     """Yield ``(name, input, model, BrokenLoop)`` for every regulated loop of ``design``.
 
     ``model = "design"``: the subsystem alone (with its integrators), the loop the LQR guarantee
@@ -482,15 +486,18 @@ def design_loops(design, decoupled, A, B, sample_time: float | None = None, dela
     states that nothing feeds back left out. With ``sample_time`` (s: the controller's period, the
     design's own for a discrete design, or the rate a continuous design is run at) the loops are
     sampled, with ``delay_samples`` of delay on every input (:func:`quadctl.design.linear_loop.delayed`);
-    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`quadctl.design.lag.lagged`).
+    ``rotor_time_constant`` puts the rotors' lag on every input (:func:`quadctl.design.lag.lagged`);
+    ``rate_filter`` (:class:`quadctl.linear.filters.RateFilter`) the gyro filter in the law's rate path, in
+    its continuous form or at ``sample_time``.
     """
     Ts = sample_time
+    form = rate_filter.form(Ts) if rate_filter is not None else None
     for sub in design.subsystems:
         Aa, Ba, Ka = linear_loop.subsystem(sub, decoupled[sub.name], Ts, delay_samples=delay_samples,
-                                           rotor_time_constant=rotor_time_constant)
+                                           rotor_time_constant=rotor_time_constant, rate_filter=form)
         for j, inp in enumerate(sub.inputs):
             yield sub.name, inp, "design", broken_loop(Aa, Ba, Ka, j, Ts)
-    Af, Bf, Kf = linear_loop.vehicle(design, A, B, Ts, delay_samples, rotor_time_constant)
+    Af, Bf, Kf = linear_loop.vehicle(design, A, B, Ts, delay_samples, rotor_time_constant, rate_filter=form)
     for sub in design.subsystems:
         for inp in sub.inputs:
             yield sub.name, inp, "coupled", broken_loop(Af, Bf, Kf, INPUT_INDEX[inp], Ts)
@@ -536,7 +543,7 @@ def lqg_loops(design, A, B, kal):
 
 def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, actuators=None,
                 u_trim=None, initial_demand: dict | None = None, delay_samples: int = 0,
-                rotor_time_constant: float | None = None, estimator=None) -> list[LoopMargins]:
+                rotor_time_constant: float | None = None, estimator=None, rate_filter=None) -> list[LoopMargins]:
     """Margins of every regulated loop of a design, on its design model and on the coupled model
     (and with the Kalman filter in the loop, ``estimator``).
 
@@ -561,6 +568,8 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
         s of the rotors' lag included in every loop (``motors.time_constant``).
     estimator : quadctl.estimator.Kalman, optional
         The LQG loops (:func:`lqg_loops`), each compared with the full-state coupled loop.
+    rate_filter : quadctl.linear.filters.RateFilter, optional
+        The gyro filter (``controller.filters``) in every loop's rate path, sampled with the loop.
 
     Returns
     -------
@@ -583,10 +592,10 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     if delay_samples and sample_time is None:
         raise ValueError("a delay is counted in controller samples: give the design's rate (or emulated_rate)")
     for name, inp, model, loop in design_loops(design, decoupled, A, B, sample_time, delay_samples,
-                                               rotor_time_constant):
+                                               rotor_time_constant, rate_filter):
         m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)
         out.append(replace(m, notes=tuple(explain(m, design, emulated_rate, actuators, u_trim,
-                                                  initial_demand))))
+                                                  initial_demand, rate_filter))))
     if estimator is not None:
         full_state = {m.input: m for m in out if m.model == "coupled"}
         for name, inp, model, loop in lqg_loops(design, A, B, estimator):
@@ -620,7 +629,7 @@ def lqg_notes(m: LoopMargins, full: LoopMargins | None, kal, delay_samples: int 
 
 
 def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=None,
-            initial_demand=None) -> list[str]:
+            initial_demand=None, rate_filter=None) -> list[str]:
     """Sentences comparing ``m`` with the LQR guarantee and naming the cause of any shortfall.
 
     A discrete design's loop is not compared: the guarantee is a property of continuous state
@@ -659,9 +668,20 @@ def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=N
         elif m.model == "coupled":
             notes.append("cause: couplings the decoupled design ignores (the guarantee holds on the "
                          "subsystem it was designed on)")
+    notes.extend(_filter_notes(m, design, rate_filter))
     if actuators is not None and u_trim is not None:
         notes.extend(_saturation_notes(m, actuators, u_trim, initial_demand))
     return notes
+
+
+def _filter_notes(m: LoopMargins, design, rate_filter) -> list[str]:
+    """The gyro filter's phase lag at the crossover of a loop whose subsystem feeds back a body rate."""
+    wc = m.gain_crossover_freq
+    subs = {sub.name: sub for sub in design.subsystems}
+    if rate_filter is None or not wc or m.loop not in subs or not set(subs[m.loop].states) & {"p", "q", "r"}:
+        return []
+    lag = -math.degrees(float(np.angle(rate_filter.form(m.sample_time).response(wc)[0])))
+    return [f"gyro filter ({rate_filter.describe()}): {lag:.3g} deg of phase lag at the {wc:.4g} rad/s crossover"]
 
 
 def _saturation_notes(m, actuators, u_trim, initial_demand) -> list[str]:

@@ -157,6 +157,11 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
                 else "dl/dt = (u - u_trim - l) / tau")
         parts.append(f"{step}, tau = {tau:g} s: the controller's model l of the rotors' lag (the deviation of "
                      "[T, A, E, R] from trim), driven by its own command u, starting at 0")
+    filt = getattr(loop, "rate_filter", None)
+    if filt is not None:
+        step = "g <- A g + b r" if sample_time is not None else "dg/dt = A g + b r"
+        parts.append(f"the rates p, q, r in x are the gyro's through its filter ({filt.describe()}): y = c g + d r, "
+                     f"{step} on each measured rate r, g starting at 0")
     kal = loop.estimator
     if kal is not None:
         y = f"y = the measured {', '.join(kal.measured)}"

@@ -95,11 +95,11 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
         reference = exp.flies_reference
     spec = loop.spec(noise=False, reference=reference)  # with the rotors' lag: its lag model, controller states
     c = loop.constants(Ts)
-    nz, nl, ny, nb = len(loop.integral_states), spec.n_lag, spec.ny, spec.n_buffer
+    nz, nl, ny, nb, ng = len(loop.integral_states), spec.n_lag, spec.ny, spec.n_buffer, spec.n_filter
     dialect = Dialect(real="quadctl_real", literal="QUADCTL_LIT({})", call="QUADCTL_FN({})", pragma=False,
                       named=((ANTIWINDUP_TOL, "QUADCTL_ANTIWINDUP_TOL"),), mark_used=True)
     law = emit(build(spec).law, "qc_law", 1, dialect)
-    offsets = _offsets(nz, spec.lag_model, ny, spec.schedule_shape)
+    offsets = _offsets(nz, spec.lag_model, ny, spec.schedule_shape, spec.filter_order)
     act = loop.actuators
     rotors = ""
     if act is not None and act.mode == "motors":
@@ -160,6 +160,14 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
         "LAW_U": "u_applied" if nb else "u",
         "COMMAND_STORE": ("  for (i = 0; i < QUADCTL_NU; ++i) u[i] = X_sampled[QC_X_B + i];  /* the new command "
                           "(u_applied: the one the filter's model applies now) */\n" if nb else ""),
+        "NG": str(ng),
+        "GYRO_MEMBER": (f"  quadctl_real g[{ng}];  /* the gyro filter's states, {ng // 3} per rate p, q, r (rad/s) */\n"
+                        if ng else ""),
+        "GYRO_INIT": ("  for (i = 0; i < QUADCTL_NG; ++i) c->g[i] = QUADCTL_LIT(0.0);  /* at rest, as the simulation "
+                      "starts */\n" if ng else ""),
+        "GYRO_LOAD": "  for (i = 0; i < QUADCTL_NG; ++i) X[QC_X_G + i] = c->g[i];\n" if ng else "",
+        "GYRO_STORE": "  for (i = 0; i < QUADCTL_NG; ++i) c->g[i] = X_sampled[QC_X_G + i];\n" if ng else "",
+        "GYRO_DOC": _gyro_doc(loop, Ts),
         "ESTIMATE_MEMBER": ("  quadctl_real xh[QUADCTL_NX];  /* the filter's a priori estimate of x - x_ref(t) for "
                             "this sample (state units) */\n" if ny else ""),
         "ESTIMATE_INIT": ("  for (i = 0; i < QUADCTL_NX; ++i) c->xh[i] = QUADCTL_LIT(0.0);  /* the filter believes "
@@ -392,6 +400,19 @@ def _filter_doc(loop, reference: bool = False) -> str:
     return "\n".join(" *   " + line for line in lines)
 
 
+def _gyro_doc(loop, Ts: float) -> str:
+    """The header's paragraph on the gyro filter (controller.filters): what the law does to the rates."""
+    if loop.rate_filter is None:
+        return _doc(["No gyro filter was configured (controller.filters): the law takes the measured rates p, q, r",
+                     "as they are; filter them before quadctl_step only if the simulation did."])
+    form = loop.filter_form
+    return _doc([f"The law runs the config's gyro filter (controller.filters: {loop.rate_filter.describe()}) "
+                 f"on the measured rates p, q, r, at {1 / Ts:g} Hz: y = c g + d r, g <- A g + b r on each rate "
+                 f"(the g member, {form.order} states per rate; qc_c's filter_A, filter_b, filter_c, filter_d), "
+                 "and uses y in place of r, as `quadctl simulate` does. Give quadctl_step the raw gyro rates: do "
+                 "not filter them again."])
+
+
 def _delay_doc(delay: int, Ts: float, filtered: bool = False) -> str:
     """The header's paragraph on the delay: the law is the law before it."""
     if delay and filtered:
@@ -414,11 +435,11 @@ def _delay_doc(delay: int, Ts: float, filtered: bool = False) -> str:
     return "\n".join(" *   " + line for line in lines)
 
 
-def _offsets(nz: int, lag_model: bool = False, ny: int = 0,
-             schedule: tuple[int, ...] = ()) -> list[tuple[str, tuple[int, ...], int]]:
+def _offsets(nz: int, lag_model: bool = False, ny: int = 0, schedule: tuple[int, ...] = (),
+             filter_order: int = 0) -> list[tuple[str, tuple[int, ...], int]]:
     """(name, shape, first index) of each block of the constant vector."""
     out, start = [], 0
-    for name, shape in constant_layout(nz, lag_model=lag_model, ny=ny, schedule=schedule):
+    for name, shape in constant_layout(nz, lag_model=lag_model, ny=ny, schedule=schedule, filter_order=filter_order):
         out.append((name, shape, start))
         start += int(np.prod(shape))
     return out

@@ -82,7 +82,7 @@ def fields(exp: Export) -> list[Field]:
             "eig_cl": np.asarray(sub.eigenvalues_z if sub.eigenvalues_z is not None else sub.eigenvalues)}
     units = [STATE_UNITS[s] for s in STATE_NAMES]
     return [*_base_fields(exp, loop, des, lin, Ki, Ts, domain, subsystems, units), *_estimator_fields(loop),
-            *_schedule_fields(loop)]
+            *_schedule_fields(loop), *_gyro_filter_fields(loop, Ts)]
 
 
 def _base_fields(exp, loop, des, lin, Ki, Ts, domain, subsystems, units) -> list[Field]:
@@ -167,6 +167,19 @@ def _estimator_fields(loop) -> list[Field]:
                   "torque), Rn (ny x ny) the sensor noise, gain (12 x ny: M, or L), predictor_gain (L = Ae M, "
                   "or L), P (a priori, or the error covariance), Z (a posteriori P - M C P, or P), eig (of "
                   "Ae - L C: z, or s)")]
+
+
+def _gyro_filter_fields(loop, Ts) -> list[Field]:
+    """The gyro filter the law runs (``controller.filters``) as one struct, at the export's timing; none without."""
+    filt = getattr(loop, "rate_filter", None)
+    if filt is None:
+        return []
+    form = filt.form(Ts or None)
+    value = {"filters": filt.describe(), "A": np.asarray(form.A, dtype=float), "b": np.asarray(form.b, dtype=float),
+             "c": np.asarray(form.c, dtype=float), "d": float(form.d)}
+    return [Field("gyro_filter", value, "A, b, c, d: per rate, rad/s in and out",
+                  "the filter on each measured body rate r (p, q, r): y = c g + d r and g <- A g + b r at each sample "
+                  "(dg/dt = A g + b r when continuous), y in place of r in the law, g starting at 0")]
 
 
 def _schedule_fields(loop) -> list[Field]:

@@ -5,11 +5,12 @@ compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
 ``driver.c``), and the interpreted fallback (:mod:`quadctl.sim.interpreted`, CasADi's virtual
 machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
 
-The loop state is ``X = [x; f; z; l; b; xh]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
+The loop state is ``X = [x; f; z; l; b; g; xh]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
 the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the controller states:
 the ``nz`` integrators of an LQI law, the four states ``l`` of the controller's rotor lag model
-(:attr:`LoopSpec.lag_model`), and the ``4 n`` entries of the command buffer of a loop with ``n``
-samples of delay (:attr:`LoopSpec.delay`), then the 12 states ``xh`` of a Kalman filter (LQG).
+(:attr:`LoopSpec.lag_model`), the ``4 n`` entries of the command buffer of a loop with ``n``
+samples of delay (:attr:`LoopSpec.delay`), the ``3 m`` states ``g`` of the gyro filter
+(:attr:`LoopSpec.filter_order`), then the 12 states ``xh`` of a Kalman filter (LQG).
 The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant` states. The control law is
 
     u = sat(u_ref - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,  u_ref = u_trim,
@@ -53,6 +54,11 @@ Delay (:attr:`LoopSpec.delay`, held loops only): ``n`` controller samples from m
 actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands computed 1 to ``n``
 samples ago; at a sample the law applies ``b_n`` and shifts, ``b_1 <- u_new``, ``b_k <- b_(k-1)``.
 Runs start with the buffer at the trim input. Exact: the delay is a whole number of samples.
+
+Gyro filter (:attr:`LoopSpec.filter_order`, ``controller.filters``; :mod:`quadctl.linear.filters`): the
+law takes each measured body rate through the same filter ``(A, b, c, d)``, ``y = c g + d r_m`` in place
+of ``r_m``. Held loops advance it once per sample on the sample the law takes, ``g <- A g + b r_m``;
+continuous loops integrate ``dg/dt = A g + b r_m`` with the plant. Runs start with ``g = 0`` (at rest).
 
 State estimation (:attr:`LoopSpec.measured`, LQG; :mod:`quadctl.estimator`): the last 12 loop
 states are the Kalman filter's estimate ``xh`` of the deviation ``x - x_ref(t)`` on the linear
@@ -167,10 +173,13 @@ def exo_layout(noise: bool, wind: bool, reference: bool = False) -> tuple[tuple[
 
 N_ROTORS = 4
 """Rotor thrust states of a loop with rotor dynamics (one per rotor, N)."""
+N_RATES = 3
+"""Body rates the gyro filter runs on (``p, q, r``, the last three states)."""
 
 
 def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                    schedule: tuple[int, ...] = (), n_law: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
+                    schedule: tuple[int, ...] = (), n_law: int = 0,
+                    filter_order: int = 0) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """Names and shapes of the constant vector ``c`` of a loop with ``nz`` integrators.
 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
@@ -182,8 +191,11 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, 
     gain columns (:attr:`LoopSpec.schedule`), ends with ``schedule_heading`` (rad, the direction
     ``speed`` is measured along), ``schedule_breaks`` (p + 1,) and ``schedule_coefficients``
     (4, p, 4, m): :class:`quadctl.design.gain_table.GainTable`'s ``breaks`` and ``coefficients``.
-    A loop flying a law other than LQR (:attr:`LoopSpec.law`) ends with its ``law`` constants (``n_law``
-    of them). Matrices (and the coefficients) are stored column-major.
+    A loop flying a law other than LQR (:attr:`LoopSpec.law`) then has its ``law`` constants (``n_law``
+    of them). A loop with a gyro filter of ``filter_order`` states per rate (:attr:`LoopSpec.filter_order`)
+    ends with the filter's ``filter_A`` (m, m), ``filter_b``, ``filter_c`` (m,) and ``filter_d`` (1,)
+    (:class:`quadctl.linear.filters.StateSpace`, the same on each rate).
+    Matrices (and the coefficients) are stored column-major.
     """
     out = _BASE_LAYOUT
     if nz:
@@ -200,18 +212,22 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, 
                      ("schedule_coefficients", (4, pieces, N_INPUTS, columns)))
     if n_law:
         out = out + (("law", (n_law,)),)
+    if filter_order:
+        m = filter_order
+        out = out + (("filter_A", (m, m)), ("filter_b", (m,)), ("filter_c", (m,)), ("filter_d", (1,)))
     return out
 
 
 def constant_size(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                  schedule: tuple[int, ...] = (), n_law: int = 0) -> int:
+                  schedule: tuple[int, ...] = (), n_law: int = 0, filter_order: int = 0) -> int:
     """Length of ``c`` for ``nz`` integrators (and rotor dynamics, a lag model, ``ny`` measurements,
-    a gain schedule's ``(pieces, columns)``)."""
-    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model, ny, schedule, n_law))
+    a gain schedule's ``(pieces, columns)``, a law's constants, a gyro filter)."""
+    return sum(int(np.prod(shape)) for _, shape in constant_layout(nz, rotors, lag_model, ny, schedule, n_law,
+                                                                   filter_order))
 
 
 def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                   schedule: tuple[int, ...] = (), n_law: int = 0, **values) -> np.ndarray:
+                   schedule: tuple[int, ...] = (), n_law: int = 0, filter_order: int = 0, **values) -> np.ndarray:
     """The ``c`` vector of one case; missing entries are zero (``mix``, ``mix_inv``: identity).
 
     Raises
@@ -219,12 +235,12 @@ def pack_constants(nz: int = 0, rotors: bool = False, lag_model: bool = False, n
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    return fill_constants(_slots(nz, rotors, lag_model, ny, tuple(schedule), n_law)[1].copy(), nz, rotors,
-                          lag_model, ny, schedule, n_law, **values)
+    return fill_constants(_slots(nz, rotors, lag_model, ny, tuple(schedule), n_law, filter_order)[1].copy(), nz,
+                          rotors, lag_model, ny, schedule, n_law, filter_order, **values)
 
 
 def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                   schedule: tuple[int, ...] = (), n_law: int = 0, **values) -> np.ndarray:
+                   schedule: tuple[int, ...] = (), n_law: int = 0, filter_order: int = 0, **values) -> np.ndarray:
     """Write ``values`` into their slots of a ``c`` vector of that layout (in place; returned):
     what :func:`pack_constants` does to the defaults, for a sweep that writes each case's gains
     into a copy of its loop's constants.
@@ -234,7 +250,7 @@ def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule), n_law)[0]
+    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule), n_law, filter_order)[0]
     for name, value in values.items():
         where, shape = _slot_of(slots, name, values)
         arr = np.asarray(value, dtype=float)
@@ -245,7 +261,8 @@ def fill_constants(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model
 
 
 def fill_constants_stack(out: np.ndarray, nz: int = 0, rotors: bool = False, lag_model: bool = False, ny: int = 0,
-                         schedule: tuple[int, ...] = (), n_law: int = 0, **values) -> np.ndarray:
+                         schedule: tuple[int, ...] = (), n_law: int = 0, filter_order: int = 0,
+                         **values) -> np.ndarray:
     """:func:`fill_constants` of ``N`` cases at once: ``out`` (N, nc), each of ``values`` the ``N``
     cases' entries stacked, (N, *shape) (or (N, size)); in place, returned. Each row is what
     :func:`fill_constants` writes into that row alone.
@@ -255,7 +272,7 @@ def fill_constants_stack(out: np.ndarray, nz: int = 0, rotors: bool = False, lag
     ValueError
         An entry has the wrong shape, or is not in the layout.
     """
-    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule), n_law)[0]
+    slots = _slots(nz, rotors, lag_model, ny, tuple(schedule), n_law, filter_order)[0]
     N = len(out)
     for name, value in values.items():
         where, shape = _slot_of(slots, name, values)
@@ -276,10 +293,10 @@ def _slot_of(slots: dict, name: str, values: dict) -> tuple[slice, tuple[int, ..
 
 @lru_cache(maxsize=16)
 def _slots(nz: int, rotors: bool = False, lag_model: bool = False, ny: int = 0, schedule: tuple[int, ...] = (),
-           n_law: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
+           n_law: int = 0, filter_order: int = 0) -> tuple[dict[str, tuple[slice, tuple[int, ...]]], np.ndarray]:
     """Each constant's slice of ``c`` and shape, and ``c`` with every default in."""
     slots, offset = {}, 0
-    for name, shape in constant_layout(nz, rotors, lag_model, ny, schedule, n_law):
+    for name, shape in constant_layout(nz, rotors, lag_model, ny, schedule, n_law, filter_order):
         size = int(np.prod(shape))
         slots[name] = (slice(offset, offset + size), shape)
         offset += size
@@ -342,6 +359,10 @@ class LoopSpec:
         :func:`quadctl.sim.pid.structure_of`). The law's states follow the plant's in the loop state; its
         numbers are the ``law`` constants. Such a law is sampled (``held``) and measures the full state
         (no integrators, lag model, filter or gain schedule of an LQR design; ``pattern`` all false).
+    filter_order : int
+        States per rate of the filter the law runs on the measured body rates (the gyro,
+        :mod:`quadctl.linear.filters`): the law takes ``y = c g + d r_m`` in place of each rate ``r_m``;
+        ``g`` advances once per sample (held loops), or with the plant (continuous). 0: raw rates.
     """
 
     pattern: tuple[bool, ...]
@@ -360,6 +381,7 @@ class LoopSpec:
     phi_pattern: tuple[bool, ...] = ()
     schedule: tuple = ()
     law: tuple = ()
+    filter_order: int = 0
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -402,6 +424,11 @@ class LoopSpec:
         return N_INPUTS if self.lag_model else 0
 
     @property
+    def n_filter(self) -> int:
+        """States of the gyro filter (``filter_order`` per body rate)."""
+        return N_RATES * self.filter_order
+
+    @property
     def ny(self) -> int:
         """Measurements of the Kalman filter (0: full-state feedback)."""
         return len(self.measured)
@@ -431,8 +458,8 @@ class LoopSpec:
 
     @property
     def nx(self) -> int:
-        """Loop states ``[x; f; z; l; s; b; xh]`` (``s``: a law's own states, :attr:`n_law`)."""
-        return self.n_plant + self.nz + self.n_lag + self.n_law + self.n_buffer + self.n_estimate
+        """Loop states ``[x; f; z; l; s; b; g; xh]`` (``s``: a law's own states, :attr:`n_law`)."""
+        return self.n_plant + self.nz + self.n_lag + self.n_law + self.n_buffer + self.n_filter + self.n_estimate
 
     @property
     def n_exo(self) -> int:
@@ -448,7 +475,7 @@ class LoopSpec:
     def n_constants(self) -> int:
         """Length of ``c``: the loop's constants, then (ETDRK4) the :data:`PHI_LAYOUT` block."""
         return constant_size(self.nz, self.rotors, self.lag_model, self.ny, self.schedule_shape,
-                             self.n_law_constants) + self.n_phi
+                             self.n_law_constants, self.filter_order) + self.n_phi
 
     @property
     def n_phi(self) -> int:
@@ -468,7 +495,8 @@ class LoopSpec:
                 + (f" method={self.method}" if self.method != "rk4" else "")
                 + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else "")
                 + (" schedule={}:{}:{}:{}".format(*self.schedule) if self.schedule else "")
-                + (" law=" + ":".join(map(str, self.law)) if self.law else ""))
+                + (" law=" + ":".join(map(str, self.law)) if self.law else "")
+                + (f" filter={self.filter_order}" if self.filter_order else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -500,12 +528,13 @@ def _check_law(spec: LoopSpec) -> None:
         raise ValueError("law: a PID cascade runs sampled, at its own rate: held=True")
     if spec.saturation != "motors":
         raise ValueError("law: a PID cascade makes rotor commands: saturation 'motors' (the config's motors:)")
-    if spec.nz or spec.lag_model or spec.measured or spec.schedule or spec.method != "rk4" or any(spec.pattern):
-        raise ValueError("law: a PID cascade has no LQR gain, integrators, lag model, Kalman filter or gain "
-                         "schedule, and runs with RK4")
+    if (spec.nz or spec.lag_model or spec.measured or spec.schedule or spec.filter_order or spec.method != "rk4"
+            or any(spec.pattern)):
+        raise ValueError("law: a PID cascade has no LQR gain, integrators, lag model, Kalman filter, gyro filter "
+                         "of controller.filters (it runs its stack's own) or gain schedule, and runs with RK4")
 
 
-_PN, _PE, _PSI = STATE_INDEX["pN"], STATE_INDEX["pE"], STATE_INDEX["psi"]
+_PN, _PE, _PSI, _P = STATE_INDEX["pN"], STATE_INDEX["pE"], STATE_INDEX["psi"], STATE_INDEX["p"]
 
 
 def wrap_angle(angle, lib=np):
@@ -646,7 +675,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
     c = ca.SX.sym("c", spec.n_constants)
     parts, offset = {}, 0
     for name, shape in constant_layout(nz, spec.rotors, spec.lag_model, spec.ny, spec.schedule_shape,
-                                       spec.n_law_constants):
+                                       spec.n_law_constants, spec.filter_order):
         size = int(np.prod(shape))
         block = c[offset:offset + size]
         parts[name] = ca.reshape(block, *shape) if len(shape) == 2 else block
@@ -680,6 +709,24 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     ne = spec.n_estimate
     measured = list(spec.measured)
+    ng, mf = spec.n_filter, spec.filter_order
+    og = npl + nz + nl + spec.n_law + spec.n_buffer  # where the gyro filter's states start
+
+    def gyro(X):
+        """The measured body rates ``r_m`` (rad/s): what the gyro filter takes."""
+        return X[_P:_P + N_RATES] + sensor[_P:_P + N_RATES]
+
+    def filtered_rates(X):
+        """``y = c g + d r_m`` on each rate: what the law takes in place of the measured rates."""
+        g, r = X[og:og + ng], gyro(X)
+        return ca.vertcat(*[ca.dot(parts["filter_c"], g[k * mf:(k + 1) * mf]) + parts["filter_d"] * r[k]
+                            for k in range(N_RATES)])
+
+    def filter_update(X):
+        """``A g + b r_m`` on each rate: the filter's next state (held loops) or its rate (continuous)."""
+        g, r = X[og:og + ng], gyro(X)
+        return ca.vertcat(*[parts["filter_A"] @ g[k * mf:(k + 1) * mf] + parts["filter_b"] * r[k]
+                            for k in range(N_RATES)])
 
     def x_ref(t):
         """The reference state at ``t``: the row's expansion, or the trim drifting at ``x_rate``."""
@@ -713,7 +760,10 @@ def build(spec: LoopSpec) -> LoopFunctions:
         """``x_m - x_ref(t)`` in the reference's heading frame (:func:`heading_frame`). A loop without a
         reference holds the trim, whose yaw is the design's: only its yaw error is wrapped (turning by
         a zero angle would cost a sine and a cosine per stage for the same bits)."""
-        dx = X[:N_STATES] + sensor - x_ref(t)
+        x_m = X[:N_STATES] + sensor
+        if ng:
+            x_m = ca.vertcat(x_m[:_P], filtered_rates(X))
+        dx = x_m - x_ref(t)
         if not spec.reference:
             return ca.vertcat(dx[:_PSI], wrap_angle(dx[_PSI], ca), dx[_PSI + 1:])
         return heading_frame(dx, heading_offset(t))
@@ -807,6 +857,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
         b0, nb = npl + nz + nl + n_law, spec.n_buffer
         buffer = X[b0:b0 + nb]
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
+    if ng:  # the gyro filter takes this sample (held loops)
+        X_sampled = ca.vertcat(X_sampled, filter_update(X) if spec.held else X[og:og + ng])
     if ne and spec.held:  # predict from the updated estimate under the applied input
         xc = deviation(X, t)
         X_sampled = ca.vertcat(X_sampled, parts["Ae"] @ xc + parts["Be"] @ (u_now - u_ref(t)))
@@ -833,6 +885,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         xdot = body(Y, u)
         xdot = ca.vertcat(xdot, rate) if nz else xdot
         xdot = ca.vertcat(xdot, lag_rate(Y, u)) if nl else xdot
+        xdot = ca.vertcat(xdot, filter_update(Y)) if ng else xdot
         if ne:  # Kalman-Bucy
             xh = Y[nx - ne:]
             xh_dot = parts["Ae"] @ xh + parts["Be"] @ (u - u_ref(ts)) + parts["Le"] @ innovation(Y, ts)

@@ -120,6 +120,9 @@ class ClosedLoop:
     law: object | None = None
     """:class:`quadctl.config.pid.PidGains` of the PID cascade that flies in place of the LQR gains
     (:mod:`quadctl.sim.pid`; ``K`` is then zero and ``rate`` the cascade's base rate); None: LQR."""
+    rate_filter: object | None = None
+    """:class:`quadctl.linear.filters.RateFilter` the law runs on the measured body rates (``controller.filters``),
+    at the controller's period (continuous without a rate); None: raw rates."""
     schedule_jacobians: tuple | None = None
     """``(A, B)``, (P, 12, 12) and (P, 12, 4): the design model trimmed and linearized at each of the
     schedule's values, whose loops closed with the table's gains are ETDRK4's linear parts
@@ -131,6 +134,13 @@ class ClosedLoop:
         motors = self.actuators.motors if self.actuators is not None else None
         return motors.time_constant if motors is not None else None
 
+    @property
+    def filter_form(self):
+        """The gyro filter's :class:`~quadctl.linear.filters.StateSpace` at the loop's timing (None: no filter)."""
+        if self.rate_filter is None:
+            return None
+        return self.rate_filter.form(None if self.rate is None else 1.0 / self.rate)
+
     def plan(self, duration: float, dt="auto") -> StepPlan:
         """The RK4 step: from the closed loop's spectrum, or the open loop's under a held input
         (both with the rotors' lag, :func:`rotor_eigenvalues`)."""
@@ -141,9 +151,16 @@ class ClosedLoop:
         est = self.estimator.eigenvalues if self.estimator is not None else np.zeros(0)
         model = rotor_eigenvalues(self.lag_model_time_constant) if self.Kv is not None else np.zeros(0)
         sched = self.schedule_eigenvalues if self.schedule_eigenvalues is not None else np.zeros(0)
-        return plan_step(np.concatenate([self.eigenvalues, lag, model, est, sched]),
+        form = self.filter_form
+        filt = np.zeros(0)
+        if form is not None:  # the filter's own poles, and the loop's with it (linearized at the trim)
+            filt = np.linalg.eigvals(form.A)
+            if self.jacobians is not None and self.estimator is None:
+                filt = np.concatenate([filt, np.linalg.eigvals(self.linear_part())])
+        return plan_step(np.concatenate([self.eigenvalues, lag, model, est, sched, filt]),
                          [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
-                          *["estimator"] * len(est), *["gain schedule"] * len(sched)], duration, dt)
+                          *["estimator"] * len(est), *["gain schedule"] * len(sched),
+                          *["gyro filter"] * len(filt)], duration, dt)
 
     def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
         """``(A, B)`` of the design model at the trim, or ValueError naming how to build a loop with them."""
@@ -179,7 +196,8 @@ class ClosedLoop:
         return linear_loop.simulated(A, B, K, Ki=Ki, integral_states=self.integral_states, Kv=self.Kv,
                                      lag_time_constant=self.lag_model_time_constant,
                                      rotor_time_constant=self.rotor_time_constant,
-                                     mix=act.mix if act is not None else None, estimator=self.estimator)
+                                     mix=act.mix if act is not None else None, estimator=self.estimator,
+                                     rate_filter=self.filter_form)
 
     def __getstate__(self):
         """The loop's fields (a pickle carries no kept setup: its runner is this process's)."""
@@ -256,7 +274,8 @@ class ClosedLoop:
                                 rotors=self.rotor_time_constant is not None, delay=self.delay_samples,
                                 lag_model=self.Kv is not None, wind=wind,
                                 measured=tuple(STATE_INDEX[s] for s in self.measured), reference=reference,
-                                law=self.law_structure)
+                                law=self.law_structure,
+                                filter_order=self.rate_filter.order if self.rate_filter is not None else 0)
 
     @property
     def law_structure(self) -> tuple:
@@ -290,14 +309,18 @@ class ClosedLoop:
                     kal.discrete and not math.isclose(kal.sample_time, 1.0 / self.rate, rel_tol=1e-12)):
                 raise ValueError("the Kalman filter's sample time must be the controller period (or both continuous)")
             values.update(Ae=kal.A, Be=kal.B, Le=kal.gain)
+        form = self.filter_form
+        if form is not None:
+            values.update(filter_A=form.A, filter_b=form.b, filter_c=form.c, filter_d=[form.d])
         return pack_constants(*self.constant_layout, **values, **self.gain_constants())
 
     @property
-    def constant_layout(self) -> tuple[int, bool, bool, int, tuple[int, ...], int]:
-        """``(nz, rotors, lag_model, ny, schedule, law)``: the arguments of
+    def constant_layout(self) -> tuple[int, bool, bool, int, tuple[int, ...], int, int]:
+        """``(nz, rotors, lag_model, ny, schedule, law, filter_order)``: the arguments of
         :func:`quadctl.sim.builder.constant_layout` that give the layout of :meth:`constants`."""
         return (len(self.integral_states), self.rotor_time_constant is not None, self.Kv is not None,
-                len(self.measured), self.schedule_shape, len(self.law.values) if self.law is not None else 0)
+                len(self.measured), self.schedule_shape, len(self.law.values) if self.law is not None else 0,
+                self.rate_filter.order if self.rate_filter is not None else 0)
 
     @property
     def schedule_degree(self) -> int:
@@ -346,9 +369,10 @@ class ClosedLoop:
         return psi - self.x_trim[STATE_INDEX["psi"]]
 
     def initial_loop_state(self, x0) -> np.ndarray:
-        """The loop state ``[x0; f; z; l; s; b; xh]`` a run starts from: the rotors (if they lag) at their trim
-        thrusts ``mix u_trim``, the integrators and the lag model (deviation from trim) at zero, a PID
-        cascade's states (:func:`quadctl.sim.pid.initial_states`), the delay's buffer at the trim input."""
+        """The loop state ``[x0; f; z; l; s; b; g; xh]`` a run starts from: the rotors (if they lag) at their
+        trim thrusts ``mix u_trim``, the integrators and the lag model (deviation from trim) at zero, a PID
+        cascade's states (:func:`quadctl.sim.pid.initial_states`), the delay's buffer at the trim input, the
+        gyro filter at rest."""
         parts = [np.asarray(x0, dtype=float)]
         if self.rotor_time_constant is not None:
             parts.append(self.actuators.commands(self.u_trim))
@@ -358,6 +382,7 @@ class ClosedLoop:
 
             parts.append(initial_states(self.law, x0, self.u_trim))
         parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
+        parts.append(np.zeros(3 * self.rate_filter.order if self.rate_filter is not None else 0))
         parts.append(np.zeros(N_STATES if self.estimator is not None else 0))
         return np.concatenate(parts)
 

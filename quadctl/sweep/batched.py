@@ -333,7 +333,7 @@ def loops_of(live) -> list:
                     ol = np.concatenate([loop.open_loop_eigenvalues, rotor_eigenvalues(tau)])
                     prep.plant.cache[key] = plan_held_step(ol, *key[1:4])
                 plan = prep.plant.cache[key]
-            elif tau is not None or des.Kv is not None or loop.estimator is not None:
+            elif tau is not None or des.Kv is not None or loop.estimator is not None or loop.rate_filter is not None:
                 plan = loop.plan(setup.duration, setup.dt)
             else:
                 plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)

@@ -21,7 +21,7 @@ import numpy as np
 
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
 from quadctl.layout import N_STATES, STATE_INDEX
-from quadctl.sweep.gates import judge, tracking_columns
+from quadctl.sweep.gates import MARGIN_COLUMNS, gated_margins, judge, margin_columns, tracking_columns
 from quadctl.sweep.spec import _like, assign
 from quadctl.threads import one_thread
 
@@ -104,6 +104,9 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
         if isinstance(setup, ConfigError):
             rows[index] = _failed(head, "invalid_config", str(setup))
             continue
+        if setup.weight_error is not None:  # a Bryson rule with no room on this case's vehicle
+            rows[index] = _failed(head, "invalid_config", setup.weight_error)
+            continue
         if derived:
             base_plant = plant_of(setups.base) if base_plant is None else base_plant
             plant = base_plant
@@ -125,6 +128,9 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
                     traces[prep.index] = trace
             except QuadctlError as exc:  # whatever a feature of the config refuses: a row, not a crash
                 rows[prep.index] = _failed(prep.head, "failed", str(exc))
+    if gated_margins(task.gates):
+        for prep in ready:
+            _add_margins(rows[prep.index], prep)
     out = []
     for index, _ in task.cases:
         row = rows[index]
@@ -338,6 +344,21 @@ def _plain(value):
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def _add_margins(row: dict, prep: Prepared) -> None:
+    """A designed case's :data:`~quadctl.sweep.gates.MARGIN_COLUMNS` (None where it has no design)."""
+    from quadctl import pipeline
+
+    row.update(dict.fromkeys(MARGIN_COLUMNS))
+    if row.get("stable") is None:  # no design
+        return
+    stages = pipeline.Stages(prep.setup, linear=prep.plant.linear, decoupled=prep.plant.decoupled)
+    try:
+        found = pipeline.margins_of(prep.setup, prep.plant.linear, prep.plant.decoupled, stages.design)
+    except QuadctlError:
+        return
+    row.update(margin_columns(found))
 
 
 @lru_cache(maxsize=32)

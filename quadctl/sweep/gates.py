@@ -70,6 +70,26 @@ def metric_columns(cfg) -> list[str]:
             + ["cost", "status", "dt", "steps"])
 
 
+MARGIN_COLUMNS = ("margin.gain_db", "margin.phase_deg")
+"""Columns of a sweep that gates on them (computed only then: a design's margins cost more than its run's
+metrics): the least gain margin of any regulated loop, dB on its nearer side (``min(-lower, upper)``), and
+the least phase margin, deg, over the design-model and coupled loops as ``quadctl margins`` reports them
+(:func:`quadctl.pipeline.margins_of`: the rotors' lag, the delay and the gyro filter in them). A gate
+``margin.gain_db: {min: 6}`` and ``margin.phase_deg: {min: 30}`` is the thin-margins check
+(:data:`quadctl.design.margins.THIN_GAIN_MARGIN_DB`, :data:`~quadctl.design.margins.THIN_PHASE_MARGIN_DEG`)."""
+
+
+def margin_columns(found) -> dict:
+    """:data:`MARGIN_COLUMNS` of a design's :class:`~quadctl.design.margins.LoopMargins`."""
+    return {"margin.gain_db": min(min(-m.gain_margin_db[0], m.gain_margin_db[1]) for m in found),
+            "margin.phase_deg": min(m.phase_margin_deg for m in found)}
+
+
+def gated_margins(gates) -> bool:
+    """Whether a gate reads :data:`MARGIN_COLUMNS` (the sweep then computes them)."""
+    return any(g.metric in MARGIN_COLUMNS for g in gates)
+
+
 TRACKING_COLUMNS = ("tracking.rms", "tracking.peak", "waypoints.reached")
 """Columns of a case that flies a reference: the position tracking error's RMS and peak (m), and
 a mission's waypoints reached in order within its tolerance (a count)."""

@@ -29,7 +29,7 @@ from quadctl.messages import (
     show,
     whole_number,
 )
-from quadctl.sweep.gates import Gate, metric_columns
+from quadctl.sweep.gates import MARGIN_COLUMNS, Gate, gated_margins, metric_columns
 
 MODES = ("grid", "random")
 DISTRIBUTIONS = {
@@ -357,7 +357,7 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
                      canonical=json.loads(json.dumps({k: v for k, v in data.items() if k != "description"},
                                                      default=str)),
                      uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind), estimator) for p in parameters),
-                     metrics=tuple(metric_columns(start)))
+                     metrics=tuple(metric_columns(start)) + (MARGIN_COLUMNS if gated_margins(gates) else ()))
     if mode == "grid":
         count = spec.count()
         if count > MAX_CASES:
@@ -486,7 +486,7 @@ def _check_gate(metric, spec, cfg, label: str) -> Gate:
     metric = str(metric)
     where = f"{label}: gates.{metric}"
     known = metric_columns(cfg)
-    gateable = [m for m in known if m not in ("dt", "steps")] + ["steps"]
+    gateable = [m for m in known if m not in ("dt", "steps")] + ["steps", *MARGIN_COLUMNS]
     if metric not in gateable:
         family, _, name = metric.partition(".")
         if family in ("settling_time", "overshoot") and name in STATE_NAMES:

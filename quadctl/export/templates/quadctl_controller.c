@@ -24,9 +24,10 @@
 #define QUADCTL_ANTIWINDUP_TOL ${TOL_DOUBLE}
 #endif
 
-#define QC_NX_LOOP ${NX_LOOP}  /* the law's loop state [x; z; l; b; xh] */
+#define QC_NX_LOOP ${NX_LOOP}  /* the law's loop state [x; z; l; b; g; xh] */
 #define QC_X_B (QUADCTL_NX + QUADCTL_NZ + QUADCTL_NL)  /* where the remembered commands b start in it */
-#define QC_X_XH (QC_X_B + QUADCTL_NB)  /* where the filter's estimate xh starts in it */
+#define QC_X_G (QC_X_B + QUADCTL_NB)  /* where the gyro filter's states g start in it */
+#define QC_X_XH (QC_X_G + QUADCTL_NG)  /* where the filter's estimate xh starts in it */
 
 /* Offsets of the constants in qc_c; matrices are column-major. */
 ${CONSTANT_DEFINES}
@@ -36,22 +37,22 @@ static const quadctl_real qc_c[QC_NC] = {
 ${CONSTANTS}
 };
 ${MEASURED_TABLE}
-/* The control law: u and the sampled loop state [x; z; l; b; xh] from (loop state, t, constants, exogenous). */
+/* The control law: u and the sampled loop state [x; z; l; b; g; xh] from (loop state, t, constants, exogenous). */
 ${LAW_FUNCTION}
 void quadctl_init(quadctl_controller *c) {
   int i;
   for (i = 0; i < ${NZ_STORAGE}; ++i) c->z[i] = QUADCTL_LIT(0.0);
-${LAG_INIT}${BUFFER_INIT}${ESTIMATE_INIT}  c->k = 0;
+${LAG_INIT}${BUFFER_INIT}${GYRO_INIT}${ESTIMATE_INIT}  c->k = 0;
 }
 
 ${STEP_PROTOTYPE} {
   quadctl_real X[QC_NX_LOOP], X_sampled[QC_NX_LOOP], t${APPLIED_DECL}${EXO_DECL};
   int i;
 ${MEASUREMENT_LOAD}  for (i = QUADCTL_NX; i < QUADCTL_NX + QUADCTL_NZ; ++i) X[i] = c->z[i - QUADCTL_NX];
-${LAG_LOAD}${BUFFER_LOAD}${ESTIMATE_LOAD}  t = (quadctl_real)c->k * qc_c[QC_TS];
+${LAG_LOAD}${BUFFER_LOAD}${GYRO_LOAD}${ESTIMATE_LOAD}  t = (quadctl_real)c->k * qc_c[QC_TS];
 ${EXO_LOAD}  qc_law(X, &t, qc_c, ${LAW_E}, ${LAW_U}, X_sampled);
 ${COMMAND_STORE}  for (i = QUADCTL_NX; i < QUADCTL_NX + QUADCTL_NZ; ++i) c->z[i - QUADCTL_NX] = X_sampled[i];
-${LAG_STORE}${BUFFER_STORE}${ESTIMATE_STORE}
+${LAG_STORE}${BUFFER_STORE}${GYRO_STORE}${ESTIMATE_STORE}
   c->k++;
 }
 

@@ -28,6 +28,9 @@ ${LAG_DOC}
  * DELAY
 ${DELAY_DOC}
  *
+ * GYRO FILTER
+${GYRO_DOC}
+ *
  * PRECISION
  *   quadctl_real is double unless QUADCTL_FLOAT is defined (-DQUADCTL_FLOAT): then float, with
  *   float literals and math functions (sinf, ...) for microcontrollers with a single-precision
@@ -59,6 +62,7 @@ typedef double quadctl_real;
 #define QUADCTL_NL ${NL}  /* states of the controller's rotor lag model (controller.rotor_lag: include) */
 #define QUADCTL_NY ${NY}  /* measurements y of the Kalman filter (estimator:); 0: ${STEP_NAME} takes the state x */
 #define QUADCTL_NB ${NB}  /* commands the filter remembers for the vehicle's delay (4 per sample) */
+#define QUADCTL_NG ${NG}  /* states of the gyro filter (controller.filters; per rate p, q, r) */
 #define QUADCTL_RATE_HZ ${RATE}
 #define QUADCTL_SAMPLE_TIME ${TS}
 
@@ -71,7 +75,7 @@ ${ROTOR_DEFINES}
 /* The controller's memory: initialize with quadctl_init, then pass to ${STEP_NAME} every sample. */
 typedef struct quadctl_controller {
   quadctl_real z[${NZ_STORAGE}];  /* the integrators${INTEGRAL_DOC} */
-${LAG_MEMBER}${BUFFER_MEMBER}${ESTIMATE_MEMBER}  unsigned long k;          /* samples taken since quadctl_init: t = k Ts */
+${LAG_MEMBER}${BUFFER_MEMBER}${GYRO_MEMBER}${ESTIMATE_MEMBER}  unsigned long k;          /* samples taken since quadctl_init: t = k Ts */
 } quadctl_controller;
 ${REFERENCE_TYPES}
 /* Integrators (and the rotor lag model, the filter's estimate) and time to zero. */
