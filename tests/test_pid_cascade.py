@@ -180,3 +180,16 @@ def test_a_cascade_told_to_fly_with_etdrk4_is_refused_naming_the_key():
     data["simulation"]["method"] = "etdrk4"
     with pytest.raises(ConfigError, match=r"simulation\.method.*a PID cascade flies with RK4"):
         config.from_dict(data, "pid-etd.yaml")
+
+
+def test_a_cascade_with_controller_filters_is_refused_naming_the_key():
+    """The cascade filters the gyro as its stack does (the preset's cutoffs): a second filter is refused."""
+    from _solve import cfg_dict
+
+    from quadctl import config
+    from quadctl.errors import ConfigError
+
+    data = cfg_dict("crazyflie")
+    data["controller"].update(flies="pid", filters={"gyro": {"cutoff": 80.0}})
+    with pytest.raises(ConfigError, match=r"controller\.filters.*its flight stack's own gyro"):
+        config.from_dict(data, "pid-filtered.yaml")
