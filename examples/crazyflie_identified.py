@@ -13,8 +13,8 @@ from pathlib import Path
 
 import quadctl as qc
 from quadctl.identify import readers, results
-from quadctl.present.identify import sentences
 from quadctl.plots.identify import fit_figure
+from quadctl.present.identify import sentences
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "docs" / "figures"

@@ -39,7 +39,8 @@ FIGURES = {
 """Each example and the PNGs it writes into the folder it is given."""
 
 FAST = {"library_quickstart.py", "trim_envelope.py"}
-"""The examples of the default run (about 1 and 2 s); the others take 4 to 16 s each, and run with ``-m slow``."""
+"""The examples of the default run (about 1 and 2 s); the others take 4 s or more each (with a warm compile
+cache), and run with ``-m slow``."""
 
 
 def _param(script: Path):
@@ -83,6 +84,8 @@ def test_the_gallery_shows_every_example_and_its_figures():
     text = GALLERY.read_text(encoding="utf-8")
     included = re.findall(r"^```\{literalinclude\} \.\./examples/(\S+\.py)$", text, re.M)
     assert sorted(included) == [p.name for p in EXAMPLES], "docs/examples.md shows each example's source once"
+    described = re.findall(r"^<!-- quadctl-example: (\S+\.py) -->$", text, re.M)
+    assert described == included, "each example's entry starts with its title and description (the marker)"
     for script, names in FIGURES.items():
         for name in names:
             assert f"(figures/{name})" in text, f"docs/examples.md does not show {name} ({script})"
