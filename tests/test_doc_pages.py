@@ -41,6 +41,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from test_examples import FIGURES
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "README.md", *sorted(p for p in (ROOT / "docs").rglob("*.md") if "_build" not in p.parts)]
@@ -53,8 +54,9 @@ NOT_RUN = {
     "pytest": "the test suite itself: running it from inside itself would recurse",
     "python benchmarks/bench.py": "the benchmark takes about a minute of timed runs; its options are parsed instead",
     "sphinx-build": "builds the site: tests/test_doc_site.py runs the same build (docs extra installed)",
-    "python docs/figures.py": "rewrites the checkout's docs/figures/*.png; tests/test_examples.py runs the library "
-                              "calls it makes",
+    **{f"python examples/{script}": "without a folder it rewrites the checkout's docs/figures/; "
+                                     "tests/test_examples.py runs it into a temporary folder"
+       for script, figures in FIGURES.items() if figures},
 }
 """Command prefixes the test does not run, and why (kept short: everything else runs)."""
 
@@ -120,13 +122,16 @@ SLOW_MARK = "<!-- page-test: slow -->"
 
 
 def fenced_blocks(text: str, page: str = "README.md") -> list[Block]:
-    blocks, lang, start, body = [], None, 0, []
+    """The fenced blocks of a page, each with its language: the first word after the fence (a MyST
+    directive's ``{name}``, whatever arguments follow it: ````{literalinclude} ../examples/x.py``),
+    closed by a fence of at least its own length."""
+    blocks, lang, fence, start, body = [], None, "", 0, []
     lines = text.splitlines()
     for i, line in enumerate(lines, 1):
-        fence = re.match(r"^```\s*(\S*)\s*$", line)
-        if fence and lang is None:
-            lang, start, body = fence.group(1) or "text", i, []
-        elif line.startswith("```") and lang is not None:
+        opening = re.match(r"^(`{3,})\s*([^`\s]*)[^`]*$", line)
+        if opening and lang is None:
+            fence, lang, start, body = opening.group(1), opening.group(2) or "text", i, []
+        elif lang is not None and re.fullmatch(rf"{fence}`*\s*", line):
             blocks.append(Block(lang, start, "\n".join(body) + "\n", page,
                                 slow=start >= 2 and lines[start - 2].strip() == SLOW_MARK))
             lang = None
@@ -475,6 +480,16 @@ def check_quadctl(args: list[str], command: Command) -> None:
         except Exception as exc:  # typer's own click: its exception classes are not click's
             if "does not exist" not in str(exc):  # a file the prose describes (mc.yaml) need not be here
                 raise AssertionError(f"{where}: {exc}") from None
+
+
+def test_a_directive_with_arguments_is_one_block_and_not_run():
+    """A MyST directive's fence carries arguments (```` ```{literalinclude} ../examples/x.py ````): it
+    opens one block of its own kind, which is not run, and the block after it is read as it is."""
+    text = ("```{literalinclude} ../examples/x.py\n:language: python\n```\n\n"
+            "````{note}\n```bash\nquadctl trim\n```\n````\n\n```console\n$ quadctl trim\n```\n")
+    blocks = fenced_blocks(text, "page.md")
+    assert [(b.lang, b.line) for b in blocks] == [("{literalinclude}", 1), ("{note}", 5), ("console", 11)]
+    assert blocks[0].text == ":language: python\n" and blocks[2].text == "$ quadctl trim\n"
 
 
 def test_a_block_marked_as_a_repeat_is_slow_and_others_are_not():

@@ -127,6 +127,14 @@ def test_the_reference_documents_every_name_the_pages_import(site):
     assert not missing, f"used by the pages but missing from docs/reference/python.md: {missing}"
 
 
+def test_an_example_is_shown_by_its_docstring():
+    """The gallery's entry of an example: its docstring's title line as a heading, the rest as prose."""
+    entry = quadctl_reference.example_markdown("square_mission.py")
+    title, blank, first, *_ = entry.splitlines()
+    assert (title, blank) == ("## A waypoint mission: the bundled square", "")
+    assert first.startswith("The bundled square config:") and "``python examples/square_mission.py [FOLDER]``" in entry
+
+
 def test_the_cli_reference_has_every_command_and_option():
     import typer
 

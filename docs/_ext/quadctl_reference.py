@@ -7,19 +7,25 @@ the code, so the reference cannot drift from what quadctl does:
   tree it builds: usage, help text, arguments and options (with their defaults);
 - ``<!-- quadctl-reference: config -->``: every key of the config, walked from its JSON Schema
   (``quadctl.config.json_schema()``, the one ``quadctl configs --schema`` prints): type and bounds,
-  default, unit and meaning from the key's description, and what its absence means.
+  default, unit and meaning from the key's description, and what its absence means;
+- ``<!-- quadctl-example: NAME.py -->`` (the examples gallery): the example's title, as a heading,
+  and what it shows, from the module docstring of ``examples/NAME.py``.
 
-The functions :func:`cli_markdown` and :func:`config_markdown` are plain (no Sphinx): the tests call
-them too.
+The functions :func:`cli_markdown`, :func:`config_markdown` and :func:`example_markdown` are plain
+(no Sphinx): the tests call them too.
 """
 
 from __future__ import annotations
 
+import ast
 import json
 import re
+from pathlib import Path
 from typing import Any
 
 MARKER = re.compile(r"^<!-- quadctl-reference: (\w+) -->$", re.M)
+EXAMPLE_MARKER = re.compile(r"^<!-- quadctl-example: (\w+\.py) -->$", re.M)
+EXAMPLES = Path(__file__).resolve().parent.parent.parent / "examples"
 
 
 # ---------------------------------------------------------------------------------------
@@ -202,6 +208,20 @@ def config_markdown() -> str:
 
 
 # ---------------------------------------------------------------------------------------
+# The examples gallery
+
+
+def example_markdown(name: str, level: int = 2) -> str:
+    """An example's entry in the gallery: its docstring's title line as a heading, the rest as prose
+    (the docstrings write code as ````code````, which Markdown reads as code too)."""
+    doc = ast.get_docstring(ast.parse((EXAMPLES / name).read_text(encoding="utf-8")))
+    if not doc:
+        raise ValueError(f"examples/{name} has no docstring: its first line is its title in the gallery")
+    title, _, description = doc.partition("\n")
+    return f"{'#' * level} {title.strip().rstrip('.')}\n\n{description.strip()}\n"
+
+
+# ---------------------------------------------------------------------------------------
 # Sphinx
 
 
@@ -215,7 +235,7 @@ def _source_read(app, docname: str, source: list[str]) -> None:
             raise ValueError(f"{docname}: no generated reference named {name!r} (known: {sorted(GENERATORS)})")
         return GENERATORS[name]()
 
-    source[0] = MARKER.sub(replace, source[0])
+    source[0] = EXAMPLE_MARKER.sub(lambda match: example_markdown(match.group(1)), MARKER.sub(replace, source[0]))
 
 
 API_PAGES = {"reference/python"}
