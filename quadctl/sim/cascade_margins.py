@@ -55,12 +55,18 @@ class Lifted:
         ``du/dX`` of the law's command at each phase.
     sample_time : float
         s: the base period ``Ts``.
+    states : (nx,) ndarray of int, optional
+        Which of the simulated loop's states these are (:func:`read_states`); None: all.
+    equilibrium : ndarray, optional
+        The simulated loop's state at hover at phase 0 (every state), where the law was linearized.
     """
 
     plant: tuple[np.ndarray, np.ndarray]
     law_state: list
     law_command: list
     sample_time: float
+    states: np.ndarray | None = None
+    equilibrium: np.ndarray | None = None
 
     @property
     def n_plant(self) -> int:
@@ -235,14 +241,17 @@ def lifted(loop) -> Lifted:
     _, n_pos = gains.ratios
     phase = base + pid.state_slice("phase").start
     states, commands = [None] * n_pos, [None] * n_pos
+    start = None
     for _ in range(n_pos):
         p = int(round(X[phase]))
+        if p == 0:
+            start = X.copy()
         Ju, JX = (np.asarray(m) for m in jac(X))
         commands[p], states[p] = Ju, JX
         X = np.asarray(law(X, 0.0, c, e)[1]).ravel()
     keep = read_states(states, commands, npl)
     return Lifted(plant=zoh_plant(loop, Ts), law_state=[S[np.ix_(keep, keep)] for S in states],
-                  law_command=[U[:, keep] for U in commands], sample_time=Ts)
+                  law_command=[U[:, keep] for U in commands], sample_time=Ts, states=keep, equilibrium=start)
 
 
 def read_states(law_state, law_command, n_plant: int) -> np.ndarray:
