@@ -414,19 +414,15 @@ class Workspace(pipeline.Stages):
 
     @cached_property
     def margins(self) -> list:
-        """Margins of every regulated loop (design model and coupled); writes margins.json."""
-        from quadctl.design import margins
-
-        des, timing, linear = self.design, self.setup.timing, self.linear
-        emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)
-        result = margins.all_margins(
-            des, self.decoupled, linear.A, linear.B, emulated_rate=emulated,
-            actuators=self.setup.actuators, u_trim=linear.u_trim,
-            initial_demand=pipeline.initial_demand(self.setup, des), delay_samples=timing.delay_samples,
-            rotor_time_constant=self.setup.rotor_time_constant,
-            estimator=pipeline.estimator_of(self.setup, linear))
-        vehicle = pipeline.vehicle_loop_of(self.setup, linear, des)
-        self._write_json(MARGINS, "margins", payloads.margins(self.setup, des, result, vehicle))
+        """Margins of every loop of the law that flies (the LQR design's: design model and coupled; a PID
+        cascade's: each input broken at the plant); writes margins.json."""
+        if self.setup.law == "pid":
+            result = self.pid_margins
+            self._write_json(MARGINS, "margins", payloads.cascade_margins(self.setup, self.pid_lift, result))
+            return result
+        result = self.lqr_margins
+        vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, self.design)
+        self._write_json(MARGINS, "margins", payloads.margins(self.setup, self.design, result, vehicle))
         return result
 
     @cached_property

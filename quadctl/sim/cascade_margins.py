@@ -288,7 +288,7 @@ def zoh_plant(loop, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     return E[:n, :n], E[:n, n:]
 
 
-def cascade_margins(loop, *, title: str = "PID") -> list:
+def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> list:
     """Margins of every input's loop of a PID cascade, broken at the plant input (``model = "cascade"``).
 
     Parameters
@@ -297,6 +297,8 @@ def cascade_margins(loop, *, title: str = "PID") -> list:
         A loop flying a PID cascade (:func:`quadctl.pipeline.pid_loop_of`).
     title : str
         The law's name, for the loop's label.
+    lift : Lifted, optional
+        :func:`lifted` ``loop``, when already computed.
 
     Returns
     -------
@@ -307,7 +309,7 @@ def cascade_margins(loop, *, title: str = "PID") -> list:
     """
     from quadctl.design.margins import POINTS_PER_DECADE, loop_margins, no_margin
 
-    lift = lifted(loop)
+    lift = lifted(loop) if lift is None else lift
     out = []
     for j, inp in enumerate(INPUT_NAMES):
         broken = lift.broken(j)
