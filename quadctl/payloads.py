@@ -115,7 +115,6 @@ def cascade_margins(setup, lift, result) -> dict:
     return {
         "law": "pid", "preset": gains.preset, "title": gains.title, "rate": float(gains["rate_hz"]),
         "samples_per_update": {"attitude": n_att, "position": n_pos},
-        "rotor_time_constant": setup.rotor_time_constant,
         "closed_loop": {
             "what": "the cascade linearized about hover with the plant's zero-order hold, lifted to its frame of "
                     f"{n_pos} base samples (every hold exact); states nothing reads left out",

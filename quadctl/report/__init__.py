@@ -180,7 +180,7 @@ def _detail(ws, stage: str) -> str:
     if stage == "design":
         return design.summary(ws.design)
     if stage == "margins":
-        return loops.summary(ws.margins, discrete=ws.design.rate is not None)
+        return loops.summary(ws.margins, discrete=ws.setup.law == "pid" or ws.design.rate is not None)
     sim = ws.simulation.sim
     return f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.backend}: {sim.status}"
 

@@ -114,6 +114,8 @@ def margins(ws) -> Section:
     from quadctl import plots
 
     margins = ws.margins
+    if ws.setup.law == "pid":
+        return _cascade_margins(ws, margins)
     rate = ws.setup.timing.rate
     discrete = ws.design.rate is not None
     blocks = [_plant_and_timing(ws),
@@ -137,6 +139,24 @@ def margins(ws) -> Section:
         fig = plots.margins_figure(m, title=ws.setup.name)
         blocks.append(Figure(f"margins-{m.loop}", f"Bode and Nyquist plots of the {m.loop} loop broken at "
                                                   f"{m.input} ({m.model} model).", _png(fig, MARGINS_DPI)))
+    return Section("margins", "Margins", tuple(blocks))
+
+
+def _cascade_margins(ws, margins) -> Section:
+    """The margins of the PID cascade that flies (``controller.flies: pid``)."""
+    from quadctl import plots
+
+    payload = ws.payloads["margins.json"]
+    blocks = [_plant_and_timing(ws), _text(loops.cascade_sentence(payload)),
+              loops.classical_table(margins, payload["rate"]), loops.disk_table(margins, True),
+              loops.delay_table(margins)]
+    thin = loops.thin_sentence(margins, accepted="thin-margins" in ws.cfg.allow)
+    if thin is not None:
+        blocks.append(_text(cells.Mark(thin, "warning" if "thin-margins" in ws.cfg.allow else "fail")))
+    for m in margins:
+        fig = plots.margins_figure(m, title=ws.setup.name)
+        blocks.append(Figure(f"margins-{m.loop}-{m.input}", f"Bode and Nyquist plots of the {m.loop} cascade "
+                                                            f"broken at {m.input}.", _png(fig, MARGINS_DPI)))
     return Section("margins", "Margins", tuple(blocks))
 
 

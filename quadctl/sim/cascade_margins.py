@@ -39,6 +39,9 @@ scipy = lazy_import("scipy")
 
 GAIN_SCAN = np.logspace(-3, 3, 601)
 """Loop-gain factors scanned for the exact gain margins (0.001 to 1000, 100 per decade), then bisected."""
+FREQUENCY_AGREEMENT_DB = 0.01
+"""dB: a gain margin's frequency is the fundamental harmonic's phase crossover when the margin read there is
+within this of the exact one (the outer holds' aliases do not move it); otherwise none is given."""
 
 
 @dataclass(frozen=True)
@@ -303,7 +306,8 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
     Returns
     -------
     list of quadctl.design.margins.LoopMargins
-        One per input ``T, A, E, R``; the gain margins exact (:func:`exact_gain_margins`), phase, disk and
+        One per input ``T, A, E, R``; the gain margins exact (:func:`exact_gain_margins`; their frequencies
+        where the fundamental harmonic agrees, :data:`FREQUENCY_AGREEMENT_DB`), phase, disk and
         delay margins from the fundamental harmonic (module docstring), exact when the cascade runs at
         one rate (``loop.law.ratios == (1, 1)``).
     """
@@ -316,7 +320,11 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
         m = loop_margins(broken, name=title, input_name=inp, model="cascade",
                          grid=broken.grid(POINTS_PER_DECADE))
         if m.stable:
-            m = replace(m, gain_margin_db=exact_gain_margins(broken))
+            exact = exact_gain_margins(broken)
+            # a crossover of the fundamental harmonic names the frequency only where it gives the exact margin
+            freqs = tuple(w if w is not None and abs(a - b) <= FREQUENCY_AGREEMENT_DB else None
+                          for w, a, b in zip(m.phase_crossover_freqs, exact, m.gain_margin_db))
+            m = replace(m, gain_margin_db=exact, phase_crossover_freqs=freqs)
         else:
             m = no_margin(loop=title, input=inp, model="cascade", sample_time=broken.sample_time,
                           min_return_difference=m.min_return_difference, freq=m.freq, response=m.response)
