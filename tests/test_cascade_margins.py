@@ -102,3 +102,20 @@ def test_cascade_margins_are_one_loop_per_input_with_exact_gain_margins(crazyfli
         if math.isfinite(upper):  # just inside the margin stable, just outside not
             assert broken.is_stable(10 ** (upper / 20) * (1 - 1e-6))
             assert not broken.is_stable(10 ** (upper / 20) * (1 + 1e-6))
+
+
+def test_margins_command_shows_the_cascade_that_flies_and_fails_its_thin_roll_loop(tmp_path):
+    """controller.flies: pid: margins.json holds the cascade's four loops; the stock Crazyflie cascade's roll
+    and pitch loops have less than 6 dB (MIL-F-9490D), which fails the check, naming the cascade's values."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    res = CliRunner().invoke(app, ["margins", "-c", "crazyflie", "--set", "controller.flies=pid", "-o", str(tmp_path)])
+    assert res.exit_code == 1, res.output
+    assert "lifted to its 10 ms frame" in res.output and "controller.pid.values" in res.output
+    data = json.loads((tmp_path / "margins.json").read_text())
+    assert data["law"] == "pid" and data["closed_loop"]["stable"] is True
+    assert [loop["input"] for loop in data["loops"]] == ["T", "A", "E", "R"]

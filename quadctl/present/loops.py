@@ -106,7 +106,8 @@ def thin_sentence(margins, accepted: bool = False) -> str | None:
             said.append(f"gain margin {db(lo)} / {db(hi)} dB")
         if "phase" in m.thin:
             said.append(f"phase margin {num(m.phase_margin_deg, 3)} deg")
-        parts.append(f"{m.loop} ({m.model}" + (f", {m.input}" if m.model == "cascade" else "") + f"): {', '.join(said)}")
+        which = f"{m.model}, {m.input}" if m.model == "cascade" else m.model
+        parts.append(f"{m.loop} ({which}): {', '.join(said)}")
     way_out = ("lower the cascade's gains on that axis (controller.pid.values: its rate loop's kp and kd first)"
                if all(m.model == "cascade" for m in thin) else
                "slow the loop (larger lqr R), design with the rotors' lag (controller.rotor_lag: include) or at a "

@@ -37,8 +37,9 @@ from quadctl.stability import is_stable
 ca = lazy_import("casadi")
 scipy = lazy_import("scipy")
 
-GAIN_SCAN = np.logspace(-3, 3, 601)
-"""Loop-gain factors scanned for the exact gain margins (0.001 to 1000, 100 per decade), then bisected."""
+GAIN_SCAN = np.logspace(-3, 3, 241)
+"""Loop-gain factors scanned outward from 1 for the exact gain margins (0.001 to 1000, 40 per decade: a band
+of instability narrower than 6 % in gain between two stable ones would be missed), then bisected."""
 FREQUENCY_AGREEMENT_DB = 0.01
 """dB: a gain margin's frequency is the fundamental harmonic's phase crossover when the margin read there is
 within this of the exact one (the outer holds' aliases do not move it); otherwise none is given."""
@@ -138,20 +139,19 @@ class LiftedLoop:
     def frame(self) -> int:
         return self.D.shape[0]
 
-    def lifted_response(self, w: float) -> np.ndarray:
-        """``L(z)`` (N, N), ``z = e^(j w N Ts)``, with the sign of :class:`~quadctl.design.margins.BrokenLoop` (``1 + L``)."""
-        z = np.exp(1j * w * self.frame * self.sample_time)
+    def lifted_response(self, w) -> np.ndarray:
+        """``L(z)`` (len(w), N, N), ``z = e^(j w N Ts)``, with the sign of
+        :class:`~quadctl.design.margins.BrokenLoop` (closed loop: ``I + L`` singular)."""
+        z = np.exp(1j * np.atleast_1d(np.asarray(w, dtype=float)) * self.frame * self.sample_time)
         n = self.Phi.shape[0]
-        return -(self.C @ np.linalg.solve(z * np.eye(n) - self.Phi, self.Gamma) + self.D)
+        M = z[:, None, None] * np.eye(n) - self.Phi[None]
+        return -(self.C[None] @ np.linalg.solve(M, np.broadcast_to(self.Gamma, (len(z),) + self.Gamma.shape))
+                 + self.D[None])
 
     def __call__(self, w) -> np.ndarray:
         w = np.atleast_1d(np.asarray(w, dtype=float))
-        p = np.arange(self.frame)
-        out = np.empty(len(w), dtype=complex)
-        for i, wi in enumerate(w):
-            phi = np.exp(1j * wi * p * self.sample_time)
-            out[i] = phi.conj() @ self.lifted_response(wi) @ phi / self.frame
-        return out
+        phi = np.exp(1j * w[:, None] * np.arange(self.frame)[None, :] * self.sample_time)
+        return np.einsum("wp,wpq,wq->w", phi.conj(), self.lifted_response(w), phi) / self.frame
 
     def closed_loop_eigenvalues(self, gain: float = 1.0) -> np.ndarray:
         """Eigenvalues (``z`` of the frame) of the loop closed through ``v = gain y``."""
@@ -183,7 +183,7 @@ def exact_gain_margins(loop: LiftedLoop) -> tuple[float, float]:
     from quadctl.design.margins import _db
 
     def edge(a, b):  # a stable, b not
-        for _ in range(60):
+        for _ in range(45):  # the bracket's ratio to its 2^-45th power: ~1e-13 dB for a decade
             m = math.sqrt(a * b)
             a, b = (m, b) if loop.is_stable(m) else (a, m)
         return math.sqrt(a * b)
