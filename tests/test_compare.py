@@ -77,9 +77,9 @@ def test_without_one_clock_the_wind_rows_of_loops_of_different_rates_differ(gust
     assert own != shared
 
 
-def test_compare_command_writes_the_table_and_json_with_units(tmp_path):
+def test_compare_command_writes_the_table_and_json_with_units_and_the_report_shows_them(tmp_path):
     res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--set", "simulation.duration=1", "-o", str(tmp_path),
-                                   "--json"],
+                                   "--json", "--plot"],
                              catch_exceptions=False)
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
@@ -96,6 +96,16 @@ def test_compare_command_writes_the_table_and_json_with_units(tmp_path):
         least = min(min(float(m["gain_margin_upper_db"]), -float(m["gain_margin_lower_db"])) for m in law["margins"])
         assert law["gain_margin"] == pytest.approx(least)
         assert law["phase_margin"] == pytest.approx(min(float(m["phase_margin_deg"]) for m in law["margins"]))
+    # the report of the same config in the same folder shows the table and the figures; of another, says so
+    from quadctl.cli.options import open_workspace
+    from quadctl.report import content
+
+    section = content.comparison(open_workspace("crazyflie", tmp_path, sets=["simulation.duration=1"]))
+    assert section.blocks[0].columns == ("metric", "lqr", "pid:crazyflie")
+    assert sorted(b.name for b in section.blocks if hasattr(b, "png")) == [
+        "compare-altitude", "compare-attitude-error", "compare-position-error", "compare-rotor-use"]
+    stale = content.comparison(open_workspace("crazyflie", tmp_path, sets=["simulation.duration=2"]))
+    assert "made from another config" in stale.blocks[0].text
 
 
 def test_compare_refuses_an_unknown_law_in_one_line(tmp_path):

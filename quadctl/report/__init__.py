@@ -132,6 +132,9 @@ def build(ws, outcome: Outcome, *, command_line: str = "", label: str | None = N
             sections.append(section)
         if make is content.design and ws.setup.schedule is not None and "simulate" in done:
             sections.append(content.schedule(ws))  # the schedule the flight flew (computed with it)
+    compared = content.comparison(ws)  # what quadctl compare left in the run folder
+    if compared is not None:
+        sections.append(compared)
     sections.append(content.configuration(ws, label))
     backends = [ws.simulation.sim.backend] if "simulate" in done else []
     meta = artifacts.metadata(ws.cfg, "report", backends)

@@ -160,6 +160,30 @@ def _cascade_margins(ws, margins) -> Section:
     return Section("margins", "Margins", tuple(blocks))
 
 
+def comparison(ws) -> Section | None:
+    """The laws side by side, when ``quadctl compare`` left compare.json (and its figures) in the run folder."""
+    from quadctl import artifacts
+    from quadctl.plots.compare import QUANTITIES
+    from quadctl.present import compare as words
+
+    path = ws.path("compare.json")
+    if not path.exists():
+        return None
+    data = artifacts.read_json(path)
+    made_from, current = data["config_hash"], ws.cfg.digest()
+    if made_from != current:
+        return Section("compare", "Laws side by side", (_text(words.stale_sentence(made_from, current)),))
+    blocks = [words.table(data), _text(words.disturbance_sentence(data))]
+    free = words.free_position_sentence(ws.setup.regulated)
+    if free:
+        blocks.append(Text(free))
+    for stem, label in QUANTITIES:
+        png = artifacts.plot_path(ws.out, f"compare-{stem}")
+        if png.exists():
+            blocks.append(Figure(f"compare-{stem}", f"{label} against time, the laws overlaid.", png.read_bytes()))
+    return Section("compare", "Laws side by side", tuple(blocks))
+
+
 def simulation(ws) -> Section:
     from quadctl import plots
 
