@@ -296,6 +296,11 @@ BATCHED_CASES = {
                           "simulation.initial_offset": {"pD": 1.0, "phi": 0.4, "psi": 0.8}}),
     "ends between samples": ({"controller.rate": [200.0, 300.0], "lqr.roll.R[0]": [20000, 80000]},
                              {"simulation.duration": 0.501}),
+    # controller.flies: pid: each case's cascade (its values, its plant) in the lanes, at the cascade's rate
+    # (500 Hz, the noise on its clock, as simulate flies it), not the LQR design
+    "pid cascade": ({"controller.pid.values.rate_roll_kp": [200.0, 250.0], "vehicle.mass": [0.0578, 0.0782]},
+                    {"simulation.duration": 0.6, "controller.flies": "pid",
+                     "controller.pid": {"preset": "crazyflie", "values": {"rate_roll_kp": 250.0}}}),
 }
 
 
