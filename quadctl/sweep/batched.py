@@ -351,8 +351,9 @@ def loops_of(live) -> list:
         shape, held = _structure(loop, (noisy, windy, setup.duration, id(setup.reference)), seen)
         if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
             lane_spec = loop.spec(noisy, windy, flown is not None)
-            prep.plant.cache[shape] = (lane_spec if lane_spec.law else replace(lane_spec, pattern=_structural_gain(prep)),
-                                       *loop.bounds(setup.duration, flown), [*held, setup.reference])
+            if not lane_spec.law:  # an LQR gain's structural zeros (a cascade has no gain)
+                lane_spec = replace(lane_spec, pattern=_structural_gain(prep))
+            prep.plant.cache[shape] = (lane_spec, *loop.bounds(setup.duration, flown), [*held, setup.reference])
         spec, lo, hi, _ = prep.plant.cache[shape]
         exo, first, period = None, 0, 1.0
         exo_rate = loop.rate if loop.law is not None else setup.timing.rate  # simulate's clock: the loop's
