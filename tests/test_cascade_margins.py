@@ -125,3 +125,13 @@ def test_margins_command_shows_the_cascade_that_flies_and_fails_its_thin_roll_lo
     data = json.loads((tmp_path / "margins.json").read_text())
     assert data["law"] == "pid" and data["closed_loop"]["stable"] is True
     assert [loop["input"] for loop in data["loops"]] == ["T", "A", "E", "R"]
+
+
+def test_the_report_of_a_config_flying_the_cascade_shows_its_loops(tmp_path):
+    from quadctl.cli.options import open_workspace
+    from quadctl.report import content
+
+    section = content.margins(open_workspace("crazyflie", tmp_path, sets=["controller.flies=pid"]))
+    texts = [b.text for b in section.blocks if hasattr(b, "text")]
+    assert any("lifted to its 10 ms frame" in t for t in texts)
+    assert [b.name for b in section.blocks if hasattr(b, "png")] == [f"margins-crazyflie-{s}" for s in "TAER"]
