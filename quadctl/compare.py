@@ -4,7 +4,10 @@ Every law flies the same plant (the setup's, with its rotors and delay), from th
 offset, along the same reference (a mission), through the same wind and the same noise: one
 exogenous clock for all (the noise's period, else the LQR controller's, else the default), so each
 run reads the same realization (:attr:`Comparison.disturbances` holds its digest, per law). Each
-run is summarized by the same metrics (:data:`METRICS`), its cost on the config's LQR weights.
+run is summarized by the same metrics (:data:`METRICS`), its cost on the config's LQR weights, and
+each law's loops by their margins, each broken at a plant input with the rest of the loop closed (the
+LQR design's on the coupled model, :func:`quadctl.design.margins.all_margins`; a cascade's lifted to its
+frame, :func:`quadctl.sim.cascade_margins.cascade_margins`): the same functions, comparable numbers.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("rotor_rms", "1", "RMS over the run and the rotors of thrust over the largest"),
     ("saturated", "s", "time with a rotor at a thrust limit (within 0.1 % of its range)"),
     ("cost", "1", "integral of e' Q e + du' R du dt on the config's LQR weights"),
+    ("gain_margin", "dB", "least gain change, up or down, that destabilizes a loop broken at a plant input"),
+    ("phase_margin", "deg", "least phase margin of the loops broken at the plant inputs"),
 )
 """Each metric of a run: name, unit, meaning."""
 SATURATION_BAND = 1e-3
@@ -53,6 +58,8 @@ class LawRun:
         :data:`METRICS` by name.
     disturbances : str
         sha256 of the exogenous rows (noise, wind) the run read, over its duration.
+    margins : tuple of quadctl.design.margins.LoopMargins
+        The law's loops, each broken at a plant input with the rest of the loop closed.
     """
 
     name: str
@@ -62,6 +69,7 @@ class LawRun:
     run: SimResult
     metrics: dict
     disturbances: str
+    margins: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -117,6 +125,7 @@ def compare(stages: Stages, laws=("pid:crazyflie",), duration: float | None = No
     Comparison
     """
     from quadctl.config.pid import resolve
+    from quadctl.sim.cascade_margins import cascade_margins
 
     setup = stages.setup
     duration = setup.duration if duration is None else float(duration)
@@ -130,17 +139,40 @@ def compare(stages: Stages, laws=("pid:crazyflie",), duration: float | None = No
         kind, preset = parse_law(name)
         if kind == "lqr":
             loop, title = lqr, "LQR (" + ("continuous" if lqr.rate is None else f"{lqr.rate:g} Hz") + ")"
+            margins = plant_input_loops(stages.lqr_margins)
         else:
             own = setup.pid if setup.pid is not None and setup.pid.preset == preset else resolve(preset)
             loop, title = pid_loop_of(setup, stages.linear, own), f"{own.title} PID"
+            margins = (stages.pid_margins if own is setup.pid
+                       else cascade_margins(loop, title=preset))
         run = simulate(loop, setup.initial_state(loop.x_trim), duration, setup.dt, noise=noise, wind=wind,
                        max_samples=setup.max_samples, reference=reference, exo_rate=1.0 / period)
-        out.append(LawRun(name=name, title=title, rate=loop.rate, loop=loop, run=run,
-                          metrics=metrics_of(run, loop, setup.Q_block, setup.R_block),
-                          disturbances=disturbance_digest(noise, wind, loop.rate, period, duration)))
+        metrics = metrics_of(run, loop, setup.Q_block, setup.R_block) | margin_summary(margins)
+        out.append(LawRun(name=name, title=title, rate=loop.rate, loop=loop, run=run, metrics=metrics,
+                          disturbances=disturbance_digest(noise, wind, loop.rate, period, duration),
+                          margins=tuple(margins)))
     return Comparison(config=setup.name, duration=duration, exo_period=period, laws=tuple(out),
                       noise_seed=noise.seed if noise is not None else None,
                       wind_seed=wind.seed if wind is not None else None)
+
+
+def plant_input_loops(margins) -> list:
+    """The LQR design's loops broken at a plant input with every other loop closed, as the vehicle has them:
+    with the Kalman filter in them (``lqg``) when there is one, else on the coupled model."""
+    for model in ("lqg", "coupled", "design"):
+        chosen = [m for m in margins if m.model == model]
+        if chosen:
+            return chosen
+    return []
+
+
+def margin_summary(margins) -> dict:
+    """``gain_margin`` (dB: the least gain change, up or down, that destabilizes one of the loops) and
+    ``phase_margin`` (deg: the least) of ``margins``; 0 for an unstable loop, None without loops."""
+    if not margins:
+        return {"gain_margin": None, "phase_margin": None}
+    return {"gain_margin": float(min(min(m.gain_margin_db[1], -m.gain_margin_db[0]) for m in margins)),
+            "phase_margin": float(min(m.phase_margin_deg for m in margins))}
 
 
 def disturbance_digest(noise, wind, rate, period: float, duration: float) -> str:
@@ -190,5 +222,5 @@ def payload(comparison: Comparison) -> dict:
         "exo_period": comparison.exo_period, "noise_seed": comparison.noise_seed, "wind_seed": comparison.wind_seed,
         "identical_disturbances": comparison.identical_disturbances,
         "laws": [{"name": law.name, "title": law.title, "rate": law.rate, "disturbances": law.disturbances,
-                  **law.metrics} for law in comparison.laws],
+                  **law.metrics, "margins": [m.as_dict() for m in law.margins]} for law in comparison.laws],
     }

@@ -322,6 +322,39 @@ class Stages:
         """The LQR design's loop, whatever law flies."""
         return loop_of(self.setup, self.linear, self.design)
 
+    @property
+    def margins(self) -> list:
+        """Margins of the loops of the law that flies: :attr:`lqr_margins`, or :attr:`pid_margins`
+        (``controller.flies: pid``)."""
+        return self.pid_margins if self.setup.law == "pid" else self.lqr_margins
+
+    @cached_property
+    def lqr_margins(self) -> list:
+        """Margins of every regulated loop of the LQR design (design model, coupled, with the Kalman filter:
+        :func:`quadctl.design.margins.all_margins`), whatever law flies."""
+        return margins_of(self.setup, self.linear, self.decoupled, self.design)
+
+    @cached_property
+    def pid_lift(self):
+        """The setup's PID cascade linearized about hover, lifted to its frame
+        (:func:`quadctl.sim.cascade_margins.lifted`)."""
+        from quadctl.sim.cascade_margins import lifted
+
+        return lifted(self.pid_loop)
+
+    @cached_property
+    def pid_loop(self) -> ClosedLoop:
+        """The setup's PID cascade's loop (:func:`pid_loop_of`), whatever law flies."""
+        return self.loop if self.setup.law == "pid" else pid_loop_of(self.setup, self.linear)
+
+    @cached_property
+    def pid_margins(self) -> list:
+        """Margins of the setup's PID cascade, each input's loop broken at the plant
+        (:func:`quadctl.sim.cascade_margins.cascade_margins`)."""
+        from quadctl.sim.cascade_margins import cascade_margins
+
+        return cascade_margins(self.pid_loop, title=self.setup.pid.preset, lift=self.pid_lift)
+
 
 @dataclass(frozen=True)
 class VehicleLoop:

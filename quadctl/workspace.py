@@ -414,11 +414,15 @@ class Workspace(pipeline.Stages):
 
     @cached_property
     def margins(self) -> list:
-        """Margins of every regulated loop (design model and coupled); writes margins.json."""
-        des, linear = self.design, self.linear
-        result = pipeline.margins_of(self.setup, linear, self.decoupled, des)
-        vehicle = pipeline.vehicle_loop_of(self.setup, linear, des)
-        self._write_json(MARGINS, "margins", payloads.margins(self.setup, des, result, vehicle))
+        """Margins of every loop of the law that flies (the LQR design's: design model and coupled; a PID
+        cascade's: each input broken at the plant); writes margins.json."""
+        if self.setup.law == "pid":
+            result = self.pid_margins
+            self._write_json(MARGINS, "margins", payloads.cascade_margins(self.setup, self.pid_lift, result))
+            return result
+        result = self.lqr_margins
+        vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, self.design)
+        self._write_json(MARGINS, "margins", payloads.margins(self.setup, self.design, result, vehicle))
         return result
 
     @cached_property

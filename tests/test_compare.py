@@ -46,6 +46,27 @@ def test_compare_feeds_every_law_the_same_noise_and_wind(gusty_crazyflie):
         np.testing.assert_array_equal(other, felt[0])
 
 
+def test_on_the_mambo_both_laws_fly_the_same_noise_and_gusts():
+    """mambo-200hz (its own sensor and process noise, a gust added): the 200 Hz LQR design and the 500 Hz
+    cascade read the same rows (one digest) and their plants felt the same wind at the instants both recorded."""
+    import quadctl as qc
+    from quadctl.compare import compare
+    from quadctl.config import Config
+
+    data = qc.load_config("mambo-200hz").model_dump(mode="json")
+    gust = {"start": 0.2, "length": 0.4, "amplitude": [1.0, 0.5, 0.0]}
+    data["simulation"].update(duration=1.0, wind={"gusts": [gust], "turbulence": {"intensity": "light", "seed": 5}})
+    result = compare(qc.Stages(qc.setup_of(Config(**data))), ["pid:crazyflie"])
+    assert result.identical_disturbances and result.noise_seed is not None
+    assert [law.rate for law in result.laws] == [200.0, 500.0]
+    times = [np.round(law.run.t, 9) for law in result.laws]
+    common = sorted(set(times[0]) & set(times[1]))
+    assert len(common) > 50
+    felt = [law.run.wind[np.searchsorted(t, common)] for law, t in zip(result.laws, times)]
+    assert np.abs(felt[0]).max() > 0.5
+    np.testing.assert_array_equal(felt[1], felt[0])
+
+
 def test_without_one_clock_the_wind_rows_of_loops_of_different_rates_differ(gusty_crazyflie):
     """What the shared clock prevents: a 400 Hz loop on its own clock reads other turbulence rows."""
     from quadctl.compare import disturbance_digest
@@ -56,9 +77,9 @@ def test_without_one_clock_the_wind_rows_of_loops_of_different_rates_differ(gust
     assert own != shared
 
 
-def test_compare_command_writes_the_table_and_json_with_units(tmp_path):
+def test_compare_command_writes_the_table_and_json_with_units_and_the_report_shows_them(tmp_path):
     res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--set", "simulation.duration=1", "-o", str(tmp_path),
-                                   "--json"],
+                                   "--json", "--plot"],
                              catch_exceptions=False)
     assert res.exit_code == 0, res.output
     data = json.loads(res.stdout)
@@ -66,6 +87,25 @@ def test_compare_command_writes_the_table_and_json_with_units(tmp_path):
     assert [law["name"] for law in data["laws"]] == ["lqr", "pid:crazyflie"]
     assert data["units"]["position_rms"] == "m" and data["units"]["saturated"] == "s"
     assert json.loads((tmp_path / "compare.json").read_text())["laws"][1]["rate"] == 500.0
+    # margins: the LQR design's loops on the coupled model, the cascade's lifted; the row the least of each law's
+    assert data["units"]["gain_margin"] == "dB" and data["units"]["phase_margin"] == "deg"
+    lqr, pid = data["laws"]
+    assert {m["model"] for m in lqr["margins"]} == {"coupled"}
+    assert [(m["model"], m["input"]) for m in pid["margins"]] == [("cascade", s) for s in "TAER"]
+    for law in data["laws"]:
+        least = min(min(float(m["gain_margin_upper_db"]), -float(m["gain_margin_lower_db"])) for m in law["margins"])
+        assert law["gain_margin"] == pytest.approx(least)
+        assert law["phase_margin"] == pytest.approx(min(float(m["phase_margin_deg"]) for m in law["margins"]))
+    # the report of the same config in the same folder shows the table and the figures; of another, says so
+    from quadctl.cli.options import open_workspace
+    from quadctl.report import content
+
+    section = content.comparison(open_workspace("crazyflie", tmp_path, sets=["simulation.duration=1"]))
+    assert section.blocks[0].columns == ("metric", "lqr", "pid:crazyflie")
+    assert sorted(b.name for b in section.blocks if hasattr(b, "png")) == [
+        "compare-altitude", "compare-attitude-error", "compare-position-error", "compare-rotor-use"]
+    stale = content.comparison(open_workspace("crazyflie", tmp_path, sets=["simulation.duration=2"]))
+    assert "made from another config" in stale.blocks[0].text
 
 
 def test_compare_refuses_an_unknown_law_in_one_line(tmp_path):

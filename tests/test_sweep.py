@@ -299,6 +299,11 @@ BATCHED_CASES = {
     # the gyro filter: its order is the lanes' structure, its coefficients each case's constants
     "gyro filter": ({"controller.filters.gyro.cutoff": [20.0, 40.0], "lqr.roll.R[0]": [20000, 80000]},
                     {"simulation.duration": 0.4, "controller.filters": {"gyro": {"cutoff": 30.0}}}),
+    # controller.flies: pid: each case's cascade (its values, its plant) in the lanes, at the cascade's rate
+    # (500 Hz, the noise on its clock, as simulate flies it), not the LQR design
+    "pid cascade": ({"controller.pid.values.rate_roll_kp": [200.0, 250.0], "vehicle.mass": [0.0578, 0.0782]},
+                    {"simulation.duration": 0.6, "controller.flies": "pid",
+                     "controller.pid": {"preset": "crazyflie", "values": {"rate_roll_kp": 250.0}}}),
 }
 
 

@@ -1,41 +1,48 @@
-"""Laws side by side (:mod:`quadctl.compare`): one table, metric by metric, and what the runs shared."""
+"""Laws side by side (:mod:`quadctl.compare`): one table, metric by metric, and what the runs shared.
+
+Each reads ``compare.json``'s contents (:func:`quadctl.compare.payload`), so the terminal and the report,
+which reads the file a ``quadctl compare`` left in the run folder, say the same.
+"""
 
 from __future__ import annotations
 
-from quadctl.compare import METRICS, Comparison
+from quadctl.compare import METRICS
 from quadctl.present.cells import Mark, Table, num
 
 
-def table(comparison: Comparison) -> Table:
-    """One row per metric, one column per law."""
+def table(data: dict) -> Table:
+    """One row per metric, one column per law, of ``compare.json``'s contents ``data``."""
+    laws = data["laws"]
     rows = []
     for name, unit, _ in METRICS:
         label = f"{name.replace('_', ' ')} [{unit}]" if unit != "1" else name.replace("_", " ")
-        rows.append((label, *[_cell(law.metrics.get(name)) for law in comparison.laws]))
-    rows.append(("rate [Hz]", *[num(law.rate) if law.rate else "continuous" for law in comparison.laws]))
-    rows.append(("run", *[Mark(law.run.status, "ok" if law.run.status == "ok" else "fail")
-                          for law in comparison.laws]))
-    return Table("compare-table", f"{comparison.config}: laws side by side over {num(comparison.duration)} s",
-                 ("metric", *[law.name for law in comparison.laws]), tuple(rows),
+        rows.append((label, *[_cell(law.get(name)) for law in laws]))
+    rows.append(("rate [Hz]", *[num(law["rate"]) if law["rate"] else "continuous" for law in laws]))
+    rows.append(("run", *[Mark(law["status"], "ok" if law["status"] == "ok" else "fail") for law in laws]))
+    return Table("compare-table", f"{data['config']}: laws side by side over {num(data['duration'])} s",
+                 ("metric", *[law["name"] for law in laws]), tuple(rows),
                  caption="the same plant, initial offset, reference, wind and noise for every law; cost on the "
-                         "config's LQR weights; settling '-': never within 2 % of the peak position error")
+                         "config's LQR weights; settling '-': never within 2 % of the peak position error; "
+                         "margins: the least over each law's loops broken at a plant input (LQR: on the coupled "
+                         "model; a PID cascade: lifted to its frame, gain margins exact, phase margins from the "
+                         "fundamental harmonic)")
 
 
 def _cell(value) -> str:
     return "-" if value is None else num(value)
 
 
-def disturbance_sentence(comparison: Comparison) -> Mark:
-    """Whether every law read the same noise and wind (their rows' digests)."""
+def disturbance_sentence(data: dict) -> Mark:
+    """Whether every law read the same noise and wind (their rows' digests), from ``compare.json``'s ``data``."""
     seeds = []
-    if comparison.noise_seed is not None:
-        seeds.append(f"noise seed {comparison.noise_seed}")
-    if comparison.wind_seed is not None:
-        seeds.append(f"turbulence seed {comparison.wind_seed}")
+    if data["noise_seed"] is not None:
+        seeds.append(f"noise seed {data['noise_seed']}")
+    if data["wind_seed"] is not None:
+        seeds.append(f"turbulence seed {data['wind_seed']}")
     what = " and ".join(seeds) or "no random disturbances"
-    if comparison.identical_disturbances:
+    if data["identical_disturbances"]:
         return Mark(f"Every law flew through the same disturbances ({what}; rows every "
-                    f"{num(comparison.exo_period)} s, one digest {comparison.laws[0].disturbances[:12]}).", "ok")
+                    f"{num(data['exo_period'])} s, one digest {data['laws'][0]['disturbances'][:12]}).", "ok")
     return Mark("The laws read different disturbance rows: the comparison is not like for like.", "fail")
 
 
@@ -45,3 +52,9 @@ def free_position_sentence(regulated: tuple[str, ...]) -> str | None:
         return None
     return ("The LQR design leaves pN and pE free (its guidance subsystem is not regulated): its position "
             "error drifts where the PID cascades' position loops hold theirs.")
+
+
+def stale_sentence(made_from: str, current: str) -> Mark:
+    """compare.json in the run folder was made from another config than the report's."""
+    return Mark(f"compare.json in this run folder was made from another config (hash {made_from[:12]}, this one "
+                f"{current[:12]}): run quadctl compare with the same config and settings to show it here.", "warning")

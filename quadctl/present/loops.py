@@ -106,11 +106,15 @@ def thin_sentence(margins, accepted: bool = False) -> str | None:
             said.append(f"gain margin {db(lo)} / {db(hi)} dB")
         if "phase" in m.thin:
             said.append(f"phase margin {num(m.phase_margin_deg, 3)} deg")
-        parts.append(f"{m.loop} ({m.model}): {', '.join(said)}")
+        which = f"{m.model}, {m.input}" if m.model == "cascade" else m.model
+        parts.append(f"{m.loop} ({which}): {', '.join(said)}")
+    way_out = ("lower the cascade's gains on that axis (controller.pid.values: its rate loop's kp and kd first)"
+               if all(m.model == "cascade" for m in thin) else
+               "slow the loop (larger lqr R), design with the rotors' lag (controller.rotor_lag: include) or at a "
+               "faster controller.rate")
     return (f"thin margins, below {THIN_GAIN_MARGIN_DB:g} dB of gain margin or {THIN_PHASE_MARGIN_DEG:g} deg of phase "
             f"margin (MIL-F-9490D): {'; '.join(parts)}" + (" (accepted: allow: [thin-margins])" if accepted else
-            "; slow the loop (larger lqr R), design with the rotors' lag (controller.rotor_lag: include) or at a "
-            "faster controller.rate; allow: [thin-margins] in the config accepts it"))
+            f"; {way_out}; allow: [thin-margins] in the config accepts it"))
 
 
 def guarantee_sentence(margins, discrete: bool) -> str:
@@ -169,3 +173,24 @@ def closed_loop_sentence(payload: dict) -> Mark:
             f"slowest pole {cl['slowest_real_part']:.4g} rad/s")
     verdict = "stable" if cl["stable"] else "UNSTABLE"
     return Mark(f"{what}: {verdict} ({len(cl['eigenvalues'])} eigenvalues, {size})", "ok" if cl["stable"] else "fail")
+
+
+def cascade_sentence(payload: dict) -> Mark:
+    """margins.json of a PID cascade (:func:`quadctl.payloads.cascade_margins`): what its loops are, the
+    lifted closed loop's verdict, and which margins are exact."""
+    cl = payload["closed_loop"]
+    n_att, n_pos = payload["samples_per_update"]["attitude"], payload["samples_per_update"]["position"]
+    inner = "its rate and attitude loops at every sample" if n_att == 1 else \
+        f"its rate loop at every sample, its attitude loop every {n_att}"
+    rates = f"{inner}, its position and velocity loops every {n_pos} samples" if n_pos > 1 else \
+        "every loop at every sample"
+    verdict = "stable" if cl["stable"] else "UNSTABLE"
+    how = ("gain margins exact (the lifted loop's poles); phase, disk and delay margins read from the loop's "
+           "fundamental harmonic (the response at w to a sinusoid at w), leaving out what the outer loops' holds "
+           "fold back to other frequencies" if not payload["exact"]["phase_disk_delay_margins"]
+           else "every margin exact")
+    return Mark(f"{payload['title']} at {payload['rate']:g} Hz, {rates}: each input's loop broken at the plant with "
+                f"the whole cascade closed around it, linearized about hover and lifted to its "
+                f"{cl['sample_time'] * 1e3:.4g} ms frame (every hold exact). Closed loop {verdict} "
+                f"({len(cl['eigenvalues'])} eigenvalues, spectral radius {cl['spectral_radius']:.6g}); {how}.",
+                "ok" if cl["stable"] else "fail")

@@ -132,6 +132,9 @@ def build(ws, outcome: Outcome, *, command_line: str = "", label: str | None = N
             sections.append(section)
         if make is content.design and ws.setup.schedule is not None and "simulate" in done:
             sections.append(content.schedule(ws))  # the schedule the flight flew (computed with it)
+    compared = content.comparison(ws)  # what quadctl compare left in the run folder
+    if compared is not None:
+        sections.append(compared)
     sections.append(content.configuration(ws, label))
     backends = [ws.simulation.sim.backend] if "simulate" in done else []
     meta = artifacts.metadata(ws.cfg, "report", backends)
@@ -180,7 +183,7 @@ def _detail(ws, stage: str) -> str:
     if stage == "design":
         return design.summary(ws.design)
     if stage == "margins":
-        return loops.summary(ws.margins, discrete=ws.design.rate is not None)
+        return loops.summary(ws.margins, discrete=ws.setup.law == "pid" or ws.design.rate is not None)
     sim = ws.simulation.sim
     return f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.backend}: {sim.status}"
 

@@ -114,6 +114,8 @@ def margins(ws) -> Section:
     from quadctl import plots
 
     margins = ws.margins
+    if ws.setup.law == "pid":
+        return _cascade_margins(ws, margins)
     rate = ws.setup.timing.rate
     discrete = ws.design.rate is not None
     blocks = [_plant_and_timing(ws),
@@ -138,6 +140,48 @@ def margins(ws) -> Section:
         blocks.append(Figure(f"margins-{m.loop}", f"Bode and Nyquist plots of the {m.loop} loop broken at "
                                                   f"{m.input} ({m.model} model).", _png(fig, MARGINS_DPI)))
     return Section("margins", "Margins", tuple(blocks))
+
+
+def _cascade_margins(ws, margins) -> Section:
+    """The margins of the PID cascade that flies (``controller.flies: pid``)."""
+    from quadctl import plots
+
+    payload = ws.payloads["margins.json"]
+    blocks = [_plant_and_timing(ws), _text(loops.cascade_sentence(payload)),
+              loops.classical_table(margins, payload["rate"]), loops.disk_table(margins, True),
+              loops.delay_table(margins)]
+    thin = loops.thin_sentence(margins, accepted="thin-margins" in ws.cfg.allow)
+    if thin is not None:
+        blocks.append(_text(cells.Mark(thin, "warning" if "thin-margins" in ws.cfg.allow else "fail")))
+    for m in margins:
+        fig = plots.margins_figure(m, title=ws.setup.name)
+        blocks.append(Figure(f"margins-{m.loop}-{m.input}", f"Bode and Nyquist plots of the {m.loop} cascade "
+                                                            f"broken at {m.input}.", _png(fig, MARGINS_DPI)))
+    return Section("margins", "Margins", tuple(blocks))
+
+
+def comparison(ws) -> Section | None:
+    """The laws side by side, when ``quadctl compare`` left compare.json (and its figures) in the run folder."""
+    from quadctl import artifacts
+    from quadctl.plots.compare import QUANTITIES
+    from quadctl.present import compare as words
+
+    path = ws.path("compare.json")
+    if not path.exists():
+        return None
+    data = artifacts.read_json(path)
+    made_from, current = data["config_hash"], ws.cfg.digest()
+    if made_from != current:
+        return Section("compare", "Laws side by side", (_text(words.stale_sentence(made_from, current)),))
+    blocks = [words.table(data), _text(words.disturbance_sentence(data))]
+    free = words.free_position_sentence(ws.setup.regulated)
+    if free:
+        blocks.append(Text(free))
+    for stem, label in QUANTITIES:
+        png = artifacts.plot_path(ws.out, f"compare-{stem}")
+        if png.exists():
+            blocks.append(Figure(f"compare-{stem}", f"{label} against time, the laws overlaid.", png.read_bytes()))
+    return Section("compare", "Laws side by side", tuple(blocks))
 
 
 def simulation(ws) -> Section:

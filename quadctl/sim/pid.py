@@ -79,6 +79,11 @@ for _name, _n in STATE_LAYOUT:
     _offset += _n
 
 
+def state_slice(name: str) -> slice:
+    """Where the law's state ``name`` (:data:`STATE_LAYOUT`) sits among the law's states."""
+    return _SLICES[name]
+
+
 def structure_of(gains) -> tuple:
     """The choices baked into the law's code (:attr:`quadctl.sim.builder.LoopSpec.law`):
     ``("pid", n_att, n_pos, angle_unit, velocity_output, torque_output, dfilter, gyro_filter)``."""

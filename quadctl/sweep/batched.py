@@ -317,7 +317,13 @@ def loops_of(live) -> list:
             out[j] = exc
             continue
         eig, owners, limits = eig_of.get(j, (np.zeros(0, complex), [], None))  # held: the plan needs none
-        if des.Kv is not None:  # a design with the rotors' lag: the loop (and its lag model) as simulate builds it
+        if setup.law == "pid":  # controller.flies: pid: the case's cascade flies (its values), not the design
+            try:
+                loop = pipeline.pid_loop_of(setup, linear)
+            except QuadctlError as exc:
+                out[j] = exc
+                continue
+        elif des.Kv is not None:  # a design with the rotors' lag: the loop (and its lag model) as simulate builds it
             loop = pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
                                            integral_states=des.integral_states, Kv=des.Kv, estimator=kalman)
         else:
@@ -344,22 +350,24 @@ def loops_of(live) -> list:
         flown = pipeline.flown_reference(setup)  # a reference: one more exogenous input, as simulate takes it
         shape, held = _structure(loop, (noisy, windy, setup.duration, id(setup.reference)), seen)
         if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
-            prep.plant.cache[shape] = (replace(loop.spec(noisy, windy, flown is not None),
-                                               pattern=_structural_gain(prep)),
-                                       *loop.bounds(setup.duration, flown), [*held, setup.reference])
+            lane_spec = loop.spec(noisy, windy, flown is not None)
+            if not lane_spec.law:  # an LQR gain's structural zeros (a cascade has no gain)
+                lane_spec = replace(lane_spec, pattern=_structural_gain(prep))
+            prep.plant.cache[shape] = (lane_spec, *loop.bounds(setup.duration, flown), [*held, setup.reference])
         spec, lo, hi, _ = prep.plant.cache[shape]
         exo, first, period = None, 0, 1.0
+        exo_rate = loop.rate if loop.law is not None else setup.timing.rate  # simulate's clock: the loop's
         if setup.noise is not None or setup.wind is not None or flown is not None:  # simulate's rows, at once
             key = None
             if setup.wind is None and flown is None:
                 noise = setup.noise
                 key = (noise.seed, noise.process_std.tobytes(), noise.sensor_std.tobytes(), noise.period,
-                       setup.timing.rate, plan.n_steps, plan.dt)
+                       exo_rate, plan.n_steps, plan.dt)
             if key is not None and key in _realized:
                 _realized.move_to_end(key)
                 first, exo, period = _realized[key]
             else:
-                stream = ExoStream(setup.noise, setup.wind, setup.timing.rate, flown)
+                stream = ExoStream(setup.noise, setup.wind, exo_rate, flown)
                 # a reference's rows through the final step's (the lanes measure the final record
                 # against the reference there, as simulate's x_ref does)
                 first, exo, period = rows = (*stream.rows(0, plan.n_steps + (flown is not None), plan.dt),

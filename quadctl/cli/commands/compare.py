@@ -19,7 +19,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
 
     Every law flies the same plant from the same initial offset, along the same reference, through the
     same wind and noise (one realization, read by all). The table shows tracking error, settling,
-    overshoot, rotor use, time at a rotor limit and the cost on the config's LQR weights.
+    overshoot, rotor use, time at a rotor limit, the cost on the config's LQR weights and each law's least
+    gain and phase margins (its loops broken at the plant inputs). quadctl report shows it when
+    compare.json is in the run folder.
     """
     import json as jsonlib
 
@@ -36,8 +38,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
             raise ConfigError(f"--law: {exc}") from None
     ws = open_workspace(config, out, False, sets)
     result = compare(ws, laws)
-    data = payload(result)
-    data["meta"] = artifacts.metadata(ws.cfg, "compare")
+    # the provenance at the top, as every artifact carries it: the run folder's reader (the report) checks it
+    data = {**artifacts.metadata(ws.cfg, "compare"), **payload(result)}
     text = jsonlib.dumps(artifacts.jsonable(data), indent=1, sort_keys=True) + "\n"
     path = ws.write_bytes(ws.path("compare.json"), text.encode())
     figures = []
@@ -52,7 +54,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         return
     from quadctl.present import compare as words
 
-    render.show(words.table(result), words.disturbance_sentence(result),
+    render.show(words.table(data), words.disturbance_sentence(data),
                 words.free_position_sentence(ws.setup.regulated))
     render.out.print(f"-> {path}")
     for fig_path in figures:

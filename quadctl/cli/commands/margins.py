@@ -21,26 +21,34 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     A continuous design's loops are compared with the continuous LQR guarantee (gain margin -6 dB
     to infinity, phase margin 60 deg), shortfalls explained (coupling, sampling, saturation). A
     discrete design's loops are the sampled ones the flight computer closes: sampling does not keep
-    that guarantee, so their own margins are shown without it. Exits 1 when a loop is unstable, or
+    that guarantee, so their own margins are shown without it. With controller.flies: pid, the PID
+    cascade's loops: each input broken at the plant with the whole multi-rate cascade closed around it,
+    lifted to its frame (every hold exact). Exits 1 when a loop is unstable, or
     has less than 6 dB of gain margin or 30 deg of phase margin (MIL-F-9490D) unless the config
     lists thin-margins under allow.
     """
     from quadctl.cli import render
 
     ws = open_workspace(config, out, fresh, sets)
-    margins = [m for m in ws.margins if coupled or m.model == "design"]
+    cascade = ws.setup.law == "pid"
+    margins = [m for m in ws.margins if coupled or m.model in ("design", "cascade")]
     paths = _save_figures(ws, margins) if plot else []
     if json:
         render.emit_json(ws.payloads["margins.json"])
     else:
         from quadctl.present import loops
 
-        discrete = ws.design.rate is not None
-        render.show(loops.classical_table(margins, ws.setup.timing.rate), loops.disk_table(margins, discrete),
-                    loops.guarantee_sentence(margins, discrete))
-        for line in loops.notes(margins):
-            render.out.print(f"  {line}", markup=False)
-        render.show(loops.closed_loop_sentence(ws.payloads["margins.json"]))
+        if cascade:
+            payload = ws.payloads["margins.json"]
+            render.show(loops.classical_table(margins, payload["rate"]), loops.disk_table(margins, True),
+                        loops.cascade_sentence(payload))
+        else:
+            discrete = ws.design.rate is not None
+            render.show(loops.classical_table(margins, ws.setup.timing.rate), loops.disk_table(margins, discrete),
+                        loops.guarantee_sentence(margins, discrete))
+            for line in loops.notes(margins):
+                render.out.print(f"  {line}", markup=False)
+            render.show(loops.closed_loop_sentence(ws.payloads["margins.json"]))
         render.out.print(f"-> {ws.path('margins.json')}")
         for path in paths:
             render.out.print(f"figure -> {path}")
