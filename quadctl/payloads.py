@@ -16,6 +16,7 @@ from quadctl.design import Design
 from quadctl.design.discrete import realizable_frequency
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 from quadctl.sim import schedule
+from quadctl.stability import is_stable
 
 ESTIMATOR_CHECK = "estimator"
 """checks' key of the measured set (``estimator.measure``) on the coupled model."""
@@ -120,7 +121,7 @@ def cascade_margins(setup, lift, result) -> dict:
             "what": "the cascade linearized about hover with the plant's zero-order hold, lifted to its frame of "
                     f"{n_pos} base samples (every hold exact); states nothing reads left out",
             "domain": "z", "sample_time": lift.frame * lift.sample_time, "eigenvalues": _c(eig),
-            "stable": bool(np.all(np.abs(eig) < 1)), "spectral_radius": float(np.abs(eig).max())},
+            "stable": bool(np.all(is_stable(eig, discrete=True))), "spectral_radius": float(np.abs(eig).max())},
         "exact": {"stability": True, "gain_margins": True, "phase_disk_delay_margins": lift.frame == 1},
         "loops": [m.as_dict() for m in result]}
 
