@@ -429,15 +429,16 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     qc_plant(X, UH, DT, c, E, XN, P);
 #endif
 #endif
-    /* bounds, lane by lane (NaN compares false, so it counts as out) */
-    for (int l = 0; l < QC_L; ++l) {
-      int out = 0;
-      for (int i = 0; i < QC_NX; ++i) {
+    /* bounds: each lane's own flag, OR-ed over the states (NaN compares false, so it counts as
+       out); integer ORs, so the lanes vectorize without a lane's verdict mixing with another's */
+    int out[QC_L];
+    for (int l = 0; l < QC_L; ++l) out[l] = 0;
+    for (int i = 0; i < QC_NX; ++i)
+      for (int l = 0; l < QC_L; ++l) {
         double v = XN[i * QC_L + l];
-        out |= !(v >= lo[i * QC_L + l]) | !(v <= hi[i * QC_L + l]);
+        out[l] |= !(v >= lo[i * QC_L + l]) | !(v <= hi[i * QC_L + l]);
       }
-      bad[l] = out;
-    }
+    for (int l = 0; l < QC_L; ++l) bad[l] = out[l];
     memcpy(X, XN, sizeof X);
     for (int l = 0; l < QC_L; ++l) {
       rec_in[l] = rec_in[l] == 0 ? QC_STRIDE(l) - 1 : rec_in[l] - 1;
