@@ -60,8 +60,17 @@ def _cache_in_tmp(_compile_cache, monkeypatch):
     monkeypatch.setenv("QUADCTL_CACHE", _compile_cache)
 
 
+@pytest.hookimpl(tryfirst=True)  # before -m deselects
 def pytest_collection_modifyitems(config, items):
-    """Tests marked ``compiler`` are skipped, with the reason, where no C compiler is found."""
+    """The tests ``tests/slow_tests.txt`` lists are marked ``slow`` (``tests/_tiers.py``: those of 1.5 s
+    or more run in CI's second step); tests marked ``compiler`` are skipped, with the reason, where no C
+    compiler is found."""
+    from _tiers import listed
+
+    slow = listed()
+    for item in items:
+        if item.nodeid in slow:
+            item.add_marker(pytest.mark.slow)
     marked = [item for item in items if item.get_closest_marker("compiler")]
     if not marked:
         return

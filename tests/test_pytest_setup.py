@@ -54,3 +54,21 @@ def test_every_test_that_names_the_compiled_backend_is_marked():
             if name.startswith("test_") and needs and "pytest.mark.compiler" not in source:
                 unmarked.append(f"{path.name}::{name}")
     assert not unmarked, unmarked
+
+
+def test_every_test_the_slow_tier_lists_is_a_test_of_the_suite():
+    """tests/slow_tests.txt names tests by node id: a renamed or removed test leaves a stale line (and the
+    renamed test back in the first tier), so each line names a test function of its file."""
+    import re
+    from pathlib import Path
+
+    from _tiers import listed
+
+    root = Path(__file__).resolve().parent.parent
+    stale = []
+    for node in sorted(listed()):
+        path, _, name = node.partition("::")
+        function = name.split("[")[0]
+        if not (root / path).is_file() or not re.search(rf"^def {function}\(", (root / path).read_text(), re.M):
+            stale.append(node)
+    assert listed() and not stale, stale
