@@ -17,9 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl.design.margins import least_margins
 from quadctl.layout import STATE_INDEX
 from quadctl.metrics import lqr_cost, overshoot, settling_time
-from quadctl.noise import DEFAULT_PERIOD
+from quadctl.noise import exogenous_period
 from quadctl.pipeline import Stages, flown_reference, pid_loop_of
 from quadctl.sim.run import ClosedLoop, ExoStream, SimResult, simulate
 
@@ -131,7 +132,7 @@ def compare(stages: Stages, laws=("pid:crazyflie",), duration: float | None = No
     duration = setup.duration if duration is None else float(duration)
     lqr = stages.lqr_loop
     noise, wind = setup.noise, setup.wind
-    period = noise.period if noise is not None else (1.0 / lqr.rate if lqr.rate else DEFAULT_PERIOD)
+    period = exogenous_period(noise.period if noise is not None else None, lqr.rate)
     reference = flown_reference(setup)
     names = ["lqr", *[law for law in laws if parse_law(law)[0] != "lqr"]]
     out = []
@@ -171,8 +172,7 @@ def margin_summary(margins) -> dict:
     ``phase_margin`` (deg: the least) of ``margins``; 0 for an unstable loop, None without loops."""
     if not margins:
         return {"gain_margin": None, "phase_margin": None}
-    return {"gain_margin": float(min(min(m.gain_margin_db[1], -m.gain_margin_db[0]) for m in margins)),
-            "phase_margin": float(min(m.phase_margin_deg for m in margins))}
+    return dict(zip(("gain_margin", "phase_margin"), least_margins(margins)))
 
 
 def disturbance_digest(noise, wind, rate, period: float, duration: float) -> str:

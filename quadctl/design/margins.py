@@ -222,6 +222,13 @@ class LoopMargins:
         }
 
 
+def least_margins(margins) -> tuple[float, float]:
+    """``(gain dB, phase deg)``: the least gain change, up or down, that destabilizes one of ``margins``'
+    loops, and their least phase margin (what the sweep's margin columns and ``quadctl compare`` show)."""
+    return (float(min(min(-m.gain_margin_db[0], m.gain_margin_db[1]) for m in margins)),
+            float(min(m.phase_margin_deg for m in margins)))
+
+
 def thin_loops(margins) -> list[LoopMargins]:
     """The stable loops with a gain or phase margin below the classical requirement (:attr:`LoopMargins.thin`)."""
     return [m for m in margins if m.thin]

@@ -81,8 +81,9 @@ the least phase margin, deg, over the design-model and coupled loops as ``quadct
 
 def margin_columns(found) -> dict:
     """:data:`MARGIN_COLUMNS` of a design's :class:`~quadctl.design.margins.LoopMargins`."""
-    return {"margin.gain_db": min(min(-m.gain_margin_db[0], m.gain_margin_db[1]) for m in found),
-            "margin.phase_deg": min(m.phase_margin_deg for m in found)}
+    from quadctl.design.margins import least_margins
+
+    return dict(zip(MARGIN_COLUMNS, least_margins(found)))
 
 
 def gated_margins(gates) -> bool:
