@@ -100,10 +100,26 @@ def _etdrk4_function(rhs, n: int, L: np.ndarray):
     return step
 
 
+@pytest.mark.compiler
+@pytest.mark.parametrize("method", ["etdrk4", "rk4"])
+def test_a_loop_started_at_its_trim_stays_there(method):
+    """The hover loop started exactly at its trim, 10 000 steps of 0.1 ms: no step moves it (RK4 adds
+    ``h k`` with ``k`` the trim's residual). ETDRK4 written as ``e^(hL) X + A N(X) + ...`` drifted by
+    5e-11 here, the round-off of ``e^(hL) - 1 = A L`` times ``X`` at every step; written about the
+    step's start (:func:`quadctl.sim.builder.etdrk4`) it adds ``A rhs(X)`` like RK4."""
+    setup, _, linear, _, des = solve(cfg_dict("hover"))
+    loop = pipeline.loop_of(setup, linear, des)
+    run = simulate(loop, loop.x_trim, 1.0, 1e-4, method=method)
+    assert np.abs(run.x[-1] - loop.x_trim).max() < 1e-14
+
+
 def test_exact_on_a_linear_loop_with_affine_forcing():
     """``x' = A x + b + c t``, ``A`` stiff (eigenvalues -2e4 .. -0.5, a complex pair): ETDRK4 with
     ``L = A`` gives the exact solution, ``expm`` of the augmented system ``[x; 1; t]``, to round-off
-    whatever the step (here 50 steps of 0.02 s, 400 times RK4's stability limit)."""
+    whatever the step (here 50 steps of 0.02 s, 400 times RK4's stability limit). Round-off here is
+    the φ-functions' forward error, about ``expm_cond(h A) eps`` each (487 eps at this step), a few
+    of them combined per step, added over the steps: the bound allows 100 of them a step (the BLAS
+    kernels of two x86 machines gave 5e-11 and under 1e-11)."""
     rng = np.random.default_rng(3)
     V = rng.standard_normal((4, 4)) + 4 * np.eye(4)
     D = np.array([[-2e4, 0, 0, 0], [0, -0.5, 3.0, 0], [0, -3.0, -0.5, 0], [0, 0, 0, -40.0]])
@@ -117,7 +133,8 @@ def test_exact_on_a_linear_loop_with_affine_forcing():
     aug = np.zeros((6, 6))
     aug[:4, :4], aug[:4, 4], aug[:4, 5], aug[5, 4] = A, b, c, 1.0
     exact = (scipy.linalg.expm(aug * 1.0) @ np.concatenate([x0, [1.0, 0.0]]))[:4]
-    assert np.abs(x - exact).max() < 1e-11 * max(1.0, np.abs(exact).max())  # RK4: unstable here
+    bound = 50 * 100 * scipy.linalg.expm_cond(A * h) * np.finfo(float).eps  # about 5e-10
+    assert np.abs(x - exact).max() < bound * max(1.0, np.abs(exact).max())  # RK4: unstable here
 
 
 def test_fourth_order_on_a_smooth_nonlinear_system():
@@ -278,9 +295,9 @@ def test_a_mission_agrees_with_rk4_at_a_small_step():
     assert etd.steps * 4 < simulate(loop, x0, T, "auto", reference=ref).steps
 
 
-MISSION_SPAN = 4.0
-"""s of the ``square`` mission :func:`test_a_missions_largest_error_is_within_its_tolerance` flies: its
-first leg (pitched up to 0.3 rad) and the start of the second (climbing, turning to a 90 deg heading)."""
+MISSION_SPAN = 15.0
+"""s of the ``square`` mission :func:`test_a_missions_largest_error_is_within_its_tolerance` flies: the
+whole of it (four legs, a climb and turns to 90 and 180 deg of heading)."""
 
 
 @pytest.fixture(scope="module")
@@ -295,7 +312,7 @@ def mission_truth():
     fine, coarse = (simulate(loop, x0, MISSION_SPAN, 0.005 / k, reference=ref, max_samples=rows + 1)
                     for k in (1024, 512))
     assert np.array_equal(fine.t, coarse.t) and len(fine.t) == rows + 1
-    assert np.abs(fine.x - coarse.x).max() < 3e-11  # the reference's own error: about 2e-12 at most
+    assert np.abs(fine.x - coarse.x).max() < 6e-11  # the reference's own error: about 4e-12 at most
     return loop, x0, ref, fine
 
 
@@ -304,9 +321,10 @@ def mission_truth():
 def test_a_missions_largest_error_is_within_its_tolerance(mission_truth, tolerance):
     """ETDRK4 at dt: auto, its largest error over the whole run (every row's start, not only the end)
     within ``simulation.tolerance`` of the reference integrator on the same closed loop. Graded on
-    ``tolerance^(1/4)`` as for the initial transient, it was 1.4e-8 at 1e-8 and 2.5e-9 at 1e-10 here
-    (in the middle of the first leg): the method's order falls to about 3 on a mission
-    (:func:`quadctl.sim.schedule.forced_step`)."""
+    ``tolerance^(1/4)`` as for the initial transient, it was 1.4e-8 at 1e-8 here: the method's order
+    falls to about 3 on a mission (:func:`quadctl.sim.schedule.forced_step`). Written as
+    ``e^(hL) X + ...`` rather than about the step's start (:func:`quadctl.sim.builder.etdrk4`), it was
+    1.8e-10 at 1e-10, whatever the step: the drift of that form's round-off."""
     loop, x0, ref, truth = mission_truth
     etd = simulate(loop, x0, MISSION_SPAN, "auto", method="etdrk4", tolerance=tolerance, reference=ref,
                    max_samples=10**6)

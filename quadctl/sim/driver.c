@@ -268,9 +268,8 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
  * matrix-vector products here, dense, each a column at a time over the rows (the order of CasADi's
  * product: the same sums, its structural zeros adding zeros), the sums in the order etdrk4 writes them. The
  * matrices are the PHI_LAYOUT blocks that end c, column-major. */
-#define QC_PHI (QC_NC - 14 * QC_NX * QC_NX)
-enum { QC_LIN, QC_EHALF, QC_EFULL, QC_A21, QC_A31, QC_A32, QC_A41, QC_A42, QC_A51, QC_A52, QC_A54, QC_B1, QC_B4,
-       QC_B5 };
+#define QC_PHI (QC_NC - 12 * QC_NX * QC_NX)
+enum { QC_LIN, QC_A21, QC_A31, QC_A32, QC_A41, QC_A42, QC_A51, QC_A52, QC_A54, QC_B1, QC_B4, QC_B5 };
 static void qc_mv(const double* restrict c, int k, const double* restrict v, double* restrict y) {
   const double* M = c + QC_PHI + (long)k * QC_NX * QC_NX;
   for (int i = 0; i < QC_NX; ++i) y[i] = M[i] * v[0];
@@ -285,39 +284,46 @@ static void qc_mv(const double* restrict c, int k, const double* restrict v, dou
 /* X_next = one step h from X at t; u: the input at X (continuous feedback), or the held one */
 static void qc_etd(const double* X, const double* t, const double* h, const double* c, const double* e,
                    double* XN, double* u, const double* P) {
-  double n1[QC_NX], n2[QC_NX], n3[QC_NX], n4[QC_NX], n5[QC_NX], n23[QC_NX], half[QC_NX], full[QC_NX];
+  double n1[QC_NX], n2[QC_NX], n3[QC_NX], n4[QC_NX], n5[QC_NX], n23[QC_NX], LX[QC_NX];
   double a[QC_NX], b[QC_NX], d[QC_NX], Y[QC_NX], uu[QC_NU];
   double th[1] = {t[0] + h[0] / 2}, tf[1] = {t[0] + h[0]};
   (void)uu; (void)th; (void)tf;
+  qc_mv(c, QC_LIN, X, LX);
+  /* G(Y) = N(Y) + L X: the stages about the step's start X (etdrk4) */
+#define QC_G(N) for (int i = 0; i < QC_NX; ++i) N[i] = N[i] + LX[i]
   QC_REM(X, t, n1, u);
-  qc_mv(c, QC_EHALF, X, half);
-  qc_mv(c, QC_EFULL, X, full);
+  QC_G(n1);
   qc_mv(c, QC_A21, n1, a);
-  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i];
+  for (int i = 0; i < QC_NX; ++i) Y[i] = X[i] + a[i];
 #if QC_HELD
 #define QC_U u
 #else
 #define QC_U uu
 #endif
   QC_REM(Y, th, n2, QC_U);
+  QC_G(n2);
   qc_mv(c, QC_A31, n1, a);
   qc_mv(c, QC_A32, n2, b);
-  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i] + b[i];
+  for (int i = 0; i < QC_NX; ++i) Y[i] = X[i] + a[i] + b[i];
   QC_REM(Y, th, n3, QC_U);
+  QC_G(n3);
   for (int i = 0; i < QC_NX; ++i) n23[i] = n2[i] + n3[i];
   qc_mv(c, QC_A41, n1, a);
   qc_mv(c, QC_A42, n23, b);
-  for (int i = 0; i < QC_NX; ++i) Y[i] = full[i] + a[i] + b[i];
+  for (int i = 0; i < QC_NX; ++i) Y[i] = X[i] + a[i] + b[i];
   QC_REM(Y, tf, n4, QC_U);
+  QC_G(n4);
   qc_mv(c, QC_A51, n1, a);
   qc_mv(c, QC_A52, n23, b);
   qc_mv(c, QC_A54, n4, d);
-  for (int i = 0; i < QC_NX; ++i) Y[i] = half[i] + a[i] + b[i] + d[i];
+  for (int i = 0; i < QC_NX; ++i) Y[i] = X[i] + a[i] + b[i] + d[i];
   QC_REM(Y, th, n5, QC_U);
+  QC_G(n5);
   qc_mv(c, QC_B1, n1, a);
   qc_mv(c, QC_B4, n4, b);
   qc_mv(c, QC_B5, n5, d);
-  for (int i = 0; i < QC_NX; ++i) XN[i] = full[i] + a[i] + b[i] + d[i];
+  for (int i = 0; i < QC_NX; ++i) XN[i] = X[i] + a[i] + b[i] + d[i];
+#undef QC_G
 #undef QC_U
 }
 #endif

@@ -224,7 +224,7 @@ STAGE_WEIGHTS = np.array([
     [0, 0, 0, 1, -3, 4],                         # B1
     [0, 0, 0, 0, -1, 4],                         # B4
     [0, 0, 0, 0, 4, -8]])                        # B5
-"""The stage and step weights of :data:`quadctl.sim.builder.PHI_LAYOUT` after ``E_full`` as rows of
+"""The stage and step weights of :data:`quadctl.sim.builder.PHI_LAYOUT` after ``lin`` as rows of
 coefficients of ``(psi1, psi2, psi3, phi1, phi2, phi3)`` (``psi_k = phi_k(hL/2)``), each times ``h``."""
 
 
@@ -233,7 +233,7 @@ def step_matrices(L, h: float, half: list[np.ndarray], full: list[np.ndarray]) -
     ``half = [e^(hL/2), φ_1, φ_2, φ_3 (hL/2)]`` and ``full``, the same of ``hL`` (each (n, n), or a
     stack): the weights :data:`STAGE_WEIGHTS` in one product."""
     weights = np.tensordot(h * STAGE_WEIGHTS, np.stack([*half[1:], *full[1:]]), axes=1)
-    return dict(zip(PHI_LAYOUT, [np.asarray(L, dtype=float), half[0], full[0], *weights]))
+    return dict(zip(PHI_LAYOUT, [np.asarray(L, dtype=float), *weights]))
 
 
 def phi_constants(matrices: dict[str, np.ndarray], case: int | None = None) -> np.ndarray:
@@ -244,7 +244,7 @@ def phi_constants(matrices: dict[str, np.ndarray], case: int | None = None) -> n
 
 
 def phi_constant_rows(matrices: dict[str, np.ndarray]) -> np.ndarray:
-    """(N, 14 n^2): :func:`phi_constants` of every matrix of a stacked ladder's step, at once."""
+    """(N, 12 n^2): :func:`phi_constants` of every matrix of a stacked ladder's step, at once."""
     return np.concatenate([np.swapaxes(matrices[name], -1, -2).reshape(len(matrices[name]), -1)
                            for name in PHI_LAYOUT], axis=1)
 
@@ -299,13 +299,11 @@ def allows(h, eigenvalues, tolerance: float, safety: float = SAFETY):
     return float(times) if np.ndim(h) == 0 else times
 
 
-FORCED_SAFETY = 0.7
-"""The constant of :func:`forced_step`, measured on the bundled ``square`` mission (15 s, largest
-error over the whole run against RK4 at 1/1024 of the rows' period, cross-checked by SciPy's DOP853
-at rtol 1e-12 over its first 3 s): at uniform steps of 2.5, 1.25, 0.625 and 0.3125 ms the error is
-1.2e-7, 1.5e-8, 2.2e-9 and 2.8e-10, about ``3.9 h^2.9`` (h in s): the error meets ``tolerance`` at
-``h = 1.0 tolerance^(1/3) / |lambda_slow|`` at 1e-8 and 1e-10; 0.7 leaves a factor of about 3 in
-error."""
+FORCED_SAFETY = 1.0
+"""The constant of :func:`forced_step`, measured on the bundled ``square`` mission (its whole 15 s,
+largest error over the run against RK4 at 1/1024 of the rows' period): at 0.7, 1.0, 1.4 and 2.0 the
+error is 1.0e-9, 4.3e-9, 8.5e-9 and 2.1e-8 at tolerance 1e-8, and 9.3e-12, 3.2e-11, 9.2e-11 and 2.9e-10 at
+1e-10 (about ``h^3``); 1.0 leaves a factor of 2 to 3 in error."""
 
 
 def forced_step(eigenvalues, tolerance: float) -> float:
@@ -320,8 +318,8 @@ def forced_step(eigenvalues, tolerance: float) -> float:
     trim's), through which it reaches the fast modes, and the reference's rows (quadratic in ``t``
     over each row, its slope and input's slope kinked at each row's boundary) kick those modes at
     every boundary. Graded on ``tolerance^(1/4)`` the largest error over the bundled ``square``
-    mission was 12 times ``tolerance`` at 1e-8 and 150 times at 1e-10; on ``tolerance^(1/3)``
-    (:data:`FORCED_SAFETY`) it stays within it.
+    mission was 12 times ``tolerance`` at 1e-8; on ``tolerance^(1/3)`` (:data:`FORCED_SAFETY`) it
+    stays within it.
     """
     mag = np.abs(np.asarray(eigenvalues, dtype=complex))
     mag = mag[mag > 0]
