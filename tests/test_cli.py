@@ -296,6 +296,17 @@ def test_run_marks_no_stage_that_fails_its_gate(tmp_path):
     assert (tmp_path / "sim.npz").exists()  # what was computed is saved
 
 
+def test_run_and_report_stop_at_the_same_check(tmp_path):
+    """One chain of stages (quadctl.stages): a flight at its limits fails ``report`` as it fails ``run``,
+    at the same stage, for the same reason, in the same line."""
+    sets = ["--set", "limits={R: [-1.0e-7, 1.0e-7]}"]
+    ran, reported = (invoke(cmd, "-o", tmp_path / cmd, *sets) for cmd in ("run", "report"))
+    assert ran.exit_code == reported.exit_code == 1
+    failed = [line for line in ran.stderr.splitlines() if line.startswith("quadctl: check failed:")]
+    assert failed == [line for line in reported.stderr.splitlines() if line.startswith("quadctl: check failed:")]
+    assert failed[0].startswith("quadctl: check failed: simulate: the design saturates: R is at a limit 100 %")
+
+
 def test_flags_show_no_value_placeholder_in_help():
     """typer 0.29 showed `--plot <bool>`, `--json <bool>`, `--help -h <bool>`, as if the flag took a value
     (`--plot true` is refused); options that take one keep theirs (`--out DIR`, `--set KEY=VALUE`)."""

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import artifacts, config, report
+from quadctl import artifacts, config, report, stages
 from quadctl.cli.app import app
 from quadctl.workspace import Workspace
 
@@ -333,7 +333,7 @@ def test_the_report_reuses_fresh_artifacts_and_drops_stale_figures(tmp_path, rep
     (tmp_path / report.FOLDER / "mine.png").write_bytes(b"the user's")
     again = Workspace(cfg, tmp_path)
     outcome = report.run_stages(again)
-    assert outcome.done == report.STAGES and outcome.stopped_at is None
+    assert outcome.done == stages.NAMES and outcome.stopped_at is None
     assert {p.name for p in again.reused} >= {"trim.json", "linear.npz"}
     report.write(report.build(again, outcome), tmp_path / report.FOLDER)
     assert not (tmp_path / report.FOLDER / "margins-old.png").exists()

@@ -94,3 +94,24 @@ def decouple_summary(dec) -> str:
     """``5 subsystems, 10 terms dropped``."""
     n_subs, n_dropped = len(dec.subsystems), len(dec.dropped)
     return f"{n_subs} subsystem{'s' if n_subs != 1 else ''}, {n_dropped} term{'s' if n_dropped != 1 else ''} dropped"
+
+
+def stage_summary(ws, stage: str) -> str:
+    """A stage's result in one line, as ``quadctl run`` ticks it off and the report's summary lists it."""
+    from quadctl.present import design, flight, loops
+
+    if stage == "trim":
+        return trim_summary(ws.trim)
+    if stage == "linearize":
+        return f"A {ws.linear.A.shape}, B {ws.linear.B.shape}"
+    if stage == "decouple":
+        return decouple_summary(ws.decoupled)
+    if stage == "check":
+        return CHECKS_PASSED
+    if stage == "design":
+        return design.summary(ws.design)
+    if stage == "margins":
+        return loops.summary(ws.margins, discrete=ws.setup.law == "pid" or ws.design.rate is not None)
+    sim = ws.simulation.sim
+    return (f"{sim.steps} {flight.integrator_name(sim)} steps, {flight.step_span(sim)}, "
+            f"{sim.steps_per_second / 1e6:.2f} M steps/s")

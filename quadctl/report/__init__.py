@@ -17,93 +17,24 @@ Examples
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
-from quadctl.errors import QuadctlError
-from quadctl.present.loops import thin_sentence
-from quadctl.present.mission import mission_text
-from quadctl.present.stages import UNSTABLE_DESIGN
+from quadctl import stages
+from quadctl.present.stages import stage_summary
 from quadctl.report import content
 from quadctl.report.document import Document, Section, Table, Text, to_html, to_markdown
+from quadctl.stages import NAMES, Outcome
 
-STAGES = ("trim", "linearize", "decouple", "check", "design", "margins", "simulate")
-"""The stages a report runs, in order: ``quadctl run``'s, with the margins before the flight."""
 FOLDER = "report"
 """Where :func:`write` puts the report inside the run folder."""
 HTML, MARKDOWN = "report.html", "report.md"
 
 
-@dataclass(frozen=True)
-class Outcome:
-    """How far the stages went.
-
-    Attributes
-    ----------
-    done : tuple of str
-        The stages computed, in order (a simulation that diverged is computed).
-    failed : str or None
-        Why a check failed (``"check: subsystem roll is not stabilizable: mode 0 in phi, p"``): what
-        ``quadctl run`` exits 1 for.
-    error : QuadctlError or None
-        An error a stage raised (its ``exit_code`` says what kind); the stages after it did not run.
-    """
-
-    done: tuple[str, ...]
-    failed: str | None = None
-    error: QuadctlError | None = None
-
-    @property
-    def stopped_at(self) -> str | None:
-        """The stage that failed a check or raised; None when every stage passed."""
-        if self.failed is not None:
-            return self.done[-1]
-        return None if self.error is None else STAGES[len(self.done)]
-
-
 def run_stages(ws) -> Outcome:
-    """Run the stages in order until one fails a check or raises; what ``quadctl run`` checks, plus margins.
-
-    A check fails when a regulated subsystem is not stabilizable, a continuous design is unstable
-    sampled at the controller's rate, or the rotors' lag and the delay make the design's loop unstable
-    (the verdicts ``check`` and ``run`` give), the assembled design is unstable
-    on the coupled model, the simulation does not finish (diverged, left the valid range), or its
-    mission misses a waypoint or ends farther than the tolerance from it, or (after the flight) a loop has a thin
-    margin (:func:`quadctl.design.margins.thin_loops`) the config does not accept (``allow: [thin-margins]``); a
-    :class:`~quadctl.errors.QuadctlError` a stage raises stops the stages too. Neither is raised:
-    both are in the returned :class:`Outcome`, so that what was computed can still be reported.
-    """
-    done: list[str] = []
-
-    def step(name, compute, verdict=lambda: None):
-        try:
-            compute()
-        except QuadctlError as exc:
-            return Outcome(tuple(done), error=exc)
-        done.append(name)
-        why = verdict()
-        return None if why is None else Outcome(tuple(done), failed=f"{name}: {why}")
-
-    plan = (
-        ("trim", lambda: ws.trim, None),
-        ("linearize", lambda: ws.linear, None),
-        ("decouple", lambda: ws.decoupled, None),
-        ("check", lambda: ws.checks, lambda: ws.checks.verdict()),
-        ("design", lambda: ws.design, lambda: (
-            None if ws.design.stable else UNSTABLE_DESIGN)),
-        ("margins", lambda: ws.margins, None),
-        ("simulate", lambda: ws.simulation, lambda: (
-            mission_text(ws.simulation.flight.get("reference")) if ws.simulation.sim.status == "ok"
-            else ws.simulation.sim.message)),
-    )
-    for name, compute, verdict in plan:
-        stop = step(name, compute, verdict or (lambda: None))
-        if stop is not None:
-            return stop
-    thin = thin_sentence(ws.margins) if "thin-margins" not in ws.cfg.allow else None
-    if thin is not None:  # after the flight: thin margins fail the check, the flight is still worth reporting
-        return Outcome(tuple(done), failed=f"margins: {thin}")
-    return Outcome(tuple(done))
+    """Every stage of :data:`quadctl.stages.STAGES` (``quadctl run``'s, with the margins) on ``ws``,
+    until one fails its check or raises: both are in the returned :class:`~quadctl.stages.Outcome`,
+    so that what was computed can still be reported."""
+    return stages.run_stages(ws, NAMES)
 
 
 def build(ws, outcome: Outcome, *, command_line: str = "", label: str | None = None) -> Document:
@@ -150,7 +81,7 @@ def _status(outcome: Outcome) -> Text:
         return Text("Complete: every stage ran and every check passed (stabilizable, stable on the coupled "
                     "model, simulation finished).", "ok")
     why = outcome.failed.split(": ", 1)[1] if outcome.failed else str(outcome.error)
-    left = [s for s in STAGES if s not in outcome.done]
+    left = [s for s in NAMES if s not in outcome.done]
     after = f" Not run: {', '.join(left)}." if left else ""
     return Text(f"Stopped at {outcome.stopped_at}: {why}.{after} This report shows what was computed.", "fail")
 
@@ -158,34 +89,16 @@ def _status(outcome: Outcome) -> Text:
 def _summary(ws, outcome: Outcome) -> Section:
     done = set(outcome.done)
     rows = []
-    for stage in STAGES:
+    for stage in NAMES:
         if stage not in done:
             verdict = "failed" if stage == outcome.stopped_at else "not run"
             rows.append((stage, verdict, str(outcome.error) if stage == outcome.stopped_at and outcome.error else ""))
             continue
         ok = not (outcome.failed and outcome.failed.startswith(stage + ":"))
-        rows.append((stage, "ok" if ok else "failed", _detail(ws, stage) if ok else outcome.failed.split(": ", 1)[1]))
+        result = stage_summary(ws, stage) if ok else outcome.failed.split(": ", 1)[1]
+        rows.append((stage, "ok" if ok else "failed", result))
     return Section("summary", "Summary", (
         Table("summary-table", "Stages", ("stage", "verdict", "result"), tuple(rows), align="llw"),))
-
-
-def _detail(ws, stage: str) -> str:
-    from quadctl.present import design, loops, stages
-
-    if stage == "trim":
-        return stages.trim_summary(ws.trim)
-    if stage == "linearize":
-        return f"A {ws.linear.A.shape}, B {ws.linear.B.shape}"
-    if stage == "decouple":
-        return stages.decouple_summary(ws.decoupled)
-    if stage == "check":
-        return stages.CHECKS_PASSED
-    if stage == "design":
-        return design.summary(ws.design)
-    if stage == "margins":
-        return loops.summary(ws.margins, discrete=ws.setup.law == "pid" or ws.design.rate is not None)
-    sim = ws.simulation.sim
-    return f"{sim.steps} RK4 steps, dt {sim.dt:.3g} s, {sim.backend}: {sim.status}"
 
 
 def write(doc: Document, folder: Path | str, store=None) -> list[Path]:
@@ -226,5 +139,5 @@ def _earlier_figures(markdown: Path) -> set[str]:
         return set()
 
 
-__all__ = ["FOLDER", "HTML", "MARKDOWN", "STAGES", "Document", "Outcome", "Section", "Table", "build",
+__all__ = ["FOLDER", "HTML", "MARKDOWN", "Document", "Section", "Table", "build",
            "run_stages", "write"]

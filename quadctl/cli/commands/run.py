@@ -10,12 +10,7 @@ from quadctl.cli.options import (
     SetOpt,
     open_workspace,
 )
-from quadctl.cli.stage_warnings import (
-    mission_failure,
-    require_within_limits,
-    warn_of_the_flight,
-    warn_of_the_rate,
-)
+from quadctl.cli.stage_warnings import warn_of_the_flight, warn_of_the_rate
 
 NAME = "run"
 
@@ -33,58 +28,44 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     from quadctl.cli.progress import simulation_progress
 
     ws = open_workspace(config, out, fresh, sets)
-    stages = {}
+    done_lines = {}
 
-    def done(stage: str, detail: str) -> None:
-        stages[stage] = detail
+    from quadctl import stages
+    from quadctl.present.stages import stage_summary
+
+    def computed(stage: str) -> None:  # the warnings on a result, before its check
+        if stage == "simulate":
+            warn_of_the_flight(ws, ws.simulation, allow_saturation)
+
+    def passed(stage: str) -> None:
+        done_lines[stage] = stage_summary(ws, stage)
         if not json:
-            render.out.print(f"[green]✓[/green] {stage:<10} {detail}", soft_wrap=True)  # a pipe gets whole lines
+            render.out.print(f"[green]✓[/green] {stage:<10} {done_lines[stage]}", soft_wrap=True)  # whole lines
+        if stage == "check":
+            warn_of_the_rate(ws.checks.rate, ws.checks.rate_warnings)
 
-    from quadctl.errors import SaturationFailed
-    from quadctl.present import design as shown_design
-    from quadctl.present import flight as shown_flight
-    from quadctl.present import stages as shown
-
-    done("trim", shown.trim_summary(ws.trim))
-    done("linearize", f"A {ws.linear.A.shape}, B {ws.linear.B.shape}")
-    done("decouple", shown.decouple_summary(ws.decoupled))
-    why = ws.checks.verdict()
-    if why:
-        raise _stop(json, stages, f"check: {why}")
-    done("check", shown.CHECKS_PASSED)
-    warn_of_the_rate(ws.checks.rate, ws.checks.rate_warnings)
-    if not ws.design.stable:
-        raise _stop(json, stages, f"design: {shown.UNSTABLE_DESIGN}")
-    done("design", shown_design.summary(ws.design))
     with simulation_progress(quiet=json) as ws.progress:
-        flown = ws.simulation
-    sim = flown.sim
-    warn_of_the_flight(ws, flown, allow_saturation)
-    if sim.status != "ok":
-        raise _stop(json, stages, f"simulate: {sim.message}")
-    try:
-        require_within_limits(ws, flown, allow_saturation)
-    except SaturationFailed as exc:
-        raise _stop(json, stages, f"simulate: {exc}", exc) from None
-    mission = mission_failure(flown)
-    if mission:
-        raise _stop(json, stages, f"simulate: {mission}")
-    done("simulate", f"{sim.steps} {shown_flight.integrator_name(sim)} steps, {shown_flight.step_span(sim)}, "
-                     f"{sim.steps_per_second / 1e6:.2f} M steps/s")
+        outcome = stages.run_stages(ws, stages.RUN, allow_saturation=allow_saturation, computed=computed,
+                                    passed=passed)
+    if outcome.error is not None:
+        raise outcome.error
+    if outcome.failed is not None:
+        raise _stop(json, done_lines, outcome.failed)
+    sim = ws.simulation.sim
     if plot:
-        for path in save_figures(ws, sim, flown.flight.get("reference")):
+        for path in save_figures(ws, sim, ws.simulation.flight.get("reference")):
             if not json:
                 render.out.print(f"figure -> {path}")
     if json:
-        render.emit_json({"stages": stages, "ok": True, "out": str(ws.out)})
+        render.emit_json({"stages": done_lines, "ok": True, "out": str(ws.out)})
     else:
         render.out.print(f"artifacts in {ws.out}/")
 
 
-def _stop(json: bool, stages: dict, why: str, error: Exception | None = None) -> Exception:
-    """The error ``run`` stops with at a failed stage (``error``, else a failed check), its JSON first."""
+def _stop(json: bool, done: dict, why: str) -> Exception:
+    """The error ``run`` stops with at a failed check, its JSON first."""
     from quadctl.cli import render
 
     if json:
-        render.emit_json({"stages": stages, "ok": False, "failed": why})
-    return error if error is not None else FailedChecks(why)
+        render.emit_json({"stages": done, "ok": False, "failed": why})
+    return FailedChecks(why)
