@@ -415,7 +415,7 @@ def stiff_references() -> str:
         if setup.schedule is not None:
             sched = schedule_of(setup)
             loop = sched.flown_by(loop)
-        return loop, setup.initial_state(loop.x_trim), pipeline.flown_reference(setup), duration
+        return loop, setup.initial_state(loop.x_trim), setup.flown_reference, duration
 
     rows = []
     flights = [("forward, velocity setpoints at 0.5 and 1 s (1.5 s)", flight("forward", (2.0, 3.0), 0.5, 1.5),

@@ -21,7 +21,7 @@ from quadctl.design.margins import least_margins
 from quadctl.layout import STATE_INDEX
 from quadctl.metrics import lqr_cost, overshoot, settling_time
 from quadctl.noise import exogenous_period
-from quadctl.pipeline import Stages, flown_reference, pid_loop_of
+from quadctl.pipeline import Stages, pid_loop_of
 from quadctl.sim.run import ClosedLoop, ExoStream, SimResult, simulate
 
 METRICS: tuple[tuple[str, str, str], ...] = (
@@ -133,7 +133,7 @@ def compare(stages: Stages, laws=("pid:crazyflie",), duration: float | None = No
     lqr = stages.lqr_loop
     noise, wind = setup.noise, setup.wind
     period = exogenous_period(noise.period if noise is not None else None, lqr.rate)
-    reference = flown_reference(setup)
+    reference = setup.flown_reference
     names = ["lqr", *[law for law in laws if parse_law(law)[0] != "lqr"]]
     out = []
     for name in dict.fromkeys(names):

@@ -18,6 +18,7 @@ disturbance, the feedforward alone tracks it and the feedback sees no error.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -27,8 +28,9 @@ from quadctl.errors import TrimError
 from quadctl.layout import GRAVITY, MASS, N_INPUTS, N_STATES
 from quadctl.linear.trim import MAX_TILT
 from quadctl.model import N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
-from quadctl.pointwise import Pointwise
-from quadctl.trajectory import FlatPath
+from quadctl.native.mapped import mapped
+from quadctl.native.pointwise import Pointwise
+from quadctl.trajectory import FlatPath, Reference
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -99,8 +101,8 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, remedy=None) -> tup
         :meth:`quadctl.model.Vehicle.vector` of the model the controller assumes.
     pointwise : callable
         ``pointwise(fn)`` evaluates a CasADi function over the points (a row a point):
-        :class:`quadctl.pointwise.Pointwise` (CasADi's ``map``), or the compiled
-        :func:`quadctl.sim.mapped.mapped` (the same numbers).
+        :class:`quadctl.native.pointwise.Pointwise` (CasADi's ``map``), or the compiled
+        :func:`quadctl.native.mapped.mapped` (the same numbers).
     remedy : callable, optional
         ``remedy(t)``: the fix a refusal at ``t`` s names (:meth:`quadctl.trajectory.Reference.remedy`: a
         setpoint's velocity, a mission's speed); default a mission's.
@@ -244,3 +246,58 @@ def _refuse(path: FlatPath, k: int, z, remedy):
 
 def _fmt(v) -> str:
     return "[" + ", ".join(f"{float(c):.3g}" for c in v) + "]"
+
+
+@dataclass(frozen=True)
+class FlownReference:
+    """A path (:class:`quadctl.trajectory.Reference`) and the model parameters its feedforward
+    assumes (the design model's :meth:`~quadctl.model.Vehicle.vector`: the controller's knowledge).
+
+    Its rows (:meth:`rows`) are the loop's exogenous reference rows
+    (:data:`quadctl.sim.builder.REFERENCE_LAYOUT`), tabulated on the exogenous clock of the run (the
+    noise's period, else the controller's, else :data:`quadctl.noise.DEFAULT_PERIOD`), as the noise
+    and the wind are, so the compiled one-case loop, the lanes and the interpreted runner take it
+    through the same rows and agree to round-off. Row ``j`` holds over ``[t_j, t_j + period)``, ``t_j = j period``:
+
+    - ``x_ref(t) = x_ref(t_j) + s r_j + s^2 (r_(j+1) - r_j) / (2 period)``, ``s = t - t_j``, with
+      ``r_j = f(x_ref(t_j), u_ref(t_j))`` the model's rate (along a flat path, ``d x_ref / dt``:
+      :mod:`quadctl.flatness`): the quadratic whose slope runs from ``r_j`` to ``r_(j+1)``, third-order
+      accurate over the row;
+    - ``u_ref(t) = u_ref(t_j) + s (u_ref(t_(j+1)) - u_ref(t_j)) / period``: the feedforward interpolated.
+
+    Tabulated rather than evaluated in the generated code: a mission's pieces, shapes and the Newton
+    solve of the flatness map stay in one place (Python, from the model), the generated code gains
+    only an affine expansion, and a run's reference is the same array whichever runner flies it.
+    """
+
+    path: Reference
+    params: np.ndarray
+
+    def exact(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """((n, 12), (n, 4)): the reference state and input at the times ``t`` (s)."""
+        return feedforward(self.path.flat(t), self.params, mapped, self.path.remedy)  # compiled over the points
+
+    def rows(self, j, period: float) -> np.ndarray:
+        """``(len(j), 45)``: the exogenous reference rows of the absolute row indices ``j``."""
+        j = np.asarray(j, dtype=np.int64)
+        ends, where = np.unique(np.concatenate([j, j + 1]), return_inverse=True)  # a row's end: the next's start
+        x, u = self.exact(ends * period)
+        rate = mapped(build_model().f)(x, u, self.params)[0]
+        a, b = where[:len(j)], where[len(j):]
+        return np.hstack([(j * period)[:, None], x[a], rate[a], (rate[b] - rate[a]) / period,
+                          u[a], (u[b] - u[a]) / period])
+
+    def flown(self, rows: np.ndarray, t) -> tuple[np.ndarray, np.ndarray]:
+        """((n, 12), (n, 4)): the reference the law used at times ``t`` under their ``rows``."""
+        s = (np.asarray(t, dtype=float) - rows[:, 0])[:, None]
+        n = N_STATES
+        x = rows[:, 1:1 + n] + s * (rows[:, 1 + n:1 + 2 * n] + s / 2 * rows[:, 1 + 2 * n:1 + 3 * n])
+        u = rows[:, 1 + 3 * n:5 + 3 * n] + s * rows[:, 5 + 3 * n:]
+        return x, u
+
+    def position_range(self, duration: float, samples: int = 2001) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) (3,) m: the extent of the reference's position over ``[0, duration]``."""
+        starts = [p.t0 for p in self.path.pieces if 0 <= p.t0 <= duration]
+        t = np.unique(np.concatenate([np.linspace(0.0, duration, samples), starts]))
+        pos = self.path.flat(t).position[0]
+        return pos.min(axis=0), pos.max(axis=0)

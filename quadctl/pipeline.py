@@ -209,17 +209,7 @@ def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progres
         extra["tolerance"] = setup.tolerance
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
                     noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples,
-                    progress=progress, reference=flown_reference(setup), **extra)
-
-
-def flown_reference(setup: Setup):
-    """The setup's reference with the design model's feedforward
-    (:class:`quadctl.sim.reference.FlownReference`); None without ``simulation.reference``."""
-    if setup.reference is None:
-        return None
-    from quadctl.sim.reference import FlownReference
-
-    return FlownReference(setup.reference, setup.vehicle.vector())
+                    progress=progress, reference=setup.flown_reference, **extra)
 
 
 def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:

@@ -12,17 +12,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from typing import Literal
 
 import numpy as np
 
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
+from quadctl.config.pid import PidGains
+from quadctl.flatness import FlownReference
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linear.filters import RateFilter, rate_filter_of
 from quadctl.model import Vehicle
 from quadctl.motors import Actuators, Motors, actuators_of
 from quadctl.noise import NoiseSpec, exogenous_period
+from quadctl.trajectory import Reference
 from quadctl.wind import WindSpec, wind_of
 
 
@@ -206,17 +209,23 @@ class Setup:
     plant_overrides: dict = field(default_factory=dict)
     rotor_lag: str = "ignore"
     estimator: EstimatorSpec | None = None
-    reference: object | None = None
+    reference: Reference | None = None
     method: str = "rk4"
     tolerance: float | None = None
     schedule: ScheduleConfig | None = None
     law: str = "lqr"
     """The law that flies (``controller.flies``): ``lqr`` (the design) or ``pid`` (:attr:`pid`)."""
-    pid: object | None = None
+    pid: PidGains | None = None
     """:class:`quadctl.config.pid.PidGains`: the config's PID cascade (``controller.pid``, else the
     ``crazyflie`` preset): what ``controller.flies: pid`` and ``quadctl compare`` fly."""
     rate_filter: RateFilter | None = None
     weight_error: str | None = None
+
+    @cached_property
+    def flown_reference(self) -> FlownReference | None:
+        """The path to fly with the design model's feedforward (:class:`quadctl.flatness.FlownReference`),
+        made once per setup; None without ``simulation.reference``."""
+        return None if self.reference is None else FlownReference(self.reference, self.vehicle.vector())
 
     @property
     def rotor_time_constant(self) -> float | None:

@@ -118,7 +118,7 @@ def _velocity_ned(x, u, params) -> np.ndarray:
     """(n, 3) m/s: the earth-frame (NED) velocity of each state row, the model's position rates (which
     read neither the input nor the parameters)."""
     from quadctl.model import build_model
-    from quadctl.sim.mapped import mapped
+    from quadctl.native.mapped import mapped
 
     return mapped(build_model().f)(x, u, params)[0][:, :3]
 

@@ -250,7 +250,7 @@ def test_etdrk4_agrees_with_rk4_at_a_small_step(name):
     setup, _, linear, _, des = solve(_variant(name))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
-    kw = dict(noise=setup.noise, wind=setup.wind, reference=pipeline.flown_reference(setup))
+    kw = dict(noise=setup.noise, wind=setup.wind, reference=setup.flown_reference)
     rk4 = simulate(loop, x0, 0.2, 2.5e-5, **kw)
     etd = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-12, **kw)
     assert etd.status == rk4.status == "ok"
@@ -285,7 +285,7 @@ def test_a_mission_agrees_with_rk4_at_a_small_step():
     four-stage ETDRK4 on this loop: 3e-5; its order falls at steps past the fast modes.)"""
     setup, _, linear, _, des = solve(cfg_dict("square"))
     loop = pipeline.loop_of(setup, linear, des)
-    x0, ref = setup.initial_state(loop.x_trim), pipeline.flown_reference(setup)
+    x0, ref = setup.initial_state(loop.x_trim), setup.flown_reference
     T = setup.duration
     rk4 = simulate(loop, x0, T, 2.5e-5, reference=ref)
     etd = simulate(loop, x0, T, "auto", method="etdrk4", tolerance=1e-10, reference=ref)
@@ -307,7 +307,7 @@ def mission_truth():
     1/512 (RK4's error falls 16-fold a halving: the finer's is a fifteenth of the difference)."""
     setup, _, linear, _, des = solve(cfg_dict("square"))
     loop = pipeline.loop_of(setup, linear, des)
-    x0, ref = setup.initial_state(loop.x_trim), pipeline.flown_reference(setup)
+    x0, ref = setup.initial_state(loop.x_trim), setup.flown_reference
     rows = round(MISSION_SPAN / 0.005)
     fine, coarse = (simulate(loop, x0, MISSION_SPAN, 0.005 / k, reference=ref, max_samples=rows + 1)
                     for k in (1024, 512))
@@ -348,7 +348,7 @@ def test_setpoint_steps_are_graded_like_the_start(monkeypatch):
                                                      {"t": 1.0, "velocity": [3.0, 1.0, 0.0]}]}
     setup, _, linear, _, des = solve(data)
     loop = pipeline.loop_of(setup, linear, des)
-    x0, ref = setup.initial_state(loop.x_trim), pipeline.flown_reference(setup)
+    x0, ref = setup.initial_state(loop.x_trim), setup.flown_reference
     assert ref.path.jumps == (0.5, 1.0)
     truth = simulate(loop, x0, 1.5, 0.005 / 256, reference=ref)
     etd = simulate(loop, x0, 1.5, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
@@ -386,7 +386,7 @@ def test_a_sampled_controller_agrees_with_rk4_at_a_small_step(name):
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
     Ts = 1.0 / loop.rate
-    kw = dict(noise=setup.noise, wind=setup.wind, reference=pipeline.flown_reference(setup))
+    kw = dict(noise=setup.noise, wind=setup.wind, reference=setup.flown_reference)
     rk4 = simulate(loop, x0, 1.0, Ts / 40, max_samples=10**6, **kw)
     etd = simulate(loop, x0, 1.0, "auto", method="etdrk4", tolerance=1e-10, max_samples=10**6, **kw)
     assert etd.status == rk4.status == "ok"
@@ -498,7 +498,7 @@ def test_compiled_and_interpreted_etdrk4_agree(monkeypatch, name):
     setup, _, linear, _, des = solve(_variant(name))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
-    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4", reference=pipeline.flown_reference(setup))
+    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4", reference=setup.flown_reference)
     compiled = simulate(loop, x0, 0.05, "auto", **kw)
     monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
     engine.runner.cache_clear()
@@ -631,7 +631,7 @@ def test_lanes_fly_a_reference_as_the_one_case_loop():
 
     setup, _, linear, _, des = solve(cfg_dict("square"))
     loop = pipeline.loop_of(setup, linear, des)
-    x0, ref = setup.initial_state(loop.x_trim), pipeline.flown_reference(setup)
+    x0, ref = setup.initial_state(loop.x_trim), setup.flown_reference
     loops = [replace(loop, K=loop.K * (1.0 + 0.05 * k)) for k in range(9)]
     lanes = exponential_lanes(loops, [x0] * len(loops), 0.5, tolerance=1e-8, reference=ref)
     worst = 0.0
@@ -760,7 +760,7 @@ def test_a_long_run_in_chunks_is_the_one_call_run(monkeypatch, name):
     setup, _, linear, _, des = solve(_variant(name))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
-    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4", reference=pipeline.flown_reference(setup))
+    kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4", reference=setup.flown_reference)
     once = simulate(loop, x0, 0.3, "auto", **kw)
     monkeypatch.setattr(run_module, "CHUNK_STEPS", {"compiled": 40, "casadi": 40})
     chunked = simulate(loop, x0, 0.3, "auto", **kw)

@@ -425,7 +425,6 @@ def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
     from dataclasses import replace
 
     from quadctl.design.gain_table import scheduling_value
-    from quadctl.pipeline import flown_reference
     from quadctl.sim.builder import constant_layout
 
     cfg = config.load("crazyflie-speed-schedule")
@@ -436,7 +435,7 @@ def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
     duration = 11.0  # s: the climb to 20 m/s (reached at 10 s), every piece of the table
     plan = loop.plan(duration, setup.dt)
     ref = simulate(loop, setup.initial_state(loop.x_trim), duration, setup.dt, noise=None,
-                   reference=flown_reference(setup), max_samples=plan.n_steps + 1)
+                   reference=setup.flown_reference, max_samples=plan.n_steps + 1)
     assert ref.status == "ok" and ref.stride == 1
     samples = np.arange(0, plan.n_steps, plan.hold)
     x, x_ref, u_ref, applied = ref.x[samples], ref.x_ref[samples], ref.u_ref[samples], ref.u[samples]

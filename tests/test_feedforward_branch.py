@@ -151,10 +151,10 @@ def test_a_references_rows_do_not_depend_on_how_they_are_tabulated():
     started. The rows' curvature, a difference of the model's rates over a 5 ms row, multiplies what
     is left of the force balance by 200: the same rows in one piece and in chunks of 7 agree to
     round-off (with the 1e-12 m/s^2 Newton accepts left in: 4e-10)."""
-    from quadctl import config, pipeline
+    from quadctl import config
     from quadctl.problem import setup_of
 
-    flown = pipeline.flown_reference(setup_of(config.load("square")))
+    flown = setup_of(config.load("square")).flown_reference
     j = np.arange(3000)
     whole = flown.rows(j, 0.005)
     chunked = np.vstack([flown.rows(j[k:k + 7], 0.005) for k in range(0, len(j), 7)])

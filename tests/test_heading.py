@@ -13,9 +13,9 @@ import pytest
 from _solve import cfg_dict, max_rel_diff, run, solve
 
 from quadctl import pipeline, sweep, trajectory
+from quadctl.flatness import FlownReference
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.sim.builder import heading_frame, wrap_angle
-from quadctl.sim.reference import FlownReference
 from quadctl.sim.run import simulate
 
 PN, PE, PSI = STATE_INDEX["pN"], STATE_INDEX["pE"], STATE_INDEX["psi"]

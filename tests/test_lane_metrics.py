@@ -78,7 +78,7 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
         if setup.reference is None:
             x_ref = linear.x_trim + np.outer(t, linear.x_rate)
         else:  # the reference the rows tabulate, evaluated in Python at each record's row
-            flown = pipeline.flown_reference(setup)
+            flown = setup.flown_reference
             rows = flown.rows(np.floor(ks * job.plan.dt / job.exo_period + 1e-9).astype(np.int64), job.exo_period)
             x_ref = flown.flown(rows, t)[0]
         want = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,

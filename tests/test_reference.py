@@ -14,12 +14,12 @@ import pytest
 
 from quadctl import config, pipeline, trajectory
 from quadctl.errors import ConfigError
+from quadctl.flatness import FlownReference
 from quadctl.linear.trim import solve_trim
 from quadctl.model import Vehicle, build_model
 from quadctl.present import mission
 from quadctl.present.mission import mission_text
 from quadctl.problem import setup_of
-from quadctl.sim.reference import FlownReference
 from quadctl.sim.run import simulate
 
 HOVER_HOLD = Path(__file__).resolve().parent.parent / "docs" / "configs" / "hover-hold.yaml"
@@ -143,7 +143,7 @@ def test_the_feedforward_tracks_a_flat_reference_to_the_tabulation_error(square)
     from quadctl.layout import STATE_INDEX
 
     setup, loop = square
-    flown = pipeline.flown_reference(setup)
+    flown = setup.flown_reference
     attitude = [STATE_INDEX[s] for s in ("phi", "theta", "p", "q", "r")]
 
     class SetpointOnly(FlownReference):

@@ -107,7 +107,7 @@ def transition():
 
 def _short_reference(setup, duration: float = 3.0):
     """The config's reference for ``duration`` s (3 s: hover, then 2, 4, 6 m/s north at 1, 2, 3 s)."""
-    return pipeline.flown_reference(setup), duration
+    return setup.flown_reference, duration
 
 
 @pytest.mark.compiler
@@ -269,7 +269,7 @@ def speed_steps():
     setup, _, linear, _, des = solve(data)
     sched = schedule_of(setup)
     loop = sched.flown_by(pipeline.loop_of(setup, linear, des))
-    ref, x0 = pipeline.flown_reference(setup), setup.initial_state(loop.x_trim)
+    ref, x0 = setup.flown_reference, setup.initial_state(loop.x_trim)
     truth = simulate(loop, x0, SETPOINT_RUN, 0.005 / 256, reference=ref)
     return loop, sched, ref, x0, truth
 
@@ -347,7 +347,7 @@ def test_the_workspace_flies_a_continuous_schedule_by_etdrk4_on_its_points(tmp_p
     assert flown.sim.status == "ok" and flown.sim.plan.method == "etdrk4"
     setup = setup_of(cfg)
     truth = simulate(flown.loop, setup.initial_state(flown.loop.x_trim), 2.0, 0.005 / 256,
-                     reference=pipeline.flown_reference(setup))
+                     reference=setup.flown_reference)
     err = np.abs(flown.sim.x[-1] - truth.x[-1]).max()
     assert err < 1e-9, err
 

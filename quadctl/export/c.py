@@ -3,7 +3,7 @@
 The law is not written here: :func:`sources` builds the ``law`` function of the loop's
 :class:`~quadctl.sim.builder.LoopSpec` (the gain's sparsity, the saturation mode, the
 integrators, sampled) with :func:`quadctl.sim.builder.build`, the function ``quadctl simulate``
-compiles, and emits it with :func:`quadctl.sim.emit.emit` in a :class:`~quadctl.sim.emit.Dialect`
+compiles, and emits it with :func:`quadctl.native.emit.emit` in a :class:`~quadctl.native.emit.Dialect`
 whose scalar type, literals and math functions the compiler chooses: ``double``, or ``float``
 with ``-DQUADCTL_FLOAT``. The loop's constant vector (trim, reference drift, gains, anti-wind-up
 mask, mixing, limits, sample time) is baked in as a ``static const`` array. Everything around
@@ -74,7 +74,7 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
     ValueError
         ``exp`` is continuous (nothing to sample), or the law has an operation ``emit`` cannot write.
     """
-    from quadctl.sim.emit import Dialect, emit
+    from quadctl.native.emit import Dialect, emit
 
     require_export(exp, "sources")
     if exp.sample_time is None:

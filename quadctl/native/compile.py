@@ -16,6 +16,7 @@ in CasADi's virtual machine and says so once.
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import importlib.machinery
 import os
@@ -31,6 +32,11 @@ from contextlib import contextmanager
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
+
+import numpy as np
+
+C_LONG = np.dtype(f"i{ctypes.sizeof(ctypes.c_long)}")
+"""numpy's twin of C ``long`` (the integer type of the generated code's drivers)."""
 
 PORTABLE_FLAGS = ("-O2", "-ffp-contract=off", "-fno-math-errno", "-fPIC", "-shared")
 """``-ffp-contract=off`` keeps a*b+c rounded as written (no FMA), so compiled and interpreted runs
@@ -49,10 +55,10 @@ GCC's fused ``sincos``): about 20 % a step faster than :data:`PORTABLE_FLAGS` (m
 vectorizes those products (1.39 ms a run of ``forward`` against 1.72 ms at ``-O2``)."""
 EVICT_AFTER_DAYS = 30
 """Cached libraries of another fingerprint unused for this long are deleted."""
-GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "sim/builder.py", "sim/emit.py", "sim/cases.py",
+GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "sim/builder.py", "native/emit.py", "sim/cases.py",
                      "native/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
-                     "design/gain_table.py", "metrics.py", "sim/mapped.py",
-                     "pointwise.py", "motors.py", "errors.py", "sim/pid.py", "config/pid.py")
+                     "design/gain_table.py", "metrics.py", "native/mapped.py",
+                     "native/pointwise.py", "motors.py", "errors.py", "sim/pid.py", "config/pid.py")
 """The files a library's C is generated from (``tests/test_structure.py`` checks that this lists
 everything those modules import from quadctl). Read once, when this module is imported: the cache
 key hashes the code this process runs, and ``driver.c`` is compiled from the same bytes."""

@@ -7,9 +7,7 @@ Modules, each importing only those above it:
   of one step: plant, sample-and-hold, the control law with integrators, saturation, noise inputs)
   and its one constant layout
 - :mod:`~quadctl.sim.schedule`: the exponential integrator's step schedule and its φ-functions
-- :mod:`~quadctl.sim.emit`: those functions as C over ``lanes`` cases at once
 - :mod:`~quadctl.sim.cases`: the loop contract's inputs (:class:`Cases`) and record counts
-- :mod:`~quadctl.sim.mapped`: a CasADi function compiled over many points (a reference's rows)
 - :mod:`~quadctl.sim.lane_metrics`: a run's metrics summed in the lanes as they step, read back
 - :mod:`~quadctl.sim.native`: the compiled runner (``driver.c``: 1 lane for one case, 8 for sweeps)
 - :mod:`~quadctl.sim.interpreted`: the same loop in CasADi's virtual machine, without a compiler
@@ -18,6 +16,6 @@ Modules, each importing only those above it:
   through the engine's runner, returning a :class:`SimResult`)
 
 A new loop feature is one change to :func:`quadctl.sim.builder.build` plus its config; every
-runner, one case or many lanes, compiled or not, gets it from there. The C is compiled and cached
-by :mod:`quadctl.native`.
+runner, one case or many lanes, compiled or not, gets it from there. The C is generated (CasADi
+functions over ``lanes`` cases at once), compiled and cached by :mod:`quadctl.native`.
 """

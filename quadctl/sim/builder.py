@@ -1,7 +1,7 @@
 """The one closed-loop definition: CasADi functions of one step (RK4, or ETDRK4) of plant and controller.
 
 Every runner is generated from what this module builds: the compiled one-case loop and the
-compiled SIMD lanes (both emitted as C by :mod:`quadctl.sim.emit` and driven by
+compiled SIMD lanes (both emitted as C by :mod:`quadctl.native.emit` and driven by
 ``driver.c``), and the interpreted fallback (:mod:`quadctl.sim.interpreted`, CasADi's virtual
 machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
 

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import ctypes
 from dataclasses import dataclass
 
 import numpy as np
 
-C_LONG = np.dtype(f"i{ctypes.sizeof(ctypes.c_long)}")
-"""numpy's twin of C ``long`` (the driver's integer type)."""
+from quadctl.native.compile import C_LONG
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ Stepping in Python would cost ~10 µs of interpreter overhead a step. Instead :f
 straight into numpy arrays (CasADi's function buffers: no conversion of its results). Python
 then does per chunk, vectorized, what ``driver.c`` does per step: the bounds check, the recorded
 rows and the final row. The numbers are those of the compiled runner (same operations in the
-same order; see :mod:`quadctl.sim.emit`), but for one thing the VM can skip: the constants that
+same order; see :mod:`quadctl.native.emit`), but for one thing the VM can skip: the constants that
 are zero in a case (a reference that does not drift, a zero trim input or drag coefficient) are
 folded into its block, so ``x_ref + 0 t`` costs nothing (the same value, up to the sign of a
 zero, for every finite state). That and the bounds check in numpy cut the VM's instructions per

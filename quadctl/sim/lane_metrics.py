@@ -69,7 +69,7 @@ class MetricSpec:
 
     def header(self) -> np.ndarray:
         """``driver.c``'s ``mq``: the states, counts and index pairs (C long)."""
-        from quadctl.sim.cases import C_LONG
+        from quadctl.native.compile import C_LONG
 
         q, r = np.array(self.q_pairs, dtype=int).reshape(-1, 2), np.array(self.r_pairs, dtype=int).reshape(-1, 2)
         return np.concatenate([[len(self.states)], self.states, [len(q)], q[:, 0], q[:, 1], [len(r)], r[:, 0],

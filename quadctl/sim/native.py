@@ -10,16 +10,16 @@ import numpy as np
 
 from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
-from quadctl.native.compile import DRIVER_SOURCE
+from quadctl.native.compile import C_LONG, DRIVER_SOURCE
+from quadctl.native.emit import SIMD_DECLARATIONS, emit
 from quadctl.sim.builder import LoopFunctions, LoopSpec
-from quadctl.sim.cases import C_LONG, Cases, Segments, record_rows
-from quadctl.sim.emit import SIMD_DECLARATIONS, emit
+from quadctl.sim.cases import Cases, Segments, record_rows
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec
 
 STEPPERS = ("qc_step", "qc_plant")
 """The step functions ``driver.c`` calls with their work on a case's step and constants hoisted."""
 STEP_INVARIANT = (2, 3)
-"""Their inputs ``dt`` and ``c``: the same at every step of a run (:func:`quadctl.sim.emit.emit`)."""
+"""Their inputs ``dt`` and ``c``: the same at every step of a run (:func:`quadctl.native.emit.emit`)."""
 REMAINDER_INVARIANT = (2,)
 """The remainder's (``qc_rem``, :attr:`quadctl.sim.builder.LoopFunctions.remainder`) input ``c``."""
 

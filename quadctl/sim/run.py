@@ -211,7 +211,7 @@ class ClosedLoop:
         """:func:`exponential_setup` of this loop, kept with it (the :data:`SETUPS_KEPT` latest settings):
         a second run with the same settings computes no plan, φ-functions or constants again.
 
-        A :class:`~quadctl.sim.reference.FlownReference` counts as the same when it flies the same
+        A :class:`~quadctl.flatness.FlownReference` counts as the same when it flies the same
         path object, with the same steps (``jumps``) and parameters (its position range and, for a gain
         schedule, the pieces the plan is cut into are read from it).
         """
@@ -390,7 +390,7 @@ class ClosedLoop:
         """(lo, hi) of the loop state ``[x; f; z]`` past which a run stops (:data:`RUNAWAY`).
 
         Positions drift with the reference: they are bounded around its farthest point (a flown
-        ``reference``, :class:`quadctl.sim.reference.FlownReference`: its extent); rotor
+        ``reference``, :class:`quadctl.flatness.FlownReference`: its extent); rotor
         thrusts and integrators are unbounded (a NaN still stops the run).
         """
         bound = np.array([RUNAWAY[s] for s in STATE_NAMES])
@@ -506,7 +506,7 @@ class ExoStream:
         self.noise = NoiseStream(noise) if noise is not None else None
         self.wind = WindStream(wind, self.period) if wind is not None else None
         self.reference = reference
-        """:class:`quadctl.sim.reference.FlownReference` whose rows end each row, or None."""
+        """:class:`quadctl.flatness.FlownReference` whose rows end each row, or None."""
 
     def index(self, steps, dt: float) -> np.ndarray:
         """The row each absolute RK4 step of ``dt`` takes (as the runners count)."""
@@ -568,7 +568,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         ``progress(done, total)``: called with the RK4 steps done and the steps in all after each
         chunk of the run (:func:`run_in_chunks`), for a caller that shows how far a long run is.
     reference : FlownReference, optional
-        A reference to fly (:mod:`quadctl.sim.reference`): ``x_ref(t)`` and the feedforward
+        A reference to fly (:class:`quadctl.flatness.FlownReference`): ``x_ref(t)`` and the feedforward
         ``u_ref(t)`` in place of ``x_trim + x_rate t`` and ``u_trim``; ``SimResult.x_ref`` is then the
         reference the law used.
     method : {"rk4", "etdrk4"}
@@ -864,7 +864,7 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
     does), the lanes stepping through their schedules' segments together (segment ``i`` of every
     case per call), as :func:`simulate` runs each (sampled controllers too). The φ-functions of all
     the loops' linear parts are computed together, on the stack of them. Every loop takes the same
-    exogenous inputs: a ``reference`` (:class:`quadctl.sim.reference.FlownReference`), noise and wind,
+    exogenous inputs: a ``reference`` (:class:`quadctl.flatness.FlownReference`), noise and wind,
     tabulated once for the run.
 
     Parameters

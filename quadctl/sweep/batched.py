@@ -347,7 +347,7 @@ def loops_of(live) -> list:
             out[j] = str(exc)
             continue
         noisy, windy = setup.noise is not None, setup.wind is not None
-        flown = pipeline.flown_reference(setup)  # a reference: one more exogenous input, as simulate takes it
+        flown = setup.flown_reference  # a reference: one more exogenous input, as simulate takes it
         shape, held = _structure(loop, (noisy, windy, setup.duration, id(setup.reference)), seen)
         if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
             lane_spec = loop.spec(noisy, windy, flown is not None)

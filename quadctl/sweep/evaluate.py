@@ -541,7 +541,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         if setup.reference is not None:  # the reference the lanes flew: their exogenous rows
             from quadctl import pipeline
 
-            flown = pipeline.flown_reference(setup)
+            flown = setup.flown_reference
             rows_at = np.floor(ks * plan.dt / job.exo_period + 1e-9).astype(np.int64)
             x_ref = flown.flown(flown.rows(rows_at, job.exo_period), t)[0]
             tracking = pipeline.tracking_of(setup.reference, t, x, x_ref)

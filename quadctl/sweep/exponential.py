@@ -75,7 +75,7 @@ def jobs_of(live) -> list:
             continue
         noise = setup.noise if setup.noise is not None and setup.noise.active else None
         wind = setup.wind if setup.wind is not None and setup.wind.active else None
-        flown = pipeline.flown_reference(setup)
+        flown = setup.flown_reference
         exogenous = noise is not None or wind is not None or flown is not None
         period = exogenous_period(noise.period if noise is not None else None, loop.rate)
         tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
@@ -97,7 +97,6 @@ def simulate_all(jobs):
     """Yield ``((prep, design, job), (done, ks, xs, us), backend)`` as
     :func:`quadctl.sweep.batched.simulate_all` does, ``ks`` the recorded times in units of the job's
     ``plan.dt`` (``t = plan.dt ks``: whole numbers at the records of a graded schedule's largest step)."""
-    from quadctl import pipeline
     from quadctl.sim.run import exponential_runs
 
     groups: dict = {}
@@ -108,7 +107,7 @@ def simulate_all(jobs):
         tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
         plans, backend, runs = exponential_runs(
             [job.loop for _, _, job in items], [job.x0 for _, _, job in items], setup.duration, setup.dt,
-            max_samples=setup.max_samples, reference=pipeline.flown_reference(setup), noise=setup.noise,
+            max_samples=setup.max_samples, reference=setup.flown_reference, noise=setup.noise,
             wind=setup.wind, planned=[(job.linear_part, job.plan) for _, _, job in items], **tolerance)
         for (prep, des, job), plan, (done, t, xs, us) in zip(items, plans, runs):
             yield (prep, des, replace(job, plan=plan)), (done, t / plan.dt, xs, us), backend

@@ -169,7 +169,7 @@ def emit(fn, name: str, lanes: int, dialect: Dialect = ENGINE, invariant: tuple[
                 line = f"w{out[0]} = p[{hoisted} * {lanes} + l];"
                 hoisted += 1
         else:
-            raise ValueError(f"{name}: CasADi operation {op} has no C form in quadctl.sim.emit")
+            raise ValueError(f"{name}: CasADi operation {op} has no C form in quadctl.native.emit")
         body.append("    " + line)
     work = ", ".join(f"w{i}" for i in range(max(fn.sz_w(), 1)))
     used = "".join(f"  (void)i{k};\n" for k in range(fn.n_in())) if dialect.mark_used else ""
