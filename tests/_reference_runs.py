@@ -87,7 +87,8 @@ def differences(reference: dict, new: dict, where: str = "", rtol: float = TOLER
 
     Numbers agree to ``rtol`` (relative, with :data:`TOLERANCE` absolute). Eigenvalues are compared as
     multisets (each matched to its nearest, the order a solver returns them in is not a number), to
-    ``EIGEN_KAPPA n eps |lambda|_max`` (Bauer-Fike for a backward-stable solver); singular values to
+    ``EIGEN_KAPPA n eps |lambda|_max`` (Bauer-Fike for a backward-stable solver); a matrix's entries
+    to ``rtol`` of its largest (a backward-stable solve's error is norm-wise); singular values to
     ``n eps sigma_max`` (Weyl); a simulated trajectory column to ``steps eps max|column|`` (the
     rounding one step adds, accumulated; another CPU may fuse multiply-adds differently); a peak's
     frequency to :data:`ARGMAX_RTOL`.
@@ -108,6 +109,13 @@ def differences(reference: dict, new: dict, where: str = "", rtol: float = TOLER
         if key in TRAJECTORY_KEYS and np.ndim(reference) == 2 and np.size(reference):
             return _trajectory_differences(np.asarray(reference, float), np.asarray(new, float), where, rtol,
                                            steps)
+        if _matrix(reference) and _matrix(new) and np.shape(reference) == np.shape(new):
+            # a backward-stable solve (Riccati, Lyapunov) errs by rtol of the matrix's norm, in every
+            # entry alike: an entry that is round-off (a structural zero) moves by that much, not by
+            # rtol of itself
+            atol = max(TOLERANCE, rtol * float(np.abs(np.asarray(reference, float)).max()))
+            return [d for i, (a, b) in enumerate(zip(reference, new))
+                    for d in _number_differences(a, b, f"{where}[{i}]", rtol, atol)]
         return [d for i, (a, b) in enumerate(zip(reference, new))
                 for d in differences(a, b, f"{where}[{i}]", rtol, steps)]
     if _number(reference) and _number(new):
@@ -164,6 +172,12 @@ def _pairs(v) -> bool:
 def _complex(pairs) -> np.ndarray:
     a = np.asarray(pairs, dtype=float)
     return a[:, 0] + 1j * a[:, 1]
+
+
+def _matrix(v) -> bool:
+    """A list of equal rows of numbers."""
+    return (isinstance(v, list) and len(v) > 0 and all(isinstance(r, list) and r and len(r) == len(v[0])
+                                                       and all(_number(x) for x in r) for r in v))
 
 
 def _number(v) -> bool:

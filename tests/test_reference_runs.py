@@ -61,6 +61,16 @@ def test_a_peak_frequency_moves_within_its_conditioning_only():
     assert differences(ref, {"disk_margin_freq": 219.58705986771565, "disk_margin": 0.5 + 1e-9})
 
 
+def test_a_matrix_compares_to_its_largest_entry():
+    """A Riccati solution's structural zeros hold round-off of its norm: another BLAS kernel gave
+    -1.07e-12 where the reference has 6.4e-13 in a hover P whose largest entry is about 10. Those move
+    within ``rtol`` of the largest entry; the largest entry moved by 1e-9 of itself does not."""
+    ref = {"P": [[10.0, -1.0679816151081693e-12], [-1.0679816151081693e-12, 2.0]]}
+    assert differences(ref, {"P": [[10.0, 6.365416410935803e-13], [6.365416410935803e-13, 2.0]]}, rtol=1e-12) == []
+    assert differences(ref, {"P": [[10.0 * (1 + 1e-9), 0.0], [0.0, 2.0]]}, rtol=1e-12)
+    assert differences(ref, {"P": [[10.0, 0.0], [0.0, 2.0 + 1e-9]]}, rtol=1e-12)
+
+
 def test_singular_values_compare_to_the_largest():
     """Weyl: rounding ``E`` moves every singular value by at most ``||E|| ~ n eps sigma_max``."""
     ref = {"ctrb_singular_values": [1.5e8, 10.186437748852033]}
