@@ -89,14 +89,15 @@ def test_the_lifted_p_rate_loop_has_the_roots_of_z_to_the_d_plus_1_minus_z_to_th
 
 
 @pytest.mark.compiler
-def test_the_delayed_p_rate_loop_flies_its_recurrence_in_one_case_and_in_the_lanes():
-    """qc.simulate (the compiled one-case loop) and eight SIMD lanes of eight gains: each lane's roll rate at
-    the samples is its recurrence, to round-off."""
-    import quadctl as qc
+def test_the_delayed_p_rate_loop_flies_its_recurrence_in_the_lanes_and_the_interpreter():
+    """Eight SIMD lanes of eight gains (the sweeps' compiled loop) and CasADi's virtual machine (the one-case
+    fallback; the compiled one-case loop is held to the lanes in tests/test_pid_cascade.py): each run's roll
+    rate at the samples is its recurrence, to round-off."""
     from quadctl.layout import STATE_INDEX
     from quadctl.pipeline import pid_loop_of
     from quadctl.sim.cases import Cases
     from quadctl.sim.engine import LANES, runner
+    from quadctl.sim.interpreted import InterpretedRunner
 
     d, n, p = 2, 50, STATE_INDEX["p"]
     stages = crazyflie(d)
@@ -104,19 +105,16 @@ def test_the_delayed_p_rate_loop_flies_its_recurrence_in_one_case_and_in_the_lan
     x0[p] = P0
     kps = KP * (1 - 0.05 * np.arange(LANES))
     loops = [pid_loop_of(stages.setup, stages.linear, p_rate_gains(kp)) for kp in kps]
-    run = qc.simulate(loops[0], x0, n / RATE)
-    assert run.status == "ok", run.message
-    at = [int(np.argmin(np.abs(run.t - k / RATE))) for k in range(n + 1)]
-    assert np.allclose(run.t[at], np.arange(n + 1) / RATE, rtol=0, atol=1e-12)
-    want = recurrence(closed_form(d)[0], d, n)
-    assert np.abs(run.x[at, p] - want).max() <= RECURRENCE_TOL * P0, np.abs(run.x[at, p] - want).max()
-
     plan = loops[0].plan(n / RATE)
     lo, hi = loops[0].bounds(n / RATE)
     cases = Cases.of(np.array([loop.initial_loop_state(x0) for loop in loops]),
                      np.array([loop.constants(plan.sample_time) for loop in loops]), plan.dt, plan.n_steps,
                      1, lo, hi, hold=plan.hold)
-    for kp, (done, _, xs, _) in zip(kps, runner(loops[0].spec(), LANES).run(cases)):
+    spec = loops[0].spec()
+    assert spec.delay == d
+    first = Cases.of(cases.x0[:1], cases.c[:1], plan.dt, plan.n_steps, 1, lo, hi, hold=plan.hold)
+    runs = [*runner(spec, LANES).run(cases), *InterpretedRunner(spec).run(first)]
+    for kp, (done, _, xs, _) in zip([*kps, kps[0]], runs):
         assert done == plan.n_steps and len(xs) == n * plan.hold + 1  # every step recorded, the first the start
         want = recurrence(closed_form(d, kp)[0], d, n)
         miss = np.abs(xs[::plan.hold, p] - want).max()
