@@ -26,7 +26,9 @@
    sweep of 1000 random designs of mambo-200hz (benchmarks/mambo-1000.yaml: 200 Hz discrete
    design, rotors, LQI, noise; 2 000 steps each), the configs that fly, at the same lane speed; and a
    sweep of the bundled square mission over its speed (benchmarks/square-speed.yaml: 48 cases, each
-   its own reference, a tracking-error gate), at the same lane speed.
+   its own reference, a tracking-error gate), at the same lane speed; and the PID cascade in the lanes:
+   64 masses of the crazyflie config (benchmarks/crazyflie-mass.yaml) flown by the Crazyflie firmware's
+   cascade (controller.flies: pid) and by the config's LQR design, alternated, for their ratio.
 3. The LQR designs of that sweep (4000 small subsystems): quadctl's batched solver against a
    Python loop over scipy.linalg.solve_continuous_are.
 4. quadctl.design.lqr on one larger random system (n = 10, 50, 100, 200) against
@@ -67,6 +69,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 SWEEP_FILE = HERE / "random-1000.yaml"
 FLYING_SWEEP_FILE = HERE / "mambo-1000.yaml"
+PID_SWEEP_FILE = HERE / "crazyflie-mass.yaml"
 MISSION_SWEEP_FILE = HERE / "square-speed.yaml"
 DURATION = 10.0       # s
 DT = 1e-5             # s: 1 000 000 RK4 steps
@@ -566,6 +569,49 @@ def the_mission_sweep(plain: list | None = None) -> str:
                  rows) + ("\n\n" + "; ".join(notes) if notes else "")
 
 
+PID_REPEAT = 5
+"""Runs of each law's sweep in :func:`the_pid_sweep`, alternated."""
+
+
+def the_pid_sweep() -> str:
+    """Sweep 2c: one grid of masses of the crazyflie config flown by the Crazyflie firmware's PID cascade
+    (``controller.flies: pid``) and by the config's LQR design in the lanes, the two alternated ``PID_REPEAT``
+    times on each core count, the best of each; their ratio of simulated steps/s (the goal: the cascade at
+    0.8 of the LQR sweep or more)."""
+    from quadctl import overrides, sweep
+    from quadctl.config.loading import bundled
+
+    source = bundled("crazyflie")
+    laws = {"LQR": overrides.load(source), "PID": overrides.load(source, ["controller.flies=pid"])}
+    specs = {name: sweep.load(PID_SWEEP_FILE, cfg) for name, cfg in laws.items()}
+    for name, cfg in laws.items():  # warm: imports, each law's lane library
+        sweep.run(cfg, specs[name], jobs=1)
+    rows, ratios = [], []
+    for jobs in (2, 1):
+        best, last = {}, {}
+        for _ in range(PID_REPEAT):
+            for name, cfg in laws.items():
+                wall, result = timed(lambda c=cfg, s=specs[name], j=jobs: sweep.run(c, s, jobs=j))
+                rate = result.stats["steps"] / wall
+                if rate > best.get(name, (0.0,))[0]:
+                    best[name] = (rate, wall)
+                last[name] = result
+        for name in laws:
+            st, (rate, wall) = last[name].stats, best[name]
+            passed = sum(r["status"] == "ok" for r in last[name].rows)
+            rows.append([f"{name}: quadctl sweep, library, --jobs {jobs}", f"{wall:.3f}", f"{rate / 1e6:.2f} M",
+                         f"{len(last[name].rows) / wall:,.0f}", f"{st['steps'] / len(last[name].rows):,.0f}",
+                         f"{passed} of {len(last[name].rows)}", ", ".join(st["backend"])])
+        ratios.append(f"--jobs {jobs}: {best['PID'][0] / 1e6:.2f} M / {best['LQR'][0] / 1e6:.2f} M = "
+                      f"{best['PID'][0] / best['LQR'][0]:.2f}")
+    return table(f"Sweep: {specs['LQR'].count()} masses of the crazyflie config (benchmarks/crazyflie-mass.yaml), "
+                 "the firmware's PID cascade (controller.flies: pid) against the LQR design, alternated, best of "
+                 f"{PID_REPEAT}",
+                 ["run", "wall (s)", "simulated steps/s", "cases/s", "steps per case", "status ok", "backend"],
+                 rows) + ("\n\nThe PID lanes' simulated steps/s against the LQR sweep's (goal: 0.8 or more): "
+                          + "; ".join(ratios))
+
+
 CEILING_CHUNK = 64
 """Cases a chunk of the hand-written C loop (:data:`CEILING_SOURCE`): 64 lanes, structure of arrays."""
 CEILING_SOURCE = r"""
@@ -903,8 +949,8 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
                  ["solver", "µs CPU per design", "time / batched"], rows)
 
 
-SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "mission-sweep", "designs", "lqr", "discrete",
-            "figures", "schedule", "identify")
+SECTIONS = ("simulation", "stiff", "sweep", "flying-sweep", "mission-sweep", "pid-sweep", "designs", "lqr",
+            "discrete", "figures", "schedule", "identify")
 """What ``--only`` may name: the numbered sections of the module docstring (the designs are the
 plain sweep's)."""
 
@@ -1068,6 +1114,8 @@ def main() -> None:
         print(the_flying_sweep(cfg_spec))
     if "mission-sweep" in only:
         print(the_mission_sweep(cfg_spec))
+    if "pid-sweep" in only:
+        print(the_pid_sweep())
     if "designs" in only:
         if cfg_spec is None:
             from quadctl import config, sweep

@@ -117,6 +117,7 @@ def cascade_margins(setup, lift, result) -> dict:
     return {
         "law": "pid", "preset": gains.preset, "title": gains.title, "rate": float(gains["rate_hz"]),
         "samples_per_update": {"attitude": n_att, "position": n_pos},
+        "delay_samples": result[0].delay_samples if result else 0,
         "closed_loop": {
             "what": "the cascade linearized about hover with the plant's zero-order hold, lifted to its frame of "
                     f"{n_pos} base samples (every hold exact); states nothing reads left out",

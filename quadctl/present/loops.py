@@ -185,12 +185,15 @@ def cascade_sentence(payload: dict) -> Mark:
     rates = f"{inner}, its position and velocity loops every {n_pos} samples" if n_pos > 1 else \
         "every loop at every sample"
     verdict = "stable" if cl["stable"] else "UNSTABLE"
+    n = payload.get("delay_samples", 0)
+    delayed = (f", with its {n} sample{'s' if n != 1 else ''} of delay (controller.delay) in every loop before the "
+               "break" if n else "")
     how = ("gain margins exact (the lifted loop's poles); phase, disk and delay margins read from the loop's "
            "fundamental harmonic (the response at w to a sinusoid at w), leaving out what the outer loops' holds "
            "fold back to other frequencies" if not payload["exact"]["phase_disk_delay_margins"]
            else "every margin exact")
     return Mark(f"{payload['title']} at {payload['rate']:g} Hz, {rates}: each input's loop broken at the plant with "
-                f"the whole cascade closed around it, linearized about hover and lifted to its "
+                f"the whole cascade closed around it{delayed}, linearized about hover and lifted to its "
                 f"{cl['sample_time'] * 1e3:.4g} ms frame (every hold exact). Closed loop {verdict} "
                 f"({len(cl['eigenvalues'])} eigenvalues, spectral radius {cl['spectral_radius']:.6g}); {how}.",
                 "ok" if cl["stable"] else "fail")

@@ -418,6 +418,11 @@ class LoopSpec:
         return self.delay * N_INPUTS
 
     @property
+    def buffer_start(self) -> int:
+        """Where the delay's command buffer starts in the loop state: its newest command first."""
+        return self.n_plant + self.nz + self.n_lag + self.n_law
+
+    @property
     def n_lag(self) -> int:
         """States of the controller's rotor lag model (one per input, or none)."""
         return N_INPUTS if self.lag_model else 0
@@ -853,7 +858,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         a = ca.exp(-parts["Ts"] / parts["tau_model"])
         X_sampled = ca.vertcat(X_sampled, a * X[npl + nz:npl + nz + nl] + (1 - a) * (u_now - parts["u_trim"]))
     if spec.delay:  # apply the oldest command, shift the newest in
-        b0, nb = npl + nz + nl + n_law, spec.n_buffer
+        b0, nb = spec.buffer_start, spec.n_buffer
         buffer = X[b0:b0 + nb]
         u_now, X_sampled = buffer[nb - N_INPUTS:], ca.vertcat(X_sampled, u_now, buffer[:nb - N_INPUTS])
     if ng:  # the gyro filter takes this sample (held loops)

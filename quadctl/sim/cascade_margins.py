@@ -210,7 +210,9 @@ def lifted(loop) -> Lifted:
     hover at every phase of its frame.
 
     The law's equilibrium is found first: the plant at trim, the integrators (velocity and rate) that
-    make the command the trim input (least squares), the held setpoints the first sample's.
+    make the command the law computes the trim input (least squares), the held setpoints the first sample's.
+    With a delay (``loop.delay_samples``) the command computed is the one shifted into the buffer (the buffer
+    holds the trim input), and the command applied, the buffer's oldest, is what the lifted loop breaks at.
     """
     from quadctl.sim import pid
     from quadctl.sim.builder import build
@@ -229,10 +231,15 @@ def lifted(loop) -> Lifted:
     free = np.concatenate([np.arange(pid.state_slice(name).start, pid.state_slice(name).stop) + base
                            for name in ("vel_integral", "rate_integral")])
 
+    def computed(X):  # the command the law computes at X: applied at once, or shifted into the delay's buffer
+        if not spec.delay:
+            return np.asarray(law(X, 0.0, c, e)[0]).ravel()
+        return np.asarray(law(X, 0.0, c, e)[1]).ravel()[spec.buffer_start:spec.buffer_start + len(u_trim)]
+
     def residual(values):
         X = X0.copy()
         X[free] = values
-        return np.asarray(law(X, 0.0, c, e)[0]).ravel() - u_trim
+        return computed(X) - u_trim
 
     fit = scipy.optimize.least_squares(residual, X0[free], xtol=1e-14, ftol=1e-14, gtol=1e-14)
     X = X0.copy()
@@ -309,7 +316,8 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
         One per input ``T, A, E, R``; the gain margins exact (:func:`exact_gain_margins`; their frequencies
         where the fundamental harmonic agrees, :data:`FREQUENCY_AGREEMENT_DB`), phase, disk and
         delay margins from the fundamental harmonic (module docstring), exact when the cascade runs at
-        one rate (``loop.law.ratios == (1, 1)``).
+        one rate (``loop.law.ratios == (1, 1)``). A delay (``loop.delay_samples``, the cascade's samples) is in
+        every loop, before the break: the margins are beyond it, as the LQR loops' are.
     """
     from quadctl.design.margins import POINTS_PER_DECADE, loop_margins, no_margin
 
@@ -328,5 +336,5 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
         else:
             m = no_margin(loop=title, input=inp, model="cascade", sample_time=broken.sample_time,
                           min_return_difference=m.min_return_difference, freq=m.freq, response=m.response)
-        out.append(m)
+        out.append(replace(m, delay_samples=loop.delay_samples))
     return out
