@@ -1,7 +1,7 @@
 """Sphinx configuration: the quadctl documentation, built from docs/ (``sphinx-build -W -n docs docs/_build/html``).
 
 Pages are MyST Markdown, so every page reads on GitHub and in a clone as it does on the site, and
-its fenced blocks run in the test suite (tests/test_doc_pages.py). The reference pages are written
+its fenced blocks run in the test suite (tests/docs/test_doc_pages.py). The reference pages are written
 from the code at build time (docs/_ext/quadctl_reference.py: the typer app, the config's schema;
 sphinx.ext.autodoc: the docstrings). The built site fetches nothing: the theme (furo) ships its CSS,
 JS and icons, no web fonts, and no page uses math (MathJax would come from a CDN).

@@ -20,13 +20,13 @@ from pathlib import Path
 THRESHOLD = 1.5
 """s: a test this long (setup included, as pytest's junit XML times it) runs with the slow tests."""
 LIST = Path(__file__).with_name("slow_tests.txt")
-KEEP = ("tests/test_doc_pages.py::test_page_block[README.md:",
-        "tests/test_reference_runs.py::",
-        "tests/test_report.py::test_the_markdown_twin_shows_the_figures_beside_it[forward]",  # one whole report
-        "tests/test_guide_pages.py::test_guide_block[docs/guide/export.md:L199",  # writes the file L250 reads
+KEEP = ("tests/docs/test_doc_pages.py::test_page_block[README.md:",
+        "tests/house/test_reference_runs.py::",
+        "tests/outputs/test_report.py::test_the_markdown_twin_shows_the_figures_beside_it[forward]",  # one whole report
+        "tests/docs/test_guide_pages.py::test_guide_block[docs/guide/export.md:L199",  # writes the file L250 reads
         # a sweep's Ctrl-C within a second: beside the slow tier's heavier tests it once ended by the signal
         # (-2) instead of exit 130, a race not found yet; in the first tier it has passed every run
-        "tests/test_interrupts.py::test_ctrl_c_stops_a_sweep_within_a_second_and_its_workers_with_it")
+        "tests/cli/test_interrupts.py::test_ctrl_c_stops_a_sweep_within_a_second_and_its_workers_with_it")
 HEADER = f"""# Tests of {THRESHOLD} s or more (tests/_tiers.py): marked slow by conftest.py, run by `pytest -m slow`.
 # Generated from a timed run of the whole suite: python tests/_tiers.py JUNIT.xml
 """

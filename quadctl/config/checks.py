@@ -379,7 +379,7 @@ UNIT_KEYS: tuple[tuple[str, str], ...] = (
 """Every key whose value is a position, a velocity, a heading or a time, with its unit (``[*]``: each
 item of a list) and no tighter bound in the schema; ``schedule.values`` take the unit of
 ``schedule.variable`` (:data:`SCHEDULE_UNITS`). Each is held to :data:`UNIT_LIMITS` by
-:func:`_check_unit_limits`: one rule per unit (``tests/test_unit_limits.py`` finds a key of the schema
+:func:`_check_unit_limits`: one rule per unit (``tests/config/test_unit_limits.py`` finds a key of the schema
 with such a unit that is missing here)."""
 SCHEDULE_UNITS = {"speed": "m/s", "climb": "m/s", "yaw": "rad along a path"}
 """The unit of each ``schedule.variable``'s values."""

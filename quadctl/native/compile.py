@@ -59,7 +59,7 @@ GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "sim/builder.py", "nat
                      "native/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
                      "design/gain_table.py", "metrics.py", "native/mapped.py",
                      "native/pointwise.py", "motors.py", "errors.py", "sim/pid.py", "config/pid.py")
-"""The files a library's C is generated from (``tests/test_structure.py`` checks that this lists
+"""The files a library's C is generated from (``tests/house/test_structure.py`` checks that this lists
 everything those modules import from quadctl). Read once, when this module is imported: the cache
 key hashes the code this process runs, and ``driver.c`` is compiled from the same bytes."""
 

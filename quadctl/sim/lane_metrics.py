@@ -12,7 +12,7 @@ largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du`` (the same products i
 and the position error's sum of squares, largest value and the waypoint times. Storing and
 reading back 10 000 records a case cost more than the simulation itself.
 
-The slots (:data:`SLOTS`) are those of ``driver.c``; ``tests/test_lane_metrics.py`` holds the sums
+The slots (:data:`SLOTS`) are those of ``driver.c``; ``tests/sim/test_lane_metrics.py`` holds the sums
 read back against :func:`quadctl.metrics.summarize` and ``tracking_of`` of the same run's records.
 """
 

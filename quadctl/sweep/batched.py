@@ -1,7 +1,7 @@
 """The batched path of a sweep chunk: designs, verdicts and lane simulations of many cases at once.
 
 Each function is the stacked twin of a one-case pipeline stage and is tested against it
-(``tests/test_sweep.py``): :func:`design_all` of :func:`quadctl.design.design` (the Riccati solves
+(``tests/sweep/test_sweep.py``): :func:`design_all` of :func:`quadctl.design.design` (the Riccati solves
 batched by shape, residual-checked; a case whose solve misses the check goes through the one-case
 design, which names the reason), :func:`loops_of` of :func:`quadctl.pipeline.loop_of` and the step
 plan, :func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes).

@@ -6,7 +6,7 @@ rate with the ``lqrd`` weights), residual-checked, a case whose solve misses the
 again one by one (which names the reason); the coupled verdicts stacked; the simulations in the
 SIMD lanes of :mod:`quadctl.sim`, :data:`~quadctl.sim.engine.LANES` cases per call, with the
 rate and hold, motors and saturation, integrators and noise of each case. Each row says which
-path it took (``path``). Rows equal the one-by-one path's (``tests/test_sweep.py``).
+path it took (``path``). Rows equal the one-by-one path's (``tests/sweep/test_sweep.py``).
 """
 
 from __future__ import annotations
@@ -153,7 +153,7 @@ class CaseSetups:
     validation makes of them: the type the schema takes (a finite float, a whole number >= 0) and
     the weight checks of :func:`quadctl.config.check_weight` (:func:`~quadctl.config.diagonal_weights_pass`).
     A case whose value fails any check goes the reference way, which words the error, so an invalid
-    value gives the same one-line error either way (``tests/test_case_setups.py`` checks that both
+    value gives the same one-line error either way (``tests/sweep/test_case_setups.py`` checks that both
     ways give the same setups and messages).
     """
 

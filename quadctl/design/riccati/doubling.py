@@ -11,7 +11,7 @@ mambo-200hz sweep: 512 roll and pitch problems of 3 states, 13 steps, 4.3 ms). T
 one problem at a time (each stops when its own step is round-off), take a tenth of that: the C is
 compiled once per machine (:func:`quadctl.native.compile.compile_cached`, portable flags: no FMA, so
 it rounds as written). Without a compiler the caller takes the numpy steps. Both give ``H`` to
-round-off of each other (``tests/test_riccati_batch.py``); the caller's Newton steps and residual
+round-off of each other (``tests/design/test_riccati_batch.py``); the caller's Newton steps and residual
 check certify it either way.
 """
 

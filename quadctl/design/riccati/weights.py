@@ -18,7 +18,7 @@ is above ``-SEMIDEFINITE_RTOL`` times the scale of the cost, the largest eigenva
 ``[[Q, N], [N', R]]``: room for the round-off of computed weights, measured against that scale
 because a weight that is zero (``Q = 0``) is computed as noise of the other weights' size.
 Van Loan's integrals (:func:`quadctl.design.discrete.lqrd_weights`) of 20 000 random stiff problems
-(``|eig(A)| Ts <= 10``, rank-deficient ``Q``) came out at -4.7e-16 at worst (``tests/test_riccati.py``
+(``|eig(A)| Ts <= 10``, rank-deficient ``Q``) came out at -4.7e-16 at worst (``tests/design/test_riccati.py``
 checks quadctl's own subsystems); a weight that is really indefinite is far below (CAREX 2.5: -13.2
 against 0.23)."""
 

@@ -1,0 +1,277 @@
+"""A run folder agrees with its config: a command that refuses its input (exit 2) after some stages
+wrote puts the folder back byte for byte; a new config removes the stage artifacts an earlier one made,
+so none is left beside a config that did not make it (quadctl.workspace)."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+
+import pytest
+from _paths import ROOT
+from typer.testing import CliRunner
+
+from quadctl import config
+from quadctl.cli.app import app
+from quadctl.errors import QuadctlNotice
+from quadctl.workspace import STAGE_FILES, Workspace, config_hash_of
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args], catch_exceptions=False)
+
+
+def _contents(folder):
+    return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")}
+
+
+def test_a_refused_command_leaves_the_folder_as_it_was(tmp_path):
+    """The RK4 step is refused at the simulation stage, after trim, linear model and design of the
+    changed config were computed: none of them, nor the config it was given, stays."""
+    assert invoke("run", "-c", "hover", "-o", tmp_path).exit_code == 0
+    before = _contents(tmp_path)
+    res = invoke("simulate", "-c", "hover", "-o", tmp_path, "--set", "simulation.dt=0.001")
+    assert res.exit_code == 2 and "is unstable for RK4" in res.stderr
+    assert _contents(tmp_path) == before and not list(tmp_path.glob(".*.tmp"))
+
+
+def test_a_new_config_removes_what_the_old_one_made(tmp_path):
+    """A config whose check fails (exit 1) keeps what it computed, and the old design and run, made from
+    another config, are gone: every stage artifact left names the config.yaml beside it."""
+    assert invoke("run", "-c", "hover", "-o", tmp_path).exit_code == 0
+    res = invoke("run", "-c", "hover", "-o", tmp_path, "--set", "controller.rate=200",
+                 "--set", "controller.design=continuous")
+    assert res.exit_code == 1
+    left = {p.name for p in tmp_path.iterdir()}
+    assert {"trim.json", "checks.json"} <= left and not left & {"design.json", "sim.npz", "sim.json"}
+    removed = "trim.json, linear.npz, subsystems.json, checks.json, design.json, sim.npz, sim.json"
+    assert f"removed {removed}, made by another config" in " ".join(res.stderr.split())
+    digest = config_hash_of(tmp_path)
+    assert digest is not None and digest != config.load("hover").digest()
+    for name in left & {"trim.json", "subsystems.json", "checks.json"}:
+        assert json.loads((tmp_path / name).read_text())["config_hash"] == digest, name
+
+
+def test_roll_back_restores_what_was_overwritten_and_removes_what_was_new(tmp_path):
+    hover, forward = config.load("hover"), config.load("forward")
+    with Workspace(hover, tmp_path) as ws:
+        assert ws.trim.residual < 1e-9
+    before = _contents(tmp_path)
+    with Workspace(forward, tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json, made by another"):
+        assert ws.design.stable
+        assert {"design.json", "linear.npz"} <= {p.name for p in tmp_path.iterdir()}
+        ws.roll_back()
+    assert _contents(tmp_path) == before
+    assert not list(tmp_path.glob(".*.tmp"))  # the files set aside went back, none is left
+    with Workspace(forward, tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json"):
+        assert ws.trim.residual < 1e-9
+        ws.keep()
+        ws.roll_back()  # kept: nothing undone
+    assert json.loads((tmp_path / "trim.json").read_text())["config_hash"] == forward.digest()
+    assert not list(tmp_path.glob(".*.tmp"))  # kept: the old files set aside are gone with the workspace
+    assert set(STAGE_FILES) >= set(_contents(tmp_path)) - {"config.yaml", "config.resolved.yaml"}
+
+
+def test_a_damaged_artifact_is_left_to_the_stage_that_reads_it(tmp_path):
+    """Stale removal reads each artifact's provenance; one it cannot read is not removed (nor said to be)."""
+    assert invoke("design", "-c", "hover", "-o", tmp_path).exit_code == 0
+    (tmp_path / "design.json").write_text("{ not json")
+    res = invoke("trim", "-c", "forward", "-o", tmp_path)
+    assert res.exit_code == 0
+    assert (tmp_path / "design.json").read_text() == "{ not json" and not (tmp_path / "linear.npz").exists()
+
+
+def test_a_refused_report_keeps_the_report_and_what_it_shows(tmp_path):
+    """report writes the report of a run that stops on bad input (the error is in it): the report and the
+    stage artifacts it shows stay together, with the config that made them."""
+    res = invoke("report", "-c", "hover", "-o", tmp_path, "--set", "simulation.dt=0.001")
+    assert res.exit_code == 2
+    assert (tmp_path / "report" / "report.html").exists() and (tmp_path / "design.json").exists()
+    design = json.loads((tmp_path / "design.json").read_text())
+    assert design["config_hash"] == config_hash_of(tmp_path)
+
+
+def test_roll_back_puts_a_replaced_link_back(tmp_path):
+    elsewhere = tmp_path / "elsewhere.json"
+    elsewhere.write_text("{}")
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "trim.json").symlink_to(elsewhere)
+    with Workspace(config.load("hover"), run) as ws:
+        assert ws.trim.residual < 1e-9
+        assert not (run / "trim.json").is_symlink()  # never written through a link: replaced
+        ws.roll_back()
+    assert (run / "trim.json").is_symlink() and (run / "trim.json").resolve() == elsewhere.resolve()
+    assert elsewhere.read_text() == "{}"
+
+
+def test_roll_back_without_hard_links_keeps_the_bytes(tmp_path, monkeypatch):
+    """A file system with no hard links: the files are kept as their bytes, and put back the same."""
+    import quadctl.workspace as workspace
+
+    def no_links(*_):
+        raise OSError(1, "Operation not permitted")
+
+    with Workspace(config.load("hover"), tmp_path) as ws:
+        assert ws.trim.residual < 1e-9
+    before = _contents(tmp_path)
+    monkeypatch.setattr(workspace.os, "link", no_links)
+    with Workspace(config.load("forward"), tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json"):
+        assert ws.design.stable
+        ws.roll_back()
+    assert _contents(tmp_path) == before and not list(tmp_path.glob(".*.tmp"))
+
+
+def _tree(folder):
+    """Every file below ``folder`` (hidden ones too: a file set aside, a temporary) with its bytes, and
+    every folder: what "the folder as it was" compares."""
+    import gc
+
+    from quadctl.artifacts import LOCK_NAME
+
+    gc.collect()  # a command's workspace, released (its lock and its files set aside go with it)
+    if not folder.exists():
+        return None
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else "folder") for p in folder.rglob("*")
+            if p.name != LOCK_NAME}
+
+
+def _full_disk_at(monkeypatch, name):
+    """The disk fills up when ``name`` is written (as test_safe_writes does: the temporary's write fails)."""
+    from quadctl.artifacts import writing
+
+    temporary = writing._temporary
+
+    def failing(path, data):
+        if path.name == name:
+            raise OSError(28, "No space left on device")
+        return temporary(path, data)
+
+    monkeypatch.setattr(writing, "_temporary", failing)
+
+
+@pytest.fixture(scope="module")
+def earlier_report(tmp_path_factory):
+    """A folder with the report of another config (the square mission: a path figure hover has not), its
+    run cut to 1 s: the report is written, and fails the mission it cannot finish (exit 1)."""
+    folder = tmp_path_factory.mktemp("earlier") / "run"
+    res = invoke("report", "-c", "square", "-o", folder, "--set", "simulation.duration=1")
+    assert res.exit_code == 1 and "the run ends at 1 s, before the mission does" in res.output, res.output
+    assert (folder / "report" / "sim-path.png").exists()
+    return folder
+
+
+@pytest.mark.parametrize("start,full_at", [("none", "report.html"),
+                                           pytest.param("earlier", "report.md", marks=pytest.mark.slow),
+                                           pytest.param("earlier", "sim-roll.png", marks=pytest.mark.slow)])
+def test_a_report_the_disk_cannot_hold_leaves_the_folder_as_it_was(tmp_path, monkeypatch, request, start, full_at):
+    """report on a full disk exits 2 and puts back every file it wrote or removed (stage artifacts, figures,
+    report.md), as simulate does: never a report.md and figures without report.html."""
+    import shutil
+
+    folder = tmp_path / "run"
+    if start == "earlier":  # (roll_back's own test puts back what was overwritten, without a report)
+        shutil.copytree(request.getfixturevalue("earlier_report"), folder)
+    before = _tree(folder)
+    _full_disk_at(monkeypatch, full_at)
+    res = invoke("report", "-c", "hover", "-o", folder, "--set", "simulation.duration=1")
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines()[-1] == (
+        f"quadctl: error: {folder / 'report' / full_at}: cannot write the artifact (No space left on device); free "
+        "the space or the permission it needs, or choose another --out folder")
+    assert _tree(folder) == (before or {})  # none: the folder the lock made, empty
+
+
+@pytest.mark.parametrize("command,full_at", [("simulate", "yaw.png"),
+                                             pytest.param("margins", "margins-pitch-design.png",
+                                                          marks=pytest.mark.slow)])
+def test_figures_the_disk_cannot_hold_leave_the_folder_as_it_was(tmp_path, monkeypatch, command, full_at):
+    """simulate --plot, margins --plot: the figures drawn before the disk filled up go too, with the stages'
+    artifacts and the plots/ folder the command made."""
+    assert invoke("simulate", "-c", "hover", "-o", tmp_path, "--set", "simulation.duration=1").exit_code == 0
+    before = _tree(tmp_path)
+    _full_disk_at(monkeypatch, full_at)
+    res = invoke(command, "-c", "forward", "-o", tmp_path, "--plot", "--set", "simulation.duration=1")
+    assert res.exit_code == 2, res.output
+    assert f"{full_at}: cannot write the artifact (No space left on device)" in res.stderr
+    assert _tree(tmp_path) == before
+
+
+KILLED = """
+import os, signal, sys
+from quadctl import config
+from quadctl.workspace import Workspace
+ws = Workspace(config.load(sys.argv[2]), sys.argv[1], fresh=True)
+ws.design  # trim.json ... design.json rewritten: each set aside first, for a roll-back
+ws.write_bytes(ws.out / "report" / "report.md", b"# half a report")  # the earlier report's, set aside too
+print(sorted(p.name for p in ws.out.rglob(".*undo*")), flush=True)
+os.kill(os.getpid(), signal.SIGKILL)  # as a kill -9 during report --fresh
+"""
+
+
+def _set_aside(folder):
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob(".*quadctl-undo*.tmp"))
+
+
+def _killed_mid_session(folder, name="hover"):
+    """A process that rewrote some artifacts of ``folder`` and was killed (SIGKILL) before its workspace
+    closed: the files it set aside for a roll-back are left."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", KILLED, str(folder), name], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == -9, proc.stderr
+    left = _set_aside(folder)
+    assert len(left) >= 5, (left, proc.stdout)
+    return left
+
+
+@pytest.mark.parametrize("command", [["trim"], ["design"], ["export", "--to", "json"]])
+def test_files_set_aside_by_a_killed_run_are_removed_by_the_next_command(tmp_path, command):
+    """A kill -9 mid-session leaves `.checks.json.quadctl-undo….tmp` and its kind; the next command that
+    holds the folder (no other process does) removes every one, however old the file it kept."""
+    folder = tmp_path / "run"
+    assert invoke("design", "-c", "hover", "-o", folder).exit_code == 0
+    (folder / "report").mkdir()
+    (folder / "report" / "report.md").write_text("# an earlier report\n")
+    assert "report/.report.md.quadctl-undo" in " ".join(_killed_mid_session(folder))
+    res = invoke(*command, "-c", "hover", "-o", folder)
+    assert res.exit_code == 0, res.output
+    assert _set_aside(folder) == []
+    assert (folder / "report" / "report.md").read_bytes() == b"# half a report"  # what the killed run wrote stays
+
+
+def test_files_set_aside_are_left_while_another_process_holds_the_folder(tmp_path):
+    folder = tmp_path / "run"
+    assert invoke("design", "-c", "hover", "-o", folder).exit_code == 0
+    left = _killed_mid_session(folder)
+    from test_folder_lock import _holder
+
+    other = _holder(folder)
+    try:
+        res = invoke("trim", "-c", "hover", "-o", folder)
+        assert res.exit_code == 2 and "is in use by another quadctl" in res.stderr
+        assert _set_aside(folder) == left
+    finally:
+        other.kill()
+        other.wait()
+
+
+def test_a_second_workspace_of_the_process_leaves_the_first_ones_files_set_aside(tmp_path):
+    """Re-entrant in one process: the second holder removes nothing, so the first still rolls back, however
+    old the files it set aside (a set-aside name keeps its file's time)."""
+    with Workspace(config.load("hover"), tmp_path) as ws:
+        assert ws.design.stable
+    before = _contents(tmp_path)
+    old = time.time() - 3600
+    for path in tmp_path.iterdir():
+        os.utime(path, (old, old))
+    with Workspace(config.load("forward"), tmp_path) as first, \
+            pytest.warns(QuadctlNotice, match="removed trim.json"):
+        assert first.trim.residual < 1e-9
+        with Workspace(config.load("forward"), tmp_path) as second:
+            assert second.out == first.out
+        first.roll_back()
+    assert _contents(tmp_path) == before

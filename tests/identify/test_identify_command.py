@@ -1,0 +1,120 @@
+"""`quadctl identify`: the artifacts, the identified config that `design` takes, and bad input (exit 2)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from _paths import DATA
+from typer.testing import CliRunner
+
+from quadctl.cli.app import app
+
+FLIGHTS = DATA / "crazyflie-flights"
+
+
+@pytest.fixture(scope="module")
+def identified(tmp_path_factory):
+    out = tmp_path_factory.mktemp("identified")
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "35:65",
+                                   "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    return out, res.output
+
+
+def test_identify_writes_values_intervals_and_provenance(identified):
+    out, text = identified
+    payload = json.loads((out / "identified.json").read_text())
+    thrust = payload["stages"]["thrust"]
+    assert thrust["windows_s"] == [[35.0, 65.0]]
+    lo, hi = thrust["parameters"]["T_m"]["interval95"]
+    assert lo < thrust["parameters"]["T_m"]["value"] < hi
+    assert payload["logs"][0]["sha256"] == __import__("hashlib").sha256((FLIGHTS / "log10").read_bytes()).hexdigest()
+    assert "attitude" in payload["refused"] and "yaw" in payload["refused"]  # log10 is a thrust log
+    assert (out / "identify.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_identified_config_says_where_each_value_came_from_and_designs(identified):
+    out, _ = identified
+    text = (out / "identified.yaml").read_text()
+    assert "time_constant: 0.07" in text and "identified from log10 t 35:65 s" in text
+    res = CliRunner().invoke(app, ["design", "-c", str(out / "identified.yaml"), "-o", str(out / "design")])
+    assert res.exit_code == 0, res.output
+
+
+@pytest.mark.parametrize("args, match", [
+    (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1"),
+    (["--window", "0:5"], "nothing to identify"),
+    (["--window", "35:65", "--window", "1:2"], "--window given 2 times for 1 log(s); give it once per LOG"),
+])
+def test_identify_refuses_bad_windows(tmp_path, args, match):
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "-o", str(tmp_path / "o"),
+                                   *args])
+    assert res.exit_code == 2
+    assert match in res.output
+    assert not (tmp_path / "o").exists()  # nothing half-written
+
+
+def test_identify_refuses_a_corrupted_log(tmp_path):
+    bad = tmp_path / "log10"
+    data = bytearray((FLIGHTS / "log10").read_bytes())
+    data[1000] ^= 0xFF
+    bad.write_bytes(bytes(data))
+    res = CliRunner().invoke(app, ["identify", str(bad), "-c", "crazyflie", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2
+    assert "log10: the CRC-32 at the end does not match" in res.output
+    assert len(res.output.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+
+
+def test_identify_refuses_a_csv_without_a_column(tmp_path):
+    path = tmp_path / "flight.csv"
+    path.write_text("t,acc_x,acc_y,acc_z,gyro_p,gyro_q,gyro_r,cmd_1,cmd_2,cmd_3\n0,0,0,0,0,0,0,0,0,0\n")
+    res = CliRunner().invoke(app, ["identify", str(path), "-c", "crazyflie", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2
+    assert "flight.csv: no column 'cmd_4'" in res.output and "--columns cmd_4=YOUR_NAME" in res.output
+    assert not (tmp_path / "o").exists()
+
+
+def _fit(stage, names, values, windows=((1.0, 2.0),)):
+    import numpy as np
+
+    from quadctl.identify.estimate import Estimate
+
+    k = len(names)
+    return Estimate(stage=stage, names=tuple(names), values=np.array(values, float), std=np.full(k, 1e-9),
+                    covariance=np.eye(k) * 1e-18, windows=list(windows), t=np.zeros(2), measured=np.zeros((2, 1)),
+                    predicted=np.zeros((2, 1)), rows=("x",), rms=0.0, bandwidth=1)
+
+
+@pytest.mark.parametrize("jzz, lowered", [(3e-5, True), (2e-5, False)])
+def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
+    """Jxx + Jyy identified below the config's Jzz: Jzz goes down to their sum, and the torque
+    coefficient with it (a yaw log fixes k_m / Jzz)."""
+    import numpy as np
+
+    from quadctl.identify import estimate as est
+    from quadctl.identify.readers import FlightLog
+    from quadctl.identify.results import Identification, changes
+
+    log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
+                    path="log", format="csv", sha256="")
+    airframe = est.Airframe(mass=0.027, positions=np.zeros((4, 2)), spins=np.ones(4),
+                            inertia=np.array([1e-5, 1e-5, jzz]), torque_coefficient=0.006)
+    fits = {"thrust": _fit("thrust", ("c0", "c1", "c2", "T_m"), (0.02, -0.01, 0.12, 0.07)),
+            "attitude": _fit("attitude", ("Jxx", "Jyy"), (1.2e-5, 1.3e-5)),
+            "yaw": _fit("yaw", ("k_m",), (0.006,))}
+    ident = Identification(logs=[log], fits=fits, refused={}, stage_logs={"thrust": 0, "attitude": 0, "yaw": 0},
+                           airframe=airframe, config_name="x")
+    got = changes(ident)
+    want_jzz = 2.5e-5 if lowered else jzz
+    assert got[("vehicle", "inertia")][0] == f"[1.2e-05, 1.3e-05, {want_jzz:.4g}]"
+    assert ("Jzz lowered to Jxx + Jyy" in got[("vehicle", "inertia")][1]) is lowered
+    assert float(got[("motors", "torque_coefficient")][0]) == pytest.approx(0.006 * want_jzz / jzz, rel=1e-3)
+
+
+def test_identify_json_is_the_artifact_and_nothing_else(identified, tmp_path):
+    out, _ = identified
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "35:65",
+                                   "-o", str(tmp_path), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout) == json.loads((tmp_path / "identified.json").read_text())

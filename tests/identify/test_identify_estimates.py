@@ -1,0 +1,200 @@
+"""The estimator: parameters recovered from logs simulated with known values (and their intervals'
+coverage over repeated noisy logs), and the paper's numbers on the real Crazyflie flights."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from _paths import DATA
+
+from quadctl.config import load
+from quadctl.identify import estimate as est
+from quadctl.identify.readers import FlightLog, read_log
+from quadctl.model import Vehicle, build_model
+from quadctl.motors import Motors
+
+FLIGHTS = DATA / "crazyflie-flights"
+PAPER_CURVE = np.array([0.02126, -0.01117, 0.12012])  # N: c0, c1, c2 (Eschmann et al., IROS 2024)
+PAPER_TM = 0.0716  # s
+PAPER_INERTIA = np.array([1.029e-5, 1.105e-5])  # kg m^2, rotors at +-0.028 m
+PAPER_ARM = 0.028 * np.sqrt(2.0)  # m: an x layout with the rotors at +-0.028 m on each axis
+MASS = 0.027
+
+
+def airframe(arm=PAPER_ARM, inertia=(1.05e-5, 1.12e-5, 2.0e-5), k_m=0.006):
+    motors = Motors(layout="x", arm_length=arm, torque_coefficient=k_m)
+    return est.Airframe(mass=MASS, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
+                        inertia=np.array(inertia), torque_coefficient=k_m)
+
+
+def simulated_log(rng, *, seconds=4.0, rate=1000.0, tm=0.07, delay=0.0, curve=PAPER_CURVE, inertia=(1.05e-5, 1.12e-5,
+                  2.0e-5), k_m=0.006, acc_noise=0.3, gyro_noise=0.002, torque_noise=2e-5, ar=0.9,
+                  with_rates=True):
+    """A log from the model with known parameters: held random commands, the paper's lag on the
+    command, rotor thrusts mixed by quadctl.motors, the rates integrated (RK4) through the CasADi
+    model's f under a torque error (``torque_noise``, N m: the rotors' thrust not quite the curve's, where
+    the attitude fit takes a log's error to be); AR(1) noise (``ar``: its sample-to-sample correlation)
+    on the accelerometer, the gyro and that torque."""
+    n = int(seconds * rate)
+    t = np.arange(n) / rate
+    hold = int(0.05 * rate)
+    steps = rng.uniform(-0.25, 0.25, size=(n // hold + 1, 1)) + rng.uniform(-0.06, 0.06, size=(n // hold + 1, 4))
+    cmd = np.clip(0.6 + np.repeat(steps, hold, axis=0)[:n], 0.0, 1.0)
+    def colored(scale, shape):
+        e = rng.normal(size=shape) * scale * np.sqrt(1 - ar ** 2)
+        out = np.empty(shape)
+        out[0] = rng.normal(size=shape[1:]) * scale
+        for k in range(1, shape[0]):
+            out[k] = ar * out[k - 1] + e[k]
+        return out
+
+    z = est.lagged(cmd, 1.0 / rate, tm, delay)[0]
+    thrust = curve[0] + curve[1] * z + curve[2] * z ** 2
+    motors = Motors(layout="x", arm_length=PAPER_ARM, torque_coefficient=k_m)
+    inputs = thrust @ motors.effectiveness().T  # [T, A, E, R] per sample
+    inputs[:, 1:] += colored(torque_noise, (n, 3))
+    vehicle = Vehicle(mass=MASS, gravity=0.0, inertia=tuple(inertia), drag=(0.0, 0.0, 0.0))
+    omega = rates_of(inputs, vehicle, 1.0 / rate) if with_rates else np.zeros((n, 3))
+    acc = np.zeros((n, 3))
+    acc[:, 2] = -thrust.sum(axis=1) / MASS
+    return FlightLog(t=t, acc=acc + colored(acc_noise, (n, 3)), gyro=omega + colored(gyro_noise, (n, 3)), cmd=cmd,
+                     path="simulated", format="csv", sha256="")
+
+
+def rates_of(inputs, vehicle, h):
+    """Body rates (n, 3) under the inputs ``[T, A, E, R]`` (n, 4), integrated by RK4 through the CasADi
+    model's f (inputs linear between samples), level and at rest: one mapaccum, no Python loop."""
+    import casadi as ca
+
+    f = build_model().f
+    x, u0, u1 = ca.MX.sym("x", 12), ca.MX.sym("u0", 4), ca.MX.sym("u1", 4)
+    p = ca.DM(vehicle.vector())
+    um = (u0 + u1) / 2
+    k1 = f(x, u0, p)
+    k2 = f(x + h / 2 * k1, um, p)
+    k3 = f(x + h / 2 * k2, um, p)
+    k4 = f(x + h * k3, u1, p)
+    nxt = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    keep = ca.DM([0.0] * 9 + [1.0] * 3)  # the rates alone: level, at rest
+    step = ca.Function("step", [x, ca.vertcat(u0, u1)], [nxt * keep])
+    paired = np.hstack([inputs[:-1], inputs[1:]]).T
+    xs = np.asarray(step.mapaccum(inputs.shape[0] - 1)(np.zeros(12), paired))
+    return np.vstack([np.zeros(3), xs[9:12].T])
+
+
+def test_lag_sensitivity_matches_finite_differences():
+    rng = np.random.default_rng(1)
+    cmd = np.repeat(rng.uniform(0.2, 0.8, size=(40, 4)), 25, axis=0)
+    z, dz_dt, dz_dd = est.lagged(cmd, 1e-3, 0.07, 0.01)
+    h = 1e-6
+    fd = (est.lagged(cmd, 1e-3, 0.07 + h, 0.01)[0] - est.lagged(cmd, 1e-3, 0.07 - h, 0.01)[0]) / (2 * h)
+    np.testing.assert_allclose(dz_dt, fd, atol=1e-6 * np.abs(fd).max())
+    assert np.abs(dz_dd).max() > 1.0  # the delay moves the lagged command
+
+
+def test_lag_is_the_exact_first_order_step_response():
+    cmd = np.zeros((500, 4))
+    cmd[100:] = 1.0
+    z = est.lagged(cmd, 1e-3, 0.05)[0]
+    t = (np.arange(500) - 100) * 1e-3
+    np.testing.assert_allclose(z[101:, 0], 1 - np.exp(-t[101:] / 0.05), rtol=1e-12, atol=1e-12)
+
+
+def test_measurement_function_is_the_model_with_gravity_removed():
+    """The CasADi measurement (specific force times m, J domega/dt) against quadctl.model's f and the mixer."""
+    af = airframe()
+    rng = np.random.default_rng(2)
+    z, omega = rng.uniform(0, 1, (5, 4)), rng.normal(0, 2, (5, 3))
+    theta = af.theta(c0=0.02, c1=-0.01, c2=0.12, bias_A=1e-5)
+    y = est.predict(z, omega, theta, af)[0]
+    motors = Motors(layout="x", arm_length=PAPER_ARM, torque_coefficient=0.006)
+    vehicle = Vehicle(mass=MASS, gravity=9.81, inertia=tuple(af.inertia), drag=(0.0, 0.0, 0.0))
+    for k in range(5):
+        u = (0.02 - 0.01 * z[k] + 0.12 * z[k] ** 2) @ motors.effectiveness().T
+        x = np.r_[np.zeros(9), omega[k]]
+        xdot = np.asarray(build_model().f_disturbed(x, u, vehicle.vector(), np.r_[0, 0, 0, 1e-5, 0, 0])).ravel()
+        np.testing.assert_allclose(y[k, :3], MASS * (xdot[3:6] - [0, 0, 9.81]), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(y[k, 3:], af.inertia * xdot[9:], rtol=1e-10, atol=1e-15)
+
+
+@pytest.mark.parametrize("delay", [False, True])
+def test_thrust_parameters_within_their_intervals(delay):
+    rng = np.random.default_rng(11 if delay else 10)
+    log = simulated_log(rng, seconds=8.0, delay=0.008 if delay else 0.0, with_rates=False)
+    grid = est.on_grid(log)
+    fit = est.fit_thrust(grid, [(0.5, 7.9)], airframe(), delay=delay)
+    truth = dict(zip(("c0", "c1", "c2"), PAPER_CURVE), T_m=0.07, delay=0.008)
+    for name in fit.names:
+        lo, hi = fit.interval(name)
+        assert lo <= truth[name] <= hi, (name, truth[name], lo, hi)
+
+
+def test_thrust_intervals_cover_the_truth_about_95_percent():
+    """Over 40 noisy logs (AR(1) noise: correlated like a real log's) the 95 % intervals hold the
+    truth in 85-100 % of them per parameter (binomial: 95 % within about +-7 % at 40 draws)."""
+    rng = np.random.default_rng(12345)
+    truth = dict(zip(("c0", "c1", "c2"), PAPER_CURVE), T_m=0.07)
+    hits = {n: 0 for n in truth}
+    repeats = 40
+    af = airframe()
+    for _ in range(repeats):
+        log = simulated_log(rng, seconds=3.0, acc_noise=0.5, with_rates=False)
+        fit = est.fit_thrust(est.on_grid(log), [(0.3, 2.95)], af)
+        for n in truth:
+            lo, hi = fit.interval(n)
+            hits[n] += lo <= truth[n] <= hi
+    coverage = {n: h / repeats for n, h in hits.items()}
+    assert all(0.85 <= c <= 1.0 for c in coverage.values()), coverage
+
+
+def test_inertia_and_torque_coefficient_within_their_intervals():
+    rng = np.random.default_rng(7)
+    inertia, k_m = (1.05e-5, 1.12e-5, 2.0e-5), 0.006
+    log = simulated_log(rng, seconds=6.0, inertia=inertia, k_m=k_m)
+    grid = est.on_grid(log)
+    af = airframe(inertia=(2e-5, 2e-5, inertia[2]), k_m=0.004)  # wrong starting values, the true Jzz
+    thrust = est.fit_thrust(grid, [(0.3, 5.9)], af)
+    att = est.fit_attitude(grid, [(0.3, 5.9)], af, thrust)
+    yaw = est.fit_yaw(grid, [(0.3, 5.9)], af, thrust, att)
+    for fit, name, value in ((att, "Jxx", inertia[0]), (att, "Jyy", inertia[1]), (yaw, "k_m", k_m)):
+        lo, hi = fit.interval(name)
+        assert lo <= value <= hi, (name, value, lo, hi)
+        assert hi - lo < 0.3 * value  # and the interval says something
+
+
+@pytest.fixture(scope="module")
+def real():
+    cfg = load("crazyflie")
+    paper = dataclasses.replace(est.Airframe.from_config(cfg), positions=airframe().positions)
+    grid10 = est.on_grid(read_log(FLIGHTS / "log10"))
+    thrust = est.fit_thrust(grid10, [(35.0, 65.0)], paper)
+    return paper, thrust
+
+
+def test_real_log10_motor_time_constant_and_thrust_curve(real):
+    _, thrust = real
+    assert thrust.value("T_m") == pytest.approx(PAPER_TM, rel=0.10)
+    lo, hi = thrust.extra["commands_flown"]
+    c = np.linspace(lo, hi, 50)
+    mine = np.polyval([thrust.value("c2"), thrust.value("c1"), thrust.value("c0")], c)
+    paper = np.polyval(PAPER_CURVE[::-1], c)
+    assert np.max(np.abs(mine / paper - 1)) < 0.08
+    assert thrust.rms <= 0.6 * thrust.extra["rms_without_lag"]
+
+
+def test_real_log15_inertia_with_the_papers_geometry(real):
+    paper, thrust = real
+    att = est.fit_attitude(est.on_grid(read_log(FLIGHTS / "log15")), [(55.0, 90.0)], paper, thrust)
+    assert att.value("Jxx") == pytest.approx(PAPER_INERTIA[0], rel=0.10)
+    assert att.value("Jyy") == pytest.approx(PAPER_INERTIA[1], rel=0.10)
+
+
+def test_csv_of_the_binary_log_gives_the_same_estimates(real, tmp_path):
+    paper, thrust = real
+    path = tmp_path / "log10.csv"
+    read_log(FLIGHTS / "log10").to_csv(path)
+    again = est.fit_thrust(est.on_grid(read_log(path)), [(35.0, 65.0)], paper)
+    np.testing.assert_allclose(again.values, thrust.values, rtol=1e-9)
+    np.testing.assert_allclose(again.std, thrust.std, rtol=1e-6)

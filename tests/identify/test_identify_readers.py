@@ -1,0 +1,147 @@
+"""Flight-log readers: the Crazyflie microSD binary log, the CSV format, units and frames, bad input."""
+
+from __future__ import annotations
+
+import math
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from _paths import DATA
+
+from quadctl.errors import LogError
+from quadctl.identify.readers import CSV_COLUMNS, parse_columns, read_crazyflie, read_csv, read_log
+
+FLIGHTS = DATA / "crazyflie-flights"
+
+
+def crazyflie_bytes(records, names=("acc.x(f)", "acc.y(f)", "acc.z(f)", "gyro.x(f)", "gyro.y(f)", "gyro.z(f)",
+                                    "motor.m1(I)", "motor.m2(I)", "motor.m3(I)", "motor.m4(I)"), crc=True):
+    """A microSD log written from the format's description (independent of the reader)."""
+    head = bytes([0xBC]) + struct.pack("<HH", 2, 1) + struct.pack("<H", 0xFFFF) + b"fixedFrequency\0"
+    head += struct.pack("<H", len(names)) + b"".join(n.encode() + b"\0" for n in names)
+    fmt = "<HQ" + "".join(n[-2] for n in names)
+    body = head + b"".join(struct.pack(fmt, 0xFFFF, *rec) for rec in records)
+    return body + struct.pack("<I", zlib.crc32(body) if crc else zlib.crc32(body) ^ 1)
+
+
+@pytest.fixture(scope="module")
+def log10():
+    return read_crazyflie(FLIGHTS / "log10")
+
+
+def test_crazyflie_log_sizes_and_rate(log10):
+    assert log10.t.size == 50496
+    assert log10.t[0] == pytest.approx(26.333702)
+    assert 1000 < log10.provenance()["rate_hz"] < 1020
+    assert log10.sha256 == __import__("hashlib").sha256((FLIGHTS / "log10").read_bytes()).hexdigest()
+
+
+def test_crazyflie_log_on_the_ground_reads_minus_g_and_no_rates(log10):
+    """Before take-off (motors off) the FRD accelerometer reads (0, 0, -g) and the gyro nothing."""
+    ground = log10.cmd.max(axis=1) == 0
+    ground[log10.t > 30] = False
+    assert ground.sum() > 3000
+    assert np.median(log10.acc[ground], axis=0) == pytest.approx([0, 0, -9.81], abs=0.2)
+    assert np.abs(np.median(log10.gyro[ground], axis=0)).max() < 0.01
+
+
+@pytest.mark.parametrize("acc, gyro, pwm, want_acc, want_gyro", [
+    ((0.0, 0.0, 1.0), (0.0, 0.0, 0.0), (0, 0, 0, 0), (0.0, 0.0, -9.80665), (0.0, 0.0, 0.0)),
+    ((0.5, 0.25, 0.0), (90.0, 45.0, -180.0), (65535, 0, 32768, 1), (4.903325, -2.4516625, 0.0),
+     (math.pi / 2, -math.pi / 4, math.pi)),
+])
+def test_crazyflie_units_and_frame(tmp_path, acc, gyro, pwm, want_acc, want_gyro):
+    """g -> m/s^2, deg/s -> rad/s, FLU (y left, z up) -> FRD, PWM 0-65535 -> [0, 1]."""
+    path = tmp_path / "log"
+    path.write_bytes(crazyflie_bytes([(1000, *acc, *gyro, *pwm), (2000, *acc, *gyro, *pwm)]))
+    log = read_crazyflie(path)
+    assert log.t == pytest.approx([1e-3, 2e-3])
+    assert log.acc[0] == pytest.approx(want_acc, rel=1e-6, abs=1e-9)
+    assert log.gyro[0] == pytest.approx(want_gyro, rel=1e-6, abs=1e-9)
+    assert log.cmd[0] == pytest.approx(np.array(pwm) / 65535)
+
+
+def test_csv_written_from_the_binary_log_reads_back_the_same(tmp_path, log10):
+    path = tmp_path / "log10.csv"
+    log10.to_csv(path)
+    back = read_log(path)
+    assert back.format == "csv"
+    for name in ("t", "acc", "gyro", "cmd"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(log10, name))
+
+
+def test_csv_columns_mapped(tmp_path):
+    names = ["time", *CSV_COLUMNS[1:]]
+    path = tmp_path / "renamed.csv"
+    path.write_text(",".join(names) + "\n0,0,0,-9.81,0,0,0,0.5,0.5,0.5,0.5\n0.001,0,0,-9.81,0,0,0,0.5,0.5,0.5,0.6\n")
+    log = read_csv(path, parse_columns(["t=time"]))
+    assert log.cmd[1, 3] == 0.6 and log.t[1] == 0.001
+
+
+@pytest.mark.parametrize("damage, match", [
+    (lambda b: b[: len(b) // 2], r"log: the CRC-32 at the end does not match .*copy the file"),
+    (lambda b: b[:500] + bytes([b[500] ^ 0xFF]) + b[501:], r"log: the CRC-32 .*truncated or corrupted"),
+    (lambda b: b"\x00" + b[1:], r"log: not a Crazyflie microSD log, a ULog nor a CSV; convert it"),
+    (lambda b: b"", r"log: an empty file"),
+])
+def test_damaged_crazyflie_log_refused(tmp_path, damage, match):
+    good = crazyflie_bytes([(1000 * k, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0) for k in range(1, 50)])
+    path = tmp_path / "log"
+    path.write_bytes(damage(good))
+    with pytest.raises(LogError, match=match):
+        read_log(path)
+
+
+def test_crazyflie_log_without_the_motors_refused(tmp_path):
+    names = ("acc.x(f)", "acc.y(f)", "acc.z(f)", "gyro.x(f)", "gyro.y(f)", "gyro.z(f)")
+    path = tmp_path / "log"
+    path.write_bytes(crazyflie_bytes([(1000, 0, 0, 1, 0, 0, 0), (2000, 0, 0, 1, 0, 0, 0)], names=names))
+    with pytest.raises(LogError, match=r"no motor.m1, motor.m2, motor.m3, motor.m4; add them to the microSD"):
+        read_log(path)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("t,acc_x,acc_y,acc_z,gyro_p,gyro_q,gyro_r,cmd_1,cmd_2,cmd_3\n0,0,0,0,0,0,0,0,0,0\n",
+     r"x.csv: no column 'cmd_4' .*--columns cmd_4=YOUR_NAME"),
+    (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0,x,0,0\n", r"x.csv: data line 2 is not"),
+    (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n0,0,0,0,0,0,0,0,0,0,0\n", r"time does not increase at sample 2"),
+    (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n1,0,0,0,0,0,0,300,0,0,0\n", r"outside \[0, 1\].*65535"),
+])
+def test_bad_csv_refused(tmp_path, text, match):
+    path = tmp_path / "x.csv"
+    path.write_text(text)
+    with pytest.raises(LogError, match=match):
+        read_log(path)
+
+
+def test_columns_option_refuses_unknown_names(tmp_path):
+    with pytest.raises(LogError, match=r"--columns 'tee' is not NAME=COLUMN"):
+        parse_columns(["tee"])
+    path = tmp_path / "x.csv"
+    path.write_text(",".join(CSV_COLUMNS) + "\n")
+    with pytest.raises(LogError, match=r"--columns names time, not a column of the CSV format"):
+        read_csv(path, {"time": "t"})
+
+
+ULOG = DATA / "px4-ulog" / "sample_px4_events.ulg"
+
+
+def test_ulog_read_through_pyulog():
+    pytest.importorskip("pyulog")
+    log = read_log(ULOG)
+    assert log.format == "ulog" and log.t.size > 7000
+    assert np.all(np.diff(log.t) > 0)
+    assert np.median(log.acc, axis=0) == pytest.approx([0, 0, -9.81], abs=0.2)  # FRD, as PX4 logs it
+    flying = log.cmd.mean(axis=1) > 0.3
+    assert flying.sum() > 1000 and np.median(log.acc[flying, 2]) == pytest.approx(-9.81, abs=0.5)  # hover
+    assert 0.4 < np.median(log.cmd[flying]) < 0.7
+
+
+def test_ulog_without_pyulog_says_how_to_install(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "pyulog", None)
+    with pytest.raises(LogError, match=r"sample_px4_events.ulg: reading a ULog needs the pyulog package; pip install"):
+        read_log(ULOG)

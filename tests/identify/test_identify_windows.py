@@ -1,0 +1,96 @@
+"""Windows from a log's excitation, which stage takes which log, and the refusals that say why."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _paths import DATA
+
+from quadctl.errors import LogError
+from quadctl.identify import windows as win
+from quadctl.identify.readers import FlightLog, read_log
+
+FLIGHTS = DATA / "crazyflie-flights"
+
+
+@pytest.fixture(scope="module")
+def flights():
+    return [read_log(FLIGHTS / n) for n in ("log10", "log15", "log16")]
+
+
+def hover(seconds=20.0, rate=1000.0, collective=0.0, yaw=0.0):
+    """A log flown from t = 2 s to 2 s before its end; the collective or yaw command moving by the given amplitude."""
+    t = np.arange(int(seconds * rate)) / rate
+    wave = np.sign(np.sin(2 * np.pi * 0.7 * t))
+    cmd = np.full((t.size, 4), 0.6) + collective * wave[:, None] + yaw * wave[:, None] * np.array([1, -1, 1, -1])
+    cmd[(t < 2) | (t > seconds - 2)] = 0.0
+    rng = np.random.default_rng(0)
+    acc = np.tile([0.0, 0.0, -9.81], (t.size, 1)) + rng.normal(0, 0.1, (t.size, 3))
+    return FlightLog(t=t, acc=acc, gyro=rng.normal(0, 0.01, (t.size, 3)), cmd=cmd, path="hover.csv", format="csv",
+                     sha256="")
+
+
+def test_flights_found_after_take_off_and_before_the_crash(flights):
+    log10, _, log16 = flights
+    (t0, t1), = win.flights(log10)
+    assert t0 == pytest.approx(32.44, abs=0.05) and t1 == pytest.approx(68.49, abs=0.05)  # crash at 69 s
+    assert [round(a) for a, _ in win.flights(log16)] == [32, 45]  # two flights
+
+
+def test_each_stage_takes_the_log_flown_for_it(flights):
+    plan = win.plan(flights)
+    assert {stage: i for stage, (i, _) in plan.chosen.items()} == {"thrust": 0, "attitude": 1, "yaw": 2}
+    assert plan.refused == {}
+
+
+def test_a_log_that_only_moves_the_thrust_refuses_the_others():
+    plan = win.plan([hover(collective=0.15)])
+    assert set(plan.chosen) == {"thrust"}
+    assert "no log excites it" in plan.refused["attitude"] and "no log excites it" in plan.refused["yaw"]
+
+
+def test_a_log_without_excitation_is_refused():
+    with pytest.raises(LogError, match=r"hover.csv: nothing to identify \(thrust: no log excites it.*--window"):
+        win.plan([hover()])
+
+
+def test_without_thrust_no_other_stage():
+    with pytest.raises(LogError, match=r"no log excites the thrust, which every other stage needs"):
+        win.plan([hover(yaw=0.1)])
+
+
+def test_saturated_motors_refused():
+    log = hover(collective=0.15)
+    cmd = log.cmd.copy()
+    cmd[(log.t > 5) & (log.t < 7)] = 1.0
+    with pytest.raises(LogError, match=r"hover.csv: nothing to identify \(thrust: .*the motors are at full command in "
+                                       r"\d+.?\d* % of the window .*choose --window"):
+        win.plan([FlightLog(**{**log.__dict__, "cmd": cmd})])
+
+
+def test_dropped_sensor_refused():
+    log = hover(collective=0.15)
+    keep = (log.t < 8) | (log.t > 8.05)
+    cut = FlightLog(t=log.t[keep], acc=log.acc[keep], gyro=log.gyro[keep], cmd=log.cmd[keep], path="hover.csv",
+                    format="csv", sha256="")
+    with pytest.raises(LogError, match=r"thrust: .*no samples for 5\d ms at t = 7.999 s \(a dropped sensor\)"):
+        win.plan([cut])
+
+
+def test_frozen_gyro_refused():
+    log = hover(collective=0.15)
+    gyro = log.gyro.copy()
+    gyro[(log.t > 8) & (log.t < 8.1)] = gyro[8000]
+    with pytest.raises(LogError, match=r"thrust: .*the gyro repeats one value for 9\d samples \(a dropped sensor\)"):
+        win.plan([FlightLog(**{**log.__dict__, "gyro": gyro})])
+
+
+@pytest.mark.parametrize("text, want", [("35:65", [(35.0, 65.0)]), ("32:38,45:49", [(32.0, 38.0), (45.0, 49.0)])])
+def test_window_option(text, want):
+    assert win.parse_window(text) == want
+
+
+@pytest.mark.parametrize("text", ["65:35", "35", "a:b", "1:2,3"])
+def test_window_option_refused(text):
+    with pytest.raises(LogError, match=r"is not t0:t1 with t0 < t1"):
+        win.parse_window(text)

@@ -1,0 +1,857 @@
+"""Sweeps: expansion, key paths, gates, failure rows, resume, executors, and the batched numerics
+checked against their one-case references (SciPy, quadctl's own simulate and metrics)."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg
+from _paths import ROOT
+from _solve import max_rel_diff
+from typer.testing import CliRunner
+
+from quadctl import config, metrics, pipeline, sweep
+from quadctl.cli.app import app
+from quadctl.design import lqr, riccati_residual
+from quadctl.design.riccati import care_batch
+from quadctl.errors import DesignError, SweepError
+from quadctl.sim.run import simulate
+
+SHORT = {"simulation.duration": 0.15}
+"""Every sweep here simulates 0.15 s (about 4 400 RK4 steps at the report's auto step): long
+enough for the fast loops, short enough to keep the suite quick."""
+
+MATCH_RTOL = 1e-9
+"""Batched and one-case paths do the same arithmetic in a different order (SIMD lanes, a
+vectorized Riccati solver, summed quadratic forms): they agree to round-off amplified by the
+closed loop's stiffness (|lambda| dt up to 0.5 over thousands of steps), far below 1e-9."""
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return config.load("forward")
+
+
+def spec_of(cfg, **data):
+    data.setdefault("set", dict(SHORT))
+    return sweep.from_dict(data, cfg, "test.yaml")
+
+
+# ---------------------------------------------------------------------------------------
+# Expansion
+
+
+def test_grid_is_the_cartesian_product_in_file_order(cfg):
+    spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [10, 50],
+                                    "lqr.altitude.R[0]": {"from": 0.1, "to": 10, "num": 3, "scale": "log"}})
+    cases = spec.cases()
+    assert spec.count() == len(cases) == 6
+    assert [c.index for c in cases] == list(range(6))
+    assert [c.values for c in cases] == [(10, 0.1), (10, 1.0), (10, 10.0), (50, 0.1), (50, 1.0), (50, 10.0)]
+
+
+def test_linear_range_includes_both_ends(cfg):
+    spec = spec_of(cfg, parameters={"vehicle.mass": {"from": 0.06, "to": 0.08, "num": 5}})
+    assert [c.values[0] for c in spec.cases()] == pytest.approx([0.06, 0.065, 0.07, 0.075, 0.08])
+
+
+def test_random_mode_same_seed_same_cases_and_within_bounds(cfg):
+    params = {"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 10, "high": 100},
+              "vehicle.mass": {"distribution": "normal", "mean": 0.068, "std": 0.003},
+              "lqr.yaw.R[0]": [0.5, 1, 2],
+              "lqr.pitch.Q[1]": {"from": 20, "to": 80}}
+    a = spec_of(cfg, mode="random", samples=200, seed=7, parameters=params).cases()
+    b = spec_of(cfg, mode="random", samples=200, seed=7, parameters=params).cases()
+    c = spec_of(cfg, mode="random", samples=200, seed=8, parameters=params).cases()
+    assert a == b
+    assert a != c
+    roll, mass, yaw, pitch = (np.array([case.values[k] for case in a]) for k in range(4))
+    assert roll.min() >= 10 and roll.max() <= 100
+    assert set(yaw) <= {0.5, 1, 2} and len(set(yaw)) == 3
+    assert pitch.min() >= 20 and pitch.max() <= 80
+    # 200 normal draws: the mean is within 4 standard errors (seeded, so this cannot flake)
+    assert abs(mass.mean() - 0.068) < 4 * 0.003 / math.sqrt(200)
+    assert len({case.values for case in a}) == 200  # no two alike
+
+
+# ---------------------------------------------------------------------------------------
+# Errors in the sweep file
+
+
+@pytest.mark.parametrize("data,message", [
+    ({"parameters": {"lqr.rol.Q[1]": [1, 2]}}, r"parameters\.lqr\.rol\.Q\[1\]: no such key in the config: "
+                                                r"`lqr\.rol`; did you mean `roll`\?"),
+    ({"parameters": {"lqr.roll.Q[3]": [1, 2]}}, r"index 3 out of range: lqr\.roll\.Q has 3 values"),
+    ({"parameters": {"vehicle.mas": [1]}}, r"`vehicle\.mas`; did you mean `mass`\?"),
+    ({"parameters": {"lqr.roll": [1]}}, r"is a section, not a value; name one of its keys: Q, R"),
+    ({"parameters": {"vehicle.mass.x": [1]}}, r"has no key `x`; the path goes too deep"),
+    ({"parameters": {"vehicle.mass[0]": [1]}}, r"vehicle\.mass is not a list; drop the \[0\]"),
+    ({"parameters": {"lqr..roll": [1]}}, r"not a key path"),
+    ({"parameters": {"vehicle.inertia": {"from": 1, "to": 2, "num": 2}}}, r"is a list .* index one entry"),
+    ({"parameters": {"vehicle.mass": []}}, r"parameters\.vehicle\.mass: empty list; give at least one value"),
+    ({"parameters": {"vehicle.mass": {"from": 0.06, "to": 0.07, "num": 0}}},
+     r"vehicle\.mass\.num = 0: empty range; num must be a whole number >= 1"),
+    ({"parameters": {"vehicle.mass": {"from": 0, "to": 0.07, "num": 3, "scale": "log"}}},
+     r"a log range needs from and to > 0"),
+    ({"parameters": {"vehicle.mass": {"distribution": "normal", "mean": 0.07, "std": 0.01}}},
+     r"a distribution needs mode: random"),
+    ({"mode": "random", "samples": 5, "parameters": {"vehicle.mass": {"distribution": "uniform", "low": 2,
+                                                                      "high": 1}}},
+     r"empty range: low 2 must be below high 1"),
+    ({"mode": "random", "parameters": {"vehicle.mass": [1]}}, r"samples: random mode needs the number of cases"),
+    ({"mode": "grd", "parameters": {"vehicle.mass": [1]}}, r"mode: \"grd\" is not a mode; use grid or random"),
+    ({"paramters": {"vehicle.mass": [1]}}, r"paramters: unknown key; did you mean `parameters`\?"),
+    ({"parameters": {}}, r"parameters: nothing to vary"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"settling_time.pd": {"max": 1}}},
+     r"gates\.settling_time\.pd: unknown metric; did you mean `settling_time\.pD`\?"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"settling_time.pN": {"max": 1}}},
+     r"pN is not regulated, so it has no settling time; regulated states: pD, u,"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"peak.T": {"maks": 1}}},
+     r"gates\.peak\.T\.maks: unknown key; did you mean `max`\?"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"peak.T": {"min": 2, "max": 1}}},
+     r"min 2 is above max 1; no case can pass"),
+])
+def test_sweep_file_errors_name_the_key_and_the_fix(cfg, data, message):
+    with pytest.raises(SweepError, match=message) as info:
+        sweep.from_dict(data, cfg, "s.yaml")
+    text = str(info.value)
+    assert text.startswith("s.yaml: ") and "\n" not in text
+
+
+@pytest.mark.parametrize("data,message", [
+    ({"mode": "grid", "samples": 10, "parameters": {"vehicle.mass": [0.06, 0.07]}},
+     r"^s\.yaml: samples: 10: a grid runs every combination of the parameters' values and takes no samples; "
+     r"remove it, or set mode: random to draw that many cases$"),
+    ({"samples": 10, "parameters": {"vehicle.mass": [0.06, 0.07]}}, r"^s\.yaml: samples: 10: a grid runs every"),
+    ({"seed": 3, "parameters": {"vehicle.mass": [0.06, 0.07]}},
+     r"^s\.yaml: seed: 3: a grid .* takes no seed; remove it, or set mode: random to draw its cases from that seed$"),
+], ids=["grid with samples", "samples, grid by default", "grid with a seed"])
+def test_a_grid_refuses_samples_and_seed(cfg, data, message):
+    """docs/guide/sweeps.md says a grid takes no samples, seed or distributions; samples: 10 ran silently."""
+    with pytest.raises(SweepError, match=message):
+        sweep.from_dict(data, cfg, "s.yaml")
+
+
+@pytest.mark.parametrize("path,section", [("simulation.noise.seed", "simulation.noise"),
+                                          ("simulation.wind.turbulence.seed", "simulation.wind")])
+def test_a_path_into_a_section_the_config_leaves_out_says_to_add_it(path, section):
+    """hover has no noise nor wind: it said "simulation.noise = null has no key `seed`; the path goes too deep"."""
+    hover = config.load("hover")
+    assert getattr(hover.simulation, section.split(".")[1]) is None
+    with pytest.raises(SweepError, match=rf"^s\.yaml: parameters\.{re.escape(path)}: the config has no "
+                                         rf"`{re.escape(section)}` section \(it is null\); add a "
+                                         rf"`{re.escape(section)}:` section to the config, or give it under the "
+                                         rf"sweep's `set:`, to vary its keys$"):
+        sweep.from_dict({"parameters": {path: [1, 2]}}, hover, "s.yaml")
+
+
+def test_missing_sweep_file_and_yaml_errors(cfg, tmp_path):
+    with pytest.raises(SweepError, match=r"no such sweep file; check the path"):
+        sweep.load(tmp_path / "nope.yaml", cfg)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("parameters:\n  vehicle.mass: [1, 2\n")
+    with pytest.raises(SweepError, match=r"YAML syntax error at line \d+, column \d+"):
+        sweep.load(bad, cfg)
+
+
+def test_initial_offset_of_another_state_is_a_valid_key(cfg):
+    spec = spec_of(cfg, parameters={"simulation.initial_offset.q": [0.0, 0.1]})
+    assert spec.parameters[0].keys == ("simulation", "initial_offset", "q")
+
+
+def test_assign_copies_only_the_path(cfg):
+    base = cfg.model_dump(mode="json")
+    new = sweep.assign(base, ("lqr", "roll", "Q", 1), 7.0)
+    assert new["lqr"]["roll"]["Q"] == [1.0, 7.0, 1.0]
+    assert base["lqr"]["roll"]["Q"] == [1.0, 50.0, 1.0]
+    assert new["vehicle"] is base["vehicle"]
+
+
+# ---------------------------------------------------------------------------------------
+# Batched numerics against their one-case references
+
+
+def _random_stabilizable(rng, n, m):
+    while True:
+        A = rng.normal(size=(n, n))
+        B = rng.normal(size=(n, m))
+        ctrb = np.hstack([np.linalg.matrix_power(A, k) @ B for k in range(n)])
+        if np.linalg.matrix_rank(ctrb) == n:
+            return A, B
+
+
+@pytest.mark.parametrize("n,m", [(1, 1), (2, 1), (3, 1), (3, 2), (4, 2)])
+def test_batched_riccati_agrees_with_scipy_and_solves_the_equation(n, m):
+    rng = np.random.default_rng(n * 10 + m)
+    N = 60
+    systems = [_random_stabilizable(rng, n, m) for _ in range(N)]
+    A = np.stack([s[0] for s in systems])
+    B = np.stack([s[1] for s in systems])
+    L = rng.normal(size=(N, n, n))
+    Q = L @ L.transpose(0, 2, 1) + 1e-3 * np.eye(n)
+    M = rng.normal(size=(N, m, m))
+    R = M @ M.transpose(0, 2, 1) + 0.1 * np.eye(m)
+    res = care_batch(A, B, Q, R)
+    assert res.ok.all()
+    worst = 0.0
+    for k in range(N):
+        P = scipy.linalg.solve_continuous_are(A[k], B[k], Q[k], R[k])
+        worst = max(worst, np.abs(res.P[k] - P).max() / np.abs(P).max())
+        ours = riccati_residual(A[k], B[k], Q[k], R[k], res.P[k])
+        assert ours == pytest.approx(res.residual[k], rel=1e-6, abs=1e-18)
+        # never worse than SciPy's own solution by more than round-off
+        assert ours <= 10 * riccati_residual(A[k], B[k], Q[k], R[k], P) + 1e-14
+        assert np.all(np.linalg.eigvals(A[k] - B[k] @ res.K[k]).real < 0)
+    # random draws include nearly uncontrollable pairs (P ~ 1e6): both solvers then carry
+    # residuals ~1e-11 and their P differ in the 9th digit; well-conditioned ones agree to 1e-13
+    assert worst < 1e-7, f"Max diff is {worst:.4E}"
+    assert res.residual.max() <= 1e-10
+
+
+def test_batched_riccati_on_the_report_subsystems(forward):
+    _, _, _, dec, des = forward
+    for sub in des.subsystems:
+        A, B = dec[sub.name].A, dec[sub.name].B
+        res = care_batch(A[None], B[None], sub.Q[None], sub.R[None])
+        assert res.ok[0]
+        np.testing.assert_allclose(res.K[0], sub.K, rtol=1e-9)
+        np.testing.assert_allclose(res.P[0], sub.P, rtol=1e-9, atol=1e-12 * np.abs(sub.P).max())
+
+
+def test_batched_riccati_scalar_integrator_closed_form():
+    # x' = u: P = sqrt(q r), K = sqrt(q / r) (python-control's hand-derived case)
+    q = np.array([1.0, 4.0, 9.0, 100.0])
+    r = np.array([1.0, 2.0, 0.5, 4.0])
+    res = care_batch(np.zeros((4, 1, 1)), np.ones((4, 1, 1)), q[:, None, None], r[:, None, None])
+    np.testing.assert_allclose(res.P.ravel(), np.sqrt(q * r), rtol=1e-14)
+    np.testing.assert_allclose(res.K.ravel(), np.sqrt(q / r), rtol=1e-14)
+
+
+def test_batched_riccati_flags_what_has_no_stabilizing_solution():
+    # an unstable mode no input reaches, and a marginal mode Q does not see
+    A = np.array([[[1.0, 0.0], [0.0, -1.0]], [[0.0, 1.0], [0.0, 0.0]]])
+    B = np.array([[[0.0], [1.0]], [[0.0], [1.0]]])
+    Q = np.array([np.eye(2), np.zeros((2, 2))])
+    R = np.ones((2, 1, 1))
+    res = care_batch(A, B, Q, R)
+    assert not res.ok.any()
+    for k in range(2):
+        with pytest.raises(DesignError):
+            lqr(A[k], B[k], Q[k], R[k])
+
+
+def test_summary_matches_metrics_summarize(forward):
+    setup, trim, linear, _, des = forward
+    loop = pipeline.loop_of(setup, linear, des)
+    sim = simulate(loop, setup.initial_state(linear.x_trim), 1.0, "auto")
+    regulated = setup.regulated
+    ref = metrics.summarize(sim, linear.u_trim, des.Q_block, des.R_block, regulated)
+    got = metrics.summarize_run(sim.t, sim.x, sim.u, sim.x_ref, linear.u_trim, des.Q_block, des.R_block,
+                              regulated, sim.status)
+    assert got.keys() == ref.keys()
+    for key in ("settling_time", "overshoot", "peak_error", "final_error", "peak"):
+        assert got[key] == ref[key], key
+    assert got["cost"] == pytest.approx(ref["cost"], rel=1e-12)
+    assert got["status"] == ref["status"]
+    # the reference given by what makes it (x_trim + x_rate t) instead of the array
+    lazy = metrics.summarize_run(sim.t, sim.x, sim.u, (loop.x_trim, loop.x_rate), linear.u_trim, des.Q_block,
+                               des.R_block, regulated, sim.status)
+    for key in ("settling_time", "overshoot", "peak", "status"):
+        assert lazy[key] == got[key], key
+    for key in ("peak_error", "final_error"):
+        assert lazy[key] == pytest.approx(got[key], rel=1e-12, abs=1e-15), key
+
+
+# ---------------------------------------------------------------------------------------
+# Running sweeps
+
+
+BATCHED_CASES = {
+    "forward": ({"lqr.roll.Q[1]": [10, 200], "lqr.altitude.R[0]": [0.3, 3.0], "vehicle.mass": [0.06, 0.075]},
+                SHORT),
+    # discrete design at 200 Hz, rotors, LQI on altitude, noise: the seed and the weights vary
+    "mambo-200hz": ({"lqr.roll.R[0]": [20000, 80000], "lqr.altitude.Q[2]": [0.5, 2.0],
+                     "simulation.noise.seed": [1, 2]}, {"simulation.duration": 0.6}),
+    # the continuous design run at a rate (emulation), rotors, LQI, noise
+    "emulated": ({"lqr.roll.R[0]": [20000, 80000], "controller.rate": [200.0, 400.0]},
+                 {"simulation.duration": 0.6, "controller.design": "continuous"}),
+    # rotor dynamics: the lag is a constant of the lanes (and its RK4 step is each case's)
+    "rotor lag": ({"motors.time_constant": [0.01, 0.03], "lqr.roll.R[0]": [20000, 80000]},
+                  {"simulation.duration": 0.6}),
+    # delay: the buffer's length is a spec field (one lane group per delay)
+    "delay": ({"controller.delay": [0.0, 0.005, 0.01], "lqr.roll.R[0]": [20000, 80000]},
+              {"simulation.duration": 0.6}),
+    # runs that end between two controller samples, in lanes beside longer ones: the last record
+    # holds the input the case applied, not the one its finished lane goes on computing
+    # the rotors' saturation rule is the lanes' structure: each rule its own lanes, the rows the pipeline's
+    "saturation rules": ({"motors.saturation": ["clip", "prioritize"], "motors.max_thrust": [0.2, 0.33]},
+                         {"simulation.duration": 1.0,
+                          "simulation.initial_offset": {"pD": 1.0, "phi": 0.4, "psi": 0.8}}),
+    "ends between samples": ({"controller.rate": [200.0, 300.0], "lqr.roll.R[0]": [20000, 80000]},
+                             {"simulation.duration": 0.501}),
+    # the gyro filter: its order is the lanes' structure, its coefficients each case's constants
+    "gyro filter": ({"controller.filters.gyro.cutoff": [20.0, 40.0], "lqr.roll.R[0]": [20000, 80000]},
+                    {"simulation.duration": 0.4, "controller.filters": {"gyro": {"cutoff": 30.0}}}),
+    # controller.flies: pid: each case's cascade (its values, its plant) in the lanes, at the cascade's rate
+    # (500 Hz, the noise on its clock, as simulate flies it), not the LQR design
+    "pid cascade": ({"controller.pid.values.rate_roll_kp": [200.0, 250.0], "vehicle.mass": [0.0578, 0.0782]},
+                    {"simulation.duration": 0.6, "controller.flies": "pid",
+                     "controller.pid": {"preset": "crazyflie", "values": {"rate_roll_kp": 250.0}}}),
+}
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in ("emulated", "rotor lag", "delay")
+                                  else n for n in BATCHED_CASES])  # their loops: tests/sim/test_engine.py's lanes
+def test_batched_path_matches_the_pipeline(name):
+    """Every config simulate accepts runs in the lanes, and its rows are the one-by-one path's."""
+    cfg = config.load(name if name in ("forward", "mambo-200hz") else "mambo-200hz")
+    parameters, fixed = BATCHED_CASES[name]
+    spec = spec_of(cfg, parameters=parameters, set=fixed, gates={"peak.T": {"max": 3.0}})
+    fast = sweep.run(cfg, spec, jobs=1)
+    slow = sweep.run(cfg, spec, jobs=1, fast=False)
+    assert fast.stats["backend"] == ["compiled-simd"] and slow.stats["backend"] == ["compiled"]
+    assert {r["path"] for r in fast.rows} == {"batched"} and {r["path"] for r in slow.rows} == {"one-by-one"}
+    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert worst < MATCH_RTOL, f"Max diff is {worst:.4E} at {where}"
+    assert {r["status"] for r in fast.rows} == {"ok"}
+
+
+def test_failed_cases_are_rows_with_their_reason(cfg):
+    spec = spec_of(cfg, parameters={"lqr.yaw.Q[0]": [0.0, 50.0], "vehicle.mass": [-0.01, 0.068]},
+                   set={**SHORT, "lqr.yaw.Q[1]": 0.0})
+    result = sweep.run(cfg, spec, jobs=1)
+    by_values = {r["case"]: r for r in result.rows}
+    # Q = 0 on yaw: its double integrator is invisible to the cost, no stabilizing solution
+    assert by_values[1]["status"] == "design_failed"
+    assert "subsystem yaw" in by_values[1]["reason"]
+    # a negative mass is not a valid config: the case says which key and why
+    assert by_values[0]["status"] == "invalid_config"
+    assert "case 0: vehicle.mass = -0.01" in by_values[0]["reason"]
+    assert by_values[3]["status"] == "ok" and by_values[3]["pass"]
+    assert [r["pass"] for r in result.rows] == [False, False, False, True]
+    assert result.stats["fallbacks"] == 1
+
+
+def test_a_step_rk4_cannot_hold_is_a_row(cfg):
+    spec = spec_of(cfg, parameters={"lqr.roll.R[0]": [1.0]}, set={**SHORT, "simulation.dt": 0.001})
+    row = sweep.run(cfg, spec, jobs=1).rows[0]
+    assert row["status"] == "step_refused" and "is unstable for RK4" in row["reason"] and not row["pass"]
+
+
+def test_gates_and_ranking(cfg):
+    spec = spec_of(cfg, parameters={"lqr.altitude.R[0]": [0.2, 1.0, 5.0]},
+                   gates={"peak.T": {"max": 3.0}, "stable": {"equals": True}})
+    result = sweep.run(cfg, spec, jobs=1)
+    peaks = [r["peak.T"] for r in result.rows]
+    assert peaks[0] > peaks[1] > peaks[2]            # cheaper thrust, gentler thrust
+    assert [r["pass"] for r in result.rows] == [p <= 3.0 for p in peaks]
+    assert result.ranked()[0]["case"] == 0           # the worst: the largest peak
+    assert "peak.T <= 3 (got" in result.rows[0]["failed_gates"]
+
+
+@pytest.mark.parametrize("gates, slacks, worst", [
+    # hand-computed relative slacks: (value - min) / |min| and (max - value) / |max|, the smallest of a row's
+    ({"eig.slowest": {"min": -4.0}}, [(-1.0 + 4.0) / 4.0, (-3.0 + 4.0) / 4.0], 1),
+    ({"peak.T": {"min": 0.5}}, [(0.7 - 0.5) / 0.5, (0.9 - 0.5) / 0.5], 0),
+    ({"peak.T": {"min": 0.5, "max": 0.8}}, [min(0.4, (0.8 - 0.7) / 0.8), min(0.8, (0.8 - 0.9) / 0.8)], 1),
+])
+def test_rows_rank_by_their_hand_computed_slack_on_min_and_max_bounds(gates, slacks, worst):
+    """Two rows inside (or outside) a ``min`` bound: the one nearer the bound ranks worse. The rows'
+    ``eig.slowest`` are -1 and -3 rad/s, their ``peak.T`` 0.7 and 0.9 N."""
+    from quadctl.sweep.gates import Gate, margin
+    from quadctl.sweep.runner import SweepResult
+
+    rows = [{"case": 0, "status": "ok", "stable": True, "eig.slowest": -1.0, "peak.T": 0.7},
+            {"case": 1, "status": "ok", "stable": True, "eig.slowest": -3.0, "peak.T": 0.9}]
+    parsed = tuple(Gate(metric=m, **bounds) for m, bounds in gates.items())
+    for row, want in zip(rows, slacks):
+        assert margin(row, parsed, True) == pytest.approx(want, rel=1e-12)
+        assert parsed[0].passes(row[parsed[0].metric]) == (want >= 0)
+    result = SweepResult(rows=rows, columns=[], computed=2, wall_time=0.0, stats={}, gates=parsed)
+    assert [r["case"] for r in result.ranked()] == [worst, 1 - worst]
+
+
+def test_local_processes_give_the_same_rows(cfg):
+    spec = spec_of(cfg, mode="random", samples=20, seed=3, chunk_size=8,
+                   parameters={"lqr.pitch.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}})
+    one = sweep.run(cfg, spec, jobs=1)
+    two = sweep.run(cfg, spec, jobs=2)
+    assert two.stats["executor"] == "local processes (2)"
+    assert one.rows == two.rows
+
+
+def test_dask_local_cluster_gives_the_same_rows(cfg):
+    distributed = pytest.importorskip("distributed")
+    spec = spec_of(cfg, mode="random", samples=12, seed=5, chunk_size=8,
+                   parameters={"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}})
+    local = sweep.run(cfg, spec, jobs=1)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        remote = sweep.run(cfg, spec, scheduler=cluster.scheduler_address)
+    assert remote.stats["executor"].startswith("dask tcp://127.0.0.1:")
+    assert remote.rows == local.rows
+
+
+# ---------------------------------------------------------------------------------------
+# The run directory and resume
+
+
+class _Stop(KeyboardInterrupt):
+    pass
+
+
+def test_resume_keeps_finished_rows_and_computes_only_the_rest(cfg, tmp_path, monkeypatch):
+    spec = spec_of(cfg, mode="random", samples=24, seed=11, chunk_size=8,
+                   parameters={"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500},
+                               "vehicle.mass": {"distribution": "uniform", "low": 0.06, "high": 0.075}},
+                   gates={"settling_time.phi": {"max": 0.1}})
+    sweep.execute(cfg, spec, tmp_path / "full", jobs=1)
+
+    def stop_after_first(done, total):
+        if done >= 8:
+            raise _Stop()
+
+    with pytest.raises(_Stop):
+        sweep.execute(cfg, spec, tmp_path / "cut", jobs=1, progress=stop_after_first)
+    parts = sorted((tmp_path / "cut" / sweep.PARTS).glob("chunk-*.json"))
+    assert [p.name for p in parts] == ["chunk-0000000.json"]
+    assert not (tmp_path / "cut" / "sweep.csv").exists()
+
+    computed = []
+    real = sweep.evaluate_chunk
+    monkeypatch.setattr(sweep.runner, "evaluate_chunk", lambda task: computed.extend(i for i, _ in task.cases)
+                        or real(task))
+    resumed = sweep.execute(cfg, spec, tmp_path / "cut", jobs=1, resume=True)
+    assert sorted(computed) == list(range(8, 24))
+    assert resumed.reused == 8 and resumed.result.computed == 16
+    assert (tmp_path / "cut" / "sweep.csv").read_text() == (tmp_path / "full" / "sweep.csv").read_text()
+
+    computed.clear()
+    again = sweep.execute(cfg, spec, tmp_path / "cut", jobs=1, resume=True)
+    assert computed == [] and again.reused == 24
+
+    changed = dataclasses.replace(spec, seed=12, canonical={**spec.canonical, "seed": 12})
+    with pytest.raises(SweepError, match=r"rows of another sweep .* run without --resume"):
+        sweep.execute(cfg, changed, tmp_path / "cut", jobs=1, resume=True)
+
+
+def test_a_killed_sweep_resumes_from_its_journal(tmp_path):
+    """kill -9 a real `quadctl sweep` once it has journaled a chunk; --resume finishes the rest."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    sweep_file = _write(tmp_path / "s.yaml", {
+        "mode": "random", "samples": 160, "seed": 1, "chunk_size": 8,
+        "parameters": {"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}},
+        "set": {"simulation.duration": 1.0}})
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "quadctl", "sweep", "-s", str(sweep_file), "-o", str(out),
+                             "-j", "1"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env={**os.environ, "QUADCTL_CACHE": os.environ["QUADCTL_CACHE"]})
+    deadline = time.monotonic() + 60
+    while not list((out / sweep.PARTS).glob("chunk-*.json")) and time.monotonic() < deadline:
+        time.sleep(0.005)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    kept = list((out / sweep.PARTS).glob("chunk-*.json"))
+    assert 1 <= len(kept) < 20, "the sweep must be stopped part-way for this test to mean anything"
+    assert not (out / "sweep.csv").exists()
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(out), "-j", "1", "--resume", "--json"])
+    assert res.exit_code == 0, res.output
+    perf = json.loads(res.stdout)["performance"]
+    assert perf["resumed"] == 8 * len(kept) and perf["computed"] == 160 - 8 * len(kept)
+    full = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "full"), "-j", "1"])
+    assert full.exit_code == 0
+    assert (out / "sweep.csv").read_text() == (tmp_path / "full" / "sweep.csv").read_text()
+
+
+def test_outputs_table_summary_and_plot(cfg, tmp_path):
+    spec = spec_of(cfg, parameters={"lqr.altitude.R[0]": [0.2, 5.0]}, gates={"peak.T": {"max": 3.0}})
+    outcome = sweep.execute(cfg, spec, tmp_path, jobs=1)
+    with open(tmp_path / "sweep.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    header = list(table[0])
+    assert header[:2] == ["case", "lqr.altitude.R[0]"]
+    assert header[-4:] == ["pass", "failed_gates", "reason", "path"]
+    assert header.index("stable") < header.index("peak.T") < header.index("pass")
+    assert [row["pass"] for row in table] == ["false", "true"]
+    summary = json.loads((tmp_path / "sweep.json").read_text())
+    assert summary["config_hash"] == cfg.digest()
+    assert summary["cases"] == 2 and summary["failed"] == 1 and not summary["ok"]
+    assert summary["gates"]["peak.T"]["failed"] == 1
+    assert summary["worst"][0]["case"] == 0
+    assert summary["sweep_digest"] == spec.digest(cfg)
+    assert (tmp_path / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert outcome.summary["ok"] is False
+    assert not spec.monte_carlo and not (tmp_path / "montecarlo.png").exists()
+
+
+# ---------------------------------------------------------------------------------------
+# The command
+
+
+runner = CliRunner()
+
+
+def _write(path: Path, data: dict) -> Path:
+    path.write_text(json.dumps(data))  # JSON is YAML
+    return path
+
+
+def test_cli_gate_pass_exits_0(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [25, 50]}, "set": SHORT,
+                                              "gates": {"peak.T": {"max": 10.0}}})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out"), "-j", "1"])
+    assert res.exit_code == 0, res.output
+    assert "all pass" in res.output and "M RK4 steps/s" in res.output
+    assert (tmp_path / "out" / "sweep.csv").exists()
+
+
+def test_cli_line_names_the_integrator_the_lanes_ran(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [25, 50]},
+                                              "set": {**SHORT, "simulation.method": "etdrk4"}})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out"), "-j", "1", "--no-plot"])
+    assert res.exit_code == 0, res.output
+    assert "M ETDRK4 steps/s" in res.output and "RK4 steps/s" not in res.output.replace("ETDRK4", "")
+
+
+def test_cli_gate_failure_exits_1_and_lists_the_worst(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.altitude.R[0]": [0.2, 1.0, 5.0]},
+                                              "set": SHORT, "gates": {"peak.T": {"max": 3.0}}})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out"), "-j", "1"])
+    assert res.exit_code == 1
+    assert "quadctl: check failed: 2 of 3 cases fail: peak.T (2); worst cases: 0, 1" in res.output
+    assert "case 0: peak.T <= 3 (got" in res.output
+
+
+def test_cli_json_output_is_parseable_and_no_plot_draws_no_figure(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [50]}, "set": SHORT})
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "sweep.png").write_bytes(b"an earlier run's figure")
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(out), "-j", "1", "--json", "--no-plot"])
+    assert res.exit_code == 0
+    payload = json.loads(res.stdout)
+    assert payload["cases"] == 1 and payload["performance"]["simulated_steps"] > 0
+    assert "plot" not in payload["files"] and not (out / "sweep.png").exists()  # not mistaken for this run's
+    assert (out / "sweep.csv").exists() and json.loads((out / "sweep.json").read_text())["cases"] == 1
+
+
+@pytest.mark.parametrize("data,code,message", [
+    ({"parameters": {"lqr.roll.Q[7]": [1]}}, 2, "index 7 out of range"),
+    ({"parameters": {"vehicle.mass": [0.07]}, "gates": {"peak.X": {"max": 1}}}, 2, "unknown metric"),
+])
+def test_cli_bad_sweep_file_exits_2_with_one_line(tmp_path, data, code, message):
+    sweep_file = _write(tmp_path / "s.yaml", data)
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(tmp_path / "out")])
+    assert res.exit_code == code
+    assert message in res.output and "Traceback" not in res.output
+
+
+def test_cli_jobs_and_scheduler_together_is_bad_input(tmp_path):
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"vehicle.mass": [0.07]}})
+    res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-j", "2", "--scheduler", "tcp://127.0.0.1:1"])
+    assert res.exit_code == 2
+    assert "--jobs and --scheduler: give one" in res.output
+
+
+def test_ci_example_passes_on_the_bundled_design(tmp_path):
+    cfg = config.load("forward")
+    spec = sweep.load(ROOT / "examples" / "ci-sweep.yaml", cfg)
+    result = sweep.run(cfg, spec, jobs=1)
+    assert len(result.rows) == 27
+    assert all(r["pass"] for r in result.rows), [r["failed_gates"] for r in result.rows if not r["pass"]]
+
+
+def test_a_range_of_seeds_gives_whole_numbers_where_the_config_holds_one():
+    """Ranges are floats; an integer config key (a noise seed) gets the integer."""
+    from quadctl.sweep import assign
+
+    tree = {"simulation": {"noise": {"seed": 1}, "duration": 2.0}}
+    assert assign(tree, ("simulation", "noise", "seed"), 4.0)["simulation"]["noise"]["seed"] == 4
+    assert type(assign(tree, ("simulation", "noise", "seed"), 4.0)["simulation"]["noise"]["seed"]) is int
+    assert assign(tree, ("simulation", "duration"), 3.0)["simulation"]["duration"] == 3.0
+    assert assign(tree, ("simulation", "noise", "seed"), 4.5)["simulation"]["noise"]["seed"] == 4.5  # refused later
+
+
+# ---------------------------------------------------------------------------------------
+# Monte Carlo over noise seeds
+
+
+MC_SWEEP = {"parameters": {"simulation.noise.seed": [1, 2, 3, 4]}, "set": {"simulation.duration": 0.5},
+            "chunk_size": 2}
+"""Four seeds of mambo-200hz, 0.5 s each (the roll and pitch transients and a hundred noise draws)."""
+
+
+@pytest.fixture(scope="module")
+def mambo():
+    return config.load("mambo-200hz")
+
+
+def test_only_a_sweep_of_the_noise_seed_is_a_monte_carlo(mambo):
+    assert sweep.from_dict(MC_SWEEP, mambo, "mc.yaml").monte_carlo
+    mixed = {**MC_SWEEP, "parameters": {**MC_SWEEP["parameters"], "vehicle.mass": [0.068]}}
+    assert not sweep.from_dict(mixed, mambo, "mc.yaml").monte_carlo
+
+
+def test_monte_carlo_bands_are_ordered_percentiles_of_the_kept_trajectories(mambo, tmp_path):
+    from quadctl import artifacts
+
+    spec = sweep.from_dict(MC_SWEEP, mambo, "mc.yaml")
+    outcome = sweep.execute(mambo, spec, tmp_path, jobs=2)  # the trajectories come back from workers
+    assert sorted(outcome.result.traces) == [0, 1, 2, 3]
+    arrays, meta = artifacts.read_npz(tmp_path / "montecarlo.npz")
+    bands, traces, states = arrays["bands"], arrays["traces"], list(arrays["states"])
+    assert list(arrays["percentiles"]) == [5, 25, 50, 75, 95]
+    assert bands.shape == (5, sweep.MC_POINTS, len(states)) == (5, *traces.shape[1:])
+    assert states == sweep.regulated_states(mambo) and meta["left_out"] == []
+    assert np.all(np.diff(bands, axis=0) >= 0), "p5 <= p25 <= p50 <= p75 <= p95 at every time and state"
+    np.testing.assert_allclose(bands[2], np.median(traces.astype(np.float64), axis=0), rtol=0, atol=1e-15)
+    # physics: every seed starts at the configured offset, and the noise makes the seeds differ
+    offset = mambo.simulation.initial_offset
+    for name, value in offset.items():
+        assert traces[:, 0, states.index(name)] == pytest.approx(value, rel=1e-6)
+    assert np.ptp(traces[:, -1, :], axis=0).min() > 0
+    assert (tmp_path / "montecarlo.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert outcome.summary["montecarlo"]["cases"] == 4
+    assert outcome.summary["files"]["montecarlo"] == ["montecarlo.png", "montecarlo.npz"]
+
+
+def test_a_resumed_monte_carlo_reads_the_trajectories_from_its_journal(mambo, tmp_path):
+    spec = sweep.from_dict(MC_SWEEP, mambo, "mc.yaml")
+    sweep.execute(mambo, spec, tmp_path / "full", jobs=1)
+
+    def stop_after_first(done, total):
+        if done >= 2:
+            raise _Stop()
+
+    with pytest.raises(_Stop):
+        sweep.execute(mambo, spec, tmp_path / "cut", jobs=1, progress=stop_after_first)
+    resumed = sweep.execute(mambo, spec, tmp_path / "cut", jobs=1, resume=True)
+    assert resumed.reused == 2 and sorted(resumed.result.traces) == [2, 3]
+    assert (tmp_path / "cut" / "montecarlo.npz").read_bytes() == (tmp_path / "full" / "montecarlo.npz").read_bytes()
+
+
+def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
+    """A sweep gives cases of one lane structure (batched._structure) the constants and initial
+    state of the first, with only the gains rewritten: so a change in any other field of the loop must
+    give another structure. Each field of ClosedLoop but the gains and the spectrum, changed alone."""
+    from dataclasses import fields, replace
+    from types import SimpleNamespace
+
+    from _solve import cfg_dict, solve
+
+    from quadctl.config.pid import resolve
+    from quadctl.design.gain_table import GainTable
+    from quadctl.linear.filters import rate_filter_of
+    from quadctl.sweep import batched
+
+    data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include", "delay": {"samples": 1}})
+    data["motors"]["time_constant"] = 0.03
+    data["estimator"] = {"measure": ["imu", "mocap"]}
+    measured = ("pN", "pE", "pD", "phi", "theta", "psi", "p", "q", "r")
+    data["simulation"]["noise"] = {"seed": 1, "force": [0.01] * 3, "torque": [1e-5] * 3,
+                                   "sensor": {s: 0.01 for s in measured}}
+    setup, _, linear, _, des = solve(data)
+    loop = pipeline.loop_of(setup, linear, des)
+    assert loop.Kv is not None and loop.estimator is not None and loop.integral_states and loop.delay_samples
+
+    def key(lp):
+        return batched._structure(lp, (True, False, 1.0), batched._Seen())[0]
+
+    changed = {"params": loop.params * 1.01, "x_trim": loop.x_trim + 1e-3, "u_trim": loop.u_trim * 1.01,
+               "x_rate": loop.x_rate + 1e-3, "rate": 400.0, "integral_states": ("pN",),
+               "actuators": replace(loop.actuators), "open_loop_eigenvalues": loop.open_loop_eigenvalues * 2,
+               "delay_samples": 2, "lag_model_time_constant": 0.05, "estimator": replace(loop.estimator),
+               "schedule": GainTable.of("speed", [0.0, 1.0], np.stack([loop.K, loop.K])),
+               "schedule_heading": 0.5, "schedule_eigenvalues": np.array([-1.0 + 0j]),
+               "schedule_jacobians": (np.zeros((2, 12, 12)), np.zeros((2, 12, 4))),
+               "law": resolve("crazyflie"),
+               "rate_filter": rate_filter_of(SimpleNamespace(gyro=SimpleNamespace(cutoff=30.0, order=2),
+                                                             notch=None))}
+    structural = {f.name for f in fields(loop)} - set(batched.PER_CASE)
+    assert structural == set(changed), "a new ClosedLoop field: add a change of it here"
+    for name, value in changed.items():
+        assert key(replace(loop, **{name: value})) != key(loop), name
+    same = replace(loop, K=loop.K * 2, Ki=loop.Ki * 2, Kv=loop.Kv * 2, eigenvalues=loop.eigenvalues * 2, owners=[])
+    assert key(same) == key(loop)
+
+
+def test_a_sweep_into_a_pipe_draws_no_progress_bar(tmp_path):
+    """stderr not a terminal (a CI log, `2> file`): the summary line on stdout only, no bar frames."""
+    import subprocess
+    import sys
+
+    sweep_file = _write(tmp_path / "s.yaml", {"parameters": {"lqr.roll.Q[1]": [25, 50]}, "set": SHORT})
+    proc = subprocess.run([sys.executable, "-m", "quadctl", "sweep", "-s", str(sweep_file), "-o", str(tmp_path / "o"),
+                           "-j", "1", "--no-plot"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "all pass" in proc.stdout
+    assert proc.stderr == ""
+
+
+@pytest.mark.compiler
+def test_a_chunk_mixing_designs_with_and_without_the_rotor_lag_designs_each_as_the_pipeline():
+    """Cases whose design includes the rotors' lag (designed one by one) between cases batched in one
+    chunk, each with its own weights: the batched ones still solve their own problems (path
+    ``batched``), and every row is the one-by-one path's."""
+    cfg = config.load("mambo-200hz")
+    spec = spec_of(cfg, mode="random", samples=8, seed=3, chunk_size=8,
+                   parameters={"controller.rotor_lag": {"distribution": "choice", "values": ["include", "ignore"]},
+                               "lqr.roll.R[0]": {"distribution": "loguniform", "low": 20000, "high": 80000}},
+                   set={"simulation.duration": 0.3, "motors.time_constant": 0.02})
+    lags = [c.values[0] for c in spec.cases()]
+    assert lags.index("include") < len(lags) - 1 - lags[::-1].index("ignore")  # a lag case before a batched one
+    fast = sweep.run(cfg, spec, jobs=1)
+    slow = sweep.run(cfg, spec, jobs=1, fast=False)
+    for row, lag in zip(fast.rows, lags):
+        assert row["path"] == ("batched" if lag == "ignore" else "one-by-one: the design includes the rotors' lag")
+    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert worst < MATCH_RTOL, f"Max diff is {worst:.4E} at {where}"
+
+
+# ---------------------------------------------------------------------------------------
+# set: makes the section its parameters vary, and sets a section whole
+
+MISSION = {"waypoints": [{"position": [0.3, 0.0, -1.0]}], "tolerance": 0.05}
+
+
+@pytest.fixture(scope="module")
+def square_without_mission():
+    from quadctl import overrides
+
+    return overrides.load(config.bundled("square"), ["simulation.reference=null"])
+
+
+def test_set_makes_the_section_its_parameters_vary(square_without_mission):
+    """The config has no mission: set: gives one, the parameters vary its speed (a key set: leaves to
+    its default), a gate reads its waypoints; each row is the one-case run of the same config."""
+    from quadctl import overrides
+    from quadctl.problem import setup_of
+
+    cfg = square_without_mission
+    spec = sweep.from_dict({"set": {"simulation.reference": MISSION, "simulation.duration": 2.0},
+                            "parameters": {"simulation.reference.speed": [0.5, 1.0]},
+                            "gates": {"waypoints.reached": {"min": 1}}}, cfg, "s.yaml")
+    result = sweep.run(cfg, spec, jobs=1)
+    assert {"tracking.rms", "tracking.peak", "waypoints.reached"} <= set(result.columns)
+    for row in result.rows:
+        assert row["status"] == "ok" and row["pass"] and row["waypoints.reached"] == 1, row
+        one = overrides.load(config.bundled("square"), [f"simulation.reference={json.dumps(MISSION)}",
+                                                        "simulation.duration=2",
+                                                        f"simulation.reference.speed={row['simulation.reference.speed']}"])
+        setup = setup_of(one)
+        track = pipeline.tracking_summary(setup, pipeline.simulation_of(setup, pipeline.Stages(setup).loop))
+        for column, key in (("tracking.rms", "rms"), ("tracking.peak", "peak")):
+            assert row[column] == pytest.approx(track["position_error"][key], rel=MATCH_RTOL, abs=1e-15)
+    assert result.rows[0]["tracking.rms"] < result.rows[1]["tracking.rms"]  # slower flies closer
+
+
+def test_a_mission_set_gives_brings_its_columns_where_only_the_cases_make_it_valid(square_without_mission):
+    """A waypoint 200 m out is past what the config's own 15 s can reach (MAX_REACH), not the cases'
+    30 and 60 s: the mission's columns and gates still come with it."""
+    far = {"waypoints": [{"position": [200.0, 0.0, -1.0]}], "speed": 1.0}
+    data = {"set": {"simulation.reference": far}, "parameters": {"simulation.duration": [30.0, 60.0]},
+            "gates": {"waypoints.reached": {"min": 1}, "tracking.rms": {"max": 1.0}}}
+    spec = sweep.from_dict(data, square_without_mission, "s.yaml")
+    assert {"tracking.rms", "tracking.peak", "waypoints.reached"} <= set(spec.metrics)
+    assert [g.metric for g in spec.gates] == ["waypoints.reached", "tracking.rms"]
+    assert not {"tracking.rms", "waypoints.reached"} & set(sweep.from_dict(
+        {"parameters": {"simulation.duration": [30.0]}}, square_without_mission, "s.yaml").metrics)
+
+
+@pytest.mark.parametrize("fixed,section,expected", [
+    pytest.param({"simulation.initial_offset": {"pN": 0.5}}, ("simulation", "initial_offset"), {"pN": 0.5},
+                 id="a section replaced whole, not merged"),
+    pytest.param({"simulation.initial_offset": {}}, ("simulation", "initial_offset"), {}, id="emptied"),
+    pytest.param({"simulation.wind": {"steady": [1.0, 0.0, 0.0]}}, ("simulation", "wind", "steady"), [1.0, 0.0, 0.0],
+                 id="a section the config leaves out, given whole"),
+    pytest.param({"simulation.wind.steady": [0.0, 2.0, 0.0]}, ("simulation", "wind", "steady"), [0.0, 2.0, 0.0],
+                 id="a section the config leaves out, made by one of its keys"),
+])
+def test_set_may_set_a_section_whole_or_make_it(cfg, fixed, section, expected):
+    from quadctl.sweep.runner import base_of
+
+    spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [10, 50]}, set={**SHORT, **fixed})
+    case = config.from_dict(base_of(cfg, spec), "case")
+    node = case.model_dump(mode="json")
+    for key in section:
+        node = node[key]
+    assert node == expected
+    assert cfg.simulation.initial_offset != {"pN": 0.5} and cfg.simulation.wind is None  # the config had others
+
+
+def test_a_parameter_may_vary_a_key_of_a_section_set_makes(cfg):
+    from quadctl.sweep.runner import base_of
+
+    spec = spec_of(cfg, parameters={"simulation.wind.steady[1]": [1.0, 2.0]},
+                   set={**SHORT, "simulation.wind": {"steady": [3.0, 0.0, 0.0]}})
+    assert spec.parameters[0].keys == ("simulation", "wind", "steady", 1)
+    assert base_of(cfg, spec)["simulation"]["wind"] == {"steady": [3.0, 0.0, 0.0]}
+
+
+@pytest.mark.parametrize("data,message", [
+    ({"parameters": {"simulation.reference.speed": [1, 2]}},
+     r"^s\.yaml: parameters\.simulation\.reference\.speed: the config has no `simulation\.reference` section \(it is "
+     r"null\); add a `simulation\.reference:` section to the config, or give it under the sweep's `set:`, to vary its "
+     r"keys$"),
+    ({"set": {"simulation.reference": {"waypoints": [{"position": [1, 0, -1]}], "sped": 2}},
+      "parameters": {"lqr.roll.Q[0]": [1]}},
+     r"^s\.yaml: set: simulation\.reference\.sped: unknown key; did you mean `speed`\?$"),
+    ({"set": {"simulation.reference.sped": 2}, "parameters": {"lqr.roll.Q[0]": [1]}},
+     r"^s\.yaml: set\.simulation\.reference\.sped: no such key in the config: `simulation\.reference\.sped`; did you "
+     r"mean `speed`\?$"),
+    ({"set": {"simulation.reference": {"waypoints": [{"position": [1, 0, -1]}]}},
+      "parameters": {"simulation.reference.waypoints[0].hod": [1]}},
+     r"^s\.yaml: parameters\.simulation\.reference\.waypoints\[0\]\.hod: no such key in the config: "
+     r"`simulation\.reference\.waypoints\[0\]\.hod`; did you mean `hold`\?$"),
+    ({"set": {"simulation.reference": {"waypoints": [{"position": [1, 0, -1]}]}},
+      "parameters": {"simulation.reference.waypoints[1].hold": [1]}},
+     r"^s\.yaml: parameters\.simulation\.reference\.waypoints\[1\]\.hold: index 1 out of range"),
+    ({"parameters": {"simulation.initial_offset": [{"pN": 1}]}},
+     r"^s\.yaml: parameters\.simulation\.initial_offset: is a section, not a value; name one of its keys: pD, phi, "
+     r"theta, psi, or set it whole under the sweep's `set:`$"),
+    ({"set": {"simulation.reference": {"waypoints": [{"position": [1, 0, -1]}]}},
+      "parameters": {"simulation.reference.waypoints[0]": [1]}},
+     r"^s\.yaml: parameters\.simulation\.reference\.waypoints\[0\]: is a section, not a value; name one of its keys: "
+     r"position, or set it whole under the sweep's `set:`$"),
+])
+def test_set_and_its_sections_errors_name_the_key_and_the_fix(data, message):
+    with pytest.raises(SweepError, match=message):
+        sweep.from_dict(data, config.load("hover"), "s.yaml")
+
+
+def test_margin_columns_are_the_margins_command_s_and_gate_thin_loops():
+    """A gate on margin.gain_db / margin.phase_deg adds the columns: the least margins over the loops that
+    ``quadctl margins`` reports (the rotors' lag in them); the 30 ms lag's thin roll loop fails."""
+    from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG
+    from quadctl.problem import setup_of
+
+    cfg = config.load("mambo-200hz")
+    spec = spec_of(cfg, parameters={"motors.time_constant": [0.01, 0.03]}, set={"simulation.duration": 0.3},
+                   gates={"margin.gain_db": {"min": THIN_GAIN_MARGIN_DB},
+                          "margin.phase_deg": {"min": THIN_PHASE_MARGIN_DEG}})
+    assert "margin.phase_deg" in spec.metrics
+    rows = sweep.run(cfg, spec, jobs=1).rows
+    for row, tau in zip(rows, (0.01, 0.03)):
+        data = cfg.model_dump(mode="json")
+        data["motors"]["time_constant"] = tau
+        st = pipeline.Stages(setup_of(config.from_dict(data)))
+        found = pipeline.margins_of(st.setup, st.linear, st.decoupled, st.design)
+        assert row["margin.phase_deg"] == min(m.phase_margin_deg for m in found)
+        assert row["margin.gain_db"] == min(min(-m.gain_margin_db[0], m.gain_margin_db[1]) for m in found)
+    assert [r["pass"] for r in rows] == [True, False]
+    assert "margin.phase_deg" in rows[1]["failed_gates"]
+    plain = spec_of(cfg, parameters={"motors.time_constant": [0.01]}, set={"simulation.duration": 0.3})
+    assert "margin.phase_deg" not in plain.metrics  # computed only when gated
