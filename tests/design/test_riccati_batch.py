@@ -85,7 +85,7 @@ def test_dare_batch_agrees_with_scipy_and_dlqr(n, m):
         np.testing.assert_allclose(res.K[k], np.linalg.solve(R[k] + B[k].T @ res.P[k] @ B[k],
                                                              B[k].T @ res.P[k] @ A[k] + N[k].T), rtol=1e-10)
         assert res.residual[k] == pytest.approx(dare_residual(A[k], B[k], Q[k], R[k], res.P[k], N[k]),
-                                                rel=1e-9, abs=1e-18)
+                                                rel=1e-9, abs=4 * n * np.finfo(float).eps)  # round-off of a relative residual
         assert np.all(np.abs(np.linalg.eigvals(A[k] - B[k] @ res.K[k])) < 1)
     assert res.residual.max() <= 1e-12
 
