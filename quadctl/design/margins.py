@@ -43,7 +43,7 @@ Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
   phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
 
 With a Kalman filter in the loop (LQG, ``estimator:``), each input's loop is also broken at the plant
-input with the estimator in it (``model = "lqg"``, on the coupled model): the compensator
+input with the estimator (and the gyro filter it measures through, ``controller.filters``) in it (``model = "lqg"``, on the coupled model): the compensator
 ``K (sI - A + BK + LC)^-1 L`` (or its discrete current-estimator equivalent, the law acting on
 ``x_hat + M (y - C x_hat)``) times the plant, the estimator fed the *commanded* input (what the
 flight computer knows), the other loops closed (:func:`lqg_loops`). The LQR guarantee does not
@@ -518,7 +518,9 @@ def lqg_loops(design, A, B, kal):
     ``xc = M C x + (I - M C) x_hat``, ``Kc = [K M C, K (I - M C), Ki]``), the plant given ``c``
     except at the broken input ``j`` (given ``v``), the estimator and the integrators fed ``c`` and
     ``xc``. Positions nothing feeds back are left out in the coordinates ``[x; x - x_hat; z]``
-    (there they drive nothing), as on the full-state coupled loop.
+    (there they drive nothing), as on the full-state coupled loop. With a gyro filter in the Kalman
+    filter's model (``kal.rate_filter``) ``x`` is ``[x; g]``: the filter runs on the plant's rates and the
+    estimator measures its output, so the loop broken at the plant input has both in it.
 
     Parameters
     ----------
@@ -529,7 +531,7 @@ def lqg_loops(design, A, B, kal):
     """
     A = np.asarray(A, dtype=float)
     K, ints = design.K_block, design.integral_states
-    nz, n, Ts = len(ints), N_STATES, kal.sample_time
+    nz, n, Ts = len(ints), kal.n_estimate, kal.sample_time  # n: the 12 states, and the gyro filter's modelled
     Z = np.zeros
     base, Bp, Be, Kc = linear_loop.lqg(design, A, B, kal)
     T = np.eye(2 * n + nz)
