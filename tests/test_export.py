@@ -144,7 +144,7 @@ class Controller:
             _fields_ = [("z", self.real * max(nz, 1)),  # b[], xh[]: a Kalman filter, with and without delay;
                         *([("l", self.real * nl)] if nl else []), *([("b", self.real * nb)] if nb else []),
                         *([("g", self.real * ng)] if ng else []),  # g[]: the gyro filter)
-                        *([("xh", self.real * N_STATES)] if ny else []), ("k", ctypes.c_ulong)]
+                        *([("xh", self.real * exp.loop.spec().n_estimate)] if ny else []), ("k", ctypes.c_ulong)]
 
         self.state = State()
         self.lib.quadctl_init(ctypes.byref(self.state))
@@ -275,10 +275,21 @@ def _mambo_lqg_emulated():
     return data, 200.0
 
 
+def _mambo_lqg_gyro_filtered():
+    """The LQG config with the gyro filtered (second-order low-pass at 30 Hz, a notch at 70 Hz): the Kalman
+    filter's model includes the filter, measures the filtered rates, and estimates the filter's states."""
+    data, _ = _mambo_lqg()
+    data["controller"] = {**data["controller"], "filters": {"gyro": {"cutoff": 30.0, "order": 2},
+                                                            "notch": {"center": 70.0, "bandwidth": 30.0}}}
+    data["simulation"]["duration"] = 1.0  # the rotors clip in its first half second
+    return data, None
+
+
 CASES["mambo-lqg"] = _mambo_lqg
 CASES["mambo-lqg-lag-delayed"] = lambda: _mambo_lqg(delayed=True)
 CASES["mambo-lqg-emulated"] = _mambo_lqg_emulated
-LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed", "mambo-lqg-emulated")
+CASES["mambo-lqg-gyro-filtered"] = _mambo_lqg_gyro_filtered
+LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed", "mambo-lqg-emulated", "mambo-lqg-gyro-filtered")
 
 
 def replay(ctl: Controller, y) -> tuple[np.ndarray, np.ndarray]:
@@ -320,7 +331,7 @@ def test_the_exported_kalman_filter_gives_the_simulated_commands_and_estimates(c
     for single in (False, True):
         commands, estimates = replay(Controller(exp, tmp_path / case, single), y)
         du = np.abs(commands[:len(samples) - n] - applied[n:]).max()
-        dxh = np.abs(estimates[:-1] - prior).max()
+        dxh = np.abs(estimates[:-1, :N_STATES] - prior).max()  # (the gyro filter's estimates after x's)
         if single:
             print(f"{case} float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g}), max |dxh| = {dxh:.3e}")
             assert du <= FLOAT_INPUT_RTOL * terms and dxh <= FLOAT_STATE_TOL, \
@@ -512,7 +523,7 @@ def test_the_lqg_header_documents_the_measurements_and_the_filter(tmp_path):
     for line in ("void quadctl_step(quadctl_controller *c, const quadctl_real y[QUADCTL_NY], "
                  "quadctl_real u[QUADCTL_NU]);", "#define QUADCTL_NY 9", "#define QUADCTL_NB 0",
                  "#define QUADCTL_Y_PN 0  /* pN (m), x[0] */", "#define QUADCTL_Y_PHI 3  /* phi (rad), x[6] */",
-                 "#define QUADCTL_Y_R 8  /* r (rad/s), x[11] */", "quadctl_real xh[QUADCTL_NX];",
+                 "#define QUADCTL_Y_R 8  /* r (rad/s), x[11] */", "quadctl_real xh[QUADCTL_NE];", "#define QUADCTL_NE 12",
                  "MATLAB dlqe's filter form", "xc = xh + M (y - C x_ref(t) - C xh)",
                  "xh <- Ae xc + Be (u_applied - u_trim)"):
         assert line in header, line
