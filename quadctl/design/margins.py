@@ -622,6 +622,8 @@ def lqg_notes(m: LoopMargins, full: LoopMargins | None, kal, delay_samples: int 
         return [f"LQG (Kalman filter on {measured}): the closed loop is UNSTABLE: no margin"]
     notes = ["LQG: the LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg) does not hold with an "
              f"estimator in the loop (Doyle 1978); Kalman filter ({kal.form}) on {measured}"
+             + (f", the rates through the gyro filter ({kal.rate_filter.describe()}) in its model"
+                if kal.rate_filter is not None else "")
              + ("; meets it anyway" if m.meets_lqr_guarantee else "")]
     if full is not None and full.stable:
         lo, hi = m.gain_margin_db
