@@ -217,6 +217,34 @@ def test_the_lqg_margins_have_the_filter_in_the_loop(filtered_lqg, unfiltered_lq
         assert found[(name, "lqg")].phase_margin_deg < raw[(name, "lqg")].phase_margin_deg, name
 
 
+def test_designing_with_the_filters_states_gives_them_no_gain(filtered_lqg):
+    """Why there is no ``controller.filters.design: include`` (as ``rotor_lag: include``): the filter sits after
+    the plant (:func:`quadctl.linear.filters.series`), so the discrete LQR of a rate's subsystem with the
+    filter's states, unweighted, gives them zero gain (its Riccati solution has zero filter blocks) and the
+    subsystem's states the gains the design has."""
+    from quadctl.design import discrete
+    from quadctl.linear.filters import series
+
+    st = filtered_lqg
+    Ts, form = st.design.sample_time, st.setup.rate_filter.form(st.design.sample_time)
+    solved = []
+    for sub in st.design.subsystems:
+        rates = [i for i, s in enumerate(sub.states) if s in RATE_STATES]
+        if not rates or sub.integral:
+            continue
+        dec = next(d for d in st.decoupled.regulated if d.name == sub.name)
+        Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(dec.A, dec.B, sub.Q, sub.R, Ts, name=sub.name)
+        Aa, Ba = series(Ad, Bd, form, rates)
+        ng = len(Aa) - len(Ad)
+        Qa = np.block([[Qd, np.zeros((len(Ad), ng))], [np.zeros((ng, len(Ad))), np.zeros((ng, ng))]])
+        res = discrete.dlqr(Aa, Ba, Qa, Rd, np.vstack([Nd, np.zeros((ng, Nd.shape[1]))]), name=sub.name)
+        scale = np.abs(res.K).max()
+        assert np.abs(res.K[:, len(Ad):]).max() <= 1e-12 * scale, sub.name
+        np.testing.assert_allclose(res.K[:, :len(Ad)], sub.K, rtol=1e-9, atol=1e-12 * scale, err_msg=sub.name)
+        solved.append(sub.name)
+    assert solved == ["roll", "pitch", "yaw"]
+
+
 # ---------------------------------------------------------------------------------------
 # The bundled config flown
 

@@ -358,9 +358,10 @@ class NotchConfig(_Section):
 class FiltersConfig(_Section):
     """The filters the flight stack runs on its sensors, in the simulated loop, the margins and the C export.
 
-    The LQR is designed without them (on the rigid body, with the rotors' lag when included): a full-state
-    gain on the filter's states would need the raw rates the filter is there to keep out of the law. The
-    margins and the vehicle's loop show what the filters cost. With ``estimator:`` the Kalman filter's
+    The LQR is designed without them (on the rigid body, with the rotors' lag when included): the filter sits
+    after the plant, so the LQR of the model with its states, unweighted, gives them zero gain and the others
+    the gains they had (no ``design: include`` as for the rotors' lag). The margins and the vehicle's loop
+    show what the filters cost. With ``estimator:`` the Kalman filter's
     model includes the gyro filter: it measures the filtered rates and estimates the filter's states too."""
 
     gyro: Optional[LowPassConfig] = Field(None, description=(
