@@ -230,7 +230,6 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
     """
     from quadctl.design import discrete as dsc
     from quadctl.design.riccati import solve
-
     from quadctl.linear.filters import RATE_STATES, filtered_output, series
 
     A, B, G = (np.asarray(M, dtype=float) for M in (A, B, G))

@@ -523,7 +523,8 @@ def test_the_lqg_header_documents_the_measurements_and_the_filter(tmp_path):
     for line in ("void quadctl_step(quadctl_controller *c, const quadctl_real y[QUADCTL_NY], "
                  "quadctl_real u[QUADCTL_NU]);", "#define QUADCTL_NY 9", "#define QUADCTL_NB 0",
                  "#define QUADCTL_Y_PN 0  /* pN (m), x[0] */", "#define QUADCTL_Y_PHI 3  /* phi (rad), x[6] */",
-                 "#define QUADCTL_Y_R 8  /* r (rad/s), x[11] */", "quadctl_real xh[QUADCTL_NE];", "#define QUADCTL_NE 12",
+                 "#define QUADCTL_Y_R 8  /* r (rad/s), x[11] */", "quadctl_real xh[QUADCTL_NE];",
+                 "#define QUADCTL_NE 12",
                  "MATLAB dlqe's filter form", "xc = xh + M (y - C x_ref(t) - C xh)",
                  "xh <- Ae xc + Be (u_applied - u_trim)"):
         assert line in header, line

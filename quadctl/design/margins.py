@@ -43,9 +43,9 @@ Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
   phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
 
 With a Kalman filter in the loop (LQG, ``estimator:``), each input's loop is also broken at the plant
-input with the estimator (and the gyro filter it measures through, ``controller.filters``) in it (``model = "lqg"``, on the coupled model): the compensator
-``K (sI - A + BK + LC)^-1 L`` (or its discrete current-estimator equivalent, the law acting on
-``x_hat + M (y - C x_hat)``) times the plant, the estimator fed the *commanded* input (what the
+input with the estimator (and the gyro filter it measures through, ``controller.filters``) in it
+(``model = "lqg"``, on the coupled model): the compensator ``K (sI - A + BK + LC)^-1 L`` (or its
+discrete current-estimator equivalent, the law acting on ``x_hat + M (y - C x_hat)``) times the plant, the estimator fed the *commanded* input (what the
 flight computer knows), the other loops closed (:func:`lqg_loops`). The LQR guarantee does not
 hold there (Doyle, "Guaranteed margins for LQG regulators", IEEE TAC 23(4), 1978): the notes say by
 how much each margin fell from the full-state loop. The rotors' lag and the delay are not in these
@@ -71,7 +71,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.design import linear_loop
-from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, STATE_INDEX
+from quadctl.layout import INPUT_INDEX, INPUT_UNITS, STATE_INDEX
 from quadctl.stability import free_positions, is_stable
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy

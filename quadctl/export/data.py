@@ -149,9 +149,9 @@ def _estimator_fields(loop) -> list[Field]:
                       "+ L (y - C x_ref(t) - C x_hat); the law acts on x_hat"),
         "coordinates": "x_hat estimates x - x_ref(t) on the linear model about the trim; it starts at 0"
                        + ("" if kal.rate_filter is None else
-                          f"; with the gyro filter ({kal.rate_filter.describe()}) in the model, x_hat = [x - x_ref(t); g]"
-                          " (the 12 states, then the filter's, 'states'), a measured rate is the filtered rate, "
-                          "c g + d r (C's rows read g), and the law acts on the first 12"),
+                          f"; with the gyro filter ({kal.rate_filter.describe()}) in the model, "
+                          "x_hat = [x - x_ref(t); g] (the 12 states, then the filter's, 'states'), a measured rate "
+                          "is the filtered rate, c g + d r (C's rows read g), and the law acts on the first 12"),
         "states": list(kal.state_names),
         "measured": list(kal.measured),
         "measured_index": np.array([STATE_NAMES.index(s) + 1 for s in kal.measured], dtype=float),

@@ -10,8 +10,8 @@ the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the contr
 the ``nz`` integrators of an LQI law, the four states ``l`` of the controller's rotor lag model
 (:attr:`LoopSpec.lag_model`), the ``4 n`` entries of the command buffer of a loop with ``n``
 samples of delay (:attr:`LoopSpec.delay`), the ``3 m`` states ``g`` of the gyro filter
-(:attr:`LoopSpec.filter_order`), then the states ``xh`` of a Kalman filter (LQG: 12, and the gyro filter's ``3 m`` when the loop
-has one, which the Kalman filter's model then includes).
+(:attr:`LoopSpec.filter_order`), then the states ``xh`` of a Kalman filter (LQG: 12, and the gyro
+filter's ``3 m`` when the loop has one, which the Kalman filter's model then includes).
 The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant` states. The control law is
 
     u = sat(u_ref - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,  u_ref = u_trim,

@@ -309,7 +309,7 @@ class ClosedLoop:
                     kal.discrete and not math.isclose(kal.sample_time, 1.0 / self.rate, rel_tol=1e-12)):
                 raise ValueError("the Kalman filter's sample time must be the controller period (or both continuous)")
             if kal.rate_filter != self.rate_filter:
-                raise ValueError("the Kalman filter's model must have the loop's gyro filter (controller.filters) in it")
+                raise ValueError("the Kalman filter's model must have the loop's gyro filter (controller.filters)")
             values.update(Ae=kal.A, Be=kal.B, Le=kal.gain)
         form = self.filter_form
         if form is not None:
