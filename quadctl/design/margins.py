@@ -42,14 +42,15 @@ Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
   ``|1 + L| >= 1`` at every frequency, hence the guarantee: gain margin from -6 dB to infinity,
   phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
 
-With a Kalman filter in the loop (LQG, ``estimator:``), each input's loop is also broken at the plant
-input with the estimator (and the gyro filter it measures through, ``controller.filters``) in it
-(``model = "lqg"``, on the coupled model): the compensator ``K (sI - A + BK + LC)^-1 L`` (or its
+With a Kalman filter in the loop (LQG, ``estimator:``), each input's loop is also broken at the
+plant input with the estimator (and the gyro filter it measures through, ``controller.filters``) in
+it (``model = "lqg"``, on the coupled model): the compensator ``K (sI - A + BK + LC)^-1 L`` (or its
 discrete current-estimator equivalent, the law acting on ``x_hat + M (y - C x_hat)``) times the
-plant, the estimator fed the *commanded* input (what the flight computer knows), the other loops closed (:func:`lqg_loops`). The LQR guarantee does not
-hold there (Doyle, "Guaranteed margins for LQG regulators", IEEE TAC 23(4), 1978): the notes say by
-how much each margin fell from the full-state loop. The rotors' lag and the delay are not in these
-loops (the notes say so when they are configured).
+plant, the estimator fed the *commanded* input (what the flight computer knows), the other loops
+closed (:func:`lqg_loops`). The LQR guarantee does not hold there (Doyle, "Guaranteed margins for
+LQG regulators", IEEE TAC 23(4), 1978): the notes say by how much each margin fell from the
+full-state loop. The rotors' lag and the delay are not in these loops (the notes say so when they
+are configured).
 
 An unstable closed loop has no margin: every margin is reported as zero (gain margins 0 dB,
 phase margin 0 deg, disk margin ``alpha = 0`` with its 0 dB / 0 deg disk) and no frequency, so
