@@ -246,6 +246,50 @@ def test_designing_with_the_filters_states_gives_them_no_gain(filtered_lqg):
 
 
 # ---------------------------------------------------------------------------------------
+# Every runner: the one-case compiled loop, CasADi's virtual machine, the SIMD lanes
+
+
+@pytest.mark.compiler
+def test_every_runner_flies_the_filtered_lqg_loop_alike(filtered_lqg, monkeypatch):
+    """The compiled one-case loop and CasADi's virtual machine agree to round-off on the filtered LQG loop
+    (noise before the filter); four lanes with other gains, Kalman gains and seeds each equal their own
+    one-case run."""
+    from dataclasses import replace
+
+    from _solve import LANE_RTOL, lane_gap, lanes_and_one_case_runs
+
+    from quadctl.sim import engine
+    from quadctl.sim.run import simulate
+
+    setup, loop = filtered_lqg.setup, filtered_lqg.loop
+    x0, duration = setup.initial_state(loop.x_trim), 0.2
+    compiled = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
+    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
+    engine.runner.cache_clear()
+    try:
+        with pytest.warns(engine.CompilerNotice, match="no C compiler found"):
+            interpreted = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
+    finally:
+        engine.runner.cache_clear()
+        monkeypatch.delenv("QUADCTL_NO_COMPILE")
+    assert compiled.backend == "compiled" and interpreted.backend == "casadi"
+    diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max(),
+               np.abs(compiled.x_hat - interpreted.x_hat).max())
+    assert diff < 1e-12, f"Max diff is {diff:.4E}"
+    variants = []
+    for k in range(4):
+        kal = replace(loop.estimator, gain=loop.estimator.gain * (1.0 - 0.02 * k))
+        vk = replace(loop, K=loop.K * (1.0 + 0.05 * k), Ki=loop.Ki * (1.0 + 0.05 * k), estimator=kal)
+        variants.append((vk, replace(setup.noise, seed=setup.noise.seed + k), duration * (1.0 - 0.1 * k)))
+    worst = 0.0
+    start = loop.spec(True).nx - loop.estimator.n_estimate  # the estimate of x: the first 12 of xh
+    for (_, _, xs, us), one in lanes_and_one_case_runs(setup, loop.spec(True), variants):
+        x_hat = one.x_ref + xs[:, start:start + N_STATES]
+        worst = max(worst, lane_gap(xs[:, :N_STATES], one.x), lane_gap(us, one.u), lane_gap(x_hat, one.x_hat))
+    assert worst < LANE_RTOL, f"Max diff is {worst:.4E} of the quantity's size"
+
+
+# ---------------------------------------------------------------------------------------
 # The bundled config flown
 
 
