@@ -787,6 +787,45 @@ def test_the_mat_file_carries_the_kalman_filter_that_gives_the_simulated_estimat
     assert np.ptp(ref.x_hat[:, STATE_INDEX["w"]]) > 0.1  # the unmeasured climb rate is estimated, and moves
 
 
+def test_the_mat_file_of_a_filtered_lqg_loop_reruns_the_gyro_filter_and_the_kalman_filter():
+    """With the gyro filter in the Kalman filter's model, the ``.mat`` file's fields alone (``gyro_filter``'s
+    A, b, c, d on the raw rates; ``estimator``'s Ae, Be, C, gain over ``states``, the 12 and the filter's)
+    rerun both on the measurements simulate's controller saw and give simulate's a priori estimates."""
+    from scipy.io import loadmat
+
+    from quadctl.noise import realize
+
+    exp = prepared("mambo-lqg-gyro-filtered")
+    buf = io.BytesIO()
+    data.write_mat(buf, exp)
+    buf.seek(0)
+    d = loadmat(buf, simplify_cells=True)
+    e, f, kal = d["estimator"], d["gyro_filter"], exp.loop.estimator
+    ne = N_STATES + 3 * len(f["b"])
+    assert e["Ae"].shape == (ne, ne) and e["C"].shape == (9, ne) and len(e["states"]) == ne == kal.n_estimate
+    np.testing.assert_array_equal(e["Ae"], kal.A)
+    setup, loop = exp.setup, exp.loop
+    plan = loop.plan(setup.duration, setup.dt)
+    ref = simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt, noise=setup.noise,
+                   max_samples=plan.n_steps + 1)
+    _, sensor = realize(setup.noise, plan.n_steps, plan.dt)
+    rows = e["measured_index"].astype(int) - 1
+    rates = [STATE_INDEX[r] for r in ("p", "q", "r")]
+    m = len(f["b"])
+    g, xh, worst = np.zeros((3, m)), np.zeros(ne), 0.0
+    for k, i in enumerate(np.arange(0, plan.n_steps, plan.hold)):
+        worst = max(worst, np.abs(xh[:N_STATES] - (ref.x_hat[i] - ref.x_ref[i])).max())
+        x_m = ref.x[i] + sensor[i]
+        raw = x_m[rates].copy()
+        x_m[rates] = g @ f["c"] + f["d"] * raw  # the law's filtered rates
+        g = g @ f["A"].T + np.outer(raw, f["b"])
+        y = (x_m - (d["x_trim"] + d["x_rate"] * k * d["Ts"]))[rows]
+        xc = xh + e["gain"] @ (y - e["C"] @ xh)
+        xh = e["Ae"] @ xc + e["Be"] @ (ref.u[i] - d["u_trim"])
+    print(f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}")
+    assert worst < 1e-12, f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}"
+
+
 def test_a_continuous_lqg_export_carries_the_kalman_bucy_filter():
     data_, _ = _mambo_lqg()
     data_["controller"] = {**data_["controller"], "rate": None}
