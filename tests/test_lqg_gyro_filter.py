@@ -100,6 +100,36 @@ def test_the_discrete_gain_solves_the_dare_of_the_filtered_model(filtered_lqg):
     assert np.abs(np.linalg.eigvals(A - A @ M @ C)).max() < 1
 
 
+def test_the_gyros_noise_taken_before_the_filter_leaves_no_stabilizing_kalman_filter(filtered_lqg):
+    """Why the model takes the gyro's noise at the filter's output: taken before it (as the simulation adds
+    it), the noise drives the filter's states through b_f and the measurement through d_f (correlated, the
+    cross covariance S), and the Butterworth's zeros at z = -1 leave the rates' spectrum zero on the unit
+    circle (the notch's zeros too): SciPy's DARE with S refuses it, or returns a solution whose estimator is
+    not stable (no stabilizing solution exists); the model's own problem is regular."""
+    from scipy import linalg
+
+    kal = filtered_lqg.loop.estimator
+    form = filtered_lqg.setup.rate_filter.form(kal.sample_time)
+    measured, ne, m = list(kal.measured), kal.n_estimate, form.order
+    sigma2 = np.diag(kal.Rn)
+    W, V = np.zeros((ne, 3)), np.zeros((len(measured), 3))  # the three gyro noises into g and into y
+    for k, rate in enumerate(RATE_STATES):
+        row = measured.index(rate)
+        W[N_STATES + k * m:N_STATES + (k + 1) * m, k], V[row, k] = form.b, form.d
+    gyro = np.diag([sigma2[measured.index(r)] for r in RATE_STATES])
+    other = np.diag([0.0 if s in RATE_STATES else v for s, v in zip(measured, sigma2)])
+    Q, R, S = kal.G @ kal.Qn @ kal.G.T + W @ gyro @ W.T, other + V @ gyro @ V.T, W @ gyro @ V.T
+    try:
+        P = linalg.solve_discrete_are(kal.A.T, kal.C.T, Q, R, s=S)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        assert "unit circle" in str(exc)
+    else:
+        L = (kal.A @ P @ kal.C.T + S) @ np.linalg.inv(kal.C @ P @ kal.C.T + R)
+        assert np.abs(np.linalg.eigvals(kal.A - L @ kal.C)).max() >= 1.0
+    P = linalg.solve_discrete_are(kal.A.T, kal.C.T, kal.G @ kal.Qn @ kal.G.T, kal.Rn)  # the model's: regular
+    np.testing.assert_allclose(P, kal.P, rtol=1e-8, atol=1e-10 * np.abs(P).max())
+
+
 def test_the_kalman_bucy_gain_solves_the_care_of_the_filtered_model():
     """A continuous LQG loop with the gyro filter: A P + P A' - P C' V^-1 C P + G W G' = 0, L = P C' V^-1, and
     the measured rates read the continuous filter's output (a low-pass has no direct term: c g alone)."""
@@ -243,6 +273,30 @@ def test_designing_with_the_filters_states_gives_them_no_gain(filtered_lqg):
         np.testing.assert_allclose(res.K[:, :len(Ad)], sub.K, rtol=1e-9, atol=1e-12 * scale, err_msg=sub.name)
         solved.append(sub.name)
     assert solved == ["roll", "pitch", "yaw"]
+
+
+def test_the_continuous_filtered_lqg_loops_linear_part_is_the_builders_jacobian():
+    """A continuous LQG loop with the gyro filter (Kalman-Bucy on the filtered rates): the ETDRK4 remainder
+    N = rhs - L X has no linear part at the trim, L (:func:`quadctl.design.linear_loop.simulated`, the LQG
+    loop reordered to the builder's [x; z; g; xh]) being the builder's own Jacobian there."""
+    import casadi as ca
+
+    from quadctl.pipeline import Stages
+    from quadctl.sim.builder import build
+
+    loop = Stages(setup_of(from_dict(lqg_config(GYRO, rate=None)))).loop
+    L = loop.linear_part()
+    spec = loop.spec(method="etdrk4")
+    assert spec.n_estimate == N_STATES + spec.n_filter and L.shape == (spec.nx, spec.nx)
+    X, nc = ca.SX.sym("X", spec.nx), spec.n_constants
+    cs = ca.SX.sym("c", nc)
+    N = build(spec).remainder(X, 0.0, cs, ca.DM.zeros(spec.n_exo))[0]
+    jac = ca.Function("remainder_jacobian", [X, cs], [ca.jacobian(N, X)])
+    base = loop.constants()
+    lin = np.zeros(nc - len(base))
+    lin[:L.size] = L.ravel(order="F")  # "lin", the first of the ETDRK4 block, is L itself
+    residual = np.abs(np.asarray(jac(loop.initial_loop_state(loop.x_trim), np.concatenate([base, lin])))).max()
+    assert residual <= 1e-9 * np.abs(L).max(), residual
 
 
 # ---------------------------------------------------------------------------------------
