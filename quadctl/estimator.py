@@ -26,6 +26,18 @@ thread 1173 shows how easily they are confused):
   stage. The intensities of held noise of std ``sigma`` and period ``tau`` are ``sigma^2 tau``
   (their spectrum at low frequency).
 
+With a gyro filter (``controller.filters``, :mod:`quadctl.linear.filters`) the flight computer sees the
+body rates only after it: the filter's model then runs the plant followed by the filter on ``p, q, r``
+(:func:`quadctl.linear.filters.series`), state ``[x; g]`` (12 + 3 m, ``m`` the filter's order), and a
+measured rate is the *filtered* rate ``c_f g + d_f r`` (:func:`quadctl.linear.filters.filtered_output`);
+it estimates both, the law acting on the estimate of ``x`` (and of ``g`` with
+``controller.filters.design: include``). The simulation adds the gyro's noise before the filter, as in a
+real gyro. The filter's model takes that noise at the filter's output, white, with the gyro's standard
+deviation: taken before the filter it would reach the output only through the filter's zeros, which sit
+on the unit circle (a Butterworth biquad's at ``z = -1``, a notch's at its centre), where the output's
+spectrum then vanishes and no stabilizing Kalman filter exists. A low-pass of unit DC gain passes less
+than white noise's power, so the assumed noise is an upper bound of the filtered noise's.
+
 Both Riccati equations are solved as the dual LQR problem by :func:`quadctl.design.riccati.solve`
 (validated, residual-checked). The measured set must leave every mode that is not stable
 observable (PBH, :func:`quadctl.analysis.check`, rank tolerance ``max(shape) eps sigma_max``);
@@ -58,11 +70,12 @@ class Kalman:
         ``kalman-bucy``: continuous, ``gain`` is ``L`` of ``dx_hat/dt = ... + L (y - C x_hat)``.
     measured : tuple of str
         The measured states (rows of ``C``).
-    A, B : (12, 12), (12, 4) ndarray
-        The model the filter runs: ``Ad, Bd`` (discrete) or ``A, B``.
-    C : (p, 12) ndarray
-        Selects the measured states.
-    G : (12, 6) ndarray
+    A, B : (ne, ne), (ne, 4) ndarray
+        The model the filter runs: ``Ad, Bd`` (discrete) or ``A, B``; ``ne = 12``, or ``12 + 3 m`` with a
+        gyro filter of order ``m`` in it (:attr:`rate_filter`, state ``[x; g]``).
+    C : (p, ne) ndarray
+        Selects the measured states (a measured rate through the gyro filter: its filtered value).
+    G : (ne, 6) ndarray
         How the process noise (body force N, torque N m) enters: ``Gd`` (held) or ``G``.
     Qn : (6, 6) ndarray
         Process noise covariance (discrete, per sample) or intensity (continuous, ``sigma^2 tau``).
@@ -99,14 +112,35 @@ class Kalman:
     eigenvalues: np.ndarray
     sample_time: float | None
     residual: float
+    rate_filter: object | None = None
+    """:class:`quadctl.linear.filters.RateFilter` in the model (the rates measured after it); None: none."""
 
     @property
     def discrete(self) -> bool:
         return self.sample_time is not None
 
+    @property
+    def n_estimate(self) -> int:
+        """States of the estimate: the 12 of ``x``, then the gyro filter's (3 per order)."""
+        return self.A.shape[0]
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the estimate's states: :data:`~quadctl.layout.STATE_NAMES`, then the gyro filter's."""
+        return model_names(self.rate_filter)
+
     def error_std(self) -> np.ndarray:
         """(12,) predicted steady standard deviation of ``x - x_hat`` the law acts on (``Z`` discrete)."""
         return np.sqrt(np.maximum(np.diag(self.Z), 0.0))
+
+
+def model_names(rate_filter=None) -> tuple[str, ...]:
+    """Names of the states of the filter's model: the 12 states, then those of a gyro filter (``rate_filter``)."""
+    if rate_filter is None:
+        return STATE_NAMES
+    from quadctl.linear.filters import state_names
+
+    return (*STATE_NAMES, *state_names(rate_filter.order))
 
 
 def selector(measured) -> np.ndarray:
@@ -127,7 +161,7 @@ def noise_input(x_trim, u_trim, vehicle: Vehicle) -> np.ndarray:
     return np.asarray(ca.DM(ca.evalf(ca.jacobian(f, d))), dtype=float)
 
 
-def require_detectable(A, C, measured, key: str = "estimator.measure") -> None:
+def require_detectable(A, C, measured, key: str = "estimator.measure", names=STATE_NAMES) -> None:
     """Refuse a measured set that leaves a mode that is not stable unobservable (PBH).
 
     Raises
@@ -135,11 +169,12 @@ def require_detectable(A, C, measured, key: str = "estimator.measure") -> None:
     DesignError
         Naming the modes, the states they live in, and what to measure.
     """
-    checks = check(A, np.zeros((A.shape[0], 1)), C, STATE_NAMES)
+    checks = check(A, np.zeros((A.shape[0], 1)), C, names)
     bad = [m for m in checks.pbh_obsv if not m.passed and not is_stable(m.eigenvalue)]
     if not bad:
         return
-    states = sorted({s for m in bad for s in _unobserved_states(A, C, m.eigenvalue)}, key=STATE_INDEX.get)
+    states = sorted({s for m in bad for s in _unobserved_states(A, C, m.eigenvalue, names)},
+                    key=list(names).index)
     modes = ", ".join(eig_text(m.eigenvalue, 3) for m in bad)
     groups = [g for g, ss in SENSOR_GROUPS.items() if set(states) & set(ss)]
     raise DesignError(
@@ -147,7 +182,7 @@ def require_detectable(A, C, measured, key: str = "estimator.measure") -> None:
         f"measure {' and '.join(states)}" + (f" (e.g. add {' or '.join(groups)})" if groups else ""))
 
 
-def _unobserved_states(A, C, lam: complex) -> tuple[str, ...]:
+def _unobserved_states(A, C, lam: complex, names=STATE_NAMES) -> tuple[str, ...]:
     """States the unobservable subspace at ``lam`` lives in: rows of the null space of
     ``[lam I - A; C]`` (rank tolerance of :func:`quadctl.analysis.numerical_rank`) above a tenth of the largest."""
     n = A.shape[0]
@@ -156,11 +191,11 @@ def _unobserved_states(A, C, lam: complex) -> tuple[str, ...]:
     tol = max(stacked.shape) * np.finfo(float).eps * sv[0]
     null = vh[np.sum(sv > tol):].conj().T
     weight = np.linalg.norm(null, axis=1)
-    return tuple(STATE_NAMES[i] for i in range(n) if weight[i] > 0.1 * weight.max())
+    return tuple(names[i] for i in range(n) if weight[i] > 0.1 * weight.max())
 
 
 def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | None = None,
-           period: float | None = None) -> Kalman:
+           period: float | None = None, rate_filter=None) -> Kalman:
     """The steady-state Kalman filter of ``dx/dt = A x + B u + G w``, ``y = C x + v``.
 
     Parameters
@@ -180,6 +215,9 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
         s: the discrete filter at this period (:data:`Kalman.form` ``filter``); None: Kalman-Bucy.
     period : float, optional
         s the noise is held for: the continuous intensities ``sigma^2 period`` (required then).
+    rate_filter : quadctl.linear.filters.RateFilter, optional
+        The gyro filter the measured rates pass through (module doc): the model's state is ``[x; g]``,
+        the filter at ``sample_time`` (continuous without one).
 
     Returns
     -------
@@ -192,32 +230,47 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
     """
     from quadctl.design import discrete as dsc
     from quadctl.design.riccati import solve
+    from quadctl.linear.filters import RATE_STATES, filtered_output, series
 
     A, B, G = (np.asarray(M, dtype=float) for M in (A, B, G))
     measured = tuple(measured)
-    C = selector(measured)
-    require_detectable(A, C, measured)
+    names = model_names(rate_filter)
+    form = rate_filter.form(sample_time) if rate_filter is not None else None
+    rates = [STATE_INDEX[s] for s in RATE_STATES]
     Rn = np.diag(np.asarray(sensor_std, dtype=float) ** 2)
     Qn = np.diag(np.asarray(process_std, dtype=float) ** 2)
     if sample_time is None:
         if period is None:
             raise ValueError("a continuous filter needs the noise period (s) for its intensities")
+        A, B = series(A, B, form, rates)
+        G = np.vstack([G, np.zeros((A.shape[0] - G.shape[0], G.shape[1]))])
+        C = filtered_output(selector(measured), form, rates)
+        require_detectable(A, C, measured, names=names)
         Qn, Rn = Qn * period, Rn * period
-        res = solve(A.T, C.T, G @ Qn @ G.T, Rn, name="estimator (Kalman-Bucy)", state_names=STATE_NAMES)
+        res = solve(A.T, C.T, G @ Qn @ G.T, Rn, name="estimator (Kalman-Bucy)", state_names=names)
         P = res.P
         L = np.linalg.solve(Rn, C @ P).T
         return Kalman(form="kalman-bucy", measured=measured, A=A, B=B, C=C, G=G, Qn=Qn, Rn=Rn, gain=L,
                       predictor_gain=L, P=P, Z=P, eigenvalues=np.linalg.eigvals(A - L @ C),
-                      sample_time=None, residual=res.residual)
+                      sample_time=None, residual=res.residual, rate_filter=rate_filter)
     Ad, Bd = dsc.c2d(A, B, sample_time)
     _, Gd = dsc.c2d(A, G, sample_time)
+    Ad, Bd = series(Ad, Bd, form, rates)
+    Gd = np.vstack([Gd, np.zeros((Ad.shape[0] - Gd.shape[0], Gd.shape[1]))])
+    C = filtered_output(selector(measured), form, rates)
+    if form is None:
+        require_detectable(A, C, measured)
+    else:  # on the continuous model and filter: a mode of x is unstable in s where it is in z
+        continuous = rate_filter.form(None)
+        require_detectable(series(A, B, continuous, rates)[0], filtered_output(selector(measured), continuous, rates),
+                           measured, names=names)
     res = solve(Ad.T, C.T, Gd @ Qn @ Gd.T, Rn, discrete=True, name="estimator (discrete Kalman filter)",
-                state_names=STATE_NAMES)
+                state_names=names)
     P = res.P
     M = np.linalg.solve(C @ P @ C.T + Rn, C @ P).T
     Z = P - M @ C @ P
     L = Ad @ M
     return Kalman(form="filter", measured=measured, A=Ad, B=Bd, C=C, G=Gd, Qn=Qn, Rn=Rn, gain=M,
                   predictor_gain=L, P=P, Z=(Z + Z.T) / 2, eigenvalues=np.linalg.eigvals(Ad - L @ C),
-                  sample_time=float(sample_time), residual=res.residual)
+                  sample_time=float(sample_time), residual=res.residual, rate_filter=rate_filter)
 

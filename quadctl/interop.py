@@ -172,8 +172,15 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
     saturation. Discrete filter form (``M``): ``xc = (I - M C) xh + M y``, ``u = -K xc - Ki z``,
     ``xh+ = Ae xc + Be u``, ``z+ = z - Ts S xc``. Kalman-Bucy (``L``): ``u = -K xh - Ki z``,
     ``xh' = Ae xh + Be u + L (y - C xh)``, ``z' = -S xh``. ``S`` selects the integrated states.
+
+    With the gyro filter in the Kalman filter's model (``controller.filters``) the compensator runs the
+    gyro filter too, as the flight computer does: states ``[g_<rate>_<i>; xh_<state>; xh_g_<rate>_<i>;
+    z_<state>]``, ``g`` the filter on the raw rates (``g+ = A_f g + b_f r``, or ``g'``), ``y = C [dx; g]``
+    (a measured rate read filtered), ``K`` acting on the estimate of ``dx``.
     """
     from quadctl.design import integral, linear_loop
+    from quadctl.layout import STATE_INDEX
+    from quadctl.linear.filters import RATE_STATES, series
 
     kal = loop.estimator
     Ts = kal.sample_time
@@ -185,20 +192,33 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
         raise ValueError("the loop's Kalman filter predicts with the command of controller.delay samples ago: "
                          "its buffer is not in these python-control systems; export it with quadctl export "
                          "(C carries it), or remove controller.delay")
-    Ae, Be, C = (np.asarray(M, dtype=float) for M in (kal.A, kal.B, kal.C))
-    gain, n, nz = np.asarray(kal.gain, dtype=float), len(STATE_NAMES), len(ints)
-    S = integral.selector(STATE_NAMES, ints)
-    AeK = linear_loop.close(Ae, Be, K)  # the estimate's loop under the law
+    Ae, Be, Ca = (np.asarray(M, dtype=float) for M in (kal.A, kal.B, kal.C))
+    gain, n, nz, ne = np.asarray(kal.gain, dtype=float), len(STATE_NAMES), len(ints), kal.n_estimate
+    ng = ne - n
+    C, Cg = Ca[:, :n], Ca[:, n:]  # y = C dx + Cg g
+    S = np.hstack([integral.selector(STATE_NAMES, ints), np.zeros((nz, ng))])
+    Ke = np.hstack([K, np.zeros((K.shape[0], ng))])  # the law on the estimate of dx
+    AeK = linear_loop.close(Ae, Be, Ke)  # the estimate's loop under the law
+    form = kal.rate_filter.form(Ts) if kal.rate_filter is not None else None
+    rows = series(np.zeros((n, n)), np.zeros((n, 1)), form, [STATE_INDEX[r] for r in RATE_STATES])[0][n:]
+    Ag, Bg = rows[:, n:], rows[:, :n]  # g' (or g+) = Ag g + Bg dx
+    Z = np.zeros
     if Ts:
-        F, N = np.eye(n) - gain @ C, gain @ C  # xc = F xh + N dx
-        A = np.block([[AeK @ F, -Be @ Ki], [-Ts * S @ F, np.eye(nz)]])
-        B = np.vstack([AeK @ N, -Ts * S @ N])
-        Cout, D = np.hstack([-K @ F, -Ki]), -K @ N
+        F = np.eye(ne) - gain @ Ca  # xc = F xh + M C dx + M Cg g
+        Nx, Ng = gain @ C, gain @ Cg
+        A = np.block([[Ag, Z((ng, ne)), Z((ng, nz))],
+                      [AeK @ Ng, AeK @ F, -Be @ Ki],
+                      [-Ts * S @ Ng, -Ts * S @ F, np.eye(nz)]])
+        B = np.vstack([Bg, AeK @ Nx, -Ts * S @ Nx])
+        Cout, D = np.hstack([-Ke @ Ng, -Ke @ F, -Ki]), -Ke @ Nx
     else:
-        A = np.block([[AeK - gain @ C, -Be @ Ki], [-S, np.zeros((nz, nz))]])
-        B = np.vstack([gain @ C, np.zeros((nz, n))])
-        Cout, D = np.hstack([-K, -Ki]), np.zeros((K.shape[0], n))
-    states = [*(f"xh_{s}" for s in STATE_NAMES), *(f"z_{s}" for s in ints)]
+        A = np.block([[Ag, Z((ng, ne)), Z((ng, nz))],
+                      [gain @ Cg, AeK - gain @ Ca, -Be @ Ki],
+                      [Z((nz, ng)), -S, Z((nz, nz))]])
+        B = np.vstack([Bg, gain @ C, Z((nz, n))])
+        Cout, D = np.hstack([Z((K.shape[0], ng)), -Ke, -Ki]), Z((K.shape[0], n))
+    gyro = list(kal.state_names[n:])
+    states = [*gyro, *(f"xh_{s}" for s in kal.state_names), *(f"z_{s}" for s in ints)]
     return _ss(A, B, states, STATE_NAMES, INPUT_NAMES, Ts, name, C=Cout, D=D)
 
 

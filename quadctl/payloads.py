@@ -180,7 +180,7 @@ def _estimator_payload(kal) -> dict | None:
                       if discrete else "Kalman-Bucy gain L of MATLAB lqe: dx_hat/dt = A x_hat + B du + "
                       "L (y - C x_hat)"),
         "coordinates": "deviation from the trim reference x_ref(t), on the linear model about the trim",
-        "measured": kal.measured, "sample_time": kal.sample_time,
+        "measured": kal.measured, "states": kal.state_names, "sample_time": kal.sample_time,
         "A": kal.A, "B": kal.B, "C": kal.C, "G": kal.G, "Qn": kal.Qn, "Rn": kal.Rn,
         "noise_convention": ("covariance per sample (noise held over each controller period)" if discrete
                              else "intensity sigma^2 * noise period (held noise's low-frequency spectrum)"),

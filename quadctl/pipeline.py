@@ -147,8 +147,8 @@ def pid_loop_of(setup: Setup, linear: LinearModel, gains=None) -> ClosedLoop:
 
 def estimator_of(setup: Setup, linear: LinearModel):
     """The setup's steady-state Kalman filter (:func:`quadctl.estimator.kalman`) at the controller's
-    timing (discrete at the controller period when sampled, Kalman-Bucy when continuous); None
-    without ``estimator:``."""
+    timing (discrete at the controller period when sampled, Kalman-Bucy when continuous), with the gyro
+    filter (``controller.filters``) in its model; None without ``estimator:``."""
     est = setup.estimator
     if est is None:
         return None
@@ -156,7 +156,7 @@ def estimator_of(setup: Setup, linear: LinearModel):
 
     G = estimator.noise_input(linear.x_trim, linear.u_trim, setup.vehicle)
     return estimator.kalman(linear.A, linear.B, G, est.measured, est.sensor_std, est.process_std,
-                            sample_time=setup.timing.sample_time, period=est.period)
+                            sample_time=setup.timing.sample_time, period=est.period, rate_filter=setup.rate_filter)
 
 
 def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:

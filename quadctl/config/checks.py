@@ -241,8 +241,8 @@ def _check_method(cfg: Config, fail) -> None:
 
 
 def _check_filters(cfg: Config, fail) -> None:
-    """``controller.filters``: each frequency below the Nyquist frequency of a sampled controller, a
-    notch narrower than twice its centre, and no Kalman filter beside them."""
+    """``controller.filters``: each frequency below the Nyquist frequency of a sampled controller, and a
+    notch narrower than twice its centre."""
     filters, rate = cfg.controller.filters, cfg.controller.rate
     if filters is None:
         return
@@ -264,9 +264,6 @@ def _check_filters(cfg: Config, fail) -> None:
                     fail(f"lqr.{name}.integral[{i}]", state, "integrates a body rate, which the law takes through "
                          "controller.filters' gyro filter: its integrator is not modelled on the filtered rate; "
                          "integrate an angle or a position, or remove the gyro filter")
-    if cfg.estimator is not None and (filters.gyro is not None or filters.notch is not None):
-        fail("controller.filters", "gyro/notch", "with a Kalman filter (estimator:) the law takes the estimate, "
-             "not the gyro: the gyro's filters are not modelled in an LQG loop; remove estimator: or the filters")
 
 
 def _check_delay(cfg: Config, fail) -> None:

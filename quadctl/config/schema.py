@@ -358,13 +358,17 @@ class NotchConfig(_Section):
 class FiltersConfig(_Section):
     """The filters the flight stack runs on its sensors, in the simulated loop, the margins and the C export.
 
-    The LQR is designed without them (on the rigid body, with the rotors' lag when included): a full-state
-    gain on the filter's states would need the raw rates the filter is there to keep out of the law. The
-    margins and the vehicle's loop show what the filters cost."""
+    The LQR is designed without them (on the rigid body, with the rotors' lag when included): the filter sits
+    after the plant, so the LQR of the model with its states, unweighted, gives them zero gain and the others
+    the gains they had (no ``design: include`` as for the rotors' lag). The margins and the vehicle's loop
+    show what the filters cost. With ``estimator:`` the Kalman filter's
+    model includes the gyro filter: it measures the filtered rates and estimates the filter's states too."""
 
     gyro: Optional[LowPassConfig] = Field(None, description=(
         "low-pass on the gyro: the law takes the filtered body rates p, q, r in place of the measured ones "
-        "(PX4: 40 Hz, second order; Crazyflie: 30 Hz); absent: none"))
+        "(PX4: 40 Hz, second order; Crazyflie: 30 Hz); with estimator: the Kalman filter measures the filtered "
+        "rates, its model the plant followed by the filter (the gyro's noise taken at the filter's output); "
+        "absent: none"))
     notch: Optional[NotchConfig] = Field(None, description=(
         "notch on the gyro, after the low-pass (a frame's resonance or the rotors' frequency); absent: none"))
     d_term: Optional[LowPassConfig] = Field(None, description=(

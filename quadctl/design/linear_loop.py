@@ -34,7 +34,7 @@ import numpy as np
 from quadctl import stability
 from quadctl.design import discrete, integral, lag
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.linear.filters import RATE_STATES, with_rate_filter
+from quadctl.linear.filters import RATE_STATES, series, with_rate_filter
 
 
 def close(A, B, K) -> np.ndarray:
@@ -293,7 +293,10 @@ def vehicle_matrix(design, A, B, sample_time: float | None = None, delay_samples
 def lqg(design, A, B, kal):
     """``(A, Bp, Be, Kc)`` of the loop closed through a Kalman filter (LQG): ``A - [Bp; Be; 0] Kc``.
 
-    Loop state ``[x; x_hat; z]`` (``x_hat`` the a priori estimate of a discrete filter), the
+    Loop state ``[x; x_hat; z]`` (``x_hat`` the a priori estimate of a discrete filter; with a gyro
+    filter in the Kalman filter's model, ``kal.rate_filter``, ``x`` is the plant followed by the filter,
+    ``[x; g]``, :func:`quadctl.linear.filters.series`, and ``x_hat`` its estimate, the law acting on the
+    estimate of the 12 states), the
     command ``c = -Kc [x; x_hat; z]`` (continuous: ``Kc = [0, K, Ki]``; discrete: the law on
     ``xc = M C x + (I - M C) x_hat``, ``Kc = [K M C, K (I - M C), Ki]``); ``Bp`` carries it into
     the plant, ``Be`` into the estimator (which knows the command, not what the plant got: a loop
@@ -311,13 +314,17 @@ def lqg(design, A, B, kal):
 
     Returns
     -------
-    (24 + nz, 24 + nz) ndarray, (12, 4) ndarray, (12, 4) ndarray, (4, 24 + nz) ndarray
+    (2 ne + nz, 2 ne + nz) ndarray, (ne, 4) ndarray, (ne, 4) ndarray, (4, 2 ne + nz) ndarray
+        ``ne = kal.n_estimate``: 12, or 12 and the gyro filter's states.
     """
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     K, ints = design.K_block, design.integral_states
-    nz, n = len(ints), N_STATES
+    nz, n = len(ints), kal.n_estimate
     Ki = np.asarray(design.Ki_block, dtype=float).reshape(K.shape[0], nz)
-    Cz = integral.selector(STATE_NAMES, ints)
+    Cz = np.hstack([integral.selector(STATE_NAMES, ints), np.zeros((nz, n - N_STATES))])
+    K = np.hstack([K, np.zeros((K.shape[0], n - N_STATES))])  # the law reads the estimate of x
+    if kal.rate_filter is not None and kal.sample_time is None:
+        A, B = series(A, B, kal.rate_filter.form(None), [STATE_INDEX[s] for s in RATE_STATES])
     C, G, Ts = kal.C, kal.gain, kal.sample_time
     Z = np.zeros
     if Ts is None:
@@ -459,10 +466,12 @@ def simulated(A, B, K, *, Ki=None, integral_states=(), Kv=None, lag_time_constan
     design = SimpleNamespace(K_block=K, Ki_block=Ki, integral_states=tuple(integral_states),
                              lag_time_constant=lag_time_constant if Kv is not None else None, Kv_block=Kv)
     if estimator is not None:
-        if estimator.sample_time is not None or rotor_time_constant is not None or rate_filter is not None:
+        if estimator.sample_time is not None or rotor_time_constant is not None:
             raise ValueError("the simulated LQG loop is linearized here for a continuous filter, without rotor lag")
-        n = N_STATES
-        order = [*range(n), *range(2 * n, 2 * n + nz), *range(n, 2 * n)]
+        if (rate_filter is None) != (estimator.rate_filter is None):
+            raise ValueError("the Kalman filter's model and the loop must have the same gyro filter")
+        n, ne = N_STATES, estimator.n_estimate  # [x; g; x_hat; z] -> the builder's [x; z; g; x_hat]
+        order = [*range(n), *range(2 * ne, 2 * ne + nz), *range(n, 2 * ne)]
         return lqg_matrix(design, A, B, estimator)[np.ix_(order, order)]
     M = vehicle_matrix(design, A, B, None, 0, rotor_time_constant, keep_free=True, rate_filter=rate_filter)
     if rotor_time_constant is not None:

@@ -42,14 +42,15 @@ Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
   ``|1 + L| >= 1`` at every frequency, hence the guarantee: gain margin from -6 dB to infinity,
   phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
 
-With a Kalman filter in the loop (LQG, ``estimator:``), each input's loop is also broken at the plant
-input with the estimator in it (``model = "lqg"``, on the coupled model): the compensator
-``K (sI - A + BK + LC)^-1 L`` (or its discrete current-estimator equivalent, the law acting on
-``x_hat + M (y - C x_hat)``) times the plant, the estimator fed the *commanded* input (what the
-flight computer knows), the other loops closed (:func:`lqg_loops`). The LQR guarantee does not
-hold there (Doyle, "Guaranteed margins for LQG regulators", IEEE TAC 23(4), 1978): the notes say by
-how much each margin fell from the full-state loop. The rotors' lag and the delay are not in these
-loops (the notes say so when they are configured).
+With a Kalman filter in the loop (LQG, ``estimator:``), each input's loop is also broken at the
+plant input with the estimator (and the gyro filter it measures through, ``controller.filters``) in
+it (``model = "lqg"``, on the coupled model): the compensator ``K (sI - A + BK + LC)^-1 L`` (or its
+discrete current-estimator equivalent, the law acting on ``x_hat + M (y - C x_hat)``) times the
+plant, the estimator fed the *commanded* input (what the flight computer knows), the other loops
+closed (:func:`lqg_loops`). The LQR guarantee does not hold there (Doyle, "Guaranteed margins for
+LQG regulators", IEEE TAC 23(4), 1978): the notes say by how much each margin fell from the
+full-state loop. The rotors' lag and the delay are not in these loops (the notes say so when they
+are configured).
 
 An unstable closed loop has no margin: every margin is reported as zero (gain margins 0 dB,
 phase margin 0 deg, disk margin ``alpha = 0`` with its 0 dB / 0 deg disk) and no frequency, so
@@ -71,7 +72,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.design import linear_loop
-from quadctl.layout import INPUT_INDEX, INPUT_UNITS, N_STATES, STATE_INDEX
+from quadctl.layout import INPUT_INDEX, INPUT_UNITS, STATE_INDEX
 from quadctl.stability import free_positions, is_stable
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -518,7 +519,9 @@ def lqg_loops(design, A, B, kal):
     ``xc = M C x + (I - M C) x_hat``, ``Kc = [K M C, K (I - M C), Ki]``), the plant given ``c``
     except at the broken input ``j`` (given ``v``), the estimator and the integrators fed ``c`` and
     ``xc``. Positions nothing feeds back are left out in the coordinates ``[x; x - x_hat; z]``
-    (there they drive nothing), as on the full-state coupled loop.
+    (there they drive nothing), as on the full-state coupled loop. With a gyro filter in the Kalman
+    filter's model (``kal.rate_filter``) ``x`` is ``[x; g]``: the filter runs on the plant's rates and the
+    estimator measures its output, so the loop broken at the plant input has both in it.
 
     Parameters
     ----------
@@ -529,7 +532,7 @@ def lqg_loops(design, A, B, kal):
     """
     A = np.asarray(A, dtype=float)
     K, ints = design.K_block, design.integral_states
-    nz, n, Ts = len(ints), N_STATES, kal.sample_time
+    nz, n, Ts = len(ints), kal.n_estimate, kal.sample_time  # n: the 12 states, and the gyro filter's modelled
     Z = np.zeros
     base, Bp, Be, Kc = linear_loop.lqg(design, A, B, kal)
     T = np.eye(2 * n + nz)
@@ -620,6 +623,8 @@ def lqg_notes(m: LoopMargins, full: LoopMargins | None, kal, delay_samples: int 
         return [f"LQG (Kalman filter on {measured}): the closed loop is UNSTABLE: no margin"]
     notes = ["LQG: the LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg) does not hold with an "
              f"estimator in the loop (Doyle 1978); Kalman filter ({kal.form}) on {measured}"
+             + (f", the rates through the gyro filter ({kal.rate_filter.describe()}) in its model"
+                if kal.rate_filter is not None else "")
              + ("; meets it anyway" if m.meets_lqr_guarantee else "")]
     if full is not None and full.stable:
         lo, hi = m.gain_margin_db

@@ -168,12 +168,14 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
         "GYRO_LOAD": "  for (i = 0; i < QUADCTL_NG; ++i) X[QC_X_G + i] = c->g[i];\n" if ng else "",
         "GYRO_STORE": "  for (i = 0; i < QUADCTL_NG; ++i) c->g[i] = X_sampled[QC_X_G + i];\n" if ng else "",
         "GYRO_DOC": _gyro_doc(loop, Ts),
-        "ESTIMATE_MEMBER": ("  quadctl_real xh[QUADCTL_NX];  /* the filter's a priori estimate of x - x_ref(t) for "
-                            "this sample (state units) */\n" if ny else ""),
-        "ESTIMATE_INIT": ("  for (i = 0; i < QUADCTL_NX; ++i) c->xh[i] = QUADCTL_LIT(0.0);  /* the filter believes "
+        "NE": str(spec.n_estimate or N_STATES),
+        "ESTIMATE_MEMBER": ("  quadctl_real xh[QUADCTL_NE];  /* the filter's a priori estimate of x - x_ref(t) for "
+                            "this sample (state units)" + (", then of the gyro filter's states g" if ng else "")
+                            + " */\n" if ny else ""),
+        "ESTIMATE_INIT": ("  for (i = 0; i < QUADCTL_NE; ++i) c->xh[i] = QUADCTL_LIT(0.0);  /* the filter believes "
                           "the trim */\n" if ny else ""),
-        "ESTIMATE_LOAD": "  for (i = 0; i < QUADCTL_NX; ++i) X[QC_X_XH + i] = c->xh[i];\n" if ny else "",
-        "ESTIMATE_STORE": "  for (i = 0; i < QUADCTL_NX; ++i) c->xh[i] = X_sampled[QC_X_XH + i];\n" if ny else "",
+        "ESTIMATE_LOAD": "  for (i = 0; i < QUADCTL_NE; ++i) X[QC_X_XH + i] = c->xh[i];\n" if ny else "",
+        "ESTIMATE_STORE": "  for (i = 0; i < QUADCTL_NE; ++i) c->xh[i] = X_sampled[QC_X_XH + i];\n" if ny else "",
         "STATE_DEFINES": "".join(f"#define QUADCTL_X_{c_identifier(n.upper())} {i}  /* {n} ({STATE_UNITS[n]}) */\n"
                                  for i, n in enumerate(STATE_NAMES)).rstrip("\n"),
         "INPUT_DEFINES": "".join(f"#define QUADCTL_U_{c_identifier(n)} {i}  /* {n} ({INPUT_UNITS[n]}) */\n"
@@ -381,6 +383,12 @@ def _filter_doc(loop, reference: bool = False) -> str:
         lines = [f"None (no estimator: in the config): {step} takes the full measured state x."]
         return "\n".join(" *   " + line for line in lines)
     rho = float(np.max(np.abs(kal.eigenvalues)))
+    ne, ng = kal.n_estimate, kal.n_estimate - N_STATES
+    gyro = ([] if kal.rate_filter is None else textwrap.wrap(
+        f"The filter's model includes the gyro filter (controller.filters: {kal.rate_filter.describe()}): xh[] is "
+        f"the estimate of [x - x_ref(t); g] (QUADCTL_NE = {ne}: the 12 states, then the gyro filter's {ng}, "
+        f"as the g member), and a measured rate is the filtered rate the law computes from the raw gyro "
+        f"(give y the raw rates), predicted as c g_h + d r_h: those rows of C read the filter's states.", 94))
     lines = ["The law closes through a steady-state Kalman filter (estimator:), the discrete one of the",
              "zero-order-hold model at Ts in MATLAB dlqe's filter form (design.json estimator, form filter):",
              "Le = M is the filter (measurement-update) gain, the struct's xh[] the a priori estimate",
@@ -393,8 +401,9 @@ def _filter_doc(loop, reference: bool = False) -> str:
              + "predict: x_hat[k+1|k] under the applied (clipped)",
              "                                             command" + (", the one the vehicle applies now (b[])"
                                                                        if loop.delay_samples else ""),
-             *textwrap.wrap("C picks the measured states; Ae (12 x 12), Be (12 x 4) and Le = M (12 x ny) are "
-                            "constants of qc_c (column-major). The predictor gain is Ae M; the estimator's "
+             *gyro,
+             *textwrap.wrap(f"C picks the measured states; Ae ({ne} x {ne}), Be ({ne} x 4) and Le = M ({ne} x ny) "
+                            "are constants of qc_c (column-major). The predictor gain is Ae M; the estimator's "
                             f"eigenvalues (of Ae - Ae M C) have |z| <= {rho:.6g}. Measured, in the order of y: "
                             + ", ".join(f"{n} ({STATE_UNITS[n]})" for n in kal.measured) + ".", 94)]
     return "\n".join(" *   " + line for line in lines)

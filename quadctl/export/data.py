@@ -147,7 +147,12 @@ def _estimator_fields(loop) -> list[Field]:
                       "Ae x_hat[k|k] + Be (u - u_trim) with the applied u; predictor gain L = Ae M"
                       if discrete else "Kalman-Bucy gain L of MATLAB lqe: dx_hat/dt = Ae x_hat + Be (u - u_trim) "
                       "+ L (y - C x_ref(t) - C x_hat); the law acts on x_hat"),
-        "coordinates": "x_hat estimates x - x_ref(t) on the linear model about the trim; it starts at 0",
+        "coordinates": "x_hat estimates x - x_ref(t) on the linear model about the trim; it starts at 0"
+                       + ("" if kal.rate_filter is None else
+                          f"; with the gyro filter ({kal.rate_filter.describe()}) in the model, "
+                          "x_hat = [x - x_ref(t); g] (the 12 states, then the filter's, 'states'), a measured rate "
+                          "is the filtered rate, c g + d r (C's rows read g), and the law acts on the first 12"),
+        "states": list(kal.state_names),
         "measured": list(kal.measured),
         "measured_index": np.array([STATE_NAMES.index(s) + 1 for s in kal.measured], dtype=float),
         "sample_time": float(kal.sample_time or 0.0),
@@ -162,9 +167,11 @@ def _estimator_fields(loop) -> list[Field]:
                   + (" per sample" if discrete else " x s (intensities)"),
                   "the steady-state Kalman filter the law closes through (LQG): form (filter: discrete, "
                   "dlqe; kalman-bucy: continuous, lqe), gain_form, measured (the states y holds, in order; "
-                  "measured_index 1-based into x), Ae (12 x 12) and Be (12 x 4) its model (the zero-order-hold "
-                  "model at Ts, or A, B), C (ny x 12), G (12 x 6) and Qn (6 x 6) the process noise (body force, "
-                  "torque), Rn (ny x ny) the sensor noise, gain (12 x ny: M, or L), predictor_gain (L = Ae M, "
+                  "measured_index 1-based into x), states (the ne states of x_hat: the 12 of x, then a gyro "
+                  "filter's when controller.filters is set), Ae (ne x ne) and Be (ne x 4) its model (the "
+                  "zero-order-hold model at Ts, or A, B; with the gyro filter after the plant's rates), C (ny x ne), "
+                  "G (ne x 6) and Qn (6 x 6) the process noise (body force, "
+                  "torque), Rn (ny x ny) the sensor noise, gain (ne x ny: M, or L), predictor_gain (L = Ae M, "
                   "or L), P (a priori, or the error covariance), Z (a posteriori P - M C P, or P), eig (of "
                   "Ae - L C: z, or s)")]
 

@@ -224,3 +224,59 @@ def with_rate_filter(A, B, K, form: StateSpace | None, rate_columns):
         Ka[:, g] = np.outer(K[:, i], form.c)
         Ka[:, i] = K[:, i] * form.d
     return Aa, np.vstack([B, np.zeros((N - n, m))]), Ka
+
+
+def series(A, B, form: StateSpace | None, rate_columns):
+    """``(A, B)`` of a plant followed by the filter ``form`` on each of its states ``rate_columns``: state ``[x; g]``.
+
+    ``g`` is one block of ``form.order`` per rate, driven by the plant's rate (continuous
+    ``dg/dt = A_f g + b_f x_i``, or sampled ``g <- A_f g + b_f x_i`` with ``A``, ``B`` the plant held at
+    the filter's period); the input does not reach it. With :func:`filtered_output` it is the model of a
+    plant whose rates are measured after the filter (what the flight computer sees), the model of a
+    Kalman filter in a loop with a gyro filter. ``form`` None returns the plant unchanged.
+
+    Examples
+    --------
+    >>> Aa, Ba = series([[0.0]], [[1.0]], lowpass1(1.0, None), [0])
+    >>> Aa.round(4).tolist(), Ba.ravel().tolist()
+    ([[0.0, 0.0], [6.2832, -6.2832]], [1.0, 0.0])
+    """
+    A, B = (np.atleast_2d(np.asarray(M, dtype=float)) for M in (A, B))
+    cols = list(rate_columns)
+    if form is None or not cols:
+        return A, B
+    n, k = A.shape[0], form.order
+    N = n + k * len(cols)
+    Aa = np.zeros((N, N))
+    Aa[:n, :n] = A
+    for j, i in enumerate(cols):
+        g = slice(n + j * k, n + (j + 1) * k)
+        Aa[g, g] = form.A
+        Aa[g, i] = form.b
+    return Aa, np.vstack([B, np.zeros((N - n, B.shape[1]))])
+
+
+def filtered_output(C, form: StateSpace | None, rate_columns) -> np.ndarray:
+    """``C`` (p, n) of the plant's states, on :func:`series`'s state ``[x; g]``, with every row that reads a rate
+    of ``rate_columns`` reading its filtered value ``c_f g + d_f x_i`` instead.
+
+    Examples
+    --------
+    >>> filtered_output([[1.0, 0.0], [0.0, 1.0]], lowpass1(1.0, None), [1]).tolist()
+    [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    """
+    C = np.atleast_2d(np.asarray(C, dtype=float))
+    cols = list(rate_columns)
+    if form is None or not cols:
+        return C
+    n, k = C.shape[1], form.order
+    Ca = np.hstack([C, np.zeros((C.shape[0], k * len(cols)))])
+    for j, i in enumerate(cols):
+        Ca[:, n + j * k:n + (j + 1) * k] = np.outer(C[:, i], form.c)
+        Ca[:, i] = C[:, i] * form.d
+    return Ca
+
+
+def state_names(order: int) -> tuple[str, ...]:
+    """Names of the filter's states ``g`` on the three rates, ``order`` per rate: ``g_p_0, g_p_1, ..., g_r_1``."""
+    return tuple(f"g_{rate}_{m}" for rate in RATE_STATES for m in range(order))

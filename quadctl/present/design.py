@@ -139,8 +139,12 @@ def estimator_blocks(setup, kal) -> tuple:
         form = "the Kalman-Bucy filter (MATLAB lqe): dx_hat/dt = A x_hat + B du + L (y - C x_hat)"
         shown = kal.eigenvalues
     rows = tuple((name, unit_of(name), num(std)) for name, std in zip(est.measured, est.sensor_std))
+    gyro = ("" if kal.rate_filter is None else
+            f" Its model includes the gyro filter ({kal.rate_filter.describe()}): it measures the filtered rates "
+            f"the flight computer sees and estimates the filter's {kal.n_estimate - len(STATE_NAMES)} states too; "
+            "the gyro's noise is taken white at the filter's output.")
     return (f"The law closes through a steady-state Kalman filter (LQG), {form}; Riccati residual "
-            f"{kal.residual:.1e}.",
+            f"{kal.residual:.1e}.{gyro}",
             Table("estimator-table", "What the filter measures (estimator.measure)", ("state", "unit", "noise std"),
                   rows, caption="Process noise: body force std " + vector(est.process_std[:3]) + " N, torque std "
                   + vector(est.process_std[3:]) + " N m.", align="llr"),

@@ -10,7 +10,8 @@ the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the contr
 the ``nz`` integrators of an LQI law, the four states ``l`` of the controller's rotor lag model
 (:attr:`LoopSpec.lag_model`), the ``4 n`` entries of the command buffer of a loop with ``n``
 samples of delay (:attr:`LoopSpec.delay`), the ``3 m`` states ``g`` of the gyro filter
-(:attr:`LoopSpec.filter_order`), then the 12 states ``xh`` of a Kalman filter (LQG).
+(:attr:`LoopSpec.filter_order`), then the states ``xh`` of a Kalman filter (LQG: 12, and the gyro
+filter's ``3 m`` when the loop has one, which the Kalman filter's model then includes).
 The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant` states. The control law is
 
     u = sat(u_ref - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,  u_ref = u_trim,
@@ -69,6 +70,10 @@ the filter gain ``Le = M``, acts on ``xc = xh + M (y - C xh)`` and predicts ``xh
 (``Ae, Be`` the zero-order-hold model at the controller period). Continuous loops: the
 Kalman-Bucy filter ``dxh/dt = Ae xh + Be du + Le (y - C xh)`` is integrated in the RK4 stages.
 Runs start with ``xh = 0`` (the filter believes the trim).
+With a gyro filter the estimate is ``[dx; g_h]`` (:func:`quadctl.linear.filters.series`): the law still
+takes the gyro through the loop's own filter ``g`` (the flight stack's, fed the noisy gyro), the Kalman
+filter measures the rates it puts out, ``y = c g + d r_m``, predicts them as ``c g_h + d r_h``
+(:func:`quadctl.linear.filters.filtered_output`), and the law acts on the estimate of ``dx``.
 
 
 Integrator (:attr:`LoopSpec.method`; a held loop's plant between samples too): classical RK4, or the exponential
@@ -184,9 +189,10 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, 
     ``Ki`` (4, nz) is the integrator gain (``u -= Ki z``), ``antiwindup`` (nz, 4) is 1 where
     input ``j``'s saturation freezes integrator ``i``; ``tau`` (s) is the rotors' time constant
     (loops with rotor dynamics); ``Kv`` (4, 4) the gain on the controller's rotor lag model and
-    ``tau_model`` (s) the model's time constant (loops with a lag model); ``Ae`` (12, 12), ``Be``
-    (12, 4) and ``Le`` (12, ny) are the Kalman filter's model and gain of a loop with ``ny``
-    measurements (LQG). A loop with a gain schedule of ``schedule = (p, m)``, ``p`` pieces of ``m``
+    ``tau_model`` (s) the model's time constant (loops with a lag model); ``Ae`` (ne, ne), ``Be``
+    (ne, 4) and ``Le`` (ne, ny) are the Kalman filter's model and gain of a loop with ``ny``
+    measurements (LQG; ``ne = 12``, or ``12 + 3 filter_order`` in a loop with a gyro filter, which the
+    Kalman filter's model then includes). A loop with a gain schedule of ``schedule = (p, m)``, ``p`` pieces of ``m``
     gain columns (:attr:`LoopSpec.schedule`), ends with ``schedule_heading`` (rad, the direction
     ``speed`` is measured along), ``schedule_breaks`` (p + 1,) and ``schedule_coefficients``
     (4, p, 4, m): :class:`quadctl.design.gain_table.GainTable`'s ``breaks`` and ``coefficients``.
@@ -204,7 +210,8 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, 
     if lag_model:
         out = out + (("Kv", (N_INPUTS, N_INPUTS)), ("tau_model", (1,)))
     if ny:
-        out = out + (("Ae", (N_STATES, N_STATES)), ("Be", (N_STATES, N_INPUTS)), ("Le", (N_STATES, ny)))
+        ne = N_STATES + N_RATES * filter_order  # the estimate: x, then the gyro filter's states it models
+        out = out + (("Ae", (ne, ne)), ("Be", (ne, N_INPUTS)), ("Le", (ne, ny)))
     if schedule:
         pieces, columns = schedule
         out = out + (("schedule_heading", (1,)), ("schedule_breaks", (pieces + 1,)),
@@ -439,8 +446,9 @@ class LoopSpec:
 
     @property
     def n_estimate(self) -> int:
-        """Estimator states (the 12 of the estimate, with a filter; else none)."""
-        return N_STATES if self.measured else 0
+        """Estimator states (the 12 of the estimate, and the gyro filter's it models, with a Kalman filter;
+        else none)."""
+        return N_STATES + self.n_filter if self.measured else 0
 
     @property
     def n_law(self) -> int:
@@ -772,17 +780,35 @@ def build(spec: LoopSpec) -> LoopFunctions:
             return ca.vertcat(dx[:_PSI], wrap_angle(dx[_PSI], ca), dx[_PSI + 1:])
         return heading_frame(dx, heading_offset(t))
 
-    def innovation(X, t):
-        """``y - C xh``: the measured deviation less its estimate."""
-        xh = X[nx - ne:]
-        return measured_deviation(X, t)[measured] - xh[measured]
+    def predicted(xh):
+        """``C xh``: the measurements the estimate predicts (a measured rate through the gyro filter's
+        model, ``c g_h + d r_h``, when the loop has one: :func:`quadctl.linear.filters.filtered_output`)."""
+        if not ng:
+            return xh[measured]
+        rows = []
+        for i in measured:
+            k = i - _P
+            if 0 <= k < N_RATES:
+                gh = xh[N_STATES + k * mf:N_STATES + (k + 1) * mf]
+                rows.append(parts["filter_d"] * xh[i] + ca.dot(parts["filter_c"], gh))
+            else:
+                rows.append(xh[i])
+        return ca.vertcat(*rows)
 
-    def deviation(X, t):
-        """What the law acts on: the measured deviation, or the filter's (updated, held) estimate."""
-        if not ne:
-            return measured_deviation(X, t)
+    def innovation(X, t):
+        """``y - C xh``: the measured deviation (its rates filtered, with a gyro filter) less its prediction."""
+        return measured_deviation(X, t)[measured] - predicted(X[nx - ne:])
+
+    def estimate(X, t):
+        """The filter's estimate the law acts on: updated (held loops), or ``xh``; (ne,)."""
         xh = X[nx - ne:]
         return xh + parts["Le"] @ innovation(X, t) if spec.held else xh
+
+    def deviation(X, t):
+        """What the law acts on: the measured deviation, or the filter's (updated, held) estimate of it."""
+        if not ne:
+            return measured_deviation(X, t)
+        return estimate(X, t)[:N_STATES]
 
     def gains(t):
         """(state gain (4, 12), integrator gain (4, nz)) at ``t``: the constants, or the schedule's
@@ -864,7 +890,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
     if ng:  # the gyro filter takes this sample (held loops)
         X_sampled = ca.vertcat(X_sampled, filter_update(X) if spec.held else X[og:og + ng])
     if ne and spec.held:  # predict from the updated estimate under the applied input
-        xc = deviation(X, t)
+        xc = estimate(X, t)
         X_sampled = ca.vertcat(X_sampled, parts["Ae"] @ xc + parts["Be"] @ (u_now - u_ref(t)))
     elif ne:
         X_sampled = ca.vertcat(X_sampled, X[nx - ne:])

@@ -308,6 +308,8 @@ class ClosedLoop:
             if kal.discrete != (self.rate is not None) or (
                     kal.discrete and not math.isclose(kal.sample_time, 1.0 / self.rate, rel_tol=1e-12)):
                 raise ValueError("the Kalman filter's sample time must be the controller period (or both continuous)")
+            if kal.rate_filter != self.rate_filter:
+                raise ValueError("the Kalman filter's model must have the loop's gyro filter (controller.filters)")
             values.update(Ae=kal.A, Be=kal.B, Le=kal.gain)
         form = self.filter_form
         if form is not None:
@@ -383,7 +385,7 @@ class ClosedLoop:
             parts.append(initial_states(self.law, x0, self.u_trim))
         parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
         parts.append(np.zeros(3 * self.rate_filter.order if self.rate_filter is not None else 0))
-        parts.append(np.zeros(N_STATES if self.estimator is not None else 0))
+        parts.append(np.zeros(self.estimator.n_estimate if self.estimator is not None else 0))
         return np.concatenate(parts)
 
     def bounds(self, duration: float, reference=None) -> tuple[np.ndarray, np.ndarray]:
@@ -641,7 +643,8 @@ def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int
                      lag_model=np.ascontiguousarray(xs[:, n_plant + nz:n_plant + nz + n_lag]),
                      wind=wind_felt(wind, exo.period, ks, dt) if wind is not None else np.zeros((0, 3)),
                      wind_seed=wind.seed if wind is not None else None,
-                     x_hat=_estimate(loop, x_ref, xs[:, xs.shape[1] - ne:], reference is not None) if ne
+                     x_hat=_estimate(loop, x_ref, xs[:, xs.shape[1] - ne:xs.shape[1] - ne + N_STATES],
+                                     reference is not None) if ne
                      else np.zeros((0, 0)),
                      u_ref=u_ref)
 

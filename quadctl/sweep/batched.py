@@ -492,7 +492,8 @@ def _estimator(prep):
     est, timing = prep.setup.estimator, prep.setup.timing
     if est is None:
         return None
-    key = ("estimator", est.measured, tuple(est.sensor_std), tuple(est.process_std), est.period, timing.sample_time)
+    key = ("estimator", est.measured, tuple(est.sensor_std), tuple(est.process_std), est.period, timing.sample_time,
+           prep.setup.rate_filter)
     if key not in prep.plant.cache:
         from quadctl.pipeline import estimator_of
 

@@ -144,7 +144,7 @@ class Controller:
             _fields_ = [("z", self.real * max(nz, 1)),  # b[], xh[]: a Kalman filter, with and without delay;
                         *([("l", self.real * nl)] if nl else []), *([("b", self.real * nb)] if nb else []),
                         *([("g", self.real * ng)] if ng else []),  # g[]: the gyro filter)
-                        *([("xh", self.real * N_STATES)] if ny else []), ("k", ctypes.c_ulong)]
+                        *([("xh", self.real * exp.loop.spec().n_estimate)] if ny else []), ("k", ctypes.c_ulong)]
 
         self.state = State()
         self.lib.quadctl_init(ctypes.byref(self.state))
@@ -276,10 +276,21 @@ def _mambo_lqg_emulated():
     return data, 200.0
 
 
+def _mambo_lqg_gyro_filtered():
+    """The LQG config with the gyro filtered (second-order low-pass at 30 Hz, a notch at 70 Hz): the Kalman
+    filter's model includes the filter, measures the filtered rates, and estimates the filter's states."""
+    data, _ = _mambo_lqg()
+    data["controller"] = {**data["controller"], "filters": {"gyro": {"cutoff": 30.0, "order": 2},
+                                                            "notch": {"center": 70.0, "bandwidth": 30.0}}}
+    data["simulation"]["duration"] = 1.0  # the rotors clip in its first half second
+    return data, None
+
+
 CASES["mambo-lqg"] = _mambo_lqg
 CASES["mambo-lqg-lag-delayed"] = lambda: _mambo_lqg(delayed=True)
 CASES["mambo-lqg-emulated"] = _mambo_lqg_emulated
-LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed", "mambo-lqg-emulated")
+CASES["mambo-lqg-gyro-filtered"] = _mambo_lqg_gyro_filtered
+LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed", "mambo-lqg-emulated", "mambo-lqg-gyro-filtered")
 
 
 def replay(ctl: Controller, y) -> tuple[np.ndarray, np.ndarray]:
@@ -321,7 +332,7 @@ def test_the_exported_kalman_filter_gives_the_simulated_commands_and_estimates(c
     for single in (False, True):
         commands, estimates = replay(Controller(exp, tmp_path / case, single), y)
         du = np.abs(commands[:len(samples) - n] - applied[n:]).max()
-        dxh = np.abs(estimates[:-1] - prior).max()
+        dxh = np.abs(estimates[:-1, :N_STATES] - prior).max()  # (the gyro filter's estimates after x's)
         if single:
             print(f"{case} float: max |du| = {du:.3e} ({du / terms:.3e} of {terms:.3g}), max |dxh| = {dxh:.3e}")
             assert du <= FLOAT_INPUT_RTOL * terms and dxh <= FLOAT_STATE_TOL, \
@@ -513,7 +524,8 @@ def test_the_lqg_header_documents_the_measurements_and_the_filter(tmp_path):
     for line in ("void quadctl_step(quadctl_controller *c, const quadctl_real y[QUADCTL_NY], "
                  "quadctl_real u[QUADCTL_NU]);", "#define QUADCTL_NY 9", "#define QUADCTL_NB 0",
                  "#define QUADCTL_Y_PN 0  /* pN (m), x[0] */", "#define QUADCTL_Y_PHI 3  /* phi (rad), x[6] */",
-                 "#define QUADCTL_Y_R 8  /* r (rad/s), x[11] */", "quadctl_real xh[QUADCTL_NX];",
+                 "#define QUADCTL_Y_R 8  /* r (rad/s), x[11] */", "quadctl_real xh[QUADCTL_NE];",
+                 "#define QUADCTL_NE 12",
                  "MATLAB dlqe's filter form", "xc = xh + M (y - C x_ref(t) - C xh)",
                  "xh <- Ae xc + Be (u_applied - u_trim)"):
         assert line in header, line
@@ -774,6 +786,45 @@ def test_the_mat_file_carries_the_kalman_filter_that_gives_the_simulated_estimat
     print(f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}")
     assert worst < 1e-12, f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}"
     assert np.ptp(ref.x_hat[:, STATE_INDEX["w"]]) > 0.1  # the unmeasured climb rate is estimated, and moves
+
+
+def test_the_mat_file_of_a_filtered_lqg_loop_reruns_the_gyro_filter_and_the_kalman_filter():
+    """With the gyro filter in the Kalman filter's model, the ``.mat`` file's fields alone (``gyro_filter``'s
+    A, b, c, d on the raw rates; ``estimator``'s Ae, Be, C, gain over ``states``, the 12 and the filter's)
+    rerun both on the measurements simulate's controller saw and give simulate's a priori estimates."""
+    from scipy.io import loadmat
+
+    from quadctl.noise import realize
+
+    exp = prepared("mambo-lqg-gyro-filtered")
+    buf = io.BytesIO()
+    data.write_mat(buf, exp)
+    buf.seek(0)
+    d = loadmat(buf, simplify_cells=True)
+    e, f, kal = d["estimator"], d["gyro_filter"], exp.loop.estimator
+    ne = N_STATES + 3 * len(f["b"])
+    assert e["Ae"].shape == (ne, ne) and e["C"].shape == (9, ne) and len(e["states"]) == ne == kal.n_estimate
+    np.testing.assert_array_equal(e["Ae"], kal.A)
+    setup, loop = exp.setup, exp.loop
+    plan = loop.plan(setup.duration, setup.dt)
+    ref = simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt, noise=setup.noise,
+                   max_samples=plan.n_steps + 1)
+    _, sensor = realize(setup.noise, plan.n_steps, plan.dt)
+    rows = e["measured_index"].astype(int) - 1
+    rates = [STATE_INDEX[r] for r in ("p", "q", "r")]
+    m = len(f["b"])
+    g, xh, worst = np.zeros((3, m)), np.zeros(ne), 0.0
+    for k, i in enumerate(np.arange(0, plan.n_steps, plan.hold)):
+        worst = max(worst, np.abs(xh[:N_STATES] - (ref.x_hat[i] - ref.x_ref[i])).max())
+        x_m = ref.x[i] + sensor[i]
+        raw = x_m[rates].copy()
+        x_m[rates] = g @ f["c"] + f["d"] * raw  # the law's filtered rates
+        g = g @ f["A"].T + np.outer(raw, f["b"])
+        y = (x_m - (d["x_trim"] + d["x_rate"] * k * d["Ts"]))[rows]
+        xc = xh + e["gain"] @ (y - e["C"] @ xh)
+        xh = e["Ae"] @ xc + e["Be"] @ (ref.u[i] - d["u_trim"])
+    print(f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}")
+    assert worst < 1e-12, f"max |x_hat(mat) - x_hat(simulate)| = {worst:.3e}"
 
 
 def test_a_continuous_lqg_export_carries_the_kalman_bucy_filter():

@@ -63,6 +63,7 @@ typedef double quadctl_real;
 #define QUADCTL_NY ${NY}  /* measurements y of the Kalman filter (estimator:); 0: ${STEP_NAME} takes the state x */
 #define QUADCTL_NB ${NB}  /* commands the filter remembers for the vehicle's delay (4 per sample) */
 #define QUADCTL_NG ${NG}  /* states of the gyro filter (controller.filters; per rate p, q, r) */
+#define QUADCTL_NE ${NE}  /* states of the Kalman filter's estimate xh: x, then the gyro filter's it models */
 #define QUADCTL_RATE_HZ ${RATE}
 #define QUADCTL_SAMPLE_TIME ${TS}
 
