@@ -84,8 +84,9 @@ def test_dare_batch_agrees_with_scipy_and_dlqr(n, m):
         _close(res.K[k], one.K, f"K[{k}] against dlqr")
         np.testing.assert_allclose(res.K[k], np.linalg.solve(R[k] + B[k].T @ res.P[k] @ B[k],
                                                              B[k].T @ res.P[k] @ A[k] + N[k].T), rtol=1e-10)
+        # the reported relative residual is the residual, to the round-off of computing one (4 n eps)
         assert res.residual[k] == pytest.approx(dare_residual(A[k], B[k], Q[k], R[k], res.P[k], N[k]),
-                                                rel=1e-9, abs=4 * n * np.finfo(float).eps)  # round-off of a relative residual
+                                                rel=1e-9, abs=4 * n * np.finfo(float).eps)
         assert np.all(np.abs(np.linalg.eigvals(A[k] - B[k] @ res.K[k])) < 1)
     assert res.residual.max() <= 1e-12
 
