@@ -37,20 +37,17 @@ from quadctl.sim.plan import _BRACKET, StepPlan, max_stable_steps, record_stride
 from quadctl.stability import is_stable
 
 SAFETY = 1.0
-"""The constant of ``h(t)`` (runs with exogenous inputs or a sampled controller; a free run takes
-:data:`FREE_SAFETY`; a reference's largest step :func:`forced_step`): measured on the report's
-``forward`` loop (benchmarks/bench.py), where ``tolerance`` 1e-8 gives a final-state error of 2.4e-10
-against LSODA at rtol 1e-12 (2.0: 1 563 steps against 2 266 to the same error). With noise, whose
-every sample re-excites the fast modes (the schedule grades for ``t = 0`` only), 2.0 multiplies the
-error by 10 to 15 (hover with sensor noise, 0.2 s)."""
+"""The constant of ``h(t)`` for runs with exogenous inputs or a sampled controller (a free run takes
+:data:`FREE_SAFETY`; a reference's largest step :func:`forced_step`). With noise, whose every sample
+re-excites the fast modes (the schedule grades for ``t = 0`` only), 2.0 multiplied the error by 10 to
+15 (hover with sensor noise, 0.2 s)."""
 FREE_SAFETY = 2.0
 """The constant of ``h(t)`` for a free run (continuous feedback, no noise, wind or reference: only the
 initial state excites the fast modes, the case the rule's ``t = 0`` grading describes). Measured
 against RK4 at a 2.5e-5 s step over 3 s of the bundled ``forward``, ``hover``, ``drake-hover`` and
-``forward-script-q`` (tolerance 1e-8 and 1e-10), the final-state error is the same at 1, 2 and 3
-(5e-13 to 2e-10, RK4's own floor); on the report's 10 s ``forward`` loop against LSODA at rtol 1e-12
-it is 2.4e-10, 2.3e-10, 1.9e-10 and 1.6e-10 at 1, 2, 3 and 4, and 4.6e-9 at 6: 2 keeps a factor of 3
-in step below that rise. Runs with exogenous inputs or a sampled controller keep :data:`SAFETY`."""
+``forward-script-q`` at tolerance 1e-8 and 1e-10, and on the report's 10 s ``forward`` loop against
+LSODA at rtol 1e-12 (docs/guide/simulation.md gives the numbers): the error starts to rise at 6, and
+2 keeps a factor of 3 in step below that."""
 MERGE_STEPS = 1
 """A graded segment that would save at most this many steps over the finer step before it is not
 taken: the finer segment runs on. All the segments of a run go in one call into the runner
