@@ -98,6 +98,12 @@ RUN = tuple(name for name in NAMES if name != "margins")
 """The stages ``quadctl run`` runs (``quadctl margins`` and the report add the margins)."""
 
 
+def verdict(name: str, results, allow_saturation: bool = False) -> str | None:
+    """Stage ``name``'s check on ``results`` (a workspace, or any object with its results, such as
+    :class:`quadctl.pipeline.Stages`): why it fails, None when it passes."""
+    return next(stage for stage in STAGES if stage.name == name).verdict(results, allow_saturation)
+
+
 @dataclass(frozen=True)
 class Outcome:
     """How far the stages went.

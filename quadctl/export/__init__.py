@@ -21,8 +21,8 @@ from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
 from quadctl.pipeline import Stages
-from quadctl.present.stages import UNSTABLE_DESIGN
 from quadctl.problem import Setup, Timing
+from quadctl.stages import verdict
 
 
 def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
@@ -74,8 +74,9 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
                         "give --rate HZ to run it at that rate, or set controller.rate "
                         "(with controller.design: discrete to design for it)")
     stages = Stages(setup)
-    if not stages.design.stable:
-        raise CheckFailed(f"the design is {UNSTABLE_DESIGN} (every subsystem is stable "
+    why = verdict("design", stages)
+    if why is not None:
+        raise CheckFailed(f"the design is {why} (every subsystem is stable "
                           "alone: the dropped couplings matter); `quadctl design` shows its eigenvalues")
     unstable = [w for w in stages.rate_warnings if not w.sampled_stable]
     if unstable:
