@@ -2,16 +2,12 @@
 written in each format quadctl writes.
 
 - :func:`html_text`: HTML text and attribute values (``&``, ``<``, ``>``, both quotes);
-- :func:`markdown_text`: Markdown text (CommonMark and GitHub's tables): every character that could
-  start markup, an HTML tag, a link, emphasis or a code span is escaped; text that has none is
-  returned unchanged (so the reports of ordinary configs read as before);
-- :func:`markdown_fence`: the fence of a code block, longer than any run of backticks in it;
-- :func:`c_comment`: text inside a C ``/* ... */`` comment (``*/`` cannot close it);
-- :func:`c_identifier` and :func:`matlab_field`: names that must already be identifiers (refused,
-  never mangled: one name, one meaning, in every file).
+- :func:`markdown_text`: Markdown text, every character that could start markup escaped;
+- :func:`markdown_fence`: a code block's fence, longer than any run of backticks in it;
+- :func:`c_comment`: text inside a C comment (``*/`` cannot close it);
+- :func:`c_identifier`, :func:`matlab_field`: names that must already be identifiers (refused, never mangled).
 
-JSON needs no function here: :func:`json.dumps` escapes every string it writes (quotes, backslashes,
-control characters, and all non-ASCII as ``\\uXXXX``).
+JSON needs none: :func:`json.dumps` escapes every string it writes.
 
 Examples
 --------

@@ -1,47 +1,10 @@
 """The steady-state Kalman filter of an LQG loop: one full 12-state filter on the coupled linear model.
 
-The filter runs on the linear model about the trim, in deviation coordinates: it estimates
-``dx = x - x_ref(t)`` from ``y = C (x + n_s) - C x_ref(t)``, under the input deviation
-``du = u - u_trim`` the plant was actually given (after clipping and any delay), and the law uses
-the estimate in place of the measured state, ``u = u_trim - K dx_hat``. It is *one* filter on the
-coupled 12-state model (not one per subsystem): the decoupled partition drops couplings the
-filter would then not know about, and the full filter costs a 12 x p gain.
-
-Two forms, after the controller's timing (MATLAB conventions; python-control's GitHub
-thread 1173 shows how easily they are confused):
-
-- sampled controller (``controller.rate``, discrete or emulated design): the discrete filter of
-  the zero-order-hold model ``Ad, Bd`` at the controller period, MATLAB ``dlqe(Ad, Gd, C, Qn, Rn)``.
-  The gain is the **filter (measurement-update) gain** ``M``: with ``P`` the a priori covariance,
-  ``M = P C' (C P C' + Rn)^-1`` and ``Z = P - M C P`` the a posteriori one. Each sample
-  updates ``x_hat[k|k] = x_hat[k|k-1] + M (y[k] - C x_hat[k|k-1])``, the law acts on
-  ``x_hat[k|k]`` (MATLAB ``kalman(..., 'current')``), then predicts
-  ``x_hat[k+1|k] = Ad x_hat[k|k] + Bd du[k]``. The predictor gain is ``L = Ad M``; the
-  estimator's eigenvalues are those of ``Ad - L C`` (equal to those of ``(I - M C) Ad``).
-  The process noise is the body force and torque held over each sample (as the simulation draws
-  it when ``simulation.noise.period`` is the controller period): ``Gd`` is ``G`` through the same
-  hold, exact for that noise.
-- continuous controller: the Kalman-Bucy filter, MATLAB ``lqe(A, G, C, W, V)``,
-  ``dx_hat/dt = A x_hat + B du + L (y - C x_hat)``, ``L = P C' V^-1``, integrated in every RK4
-  stage. The intensities of held noise of std ``sigma`` and period ``tau`` are ``sigma^2 tau``
-  (their spectrum at low frequency).
-
-With a gyro filter (``controller.filters``, :mod:`quadctl.linear.filters`) the flight computer sees the
-body rates only after it: the filter's model then runs the plant followed by the filter on ``p, q, r``
-(:func:`quadctl.linear.filters.series`), state ``[x; g]`` (12 + 3 m, ``m`` the filter's order), and a
-measured rate is the *filtered* rate ``c_f g + d_f r`` (:func:`quadctl.linear.filters.filtered_output`);
-it estimates both, the law acting on the estimate of ``x`` (and of ``g`` with
-``controller.filters.design: include``). The simulation adds the gyro's noise before the filter, as in a
-real gyro. The filter's model takes that noise at the filter's output, white, with the gyro's standard
-deviation: taken before the filter it would reach the output only through the filter's zeros, which sit
-on the unit circle (a Butterworth biquad's at ``z = -1``, a notch's at its centre), where the output's
-spectrum then vanishes and no stabilizing Kalman filter exists. A low-pass of unit DC gain passes less
-than white noise's power, so the assumed noise is an upper bound of the filtered noise's.
-
-Both Riccati equations are solved as the dual LQR problem by :func:`quadctl.design.riccati.solve`
-(validated, residual-checked). The measured set must leave every mode that is not stable
-observable (PBH, :func:`quadctl.analysis.check`, rank tolerance ``max(shape) eps sigma_max``);
-else :func:`kalman` refuses with the modes and the states they live in.
+:func:`kalman` designs it, discrete (MATLAB ``dlqe``: the filter gain ``M``, the law acting on
+``x_hat[k|k]``) at a sampled controller's period or Kalman-Bucy (``lqe``) for a continuous one, with
+the gyro filter's states when the loop has one; it refuses a measured set that leaves a mode that is
+not stable unobservable. The two forms and the noise model are in the docs, docs/internals.md
+("The Kalman filter").
 """
 
 from __future__ import annotations

@@ -1,22 +1,10 @@
 """python-control interop: quadctl's models and designs as ``control.StateSpace``, and back.
 
-python-control (``pip install '.[control]'``, imported on first use) names the signals of a
-system (``states=``, ``inputs=``, ``outputs=``) and decides continuous or discrete from its
-``dt``; so do these conversions:
-
-- :func:`plant`: the 12-state linearization (or its zero-order-hold discretization), outputs
-  the states;
-- :func:`subsystem`: one decoupled subsystem, outputs its measured states (``C``);
-- :func:`controller`: a design's controller from the measured state deviation to the input
-  deviation, with its integrators as states (``u = -K x - Ki z``); for a loop through a Kalman
-  filter (LQG, ``estimator:``) the compensator, with the filter's estimate as states too;
-- :func:`closed_loop`: the linear closed loop of ``[x; z]``, driven by an input disturbance
-  added to ``u``; ``control.feedback(plant(...), controller(...), sign=1)`` is the same loop;
-- :func:`from_statespace`: any python-control ``StateSpace`` as a :class:`Plant` quadctl designs
-  for (``A, B``, names, and ``dt`` deciding ``lqr`` or ``dlqr``).
-
-Every matrix comes from quadctl's own stages (:mod:`quadctl.design.discrete` for the hold,
-:mod:`quadctl.design.linear_loop` for the loop); python-control only carries them.
+:func:`plant`, :func:`subsystem`, :func:`controller` (the LQG compensator too) and
+:func:`closed_loop` carry quadctl's own matrices with named signals, continuous or at the design's
+``dt``; :func:`from_statespace` makes a ``StateSpace`` a :class:`Plant` quadctl designs for.
+python-control (``pip install '.[control]'``) is imported on first use. See docs/guide/export.md
+("python-control").
 
 Examples
 --------

@@ -1,47 +1,9 @@
 """Rotors: the mixing matrix between [T, A, E, R] and the four rotor thrusts, and saturation.
 
-Geometry (FRD body frame, rotors in the body x-y plane, thrust ``f_i >= 0`` along body -z).
-A rotor at ``(x_i, y_i)`` contributes the moment ``r_i x [0, 0, -f_i] = [-y_i f_i, x_i f_i, 0]``
-and a yaw reaction torque ``s_i k_m f_i`` (``k_m`` N m per N, ``s_i = +1`` for a rotor spinning
-counter-clockwise seen from above, whose drag torque on the body is nose-right, ``-1`` clockwise).
-So
-
-    [T, A, E, R]' = M f,   M = [[1, 1, 1, 1], [-y_i], [x_i], [s_i k_m]],
-
-and the mixer is ``M^-1``. Rotor numbering and spin are the vehicle's own (``motors.numbering``,
-``motors.spin``): rotor ``i`` of every output (the mixer's rows, ``sim.npz``, plots, the C export) is
-the vehicle's motor ``i``. By default (``numbering: quadctl``) the rotors are numbered clockwise seen
-from above, rotor 1 first, diagonal rotors spinning alike:
-
-====  ===========================  ====================  ====
-rotor  ``x`` layout (d = L / sqrt 2)  ``+`` layout            spin
-====  ===========================  ====================  ====
-1      front right  ( d,  d)         front  ( L, 0)        CCW
-2      rear right   (-d,  d)         right  ( 0, L)        CW
-3      rear left    (-d, -d)         rear   (-L, 0)        CCW
-4      front left   ( d, -d)         left   ( 0, -L)       CW
-====  ===========================  ====================  ====
-
-The two layouts are shorthands for ``motors.positions``: any other geometry (a stretched X, rotors at
-``(+-a, +-b)``) is given as each rotor's ``(x, y)`` with its spin, and ``M`` is built from it the same way.
-
-The flight stacks' quad-X orders (:data:`NUMBERINGS`) are named presets; the spins default to the
-front-right rotor counter-clockwise (all three stacks' default), ``motors.spin`` gives others ("props out").
-
-Saturation (:mod:`quadctl.sim.builder`, mode ``motors``), ``motors.saturation``:
-
-- ``prioritize`` (:func:`desaturate`; what flight stacks do: PX4's control allocator with
-  ``MC_YAW_WEIGHT``, Betaflight's airmode): the roll and pitch torques are kept, then the collective
-  thrust, and the yaw torque is given up first. (1) ``A, E`` are kept whole if some thrust fits them
-  inside the rotors' limits with no yaw, else both are scaled by the one factor that just fits (the
-  direction of the torque kept); (2) ``T`` is moved the least that fits them; (3) ``R`` is moved the
-  least that fits the rest. The rotors then lie inside their limits, and an input is changed only
-  when no command closer to it fits.
-- ``clip``: the command is mixed to rotor thrusts, each clipped to ``[min_thrust, max_thrust]``, and
-  mixed back. Clipping one rotor changes every input it contributes to (no priority between thrust
-  and torques, as in the simplest mixers): a yaw torque appears with no yaw error.
-
-Without motors, box limits clip ``T, A, E, R`` directly.
+The effectiveness ``M`` from the rotors' positions and spins (``[T, A, E, R]' = M f``, the mixer
+``M^-1``), the flight stacks' numberings (:data:`NUMBERINGS`) and saturation by priority
+(:func:`desaturate`) or clipping. The geometry, the default numbering and the saturation rules are
+in the docs, docs/internals.md ("Rotors: mixing and saturation") and docs/guide/vehicle.md.
 """
 
 from __future__ import annotations

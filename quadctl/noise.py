@@ -1,19 +1,10 @@
 """Process and sensor noise for the simulation, reproducible from a seed.
 
-Noise is zero-mean Gaussian, drawn every ``period`` seconds and held in between (band-limited
-to about ``1 / (2 period)`` Hz). Because the samples live on their own clock, the realization
-of a seed does not depend on the RK4 step: a finer ``dt`` integrates the same noise more
-accurately instead of drawing a different one.
-
-- Process noise: a body-frame force (N) and torque (N m), added to the vehicle's own
-  (``disturbance`` of :func:`quadctl.model.dynamics_expression`).
-- Sensor noise: added to the state the controller measures (state units); the plant is not
-  touched, the controller acts on what it sees.
-
-Process and sensor noise are drawn from two independent streams spawned from the seed, in
-sample order, as the run needs them (:class:`NoiseStream`): enabling one kind of noise does not
-change the other's realization, and a day of flight never holds a day of noise in memory. The
-same seed and numpy version give an identical run.
+Zero-mean Gaussian, drawn every ``period`` seconds and held in between, on its own clock (a seed's
+realization does not depend on the RK4 step): a body force (N) and torque (N m) added to the
+vehicle's (``disturbance`` of :func:`quadctl.model.dynamics_expression`), and sensor noise added to
+what the controller measures. Two independent streams spawned from the seed, drawn as the run needs
+them (:class:`NoiseStream`). See docs/internals.md ("Noise").
 """
 
 from __future__ import annotations

@@ -1,30 +1,10 @@
 """A gain schedule across the envelope: trim and design at each value of one variable (no I/O).
 
-``schedule:`` names a scheduling variable (:data:`quadctl.design.gain_table.VARIABLES`) and the
-values to design at. At each value the config's flight condition is changed in that variable
-only (:func:`point_setup`):
-
-- ``speed``: the trim velocity's horizontal part becomes ``value`` along the trim heading (the
-  horizontal direction of ``trim.velocity_ned``, or ``trim.yaw`` when the trim is a hover); its
-  vertical part is kept;
-- ``climb``: ``vD = -value``, the horizontal velocity kept;
-- ``yaw``: ``trim.yaw = value``.
-
-Each point is trimmed, linearized and decoupled by the one chain of stages
-(:mod:`quadctl.pipeline`), and the points' designs are made together, batched as a sweep's are
-(:func:`quadctl.sweep.batched.design_all`: the Riccati solves stacked, each residual-checked, the
-coupled verdicts stacked). A value with no trim (the trim stage's own refusal: no equilibrium,
-a tilt the model does not support, or a trim outside the actuator limits) says why and the
-schedule goes on with the others; the *envelope* is the range of values that trim and design.
-
-The points' gains make the :class:`~quadctl.design.gain_table.GainTable`. Its interpolated gains
-are then checked on a grid ``check`` times finer (:class:`FrozenChecks`): at each fine value the
-model is trimmed and linearized again, the loop closed with the interpolated gain
-(:func:`quadctl.design.linear_loop.stack`) and judged by the one stability predicate
-(:func:`quadctl.stability.verdict_stack`). Outside the grid the table holds the end point's gain
-(:data:`quadctl.design.gain_table.OUTSIDE`).
-
-:func:`schedule_of` is the entry point: ``schedule_of(setup).table`` is what a loop flies.
+:func:`schedule_of` is the entry point: each value's flight condition (:func:`point_setup`) trimmed,
+linearized and decoupled by the one chain of stages, the designs batched as a sweep's, the gains
+made a :class:`~quadctl.design.gain_table.GainTable` and checked at frozen points on a finer grid
+(:class:`FrozenChecks`); ``schedule_of(setup).table`` is what a loop flies. See
+docs/guide/scheduling.md.
 """
 
 from __future__ import annotations

@@ -1,21 +1,11 @@
 """One stability predicate and one rule for marginal modes, for one closed loop or a stack of them.
 
-**Stable.** A continuous eigenvalue is stable when ``Re(s) < -STABILITY_MARGIN * max(1, |s|)``;
-a discrete one when ``|z| < 1 - UNIT_CIRCLE_MARGIN``. Every verdict in quadctl (design, check,
-margins, sweep rows, the RK4 step plan) comes from :func:`is_stable`.
-
-**Free positions, marginal modes.** A position state is *free* when no gain, weight or integrator
-reads it and nothing depends on it (translation invariance: its column of the loop, or of the
-plant, is zero; the unit column of a discrete loop). :func:`free_positions` is the one rule,
-for a closed loop (then its free positions are its *marginal* states) or for a plant and the
-gains and weights that will close it (the positions a design or a loop leaves out). A free
-position adds an exact eigenvalue at ``s = 0`` (``z = 1``). That mode is expected, not unstable:
-the vehicle holds its velocity and heading and lets its position drift. :func:`marginal_states`
-names those states; :func:`assess` leaves them out of the verdict and reports them.
-
-Every stability comparison in quadctl is in this module (a structure test keeps it so):
-:func:`is_stable` for verdicts, :func:`on_boundary` for a mode on the stability boundary, and
-:func:`in_open_left_half_plane` for the exact split of a Hamiltonian's spectrum.
+Every verdict in quadctl comes from :func:`is_stable` (within :data:`STABILITY_MARGIN` of the
+imaginary axis, :data:`UNIT_CIRCLE_MARGIN` of the unit circle), and every stability comparison is in
+this module (a structure test keeps it so; :func:`on_boundary`, :func:`in_open_left_half_plane`).
+:func:`free_positions` is the one rule for position states nothing reads, whose exact mode at
+``s = 0`` is expected: :func:`assess` leaves them out of the verdict and names them
+(:func:`marginal_states`). See docs/internals.md ("Stability").
 """
 
 from __future__ import annotations

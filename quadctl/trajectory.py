@@ -1,21 +1,10 @@
 """References to fly: setpoint steps and waypoint missions, as flat outputs of time.
 
-A reference is a path of the quadrotor's flat outputs, position ``p(t)`` (NED, m) and yaw
-``psi(t)`` (rad), with their derivatives up to snap (position) and yaw acceleration:
-:mod:`quadctl.flatness` turns them into the full reference state and input the controller flies
-(the differential-flatness feedforward). A path is a list of :class:`Piece`\\ s,
-
-    p(t) = p0 + v0 (t - t0) + dp s((t - t0) / T),   psi(t) = psi0 + dpsi s((t - t0) / T),
-
-with ``s`` a rest-to-rest shape on ``[0, 1]`` (:data:`SHAPES`: 0 to 1 with zero velocity,
-acceleration (and jerk) at both ends) or a step.
-
-- ``setpoints``: at each ``t`` the position, velocity and yaw given step (the others continue):
-  pieces of constant velocity.
-- ``waypoints``: from the trim position and yaw, one leg to each waypoint in order, then its
-  ``hold``; a leg lasts ``peak * distance / speed`` (its peak speed is ``speed``; ``peak`` the
-  shape's peak of ``s'``), at least ``peak * |dpsi| / YAW_RATE``; after the last, the reference
-  holds it.
+A reference is a path of the flat outputs, position ``p(t)`` (NED, m) and yaw ``psi(t)`` (rad), with
+their derivatives up to snap and yaw acceleration, made of :class:`Piece`\\ s (a rest-to-rest shape of
+:data:`SHAPES`, or a step): :func:`setpoint_reference` and :func:`mission_reference` build it,
+:mod:`quadctl.flatness` turns it into the state and input the controller flies. See
+docs/guide/missions.md.
 """
 
 from __future__ import annotations

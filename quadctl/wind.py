@@ -1,48 +1,9 @@
 """Wind for the simulation: steady wind, discrete 1-cosine gusts and Dryden turbulence (numpy only).
 
-The wind ``w(t)`` is the air's velocity over the ground, NED (m/s). The model's rotor drag acts on
-the velocity relative to the air (:func:`quadctl.model.dynamics_expression`). ``w(t)`` is the sum of
-
-- a **steady** wind (NED, m/s);
-- **discrete gusts**, the "1-cosine" gust of MIL-F-8785C §3.7.3.4 (figure 9),
-  ``v = (V_m / 2) (1 - cos(pi x / d_m))`` over ``0 <= x <= d_m``, written in time for a vehicle that
-  may hover (``x / d_m = (t - start) / length``): each gust rises over ``length`` seconds to its
-  ``amplitude`` (m/s per NED axis), stays there ``hold`` seconds (MIL-F-8785C's gust holds ``V_m``
-  for ever: a hold past the run's end), and falls back over ``length`` seconds as the mirror image. With
-  ``hold = 0`` it is the full ``(V_m / 2)(1 - cos(pi (t - start) / length))`` over ``2 length``;
-- **Dryden turbulence**, the low-altitude model of MIL-HDBK-1797 (§B.4.4.1, after MIL-F-8785C
-  §3.7.2), in the handbook's "2L" form and length scales (``h`` in ft, below 1000 ft)::
-
-      Phi_u(W) = sigma_u^2 (2 L_u / pi) / (1 + (L_u W)^2)
-      Phi_v(W) = sigma_v^2 (2 L_v / pi) (1 + 12 (L_v W)^2) / (1 + 4 (L_v W)^2)^2      (w alike)
-      sigma_w = 0.1 W20,  sigma_u / sigma_w = sigma_v / sigma_w = 1 / (0.177 + 0.000823 h)^0.4
-      L_u = 2 L_v = h / (0.177 + 0.000823 h)^1.2,  2 L_w = h
-
-  with ``W`` the spatial frequency (rad/m) and ``W20`` the wind speed at 20 ft: 15 kt light,
-  30 kt moderate, 45 kt severe (MIL-HDBK-1797 figure 262). ``u`` is along the mean wind's horizontal
-  direction (north when there is none), ``v`` horizontal to its right, ``w`` down. These are the
-  spectra of MIL-F-8785C §3.7.2.1 (``Phi_v = sigma_v^2 (L_v / pi) (1 + 3 (L_v W)^2) / (1 +
-  (L_v W)^2)^2`` with ``L_v = L_u``, ``L_w = h``) written with half its lateral and vertical scales:
-  every ``L`` here (and in ``turbulence.length_scale``) is MIL-HDBK-1797's, so ``L_v`` and ``L_w``
-  are half of MIL-F-8785C's.
-
-The spectra are spatial; a vehicle at airspeed ``V`` sees ``omega = V W``, i.e. ``Phi(omega) =
-Phi(W) / V`` (Taylor's frozen field). A hovering vehicle has no airspeed of its own, so the reference
-speed is the trim's airspeed (its ground velocity less the steady wind), floored at
-:data:`MIN_REFERENCE_SPEED`, unless ``turbulence.airspeed`` gives it (:func:`reference_speed`).
-
-**Realization.** Each axis is the output of its Dryden forming filter (a first-order filter for
-``u``, second order for ``v`` and ``w``) driven by white noise, discretized exactly at the turbulence
-clock :data:`TURBULENCE_PERIOD` (transition ``expm(A T)``, process covariance from the stationary
-one, the start drawn from the stationary distribution) and linearly interpolated in between. Each
-axis draws from its own stream spawned from the seed (``numpy.random.SeedSequence(seed).spawn(3)``,
-as :mod:`quadctl.noise` does). The simulation samples ``w(t)`` on the exogenous clock
-(:class:`WindStream`), never on the RK4 step: a seed gives the same wind at any ``dt``, however the
-run is chunked, and memory holds one chunk.
-
-Sources: MIL-F-8785C, *Flying Qualities of Piloted Airplanes* (1980), §3.7.2 (Dryden form),
-§3.7.3.4 (discrete gust); MIL-HDBK-1797, *Flying Qualities of Piloted Aircraft* (1997), §B.4.4
-(low-altitude scales and intensities, figure 262 for W20).
+The wind is the air's velocity over the ground, NED (m/s), sampled on the exogenous clock
+(:class:`WindStream`); turbulence is seen at :func:`reference_speed`. The gust (MIL-F-8785C
+§3.7.3.4) and the Dryden model (MIL-HDBK-1797 §B.4.4) with their formulas and sources are in the
+docs, docs/internals.md ("Wind").
 """
 
 from __future__ import annotations

@@ -1,19 +1,11 @@
 """The one YAML loader of quadctl: configs and sweep files are read, parsed and bounded here.
 
-PyYAML's safe loader, with four changes that make every number and every key read as written:
-
-- **Numbers as YAML 1.2 reads them.** ``1e5`` and ``68e-3`` are numbers (YAML 1.1 wants a dot:
-  PyYAML reads them as text), ``010`` is ten (not octal eight; write ``0o10`` for octal),
-  ``1:30`` is text (not sexagesimal ninety), ``2024-01-01`` is text (not a date).
-- **Duplicate keys are refused**, naming the key path and both lines (YAML 1.1 keeps the last one
-  silently: ``mass: 0.068`` then ``mass: 0.5`` flies the heavier vehicle).
-- **Resource bounds before allocation.** A file larger than :data:`MAX_BYTES`, or any non-regular
-  file that gives more (``/dev/zero``), nesting deeper than :data:`MAX_DEPTH`, and aliases that
-  expand the document past :data:`MAX_EXPANDED` (a 1.6 kB "billion laughs" stands for 9^9 values)
-  are refused while parsing, before anything is built from them.
-- **One-line errors.** Every problem is one line naming the file, the line and the fix, raised as
-  the caller's error class (:class:`~quadctl.errors.ConfigError` for a config,
-  :class:`~quadctl.errors.SweepError` for a sweep file).
+PyYAML's safe loader, changed so that every number and key reads as written: numbers as YAML 1.2
+reads them (``1e5`` a number, ``010`` ten, ``1:30`` and dates text); duplicate keys refused, naming
+both lines; size (:data:`MAX_BYTES`), depth (:data:`MAX_DEPTH`) and alias expansion
+(:data:`MAX_EXPANDED`) bounded while parsing; every problem one line raised as the caller's error
+class (:class:`~quadctl.errors.ConfigError`, :class:`~quadctl.errors.SweepError`). See
+docs/reference/config.md ("How YAML is read").
 
 Examples
 --------

@@ -10,15 +10,10 @@ Modules, each importing only those above it (``from quadctl import artifacts`` g
 names of all of them: ``artifacts.write_json``, ``artifacts.read_npz``, ``artifacts.locked``, ...):
 
 - :mod:`~quadctl.artifacts.meta`: the provenance record every artifact carries (:func:`metadata`)
-  and the format version it is checked against
-- :mod:`~quadctl.artifacts.json_values`: values as JSON holds them (arrays, complex numbers,
-  infinities) and back
-- :mod:`~quadctl.artifacts.places`: the run directory, the names quadctl writes there, and the
-  rule that keeps every write, read and delete on them and off symbolic links
-- :mod:`~quadctl.artifacts.writing`: atomic writes (tagged temporaries, fsync, rename; a set written
-  together), removing quadctl's own files and the temporaries of a killed run
-- :mod:`~quadctl.artifacts.reading`: reading back with provenance and content checked, and whether
-  an artifact may be reused (:func:`is_fresh`)
+- :mod:`~quadctl.artifacts.json_values`: values as JSON holds them (arrays, complex numbers, infinities)
+- :mod:`~quadctl.artifacts.places`: the run directory and its names, kept off symbolic links
+- :mod:`~quadctl.artifacts.writing`: atomic writes (tagged temporaries, fsync, rename), cleaning up
+- :mod:`~quadctl.artifacts.reading`: reading back with provenance checked; reuse (:func:`is_fresh`)
 - :mod:`~quadctl.artifacts.lock`: one quadctl per run directory (:func:`locked`)
 """
 

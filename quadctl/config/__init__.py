@@ -8,20 +8,13 @@ and what is allowed.
 Modules, each importing only those above it (``from quadctl import config`` gives every public
 name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``, ``config.MAX_DURATION``):
 
-- :mod:`~quadctl.config.schema`: the sections (frozen pydantic models) with the limits and units of
-  their keys, the whole :class:`Config` (its digest, its YAML), and the walk from a key path to its section
-- :mod:`~quadctl.config.weights`: the rules an LQR weight (Q or R) obeys, for one weight and for
-  many diagonals at once (a sweep's)
+- :mod:`~quadctl.config.schema`: the sections (frozen pydantic models, limits and units), :class:`Config`
+- :mod:`~quadctl.config.weights`: the rules an LQR weight (Q or R) obeys, for one weight or many
 - :mod:`~quadctl.config.describe`: a pydantic ``ValidationError`` as the one line a user reads
-  (imported only when a config fails the schema)
-- :mod:`~quadctl.config.checks`: the checks after the schema: rules across fields (the partition,
-  the weights' sizes, inertia, rotors, estimator, wind, delay, method) and bounds in context
-- :mod:`~quadctl.config.render`: the schema shown to people and editors (``quadctl configs --show``,
-  ``--schema``)
-- :mod:`~quadctl.config.kinds`: what a file that fails is instead (a sweep file, an artifact), told
-  by its top-level keys, for the one line that says how to pass it
-- :mod:`~quadctl.config.loading`: finding a config (a file or a bundled name), loading and
-  validating it, and a command-line value checked against the key it overrides
+- :mod:`~quadctl.config.checks`: the checks after the schema: rules across fields, bounds in context
+- :mod:`~quadctl.config.render`: the schema shown to people and editors (``quadctl configs --show``)
+- :mod:`~quadctl.config.kinds`: what a file that fails is instead (a sweep file, an artifact)
+- :mod:`~quadctl.config.loading`: finding, loading and validating a config; a command-line value checked
 """
 
 from quadctl.config.checks import DELAY_SAMPLES_TOL as DELAY_SAMPLES_TOL

@@ -3,20 +3,15 @@ designs, and the margins of the loops they close.
 
 Modules, each importing only those above it:
 
-- :mod:`~quadctl.design.riccati`: the Riccati equations (CARE, DARE): validated weights, stacked and
-  one-case solvers, residuals, the refusals that say why
+- :mod:`~quadctl.design.riccati`: the Riccati equations (CARE, DARE), stacked and one-case solvers
 - :mod:`~quadctl.design.integral`: integral action (LQI): a plant augmented with integrators
 - :mod:`~quadctl.design.lag`: the rotors' first-order lag: a plant augmented with one lag state per input
 - :mod:`~quadctl.design.discrete`: the zero-order hold, MATLAB ``dlqr``/``lqrd``, what a rate realizes
 - :mod:`~quadctl.design.linear_loop`: the linear closed loop of a design, the one place ``A - B K`` is built
-  (the design's, a subsystem's, the vehicle's with lag, lag model and delay; a stack)
-- :mod:`~quadctl.design.decoupled`: :func:`lqr` (one case, MATLAB conventions) and the decoupled
-  :func:`design` (one LQR per subsystem, assembled into the 4x12 gain)
+- :mod:`~quadctl.design.decoupled`: :func:`lqr` (one case) and the decoupled :func:`design` (the 4x12 gain)
 - :mod:`~quadctl.design.coupled`: one LQR on the full coupled model, to compare with the decoupled design
-- :mod:`~quadctl.design.gain_table`: a gain schedule's table (gains at the values of one scheduling
-  variable, interpolated nearest, linear or cubic) and the scheduling variable read from a state
-- :mod:`~quadctl.design.margins`: the margins of each regulated loop (with the Kalman filter in the
-  loop for LQG); not imported by the package itself (SciPy's frequency tools load only for margins)
+- :mod:`~quadctl.design.gain_table`: a gain schedule's table and the scheduling variable read from a state
+- :mod:`~quadctl.design.margins`: the loops' margins (not imported by the package: SciPy loads only for them)
 
 ``from quadctl.design import lqr`` is the one-case entry point (MATLAB ``lqr``: ``K, P, E``).
 """

@@ -1,20 +1,10 @@
 """One LQR on the full coupled model, for comparison with the decoupled design.
 
-The full design minimizes *the same cost* as the decoupled one: the subsystems' Q and R
-assembled into ``Q_block``, ``R_block`` (and their integrator weights, with the same integral
-states), but on the coupled 12-state model, so it may use every coupling term the partition
-drops and every state in every input. On the linear model it is therefore never worse:
-``dx0' P_full dx0 <= dx0' P_dec dx0`` for every initial offset (``P_dec`` the cost matrix of the
-decoupled gain on the coupled model, from a Lyapunov equation). On the nonlinear model
-that is not guaranteed; :func:`compare` measures it.
-
-Positions. With the report's weights, ``pN`` and ``pE`` carry no weight and no dynamics depend
-on them (zero columns of A), so they are *left out* of the full design: a zero-weight mode at
-``s = 0`` has no stabilizing Riccati solution, and in forward flight ``pN`` is not an equilibrium
-anyway (it grows at the flight speed). ``pD`` is weighted and kept: it is regulated about the
-reference ``x_ref(t) = x_trim + x_rate t``, which moves when the trim climbs or descends. A
-config that does weigh ``pN`` or ``pE`` (a subsystem that regulates them) keeps them the same way,
-about the moving reference.
+The full design minimizes the decoupled design's cost (the subsystems' Q and R, and integrator
+weights, assembled) on the coupled 12-state model, so on the linear model it is never worse;
+:func:`compare` measures it on the nonlinear one. Positions nothing weighs or depends on are left out
+of it; weighted ones are regulated about the moving reference ``x_trim + x_rate t``. See
+docs/internals.md ("The coupled design").
 """
 
 from __future__ import annotations

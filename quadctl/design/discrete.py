@@ -1,22 +1,10 @@
 """Sampled-data LQR: zero-order-hold discretization, MATLAB ``lqrd``/``dlqr``, and what a rate realizes.
 
-A flight computer updates its command at ``rate`` Hz and holds it in between (a zero-order
-hold, ZOH). Over one sample ``Ts = 1 / rate`` the linear plant ``x' = A x + B u`` becomes
-
-    x[k+1] = Ad x[k] + Bd u[k],   Ad = e^(A Ts),   Bd = integral_0^Ts e^(A s) ds B.
-
-MATLAB conventions throughout:
-
-- ``dlqr(Ad, Bd, Q, R, N)``: ``u[k] = -K x[k]`` minimizes ``sum x'Qx + u'Ru + 2 x'Nu``;
-  ``K = (Bd'P Bd + R)^-1 (Bd'P Ad + N')``, ``P`` the stabilizing solution of the DARE.
-- ``lqrd(A, B, Q, R, Ts)``: the discrete regulator whose cost equals the *continuous* cost
-  ``integral x'Qx + u'Ru dt`` of the sampled-and-held signals: the weights are integrated
-  over one sample (Van Loan's matrix exponential), which adds a cross term ``Nd`` and makes
-  ``Rd`` grow with ``Q``. As ``Ts -> 0`` its gain tends to the continuous ``lqr`` gain.
-
-Eigenvalues of a discrete loop are ``z``; they are also reported as the equivalent
-continuous eigenvalues ``s = ln(z) / Ts`` (rad/s), so that discrete and continuous designs
-read on one scale.
+:func:`c2d` (and :func:`c2d_batch`) hold a plant over one sample, :func:`dlqr` and :func:`lqrd` design
+in MATLAB's conventions (``lqrd``'s weights by Van Loan's exponential, :func:`lqrd_weights`),
+:func:`s_equivalent` reads a discrete eigenvalue on the continuous scale, and :func:`rate_warnings`
+says what a continuous design loses at a rate. The formulas are in the docs, docs/internals.md
+("Sampled designs").
 """
 
 from __future__ import annotations

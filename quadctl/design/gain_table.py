@@ -1,22 +1,10 @@
 """A gain schedule's table: gains at points of one scheduling variable, and their interpolation.
 
-The table is the data every user of a schedule takes (the schedule stage and its artifacts, the
-simulated loop, the exported C): the scheduling ``values`` (increasing), the gain at each, and the
-interpolation between them as one piecewise cubic in the local coordinate ``s = v - breaks[i]``
-(SciPy's :class:`~scipy.interpolate.PPoly` layout), so that every kind is evaluated the same way:
-
-- ``nearest``: constant pieces, switching at the midpoints between values (a midpoint takes the
-  upper point's gain);
-- ``linear``: straight pieces between values;
-- ``cubic``: SciPy's not-a-knot :class:`~scipy.interpolate.CubicSpline` through the values (what
-  ``scipy.interpolate.interp1d(kind='cubic')`` and python-control's gain-scheduled state feedback
-  give in one variable; two points give the straight line, three the parabola).
-
-Outside the grid the table holds the end point's gain (:data:`OUTSIDE`): a schedule is never
-extrapolated.
-
-The scheduling variable is read from a state (:func:`scheduling_value`): ``speed`` along the trim's
-heading (m/s), ``climb`` rate (m/s, up positive) or ``yaw`` (rad).
+:class:`GainTable` is what every user of a schedule takes (the schedule stage and its artifacts, the
+simulated loop, the exported C): the values, the gain at each, and one piecewise cubic in SciPy's
+:class:`~scipy.interpolate.PPoly` layout for every interpolation (:data:`INTERPOLATIONS`), held at
+the ends (:data:`OUTSIDE`). :func:`scheduling_value` reads the variable (:data:`VARIABLES`) from a
+state. See docs/guide/scheduling.md.
 """
 
 from __future__ import annotations

@@ -1,19 +1,9 @@
 """Integral action (LQI, as MATLAB ``lqi``): a subsystem augmented with the integral of some states.
 
-Continuous time (MATLAB ``lqi``): the integrator ``z`` obeys ``dz/dt = r - y = -(x_I - x_I,ref)``
-for the integrated states ``x_I = C x``; the regulator ``u = -[Kx, Ki] [x; z]`` is the LQR of
-
-    d/dt [x; z] = [[A, 0], [-C, 0]] [x; z] + [[B], [0]] u.
-
-Discrete time (a controller at ``rate`` Hz, MATLAB ``lqi`` on a discrete plant): the integrator
-is the forward-Euler accumulator ``z[k+1] = z[k] - Ts (x_I[k] - x_I,ref)``, so the augmented
-ZOH plant is ``[[Ad, 0], [-Ts C, I]]``, ``[[Bd], [0]]``. The simulation runs exactly this
-accumulator (:mod:`quadctl.sim.builder`), so the design model and the implementation agree.
-
-A constant disturbance or a model error (a mass 10 % off) leaves a steady error ``e`` in plain
-LQR; with the integrator, a steady state needs ``dz/dt = 0``, that is ``e = 0`` for every
-integrated state. When an input saturates, the integrators that drive it stop (conditional
-integration), so they do not wind up while the loop is open.
+Continuous: ``dz/dt = -(x_I - x_I,ref)``, the plant ``[[A, 0], [-C, 0]]``, ``[[B], [0]]``; discrete
+(a controller at ``rate`` Hz): the forward-Euler accumulator ``z[k+1] = z[k] - Ts (x_I[k] -
+x_I,ref)``, the ZOH plant ``[[Ad, 0], [-Ts C, I]]``, ``[[Bd], [0]]``, which the simulation runs
+exactly (:mod:`quadctl.sim.builder`). See docs/internals.md ("Integral action").
 """
 
 from __future__ import annotations

@@ -1,30 +1,11 @@
 """The linear closed loop of a design: the one place a loop ``A - B K`` is built, one case or a stack.
 
-A loop is a plant ``(A, B)`` about the trim (deviations ``x``, ``u``), continuous or held by a
-zero-order hold at ``sample_time`` (:func:`quadctl.design.discrete.c2d`), closed by
-
-    u = -K x - Kv l - Ki z
-
-Its state, in the order :mod:`quadctl.sim.builder` keeps the nonlinear loop's ``[x; f; z; l; b]``:
-
-- ``x``: the 12 plant states (or a subsystem's);
-- ``v``: the rotors' lag on every input, ``dv/dt = (u - v) / tau`` (:func:`quadctl.design.lag.lagged`;
-  the builder's rotor thrusts are ``f = mix (u_trim + v)``);
-- ``z``: integrators of ``integral_states`` (MATLAB ``lqi``): ``dz/dt = -x_s``, or sampled
-  ``z <- z - Ts x_s`` (:mod:`quadctl.design.integral`);
-- ``l``: the controller's model of the rotors' lag, fed back through ``Kv``
-  (:func:`with_lag_model`);
-- ``b``: ``delay_samples`` of command buffer of a sampled loop (:func:`delayed`);
-- ``g``: the gyro filter's states, the law taking the filtered rates
-  (:func:`quadctl.linear.filters.with_rate_filter`).
-
-Position states that nothing reads and nothing depends on (:func:`quadctl.stability.free_positions`)
-add a marginal mode; the vehicle's loop leaves them out unless asked to keep every state.
-
-Who takes it: the design and its verdict (:mod:`quadctl.design.decoupled`, :func:`matrix`), the full-model
-comparison (:mod:`quadctl.design.coupled`), margins and the check stage's vehicle loop (:func:`vehicle`),
-the sweep's verdicts (:func:`matrix` of a stack), the rate check (:func:`subsystem`) and
-:mod:`quadctl.interop`.
+A plant ``(A, B)`` about the trim, continuous or held at ``sample_time``, closed by
+``u = -K x - Kv l - Ki z``, with the rotors' lag, integrators, the controller's lag model
+(:func:`with_lag_model`), a delay's buffer (:func:`delayed`) and the gyro filter, its states in the
+order :mod:`quadctl.sim.builder` keeps them. Taken by the design's verdict (:func:`matrix`), the
+margins and the check stage (:func:`vehicle`), the rate check (:func:`subsystem`), sweeps and
+:mod:`quadctl.interop`. The state layout is in the docs, docs/internals.md ("The linear closed loop").
 """
 
 from __future__ import annotations

@@ -1,66 +1,10 @@
 """Stability margins of each regulated loop, broken at the plant input.
 
-For state feedback ``u = -K x`` (``-K x - Ki z`` with integrators), the loop broken at input
-``j`` is ``L(s) = K_j (sI - A_o)^-1 B_j`` where ``A_o = A - B_o K_o`` keeps every *other* input's
-loop closed (on a single-input subsystem, ``A_o = A``). A sampled controller gives the discrete
-loop ``L(z) = K_j (zI - A_o)^-1 B_j`` on the ZOH plant, evaluated on ``z = e^(j w Ts)`` up to
-the Nyquist frequency ``pi / Ts``: that is the loop the flight computer closes, hold and sampling
-included. The closed loop is ``1 + L = 0`` (negative feedback).
-
-A configured delay of ``n`` controller samples (``controller.delay``) is in the loops: the discrete
-plant is augmented with ``n`` shift states per input (``b_1 <- u``, ``b_k <- b_(k-1)``, the plant
-driven by ``b_n``), which is ``z^-n`` on every input: exact, no Pade approximation. The delay
-margin is then the delay the loop tolerates beyond the configured one. Rotors that lag
-(``motors.time_constant``) are in the loops too: every input reaches the plant through
-``1 / (tau s + 1)`` (:func:`quadctl.design.lag.lagged`; exact, as all rotors share ``tau`` and the mixing is linear),
-before the hold is applied. The gyro filter (``controller.filters``) is in the controller: the law
-takes the body rates through it (:func:`quadctl.linear.filters.with_rate_filter`, its states rows of
-``A`` driven by the plant's rates, none of ``B``), so the loop broken at the plant input sees its
-phase lag; its discrete form at a sampled loop's period, its continuous one otherwise. A design
-that ignores the lag (``controller.rotor_lag: ignore``) does
-not know of it. One that includes it (``include``) feeds back the lag states ``v`` through ``Kv``:
-on the design model (``model = "design"``) they are the augmented plant's states, the loop the
-LQR guarantee is about; on the coupled model the controller's own lag model supplies them, a
-controller state driven by the controller's command, so a loop broken at the plant input (an
-error between the command and the rotors, which the model does not see) is the loop the vehicle has.
-
-Reported per loop (MATLAB ``allmargin``/``diskmargin`` conventions):
-
-- gain margins (dB): the loop-gain factors ``g`` that make ``1 + g L`` singular, from every
-  phase crossover (``L`` real and negative, ``g = -1 / L``); *upper* is the smallest factor
-  above 1, *lower* the largest below 1 (``+inf`` / ``-inf`` dB: no such factor on that side);
-- phase margin (deg): ``180 + angle L`` at the gain crossover ``|L| = 1`` (the smallest one;
-  ``inf`` when ``|L|`` never crosses 1, as MATLAB's ``margin`` and python-control report it);
-- disk margin (balanced, skew 0, MATLAB's default): ``alpha = 1 / max_w |S - 1/2|``,
-  ``S = 1 / (1 + L)``; the loop tolerates simultaneous gain and phase changes in the disk, i.e.
-  gains in ``[(2 - alpha)/(2 + alpha), (2 + alpha)/(2 - alpha)]`` and phase ``+-2 atan(alpha/2)``
-  (Seiler, Packard & Gahinet, "An introduction to disk margins", IEEE CSM 2020);
-- delay margin (s, and samples of a sampled loop): the extra delay the loop tolerates before it
-  goes unstable, ``min_i PM_i / w_i`` over the gain crossovers (phase margin in rad, taken in
-  ``[0, 2 pi)``, over the crossover frequency): a delay ``tau`` turns the phase by ``-w tau``;
-- the return difference ``min_w |1 + L|``. A continuous LQR loop (on its design model) has
-  ``|1 + L| >= 1`` at every frequency, hence the guarantee: gain margin from -6 dB to infinity,
-  phase margin at least 60 degrees (Kalman 1964; Safonov & Athans 1977).
-
-With a Kalman filter in the loop (LQG, ``estimator:``), each input's loop is also broken at the
-plant input with the estimator (and the gyro filter it measures through, ``controller.filters``) in
-it (``model = "lqg"``, on the coupled model): the compensator ``K (sI - A + BK + LC)^-1 L`` (or its
-discrete current-estimator equivalent, the law acting on ``x_hat + M (y - C x_hat)``) times the
-plant, the estimator fed the *commanded* input (what the flight computer knows), the other loops
-closed (:func:`lqg_loops`). The LQR guarantee does not hold there (Doyle, "Guaranteed margins for
-LQG regulators", IEEE TAC 23(4), 1978): the notes say by how much each margin fell from the
-full-state loop. The rotors' lag and the delay are not in these loops (the notes say so when they
-are configured).
-
-An unstable closed loop has no margin: every margin is reported as zero (gain margins 0 dB,
-phase margin 0 deg, disk margin ``alpha = 0`` with its 0 dB / 0 deg disk) and no frequency, so
-no number suggests robustness the loop does not have (see :func:`no_margin`).
-
-Each loop of a continuous design is compared with that guarantee and every shortfall is explained:
-the couplings the decoupled design ignores, the sample-and-hold of continuous gains run at a rate,
-or saturation (which lowers the effective loop gain; the circle criterion keeps the loop stable
-while the effective gain stays above the lower disk gain margin). A discrete design's loops are
-sampled: the guarantee is not theirs (sampling does not keep it), and they are not compared with it.
+Gain, phase, disk and delay margins and the return difference of each loop (MATLAB
+``allmargin``/``diskmargin`` conventions), continuous or sampled, with the delay, the rotors' lag and
+the gyro filter in the loop; the loops through a Kalman filter (:func:`lqg_loops`); an unstable loop
+has no margin (:func:`no_margin`). What each margin means and how the loops are broken is in the
+docs, docs/internals.md ("Stability margins").
 """
 
 from __future__ import annotations

@@ -1,23 +1,11 @@
 """The controller as C99: one header and one source, generated from the simulation's control law.
 
-The law is not written here: :func:`sources` builds the ``law`` function of the loop's
-:class:`~quadctl.sim.builder.LoopSpec` (the gain's sparsity, the saturation mode, the
-integrators, sampled) with :func:`quadctl.sim.builder.build`, the function ``quadctl simulate``
-compiles, and emits it with :func:`quadctl.native.emit.emit` in a :class:`~quadctl.native.emit.Dialect`
-whose scalar type, literals and math functions the compiler chooses: ``double``, or ``float``
-with ``-DQUADCTL_FLOAT``. The loop's constant vector (trim, reference drift, gains, anti-wind-up
-mask, mixing, limits, sample time) is baked in as a ``static const`` array. Everything around
-the law (``templates/quadctl_controller.h`` and ``.c``: the struct, init, step, mix) is a C
-template in the package; sizes, names and offsets come from :mod:`quadctl.layout` and
-:func:`quadctl.sim.builder.constant_layout`.
-
-Why emit, and not CasADi's own ``CodeGenerator`` (checked with CasADi 3.8): its ``casadi_real:
-float`` option types the work variables as float but keeps double literals
-(``1.0000000000000001e-01``) and double math (``sin``), so a float build still computes in double,
-and its calling convention (pointer arrays, work vectors, ``mem``, checkout and release entry
-points) leaves parameters unused that ``-Wextra -Werror`` refuses. ``emit`` writes one
-straight-line function, the one the engine compiles, warning-free under ``-std=c99 -Wall -Wextra
--pedantic`` in both precisions.
+:func:`sources` builds the ``law`` function of the loop's :class:`~quadctl.sim.builder.LoopSpec` with
+:func:`quadctl.sim.builder.build`, emits it with :func:`quadctl.native.emit.emit` (``double``, or
+``float`` with ``-DQUADCTL_FLOAT``), bakes the loop's constants in and fills the C templates
+(``templates/quadctl_controller.h`` and ``.c``), sizes and offsets from :mod:`quadctl.layout` and
+:func:`quadctl.sim.builder.constant_layout`. Why quadctl emits its own C is in the docs,
+docs/internals.md ("The exported C").
 """
 
 from __future__ import annotations

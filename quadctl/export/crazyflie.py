@@ -1,31 +1,11 @@
 """The exported controller as a Crazyflie out-of-tree controller app.
 
-:func:`sources` writes a complete app for the Bitcraze Crazyflie firmware's out-of-tree (OOT)
-controller interface: the exported C controller (:func:`quadctl.export.c.sources`, in float, the
-variant that takes a reference at each sample), an adapter implementing the three functions the
-firmware calls (``controllerOutOfTreeInit``, ``controllerOutOfTreeTest``, ``controllerOutOfTree``,
-declared in the firmware's ``controller.h``), the build files (``Makefile``, ``Kbuild``,
-``app-config``) and a README. The adapter is written from the firmware's documented interface
-(``docs/development/oot.md``, ``controller.h``, ``stabilizer_types.h``); no firmware code is in it.
-
-What the adapter does, at the firmware's 1 kHz stabilizer loop:
-
-- samples the law every ``1000 / controller.rate`` calls (the rate must divide 1000) and holds the
-  rotor forces between samples;
-- converts the firmware's state to quadctl's (:data:`FRAMES`): world x forward, y left, z up to
-  NED; the world velocity to body ``u, v, w`` by the attitude quaternion, then y and z flipped;
-  attitude from degrees, the pitch in the firmware's legacy sign (nose up positive, as quadctl's
-  theta); gyro deg/s FLU to rad/s FRD; yaw negated and wrapped;
-- takes the commander's setpoint as the law's reference: position (``modeAbs``) or velocity
-  (``modeVelocity``, world or body) per axis, yaw or yaw rate; a velocity moves the position held;
-- outputs in force mode (each rotor's thrust, from the exported mixer and saturation
-  ``quadctl_mix``, divided by the firmware's maximum rotor thrust) or, with ``mode="force-torque"``,
-  the law's thrust and torques in SI (the firmware then mixes with its own constants);
-- stops: no altitude setpoint (``mode.z`` disabled, as the commander gives when it stops) zeroes
-  the outputs and restarts the controller (``quadctl_init``) and its reference.
-
-:func:`check` refuses at export time what the app cannot serve (exit 2). :func:`platform_rows`
-compares the vehicle's numbers with the firmware platform's defaults (:data:`FIRMWARE`).
+:func:`sources` writes the app: the exported C controller (in float, taking a reference each sample),
+an adapter for the firmware's out-of-tree controller interface (``controller.h``; written from its
+documentation, no firmware code in it) with the frames converted (:data:`FRAMES`), the build files
+and a README. :func:`check` refuses what the app cannot serve (exit 2); :func:`platform_rows`
+compares the vehicle with the firmware's defaults (:data:`FIRMWARE`). What the adapter does at each
+call is in the docs, docs/guide/export.md ("Into the flight stack: the Crazyflie app").
 """
 
 from __future__ import annotations

@@ -1,23 +1,10 @@
 """The estimator: rotor thrust curve, motor lag and delay, inertia and the torque coefficient from a log.
 
-The measurement model is the one CasADi model (:func:`quadctl.model.dynamics_expression`) with its
-parameters as symbolic inputs: the accelerometer reads the model's ``dV/dt`` with gravity removed and
-no velocity (the specific force), the differentiated gyro reads its ``d omega/dt``. Rotor ``i``
-gives ``f_i = c0 + c1 z_i + c2 z_i^2`` (N) of its lagged command ``z_i``: the command (a speed
-setpoint, normalized to [0, 1]) delayed by ``d`` and lagged first order through ``T_m``,
-``dz/dt = (u(t - d) - z) / T_m`` (Eschmann, Albani, Loianno, IROS 2024). The rotor thrusts mix to
-``[T, A, E, R]`` through the airframe's rotor positions and spins (:mod:`quadctl.motors`).
-
-Each stage is a nonlinear least-squares fit (Levenberg-Marquardt) whose Jacobian comes from CasADi
-(and, for ``T_m`` and ``d``, from the lag's exact sensitivity). The 95 % intervals come from the
-fit's sandwich covariance with a Newey-West (Bartlett) estimate of the residuals' autocorrelation:
-a log's residuals are a model's error, correlated over tens of milliseconds, not white noise.
-
-- thrust: ``c0, c1, c2, T_m`` (and ``d`` when asked), from ``m a_z`` (N), the mass given;
-- attitude: ``Jxx, Jyy`` and a constant torque (the centre of mass off the rotors' centre), from
-  the torque ``J domega/dt`` (N m), the thrust stage's rotors and the geometry given;
-- yaw: the torque coefficient ``k_m`` and a constant yaw torque, from ``Jzz dr/dt``, ``Jzz`` given
-  (a yaw log determines only ``k_m / Jzz``).
+Three least-squares fits on the one CasADi model with its parameters as inputs (:func:`fit_thrust`,
+:func:`fit_attitude`, :func:`fit_yaw`), each with 95 % intervals from a sandwich covariance that
+takes the residuals' autocorrelation into account (:func:`sandwich`). The measurement model, the
+rotor model (Eschmann, Albani & Loianno, IROS 2024) and the fits are in the docs, docs/internals.md
+("Identification").
 """
 
 from __future__ import annotations

@@ -1,25 +1,11 @@
 """Flight-log readers: every format into one :class:`FlightLog` in SI units and quadctl's frames.
 
-A :class:`FlightLog` holds time (s), the accelerometer's specific force (m/s^2) and the gyro's body
-rates (rad/s) in the FRD body frame (x forward, y right, z down; an accelerometer at hover reads
-``-g`` on z), and the four rotor commands normalized to [0, 1], rotor 1 first in the config's
-numbering. Each reader says what it converted (:attr:`FlightLog.conversions`).
-
-Formats
--------
-``crazyflie``
-    The Crazyflie microSD deck's "fixedFrequency" binary log (read from its published layout):
-    byte 0 ``0xBC``; uint16 version; uint16 number of event types; per event type a uint16 id,
-    a NUL-terminated name, a uint16 variable count and NUL-terminated variable names, each ending
-    in its type letter (``acc.x(f)``); then records of a uint16 event id, a uint64 timestamp (us)
-    and the variables (little endian); a CRC-32 (zlib) of everything before it closes the file.
-    ``acc.*`` are in g and ``gyro.*`` in deg/s in the Crazyflie's FLU frame (x forward, y left,
-    z up); ``motor.m1..m4`` are PWM commands 0-65535 in the Crazyflie's motor order.
-``csv``
-    Columns ``t`` (s), ``acc_x acc_y acc_z`` (m/s^2, FRD), ``gyro_p gyro_q gyro_r`` (rad/s, FRD),
-    ``cmd_1 .. cmd_4`` (normalized to [0, 1]), other names through a column map.
-``ulog``
-    PX4's ULog through the optional ``pyulog`` package (``pip install quadctl[identify]``).
+A :class:`FlightLog` holds time (s), the specific force (m/s^2) and the body rates (rad/s) in the FRD
+body frame, and the four rotor commands normalized to [0, 1] in the config's numbering; each reader
+says what it converted (:attr:`FlightLog.conversions`). :func:`read_log` picks the reader:
+:func:`read_crazyflie` (the microSD deck's binary log), :func:`read_csv` and :func:`read_ulog`
+(PX4, through ``pyulog``). The formats are in the docs, docs/guide/identify.md and
+docs/internals.md ("Identification").
 """
 
 from __future__ import annotations

@@ -1,26 +1,11 @@
 """The sensor filters a flight stack runs on its gyro: low-pass and notch, as one state space per axis.
 
-The same filter runs on each of the three body rates ``p, q, r`` (the gyro), the law taking the
-filtered rate in place of the measured one. Each section is a SISO state space ``(A, b, c, d)``,
-the sections cascaded (low-pass, then notch):
-
-- continuous (a continuous design, no controller rate): ``dg/dt = A g + b r``, ``y = c g + d r``;
-- discrete, run once per controller sample on the sample the law takes: ``y_k = c g_k + d r_k``,
-  ``g_(k+1) = A g_k + b r_k`` (the output uses the current sample: no added delay).
-
-Discrete forms, at the controller's period ``Ts``:
-
-- first-order low-pass at ``fc``: the PT1 with the exact (step-invariant, ZOH) pole
-  ``a = exp(-2 pi fc Ts)``, ``y_k = a y_(k-1) + (1 - a) r_k`` (Betaflight's PT1 with its pole
-  matched; unit gain at DC). Its phase at ``w`` is ``-atan2(a sin(w Ts), 1 - a cos(w Ts))``.
-- second-order (Butterworth) low-pass and notch: the biquads of the bilinear transform, prewarped
-  at the cutoff, ``K = tan(pi fc Ts)`` (PX4's ``LowPassFilter2p``, SciPy's ``butter``), and at the
-  notch's centre and bandwidth (PX4's ``NotchFilter``, SciPy's ``iirnotch``), run in direct form II
-  transposed. The prewarp keeps the -3 dB point (the notch's zero and width) exactly where
-  configured, and the bilinear map keeps the notch a true zero on the unit circle, which a ZOH
-  equivalent does not.
-
-All filters start at rest (zero state): the filtered rate starts at ``d r_0``.
+The same filter runs on each body rate ``p, q, r``: sections ``(A, b, c, d)`` cascaded (low-pass, then
+notch), continuous, or discrete at the controller's period with the output taking the current sample
+(no added delay): the first-order PT1 with its exact pole (:func:`lowpass1`), the bilinear
+Butterworth (:func:`lowpass2`) and notch (:func:`notch`) biquads prewarped at their frequency. All
+start at rest. :func:`with_rate_filter`, :func:`series` and :func:`filtered_output` put a filter into
+a loop or a Kalman filter's model. See docs/guide/vehicle.md ("Gyro filters").
 """
 
 from __future__ import annotations

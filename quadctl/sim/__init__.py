@@ -3,19 +3,15 @@
 Modules, each importing only those above it:
 
 - :mod:`~quadctl.sim.plan`: the RK4 step a loop needs (from its spectrum) or a user's step checked
-- :mod:`~quadctl.sim.builder`: the one closed-loop definition (:class:`LoopSpec` -> CasADi functions
-  of one step: plant, sample-and-hold, the control law with integrators, saturation, noise inputs)
-  and its one constant layout
+- :mod:`~quadctl.sim.builder`: the one closed-loop definition (:class:`LoopSpec` -> CasADi functions of one step)
 - :mod:`~quadctl.sim.schedule`: the exponential integrator's step schedule and its φ-functions
 - :mod:`~quadctl.sim.cases`: the loop contract's inputs (:class:`Cases`) and record counts
 - :mod:`~quadctl.sim.lane_metrics`: a run's metrics summed in the lanes as they step, read back
 - :mod:`~quadctl.sim.native`: the compiled runner (``driver.c``: 1 lane for one case, 8 for sweeps)
 - :mod:`~quadctl.sim.interpreted`: the same loop in CasADi's virtual machine, without a compiler
 - :mod:`~quadctl.sim.engine`: :func:`runner`, the fastest runner that builds here
-- :mod:`~quadctl.sim.run`: the closed loop (:class:`ClosedLoop`) and one run of it (:func:`simulate`,
-  through the engine's runner, returning a :class:`SimResult`)
+- :mod:`~quadctl.sim.run`: the closed loop (:class:`ClosedLoop`) and one run of it (:func:`simulate`)
 
 A new loop feature is one change to :func:`quadctl.sim.builder.build` plus its config; every
-runner, one case or many lanes, compiled or not, gets it from there. The C is generated (CasADi
-functions over ``lanes`` cases at once), compiled and cached by :mod:`quadctl.native`.
+runner, one case or many lanes, compiled or not, gets it from there.
 """

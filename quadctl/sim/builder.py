@@ -1,108 +1,11 @@
 """The one closed-loop definition: CasADi functions of one step (RK4, or ETDRK4) of plant and controller.
 
-Every runner is generated from what this module builds: the compiled one-case loop and the
-compiled SIMD lanes (both emitted as C by :mod:`quadctl.native.emit` and driven by
-``driver.c``), and the interpreted fallback (:mod:`quadctl.sim.interpreted`, CasADi's virtual
-machine). The plant is :func:`quadctl.model.build_model` (the one copy of the equations).
-
-The loop state is ``X = [x; f; z; l; b; g; xh]``: the 12 rigid-body states, the four rotor thrusts ``f`` when
-the loop has rotor dynamics (:attr:`LoopSpec.rotors`; else none), then the controller states:
-the ``nz`` integrators of an LQI law, the four states ``l`` of the controller's rotor lag model
-(:attr:`LoopSpec.lag_model`), the ``4 n`` entries of the command buffer of a loop with ``n``
-samples of delay (:attr:`LoopSpec.delay`), the ``3 m`` states ``g`` of the gyro filter
-(:attr:`LoopSpec.filter_order`), then the states ``xh`` of a Kalman filter (LQG: 12, and the gyro
-filter's ``3 m`` when the loop has one, which the Kalman filter's model then includes).
-The plant part ``[x; f]`` has :attr:`LoopSpec.n_plant` states. The control law is
-
-    u = sat(u_ref - K (x_m - x_ref(t)) - Ki z),   x_ref(t) = x_ref + x_rate t,  u_ref = u_trim,
-
-or, in a loop that flies a reference (:attr:`LoopSpec.reference`), ``x_ref(t)`` and ``u_ref`` from
-the step's exogenous row (:data:`REFERENCE_LAYOUT`: the reference tabulated on the exogenous clock
-as the noise and wind are, so every runner takes it the same way),
-
-with ``x_m = x + n_s`` the measured state (sensor noise ``n_s``), the deviation ``x_m - x_ref(t)`` taken in
-the reference's heading frame (:func:`heading_frame`: ``pN, pE`` turned by the reference's yaw less the
-yaw the gain was designed at, ``psi`` wrapped into ``(-pi, pi]``), so a design made at the trim's yaw flies
-any heading, and ``sat`` the actuator saturation (``box`` on ``T, A, E, R``; ``motors``: by priority,
-:attr:`LoopSpec.priority`, roll and pitch kept, then thrust, yaw given up first, or mixed to rotor
-thrusts, clipped, mixed back).
-Integrators follow MATLAB ``lqi``, ``dz/dt = -(x_i - x_ref,i)``, frozen while saturation alters
-an input they drive (conditional integration).
-
-Two timings (:attr:`LoopSpec.held`):
-
-- continuous feedback: the law is evaluated in every RK4 stage, ``z`` integrated with ``x``
-  (function ``step``);
-- sampled, zero-order hold: the law runs once per controller period (function ``law``, which
-  also advances ``z`` by forward Euler, ``z <- z + Ts dz/dt``) and RK4 integrates the plant under
-  the held input in between (function ``plant``).
-
-Rotor dynamics (:attr:`LoopSpec.rotors`, saturation ``motors`` only): each rotor's thrust lags
-its command through a first-order lag, ``df/dt = (f_cmd - f) / tau`` with ``f_cmd = mix u`` the
-mixed, clipped command, and the body gets ``[T, A, E, R] = mix_inv f`` (the effectiveness matrix)
-instead of ``u``. Without it the rotors are instantaneous: the body gets ``u``.
-
-Rotor lag model (:attr:`LoopSpec.lag_model`, ``controller.rotor_lag: include``): a design that
-includes the rotors' lag feeds back the achieved virtual inputs ``v`` too, ``u -= Kv (v - u_trim)``.
-The controller does not measure them: it propagates its own model of the lag from its own
-(clipped) commands, ``l = v - u_trim`` with ``dl/dt = (u - u_trim - l) / tau_model`` (continuous
-feedback, integrated by RK4 with the plant), or its exact ZOH ``l <- a l + (1 - a)(u - u_trim)``,
-``a = exp(-Ts / tau_model)``, once per sample (held loops). It starts at 0 (the rotors at trim)
-and equals the plant's ``mix_inv f - u_trim`` while the model is right (the same ``tau``, no
-delay: a delay is the vehicle's, the model follows the commands the law computes).
-
-Delay (:attr:`LoopSpec.delay`, held loops only): ``n`` controller samples from measurement to
-actuation. The buffer ``b = [b_1; ...; b_n]`` holds the (clipped) commands computed 1 to ``n``
-samples ago; at a sample the law applies ``b_n`` and shifts, ``b_1 <- u_new``, ``b_k <- b_(k-1)``.
-Runs start with the buffer at the trim input. Exact: the delay is a whole number of samples.
-
-Gyro filter (:attr:`LoopSpec.filter_order`, ``controller.filters``; :mod:`quadctl.linear.filters`): the
-law takes each measured body rate through the same filter ``(A, b, c, d)``, ``y = c g + d r_m`` in place
-of ``r_m``. Held loops advance it once per sample on the sample the law takes, ``g <- A g + b r_m``;
-continuous loops integrate ``dg/dt = A g + b r_m`` with the plant. Runs start with ``g = 0`` (at rest).
-
-State estimation (:attr:`LoopSpec.measured`, LQG; :mod:`quadctl.estimator`): the last 12 loop
-states are the Kalman filter's estimate ``xh`` of the deviation ``x - x_ref(t)`` on the linear
-model about the trim (``Ae, Be``), from ``y = C (x_m - x_ref(t))`` (``C`` picks the measured
-states, baked in), under the applied input deviation ``u - u_ref``; the law uses the estimate in
-place of ``x_m - x_ref``. Held loops: ``xh`` is the a priori estimate, and ``law`` updates it with
-the filter gain ``Le = M``, acts on ``xc = xh + M (y - C xh)`` and predicts ``xh <- Ae xc + Be du``
-(``Ae, Be`` the zero-order-hold model at the controller period). Continuous loops: the
-Kalman-Bucy filter ``dxh/dt = Ae xh + Be du + Le (y - C xh)`` is integrated in the RK4 stages.
-Runs start with ``xh = 0`` (the filter believes the trim).
-With a gyro filter the estimate is ``[dx; g_h]`` (:func:`quadctl.linear.filters.series`): the law still
-takes the gyro through the loop's own filter ``g`` (the flight stack's, fed the noisy gyro), the Kalman
-filter measures the rates it puts out, ``y = c g + d r_m``, predicts them as ``c g_h + d r_h``
-(:func:`quadctl.linear.filters.filtered_output`), and the law acts on the estimate of ``dx``.
-
-
-Integrator (:attr:`LoopSpec.method`; a held loop's plant between samples too): classical RK4, or the exponential
-Runge-Kutta method of order 4 of Hochbruck and Ostermann (:func:`etdrk4`), whose linear part ``L`` is the loop
-linearized at the reference (:func:`quadctl.design.linear_loop.simulated`) and whose matrices of one
-step (:data:`PHI_LAYOUT`, from :mod:`quadctl.sim.schedule`) end the constant vector ``c``.
-
-Exogenous inputs (:func:`exo_layout`): per step, when :attr:`LoopSpec.noise`, a body force and
-torque added to the plant and the sensor noise added to what the controller measures
-(:data:`EXO_LAYOUT`); then, when :attr:`LoopSpec.wind`, the wind (NED, m/s) the rotor drag sees
-through the air-relative velocity (:data:`WIND_LAYOUT`; :mod:`quadctl.wind`).
-
-Gain schedule (:attr:`LoopSpec.schedule`): the gain is ``G(v)``, the piecewise cubic of a
-:class:`quadctl.design.gain_table.GainTable` (its ``breaks`` and ``coefficients`` in ``c``, held at
-the ends; :func:`scheduled_gain`) at ``v = scheduling_value(variable, x_ref(t), heading)``: scheduled
-on the reference the law uses (the commanded state, as python-control's gain-scheduled state
-feedback schedules by default), not on the measured state, so the gain moves with the command and
-the loop at a frozen reference is the linear loop of ``G(v)``. ``G`` replaces ``K`` (and ``Ki``
-when the table carries the integrator gains).
-
-Other laws (:attr:`LoopSpec.law`): a flight stack's PID cascade (:mod:`quadctl.sim.pid`) takes the place of
-the LQR law above in a held loop: at each sample it maps the measured state, the reference and its own states
-``s`` (after the plant's: ``X = [x; f; s; b]``) to the command and its next states; the saturation, the delay's
-buffer, the plant, noise, wind and reference are the loop's as for LQR. An empty ``law`` is LQR, whose code,
-constants and cache key are what they were.
-
-Constants (:func:`constant_layout`): everything numeric a case carries (trim, gains, vehicle,
-mixing, limits) is one vector ``c``; the gain's sparsity, the saturation mode and the integrated
-states are baked into the generated code, so a block-diagonal gain costs only its nonzeros.
+Every runner is generated from what this module builds: the compiled one-case loop and the SIMD
+lanes (emitted as C by :mod:`quadctl.native.emit`) and the interpreted fallback
+(:mod:`quadctl.sim.interpreted`). The plant is :func:`quadctl.model.build_model`; a loop's structure
+is a :class:`LoopSpec`, its numbers one constant vector (:func:`constant_layout`), its per-step
+inputs an exogenous row (:func:`exo_layout`). The loop's state, law, timings and features are
+described in the docs, docs/internals.md ("The closed loop").
 """
 
 from __future__ import annotations
@@ -365,6 +268,7 @@ class LoopSpec:
         :func:`quadctl.sim.pid.structure_of`). The law's states follow the plant's in the loop state; its
         numbers are the ``law`` constants. Such a law is sampled (``held``) and measures the full state
         (no integrators, lag model, filter or gain schedule of an LQR design; ``pattern`` all false).
+        Empty (LQR): the generated code, the constants and the cache key are those of a loop without the field.
     filter_order : int
         States per rate of the filter the law runs on the measured body rates (the gyro,
         :mod:`quadctl.linear.filters`): the law takes ``y = c g + d r_m`` in place of each rate ``r_m``;

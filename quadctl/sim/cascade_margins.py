@@ -1,26 +1,10 @@
 """Margins of a PID cascade's loops, broken at each plant input with the whole cascade closed around it.
 
-The cascade (:mod:`quadctl.sim.pid`) is multi-rate: its rate loop runs at every base sample ``Ts``,
-its attitude and position loops every ``n_att`` and ``n_pos`` samples, holding their outputs between.
-Linearized about hover, the loop is periodic with the frame ``N = n_pos`` samples, and lifting it to that
-frame makes it time-invariant (Bamieh & Pearson 1992; Chen & Francis, *Optimal Sampled-Data Control
-Systems*, 1995, ch. 8): one frame's map ``X_N = Phi X_0 + Gamma v``, ``y = C X_0 + D v`` with ``v``, ``y`` the
-``N`` samples of one plant input and of the law's command for it. Every hold is in it exactly: the law's
-own states (the held setpoints, the phase counter, the integrators, the previous measurements, the
-filters) are states of the lifted loop, differentiated from the same CasADi law the simulation runs
-(:func:`quadctl.sim.builder.build`), and the plant is the zero-order-hold discretization of its linear
-model (``expm``; the rotors' lag included) at the base rate.
-
-- Stability (``stable``) and the closed-loop poles are exact: the eigenvalues of the lifted
-  closed-loop map (:attr:`Lifted.frame_map`), in ``z`` of the frame period ``N Ts``.
-- The gain margins are exact: the least constant gain on the input, above and below 1, that puts an
-  eigenvalue of the lifted loop on the unit circle (:func:`exact_gain_margins`).
-- Phase, disk and delay margins are read, with :func:`quadctl.design.margins.loop_margins` (the functions
-  the LQR loops use), from the loop's fundamental harmonic ``L0(w) = phi^H L(e^(j w N Ts)) phi / N``,
-  ``phi = [e^(j w p Ts)]_p``: the response at ``w`` to a sinusoid at ``w`` (the harmonic transfer
-  function's diagonal term; Wereley 1991). For a loop whose every part runs at the base rate (``N = 1``)
-  it *is* the loop transfer, and the numbers are exact; with slower outer loops it leaves out the
-  aliases the outer holds fold back, an approximation the margins' notes state.
+The multi-rate cascade (:mod:`quadctl.sim.pid`), linearized about hover from the law the simulation
+runs, is lifted to its frame (:func:`lifted`, :class:`Lifted`): stability, poles and the gain margins
+(:func:`exact_gain_margins`) are exact; phase, disk and delay margins are read from the loop's
+fundamental harmonic by :func:`quadctl.design.margins.loop_margins`. The method and its references
+are in the docs, docs/internals.md ("Margins of a PID cascade").
 """
 
 from __future__ import annotations

@@ -1,16 +1,11 @@
 """The runner without a C compiler: the same loop functions in CasADi's virtual machine.
 
-Stepping in Python would cost ~10 µs of interpreter overhead a step. Instead :func:`block` joins
-:data:`UNROLL` steps (whole controller periods for a held loop) into one CasADi function, and
-``mapaccum`` chains :data:`BLOCKS` of those, so CasADi runs thousands of steps per call, writing
-straight into numpy arrays (CasADi's function buffers: no conversion of its results). Python
-then does per chunk, vectorized, what ``driver.c`` does per step: the bounds check, the recorded
-rows and the final row. The numbers are those of the compiled runner (same operations in the
-same order; see :mod:`quadctl.native.emit`), but for one thing the VM can skip: the constants that
-are zero in a case (a reference that does not drift, a zero trim input or drag coefficient) are
-folded into its block, so ``x_ref + 0 t`` costs nothing (the same value, up to the sign of a
-zero, for every finite state). That and the bounds check in numpy cut the VM's instructions per
-RK4 step of the ``forward`` loop from 781 to about 620.
+:func:`block` joins :data:`UNROLL` steps (whole controller periods for a held loop) into one CasADi
+function, and ``mapaccum`` chains :data:`BLOCKS` of those, so one call runs thousands of steps
+straight into numpy arrays; Python then does per chunk, vectorized, what ``driver.c`` does per step
+(the bounds check, the recorded rows, the final row). The numbers are the compiled runner's (the same
+operations in the same order, :mod:`quadctl.native.emit`), except that a case's zero constants are
+folded into its block (``x_ref + 0 t`` costs nothing; the same value up to the sign of a zero).
 """
 
 from __future__ import annotations

@@ -1,19 +1,13 @@
 """A run's metrics summed in the lanes as they step (``driver.c``'s ``qc_metric``), and read back.
 
-A sweep needs of each run its metrics (:func:`quadctl.metrics.summarize_errors`: settling,
-overshoot, input peaks, LQR cost) and, flying a reference, its tracking error and the waypoints
-reached (:func:`quadctl.pipeline.tracking_of`), not its trajectory. The lanes keep per case a few
-running sums over the records a one-case run would keep (the same steps: every ``stride``-th and
-the last), from the error ``e = x - x_ref(t)`` against the reference the law regulates to (the
-builder's ``ref``): first, last, lowest and highest ``e``, largest ``|e|``, the record after the last
-one outside the settling band (the band of the largest ``|e|`` so far: exact, as the record that
-sets the final largest is outside its own band and every later one is judged by the final band),
-largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du`` (the same products in the same order),
-and the position error's sum of squares, largest value and the waypoint times. Storing and
-reading back 10 000 records a case cost more than the simulation itself.
-
-The slots (:data:`SLOTS`) are those of ``driver.c``; ``tests/sim/test_lane_metrics.py`` holds the sums
-read back against :func:`quadctl.metrics.summarize` and ``tracking_of`` of the same run's records.
+A sweep needs of each run its metrics (:func:`quadctl.metrics.summarize_errors`) and tracking
+(:func:`quadctl.pipeline.tracking_of`), not its trajectory: the lanes keep per case running sums
+(:data:`PER_STATE`, :data:`SCALARS`: the slots of ``driver.c``) over the records a one-case run would keep (every
+``stride``-th step and the last), from ``e = x - x_ref(t)``: first, last, lowest, highest and
+largest ``|e|``, the record after the last one outside the settling band (exact: the band of the
+largest ``|e|`` so far), largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du``, the position
+error's sums and the waypoint times. Read back, they equal :func:`quadctl.metrics.summarize` of the
+same records.
 """
 
 from __future__ import annotations

@@ -1,43 +1,9 @@
 """A flight stack's PID cascade as a control law of the one closed loop (:mod:`quadctl.sim.builder`).
 
 Position P(I) -> velocity PID -> attitude PID -> rate PID, as the Crazyflie's ``controller_pid`` and
-PX4's ``mc_pos_control``/``mc_att_control``/``mc_rate_control`` run them, with the numbers of
-:mod:`quadctl.config.pid` (the stacks' published defaults). Written for quadctl from the stacks'
-documented behaviour; no stack code is copied.
-
-The law is sampled at its base rate ``rate_hz`` (the loop's controller rate): the rate loop runs at
-every sample, the attitude loop every ``n_att`` samples and the position and velocity loops every
-``n_pos`` samples (:attr:`quadctl.config.pid.PidGains.ratios`), all in the same sample, outer first,
-as the stacks' 1 kHz main loops run theirs; a loop that does not run holds its output. A phase
-counter among the law's states says which run.
-
-Every PID, on an error ``e`` and a measurement ``y`` with period ``T``::
-
-    i <- clamp(i + e T, +-ilimit)          (backward Euler; ilimit 0: no limit)
-    d  = -(y - y_prev) / T                  (on the measurement: no kick on a setpoint step)
-    out = kp e + ki i + kd d                (rate loop: d low-passed first, rate_dfilter_hz > 0)
-
-The loop (all in the stack's angle unit, ``deg`` or ``rad``; positions and velocities in the yaw-turned
-frame the Crazyflie uses, ``z`` up):
-
-- position: ``v_sp = kp e_p + ki i_p + v_ff``, each axis limited (``pos_vel_limit_*``);
-- velocity: ``o = PID(v_sp - v)``; ``angles`` (Crazyflie): ``theta_sp = -o_x``, ``phi_sp = o_y`` each within
-  ``tilt_limit`` and the PWM thrust ``thrust_base + thrust_scale o_z`` within ``[thrust_min, 65535]``;
-  ``acceleration`` (PX4): ``o`` is the acceleration, the thrust vector ``(a - g) h / g`` (``h`` the
-  normalized hover thrust, the trim's), its tilt within ``tilt_limit``, attitude from its direction,
-  collective thrust its length within ``[thrust_min, thrust_max]``;
-- attitude: ``rate_sp = PID(att_sp - att)`` per Euler angle (yaw error wrapped), within the rate limits;
-- rate: ``c = PID(rate_sp - omega)`` within ``rate_output_limit``, ``omega`` through the stack's gyro
-  low-pass when it has one (``gyro_lpf_hz``: second-order Butterworth, :func:`butterworth2`, at the base rate);
-- output: ``pwm`` (Crazyflie, legacy power distribution): rotor ``i``'s PWM ``thrust + s_A c_roll / 2 +
-  s_E c_pitch / 2 + s_R c_yaw`` (``s`` the signs of the rotor's share of each torque, from the mixing),
-  clipped to ``[0, 65535]``, made thrust by the curve ``f = f_max (a s^2 + b s) / (a + b)``,
-  ``s = PWM / 65535``, and the body's ``[T, A, E, R] = mix_inv f``; ``normalized`` (PX4): each torque times
-  the vehicle's largest (``f_max`` times the sum of the positive entries of its row of ``mix_inv``) and
-  the thrust times the largest collective thrust.
-
-The attitude loop acts on Euler angle errors (PX4's is on the quaternion error: the same to first
-order about level flight) and neither stack's slew limits, airmode or yaw weight are modelled.
+PX4's multicopter controllers run them, with the numbers of :mod:`quadctl.config.pid`. Written for
+quadctl from the stacks' documented behaviour; no stack code is copied. The loops, their rates and
+outputs are described in the docs, docs/internals.md ("The PID cascade").
 """
 
 from __future__ import annotations

@@ -1,18 +1,11 @@
 """The doubling steps of :func:`quadctl.design.riccati.stacked.dare_batch`, compiled.
 
 Structure-preserving doubling on a stack of small problems: from ``A0``, ``G0``, ``H0``, with
-``W = I + Gk Hk``::
-
-    A(k+1) = Ak W^-1 Ak,   G(k+1) = Gk + Ak W^-1 Gk Ak',   H(k+1) = Hk + Ak' Hk W^-1 Ak,
-
-until the step of ``H`` is round-off of it. In numpy each step is a few stacked LAPACK and
-matmul calls whose cost, for 2 x 2 and 3 x 3 problems, is their per-matrix overhead (a 200 Hz
-mambo-200hz sweep: 512 roll and pitch problems of 3 states, 13 steps, 4.3 ms). The same steps in C,
-one problem at a time (each stops when its own step is round-off), take a tenth of that: the C is
-compiled once per machine (:func:`quadctl.native.compile.compile_cached`, portable flags: no FMA, so
-it rounds as written). Without a compiler the caller takes the numpy steps. Both give ``H`` to
-round-off of each other (``tests/design/test_riccati_batch.py``); the caller's Newton steps and residual
-check certify it either way.
+``W = I + Gk Hk``, ``A(k+1) = Ak W^-1 Ak``, ``G(k+1) = Gk + Ak W^-1 Gk Ak'``,
+``H(k+1) = Hk + Ak' Hk W^-1 Ak``, until the step of ``H`` is round-off of it. The C runs one problem
+at a time (each stops on its own), compiled once per machine with portable flags (no FMA: it rounds
+as written); without a compiler the caller takes the numpy steps. Both give ``H`` to round-off of
+each other; the caller's Newton steps and residual check certify it either way.
 """
 
 from __future__ import annotations
