@@ -44,10 +44,13 @@ round alike; no ``-ffast-math``: NaN still propagates and stops a diverging run.
 RK4 loop (straight-line scalar code) steps as fast as at ``-O3`` (1.75 M steps/s on ``forward`` both
 ways, GCC 12) and compiles in half the time (0.46 s against 0.92 s)."""
 SIMD_FLAGS = PORTABLE_FLAGS[:1] + ("-march=native", "-fno-builtin-sin", "-fno-builtin-cos",
-                                   "-fno-builtin-tan", "-fopenmp-simd") + PORTABLE_FLAGS[1:]
+                                   "-fno-builtin-tan", "-fopenmp-simd", "-fno-trapping-math") + PORTABLE_FLAGS[1:]
 """The vectorized lanes: ``-fno-builtin-sin/cos`` keep GCC from fusing sin and cos into one scalar
-``sincos`` call (it has no vector form). Their ``#pragma omp simd`` loops are vectorized at ``-O2``
-as at ``-O3`` (the same sweep speed), in three quarters of the compile time."""
+``sincos`` call (it has no vector form). ``-fno-trapping-math`` lets GCC evaluate both sides of a
+select (the saturation's and the law's comparisons, :mod:`quadctl.native.emit`), which is what
+vectorizing a loop with selects takes; no value changes (quadctl reads no floating-point exception
+flag). Their ``#pragma omp simd`` loops are vectorized at ``-O2`` as at ``-O3``, in three quarters
+of the compile time."""
 NATIVE_FLAGS = ("-O3", "-march=native") + PORTABLE_FLAGS[1:]
 """One case of ETDRK4 for this CPU (its stages' dense matrix-vector products in ``driver.c``,
 GCC's fused ``sincos``): about 20 % a step faster than :data:`PORTABLE_FLAGS` (measured on the

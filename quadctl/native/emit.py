@@ -9,6 +9,9 @@ one-case function. Arguments are lane-major within each element: element ``j`` o
 
 The operations are CasADi's, spelled as its virtual machine computes them (``if_else_zero(c, x)``
 is ``c == 0 ? 0 : x``, comparisons give 1.0 or 0.0), so compiled and interpreted runs round alike.
+Every branch is a select the lane loop vectorizes: ``fmin(a, b)`` is ``b < a ? b : a`` (C's ``fmin``
+but for a NaN operand, which it passes on where ``fmin`` drops it: a run with a NaN state has stopped),
+``and``/``or`` nest their selects instead of short-circuiting.
 
 A :class:`Dialect` says how the C spells its scalars: the engine's is plain ``double`` with a
 vectorized lane loop (:data:`ENGINE`); :mod:`quadctl.export` spells a scalar type and math
@@ -100,13 +103,13 @@ def _templates() -> dict[int, str]:
         ca.OP_SIN: "sin({a})", ca.OP_COS: "cos({a})", ca.OP_TAN: "tan({a})", ca.OP_SQRT: "sqrt({a})",
         ca.OP_FABS: "fabs({a})", ca.OP_EXP: "exp({a})", ca.OP_LOG: "log({a})", ca.OP_FLOOR: "floor({a})",
         ca.OP_ATAN: "atan({a})", ca.OP_ATAN2: "atan2({a}, {b})",
-        ca.OP_FMIN: "fmin({a}, {b})", ca.OP_FMAX: "fmax({a}, {b})",
+        ca.OP_FMIN: "({b} < {a}) ? {b} : {a}", ca.OP_FMAX: "({b} > {a}) ? {b} : {a}",
         ca.OP_POW: "pow({a}, {b})", ca.OP_CONSTPOW: "pow({a}, {b})",
         ca.OP_LT: "({a} < {b}) ? 1.0 : 0.0", ca.OP_LE: "({a} <= {b}) ? 1.0 : 0.0",
         ca.OP_EQ: "({a} == {b}) ? 1.0 : 0.0", ca.OP_NE: "({a} != {b}) ? 1.0 : 0.0",
         ca.OP_NOT: "({a} == 0.0) ? 1.0 : 0.0",
-        ca.OP_AND: "({a} != 0.0 && {b} != 0.0) ? 1.0 : 0.0",
-        ca.OP_OR: "({a} != 0.0 || {b} != 0.0) ? 1.0 : 0.0",
+        ca.OP_AND: "({a} != 0.0) ? (({b} != 0.0) ? 1.0 : 0.0) : 0.0",
+        ca.OP_OR: "({a} != 0.0) ? 1.0 : (({b} != 0.0) ? 1.0 : 0.0)",
         ca.OP_IF_ELSE_ZERO: "({a} == 0.0) ? 0.0 : {b}",
     }
 
