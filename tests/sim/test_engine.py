@@ -407,3 +407,22 @@ def test_driver_sizes_come_from_the_layout():
     code = re.sub(r"/\*.*?\*/", "", driver, flags=re.S)
     assert not re.search(r"\[(12|4|6|16|18)\]", code)
     assert not shutil.which("nonexistent-quadctl-cc")
+
+
+def test_the_generated_law_branches_by_selects_only():
+    """Every branch of the generated code is a select of two computed values, which GCC vectorizes in
+    the lanes (built with SIMD_FLAGS' -fno-trapping-math): no fmin/fmax call (no vector form under C's
+    NaN rule) and no short-circuit && or ||. A PID cascade's law, with its tilt, rate and integrator
+    limits, has 156 of them; with fmin calls GCC left its lane loop scalar ("control flow in loop")."""
+    from quadctl.native.emit import emit
+    from quadctl.sim.builder import build
+    from quadctl.sim.engine import LANES
+
+    data = cfg_dict("crazyflie")
+    data["controller"]["flies"] = "pid"
+    setup, _, linear, _, _ = solve(data)
+    law = build(pipeline.pid_loop_of(setup, linear).spec()).law
+    source = emit(law, "qc_law", LANES)
+    assert source.count(" ? ") > 100
+    assert "fmin(" not in source and "fmax(" not in source and "&&" not in source and "||" not in source
+    assert "-fno-trapping-math" in compile_mod.SIMD_FLAGS
