@@ -142,3 +142,21 @@ def designed_table(name: str, values, interpolation: str = "linear", **changes):
         des = solve(data)[-1]
         gains.append(np.hstack([des.K_block, des.Ki_block]) if des.integral_states else des.K_block)
     return GainTable.of("speed", values, np.array(gains), interpolation)
+
+
+def without_compiler(monkeypatch, run):
+    """``run()`` with no C compiler (``QUADCTL_NO_COMPILE=1``): the loop in CasADi's virtual machine,
+    after the one :class:`~quadctl.sim.engine.CompilerNotice` it gives; the runners' cache cleared
+    before and after, so that the runs around it compile as before."""
+    import pytest
+
+    from quadctl.sim import engine
+
+    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
+    engine.runner.cache_clear()
+    try:
+        with pytest.warns(engine.CompilerNotice, match="no C compiler found"):
+            return run()
+    finally:
+        monkeypatch.delenv("QUADCTL_NO_COMPILE")
+        engine.runner.cache_clear()

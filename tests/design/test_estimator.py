@@ -11,14 +11,13 @@ import numpy as np
 import pytest
 import scipy.linalg
 from _paths import ROOT
-from _solve import LANE_RTOL, cfg_dict, lane_gap, lanes_and_one_case_runs, max_rel_diff, solve
+from _solve import LANE_RTOL, cfg_dict, lane_gap, lanes_and_one_case_runs, max_rel_diff, solve, without_compiler
 from scipy.optimize import linear_sum_assignment
 from typer.testing import CliRunner
 
 from quadctl import config, estimator, pipeline, sweep
 from quadctl.cli.app import app
 from quadctl.errors import ConfigError, DesignError
-from quadctl.sim import engine
 from quadctl.sim.run import simulate
 
 GAIN_RTOL = 1e-9
@@ -290,13 +289,7 @@ def test_compiled_and_interpreted_lqg_loops_agree(label, data, duration, monkeyp
     assert loop.spec().ny == 9 and loop.spec().nx == len(loop.initial_loop_state(loop.x_trim))
     x0 = setup.initial_state(loop.x_trim)
     compiled = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
-    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
-    engine.runner.cache_clear()
-    try:
-        with pytest.warns(engine.CompilerNotice, match="no C compiler found"):
-            interpreted = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
-    finally:
-        engine.runner.cache_clear()
+    interpreted = without_compiler(monkeypatch, lambda: simulate(loop, x0, duration, setup.dt, noise=setup.noise))
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max(),
                np.abs(compiled.x_hat - interpreted.x_hat).max())

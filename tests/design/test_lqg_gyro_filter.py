@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import yaml
+from _solve import without_compiler
 
 from quadctl.config import loading
 from quadctl.config.loading import from_dict
@@ -312,20 +313,12 @@ def test_every_runner_flies_the_filtered_lqg_loop_alike(filtered_lqg, monkeypatc
 
     from _solve import LANE_RTOL, lane_gap, lanes_and_one_case_runs
 
-    from quadctl.sim import engine
     from quadctl.sim.run import simulate
 
     setup, loop = filtered_lqg.setup, filtered_lqg.loop
     x0, duration = setup.initial_state(loop.x_trim), 0.2
     compiled = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
-    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
-    engine.runner.cache_clear()
-    try:
-        with pytest.warns(engine.CompilerNotice, match="no C compiler found"):
-            interpreted = simulate(loop, x0, duration, setup.dt, noise=setup.noise)
-    finally:
-        engine.runner.cache_clear()
-        monkeypatch.delenv("QUADCTL_NO_COMPILE")
+    interpreted = without_compiler(monkeypatch, lambda: simulate(loop, x0, duration, setup.dt, noise=setup.noise))
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max(),
                np.abs(compiled.x_hat - interpreted.x_hat).max())

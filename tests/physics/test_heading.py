@@ -10,7 +10,7 @@ import math
 import casadi as ca
 import numpy as np
 import pytest
-from _solve import cfg_dict, max_rel_diff, run, solve
+from _solve import cfg_dict, max_rel_diff, run, solve, without_compiler
 
 from quadctl import pipeline, sweep, trajectory
 from quadctl.flatness import FlownReference
@@ -183,18 +183,11 @@ def test_a_hover_hold_design_reaches_a_waypoint_at_any_yaw(yaw):
 
 @pytest.mark.compiler
 def test_the_interpreted_runner_flies_the_turned_law_as_the_compiled_one(monkeypatch):
-    from quadctl.sim import engine
 
     data = _hold(math.pi)
     data["simulation"]["duration"] = 3.0  # s: the turn to pi and the leg (the VM is slow)
     setup, _, loop, compiled = run(data)
-    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
-    engine.runner.cache_clear()
-    try:
-        with pytest.warns(engine.CompilerNotice):
-            interpreted = pipeline.simulation_of(setup, loop)
-    finally:
-        engine.runner.cache_clear()
+    interpreted = without_compiler(monkeypatch, lambda: pipeline.simulation_of(setup, loop))
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     assert compiled.x_ref[:, PSI].max() > 1.0  # flown turned from the trim's heading
     diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max())

@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from _paths import ROOT
+from _solve import without_compiler
 
 from quadctl import config, pipeline, trajectory
 from quadctl.errors import ConfigError
@@ -270,19 +271,12 @@ def _short(setup, loop):
 
 @pytest.mark.compiler
 def test_compiled_and_interpreted_loops_fly_a_reference_alike(square, monkeypatch):
-    from quadctl.sim import engine
 
     setup, loop = square
     ref = _short(setup, loop)
     x0 = loop.x_trim + 0.05
     compiled = simulate(loop, x0, 1.5, reference=ref)
-    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
-    engine.runner.cache_clear()
-    try:
-        with pytest.warns(engine.CompilerNotice):
-            interpreted = simulate(loop, x0, 1.5, reference=ref)
-    finally:
-        engine.runner.cache_clear()
+    interpreted = without_compiler(monkeypatch, lambda: simulate(loop, x0, 1.5, reference=ref))
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     assert np.ptp(compiled.x_ref[:, 0]) > 0.5
     diff = max(np.abs(compiled.x - interpreted.x).max(), np.abs(compiled.u - interpreted.u).max())

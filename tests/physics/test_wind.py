@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from _solve import cfg_dict, solve
+from _solve import cfg_dict, solve, without_compiler
 
 from quadctl import config, pipeline, sweep
 from quadctl.errors import ConfigError
@@ -334,14 +334,8 @@ def test_compiled_and_interpreted_loops_agree_in_wind(monkeypatch):
     setup, loop = _loop(data)
     x0 = setup.initial_state(loop.x_trim)
     compiled = simulate(loop, x0, 0.3, setup.dt, noise=setup.noise, wind=setup.wind)
-    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
-    engine.runner.cache_clear()
-    try:
-        with pytest.warns(engine.CompilerNotice):
-            interpreted = simulate(loop, x0, 0.3, setup.dt, noise=setup.noise, wind=setup.wind)
-    finally:
-        monkeypatch.delenv("QUADCTL_NO_COMPILE")  # the still-air run below compiles again (no notice)
-        engine.runner.cache_clear()
+    interpreted = without_compiler(monkeypatch,
+                                   lambda: simulate(loop, x0, 0.3, setup.dt, noise=setup.noise, wind=setup.wind))
     assert compiled.backend == "compiled" and interpreted.backend == "casadi"
     assert np.abs(compiled.x - interpreted.x).max() < 1e-12 and np.abs(compiled.u - interpreted.u).max() < 1e-12
     np.testing.assert_array_equal(compiled.wind, interpreted.wind)

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _solve import cfg_dict, max_rel_diff, solve
+from _solve import cfg_dict, max_rel_diff, solve, without_compiler
 
 from quadctl import config, pipeline, sweep
-from quadctl.sim import engine
 
 SENSORS = {"pN": 0.01, "pE": 0.01, "pD": 0.01, "phi": 0.002, "theta": 0.002, "psi": 0.005,
            "p": 0.005, "q": 0.005, "r": 0.005}
@@ -44,13 +43,7 @@ def test_compiled_and_interpreted_runs_agree_with_every_feature(monkeypatch):
     setup, trim, linear, dec, des = solve(_everything())
     loop = pipeline.loop_of(setup, linear, des)
     compiled = pipeline.simulation_of(setup, loop)
-    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
-    engine.runner.cache_clear()
-    try:
-        with pytest.warns(engine.CompilerNotice):
-            interpreted = pipeline.simulation_of(setup, loop)
-    finally:
-        engine.runner.cache_clear()
+    interpreted = without_compiler(monkeypatch, lambda: pipeline.simulation_of(setup, loop))
     assert (compiled.backend, interpreted.backend, compiled.status) == ("compiled", "casadi", "ok")
     worst = max(np.abs(getattr(compiled, k) - getattr(interpreted, k)).max()
                 for k in ("x", "u", "z", "rotor_thrust", "lag_model", "x_hat", "wind"))
