@@ -1,6 +1,6 @@
 """The run report: every stage of a config in one HTML page a student can hand in, and a Markdown twin.
 
-:func:`run_stages` runs the stages through a :class:`~quadctl.workspace.Workspace` (reusing its
+:func:`quadctl.stages.run_stages` runs the stages through a :class:`~quadctl.workspace.Workspace` (reusing its
 fresh artifacts) in ``quadctl run``'s order, plus the margins, and stops where ``run`` stops;
 :func:`build` turns what was computed into a :class:`~quadctl.report.document.Document`;
 :func:`write` writes ``report.html`` (self-contained: CSS inline, figures as ``data:`` URIs, no
@@ -9,9 +9,10 @@ script, nothing fetched), ``report.md`` and the figures it shows, into ``<run fo
 Examples
 --------
 >>> from quadctl import config
+>>> from quadctl import stages
 >>> from quadctl.workspace import Workspace
 >>> ws = Workspace(config.load("hover"), "runs/hover")              # doctest: +SKIP
->>> outcome = run_stages(ws)                                         # doctest: +SKIP
+>>> outcome = stages.run_stages(ws)                                  # doctest: +SKIP
 >>> write(build(ws, outcome), ws.out / "report")                    # doctest: +SKIP
 """
 
@@ -19,7 +20,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadctl import stages
 from quadctl.present.stages import stage_summary
 from quadctl.report import content
 from quadctl.report.document import Document, Section, Table, Text, to_html, to_markdown
@@ -30,20 +30,13 @@ FOLDER = "report"
 HTML, MARKDOWN = "report.html", "report.md"
 
 
-def run_stages(ws) -> Outcome:
-    """Every stage of :data:`quadctl.stages.STAGES` (``quadctl run``'s, with the margins) on ``ws``,
-    until one fails its check or raises: both are in the returned :class:`~quadctl.stages.Outcome`,
-    so that what was computed can still be reported."""
-    return stages.run_stages(ws, NAMES)
-
-
 def build(ws, outcome: Outcome, *, command_line: str = "", label: str | None = None) -> Document:
     """The report of what ``outcome`` says was computed in ``ws``.
 
     Parameters
     ----------
     ws : Workspace
-        The stages' results (cached on it by :func:`run_stages`).
+        The stages' results (cached on it by :func:`quadctl.stages.run_stages`).
     outcome : Outcome
     command_line : str
         The command that made the report, shown in it.
@@ -140,4 +133,4 @@ def _earlier_figures(markdown: Path) -> set[str]:
 
 
 __all__ = ["FOLDER", "HTML", "MARKDOWN", "Document", "Section", "Table", "build",
-           "run_stages", "write"]
+           "write"]

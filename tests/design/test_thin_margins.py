@@ -10,7 +10,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from quadctl import config
+from quadctl import config, stages
 from quadctl.cli.app import app
 from quadctl.design import margins
 from quadctl.present.loops import thin_sentence
@@ -76,10 +76,9 @@ def test_allow_thin_margins_accepts_them_with_a_warning(tmp_path):
 
 
 def test_the_report_fails_on_thin_margins_after_the_flight(tmp_path):
-    from quadctl import report
     from quadctl.workspace import Workspace
 
     ws = Workspace(config.load(_lagged(tmp_path)), tmp_path / "run")
-    outcome = report.run_stages(ws)
+    outcome = stages.run_stages(ws)
     assert outcome.done[-1] == "simulate" and outcome.failed.startswith("margins: thin margins")
     assert thin_sentence(ws.margins, accepted=True).endswith("(accepted: allow: [thin-margins])")

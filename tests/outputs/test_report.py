@@ -333,7 +333,7 @@ def test_the_report_reuses_fresh_artifacts_and_drops_stale_figures(tmp_path, rep
         fh.write("\n![an earlier report's figure](margins-old.png)\n")
     (tmp_path / report.FOLDER / "mine.png").write_bytes(b"the user's")
     again = Workspace(cfg, tmp_path)
-    outcome = report.run_stages(again)
+    outcome = stages.run_stages(again)
     assert outcome.done == stages.NAMES and outcome.stopped_at is None
     assert {p.name for p in again.reused} >= {"trim.json", "linear.npz"}
     report.write(report.build(again, outcome), tmp_path / report.FOLDER)

@@ -12,7 +12,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     Writes DIR/report/report.html, report.md and its figures. Exits 1 when a check fails, as `run`
     does, after writing the report of what was computed (it says where it stopped).
     """
-    from quadctl import artifacts, report
+    from quadctl import artifacts, report, stages
     from quadctl.cli import render
     from quadctl.cli.errors import remember_workspace
     from quadctl.cli.options import load_source
@@ -24,7 +24,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     remember_workspace(ws)
     artifacts.check_folder(ws.out / report.FOLDER)  # a link there: refused now, not after the stages
     with simulation_progress(quiet=json) as ws.progress:
-        outcome = report.run_stages(ws)
+        outcome = stages.run_stages(ws)
     doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets), label=source.label)
     paths = report.write(doc, ws.out / report.FOLDER, store=ws)  # a failed write (a full disk): all put back
     ws.keep()  # the report says what ran and why it stopped: it and the artifacts it shows stay together
