@@ -123,7 +123,7 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
     from scipy.integrate import solve_ivp
 
     from quadctl import config, pipeline
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
     from quadctl.sim import engine
     from quadctl.sim.run import simulate
 
@@ -226,11 +226,11 @@ def one_simulation(skip_slow: bool, cli_python: str) -> str:
 
 def closed_loop_rhs(loop):
     """The forward loop's right-hand side ``rhs(t, x)`` for solve_ivp: one CasADi function of the
-    model (:func:`quadctl.model.build_model`, the one copy of the equations) under the loop's law
+    model (:func:`quadctl.physics.model.build_model`, the one copy of the equations) under the loop's law
     ``u = u_trim - K (x - x_ref(t))``, called from Python."""
     import casadi as ca
 
-    from quadctl.model import build_model
+    from quadctl.physics.model import build_model
 
     x, t = ca.SX.sym("x", 12), ca.SX.sym("t")
     u = loop.u_trim - ca.DM(loop.K) @ (x - (loop.x_trim + loop.x_rate * t))
@@ -325,7 +325,7 @@ def stiff_simulation(cli_python: str) -> str:
     from scipy.integrate import solve_ivp
 
     from quadctl import config, pipeline
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
     from quadctl.sim.run import simulate
 
     setup = setup_of(config.load("forward"))
@@ -402,10 +402,10 @@ def stiff_references() -> str:
     from unittest import mock
 
     from quadctl import config, pipeline
-    from quadctl.problem import setup_of
-    from quadctl.scheduling import schedule_of
+    from quadctl.setup import setup_of
+    from quadctl.schedule.envelope import schedule_of
     from quadctl.sim.run import simulate
-    from quadctl.trajectory import Reference
+    from quadctl.physics.trajectory import Reference
 
     def flight(name: str, speeds, start: float, duration: float):
         data = config.load(name).model_dump(exclude_none=True)
@@ -578,7 +578,8 @@ def the_pid_sweep() -> str:
     (``controller.flies: pid``) and by the config's LQR design in the lanes, the two alternated ``PID_REPEAT``
     times on each core count, the best of each; their ratio of simulated steps/s (the goal: the cascade at
     0.8 of the LQR sweep or more)."""
-    from quadctl import overrides, sweep
+    from quadctl import sweep
+    from quadctl.config import overrides
     from quadctl.config.loading import bundled
 
     source = bundled("crazyflie")
@@ -701,7 +702,7 @@ def the_ceiling(cfg, spec) -> tuple:
     import yaml
 
     from quadctl import pipeline
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
     from quadctl.sim.run import simulate
 
     setup = setup_of(cfg)
@@ -821,7 +822,7 @@ def the_designs(cfg, spec) -> str:
 
     from quadctl import pipeline, sweep
     from quadctl.design.riccati import care_batch
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     # the 4000 subsystem problems of the sweep: the report's plant, each case's weights
     base = cfg.model_dump(mode="json")
@@ -901,7 +902,7 @@ def discrete_designs(count: int = 1000, rate: float = 200.0) -> str:
     from quadctl import config, pipeline
     from quadctl.design import discrete
     from quadctl.design.riccati import dare_batch
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     setup = setup_of(config.load("forward"))
     dec = pipeline.decoupled_of(setup, pipeline.linear_of(setup, pipeline.trim_of(setup)))
@@ -1008,8 +1009,8 @@ def the_schedule(cli_python: str) -> str:
     from quadctl import config, pipeline
     from quadctl.design import linear_loop
     from quadctl.errors import TrimError
-    from quadctl.problem import setup_of
-    from quadctl.scheduling import fine_values, point_setup, schedule_of
+    from quadctl.setup import setup_of
+    from quadctl.schedule.envelope import fine_values, point_setup, schedule_of
 
     values = np.linspace(0.0, SCHEDULE_TOP, SCHEDULE_POINTS).round(6).tolist()
     rows = []

@@ -17,7 +17,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import quadctl as qc
-from quadctl import config, motors, overrides, pipeline, plots
+from quadctl import config, pipeline, plots
+from quadctl.physics import motors
+from quadctl.config import overrides
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
 
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "docs" / "figures"

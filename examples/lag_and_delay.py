@@ -16,7 +16,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import quadctl as qc
-from quadctl import motors, pipeline
+from quadctl import pipeline
+from quadctl.physics import motors
 from quadctl.layout import STATE_INDEX
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 import quadctl as qc
 from quadctl import pipeline
 from quadctl.layout import STATE_INDEX
-from quadctl.noise import rms_deviation
+from quadctl.physics.noise import rms_deviation
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "docs" / "figures"

@@ -15,7 +15,7 @@ import numpy as np
 
 import quadctl as qc
 from quadctl import plots
-from quadctl.scheduling import schedule_of
+from quadctl.schedule.envelope import schedule_of
 
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "docs" / "figures"
 

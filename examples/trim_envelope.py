@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 
 from quadctl.errors import TrimError
 from quadctl.linear.trim import solve_trim
-from quadctl.model import Vehicle
+from quadctl.physics.model import Vehicle
 
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "docs" / "figures"
 

@@ -16,7 +16,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import quadctl as qc
-from quadctl import config, overrides, pipeline
+from quadctl import config, pipeline
+from quadctl.config import overrides
 from quadctl.layout import STATE_INDEX
 
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "docs" / "figures"

@@ -34,10 +34,10 @@ __version__ = "0.1.0"
 _PUBLIC = {
     "load_config": ("quadctl.config.loading", "load"),
     "Config": ("quadctl.config.schema", "Config"),
-    "setup_of": ("quadctl.problem", "setup_of"),
-    "Setup": ("quadctl.problem", "Setup"),
+    "setup_of": ("quadctl.setup", "setup_of"),
+    "Setup": ("quadctl.setup", "Setup"),
     "Stages": ("quadctl.pipeline", "Stages"),
-    "Vehicle": ("quadctl.model", "Vehicle"),
+    "Vehicle": ("quadctl.physics.model", "Vehicle"),
     "trim": ("quadctl.linear.trim", "solve_trim"),
     "Trim": ("quadctl.linear.trim", "Trim"),
     "linearize": ("quadctl.linear.linearize", "linearize"),
@@ -94,7 +94,7 @@ if TYPE_CHECKING:  # what type checkers and editors see: the same names, importe
     from quadctl.linear.linearize import LinearModel, linearize
     from quadctl.linear.trim import Trim
     from quadctl.linear.trim import solve_trim as trim
-    from quadctl.model import Vehicle
+    from quadctl.physics.model import Vehicle
     from quadctl.pipeline import Stages
-    from quadctl.problem import Setup, setup_of
+    from quadctl.setup import Setup, setup_of
     from quadctl.sim.run import ClosedLoop, SimResult, simulate

@@ -20,7 +20,7 @@ import numpy as np
 from quadctl.design.margins import least_margins
 from quadctl.layout import STATE_INDEX
 from quadctl.metrics import lqr_cost, overshoot, settling_time
-from quadctl.noise import exogenous_period
+from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import Stages, pid_loop_of
 from quadctl.sim.run import ClosedLoop, ExoStream, SimResult, simulate
 

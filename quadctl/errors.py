@@ -119,7 +119,7 @@ class DesignError(CheckFailed, ValueError):
 
 
 class ImplausibleConfig(CheckFailed, ValueError):
-    """The config's values look like a unit slip (see :mod:`quadctl.notices`), and the config does
+    """The config's values look like a unit slip (see :mod:`quadctl.config.notices`), and the config does
     not accept it (``allow: [implausible]``)."""
 
 

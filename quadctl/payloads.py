@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 
 from quadctl import artifacts
-from quadctl.analysis import Checks
 from quadctl.design import Design
 from quadctl.design.discrete import realizable_frequency
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
+from quadctl.linear.analysis import Checks
+from quadctl.linear.stability import is_stable
 from quadctl.sim import schedule
-from quadctl.stability import is_stable
 
 ESTIMATOR_CHECK = "estimator"
 """checks' key of the measured set (``estimator.measure``) on the coupled model."""
@@ -233,7 +233,7 @@ def _vehicle_loop_payload(loop) -> dict:
 
 
 def gain_schedule(sched) -> dict:
-    """``schedule.json``: the gain schedule (:class:`quadctl.scheduling.Schedule`): each point's trim
+    """``schedule.json``: the gain schedule (:class:`quadctl.schedule.envelope.Schedule`): each point's trim
     (``x``, ``u`` and by name, as ``trim.json``), its 4x12 gain ``K`` in ``design.json``'s state and
     input order (and ``Ki``, columns ``integral_states``), its verdicts or why it has no trim; the
     interpolation, what holds outside the grid, and the frozen-point checks on the finer grid."""

@@ -1,7 +1,7 @@
-"""The stages chained from a :class:`~quadctl.problem.Setup`: pure functions, no I/O.
+"""The stages chained from a :class:`~quadctl.setup.Setup`: pure functions, no I/O.
 
 Each takes the setup (and upstream results) and returns the stage's result object; nothing here
-reads the config (:func:`quadctl.problem.setup_of` did, once). :class:`Stages` is the one chain of
+reads the config (:func:`quadctl.setup.setup_of` did, once). :class:`Stages` is the one chain of
 them, each computed once on first use: the run folder's :class:`~quadctl.workspace.Workspace` and
 :func:`quadctl.export.prepare` take it.
 """
@@ -14,14 +14,14 @@ from functools import cached_property
 
 import numpy as np
 
-from quadctl.analysis import Checks, check
-from quadctl.decouple import Decoupled, decouple
 from quadctl.design import Design, design, linear_loop
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.linear.analysis import Checks, check
+from quadctl.linear.decouple import Decoupled, decouple
 from quadctl.linear.linearize import LinearModel, linearize
 from quadctl.linear.trim import Trim, solve_trim
-from quadctl.motors import check_trim
-from quadctl.problem import Setup
+from quadctl.physics.motors import check_trim
+from quadctl.setup import Setup
 from quadctl.sim.run import ClosedLoop, SimResult, eigen_owners, simulate
 
 
@@ -146,17 +146,17 @@ def pid_loop_of(setup: Setup, linear: LinearModel, gains=None) -> ClosedLoop:
 
 
 def estimator_of(setup: Setup, linear: LinearModel):
-    """The setup's steady-state Kalman filter (:func:`quadctl.estimator.kalman`) at the controller's
+    """The setup's steady-state Kalman filter (:func:`quadctl.design.kalman.kalman`) at the controller's
     timing (discrete at the controller period when sampled, Kalman-Bucy when continuous), with the gyro
     filter (``controller.filters``) in its model; None without ``estimator:``."""
     est = setup.estimator
     if est is None:
         return None
-    from quadctl import estimator
+    from quadctl.design import kalman
 
-    G = estimator.noise_input(linear.x_trim, linear.u_trim, setup.vehicle)
-    return estimator.kalman(linear.A, linear.B, G, est.measured, est.sensor_std, est.process_std,
-                            sample_time=setup.timing.sample_time, period=est.period, rate_filter=setup.rate_filter)
+    G = kalman.noise_input(linear.x_trim, linear.u_trim, setup.vehicle)
+    return kalman.kalman(linear.A, linear.B, G, est.measured, est.sensor_std, est.process_std,
+                         sample_time=setup.timing.sample_time, period=est.period, rate_filter=setup.rate_filter)
 
 
 def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
@@ -170,11 +170,11 @@ def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
                    jacobians: tuple | None = None) -> ClosedLoop:
     """``loop`` flying the gain table ``table`` (:class:`quadctl.design.gain_table.GainTable`), scheduled on
     the reference the law uses (:mod:`quadctl.sim.builder`, "Gain schedule"), ``speed`` measured along
-    ``heading`` (rad; the schedule's, :attr:`quadctl.scheduling.Schedule.heading`). The table's gains
+    ``heading`` (rad; the schedule's, :attr:`quadctl.schedule.envelope.Schedule.heading`). The table's gains
     replace ``K`` (and ``Ki`` with the integrators' columns). ``eigenvalues`` (rad/s, any shape; NaN
-    ignored): the frozen loops of the interpolated gains (:class:`quadctl.scheduling.FrozenChecks`),
+    ignored): the frozen loops of the interpolated gains (:class:`quadctl.schedule.envelope.FrozenChecks`),
     which a continuous loop's RK4 step must hold stable as well as the loop's own. ``jacobians``:
-    ``(A, B)`` of the model at each of the table's values (:attr:`quadctl.scheduling.Schedule.jacobians`),
+    ``(A, B)`` of the model at each of the table's values (:attr:`quadctl.schedule.envelope.Schedule.jacobians`),
     the linear parts ETDRK4 flies a continuous loop on (:attr:`ClosedLoop.schedule_jacobians`).
     ``run`` and ``simulate`` fly ``schedule_of(setup)``'s table this way.
     """
@@ -216,16 +216,16 @@ def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:
     """``sim.json``'s ``reference``: the position tracking error ``|p - p_ref|`` (m; RMS over time,
     peak and final) and, for a mission, each waypoint with the time it was first reached within the
     tolerance (in order; None: never) and its closest approach (m) and when (s)
-    (:class:`quadctl.trajectory.Approach`); None without a reference."""
+    (:class:`quadctl.physics.trajectory.Approach`); None without a reference."""
     if setup.reference is None or len(sim.t) == 0:
         return None
     return tracking_of(setup.reference, sim.t, sim.x, sim.x_ref)
 
 
 def tracking_of(ref, t, x, x_ref) -> dict:
-    """:func:`tracking_summary` of the path ``ref`` (:class:`quadctl.trajectory.Reference`) flown as
+    """:func:`tracking_summary` of the path ``ref`` (:class:`quadctl.physics.trajectory.Reference`) flown as
     ``x`` ((n, 12), at the times ``t``) against the reference ``x_ref`` the law used."""
-    from quadctl import trajectory
+    from quadctl.physics import trajectory
 
     err = np.linalg.norm(x[:, :3] - x_ref[:, :3], axis=1)
     out = {"kind": "waypoints" if ref.legs else "setpoints",
@@ -254,7 +254,7 @@ class Stages:
     Parameters
     ----------
     setup : Setup
-        :func:`quadctl.problem.setup_of` a config.
+        :func:`quadctl.setup.setup_of` a config.
     trim, linear, decoupled : optional
         Upstream stages already computed for this setup's flight condition: the chain starts there.
 
@@ -361,7 +361,7 @@ class VehicleLoop:
     sample_time : float or None
     stable : bool
     least_damping, design_least_damping : float
-        :func:`quadctl.stability.least_damping` of each.
+        :func:`quadctl.linear.stability.least_damping` of each.
     """
 
     eigenvalues: np.ndarray
@@ -407,7 +407,7 @@ class VehicleLoop:
 
 def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLoop:
     """:class:`VehicleLoop` of a design flown with the setup's rotors and delay."""
-    from quadctl import stability
+    from quadctl.linear import stability
 
     timing = setup.timing
     Ts = des.sample_time or (timing.sample_time if timing.mode == "emulated" else None)
@@ -491,7 +491,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         (:func:`tracking_summary`: tracking error and waypoints; None without a reference),
         ``gain_schedule`` (:func:`schedule_summary`: the gain table flown; None: fixed gains).
     """
-    from quadctl import motors, noise
+    from quadctl.physics import motors, noise
 
     duration = float(sim.t[-1]) if len(sim.t) else 0.0
     out: dict = {
@@ -544,7 +544,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
 def speeds(sim: SimResult) -> tuple[np.ndarray, np.ndarray]:
     """(ground speed, airspeed) at each recorded sample, m/s: ``|R_b^E V_b|`` from the model's position
     rates, and ``|R_b^E V_b - w|`` with the wind the plant felt (still air: the two agree)."""
-    from quadctl.model import Vehicle, build_model
+    from quadctl.physics.model import Vehicle, build_model
 
     # the position rows of f are the kinematics R_b^E V_b: no parameter enters them
     vel = np.asarray(build_model().f.map(len(sim.t))(sim.x.T, sim.u.T, Vehicle().vector()), dtype=float)[:3].T
@@ -611,7 +611,7 @@ class MissionVerdict(str, Enum):
     LEFT_VALID_RANGE = "left_valid_range"
     """The run stopped early: the vehicle left the model's valid range (or diverged)."""
     SATURATED = "saturated"
-    """The inputs were at their limits for more than :data:`quadctl.motors.SATURATION_FLAG` of the run."""
+    """The inputs were at their limits for more than :data:`quadctl.physics.motors.SATURATION_FLAG` of the run."""
     RUN_ENDS_BEFORE_MISSION = "run_ends_before_mission"
     """``simulation.duration`` ends before the mission's last leg and hold."""
     MISSED = "missed"

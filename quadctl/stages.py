@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from quadctl.errors import QuadctlError, SaturationFailed
-from quadctl.motors import require_within_limits
+from quadctl.physics.motors import require_within_limits
 from quadctl.present.loops import thin_sentence
 from quadctl.present.mission import mission_text
 from quadctl.present.stages import UNSTABLE_DESIGN

@@ -27,21 +27,21 @@ from pathlib import Path
 import numpy as np
 
 from quadctl import __version__, artifacts, payloads, pipeline
-from quadctl.analysis import Checks, check
 from quadctl.artifacts import default_out
 from quadctl.config import Config
-from quadctl.decouple import Decoupled
 from quadctl.design import Design
 from quadctl.design.discrete import RateWarning, unstable_when_sampled
 from quadctl.errors import ArtifactError, DesignError, QuadctlNotice
 from quadctl.layout import N_INPUTS, STATE_NAMES
+from quadctl.linear.analysis import Checks, check
+from quadctl.linear.decouple import Decoupled
 from quadctl.linear.linearize import LinearModel
 from quadctl.linear.trim import Trim
-from quadctl.messages import eig_text
 from quadctl.metrics import summarize
 from quadctl.payloads import ESTIMATOR_CHECK
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 from quadctl.sim.run import ClosedLoop, SimResult
+from quadctl.text.messages import eig_text
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
@@ -366,7 +366,7 @@ class Workspace(pipeline.Stages):
         checks = pipeline.checks_of(self.decoupled, self.linear)
         est = self.setup.estimator
         if est is not None:  # the measured set on the coupled 12-state model (what the Kalman filter sees)
-            from quadctl.estimator import selector
+            from quadctl.design.kalman import selector
 
             checks[ESTIMATOR_CHECK] = check(self.linear.A, self.linear.B, selector(est.measured), STATE_NAMES)
         regulated = {s.name for s in self.decoupled.regulated}
@@ -381,7 +381,7 @@ class Workspace(pipeline.Stages):
         self._write_json(CHECKS, "checks", payloads.checks(self.setup, checks, regulated, warnings, vehicle))
         undetectable = None
         if est is not None and not checks[ESTIMATOR_CHECK].detectable:
-            from quadctl.estimator import require_detectable, selector
+            from quadctl.design.kalman import require_detectable, selector
 
             try:
                 require_detectable(self.linear.A, selector(est.measured), est.measured)
@@ -456,8 +456,8 @@ class Workspace(pipeline.Stages):
 
     @cached_property
     def schedule(self):
-        """The gain schedule (:func:`quadctl.scheduling.schedule_of`); writes schedule.json and schedule.npz."""
-        from quadctl.scheduling import schedule_of
+        """The gain schedule (:func:`quadctl.schedule.envelope.schedule_of`); writes schedule.json and schedule.npz."""
+        from quadctl.schedule.envelope import schedule_of
 
         sched = schedule_of(self.setup)
         self._write_npz(SCHEDULE_NPZ, payloads.gain_schedule_arrays(sched), self._meta("schedule"))

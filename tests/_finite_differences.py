@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadctl.model import build_model, evaluate
+from quadctl.physics.model import build_model, evaluate
 
 FD_STEP = 1e-6
 """Central differences: truncation ~ h^2 |f'''| ~ 1e-12, round-off ~ eps |f| / h ~ 1e-10 (scaled)."""

@@ -7,7 +7,7 @@ import json
 from functools import cache
 
 from quadctl import config, pipeline
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 
 
 def cfg_dict(bundled: str, **changes) -> dict:
@@ -98,7 +98,7 @@ def lanes_and_one_case_runs(setup, spec, variants):
     ``((done, ks, xs, us), SimResult)`` per variant, after checking both ran the same steps."""
     import numpy as np
 
-    from quadctl.noise import NoiseStream
+    from quadctl.physics.noise import NoiseStream
     from quadctl.sim import engine
     from quadctl.sim.cases import Cases
     from quadctl.sim.plan import record_stride
@@ -130,7 +130,7 @@ def designed_table(name: str, values, interpolation: str = "linear", **changes):
     """A speed schedule's :class:`~quadctl.design.gain_table.GainTable` of bundled config ``name``: at each
     speed (m/s, north) the config's own design trimmed there (a one-point design of the config with
     ``trim.velocity_ned = [v, 0, w]``, w its climb; the state gain, then any integrator gains), built
-    apart from :func:`quadctl.scheduling.schedule_of`."""
+    apart from :func:`quadctl.schedule.envelope.schedule_of`."""
     import numpy as np
 
     from quadctl.design.gain_table import GainTable

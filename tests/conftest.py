@@ -36,7 +36,7 @@ if os.environ.get("PYTEST_XDIST_WORKER") and not any(v in os.environ for v in BL
 def forward():
     """(setup, trim, linear, decoupled, design) of the bundled forward config."""
     from quadctl import config, pipeline
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     setup = setup_of(config.load("forward"))
     trim = pipeline.trim_of(setup)

@@ -18,9 +18,9 @@ def metadata(cfg, kind: str, backends=()) -> dict:
     """Provenance fields every artifact carries.
 
     ``backends``: the simulation backends the stage ran (``SimResult.backend``), which decide the
-    ``compiler`` field (see :func:`quadctl.provenance.compiler`); empty when it ran no loop.
+    ``compiler`` field (see :func:`quadctl.artifacts.provenance.compiler`); empty when it ran no loop.
     """
-    from quadctl import provenance
+    from quadctl.artifacts import provenance
 
     return {
         "artifact": kind,

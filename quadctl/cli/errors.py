@@ -49,7 +49,7 @@ class FailedChecks(Exception):
 def fail(message: str, code: int) -> typer.Exit:
     """Print the one stderr line of a failure and return the Exit to raise: ``quadctl: check failed:``
     for a check that failed (exit 1, as ``check`` and ``run`` print it), else ``quadctl: error:``."""
-    from quadctl.messages import one_line
+    from quadctl.text.messages import one_line
 
     kind = "check failed" if code == EXIT_CHECK_FAILED else "error"
     typer.echo(f"quadctl: {kind}: {one_line(message)}", err=True)
@@ -247,7 +247,7 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
     """
     import difflib
 
-    from quadctl.messages import hint, one_line
+    from quadctl.text.messages import hint, one_line
 
     exc_mod = _click_exceptions()
     ctx = getattr(exc, "ctx", None)

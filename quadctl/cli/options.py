@@ -97,8 +97,8 @@ def load_source(config: str | None, sets=None, *, plausible: bool = True):
     slip) stops the command with exit 1 after the warnings, unless the config says ``allow: [implausible]``.
     """
     from quadctl import config as config_mod
-    from quadctl import notices, overrides
     from quadctl.cli.errors import remember_config
+    from quadctl.config import notices, overrides
 
     source = config_mod.locate(config)
     if source.note:

@@ -13,7 +13,7 @@ from rich.text import Text
 
 from quadctl import present
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
-from quadctl.messages import one_line
+from quadctl.text.messages import one_line
 
 WIDE = 10_000
 """Columns of stdout when it is not a terminal and ``COLUMNS`` is unset (a pipe, a CI log, a file):

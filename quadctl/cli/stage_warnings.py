@@ -37,7 +37,7 @@ def warn_of_the_schedule(ws) -> None:
 
 def require_within_limits(ws, flown, allow_saturation: bool) -> None:
     """Exit 1 (a check failed) when the design saturates most of the run and nobody accepted it."""
-    from quadctl import motors
+    from quadctl.physics import motors
 
     sat = flown.flight.get("saturation")
     fractions, mode = (sat["fraction"], sat["mode"]) if sat else (None, None)

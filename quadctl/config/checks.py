@@ -26,8 +26,8 @@ from quadctl.config.schema import (
 from quadctl.config.weights import DEFINITENESS_RTOL, SYMMETRY_RTOL, check_weight
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_NAMES, SENSOR_GROUPS, STATE_NAMES, STATE_UNITS
-from quadctl.messages import show
-from quadctl.messages import unknown as _unknown
+from quadctl.text.messages import show
+from quadctl.text.messages import unknown as _unknown
 
 DELAY_SAMPLES_TOL = 1e-9
 """A delay in seconds is a whole number of samples when ``delay * rate`` is within this (relative)
@@ -429,7 +429,7 @@ def _check_inertia(cfg: Config, fail) -> None:
     moments (its eigenvalues) obey it. A vehicle that breaks it by more than
     :data:`INERTIA_TRIANGLE_RTOL` does not exist: the values are a typo, a swapped or mis-scaled
     entry, and a design for them is a design for no vehicle, so it is refused (exit 2). Everything
-    merely unusual (a heavy, long-armed, tall vehicle) is only warned about, by :func:`quadctl.notices.notices`.
+    merely unusual (a heavy, long-armed, tall vehicle) is only warned about, by :func:`quadctl.config.notices.notices`.
     """
     for path, inertia in (("vehicle.inertia", cfg.vehicle.inertia),
                           ("simulation.plant.inertia", cfg.simulation.plant and cfg.simulation.plant.inertia)):
@@ -505,7 +505,7 @@ def _check_rotor_numbering(motors: MotorsConfig, fail) -> None:
     """``motors.numbering``: each of the layout's positions once (a preset names a quad-x order);
     ``motors.spin``: diagonal rotors alike, neighbours opposite (else yaw is not separable from roll
     and pitch: the mixer is singular)."""
-    from quadctl.motors import NUMBERINGS, POSITIONS
+    from quadctl.physics.motors import NUMBERINGS, POSITIONS
 
     if motors.positions is not None:
         _check_rotor_positions(motors, fail)
@@ -548,7 +548,7 @@ def _check_rotor_positions(motors: MotorsConfig, fail) -> None:
     geometry that commands thrust, roll, pitch and yaw independently."""
     import numpy as np
 
-    from quadctl.motors import Motors
+    from quadctl.physics.motors import Motors
 
     if motors.spin is None:
         fail("motors.spin", None, "motors.positions needs each rotor's turning direction, rotor 1 first: "

@@ -10,8 +10,8 @@ from typing import Any, Literal
 from pydantic import ValidationError
 
 from quadctl.config.schema import NAME_RULE, DelaySamples, section_model
-from quadctl.messages import hint as _hint
-from quadctl.messages import key_path, show
+from quadctl.text.messages import hint as _hint
+from quadctl.text.messages import key_path, show
 
 
 def describe(exc: ValidationError, data: Any, label: str) -> str:

@@ -15,11 +15,11 @@ from typing import Annotated, Any, NamedTuple
 
 from pydantic import ValidationError
 
-from quadctl import yamlio
+from quadctl.config import yamlio
 from quadctl.config.checks import check_semantics
 from quadctl.config.schema import Config, section_model
 from quadctl.errors import ConfigError
-from quadctl.messages import show
+from quadctl.text.messages import show
 
 DEFAULT_CONFIG = "forward"
 """Bundled config used when no ``--config`` is given: the report's forward-flight case."""
@@ -155,7 +155,7 @@ def load(spec: str | Path | None = None) -> Config:
 
 
 def parse(text: str, label: str = "<config>") -> Config:
-    """Validate YAML text as a config; ``label`` names it in errors (see :mod:`quadctl.yamlio`)."""
+    """Validate YAML text as a config; ``label`` names it in errors (see :mod:`quadctl.config.yamlio`)."""
     return from_dict(yamlio.load(text, label, ConfigError), label)
 
 

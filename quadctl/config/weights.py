@@ -7,7 +7,7 @@ the same rules to many diagonals at once (a sweep checks thousands).
 from __future__ import annotations
 
 from quadctl.errors import ConfigError
-from quadctl.messages import show
+from quadctl.text.messages import show
 
 SYMMETRY_RTOL = 1e-10
 """Relative tolerance of the symmetry test, scaled by the matrix's largest entry."""

@@ -16,7 +16,6 @@ Modules, each importing only those above it:
 ``from quadctl.design import lqr`` is the one-case entry point (MATLAB ``lqr``: ``K, P, E``).
 """
 
-from quadctl.analysis import RICCATI_RTOL as RICCATI_RTOL
 from quadctl.design.decoupled import Design as Design
 from quadctl.design.decoupled import SubsystemDesign as SubsystemDesign
 from quadctl.design.decoupled import design as design
@@ -24,6 +23,7 @@ from quadctl.design.decoupled import lqr as lqr
 from quadctl.design.linear_loop import matrix as closed_loop_matrix
 from quadctl.design.riccati import LqrResult as LqrResult
 from quadctl.design.riccati import riccati_residual as riccati_residual
+from quadctl.linear.analysis import RICCATI_RTOL as RICCATI_RTOL
 
 __all__ = ["RICCATI_RTOL", "Design", "LqrResult", "SubsystemDesign", "closed_loop_matrix", "design", "lqr",
            "riccati_residual"]

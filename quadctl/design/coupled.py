@@ -15,11 +15,11 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from quadctl import stability
 from quadctl._lazy import lazy_import
 from quadctl.design import discrete, integral, linear_loop
 from quadctl.design.decoupled import _solve_subsystem
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.linear import stability
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -47,7 +47,7 @@ class FullDesign:
     eigenvalues : ndarray
         Of the coupled closed loop (rad/s; ``ln(z) / Ts`` for a discrete design).
     core_eigenvalues : ndarray
-        ``eigenvalues`` without the marginal modes (:mod:`quadctl.stability`): what ``stable`` is about.
+        ``eigenvalues`` without the marginal modes (:mod:`quadctl.linear.stability`): what ``stable`` is about.
     stable : bool
     rate : float or None
     residual : float

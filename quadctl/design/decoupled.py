@@ -18,11 +18,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from quadctl import stability
-from quadctl.decouple import Decoupled
 from quadctl.design import discrete, integral, lag, linear_loop
 from quadctl.design.riccati import LqrResult, require_stabilizable, solve
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES
+from quadctl.linear import stability
+from quadctl.linear.decouple import Decoupled
 
 
 def lqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrResult:
@@ -152,7 +152,7 @@ class Design:
     integral_states: tuple[str, ...] = ()
     full_eigenvalues_z: np.ndarray | None = None
     core_eigenvalues: np.ndarray = field(default_factory=lambda: np.zeros(0, complex))
-    """``full_eigenvalues`` without the marginal modes (:mod:`quadctl.stability`): what ``stable`` is about."""
+    """``full_eigenvalues`` without the marginal modes (:mod:`quadctl.linear.stability`): what ``stable`` is about."""
     Kv_block: np.ndarray = field(default_factory=lambda: np.zeros((N_INPUTS, N_INPUTS)))
     lag_time_constant: float | None = None
 

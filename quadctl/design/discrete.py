@@ -14,11 +14,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl import stability
 from quadctl._lazy import lazy_import
 from quadctl.design.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
 from quadctl.errors import DesignError
-from quadctl.messages import eig_text
+from quadctl.linear import stability
+from quadctl.text.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -256,7 +256,7 @@ def dlqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrRe
     Returns
     -------
     LqrResult
-        ``E`` holds the eigenvalues ``z`` of ``A - B K`` (stable: :func:`quadctl.stability.is_stable`).
+        ``E`` holds the eigenvalues ``z`` of ``A - B K`` (stable: :func:`quadctl.linear.stability.is_stable`).
 
     Raises
     ------

@@ -15,7 +15,7 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl.layout import STATE_NAMES
-from quadctl.model import rotation_earth_to_body
+from quadctl.physics.model import rotation_earth_to_body
 
 INTERPOLATIONS = ("nearest", "linear", "cubic")
 """How gains are interpolated between the schedule's values."""
@@ -41,7 +41,7 @@ def scheduling_value(variable: str, x, heading: float, lib=np):
         rad from north, the direction ``speed`` is measured along.
     lib : module
         ``numpy`` (returns a float) or ``casadi`` (returns an expression). The rotation is the
-        model's (:func:`quadctl.model.rotation_earth_to_body`).
+        model's (:func:`quadctl.physics.model.rotation_earth_to_body`).
     """
     if variable not in VARIABLES:
         raise ValueError(f"unknown scheduling variable {variable!r}: use one of {', '.join(VARIABLES)}")

@@ -5,16 +5,16 @@ A plant ``(A, B)`` about the trim, continuous or held at ``sample_time``, closed
 (:func:`with_lag_model`), a delay's buffer (:func:`delayed`) and the gyro filter, its states in the
 order :mod:`quadctl.sim.builder` keeps them. Taken by the design's verdict (:func:`matrix`), the
 margins and the check stage (:func:`vehicle`), the rate check (:func:`subsystem`), sweeps and
-:mod:`quadctl.interop`. The state layout is in the docs, docs/internals.md ("The linear closed loop").
+:mod:`quadctl.export.interop`. The state layout is in the docs, docs/internals.md ("The linear closed loop").
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from quadctl import stability
 from quadctl.design import discrete, integral, lag
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.linear import stability
 from quadctl.linear.filters import RATE_STATES, series, with_rate_filter
 
 
@@ -196,7 +196,7 @@ def subsystem(sub, plant, sample_time: float | None = None, *, delay_samples: in
     Parameters
     ----------
     sub : quadctl.design.decoupled.SubsystemDesign
-    plant : quadctl.decouple.Subsystem
+    plant : quadctl.linear.decouple.Subsystem
         Its ``A``, ``B``.
     sample_time : float, optional
     delay_samples : int
@@ -218,7 +218,7 @@ def vehicle(design, A, B, sample_time: float | None = None, delay_samples: int =
             rotor_time_constant: float | None = None, *, keep_free: bool = False, rate_filter=None):
     """``(A, B, K)`` of the loop the vehicle has: the design's gains on the coupled model with the
     rotors' lag, the integrators, the controller's lag model (a design that includes the lag) and
-    the delay; the positions left free (:func:`quadctl.stability.free_positions`) left out.
+    the delay; the positions left free (:func:`quadctl.linear.stability.free_positions`) left out.
 
     Parameters
     ----------
@@ -289,7 +289,7 @@ def lqg(design, A, B, kal):
     design : quadctl.design.Design
     A, B : (12, 12), (12, 4) array_like
         The continuous coupled linear model.
-    kal : quadctl.estimator.Kalman
+    kal : quadctl.design.kalman.Kalman
         Continuous (Kalman-Bucy: ``kal.gain`` is ``L``) or discrete at the controller period
         (``kal.gain`` is ``M``, ``kal.A``, ``kal.B`` the ZOH model).
 
@@ -425,7 +425,7 @@ def simulated(A, B, K, *, Ki=None, integral_states=(), Kv=None, lag_time_constan
         Gain on the controller's lag model (with ``lag_time_constant``, s).
     rotor_time_constant : float, optional
         s of the rotors' lag; ``mix`` (4, 4) maps ``[T, A, E, R]`` to the rotor thrusts.
-    estimator : quadctl.estimator.Kalman, optional
+    estimator : quadctl.design.kalman.Kalman, optional
         A continuous (Kalman-Bucy) filter the law closes through.
     rate_filter : quadctl.linear.filters.StateSpace, optional
         The continuous gyro filter the law takes the rates through (state ``[x; f; z; l; g]``).

@@ -17,7 +17,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.design import linear_loop
 from quadctl.layout import INPUT_INDEX, INPUT_UNITS, STATE_INDEX
-from quadctl.stability import free_positions, is_stable
+from quadctl.linear.stability import free_positions, is_stable
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -472,7 +472,7 @@ def lqg_loops(design, A, B, kal):
     design : quadctl.design.Design
     A, B : (12, 12), (12, 4) array_like
         The continuous coupled linear model.
-    kal : quadctl.estimator.Kalman
+    kal : quadctl.design.kalman.Kalman
     """
     A = np.asarray(A, dtype=float)
     K, ints = design.K_block, design.integral_states
@@ -504,13 +504,13 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     Parameters
     ----------
     design : quadctl.design.Design
-    decoupled : quadctl.decouple.Decoupled
+    decoupled : quadctl.linear.decouple.Decoupled
     A, B : array_like
         The coupled 12-state linear model.
     emulated_rate : float, optional
         Hz at which a *continuous* design is run (``controller.design: continuous`` with a rate):
         its loops are then evaluated sampled, with the continuous gains.
-    actuators : quadctl.motors.Actuators, optional
+    actuators : quadctl.physics.motors.Actuators, optional
         For the saturation notes.
     u_trim : (4,) array_like, optional
         For the actuators' headroom.
@@ -520,7 +520,7 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
         Controller samples of delay included in every sampled loop (``controller.delay``).
     rotor_time_constant : float, optional
         s of the rotors' lag included in every loop (``motors.time_constant``).
-    estimator : quadctl.estimator.Kalman, optional
+    estimator : quadctl.design.kalman.Kalman, optional
         The LQG loops (:func:`lqg_loops`), each compared with the full-state coupled loop.
     rate_filter : quadctl.linear.filters.RateFilter, optional
         The gyro filter (``controller.filters``) in every loop's rate path, sampled with the loop.
@@ -641,7 +641,7 @@ def _filter_notes(m: LoopMargins, design, rate_filter) -> list[str]:
 
 
 def _saturation_notes(m, actuators, u_trim, initial_demand) -> list[str]:
-    from quadctl.motors import headroom
+    from quadctl.physics.motors import headroom
 
     down, up = headroom(actuators, u_trim)[m.input]
     room = min(down, up)

@@ -21,7 +21,7 @@ from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
 from quadctl.pipeline import Stages
-from quadctl.problem import Setup, Timing
+from quadctl.setup import Setup, Timing
 from quadctl.stages import verdict
 
 
@@ -45,7 +45,7 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     -------
     Export
         Its loop is the one ``quadctl simulate`` flies: with ``schedule:``, the schedule's gain table
-        (:func:`quadctl.scheduling.schedule_of`).
+        (:func:`quadctl.schedule.envelope.schedule_of`).
 
     Raises
     ------
@@ -88,12 +88,12 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
 
 def _flown(setup: Setup, loop):
     """(the loop ``quadctl simulate`` flies, its schedule): ``(loop, None)``, or with ``schedule:`` the
-    schedule's gains (:func:`quadctl.scheduling.schedule_of`, flown as
+    schedule's gains (:func:`quadctl.schedule.envelope.schedule_of`, flown as
     :func:`quadctl.pipeline.scheduled_loop`), which must pass the schedule's checks to leave quadctl,
     and that schedule."""
     if setup.schedule is None:
         return loop, None
-    from quadctl.scheduling import schedule_of
+    from quadctl.schedule.envelope import schedule_of
 
     schedule = schedule_of(setup)
     if schedule.missing():  # a controller for the vehicle covers every value asked, or none is made

@@ -10,10 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.decouple import Decoupled
 from quadctl.design import Design, linear_loop
+from quadctl.linear.decouple import Decoupled
 from quadctl.linear.linearize import LinearModel
-from quadctl.problem import Setup
+from quadctl.setup import Setup
 from quadctl.sim.run import ClosedLoop
 
 
@@ -36,7 +36,7 @@ class Export:
         Loops of a continuous design that the rate realizes only approximately (still stable).
     config_hash : str or None
         sha256 of the config (:meth:`quadctl.config.Config.digest`): the provenance the files carry.
-    schedule : quadctl.scheduling.Schedule or None
+    schedule : quadctl.schedule.envelope.Schedule or None
         The gain schedule whose table ``loop`` flies (``schedule:``; its values with no trim are left
         out of the table); None without one.
     """

@@ -19,10 +19,10 @@ from string import Template
 import numpy as np
 
 from quadctl import __version__
-from quadctl.escape import c_comment, c_identifier
 from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
 from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout, exo_layout
+from quadctl.text.escape import c_comment, c_identifier
 
 HEADER, SOURCE = "quadctl_controller.h", "quadctl_controller.c"
 """The two files of the exported controller."""
@@ -241,7 +241,7 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
         "  ref.u = u_ref(t), the feedforward input, in the order and units of u (QUADCTL_U_*);",
         "both at the sample's instant t. Along a smooth path they are its differential-flatness trim: "
         "position, velocity, attitude and body rates along the path, and the thrust and torques that fly it "
-        "(quadctl.flatness.feedforward: what `quadctl simulate` gives its law; sim.npz holds the run's x_ref "
+        "(quadctl.physics.flatness.feedforward: what `quadctl simulate` gives its law; sim.npz holds the run's x_ref "
         "and u_ref). The law reads nothing else of the path (no rates, no time): sample your path generator "
         "at each sample's time and hand the two vectors over. A hover trim moved to another position "
         "(u_ref = u_trim) holds that point; quadctl_reference_trim gives the trim to start from.",

@@ -18,8 +18,8 @@ import numpy as np
 
 from quadctl import __version__
 from quadctl.errors import ConfigError
-from quadctl.escape import c_comment
 from quadctl.export.bundle import Export, require_export
+from quadctl.text.escape import c_comment
 
 LOOP_HZ = 1000
 """The firmware's stabilizer loop (``RATE_MAIN_LOOP`` in ``stabilizer_types.h``): the controller is

@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 
 from quadctl import __version__
-from quadctl.escape import matlab_field
 from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
+from quadctl.text.escape import matlab_field
 
 FORMAT = "quadctl-controller"
 FORMAT_VERSION = 1

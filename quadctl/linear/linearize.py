@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.layout import N_INPUTS, N_STATES, POSITION
-from quadctl.model import Vehicle, build_model
+from quadctl.physics.model import Vehicle, build_model
 
 
 @dataclass(frozen=True)

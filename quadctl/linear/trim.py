@@ -18,14 +18,12 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.errors import TrimError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX
-from quadctl.model import N_PARAMS, Vehicle, build_model, rotation_earth_to_body
+from quadctl.physics.model import MAX_TILT, N_PARAMS, Vehicle, build_model, rotation_earth_to_body
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 RESIDUAL_TOL = 1e-10
 """Largest |dx/dt| (non-position states) accepted as an equilibrium, in SI units."""
-MAX_TILT = np.deg2rad(80.0)
-"""Roll or pitch beyond this is refused: the Euler kinematics are singular at 90 deg."""
 _POSITION = [STATE_INDEX[s] for s in POSITION_STATES]
 _NON_POSITION = [i for i in range(N_STATES) if i not in _POSITION]
 

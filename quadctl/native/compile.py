@@ -58,10 +58,10 @@ GCC's fused ``sincos``): about 20 % a step faster than :data:`PORTABLE_FLAGS` (m
 vectorizes those products (1.39 ms a run of ``forward`` against 1.72 ms at ``-O2``)."""
 EVICT_AFTER_DAYS = 30
 """Cached libraries of another fingerprint unused for this long are deleted."""
-GENERATOR_SOURCES = ("_lazy.py", "layout.py", "model.py", "sim/builder.py", "native/emit.py", "sim/cases.py",
+GENERATOR_SOURCES = ("_lazy.py", "layout.py", "physics/model.py", "sim/builder.py", "native/emit.py", "sim/cases.py",
                      "native/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
                      "design/gain_table.py", "metrics.py", "native/mapped.py",
-                     "native/pointwise.py", "motors.py", "errors.py", "sim/pid.py", "config/pid.py")
+                     "native/pointwise.py", "physics/motors.py", "errors.py", "sim/pid.py", "config/pid.py")
 """The files a library's C is generated from (``tests/house/test_structure.py`` checks that this lists
 everything those modules import from quadctl). Read once, when this module is imported: the cache
 key hashes the code this process runs, and ``driver.c`` is compiled from the same bytes."""

@@ -1,6 +1,6 @@
 """A CasADi function evaluated on many points at once, a row a point, in CasADi's virtual machine.
 
-The convention :mod:`quadctl.flatness` and :mod:`quadctl.native.mapped` (the same, compiled) share:
+The convention :mod:`quadctl.physics.flatness` and :mod:`quadctl.native.mapped` (the same, compiled) share:
 each argument is ``(n, size)`` (one row a point) or ``(size,)`` (the same for every point); each
 output ``(n, size)``, a matrix output's entries column-major, as CasADi stores them.
 """

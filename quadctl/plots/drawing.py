@@ -134,7 +134,7 @@ def input_limits(actuators) -> tuple[np.ndarray, np.ndarray]:
 
     Examples
     --------
-    >>> from quadctl.motors import Motors, actuators_of
+    >>> from quadctl.physics.motors import Motors, actuators_of
     >>> lo, hi = input_limits(actuators_of(Motors(min_thrust=0.0, max_thrust=0.33)))
     >>> lo[0].round(6).tolist(), hi[0].round(6).tolist()
     (0.0, 1.32)

@@ -22,7 +22,8 @@ INPUT_MARKERS = ("o", "s", "^", "D")
 
 
 def transition_figure(transition, *, title: str = "") -> Figure:
-    """A transition flown with a gain schedule and with one fixed design (:class:`quadctl.transition.Transition`).
+    """A transition flown with a gain schedule and with one fixed design
+    (:class:`quadctl.schedule.transition.Transition`).
 
     Top: the scheduling variable flown by each and the reference's, with the schedule's grid
     values dotted. Middle: the pitch angle. Bottom: the thrust of the most loaded rotor
@@ -75,7 +76,7 @@ def transition_figure(transition, *, title: str = "") -> Figure:
 
 
 def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
-    """The envelope of a gain schedule (:class:`quadctl.scheduling.Schedule`) against its variable.
+    """The envelope of a gain schedule (:class:`quadctl.schedule.envelope.Schedule`) against its variable.
 
     Four panels: the block gain's nonzero entries (each over its largest magnitude: markers at the
     points, the interpolated table between them; one line style and marker per input, the legend
@@ -86,8 +87,8 @@ def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
 
     Parameters
     ----------
-    sched : quadctl.scheduling.Schedule
-    actuators : quadctl.motors.Actuators, optional
+    sched : quadctl.schedule.envelope.Schedule
+    actuators : quadctl.physics.motors.Actuators, optional
         The setup's limits: drawn as lines on the thrust panel.
     """
     from quadctl.layout import STATE_NAMES

@@ -55,7 +55,7 @@ def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figur
     sim : SimResult
     u_trim : (4,) array_like, optional
         N, N m.
-    actuators : quadctl.motors.Actuators, optional
+    actuators : quadctl.physics.motors.Actuators, optional
         The simulated vehicle's limits (``setup.actuators``); None: no limit lines.
     """
     rotors = actuators is not None and actuators.mode == "motors"

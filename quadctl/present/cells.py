@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.messages import eig_text
+from quadctl.text.messages import eig_text
 
 
 class Mark(str):
@@ -58,7 +58,8 @@ class Table:
 
 
 eig = eig_text
-"""An eigenvalue: ``-2.5`` or ``-1 + 3.2j`` (5 significant digits, no ``-0``): :func:`quadctl.messages.eig_text`."""
+"""An eigenvalue: ``-2.5`` or ``-1 + 3.2j`` (5 significant digits, no ``-0``):
+:func:`quadctl.text.messages.eig_text`."""
 
 
 def eigs(values) -> str:

@@ -84,9 +84,9 @@ def damp_table(des) -> Table:
     """The coupled closed loop's poles as MATLAB's ``damp`` gives them, lowest natural frequency first.
 
     A discrete design's poles are its ``z``, read as ``s = ln(z) / Ts``; the verdict is
-    :func:`quadctl.stability.is_stable`'s, a free position's pole at 0 is marginal by design.
+    :func:`quadctl.linear.stability.is_stable`'s, a free position's pole at 0 is marginal by design.
     """
-    from quadctl import stability
+    from quadctl.linear import stability
 
     discrete = des.full_eigenvalues_z is not None
     d = stability.damp(des.full_eigenvalues_z if discrete else des.full_eigenvalues,

@@ -45,7 +45,7 @@ def tracking_lines(tracking: dict) -> list[str]:
 def waypoints_table(tracking: dict) -> Table | None:
     """A mission's waypoints, one row each: the position and yaw flown to, when the reference
     arrives (the leg's end), when the vehicle reached it within the tolerance and its closest
-    approach (:class:`quadctl.trajectory.Approach`); None for setpoints. A waypoint never reached is
+    approach (:class:`quadctl.physics.trajectory.Approach`); None for setpoints. A waypoint never reached is
     marked ``fail`` in both columns."""
     if "waypoints" not in tracking:
         return None

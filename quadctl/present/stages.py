@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadctl import stability
 from quadctl.layout import INPUT_NAMES, STATE_INDEX, STATE_NAMES, unit_of
+from quadctl.linear import stability
 from quadctl.present.cells import Mark, Table, eig, eigs, num, vector, yes
 
 TOP_DROPPED = 8

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from string import Template
 
-from quadctl.escape import html_text, markdown_fence, markdown_text
 from quadctl.present.cells import Table as Table  # the presented table: rows the terminal shows too
+from quadctl.text.escape import html_text, markdown_fence, markdown_text
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 Every runner is generated from what this module builds: the compiled one-case loop and the SIMD
 lanes (emitted as C by :mod:`quadctl.native.emit`) and the interpreted fallback
-(:mod:`quadctl.sim.interpreted`). The plant is :func:`quadctl.model.build_model`; a loop's structure
+(:mod:`quadctl.sim.interpreted`). The plant is :func:`quadctl.physics.model.build_model`; a loop's structure
 is a :class:`LoopSpec`, its numbers one constant vector (:func:`constant_layout`), its per-step
 inputs an exogenous row (:func:`exo_layout`). The loop's state, law, timings and features are
 described in the docs, docs/internals.md ("The closed loop").
@@ -17,8 +17,8 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, STATE_INDEX
-from quadctl.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
-from quadctl.motors import desaturate
+from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
+from quadctl.physics.motors import desaturate
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -69,7 +69,7 @@ REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("ref_u_rate", N_INPUTS),           # u_ref(t) = ref_u + s ref_u_rate (the feedforward)
 )
 """Exogenous channels of one step after the wind's, when the loop flies a reference
-(:mod:`quadctl.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law."""
+(:mod:`quadctl.physics.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law."""
 N_REFERENCE = sum(size for _, size in REFERENCE_LAYOUT)
 
 
@@ -228,7 +228,7 @@ class LoopSpec:
         Sparsity of the (4, 12) state gain, column-major.
     saturation : {"none", "box", "motors"}
     priority : bool
-        Rotor saturation by priority (saturation ``motors`` only; :func:`quadctl.motors.desaturate`): roll
+        Rotor saturation by priority (saturation ``motors`` only; :func:`quadctl.physics.motors.desaturate`): roll
         and pitch torques kept, then thrust, yaw given up first; else each rotor clipped and mixed back.
     integral : tuple of int
         Plant-state index that each controller integrator integrates.
@@ -616,7 +616,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
     def saturate(cmd):
         if spec.saturation == "none":
             return cmd
-        if spec.priority:  # roll and pitch kept, then thrust, yaw given up first (quadctl.motors.desaturate)
+        if spec.priority:  # roll and pitch kept, then thrust, yaw given up first (quadctl.physics.motors.desaturate)
             return desaturate(cmd, parts["mix"], parts["lo"], parts["hi"], lib=ca)
         act = parts["mix"] @ cmd if spec.saturation == "motors" else cmd
         act = ca.if_else(act < parts["lo"], parts["lo"], act)

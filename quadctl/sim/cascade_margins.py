@@ -16,7 +16,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.layout import INPUT_NAMES
-from quadctl.stability import is_stable
+from quadctl.linear.stability import is_stable
 
 ca = lazy_import("casadi")
 scipy = lazy_import("scipy")

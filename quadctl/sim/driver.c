@@ -45,7 +45,7 @@
 #define QC_EXO_FIRST(l) lane_i[4 * QC_L + (l)]  /* absolute index of the first exogenous row given */
 #define QC_EXO_N(l) lane_i[5 * QC_L + (l)]      /* exogenous rows given */
 
-/* the absolute exogenous sample of step kk: floor(kk dt / period), as quadctl.noise counts */
+/* the absolute exogenous sample of step kk: floor(kk dt / period), as quadctl.physics.noise counts */
 static long qc_exo_sample(const double* lane_d, int l, long kk) {
   return (long)floor((double)kk * QC_DT(l) / QC_PERIOD(l) + 1e-9);
 }
@@ -240,7 +240,7 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
     sq[l] = o ? sq[l] + d * d : sq[l];
     top[l] = o ? qc_nanmax(top[l], d) : top[l];
   }
-  /* quadctl.trajectory.waypoint_times: a leg counts from its start and from the last leg reached
+  /* quadctl.physics.trajectory.waypoint_times: a leg counts from its start and from the last leg reached
      before it; a leg reached (for now) clears the later legs' earlier hits */
   const double* tol = legs;
   for (long m = 0; m < n_legs; ++m) {

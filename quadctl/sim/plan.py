@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.errors import QuadctlNotice, StepSizeError
-from quadctl.messages import eig_text
-from quadctl.stability import is_stable
+from quadctl.linear.stability import is_stable
+from quadctl.text.messages import eig_text
 
 ACCURACY_STEP = 0.5
 """``dt: auto`` keeps ``|dt lambda| <= 0.5`` for the fastest eigenvalue: RK4's one-step error is then

@@ -21,13 +21,13 @@ import numpy as np
 
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
-from quadctl.noise import NoiseSpec, NoiseStream, exogenous_period
+from quadctl.physics.noise import NoiseSpec, NoiseStream, exogenous_period
+from quadctl.physics.wind import WindSpec, WindStream
 from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
 from quadctl.sim.cases import Cases, Segments
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
 from quadctl.sim.schedule import DEFAULT_TOLERANCE
-from quadctl.wind import WindSpec, WindStream
 
 VALID_PITCH = math.radians(85.0)
 """Beyond this pitch the Euler kinematics (``1/cos theta``) are near singular: the run stops."""
@@ -57,7 +57,7 @@ class ClosedLoop:
     Attributes
     ----------
     params : (11,) ndarray
-        Vehicle parameter vector (:meth:`quadctl.model.Vehicle.vector`) of the simulated plant
+        Vehicle parameter vector (:meth:`quadctl.physics.model.Vehicle.vector`) of the simulated plant
         (it may differ from the design model's: model mismatch).
     x_trim : (12,) ndarray
     u_trim : (4,) ndarray
@@ -94,7 +94,7 @@ class ClosedLoop:
     integral_states: tuple[str, ...] = ()
     """The state each integrator integrates (``dz/dt = -(x_s - x_ref,s)``)."""
     actuators: object | None = None
-    """:class:`quadctl.motors.Actuators` that clip the input; None: unlimited."""
+    """:class:`quadctl.physics.motors.Actuators` that clip the input; None: unlimited."""
     open_loop_eigenvalues: np.ndarray | None = None
     """Of the plant ``A``: what RK4 integrates between samples of a sampled controller."""
     delay_samples: int = 0
@@ -104,7 +104,7 @@ class ClosedLoop:
     lag_model_time_constant: float | None = None
     """s of the controller's rotor lag model (the design's; None: no model)."""
     estimator: object | None = None
-    """:class:`quadctl.estimator.Kalman` the law closes through (LQG); None: the measured state."""
+    """:class:`quadctl.design.kalman.Kalman` the law closes through (LQG); None: the measured state."""
     jacobians: tuple | None = None
     """``(A, B)`` of the design model at the trim: the exponential integrator's linear part
     (:meth:`linear_part`); None: only RK4 runs the loop."""
@@ -211,7 +211,7 @@ class ClosedLoop:
         """:func:`exponential_setup` of this loop, kept with it (the :data:`SETUPS_KEPT` latest settings):
         a second run with the same settings computes no plan, φ-functions or constants again.
 
-        A :class:`~quadctl.flatness.FlownReference` counts as the same when it flies the same
+        A :class:`~quadctl.physics.flatness.FlownReference` counts as the same when it flies the same
         path object, with the same steps (``jumps``) and parameters (its position range and, for a gain
         schedule, the pieces the plan is cut into are read from it).
         """
@@ -392,7 +392,7 @@ class ClosedLoop:
         """(lo, hi) of the loop state ``[x; f; z]`` past which a run stops (:data:`RUNAWAY`).
 
         Positions drift with the reference: they are bounded around its farthest point (a flown
-        ``reference``, :class:`quadctl.flatness.FlownReference`: its extent); rotor
+        ``reference``, :class:`quadctl.physics.flatness.FlownReference`: its extent); rotor
         thrusts and integrators are unbounded (a NaN still stops the run).
         """
         bound = np.array([RUNAWAY[s] for s in STATE_NAMES])
@@ -497,9 +497,9 @@ class ExoStream:
     """The exogenous rows of a run (:func:`quadctl.sim.builder.exo_layout`) on one clock, drawn in order.
 
     Row ``j`` holds over ``[j period, (j + 1) period)``: the noise's sample ``j``
-    (:class:`quadctl.noise.NoiseStream`), then the wind at ``t = j period``
-    (:class:`quadctl.wind.WindStream`). The clock is the noise's period, else the controller's, else
-    :data:`quadctl.noise.DEFAULT_PERIOD`: never the RK4 step, so a seed gives the same run at any ``dt``.
+    (:class:`quadctl.physics.noise.NoiseStream`), then the wind at ``t = j period``
+    (:class:`quadctl.physics.wind.WindStream`). The clock is the noise's period, else the controller's, else
+    :data:`quadctl.physics.noise.DEFAULT_PERIOD`: never the RK4 step, so a seed gives the same run at any ``dt``.
     """
 
     def __init__(self, noise: NoiseSpec | None, wind: WindSpec | None, rate: float | None = None,
@@ -508,7 +508,7 @@ class ExoStream:
         self.noise = NoiseStream(noise) if noise is not None else None
         self.wind = WindStream(wind, self.period) if wind is not None else None
         self.reference = reference
-        """:class:`quadctl.flatness.FlownReference` whose rows end each row, or None."""
+        """:class:`quadctl.physics.flatness.FlownReference` whose rows end each row, or None."""
 
     def index(self, steps, dt: float) -> np.ndarray:
         """The row each absolute RK4 step of ``dt`` takes (as the runners count)."""
@@ -563,14 +563,14 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     noise : NoiseSpec, optional
         Process and sensor noise; the same spec gives the same run.
     wind : WindSpec, optional
-        Steady wind, gusts and turbulence (:mod:`quadctl.wind`); the same spec gives the same run.
+        Steady wind, gusts and turbulence (:mod:`quadctl.physics.wind`); the same spec gives the same run.
     max_samples : int
         Samples kept, at most: every :func:`record_stride`-th step and the last.
     progress : callable, optional
         ``progress(done, total)``: called with the RK4 steps done and the steps in all after each
         chunk of the run (:func:`run_in_chunks`), for a caller that shows how far a long run is.
     reference : FlownReference, optional
-        A reference to fly (:class:`quadctl.flatness.FlownReference`): ``x_ref(t)`` and the feedforward
+        A reference to fly (:class:`quadctl.physics.flatness.FlownReference`): ``x_ref(t)`` and the feedforward
         ``u_ref(t)`` in place of ``x_trim + x_rate t`` and ``u_trim``; ``SimResult.x_ref`` is then the
         reference the law used.
     method : {"rk4", "etdrk4"}
@@ -867,7 +867,7 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
     does), the lanes stepping through their schedules' segments together (segment ``i`` of every
     case per call), as :func:`simulate` runs each (sampled controllers too). The φ-functions of all
     the loops' linear parts are computed together, on the stack of them. Every loop takes the same
-    exogenous inputs: a ``reference`` (:class:`quadctl.flatness.FlownReference`), noise and wind,
+    exogenous inputs: a ``reference`` (:class:`quadctl.physics.flatness.FlownReference`), noise and wind,
     tabulated once for the run.
 
     Parameters

@@ -32,9 +32,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from quadctl.linear.stability import is_stable
 from quadctl.sim.builder import PHI_LAYOUT
 from quadctl.sim.plan import _BRACKET, StepPlan, max_stable_steps, record_stride, step_count, steps_per_sample
-from quadctl.stability import is_stable
 
 SAFETY = 1.0
 """The constant of ``h(t)`` for runs with exogenous inputs or a sampled controller (a free run takes

@@ -15,10 +15,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from quadctl import stability
 from quadctl.design import integral, linear_loop
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.linear import stability
 
 BATCHED = "batched"
 """``path`` of a row designed in the batched solve."""
@@ -76,7 +76,7 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
     problem that several distinct cases pose (a subsystem whose weights no case varies) is solved
     once. A design that includes the rotors' lag is made by the one-case design
     (:func:`quadctl.design.design`). ``any_order``: each design's ``core`` eigenvalues in any order
-    (:func:`quadctl.stability.verdict_stack`), for a caller that reads only their extremes;
+    (:func:`quadctl.linear.stability.verdict_stack`), for a caller that reads only their extremes;
     ``compiled``: the discrete designs' doubling steps in C (:func:`quadctl.design.riccati.dare_batch`),
     the same gains to round-off.
     """
@@ -270,7 +270,7 @@ def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
 def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
     from quadctl import pipeline
-    from quadctl.motors import check_trim
+    from quadctl.physics.motors import check_trim
     from quadctl.sim.builder import fill_constants_stack
     from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
     from quadctl.sim.run import ExoStream, rotor_eigenvalues

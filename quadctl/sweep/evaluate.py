@@ -144,10 +144,10 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
 
 
 class CaseSetups:
-    """The :class:`~quadctl.problem.Setup` of each case of a chunk.
+    """The :class:`~quadctl.setup.Setup` of each case of a chunk.
 
     The reference way validates the case's whole config and builds its setup (~0.2 ms). When every
-    varied key is one whose effect on the setup :func:`quadctl.problem.vary` knows (an entry of a
+    varied key is one whose effect on the setup :func:`quadctl.setup.vary` knows (an entry of a
     diagonal ``lqr.<name>.Q`` or ``R``, ``simulation.noise.seed``), the cases' setups are the base's
     with their values put in, the whole chunk at once (a few µs a case), after the checks the whole
     validation makes of them: the type the schema takes (a finite float, a whole number >= 0) and
@@ -159,7 +159,7 @@ class CaseSetups:
 
     def __init__(self, task: ChunkTask):
         from quadctl import config as config_mod
-        from quadctl.problem import setup_of
+        from quadctl.setup import setup_of
 
         self.task = task
         self.kinds: list | None = None
@@ -201,7 +201,7 @@ class CaseSetups:
     def from_config(self, index: int, values: tuple):
         """The reference way: the case's config assembled, validated and made into its setup."""
         from quadctl import config as config_mod
-        from quadctl.problem import setup_of
+        from quadctl.setup import setup_of
 
         data = self.task.base
         for keys, value in zip(self.task.keys, values):
@@ -224,7 +224,7 @@ class CaseSetups:
         import math
 
         from quadctl.config import diagonal_weights_pass
-        from quadctl.problem import vary
+        from quadctl.setup import vary
 
         n = len(cases)
         ok = np.ones(n, dtype=bool)

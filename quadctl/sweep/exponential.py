@@ -41,8 +41,8 @@ def jobs_of(live) -> list:
     """Per (prep, design): an :class:`ExponentialJob`, a refused step's message, or a QuadctlError."""
     from quadctl import pipeline
     from quadctl.errors import StepSizeError
-    from quadctl.motors import check_trim
-    from quadctl.noise import exogenous_period
+    from quadctl.physics.motors import check_trim
+    from quadctl.physics.noise import exogenous_period
     from quadctl.sim.run import exponential_plan
     from quadctl.sim.schedule import rk4_limits
     from quadctl.sweep.batched import _estimator

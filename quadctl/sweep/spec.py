@@ -12,12 +12,14 @@ from typing import Any
 
 import numpy as np
 
-from quadctl import __version__, yamlio
+from quadctl import __version__
+from quadctl.config import yamlio
 from quadctl.config.kinds import misplaced
 from quadctl.config.schema import PLANT, default_at, section_model
 from quadctl.errors import SweepError
 from quadctl.layout import STATE_NAMES
-from quadctl.messages import (
+from quadctl.sweep.gates import MARGIN_COLUMNS, Gate, gated_margins, metric_columns
+from quadctl.text.messages import (
     KEY_PATH,
     KeyPathError,
     child,
@@ -29,7 +31,6 @@ from quadctl.messages import (
     show,
     whole_number,
 )
-from quadctl.sweep.gates import MARGIN_COLUMNS, Gate, gated_margins, metric_columns
 
 MODES = ("grid", "random")
 DISTRIBUTIONS = {
@@ -268,7 +269,7 @@ def load(path: str | Path, cfg) -> SweepSpec:
 def parse(text: str, cfg, label: str = "<sweep>") -> SweepSpec:
     """Validate YAML text as a sweep file; ``label`` names it in errors.
 
-    The text is read by :func:`quadctl.yamlio.load`, the loader configs are read with, so a
+    The text is read by :func:`quadctl.config.yamlio.load`, the loader configs are read with, so a
     number reads the same in both (``68e-3``, ``5e0``) and the same bounds hold."""
     return from_dict(yamlio.load(text, label, SweepError), cfg, label)
 

@@ -10,7 +10,8 @@ import pytest
 from typer.testing import CliRunner
 
 import quadctl
-from quadctl import artifacts, config, provenance
+from quadctl import artifacts, config
+from quadctl.artifacts import provenance
 from quadctl.cli.app import app
 from quadctl.sim import engine
 from quadctl.workspace import CONFIG_GIVEN, CONFIG_RESOLVED, Workspace

@@ -35,7 +35,7 @@ PNG = b"\x89PNG\r\n\x1a\n" + b"\x00" * 16 + b"IEND\xaeB`\x82"
 @pytest.fixture(scope="module")
 def crazyflie_export():
     from quadctl import export
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     cfg = config.load("crazyflie")
     return export.prepare(setup_of(cfg), config_hash=cfg.digest()), cfg

@@ -11,9 +11,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from quadctl import interop
 from quadctl.design import closed_loop_matrix, discrete, lqr, riccati
 from quadctl.errors import DesignError
+from quadctl.export import interop
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 
 A_SCIPY = np.array([[2, 1 - 2j], [0, -3j]])
@@ -91,7 +91,7 @@ def test_the_real_problem_still_solves_to_scipys_answer():
 
 
 # ---------------------------------------------------------------------------------------
-# quadctl.interop
+# quadctl.export.interop
 
 
 def _design(K=None, Ki=None, ints=()):

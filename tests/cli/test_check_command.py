@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from quadctl import config, pipeline
 from quadctl.cli.app import app
 from quadctl.design import discrete
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 
 REPORT_AT_200HZ = ROOT / "docs" / "configs" / "report-at-200hz.yaml"
 UNSTABLE_AT_200HZ = "sampled at 200 Hz the continuous design's loop(s) roll, pitch, yaw, coupled are UNSTABLE"

@@ -13,10 +13,11 @@ import pytest
 from rich.console import Console
 from typer.testing import CliRunner
 
-from quadctl import config, overrides
+from quadctl import config
 from quadctl.cli import progress, render
 from quadctl.cli.app import app
 from quadctl.cli.commands import COMMANDS
+from quadctl.config import overrides
 from quadctl.errors import ConfigError
 from quadctl.workspace import Workspace
 

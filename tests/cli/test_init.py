@@ -10,11 +10,14 @@ import pytest
 from _solve import run
 from typer.testing import CliRunner
 
-from quadctl import analysis, config, motors, starter
+from quadctl import config
 from quadctl.cli.app import app
 from quadctl.config import Config
+from quadctl.config import template as starter
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
+from quadctl.linear import analysis
+from quadctl.physics import motors
 
 runner = CliRunner()
 CASES = [(v, f) for v in starter.PRESETS for f in starter.FLIGHTS]

@@ -9,9 +9,9 @@ from typer.testing import CliRunner
 
 from quadctl import config, pipeline, sweep
 from quadctl.cli.app import app
+from quadctl.config.template import config_text
 from quadctl.pipeline import MissionVerdict, mission_check
 from quadctl.present.mission import mission_text
-from quadctl.starter import config_text
 
 runner = CliRunner()
 
@@ -75,7 +75,7 @@ def test_a_mission_reached_and_ended_within_the_tolerance_passes(final):
 
 def test_only_a_position_the_mission_moves_along_is_named():
     """The partition is blamed for the axes the waypoints leave the trim along, not for every free one."""
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     data = config.parse(config_text("free", flight="hover"), "free.yaml").model_dump(mode="json")
     start = data["trim"]["position_ned"]

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from quadctl import config
 from quadctl.cli.app import app
 from quadctl.errors import ConfigError
-from quadctl.messages import show
+from quadctl.text.messages import show
 
 VALUES = [math.inf, -math.inf, math.nan, 0.0, -1.0, 1e12, config.MAX_RATE * (1 + 1e-12)]
 

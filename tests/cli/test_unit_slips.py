@@ -9,8 +9,10 @@ import re
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import config, notices, overrides, starter
+from quadctl import config
 from quadctl.cli.app import app
+from quadctl.config import notices, overrides
+from quadctl.config import template as starter
 from quadctl.errors import ConfigError
 
 runner = CliRunner()

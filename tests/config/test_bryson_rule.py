@@ -8,11 +8,12 @@ import pytest
 import yaml
 from _paths import ROOT
 
-from quadctl import config, starter
+from quadctl import config
+from quadctl.config import template as starter
+from quadctl.config.notices import notices
 from quadctl.errors import ConfigError
-from quadctl.motors import Motors, actuators_of, headroom
-from quadctl.notices import notices
-from quadctl.problem import setup_of
+from quadctl.physics.motors import Motors, actuators_of, headroom
+from quadctl.setup import setup_of
 
 
 def iris(**changes) -> dict:

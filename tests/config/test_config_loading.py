@@ -11,8 +11,9 @@ import re
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import config, notices
+from quadctl import config
 from quadctl.cli.app import app
+from quadctl.config import notices
 
 runner = CliRunner()
 FORWARD = config.bundled("forward").text

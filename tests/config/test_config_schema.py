@@ -12,8 +12,9 @@ import pytest
 from _paths import ROOT
 from typer.testing import CliRunner
 
-from quadctl import config, yamlio
+from quadctl import config
 from quadctl.cli.app import app
+from quadctl.config import yamlio
 from quadctl.errors import ConfigError
 
 SCHEMA_FILE = ROOT / "docs" / "quadctl.schema.json"

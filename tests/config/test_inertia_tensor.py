@@ -12,8 +12,8 @@ from quadctl import layout
 from quadctl.config import bundled, parse
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
-from quadctl.model import Vehicle, build_model, evaluate
-from quadctl.problem import setup_of
+from quadctl.physics.model import Vehicle, build_model, evaluate
+from quadctl.setup import setup_of
 
 # Förster (2015), the Crazyflie 2.0's identified tensor, kg m^2 (the entries of J as he gives them)
 CRAZYFLIE_J = np.array([[16.571710, 0.830806, 0.718277],

@@ -9,8 +9,9 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from quadctl import config, overrides
+from quadctl import config
 from quadctl.cli.app import app
+from quadctl.config import overrides
 from quadctl.errors import ConfigError
 
 runner = CliRunner()

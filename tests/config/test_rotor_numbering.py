@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
-from quadctl import config, motors
+from quadctl import config
 from quadctl.errors import ConfigError
+from quadctl.physics import motors
 
 QUADCTL = ("front_right", "rear_right", "rear_left", "front_left")
 

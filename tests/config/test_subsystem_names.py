@@ -8,8 +8,9 @@ import re
 import pytest
 import yaml
 
-from quadctl import artifacts, config, escape
+from quadctl import artifacts, config
 from quadctl.errors import ConfigError
+from quadctl.text import escape
 
 BAD = ["yaw axis", "<b>yaw</b>", "..", "../escaped", "1st", "yaw-axis", "yaw.x", "_yaw", "yåw", "x" * 64]
 GOOD = ["heading", "Yaw_2", "r", "x" * 63]

@@ -10,12 +10,12 @@ import re
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import config, yamlio
+from quadctl import config
 from quadctl.cli.app import app
-from quadctl.config import schema
+from quadctl.config import schema, yamlio
 from quadctl.config.checks import SCHEDULE_UNITS, UNIT_KEYS, UNIT_LIMITS
 from quadctl.errors import ConfigError
-from quadctl.messages import parse_key_path, show
+from quadctl.text.messages import parse_key_path, show
 
 runner = CliRunner()
 HOVER = yamlio.load(config.bundled("hover").text, "hover.yaml", ConfigError)

@@ -1,6 +1,6 @@
-"""The one YAML loader (quadctl.yamlio): numbers, duplicate keys, and the bounds it keeps.
+"""The one YAML loader (quadctl.config.yamlio): numbers, duplicate keys, and the bounds it keeps.
 
-Configs and sweep files go through the same :func:`quadctl.yamlio.load`; the CLI tests of both
+Configs and sweep files go through the same :func:`quadctl.config.yamlio.load`; the CLI tests of both
 are in test_config_loading.py and test_errors.py.
 """
 
@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-from quadctl import yamlio
+from quadctl.config import yamlio
 from quadctl.errors import ConfigError, SweepError
 
 

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from _carex import NUMBERS, arnold_laub_1_solution, case, circulant_solution, kenney_laub_wette_solution, laub_6
 
-from quadctl.analysis import RICCATI_RTOL
 from quadctl.design import lqr, riccati_residual
 from quadctl.errors import DesignError
-from quadctl.stability import is_stable
+from quadctl.linear.analysis import RICCATI_RTOL
+from quadctl.linear.stability import is_stable
 
 SCIPY_ACCURATE = {"1.1", "1.2", "1.3", "1.4", "1.5", "1.6", "2.2", "2.3", "2.4", "2.5", "2.7", "2.8", "3.1", "3.2",
                   "4.2"}

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from quadctl.analysis import check
-from quadctl.decouple import decouple
 from quadctl.design import design, lqr, riccati_residual
 from quadctl.errors import DesignError
 from quadctl.layout import REPORT_PARTITION, STATE_NAMES
+from quadctl.linear.analysis import check
+from quadctl.linear.decouple import decouple
 
 
 def test_linear_model_report_entries(forward):
@@ -117,7 +117,7 @@ def test_not_stabilizable_subsystem_names_the_mode():
 
 def test_design_on_report_partition_is_stable_on_hover(forward):
     from quadctl import config, pipeline
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     setup = setup_of(config.load("hover"))
     linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
@@ -219,7 +219,7 @@ def test_discrete_or_continuous_is_the_designs_own_property(design_kind, expecte
     from _solve import cfg_dict
 
     from quadctl import config, pipeline
-    from quadctl.problem import Timing, setup_of
+    from quadctl.setup import Timing, setup_of
 
     data = cfg_dict("mambo-200hz")
     data["controller"].update(design=design_kind, rate=20.0)  # slower than the continuous design's fast loops

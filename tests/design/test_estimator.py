@@ -15,8 +15,9 @@ from _solve import LANE_RTOL, cfg_dict, lane_gap, lanes_and_one_case_runs, max_r
 from scipy.optimize import linear_sum_assignment
 from typer.testing import CliRunner
 
-from quadctl import config, estimator, pipeline, sweep
+from quadctl import config, pipeline, sweep
 from quadctl.cli.app import app
+from quadctl.design import kalman as estimator
 from quadctl.errors import ConfigError, DesignError
 from quadctl.sim.run import simulate
 

@@ -9,7 +9,7 @@ from _solve import cfg_dict, solve
 from quadctl import config, pipeline
 from quadctl.design import coupled, riccati_residual
 from quadctl.layout import STATE_INDEX
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 
 
 @pytest.mark.parametrize("name", ["forward", "mambo-200hz"])

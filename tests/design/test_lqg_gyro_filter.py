@@ -15,7 +15,7 @@ from quadctl.config import loading
 from quadctl.config.loading import from_dict
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.linear.filters import RATE_STATES
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 
 LQG_CONFIG = "docs/configs/mambo-lqg.yaml"
 GYRO = {"gyro": {"cutoff": 30.0, "order": 2}}
@@ -211,8 +211,8 @@ def test_python_control_closes_the_lqg_loop_with_the_filter(filtered_lqg):
     """interop.controller of the filtered LQG loop runs the gyro filter and the estimator: python-control's
     feedback of the ZOH plant and it has the poles of the LQG loop (as sets)."""
     control = pytest.importorskip("control")
-    from quadctl import interop
     from quadctl.design import linear_loop
+    from quadctl.export import interop
 
     st = filtered_lqg
     loop, lin, kal = st.loop, st.linear, st.loop.estimator

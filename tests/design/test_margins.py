@@ -197,7 +197,7 @@ def test_the_saturation_note_reads_the_disk_margin_as_a_sector_in_the_inputs_uni
     deliver at least g_min of the command, i.e. for commands up to headroom / g_min (N or N m)."""
     import re
 
-    from quadctl.motors import headroom
+    from quadctl.physics.motors import headroom
 
     res = CliRunner().invoke(app, ["margins", "-c", "mambo-200hz", "-o", str(tmp_path)])
     assert res.exit_code == 0, res.output

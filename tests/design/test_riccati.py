@@ -12,11 +12,11 @@ from _solve import bundled_subsystems
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from quadctl import analysis, stability
 from quadctl.design import discrete, integral, lqr, riccati, riccati_residual
 from quadctl.design.discrete import dlqr, lqrd
 from quadctl.design.riccati import ROUNDOFF_RTOL, SEMIDEFINITE_RTOL, WeightCheck, care_batch, dare_batch
 from quadctl.errors import DesignError
+from quadctl.linear import analysis, stability
 
 AGREEMENT = 1e-8
 """Relative difference of ``P`` allowed against SciPy's on well-posed problems: both are certified

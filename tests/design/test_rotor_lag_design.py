@@ -22,11 +22,11 @@ from typer.testing import CliRunner
 
 from quadctl import config, pipeline
 from quadctl.cli.app import app
+from quadctl.config.notices import notices
 from quadctl.design import discrete, integral, lag, linear_loop, margins
 from quadctl.design.decoupled import _solve_subsystem
 from quadctl.design.riccati import riccati_residual
 from quadctl.errors import ConfigError
-from quadctl.notices import notices
 from quadctl.sim.run import simulate
 
 RICCATI_TOL = 1e-10
@@ -282,7 +282,7 @@ def test_two_samples_of_delay_with_the_lag_are_unstable_unless_the_design_includ
 
 def test_python_control_interop_refuses_a_design_whose_controller_has_lag_states():
     pytest.importorskip("control")
-    from quadctl import interop
+    from quadctl.export import interop
 
     setup, _, linear, _, des = solve(_mambo("include"))
     with pytest.raises(ValueError, match=r"the design includes the rotors' lag \(controller.rotor_lag: include\)"):

@@ -12,8 +12,9 @@ from _paths import ROOT
 from _solve import cfg_dict, solve
 from typer.testing import CliRunner
 
-from quadctl import pipeline, stability
+from quadctl import pipeline
 from quadctl.cli.app import app
+from quadctl.linear import stability
 
 
 def _lagged(rotor_lag: str = "ignore", delay: int = 0) -> dict:

@@ -176,14 +176,14 @@ def test_no_import_cycles_not_even_inside_functions():
     assert cycles == []
 # ---------------------------------------------------------------------------------------------
 # One home for the linear closed loop (quadctl/design/linear_loop.py) and for the stability test
-# (quadctl/stability.py): the source is scanned for a second copy.
+# (quadctl/linear/stability.py): the source is scanned for a second copy.
 
 LOOP_HOME = {"design/linear_loop.py"}
 SOLVER_LOOPS = "design/riccati/"
 """The Riccati solvers close ``A - B K`` inside their Newton steps and residuals: part of solving for
 the gain, below :mod:`quadctl.design.linear_loop` in the import graph (which depends on them through
 :mod:`quadctl.design.discrete`)."""
-STABILITY_HOME = {"stability.py"}
+STABILITY_HOME = {"linear/stability.py"}
 
 
 def _is_gain(node) -> bool:
@@ -264,7 +264,7 @@ def test_closed_loops_are_built_only_in_linear_loop():
 
 
 def test_stability_is_decided_only_in_the_stability_module():
-    """Every stability comparison and both margins live in :mod:`quadctl.stability`."""
+    """Every stability comparison and both margins live in :mod:`quadctl.linear.stability`."""
     assert _offenders(stability_tests_made, STABILITY_HOME) == []
 
 
@@ -277,7 +277,7 @@ def test_stability_is_decided_only_in_the_stability_module():
     ("ok = np.all(np.abs(E) < 1 - 1e-9)", 0, 1),
     ("ok = abs(z) < 1", 0, 1),
     ("ok = radius >= 1.0 - UNIT_CIRCLE_MARGIN", 0, 1 + 1),  # the comparison and the margin
-    ("from quadctl.analysis import STABILITY_MARGIN", 0, 1),
+    ("from quadctl.linear.analysis import STABILITY_MARGIN", 0, 1),
     # not loops, not stability tests: an observer, a cost's cross term, a zero test, an imaginary part
     ("Ao = A - L @ C", 0, 0),
     ("stage = Q + K.T @ R @ K - N @ K", 0, 0),

@@ -12,8 +12,8 @@ from _paths import DATA
 from quadctl.config import load
 from quadctl.identify import estimate as est
 from quadctl.identify.readers import FlightLog, read_log
-from quadctl.model import Vehicle, build_model
-from quadctl.motors import Motors
+from quadctl.physics.model import Vehicle, build_model
+from quadctl.physics.motors import Motors
 
 FLIGHTS = DATA / "crazyflie-flights"
 PAPER_CURVE = np.array([0.02126, -0.01117, 0.12012])  # N: c0, c1, c2 (Eschmann et al., IROS 2024)
@@ -33,7 +33,7 @@ def simulated_log(rng, *, seconds=4.0, rate=1000.0, tm=0.07, delay=0.0, curve=PA
                   2.0e-5), k_m=0.006, acc_noise=0.3, gyro_noise=0.002, torque_noise=2e-5, ar=0.9,
                   with_rates=True):
     """A log from the model with known parameters: held random commands, the paper's lag on the
-    command, rotor thrusts mixed by quadctl.motors, the rates integrated (RK4) through the CasADi
+    command, rotor thrusts mixed by quadctl.physics.motors, the rates integrated (RK4) through the CasADi
     model's f under a torque error (``torque_noise``, N m: the rotors' thrust not quite the curve's, where
     the attitude fit takes a log's error to be); AR(1) noise (``ar``: its sample-to-sample correlation)
     on the accelerometer, the gyro and that torque."""
@@ -103,7 +103,7 @@ def test_lag_is_the_exact_first_order_step_response():
 
 
 def test_measurement_function_is_the_model_with_gravity_removed():
-    """The CasADi measurement (specific force times m, J domega/dt) against quadctl.model's f and the mixer."""
+    """The CasADi measurement (specific force times m, J domega/dt) against quadctl.physics.model's f and the mixer."""
     af = airframe()
     rng = np.random.default_rng(2)
     z, omega = rng.uniform(0, 1, (5, 4)), rng.normal(0, 2, (5, 3))

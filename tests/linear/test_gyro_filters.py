@@ -15,7 +15,7 @@ from quadctl.design import margins
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_INDEX, STATE_INDEX
 from quadctl.linear import filters
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 
 TIGHT = 1e-9
 """The closed forms are evaluated in double: a few ulps of phases near 1 rad, and the crossover solved
@@ -248,7 +248,7 @@ def test_filters_a_sampled_controller_cannot_run_are_refused():
 
 
 def test_a_d_term_filter_on_the_lqr_law_is_a_notice_and_changes_nothing():
-    from quadctl.notices import notices
+    from quadctl.config.notices import notices
 
     cfg = from_dict(config("mambo-200hz", filters={"d_term": {"cutoff": 30.0}}))
     found = [n for n in notices(cfg, "c.yaml") if n.key == "controller.filters.d_term"]
@@ -273,8 +273,8 @@ def test_python_control_closes_the_same_loop_with_the_filter(filtered_mambo):
     """interop.controller of a filtered loop carries the filter: python-control's feedback of the ZOH plant
     and it has the eigenvalues of the vehicle's loop with the filter (as sets)."""
     control = pytest.importorskip("control")
-    from quadctl import interop
     from quadctl.design import linear_loop
+    from quadctl.export import interop
 
     st = filtered_mambo
     loop, des, lin = st.loop, st.design, st.linear

@@ -1,4 +1,4 @@
-"""The one stability predicate and the one marginal-mode rule (quadctl.stability)."""
+"""The one stability predicate and the one marginal-mode rule (quadctl.linear.stability)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from quadctl import stability
 from quadctl.layout import STATE_INDEX
+from quadctl.linear import stability
 
 
 def test_unstable_coupled_loop_is_detected():

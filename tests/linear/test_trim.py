@@ -10,7 +10,7 @@ import pytest
 from quadctl.errors import TrimError
 from quadctl.layout import STATE_INDEX
 from quadctl.linear.trim import RESIDUAL_TOL, solve_trim
-from quadctl.model import Vehicle, evaluate
+from quadctl.physics.model import Vehicle, evaluate
 
 
 def test_report_forward_trim_to_four_digits():

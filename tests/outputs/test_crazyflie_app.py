@@ -246,7 +246,7 @@ def hover(tmp_path_factory):
     cfg = crazyflie_config(tmp)
     sim = simulated(cfg, tmp / "run")
     from quadctl.export import prepare
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     act = prepare(setup_of(config.load(cfg))).loop.actuators
     exes = {}
@@ -306,7 +306,7 @@ def test_the_adapter_flies_the_simulated_waypoint_mission(tmp_path):
     setpoints[:, 11] = -np.degrees(xr[:, 8])
     got = run_harness(exe, records(firmware_view(x), setpoints))
     from quadctl.export import prepare
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     act = prepare(setup_of(config.load(cfg))).loop.actuators
     want = act.commands(sim["u"])
@@ -397,7 +397,7 @@ def test_the_vehicle_is_compared_with_the_firmware_platform_defaults(tmp_path):
     coefficient differ (by the percentages of the two sources), the arm agrees; identify is named."""
     from quadctl.export import prepare
     from quadctl.present.platform import platform_sentences
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     exp = prepare(setup_of(config.load("crazyflie")))
     rows = {r[0]: r for r in crazyflie.platform_rows(exp)}

@@ -10,9 +10,10 @@ import pytest
 from _solve import cfg_dict
 from test_export import DOUBLE_TOL, FLOAT_INPUT_RTOL, Controller
 
-from quadctl import config, export, motors
+from quadctl import config, export
 from quadctl.layout import N_STATES, STATE_INDEX
-from quadctl.problem import setup_of
+from quadctl.physics import motors
+from quadctl.setup import setup_of
 from quadctl.sim.builder import build
 
 MAMBO = motors.Motors()

@@ -14,8 +14,9 @@ from html.parser import HTMLParser
 
 import pytest
 
-from quadctl import artifacts, escape
+from quadctl import artifacts
 from quadctl.report.document import Code, Document, Figure, Items, Section, Table, Text, to_html, to_markdown
+from quadctl.text import escape
 
 HOSTILE = [
     "<img src=x onerror=alert(1)>",
@@ -130,7 +131,7 @@ def test_a_c_comment_cannot_be_closed_from_the_text():
 @pytest.fixture(scope="module")
 def exported():
     from quadctl import config, export
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     cfg = config.load("crazyflie")
     return export.prepare(setup_of(cfg), config_hash=cfg.digest())

@@ -24,13 +24,14 @@ from _paths import ROOT
 from _solve import cfg_dict
 from typer.testing import CliRunner
 
-from quadctl import config, export, motors
+from quadctl import config, export
 from quadctl.cli.app import app
 from quadctl.errors import CheckFailed
 from quadctl.export import c as cexport
 from quadctl.export import data
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
-from quadctl.problem import setup_of
+from quadctl.physics import motors
+from quadctl.setup import setup_of
 from quadctl.sim.run import simulate
 
 runner = CliRunner()
@@ -309,7 +310,7 @@ def test_the_exported_kalman_filter_gives_the_simulated_commands_and_estimates(c
     controller saw), the exported C returns the commands simulate computed and keeps its estimates:
     the filter's update, the law on the updated estimate, the prediction with the applied (clipped,
     delayed) command."""
-    from quadctl.noise import realize
+    from quadctl.physics.noise import realize
 
     exp = prepared(case)
     setup, loop = exp.setup, exp.loop
@@ -395,7 +396,7 @@ def test_the_exported_c_fed_the_reference_gives_the_simulated_commands(case, tmp
     state, or the measurements with the sensor noise drawn; the reference ``x_ref(t)``, ``u_ref(t)``
     the run recorded) returns the inputs the simulation applied: to round-off in double, to the float
     sums' round-off in float."""
-    from quadctl.noise import realize
+    from quadctl.physics.noise import realize
     from quadctl.pipeline import simulation_of
 
     exp = prepared(case)
@@ -477,15 +478,15 @@ def test_a_schedule_that_fails_its_checks_is_not_exported(monkeypatch):
     """What fails `quadctl schedule` does not leave quadctl (exit 1, the schedule's own verdict)."""
     from dataclasses import replace
 
-    from quadctl import scheduling
+    from quadctl.schedule import envelope
 
-    real = scheduling.schedule_of
+    real = envelope.schedule_of
 
     def failing(setup):
         sched = real(setup)
         return replace(sched, checks=replace(sched.checks, stable=np.zeros_like(sched.checks.stable)))
 
-    monkeypatch.setattr(scheduling, "schedule_of", failing)
+    monkeypatch.setattr(envelope, "schedule_of", failing)
     with pytest.raises(CheckFailed, match=r"^not exported: the gain schedule fails its checks: .* frozen-point "
                                           r"checks fail: .*\(`quadctl schedule` shows them\)$"):
         export.prepare(setup_of(config.load("crazyflie-speed-schedule")))
@@ -757,7 +758,7 @@ def test_the_mat_file_carries_the_kalman_filter_that_gives_the_simulated_estimat
     measurements simulate's controller saw and give simulate's a priori estimates."""
     from scipy.io import loadmat
 
-    from quadctl.noise import realize
+    from quadctl.physics.noise import realize
 
     exp = prepared("mambo-lqg")
     buf = io.BytesIO()
@@ -794,7 +795,7 @@ def test_the_mat_file_of_a_filtered_lqg_loop_reruns_the_gyro_filter_and_the_kalm
     rerun both on the measurements simulate's controller saw and give simulate's a priori estimates."""
     from scipy.io import loadmat
 
-    from quadctl.noise import realize
+    from quadctl.physics.noise import realize
 
     exp = prepared("mambo-lqg-gyro-filtered")
     buf = io.BytesIO()

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, solve
 
-from quadctl import interop
 from quadctl.design import closed_loop_matrix, lqr, margins
+from quadctl.export import interop
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 
 control = pytest.importorskip("control")
@@ -111,11 +111,11 @@ def test_a_system_quadctl_cannot_design_for_is_refused_by_name(bad, message):
 
 def test_without_python_control_the_error_says_how_to_install_it():
     code = ("import sys; sys.modules['control'] = None\n"
-            "from quadctl import interop\n"
+            "from quadctl.export import interop\n"
             "try:\n    interop.plant(None)\nexcept ModuleNotFoundError as exc:\n    print(exc)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == ("quadctl.interop needs python-control: pip install '.[control]' (in a quadctl checkout) "
-                           "or pip install 'quadctl[control]'")
+    assert out.strip() == ("quadctl.export.interop needs python-control: pip install '.[control]' "
+                           "(in a quadctl checkout) or pip install 'quadctl[control]'")
 
 
 def test_the_docstring_examples_run():

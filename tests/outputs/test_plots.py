@@ -16,7 +16,7 @@ from _solve import cfg_dict, solve
 from quadctl import plots
 from quadctl.design import margins
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
-from quadctl.motors import Motors, actuators_of
+from quadctl.physics.motors import Motors, actuators_of
 
 
 def _lines(ax, label=None):

@@ -12,12 +12,13 @@ import pytest
 from _solve import cfg_dict, solve
 
 import quadctl
-from quadctl import present, stability
+from quadctl import present
 from quadctl.design import margins
-from quadctl.messages import eig_text
+from quadctl.linear import stability
 from quadctl.present import cells, loops
 from quadctl.present import design as shown
 from quadctl.present import flight as shown_flight
+from quadctl.text.messages import eig_text
 
 PACKAGE = quadctl.__file__.rsplit("/", 1)[0]
 

@@ -13,11 +13,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from quadctl import trajectory
 from quadctl.errors import TrimError
-from quadctl.flatness import feedforward
-from quadctl.linear.trim import MAX_TILT
-from quadctl.model import Vehicle
+from quadctl.physics import trajectory
+from quadctl.physics.flatness import feedforward
+from quadctl.physics.model import MAX_TILT, Vehicle
 
 VEHICLE = Vehicle()  # the report's vehicle: the bundled forward and schedule configs fly it
 AGREE = 1e-9
@@ -152,7 +151,7 @@ def test_a_references_rows_do_not_depend_on_how_they_are_tabulated():
     is left of the force balance by 200: the same rows in one piece and in chunks of 7 agree to
     round-off (with the 1e-12 m/s^2 Newton accepts left in: 4e-10)."""
     from quadctl import config
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     flown = setup_of(config.load("square")).flown_reference
     j = np.arange(3000)

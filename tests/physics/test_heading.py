@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, max_rel_diff, run, solve, without_compiler
 
-from quadctl import pipeline, sweep, trajectory
-from quadctl.flatness import FlownReference
+from quadctl import pipeline, sweep
 from quadctl.layout import N_STATES, STATE_INDEX
+from quadctl.physics import trajectory
+from quadctl.physics.flatness import FlownReference
 from quadctl.sim.builder import heading_frame, wrap_angle
 from quadctl.sim.run import simulate
 

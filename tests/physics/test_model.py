@@ -10,7 +10,7 @@ import pytest
 from _finite_differences import assert_jacobians_match_central_differences
 
 from quadctl.layout import STATE_INDEX
-from quadctl.model import Vehicle, build_model, euler_rates_matrix, evaluate, rotation_earth_to_body
+from quadctl.physics.model import Vehicle, build_model, euler_rates_matrix, evaluate, rotation_earth_to_body
 
 
 def _random_point(rng):

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
-from quadctl import config, motors, pipeline
+from quadctl import config, pipeline
 from quadctl.errors import ConfigError, SaturationFailed
 from quadctl.layout import INPUT_INDEX
-from quadctl.problem import setup_of
+from quadctl.physics import motors
+from quadctl.setup import setup_of
 
 MAMBO = motors.Motors()
 MG = 0.068 * 9.81

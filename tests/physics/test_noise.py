@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
-from quadctl import noise
+from quadctl.physics import noise
 
 
 def _noisy(seed: int) -> dict:

@@ -13,14 +13,15 @@ import pytest
 from _paths import ROOT
 from _solve import without_compiler
 
-from quadctl import config, pipeline, trajectory
+from quadctl import config, pipeline
 from quadctl.errors import ConfigError
-from quadctl.flatness import FlownReference
 from quadctl.linear.trim import solve_trim
-from quadctl.model import Vehicle, build_model
+from quadctl.physics import trajectory
+from quadctl.physics.flatness import FlownReference
+from quadctl.physics.model import Vehicle, build_model
 from quadctl.present import mission
 from quadctl.present.mission import mission_text
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 from quadctl.sim.run import simulate
 
 HOVER_HOLD = ROOT / "docs" / "configs" / "hover-hold.yaml"
@@ -58,7 +59,7 @@ def test_rest_to_rest_legs_are_the_closed_forms(kind, closed_form):
 
 
 def test_feedforward_is_the_trim_at_constant_velocity_and_consistent_along_a_path():
-    from quadctl.flatness import feedforward
+    from quadctl.physics.flatness import feedforward
 
     vehicle = Vehicle()
     ref = trajectory.setpoint_reference([{"t": 1.0, "velocity": [1.0, 0.5, -0.2], "yaw": 0.3}],

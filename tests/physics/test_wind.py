@@ -15,13 +15,8 @@ from _solve import cfg_dict, solve, without_compiler
 from quadctl import config, pipeline, sweep
 from quadctl.errors import ConfigError
 from quadctl.linear.trim import solve_trim
-from quadctl.model import Vehicle, build_model
-from quadctl.problem import setup_of
-from quadctl.sim import engine
-from quadctl.sim.cases import Cases
-from quadctl.sim.plan import record_stride
-from quadctl.sim.run import ExoStream, simulate
-from quadctl.wind import (
+from quadctl.physics.model import Vehicle, build_model
+from quadctl.physics.wind import (
     FT,
     KNOT,
     Gust,
@@ -31,6 +26,11 @@ from quadctl.wind import (
     WindStream,
     low_altitude,
 )
+from quadctl.setup import setup_of
+from quadctl.sim import engine
+from quadctl.sim.cases import Cases
+from quadctl.sim.plan import record_stride
+from quadctl.sim.run import ExoStream, simulate
 
 # ---------------------------------------------------------------------------------------
 # The model: drag on the velocity relative to the air
@@ -50,7 +50,7 @@ def test_still_air_is_the_model_without_wind():
 
 def test_a_vehicle_moving_with_the_wind_feels_no_drag():
     """V_b = R_E^b w: the air-relative velocity is zero, so the model with drag equals the one without."""
-    from quadctl.model import rotation_earth_to_body
+    from quadctl.physics.model import rotation_earth_to_body
 
     m, rng = build_model(), np.random.default_rng(1)
     dragging, dragless = Vehicle(drag=(0.3, 0.2, 0.1)).vector(), Vehicle(drag=(0.0, 0.0, 0.0)).vector()
@@ -173,7 +173,7 @@ def test_dryden_realization_has_the_handbook_spectra(realization):
 
 def _mil_f_8785c_psd(f, sigma, scales, speed):
     """(n, 3) one-sided PSD (m/s)^2/Hz at ``f`` (Hz) of MIL-F-8785C §3.7.2.1's Dryden spectra, written
-    here from the specification (not from quadctl.wind): ``Phi_u(W) = sigma_u^2 (2 L_u / pi) / (1 +
+    here from the specification (not from quadctl.physics.wind): ``Phi_u(W) = sigma_u^2 (2 L_u / pi) / (1 +
     (L_u W)^2)``, ``Phi_v(W) = sigma_v^2 (L_v / pi) (1 + 3 (L_v W)^2) / (1 + (L_v W)^2)^2`` (``w``
     alike), seen at ``speed``: ``S(f) = Phi(2 pi f / V) 2 pi / V``. ``scales`` are MIL-F-8785C's
     (``L_v = L_u``, ``L_w = h`` at low altitude)."""
@@ -478,7 +478,7 @@ def test_the_readme_gust_numbers():
 def test_the_forming_filters_closed_forms_are_expm_and_lyapunov():
     from scipy.linalg import expm, solve_continuous_lyapunov
 
-    from quadctl.wind import _stationary, _transition
+    from quadctl.physics.wind import _stationary, _transition
 
     for axis, (A, B, C) in enumerate(TURB.filters()):
         P = solve_continuous_lyapunov(A, -B @ B.T)
@@ -489,7 +489,7 @@ def test_the_forming_filters_closed_forms_are_expm_and_lyapunov():
 
 
 def test_a_steady_wind_without_trim_wind_gets_a_note():
-    from quadctl import notices
+    from quadctl.config import notices
 
     data = _windy()
     data["trim"]["wind"] = False

@@ -22,7 +22,7 @@ from _solve import cfg_dict, designed_table, solve
 from quadctl import config, pipeline
 from quadctl.design.gain_table import GainTable
 from quadctl.layout import N_STATES, STATE_INDEX
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 from quadctl.sim.builder import LoopSpec, build
 from quadctl.sim.run import simulate
 
@@ -182,8 +182,8 @@ def test_lanes_equal_the_one_case_loop_with_a_schedule(transition):
 
 
 def test_the_table_these_tests_build_is_the_schedule_stages(transition):
-    """What ``simulate`` flies (quadctl.scheduling.schedule_of) is what the tests above build apart."""
-    from quadctl.scheduling import schedule_of
+    """What ``simulate`` flies (quadctl.schedule.envelope.schedule_of) is what the tests above build apart."""
+    from quadctl.schedule.envelope import schedule_of
 
     setup, _, table = transition
     made = schedule_of(setup).table
@@ -194,8 +194,8 @@ def test_the_table_these_tests_build_is_the_schedule_stages(transition):
 
 @pytest.fixture(scope="module")
 def flown_transition(transition):
-    """The bundled transition flown with the schedule and with the fixed design (quadctl.transition)."""
-    from quadctl.transition import fly_transition
+    """The bundled transition flown with the schedule and with the fixed design (quadctl.schedule.transition)."""
+    from quadctl.schedule.transition import fly_transition
 
     setup, _, table = transition
     return fly_transition(setup, table)
@@ -212,7 +212,7 @@ def test_the_fixed_design_leaves_the_valid_range_where_the_schedule_flies(transi
     assert scheduled["on_grid"] and scheduled["flown_range"][1] > 0.9 * setup.schedule.values[-1]
     assert result.scheduled.x[-1, STATE_INDEX["u"]] < 0.5  # back near hover
     assert fixed["flown_range"][1] > 15  # it failed at speed, not at the first step
-    from quadctl.transition import transition_lines
+    from quadctl.schedule.transition import transition_lines
 
     scheduled_line, fixed_line = transition_lines(result.summary)  # in words, the range with its unit
     assert scheduled_line.startswith("scheduled: completed (25 s)") and scheduled_line.endswith(" m/s")
@@ -261,7 +261,7 @@ SETPOINT_RUN = 6.0
 def speed_steps():
     """(loop on the schedule's gains, its schedule, reference, x0, RK4 at 1/256 of the rows' period:
     a step dividing it, so the reference's rows change at steps' starts)."""
-    from quadctl.scheduling import schedule_of
+    from quadctl.schedule.envelope import schedule_of
 
     data = cfg_dict("schedule")
     data["simulation"].update(duration=SETPOINT_RUN, reference={"setpoints": [
@@ -380,7 +380,7 @@ def test_scheduling_values_of_a_run_are_the_variable_row_by_row(variable):
 def test_the_rk4_step_holds_every_frozen_loop_of_the_schedule():
     """A continuous scheduled loop's step is planned over the schedule's frozen loops too: a frozen
     eigenvalue faster than the design's own governs the step, named as the gain schedule's."""
-    from quadctl.scheduling import schedule_of
+    from quadctl.schedule.envelope import schedule_of
 
     setup = setup_of(config.load("schedule"))
     loop = pipeline.Stages(setup).loop

@@ -11,13 +11,14 @@ import pytest
 from scipy.interpolate import PPoly, interp1d
 from typer.testing import CliRunner
 
-from quadctl import config, pipeline, stability
+from quadctl import config, pipeline
 from quadctl.cli.app import app
 from quadctl.design.gain_table import OUTSIDE, GainTable, scheduling_value
 from quadctl.errors import ScheduleError
 from quadctl.layout import STATE_INDEX
-from quadctl.problem import setup_of
-from quadctl.scheduling import fine_values, frozen_checks, heading_of, own_value, schedule_of
+from quadctl.linear import stability
+from quadctl.schedule.envelope import fine_values, frozen_checks, heading_of, own_value, schedule_of
+from quadctl.setup import setup_of
 from quadctl.workspace import Workspace
 
 runner = CliRunner()

@@ -3,7 +3,7 @@
 - The nonlinear loop the simulation runs (quadctl.sim.builder) linearized by CasADi at the
   reference equals the linear loop, for every bundled config and for loops with the rotors' lag,
   the controller's lag model and a delay.
-- The free-position rule (quadctl.stability.free_positions): a position no gain reads but another
+- The free-position rule (quadctl.linear.stability.free_positions): a position no gain reads but another
   state depends on is not free, so its mode stays in the verdict.
 - The sampled cost of a discrete design (quadctl.design.coupled.linear_cost) equals the cost a linear
   simulation accumulates, and the design's own DARE cost.
@@ -18,9 +18,10 @@ import pytest
 import scipy.linalg
 from _solve import cfg_dict, solve
 
-from quadctl import config, pipeline, stability
+from quadctl import config, pipeline
 from quadctl.design import coupled, linear_loop
 from quadctl.layout import INPUT_NAMES, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.linear import stability
 from quadctl.sim.builder import build
 
 AGREE = 1e-9

@@ -341,7 +341,7 @@ def test_setpoint_steps_are_graded_like_the_start(monkeypatch):
     grades again from each (Reference.jumps): the report's forward loop, velocity steps at 0.5 and 1 s,
     within the tolerance 1e-8 of RK4 at 1/256 of the rows' period. Graded from t = 0 only, the steps
     after a setpoint are too long for the kicked rate loops: over 1e-6."""
-    from quadctl.trajectory import Reference
+    from quadctl.physics.trajectory import Reference
 
     data = cfg_dict("forward")
     data["simulation"]["reference"] = {"setpoints": [{"t": 0.5, "velocity": [2.0, 0.0, 0.0]},
@@ -363,7 +363,7 @@ def test_setpoint_steps_are_graded_like_the_start(monkeypatch):
 
 def test_a_reference_jumps_where_its_position_velocity_or_yaw_steps():
     """Setpoints and step legs jump; a shaped leg's ends (where only jerk and snap change) do not."""
-    from quadctl.trajectory import mission_reference, setpoint_reference
+    from quadctl.physics.trajectory import mission_reference, setpoint_reference
 
     steps = setpoint_reference([{"t": 0.0, "velocity": [1.0, 0, 0]}, {"t": 1.0, "yaw": 0.5},
                                 {"t": 2.0, "velocity": [1.0, 0, 0]}, {"t": 3.0, "position": [5.0, 0, 0]}],

@@ -12,7 +12,7 @@ import pytest
 
 from quadctl import config, metrics, pipeline, sweep
 from quadctl.layout import N_STATES, STATE_INDEX
-from quadctl.problem import setup_of
+from quadctl.setup import setup_of
 from quadctl.sim.engine import LANES, runner
 from quadctl.sim.lane_metrics import MetricSpec, case_values, row_values, summaries, tracking
 from quadctl.sweep import batched, evaluate

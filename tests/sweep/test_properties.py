@@ -9,12 +9,12 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from quadctl import config, pipeline
-from quadctl.analysis import check
 from quadctl.cli.app import app
 from quadctl.design import RICCATI_RTOL, lqr, riccati_residual
 from quadctl.errors import QuadctlError
-from quadctl.problem import setup_of
-from quadctl.stability import is_stable
+from quadctl.linear.analysis import check
+from quadctl.linear.stability import is_stable
+from quadctl.setup import setup_of
 
 runner = CliRunner()
 FORWARD = config.locate("forward")[1]

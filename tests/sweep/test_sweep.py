@@ -729,7 +729,7 @@ MISSION = {"waypoints": [{"position": [0.3, 0.0, -1.0]}], "tolerance": 0.05}
 
 @pytest.fixture(scope="module")
 def square_without_mission():
-    from quadctl import overrides
+    from quadctl.config import overrides
 
     return overrides.load(config.bundled("square"), ["simulation.reference=null"])
 
@@ -737,8 +737,8 @@ def square_without_mission():
 def test_set_makes_the_section_its_parameters_vary(square_without_mission):
     """The config has no mission: set: gives one, the parameters vary its speed (a key set: leaves to
     its default), a gate reads its waypoints; each row is the one-case run of the same config."""
-    from quadctl import overrides
-    from quadctl.problem import setup_of
+    from quadctl.config import overrides
+    from quadctl.setup import setup_of
 
     cfg = square_without_mission
     spec = sweep.from_dict({"set": {"simulation.reference": MISSION, "simulation.duration": 2.0},
@@ -836,7 +836,7 @@ def test_margin_columns_are_the_margins_command_s_and_gate_thin_loops():
     """A gate on margin.gain_db / margin.phase_deg adds the columns: the least margins over the loops that
     ``quadctl margins`` reports (the rotors' lag in them); the 30 ms lag's thin roll loop fails."""
     from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
 
     cfg = config.load("mambo-200hz")
     spec = spec_of(cfg, parameters={"motors.time_constant": [0.01, 0.03]}, set={"simulation.duration": 0.3},

@@ -57,7 +57,7 @@ def command(to: Annotated[Target, typer.Option(
     from quadctl import artifacts, export
     from quadctl.cli import render
     from quadctl.cli.options import load_config, override
-    from quadctl.problem import setup_of
+    from quadctl.setup import setup_of
     from quadctl.workspace import default_out
 
     rate = override("--rate", rate)

@@ -23,11 +23,11 @@ def command(
 ) -> None:
     """Start a config for your own vehicle: NAME.yaml, every key with its unit, a named vehicle's values
     (with their sources) to replace with yours. Then: quadctl run -c NAME.yaml."""
-    from quadctl import starter
     from quadctl.cli import render
+    from quadctl.config import template
     from quadctl.errors import ConfigError
 
-    text = starter.config_text(name, vehicle, flight)
+    text = template.config_text(name, vehicle, flight)
     path = Path(f"{name}.yaml")
     if path.exists() and not force:
         raise ConfigError(f"{path}: already exists; pass --force to overwrite it, or choose another NAME")
@@ -35,7 +35,7 @@ def command(
     if json:
         render.emit_json({"file": str(path), "vehicle": vehicle, "flight": flight})
         return
-    render.out.print(f"wrote {path}: {starter.PRESETS[vehicle].title}, {flight}; replace its numbers with your "
+    render.out.print(f"wrote {path}: {template.PRESETS[vehicle].title}, {flight}; replace its numbers with your "
                      f"vehicle's, then: quadctl run -c {path}", markup=False, soft_wrap=True)
 
 

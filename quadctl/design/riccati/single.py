@@ -13,9 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl import stability
 from quadctl._lazy import lazy_import
-from quadctl.analysis import RICCATI_RTOL, pbh
 from quadctl.design.riccati.stacked import (
     KRONECKER_MAX_N,
     NEWTON_STEPS,
@@ -29,7 +27,9 @@ from quadctl.design.riccati.stacked import (
 )
 from quadctl.design.riccati.weights import WeightCheck, as_problem
 from quadctl.errors import DesignError
-from quadctl.messages import eig_text
+from quadctl.linear import stability
+from quadctl.linear.analysis import RICCATI_RTOL, pbh
+from quadctl.text.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -286,13 +286,13 @@ def unstabilizable_mode(A, B, state_names=None, *, discrete: bool = False, name:
     B : (n, m) array_like
     state_names : sequence of str, optional
     discrete : bool
-        Stable means inside the unit circle (:func:`quadctl.stability.is_stable`) instead of the left half-plane.
+        Stable means inside the unit circle (:func:`quadctl.linear.stability.is_stable`) instead of the left half-plane.
     name : str
         Names the system if the test itself fails.
 
     Returns
     -------
-    quadctl.analysis.ModeTest or None
+    quadctl.linear.analysis.ModeTest or None
 
     Raises
     ------
@@ -331,7 +331,7 @@ def _not_stabilizable(name: str, mode, discrete: bool) -> str:
 
 
 def _fmt(e: complex, discrete: bool = False, digits: int = 4) -> str:
-    """``-2.147e-06``, ``-5e-13 + 1j`` (:func:`quadctl.messages.eig_text`); discrete: ``z = 0.99`` (10 significant
+    """``-2.147e-06``, ``-5e-13 + 1j`` (:func:`quadctl.text.messages.eig_text`); discrete: ``z = 0.99`` (10 significant
     digits near the unit circle)."""
     e = complex(e)
     digits = 10 if discrete and abs(abs(e) - 1) < 1e-3 else digits

@@ -13,12 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl import stability
 from quadctl._lazy import lazy_import
-from quadctl.analysis import RICCATI_RTOL
 from quadctl.design.riccati.doubling import ROUNDOFF_STEPS, doubling
 from quadctl.design.riccati.weights import WeightCheck, as_problem, as_stack, neutral, norm1
 from quadctl.errors import DesignError
+from quadctl.linear import stability
+from quadctl.linear.analysis import RICCATI_RTOL
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -309,7 +309,7 @@ def _finish(discrete: bool, A, B, Q, R, N, P, ok) -> BatchLqr:
 
 
 def all_stable(discrete: bool, E) -> np.ndarray:
-    """Whether every eigenvalue of each row of ``E`` (..., n) is stable (:func:`quadctl.stability.is_stable`)."""
+    """Whether every eigenvalue of each row of ``E`` (..., n) is stable (:func:`quadctl.linear.stability.is_stable`)."""
     return np.all(stability.is_stable(E, discrete=discrete), axis=-1)
 
 

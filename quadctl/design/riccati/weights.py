@@ -28,7 +28,7 @@ def real_array(M, label: str, *, name: str = "system", shape: tuple | None = Non
     """``M`` as a float array, refusing what a float conversion would change or lose.
 
     The one check of a matrix argument for every public function that takes one (the Riccati
-    solvers, :mod:`quadctl.design.discrete`, :func:`quadctl.design.closed_loop_matrix`, :mod:`quadctl.interop`):
+    solvers, :mod:`quadctl.design.discrete`, :func:`quadctl.design.closed_loop_matrix`, :mod:`quadctl.export.interop`):
     quadctl's solvers are real-only, so a complex matrix is refused (NumPy's conversion would drop
     its imaginary part with only a ``ComplexWarning`` and the answer would be certified for another
     problem), as are text, objects and ragged lists. ``ndim`` pads with leading axes

@@ -3,7 +3,7 @@
 A reference is a path of the flat outputs, position ``p(t)`` (NED, m) and yaw ``psi(t)`` (rad), with
 their derivatives up to snap and yaw acceleration, made of :class:`Piece`\\ s (a rest-to-rest shape of
 :data:`SHAPES`, or a step): :func:`setpoint_reference` and :func:`mission_reference` build it,
-:mod:`quadctl.flatness` turns it into the state and input the controller flies. See
+:mod:`quadctl.physics.flatness` turns it into the state and input the controller flies. See
 docs/guide/missions.md.
 """
 

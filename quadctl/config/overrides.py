@@ -1,7 +1,7 @@
 """``--set KEY=VALUE``: a value put into a config's YAML at a key path, then validated with the file.
 
 A variation of a config without an edited copy (``--set simulation.duration=30``). The value is read
-as YAML (:func:`quadctl.yamlio.load`: ``30`` is a number, ``[0.02, 0.02, 0.04]`` a list, ``discrete``
+as YAML (:func:`quadctl.config.yamlio.load`: ``30`` is a number, ``[0.02, 0.02, 0.04]`` a list, ``discrete``
 text), put into the file's data at its key path (a section the file leaves out is added), and the
 whole is validated by the one schema (:func:`quadctl.config.from_dict`): a bad key or value is refused
 as it would be in the file, naming ``--set``.
@@ -22,10 +22,10 @@ from __future__ import annotations
 import copy
 from typing import Any, NamedTuple
 
-from quadctl import config, yamlio
-from quadctl.config import Config, Source
+from quadctl import config
+from quadctl.config import Config, Source, yamlio
 from quadctl.errors import ConfigError
-from quadctl.messages import KEY_PATH, KeyPathError, child, hint, key_path, parse_key_path, show
+from quadctl.text.messages import KEY_PATH, KeyPathError, child, hint, key_path, parse_key_path, show
 
 OPTION = "--set"
 EXAMPLE = "`--set simulation.duration=30`"

@@ -22,6 +22,8 @@ from quadctl.layout import N_INPUTS, N_STATES, PARAMETER_NAMES
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 N_PARAMS = len(PARAMETER_NAMES)
+MAX_TILT = np.deg2rad(80.0)
+"""Roll or pitch beyond this is refused: the Euler kinematics are singular at 90 deg."""
 N_DISTURBANCES = 6
 """Body-frame disturbance force (N, 3) and torque (N m, 3) added to the dynamics."""
 DISTURBANCE_FORCE = slice(0, 3)

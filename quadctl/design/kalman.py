@@ -14,12 +14,12 @@ from typing import Literal
 
 import numpy as np
 
-from quadctl.analysis import check
 from quadctl.errors import DesignError
 from quadctl.layout import N_STATES, SENSOR_GROUPS, STATE_INDEX, STATE_NAMES
-from quadctl.messages import eig_text, show
-from quadctl.model import N_DISTURBANCES, Vehicle, build_model
-from quadctl.stability import is_stable
+from quadctl.linear.analysis import check
+from quadctl.linear.stability import is_stable
+from quadctl.physics.model import N_DISTURBANCES, Vehicle, build_model
+from quadctl.text.messages import eig_text, show
 
 
 @dataclass(frozen=True)
@@ -147,7 +147,8 @@ def require_detectable(A, C, measured, key: str = "estimator.measure", names=STA
 
 def _unobserved_states(A, C, lam: complex, names=STATE_NAMES) -> tuple[str, ...]:
     """States the unobservable subspace at ``lam`` lives in: rows of the null space of
-    ``[lam I - A; C]`` (rank tolerance of :func:`quadctl.analysis.numerical_rank`) above a tenth of the largest."""
+    ``[lam I - A; C]`` (rank tolerance of :func:`quadctl.linear.analysis.numerical_rank`) above a tenth
+    of the largest."""
     n = A.shape[0]
     stacked = np.vstack([lam * np.eye(n) - A, C])
     _, sv, vh = np.linalg.svd(stacked)

@@ -19,14 +19,14 @@ import numpy as np
 
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.config.pid import PidGains
-from quadctl.flatness import FlownReference
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linear.filters import RateFilter, rate_filter_of
-from quadctl.model import Vehicle
-from quadctl.motors import Actuators, Motors, actuators_of
-from quadctl.noise import NoiseSpec, exogenous_period
-from quadctl.trajectory import Reference
-from quadctl.wind import WindSpec, wind_of
+from quadctl.physics.flatness import FlownReference
+from quadctl.physics.model import Vehicle
+from quadctl.physics.motors import Actuators, Motors, actuators_of
+from quadctl.physics.noise import NoiseSpec, exogenous_period
+from quadctl.physics.trajectory import Reference
+from quadctl.physics.wind import WindSpec, wind_of
 
 
 @dataclass(frozen=True)
@@ -166,7 +166,7 @@ class Setup:
         What the design does with the rotors' lag (``controller.rotor_lag``).
     estimator : EstimatorSpec or None
         The Kalman filter's measurements and noise (``estimator:``); None: full-state feedback.
-    reference : quadctl.trajectory.Reference or None
+    reference : quadctl.physics.trajectory.Reference or None
         The path to fly (``simulation.reference``); None: hold the trim.
     schedule : quadctl.config.ScheduleConfig or None
         The gain schedule (``schedule:``: variable, values, interpolation, check); None: one design.
@@ -223,7 +223,7 @@ class Setup:
 
     @cached_property
     def flown_reference(self) -> FlownReference | None:
-        """The path to fly with the design model's feedforward (:class:`quadctl.flatness.FlownReference`),
+        """The path to fly with the design model's feedforward (:class:`quadctl.physics.flatness.FlownReference`),
         made once per setup; None without ``simulation.reference``."""
         return None if self.reference is None else FlownReference(self.reference, self.vehicle.vector())
 
@@ -329,7 +329,7 @@ def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,
     """``(Q, R)`` of each subsystem whose weights are Bryson's rule (``lqr.<name>.bryson``), on this vehicle.
 
     ``Q = diag(1 / e^2)`` of the largest acceptable errors ``e``; ``R = diag(1 / du^2)`` with ``du`` the
-    rule's ``headroom`` share of each input's room around the trim (:func:`quadctl.motors.headroom`, the
+    rule's ``headroom`` share of each input's room around the trim (:func:`quadctl.physics.motors.headroom`, the
     nearer side), the trim solved for the config's flight condition on ``vehicle``.
 
     An input with no room around the trim (its rotors at a limit there), or a flight condition with no
@@ -341,7 +341,7 @@ def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,
         return {}
     from quadctl.errors import TrimError
     from quadctl.linear.trim import solve_trim
-    from quadctl.motors import headroom
+    from quadctl.physics.motors import headroom
 
     try:
         trim = solve_trim(cfg.trim.velocity_ned, cfg.trim.yaw, cfg.trim.position_ned, vehicle, wind_ned=trim_wind)
@@ -368,12 +368,12 @@ def weight_error(cfg: Config, weights: dict) -> str | None:
 
 
 def _reference(cfg: Config):
-    """The path of ``simulation.reference`` (:mod:`quadctl.trajectory`), from the trim's position,
+    """The path of ``simulation.reference`` (:mod:`quadctl.physics.trajectory`), from the trim's position,
     velocity and yaw; None without one."""
     ref = cfg.simulation.reference
     if ref is None:
         return None
-    from quadctl import trajectory
+    from quadctl.physics import trajectory
 
     if ref.setpoints is not None:
         return trajectory.setpoint_reference([sp.model_dump() for sp in ref.setpoints], cfg.trim.position_ned,

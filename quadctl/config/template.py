@@ -176,7 +176,7 @@ INITIAL_OFFSET = {"pD": 0.5, "phi": 0.1, "theta": 0.1, "psi": 0.2}
 
 def bryson_rules(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = False
                  ) -> dict[str, tuple[dict, str]]:
-    """The LQR weights as Bryson's rule (``lqr.<name>.bryson``, :func:`quadctl.problem.bryson_weights`
+    """The LQR weights as Bryson's rule (``lqr.<name>.bryson``, :func:`quadctl.setup.bryson_weights`
     evaluates it on the vehicle the config describes), with a comment giving what it comes to on the
     preset's vehicle (``hold``: roll and pitch weigh the east and north position too,
     :data:`HOLD_POSITION_ERROR`).
@@ -187,8 +187,8 @@ def bryson_rules(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = Fals
         Subsystem -> ``(bryson rule, comment)``.
     """
     from quadctl.linear.trim import solve_trim
-    from quadctl.model import Vehicle
-    from quadctl.motors import Motors, actuators_of, headroom
+    from quadctl.physics.model import Vehicle
+    from quadctl.physics.motors import Motors, actuators_of, headroom
 
     values = {k: v for k, (v, _) in preset.vehicle.items()}
     vehicle = Vehicle(mass=values["mass"], inertia=tuple(values["inertia"]), drag=tuple(values["drag"]))
@@ -241,7 +241,7 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     import re
 
     from quadctl.errors import ConfigError
-    from quadctl.messages import SHOWN_CHARS, unknown
+    from quadctl.text.messages import SHOWN_CHARS, unknown
 
     if not re.fullmatch(config_mod.NAME_PATTERN, name) or len(name) > config_mod.MAX_NAME_LENGTH:  # the schema's
         # rule (fullmatch: a `$` alone would take a name ending in a newline)

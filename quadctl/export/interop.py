@@ -8,8 +8,9 @@ python-control (``pip install '.[control]'``) is imported on first use. See docs
 
 Examples
 --------
->>> from quadctl import config, pipeline, interop
->>> from quadctl.problem import setup_of
+>>> from quadctl import config, pipeline
+>>> from quadctl.export import interop
+>>> from quadctl.setup import setup_of
 >>> setup = setup_of(config.load("crazyflie"))
 >>> linear = pipeline.linear_of(setup, pipeline.trim_of(setup))
 >>> sys = interop.plant(linear)
@@ -33,7 +34,7 @@ def _control():
     try:
         import control
     except ModuleNotFoundError:
-        raise ModuleNotFoundError(f"quadctl.interop needs python-control: {INSTALL_HINT}",
+        raise ModuleNotFoundError(f"quadctl.export.interop needs python-control: {INSTALL_HINT}",
                                   name="control") from None
     return control
 
@@ -64,7 +65,7 @@ def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
 
 
 def subsystem(sub, *, sample_time: float | None = None):
-    """A decoupled subsystem (:class:`quadctl.decouple.Subsystem`) as a StateSpace.
+    """A decoupled subsystem (:class:`quadctl.linear.decouple.Subsystem`) as a StateSpace.
 
     Its outputs are its measured states (the rows of ``sub.C``); with ``sample_time`` the
     zero-order-hold discretization.

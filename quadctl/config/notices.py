@@ -14,7 +14,7 @@ from typing import Literal
 
 from quadctl.config import Config, inertia_parts
 from quadctl.errors import ImplausibleConfig
-from quadctl.messages import show
+from quadctl.text.messages import show
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl import stability
+from quadctl.linear import stability
 
 RICCATI_RTOL = 1e-8
 """Largest accepted relative residual of a Riccati solution, continuous or discrete: the residual's
@@ -96,7 +96,7 @@ def obsv(A, C) -> np.ndarray:
 
 
 def is_stable_z(z: complex) -> bool:
-    """Strictly inside the unit circle: :func:`quadctl.stability.is_stable`, discrete."""
+    """Strictly inside the unit circle: :func:`quadctl.linear.stability.is_stable`, discrete."""
     return stability.is_stable(z, discrete=True)
 
 

@@ -19,8 +19,8 @@ import numpy as np
 from quadctl import pipeline
 from quadctl.design.gain_table import VARIABLES, scheduling_values
 from quadctl.layout import STATE_INDEX
-from quadctl.problem import Setup
-from quadctl.scheduling import heading_of, schedule_of
+from quadctl.schedule.envelope import heading_of, schedule_of
+from quadctl.setup import Setup
 from quadctl.sim.run import STATUS_WORDS, ClosedLoop, SimResult
 
 ON_GRID_MARGIN = 0.1
@@ -64,7 +64,7 @@ def fly_transition(setup: Setup, table=None) -> Transition:
         With ``schedule:`` and ``simulation.reference`` (a transition across the schedule's grid).
     table : GainTable, optional
         The schedule's gains (:class:`quadctl.design.gain_table.GainTable`); default the setup's
-        (:func:`quadctl.scheduling.schedule_of`).
+        (:func:`quadctl.schedule.envelope.schedule_of`).
 
     Raises
     ------
@@ -93,10 +93,10 @@ def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[floa
     ``position_error`` (peak ``|p - p_ref|``, m), ``velocity_error`` (peak ``|V - V_ref|`` of the earth-frame
     velocities, m/s: the model's position rates, so an attitude error is not read as one of velocity),
     ``saturation`` (the largest fraction of the run any actuator spent at a limit;
-    0 without limits), ``saturates`` (above :data:`quadctl.motors.SATURATION_FLAG`), ``peak_attitude``
+    0 without limits), ``saturates`` (above :data:`quadctl.physics.motors.SATURATION_FLAG`), ``peak_attitude``
     (deg, largest ``|phi|`` and ``|theta|``), ``flown_range`` (the scheduling variable's extent) and
     ``on_grid`` (it stays within the grid, :data:`ON_GRID_MARGIN`)."""
-    from quadctl import motors
+    from quadctl.physics import motors
 
     pos = np.linalg.norm(sim.x[:, :3] - sim.x_ref[:, :3], axis=1)
     vel = np.linalg.norm(_velocity_ned(sim.x, sim.u, loop.params) - _velocity_ned(sim.x_ref, sim.u, loop.params),
@@ -117,8 +117,8 @@ def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[floa
 def _velocity_ned(x, u, params) -> np.ndarray:
     """(n, 3) m/s: the earth-frame (NED) velocity of each state row, the model's position rates (which
     read neither the input nor the parameters)."""
-    from quadctl.model import build_model
     from quadctl.native.mapped import mapped
+    from quadctl.physics.model import build_model
 
     return mapped(build_model().f)(x, u, params)[0][:, :3]
 

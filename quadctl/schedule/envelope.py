@@ -13,14 +13,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from quadctl import pipeline, stability
+from quadctl import pipeline
 from quadctl.design import linear_loop
 from quadctl.design.gain_table import OUTSIDE, VARIABLES, GainTable, flight_value
 from quadctl.errors import ConfigError, QuadctlError, ScheduleError, TrimError
 from quadctl.layout import N_INPUTS, N_STATES
+from quadctl.linear import stability
 from quadctl.linear.linearize import LinearModel, linearize_all
 from quadctl.linear.trim import Trim
-from quadctl.problem import Setup
+from quadctl.setup import Setup
 from quadctl.threads import one_thread
 
 
@@ -85,7 +86,7 @@ class FrozenChecks:
         The fine grid: each interval between the table's values split into ``check`` (the table's
         values included).
     stable : (k,) bool ndarray
-        The frozen loop is stable (:func:`quadctl.stability.verdict_stack`); False where no trim.
+        The frozen loop is stable (:func:`quadctl.linear.stability.verdict_stack`); False where no trim.
     eigenvalues : (k, n) complex ndarray
         Every eigenvalue of each frozen loop, as ``s`` (rad/s; ``ln z / Ts`` of a discrete design's
         loop); NaN where no trim.
@@ -93,7 +94,7 @@ class FrozenChecks:
         The largest real part of the loop's eigenvalues, marginal positions left out (rad/s): the
         slowest pole, positive when unstable; NaN where no trim.
     least_damping : (k,) ndarray
-        :func:`quadctl.stability.least_damping` of the same eigenvalues; NaN where no trim.
+        :func:`quadctl.linear.stability.least_damping` of the same eigenvalues; NaN where no trim.
     worst : (k,) complex ndarray
         The eigenvalue with that largest real part; NaN where no trim.
     reasons : tuple of (str or None)
@@ -117,7 +118,7 @@ class FrozenChecks:
 
     def failures(self, unit: str = "") -> list[str]:
         """One line per fine value where the check fails: unstable (with its worst eigenvalue) or no trim."""
-        from quadctl.messages import eig_text
+        from quadctl.text.messages import eig_text
 
         out = []
         for v, ok, worst, why in zip(self.values, self.stable, self.worst, self.reasons):
@@ -254,7 +255,7 @@ def _flight_conditions(setups: list[Setup]) -> list:
     every setup, batched (:func:`quadctl.linear.trim.solve_trims`: the same Newton, the same checks;
     :func:`quadctl.linear.linearize.linearize_all`: the same Jacobians)."""
     from quadctl.linear.trim import solve_trims
-    from quadctl.motors import check_trim
+    from quadctl.physics.motors import check_trim
 
     if not setups:
         return []
@@ -283,7 +284,7 @@ def schedule_of(setup: Setup) -> Schedule:
     Parameters
     ----------
     setup : Setup
-        With :attr:`~quadctl.problem.Setup.schedule`.
+        With :attr:`~quadctl.setup.Setup.schedule`.
 
     Returns
     -------
@@ -299,7 +300,7 @@ def schedule_of(setup: Setup) -> Schedule:
     Examples
     --------
     >>> from quadctl import config
-    >>> from quadctl.problem import setup_of
+    >>> from quadctl.setup import setup_of
     >>> cfg = config.load("hover").model_copy(update={"schedule": config.ScheduleConfig(
     ...     variable="speed", values=[0, 1, 2])})
     >>> sched = schedule_of(setup_of(cfg))

@@ -1,7 +1,7 @@
 """The differential-flatness feedforward: the state and input that fly a path of flat outputs.
 
 A quadrotor's position ``p(t)`` and yaw ``psi(t)`` determine everything else. From the model of
-:mod:`quadctl.model` (no second copy of its equations):
+:mod:`quadctl.physics.model` (no second copy of its equations):
 
 - roll, pitch and thrust ``z = [phi, theta, T]`` solve ``G(z, s) = R_b^E a_b(z, s) - a = 0``, with
   ``a_b`` the body-velocity rows of ``f`` at zero body rate (the specific force plus gravity: the
@@ -9,7 +9,7 @@ A quadrotor's position ``p(t)`` and yaw ``psi(t)`` determine everything else. Fr
   is the case ``a = 0``);
 - their rates and accelerations follow by the implicit function theorem from the jerk, snap and yaw
   derivatives; the body rates are ``omega = H(phi, theta) [phi', theta', psi']``
-  (:func:`quadctl.model.euler_rates_matrix`), the body velocity ``R_E^b v``;
+  (:func:`quadctl.physics.model.euler_rates_matrix`), the body velocity ``R_E^b v``;
 - the torques are those for which ``f``'s body-rate rows equal ``omega'`` (they enter ``f`` affinely).
 
 Then ``f(x_ref, u_ref) = d x_ref / dt`` along the path: flown from ``x_ref(0)`` with no
@@ -26,11 +26,10 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.errors import TrimError
 from quadctl.layout import GRAVITY, MASS, N_INPUTS, N_STATES
-from quadctl.linear.trim import MAX_TILT
-from quadctl.model import N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
 from quadctl.native.mapped import mapped
 from quadctl.native.pointwise import Pointwise
-from quadctl.trajectory import FlatPath, Reference
+from quadctl.physics.model import MAX_TILT, N_PARAMS, build_model, euler_rates_matrix, rotation_earth_to_body
+from quadctl.physics.trajectory import FlatPath, Reference
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -98,13 +97,13 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, remedy=None) -> tup
     path : FlatPath
         ``n`` samples of position (and derivatives to snap) and yaw (and two derivatives).
     params : (8,) array_like
-        :meth:`quadctl.model.Vehicle.vector` of the model the controller assumes.
+        :meth:`quadctl.physics.model.Vehicle.vector` of the model the controller assumes.
     pointwise : callable
         ``pointwise(fn)`` evaluates a CasADi function over the points (a row a point):
         :class:`quadctl.native.pointwise.Pointwise` (CasADi's ``map``), or the compiled
         :func:`quadctl.native.mapped.mapped` (the same numbers).
     remedy : callable, optional
-        ``remedy(t)``: the fix a refusal at ``t`` s names (:meth:`quadctl.trajectory.Reference.remedy`: a
+        ``remedy(t)``: the fix a refusal at ``t`` s names (:meth:`quadctl.physics.trajectory.Reference.remedy`: a
         setpoint's velocity, a mission's speed); default a mission's.
 
     Returns
@@ -115,14 +114,14 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, remedy=None) -> tup
     Raises
     ------
     TrimError
-        At some point no roll and pitch within :data:`quadctl.linear.trim.MAX_TILT` of level (and positive
+        At some point no roll and pitch within :data:`quadctl.physics.model.MAX_TILT` of level (and positive
         thrust) fly the path's acceleration: the message names the time (the steepest point's), the
         acceleration and velocity asked and the attitude they need.
 
     Examples
     --------
-    >>> from quadctl.model import Vehicle
-    >>> from quadctl.trajectory import setpoint_reference
+    >>> from quadctl.physics.model import Vehicle
+    >>> from quadctl.physics.trajectory import setpoint_reference
     >>> ref = setpoint_reference([{"t": 0.0, "velocity": [10.5, 0.0, 0.0]}], [0, 0, -1], [0, 0, 0], 0.0)
     >>> x, u = feedforward(ref.flat([1.0]), Vehicle().vector())
     >>> round(float(x[0, 7]), 4), round(float(u[0, 0]), 4)
@@ -250,18 +249,18 @@ def _fmt(v) -> str:
 
 @dataclass(frozen=True)
 class FlownReference:
-    """A path (:class:`quadctl.trajectory.Reference`) and the model parameters its feedforward
-    assumes (the design model's :meth:`~quadctl.model.Vehicle.vector`: the controller's knowledge).
+    """A path (:class:`quadctl.physics.trajectory.Reference`) and the model parameters its feedforward
+    assumes (the design model's :meth:`~quadctl.physics.model.Vehicle.vector`: the controller's knowledge).
 
     Its rows (:meth:`rows`) are the loop's exogenous reference rows
     (:data:`quadctl.sim.builder.REFERENCE_LAYOUT`), tabulated on the exogenous clock of the run (the
-    noise's period, else the controller's, else :data:`quadctl.noise.DEFAULT_PERIOD`), as the noise
+    noise's period, else the controller's, else :data:`quadctl.physics.noise.DEFAULT_PERIOD`), as the noise
     and the wind are, so the compiled one-case loop, the lanes and the interpreted runner take it
     through the same rows and agree to round-off. Row ``j`` holds over ``[t_j, t_j + period)``, ``t_j = j period``:
 
     - ``x_ref(t) = x_ref(t_j) + s r_j + s^2 (r_(j+1) - r_j) / (2 period)``, ``s = t - t_j``, with
       ``r_j = f(x_ref(t_j), u_ref(t_j))`` the model's rate (along a flat path, ``d x_ref / dt``:
-      :mod:`quadctl.flatness`): the quadratic whose slope runs from ``r_j`` to ``r_(j+1)``, third-order
+      :mod:`quadctl.physics.flatness`): the quadratic whose slope runs from ``r_j`` to ``r_(j+1)``, third-order
       accurate over the row;
     - ``u_ref(t) = u_ref(t_j) + s (u_ref(t_(j+1)) - u_ref(t_j)) / period``: the feedforward interpolated.
 

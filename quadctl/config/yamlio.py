@@ -25,7 +25,7 @@ import yaml
 from yaml.nodes import MappingNode, ScalarNode, SequenceNode
 
 from quadctl.errors import ConfigError, QuadctlError
-from quadctl.messages import key_path
+from quadctl.text.messages import key_path
 
 MAX_BYTES = 1_000_000
 """Largest file read (bytes). The bundled configs are about 1.5 kB and a large sweep file a few

@@ -2,7 +2,7 @@
 
 Zero-mean Gaussian, drawn every ``period`` seconds and held in between, on its own clock (a seed's
 realization does not depend on the RK4 step): a body force (N) and torque (N m) added to the
-vehicle's (``disturbance`` of :func:`quadctl.model.dynamics_expression`), and sensor noise added to
+vehicle's (``disturbance`` of :func:`quadctl.physics.model.dynamics_expression`), and sensor noise added to
 what the controller measures. Two independent streams spawned from the seed, drawn as the run needs
 them (:class:`NoiseStream`). See docs/internals.md ("Noise").
 """
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.model import N_DISTURBANCES
+from quadctl.physics.model import N_DISTURBANCES
 
 DEFAULT_PERIOD = 0.005
 """s between noise samples when the controller is continuous (the Mambo's 200 Hz sensor loop)."""

@@ -1,0 +1,1 @@
+"""Text for people: values and hints as messages show them; text made safe per output format."""
