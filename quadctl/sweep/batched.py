@@ -15,8 +15,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from quadctl import stability
-from quadctl.design import integral, linear_loop
+from quadctl.design import linear_loop, stacked
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
 
@@ -81,7 +80,7 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
     the same gains to round-off.
     """
     problems: dict[tuple, int] = {}  # a subsystem problem -> its number
-    posed: dict[int, tuple] = {}  # problem number -> (its group, the first owner posing it, the subsystem, integrators)
+    posed: dict[int, tuple] = {}  # problem number -> (design sample time, the first owner posing it, the subsystem, integrators)
     cases: dict[tuple, int] = {}  # a case's whole problem -> the first case posing it (its owner)
     first: list[int] = []
     slots_of: dict[int, tuple] = {}  # owner -> its subsystems' problem numbers
@@ -110,91 +109,43 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
         slots_of[k] = slots
         for sub, ints, number in zip(plant.regulated, ints_of, slots):
             if number not in posed:  # a case designed one by one (the lag) may have numbered it first
-                posed[number] = ((Ts, len(sub.states), len(sub.inputs), len(ints)), k, sub, ints)
+                posed[number] = (Ts, k, sub, ints)
     designs: dict[int, object] = {}
     for k in cases.values():
         if preps[k].setup.design_lag_time_constant is not None:
             designs[k] = _one_by_one(preps[k], "one-by-one: the design includes the rotors' lag")
-    groups: dict[tuple, list[int]] = {}
-    for number, (group, *_rest) in posed.items():
-        groups.setdefault(group, []).append(number)
-    gain_of: dict[int, np.ndarray | None] = {}  # problem number -> its gain (None: the batched solve missed)
-    for (Ts, n, _, _), numbers in groups.items():
-        K, ok = _solve(Ts, n, [posed[i][1:] for i in numbers], preps, compiled)
-        for i, number in enumerate(numbers):
-            gain_of[number] = K[i] if ok[i] else None
-    gains: dict[tuple[int, str], np.ndarray] = {}
+    numbers = list(posed)
+    found = stacked.solve_problems([(sub, *preps[k].setup.weights[sub.name], ints, Ts)
+                                    for (Ts, k, sub, ints) in (posed[i] for i in numbers)],
+                                   weight_map=_weight_maps({id(preps[k].plant): preps[k].plant for _, k, _, _ in posed.values()}.values()),
+                                   compiled=compiled)
+    gain_of = dict(zip(numbers, found))  # problem number -> its gain (None: the batched solve missed)
     batched = []
     for k, slots in slots_of.items():
-        found = [gain_of.get(number) for number in slots]
-        if any(K is None for K in found):
+        if any(gain_of.get(number) is None for number in slots):
             stats["fallbacks"] += 1
             designs[k] = _one_by_one(preps[k])
             continue
-        for sub, K in zip(preps[k].plant.regulated, found):
-            gains[(k, sub.name)] = K
-        batched.append((k, preps[k]))
-    _assemble(batched, gains, designs, any_order, {key: ints for key, (_, ints) in integrators.items()})
+        batched.append((k, preps[k], slots))
+    _assemble(batched, gain_of, designs, any_order, {key: ints for key, (_, ints) in integrators.items()})
     return [designs[k] for k in first]
 
 
-def _solve(Ts, n, group, preps, compiled: bool = False):
-    """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems: the continuous
-    CARE, or the ZOH plant and ``lqrd`` weights (:func:`_sampled`) and the discrete DARE, every step
-    batched."""
-    from quadctl.design.riccati import care_batch, dare_batch
-
-    first = group[0][1]
-    if all(sub is first for _, sub, _ in group):  # one plant (a sweep of the weights): its matrices repeated
-        A, B = np.repeat(first.A[None], len(group), axis=0), np.repeat(first.B[None], len(group), axis=0)
-    else:
-        A = np.stack([sub.A for _, sub, _ in group])
-        B = np.stack([sub.B for _, sub, _ in group])
-    Q = np.stack([preps[k].setup.weights[sub.name][0] for k, sub, _ in group])
-    R = np.stack([preps[k].setup.weights[sub.name][1] for k, sub, _ in group])
-    C = integral.selector(group[0][1].states, group[0][2])
-    same_ints = not group[0][2] or all(ints == group[0][2] and sub.states == group[0][1].states
-                                       for _, sub, ints in group)  # no integrators: C is empty for all
-    if not same_ints:  # integrators on different states: still one shape, build each selector
-        Cs = [integral.selector(sub.states, ints) for _, sub, ints in group]
-    if Ts is None:
-        if same_ints:
-            Aa, Ba = integral.augment(A, B, C)
-        else:
-            Aa, Ba = (np.stack(m) for m in zip(*(integral.augment(a, b, c) for a, b, c in zip(A, B, Cs))))
-        res = care_batch(Aa, Ba, Q, R)
-        return res.K, res.ok
-    Ad, Bd, Qd, Rd, Nd = _sampled(group, preps, Q[:, :n, :n], R, Ts)
-    if same_ints:
-        Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
-    else:
-        Aa, Ba = (np.stack(m) for m in zip(*(integral.augment_discrete(a, b, c, Ts) for a, b, c in zip(Ad, Bd, Cs))))
-    Qa, Na = integral.discrete_weights(Qd, Nd, Q, Ts)
-    res = dare_batch(Aa, Ba, Qa, Rd, Na, compiled=compiled)
-    return res.K, res.ok
-
-
-def _sampled(group, preps, Q, R, Ts):
-    """``lqrd_weights_batch`` of a group's problems: each subsystem's plant sampled once (per
-    plant, cached), its weights by the plant's :class:`~quadctl.design.discrete.LqrdWeightMap`."""
+def _weight_maps(plants):
+    """``weight_map(sub, Ts)`` for :func:`quadctl.design.stacked.solve_problems`: the
+    :class:`~quadctl.design.discrete.LqrdWeightMap` of a subsystem's plant at ``Ts``, kept in its
+    plant's cache (the plants of a sweep live across its chunks)."""
     from quadctl.design.discrete import LqrdWeightMap
 
-    maps, members = {}, {}
-    for j, (k, sub, _) in enumerate(group):
+    cache_of = {id(sub): plant.cache for plant in plants for sub in plant.regulated}
+
+    def weight_map(sub, Ts):
+        cache = cache_of[id(sub)]
         key = ("lqrd map", sub.name, Ts)
-        cache = preps[k].plant.cache
         if key not in cache:
             cache[key] = LqrdWeightMap(sub.A, sub.B, Ts)
-        maps[id(cache[key])] = cache[key]
-        members.setdefault(id(cache[key]), []).append(j)
-    N, n, m = len(group), Q.shape[1], R.shape[1]
-    Ad, Bd = np.empty((N, n, n)), np.empty((N, n, m))
-    Qd, Rd, Nd = np.empty((N, n, n)), np.empty((N, m, m)), np.empty((N, n, m))
-    for key, rows in members.items():
-        weight_map = maps[key]
-        Ad[rows], Bd[rows] = weight_map.Ad, weight_map.Bd
-        Qd[rows], Rd[rows], Nd[rows] = weight_map.weights(Q[rows], R[rows])
-    return Ad, Bd, Qd, Rd, Nd
+        return cache[key]
+    return weight_map
 
 
 def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed its residual or stability check"):
@@ -209,33 +160,23 @@ def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed i
                       Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
-def _assemble(items, gains, out, any_order: bool, integrators: dict) -> None:
-    """Block gains and coupled verdicts of the batched designs, stacked per plant, integrators and
-    timing; ``integrators``: per (plant, integral config) by identity, each regulated subsystem's
-    integrators."""
+def _assemble(items, gain_of, out, any_order: bool, integrators: dict) -> None:
+    """Block gains (:func:`quadctl.design.stacked.block_gains`) and coupled verdicts
+    (:func:`~quadctl.design.stacked.coupled_verdicts`) of the batched designs, stacked per plant,
+    integrators and timing; ``items``: ``(case, prep, its subsystems' problem numbers)``;
+    ``integrators``: per (plant, integral config) by identity, each regulated subsystem's integrators."""
     by_loop: dict[tuple, list] = {}
-    for k, prep in items:
+    for k, prep, slots in items:
         setup = prep.setup
         ints = integrators[(id(prep.plant), id(setup.integral))]
-        by_loop.setdefault((id(prep.plant), ints, setup.timing.design_sample_time), []).append((k, prep))
-    for (_, ints, Ts), members in by_loop.items():
-        plant = members[0][1].plant
-        N = len(members)
-        K = np.zeros((N, N_INPUTS * N_STATES))
-        states = tuple(state for sub_ints in ints for state in sub_ints)
-        Ki = np.zeros((N, N_INPUTS, len(states)))
-        column = 0
-        for sub, sub_ints in zip(plant.regulated, ints):
-            Ka = np.stack([gains[(k, sub.name)] for k, _ in members])  # (N, m, n + ni)
-            n = len(sub.states)
-            rows, flat = _gain_slots(plant, sub)
-            K[:, flat] = Ka[:, :, :n].reshape(N, -1)
-            for j in range(len(sub_ints)):
-                Ki[:, rows, column] = Ka[:, :, n + j]
-                column += 1
-        K = K.reshape(N, N_INPUTS, N_STATES)
-        A_cl = closed_loops(plant, K, Ki, states, Ts)
-        verdicts = stability.verdict_stack(A_cl, K, sample_time=Ts, any_order=any_order)
+        by_loop.setdefault((id(prep.plant), ints, setup.timing.design_sample_time), []).append((k, slots))
+    plants = {id(prep.plant): prep.plant for _, prep, _ in items}
+    for (plant_id, ints, Ts), members in by_loop.items():
+        plant = plants[plant_id]
+        gains = [np.stack([gain_of[slots[s]] for _, slots in members]) for s in range(len(ints))]
+        K, Ki, states = stacked.block_gains(plant.regulated, ints, gains)
+        A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
+        verdicts = stacked.coupled_verdicts(A, B, K, Ki, states, Ts, any_order=any_order)
         extremes = _extremes([core for core, _, _ in verdicts])
         for i, ((k, _), (core, _, stable)) in enumerate(zip(members, verdicts)):
             out[k] = CaseDesign(K[i], Ki[i], states, stable, core, BATCHED, extremes=extremes[i])
@@ -249,22 +190,6 @@ def _extremes(cores: list) -> list:
         return [(None, None)] * len(cores)
     real = np.array(cores).real
     return list(zip(real.min(axis=1).tolist(), real.max(axis=1).tolist()))
-
-
-def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:
-    """(input rows, flat indices into the (4, 12) block gain) of a subsystem's gain, once per plant."""
-    key = ("gain slots", sub.name)
-    if key not in plant.cache:
-        rows = [INPUT_INDEX[i] for i in sub.inputs]
-        plant.cache[key] = rows, (np.array(rows)[:, None] * N_STATES + np.array(sub.state_index)).ravel()
-    return plant.cache[key]
-
-
-def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
-    """:func:`quadctl.design.linear_loop.matrix` of stacked gains on one plant (its ZOH cached per ``Ts``):
-    (N, 12 + nz, 12 + nz)."""
-    A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
-    return linear_loop.stack(A, B, K, Ki, integral_states, Ts)
 
 
 def loops_of(live) -> list:
@@ -288,8 +213,8 @@ def loops_of(live) -> list:
         by_plant.setdefault((id(prep.plant), des.integral_states), []).append(j)
     for (_, states), members in by_plant.items():
         plant = live[members[0]][0].plant
-        A_cl = closed_loops(plant, np.stack([live[j][1].K_block for j in members]),
-                            np.stack([live[j][1].Ki_block for j in members]), states)
+        A_cl = linear_loop.stack(plant.linear.A, plant.linear.B, np.stack([live[j][1].K_block for j in members]),
+                                 np.stack([live[j][1].Ki_block for j in members]), states)
         eigs, vecs = np.linalg.eig(A_cl)
         limits = max_stable_steps(eigs)
         largest = np.argmax(np.abs(vecs), axis=1)
