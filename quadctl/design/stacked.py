@@ -112,7 +112,6 @@ def solve_subsystems(A, B, Q, R, C=None, sample_time: float | None = None, *, pl
     """
     A, B, Q, R = (np.asarray(M, dtype=float) for M in (A, B, Q, R))
     N, (n, m) = len(Q), B.shape[1:]
-    ni = Q.shape[1] - n
     C = np.zeros((0, n)) if C is None else np.asarray(C, dtype=float)
     if plant_of is None:
         plant_of = np.zeros(N, dtype=int) if len(A) == 1 else np.arange(N)
@@ -210,10 +209,10 @@ def solve_problems(problems, *, weight_map=None, compiled: bool = False) -> list
         (the one-case design says why).
     """
     groups: dict[tuple, list[int]] = {}
-    for i, (sub, Q, _, ints, Ts) in enumerate(problems):
+    for i, (sub, _, _, ints, Ts) in enumerate(problems):
         groups.setdefault((Ts, len(sub.states), len(sub.inputs), len(ints)), []).append(i)
     out: list = [None] * len(problems)
-    for (Ts, n, _, _), members in groups.items():
+    for (Ts, *_), members in groups.items():
         subs: dict[int, int] = {}  # a subsystem object -> its plant's number
         plants, plant_of = [], []
         for i in members:

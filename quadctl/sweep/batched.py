@@ -80,7 +80,7 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
     the same gains to round-off.
     """
     problems: dict[tuple, int] = {}  # a subsystem problem -> its number
-    posed: dict[int, tuple] = {}  # problem number -> (design sample time, the first owner posing it, the subsystem, integrators)
+    posed: dict[int, tuple] = {}  # problem number -> (sample time, the first owner posing it, subsystem, integrators)
     cases: dict[tuple, int] = {}  # a case's whole problem -> the first case posing it (its owner)
     first: list[int] = []
     slots_of: dict[int, tuple] = {}  # owner -> its subsystems' problem numbers
@@ -115,10 +115,10 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
         if preps[k].setup.design_lag_time_constant is not None:
             designs[k] = _one_by_one(preps[k], "one-by-one: the design includes the rotors' lag")
     numbers = list(posed)
+    plants = {id(preps[k].plant): preps[k].plant for _, k, _, _ in posed.values()}
     found = stacked.solve_problems([(sub, *preps[k].setup.weights[sub.name], ints, Ts)
                                     for (Ts, k, sub, ints) in (posed[i] for i in numbers)],
-                                   weight_map=_weight_maps({id(preps[k].plant): preps[k].plant for _, k, _, _ in posed.values()}.values()),
-                                   compiled=compiled)
+                                   weight_map=_weight_maps(plants.values()), compiled=compiled)
     gain_of = dict(zip(numbers, found))  # problem number -> its gain (None: the batched solve missed)
     batched = []
     for k, slots in slots_of.items():
