@@ -7,7 +7,7 @@ batched (:func:`~quadctl.design.riccati.care_batch`, :func:`~quadctl.design.ricc
 each answer residual-checked. An entry without a certified answer is marked not ok, never raised:
 the one-case design (:func:`quadctl.design.design`) solves its one problem here and, where it is not
 ok, asks :func:`quadctl.design.riccati.solve` for SciPy's answer or the named reason.
-:func:`solve_problems` groups many cases' subsystem problems by shape for it, :func:`block_gains`
+:func:`solve_problems` groups stacks of many cases' subsystem problems by shape for it, :func:`block_gains`
 assembles the subsystems' gains into the (4, 12) block gains, :func:`coupled_verdicts` checks them
 on the coupled model (a sweep's designs, :func:`quadctl.sweep.batched.design_all`).
 """
@@ -187,15 +187,17 @@ def _sampled(A, B, Q, R, Ts: float, plant_of, weight_maps):
     return Ad, Bd, Qd, Rd, Nd
 
 
-def solve_problems(problems, *, weight_map=None, compiled: bool = False) -> list:
-    """Many subsystem problems, grouped by shape and sample time, each group one :func:`solve_subsystems`.
+def solve_problems(blocks, *, weight_map=None, compiled: bool = False) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Stacks of subsystem problems, grouped by shape and sample time, each group one :func:`solve_subsystems`.
 
     Parameters
     ----------
-    problems : sequence of (Subsystem, Q, R, integral, sample_time)
+    blocks : sequence of (Subsystem, Q, R, integral, sample_time)
         A regulated subsystem (:class:`~quadctl.decouple.Subsystem`: its ``A``, ``B`` and states),
-        its weights of ``[x; z]``, the states it integrates and the design's sample time (s, or None).
-        Problems on one subsystem object share its plant (and its weight map).
+        a stack of weights of ``[x; z]`` posed on it, Q (k, n + ni, n + ni) and R (k, m, m), the
+        states it integrates and the design's sample time (s, or None). Blocks of one shape on
+        several plants are solved in one stack; blocks on one subsystem object share its plant
+        (and its weight map).
     weight_map : callable, optional
         ``weight_map(subsystem, sample_time)``: the :class:`~quadctl.design.discrete.LqrdWeightMap`
         of the subsystem's plant, for a caller that keeps them; None: each problem sampled alone.
@@ -204,34 +206,40 @@ def solve_problems(problems, *, weight_map=None, compiled: bool = False) -> list
 
     Returns
     -------
-    list of ndarray or None
-        Per problem, its gain on ``[x; z]`` (m, n + ni), or None where the solve is not certified
-        (the one-case design says why).
+    list of (gain (k, m, n + ni) ndarray, ok (k,) bool ndarray)
+        Per block, its gains on ``[x; z]`` and which are certified (the one-case design says why
+        the others are not).
     """
     groups: dict[tuple, list[int]] = {}
-    for i, (sub, _, _, ints, Ts) in enumerate(problems):
-        groups.setdefault((Ts, len(sub.states), len(sub.inputs), len(ints)), []).append(i)
-    out: list = [None] * len(problems)
+    for b, (sub, _, _, ints, Ts) in enumerate(blocks):
+        groups.setdefault((Ts, len(sub.states), len(sub.inputs), len(ints)), []).append(b)
+    out: list = [None] * len(blocks)
     for (Ts, *_), members in groups.items():
         subs: dict[int, int] = {}  # a subsystem object -> its plant's number
         plants, plant_of = [], []
-        for i in members:
-            sub = problems[i][0]
+        for b in members:
+            sub = blocks[b][0]
             if id(sub) not in subs:
                 subs[id(sub)] = len(plants)
                 plants.append(sub)
-            plant_of.append(subs[id(sub)])
-        first_sub, first_ints = problems[members[0]][0], problems[members[0]][3]
-        if all(problems[i][3] == first_ints and problems[i][0].states == first_sub.states for i in members):
+            plant_of.append(np.full(len(blocks[b][1]), subs[id(sub)]))
+        first_sub, first_ints = blocks[members[0]][0], blocks[members[0]][3]
+        if all(blocks[b][3] == first_ints and blocks[b][0].states == first_sub.states for b in members):
             C = integral.selector(first_sub.states, first_ints)
         else:  # integrators on different states: one shape still, a selector each
-            C = np.stack([integral.selector(problems[i][0].states, problems[i][3]) for i in members])
+            C = np.concatenate([np.repeat(integral.selector(blocks[b][0].states, blocks[b][3])[None],
+                                          len(blocks[b][1]), axis=0) for b in members])
         maps = None if Ts is None or weight_map is None else [weight_map(sub, Ts) for sub in plants]
+        one = len(members) == 1
         sol = solve_subsystems(np.stack([sub.A for sub in plants]), np.stack([sub.B for sub in plants]),
-                               np.stack([problems[i][1] for i in members]), np.stack([problems[i][2] for i in members]),
-                               C, Ts, plant_of=plant_of, weight_maps=maps, compiled=compiled)
-        for i, gain, good in zip(members, sol.gain, sol.ok.tolist()):
-            out[i] = gain if good else None
+                               blocks[members[0]][1] if one else np.concatenate([blocks[b][1] for b in members]),
+                               blocks[members[0]][2] if one else np.concatenate([blocks[b][2] for b in members]),
+                               C, Ts, plant_of=np.concatenate(plant_of), weight_maps=maps, compiled=compiled)
+        start = 0
+        for b in members:
+            stop = start + len(blocks[b][1])
+            out[b] = (sol.gain[start:stop], sol.ok[start:stop])
+            start = stop
     return out
 
 

@@ -1,10 +1,11 @@
 """The batched path of a sweep chunk: designs, verdicts and lane simulations of many cases at once.
 
-Each function is the stacked twin of a one-case pipeline stage and is tested against it
-(``tests/sweep/test_sweep.py``): :func:`design_all` of :func:`quadctl.design.design` (the Riccati solves
-batched by shape, residual-checked; a case whose solve misses the check goes through the one-case
-design, which names the reason), :func:`loops_of` of :func:`quadctl.pipeline.loop_of` and the step
-plan, :func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes).
+:func:`design_all` poses each distinct case's subsystem problems once and hands them to the design's
+one engine (:mod:`quadctl.design.stacked`, which a single design runs as a stack of one): a case
+whose solve misses its check goes through the one-case design, which names the reason.
+:func:`loops_of` is the stacked twin of :func:`quadctl.pipeline.loop_of` and the step plan,
+:func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes), tested against them
+(``tests/sweep/test_sweep.py``).
 """
 
 from __future__ import annotations
@@ -74,16 +75,15 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
     rate: an uncertainty study varies only the simulated vehicle) share one design, and a subsystem
     problem that several distinct cases pose (a subsystem whose weights no case varies) is solved
     once. A design that includes the rotors' lag is made by the one-case design
-    (:func:`quadctl.design.design`). ``any_order``: each design's ``core`` eigenvalues in any order
+    (:func:`quadctl.design.design`, the same engine with one case): the engine solves lagged
+    subsystems, but its coupled verdict is on the lagged loop with the gain on the lag states,
+    which :func:`quadctl.design.linear_loop.stack` does not build for a stack (few sweeps design
+    with the lag). ``any_order``: each design's ``core`` eigenvalues in any order
     (:func:`quadctl.stability.verdict_stack`), for a caller that reads only their extremes;
     ``compiled``: the discrete designs' doubling steps in C (:func:`quadctl.design.riccati.dare_batch`),
     the same gains to round-off.
     """
-    problems: dict[tuple, int] = {}  # a subsystem problem -> its number
-    posed: dict[int, tuple] = {}  # problem number -> (sample time, the first owner posing it, subsystem, integrators)
-    cases: dict[tuple, int] = {}  # a case's whole problem -> the first case posing it (its owner)
-    first: list[int] = []
-    slots_of: dict[int, tuple] = {}  # owner -> its subsystems' problem numbers
+    loops: dict[tuple, list[int]] = {}  # (plant, integrators, design sample time, lag) -> its cases
     integrators: dict[tuple, tuple] = {}  # (plant, integral config) by identity -> per subsystem its integrators
     for k, prep in enumerate(preps):
         setup, plant = prep.setup, prep.plant
@@ -91,44 +91,71 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
         if key not in integrators:
             integrators[key] = (setup.integral, tuple(tuple(setup.integral.get(sub.name, ()))
                                                        for sub in plant.regulated))
-        ints_of = integrators[key][1]
-        Ts = setup.timing.design_sample_time
-        slots = []
-        for sub, ints in zip(plant.regulated, ints_of):
-            Q, R = setup.weights[sub.name]
-            slots.append(problems.setdefault((id(plant), Ts, sub.name, ints, Q.tobytes(), R.tobytes()), len(problems)))
-        slots = tuple(slots)
-        lag = setup.design_lag_time_constant
-        owner = cases.setdefault((id(plant), Ts, lag, slots), k)  # the slots: the weights and integrators
-        first.append(owner)
-        if owner != k:
-            continue
-        stats["designs"] += len(slots)  # the designs the distinct cases get (a shared one counts for each)
+        loops.setdefault((id(plant), integrators[key][1], setup.timing.design_sample_time,
+                          setup.design_lag_time_constant), []).append(k)
+    out: list = [None] * len(preps)
+    blocks: list[tuple] = []  # per (loop, subsystem): its distinct problems, one stack
+    pending = []
+    for (_, ints, Ts, lag), cases in loops.items():
+        plant = preps[cases[0]].plant
+        slots, problems = _distinct_problems([preps[k].setup.weights for k in cases], plant.regulated)
+        owners, case_of = _distinct_rows(slots)  # cases posing the same problems share one design
+        stats["designs"] += len(owners) * len(plant.regulated)  # (a shared design counts for each case)
         if lag is not None:
-            continue
-        slots_of[k] = slots
-        for sub, ints, number in zip(plant.regulated, ints_of, slots):
-            if number not in posed:  # a case designed one by one (the lag) may have numbered it first
-                posed[number] = (Ts, k, sub, ints)
-    designs: dict[int, object] = {}
-    for k in cases.values():
-        if preps[k].setup.design_lag_time_constant is not None:
-            designs[k] = _one_by_one(preps[k], "one-by-one: the design includes the rotors' lag")
-    numbers = list(posed)
-    plants = {id(preps[k].plant): preps[k].plant for _, k, _, _ in posed.values()}
-    found = stacked.solve_problems([(sub, *preps[k].setup.weights[sub.name], ints, Ts)
-                                    for (Ts, k, sub, ints) in (posed[i] for i in numbers)],
-                                   weight_map=_weight_maps(plants.values()), compiled=compiled)
-    gain_of = dict(zip(numbers, found))  # problem number -> its gain (None: the batched solve missed)
-    batched = []
-    for k, slots in slots_of.items():
-        if any(gain_of.get(number) is None for number in slots):
+            designs = [_one_by_one(preps[cases[i]], "one-by-one: the design includes the rotors' lag") for i in owners]
+        else:
+            pending.append((cases, plant, ints, Ts, owners, slots[owners], range(len(blocks), len(blocks) + len(ints))))
+            blocks.extend((sub, Q, R, sub_ints, Ts) for sub, sub_ints, (Q, R) in zip(plant.regulated, ints, problems))
+            designs = None
+        for k, i in zip(cases, case_of):
+            out[k] = designs[i] if designs is not None else i
+    plants = {id(plant): plant for _, plant, *_ in pending}
+    found = stacked.solve_problems(blocks, weight_map=_weight_maps(plants.values()), compiled=compiled)
+    for cases, plant, ints, Ts, owners, owner_slots, numbers in pending:
+        solved = np.all([found[b][1][owner_slots[:, s]] for s, b in enumerate(numbers)], axis=0)
+        designs = [None] * len(owners)
+        for i in np.flatnonzero(~solved).tolist():
             stats["fallbacks"] += 1
-            designs[k] = _one_by_one(preps[k])
+            designs[i] = _one_by_one(preps[cases[owners[i]]])
+        good = np.flatnonzero(solved)
+        if len(good):
+            K, Ki, states = stacked.block_gains(plant.regulated, ints, [found[b][0][owner_slots[good, s]]
+                                                                       for s, b in enumerate(numbers)])
+            A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
+            verdicts = stacked.coupled_verdicts(A, B, K, Ki, states, Ts, any_order=any_order)
+            extremes = _extremes([core for core, _, _ in verdicts])
+            for j, (i, (core, _, stable)) in enumerate(zip(good.tolist(), verdicts)):
+                designs[i] = CaseDesign(K[j], Ki[j], states, stable, core, BATCHED, extremes=extremes[j])
+        for k in cases:
+            out[k] = designs[out[k]]
+    return out
+
+
+def _distinct_problems(weights: list[dict], regulated) -> tuple[np.ndarray, list[tuple]]:
+    """The distinct weights each subsystem is designed with over cases of one loop: (slots (cases,
+    subsystems): each case's problem in each subsystem's stack, per subsystem (Q, R) stacked once
+    each). A subsystem whose weights no case varies is one problem."""
+    N = len(weights)
+    slots = np.zeros((N, len(regulated)), dtype=int)
+    problems = []
+    for s, sub in enumerate(regulated):
+        pairs = [w[sub.name] for w in weights]
+        Q0, R0 = pairs[0]
+        if all(Q is Q0 and R is R0 for Q, R in pairs):  # the base's own arrays: one problem
+            problems.append((Q0[None], R0[None]))
             continue
-        batched.append((k, preps[k], slots))
-    _assemble(batched, gain_of, designs, any_order, {key: ints for key, (_, ints) in integrators.items()})
-    return [designs[k] for k in first]
+        Q, R = np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
+        first, slots[:, s] = _distinct_rows(np.concatenate([Q.reshape(N, -1), R.reshape(N, -1)], axis=1))
+        problems.append((Q[first], R[first]))
+    return slots, problems
+
+
+def _distinct_rows(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the first row of each distinct value of ``M``'s rows, each row's distinct value's number)."""
+    if len(M) == 1:
+        return np.zeros(1, dtype=int), np.zeros(1, dtype=int)
+    _, first, inverse = np.unique(M, axis=0, return_index=True, return_inverse=True)
+    return first, inverse.ravel()
 
 
 def _weight_maps(plants):
@@ -158,28 +185,6 @@ def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed i
         return str(exc)
     return CaseDesign(des.K_block, des.Ki_block, des.integral_states, des.stable, des.core_eigenvalues, why,
                       Kv=des.Kv_block if des.lag_time_constant is not None else None)
-
-
-def _assemble(items, gain_of, out, any_order: bool, integrators: dict) -> None:
-    """Block gains (:func:`quadctl.design.stacked.block_gains`) and coupled verdicts
-    (:func:`~quadctl.design.stacked.coupled_verdicts`) of the batched designs, stacked per plant,
-    integrators and timing; ``items``: ``(case, prep, its subsystems' problem numbers)``;
-    ``integrators``: per (plant, integral config) by identity, each regulated subsystem's integrators."""
-    by_loop: dict[tuple, list] = {}
-    for k, prep, slots in items:
-        setup = prep.setup
-        ints = integrators[(id(prep.plant), id(setup.integral))]
-        by_loop.setdefault((id(prep.plant), ints, setup.timing.design_sample_time), []).append((k, slots))
-    plants = {id(prep.plant): prep.plant for _, prep, _ in items}
-    for (plant_id, ints, Ts), members in by_loop.items():
-        plant = plants[plant_id]
-        gains = [np.stack([gain_of[slots[s]] for _, slots in members]) for s in range(len(ints))]
-        K, Ki, states = stacked.block_gains(plant.regulated, ints, gains)
-        A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
-        verdicts = stacked.coupled_verdicts(A, B, K, Ki, states, Ts, any_order=any_order)
-        extremes = _extremes([core for core, _, _ in verdicts])
-        for i, ((k, _), (core, _, stable)) in enumerate(zip(members, verdicts)):
-            out[k] = CaseDesign(K[i], Ki[i], states, stable, core, BATCHED, extremes=extremes[i])
 
 
 def _extremes(cores: list) -> list:
