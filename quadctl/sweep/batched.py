@@ -71,10 +71,13 @@ class LaneJob:
 def design_all(preps, stats, any_order: bool = False, compiled: bool = False) -> list:
     """A :class:`CaseDesign` per case, or the one-line reason its design failed.
 
-    Cases whose design problems are identical (the same plant, weights, integrators and design
-    rate: an uncertainty study varies only the simulated vehicle) share one design, and a subsystem
-    problem that several distinct cases pose (a subsystem whose weights no case varies) is solved
-    once. A design that includes the rotors' lag is made by the one-case design
+    The cases are grouped by loop (plant, integrators, design rate, lag); in each group every
+    subsystem's weights are stacked once and made distinct by rows (no key per case), so cases whose
+    problems are identical (an uncertainty study varies only the simulated vehicle) share one design
+    and a subsystem problem several cases pose (one whose weights no case varies) is solved once.
+    The distinct problems go to the design's engine as stacks
+    (:func:`quadctl.design.stacked.solve_problems`), the block gains and coupled verdicts of each
+    group are stacked too. A design that includes the rotors' lag is made by the one-case design
     (:func:`quadctl.design.design`, the same engine with one case): the engine solves lagged
     subsystems, but its coupled verdict is on the lagged loop with the gain on the lag states,
     which :func:`quadctl.design.linear_loop.stack` does not build for a stack (few sweeps design
