@@ -110,7 +110,7 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
             pending.append((cases, plant, ints, Ts, owners, slots[owners], range(len(blocks), len(blocks) + len(ints))))
             blocks.extend((sub, Q, R, sub_ints, Ts) for sub, sub_ints, (Q, R) in zip(plant.regulated, ints, problems))
             designs = None
-        for k, i in zip(cases, case_of):
+        for k, i in zip(cases, case_of):  # pending: the number of its owner's design, until solved
             out[k] = designs[i] if designs is not None else i
     plants = {id(plant): plant for _, plant, *_ in pending}
     found = stacked.solve_problems(blocks, weight_map=_weight_maps(plants.values()), compiled=compiled)

@@ -123,12 +123,8 @@ def test_a_problem_without_a_stabilizing_solution_fails_alone_and_the_one_case_d
     assert sol.ok.tolist() == [True, False, True]
     from types import SimpleNamespace
 
-    from quadctl.decouple import Decoupled
-
-    sub = SimpleNamespace(name="roll", states=("phi", "p"), inputs=("A",), A=A[0], B=B[0], regulated=True,
-                          state_index=[3, 9])
-    dec = SimpleNamespace(regulated=(sub,))
-    assert not isinstance(dec, Decoupled)  # design reads only .regulated
+    sub = SimpleNamespace(name="roll", states=("phi", "p"), inputs=("A",), A=A[0], B=B[0], state_index=[3, 9])
+    dec = SimpleNamespace(regulated=(sub,))  # what design reads of a partition
     with pytest.raises(DesignError, match=r"subsystem roll: not stabilizable: the mode at eigenvalue 1 \(in phi\)"):
         design(dec, np.zeros((12, 12)), np.zeros((12, 4)), {"roll": (np.eye(2), np.eye(1))})
 
