@@ -14,12 +14,12 @@ Kv (v - u_trim) - Ki z``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from quadctl.design import discrete, integral, lag, linear_loop
-from quadctl.design.riccati import LqrResult, require_stabilizable, solve
+from quadctl.design import discrete, integral, lag, linear_loop, stacked
+from quadctl.design.riccati import LqrResult, real_array, require_stabilizable, solve
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES
 from quadctl.linear import stability
 from quadctl.linear.decouple import Decoupled
@@ -245,31 +245,46 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
 def _solve_subsystem(sub, Q, R, ints, Ts, tau=None):
     """(K, Kv or None, Ki, P, eigenvalues s, eigenvalues z or None, residual) of one subsystem.
 
-    With a lag time constant ``tau`` the plant is :func:`quadctl.design.lag.lagged` (state ``[x; v]``)
-    and ``Q`` gets zero rows and columns for ``v`` (the lag is weighed through the states it moves).
+    Solved as a stack of one by :func:`quadctl.design.stacked.solve_subsystems`, the engine a sweep's
+    designs take too; where its answer is not certified, :func:`_certified_or_refused` asks the
+    one-case Riccati solver for SciPy's answer to the same problem, or the reason there is none.
     """
-    n = len(sub.states)
-    A, B = lag.lagged(sub.A, sub.B, tau)
-    nl = A.shape[0] - n  # lag states: one per input, or none
+    label = f"subsystem {sub.name}"
+    size = len(sub.states) + len(ints)
+    Q = real_array(Q, "Q", name=label, ndim=2, shape=(size, size))
+    R = real_array(R, "R", name=label, ndim=2, shape=(sub.B.shape[1],) * 2)
+    sol = stacked.solve_subsystems(sub.A[None], sub.B[None], Q[None], R[None], integral.selector(sub.states, ints),
+                                   Ts, lag_time_constant=tau)
+    if not sol.ok[0]:
+        sol = _certified_or_refused(sub, sol, ints, Ts, tau)
+    return (sol.K[0], None if sol.Kv is None else sol.Kv[0], sol.Ki[0], sol.P[0], sol.eigenvalues[0],
+            None if sol.eigenvalues_z is None else sol.eigenvalues_z[0], float(sol.residual[0]))
+
+
+def _certified_or_refused(sub, sol, ints, Ts, tau=None) -> stacked.SubsystemSolutions:
+    """The problem the engine posed (``sol.problem``, a stack of one) by the one-case Riccati solver
+    (:func:`quadctl.design.riccati.solve`): SciPy's certified answer, or the
+    :class:`~quadctl.errors.DesignError` that names the reason (for a discrete design, first a mode no
+    input reaches in the continuous plant, or a sampled problem that overflows)."""
+    n, m = sub.B.shape
+    nl = m if tau is not None else 0
     lags = (f"lag of {i}" for i in sub.inputs) if nl else ()  # (the full design's plant has no inputs named)
     names = [*sub.states, *lags, *(f"integral of {s}" for s in ints)]
-    C = np.hstack([integral.selector(sub.states, ints), np.zeros((len(ints), nl))])
-    Q = _lag_weight(Q, n, nl)
     label = f"subsystem {sub.name}"
-    Aa, Ba = integral.augment(A, B, C)
-    if Ts is None:
-        res = lqr(Aa, Ba, Q, R, name=label, state_names=names)
-        eig_s, eig_z = res.E, None
-    else:
-        require_stabilizable(Aa, Ba, label, names)
-        Ad, Bd, Qd, Rd, Nd = discrete.lqrd_weights(A, B, Q[:n + nl, :n + nl], R, Ts, name=label)
-        Ada, Bda = integral.augment_discrete(Ad, Bd, C, Ts)
-        Qda, Nda = integral.discrete_weights(Qd, Nd, Q, Ts)
-        res = discrete.dlqr(Ada, Bda, Qda, Rd, Nda, name=label)
-        eig_z = res.E
-        eig_s = discrete.s_equivalent(eig_z, Ts)
-    Kv = res.K[:, n:n + nl] if nl else None
-    return res.K[:, :n], Kv, res.K[:, n + nl:], res.P, eig_s, eig_z, res.residual
+    problem = [M[0] for M in sol.problem]
+    if Ts is not None:
+        A, B = lag.lagged(sub.A, sub.B, tau)
+        C = np.hstack([integral.selector(sub.states, ints), np.zeros((len(ints), nl))])
+        require_stabilizable(*integral.augment(A, B, C), label, names)
+        if not all(np.all(np.isfinite(M)) for M in problem):
+            raise discrete.overflow(label, Ts)
+    res = solve(*problem, discrete=Ts is not None, name=label, state_names=names)
+    eig_z = None if Ts is None else res.E
+    K = res.K[None]
+    return replace(sol, gain=K, K=K[:, :, :n], Kv=K[:, :, n:n + nl] if nl else None, Ki=K[:, :, n + nl:],
+                   P=res.P[None], eigenvalues=(res.E if Ts is None else discrete.s_equivalent(eig_z, Ts))[None],
+                   eigenvalues_z=None if eig_z is None else eig_z[None], residual=np.array([res.residual]),
+                   ok=np.ones(1, dtype=bool))
 
 
 def _lag_weight(Q, n: int, nl: int) -> np.ndarray:

@@ -121,9 +121,14 @@ def lqrd_weights(A, B, Q, R, Ts: float, N=None, *, name: str = "system"):
     A, B, Q, R = (_as2d(M, label, name) for M, label in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R")))
     out = lqrd_weights_batch(A[None], B[None], Q[None], R[None], Ts, None if N is None else _as2d(N, "N", name)[None])
     if not all(np.all(np.isfinite(M)) for M in out):
-        raise DesignError(f"{name}: sampled every {Ts:.3g} s (controller.rate {1 / Ts:.3g} Hz) its response "
-                          "overflows double precision; use a faster controller.rate")
+        raise overflow(name, Ts)
     return tuple(M[0] for M in out)
+
+
+def overflow(name: str, Ts: float) -> DesignError:
+    """The refusal of a plant whose sampled problem overflows (a sample time of hours)."""
+    return DesignError(f"{name}: sampled every {Ts:.3g} s (controller.rate {1 / Ts:.3g} Hz) its response "
+                       "overflows double precision; use a faster controller.rate")
 
 
 def lqrd_weights_batch(A, B, Q, R, Ts, N=None):

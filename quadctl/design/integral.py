@@ -25,8 +25,8 @@ def augment(A, B, C) -> tuple[np.ndarray, np.ndarray]:
     A : (..., n, n) array_like
     B : (..., n, m) array_like
         Leading dimensions (a stack of plants) broadcast.
-    C : (ni, n) array_like
-        Selects the integrated states.
+    C : (ni, n) or (..., ni, n) array_like
+        Selects the integrated states (one selector, or one per plant of the stack).
 
     Returns
     -------
@@ -40,11 +40,12 @@ def augment(A, B, C) -> tuple[np.ndarray, np.ndarray]:
     """
     A, B, C = (np.atleast_2d(np.asarray(m, dtype=float)) for m in (A, B, C))
     n, m = B.shape[-2:]
-    ni = C.shape[0] if C.size else 0
-    lead = np.broadcast_shapes(A.shape[:-2], B.shape[:-2])
+    ni = C.shape[-2] if C.size else 0
+    lead = np.broadcast_shapes(A.shape[:-2], B.shape[:-2], C.shape[:-2] if ni else ())
     Aa = np.zeros((*lead, n + ni, n + ni))
     Aa[..., :n, :n] = A
-    Aa[..., n:, :n] = -C[:ni]
+    if ni:
+        Aa[..., n:, :n] = -C
     Ba = np.zeros((*lead, n + ni, m))
     Ba[..., :n, :] = B
     return Aa, Ba

@@ -1,10 +1,11 @@
 """The batched path of a sweep chunk: designs, verdicts and lane simulations of many cases at once.
 
-Each function is the stacked twin of a one-case pipeline stage and is tested against it
-(``tests/sweep/test_sweep.py``): :func:`design_all` of :func:`quadctl.design.design` (the Riccati solves
-batched by shape, residual-checked; a case whose solve misses the check goes through the one-case
-design, which names the reason), :func:`loops_of` of :func:`quadctl.pipeline.loop_of` and the step
-plan, :func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes).
+:func:`design_all` poses each distinct case's subsystem problems once and hands them to the design's
+one engine (:mod:`quadctl.design.stacked`, which a single design runs as a stack of one): a case
+whose solve misses its check goes through the one-case design, which names the reason.
+:func:`loops_of` is the stacked twin of :func:`quadctl.pipeline.loop_of` and the step plan,
+:func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes), tested against them
+(``tests/sweep/test_sweep.py``).
 """
 
 from __future__ import annotations
@@ -15,10 +16,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from quadctl.design import integral, linear_loop
+from quadctl.design import linear_loop, stacked
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
-from quadctl.linear import stability
 
 BATCHED = "batched"
 """``path`` of a row designed in the batched solve."""
@@ -71,20 +71,22 @@ class LaneJob:
 def design_all(preps, stats, any_order: bool = False, compiled: bool = False) -> list:
     """A :class:`CaseDesign` per case, or the one-line reason its design failed.
 
-    Cases whose design problems are identical (the same plant, weights, integrators and design
-    rate: an uncertainty study varies only the simulated vehicle) share one design, and a subsystem
-    problem that several distinct cases pose (a subsystem whose weights no case varies) is solved
-    once. A design that includes the rotors' lag is made by the one-case design
-    (:func:`quadctl.design.design`). ``any_order``: each design's ``core`` eigenvalues in any order
+    The cases are grouped by loop (plant, integrators, design rate, lag); in each group every
+    subsystem's weights are stacked once and made distinct by rows (no key per case), so cases whose
+    problems are identical (an uncertainty study varies only the simulated vehicle) share one design
+    and a subsystem problem several cases pose (one whose weights no case varies) is solved once.
+    The distinct problems go to the design's engine as stacks
+    (:func:`quadctl.design.stacked.solve_problems`), the block gains and coupled verdicts of each
+    group are stacked too. A design that includes the rotors' lag is made by the one-case design
+    (:func:`quadctl.design.design`, the same engine with one case): the engine solves lagged
+    subsystems, but its coupled verdict is on the lagged loop with the gain on the lag states,
+    which :func:`quadctl.design.linear_loop.stack` does not build for a stack (few sweeps design
+    with the lag). ``any_order``: each design's ``core`` eigenvalues in any order
     (:func:`quadctl.linear.stability.verdict_stack`), for a caller that reads only their extremes;
     ``compiled``: the discrete designs' doubling steps in C (:func:`quadctl.design.riccati.dare_batch`),
     the same gains to round-off.
     """
-    problems: dict[tuple, int] = {}  # a subsystem problem -> its number
-    posed: dict[int, tuple] = {}  # problem number -> (its group, the first owner posing it, the subsystem, integrators)
-    cases: dict[tuple, int] = {}  # a case's whole problem -> the first case posing it (its owner)
-    first: list[int] = []
-    slots_of: dict[int, tuple] = {}  # owner -> its subsystems' problem numbers
+    loops: dict[tuple, list[int]] = {}  # (plant, integrators, design sample time, lag) -> its cases
     integrators: dict[tuple, tuple] = {}  # (plant, integral config) by identity -> per subsystem its integrators
     for k, prep in enumerate(preps):
         setup, plant = prep.setup, prep.plant
@@ -92,109 +94,88 @@ def design_all(preps, stats, any_order: bool = False, compiled: bool = False) ->
         if key not in integrators:
             integrators[key] = (setup.integral, tuple(tuple(setup.integral.get(sub.name, ()))
                                                        for sub in plant.regulated))
-        ints_of = integrators[key][1]
-        Ts = setup.timing.design_sample_time
-        slots = []
-        for sub, ints in zip(plant.regulated, ints_of):
-            Q, R = setup.weights[sub.name]
-            slots.append(problems.setdefault((id(plant), Ts, sub.name, ints, Q.tobytes(), R.tobytes()), len(problems)))
-        slots = tuple(slots)
-        lag = setup.design_lag_time_constant
-        owner = cases.setdefault((id(plant), Ts, lag, slots), k)  # the slots: the weights and integrators
-        first.append(owner)
-        if owner != k:
-            continue
-        stats["designs"] += len(slots)  # the designs the distinct cases get (a shared one counts for each)
+        loops.setdefault((id(plant), integrators[key][1], setup.timing.design_sample_time,
+                          setup.design_lag_time_constant), []).append(k)
+    out: list = [None] * len(preps)
+    blocks: list[tuple] = []  # per (loop, subsystem): its distinct problems, one stack
+    pending = []
+    for (_, ints, Ts, lag), cases in loops.items():
+        plant = preps[cases[0]].plant
+        slots, problems = _distinct_problems([preps[k].setup.weights for k in cases], plant.regulated)
+        owners, case_of = _distinct_rows(slots)  # cases posing the same problems share one design
+        stats["designs"] += len(owners) * len(plant.regulated)  # (a shared design counts for each case)
         if lag is not None:
-            continue
-        slots_of[k] = slots
-        for sub, ints, number in zip(plant.regulated, ints_of, slots):
-            if number not in posed:  # a case designed one by one (the lag) may have numbered it first
-                posed[number] = ((Ts, len(sub.states), len(sub.inputs), len(ints)), k, sub, ints)
-    designs: dict[int, object] = {}
-    for k in cases.values():
-        if preps[k].setup.design_lag_time_constant is not None:
-            designs[k] = _one_by_one(preps[k], "one-by-one: the design includes the rotors' lag")
-    groups: dict[tuple, list[int]] = {}
-    for number, (group, *_rest) in posed.items():
-        groups.setdefault(group, []).append(number)
-    gain_of: dict[int, np.ndarray | None] = {}  # problem number -> its gain (None: the batched solve missed)
-    for (Ts, n, _, _), numbers in groups.items():
-        K, ok = _solve(Ts, n, [posed[i][1:] for i in numbers], preps, compiled)
-        for i, number in enumerate(numbers):
-            gain_of[number] = K[i] if ok[i] else None
-    gains: dict[tuple[int, str], np.ndarray] = {}
-    batched = []
-    for k, slots in slots_of.items():
-        found = [gain_of.get(number) for number in slots]
-        if any(K is None for K in found):
-            stats["fallbacks"] += 1
-            designs[k] = _one_by_one(preps[k])
-            continue
-        for sub, K in zip(preps[k].plant.regulated, found):
-            gains[(k, sub.name)] = K
-        batched.append((k, preps[k]))
-    _assemble(batched, gains, designs, any_order, {key: ints for key, (_, ints) in integrators.items()})
-    return [designs[k] for k in first]
-
-
-def _solve(Ts, n, group, preps, compiled: bool = False):
-    """(K (N, m, n + ni), ok (N,)) of one group of same-shape subsystem problems: the continuous
-    CARE, or the ZOH plant and ``lqrd`` weights (:func:`_sampled`) and the discrete DARE, every step
-    batched."""
-    from quadctl.design.riccati import care_batch, dare_batch
-
-    first = group[0][1]
-    if all(sub is first for _, sub, _ in group):  # one plant (a sweep of the weights): its matrices repeated
-        A, B = np.repeat(first.A[None], len(group), axis=0), np.repeat(first.B[None], len(group), axis=0)
-    else:
-        A = np.stack([sub.A for _, sub, _ in group])
-        B = np.stack([sub.B for _, sub, _ in group])
-    Q = np.stack([preps[k].setup.weights[sub.name][0] for k, sub, _ in group])
-    R = np.stack([preps[k].setup.weights[sub.name][1] for k, sub, _ in group])
-    C = integral.selector(group[0][1].states, group[0][2])
-    same_ints = not group[0][2] or all(ints == group[0][2] and sub.states == group[0][1].states
-                                       for _, sub, ints in group)  # no integrators: C is empty for all
-    if not same_ints:  # integrators on different states: still one shape, build each selector
-        Cs = [integral.selector(sub.states, ints) for _, sub, ints in group]
-    if Ts is None:
-        if same_ints:
-            Aa, Ba = integral.augment(A, B, C)
+            designs = [_one_by_one(preps[cases[i]], "one-by-one: the design includes the rotors' lag") for i in owners]
         else:
-            Aa, Ba = (np.stack(m) for m in zip(*(integral.augment(a, b, c) for a, b, c in zip(A, B, Cs))))
-        res = care_batch(Aa, Ba, Q, R)
-        return res.K, res.ok
-    Ad, Bd, Qd, Rd, Nd = _sampled(group, preps, Q[:, :n, :n], R, Ts)
-    if same_ints:
-        Aa, Ba = integral.augment_discrete(Ad, Bd, C, Ts)
-    else:
-        Aa, Ba = (np.stack(m) for m in zip(*(integral.augment_discrete(a, b, c, Ts) for a, b, c in zip(Ad, Bd, Cs))))
-    Qa, Na = integral.discrete_weights(Qd, Nd, Q, Ts)
-    res = dare_batch(Aa, Ba, Qa, Rd, Na, compiled=compiled)
-    return res.K, res.ok
+            pending.append((cases, plant, ints, Ts, owners, slots[owners], range(len(blocks), len(blocks) + len(ints))))
+            blocks.extend((sub, Q, R, sub_ints, Ts) for sub, sub_ints, (Q, R) in zip(plant.regulated, ints, problems))
+            designs = None
+        for k, i in zip(cases, case_of):  # pending: the number of its owner's design, until solved
+            out[k] = designs[i] if designs is not None else i
+    plants = {id(plant): plant for _, plant, *_ in pending}
+    found = stacked.solve_problems(blocks, weight_map=_weight_maps(plants.values()), compiled=compiled)
+    for cases, plant, ints, Ts, owners, owner_slots, numbers in pending:
+        solved = np.all([found[b][1][owner_slots[:, s]] for s, b in enumerate(numbers)], axis=0)
+        designs = [None] * len(owners)
+        for i in np.flatnonzero(~solved).tolist():
+            stats["fallbacks"] += 1
+            designs[i] = _one_by_one(preps[cases[owners[i]]])
+        good = np.flatnonzero(solved)
+        if len(good):
+            K, Ki, states = stacked.block_gains(plant.regulated, ints, [found[b][0][owner_slots[good, s]]
+                                                                       for s, b in enumerate(numbers)])
+            A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
+            verdicts = stacked.coupled_verdicts(A, B, K, Ki, states, Ts, any_order=any_order)
+            extremes = _extremes([core for core, _, _ in verdicts])
+            for j, (i, (core, _, stable)) in enumerate(zip(good.tolist(), verdicts)):
+                designs[i] = CaseDesign(K[j], Ki[j], states, stable, core, BATCHED, extremes=extremes[j])
+        for k in cases:
+            out[k] = designs[out[k]]
+    return out
 
 
-def _sampled(group, preps, Q, R, Ts):
-    """``lqrd_weights_batch`` of a group's problems: each subsystem's plant sampled once (per
-    plant, cached), its weights by the plant's :class:`~quadctl.design.discrete.LqrdWeightMap`."""
+def _distinct_problems(weights: list[dict], regulated) -> tuple[np.ndarray, list[tuple]]:
+    """The distinct weights each subsystem is designed with over cases of one loop: (slots (cases,
+    subsystems): each case's problem in each subsystem's stack, per subsystem (Q, R) stacked once
+    each). A subsystem whose weights no case varies is one problem."""
+    N = len(weights)
+    slots = np.zeros((N, len(regulated)), dtype=int)
+    problems = []
+    for s, sub in enumerate(regulated):
+        pairs = [w[sub.name] for w in weights]
+        Q0, R0 = pairs[0]
+        if all(Q is Q0 and R is R0 for Q, R in pairs):  # the base's own arrays: one problem
+            problems.append((Q0[None], R0[None]))
+            continue
+        Q, R = np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
+        first, slots[:, s] = _distinct_rows(np.concatenate([Q.reshape(N, -1), R.reshape(N, -1)], axis=1))
+        problems.append((Q[first], R[first]))
+    return slots, problems
+
+
+def _distinct_rows(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the first row of each distinct value of ``M``'s rows, each row's distinct value's number)."""
+    if len(M) == 1:
+        return np.zeros(1, dtype=int), np.zeros(1, dtype=int)
+    _, first, inverse = np.unique(M, axis=0, return_index=True, return_inverse=True)
+    return first, inverse.ravel()
+
+
+def _weight_maps(plants):
+    """``weight_map(sub, Ts)`` for :func:`quadctl.design.stacked.solve_problems`: the
+    :class:`~quadctl.design.discrete.LqrdWeightMap` of a subsystem's plant at ``Ts``, kept in its
+    plant's cache (the plants of a sweep live across its chunks)."""
     from quadctl.design.discrete import LqrdWeightMap
 
-    maps, members = {}, {}
-    for j, (k, sub, _) in enumerate(group):
+    cache_of = {id(sub): plant.cache for plant in plants for sub in plant.regulated}
+
+    def weight_map(sub, Ts):
+        cache = cache_of[id(sub)]
         key = ("lqrd map", sub.name, Ts)
-        cache = preps[k].plant.cache
         if key not in cache:
             cache[key] = LqrdWeightMap(sub.A, sub.B, Ts)
-        maps[id(cache[key])] = cache[key]
-        members.setdefault(id(cache[key]), []).append(j)
-    N, n, m = len(group), Q.shape[1], R.shape[1]
-    Ad, Bd = np.empty((N, n, n)), np.empty((N, n, m))
-    Qd, Rd, Nd = np.empty((N, n, n)), np.empty((N, m, m)), np.empty((N, n, m))
-    for key, rows in members.items():
-        weight_map = maps[key]
-        Ad[rows], Bd[rows] = weight_map.Ad, weight_map.Bd
-        Qd[rows], Rd[rows], Nd[rows] = weight_map.weights(Q[rows], R[rows])
-    return Ad, Bd, Qd, Rd, Nd
+        return cache[key]
+    return weight_map
 
 
 def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed its residual or stability check"):
@@ -209,38 +190,6 @@ def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed i
                       Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
 
-def _assemble(items, gains, out, any_order: bool, integrators: dict) -> None:
-    """Block gains and coupled verdicts of the batched designs, stacked per plant, integrators and
-    timing; ``integrators``: per (plant, integral config) by identity, each regulated subsystem's
-    integrators."""
-    by_loop: dict[tuple, list] = {}
-    for k, prep in items:
-        setup = prep.setup
-        ints = integrators[(id(prep.plant), id(setup.integral))]
-        by_loop.setdefault((id(prep.plant), ints, setup.timing.design_sample_time), []).append((k, prep))
-    for (_, ints, Ts), members in by_loop.items():
-        plant = members[0][1].plant
-        N = len(members)
-        K = np.zeros((N, N_INPUTS * N_STATES))
-        states = tuple(state for sub_ints in ints for state in sub_ints)
-        Ki = np.zeros((N, N_INPUTS, len(states)))
-        column = 0
-        for sub, sub_ints in zip(plant.regulated, ints):
-            Ka = np.stack([gains[(k, sub.name)] for k, _ in members])  # (N, m, n + ni)
-            n = len(sub.states)
-            rows, flat = _gain_slots(plant, sub)
-            K[:, flat] = Ka[:, :, :n].reshape(N, -1)
-            for j in range(len(sub_ints)):
-                Ki[:, rows, column] = Ka[:, :, n + j]
-                column += 1
-        K = K.reshape(N, N_INPUTS, N_STATES)
-        A_cl = closed_loops(plant, K, Ki, states, Ts)
-        verdicts = stability.verdict_stack(A_cl, K, sample_time=Ts, any_order=any_order)
-        extremes = _extremes([core for core, _, _ in verdicts])
-        for i, ((k, _), (core, _, stable)) in enumerate(zip(members, verdicts)):
-            out[k] = CaseDesign(K[i], Ki[i], states, stable, core, BATCHED, extremes=extremes[i])
-
-
 def _extremes(cores: list) -> list:
     """:func:`core_extremes` of each core, the stack at once (cores of one length; else each alone)."""
     if not cores or len({len(core) for core in cores}) != 1:
@@ -249,22 +198,6 @@ def _extremes(cores: list) -> list:
         return [(None, None)] * len(cores)
     real = np.array(cores).real
     return list(zip(real.min(axis=1).tolist(), real.max(axis=1).tolist()))
-
-
-def _gain_slots(plant, sub) -> tuple[list[int], np.ndarray]:
-    """(input rows, flat indices into the (4, 12) block gain) of a subsystem's gain, once per plant."""
-    key = ("gain slots", sub.name)
-    if key not in plant.cache:
-        rows = [INPUT_INDEX[i] for i in sub.inputs]
-        plant.cache[key] = rows, (np.array(rows)[:, None] * N_STATES + np.array(sub.state_index)).ravel()
-    return plant.cache[key]
-
-
-def closed_loops(plant, K, Ki, integral_states, Ts=None) -> np.ndarray:
-    """:func:`quadctl.design.linear_loop.matrix` of stacked gains on one plant (its ZOH cached per ``Ts``):
-    (N, 12 + nz, 12 + nz)."""
-    A, B = (plant.linear.A, plant.linear.B) if Ts is None else plant.sampled(Ts)
-    return linear_loop.stack(A, B, K, Ki, integral_states, Ts)
 
 
 def loops_of(live) -> list:
@@ -288,8 +221,8 @@ def loops_of(live) -> list:
         by_plant.setdefault((id(prep.plant), des.integral_states), []).append(j)
     for (_, states), members in by_plant.items():
         plant = live[members[0]][0].plant
-        A_cl = closed_loops(plant, np.stack([live[j][1].K_block for j in members]),
-                            np.stack([live[j][1].Ki_block for j in members]), states)
+        A_cl = linear_loop.stack(plant.linear.A, plant.linear.B, np.stack([live[j][1].K_block for j in members]),
+                                 np.stack([live[j][1].Ki_block for j in members]), states)
         eigs, vecs = np.linalg.eig(A_cl)
         limits = max_stable_steps(eigs)
         largest = np.argmax(np.abs(vecs), axis=1)

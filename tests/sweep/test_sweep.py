@@ -215,25 +215,6 @@ def test_batched_riccati_agrees_with_scipy_and_solves_the_equation(n, m):
     assert res.residual.max() <= 1e-10
 
 
-def test_batched_riccati_on_the_report_subsystems(forward):
-    _, _, _, dec, des = forward
-    for sub in des.subsystems:
-        A, B = dec[sub.name].A, dec[sub.name].B
-        res = care_batch(A[None], B[None], sub.Q[None], sub.R[None])
-        assert res.ok[0]
-        np.testing.assert_allclose(res.K[0], sub.K, rtol=1e-9)
-        np.testing.assert_allclose(res.P[0], sub.P, rtol=1e-9, atol=1e-12 * np.abs(sub.P).max())
-
-
-def test_batched_riccati_scalar_integrator_closed_form():
-    # x' = u: P = sqrt(q r), K = sqrt(q / r) (python-control's hand-derived case)
-    q = np.array([1.0, 4.0, 9.0, 100.0])
-    r = np.array([1.0, 2.0, 0.5, 4.0])
-    res = care_batch(np.zeros((4, 1, 1)), np.ones((4, 1, 1)), q[:, None, None], r[:, None, None])
-    np.testing.assert_allclose(res.P.ravel(), np.sqrt(q * r), rtol=1e-14)
-    np.testing.assert_allclose(res.K.ravel(), np.sqrt(q / r), rtol=1e-14)
-
-
 def test_batched_riccati_flags_what_has_no_stabilizing_solution():
     # an unstable mode no input reaches, and a marginal mode Q does not see
     A = np.array([[[1.0, 0.0], [0.0, -1.0]], [[0.0, 1.0], [0.0, 0.0]]])
