@@ -199,12 +199,19 @@ class LiftedLoop:
         eigenvalues of the pencil ``[[zI - Phi, -Gamma], [C, D + lam I]]``, on which QZ is backward stable. An
         eigenvalue below :data:`LOCI_ZERO` stands as 0, one beyond :data:`LOCI_INFINITE` as that value."""
         theta = np.atleast_1d(np.asarray(theta, dtype=float))
-        L = self.frame_response(theta)
-        if vectors:
-            vals, vecs = np.linalg.eig(L)
-        else:
-            vals, vecs = np.linalg.eigvals(L), None
-        for k in np.nonzero(np.abs(L).max(axis=(1, 2)) > LOCI_EXPLICIT)[0]:
+        N = self.frame
+        vals = np.zeros((len(theta), N), dtype=complex)
+        vecs = np.zeros((len(theta), N, N), dtype=complex) if vectors else None
+        explicit = theta > 0  # at theta = 0 (z = 1) an integrator makes L infinite: the pencil only
+        if explicit.any():
+            L = self.frame_response(theta[explicit])
+            small = np.abs(L).max(axis=(1, 2)) <= LOCI_EXPLICIT
+            explicit[explicit] = small
+            if vectors:
+                vals[explicit], vecs[explicit] = np.linalg.eig(L[small])
+            else:
+                vals[explicit] = np.linalg.eigvals(L[small])
+        for k in np.nonzero(~explicit)[0]:
             pv, pw = self._pencil(theta[k])
             vals[k] = pv
             if vectors:
@@ -254,9 +261,10 @@ class LiftedLoop:
         return w
 
     def frame_grid(self, points_per_decade: int) -> np.ndarray:
-        """Frame frequencies ``theta`` (rad per frame) of :meth:`grid` up to ``pi``, ending at ``pi`` (``z = -1``)."""
+        """Frame frequencies ``theta`` (rad per frame) of :meth:`grid` up to ``pi``, with both ends, ``0`` and
+        ``pi`` (``z = 1`` and ``-1``: with an even frame, the base rate's Nyquist frequency is at ``z = 1``)."""
         theta = self.grid(points_per_decade) * self.frame * self.sample_time
-        return np.append(theta[theta < math.pi * (1 - 1e-9)], math.pi)
+        return np.concatenate([[0.0], theta[theta < math.pi * (1 - 1e-9)], [math.pi]])
 
 
 def exact_gain_margins(loop: LiftedLoop) -> tuple[float, float]:
@@ -329,6 +337,8 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
 
     theta = loop.frame_grid(points_per_decade)
     lam = loop.loci(theta)
+    if not np.all(np.isfinite(lam[0])):  # z = 1 a pole the pencil cannot separate (a singular pencil): left out
+        theta, lam = theta[1:], lam[1:]
 
     def eig(t):
         return loop.loci(t, vectors=True)
@@ -362,9 +372,11 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
             i = int(np.nanargmin(np.abs(vals.imag) / np.abs(vals)))
         if vals[i].real < 0 and abs(vals[i].imag) <= 1e-9 * abs(vals[i]):
             gains.append((-1.0 / vals[i].real, base_frequency(loop, t, vecs[:, i])))
-    vals, vecs = eig(theta[-1])  # z = -1: L is real, its real eigenvalues give real gains
-    for i in np.nonzero((np.abs(vals.imag) <= 1e-12 * np.abs(vals)) & (vals.real < 0))[0]:
-        gains.append((-1.0 / vals[i].real, base_frequency(loop, theta[-1], vecs[:, i])))
+    for end in {theta[0], theta[-1]} & {0.0, math.pi}:  # z = 1, -1: L is real, its real eigenvalues real gains
+        vals, vecs = eig(end)
+        for i in np.nonzero((np.abs(vals.imag) <= 1e-12 * np.abs(vals)) & (vals.real < 0)
+                            & (np.abs(vals) < LOCI_INFINITE))[0]:
+            gains.append((-1.0 / vals[i].real, base_frequency(loop, end, vecs[:, i])))
     above = min((g for g in gains if g[0] > 1), default=None)
     below = max((g for g in gains if g[0] < 1), default=None)
 
@@ -390,7 +402,7 @@ def _sign_changes(v) -> np.ndarray:
 
 def _least(fn, lam, theta, eig, candidates: int = 3) -> tuple[float, float]:
     """``(min, theta)`` of ``fn`` of the loci: the grid's few least local minima, each refined by bounded
-    minimization in ``log theta`` between its neighbours."""
+    minimization between its neighbours."""
     vals = fn(lam)
     n = len(theta)
     local = [k for k in range(n) if vals[k] <= vals[max(k - 1, 0)] and vals[k] <= vals[min(k + 1, n - 1)]]
@@ -398,10 +410,9 @@ def _least(fn, lam, theta, eig, candidates: int = 3) -> tuple[float, float]:
     for k in sorted(local, key=lambda k: vals[k])[:candidates]:
         best = min(best, (float(vals[k]), float(theta[k])))
         lo, hi = theta[max(k - 1, 0)], theta[min(k + 1, n - 1)]
-        res = scipy.optimize.minimize_scalar(lambda lt: float(fn(eig(math.exp(lt))[0])),
-                                             bounds=(math.log(lo), math.log(hi)), method="bounded",
-                                             options={"xatol": 1e-12})
-        best = min(best, (float(res.fun), float(math.exp(res.x))))
+        res = scipy.optimize.minimize_scalar(lambda t: float(fn(eig(t)[0])), bounds=(lo, hi), method="bounded",
+                                             options={"xatol": 1e-12 * hi})
+        best = min(best, (float(res.fun), float(res.x)))
     return best
 
 
