@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.optimize
 
 from quadctl.design.margins import broken_loop, loop_margins
 from quadctl.sim.cascade_margins import Lifted, exact_delay_margin, exact_gain_margins, loci_margins
@@ -70,6 +71,30 @@ def test_the_characteristic_loci_of_a_sampled_p_rate_loop_have_its_closed_form_m
     assert m.disk_alpha == pytest.approx(2 * (2 - a) / (2 + a), rel=1e-9)
     assert m.disk_freq == pytest.approx(math.pi / TS, rel=1e-4)  # a flat minimum: its place to sqrt of the value's
     assert m.min_return_difference == pytest.approx(1 - a / 2, rel=1e-9)
+
+
+def held_late_roots(a: float, delay: float) -> np.ndarray:
+    """Roots of ``z^(d+2) - z^(d+1) + a (1 - f) z + a f``: ``w(k+1) = w(k) - a ((1 - f) w(k-d) + f w(k-d-1))``, the
+    P rate loop whose command reaches the plant ``delay = d + f`` samples late (the hold shifted: the command
+    of ``d + 1`` samples ago for the first ``f`` of a sample, that of ``d`` ago for the rest)."""
+    d = int(math.floor(delay))
+    f = delay - d
+    c = np.zeros(d + 3)
+    c[0], c[1] = 1.0, -1.0
+    c[d + 1] += a * (1 - f)
+    c[d + 2] += a * f
+    return np.roots(c)
+
+
+@pytest.mark.parametrize("frame", [1, 3])
+def test_the_delay_margin_of_a_p_rate_loop_is_where_its_recurrence_leaves_the_unit_circle(frame):
+    a = KP * TS / J
+    radius = lambda s: float(np.max(np.abs(held_late_roots(a, s)))) - 1  # noqa: E731
+    grid = np.arange(0.0, 5.0, 1e-3)  # samples: the first root out, from the recurrence alone
+    first = int(np.argmax([radius(s) >= 0 for s in grid]))
+    want = scipy.optimize.brentq(radius, grid[first - 1], grid[first], xtol=1e-15)
+    got = exact_delay_margin(p_rate_loop(frame), 0) / TS
+    assert got == pytest.approx(want, rel=1e-9)
 
 
 @pytest.mark.parametrize("frame", [1, 4])
