@@ -577,11 +577,12 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
     Returns
     -------
     list of quadctl.design.margins.LoopMargins
-        One per input ``T, A, E, R``; the gain margins exact (:func:`exact_gain_margins`; their frequencies
-        where the fundamental harmonic agrees, :data:`FREQUENCY_AGREEMENT_DB`), phase, disk and
-        delay margins from the fundamental harmonic (module docstring), exact when the cascade runs at
-        one rate (``loop.law.ratios == (1, 1)``). A delay (``loop.delay_samples``, the cascade's samples) is in
-        every loop, before the break: the margins are beyond it, as the LQR loops' are.
+        One per input ``T, A, E, R``, every margin exact: the gain margins from the lifted loop's poles
+        (:func:`exact_gain_margins`; their frequencies the loci's where they agree, :data:`FREQUENCY_AGREEMENT_DB`),
+        phase and disk margins from its characteristic loci (:func:`loci_margins`), the delay margin the least
+        extra delay of the held input (:func:`exact_delay_margin`); ``freq`` and ``response`` the fundamental
+        harmonic (:class:`LiftedLoop`, for the plots). A delay (``loop.delay_samples``, the cascade's samples) is
+        in every loop, before the break: the margins are beyond it, as the LQR loops' are.
     """
     from quadctl.design.margins import POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, no_margin
 
