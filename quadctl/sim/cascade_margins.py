@@ -352,7 +352,7 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
 
     def refine(fn, k):
         a, b = theta[k], theta[k + 1]
-        return float(scipy.optimize.brentq(lambda t: float(fn(eig(t)[0])), a, b, xtol=1e-14, rtol=1e-14,
+        return float(scipy.optimize.brentq(lambda t: float(fn(loop.loci(t)[0])), a, b, xtol=1e-14, rtol=1e-14,
                                            maxiter=200))
 
     pm, w_pm = math.inf, None
@@ -384,8 +384,8 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
         with np.errstate(divide="ignore"):
             return np.min(2 * np.abs(1 + lams) / np.abs(1 - lams), axis=-1)
 
-    alpha, t_disk = _least(disk, lam, theta, eig)
-    rd, _ = _least(lambda lams: np.min(np.abs(1 + lams), axis=-1), lam, theta, eig)
+    alpha, t_disk = _least(disk, lam, theta, loop.loci)
+    rd, _ = _least(lambda lams: np.min(np.abs(1 + lams), axis=-1), lam, theta, loop.loci)
     vals, vecs = eig(t_disk)
     i = int(np.argmin(disk(vals[:, None])))
     return LociMargins(
@@ -400,18 +400,19 @@ def _sign_changes(v) -> np.ndarray:
     return np.nonzero(pos[:-1] != pos[1:])[0]
 
 
-def _least(fn, lam, theta, eig, candidates: int = 3) -> tuple[float, float]:
-    """``(min, theta)`` of ``fn`` of the loci: the grid's few least local minima, each refined by bounded
-    minimization between its neighbours."""
+def _least(fn, lam, theta, loci, near: float = 1.1, candidates: int = 3) -> tuple[float, float]:
+    """``(min, theta)`` of ``fn`` of the loci: the grid's least few local minima within ``near`` times its least,
+    each refined by bounded minimization between its neighbours (two nearly equal minima both)."""
     vals = fn(lam)
     n = len(theta)
-    local = [k for k in range(n) if vals[k] <= vals[max(k - 1, 0)] and vals[k] <= vals[min(k + 1, n - 1)]]
+    local = [k for k in range(n) if vals[k] <= vals[max(k - 1, 0)] and vals[k] <= vals[min(k + 1, n - 1)]
+             and vals[k] <= near * vals.min()]
     best = (float("inf"), float(theta[0]))
     for k in sorted(local, key=lambda k: vals[k])[:candidates]:
         best = min(best, (float(vals[k]), float(theta[k])))
         lo, hi = theta[max(k - 1, 0)], theta[min(k + 1, n - 1)]
-        res = scipy.optimize.minimize_scalar(lambda t: float(fn(eig(t)[0])), bounds=(lo, hi), method="bounded",
-                                             options={"xatol": 1e-12 * hi})
+        res = scipy.optimize.minimize_scalar(lambda t: float(fn(loci(t)[0])), bounds=(lo, hi), method="bounded",
+                                             options={"xatol": 1e-10 * hi})
         best = min(best, (float(res.fun), float(res.x)))
     return best
 
@@ -584,27 +585,31 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
         harmonic (:class:`LiftedLoop`, for the plots). A delay (``loop.delay_samples``, the cascade's samples) is
         in every loop, before the break: the margins are beyond it, as the LQR loops' are.
     """
-    from quadctl.design.margins import POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, no_margin
+    from threadpoolctl import threadpool_limits
 
     lift = lifted(loop) if lift is None else lift
-    out = []
-    for j, inp in enumerate(INPUT_NAMES):
-        broken = lift.broken(j)
-        w = broken.grid(POINTS_PER_DECADE)
-        labels = dict(loop=title, input=inp, model="cascade", sample_time=broken.sample_time, freq=w,
-                      response=broken(w), delay_samples=loop.delay_samples)
-        loci = loci_margins(broken)
-        if not broken.is_stable():
-            out.append(no_margin(min_return_difference=loci.min_return_difference, **labels))
-            continue
-        exact = exact_gain_margins(broken)
-        # the loci's crossing of the real axis names the frequency where it gives the exact margin
-        freqs = tuple(w if w is not None and abs(a - b) <= FREQUENCY_AGREEMENT_DB else None
-                      for w, a, b in zip(loci.phase_crossover_freqs, exact, loci.gain_margin_db))
-        out.append(LoopMargins(
-            stable=True, gain_margin_db=exact, phase_crossover_freqs=freqs, phase_margin_deg=loci.phase_margin_deg,
-            gain_crossover_freq=loci.gain_crossover_freq, disk_alpha=loci.disk_alpha,
-            disk_gain_db=disk_gain_range_db(loci.disk_alpha),
-            disk_phase_deg=math.degrees(2 * math.atan(loci.disk_alpha / 2)), disk_freq=loci.disk_freq,
-            min_return_difference=loci.min_return_difference, delay_margin=exact_delay_margin(lift, j), **labels))
-    return out
+    # hundreds of small eigenproblems (36 to 100 wide): BLAS threads only contend (quadctl.threads says why)
+    with threadpool_limits(limits=1):
+        return [_input_margins(loop, lift, j, inp, title) for j, inp in enumerate(INPUT_NAMES)]
+
+
+def _input_margins(loop, lift: Lifted, j: int, inp: str, title: str):
+    from quadctl.design.margins import POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, no_margin
+
+    broken = lift.broken(j)
+    w = broken.grid(POINTS_PER_DECADE)
+    labels = dict(loop=title, input=inp, model="cascade", sample_time=broken.sample_time, freq=w,
+                  response=broken(w), delay_samples=loop.delay_samples)
+    loci = loci_margins(broken)
+    if not broken.is_stable():
+        return no_margin(min_return_difference=loci.min_return_difference, **labels)
+    exact = exact_gain_margins(broken)
+    # the loci's crossing of the real axis names the frequency where it gives the exact margin
+    freqs = tuple(w if w is not None and abs(a - b) <= FREQUENCY_AGREEMENT_DB else None
+                  for w, a, b in zip(loci.phase_crossover_freqs, exact, loci.gain_margin_db))
+    return LoopMargins(
+        stable=True, gain_margin_db=exact, phase_crossover_freqs=freqs, phase_margin_deg=loci.phase_margin_deg,
+        gain_crossover_freq=loci.gain_crossover_freq, disk_alpha=loci.disk_alpha,
+        disk_gain_db=disk_gain_range_db(loci.disk_alpha),
+        disk_phase_deg=math.degrees(2 * math.atan(loci.disk_alpha / 2)), disk_freq=loci.disk_freq,
+        min_return_difference=loci.min_return_difference, delay_margin=exact_delay_margin(lift, j), **labels)
