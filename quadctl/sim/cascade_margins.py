@@ -350,14 +350,15 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
     def imag(lams):  # changes sign where one lam crosses the real axis (those taken as 0 or infinite aside)
         return np.prod(np.where((lams == 0) | (np.abs(lams) >= LOCI_INFINITE), 1.0, lams.imag), axis=-1)
 
-    def refine(fn, k):
+    def refine(fn, k):  # None: the sign change was rounding (the ends, computed alone, agree)
         a, b = theta[k], theta[k + 1]
-        return float(scipy.optimize.brentq(lambda t: float(fn(loop.loci(t)[0])), a, b, xtol=1e-14, rtol=1e-14,
-                                           maxiter=200))
+        f = lambda t: float(fn(loop.loci(t)[0]))  # noqa: E731
+        if (f(a) > 0) == (f(b) > 0):
+            return None
+        return float(scipy.optimize.brentq(f, a, b, xtol=1e-14, rtol=1e-14, maxiter=200))
 
     pm, w_pm = math.inf, None
-    for k in _sign_changes(mag(lam)):
-        t = refine(mag, k)
+    for t in (t for t in (refine(mag, k) for k in _sign_changes(mag(lam))) if t is not None):
         vals, vecs = eig(t)
         with np.errstate(divide="ignore"):
             i = int(np.argmin(np.abs(np.log(np.abs(vals)))))
@@ -365,8 +366,7 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
         if phase < pm:
             pm, w_pm = phase, base_frequency(loop, t, vecs[:, i])
     gains = []  # (critical gain, rad/s)
-    for k in _sign_changes(imag(lam)):
-        t = refine(imag, k)
+    for t in (t for t in (refine(imag, k) for k in _sign_changes(imag(lam))) if t is not None):
         vals, vecs = eig(t)
         with np.errstate(divide="ignore", invalid="ignore"):
             i = int(np.nanargmin(np.abs(vals.imag) / np.abs(vals)))
