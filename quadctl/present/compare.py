@@ -24,8 +24,8 @@ def table(data: dict) -> Table:
                  caption="the same plant, initial offset, reference, wind and noise for every law; cost on the "
                          "config's LQR weights; settling '-': never within 2 % of the peak position error; "
                          "margins: the least over each law's loops broken at a plant input (LQR: on the coupled "
-                         "model; a PID cascade: lifted to its frame, gain margins exact, phase margins from the "
-                         "fundamental harmonic)")
+                         "model; a PID cascade: lifted to its frame, gain and phase margins exact, the phase margin "
+                         "from its characteristic loci)")
 
 
 def _cell(value) -> str:

@@ -69,13 +69,19 @@ def disk_table(margins, discrete: bool) -> Table:
 
 
 def delay_table(margins) -> Table:
+    from quadctl.sim.cascade_margins import DELAY_SCAN
+
+    cascade = any(m.model == "cascade" for m in margins)
+    how = ("the least extra delay of the held plant input that makes the lifted loop unstable" if cascade
+           else "PM / crossover frequency")
+    never = f"none within {num(DELAY_SCAN[-1], 3)} samples" if cascade else "|L| never crosses 1"
     return Table(
-        "delay-margin-table", "Delay margins: the extra delay each loop tolerates (PM / crossover frequency)",
+        "delay-margin-table", f"Delay margins: the extra delay each loop tolerates ({how})",
         ("loop", "model", "configured delay (samples)", "delay margin ms", "samples"),
         tuple((_label(m), m.model, str(m.delay_samples),
                num(None if m.delay_margin is None else m.delay_margin * 1e3, 3), num(m.delay_margin_samples, 3))
               for m in margins),
-        caption="Beyond the configured delay (controller.delay), already in every loop; '-': |L| never crosses 1.",
+        caption=f"Beyond the configured delay (controller.delay), already in every loop; '-': {never}.",
         align="llrrr")
 
 
@@ -188,10 +194,11 @@ def cascade_sentence(payload: dict) -> Mark:
     n = payload.get("delay_samples", 0)
     delayed = (f", with its {n} sample{'s' if n != 1 else ''} of delay (controller.delay) in every loop before the "
                "break" if n else "")
-    how = ("gain margins exact (the lifted loop's poles); phase, disk and delay margins read from the loop's "
-           "fundamental harmonic (the response at w to a sinusoid at w), leaving out what the outer loops' holds "
-           "fold back to other frequencies" if not payload["exact"]["phase_disk_delay_margins"]
-           else "every margin exact")
+    how = ("every margin exact: the gain margins from the lifted loop's poles, the phase and disk margins from "
+           "its characteristic loci (a constant gain on the input is that gain on each sample of the frame, "
+           "outer loops' aliases included), the delay margin the least extra delay of the held input that puts a "
+           "pole of the lifted loop on the unit circle; frequencies at the base rate, of the strongest of the "
+           "frame's aliases")
     return Mark(f"{payload['title']} at {payload['rate']:g} Hz, {rates}: each input's loop broken at the plant with "
                 f"the whole cascade closed around it{delayed}, linearized about hover and lifted to its "
                 f"{cl['sample_time'] * 1e3:.4g} ms frame (every hold exact). Closed loop {verdict} "

@@ -2,9 +2,11 @@
 
 The lifted loop (:mod:`quadctl.sim.cascade_margins`) must have the poles of the loop the simulation
 flies: the eigenvalues of the Jacobian of one frame of the compiled law and RK4 plant, as sets. A
-single-rate P loop on an integrator has phase and gain margins in closed form; the same loop
-written as a frame of three identical samples must keep them (the lifting and its fundamental
-harmonic are exact for a loop at one rate).
+single-rate P loop on an integrator has phase, gain and disk margins in closed form; the same loop
+written as a frame of three or four identical samples must keep them. A loop at one rate (a PD loop on a
+double integrator, the Crazyflie's cascade with every loop at its rate) must have the margins
+:func:`quadctl.design.margins.loop_margins` reads from its transfer function; on the multi-rate cascade
+each margin's perturbation must put a pole of the lifted loop on the unit circle, and a little less not.
 """
 
 from __future__ import annotations
@@ -13,11 +15,21 @@ import math
 
 import numpy as np
 import pytest
+import scipy.optimize
 
-from quadctl.design.margins import loop_margins
-from quadctl.sim.cascade_margins import Lifted, exact_gain_margins
+from quadctl.design.margins import broken_loop, loop_margins
+from quadctl.sim.cascade_margins import Lifted, exact_delay_margin, exact_gain_margins, loci_margins
 
 J, KP, TS = 1.4e-5, 0.004, 0.002  # kg m^2 (a Crazyflie's roll inertia), N m s/rad, s (500 Hz): kp Ts / J = 0.57
+
+
+ON_CIRCLE_TOL = 1e-9
+"""A pole put on the unit circle by a margin's perturbation: the margins are refined to ~1e-12 (root finding,
+bisection), each pole moves with the perturbation at a rate of order one; the stability test's own margin."""
+SAME_LOOP_TOL = 1e-8
+"""The loci's margins against :func:`loop_margins` on the same single-rate loop: both refined to ~1e-10 or better
+(crossings by root finding to 1e-14, least values by bounded minimization to 1e-10 in log frequency, where the
+value moves by its square)."""
 
 
 def p_rate_loop(frame: int) -> Lifted:
@@ -26,7 +38,77 @@ def p_rate_loop(frame: int) -> Lifted:
     law_state = [np.eye(1)] * frame
     command = np.zeros((4, 1))
     command[0, 0] = -KP
-    return Lifted(plant=plant, law_state=law_state, law_command=[command] * frame, sample_time=TS)
+    rates = (np.zeros((1, 1)), np.array([[1 / J, 0.0, 0.0, 0.0]]))
+    return Lifted(plant=plant, law_state=law_state, law_command=[command] * frame, sample_time=TS, plant_rates=rates)
+
+
+def pd_attitude_loop(frame: int) -> Lifted:
+    """``J theta'' = u``, ``u = -kp theta - kd theta'`` sampled with a ZOH (crossover near 60 rad/s), written as
+    ``frame`` identical samples."""
+    kp, kd = J * 60.0 ** 2, 2 * 0.7 * J * 60.0
+    Ad = np.array([[1.0, TS], [0.0, 1.0]])
+    Bd = np.zeros((2, 4))
+    Bd[:, 0] = TS ** 2 / (2 * J), TS / J
+    command = np.zeros((4, 2))
+    command[0] = -kp, -kd
+    B = np.zeros((2, 4))
+    B[1, 0] = 1 / J
+    return Lifted(plant=(Ad, Bd), law_state=[np.eye(2)] * frame, law_command=[command] * frame, sample_time=TS,
+                  plant_rates=(np.array([[0.0, 1.0], [0.0, 0.0]]), B))
+
+
+@pytest.mark.parametrize("frame", [1, 3, 4])
+def test_the_characteristic_loci_of_a_sampled_p_rate_loop_have_its_closed_form_margins(frame):
+    # L(z) = a / (z - 1): PM = 90 - asin(a / 2) deg at w Ts = 2 asin(a / 2), upper gain margin 2 / a at z = -1;
+    # the balanced disk alpha = 2 |1 + L| / |1 - L| = 2 |z - 1 + a| / |z - 1 - a| is least at z = -1 (the ratio of
+    # the distances to 1 - a and 1 + a grows with Re z on the circle): 2 (2 - a) / (2 + a), where |1 + L| = 1 - a/2
+    a = KP * TS / J
+    m = loci_margins(p_rate_loop(frame).broken(0))
+    assert m.phase_margin_deg == pytest.approx(90 - math.degrees(math.asin(a / 2)), abs=1e-9)
+    assert m.gain_crossover_freq == pytest.approx(2 * math.asin(a / 2) / TS, rel=1e-9)
+    assert m.gain_margin_db == (-math.inf, pytest.approx(20 * math.log10(2 / a), abs=1e-9))
+    assert m.phase_crossover_freqs[1] == pytest.approx(math.pi / TS, rel=1e-12)
+    assert m.disk_alpha == pytest.approx(2 * (2 - a) / (2 + a), rel=1e-9)
+    assert m.disk_freq == pytest.approx(math.pi / TS, rel=1e-4)  # a flat minimum: its place to sqrt of the value's
+    assert m.min_return_difference == pytest.approx(1 - a / 2, rel=1e-9)
+
+
+def held_late_roots(a: float, delay: float) -> np.ndarray:
+    """Roots of ``z^(d+2) - z^(d+1) + a (1 - f) z + a f``: ``w(k+1) = w(k) - a ((1 - f) w(k-d) + f w(k-d-1))``, the
+    P rate loop whose command reaches the plant ``delay = d + f`` samples late (the hold shifted: the command
+    of ``d + 1`` samples ago for the first ``f`` of a sample, that of ``d`` ago for the rest)."""
+    d = int(math.floor(delay))
+    f = delay - d
+    c = np.zeros(d + 3)
+    c[0], c[1] = 1.0, -1.0
+    c[d + 1] += a * (1 - f)
+    c[d + 2] += a * f
+    return np.roots(c)
+
+
+@pytest.mark.parametrize("frame", [1, 3])
+def test_the_delay_margin_of_a_p_rate_loop_is_where_its_recurrence_leaves_the_unit_circle(frame):
+    a = KP * TS / J
+    radius = lambda s: float(np.max(np.abs(held_late_roots(a, s)))) - 1  # noqa: E731
+    grid = np.arange(0.0, 5.0, 1e-2)  # samples: the first root out, from the recurrence alone
+    first = int(np.argmax([radius(s) >= 0 for s in grid]))
+    want = scipy.optimize.brentq(radius, grid[first - 1], grid[first], xtol=1e-15)
+    got = exact_delay_margin(p_rate_loop(frame), 0) / TS
+    assert got == pytest.approx(want, rel=1e-9)
+
+
+@pytest.mark.parametrize("frame", [1, 4])
+def test_the_loci_of_a_pd_loop_at_one_rate_are_its_transfer_functions_margins(frame):
+    """The independent reference: :func:`loop_margins` on ``L(z) = K (zI - Ad)^-1 Bd`` of the same loop."""
+    lift = pd_attitude_loop(frame)
+    want = loop_margins(broken_loop(lift.plant[0], lift.plant[1], -lift.law_command[0], 0, TS))
+    got = loci_margins(lift.broken(0))
+    assert want.stable and math.isfinite(want.phase_margin_deg)
+    assert got.phase_margin_deg == pytest.approx(want.phase_margin_deg, abs=SAME_LOOP_TOL)
+    assert got.gain_crossover_freq == pytest.approx(want.gain_crossover_freq, rel=SAME_LOOP_TOL)
+    assert got.gain_margin_db == pytest.approx(want.gain_margin_db, abs=SAME_LOOP_TOL)
+    assert got.disk_alpha == pytest.approx(want.disk_alpha, rel=SAME_LOOP_TOL)
+    assert got.min_return_difference == pytest.approx(want.min_return_difference, rel=SAME_LOOP_TOL)
 
 
 @pytest.mark.parametrize("frame", [1, 3])
@@ -95,19 +177,80 @@ def test_the_lifted_cascade_has_the_poles_of_the_simulated_multirate_loop(crazyf
     assert max(abs(got)) < 1  # and the cascade holds hover
 
 
-def test_cascade_margins_are_one_loop_per_input_with_exact_gain_margins(crazyflie_cascade):
+@pytest.fixture(scope="module")
+def crazyflie_margins(crazyflie_cascade):
     from quadctl.sim.cascade_margins import cascade_margins
 
     loop, lift = crazyflie_cascade
-    margins = cascade_margins(loop)
-    assert [m.input for m in margins] == ["T", "A", "E", "R"]
-    for j, m in enumerate(margins):
+    return cascade_margins(loop, lift=lift)
+
+
+def test_cascade_margins_are_one_loop_per_input_with_exact_gain_margins(crazyflie_cascade, crazyflie_margins):
+    loop, lift = crazyflie_cascade
+    assert [m.input for m in crazyflie_margins] == ["T", "A", "E", "R"]
+    for j, m in enumerate(crazyflie_margins):
         assert m.stable and m.model == "cascade"
         lower, upper = m.gain_margin_db
         broken = lift.broken(j)
         if math.isfinite(upper):  # just inside the margin stable, just outside not
             assert broken.is_stable(10 ** (upper / 20) * (1 - 1e-6))
             assert not broken.is_stable(10 ** (upper / 20) * (1 + 1e-6))
+
+
+def nearest_to_circle(eigenvalues) -> float:
+    return float(np.min(np.abs(np.abs(eigenvalues) - 1)))
+
+
+@pytest.mark.parametrize("j", range(4))
+def test_each_margin_of_the_multirate_cascade_puts_a_pole_on_the_unit_circle(crazyflie_cascade, crazyflie_margins, j):
+    """The phase margin's complex gain ``e^(j PM)`` on every sample of the input, the loci's real gains, and the
+    delay margin's late input each put a pole of the lifted loop on the unit circle; a little less keeps it
+    stable. The loci's gain margins are :func:`exact_gain_margins`' (a scan of the lifted loop's poles)."""
+    _, lift = crazyflie_cascade
+    m, broken = crazyflie_margins[j], lift.broken(j)
+    pm = math.radians(m.phase_margin_deg)
+    for sign in (1, -1):  # the loci over (pi, 2 pi) are the conjugates: both phases destabilize
+        assert nearest_to_circle(broken.closed_loop_eigenvalues(np.exp(1j * sign * pm))) < ON_CIRCLE_TOL
+        assert broken.is_stable(np.exp(1j * sign * 0.99 * pm))
+    loci = loci_margins(broken)
+    for got, exact in zip(loci.gain_margin_db, m.gain_margin_db):
+        if math.isfinite(got):  # the bisection stops within the stability test's 1e-9 of the circle
+            assert nearest_to_circle(broken.closed_loop_eigenvalues(10 ** (got / 20))) < ON_CIRCLE_TOL
+            assert got == pytest.approx(exact, abs=1e-4)
+    assert nearest_to_circle(np.linalg.eigvals(lift.delayed_frame_map(j, m.delay_margin))) < ON_CIRCLE_TOL
+    assert max(abs(np.linalg.eigvals(lift.delayed_frame_map(j, 0.99 * m.delay_margin)))) < 1
+
+
+def test_the_loci_margins_do_not_depend_on_the_frequency_grid(crazyflie_cascade):
+    _, lift = crazyflie_cascade
+    broken = lift.broken(1)  # roll: thin margins near 90 Hz, folded by the 10 ms frame
+    coarse, fine = loci_margins(broken, 10), loci_margins(broken, 60)
+    for name in ("phase_margin_deg", "gain_crossover_freq", "disk_alpha", "min_return_difference"):
+        assert getattr(coarse, name) == pytest.approx(getattr(fine, name), rel=1e-10), name
+    assert coarse.gain_margin_db == pytest.approx(fine.gain_margin_db, abs=1e-10)
+
+
+def test_the_cascade_at_one_rate_has_the_margins_of_its_transfer_function():
+    """Every loop of the Crazyflie's cascade at its 500 Hz (a frame of one sample): the loci are the loop's
+    transfer function ``L(z)``, whose margins :func:`loop_margins` reads."""
+    import quadctl as qc
+    from quadctl.config.pid import resolve
+    from quadctl.pipeline import pid_loop_of
+    from quadctl.sim.cascade_margins import lifted
+
+    stages = qc.Stages(qc.setup_of(qc.load_config("crazyflie")))
+    stock = resolve("crazyflie")
+    one_rate = stock.with_values(attitude_hz=stock["rate_hz"], position_hz=stock["rate_hz"])
+    lift = lifted(pid_loop_of(stages.setup, stages.linear, one_rate))
+    assert lift.frame == 1
+    for j in range(4):
+        broken = lift.broken(j)
+        want, got = loop_margins(broken, grid=broken.grid(200)), loci_margins(broken)
+        assert want.stable
+        assert got.phase_margin_deg == pytest.approx(want.phase_margin_deg, abs=SAME_LOOP_TOL)
+        assert got.disk_alpha == pytest.approx(want.disk_alpha, rel=SAME_LOOP_TOL)
+        assert got.min_return_difference == pytest.approx(want.min_return_difference, rel=SAME_LOOP_TOL)
+        assert got.gain_margin_db == pytest.approx(want.gain_margin_db, abs=SAME_LOOP_TOL)
 
 
 def test_margins_command_shows_the_cascade_that_flies_and_fails_its_thin_roll_loop(tmp_path):
