@@ -17,11 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl.config.pid import PRESET_NAMES, resolve
 from quadctl.design.margins import least_margins
 from quadctl.layout import STATE_INDEX
 from quadctl.metrics import lqr_cost, overshoot, settling_time
 from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import Stages, pid_loop_of
+from quadctl.sim.cascade_margins import cascade_margins
 from quadctl.sim.run import ClosedLoop, ExoStream, SimResult, simulate
 
 METRICS: tuple[tuple[str, str, str], ...] = (
@@ -98,7 +100,6 @@ def parse_law(text: str) -> tuple[str, str | None]:
     ValueError
         Anything else.
     """
-    from quadctl.config.pid import PRESET_NAMES
 
     kind, _, preset = text.partition(":")
     if kind == "lqr" and not preset:
@@ -125,8 +126,6 @@ def compare(stages: Stages, laws=("pid:crazyflie",), duration: float | None = No
     -------
     Comparison
     """
-    from quadctl.config.pid import resolve
-    from quadctl.sim.cascade_margins import cascade_margins
 
     setup = stages.setup
     duration = setup.duration if duration is None else float(duration)

@@ -18,12 +18,15 @@ from typing import Literal
 import numpy as np
 
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
-from quadctl.config.pid import PidGains
+from quadctl.config.pid import PidGains, resolve
+from quadctl.errors import RateError, TrimError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linear.filters import RateFilter, rate_filter_of
+from quadctl.linear.trim import solve_trim
+from quadctl.physics import trajectory
 from quadctl.physics.flatness import FlownReference
 from quadctl.physics.model import Vehicle
-from quadctl.physics.motors import Actuators, Motors, actuators_of
+from quadctl.physics.motors import Actuators, Motors, actuators_of, headroom
 from quadctl.physics.noise import NoiseSpec, exogenous_period
 from quadctl.physics.trajectory import Reference
 from quadctl.physics.wind import WindSpec, wind_of
@@ -81,7 +84,6 @@ class Timing:
             ``rate`` given, and the config sets another rate (exit 2).
         """
         if rate is not None and self.rate is not None and rate != self.rate:
-            from quadctl.errors import RateError
 
             raise RateError(f"--rate {rate:g}: the config sets controller.rate = {self.rate:g} Hz; drop --rate, "
                             "or remove controller.rate to run the continuous design at another rate")
@@ -318,7 +320,6 @@ def setup_of(cfg: Config) -> Setup:
 
 def _pid(cfg: Config):
     """The config's PID cascade (:func:`quadctl.config.pid.resolve`), checked on load."""
-    from quadctl.config.pid import resolve
 
     pid = cfg.controller.pid
     return resolve(pid.preset, pid.values) if pid is not None else resolve("crazyflie")
@@ -339,9 +340,6 @@ def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,
     rules = {name: w for name, w in cfg.lqr.items() if w.bryson is not None}
     if not rules:
         return {}
-    from quadctl.errors import TrimError
-    from quadctl.linear.trim import solve_trim
-    from quadctl.physics.motors import headroom
 
     try:
         trim = solve_trim(cfg.trim.velocity_ned, cfg.trim.yaw, cfg.trim.position_ned, vehicle, wind_ned=trim_wind)
@@ -373,7 +371,6 @@ def _reference(cfg: Config):
     ref = cfg.simulation.reference
     if ref is None:
         return None
-    from quadctl.physics import trajectory
 
     if ref.setpoints is not None:
         return trajectory.setpoint_reference([sp.model_dump() for sp in ref.setpoints], cfg.trim.position_ned,

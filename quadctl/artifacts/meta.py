@@ -5,6 +5,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 
 from quadctl import __version__
+from quadctl.artifacts import provenance
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 
 FORMAT_VERSION = 1
@@ -20,7 +21,6 @@ def metadata(cfg, kind: str, backends=()) -> dict:
     ``backends``: the simulation backends the stage ran (``SimResult.backend``), which decide the
     ``compiler`` field (see :func:`quadctl.artifacts.provenance.compiler`); empty when it ran no loop.
     """
-    from quadctl.artifacts import provenance
 
     return {
         "artifact": kind,

@@ -13,6 +13,7 @@ import subprocess
 from functools import lru_cache
 
 from quadctl import __version__
+from quadctl.native.compile import find_compiler
 
 PACKAGES = ("numpy", "scipy", "casadi")
 """Distributions whose versions every artifact records (with quadctl's and Python's)."""
@@ -74,7 +75,6 @@ def compiler(backends=()) -> dict[str, str] | str:
         return NOT_USED
     if not any(b.startswith("compiled") for b in backends):
         return INTERPRETED
-    from quadctl.native.compile import find_compiler  # imported already: a loop was compiled
 
     path = find_compiler()
     if path is None:  # QUADCTL_NO_COMPILE set after the library was loaded: the loop still ran compiled

@@ -11,6 +11,8 @@ import os
 import re
 from typing import Any
 
+from quadctl.config.describe import UNION_HINTS
+from quadctl.config.pid import rate_problem, resolve
 from quadctl.config.schema import (
     INERTIA_DESCRIPTION,
     MAX_DELAY_SAMPLES,
@@ -26,6 +28,7 @@ from quadctl.config.schema import (
 from quadctl.config.weights import DEFINITENESS_RTOL, SYMMETRY_RTOL, check_weight
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_NAMES, SENSOR_GROUPS, STATE_NAMES, STATE_UNITS
+from quadctl.physics.motors import NUMBERINGS, POSITIONS, Motors
 from quadctl.text.messages import show
 from quadctl.text.messages import unknown as _unknown
 
@@ -292,7 +295,6 @@ def _check_delay(cfg: Config, fail) -> None:
 
 def _check_pid(cfg: Config, fail) -> None:
     """``controller.flies: pid`` and ``controller.pid``: rotors to command, rates that nest, a delay whole at them."""
-    from quadctl.config.pid import rate_problem, resolve
 
     ctl = cfg.controller
     if ctl.pid is not None:
@@ -443,7 +445,6 @@ def _check_one_inertia(path: str, inertia: list, fail) -> None:
     nested = isinstance(inertia[0], list)
     if nested and (len(inertia) != 3 or any(not isinstance(row, list) or len(row) != 3 for row in inertia)) \
             or not nested and (len(inertia) != 3 or any(isinstance(v, list) for v in inertia)):
-        from quadctl.config.describe import UNION_HINTS
 
         fail(path, inertia, UNION_HINTS["inertia"])
     if not nested:
@@ -505,7 +506,6 @@ def _check_rotor_numbering(motors: MotorsConfig, fail) -> None:
     """``motors.numbering``: each of the layout's positions once (a preset names a quad-x order);
     ``motors.spin``: diagonal rotors alike, neighbours opposite (else yaw is not separable from roll
     and pitch: the mixer is singular)."""
-    from quadctl.physics.motors import NUMBERINGS, POSITIONS
 
     if motors.positions is not None:
         _check_rotor_positions(motors, fail)
@@ -548,7 +548,6 @@ def _check_rotor_positions(motors: MotorsConfig, fail) -> None:
     geometry that commands thrust, roll, pitch and yaw independently."""
     import numpy as np
 
-    from quadctl.physics.motors import Motors
 
     if motors.spin is None:
         fail("motors.spin", None, "motors.positions needs each rotor's turning direction, rotor 1 first: "

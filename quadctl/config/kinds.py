@@ -13,13 +13,15 @@ from __future__ import annotations
 
 from typing import Any
 
+from quadctl.artifacts.meta import IDENTITY_KEYS
+from quadctl.config.schema import Config
+
 SWEEP_KEYS = ("parameters",)
 """The keys every sweep file has (the values to vary)."""
 
 
 def config_keys() -> tuple[str, ...]:
     """The keys every config has: the schema's required ones (``name``, ``lqr``)."""
-    from quadctl.config.schema import Config
 
     return tuple(name for name, field in Config.model_fields.items() if field.is_required())
 
@@ -32,7 +34,6 @@ def kind_of(data: Any) -> str | None:
     >>> kind_of({"artifact": "design", "config_hash": "ab12"}), kind_of({"mode": "grid"})
     ('artifact', None)
     """
-    from quadctl.artifacts.meta import IDENTITY_KEYS
 
     if not isinstance(data, dict):
         return None

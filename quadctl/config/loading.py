@@ -17,6 +17,8 @@ from pydantic import ValidationError
 
 from quadctl.config import yamlio
 from quadctl.config.checks import check_semantics
+from quadctl.config.describe import describe, expected, is_union_tag
+from quadctl.config.kinds import misplaced
 from quadctl.config.schema import Config, section_model
 from quadctl.errors import ConfigError
 from quadctl.text.messages import show
@@ -168,8 +170,6 @@ def from_dict(data: Any, label: str = "<config>") -> Config:
     try:
         cfg = Config.model_validate(data)
     except ValidationError as exc:
-        from quadctl.config.describe import describe
-        from quadctl.config.kinds import misplaced
 
         raise ConfigError(misplaced(data, label, "config") or describe(exc, data, label)) from None
     check_semantics(cfg, label)
@@ -222,7 +222,6 @@ def check_override(option: str, value: Any, key: str | None = None) -> Any:
         kind = Annotated[(field.annotation, *field.metadata)] if field.metadata else field.annotation
         return TypeAdapter(kind).validate_python(value)
     except ValidationError as exc:
-        from quadctl.config.describe import expected, is_union_tag
 
         err = exc.errors()[0]
         loc = key.split(".") + [p for p in err["loc"] if not is_union_tag(p)]

@@ -16,6 +16,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from quadctl.config.pid import NAMES
 from quadctl.layout import REPORT_PARTITION, SENSOR_GROUPS, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 
@@ -331,7 +332,6 @@ class PidConfig(_Section):
     @field_validator("values")
     @classmethod
     def _known(cls, values: dict) -> dict:
-        from quadctl.config.pid import NAMES
 
         unknown = sorted(set(values) - set(NAMES))
         if unknown:

@@ -34,7 +34,12 @@ from quadctl.config import (
     VehicleConfig,
     WindConfig,
 )
+from quadctl.errors import ConfigError
 from quadctl.layout import REPORT_PARTITION, STATE_UNITS
+from quadctl.linear.trim import solve_trim
+from quadctl.physics.model import Vehicle
+from quadctl.physics.motors import Motors, actuators_of, headroom
+from quadctl.text.messages import SHOWN_CHARS, unknown
 
 
 @dataclass(frozen=True)
@@ -186,9 +191,6 @@ def bryson_rules(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = Fals
     dict
         Subsystem -> ``(bryson rule, comment)``.
     """
-    from quadctl.linear.trim import solve_trim
-    from quadctl.physics.model import Vehicle
-    from quadctl.physics.motors import Motors, actuators_of, headroom
 
     values = {k: v for k, (v, _) in preset.vehicle.items()}
     vehicle = Vehicle(mass=values["mass"], inertia=tuple(values["inertia"]), drag=tuple(values["drag"]))
@@ -240,8 +242,6 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     """
     import re
 
-    from quadctl.errors import ConfigError
-    from quadctl.text.messages import SHOWN_CHARS, unknown
 
     if not re.fullmatch(config_mod.NAME_PATTERN, name) or len(name) > config_mod.MAX_NAME_LENGTH:  # the schema's
         # rule (fullmatch: a `$` alone would take a name ending in a newline)

@@ -14,9 +14,12 @@ from typing import Literal
 
 import numpy as np
 
+from quadctl.design import discrete as dsc
+from quadctl.design.riccati import solve
 from quadctl.errors import DesignError
 from quadctl.layout import N_STATES, SENSOR_GROUPS, STATE_INDEX, STATE_NAMES
 from quadctl.linear.analysis import check
+from quadctl.linear.filters import RATE_STATES, filtered_output, series, state_names
 from quadctl.linear.stability import is_stable
 from quadctl.physics.model import N_DISTURBANCES, Vehicle, build_model
 from quadctl.text.messages import eig_text, show
@@ -101,7 +104,6 @@ def model_names(rate_filter=None) -> tuple[str, ...]:
     """Names of the states of the filter's model: the 12 states, then those of a gyro filter (``rate_filter``)."""
     if rate_filter is None:
         return STATE_NAMES
-    from quadctl.linear.filters import state_names
 
     return (*STATE_NAMES, *state_names(rate_filter.order))
 
@@ -192,9 +194,6 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
     DesignError
         A mode that is not stable is unobservable from ``measured``, or the Riccati equation is refused.
     """
-    from quadctl.design import discrete as dsc
-    from quadctl.design.riccati import solve
-    from quadctl.linear.filters import RATE_STATES, filtered_output, series
 
     A, B, G = (np.asarray(M, dtype=float) for M in (A, B, G))
     measured = tuple(measured)

@@ -13,6 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from quadctl.design import discrete, integral, lag
+from quadctl.design.riccati import real_array
+from quadctl.errors import DesignError
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.linear import stability
 from quadctl.linear.filters import RATE_STATES, series, with_rate_filter
@@ -129,8 +131,6 @@ def matrix(A, B, K, Ki=None, integral_states=(), sample_time=None, *, Kv=None,
     DesignError
         A matrix that is complex, not numeric, or of a shape that does not fit (named).
     """
-    from quadctl.design.riccati import real_array
-    from quadctl.errors import DesignError
 
     who = "closed_loop_matrix"  # its public name (quadctl.design.closed_loop_matrix)
     A = real_array(A, "A", name=who, ndim=2)

@@ -16,11 +16,14 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from quadctl import artifacts
+from quadctl.config import check_override
 from quadctl.errors import CheckFailed, RateError, ScheduleError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
 from quadctl.pipeline import Stages
+from quadctl.schedule.envelope import schedule_of
 from quadctl.setup import Setup, Timing
 from quadctl.stages import verdict
 
@@ -61,7 +64,6 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     DesignError
         A subsystem cannot be designed (exit 1).
     """
-    from quadctl.config import check_override
 
     if rate is not None:  # the bounds of controller.rate, which it stands for
         rate = check_override("rate", rate, key="controller.rate")
@@ -93,7 +95,6 @@ def _flown(setup: Setup, loop):
     and that schedule."""
     if setup.schedule is None:
         return loop, None
-    from quadctl.schedule.envelope import schedule_of
 
     schedule = schedule_of(setup)
     if schedule.missing():  # a controller for the vehicle covers every value asked, or none is made
@@ -146,7 +147,6 @@ def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: s
     import io
     from pathlib import Path
 
-    from quadctl import artifacts
     from quadctl.export import c, crazyflie, data
 
     if to not in TARGETS:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.design import Design, linear_loop
+from quadctl.design.gain_table import VARIABLES
 from quadctl.linear.decouple import Decoupled
 from quadctl.linear.linearize import LinearModel
 from quadctl.setup import Setup
@@ -136,7 +137,6 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
                 else ", x_ref(t) = x_trim + x_rate t") + "; the yaw error wrapped into (-pi, pi]"]
     table = loop.schedule
     if table is not None:
-        from quadctl.design.gain_table import VARIABLES
 
         gains = "K and Ki" if ints and table.coefficients.shape[-1] > len(loop.x_trim) else "K"
         parts.append(f"{gains} = G(v), the gain schedule on {table.variable} v ({VARIABLES[table.variable]}) of "

@@ -19,8 +19,10 @@ from string import Template
 import numpy as np
 
 from quadctl import __version__
+from quadctl.design.gain_table import OUTSIDE, VARIABLES
 from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
+from quadctl.native.emit import Dialect, emit
 from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout, exo_layout
 from quadctl.text.escape import c_comment, c_identifier
 
@@ -62,7 +64,6 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
     ValueError
         ``exp`` is continuous (nothing to sample), or the law has an operation ``emit`` cannot write.
     """
-    from quadctl.native.emit import Dialect, emit
 
     require_export(exp, "sources")
     if exp.sample_time is None:
@@ -314,7 +315,6 @@ def _doc(lines) -> str:
 
 def _schedule_doc(loop, reference: bool) -> str:
     """The header's paragraph on the gain schedule: the table, where it lives, how the law reads it."""
-    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:

@@ -18,6 +18,7 @@ import numpy as np
 
 from quadctl import __version__
 from quadctl.errors import ConfigError
+from quadctl.export import c
 from quadctl.export.bundle import Export, require_export
 from quadctl.text.escape import c_comment
 
@@ -206,7 +207,6 @@ def sources(exp: Export, setpoint: str = "position", mode: str = "force") -> dic
     ConfigError
         What :func:`check` refuses.
     """
-    from quadctl.export import c
 
     check(exp, setpoint, mode)
     loop = exp.loop

@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 
 from quadctl import __version__
+from quadctl.artifacts import jsonable
+from quadctl.design.gain_table import OUTSIDE, VARIABLES
 from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 from quadctl.text.escape import matlab_field
@@ -191,7 +193,6 @@ def _gyro_filter_fields(loop, Ts) -> list[Field]:
 
 def _schedule_fields(loop) -> list[Field]:
     """The gain table of a scheduled loop (``schedule:``) as one struct; none with fixed gains."""
-    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:
@@ -250,7 +251,6 @@ def json_payload(exp: Export, meta: dict | None = None) -> dict:
         Provenance to put at the top (:func:`quadctl.artifacts.metadata`).
     """
     require_export(exp, "json_payload")
-    from quadctl.artifacts import jsonable
 
     body = {}
     for f in fields(exp):

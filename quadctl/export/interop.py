@@ -24,7 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.design import discrete, integral, linear_loop, lqr
+from quadctl.design.riccati import real_array
+from quadctl.layout import INPUT_NAMES, STATE_INDEX, STATE_NAMES
+from quadctl.linear.filters import RATE_STATES, series
 
 INSTALL_HINT = "pip install '.[control]' (in a quadctl checkout) or pip install 'quadctl[control]'"
 
@@ -55,7 +58,6 @@ def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
     control.StateSpace
         States and outputs named ``pN ... r``, inputs ``T A E R`` (deviations from the trim).
     """
-    from quadctl.design.riccati import real_array
 
     _control()
     A, B = _held(linear.A, linear.B, sample_time, "plant")
@@ -71,7 +73,6 @@ def subsystem(sub, *, sample_time: float | None = None):
     zero-order-hold discretization.
     """
     _control()
-    from quadctl.design.riccati import real_array
 
     A, B = _held(sub.A, sub.B, sample_time, "subsystem")
     C = real_array(sub.C, "sub.C", name="subsystem", error=ValueError, ndim=2, shape=(None, A.shape[0]))
@@ -110,7 +111,6 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
         The design includes the rotors' lag, or an LQG loop has a delay (the filter's command
         buffer) or is asked for another sample time than its filter's.
     """
-    from quadctl.design import integral
 
     _control()
     K, Ki, ints = _gains(design)
@@ -132,8 +132,6 @@ def _filtered_controller(A, B, K, Ki, ints, form, Ts, name):
     (:func:`quadctl.linear.filters.with_rate_filter`): states ``[z; g]`` (``g_<rate>_<i>``, ``form.order``
     per rate), ``g' = A_f g + b_f r`` (or ``g+``), ``u = -K' x - K_r c_f g - Ki z`` with ``K'`` the gain whose
     rate columns are ``d_f K_r``."""
-    from quadctl.layout import STATE_INDEX
-    from quadctl.linear.filters import RATE_STATES
 
     nz, k = len(ints), form.order
     ng = k * len(RATE_STATES)
@@ -167,9 +165,6 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
     z_<state>]``, ``g`` the filter on the raw rates (``g+ = A_f g + b_f r``, or ``g'``), ``y = C [dx; g]``
     (a measured rate read filtered), ``K`` acting on the estimate of ``dx``.
     """
-    from quadctl.design import integral, linear_loop
-    from quadctl.layout import STATE_INDEX
-    from quadctl.linear.filters import RATE_STATES, series
 
     kal = loop.estimator
     Ts = kal.sample_time
@@ -230,8 +225,6 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
     control.StateSpace
         Its poles are the closed-loop eigenvalues (``z`` when sampled).
     """
-    from quadctl.design import discrete, linear_loop
-    from quadctl.design.riccati import real_array
 
     _control()
     K, Ki, ints = _gains(design)
@@ -283,7 +276,6 @@ class Plant:
     def lqr(self, Q, R):
         """``K, P, E``: :func:`quadctl.design.lqr` for a continuous plant, :func:`quadctl.design.discrete.dlqr`
         for a discrete one (decided by ``dt``, as python-control's ``lqr`` does)."""
-        from quadctl.design import discrete, lqr
 
         if self.dt:
             return discrete.dlqr(self.A, self.B, Q, R, name="plant")
@@ -309,7 +301,6 @@ def from_statespace(sys) -> Plant:
     """
     if not all(hasattr(sys, attr) for attr in ("A", "B", "state_labels", "input_labels")):
         raise ValueError(f"expected a control.StateSpace, got {type(sys).__name__}; convert it with control.ss(sys)")
-    from quadctl.design.riccati import real_array
 
     A = real_array(sys.A, "sys.A", name="from_statespace", error=ValueError, ndim=2)
     B = real_array(sys.B, "sys.B", name="from_statespace", error=ValueError, ndim=2)
@@ -334,7 +325,6 @@ def _gains(design):
         raise ValueError("the design includes the rotors' lag (controller.rotor_lag: include): its controller has "
                          "lag-model states these python-control systems do not carry; export it with "
                          "quadctl export (C, .mat or JSON: Kv and the law), or design with rotor_lag: ignore")
-    from quadctl.design.riccati import real_array
 
     label = "K_block" if hasattr(design, "K_block") else "K"
     if not hasattr(design, label) or not hasattr(design, "integral_states"):
@@ -357,8 +347,6 @@ def _gains(design):
 def _held(A, B, sample_time, who: str = "interop"):
     """``(A, B)`` checked (real, ``A`` n x n, ``B`` n x m), or with a sample time the zero-order-hold
     plant ``(Ad, Bd)``."""
-    from quadctl.design import discrete
-    from quadctl.design.riccati import real_array
 
     A = real_array(A, "A", name=who, error=ValueError, ndim=2)
     A = real_array(A, "A", name=who, error=ValueError, shape=(A.shape[0], A.shape[0]))

@@ -17,7 +17,10 @@ import numpy as np
 
 from quadctl import layout
 from quadctl._lazy import lazy_import
+from quadctl.config.schema import MotorsConfig
 from quadctl.errors import LogError
+from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, dynamics_expression
+from quadctl.physics.motors import Motors
 
 ca = lazy_import("casadi")
 scipy = lazy_import("scipy")
@@ -72,8 +75,6 @@ class Airframe:
     @classmethod
     def from_config(cls, cfg) -> Airframe:
         """From a :class:`quadctl.config.Config` (vehicle and motors; default motors when absent)."""
-        from quadctl.config.schema import MotorsConfig
-        from quadctl.physics.motors import Motors
 
         motors = Motors.from_config(cfg.motors if cfg.motors is not None else MotorsConfig())
         return cls(mass=cfg.vehicle.mass, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
@@ -95,7 +96,6 @@ def measurement_function(rows: tuple[int, ...] = tuple(range(6)), names: tuple[s
     angular acceleration times the diagonal inertia (a force and a torque, the fit's residual units);
     only its ``rows``, and the derivatives in the parameters ``names`` only (a stage's fit needs no more).
     """
-    from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, dynamics_expression
 
     z = ca.SX.sym("z", 4)
     omega = ca.SX.sym("omega", 3)

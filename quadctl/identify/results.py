@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl.artifacts.meta import metadata
+from quadctl.config import parse
 from quadctl.errors import LogError
 from quadctl.identify import estimate as est
 from quadctl.identify import windows as win
@@ -99,7 +101,6 @@ def payload(ident: Identification, config_label: str, config=None) -> dict:
             "residual_unit": "N" if stage == "thrust" else "N m",
             "residual_correlation_s": fit.bandwidth / 2 * float(np.median(np.diff(fit.t))),
             **{k: v for k, v in fit.extra.items()}}
-    from quadctl.artifacts.meta import metadata
 
     meta = metadata(config, "identified.json") if config is not None else {}
     return {**meta, "config": config_label, "logs": [log.provenance() for log in ident.logs], "stages": stages,
@@ -183,7 +184,6 @@ def identified_config(text: str, ident: Identification, name: str) -> str:
         lines[at:drop] = [" " * indent + new.lstrip()]
     head = f"# Identified by quadctl identify from {', '.join(log.name for log in ident.logs)}: see identified.json"
     out = head + "\n" + "\n".join(lines) + "\n"
-    from quadctl.config import parse
 
     parse(out, f"the identified config of {name}")  # what it writes loads (ConfigError otherwise)
     return out

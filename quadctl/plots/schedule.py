@@ -6,8 +6,10 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from quadctl.layout import INPUT_NAMES, STATE_INDEX
+from quadctl.design.gain_table import VARIABLES, scheduling_values
+from quadctl.layout import INPUT_NAMES, STATE_INDEX, STATE_NAMES
 from quadctl.plots.drawing import COLORS, input_limits, limit_lines, trace
+from quadctl.sim.run import STATUS_WORDS
 
 GAIN_COLORS = tuple(f"C{n}" for n in range(10)) + ("black", "0.55")
 """Colours of the gain entries in turn (a decoupled design has 10 to 12 nonzero entries)."""
@@ -30,8 +32,6 @@ def transition_figure(transition, *, title: str = "") -> Figure:
     (or the largest ``|u - u_ref|`` share of the limits without rotors) against its limits. A run
     that stopped early ends with a cross.
     """
-    from quadctl.design.gain_table import VARIABLES, scheduling_values
-    from quadctl.sim.run import STATUS_WORDS
 
     runs, loop = transition.runs(), transition.loops["scheduled"]
     table, heading = loop.schedule, loop.schedule_heading
@@ -91,7 +91,6 @@ def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
     actuators : quadctl.physics.motors.Actuators, optional
         The setup's limits: drawn as lines on the thrust panel.
     """
-    from quadctl.layout import STATE_NAMES
 
     fig = Figure(figsize=(12.5, 7.5), layout="constrained")
     (ax_k, ax_p), (ax_a, ax_t) = fig.subplots(2, 2, sharex=True)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from quadctl import artifacts
 from quadctl.present.stages import stage_summary
 from quadctl.report import content
 from quadctl.report.document import Document, Section, Table, Text, to_html, to_markdown
@@ -43,7 +44,6 @@ def build(ws, outcome: Outcome, *, command_line: str = "", label: str | None = N
     label : str, optional
         Where the config came from (a file, a bundled name); default its name.
     """
-    from quadctl import artifacts
 
     done = set(outcome.done)
     label = label or f"{ws.cfg.name} (Python)"
@@ -105,7 +105,6 @@ def write(doc: Document, folder: Path | str, store=None) -> list[Path]:
     every file back as its stages' artifacts (:meth:`~quadctl.workspace.Workspace.roll_back`); default
     :mod:`quadctl.artifacts` (each file atomic, nothing put back).
     """
-    from quadctl import artifacts
 
     store = artifacts if store is None else store
     folder = artifacts.check_folder(Path(folder))

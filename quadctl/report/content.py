@@ -6,9 +6,16 @@ a value read in the report is the one the stage command prints, from the same co
 
 from __future__ import annotations
 
+from quadctl import artifacts, pipeline, plots
+from quadctl.layout import INPUT_NAMES, unit_of
+from quadctl.pipeline import wind_line
+from quadctl.plots import png_bytes
+from quadctl.plots.compare import QUANTITIES
 from quadctl.present import cells, loops, stages
+from quadctl.present import compare as words
 from quadctl.present import design as shown_design
 from quadctl.present import flight as shown_flight
+from quadctl.present import mission as shown_mission
 from quadctl.present import schedule as shown_schedule
 from quadctl.report.document import Code, Figure, Items, Row, Section, Table, Text
 
@@ -24,7 +31,6 @@ def _text(sentence) -> Text:
 
 
 def _png(fig, dpi: int) -> bytes:
-    from quadctl.plots import png_bytes
 
     return png_bytes(fig, dpi)
 
@@ -78,7 +84,6 @@ def _plant_and_timing(ws) -> Text:
 
 
 def design(ws) -> Section:
-    from quadctl import pipeline
 
     des = ws.design
     blocks = [_plant_and_timing(ws)]
@@ -95,7 +100,6 @@ def design(ws) -> Section:
 def schedule(ws) -> Section:
     """The gain schedule the run flew (a config with ``schedule:``): the points, the envelope, the
     frozen-point checks, as ``quadctl schedule`` prints them, and its envelope figure."""
-    from quadctl import plots
 
     sched = ws.schedule
     blocks = [shown_schedule.points_table(sched), Text(shown_schedule.envelope_sentence(sched))]
@@ -111,7 +115,6 @@ def schedule(ws) -> Section:
 
 
 def margins(ws) -> Section:
-    from quadctl import plots
 
     margins = ws.margins
     if ws.setup.law == "pid":
@@ -144,7 +147,6 @@ def margins(ws) -> Section:
 
 def _cascade_margins(ws, margins) -> Section:
     """The margins of the PID cascade that flies (``controller.flies: pid``)."""
-    from quadctl import plots
 
     payload = ws.payloads["margins.json"]
     blocks = [_plant_and_timing(ws), _text(loops.cascade_sentence(payload)),
@@ -162,9 +164,6 @@ def _cascade_margins(ws, margins) -> Section:
 
 def comparison(ws) -> Section | None:
     """The laws side by side, when ``quadctl compare`` left compare.json (and its figures) in the run folder."""
-    from quadctl import artifacts
-    from quadctl.plots.compare import QUANTITIES
-    from quadctl.present import compare as words
 
     path = ws.path("compare.json")
     if not path.exists():
@@ -185,7 +184,6 @@ def comparison(ws) -> Section | None:
 
 
 def simulation(ws) -> Section:
-    from quadctl import plots
 
     flown = ws.simulation
     sim, metrics, fl = flown.sim, flown.metrics, flown.flight
@@ -223,8 +221,6 @@ def mission(ws) -> Section | None:
     """A flown reference: for a mission, its waypoints (reached at, closest approach) in a sentence and a
     table; the tracking error; the path with the waypoints marked, and the tracking error against
     time. None without ``simulation.reference``."""
-    from quadctl import plots
-    from quadctl.present import mission as shown_mission
 
     tracking = ws.simulation.flight.get("reference")
     if not tracking:
@@ -249,8 +245,6 @@ def mission(ws) -> Section | None:
 
 
 def flight(ws) -> Section:
-    from quadctl.layout import INPUT_NAMES, unit_of
-    from quadctl.pipeline import wind_line
 
     fl = ws.simulation.flight
     blocks = []

@@ -19,6 +19,9 @@ import numpy as np
 from quadctl import pipeline
 from quadctl.design.gain_table import VARIABLES, scheduling_values
 from quadctl.layout import STATE_INDEX
+from quadctl.native.mapped import mapped
+from quadctl.physics import motors
+from quadctl.physics.model import build_model
 from quadctl.schedule.envelope import heading_of, schedule_of
 from quadctl.setup import Setup
 from quadctl.sim.run import STATUS_WORDS, ClosedLoop, SimResult
@@ -96,7 +99,6 @@ def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[floa
     0 without limits), ``saturates`` (above :data:`quadctl.physics.motors.SATURATION_FLAG`), ``peak_attitude``
     (deg, largest ``|phi|`` and ``|theta|``), ``flown_range`` (the scheduling variable's extent) and
     ``on_grid`` (it stays within the grid, :data:`ON_GRID_MARGIN`)."""
-    from quadctl.physics import motors
 
     pos = np.linalg.norm(sim.x[:, :3] - sim.x_ref[:, :3], axis=1)
     vel = np.linalg.norm(_velocity_ned(sim.x, sim.u, loop.params) - _velocity_ned(sim.x_ref, sim.u, loop.params),
@@ -117,8 +119,6 @@ def run_summary(setup: Setup, loop: ClosedLoop, sim: SimResult, grid: tuple[floa
 def _velocity_ned(x, u, params) -> np.ndarray:
     """(n, 3) m/s: the earth-frame (NED) velocity of each state row, the model's position rates (which
     read neither the input nor the parameters)."""
-    from quadctl.native.mapped import mapped
-    from quadctl.physics.model import build_model
 
     return mapped(build_model().f)(x, u, params)[0][:, :3]
 

@@ -7,6 +7,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from quadctl.design.margins import least_margins
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 
 
@@ -81,7 +82,6 @@ the least phase margin, deg, over the design-model and coupled loops as ``quadct
 
 def margin_columns(found) -> dict:
     """:data:`MARGIN_COLUMNS` of a design's :class:`~quadctl.design.margins.LoopMargins`."""
-    from quadctl.design.margins import least_margins
 
     return dict(zip(MARGIN_COLUMNS, least_margins(found)))
 

@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl.errors import SweepError
+from quadctl.sim.engine import LANES
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import margin, regulated_states
 from quadctl.sweep.spec import Case, SweepSpec, with_sections, with_set
-from quadctl.threads import loaded_one_thread
+from quadctl.threads import loaded_one_thread, one_thread_for_good
 
 
 @dataclass
@@ -90,7 +91,6 @@ def default_chunk(n_cases: int, workers: int) -> int:
     with four tasks per worker, 1000 cases of mambo-200hz (2 000 steps each) on two workers took
     4 % longer (0.342-0.366 s against 0.332-0.345 s, best of 12, three times alternated).
     """
-    from quadctl.sim.engine import LANES
 
     size = max(LANES, min(256, math.ceil(n_cases / (2 * max(1, workers)))))
     return math.ceil(size / LANES) * LANES
@@ -215,7 +215,6 @@ def _worker_init(forked: bool = False) -> None:
     its parent: a killed sweep leaves no worker computing for nobody. It works on small matrices
     only: one BLAS thread for good (:func:`quadctl.threads.one_thread_for_good`; ``forked``: inside
     :func:`quadctl.threads.loaded_one_thread`, its pools run one thread already)."""
-    from quadctl.threads import one_thread_for_good
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     one_thread_for_good(forked_limited=forked)

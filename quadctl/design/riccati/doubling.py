@@ -16,6 +16,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from quadctl.native.compile import PORTABLE_FLAGS, CompileError, compile_cached
+
 COMPILED_MAX_N = 16
 """Largest ``n`` the compiled steps take (their work arrays are on the C stack); larger stacks take
 the numpy steps, whose per-matrix overhead no longer dominates."""
@@ -139,7 +141,6 @@ def doubling(A: np.ndarray, G: np.ndarray, H: np.ndarray, max_steps: int) -> np.
 @lru_cache(maxsize=1)
 def _compiled():
     """The compiled ``qc_doubling``, or None (no compiler: :class:`quadctl.native.compile.CompileError`)."""
-    from quadctl.native.compile import PORTABLE_FLAGS, CompileError, compile_cached
 
     try:
         library = compile_cached(lambda: SOURCE, PORTABLE_FLAGS,
