@@ -23,7 +23,7 @@ from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
 from quadctl.pipeline import Stages
-from quadctl.schedule.envelope import schedule_of
+from quadctl.schedule import envelope
 from quadctl.setup import Setup, Timing
 from quadctl.stages import verdict
 
@@ -96,7 +96,7 @@ def _flown(setup: Setup, loop):
     if setup.schedule is None:
         return loop, None
 
-    schedule = schedule_of(setup)
+    schedule = envelope.schedule_of(setup)
     if schedule.missing():  # a controller for the vehicle covers every value asked, or none is made
         raise ScheduleError(schedule.missing())
     if not schedule.passed:
