@@ -127,6 +127,14 @@ class Flight:
     flight: dict
 
 
+def _with_notes(payload: dict, margins) -> dict:
+    """margins.json with each loop's findings also in words (``notes``: :func:`quadctl.present.loops.loop_notes`),
+    for a reader of the file; the payload below the presenter holds the findings as values."""
+    from quadctl.present.loops import loop_notes
+
+    return {**payload, "loops": [{**d, "notes": list(loop_notes(m))} for d, m in zip(payload["loops"], margins)]}
+
+
 class Workspace(pipeline.Stages):
     """Stages of one config in one run directory: :class:`quadctl.pipeline.Stages` that reuses
     each stage's fresh artifact and writes the ones it computes.
@@ -418,11 +426,12 @@ class Workspace(pipeline.Stages):
         cascade's: each input broken at the plant); writes margins.json."""
         if self.setup.law == "pid":
             result = self.pid_margins
-            self._write_json(MARGINS, "margins", payloads.cascade_margins(self.setup, self.pid_lift, result))
-            return result
-        result = self.lqr_margins
-        vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, self.design)
-        self._write_json(MARGINS, "margins", payloads.margins(self.setup, self.design, result, vehicle))
+            payload = payloads.cascade_margins(self.setup, self.pid_lift, result)
+        else:
+            result = self.lqr_margins
+            vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, self.design)
+            payload = payloads.margins(self.setup, self.design, result, vehicle)
+        self._write_json(MARGINS, "margins", _with_notes(payload, result))
         return result
 
     @cached_property
