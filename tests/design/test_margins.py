@@ -264,8 +264,8 @@ def test_every_kind_of_finding_has_its_words():
 
     F = margins
     cases = [
-        (F.UnstableLoop(True, 2), "the closed loop is UNSTABLE: no margin; the gains are too high for this loop at this "
-                                  "rate with 2 samples of delay"),
+        (F.UnstableLoop(True, 2), "the closed loop is UNSTABLE: no margin; the gains are too high for this loop at "
+                                  "this rate with 2 samples of delay"),
         (F.HoldPhase(12.5, 0.005, 1.79), "sampled loop: the hold's half-sample delay is 1.79 deg of phase at the 12.5 "
                                          "rad/s crossover"),
         (F.GuaranteeMet(), "meets the continuous LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg)"),
