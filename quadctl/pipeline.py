@@ -574,31 +574,6 @@ def wind_summary(setup: Setup, sim: SimResult) -> dict | None:
     }
 
 
-def wind_line(wind: dict) -> str:
-    """A run's wind (:func:`wind_summary`) in one line: steady, gusts, turbulence, peak, and whether
-    the trim is in it (``simulate`` and the report print it)."""
-    def num(v):
-        return f"{v:.4g}"
-
-    parts = [f"steady [{', '.join(num(w) for w in wind['steady'])}] m/s NED"]
-    if wind["gusts"]:
-        parts.append(f"{len(wind['gusts'])} gust" + ("s" if len(wind["gusts"]) > 1 else ""))
-    turb = wind["turbulence"]
-    if turb:
-        sigma = ", ".join(num(s) for s in turb["sigma"])
-        parts.append(f"Dryden turbulence sigma [{sigma}] m/s at {num(turb['reference_speed'])} m/s "
-                     f"(seed {turb['seed']})")
-    trimmed = "trimmed in the steady wind" if wind["trim_in_wind"] else "trimmed in still air"
-    return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"
-
-
-def schedule_line(schedule: dict) -> str:
-    """A run's gain schedule (:func:`schedule_summary`) in one line (``simulate`` prints it)."""
-    values = ", ".join(f"{v:g}" for v in schedule["values"])
-    return (f"gains scheduled on {schedule['variable']} at {values} {schedule['units']} ({schedule['interpolation']}, "
-            "held outside), read from the reference")
-
-
 class MissionVerdict(str, Enum):
     """How a mission ended (``sim.json``'s ``reference.verdict``): every waypoint reached and the final
     tracking error within the tolerance, or the first cause of a failure the run shows, in this order

@@ -94,3 +94,10 @@ def failures_table(sched) -> Table | None:
     return Table("schedule-failures-table", "Frozen-point checks that fail",
                  (f"{sched.variable} ({sched.unit})", "verdict", "worst eigenvalue (rad/s)", "why"), rows,
                  align="lllw")
+
+
+def schedule_line(schedule: dict) -> str:
+    """A run's gain schedule (:func:`quadctl.pipeline.schedule_summary`) in one line (``simulate`` prints it)."""
+    values = ", ".join(f"{v:g}" for v in schedule["values"])
+    return (f"gains scheduled on {schedule['variable']} at {values} {schedule['units']} ({schedule['interpolation']}, "
+            "held outside), read from the reference")

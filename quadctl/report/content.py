@@ -250,7 +250,6 @@ def mission(ws) -> Section | None:
 
 def flight(ws) -> Section:
     from quadctl.layout import INPUT_NAMES, unit_of
-    from quadctl.pipeline import wind_line
 
     fl = ws.simulation.flight
     blocks = []
@@ -268,7 +267,7 @@ def flight(ws) -> Section:
     if estimation is not None:
         blocks.append(estimation)
     if fl.get("wind"):
-        blocks += [_text(wind_line(fl["wind"])), shown_flight.speeds_table(fl)]
+        blocks += [_text(shown_flight.wind_line(fl["wind"])), shown_flight.speeds_table(fl)]
     integral = shown_flight.integral_text(fl)
     if integral:
         blocks.append(_text(integral))
