@@ -362,6 +362,9 @@ class VehicleLoop:
     stable : bool
     least_damping, design_least_damping : float
         :func:`quadctl.linear.stability.least_damping` of each.
+
+    Its sentences: :func:`quadctl.present.stages.vehicle_loop_summary` and, unstable,
+    :func:`quadctl.present.stages.vehicle_loop_verdict`.
     """
 
     eigenvalues: np.ndarray
@@ -375,34 +378,6 @@ class VehicleLoop:
     delay_samples: int = 0
     gyro_filter: str = ""
     """What the gyro filter in the loop is (:meth:`quadctl.linear.filters.RateFilter.describe`); empty: none."""
-
-    def _what(self) -> str:
-        parts = []
-        if self.gyro_filter:
-            parts.append(f"the gyro's {self.gyro_filter}")
-        if self.rotor_time_constant is not None:
-            how = "included in" if self.rotor_lag == "include" else "ignored by"
-            parts.append(f"the rotors' {self.rotor_time_constant * 1e3:g} ms lag ({how} the design)")
-        if self.delay_samples:
-            parts.append(f"{self.delay_samples} sample{'s' if self.delay_samples > 1 else ''} of delay")
-        return " and ".join(parts)
-
-    def summary(self) -> str:
-        """One line: what the loop has, stable or not, and its least damping against the design's."""
-        state = "stays stable" if self.stable else "is UNSTABLE"
-        return (f"with {self._what()} the design's closed loop {state}: least damping "
-                f"{self.least_damping:.3g} ({self.design_least_damping:.3g} as designed)")
-
-    def verdict(self) -> str | None:
-        """The failed-check verdict when the loop is unstable (None when stable): ``check`` and ``run``."""
-        if self.stable:
-            return None
-        fix = ("include the lag in the design (controller.rotor_lag: include), or lower the gains (larger R)"
-               if self.rotor_time_constant is not None and self.rotor_lag == "ignore"
-               else "raise the gyro filter's cutoff (controller.filters) or lower the gains (larger R)"
-               if self.gyro_filter and not self.delay_samples
-               else "lower the gains (larger R) or shorten the delay")
-        return f"with {self._what()} the design's closed loop is UNSTABLE; {fix}"
 
 
 def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLoop:

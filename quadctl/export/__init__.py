@@ -80,7 +80,9 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
                           "alone: the dropped couplings matter); `quadctl design` shows its eigenvalues")
     unstable = [w for w in stages.rate_warnings if not w.sampled_stable]
     if unstable:
-        raise CheckFailed(f"not exported: {unstable[0].message(setup.timing.rate)}")
+        from quadctl.present.stages import rate_warning
+
+        raise CheckFailed(f"not exported: {rate_warning(unstable[0], setup.timing.rate)}")
     loop, schedule = _flown(setup, stages.loop)
     return Export(setup=setup, linear=stages.linear, decoupled=stages.decoupled, design=stages.design,
                   loop=loop, rate_warnings=stages.rate_warnings, config_hash=config_hash, schedule=schedule)
@@ -93,13 +95,14 @@ def _flown(setup: Setup, loop):
     and that schedule."""
     if setup.schedule is None:
         return loop, None
+    from quadctl.present import schedule as shown
     from quadctl.schedule.envelope import schedule_of
 
     schedule = schedule_of(setup)
-    if schedule.missing():  # a controller for the vehicle covers every value asked, or none is made
-        raise ScheduleError(schedule.missing())
+    if schedule.undesigned:  # a controller for the vehicle covers every value asked, or none is made
+        raise ScheduleError(shown.missing(schedule))
     if not schedule.passed:
-        raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule.verdict()} "
+        raise CheckFailed(f"not exported: the gain schedule fails its checks: {shown.verdict(schedule)} "
                           "(`quadctl schedule` shows them)")
     return schedule.flown_by(loop), schedule
 
