@@ -146,3 +146,18 @@ def schedule_line(schedule: dict) -> str:
     values = ", ".join(f"{v:g}" for v in schedule["values"])
     return (f"gains scheduled on {schedule['variable']} at {values} {schedule['units']} ({schedule['interpolation']}, "
             "held outside), read from the reference")
+
+
+def transition_lines(summary: dict) -> list[str]:
+    """A flown transition's runs (:attr:`quadctl.schedule.transition.Transition.summary`), one line per run."""
+    from quadctl.design.gain_table import VARIABLES
+    from quadctl.sim.run import STATUS_WORDS
+
+    lines = []
+    for label, run in ((k, v) for k, v in summary.items() if isinstance(v, dict)):
+        lines.append(f"{label}: {STATUS_WORDS[run['status']]} ({run['duration']:.3g} s), peak velocity error "
+                     f"{run['velocity_error']:.3g} m/s, at a limit {100 * run['saturation']:.3g} % of the run, "
+                     f"peak attitude {run['peak_attitude']:.3g} deg, {summary['variable']} flown "
+                     f"{run['flown_range'][0]:.3g} to {run['flown_range'][1]:.3g} {VARIABLES[summary['variable']]}"
+                     + ("" if run["on_grid"] else " (off the grid)"))
+    return lines
