@@ -6,6 +6,9 @@ of continuous state feedback. A continuous design's loops are checked against it
 discrete design's loops are sampled: sampling does not keep the guarantee, so they are not held to
 it; that is said once (:func:`guarantee_sentence`), and the margins the sampled loops do have are
 shown instead of a verdict against it.
+
+Each loop's findings (:class:`quadctl.design.margins.Finding`: values) are worded here, one function
+per ``kind`` (:func:`note`).
 """
 
 from __future__ import annotations

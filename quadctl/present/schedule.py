@@ -1,4 +1,5 @@
-"""A gain schedule as rows and sentences: its points, the envelope and the frozen-point checks."""
+"""A gain schedule as rows and sentences: its points, the envelope, the frozen-point checks and its
+verdict; a run's schedule and a flown transition in lines."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""The first stages as rows: the trim, the decoupling, controllability and observability."""
+"""The first stages as rows and sentences: the trim, the decoupling, controllability and observability,
+and the check stage's verdicts (rate warnings, the loop the vehicle flies, why the check fails)."""
 
 from __future__ import annotations
 
