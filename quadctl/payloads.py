@@ -65,8 +65,8 @@ def checks(setup, checks: dict, regulated, warnings, vehicle) -> dict:
             "rate": timing.rate, "design": "discrete" if timing.design_rate is not None else "continuous",
             "realizable_frequency": realizable_frequency(timing.rate),
             "warnings": [{"loop": w.loop, "pole": w.pole, "factor": w.factor,
-                          "sampled_spectral_radius": w.sampled_radius, "sampled_stable": w.sampled_stable,
-                          "message": w.message(timing.rate)} for w in warnings]},
+                          "sampled_spectral_radius": w.sampled_radius, "sampled_stable": w.sampled_stable}
+                         for w in warnings]},
         "closed_loop": None if vehicle is None else {
             **_vehicle_loop_payload(vehicle), "rotor_time_constant": setup.rotor_time_constant,
             "rotor_lag": setup.rotor_lag, "delay_samples": timing.delay_samples}}
@@ -254,7 +254,7 @@ def gain_schedule(sched) -> dict:
                           "worst_eigenvalue": None if why is not None else _c(np.array([w]))[0]}
                          for v, ok, w, why in zip(checks.values, checks.stable, checks.worst, checks.reasons)
                          if not ok]},
-        "passed": sched.passed, "verdict": sched.verdict()}
+        "passed": sched.passed}
 
 
 def _schedule_point(p) -> dict:

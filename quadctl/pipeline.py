@@ -362,6 +362,9 @@ class VehicleLoop:
     stable : bool
     least_damping, design_least_damping : float
         :func:`quadctl.linear.stability.least_damping` of each.
+
+    Its sentences: :func:`quadctl.present.stages.vehicle_loop_summary` and, unstable,
+    :func:`quadctl.present.stages.vehicle_loop_verdict`.
     """
 
     eigenvalues: np.ndarray
@@ -375,34 +378,6 @@ class VehicleLoop:
     delay_samples: int = 0
     gyro_filter: str = ""
     """What the gyro filter in the loop is (:meth:`quadctl.linear.filters.RateFilter.describe`); empty: none."""
-
-    def _what(self) -> str:
-        parts = []
-        if self.gyro_filter:
-            parts.append(f"the gyro's {self.gyro_filter}")
-        if self.rotor_time_constant is not None:
-            how = "included in" if self.rotor_lag == "include" else "ignored by"
-            parts.append(f"the rotors' {self.rotor_time_constant * 1e3:g} ms lag ({how} the design)")
-        if self.delay_samples:
-            parts.append(f"{self.delay_samples} sample{'s' if self.delay_samples > 1 else ''} of delay")
-        return " and ".join(parts)
-
-    def summary(self) -> str:
-        """One line: what the loop has, stable or not, and its least damping against the design's."""
-        state = "stays stable" if self.stable else "is UNSTABLE"
-        return (f"with {self._what()} the design's closed loop {state}: least damping "
-                f"{self.least_damping:.3g} ({self.design_least_damping:.3g} as designed)")
-
-    def verdict(self) -> str | None:
-        """The failed-check verdict when the loop is unstable (None when stable): ``check`` and ``run``."""
-        if self.stable:
-            return None
-        fix = ("include the lag in the design (controller.rotor_lag: include), or lower the gains (larger R)"
-               if self.rotor_time_constant is not None and self.rotor_lag == "ignore"
-               else "raise the gyro filter's cutoff (controller.filters) or lower the gains (larger R)"
-               if self.gyro_filter and not self.delay_samples
-               else "lower the gains (larger R) or shorten the delay")
-        return f"with {self._what()} the design's closed loop is UNSTABLE; {fix}"
 
 
 def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLoop:
@@ -572,31 +547,6 @@ def wind_summary(setup: Setup, sim: SimResult) -> dict | None:
         "airspeed": {"max": float(air.max()), "rms": float(np.sqrt(np.mean(air ** 2)))},
         "units": "m/s",
     }
-
-
-def wind_line(wind: dict) -> str:
-    """A run's wind (:func:`wind_summary`) in one line: steady, gusts, turbulence, peak, and whether
-    the trim is in it (``simulate`` and the report print it)."""
-    def num(v):
-        return f"{v:.4g}"
-
-    parts = [f"steady [{', '.join(num(w) for w in wind['steady'])}] m/s NED"]
-    if wind["gusts"]:
-        parts.append(f"{len(wind['gusts'])} gust" + ("s" if len(wind["gusts"]) > 1 else ""))
-    turb = wind["turbulence"]
-    if turb:
-        sigma = ", ".join(num(s) for s in turb["sigma"])
-        parts.append(f"Dryden turbulence sigma [{sigma}] m/s at {num(turb['reference_speed'])} m/s "
-                     f"(seed {turb['seed']})")
-    trimmed = "trimmed in the steady wind" if wind["trim_in_wind"] else "trimmed in still air"
-    return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"
-
-
-def schedule_line(schedule: dict) -> str:
-    """A run's gain schedule (:func:`schedule_summary`) in one line (``simulate`` prints it)."""
-    values = ", ".join(f"{v:g}" for v in schedule["values"])
-    return (f"gains scheduled on {schedule['variable']} at {values} {schedule['units']} ({schedule['interpolation']}, "
-            "held outside), read from the reference")
 
 
 class MissionVerdict(str, Enum):

@@ -24,7 +24,7 @@ from quadctl.errors import QuadctlError, SaturationFailed
 from quadctl.physics.motors import require_within_limits
 from quadctl.present.loops import thin_sentence
 from quadctl.present.mission import mission_text
-from quadctl.present.stages import UNSTABLE_DESIGN
+from quadctl.present.stages import UNSTABLE_DESIGN, check_verdict
 
 
 def _passes(ws, allow_saturation: bool) -> None:
@@ -81,7 +81,7 @@ STAGES: tuple[Stage, ...] = (
     Stage("trim", lambda ws: ws.trim),
     Stage("linearize", lambda ws: ws.linear),
     Stage("decouple", lambda ws: ws.decoupled),
-    Stage("check", lambda ws: ws.checks, lambda ws, allow: ws.checks.verdict()),
+    Stage("check", lambda ws: ws.checks, lambda ws, allow: check_verdict(ws.checks)),
     Stage("design", lambda ws: ws.design, _design),
     Stage("margins", lambda ws: ws.margins, _thin, after_flight=True),
     Stage("simulate", lambda ws: ws.simulation, _flight),

@@ -30,7 +30,7 @@ from quadctl import __version__, artifacts, payloads, pipeline
 from quadctl.artifacts import default_out
 from quadctl.config import Config
 from quadctl.design import Design
-from quadctl.design.discrete import RateWarning, unstable_when_sampled
+from quadctl.design.discrete import RateWarning
 from quadctl.errors import ArtifactError, DesignError, QuadctlNotice
 from quadctl.layout import N_INPUTS, STATE_NAMES
 from quadctl.linear.analysis import Checks, check
@@ -41,7 +41,6 @@ from quadctl.metrics import summarize
 from quadctl.payloads import ESTIMATOR_CHECK
 from quadctl.setup import setup_of
 from quadctl.sim.run import ClosedLoop, SimResult
-from quadctl.text.messages import eig_text
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
@@ -91,30 +90,19 @@ class CheckReport:
     def __getitem__(self, name: str) -> Checks:
         return self.checks[name]
 
-    def failures(self) -> list[str]:
-        """Each reason the check stage fails, one line each (empty when it passes): a regulated
-        subsystem not stabilizable, a measured set that leaves a mode that is not stable unobservable,
-        a continuous design unstable sampled at the controller rate, a loop the rotors' lag and the
-        delay make unstable."""
-        out = []
-        for name in sorted(n for n in self.regulated if not self.checks[n].stabilizable):
-            mode = self.checks[name].unstabilizable_modes[0]
-            out.append(f"subsystem {name} is not stabilizable: mode {eig_text(mode.eigenvalue)} in "
-                       f"{', '.join(mode.states)}")
-        if self.undetectable:
-            out.append(self.undetectable)
-        sampled = unstable_when_sampled(self.rate_warnings, self.rate or 0.0)
-        if sampled:
-            out.append(sampled)
-        flown = self.vehicle_loop.verdict() if self.vehicle_loop is not None else None
-        if flown:
-            out.append(flown)
-        return out
+    @property
+    def unstabilizable(self) -> tuple[str, ...]:
+        """The regulated subsystems that are not stabilizable, sorted."""
+        return tuple(sorted(n for n in self.regulated if not self.checks[n].stabilizable))
 
-    def verdict(self) -> str | None:
-        """Why the check stage fails, on one line (None when it passes): ``run`` and ``report`` stop
-        on it; ``check`` prints each of :meth:`failures`."""
-        return "; ".join(self.failures()) or None
+    @property
+    def passed(self) -> bool:
+        """No regulated subsystem unstabilizable, the state detectable from the measured set, no loop
+        unstable sampled at the controller rate, the vehicle's loop stable. Why not, in words:
+        :func:`quadctl.present.stages.check_failures`."""
+        return (not self.unstabilizable and self.undetectable is None
+                and all(w.sampled_stable for w in self.rate_warnings)
+                and (self.vehicle_loop is None or self.vehicle_loop.stable))
 
 
 @dataclass(frozen=True)
@@ -125,6 +113,32 @@ class Flight:
     loop: ClosedLoop
     metrics: dict
     flight: dict
+
+
+def _with_messages(payload: dict, warnings, rate) -> dict:
+    """checks.json with each rate warning also in words (``message``: :func:`quadctl.present.stages.rate_warning`)."""
+    if payload["rate"] is None:
+        return payload
+    from quadctl.present.stages import rate_warning
+
+    said = [{**d, "message": rate_warning(w, rate)} for d, w in zip(payload["rate"]["warnings"], warnings)]
+    return {**payload, "rate": {**payload["rate"], "warnings": said}}
+
+
+def _with_verdict(payload: dict, sched) -> dict:
+    """schedule.json with the schedule's verdict in words (``verdict``: :func:`quadctl.present.schedule.verdict`;
+    None when it passes)."""
+    from quadctl.present.schedule import verdict
+
+    return {**payload, "verdict": verdict(sched)}
+
+
+def _with_notes(payload: dict, margins) -> dict:
+    """margins.json with each loop's findings also in words (``notes``: :func:`quadctl.present.loops.loop_notes`),
+    for a reader of the file; the payload below the presenter holds the findings as values."""
+    from quadctl.present.loops import loop_notes
+
+    return {**payload, "loops": [{**d, "notes": list(loop_notes(m))} for d, m in zip(payload["loops"], margins)]}
 
 
 class Workspace(pipeline.Stages):
@@ -378,7 +392,8 @@ class Workspace(pipeline.Stages):
             if self.setup.rotor_time_constant is not None or timing.delay_samples or self.setup.rate_filter is not None:
                 des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
                 vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
-        self._write_json(CHECKS, "checks", payloads.checks(self.setup, checks, regulated, warnings, vehicle))
+        self._write_json(CHECKS, "checks", _with_messages(payloads.checks(self.setup, checks, regulated, warnings,
+                                                                          vehicle), warnings, timing.rate))
         undetectable = None
         if est is not None and not checks[ESTIMATOR_CHECK].detectable:
             from quadctl.design.kalman import require_detectable, selector
@@ -418,11 +433,12 @@ class Workspace(pipeline.Stages):
         cascade's: each input broken at the plant); writes margins.json."""
         if self.setup.law == "pid":
             result = self.pid_margins
-            self._write_json(MARGINS, "margins", payloads.cascade_margins(self.setup, self.pid_lift, result))
-            return result
-        result = self.lqr_margins
-        vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, self.design)
-        self._write_json(MARGINS, "margins", payloads.margins(self.setup, self.design, result, vehicle))
+            payload = payloads.cascade_margins(self.setup, self.pid_lift, result)
+        else:
+            result = self.lqr_margins
+            vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, self.design)
+            payload = payloads.margins(self.setup, self.design, result, vehicle)
+        self._write_json(MARGINS, "margins", _with_notes(payload, result))
         return result
 
     @cached_property
@@ -461,5 +477,5 @@ class Workspace(pipeline.Stages):
 
         sched = schedule_of(self.setup)
         self._write_npz(SCHEDULE_NPZ, payloads.gain_schedule_arrays(sched), self._meta("schedule"))
-        self._write_json(SCHEDULE_JSON, "schedule", payloads.gain_schedule(sched))
+        self._write_json(SCHEDULE_JSON, "schedule", _with_verdict(payloads.gain_schedule(sched), sched))
         return sched

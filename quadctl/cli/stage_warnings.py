@@ -58,6 +58,7 @@ def _fails_on_saturation(ws, flown, allow_saturation: bool) -> bool:
 def warn_of_the_rate(rate: float, warnings) -> None:
     """A continuous design's loops that ``rate`` (Hz) cannot realize, a warning each (``check`` and ``run``)."""
     from quadctl.cli import render
+    from quadctl.present.stages import rate_warning
 
     for w in warnings:
-        render.warning(w.message(rate))
+        render.warning(rate_warning(w, rate))

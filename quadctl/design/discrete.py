@@ -18,7 +18,6 @@ from quadctl._lazy import lazy_import
 from quadctl.design.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
 from quadctl.errors import DesignError
 from quadctl.linear import stability
-from quadctl.text.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -354,6 +353,8 @@ class RateWarning:
     sampled_radius : float
         Spectral radius of the loop as the flight computer runs it (the continuous gain on the
         ZOH plant, ``Ad - Bd K``); ``>= 1`` means the sampled loop is unstable.
+
+    Its sentence: :func:`quadctl.present.stages.rate_warning`.
     """
 
     loop: str
@@ -365,24 +366,6 @@ class RateWarning:
     @property
     def sampled_stable(self) -> bool:
         return stability.is_stable(self.sampled_radius, discrete=True)
-
-    def message(self, rate: float) -> str:
-        verdict = ("stays stable but its response differs from the design"
-                   if self.sampled_stable else "is UNSTABLE")
-        return (f"{self.loop}: closed-loop pole {eig_text(self.pole)} rad/s is {self.factor:.3g}x faster than "
-                f"{rate:g} Hz realizes (|s| <= 2 pi rate / {SAMPLES_PER_POLE:g} = {self.limit:.4g} rad/s); "
-                f"sampled at {rate:g} Hz this loop {verdict} (spectral radius {self.sampled_radius:.3g}); "
-                "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
-
-
-def unstable_when_sampled(warnings, rate: float) -> str | None:
-    """The failed-check verdict for the loops of ``warnings`` that are unstable sampled at ``rate`` Hz
-    (None when every one is stable): ``check``, ``run`` and ``report`` give this same verdict."""
-    unstable = [w.loop for w in warnings if not w.sampled_stable]
-    if not unstable:
-        return None
-    return (f"sampled at {rate:g} Hz the continuous design's loop(s) {', '.join(unstable)} are UNSTABLE; "
-            "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
 
 
 def spectral_radius(A_cl) -> float:

@@ -10,7 +10,8 @@ docs, docs/internals.md ("Stability margins").
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
+from typing import ClassVar
 
 import numpy as np
 
@@ -82,8 +83,10 @@ class LoopMargins:
         The frequency grid (rad/s).
     response : (n,) complex ndarray
         ``L`` on it (for Bode and Nyquist plots).
-    notes : list of str
-        Comparison with the LQR guarantee and the reasons for any shortfall.
+    findings : tuple of Finding
+        Comparison with the LQR guarantee, the causes of any shortfall, the gyro filter's lag and the
+        saturation the disk margin covers, as values (:class:`Finding`; their sentences:
+        :func:`quadctl.present.loops.note`).
     delay_margin : float or None
         s of extra delay before instability (None: ``|L|`` never crosses 1, or unstable).
     delay_samples : int
@@ -114,7 +117,7 @@ class LoopMargins:
     min_return_difference: float
     freq: np.ndarray = field(repr=False)
     response: np.ndarray = field(repr=False)
-    notes: tuple[str, ...] = ()
+    findings: tuple[Finding, ...] = ()
     delay_margin: float | None = None
     delay_samples: int = 0
 
@@ -163,7 +166,8 @@ class LoopMargins:
             "min_return_difference": self.min_return_difference,
             "delay_samples": self.delay_samples,
             "delay_margin": {"s": self.delay_margin, "samples": self.delay_margin_samples},
-            "meets_lqr_guarantee": self.meets_lqr_guarantee, "thin": list(self.thin), "notes": list(self.notes),
+            "meets_lqr_guarantee": self.meets_lqr_guarantee, "thin": list(self.thin),
+            "findings": [f.as_dict() for f in self.findings],
         }
 
 
@@ -245,7 +249,7 @@ def loop_margins(loop: BrokenLoop, *, name: str = "loop", input_name: str = "u",
     Returns
     -------
     LoopMargins
-        ``notes`` empty (see :func:`explain`).
+        ``findings`` empty (see :func:`findings`).
 
     Examples
     --------
@@ -303,7 +307,7 @@ def no_margin(**labels) -> LoopMargins:
     the same reading to the classical margins: a loop that is already unstable tolerates no
     gain or phase change, so they are 0 dB and 0 deg, with no crossover frequency. (MATLAB's
     ``allmargin`` instead keeps listing the crossings beside ``Stable = 0``, and ``margin``
-    warns "The closed-loop system is unstable."; ``stable`` and the notes say so here too, but
+    warns "The closed-loop system is unstable."; ``stable`` and the findings say so here too, but
     a crossing of an unstable loop is where stability would *return*, not a margin, and a
     table that prints it as one reads as robustness.) The delay margin is 0 s as well.
     """
@@ -426,7 +430,7 @@ def _db(g: float) -> float:
 
 
 # ---------------------------------------------------------------------------------------
-# Loops of a design, and the explanations
+# Loops of a design
 
 
 def design_loops(design, decoupled, A, B, sample_time: float | None = None, delay_samples: int = 0,
@@ -511,7 +515,7 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
         Hz at which a *continuous* design is run (``controller.design: continuous`` with a rate):
         its loops are then evaluated sampled, with the continuous gains.
     actuators : quadctl.physics.motors.Actuators, optional
-        For the saturation notes.
+        For the saturation finding (:class:`SaturationCover`).
     u_trim : (4,) array_like, optional
         For the actuators' headroom.
     initial_demand : dict, optional
@@ -528,7 +532,8 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     Returns
     -------
     list of LoopMargins
-        Design-model loops first, then coupled ones, then LQG ones, each with :func:`explain` notes.
+        Design-model loops first, then coupled ones, then LQG ones, each with its ``findings``
+        (:func:`findings`, :func:`lqg_findings`; :mod:`quadctl.present.loops` words them).
 
     Examples
     --------
@@ -548,99 +553,230 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     for name, inp, model, loop in design_loops(design, decoupled, A, B, sample_time, delay_samples,
                                                rotor_time_constant, rate_filter):
         m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)
-        out.append(replace(m, notes=tuple(explain(m, design, emulated_rate, actuators, u_trim,
-                                                  initial_demand, rate_filter))))
+        out.append(replace(m, findings=findings(m, design, emulated_rate, actuators, u_trim, initial_demand,
+                                                rate_filter)))
     if estimator is not None:
         full_state = {m.input: m for m in out if m.model == "coupled"}
         for name, inp, model, loop in lqg_loops(design, A, B, estimator):
             m = loop_margins(loop, name=name, input_name=inp, model=model)
-            out.append(replace(m, notes=tuple(lqg_notes(m, full_state.get(inp), estimator, delay_samples,
-                                                        rotor_time_constant))))
+            out.append(replace(m, findings=lqg_findings(m, full_state.get(inp), estimator, delay_samples,
+                                                        rotor_time_constant)))
     return out
 
 
-def lqg_notes(m: LoopMargins, full: LoopMargins | None, kal, delay_samples: int = 0,
-              rotor_time_constant: float | None = None) -> list[str]:
+# ---------------------------------------------------------------------------------------
+# Findings: what a loop's margins say, as values (their sentences: quadctl.present.loops)
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One fact about a loop's margins: its ``kind`` and its numbers (units in the field names).
+    :func:`quadctl.present.loops.note` words each kind; :meth:`as_dict` is what margins.json holds."""
+
+    kind: ClassVar[str] = ""
+
+    def as_dict(self) -> dict:
+        """``{"kind": ..., field: value}``, tuples as lists (JSON)."""
+        return {"kind": self.kind, **{k: list(v) if isinstance(v, tuple) else v
+                                      for k, v in ((f.name, getattr(self, f.name)) for f in fields(self))}}
+
+
+@dataclass(frozen=True)
+class UnstableLoop(Finding):
+    """The closed loop (``g = 1``) is unstable: no margin; sampled or not, with its delay."""
+
+    kind: ClassVar[str] = "unstable"
+    sampled: bool
+    delay_samples: int
+
+
+@dataclass(frozen=True)
+class HoldPhase(Finding):
+    """A discrete design's loop: the phase the hold's half-sample delay takes at the gain crossover,
+    ``hold_phase_deg = degrees(crossover_rad_s * sample_time_s / 2)``."""
+
+    kind: ClassVar[str] = "hold_phase"
+    crossover_rad_s: float
+    sample_time_s: float
+    hold_phase_deg: float
+
+
+@dataclass(frozen=True)
+class GuaranteeMet(Finding):
+    """A continuous design's loop meets the continuous LQR guarantee."""
+
+    kind: ClassVar[str] = "guarantee_met"
+
+
+@dataclass(frozen=True)
+class GuaranteeShort(Finding):
+    """A continuous design's loop short of the guarantee: each margin that misses it (None: that one meets it)."""
+
+    kind: ClassVar[str] = "guarantee_short"
+    upper_gain_margin_db: float | None
+    lower_gain_margin_db: float | None
+    phase_margin_deg: float | None
+
+
+@dataclass(frozen=True)
+class EmulatedHold(Finding):
+    """Cause of a shortfall: continuous gains run sampled at ``rate_hz``; the hold's half-sample phase at the
+    crossover (None: ``|L|`` never crosses 1)."""
+
+    kind: ClassVar[str] = "cause_emulated_hold"
+    rate_hz: float
+    crossover_rad_s: float | None
+    hold_phase_deg: float | None
+
+
+@dataclass(frozen=True)
+class CouplingCause(Finding):
+    """Cause of a coupled loop's shortfall: the couplings the decoupled design ignores."""
+
+    kind: ClassVar[str] = "cause_coupling"
+
+
+@dataclass(frozen=True)
+class GyroFilterLag(Finding):
+    """The gyro filter's phase lag at the crossover of a loop that feeds back a body rate."""
+
+    kind: ClassVar[str] = "gyro_filter_lag"
+    gyro_filter: str
+    crossover_rad_s: float
+    phase_lag_deg: float
+
+
+@dataclass(frozen=True)
+class SaturationCover(Finding):
+    """The input's headroom from trim (the other inputs at trim), the disk's least gain ``g_min`` (the circle
+    criterion keeps the loop stable while the effective gain stays above it), the command it covers
+    (``headroom / g_min``) and what the configured initial offset asks for (None: not given); all in ``unit``."""
+
+    kind: ClassVar[str] = "saturation"
+    input: str
+    unit: str
+    headroom: float
+    disk_gain_min: float
+    covered_command: float
+    initial_demand: float | None
+
+    @property
+    def within(self) -> bool | None:
+        """The initial demand is within the covered command (None: no demand given)."""
+        return None if self.initial_demand is None else self.initial_demand <= self.covered_command
+
+    def as_dict(self) -> dict:
+        return {**super().as_dict(), "initial_demand_within": self.within}
+
+
+@dataclass(frozen=True)
+class LqgUnstable(Finding):
+    """The loop through the Kalman filter on ``measured`` is unstable: no margin."""
+
+    kind: ClassVar[str] = "lqg_unstable"
+    measured: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class LqgEstimator(Finding):
+    """An estimator in the loop: the LQR guarantee does not hold (Doyle 1978); the filter's form, what it
+    measures, the gyro filter in its model (None: none), and whether the loop meets the guarantee anyway."""
+
+    kind: ClassVar[str] = "lqg_estimator"
+    measured: tuple[str, ...]
+    filter_form: str
+    gyro_filter: str | None
+    meets_guarantee: bool
+
+
+@dataclass(frozen=True)
+class LqgAgainstFullState(Finding):
+    """The LQG loop's margins beside the full-state coupled loop's on the same input."""
+
+    kind: ClassVar[str] = "lqg_vs_full_state"
+    phase_margin_deg: float
+    full_state_phase_margin_deg: float
+    gain_margin_db: tuple[float, float]
+    full_state_gain_margin_db: tuple[float, float]
+    disk_alpha: float
+    full_state_disk_alpha: float
+
+
+@dataclass(frozen=True)
+class LqgLeftOut(Finding):
+    """What the full-state loops include that the LQG loop leaves out: the rotors' lag, the delay."""
+
+    kind: ClassVar[str] = "lqg_left_out"
+    rotor_lag: bool
+    delay_samples: int
+
+
+def lqg_findings(m: LoopMargins, full: LoopMargins | None, kal, delay_samples: int = 0,
+                 rotor_time_constant: float | None = None) -> tuple[Finding, ...]:
     """What the estimator cost ``m`` against the full-state loop ``full`` (Doyle 1978)."""
-    measured = " ".join(kal.measured)
+    measured = tuple(kal.measured)
     if not m.stable:
-        return [f"LQG (Kalman filter on {measured}): the closed loop is UNSTABLE: no margin"]
-    notes = ["LQG: the LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg) does not hold with an "
-             f"estimator in the loop (Doyle 1978); Kalman filter ({kal.form}) on {measured}"
-             + (f", the rates through the gyro filter ({kal.rate_filter.describe()}) in its model"
-                if kal.rate_filter is not None else "")
-             + ("; meets it anyway" if m.meets_lqr_guarantee else "")]
+        return (LqgUnstable(measured),)
+    out: list[Finding] = [LqgEstimator(
+        measured, kal.form, kal.rate_filter.describe() if kal.rate_filter is not None else None,
+        m.meets_lqr_guarantee)]
     if full is not None and full.stable:
-        lo, hi = m.gain_margin_db
-        flo, fhi = full.gain_margin_db
-        notes.append(f"against full-state feedback: phase margin {m.phase_margin_deg:.3g} deg "
-                     f"(full state {full.phase_margin_deg:.3g}), gain margin {lo:.3g} / {hi:.3g} dB "
-                     f"(full state {flo:.3g} / {fhi:.3g}), disk alpha {m.disk_alpha:.3g} "
-                     f"(full state {full.disk_alpha:.3g})")
-    left = [what for what, on in (("the rotors' lag", rotor_time_constant is not None),
-                                  (f"{delay_samples} samples of delay", bool(delay_samples))) if on]
-    if left:
-        notes.append("not in this loop: " + " and ".join(left) + " (the full-state loops include them)")
-    return notes
+        out.append(LqgAgainstFullState(m.phase_margin_deg, full.phase_margin_deg, m.gain_margin_db,
+                                       full.gain_margin_db, m.disk_alpha, full.disk_alpha))
+    if rotor_time_constant is not None or delay_samples:
+        out.append(LqgLeftOut(rotor_time_constant is not None, delay_samples))
+    return tuple(out)
 
 
-def explain(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=None,
-            initial_demand=None, rate_filter=None) -> list[str]:
-    """Sentences comparing ``m`` with the LQR guarantee and naming the cause of any shortfall.
+def hold_phase_deg(crossover_rad_s: float, sample_time_s: float) -> float:
+    """deg: the phase a zero-order hold's half-sample delay takes at ``crossover_rad_s``."""
+    return math.degrees(crossover_rad_s * sample_time_s / 2)
+
+
+def findings(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=None,
+             initial_demand=None, rate_filter=None) -> tuple[Finding, ...]:
+    """``m`` against the LQR guarantee, the cause of any shortfall, the gyro filter's lag and the saturation.
 
     A discrete design's loop is not compared: the guarantee is a property of continuous state
-    feedback that sampling does not keep (:mod:`quadctl.present.loops` says so once); its note is
-    the phase the hold takes at the crossover.
+    feedback that sampling does not keep (:mod:`quadctl.present.loops` says so once); its finding is
+    the phase the hold takes at the crossover (:class:`HoldPhase`).
     """
-    notes = []
     lower, upper = m.gain_margin_db
     if not m.stable:
-        notes.append("the closed loop is UNSTABLE: no margin; the gains are too high for this loop"
-                     + (" at this rate" if m.sample_time else "")
-                     + (f" with {m.delay_samples} samples of delay" if m.delay_samples else ""))
-        return notes
+        return (UnstableLoop(bool(m.sample_time), m.delay_samples),)
+    out: list[Finding] = []
+    wc = m.gain_crossover_freq
     if m.sample_time and design.rate is not None:  # a discrete design: the guarantee is not the sampled loop's
-        wc = m.gain_crossover_freq
         if wc:
-            notes.append(f"sampled loop: the hold's half-sample delay is {math.degrees(wc * m.sample_time / 2):.3g} "
-                         f"deg of phase at the {wc:.4g} rad/s crossover")
+            out.append(HoldPhase(wc, m.sample_time, hold_phase_deg(wc, m.sample_time)))
     elif m.meets_lqr_guarantee:
-        notes.append("meets the continuous LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg)")
+        out.append(GuaranteeMet())
     else:
-        short = []
-        if math.isfinite(upper):
-            short.append(f"upper gain margin {upper:.3g} dB (guarantee: inf)")
-        if lower > LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL):
-            short.append(f"lower gain margin {lower:.3g} dB (guarantee: <= -6.02 dB)")
-        if m.phase_margin_deg < LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL):
-            short.append(f"phase margin {m.phase_margin_deg:.3g} deg (guarantee: >= 60 deg)")
-        notes.append("short of the continuous LQR guarantee: " + "; ".join(short))
+        out.append(GuaranteeShort(
+            upper if math.isfinite(upper) else None,
+            lower if lower > LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL) else None,
+            m.phase_margin_deg if m.phase_margin_deg < LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL) else None))
         if m.sample_time:
-            wc = m.gain_crossover_freq
-            lag = f"; the hold's half-sample delay alone costs {math.degrees(wc * m.sample_time / 2):.3g} deg " \
-                  f"at the {wc:.4g} rad/s crossover" if wc else ""
-            notes.append(f"cause: continuous gains run at {emulated_rate:g} Hz (sample and hold); the "
-                         f"guarantee assumes instantaneous continuous feedback{lag}")
+            out.append(EmulatedHold(emulated_rate, wc or None, hold_phase_deg(wc, m.sample_time) if wc else None))
         elif m.model == "coupled":
-            notes.append("cause: couplings the decoupled design ignores (the guarantee holds on the "
-                         "subsystem it was designed on)")
-    notes.extend(_filter_notes(m, design, rate_filter))
+            out.append(CouplingCause())
+    out.extend(_filter_lag(m, design, rate_filter))
     if actuators is not None and u_trim is not None:
-        notes.extend(_saturation_notes(m, actuators, u_trim, initial_demand))
-    return notes
+        out.extend(_saturation(m, actuators, u_trim, initial_demand))
+    return tuple(out)
 
 
-def _filter_notes(m: LoopMargins, design, rate_filter) -> list[str]:
+def _filter_lag(m: LoopMargins, design, rate_filter) -> list[Finding]:
     """The gyro filter's phase lag at the crossover of a loop whose subsystem feeds back a body rate."""
     wc = m.gain_crossover_freq
     subs = {sub.name: sub for sub in design.subsystems}
     if rate_filter is None or not wc or m.loop not in subs or not set(subs[m.loop].states) & {"p", "q", "r"}:
         return []
     lag = -math.degrees(float(np.angle(rate_filter.form(m.sample_time).response(wc)[0])))
-    return [f"gyro filter ({rate_filter.describe()}): {lag:.3g} deg of phase lag at the {wc:.4g} rad/s crossover"]
+    return [GyroFilterLag(rate_filter.describe(), wc, lag)]
 
 
-def _saturation_notes(m, actuators, u_trim, initial_demand) -> list[str]:
+def _saturation(m, actuators, u_trim, initial_demand) -> list[Finding]:
     from quadctl.physics.motors import headroom
 
     down, up = headroom(actuators, u_trim)[m.input]
@@ -649,13 +785,6 @@ def _saturation_notes(m, actuators, u_trim, initial_demand) -> list[str]:
     if not math.isfinite(room):
         return []
     covered = room / g_min if g_min > 0 else math.inf
-    unit = INPUT_UNITS[m.input]
-    text = (f"saturation: {m.input} has {room:.3g} {unit} of headroom from trim (other inputs at trim); the disk "
-            f"margin keeps the loop stable (circle criterion) while the effective gain stays above "
-            f"{g_min:.3g}, i.e. for commands up to {covered:.3g} {unit}")
     demand = (initial_demand or {}).get(m.input)
-    if demand is not None:
-        verdict = ("within it" if demand <= covered else
-                   "BEYOND it: the margins no longer guarantee stability during that saturation")
-        text += f"; the initial offset asks for {demand:.3g} {unit}, {verdict}"
-    return [text]
+    return [SaturationCover(m.input, INPUT_UNITS[m.input], room, g_min, covered,
+                            None if demand is None else float(demand))]

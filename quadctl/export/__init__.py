@@ -23,6 +23,7 @@ from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
 from quadctl.pipeline import Stages
+from quadctl.present import schedule as schedule_words
 from quadctl.schedule import envelope
 from quadctl.setup import Setup, Timing
 from quadctl.stages import verdict
@@ -82,7 +83,9 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
                           "alone: the dropped couplings matter); `quadctl design` shows its eigenvalues")
     unstable = [w for w in stages.rate_warnings if not w.sampled_stable]
     if unstable:
-        raise CheckFailed(f"not exported: {unstable[0].message(setup.timing.rate)}")
+        from quadctl.present.stages import rate_warning
+
+        raise CheckFailed(f"not exported: {rate_warning(unstable[0], setup.timing.rate)}")
     loop, schedule = _flown(setup, stages.loop)
     return Export(setup=setup, linear=stages.linear, decoupled=stages.decoupled, design=stages.design,
                   loop=loop, rate_warnings=stages.rate_warnings, config_hash=config_hash, schedule=schedule)
@@ -97,10 +100,10 @@ def _flown(setup: Setup, loop):
         return loop, None
 
     schedule = envelope.schedule_of(setup)
-    if schedule.missing():  # a controller for the vehicle covers every value asked, or none is made
-        raise ScheduleError(schedule.missing())
+    if schedule.undesigned:  # a controller for the vehicle covers every value asked, or none is made
+        raise ScheduleError(schedule_words.missing(schedule))
     if not schedule.passed:
-        raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule.verdict()} "
+        raise CheckFailed(f"not exported: the gain schedule fails its checks: {schedule_words.verdict(schedule)} "
                           "(`quadctl schedule` shows them)")
     return schedule.flown_by(loop), schedule
 

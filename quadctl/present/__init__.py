@@ -12,11 +12,11 @@ that carries a verdict is a :class:`~quadctl.present.cells.Mark` (a ``str`` with
 module             presents
 =================  ==========================================================================
 ``cells``          the table and the verdict cell; the number formats (eigenvalues, dB, gains)
-``stages``         trim, decoupling, controllability and observability
+``stages``         trim, decoupling, controllability and observability; the check stage's verdicts
 ``design``         gains (K, Ki, Kv), K_block, the coupled closed loop as a damp table
-``loops``          margins: classical, disk, delay; the LQR guarantee and the sampled loop
+``loops``          margins: classical, disk, delay; the LQR guarantee, the sampled loop, each finding
 ``flight``         a simulation's metrics, inputs, saturation, noise, estimation, wind, integrators
-``schedule``       a gain schedule's points, its envelope and its frozen-point checks
+``schedule``       a gain schedule's points, envelope, frozen-point checks, verdict; a transition
 ``mission``        a flown reference: waypoints reached, closest approaches, the tracking error
 =================  ==========================================================================
 """

@@ -145,3 +145,21 @@ def integral_text(flight: dict) -> str | None:
         return None
     parts = ", ".join(f"integral of {s} = {num(v)}" for s, v in ints["final"].items())
     return f"integral action (LQI, anti-wind-up by conditional integration): final {parts}"
+
+
+def wind_line(wind: dict) -> str:
+    """A run's wind (:func:`quadctl.pipeline.wind_summary`) in one line: steady, gusts, turbulence, peak, and whether
+    the trim is in it (``simulate`` and the report print it)."""
+    def num(v):
+        return f"{v:.4g}"
+
+    parts = [f"steady [{', '.join(num(w) for w in wind['steady'])}] m/s NED"]
+    if wind["gusts"]:
+        parts.append(f"{len(wind['gusts'])} gust" + ("s" if len(wind["gusts"]) > 1 else ""))
+    turb = wind["turbulence"]
+    if turb:
+        sigma = ", ".join(num(s) for s in turb["sigma"])
+        parts.append(f"Dryden turbulence sigma [{sigma}] m/s at {num(turb['reference_speed'])} m/s "
+                     f"(seed {turb['seed']})")
+    trimmed = "trimmed in the steady wind" if wind["trim_in_wind"] else "trimmed in still air"
+    return "wind: " + ", ".join(parts) + f"; peak {num(wind['peak_wind'])} m/s; {trimmed}"

@@ -6,6 +6,9 @@ of continuous state feedback. A continuous design's loops are checked against it
 discrete design's loops are sampled: sampling does not keep the guarantee, so they are not held to
 it; that is said once (:func:`guarantee_sentence`), and the margins the sampled loops do have are
 shown instead of a verdict against it.
+
+Each loop's findings (:class:`quadctl.design.margins.Finding`: values) are worded here, one function
+per ``kind`` (:func:`note`).
 """
 
 from __future__ import annotations
@@ -153,16 +156,117 @@ def unstable_sentence(margins) -> Mark | None:
 
 
 def notes(margins) -> tuple[str, ...]:
-    """Each loop's notes; a coupled loop's only where they differ from its design loop's (numbers aside)."""
+    """Each loop's notes (:func:`loop_notes`); a coupled loop's only where they differ from its design loop's
+    (numbers aside)."""
     def shape(lines):
         return tuple(re.sub(r"[-+]?\d[\d.e+-]*", "#", n) for n in lines)
 
-    design = {(m.loop, m.input): shape(m.notes) for m in margins if m.model == "design"}
+    said = {id(m): loop_notes(m) for m in margins}
+    design = {(m.loop, m.input): shape(said[id(m)]) for m in margins if m.model == "design"}
     lines = [f"{m.loop} ({m.model}, {m.input}): {note}" for m in margins
-             if not (m.model == "coupled" and design.get((m.loop, m.input)) == shape(m.notes)) for note in m.notes]
+             if not (m.model == "coupled" and design.get((m.loop, m.input)) == shape(said[id(m)]))
+             for note in said[id(m)]]
     if lines and any(m.model == "coupled" for m in margins):
         lines.append("coupled loops not listed read as their design loops (the same verdict and causes)")
     return tuple(lines)
+
+
+def loop_notes(m) -> tuple[str, ...]:
+    """A loop's findings (:attr:`quadctl.design.margins.LoopMargins.findings`), a sentence each (:func:`note`)."""
+    return tuple(note(f) for f in m.findings)
+
+
+def note(finding) -> str:
+    """One finding (:class:`quadctl.design.margins.Finding`) in words: the function of its ``kind``."""
+    return _WORDS[finding.kind](finding)
+
+
+def unstable_note(f) -> str:
+    return ("the closed loop is UNSTABLE: no margin; the gains are too high for this loop"
+            + (" at this rate" if f.sampled else "")
+            + (f" with {f.delay_samples} samples of delay" if f.delay_samples else ""))
+
+
+def hold_phase_note(f) -> str:
+    return (f"sampled loop: the hold's half-sample delay is {f.hold_phase_deg:.3g} deg of phase at the "
+            f"{f.crossover_rad_s:.4g} rad/s crossover")
+
+
+def guarantee_met_note(f) -> str:
+    return "meets the continuous LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg)"
+
+
+def guarantee_short_note(f) -> str:
+    short = []
+    if f.upper_gain_margin_db is not None:
+        short.append(f"upper gain margin {f.upper_gain_margin_db:.3g} dB (guarantee: inf)")
+    if f.lower_gain_margin_db is not None:
+        short.append(f"lower gain margin {f.lower_gain_margin_db:.3g} dB (guarantee: <= -6.02 dB)")
+    if f.phase_margin_deg is not None:
+        short.append(f"phase margin {f.phase_margin_deg:.3g} deg (guarantee: >= 60 deg)")
+    return "short of the continuous LQR guarantee: " + "; ".join(short)
+
+
+def emulated_hold_note(f) -> str:
+    lag = (f"; the hold's half-sample delay alone costs {f.hold_phase_deg:.3g} deg at the {f.crossover_rad_s:.4g} "
+           "rad/s crossover" if f.crossover_rad_s else "")
+    return (f"cause: continuous gains run at {f.rate_hz:g} Hz (sample and hold); the guarantee assumes "
+            f"instantaneous continuous feedback{lag}")
+
+
+def coupling_note(f) -> str:
+    return "cause: couplings the decoupled design ignores (the guarantee holds on the subsystem it was designed on)"
+
+
+def gyro_filter_note(f) -> str:
+    return f"gyro filter ({f.gyro_filter}): {f.phase_lag_deg:.3g} deg of phase lag at the {f.crossover_rad_s:.4g} " \
+           "rad/s crossover"
+
+
+def saturation_note(f) -> str:
+    text = (f"saturation: {f.input} has {f.headroom:.3g} {f.unit} of headroom from trim (other inputs at trim); the "
+            f"disk margin keeps the loop stable (circle criterion) while the effective gain stays above "
+            f"{f.disk_gain_min:.3g}, i.e. for commands up to {f.covered_command:.3g} {f.unit}")
+    if f.initial_demand is not None:
+        verdict = ("within it" if f.within else
+                   "BEYOND it: the margins no longer guarantee stability during that saturation")
+        text += f"; the initial offset asks for {f.initial_demand:.3g} {f.unit}, {verdict}"
+    return text
+
+
+def lqg_unstable_note(f) -> str:
+    return f"LQG (Kalman filter on {' '.join(f.measured)}): the closed loop is UNSTABLE: no margin"
+
+
+def lqg_estimator_note(f) -> str:
+    return ("LQG: the LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg) does not hold with an "
+            f"estimator in the loop (Doyle 1978); Kalman filter ({f.filter_form}) on {' '.join(f.measured)}"
+            + (f", the rates through the gyro filter ({f.gyro_filter}) in its model" if f.gyro_filter else "")
+            + ("; meets it anyway" if f.meets_guarantee else ""))
+
+
+def lqg_full_state_note(f) -> str:
+    (lo, hi), (flo, fhi) = f.gain_margin_db, f.full_state_gain_margin_db
+    return (f"against full-state feedback: phase margin {f.phase_margin_deg:.3g} deg "
+            f"(full state {f.full_state_phase_margin_deg:.3g}), gain margin {lo:.3g} / {hi:.3g} dB "
+            f"(full state {flo:.3g} / {fhi:.3g}), disk alpha {f.disk_alpha:.3g} "
+            f"(full state {f.full_state_disk_alpha:.3g})")
+
+
+def lqg_left_out_note(f) -> str:
+    left = [what for what, on in (("the rotors' lag", f.rotor_lag),
+                                  (f"{f.delay_samples} samples of delay", bool(f.delay_samples))) if on]
+    return "not in this loop: " + " and ".join(left) + " (the full-state loops include them)"
+
+
+_WORDS = {
+    "unstable": unstable_note, "hold_phase": hold_phase_note, "guarantee_met": guarantee_met_note,
+    "guarantee_short": guarantee_short_note, "cause_emulated_hold": emulated_hold_note,
+    "cause_coupling": coupling_note, "gyro_filter_lag": gyro_filter_note, "saturation": saturation_note,
+    "lqg_unstable": lqg_unstable_note, "lqg_estimator": lqg_estimator_note,
+    "lqg_vs_full_state": lqg_full_state_note, "lqg_left_out": lqg_left_out_note,
+}
+"""Each finding's ``kind`` (:class:`quadctl.design.margins.Finding`) and the function that words it."""
 
 
 def closed_loop_sentence(payload: dict) -> Mark:

@@ -1,4 +1,5 @@
-"""A gain schedule as rows and sentences: its points, the envelope and the frozen-point checks."""
+"""A gain schedule as rows and sentences: its points, the envelope, the frozen-point checks and its
+verdict; a run's schedule and a flown transition in lines."""
 
 from __future__ import annotations
 
@@ -40,14 +41,58 @@ def _short(reason: str | None, limit: int = 100) -> str:
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
+def frozen_failures(checks, unit: str = "") -> list[str]:
+    """One line per fine value where the frozen-point check (:class:`quadctl.schedule.envelope.FrozenChecks`)
+    fails: unstable (with its worst eigenvalue) or no trim; values in ``unit``."""
+    out = []
+    for v, ok, worst, why in zip(checks.values, checks.stable, checks.worst, checks.reasons):
+        if ok:
+            continue
+        at = f"{v:.6g} {unit}".rstrip()
+        out.append(f"at {at}: no trim inside the envelope ({why})" if why is not None else
+                   f"at {at}: the interpolated gain's frozen loop is UNSTABLE (eigenvalue {eig(worst)})")
+    return out
+
+
+def frozen_failures_text(checks, unit: str = "", shown: int = 3) -> str:
+    """The first ``shown`` :func:`frozen_failures` joined by ``; ``, and ``; ...`` when there are more."""
+    fails = frozen_failures(checks, unit)
+    return "; ".join(fails[:shown] + (["..."] if len(fails) > shown else []))
+
+
+def missing(sched) -> str | None:
+    """The values with no trim or design (:attr:`quadctl.schedule.envelope.Schedule.undesigned`), the first
+    one's reason and the fix, one line (None: every value designs): what ``quadctl schedule`` and ``export``
+    refuse (exit 2), ``simulate`` warns of."""
+    undesigned = sched.undesigned
+    if not undesigned:
+        return None
+    lo, hi = sched.envelope
+    verb = "has" if len(undesigned) == 1 else "have"
+    return (f"schedule.values: {len(undesigned)} of {len(sched.points)} values {verb} no trim or design "
+            f"({', '.join(f'{p.value:g}' for p in undesigned)} {sched.unit}; the first: {undesigned[0].reason}); "
+            f"the envelope is [{lo:g}, {hi:g}] {sched.unit}: narrow schedule.values to it")
+
+
+def verdict(sched) -> str | None:
+    """Why the schedule fails (:attr:`quadctl.schedule.envelope.Schedule.passed`), one line (None when it passes)."""
+    parts = [f"the design at {p.value:.6g} {sched.unit} is UNSTABLE on the coupled model"
+             for p in sched.unstable_points]
+    fails = frozen_failures(sched.checks, sched.unit)
+    if fails:
+        parts.append(f"{len(fails)} of {len(sched.checks.values)} frozen-point checks fail: "
+                     + frozen_failures_text(sched.checks, sched.unit))
+    return "; ".join(parts) or None
+
+
 def flight_warnings(sched) -> list[str]:
     """What a run that flies ``sched`` says about it: the values with no trim, and a schedule that fails
     the checks ``quadctl schedule`` exits 1 on (a design or a frozen-point loop unstable), flown anyway."""
-    warnings = [w for w in (sched.missing(),) if w]
+    warnings = [w for w in (missing(sched),) if w]
     if not sched.passed:
-        unstable = [f"{p.value:g}" for p in sched.points if p.designed and not p.stable]
+        unstable = [f"{p.value:g}" for p in sched.unstable_points]
         where = "; ".join(([f"the design at {', '.join(unstable)} {sched.unit} is UNSTABLE"] if unstable else [])
-                          + ([sched.checks.failures_text(sched.unit)] if not sched.checks.passed else []))
+                          + ([frozen_failures_text(sched.checks, sched.unit)] if not sched.checks.passed else []))
         warnings.append(f"schedule: the gains flown fail their checks ({where}); `quadctl schedule` lists "
                         "them: narrow schedule.values to where they pass, or change the weights")
     return warnings
@@ -56,12 +101,12 @@ def flight_warnings(sched) -> list[str]:
 def envelope_sentence(sched) -> str:
     """The envelope, what holds outside it, and the values with no trim."""
     lo, hi = sched.envelope
-    missing = [p for p in sched.points if not p.designed]
+    undesigned = sched.undesigned
     text = (f"Envelope: {sched.variable} {lo:g} to {hi:g} {sched.unit} ({len(sched.table.values)} of "
             f"{len(sched.points)} values trim and design); the config flies {sched.own_value:g} {sched.unit}. "
             f"Outside it the table gives {sched.outside}.")
-    if missing:
-        text += (f" No trim or design at {', '.join(f'{p.value:g}' for p in missing)} {sched.unit}: narrow "
+    if undesigned:
+        text += (f" No trim or design at {', '.join(f'{p.value:g}' for p in undesigned)} {sched.unit}: narrow "
                  "schedule.values to the envelope.")
     return text
 
@@ -78,7 +123,8 @@ def checks_sentence(sched) -> Mark:
         return Mark(f"Frozen-point checks: the interpolated gains are stable at all {n} values of {grid}; "
                     f"slowest pole {c.slowest[k]:.3g} rad/s at "
                     f"{c.values[k]:g} {sched.unit}, least damping {np.nanmin(c.least_damping):.3g}.", "ok")
-    return Mark(f"Frozen-point checks FAIL at {len(c.failures())} of {n} values: {c.failures_text(sched.unit)}.",
+    return Mark(f"Frozen-point checks FAIL at {len(frozen_failures(c, sched.unit))} of {n} values: "
+                f"{frozen_failures_text(c, sched.unit)}.",
                 "fail")
 
 
@@ -94,3 +140,25 @@ def failures_table(sched) -> Table | None:
     return Table("schedule-failures-table", "Frozen-point checks that fail",
                  (f"{sched.variable} ({sched.unit})", "verdict", "worst eigenvalue (rad/s)", "why"), rows,
                  align="lllw")
+
+
+def schedule_line(schedule: dict) -> str:
+    """A run's gain schedule (:func:`quadctl.pipeline.schedule_summary`) in one line (``simulate`` prints it)."""
+    values = ", ".join(f"{v:g}" for v in schedule["values"])
+    return (f"gains scheduled on {schedule['variable']} at {values} {schedule['units']} ({schedule['interpolation']}, "
+            "held outside), read from the reference")
+
+
+def transition_lines(summary: dict) -> list[str]:
+    """A flown transition's runs (:attr:`quadctl.schedule.transition.Transition.summary`), one line per run."""
+    from quadctl.design.gain_table import VARIABLES
+    from quadctl.sim.run import STATUS_WORDS
+
+    lines = []
+    for label, run in ((k, v) for k, v in summary.items() if isinstance(v, dict)):
+        lines.append(f"{label}: {STATUS_WORDS[run['status']]} ({run['duration']:.3g} s), peak velocity error "
+                     f"{run['velocity_error']:.3g} m/s, at a limit {100 * run['saturation']:.3g} % of the run, "
+                     f"peak attitude {run['peak_attitude']:.3g} deg, {summary['variable']} flown "
+                     f"{run['flown_range'][0]:.3g} to {run['flown_range'][1]:.3g} {VARIABLES[summary['variable']]}"
+                     + ("" if run["on_grid"] else " (off the grid)"))
+    return lines

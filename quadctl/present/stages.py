@@ -1,4 +1,5 @@
-"""The first stages as rows: the trim, the decoupling, controllability and observability."""
+"""The first stages as rows and sentences: the trim, the decoupling, controllability and observability,
+and the check stage's verdicts (rate warnings, the loop the vehicle flies, why the check fails)."""
 
 from __future__ import annotations
 
@@ -115,3 +116,86 @@ def stage_summary(ws, stage: str) -> str:
     sim = ws.simulation.sim
     return (f"{sim.steps} {flight.integrator_name(sim)} steps, {flight.step_span(sim)}, "
             f"{sim.steps_per_second / 1e6:.2f} M steps/s")
+
+
+# ---------------------------------------------------------------------------------------
+# The check stage's verdicts in words: the rate warnings, the loop the vehicle flies, the failures
+
+
+def rate_warning(w, rate: float) -> str:
+    """A continuous loop too fast for ``rate`` Hz (:class:`quadctl.design.discrete.RateWarning`) in one line."""
+    from quadctl.design.discrete import SAMPLES_PER_POLE
+
+    verdict = "stays stable but its response differs from the design" if w.sampled_stable else "is UNSTABLE"
+    return (f"{w.loop}: closed-loop pole {eig(w.pole)} rad/s is {w.factor:.3g}x faster than "
+            f"{rate:g} Hz realizes (|s| <= 2 pi rate / {SAMPLES_PER_POLE:g} = {w.limit:.4g} rad/s); "
+            f"sampled at {rate:g} Hz this loop {verdict} (spectral radius {w.sampled_radius:.3g}); "
+            "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
+
+
+def sampled_unstable(warnings, rate: float) -> str | None:
+    """The failed-check verdict for the loops of ``warnings`` that are unstable sampled at ``rate`` Hz
+    (None when every one is stable): ``check``, ``run`` and ``report`` give this same verdict."""
+    unstable = [w.loop for w in warnings if not w.sampled_stable]
+    if not unstable:
+        return None
+    return (f"sampled at {rate:g} Hz the continuous design's loop(s) {', '.join(unstable)} are UNSTABLE; "
+            "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
+
+
+def _vehicle_loop_has(loop) -> str:
+    parts = []
+    if loop.gyro_filter:
+        parts.append(f"the gyro's {loop.gyro_filter}")
+    if loop.rotor_time_constant is not None:
+        how = "included in" if loop.rotor_lag == "include" else "ignored by"
+        parts.append(f"the rotors' {loop.rotor_time_constant * 1e3:g} ms lag ({how} the design)")
+    if loop.delay_samples:
+        parts.append(f"{loop.delay_samples} sample{'s' if loop.delay_samples > 1 else ''} of delay")
+    return " and ".join(parts)
+
+
+def vehicle_loop_summary(loop) -> str:
+    """The loop the vehicle flies (:class:`quadctl.pipeline.VehicleLoop`) in one line: what it has, stable
+    or not, and its least damping against the design's."""
+    state = "stays stable" if loop.stable else "is UNSTABLE"
+    return (f"with {_vehicle_loop_has(loop)} the design's closed loop {state}: least damping "
+            f"{loop.least_damping:.3g} ({loop.design_least_damping:.3g} as designed)")
+
+
+def vehicle_loop_verdict(loop) -> str | None:
+    """The failed-check verdict when the vehicle's loop is unstable, with the way out (None when stable)."""
+    if loop.stable:
+        return None
+    fix = ("include the lag in the design (controller.rotor_lag: include), or lower the gains (larger R)"
+           if loop.rotor_time_constant is not None and loop.rotor_lag == "ignore"
+           else "raise the gyro filter's cutoff (controller.filters) or lower the gains (larger R)"
+           if loop.gyro_filter and not loop.delay_samples
+           else "lower the gains (larger R) or shorten the delay")
+    return f"with {_vehicle_loop_has(loop)} the design's closed loop is UNSTABLE; {fix}"
+
+
+def check_failures(report) -> list[str]:
+    """Each reason the check stage fails (:class:`quadctl.workspace.CheckReport`), one line each (empty when
+    it passes): a regulated subsystem not stabilizable, a measured set that leaves a mode that is not stable
+    unobservable, a continuous design unstable sampled at the controller rate, a loop the rotors' lag and
+    the delay make unstable."""
+    out = []
+    for name in report.unstabilizable:
+        mode = report.checks[name].unstabilizable_modes[0]
+        out.append(f"subsystem {name} is not stabilizable: mode {eig(mode.eigenvalue)} in {', '.join(mode.states)}")
+    if report.undetectable:
+        out.append(report.undetectable)
+    sampled = sampled_unstable(report.rate_warnings, report.rate or 0.0)
+    if sampled:
+        out.append(sampled)
+    flown = vehicle_loop_verdict(report.vehicle_loop) if report.vehicle_loop is not None else None
+    if flown:
+        out.append(flown)
+    return out
+
+
+def check_verdict(report) -> str | None:
+    """Why the check stage fails, on one line (None when it passes): ``run`` and ``report`` stop on it;
+    ``check`` prints each of :func:`check_failures`."""
+    return "; ".join(check_failures(report)) or None

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from quadctl import artifacts, pipeline, plots
 from quadctl.layout import INPUT_NAMES, unit_of
-from quadctl.pipeline import wind_line
 from quadctl.plots import png_bytes
 from quadctl.plots.compare import QUANTITIES
 from quadctl.present import cells, loops, stages
@@ -69,13 +68,14 @@ def checks(ws) -> Section:
     if report.rate is not None:
         if report.rate_warnings:
             blocks.append(Text(f"Rate warnings: the continuous design run at {report.rate:g} Hz.", "warning"))
-            blocks.append(Items(tuple(w.message(report.rate) for w in report.rate_warnings)))
+            blocks.append(Items(tuple(stages.rate_warning(w, report.rate) for w in report.rate_warnings)))
         else:
             blocks.append(Text(f"Controller rate {report.rate:g} Hz: no rate warning (every loop it closes is "
                                "slow enough for it, or the design is discrete at that rate)."))
     if report.vehicle_loop is not None:
         loop = report.vehicle_loop
-        blocks.append(Text(loop.summary()[0].upper() + loop.summary()[1:] + ".", "ok" if loop.stable else "fail"))
+        said = stages.vehicle_loop_summary(loop)
+        blocks.append(Text(said[0].upper() + said[1:] + ".", "ok" if loop.stable else "fail"))
     return Section("checks", "Checks", tuple(blocks))
 
 
@@ -262,7 +262,7 @@ def flight(ws) -> Section:
     if estimation is not None:
         blocks.append(estimation)
     if fl.get("wind"):
-        blocks += [_text(wind_line(fl["wind"])), shown_flight.speeds_table(fl)]
+        blocks += [_text(shown_flight.wind_line(fl["wind"])), shown_flight.speeds_table(fl)]
     integral = shown_flight.integral_text(fl)
     if integral:
         blocks.append(_text(integral))

@@ -116,24 +116,6 @@ class FrozenChecks:
     def passed(self) -> bool:
         return bool(np.all(self.stable))
 
-    def failures(self, unit: str = "") -> list[str]:
-        """One line per fine value where the check fails: unstable (with its worst eigenvalue) or no trim."""
-        from quadctl.text.messages import eig_text
-
-        out = []
-        for v, ok, worst, why in zip(self.values, self.stable, self.worst, self.reasons):
-            if ok:
-                continue
-            at = f"{v:.6g} {unit}".rstrip()
-            out.append(f"at {at}: no trim inside the envelope ({why})" if why is not None else
-                       f"at {at}: the interpolated gain's frozen loop is UNSTABLE (eigenvalue {eig_text(worst)})")
-        return out
-
-    def failures_text(self, unit: str = "", shown: int = 3) -> str:
-        """The first ``shown`` :meth:`failures` joined by ``; ``, and ``; ...`` when there are more."""
-        fails = self.failures(unit)
-        return "; ".join(fails[:shown] + (["..."] if len(fails) > shown else []))
-
 
 @dataclass(frozen=True)
 class Schedule:
@@ -200,27 +182,18 @@ class Schedule:
         """Every point designed stable and every frozen-point check stable."""
         return self.checks.passed and all(p.stable for p in self.points if p.designed)
 
-    def missing(self) -> str | None:
-        """The values with no trim or design, the first one's reason and the fix, one line (None: every
-        value designs): what ``quadctl schedule`` and ``export`` refuse (exit 2), ``simulate`` warns of."""
-        missing = [p for p in self.points if not p.designed]
-        if not missing:
-            return None
-        lo, hi = self.envelope
-        verb = "has" if len(missing) == 1 else "have"
-        return (f"schedule.values: {len(missing)} of {len(self.points)} values {verb} no trim or design "
-                f"({', '.join(f'{p.value:g}' for p in missing)} {self.unit}; the first: {missing[0].reason}); "
-                f"the envelope is [{lo:g}, {hi:g}] {self.unit}: narrow schedule.values to it")
+    @property
+    def undesigned(self) -> tuple[SchedulePoint, ...]:
+        """The points with no trim or design (each with its ``reason``): ``quadctl schedule`` and ``export``
+        refuse a schedule with any (exit 2), ``simulate`` warns of them
+        (:func:`quadctl.present.schedule.missing`)."""
+        return tuple(p for p in self.points if not p.designed)
 
-    def verdict(self) -> str | None:
-        """Why the schedule fails, one line (None when it passes)."""
-        parts = [f"the design at {p.value:.6g} {self.unit} is UNSTABLE on the coupled model"
-                 for p in self.points if p.designed and not p.stable]
-        fails = self.checks.failures(self.unit)
-        if fails:
-            parts.append(f"{len(fails)} of {len(self.checks.values)} frozen-point checks fail: "
-                         + self.checks.failures_text(self.unit))
-        return "; ".join(parts) or None
+    @property
+    def unstable_points(self) -> tuple[SchedulePoint, ...]:
+        """The points designed but unstable on the coupled model. With the frozen-point checks that fail, why
+        the schedule fails (:attr:`passed`; in words: :func:`quadctl.present.schedule.verdict`)."""
+        return tuple(p for p in self.points if p.designed and not p.stable)
 
 
 def heading_of(setup: Setup) -> float:

@@ -17,14 +17,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl import pipeline
-from quadctl.design.gain_table import VARIABLES, scheduling_values
+from quadctl.design.gain_table import scheduling_values
 from quadctl.layout import STATE_INDEX
 from quadctl.native.mapped import mapped
 from quadctl.physics import motors
 from quadctl.physics.model import build_model
 from quadctl.schedule.envelope import heading_of, schedule_of
 from quadctl.setup import Setup
-from quadctl.sim.run import STATUS_WORDS, ClosedLoop, SimResult
+from quadctl.sim.run import ClosedLoop, SimResult
 
 ON_GRID_MARGIN = 0.1
 """A run stays on the schedule's grid while its scheduling value is within the grid's span widened by
@@ -121,16 +121,3 @@ def _velocity_ned(x, u, params) -> np.ndarray:
     read neither the input nor the parameters)."""
 
     return mapped(build_model().f)(x, u, params)[0][:, :3]
-
-
-def transition_lines(summary: dict) -> list[str]:
-    """:attr:`Transition.summary` as one line per run."""
-    lines = []
-    for label in LABELS:
-        run = summary[label]
-        lines.append(f"{label}: {STATUS_WORDS[run['status']]} ({run['duration']:.3g} s), peak velocity error "
-                     f"{run['velocity_error']:.3g} m/s, at a limit {100 * run['saturation']:.3g} % of the run, "
-                     f"peak attitude {run['peak_attitude']:.3g} deg, {summary['variable']} flown "
-                     f"{run['flown_range'][0]:.3g} to {run['flown_range'][1]:.3g} {VARIABLES[summary['variable']]}"
-                     + ("" if run["on_grid"] else " (off the grid)"))
-    return lines

@@ -22,7 +22,7 @@ import numpy as np
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.sweep.gates import MARGIN_COLUMNS, gated_margins, judge, margin_columns, tracking_columns
-from quadctl.sweep.spec import _like, assign
+from quadctl.sweep.spec import assign, typed_like
 from quadctl.threads import one_thread
 
 MC_POINTS = 201
@@ -235,7 +235,7 @@ class CaseSetups:
             if kind[0] == "seed":
                 seeds = [base_seed] * n
                 for k, (_, values) in enumerate(cases):
-                    seed = _like(base_seed, _plain(values[p]))
+                    seed = typed_like(base_seed, _plain(values[p]))
                     if type(seed) is not int or seed < 0:  # the schema: a strict int >= 0
                         ok[k] = False
                     else:
@@ -245,7 +245,7 @@ class CaseSetups:
             old = getattr(self.cfg.lqr[name], which)[i]
             drawn = np.full(n, float(old))
             for k, (_, values) in enumerate(cases):
-                value = _like(old, _plain(values[p]))
+                value = typed_like(old, _plain(values[p]))
                 if type(value) is not float or not math.isfinite(value):  # the schema: a strict, finite float
                     ok[k] = False
                 else:

@@ -334,7 +334,7 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
     for path, spec in params.items():
         keys = check_path(base, str(path), label, "parameters")
         kind = _check_values(spec, str(path), mode, label)
-        leaf = _lookup(base, keys)
+        leaf = value_at(base, keys)
         if isinstance(leaf, list) and kind != "values":
             raise fail(f"parameters.{path}", f"is a list ({show(leaf)}) here, a range gives numbers; "
                        f"index one entry, as `{path}[0]`")
@@ -514,7 +514,8 @@ def _check_gate(metric, spec, cfg, label: str) -> Gate:
     return Gate(metric, min=_num(spec.get("min")), max=_num(spec.get("max")))
 
 
-def _lookup(tree, keys):
+def value_at(tree, keys):
+    """The value at key path ``keys`` (names and list indices) of a config tree; None where the path ends."""
     for key in keys:
         try:
             tree = tree[key]
@@ -595,14 +596,14 @@ def assign(tree: Any, keys: tuple, value) -> Any:
         tree = {}
     if isinstance(tree, dict):
         out = dict(tree)
-        out[head] = assign(tree.get(head), rest, value) if rest else _like(tree.get(head), value)
+        out[head] = assign(tree.get(head), rest, value) if rest else typed_like(tree.get(head), value)
         return out
     out = list(tree)
-    out[head] = assign(tree[head], rest, value) if rest else _like(tree[head], value)
+    out[head] = assign(tree[head], rest, value) if rest else typed_like(tree[head], value)
     return out
 
 
-def _like(old, value):
+def typed_like(old, value):
     """A whole float where the config holds an integer (a seed from a range): the integer."""
     if is_whole(old) and isinstance(value, float) and value.is_integer():
         return int(value)

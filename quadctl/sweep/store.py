@@ -23,7 +23,7 @@ from quadctl.sweep.outputs import (
     tradeoff_png,
 )
 from quadctl.sweep.runner import SweepResult, base_of, run
-from quadctl.sweep.spec import SweepSpec, _lookup
+from quadctl.sweep.spec import SweepSpec, value_at
 
 PARTS = "sweep.parts"
 """Folder of the run directory holding the finished chunks (the journal ``--resume`` reads)."""
@@ -156,7 +156,7 @@ class SweepStore:
             for name in MC_FILES:
                 artifacts.remove(self.out / name)
             return None
-        duration = _lookup(base_of(self.cfg, self.spec), ("simulation", "duration"))
+        duration = value_at(base_of(self.cfg, self.spec), ("simulation", "duration"))
         bands = montecarlo_bands(traces, self.trace, duration, [r["case"] for r in result.rows])
         meta = {**artifacts.metadata(self.cfg, "montecarlo", result.stats.get("backend", ())),
                 "sweep_digest": self.digest,

@@ -12,6 +12,7 @@ from _solve import cfg_dict, run, solve
 from quadctl import pipeline
 from quadctl.design import discrete, lqr, riccati
 from quadctl.errors import StepSizeError
+from quadctl.present.stages import rate_warning
 from quadctl.sim.run import plan_held_step
 
 RESIDUAL_TOL = 1e-10
@@ -104,7 +105,7 @@ def test_check_warns_which_loop_is_too_fast_for_the_rate_and_by_how_much():
     limit = 2 * math.pi * 200 / discrete.SAMPLES_PER_POLE
     assert roll.factor == pytest.approx(14492.75 / limit, rel=1e-4)
     assert not roll.sampled_stable
-    assert "roll: closed-loop pole -14493 rad/s is 115x faster than 200 Hz realizes" in roll.message(200)
+    assert "roll: closed-loop pole -14493 rad/s is 115x faster than 200 Hz realizes" in rate_warning(roll, 200)
 
 
 def test_held_step_divides_the_controller_period_and_a_bad_step_is_refused():

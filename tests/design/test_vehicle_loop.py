@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 from quadctl import pipeline
 from quadctl.cli.app import app
 from quadctl.linear import stability
+from quadctl.present.stages import vehicle_loop_verdict
 
 
 def _lagged(rotor_lag: str = "ignore", delay: int = 0) -> dict:
@@ -41,7 +42,12 @@ def test_least_damping_of_a_pair_and_of_its_sampled_image():
 def test_the_vehicle_loop_is_the_design_loop_with_the_rotors_and_the_delay(rotor_lag, delay, stable):
     setup, _, linear, _, des = solve(_lagged(rotor_lag, delay))
     loop = pipeline.vehicle_loop_of(setup, linear, des)
-    assert loop.stable is stable and (loop.verdict() is None) is stable
+    said = vehicle_loop_verdict(loop)
+    assert loop.stable is stable and (said is None) is stable
+    if not stable:  # the lag is ignored by the design: the way out is to include it
+        assert said == ("with the rotors' 30 ms lag (ignored by the design) and 2 samples of delay the design's "
+                        "closed loop is UNSTABLE; include the lag in the design (controller.rotor_lag: include), "
+                        "or lower the gains (larger R)")
     assert (loop.least_damping > 0) is stable
     # as designed: a design that ignores the lag saw the coupled loop without rotors or delay
     if rotor_lag == "ignore":

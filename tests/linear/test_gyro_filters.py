@@ -15,6 +15,7 @@ from quadctl.design import margins
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_INDEX, STATE_INDEX
 from quadctl.linear import filters
+from quadctl.present.loops import loop_notes
 from quadctl.setup import setup_of
 
 TIGHT = 1e-9
@@ -261,12 +262,14 @@ def test_the_margins_notes_give_the_filters_lag_at_each_rate_loops_crossover(fil
     found = margins.all_margins(st.design, st.decoupled, st.linear.A, st.linear.B, rate_filter=st.setup.rate_filter)
     form = st.setup.rate_filter.form(st.design.sample_time)
     for m in found:
-        notes = [n for n in m.notes if n.startswith("gyro filter")]
+        notes = [n for n in loop_notes(m) if n.startswith("gyro filter")]
         if m.loop == "altitude":  # no rate in its loop
             assert not notes
             continue
         lag = -math.degrees(np.angle(form.response(m.gain_crossover_freq)[0]))
         assert len(notes) == 1 and f"{lag:.3g} deg of phase lag" in notes[0], (m.loop, notes)
+        (fact,) = [f for f in m.findings if isinstance(f, margins.GyroFilterLag)]
+        assert fact.phase_lag_deg == pytest.approx(lag, rel=1e-12) and fact.crossover_rad_s == m.gain_crossover_freq
 
 
 def test_python_control_closes_the_same_loop_with_the_filter(filtered_mambo):

@@ -212,7 +212,7 @@ def test_the_fixed_design_leaves_the_valid_range_where_the_schedule_flies(transi
     assert scheduled["on_grid"] and scheduled["flown_range"][1] > 0.9 * setup.schedule.values[-1]
     assert result.scheduled.x[-1, STATE_INDEX["u"]] < 0.5  # back near hover
     assert fixed["flown_range"][1] > 15  # it failed at speed, not at the first step
-    from quadctl.schedule.transition import transition_lines
+    from quadctl.present.schedule import transition_lines
 
     scheduled_line, fixed_line = transition_lines(result.summary)  # in words, the range with its unit
     assert scheduled_line.startswith("scheduled: completed (25 s)") and scheduled_line.endswith(" m/s")

@@ -17,6 +17,7 @@ from quadctl.design.gain_table import OUTSIDE, GainTable, scheduling_value
 from quadctl.errors import ScheduleError
 from quadctl.layout import STATE_INDEX
 from quadctl.linear import stability
+from quadctl.present.schedule import frozen_failures
 from quadctl.schedule.envelope import fine_values, frozen_checks, heading_of, own_value, schedule_of
 from quadctl.setup import setup_of
 from quadctl.workspace import Workspace
@@ -142,7 +143,7 @@ def test_the_frozen_checks_name_where_an_interpolated_gain_destabilizes():
         assert abs(checks.worst[i] - worst) < 1e-9 * max(1.0, abs(worst)) or abs(checks.worst[i] - worst.conj()) < 1e-9
     assert found == checks.stable.tolist()
     assert found[0] and not found[-1]  # the test sees both verdicts
-    fails = checks.failures("m/s")
+    fails = frozen_failures(checks, "m/s")
     assert len(fails) == found.count(False)
     assert fails[-1].startswith("at 10 m/s: the interpolated gain's frozen loop is UNSTABLE (eigenvalue ")
 

@@ -28,7 +28,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     at --rate is unstable, or the lag and delay make the design's loop unstable.
     """
     from quadctl.cli import render
-    from quadctl.design.discrete import unstable_when_sampled
+    from quadctl.present import stages
 
     rate = override("--rate", rate)
     ws = open_workspace(config, out, fresh, sets)
@@ -48,19 +48,17 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         payload = ws.payloads["checks.json"]
         if rate is not None:
             payload = {**payload, "what_if_rate": {"rate": rate, "warnings": [
-                w.message(rate) for hz, found in rated if hz == rate for w in found]}}
+                stages.rate_warning(w, rate) for hz, found in rated if hz == rate for w in found]}}
         render.emit_json(payload)
     else:
-        from quadctl.present import stages
-
         render.show(stages.checks_table(checks.checks, regulated))
         if checks.vehicle_loop is not None:
-            render.out.print(checks.vehicle_loop.summary(), markup=False)
+            render.out.print(stages.vehicle_loop_summary(checks.vehicle_loop), markup=False)
         render.out.print(f"-> {ws.path('checks.json')}")
     for hz, warnings in rated:
         warn_of_the_rate(hz, warnings)
-    failures = checks.failures()
-    at_rate = unstable_when_sampled(what_if, rate) if what_if is not None else None  # --rate's own verdict
+    failures = stages.check_failures(checks)
+    at_rate = stages.sampled_unstable(what_if, rate) if what_if is not None else None  # --rate's own verdict
     if at_rate and at_rate not in failures:
         failures.append(at_rate)
     if failures:

@@ -57,6 +57,7 @@ def command(to: Annotated[Target, typer.Option(
     from quadctl import artifacts, export
     from quadctl.cli import render
     from quadctl.cli.options import load_config, override
+    from quadctl.present.stages import rate_warning
     from quadctl.setup import setup_of
     from quadctl.workspace import default_out
 
@@ -65,7 +66,7 @@ def command(to: Annotated[Target, typer.Option(
     exp = export.prepare(setup_of(cfg), rate, need_rate=to in (Target.c, Target.crazyflie),
                          config_hash=cfg.digest())
     for w in exp.rate_warnings:
-        render.warning(w.message(exp.rate))
+        render.warning(rate_warning(w, exp.rate))
     paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"),
                          setpoint=setpoint.value, mode=mode.value)
     if to is Target.crazyflie:

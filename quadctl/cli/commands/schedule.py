@@ -37,10 +37,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         render.out.print(f"-> {ws.path('schedule.json')}, {ws.path('schedule.npz')}")
         if path is not None:
             render.out.print(f"figure -> {path}")
-    missing = sched.missing()
+    missing = shown.missing(sched)
     if missing:  # bad input, refused once the points, their reasons and the envelope are written and shown
         ws.keep()
         raise ScheduleError(missing)
-    verdict = sched.verdict()
+    verdict = shown.verdict(sched)
     if verdict:
         raise FailedChecks(verdict)

@@ -37,9 +37,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     if json:
         render.emit_json(ws.payloads["sim.json"])
     else:
-        from quadctl.pipeline import schedule_line, wind_line
         from quadctl.present import flight as shown
         from quadctl.present import mission
+        from quadctl.present.schedule import schedule_line
 
         fl = flown.flight
         render.out.print(f"{shown.integrator_name(sim)} {shown.step_text(sim)}, {sim.steps} steps in "
@@ -49,7 +49,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
                     shown.inputs_table(flown.metrics, ws.linear.u_trim, fl["peak_delta"]),
                     shown.headroom_table(fl, ws.linear.u_trim),
                     shown.rms_table(fl) if fl.get("noise") or fl.get("wind") else None,
-                    shown.estimation_table(fl), wind_line(fl["wind"]) if fl.get("wind") else None,
+                    shown.estimation_table(fl), shown.wind_line(fl["wind"]) if fl.get("wind") else None,
                     schedule_line(fl["gain_schedule"]) if fl.get("gain_schedule") else None,
                     shown.speeds_table(fl) if fl.get("wind") else None, shown.integral_text(fl),
                     *((mission.waypoints_table(fl["reference"]), *mission.tracking_lines(fl["reference"]))
