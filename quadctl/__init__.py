@@ -29,7 +29,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+from quadctl.version import __version__ as __version__
 
 _PUBLIC = {
     "load_config": ("quadctl.config.loading", "load"),

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import __version__, artifacts, payloads, pipeline
+from quadctl import artifacts, payloads, pipeline
 from quadctl.artifacts import default_out
 from quadctl.config import Config
 from quadctl.design import Design
@@ -41,6 +41,7 @@ from quadctl.metrics import summarize
 from quadctl.payloads import ESTIMATOR_CHECK
 from quadctl.setup import setup_of
 from quadctl.sim.run import ClosedLoop, SimResult
+from quadctl.version import __version__
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
     "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from datetime import datetime, timezone
 
-from quadctl import __version__
 from quadctl.artifacts import provenance
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.version import __version__
 
 FORMAT_VERSION = 1
 """Bumped when the layout of an artifact changes incompatibly."""

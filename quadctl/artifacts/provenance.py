@@ -12,8 +12,8 @@ import platform
 import subprocess
 from functools import lru_cache
 
-from quadctl import __version__
 from quadctl.native.compile import find_compiler
+from quadctl.version import __version__
 
 PACKAGES = ("numpy", "scipy", "casadi")
 """Distributions whose versions every artifact records (with quadctl's and Python's)."""

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import __version__
 from quadctl.artifacts.meta import FORMAT_VERSION
 from quadctl.artifacts.places import IS_A_DIRECTORY, reason_of, refuse_link
 from quadctl.errors import ArtifactError, QuadctlNotice
 from quadctl.layout import N_INPUTS, N_STATES, STATE_NAMES
+from quadctl.version import __version__
 
 
 class InvalidArtifact(ArtifactError):

@@ -7,10 +7,10 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl import __version__
 from quadctl.cli import commands
 from quadctl.cli.errors import EXIT_CODES_HELP, one_line_usage_errors
 from quadctl.cli.options import flags_without_placeholder
+from quadctl.version import __version__
 
 app = typer.Typer(
     name="quadctl",

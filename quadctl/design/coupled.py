@@ -17,7 +17,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.design import discrete, integral, linear_loop
-from quadctl.design.decoupled import _solve_subsystem
+from quadctl.design.decoupled import solve_subsystem
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.linear import stability
 
@@ -106,7 +106,7 @@ def full_design(design, A, B) -> FullDesign:
     qidx = keep + list(range(N_STATES, N_STATES + nz))
     Q = Q_all[np.ix_(qidx, qidx)]
     plant = SimpleNamespace(A=A[np.ix_(keep, keep)], B=B[keep], states=states, name="full")
-    K_red, _, Ki, P, _, _, residual = _solve_subsystem(plant, Q, R, design.integral_states, design.sample_time)
+    K_red, _, Ki, P, _, _, residual = solve_subsystem(plant, Q, R, design.integral_states, design.sample_time)
     K = np.zeros((N_INPUTS, N_STATES))
     K[:, keep] = K_red
     Ki = Ki.reshape(N_INPUTS, nz)

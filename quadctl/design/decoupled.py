@@ -212,7 +212,7 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
     for sub in decoupled.regulated:
         Q, R = (np.atleast_2d(np.asarray(m, dtype=float)) for m in weights[sub.name])
         ints = tuple(integral.get(sub.name, ()))
-        K, Kv, Ki, P, eig_s, eig_z, residual = _solve_subsystem(sub, Q, R, ints, Ts, lag_time_constant)
+        K, Kv, Ki, P, eig_s, eig_z, residual = solve_subsystem(sub, Q, R, ints, Ts, lag_time_constant)
         rows = [INPUT_INDEX[i] for i in sub.inputs]
         if Kv is not None:
             Kv_block[np.ix_(rows, rows)] = Kv
@@ -242,7 +242,7 @@ def design(decoupled: Decoupled, A, B, weights: dict, *, rate: float | None = No
                   Kv_block=Kv_block, lag_time_constant=lag_time_constant)
 
 
-def _solve_subsystem(sub, Q, R, ints, Ts, tau=None):
+def solve_subsystem(sub, Q, R, ints, Ts, tau=None):
     """(K, Kv or None, Ki, P, eigenvalues s, eigenvalues z or None, residual) of one subsystem.
 
     Solved as a stack of one by :func:`quadctl.design.stacked.solve_subsystems`, the engine a sweep's

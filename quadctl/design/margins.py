@@ -292,7 +292,7 @@ def disk_gain_range_db(alpha: float) -> tuple[float, float]:
     to ``+inf``)."""
     g_lo = (2 - alpha) / (2 + alpha)
     g_hi = (2 + alpha) / (2 - alpha) if alpha < 2 else math.inf
-    return _db(g_lo), _db(g_hi)
+    return gain_db(g_lo), gain_db(g_hi)
 
 
 def no_margin(**labels) -> LoopMargins:
@@ -354,7 +354,7 @@ def _gain_margins(loop, w, Lw):
     below = [(g, wc) for wc, g in crossings if g < 1]
     upper = min(above) if above else None
     lower = max(below) if below else None
-    return (_db(lower[0]) if lower else -math.inf, _db(upper[0]) if upper else math.inf,
+    return (gain_db(lower[0]) if lower else -math.inf, gain_db(upper[0]) if upper else math.inf,
             lower[1] if lower else None, upper[1] if upper else None)
 
 
@@ -425,7 +425,8 @@ def _root(fn, a, b) -> float:
     return float(scipy.optimize.brentq(fn, a, b, xtol=1e-14 * max(abs(a), 1.0), rtol=1e-14, maxiter=200))
 
 
-def _db(g: float) -> float:
+def gain_db(g: float) -> float:
+    """A loop-gain factor in dB (0 -> -inf, inf -> inf)."""
     return 20 * math.log10(g) if g > 0 and math.isfinite(g) else (math.inf if g == math.inf else -math.inf)
 
 

@@ -18,13 +18,13 @@ from string import Template
 
 import numpy as np
 
-from quadctl import __version__
 from quadctl.design.gain_table import OUTSIDE, VARIABLES
 from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
 from quadctl.native.emit import Dialect, emit
 from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout, exo_layout
 from quadctl.text.escape import c_comment, c_identifier
+from quadctl.version import __version__
 
 HEADER, SOURCE = "quadctl_controller.h", "quadctl_controller.c"
 """The two files of the exported controller."""

@@ -16,11 +16,11 @@ from string import Template
 
 import numpy as np
 
-from quadctl import __version__
 from quadctl.errors import ConfigError
 from quadctl.export import c
 from quadctl.export.bundle import Export, require_export
 from quadctl.text.escape import c_comment
+from quadctl.version import __version__
 
 LOOP_HZ = 1000
 """The firmware's stabilizer loop (``RATE_MAIN_LOOP`` in ``stabilizer_types.h``): the controller is

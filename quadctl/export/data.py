@@ -23,12 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from quadctl import __version__
 from quadctl.artifacts import jsonable
 from quadctl.design.gain_table import OUTSIDE, VARIABLES
 from quadctl.export.bundle import Export, require_export
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 from quadctl.text.escape import matlab_field
+from quadctl.version import __version__
 
 FORMAT = "quadctl-controller"
 FORMAT_VERSION = 1

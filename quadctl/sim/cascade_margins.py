@@ -270,7 +270,7 @@ class LiftedLoop:
 def exact_gain_margins(loop: LiftedLoop) -> tuple[float, float]:
     """(lower, upper) dB: the constant gains nearest 1, below and above, at which the lifted loop loses
     stability (``-inf`` / ``+inf``: none within :data:`GAIN_SCAN`). The loop is stable at gain 1."""
-    from quadctl.design.margins import _db
+    from quadctl.design.margins import gain_db
 
     def edge(a, b):  # a stable, b not
         for _ in range(45):  # the bracket's ratio to its 2^-45th power: ~1e-13 dB for a decade
@@ -292,7 +292,7 @@ def exact_gain_margins(loop: LiftedLoop) -> tuple[float, float]:
             lower = edge(prev, g)
             break
         prev = g
-    return (_db(lower) if lower else -math.inf, _db(upper) if upper else math.inf)
+    return (gain_db(lower) if lower else -math.inf, gain_db(upper) if upper else math.inf)
 
 
 @dataclass(frozen=True)
@@ -333,7 +333,7 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
         smallest balanced disk ``alpha`` (:func:`quadctl.design.margins.disk_gain_range_db`) and
         ``min |1 + lam|``.
     """
-    from quadctl.design.margins import _db
+    from quadctl.design.margins import gain_db
 
     theta = loop.frame_grid(points_per_decade)
     lam = loop.loci(theta)
@@ -389,7 +389,7 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
     vals, vecs = eig(t_disk)
     i = int(np.argmin(disk(vals[:, None])))
     return LociMargins(
-        gain_margin_db=(_db(below[0]) if below else -math.inf, _db(above[0]) if above else math.inf),
+        gain_margin_db=(gain_db(below[0]) if below else -math.inf, gain_db(above[0]) if above else math.inf),
         phase_crossover_freqs=(below[1] if below else None, above[1] if above else None),
         phase_margin_deg=pm, gain_crossover_freq=w_pm, disk_alpha=alpha,
         disk_freq=base_frequency(loop, t_disk, vecs[:, i]), min_return_difference=rd)

@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from quadctl import __version__
 from quadctl.config import yamlio
 from quadctl.config.kinds import misplaced
 from quadctl.config.schema import PLANT, default_at, section_model
@@ -31,6 +30,7 @@ from quadctl.text.messages import (
     show,
     whole_number,
 )
+from quadctl.version import __version__
 
 MODES = ("grid", "random")
 DISTRIBUTIONS = {

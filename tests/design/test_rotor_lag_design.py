@@ -24,7 +24,7 @@ from quadctl import config, pipeline
 from quadctl.cli.app import app
 from quadctl.config.notices import notices
 from quadctl.design import discrete, integral, lag, linear_loop, margins
-from quadctl.design.decoupled import _solve_subsystem
+from quadctl.design.decoupled import solve_subsystem
 from quadctl.design.riccati import riccati_residual
 from quadctl.errors import ConfigError
 from quadctl.sim.run import simulate
@@ -65,7 +65,7 @@ def test_a_lagged_integrator_gain_has_its_closed_form(q, r, tau):
     """``x' = v``, ``v' = (u - v) / tau``, ``Q = diag(q, 0)``: ``k_x = sqrt(q/r)``,
     ``k_v = sqrt(1 + 2 tau k_x) - 1``."""
     sub = SimpleNamespace(A=np.zeros((1, 1)), B=np.ones((1, 1)), states=("x",), inputs=("u",), name="integrator")
-    K, Kv, Ki, P, eig, _, residual = _solve_subsystem(sub, np.array([[q]]), np.array([[r]]), (), None, tau)
+    K, Kv, Ki, P, eig, _, residual = solve_subsystem(sub, np.array([[q]]), np.array([[r]]), (), None, tau)
     kx, kv = lag.scalar_integrator_gain(q, r, tau)
     assert K[0, 0] == pytest.approx(kx, rel=GAIN_RTOL) and Kv[0, 0] == pytest.approx(kv, rel=GAIN_RTOL)
     assert Ki.size == 0 and residual < RICCATI_TOL
