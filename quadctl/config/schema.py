@@ -328,7 +328,8 @@ class PidConfig(_Section):
         None, description="the attitude stage: euler, a PID per Euler angle error (the Crazyflie's "
         "attitude_pid_controller); px4, PX4's AttitudeControl (the quaternion error, the thrust axis's first and "
         "the yaw's weighted by att_yaw_weight, a P gain per axis, the reference's yaw rate fed forward, the rate "
-        "limits); absent: the preset's (crazyflie: euler, px4: px4)")
+        "limits; the crazyflie preset has no yaw weight: set values.att_yaw_weight, 0 holds no heading); absent: "
+        "the preset's (crazyflie: euler, px4: px4)")
     values: dict[str, Number] = Field(
         default_factory=dict, description="name -> value in the stack's units, replacing the preset's "
         "(rate_roll_kp, att_roll_kp, vel_xy_kp, pos_z_ki, rate_hz ...: `quadctl compare --help` lists them with "
