@@ -22,6 +22,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_STATES, STATE_INDEX
+from quadctl.physics.model import euler_rates_matrix
 
 ca = lazy_import("casadi")
 
@@ -183,11 +184,12 @@ def _px4_rate_setpoint(att, att_sp, x_ref, v, scale):
     k_yaw = ca.if_else(w > YAW_WEIGHT_FLOOR, v["att_yaw_kp"] / ca.fmax(w, YAW_WEIGHT_FLOOR), v["att_yaw_kp"])
     err = px4_attitude_error(att / scale, att_sp / scale, v["att_yaw_weight"])
     rate_sp = err * ca.vertcat(v["att_roll_kp"], v["att_pitch_kp"], k_yaw)
-    # the reference's yaw rate (Euler kinematics), fed forward about the world z axis seen from the body
-    phr, thr = x_ref[STATE_INDEX["phi"]], x_ref[STATE_INDEX["theta"]]
-    yaw_rate = (x_ref[STATE_INDEX["q"]] * ca.sin(phr) + x_ref[STATE_INDEX["r"]] * ca.cos(phr)) / ca.cos(thr)
-    phi, theta = att[0] / scale, att[1] / scale
-    world_z = ca.vertcat(-ca.sin(theta), ca.sin(phi) * ca.cos(theta), ca.cos(phi) * ca.cos(theta))
+    # the reference's yaw rate (omega = H euler_rates, the model's kinematics), fed forward about the world
+    # z axis seen from the body (H's last column at the measured attitude)
+    body = STATE_INDEX["p"]
+    yaw_rate = ca.solve(euler_rates_matrix(x_ref[STATE_INDEX["phi"]], x_ref[STATE_INDEX["theta"]]),
+                        x_ref[body:body + 3])[2]
+    world_z = euler_rates_matrix(att[0] / scale, att[1] / scale)[:, 2]
     return (rate_sp + world_z * yaw_rate) * scale
 
 

@@ -138,30 +138,43 @@ def crazyflie_cascade():
 
 
 @pytest.fixture(scope="module")
-def px4_cascade():
-    """PX4's cascade (its quaternion attitude stage, 400/200/100 Hz) on PX4's Iris (``quadctl init``'s iris)."""
+def iris():
+    """PX4's Iris (``quadctl init``'s iris preset), at hover."""
     import yaml
 
     import quadctl as qc
     from quadctl.config import Config
     from quadctl.config import template as starter
+
+    return qc.Stages(qc.setup_of(Config(**yaml.safe_load(starter.config_text("iris-px4", "iris", "hover")))))
+
+
+@pytest.fixture(scope="module")
+def px4_cascade(iris):
+    """PX4's cascade (its quaternion attitude stage, 400/200/100 Hz) on PX4's Iris."""
     from quadctl.config.pid import resolve
     from quadctl.pipeline import pid_loop_of
     from quadctl.sim.cascade_margins import lifted
 
-    stages = qc.Stages(qc.setup_of(Config(**yaml.safe_load(starter.config_text("iris-px4", "iris", "hover")))))
-    loop = pid_loop_of(stages.setup, stages.linear, resolve("px4"))
+    loop = pid_loop_of(iris.setup, iris.linear, resolve("px4"))
     assert loop.law.attitude == "px4"
     return loop, lifted(loop)
 
 
-def test_the_px4_cascade_on_the_iris_has_margins_on_every_input(px4_cascade):
+def test_the_px4_cascade_on_the_iris_has_margins_on_every_input(px4_cascade, iris):
     """The lifted margins through the quaternion attitude stage: every input's loop stable, its upper gain
-    margin exact (just inside stable, just outside not)."""
+    margin exact (just inside stable, just outside not), and each margin the Euler stage's with the same
+    gains (about hover the quaternion error is the Euler error, the yaw's weighted and its gain divided by
+    the weight: the same linearization; both refined to ~1e-10 dB)."""
+    from quadctl.config.pid import resolve
+    from quadctl.pipeline import pid_loop_of
     from quadctl.sim.cascade_margins import cascade_margins
 
     loop, lift = px4_cascade
     margins = cascade_margins(loop, lift=lift)
+    euler = cascade_margins(pid_loop_of(iris.setup, iris.linear, resolve("px4", attitude="euler")))
+    for m, e in zip(margins, euler):
+        np.testing.assert_allclose(m.gain_margin_db, e.gain_margin_db, atol=1e-6)
     assert [m.input for m in margins] == ["T", "A", "E", "R"]
     for j, m in enumerate(margins):
         assert m.stable, m
