@@ -100,6 +100,9 @@ PX4_I_RATE_SCALE = 400.0
 src/lib/rate_control/rate_control.cpp, a constant there, no parameter)."""
 YAW_WEIGHT_FLOOR = 1e-4
 """PX4's ``setProportionalGain`` divides the yaw P gain by the yaw weight only above this."""
+HALF_TURN_AXIS = 1 - 1e-5
+"""PX4's ``AttitudeControl::update`` takes the full setpoint for the reduced one when the rotation of the
+thrust axis has an x or y component beyond this: a half turn about a horizontal axis."""
 
 
 def quaternion_of_euler(phi, theta, psi, lib=ca):
@@ -163,7 +166,8 @@ def px4_attitude_error(att, att_sp, yaw_weight):
     raw = (1 + dot, *cross)  # the half-way quaternion from ez to ezd (unnormalized)
     norm = ca.sqrt(raw[0] ** 2 + raw[1] ** 2 + raw[2] ** 2 + raw[3] ** 2)
     turn = tuple(c / ca.fmax(norm, 1e-12) for c in raw)
-    half_turn = ca.logic_or(norm < 1e-6, ca.logic_or(ca.fabs(turn[1]) > 1 - 1e-5, ca.fabs(turn[2]) > 1 - 1e-5))
+    half_turn = ca.logic_or(norm < 1e-6, ca.logic_or(ca.fabs(turn[1]) > HALF_TURN_AXIS,
+                                                     ca.fabs(turn[2]) > HALF_TURN_AXIS))
     q_red = _pick(half_turn, qd, _qmul(turn, q))
     mix = _qmul(_conj(q_red), qd)
     sign = ca.if_else(mix[0] >= 0, 1, -1)

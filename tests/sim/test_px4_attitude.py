@@ -80,6 +80,17 @@ def test_with_yaw_weight_one_it_is_the_plain_quaternion_error(law_error):
     assert worst < ROUND_OFF, f"max diff {worst:.4E}"
 
 
+@pytest.mark.parametrize("setpoint", [(math.pi, 0.0, 0.3), (math.pi, 0.0, -2.0), (0.0, math.pi, 1.0)])
+def test_a_half_turn_of_the_thrust_axis_takes_the_full_setpoint_unweighted(law_error, setpoint):
+    """From level to a setpoint upside down (its thrust axis a half turn about a horizontal axis away),
+    the reduced attitude is undefined; PX4 takes the full setpoint: the plain quaternion error, the yaw
+    weight unused."""
+    att, sp = np.zeros(3), np.array(setpoint)
+    x, y, z, w = Rotation.from_euler("ZYX", sp[::-1]).as_quat()
+    want = 2 * math.copysign(1.0, w) * np.array([x, y, z])
+    np.testing.assert_allclose(law_error(att, sp, 0.4), want, atol=ROUND_OFF)
+
+
 @pytest.mark.parametrize("eps", [1e-1, 1e-2, 1e-3])
 def test_small_errors_about_level_are_the_euler_angle_errors_to_first_order(law_error, eps):
     """Attitude and error each within ``eps`` of level, every angle: the error is ``(d phi, d theta, w d psi)``
