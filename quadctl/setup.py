@@ -322,7 +322,7 @@ def _pid(cfg: Config):
     """The config's PID cascade (:func:`quadctl.config.pid.resolve`), checked on load."""
 
     pid = cfg.controller.pid
-    return resolve(pid.preset, pid.values) if pid is not None else resolve("crazyflie")
+    return resolve(pid.preset, pid.values, pid.attitude) if pid is not None else resolve("crazyflie")
 
 
 def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,

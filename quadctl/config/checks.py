@@ -298,7 +298,7 @@ def _check_pid(cfg: Config, fail) -> None:
 
     ctl = cfg.controller
     if ctl.pid is not None:
-        gains = resolve(ctl.pid.preset)
+        gains = resolve(ctl.pid.preset, attitude=ctl.pid.attitude)
         try:
             gains = gains.with_values(**ctl.pid.values)
         except ValueError as exc:

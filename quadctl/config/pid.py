@@ -38,8 +38,8 @@ PARAMETERS: tuple[tuple[str, str], ...] = (
     ("rate_dfilter_hz", "Hz: second-order Butterworth low-pass on the rate PIDs' derivative; 0: none"),
     ("gyro_lpf_hz", "Hz: second-order Butterworth low-pass on the body rates the rate PIDs measure; 0: none"),
     ("att_roll_kp", "attitude roll P: 1/s (rate setpoint per angle error)"),
-    ("att_roll_ki", "attitude roll I: 1/s^2"),
-    ("att_roll_kd", "attitude roll D (on the measured angle): dimensionless"),
+    ("att_roll_ki", "attitude roll I: 1/s^2 (the euler stage; px4 is P only)"),
+    ("att_roll_kd", "attitude roll D (on the measured angle): dimensionless (the euler stage)"),
     ("att_roll_ilimit", "attitude roll integrator limit: angle unit s; 0: none"),
     ("att_pitch_kp", "attitude pitch P: 1/s"),
     ("att_pitch_ki", "attitude pitch I: 1/s^2"),
@@ -51,6 +51,8 @@ PARAMETERS: tuple[tuple[str, str], ...] = (
     ("att_yaw_ilimit", "attitude yaw integrator limit: angle unit s; 0: none"),
     ("att_rate_limit_rp", "roll and pitch rate setpoint limit: angle unit/s; 0: none"),
     ("att_rate_limit_yaw", "yaw rate setpoint limit: angle unit/s; 0: none"),
+    ("att_yaw_weight", "the px4 attitude stage's yaw weight [0, 1]: the share of the yaw error kept after the "
+                       "thrust axis's (its yaw P gain is divided by it, as PX4 does); unused by the euler stage"),
     ("vel_xy_kp", "horizontal velocity P: output per m/s (deg per m/s, Crazyflie; m/s^2 per m/s, PX4)"),
     ("vel_xy_ki", "horizontal velocity I: output per m"),
     ("vel_xy_kd", "horizontal velocity D (on the measured velocity): output per m/s^2"),
@@ -82,6 +84,10 @@ PRESET_NAMES = ("crazyflie", "px4")
 ANGLE_UNITS = ("deg", "rad")
 VELOCITY_OUTPUTS = ("angles", "acceleration")
 TORQUE_OUTPUTS = ("pwm", "normalized")
+ATTITUDE_STAGES = ("euler", "px4")
+"""The attitude stages: ``euler``, a PID per Euler angle error (the Crazyflie's ``attitude_pid_controller``);
+``px4``, PX4's ``AttitudeControl``: the quaternion error, the thrust axis's first and the yaw's de-weighted,
+P per axis, the yaw rate fed forward (:mod:`quadctl.sim.pid`)."""
 
 
 @dataclass(frozen=True)
@@ -93,9 +99,9 @@ class PidGains:
     preset : str
     values : tuple of float
         In the order of :data:`PARAMETERS`.
-    angle_unit, velocity_output, torque_output : str
+    angle_unit, velocity_output, torque_output, attitude : str
         The choices baked into the law's code (:data:`ANGLE_UNITS`, :data:`VELOCITY_OUTPUTS`,
-        :data:`TORQUE_OUTPUTS`).
+        :data:`TORQUE_OUTPUTS`, :data:`ATTITUDE_STAGES`).
     citations : tuple of str
         Where each value comes from (``override`` for a config's own).
     source : str
@@ -107,6 +113,7 @@ class PidGains:
     angle_unit: str
     velocity_output: str
     torque_output: str
+    attitude: str
     citations: tuple[str, ...]
     source: str
     title: str = ""
@@ -130,7 +137,7 @@ class PidGains:
             i = NAMES.index(name)
             vals[i], cites[i] = float(value), "override"
         return PidGains(self.preset, tuple(vals), self.angle_unit, self.velocity_output, self.torque_output,
-                        tuple(cites), self.source, self.title)
+                        self.attitude, tuple(cites), self.source, self.title)
 
 
 @lru_cache(maxsize=1)
@@ -157,19 +164,20 @@ def rate_problem(gains: PidGains) -> str | None:
     return None
 
 
-def resolve(preset: str, overrides: dict | None = None) -> PidGains:
-    """The cascade of ``preset`` with ``overrides`` (name -> value in the stack's units).
+def resolve(preset: str, overrides: dict | None = None, attitude: str | None = None) -> PidGains:
+    """The cascade of ``preset`` with ``overrides`` (name -> value in the stack's units) and its attitude
+    stage ``attitude`` (:data:`ATTITUDE_STAGES`; None: the preset's).
 
     Raises
     ------
     ValueError
-        An unknown preset or value name, or rates that do not divide the base rate.
+        An unknown preset, value name or attitude stage, or rates that do not divide the base rate.
 
     Examples
     --------
     >>> g = resolve("crazyflie")
-    >>> g["rate_roll_kp"], g["att_roll_kp"], g.ratios, g.angle_unit
-    (250.0, 6.0, (1, 5), 'deg')
+    >>> g["rate_roll_kp"], g["att_roll_kp"], g.ratios, g.angle_unit, g.attitude
+    (250.0, 6.0, (1, 5), 'deg', 'euler')
     >>> resolve("px4", {"att_roll_kp": 6.5})["att_roll_kp"]
     6.5
     """
@@ -177,11 +185,14 @@ def resolve(preset: str, overrides: dict | None = None) -> PidGains:
     if preset not in data:
         raise ValueError(f"unknown PID preset {preset!r}: use one of {', '.join(PRESET_NAMES)}")
     entry = data[preset]
+    attitude = entry["attitude"] if attitude is None else attitude
+    if attitude not in ATTITUDE_STAGES:
+        raise ValueError(f"unknown attitude stage {attitude!r}: use one of {', '.join(ATTITUDE_STAGES)}")
     table = entry["values"]
     values = tuple(float(table[n][0]) if n in table else 0.0 for n in NAMES)
     cites = tuple(str(table[n][1]) if n in table else "not in this stack (0)" for n in NAMES)
     gains = PidGains(preset, values, entry["angle_unit"], entry["velocity_output"], entry["torque_output"],
-                     cites, entry["source"], entry.get("title", preset)).with_values(**(overrides or {}))
+                     attitude, cites, entry["source"], entry.get("title", preset)).with_values(**(overrides or {}))
     problem = rate_problem(gains)
     if problem:
         raise ValueError(problem)

@@ -324,6 +324,12 @@ class PidConfig(_Section):
         "crazyflie", description="crazyflie: controller_pid of bitcraze/crazyflie-firmware (angles in deg, "
         "500 Hz attitude and rate, 100 Hz position and velocity, PWM out); px4: PX4's mc_pos_control, "
         "mc_att_control and mc_rate_control (rad, 400/200/100 Hz, normalized torques out)")
+    attitude: Optional[Literal["euler", "px4"]] = Field(
+        None, description="the attitude stage: euler, a PID per Euler angle error (the Crazyflie's "
+        "attitude_pid_controller); px4, PX4's AttitudeControl (the quaternion error, the thrust axis's first and "
+        "the yaw's weighted by att_yaw_weight, a P gain per axis, the reference's yaw rate fed forward, the rate "
+        "limits; the crazyflie preset has no yaw weight: set values.att_yaw_weight, 0 holds no heading); absent: "
+        "the preset's (crazyflie: euler, px4: px4)")
     values: dict[str, Number] = Field(
         default_factory=dict, description="name -> value in the stack's units, replacing the preset's "
         "(rate_roll_kp, att_roll_kp, vel_xy_kp, pos_z_ki, rate_hz ...: `quadctl compare --help` lists them with "

@@ -1,9 +1,16 @@
 """A flight stack's PID cascade as a control law of the one closed loop (:mod:`quadctl.sim.builder`).
 
-Position P(I) -> velocity PID -> attitude PID -> rate PID, as the Crazyflie's ``controller_pid`` and
-PX4's multicopter controllers run them, with the numbers of :mod:`quadctl.config.pid`. Written for
+Position P(I) -> velocity PID -> attitude stage -> rate PID, as the Crazyflie's ``controller_pid`` and
+PX4's multicopter controllers run them, with the numbers of :mod:`quadctl.config.pid`. The attitude
+stage is the Crazyflie's PID per Euler angle error (``euler``) or PX4's ``AttitudeControl`` (``px4``:
+:func:`px4_attitude_error`, a P gain per axis, the yaw rate fed forward, the rate limits). Written for
 quadctl from the stacks' documented behaviour; no stack code is copied. The loops, their rates and
 outputs are described in the docs, docs/internals.md ("The PID cascade").
+
+References
+----------
+.. [1] D. Brescianini, M. Hehn, R. D'Andrea, "Nonlinear quadrocopter attitude control", technical
+   report, ETH Zurich, 2013 (the reduced and full attitude errors, the yaw weight).
 """
 
 from __future__ import annotations
@@ -15,6 +22,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_STATES, STATE_INDEX
+from quadctl.physics.model import euler_rates_matrix
 
 ca = lazy_import("casadi")
 
@@ -25,10 +33,10 @@ STATE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("vel_previous", 3),     # m/s: the last measured velocity (the D term's)
     ("att_setpoint", 3),     # roll, pitch, yaw (stack angle unit): held between position updates
     ("thrust_setpoint", 1),  # PWM (Crazyflie) or normalized (PX4)
-    ("att_integral", 3),     # angle unit s
-    ("att_previous", 3),     # angle unit
+    ("att_integral", 3),     # angle unit s (euler stage)
+    ("att_previous", 3),     # angle unit (euler stage)
     ("rate_setpoint", 3),    # angle unit/s: held between attitude updates
-    ("rate_integral", 3),    # angle unit
+    ("rate_integral", 3),    # angle unit (PWM torques: the Crazyflie's), torque (normalized torques: PX4's I term)
     ("rate_previous", 3),    # angle unit/s
     ("rate_derivative", 6),  # angle unit/s^2: the D-term low-pass's two delay elements per axis (rate_dfilter_hz > 0)
     ("gyro_filter", 6),      # angle unit/s: the gyro low-pass's two delay elements per axis (gyro_lpf_hz > 0)
@@ -52,10 +60,10 @@ def state_slice(name: str) -> slice:
 
 def structure_of(gains) -> tuple:
     """The choices baked into the law's code (:attr:`quadctl.sim.builder.LoopSpec.law`):
-    ``("pid", n_att, n_pos, angle_unit, velocity_output, torque_output, dfilter, gyro_filter)``."""
+    ``("pid", n_att, n_pos, angle_unit, velocity_output, torque_output, dfilter, gyro_filter, attitude)``."""
     n_att, n_pos = gains.ratios
     return ("pid", n_att, n_pos, gains.angle_unit, gains.velocity_output, gains.torque_output,
-            bool(gains["rate_dfilter_hz"] > 0), bool(gains["gyro_lpf_hz"] > 0))
+            bool(gains["rate_dfilter_hz"] > 0), bool(gains["gyro_lpf_hz"] > 0), gains.attitude)
 
 
 def n_constants(structure: tuple) -> int:
@@ -85,6 +93,108 @@ def _clamp(value, limit, lib=ca):
     if lib is not ca:
         return np.clip(value, -limit, limit) if limit > 0 else value
     return ca.if_else(limit > 0, ca.fmin(ca.fmax(value, -limit), limit), value)
+
+
+PX4_I_RATE_SCALE = 400.0
+"""deg/s: the rate error at which PX4's rate integrator stops growing (``i_factor = 1 - (e / 400 deg/s)^2``,
+src/lib/rate_control/rate_control.cpp, a constant there, no parameter)."""
+YAW_WEIGHT_FLOOR = 1e-4
+"""PX4's ``setProportionalGain`` divides the yaw P gain by the yaw weight only above this."""
+HALF_TURN_AXIS = 1 - 1e-5
+"""PX4's ``AttitudeControl::update`` takes the full setpoint for the reduced one when the rotation of the
+thrust axis has an x or y component beyond this: a half turn about a horizontal axis."""
+
+
+def quaternion_of_euler(phi, theta, psi, lib=ca):
+    """``(w, x, y, z)`` (Hamilton, scalar first) of ``R_z(psi) R_y(theta) R_x(phi)``, the body-to-NED
+    rotation of ZYX Euler angles (rad)."""
+    cr, sr = lib.cos(phi / 2), lib.sin(phi / 2)
+    cp, sp = lib.cos(theta / 2), lib.sin(theta / 2)
+    cy, sy = lib.cos(psi / 2), lib.sin(psi / 2)
+    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy)
+
+
+def _qmul(a, b):
+    """The Hamilton product ``a b`` of quaternions as ``(w, x, y, z)`` tuples."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+
+
+def _conj(q):
+    return (q[0], -q[1], -q[2], -q[3])
+
+
+def _body_z(q):
+    """The body z axis in the world frame: the third column of the rotation of the unit quaternion ``q``."""
+    w, x, y, z = q
+    return (2 * (x * z + w * y), 2 * (y * z - w * x), w * w - x * x - y * y + z * z)
+
+
+def _pick(cond, a, b):
+    """``a`` where ``cond``, else ``b``: a select per component of two quaternions."""
+    return tuple(ca.if_else(cond, ai, bi) for ai, bi in zip(a, b))
+
+
+def px4_attitude_error(att, att_sp, yaw_weight):
+    """PX4's attitude error (rad, body frame) of ZYX Euler angles ``att`` to ``att_sp`` (rad, (3,) each),
+    as ``AttitudeControl::update`` computes it from Brescianini, Hehn and D'Andrea [1]_:
+
+    1. the reduced setpoint ``q_red``: the shortest rotation taking the body z axis (the thrust axis) to
+       the setpoint's, applied to the attitude ``q`` (``q`` itself turned, yaw untouched); when that
+       rotation is a half turn about a horizontal axis, the full setpoint ``q_d`` instead (as PX4 does);
+    2. the mix ``q_mix = q_red^-1 q_d``, a rotation about z by ``alpha`` (taken with ``w >= 0``),
+       and the weighted setpoint ``q_red (cos(w alpha / 2), 0, 0, sin(w alpha / 2))``, ``w`` the yaw
+       weight within [0, 1]: the yaw's share of the error;
+    3. ``q_e = q^-1 q_w`` and the error ``2 sign(q_e.w) q_e.xyz`` (the shorter way round).
+
+    The angle ``alpha / 2`` is ``atan2(z, w)`` of ``q_mix`` (PX4 takes ``acos(w)`` and ``asin(z)``, the
+    same angle, less well conditioned near zero). ``sign`` is a select (``w >= 0``: +1). CasADi symbols
+    or numbers (DM) alike.
+
+    Returns
+    -------
+    CasADi column (3,)
+    """
+    q = quaternion_of_euler(att[0], att[1], att[2])
+    qd = quaternion_of_euler(att_sp[0], att_sp[1], att_sp[2])
+    ez, ezd = _body_z(q), _body_z(qd)
+    dot = ez[0] * ezd[0] + ez[1] * ezd[1] + ez[2] * ezd[2]
+    cross = (ez[1] * ezd[2] - ez[2] * ezd[1], ez[2] * ezd[0] - ez[0] * ezd[2], ez[0] * ezd[1] - ez[1] * ezd[0])
+    raw = (1 + dot, *cross)  # the half-way quaternion from ez to ezd (unnormalized)
+    norm = ca.sqrt(raw[0] ** 2 + raw[1] ** 2 + raw[2] ** 2 + raw[3] ** 2)
+    turn = tuple(c / ca.fmax(norm, 1e-12) for c in raw)
+    half_turn = ca.logic_or(norm < 1e-6, ca.logic_or(ca.fabs(turn[1]) > HALF_TURN_AXIS,
+                                                     ca.fabs(turn[2]) > HALF_TURN_AXIS))
+    q_red = _pick(half_turn, qd, _qmul(turn, q))
+    mix = _qmul(_conj(q_red), qd)
+    sign = ca.if_else(mix[0] >= 0, 1, -1)
+    half = ca.atan2(sign * mix[3], sign * mix[0])
+    w = ca.fmin(ca.fmax(yaw_weight, 0), 1)
+    q_w = _qmul(q_red, (ca.cos(w * half), 0, 0, ca.sin(w * half)))
+    q_e = _qmul(_conj(q), q_w)
+    sign = ca.if_else(q_e[0] >= 0, 2, -2)
+    return ca.vertcat(sign * q_e[1], sign * q_e[2], sign * q_e[3])
+
+
+def _px4_rate_setpoint(att, att_sp, x_ref, v, scale):
+    """PX4's attitude stage: the rate setpoint (angle unit/s, (3,)) of the measured attitude ``att`` and its
+    setpoint ``att_sp`` (angle unit): :func:`px4_attitude_error` times the P gains (the yaw's divided by
+    the yaw weight, as ``setProportionalGain`` does), plus the reference's yaw rate about the world z axis
+    turned into the body frame, within the rate limits."""
+    w = ca.fmin(ca.fmax(v["att_yaw_weight"], 0), 1)
+    k_yaw = ca.if_else(w > YAW_WEIGHT_FLOOR, v["att_yaw_kp"] / ca.fmax(w, YAW_WEIGHT_FLOOR), v["att_yaw_kp"])
+    err = px4_attitude_error(att / scale, att_sp / scale, v["att_yaw_weight"])
+    rate_sp = err * ca.vertcat(v["att_roll_kp"], v["att_pitch_kp"], k_yaw)
+    # the reference's yaw rate (omega = H euler_rates, the model's kinematics), fed forward about the world
+    # z axis seen from the body (H's last column at the measured attitude)
+    body = STATE_INDEX["p"]
+    yaw_rate = ca.solve(euler_rates_matrix(x_ref[STATE_INDEX["phi"]], x_ref[STATE_INDEX["theta"]]),
+                        x_ref[body:body + 3])[2]
+    world_z = euler_rates_matrix(att[0] / scale, att[1] / scale)[:, 2]
+    return (rate_sp + world_z * yaw_rate) * scale
 
 
 def _wrap(angle, half_turn):
@@ -144,7 +254,7 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     """
     from quadctl.config.pid import NAMES
 
-    _, n_att, n_pos, unit, vel_out, torque_out, dfilter, gyro = structure
+    _, n_att, n_pos, unit, vel_out, torque_out, dfilter, gyro, stage = structure
     v = {name: values[i] for i, name in enumerate(NAMES)}
     scale = 180.0 / math.pi if unit == "deg" else 1.0
     half_turn = 180.0 if unit == "deg" else math.pi
@@ -213,17 +323,20 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     i_vel = ca.if_else(run_pos, i_vel, part["vel_integral"])
     vel_prev = ca.if_else(run_pos, vel, part["vel_previous"])
 
-    # attitude: PID per Euler angle, the yaw error (and its D's difference) wrapped
-    e_att = att_sp - att
-    e_att = ca.vertcat(e_att[0:2], _wrap(e_att[2], half_turn))
-    delta = att - part["att_previous"]
-    delta = ca.vertcat(delta[0:2], _wrap(delta[2], half_turn))
-    kp_a = ca.vertcat(v["att_roll_kp"], v["att_pitch_kp"], v["att_yaw_kp"])
-    ki_a = ca.vertcat(v["att_roll_ki"], v["att_pitch_ki"], v["att_yaw_ki"])
-    kd_a = ca.vertcat(v["att_roll_kd"], v["att_pitch_kd"], v["att_yaw_kd"])
-    il_a = [v["att_roll_ilimit"], v["att_pitch_ilimit"], v["att_yaw_ilimit"]]
-    i_att = ca.vertcat(*[integrate(part["att_integral"][k], e_att[k], T_att, il_a[k]) for k in range(3)])
-    rate_sp = pid_output(kp_a, ki_a, kd_a, e_att, i_att, -delta / T_att)
+    if stage == "px4":  # PX4: the quaternion error, thrust axis first, P per axis, yaw rate fed forward
+        rate_sp = _px4_rate_setpoint(att, att_sp, x_ref, v, scale)
+        i_att = part["att_integral"]
+    else:  # PID per Euler angle, the yaw error (and its D's difference) wrapped
+        e_att = att_sp - att
+        e_att = ca.vertcat(e_att[0:2], _wrap(e_att[2], half_turn))
+        delta = att - part["att_previous"]
+        delta = ca.vertcat(delta[0:2], _wrap(delta[2], half_turn))
+        kp_a = ca.vertcat(v["att_roll_kp"], v["att_pitch_kp"], v["att_yaw_kp"])
+        ki_a = ca.vertcat(v["att_roll_ki"], v["att_pitch_ki"], v["att_yaw_ki"])
+        kd_a = ca.vertcat(v["att_roll_kd"], v["att_pitch_kd"], v["att_yaw_kd"])
+        il_a = [v["att_roll_ilimit"], v["att_pitch_ilimit"], v["att_yaw_ilimit"]]
+        i_att = ca.vertcat(*[integrate(part["att_integral"][k], e_att[k], T_att, il_a[k]) for k in range(3)])
+        rate_sp = pid_output(kp_a, ki_a, kd_a, e_att, i_att, -delta / T_att)
     limits = [v["att_rate_limit_rp"], v["att_rate_limit_rp"], v["att_rate_limit_yaw"]]
     rate_sp = ca.vertcat(*[_clamp(rate_sp[k], limits[k]) for k in range(3)])
     rate_sp = ca.if_else(run_att, rate_sp, part["rate_setpoint"])
@@ -236,7 +349,16 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     ki_r = ca.vertcat(v["rate_roll_ki"], v["rate_pitch_ki"], v["rate_yaw_ki"])
     kd_r = ca.vertcat(v["rate_roll_kd"], v["rate_pitch_kd"], v["rate_yaw_kd"])
     il_r = [v["rate_roll_ilimit"], v["rate_pitch_ilimit"], v["rate_yaw_ilimit"]]
-    i_rate = ca.vertcat(*[integrate(part["rate_integral"][k], e_rate[k], Ts, il_r[k]) for k in range(3)])
+    if torque_out == "normalized":
+        # PX4: the I term in torque units, applied before it grows (forward Euler) by i_factor ki e dt,
+        # i_factor = max(0, 1 - (e / 400 deg/s)^2), within the limits
+        i_term = part["rate_integral"]
+        i_factor = ca.fmax(0, 1 - (e_rate / (PX4_I_RATE_SCALE * scale * math.pi / 180)) ** 2)
+        grown = i_term + i_factor * ki_r * e_rate * Ts
+        i_rate = ca.vertcat(*[_clamp(grown[k], il_r[k]) for k in range(3)])
+    else:
+        i_rate = ca.vertcat(*[integrate(part["rate_integral"][k], e_rate[k], Ts, il_r[k]) for k in range(3)])
+        i_term = ki_r * i_rate
     d_rate = derivative(rates, part["rate_previous"], Ts)
     d_next = part["rate_derivative"]
     if dfilter:  # the D-term low-pass: second-order Butterworth at the base rate
@@ -245,7 +367,7 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
         e0 = d_rate - a1 * e1 - a2 * e2
         d_rate = b0 * e0 + b1 * e1 + b2 * e2
         d_next = ca.vertcat(e0, e1)
-    out = pid_output(kp_r, ki_r, kd_r, e_rate, i_rate, d_rate)
+    out = pid_output(kp_r, 1, kd_r, e_rate, i_term, d_rate)
     out = ca.vertcat(*[_clamp(out[k], v["rate_output_limit"]) for k in range(3)])
 
     if torque_out == "pwm":

@@ -137,6 +137,55 @@ def crazyflie_cascade():
     return loop, lifted(loop)
 
 
+@pytest.fixture(scope="module")
+def iris():
+    """PX4's Iris (``quadctl init``'s iris preset), at hover."""
+    import yaml
+
+    import quadctl as qc
+    from quadctl.config import Config
+    from quadctl.config import template as starter
+
+    return qc.Stages(qc.setup_of(Config(**yaml.safe_load(starter.config_text("iris-px4", "iris", "hover")))))
+
+
+@pytest.fixture(scope="module")
+def px4_cascade(iris):
+    """PX4's cascade (its quaternion attitude stage, 400/200/100 Hz) on PX4's Iris."""
+    from quadctl.config.pid import resolve
+    from quadctl.pipeline import pid_loop_of
+    from quadctl.sim.cascade_margins import lifted
+
+    loop = pid_loop_of(iris.setup, iris.linear, resolve("px4"))
+    assert loop.law.attitude == "px4"
+    return loop, lifted(loop)
+
+
+def test_the_px4_cascade_on_the_iris_has_margins_on_every_input(px4_cascade, iris):
+    """The lifted margins through the quaternion attitude stage: every input's loop stable, its upper gain
+    margin exact (just inside stable, just outside not); and the lifted loop the Euler stage's with the
+    same gains (about hover the quaternion error is the Euler error, the yaw's weighted and its gain
+    divided by the weight: the same linearization, to the Jacobians' round-off)."""
+    from quadctl.config.pid import resolve
+    from quadctl.pipeline import pid_loop_of
+    from quadctl.sim.cascade_margins import cascade_margins, lifted
+
+    loop, lift = px4_cascade
+    euler = lifted(pid_loop_of(iris.setup, iris.linear, resolve("px4", attitude="euler")))
+    assert list(euler.states) == list(lift.states)
+    gap = np.linalg.norm(lift.frame_map - euler.frame_map, 2)
+    assert gap < 1e-10 * np.linalg.norm(lift.frame_map, 2), f"max diff {gap:.4E}"
+    margins = cascade_margins(loop, lift=lift)
+    assert [m.input for m in margins] == ["T", "A", "E", "R"]
+    for j, m in enumerate(margins):
+        assert m.stable, m
+        upper = m.gain_margin_db[1]
+        assert upper > 0
+        if math.isfinite(upper):
+            assert lift.broken(j).is_stable(10 ** (upper / 20) * (1 - 1e-6))
+            assert not lift.broken(j).is_stable(10 ** (upper / 20) * (1 + 1e-6))
+
+
 def simulated_frame_jacobian(loop, lift: Lifted, substeps: int = 8) -> np.ndarray:
     """d(X after one frame)/dX of the compiled loop's law and RK4 plant, at the lift's equilibrium."""
     import casadi as ca
@@ -155,8 +204,9 @@ def simulated_frame_jacobian(loop, lift: Lifted, substeps: int = 8) -> np.ndarra
     return np.asarray(ca.Function("frame", [X], [ca.jacobian(Y, X)])(lift.equilibrium))
 
 
-def test_the_lifted_cascade_has_the_poles_of_the_simulated_multirate_loop(crazyflie_cascade):
-    loop, lift = crazyflie_cascade
+@pytest.mark.parametrize("cascade", ["crazyflie_cascade", "px4_cascade"])
+def test_the_lifted_cascade_has_the_poles_of_the_simulated_multirate_loop(cascade, request):
+    loop, lift = request.getfixturevalue(cascade)
     assert lift.frame == loop.law.ratios[1] > 1  # a multi-rate loop: the outer loops held over the frame
     keep = lift.states
     J_sim = simulated_frame_jacobian(loop, lift)[np.ix_(keep, keep)]
