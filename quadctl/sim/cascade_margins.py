@@ -365,18 +365,18 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
         phase = math.degrees(abs(float(np.angle(-1.0 / vals[i]))))
         if phase < pm:
             pm, w_pm = phase, base_frequency(loop, t, vecs[:, i])
-    gains = []  # (critical gain, rad/s)
+    gains = []  # (critical gain, rad/s): -1/λ real and positive, λ an eigenvalue of L (its loci)
     for t in (t for t in (refine(imag, k) for k in _sign_changes(imag(lam))) if t is not None):
-        vals, vecs = eig(t)
+        L_eig, vecs = eig(t)
         with np.errstate(divide="ignore", invalid="ignore"):
-            i = int(np.nanargmin(np.abs(vals.imag) / np.abs(vals)))
-        if vals[i].real < 0 and abs(vals[i].imag) <= 1e-9 * abs(vals[i]):
-            gains.append((-1.0 / vals[i].real, base_frequency(loop, t, vecs[:, i])))
+            i = int(np.nanargmin(np.abs(L_eig.imag) / np.abs(L_eig)))
+        if L_eig[i].real < 0 and abs(L_eig[i].imag) <= 1e-9 * abs(L_eig[i]):
+            gains.append((-1.0 / L_eig[i].real, base_frequency(loop, t, vecs[:, i])))
     for end in {theta[0], theta[-1]} & {0.0, math.pi}:  # z = 1, -1: L is real, its real eigenvalues real gains
-        vals, vecs = eig(end)
-        for i in np.nonzero((np.abs(vals.imag) <= 1e-12 * np.abs(vals)) & (vals.real < 0)
-                            & (np.abs(vals) < LOCI_INFINITE))[0]:
-            gains.append((-1.0 / vals[i].real, base_frequency(loop, end, vecs[:, i])))
+        L_eig, vecs = eig(end)
+        for i in np.nonzero((np.abs(L_eig.imag) <= 1e-12 * np.abs(L_eig)) & (L_eig.real < 0)
+                            & (np.abs(L_eig) < LOCI_INFINITE))[0]:
+            gains.append((-1.0 / L_eig[i].real, base_frequency(loop, end, vecs[:, i])))
     above = min((g for g in gains if g[0] > 1), default=None)
     below = max((g for g in gains if g[0] < 1), default=None)
 
