@@ -23,7 +23,7 @@ from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.noise import NoiseSpec, NoiseStream, exogenous_period
 from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
-from quadctl.sim.cases import Cases, Segments
+from quadctl.sim.cases import Cases
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
 from quadctl.sim.schedule import DEFAULT_TOLERANCE
@@ -599,28 +599,16 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     >>> run.status, float(run.x[0, 2] - loop.x_trim[2]), bool(abs(run.x[-1, 2] - loop.x_trim[2]) < 1e-4)
     ('ok', 0.5, True)
     """
-    if method == "etdrk4":
-        return _simulate_exponential(loop, x0, duration, dt, noise=noise, wind=wind, max_samples=max_samples,
-                                     progress=progress, tolerance=tolerance, reference=reference)
-    if method != "rk4":
-        raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
-    plan = loop.plan(duration, dt)
-    noisy = noise is not None and noise.active
-    windy = wind is not None and wind.active
-    run = runner(loop.spec(noisy, windy, reference is not None), 1)
-    c = loop.constants(plan.sample_time)
-    lo, hi = loop.bounds(duration, reference)
-    x0_all = loop.initial_loop_state(x0)
-    n = plan.n_steps
-    stride = record_stride(n, max_samples)
+    stack = stack_of([loop], [x0], duration, dt, method=method, noise=noise, wind=wind, max_samples=max_samples,
+                     reference=reference, tolerance=tolerance, exo_rate=exo_rate)
+    run = runner(stack.spec, 1)
     start = time.perf_counter()
-    exo = (ExoStream(noise if noisy else None, wind if windy else None, exo_rate or loop.rate, reference)
-           if noisy or windy or reference is not None else None)
-    done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo, progress)
+    (done, t, xs, us), = run_stack(stack, run, progress)
     wall = time.perf_counter() - start
-    t = plan.dt * ks
-    return _result(loop, plan, run.backend, t, xs, us, done, stride, wall, lo, hi, noise if noisy else None,
-                   wind if windy else None, exo, ks, plan.dt, reference)
+    exo = stack.exo
+    return _result(loop, stack.plans[0], run.backend, t, xs, us, done, stack.strides[0], wall, stack.cases.lo[0],
+                   stack.cases.hi[0], noise if exo is not None and exo.noise is not None else None,
+                   wind if exo is not None and exo.wind is not None else None, exo, t, 1.0, reference, stack.spec)
 
 
 def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int, stride: int, wall: float,
@@ -658,87 +646,19 @@ def _estimate(loop: ClosedLoop, x_ref: np.ndarray, deviation: np.ndarray, refere
     return x_ref + heading_frame(deviation, -loop.heading_offset(x_ref), lib=np)
 
 
-def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, wind, max_samples: int,
-                          progress, tolerance: float, reference=None) -> SimResult:
-    """:func:`simulate` by ETDRK4 over the segments of its schedule (each with its own matrices).
-
-    A sampled controller's law runs at every sample as with RK4, and the plant between samples by
-    exponential steps of its linearization under the held input (:meth:`ClosedLoop.plant_linear_part`;
-    the rest, smooth over a sample, is the nonlinear remainder): a whole number of steps per sample,
-    every segment starting on a sample, so the hold points stay exact.
-
-    A reference enters as the RK4 loop's does, through the exogenous rows; the linear part stays the
-    loop linearized at the trim, and the nonlinear remainder ``N = f - L X`` carries the rest (the
-    reference's ``x_ref(t)``, ``u_ref(t)`` and the loop's distance from the trim). Within a row the
-    reference is a quadratic in ``t``, so ``N`` is smooth over a step; at a row's boundary its second
-    derivative jumps, and every step of the schedule divides the exogenous period (a step never
-    straddles a boundary), so the method keeps its order. A gain schedule's continuous loop flies each
-    stretch on the loop closed at the schedule value nearest the commanded one (:func:`_linear_pieces`).
-    """
-    noisy = noise is not None and noise.active
-    windy = wind is not None and wind.active
-    exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
-           if noisy or windy or reference is not None else None)
-    prep = loop.exponential_setup(duration, dt, tolerance=tolerance, max_samples=max_samples, reference=reference,
-                                  exo_period=exo.period if exo is not None else None, noise=noisy, wind=windy)
-    plan, run, segments = prep.plan, runner(prep.spec, 1), prep.segments
-    x = loop.initial_loop_state(x0)
-    n = plan.n_steps
-    start = time.perf_counter()
-    if n <= CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]):  # the whole run in one call
-        exo_rows = None
-        if exo is not None:
-            exo_rows = [exo.samples(0, math.ceil(duration / exo.period + 1e-9))]
-            segments = replace(segments, exo=exo_rows)
-        (total, t, xs, us), = run.run_segments(segments, x[None])
-        if progress is not None:
-            progress(total, n)
-    else:  # a long run: each segment in chunks (Ctrl-C between them, the exogenous rows drawn as it goes)
-        total, t, xs, us = _exponential_in_chunks(prep, run, x, exo, progress)
-    wall = time.perf_counter() - start
-    return _result(loop, plan, run.backend, t, xs, us, total, prep.strides[-1], wall, prep.lo, prep.hi,
-                   noise if noisy else None, wind if windy else None, exo, t, 1.0, reference, prep.spec)
-
-
-def _exponential_in_chunks(prep: ExponentialSetup, run, x, exo, progress):
-    """``(done, t, xs, us)`` of a long ETDRK4 run: segment after segment, each in chunks (:func:`run_in_chunks`)."""
-    plan, segments = prep.plan, prep.segments
-    held = plan.sample_time is not None and plan.hold > 0
-    n = plan.n_steps
-    parts_t, parts_x, parts_u, total = [], [], [], 0
-    for i in range(segments.n.shape[0]):
-        dt, m, k0 = float(segments.dt[i, 0]), int(segments.n[i, 0]), int(segments.k0[i, 0])
-        sub = StepPlan(dt, m, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto,
-                       hold=int(segments.hold[i, 0]) if held else 0, sample_time=plan.sample_time if held else None)
-        report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
-        done, ks, xs, us = run_in_chunks(run, x, segments.c[i, 0], sub, m, int(segments.stride[i, 0]),
-                                         prep.lo, prep.hi, exo, report, k_start=k0)
-        total += done
-        last = i == segments.n.shape[0] - 1 or done < m
-        keep = len(ks) if last else len(ks) - 1  # a segment's final row is the next one's start
-        parts_t.append(dt * ks[:keep])
-        parts_x.append(xs[:keep])
-        parts_u.append(us[:keep])
-        if last:
-            break
-        x = np.ascontiguousarray(xs[-1])
-    return total, np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
-
-
 @dataclass(frozen=True)
 class ExponentialSetup:
     """What an ETDRK4 run of a loop computes before its first step, from the loop and the run's
     settings alone (:meth:`ClosedLoop.exponential_setup`, kept with the loop): its linear part and
     step plan, the records' strides, the loop's generated code (its spec: the runner is
-    :func:`quadctl.sim.engine.runner`'s), the bounds, and the :class:`~quadctl.sim.cases.Segments`
-    (each segment's constants: the loop's, then the φ-functions of its step and linear part)."""
+    :func:`quadctl.sim.engine.runner`'s), and the run as one :class:`~quadctl.sim.cases.Cases` (a
+    segment a step size, each segment's constants the loop's, then the φ-functions of its step and
+    linear part; from the trim: :meth:`Cases.starting` gives the run from a state)."""
 
     plan: StepPlan
     strides: list
     spec: LoopSpec
-    lo: np.ndarray
-    hi: np.ndarray
-    segments: Segments
+    cases: Cases
 
 
 def exponential_setup(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
@@ -766,11 +686,11 @@ def exponential_setup(loop: ClosedLoop, duration: float, dt="auto", *, tolerance
     c = [np.concatenate([base, blocks.setdefault((seg.dt, point), phi_constants(
         ladder[seg.dt], None if point is None else points.index(point)))]) for seg, _, point in pieces]
     segs = [seg for seg, _, _ in pieces]
-    segments = Segments.of(np.array(c)[:, None], [[s.dt] for s in segs], [[s.n] for s in segs],
-                           [[stride] for _, stride, _ in pieces], [[s.k0] for s in segs], lo, hi,
-                           hold=[[round(period / s.dt) if held else 1] for s in segs],
-                           exo_period=exo_period if exo_period is not None else 1.0)
-    return ExponentialSetup(plan=plan, strides=strides, spec=spec, lo=lo, hi=hi, segments=segments)
+    cases = Cases.graded(loop.initial_loop_state(loop.x_trim), np.array(c)[:, None], [[s.dt] for s in segs],
+                         [[s.n] for s in segs], [[stride] for _, stride, _ in pieces], [[s.k0] for s in segs], lo, hi,
+                         hold=[[round(period / s.dt) if held else 1] for s in segs],
+                         exo_period=exo_period if exo_period is not None else 1.0)
+    return ExponentialSetup(plan=plan, strides=strides, spec=spec, cases=cases)
 
 
 def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list[tuple]:
@@ -843,81 +763,83 @@ def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance:
                             forced=reference is not None, max_stable_dt=max_stable_dt, kicks=kicks)
 
 
-def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                      max_samples: int = MAX_SAMPLES, reference=None, noise: NoiseSpec | None = None,
-                      wind: WindSpec | None = None) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
-    """ETDRK4 runs of several loops of one structure in the SIMD lanes: :func:`exponential_runs`'
-    runs (the same arguments).
+@dataclass(frozen=True)
+class Stack:
+    """``N`` runs of loops of one structure ready for a runner (:func:`stack_of`): each case's step plan
+    and record stride (of its largest step), the loops' generated code (``spec``), the
+    :class:`~quadctl.sim.cases.Cases` (RK4: a segment each; ETDRK4: a segment per step of its graded
+    schedule), and the exogenous inputs they all take (drawn when the stack runs: :func:`run_stack`)."""
 
-    Returns
-    -------
-    list of (done, t, xs, us)
-        Per loop: steps completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as
-        :func:`simulate` records them.
-    """
-    return exponential_runs(loops, x0s, duration, dt, tolerance=tolerance, max_samples=max_samples,
-                            reference=reference, noise=noise, wind=wind)[2]
+    plans: tuple
+    strides: tuple
+    spec: LoopSpec
+    cases: Cases
+    exo: ExoStream | None = None
 
 
-def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                     max_samples: int = MAX_SAMPLES, reference=None, noise: NoiseSpec | None = None,
-                     wind: WindSpec | None = None, planned=None) -> tuple[list[StepPlan], str, list]:
-    """ETDRK4 runs of several loops of one structure in the SIMD lanes (:data:`quadctl.sim.engine.LANES`
-    at a time), each its own linear part and schedule (per lane: each case steps as its one-case run
-    does), the lanes stepping through their schedules' segments together (segment ``i`` of every
-    case per call), as :func:`simulate` runs each (sampled controllers too). The φ-functions of all
-    the loops' linear parts are computed together, on the stack of them. Every loop takes the same
-    exogenous inputs: a ``reference`` (:class:`quadctl.flatness.FlownReference`), noise and wind,
-    tabulated once for the run.
-
-    Parameters
-    ----------
-    loops : sequence of ClosedLoop
-        One :meth:`ClosedLoop.spec` (gain pattern, saturation, integrators, sampling ...).
-    x0s : sequence of (12,) array_like
-    duration : float
-        s.
-    dt : float or "auto"
-    tolerance : float
-    max_samples : int
-    reference : FlownReference, optional
-    noise : NoiseSpec, optional
-    wind : WindSpec, optional
-    planned : sequence of (L, StepPlan), optional
-        Each loop's :func:`exponential_plan` of these arguments, when the caller has them.
-
-    Returns
-    -------
-    (plans, backend, runs)
-        Each loop's :class:`StepPlan`, the runner's backend, and per loop ``(done, t, xs, us)``: steps
-        completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as :func:`simulate`
-        records them.
+def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noise: NoiseSpec | None = None,
+             wind: WindSpec | None = None, max_samples: int = MAX_SAMPLES, reference=None,
+             tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None, planned=None) -> Stack:
+    """The :class:`Stack` of runs of ``loops`` from ``x0s`` (the arguments of :func:`simulate`): one
+    case is a stack of one (an ETDRK4 case from the setup its loop keeps,
+    :meth:`ClosedLoop.exponential_setup`); more run in the SIMD lanes, each case stepping as its one-case
+    run does (ETDRK4: the φ-functions of all the loops' linear parts computed on the stack of them).
+    ``planned``: each loop's ``(L, StepPlan)`` of :func:`exponential_plan`, when the caller has them.
 
     Raises
     ------
     ValueError
-        Loops of different structures or controller rates.
+        Loops of different structures or controller rates, or an unknown method.
+    StepSizeError
+        A step that a loop cannot take.
     """
-    from quadctl.sim.engine import LANES
-    from quadctl.sim.schedule import phi_constant_rows, phi_ladder, phi_pattern, record_strides
-
     loops = list(loops)
-    if len({loop.spec() for loop in loops}) > 1:
-        raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
+    if method not in ("rk4", "etdrk4"):
+        raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
     rate = loops[0].rate
-    if any(loop.rate != rate for loop in loops):
-        raise ValueError("the lanes run loops of one controller rate: group the loops by loop.rate")
+    if len(loops) > 1:
+        if len({loop.spec() for loop in loops}) > 1:
+            raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
+        if any(loop.rate != rate for loop in loops):
+            raise ValueError("the lanes run loops of one controller rate: group the loops by loop.rate")
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
-    exo = (ExoStream(noise if noisy else None, wind if windy else None, rate, reference)
+    exo = (ExoStream(noise if noisy else None, wind if windy else None, exo_rate or rate, reference)
            if noisy or windy or reference is not None else None)
+    exo_period = exo.period if exo is not None else None
+    if method == "rk4":
+        plans = [loop.plan(duration, dt) for loop in loops]
+        strides = tuple(record_stride(plan.n_steps, max_samples) for plan in plans)
+        bounds = [loop.bounds(duration, reference) for loop in loops]
+        cases = Cases.of([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)],
+                         [loop.constants(plan.sample_time) for loop, plan in zip(loops, plans)],
+                         [plan.dt for plan in plans], [plan.n_steps for plan in plans], strides,
+                         [b[0] for b in bounds], [b[1] for b in bounds], hold=[max(plan.hold, 1) for plan in plans],
+                         exo_period=exo_period or 1.0)
+        return Stack(tuple(plans), strides, loops[0].spec(noisy, windy, reference is not None), cases, exo)
+    if len(loops) == 1 and planned is None:
+        prep = loops[0].exponential_setup(duration, dt, tolerance=tolerance, max_samples=max_samples,
+                                          reference=reference, exo_period=exo_period, noise=noisy, wind=windy)
+        return Stack((prep.plan,), (prep.strides[-1],), prep.spec,
+                     prep.cases.starting(loops[0].initial_loop_state(x0s[0])), exo)
+    return _exponential_stack(loops, x0s, duration, dt, tolerance, max_samples, reference, exo, noisy, windy,
+                              planned)
+
+
+def _exponential_stack(loops, x0s, duration, dt, tolerance, max_samples, reference, exo, noisy, windy,
+                       planned) -> Stack:
+    """:func:`stack_of` of ETDRK4 runs of several loops: each its own linear part and schedule, the lanes
+    stepping through their schedules' segments together (segment ``i`` of every case per call); the loops
+    whose schedules start at one step share a φ ladder (the stack of theirs: each matrix as its one-case
+    run computes it, from that step up)."""
+    from quadctl.sim.schedule import phi_constant_rows, phi_ladder, phi_pattern, record_strides
+
+    rate = loops[0].rate
     held = rate is not None
     period = 1.0 / rate if held else (exo.period if exo is not None else None)
     Ls, plans = zip(*(planned or [exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
                                                    exo_period=exo.period if exo is not None else None)
                                   for loop in loops]))
-    # the loops whose schedules start at one step share a ladder (the stack of theirs: each matrix as
-    # its one-case run computes it, from that step up)
     rung: dict[float, list[int]] = {}
     for i, plan in enumerate(plans):
         rung.setdefault(min(seg.dt for seg in plan.schedule), []).append(i)
@@ -929,9 +851,8 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
         for row, i in enumerate(members):
             ladders[i] = (shared, row, blocks)
     patterns = np.array([phi_pattern(lad[0]) for lad in {id(lad[0]): lad for lad in ladders}.values()])
-    run = runner(loops[0].spec(noisy, windy, reference is not None, method="etdrk4",
-                               phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
-    rows = exo.samples(0, math.ceil(duration / exo.period + 1e-9)) if exo is not None else None
+    spec = loops[0].spec(noisy, windy, reference is not None, method="etdrk4",
+                         phi_pattern=tuple(bool(b) for b in patterns.any(axis=0)))
     S = max(len(plan.schedule) for plan in plans)
     bounds = [loop.bounds(duration, reference) for loop in loops]
     base = [loop.constants(period if held else None) for loop in loops]
@@ -944,16 +865,15 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
 
     c = np.array(per_segment(lambda i, seg, k: np.concatenate([base[i], ladders[i][2][seg.dt][ladders[i][1]]]),
                              lambda i: np.concatenate([base[i], ladders[i][2][pad[i]][ladders[i][1]]])))
-    segments = Segments.of(c, per_segment(lambda i, seg, k: seg.dt, lambda i: pad[i]),
-                           per_segment(lambda i, seg, k: seg.n, lambda i: 0),
-                           per_segment(lambda i, seg, k: strides[i][k], lambda i: 1),
-                           per_segment(lambda i, seg, k: seg.k0, lambda i: 0),
-                           np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
-                           hold=per_segment(lambda i, seg, k: round(period / seg.dt) if held else 1, lambda i: 1),
-                           exo=None if rows is None else [rows] * len(loops),
-                           exo_period=exo.period if exo is not None else 1.0)
-    out = run.run_segments(segments, np.array([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)]))
-    return plans, run.backend, out
+    cases = Cases.graded([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)], c,
+                         per_segment(lambda i, seg, k: seg.dt, lambda i: pad[i]),
+                         per_segment(lambda i, seg, k: seg.n, lambda i: 0),
+                         per_segment(lambda i, seg, k: strides[i][k], lambda i: 1),
+                         per_segment(lambda i, seg, k: seg.k0, lambda i: 0),
+                         np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
+                         hold=per_segment(lambda i, seg, k: round(period / seg.dt) if held else 1, lambda i: 1),
+                         exo_period=exo.period if exo is not None else 1.0)
+    return Stack(tuple(plans), tuple(st[-1] for st in strides), spec, cases, exo)
 
 
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
@@ -961,45 +881,106 @@ CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
 Python sees Ctrl-C between calls at once."""
 
 
-def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: ExoStream | None = None,
-                  progress=None, k_start: int = 0):
-    """Run ``n`` steps in chunks, each starting on a controller sample; the rows of one long run.
+def run_stack(stack: Stack, run, progress=None) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """The runs of ``stack`` by ``run`` (a runner of its spec, :func:`quadctl.sim.engine.runner`): per case
+    ``(done, t, xs, us)``, steps completed, recorded times (s), loop states (r, nx) and inputs (r, 4).
 
-    ``progress(done, n)``, if given, is called after each chunk with the steps done so far.
-    ``k_start``: the absolute index of the first step (a segment of a schedule starting at
-    ``k_start dt`` s).
+    The exogenous rows are drawn for the whole run at once; a case alone longer than the runner's
+    chunk (:data:`CHUNK_STEPS`) runs in chunks instead (:func:`_in_chunks`: Ctrl-C between them, the
+    rows drawn as it goes). ``progress(done, total)``, if given, is called with a case alone's steps
+    done after each call.
+    """
+    cases, exo = stack.cases, stack.exo
+    total = int(cases.n[:, 0].sum())
+    if len(cases) == 1 and total > CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]):
+        return [_in_chunks(run, cases, exo, progress)]
+    if exo is not None:
+        last = max(int(exo.index([cases.k0[s, i] + cases.n[s, i] - 1], cases.dt[s, i])[0])
+                   for i in range(len(cases)) for s in range(cases.segments) if cases.n[s, i] > 0)
+        rows = exo.samples(0, last)
+        cases = cases.starting(cases.x0, exo=[rows] * len(cases))
+    out = run.run(cases)
+    if progress is not None and len(cases) == 1:
+        progress(out[0][0], total)
+    return out
+
+
+def _in_chunks(run, cases: Cases, exo: ExoStream | None, progress=None):
+    """``(done, t, xs, us)`` of the one case of ``cases``: segment after segment, each in chunks of
+    :data:`CHUNK_STEPS` (whole controller periods, each starting on a sample), a chunk's exogenous rows
+    drawn before it; a chunk's final record is the next one's start (kept once)."""
+    chunk = CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"])
+    total, n_all, last = 0, int(cases.n[:, 0].sum()), int(cases.last[0])
+    x = cases.x0[0]
+    parts: tuple[list, list, list] = ([], [], [])
+    for s in range(last + 1):
+        dt, hold, stride = float(cases.dt[s, 0]), int(cases.hold[s, 0]), int(cases.stride[s, 0])
+        k0, end = int(cases.k0[s, 0]), int(cases.k0[s, 0] + cases.n[s, 0])
+        step = max(hold, chunk // hold * hold)
+        while k0 < end:
+            m = min(step, end - k0)
+            rows, first = None, 0
+            if exo is not None:
+                first, row = exo.rows(k0, m, dt)
+                rows = [row]
+            piece = Cases.of(x, cases.c[s, 0], dt, m, stride, cases.lo, cases.hi, hold=hold, k0=k0, exo=rows,
+                             exo_first=first, exo_period=cases.exo_period[0])
+            (done, t, xs, us), = run.run(piece)
+            total += done
+            if progress is not None:
+                progress(total, n_all)
+            final = done < m or (k0 + m >= end and s == last)
+            keep = len(t) if final else len(t) - 1
+            for part, got in zip(parts, (t, xs, us)):
+                part.append(got[:keep])
+            if final:
+                return total, *(np.concatenate(p) for p in parts)
+            x = xs[-1]
+            k0 += m
+    return total, *(np.concatenate(p) for p in parts)
+
+
+def simulate_stack(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noise: NoiseSpec | None = None,
+                   wind: WindSpec | None = None, max_samples: int = MAX_SAMPLES, reference=None,
+                   tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None,
+                   planned=None) -> tuple[list[StepPlan], str, list]:
+    """Runs of several loops of one structure from ``x0s``, as :func:`simulate` runs each (its arguments;
+    the RK4 or ETDRK4 runs of :func:`stack_of`), in the SIMD lanes (:data:`quadctl.sim.engine.LANES` at a
+    time; one case alone: the one-case loop). Every loop takes the same exogenous inputs: a
+    ``reference`` (:class:`quadctl.flatness.FlownReference`), noise and wind, tabulated once for the run.
 
     Returns
     -------
-    (done, ks, xs, us) : steps completed, recorded absolute step indices (r,), loop states
-    (r, nx) and inputs (r, 4) of the recorded steps and the last.
+    (plans, backend, runs)
+        Each loop's :class:`StepPlan`, the runner's backend, and per loop ``(done, t, xs, us)``: steps
+        completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as :func:`simulate`
+        records them.
+
+    Raises
+    ------
+    ValueError
+        Loops of different structures or controller rates.
+
+    Examples
+    --------
+    Three designs of the hover loop (gains scaled) in the lanes: each as its own run.
+
+    >>> import numpy as np, quadctl as qc
+    >>> from dataclasses import replace
+    >>> from quadctl.sim.run import simulate_stack
+    >>> loop = qc.Stages(qc.setup_of(qc.load_config("hover"))).loop
+    >>> loops = [replace(loop, K=loop.K * k) for k in (0.8, 1.0, 1.2)]
+    >>> plans, backend, runs = simulate_stack(loops, [loop.x_trim + 0.1] * 3, 0.5)
+    >>> one = qc.simulate(loops[2], loop.x_trim + 0.1, 0.5)
+    >>> bool(np.abs(runs[2][2][:, :12] - one.x).max() < 1e-12), len(runs)
+    (True, 3)
     """
-    hold = max(plan.hold, 1)
-    chunk = max(hold, CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]) // hold * hold)
-    parts_k, parts_x, parts_u = [], [], []
-    x = np.ascontiguousarray(x0, dtype=float)
-    k0 = k_start
-    n = n + k_start
-    while True:
-        m = min(chunk, n - k0)
-        exo, first, period = None, 0, 1.0
-        if noise is not None:
-            first, exo = noise.rows(k0, m, plan.dt)
-            exo, period = [exo], noise.period
-        cases = Cases.of(x, c, plan.dt, m, stride, lo, hi, hold=hold, k0=k0, exo=exo, exo_first=first,
-                         exo_period=period)
-        (done, ks, xs, us), = run.run(cases)
-        last = k0 + m >= n or done < m
-        if progress is not None:
-            progress(k0 + done - k_start, n - k_start)
-        keep = len(ks) if last else len(ks) - 1  # a chunk's final row is the next one's start
-        parts_k.append(ks[:keep])
-        parts_x.append(xs[:keep])
-        parts_u.append(us[:keep])
-        if last:
-            return k0 + done - k_start, np.concatenate(parts_k), np.concatenate(parts_x), np.concatenate(parts_u)
-        x = np.ascontiguousarray(xs[-1])
-        k0 += m
+    from quadctl.sim.engine import LANES
+
+    stack = stack_of(loops, x0s, duration, dt, method=method, noise=noise, wind=wind, max_samples=max_samples,
+                     reference=reference, tolerance=tolerance, exo_rate=exo_rate, planned=planned)
+    run = runner(stack.spec, 1 if len(stack.cases) == 1 else LANES)
+    return list(stack.plans), run.backend, run_stack(stack, run)
 
 
 STATUS_WORDS = {"ok": "completed", "diverged": "diverged", "left_valid_range": "left the valid range"}
