@@ -895,9 +895,8 @@ def run_stack(stack: Stack, run, progress=None) -> list[tuple[int, np.ndarray, n
     if len(cases) == 1 and total > CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]):
         return [_in_chunks(run, cases, exo, progress)]
     if exo is not None:
-        last = max(int(exo.index([cases.k0[s, i] + cases.n[s, i] - 1], cases.dt[s, i])[0])
-                   for i in range(len(cases)) for s in range(cases.segments) if cases.n[s, i] > 0)
-        rows = exo.samples(0, last)
+        taken = cases.n > 0  # the rows through the last step of any segment
+        rows = exo.samples(0, int(exo.index((cases.k0 + cases.n - 1)[taken], cases.dt[taken]).max(initial=0)))
         cases = cases.starting(cases.x0, exo=[rows] * len(cases))
     out = run.run(cases)
     if progress is not None and len(cases) == 1:
