@@ -1,15 +1,20 @@
-"""Simulation of the full nonlinear closed loop, one case: RK4 at a fixed step, or ETDRK4
+"""Simulation of the full nonlinear closed loop: RK4 at a fixed step, or ETDRK4
 (``simulation.method: etdrk4``) on a graded schedule of steps (:mod:`quadctl.sim.schedule`).
 
 ``u = u_ref(t) - K (x - x_ref(t))``: by default ``x_ref(t) = x_trim + x_rate t`` (positions drift at
 the trim velocity) and ``u_ref = u_trim``; with ``simulation.reference`` the reference flown and its
 feedforward; with a gain schedule ``K = G(v)`` (:mod:`quadctl.sim.builder`, "Gain schedule"). With
 the integrators, sampling, saturation, noise and wind the loop has, run by
-the engine of :mod:`quadctl.sim` (compiled where a C compiler works). The step comes from
-:mod:`quadctl.sim.plan`; the run goes in chunks so Ctrl-C stops it at once, and noise and wind are
-drawn chunk by chunk (:class:`ExoStream`), so memory does not grow with the duration.
-"""
+the engine of :mod:`quadctl.sim` (compiled where a C compiler works).
 
+One entry runs a stack of cases by either integrator: :func:`stack_of` makes the
+:class:`~quadctl.sim.cases.Cases` of the runs (RK4: a segment each, its step from
+:mod:`quadctl.sim.plan`; ETDRK4: a segment per step of its schedule, :func:`exponential_stack`) and
+:func:`run_stack` runs them; :func:`simulate_stack` is both for many loops in the SIMD lanes, and
+:func:`simulate` the stack of one. A long run of one case goes in chunks so Ctrl-C stops it at once,
+and noise and wind are drawn chunk by chunk (:class:`ExoStream`), so memory does not grow with the
+duration.
+"""
 from __future__ import annotations
 
 import math
@@ -32,7 +37,7 @@ from quadctl.wind import WindSpec, WindStream
 VALID_PITCH = math.radians(85.0)
 """Beyond this pitch the Euler kinematics (``1/cos theta``) are near singular: the run stops."""
 SETUPS_KEPT = 4
-"""ETDRK4 setups a loop keeps (:meth:`ClosedLoop.exponential_setup`): one per run settings, the latest."""
+"""ETDRK4 stacks of one a loop keeps (:meth:`ClosedLoop.exponential_stack`): one per run settings, the latest."""
 RUNAWAY = {"pN": 1e5, "pE": 1e5, "pD": 1e5, "u": 1e3, "v": 1e3, "w": 1e3,
            "phi": 1e3, "theta": VALID_PITCH, "psi": 1e3, "p": 1e4, "q": 1e4, "r": 1e4}
 """Bounds on |x - x_ref| (state units) past which a run counts as diverged; theta's is the model's range."""
@@ -200,16 +205,17 @@ class ClosedLoop:
                                      rate_filter=self.filter_form)
 
     def __getstate__(self):
-        """The loop's fields (a pickle carries no kept setup: its runner is this process's)."""
+        """The loop's fields (a pickle carries no kept stack: its runner's arrays are this process's)."""
         state = dict(self.__dict__)
-        state.pop("_exponential_setups", None)
+        state.pop("_exponential_stacks", None)
         return state
 
-    def exponential_setup(self, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+    def exponential_stack(self, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
                           max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
-                          noise: bool = False, wind: bool = False):
-        """:func:`exponential_setup` of this loop, kept with it (the :data:`SETUPS_KEPT` latest settings):
-        a second run with the same settings computes no plan, φ-functions or constants again.
+                          noise: bool = False, wind: bool = False) -> Stack:
+        """:func:`exponential_stack` of this loop alone (from its trim: :meth:`Cases.starting` runs it from
+        a state), kept with it (the :data:`SETUPS_KEPT` latest settings): a second run with the same
+        settings computes no plan, φ-functions or constants again (nor marshals them for the runner).
 
         A :class:`~quadctl.flatness.FlownReference` counts as the same when it flies the same
         path object, with the same steps (``jumps``) and parameters (its position range and, for a gain
@@ -219,12 +225,12 @@ class ClosedLoop:
                exo_period, bool(noise), bool(wind),
                None if reference is None else (id(reference.path), tuple(reference.path.jumps),
                                                  np.asarray(reference.params).tobytes()))
-        kept = self.__dict__.setdefault("_exponential_setups", {})
+        kept = self.__dict__.setdefault("_exponential_stacks", {})
         if key in kept:
             path, found = kept.pop(key)
             kept[key] = (path, found)  # the latest used last
             return found
-        found = exponential_setup(self, duration, dt, tolerance=tolerance, max_samples=max_samples,
+        found = exponential_stack([self], [self.x_trim], duration, dt, tolerance=tolerance, max_samples=max_samples,
                                   reference=reference, exo_period=exo_period, noise=noise, wind=wind)
         kept[key] = (None if reference is None else reference.path, found)  # the path held: its id stays its own
         while len(kept) > SETUPS_KEPT:
@@ -646,53 +652,6 @@ def _estimate(loop: ClosedLoop, x_ref: np.ndarray, deviation: np.ndarray, refere
     return x_ref + heading_frame(deviation, -loop.heading_offset(x_ref), lib=np)
 
 
-@dataclass(frozen=True)
-class ExponentialSetup:
-    """What an ETDRK4 run of a loop computes before its first step, from the loop and the run's
-    settings alone (:meth:`ClosedLoop.exponential_setup`, kept with the loop): its linear part and
-    step plan, the records' strides, the loop's generated code (its spec: the runner is
-    :func:`quadctl.sim.engine.runner`'s), and the run as one :class:`~quadctl.sim.cases.Cases` (a
-    segment a step size, each segment's constants the loop's, then the φ-functions of its step and
-    linear part; from the trim: :meth:`Cases.starting` gives the run from a state)."""
-
-    plan: StepPlan
-    strides: list
-    spec: LoopSpec
-    cases: Cases
-
-
-def exponential_setup(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                      max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
-                      noise: bool = False, wind: bool = False) -> ExponentialSetup:
-    """The :class:`ExponentialSetup` of one ETDRK4 run of ``loop`` (``noise``, ``wind``: the run has
-    them; ``exo_period``: s of its exogenous rows, None: none). A sampled controller's segments start on
-    its samples; a gain schedule's continuous loop flies each stretch on the loop closed at the schedule
-    value nearest the commanded one (:func:`_linear_pieces`)."""
-    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, record_strides
-
-    held = loop.rate is not None
-    period = 1.0 / loop.rate if held else exo_period
-    L, plan = exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference, exo_period=exo_period)
-    strides = record_strides(plan, max_samples)
-    pieces = _linear_pieces(loop, plan, strides, reference)
-    points = sorted({p for _, _, p in pieces if p is not None})
-    if points:  # a gain schedule: each piece on the loop closed at its nearest value
-        L = loop.point_linear_parts[points]
-    ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
-    spec = loop.spec(noise, wind, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
-    base = loop.constants(period if held else None)
-    lo, hi = loop.bounds(duration, reference)
-    blocks = {}
-    c = [np.concatenate([base, blocks.setdefault((seg.dt, point), phi_constants(
-        ladder[seg.dt], None if point is None else points.index(point)))]) for seg, _, point in pieces]
-    segs = [seg for seg, _, _ in pieces]
-    cases = Cases.graded(loop.initial_loop_state(loop.x_trim), np.array(c)[:, None], [[s.dt] for s in segs],
-                         [[s.n] for s in segs], [[stride] for _, stride, _ in pieces], [[s.k0] for s in segs], lo, hi,
-                         hold=[[round(period / s.dt) if held else 1] for s in segs],
-                         exo_period=exo_period if exo_period is not None else 1.0)
-    return ExponentialSetup(plan=plan, strides=strides, spec=spec, cases=cases)
-
-
 def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list[tuple]:
     """``(segment, stride, point)``: the plan's segments with their record strides, a continuous gain
     schedule's cut where the schedule value nearest the commanded one changes (``point``: its index; at
@@ -782,7 +741,7 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
              tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None, planned=None) -> Stack:
     """The :class:`Stack` of runs of ``loops`` from ``x0s`` (the arguments of :func:`simulate`): one
     case is a stack of one (an ETDRK4 case from the setup its loop keeps,
-    :meth:`ClosedLoop.exponential_setup`); more run in the SIMD lanes, each case stepping as its one-case
+    :meth:`ClosedLoop.exponential_stack`); more run in the SIMD lanes, each case stepping as its one-case
     run does (ETDRK4: the φ-functions of all the loops' linear parts computed on the stack of them).
     ``planned``: each loop's ``(L, StepPlan)`` of :func:`exponential_plan`, when the caller has them.
 
@@ -817,63 +776,76 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
                          [b[0] for b in bounds], [b[1] for b in bounds], hold=[max(plan.hold, 1) for plan in plans],
                          exo_period=exo_period or 1.0)
         return Stack(tuple(plans), strides, loops[0].spec(noisy, windy, reference is not None), cases, exo)
-    if len(loops) == 1 and planned is None:
-        prep = loops[0].exponential_setup(duration, dt, tolerance=tolerance, max_samples=max_samples,
+    if len(loops) == 1 and planned is None:  # the loop's kept stack of one, from x0
+        kept = loops[0].exponential_stack(duration, dt, tolerance=tolerance, max_samples=max_samples,
                                           reference=reference, exo_period=exo_period, noise=noisy, wind=windy)
-        return Stack((prep.plan,), (prep.strides[-1],), prep.spec,
-                     prep.cases.starting(loops[0].initial_loop_state(x0s[0])), exo)
-    return _exponential_stack(loops, x0s, duration, dt, tolerance, max_samples, reference, exo, noisy, windy,
-                              planned)
+        return replace(kept, cases=kept.cases.starting(loops[0].initial_loop_state(x0s[0])), exo=exo)
+    stack = exponential_stack(loops, x0s, duration, dt, tolerance=tolerance, max_samples=max_samples,
+                              reference=reference, exo_period=exo_period, noise=noisy, wind=windy, planned=planned)
+    return replace(stack, exo=exo)
 
 
-def _exponential_stack(loops, x0s, duration, dt, tolerance, max_samples, reference, exo, noisy, windy,
-                       planned) -> Stack:
-    """:func:`stack_of` of ETDRK4 runs of several loops: each its own linear part and schedule, the lanes
-    stepping through their schedules' segments together (segment ``i`` of every case per call); the loops
-    whose schedules start at one step share a φ ladder (the stack of theirs: each matrix as its one-case
-    run computes it, from that step up)."""
+def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                      max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
+                      noise: bool = False, wind: bool = False, planned=None) -> Stack:
+    """The :class:`Stack` of ETDRK4 runs of ``loops`` of one structure from ``x0s`` (``noise``, ``wind``:
+    the runs have them; ``exo_period``: s of their exogenous rows, None: none; no rows drawn): each
+    case its own linear part and graded schedule (:func:`exponential_plan`, or ``planned``), a segment
+    a step, each segment's constants the loop's, then the φ-functions of its step and linear part. A
+    sampled controller's segments start on its samples; a gain schedule's continuous loop flies each
+    stretch on the loop closed at the schedule value nearest the commanded one (:func:`_linear_pieces`).
+    The loops whose schedules start at one step share a φ ladder, computed on the stack of their linear
+    parts (each matrix as its one-case run computes it, from that step up); the lanes step through their
+    schedules together (segment ``i`` of every case per call)."""
     from quadctl.sim.schedule import phi_constant_rows, phi_ladder, phi_pattern, record_strides
 
     rate = loops[0].rate
     held = rate is not None
-    period = 1.0 / rate if held else (exo.period if exo is not None else None)
+    period = 1.0 / rate if held else exo_period
     Ls, plans = zip(*(planned or [exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
-                                                   exo_period=exo.period if exo is not None else None)
-                                  for loop in loops]))
+                                                   exo_period=exo_period) for loop in loops]))
+    strides = [record_strides(plan, max_samples) for plan in plans]
+    pieces = [_linear_pieces(loop, plan, st, reference) for loop, plan, st in zip(loops, plans, strides)]
+    points = [sorted({p for _, _, p in case if p is not None}) for case in pieces]
+    parts = [loop.point_linear_parts[pts] if pts else np.asarray(L, dtype=float)[None]  # each case's linear parts
+             for loop, L, pts in zip(loops, Ls, points)]
     rung: dict[float, list[int]] = {}
     for i, plan in enumerate(plans):
         rung.setdefault(min(seg.dt for seg in plan.schedule), []).append(i)
-    ladders: list = [None] * len(loops)
+    blocks: list = [None] * len(loops)  # per case: {step: its parts' φ blocks}, and its first row in them
+    patterns = []
     for members in rung.values():
-        shared = phi_ladder(np.stack([Ls[i] for i in members]),
+        ladder = phi_ladder(np.concatenate([parts[i] for i in members]),
                             [seg.dt for i in members for seg in plans[i].schedule])
-        blocks = {h: phi_constant_rows(mats) for h, mats in shared.items()}
-        for row, i in enumerate(members):
-            ladders[i] = (shared, row, blocks)
-    patterns = np.array([phi_pattern(lad[0]) for lad in {id(lad[0]): lad for lad in ladders}.values()])
-    spec = loops[0].spec(noisy, windy, reference is not None, method="etdrk4",
-                         phi_pattern=tuple(bool(b) for b in patterns.any(axis=0)))
-    S = max(len(plan.schedule) for plan in plans)
+        rows = {h: phi_constant_rows(mats) for h, mats in ladder.items()}
+        patterns.append(phi_pattern(ladder))
+        for i, first in zip(members, np.cumsum([0, *(len(parts[i]) for i in members)])):
+            blocks[i] = (rows, int(first))
+    spec = loops[0].spec(noise, wind, reference is not None, method="etdrk4",
+                         phi_pattern=tuple(bool(b) for b in np.array(patterns).any(axis=0)))
+    S = max(map(len, pieces))
     bounds = [loop.bounds(duration, reference) for loop in loops]
     base = [loop.constants(period if held else None) for loop in loops]
-    strides = [record_strides(plan, max_samples) for plan in plans]
-    pad = [plan.schedule[-1].dt for plan in plans]  # a segment a case does not have: its last step's block
 
-    def per_segment(value, empty):
-        return [[value(i, plans[i].schedule[k], k) if k < len(plans[i].schedule) else empty(i)
+    def block(i, seg, point):
+        rows, first = blocks[i]
+        return np.concatenate([base[i], rows[seg.dt][first + (0 if point is None else points[i].index(point))]])
+
+    def per_piece(value, empty):  # a piece a case does not have: no steps, its last piece's constants
+        return [[value(i, *pieces[i][k]) if k < len(pieces[i]) else empty(i, *pieces[i][-1])
                  for i in range(len(loops))] for k in range(S)]
 
-    c = np.array(per_segment(lambda i, seg, k: np.concatenate([base[i], ladders[i][2][seg.dt][ladders[i][1]]]),
-                             lambda i: np.concatenate([base[i], ladders[i][2][pad[i]][ladders[i][1]]])))
-    cases = Cases.graded([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)], c,
-                         per_segment(lambda i, seg, k: seg.dt, lambda i: pad[i]),
-                         per_segment(lambda i, seg, k: seg.n, lambda i: 0),
-                         per_segment(lambda i, seg, k: strides[i][k], lambda i: 1),
-                         per_segment(lambda i, seg, k: seg.k0, lambda i: 0),
+    cases = Cases.graded([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)],
+                         np.array(per_piece(lambda i, seg, _, point: block(i, seg, point),
+                                            lambda i, seg, _, point: block(i, seg, point))),
+                         per_piece(lambda i, seg, *_: seg.dt, lambda i, seg, *_: seg.dt),
+                         per_piece(lambda i, seg, *_: seg.n, lambda *_: 0),
+                         per_piece(lambda i, seg, stride, _: stride, lambda *_: 1),
+                         per_piece(lambda i, seg, *_: seg.k0, lambda *_: 0),
                          np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
-                         hold=per_segment(lambda i, seg, k: round(period / seg.dt) if held else 1, lambda i: 1),
-                         exo_period=exo.period if exo is not None else 1.0)
-    return Stack(tuple(plans), tuple(st[-1] for st in strides), spec, cases, exo)
+                         hold=per_piece(lambda i, seg, *_: round(period / seg.dt) if held else 1, lambda *_: 1),
+                         exo_period=exo_period if exo_period is not None else 1.0)
+    return Stack(tuple(plans), tuple(st[-1] for st in strides), spec, cases)
 
 
 CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}

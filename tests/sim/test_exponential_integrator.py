@@ -716,7 +716,7 @@ def test_a_graded_stack_runs_compiled_as_interpreted(lanes):
         assert walked[0][0] == cases.n[:, 0].sum()
 
 
-def test_a_loop_keeps_its_exponential_setup():
+def test_a_loop_keeps_its_exponential_stack():
     """A second run of a loop with the same settings takes the setup it kept (no plan or φ-functions
     computed again) and gives the same numbers; other settings get their own; a pickled loop carries none."""
     import pickle
@@ -725,14 +725,14 @@ def test_a_loop_keeps_its_exponential_setup():
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
     first = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-8)
-    kept = loop.exponential_setup(0.2, tolerance=1e-8)
-    assert loop.exponential_setup(0.2, tolerance=1e-8) is kept
-    assert loop.exponential_setup(0.2, tolerance=1e-9) is not kept
+    kept = loop.exponential_stack(0.2, tolerance=1e-8)
+    assert loop.exponential_stack(0.2, tolerance=1e-8) is kept
+    assert loop.exponential_stack(0.2, tolerance=1e-9) is not kept
     again = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-8)
     assert np.array_equal(first.x, again.x) and np.array_equal(first.t, again.t) and first.plan == again.plan
     fresh = pickle.loads(pickle.dumps(loop))
-    assert "_exponential_setups" not in fresh.__dict__
-    assert fresh.exponential_setup(0.2, tolerance=1e-8).plan == kept.plan
+    assert "_exponential_stacks" not in fresh.__dict__
+    assert fresh.exponential_stack(0.2, tolerance=1e-8).plans == kept.plans
 
 
 @pytest.mark.parametrize("name", ["hover+noise+wind", "square"])
