@@ -573,8 +573,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     max_samples : int
         Samples kept, at most: every :func:`record_stride`-th step and the last.
     progress : callable, optional
-        ``progress(done, total)``: called with the RK4 steps done and the steps in all after each
-        chunk of the run (:func:`run_in_chunks`), for a caller that shows how far a long run is.
+        ``progress(done, total)``: called with the steps done and the steps in all after each
+        chunk of the run (:func:`run_stack`), for a caller that shows how far a long run is.
     reference : FlownReference, optional
         A reference to fly (:class:`quadctl.flatness.FlownReference`): ``x_ref(t)`` and the feedforward
         ``u_ref(t)`` in place of ``x_trim + x_rate t`` and ``u_trim``; ``SimResult.x_ref`` is then the
@@ -586,7 +586,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         The error ETDRK4's ``dt: auto`` aims at.
     exo_rate : float, optional
         Hz of the exogenous clock when there is no noise (:class:`ExoStream`; None: the controller's
-        rate): loops of different rates flown with one ``exo_rate`` feel the same wind (RK4 only).
+        rate): loops of different rates flown with one ``exo_rate`` feel the same wind (ETDRK4's steps
+        divide its period).
 
     Returns
     -------
