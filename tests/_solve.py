@@ -95,7 +95,7 @@ def lane_gap(got, want) -> float:
 def lanes_and_one_case_runs(setup, spec, variants):
     """Run loop ``variants`` ``(ClosedLoop, NoiseSpec or None, duration s)`` in the SIMD lanes of
     ``spec`` (built as a sweep chunk builds its cases) and each alone through ``simulate``: yields
-    ``((done, ks, xs, us), SimResult)`` per variant, after checking both ran the same steps."""
+    ``((done, t, xs, us), SimResult)`` per variant, after checking both ran the same steps."""
     import numpy as np
 
     from quadctl.physics.noise import NoiseStream
@@ -120,9 +120,9 @@ def lanes_and_one_case_runs(setup, spec, variants):
                      exo_first=[j[6] for j in jobs], exo_period=[j[7].period if j[7] else 1.0 for j in jobs])
     for (vk, noise, dur), lanes in zip(variants, run.run(cases)):
         one = simulate(vk, setup.initial_state(vk.x_trim), dur, setup.dt, noise=noise, max_samples=setup.max_samples)
-        done, ks, _, _ = lanes
+        done, t, _, _ = lanes
         assert done == one.steps
-        np.testing.assert_array_equal(ks * one.dt, one.t)
+        np.testing.assert_array_equal(t, one.t)
         yield lanes, one
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS
 from quadctl.sim.builder import LoopFunctions, LoopSpec, build
-from quadctl.sim.cases import Cases, Segments, run_segments_by_calls
+from quadctl.sim.cases import Cases
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -132,7 +132,8 @@ def ctrl_c_after_the_call():
 
 
 class InterpretedRunner:
-    """Runs :class:`~quadctl.sim.cases.Cases` one at a time in CasADi's virtual machine."""
+    """Runs :class:`~quadctl.sim.cases.Cases` one at a time in CasADi's virtual machine (a case's
+    segments one call each)."""
 
     backend = "casadi"
 
@@ -142,27 +143,49 @@ class InterpretedRunner:
         """Why this runner and not the compiled one."""
 
     def iter_run(self, cases: Cases):
-        """Same contract as :meth:`quadctl.sim.native.NativeRunner.iter_run`."""
+        """Same contract as :meth:`quadctl.sim.native.NativeRunner.iter_run` (a case's segments one
+        after another, each from where the last ended)."""
         for i in range(len(cases)):
-            yield (i, *self._one(cases, i))
+            yield (i, *self._walk(cases, i))
 
     def run(self, cases: Cases):
         return [result for _, *result in self.iter_run(cases)]
 
-    def run_segments(self, segments: Segments, x0):
-        """Same contract as :meth:`quadctl.sim.native.NativeRunner.run_segments` (a call a segment)."""
-        return run_segments_by_calls(self, segments, x0)
+    def _walk(self, cases: Cases, i: int):
+        """``(done, t, xs, us)`` of case ``i`` through its segments: a segment's final record dropped
+        where the next one starts (the same state), the case stopping at its last segment or where a
+        segment stops early (it left its bounds)."""
+        last = int(cases.last[i])
+        if last < 0:
+            done, ks, xs, us = self._one(cases, i, 0, cases.x0[i])
+            return done, cases.dt[0, i] * ks, xs, us
+        x = cases.x0[i]
+        total, parts = 0, ([], [], [])
+        for s in range(last + 1):
+            if cases.n[s, i] <= 0:
+                continue
+            done, ks, xs, us = self._one(cases, i, s, x)
+            total += done
+            end = s == last or done < cases.n[s, i]
+            keep = len(ks) if end else len(ks) - 1
+            for part, rows in zip(parts, (cases.dt[s, i] * ks[:keep], xs[:keep], us[:keep])):
+                part.append(rows)
+            if end:
+                break
+            x = xs[-1]
+        return (total, *(np.concatenate(p) for p in parts))
 
-    def _one(self, cases: Cases, i: int):
+    def _one(self, cases: Cases, i: int, s: int, x0):
+        """``(done, ks, xs, us)`` of segment ``s`` of case ``i`` from the loop state ``x0``."""
         spec = self.spec
-        hold = int(cases.hold[i]) if spec.held else 1
-        k0, n, stride, dt = int(cases.k0[i]), int(cases.n[i]), int(cases.stride[i]), float(cases.dt[i])
+        hold = int(cases.hold[s, i]) if spec.held else 1
+        k0, n, stride, dt = int(cases.k0[s, i]), int(cases.n[s, i]), int(cases.stride[s, i]), float(cases.dt[s, i])
         if spec.held and k0 % hold:
             raise ValueError(f"a held loop starts on a controller sample: k0 = {k0} is not a multiple of {hold}")
-        c, lo, hi = cases.c[i], cases.lo[i], cases.hi[i]
+        c, lo, hi = cases.c[s, i], cases.lo[i], cases.hi[i]
         zeros = zero_constants(c)
         chains: dict[int, _Chain] = {}
-        x = np.array(cases.x0[i], dtype=float)
+        x = np.array(x0, dtype=float)
         ks, xs, us = [], [], []
         taken, bad = 0, False
         u_last = np.zeros(N_INPUTS)
@@ -177,7 +200,7 @@ class InterpretedRunner:
             run.x0[:] = x
             run.t[:] = dt * steps.astype(float)
             if spec.n_exo:
-                run.e[:] = cases.exo[i][cases.exo_index(i, steps)]
+                run.e[:] = cases.exo[i][cases.exo_index(i, steps, s)]
             run()
             m = min(width, n - taken)
             after = run.xs[1:m + 1]
@@ -199,7 +222,7 @@ class InterpretedRunner:
         else:
             e = np.zeros(spec.n_exo)
             if spec.n_exo:
-                e = cases.exo[i][cases.exo_index(i, np.array([max(last - 1, 0)]))[0]]
+                e = cases.exo[i][cases.exo_index(i, np.array([max(last - 1, 0)]), s)[0]]
             u_final = np.asarray(build(spec).law(x, dt * float(last), c, e)[0]).ravel()
         ks.append(np.array([last], dtype=np.int64))
         xs.append(x[None, :])

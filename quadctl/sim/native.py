@@ -13,7 +13,7 @@ from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
 from quadctl.native.compile import C_LONG, DRIVER_SOURCE
 from quadctl.native.emit import SIMD_DECLARATIONS, emit
 from quadctl.sim.builder import LoopFunctions, LoopSpec
-from quadctl.sim.cases import Cases, Segments, record_rows
+from quadctl.sim.cases import Cases
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec
 
 STEPPERS = ("qc_step", "qc_plant")
@@ -55,7 +55,9 @@ def library_source(funcs: LoopFunctions, lanes: int, simd: bool) -> str:
 
 
 class NativeRunner:
-    """Runs :class:`~quadctl.sim.cases.Cases` in a compiled library, ``lanes`` cases per C call."""
+    """Runs :class:`~quadctl.sim.cases.Cases` in a compiled library, ``lanes`` cases per C call: a
+    stack of one segment by ``qc_run`` (which can also sum the metrics in the lanes), of several by
+    ``qc_run_segments`` (the segments walked in C)."""
 
     def __init__(self, library: Path, spec: LoopSpec, lanes: int, backend: str):
         self.spec, self.lanes, self.backend = spec, lanes, backend
@@ -70,34 +72,46 @@ class NativeRunner:
         self._segments.argtypes = [long, ptr, ptr, ptr, ptr, ptr, ptr, ptr, long, long, ptr, ptr, ptr, ptr, ptr, ptr]
 
     def iter_run(self, cases: Cases):
-        """Yield ``(index, done, ks, xs, us)`` per case.
+        """Yield ``(index, done, t, xs, us)`` per case.
 
-        ``done`` steps completed; ``ks`` (r,) absolute recorded step indices; ``xs`` (r, nx) and
-        ``us`` (r, 4) are transposes of state-major buffers (``xs.T`` is contiguous) that the
-        next group of ``lanes`` cases overwrites: use or copy them before asking for the next.
+        ``done`` steps completed (of all its segments); ``t`` (r,) s, the recorded times (``dt k``
+        of each record's segment); ``xs`` (r, nx) and ``us`` (r, 4) are transposes of state-major
+        buffers (``xs.T`` is contiguous) that the next group of ``lanes`` cases overwrites: use or
+        copy them before asking for the next. A segment's final record is its next one's first (kept
+        once); a case stops at its last segment or where a segment stops early (it left its bounds).
         """
         if len(cases) == 0:
             return
-        calls = self._calls(cases, max(record_rows(int(k), int(m), int(s))
-                                       for k, m, s in zip(cases.k0, cases.n, cases.stride)))
+        S = cases.segments
+        rows = cases.memo("rows", lambda: max(cases.rows(i) for i in range(len(cases))) + (S > 1))
+        calls = self._calls(cases, rows)  # a spare row for the lanes done before the last segment
+        first = np.empty((S, self.lanes), dtype=C_LONG)
         for start, used in calls.groups:
-            self._call(calls, start, used)
+            self._call(calls, start, used, first=first)
             for lane in range(used):
-                r = int(calls.n_rec[lane])
-                yield (start + lane, int(calls.done[lane]), calls.ks[lane, :r], calls.xs[lane, :, :r].T,
-                       calls.us[lane, :, :r].T)
+                i, r = start + lane, int(calls.n_rec[lane])
+                ks = calls.ks[lane, :r]
+                if S == 1:
+                    t = cases.dt[0, i] * ks
+                else:
+                    starts = first[:, lane]
+                    taken = starts >= 0
+                    t = np.repeat(cases.dt[taken, i], np.diff(np.append(starts[taken], r))) * ks
+                yield i, int(calls.done[lane]), t, calls.xs[lane, :, :r].T, calls.us[lane, :, :r].T
 
     def iter_summaries(self, cases: Cases, metrics: MetricSpec, values: np.ndarray):
-        """Yield ``(index, done, k_end, x_end, u_end, sums)`` per case: the run summarized in the
-        lanes as it goes (:mod:`quadctl.sim.lane_metrics`), no trajectory kept.
+        """Yield ``(index, done, t_end, x_end, u_end, sums)`` per case of a one-segment stack: the run
+        summarized in the lanes as it goes (:mod:`quadctl.sim.lane_metrics`), no trajectory kept.
 
         ``values`` (N, metrics.n_values) are each case's (:func:`~quadctl.sim.lane_metrics.case_values`);
-        ``k_end`` is the absolute index of the final step, ``x_end`` (nx,) and ``u_end`` (4,) the final
-        record, ``sums`` (metrics.n_sums,) what :func:`~quadctl.sim.lane_metrics.summaries` reads.
+        ``t_end`` (s) is the time of the final record, ``x_end`` (nx,) and ``u_end`` (4,) its state and
+        input, ``sums`` (metrics.n_sums,) what :func:`~quadctl.sim.lane_metrics.summaries` reads.
         The arrays are overwritten by the next group of ``lanes`` cases.
         """
         if len(cases) == 0:
             return
+        if cases.segments != 1:
+            raise ValueError("the lanes sum the metrics of one-segment runs: run graded cases with iter_run")
         L = self.lanes
         calls = self._calls(cases, 1)
         sums = np.empty((metrics.n_sums, L))
@@ -108,52 +122,21 @@ class NativeRunner:
                 mv = np.concatenate([mv, np.repeat(mv[:1], L - used, axis=0)])
             self._call(calls, start, used, keep=0, header=header, values=np.ascontiguousarray(mv.T), sums=sums)
             for lane in range(used):
-                yield (start + lane, int(calls.done[lane]), int(calls.ks[lane, 0]), calls.xs[lane, :, 0],
+                i = start + lane
+                yield (i, int(calls.done[lane]), cases.dt[0, i] * int(calls.ks[lane, 0]), calls.xs[lane, :, 0],
                        calls.us[lane, :, 0], sums[:, lane])
 
-    def run_segments(self, segments: Segments, x0) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
-        """Per case ``(done, t, xs, us)`` of its run through its ``segments`` from ``x0`` (N, nx), as
-        :func:`quadctl.sim.cases.run_segments_by_calls` gives them, in one C call per ``lanes`` cases
-        (``qc_run_segments``: the segments walked in C). The marshalled arrays of ``segments`` are
-        kept with it (:meth:`Segments.memo`), so a second run of the same segments only copies ``x0``."""
-        L, nx = self.lanes, self.spec.nx
-        x0 = np.array(x0, dtype=float, ndmin=2)
-        N = len(segments)
-        calls = segments.memo(("native", L), lambda: self._segment_calls(segments))
-        G = len(calls.groups)
-        x0_lanes = np.zeros((G * L, nx))
-        x0_lanes[:N] = x0
-        x0_lanes[N:] = x0[(G - 1) * L] if N < G * L else 0.0
-        x0_lanes = np.ascontiguousarray(x0_lanes.reshape(G, L, nx).transpose(0, 2, 1))
-        out = []
-        S = segments.n.shape[0]
-        for g, (start, used) in enumerate(calls.groups):
-            exo = None
-            if self.spec.n_exo:
-                exo = np.zeros((L, calls.exo_rows, self.spec.n_exo))
-                for lane, e in enumerate(segments.exo[start:start + used]):
-                    exo[lane, :len(e)] = e
-            xs, us, ks = (np.empty((L, nx, calls.rows_max)), np.empty((L, N_INPUTS, calls.rows_max)),
-                          np.empty((L, calls.rows_max), dtype=C_LONG))
-            n_rec, done, first = np.empty(L, dtype=C_LONG), np.empty(L, dtype=C_LONG), np.empty((S, L), dtype=C_LONG)
-            self._segments(S, _address(x0_lanes[g]), *calls.addresses[g], _address(exo), calls.exo_rows,
-                           calls.rows_max, _address(xs), _address(us), _address(ks), _address(n_rec), _address(done),
-                           _address(first))
-            for lane in range(used):
-                i, r = start + lane, int(n_rec[lane])
-                starts = first[:, lane]
-                taken = starts >= 0
-                counts = np.diff(np.append(starts[taken], r))
-                dt = np.repeat(segments.dt[taken, i], counts)
-                out.append((int(done[lane]), dt * ks[lane, :r], xs[lane, :, :r].T.copy(), us[lane, :, :r].T.copy()))
-        return out
+    def run(self, cases: Cases) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+        """``(done, t, xs, us)`` per case, as copies."""
+        return [(done, t, xs.copy(), us.copy()) for _, done, t, xs, us in self.iter_run(cases)]
 
-    def _segment_calls(self, segments: Segments) -> _SegmentCalls:
-        """The C arrays of :meth:`run_segments`' calls: per group of ``lanes`` cases (the last padded with
-        copies of its first case, which take no steps) ``c`` (S, nc, L), the doubles (S, 2, L), the longs
-        (S, 6, L), ``lo`` and ``hi`` (nx, L); the rows a lane records (every segment's, one more spare)."""
-        L, N = self.lanes, len(segments)
-        S = segments.n.shape[0]
+    def _blocks(self, cases: Cases) -> list[list[np.ndarray]]:
+        """Per call (``lanes`` cases, the last padded with copies of its first case, which take no
+        steps), the C arrays of its cases' segments: ``c`` (S, nc, L), the doubles (S, 2, L: ``dt``,
+        ``exo_period``), the longs (S, 6, L: ``k0``, ``n``, ``stride``, ``hold``, ``exo_first``,
+        exogenous rows), ``lo`` and ``hi`` (nx, L). Made for all the calls at once, and kept with the
+        cases (:meth:`Cases.memo`): a second run of them from other states only copies ``x0``."""
+        L, N, S = self.lanes, len(cases), cases.segments
         G = -(-N // L)
         pad = G * L - N
 
@@ -163,68 +146,44 @@ class NativeRunner:
                 filler = arr[:, (G - 1) * L:(G - 1) * L + 1] if fill is None else \
                     np.broadcast_to(fill, (arr.shape[0], 1, *arr.shape[2:]))
                 arr = np.concatenate([arr, np.repeat(filler, pad, axis=1)], axis=1)
-            arr = arr.reshape(arr.shape[0], G, L, *arr.shape[2:])
-            arr = np.moveaxis(arr, 2, -1)  # (S, G, ..., L)
+            arr = np.moveaxis(arr.reshape(arr.shape[0], G, L, *arr.shape[2:]), 2, -1)
             return np.ascontiguousarray(np.moveaxis(arr, 1, 0))
 
-        per_case = np.broadcast_to
-        counts = np.array([len(e) for e in segments.exo], dtype=C_LONG) if segments.exo else np.ones(N, dtype=C_LONG)
-        lane_d = np.stack([lanes(segments.dt), lanes(per_case(segments.exo_period, (S, N)))], axis=2)
-        lane_i = np.stack([lanes(segments.k0), lanes(segments.n, 0), lanes(segments.stride), lanes(segments.hold),
-                           lanes(per_case(segments.exo_first, (S, N))), lanes(per_case(counts, (S, N)))],
-                          axis=2).astype(C_LONG)
-        c = lanes(segments.c)
-        bounds = [lanes(b[None])[:, 0] for b in (segments.lo, segments.hi)]
-        blocks = [[np.ascontiguousarray(a[g]) for a in (c, lane_d, lane_i, *bounds)] for g in range(G)]
-        rows = max(sum(record_rows(int(segments.k0[s, i]), int(segments.n[s, i]), int(segments.stride[s, i]))
-                       for s in range(S) if segments.n[s, i] > 0) for i in range(N)) + 1
-        return _SegmentCalls(groups=[(start, min(L, N - start)) for start in range(0, N, L)], blocks=blocks,
-                             addresses=[[_address(a) for a in arrays] for arrays in blocks], rows_max=rows,
-                             exo_rows=max(len(e) for e in segments.exo) if self.spec.n_exo > 0 else 0)
-
-    def run(self, cases: Cases) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
-        """``(done, ks, xs, us)`` per case, as copies."""
-        return [(done, ks.copy(), xs.copy(), us.copy()) for _, done, ks, xs, us in self.iter_run(cases)]
-
-    def _blocks(self, cases: Cases) -> list[list[np.ndarray]]:
-        """Per call (``lanes`` cases, the last padded with copies of its first case, which take no
-        steps), the C arrays of its cases: ``x0``, ``c``, the doubles (``dt``, ``exo_period``), the
-        longs (``k0``, ``n``, ``stride``, ``hold``, ``exo_first``, exogenous rows), ``lo``, ``hi``; a
-        per-case vector lane-minor. Made for all the calls at once."""
-        L, N = self.lanes, len(cases)
-        G = -(-N // L)
-        pad = G * L - N
-
-        def lanes(arr, fill=None):
-            arr = np.asarray(arr)
-            if pad:
-                filler = arr[(G - 1) * L:(G - 1) * L + 1] if fill is None else \
-                    np.broadcast_to(fill, (1, *arr.shape[1:]))
-                arr = np.concatenate([arr, np.repeat(filler, pad, axis=0)])
-            arr = arr.reshape(G, L, *arr.shape[1:])
-            return np.ascontiguousarray(arr.transpose(0, 2, 1) if arr.ndim == 3 else arr)
-
         counts = np.array([len(e) for e in cases.exo], dtype=C_LONG) if cases.exo else np.ones(N, dtype=C_LONG)
-        lane_d = np.concatenate([lanes(cases.dt), lanes(cases.exo_period)], axis=1)
-        lane_i = np.concatenate([lanes(cases.k0), lanes(cases.n, 0), lanes(cases.stride), lanes(cases.hold),
-                                 lanes(cases.exo_first), lanes(counts)], axis=1).astype(C_LONG)
-        return [list(group) for group in zip(lanes(cases.x0), lanes(cases.c), lane_d, lane_i, lanes(cases.lo),
-                                             lanes(cases.hi))]
+        per_case = np.broadcast_to
+        lane_d = np.stack([lanes(cases.dt), lanes(per_case(cases.exo_period, (S, N)))], axis=2)
+        lane_i = np.stack([lanes(cases.k0), lanes(cases.n, 0), lanes(cases.stride), lanes(cases.hold),
+                           lanes(per_case(cases.exo_first, (S, N))), lanes(per_case(counts, (S, N)))],
+                          axis=2).astype(C_LONG)
+        c = lanes(cases.c)
+        bounds = [lanes(b[None])[:, 0] for b in (cases.lo, cases.hi)]
+        return [[np.ascontiguousarray(a[g]) for a in (c, lane_d, lane_i, *bounds)] for g in range(G)]
 
     def _calls(self, cases: Cases, rows_max: int) -> _Calls:
         """What the calls of one run of ``cases`` share: see :class:`_Calls`."""
-        L, nx = self.lanes, self.spec.nx
-        blocks = self._blocks(cases)
-        return _Calls(cases=cases, groups=[(start, min(L, len(cases) - start)) for start in range(0, len(cases), L)],
-                      blocks=blocks, addresses=[[_address(a) for a in arrays] for arrays in blocks], rows_max=rows_max,
+        L, nx, N = self.lanes, self.spec.nx, len(cases)
+        blocks, addresses = cases.memo(("native", L), lambda: self._marshalled(cases))
+        G = len(blocks)
+        x0 = np.empty((G * L, nx))
+        x0[:N] = cases.x0
+        x0[N:] = cases.x0[(G - 1) * L] if N < G * L else 0.0
+        x0 = np.ascontiguousarray(x0.reshape(G, L, nx).transpose(0, 2, 1))
+        return _Calls(cases=cases, groups=[(start, min(L, N - start)) for start in range(0, N, L)],
+                      blocks=blocks, addresses=addresses, x0=x0, rows_max=rows_max,
                       exo_rows=max(len(e) for e in cases.exo) if self.spec.n_exo > 0 else 0,
                       xs=np.empty((L, nx, rows_max)), us=np.empty((L, N_INPUTS, rows_max)),
                       ks=np.empty((L, rows_max), dtype=C_LONG), n_rec=np.empty(L, dtype=C_LONG),
                       done=np.empty(L, dtype=C_LONG))
 
-    def _call(self, calls: _Calls, start: int, used: int, keep=1, header=None, values=None, sums=None):
-        """Run the group of ``lanes`` cases from case ``start`` (``used`` of them real) into ``calls``' buffers."""
+    def _marshalled(self, cases: Cases):
+        blocks = self._blocks(cases)
+        return blocks, [[_address(a) for a in arrays] for arrays in blocks]
+
+    def _call(self, calls: _Calls, start: int, used: int, keep=1, header=None, values=None, sums=None, first=None):
+        """Run the group of ``lanes`` cases from case ``start`` (``used`` of them real) into ``calls``' buffers
+        (``first`` (S, L): where each segment's records start, for more than one segment)."""
         L = self.lanes
+        g = start // L
         exo = None
         if self.spec.n_exo:
             exo = np.zeros((L, calls.exo_rows, self.spec.n_exo))
@@ -233,8 +192,15 @@ class NativeRunner:
         if calls.outputs is None:
             calls.outputs = [_address(a) for a in (calls.xs, calls.us, calls.ks, calls.n_rec, calls.done)]
         xs, us, ks, n_rec, done = calls.outputs
-        self._run(*calls.addresses[start // L], _address(exo), calls.exo_rows, calls.rows_max, xs, us, ks, n_rec,
-                  done, keep, _address(header), _address(values), _address(sums))
+        c, lane_d, lane_i, lo, hi = calls.addresses[g]
+        S = calls.cases.segments
+        if S == 1:
+            self._run(_address(calls.x0[g]), c, lane_d, lane_i, lo, hi, _address(exo), calls.exo_rows,
+                      calls.rows_max, xs, us, ks, n_rec, done, keep, _address(header), _address(values),
+                      _address(sums))
+        else:
+            self._segments(S, _address(calls.x0[g]), c, lane_d, lane_i, lo, hi, _address(exo), calls.exo_rows,
+                           calls.rows_max, xs, us, ks, n_rec, done, _address(first))
 
 
 def _address(a: np.ndarray | None) -> int | None:
@@ -247,16 +213,17 @@ class _Calls:
     """The calls of one run of ``cases`` in a library (:meth:`NativeRunner.iter_run` and
     :meth:`NativeRunner.iter_summaries` set them up alike): ``groups``, per call the index of its
     first case and how many of its ``lanes`` are cases (the last call's others copy its first case and
-    take no steps); ``blocks``, per call its C arrays (:meth:`NativeRunner._blocks`); the exogenous
-    rows a lane takes (the most any case has); and the buffers each call writes, ``rows_max`` records
-    a lane: ``xs`` (L, nx, rows_max), ``us`` (L, 4, rows_max), ``ks`` (L, rows_max), ``n_rec`` and
-    ``done`` (L,)."""
+    take no steps); ``blocks``, per call its C arrays (:meth:`NativeRunner._blocks`); ``x0`` (G, nx, L)
+    the states they start from; the exogenous rows a lane takes (the most any case has); and the
+    buffers each call writes, ``rows_max`` records a lane: ``xs`` (L, nx, rows_max), ``us`` (L, 4,
+    rows_max), ``ks`` (L, rows_max), ``n_rec`` and ``done`` (L,)."""
 
     cases: Cases
     groups: list
     blocks: list
     addresses: list
     """Per call, its C arrays' addresses (the arrays are ``blocks``'s: held while these are used)."""
+    x0: np.ndarray
     rows_max: int
     exo_rows: int
     xs: np.ndarray
@@ -266,15 +233,3 @@ class _Calls:
     done: np.ndarray
     outputs: list | None = None
     """The output buffers' addresses, taken at the first call."""
-
-
-@dataclass
-class _SegmentCalls:
-    """The calls of :meth:`NativeRunner.run_segments` (see :meth:`NativeRunner._segment_calls`)."""
-
-    groups: list
-    blocks: list
-    addresses: list
-    """Per call, the addresses of ``c``, the doubles, the longs, ``lo`` and ``hi`` (``blocks``' arrays)."""
-    rows_max: int
-    exo_rows: int

@@ -1,15 +1,20 @@
-"""Simulation of the full nonlinear closed loop, one case: RK4 at a fixed step, or ETDRK4
+"""Simulation of the full nonlinear closed loop: RK4 at a fixed step, or ETDRK4
 (``simulation.method: etdrk4``) on a graded schedule of steps (:mod:`quadctl.sim.schedule`).
 
 ``u = u_ref(t) - K (x - x_ref(t))``: by default ``x_ref(t) = x_trim + x_rate t`` (positions drift at
 the trim velocity) and ``u_ref = u_trim``; with ``simulation.reference`` the reference flown and its
 feedforward; with a gain schedule ``K = G(v)`` (:mod:`quadctl.sim.builder`, "Gain schedule"). With
 the integrators, sampling, saturation, noise and wind the loop has, run by
-the engine of :mod:`quadctl.sim` (compiled where a C compiler works). The step comes from
-:mod:`quadctl.sim.plan`; the run goes in chunks so Ctrl-C stops it at once, and noise and wind are
-drawn chunk by chunk (:class:`ExoStream`), so memory does not grow with the duration.
-"""
+the engine of :mod:`quadctl.sim` (compiled where a C compiler works).
 
+One entry runs a stack of cases by either integrator: :func:`stack_of` makes the
+:class:`~quadctl.sim.cases.Cases` of the runs (RK4: a segment each, its step from
+:mod:`quadctl.sim.plan`; ETDRK4: a segment per step of its schedule, :func:`exponential_stack`) and
+:func:`run_stack` runs them; :func:`simulate_stack` is both for many loops in the SIMD lanes, and
+:func:`simulate` the stack of one. A long run of one case goes in chunks so Ctrl-C stops it at once,
+and noise and wind are drawn chunk by chunk (:class:`ExoStream`), so memory does not grow with the
+duration.
+"""
 from __future__ import annotations
 
 import math
@@ -24,7 +29,7 @@ from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec, NoiseStream, exogenous_period
 from quadctl.physics.wind import WindSpec, WindStream
 from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
-from quadctl.sim.cases import Cases, Segments
+from quadctl.sim.cases import Cases
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
 from quadctl.sim.schedule import DEFAULT_TOLERANCE
@@ -32,7 +37,7 @@ from quadctl.sim.schedule import DEFAULT_TOLERANCE
 VALID_PITCH = math.radians(85.0)
 """Beyond this pitch the Euler kinematics (``1/cos theta``) are near singular: the run stops."""
 SETUPS_KEPT = 4
-"""ETDRK4 setups a loop keeps (:meth:`ClosedLoop.exponential_setup`): one per run settings, the latest."""
+"""ETDRK4 stacks of one a loop keeps (:meth:`ClosedLoop.exponential_stack`): one per run settings, the latest."""
 RUNAWAY = {"pN": 1e5, "pE": 1e5, "pD": 1e5, "u": 1e3, "v": 1e3, "w": 1e3,
            "phi": 1e3, "theta": VALID_PITCH, "psi": 1e3, "p": 1e4, "q": 1e4, "r": 1e4}
 """Bounds on |x - x_ref| (state units) past which a run counts as diverged; theta's is the model's range."""
@@ -200,16 +205,17 @@ class ClosedLoop:
                                      rate_filter=self.filter_form)
 
     def __getstate__(self):
-        """The loop's fields (a pickle carries no kept setup: its runner is this process's)."""
+        """The loop's fields (a pickle carries no kept stack: its runner's arrays are this process's)."""
         state = dict(self.__dict__)
-        state.pop("_exponential_setups", None)
+        state.pop("_exponential_stacks", None)
         return state
 
-    def exponential_setup(self, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+    def exponential_stack(self, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
                           max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
-                          noise: bool = False, wind: bool = False):
-        """:func:`exponential_setup` of this loop, kept with it (the :data:`SETUPS_KEPT` latest settings):
-        a second run with the same settings computes no plan, φ-functions or constants again.
+                          noise: bool = False, wind: bool = False) -> Stack:
+        """:func:`exponential_stack` of this loop alone (from its trim: :meth:`Cases.starting` runs it from
+        a state), kept with it (the :data:`SETUPS_KEPT` latest settings): a second run with the same
+        settings computes no plan, φ-functions or constants again (nor marshals them for the runner).
 
         A :class:`~quadctl.physics.flatness.FlownReference` counts as the same when it flies the same
         path object, with the same steps (``jumps``) and parameters (its position range and, for a gain
@@ -219,12 +225,12 @@ class ClosedLoop:
                exo_period, bool(noise), bool(wind),
                None if reference is None else (id(reference.path), tuple(reference.path.jumps),
                                                  np.asarray(reference.params).tobytes()))
-        kept = self.__dict__.setdefault("_exponential_setups", {})
+        kept = self.__dict__.setdefault("_exponential_stacks", {})
         if key in kept:
             path, found = kept.pop(key)
             kept[key] = (path, found)  # the latest used last
             return found
-        found = exponential_setup(self, duration, dt, tolerance=tolerance, max_samples=max_samples,
+        found = exponential_stack([self], [self.x_trim], duration, dt, tolerance=tolerance, max_samples=max_samples,
                                   reference=reference, exo_period=exo_period, noise=noise, wind=wind)
         kept[key] = (None if reference is None else reference.path, found)  # the path held: its id stays its own
         while len(kept) > SETUPS_KEPT:
@@ -567,8 +573,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     max_samples : int
         Samples kept, at most: every :func:`record_stride`-th step and the last.
     progress : callable, optional
-        ``progress(done, total)``: called with the RK4 steps done and the steps in all after each
-        chunk of the run (:func:`run_in_chunks`), for a caller that shows how far a long run is.
+        ``progress(done, total)``: called with the steps done and the steps in all after each
+        chunk of the run (:func:`run_stack`), for a caller that shows how far a long run is.
     reference : FlownReference, optional
         A reference to fly (:class:`quadctl.physics.flatness.FlownReference`): ``x_ref(t)`` and the feedforward
         ``u_ref(t)`` in place of ``x_trim + x_rate t`` and ``u_trim``; ``SimResult.x_ref`` is then the
@@ -580,7 +586,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         The error ETDRK4's ``dt: auto`` aims at.
     exo_rate : float, optional
         Hz of the exogenous clock when there is no noise (:class:`ExoStream`; None: the controller's
-        rate): loops of different rates flown with one ``exo_rate`` feel the same wind (RK4 only).
+        rate): loops of different rates flown with one ``exo_rate`` feel the same wind (ETDRK4's steps
+        divide its period).
 
     Returns
     -------
@@ -599,28 +606,16 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     >>> run.status, float(run.x[0, 2] - loop.x_trim[2]), bool(abs(run.x[-1, 2] - loop.x_trim[2]) < 1e-4)
     ('ok', 0.5, True)
     """
-    if method == "etdrk4":
-        return _simulate_exponential(loop, x0, duration, dt, noise=noise, wind=wind, max_samples=max_samples,
-                                     progress=progress, tolerance=tolerance, reference=reference)
-    if method != "rk4":
-        raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
-    plan = loop.plan(duration, dt)
-    noisy = noise is not None and noise.active
-    windy = wind is not None and wind.active
-    run = runner(loop.spec(noisy, windy, reference is not None), 1)
-    c = loop.constants(plan.sample_time)
-    lo, hi = loop.bounds(duration, reference)
-    x0_all = loop.initial_loop_state(x0)
-    n = plan.n_steps
-    stride = record_stride(n, max_samples)
+    stack = stack_of([loop], [x0], duration, dt, method=method, noise=noise, wind=wind, max_samples=max_samples,
+                     reference=reference, tolerance=tolerance, exo_rate=exo_rate)
+    run = runner(stack.spec, 1)
     start = time.perf_counter()
-    exo = (ExoStream(noise if noisy else None, wind if windy else None, exo_rate or loop.rate, reference)
-           if noisy or windy or reference is not None else None)
-    done, ks, xs, us = run_in_chunks(run, x0_all, c, plan, n, stride, lo, hi, exo, progress)
+    (done, t, xs, us), = run_stack(stack, run, progress)
     wall = time.perf_counter() - start
-    t = plan.dt * ks
-    return _result(loop, plan, run.backend, t, xs, us, done, stride, wall, lo, hi, noise if noisy else None,
-                   wind if windy else None, exo, ks, plan.dt, reference)
+    exo = stack.exo
+    return _result(loop, stack.plans[0], run.backend, t, xs, us, done, stack.strides[0], wall, stack.cases.lo[0],
+                   stack.cases.hi[0], noise if exo is not None and exo.noise is not None else None,
+                   wind if exo is not None and exo.wind is not None else None, exo, t, 1.0, reference, stack.spec)
 
 
 def _result(loop: ClosedLoop, plan: StepPlan, backend: str, t, xs, us, done: int, stride: int, wall: float,
@@ -656,121 +651,6 @@ def _estimate(loop: ClosedLoop, x_ref: np.ndarray, deviation: np.ndarray, refere
     if not reference:
         return x_ref + deviation
     return x_ref + heading_frame(deviation, -loop.heading_offset(x_ref), lib=np)
-
-
-def _simulate_exponential(loop: ClosedLoop, x0, duration: float, dt, *, noise, wind, max_samples: int,
-                          progress, tolerance: float, reference=None) -> SimResult:
-    """:func:`simulate` by ETDRK4 over the segments of its schedule (each with its own matrices).
-
-    A sampled controller's law runs at every sample as with RK4, and the plant between samples by
-    exponential steps of its linearization under the held input (:meth:`ClosedLoop.plant_linear_part`;
-    the rest, smooth over a sample, is the nonlinear remainder): a whole number of steps per sample,
-    every segment starting on a sample, so the hold points stay exact.
-
-    A reference enters as the RK4 loop's does, through the exogenous rows; the linear part stays the
-    loop linearized at the trim, and the nonlinear remainder ``N = f - L X`` carries the rest (the
-    reference's ``x_ref(t)``, ``u_ref(t)`` and the loop's distance from the trim). Within a row the
-    reference is a quadratic in ``t``, so ``N`` is smooth over a step; at a row's boundary its second
-    derivative jumps, and every step of the schedule divides the exogenous period (a step never
-    straddles a boundary), so the method keeps its order. A gain schedule's continuous loop flies each
-    stretch on the loop closed at the schedule value nearest the commanded one (:func:`_linear_pieces`).
-    """
-    noisy = noise is not None and noise.active
-    windy = wind is not None and wind.active
-    exo = (ExoStream(noise if noisy else None, wind if windy else None, loop.rate, reference)
-           if noisy or windy or reference is not None else None)
-    prep = loop.exponential_setup(duration, dt, tolerance=tolerance, max_samples=max_samples, reference=reference,
-                                  exo_period=exo.period if exo is not None else None, noise=noisy, wind=windy)
-    plan, run, segments = prep.plan, runner(prep.spec, 1), prep.segments
-    x = loop.initial_loop_state(x0)
-    n = plan.n_steps
-    start = time.perf_counter()
-    if n <= CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]):  # the whole run in one call
-        exo_rows = None
-        if exo is not None:
-            exo_rows = [exo.samples(0, math.ceil(duration / exo.period + 1e-9))]
-            segments = replace(segments, exo=exo_rows)
-        (total, t, xs, us), = run.run_segments(segments, x[None])
-        if progress is not None:
-            progress(total, n)
-    else:  # a long run: each segment in chunks (Ctrl-C between them, the exogenous rows drawn as it goes)
-        total, t, xs, us = _exponential_in_chunks(prep, run, x, exo, progress)
-    wall = time.perf_counter() - start
-    return _result(loop, plan, run.backend, t, xs, us, total, prep.strides[-1], wall, prep.lo, prep.hi,
-                   noise if noisy else None, wind if windy else None, exo, t, 1.0, reference, prep.spec)
-
-
-def _exponential_in_chunks(prep: ExponentialSetup, run, x, exo, progress):
-    """``(done, t, xs, us)`` of a long ETDRK4 run: segment after segment, each in chunks (:func:`run_in_chunks`)."""
-    plan, segments = prep.plan, prep.segments
-    held = plan.sample_time is not None and plan.hold > 0
-    n = plan.n_steps
-    parts_t, parts_x, parts_u, total = [], [], [], 0
-    for i in range(segments.n.shape[0]):
-        dt, m, k0 = float(segments.dt[i, 0]), int(segments.n[i, 0]), int(segments.k0[i, 0])
-        sub = StepPlan(dt, m, plan.max_stable_dt, plan.fastest_eigenvalue, plan.fastest_owner, plan.auto,
-                       hold=int(segments.hold[i, 0]) if held else 0, sample_time=plan.sample_time if held else None)
-        report = None if progress is None else (lambda d, _m, t0=total: progress(t0 + d, n))
-        done, ks, xs, us = run_in_chunks(run, x, segments.c[i, 0], sub, m, int(segments.stride[i, 0]),
-                                         prep.lo, prep.hi, exo, report, k_start=k0)
-        total += done
-        last = i == segments.n.shape[0] - 1 or done < m
-        keep = len(ks) if last else len(ks) - 1  # a segment's final row is the next one's start
-        parts_t.append(dt * ks[:keep])
-        parts_x.append(xs[:keep])
-        parts_u.append(us[:keep])
-        if last:
-            break
-        x = np.ascontiguousarray(xs[-1])
-    return total, np.concatenate(parts_t), np.concatenate(parts_x), np.concatenate(parts_u)
-
-
-@dataclass(frozen=True)
-class ExponentialSetup:
-    """What an ETDRK4 run of a loop computes before its first step, from the loop and the run's
-    settings alone (:meth:`ClosedLoop.exponential_setup`, kept with the loop): its linear part and
-    step plan, the records' strides, the loop's generated code (its spec: the runner is
-    :func:`quadctl.sim.engine.runner`'s), the bounds, and the :class:`~quadctl.sim.cases.Segments`
-    (each segment's constants: the loop's, then the φ-functions of its step and linear part)."""
-
-    plan: StepPlan
-    strides: list
-    spec: LoopSpec
-    lo: np.ndarray
-    hi: np.ndarray
-    segments: Segments
-
-
-def exponential_setup(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                      max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
-                      noise: bool = False, wind: bool = False) -> ExponentialSetup:
-    """The :class:`ExponentialSetup` of one ETDRK4 run of ``loop`` (``noise``, ``wind``: the run has
-    them; ``exo_period``: s of its exogenous rows, None: none). A sampled controller's segments start on
-    its samples; a gain schedule's continuous loop flies each stretch on the loop closed at the schedule
-    value nearest the commanded one (:func:`_linear_pieces`)."""
-    from quadctl.sim.schedule import phi_constants, phi_ladder, phi_pattern, record_strides
-
-    held = loop.rate is not None
-    period = 1.0 / loop.rate if held else exo_period
-    L, plan = exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference, exo_period=exo_period)
-    strides = record_strides(plan, max_samples)
-    pieces = _linear_pieces(loop, plan, strides, reference)
-    points = sorted({p for _, _, p in pieces if p is not None})
-    if points:  # a gain schedule: each piece on the loop closed at its nearest value
-        L = loop.point_linear_parts[points]
-    ladder = phi_ladder(L, [seg.dt for seg in plan.schedule])
-    spec = loop.spec(noise, wind, reference is not None, method="etdrk4", phi_pattern=phi_pattern(ladder))
-    base = loop.constants(period if held else None)
-    lo, hi = loop.bounds(duration, reference)
-    blocks = {}
-    c = [np.concatenate([base, blocks.setdefault((seg.dt, point), phi_constants(
-        ladder[seg.dt], None if point is None else points.index(point)))]) for seg, _, point in pieces]
-    segs = [seg for seg, _, _ in pieces]
-    segments = Segments.of(np.array(c)[:, None], [[s.dt] for s in segs], [[s.n] for s in segs],
-                           [[stride] for _, stride, _ in pieces], [[s.k0] for s in segs], lo, hi,
-                           hold=[[round(period / s.dt) if held else 1] for s in segs],
-                           exo_period=exo_period if exo_period is not None else 1.0)
-    return ExponentialSetup(plan=plan, strides=strides, spec=spec, lo=lo, hi=hi, segments=segments)
 
 
 def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list[tuple]:
@@ -843,48 +723,203 @@ def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance:
                             forced=reference is not None, max_stable_dt=max_stable_dt, kicks=kicks)
 
 
-def exponential_lanes(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                      max_samples: int = MAX_SAMPLES, reference=None, noise: NoiseSpec | None = None,
-                      wind: WindSpec | None = None) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
-    """ETDRK4 runs of several loops of one structure in the SIMD lanes: :func:`exponential_runs`'
-    runs (the same arguments).
+@dataclass(frozen=True)
+class Stack:
+    """``N`` runs of loops of one structure ready for a runner (:func:`stack_of`): each case's step plan
+    and record stride (of its largest step), the loops' generated code (``spec``), the
+    :class:`~quadctl.sim.cases.Cases` (RK4: a segment each; ETDRK4: a segment per step of its graded
+    schedule), and the exogenous inputs they all take (drawn when the stack runs: :func:`run_stack`)."""
 
-    Returns
-    -------
-    list of (done, t, xs, us)
-        Per loop: steps completed, recorded times (s), loop states (r, nx) and inputs (r, 4), as
-        :func:`simulate` records them.
+    plans: tuple
+    strides: tuple
+    spec: LoopSpec
+    cases: Cases
+    exo: ExoStream | None = None
+
+
+def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noise: NoiseSpec | None = None,
+             wind: WindSpec | None = None, max_samples: int = MAX_SAMPLES, reference=None,
+             tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None, planned=None) -> Stack:
+    """The :class:`Stack` of runs of ``loops`` from ``x0s`` (the arguments of :func:`simulate`): one
+    case is a stack of one (an ETDRK4 case from the setup its loop keeps,
+    :meth:`ClosedLoop.exponential_stack`); more run in the SIMD lanes, each case stepping as its one-case
+    run does (ETDRK4: the φ-functions of all the loops' linear parts computed on the stack of them).
+    ``planned``: each loop's ``(L, StepPlan)`` of :func:`exponential_plan`, when the caller has them.
+
+    Raises
+    ------
+    ValueError
+        Loops of different structures or controller rates, or an unknown method.
+    StepSizeError
+        A step that a loop cannot take.
     """
-    return exponential_runs(loops, x0s, duration, dt, tolerance=tolerance, max_samples=max_samples,
-                            reference=reference, noise=noise, wind=wind)[2]
+    loops = list(loops)
+    if method not in ("rk4", "etdrk4"):
+        raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
+    rate = loops[0].rate
+    if len(loops) > 1:
+        if len({loop.spec() for loop in loops}) > 1:
+            raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
+        if any(loop.rate != rate for loop in loops):
+            raise ValueError("the lanes run loops of one controller rate: group the loops by loop.rate")
+    noisy = noise is not None and noise.active
+    windy = wind is not None and wind.active
+    exo = (ExoStream(noise if noisy else None, wind if windy else None, exo_rate or rate, reference)
+           if noisy or windy or reference is not None else None)
+    exo_period = exo.period if exo is not None else None
+    if method == "rk4":
+        plans = [loop.plan(duration, dt) for loop in loops]
+        strides = tuple(record_stride(plan.n_steps, max_samples) for plan in plans)
+        bounds = [loop.bounds(duration, reference) for loop in loops]
+        cases = Cases.of([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)],
+                         [loop.constants(plan.sample_time) for loop, plan in zip(loops, plans)],
+                         [plan.dt for plan in plans], [plan.n_steps for plan in plans], strides,
+                         [b[0] for b in bounds], [b[1] for b in bounds], hold=[max(plan.hold, 1) for plan in plans],
+                         exo_period=exo_period or 1.0)
+        return Stack(tuple(plans), strides, loops[0].spec(noisy, windy, reference is not None), cases, exo)
+    if len(loops) == 1 and planned is None:  # the loop's kept stack of one, from x0
+        kept = loops[0].exponential_stack(duration, dt, tolerance=tolerance, max_samples=max_samples,
+                                          reference=reference, exo_period=exo_period, noise=noisy, wind=windy)
+        return replace(kept, cases=kept.cases.starting(loops[0].initial_loop_state(x0s[0])), exo=exo)
+    stack = exponential_stack(loops, x0s, duration, dt, tolerance=tolerance, max_samples=max_samples,
+                              reference=reference, exo_period=exo_period, noise=noisy, wind=windy, planned=planned)
+    return replace(stack, exo=exo)
 
 
-def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
-                     max_samples: int = MAX_SAMPLES, reference=None, noise: NoiseSpec | None = None,
-                     wind: WindSpec | None = None, planned=None) -> tuple[list[StepPlan], str, list]:
-    """ETDRK4 runs of several loops of one structure in the SIMD lanes (:data:`quadctl.sim.engine.LANES`
-    at a time), each its own linear part and schedule (per lane: each case steps as its one-case run
-    does), the lanes stepping through their schedules' segments together (segment ``i`` of every
-    case per call), as :func:`simulate` runs each (sampled controllers too). The φ-functions of all
-    the loops' linear parts are computed together, on the stack of them. Every loop takes the same
-    exogenous inputs: a ``reference`` (:class:`quadctl.physics.flatness.FlownReference`), noise and wind,
-    tabulated once for the run.
+def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+                      max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
+                      noise: bool = False, wind: bool = False, planned=None) -> Stack:
+    """The :class:`Stack` of ETDRK4 runs of ``loops`` of one structure from ``x0s`` (``noise``, ``wind``:
+    the runs have them; ``exo_period``: s of their exogenous rows, None: none; no rows drawn): each
+    case its own linear part and graded schedule (:func:`exponential_plan`, or ``planned``), a segment
+    a step, each segment's constants the loop's, then the φ-functions of its step and linear part. A
+    sampled controller's segments start on its samples; a gain schedule's continuous loop flies each
+    stretch on the loop closed at the schedule value nearest the commanded one (:func:`_linear_pieces`).
+    The loops whose schedules start at one step share a φ ladder, computed on the stack of their linear
+    parts (each matrix as its one-case run computes it, from that step up); the lanes step through their
+    schedules together (segment ``i`` of every case per call)."""
+    from quadctl.sim.schedule import phi_constant_rows, phi_ladder, phi_pattern, record_strides
 
-    Parameters
-    ----------
-    loops : sequence of ClosedLoop
-        One :meth:`ClosedLoop.spec` (gain pattern, saturation, integrators, sampling ...).
-    x0s : sequence of (12,) array_like
-    duration : float
-        s.
-    dt : float or "auto"
-    tolerance : float
-    max_samples : int
-    reference : FlownReference, optional
-    noise : NoiseSpec, optional
-    wind : WindSpec, optional
-    planned : sequence of (L, StepPlan), optional
-        Each loop's :func:`exponential_plan` of these arguments, when the caller has them.
+    rate = loops[0].rate
+    held = rate is not None
+    period = 1.0 / rate if held else exo_period
+    Ls, plans = zip(*(planned or [exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
+                                                   exo_period=exo_period) for loop in loops]))
+    strides = [record_strides(plan, max_samples) for plan in plans]
+    pieces = [_linear_pieces(loop, plan, st, reference) for loop, plan, st in zip(loops, plans, strides)]
+    points = [sorted({p for _, _, p in case if p is not None}) for case in pieces]
+    parts = [loop.point_linear_parts[pts] if pts else np.asarray(L, dtype=float)[None]  # each case's linear parts
+             for loop, L, pts in zip(loops, Ls, points)]
+    rung: dict[float, list[int]] = {}
+    for i, plan in enumerate(plans):
+        rung.setdefault(min(seg.dt for seg in plan.schedule), []).append(i)
+    blocks: list = [None] * len(loops)  # per case: {step: its parts' φ blocks}, and its first row in them
+    patterns = []
+    for members in rung.values():
+        ladder = phi_ladder(np.concatenate([parts[i] for i in members]),
+                            [seg.dt for i in members for seg in plans[i].schedule])
+        rows = {h: phi_constant_rows(mats) for h, mats in ladder.items()}
+        patterns.append(phi_pattern(ladder))
+        for i, first in zip(members, np.cumsum([0, *(len(parts[i]) for i in members)])):
+            blocks[i] = (rows, int(first))
+    spec = loops[0].spec(noise, wind, reference is not None, method="etdrk4",
+                         phi_pattern=tuple(bool(b) for b in np.array(patterns).any(axis=0)))
+    S = max(map(len, pieces))
+    bounds = [loop.bounds(duration, reference) for loop in loops]
+    base = [loop.constants(period if held else None) for loop in loops]
+
+    def block(i, seg, point):
+        rows, first = blocks[i]
+        return np.concatenate([base[i], rows[seg.dt][first + (0 if point is None else points[i].index(point))]])
+
+    def per_piece(value, empty):  # a piece a case does not have: no steps, its last piece's constants
+        return [[value(i, *pieces[i][k]) if k < len(pieces[i]) else empty(i, *pieces[i][-1])
+                 for i in range(len(loops))] for k in range(S)]
+
+    cases = Cases.graded([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)],
+                         np.array(per_piece(lambda i, seg, _, point: block(i, seg, point),
+                                            lambda i, seg, _, point: block(i, seg, point))),
+                         per_piece(lambda i, seg, *_: seg.dt, lambda i, seg, *_: seg.dt),
+                         per_piece(lambda i, seg, *_: seg.n, lambda *_: 0),
+                         per_piece(lambda i, seg, stride, _: stride, lambda *_: 1),
+                         per_piece(lambda i, seg, *_: seg.k0, lambda *_: 0),
+                         np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
+                         hold=per_piece(lambda i, seg, *_: round(period / seg.dt) if held else 1, lambda *_: 1),
+                         exo_period=exo_period if exo_period is not None else 1.0)
+    return Stack(tuple(plans), tuple(st[-1] for st in strides), spec, cases)
+
+
+CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
+"""Steps per call into the runner, by backend (~5 M and ~0.2 M steps/s): 0.05 to 0.1 s each, so
+Python sees Ctrl-C between calls at once."""
+
+
+def run_stack(stack: Stack, run, progress=None) -> list[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
+    """The runs of ``stack`` by ``run`` (a runner of its spec, :func:`quadctl.sim.engine.runner`): per case
+    ``(done, t, xs, us)``, steps completed, recorded times (s), loop states (r, nx) and inputs (r, 4).
+
+    The exogenous rows are drawn for the whole run at once; a case alone longer than the runner's
+    chunk (:data:`CHUNK_STEPS`) runs in chunks instead (:func:`_in_chunks`: Ctrl-C between them, the
+    rows drawn as it goes). ``progress(done, total)``, if given, is called with a case alone's steps
+    done after each call.
+    """
+    cases, exo = stack.cases, stack.exo
+    total = int(cases.n[:, 0].sum())
+    if len(cases) == 1 and total > CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]):
+        return [_in_chunks(run, cases, exo, progress)]
+    if exo is not None:
+        taken = cases.n > 0  # the rows through the last step of any segment
+        rows = exo.samples(0, int(exo.index((cases.k0 + cases.n - 1)[taken], cases.dt[taken]).max(initial=0)))
+        cases = cases.starting(cases.x0, exo=[rows] * len(cases))
+    out = run.run(cases)
+    if progress is not None and len(cases) == 1:
+        progress(out[0][0], total)
+    return out
+
+
+def _in_chunks(run, cases: Cases, exo: ExoStream | None, progress=None):
+    """``(done, t, xs, us)`` of the one case of ``cases``: segment after segment, each in chunks of
+    :data:`CHUNK_STEPS` (whole controller periods, each starting on a sample), a chunk's exogenous rows
+    drawn before it; a chunk's final record is the next one's start (kept once)."""
+    chunk = CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"])
+    total, n_all, last = 0, int(cases.n[:, 0].sum()), int(cases.last[0])
+    x = cases.x0[0]
+    parts: tuple[list, list, list] = ([], [], [])
+    for s in range(last + 1):
+        dt, hold, stride = float(cases.dt[s, 0]), int(cases.hold[s, 0]), int(cases.stride[s, 0])
+        k0, end = int(cases.k0[s, 0]), int(cases.k0[s, 0] + cases.n[s, 0])
+        step = max(hold, chunk // hold * hold)
+        while k0 < end:
+            m = min(step, end - k0)
+            rows, first = None, 0
+            if exo is not None:
+                first, row = exo.rows(k0, m, dt)
+                rows = [row]
+            piece = Cases.of(x, cases.c[s, 0], dt, m, stride, cases.lo, cases.hi, hold=hold, k0=k0, exo=rows,
+                             exo_first=first, exo_period=cases.exo_period[0])
+            (done, t, xs, us), = run.run(piece)
+            total += done
+            if progress is not None:
+                progress(total, n_all)
+            final = done < m or (k0 + m >= end and s == last)
+            keep = len(t) if final else len(t) - 1
+            for part, got in zip(parts, (t, xs, us)):
+                part.append(got[:keep])
+            if final:
+                return total, *(np.concatenate(p) for p in parts)
+            x = xs[-1]
+            k0 += m
+    return total, *(np.concatenate(p) for p in parts)
+
+
+def simulate_stack(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noise: NoiseSpec | None = None,
+                   wind: WindSpec | None = None, max_samples: int = MAX_SAMPLES, reference=None,
+                   tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None,
+                   planned=None) -> tuple[list[StepPlan], str, list]:
+    """Runs of several loops of one structure from ``x0s``, as :func:`simulate` runs each (its arguments;
+    the RK4 or ETDRK4 runs of :func:`stack_of`), in the SIMD lanes (:data:`quadctl.sim.engine.LANES` at a
+    time; one case alone: the one-case loop). Every loop takes the same exogenous inputs: a
+    ``reference`` (:class:`quadctl.physics.flatness.FlownReference`), noise and wind, tabulated once for the run.
 
     Returns
     -------
@@ -897,109 +932,27 @@ def exponential_runs(loops, x0s, duration: float, dt="auto", *, tolerance: float
     ------
     ValueError
         Loops of different structures or controller rates.
+
+    Examples
+    --------
+    Three designs of the hover loop (gains scaled) in the lanes: each as its own run.
+
+    >>> import numpy as np, quadctl as qc
+    >>> from dataclasses import replace
+    >>> from quadctl.sim.run import simulate_stack
+    >>> loop = qc.Stages(qc.setup_of(qc.load_config("hover"))).loop
+    >>> loops = [replace(loop, K=loop.K * k) for k in (0.8, 1.0, 1.2)]
+    >>> plans, backend, runs = simulate_stack(loops, [loop.x_trim + 0.1] * 3, 0.5)
+    >>> one = qc.simulate(loops[2], loop.x_trim + 0.1, 0.5)
+    >>> bool(np.abs(runs[2][2][:, :12] - one.x).max() < 1e-12), len(runs)
+    (True, 3)
     """
     from quadctl.sim.engine import LANES
-    from quadctl.sim.schedule import phi_constant_rows, phi_ladder, phi_pattern, record_strides
 
-    loops = list(loops)
-    if len({loop.spec() for loop in loops}) > 1:
-        raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
-    rate = loops[0].rate
-    if any(loop.rate != rate for loop in loops):
-        raise ValueError("the lanes run loops of one controller rate: group the loops by loop.rate")
-    noisy = noise is not None and noise.active
-    windy = wind is not None and wind.active
-    exo = (ExoStream(noise if noisy else None, wind if windy else None, rate, reference)
-           if noisy or windy or reference is not None else None)
-    held = rate is not None
-    period = 1.0 / rate if held else (exo.period if exo is not None else None)
-    Ls, plans = zip(*(planned or [exponential_plan(loop, duration, dt, tolerance=tolerance, reference=reference,
-                                                   exo_period=exo.period if exo is not None else None)
-                                  for loop in loops]))
-    # the loops whose schedules start at one step share a ladder (the stack of theirs: each matrix as
-    # its one-case run computes it, from that step up)
-    rung: dict[float, list[int]] = {}
-    for i, plan in enumerate(plans):
-        rung.setdefault(min(seg.dt for seg in plan.schedule), []).append(i)
-    ladders: list = [None] * len(loops)
-    for members in rung.values():
-        shared = phi_ladder(np.stack([Ls[i] for i in members]),
-                            [seg.dt for i in members for seg in plans[i].schedule])
-        blocks = {h: phi_constant_rows(mats) for h, mats in shared.items()}
-        for row, i in enumerate(members):
-            ladders[i] = (shared, row, blocks)
-    patterns = np.array([phi_pattern(lad[0]) for lad in {id(lad[0]): lad for lad in ladders}.values()])
-    run = runner(loops[0].spec(noisy, windy, reference is not None, method="etdrk4",
-                               phi_pattern=tuple(bool(b) for b in patterns.any(axis=0))), LANES)
-    rows = exo.samples(0, math.ceil(duration / exo.period + 1e-9)) if exo is not None else None
-    S = max(len(plan.schedule) for plan in plans)
-    bounds = [loop.bounds(duration, reference) for loop in loops]
-    base = [loop.constants(period if held else None) for loop in loops]
-    strides = [record_strides(plan, max_samples) for plan in plans]
-    pad = [plan.schedule[-1].dt for plan in plans]  # a segment a case does not have: its last step's block
-
-    def per_segment(value, empty):
-        return [[value(i, plans[i].schedule[k], k) if k < len(plans[i].schedule) else empty(i)
-                 for i in range(len(loops))] for k in range(S)]
-
-    c = np.array(per_segment(lambda i, seg, k: np.concatenate([base[i], ladders[i][2][seg.dt][ladders[i][1]]]),
-                             lambda i: np.concatenate([base[i], ladders[i][2][pad[i]][ladders[i][1]]])))
-    segments = Segments.of(c, per_segment(lambda i, seg, k: seg.dt, lambda i: pad[i]),
-                           per_segment(lambda i, seg, k: seg.n, lambda i: 0),
-                           per_segment(lambda i, seg, k: strides[i][k], lambda i: 1),
-                           per_segment(lambda i, seg, k: seg.k0, lambda i: 0),
-                           np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds]),
-                           hold=per_segment(lambda i, seg, k: round(period / seg.dt) if held else 1, lambda i: 1),
-                           exo=None if rows is None else [rows] * len(loops),
-                           exo_period=exo.period if exo is not None else 1.0)
-    out = run.run_segments(segments, np.array([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)]))
-    return plans, run.backend, out
-
-
-CHUNK_STEPS = {"compiled": 250_000, "casadi": 20_000}
-"""Steps per call into the runner, by backend (~5 M and ~0.2 M steps/s): 0.05 to 0.1 s each, so
-Python sees Ctrl-C between calls at once."""
-
-
-def run_in_chunks(run, x0, c, plan: StepPlan, n: int, stride: int, lo, hi, noise: ExoStream | None = None,
-                  progress=None, k_start: int = 0):
-    """Run ``n`` steps in chunks, each starting on a controller sample; the rows of one long run.
-
-    ``progress(done, n)``, if given, is called after each chunk with the steps done so far.
-    ``k_start``: the absolute index of the first step (a segment of a schedule starting at
-    ``k_start dt`` s).
-
-    Returns
-    -------
-    (done, ks, xs, us) : steps completed, recorded absolute step indices (r,), loop states
-    (r, nx) and inputs (r, 4) of the recorded steps and the last.
-    """
-    hold = max(plan.hold, 1)
-    chunk = max(hold, CHUNK_STEPS.get(run.backend, CHUNK_STEPS["compiled"]) // hold * hold)
-    parts_k, parts_x, parts_u = [], [], []
-    x = np.ascontiguousarray(x0, dtype=float)
-    k0 = k_start
-    n = n + k_start
-    while True:
-        m = min(chunk, n - k0)
-        exo, first, period = None, 0, 1.0
-        if noise is not None:
-            first, exo = noise.rows(k0, m, plan.dt)
-            exo, period = [exo], noise.period
-        cases = Cases.of(x, c, plan.dt, m, stride, lo, hi, hold=hold, k0=k0, exo=exo, exo_first=first,
-                         exo_period=period)
-        (done, ks, xs, us), = run.run(cases)
-        last = k0 + m >= n or done < m
-        if progress is not None:
-            progress(k0 + done - k_start, n - k_start)
-        keep = len(ks) if last else len(ks) - 1  # a chunk's final row is the next one's start
-        parts_k.append(ks[:keep])
-        parts_x.append(xs[:keep])
-        parts_u.append(us[:keep])
-        if last:
-            return k0 + done - k_start, np.concatenate(parts_k), np.concatenate(parts_x), np.concatenate(parts_u)
-        x = np.ascontiguousarray(xs[-1])
-        k0 += m
+    stack = stack_of(loops, x0s, duration, dt, method=method, noise=noise, wind=wind, max_samples=max_samples,
+                     reference=reference, tolerance=tolerance, exo_rate=exo_rate, planned=planned)
+    run = runner(stack.spec, 1 if len(stack.cases) == 1 else LANES)
+    return list(stack.plans), run.backend, run_stack(stack, run)
 
 
 STATUS_WORDS = {"ok": "completed", "diverged": "diverged", "left_valid_range": "left the valid range"}

@@ -242,8 +242,8 @@ def phi_constants(matrices: dict[str, np.ndarray], case: int | None = None) -> n
 
 def phi_constant_rows(matrices: dict[str, np.ndarray]) -> np.ndarray:
     """(N, 12 n^2): :func:`phi_constants` of every matrix of a stacked ladder's step, at once."""
-    return np.concatenate([np.swapaxes(matrices[name], -1, -2).reshape(len(matrices[name]), -1)
-                           for name in PHI_LAYOUT], axis=1)
+    stack = np.stack([matrices[name] for name in PHI_LAYOUT], axis=1)  # (N, 12, n, n): one copy, then one more
+    return np.swapaxes(stack, -1, -2).reshape(len(stack), -1)
 
 
 def phi_pattern(ladder: dict[float, dict[str, np.ndarray]]) -> tuple[bool, ...]:

@@ -4,8 +4,8 @@
 one engine (:mod:`quadctl.design.stacked`, which a single design runs as a stack of one): a case
 whose solve misses its check goes through the one-case design, which names the reason.
 :func:`loops_of` is the stacked twin of :func:`quadctl.pipeline.loop_of` and the step plan,
-:func:`simulate_all` of :func:`quadctl.sim.run.simulate` (SIMD lanes), tested against them
-(``tests/sweep/test_sweep.py``).
+:func:`simulate_all` and :func:`summarize_all` hand the jobs to the simulation's one engine
+(:mod:`quadctl.sim`: a stack of cases, run in the SIMD lanes).
 """
 
 from __future__ import annotations
@@ -445,36 +445,53 @@ def _structural_gain(prep) -> tuple[bool, ...]:
     return prep.plant.cache["pattern"]
 
 
-def _cases_of(spec, group):
-    """The :class:`~quadctl.sim.cases.Cases` of a group of ``(prep, design, job)`` of one lane spec."""
+def _cases_of(group):
+    """The one-segment :class:`~quadctl.sim.cases.Cases` of a group of ``(prep, design, job)`` of one lane spec."""
     from quadctl.sim.cases import Cases
 
     js = [g[2] for g in group]
     return Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
                     [j.plan.n_steps for j in js], [j.stride for j in js], np.stack([j.lo for j in js]),
                     np.stack([j.hi for j in js]), hold=[max(j.plan.hold, 1) for j in js],
-                    exo=[j.exo for j in js] if spec.n_exo else None,
+                    exo=[j.exo for j in js] if js[0].spec.n_exo else None,
                     exo_first=[j.exo_first for j in js], exo_period=[j.exo_period for j in js])
 
 
 def simulate_all(jobs):
-    """Yield ``((prep, design, job), (done, ks, xs, us), backend)``, lanes grouped by loop spec."""
+    """Yield ``((prep, design, job), (done, t, xs, us), backend)``: the runs of :func:`loops_of`'s
+    jobs (:class:`LaneJob`, grouped by loop spec into the lanes' :class:`~quadctl.sim.cases.Cases`)
+    or of :func:`quadctl.sweep.exponential.jobs_of`'s (ETDRK4, grouped by structure and simulation
+    inputs, run by :func:`quadctl.sim.run.simulate_stack`), ``t`` (s) the recorded times; a
+    yielded ``job`` carries the plan its run took. The arrays of a lane job's run are overwritten by
+    the next (use them first)."""
     from quadctl.sim.engine import LANES, runner
+    from quadctl.sim.run import simulate_stack
 
-    by_spec: dict = {}
+    groups: dict = {}
     for item in jobs:
-        by_spec.setdefault(item[2].spec, []).append(item)
-    for spec, group in by_spec.items():
-        run = runner(spec, LANES)
-        for i, done, ks, xs, us in run.iter_run(_cases_of(spec, group)):
-            yield group[i], (done, ks, xs, us), run.backend
+        job = item[2]
+        groups.setdefault(job.spec if isinstance(job, LaneJob) else job.group, []).append(item)
+    for group in groups.values():
+        if isinstance(group[0][2], LaneJob):
+            run = runner(group[0][2].spec, LANES)
+            for i, done, t, xs, us in run.iter_run(_cases_of(group)):
+                yield group[i], (done, t, xs, us), run.backend
+            continue
+        setup = group[0][0].setup
+        tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
+        plans, backend, runs = simulate_stack(
+            [job.loop for _, _, job in group], [job.x0 for _, _, job in group], setup.duration, setup.dt,
+            method="etdrk4", max_samples=setup.max_samples, reference=setup.flown_reference, noise=setup.noise,
+            wind=setup.wind, planned=[(job.linear_part, job.plan) for _, _, job in group], **tolerance)
+        for (prep, des, job), plan, result in zip(group, plans, runs):
+            yield (prep, des, replace(job, plan=plan)), result, backend
 
 
 def summarize_all(jobs):
-    """Yield ``((prep, design, job), (done, k_end, x_end, u_end, sums), backend)``: each run summed in the
-    lanes as it steps (:mod:`quadctl.sim.lane_metrics`), lanes grouped by loop spec and by what the
-    sums need (the weights' sparsity, a reference and its legs); ``sums`` is None where the runner
-    keeps records instead (CasADi's VM): then ``(done, ks, xs, us)``."""
+    """Yield ``((prep, design, job), (done, t_end, x_end, u_end, sums), backend)``: each run of
+    :func:`loops_of`'s jobs summed in the lanes as it steps (:mod:`quadctl.sim.lane_metrics`), lanes
+    grouped by loop spec and by what the sums need (the weights' sparsity, a reference and its legs);
+    ``sums`` is None where the runner keeps records instead (CasADi's VM): then ``(done, t, xs, us)``."""
     from quadctl.sim.engine import LANES, runner
     from quadctl.sim.lane_metrics import MetricSpec, case_values
 
@@ -490,10 +507,10 @@ def summarize_all(jobs):
         by_spec.setdefault((item[2].spec, specs[key]), []).append(item)
     for (spec, metrics), group in by_spec.items():
         run = runner(spec, LANES)
-        cases = _cases_of(spec, group)
+        cases = _cases_of(group)
         if not hasattr(run, "iter_summaries"):
-            for i, done, ks, xs, us in run.iter_run(cases):
-                yield group[i], (done, ks, xs, us, None), run.backend
+            for i, done, t, xs, us in run.iter_run(cases):
+                yield group[i], (done, t, xs, us, None), run.backend
             continue
         if metrics.legs:  # each case's tolerance and legs
             values = np.stack([case_values(metrics, prep.plant.linear.u_trim, prep.setup.Q_block, prep.setup.R_block,
@@ -503,5 +520,5 @@ def summarize_all(jobs):
             values = case_values(metrics, np.stack([prep.plant.linear.u_trim for prep, _, _ in group]),
                                  np.stack([prep.setup.Q_block for prep, _, _ in group]),
                                  np.stack([prep.setup.R_block for prep, _, _ in group]))
-        for i, done, k_end, x_end, u_end, sums in run.iter_summaries(cases, metrics, values):
-            yield group[i], (done, k_end, x_end, u_end, sums), run.backend
+        for i, done, t_end, x_end, u_end, sums in run.iter_summaries(cases, metrics, values):
+            yield group[i], (done, t_end, x_end, u_end, sums), run.backend

@@ -529,10 +529,9 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
     summed: list = []  # (prep, design, job, done, status, message, sums) of the runs summed in the lanes
     from quadctl.sim.run import verdict
 
-    def recorded(prep, des, job, done, ks, xs, us, backend):
+    def recorded(prep, des, job, done, t, xs, us, backend):
         setup, linear = prep.setup, prep.plant.linear
         plan = job.plan
-        t = plan.dt * ks
         x = xs[:, :len(linear.x_trim)]
         status, message = verdict(x, t, done, plan.n_steps, job.lo, job.hi)
         stats["steps"] += done
@@ -542,7 +541,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             from quadctl import pipeline
 
             flown = setup.flown_reference
-            rows_at = np.floor(ks * plan.dt / job.exo_period + 1e-9).astype(np.int64)
+            rows_at = np.floor(t / job.exo_period + 1e-9).astype(np.int64)
             x_ref = flown.flown(flown.rows(rows_at, job.exo_period), t)[0]
             tracking = pipeline.tracking_of(setup.reference, t, x, x_ref)
             tracked[prep.index] = tracking_columns(tracking)
@@ -557,17 +556,15 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             traces[prep.index] = resample_deviation(t, x, x_ref, trace, setup.duration)
 
     if trace or exponential:  # a Monte Carlo keeps each trajectory; ETDRK4's lanes keep records
-        for (prep, des, job), (done, ks, xs, us), backend in (lanes.simulate_all(jobs) if exponential
-                                                               else batched.simulate_all(jobs)):
-            recorded(prep, des, job, done, ks, xs, us, backend)
+        for (prep, des, job), (done, t, xs, us), backend in batched.simulate_all(jobs):
+            recorded(prep, des, job, done, t, xs, us, backend)
     else:
         for (prep, des, job), result, backend in batched.summarize_all(jobs):
             done = result[0]
             if result[-1] is None:  # a runner that keeps records (CasADi's VM)
                 recorded(prep, des, job, *result[:4], backend)
                 continue
-            _, k_end, x_end, _, sums = result
-            t_end = job.plan.dt * k_end
+            _, t_end, x_end, _, sums = result
             status, message = verdict(x_end[None, :N_STATES], np.array([t_end]), done, job.plan.n_steps, job.lo,
                                       job.hi)
             stats["steps"] += done

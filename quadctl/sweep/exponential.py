@@ -1,19 +1,18 @@
-"""The ETDRK4 path of a sweep chunk (``simulation.method: etdrk4``): the twin of
-:func:`quadctl.sweep.batched.loops_of` and :func:`~quadctl.sweep.batched.simulate_all` for the
-exponential integrator.
+"""The jobs of a sweep chunk that runs ETDRK4 (``simulation.method: etdrk4``), as
+:func:`quadctl.sweep.batched.loops_of` makes RK4's.
 
 Each case's loop is :func:`quadctl.pipeline.closed_loop_of`'s (with the linearization ETDRK4 takes as
-its linear part); the cases of one structure and one set of exogenous inputs (noise, wind, reference,
-duration, step and tolerance) run together in the SIMD lanes by
-:func:`quadctl.sim.run.exponential_runs`: the φ-functions of their linear parts computed on the stack
-of them, and **each case on its own graded schedule** (per lane: segment ``i`` of every case per
-call, a case's numbers those of its one-case run), deterministic whatever the chunk.
+its linear part) and its plan is made here (a refused step is the case's row); the cases of one
+structure and one set of exogenous inputs (noise, wind, reference, duration, step and tolerance: an
+:class:`ExponentialJob`'s ``group``) run together through :func:`quadctl.sweep.batched.simulate_all`,
+which hands them to the simulation's one entry, :func:`quadctl.sim.run.simulate_stack`: **each case
+on its own graded schedule**, its numbers those of its one-case run, deterministic whatever the chunk.
 """
 
 from __future__ import annotations
 
 import pickle
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -91,23 +90,3 @@ def jobs_of(live) -> list:
         group = (loop.spec(), loop.rate, setup.duration, setup.dt, setup.tolerance, setup.max_samples, inputs)
         out.append(ExponentialJob(loop, setup.initial_state(linear.x_trim), plan, lo, hi, period, group, L))
     return out
-
-
-def simulate_all(jobs):
-    """Yield ``((prep, design, job), (done, ks, xs, us), backend)`` as
-    :func:`quadctl.sweep.batched.simulate_all` does, ``ks`` the recorded times in units of the job's
-    ``plan.dt`` (``t = plan.dt ks``: whole numbers at the records of a graded schedule's largest step)."""
-    from quadctl.sim.run import exponential_runs
-
-    groups: dict = {}
-    for item in jobs:
-        groups.setdefault(item[2].group, []).append(item)
-    for items in groups.values():
-        setup = items[0][0].setup
-        tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
-        plans, backend, runs = exponential_runs(
-            [job.loop for _, _, job in items], [job.x0 for _, _, job in items], setup.duration, setup.dt,
-            max_samples=setup.max_samples, reference=setup.flown_reference, noise=setup.noise,
-            wind=setup.wind, planned=[(job.linear_part, job.plan) for _, _, job in items], **tolerance)
-        for (prep, des, job), plan, (done, t, xs, us) in zip(items, plans, runs):
-            yield (prep, des, replace(job, plan=plan)), (done, t / plan.dt, xs, us), backend

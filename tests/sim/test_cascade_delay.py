@@ -112,7 +112,7 @@ def test_the_delayed_p_rate_loop_flies_its_recurrence_in_the_lanes_and_the_inter
                      1, lo, hi, hold=plan.hold)
     spec = loops[0].spec()
     assert spec.delay == d
-    first = Cases.of(cases.x0[:1], cases.c[:1], plan.dt, plan.n_steps, 1, lo, hi, hold=plan.hold)
+    first = Cases.of(cases.x0[:1], cases.c[0, :1], plan.dt, plan.n_steps, 1, lo, hi, hold=plan.hold)
     runs = [*runner(spec, LANES).run(cases), *InterpretedRunner(spec).run(first)]
     for kp, (done, _, xs, _) in zip([*kps, kps[0]], runs):
         assert done == plan.n_steps and len(xs) == n * plan.hold + 1  # every step recorded, the first the start

@@ -600,13 +600,13 @@ def test_lanes_equal_the_one_case_loop():
     eight lanes, the last padded) in the SIMD lanes, each against its own one-case run."""
     from dataclasses import replace
 
-    from quadctl.sim.run import exponential_lanes
+    from quadctl.sim.run import simulate_stack
 
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
     loops = [replace(loop, K=loop.K * (1.0 + 0.1 * k)) for k in range(11)]
-    lanes = exponential_lanes(loops, [x0] * len(loops), 0.3, tolerance=1e-8)
+    _, _, lanes = simulate_stack(loops, [x0] * len(loops), 0.3, method="etdrk4", tolerance=1e-8)
     worst, schedules = 0.0, set()
     for one_loop, (done, t, xs, us) in zip(loops, lanes):
         one = simulate(one_loop, x0, 0.3, "auto", method="etdrk4", tolerance=1e-8)
@@ -618,7 +618,7 @@ def test_lanes_equal_the_one_case_loop():
     with pytest.raises(ValueError, match="one structure"):
         K = loop.K.copy()
         K[0, 0] = 1.0 if K[0, 0] == 0 else 0.0
-        exponential_lanes([loop, replace(loop, K=K)], [x0, x0], 0.1)
+        simulate_stack([loop, replace(loop, K=K)], [x0, x0], 0.1, method="etdrk4")
 
 
 @pytest.mark.compiler
@@ -627,13 +627,13 @@ def test_lanes_fly_a_reference_as_the_one_case_loop():
     against its own one-case run: the same steps, the same reference rows, to 1e-12."""
     from dataclasses import replace
 
-    from quadctl.sim.run import exponential_lanes
+    from quadctl.sim.run import simulate_stack
 
     setup, _, linear, _, des = solve(cfg_dict("square"))
     loop = pipeline.loop_of(setup, linear, des)
     x0, ref = setup.initial_state(loop.x_trim), setup.flown_reference
     loops = [replace(loop, K=loop.K * (1.0 + 0.05 * k)) for k in range(9)]
-    lanes = exponential_lanes(loops, [x0] * len(loops), 0.5, tolerance=1e-8, reference=ref)
+    _, _, lanes = simulate_stack(loops, [x0] * len(loops), 0.5, method="etdrk4", tolerance=1e-8, reference=ref)
     worst = 0.0
     for one_loop, (done, t, xs, us) in zip(loops, lanes):
         one = simulate(one_loop, x0, 0.5, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
@@ -649,14 +649,15 @@ def test_lanes_run_a_sampled_controller_as_the_one_case_loop():
     its own one-case run: the same steps and samples, to 1e-12."""
     from dataclasses import replace
 
-    from quadctl.sim.run import exponential_lanes
+    from quadctl.sim.run import simulate_stack
 
     setup, _, linear, _, des = solve(cfg_dict("mambo-200hz"))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
     loops = [replace(loop, K=loop.K * (1.0 + 0.05 * k), eigenvalues=loop.eigenvalues * (1.0 + 0.2 * k))
              for k in range(9)]  # scaled modes: each its own schedule
-    lanes = exponential_lanes(loops, [x0] * len(loops), 0.5, tolerance=1e-8, noise=setup.noise)
+    _, _, lanes = simulate_stack(loops, [x0] * len(loops), 0.5, method="etdrk4", tolerance=1e-8,
+                                 noise=setup.noise)
     worst, schedules = 0.0, set()
     for one_loop, (done, t, xs, us) in zip(loops, lanes):
         one = simulate(one_loop, x0, 0.5, "auto", method="etdrk4", tolerance=1e-8, noise=setup.noise)
@@ -678,61 +679,44 @@ def test_the_presenter_names_the_method_and_its_schedule():
     assert f"in {len(sim.plan.schedule)} segments (auto; RK4 would be stable up to 0.0001922 s" in text
 
 
-def _segments_of(loops, x0s, duration, noise=None, reference=None):
-    """The :class:`Segments` of ``loops``' ETDRK4 runs (each its own schedule and constants), as the
-    lanes run them, and their runner's spec."""
-    from quadctl.sim.cases import Segments
-
-    preps = [loop.exponential_setup(duration, tolerance=1e-8, max_samples=400) for loop in loops]
-    S = max(p.segments.n.shape[0] for p in preps)
-
-    def padded(p, name, empty):
-        arr = getattr(p.segments, name)[:, 0]
-        return np.concatenate([arr, np.repeat(np.broadcast_to(empty, (1, *arr.shape[1:])), S - len(arr), axis=0)])
-
-    fields = {name: np.stack([padded(p, name, empty if name != "c" else p.segments.c[-1, 0])
-                              for p in preps], axis=1)
-              for name, empty in (("c", 0.0), ("dt", 1.0), ("n", 0), ("stride", 1), ("k0", 0), ("hold", 1))}
-    return Segments.of(fields["c"], fields["dt"], fields["n"], fields["stride"], fields["k0"],
-                       np.concatenate([p.segments.lo for p in preps]), np.concatenate([p.segments.hi for p in preps]),
-                       hold=fields["hold"]), preps[0].spec
-
-
 @pytest.mark.compiler
 @pytest.mark.parametrize("lanes", [1, 8])
-def test_one_call_walks_the_segments_as_a_call_each(lanes):
-    """The compiled segment walk (qc_run_segments: every segment of every lane in one C call) gives
-    the numbers of one runner call per segment, to the bit: records, times, steps; with lanes of
-    different schedules (the last group padded) and a lane that leaves its bounds in its third
-    segment (it stops there, the others run on)."""
+def test_a_graded_stack_runs_compiled_as_interpreted(lanes):
+    """A stack of ETDRK4 cases (each its own graded schedule: several segments, the last group of lanes
+    padded) in the compiled runner (qc_run_segments: every segment of every lane in one C call) and in
+    CasADi's VM (a call a segment): the same steps and times, the records to round-off; with a lane that
+    leaves its bounds in its third segment (it stops there, the others run on)."""
     from dataclasses import replace
 
-    from quadctl.sim.cases import run_segments_by_calls
+    from quadctl.sim.interpreted import InterpretedRunner
+    from quadctl.sim.run import stack_of
 
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
     loops = [replace(loop, K=loop.K * (1.0 + 0.1 * k)) for k in range(lanes + 3 if lanes > 1 else 1)]
-    segments, spec = _segments_of(loops, [x0] * len(loops), 0.3)
-    states = np.array([lp.initial_loop_state(x0) for lp in loops])
-    run = engine.runner(spec, lanes)
+    stack = stack_of(loops, [x0] * len(loops), 0.3, method="etdrk4", tolerance=1e-8, max_samples=400)
+    cases = stack.cases
     if lanes > 1:  # case 1's north bound where it flies (at the trim's speed) in the middle of its third segment
-        middle = segments.dt[2, 1] * (segments.k0[2, 1] + segments.n[2, 1] / 2)
-        hi = segments.hi.copy()
+        middle = cases.dt[2, 1] * (cases.k0[2, 1] + cases.n[2, 1] / 2)
+        hi = cases.hi.copy()
         hi[1, 0] = x0[0] + loop.x_rate[0] * middle
-        segments = replace(segments, hi=hi)
-    walked = run.run_segments(segments, states)
-    called = run_segments_by_calls(run, segments, states)
-    assert len({tuple(segments.n[:, i]) for i in range(len(loops))}) > 1 or lanes == 1
+        cases = replace(cases, hi=hi)
+    assert cases.segments > 1
+    walked = engine.runner(stack.spec, lanes).run(cases)
+    called = InterpretedRunner(stack.spec).run(cases)
+    assert len({tuple(cases.n[:, i]) for i in range(len(loops))}) > 1 or lanes == 1
+    worst = 0.0
     for (done, t, xs, us), (done_c, t_c, xs_c, us_c) in zip(walked, called):
         assert done == done_c and np.array_equal(t, t_c)
-        assert np.array_equal(xs, xs_c) and np.array_equal(us, us_c)
+        worst = max(worst, np.abs(xs - xs_c).max(), np.abs(us - us_c).max())
+    assert worst < 1e-12, f"Max diff is {worst:.4E}"
     if lanes > 1:
-        assert segments.n[:2, 1].sum() < walked[1][0] < segments.n[:3, 1].sum()  # stopped in its third
-        assert walked[0][0] == segments.n[:, 0].sum()
+        assert cases.n[:2, 1].sum() < walked[1][0] < cases.n[:3, 1].sum()  # stopped in its third
+        assert walked[0][0] == cases.n[:, 0].sum()
 
 
-def test_a_loop_keeps_its_exponential_setup():
+def test_a_loop_keeps_its_exponential_stack():
     """A second run of a loop with the same settings takes the setup it kept (no plan or φ-functions
     computed again) and gives the same numbers; other settings get their own; a pickled loop carries none."""
     import pickle
@@ -741,14 +725,14 @@ def test_a_loop_keeps_its_exponential_setup():
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
     first = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-8)
-    kept = loop.exponential_setup(0.2, tolerance=1e-8)
-    assert loop.exponential_setup(0.2, tolerance=1e-8) is kept
-    assert loop.exponential_setup(0.2, tolerance=1e-9) is not kept
+    kept = loop.exponential_stack(0.2, tolerance=1e-8)
+    assert loop.exponential_stack(0.2, tolerance=1e-8) is kept
+    assert loop.exponential_stack(0.2, tolerance=1e-9) is not kept
     again = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-8)
     assert np.array_equal(first.x, again.x) and np.array_equal(first.t, again.t) and first.plan == again.plan
     fresh = pickle.loads(pickle.dumps(loop))
-    assert "_exponential_setups" not in fresh.__dict__
-    assert fresh.exponential_setup(0.2, tolerance=1e-8).plan == kept.plan
+    assert "_exponential_stacks" not in fresh.__dict__
+    assert fresh.exponential_stack(0.2, tolerance=1e-8).plans == kept.plans
 
 
 @pytest.mark.parametrize("name", ["hover+noise+wind", "square"])

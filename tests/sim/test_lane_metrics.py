@@ -52,7 +52,7 @@ def lane_group(cfgs):
                           legs)
     values = np.stack([case_values(mspec, p.plant.linear.u_trim, p.setup.Q_block, p.setup.R_block,
                                    *((ref.tolerance, p.setup.reference.legs) if legs else ())) for p in preps])
-    return items, runner(spec, LANES), batched._cases_of(spec, items), mspec, values
+    return items, runner(spec, LANES), batched._cases_of(items), mspec, values
 
 
 @pytest.mark.parametrize("which", ["forward", "square"])
@@ -68,18 +68,18 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
     items, run, cases, mspec, values = lane_group(cfgs)
     assert run.backend == "compiled-simd"
     recorded = run.run(cases)
-    summed = [(done, k_end, x_end.copy(), sums.copy())
-              for _, done, k_end, x_end, _, sums in run.iter_summaries(cases, mspec, values)]
-    for (prep, _, job), (done, ks, xs, us), (done2, k_end, x_end, sums) in zip(items, recorded, summed):
+    summed = [(done, t_end, x_end.copy(), sums.copy())
+              for _, done, t_end, x_end, _, sums in run.iter_summaries(cases, mspec, values)]
+    for (prep, _, job), (done, t, xs, us), (done2, t_end, x_end, sums) in zip(items, recorded, summed):
         setup, linear = prep.setup, prep.plant.linear
-        assert (done2, k_end) == (done, ks[-1]) and done == job.plan.n_steps
+        assert (done2, t_end) == (done, t[-1]) and done == job.plan.n_steps
         np.testing.assert_array_equal(x_end, xs[-1])
-        t, x = job.plan.dt * ks, xs[:, :N_STATES]
+        x = xs[:, :N_STATES]
         if setup.reference is None:
             x_ref = linear.x_trim + np.outer(t, linear.x_rate)
         else:  # the reference the rows tabulate, evaluated in Python at each record's row
             flown = setup.flown_reference
-            rows = flown.rows(np.floor(ks * job.plan.dt / job.exo_period + 1e-9).astype(np.int64), job.exo_period)
+            rows = flown.rows(np.floor(t / job.exo_period + 1e-9).astype(np.int64), job.exo_period)
             x_ref = flown.flown(rows, t)[0]
         want = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,
                                  setup.regulated)
