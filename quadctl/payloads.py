@@ -16,7 +16,7 @@ from quadctl.design.discrete import realizable_frequency
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 from quadctl.linear.analysis import Checks
 from quadctl.linear.stability import is_stable
-from quadctl.sim import schedule
+from quadctl.sim import etdrk4_plan
 
 ESTIMATOR_CHECK = "estimator"
 """checks' key of the measured set (``estimator.measure``) on the coupled model."""
@@ -162,7 +162,7 @@ def simulation(sim, summary: dict, flight: dict) -> dict:
         "stride": sim.stride, "samples": len(sim.t),
         "duration": float(sim.t[-1]), "backend": sim.backend,
         "dt_auto": sim.plan.auto, "max_stable_dt": sim.plan.max_stable_dt, "method": sim.plan.method,
-        "schedule": schedule.summary(sim.plan),
+        "schedule": etdrk4_plan.summary(sim.plan),
         "fastest_eigenvalue": sim.plan.fastest_eigenvalue,
         "fastest_subsystem": sim.plan.fastest_owner,
         "metrics": summary, "units": {**STATE_UNITS, **INPUT_UNITS}, **flight}

@@ -204,12 +204,10 @@ def schedule_summary(loop: ClosedLoop) -> dict | None:
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progress=None) -> SimResult:
     """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise;
     the wind, a condition of the flight, stays); ``progress(done, total)`` as :func:`simulate` calls it."""
-    extra = {"method": setup.method}
-    if setup.tolerance is not None:
-        extra["tolerance"] = setup.tolerance
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
                     noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples,
-                    progress=progress, reference=setup.flown_reference, **extra)
+                    progress=progress, reference=setup.flown_reference, method=setup.method,
+                    tolerance=setup.tolerance)
 
 
 def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:

@@ -19,6 +19,7 @@ import numpy as np
 
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.config.pid import PidGains, resolve
+from quadctl.config.schema import ETDRK4_TOLERANCE
 from quadctl.errors import RateError, TrimError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linear.filters import RateFilter, rate_filter_of
@@ -160,8 +161,8 @@ class Setup:
     max_samples : int
     method : {"rk4", "etdrk4"}
         The integrator (``simulation.method``).
-    tolerance : float or None
-        ETDRK4's ``dt: auto`` aim (``simulation.tolerance``; None: the default).
+    tolerance : float
+        ETDRK4's ``dt: auto`` aim (``simulation.tolerance``, else its default).
     plant_overrides : dict
         The ``simulation.plant`` values given (empty: the plant is the design model).
     rotor_lag : {"ignore", "include"}
@@ -213,7 +214,7 @@ class Setup:
     estimator: EstimatorSpec | None = None
     reference: Reference | None = None
     method: str = "rk4"
-    tolerance: float | None = None
+    tolerance: float = ETDRK4_TOLERANCE
     schedule: ScheduleConfig | None = None
     law: str = "lqr"
     """The law that flies (``controller.flies``): ``lqr`` (the design) or ``pid`` (:attr:`pid`)."""
@@ -313,7 +314,8 @@ def setup_of(cfg: Config) -> Setup:
         timing=timing, actuators=actuators, noise=noise, wind=wind, trim_wind=trim_wind, initial_offset=offset,
         duration=cfg.simulation.duration, dt=cfg.simulation.dt, max_samples=cfg.simulation.max_samples,
         plant_overrides=overrides, rotor_lag=ctl.rotor_lag, estimator=_estimator(cfg, timing),
-        reference=_reference(cfg), method=cfg.simulation.method, tolerance=cfg.simulation.tolerance,
+        reference=_reference(cfg), method=cfg.simulation.method,
+        tolerance=ETDRK4_TOLERANCE if cfg.simulation.tolerance is None else cfg.simulation.tolerance,
         schedule=cfg.schedule, law=ctl.flies, pid=_pid(cfg), rate_filter=rate_filter_of(ctl.filters),
         weight_error=unweighted)
 

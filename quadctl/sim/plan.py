@@ -127,9 +127,9 @@ class StepPlan:
     hold: int = 0
     sample_time: float | None = None
     method: str = "rk4"
-    """The integrator: ``rk4``, or ``etdrk4`` (:mod:`quadctl.sim.schedule`)."""
+    """The integrator: ``rk4``, or ``etdrk4`` (:mod:`quadctl.sim.etdrk4_plan`)."""
     schedule: tuple = ()
-    """ETDRK4: its :class:`quadctl.sim.schedule.Segment` s, in order; RK4: empty (``n_steps`` of ``dt``)."""
+    """ETDRK4: its :class:`quadctl.sim.etdrk4_plan.Segment` s, in order; RK4: empty (``n_steps`` of ``dt``)."""
 
 
 def plan_step(eigenvalues, owners, duration: float, dt="auto", *, limits=None) -> StepPlan:

@@ -1,5 +1,5 @@
 """Simulation of the full nonlinear closed loop: RK4 at a fixed step, or ETDRK4
-(``simulation.method: etdrk4``) on a graded schedule of steps (:mod:`quadctl.sim.schedule`).
+(``simulation.method: etdrk4``) on a graded schedule of steps (:mod:`quadctl.sim.etdrk4_plan`).
 
 ``u = u_ref(t) - K (x - x_ref(t))``: by default ``x_ref(t) = x_trim + x_rate t`` (positions drift at
 the trim velocity) and ``u_ref = u_trim``; with ``simulation.reference`` the reference flown and its
@@ -32,7 +32,6 @@ from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
-from quadctl.sim.schedule import DEFAULT_TOLERANCE
 
 VALID_PITCH = math.radians(85.0)
 """Beyond this pitch the Euler kinematics (``1/cos theta``) are near singular: the run stops."""
@@ -210,7 +209,7 @@ class ClosedLoop:
         state.pop("_exponential_stacks", None)
         return state
 
-    def exponential_stack(self, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+    def exponential_stack(self, duration: float, dt="auto", *, tolerance: float | None = None,
                           max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
                           noise: bool = False, wind: bool = False) -> Stack:
         """:func:`exponential_stack` of this loop alone (from its trim: :meth:`Cases.starting` runs it from
@@ -221,7 +220,7 @@ class ClosedLoop:
         path object, with the same steps (``jumps``) and parameters (its position range and, for a gain
         schedule, the pieces the plan is cut into are read from it).
         """
-        key = (float(duration), dt if dt == "auto" else float(dt), float(tolerance), int(max_samples),
+        key = (float(duration), dt if dt == "auto" else float(dt), tolerance, int(max_samples),
                exo_period, bool(noise), bool(wind),
                None if reference is None else (id(reference.path), tuple(reference.path.jumps),
                                                  np.asarray(reference.params).tobytes()))
@@ -446,7 +445,7 @@ class SimResult:
         Steps taken (RK4's, or ETDRK4's over its schedule).
     stride : int
         Samples are every ``stride``-th step (and the last); see ``max_samples``. ETDRK4: of the
-        largest step (:func:`quadctl.sim.schedule.record_strides`), so samples are equally spaced.
+        largest step (:func:`quadctl.sim.etdrk4_plan.record_strides`), so samples are equally spaced.
     backend : str
         ``compiled`` or ``casadi`` (no C compiler).
     plan : StepPlan
@@ -553,7 +552,7 @@ def wind_felt(wind: WindSpec, period: float, ks, dt: float, block: int = 256) ->
 def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
              noise: NoiseSpec | None = None, wind: WindSpec | None = None,
              max_samples: int = MAX_SAMPLES, progress=None, reference=None, method: str = "rk4",
-             tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None) -> SimResult:
+             tolerance: float | None = None, exo_rate: float | None = None) -> SimResult:
     """RK4 (or ETDRK4) of the nonlinear closed loop from ``x0`` for ``duration`` seconds.
 
     Parameters
@@ -581,9 +580,9 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         reference the law used.
     method : {"rk4", "etdrk4"}
         ``etdrk4``: the exponential integrator on the loop's linear part (continuous feedback only;
-        :mod:`quadctl.sim.schedule`), ``dt: auto`` its graded schedule.
-    tolerance : float
-        The error ETDRK4's ``dt: auto`` aims at.
+        :mod:`quadctl.sim.etdrk4_plan`), ``dt: auto`` its graded schedule.
+    tolerance : float, optional
+        The error ETDRK4's ``dt: auto`` aims at; None: ``simulation.tolerance``'s default.
     exo_rate : float, optional
         Hz of the exogenous clock when there is no noise (:class:`ExoStream`; None: the controller's
         rate): loops of different rates flown with one ``exo_rate`` feel the same wind (ETDRK4's steps
@@ -664,7 +663,7 @@ def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list
     the gains move (the rate loops), so the steps the plan grades by stay stable along the schedule.
     """
     from quadctl.design.gain_table import scheduling_value, scheduling_values
-    from quadctl.sim.schedule import Segment
+    from quadctl.sim.etdrk4_plan import Segment
 
     table = loop.schedule
     if table is None or loop.rate is not None or loop.schedule_jacobians is None:
@@ -689,14 +688,14 @@ def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list
     return pieces
 
 
-def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float | None = None,
                      reference=None, exo_period: float | None = None, linear_part=None,
                      max_stable_dt: float | None = None) -> tuple[np.ndarray, StepPlan]:
     """ETDRK4's linear part and steps for ``loop``: the closed loop's (:meth:`ClosedLoop.linear_part`)
     graded by its modes, steps dividing the exogenous period ``exo_period`` (s; None: no exogenous
     inputs); a sampled controller's plant (:meth:`ClosedLoop.plant_linear_part`) graded by the
     closed loop's modes, which move it, in segments that start on samples
-    (:func:`quadctl.sim.schedule.plan_schedule`). ``linear_part`` and RK4's ``max_stable_dt`` (which
+    (:func:`quadctl.sim.etdrk4_plan.plan_schedule`). ``linear_part`` and RK4's ``max_stable_dt`` (which
     the plan reports), when the caller has them (a sweep computes them for many loops at once).
 
     Raises
@@ -704,7 +703,7 @@ def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance:
     StepSizeError
         A given step a sampled controller's period does not hold whole, or a runaway plan.
     """
-    from quadctl.sim.schedule import plan_schedule
+    from quadctl.sim.etdrk4_plan import plan_schedule
 
     kicks = reference.path.jumps if reference is not None else ()
     if loop.rate is not None:
@@ -739,7 +738,7 @@ class Stack:
 
 def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noise: NoiseSpec | None = None,
              wind: WindSpec | None = None, max_samples: int = MAX_SAMPLES, reference=None,
-             tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None, planned=None) -> Stack:
+             tolerance: float | None = None, exo_rate: float | None = None, planned=None) -> Stack:
     """The :class:`Stack` of runs of ``loops`` from ``x0s`` (the arguments of :func:`simulate`): one
     case is a stack of one (an ETDRK4 case from the setup its loop keeps,
     :meth:`ClosedLoop.exponential_stack`); more run in the SIMD lanes, each case stepping as its one-case
@@ -786,7 +785,7 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     return replace(stack, exo=exo)
 
 
-def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: float | None = None,
                       max_samples: int = MAX_SAMPLES, reference=None, exo_period: float | None = None,
                       noise: bool = False, wind: bool = False, planned=None) -> Stack:
     """The :class:`Stack` of ETDRK4 runs of ``loops`` of one structure from ``x0s`` (``noise``, ``wind``:
@@ -798,7 +797,7 @@ def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: floa
     The loops whose schedules start at one step share a φ ladder, computed on the stack of their linear
     parts (each matrix as its one-case run computes it, from that step up); the lanes step through their
     schedules together (segment ``i`` of every case per call)."""
-    from quadctl.sim.schedule import phi_constant_rows, phi_ladder, phi_pattern, record_strides
+    from quadctl.sim.etdrk4_plan import phi_constant_rows, phi_ladder, phi_pattern, record_strides
 
     rate = loops[0].rate
     held = rate is not None
@@ -914,7 +913,7 @@ def _in_chunks(run, cases: Cases, exo: ExoStream | None, progress=None):
 
 def simulate_stack(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noise: NoiseSpec | None = None,
                    wind: WindSpec | None = None, max_samples: int = MAX_SAMPLES, reference=None,
-                   tolerance: float = DEFAULT_TOLERANCE, exo_rate: float | None = None,
+                   tolerance: float | None = None, exo_rate: float | None = None,
                    planned=None) -> tuple[list[StepPlan], str, list]:
     """Runs of several loops of one structure from ``x0s``, as :func:`simulate` runs each (its arguments;
     the RK4 or ETDRK4 runs of :func:`stack_of`), in the SIMD lanes (:data:`quadctl.sim.engine.LANES` at a

@@ -478,11 +478,10 @@ def simulate_all(jobs):
                 yield group[i], (done, t, xs, us), run.backend
             continue
         setup = group[0][0].setup
-        tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
         plans, backend, runs = simulate_stack(
             [job.loop for _, _, job in group], [job.x0 for _, _, job in group], setup.duration, setup.dt,
             method="etdrk4", max_samples=setup.max_samples, reference=setup.flown_reference, noise=setup.noise,
-            wind=setup.wind, planned=[(job.linear_part, job.plan) for _, _, job in group], **tolerance)
+            wind=setup.wind, planned=[(job.linear_part, job.plan) for _, _, job in group], tolerance=setup.tolerance)
         for (prep, des, job), plan, result in zip(group, plans, runs):
             yield (prep, des, replace(job, plan=plan)), result, backend
 

@@ -42,8 +42,8 @@ def jobs_of(live) -> list:
     from quadctl.errors import StepSizeError
     from quadctl.physics.motors import check_trim
     from quadctl.physics.noise import exogenous_period
+    from quadctl.sim.etdrk4_plan import rk4_limits
     from quadctl.sim.run import exponential_plan
-    from quadctl.sim.schedule import rk4_limits
     from quadctl.sweep.batched import _estimator
 
     out: list = []
@@ -77,11 +77,10 @@ def jobs_of(live) -> list:
         flown = setup.flown_reference
         exogenous = noise is not None or wind is not None or flown is not None
         period = exogenous_period(noise.period if noise is not None else None, loop.rate)
-        tolerance = {"tolerance": setup.tolerance} if setup.tolerance is not None else {}
         try:
             L, plan = exponential_plan(loop, setup.duration, setup.dt, reference=flown,
                                        exo_period=period if exogenous else None, linear_part=parts.get(k),
-                                       max_stable_dt=limits.get(k), **tolerance)
+                                       max_stable_dt=limits.get(k), tolerance=setup.tolerance)
         except StepSizeError as exc:
             out.append(str(exc))
             continue

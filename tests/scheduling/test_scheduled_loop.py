@@ -281,9 +281,9 @@ def test_etdrk4_flies_a_gain_schedule_on_the_loop_closed_at_the_nearest_value(sp
     the rate loops the gains move stay in the exactly integrated part: 2.1e-9 (RK4 at its stable step:
     173 914 steps). On the trim's linear part alone (no schedule_jacobians) the remainder carries them:
     9.1e-9, four times that (2.3e-7 on steps graded on tolerance^(1/4), where a reference's largest
-    step was 6.6 times as long: quadctl.sim.schedule.forced_step)."""
+    step was 6.6 times as long: quadctl.sim.etdrk4_plan.forced_step)."""
+    from quadctl.sim.etdrk4_plan import record_strides
     from quadctl.sim.run import _linear_pieces, exponential_plan
-    from quadctl.sim.schedule import record_strides
 
     loop, sched, ref, x0, truth = speed_steps
     etd = simulate(loop, x0, SETPOINT_RUN, "auto", method="etdrk4", tolerance=1e-8, reference=ref)

@@ -1,4 +1,4 @@
-"""ETDRK4, the exponential integrator beside RK4 (quadctl.sim.builder.etdrk4, quadctl.sim.schedule),
+"""ETDRK4, the exponential integrator beside RK4 (quadctl.sim.builder.etdrk4, quadctl.sim.etdrk4_plan),
 against independent references.
 
 - The φ-functions from one matrix exponential equal their closed forms on a diagonalizable matrix,
@@ -28,7 +28,8 @@ from scipy.integrate import solve_ivp
 
 from quadctl import config, pipeline
 from quadctl.errors import ConfigError, StepSizeError
-from quadctl.sim import engine, schedule
+from quadctl.setup import setup_of
+from quadctl.sim import engine, etdrk4_plan
 from quadctl.sim.builder import PHI_LAYOUT, build, etdrk4
 from quadctl.sim.run import simulate
 
@@ -52,7 +53,7 @@ def test_phi_functions_equal_their_closed_forms():
     V = rng.standard_normal((4, 4)) + 3 * np.eye(4)
     L = V @ np.diag(lam) @ np.linalg.inv(V)
     h = 1e-3
-    got = schedule.phi_functions(L, h)
+    got = etdrk4_plan.phi_functions(L, h)
     for k in range(4):
         ref = V @ np.diag(np.exp(h * lam) if k == 0 else _phi_closed(h * lam, k)) @ np.linalg.inv(V)
         assert np.abs(got[k] - ref).max() < 1e-12 * max(1.0, np.abs(ref).max()), k
@@ -67,23 +68,23 @@ def test_the_exponential_is_scipys(scale):
     D = np.diag(-scale * np.linspace(0.05, 5.0, 12))
     M = V @ D @ np.linalg.inv(V)
     ref = scipy.linalg.expm(M)
-    assert np.abs(schedule.expm(M) - ref).max() < 1e-12 * max(1.0, np.abs(ref).max())
+    assert np.abs(etdrk4_plan.expm(M) - ref).max() < 1e-12 * max(1.0, np.abs(ref).max())
     exact = V @ np.diag(np.exp(np.diag(D))) @ np.linalg.inv(V)
-    assert np.abs(schedule.expm(M) - exact).max() < 1e-11 * max(1.0, np.abs(exact).max())
+    assert np.abs(etdrk4_plan.expm(M) - exact).max() < 1e-11 * max(1.0, np.abs(exact).max())
 
 
 def test_the_ladder_equals_direct_exponentials():
     rng = np.random.default_rng(2)
     L = rng.standard_normal((6, 6)) * 50 - 2000 * np.diag(rng.random(6))
     steps = [1e-6 * 2 ** j for j in range(12)]
-    ladder = schedule.phi_ladder(L, steps)
+    ladder = etdrk4_plan.phi_ladder(L, steps)
     for h in steps[::3]:
-        ref = schedule.step_matrices(L, h, schedule.phi_functions(L, h / 2), schedule.phi_functions(L, h))
+        ref = etdrk4_plan.step_matrices(L, h, etdrk4_plan.phi_functions(L, h / 2), etdrk4_plan.phi_functions(L, h))
         assert set(ref) == set(PHI_LAYOUT)
         for name, M in ref.items():
             assert np.abs(ladder[h][name] - M).max() < 1e-13 * max(1.0, np.abs(M).max()), (h, name)
     with pytest.raises(ValueError, match="not .* times a power of two"):
-        schedule.phi_ladder(L, [1e-6, 3e-6])
+        etdrk4_plan.phi_ladder(L, [1e-6, 3e-6])
 
 
 def _etdrk4_function(rhs, n: int, L: np.ndarray):
@@ -94,7 +95,7 @@ def _etdrk4_function(rhs, n: int, L: np.ndarray):
     fn = ca.Function("etd", [X, t, h, *mats.values()], [etdrk4(rhs, X, t, h, mats)])
 
     def step(x, tt, hh):
-        ladder = schedule.phi_ladder(L, [hh])[hh]
+        ladder = etdrk4_plan.phi_ladder(L, [hh])[hh]
         return np.asarray(fn(x, tt, hh, *[ladder[name] for name in PHI_LAYOUT])).ravel()
 
     return step
@@ -273,7 +274,7 @@ def test_a_free_run_meets_its_tolerance_with_room():
     etd = simulate(loop, x0, 1.0, "auto", method="etdrk4", tolerance=1e-9)
     assert np.abs(etd.x[-1] - rk4.x[-1]).max() < 1e-10
     eig = np.linalg.eigvals(loop.linear_part())
-    excited = schedule.plan_schedule(eig, ["loop"] * len(eig), 1.0, tolerance=1e-9, period=0.01)
+    excited = etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 1.0, tolerance=1e-9, period=0.01)
     assert etd.steps < excited.n_steps
 
 
@@ -322,7 +323,7 @@ def test_a_missions_largest_error_is_within_its_tolerance(mission_truth, toleran
     """ETDRK4 at dt: auto, its largest error over the whole run (every row's start, not only the end)
     within ``simulation.tolerance`` of the reference integrator on the same closed loop. Graded on
     ``tolerance^(1/4)`` as for the initial transient, it was 1.4e-8 at 1e-8 here: the method's order
-    falls to about 3 on a mission (:func:`quadctl.sim.schedule.forced_step`). Written as
+    falls to about 3 on a mission (:func:`quadctl.sim.etdrk4_plan.forced_step`). Written as
     ``e^(hL) X + ...`` rather than about the step's start (:func:`quadctl.sim.builder.etdrk4`), it was
     1.8e-10 at 1e-10, whatever the step: the drift of that form's round-off."""
     loop, x0, ref, truth = mission_truth
@@ -418,11 +419,11 @@ def test_a_reference_caps_the_step_and_keeps_its_rows():
     eig = np.linalg.eigvals(pipeline.loop_of(setup, linear, des).linear_part())
     slowest = np.abs(eig)[np.abs(eig) > 0].min()
     for tol in (1e-8, 1e-10):
-        plan = schedule.plan_schedule(eig, ["loop"] * len(eig), 15.0, tolerance=tol, period=0.005, forced=True)
+        plan = etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 15.0, tolerance=tol, period=0.005, forced=True)
         top = plan.schedule[-1].dt
         assert 0.005 / top == round(0.005 / top)
-        assert top <= schedule.FORCED_SAFETY * tol ** (1 / 3) / slowest < 2 * top
-    free = schedule.plan_schedule(eig, ["loop"] * len(eig), 15.0, tolerance=1e-10, period=0.005)
+        assert top <= etdrk4_plan.FORCED_SAFETY * tol ** (1 / 3) / slowest < 2 * top
+    free = etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 15.0, tolerance=1e-10, period=0.005)
     assert free.schedule[-1].dt == 0.005 and free.n_steps < plan.n_steps
 
 
@@ -431,23 +432,23 @@ def test_the_schedule_grades_and_aligns():
     loop = pipeline.loop_of(setup, linear, des)
     eig = np.linalg.eigvals(loop.linear_part())
     for period in (None, 0.005):
-        plan = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
-        assert plan == schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
+        plan = etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
+        assert plan == etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
         segs = plan.schedule
         assert segs[0].start == 0.0 and segs[-1].end == pytest.approx(10.0, rel=1e-12)
         assert sum(s.n for s in segs) == plan.n_steps
         for a, b in zip(segs, segs[1:]):  # contiguous, coarser by powers of two
             assert a.end == b.start and b.dt / a.dt == 2 ** round(np.log2(b.dt / a.dt)) >= 2
-        safety = schedule.FREE_SAFETY if period is None else schedule.SAFETY  # no exogenous inputs: a free run
-        assert segs[0].dt > schedule.auto_step(0.0, eig, 1e-8, safety) / 2  # the largest the rule allows
+        safety = etdrk4_plan.FREE_SAFETY if period is None else etdrk4_plan.SAFETY  # no exogenous inputs: a free run
+        assert segs[0].dt > etdrk4_plan.auto_step(0.0, eig, 1e-8, safety) / 2  # the largest the rule allows
         for s in segs:
-            assert s.dt <= schedule.auto_step(s.start, eig, 1e-8, safety) * (1 + 1e-12)  # within the rule
+            assert s.dt <= etdrk4_plan.auto_step(s.start, eig, 1e-8, safety) * (1 + 1e-12)  # within the rule
         if period is not None:
             top = max(s.dt for s in segs)
             assert period / top == pytest.approx(round(period / top), abs=1e-9)
-        assert segs[0].dt < 1e-6 * safety and segs[-1].dt == min(schedule.MAX_STEP, period or 1.0)  # graded
-    plan = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8)
-    tighter = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-10)
+        assert segs[0].dt < 1e-6 * safety and segs[-1].dt == min(etdrk4_plan.MAX_STEP, period or 1.0)  # graded
+    plan = etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8)
+    tighter = etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-10)
     assert tighter.n_steps > plan.n_steps and tighter.schedule[0].dt < plan.schedule[0].dt
 
 
@@ -459,14 +460,14 @@ def test_short_segments_merge_into_the_finer_step(monkeypatch):
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     eig = np.linalg.eigvals(pipeline.loop_of(setup, linear, des).linear_part())
     for period in (None, 0.005):
-        monkeypatch.setattr(schedule, "MERGE_STEPS", 64)
-        merged = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
-        monkeypatch.setattr(schedule, "MERGE_STEPS", 0)
-        every = schedule.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
-        monkeypatch.setattr(schedule, "MERGE_STEPS", 64)
+        monkeypatch.setattr(etdrk4_plan, "MERGE_STEPS", 64)
+        merged = etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
+        monkeypatch.setattr(etdrk4_plan, "MERGE_STEPS", 0)
+        every = etdrk4_plan.plan_schedule(eig, ["loop"] * len(eig), 10.0, tolerance=1e-8, period=period)
+        monkeypatch.setattr(etdrk4_plan, "MERGE_STEPS", 64)
         fewer = len(every.schedule) - len(merged.schedule)
         assert fewer >= 3
-        assert every.n_steps < merged.n_steps <= every.n_steps + schedule.MERGE_STEPS * fewer
+        assert every.n_steps < merged.n_steps <= every.n_steps + etdrk4_plan.MERGE_STEPS * fewer
         assert merged.schedule[0] == every.schedule[0] and merged.schedule[-1].end == every.schedule[-1].end
         for seg in merged.schedule:
             assert seg.k0 == round(seg.k0) and seg in every.schedule or seg.dt < every.schedule[-1].dt
@@ -488,7 +489,7 @@ def test_a_given_step_is_uniform():
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
     sim = simulate(loop, setup.initial_state(loop.x_trim), 0.1, 1e-3, method="etdrk4")
-    assert sim.plan.schedule == (schedule.Segment(1e-3, 100, 0),) and sim.steps == 100
+    assert sim.plan.schedule == (etdrk4_plan.Segment(1e-3, 100, 0),) and sim.steps == 100
     assert np.allclose(np.diff(sim.t), 1e-3)
 
 
@@ -518,7 +519,7 @@ def test_the_phi_pattern_keeps_a_decoupled_loops_blocks():
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
     L = loop.linear_part()
-    pattern = schedule.phi_pattern(schedule.phi_ladder(L, [1e-3]))
+    pattern = etdrk4_plan.phi_pattern(etdrk4_plan.phi_ladder(L, [1e-3]))
     assert 0 < sum(pattern) < len(pattern)
     spec = loop.spec(method="etdrk4", phi_pattern=pattern)
     assert spec.n_phi == len(PHI_LAYOUT) * spec.nx ** 2 and "method=etdrk4" in spec.key()
@@ -576,9 +577,16 @@ def test_a_sweep_in_the_lanes_matches_the_one_case_runs(name):
             assert a[key] == pytest.approx(b[key], abs=1e-12), key
 
 
-def test_the_default_tolerance_is_the_one_the_schema_states():
-    field = config.SimulationConfig.model_fields["tolerance"]
-    assert f"absent: {schedule.DEFAULT_TOLERANCE:g}" in field.description
+def test_a_run_without_a_tolerance_aims_at_the_configs_default():
+    """One default, the schema's: the setup resolves an absent ``simulation.tolerance`` to it, and a
+    run planned without a config aims at it too."""
+    from quadctl.config.schema import ETDRK4_TOLERANCE
+
+    assert setup_of(config.load("forward")).tolerance == ETDRK4_TOLERANCE
+    eig, owners = np.array([-1.0, -50.0, -400.0]), ["loop"] * 3
+    plan = etdrk4_plan.plan_schedule(eig, owners, 1.0)
+    assert plan == etdrk4_plan.plan_schedule(eig, owners, 1.0, tolerance=ETDRK4_TOLERANCE)
+    assert plan != etdrk4_plan.plan_schedule(eig, owners, 1.0, tolerance=ETDRK4_TOLERANCE * 100)
 
 
 def test_the_method_enters_the_digest_only_when_used():

@@ -56,9 +56,6 @@ taken: the finer segment runs on. All the segments of a run go in one call into 
 segment that saves no step whole is merged."""
 MAX_STEP = 0.01
 """s: the largest step ``dt: auto`` takes (100 samples a second for plots and metrics)."""
-DEFAULT_TOLERANCE = 1e-8
-"""Default of ``simulation.tolerance``: the error ``dt: auto`` aims at (state units, about the
-final-state error of a 10 s run)."""
 PHI_ACCURACY = 1e-15
 """The φ-functions come from scaling and squaring (:func:`phi_functions`, as :func:`expm` of a block
 matrix): the matrix scaled by ``2^-s`` to a 1-norm of at most 1/8, Taylor's series to degree
@@ -323,7 +320,16 @@ def forced_step(eigenvalues, tolerance: float) -> float:
     return float(FORCED_SAFETY * tolerance ** (1 / 3) / mag.min()) if mag.size else math.inf
 
 
-def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance: float = DEFAULT_TOLERANCE,
+def default_tolerance() -> float:
+    """The error ``dt: auto`` aims at when none is given: ``simulation.tolerance``'s default
+    (:data:`quadctl.config.schema.ETDRK4_TOLERANCE`, declared there only; read when first needed, so
+    that the simulation does not load the config's schema)."""
+    from quadctl.config.schema import ETDRK4_TOLERANCE
+
+    return ETDRK4_TOLERANCE
+
+
+def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance: float | None = None,
                   period: float | None = None, forced: bool = False, held: bool = False,
                   max_stable_dt: float | None = None, kicks=()) -> StepPlan:
     """The ETDRK4 steps of a run: uniform ``dt``, or the graded schedule of ``dt: auto``.
@@ -337,8 +343,8 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     duration : float
         s.
     dt : float or "auto"
-    tolerance : float
-        The error ``dt: auto`` aims at.
+    tolerance : float, optional
+        The error ``dt: auto`` aims at; None: the config's default (:func:`default_tolerance`).
     period : float, optional
         s of the exogenous inputs (noise, wind, a reference): steps divide it. None (no exogenous
         inputs) and neither ``forced`` nor ``held``: a free run, graded with :data:`FREE_SAFETY`.
@@ -365,6 +371,7 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     StepPlan
         ``method = "etdrk4"``, ``schedule`` its segments; ``dt`` the last segment's step.
     """
+    tolerance = default_tolerance() if tolerance is None else tolerance
     eig = np.asarray(eigenvalues, dtype=complex)
     k_fast = int(np.argmax(np.abs(eig))) if eig.size else 0
     fastest = complex(eig[k_fast]) if eig.size else 0j
