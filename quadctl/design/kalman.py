@@ -10,7 +10,7 @@ not stable unobservable. The two forms and the noise model are in the docs, docs
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -23,6 +23,9 @@ from quadctl.linear.filters import RATE_STATES, filtered_output, series, state_n
 from quadctl.linear.stability import is_stable
 from quadctl.physics.model import N_DISTURBANCES, Vehicle, build_model
 from quadctl.text.messages import eig_text, show
+
+if TYPE_CHECKING:
+    from quadctl.linear.filters import RateFilter
 
 
 @dataclass(frozen=True)
@@ -78,7 +81,7 @@ class Kalman:
     eigenvalues: np.ndarray
     sample_time: float | None
     residual: float
-    rate_filter: object | None = None
+    rate_filter: RateFilter | None = None
     """:class:`quadctl.linear.filters.RateFilter` in the model (the rates measured after it); None: none."""
 
     @property

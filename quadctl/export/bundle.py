@@ -7,6 +7,7 @@ What every writer (:mod:`quadctl.export.c`, :mod:`quadctl.export.data`) reads; b
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from quadctl.linear.decouple import Decoupled
 from quadctl.linear.linearize import LinearModel
 from quadctl.setup import Setup
 from quadctl.sim.run import ClosedLoop
+
+if TYPE_CHECKING:
+    from quadctl.schedule.envelope import Schedule
 
 
 @dataclass(frozen=True)
@@ -49,7 +53,7 @@ class Export:
     loop: ClosedLoop
     rate_warnings: tuple = ()
     config_hash: str | None = None
-    schedule: object = None
+    schedule: Schedule | None = None
 
     @property
     def name(self) -> str:

@@ -21,6 +21,7 @@ import math
 import time
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,13 @@ from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import runner
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
+
+if TYPE_CHECKING:  # the types of a loop's parts (their modules load only when a loop has one)
+    from quadctl.config.pid import PidGains
+    from quadctl.design.gain_table import GainTable
+    from quadctl.design.kalman import Kalman
+    from quadctl.linear.filters import RateFilter
+    from quadctl.physics.motors import Actuators
 
 VALID_PITCH = math.radians(85.0)
 """Beyond this pitch the Euler kinematics (``1/cos theta``) are near singular: the run stops."""
@@ -97,7 +105,7 @@ class ClosedLoop:
     """(4, nz) integrator gains: ``u -= Ki z``."""
     integral_states: tuple[str, ...] = ()
     """The state each integrator integrates (``dz/dt = -(x_s - x_ref,s)``)."""
-    actuators: object | None = None
+    actuators: Actuators | None = None
     """:class:`quadctl.physics.motors.Actuators` that clip the input; None: unlimited."""
     open_loop_eigenvalues: np.ndarray | None = None
     """Of the plant ``A``: what RK4 integrates between samples of a sampled controller."""
@@ -107,12 +115,12 @@ class ClosedLoop:
     """(4, 4) gain on the controller's rotor lag model (``controller.rotor_lag: include``): ``u -= Kv l``."""
     lag_model_time_constant: float | None = None
     """s of the controller's rotor lag model (the design's; None: no model)."""
-    estimator: object | None = None
+    estimator: Kalman | None = None
     """:class:`quadctl.design.kalman.Kalman` the law closes through (LQG); None: the measured state."""
     jacobians: tuple | None = None
     """``(A, B)`` of the design model at the trim: the exponential integrator's linear part
     (:meth:`linear_part`); None: only RK4 runs the loop."""
-    schedule: object | None = None
+    schedule: GainTable | None = None
     """:class:`quadctl.design.gain_table.GainTable` the law flies: ``G(v)`` in place of ``K`` (and of ``Ki``
     when the table has the integrator gains), ``v`` read from the reference (:mod:`quadctl.sim.builder`,
     "Gain schedule"); None: the fixed gains. ``K`` stays the design at the trim (the step plan's)."""
@@ -121,10 +129,10 @@ class ClosedLoop:
     schedule_eigenvalues: np.ndarray | None = None
     """rad/s: the eigenvalues of the schedule's frozen loops (its interpolated gains on the model at
     each value), which the continuous loop's RK4 step holds stable too; None: the loop's own only."""
-    law: object | None = None
+    law: PidGains | None = None
     """:class:`quadctl.config.pid.PidGains` of the PID cascade that flies in place of the LQR gains
     (:mod:`quadctl.sim.pid`; ``K`` is then zero and ``rate`` the cascade's base rate); None: LQR."""
-    rate_filter: object | None = None
+    rate_filter: RateFilter | None = None
     """:class:`quadctl.linear.filters.RateFilter` the law runs on the measured body rates (``controller.filters``),
     at the controller's period (continuous without a rate); None: raw rates."""
     schedule_jacobians: tuple | None = None

@@ -13,12 +13,17 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from quadctl.design import linear_loop, stacked
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
+
+if TYPE_CHECKING:
+    from quadctl.sim.builder import LoopSpec
+    from quadctl.sim.plan import StepPlan
 
 BATCHED = "batched"
 """``path`` of a row designed in the batched solve."""
@@ -56,8 +61,8 @@ def core_extremes(core) -> tuple:
 class LaneJob:
     """A case ready for the lanes."""
 
-    spec: object
-    plan: object
+    spec: LoopSpec
+    plan: StepPlan
     c: np.ndarray
     x0: np.ndarray
     lo: np.ndarray

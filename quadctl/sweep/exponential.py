@@ -13,10 +13,15 @@ from __future__ import annotations
 
 import pickle
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from quadctl.errors import QuadctlError
+
+if TYPE_CHECKING:
+    from quadctl.sim.plan import StepPlan
+    from quadctl.sim.run import ClosedLoop
 
 
 @dataclass(frozen=True)
@@ -24,9 +29,9 @@ class ExponentialJob:
     """A case ready for the exponential lanes (what the evaluation reads of a job: ``plan``, ``lo``,
     ``hi``, ``exo_period``)."""
 
-    loop: object
+    loop: ClosedLoop
     x0: np.ndarray
-    plan: object
+    plan: StepPlan
     lo: np.ndarray
     hi: np.ndarray
     exo_period: float
