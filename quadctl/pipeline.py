@@ -14,14 +14,21 @@ from functools import cached_property
 
 import numpy as np
 
-from quadctl.design import Design, design, linear_loop
+from quadctl.design import Design, coupled, design, discrete, kalman, linear_loop, margins
+from quadctl.design.gain_table import OUTSIDE, VARIABLES
+from quadctl.errors import ConfigError, RateError
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.linear import stability
 from quadctl.linear.analysis import Checks, check
 from quadctl.linear.decouple import Decoupled, decouple
 from quadctl.linear.linearize import LinearModel, linearize
 from quadctl.linear.trim import Trim, solve_trim
+from quadctl.metrics import summarize
+from quadctl.physics import motors, trajectory
+from quadctl.physics.model import Vehicle, build_model
 from quadctl.physics.motors import check_trim
 from quadctl.setup import Setup
+from quadctl.sim.cascade_margins import cascade_margins, lifted
 from quadctl.sim.run import ClosedLoop, SimResult, eigen_owners, simulate
 
 
@@ -54,7 +61,6 @@ def design_at(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: flo
     """The setup's decoupled LQR design computed at ``rate`` Hz (MATLAB ``lqrd``), or continuous for
     None, whatever the setup's own timing (``check`` compares a continuous design with a rate)."""
     if setup.weight_error is not None:
-        from quadctl.errors import ConfigError
 
         raise ConfigError(setup.weight_error)
     return design(decoupled, linear.A, linear.B, setup.weights, rate=rate, integral=setup.integral,
@@ -126,7 +132,6 @@ def pid_loop_of(setup: Setup, linear: LinearModel, gains=None) -> ClosedLoop:
     ConfigError
         The setup has no rotors (``motors:``) to command.
     """
-    from quadctl.errors import ConfigError, RateError
 
     gains = setup.pid if gains is None else gains
     if setup.actuators is None or setup.actuators.mode != "motors":
@@ -152,7 +157,6 @@ def estimator_of(setup: Setup, linear: LinearModel):
     est = setup.estimator
     if est is None:
         return None
-    from quadctl.design import kalman
 
     G = kalman.noise_input(linear.x_trim, linear.u_trim, setup.vehicle)
     return kalman.kalman(linear.A, linear.B, G, est.measured, est.sensor_std, est.process_std,
@@ -190,7 +194,6 @@ def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
 def schedule_summary(loop: ClosedLoop) -> dict | None:
     """``sim.json``'s ``gain_schedule``: the gain table the loop flew (variable, unit, values,
     interpolation, what holds outside them, what the variable is read from); None: fixed gains."""
-    from quadctl.design.gain_table import OUTSIDE, VARIABLES
 
     table = loop.schedule
     if table is None:
@@ -223,7 +226,6 @@ def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:
 def tracking_of(ref, t, x, x_ref) -> dict:
     """:func:`tracking_summary` of the path ``ref`` (:class:`quadctl.physics.trajectory.Reference`) flown as
     ``x`` ((n, 12), at the times ``t``) against the reference ``x_ref`` the law used."""
-    from quadctl.physics import trajectory
 
     err = np.linalg.norm(x[:, :3] - x_ref[:, :3], axis=1)
     out = {"kind": "waypoints" if ref.legs else "setpoints",
@@ -326,7 +328,6 @@ class Stages:
     def pid_lift(self):
         """The setup's PID cascade linearized about hover, lifted to its frame
         (:func:`quadctl.sim.cascade_margins.lifted`)."""
-        from quadctl.sim.cascade_margins import lifted
 
         return lifted(self.pid_loop)
 
@@ -339,7 +340,6 @@ class Stages:
     def pid_margins(self) -> list:
         """Margins of the setup's PID cascade, each input's loop broken at the plant
         (:func:`quadctl.sim.cascade_margins.cascade_margins`)."""
-        from quadctl.sim.cascade_margins import cascade_margins
 
         return cascade_margins(self.pid_loop, title=self.setup.pid.preset, lift=self.pid_lift)
 
@@ -380,7 +380,6 @@ class VehicleLoop:
 
 def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLoop:
     """:class:`VehicleLoop` of a design flown with the setup's rotors and delay."""
-    from quadctl.linear import stability
 
     timing = setup.timing
     Ts = des.sample_time or (timing.sample_time if timing.mode == "emulated" else None)
@@ -409,7 +408,6 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
     -------
     list of quadctl.design.discrete.RateWarning
     """
-    from quadctl.design import discrete
 
     des = design_at(setup, decoupled, linear, None)
     Ts = 1.0 / rate
@@ -430,7 +428,6 @@ def margins_of(setup: Setup, linear: LinearModel, decoupled: Decoupled, des: Des
     design's gains emulated there), with the rotors' lag, the delay, the gyro filter and the setup's
     Kalman filter; what ``quadctl margins`` reports and a sweep's ``margin.*`` columns
     (:data:`quadctl.sweep.gates.MARGIN_COLUMNS`) take."""
-    from quadctl.design import margins
 
     timing = setup.timing
     emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)
@@ -464,7 +461,7 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
         (:func:`tracking_summary`: tracking error and waypoints; None without a reference),
         ``gain_schedule`` (:func:`schedule_summary`: the gain table flown; None: fixed gains).
     """
-    from quadctl.physics import motors, noise
+    from quadctl.physics import noise
 
     duration = float(sim.t[-1]) if len(sim.t) else 0.0
     out: dict = {
@@ -517,7 +514,6 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
 def speeds(sim: SimResult) -> tuple[np.ndarray, np.ndarray]:
     """(ground speed, airspeed) at each recorded sample, m/s: ``|R_b^E V_b|`` from the model's position
     rates, and ``|R_b^E V_b - w|`` with the wind the plant felt (still air: the two agree)."""
-    from quadctl.physics.model import Vehicle, build_model
 
     # the position rows of f are the kinematics R_b^E V_b: no parameter enters them
     vel = np.asarray(build_model().f.map(len(sim.t))(sim.x.T, sim.u.T, Vehicle().vector()), dtype=float)[:3].T
@@ -633,9 +629,6 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
         The full design and :func:`quadctl.design.coupled.compare` of the two runs (``decoupled``, ``full``),
         with each run's metrics and status.
     """
-    from quadctl.design import coupled
-    from quadctl.errors import ConfigError
-    from quadctl.metrics import summarize
 
     if des.lag_time_constant is not None:
         raise ConfigError("controller.rotor_lag = include: design --full (one coupled LQR) is built for designs "

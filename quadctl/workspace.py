@@ -31,6 +31,7 @@ from quadctl.artifacts import default_out
 from quadctl.config import Config
 from quadctl.design import Design
 from quadctl.design.discrete import RateWarning
+from quadctl.design.kalman import require_detectable, selector
 from quadctl.errors import ArtifactError, DesignError, QuadctlNotice
 from quadctl.layout import N_INPUTS, STATE_NAMES
 from quadctl.linear.analysis import Checks, check
@@ -39,6 +40,10 @@ from quadctl.linear.linearize import LinearModel
 from quadctl.linear.trim import Trim
 from quadctl.metrics import summarize
 from quadctl.payloads import ESTIMATOR_CHECK
+from quadctl.present.loops import loop_notes
+from quadctl.present.schedule import verdict
+from quadctl.present.stages import rate_warning
+from quadctl.schedule.envelope import schedule_of
 from quadctl.setup import setup_of
 from quadctl.sim.run import ClosedLoop, SimResult
 from quadctl.version import __version__
@@ -120,7 +125,6 @@ def _with_messages(payload: dict, warnings, rate) -> dict:
     """checks.json with each rate warning also in words (``message``: :func:`quadctl.present.stages.rate_warning`)."""
     if payload["rate"] is None:
         return payload
-    from quadctl.present.stages import rate_warning
 
     said = [{**d, "message": rate_warning(w, rate)} for d, w in zip(payload["rate"]["warnings"], warnings)]
     return {**payload, "rate": {**payload["rate"], "warnings": said}}
@@ -129,7 +133,6 @@ def _with_messages(payload: dict, warnings, rate) -> dict:
 def _with_verdict(payload: dict, sched) -> dict:
     """schedule.json with the schedule's verdict in words (``verdict``: :func:`quadctl.present.schedule.verdict`;
     None when it passes)."""
-    from quadctl.present.schedule import verdict
 
     return {**payload, "verdict": verdict(sched)}
 
@@ -137,7 +140,6 @@ def _with_verdict(payload: dict, sched) -> dict:
 def _with_notes(payload: dict, margins) -> dict:
     """margins.json with each loop's findings also in words (``notes``: :func:`quadctl.present.loops.loop_notes`),
     for a reader of the file; the payload below the presenter holds the findings as values."""
-    from quadctl.present.loops import loop_notes
 
     return {**payload, "loops": [{**d, "notes": list(loop_notes(m))} for d, m in zip(payload["loops"], margins)]}
 
@@ -381,7 +383,6 @@ class Workspace(pipeline.Stages):
         checks = pipeline.checks_of(self.decoupled, self.linear)
         est = self.setup.estimator
         if est is not None:  # the measured set on the coupled 12-state model (what the Kalman filter sees)
-            from quadctl.design.kalman import selector
 
             checks[ESTIMATOR_CHECK] = check(self.linear.A, self.linear.B, selector(est.measured), STATE_NAMES)
         regulated = {s.name for s in self.decoupled.regulated}
@@ -397,7 +398,6 @@ class Workspace(pipeline.Stages):
                                                                           vehicle), warnings, timing.rate))
         undetectable = None
         if est is not None and not checks[ESTIMATOR_CHECK].detectable:
-            from quadctl.design.kalman import require_detectable, selector
 
             try:
                 require_detectable(self.linear.A, selector(est.measured), est.measured)
@@ -474,7 +474,6 @@ class Workspace(pipeline.Stages):
     @cached_property
     def schedule(self):
         """The gain schedule (:func:`quadctl.schedule.envelope.schedule_of`); writes schedule.json and schedule.npz."""
-        from quadctl.schedule.envelope import schedule_of
 
         sched = schedule_of(self.setup)
         self._write_npz(SCHEDULE_NPZ, payloads.gain_schedule_arrays(sched), self._meta("schedule"))

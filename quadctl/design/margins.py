@@ -19,6 +19,7 @@ from quadctl._lazy import lazy_import
 from quadctl.design import linear_loop
 from quadctl.layout import INPUT_INDEX, INPUT_UNITS, STATE_INDEX
 from quadctl.linear.stability import free_positions, is_stable
+from quadctl.physics.motors import headroom
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
@@ -778,7 +779,6 @@ def _filter_lag(m: LoopMargins, design, rate_filter) -> list[Finding]:
 
 
 def _saturation(m, actuators, u_trim, initial_demand) -> list[Finding]:
-    from quadctl.physics.motors import headroom
 
     down, up = headroom(actuators, u_trim)[m.input]
     room = min(down, up)

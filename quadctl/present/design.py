@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
+from quadctl.linear import stability
 from quadctl.present.cells import Mark, Table, eig, eigs, num, vector, weights
 
 
@@ -86,7 +87,6 @@ def damp_table(des) -> Table:
     A discrete design's poles are its ``z``, read as ``s = ln(z) / Ts``; the verdict is
     :func:`quadctl.linear.stability.is_stable`'s, a free position's pole at 0 is marginal by design.
     """
-    from quadctl.linear import stability
 
     discrete = des.full_eigenvalues_z is not None
     d = stability.damp(des.full_eigenvalues_z if discrete else des.full_eigenvalues,

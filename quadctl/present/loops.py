@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import re
 
+from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG, thin_loops
 from quadctl.present.cells import Mark, Table, db, gain_range_db, num
+from quadctl.sim.cascade_margins import DELAY_SCAN
 
 GUARANTEE = "gain margin [1/2, inf), i.e. -6.02 dB to +inf, phase margin >= 60 deg"
 """The continuous LQR guarantee, in words (:data:`quadctl.design.margins.LQR_GAIN_MARGIN_DB`,
@@ -72,7 +74,6 @@ def disk_table(margins, discrete: bool) -> Table:
 
 
 def delay_table(margins) -> Table:
-    from quadctl.sim.cascade_margins import DELAY_SCAN
 
     cascade = any(m.model == "cascade" for m in margins)
     how = ("the least extra delay of the held plant input that makes the lifted loop unstable" if cascade
@@ -102,7 +103,6 @@ def least_margins(margins) -> str | None:
 def thin_sentence(margins, accepted: bool = False) -> str | None:
     """The loops below the classical requirement (6 dB, 30 deg: MIL-F-9490D), what is thin and the way out
     (or that the config accepts it: ``allow: [thin-margins]``); None when every stable loop meets it."""
-    from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG, thin_loops
 
     thin = thin_loops(margins)
     if not thin:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+from quadctl.pipeline import MissionVerdict
 from quadctl.present.cells import Mark, Table, num
 
 
@@ -71,7 +72,6 @@ def waypoints_table(tracking: dict) -> Table | None:
 def mission_text(tracking: dict | None) -> str | None:
     """Why a mission failed (:func:`quadctl.pipeline.mission_check`'s verdict in ``tracking``): what was
     missed, then the cause the run shows and its fix; None: every waypoint reached (or no mission)."""
-    from quadctl.pipeline import MissionVerdict
 
     if not tracking or tracking.get("verdict", MissionVerdict.REACHED.value) == MissionVerdict.REACHED.value:
         return None

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadctl.design.gain_table import VARIABLES
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
 from quadctl.present.cells import Mark, Table, eig, num, yes
+from quadctl.sim.run import STATUS_WORDS
 
 SHOWN_GAINS = (("T", "pD"), ("E", "theta"), ("A", "phi"), ("R", "psi"))
 """The block gain entries a point's row shows (input, state): one per loop."""
@@ -151,8 +153,6 @@ def schedule_line(schedule: dict) -> str:
 
 def transition_lines(summary: dict) -> list[str]:
     """A flown transition's runs (:attr:`quadctl.schedule.transition.Transition.summary`), one line per run."""
-    from quadctl.design.gain_table import VARIABLES
-    from quadctl.sim.run import STATUS_WORDS
 
     lines = []
     for label, run in ((k, v) for k, v in summary.items() if isinstance(v, dict)):

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadctl.design.discrete import SAMPLES_PER_POLE
 from quadctl.layout import INPUT_NAMES, STATE_INDEX, STATE_NAMES, unit_of
 from quadctl.linear import stability
+from quadctl.present import design, flight, loops
 from quadctl.present.cells import Mark, Table, eig, eigs, num, vector, yes
 
 TOP_DROPPED = 8
@@ -99,7 +101,6 @@ def decouple_summary(dec) -> str:
 
 def stage_summary(ws, stage: str) -> str:
     """A stage's result in one line, as ``quadctl run`` ticks it off and the report's summary lists it."""
-    from quadctl.present import design, flight, loops
 
     if stage == "trim":
         return trim_summary(ws.trim)
@@ -124,7 +125,6 @@ def stage_summary(ws, stage: str) -> str:
 
 def rate_warning(w, rate: float) -> str:
     """A continuous loop too fast for ``rate`` Hz (:class:`quadctl.design.discrete.RateWarning`) in one line."""
-    from quadctl.design.discrete import SAMPLES_PER_POLE
 
     verdict = "stays stable but its response differs from the design" if w.sampled_stable else "is UNSTABLE"
     return (f"{w.loop}: closed-loop pole {eig(w.pole)} rad/s is {w.factor:.3g}x faster than "

@@ -15,13 +15,17 @@ import numpy as np
 
 from quadctl import pipeline
 from quadctl.design import linear_loop
+from quadctl.design.discrete import c2d_batch
 from quadctl.design.gain_table import OUTSIDE, VARIABLES, GainTable, flight_value
 from quadctl.errors import ConfigError, QuadctlError, ScheduleError, TrimError
 from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.linear import stability
 from quadctl.linear.linearize import LinearModel, linearize_all
-from quadctl.linear.trim import Trim
+from quadctl.linear.trim import Trim, solve_trims
+from quadctl.physics.motors import check_trim
 from quadctl.setup import Setup
+from quadctl.sweep import batched
+from quadctl.sweep.evaluate import Plant, Prepared
 from quadctl.threads import one_thread
 
 
@@ -227,8 +231,6 @@ def _flight_conditions(setups: list[Setup]) -> list:
     the actuator limits). :func:`quadctl.pipeline.trim_of` and :func:`~quadctl.pipeline.linear_of` of
     every setup, batched (:func:`quadctl.linear.trim.solve_trims`: the same Newton, the same checks;
     :func:`quadctl.linear.linearize.linearize_all`: the same Jacobians)."""
-    from quadctl.linear.trim import solve_trims
-    from quadctl.physics.motors import check_trim
 
     if not setups:
         return []
@@ -320,8 +322,6 @@ def _schedule(setup: Setup) -> Schedule:
 def _points(setup: Setup, values: list[float], heading: float) -> tuple[list[SchedulePoint], tuple[str, ...]]:
     """Each value trimmed, linearized, decoupled, and all designed together (batched); and the
     states the designs integrate (the columns of ``Ki``, the same for every point)."""
-    from quadctl.sweep import batched
-    from quadctl.sweep.evaluate import Plant, Prepared
 
     points: list[SchedulePoint] = []
     preps, where = [], []
@@ -400,7 +400,6 @@ def frozen_checks(setup: Setup, table: GainTable, integral_states, check: int, h
     G = table.at(fine)
     K, Ki = G[:, :, :N_STATES], G[:, :, N_STATES:]
     if sample_time is not None:
-        from quadctl.design.discrete import c2d_batch
 
         A, B = c2d_batch(A, B, sample_time)
     A_cl = linear_loop.stack(A, B, K, Ki, tuple(integral_states), sample_time)

@@ -16,9 +16,12 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl._lazy import lazy_import
+from quadctl.design.gain_table import VARIABLES, scheduling_value
 from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 from quadctl.physics.motors import desaturate
+from quadctl.sim import pid
+from quadctl.sim.pid import N_LAW_STATES, n_constants
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -359,7 +362,6 @@ class LoopSpec:
         """States of a law other than LQR (:attr:`law`), after the plant's; 0 for LQR."""
         if not self.law:
             return 0
-        from quadctl.sim.pid import N_LAW_STATES
 
         return N_LAW_STATES
 
@@ -368,7 +370,6 @@ class LoopSpec:
         """Constants of a law other than LQR (its ``law`` entry of ``c``); 0 for LQR."""
         if not self.law:
             return 0
-        from quadctl.sim.pid import n_constants
 
         return n_constants(self.law)
 
@@ -422,7 +423,6 @@ class LoopSpec:
 
 def _check_schedule(spec: LoopSpec) -> None:
     """Refuse a gain schedule the loop cannot fly (:attr:`LoopSpec.schedule`)."""
-    from quadctl.design.gain_table import VARIABLES
 
     variable, pieces, columns, degree = spec.schedule
     if degree not in (0, 1, 2, 3):
@@ -719,7 +719,6 @@ def build(spec: LoopSpec) -> LoopFunctions:
         ``G(v)`` at the scheduling value of the reference the law uses."""
         if not spec.schedule:
             return gain, parts.get("Ki")
-        from quadctl.design.gain_table import scheduling_value
 
         variable, pieces, columns, degree = spec.schedule
         heading = (parts["schedule_heading"] + heading_offset(t) if spec.reference and variable != "yaw"
@@ -775,7 +774,6 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     n_law = spec.n_law
     if spec.law:  # a PID cascade (quadctl.sim.pid): its own states after the plant's
-        from quadctl.sim import pid
 
         command, s_next = pid.law(spec.law, X[npl:npl + n_law], X[:N_STATES] + sensor, x_ref(t), u_ref(t),
                                   parts["law"], parts["mix"], parts["mix_inv"], parts["hi"], parts["Ts"],

@@ -18,8 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl._lazy import lazy_import
+from quadctl.design.margins import GRID_SPAN, POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, gain_db, no_margin
 from quadctl.layout import INPUT_NAMES
 from quadctl.linear.stability import is_stable
+from quadctl.sim import pid
+from quadctl.sim.builder import build
 
 ca = lazy_import("casadi")
 scipy = lazy_import("scipy")
@@ -248,7 +251,6 @@ class LiftedLoop:
 
     def grid(self, points_per_decade: int) -> np.ndarray:
         """rad/s from the slowest pole's frequency / 100 (at most Nyquist / 1000) to Nyquist ``pi / Ts``."""
-        from quadctl.design.margins import GRID_SPAN
 
         with np.errstate(divide="ignore", invalid="ignore"):
             s = np.log(self.closed_loop_eigenvalues().astype(complex)) / (self.frame * self.sample_time)
@@ -270,7 +272,6 @@ class LiftedLoop:
 def exact_gain_margins(loop: LiftedLoop) -> tuple[float, float]:
     """(lower, upper) dB: the constant gains nearest 1, below and above, at which the lifted loop loses
     stability (``-inf`` / ``+inf``: none within :data:`GAIN_SCAN`). The loop is stable at gain 1."""
-    from quadctl.design.margins import gain_db
 
     def edge(a, b):  # a stable, b not
         for _ in range(45):  # the bracket's ratio to its 2^-45th power: ~1e-13 dB for a decade
@@ -333,7 +334,6 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
         smallest balanced disk ``alpha`` (:func:`quadctl.design.margins.disk_gain_range_db`) and
         ``min |1 + lam|``.
     """
-    from quadctl.design.margins import gain_db
 
     theta = loop.frame_grid(points_per_decade)
     lam = loop.loci(theta)
@@ -462,8 +462,6 @@ def lifted(loop) -> Lifted:
     With a delay (``loop.delay_samples``) the command computed is the one shifted into the buffer (the buffer
     holds the trim input), and the command applied, the buffer's oldest, is what the lifted loop breaks at.
     """
-    from quadctl.sim import pid
-    from quadctl.sim.builder import build
 
     gains = loop.law
     Ts = 1.0 / float(gains["rate_hz"])
@@ -594,7 +592,6 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
 
 
 def _input_margins(loop, lift: Lifted, j: int, inp: str, title: str):
-    from quadctl.design.margins import POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, no_margin
 
     broken = lift.broken(j)
     w = broken.grid(POINTS_PER_DECADE)

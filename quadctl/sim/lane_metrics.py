@@ -19,6 +19,7 @@ import numpy as np
 
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
 from quadctl.metrics import ERROR_FLOOR
+from quadctl.native.compile import C_LONG
 
 PER_STATE = ("e0", "e_last", "e_min", "e_max", "peak", "settle")
 """Per-state sums, each :data:`N_STATES` slots, in ``driver.c``'s order."""
@@ -63,7 +64,6 @@ class MetricSpec:
 
     def header(self) -> np.ndarray:
         """``driver.c``'s ``mq``: the states, counts and index pairs (C long)."""
-        from quadctl.native.compile import C_LONG
 
         q, r = np.array(self.q_pairs, dtype=int).reshape(-1, 2), np.array(self.r_pairs, dtype=int).reshape(-1, 2)
         return np.concatenate([[len(self.states)], self.states, [len(q)], q[:, 0], q[:, 1], [len(r)], r[:, 0],

@@ -25,13 +25,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from quadctl.design import linear_loop
+from quadctl.design.gain_table import scheduling_value, scheduling_values
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec, NoiseStream, exogenous_period
 from quadctl.physics.wind import WindSpec, WindStream
 from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
 from quadctl.sim.cases import Cases
-from quadctl.sim.engine import runner
+from quadctl.sim.engine import LANES, runner
+from quadctl.sim.etdrk4_plan import Segment, phi_constant_rows, phi_ladder, plan_schedule, record_strides
+from quadctl.sim.pid import initial_states, structure_of
 from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
 
 if TYPE_CHECKING:  # the types of a loop's parts (their modules load only when a loop has one)
@@ -192,7 +196,6 @@ class ClosedLoop:
         ValueError
             The loop was built without its ``jacobians`` (or ``schedule_jacobians``, for a ``point``).
         """
-        from quadctl.design import linear_loop
 
         A, B = self._jacobians()
         K, Ki = self.K, self.Ki
@@ -295,7 +298,6 @@ class ClosedLoop:
         """The law's structure baked into the code (:attr:`quadctl.sim.builder.LoopSpec.law`); empty: LQR."""
         if self.law is None:
             return ()
-        from quadctl.sim.pid import structure_of
 
         return structure_of(self.law)
 
@@ -393,7 +395,6 @@ class ClosedLoop:
             parts.append(self.actuators.commands(self.u_trim))
         parts.append(np.zeros(len(self.integral_states) + (len(self.u_trim) if self.Kv is not None else 0)))
         if self.law is not None:
-            from quadctl.sim.pid import initial_states
 
             parts.append(initial_states(self.law, x0, self.u_trim))
         parts.append(np.tile(np.asarray(self.u_trim, dtype=float), self.delay_samples))
@@ -670,8 +671,6 @@ def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list
     costing the method its order; the nearest point's keeps the remainder free of the fast modes that
     the gains move (the rate loops), so the steps the plan grades by stay stable along the schedule.
     """
-    from quadctl.design.gain_table import scheduling_value, scheduling_values
-    from quadctl.sim.etdrk4_plan import Segment
 
     table = loop.schedule
     if table is None or loop.rate is not None or loop.schedule_jacobians is None:
@@ -711,7 +710,6 @@ def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance:
     StepSizeError
         A given step a sampled controller's period does not hold whole, or a runaway plan.
     """
-    from quadctl.sim.etdrk4_plan import plan_schedule
 
     kicks = reference.path.jumps if reference is not None else ()
     if loop.rate is not None:
@@ -805,7 +803,7 @@ def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: floa
     The loops whose schedules start at one step share a φ ladder, computed on the stack of their linear
     parts (each matrix as its one-case run computes it, from that step up); the lanes step through their
     schedules together (segment ``i`` of every case per call)."""
-    from quadctl.sim.etdrk4_plan import phi_constant_rows, phi_ladder, phi_pattern, record_strides
+    from quadctl.sim.etdrk4_plan import phi_pattern
 
     rate = loops[0].rate
     held = rate is not None
@@ -954,7 +952,6 @@ def simulate_stack(loops, x0s, duration: float, dt="auto", *, method: str = "rk4
     >>> bool(np.abs(runs[2][2][:, :12] - one.x).max() < 1e-12), len(runs)
     (True, 3)
     """
-    from quadctl.sim.engine import LANES
 
     stack = stack_of(loops, x0s, duration, dt, method=method, noise=noise, wind=wind, max_samples=max_samples,
                      reference=reference, tolerance=tolerance, exo_rate=exo_rate, planned=planned)

@@ -17,9 +17,19 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from quadctl import pipeline
 from quadctl.design import linear_loop, stacked
+from quadctl.design.discrete import LqrdWeightMap
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.physics.motors import check_trim
+from quadctl.pipeline import estimator_of
+from quadctl.sim.builder import fill_constants_stack
+from quadctl.sim.cases import Cases
+from quadctl.sim.engine import LANES, runner
+from quadctl.sim.lane_metrics import MetricSpec, case_values
+from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
+from quadctl.sim.run import ClosedLoop, ExoStream, rotor_eigenvalues, simulate_stack
 
 if TYPE_CHECKING:
     from quadctl.sim.builder import LoopSpec
@@ -170,7 +180,6 @@ def _weight_maps(plants):
     """``weight_map(sub, Ts)`` for :func:`quadctl.design.stacked.solve_problems`: the
     :class:`~quadctl.design.discrete.LqrdWeightMap` of a subsystem's plant at ``Ts``, kept in its
     plant's cache (the plants of a sweep live across its chunks)."""
-    from quadctl.design.discrete import LqrdWeightMap
 
     cache_of = {id(sub): plant.cache for plant in plants for sub in plant.regulated}
 
@@ -185,7 +194,6 @@ def _weight_maps(plants):
 
 def _one_by_one(prep, why: str = "one-by-one: the batched Riccati solve missed its residual or stability check"):
     """The one-case design of a case the batched solve does not make: its verdict, or why it failed."""
-    from quadctl import pipeline
 
     try:
         des = pipeline.design_of(prep.setup, prep.plant.decoupled, prep.plant.linear)
@@ -207,11 +215,6 @@ def _extremes(cores: list) -> list:
 
 def loops_of(live) -> list:
     """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
-    from quadctl import pipeline
-    from quadctl.physics.motors import check_trim
-    from quadctl.sim.builder import fill_constants_stack
-    from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
-    from quadctl.sim.run import ExoStream, rotor_eigenvalues
 
     out: list = [None] * len(live)
     seen = _Seen()
@@ -420,7 +423,6 @@ def _loop_getters():
 def _loop_fields() -> tuple[str, ...]:
     from dataclasses import fields
 
-    from quadctl.sim.run import ClosedLoop
 
     return tuple(f.name for f in fields(ClosedLoop))
 
@@ -433,7 +435,6 @@ def _estimator(prep):
     key = ("estimator", est.measured, tuple(est.sensor_std), tuple(est.process_std), est.period, timing.sample_time,
            prep.setup.rate_filter)
     if key not in prep.plant.cache:
-        from quadctl.pipeline import estimator_of
 
         prep.plant.cache[key] = estimator_of(prep.setup, prep.plant.linear)
     return prep.plant.cache[key]
@@ -452,7 +453,6 @@ def _structural_gain(prep) -> tuple[bool, ...]:
 
 def _cases_of(group):
     """The one-segment :class:`~quadctl.sim.cases.Cases` of a group of ``(prep, design, job)`` of one lane spec."""
-    from quadctl.sim.cases import Cases
 
     js = [g[2] for g in group]
     return Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
@@ -469,8 +469,6 @@ def simulate_all(jobs):
     inputs, run by :func:`quadctl.sim.run.simulate_stack`), ``t`` (s) the recorded times; a
     yielded ``job`` carries the plan its run took. The arrays of a lane job's run are overwritten by
     the next (use them first)."""
-    from quadctl.sim.engine import LANES, runner
-    from quadctl.sim.run import simulate_stack
 
     groups: dict = {}
     for item in jobs:
@@ -496,8 +494,6 @@ def summarize_all(jobs):
     :func:`loops_of`'s jobs summed in the lanes as it steps (:mod:`quadctl.sim.lane_metrics`), lanes
     grouped by loop spec and by what the sums need (the weights' sparsity, a reference and its legs);
     ``sums`` is None where the runner keeps records instead (CasADi's VM): then ``(done, t, xs, us)``."""
-    from quadctl.sim.engine import LANES, runner
-    from quadctl.sim.lane_metrics import MetricSpec, case_values
 
     by_spec: dict = {}
     specs: dict[tuple, MetricSpec] = {}  # what a metric spec depends on -> the spec, once a chunk

@@ -19,8 +19,20 @@ from typing import Any
 
 import numpy as np
 
+from quadctl import config as config_mod
+from quadctl import metrics, pipeline
+from quadctl.config import diagonal_weights_pass
+from quadctl.design import discrete
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
 from quadctl.layout import N_STATES, STATE_INDEX
+from quadctl.metrics import error_into, summarize_errors
+from quadctl.present.mission import mission_text
+from quadctl.setup import setup_of, vary
+from quadctl.sim.lane_metrics import row_values, tracking
+from quadctl.sim.run import verdict
+from quadctl.sweep import batched
+from quadctl.sweep import exponential as lanes
+from quadctl.sweep.batched import CaseDesign, core_extremes
 from quadctl.sweep.gates import MARGIN_COLUMNS, gated_margins, judge, margin_columns, tracking_columns
 from quadctl.sweep.spec import assign, typed_like
 from quadctl.threads import one_thread
@@ -158,8 +170,6 @@ class CaseSetups:
     """
 
     def __init__(self, task: ChunkTask):
-        from quadctl import config as config_mod
-        from quadctl.setup import setup_of
 
         self.task = task
         self.kinds: list | None = None
@@ -200,8 +210,6 @@ class CaseSetups:
 
     def from_config(self, index: int, values: tuple):
         """The reference way: the case's config assembled, validated and made into its setup."""
-        from quadctl import config as config_mod
-        from quadctl.setup import setup_of
 
         data = self.task.base
         for keys, value in zip(self.task.keys, values):
@@ -223,8 +231,6 @@ class CaseSetups:
         """Per case, the base setup with its values, or None when one fails a check."""
         import math
 
-        from quadctl.config import diagonal_weights_pass
-        from quadctl.setup import vary
 
         n = len(cases)
         ok = np.ones(n, dtype=bool)
@@ -279,7 +285,6 @@ class Plant:
 
     def sampled(self, Ts: float):
         """ZOH ``(Ad, Bd)`` of the coupled model at ``Ts``."""
-        from quadctl.design import discrete
 
         if ("zoh", Ts) not in self.cache:
             self.cache[("zoh", Ts)] = discrete.c2d(self.linear.A, self.linear.B, Ts)
@@ -315,7 +320,6 @@ def plant_of(setup):
     depend on (:func:`_plant_key`) and a Plant's own cache is keyed by what its entries depend
     on, so a plant is the same object for every case that flies it.
     """
-    from quadctl import pipeline
 
     key = _plant_key(setup)
     if key in _plants:
@@ -348,7 +352,6 @@ def _plain(value):
 
 def _add_margins(row: dict, prep: Prepared) -> None:
     """A designed case's :data:`~quadctl.sweep.gates.MARGIN_COLUMNS` (None where it has no design)."""
-    from quadctl import pipeline
 
     row.update(dict.fromkeys(MARGIN_COLUMNS))
     if row.get("stable") is None:  # no design
@@ -382,7 +385,6 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
     as :func:`quadctl.sim.lane_metrics.row_values` gives them (the same columns)."""
     row = dict(head)
     row["stable"] = bool(stable)
-    from quadctl.sweep.batched import CaseDesign, core_extremes
 
     row["eig.fastest"], row["eig.slowest"] = (core_eigs.eig_extremes() if isinstance(core_eigs, CaseDesign)
                                               else core_extremes(core_eigs))
@@ -406,8 +408,6 @@ def mission_reason(setup, reached, status: str) -> str:
     ``reached`` (s each, or None) in a run that ended ``status``: the sentence ``simulate`` fails with
     (:func:`quadctl.present.mission.mission_text`), or empty (reached; a run that did not finish says
     so itself). A sweep's lanes keep no final error: only the missed waypoints count here."""
-    from quadctl import pipeline
-    from quadctl.present.mission import mission_text
 
     ref = setup.reference
     if ref is None or not ref.legs or status != "ok":
@@ -426,7 +426,6 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
     Returns the row and, when ``trace`` names states and the run reached its end, their
     deviations resampled by :func:`resample_deviation` (else None).
     """
-    from quadctl import metrics, pipeline
 
     setup, linear = prep.setup, prep.plant.linear
     stages = pipeline.Stages(setup, linear=linear, decoupled=prep.plant.decoupled)
@@ -494,7 +493,6 @@ def resample_deviation(t, x, x_ref, states, duration: float) -> np.ndarray:
 
 def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> tuple[dict, dict]:
     """Design, assess and simulate cases together; (rows, Monte Carlo traces) by case number."""
-    from quadctl.sweep import batched
 
     rows: dict[int, dict] = {}
     traces: dict[int, np.ndarray] = {}
@@ -512,8 +510,6 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         else:
             live.append((prep, des))
     exponential = bool(live) and live[0][0].setup.method == "etdrk4"  # a sweep runs one method
-    if exponential:
-        from quadctl.sweep import exponential as lanes
     jobs = []
     for (prep, des), job in zip(live, lanes.jobs_of(live) if exponential else batched.loops_of(live)):
         if isinstance(job, str):
@@ -527,7 +523,6 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
     t0 = time.perf_counter()
     batch = MetricsBatch()
     summed: list = []  # (prep, design, job, done, status, message, sums) of the runs summed in the lanes
-    from quadctl.sim.run import verdict
 
     def recorded(prep, des, job, done, t, xs, us, backend):
         setup, linear = prep.setup, prep.plant.linear
@@ -538,7 +533,6 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
         stats["backend"].add(backend)
         x_ref = None
         if setup.reference is not None:  # the reference the lanes flew: their exogenous rows
-            from quadctl import pipeline
 
             flown = setup.flown_reference
             rows_at = np.floor(t / job.exo_period + 1e-9).astype(np.int64)
@@ -586,7 +580,6 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
 def _summed_rows(summed: list, rows: dict, tracked: dict, reasons: dict) -> None:
     """Rows (and tracking columns, and a mission's reason) of the runs summed in the lanes: ``(prep,
     design, job, done, status, message, sums)`` each, read back together per set of regulated states."""
-    from quadctl.sim.lane_metrics import row_values, tracking
 
     groups: dict[tuple, list] = {}
     for item in summed:
@@ -641,7 +634,6 @@ class MetricsBatch:
             self.t, self.err, self.u = np.empty((self.capacity, r)), np.empty((self.capacity, N_STATES, r)), \
                 np.empty((self.capacity, u.shape[1], r))
             self.u_trim, self.Q, self.R, self.status = [], [], [], []
-        from quadctl.metrics import error_into
 
         b = len(self.items)
         self.t[b] = t
@@ -659,7 +651,6 @@ class MetricsBatch:
 
     def flush(self) -> list:
         """Summarize what is gathered: ``(item, summary)`` pairs."""
-        from quadctl.metrics import summarize_errors
 
         if not self.items:
             return []

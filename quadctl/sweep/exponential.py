@@ -17,7 +17,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quadctl.errors import QuadctlError
+from quadctl import pipeline
+from quadctl.errors import QuadctlError, StepSizeError
+from quadctl.physics.motors import check_trim
+from quadctl.physics.noise import exogenous_period
+from quadctl.sim.etdrk4_plan import rk4_limits
+from quadctl.sim.run import exponential_plan
+from quadctl.sweep.batched import _estimator
 
 if TYPE_CHECKING:
     from quadctl.sim.plan import StepPlan
@@ -43,13 +49,6 @@ class ExponentialJob:
 
 def jobs_of(live) -> list:
     """Per (prep, design): an :class:`ExponentialJob`, a refused step's message, or a QuadctlError."""
-    from quadctl import pipeline
-    from quadctl.errors import StepSizeError
-    from quadctl.physics.motors import check_trim
-    from quadctl.physics.noise import exogenous_period
-    from quadctl.sim.etdrk4_plan import rk4_limits
-    from quadctl.sim.run import exponential_plan
-    from quadctl.sweep.batched import _estimator
 
     out: list = []
     loops: list = []

@@ -12,10 +12,11 @@ from typing import Any
 
 import numpy as np
 
+from quadctl import config
 from quadctl.config import yamlio
 from quadctl.config.kinds import misplaced
 from quadctl.config.schema import PLANT, default_at, section_model
-from quadctl.errors import SweepError
+from quadctl.errors import ConfigError, SweepError
 from quadctl.layout import STATE_NAMES
 from quadctl.sweep.gates import MARGIN_COLUMNS, Gate, gated_margins, metric_columns
 from quadctl.text.messages import (
@@ -555,8 +556,6 @@ def configured(cfg, fixed, label: str = "<sweep>", varied=()):
     SweepError
         A ``set:`` value holds a key the config does not take (``set.simulation.reference.sped``).
     """
-    from quadctl import config
-    from quadctl.errors import ConfigError
 
     if not fixed:
         return cfg

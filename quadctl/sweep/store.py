@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadctl import artifacts
 from quadctl.errors import ArtifactError, SweepError
 from quadctl.layout import unit_of
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS
@@ -63,7 +64,6 @@ class SweepStore:
     def start(self, resume: bool) -> dict[int, dict]:
         """Rows of finished chunks when resuming (checked to be of this very sweep), else none:
         a fresh sweep first clears the journal of an earlier one."""
-        from quadctl import artifacts
 
         artifacts.remove_stale_temporaries(self.out)  # what a killed run was writing
         artifacts.check_folder(self.parts)
@@ -94,7 +94,6 @@ class SweepStore:
     def save_chunk(self, rows: list[dict], traces: dict | None = None) -> Path:
         """Write a finished chunk atomically (``chunk-<first case>.json``), with its cases'
         trajectories in a Monte Carlo."""
-        from quadctl import artifacts
 
         first = min(int(r["case"]) for r in rows)
         payload = {**artifacts.metadata(self.cfg, "sweep-chunk"), "sweep_digest": self.digest,
@@ -122,7 +121,6 @@ class SweepStore:
     def finish(self, result: SweepResult) -> dict:
         """Write sweep.csv, sweep.json and sweep.png (and a Monte Carlo's files); return the
         summary (sweep.json's content)."""
-        from quadctl import artifacts
 
         csv_path = artifacts.write_bytes(self.out / "sweep.csv", to_csv(result).encode())
         summary = summarize(result, self.cfg, self.spec)
@@ -149,7 +147,6 @@ class SweepStore:
         """A Monte Carlo: write montecarlo.npz and montecarlo.png from every trajectory (journaled
         and computed now). None if the sweep is no Monte Carlo or no case simulated to the end:
         then those files of an earlier run in this folder go, so none is mistaken for this one's."""
-        from quadctl import artifacts
 
         traces = {**self.traces, **result.traces} if self.trace else {}
         if not traces:
@@ -216,7 +213,6 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     SweepError
         ``resume`` finds rows of a different sweep, or the scheduler cannot be reached.
     """
-    from quadctl import artifacts
 
     store = SweepStore(out, cfg, spec, plot=plot)
     with artifacts.locked(store.out):  # one run writes a folder at a time
