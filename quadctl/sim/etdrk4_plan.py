@@ -34,7 +34,7 @@ import numpy as np
 
 from quadctl.linear.stability import is_stable
 from quadctl.sim.builder import PHI_LAYOUT
-from quadctl.sim.plan import _BRACKET, StepPlan, max_stable_steps, record_stride, step_count, steps_per_sample
+from quadctl.sim.plan import RK4_RAY_BRACKET, StepPlan, max_stable_steps, record_stride, step_count, steps_per_sample
 
 SAFETY = 1.0
 """The constant of ``h(t)`` for runs with exogenous inputs or a sampled controller (a free run takes
@@ -468,7 +468,7 @@ def _rk4_limit(eig) -> float:
     bisection's bracket, so a mode slower than ``bracket[0] / bracket[1]`` of the fastest cannot)."""
     eig = np.asarray(eig, dtype=complex)
     mag = np.where(is_stable(eig), np.abs(eig), 0.0)
-    lo, hi = _BRACKET
+    lo, hi = RK4_RAY_BRACKET
     return float(rk4_limits(eig[(mag > 0) & (mag >= mag.max(initial=0.0) * lo / hi)][None])[0])
 
 

@@ -54,13 +54,13 @@ def max_stable_step(eigenvalue: complex) -> float:
     return lo / abs(lam)
 
 
-_BRACKET = (2.5, 3.0)
+RK4_RAY_BRACKET = (2.5, 3.0)
 """Along any ray into the closed left half-plane, RK4's region ``|R(z)| <= 1`` ends once, at
 ``|z|`` between 2.6155 and 2.9601 (scanned on 2001 directions, 64001 radii each): bisection
 on this bracket finds the same boundary point that :func:`max_stable_step`
 finds by its grid scan (tested)."""
 BISECTIONS = 52
-"""Halvings of :data:`_BRACKET` (width 1/2) in :func:`max_stable_steps`: after 50 the bracket is one
+"""Halvings of :data:`RK4_RAY_BRACKET` (width 1/2) in :func:`max_stable_steps`: after 50 the bracket is one
 ulp of ``|z|`` in [2, 4) (2^-51), and every later halving leaves it as it is (checked bit for bit
 against 64 on 21 000 eigenvalues); 52 keeps two to spare."""
 REAL_AXIS = 2.785293563405945
@@ -96,8 +96,8 @@ def max_stable_steps(eigenvalues) -> np.ndarray:
     out[idx[axis]] = REAL_AXIS / mag[idx[axis]]
     idx, direction = idx[~axis], direction[~axis]
     if idx.size:
-        lo = np.full(idx.size, _BRACKET[0])
-        hi = np.full(idx.size, _BRACKET[1])
+        lo = np.full(idx.size, RK4_RAY_BRACKET[0])
+        hi = np.full(idx.size, RK4_RAY_BRACKET[1])
         bracketed = ((rk4_amplification(lo * direction) <= _LEVEL)
                      & (rk4_amplification(hi * direction) > _LEVEL))
         for _ in range(BISECTIONS):
