@@ -43,10 +43,10 @@ double tan(double) __attribute__((simd("notinbranch"), const, nothrow));
 """Put before the emitted functions of a vectorized build (GCC on x86-64 Linux only). Besides the
 vector sin, cos and tan it turns on GCC's register-pressure-aware scheduling before register
 allocation (``-fschedule-insns -fsched-pressure``, off by default on x86), for the functions that
-follow: it only reorders independent operations, so every value is the same (the same library
-bit for bit on the lanes' tests), and it gives the plain sweep's lanes 6-10 % more steps a CPU
-second (benchmarks/bench.py's sweep, GCC 12, AVX2): the generated step's work values spill to the
-stack around every vector call otherwise. Here, not in the compile flags, so that a compiler
+follow: it only reorders independent operations, so every value is the same (the plain sweep's
+summaries bit for bit); with driver.c's leaner step, the plain sweep's lanes take 5-7 % more steps
+a CPU second (its cases in the lanes alone, GCC 12, AVX2, best of 12-15 alternated rounds on a
+shared machine): the generated step's work values spill to the stack around every vector call. Here, not in the compile flags, so that a compiler
 other than GCC never meets the flags."""
 
 
