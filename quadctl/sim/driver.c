@@ -344,6 +344,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
   double XR[QC_NS * QC_L];
   long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L], until[QC_L];
   int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
+  long first_end = LONG_MAX;  /* the fewest steps a lane takes: no lane finishes on a step before it */
   if (mq) qc_metric_init(mq, macc);
 #if QC_ETD
   double P[qc_rem_nh * QC_L];
@@ -365,6 +366,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     hold_in[l] = qc_mod(-QC_K0(l), QC_HOLD(l));    /* steps until the next controller sample */
     DT[l] = QC_DT(l);
     n_active += active[l];
+    if (QC_N(l) < first_end) first_end = QC_N(l);
   }
 #if QC_ETD && QC_HELD
   qc_rem_pre(X, U, c, E, P);
@@ -376,15 +378,15 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
   qc_step_pre(X, T, DT, c, E, P);
 #endif
   for (long k = 0; n_active > 0; ++k) {
-    double bad[QC_L];
     int rec = 0;
     for (int l = 0; l < QC_L; ++l) {
       T[l] = QC_DT(l) * (double)(QC_K0(l) + k);
-      bad[l] = 0.0;
       rec |= active[l] && rec_in[l] == 0;
-      if (QC_K0(l) + k >= until[l])
-        qc_exo_next(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, E, held + l, until + l);
     }
+    if (QC_NE > 0 && exo != NULL)  /* (without exogenous rows qc_exo_next does nothing) */
+      for (int l = 0; l < QC_L; ++l)
+        if (QC_K0(l) + k >= until[l])
+          qc_exo_next(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, E, held + l, until + l);
 #if QC_HELD
     int sample = 0;
     for (int l = 0; l < QC_L; ++l) sample |= hold_in[l] == 0;
@@ -436,28 +438,34 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
 #endif
 #endif
     /* bounds: each lane's own flag, OR-ed over the states (NaN compares false, so it counts as
-       out); integer ORs, so the lanes vectorize without a lane's verdict mixing with another's */
-    int out[QC_L];
+       out); integer ORs, so the lanes vectorize without a lane's verdict mixing with another's; as
+       wide as a double, so a lane's flag is its comparison's mask as it is (no packing each step) */
+    long long out[QC_L];
     for (int l = 0; l < QC_L; ++l) out[l] = 0;
     for (int i = 0; i < QC_NX; ++i)
       for (int l = 0; l < QC_L; ++l) {
         double v = XN[i * QC_L + l];
         out[l] |= !(v >= lo[i * QC_L + l]) | !(v <= hi[i * QC_L + l]);
       }
-    for (int l = 0; l < QC_L; ++l) bad[l] = out[l];
     memcpy(X, XN, sizeof X);
+    long long any_out = 0;
     for (int l = 0; l < QC_L; ++l) {
       rec_in[l] = rec_in[l] == 0 ? QC_STRIDE(l) - 1 : rec_in[l] - 1;
       hold_in[l] = hold_in[l] == 0 ? QC_HOLD(l) - 1 : hold_in[l] - 1;
+      any_out |= out[l];
+    }
+    /* the common step: every lane runs, stays in bounds and has steps left (nothing below to do) */
+    if (n_active == QC_L && !any_out && k + 1 < first_end) continue;
+    for (int l = 0; l < QC_L; ++l) {
       if (!active[l]) {  /* a lane done (or with no steps) restarts each step from x0: a lane that is
                             not run never drifts to inf or NaN beside the lanes that are */
         for (int i = 0; i < QC_NX; ++i) X[i * QC_L + l] = x0[i * QC_L + l];
         continue;
       }
-      if (bad[l] != 0.0 || k + 1 == QC_N(l)) {
+      if (out[l] != 0 || k + 1 == QC_N(l)) {
         active[l] = 0; n_active--;
         done[l] = k + 1;
-        inb[l] = bad[l] == 0.0;
+        inb[l] = out[l] == 0;
         /* the input applied during its last step: the restarted lane overwrites UH */
         for (int i = 0; i < QC_NU; ++i) UF[i * QC_L + l] = UA[i * QC_L + l];
         for (int i = 0; i < QC_NX; ++i) {
