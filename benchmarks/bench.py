@@ -402,10 +402,10 @@ def stiff_references() -> str:
     from unittest import mock
 
     from quadctl import config, pipeline
-    from quadctl.setup import setup_of
-    from quadctl.schedule.envelope import schedule_of
-    from quadctl.sim.run import simulate
     from quadctl.physics.trajectory import Reference
+    from quadctl.schedule.envelope import schedule_of
+    from quadctl.setup import setup_of
+    from quadctl.sim.run import simulate
 
     def flight(name: str, speeds, start: float, duration: float):
         data = config.load(name).model_dump(exclude_none=True)
@@ -1023,8 +1023,8 @@ def the_schedule(cli_python: str) -> str:
     from quadctl import config, pipeline
     from quadctl.design import linear_loop
     from quadctl.errors import TrimError
-    from quadctl.setup import setup_of
     from quadctl.schedule.envelope import fine_values, point_setup, schedule_of
+    from quadctl.setup import setup_of
 
     values = np.linspace(0.0, SCHEDULE_TOP, SCHEDULE_POINTS).round(6).tolist()
     rows = []
