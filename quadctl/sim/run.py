@@ -31,7 +31,7 @@ from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec, NoiseStream, exogenous_period
 from quadctl.physics.wind import WindSpec, WindStream
-from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
+from quadctl.sim.builder import LoopSpec, fill_constants_stack, heading_frame, pack_constants
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import LANES, runner
 from quadctl.sim.etdrk4_plan import Segment, phi_constant_rows, phi_ladder, plan_schedule, record_strides
@@ -774,14 +774,10 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     exo_period = exo.period if exo is not None else None
     if method == "rk4":
         plans = [loop.plan(duration, dt) for loop in loops]
-        strides = tuple(record_stride(plan.n_steps, max_samples) for plan in plans)
-        bounds = [loop.bounds(duration, reference) for loop in loops]
-        cases = Cases.of([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)],
-                         [loop.constants(plan.sample_time) for loop, plan in zip(loops, plans)],
-                         [plan.dt for plan in plans], [plan.n_steps for plan in plans], strides,
-                         [b[0] for b in bounds], [b[1] for b in bounds], hold=[max(plan.hold, 1) for plan in plans],
-                         exo_period=exo_period or 1.0)
-        return Stack(tuple(plans), strides, loops[0].spec(noisy, windy, reference is not None), cases, exo)
+        cases = rk4_cases(loops, x0s, plans, [loop.bounds(duration, reference) for loop in loops],
+                          max_samples=max_samples, exo_period=exo_period or 1.0)
+        return Stack(tuple(plans), tuple(int(s) for s in cases.stride[0]),
+                     loops[0].spec(noisy, windy, reference is not None), cases, exo)
     if len(loops) == 1 and planned is None:  # the loop's kept stack of one, from x0
         kept = loops[0].exponential_stack(duration, dt, tolerance=tolerance, max_samples=max_samples,
                                           reference=reference, exo_period=exo_period, noise=noisy, wind=windy)
@@ -789,6 +785,47 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     stack = exponential_stack(loops, x0s, duration, dt, tolerance=tolerance, max_samples=max_samples,
                               reference=reference, exo_period=exo_period, noise=noisy, wind=windy, planned=planned)
     return replace(stack, exo=exo)
+
+
+def rk4_cases(loops, x0s, plans, bounds, *, max_samples=MAX_SAMPLES, exo=None, exo_period=1.0,
+              shared=None) -> Cases:
+    """The RK4 :class:`~quadctl.sim.cases.Cases` of ``loops`` (one lane spec) from ``x0s``, for
+    :func:`stack_of` and a sweep's lanes alike: a segment each, of its ``plans`` step (its hold, its
+    record stride for ``max_samples``, one value or one a case), between its ``bounds`` ``(lo, hi)``.
+
+    ``exo``: per case ``(first, rows, period)``, its exogenous rows drawn (None: none given, the rows
+    of ``exo_period`` drawn when the stack runs, :func:`run_stack`). ``shared``: per case a key; the
+    cases of one key are one loop but for its gains (:meth:`ClosedLoop.gain_constants`) from one
+    ``x0``: its constants and initial loop state are computed once, each case's gains written into a
+    copy (:func:`quadctl.sim.builder.fill_constants_stack`); None: each case's own.
+    """
+    N = len(loops)
+    samples = np.broadcast_to(np.asarray(max_samples), (N,))
+    strides = [record_stride(plan.n_steps, int(m)) for plan, m in zip(plans, samples)]
+    keys = range(N) if shared is None else shared
+    groups: dict = {}
+    for i, (key, plan) in enumerate(zip(keys, plans)):
+        groups.setdefault((key, plan.sample_time), []).append(i)
+    C: list = [None] * N
+    X0: list = [None] * N
+    for members in groups.values():
+        first = loops[members[0]]
+        c = first.constants(plans[members[0]].sample_time)
+        x = first.initial_loop_state(x0s[members[0]])
+        if len(members) == 1:
+            C[members[0]], X0[members[0]] = c, x
+            continue
+        gains = [loops[i].gain_constants() for i in members]
+        rows = fill_constants_stack(np.repeat(c[None], len(members), axis=0), *first.constant_layout,
+                                    **{name: np.stack([g[name] for g in gains]) for name in gains[0]})
+        for i, row in zip(members, rows):
+            C[i], X0[i] = row, x
+    rows = None if exo is None else [e[1] for e in exo]
+    return Cases.of(np.stack(X0), np.stack(C), [plan.dt for plan in plans], [plan.n_steps for plan in plans],
+                    strides, np.stack([b[0] for b in bounds]), np.stack([b[1] for b in bounds]),
+                    hold=[max(plan.hold, 1) for plan in plans], exo=rows,
+                    exo_first=0 if rows is None else [e[0] for e in exo],
+                    exo_period=exo_period if rows is None else [e[2] for e in exo])
 
 
 def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: float | None = None,
