@@ -355,25 +355,9 @@ class ClosedLoop:
         return () if table is None else (len(table.breaks) - 1, table.coefficients.shape[-1])
 
     def gain_constants(self) -> dict[str, np.ndarray]:
-        """The entries of :meth:`constants` that the gains set (``K``, ``Ki`` and its anti-windup
-        pattern, ``Kv``): all that differs between two loops of one structure
-        (:func:`quadctl.sim.builder.fill_constants` writes them into a copy of the other's)."""
-        out = {"K": self.K}
-        if self.law is not None:
-            out["law"] = np.asarray(self.law.values, dtype=float)
-        nz = len(self.integral_states)
-        if nz:
-            Ki = np.asarray(self.Ki, dtype=float).reshape(len(self.u_trim), nz)
-            out.update(Ki=Ki, antiwindup=(Ki.T != 0).astype(float))
-        if self.Kv is not None:
-            out.update(Kv=self.Kv)
-        table = self.schedule
-        if table is not None:
-            out.update(schedule_heading=[self.schedule_heading], schedule_breaks=table.breaks,
-                       schedule_coefficients=table.coefficients)
-            if nz and table.coefficients.shape[-1] > N_STATES:  # the integrators the table's Ki drives
-                out["antiwindup"] = np.any(table.coefficients[..., N_STATES:] != 0, axis=(0, 1)).T.astype(float)
-        return out
+        """The entries of :meth:`constants` that the gains set: :func:`gain_constants` of this loop alone
+        (:func:`quadctl.sim.builder.fill_constants` writes them into a copy of another loop's)."""
+        return {name: value[0] for name, value in gain_constants([self]).items()}
 
     def heading_offset(self, x_ref) -> np.ndarray:
         """(n,) rad: the yaw of each reference state ``x_ref`` (n, 12) less the yaw its gain was designed
@@ -787,6 +771,31 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     return replace(stack, exo=exo)
 
 
+def gain_constants(loops) -> dict[str, np.ndarray]:
+    """The entries of :meth:`ClosedLoop.constants` that the gains set (``K``, a cascade's ``law``,
+    ``Ki`` and its anti-windup pattern, ``Kv``, a gain schedule's table), each stacked over ``loops``
+    (one structure): all that differs between two loops of one structure
+    (:func:`quadctl.sim.builder.fill_constants_stack` writes them into copies of one's constants)."""
+    first = loops[0]
+    out = {"K": np.stack([loop.K for loop in loops])}
+    if first.law is not None:
+        out["law"] = np.array([loop.law.values for loop in loops], dtype=float)
+    nz = len(first.integral_states)
+    if nz:
+        Ki = np.array([loop.Ki for loop in loops], dtype=float).reshape(len(loops), len(first.u_trim), nz)
+        out.update(Ki=Ki, antiwindup=(Ki.transpose(0, 2, 1) != 0).astype(float))
+    if first.Kv is not None:
+        out.update(Kv=np.stack([loop.Kv for loop in loops]))
+    if first.schedule is not None:
+        tables = [loop.schedule for loop in loops]
+        coefficients = np.stack([table.coefficients for table in tables])
+        out.update(schedule_heading=np.array([[loop.schedule_heading] for loop in loops]),
+                   schedule_breaks=np.stack([table.breaks for table in tables]), schedule_coefficients=coefficients)
+        if nz and coefficients.shape[-1] > N_STATES:  # the integrators the table's Ki drives
+            out["antiwindup"] = np.any(coefficients[..., N_STATES:] != 0, axis=(1, 2)).transpose(0, 2, 1).astype(float)
+    return out
+
+
 def rk4_cases(loops, x0s, plans, bounds, *, max_samples=MAX_SAMPLES, exo=None, exo_period=1.0,
               shared=None) -> Cases:
     """The RK4 :class:`~quadctl.sim.cases.Cases` of ``loops`` (one lane spec) from ``x0s``, for
@@ -815,9 +824,8 @@ def rk4_cases(loops, x0s, plans, bounds, *, max_samples=MAX_SAMPLES, exo=None, e
         if len(members) == 1:
             C[members[0]], X0[members[0]] = c, x
             continue
-        gains = [loops[i].gain_constants() for i in members]
         rows = fill_constants_stack(np.repeat(c[None], len(members), axis=0), *first.constant_layout,
-                                    **{name: np.stack([g[name] for g in gains]) for name in gains[0]})
+                                    **gain_constants([loops[i] for i in members]))
         for i, row in zip(members, rows):
             C[i], X0[i] = row, x
     rows = None if exo is None else [e[1] for e in exo]

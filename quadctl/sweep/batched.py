@@ -310,7 +310,9 @@ def loops_of(live, method: str = "rk4") -> list:
             out[j] = str(exc)
             continue
         noisy, windy = setup.noise is not None, setup.wind is not None
-        flown = setup.flown_reference  # a reference: one more exogenous input, as simulate takes it
+        # a reference: one more exogenous input, as simulate takes it (none: not asked of the setup, whose
+        # cached property costs a lock per case)
+        flown = setup.flown_reference if setup.reference is not None else None
         shape, held = _structure(loop, (noisy, windy, setup.duration, id(setup.reference)), seen)
         if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
             lane_spec = loop.spec(noisy, windy, flown is not None)
