@@ -36,7 +36,7 @@ from quadctl.sim.cases import Cases
 from quadctl.sim.engine import LANES, runner
 from quadctl.sim.etdrk4_plan import Segment, phi_constant_rows, phi_ladder, plan_schedule, record_strides
 from quadctl.sim.pid import initial_states, structure_of
-from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
+from quadctl.sim.plan import StepPlan, max_stable_steps, plan_held_step, plan_step, record_stride
 
 if TYPE_CHECKING:  # the types of a loop's parts (their modules load only when a loop has one)
     from quadctl.config.pid import PidGains
@@ -157,9 +157,11 @@ class ClosedLoop:
             return None
         return self.rate_filter.form(None if self.rate is None else 1.0 / self.rate)
 
-    def plan(self, duration: float, dt="auto") -> StepPlan:
+    def plan(self, duration: float, dt="auto", *, limits=None) -> StepPlan:
         """The RK4 step: from the closed loop's spectrum, or the open loop's under a held input
-        (both with the rotors' lag, :func:`rotor_eigenvalues`)."""
+        (both with the rotors' lag, :func:`rotor_eigenvalues`). ``limits``: the largest stable step of
+        each of :attr:`eigenvalues` (:func:`quadctl.sim.plan.max_stable_steps`), when the caller has
+        them (a sweep's, of a chunk's loops at once); the other eigenvalues' are computed here."""
         lag = rotor_eigenvalues(self.rotor_time_constant)
         if self.rate is not None:
             ol = self.open_loop_eigenvalues if self.open_loop_eigenvalues is not None else np.zeros(0)
@@ -173,10 +175,13 @@ class ClosedLoop:
             filt = np.linalg.eigvals(form.A)
             if self.jacobians is not None and self.estimator is None:
                 filt = np.concatenate([filt, np.linalg.eigvals(self.linear_part())])
-        return plan_step(np.concatenate([self.eigenvalues, lag, model, est, sched, filt]),
+        eig = np.concatenate([self.eigenvalues, lag, model, est, sched, filt])
+        if limits is not None:
+            limits = np.concatenate([limits, max_stable_steps(eig[len(self.eigenvalues):])])
+        return plan_step(eig,
                          [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
                           *["estimator"] * len(est), *["gain schedule"] * len(sched),
-                          *["gyro filter"] * len(filt)], duration, dt)
+                          *["gyro filter"] * len(filt)], duration, dt, limits=limits)
 
     def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
         """``(A, B)`` of the design model at the trim, or ValueError naming how to build a loop with them."""

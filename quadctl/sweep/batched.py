@@ -29,8 +29,8 @@ from quadctl.pipeline import estimator_of
 from quadctl.sim.engine import LANES, runner
 from quadctl.sim.etdrk4_plan import rk4_limits
 from quadctl.sim.lane_metrics import MetricSpec, case_values
-from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step
-from quadctl.sim.run import ClosedLoop, ExoStream, exponential_plan, rk4_cases, rotor_eigenvalues, simulate_stack
+from quadctl.sim.plan import max_stable_steps
+from quadctl.sim.run import ClosedLoop, ExoStream, exponential_plan, rk4_cases, simulate_stack
 
 if TYPE_CHECKING:
     from quadctl.sim.builder import LoopSpec
@@ -294,18 +294,14 @@ def loops_of(live, method: str = "rk4") -> list:
                                            integral_states=des.integral_states, estimator=kalman,
                                            eigenvalues=eig, owners=owners, params=seen.params(setup.plant),
                                            open_loop_eigenvalues=prep.plant.open_loop_eigenvalues())
-        tau = loop.rotor_time_constant
         try:
             if loop.rate is not None:  # the open-loop plant's (and rotors'): the same for every case of a plant
-                key = ("held plan", loop.rate, setup.duration, setup.dt, tau)
+                key = ("held plan", loop.rate, setup.duration, setup.dt, loop.rotor_time_constant)
                 if key not in prep.plant.cache:
-                    ol = np.concatenate([loop.open_loop_eigenvalues, rotor_eigenvalues(tau)])
-                    prep.plant.cache[key] = plan_held_step(ol, *key[1:4])
+                    prep.plant.cache[key] = loop.plan(setup.duration, setup.dt)
                 plan = prep.plant.cache[key]
-            elif tau is not None or des.Kv is not None or loop.estimator is not None or loop.rate_filter is not None:
-                plan = loop.plan(setup.duration, setup.dt)
-            else:
-                plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)
+            else:  # the chunk's limits of the design's eigenvalues, when the loop flies them
+                plan = loop.plan(setup.duration, setup.dt, limits=limits if loop.eigenvalues is eig else None)
         except StepSizeError as exc:
             out[j] = str(exc)
             continue
