@@ -9,7 +9,8 @@ the engine of :mod:`quadctl.sim` (compiled where a C compiler works).
 
 One entry runs a stack of cases by either integrator: :func:`stack_of` makes the
 :class:`~quadctl.sim.cases.Cases` of the runs (RK4: a segment each, its step from
-:mod:`quadctl.sim.plan`; ETDRK4: a segment per step of its schedule, :func:`exponential_stack`) and
+:mod:`quadctl.sim.plan`, :func:`rk4_cases`, which makes a sweep's lanes too from what the sweep
+knows per case; ETDRK4: a segment per step of its schedule, :func:`exponential_stack`) and
 :func:`run_stack` runs them; :func:`simulate_stack` is both for many loops in the SIMD lanes, and
 :func:`simulate` the stack of one. A long run of one case goes in chunks so Ctrl-C stops it at once,
 and noise and wind are drawn chunk by chunk (:class:`ExoStream`), so memory does not grow with the

@@ -3,11 +3,19 @@
 :func:`design_all` poses each distinct case's subsystem problems once and hands them to the design's
 one engine (:mod:`quadctl.design.stacked`, which a single design runs as a stack of one): a case
 whose solve misses its check goes through the one-case design, which names the reason.
-:func:`loops_of` is the stacked twin of :func:`quadctl.pipeline.loop_of` and the step plan,
-:func:`simulate_all` and :func:`summarize_all` hand the jobs to the simulation's one engine
-(:mod:`quadctl.sim`: a stack of cases, run in the SIMD lanes).
-"""
 
+:func:`loops_of` makes each case's loop (:mod:`quadctl.pipeline`'s builders) and its job for the
+lanes, by either integrator; what it adds to the one-case path is only what pays across cases: the
+chunk's continuous closed-loop spectra and their RK4 limits computed at once, the per-plant caches
+(Kalman filter, held step plan, lane spec and bounds per loop structure), the noise realizations
+the cases of one seed share (:data:`REALIZATION_BYTES`), and the grouping. The step plan is the
+loop's own (:meth:`quadctl.sim.run.ClosedLoop.plan`; ETDRK4:
+:func:`quadctl.sim.run.exponential_plan`), and the runs are made by the simulation's one stack
+builder: RK4's cases by :func:`quadctl.sim.run.rk4_cases` (as :func:`quadctl.sim.run.stack_of`
+makes a stack of loops: each case's step, stride, bounds and rows, the constants once per loop
+structure with each case's gains written in), ETDRK4's by :func:`quadctl.sim.run.stack_of` itself.
+:func:`simulate_all` and :func:`summarize_all` run them in the SIMD lanes.
+"""
 from __future__ import annotations
 
 import pickle
@@ -415,7 +423,7 @@ def _keep_realization(key: tuple, rows: tuple) -> None:
 PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners", "jacobians")
 """Fields of a :class:`~quadctl.sim.run.ClosedLoop` whose values its lane spec and bounds do not read
 (only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`;
-``jacobians``, ETDRK4's linear part, only through each lane's own φ matrices: :mod:`quadctl.sweep.exponential`)."""
+``jacobians``, ETDRK4's linear part, only through each lane's own φ matrices: :func:`loops_of`'s ETDRK4 jobs)."""
 
 
 class _Seen:
@@ -522,11 +530,11 @@ def _cases_of(group):
 
 def simulate_all(jobs):
     """Yield ``((prep, design, job), (done, t, xs, us), backend)``: the runs of :func:`loops_of`'s
-    jobs (:class:`LaneJob`, grouped by loop spec into the lanes' :class:`~quadctl.sim.cases.Cases`)
-    or of :func:`quadctl.sweep.exponential.jobs_of`'s (ETDRK4, grouped by structure and simulation
-    inputs, run by :func:`quadctl.sim.run.simulate_stack`), ``t`` (s) the recorded times; a
-    yielded ``job`` carries the plan its run took. The arrays of a lane job's run are overwritten by
-    the next (use them first)."""
+    jobs: RK4's (:class:`LaneJob`) grouped by loop spec into the lanes' cases
+    (:func:`quadctl.sim.run.rk4_cases`), ETDRK4's (:class:`ExponentialJob`) grouped by structure and
+    simulation inputs and run by :func:`quadctl.sim.run.simulate_stack`; ``t`` (s) the recorded
+    times; a yielded ``job`` carries the plan its run took. The arrays of a lane job's run are
+    overwritten by the next (use them first)."""
 
     groups: dict = {}
     for item in jobs:
