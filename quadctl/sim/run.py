@@ -9,7 +9,8 @@ the engine of :mod:`quadctl.sim` (compiled where a C compiler works).
 
 One entry runs a stack of cases by either integrator: :func:`stack_of` makes the
 :class:`~quadctl.sim.cases.Cases` of the runs (RK4: a segment each, its step from
-:mod:`quadctl.sim.plan`; ETDRK4: a segment per step of its schedule, :func:`exponential_stack`) and
+:mod:`quadctl.sim.plan`, :func:`rk4_cases`, which makes a sweep's lanes too from what the sweep
+knows per case; ETDRK4: a segment per step of its schedule, :func:`exponential_stack`) and
 :func:`run_stack` runs them; :func:`simulate_stack` is both for many loops in the SIMD lanes, and
 :func:`simulate` the stack of one. A long run of one case goes in chunks so Ctrl-C stops it at once,
 and noise and wind are drawn chunk by chunk (:class:`ExoStream`), so memory does not grow with the
@@ -31,12 +32,12 @@ from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec, NoiseStream, exogenous_period
 from quadctl.physics.wind import WindSpec, WindStream
-from quadctl.sim.builder import LoopSpec, heading_frame, pack_constants
+from quadctl.sim.builder import LoopSpec, fill_constants_stack, heading_frame, pack_constants
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import LANES, runner
 from quadctl.sim.etdrk4_plan import Segment, phi_constant_rows, phi_ladder, plan_schedule, record_strides
 from quadctl.sim.pid import initial_states, structure_of
-from quadctl.sim.plan import StepPlan, plan_held_step, plan_step, record_stride
+from quadctl.sim.plan import StepPlan, max_stable_steps, plan_held_step, plan_step, record_stride
 
 if TYPE_CHECKING:  # the types of a loop's parts (their modules load only when a loop has one)
     from quadctl.config.pid import PidGains
@@ -157,9 +158,11 @@ class ClosedLoop:
             return None
         return self.rate_filter.form(None if self.rate is None else 1.0 / self.rate)
 
-    def plan(self, duration: float, dt="auto") -> StepPlan:
+    def plan(self, duration: float, dt="auto", *, limits=None) -> StepPlan:
         """The RK4 step: from the closed loop's spectrum, or the open loop's under a held input
-        (both with the rotors' lag, :func:`rotor_eigenvalues`)."""
+        (both with the rotors' lag, :func:`rotor_eigenvalues`). ``limits``: the largest stable step of
+        each of :attr:`eigenvalues` (:func:`quadctl.sim.plan.max_stable_steps`), when the caller has
+        them (a sweep's, of a chunk's loops at once); the other eigenvalues' are computed here."""
         lag = rotor_eigenvalues(self.rotor_time_constant)
         if self.rate is not None:
             ol = self.open_loop_eigenvalues if self.open_loop_eigenvalues is not None else np.zeros(0)
@@ -173,10 +176,13 @@ class ClosedLoop:
             filt = np.linalg.eigvals(form.A)
             if self.jacobians is not None and self.estimator is None:
                 filt = np.concatenate([filt, np.linalg.eigvals(self.linear_part())])
-        return plan_step(np.concatenate([self.eigenvalues, lag, model, est, sched, filt]),
+        eig = np.concatenate([self.eigenvalues, lag, model, est, sched, filt])
+        if limits is not None:
+            limits = np.concatenate([limits, max_stable_steps(eig[len(self.eigenvalues):])])
+        return plan_step(eig,
                          [*self.owners, *["rotors"] * len(lag), *["rotor lag model"] * len(model),
                           *["estimator"] * len(est), *["gain schedule"] * len(sched),
-                          *["gyro filter"] * len(filt)], duration, dt)
+                          *["gyro filter"] * len(filt)], duration, dt, limits=limits)
 
     def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
         """``(A, B)`` of the design model at the trim, or ValueError naming how to build a loop with them."""
@@ -355,25 +361,9 @@ class ClosedLoop:
         return () if table is None else (len(table.breaks) - 1, table.coefficients.shape[-1])
 
     def gain_constants(self) -> dict[str, np.ndarray]:
-        """The entries of :meth:`constants` that the gains set (``K``, ``Ki`` and its anti-windup
-        pattern, ``Kv``): all that differs between two loops of one structure
-        (:func:`quadctl.sim.builder.fill_constants` writes them into a copy of the other's)."""
-        out = {"K": self.K}
-        if self.law is not None:
-            out["law"] = np.asarray(self.law.values, dtype=float)
-        nz = len(self.integral_states)
-        if nz:
-            Ki = np.asarray(self.Ki, dtype=float).reshape(len(self.u_trim), nz)
-            out.update(Ki=Ki, antiwindup=(Ki.T != 0).astype(float))
-        if self.Kv is not None:
-            out.update(Kv=self.Kv)
-        table = self.schedule
-        if table is not None:
-            out.update(schedule_heading=[self.schedule_heading], schedule_breaks=table.breaks,
-                       schedule_coefficients=table.coefficients)
-            if nz and table.coefficients.shape[-1] > N_STATES:  # the integrators the table's Ki drives
-                out["antiwindup"] = np.any(table.coefficients[..., N_STATES:] != 0, axis=(0, 1)).T.astype(float)
-        return out
+        """The entries of :meth:`constants` that the gains set: :func:`gain_constants` of this loop alone
+        (:func:`quadctl.sim.builder.fill_constants` writes them into a copy of another loop's)."""
+        return {name: value[0] for name, value in gain_constants([self]).items()}
 
     def heading_offset(self, x_ref) -> np.ndarray:
         """(n,) rad: the yaw of each reference state ``x_ref`` (n, 12) less the yaw its gain was designed
@@ -774,14 +764,10 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     exo_period = exo.period if exo is not None else None
     if method == "rk4":
         plans = [loop.plan(duration, dt) for loop in loops]
-        strides = tuple(record_stride(plan.n_steps, max_samples) for plan in plans)
-        bounds = [loop.bounds(duration, reference) for loop in loops]
-        cases = Cases.of([loop.initial_loop_state(x0) for loop, x0 in zip(loops, x0s)],
-                         [loop.constants(plan.sample_time) for loop, plan in zip(loops, plans)],
-                         [plan.dt for plan in plans], [plan.n_steps for plan in plans], strides,
-                         [b[0] for b in bounds], [b[1] for b in bounds], hold=[max(plan.hold, 1) for plan in plans],
-                         exo_period=exo_period or 1.0)
-        return Stack(tuple(plans), strides, loops[0].spec(noisy, windy, reference is not None), cases, exo)
+        cases = rk4_cases(loops, x0s, plans, [loop.bounds(duration, reference) for loop in loops],
+                          max_samples=max_samples, exo_period=exo_period or 1.0)
+        return Stack(tuple(plans), tuple(int(s) for s in cases.stride[0]),
+                     loops[0].spec(noisy, windy, reference is not None), cases, exo)
     if len(loops) == 1 and planned is None:  # the loop's kept stack of one, from x0
         kept = loops[0].exponential_stack(duration, dt, tolerance=tolerance, max_samples=max_samples,
                                           reference=reference, exo_period=exo_period, noise=noisy, wind=windy)
@@ -789,6 +775,71 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     stack = exponential_stack(loops, x0s, duration, dt, tolerance=tolerance, max_samples=max_samples,
                               reference=reference, exo_period=exo_period, noise=noisy, wind=windy, planned=planned)
     return replace(stack, exo=exo)
+
+
+def gain_constants(loops) -> dict[str, np.ndarray]:
+    """The entries of :meth:`ClosedLoop.constants` that the gains set (``K``, a cascade's ``law``,
+    ``Ki`` and its anti-windup pattern, ``Kv``, a gain schedule's table), each stacked over ``loops``
+    (one structure): all that differs between two loops of one structure
+    (:func:`quadctl.sim.builder.fill_constants_stack` writes them into copies of one's constants)."""
+    first = loops[0]
+    out = {"K": np.stack([loop.K for loop in loops])}
+    if first.law is not None:
+        out["law"] = np.array([loop.law.values for loop in loops], dtype=float)
+    nz = len(first.integral_states)
+    if nz:
+        Ki = np.array([loop.Ki for loop in loops], dtype=float).reshape(len(loops), len(first.u_trim), nz)
+        out.update(Ki=Ki, antiwindup=(Ki.transpose(0, 2, 1) != 0).astype(float))
+    if first.Kv is not None:
+        out.update(Kv=np.stack([loop.Kv for loop in loops]))
+    if first.schedule is not None:
+        tables = [loop.schedule for loop in loops]
+        coefficients = np.stack([table.coefficients for table in tables])
+        out.update(schedule_heading=np.array([[loop.schedule_heading] for loop in loops]),
+                   schedule_breaks=np.stack([table.breaks for table in tables]), schedule_coefficients=coefficients)
+        if nz and coefficients.shape[-1] > N_STATES:  # the integrators the table's Ki drives
+            out["antiwindup"] = np.any(coefficients[..., N_STATES:] != 0, axis=(1, 2)).transpose(0, 2, 1).astype(float)
+    return out
+
+
+def rk4_cases(loops, x0s, plans, bounds, *, max_samples=MAX_SAMPLES, exo=None, exo_period=1.0,
+              shared=None) -> Cases:
+    """The RK4 :class:`~quadctl.sim.cases.Cases` of ``loops`` (one lane spec) from ``x0s``, for
+    :func:`stack_of` and a sweep's lanes alike: a segment each, of its ``plans`` step (its hold, its
+    record stride for ``max_samples``, one value or one a case), between its ``bounds`` ``(lo, hi)``.
+
+    ``exo``: per case ``(first, rows, period)``, its exogenous rows drawn (None: none given, the rows
+    of ``exo_period`` drawn when the stack runs, :func:`run_stack`). ``shared``: per case a key; the
+    cases of one key are one loop but for its gains (:meth:`ClosedLoop.gain_constants`) from one
+    ``x0``: its constants and initial loop state are computed once, each case's gains written into a
+    copy (:func:`quadctl.sim.builder.fill_constants_stack`); None: each case's own.
+    """
+    N = len(loops)
+    samples = np.broadcast_to(np.asarray(max_samples), (N,))
+    strides = [record_stride(plan.n_steps, int(m)) for plan, m in zip(plans, samples)]
+    keys = range(N) if shared is None else shared
+    groups: dict = {}
+    for i, (key, plan) in enumerate(zip(keys, plans)):
+        groups.setdefault((key, plan.sample_time), []).append(i)
+    C: list = [None] * N
+    X0: list = [None] * N
+    for members in groups.values():
+        first = loops[members[0]]
+        c = first.constants(plans[members[0]].sample_time)
+        x = first.initial_loop_state(x0s[members[0]])
+        if len(members) == 1:
+            C[members[0]], X0[members[0]] = c, x
+            continue
+        rows = fill_constants_stack(np.repeat(c[None], len(members), axis=0), *first.constant_layout,
+                                    **gain_constants([loops[i] for i in members]))
+        for i, row in zip(members, rows):
+            C[i], X0[i] = row, x
+    rows = None if exo is None else [e[1] for e in exo]
+    return Cases.of(np.stack(X0), np.stack(C), [plan.dt for plan in plans], [plan.n_steps for plan in plans],
+                    strides, np.stack([b[0] for b in bounds]), np.stack([b[1] for b in bounds]),
+                    hold=[max(plan.hold, 1) for plan in plans], exo=rows,
+                    exo_first=0 if rows is None else [e[0] for e in exo],
+                    exo_period=exo_period if rows is None else [e[2] for e in exo])
 
 
 def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: float | None = None,

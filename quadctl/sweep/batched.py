@@ -3,13 +3,22 @@
 :func:`design_all` poses each distinct case's subsystem problems once and hands them to the design's
 one engine (:mod:`quadctl.design.stacked`, which a single design runs as a stack of one): a case
 whose solve misses its check goes through the one-case design, which names the reason.
-:func:`loops_of` is the stacked twin of :func:`quadctl.pipeline.loop_of` and the step plan,
-:func:`simulate_all` and :func:`summarize_all` hand the jobs to the simulation's one engine
-(:mod:`quadctl.sim`: a stack of cases, run in the SIMD lanes).
-"""
 
+:func:`loops_of` makes each case's loop (:mod:`quadctl.pipeline`'s builders) and its job for the
+lanes, by either integrator; what it adds to the one-case path is only what pays across cases: the
+chunk's continuous closed-loop spectra and their RK4 limits computed at once, the per-plant caches
+(Kalman filter, held step plan, lane spec and bounds per loop structure), the noise realizations
+the cases of one seed share (:data:`REALIZATION_BYTES`), and the grouping. The step plan is the
+loop's own (:meth:`quadctl.sim.run.ClosedLoop.plan`; ETDRK4:
+:func:`quadctl.sim.run.exponential_plan`), and the runs are made by the simulation's one stack
+builder: RK4's cases by :func:`quadctl.sim.run.rk4_cases` (as :func:`quadctl.sim.run.stack_of`
+makes a stack of loops: each case's step, stride, bounds and rows, the constants once per loop
+structure with each case's gains written in), ETDRK4's by :func:`quadctl.sim.run.stack_of` itself.
+:func:`simulate_all` and :func:`summarize_all` run them in the SIMD lanes.
+"""
 from __future__ import annotations
 
+import pickle
 from collections import OrderedDict
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -23,13 +32,13 @@ from quadctl.design.discrete import LqrdWeightMap
 from quadctl.errors import DesignError, QuadctlError, StepSizeError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.physics.motors import check_trim
+from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import estimator_of
-from quadctl.sim.builder import fill_constants_stack
-from quadctl.sim.cases import Cases
 from quadctl.sim.engine import LANES, runner
+from quadctl.sim.etdrk4_plan import rk4_limits
 from quadctl.sim.lane_metrics import MetricSpec, case_values
-from quadctl.sim.plan import max_stable_steps, plan_held_step, plan_step, record_stride
-from quadctl.sim.run import ClosedLoop, ExoStream, rotor_eigenvalues, simulate_stack
+from quadctl.sim.plan import max_stable_steps
+from quadctl.sim.run import ClosedLoop, ExoStream, exponential_plan, rk4_cases, simulate_stack
 
 if TYPE_CHECKING:
     from quadctl.sim.builder import LoopSpec
@@ -69,18 +78,39 @@ def core_extremes(core) -> tuple:
 
 @dataclass(frozen=True)
 class LaneJob:
-    """A case ready for the lanes."""
+    """A case ready for the lanes: what the sweep knows of it (its loop, initial state, step plan,
+    bounds and exogenous rows), for :func:`quadctl.sim.run.rk4_cases` to make its lane of."""
 
     spec: LoopSpec
     plan: StepPlan
-    c: np.ndarray
+    loop: ClosedLoop
     x0: np.ndarray
+    """The initial (rigid-body) state."""
     lo: np.ndarray
     hi: np.ndarray
-    stride: int
+    max_samples: int
     exo: np.ndarray | None
     exo_first: int
     exo_period: float
+    shared: tuple
+    """The cases of one key are one loop but for its gains, from one ``x0`` (their constants made once)."""
+
+
+@dataclass(frozen=True)
+class ExponentialJob:
+    """A case ready for the exponential lanes (what the evaluation reads of a job: ``plan``, ``lo``,
+    ``hi``, ``exo_period``)."""
+
+    loop: ClosedLoop
+    x0: np.ndarray
+    plan: StepPlan
+    lo: np.ndarray
+    hi: np.ndarray
+    exo_period: float
+    group: tuple
+    """The cases that can share lanes: structure, rate and simulation inputs (by value)."""
+    linear_part: np.ndarray
+    """ETDRK4's linear part of the loop (:func:`quadctl.sim.run.exponential_plan`)."""
 
 
 def design_all(preps, stats, any_order: bool = False, compiled: bool = False) -> list:
@@ -213,14 +243,14 @@ def _extremes(cores: list) -> list:
     return list(zip(real.min(axis=1).tolist(), real.max(axis=1).tolist()))
 
 
-def loops_of(live) -> list:
-    """Per (prep, design): a :class:`LaneJob`, a refused step's message, or a QuadctlError."""
+def loops_of(live, method: str = "rk4") -> list:
+    """Per (prep, design): its job for the lanes (RK4: a :class:`LaneJob`; ETDRK4 (``method``
+    ``etdrk4``): an :class:`ExponentialJob`), a refused step's message, or a QuadctlError."""
 
+    if method == "etdrk4":
+        return _exponential_jobs(live)
     out: list = [None] * len(live)
     seen = _Seen()
-    # per loop structure, sample time and initial state: the constants and the initial loop state
-    # (cases of one structure differ only in their gains, which each case writes into a copy)
-    templates: dict[tuple, tuple] = {}
     continuous = [j for j, (prep, des) in enumerate(live) if prep.setup.timing.rate is None and des.Kv is None]
     eig_of: dict[int, tuple] = {}
     by_plant: dict[tuple, list] = {}
@@ -272,23 +302,21 @@ def loops_of(live) -> list:
                                            integral_states=des.integral_states, estimator=kalman,
                                            eigenvalues=eig, owners=owners, params=seen.params(setup.plant),
                                            open_loop_eigenvalues=prep.plant.open_loop_eigenvalues())
-        tau = loop.rotor_time_constant
         try:
             if loop.rate is not None:  # the open-loop plant's (and rotors'): the same for every case of a plant
-                key = ("held plan", loop.rate, setup.duration, setup.dt, tau)
+                key = ("held plan", loop.rate, setup.duration, setup.dt, loop.rotor_time_constant)
                 if key not in prep.plant.cache:
-                    ol = np.concatenate([loop.open_loop_eigenvalues, rotor_eigenvalues(tau)])
-                    prep.plant.cache[key] = plan_held_step(ol, *key[1:4])
+                    prep.plant.cache[key] = loop.plan(setup.duration, setup.dt)
                 plan = prep.plant.cache[key]
-            elif tau is not None or des.Kv is not None or loop.estimator is not None or loop.rate_filter is not None:
-                plan = loop.plan(setup.duration, setup.dt)
-            else:
-                plan = plan_step(eig, owners, setup.duration, setup.dt, limits=limits)
+            else:  # the chunk's limits of the design's eigenvalues, when the loop flies them
+                plan = loop.plan(setup.duration, setup.dt, limits=limits if loop.eigenvalues is eig else None)
         except StepSizeError as exc:
             out[j] = str(exc)
             continue
         noisy, windy = setup.noise is not None, setup.wind is not None
-        flown = setup.flown_reference  # a reference: one more exogenous input, as simulate takes it
+        # a reference: one more exogenous input, as simulate takes it (none: not asked of the setup, whose
+        # cached property costs a lock per case)
+        flown = setup.flown_reference if setup.reference is not None else None
         shape, held = _structure(loop, (noisy, windy, setup.duration, id(setup.reference)), seen)
         if shape not in prep.plant.cache:  # the loop's structure and bounds: once per shape of loop
             lane_spec = loop.spec(noisy, windy, flown is not None)
@@ -320,19 +348,57 @@ def loops_of(live) -> list:
             start = setup.initial_state(linear.x_trim)
             starts[start_key] = (start, start.tobytes())
         start, start_bytes = starts[start_key]
-        key = (shape, plan.sample_time, start_bytes)
-        if key not in templates:
-            templates[key] = (loop.constants(plan.sample_time), loop.initial_loop_state(start), loop.constant_layout,
-                              [])
-        templates[key][3].append((j, loop.gain_constants(), dict(spec=spec, plan=plan, x0=templates[key][1], lo=lo,
-                                  hi=hi, stride=record_stride(plan.n_steps, setup.max_samples), exo=exo,
-                                  exo_first=first, exo_period=period)))
-    for c, _, layout, members in templates.values():  # each case's gains written into its copy of the constants
-        gains = members[0][1]
-        C = fill_constants_stack(np.repeat(c[None], len(members), axis=0), *layout,
-                                 **{name: np.stack([m[1][name] for m in members]) for name in gains})
-        for (j, _, fields), row in zip(members, C):
-            out[j] = LaneJob(c=row, **fields)
+        out[j] = LaneJob(spec, plan, loop, start, lo, hi, setup.max_samples, exo, first, period,
+                         shared=(shape, start_bytes))
+    return out
+
+
+def _exponential_jobs(live) -> list:
+    """:func:`loops_of` for ETDRK4: per (prep, design) an :class:`ExponentialJob`, a refused step's
+    message, or a QuadctlError."""
+
+    out: list = []
+    loops: list = []
+    for prep, des in live:
+        setup, linear = prep.setup, prep.plant.linear
+        try:
+            check_trim(setup.actuators, linear.u_trim)
+            loops.append(pipeline.closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block,
+                                                 integral_states=des.integral_states, Kv=des.Kv,
+                                                 estimator=_estimator(prep)))
+        except QuadctlError as exc:
+            loops.append(exc)
+    # the linear parts, and RK4's limit each plan reports, of all the continuous loops at once
+    parts, limits = {}, {}
+    shapes: dict = {}
+    for k, loop in enumerate(loops):
+        if not isinstance(loop, QuadctlError) and loop.rate is None:
+            parts[k] = loop.linear_part()
+            shapes.setdefault(parts[k].shape, []).append(k)
+    for members in shapes.values():
+        eig = np.linalg.eigvals(np.stack([parts[k] for k in members]))
+        limits.update(zip(members, rk4_limits(eig)))
+    for k, ((prep, _), loop) in enumerate(zip(live, loops)):
+        setup, linear = prep.setup, prep.plant.linear
+        if isinstance(loop, QuadctlError):
+            out.append(loop)
+            continue
+        noise = setup.noise if setup.noise is not None and setup.noise.active else None
+        wind = setup.wind if setup.wind is not None and setup.wind.active else None
+        flown = setup.flown_reference
+        exogenous = noise is not None or wind is not None or flown is not None
+        period = exogenous_period(noise.period if noise is not None else None, loop.rate)
+        try:
+            L, plan = exponential_plan(loop, setup.duration, setup.dt, reference=flown,
+                                       exo_period=period if exogenous else None, linear_part=parts.get(k),
+                                       max_stable_dt=limits.get(k), tolerance=setup.tolerance)
+        except StepSizeError as exc:
+            out.append(str(exc))
+            continue
+        lo, hi = loop.bounds(setup.duration, flown)
+        inputs = pickle.dumps((noise, wind, setup.reference, flown.params.tobytes() if flown else None))
+        group = (loop.spec(), loop.rate, setup.duration, setup.dt, setup.tolerance, setup.max_samples, inputs)
+        out.append(ExponentialJob(loop, setup.initial_state(linear.x_trim), plan, lo, hi, period, group, L))
     return out
 
 
@@ -357,7 +423,7 @@ def _keep_realization(key: tuple, rows: tuple) -> None:
 PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners", "jacobians")
 """Fields of a :class:`~quadctl.sim.run.ClosedLoop` whose values its lane spec and bounds do not read
 (only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`;
-``jacobians``, ETDRK4's linear part, only through each lane's own φ matrices: :mod:`quadctl.sweep.exponential`)."""
+``jacobians``, ETDRK4's linear part, only through each lane's own φ matrices: :func:`loops_of`'s ETDRK4 jobs)."""
 
 
 class _Seen:
@@ -452,23 +518,23 @@ def _structural_gain(prep) -> tuple[bool, ...]:
 
 
 def _cases_of(group):
-    """The one-segment :class:`~quadctl.sim.cases.Cases` of a group of ``(prep, design, job)`` of one lane spec."""
+    """The one-segment :class:`~quadctl.sim.cases.Cases` of a group of ``(prep, design, job)`` of one
+    lane spec (:func:`quadctl.sim.run.rk4_cases`, as a stack of loops makes its own)."""
 
     js = [g[2] for g in group]
-    return Cases.of(np.stack([j.x0 for j in js]), np.stack([j.c for j in js]), [j.plan.dt for j in js],
-                    [j.plan.n_steps for j in js], [j.stride for j in js], np.stack([j.lo for j in js]),
-                    np.stack([j.hi for j in js]), hold=[max(j.plan.hold, 1) for j in js],
-                    exo=[j.exo for j in js] if js[0].spec.n_exo else None,
-                    exo_first=[j.exo_first for j in js], exo_period=[j.exo_period for j in js])
+    exo = [(j.exo_first, j.exo, j.exo_period) for j in js] if js[0].spec.n_exo else None
+    return rk4_cases([j.loop for j in js], [j.x0 for j in js], [j.plan for j in js], [(j.lo, j.hi) for j in js],
+                     max_samples=[j.max_samples for j in js], exo=exo,
+                     exo_period=[j.exo_period for j in js], shared=[j.shared for j in js])
 
 
 def simulate_all(jobs):
     """Yield ``((prep, design, job), (done, t, xs, us), backend)``: the runs of :func:`loops_of`'s
-    jobs (:class:`LaneJob`, grouped by loop spec into the lanes' :class:`~quadctl.sim.cases.Cases`)
-    or of :func:`quadctl.sweep.exponential.jobs_of`'s (ETDRK4, grouped by structure and simulation
-    inputs, run by :func:`quadctl.sim.run.simulate_stack`), ``t`` (s) the recorded times; a
-    yielded ``job`` carries the plan its run took. The arrays of a lane job's run are overwritten by
-    the next (use them first)."""
+    jobs: RK4's (:class:`LaneJob`) grouped by loop spec into the lanes' cases
+    (:func:`quadctl.sim.run.rk4_cases`), ETDRK4's (:class:`ExponentialJob`) grouped by structure and
+    simulation inputs and run by :func:`quadctl.sim.run.simulate_stack`; ``t`` (s) the recorded
+    times; a yielded ``job`` carries the plan its run took. The arrays of a lane job's run are
+    overwritten by the next (use them first)."""
 
     groups: dict = {}
     for item in jobs:

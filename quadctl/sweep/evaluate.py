@@ -31,7 +31,6 @@ from quadctl.setup import setup_of, vary
 from quadctl.sim.lane_metrics import row_values, tracking
 from quadctl.sim.run import verdict
 from quadctl.sweep import batched
-from quadctl.sweep import exponential as lanes
 from quadctl.sweep.batched import CaseDesign, core_extremes
 from quadctl.sweep.gates import MARGIN_COLUMNS, gated_margins, judge, margin_columns, tracking_columns
 from quadctl.sweep.spec import assign, typed_like
@@ -511,7 +510,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             live.append((prep, des))
     exponential = bool(live) and live[0][0].setup.method == "etdrk4"  # a sweep runs one method
     jobs = []
-    for (prep, des), job in zip(live, lanes.jobs_of(live) if exponential else batched.loops_of(live)):
+    for (prep, des), job in zip(live, batched.loops_of(live, "etdrk4" if exponential else "rk4")):
         if isinstance(job, str):
             row = _row(prep.head, des.stable, des.core, None, None, 0, job, des.path)
             row["status"] = "step_refused"
