@@ -46,8 +46,8 @@ allocation (``-fschedule-insns -fsched-pressure``, off by default on x86), for t
 follow: it only reorders independent operations, so every value is the same (the plain sweep's
 summaries bit for bit); with driver.c's leaner step, the plain sweep's lanes take 5-7 % more steps
 a CPU second (its cases in the lanes alone, GCC 12, AVX2, best of 12-15 alternated rounds on a
-shared machine): the generated step's work values spill to the stack around every vector call. Here, not in the compile flags, so that a compiler
-other than GCC never meets the flags."""
+shared machine): the generated step's work values spill to the stack around every vector call.
+Here, not in the compile flags, so that a compiler other than GCC never meets the flags."""
 
 
 @dataclass(frozen=True)
