@@ -24,8 +24,6 @@ from quadctl.linear.linearize import LinearModel, linearize_all
 from quadctl.linear.trim import Trim, solve_trims
 from quadctl.physics.motors import check_trim
 from quadctl.setup import Setup
-from quadctl.sweep import batched
-from quadctl.sweep.evaluate import Plant, Prepared
 from quadctl.threads import one_thread
 
 
@@ -322,6 +320,11 @@ def _schedule(setup: Setup) -> Schedule:
 def _points(setup: Setup, values: list[float], heading: float) -> tuple[list[SchedulePoint], tuple[str, ...]]:
     """Each value trimmed, linearized, decoupled, and all designed together (batched); and the
     states the designs integrate (the columns of ``Ki``, the same for every point)."""
+    # the sweep's package brings its runner's processes and its figures: loaded when a schedule is designed,
+    # not by every command that reads a schedule (simulate, export)
+    from quadctl.sweep import batched
+    from quadctl.sweep.evaluate import Plant, Prepared
+
 
     points: list[SchedulePoint] = []
     preps, where = [], []

@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl import plots
 from quadctl.errors import SweepError
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS, mc_grid
 from quadctl.sweep.runner import SweepResult
@@ -98,6 +97,7 @@ def montecarlo_bands(traces: dict, states, duration: float, cases: Iterable[int]
 def montecarlo_png(bands: MonteCarloBands, cfg, varied=()) -> bytes:
     """The Monte Carlo figure (:func:`quadctl.plots.montecarlo_figure`) as PNG bytes; ``varied``: the
     parameters' key paths, named in the title."""
+    from quadctl import plots  # matplotlib: loaded by the runs that draw
 
     groups = {name: [s for s in sub.states if s in bands.states]
               for name, sub in cfg.partition().items() if sub.regulate}
@@ -180,6 +180,7 @@ def tradeoff_axes(result: SweepResult) -> tuple[str, str]:
 
 def tradeoff_png(result: SweepResult, cfg) -> bytes:
     """The trade-off figure as PNG bytes."""
+    from quadctl import plots  # matplotlib: loaded by the runs that draw
 
     x, y = tradeoff_axes(result)
     fig = plots.sweep_tradeoff_figure(result.rows, x, y, result.gates, title=cfg.name)

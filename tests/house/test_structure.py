@@ -23,6 +23,19 @@ def test_help_imports_no_heavy_library():
     assert out.stdout.strip() == "[]"
 
 
+
+def test_what_draws_nothing_loads_no_figures_and_no_worker_processes():
+    """The run folder, the stages, the export and the gain schedule load neither matplotlib (the figures
+    load it when they are drawn) nor the process pools of a sweep's runner (its design borrows the
+    sweep's batched solves only when a schedule is designed)."""
+    code = ("import sys, quadctl.workspace, quadctl.stages, quadctl.export, quadctl.schedule.envelope; "
+            "print(sorted(m for m in ('matplotlib', 'multiprocessing', 'concurrent.futures') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    code = "import sys, quadctl.sweep; print('matplotlib' in sys.modules)"  # a sweep draws when asked to
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
 def test_library_never_imports_the_cli():
     offenders = []
     for path in PACKAGE.rglob("*.py"):
