@@ -18,9 +18,9 @@ from matplotlib.figure import Figure
 
 import quadctl as qc
 from quadctl import config, pipeline, plots
-from quadctl.physics import motors
 from quadctl.config import overrides
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
+from quadctl.physics import motors
 
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "docs" / "figures"
 MAMBO = motors.Motors()  # the default rotors: the Parrot Mambo's

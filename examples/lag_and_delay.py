@@ -17,8 +17,8 @@ from matplotlib.figure import Figure
 
 import quadctl as qc
 from quadctl import pipeline
-from quadctl.physics import motors
 from quadctl.layout import STATE_INDEX
+from quadctl.physics import motors
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "docs" / "figures"

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import quadctl as qc
 from quadctl import plots
-from quadctl.schedule.transition import fly_transition, transition_lines
+from quadctl.present.schedule import transition_lines
+from quadctl.schedule.transition import fly_transition
 
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "docs" / "figures"
 

@@ -40,7 +40,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     result = compare(ws, laws)
     # the provenance at the top, as every artifact carries it: the run folder's reader (the report) checks it
     data = {**artifacts.metadata(ws.cfg, "compare"), **payload(result)}
-    text = jsonlib.dumps(artifacts.jsonable(data), indent=1, sort_keys=True) + "\n"
+    data = artifacts.jsonable(data)  # NumPy's scalars as JSON's, infinities spelled out: the file and --json alike
+    text = jsonlib.dumps(data, indent=1, sort_keys=True) + "\n"
     path = ws.write_bytes(ws.path("compare.json"), text.encode())
     figures = []
     if plot:
