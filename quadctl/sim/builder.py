@@ -17,7 +17,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.design.gain_table import VARIABLES, scheduling_value
-from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, STATE_INDEX
+from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, PRODUCTS, STATE_INDEX
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 from quadctl.physics.motors import desaturate
 from quadctl.sim import pid
@@ -276,6 +276,12 @@ class LoopSpec:
         States per rate of the filter the law runs on the measured body rates (the gyro,
         :mod:`quadctl.linear.filters`): the law takes ``y = c g + d r_m`` in place of each rate ``r_m``;
         ``g`` advances once per sample (held loops), or with the plant (continuous). 0: raw rates.
+    diagonal_inertia : bool
+        The vehicle's inertia tensor is diagonal: its products ``(Jxy, Jxz, Jyz)`` are baked into the
+        code as exact zeros instead of read from ``c``. The same numbers (with zero products every term
+        they enter is an exact zero and the determinant of :func:`quadctl.physics.model.dynamics_expression`'s
+        solve exactly 1), from fewer operations: 140 an evaluation of the model instead of 212, 7 divisions
+        instead of 16 (the continuous loop's RK4 step: 189 fewer of 1 000, 12 fewer divisions of 40).
     """
 
     pattern: tuple[bool, ...]
@@ -295,6 +301,7 @@ class LoopSpec:
     schedule: tuple = ()
     law: tuple = ()
     filter_order: int = 0
+    diagonal_inertia: bool = False
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -413,7 +420,8 @@ class LoopSpec:
                 + (" phi=" + "".join("1" if b else "0" for b in self.phi_pattern) if self.phi_pattern else "")
                 + (" schedule={}:{}:{}:{}".format(*self.schedule) if self.schedule else "")
                 + (" law=" + ":".join(map(str, self.law)) if self.law else "")
-                + (f" filter={self.filter_order}" if self.filter_order else ""))
+                + (f" filter={self.filter_order}" if self.filter_order else "")
+                + (" diagonal=1" if self.diagonal_inertia else ""))
 
     @classmethod
     def of_gain(cls, K, **kwargs) -> LoopSpec:
@@ -752,6 +760,9 @@ def build(spec: LoopSpec) -> LoopFunctions:
     t, dt = ca.SX.sym("t"), ca.SX.sym("dt")
     u_held = ca.SX.sym("u", N_INPUTS)
     params = parts["params"]
+    if spec.diagonal_inertia:  # the products of inertia as exact zeros: every term they enter vanishes
+        params = ca.vertcat(params[:PRODUCTS.start], ca.DM.zeros(PRODUCTS.stop - PRODUCTS.start),
+                            params[PRODUCTS.stop:])
 
     def rk4(rhs, Y):
         k1 = rhs(Y, t)

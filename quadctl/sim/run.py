@@ -28,7 +28,7 @@ import numpy as np
 
 from quadctl.design import linear_loop
 from quadctl.design.gain_table import scheduling_value, scheduling_values
-from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
+from quadctl.layout import N_STATES, PRODUCTS, STATE_INDEX, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec, NoiseStream, exogenous_period
 from quadctl.physics.wind import WindSpec, WindStream
@@ -297,7 +297,8 @@ class ClosedLoop:
                                 lag_model=self.Kv is not None, wind=wind,
                                 measured=tuple(STATE_INDEX[s] for s in self.measured), reference=reference,
                                 law=self.law_structure,
-                                filter_order=self.rate_filter.order if self.rate_filter is not None else 0)
+                                filter_order=self.rate_filter.order if self.rate_filter is not None else 0,
+                                diagonal_inertia=not np.any(np.asarray(self.params)[PRODUCTS]))
 
     @property
     def law_structure(self) -> tuple:

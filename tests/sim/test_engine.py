@@ -426,3 +426,42 @@ def test_the_generated_law_branches_by_selects_only():
     assert source.count(" ? ") > 100
     assert "fmin(" not in source and "fmax(" not in source and "&&" not in source and "||" not in source
     assert "-fno-trapping-math" in compile_mod.SIMD_FLAGS
+
+
+@pytest.mark.parametrize("label, data, duration", [FEATURES[0], FEATURES[2]], ids=[FEATURES[0][0], FEATURES[2][0]])
+def test_a_diagonal_inertia_is_baked_in_as_zeros_with_the_same_numbers(label, data, duration):
+    """A vehicle with a diagonal J flies code with its products of inertia baked in as exact zeros
+    (LoopSpec.diagonal_inertia): the numbers of the code that reads them from the constants, to the
+    last bit, in fewer operations (189 fewer a step of the continuous loop, of 1 000)."""
+    from dataclasses import replace
+
+    from quadctl.sim.builder import build
+    from quadctl.sim.run import run_stack, stack_of
+
+    setup, loop = _loop(data)
+    stack = stack_of([loop], [setup.initial_state(loop.x_trim)], duration, setup.dt, noise=setup.noise)
+    assert stack.spec.diagonal_inertia
+    generic = replace(stack.spec, diagonal_inertia=False)
+    (_, t, xs, us), = run_stack(stack, engine.runner(stack.spec, 1))
+    (_, t_g, xs_g, us_g), = run_stack(stack, engine.runner(generic, 1))
+    assert np.array_equal(t, t_g) and np.array_equal(xs, xs_g) and np.array_equal(us, us_g)
+    step = "plant" if stack.spec.held else "step"
+    saved = getattr(build(generic), step).n_instructions() - getattr(build(stack.spec), step).n_instructions()
+    assert saved >= 150
+
+
+def test_a_vehicle_with_products_of_inertia_flies_the_code_that_reads_them():
+    """A full tensor is not baked in as diagonal: forcing the diagonal code on it changes the flight."""
+    from dataclasses import replace
+
+    from quadctl.sim.run import run_stack, stack_of
+
+    data = cfg_dict("hover")
+    data["vehicle"]["inertia"] = [[6.9e-5, 0.9e-5, -1.2e-5], [0.9e-5, 7.75e-5, 0.6e-5], [-1.2e-5, 0.6e-5, 1.5e-4]]
+    data["simulation"]["initial_offset"] = {"phi": 0.3, "psi": 0.2}
+    setup, loop = _loop(data)
+    stack = stack_of([loop], [setup.initial_state(loop.x_trim)], 0.3, setup.dt)
+    assert not stack.spec.diagonal_inertia
+    (_, _, xs, _), = run_stack(stack, engine.runner(stack.spec, 1))
+    (_, _, xs_d, _), = run_stack(stack, engine.runner(replace(stack.spec, diagonal_inertia=True), 1))
+    assert np.abs(xs[-1] - xs_d[-1]).max() > 1e-6
