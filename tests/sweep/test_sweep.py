@@ -836,3 +836,21 @@ def test_margin_columns_are_the_margins_command_s_and_gate_thin_loops():
     assert "margin.phase_deg" in rows[1]["failed_gates"]
     plain = spec_of(cfg, parameters={"motors.time_constant": [0.01]}, set={"simulation.duration": 0.3})
     assert "margin.phase_deg" not in plain.metrics  # computed only when gated
+
+
+@pytest.mark.parametrize("n, workers", [(48, 2), (1000, 2), (64, 2), (17, 2), (3000, 2), (1, 1), (200, 3), (9, 4)])
+def test_default_chunks_are_whole_lane_groups_the_workers_finish_together(n, workers):
+    """Cases cost alike, so tasks taken by the next free worker (largest first) leave each worker within
+    one lane group of the others; every task but the last is whole groups of the lanes, at most
+    MAX_CHUNK cases; all cases are in, once."""
+    from quadctl.sim.engine import LANES
+    from quadctl.sweep.runner import MAX_CHUNK, default_chunks
+
+    sizes = default_chunks(n, workers)
+    assert sum(sizes) == n and all(0 < s <= MAX_CHUNK for s in sizes)
+    assert all(s % LANES == 0 for s in sizes[:-1]) and sizes == sorted(sizes, reverse=True)
+    load = [0] * workers
+    for s in sizes:
+        load[load.index(min(load))] += s
+    assert max(load) - min(load) <= LANES or len(sizes) < workers
+    assert len(sizes) >= min(2 * workers, math.ceil(n / LANES))  # about two tasks a worker, where there are cases
