@@ -85,6 +85,8 @@ def max_stable_steps(eigenvalues) -> np.ndarray:
     ndarray of float, the same shape
     """
     lam = np.asarray(eigenvalues, dtype=complex)
+    if lam.size == 0:
+        return np.zeros(lam.shape)
     flat = lam.ravel()
     out = np.zeros(flat.shape)
     mag = np.abs(flat)

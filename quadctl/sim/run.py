@@ -176,7 +176,10 @@ class ClosedLoop:
             filt = np.linalg.eigvals(form.A)
             if self.jacobians is not None and self.estimator is None:
                 filt = np.concatenate([filt, np.linalg.eigvals(self.linear_part())])
-        eig = np.concatenate([self.eigenvalues, lag, model, est, sched, filt])
+        extra = (lag, model, est, sched, filt)
+        if not any(len(e) for e in extra):  # the loop's own spectrum (a sweep's plain loops: no copies)
+            return plan_step(self.eigenvalues, self.owners, duration, dt, limits=limits)
+        eig = np.concatenate([self.eigenvalues, *extra])
         if limits is not None:
             limits = np.concatenate([limits, max_stable_steps(eig[len(self.eigenvalues):])])
         return plan_step(eig,
