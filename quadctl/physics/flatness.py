@@ -183,16 +183,16 @@ def feedforward_of(paths, params, pointwise=Pointwise, remedies=None) -> list:
         if not flying:
             break
         rows = [order[c][start:start + BLOCK] for c in flying]
-        case = np.repeat(np.arange(len(flying)), [len(r) for r in rows])
+        sizes = [len(r) for r in rows]
+        case = np.repeat(np.arange(len(flying)), sizes)
         got, lost = _continued(balance, z_prev[flying][case], s_prev[flying][case],
                                np.vstack([s[c][r] for c, r in zip(flying, rows)]), params[flying][case], case)
-        for i, (c, r) in enumerate(zip(flying, rows)):
-            mine = case == i
-            if lost[mine].any():
-                out[c] = _refusal(paths[c], r[np.argmax(lost[mine])], None, remedies[c])
+        for c, r, a, b in zip(flying, rows, np.cumsum(sizes) - sizes, np.cumsum(sizes)):  # a path's rows: a:b
+            if lost[a:b].any():
+                out[c] = _refusal(paths[c], r[np.argmax(lost[a:b])], None, remedies[c])
                 continue
-            z[c][r] = got[mine]
-            z_prev[c], s_prev[c] = got[mine][-1], s[c][r[-1]]
+            z[c][r] = got[a:b]
+            z_prev[c], s_prev[c] = got[b - 1], s[c][r[-1]]
     for c in range(k):
         if out[c] is None and n[c]:
             steepness = np.maximum(np.abs(z[c][:, 0]), np.abs(z[c][:, 1]))
@@ -258,6 +258,8 @@ def _steps(jac, G) -> np.ndarray:
     finite = np.isfinite(jac).all(axis=(1, 2))
     with np.errstate(all="ignore"):
         try:
+            if finite.all():
+                return np.linalg.solve(jac, -G[:, :, None])[:, :, 0]
             step[finite] = np.linalg.solve(jac[finite], -G[finite][:, :, None])[:, :, 0]
         except np.linalg.LinAlgError:  # a singular one: each alone, so it fails by itself
             for i in np.flatnonzero(finite):

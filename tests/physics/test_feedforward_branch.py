@@ -225,3 +225,18 @@ def test_paths_solved_together_are_each_ones_own_feedforward_to_the_bit():
     for path, p, got in zip(paths, params, feedforward_of(paths, params)):
         for mine, alone in zip(got, feedforward(path, p)):
             assert np.array_equal(mine, alone), f"Max diff is {np.abs(mine - alone).max():.4E}"
+
+
+def test_a_row_whose_jacobian_is_singular_or_not_finite_fails_alone():
+    """Newton's steps of the rows are each their own 3 x 3 solve: a singular or non-finite Jacobian
+    makes that row's step NaN (it leaves the branch and the continuation retries it), not the others'."""
+    from quadctl.physics.flatness import _steps
+
+    rng = np.random.default_rng(3)
+    jac, G = rng.normal(size=(5, 3, 3)) + 3 * np.eye(3), rng.normal(size=(5, 3))
+    good = _steps(jac, G)
+    assert np.allclose(np.einsum("kij,kj->ki", jac, good), -G, rtol=0, atol=1e-12)
+    jac[1] = np.outer([1.0, 2.0, 3.0], [1.0, 0.0, 1.0])  # rank one: LAPACK refuses it
+    jac[3, 0, 2] = np.inf
+    got = _steps(jac, G)
+    assert np.isnan(got[[1, 3]]).all() and np.array_equal(got[[0, 2, 4]], good[[0, 2, 4]])
