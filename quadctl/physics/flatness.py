@@ -159,6 +159,8 @@ def feedforward_of(paths, params, pointwise=Pointwise, remedies=None) -> list:
     list
         Per path, ``(x (n, 12), u (n, 4))`` or the TrimError :func:`feedforward` raises for it.
     """
+    if not paths:
+        return []
     balance, feed = (pointwise(fn) for fn in _functions())
     k = len(paths)
     remedies = [None] * k if remedies is None else list(remedies)
@@ -272,18 +274,19 @@ def _steps(jac, G) -> np.ndarray:
 
 def _continued(balance, z0, s0, s, params, case=None) -> tuple[np.ndarray, np.ndarray]:
     """The physical roots at the points ``s`` (m, 7), each continued from its start root ``z0`` (m, 3)
-    at ``s0`` (m, 7) (or one (3,) and (7,) for all): Newton from ``z0``; a point where it fails is approached along
-    ``s0 + lam (s - s0)``, ``lam`` from 0 to 1 in steps halved on a failure and doubled on a success,
-    each from the last root reached. ``params``: (8,), or (m, 8) a row's own. ``case`` (m,) ints: the
-    path of each row (default all one): a path one of whose points is lost stops there, the others go on.
+    at ``s0`` (m, 7) (or one (3,) and one (7,) for all): Newton from ``z0``; a point where it fails is
+    approached along ``s0 + lam (s - s0)``, ``lam`` from 0 to 1 in steps halved on a failure and doubled
+    on a success, each from the last root reached. ``params``: (8,), or (m, 8) a row's own. ``case``
+    (m,) ints: the path of each row (default all one): a path one of whose points is lost stops there,
+    the others go on (each row's continuation is its own).
 
     Returns
     -------
     z : (m, 3) ndarray
     lost : (m,) bool ndarray
-        Per path, at most one: the first of its points (in order) whose root left the physical branch
-        on the way (its step fell below :data:`MIN_FRACTION`), among those first to; its other rows are
-        then where they stopped.
+        Per path, at most one: of its points whose root left the physical branch on the way (their
+        step fell below :data:`MIN_FRACTION`) at the first round any did, the first in order; its other
+        rows are then where they stopped.
     """
     m = len(s)
     case = np.zeros(m, dtype=int) if case is None else np.asarray(case)
