@@ -92,6 +92,8 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, remedy=None) -> tup
     to the point's in steps, each solved from the one before (:func:`_continued`). Roll and pitch stay
     within +-90 deg, so they are continuous along the path (never wrapped); yaw is the path's.
 
+    The stack of one of :func:`feedforward_of` (many paths solved together).
+
     Parameters
     ----------
     path : FlatPath
@@ -127,31 +129,87 @@ def feedforward(path: FlatPath, params, pointwise=Pointwise, remedy=None) -> tup
     >>> round(float(x[0, 7]), 4), round(float(u[0, 0]), 4)
     (-0.9386, 0.3942)
     """
+    (got,) = feedforward_of([path], [params], pointwise, [remedy])
+    if isinstance(got, TrimError):
+        raise got
+    return got
+
+
+def feedforward_of(paths, params, pointwise=Pointwise, remedies=None) -> list:
+    """:func:`feedforward` of many paths at once: per path ``(x, u)``, or the :class:`TrimError` refusing it.
+
+    The paths are solved in lockstep: block ``b`` of every path still flying in one :func:`_continued`
+    (each row from its own path's start root and flight condition, with its own ``params``), and the
+    feedforward of every point in one call of the compiled map. Each point's Newton is its own (its
+    iterations, its 3 x 3 solve, the map a point at a time), so a path's rows are those it has alone,
+    to the last bit; a refused path drops out, the others go on.
+
+    Parameters
+    ----------
+    paths : list of FlatPath
+    params : list of (8,) array_like
+        Each path's model parameters (:func:`feedforward`).
+    pointwise : callable
+        As :func:`feedforward`'s.
+    remedies : list of callable or None, optional
+        Each path's ``remedy`` (:func:`feedforward`); default a mission's for all.
+
+    Returns
+    -------
+    list
+        Per path, ``(x (n, 12), u (n, 4))`` or the TrimError :func:`feedforward` raises for it.
+    """
+    if not paths:
+        return []
     balance, feed = (pointwise(fn) for fn in _functions())
-    n = len(path.t)
-    P = path.position
-    s = np.vstack([P[1].T, path.yaw[0][None], P[2].T]).T  # a row a point
-    sd = np.vstack([P[2].T, path.yaw[1][None], P[3].T]).T
-    sdd = np.vstack([P[3].T, path.yaw[2][None], P[4].T]).T
-    params = np.asarray(params, dtype=float)
-    order = np.argsort(path.t, kind="stable")
-    z = np.empty((n, 3))
-    z_prev = np.array([0.0, 0.0, params[MASS] * params[GRAVITY]])  # hover: a root at zero velocity and acceleration
-    s_prev = np.zeros(7)
-    s_prev[3] = s[order[0], 3] if n else 0.0  # hover at the first point's heading
-    for start in range(0, n, BLOCK):
-        rows = order[start:start + BLOCK]
-        got, lost = _continued(balance, z_prev, s_prev, s[rows], params)
-        if lost is not None:
-            _refuse(path, rows[lost], None, remedy)
-        z[rows] = got
-        z_prev, s_prev = got[-1], s[rows[-1]].copy()
-    steepness = np.maximum(np.abs(z[:, 0]), np.abs(z[:, 1]))
-    if n and steepness.max() > MAX_TILT:
-        worst = int(np.argmax(steepness))
-        _refuse(path, worst, z[worst], remedy)
-    x, u = feed(z, s, sd, sdd, P[0], params)
-    return x.reshape(n, N_STATES), u.reshape(n, N_INPUTS)
+    k = len(paths)
+    remedies = [None] * k if remedies is None else list(remedies)
+    params = np.array([np.asarray(p, dtype=float) for p in params]).reshape(k, -1)
+    n = [len(path.t) for path in paths]
+    s, sd, sdd = [], [], []
+    for path in paths:
+        P = path.position
+        s.append(np.vstack([P[1].T, path.yaw[0][None], P[2].T]).T)  # a row a point
+        sd.append(np.vstack([P[2].T, path.yaw[1][None], P[3].T]).T)
+        sdd.append(np.vstack([P[3].T, path.yaw[2][None], P[4].T]).T)
+    order = [np.argsort(path.t, kind="stable") for path in paths]
+    z = [np.empty((m, 3)) for m in n]
+    out: list = [None] * k
+    z_prev = np.zeros((k, 3))
+    z_prev[:, 2] = params[:, MASS] * params[:, GRAVITY]  # hover: a root at zero velocity and acceleration
+    s_prev = np.zeros((k, 7))
+    for c in range(k):
+        s_prev[c, 3] = s[c][order[c][0], 3] if n[c] else 0.0  # hover at the first point's heading
+    for start in range(0, max(n, default=0), BLOCK):
+        flying = [c for c in range(k) if out[c] is None and start < n[c]]
+        if not flying:
+            break
+        rows = [order[c][start:start + BLOCK] for c in flying]
+        sizes = [len(r) for r in rows]
+        case = np.repeat(np.arange(len(flying)), sizes)
+        got, lost = _continued(balance, z_prev[flying][case], s_prev[flying][case],
+                               np.vstack([s[c][r] for c, r in zip(flying, rows)]), params[flying][case], case)
+        for c, r, a, b in zip(flying, rows, np.cumsum(sizes) - sizes, np.cumsum(sizes)):  # a path's rows: a:b
+            if lost[a:b].any():
+                out[c] = _refusal(paths[c], r[np.argmax(lost[a:b])], None, remedies[c])
+                continue
+            z[c][r] = got[a:b]
+            z_prev[c], s_prev[c] = got[b - 1], s[c][r[-1]]
+    for c in range(k):
+        if out[c] is None and n[c]:
+            steepness = np.maximum(np.abs(z[c][:, 0]), np.abs(z[c][:, 1]))
+            if steepness.max() > MAX_TILT:
+                worst = int(np.argmax(steepness))
+                out[c] = _refusal(paths[c], worst, z[c][worst], remedies[c])
+    good = [c for c in range(k) if out[c] is None]
+    if good:
+        sizes = [n[c] for c in good]
+        x, u = feed(*(np.vstack([part[c] for c in good]) for part in (z, s, sd, sdd)),
+                    np.vstack([paths[c].position[0] for c in good]), np.repeat(params[good], sizes, axis=0))
+        ends = np.cumsum(sizes)[:-1]
+        for c, xc, uc in zip(good, np.split(x, ends), np.split(u, ends)):
+            out[c] = (xc.reshape(n[c], N_STATES), uc.reshape(n[c], N_INPUTS))
+    return out
 
 
 BLOCK = 64
@@ -169,7 +227,8 @@ def _physical(z) -> np.ndarray:
 
 
 def _newton(balance, z, s, params) -> tuple[np.ndarray, np.ndarray]:
-    """Newton on ``G(z, s) = 0`` from ``z`` (m, 3) at ``s`` (m, 7), all rows at once: ``(z, converged)``,
+    """Newton on ``G(z, s) = 0`` from ``z`` (m, 3) at ``s`` (m, 7) with ``params`` ((8,), or (m, 8) a row's
+    own), all rows at once, each on its own: ``(z, converged)``,
     ``converged`` (m,) the rows within :data:`NEWTON_TOL` on the physical branch (:func:`_physical`); a
     row that leaves it stops there. A row within the tolerance takes one step more, which leaves it at
     round-off (Newton's convergence is quadratic): its root then does not depend on where Newton
@@ -184,11 +243,9 @@ def _newton(balance, z, s, params) -> tuple[np.ndarray, np.ndarray]:
         idx = np.flatnonzero(going)
         if not idx.size:
             break
-        G, J = balance(z[idx], s[idx], params)
+        G, J = balance(z[idx], s[idx], params[idx] if params.ndim == 2 else params)
         jac = J.reshape(len(idx), 3, 3).transpose(0, 2, 1)  # each point's (3, 3) column-major
-        with np.errstate(all="ignore"):
-            step = np.linalg.solve(jac, -G[:, :, None])[:, :, 0] if np.isfinite(jac).all() else np.full_like(G, np.nan)
-        z[idx] = z[idx] + step  # on a row within the tolerance, one step more: its root to round-off
+        z[idx] = z[idx] + _steps(jac, G)  # on a row within the tolerance, one step more: its root to round-off
         ok = np.abs(G).max(axis=1) <= NEWTON_TOL
         done[idx[ok]] = True
         going[idx[ok]] = False
@@ -196,37 +253,68 @@ def _newton(balance, z, s, params) -> tuple[np.ndarray, np.ndarray]:
     return z, done & _physical(z)
 
 
-def _continued(balance, z0, s0, s, params) -> tuple[np.ndarray, int | None]:
-    """The physical roots at the points ``s`` (m, 7), continued from the root ``z0`` (3,) at ``s0`` (7,):
-    Newton from ``z0``; a point where it fails is approached along ``s0 + lam (s - s0)``, ``lam`` from
-    0 to 1 in steps halved on a failure and doubled on a success, each from the last root reached.
+def _steps(jac, G) -> np.ndarray:
+    """(m, 3): each row's Newton step ``-jac^-1 G`` (``jac`` (m, 3, 3), ``G`` (m, 3)), a matrix at a time
+    as LAPACK solves a stack; NaN where the Jacobian is not finite or is singular (that row alone)."""
+    step = np.full_like(G, np.nan)
+    finite = np.isfinite(jac).all(axis=(1, 2))
+    with np.errstate(all="ignore"):
+        try:
+            if finite.all():
+                return np.linalg.solve(jac, -G[:, :, None])[:, :, 0]
+            step[finite] = np.linalg.solve(jac[finite], -G[finite][:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:  # a singular one: each alone, so it fails by itself
+            for i in np.flatnonzero(finite):
+                try:
+                    step[i] = np.linalg.solve(jac[i], -G[i])
+                except np.linalg.LinAlgError:
+                    pass
+    return step
+
+
+def _continued(balance, z0, s0, s, params, case=None) -> tuple[np.ndarray, np.ndarray]:
+    """The physical roots at the points ``s`` (m, 7), each continued from its start root ``z0`` (m, 3)
+    at ``s0`` (m, 7) (or one (3,) and one (7,) for all): Newton from ``z0``; a point where it fails is
+    approached along ``s0 + lam (s - s0)``, ``lam`` from 0 to 1 in steps halved on a failure and doubled
+    on a success, each from the last root reached. ``params``: (8,), or (m, 8) a row's own. ``case``
+    (m,) ints: the path of each row (default all one): a path one of whose points is lost stops there,
+    the others go on (each row's continuation is its own).
 
     Returns
     -------
     z : (m, 3) ndarray
-    lost : int or None
-        The first point (in order) whose root left the physical branch on the way (its step fell below
-        :data:`MIN_FRACTION`); None: all found.
+    lost : (m,) bool ndarray
+        Per path, at most one: of its points whose root left the physical branch on the way (their
+        step fell below :data:`MIN_FRACTION`) at the first round any did, the first in order; its other
+        rows are then where they stopped.
     """
     m = len(s)
-    z = np.tile(z0, (m, 1))
+    case = np.zeros(m, dtype=int) if case is None else np.asarray(case)
+    z = np.array(np.broadcast_to(z0, (m, 3)), dtype=float)
+    s0 = np.broadcast_to(s0, (m, 7))
     lam, step = np.zeros(m), np.ones(m)
+    lost, going = np.zeros(m, dtype=bool), np.ones(m, dtype=bool)
     while True:
-        active = np.flatnonzero(lam < 1)
+        active = np.flatnonzero(going & (lam < 1))
+        short = active[step[active] < MIN_FRACTION]
+        if short.size:  # each path with a point lost: its first, and the path stops
+            paths, first = np.unique(case[short], return_index=True)
+            lost[short[first]] = True
+            going &= ~np.isin(case, paths)
+            active = active[going[active]]
         if not active.size:
-            return z, None
-        if (step[active] < MIN_FRACTION).any():
-            return z, int(active[step[active] < MIN_FRACTION][0])
+            return z, lost
         trial = np.minimum(lam[active] + step[active], 1.0)
-        got, ok = _newton(balance, z[active], s0 + trial[:, None] * (s[active] - s0), params)
+        got, ok = _newton(balance, z[active], s0[active] + trial[:, None] * (s[active] - s0[active]),
+                          params[active] if np.ndim(params) == 2 else params)
         win, lose = active[ok], active[~ok]
         z[win], lam[win] = got[ok], trial[ok]
         step[win] = np.minimum(2 * step[win], 1.0)
         step[lose] /= 2
 
 
-def _refuse(path: FlatPath, k: int, z, remedy):
-    """Raise the refusal of point ``k``: its time, acceleration and velocity, and the roll and pitch
+def _refusal(path: FlatPath, k: int, z, remedy) -> TrimError:
+    """The refusal of point ``k``: its time, acceleration and velocity, and the roll and pitch
     they need (``z``; None: beyond 90 deg, or no positive thrust), and ``remedy(t)``'s fix."""
     P = path.position
     fix = (remedy(float(path.t[k])) if remedy is not None
@@ -239,8 +327,8 @@ def _refuse(path: FlatPath, k: int, z, remedy):
     else:
         tilt = np.rad2deg(np.arccos(np.clip(np.cos(z[0]) * np.cos(z[1]), -1.0, 1.0)))
         needs = f"roll {np.rad2deg(z[0]):.1f} deg and pitch {np.rad2deg(z[1]):.1f} deg (a tilt of {tilt:.1f} deg)"
-    raise TrimError(f"simulation.reference: {asked}, which needs {needs}, beyond the {limit} of roll or pitch "
-                    f"the Euler-angle model supports; {fix}")
+    return TrimError(f"simulation.reference: {asked}, which needs {needs}, beyond the {limit} of roll or pitch "
+                     f"the Euler-angle model supports; {fix}")
 
 
 def _fmt(v) -> str:
@@ -277,14 +365,52 @@ class FlownReference:
         return feedforward(self.path.flat(t), self.params, mapped, self.path.remedy)  # compiled over the points
 
     def rows(self, j, period: float) -> np.ndarray:
-        """``(len(j), 45)``: the exogenous reference rows of the absolute row indices ``j``."""
-        j = np.asarray(j, dtype=np.int64)
-        ends, where = np.unique(np.concatenate([j, j + 1]), return_inverse=True)  # a row's end: the next's start
-        x, u = self.exact(ends * period)
-        rate = mapped(build_model().f)(x, u, self.params)[0]
-        a, b = where[:len(j)], where[len(j):]
-        return np.hstack([(j * period)[:, None], x[a], rate[a], (rate[b] - rate[a]) / period,
-                          u[a], (u[b] - u[a]) / period])
+        """``(len(j), 45)``: the exogenous reference rows of the absolute row indices ``j`` (the stack of
+        one of :meth:`rows_of`).
+
+        Raises
+        ------
+        TrimError
+            The path needs an attitude beyond the model's (:func:`feedforward`).
+        """
+        (got,) = type(self).rows_of([self], [j], [period])
+        if isinstance(got, TrimError):
+            raise got
+        return got
+
+    @classmethod
+    def rows_of(cls, references, js, periods) -> list:
+        """:meth:`rows` of many references at once, their feedforward solved together
+        (:func:`feedforward_of`) and their model's rates in one call: per reference its rows (the same
+        numbers as its own :meth:`rows`), or the TrimError refusing its path.
+
+        Parameters
+        ----------
+        references : list of FlownReference
+        js : list of (n_k,) int array_like
+            Each reference's absolute row indices.
+        periods : list of float
+            Each reference's exogenous clock (s).
+        """
+        if not references:
+            return []
+        js = [np.asarray(j, dtype=np.int64) for j in js]
+        ends, where = zip(*(np.unique(np.concatenate([j, j + 1]), return_inverse=True) for j in js))
+        flown = feedforward_of([ref.path.flat(e * period) for ref, e, period in zip(references, ends, periods)],
+                               [ref.params for ref in references], mapped, [ref.path.remedy for ref in references])
+        out: list = list(flown)
+        good = [k for k, got in enumerate(flown) if not isinstance(got, TrimError)]
+        if not good:
+            return out
+        sizes = [len(ends[k]) for k in good]
+        rates = mapped(build_model().f)(np.vstack([flown[k][0] for k in good]), np.vstack([flown[k][1] for k in good]),
+                                        np.repeat([references[k].params for k in good], sizes, axis=0))[0]
+        for k, rate in zip(good, np.split(rates, np.cumsum(sizes)[:-1])):
+            (x, u), j, period = flown[k], js[k], periods[k]
+            a, b = where[k][:len(j)], where[k][len(j):]  # a row's end: the next's start
+            out[k] = np.hstack([(j * period)[:, None], x[a], rate[a], (rate[b] - rate[a]) / period,
+                                u[a], (u[b] - u[a]) / period])
+        return out
 
     def flown(self, rows: np.ndarray, t) -> tuple[np.ndarray, np.ndarray]:
         """((n, 12), (n, 4)): the reference the law used at times ``t`` under their ``rows``."""

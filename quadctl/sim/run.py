@@ -28,6 +28,7 @@ import numpy as np
 
 from quadctl.design import linear_loop
 from quadctl.design.gain_table import scheduling_value, scheduling_values
+from quadctl.errors import TrimError
 from quadctl.layout import N_STATES, PRODUCTS, STATE_INDEX, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec, NoiseStream, exogenous_period
@@ -523,19 +524,49 @@ class ExoStream:
         return np.floor(np.asarray(steps, dtype=float) * dt / self.period + 1e-9).astype(np.int64)
 
     def samples(self, first: int, last: int) -> np.ndarray:
-        """Rows ``first .. last`` (inclusive); ``first`` never goes back before an earlier call's."""
-        parts = []
-        if self.noise is not None:
-            parts.append(self.noise.samples(first, last))
-        if self.wind is not None:
-            parts.append(self.wind.samples(first, last))
-        if self.reference is not None:
-            parts.append(self.reference.rows(np.arange(first, last + 1), self.period))
-        return np.hstack(parts)
+        """Rows ``first .. last`` (inclusive); ``first`` never goes back before an earlier call's (the stack
+        of one of :meth:`samples_of`).
+
+        Raises
+        ------
+        TrimError
+            The reference's path needs an attitude beyond the model's.
+        """
+        (got,) = ExoStream.samples_of([self], [(first, last)])
+        if isinstance(got, TrimError):
+            raise got
+        return got
+
+    @staticmethod
+    def samples_of(streams, spans) -> list:
+        """:meth:`samples` of many streams (``spans``: each one's ``(first, last)``), their references'
+        rows tabulated together (:meth:`quadctl.physics.flatness.FlownReference.rows_of`, the rows each
+        has alone): per stream its rows, or the TrimError refusing its reference."""
+        parts: list = [[] for _ in streams]
+        flying: dict[type, list] = {}  # the references' kind -> the streams that fly one
+        for k, (stream, (first, last)) in enumerate(zip(streams, spans)):
+            if stream.noise is not None:
+                parts[k].append(stream.noise.samples(first, last))
+            if stream.wind is not None:
+                parts[k].append(stream.wind.samples(first, last))
+            if stream.reference is not None:
+                flying.setdefault(type(stream.reference), []).append(k)
+        for kind, members in flying.items():
+            tabulated = kind.rows_of([streams[k].reference for k in members],
+                                     [np.arange(spans[k][0], spans[k][1] + 1) for k in members],
+                                     [streams[k].period for k in members])
+            for k, got in zip(members, tabulated):
+                parts[k] = got if isinstance(got, TrimError) else [*parts[k], got]
+        return [part if isinstance(part, TrimError) else np.hstack(part) for part in parts]
+
+    def span(self, k0: int, m: int, dt: float) -> tuple[int, int]:
+        """(first, last): the rows covering RK4 steps ``k0 .. k0 + m - 1`` of ``dt``."""
+        first, last = (int(j) for j in self.index([k0, k0 + max(m, 1) - 1], dt))
+        return first, last
 
     def rows(self, k0: int, m: int, dt: float) -> tuple[int, np.ndarray]:
         """(first row index, rows) covering RK4 steps ``k0 .. k0 + m - 1`` of ``dt``."""
-        first, last = (int(j) for j in self.index([k0, k0 + max(m, 1) - 1], dt))
+        first, last = self.span(k0, m, dt)
         return first, self.samples(first, last)
 
 

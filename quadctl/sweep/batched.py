@@ -8,7 +8,9 @@ whose solve misses its check goes through the one-case design, which names the r
 lanes, by either integrator; what it adds to the one-case path is only what pays across cases: the
 chunk's continuous closed-loop spectra and their RK4 limits computed at once, the per-plant caches
 (Kalman filter, held step plan, lane spec and bounds per loop structure), the noise realizations
-the cases of one seed share (:data:`REALIZATION_BYTES`), and the grouping. The step plan is the
+the cases of one seed share (:data:`REALIZATION_BYTES`), the reference rows of the cases that fly
+one drawn together (:meth:`quadctl.sim.run.ExoStream.samples_of`: their feedforward solved in
+lockstep, each case's rows those it has alone), and the grouping. The step plan is the
 loop's own (:meth:`quadctl.sim.run.ClosedLoop.plan`; ETDRK4:
 :func:`quadctl.sim.run.exponential_plan`), and the runs are made by the simulation's one stack
 builder: RK4's cases by :func:`quadctl.sim.run.rk4_cases` (as :func:`quadctl.sim.run.stack_of`
@@ -269,6 +271,7 @@ def loops_of(live, method: str = "rk4") -> list:
             owner_of = live[j][0].setup.state_owner
             eig_of[j] = (eigs[i], [owner_of.get(names[r], "unassigned") for r in largest[i]], limits[i])
     trims: dict[tuple, QuadctlError | None] = {}  # (actuators, u_trim) by identity -> check_trim's verdict
+    flying: list[tuple] = []  # (case, its ExoStream, its rows' span) of the cases that fly a reference
     starts: dict[tuple, tuple] = {}  # (initial offset, x_trim) by identity -> the initial state, its bytes
     for j, (prep, des) in enumerate(live):
         setup, linear = prep.setup, prep.plant.linear
@@ -337,12 +340,15 @@ def loops_of(live, method: str = "rk4") -> list:
                 first, exo, period = _realized[key]
             else:
                 stream = ExoStream(setup.noise, setup.wind, exo_rate, flown)
-                # a reference's rows through the final step's (the lanes measure the final record
-                # against the reference there, as simulate's x_ref does)
-                first, exo, period = rows = (*stream.rows(0, plan.n_steps + (flown is not None), plan.dt),
-                                             stream.period)
-                if key is not None:
-                    _keep_realization(key, rows)
+                period = stream.period
+                if flown is not None:  # drawn below with the chunk's other references (one feedforward solve)
+                    # through the final step's row (the lanes measure the final record against the
+                    # reference there, as simulate's x_ref does)
+                    flying.append((j, stream, stream.span(0, plan.n_steps + 1, plan.dt)))
+                else:
+                    first, exo = stream.rows(0, plan.n_steps, plan.dt)
+                    if key is not None:
+                        _keep_realization(key, (first, exo, period))
         start_key = (id(setup.initial_offset), id(linear.x_trim))
         if start_key not in starts:
             start = setup.initial_state(linear.x_trim)
@@ -350,6 +356,9 @@ def loops_of(live, method: str = "rk4") -> list:
         start, start_bytes = starts[start_key]
         out[j] = LaneJob(spec, plan, loop, start, lo, hi, setup.max_samples, exo, first, period,
                          shared=(shape, start_bytes))
+    drawn = ExoStream.samples_of([stream for _, stream, _ in flying], [span for *_, span in flying])
+    for (j, _, (first, _)), got in zip(flying, drawn):  # a refused reference: that case's error alone
+        out[j] = got if isinstance(got, QuadctlError) else replace(out[j], exo=got, exo_first=first)
     return out
 
 

@@ -158,3 +158,85 @@ def test_a_references_rows_do_not_depend_on_how_they_are_tabulated():
     whole = flown.rows(j, 0.005)
     chunked = np.vstack([flown.rows(j[k:k + 7], 0.005) for k in range(0, len(j), 7)])
     assert np.abs(chunked - whole).max() < 1e-11, np.abs(chunked - whole).max()
+
+
+def _square_at(speed):
+    """The bundled square mission flown at ``speed`` m/s (its own feedforward model)."""
+    from quadctl import config
+    from quadctl.config import overrides
+    from quadctl.setup import setup_of
+
+    return setup_of(overrides.load(config.bundled("square"), [f"simulation.reference.speed={speed}"])).flown_reference
+
+
+def _lockstep_cases():
+    """(reference, rows, period): missions and setpoints at several speeds, clocks, lengths and vehicles,
+    with refusals of both kinds (a point lost to the continuation, the steepest point beyond the
+    model's tilt) among them."""
+    from quadctl.physics.flatness import FlownReference
+
+    heavy = Vehicle(mass=0.09, drag=(0.3, 0.25, 0.05)).vector()
+    refused = [FlownReference(trajectory.mission_reference([{"position": p}], [0, 0, -1], 0.0, 9.0, 0.05,
+                                                          "minimum-jerk"), VEHICLE.vector())
+               for p in ([0.0, 0.0, 5.0], [5.0, 0.0, -1.0], [1.0, 0.0, 4.0], [0.0, 0.0, 3.0])]
+    # down at 9 m/s: lost in the first block, each its own way; 5 m north: beyond 80 deg
+    return [(_square_at(2.0), np.arange(3000), 0.005),
+            (refused[0], np.arange(500), 0.005),
+            (_square_at(2.9), np.arange(40, 700), 0.01),
+            (FlownReference(_fast_leg(), heavy), np.arange(650), 0.005),
+            (refused[1], np.arange(500), 0.005),
+            (refused[2], np.arange(400), 0.005),
+            (FlownReference(_fast_setpoints(), VEHICLE.vector()), np.arange(130), 0.005),
+            (refused[3], np.arange(300), 0.005),
+            (FlownReference(_fast_leg(), VEHICLE.vector()), np.arange(0, 600, 3), 0.004)]
+
+
+def test_references_tabulated_together_are_each_ones_own_rows_to_the_bit():
+    """A sweep chunk solves its cases' feedforward in lockstep (block b of every path in one Newton
+    continuation, each row from its own path's start root): each point's Newton is its own (its
+    iterations, its 3 x 3 solve, the compiled map a point at a time), so every reference's rows are
+    those it has alone, bit for bit, and a refused one is refused alone, with its own message."""
+    from quadctl.physics.flatness import FlownReference
+
+    cases = _lockstep_cases()
+    together = FlownReference.rows_of(*zip(*cases))
+    refused = 0
+    for (ref, j, period), got in zip(cases, together):
+        try:
+            alone = ref.rows(j, period)
+        except TrimError as exc:
+            assert isinstance(got, TrimError) and str(got) == str(exc), (got, exc)
+            refused += 1
+            continue
+        assert isinstance(got, np.ndarray) and np.array_equal(got, alone), \
+            f"Max diff is {np.abs(got - alone).max():.4E}"
+    assert refused == 4
+
+
+def test_paths_solved_together_are_each_ones_own_feedforward_to_the_bit():
+    """:func:`feedforward_of` on paths of any length and time order (one reversed), with their own
+    vehicles: each path's state and input are its :func:`feedforward` alone, bit for bit."""
+    from quadctl.physics.flatness import feedforward_of
+
+    t = np.arange(0.0, 2.5, 0.005)
+    heavy = Vehicle(mass=0.09).vector()
+    paths = [_fast_leg().flat(t[::-1]), _fast_setpoints().flat(t[:97]), _fast_leg().flat(t[5:300])]
+    params = [VEHICLE.vector(), heavy, heavy]
+    for path, p, got in zip(paths, params, feedforward_of(paths, params)):
+        for mine, alone in zip(got, feedforward(path, p)):
+            assert np.array_equal(mine, alone), f"Max diff is {np.abs(mine - alone).max():.4E}"
+
+
+def test_a_row_whose_jacobian_is_singular_or_not_finite_fails_alone():
+    """Newton's steps of the rows are each their own 3 x 3 solve: a singular or non-finite Jacobian
+    makes that row's step NaN (it leaves the branch and the continuation retries it), not the others'."""
+    from quadctl.physics.flatness import _steps
+
+    rng = np.random.default_rng(3)
+    jac, G = rng.normal(size=(5, 3, 3)) + 3 * np.eye(3), rng.normal(size=(5, 3))
+    good = _steps(jac, G)
+    assert np.allclose(np.einsum("kij,kj->ki", jac, good), -G, rtol=0, atol=1e-12)
+    jac[1] = np.outer([1.0, 2.0, 3.0], [1.0, 0.0, 1.0])  # rank one: LAPACK refuses it
+    jac[3, 0, 2] = np.inf
+    got = _steps(jac, G)
+    assert np.isnan(got[[1, 3]]).all() and np.array_equal(got[[0, 2, 4]], good[[0, 2, 4]])

@@ -149,11 +149,13 @@ def test_the_feedforward_tracks_a_flat_reference_to_the_tabulation_error(square)
     attitude = [STATE_INDEX[s] for s in ("phi", "theta", "p", "q", "r")]
 
     class SetpointOnly(FlownReference):
-        def rows(self, j, period):
-            out = super().rows(j, period)
-            for block in range(3):  # x_ref, its rate and curvature: the trim's attitude and rates
-                out[:, [1 + block * 12 + i for i in attitude]] = 0.0 if block else loop.x_trim[attitude]
-            out[:, -8:] = np.r_[loop.u_trim, np.zeros(4)]
+        @classmethod
+        def rows_of(cls, references, js, periods):  # every reference row is tabulated here
+            out = super().rows_of(references, js, periods)
+            for rows in out:
+                for block in range(3):  # x_ref, its rate and curvature: the trim's attitude and rates
+                    rows[:, [1 + block * 12 + i for i in attitude]] = 0.0 if block else loop.x_trim[attitude]
+                rows[:, -8:] = np.r_[loop.u_trim, np.zeros(4)]
             return out
 
     def peak(ref):

@@ -739,6 +739,35 @@ def test_set_makes_the_section_its_parameters_vary(square_without_mission):
     assert result.rows[0]["tracking.rms"] < result.rows[1]["tracking.rms"]  # slower flies closer
 
 
+def test_a_case_whose_mission_is_refused_is_its_own_row_and_the_others_fly_as_without_it(square_without_mission):
+    """A chunk tabulates its cases' references together: a speed no attitude flies is that case's row,
+    with the reason simulate gives it, and the other cases' rows are those they have without it."""
+    from quadctl.config import overrides
+    from quadctl.errors import TrimError
+    from quadctl.setup import setup_of
+    from quadctl.sim.run import ExoStream
+
+    def rows(speeds):
+        spec = sweep.from_dict({"set": {"simulation.reference": MISSION, "simulation.duration": 1.0},
+                                "parameters": {"simulation.reference.speed": speeds}},
+                               square_without_mission, "s.yaml")
+        return [{k: v for k, v in row.items() if k not in ("case", "wall_time")}
+                for row in sweep.run(square_without_mission, spec, jobs=1).rows]
+
+    alone, together = rows([0.5, 1.0]), rows([0.5, 40.0, 1.0])
+    refused = together.pop(1)
+    setup = setup_of(overrides.load(config.bundled("square"), [f"simulation.reference={json.dumps(MISSION)}",
+                                                               "simulation.duration=1",
+                                                               "simulation.reference.speed=40"]))
+    loop = pipeline.Stages(setup).loop
+    plan = loop.plan(setup.duration, setup.dt)
+    with pytest.raises(TrimError) as simulated:  # the rows simulate draws (through the final step's)
+        ExoStream(None, None, loop.rate or setup.timing.rate, setup.flown_reference).rows(0, plan.n_steps + 1,
+                                                                                            plan.dt)
+    assert refused["status"] == "failed" and refused["reason"] == str(simulated.value), refused
+    assert together == alone
+
+
 def test_a_mission_set_gives_brings_its_columns_where_only_the_cases_make_it_valid(square_without_mission):
     """A waypoint 200 m out is past what the config's own 15 s can reach (MAX_REACH), not the cases'
     30 and 60 s: the mission's columns and gates still come with it."""
