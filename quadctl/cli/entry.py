@@ -1,13 +1,17 @@
 """The console script: the app imported inside a guard, so Ctrl-C at any moment ends with one line.
 
 A Ctrl-C that lands while Python imports typer and the commands (the first ~0.2 s) would otherwise
-print a traceback from deep inside an import.
+print a traceback from deep inside an import; one inside a compiled module's initialization would
+leave it half made (:func:`extensions_initialize_whole`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import gc
+import signal
 import sys
+import threading
 
 
 def main() -> None:
@@ -19,11 +23,61 @@ def main() -> None:
     files still close.
     """
     try:
-        from quadctl.cli.app import app
+        with extensions_initialize_whole():
+            from quadctl.cli.app import app
 
-        app(prog_name="quadctl")
+            app(prog_name="quadctl")
     except KeyboardInterrupt:
         sys.stderr.write("quadctl: error: interrupted\n")
         sys.exit(130)
     finally:
         gc.freeze()
+
+
+@contextlib.contextmanager
+def extensions_initialize_whole():
+    """Compiled extension modules imported in the block initialize whole: a Ctrl-C that lands in one's
+    initialization is taken when it ends, one that lands elsewhere at once.
+
+    The commands import much late (a sweep imports matplotlib while its workers compute). Interrupted
+    inside the initialization of a compiled module (pybind11's, matplotlib's: it runs Python, where the
+    KeyboardInterrupt lands), the module was left half made: the command ended in "internal error
+    ImportError: initialization failed" instead of "interrupted". An initialization takes
+    milliseconds; the Python around it stays interruptible, so a Ctrl-C is still answered at once.
+    Only where Python's own handler takes SIGINT, in the main thread (a sweep's worker ignores it, and
+    keeps ignoring it).
+    """
+    from importlib.machinery import ExtensionFileLoader
+
+    create, execute = ExtensionFileLoader.create_module, ExtensionFileLoader.exec_module
+
+    def create_whole(self, spec):
+        with _ctrl_c_after():
+            return create(self, spec)
+
+    def execute_whole(self, module):
+        with _ctrl_c_after():
+            return execute(self, module)
+
+    ExtensionFileLoader.create_module, ExtensionFileLoader.exec_module = create_whole, execute_whole
+    try:
+        yield
+    finally:
+        ExtensionFileLoader.create_module, ExtensionFileLoader.exec_module = create, execute
+
+
+@contextlib.contextmanager
+def _ctrl_c_after():
+    """A Ctrl-C while the block runs is taken when it ends, where Python's handler would take it."""
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield
+        return
+    caught: list = []
+    signal.signal(signal.SIGINT, lambda *_: caught.append(True))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if caught:
+        raise KeyboardInterrupt

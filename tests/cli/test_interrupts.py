@@ -97,3 +97,65 @@ def test_ctrl_c_while_the_commands_import_prints_one_line_not_a_traceback():
             "main()\n")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert res.returncode == 130 and res.stderr == "quadctl: error: interrupted\n", res.stderr
+
+
+
+
+def test_ctrl_c_in_a_compiled_modules_initialization_is_taken_after_it(monkeypatch):
+    """The commands import much late (a sweep imports matplotlib while its workers compute): a Ctrl-C
+    inside the initialization of a compiled module (pybind11's: it runs Python, where the
+    KeyboardInterrupt lands) waits for it to end (interrupted, the module was left half made: "internal
+    error ImportError: initialization failed"); one in the Python around it is taken at once; a process
+    that ignores SIGINT (a sweep's worker) keeps ignoring it."""
+    from importlib.machinery import ExtensionFileLoader
+
+    from quadctl.cli.entry import extensions_initialize_whole
+
+    done = []
+
+    def initialization(self, spec):  # a module's init that calls back into Python
+        os.kill(os.getpid(), signal.SIGINT)
+        done.append(sum(range(100_000)))  # bytecode after the signal, where its KeyboardInterrupt would land
+
+    monkeypatch.setattr(ExtensionFileLoader, "create_module", initialization)
+    with pytest.raises(KeyboardInterrupt):
+        with extensions_initialize_whole():
+            ExtensionFileLoader.create_module(None, None)
+            done.append("the Python after it")  # not reached: the Ctrl-C is taken when the init ends
+    assert done == [sum(range(100_000))]
+    assert ExtensionFileLoader.create_module is initialization  # the loader as it was
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    with pytest.raises(KeyboardInterrupt):
+        with extensions_initialize_whole():
+            os.kill(os.getpid(), signal.SIGINT)
+            sum(range(100_000))
+            done.append("the Python after the signal")  # not reached: taken at once
+    assert done == [sum(range(100_000))]
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with extensions_initialize_whole():
+            ExtensionFileLoader.create_module(None, None)  # the signal ignored, as before
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_the_console_script_initializes_compiled_modules_whole():
+    """A Ctrl-C inside the initialization of a compiled module the commands import is taken after it:
+    the module is whole, the command ends with one line and 130."""
+    code = ("import os, signal, sys\n"
+            "from quadctl.cli.entry import main\n"
+            "from importlib.machinery import ExtensionFileLoader\n"
+            "real = ExtensionFileLoader.create_module\n"
+            "def initialization(self, spec):  # the first compiled module: a Ctrl-C in its init\n"
+            "    ExtensionFileLoader.create_module = real\n"
+            "    os.kill(os.getpid(), signal.SIGINT)\n"
+            "    module = real(self, spec)\n"
+            "    sys.stderr.write(f'whole: {spec.name}\\n')\n"
+            "    return module\n"
+            "ExtensionFileLoader.create_module = initialization\n"
+            "sys.argv = ['quadctl', 'configs']\n"
+            "main()\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 130 and res.stderr.startswith("whole: "), res.stderr
+    assert res.stderr.endswith("quadctl: error: interrupted\n") and "Traceback" not in res.stderr
