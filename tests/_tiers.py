@@ -24,10 +24,9 @@ KEEP = ("tests/docs/test_doc_pages.py::test_page_block[README.md:",
         "tests/house/test_reference_runs.py::",
         "tests/outputs/test_report.py::test_the_markdown_twin_shows_the_figures_beside_it[forward]",  # one whole report
         "tests/docs/test_guide_pages.py::test_guide_block[docs/guide/export.md:L199",  # writes the file L250 reads
-        # a sweep's Ctrl-C within a second: on a 2-core machine loaded to 4-6 it has ended 2 to 4 times in 30
-        # by the signal (-2) or a fatal error at exit (-6) after its message instead of exit 130; only when the
-        # Ctrl-C lands while the sweep imports matplotlib for its figure (never in 30 with --no-plot); on an
-        # idle machine it has passed every run
+        # a sweep's Ctrl-C within a second, on a loaded machine too: a Ctrl-C that cut the figure's import short
+        # had ended 2 to 4 runs in 30 by -2 or -6 at exit on a 2-core machine loaded to 6 (quadctl.cli.entry's
+        # import_cut_short: none in 30 since)
         "tests/cli/test_interrupts.py::test_ctrl_c_stops_a_sweep_within_a_second_and_its_workers_with_it")
 HEADER = f"""# Tests of {THRESHOLD} s or more (tests/_tiers.py): marked slow by conftest.py, run by `pytest -m slow`.
 # Generated from a timed run of the whole suite: python tests/_tiers.py JUNIT.xml

@@ -105,7 +105,13 @@ def sweep_progress(quiet: bool = False, meanwhile: Callable[[], object] | None =
             return None
         asked.append(True)
         if meanwhile is not None:
-            meanwhile()
+            try:
+                meanwhile()
+            except KeyboardInterrupt:  # what it imported may be half made: the process leaves at once
+                from quadctl.cli.entry import import_cut_short
+
+                import_cut_short(getattr(meanwhile, "__name__", "meanwhile"))
+                raise
         from quadctl.cli.render import err
 
         if quiet or not err.is_terminal:  # a pipe or a CI log gets the summary line only
