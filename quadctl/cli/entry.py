@@ -54,13 +54,16 @@ def import_cut_short(what: str) -> None:
 
 
 def _leave(code) -> None:
-    """Exit with ``code``: after an import cut short, at once (:func:`import_cut_short`)."""
+    """Exit with ``code`` (as ``sys.exit`` takes it): after an import cut short, at once
+    (:func:`import_cut_short`)."""
     if not _CUT_SHORT:
         sys.exit(code)
+    if code is not None and not isinstance(code, int):  # a message: sys.exit prints it and exits 1
+        sys.stderr.write(f"{code}\n")
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
-    os._exit(code if isinstance(code, int) else 1)
+    os._exit(0 if code is None else code if isinstance(code, int) else 1)
 
 
 @contextlib.contextmanager
