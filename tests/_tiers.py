@@ -25,8 +25,8 @@ KEEP = ("tests/docs/test_doc_pages.py::test_page_block[README.md:",
         "tests/outputs/test_report.py::test_the_markdown_twin_shows_the_figures_beside_it[forward]",  # one whole report
         "tests/docs/test_guide_pages.py::test_guide_block[docs/guide/export.md:L199",  # writes the file L250 reads
         # a sweep's Ctrl-C within a second, on a loaded machine too: a Ctrl-C that cut the figure's import short
-        # had ended 2 to 4 runs in 30 by -2 or -6 at exit on a 2-core machine loaded to 6 (quadctl.cli.entry's
-        # import_cut_short: none in 30 since)
+        # had ended 2 to 4 runs in 30 by -2 or -6 at exit on a 2-core machine loaded to 6 (quadctl.cli.progress's
+        # IMPORTS_CUT_SHORT: none in 30 since)
         "tests/cli/test_interrupts.py::test_ctrl_c_stops_a_sweep_within_a_second_and_its_workers_with_it")
 HEADER = f"""# Tests of {THRESHOLD} s or more (tests/_tiers.py): marked slow by conftest.py, run by `pytest -m slow`.
 # Generated from a timed run of the whole suite: python tests/_tiers.py JUNIT.xml

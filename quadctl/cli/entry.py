@@ -14,9 +14,6 @@ import signal
 import sys
 import threading
 
-_CUT_SHORT: list[str] = []
-"""The imports a Ctrl-C cut short in this process (:func:`import_cut_short`)."""
-
 
 def main() -> None:
     """Console-script entry point (``quadctl``, ``python -m quadctl``).
@@ -24,8 +21,9 @@ def main() -> None:
     However the command ends, the objects still alive are then left out of the garbage collections
     Python runs as it exits (``gc.freeze``): the process ends anyway, and those collections walked
     every object the imports made (NumPy, pydantic's schemas, rich, typer). Exit handlers still run,
-    files still close; but after a Ctrl-C that cut an import short (:func:`import_cut_short`), once
-    the command's own cleanup is done, the process leaves at once.
+    files still close; but after a Ctrl-C that cut an import short
+    (:data:`quadctl.cli.progress.IMPORTS_CUT_SHORT`), once the command's own cleanup is done, the
+    process leaves at once.
     """
     try:
         with extensions_initialize_whole():
@@ -36,27 +34,24 @@ def main() -> None:
         sys.stderr.write("quadctl: error: interrupted\n")
         _leave(130)
     except SystemExit as exc:
-        if _CUT_SHORT:
+        if _cut_short():
             _leave(exc.code)
         raise
     finally:
         gc.freeze()
 
 
-def import_cut_short(what: str) -> None:
-    """Say that a Ctrl-C cut the import of ``what`` short (matplotlib's, which a sweep makes while its
-    workers compute). What it left half made can kill the interpreter as it exits: after its one line,
-    a sweep so interrupted ended by a fatal error (exit -6) or by the signal (-2) 2 to 4 times in 30 on
-    a machine loaded to 6. The command still cleans up (its workers stopped, its run folder closed,
-    its files written); then :func:`main` leaves without the interpreter's exit (``os._exit``), its
-    output flushed."""
-    _CUT_SHORT.append(what)
+def _cut_short() -> list[str]:
+    """The imports a Ctrl-C cut short in this process (:data:`quadctl.cli.progress.IMPORTS_CUT_SHORT`;
+    none where that module never loaded)."""
+    progress = sys.modules.get("quadctl.cli.progress")
+    return progress.IMPORTS_CUT_SHORT if progress is not None else []
 
 
 def _leave(code) -> None:
     """Exit with ``code`` (as ``sys.exit`` takes it): after an import cut short, at once
-    (:func:`import_cut_short`)."""
-    if not _CUT_SHORT:
+    (:func:`_cut_short`)."""
+    if not _cut_short():
         sys.exit(code)
     if code is not None and not isinstance(code, int):  # a message: sys.exit prints it and exits 1
         sys.stderr.write(f"{code}\n")

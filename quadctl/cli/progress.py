@@ -8,6 +8,13 @@ import contextlib
 import time
 from collections.abc import Callable
 
+IMPORTS_CUT_SHORT: list[str] = []
+"""The imports a Ctrl-C cut short in this process (the figure's, which a sweep makes while its workers
+compute: :func:`sweep_progress`). What such an import left half made can kill the interpreter as it
+exits: after its one line, a sweep so interrupted ended by a fatal error (exit -6) or by the signal
+(-2) 2 to 4 times in 30 on a machine loaded to 6. The command still cleans up (its workers stopped,
+its run folder closed, its files written); then :func:`quadctl.cli.entry.main` leaves without the
+interpreter's exit (``os._exit``), its output flushed."""
 SHOWN_FROM = 2.0
 """s of wall time a run is projected to take (from its first chunks) before a bar is drawn: a
 shorter run ends before a bar would tell anything."""
@@ -108,9 +115,7 @@ def sweep_progress(quiet: bool = False, meanwhile: Callable[[], object] | None =
             try:
                 meanwhile()
             except KeyboardInterrupt:  # what it imported may be half made: the process leaves at once
-                from quadctl.cli.entry import import_cut_short
-
-                import_cut_short(getattr(meanwhile, "__name__", "meanwhile"))
+                IMPORTS_CUT_SHORT.append(getattr(meanwhile, "__name__", "meanwhile"))
                 raise
         from quadctl.cli.render import err
 
