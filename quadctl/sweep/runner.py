@@ -313,9 +313,8 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[Iterator[Chunk
             if stopped:  # Ctrl-C or an error: stop the running chunks now, not when they end
                 for process in list(getattr(pool, "_processes", {}).values()):
                     process.terminate()
-            # every result in: the workers exit on their own while the caller goes on (not waiting
-            # for them took ~8 ms off a 16-case mambo-200hz sweep on two workers, 43-49 ms against
-            # 50-67); stopped: gone before this returns
+            # every result in: the workers exit on their own while the caller goes on (writing the
+            # rows, the figure); stopped: gone before this returns
             pool.shutdown(wait=stopped, cancel_futures=True)
 
 
