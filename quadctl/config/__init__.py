@@ -11,6 +11,7 @@ name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``
 - :mod:`~quadctl.config.schema`: the sections (frozen pydantic models, limits and units), :class:`Config`
 - :mod:`~quadctl.config.weights`: the rules an LQR weight (Q or R) obeys, for one weight or many
 - :mod:`~quadctl.config.describe`: a pydantic ``ValidationError`` as the one line a user reads
+- :mod:`~quadctl.config.vehicle_checks`: a vehicle that can exist: its inertia and its rotors
 - :mod:`~quadctl.config.checks`: the checks after the schema: rules across fields, bounds in context
 - :mod:`~quadctl.config.render`: the schema shown to people and editors (``quadctl configs --show``)
 - :mod:`~quadctl.config.kinds`: what a file that fails is instead (a sweep file, an artifact)
@@ -18,7 +19,6 @@ name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``
 """
 
 from quadctl.config.checks import DELAY_SAMPLES_TOL as DELAY_SAMPLES_TOL
-from quadctl.config.checks import INERTIA_TRIANGLE_RTOL as INERTIA_TRIANGLE_RTOL
 from quadctl.config.checks import MAX_DURATION as MAX_DURATION
 from quadctl.config.checks import MAX_DURATION_ENV as MAX_DURATION_ENV
 from quadctl.config.checks import MAX_OFFSET as MAX_OFFSET
@@ -101,6 +101,7 @@ from quadctl.config.schema import default_at as default_at
 from quadctl.config.schema import first_model as first_model
 from quadctl.config.schema import inertia_parts as inertia_parts
 from quadctl.config.schema import section_model as section_model
+from quadctl.config.vehicle_checks import INERTIA_TRIANGLE_RTOL as INERTIA_TRIANGLE_RTOL
 from quadctl.config.weights import DEFINITENESS_RTOL as DEFINITENESS_RTOL
 from quadctl.config.weights import SYMMETRY_RTOL as SYMMETRY_RTOL
 from quadctl.config.weights import WEIGHT_RANGE as WEIGHT_RANGE

@@ -91,7 +91,7 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
         motors, against the mass), the thrust-to-weight ratio, and Jzz below Jxx or Jyy; a ``note``
         when a steady wind is simulated but the trim is in still air (``trim.wind: false``); a
         ``warning`` for a controller rate below any attitude loop's (kHz given as Hz). An
-        impossible inertia is refused on load instead (see ``quadctl.config.checks._check_inertia``).
+        impossible inertia is refused on load instead (see ``quadctl.config.vehicle_checks.check_inertia``).
 
     Examples
     --------
