@@ -883,3 +883,21 @@ def test_default_chunks_are_whole_lane_groups_the_workers_finish_together(n, wor
         load[load.index(min(load))] += s
     assert max(load) - min(load) <= LANES or len(sizes) < workers
     assert len(sizes) >= min(2 * workers, math.ceil(n / LANES))  # about two tasks a worker, where there are cases
+
+
+def test_distinct_rows_number_each_value_from_its_first_row():
+    """The design stage's dedup: each distinct row once, numbered in order of first appearance, the
+    first row of each; every row maps back to its own value (ints as well as floats)."""
+    from quadctl.sweep.batched import _distinct_rows
+
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=(5, 7))
+    order = rng.integers(0, 5, size=40)
+    M = values[order]
+    first, inverse = _distinct_rows(M)
+    assert np.array_equal(M[first][inverse], M)
+    assert np.array_equal(first, [int(np.flatnonzero(order == v)[0]) for v in dict.fromkeys(order.tolist())])
+    assert np.array_equal(inverse, [list(dict.fromkeys(order.tolist())).index(v) for v in order.tolist()])
+    slots = np.array([[0, 1], [2, 1], [0, 1], [0, 0]])
+    first, inverse = _distinct_rows(slots)
+    assert first.tolist() == [0, 1, 3] and inverse.tolist() == [0, 1, 0, 2]
