@@ -7,6 +7,7 @@ how a sweep is fast are in the docs, docs/guide/sweeps.md.
 
 Modules, each importing only those above it:
 
+- :mod:`~quadctl.sweep.config_tree`: a config as a mapping, values read and put in by key path
 - :mod:`~quadctl.sweep.gates`: the metrics of a case, the gates on them, verdict and ranking
 - :mod:`~quadctl.sweep.spec`: the sweep file (parameters, values, gates) parsed and checked
 - :mod:`~quadctl.sweep.batched`: designs, verdicts and lane simulations of many cases at once
@@ -16,11 +17,12 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.sweep.store`: the run directory (journal, ``--resume``) and :func:`execute`
 """
 
+from quadctl.sweep.config_tree import assign
 from quadctl.sweep.evaluate import MC_POINTS, ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import Gate, judge, margin, metric_columns, regulated_states
 from quadctl.sweep.outputs import MonteCarloBands, montecarlo_bands, summarize, to_csv
 from quadctl.sweep.runner import SweepResult, run
-from quadctl.sweep.spec import Case, Parameter, SweepSpec, assign, from_dict, load, parse
+from quadctl.sweep.spec import Case, Parameter, SweepSpec, from_dict, load, parse
 from quadctl.sweep.store import PARTS, SweepOutcome, SweepStore, execute
 
 __all__ = [

@@ -32,8 +32,8 @@ from quadctl.sim.lane_metrics import row_values, tracking
 from quadctl.sim.run import verdict
 from quadctl.sweep import batched
 from quadctl.sweep.batched import CaseDesign, core_extremes
+from quadctl.sweep.config_tree import assign, typed_like
 from quadctl.sweep.gates import MARGIN_COLUMNS, gated_margins, judge, margin_columns, tracking_columns
-from quadctl.sweep.spec import assign, typed_like
 from quadctl.threads import one_thread
 
 MC_POINTS = 201

@@ -20,9 +20,10 @@ import numpy as np
 
 from quadctl.errors import SweepError
 from quadctl.sim.engine import LANES
+from quadctl.sweep.config_tree import with_sections, with_set
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import margin, regulated_states
-from quadctl.sweep.spec import Case, SweepSpec, with_sections, with_set
+from quadctl.sweep.spec import Case, SweepSpec
 from quadctl.threads import loaded_one_thread, one_thread_for_good
 
 

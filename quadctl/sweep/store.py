@@ -12,6 +12,7 @@ import numpy as np
 from quadctl import artifacts
 from quadctl.errors import ArtifactError, SweepError
 from quadctl.layout import unit_of
+from quadctl.sweep.config_tree import value_at
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS
 from quadctl.sweep.gates import regulated_states
 from quadctl.sweep.outputs import (
@@ -24,7 +25,7 @@ from quadctl.sweep.outputs import (
     tradeoff_png,
 )
 from quadctl.sweep.runner import SweepResult, base_of, run
-from quadctl.sweep.spec import SweepSpec, value_at
+from quadctl.sweep.spec import SweepSpec
 
 PARTS = "sweep.parts"
 """Folder of the run directory holding the finished chunks (the journal ``--resume`` reads)."""
