@@ -47,7 +47,7 @@ _PUBLIC = {
     "lqrd": ("quadctl.design.discrete", "lqrd"),
     "LqrResult": ("quadctl.design.riccati", "LqrResult"),
     "Design": ("quadctl.design.decoupled", "Design"),
-    "margins": ("quadctl.design.margins", "all_margins"),
+    "margins": ("quadctl.design.margin_findings", "all_margins"),
     "LoopMargins": ("quadctl.design.margins", "LoopMargins"),
     "simulate": ("quadctl.sim.run", "simulate"),
     "ClosedLoop": ("quadctl.sim.run", "ClosedLoop"),
@@ -87,8 +87,8 @@ if TYPE_CHECKING:  # what type checkers and editors see: the same names, importe
     from quadctl.config.schema import Config
     from quadctl.design.decoupled import Design, lqr
     from quadctl.design.discrete import dlqr, lqrd
+    from quadctl.design.margin_findings import all_margins as margins
     from quadctl.design.margins import LoopMargins
-    from quadctl.design.margins import all_margins as margins
     from quadctl.design.riccati import LqrResult
     from quadctl.errors import ConfigError, DesignError, QuadctlError, TrimError
     from quadctl.linear.linearize import LinearModel, linearize

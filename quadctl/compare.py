@@ -6,7 +6,7 @@ exogenous clock for all (the noise's period, else the LQR controller's, else the
 run reads the same realization (:attr:`Comparison.disturbances` holds its digest, per law). Each
 run is summarized by the same metrics (:data:`METRICS`), its cost on the config's LQR weights, and
 each law's loops by their margins, each broken at a plant input with the rest of the loop closed (the
-LQR design's on the coupled model, :func:`quadctl.design.margins.all_margins`; a cascade's lifted to its
+LQR design's on the coupled model, :func:`quadctl.design.margin_findings.all_margins`; a cascade's lifted to its
 frame, :func:`quadctl.sim.cascade_margins.cascade_margins`): the same functions, comparable numbers.
 """
 

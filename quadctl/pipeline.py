@@ -14,7 +14,7 @@ from functools import cached_property
 
 import numpy as np
 
-from quadctl.design import Design, coupled, design, discrete, kalman, linear_loop, margins
+from quadctl.design import Design, coupled, design, discrete, kalman, linear_loop, margin_findings
 from quadctl.design.gain_table import OUTSIDE, VARIABLES
 from quadctl.errors import ConfigError, RateError
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
@@ -321,7 +321,7 @@ class Stages:
     @cached_property
     def lqr_margins(self) -> list:
         """Margins of every regulated loop of the LQR design (design model, coupled, with the Kalman filter:
-        :func:`quadctl.design.margins.all_margins`), whatever law flies."""
+        :func:`quadctl.design.margin_findings.all_margins`), whatever law flies."""
         return margins_of(self.setup, self.linear, self.decoupled, self.design)
 
     @cached_property
@@ -424,14 +424,14 @@ def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, ra
 
 def margins_of(setup: Setup, linear: LinearModel, decoupled: Decoupled, des: Design) -> list:
     """The margins of every regulated loop of a design as the setup flies it
-    (:func:`quadctl.design.margins.all_margins`): sampled at the controller's rate (a continuous
+    (:func:`quadctl.design.margin_findings.all_margins`): sampled at the controller's rate (a continuous
     design's gains emulated there), with the rotors' lag, the delay, the gyro filter and the setup's
     Kalman filter; what ``quadctl margins`` reports and a sweep's ``margin.*`` columns
     (:data:`quadctl.sweep.gates.MARGIN_COLUMNS`) take."""
 
     timing = setup.timing
     emulated = timing.rate if des.sample_time is None else None  # a continuous design, sampled (or None)
-    return margins.all_margins(
+    return margin_findings.all_margins(
         des, decoupled, linear.A, linear.B, emulated_rate=emulated, actuators=setup.actuators, u_trim=linear.u_trim,
         initial_demand=initial_demand(setup, des), delay_samples=timing.delay_samples,
         rotor_time_constant=setup.rotor_time_constant, estimator=estimator_of(setup, linear),

@@ -13,6 +13,7 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.design.coupled`: one LQR on the full coupled model, to compare with the decoupled design
 - :mod:`~quadctl.design.gain_table`: a gain schedule's table and the scheduling variable read from a state
 - :mod:`~quadctl.design.margins`: the loops' margins (not imported by the package: SciPy loads only for them)
+- :mod:`~quadctl.design.margin_findings`: what the margins say (findings, as values), every loop of a design judged
 
 ``from quadctl.design import lqr`` is the one-case entry point (MATLAB ``lqr``: ``K, P, E``).
 """

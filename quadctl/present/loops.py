@@ -7,7 +7,7 @@ discrete design's loops are sampled: sampling does not keep the guarantee, so th
 it; that is said once (:func:`guarantee_sentence`), and the margins the sampled loops do have are
 shown instead of a verdict against it.
 
-Each loop's findings (:class:`quadctl.design.margins.Finding`: values) are worded here, one function
+Each loop's findings (:class:`quadctl.design.margin_findings.Finding`: values) are worded here, one function
 per ``kind`` (:func:`note`).
 """
 
@@ -177,7 +177,7 @@ def loop_notes(m) -> tuple[str, ...]:
 
 
 def note(finding) -> str:
-    """One finding (:class:`quadctl.design.margins.Finding`) in words: the function of its ``kind``."""
+    """One finding (:class:`quadctl.design.margin_findings.Finding`) in words: the function of its ``kind``."""
     return _WORDS[finding.kind](finding)
 
 
@@ -266,7 +266,7 @@ _WORDS = {
     "lqg_unstable": lqg_unstable_note, "lqg_estimator": lqg_estimator_note,
     "lqg_vs_full_state": lqg_full_state_note, "lqg_left_out": lqg_left_out_note,
 }
-"""Each finding's ``kind`` (:class:`quadctl.design.margins.Finding`) and the function that words it."""
+"""Each finding's ``kind`` (:class:`quadctl.design.margin_findings.Finding`) and the function that words it."""
 
 
 def closed_loop_sentence(payload: dict) -> Mark:

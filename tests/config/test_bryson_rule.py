@@ -128,10 +128,10 @@ def test_the_agilicious_keeps_its_margins_with_its_geometry_and_motor_lag_in_the
     mix = setup.actuators.mix_inv  # roll arm 0.10 m, pitch arm 0.075 m
     np.testing.assert_allclose(np.abs(mix[1]), 0.10, rtol=1e-15)
     np.testing.assert_allclose(np.abs(mix[2]), 0.075, rtol=1e-15)
-    from quadctl.design import margins
+    from quadctl.design import margin_findings
 
-    found = margins.all_margins(st.design, st.decoupled, st.linear.A, st.linear.B,
-                                rotor_time_constant=setup.rotor_time_constant)
+    found = margin_findings.all_margins(st.design, st.decoupled, st.linear.A, st.linear.B,
+                                        rotor_time_constant=setup.rotor_time_constant)
     assert all(not m.thin for m in found), [(m.loop, m.model, m.thin) for m in found if m.thin]
     assert min(m.phase_margin_deg for m in found) > THIN_PHASE_MARGIN_DEG
     assert min(min(abs(g) for g in m.gain_margin_db) for m in found) > THIN_GAIN_MARGIN_DB

@@ -23,7 +23,7 @@ from typer.testing import CliRunner
 from quadctl import config, pipeline
 from quadctl.cli.app import app
 from quadctl.config.notices import notices
-from quadctl.design import discrete, integral, lag, linear_loop, margins
+from quadctl.design import discrete, integral, lag, linear_loop, margin_findings, margins
 from quadctl.design.decoupled import solve_subsystem
 from quadctl.design.riccati import riccati_residual
 from quadctl.errors import ConfigError
@@ -161,7 +161,7 @@ def test_the_augmented_loop_meets_the_lqr_guarantee_and_the_model_in_the_control
     ``|1 + L| >= 1``. With the lag model in the controller, broken at the rotors' command, a lagged
     integrator's loop is ``k_x / (s (tau s + 1 + k_v))``: phase margin ``90 - atan(w_c tau / (1 + k_v))``."""
     setup, _, linear, dec, des = solve(_hover())
-    loops = margins.all_margins(des, dec, linear.A, linear.B, rotor_time_constant=0.02)
+    loops = margin_findings.all_margins(des, dec, linear.A, linear.B, rotor_time_constant=0.02)
     design_loops = [m for m in loops if m.model == "design"]
     assert design_loops and all(m.meets_lqr_guarantee for m in design_loops), \
         [(m.loop, m.phase_margin_deg, m.gain_margin_db) for m in design_loops]
@@ -182,7 +182,7 @@ def test_including_a_30ms_lag_at_200hz_restores_the_roll_and_pitch_phase_margins
     out = {}
     for mode in ("ignore", "include"):
         setup, _, linear, dec, des = solve(_mambo(mode))
-        loops = margins.all_margins(des, dec, linear.A, linear.B, rotor_time_constant=TAU)
+        loops = margin_findings.all_margins(des, dec, linear.A, linear.B, rotor_time_constant=TAU)
         out[mode] = {(m.loop, m.model): m for m in loops}
     for axis in ("roll", "pitch"):
         ignore, include = out["ignore"][(axis, "coupled")], out["include"][(axis, "coupled")]

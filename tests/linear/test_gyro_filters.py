@@ -11,7 +11,7 @@ import yaml
 
 from quadctl.config import loading
 from quadctl.config.loading import from_dict
-from quadctl.design import margins
+from quadctl.design import margin_findings, margins
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_INDEX, STATE_INDEX
 from quadctl.linear import filters
@@ -185,9 +185,9 @@ def test_the_filter_lowers_the_attitude_loops_margins(filtered_mambo):
     st = filtered_mambo
     lin = st.linear
     Ts = 1 / st.setup.timing.rate
-    with_filter = {(m.loop, m.model): m for m in margins.all_margins(
+    with_filter = {(m.loop, m.model): m for m in margin_findings.all_margins(
         st.design, st.decoupled, lin.A, lin.B, rate_filter=st.setup.rate_filter)}
-    raw = {(m.loop, m.model): m for m in margins.all_margins(st.design, st.decoupled, lin.A, lin.B)}
+    raw = {(m.loop, m.model): m for m in margin_findings.all_margins(st.design, st.decoupled, lin.A, lin.B)}
     assert Ts == st.design.sample_time
     for key in (("roll", "design"), ("pitch", "coupled")):
         assert with_filter[key].phase_margin_deg < raw[key].phase_margin_deg - 5, key
@@ -259,7 +259,8 @@ def test_a_d_term_filter_on_the_lqr_law_is_a_notice_and_changes_nothing():
 
 def test_the_margins_notes_give_the_filters_lag_at_each_rate_loops_crossover(filtered_mambo):
     st = filtered_mambo
-    found = margins.all_margins(st.design, st.decoupled, st.linear.A, st.linear.B, rate_filter=st.setup.rate_filter)
+    found = margin_findings.all_margins(st.design, st.decoupled, st.linear.A, st.linear.B,
+                                        rate_filter=st.setup.rate_filter)
     form = st.setup.rate_filter.form(st.design.sample_time)
     for m in found:
         notes = [n for n in loop_notes(m) if n.startswith("gyro filter")]
@@ -268,7 +269,7 @@ def test_the_margins_notes_give_the_filters_lag_at_each_rate_loops_crossover(fil
             continue
         lag = -math.degrees(np.angle(form.response(m.gain_crossover_freq)[0]))
         assert len(notes) == 1 and f"{lag:.3g} deg of phase lag" in notes[0], (m.loop, notes)
-        (fact,) = [f for f in m.findings if isinstance(f, margins.GyroFilterLag)]
+        (fact,) = [f for f in m.findings if isinstance(f, margin_findings.GyroFilterLag)]
         assert fact.phase_lag_deg == pytest.approx(lag, rel=1e-12) and fact.crossover_rad_s == m.gain_crossover_freq
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, solve
 
-from quadctl.design import closed_loop_matrix, lqr, margins
+from quadctl.design import closed_loop_matrix, lqr, margin_findings
 from quadctl.export import interop
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 
@@ -70,7 +70,8 @@ def test_one_loop_has_quadctls_margins():
         warnings.simplefilter("ignore")  # python-control evaluates near the Nyquist frequency
         gm, pm, _, w_gm, wgc, _ = control.stability_margins(control.frd(L, grid))
         gm_poly, pm_poly, *_ = control.stability_margins(L)
-    ours = [m for m in margins.all_margins(des, dec, linear.A, linear.B) if m.loop == "roll" and m.model == "design"][0]
+    ours = [m for m in margin_findings.all_margins(des, dec, linear.A, linear.B)
+            if m.loop == "roll" and m.model == "design"][0]
     assert 20 * np.log10(gm) == pytest.approx(ours.gain_margin_db[0], rel=1e-9)
     assert w_gm == pytest.approx(ours.phase_crossover_freqs[0], rel=1e-9)
     assert pm == pytest.approx(ours.phase_margin_deg, rel=1e-9)

@@ -14,7 +14,7 @@ import pytest
 from _solve import cfg_dict, solve
 
 from quadctl import plots
-from quadctl.design import margins
+from quadctl.design import margin_findings
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.physics.motors import Motors, actuators_of
 
@@ -46,8 +46,8 @@ def test_a_loops_bode_phase_shows_its_phase_margin_above_minus_180():
     crossover is ``-180 + PM`` (PM from quadctl.design.margins, which never reads the plot), within the grid's
     spacing, and the whole curve lies in (-360, 0]."""
     setup, trim, linear, dec, des = solve(cfg_dict("mambo-200hz"))
-    roll = next(m for m in margins.all_margins(des, dec, linear.A, linear.B) if m.loop == "roll"
-                and m.model == "design")
+    roll = next(m for m in margin_findings.all_margins(des, dec, linear.A, linear.B)
+                if m.loop == "roll" and m.model == "design")
     fig = plots.margins_figure(roll)
     ax_ph = fig.axes[1]
     assert ax_ph.get_ylabel() == "phase of L [deg]"

@@ -13,7 +13,7 @@ from _solve import cfg_dict, solve
 
 import quadctl
 from quadctl import present
-from quadctl.design import margins
+from quadctl.design import margin_findings
 from quadctl.linear import stability
 from quadctl.present import cells, loops
 from quadctl.present import design as shown
@@ -158,7 +158,7 @@ def test_the_gains_table_shows_ki_beside_k_for_an_lqi_design():
 
 def _margins(name, **emulated):
     _, _, linear, dec, des = solve(cfg_dict(name))
-    return des, margins.all_margins(des, dec, linear.A, linear.B, **emulated)
+    return des, margin_findings.all_margins(des, dec, linear.A, linear.B, **emulated)
 
 
 def test_a_continuous_design_is_checked_against_the_lqr_guarantee():

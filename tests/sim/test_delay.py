@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 from quadctl import config
 from quadctl.cli.app import app
-from quadctl.design import margins
+from quadctl.design import margin_findings, margins
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
 
@@ -41,9 +41,9 @@ def test_each_sample_of_delay_takes_one_sample_of_margin():
     """The shift states are ``z^-n`` exactly: the crossover stays, the margin drops by ``n Ts``."""
     data = cfg_dict("mambo-200hz")
     _, _, linear, dec, des = solve(data)
-    base = margins.all_margins(des, dec, linear.A, linear.B)
+    base = margin_findings.all_margins(des, dec, linear.A, linear.B)
     for n in (1, 3):
-        with_delay = margins.all_margins(des, dec, linear.A, linear.B, delay_samples=n)
+        with_delay = margin_findings.all_margins(des, dec, linear.A, linear.B, delay_samples=n)
         for b, d in zip(base, with_delay):
             if b.model != "design":  # the coupled loops' other channels are delayed too
                 continue
@@ -58,8 +58,8 @@ def test_with_a_30ms_rotor_lag_one_sample_of_delay_leaves_0_73_and_two_are_unsta
         data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "delay": {"samples": n}})
         data["motors"]["time_constant"] = 0.03
         _, _, linear, dec, des = solve(data)
-        found[n] = [m for m in margins.all_margins(des, dec, linear.A, linear.B, delay_samples=n,
-                                                   rotor_time_constant=0.03) if m.loop == "roll"]
+        found[n] = [m for m in margin_findings.all_margins(des, dec, linear.A, linear.B, delay_samples=n,
+                                                           rotor_time_constant=0.03) if m.loop == "roll"]
     assert all(m.stable and round(m.delay_margin_samples, 2) == 0.73 for m in found[1])
     assert not any(m.stable for m in found[2])
 
@@ -76,7 +76,7 @@ def _roll_case(samples: int) -> dict:
 def test_the_delay_the_margin_refuses_diverges_in_simulation_and_one_inside_settles():
     """Measured: roll's delay margin is 4.75 samples at 200 Hz (49.8 rad/s crossover, 67.8 deg)."""
     _, _, linear, dec, des = solve(_roll_case(0))
-    margin = min(m.delay_margin_samples for m in margins.all_margins(des, dec, linear.A, linear.B))
+    margin = min(m.delay_margin_samples for m in margin_findings.all_margins(des, dec, linear.A, linear.B))
     inside, outside = math.floor(margin), math.floor(margin) + 1
     assert (inside, outside) == (4, 5)
     phi = STATE_INDEX["phi"]
@@ -84,7 +84,7 @@ def test_the_delay_the_margin_refuses_diverges_in_simulation_and_one_inside_sett
     for n in (inside, outside):
         data = _roll_case(n)
         _, _, linear, dec, des = solve(data)
-        stable = all(m.stable for m in margins.all_margins(des, dec, linear.A, linear.B, delay_samples=n))
+        stable = all(m.stable for m in margin_findings.all_margins(des, dec, linear.A, linear.B, delay_samples=n))
         sim = run(data)[3]
         results[n] = (stable, sim.status, np.abs(sim.x[-len(sim.t) // 10:, phi]).max())
     assert results[inside][0] and results[inside][1] == "ok" and results[inside][2] < 1e-9, results
