@@ -50,7 +50,7 @@ _PUBLIC = {
     "margins": ("quadctl.design.margin_findings", "all_margins"),
     "LoopMargins": ("quadctl.design.margins", "LoopMargins"),
     "simulate": ("quadctl.sim.run", "simulate"),
-    "ClosedLoop": ("quadctl.sim.run", "ClosedLoop"),
+    "ClosedLoop": ("quadctl.sim.loop", "ClosedLoop"),
     "SimResult": ("quadctl.sim.run", "SimResult"),
     "QuadctlError": ("quadctl.errors", "QuadctlError"),
     "ConfigError": ("quadctl.errors", "ConfigError"),
@@ -97,4 +97,5 @@ if TYPE_CHECKING:  # what type checkers and editors see: the same names, importe
     from quadctl.physics.model import Vehicle
     from quadctl.pipeline import Stages
     from quadctl.setup import Setup, setup_of
-    from quadctl.sim.run import ClosedLoop, SimResult, simulate
+    from quadctl.sim.loop import ClosedLoop
+    from quadctl.sim.run import SimResult, simulate

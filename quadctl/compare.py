@@ -24,7 +24,9 @@ from quadctl.metrics import lqr_cost, overshoot, settling_time
 from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import Stages, pid_loop_of
 from quadctl.sim.cascade_margins import cascade_margins
-from quadctl.sim.run import ClosedLoop, ExoStream, SimResult, simulate
+from quadctl.sim.exogenous import ExoStream
+from quadctl.sim.loop import ClosedLoop
+from quadctl.sim.run import SimResult, simulate
 
 METRICS: tuple[tuple[str, str, str], ...] = (
     ("position_rms", "m", "RMS over the run of |p - p_ref|"),

@@ -29,7 +29,8 @@ from quadctl.physics.model import Vehicle, build_model
 from quadctl.physics.motors import check_trim
 from quadctl.setup import Setup
 from quadctl.sim.cascade_margins import cascade_margins, lifted
-from quadctl.sim.run import ClosedLoop, SimResult, eigen_owners, simulate
+from quadctl.sim.loop import ClosedLoop, eigen_owners
+from quadctl.sim.run import SimResult, simulate
 
 
 def trim_of(setup: Setup) -> Trim:
@@ -99,7 +100,7 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
 def simulated_loop(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.ndarray | None = None,
                    integral_states=(), Kv: np.ndarray | None = None, estimator=None, eigenvalues, owners,
                    params: np.ndarray | None = None, open_loop_eigenvalues: np.ndarray | None = None) -> ClosedLoop:
-    """The one constructor of the :class:`~quadctl.sim.run.ClosedLoop` a setup flies: gains on the
+    """The one constructor of the :class:`~quadctl.sim.loop.ClosedLoop` a setup flies: gains on the
     setup's plant, trim, timing (rate, delay), actuators and the design's lag model (with ``Kv``).
 
     ``eigenvalues`` and ``owners`` (of the continuous closed loop, for the RK4 step) are the

@@ -45,7 +45,8 @@ from quadctl.present.schedule import verdict
 from quadctl.present.stages import rate_warning
 from quadctl.schedule.envelope import schedule_of
 from quadctl.setup import setup_of
-from quadctl.sim.run import ClosedLoop, SimResult
+from quadctl.sim.loop import ClosedLoop
+from quadctl.sim.run import SimResult
 from quadctl.version import __version__
 
 TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (

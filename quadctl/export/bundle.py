@@ -16,7 +16,7 @@ from quadctl.design.gain_table import VARIABLES
 from quadctl.linear.decouple import Decoupled
 from quadctl.linear.linearize import LinearModel
 from quadctl.setup import Setup
-from quadctl.sim.run import ClosedLoop
+from quadctl.sim.loop import ClosedLoop
 
 if TYPE_CHECKING:
     from quadctl.schedule.envelope import Schedule
@@ -119,7 +119,7 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
 
     Examples
     --------
-    >>> from quadctl.sim.run import ClosedLoop
+    >>> from quadctl.sim.loop import ClosedLoop
     >>> z = np.zeros(12)
     >>> for part in law_text(ClosedLoop(z, z, np.zeros(4), z, np.zeros((4, 12)), z), None).split("; "):
     ...     print(part)

@@ -91,7 +91,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
 
     Parameters
     ----------
-    design : quadctl.design.Design or quadctl.sim.run.ClosedLoop
+    design : quadctl.design.Design or quadctl.sim.loop.ClosedLoop
         Anything with ``K`` or ``K_block`` (4, 12), ``Ki``/``Ki_block`` (4, nz), ``integral_states``.
     sample_time : float, None or "design"
         s; ``"design"``: the design's own (a discrete design's, else continuous).
@@ -101,7 +101,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
     -------
     control.StateSpace
         States ``z_<state>``, inputs the 12 state names, outputs ``T A E R``. A
-        :class:`~quadctl.sim.run.ClosedLoop` with a Kalman filter gives the LQG compensator
+        :class:`~quadctl.sim.loop.ClosedLoop` with a Kalman filter gives the LQG compensator
         (:func:`_lqg_controller`): states ``xh_<state>`` then ``z_<state>``, the unmeasured inputs
         unused, at the filter's sample time.
 
@@ -215,7 +215,7 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
     Parameters
     ----------
     linear : quadctl.linear.linearize.LinearModel
-    design : quadctl.design.Design or quadctl.sim.run.ClosedLoop
+    design : quadctl.design.Design or quadctl.sim.loop.ClosedLoop
     sample_time : float, None or "design"
         s; ``"design"``: the design's own.
     name : str
@@ -328,7 +328,7 @@ def _gains(design):
 
     label = "K_block" if hasattr(design, "K_block") else "K"
     if not hasattr(design, label) or not hasattr(design, "integral_states"):
-        raise TypeError(f"design must be a quadctl.design.Design or a quadctl.sim.run.ClosedLoop (K or K_block, "
+        raise TypeError(f"design must be a quadctl.design.Design or a quadctl.sim.loop.ClosedLoop (K or K_block, "
                         f"integral_states), got {type(design).__name__}")
     n, m = len(STATE_NAMES), len(INPUT_NAMES)
     K = real_array(getattr(design, label), f"design.{label}", name="interop", error=ValueError, shape=(m, n))

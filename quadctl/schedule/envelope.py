@@ -174,7 +174,7 @@ class Schedule:
         return np.stack([p.linear.A for p in good]), np.stack([p.linear.B for p in good])
 
     def flown_by(self, loop):
-        """``loop`` (:class:`quadctl.sim.run.ClosedLoop`) flying this schedule: its table along its heading,
+        """``loop`` (:class:`quadctl.sim.loop.ClosedLoop`) flying this schedule: its table along its heading,
         its frozen loops held by the RK4 step, its Jacobians ETDRK4's linear parts
         (:func:`quadctl.pipeline.scheduled_loop`)."""
         return pipeline.scheduled_loop(loop, self.table, self.heading, self.checks.eigenvalues, self.jacobians)

@@ -24,7 +24,8 @@ from quadctl.physics import motors
 from quadctl.physics.model import build_model
 from quadctl.schedule.envelope import heading_of, schedule_of
 from quadctl.setup import Setup
-from quadctl.sim.run import ClosedLoop, SimResult
+from quadctl.sim.loop import ClosedLoop
+from quadctl.sim.run import SimResult
 
 ON_GRID_MARGIN = 0.1
 """A run stays on the schedule's grid while its scheduling value is within the grid's span widened by

@@ -11,8 +11,15 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.sim.native`: the compiled runner (``driver.c``: 1 lane for one case, 8 for sweeps)
 - :mod:`~quadctl.sim.interpreted`: the same loop in CasADi's virtual machine, without a compiler
 - :mod:`~quadctl.sim.engine`: :func:`runner`, the fastest runner that builds here
-- :mod:`~quadctl.sim.run`: the closed loop (:class:`ClosedLoop`) and its runs, RK4 or ETDRK4: one entry for a
-  stack of them (:func:`stack_of`, :func:`run_stack`; :func:`simulate_stack`), :func:`simulate` the stack of one
+- :mod:`~quadctl.sim.loop`: the closed loop (:class:`~quadctl.sim.loop.ClosedLoop`): its linear parts, the
+  constants of its code, its bounds and its steps (RK4's, ETDRK4's :func:`~quadctl.sim.loop.exponential_plan`)
+- :mod:`~quadctl.sim.exogenous`: a run's exogenous inputs on one clock (:class:`~quadctl.sim.exogenous.ExoStream`:
+  noise, wind, a flown reference's rows), drawn chunk by chunk
+- :mod:`~quadctl.sim.stack`: the one entry that runs a stack of loops by either integrator, RK4 or ETDRK4
+  (:func:`~quadctl.sim.stack.stack_of`, :func:`~quadctl.sim.stack.run_stack`;
+  :func:`~quadctl.sim.stack.simulate_stack`)
+- :mod:`~quadctl.sim.run`: one run, the stack of one (:func:`~quadctl.sim.run.simulate`, its
+  :class:`~quadctl.sim.run.SimResult` and :func:`~quadctl.sim.run.verdict`)
 
 A new loop feature is one change to :func:`quadctl.sim.builder.build` plus its config; every
 runner, one case or many lanes, compiled or not, gets it from there.

@@ -253,7 +253,7 @@ class LoopSpec:
         The loop takes a reference (:data:`REFERENCE_LAYOUT`) every step, after the wind's channels.
     method : {"rk4", "etdrk4"}
         The integrator of ``step`` (continuous feedback), or of ``plant`` between a held loop's samples
-        (its linear part the plant's, :meth:`quadctl.sim.run.ClosedLoop.plant_linear_part`).
+        (its linear part the plant's, :meth:`quadctl.sim.loop.ClosedLoop.plant_linear_part`).
     phi_pattern : tuple of bool
         ETDRK4 only: the sparsity of its (nx, nx) constants (:data:`PHI_LAYOUT`), column-major,
         the union over them: entries outside it are baked in as zero (a decoupled design's loop

@@ -454,7 +454,7 @@ def exact_delay_margin(lift: Lifted, j: int) -> float | None:
 
 
 def lifted(loop) -> Lifted:
-    """The cascade's loop ``loop`` (:class:`quadctl.sim.run.ClosedLoop` with a ``law``) linearized about
+    """The cascade's loop ``loop`` (:class:`quadctl.sim.loop.ClosedLoop` with a ``law``) linearized about
     hover at every phase of its frame.
 
     The law's equilibrium is found first: the plant at trim, the integrators (velocity and rate) that
@@ -566,7 +566,7 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
 
     Parameters
     ----------
-    loop : quadctl.sim.run.ClosedLoop
+    loop : quadctl.sim.loop.ClosedLoop
         A loop flying a PID cascade (:func:`quadctl.pipeline.pid_loop_of`).
     title : str
         The law's name, for the loop's label.

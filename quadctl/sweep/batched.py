@@ -9,13 +9,13 @@ lanes, by either integrator; what it adds to the one-case path is only what pays
 chunk's continuous closed-loop spectra and their RK4 limits computed at once, the per-plant caches
 (Kalman filter, held step plan, lane spec and bounds per loop structure), the noise realizations
 the cases of one seed share (:data:`REALIZATION_BYTES`), the reference rows of the cases that fly
-one drawn together (:meth:`quadctl.sim.run.ExoStream.samples_of`: their feedforward solved in
+one drawn together (:meth:`quadctl.sim.exogenous.ExoStream.samples_of`: their feedforward solved in
 lockstep, each case's rows those it has alone), and the grouping. The step plan is the
-loop's own (:meth:`quadctl.sim.run.ClosedLoop.plan`; ETDRK4:
-:func:`quadctl.sim.run.exponential_plan`), and the runs are made by the simulation's one stack
-builder: RK4's cases by :func:`quadctl.sim.run.rk4_cases` (as :func:`quadctl.sim.run.stack_of`
+loop's own (:meth:`quadctl.sim.loop.ClosedLoop.plan`; ETDRK4:
+:func:`quadctl.sim.loop.exponential_plan`), and the runs are made by the simulation's one stack
+builder: RK4's cases by :func:`quadctl.sim.stack.rk4_cases` (as :func:`quadctl.sim.stack.stack_of`
 makes a stack of loops: each case's step, stride, bounds and rows, the constants once per loop
-structure with each case's gains written in), ETDRK4's by :func:`quadctl.sim.run.stack_of` itself.
+structure with each case's gains written in), ETDRK4's by :func:`quadctl.sim.stack.stack_of` itself.
 :func:`simulate_all` and :func:`summarize_all` run them in the SIMD lanes.
 """
 from __future__ import annotations
@@ -38,9 +38,11 @@ from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import estimator_of
 from quadctl.sim.engine import LANES, runner
 from quadctl.sim.etdrk4_plan import rk4_limits
+from quadctl.sim.exogenous import ExoStream
 from quadctl.sim.lane_metrics import MetricSpec, case_values
+from quadctl.sim.loop import ClosedLoop, exponential_plan
 from quadctl.sim.plan import max_stable_steps
-from quadctl.sim.run import ClosedLoop, ExoStream, exponential_plan, rk4_cases, simulate_stack
+from quadctl.sim.stack import rk4_cases, simulate_stack
 
 if TYPE_CHECKING:
     from quadctl.sim.builder import LoopSpec
@@ -81,7 +83,7 @@ def core_extremes(core) -> tuple:
 @dataclass(frozen=True)
 class LaneJob:
     """A case ready for the lanes: what the sweep knows of it (its loop, initial state, step plan,
-    bounds and exogenous rows), for :func:`quadctl.sim.run.rk4_cases` to make its lane of."""
+    bounds and exogenous rows), for :func:`quadctl.sim.stack.rk4_cases` to make its lane of."""
 
     spec: LoopSpec
     plan: StepPlan
@@ -112,7 +114,7 @@ class ExponentialJob:
     group: tuple
     """The cases that can share lanes: structure, rate and simulation inputs (by value)."""
     linear_part: np.ndarray
-    """ETDRK4's linear part of the loop (:func:`quadctl.sim.run.exponential_plan`)."""
+    """ETDRK4's linear part of the loop (:func:`quadctl.sim.loop.exponential_plan`)."""
 
 
 def design_all(preps, stats, any_order: bool = False, compiled: bool = False) -> list:
@@ -440,7 +442,7 @@ def _keep_realization(key: tuple, rows: tuple) -> None:
 
 
 PER_CASE = ("K", "Ki", "Kv", "eigenvalues", "owners", "jacobians")
-"""Fields of a :class:`~quadctl.sim.run.ClosedLoop` whose values its lane spec and bounds do not read
+"""Fields of a :class:`~quadctl.sim.loop.ClosedLoop` whose values its lane spec and bounds do not read
 (only whether they are there; the gain's sparsity is the partition's: :func:`_structural_gain`;
 ``jacobians``, ETDRK4's linear part, only through each lane's own φ matrices: :func:`loops_of`'s ETDRK4 jobs)."""
 
@@ -538,7 +540,7 @@ def _structural_gain(prep) -> tuple[bool, ...]:
 
 def _cases_of(group):
     """The one-segment :class:`~quadctl.sim.cases.Cases` of a group of ``(prep, design, job)`` of one
-    lane spec (:func:`quadctl.sim.run.rk4_cases`, as a stack of loops makes its own)."""
+    lane spec (:func:`quadctl.sim.stack.rk4_cases`, as a stack of loops makes its own)."""
 
     js = [g[2] for g in group]
     exo = [(j.exo_first, j.exo, j.exo_period) for j in js] if js[0].spec.n_exo else None
@@ -550,8 +552,8 @@ def _cases_of(group):
 def simulate_all(jobs):
     """Yield ``((prep, design, job), (done, t, xs, us), backend)``: the runs of :func:`loops_of`'s
     jobs: RK4's (:class:`LaneJob`) grouped by loop spec into the lanes' cases
-    (:func:`quadctl.sim.run.rk4_cases`), ETDRK4's (:class:`ExponentialJob`) grouped by structure and
-    simulation inputs and run by :func:`quadctl.sim.run.simulate_stack`; ``t`` (s) the recorded
+    (:func:`quadctl.sim.stack.rk4_cases`), ETDRK4's (:class:`ExponentialJob`) grouped by structure and
+    simulation inputs and run by :func:`quadctl.sim.stack.simulate_stack`; ``t`` (s) the recorded
     times; a yielded ``job`` carries the plan its run took. The arrays of a lane job's run are
     overwritten by the next (use them first)."""
 

@@ -139,7 +139,7 @@ INTEROP = {
     "Plant.lqr complex": (lambda: interop.Plant(A=A_SCIPY, B=B2, state_names=("a", "b"), input_names=("u", "v"),
                                                 dt=0.1).lqr(Q2, R2), rf"^plant: A {COMPLEX}"),
     "design not a design": (lambda: interop.controller(object()),
-                            r"^design must be a quadctl\.design\.Design or a quadctl\.sim\.run\.ClosedLoop"),
+                            r"^design must be a quadctl\.design\.Design or a quadctl\.sim\.loop\.ClosedLoop"),
 }
 
 

@@ -13,7 +13,7 @@ from quadctl import pipeline
 from quadctl.design import discrete, lqr, riccati
 from quadctl.errors import StepSizeError
 from quadctl.present.stages import rate_warning
-from quadctl.sim.run import plan_held_step
+from quadctl.sim.plan import plan_held_step
 
 RESIDUAL_TOL = 1e-10
 """Riccati residuals of well-scaled small problems are at round-off level (relative)."""

@@ -290,8 +290,8 @@ def test_compiled_and_interpreted_loops_fly_a_reference_alike(square, monkeypatc
 def test_lanes_equal_the_one_case_loop_with_a_reference(square):
     from quadctl.sim import engine
     from quadctl.sim.cases import Cases
+    from quadctl.sim.exogenous import ExoStream
     from quadctl.sim.plan import record_stride
-    from quadctl.sim.run import ExoStream
 
     setup, loop = square
     ref = _short(setup, loop)

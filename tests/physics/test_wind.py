@@ -29,8 +29,9 @@ from quadctl.physics.wind import (
 from quadctl.setup import setup_of
 from quadctl.sim import engine
 from quadctl.sim.cases import Cases
+from quadctl.sim.exogenous import ExoStream
 from quadctl.sim.plan import record_stride
-from quadctl.sim.run import ExoStream, simulate
+from quadctl.sim.run import simulate
 
 # ---------------------------------------------------------------------------------------
 # The model: drag on the velocity relative to the air
@@ -218,7 +219,7 @@ def test_the_recorded_wind_has_the_dryden_spectrum_of_mil_f_8785c(turbulence, re
     spectrum at 0.5-0.6 of it above its corner and twice it below."""
     from scipy.signal import welch
 
-    from quadctl.sim.run import wind_felt
+    from quadctl.sim.exogenous import wind_felt
 
     data = cfg_dict("hover")
     data["simulation"]["wind"] = {"turbulence": {**turbulence, "seed": 4}}
@@ -306,7 +307,7 @@ def test_the_plant_feels_the_gust_sample_for_sample():
 
 
 def test_a_run_in_wind_is_the_same_at_any_step_and_any_chunking(monkeypatch):
-    from quadctl.sim import run as simulate_mod
+    from quadctl.sim import stack as stack_module
 
     setup, loop = _loop(_windy())
     x0 = setup.initial_state(loop.x_trim)
@@ -314,7 +315,7 @@ def test_a_run_in_wind_is_the_same_at_any_step_and_any_chunking(monkeypatch):
     b = simulate(loop, x0, 0.1, setup.dt, wind=setup.wind)
     np.testing.assert_array_equal(a.x, b.x)  # bit-identical reruns
     np.testing.assert_array_equal(a.wind, b.wind)
-    monkeypatch.setattr(simulate_mod, "CHUNK_STEPS", {"compiled": 97, "casadi": 97})
+    monkeypatch.setattr(stack_module, "CHUNK_STEPS", {"compiled": 97, "casadi": 97})
     c = simulate(loop, x0, 0.1, setup.dt, wind=setup.wind)
     np.testing.assert_array_equal(a.x, c.x)  # chunked differently: the same run
     np.testing.assert_array_equal(a.wind, c.wind)

@@ -608,7 +608,7 @@ def test_lanes_equal_the_one_case_loop():
     eight lanes, the last padded) in the SIMD lanes, each against its own one-case run."""
     from dataclasses import replace
 
-    from quadctl.sim.run import simulate_stack
+    from quadctl.sim.stack import simulate_stack
 
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
@@ -635,7 +635,7 @@ def test_lanes_fly_a_reference_as_the_one_case_loop():
     against its own one-case run: the same steps, the same reference rows, to 1e-12."""
     from dataclasses import replace
 
-    from quadctl.sim.run import simulate_stack
+    from quadctl.sim.stack import simulate_stack
 
     setup, _, linear, _, des = solve(cfg_dict("square"))
     loop = pipeline.loop_of(setup, linear, des)
@@ -657,7 +657,7 @@ def test_lanes_run_a_sampled_controller_as_the_one_case_loop():
     its own one-case run: the same steps and samples, to 1e-12."""
     from dataclasses import replace
 
-    from quadctl.sim.run import simulate_stack
+    from quadctl.sim.stack import simulate_stack
 
     setup, _, linear, _, des = solve(cfg_dict("mambo-200hz"))
     loop = pipeline.loop_of(setup, linear, des)
@@ -697,7 +697,7 @@ def test_a_graded_stack_runs_compiled_as_interpreted(lanes):
     from dataclasses import replace
 
     from quadctl.sim.interpreted import InterpretedRunner
-    from quadctl.sim.run import stack_of
+    from quadctl.sim.stack import stack_of
 
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
@@ -729,32 +729,34 @@ def test_a_loop_keeps_its_exponential_stack():
     computed again) and gives the same numbers; other settings get their own; a pickled loop carries none."""
     import pickle
 
+    from quadctl.sim.stack import kept_exponential_stack
+
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
     first = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-8)
-    kept = loop.exponential_stack(0.2, tolerance=1e-8)
-    assert loop.exponential_stack(0.2, tolerance=1e-8) is kept
-    assert loop.exponential_stack(0.2, tolerance=1e-9) is not kept
+    kept = kept_exponential_stack(loop, 0.2, tolerance=1e-8)
+    assert kept_exponential_stack(loop, 0.2, tolerance=1e-8) is kept
+    assert kept_exponential_stack(loop, 0.2, tolerance=1e-9) is not kept
     again = simulate(loop, x0, 0.2, "auto", method="etdrk4", tolerance=1e-8)
     assert np.array_equal(first.x, again.x) and np.array_equal(first.t, again.t) and first.plan == again.plan
     fresh = pickle.loads(pickle.dumps(loop))
-    assert "_exponential_stacks" not in fresh.__dict__
-    assert fresh.exponential_stack(0.2, tolerance=1e-8).plans == kept.plans
+    assert loop.kept and not fresh.kept
+    assert kept_exponential_stack(fresh, 0.2, tolerance=1e-8).plans == kept.plans
 
 
 @pytest.mark.parametrize("name", ["hover+noise+wind", "square"])
 def test_a_long_run_in_chunks_is_the_one_call_run(monkeypatch, name):
     """A run past the runner's chunk (segment after segment, each in chunks, the exogenous rows drawn as
     it goes) gives the one-call run's records (the whole run's rows at once) to round-off."""
-    from quadctl.sim import run as run_module
+    from quadctl.sim import stack as stack_module
 
     setup, _, linear, _, des = solve(_variant(name))
     loop = pipeline.loop_of(setup, linear, des)
     x0 = setup.initial_state(loop.x_trim)
     kw = dict(noise=setup.noise, wind=setup.wind, method="etdrk4", reference=setup.flown_reference)
     once = simulate(loop, x0, 0.3, "auto", **kw)
-    monkeypatch.setattr(run_module, "CHUNK_STEPS", {"compiled": 40, "casadi": 40})
+    monkeypatch.setattr(stack_module, "CHUNK_STEPS", {"compiled": 40, "casadi": 40})
     chunked = simulate(loop, x0, 0.3, "auto", **kw)
     assert once.steps == chunked.steps > 40 and np.array_equal(once.t, chunked.t)
     assert len(once.plan.schedule) > 1

@@ -11,6 +11,7 @@ from quadctl import pipeline
 from quadctl.errors import StepSizeError
 from quadctl.layout import STATE_INDEX
 from quadctl.sim.cases import record_rows
+from quadctl.sim.loop import ClosedLoop
 from quadctl.sim.plan import (
     ACCURACY_STEP,
     max_stable_step,
@@ -19,7 +20,7 @@ from quadctl.sim.plan import (
     record_stride,
     rk4_amplification,
 )
-from quadctl.sim.run import ClosedLoop, simulate
+from quadctl.sim.run import simulate
 
 
 @pytest.fixture(scope="module")
@@ -109,12 +110,12 @@ def test_leaving_the_euler_range_is_reported(loop):
 
 def test_chunked_runs_equal_one_long_call(loop, monkeypatch):
     """Chunk boundaries (for Ctrl-C) change nothing: t = k dt from the absolute step index."""
-    import quadctl.sim.run as sim_mod
+    import quadctl.sim.stack as stack_module
 
     setup, cl = loop
     x0 = setup.initial_state(cl.x_trim)
     whole = simulate(cl, x0, 0.05, 1e-5)
-    monkeypatch.setattr(sim_mod, "CHUNK_STEPS", {"compiled": 777, "casadi": 777})
+    monkeypatch.setattr(stack_module, "CHUNK_STEPS", {"compiled": 777, "casadi": 777})
     chunked = simulate(cl, x0, 0.05, 1e-5, max_samples=333)  # strides that do not divide the chunks
     again = simulate(cl, x0, 0.05, 1e-5, max_samples=333)
     np.testing.assert_array_equal(again.t, chunked.t)

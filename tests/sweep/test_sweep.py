@@ -745,7 +745,7 @@ def test_a_case_whose_mission_is_refused_is_its_own_row_and_the_others_fly_as_wi
     from quadctl.config import overrides
     from quadctl.errors import TrimError
     from quadctl.setup import setup_of
-    from quadctl.sim.run import ExoStream
+    from quadctl.sim.exogenous import ExoStream
 
     def rows(speeds):
         spec = sweep.from_dict({"set": {"simulation.reference": MISSION, "simulation.duration": 1.0},
