@@ -22,6 +22,8 @@ from quadctl.artifacts.json_values import complex_values as complex_values
 from quadctl.artifacts.json_values import decode_floats as decode_floats
 from quadctl.artifacts.json_values import jsonable as jsonable
 from quadctl.artifacts.lock import LOCK_NAME as LOCK_NAME
+from quadctl.artifacts.lock import MARK_NAME as MARK_NAME
+from quadctl.artifacts.lock import claim as claim
 from quadctl.artifacts.lock import held as held
 from quadctl.artifacts.lock import locked as locked
 from quadctl.artifacts.meta import FORMAT_VERSION as FORMAT_VERSION

@@ -1,5 +1,6 @@
 """One quadctl per run directory: the folder's lock (``flock``, or an ``O_EXCL`` file where there is no
-``fcntl``), re-entrant within a process."""
+``fcntl``), re-entrant within a process; and only a folder that is quadctl's, so that no file of a
+user's own folder is written over (:func:`claim`)."""
 
 from __future__ import annotations
 
@@ -7,11 +8,18 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
-from quadctl.artifacts.places import reason_of
+from quadctl.artifacts.places import ARTIFACT_NAMES, SUBFOLDER_NAMES, reason_of
 from quadctl.errors import ArtifactError
 
 LOCK_NAME = ".quadctl.lock"
 """The lock file in a run directory (it holds the pid of the quadctl that has the folder)."""
+MARK_NAME = ".quadctl"
+"""The file that marks a folder as quadctl's (:func:`claim`), written the first time quadctl takes it."""
+MARK_TEXT = ("quadctl writes its artifacts in this folder, over those of earlier runs. It writes only into a new or "
+             "empty folder, or one with this file: never over the files of a folder it did not make.\n")
+COMMON_NAMES = frozenset({"config.yaml", "README.md", "Makefile", "Kbuild", "app-config"})
+"""Names quadctl writes (:data:`~quadctl.artifacts.places.ARTIFACT_NAMES`) that a user's own folder holds
+too: they do not show that a folder is quadctl's."""
 
 try:
     import fcntl
@@ -57,12 +65,54 @@ def locked(folder: Path | str):
         why = "a file, not a folder" if folder.is_file() else reason_of(exc)
         raise ArtifactError(f"{folder}: cannot write artifacts there ({why}); choose another --out folder") from None
     release = _lock_flock(folder) if fcntl is not None else _lock_exclusive(folder)
+    try:
+        claim(folder)
+    except BaseException:
+        release()
+        raise
     _held[key] = 1
     try:
         yield folder
     finally:
         _held.pop(key, None)
         release()
+
+
+def claim(folder: Path) -> None:
+    """Take ``folder`` as quadctl's, or refuse it before anything is written there: quadctl writes over
+    its own files only. A folder marked as quadctl's (:data:`MARK_NAME`) is taken; so is one that holds
+    nothing named as what quadctl writes (:data:`~quadctl.artifacts.places.ARTIFACT_NAMES`, its
+    subfolders: a new or empty folder, or one with a user's own files beside, which quadctl leaves
+    alone), or one that shows it is a run folder of a quadctl before the mark (its ``trim.json``, its
+    ``config.resolved.yaml``, a Crazyflie app's ``src/quadctl_app.c``); it is then marked. A folder whose
+    ``config.yaml``, ``README.md``, ``Makefile`` or ``plots`` quadctl did not write (``-o .`` in a
+    project folder) is refused.
+
+    Raises
+    ------
+    ArtifactError
+        The folder holds files named as quadctl's that quadctl did not write (exit code 2), naming them.
+    """
+    mark = folder / MARK_NAME
+    if mark.is_file() and not mark.is_symlink():
+        return
+    try:
+        named = [e.name for e in os.scandir(folder) if (e.name in ARTIFACT_NAMES or e.name in SUBFOLDER_NAMES)
+                 and not e.is_symlink()]  # a link where quadctl writes is refused where it is met, naming it
+    except OSError as exc:
+        raise ArtifactError(f"{folder}: cannot read the folder ({reason_of(exc)}); choose another --out folder") \
+            from None
+    ours = any(name not in COMMON_NAMES for name in named if name in ARTIFACT_NAMES) \
+        or (folder / "src" / "quadctl_app.c").is_file()
+    if named and not ours:
+        raise ArtifactError(f"{folder}: holds {', '.join(sorted(named))}, which quadctl did not write and would write "
+                            "over: give -o a new or empty folder, or one quadctl made")
+    try:
+        fd = os.open(mark, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o666)
+    except OSError:  # there meanwhile (a link: never written through), or a read-only folder: the writes say so
+        return
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write(MARK_TEXT)
 
 
 def held(folder: Path | str) -> bool:

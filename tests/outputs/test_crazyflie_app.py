@@ -23,7 +23,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
-from quadctl import config
+from quadctl import artifacts, config
 from quadctl.cli.app import app
 from quadctl.export import crazyflie
 from quadctl.layout import STATE_INDEX
@@ -493,7 +493,8 @@ def test_the_app_is_whole_and_states_its_licence(tmp_path):
     out = tmp_path / "app"
     export_app(crazyflie_config(tmp_path), out, "--setpoint", "velocity")
     files = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
-    assert files == sorted([*crazyflie.APP_FILES, "src/quadctl_controller.c", "src/quadctl_controller.h"])
+    assert files == sorted([*crazyflie.APP_FILES, "src/quadctl_controller.c", "src/quadctl_controller.h",
+                            artifacts.MARK_NAME])  # the mark: quadctl may write this folder again
     for name in ("Makefile", "src/quadctl_app.c", "src/quadctl_crazyflie.c", "src/quadctl_crazyflie.h"):
         assert "SPDX-License-Identifier: MIT" in (out / name).read_text(), name
     readme = (out / "README.md").read_text()

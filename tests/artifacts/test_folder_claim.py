@@ -1,0 +1,72 @@
+"""quadctl writes over its own files only: a folder given by ``-o`` is taken when it is new, holds
+nothing named as what quadctl writes, is marked as quadctl's, or is a run folder of a quadctl before the
+mark; a folder whose ``config.yaml``, ``README.md`` or ``Makefile`` quadctl did not write is refused
+(one line, exit code 2) and left byte for byte as it was."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from quadctl import artifacts, config
+from quadctl.cli.app import app
+from quadctl.errors import ArtifactError
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def contents(folder: Path) -> dict[str, bytes]:
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_project_folder_whose_readme_and_makefile_an_export_would_replace_is_refused_untouched(tmp_path):
+    (tmp_path / "README.md").write_text("my project\n")
+    (tmp_path / "Makefile").write_text("all: mine\n")
+    (tmp_path / "notes.txt").write_text("mine too\n")
+    before = contents(tmp_path)
+    res = invoke("export", "--to", "crazyflie", "-c", "crazyflie", "--setpoint", "velocity", "-o", tmp_path)
+    assert res.exit_code == 2
+    assert res.stderr == (f"quadctl: error: {tmp_path}: holds Makefile, README.md, which quadctl did not write and "
+                          "would write over: give -o a new or empty folder, or one quadctl made\n")
+    assert contents(tmp_path) == before  # nothing written, not even the mark
+
+
+def test_a_users_own_config_yaml_is_not_written_over_by_the_config_quadctl_keeps(tmp_path):
+    own = tmp_path / "config.yaml"
+    own.write_text(config.load("hover").to_yaml().replace("mass: 0.068", "mass: 0.07"))
+    before = contents(tmp_path)
+    res = invoke("design", "-c", own, "-o", tmp_path, "--set", "simulation.duration=2")
+    assert res.exit_code == 2 and "holds config.yaml, which quadctl did not write" in res.stderr
+    assert contents(tmp_path) == before
+
+
+def test_a_folder_with_only_other_files_is_taken_marked_and_its_files_kept(tmp_path):
+    (tmp_path / "mine.yaml").write_text(config.load("hover").to_yaml())
+    for _ in range(2):  # the second run finds the folder marked as quadctl's
+        assert invoke("trim", "-c", tmp_path / "mine.yaml", "-o", tmp_path).exit_code == 0
+    assert (tmp_path / artifacts.MARK_NAME).is_file() and (tmp_path / "trim.json").is_file()
+    assert (tmp_path / "mine.yaml").read_text() == config.load("hover").to_yaml()
+
+
+def test_a_run_folder_made_before_the_mark_is_taken_and_marked(tmp_path):
+    out = tmp_path / "run"
+    assert invoke("trim", "-c", "hover", "-o", out).exit_code == 0
+    (out / artifacts.MARK_NAME).unlink()  # as an earlier quadctl left it: config.yaml beside its trim.json
+    assert invoke("trim", "-c", "hover", "-o", out).exit_code == 0
+    assert (out / artifacts.MARK_NAME).is_file()
+
+
+@pytest.mark.parametrize("name", ["config.yaml", "README.md", "Makefile", "plots"])
+def test_every_writer_is_held_to_the_claim(tmp_path, name):
+    """The lock every writer takes (the workspace, the exports, a sweep's store) claims the folder first."""
+    (tmp_path / name).mkdir() if name == "plots" else (tmp_path / name).write_text("mine\n")
+    with pytest.raises(ArtifactError, match=f"holds {name}, which quadctl did not write"):
+        with artifacts.locked(tmp_path):
+            pass
+    assert not (tmp_path / artifacts.MARK_NAME).exists() and not (tmp_path / artifacts.LOCK_NAME).exists()
+    with artifacts.locked(tmp_path / "new"):  # a new folder: taken and marked
+        assert (tmp_path / "new" / artifacts.MARK_NAME).is_file()
