@@ -178,6 +178,8 @@ class Workspace(pipeline.Stages):
         self._undo: list[tuple[Path, Path | bytes | str | object | None]] | None = []
         """Each file the session wrote or removed, and what it held before (:meth:`_before_change`); None: kept."""
         self.reused: list[Path] = []
+        self._notes: list[str] | None = None
+        """The notices :meth:`defer_notes` holds back until :meth:`close` (None: each is issued at once)."""
         self.payloads: dict[str, dict] = {}
         """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
         a reused artifact is parsed once, here."""
@@ -190,8 +192,21 @@ class Workspace(pipeline.Stages):
             artifacts.remove_stale_temporaries(self.out, age=0.0)
 
     def close(self) -> None:
-        """Release the run folder (the process's end releases it too)."""
+        """Release the run folder (the process's end releases it too), and issue the notices held back
+        (:meth:`defer_notes`)."""
+        notes = self._notes or []
+        if self._notes is not None:
+            self._notes = []
+        for note in notes:
+            warnings.warn(QuadctlNotice(note), stacklevel=2)
         self._hold.close()
+
+    def defer_notes(self) -> None:
+        """Hold back what this session says of the folder (the artifacts of another config it removed)
+        until :meth:`close`: a command that refuses its input puts the folder back (:meth:`roll_back`), and
+        the notices of what it undid are then not issued at all."""
+        if self._notes is None:
+            self._notes = []
 
     def __enter__(self) -> Workspace:
         return self
@@ -262,6 +277,8 @@ class Workspace(pipeline.Stages):
                 continue
         self._undo = []
         self.written.clear()
+        if self._notes is not None:  # what they said was undone
+            self._notes.clear()
 
     def keep(self) -> None:
         """Keep what this session wrote, whatever follows (:meth:`roll_back` does nothing after this)."""
@@ -339,8 +356,12 @@ class Workspace(pipeline.Stages):
                 path.unlink()
                 removed.append(name)
         if removed:
-            warnings.warn(QuadctlNotice(f"{self.out}: removed {', '.join(removed)}, made by another config "
-                                        f"(config_hash {config_hash_of(self.out) or 'unknown'})"), stacklevel=2)
+            note = (f"{self.out}: removed {', '.join(removed)}, made by another config "
+                    f"(config_hash {config_hash_of(self.out) or 'unknown'})")
+            if self._notes is None:
+                warnings.warn(QuadctlNotice(note), stacklevel=2)
+            else:
+                self._notes.append(note)
 
     def _made_by_another_config(self, path: Path) -> bool:
         try:

@@ -98,12 +98,21 @@ def remember_workspace(ws) -> None:
     state = _COMMAND.get(None)
     if state is not None:
         state["workspace"] = ws
+        ws.defer_notes()  # said when the command ends, and not at all of what a refusal puts back
 
 
 def _roll_back() -> None:
     ws = (_COMMAND.get(None) or {}).get("workspace")
     if ws is not None:
         ws.roll_back()
+
+
+def _release_workspace() -> None:
+    """The command is over: its run folder is released (its lock, the files it set aside) and its held-back
+    notices said, not left to the garbage collector of a process that goes on."""
+    ws = (_COMMAND.get(None) or {}).get("workspace")
+    if ws is not None:
+        ws.close()
 
 
 def message_of(exc) -> str:
@@ -133,7 +142,14 @@ def handled(fn):
         token = _COMMAND.set({})
         try:
             with notices_printed():
-                return fn(*args, **kwargs)
+                try:
+                    return fn(*args, **kwargs)
+                except QuadctlError as exc:
+                    if exc.exit_code == EXIT_BAD_INPUT:  # refused: the run folder as it was
+                        _roll_back()
+                    raise
+                finally:  # within the notices: those the workspace held back are said (before the error)
+                    _release_workspace()
         except (typer.Exit, typer.Abort, SystemExit):
             raise
         except FailedChecks as verdict:  # a verdict, not an error: no traceback with --debug
@@ -142,8 +158,6 @@ def handled(fn):
         except QuadctlError as exc:  # the class decides the exit code, with or without --debug
             if debug_enabled(ctx):
                 _traceback()
-            if exc.exit_code == EXIT_BAD_INPUT:  # refused: the run folder as it was
-                _roll_back()
             raise fail(message_of(exc), exc.exit_code) from None
         except BrokenPipeError:  # `quadctl ... --json | head`: the reader left; the work is saved
             devnull = os.open(os.devnull, os.O_WRONLY)
@@ -165,9 +179,6 @@ def handled(fn):
                        "rerun with --debug for the traceback and please report it",
                        EXIT_INTERNAL) from None
         finally:
-            ws = _COMMAND.get({}).get("workspace")
-            if ws is not None:  # the command is over: its run folder is released (its lock, the files it
-                ws.close()  # set aside), not left to the garbage collector of a process that goes on
             _COMMAND.reset(token)
 
     # typer hands the context to a parameter annotated typer.Context: add one to the signature

@@ -258,8 +258,8 @@ def read_ulog(path) -> FlightLog:
     try:
         from pyulog import ULog
     except ImportError:
-        raise LogError(f"{path}: reading a ULog needs the pyulog package; pip install 'quadctl[identify]' "
-                       "or convert the log to the CSV format") from None
+        raise LogError(f"{path}: reading a ULog needs the pyulog package; pip install '.[identify]' in the quadctl "
+                       "checkout (or pip install 'quadctl[identify]'), or convert the log to the CSV format") from None
     raw = Path(path).read_bytes()
     try:
         ulog = ULog(str(path), list(ULOG_TOPICS))
@@ -293,6 +293,8 @@ def read_log(path, columns: dict[str, str] | None = None) -> FlightLog:
         The file is missing, empty or of no supported format.
     """
     p = Path(path)
+    if p.is_dir():
+        raise LogError(f"{path}: is a folder, not a flight log; give the path of a log file in it")
     if not p.is_file():
         raise LogError(f"{path}: no such file; give the path of a flight log")
     with open(p, "rb") as fh:

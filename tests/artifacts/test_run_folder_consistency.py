@@ -34,6 +34,7 @@ def test_a_refused_command_leaves_the_folder_as_it_was(tmp_path):
     res = invoke("simulate", "-c", "hover", "-o", tmp_path, "--set", "simulation.dt=0.001")
     assert res.exit_code == 2 and "is unstable for RK4" in res.stderr
     assert _contents(tmp_path) == before and not list(tmp_path.glob(".*.tmp"))
+    assert len(res.stderr.splitlines()) == 1  # the error alone: no note of a removal the refusal undid
 
 
 def test_a_new_config_removes_what_the_old_one_made(tmp_path):

@@ -145,3 +145,11 @@ def test_ulog_without_pyulog_says_how_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "pyulog", None)
     with pytest.raises(LogError, match=r"sample_px4_events.ulg: reading a ULog needs the pyulog package; pip install"):
         read_log(ULOG)
+
+
+def test_a_folder_or_a_missing_path_is_named_as_what_it_is(tmp_path):
+    (tmp_path / "logs").mkdir()
+    with pytest.raises(LogError, match=r"logs: is a folder, not a flight log; give the path of a log file in it"):
+        read_log(tmp_path / "logs")
+    with pytest.raises(LogError, match=r"gone.csv: no such file; give the path of a flight log"):
+        read_log(tmp_path / "gone.csv")

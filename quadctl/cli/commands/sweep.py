@@ -14,14 +14,16 @@ def command(
                                         help="Sweep file: parameters to vary, mode, gates.")],
     config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
     jobs: Annotated[Optional[int], typer.Option(
-        "--jobs", "-j", min=1, help="Local worker processes (not with --scheduler). Default: all cores.")] = None,
+        "--jobs", "-j", min=1, metavar="N",
+        help="Local worker processes (not with --scheduler). Default: all cores.")] = None,
     scheduler: Annotated[Optional[str], typer.Option(
         "--scheduler", metavar="ADDRESS", help="Run on this Dask scheduler (tcp://host:8786) instead.")] = None,
     resume: Annotated[bool, typer.Option(
         "--resume", help="Keep the rows an interrupted run of this sweep finished; compute the rest.")] = False,
     json: JsonOpt = False,
     no_plot: Annotated[bool, typer.Option(
-        "--no-plot", help="Write no figure (sweep.png, montecarlo.png): the tables and sweep.json only.")] = False,
+        "--no-plot",
+        help="Write no figure (sweep.png, montecarlo.png): the tables, sweep.csv and sweep.json only.")] = False,
 ) -> None:
     """Design, simulate and score many variants of a config; write sweep.csv, sweep.json, sweep.png.
 
