@@ -226,8 +226,11 @@ def _vehicle_loop_payload(loop) -> dict:
     Ts, eig = loop.sample_time, loop.eigenvalues
     return {
         "what": "the coupled linear loop with the rotors' lag, the controller's lag model (include), the "
-                "integrators and the delay; free positions left out",
+                "integrators and the delay" + (", the law acting on the Kalman filter's estimate (the filter's "
+                                               "states with the plant's)" if loop.estimated else "")
+                + "; free positions left out",
         "domain": "z" if Ts else "s", "eigenvalues": _c(eig), "stable": loop.stable,
+        "estimator": list(loop.estimated) or None,
         "spectral_radius" if Ts else "slowest_real_part": float(np.abs(eig).max() if Ts else eig.real.max()),
         "least_damping": loop.least_damping, "design_least_damping": loop.design_least_damping}
 

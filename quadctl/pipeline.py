@@ -349,14 +349,16 @@ class Stages:
 class VehicleLoop:
     """The linear closed loop the vehicle flies: the design's gains on the coupled model with the
     rotors' lag, the controller's lag model (a design that includes it), the integrators and the
-    delay (:func:`quadctl.design.linear_loop.vehicle_matrix`), next to the loop the design saw.
+    delay (:func:`quadctl.design.linear_loop.vehicle_matrix`), and the Kalman filter the law acts
+    through when there is one (:func:`quadctl.design.linear_loop.lqg_vehicle`), next to the loop the
+    design saw.
 
     Attributes
     ----------
     eigenvalues : (n,) ndarray of complex
         ``s`` (rad/s), or ``z`` of a loop sampled every ``sample_time`` s.
     design_eigenvalues : (n,) ndarray of complex
-        The same loop without the rotors' lag and the delay (what a design that ignores them sees).
+        The full-state loop without the rotors' lag and the delay (what a design that ignores them sees).
     sample_time : float or None
     stable : bool
     least_damping, design_least_damping : float
@@ -377,16 +379,25 @@ class VehicleLoop:
     delay_samples: int = 0
     gyro_filter: str = ""
     """What the gyro filter in the loop is (:meth:`quadctl.linear.filters.RateFilter.describe`); empty: none."""
+    estimated: tuple[str, ...] = ()
+    """The states a Kalman filter in the loop measures (the law acts on its estimate and ``eigenvalues``
+    are the plant's and the filter's: :func:`quadctl.design.linear_loop.lqg_vehicle`); empty: full state."""
 
 
-def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLoop:
-    """:class:`VehicleLoop` of a design flown with the setup's rotors and delay."""
+def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design, *, estimator=None) -> VehicleLoop:
+    """:class:`VehicleLoop` of a design flown with the setup's rotors and delay, through the setup's Kalman
+    filter when it has one (``estimator``: that filter, :func:`estimator_of` when None)."""
 
     timing = setup.timing
     Ts = des.sample_time or (timing.sample_time if timing.mode == "emulated" else None)
     form = setup.rate_filter.form(Ts) if setup.rate_filter is not None else None
-    eig = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
-                                                       setup.rotor_time_constant, rate_filter=form))
+    kal = None if setup.estimator is None else estimator if estimator is not None else estimator_of(setup, linear)
+    if kal is not None:  # the loop that flies has the filter's dynamics too
+        eig = np.linalg.eigvals(linear_loop.lqg_vehicle(des, linear.A, linear.B, kal, timing.delay_samples,
+                                                        setup.rotor_time_constant))
+    else:
+        eig = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
+                                                           setup.rotor_time_constant, rate_filter=form))
     seen = setup.rotor_time_constant if des.lag_time_constant is not None else None
     ideal = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, 0, seen))
     return VehicleLoop(eigenvalues=eig, design_eigenvalues=ideal, sample_time=Ts,
@@ -395,7 +406,8 @@ def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design) -> VehicleLo
                        design_least_damping=stability.least_damping(ideal, Ts),
                        rotor_time_constant=setup.rotor_time_constant, rotor_lag=setup.rotor_lag,
                        delay_samples=timing.delay_samples,
-                       gyro_filter=setup.rate_filter.describe() if setup.rate_filter is not None else "")
+                       gyro_filter=setup.rate_filter.describe() if setup.rate_filter is not None else "",
+                       estimated=tuple(kal.measured) if kal is not None else ())
 
 
 def rate_warnings_of(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float):

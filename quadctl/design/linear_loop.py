@@ -329,6 +329,107 @@ def lqg_matrix(design, A, B, kal) -> np.ndarray:
     return close(base, np.vstack([Bp, Be, np.zeros((len(design.integral_states), Bp.shape[1]))]), Kc)
 
 
+def lqg_vehicle(design, A, B, kal, delay_samples: int = 0, rotor_time_constant: float | None = None, *,
+                keep_free: bool = False) -> np.ndarray:
+    """The closed loop the vehicle flies through the Kalman filter ``kal``: :func:`vehicle_matrix`'s plant
+    (the rotors' lag, the gyro filter, the integrators, the controller's lag model, the delay) with the
+    law acting on the filter's estimate, as :mod:`quadctl.sim.builder` runs it.
+
+    The state is ``[s; z; l; b; e]``: ``s`` the plant ``[x; v; g]`` (:func:`quadctl.design.lag.lagged`'s
+    lag states ``v``, the gyro filter's ``g``), ``z`` the integrators, ``l`` the lag model, ``b`` the
+    delay's buffer and ``e = [x; g] - x_hat`` the estimate's error (a similarity of the loop in
+    ``x_hat``). Sampled (``kal`` discrete at the controller period): the law acts on the updated
+    estimate ``xc = x_hat + M (y - C x_hat)``, the integrators integrate it, and the a priori estimate
+    is predicted under the input the plant gets (after the delay), ``x_hat <- Ae xc + Be u``.
+    Continuous (Kalman-Bucy): ``dx_hat/dt = Ae x_hat + Be u + L (y - C x_hat)``, the law on ``x_hat``.
+    Without the rotors' lag and the delay it is :func:`lqg_matrix`'s loop (the separation principle:
+    ``eig(A - B K)`` of the integrators' loop and ``eig(Ae - Ae M C)``, or ``eig(A - L C)``).
+
+    Parameters
+    ----------
+    design : quadctl.design.Design
+    A, B : (12, 12), (12, 4) array_like
+        The continuous coupled linear model.
+    kal : quadctl.design.kalman.Kalman
+        Its ``sample_time`` is the loop's; its ``rate_filter`` the loop's gyro filter.
+    delay_samples : int
+        Controller samples of delay (sampled loops).
+    rotor_time_constant : float, optional
+        s of the rotors' lag (the filter's model does not have it).
+    keep_free : bool
+        Keep the positions nothing reads (:func:`quadctl.linear.stability.free_positions`); in the
+        error coordinates their columns are their own (the estimate's error does not depend on the
+        plant), so leaving them out leaves the other eigenvalues.
+
+    Returns
+    -------
+    (N, N) ndarray
+    """
+    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
+    Ts, ints = kal.sample_time, design.integral_states
+    if delay_samples and Ts is None:
+        raise ValueError("a delay is counted in controller samples: a continuous filter's loop has none")
+    rates = [STATE_INDEX[s] for s in RATE_STATES]
+    Al, Bl = lag.lagged(A, B, rotor_time_constant)
+    if Ts is not None:
+        Al, Bl = discrete.c2d(Al, Bl, Ts)
+    As, Bs = series(Al, Bl, kal.rate_filter.form(Ts) if kal.rate_filter is not None else None, rates)
+    ns, ne, m = As.shape[0], kal.n_estimate, B.shape[1]
+    nz, nl, nb = len(ints), m if design.lag_time_constant is not None else 0, m * delay_samples
+    E = np.zeros((ne, ns))  # [x; g] of the plant: what the filter estimates
+    E[:N_STATES, :N_STATES] = np.eye(N_STATES)
+    E[N_STATES:, ns - (ne - N_STATES):] = np.eye(ne - N_STATES)
+    K = np.hstack([design.K_block, np.zeros((m, ne - N_STATES))])  # the law reads the estimate of x
+    Ki = np.asarray(design.Ki_block, dtype=float).reshape(m, nz)
+    Cz = np.hstack([integral.selector(STATE_NAMES, ints), np.zeros((nz, ne - N_STATES))])
+    C, G = kal.C, kal.gain
+    # blocks of the state [s; z; l; b; x_hat]
+    o = np.cumsum([0, ns, nz, nl, nb, ne])
+    S, Z, Lm, Bf, H = (slice(o[i], o[i + 1]) for i in range(5))
+    N = o[-1]
+    # what the law acts on: xc = Xs s + Xh x_hat
+    Xs, Xh = (G @ C @ E, np.eye(ne) - G @ C) if Ts is not None else (np.zeros((ne, ns)), np.eye(ne))
+    cmd = np.zeros((m, N))
+    cmd[:, S], cmd[:, H], cmd[:, Z] = -K @ Xs, -K @ Xh, -Ki
+    if nl:
+        cmd[:, Lm] = -np.asarray(design.Kv_block, dtype=float)
+    applied = cmd
+    if nb:  # the oldest command reaches the plant
+        applied = np.zeros((m, N))
+        applied[:, o[4] - m:o[4]] = np.eye(m)
+    M = np.zeros((N, N))
+    M[S, S] = As
+    M[S] += Bs @ applied
+    if Ts is not None:
+        M[Z, S], M[Z, H] = -Ts * Cz @ Xs, -Ts * Cz @ Xh
+        M[Z, Z] = np.eye(nz)
+        if nl:
+            a = lag.model_pole(design.lag_time_constant, Ts)
+            M[Lm] = (1 - a) * cmd
+            M[Lm, Lm] += a * np.eye(m)
+        if nb:  # b_1 <- command, b_k <- b_(k-1)
+            M[o[3]:o[3] + m] = cmd
+            M[o[3] + m:o[4], o[3]:o[4] - m] = np.eye(nb - m)
+        M[H, S], M[H, H] = kal.A @ Xs, kal.A @ Xh
+        M[H] += kal.B @ applied
+    else:
+        M[Z, H] = -Cz
+        if nl:
+            M[Lm] = cmd / design.lag_time_constant
+            M[Lm, Lm] -= np.eye(m) / design.lag_time_constant
+        M[H] = kal.B @ applied
+        M[H, S] += G @ C @ E
+        M[H, H] += kal.A - G @ C
+    T = np.eye(N)  # x_hat -> e = E s - x_hat (T is its own inverse)
+    T[H, S], T[H, H] = E, -np.eye(ne)
+    M = T @ M @ T
+    if keep_free:
+        return M
+    free = [STATE_INDEX[s] for s in stability.free_positions(A, reads=(design.K_block,), integral_states=ints)]
+    keep = [i for i in range(N) if i not in free]
+    return M[np.ix_(keep, keep)]
+
+
 def broken(A, B, K, j: int) -> np.ndarray:
     """``A - B_o K_o``: the loop of ``u = -K x`` with input ``j``'s feedback removed (every other
     input's loop closed), where a loop is broken for its margins."""

@@ -270,7 +270,8 @@ _WORDS = {
 
 
 def closed_loop_sentence(payload: dict) -> Mark:
-    """margins.json's ``closed_loop``: the loop the vehicle has (lag, lag model, delay), stable or not."""
+    """margins.json's ``closed_loop``: the loop the vehicle has (lag, lag model, delay, the Kalman filter),
+    stable or not."""
     cl = payload["closed_loop"]
     parts = []
     if payload.get("rotor_time_constant"):
@@ -278,6 +279,8 @@ def closed_loop_sentence(payload: dict) -> Mark:
         parts.append(f"a {payload['rotor_time_constant'] * 1e3:.4g} ms rotor lag ({lag}d by the design)")
     if payload.get("delay_samples"):
         parts.append(f"{payload['delay_samples']} sample{'s' if payload['delay_samples'] != 1 else ''} of delay")
+    if cl.get("estimator"):
+        parts.append("the Kalman filter included (plant and estimator)")
     what = "closed loop" + (" with " + " and ".join(parts) if parts else "")
     size = (f"spectral radius {cl['spectral_radius']:.6g}" if cl["domain"] == "z" else
             f"slowest pole {cl['slowest_real_part']:.4g} rad/s")

@@ -152,6 +152,8 @@ def _vehicle_loop_has(loop) -> str:
         parts.append(f"the rotors' {loop.rotor_time_constant * 1e3:g} ms lag ({how} the design)")
     if loop.delay_samples:
         parts.append(f"{loop.delay_samples} sample{'s' if loop.delay_samples > 1 else ''} of delay")
+    if loop.estimated:
+        parts.append("the Kalman filter included (plant and estimator)")
     return " and ".join(parts)
 
 
@@ -171,7 +173,8 @@ def vehicle_loop_verdict(loop) -> str | None:
            if loop.rotor_time_constant is not None and loop.rotor_lag == "ignore"
            else "raise the gyro filter's cutoff (controller.filters) or lower the gains (larger R)"
            if loop.gyro_filter and not loop.delay_samples
-           else "lower the gains (larger R) or shorten the delay")
+           else "lower the gains (larger R) or shorten the delay" if loop.delay_samples or not loop.estimated
+           else "measure more states (estimator.measure) or lower the gains (larger R)")
     return f"with {_vehicle_loop_has(loop)} the design's closed loop is UNSTABLE; {fix}"
 
 

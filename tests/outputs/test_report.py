@@ -413,7 +413,8 @@ def test_the_report_shows_the_filter_the_wind_and_the_loop_with_the_lag(tmp_path
     page = _parse(out / report.FOLDER / report.HTML)
     text = " ".join(" ".join(page.text).split())
     closed = _artifact(out, "checks.json")["closed_loop"]
-    assert (f"With the rotors' 20 ms lag (ignored by the design) the design's closed loop stays stable: least "
+    assert (f"With the rotors' 20 ms lag (ignored by the design) and the Kalman filter included (plant and "
+            f"estimator) the design's closed loop stays stable: least "
             f"damping {closed['least_damping']:.3g} ({closed['design_least_damping']:.3g} as designed).") in text
     assert "The law closes through a steady-state Kalman filter (LQG), the discrete filter at 500 Hz" in text
     design = _artifact(out, "design.json")["estimator"]

@@ -2,7 +2,9 @@
 
 - The nonlinear loop the simulation runs (quadctl.sim.builder) linearized by CasADi at the
   reference equals the linear loop, for every bundled config and for loops with the rotors' lag,
-  the controller's lag model and a delay.
+  the controller's lag model and a delay; through a Kalman filter, it has the eigenvalues of the loop
+  the closed-loop verdict judges (linear_loop.lqg_vehicle), the rotors' lag, the delay and the gyro
+  filter included.
 - The free-position rule (quadctl.linear.stability.free_positions): a position no gain reads but another
   state depends on is not free, so its mode stays in the verdict.
 - The sampled cost of a discrete design (quadctl.design.coupled.linear_cost) equals the cost a linear
@@ -16,9 +18,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.linalg
+import yaml
 from _solve import cfg_dict, solve
 
 from quadctl import config, pipeline
+from quadctl.config import loading
 from quadctl.design import coupled, linear_loop
 from quadctl.layout import INPUT_NAMES, N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.linear import stability
@@ -290,3 +294,57 @@ def test_a_scheduled_loop_at_a_frozen_reference_is_the_linear_loop_of_its_gain(n
     assert np.abs(G - des.K_block).max() > 1e-3 * np.abs(G).max()  # the schedule's gain, not the trim's design
     err = np.abs(J - A_lin).max() / max(1.0, np.abs(A_lin).max())
     assert err < AGREE, f"{name}: max diff {err:.3e}"
+
+
+# ---------------------------------------------------------------------------------------------
+# The loop through a Kalman filter that the verdict judges (linear_loop.lqg_vehicle)
+
+
+def _lqg_variant(name: str) -> dict:
+    """mambo-lqg (a discrete filter) with the rotors' lag, the lag model, a delay and the gyro filter, or
+    hover through a continuous filter on rotors that lag."""
+    if name.startswith("hover"):
+        data = _variant("hover+lag model")
+        lqg = _variant("hover+LQG")
+        data["simulation"]["noise"], data["estimator"] = lqg["simulation"]["noise"], lqg["estimator"]
+        data["simulation"]["method"] = "rk4"
+        return data
+    data = yaml.safe_load(loading.locate("docs/configs/mambo-lqg.yaml").text)
+    data["motors"]["time_constant"] = 0.02
+    if name.endswith("lag model+delay+gyro"):
+        data["controller"].update(rotor_lag="include", delay={"samples": 2},
+                                  filters={"gyro": {"cutoff": 30.0, "order": 2}})
+    else:
+        data["controller"]["delay"] = {"samples": 1}
+    return data
+
+
+@pytest.mark.parametrize("name", ["mambo-lqg+lag model+delay+gyro", "mambo-lqg+rotor lag ignored+delay",
+                                  "hover+LQG continuous+lag model"])
+def test_the_simulated_lqg_loop_has_the_verdicts_eigenvalues(name):
+    """The builder's loop through the Kalman filter, linearized at the reference, has as a set the eigenvalues
+    of :func:`quadctl.design.linear_loop.lqg_vehicle` (every state kept): the verdict judges the loop that
+    flies, with the rotors' lag the filter does not model, the controller's lag model, the delay (the filter
+    predicting under the input the plant gets) and the gyro filter. Eigenvalues of two similar matrices:
+    each within its conditioning (Wilkinson) of the linear loop."""
+    from scipy.linalg import eig
+
+    setup, _, linear, _, des = solve(_lqg_variant(name))
+    loop = pipeline.loop_of(setup, linear, des)
+    loop = replace(loop, params=setup.vehicle.vector())
+    J, Ts = _jacobians(loop, setup)
+    M = linear_loop.lqg_vehicle(des, linear.A, linear.B, loop.estimator, setup.timing.delay_samples,
+                                setup.rotor_time_constant, keep_free=True)
+    assert J.shape == M.shape, name
+    lam, left, right = eig(M, left=True, right=True)
+    s = np.abs(np.einsum("ij,ij->j", left.conj(), right)) / (np.linalg.norm(left, axis=0)
+                                                              * np.linalg.norm(right, axis=0))
+    tol = AGREE * max(1.0, np.abs(M).max()) / np.maximum(s, 1e-300)
+    got = list(np.linalg.eigvals(J))
+    worst = 0.0
+    for w, t in sorted(zip(lam, tol), key=lambda p: -abs(p[0])):
+        k = int(np.argmin([abs(g - w) for g in got]))
+        err = abs(got.pop(k) - w)
+        assert err <= t, f"{name}: eigenvalue {w:.6g}: nearest {err:.3e} away, tolerance {t:.3e}"
+        worst = max(worst, err)
+    print(f"{name}: {len(lam)} eigenvalues, worst {worst:.2e}")
