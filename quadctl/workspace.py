@@ -413,7 +413,8 @@ class Workspace(pipeline.Stages):
         vehicle = None
         if all(checks[n].stabilizable for n in regulated):
             warnings = list(self.rate_warnings)
-            if self.setup.rotor_time_constant is not None or timing.delay_samples or self.setup.rate_filter is not None:
+            if (self.setup.rotor_time_constant is not None or timing.delay_samples or self.setup.rate_filter is not None
+                    or est is not None and checks[ESTIMATOR_CHECK].detectable):  # the loop flown is not the design's
                 des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
                 vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
         self._write_json(CHECKS, "checks", _with_messages(payloads.checks(self.setup, checks, regulated, warnings,

@@ -103,3 +103,14 @@ def test_a_rate_equal_to_a_discrete_configs_own_checks_the_discrete_design(tmp_p
     again = invoke("check", "-c", tmp_path / "c.yaml", "--rate", 200, "-o", tmp_path / "b")
     assert plain.exit_code == again.exit_code == 0, again.output
     assert "UNSTABLE" not in again.stderr
+
+
+def test_check_judges_the_loop_a_kalman_filter_flies(tmp_path):
+    """With only an estimator beside the design, check's closed loop is the plant and the filter together
+    (the margins' verdict: tests/design/test_lqg_vehicle_loop.py checks its eigenvalues), not null."""
+    res = invoke("check", "-c", ROOT / "docs" / "configs" / "mambo-lqg.yaml", "-o", tmp_path)
+    assert res.exit_code == 0, res.output
+    assert "with the Kalman filter included (plant and estimator) the design's closed loop stays stable" in flat(
+        res.output)
+    loop = json.loads((tmp_path / "checks.json").read_text())["closed_loop"]
+    assert loop["stable"] and loop["estimator"] and len(loop["eigenvalues"]) == 23
