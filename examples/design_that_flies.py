@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
 import quadctl as qc
 from quadctl import config, pipeline, plots
@@ -39,7 +40,7 @@ def save(fig, name):
 
 
 # 1. What each design asks of the Mambo's rotors: peak |u - u_trim| over the headroom from the trim
-cases = {}
+cases, clipped = {}, {}
 for label, name, sets in (("report, continuous", "forward", ()),
                           ("report weights, lqrd 200 Hz", "forward", ("controller.rate=200.0",)),
                           ("report weights, lqrd 200 Hz, rotor limits", "forward",
@@ -51,6 +52,12 @@ for label, name, sets in (("report, continuous", "forward", ()),
     peak = np.abs(sim.u - u_trim).max(axis=0)
     cases[label] = np.array([peak[j] / min(room[n]) for j, n in enumerate(INPUT_NAMES)])
     actuators = stages.loop.actuators
+    clipped[label] = np.zeros(4, dtype=bool)  # per input: a rotor at its limit when the input peaked
+    if actuators is not None:
+        thrust = actuators.commands(sim.u)
+        tol = 1e-9 * float(np.max(actuators.hi))
+        at_limit = ((thrust <= actuators.lo + tol) | (thrust >= actuators.hi - tol)).any(axis=1)
+        clipped[label] = at_limit[np.abs(sim.u - u_trim).argmax(axis=0)]
     saturated = motors.saturation_fraction(actuators, sim.u) if actuators is not None else None
     print(f"{label}: status {sim.status} ({sim.message}); peak |du| = "
           + ", ".join(f"{n} {peak[j]:.4g}" for j, n in enumerate(INPUT_NAMES))
@@ -64,14 +71,21 @@ fig = Figure(figsize=(8.0, 3.8), layout="constrained")
 ax = fig.subplots()
 width = 0.8 / len(cases)
 for k, (label, ratio) in enumerate(cases.items()):
-    ax.bar(np.arange(4) + (k - (len(cases) - 1) / 2) * width, ratio, width, label=label)
+    bars = ax.bar(np.arange(4) + (k - (len(cases) - 1) / 2) * width, ratio, width, label=label)
+    for bar, at_limit in zip(bars, clipped[label]):
+        if at_limit:  # the law asked more than this: the rotors gave what they had
+            bar.set_hatch("////")
+            bar.set_edgecolor("k")
 ax.axhline(1.0, color="k", lw=1.0, ls="--")
 ax.set_yscale("log")
 ax.set_xticks(range(4), [f"{n}" for n in INPUT_NAMES])
 ax.set_ylabel("peak |u - u_trim| / rotor headroom")
 ax.grid(True, axis="y", which="both", alpha=0.3)
-ax.legend(fontsize=8, frameon=False, loc="upper left")
-fig.suptitle("What each design asks of the Mambo's rotors (report's initial offset); above 1: impossible")
+handles, _ = ax.get_legend_handles_labels()
+key = Patch(facecolor="white", edgecolor="k", hatch="////", label="clipped: a rotor at its limit at the peak")
+ax.legend(handles=[*handles, key], fontsize=8, frameon=False, loc="upper left")
+fig.suptitle("What each design asks of the Mambo's rotors (report's initial offset); above 1: impossible,\n"
+             "hatched: the input applied, clipped at a rotor's limit (the law asked for more)")
 save(fig, "peak-demand.png")
 
 # 2. mambo-200hz from the report's initial offset: attitude and altitude errors, rotor thrusts

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -29,14 +31,18 @@ def _values(name: str, run, loop) -> np.ndarray:
     return (run.u @ act.mix.T).max(axis=1) / float(np.max(act.hi))
 
 
-def comparison_figures(laws, *, title: str = "") -> dict[str, Figure]:
+def comparison_figures(laws, *, title: str = "", notes: dict[str, str] | None = None) -> dict[str, Figure]:
     """``{stem: figure}``: each of :data:`QUANTITIES` against time, the laws overlaid.
 
     Parameters
     ----------
     laws : sequence
         Each with ``name``, ``run`` (a SimResult) and ``loop`` (its ClosedLoop).
+    notes : dict, optional
+        ``{stem: sentence}``: said above that figure's axes, wrapped to its width (such as
+        :func:`quadctl.present.compare.free_position_sentence` on the position error).
     """
+    notes = notes or {}
     out = {}
     for stem, label in QUANTITIES:
         fig = Figure(figsize=(10.0, 3.6), layout="constrained")
@@ -48,6 +54,8 @@ def comparison_figures(laws, *, title: str = "") -> dict[str, Figure]:
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8, frameon=False)
+        if notes.get(stem):
+            ax.set_title(textwrap.fill(notes[stem], 130), fontsize=8, loc="left")
         what = stem.replace("-", " ")
         fig.suptitle(f"{title}: {what}" if title else what)
         out[stem] = fig

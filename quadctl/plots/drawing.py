@@ -82,8 +82,17 @@ def pixel_envelope(x, y, columns: int, *, log: bool = False) -> tuple[np.ndarray
 
 def trace(ax, x, y, *args, log: bool = False, **kwargs):
     """``ax.plot(x, y, ...)`` of a time series, thinned to the figure's pixel columns at :data:`DPI`
-    (:func:`pixel_envelope`)."""
+    (:func:`pixel_envelope`).
+
+    With ``log``, the samples at ``x <= 0`` (``t = 0`` on a ``symlog`` axis) are kept whole and the
+    rest thinned in columns of equal width in ``log10(x)``."""
     columns = int(np.ceil(ax.get_figure(root=True).get_figwidth() * DPI))
+    if log:
+        x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+        head = np.searchsorted(x, 0.0, side="right") if len(x) and np.all(np.diff(x) >= 0) else 0
+        if 0 < head < len(x):
+            tail_x, tail_y = pixel_envelope(x[head:], y[head:], columns, log=True)
+            return ax.plot(np.r_[x[:head], tail_x], np.r_[y[:head], tail_y], *args, **kwargs)
     return ax.plot(*pixel_envelope(x, y, columns, log=log), *args, **kwargs)
 
 

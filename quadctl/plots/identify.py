@@ -2,36 +2,64 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from matplotlib.figure import Figure
 
 from quadctl.plots.drawing import COLORS, png_bytes
 
 
-def fit_figure(ident) -> bytes:
-    """PNG: one row per fitted quantity (thrust, torques), measured and predicted over time, and the residual."""
+def identification_figure(ident) -> Figure:
+    """One row per fitted quantity (thrust, torques): measured and predicted over time, and the residual.
+
+    Each row's title names the log its stage was fitted on. The model is drawn first and wider, the
+    measurement over it, thinner and partly transparent, so both show where they agree; the legend is
+    the figure's, above the panels, never over data.
+
+    Parameters
+    ----------
+    ident : quadctl.identify.results.Identification
+        Its ``fits`` (per stage: ``t``, ``measured``, ``predicted``, ``residual`` and ``rows``, each
+        row's name with its unit in parentheses), ``logs`` (each with a ``name``) and ``stage_logs``.
+    """
     panels = [(stage, k, fit) for stage, fit in ident.fits.items() for k in range(fit.measured.shape[1])]
-    fig = Figure(figsize=(10, 2.6 * len(panels)))
+    fig = Figure(figsize=(10, 2.6 * len(panels) + 0.4), layout="constrained")
     axes = fig.subplots(len(panels), 2, squeeze=False, gridspec_kw={"width_ratios": [3, 2]})
     for row, (stage, k, fit) in enumerate(panels):
         left, right = axes[row]
+        log = ident.logs[ident.stage_logs[stage]].name
+        unit = _unit(fit.rows[k])
         cut = max(1, fit.t.size // 4000)  # the figure's pixels, not every sample
         t, measured, predicted = _broken(fit.t[::cut], fit.measured[::cut, k], fit.predicted[::cut, k])
-        left.plot(t, measured, color=COLORS[0], lw=0.6, label="measured")
-        left.plot(t, predicted, color=COLORS[1], lw=0.6, label="model")
+        left.plot(t, predicted, color=COLORS[1], lw=1.3, alpha=0.9, label="model", zorder=2)
+        left.plot(t, measured, color=COLORS[0], lw=0.6, alpha=0.75, label="measured", zorder=3)
         left.set_ylabel(fit.rows[k])
-        left.set_title(f"{stage}: {fit.rows[k]}, measured and predicted", fontsize=9)
-        left.legend(loc="upper right", fontsize=8)
+        left.set_title(f"{log}, {stage}: {fit.rows[k]}, measured and predicted", fontsize=9)
         left.grid(alpha=0.3)
         res = fit.residual[:, k]
         right.plot(t, measured - predicted, color=COLORS[2], lw=0.5)
         right.axhline(0.0, color="k", lw=0.5)
-        right.set_title(f"residual, RMS {np.sqrt(np.mean(res ** 2)):.3g}", fontsize=9)
+        right.set_ylabel(f"measured - model ({unit})" if unit else "measured - model")
+        right.set_title(f"{log}, {stage}: residual, RMS {np.sqrt(np.mean(res ** 2)):.3g} {unit}".rstrip(),
+                        fontsize=9)
         right.grid(alpha=0.3)
         for ax in (left, right):
             ax.set_xlabel("t (s)")
-    fig.tight_layout()
-    return png_bytes(fig)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles[::-1], labels[::-1], loc="outside upper center", ncols=2, fontsize=8, frameon=False)
+    return fig
+
+
+def fit_figure(ident) -> bytes:
+    """PNG of :func:`identification_figure`."""
+    return png_bytes(identification_figure(ident))
+
+
+def _unit(row: str) -> str:
+    """The unit in a fitted row's name, ``"thrust (N)"`` -> ``"N"`` (empty without one)."""
+    found = re.search(r"\(([^()]*)\)\s*$", row)
+    return found.group(1) if found else ""
 
 
 def _broken(t, *series):

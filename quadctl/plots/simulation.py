@@ -45,10 +45,13 @@ def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figur
     """The four inputs T, A, E, R against time, with their trim values dashed and, given
     ``actuators``, their limits (:func:`input_limits`) as red lines.
 
-    Left: linear time. Right: the same on a log time axis, where the fast transients of the
-    rate loops (milliseconds or less) are visible. With rotors (``actuators.mode == "motors"``) a
-    last row shows each rotor's thrust (what the applied inputs ask of it) between its
-    ``min_thrust`` and ``max_thrust``, where a saturation shows.
+    Left: linear time. Right: the same samples on a time axis linear from 0 to the first step and
+    logarithmic after it (``symlog``), where the fast transients of the rate loops (milliseconds or
+    less) are visible beside the first sample. Each row's two panels share their y-limits, those of
+    every sample. With rotors (``actuators.mode == "motors"``) a last row shows each rotor's thrust
+    (what the applied inputs ask of it) between its ``min_thrust`` and ``max_thrust``, where a
+    saturation shows; each rotor's line carries its own markers, staggered from the others', so that
+    rotors with the same thrust all show (:func:`staggered_marks`).
 
     Parameters
     ----------
@@ -61,33 +64,60 @@ def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figur
     rotors = actuators is not None and actuators.mode == "motors"
     rows = len(INPUT_NAMES) + (1 if rotors else 0)
     fig = Figure(figsize=(10.0, 7.0 * rows / len(INPUT_NAMES)), layout="constrained")
-    axes = fig.subplots(rows, 2, sharex="col")
-    later = sim.t > 0
+    axes = fig.subplots(rows, 2, sharex="col", sharey="row")
+    steps = sim.t[sim.t > 0]
+    first_step = float(steps[0]) if len(steps) else 1.0  # s: the symlog axis's linear stretch, 0 to the first step
     lo, hi = input_limits(actuators) if actuators is not None else (np.full(4, -np.inf), np.full(4, np.inf))
     for j, (row, name, color) in enumerate(zip(axes, INPUT_NAMES, COLORS)):
-        for ax, t, u, log in ((row[0], sim.t, sim.u[:, j], False), (row[1], sim.t[later], sim.u[later, j], True)):
-            trace(ax, t, u, color=color, lw=1.6, label=name, log=log)
+        for ax, log in ((row[0], False), (row[1], True)):
+            trace(ax, sim.t, sim.u[:, j], color=color, lw=1.6, label=name, log=log)
             if u_trim is not None:
                 ax.axhline(u_trim[j], color="0.35", lw=1.0, ls="--", label="trim")
             limit_lines(ax, (lo[j], hi[j]), "rotor limits" if rotors else "limit")
             ax.grid(True, alpha=0.3)
-        row[0].set_ylabel(f"{name} [{unit_of(name)}]")
+            ax.set_ylabel(f"{name} [{unit_of(name)}]")
+            ax.yaxis.set_tick_params(labelleft=True)
         row[0].legend(loc="best", fontsize=8, frameon=False)
-        row[1].set_xscale("log")
     if rotors:
         thrust = actuators.commands(sim.u)
-        for ax, keep, log in ((axes[-1, 0], slice(None), False), (axes[-1, 1], later, True)):
-            for i, (rotor, color) in enumerate(zip(actuators.names, COLORS)):
-                trace(ax, sim.t[keep], thrust[keep, i], color=color, lw=1.2, label=rotor, log=log)
+        for ax, log in ((axes[-1, 0], False), (axes[-1, 1], True)):
+            ax.set_xscale("symlog", linthresh=first_step, linscale=0.3) if log else None
+            for i, (rotor, color, marker) in enumerate(zip(actuators.names, COLORS, ROTOR_MARKERS)):
+                line, = trace(ax, sim.t, thrust[:, i], color=color, lw=1.1, label=rotor, log=log, marker=marker,
+                              ms=4.5, zorder=2)
+                line.set_markevery(staggered_marks(ax, line.get_xdata(), i, len(actuators.names)))
             limit_lines(ax, (actuators.lo[0], actuators.hi[0]), "min / max thrust")
             ax.grid(True, alpha=0.3)
-        axes[-1, 0].set_ylabel("rotor thrust [N]")
+            ax.set_ylabel("rotor thrust [N]")
+            ax.yaxis.set_tick_params(labelleft=True)
         axes[-1, 0].legend(loc="best", fontsize=7, frameon=False, ncols=3)
-        axes[-1, 1].set_xscale("log")
+    for ax in axes[:, 1]:
+        ax.set_xscale("symlog", linthresh=first_step, linscale=0.3)
+        ax.set_xlim(left=0.0)
+        end = float(sim.t[-1]) if len(sim.t) else 1.0
+        decades = np.arange(np.ceil(np.log10(first_step)), np.floor(np.log10(max(end, first_step))) + 1)
+        ax.set_xticks([0.0, *10.0 ** decades])  # 0, then the decades past the linear stretch (none inside it)
     axes[-1, 0].set_xlabel("time [s]")
-    axes[-1, 1].set_xlabel("time [s], log scale")
+    axes[-1, 1].set_xlabel(f"time [s], linear to the first step ({first_step:.3g} s), log after")
     fig.suptitle(f"{title}: inputs" if title else "inputs")
     return fig
+
+
+ROTOR_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+"""Each rotor's marker, in order."""
+
+
+def staggered_marks(ax, x, i: int, lines: int, marks: int = 12) -> list[int]:
+    """Where line ``i`` of ``lines`` sharing ``ax`` puts its markers: the samples of ``x`` nearest
+    ``marks`` points equally spaced across the axis (its scale's coordinates), each line's a
+    ``1 / lines`` of the spacing after the one before. Lines on one another each show their markers."""
+    x = np.asarray(x, dtype=float)
+    if not len(x):
+        return []
+    scaled = ax.xaxis.get_transform().transform(x.reshape(-1, 1)).ravel()
+    lo, hi = scaled[0], scaled[-1]
+    targets = lo + (hi - lo) * (np.arange(marks) + (i + 0.5) / lines) / marks
+    return sorted({int(k) for k in np.clip(np.searchsorted(scaled, targets), 0, len(x) - 1)})
 
 
 def wind_figure(sim, *, title: str = "") -> Figure:
@@ -123,9 +153,10 @@ def path_figure(sim, waypoints=(), *, reached=None, tolerance: float | None = No
     pale = {"color": "0.72", "lw": 4.0, "solid_capstyle": "round", "label": "reference"}
     plane.plot(sim.x_ref[:, e], sim.x_ref[:, n], zorder=1, **pale)
     plane.plot(sim.x[:, e], sim.x[:, n], color=COLORS[0], lw=1.4, label="flown", zorder=2)
-    plane.plot(sim.x[0, e], sim.x[0, n], "o", mfc="none", mec=COLORS[2], ms=13, mew=2.0, label="start",
-               zorder=6)  # a ring: a mission that ends where it began shows its last waypoint inside
-    plane.plot(sim.x[-1, e], sim.x[-1, n], "o", color=COLORS[0], ms=5, label="end", zorder=3)
+    # the start a wide ring under the waypoints, the end a small dot over them: a mission that ends where
+    # it began shows its last waypoint inside the ring and the end on that waypoint (MARKERS)
+    plane.plot(sim.x[0, e], sim.x[0, n], "o", mfc="none", mec=COLORS[2], label="start", **MARKERS["start"])
+    plane.plot(sim.x[-1, e], sim.x[-1, n], "o", mfc="white", mec=COLORS[0], label="end", **MARKERS["end"])
     judged = reached is not None
     reached = list(reached) if judged else [None] * len(waypoints)
     labelled: set[str] = set()
@@ -137,7 +168,7 @@ def path_figure(sim, waypoints=(), *, reached=None, tolerance: float | None = No
         label = None if kind in labelled else f"reached within {tolerance:g} m" if kind == "reached" and \
             tolerance else kind
         labelled.add(kind)
-        plane.plot(wp[1], wp[0], ls="none", ms=8, mew=1.5, zorder=4, label=label, **style)
+        plane.plot(wp[1], wp[0], ls="none", label=label, **style, **MARKERS["waypoint"])
         if tolerance:
             plane.add_patch(Circle((wp[1], wp[0]), tolerance, fill=False, color=style["mec"], lw=0.8, ls=":",
                                    zorder=4))
@@ -170,6 +201,13 @@ def path_figure(sim, waypoints=(), *, reached=None, tolerance: float | None = No
         f", {sum(r is not None for r in reached)} of {len(reached)} waypoints reached"
     fig.suptitle(f"{title}: path{count}{status}" if title else f"path{count}{status}")
     return fig
+
+
+MARKERS = {"start": {"ms": 18.0, "mew": 1.5, "zorder": 3},
+           "waypoint": {"ms": 8.0, "mew": 1.5, "zorder": 4},
+           "end": {"ms": 6.0, "mew": 1.5, "zorder": 7}}
+"""The path's markers (points, and the order they are drawn in): the start's ring clears a waypoint's
+square at its centre (its inside radius above the square's half diagonal), the end is drawn on top."""
 
 
 def tracking_error_figure(sim, *, title: str = "") -> Figure:

@@ -50,8 +50,8 @@ def free_position_sentence(regulated: tuple[str, ...]) -> str | None:
     """A note when the LQR design leaves the horizontal position free (the PID cascades hold it)."""
     if "pN" in regulated and "pE" in regulated:
         return None
-    return ("The LQR design leaves pN and pE free (its guidance subsystem is not regulated): its position "
-            "error drifts where the PID cascades' position loops hold theirs.")
+    return ("The LQR design leaves pN and pE free (its guidance subsystem is not regulated): the horizontal part "
+            "of its position error stays or drifts, where the PID cascades' position loops remove theirs.")
 
 
 def stale_sentence(made_from: str, current: str) -> Mark:

@@ -112,6 +112,126 @@ def test_the_input_plot_draws_box_limits_and_none_without_limits():
     assert all(_limit_values(ax) == [] for ax in plots.inputs_figure(_sim()).axes)
 
 
+def _drawn(fig):
+    """``fig`` laid out and drawn (its artists' window extents in pixels at :data:`plots.DPI`)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig.set_dpi(plots.DPI)
+    FigureCanvasAgg(fig).draw()
+    return fig
+
+
+def test_the_input_plot_shows_the_first_sample_and_its_limits_in_both_columns():
+    """A one-sample peak at t = 0 (the report's -0.74 N m roll torque): the right-hand column's time axis
+    reaches 0 and draws it, each row's two panels share the limits of every sample, and every panel
+    names its input with a unit."""
+    sim = _sim()
+    sim.u[0, INPUT_INDEX["A"]] = -0.74
+    act = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))
+    fig = _drawn(plots.inputs_figure(sim, [0.6, 0, 0, 0], actuators=act))
+    axes = np.reshape(fig.axes, (-1, 2))
+    for (left, right), name in zip(axes, [*INPUT_INDEX, "rotor thrust"]):
+        for ax in (left, right):
+            assert ax.get_ylabel().startswith(name) and ax.get_ylabel().endswith("]"), ax.get_ylabel()
+        assert right.get_ylim() == left.get_ylim()
+    left, right = axes[INPUT_INDEX["A"]]
+    assert right.get_xscale() == "symlog" and right.get_xlim()[0] <= 0.0
+    drawn = _lines(right, "A")[0]
+    assert drawn.get_xdata()[0] == 0.0 and drawn.get_ydata().min() == -0.74
+    assert left.get_ylim()[0] < -0.74
+
+
+def _pixels(fig, ax):
+    """The RGB pixels inside ``ax`` of ``fig`` drawn at :data:`plots.DPI`."""
+    import io
+
+    import matplotlib.image
+
+    fig.set_dpi(plots.DPI)
+    png = plots.png_bytes(fig)
+    rgb = (matplotlib.image.imread(io.BytesIO(png))[..., :3] * 255).round()
+    x0, y0, x1, y1 = np.asarray(ax.get_window_extent().extents).round().astype(int)
+    height = rgb.shape[0]
+    return rgb[height - y1 + 2:height - y0 - 2, x0 + 2:x1 - 2].reshape(-1, 3)
+
+
+def test_every_rotor_in_the_legend_shows_when_their_thrusts_are_equal():
+    """Hover with no torque: the four rotors' lines coincide, yet each one's colour is seen in the
+    rotor panels."""
+    from matplotlib.colors import to_rgb
+
+    sim = _sim()
+    sim.u[:, 1:] = 0.0
+    act = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))
+    fig = plots.inputs_figure(sim, actuators=act)
+    for ax in fig.axes[-2:]:
+        pixels = _pixels(fig, ax)
+        for line in _lines(ax)[:4]:
+            colour = np.asarray(to_rgb(line.get_color())) * 255
+            assert (np.abs(pixels - colour).max(axis=1) <= 2).sum() > 20, line.get_label()
+
+
+def test_the_start_ring_clears_a_waypoint_at_the_start_and_the_end_shows_on_top():
+    """A square flown back to its start: the last waypoint, the start and the end at one point. The
+    start's ring (inside radius) clears the waypoint's square (half diagonal, edge included), and the
+    end is drawn over both."""
+    n = 40
+    sim = _sim(n)
+    wps = [np.array([0.0, 1.0, -1.0]), np.array([0.0, 0.0, -1.0])]
+    fig = plots.path_figure(sim, wps, reached=[0.5, 0.9], tolerance=0.05)
+    plane = fig.axes[0]
+    start, end = _lines(plane, "start")[0], _lines(plane, "end")[0]
+    square = next(ln for ln in plane.get_lines() if ln.get_marker() == "s")
+    inside = start.get_markersize() / 2 - start.get_markeredgewidth() / 2
+    corner = square.get_markersize() / 2 * math.sqrt(2) + square.get_markeredgewidth() / 2
+    assert inside > corner, (inside, corner)
+    assert end.get_zorder() > max(square.get_zorder(), start.get_zorder())
+    assert end.get_markerfacecolor() != square.get_markerfacecolor()
+
+
+def _identification():
+    t = np.linspace(0.0, 10.0, 500)
+    fit = lambda rows, scale: SimpleNamespace(  # noqa: E731
+        t=t, rows=rows, measured=scale * np.sin(np.outer(t, np.arange(1, len(rows) + 1))),
+        predicted=scale * 0.9 * np.sin(np.outer(t, np.arange(1, len(rows) + 1))),
+        residual=scale * 0.1 * np.sin(np.outer(t, np.arange(1, len(rows) + 1))))
+    return SimpleNamespace(fits={"thrust": fit(("thrust (N)",), 0.3), "attitude": fit(("torque x (N m)",), 0.002)},
+                           logs=[SimpleNamespace(name="log10"), SimpleNamespace(name="log15")],
+                           stage_logs={"thrust": 0, "attitude": 1})
+
+
+def test_the_identification_figure_names_its_logs_units_and_hides_no_data():
+    """Each row's titles name the log its stage was fitted on; the residuals carry the unit of their
+    quantity; the measurement is drawn over the model and thinner, so both show; the legend lies
+    outside every panel."""
+    from quadctl.plots.identify import identification_figure
+
+    fig = _drawn(identification_figure(_identification()))
+    rows = np.reshape(fig.axes, (-1, 2))
+    for (left, right), log, unit in zip(rows, ("log10", "log15"), ("(N)", "(N m)")):
+        assert left.get_title().startswith(log) and right.get_title().startswith(log)
+        assert right.get_ylabel().endswith(unit) and left.get_ylabel().endswith(unit)
+        measured, model = _lines(left, "measured")[0], _lines(left, "model")[0]
+        assert measured.get_zorder() > model.get_zorder() and measured.get_linewidth() < model.get_linewidth()
+    assert all(ax.get_legend() is None for ax in fig.axes) and len(fig.legends) == 1
+    box = fig.legends[0].get_window_extent()
+    assert not any(box.overlaps(ax.get_window_extent()) for ax in fig.axes)
+
+
+def test_the_position_error_figure_says_when_the_lqr_leaves_the_horizontal_position_free():
+    """The note quadctl compare prints (present/compare.py) is written on the position-error figure."""
+    from quadctl.plots.compare import comparison_figures
+    from quadctl.present.compare import free_position_sentence
+
+    note = free_position_sentence(("pD", "phi", "theta", "psi"))
+    assert note and free_position_sentence(("pN", "pE", "pD")) is None
+    act = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))
+    law = SimpleNamespace(name="lqr", run=_sim(), loop=SimpleNamespace(actuators=act))
+    figs = comparison_figures([law], notes={"position-error": note})
+    assert " ".join(figs["position-error"].axes[0].get_title(loc="left").split()) == note
+    assert all(fig.axes[0].get_title(loc="left") == "" for stem, fig in figs.items() if stem != "position-error")
+
+
 def _columns_of(x, columns, log=False):
     """Column of each sample, computed on its own: equal widths across x[0]..x[-1] (in log10 x with log)."""
     pos = np.log10(x) if log else np.asarray(x)

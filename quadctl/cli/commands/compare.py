@@ -47,8 +47,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     if plot:
         from quadctl import plots
         from quadctl.plots.compare import comparison_figures
+        from quadctl.present.compare import free_position_sentence
 
-        for stem, fig in comparison_figures(result.laws, title=ws.setup.name).items():
+        notes = {"position-error": free_position_sentence(ws.setup.regulated) or ""}
+        for stem, fig in comparison_figures(result.laws, title=ws.setup.name, notes=notes).items():
             figures.append(ws.write_bytes(artifacts.plot_path(ws.out, f"compare-{stem}"), plots.png_bytes(fig, 90)))
     if json:
         render.emit_json(data)
