@@ -185,6 +185,9 @@ class Workspace(pipeline.Stages):
         a reused artifact is parsed once, here."""
         self._hold = contextlib.ExitStack()
         first = not artifacts.held(self.out)
+        mark = self.out / artifacts.MARK_NAME
+        if not os.path.lexists(mark):  # the lock marks the folder as quadctl's: a roll-back takes the mark away too
+            self._undo.append((mark, None))
         self._hold.enter_context(artifacts.locked(self.out))  # one run writes a folder at a time
         weakref.finalize(self, self._hold.close)
         if first:  # no other process holds the folder, and none of this one: every quadctl temporary there,
