@@ -278,7 +278,7 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
         return f"{command} needs {key}{what}; add it (`{command} --help` describes it)"
     if isinstance(exc, exc_mod.BadParameter) and param is not None:
         value = _given(args, getattr(param, "opts", ()))
-        given = f"{key} {value}" if value is not None else key
+        given = key if value is None else f"{key} {value!r}" if not value.strip() else f"{key} {value}"  # '' shown
         lo, hi = _range_of(param)
         if choices:
             near = hint(value, choices) if value is not None else ""

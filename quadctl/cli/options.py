@@ -11,8 +11,18 @@ ConfigOpt = Annotated[Optional[str], typer.Option(
     "--config", "-c", metavar="PATH|NAME",
     help="Config file, or the name of a bundled config (see `quadctl configs`). "
          "Default: forward, the report's case.")]
+
+
+def out_folder(text: str) -> Path:
+    """``--out``'s value as a path, refusing an empty one (a path of '' would be the current folder)."""
+    if not text.strip():
+        raise typer.BadParameter("an empty path; give the run directory, or leave -o out for runs/<config name>")
+    return Path(text)
+
+
 OutOpt = Annotated[Optional[Path], typer.Option(
-    "--out", "-o", metavar="DIR", help="Run directory for artifacts. Default: runs/<config name>.")]
+    "--out", "-o", metavar="DIR", parser=out_folder,
+    help="Run directory for artifacts. Default: runs/<config name>.")]
 JsonOpt = Annotated[bool, typer.Option(
     "--json", help="Print machine-readable JSON to stdout instead of tables.")]
 FreshOpt = Annotated[bool, typer.Option(

@@ -481,3 +481,14 @@ def test_an_output_folder_that_is_a_file_is_said_to_be_one(tmp_path):
     res = runner.invoke(app, ["trim", "-o", str(blocker)])
     assert res.exit_code == 2
     assert f"{blocker}: cannot write artifacts there (a file, not a folder); choose another --out folder" in res.stderr
+
+
+@pytest.mark.parametrize("args", [["trim", "-c", "hover"], ["sweep", "-c", "hover", "-s", "x.yaml"],
+                                  ["identify", "x.csv", "-c", "crazyflie"]], ids=["trim", "sweep", "identify"])
+def test_an_empty_out_is_refused_not_taken_for_the_current_folder(tmp_path, monkeypatch, args):
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, [*args, "-o", ""])
+    assert res.exit_code == 2
+    assert res.stderr.startswith("quadctl: error: --out '': an empty path; give the run directory") \
+        and len(res.stderr.splitlines()) == 1
+    assert not any(tmp_path.iterdir())

@@ -3,7 +3,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.options import ConfigOpt, JsonOpt
+from quadctl.cli.options import ConfigOpt, JsonOpt, out_folder
 
 NAME = "identify"
 
@@ -13,8 +13,8 @@ def command(logs: Annotated[list[str], typer.Argument(
                 help="Flight logs: Crazyflie microSD binary, PX4 ULog (pyulog) or CSV; one or more.")],
             config: ConfigOpt = None,
             out: Annotated[Optional[Path], typer.Option(
-                "--out", "-o", metavar="DIR", help="Folder for the results. Default: runs/<config name>-identified."
-            )] = None,
+                "--out", "-o", metavar="DIR", parser=out_folder,
+                help="Folder for the results. Default: runs/<config name>-identified.")] = None,
             window: Annotated[Optional[list[str]], typer.Option(
                 "--window", metavar="T0:T1", help="The stretch of a log to fit, s (t0:t1, or t0:t1,t2:t3); once "
                 "per LOG, in order. Default: chosen from the excitation.")] = None,
