@@ -384,14 +384,17 @@ class VehicleLoop:
     are the plant's and the filter's: :func:`quadctl.design.linear_loop.lqg_vehicle`); empty: full state."""
 
 
-def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design, *, estimator=None) -> VehicleLoop:
+def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design, *, estimator=None,
+                    with_filter: bool = True) -> VehicleLoop:
     """:class:`VehicleLoop` of a design flown with the setup's rotors and delay, through the setup's Kalman
-    filter when it has one (``estimator``: that filter, :func:`estimator_of` when None)."""
+    filter when it has one (``estimator``: that filter, :func:`estimator_of` when None; ``with_filter``
+    False: the full-state loop, for a measured set that cannot estimate the state, which has no filter)."""
 
     timing = setup.timing
     Ts = des.sample_time or (timing.sample_time if timing.mode == "emulated" else None)
     form = setup.rate_filter.form(Ts) if setup.rate_filter is not None else None
-    kal = None if setup.estimator is None else estimator if estimator is not None else estimator_of(setup, linear)
+    kal = None if setup.estimator is None or not with_filter else \
+        estimator if estimator is not None else estimator_of(setup, linear)
     if kal is not None:  # the loop that flies has the filter's dynamics too
         eig = np.linalg.eigvals(linear_loop.lqg_vehicle(des, linear.A, linear.B, kal, timing.delay_samples,
                                                         setup.rotor_time_constant))

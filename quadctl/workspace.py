@@ -90,7 +90,7 @@ class CheckReport:
     rate: float | None
     rate_warnings: tuple[RateWarning, ...]
     vehicle_loop: pipeline.VehicleLoop | None = None
-    """With rotor lag or delay configured: the design's loop flown with them (else None)."""
+    """With rotor lag, a delay, a gyro filter or a Kalman filter: the design's loop flown with them (else None)."""
     undetectable: str | None = None
     """Why the estimator's measured set cannot estimate the state (else None)."""
 
@@ -185,10 +185,9 @@ class Workspace(pipeline.Stages):
         a reused artifact is parsed once, here."""
         self._hold = contextlib.ExitStack()
         first = not artifacts.held(self.out)
-        mark = self.out / artifacts.MARK_NAME
-        if not os.path.lexists(mark):  # the lock marks the folder as quadctl's: a roll-back takes the mark away too
-            self._undo.append((mark, None))
         self._hold.enter_context(artifacts.locked(self.out))  # one run writes a folder at a time
+        if artifacts.lock.marked_by_this_hold(self.out):  # marked as quadctl's now: a roll-back takes the mark away
+            self._undo.append((self.out / artifacts.MARK_NAME, None))
         weakref.finalize(self, self._hold.close)
         if first:  # no other process holds the folder, and none of this one: every quadctl temporary there,
             # a file set aside for a roll-back too (it keeps its file's time: an age tells nothing), is a dead run's
@@ -260,8 +259,10 @@ class Workspace(pipeline.Stages):
     def roll_back(self) -> None:
         """Put back every file this session wrote or removed as it was before (the command refused its
         input: nothing it computed is kept), and remove the artifact folders it made, if empty again;
-        after :meth:`keep`, nothing."""
-        for path, before in reversed(self._undo or []):
+        after :meth:`keep`, nothing (and the notices of what it did are still said)."""
+        if self._undo is None:
+            return
+        for path, before in reversed(self._undo):
             try:
                 if before is _NEW_FOLDER:  # an artifact folder (plots/, report/) the session made
                     path.rmdir()
@@ -416,10 +417,11 @@ class Workspace(pipeline.Stages):
         vehicle = None
         if all(checks[n].stabilizable for n in regulated):
             warnings = list(self.rate_warnings)
+            filtered = est is not None and checks[ESTIMATOR_CHECK].detectable  # (else no filter: said below)
             if (self.setup.rotor_time_constant is not None or timing.delay_samples or self.setup.rate_filter is not None
-                    or est is not None and checks[ESTIMATOR_CHECK].detectable):  # the loop flown is not the design's
+                    or filtered):  # the loop flown is not the design's
                 des = self.__dict__.get("design") or pipeline.design_of(self.setup, self.decoupled, self.linear)
-                vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des)
+                vehicle = pipeline.vehicle_loop_of(self.setup, self.linear, des, with_filter=filtered)
         self._write_json(CHECKS, "checks", _with_messages(payloads.checks(self.setup, checks, regulated, warnings,
                                                                           vehicle), warnings, timing.rate))
         undetectable = None

@@ -17,9 +17,13 @@ MARK_NAME = ".quadctl"
 """The file that marks a folder as quadctl's (:func:`claim`), written the first time quadctl takes it."""
 MARK_TEXT = ("quadctl writes its artifacts in this folder, over those of earlier runs. It writes only into a new or "
              "empty folder, or one with this file: never over the files of a folder it did not make.\n")
-COMMON_NAMES = frozenset({"config.yaml", "README.md", "Makefile", "Kbuild", "app-config"})
-"""Names quadctl writes (:data:`~quadctl.artifacts.places.ARTIFACT_NAMES`) that a user's own folder holds
-too: they do not show that a folder is quadctl's."""
+COMMON_NAMES = frozenset({"config.yaml", "README.md", "Makefile", "Kbuild", "app-config", "sweep.csv", "sweep.png",
+                          "montecarlo.png", "identify.png"})
+"""Names quadctl writes (:data:`~quadctl.artifacts.places.ARTIFACT_NAMES`) that a user's own folder may hold
+too: they do not show that a folder is quadctl's (its other names do: ``trim.json``, ``quadctl_controller.c``...)."""
+OWN_FILES = ("report/report.html", "src/quadctl_app.c")
+"""Files in quadctl's subfolders that show a folder is quadctl's (a report, the Crazyflie app; and any chunk of a
+sweep in ``sweep.parts``)."""
 
 try:
     import fcntl
@@ -27,6 +31,8 @@ except ImportError:  # Windows: an O_EXCL lock file instead
     fcntl = None
 
 _held: dict[str, int] = {}
+_marked: set[str] = set()
+"""Folders whose mark this process's hold wrote (:func:`marked_by_this_hold`)."""
 """Folders this process holds, with a count (:func:`locked` is re-entrant within a process)."""
 
 
@@ -66,27 +72,34 @@ def locked(folder: Path | str):
         raise ArtifactError(f"{folder}: cannot write artifacts there ({why}); choose another --out folder") from None
     release = _lock_flock(folder) if fcntl is not None else _lock_exclusive(folder)
     try:
-        claim(folder)
+        marked = claim(folder)
     except BaseException:
         release()
         raise
     _held[key] = 1
+    if marked:
+        _marked.add(key)
     try:
         yield folder
+    except BaseException:
+        if key in _marked and not _names(folder):  # stopped before writing anything: the folder as it was
+            unmark(folder)
+        raise
     finally:
         _held.pop(key, None)
+        _marked.discard(key)
         release()
 
 
-def claim(folder: Path) -> None:
+def claim(folder: Path) -> bool:
     """Take ``folder`` as quadctl's, or refuse it before anything is written there: quadctl writes over
     its own files only. A folder marked as quadctl's (:data:`MARK_NAME`) is taken; so is one that holds
     nothing named as what quadctl writes (:data:`~quadctl.artifacts.places.ARTIFACT_NAMES`, its
     subfolders: a new or empty folder, or one with a user's own files beside, which quadctl leaves
-    alone), or one that shows it is a run folder of a quadctl before the mark (its ``trim.json``, its
-    ``config.resolved.yaml``, a Crazyflie app's ``src/quadctl_app.c``); it is then marked. A folder whose
+    alone), or one that shows it is a run folder of a quadctl before the mark (a name only quadctl writes,
+    not one of :data:`COMMON_NAMES`, or one of :data:`OWN_FILES`); it is then marked. A folder whose
     ``config.yaml``, ``README.md``, ``Makefile`` or ``plots`` quadctl did not write (``-o .`` in a
-    project folder) is refused.
+    project folder) is refused. Returns whether it wrote the mark.
 
     Raises
     ------
@@ -95,24 +108,59 @@ def claim(folder: Path) -> None:
     """
     mark = folder / MARK_NAME
     if mark.is_file() and not mark.is_symlink():
-        return
+        return False
     try:
         named = [e.name for e in os.scandir(folder) if (e.name in ARTIFACT_NAMES or e.name in SUBFOLDER_NAMES)
                  and not e.is_symlink()]  # a link where quadctl writes is refused where it is met, naming it
     except OSError as exc:
         raise ArtifactError(f"{folder}: cannot read the folder ({reason_of(exc)}); choose another --out folder") \
             from None
-    ours = any(name not in COMMON_NAMES for name in named if name in ARTIFACT_NAMES) \
-        or (folder / "src" / "quadctl_app.c").is_file()
+    ours = any(name in ARTIFACT_NAMES and name not in COMMON_NAMES for name in named) \
+        or any((folder / own).is_file() for own in OWN_FILES) or _has_chunks(folder / "sweep.parts")
     if named and not ours:
         raise ArtifactError(f"{folder}: holds {', '.join(sorted(named))}, which quadctl did not write and would write "
                             "over: give -o a new or empty folder, or one quadctl made")
     try:
         fd = os.open(mark, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o666)
     except OSError:  # there meanwhile (a link: never written through), or a read-only folder: the writes say so
-        return
+        return False
     with os.fdopen(fd, "w", encoding="utf-8") as fh:
         fh.write(MARK_TEXT)
+    return True
+
+
+def marked_by_this_hold(folder: Path | str) -> bool:
+    """Whether this process's hold of ``folder`` (:func:`locked`) wrote its mark: a writer that puts the
+    folder back as it found it (:meth:`quadctl.workspace.Workspace.roll_back`) takes the mark away too."""
+    return os.path.abspath(folder) in _marked
+
+
+def unmark(folder: Path | str) -> None:
+    """Remove ``folder``'s mark (:data:`MARK_NAME`), never through a link."""
+    mark = Path(folder) / MARK_NAME
+    try:
+        if mark.is_file() and not mark.is_symlink():
+            mark.unlink()
+    except OSError:  # read-only meanwhile: harmless, the folder stays quadctl's
+        pass
+
+
+def _has_chunks(parts: Path) -> bool:
+    """Whether ``parts`` (not a link) holds a chunk a stopped sweep kept."""
+    if parts.is_symlink() or not parts.is_dir():
+        return False
+    try:
+        return any(SUBFOLDER_NAMES["sweep.parts"].fullmatch(e.name) for e in os.scandir(parts))
+    except OSError:
+        return False
+
+
+def _names(folder: Path) -> list[str]:
+    """What the folder holds besides quadctl's lock and mark."""
+    try:
+        return [e.name for e in os.scandir(folder) if e.name not in (LOCK_NAME, MARK_NAME)]
+    except OSError:
+        return []
 
 
 def held(folder: Path | str) -> bool:

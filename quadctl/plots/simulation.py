@@ -98,7 +98,7 @@ def inputs_figure(sim, u_trim=None, *, title: str = "", actuators=None) -> Figur
         decades = np.arange(np.ceil(np.log10(first_step)), np.floor(np.log10(max(end, first_step))) + 1)
         ax.set_xticks([0.0, *10.0 ** decades])  # 0, then the decades past the linear stretch (none inside it)
     axes[-1, 0].set_xlabel("time [s]")
-    axes[-1, 1].set_xlabel(f"time [s], linear to the first step ({first_step:.3g} s), log after")
+    axes[-1, 1].set_xlabel(f"time [s], linear to the first sample ({first_step:.3g} s), log after")
     fig.suptitle(f"{title}: inputs" if title else "inputs")
     return fig
 
@@ -156,7 +156,7 @@ def path_figure(sim, waypoints=(), *, reached=None, tolerance: float | None = No
     # the start a wide ring under the waypoints, the end a small dot over them: a mission that ends where
     # it began shows its last waypoint inside the ring and the end on that waypoint (MARKERS)
     plane.plot(sim.x[0, e], sim.x[0, n], "o", mfc="none", mec=COLORS[2], label="start", **MARKERS["start"])
-    plane.plot(sim.x[-1, e], sim.x[-1, n], "o", mfc="white", mec=COLORS[0], label="end", **MARKERS["end"])
+    plane.plot(sim.x[-1, e], sim.x[-1, n], "o", mfc=COLORS[0], mec="white", label="end", **MARKERS["end"])
     judged = reached is not None
     reached = list(reached) if judged else [None] * len(waypoints)
     labelled: set[str] = set()

@@ -70,3 +70,43 @@ def test_every_writer_is_held_to_the_claim(tmp_path, name):
     assert not (tmp_path / artifacts.MARK_NAME).exists() and not (tmp_path / artifacts.LOCK_NAME).exists()
     with artifacts.locked(tmp_path / "new"):  # a new folder: taken and marked
         assert (tmp_path / "new" / artifacts.MARK_NAME).is_file()
+
+
+def test_names_a_user_may_have_do_not_make_a_folder_quadctls(tmp_path):
+    """A sweep.csv, a sweep.png of the user's own beside a README.md and a Makefile prove nothing: refused."""
+    for name in ("README.md", "Makefile", "sweep.csv"):
+        (tmp_path / name).write_text("mine\n")
+    with pytest.raises(ArtifactError, match="holds Makefile, README.md, sweep.csv, which quadctl did not write"):
+        with artifacts.locked(tmp_path):
+            pass
+
+
+def test_a_sweep_stopped_before_the_mark_is_taken_by_its_chunks(tmp_path):
+    """An interrupted sweep of an earlier quadctl left only sweep.parts/chunk-*.json: --resume takes the folder."""
+    (tmp_path / "sweep.parts").mkdir()
+    (tmp_path / "sweep.parts" / "chunk-0000256.json").write_text("{}")
+    with artifacts.locked(tmp_path):
+        assert (tmp_path / artifacts.MARK_NAME).is_file()
+
+
+def test_a_writer_stopped_before_writing_leaves_no_mark_and_one_that_wrote_keeps_it(tmp_path):
+    new, wrote = tmp_path / "new", tmp_path / "wrote"
+    with pytest.raises(RuntimeError), artifacts.locked(new):
+        raise RuntimeError("refused before any write")
+    assert not (new / artifacts.MARK_NAME).exists()
+    with pytest.raises(RuntimeError), artifacts.locked(wrote):
+        artifacts.write_json(wrote / "trim.json", {"a": 1})
+        raise RuntimeError("stopped after a write")
+    assert (wrote / artifacts.MARK_NAME).is_file()
+
+
+def test_identify_is_held_to_the_claim(tmp_path):
+    """identify writes through the same lock: a figure of the user's named identify.png is not written over."""
+    from _paths import ROOT
+
+    (tmp_path / "identify.png").write_bytes(b"mine")
+    logs = ROOT / "tests" / "data" / "crazyflie-flights"
+    res = invoke("identify", logs / "log10", logs / "log15", "-c", "crazyflie", "--window", "35:65", "--window",
+                 "55:90", "-o", tmp_path)
+    assert res.exit_code == 2 and "holds identify.png, which quadctl did not write" in res.stderr
+    assert contents(tmp_path) == {"identify.png": b"mine"}

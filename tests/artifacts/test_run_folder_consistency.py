@@ -276,3 +276,17 @@ def test_a_second_workspace_of_the_process_leaves_the_first_ones_files_set_aside
             assert second.out == first.out
         first.roll_back()
     assert _contents(tmp_path) == before
+
+
+def test_a_kept_session_says_what_it_removed_even_when_its_command_then_refuses(tmp_path):
+    """The notices a workspace holds back (defer_notes) are said at close; a roll-back after keep() undoes
+    nothing, so it drops none of them (a report that keeps what it computed, then exits 2)."""
+    with Workspace(config.load("hover"), tmp_path) as ws:
+        assert ws.trim.residual < 1e-9
+    ws = Workspace(config.load("forward"), tmp_path)
+    ws.defer_notes()
+    assert ws.trim.residual < 1e-9  # written: the other config's trim.json removed
+    ws.keep()
+    ws.roll_back()
+    with pytest.warns(QuadctlNotice, match="removed trim.json, made by another config"):
+        ws.close()

@@ -114,3 +114,14 @@ def test_check_judges_the_loop_a_kalman_filter_flies(tmp_path):
         res.output)
     loop = json.loads((tmp_path / "checks.json").read_text())["closed_loop"]
     assert loop["stable"] and loop["estimator"] and len(loop["eigenvalues"]) == 23
+
+
+def test_a_measured_set_that_cannot_estimate_the_state_is_check_s_verdict_beside_a_delay(tmp_path):
+    """With a delay the flown loop is judged; a filter that cannot be built (pN, pE, pD unobservable from the
+    IMU) leaves the full-state loop judged and the verdict says why (exit 1), checks.json written."""
+    res = invoke("check", "-c", ROOT / "docs" / "configs" / "mambo-lqg.yaml", "-o", tmp_path,
+                 "--set", "controller.delay=0.005", "--set", "estimator.measure=[imu]")
+    assert res.exit_code == 1, res.output
+    assert "pN, pE, pD not observable" in flat(res.output)
+    loop = json.loads((tmp_path / "checks.json").read_text())["closed_loop"]
+    assert loop["estimator"] is None and loop["delay_samples"] == 1

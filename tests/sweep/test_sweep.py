@@ -17,7 +17,7 @@ from _paths import ROOT
 from _solve import max_rel_diff
 from typer.testing import CliRunner
 
-from quadctl import config, metrics, pipeline, sweep
+from quadctl import artifacts, config, metrics, pipeline, sweep
 from quadctl.cli.app import app
 from quadctl.design import lqr, riccati_residual
 from quadctl.design.riccati import care_batch
@@ -521,6 +521,7 @@ def test_cli_json_output_is_parseable_and_no_plot_draws_no_figure(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     (out / "sweep.png").write_bytes(b"an earlier run's figure")
+    (out / artifacts.MARK_NAME).write_text("")  # the earlier run's folder, quadctl's
     res = runner.invoke(app, ["sweep", "-s", str(sweep_file), "-o", str(out), "-j", "1", "--json", "--no-plot"])
     assert res.exit_code == 0
     payload = json.loads(res.stdout)

@@ -31,6 +31,7 @@ def command(logs: Annotated[list[str], typer.Argument(
     """
     import json as _json
 
+    from quadctl import artifacts
     from quadctl.artifacts.writing import write_together
     from quadctl.cli import render
     from quadctl.config import locate, parse
@@ -45,8 +46,9 @@ def command(logs: Annotated[list[str], typer.Argument(
     payload = results.payload(ident, source.label, cfg)
     folder = out or Path("runs") / f"{cfg.name}-identified"
     text = results.identified_config(source.text, ident, f"{cfg.name}-identified")
-    write_together({folder / "identified.json": _json.dumps(payload, indent=1).encode(),
-                    folder / "identified.yaml": text.encode(), folder / "identify.png": fit_figure(ident)})
+    with artifacts.locked(folder):  # a folder of quadctl's (claimed), one quadctl at a time
+        write_together({folder / "identified.json": _json.dumps(payload, indent=1).encode(),
+                        folder / "identified.yaml": text.encode(), folder / "identify.png": fit_figure(ident)})
     if json:
         render.emit_json(payload)
         return
