@@ -110,8 +110,8 @@ def claim(folder: Path) -> bool:
     if mark.is_file() and not mark.is_symlink():
         return False
     try:
-        named = [e.name for e in os.scandir(folder) if (e.name in ARTIFACT_NAMES or e.name in SUBFOLDER_NAMES)
-                 and not e.is_symlink()]  # a link where quadctl writes is refused where it is met, naming it
+        named = [e.name for e in os.scandir(folder) if not e.is_symlink()  # a link is refused where it is met
+                 and (e.name in ARTIFACT_NAMES or e.name in SUBFOLDER_NAMES and _holds_ours(folder / e.name))]
     except OSError as exc:
         raise ArtifactError(f"{folder}: cannot read the folder ({reason_of(exc)}); choose another --out folder") \
             from None
@@ -145,14 +145,20 @@ def unmark(folder: Path | str) -> None:
         pass
 
 
+def _holds_ours(sub: Path) -> bool:
+    """Whether the subfolder ``sub`` (``plots``, ``src``...) holds a file named as quadctl writes there
+    (:data:`~quadctl.artifacts.places.SUBFOLDER_NAMES`): a project's own ``src/`` does not."""
+    if sub.is_symlink() or not sub.is_dir():
+        return sub.exists()  # a file where quadctl makes a folder: in its way
+    try:
+        return any(SUBFOLDER_NAMES[sub.name].fullmatch(e.name) for e in os.scandir(sub))
+    except OSError:
+        return True
+
+
 def _has_chunks(parts: Path) -> bool:
     """Whether ``parts`` (not a link) holds a chunk a stopped sweep kept."""
-    if parts.is_symlink() or not parts.is_dir():
-        return False
-    try:
-        return any(SUBFOLDER_NAMES["sweep.parts"].fullmatch(e.name) for e in os.scandir(parts))
-    except OSError:
-        return False
+    return parts.is_dir() and not parts.is_symlink() and _holds_ours(parts)
 
 
 def _names(folder: Path) -> list[str]:

@@ -63,7 +63,11 @@ def test_a_run_folder_made_before_the_mark_is_taken_and_marked(tmp_path):
 @pytest.mark.parametrize("name", ["config.yaml", "README.md", "Makefile", "plots"])
 def test_every_writer_is_held_to_the_claim(tmp_path, name):
     """The lock every writer takes (the workspace, the exports, a sweep's store) claims the folder first."""
-    (tmp_path / name).mkdir() if name == "plots" else (tmp_path / name).write_text("mine\n")
+    if name == "plots":  # a folder of the user's figures, one named as quadctl names one of its own
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "roll.png").write_bytes(b"mine")
+    else:
+        (tmp_path / name).write_text("mine\n")
     with pytest.raises(ArtifactError, match=f"holds {name}, which quadctl did not write"):
         with artifacts.locked(tmp_path):
             pass
@@ -110,3 +114,13 @@ def test_identify_is_held_to_the_claim(tmp_path):
                  "55:90", "-o", tmp_path)
     assert res.exit_code == 2 and "holds identify.png, which quadctl did not write" in res.stderr
     assert contents(tmp_path) == {"identify.png": b"mine"}
+
+
+def test_a_projects_own_subfolders_do_not_block_a_run(tmp_path):
+    """A src/ or an empty plots/ of the user's holds nothing quadctl would write over: the folder is taken, and
+    the files stay."""
+    (tmp_path / "src").mkdir()
+    (tmp_path / "src" / "main.c").write_text("int main(void) { return 0; }\n")
+    (tmp_path / "plots").mkdir()
+    assert invoke("trim", "-c", "hover", "-o", tmp_path).exit_code == 0
+    assert (tmp_path / "src" / "main.c").is_file() and (tmp_path / "trim.json").is_file()
