@@ -358,7 +358,9 @@ class VehicleLoop:
     eigenvalues : (n,) ndarray of complex
         ``s`` (rad/s), or ``z`` of a loop sampled every ``sample_time`` s.
     design_eigenvalues : (n,) ndarray of complex
-        The full-state loop without the rotors' lag and the delay (what a design that ignores them sees).
+        The loop as designed: without the delay, and without the rotors' lag unless the design includes it
+        (what a design that ignores them sees); the full-state loop, or with a Kalman filter in the loop the
+        regulator's and the filter's eigenvalues together (the separation principle).
     sample_time : float or None
     stable : bool
     least_damping, design_least_damping : float
@@ -402,7 +404,10 @@ def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design, *, estimator
         eig = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
                                                            setup.rotor_time_constant, rate_filter=form))
     seen = setup.rotor_time_constant if des.lag_time_constant is not None else None
-    ideal = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, 0, seen))
+    if kal is not None:  # as designed: the regulator and the filter (the separation principle), as flown
+        ideal = np.linalg.eigvals(linear_loop.lqg_vehicle(des, linear.A, linear.B, kal, 0, seen))
+    else:
+        ideal = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, 0, seen))
     return VehicleLoop(eigenvalues=eig, design_eigenvalues=ideal, sample_time=Ts,
                        stable=bool(np.all(stability.is_stable(eig, discrete=Ts is not None))),
                        least_damping=stability.least_damping(eig, Ts),

@@ -82,11 +82,31 @@ def test_the_verdict_has_the_regulators_and_the_filters_eigenvalues(name):
     want = _reference(setup, linear, des, kal)
     worst = as_sets_close(got, want, [tol[int(np.argmin(np.abs(got - w)))] for w in want])
     as_sets_close(loop.eigenvalues, want, [tol[int(np.argmin(np.abs(got - w)))] for w in want])  # the verdict's, too
+    # nothing but the filter between design and flight: the loop flies as designed, filter included
+    as_sets_close(loop.design_eigenvalues, want, [tol[int(np.argmin(np.abs(got - w)))] for w in want])
     # the full-state verdict's loop, and the filter's states on top of it
     full = linear_loop.vehicle_matrix(des, linear.A, linear.B, kal.sample_time)
     assert len(loop.eigenvalues) == len(full) + kal.n_estimate and loop.estimated == kal.measured
     assert loop.stable
     print(f"{name}: {len(want)} eigenvalues, worst {worst:.2e} (tolerances {min(tol):.1e} to {max(tol):.1e})")
+
+
+def test_as_designed_is_the_regulator_and_the_filter_without_the_delay():
+    """With two samples of delay the loop that flies has the delay's buffer too; the design, which does
+    not see the delay, promised the separation principle's eigenvalues (the reference) and its least
+    damping, the filter's modes included: that is what "as designed" compares the flown loop with."""
+    data = _config("mambo-lqg")
+    data.setdefault("controller", {})["delay"] = {"samples": 2}
+    setup, _, linear, _, des = solve(data)
+    kal = pipeline.estimator_of(setup, linear)
+    loop = pipeline.vehicle_loop_of(setup, linear, des)
+    got, tol = eigen_tolerance(linear_loop.lqg_vehicle(des, linear.A, linear.B, kal))
+    want = _reference(setup, linear, des, kal)
+    as_sets_close(loop.design_eigenvalues, want, [tol[int(np.argmin(np.abs(got - w)))] for w in want])
+    assert loop.design_least_damping == pytest.approx(stability.least_damping(want, kal.sample_time), rel=1e-9)
+    assert len(loop.eigenvalues) == len(want) + 2 * 4  # the delay's buffer: two samples of the four inputs
+    full = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, kal.sample_time))
+    assert loop.design_least_damping < stability.least_damping(full, kal.sample_time)  # a filter mode is the least
 
 
 @pytest.fixture(scope="module")
