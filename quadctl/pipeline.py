@@ -14,7 +14,7 @@ from functools import cached_property
 
 import numpy as np
 
-from quadctl.design import Design, coupled, design, discrete, kalman, linear_loop, margin_findings
+from quadctl.design import Design, coupled, design, discrete, kalman, linear_loop, lqg_loop, margin_findings
 from quadctl.design.gain_table import OUTSIDE, VARIABLES
 from quadctl.errors import ConfigError, RateError
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
@@ -350,7 +350,7 @@ class VehicleLoop:
     """The linear closed loop the vehicle flies: the design's gains on the coupled model with the
     rotors' lag, the controller's lag model (a design that includes it), the integrators and the
     delay (:func:`quadctl.design.linear_loop.vehicle_matrix`), and the Kalman filter the law acts
-    through when there is one (:func:`quadctl.design.linear_loop.lqg_vehicle`), next to the loop the
+    through when there is one (:func:`quadctl.design.lqg_loop.lqg_vehicle`), next to the loop the
     design saw.
 
     Attributes
@@ -383,7 +383,7 @@ class VehicleLoop:
     """What the gyro filter in the loop is (:meth:`quadctl.linear.filters.RateFilter.describe`); empty: none."""
     estimated: tuple[str, ...] = ()
     """The states a Kalman filter in the loop measures (the law acts on its estimate and ``eigenvalues``
-    are the plant's and the filter's: :func:`quadctl.design.linear_loop.lqg_vehicle`); empty: full state."""
+    are the plant's and the filter's: :func:`quadctl.design.lqg_loop.lqg_vehicle`); empty: full state."""
 
 
 def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design, *, estimator=None,
@@ -398,14 +398,14 @@ def vehicle_loop_of(setup: Setup, linear: LinearModel, des: Design, *, estimator
     kal = None if setup.estimator is None or not with_filter else \
         estimator if estimator is not None else estimator_of(setup, linear)
     if kal is not None:  # the loop that flies has the filter's dynamics too
-        eig = np.linalg.eigvals(linear_loop.lqg_vehicle(des, linear.A, linear.B, kal, timing.delay_samples,
-                                                        setup.rotor_time_constant))
+        eig = np.linalg.eigvals(lqg_loop.lqg_vehicle(des, linear.A, linear.B, kal, timing.delay_samples,
+                                                     setup.rotor_time_constant))
     else:
         eig = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
                                                            setup.rotor_time_constant, rate_filter=form))
     seen = setup.rotor_time_constant if des.lag_time_constant is not None else None
     if kal is not None:  # as designed: the regulator and the filter (the separation principle), as flown
-        ideal = np.linalg.eigvals(linear_loop.lqg_vehicle(des, linear.A, linear.B, kal, 0, seen))
+        ideal = np.linalg.eigvals(lqg_loop.lqg_vehicle(des, linear.A, linear.B, kal, 0, seen))
     else:
         ideal = np.linalg.eigvals(linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, 0, seen))
     return VehicleLoop(eigenvalues=eig, design_eigenvalues=ideal, sample_time=Ts,

@@ -8,6 +8,7 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.design.lag`: the rotors' first-order lag: a plant augmented with one lag state per input
 - :mod:`~quadctl.design.discrete`: the zero-order hold, MATLAB ``dlqr``/``lqrd``, what a rate realizes
 - :mod:`~quadctl.design.linear_loop`: the linear closed loop of a design, the one place ``A - B K`` is built
+- :mod:`~quadctl.design.lqg_loop`: the loops flown through a Kalman filter, and the builder's loop linearized
 - :mod:`~quadctl.design.stacked`: the one engine of the decoupled design: a stack of subsystem problems solved at once
 - :mod:`~quadctl.design.decoupled`: :func:`lqr` (one case) and the decoupled :func:`design` (the 4x12 gain)
 - :mod:`~quadctl.design.coupled`: one LQR on the full coupled model, to compare with the decoupled design

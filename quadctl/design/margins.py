@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.design import linear_loop
+from quadctl.design import linear_loop, lqg_loop
 from quadctl.layout import INPUT_INDEX, STATE_INDEX
 from quadctl.linear.stability import free_positions, is_stable
 
@@ -483,7 +483,7 @@ def lqg_loops(design, A, B, kal):
     K, ints = design.K_block, design.integral_states
     nz, n, Ts = len(ints), kal.n_estimate, kal.sample_time  # n: the 12 states, and the gyro filter's modelled
     Z = np.zeros
-    base, Bp, Be, Kc = linear_loop.lqg(design, A, B, kal)
+    base, Bp, Be, Kc = lqg_loop.lqg(design, A, B, kal)
     T = np.eye(2 * n + nz)
     T[n:2 * n, :n], T[n:2 * n, n:2 * n] = np.eye(n), -np.eye(n)  # [x; x - x_hat; z]; T^-1 = T
     free = [STATE_INDEX[s] for s in free_positions(A, reads=(K,), integral_states=ints)]

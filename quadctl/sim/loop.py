@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quadctl.design import linear_loop
+from quadctl.design import lqg_loop
 from quadctl.layout import N_STATES, PRODUCTS, STATE_INDEX, STATE_NAMES
 from quadctl.sim.builder import LoopSpec, pack_constants
 from quadctl.sim.etdrk4_plan import plan_schedule
@@ -181,7 +181,7 @@ class ClosedLoop:
 
     def linear_part(self, point: int | None = None) -> np.ndarray:
         """The loop linearized at the reference in the loop state's order
-        (:func:`quadctl.design.linear_loop.simulated`);
+        (:func:`quadctl.design.lqg_loop.simulated`);
         ``point``: at the gain schedule's ``point``-th value instead, closed with the table's gains there
         (:attr:`schedule_jacobians`).
 
@@ -202,11 +202,11 @@ class ClosedLoop:
             K = G[:, :N_STATES]
             Ki = G[:, N_STATES:] if G.shape[1] > N_STATES else Ki
         act = self.actuators
-        return linear_loop.simulated(A, B, K, Ki=Ki, integral_states=self.integral_states, Kv=self.Kv,
-                                     lag_time_constant=self.lag_model_time_constant,
-                                     rotor_time_constant=self.rotor_time_constant,
-                                     mix=act.mix if act is not None else None, estimator=self.estimator,
-                                     rate_filter=self.filter_form)
+        return lqg_loop.simulated(A, B, K, Ki=Ki, integral_states=self.integral_states, Kv=self.Kv,
+                                  lag_time_constant=self.lag_model_time_constant,
+                                  rotor_time_constant=self.rotor_time_constant,
+                                  mix=act.mix if act is not None else None, estimator=self.estimator,
+                                  rate_filter=self.filter_form)
 
     @property
     def kept(self) -> dict:

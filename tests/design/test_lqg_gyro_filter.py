@@ -152,11 +152,11 @@ def test_the_kalman_bucy_gain_solves_the_care_of_the_filtered_model():
 
 
 def test_the_lqg_loop_with_the_filter_has_the_separation_principles_poles(filtered_lqg):
-    """The closed LQG loop (:func:`quadctl.design.linear_loop.lqg_matrix`, what the margins break) has, as a
+    """The closed LQG loop (:func:`quadctl.design.lqg_loop.lqg_matrix`, what the margins break) has, as a
     set, the LQI loop's poles on SciPy's ZOH plant, SciPy's filter poles on each rate, and the estimator's."""
     from scipy import signal
 
-    from quadctl.design import linear_loop
+    from quadctl.design import lqg_loop
 
     st = filtered_lqg
     des, lin, kal = st.design, st.linear, st.loop.estimator
@@ -170,7 +170,7 @@ def test_the_lqg_loop_with_the_filter_has_the_separation_principles_poles(filter
     (_, a1), (_, a2) = signal.butter(2, 30.0, fs=1 / Ts), signal.iirnotch(70.0, 70.0 / 30.0, fs=1 / Ts)
     filt = np.tile(np.concatenate([np.roots(a1), np.roots(a2)]), 3)
     want = np.concatenate([np.linalg.eigvals(lqi), filt, kal.eigenvalues])
-    M = linear_loop.lqg_matrix(des, lin.A, lin.B, kal)
+    M = lqg_loop.lqg_matrix(des, lin.A, lin.B, kal)
     got, tol = eigen_tolerance(M)
     # the filter's poles are triple (one filter per rate): a semisimple eigenvalue is as well conditioned as
     # its cluster, so each takes the cluster's largest tolerance
@@ -181,12 +181,12 @@ def test_the_lqg_loop_with_the_filter_has_the_separation_principles_poles(filter
 
 def test_the_simulated_law_is_the_linear_lqg_loops(filtered_lqg):
     """The builder's law at the trim, differentiated by CasADi (the command and the sampled loop state against
-    the loop state [x; z; g; xh]), is :func:`quadctl.design.linear_loop.lqg`'s: the same command gain and
+    the loop state [x; z; g; xh]), is :func:`quadctl.design.lqg_loop.lqg`'s: the same command gain and
     the same estimator update on the same filtered measurement. (The plant between samples is the ZOH
     model's, as for every loop.)"""
     import casadi as ca
 
-    from quadctl.design import linear_loop
+    from quadctl.design import lqg_loop
     from quadctl.sim.builder import build
 
     st = filtered_lqg
@@ -198,7 +198,7 @@ def test_the_simulated_law_is_the_linear_lqg_loops(filtered_lqg):
     u, Xs = build(spec).law(X, 0.0, loop.constants(kal.sample_time), ca.DM.zeros(spec.n_exo))
     jac = ca.Function("law_jacobian", [X], [ca.jacobian(u, X), ca.jacobian(Xs, X)])
     Ju, Jx = (np.asarray(J) for J in jac(loop.initial_loop_state(loop.x_trim)))
-    base, Bp, Be, Kc = linear_loop.lqg(des, lin.A, lin.B, kal)  # state [x; g; xh; z]
+    base, Bp, Be, Kc = lqg_loop.lqg(des, lin.A, lin.B, kal)  # state [x; g; xh; z]
     order = [*range(N_STATES), *range(2 * ne, 2 * ne + nz), *range(N_STATES, 2 * ne)]  # -> [x; z; g; xh]
     np.testing.assert_allclose(Ju, -Kc[:, order], rtol=1e-12, atol=1e-12 * np.abs(Kc).max())
     # the estimate's prediction and the integrators: base less what the command adds, in the builder's order
@@ -211,7 +211,7 @@ def test_python_control_closes_the_lqg_loop_with_the_filter(filtered_lqg):
     """interop.controller of the filtered LQG loop runs the gyro filter and the estimator: python-control's
     feedback of the ZOH plant and it has the poles of the LQG loop (as sets)."""
     control = pytest.importorskip("control")
-    from quadctl.design import linear_loop
+    from quadctl.design import lqg_loop
     from quadctl.export import interop
 
     st = filtered_lqg
@@ -219,7 +219,7 @@ def test_python_control_closes_the_lqg_loop_with_the_filter(filtered_lqg):
     ctl = interop.controller(loop)
     assert ctl.nstates == 12 + kal.n_estimate + len(st.design.integral_states)
     fb = control.feedback(interop.plant(lin, sample_time=kal.sample_time), ctl, sign=1)
-    want, tol = eigen_tolerance(linear_loop.lqg_matrix(st.design, lin.A, lin.B, kal), 1e5)
+    want, tol = eigen_tolerance(lqg_loop.lqg_matrix(st.design, lin.A, lin.B, kal), 1e5)
     as_sets_close(fb.poles(), want, np.maximum(tol, 1e-9))
 
 
@@ -278,7 +278,7 @@ def test_designing_with_the_filters_states_gives_them_no_gain(filtered_lqg):
 
 def test_the_continuous_filtered_lqg_loops_linear_part_is_the_builders_jacobian():
     """A continuous LQG loop with the gyro filter (Kalman-Bucy on the filtered rates): the ETDRK4 remainder
-    N = rhs - L X has no linear part at the trim, L (:func:`quadctl.design.linear_loop.simulated`, the LQG
+    N = rhs - L X has no linear part at the trim, L (:func:`quadctl.design.lqg_loop.simulated`, the LQG
     loop reordered to the builder's [x; z; g; xh]) being the builder's own Jacobian there."""
     import casadi as ca
 

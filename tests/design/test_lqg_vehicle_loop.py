@@ -21,7 +21,7 @@ from test_lqg_gyro_filter import LQG_CONFIG, as_sets_close, eigen_tolerance
 
 from quadctl import pipeline
 from quadctl.config import loading
-from quadctl.design import linear_loop
+from quadctl.design import linear_loop, lqg_loop
 from quadctl.layout import STATE_INDEX
 from quadctl.linear import stability
 from quadctl.present.loops import closed_loop_sentence
@@ -77,7 +77,7 @@ def test_the_verdict_has_the_regulators_and_the_filters_eigenvalues(name):
     setup, _, linear, _, des = solve(_config(name))
     kal = pipeline.estimator_of(setup, linear)
     loop = pipeline.vehicle_loop_of(setup, linear, des)
-    M = linear_loop.lqg_vehicle(des, linear.A, linear.B, kal)
+    M = lqg_loop.lqg_vehicle(des, linear.A, linear.B, kal)
     got, tol = eigen_tolerance(M)
     want = _reference(setup, linear, des, kal)
     worst = as_sets_close(got, want, [tol[int(np.argmin(np.abs(got - w)))] for w in want])
@@ -100,7 +100,7 @@ def test_as_designed_is_the_regulator_and_the_filter_without_the_delay():
     setup, _, linear, _, des = solve(data)
     kal = pipeline.estimator_of(setup, linear)
     loop = pipeline.vehicle_loop_of(setup, linear, des)
-    got, tol = eigen_tolerance(linear_loop.lqg_vehicle(des, linear.A, linear.B, kal))
+    got, tol = eigen_tolerance(lqg_loop.lqg_vehicle(des, linear.A, linear.B, kal))
     want = _reference(setup, linear, des, kal)
     as_sets_close(loop.design_eigenvalues, want, [tol[int(np.argmin(np.abs(got - w)))] for w in want])
     assert loop.design_least_damping == pytest.approx(stability.least_damping(want, kal.sample_time), rel=1e-9)

@@ -215,7 +215,7 @@ def test_a_config_without_gyro_filters_flies_bit_for_bit_as_before():
 
 def test_the_continuous_loops_linear_part_is_the_builders_jacobian():
     """A continuous loop with the filter: the ETDRK4 remainder N = rhs - L X has no linear part at the trim
-    (L, :func:`quadctl.design.linear_loop.simulated` with the filter, is the builder's own Jacobian there)."""
+    (L, :func:`quadctl.design.lqg_loop.simulated` with the filter, is the builder's own Jacobian there)."""
     import casadi as ca
 
     from quadctl.pipeline import Stages

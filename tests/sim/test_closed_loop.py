@@ -3,8 +3,8 @@
 - The nonlinear loop the simulation runs (quadctl.sim.builder) linearized by CasADi at the
   reference equals the linear loop, for every bundled config and for loops with the rotors' lag,
   the controller's lag model and a delay; through a Kalman filter, it has the eigenvalues of the loop
-  the closed-loop verdict judges (linear_loop.lqg_vehicle), the rotors' lag, the delay and the gyro
-  filter included.
+  the closed-loop verdict judges (quadctl.design.lqg_loop.lqg_vehicle), the rotors' lag, the delay and
+  the gyro filter included.
 - The free-position rule (quadctl.linear.stability.free_positions): a position no gain reads but another
   state depends on is not free, so its mode stays in the verdict.
 - The sampled cost of a discrete design (quadctl.design.coupled.linear_cost) equals the cost a linear
@@ -23,7 +23,7 @@ from _solve import cfg_dict, solve
 
 from quadctl import config, pipeline
 from quadctl.config import loading
-from quadctl.design import coupled, linear_loop
+from quadctl.design import coupled, linear_loop, lqg_loop
 from quadctl.layout import INPUT_NAMES, N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.linear import stability
 from quadctl.sim.builder import build
@@ -123,7 +123,7 @@ def builder_and_linear(request):
     if loop.estimator is not None:  # [x; x_hat; z] here, [x; z; x_hat] in the builder
         nz = len(des.integral_states)
         order = [*range(N_STATES), *range(2 * N_STATES, 2 * N_STATES + nz), *range(N_STATES, 2 * N_STATES)]
-        A_lin = linear_loop.lqg_matrix(des, linear.A, linear.B, loop.estimator)[np.ix_(order, order)]
+        A_lin = lqg_loop.lqg_matrix(des, linear.A, linear.B, loop.estimator)[np.ix_(order, order)]
         return request.param, J, A_lin, Ts
     A_lin = linear_loop.vehicle_matrix(des, linear.A, linear.B, Ts, timing.delay_samples,
                                        setup.rotor_time_constant, keep_free=True)
@@ -297,7 +297,7 @@ def test_a_scheduled_loop_at_a_frozen_reference_is_the_linear_loop_of_its_gain(n
 
 
 # ---------------------------------------------------------------------------------------------
-# The loop through a Kalman filter that the verdict judges (linear_loop.lqg_vehicle)
+# The loop through a Kalman filter that the verdict judges (lqg_loop.lqg_vehicle)
 
 
 def _lqg_variant(name: str) -> dict:
@@ -323,7 +323,7 @@ def _lqg_variant(name: str) -> dict:
                                   "hover+LQG continuous+lag model"])
 def test_the_simulated_lqg_loop_has_the_verdicts_eigenvalues(name):
     """The builder's loop through the Kalman filter, linearized at the reference, has as a set the eigenvalues
-    of :func:`quadctl.design.linear_loop.lqg_vehicle` (every state kept): the verdict judges the loop that
+    of :func:`quadctl.design.lqg_loop.lqg_vehicle` (every state kept): the verdict judges the loop that
     flies, with the rotors' lag the filter does not model, the controller's lag model, the delay (the filter
     predicting under the input the plant gets) and the gyro filter. Eigenvalues of two similar matrices:
     each within its conditioning (Wilkinson) of the linear loop."""
@@ -333,8 +333,8 @@ def test_the_simulated_lqg_loop_has_the_verdicts_eigenvalues(name):
     loop = pipeline.loop_of(setup, linear, des)
     loop = replace(loop, params=setup.vehicle.vector())
     J, Ts = _jacobians(loop, setup)
-    M = linear_loop.lqg_vehicle(des, linear.A, linear.B, loop.estimator, setup.timing.delay_samples,
-                                setup.rotor_time_constant, keep_free=True)
+    M = lqg_loop.lqg_vehicle(des, linear.A, linear.B, loop.estimator, setup.timing.delay_samples,
+                             setup.rotor_time_constant, keep_free=True)
     assert J.shape == M.shape, name
     lam, left, right = eig(M, left=True, right=True)
     s = np.abs(np.einsum("ij,ij->j", left.conj(), right)) / (np.linalg.norm(left, axis=0)

@@ -7,7 +7,7 @@ against independent references.
   part is exact: the matrix exponential's solution to round-off, at any step, stiff or not.
 - Fourth order on a smooth nonlinear system: the error falls ~16x when the step halves (reference:
   SciPy's DOP853 at rtol 1e-13).
-- The loop's linear part (ClosedLoop.linear_part, from quadctl.design.linear_loop) is the Jacobian of
+- The loop's linear part (ClosedLoop.linear_part, quadctl.design.lqg_loop.simulated) is the Jacobian of
   the builder's own right-hand side at the reference (CasADi), with rotors, a lag model, LQI, LQG.
 - On every bundled config with continuous feedback, ETDRK4 at dt: auto agrees with RK4 at a small
   step to 1e-9 (short runs); with noise and wind too (their rows indexed by time on the graded grid).
