@@ -356,6 +356,7 @@ def _cli(*args):
 
 @pytest.mark.parametrize("fresh", [False, True], ids=["reuse", "--fresh"])
 def test_an_artifact_path_that_is_a_directory_is_bad_input(tmp_path, fresh):
+    (tmp_path / artifacts.MARK_NAME).write_text(artifacts.lock.MARK_TEXT)  # quadctl's folder: the claim takes it
     (tmp_path / "trim.json").mkdir()
     res = _cli("trim", "-c", "hover", "-o", tmp_path, *(["--fresh"] if fresh else []))
     assert res.exit_code == 2, res.output

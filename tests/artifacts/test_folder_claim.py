@@ -1,7 +1,8 @@
 """quadctl writes over its own files only: a folder given by ``-o`` is taken when it is new, holds
 nothing named as what quadctl writes, is marked as quadctl's, or is a run folder of a quadctl before the
-mark; a folder whose ``config.yaml``, ``README.md`` or ``Makefile`` quadctl did not write is refused
-(one line, exit code 2) and left byte for byte as it was."""
+mark (a file there carries quadctl's stamp); a folder whose ``config.yaml``, ``README.md``,
+``quadctl_controller.c`` or ``sim.npz`` quadctl did not write is refused (one line, exit code 2) and left
+byte for byte as it was."""
 
 from __future__ import annotations
 
@@ -86,11 +87,60 @@ def test_names_a_user_may_have_do_not_make_a_folder_quadctls(tmp_path):
 
 
 def test_a_sweep_stopped_before_the_mark_is_taken_by_its_chunks(tmp_path):
-    """An interrupted sweep of an earlier quadctl left only sweep.parts/chunk-*.json: --resume takes the folder."""
+    """An interrupted sweep of an earlier quadctl left only sweep.parts/chunk-*.json, with its provenance:
+    --resume takes the folder. A chunk-named file without it proves nothing."""
     (tmp_path / "sweep.parts").mkdir()
-    (tmp_path / "sweep.parts" / "chunk-0000256.json").write_text("{}")
+    chunk = tmp_path / "sweep.parts" / "chunk-0000256.json"
+    chunk.write_text("{}")
+    with pytest.raises(ArtifactError, match="holds sweep.parts, which quadctl did not write"):
+        with artifacts.locked(tmp_path):
+            pass
+    chunk.write_text('{"artifact": "sweep-chunk", "config_hash": "0", "rows": []}')
     with artifacts.locked(tmp_path):
         assert (tmp_path / artifacts.MARK_NAME).is_file()
+
+
+@pytest.mark.parametrize("name, content", [
+    ("quadctl_controller.c", b"/* my hand-tuned controller */\n"),
+    ("sim.npz", b"PK\x03\x04 not even a zip"),
+    ("identified.yaml", b"mass: 0.0291  # my scale\n"),
+    ("compare.json", b'{"mine": true}'),
+    ("trim.json", b'{"artifact": "trim"}'),  # half a stamp
+])
+def test_a_file_named_as_quadctls_but_not_stamped_by_it_is_not_written_over(tmp_path, name, content):
+    """A name proves nothing: a user's own file named as quadctl names one of its own, in a folder quadctl
+    never marked, blocks every writer, and the export is refused with the folder as it was."""
+    (tmp_path / name).write_bytes(content)
+    (tmp_path / "main.c").write_text("int main(void) { return 0; }\n")
+    before = contents(tmp_path)
+    res = invoke("export", "--to", "c", "-c", "crazyflie", "-o", tmp_path)
+    assert res.exit_code == 2 and f"holds {name}, which quadctl did not write" in res.stderr
+    assert contents(tmp_path) == before
+
+
+@pytest.mark.parametrize("to, extra", [("c", []), ("mat", []), ("crazyflie", ["--setpoint", "velocity"])])
+def test_an_export_folder_made_before_the_mark_is_taken_by_what_quadctl_stamped_in_it(tmp_path, to, extra):
+    """An earlier quadctl's export left its files and no mark: the generated C's banner, the MAT file's
+    provenance are the stamps that take it again (the Crazyflie app's README.md and Makefile are not)."""
+    out = tmp_path / "export"
+    assert invoke("export", "--to", to, "-c", "crazyflie", *extra, "-o", out).exit_code == 0
+    (out / artifacts.MARK_NAME).unlink()
+    res = invoke("export", "--to", to, "-c", "crazyflie", *extra, "-o", out)
+    assert res.exit_code == 0, res.stderr
+    assert (out / artifacts.MARK_NAME).is_file()
+
+
+def test_every_generated_c_template_carries_the_stamp():
+    """The claim knows generated C by its banner: every C template of the exports opens with it."""
+    from importlib import resources
+
+    from quadctl.artifacts.lock import GENERATED_BANNER, STAMP_HEAD
+
+    templates = [p for p in resources.files("quadctl.export").joinpath("templates").rglob("*")
+                 if p.name.endswith((".c", ".h"))]
+    assert len(templates) >= 5
+    for template in templates:
+        assert GENERATED_BANNER in template.read_bytes()[:STAMP_HEAD], template.name
 
 
 def test_a_writer_stopped_before_writing_leaves_no_mark_and_one_that_wrote_keeps_it(tmp_path):
