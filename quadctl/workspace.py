@@ -178,6 +178,9 @@ class Workspace(pipeline.Stages):
         self._undo: list[tuple[Path, Path | bytes | str | object | None]] | None = []
         """Each file the session wrote or removed, and what it held before (:meth:`_before_change`); None: kept."""
         self.reused: list[Path] = []
+        self.replaced: list[str] = []
+        """The stage artifacts of another config this session removed (:meth:`_remove_stale`): until its own
+        are all written, the folder holds no complete run."""
         self._notes: list[str] | None = None
         """The notices :meth:`defer_notes` holds back until :meth:`close` (None: each is issued at once)."""
         self.payloads: dict[str, dict] = {}
@@ -281,6 +284,7 @@ class Workspace(pipeline.Stages):
                 continue
         self._undo = []
         self.written.clear()
+        self.replaced.clear()
         if self._notes is not None:  # what they said was undone
             self._notes.clear()
 
@@ -359,6 +363,7 @@ class Workspace(pipeline.Stages):
                 self._before_change(path)
                 path.unlink()
                 removed.append(name)
+        self.replaced += removed
         if removed:
             note = (f"{self.out}: removed {', '.join(removed)}, made by another config "
                     f"(config_hash {config_hash_of(self.out) or 'unknown'})")

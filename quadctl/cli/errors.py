@@ -107,6 +107,19 @@ def _roll_back() -> None:
         ws.roll_back()
 
 
+def _put_back_a_replaced_run() -> bool:
+    """A command stopped (Ctrl-C) after it removed another config's artifacts, before its own were all
+    written: put the folder back as the earlier run left it (:meth:`Workspace.roll_back`), which is whole,
+    rather than leave half of this one. True if it did."""
+    state = _COMMAND.get(None) or {}
+    ws = state.get("workspace")
+    if ws is None or not ws.replaced:
+        return False
+    ws.roll_back()
+    state["put_back"] = True
+    return True
+
+
 def _release_workspace() -> None:
     """The command is over: its run folder is released (its lock, the files it set aside) and its held-back
     notices said, not left to the garbage collector of a process that goes on."""
@@ -148,6 +161,9 @@ def handled(fn):
                     if exc.exit_code == EXIT_BAD_INPUT:  # refused: the run folder as it was
                         _roll_back()
                     raise
+                except KeyboardInterrupt:
+                    _put_back_a_replaced_run()
+                    raise
                 finally:  # within the notices: those the workspace held back are said (before the error)
                     _release_workspace()
         except (typer.Exit, typer.Abort, SystemExit):
@@ -164,6 +180,9 @@ def handled(fn):
             os.dup2(devnull, sys.stdout.fileno())
             raise typer.Exit(EXIT_OK) from None
         except KeyboardInterrupt:
+            if (_COMMAND.get(None) or {}).get("put_back"):
+                raise fail("interrupted; the run folder is as the earlier config's run left it (this one's "
+                           "artifacts were not all written)", EXIT_INTERRUPTED) from None
             raise fail("interrupted; artifacts written before this point are complete",
                        EXIT_INTERRUPTED) from None
         except Exception as exc:  # a bug: say so in one line, traceback on --debug

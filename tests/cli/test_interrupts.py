@@ -182,3 +182,44 @@ def test_a_sweep_whose_figure_import_a_ctrl_c_cut_short_leaves_at_once(tmp_path)
     assert res.returncode == 130, res.stderr
     assert "interrupted" in res.stderr and "Traceback" not in res.stderr
     assert "the interpreter exited" not in res.stderr
+
+
+def _interrupted_simulate(tmp_path: Path, monkeypatch, *extra):
+    """``simulate`` into ``tmp_path``, Ctrl-C landing in its simulation stage (after trim and design wrote)."""
+    from typer.testing import CliRunner
+
+    from quadctl import pipeline
+    from quadctl.cli.app import app
+
+    def stop(*_, **__):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(pipeline, "simulation_of", stop)
+        return CliRunner().invoke(app, ["simulate", "-c", "hover", "-o", str(tmp_path), *extra])
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file() and p.name != ".quadctl.lock"}
+
+
+def test_ctrl_c_after_a_config_change_puts_the_earlier_complete_run_back(tmp_path, monkeypatch):
+    """The changed config's run removed the earlier run's artifacts, then was stopped before its own were all
+    written: the folder is the earlier run's again, byte for byte, not half of each. Without a change of
+    config, what was written stays (the same config's, complete as far as it went)."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    assert CliRunner().invoke(app, ["simulate", "-c", "hover", "-o", str(tmp_path),
+                                    "--set", "simulation.duration=1"]).exit_code == 0
+    before = _files(tmp_path)
+    assert "sim.npz" in before
+    res = _interrupted_simulate(tmp_path, monkeypatch, "--set", "simulation.duration=2")
+    assert res.exit_code == 130
+    assert res.stderr == ("quadctl: error: interrupted; the run folder is as the earlier config's run left it "
+                          "(this one's artifacts were not all written)\n")  # and no note of what was removed
+    assert _files(tmp_path) == before
+    res = _interrupted_simulate(tmp_path, monkeypatch, "--set", "simulation.duration=1", "--fresh")
+    assert res.exit_code == 130 and "artifacts written before this point are complete" in res.stderr
+    assert "sim.npz" in _files(tmp_path)  # the same config: the earlier sim.npz is this config's, kept
