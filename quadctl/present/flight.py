@@ -88,7 +88,7 @@ def headroom_table(flight: dict, u_trim) -> Table | None:
         rows.append(tuple(row))
     cols = ["actuator", "limits", "trim", "min / max command", "headroom used up / down", "time at a limit"]
     cols += ["peak speed (rad/s)"] if motors else []
-    return Table("headroom-table", "Rotor thrusts against their limits (mix, clip, unmix)" if motors else
+    return Table("headroom-table", "Rotor thrusts against their limits" if motors else
                  "Inputs against their box limits", tuple(cols), tuple(rows),
                  caption="headroom used: the share of the range from the trim to the limit that the largest command "
                          "(up) and the smallest (down) take; 100 % is at the limit, where the command is clipped; "

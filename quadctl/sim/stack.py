@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from quadctl.design.gain_table import scheduling_value, scheduling_values
+from quadctl.layout import N_STATES, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec
 from quadctl.physics.wind import WindSpec
@@ -60,13 +61,20 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     Raises
     ------
     ValueError
-        Loops of different structures or controller rates, or an unknown method.
+        Loops of different structures or controller rates, an unknown method, a duration that is not a
+        positive number of seconds, or an initial state that is not the loop's 12 numbers.
     StepSizeError
         A step that a loop cannot take.
     """
     loops = list(loops)
     if method not in ("rk4", "etdrk4"):
         raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
+    if isinstance(duration, bool) or not isinstance(duration, (int, float, np.integer, np.floating)) \
+            or not 0.0 < float(duration) < float("inf"):
+        raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
+    for x0 in x0s:
+        if np.shape(x0) != (N_STATES,):
+            raise ValueError(f"x0 must be the {N_STATES} states {', '.join(STATE_NAMES)}, got shape {np.shape(x0)}")
     rate = loops[0].rate
     if len(loops) > 1:
         if len({loop.spec() for loop in loops}) > 1:

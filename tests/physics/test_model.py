@@ -122,3 +122,17 @@ def test_linearize_all_is_linearize_at_each_point(wind):
         for name in ("A", "B", "x_trim", "u_trim", "x_rate"):
             np.testing.assert_array_equal(getattr(lin, name), getattr(one, name))
         assert np.any(lin.x_rate[:3]) and not np.any(lin.x_rate[3:])
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"mass": float("nan")}, "must be finite"),
+    ({"mass": -1.0}, "must be positive, got mass -1.0"),
+    ({"inertia": (1e-4, 0.0, 1e-4)}, "must be positive"),
+    ({"drag": (0.2, 0.2)}, "must be a number"),
+    ({"mass": "heavy"}, "must be a number"),
+])
+def test_a_vehicle_no_model_can_fly_is_refused_where_it_is_made(kwargs, match):
+    """A vehicle made in Python (a config's are checked with their keys) with a NaN mass, a negative one or a
+    flat inertia is refused at once, not found out later as a trim that blames the rotor drag."""
+    with pytest.raises(ValueError, match=match):
+        Vehicle(**kwargs)

@@ -191,3 +191,21 @@ def test_a_step_too_small_to_run_is_refused_naming_simulation_dt(tmp_path, confi
         f"quadctl: error: {config_name}.yaml with --set: simulation.dt = {dt:g} s makes simulation.duration = 10 s "
         f"{10 / dt:.3g} steps, more than the 1e+10 quadctl runs; use dt: auto, or a step of at least 1e-09 s"]
     assert not [p for p in out.iterdir() if not p.name.startswith(".")]  # the folder as it was: empty
+
+
+@pytest.mark.parametrize("duration, x0, match", [
+    (-1.0, None, "duration must be a positive number of seconds, got -1.0"),
+    (0.0, None, "duration must be a positive number of seconds, got 0.0"),
+    (float("nan"), None, "duration must be a positive number of seconds, got nan"),
+    ("3", None, "duration must be a positive number of seconds, got '3'"),
+    (1.0, [0.0, 0.0, 0.0], r"x0 must be the 12 states pN, pE, .* got shape \(3,\)"),
+])
+def test_the_python_call_refuses_a_run_that_cannot_be_flown(duration, x0, match):
+    """Bad arguments of the public call give one clear ValueError, not a run 'ok' to t = -1 s, a division by
+    zero or NumPy's broadcasting error."""
+    import quadctl as qc
+
+    stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    loop = stages.loop
+    with pytest.raises(ValueError, match=match):
+        qc.simulate(loop, loop.x_trim if x0 is None else x0, duration)
