@@ -272,6 +272,9 @@ class Stages:
 
     def __init__(self, setup: Setup, *, trim: Trim | None = None, linear: LinearModel | None = None,
                  decoupled: Decoupled | None = None):
+        if not isinstance(setup, Setup):
+            raise TypeError(f"Stages takes a Setup, qc.Stages(qc.setup_of(qc.load_config('hover'))); got "
+                            f"{type(setup).__name__}")
         self.setup = setup
         given = {"trim": trim, "linear": linear, "decoupled": decoupled}
         self.__dict__.update({stage: result for stage, result in given.items() if result is not None})

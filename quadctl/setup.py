@@ -274,6 +274,9 @@ def setup_of(cfg: Config) -> Setup:
     >>> setup.timing.mode, setup.Q_block.shape, list(setup.weights)
     ('continuous', (12, 12), ['altitude', 'roll', 'pitch', 'yaw'])
     """
+    if not isinstance(cfg, Config):
+        raise TypeError(f"setup_of takes a validated Config, qc.setup_of(qc.load_config('hover')); got "
+                        f"{type(cfg).__name__}")
     v = cfg.vehicle
     diagonal, products = inertia_parts(v.inertia)
     vehicle = Vehicle(mass=v.mass, gravity=v.gravity, inertia=diagonal, drag=tuple(v.drag), products=products)

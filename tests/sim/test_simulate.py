@@ -209,3 +209,14 @@ def test_the_python_call_refuses_a_run_that_cannot_be_flown(duration, x0, match)
     loop = stages.loop
     with pytest.raises(ValueError, match=match):
         qc.simulate(loop, loop.x_trim if x0 is None else x0, duration)
+
+
+def test_the_chain_of_stages_names_what_it_takes_when_given_something_else():
+    """A config where a setup goes, or a name where a config goes: one TypeError saying what to pass."""
+    import quadctl as qc
+
+    cfg = qc.load_config("hover")
+    with pytest.raises(TypeError, match=r"Stages takes a Setup, .*got Config"):
+        qc.Stages(cfg)
+    with pytest.raises(TypeError, match=r"setup_of takes a validated Config, .*got str"):
+        qc.setup_of("hover")
