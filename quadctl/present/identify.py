@@ -8,6 +8,13 @@ STAGE_TITLES = {"thrust": "thrust curve and motor lag", "attitude": "roll and pi
                 "yaw": "yaw torque coefficient"}
 
 
+def config_needed() -> str:
+    """Why ``identify`` refuses to run without ``-c``, and what to pass."""
+    return ("identify needs the config of the vehicle flown (the fit takes its mass, rotor positions and "
+            "numbering): add -c NAME or -c FILE, e.g. -c crazyflie for the bundled Crazyflie logs "
+            "(`quadctl configs` lists the bundled configs)")
+
+
 def log_sentences(payload: dict) -> list[str]:
     """Per log: its format, samples and rate, and what the reader converted."""
     return [f"{log['path'].rsplit('/', 1)[-1]}: {log['format']}, {log['samples']} samples at {log['rate_hz']:.0f} Hz, "

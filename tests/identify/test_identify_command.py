@@ -118,3 +118,13 @@ def test_identify_json_is_the_artifact_and_nothing_else(identified, tmp_path):
                                    "-o", str(tmp_path), "--json"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout) == json.loads((tmp_path / "identified.json").read_text())
+
+
+def test_identify_without_a_config_is_refused_and_names_one(tmp_path, monkeypatch):
+    """The fit depends on the vehicle's mass and geometry: no default vehicle stands in for the log's."""
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10")])
+    assert res.exit_code == 2
+    assert len(res.output.strip().splitlines()) == 1 and "-c crazyflie" in res.output
+    assert not (tmp_path / "runs").exists()
+    assert "Default: forward" not in CliRunner().invoke(app, ["identify", "--help"]).output
