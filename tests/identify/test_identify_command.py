@@ -44,8 +44,9 @@ def test_identified_config_says_where_each_value_came_from_and_designs(identifie
 
 @pytest.mark.parametrize("args, match", [
     (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1"),
-    (["--window", "0:5"], "nothing to identify"),
+    (["--window", "100:200"], "log10: --window 100:200 lies outside the log, which spans t"),
     (["--window", "35:65", "--window", "1:2"], "--window given 2 times for 1 log(s); give it once per LOG"),
+    (["--window", "35:65,60:70"], "log10: --window 35:65 and 60:70 overlap"),
 ])
 def test_identify_refuses_bad_windows(tmp_path, args, match):
     res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "-o", str(tmp_path / "o"),
