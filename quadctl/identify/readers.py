@@ -10,17 +10,21 @@ docs/internals.md ("Identification").
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
+import io
 import math
 import struct
+import warnings
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from quadctl.errors import LogError
+from quadctl.errors import LogError, QuadctlNotice
+from quadctl.present import identify as shown
 
 STANDARD_GRAVITY = 9.80665
 """m/s^2 per g: the Crazyflie's accelerometer reads in units of g."""
@@ -239,6 +243,9 @@ def _numeric_row(row, indices) -> bool:
     return True
 
 
+ULOG_CORRUPTION_WORDS = ("corruption", "sync")
+"""A line pyulog prints with one of these (``File corruption detected ...``, ``Failed to find sync ...``)
+says the file is damaged or cut short."""
 ULOG_TOPICS = {"sensor_combined": ("accelerometer_m_s2", "gyro_rad"), "actuator_motors": "control"}
 """The ULog topics read: the IMU's specific force (m/s^2, FRD) and rates (rad/s, FRD), and the
 motor commands ``control[0..3]`` in [0, 1] (PX4's motor order)."""
@@ -253,7 +260,13 @@ def read_ulog(path) -> FlightLog:
     Raises
     ------
     LogError
-        ``pyulog`` not installed, or a topic missing.
+        ``pyulog`` not installed, or a topic missing (said as a truncated or corrupt file when pyulog
+        found it damaged).
+
+    Warns
+    -----
+    QuadctlNotice
+        pyulog found the file damaged but read both topics (its own lines never reach stdout).
     """
     try:
         from pyulog import ULog
@@ -261,15 +274,23 @@ def read_ulog(path) -> FlightLog:
         raise LogError(f"{path}: reading a ULog needs the pyulog package; pip install '.[identify]' in the quadctl "
                        "checkout (or pip install 'quadctl[identify]'), or convert the log to the CSV format") from None
     raw = Path(path).read_bytes()
+    said = io.StringIO()  # pyulog prints what it finds wrong on stdout (which --json owns)
     try:
-        ulog = ULog(str(path), list(ULOG_TOPICS))
+        with contextlib.redirect_stdout(said):
+            ulog = ULog(str(path), list(ULOG_TOPICS))
     except Exception as exc:  # pyulog raises plain exceptions for a broken file
         raise _fail(path, f"not a readable ULog ({exc})", "copy the log from the vehicle again") from None
+    corruption = [line.strip() for line in said.getvalue().splitlines()
+                  if any(word in line.lower() for word in ULOG_CORRUPTION_WORDS)]
     topics = {d.name: d.data for d in ulog.data_list if d.multi_id == 0}
     for topic in ULOG_TOPICS:
+        if topic not in topics and corruption:
+            raise _fail(path, shown.ulog_corrupt(corruption[0], topic), "copy the log from the vehicle again")
         if topic not in topics:
             raise _fail(path, f"the ULog has no {topic} topic",
                         "log it (SDLOG_PROFILE: system identification) or convert the log to the CSV format")
+    if corruption:
+        warnings.warn(QuadctlNotice(shown.ulog_read_past_corruption(Path(path).name, corruption[0])), stacklevel=2)
     imu, motors = topics["sensor_combined"], topics["actuator_motors"]
     t = imu["timestamp"].astype(float) * 1e-6
     acc = np.column_stack([imu[f"accelerometer_m_s2[{i}]"] for i in range(3)]).astype(float)

@@ -15,6 +15,17 @@ def config_needed() -> str:
             "(`quadctl configs` lists the bundled configs)")
 
 
+def ulog_corrupt(said: str, topic: str) -> str:
+    """A ULog that pyulog found damaged (``said``: its line) and whose ``topic`` it could not read."""
+    return f"the ULog is truncated or corrupt (pyulog: {said.rstrip('!.')}), so its {topic} topic cannot be read"
+
+
+def ulog_read_past_corruption(name: str, said: str) -> str:
+    """A ULog that pyulog found damaged but read: its samples may have gaps."""
+    return (f"{name}: the ULog is damaged (pyulog: {said.rstrip('!.')}); its topics were read past the damage, "
+            "so a window there may lack samples (identify refuses a window with a gap)")
+
+
 def log_sentences(payload: dict) -> list[str]:
     """Per log: its format, samples and rate, and what the reader converted."""
     return [f"{log['path'].rsplit('/', 1)[-1]}: {log['format']}, {log['samples']} samples at {log['rate_hz']:.0f} Hz, "

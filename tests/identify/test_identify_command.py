@@ -129,3 +129,12 @@ def test_identify_without_a_config_is_refused_and_names_one(tmp_path, monkeypatc
     assert len(res.output.strip().splitlines()) == 1 and "-c crazyflie" in res.output
     assert not (tmp_path / "runs").exists()
     assert "Default: forward" not in CliRunner().invoke(app, ["identify", "--help"]).output
+
+
+def test_identify_json_of_a_truncated_ulog_keeps_stdout_clean(tmp_path):
+    pytest.importorskip("pyulog")
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes((DATA / "px4-ulog" / "sample_px4_events.ulg").read_bytes()[:20000])
+    res = CliRunner().invoke(app, ["identify", str(cut), "-c", "crazyflie", "--json", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and res.stdout == ""
+    assert "cut.ulg: the ULog is truncated or corrupt" in res.stderr

@@ -147,6 +147,33 @@ def test_ulog_without_pyulog_says_how_to_install(monkeypatch):
         read_log(ULOG)
 
 
+def test_a_truncated_ulog_is_said_to_be_truncated_and_pyulog_prints_nothing(tmp_path, capsys):
+    """Cut inside its definitions, pyulog prints "File corruption detected ..." and reads no topic."""
+    pytest.importorskip("pyulog")
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes(ULOG.read_bytes()[:20000])
+    with pytest.raises(LogError, match=r"cut.ulg: the ULog is truncated or corrupt \(pyulog: File corruption detected"
+                                       r".*\), so its sensor_combined topic cannot be read; copy the log"):
+        read_log(cut)
+    assert capsys.readouterr().out == ""  # stdout is --json's
+
+
+def test_a_ulog_pyulog_read_past_damage_gives_a_notice_not_stdout(monkeypatch, capsys):
+    pyulog = pytest.importorskip("pyulog")
+    from quadctl.errors import QuadctlNotice
+
+    real = pyulog.ULog
+
+    def damaged(*args, **kwargs):
+        print("File corruption detected while reading file data!")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pyulog, "ULog", damaged)
+    with pytest.warns(QuadctlNotice, match=r"sample_px4_events.ulg: the ULog is damaged \(pyulog: File corruption"):
+        log = read_log(ULOG)
+    assert log.t.size > 7000 and capsys.readouterr().out == ""
+
+
 def test_a_folder_or_a_missing_path_is_named_as_what_it_is(tmp_path):
     (tmp_path / "logs").mkdir()
     with pytest.raises(LogError, match=r"logs: is a folder, not a flight log; give the path of a log file in it"):
