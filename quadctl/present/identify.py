@@ -55,6 +55,18 @@ def sentences(payload: dict) -> list[str]:
         out.append(f"Thrust fit: residual {th['residual_rms']:.4g} N RMS with the motor lag, "
                    f"{th['rms_without_lag']:.4g} N without (the lag explains "
                    f"{(1 - th['residual_rms'] / th['rms_without_lag']) * 100:.0f} % of the error).")
+    delay = payload.get("delay_written")
+    if delay is not None:
+        fitted = th["parameters"]["delay"]["value"]
+        if delay["samples"] is None:
+            out.append(f"The fitted delay, {fitted * 1e3:.4g} ms, is not written into the identified config: "
+                       "its controller runs continuous (no controller.rate), and controller.delay counts "
+                       "controller samples; set controller.rate (Hz) and controller.delay: {samples: n}, n the "
+                       "delay times the rate, rounded.")
+        else:
+            out.append(f"The fitted delay, {fitted * 1e3:.4g} ms, is written as controller.delay: "
+                       f"{{samples: {delay['samples']}}} ({delay['s'] * 1e3:.4g} ms at {delay['rate_hz']:g} Hz, "
+                       "the nearest whole samples).")
     for stage, reason in payload["refused"].items():
         out.append(f"Not identified, {STAGE_TITLES[stage]}: {reason}.")
     return out

@@ -138,3 +138,46 @@ def test_identify_json_of_a_truncated_ulog_keeps_stdout_clean(tmp_path):
     res = CliRunner().invoke(app, ["identify", str(cut), "-c", "crazyflie", "--json", "-o", str(tmp_path / "o")])
     assert res.exit_code == 2 and res.stdout == ""
     assert "cut.ulg: the ULog is truncated or corrupt" in res.stderr
+
+
+def _delay_identification(rate):
+    import numpy as np
+
+    from quadctl.identify import estimate as est
+    from quadctl.identify.readers import FlightLog
+    from quadctl.identify.results import Identification
+
+    log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
+                    path="log", format="csv", sha256="")
+    airframe = est.Airframe(mass=0.027, positions=np.zeros((4, 2)), spins=np.ones(4),
+                            inertia=np.array([1e-5, 1e-5, 2e-5]), torque_coefficient=0.006)
+    thrust = _fit("thrust", ("c0", "c1", "c2", "T_m", "delay"), (0.02, -0.01, 0.12, 0.056, 0.01711))
+    thrust.extra["rms_without_lag"] = 1.0
+    return Identification(logs=[log], fits={"thrust": thrust}, refused={}, stage_logs={"thrust": 0},
+                          airframe=airframe, config_name="crazyflie", controller_rate=rate)
+
+
+def test_a_fitted_delay_is_written_as_whole_controller_samples_replacing_the_configs():
+    """17.11 ms at 500 Hz is 8.55 samples: 9 written; a delay the config gave as a block is replaced whole."""
+    from quadctl.config import locate, parse
+    from quadctl.identify.results import changes, identified_config, payload
+    from quadctl.present.identify import sentences
+
+    ident = _delay_identification(500.0)
+    value, comment = changes(ident)[("controller", "delay")]
+    assert value == "{samples: 9}" and "17.11 ms" in comment and "18 ms at 500 Hz" in comment
+    text = locate("crazyflie").text.replace("controller:\n", "controller:\n  delay:\n    samples: 2\n", 1)
+    assert parse(text, "x").controller.delay_samples() == 2
+    assert parse(identified_config(text, ident, "x"), "x").controller.delay_samples() == 9
+    said = sentences(payload(ident, "crazyflie.yaml"))
+    assert any("written as controller.delay: {samples: 9}" in s for s in said)
+
+
+def test_a_fitted_delay_with_a_continuous_controller_is_not_written_and_the_user_is_told_how():
+    from quadctl.identify.results import changes, payload
+    from quadctl.present.identify import sentences
+
+    ident = _delay_identification(None)
+    assert ("controller", "delay") not in changes(ident)
+    said = sentences(payload(ident, "forward.yaml"))
+    assert any("17.11 ms, is not written" in s and "controller.delay: {samples: n}" in s for s in said)
