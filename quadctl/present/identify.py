@@ -26,6 +26,11 @@ def ulog_read_past_corruption(name: str, said: str) -> str:
             "so a window there may lack samples (identify refuses a window with a gap)")
 
 
+def time_from_start(clock: float) -> str:
+    """The reader's phrase for the time it shows and takes: from the log's first sample."""
+    return f"t = 0 at the first sample (the log's own clock read {clock:.9g} s there)"
+
+
 def log_sentences(payload: dict) -> list[str]:
     """Per log: its format, samples and rate, and what the reader converted."""
     return [f"{log['path'].rsplit('/', 1)[-1]}: {log['format']}, {log['samples']} samples at {log['rate_hz']:.0f} Hz, "

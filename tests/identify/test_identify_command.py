@@ -16,8 +16,8 @@ FLIGHTS = DATA / "crazyflie-flights"
 @pytest.fixture(scope="module")
 def identified(tmp_path_factory):
     out = tmp_path_factory.mktemp("identified")
-    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "35:65",
-                                   "-o", str(out)])
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "8.67:38.67",
+                                   "-o", str(out)])  # the paper's 35-65 s of the Crazyflie's clock
     assert res.exit_code == 0, res.output
     return out, res.output
 
@@ -26,7 +26,8 @@ def test_identify_writes_values_intervals_and_provenance(identified):
     out, text = identified
     payload = json.loads((out / "identified.json").read_text())
     thrust = payload["stages"]["thrust"]
-    assert thrust["windows_s"] == [[35.0, 65.0]]
+    assert thrust["windows_s"] == [[8.67, 38.67]]
+    assert payload["logs"][0]["t_start"] == 0 and payload["logs"][0]["clock_at_start_s"] == pytest.approx(26.333702)
     lo, hi = thrust["parameters"]["T_m"]["interval95"]
     assert lo < thrust["parameters"]["T_m"]["value"] < hi
     assert payload["logs"][0]["sha256"] == __import__("hashlib").sha256((FLIGHTS / "log10").read_bytes()).hexdigest()
@@ -37,7 +38,7 @@ def test_identify_writes_values_intervals_and_provenance(identified):
 def test_identified_config_says_where_each_value_came_from_and_designs(identified):
     out, _ = identified
     text = (out / "identified.yaml").read_text()
-    assert "time_constant: 0.07" in text and "identified from log10 t 35:65 s" in text
+    assert "time_constant: 0.07" in text and "identified from log10 t 8.67:38.67 s" in text
     res = CliRunner().invoke(app, ["design", "-c", str(out / "identified.yaml"), "-o", str(out / "design")])
     assert res.exit_code == 0, res.output
 
@@ -46,7 +47,8 @@ def test_identified_config_says_where_each_value_came_from_and_designs(identifie
     (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1"),
     (["--window", "100:200"], "log10: --window 100:200 lies outside the log, which spans t"),
     (["--window", "35:65", "--window", "1:2"], "--window given 2 times for 1 log(s); give it once per LOG"),
-    (["--window", "35:65,60:70"], "log10: --window 35:65 and 60:70 overlap"),
+    (["--window", "10:30,25:35"], "log10: --window 10:30 and 25:35 overlap"),
+    (["--window", "0:5"], "nothing to identify"),  # on the ground: t is from the log's first sample
 ])
 def test_identify_refuses_bad_windows(tmp_path, args, match):
     res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "-o", str(tmp_path / "o"),
@@ -115,7 +117,7 @@ def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
 
 def test_identify_json_is_the_artifact_and_nothing_else(identified, tmp_path):
     out, _ = identified
-    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "35:65",
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "8.67:38.67",
                                    "-o", str(tmp_path), "--json"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout) == json.loads((tmp_path / "identified.json").read_text())

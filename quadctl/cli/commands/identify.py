@@ -21,8 +21,9 @@ def command(logs: Annotated[list[str], typer.Argument(
                 "--out", "-o", metavar="DIR", parser=out_folder,
                 help="Folder for the results. Default: runs/<config name>-identified.")] = None,
             window: Annotated[Optional[list[str]], typer.Option(
-                "--window", metavar="T0:T1", help="The stretch of a log to fit, s (t0:t1, or t0:t1,t2:t3); once "
-                "per LOG, in order. Default: chosen from the excitation.")] = None,
+                "--window", metavar="T0:T1", help="The stretch of a log to fit, s from the log's first sample, as "
+                "the output shows times (t0:t1, or t0:t1,t2:t3 that do not overlap); once per LOG, in order. Default: "
+                "chosen from the excitation.")] = None,
             columns: Annotated[Optional[list[str]], typer.Option(
                 "--columns", metavar="NAME=COLUMN", help="A CSV's column names (t=time_s,cmd_1=m1).")] = None,
             delay: Annotated[bool, typer.Option(
