@@ -1,26 +1,31 @@
 """Flight-log readers: every format into one :class:`FlightLog` in SI units and quadctl's frames.
 
-A :class:`FlightLog` holds time (s), the specific force (m/s^2) and the body rates (rad/s) in the FRD
-body frame, and the four rotor commands normalized to [0, 1] in the config's numbering; each reader
-says what it converted (:attr:`FlightLog.conversions`). :func:`read_log` picks the reader:
-:func:`read_crazyflie` (the microSD deck's binary log), :func:`read_csv` and :func:`read_ulog`
-(PX4, through ``pyulog``). The formats are in the docs, docs/guide/identify.md and
-docs/internals.md ("Identification").
+A :class:`FlightLog` holds time (s, from the log's first sample: every reader's ``t`` starts at 0,
+and :attr:`FlightLog.clock_at_start` keeps the log's own clock there), the specific force (m/s^2)
+and the body rates (rad/s) in the FRD body frame, and the four rotor commands normalized to [0, 1]
+in the config's numbering; each reader says what it converted (:attr:`FlightLog.conversions`).
+:func:`read_log` picks the reader: :func:`read_crazyflie` (the microSD deck's binary log),
+:func:`read_csv` and :func:`read_ulog` (PX4, through ``pyulog``). The formats are in the docs,
+docs/guide/identify.md and docs/internals.md ("Identification").
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
+import io
 import math
 import struct
+import warnings
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from quadctl.errors import LogError
+from quadctl.errors import LogError, QuadctlNotice
+from quadctl.present import identify as shown
 
 STANDARD_GRAVITY = 9.80665
 """m/s^2 per g: the Crazyflie's accelerometer reads in units of g."""
@@ -43,7 +48,7 @@ class FlightLog:
     Attributes
     ----------
     t : (N,) ndarray
-        s, strictly increasing.
+        s from the log's first sample (``t[0] == 0``), strictly increasing.
     acc : (N, 3) ndarray
         Specific force, m/s^2, FRD (``-g`` on z at hover).
     gyro : (N, 3) ndarray
@@ -57,6 +62,8 @@ class FlightLog:
         Of the file's bytes.
     conversions : tuple of str
         What the reader converted (units, frame, numbering), one phrase each.
+    clock_at_start : float
+        s: the log's own clock at its first sample (a Crazyflie's time since boot, a ULog's time stamp).
     """
 
     t: np.ndarray
@@ -67,6 +74,7 @@ class FlightLog:
     format: str
     sha256: str
     conversions: tuple[str, ...] = field(default=())
+    clock_at_start: float = 0.0
 
     @property
     def name(self) -> str:
@@ -75,7 +83,7 @@ class FlightLog:
     def provenance(self) -> dict:
         """The log's identity for ``identified.json``."""
         return {"path": self.path, "format": self.format, "sha256": self.sha256, "samples": int(self.t.size),
-                "t_start": float(self.t[0]), "t_end": float(self.t[-1]),
+                "t_start": float(self.t[0]), "t_end": float(self.t[-1]), "clock_at_start_s": self.clock_at_start,
                 "rate_hz": float((self.t.size - 1) / (self.t[-1] - self.t[0])), "conversions": list(self.conversions)}
 
     def to_csv(self, path) -> None:
@@ -90,8 +98,9 @@ def _fail(path, what: str, fix: str) -> LogError:
     return LogError(f"{path}: {what}; {fix}")
 
 
-def _checked(path, t, acc, gyro, cmd, fmt, digest, conversions) -> FlightLog:
-    """The arrays as a FlightLog, after the checks every format shares."""
+def _checked(path, t, acc, gyro, cmd, fmt, digest, conversions, clock: float = 0.0) -> FlightLog:
+    """The arrays as a FlightLog, after the checks every format shares, its time from the first sample
+    (``clock``, s: the log's clock at ``t = 0`` of the given ``t``)."""
     if t.size < 2:
         raise _fail(path, f"{t.size} sample(s), too few to identify anything", "give a log of a flight")
     arrays = {"time": t, "accelerometer": acc, "gyro": gyro, "motor commands": cmd}
@@ -107,8 +116,9 @@ def _checked(path, t, acc, gyro, cmd, fmt, digest, conversions) -> FlightLog:
     if np.any(cmd < -1e-9) or np.any(cmd > 1 + 1e-9):
         raise _fail(path, f"rotor commands outside [0, 1] (from {cmd.min():.4g} to {cmd.max():.4g})",
                     "normalize the commands to [0, 1] (a PWM 0-65535 divided by 65535)")
-    return FlightLog(t=t, acc=acc, gyro=gyro, cmd=cmd, path=str(path), format=fmt, sha256=digest,
-                     conversions=tuple(conversions))
+    return FlightLog(t=t - t[0], acc=acc, gyro=gyro, cmd=cmd, path=str(path), format=fmt, sha256=digest,
+                     conversions=(shown.time_from_start(clock + float(t[0])), *conversions),
+                     clock_at_start=clock + float(t[0]))
 
 
 def read_crazyflie(path) -> FlightLog:
@@ -239,6 +249,9 @@ def _numeric_row(row, indices) -> bool:
     return True
 
 
+ULOG_CORRUPTION_WORDS = ("corruption", "sync")
+"""A line pyulog prints with one of these (``File corruption detected ...``, ``Failed to find sync ...``)
+says the file is damaged or cut short."""
 ULOG_TOPICS = {"sensor_combined": ("accelerometer_m_s2", "gyro_rad"), "actuator_motors": "control"}
 """The ULog topics read: the IMU's specific force (m/s^2, FRD) and rates (rad/s, FRD), and the
 motor commands ``control[0..3]`` in [0, 1] (PX4's motor order)."""
@@ -253,7 +266,13 @@ def read_ulog(path) -> FlightLog:
     Raises
     ------
     LogError
-        ``pyulog`` not installed, or a topic missing.
+        ``pyulog`` not installed, or a topic missing (said as a truncated or corrupt file when pyulog
+        found it damaged).
+
+    Warns
+    -----
+    QuadctlNotice
+        pyulog found the file damaged but read both topics (its own lines never reach stdout).
     """
     try:
         from pyulog import ULog
@@ -261,27 +280,36 @@ def read_ulog(path) -> FlightLog:
         raise LogError(f"{path}: reading a ULog needs the pyulog package; pip install '.[identify]' in the quadctl "
                        "checkout (or pip install 'quadctl[identify]'), or convert the log to the CSV format") from None
     raw = Path(path).read_bytes()
+    said = io.StringIO()  # pyulog prints what it finds wrong on stdout (which --json owns)
     try:
-        ulog = ULog(str(path), list(ULOG_TOPICS))
+        with contextlib.redirect_stdout(said):
+            ulog = ULog(str(path), list(ULOG_TOPICS))
     except Exception as exc:  # pyulog raises plain exceptions for a broken file
         raise _fail(path, f"not a readable ULog ({exc})", "copy the log from the vehicle again") from None
+    corruption = [line.strip() for line in said.getvalue().splitlines()
+                  if any(word in line.lower() for word in ULOG_CORRUPTION_WORDS)]
     topics = {d.name: d.data for d in ulog.data_list if d.multi_id == 0}
     for topic in ULOG_TOPICS:
+        if topic not in topics and corruption:
+            raise _fail(path, shown.ulog_corrupt(corruption[0], topic), "copy the log from the vehicle again")
         if topic not in topics:
             raise _fail(path, f"the ULog has no {topic} topic",
                         "log it (SDLOG_PROFILE: system identification) or convert the log to the CSV format")
+    if corruption:
+        warnings.warn(QuadctlNotice(shown.ulog_read_past_corruption(Path(path).name, corruption[0])), stacklevel=2)
     imu, motors = topics["sensor_combined"], topics["actuator_motors"]
-    t = imu["timestamp"].astype(float) * 1e-6
+    origin = int(imu["timestamp"][0])  # us; subtracted as integers (a time stamp may be an epoch's 1.7e15 us)
+    t = (imu["timestamp"].astype(np.int64) - origin) * 1e-6
     acc = np.column_stack([imu[f"accelerometer_m_s2[{i}]"] for i in range(3)]).astype(float)
     gyro = np.column_stack([imu[f"gyro_rad[{i}]"] for i in range(3)]).astype(float)
-    tm = motors["timestamp"].astype(float) * 1e-6
+    tm = (motors["timestamp"].astype(np.int64) - origin) * 1e-6
     idx = np.clip(np.searchsorted(tm, t, side="right") - 1, 0, tm.size - 1)
     cmd = np.column_stack([np.nan_to_num(motors[f"control[{i}]"].astype(float))[idx] for i in range(4)])
     keep = t >= tm[0]
     return _checked(path, t[keep], acc[keep], gyro[keep], np.clip(cmd[keep], 0.0, 1.0), "ulog",
                     hashlib.sha256(raw).hexdigest(),
                     ("time: us -> s", "sensor_combined: m/s^2 and rad/s, FRD, as logged",
-                     "actuator_motors.control[0..3] held onto the IMU's samples, clipped to [0, 1]"))
+                     "actuator_motors.control[0..3] held onto the IMU's samples, clipped to [0, 1]"), origin * 1e-6)
 
 
 def read_log(path, columns: dict[str, str] | None = None) -> FlightLog:

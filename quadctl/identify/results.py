@@ -24,6 +24,16 @@ class Identification:
     stage_logs: dict  # stage -> log index
     airframe: est.Airframe
     config_name: str
+    controller_rate: float | None = None
+    """Hz, the config's ``controller.rate`` (None: continuous), at which a fitted delay is counted."""
+
+    def delay_samples(self) -> int | None:
+        """The fitted delay as the nearest whole number of controller samples (``controller.delay`` counts
+        them); None without a fitted delay or without a controller rate (a continuous controller has none)."""
+        th = self.fits["thrust"]
+        if "delay" not in th.names or self.controller_rate is None:
+            return None
+        return round(th.value("delay") * self.controller_rate)
 
     def max_thrust(self) -> float:
         """N: a rotor's thrust at full command (the curve at 1)."""
@@ -82,7 +92,7 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
         fits["yaw"] = est.fit_yaw(grid(i), w, airframe, fits["thrust"], fits.get("attitude"))
     return Identification(logs=list(logs), fits=fits, refused=p.refused,
                           stage_logs={s: c[0] for s, c in p.chosen.items()}, airframe=airframe,
-                          config_name=config.name)
+                          config_name=config.name, controller_rate=config.controller.rate)
 
 
 def payload(ident: Identification, config_label: str, config=None) -> dict:
@@ -103,8 +113,12 @@ def payload(ident: Identification, config_label: str, config=None) -> dict:
             **{k: v for k, v in fit.extra.items()}}
 
     meta = metadata(config, "identified.json") if config is not None else {}
+    fitted_delay = "delay" in ident.fits["thrust"].names
+    n = ident.delay_samples()
     return {**meta, "config": config_label, "logs": [log.provenance() for log in ident.logs], "stages": stages,
             "refused": dict(ident.refused),
+            "delay_written": None if not fitted_delay else {
+                "samples": n, "rate_hz": ident.controller_rate, "s": None if n is None else n / ident.controller_rate},
             "held": {"mass_kg": ident.airframe.mass, "rotor_positions_m": ident.airframe.positions.tolist(),
                      "Jzz_kg_m2": float(ident.airframe.inertia[2])},
             "structure": "each rotor's command lags first-order through T_m (after the pure delay, when fitted); "
@@ -124,6 +138,13 @@ def changes(ident: Identification) -> dict:
                                          "(ignore: instantaneous rotors, and the lag only in the flown plant)")
     out[("motors", "max_thrust")] = (f"{ident.max_thrust():.4g}", f"N per rotor, the thrust curve at full command, "
                                      f"identified from {src} t {span} s")
+    n = ident.delay_samples()
+    if n is not None:
+        d_lo, d_hi = th.interval("delay")
+        out[("controller", "delay")] = (
+            f"{{samples: {n}}}", f"{n / ident.controller_rate * 1e3:.4g} ms at {ident.controller_rate:g} Hz, the whole "
+            f"samples nearest the pure delay of the rotor commands, {th.value('delay') * 1e3:.4g} ms (95 %: "
+            f"{d_lo * 1e3:.4g}-{d_hi * 1e3:.4g}), identified from {src} t {span} s with motors.time_constant")
     inertia, lowered = identified_inertia(ident)
     if "attitude" in ident.fits:
         att = ident.fits["attitude"]
@@ -157,6 +178,15 @@ def identified_inertia(ident: Identification) -> tuple[list, bool]:
     return inertia, lowered
 
 
+def _under(line: str, indent: int) -> bool:
+    """Whether ``line`` belongs to the key above it at ``indent``: a line of its block (indented deeper), or
+    a comment continuing its line's comment (indented past the block's keys)."""
+    deeper = len(line) - len(line.lstrip())
+    if line.strip().startswith("#"):
+        return deeper > indent + 2
+    return bool(line.strip()) and deeper > indent
+
+
 def identified_config(text: str, ident: Identification, name: str) -> str:
     """The config's YAML ``text`` with the identified values set, each changed line saying where it came from.
 
@@ -178,9 +208,8 @@ def identified_config(text: str, ident: Identification, name: str) -> str:
             continue
         indent = len(lines[at]) - len(lines[at].lstrip())
         drop = at + 1
-        while drop < end and lines[drop].strip().startswith("#") and \
-                len(lines[drop]) - len(lines[drop].lstrip()) > indent + 2:
-            drop += 1  # the old value's continued comment
+        while drop < end and _under(lines[drop], indent):
+            drop += 1  # the old value's continued comment, or its block (delay:\n    samples: 1)
         lines[at:drop] = [" " * indent + new.lstrip()]
     head = f"# Identified by quadctl identify from {', '.join(log.name for log in ident.logs)}: see identified.json"
     out = head + "\n" + "\n".join(lines) + "\n"

@@ -110,11 +110,14 @@ def plan(logs, windows=None) -> Plan:
     Raises
     ------
     LogError
-        No log supports any stage (no flight, no excitation): the message names the files and the fix.
+        No log supports any stage (no flight, no excitation), or given windows that overlap or lie
+        outside their log (:func:`check_windows`): the message names the files and the fix.
     """
     per_log = []
     for i, log in enumerate(logs):
         given = windows[i] if windows and windows[i] is not None else None
+        if given is not None:
+            check_windows(log, given)
         wins = given if given is not None else flights(log)
         per_log.append(wins)
     exc = [excitation(log, w) for log, w in zip(logs, per_log)]
@@ -147,6 +150,28 @@ def plan(logs, windows=None) -> Plan:
             raise LogError(f"{names}: no log excites the thrust, which every other stage needs; add a log with "
                            "climbs and descents (the collective command moving)")
     return Plan(chosen=chosen, refused=refused, excitation=exc)
+
+
+def check_windows(log, windows) -> None:
+    """Refuse given windows that overlap (touching ones are fine) or lie wholly outside the log's span.
+
+    A sample in two windows would count twice in the fit (and its lag restart inside the other window).
+
+    Raises
+    ------
+    LogError
+        Naming the two overlapping windows, or the window outside and the log's span.
+    """
+    for a, b in windows:
+        if b <= log.t[0] or a >= log.t[-1]:
+            raise LogError(f"{log.name}: --window {a:g}:{b:g} lies outside the log, which spans t {log.t[0]:.4g} "
+                           f"to {log.t[-1]:.4g} s (from its first sample); choose t0:t1 inside it")
+    ordered = sorted(windows)
+    for (a, b), (c, d) in zip(ordered, ordered[1:]):
+        if c < b:
+            raise LogError(f"{log.name}: --window {a:g}:{b:g} and {c:g}:{d:g} overlap (t {c:g} to {min(b, d):g} s "
+                           f"would count twice); join them ({a:g}:{max(b, d):g}) or let them touch "
+                           f"({a:g}:{b:g},{b:g}:{max(b, d):g})")
 
 
 def _problem(log, windows) -> str | None:

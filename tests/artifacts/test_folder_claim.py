@@ -160,8 +160,8 @@ def test_identify_is_held_to_the_claim(tmp_path):
 
     (tmp_path / "identify.png").write_bytes(b"mine")
     logs = ROOT / "tests" / "data" / "crazyflie-flights"
-    res = invoke("identify", logs / "log10", logs / "log15", "-c", "crazyflie", "--window", "35:65", "--window",
-                 "55:90", "-o", tmp_path)
+    res = invoke("identify", logs / "log10", logs / "log15", "-c", "crazyflie", "--window", "8.67:38.67", "--window",
+                 "15.755:50.755", "-o", tmp_path)
     assert res.exit_code == 2 and "holds identify.png, which quadctl did not write" in res.stderr
     assert contents(tmp_path) == {"identify.png": b"mine"}
 

@@ -16,8 +16,8 @@ FLIGHTS = DATA / "crazyflie-flights"
 @pytest.fixture(scope="module")
 def identified(tmp_path_factory):
     out = tmp_path_factory.mktemp("identified")
-    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "35:65",
-                                   "-o", str(out)])
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "8.67:38.67",
+                                   "-o", str(out)])  # the paper's 35-65 s of the Crazyflie's clock
     assert res.exit_code == 0, res.output
     return out, res.output
 
@@ -26,7 +26,8 @@ def test_identify_writes_values_intervals_and_provenance(identified):
     out, text = identified
     payload = json.loads((out / "identified.json").read_text())
     thrust = payload["stages"]["thrust"]
-    assert thrust["windows_s"] == [[35.0, 65.0]]
+    assert thrust["windows_s"] == [[8.67, 38.67]]
+    assert payload["logs"][0]["t_start"] == 0 and payload["logs"][0]["clock_at_start_s"] == pytest.approx(26.333702)
     lo, hi = thrust["parameters"]["T_m"]["interval95"]
     assert lo < thrust["parameters"]["T_m"]["value"] < hi
     assert payload["logs"][0]["sha256"] == __import__("hashlib").sha256((FLIGHTS / "log10").read_bytes()).hexdigest()
@@ -37,15 +38,17 @@ def test_identify_writes_values_intervals_and_provenance(identified):
 def test_identified_config_says_where_each_value_came_from_and_designs(identified):
     out, _ = identified
     text = (out / "identified.yaml").read_text()
-    assert "time_constant: 0.07" in text and "identified from log10 t 35:65 s" in text
+    assert "time_constant: 0.07" in text and "identified from log10 t 8.67:38.67 s" in text
     res = CliRunner().invoke(app, ["design", "-c", str(out / "identified.yaml"), "-o", str(out / "design")])
     assert res.exit_code == 0, res.output
 
 
 @pytest.mark.parametrize("args, match", [
     (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1"),
-    (["--window", "0:5"], "nothing to identify"),
+    (["--window", "100:200"], "log10: --window 100:200 lies outside the log, which spans t"),
     (["--window", "35:65", "--window", "1:2"], "--window given 2 times for 1 log(s); give it once per LOG"),
+    (["--window", "10:30,25:35"], "log10: --window 10:30 and 25:35 overlap"),
+    (["--window", "0:5"], "nothing to identify"),  # on the ground: t is from the log's first sample
 ])
 def test_identify_refuses_bad_windows(tmp_path, args, match):
     res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "-o", str(tmp_path / "o"),
@@ -114,7 +117,69 @@ def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
 
 def test_identify_json_is_the_artifact_and_nothing_else(identified, tmp_path):
     out, _ = identified
-    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "35:65",
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "8.67:38.67",
                                    "-o", str(tmp_path), "--json"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout) == json.loads((tmp_path / "identified.json").read_text())
+
+
+def test_identify_without_a_config_is_refused_and_names_one(tmp_path, monkeypatch):
+    """The fit depends on the vehicle's mass and geometry: no default vehicle stands in for the log's."""
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10")])
+    assert res.exit_code == 2
+    assert len(res.output.strip().splitlines()) == 1 and "-c crazyflie" in res.output
+    assert not (tmp_path / "runs").exists()
+    assert "Default: forward" not in CliRunner().invoke(app, ["identify", "--help"]).output
+
+
+def test_identify_json_of_a_truncated_ulog_keeps_stdout_clean(tmp_path):
+    pytest.importorskip("pyulog")
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes((DATA / "px4-ulog" / "sample_px4_events.ulg").read_bytes()[:20000])
+    res = CliRunner().invoke(app, ["identify", str(cut), "-c", "crazyflie", "--json", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and res.stdout == ""
+    assert "cut.ulg: the ULog is truncated or corrupt" in res.stderr
+
+
+def _delay_identification(rate):
+    import numpy as np
+
+    from quadctl.identify import estimate as est
+    from quadctl.identify.readers import FlightLog
+    from quadctl.identify.results import Identification
+
+    log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
+                    path="log", format="csv", sha256="")
+    airframe = est.Airframe(mass=0.027, positions=np.zeros((4, 2)), spins=np.ones(4),
+                            inertia=np.array([1e-5, 1e-5, 2e-5]), torque_coefficient=0.006)
+    thrust = _fit("thrust", ("c0", "c1", "c2", "T_m", "delay"), (0.02, -0.01, 0.12, 0.056, 0.01711))
+    thrust.extra["rms_without_lag"] = 1.0
+    return Identification(logs=[log], fits={"thrust": thrust}, refused={}, stage_logs={"thrust": 0},
+                          airframe=airframe, config_name="crazyflie", controller_rate=rate)
+
+
+def test_a_fitted_delay_is_written_as_whole_controller_samples_replacing_the_configs():
+    """17.11 ms at 500 Hz is 8.55 samples: 9 written; a delay the config gave as a block is replaced whole."""
+    from quadctl.config import locate, parse
+    from quadctl.identify.results import changes, identified_config, payload
+    from quadctl.present.identify import sentences
+
+    ident = _delay_identification(500.0)
+    value, comment = changes(ident)[("controller", "delay")]
+    assert value == "{samples: 9}" and "17.11 ms" in comment and "18 ms at 500 Hz" in comment
+    text = locate("crazyflie").text.replace("controller:\n", "controller:\n  delay:\n    samples: 2\n", 1)
+    assert parse(text, "x").controller.delay_samples() == 2
+    assert parse(identified_config(text, ident, "x"), "x").controller.delay_samples() == 9
+    said = sentences(payload(ident, "crazyflie.yaml"))
+    assert any("written as controller.delay: {samples: 9}" in s for s in said)
+
+
+def test_a_fitted_delay_with_a_continuous_controller_is_not_written_and_the_user_is_told_how():
+    from quadctl.identify.results import changes, payload
+    from quadctl.present.identify import sentences
+
+    ident = _delay_identification(None)
+    assert ("controller", "delay") not in changes(ident)
+    said = sentences(payload(ident, "forward.yaml"))
+    assert any("17.11 ms, is not written" in s and "controller.delay: {samples: n}" in s for s in said)

@@ -164,12 +164,20 @@ def test_inertia_and_torque_coefficient_within_their_intervals():
         assert hi - lo < 0.3 * value  # and the interval says something
 
 
+def on_its_clock(log, t0, t1):
+    """The window ``t0:t1`` of the Crazyflie's own clock (the paper's times), in the log's time from its start."""
+    return [(t0 - log.clock_at_start, t1 - log.clock_at_start)]
+
+
+PAPER_WINDOW_10 = on_its_clock(read_log(FLIGHTS / "log10"), 35.0, 65.0)
+
+
 @pytest.fixture(scope="module")
 def real():
     cfg = load("crazyflie")
     paper = dataclasses.replace(est.Airframe.from_config(cfg), positions=airframe().positions)
     grid10 = est.on_grid(read_log(FLIGHTS / "log10"))
-    thrust = est.fit_thrust(grid10, [(35.0, 65.0)], paper)
+    thrust = est.fit_thrust(grid10, PAPER_WINDOW_10, paper)
     return paper, thrust
 
 
@@ -186,7 +194,8 @@ def test_real_log10_motor_time_constant_and_thrust_curve(real):
 
 def test_real_log15_inertia_with_the_papers_geometry(real):
     paper, thrust = real
-    att = est.fit_attitude(est.on_grid(read_log(FLIGHTS / "log15")), [(55.0, 90.0)], paper, thrust)
+    log15 = read_log(FLIGHTS / "log15")
+    att = est.fit_attitude(est.on_grid(log15), on_its_clock(log15, 55.0, 90.0), paper, thrust)
     assert att.value("Jxx") == pytest.approx(PAPER_INERTIA[0], rel=0.10)
     assert att.value("Jyy") == pytest.approx(PAPER_INERTIA[1], rel=0.10)
 
@@ -195,6 +204,6 @@ def test_csv_of_the_binary_log_gives_the_same_estimates(real, tmp_path):
     paper, thrust = real
     path = tmp_path / "log10.csv"
     read_log(FLIGHTS / "log10").to_csv(path)
-    again = est.fit_thrust(est.on_grid(read_log(path)), [(35.0, 65.0)], paper)
+    again = est.fit_thrust(est.on_grid(read_log(path)), PAPER_WINDOW_10, paper)
     np.testing.assert_allclose(again.values, thrust.values, rtol=1e-9)
     np.testing.assert_allclose(again.std, thrust.std, rtol=1e-6)

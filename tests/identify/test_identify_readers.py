@@ -33,7 +33,7 @@ def log10():
 
 def test_crazyflie_log_sizes_and_rate(log10):
     assert log10.t.size == 50496
-    assert log10.t[0] == pytest.approx(26.333702)
+    assert log10.t[0] == 0 and log10.clock_at_start == pytest.approx(26.333702)  # t from the first sample
     assert 1000 < log10.provenance()["rate_hz"] < 1020
     assert log10.sha256 == __import__("hashlib").sha256((FLIGHTS / "log10").read_bytes()).hexdigest()
 
@@ -41,7 +41,7 @@ def test_crazyflie_log_sizes_and_rate(log10):
 def test_crazyflie_log_on_the_ground_reads_minus_g_and_no_rates(log10):
     """Before take-off (motors off) the FRD accelerometer reads (0, 0, -g) and the gyro nothing."""
     ground = log10.cmd.max(axis=1) == 0
-    ground[log10.t > 30] = False
+    ground[log10.t + log10.clock_at_start > 30] = False
     assert ground.sum() > 3000
     assert np.median(log10.acc[ground], axis=0) == pytest.approx([0, 0, -9.81], abs=0.2)
     assert np.abs(np.median(log10.gyro[ground], axis=0)).max() < 0.01
@@ -57,7 +57,7 @@ def test_crazyflie_units_and_frame(tmp_path, acc, gyro, pwm, want_acc, want_gyro
     path = tmp_path / "log"
     path.write_bytes(crazyflie_bytes([(1000, *acc, *gyro, *pwm), (2000, *acc, *gyro, *pwm)]))
     log = read_crazyflie(path)
-    assert log.t == pytest.approx([1e-3, 2e-3])
+    assert log.t == pytest.approx([0.0, 1e-3]) and log.clock_at_start == pytest.approx(1e-3)  # us -> s, from the start
     assert log.acc[0] == pytest.approx(want_acc, rel=1e-6, abs=1e-9)
     assert log.gyro[0] == pytest.approx(want_gyro, rel=1e-6, abs=1e-9)
     assert log.cmd[0] == pytest.approx(np.array(pwm) / 65535)
@@ -147,9 +147,45 @@ def test_ulog_without_pyulog_says_how_to_install(monkeypatch):
         read_log(ULOG)
 
 
+def test_a_truncated_ulog_is_said_to_be_truncated_and_pyulog_prints_nothing(tmp_path, capsys):
+    """Cut inside its definitions, pyulog prints "File corruption detected ..." and reads no topic."""
+    pytest.importorskip("pyulog")
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes(ULOG.read_bytes()[:20000])
+    with pytest.raises(LogError, match=r"cut.ulg: the ULog is truncated or corrupt \(pyulog: File corruption detected"
+                                       r".*\), so its sensor_combined topic cannot be read; copy the log"):
+        read_log(cut)
+    assert capsys.readouterr().out == ""  # stdout is --json's
+
+
+def test_a_ulog_pyulog_read_past_damage_gives_a_notice_not_stdout(monkeypatch, capsys):
+    pyulog = pytest.importorskip("pyulog")
+    from quadctl.errors import QuadctlNotice
+
+    real = pyulog.ULog
+
+    def damaged(*args, **kwargs):
+        print("File corruption detected while reading file data!")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pyulog, "ULog", damaged)
+    with pytest.warns(QuadctlNotice, match=r"sample_px4_events.ulg: the ULog is damaged \(pyulog: File corruption"):
+        log = read_log(ULOG)
+    assert log.t.size > 7000 and capsys.readouterr().out == ""
+
+
 def test_a_folder_or_a_missing_path_is_named_as_what_it_is(tmp_path):
     (tmp_path / "logs").mkdir()
     with pytest.raises(LogError, match=r"logs: is a folder, not a flight log; give the path of a log file in it"):
         read_log(tmp_path / "logs")
     with pytest.raises(LogError, match=r"gone.csv: no such file; give the path of a flight log"):
         read_log(tmp_path / "gone.csv")
+
+
+def test_a_ulog_is_timed_from_its_first_sample_not_its_epoch_stamps():
+    """The sample log's time stamps read like 1.7e9 s (an epoch): its t starts at 0, the stamp kept aside."""
+    pytest.importorskip("pyulog")
+    log = read_log(ULOG)
+    assert log.t[0] == 0 and 30 < log.t[-1] < 32
+    assert log.clock_at_start == pytest.approx(1710773350.354, abs=1e-3)
+    assert np.diff(log.t).min() > 1e-3  # 250 Hz steps, whole microseconds (no float cancellation at 1.7e9 s)

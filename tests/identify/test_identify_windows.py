@@ -33,8 +33,9 @@ def hover(seconds=20.0, rate=1000.0, collective=0.0, yaw=0.0):
 def test_flights_found_after_take_off_and_before_the_crash(flights):
     log10, _, log16 = flights
     (t0, t1), = win.flights(log10)
-    assert t0 == pytest.approx(32.44, abs=0.05) and t1 == pytest.approx(68.49, abs=0.05)  # crash at 69 s
-    assert [round(a) for a, _ in win.flights(log16)] == [32, 45]  # two flights
+    clock10, clock16 = log10.clock_at_start, log16.clock_at_start  # the Crazyflie's clock, as the paper gives times
+    assert t0 + clock10 == pytest.approx(32.44, abs=0.05) and t1 + clock10 == pytest.approx(68.49, abs=0.05)  # crash
+    assert [round(a + clock16) for a, _ in win.flights(log16)] == [32, 45]  # two flights
 
 
 def test_each_stage_takes_the_log_flown_for_it(flights):
@@ -94,3 +95,18 @@ def test_window_option(text, want):
 def test_window_option_refused(text):
     with pytest.raises(LogError, match=r"is not t0:t1 with t0 < t1"):
         win.parse_window(text)
+
+
+@pytest.mark.parametrize("windows, match", [
+    ([(5.0, 10.0), (9.0, 12.0)], r"hover.csv: --window 5:10 and 9:12 overlap \(t 9 to 10 s would count twice\)"),
+    ([(9.0, 12.0), (3.0, 15.0)], r"--window 3:15 and 9:12 overlap"),  # one inside the other, given in any order
+    ([(30.0, 40.0)], r"hover.csv: --window 30:40 lies outside the log, which spans t 0 to 20 s"),
+])
+def test_given_windows_that_overlap_or_miss_the_log_are_refused(windows, match):
+    with pytest.raises(LogError, match=match):
+        win.plan([hover(collective=0.15)], [windows])
+
+
+def test_touching_windows_are_one_stretch_of_the_log():
+    plan = win.plan([hover(collective=0.15)], [[(5.0, 10.0), (10.0, 15.0)]])
+    assert plan.chosen["thrust"] == (0, [(5.0, 10.0), (10.0, 15.0)])

@@ -3,21 +3,27 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.options import ConfigOpt, JsonOpt, out_folder
+from quadctl.cli.options import JsonOpt, out_folder
 
 NAME = "identify"
+
+VehicleConfigOpt = Annotated[Optional[str], typer.Option(
+    "--config", "-c", metavar="PATH|NAME", show_default=False,
+    help="Required: the config of the vehicle flown (its mass, rotor positions and numbering), a file or the name "
+         "of a bundled config (see `quadctl configs`), e.g. -c crazyflie.")]
 
 
 def command(logs: Annotated[list[str], typer.Argument(
                 metavar="LOG", show_default=False,
                 help="Flight logs: Crazyflie microSD binary, PX4 ULog (pyulog) or CSV; one or more.")],
-            config: ConfigOpt = None,
+            config: VehicleConfigOpt = None,
             out: Annotated[Optional[Path], typer.Option(
                 "--out", "-o", metavar="DIR", parser=out_folder,
                 help="Folder for the results. Default: runs/<config name>-identified.")] = None,
             window: Annotated[Optional[list[str]], typer.Option(
-                "--window", metavar="T0:T1", help="The stretch of a log to fit, s (t0:t1, or t0:t1,t2:t3); once "
-                "per LOG, in order. Default: chosen from the excitation.")] = None,
+                "--window", metavar="T0:T1", help="The stretch of a log to fit, s from the log's first sample, as "
+                "the output shows times (t0:t1, or t0:t1,t2:t3 that do not overlap); once per LOG, in order. Default: "
+                "chosen from the excitation.")] = None,
             columns: Annotated[Optional[list[str]], typer.Option(
                 "--columns", metavar="NAME=COLUMN", help="A CSV's column names (t=time_s,cmd_1=m1).")] = None,
             delay: Annotated[bool, typer.Option(
@@ -35,10 +41,13 @@ def command(logs: Annotated[list[str], typer.Argument(
     from quadctl.artifacts.writing import write_together
     from quadctl.cli import render
     from quadctl.config import locate, parse
+    from quadctl.errors import ConfigError
     from quadctl.identify import readers, results
     from quadctl.plots.identify import fit_figure
     from quadctl.present import identify as shown
 
+    if config is None:  # no default: the fit depends on the vehicle's mass and geometry
+        raise ConfigError(shown.config_needed())
     source = locate(config)
     cfg = parse(source.text, source.label)
     read = [readers.read_log(p, readers.parse_columns(columns)) for p in logs]
