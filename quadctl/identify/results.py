@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import dataclass
 
@@ -190,11 +191,19 @@ def _under(line: str, indent: int) -> bool:
 def identified_config(text: str, ident: Identification, name: str) -> str:
     """The config's YAML ``text`` with the identified values set, each changed line saying where it came from.
 
-    Only the changed lines move: a key's line (and the comment lines continuing it) is replaced in its
-    section, or added at the section's top; a missing section is appended.
+    Only the changed lines move: a key's line (and the comment lines continuing it, and those just above
+    it, which spoke of the old value) is replaced in its section, or added at the section's top; a missing
+    section is appended. The config's opening comments (what it is, its sources, an editor's schema line
+    relative to where it lay) give way to a header naming the config it came from, and its
+    ``description`` says it was identified.
     """
     lines = text.splitlines()
-    lines = [f"name: {name}" if re.match(r"^name:\s", ln) else ln for ln in lines]
+    first = next((k for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), len(lines))
+    lines = lines[first:]
+    logs = ", ".join(log.name for log in ident.logs)
+    lines = [f"name: {name}" if re.match(r"^name:\s", ln)
+             else f"description: {json.dumps(f'{ident.config_name}, identified from {logs}')}"
+             if re.match(r"^description:\s+[^|>\s]", ln) else ln for ln in lines]  # (a block scalar stays)
     for (section, key), (value, comment) in changes(ident).items():
         new = f"  {key}: {value}  # {comment}"
         start = next((k for k, ln in enumerate(lines) if re.match(rf"^{section}:\s*(#.*)?$", ln)), None)
@@ -210,8 +219,12 @@ def identified_config(text: str, ident: Identification, name: str) -> str:
         drop = at + 1
         while drop < end and _under(lines[drop], indent):
             drop += 1  # the old value's continued comment, or its block (delay:\n    samples: 1)
-        lines[at:drop] = [" " * indent + new.lstrip()]
-    head = f"# Identified by quadctl identify from {', '.join(log.name for log in ident.logs)}: see identified.json"
+        above = at
+        while above - 1 > start and lines[above - 1].startswith(" " * indent + "#"):
+            above -= 1  # the comment just above the old value: its source
+        lines[above:drop] = [" " * indent + new.lstrip()]
+    head = (f"# Identified by quadctl identify from {logs}: see identified.json. The rest is the config\n"
+            f"# {ident.config_name}'s, with its comments; each identified value says where it came from.")
     out = head + "\n" + "\n".join(lines) + "\n"
 
     parse(out, f"the identified config of {name}")  # what it writes loads (ConfigError otherwise)
