@@ -147,7 +147,7 @@ def sweep_line(outcome, method: str = "rk4") -> str:
     resumed = f", {perf['resumed']} resumed" if perf["resumed"] else ""
     speed = ""
     if perf["steps_per_second"]:
-        speed = (f": [bold]{perf['steps_per_second'] / 1e6:.2f} M {method.upper()} steps/s[/bold], "
+        speed = (f": [bold]{perf['steps_per_second'] / 1e6:.3g} M {method.upper()} steps/s[/bold], "
                  f"{perf['designs_per_second']:.0f} designs/s")
     if perf["us_per_subsystem_design"] is not None:
         speed += f", {perf['us_per_subsystem_design']:.1f} µs CPU per subsystem LQR"
