@@ -173,7 +173,7 @@ def comparison(ws) -> Section | None:
     if made_from != current:
         return Section("compare", "Laws side by side", (_text(words.stale_sentence(made_from, current)),))
     blocks = [words.table(data), _text(words.disturbance_sentence(data))]
-    free = words.free_position_sentence(ws.setup.regulated)
+    free = words.free_position_sentence(ws.setup.regulated, [law["name"] for law in data["laws"]])
     if free:
         blocks.append(Text(free))
     for stem, label in QUANTITIES:
