@@ -17,10 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.config.pid import PRESET_NAMES, resolve
+from quadctl.config.pid import NEEDS_ROTORS, PRESET_NAMES, resolve
 from quadctl.design.margins import least_margins
+from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
 from quadctl.metrics import lqr_cost, overshoot, settling_time
+from quadctl.physics.motors import has_rotors
 from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import Stages, pid_loop_of
 from quadctl.sim.cascade_margins import cascade_margins
@@ -34,9 +36,9 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("attitude_rms", "rad", "RMS over the run of |(phi, theta, psi) - reference|"),
     ("settling", "s", "time after which |p - p_ref| stays within 2 % of its peak (None: never)"),
     ("altitude_overshoot", "%", "largest excursion of pD past its reference, in % of the initial error"),
-    ("rotor_peak", "1", "largest rotor thrust over the rotors' largest (motors.max_thrust)"),
-    ("rotor_rms", "1", "RMS over the run and the rotors of thrust over the largest"),
-    ("saturated", "s", "time with a rotor at a thrust limit (within 0.1 % of its range)"),
+    ("rotor_peak", "1", "largest rotor thrust over the rotors' largest (motors.max_thrust; None: no motors:)"),
+    ("rotor_rms", "1", "RMS over the run and the rotors of thrust over the largest (None: no motors:)"),
+    ("saturated", "s", "time with a rotor at a thrust limit (within 0.1 % of its range; None: no motors:)"),
     ("cost", "1", "integral of e' Q e + du' R du dt on the config's LQR weights"),
     ("gain_margin", "dB", "least gain change, up or down, that destabilizes a loop broken at a plant input"),
     ("phase_margin", "deg", "least phase margin of the loops broken at the plant inputs"),
@@ -111,7 +113,11 @@ def parse_law(text: str) -> tuple[str, str | None]:
     raise ValueError(f"law {text!r}: use lqr or pid:<preset> with a preset of {', '.join(PRESET_NAMES)}")
 
 
-def compare(stages: Stages, laws=("pid:crazyflie",), duration: float | None = None) -> Comparison:
+DEFAULT_LAWS = ("pid:crazyflie",)
+"""The laws flown beside the LQR design when none are named."""
+
+
+def compare(stages: Stages, laws=DEFAULT_LAWS, duration: float | None = None) -> Comparison:
     """The config's LQR design and each of ``laws`` flown on the setup's plant, side by side.
 
     Parameters
@@ -127,15 +133,24 @@ def compare(stages: Stages, laws=("pid:crazyflie",), duration: float | None = No
     Returns
     -------
     Comparison
+
+    Raises
+    ------
+    ConfigError
+        A PID cascade among ``laws`` and no rotors (``motors:``) for it to command: before any run.
     """
 
     setup = stages.setup
+    names = ["lqr", *[law for law in laws if parse_law(law)[0] != "lqr"]]
+    cascades = [name for name in names if parse_law(name)[0] == "pid"]
+    if cascades and not has_rotors(setup.actuators):
+        raise ConfigError(f"compare: law {cascades[0]}: {NEEDS_ROTORS}, or compare the LQR design alone "
+                          "(--law lqr)")
     duration = setup.duration if duration is None else float(duration)
     lqr = stages.lqr_loop
     noise, wind = setup.noise, setup.wind
     period = exogenous_period(noise.period if noise is not None else None, lqr.rate)
     reference = setup.flown_reference
-    names = ["lqr", *[law for law in laws if parse_law(law)[0] != "lqr"]]
     out = []
     for name in dict.fromkeys(names):
         kind, preset = parse_law(name)
@@ -194,24 +209,34 @@ def metrics_of(run: SimResult, loop: ClosedLoop, Q, R) -> dict:
     err = run.x - run.x_ref
     pos = np.linalg.norm(err[:, :3], axis=1)
     att = np.linalg.norm(err[:, STATE_INDEX["phi"]:STATE_INDEX["psi"] + 1], axis=1)
+    cost = lqr_cost(t, err, run.u - loop.u_trim, np.asarray(Q), np.asarray(R))
+    return {"position_rms": _rms(pos, t), "position_peak": float(pos.max()), "attitude_rms": _rms(att, t),
+            "settling": settling_time(t, pos) if run.status == "ok" else None,
+            "altitude_overshoot": overshoot(err[:, STATE_INDEX["pD"]]),
+            **rotor_use(run, loop), "cost": cost if np.isfinite(cost) else None, "status": run.status}
+
+
+def _rms(v, t) -> float:
+    """RMS over the run (trapezoidal in ``t``); a run of one sample, that sample's magnitude."""
+    return float(np.sqrt(np.trapezoid(v * v, t) / (t[-1] - t[0]))) if t[-1] > t[0] else float(abs(v[0]))
+
+
+def rotor_use(run: SimResult, loop: ClosedLoop) -> dict:
+    """``rotor_peak``, ``rotor_rms`` and ``saturated`` of one run; None without rotors (no ``motors:``:
+    the plant takes the inputs themselves)."""
     act = loop.actuators
+    if not has_rotors(act):
+        return {"rotor_peak": None, "rotor_rms": None, "saturated": None}
+    t = run.t
     rotors = run.u @ act.mix.T
     top = float(np.max(act.hi))
     span = act.hi - act.lo
     at_limit = np.any((rotors <= act.lo + SATURATION_BAND * span) | (rotors >= act.hi - SATURATION_BAND * span),
                       axis=1)
     dt = np.diff(t, append=t[-1])
-    cost = lqr_cost(t, err, run.u - loop.u_trim, np.asarray(Q), np.asarray(R))
-
-    def rms(v):
-        return float(np.sqrt(np.trapezoid(v * v, t) / (t[-1] - t[0]))) if t[-1] > t[0] else float(abs(v[0]))
-
-    return {"position_rms": rms(pos), "position_peak": float(pos.max()), "attitude_rms": rms(att),
-            "settling": settling_time(t, pos) if run.status == "ok" else None,
-            "altitude_overshoot": overshoot(err[:, STATE_INDEX["pD"]]),
-            "rotor_peak": float(rotors.max() / top), "rotor_rms": rms(np.sqrt(np.mean((rotors / top) ** 2, axis=1))),
-            "saturated": float(np.sum(dt[at_limit])), "cost": cost if np.isfinite(cost) else None,
-            "status": run.status}
+    return {"rotor_peak": float(rotors.max() / top),
+            "rotor_rms": _rms(np.sqrt(np.mean((rotors / top) ** 2, axis=1)), t),
+            "saturated": float(np.sum(dt[at_limit]))}
 
 
 def payload(comparison: Comparison) -> dict:

@@ -14,6 +14,7 @@ from functools import cached_property
 
 import numpy as np
 
+from quadctl.config.pid import NEEDS_ROTORS
 from quadctl.design import Design, coupled, design, discrete, kalman, linear_loop, lqg_loop, margin_findings
 from quadctl.design.gain_table import OUTSIDE, VARIABLES
 from quadctl.errors import ConfigError, RateError
@@ -135,8 +136,8 @@ def pid_loop_of(setup: Setup, linear: LinearModel, gains=None) -> ClosedLoop:
     """
 
     gains = setup.pid if gains is None else gains
-    if setup.actuators is None or setup.actuators.mode != "motors":
-        raise ConfigError("controller.flies: pid: a PID cascade commands the rotors: add motors: to the config")
+    if not motors.has_rotors(setup.actuators):
+        raise ConfigError(f"controller.flies: pid: {NEEDS_ROTORS}, or fly lqr")
     rate = float(gains["rate_hz"])
     delay = 0
     if setup.timing.delay_samples:

@@ -6,6 +6,7 @@ Styling only: every number and word comes from :mod:`quadctl.present`, as in the
 from __future__ import annotations
 
 import json
+import textwrap
 
 from rich.console import Console
 from rich.table import Table
@@ -13,6 +14,7 @@ from rich.text import Text
 
 from quadctl import present
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.present.cells import NBSP
 from quadctl.text.messages import one_line
 
 WIDE = 10_000
@@ -103,13 +105,29 @@ STYLE = {"ok": "green", "warning": "yellow", "fail": "red"}
 
 
 def cell(text: str) -> Text:
-    """A presented cell or sentence as rich text: never parsed as markup, a verdict coloured."""
-    return Text(str(text), style=STYLE.get(getattr(text, "kind", ""), ""))
+    """A presented cell or sentence as rich text: never parsed as markup, a verdict coloured, never broken at a
+    non-breaking space (:data:`quadctl.present.cells.NBSP`)."""
+    kind = Unbroken if NBSP in text else Text
+    return kind(str(text), style=STYLE.get(getattr(text, "kind", ""), ""))
+
+
+class Unbroken(Text):
+    """Text whose lines break at its ordinary spaces only. rich breaks at any Unicode space, the non-breaking
+    one too (``over 10`` / ``s``): this breaks the lines first, each within the width, where rich then has
+    nothing left to break, and prints the non-breaking spaces as spaces."""
+
+    def wrap(self, console, width, **kwargs):
+        lines = []
+        for line in self.plain.split("\n"):
+            lines += textwrap.wrap(line, max(width, 1), break_on_hyphens=False) or [""]
+        flat = Text("\n".join(lines).replace(NBSP, " "), style=self.style, justify=self.justify,
+                    overflow=self.overflow, no_wrap=self.no_wrap, end=self.end)
+        return flat.wrap(console, width, **kwargs)
 
 
 def table(t: present.Table) -> Table:
     """A presented table on the terminal: the same title, headers, cells and caption as the report."""
-    out_table = Table(title=Text(t.title), title_justify="left", caption=Text(t.caption) if t.caption else None,
+    out_table = Table(title=cell(t.title), title_justify="left", caption=cell(t.caption) if t.caption else None,
                       caption_justify="left")
     for name, align in zip(t.columns, t.alignment()):
         out_table.add_column(Text(name), justify="right" if align == "r" else "left")

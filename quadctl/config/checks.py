@@ -11,7 +11,7 @@ import os
 import re
 from typing import Any
 
-from quadctl.config.pid import rate_problem, resolve
+from quadctl.config.pid import NEEDS_ROTORS, rate_problem, resolve
 from quadctl.config.schema import (
     MAX_DELAY_SAMPLES,
     MAX_WIND_ALTITUDE,
@@ -304,8 +304,7 @@ def _check_pid(cfg: Config, fail) -> None:
         if problem:
             fail("controller.pid.values", ctl.pid.values, problem + ": change the rates")
     if ctl.flies == "pid" and cfg.motors is None:
-        fail("controller.flies", "pid", "a PID cascade commands the rotors: add motors: (the rotors' layout and "
-             "thrust limits), or fly lqr")
+        fail("controller.flies", "pid", f"{NEEDS_ROTORS}, or fly lqr")
     if ctl.flies == "pid" and ctl.filters is not None:
         fail("controller.filters", "(set)", "a PID cascade runs its flight stack's own gyro and D-term filters "
              "(controller.pid's preset): remove controller.filters, or fly lqr")

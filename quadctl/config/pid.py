@@ -81,6 +81,8 @@ PARAMETERS: tuple[tuple[str, str], ...] = (
 the ones its stack has not: they are 0)."""
 NAMES = tuple(name for name, _ in PARAMETERS)
 PRESET_NAMES = ("crazyflie", "px4")
+NEEDS_ROTORS = "a PID cascade commands the rotors: add motors: (the rotors' layout and thrust limits)"
+"""Why a PID cascade cannot fly a config without ``motors:``, and the way out: every refusal says it."""
 ANGLE_UNITS = ("deg", "rad")
 VELOCITY_OUTPUTS = ("angles", "acceleration")
 TORQUE_OUTPUTS = ("pwm", "normalized")

@@ -310,6 +310,11 @@ class Actuators:
         return (act <= self.lo + tol_lo) | (act >= self.hi - tol_hi)
 
 
+def has_rotors(actuators: Actuators | None) -> bool:
+    """``actuators`` are rotors (``motors:``): what a PID cascade commands, and rotor thrusts to read."""
+    return actuators is not None and actuators.mode == "motors"
+
+
 def actuators_of(motors: Motors | None = None, limits: dict | None = None) -> Actuators | None:
     """The actuators of a config: rotors, box limits on named inputs, or None (unlimited)."""
     if motors is not None:

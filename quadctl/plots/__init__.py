@@ -20,6 +20,7 @@ from quadctl.plots.drawing import input_limits as input_limits
 from quadctl.plots.drawing import pixel_envelope as pixel_envelope
 from quadctl.plots.drawing import png_bytes as png_bytes
 from quadctl.plots.frequency import margins_figure as margins_figure
+from quadctl.plots.frequency import margins_figure_name as margins_figure_name
 from quadctl.plots.frequency import phase_about_minus_180 as phase_about_minus_180
 from quadctl.plots.schedule import schedule_figure as schedule_figure
 from quadctl.plots.schedule import transition_figure as transition_figure

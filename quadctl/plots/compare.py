@@ -32,12 +32,14 @@ def _values(name: str, run, loop) -> np.ndarray:
 
 
 def comparison_figures(laws, *, title: str = "", notes: dict[str, str] | None = None) -> dict[str, Figure]:
-    """``{stem: figure}``: each of :data:`QUANTITIES` against time, the laws overlaid.
+    """``{stem: figure}``: each of :data:`QUANTITIES` against time, the laws overlaid (the rotor use only
+    when the plant has rotors).
 
     Parameters
     ----------
     laws : sequence
-        Each with ``name``, ``run`` (a SimResult) and ``loop`` (its ClosedLoop).
+        Each with ``name``, ``run`` (a SimResult), ``loop`` (its ClosedLoop) and ``metrics``
+        (:func:`quadctl.compare.metrics_of`: ``rotor_peak`` None without rotors).
     notes : dict, optional
         ``{stem: sentence}``: said above that figure's axes, wrapped to its width (such as
         :func:`quadctl.present.compare.free_position_sentence` on the position error).
@@ -45,6 +47,8 @@ def comparison_figures(laws, *, title: str = "", notes: dict[str, str] | None = 
     notes = notes or {}
     out = {}
     for stem, label in QUANTITIES:
+        if stem == "rotor-use" and any(law.metrics.get("rotor_peak") is None for law in laws):
+            continue  # no rotors (no motors:): the plant takes the inputs themselves
         fig = Figure(figsize=(10.0, 3.6), layout="constrained")
         ax = fig.subplots()
         for k, law in enumerate(laws):

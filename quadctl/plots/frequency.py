@@ -31,6 +31,26 @@ def phase_about_minus_180(response, anchor: int | None = None) -> np.ndarray:
     return phase - 360.0 * np.ceil(at / 360.0)
 
 
+def margins_figure_name(m) -> str:
+    """The file stem of a broken loop's figure, in ``plots/`` (``quadctl margins --plot``) and in the report
+    alike: ``margins-<loop>-<model>`` for an LQR design's loop (a subsystem, on the model it is broken on),
+    ``margins-<cascade>-<input>`` for a PID cascade's (one cascade, broken at each input in turn).
+
+    Parameters
+    ----------
+    m : quadctl.design.margins.LoopMargins
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as L
+    >>> margins_figure_name(L(loop="roll", input="A", model="coupled"))
+    'margins-roll-coupled'
+    >>> margins_figure_name(L(loop="crazyflie", input="A", model="cascade"))
+    'margins-crazyflie-A'
+    """
+    return f"margins-{m.loop}-{m.input if m.model == 'cascade' else m.model}"
+
+
 def margins_figure(m, *, title: str = "") -> Figure:
     """Bode (magnitude, phase) and Nyquist plot of one broken loop, with its margins marked.
 
@@ -87,6 +107,8 @@ def margins_figure(m, *, title: str = "") -> Figure:
     ax_ny.grid(True, alpha=0.3)
     ax_ny.legend(loc="lower right", fontsize=7, frameon=False)
     kind = f"sampled, Ts = {m.sample_time * 1e3:.3g} ms" if m.sample_time else "continuous"
-    head = f"{m.loop} loop broken at {m.input} ({m.model} model, {kind})"
+    head = (f"{m.loop} PID cascade broken at {m.input} (the rest of it closed; lifted, frequencies at its "
+            f"{m.sample_time * 1e3:.3g} ms sample)"
+            if m.model == "cascade" else f"{m.loop} loop broken at {m.input} ({m.model} model, {kind})")
     fig.suptitle(f"{title}: {head}" if title else head)
     return fig

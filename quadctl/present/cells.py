@@ -13,6 +13,9 @@ import numpy as np
 
 from quadctl.text.messages import eig_text
 
+NBSP = "\u00a0"
+"""A space no line is broken at: between a number and its unit (``10 s``); the terminal and the report keep it."""
+
 
 class Mark(str):
     """A cell or a sentence that carries a verdict: ``kind`` is ``ok``, ``warning`` or ``fail``.

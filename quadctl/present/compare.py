@@ -6,26 +6,32 @@ which reads the file a ``quadctl compare`` left in the run folder, say the same.
 
 from __future__ import annotations
 
-from quadctl.compare import METRICS
-from quadctl.present.cells import Mark, Table, num
+from quadctl.artifacts.json_values import decode_floats
+from quadctl.compare import METRICS, parse_law
+from quadctl.present.cells import NBSP, Mark, Table, num
 
 
 def table(data: dict) -> Table:
-    """One row per metric, one column per law, of ``compare.json``'s contents ``data``."""
-    laws = data["laws"]
+    """One row per metric, one column per law, of ``compare.json``'s contents ``data`` (an infinite margin
+    spelled ``"inf"``, as JSON has it)."""
+    laws = decode_floats(data["laws"])
     rows = []
     for name, unit, _ in METRICS:
         label = f"{name.replace('_', ' ')} [{unit}]" if unit != "1" else name.replace("_", " ")
         rows.append((label, *[_cell(law.get(name)) for law in laws]))
     rows.append(("rate [Hz]", *[num(law["rate"]) if law["rate"] else "continuous" for law in laws]))
     rows.append(("run", *[Mark(law["status"], "ok" if law["status"] == "ok" else "fail") for law in laws]))
-    return Table("compare-table", f"{data['config']}: laws side by side over {num(data['duration'])} s",
+    how = "LQR: on the coupled model"
+    if any(parse_law(law["name"])[0] == "pid" for law in laws):
+        how += ("; a PID cascade: lifted to its frame, gain and phase margins exact, the phase margin from its "
+                "characteristic loci")
+    no_rotors = ("rotor use '-': no rotors (the config has no motors:); "
+                 if any(law.get("rotor_peak") is None for law in laws) else "")
+    return Table("compare-table", f"{data['config']}: laws side by side over {num(data['duration'])}{NBSP}s",
                  ("metric", *[law["name"] for law in laws]), tuple(rows),
                  caption="the same plant, initial offset, reference, wind and noise for every law; cost on the "
                          "config's LQR weights; settling '-': never within 2 % of the peak position error; "
-                         "margins: the least over each law's loops broken at a plant input (LQR: on the coupled "
-                         "model; a PID cascade: lifted to its frame, gain and phase margins exact, the phase margin "
-                         "from its characteristic loci)")
+                         f"{no_rotors}margins: the least over each law's loops broken at a plant input ({how})")
 
 
 def _cell(value) -> str:
@@ -46,12 +52,17 @@ def disturbance_sentence(data: dict) -> Mark:
     return Mark("The laws read different disturbance rows: the comparison is not like for like.", "fail")
 
 
-def free_position_sentence(regulated: tuple[str, ...]) -> str | None:
-    """A note when the LQR design leaves the horizontal position free (the PID cascades hold it)."""
+def free_position_sentence(regulated: tuple[str, ...], laws) -> str | None:
+    """A note when the LQR design leaves the horizontal position free; ``laws`` (the compared laws' names,
+    ``lqr``, ``pid:<preset>``) say whether PID cascades, which hold it, are beside it."""
     if "pN" in regulated and "pE" in regulated:
         return None
+    cascades = [law for law in laws if parse_law(law)[0] == "pid"]
+    held = ("" if not cascades else
+            ", where the PID cascade's position loop removes its own" if len(cascades) == 1 else
+            ", where the PID cascades' position loops remove theirs")
     return ("The LQR design leaves pN and pE free (its guidance subsystem is not regulated): the horizontal part "
-            "of its position error stays or drifts, where the PID cascades' position loops remove theirs.")
+            f"of its position error stays or drifts{held}.")
 
 
 def stale_sentence(made_from: str, current: str) -> Mark:

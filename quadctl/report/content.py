@@ -140,8 +140,8 @@ def margins(ws) -> Section:
     shown.update({m.loop: m for m in margins if m.model == "coupled"})  # the coupled loop where there is one
     for m in shown.values():
         fig = plots.margins_figure(m, title=ws.setup.name)
-        blocks.append(Figure(f"margins-{m.loop}", f"Bode and Nyquist plots of the {m.loop} loop broken at "
-                                                  f"{m.input} ({m.model} model).", _png(fig, MARGINS_DPI)))
+        blocks.append(Figure(plots.margins_figure_name(m), f"Bode and Nyquist plots of the {m.loop} loop broken "
+                                                           f"at {m.input} ({m.model} model).", _png(fig, MARGINS_DPI)))
     return Section("margins", "Margins", tuple(blocks))
 
 
@@ -157,8 +157,8 @@ def _cascade_margins(ws, margins) -> Section:
         blocks.append(_text(cells.Mark(thin, "warning" if "thin-margins" in ws.cfg.allow else "fail")))
     for m in margins:
         fig = plots.margins_figure(m, title=ws.setup.name)
-        blocks.append(Figure(f"margins-{m.loop}-{m.input}", f"Bode and Nyquist plots of the {m.loop} cascade "
-                                                            f"broken at {m.input}.", _png(fig, MARGINS_DPI)))
+        blocks.append(Figure(plots.margins_figure_name(m), f"Bode and Nyquist plots of the {m.loop} cascade "
+                                                           f"broken at {m.input}.", _png(fig, MARGINS_DPI)))
     return Section("margins", "Margins", tuple(blocks))
 
 
@@ -173,7 +173,7 @@ def comparison(ws) -> Section | None:
     if made_from != current:
         return Section("compare", "Laws side by side", (_text(words.stale_sentence(made_from, current)),))
     blocks = [words.table(data), _text(words.disturbance_sentence(data))]
-    free = words.free_position_sentence(ws.setup.regulated)
+    free = words.free_position_sentence(ws.setup.regulated, [law["name"] for law in data["laws"]])
     if free:
         blocks.append(Text(free))
     for stem, label in QUANTITIES:

@@ -112,3 +112,75 @@ def test_compare_refuses_an_unknown_law_in_one_line(tmp_path):
     res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--law", "pid:betaflight", "-o", str(tmp_path)])
     assert res.exit_code == 2
     assert "pid:<preset>" in res.output and "Traceback" not in res.output
+
+
+def test_compare_refuses_a_cascade_without_rotors_in_one_line_before_any_run(tmp_path):
+    """hover has no motors: the default law (the Crazyflie's cascade) has no rotors to command: the line
+    controller.flies=pid gives, with compare's own way out, before the trim, the design or a run."""
+    import quadctl as qc
+    from quadctl.compare import compare
+    from quadctl.config.pid import NEEDS_ROTORS
+    from quadctl.errors import ConfigError
+
+    stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    with pytest.raises(ConfigError, match=r"law pid:px4: a PID cascade commands the rotors: add motors: .*--law lqr"):
+        compare(stages, ["pid:px4"])
+    assert not {"trim", "linear", "design", "lqr_loop"} & set(vars(stages))  # nothing computed
+    res = CliRunner().invoke(app, ["compare", "-c", "hover", "-o", str(tmp_path)])
+    assert res.exit_code == 2, res.output
+    assert res.output.count("\n") == 1 and "Traceback" not in res.output
+    assert f"law pid:crazyflie: {NEEDS_ROTORS}, or compare the LQR design alone (--law lqr)" in res.output
+    assert not (tmp_path / "compare.json").exists()
+    flies = CliRunner().invoke(app, ["simulate", "-c", "hover", "--set", "controller.flies=pid", "-o", str(tmp_path)])
+    assert flies.exit_code == 2 and f"{NEEDS_ROTORS}, or fly lqr" in flies.output
+
+
+def test_compare_of_the_lqr_design_alone_flies_without_rotors_and_says_nothing_of_cascades(tmp_path):
+    """hover (no motors:, a continuous design) with --law lqr: the rotors' metrics '-' (None in compare.json),
+    no rotor-use figure, the infinite gain margin shown as such, no word of a PID cascade."""
+    res = CliRunner().invoke(app, ["compare", "-c", "hover", "--law", "lqr", "--set", "simulation.duration=0.5",
+                                   "-o", str(tmp_path), "--plot"], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    (law,) = json.loads((tmp_path / "compare.json").read_text())["laws"]
+    assert law["name"] == "lqr" and law["rotor_peak"] is law["rotor_rms"] is law["saturated"] is None
+    assert law["gain_margin"] == "inf" and law["position_rms"] > 0
+    rows = {line.split("│")[1].strip(): line.split("│")[2].strip() for line in res.output.splitlines()
+            if line.count("│") == 3}
+    assert rows["rotor peak"] == rows["saturated [s]"] == "-" and rows["gain margin [dB]"] == "inf"
+    out = " ".join(res.output.split())
+    assert "leaves pN and pE free" in out and "PID" not in out and "cascade" not in out
+    assert sorted(p.name for p in (tmp_path / "plots").glob("compare-*.png")) == [
+        "compare-altitude.png", "compare-attitude-error.png", "compare-position-error.png"]
+
+
+@pytest.mark.parametrize(("laws", "said"), [
+    (["lqr"], "its position error stays or drifts."),
+    (["lqr", "pid:px4"], "where the PID cascade's position loop removes its own."),
+    (["lqr", "pid:crazyflie", "pid:px4"], "where the PID cascades' position loops remove theirs."),
+])
+def test_the_free_position_note_speaks_of_cascades_only_when_they_are_compared(laws, said):
+    from quadctl.present.compare import free_position_sentence
+
+    sentence = free_position_sentence(("pD", "phi", "theta", "psi"), laws)
+    assert sentence.endswith(said) and ("PID" in sentence) == (len(laws) > 1)
+    assert free_position_sentence(("pN", "pE", "pD"), laws) is None
+
+
+def test_the_table_title_keeps_the_duration_and_its_unit_on_one_line():
+    """rich wraps a title longer than its table at any space, a non-breaking one too: at every config name
+    length the title's duration stays beside its unit (without the non-breaking space, some break as `10` / `s`)."""
+    import io
+
+    from rich.console import Console
+
+    from quadctl.cli import render
+    from quadctl.compare import METRICS
+    from quadctl.present import compare as words
+
+    law = {"name": "lqr", "rate": 500.0, "status": "ok", "disturbances": "0" * 64} | {m: 0.5 for m, _, _ in METRICS}
+    for n in range(1, 40):
+        data = {"config": "c" * n, "duration": 10.0, "laws": [law]}
+        console = Console(width=200, file=io.StringIO())
+        console.print(render.table(words.table(data)))
+        lines = [line.rstrip() for line in console.file.getvalue().splitlines()]
+        assert "10 s" in " ".join(lines[:3]) and not any(line.endswith("10") for line in lines), lines[:3]

@@ -223,10 +223,10 @@ def test_the_position_error_figure_says_when_the_lqr_leaves_the_horizontal_posit
     from quadctl.plots.compare import comparison_figures
     from quadctl.present.compare import free_position_sentence
 
-    note = free_position_sentence(("pD", "phi", "theta", "psi"))
-    assert note and free_position_sentence(("pN", "pE", "pD")) is None
+    note = free_position_sentence(("pD", "phi", "theta", "psi"), ["lqr", "pid:crazyflie"])
+    assert note and free_position_sentence(("pN", "pE", "pD"), ["lqr", "pid:crazyflie"]) is None
     act = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))
-    law = SimpleNamespace(name="lqr", run=_sim(), loop=SimpleNamespace(actuators=act))
+    law = SimpleNamespace(name="lqr", run=_sim(), loop=SimpleNamespace(actuators=act), metrics={"rotor_peak": 0.5})
     figs = comparison_figures([law], notes={"position-error": note})
     assert " ".join(figs["position-error"].axes[0].get_title(loc="left").split()) == note
     assert all(fig.axes[0].get_title(loc="left") == "" for stem, fig in figs.items() if stem != "position-error")

@@ -312,12 +312,29 @@ def test_margins_command_shows_the_cascade_that_flies_and_fails_its_thin_roll_lo
 
     from quadctl.cli.app import app
 
-    res = CliRunner().invoke(app, ["margins", "-c", "crazyflie", "--set", "controller.flies=pid", "-o", str(tmp_path)])
+    res = CliRunner().invoke(app, ["margins", "-c", "crazyflie", "--set", "controller.flies=pid", "-o", str(tmp_path),
+                                   "--plot"])
     assert res.exit_code == 1, res.output
     assert "lifted to its 10 ms frame" in res.output and "controller.pid.values" in res.output
     data = json.loads((tmp_path / "margins.json").read_text())
     assert data["law"] == "pid" and data["closed_loop"]["stable"] is True
     assert [loop["input"] for loop in data["loops"]] == ["T", "A", "E", "R"]
+    # a figure per broken loop, none overwriting another, named as the report names them (the test below)
+    figures = [tmp_path / "plots" / f"margins-crazyflie-{s}.png" for s in "TAER"]
+    assert [line.split("figure -> ")[1] for line in res.output.splitlines() if "figure -> " in line] == [
+        str(p) for p in figures]
+    assert sorted((tmp_path / "plots").glob("margins-*.png")) == sorted(figures)
+
+
+def test_a_cascade_margins_figure_names_the_cascade_and_the_input_it_is_broken_at(crazyflie_margins):
+    import dataclasses
+
+    from quadctl.plots import margins_figure
+
+    m = dataclasses.replace(crazyflie_margins[3], loop="crazyflie")  # as the stage names it: the preset's name
+    title = margins_figure(m, title="mambo")._suptitle.get_text()
+    assert title == ("mambo: crazyflie PID cascade broken at R (the rest of it closed; lifted, frequencies at its "
+                     "2 ms sample)")
 
 
 def test_the_report_of_a_config_flying_the_cascade_shows_its_loops(tmp_path):

@@ -10,8 +10,8 @@ NAME = "compare"
 def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, json: JsonOpt = False,
             law: Annotated[Optional[list[str]], typer.Option(
                 "--law", help="A law to fly beside the LQR design: pid:crazyflie or pid:px4 (the flight stacks' "
-                "published defaults; controller.pid's values apply to its own preset). Repeat for more; "
-                "default pid:crazyflie.")] = None,
+                "published defaults; controller.pid's values apply to its own preset; a cascade needs motors: in the "
+                "config). Repeat for more; default pid:crazyflie; lqr alone: the LQR design by itself.")] = None,
             plot: Annotated[bool, typer.Option(
                 "--plot", help="Also write one figure per quantity, the laws overlaid, to DIR/plots/compare-*.png.")]
             = False) -> None:
@@ -27,10 +27,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
 
     from quadctl import artifacts
     from quadctl.cli import render
-    from quadctl.compare import compare, parse_law, payload
+    from quadctl.compare import DEFAULT_LAWS, compare, parse_law, payload
     from quadctl.errors import ConfigError
 
-    laws = law or ["pid:crazyflie"]
+    laws = law or DEFAULT_LAWS
     for text in laws:
         try:
             parse_law(text)
@@ -43,13 +43,14 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     data = artifacts.jsonable(data)  # NumPy's scalars as JSON's, infinities spelled out: the file and --json alike
     text = jsonlib.dumps(data, indent=1, sort_keys=True) + "\n"
     path = ws.write_bytes(ws.path("compare.json"), text.encode())
+    names = [law.name for law in result.laws]
     figures = []
     if plot:
         from quadctl import plots
         from quadctl.plots.compare import comparison_figures
         from quadctl.present.compare import free_position_sentence
 
-        notes = {"position-error": free_position_sentence(ws.setup.regulated) or ""}
+        notes = {"position-error": free_position_sentence(ws.setup.regulated, names) or ""}
         for stem, fig in comparison_figures(result.laws, title=ws.setup.name, notes=notes).items():
             figures.append(ws.write_bytes(artifacts.plot_path(ws.out, f"compare-{stem}"), plots.png_bytes(fig, 90)))
     if json:
@@ -58,7 +59,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     from quadctl.present import compare as words
 
     render.show(words.table(data), words.disturbance_sentence(data),
-                words.free_position_sentence(ws.setup.regulated))
+                words.free_position_sentence(ws.setup.regulated, names))
     render.out.print(f"-> {path}")
     for fig_path in figures:
         render.out.print(f"figure -> {fig_path}")

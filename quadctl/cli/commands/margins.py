@@ -70,6 +70,6 @@ def _save_figures(ws, margins):
     paths = []
     for m in margins:
         fig = plots.margins_figure(m, title=ws.setup.name)
-        paths.append(ws.write_bytes(artifacts.plot_path(ws.out, f"margins-{m.loop}-{m.model}"),
+        paths.append(ws.write_bytes(artifacts.plot_path(ws.out, plots.margins_figure_name(m)),
                                     plots.png_bytes(fig, 90)))
     return paths
