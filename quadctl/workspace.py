@@ -179,8 +179,7 @@ class Workspace(pipeline.Stages):
         """Each file the session wrote or removed, and what it held before (:meth:`_before_change`); None: kept."""
         self.reused: list[Path] = []
         self.replaced: list[str] = []
-        """The stage artifacts of another config this session removed (:meth:`_remove_stale`): until its own
-        are all written, the folder holds no complete run."""
+        """The stage artifacts of another config this session removed (:meth:`_remove_stale`)."""
         self._notes: list[str] | None = None
         """The notices :meth:`defer_notes` holds back until :meth:`close` (None: each is issued at once)."""
         self.payloads: dict[str, dict] = {}
@@ -259,12 +258,22 @@ class Workspace(pipeline.Stages):
         self._before_change(path)
         return artifacts.remove(path)
 
-    def roll_back(self) -> None:
+    @property
+    def unreplaced(self) -> list[str]:
+        """The artifacts of another config this session removed and has not yet written again for its own:
+        while there are any, the folder holds neither run whole. Empty after :meth:`keep`."""
+        if self._undo is None:
+            return []
+        return [name for name in self.replaced if self.path(name) not in self.written]
+
+    def roll_back(self) -> bool:
         """Put back every file this session wrote or removed as it was before (the command refused its
         input: nothing it computed is kept), and remove the artifact folders it made, if empty again;
-        after :meth:`keep`, nothing (and the notices of what it did are still said)."""
+        after :meth:`keep`, nothing (and the notices of what it did are still said). Returns whether it
+        put anything back."""
         if self._undo is None:
-            return
+            return False
+        undone = bool(self._undo)
         for path, before in reversed(self._undo):
             try:
                 if before is _NEW_FOLDER:  # an artifact folder (plots/, report/) the session made
@@ -287,6 +296,7 @@ class Workspace(pipeline.Stages):
         self.replaced.clear()
         if self._notes is not None:  # what they said was undone
             self._notes.clear()
+        return undone
 
     def keep(self) -> None:
         """Keep what this session wrote, whatever follows (:meth:`roll_back` does nothing after this)."""

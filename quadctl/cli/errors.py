@@ -108,14 +108,13 @@ def _roll_back() -> None:
 
 
 def _put_back_a_replaced_run() -> bool:
-    """A command stopped (Ctrl-C) after it removed another config's artifacts, before its own were all
-    written: put the folder back as the earlier run left it (:meth:`Workspace.roll_back`), which is whole,
-    rather than leave half of this one. True if it did."""
+    """A command stopped (Ctrl-C) after it removed another config's artifacts and before it wrote each of
+    them again for its own (:attr:`Workspace.unreplaced`): put the folder back as the earlier run left it
+    (:meth:`Workspace.roll_back`), which is whole, rather than leave half of each. True if it did."""
     state = _COMMAND.get(None) or {}
     ws = state.get("workspace")
-    if ws is None or not ws.replaced:
+    if ws is None or not ws.unreplaced or not ws.roll_back():
         return False
-    ws.roll_back()
     state["put_back"] = True
     return True
 

@@ -223,3 +223,26 @@ def test_ctrl_c_after_a_config_change_puts_the_earlier_complete_run_back(tmp_pat
     res = _interrupted_simulate(tmp_path, monkeypatch, "--set", "simulation.duration=1", "--fresh")
     assert res.exit_code == 130 and "artifacts written before this point are complete" in res.stderr
     assert "sim.npz" in _files(tmp_path)  # the same config: the earlier sim.npz is this config's, kept
+
+
+def test_ctrl_c_after_a_changed_configs_artifacts_are_all_written_keeps_the_new_run(tmp_path, monkeypatch):
+    """Stopped while drawing its figures, a changed config's run has written every artifact it removed
+    again: the new run is whole and stays; nothing is put back and nothing claims it was."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli import figures
+    from quadctl.cli.app import app
+
+    assert CliRunner().invoke(app, ["simulate", "-c", "hover", "-o", str(tmp_path),
+                                    "--set", "simulation.duration=1"]).exit_code == 0
+    before = _files(tmp_path)
+
+    def stop(*_, **__):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(figures, "save_figures", stop)
+    res = CliRunner().invoke(app, ["simulate", "-c", "hover", "-o", str(tmp_path), "--plot",
+                                   "--set", "simulation.duration=2"])
+    assert res.exit_code == 130 and "artifacts written before this point are complete" in res.stderr
+    after = _files(tmp_path)
+    assert after.keys() == before.keys() and after["sim.npz"] != before["sim.npz"]  # the 2 s run's
