@@ -28,6 +28,7 @@ import numpy as np
 
 from quadctl import artifacts, payloads, pipeline
 from quadctl.artifacts import default_out
+from quadctl.artifacts.meta import RESOLVED_CONFIG_HEAD
 from quadctl.config import Config
 from quadctl.design import Design
 from quadctl.design.discrete import RateWarning
@@ -350,7 +351,7 @@ class Workspace(pipeline.Stages):
         resolved = self.cfg.to_yaml()
         given = self.source_text if self.source_text is not None else (
             "# built in Python, not read from a file: the validated config\n" + resolved)
-        head = (f"# the config as quadctl {__version__} validated it, every default filled in"
+        head = (f"{RESOLVED_CONFIG_HEAD} {__version__} validated it, every default filled in"
                 f"{HASH_NOTE.format(self.cfg.digest())}\n")
         if self._folder_digest() != self.cfg.digest():
             self._remove_stale()

@@ -13,6 +13,20 @@ FORMAT_VERSION = 1
 IDENTITY_KEYS = ("artifact", "config_hash")
 """Keys of :func:`metadata` that every artifact carries and no input file has: what tells an artifact
 (given where a config goes, say) apart."""
+RESOLVED_CONFIG_HEAD = "# the config as quadctl"
+"""How ``config.resolved.yaml`` opens (:class:`quadctl.workspace.Workspace`): a stamp of quadctl's
+(:func:`quadctl.artifacts.lock.stamped`)."""
+IDENTIFIED_CONFIG_HEAD = "# Identified by quadctl identify from"
+"""How ``identified.yaml`` opens (:func:`quadctl.identify.results.identified_config`): a stamp of quadctl's."""
+
+
+def carries_provenance(data) -> bool:
+    """Whether ``data``, a mapping read from a file, carries an artifact's provenance (:data:`IDENTITY_KEYS`).
+
+    >>> carries_provenance({"artifact": "trim", "config_hash": "ab12"}), carries_provenance({"artifact": "trim"})
+    (True, False)
+    """
+    return isinstance(data, dict) and all(key in data for key in IDENTITY_KEYS)
 
 
 def metadata(cfg, kind: str, backends=()) -> dict:

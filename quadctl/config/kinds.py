@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from quadctl.artifacts.meta import IDENTITY_KEYS
+from quadctl.artifacts.meta import carries_provenance
 from quadctl.config.schema import Config
 
 SWEEP_KEYS = ("parameters",)
@@ -37,7 +37,7 @@ def kind_of(data: Any) -> str | None:
 
     if not isinstance(data, dict):
         return None
-    if all(key in data for key in IDENTITY_KEYS):
+    if carries_provenance(data):
         return "artifact"
     config, sweep = (all(key in data for key in keys) for keys in (config_keys(), SWEEP_KEYS))
     if sweep and not config:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.artifacts.meta import metadata
+from quadctl.artifacts.meta import IDENTIFIED_CONFIG_HEAD, metadata
 from quadctl.config import parse
 from quadctl.errors import LogError
 from quadctl.identify import estimate as est
@@ -193,13 +193,12 @@ def identified_config(text: str, ident: Identification, name: str) -> str:
 
     Only the changed lines move: a key's line (and the comment lines continuing it, and those just above
     it, which spoke of the old value) is replaced in its section, or added at the section's top; a missing
-    section is appended. The config's opening comments (what it is, its sources, an editor's schema line
-    relative to where it lay) give way to a header naming the config it came from, and its
-    ``description`` says it was identified.
+    section is appended. A header names the config it came from, whose comments (its sources among them)
+    stay, but for an editor's schema line relative to where it lay; its ``description`` says it was
+    identified.
     """
     lines = text.splitlines()
-    first = next((k for k, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")), len(lines))
-    lines = lines[first:]
+    lines = [ln for ln in lines if "yaml-language-server:" not in ln]  # a schema path relative to where it lay
     logs = ", ".join(log.name for log in ident.logs)
     lines = [f"name: {name}" if re.match(r"^name:\s", ln)
              else f"description: {json.dumps(f'{ident.config_name}, identified from {logs}')}"
@@ -223,8 +222,9 @@ def identified_config(text: str, ident: Identification, name: str) -> str:
         while above - 1 > start and lines[above - 1].startswith(" " * indent + "#"):
             above -= 1  # the comment just above the old value: its source
         lines[above:drop] = [" " * indent + new.lstrip()]
-    head = (f"# Identified by quadctl identify from {logs}: see identified.json. The rest is the config\n"
-            f"# {ident.config_name}'s, with its comments; each identified value says where it came from.")
+    head = (f"{IDENTIFIED_CONFIG_HEAD} {logs}: see identified.json. The rest is the config\n"
+            f"# {ident.config_name}'s, its comments speaking of its values; each identified value says where it\n"
+            "# came from.")
     out = head + "\n" + "\n".join(lines) + "\n"
 
     parse(out, f"the identified config of {name}")  # what it writes loads (ConfigError otherwise)

@@ -174,3 +174,30 @@ def test_a_projects_own_subfolders_do_not_block_a_run(tmp_path):
     (tmp_path / "plots").mkdir()
     assert invoke("trim", "-c", "hover", "-o", tmp_path).exit_code == 0
     assert (tmp_path / "src" / "main.c").is_file() and (tmp_path / "trim.json").is_file()
+
+
+def test_an_identify_folder_from_before_the_mark_is_taken_by_its_yaml_header(tmp_path):
+    """An earlier identify wrote identified.json without its provenance, and no mark: identified.yaml's
+    opening line is quadctl's stamp; a YAML file of the user's with that name is not."""
+    (tmp_path / "identified.json").write_text('{"values": {}}')
+    (tmp_path / "identify.png").write_bytes(b"png")
+    (tmp_path / "identified.yaml").write_text("name: mine\n")
+    with pytest.raises(ArtifactError, match="which quadctl did not write"):
+        with artifacts.locked(tmp_path):
+            pass
+    (tmp_path / "identified.yaml").write_text(f"{artifacts.meta.IDENTIFIED_CONFIG_HEAD} log10: see identified.json\n"
+                                              "name: crazyflie-identified\n")
+    with artifacts.locked(tmp_path):
+        assert (tmp_path / artifacts.MARK_NAME).is_file()
+
+
+def test_the_report_template_carries_the_stamp_the_claim_reads():
+    """The claim knows a report by its generator: the template writes it as the claim reads it."""
+    from importlib import resources
+    from string import Template
+
+    from quadctl.artifacts.lock import REPORT_GENERATOR, STAMP_HEAD
+
+    template = resources.files("quadctl.report").joinpath("templates", "report.html").read_text(encoding="utf-8")
+    page = Template(template).safe_substitute(generator="quadctl 1.2.3").encode()
+    assert REPORT_GENERATOR in page[:STAMP_HEAD]

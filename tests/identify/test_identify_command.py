@@ -186,9 +186,9 @@ def test_a_fitted_delay_with_a_continuous_controller_is_not_written_and_the_user
 
 
 def test_the_identified_config_says_what_it_is_not_what_the_config_it_came_from_was():
-    """The base config's opening comments (its sources, its hover headroom, an editor's schema line relative
-    to where it lay), its description and the comment above a replaced value spoke of that config: they
-    give way to a header naming it, a description that says identified, and each value's own comment."""
+    """A header names the base config, whose comments stay (its sources, which its values cite), but for an
+    editor's schema line relative to where it lay; its description and the comment above a replaced value
+    spoke of that config: they give way to a description that says identified and each value's own comment."""
     from quadctl.config import locate, parse
     from quadctl.identify.results import identified_config
 
@@ -196,9 +196,10 @@ def test_the_identified_config_says_what_it_is_not_what_the_config_it_came_from_
     assert "$schema=" in text and "The rotors hover at" in text and "[F]'s thrust at full PWM" in text
     out = identified_config(text, _delay_identification(500.0), "crazyflie-identified")
     assert out.startswith("# Identified by quadctl identify from log: see identified.json. The rest is the config\n"
-                          "# crazyflie's, with its comments;")
-    for stale in ("$schema=", "The rotors hover at", "[F]'s thrust at full PWM", "Förster 2015"):
+                          "# crazyflie's, its comments speaking of its values;")
+    for stale in ("$schema=", "[F]'s thrust at full PWM", "Förster 2015"):
         assert stale not in out, stale
+    assert "# [F] J. Förster" in out  # the sources its values cite stay
     cfg = parse(out, "crazyflie-identified")
     assert cfg.description == "crazyflie, identified from log" and cfg.name == "crazyflie-identified"
     assert "# N/(rad/s)^2: [F]'s C_T" in out  # a comment above a value the logs leave stays
