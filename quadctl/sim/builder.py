@@ -70,9 +70,18 @@ REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("ref_curvature", N_STATES),        # x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), s = t - t_j
     ("ref_u", N_INPUTS),                # u_ref(t_j)
     ("ref_u_rate", N_INPUTS),           # u_ref(t) = ref_u + s ref_u_rate (the feedforward)
+    ("ref_split", 1),                   # s: t_b, from which the second expansion holds (none: t_b <= t_j)
+    ("ref_x_after", N_STATES),          # the same five about t_b, s = t - t_b
+    ("ref_rate_after", N_STATES),
+    ("ref_curvature_after", N_STATES),
+    ("ref_u_after", N_INPUTS),
+    ("ref_u_rate_after", N_INPUTS),
 )
 """Exogenous channels of one step after the wind's, when the loop flies a reference
-(:mod:`quadctl.physics.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law."""
+(:mod:`quadctl.physics.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law. Two
+expansions, the second from ``ref_split`` on when that is after ``ref_t``: a row in which a piece of
+the path starts (a leg's end) expands each side on its own
+(:class:`quadctl.physics.flatness.FlownReference`)."""
 N_REFERENCE = sum(size for _, size in REFERENCE_LAYOUT)
 
 
@@ -652,11 +661,20 @@ def build(spec: LoopSpec) -> LoopFunctions:
         return ca.vertcat(*[parts["filter_A"] @ g[k * mf:(k + 1) * mf] + parts["filter_b"] * r[k]
                             for k in range(N_RATES)])
 
+    half = N_REFERENCE // 2  # one expansion's columns (REFERENCE_LAYOUT holds two)
+
+    def expansion(t):
+        """The row's expansion in force at ``t``: its columns and ``s`` (the time from its anchor)."""
+        first, second = e[n_wind_end:n_wind_end + half], e[n_wind_end + half:n_wind_end + 2 * half]
+        after = ca.logic_and(second[0] > first[0], t >= second[0])
+        ref = ca.if_else(after, second, first)
+        return ref, t - ref[0]
+
     def x_ref(t):
         """The reference state at ``t``: the row's expansion, or the trim drifting at ``x_rate``."""
         if not spec.reference:
             return parts["x_ref"] + parts["x_rate"] * t
-        ref, s = e[n_wind_end:], t - e[n_wind_end]
+        ref, s = expansion(t)
         return ref[1:1 + N_STATES] + s * (ref[1 + N_STATES:1 + 2 * N_STATES]
                                           + s / 2 * ref[1 + 2 * N_STATES:1 + 3 * N_STATES])
 
@@ -664,8 +682,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
         """The feedforward input at ``t``: the row's, or the trim input."""
         if not spec.reference:
             return parts["u_trim"]
-        ref = e[n_wind_end + 1 + 3 * N_STATES:]
-        return ref[:N_INPUTS] + (t - e[n_wind_end]) * ref[N_INPUTS:]
+        ref, s = expansion(t)
+        return ref[1 + 3 * N_STATES:1 + 3 * N_STATES + N_INPUTS] + s * ref[1 + 3 * N_STATES + N_INPUTS:]
 
     def design_yaw(psi_ref):
         """The yaw the gain acting at reference yaw ``psi_ref`` was designed at: the trim's, or a yaw
