@@ -344,13 +344,21 @@ class FlownReference:
     (:data:`quadctl.sim.builder.REFERENCE_LAYOUT`), tabulated on the exogenous clock of the run (the
     noise's period, else the controller's, else :data:`quadctl.physics.noise.DEFAULT_PERIOD`), as the noise
     and the wind are, so the compiled one-case loop, the lanes and the interpreted runner take it
-    through the same rows and agree to round-off. Row ``j`` holds over ``[t_j, t_j + period)``, ``t_j = j period``:
+    through the same rows and agree to round-off. Row ``j`` holds over ``[t_j, t_j + period)``, ``t_j = j period``,
+    and expands the path over each smooth span of it: the whole row, or, where a knot of the path lies
+    inside it (:attr:`quadctl.physics.trajectory.Reference.knots`: a piece's start, a leg's end, where the
+    snap steps and with it the torques and the slope of the body rates), ``[t_j, t_b)`` and ``[t_b,
+    t_j + period)`` each on its own (the first knot; the second expansion from ``t_b`` on). Over a span
+    ``[a, b)`` of length ``h``:
 
-    - ``x_ref(t) = x_ref(t_j) + s r_j + s^2 (r_(j+1) - r_j) / (2 period)``, ``s = t - t_j``, with
-      ``r_j = f(x_ref(t_j), u_ref(t_j))`` the model's rate (along a flat path, ``d x_ref / dt``:
-      :mod:`quadctl.physics.flatness`): the quadratic whose slope runs from ``r_j`` to ``r_(j+1)``, third-order
-      accurate over the row;
-    - ``u_ref(t) = u_ref(t_j) + s (u_ref(t_(j+1)) - u_ref(t_j)) / period``: the feedforward interpolated.
+    - ``x_ref(t) = x_ref(a) + s r_a + s^2 (r_b - r_a) / (2 h)``, ``s = t - a``, with
+      ``r = f(x_ref, u_ref)`` the model's rate (along a flat path, ``d x_ref / dt``:
+      :mod:`quadctl.physics.flatness`) at ``a`` and at ``b`` (the limit from the left: the span's own
+      piece): the quadratic whose slope runs from ``r_a`` to ``r_b``, third-order accurate over the span;
+    - ``u_ref(t) = u_ref(a) + s (u_ref(b) - u_ref(a)) / h``: the feedforward interpolated.
+
+    So no expansion is flown past the knot that ends its span (a leg's expansion past the leg's end,
+    where the reference's body rates would run on and jump back at the next row).
 
     Tabulated rather than evaluated in the generated code: a mission's pieces, shapes and the Newton
     solve of the flatness map stay in one place (Python, from the model), the generated code gains
@@ -365,7 +373,7 @@ class FlownReference:
         return feedforward(self.path.flat(t), self.params, mapped, self.path.remedy)  # compiled over the points
 
     def rows(self, j, period: float) -> np.ndarray:
-        """``(len(j), 45)``: the exogenous reference rows of the absolute row indices ``j`` (the stack of
+        """``(len(j), 90)``: the exogenous reference rows of the absolute row indices ``j`` (the stack of
         one of :meth:`rows_of`).
 
         Raises
@@ -437,9 +445,9 @@ ROW_HALF = 1 + 3 * N_STATES + 2 * N_INPUTS
 class _RowSpans:
     """Where :meth:`FlownReference.rows_of` solves the feedforward for its rows: at the times ``t`` (m,)
     s, where ``left`` (m,) their limits from the left (:meth:`quadctl.physics.trajectory.Reference.flat`),
-    and per row the anchor time and the indices into those points of the start and end of its two
-    expansions with their anchor and end times, ``((t_j, t_b, a, b), (t_b, t_(j+1), c, d))`` (each (rows,)): the second a copy of the first in a row
-    with no knot inside."""
+    and per row its two expansions' anchor and end times and the indices into those points of their
+    start and end, ``((t_j, t_b, a, b), (t_b, t_(j+1), c, d))`` (each (rows,)): the second a copy of the
+    first in a row with no knot inside."""
 
     t: np.ndarray
     left: np.ndarray
