@@ -421,10 +421,10 @@ class FlownReference:
     @staticmethod
     def flown(rows: np.ndarray, t) -> tuple[np.ndarray, np.ndarray]:
         """((n, 12), (n, 4)): the reference the law used at times ``t`` under their ``rows`` (each row's
-        first expansion before its split, its second from it on)."""
+        first expansion before its split, its second from it on: :data:`SPLIT_ROUNDOFF`)."""
         t = np.asarray(t, dtype=float)
         first, second = rows[:, :ROW_HALF], rows[:, ROW_HALF:]
-        after = ((second[:, 0] > first[:, 0]) & (t >= second[:, 0]))[:, None]
+        after = ((second[:, 0] > first[:, 0]) & (t > second[:, 0] - SPLIT_ROUNDOFF * (1 + np.abs(second[:, 0]))))[:, None]
         (x1, u1), (x2, u2) = _expanded(first, t), _expanded(second, t)
         return np.where(after, x2, x1), np.where(after, u2, u1)
 
@@ -436,6 +436,9 @@ class FlownReference:
         return pos.min(axis=0), pos.max(axis=0)
 
 
+SPLIT_ROUNDOFF = 1e-12
+"""A time within this (relative, s per s) of a row's split counts as on it, and takes the second
+expansion (the limit from the right): a run's time ``k dt``, rounded, that lands on a knot."""
 ROW_HALF = 1 + 3 * N_STATES + 2 * N_INPUTS
 """Columns of one expansion of a reference row: ``t``, ``x``, rate, curvature, ``u``, ``u`` rate
 (:data:`quadctl.sim.builder.REFERENCE_LAYOUT` holds two)."""

@@ -18,6 +18,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.design.gain_table import VARIABLES, scheduling_value
 from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, PRODUCTS, STATE_INDEX
+from quadctl.physics.flatness import SPLIT_ROUNDOFF
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 from quadctl.physics.motors import desaturate
 from quadctl.sim import pid
@@ -70,7 +71,7 @@ REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("ref_curvature", N_STATES),        # x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), s = t - t_j
     ("ref_u", N_INPUTS),                # u_ref(t_j)
     ("ref_u_rate", N_INPUTS),           # u_ref(t) = ref_u + s ref_u_rate (the feedforward)
-    ("ref_split", 1),                   # s: t_b, from which the second expansion holds (none: t_b <= t_j)
+    ("ref_split", 1),                   # s: t_b, after which the second expansion holds (none: t_b <= t_j)
     ("ref_x_after", N_STATES),          # the same five about t_b, s = t - t_b
     ("ref_rate_after", N_STATES),
     ("ref_curvature_after", N_STATES),
@@ -663,10 +664,16 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     half = N_REFERENCE // 2  # one expansion's columns (REFERENCE_LAYOUT holds two)
 
+    side = {"at": None}  # a step's midpoint while its stages are built: the side of a split it takes
+
     def expansion(t):
-        """The row's expansion in force at ``t``: its columns and ``s`` (the time from its anchor)."""
+        """The row's expansion in force at ``t``: its columns and ``s`` (the time from its anchor). The
+        second from the split on (:data:`quadctl.physics.flatness.SPLIT_ROUNDOFF`), or, in an RK4 step,
+        the one its midpoint falls in, for every stage (a step that ends or starts on a knot integrates
+        the one side of it it spans; ETDRK4's steps alike, its remainder given the step's midpoint)."""
         first, second = e[n_wind_end:n_wind_end + half], e[n_wind_end + half:n_wind_end + 2 * half]
-        after = ca.logic_and(second[0] > first[0], t >= second[0])
+        at = t if side["at"] is None else side["at"]
+        after = ca.logic_and(second[0] > first[0], at > second[0] - SPLIT_ROUNDOFF * (1 + ca.fabs(second[0])))
         ref = ca.if_else(after, second, first)
         return ref, t - ref[0]
 
@@ -783,10 +790,12 @@ def build(spec: LoopSpec) -> LoopFunctions:
                             params[PRODUCTS.stop:])
 
     def rk4(rhs, Y):
+        side["at"] = t + dt / 2
         k1 = rhs(Y, t)
         k2 = rhs(Y + dt / 2 * k1, t + dt / 2)
         k3 = rhs(Y + dt / 2 * k2, t + dt / 2)
         k4 = rhs(Y + dt * k3, t + dt)
+        side["at"] = None
         return Y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
     def body(Y, u):
@@ -855,9 +864,14 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     remainder = None
     if spec.method == "etdrk4":
+        side["at"] = t + dt / 2  # every stage on the side of a split the step's midpoint is on
         X_next = etdrk4(closed_rhs, X, t, dt, phi_block(c, spec))
+        middle = ca.SX.sym("t_mid")  # the remainder's: the midpoint of the step whose stage it is
+        side["at"] = middle
         N = closed_rhs(X, t) - phi_block(c, spec)["lin"] @ X
-        remainder = ca.Function("qc_rem", [X, t, c, e], ca.cse([N, u_now]), ["X", "t", "c", "e"], ["N", "u"])
+        side["at"] = None
+        remainder = ca.Function("qc_rem", [X, t, c, e, middle], ca.cse([N, u_now]),
+                                ["X", "t", "c", "e", "t_mid"], ["N", "u"])
     else:
         X_next = rk4(closed_rhs, X)
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([X_next, u_now]),

@@ -303,15 +303,19 @@ whole of it (four legs, a climb and turns to 90 and 180 deg of heading)."""
 
 @pytest.fixture(scope="module")
 def mission_truth():
-    """(loop, x0, reference, RK4 run) of the ``square`` mission's first MISSION_SPAN s, RK4 at 1/1024 of the
+    """(loop, x0, reference, RK4 run) of the ``square`` mission's first MISSION_SPAN s, RK4 at 1/2000 of the
     rows' period recorded once a row, its own largest error bounded by its difference from RK4 at
-    1/512 (RK4's error falls 16-fold a halving: the finer's is a fifteenth of the difference)."""
+    1/1000 (RK4's error falls 16-fold a halving: the finer's is a fifteenth of the difference). Both
+    steps divide 1/8000 s, of which the square's leg times are multiples: every knot of its reference
+    (where the feedforward's torques step) is a step's end, so no step integrates across one."""
     setup, _, linear, _, des = solve(cfg_dict("square"))
     loop = pipeline.loop_of(setup, linear, des)
     x0, ref = setup.initial_state(loop.x_trim), setup.flown_reference
+    knots = ref.path.knots * 8000
+    assert np.array_equal(knots, np.round(knots))
     rows = round(MISSION_SPAN / 0.005)
     fine, coarse = (simulate(loop, x0, MISSION_SPAN, 0.005 / k, reference=ref, max_samples=rows + 1)
-                    for k in (1024, 512))
+                    for k in (2000, 1000))
     assert np.array_equal(fine.t, coarse.t) and len(fine.t) == rows + 1
     assert np.abs(fine.x - coarse.x).max() < 6e-11  # the reference's own error: about 4e-12 at most
     return loop, x0, ref, fine
