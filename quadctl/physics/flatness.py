@@ -424,7 +424,8 @@ class FlownReference:
         first expansion before its split, its second from it on: :data:`SPLIT_ROUNDOFF`)."""
         t = np.asarray(t, dtype=float)
         first, second = rows[:, :ROW_HALF], rows[:, ROW_HALF:]
-        after = ((second[:, 0] > first[:, 0]) & (t > second[:, 0] - SPLIT_ROUNDOFF * (1 + np.abs(second[:, 0]))))[:, None]
+        split = second[:, 0]
+        after = ((split > first[:, 0]) & (t > split - SPLIT_ROUNDOFF * (1 + np.abs(split))))[:, None]
         (x1, u1), (x2, u2) = _expanded(first, t), _expanded(second, t)
         return np.where(after, x2, x1), np.where(after, u2, u1)
 

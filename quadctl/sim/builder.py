@@ -590,7 +590,8 @@ class LoopFunctions:
     ref: ca.Function | None = None
     remainder: ca.Function | None = None
     """ETDRK4 only: the nonlinear remainder ``N = rhs - L X`` of :func:`etdrk4`'s stages,
-    ``(X, t, c, e) -> (N, u)`` (``u`` the input at ``X``) with continuous feedback, ``(X, u, c, e) -> N``
+    ``(X, t, c, e, t_mid) -> (N, u)`` (``u`` the input at ``X``; ``t_mid`` the midpoint of the step whose
+    stage it is, which decides the side of a reference's split) with continuous feedback, ``(X, u, c, e) -> N``
     under a held input: what a one-case compiled loop evaluates, its stages' products in
     ``driver.c`` (``qc_etd``, the same operations in the same order)."""
 

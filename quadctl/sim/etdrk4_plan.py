@@ -295,9 +295,10 @@ def allows(h, eigenvalues, tolerance: float, safety: float = SAFETY):
 
 FORCED_SAFETY = 1.0
 """The constant of :func:`forced_step`, measured on the bundled ``square`` mission (its whole 15 s,
-largest error over the run against RK4 at 1/1024 of the rows' period): at 0.7, 1.0, 1.4 and 2.0 the
-error is 1.0e-9, 4.3e-9, 8.5e-9 and 2.1e-8 at tolerance 1e-8, and 9.3e-12, 3.2e-11, 9.2e-11 and 2.9e-10 at
-1e-10 (about ``h^3``); 1.0 leaves a factor of 2 to 3 in error."""
+largest error over the run against RK4 at 1/2000 of the rows' period, a step whose grid holds its
+knots): at 0.7, 1.0, 1.4 and 2.0 the error is 1.0e-9, 4.3e-9, 8.5e-9 and 2.0e-8 at tolerance 1e-8, and
+3.7e-11, 3.7e-11, 9.2e-11 and 2.9e-10 at 1e-10 (about ``h^3``, down to what the knots' grading leaves);
+1.0 leaves a factor of 2 to 3 in error."""
 
 
 def forced_step(eigenvalues, tolerance: float) -> float:
