@@ -406,10 +406,18 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     kick_level = level if held else level + KICK_LEVELS
     allowed_at = allows(2 * top / 2.0 ** np.arange(kick_level + 1), eig, tolerance, safety)  # of 2h, each level
     grid = period if held else top / 2 ** kick_level  # a kick's grading starts on a sample, or its finest step
-    starts = sorted({0.0, *(_before(k, grid, held) for k in kicks if 0 < k < duration)})
+    at = {}  # each grading's start: the kick it is for (the first, if several share it)
+    for k in sorted(kicks, reverse=True):
+        if 0 < k < duration:
+            at[_before(k, grid, held)] = k
+    starts = sorted({0.0, *at})
     segments = []
     for start, end in zip(starts, [*starts[1:], duration]):
-        segments += _graded(start, end - start, top, kick_level if start > 0 else level, allowed_at,
+        allowed = allowed_at
+        if start > 0 and not held:  # the kick's finest steps until it is behind them, then graded up
+            allowed = allowed_at.copy()
+            allowed[level + 1:] = np.maximum(allowed[level + 1:], at[start] - start)
+        segments += _graded(start, end - start, top, kick_level if start > 0 else level, allowed,
                             period if held else None, exact=end < duration)
     total = sum(s.n for s in segments)
     step_count(total * top, top, fastest, owner)  # refuses (or announces) a runaway plan
@@ -419,10 +427,11 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
 
 
 KICK_LEVELS = 4
-"""A kick's grading (continuous feedback) starts ``2^KICK_LEVELS`` times finer than the run's: a knot
-off the step grid falls inside a step, which integrates the side its midpoint is on over the whole
-step (measured on the bundled ``square`` at tolerance 1e-10: 1.9e-10 at the run's finest step, within
-the tolerance at 16 times finer), for a few steps more per kick."""
+"""A kick's grading (continuous feedback) starts ``2^KICK_LEVELS`` times finer than the run's, on that
+grid's last point before the kick, and steps on it until the kick is behind: a knot off the step grid
+falls inside a step, which integrates the side its midpoint is on over the whole step (measured on the
+bundled ``square`` at tolerance 1e-10: 1.9e-10 with the run's finest step there, within the tolerance
+16 times finer), for a few steps more per kick."""
 
 
 def _before(kick: float, grid: float, held: bool) -> float:

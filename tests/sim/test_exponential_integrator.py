@@ -360,8 +360,8 @@ def test_setpoint_steps_are_graded_like_the_start(monkeypatch):
     assert etd.status == truth.status == "ok"
     assert np.abs(etd.x[-1] - truth.x[-1]).max() < 1e-8
     finest = etd.plan.schedule[0].dt
-    for kick in (0.5, 1.0):  # stepped across on the kicks' own finest step (graded from just before it)
-        assert next(s.dt for s in etd.plan.schedule if s.start <= kick < s.end) == finest / 2 ** etdrk4_plan.KICK_LEVELS
+    for kick in (0.5, 1.0):  # reached on the kicks' own finest step (graded from just before it)
+        assert next(s.dt for s in etd.plan.schedule if s.start < kick <= s.end) == finest / 2 ** etdrk4_plan.KICK_LEVELS
     monkeypatch.setattr(Reference, "knots", ())
     once = simulate(loop, x0, 1.5, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
     assert once.steps < etd.steps and np.abs(once.x[-1] - truth.x[-1]).max() > 1e-6
