@@ -71,7 +71,7 @@ REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("ref_curvature", N_STATES),        # x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), s = t - t_j
     ("ref_u", N_INPUTS),                # u_ref(t_j)
     ("ref_u_rate", N_INPUTS),           # u_ref(t) = ref_u + s ref_u_rate (the feedforward)
-    ("ref_split", 1),                   # s: t_b, after which the second expansion holds (none: t_b <= t_j)
+    ("ref_split", 1),                   # s: t_b, from which the second expansion holds (none: t_b <= t_j)
     ("ref_x_after", N_STATES),          # the same five about t_b, s = t - t_b
     ("ref_rate_after", N_STATES),
     ("ref_curvature_after", N_STATES),
@@ -80,8 +80,8 @@ REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 """Exogenous channels of one step after the wind's, when the loop flies a reference
 (:mod:`quadctl.physics.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law. Two
-expansions, the second from ``ref_split`` on when that is after ``ref_t``: a row in which a piece of
-the path starts (a leg's end) expands each side on its own
+expansions, the second from ``ref_split`` on when that is after ``ref_t``: a row in which a knot of
+the path lies (a piece's start, a leg's end) expands each side of it on its own
 (:class:`quadctl.physics.flatness.FlownReference`)."""
 N_REFERENCE = sum(size for _, size in REFERENCE_LAYOUT)
 
