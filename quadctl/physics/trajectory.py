@@ -26,10 +26,15 @@ YAW_RATE = 1.0
 """rad/s: the peak yaw rate of a waypoint leg (a leg that only turns lasts ``peak |dpsi| / YAW_RATE``)."""
 ORDER = 5
 """Derivatives of position a path gives (0 to 4: position to snap)."""
+ROUNDOFF = 1e-12
+"""A shape's ``tau`` this close to its ends counts as on them: a leg evaluated at its end, ``t0 + T``
+rounded, gives the limit asked for."""
 
 
-def shape_derivatives(kind: str, tau) -> np.ndarray:
-    """``(5, n)``: ``s, s', s'', s''', s''''`` of the shape ``kind`` at ``tau`` (clipped to [0, 1]).
+def shape_derivatives(kind: str, tau, left: bool = False) -> np.ndarray:
+    """``(5, n)``: ``s, s', s'', s''', s''''`` of the shape ``kind`` at ``tau`` (clipped to [0, 1]),
+    the derivatives zero before it and from its end on (``left``: only after its end: at ``tau = 1``
+    the limit from the left); within :data:`ROUNDOFF` of an end counts as on it.
 
     A ``step`` is 0 before ``tau = 0`` and 1 from it on, with zero derivatives.
     """
@@ -42,7 +47,8 @@ def shape_derivatives(kind: str, tau) -> np.ndarray:
     clipped = np.clip(tau, 0.0, 1.0)
     for k in range(ORDER):
         out[k] = coef.deriv(k)(clipped) if k else coef(clipped)
-    out[1:, (tau < 0) | (tau > 1)] = 0.0
+    end = tau > 1 + ROUNDOFF if left else tau > 1 - ROUNDOFF
+    out[1:, (tau < -ROUNDOFF) | end] = 0.0
     return out
 
 
@@ -114,17 +120,23 @@ class Reference:
         k = int(np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.pieces) - 1))
         return f"lower {self.velocity_keys[k]}: no attitude holds that velocity against the rotor drag"
 
-    def flat(self, t) -> FlatPath:
-        """The flat outputs at the times ``t`` (s)."""
+    def flat(self, t, left=False) -> FlatPath:
+        """The flat outputs at the times ``t`` (s), or where ``left`` ((n,) bool, or one for all) their
+        limits from the left: at a piece's start the piece before it, at a shaped piece's end
+        (:attr:`knots`) its shape's derivatives there rather than the held zeros."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
+        left = np.broadcast_to(np.asarray(left, dtype=bool), t.shape)
         starts = np.array([p.t0 for p in self.pieces])
-        which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.pieces) - 1)
+        which = np.clip(np.where(left, np.searchsorted(starts, t, side="left"),
+                                 np.searchsorted(starts, t, side="right")) - 1, 0, len(self.pieces) - 1)
         pos = np.zeros((ORDER, t.size, 3))
         yaw = np.zeros((3, t.size))
         for i, piece in enumerate(self.pieces):
             sel = which == i
-            if sel.any():
-                pos[:, sel], yaw[:, sel] = _piece_outputs(piece, t[sel])
+            for side in (False, True):
+                on = sel & (left == side)
+                if on.any():
+                    pos[:, on], yaw[:, on] = _piece_outputs(piece, t[on], side)
         return FlatPath(t=t, position=pos, yaw=yaw)
 
     @property
@@ -141,17 +153,26 @@ class Reference:
         return tuple(out)
 
     @property
+    def knots(self) -> np.ndarray:
+        """s: the times after 0 at which the path's derivatives may step (increasing): each piece's
+        start and each shaped piece's end (a leg's end, where its snap steps, and with it the
+        feedforward's torques and the slope of the body rates): an expansion of the path on one side
+        of a knot must not be used on the other."""
+        ends = [p.t0 + p.T for p in self.pieces if p.T > 0] + [p.t0 for p in self.pieces]
+        return np.unique(np.array([t for t in ends if t > 0], dtype=float))
+
+    @property
     def end(self) -> float:
         """s: when the last leg reaches its waypoint (0 without legs)."""
         return self.legs[-1].end if self.legs else 0.0
 
 
-def _piece_outputs(piece: Piece, t) -> tuple[np.ndarray, np.ndarray]:
+def _piece_outputs(piece: Piece, t, left: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """``(position (5, n, 3), yaw (3, n))`` of ``piece`` at the times ``t`` (n,) s (its shape held at
-    its ends outside ``[t0, t0 + T]``)."""
+    its ends outside ``[t0, t0 + T]``; ``left``: at its end, the limit from the left)."""
     dt = np.asarray(t, dtype=float) - piece.t0
     if piece.T > 0:
-        s = shape_derivatives(piece.shape, dt / piece.T) / piece.T ** np.arange(ORDER)[:, None]
+        s = shape_derivatives(piece.shape, dt / piece.T, left) / piece.T ** np.arange(ORDER)[:, None]
     else:
         s = shape_derivatives("step", dt)
     pos = s[:, :, None] * np.asarray(piece.dp)

@@ -18,6 +18,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.design.gain_table import VARIABLES, scheduling_value
 from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, PRODUCTS, STATE_INDEX
+from quadctl.physics.flatness import SPLIT_ROUNDOFF
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 from quadctl.physics.motors import desaturate
 from quadctl.sim import pid
@@ -70,9 +71,18 @@ REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
     ("ref_curvature", N_STATES),        # x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), s = t - t_j
     ("ref_u", N_INPUTS),                # u_ref(t_j)
     ("ref_u_rate", N_INPUTS),           # u_ref(t) = ref_u + s ref_u_rate (the feedforward)
+    ("ref_split", 1),                   # s: t_b, from which the second expansion holds (none: t_b <= t_j)
+    ("ref_x_after", N_STATES),          # the same five about t_b, s = t - t_b
+    ("ref_rate_after", N_STATES),
+    ("ref_curvature_after", N_STATES),
+    ("ref_u_after", N_INPUTS),
+    ("ref_u_rate_after", N_INPUTS),
 )
 """Exogenous channels of one step after the wind's, when the loop flies a reference
-(:mod:`quadctl.physics.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law."""
+(:mod:`quadctl.physics.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law. Two
+expansions, the second from ``ref_split`` on when that is after ``ref_t``: a row in which a knot of
+the path lies (a piece's start, a leg's end) expands each side of it on its own
+(:class:`quadctl.physics.flatness.FlownReference`)."""
 N_REFERENCE = sum(size for _, size in REFERENCE_LAYOUT)
 
 
@@ -580,7 +590,8 @@ class LoopFunctions:
     ref: ca.Function | None = None
     remainder: ca.Function | None = None
     """ETDRK4 only: the nonlinear remainder ``N = rhs - L X`` of :func:`etdrk4`'s stages,
-    ``(X, t, c, e) -> (N, u)`` (``u`` the input at ``X``) with continuous feedback, ``(X, u, c, e) -> N``
+    ``(X, t, c, e, t_mid) -> (N, u)`` (``u`` the input at ``X``; ``t_mid`` the midpoint of the step whose
+    stage it is, which decides the side of a reference's split) with continuous feedback, ``(X, u, c, e) -> N``
     under a held input: what a one-case compiled loop evaluates, its stages' products in
     ``driver.c`` (``qc_etd``, the same operations in the same order)."""
 
@@ -652,11 +663,26 @@ def build(spec: LoopSpec) -> LoopFunctions:
         return ca.vertcat(*[parts["filter_A"] @ g[k * mf:(k + 1) * mf] + parts["filter_b"] * r[k]
                             for k in range(N_RATES)])
 
+    half = N_REFERENCE // 2  # one expansion's columns (REFERENCE_LAYOUT holds two)
+
+    side = {"at": None}  # a step's midpoint while its stages are built: the side of a split it takes
+
+    def expansion(t):
+        """The row's expansion in force at ``t``: its columns and ``s`` (the time from its anchor). The
+        second from the split on (:data:`quadctl.physics.flatness.SPLIT_ROUNDOFF`), or, in an RK4 step,
+        the one its midpoint falls in, for every stage (a step that ends or starts on a knot integrates
+        the one side of it it spans; ETDRK4's steps alike, its remainder given the step's midpoint)."""
+        first, second = e[n_wind_end:n_wind_end + half], e[n_wind_end + half:n_wind_end + 2 * half]
+        at = t if side["at"] is None else side["at"]
+        after = ca.logic_and(second[0] > first[0], at > second[0] - SPLIT_ROUNDOFF * (1 + ca.fabs(second[0])))
+        ref = ca.if_else(after, second, first)
+        return ref, t - ref[0]
+
     def x_ref(t):
         """The reference state at ``t``: the row's expansion, or the trim drifting at ``x_rate``."""
         if not spec.reference:
             return parts["x_ref"] + parts["x_rate"] * t
-        ref, s = e[n_wind_end:], t - e[n_wind_end]
+        ref, s = expansion(t)
         return ref[1:1 + N_STATES] + s * (ref[1 + N_STATES:1 + 2 * N_STATES]
                                           + s / 2 * ref[1 + 2 * N_STATES:1 + 3 * N_STATES])
 
@@ -664,8 +690,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
         """The feedforward input at ``t``: the row's, or the trim input."""
         if not spec.reference:
             return parts["u_trim"]
-        ref = e[n_wind_end + 1 + 3 * N_STATES:]
-        return ref[:N_INPUTS] + (t - e[n_wind_end]) * ref[N_INPUTS:]
+        ref, s = expansion(t)
+        return ref[1 + 3 * N_STATES:1 + 3 * N_STATES + N_INPUTS] + s * ref[1 + 3 * N_STATES + N_INPUTS:]
 
     def design_yaw(psi_ref):
         """The yaw the gain acting at reference yaw ``psi_ref`` was designed at: the trim's, or a yaw
@@ -765,10 +791,12 @@ def build(spec: LoopSpec) -> LoopFunctions:
                             params[PRODUCTS.stop:])
 
     def rk4(rhs, Y):
+        side["at"] = t + dt / 2
         k1 = rhs(Y, t)
         k2 = rhs(Y + dt / 2 * k1, t + dt / 2)
         k3 = rhs(Y + dt / 2 * k2, t + dt / 2)
         k4 = rhs(Y + dt * k3, t + dt)
+        side["at"] = None
         return Y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
     def body(Y, u):
@@ -837,9 +865,14 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     remainder = None
     if spec.method == "etdrk4":
+        side["at"] = t + dt / 2  # every stage on the side of a split the step's midpoint is on
         X_next = etdrk4(closed_rhs, X, t, dt, phi_block(c, spec))
+        middle = ca.SX.sym("t_mid")  # the remainder's: the midpoint of the step whose stage it is
+        side["at"] = middle
         N = closed_rhs(X, t) - phi_block(c, spec)["lin"] @ X
-        remainder = ca.Function("qc_rem", [X, t, c, e], ca.cse([N, u_now]), ["X", "t", "c", "e"], ["N", "u"])
+        side["at"] = None
+        remainder = ca.Function("qc_rem", [X, t, c, e, middle], ca.cse([N, u_now]),
+                                ["X", "t", "c", "e", "t_mid"], ["N", "u"])
     else:
         X_next = rk4(closed_rhs, X)
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([X_next, u_now]),

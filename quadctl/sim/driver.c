@@ -8,7 +8,7 @@
  *   qc_plant(X, u, dt, c, e, X_next, P)   one RK4 step under a held input        (QC_HELD == 1)
  * (P: what the step computes from dt and c alone, computed once a run by qc_step_pre / qc_plant_pre
  * into qc_step_nh / qc_plant_nh values a lane); or, for one case of ETDRK4 (QC_ETD), in their place
- *   qc_rem(X, t, c, e, N, u, P) / qc_rem(X, u, c, e, N, P)  the nonlinear remainder N = rhs - L X
+ *   qc_rem(X, t, c, e, t_mid, N, u, P) / qc_rem(X, u, c, e, N, P)  the nonlinear remainder N = rhs - L X
  * whose stages qc_etd combines here (P: what it computes from c alone, by qc_rem_pre)
  *   qc_ref(t, c, e, x_ref)             the reference state the law regulates to (QC_NS states)
  * and the metrics' constants (QC_BAND, QC_FLOOR: quadctl.metrics; QC_SETTLE_NONE, QC_SETTLE_PENDING:
@@ -279,7 +279,7 @@ static void qc_mv(const double* restrict c, int k, const double* restrict v, dou
 #if QC_HELD
 #define QC_REM(Y, ts, N, U) qc_rem(Y, U, c, e, N, P)
 #else
-#define QC_REM(Y, ts, N, U) qc_rem(Y, ts, c, e, N, U, P)
+#define QC_REM(Y, ts, N, U) qc_rem(Y, ts, c, e, th, N, U, P)  /* th: the step's midpoint */
 #endif
 /* X_next = one step h from X at t; u: the input at X (continuous feedback), or the held one */
 static void qc_etd(const double* X, const double* t, const double* h, const double* c, const double* e,
@@ -371,7 +371,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
 #if QC_ETD && QC_HELD
   qc_rem_pre(X, U, c, E, P);
 #elif QC_ETD
-  qc_rem_pre(X, T, c, E, P);
+  qc_rem_pre(X, T, c, E, T, P);
 #elif QC_HELD
   qc_plant_pre(X, U, DT, c, E, P);
 #else

@@ -295,9 +295,10 @@ def allows(h, eigenvalues, tolerance: float, safety: float = SAFETY):
 
 FORCED_SAFETY = 1.0
 """The constant of :func:`forced_step`, measured on the bundled ``square`` mission (its whole 15 s,
-largest error over the run against RK4 at 1/1024 of the rows' period): at 0.7, 1.0, 1.4 and 2.0 the
-error is 1.0e-9, 4.3e-9, 8.5e-9 and 2.1e-8 at tolerance 1e-8, and 9.3e-12, 3.2e-11, 9.2e-11 and 2.9e-10 at
-1e-10 (about ``h^3``); 1.0 leaves a factor of 2 to 3 in error."""
+largest error over the run against RK4 at 1/2000 of the rows' period, a step whose grid holds its
+knots): at 0.7, 1.0, 1.4 and 2.0 the error is 1.0e-9, 4.3e-9, 8.5e-9 and 2.0e-8 at tolerance 1e-8, and
+3.7e-11, 3.7e-11, 9.2e-11 and 2.9e-10 at 1e-10 (about ``h^3``, down to what the knots' grading leaves);
+1.0 leaves a factor of 2 to 3 in error."""
 
 
 def forced_step(eigenvalues, tolerance: float) -> float:
@@ -357,9 +358,11 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
         RK4's largest stable step (s) the plan reports, when the caller has it (computed from
         ``eigenvalues`` when None).
     kicks : sequence of float
-        s: when the inputs step (a reference's setpoints), each exciting the fast modes again as the
-        initial state does at ``t = 0``: ``dt: auto`` grades again from each, from the start of the
-        ``period`` it falls in (so every step still starts on a multiple of itself).
+        s: when the inputs step (a reference's knots: its setpoints, its legs' ends, where the
+        feedforward's torques step), each exciting the fast modes again as the initial state does at
+        ``t = 0``: ``dt: auto`` grades again from each, from the last multiple of the finest step
+        before it (a held loop: the start of the ``period`` it falls in), the steps before it halving
+        down to there (so every step still starts on a multiple of itself).
 
     Raises
     ------
@@ -400,13 +403,22 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
     first = auto_step(0.0, eig, tolerance, safety)
     while top / 2 ** level > first and level < 60:
         level += 1
-    allowed_at = allows(2 * top / 2.0 ** np.arange(level + 1), eig, tolerance, safety)  # of 2h, each level
-    grid = period if period is not None else top
-    starts = sorted({0.0, *(math.floor(k / grid + 1e-9) * grid for k in kicks if 0 < k < duration)})
+    kick_level = level if held else level + KICK_LEVELS
+    allowed_at = allows(2 * top / 2.0 ** np.arange(kick_level + 1), eig, tolerance, safety)  # of 2h, each level
+    grid = period if held else top / 2 ** kick_level  # a kick's grading starts on a sample, or its finest step
+    at = {}  # each grading's start: the kick it is for (the first, if several share it)
+    for k in sorted(kicks, reverse=True):
+        if 0 < k < duration:
+            at[_before(k, grid, held)] = k
+    starts = sorted({0.0, *at})
     segments = []
     for start, end in zip(starts, [*starts[1:], duration]):
-        segments += [Segment(seg.dt, seg.n, seg.k0 + round(start / seg.dt))
-                     for seg in _graded(end - start, top, level, allowed_at, period if held else None)]
+        allowed = allowed_at
+        if start > 0 and not held:  # the kick's finest steps until it is behind them, then graded up
+            allowed = allowed_at.copy()
+            allowed[level + 1:] = np.maximum(allowed[level + 1:], at[start] - start)
+        segments += _graded(start, end - start, top, kick_level if start > 0 else level, allowed,
+                            period if held else None, exact=end < duration)
     total = sum(s.n for s in segments)
     step_count(total * top, top, fastest, owner)  # refuses (or announces) a runaway plan
     held_at = dict(hold=round(period / segments[-1].dt), sample_time=period) if held else {}
@@ -414,42 +426,79 @@ def plan_schedule(eigenvalues, owners, duration: float, dt="auto", *, tolerance:
                     schedule=tuple(segments), **held_at)
 
 
-def _graded(span: float, top: float, level: int, allowed_at, held_period: float | None) -> list[Segment]:
-    """The segments of ``span`` s graded from its start: steps ``top / 2^level`` first, each level up
-    from where :func:`allows` lets ``h(t)`` take twice the step (``allowed_at``: those times, of ``2h``,
-    for each level from ``top``); ``held_period``: a sampled controller's period, on which segments start."""
+KICK_LEVELS = 4
+"""A kick's grading (continuous feedback) starts ``2^KICK_LEVELS`` times finer than the run's, on that
+grid's last point before the kick, and steps on it until the kick is behind: a knot off the step grid
+falls inside a step, which integrates the side its midpoint is on over the whole step (measured on the
+bundled ``square`` at tolerance 1e-10: 1.9e-10 with the run's finest step there, within the tolerance
+16 times finer), for a few steps more per kick."""
+
+
+def _before(kick: float, grid: float, held: bool) -> float:
+    """s: where the grading from ``kick`` starts: the sample it falls in (a held loop: its law reads the
+    reference at samples only), or the last multiple of the finest step ``grid`` before it (a kick on
+    that grid: the one before), so that only finest steps touch it: the one that starts on it reads the
+    reference after it at every stage, the one that ends on it, at its end."""
+    if held:
+        return math.floor(kick / grid + 1e-9) * grid
+    return (math.ceil(kick / grid - 1e-6) - 1) * grid
+
+
+def _graded(origin: float, span: float, top: float, level: int, allowed_at, held_period: float | None,
+            exact: bool = False) -> list[Segment]:
+    """The segments of ``[origin, origin + span)`` s graded from its start: steps ``top / 2^level``
+    first, each level up from where :func:`allows` lets ``h(t)`` take twice the step (``allowed_at``:
+    those times after the start, of ``2h``, for each level from ``top``); ``held_period``: a sampled
+    controller's period, on which segments start. Every step starts on a multiple of itself (``origin``
+    a multiple of the first). ``exact``: the span ends exactly at ``origin + span`` (a multiple of the
+    finest step: where the next kick's grading starts), its last steps halved down to it; else the
+    last segment may run past it by less than a step."""
     segments, t = [], 0.0
+    end = span
+    if exact:  # graded up to the last multiple of ``top``, then steps halving down to the span's end
+        end = math.floor((origin + span) / top + 1e-9) * top - origin
+        if end <= 1e-12 * top:
+            fine = top / 2 ** level
+            return [Segment(fine, round(span / fine), round(origin / fine))]
 
     def switch_at(h: float, t: float) -> float:
         """The first time at or after ``t`` on the grid of ``2h`` (a held loop's samples) at which
         ``h(t)`` allows ``2h``; inf: not within the span."""
         allowed = allowed_at[round(math.log2(top / h))]
-        if allowed >= span:
+        if allowed >= end:
             return math.inf
         unit = held_period if held_period is not None else 2 * h  # a held loop's segments start on a sample
-        return math.ceil(max(allowed, t) / unit - 1e-9) * unit
+        return math.ceil((origin + max(allowed, t)) / unit - 1e-9) * unit - origin
 
     while True:
         h = top / 2 ** level
-        remaining = math.ceil((span - t) / h - 1e-9)
+        remaining = math.ceil((end - t) / h - 1e-9)
         switch, after_level, coarse = (switch_at(h, t) if level else math.inf), level - 1, 2 * h
         # a coarser segment that would save at most MERGE_STEPS steps is taken at h (one segment less)
-        while switch < span and after_level > 0:
+        while switch < end and after_level > 0:
             after = switch_at(coarse, switch)
-            span_after = min(after, span) - switch
+            span_after = min(after, end) - switch
             if span_after / h - span_after / coarse > MERGE_STEPS:
                 break
             switch, after_level, coarse = after, after_level - 1, 2 * coarse
-        if switch >= span:
-            segments.append(Segment(h, remaining, round(t / h)))
-            return segments
+        if switch >= end:
+            segments.append(Segment(h, remaining, round((origin + t) / h)))
+            break
         n = min(round((switch - t) / h), remaining)
         if n > 0:
-            segments.append(Segment(h, n, round(t / h)))
+            segments.append(Segment(h, n, round((origin + t) / h)))
         t = switch
         level = after_level
-        if t >= span - 1e-12 * span:
-            return segments
+        if t >= end - 1e-12 * max(end, top):
+            break
+    if exact:
+        t, h = end, segments[-1].dt
+        while t < span - 1e-12 * top:
+            while t + h > span + 1e-12 * top:
+                h /= 2
+            segments.append(Segment(h, 1, round((origin + t) / h)))
+            t += h
+    return segments
 
 
 def record_strides(plan: StepPlan, max_samples: int) -> list[int]:

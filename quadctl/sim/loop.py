@@ -429,7 +429,7 @@ def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance:
         A given step a sampled controller's period does not hold whole, or a runaway plan.
     """
 
-    kicks = reference.path.jumps if reference is not None else ()
+    kicks = tuple(reference.path.knots) if reference is not None else ()
     if loop.rate is not None:
         L, eig = loop.plant_linear_part(), np.asarray(loop.eigenvalues)
         owners = list(loop.owners) or ["loop"] * len(eig)

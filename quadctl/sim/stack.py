@@ -247,12 +247,12 @@ def kept_exponential_stack(loop: ClosedLoop, duration: float, dt="auto", *, tole
     again (nor marshals them for the runner).
 
     A :class:`~quadctl.physics.flatness.FlownReference` counts as the same when it flies the same
-    path object, with the same steps (``jumps``) and parameters (its position range and, for a gain
+    path object, with the same knots (``knots``) and parameters (its position range and, for a gain
     schedule, the pieces the plan is cut into are read from it).
     """
     key = (float(duration), dt if dt == "auto" else float(dt), tolerance, int(max_samples),
            exo_period, bool(noise), bool(wind),
-           None if reference is None else (id(reference.path), tuple(reference.path.jumps),
+           None if reference is None else (id(reference.path), tuple(reference.path.knots),
                                              np.asarray(reference.params).tobytes()))
     kept = loop.kept.setdefault("exponential_stacks", {})
     if key in kept:

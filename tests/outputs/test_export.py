@@ -507,7 +507,7 @@ def test_the_reference_header_documents_the_reference_input():
                  "read x; quadctl_step_ref(&c, x, &ref, u); apply u", "u = u_ref(t) - K (x - x_ref(t))"):
         assert line in header, line
     assert "void quadctl_step(" not in header and "THE REFERENCE" in header
-    assert "#define QC_E_REF_U 37  /* ref_u (4) */" in source and "#define QC_NE 45" in source
+    assert "#define QC_E_REF_U 37  /* ref_u (4) */" in source and "#define QC_NE 90" in source
     lqg = cexport.sources(prepared("square-lqg"))[cexport.HEADER]
     assert "const quadctl_real y[QUADCTL_NY], const quadctl_reference *ref" in lqg
     assert "xh <- Ae xc + Be (u_applied - u_ref(t))    predict" in lqg

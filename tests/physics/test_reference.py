@@ -17,7 +17,7 @@ from quadctl import config, pipeline
 from quadctl.errors import ConfigError
 from quadctl.linear.trim import solve_trim
 from quadctl.physics import trajectory
-from quadctl.physics.flatness import FlownReference
+from quadctl.physics.flatness import ROW_HALF, FlownReference
 from quadctl.physics.model import Vehicle, build_model
 from quadctl.present import mission
 from quadctl.present.mission import mission_text
@@ -153,9 +153,11 @@ def test_the_feedforward_tracks_a_flat_reference_to_the_tabulation_error(square)
         def rows_of(cls, references, js, periods):  # every reference row is tabulated here
             out = super().rows_of(references, js, periods)
             for rows in out:
-                for block in range(3):  # x_ref, its rate and curvature: the trim's attitude and rates
-                    rows[:, [1 + block * 12 + i for i in attitude]] = 0.0 if block else loop.x_trim[attitude]
-                rows[:, -8:] = np.r_[loop.u_trim, np.zeros(4)]
+                for half in (0, ROW_HALF):  # each of a row's two expansions
+                    for block in range(3):  # x_ref, its rate and curvature: the trim's attitude and rates
+                        rows[:, [half + 1 + block * 12 + i for i in attitude]] = (0.0 if block
+                                                                                  else loop.x_trim[attitude])
+                    rows[:, half + ROW_HALF - 8:half + ROW_HALF] = np.r_[loop.u_trim, np.zeros(4)]
             return out
 
     def peak(ref):
@@ -164,6 +166,57 @@ def test_the_feedforward_tracks_a_flat_reference_to_the_tabulation_error(square)
 
     with_ff, without = peak(flown), peak(SetpointOnly(flown.path, flown.params))
     assert with_ff < 5e-5 and without > 0.02 and with_ff < 1e-3 * without, (with_ff, without)
+
+
+def _derivative_bounds(flown, t_end, knots, h):
+    """(12,), (4,): the largest third derivative of the exact reference state and second of its input
+    on ``[0, t_end]``, from finite differences of :meth:`FlownReference.exact` on steps of ``h`` (s),
+    over the stencils no knot cuts (each smooth piece on its own)."""
+    grid = np.arange(0.0, t_end + h, h)
+    x, u = flown.exact(grid)
+    out = []
+    for v, order in ((x, 3), (u, 2)):
+        cut = np.array([((knots > a) & (knots < b)).any() for a, b in zip(grid[:-order], grid[order:])])
+        out.append(np.abs(np.diff(v, n=order, axis=0)[~cut]).max(axis=0) / h ** order)
+    return out
+
+
+def test_the_tabulated_reference_is_the_trajectory_to_the_row_taylor_remainder_across_leg_ends(square):
+    """The rows the loop reads, evaluated on a fine grid and just either side of every knot (a leg's
+    start and end, where the snap and so the torques step), against the flatness map of the
+    trajectory itself: within the remainder of each row's expansion over a row spacing ``h`` (the
+    exogenous period), ``5/12 h^3 max |x^(3)|`` for the state's quadratic (value and slope at the row's
+    start, slope carried to its end) and ``h^2 / 8 max |u^(2)|`` for the input's chord, the derivatives
+    bounded by finite differences of the trajectory within each smooth piece."""
+    from quadctl.sim.exogenous import ExoStream
+
+    setup, loop = square
+    flown = setup.flown_reference
+    h = ExoStream(None, None, loop.rate or setup.timing.rate).period
+    knots = flown.path.knots
+    assert len(knots) >= 7 and np.any(np.abs(knots / h - np.round(knots / h)) > 1e-3)  # leg ends off the grid
+    near = np.concatenate([knots + d for d in (-1e-7, 1e-7, 1e-4, 0.3 * h, 0.7 * h)])
+    t = np.sort(np.concatenate([np.linspace(0.0, setup.duration, 6007), near[near < setup.duration]]))
+    rows = flown.rows(np.floor(t / h + 1e-9).astype(np.int64), h)
+    x, u = flown.flown(rows, t)
+    x_exact, u_exact = flown.exact(t)
+    third, second = _derivative_bounds(flown, setup.duration, knots, h / 16)
+    scale = np.abs(np.hstack([x_exact, u_exact])).max(axis=0)
+    allowed = 2 * np.r_[5 / 12 * h ** 3 * third, h ** 2 / 8 * second] + 1e-9 * scale  # 2: the bounds' own error
+    error = np.abs(np.hstack([x - x_exact, u - u_exact]))
+    worst = np.argmax((error / allowed).max(axis=1))
+    assert (error <= allowed).all(), (t[worst], np.max(error / allowed), error[worst], allowed)
+
+
+def test_the_square_missions_peak_roll_torque_is_its_feedforwards(square, square_run):
+    """Flown from the reference's start, the loop adds to the feedforward only what the tabulation and
+    the decoupled design leave: the commanded roll torque stays of the order of the feedforward's
+    largest (the trajectory's own, from the flatness map), with no kick where a leg ends."""
+    setup, _ = square
+    grid = np.linspace(0.0, setup.duration, 30001)
+    feedforward = np.abs(setup.flown_reference.exact(grid)[1][:, 1]).max()
+    peak = np.abs(square_run.u[:, 1]).max()
+    assert peak < 1.5 * feedforward, (peak, feedforward)
 
 
 def _brute_approach(t, x, leg_start, after, waypoint, tolerance):

@@ -303,15 +303,19 @@ whole of it (four legs, a climb and turns to 90 and 180 deg of heading)."""
 
 @pytest.fixture(scope="module")
 def mission_truth():
-    """(loop, x0, reference, RK4 run) of the ``square`` mission's first MISSION_SPAN s, RK4 at 1/1024 of the
+    """(loop, x0, reference, RK4 run) of the ``square`` mission's first MISSION_SPAN s, RK4 at 1/2000 of the
     rows' period recorded once a row, its own largest error bounded by its difference from RK4 at
-    1/512 (RK4's error falls 16-fold a halving: the finer's is a fifteenth of the difference)."""
+    1/1000 (RK4's error falls 16-fold a halving: the finer's is a fifteenth of the difference). Both
+    steps divide 1/8000 s, of which the square's leg times are multiples: every knot of its reference
+    (where the feedforward's torques step) is a step's end, so no step integrates across one."""
     setup, _, linear, _, des = solve(cfg_dict("square"))
     loop = pipeline.loop_of(setup, linear, des)
     x0, ref = setup.initial_state(loop.x_trim), setup.flown_reference
+    knots = ref.path.knots * 8000
+    assert np.abs(knots - np.round(knots)).max() < 1e-6
     rows = round(MISSION_SPAN / 0.005)
     fine, coarse = (simulate(loop, x0, MISSION_SPAN, 0.005 / k, reference=ref, max_samples=rows + 1)
-                    for k in (1024, 512))
+                    for k in (2000, 1000))
     assert np.array_equal(fine.t, coarse.t) and len(fine.t) == rows + 1
     assert np.abs(fine.x - coarse.x).max() < 6e-11  # the reference's own error: about 4e-12 at most
     return loop, x0, ref, fine
@@ -339,7 +343,7 @@ def test_a_missions_largest_error_is_within_its_tolerance(mission_truth, toleran
 @pytest.mark.compiler
 def test_setpoint_steps_are_graded_like_the_start(monkeypatch):
     """Each setpoint steps the reference and kicks the fast loops as the initial offset does, so dt: auto
-    grades again from each (Reference.jumps): the report's forward loop, velocity steps at 0.5 and 1 s,
+    grades again from each (Reference.knots): the report's forward loop, velocity steps at 0.5 and 1 s,
     within the tolerance 1e-8 of RK4 at 1/256 of the rows' period. Graded from t = 0 only, the steps
     after a setpoint are too long for the kicked rate loops: over 1e-6."""
     from quadctl.physics.trajectory import Reference
@@ -356,8 +360,9 @@ def test_setpoint_steps_are_graded_like_the_start(monkeypatch):
     assert etd.status == truth.status == "ok"
     assert np.abs(etd.x[-1] - truth.x[-1]).max() < 1e-8
     finest = etd.plan.schedule[0].dt
-    assert [s.dt for s in etd.plan.schedule if s.start in (0.5, 1.0)] == [finest, finest]
-    monkeypatch.setattr(Reference, "jumps", ())
+    for kick in (0.5, 1.0):  # reached on the kicks' own finest step (graded from just before it)
+        assert next(s.dt for s in etd.plan.schedule if s.start < kick <= s.end) == finest / 2 ** etdrk4_plan.KICK_LEVELS
+    monkeypatch.setattr(Reference, "knots", ())
     once = simulate(loop, x0, 1.5, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
     assert once.steps < etd.steps and np.abs(once.x[-1] - truth.x[-1]).max() > 1e-6
 
