@@ -172,12 +172,12 @@ def path_figure(sim, waypoints=(), *, reached=None, tolerance: float | None = No
         if tolerance:
             plane.add_patch(Circle((wp[1], wp[0]), tolerance, fill=False, color=style["mec"], lw=0.8, ls=":",
                                    zorder=4))
-        plane.annotate(str(k + 1), (wp[1], wp[0]), textcoords="offset points", xytext=(7, 7), fontsize=9,
+        plane.annotate(str(k), (wp[1], wp[0]), textcoords="offset points", xytext=(7, 7), fontsize=9,
                        fontweight="bold", color=style["mec"], zorder=5)
         if when is not None:
             alt.plot(when, -wp[2], ls="none", ms=7, zorder=4, **style)
             alt.axvline(when, color=style["mec"], lw=0.6, ls=":", zorder=0)
-            alt.annotate(str(k + 1), (when, -wp[2]), textcoords="offset points", xytext=(5, 6), fontsize=9,
+            alt.annotate(str(k), (when, -wp[2]), textcoords="offset points", xytext=(5, 6), fontsize=9,
                          fontweight="bold", color=style["mec"])
     plane.set_aspect("equal", adjustable="datalim")
     plane.margins(0.08)
