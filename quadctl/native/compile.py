@@ -61,7 +61,8 @@ EVICT_AFTER_DAYS = 30
 GENERATOR_SOURCES = ("_lazy.py", "layout.py", "physics/model.py", "sim/builder.py", "native/emit.py", "sim/cases.py",
                      "native/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
                      "design/gain_table.py", "metrics.py", "native/mapped.py",
-                     "native/pointwise.py", "physics/motors.py", "errors.py", "sim/pid.py", "config/pid.py")
+                     "native/pointwise.py", "physics/motors.py", "errors.py", "sim/pid.py", "config/pid.py",
+                     "physics/flatness.py", "physics/trajectory.py")
 """The files a library's C is generated from (``tests/house/test_structure.py`` checks that this lists
 everything those modules import from quadctl). Read once, when this module is imported: the cache
 key hashes the code this process runs, and ``driver.c`` is compiled from the same bytes."""

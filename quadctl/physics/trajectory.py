@@ -47,7 +47,8 @@ def shape_derivatives(kind: str, tau, left: bool = False) -> np.ndarray:
     clipped = np.clip(tau, 0.0, 1.0)
     for k in range(ORDER):
         out[k] = coef.deriv(k)(clipped) if k else coef(clipped)
-    end = tau > 1 + ROUNDOFF if left else tau > 1 - ROUNDOFF
+    last = 1.0 + ROUNDOFF if left else 1.0 - ROUNDOFF  # the shape's end, taken from the left or the right
+    end = tau > last
     out[1:, (tau < -ROUNDOFF) | end] = 0.0
     return out
 

@@ -296,7 +296,7 @@ def test_the_path_figure_marks_each_waypoint_reached_or_missed(square, square_ru
               for line in plane.lines if line.get_marker() in ("s", "X")]
     expected = ["s" if reached is None or r is not None else "X" for r in (reached or [None] * 4)]
     assert marked == [(m, p[1], p[0]) for m, p in zip(expected, positions)]  # east right, north up
-    assert [a.get_text() for a in plane.texts] == ["1", "2", "3", "4"]
+    assert [a.get_text() for a in plane.texts] == ["0", "1", "2", "3"]
     when = [(float(line.get_xdata()[0]), float(line.get_ydata()[0])) for line in altitude.lines
             if line.get_marker() == "s"]
     assert when == [(r, -p[2]) for r, p in zip(reached or (), positions) if r is not None]
