@@ -10,6 +10,7 @@ import numpy as np
 
 from quadctl.artifacts.meta import IDENTIFIED_CONFIG_HEAD, metadata
 from quadctl.config import parse
+from quadctl.config.schema import MAX_DELAY_SAMPLES
 from quadctl.errors import LogError
 from quadctl.identify import estimate as est
 from quadctl.identify import windows as win
@@ -28,13 +29,15 @@ class Identification:
     controller_rate: float | None = None
     """Hz, the config's ``controller.rate`` (None: continuous), at which a fitted delay is counted."""
 
-    def delay_samples(self) -> int | None:
+    def delay_samples(self, written: bool = True) -> int | None:
         """The fitted delay as the nearest whole number of controller samples (``controller.delay`` counts
-        them); None without a fitted delay or without a controller rate (a continuous controller has none)."""
+        them); None without a fitted delay or without a controller rate (a continuous controller has none), and
+        (``written``) when it is more than ``controller.delay`` takes (:data:`MAX_DELAY_SAMPLES`)."""
         th = self.fits["thrust"]
         if "delay" not in th.names or self.controller_rate is None:
             return None
-        return round(th.value("delay") * self.controller_rate)
+        n = round(th.value("delay") * self.controller_rate)
+        return None if written and n > MAX_DELAY_SAMPLES else n
 
     def max_thrust(self) -> float:
         """N: a rotor's thrust at full command (the curve at 1)."""
@@ -119,7 +122,8 @@ def payload(ident: Identification, config_label: str, config=None) -> dict:
     return {**meta, "config": config_label, "logs": [log.provenance() for log in ident.logs], "stages": stages,
             "refused": dict(ident.refused),
             "delay_written": None if not fitted_delay else {
-                "samples": n, "rate_hz": ident.controller_rate, "s": None if n is None else n / ident.controller_rate},
+                "samples": n, "rate_hz": ident.controller_rate, "s": None if n is None else n / ident.controller_rate,
+                "fitted_samples": ident.delay_samples(written=False), "max_samples": MAX_DELAY_SAMPLES},
             "held": {"mass_kg": ident.airframe.mass, "rotor_positions_m": ident.airframe.positions.tolist(),
                      "Jzz_kg_m2": float(ident.airframe.inertia[2])},
             "structure": "each rotor's command lags first-order through T_m (after the pure delay, when fitted); "

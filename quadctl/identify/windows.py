@@ -153,18 +153,23 @@ def plan(logs, windows=None) -> Plan:
 
 
 def check_windows(log, windows) -> None:
-    """Refuse given windows that overlap (touching ones are fine) or lie wholly outside the log's span.
+    """Refuse given windows that overlap (touching ones are fine) or reach outside the log's span (by more
+    than a sample: an end read off the span as printed, rounded, is still inside).
 
-    A sample in two windows would count twice in the fit (and its lag restart inside the other window).
+    A sample in two windows would count twice in the fit (and its lag restart inside the other window); a
+    window past the log's end would be fitted on what it holds and reported as given.
 
     Raises
     ------
     LogError
         Naming the two overlapping windows, or the window outside and the log's span.
     """
+    step = float(np.median(np.diff(log.t))) if log.t.size > 1 else 0.0
     for a, b in windows:
-        if b <= log.t[0] or a >= log.t[-1]:
-            raise LogError(f"{log.name}: --window {a:g}:{b:g} lies outside the log, which spans t {log.t[0]:.4g} "
+        where = "lies outside" if b <= log.t[0] or a >= log.t[-1] else \
+            "reaches outside" if a < log.t[0] - step or b > log.t[-1] + step else None
+        if where:
+            raise LogError(f"{log.name}: --window {a:g}:{b:g} {where} the log, which spans t {log.t[0]:.4g} "
                            f"to {log.t[-1]:.4g} s (from its first sample); choose t0:t1 inside it")
     ordered = sorted(windows)
     for (a, b), (c, d) in zip(ordered, ordered[1:]):

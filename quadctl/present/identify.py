@@ -63,7 +63,12 @@ def sentences(payload: dict) -> list[str]:
     delay = payload.get("delay_written")
     if delay is not None:
         fitted = th["parameters"]["delay"]["value"]
-        if delay["samples"] is None:
+        if delay["samples"] is None and delay.get("fitted_samples") is not None:
+            out.append(f"The fitted delay, {fitted * 1e3:.4g} ms, is {delay['fitted_samples']} samples at "
+                       f"{delay['rate_hz']:g} Hz, more than controller.delay takes ({delay['max_samples']}): it is "
+                       "not written into the identified config (a delay that long is rarely the rotors'; check the "
+                       "log's timing).")
+        elif delay["samples"] is None:
             out.append(f"The fitted delay, {fitted * 1e3:.4g} ms, is not written into the identified config: "
                        "its controller runs continuous (no controller.rate), and controller.delay counts "
                        "controller samples; set controller.rate (Hz) and controller.delay: {samples: n}, n the "

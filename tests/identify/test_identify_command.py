@@ -185,6 +185,20 @@ def test_a_fitted_delay_with_a_continuous_controller_is_not_written_and_the_user
     assert any("17.11 ms, is not written" in s and "controller.delay: {samples: n}" in s for s in said)
 
 
+def test_a_fitted_delay_longer_than_the_config_takes_is_not_written_and_the_config_still_loads():
+    """17.11 ms at 10 kHz is 171 samples, past controller.delay's 100: the identified config loads without it
+    (it would not with it), and the user is told why."""
+    from quadctl.config import locate, parse
+    from quadctl.identify.results import changes, identified_config, payload
+    from quadctl.present.identify import sentences
+
+    ident = _delay_identification(10_000.0)
+    assert ("controller", "delay") not in changes(ident)
+    parse(identified_config(locate("crazyflie").text, ident, "x"), "x")
+    said = sentences(payload(ident, "crazyflie.yaml"))
+    assert any("is 171 samples at 10000 Hz, more than controller.delay takes (100)" in s for s in said)
+
+
 def test_the_identified_config_says_what_it_is_not_what_the_config_it_came_from_was():
     """A header names the base config, whose comments stay (its sources, which its values cite), but for an
     editor's schema line relative to where it lay; its description and the comment above a replaced value

@@ -101,10 +101,19 @@ def test_window_option_refused(text):
     ([(5.0, 10.0), (9.0, 12.0)], r"hover.csv: --window 5:10 and 9:12 overlap \(t 9 to 10 s would count twice\)"),
     ([(9.0, 12.0), (3.0, 15.0)], r"--window 3:15 and 9:12 overlap"),  # one inside the other, given in any order
     ([(30.0, 40.0)], r"hover.csv: --window 30:40 lies outside the log, which spans t 0 to 20 s"),
+    ([(15.0, 30.0)], r"hover.csv: --window 15:30 reaches outside the log, which spans t 0 to 20 s"),  # fitted on 15-20
 ])
 def test_given_windows_that_overlap_or_miss_the_log_are_refused(windows, match):
     with pytest.raises(LogError, match=match):
         win.plan([hover(collective=0.15)], [windows])
+
+
+def test_a_window_ending_on_the_span_as_printed_is_inside():
+    """The span's end read off the message (4 digits, rounded up by under a sample) is still the log's end."""
+    log = hover(collective=0.15)
+    end = float(f"{log.t[-1] + 0.4 * (log.t[1] - log.t[0]):.4g}")
+    assert end > log.t[-1]
+    win.plan([log], [[(5.0, end)]])
 
 
 def test_touching_windows_are_one_stretch_of_the_log():
