@@ -86,11 +86,11 @@ def expected(err: dict, loc: list) -> str:
     if kind in ("too_short", "too_long"):
         lo, hi = ctx.get("min_length"), ctx.get("max_length")
         if field is not None:
-            meta = {type(m).__name__: m for m in field.metadata}
+            meta = {type(m).__name__: m for m in [*field.metadata, *_length_bounds(field.annotation)]}
             lo = getattr(meta.get("MinLen"), "min_length", lo)
             hi = getattr(meta.get("MaxLen"), "max_length", hi)
         count = f"exactly {lo}" if lo is not None and lo == hi else f"at least {lo}" if hi is None else \
-            f"{lo} to {hi}"
+            f"at most {hi}" if lo is None else f"{lo} to {hi}"
         items = "item" if (hi if hi is not None else lo) == 1 else "items"
         return f"must be a list of {count} {items}{unit}"
     if kind == "list_type":
@@ -156,3 +156,18 @@ def _lookup(data: Any, loc: list) -> Any:
         except (KeyError, IndexError, TypeError):
             return None
     return data
+
+
+def _length_bounds(annotation) -> list:
+    """The ``MinLen``/``MaxLen`` of a list inside an ``Optional[Annotated[list[...], Field(...)]]`` (a field's
+    own metadata holds only the outer annotation's)."""
+    from typing import get_args
+
+    found = []
+    for arg in get_args(annotation):
+        found += [m for m in getattr(arg, "metadata", ()) if type(m).__name__ in ("MinLen", "MaxLen")]
+        for inner in getattr(arg, "__metadata__", ()):
+            found += [m for m in getattr(inner, "metadata", ()) if type(m).__name__ in ("MinLen", "MaxLen")]
+        found += _length_bounds(arg) if get_args(arg) else []
+    return found
+

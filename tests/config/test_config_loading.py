@@ -368,3 +368,12 @@ def test_an_internal_error_is_exit_3_with_or_without_debug(tmp_path, monkeypatch
         assert res.exit_code == 3, res.output
         assert stderr_lines(res)[-1].startswith("quadctl: error: internal error IndexError: list index out of range")
         assert ("Traceback (most recent call last)" in res.stderr) == bool(debug)
+
+
+def test_a_fifth_rotor_position_is_refused_as_a_list_of_exactly_four():
+    """The length rule of a list inside Optional[...] (motors.positions) is read from the list, not said as
+    'None to 4'."""
+    res = CliRunner().invoke(app, ["trim", "-c", "crazyflie", "--set", "motors.spin=[ccw,cw,ccw,cw]", "--set",
+                                   "motors.positions=[[0.03,0.04],[-0.03,0.04],[-0.03,-0.04],[0.03,-0.04],[0.05,0]]"])
+    assert res.exit_code == 2 and "motors.positions" in res.stderr
+    assert "must be a list of exactly 4 items (m, each rotor's" in res.stderr and "None" not in res.stderr
