@@ -318,7 +318,8 @@ def read_log(path, columns: dict[str, str] | None = None) -> FlightLog:
     Raises
     ------
     LogError
-        The file is missing, empty or of no supported format.
+        The file is missing, empty or of no supported format, or ``columns`` are given for a log that is
+        not a CSV.
     """
     p = Path(path)
     if p.is_dir():
@@ -329,6 +330,11 @@ def read_log(path, columns: dict[str, str] | None = None) -> FlightLog:
         head = fh.read(8)
     if not head:
         raise _fail(path, "an empty file", "give the log the vehicle wrote")
+    binary = "a ULog" if head[:7] == b"ULog\x01\x12\x35" else "a Crazyflie microSD log" \
+        if head[0] == CRAZYFLIE_MAGIC else None
+    if binary and columns:  # its fields are named by its format: a mapping would be silently ignored
+        raise LogError(f"{path}: is {binary}, whose fields quadctl reads by their own names: --columns maps the "
+                       "columns of a CSV log only; leave it out")
     if head[:7] == b"ULog\x01\x12\x35":
         return read_ulog(path)
     if head[0] == CRAZYFLIE_MAGIC:

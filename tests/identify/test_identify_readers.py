@@ -189,3 +189,12 @@ def test_a_ulog_is_timed_from_its_first_sample_not_its_epoch_stamps():
     assert log.t[0] == 0 and 30 < log.t[-1] < 32
     assert log.clock_at_start == pytest.approx(1710773350.354, abs=1e-3)
     assert np.diff(log.t).min() > 1e-3  # 250 Hz steps, whole microseconds (no float cancellation at 1.7e9 s)
+
+
+@pytest.mark.parametrize("log", [FLIGHTS / "log10", DATA / "px4-ulog" / "sample_px4_events.ulg"])
+def test_columns_given_for_a_binary_log_are_refused_not_ignored(log):
+    """--columns maps a CSV's columns; a Crazyflie or ULog file names its fields itself: one line, not a
+    mapping silently dropped."""
+    with pytest.raises(LogError, match=r"whose fields quadctl reads by their own names: --columns maps the columns "
+                                       r"of a CSV log only"):
+        read_log(log, {"t": "time_s"})
