@@ -46,6 +46,9 @@ def disturbance_sentence(data: dict) -> Mark:
     if data["wind_seed"] is not None:
         seeds.append(f"turbulence seed {data['wind_seed']}")
     what = " and ".join(seeds) or "no random disturbances"
+    if len(data["laws"]) == 1:
+        return Mark(f"One law flew, through {what} (rows every {num(data['exo_period'])} s, digest "
+                    f"{data['laws'][0]['disturbances'][:12]}).", "ok")
     if data["identical_disturbances"]:
         return Mark(f"Every law flew through the same disturbances ({what}; rows every "
                     f"{num(data['exo_period'])} s, one digest {data['laws'][0]['disturbances'][:12]}).", "ok")

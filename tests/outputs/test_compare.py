@@ -149,6 +149,7 @@ def test_compare_of_the_lqr_design_alone_flies_without_rotors_and_says_nothing_o
     assert rows["rotor peak"] == rows["saturated [s]"] == "-" and rows["gain margin [dB]"] == "inf"
     out = " ".join(res.output.split())
     assert "leaves pN and pE free" in out and "PID" not in out and "cascade" not in out
+    assert "One law flew, through no random disturbances" in out and "Every law" not in out
     assert sorted(p.name for p in (tmp_path / "plots").glob("compare-*.png")) == [
         "compare-altitude.png", "compare-attitude-error.png", "compare-position-error.png"]
 
