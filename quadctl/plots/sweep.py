@@ -29,6 +29,8 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
             return "s"
         if family == "overshoot":
             return "%"
+        if family == "tracking":
+            return "m"
         if family == "peak":
             return unit_of(name)
         return "rad/s" if family == "eig" else ""

@@ -91,7 +91,9 @@ def gated_margins(gates) -> bool:
     return any(g.metric in MARGIN_COLUMNS for g in gates)
 
 
-TRACKING_COLUMNS = ("tracking.rms", "tracking.peak", "waypoints.reached")
+TRACKING_ERRORS = ("tracking.rms", "tracking.peak")
+"""m: the position error flying a reference, its RMS and its peak."""
+TRACKING_COLUMNS = (*TRACKING_ERRORS, "waypoints.reached")
 """Columns of a case that flies a reference: the position tracking error's RMS and peak (m), and
 a mission's waypoints reached in order within its tolerance (a count)."""
 

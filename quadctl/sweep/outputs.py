@@ -13,6 +13,7 @@ import numpy as np
 
 from quadctl.errors import SweepError
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS, mc_grid
+from quadctl.sweep.gates import TRACKING_ERRORS
 from quadctl.sweep.runner import SweepResult
 from quadctl.sweep.spec import SweepSpec
 
@@ -170,10 +171,12 @@ def summarize(result: SweepResult, cfg, spec: SweepSpec) -> dict:
 
 
 def tradeoff_axes(result: SweepResult) -> tuple[str, str]:
-    """The plot's (x, y) metrics: a peak input against a settling time, the gated ones first."""
+    """The plot's (x, y) metrics: a peak input against how well the loop did, the gated ones first: a
+    settling time, or a mission's tracking error (a mission's settling times measure nothing it asks)."""
     gated = [g.metric for g in result.gates]
     xs = [m for m in gated if m.startswith("peak.")] + ["peak.T"]
-    ys = [m for m in gated if m.startswith("settling_time.")] + \
+    ys = [m for m in gated if m.startswith("settling_time.") or m in TRACKING_ERRORS] + \
+         [c for c in result.columns if c in TRACKING_ERRORS] + \
          [c for c in result.columns if c.startswith("settling_time.")]
     return xs[0], (ys[0] if ys else "cost")
 

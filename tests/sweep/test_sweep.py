@@ -23,6 +23,7 @@ from quadctl.design import lqr, riccati_residual
 from quadctl.design.riccati import care_batch
 from quadctl.errors import DesignError, SweepError
 from quadctl.sim.run import simulate
+from quadctl.sweep.gates import Gate
 
 SHORT = {"simulation.duration": 0.15}
 """Every sweep here simulates 0.15 s (about 4 400 RK4 steps at the report's auto step): long
@@ -902,3 +903,21 @@ def test_distinct_rows_number_each_value_from_its_first_row():
     slots = np.array([[0, 1], [2, 1], [0, 1], [0, 0]])
     first, inverse = _distinct_rows(slots)
     assert first.tolist() == [0, 1, 3] and inverse.tolist() == [0, 1, 0, 2]
+
+
+@pytest.mark.parametrize("gates, columns, want", [
+    ((), ["settling_time.pD", "settling_time.phi", "peak.T"], ("peak.T", "settling_time.pD")),
+    ((Gate("peak.A", max=0.01), Gate("settling_time.phi", max=2.0)), ["settling_time.pD", "settling_time.phi"],
+     ("peak.A", "settling_time.phi")),
+    # a mission's sweep: the error it gates on, not a settling time the mission never asked for
+    ((Gate("waypoints.reached", min=4), Gate("tracking.peak", max=1e-3)),
+     ["settling_time.pD", "tracking.rms", "tracking.peak", "waypoints.reached"], ("peak.T", "tracking.peak")),
+    ((), ["settling_time.pD", "tracking.rms", "tracking.peak"], ("peak.T", "tracking.rms")),
+])
+def test_the_trade_off_figure_plots_what_the_sweep_judges(gates, columns, want):
+    from quadctl.sweep.outputs import tradeoff_axes
+    from quadctl.sweep.runner import SweepResult
+
+    result = SweepResult(rows=[], columns=["case", *columns, "pass"], computed=0, wall_time=0.0, stats={},
+                         gates=gates)
+    assert tradeoff_axes(result) == want
