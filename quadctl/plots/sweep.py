@@ -46,8 +46,10 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
             plotted[bool(row.get("pass"))][1].append(vy)
         else:
             missing += 1
-    ax.scatter(*plotted[True], s=14, color=COLORS[0], alpha=0.7, label=f"pass ({len(plotted[True][0])})")
-    ax.scatter(*plotted[False], s=22, color=COLORS[1], marker="x", label=f"fail ({len(plotted[False][0])})")
+    for passed, style in ((True, {"s": 14, "color": COLORS[0], "alpha": 0.7}),
+                          (False, {"s": 22, "color": COLORS[1], "marker": "x"})):
+        if plotted[passed][0]:  # no empty "fail (0)" in the legend
+            ax.scatter(*plotted[passed], label=f"{'pass' if passed else 'fail'} ({len(plotted[passed][0])})", **style)
     labelled = False
     for gate in gates:
         for bound in (gate.min, gate.max):
@@ -56,6 +58,9 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
             line = ax.axvline if gate.metric == x else ax.axhline
             line(bound, color="0.3", ls="--", lw=1.0, label=None if labelled else "gate")
             labelled = True
+    values = plotted[True][1] + plotted[False][1]
+    if y.startswith("tracking.") and values and min(values) > 0:  # errors of many decades, a gate far above them
+        ax.set_yscale("log")
     ax.set_xlabel(f"{x} [{unit(x)}]" if unit(x) else x)
     ax.set_ylabel(f"{y} [{unit(y)}]" if unit(y) else y)
     ax.grid(True, alpha=0.3)

@@ -368,3 +368,18 @@ def test_the_cli_draws_the_same_figures_on_two_cores_and_redraws_what_a_failed_c
 
     monkeypatch.setattr(plots, "png_bytes", fails_in_the_child)
     assert saved("failed", True) == one
+
+
+def test_the_sweep_trade_off_draws_a_missions_errors_on_a_log_scale_and_no_empty_legend_entry():
+    """Tracking errors of 2e-8 to 3e-6 m under a 1e-3 m gate: a log scale shows them apart (a linear one puts
+    all three on its floor); a sweep where nothing fails has no 'fail (0)'; a settling time stays linear."""
+    from quadctl.sweep.gates import Gate
+
+    rows = [{"peak.T": t, "tracking.peak": e, "settling_time.pD": 1.0 + e, "pass": True}
+            for t, e in ((0.68, 1.9e-8), (0.69, 3.4e-7), (0.80, 2.7e-6))]
+    fig = plots.sweep_tradeoff_figure(rows, "peak.T", "tracking.peak", (Gate("tracking.peak", max=1e-3),))
+    (ax,) = fig.axes
+    assert ax.get_yscale() == "log" and ax.get_ylabel() == "tracking.peak [m]"
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["pass (3)", "gate"]
+    (ax,) = plots.sweep_tradeoff_figure(rows, "peak.T", "settling_time.pD").axes
+    assert ax.get_yscale() == "linear"
