@@ -64,7 +64,8 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
     ax.set_xlabel(f"{x} [{unit(x)}]" if unit(x) else x)
     ax.set_ylabel(f"{y} [{unit(y)}]" if unit(y) else y)
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=8, frameon=False)
+    if ax.get_legend_handles_labels()[0]:  # nothing plotted and no gate: no empty legend
+        ax.legend(loc="best", fontsize=8, frameon=False)
     note = f"; {missing} cases without both values" if missing else ""
     fig.suptitle(f"{title}: sweep trade-off ({len(rows)} cases{note})" if title else
                  f"sweep trade-off ({len(rows)} cases{note})")

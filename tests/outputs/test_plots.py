@@ -383,3 +383,9 @@ def test_the_sweep_trade_off_draws_a_missions_errors_on_a_log_scale_and_no_empty
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["pass (3)", "gate"]
     (ax,) = plots.sweep_tradeoff_figure(rows, "peak.T", "settling_time.pD").axes
     assert ax.get_yscale() == "linear"
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "No artists with labels" from an empty legend
+        (ax,) = plots.sweep_tradeoff_figure([{"pass": False}], "peak.T", "settling_time.pD").axes
+    assert ax.get_legend() is None
