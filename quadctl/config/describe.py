@@ -170,4 +170,3 @@ def _length_bounds(annotation) -> list:
             found += [m for m in getattr(inner, "metadata", ()) if type(m).__name__ in ("MinLen", "MaxLen")]
         found += _length_bounds(arg) if get_args(arg) else []
     return found
-

@@ -330,15 +330,13 @@ def read_log(path, columns: dict[str, str] | None = None) -> FlightLog:
         head = fh.read(8)
     if not head:
         raise _fail(path, "an empty file", "give the log the vehicle wrote")
-    binary = "a ULog" if head[:7] == b"ULog\x01\x12\x35" else "a Crazyflie microSD log" \
-        if head[0] == CRAZYFLIE_MAGIC else None
+    binary = ("a ULog", read_ulog) if head[:7] == b"ULog\x01\x12\x35" else \
+        ("a Crazyflie microSD log", read_crazyflie) if head[0] == CRAZYFLIE_MAGIC else None
     if binary and columns:  # its fields are named by its format: a mapping would be silently ignored
-        raise LogError(f"{path}: is {binary}, whose fields quadctl reads by their own names: --columns maps the "
-                       "columns of a CSV log only; leave it out")
-    if head[:7] == b"ULog\x01\x12\x35":
-        return read_ulog(path)
-    if head[0] == CRAZYFLIE_MAGIC:
-        return read_crazyflie(path)
+        raise LogError(f"{path}: is {binary[0]}, whose fields quadctl reads by their own names: --columns maps "
+                       "the columns of a CSV log only; leave it out")
+    if binary:
+        return binary[1](path)
     if p.suffix.lower() in (".csv", ".txt") or b"," in head:
         return read_csv(path, columns)
     raise _fail(path, "not a Crazyflie microSD log, a ULog nor a CSV",
