@@ -288,8 +288,8 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
         "EXO_DEFINES": (
             "\n/* The law's exogenous row: the reference expanded about a time t_j\n"
             " * (quadctl.sim.builder.REFERENCE_LAYOUT), s = t - t_j:\n"
-            " *   x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), u_ref(t) = ref_u + s ref_u_rate,\n"
-            " * and the same about t_b = ref_split from t_b on when t_b > t_j (none here: ref_split = 0).\n"
+            " *   x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), u_ref(t) = ref_u + s ref_u_rate\n"
+            " * (the step_ref_ columns: the expansion a simulated step's stages read, not the law).\n"
             " * quadctl_step_ref expands about the sample itself (t_j = t, s = 0, no rates):\n"
             " *   x_ref(t) = ref->x, u_ref(t) = ref->u. */\n"
             + "\n".join(defines) + f"\n#define QC_NE {start}\n"),

@@ -421,13 +421,8 @@ class FlownReference:
     @staticmethod
     def flown(rows: np.ndarray, t) -> tuple[np.ndarray, np.ndarray]:
         """((n, 12), (n, 4)): the reference the law used at times ``t`` under their ``rows`` (each row's
-        first expansion before its split, its second from it on: :data:`SPLIT_ROUNDOFF`)."""
-        t = np.asarray(t, dtype=float)
-        first, second = rows[:, :ROW_HALF], rows[:, ROW_HALF:]
-        split = second[:, 0]
-        after = ((split > first[:, 0]) & (t > split - SPLIT_ROUNDOFF * (1 + np.abs(split))))[:, None]
-        (x1, u1), (x2, u2) = _expanded(first, t), _expanded(second, t)
-        return np.where(after, x2, x1), np.where(after, u2, u1)
+        expansion in force at ``t``: :func:`in_force`)."""
+        return _expanded(in_force(rows, t)[:, :ROW_HALF], t)
 
     def position_range(self, duration: float, samples: int = 2001) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) (3,) m: the extent of the reference's position over ``[0, duration]``."""
@@ -443,6 +438,24 @@ expansion (the limit from the right): a run's time ``k dt``, rounded, that lands
 ROW_HALF = 1 + 3 * N_STATES + 2 * N_INPUTS
 """Columns of one expansion of a reference row: ``t``, ``x``, rate, curvature, ``u``, ``u`` rate
 (:data:`quadctl.sim.builder.REFERENCE_LAYOUT` holds two)."""
+
+
+def in_force(rows: np.ndarray, at, over=None) -> np.ndarray:
+    """``(n, 2 ROW_HALF)``: per tabulated row (``rows`` (n, 2 :data:`ROW_HALF`), :meth:`FlownReference.rows`)
+    the expansion in force at the times ``at`` (n,) s, then the one in force at ``over`` (n,) s (default
+    ``at``): what the loop reads (:data:`quadctl.sim.builder.REFERENCE_LAYOUT`, ``over`` a step's
+    midpoint). A row's second expansion is in force from its split ``t_b`` on (to within
+    :data:`SPLIT_ROUNDOFF`) when the row has one (``t_b`` after the first's anchor), its first
+    before. ``driver.c``'s ``qc_after`` is this rule in C (the compiled runners choose there)."""
+    first, second = rows[:, :ROW_HALF], rows[:, ROW_HALF:]
+    split = second[:, 0]
+    has = split > first[:, 0]
+    edge = split - SPLIT_ROUNDOFF * (1 + np.abs(split))
+
+    def chosen(t):
+        return np.where((has & (np.asarray(t, dtype=float) > edge))[:, None], second, first)
+
+    return np.hstack([chosen(at), chosen(at if over is None else over)])
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,6 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.design.gain_table import VARIABLES, scheduling_value
 from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, PRODUCTS, STATE_INDEX
-from quadctl.physics.flatness import SPLIT_ROUNDOFF
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 from quadctl.physics.motors import desaturate
 from quadctl.sim import pid
@@ -65,24 +64,28 @@ WIND_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 """Exogenous channels of one step after the noise's, when the loop has wind."""
 REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
-    ("ref_t", 1),                       # s: the time t_j the row's reference is expanded about
+    ("ref_t", 1),                       # s: the time t_j the expansion is about
     ("ref_x", N_STATES),                # x_ref(t_j)
     ("ref_rate", N_STATES),             # d x_ref / dt at t_j
     ("ref_curvature", N_STATES),        # x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), s = t - t_j
     ("ref_u", N_INPUTS),                # u_ref(t_j)
     ("ref_u_rate", N_INPUTS),           # u_ref(t) = ref_u + s ref_u_rate (the feedforward)
-    ("ref_split", 1),                   # s: t_b, from which the second expansion holds (none: t_b <= t_j)
-    ("ref_x_after", N_STATES),          # the same five about t_b, s = t - t_b
-    ("ref_rate_after", N_STATES),
-    ("ref_curvature_after", N_STATES),
-    ("ref_u_after", N_INPUTS),
-    ("ref_u_rate_after", N_INPUTS),
+    ("step_ref_t", 1),                  # the same five of the expansion in force over the step
+    ("step_ref_x", N_STATES),
+    ("step_ref_rate", N_STATES),
+    ("step_ref_curvature", N_STATES),
+    ("step_ref_u", N_INPUTS),
+    ("step_ref_u_rate", N_INPUTS),
 )
 """Exogenous channels of one step after the wind's, when the loop flies a reference
 (:mod:`quadctl.physics.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law. Two
-expansions, the second from ``ref_split`` on when that is after ``ref_t``: a row in which a knot of
-the path lies (a piece's start, a leg's end) expands each side of it on its own
-(:class:`quadctl.physics.flatness.FlownReference`)."""
+expansions of the path (:class:`quadctl.physics.flatness.FlownReference`): the one in force at the
+step's start ``t`` (the law's and the regulated reference's, :func:`build`'s ``qc_law`` and ``qc_ref``),
+and the one in force over the step (the one its midpoint falls in: every stage of an RK4 or ETDRK4
+step). The runners choose them from the tabulated row before each step
+(:func:`quadctl.physics.flatness.in_force`), so the generated step reads its columns with no
+choice in it (a select per column would keep the compiler from vectorizing the lanes); they are
+the same expansion but in a row a knot of the path splits."""
 N_REFERENCE = sum(size for _, size in REFERENCE_LAYOUT)
 
 
@@ -590,8 +593,8 @@ class LoopFunctions:
     ref: ca.Function | None = None
     remainder: ca.Function | None = None
     """ETDRK4 only: the nonlinear remainder ``N = rhs - L X`` of :func:`etdrk4`'s stages,
-    ``(X, t, c, e, t_mid) -> (N, u)`` (``u`` the input at ``X``; ``t_mid`` the midpoint of the step whose
-    stage it is, which decides the side of a reference's split) with continuous feedback, ``(X, u, c, e) -> N``
+    ``(X, t, c, e) -> (N, u)`` (``N`` on the reference's expansion in force over the step, ``u`` the input
+    at ``X`` on the one in force at ``t``: :data:`REFERENCE_LAYOUT`) with continuous feedback, ``(X, u, c, e) -> N``
     under a held input: what a one-case compiled loop evaluates, its stages' products in
     ``driver.c`` (``qc_etd``, the same operations in the same order)."""
 
@@ -664,18 +667,15 @@ def build(spec: LoopSpec) -> LoopFunctions:
                             for k in range(N_RATES)])
 
     half = N_REFERENCE // 2  # one expansion's columns (REFERENCE_LAYOUT holds two)
-
-    side = {"at": None}  # a step's midpoint while its stages are built: the side of a split it takes
+    n_ref = n_wind_end
+    stage = {"over_step": False}  # True while a step's stages are built: they read the step's expansion
 
     def expansion(t):
-        """The row's expansion in force at ``t``: its columns and ``s`` (the time from its anchor). The
-        second from the split on (:data:`quadctl.physics.flatness.SPLIT_ROUNDOFF`), or, in an RK4 step,
-        the one its midpoint falls in, for every stage (a step that ends or starts on a knot integrates
-        the one side of it it spans; ETDRK4's steps alike, its remainder given the step's midpoint)."""
-        first, second = e[n_wind_end:n_wind_end + half], e[n_wind_end + half:n_wind_end + 2 * half]
-        at = t if side["at"] is None else side["at"]
-        after = ca.logic_and(second[0] > first[0], at > second[0] - SPLIT_ROUNDOFF * (1 + ca.fabs(second[0])))
-        ref = ca.if_else(after, second, first)
+        """The expansion the loop reads at ``t`` (:data:`REFERENCE_LAYOUT`): its columns and ``s`` (the
+        time from its anchor): the one in force at the step's start, or in a step's stages the one in
+        force over the step."""
+        start = n_ref + (half if stage["over_step"] else 0)
+        ref = e[start:start + half]
         return ref, t - ref[0]
 
     def x_ref(t):
@@ -791,12 +791,12 @@ def build(spec: LoopSpec) -> LoopFunctions:
                             params[PRODUCTS.stop:])
 
     def rk4(rhs, Y):
-        side["at"] = t + dt / 2
+        stage["over_step"] = True
         k1 = rhs(Y, t)
         k2 = rhs(Y + dt / 2 * k1, t + dt / 2)
         k3 = rhs(Y + dt / 2 * k2, t + dt / 2)
         k4 = rhs(Y + dt * k3, t + dt)
-        side["at"] = None
+        stage["over_step"] = False
         return Y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
     def body(Y, u):
@@ -865,14 +865,11 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
     remainder = None
     if spec.method == "etdrk4":
-        side["at"] = t + dt / 2  # every stage on the side of a split the step's midpoint is on
+        stage["over_step"] = True  # every stage reads the expansion in force over the step
         X_next = etdrk4(closed_rhs, X, t, dt, phi_block(c, spec))
-        middle = ca.SX.sym("t_mid")  # the remainder's: the midpoint of the step whose stage it is
-        side["at"] = middle
         N = closed_rhs(X, t) - phi_block(c, spec)["lin"] @ X
-        side["at"] = None
-        remainder = ca.Function("qc_rem", [X, t, c, e, middle], ca.cse([N, u_now]),
-                                ["X", "t", "c", "e", "t_mid"], ["N", "u"])
+        stage["over_step"] = False
+        remainder = ca.Function("qc_rem", [X, t, c, e], ca.cse([N, u_now]), ["X", "t", "c", "e"], ["N", "u"])
     else:
         X_next = rk4(closed_rhs, X)
     step = ca.Function("qc_step", [X, t, dt, c, e], ca.cse([X_next, u_now]),

@@ -8,7 +8,7 @@
  *   qc_plant(X, u, dt, c, e, X_next, P)   one RK4 step under a held input        (QC_HELD == 1)
  * (P: what the step computes from dt and c alone, computed once a run by qc_step_pre / qc_plant_pre
  * into qc_step_nh / qc_plant_nh values a lane); or, for one case of ETDRK4 (QC_ETD), in their place
- *   qc_rem(X, t, c, e, t_mid, N, u, P) / qc_rem(X, u, c, e, N, P)  the nonlinear remainder N = rhs - L X
+ *   qc_rem(X, t, c, e, N, u, P) / qc_rem(X, u, c, e, N, P)  the nonlinear remainder N = rhs - L X
  * whose stages qc_etd combines here (P: what it computes from c alone, by qc_rem_pre)
  *   qc_ref(t, c, e, x_ref)             the reference state the law regulates to (QC_NS states)
  * and the metrics' constants (QC_BAND, QC_FLOOR: quadctl.metrics; QC_SETTLE_NONE, QC_SETTLE_PENDING:
@@ -50,27 +50,62 @@ static long qc_exo_sample(const double* lane_d, int l, long kk) {
   return (long)floor((double)kk * QC_DT(l) / QC_PERIOD(l) + 1e-9);
 }
 
-/* the exogenous row of absolute step kk (its sample, clipped to the rows given); *held is the row
- * lane l holds in e (-1: none), not copied again (a row lasts many steps) */
-static void qc_exo_row(const double* exo, long exo_rows, const double* lane_d, const long* lane_i,
-                       int l, long kk, double* e, long* held) {
-  if (QC_NE == 0 || exo == NULL) return;
+#if QC_REF >= 0
+/* whether a tabulated reference row's second expansion is in force at t: from its split on, when it
+ * has one (quadctl.physics.flatness.in_force, the same rule) */
+static int qc_after(const double* row, double t) {
+  const double split = row[QC_REF + QC_REF_HALF];
+  return split > row[QC_REF] && t > split - QC_SPLIT_ROUNDOFF * (1 + fabs(split));
+}
+#endif
+
+/* the exogenous row of absolute step kk (its sample, clipped to the rows given) as the loop functions
+ * read it at time t (quadctl.sim.builder.REFERENCE_LAYOUT): a reference's expansion in force at t, then
+ * the one in force over the step from t (at its midpoint t + dt / 2). *held is what lane l holds in e
+ * (-1: nothing), not copied again (a row lasts many steps); returns whether the row is split (the
+ * expansions it gives change within it) */
+static int qc_exo_row(const double* exo, long exo_rows, const double* lane_d, const long* lane_i,
+                      int l, long kk, double t, double* e, long* held) {
+  if (QC_NE == 0 || exo == NULL) return 0;
   long j = qc_exo_sample(lane_d, l, kk) - QC_EXO_FIRST(l);
   if (j > QC_EXO_N(l) - 1) j = QC_EXO_N(l) - 1;
   if (j < 0) j = 0;
-  if (j == *held) return;
-  *held = j;
   const double* row = exo + ((long)l * exo_rows + j) * QC_NE;
+#if QC_REF >= 0
+  const int split = row[QC_REF + QC_REF_HALF] > row[QC_REF];
+  const int at = split && qc_after(row, t), over = split && qc_after(row, t + QC_DT(l) / 2);
+  const long key = 4 * j + 2 * at + over;
+#else
+  const int split = 0;
+  const long key = j;
+#endif
+  if (key == *held) return split;
+  *held = key;
+#if QC_REF >= 0
+  for (int i = 0; i < QC_REF; ++i) e[i * QC_L + l] = row[i];
+  const double* first = row + QC_REF + (at ? QC_REF_HALF : 0);
+  const double* step = row + QC_REF + (over ? QC_REF_HALF : 0);
+  for (int i = 0; i < QC_REF_HALF; ++i) {
+    e[(QC_REF + i) * QC_L + l] = first[i];
+    e[(QC_REF + QC_REF_HALF + i) * QC_L + l] = step[i];
+  }
+#else
   for (int i = 0; i < QC_NE; ++i) e[i * QC_L + l] = row[i];
+#endif
+  return split;
 }
 
-/* qc_exo_row of step kk in a run whose steps increase, and *until: the first later step whose
- * sample is another (LONG_MAX: the rows given end first), so the steps before it need no row
- * (a sample lasts many steps). Found from an estimate, then by the same formula as each step's:
- * the sample is nondecreasing in kk, so the step found is exactly the first that changes it. */
+/* qc_exo_row of step kk (at t) in a run whose steps increase, and *until: the first later step whose
+ * row is another (LONG_MAX: the rows given end first), so the steps before it need no row (a sample
+ * lasts many steps), or the next step in a split row (its expansions change within it). Found from
+ * an estimate, then by the same formula as each step's: the sample is nondecreasing in kk, so the
+ * step found is exactly the first that changes it. */
 static void qc_exo_next(const double* exo, long exo_rows, const double* lane_d, const long* lane_i,
-                        int l, long kk, double* e, long* held, long* until) {
-  qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk, e, held);
+                        int l, long kk, double t, double* e, long* held, long* until) {
+  if (qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk, t, e, held)) {
+    *until = kk + 1;
+    return;
+  }
   long sample = qc_exo_sample(lane_d, l, kk);
   if (QC_NE == 0 || exo == NULL || sample - QC_EXO_FIRST(l) >= QC_EXO_N(l) - 1) {
     *until = LONG_MAX;
@@ -279,7 +314,7 @@ static void qc_mv(const double* restrict c, int k, const double* restrict v, dou
 #if QC_HELD
 #define QC_REM(Y, ts, N, U) qc_rem(Y, U, c, e, N, P)
 #else
-#define QC_REM(Y, ts, N, U) qc_rem(Y, ts, c, e, th, N, U, P)  /* th: the step's midpoint */
+#define QC_REM(Y, ts, N, U) qc_rem(Y, ts, c, e, N, U, P)
 #endif
 /* X_next = one step h from X at t; u: the input at X (continuous feedback), or the held one */
 static void qc_etd(const double* X, const double* t, const double* h, const double* c, const double* e,
@@ -371,7 +406,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
 #if QC_ETD && QC_HELD
   qc_rem_pre(X, U, c, E, P);
 #elif QC_ETD
-  qc_rem_pre(X, T, c, E, T, P);
+  qc_rem_pre(X, T, c, E, P);
 #elif QC_HELD
   qc_plant_pre(X, U, DT, c, E, P);
 #else
@@ -386,7 +421,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     if (QC_NE > 0 && exo != NULL)  /* (without exogenous rows qc_exo_next does nothing) */
       for (int l = 0; l < QC_L; ++l)
         if (QC_K0(l) + k >= until[l])
-          qc_exo_next(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, E, held + l, until + l);
+          qc_exo_next(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + k, T[l], E, held + l, until + l);
 #if QC_HELD
     int sample = 0;
     for (int l = 0; l < QC_L; ++l) sample |= hold_in[l] == 0;
@@ -480,7 +515,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
   for (int l = 0; l < QC_L; ++l) {
     long last = QC_K0(l) + done[l];
     T[l] = QC_DT(l) * (double)last;
-    qc_exo_row(exo, exo_rows, lane_d, lane_i, l, last > 0 ? last - 1 : 0, E, held + l);
+    qc_exo_row(exo, exo_rows, lane_d, lane_i, l, last > 0 ? last - 1 : 0, T[l], E, held + l);
   }
   qc_law(XF, T, c, E, U, XS);
   for (int l = 0; l < QC_L; ++l) {
@@ -503,7 +538,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     for (int l = 0; l < QC_L; ++l) {
       kk[l] = QC_K0(l) + done[l];
       on[l] = 1;
-      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk[l], E, held + l);
+      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk[l], T[l], E, held + l);
     }
     qc_ref(T, c, E, XR);
     qc_metric(mq, mv, macc, on, kk, T, XF, U, XR, 1);

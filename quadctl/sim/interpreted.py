@@ -18,7 +18,8 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS
-from quadctl.sim.builder import LoopFunctions, LoopSpec, build
+from quadctl.physics.flatness import in_force
+from quadctl.sim.builder import N_REFERENCE, LoopFunctions, LoopSpec, build
 from quadctl.sim.cases import Cases
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
@@ -73,6 +74,16 @@ def chain(spec: LoopSpec, hold: int, blocks: int, zeros: tuple[int, ...] = ()):
     """``(U, F)``: :func:`block` chained ``blocks`` times by ``mapaccum`` (state accumulated)."""
     U, fn = block(spec, hold, zeros)
     return U, fn.mapaccum("qc_chain", blocks, [0], [0])
+
+
+def as_read(spec: LoopSpec, rows: np.ndarray, at, over=None) -> np.ndarray:
+    """The exogenous ``rows`` (n, n_exo) as the loop functions read them at the times ``at`` (n,) s, for
+    steps whose midpoints are ``over`` (n,) s: a reference's expansions chosen from the tabulated row
+    (:func:`quadctl.physics.flatness.in_force`, what ``driver.c``'s ``qc_exo_row`` does per lane)."""
+    if not spec.reference:
+        return rows
+    start = spec.n_exo - N_REFERENCE
+    return np.hstack([rows[:, :start], in_force(rows[:, start:], at, over)])
 
 
 def zero_constants(c: np.ndarray) -> tuple[int, ...]:
@@ -200,7 +211,7 @@ class InterpretedRunner:
             run.x0[:] = x
             run.t[:] = dt * steps.astype(float)
             if spec.n_exo:
-                run.e[:] = cases.exo[i][cases.exo_index(i, steps, s)]
+                run.e[:] = as_read(spec, cases.exo[i][cases.exo_index(i, steps, s)], run.t, run.t + dt / 2)
             run()
             m = min(width, n - taken)
             after = run.xs[1:m + 1]
@@ -222,7 +233,8 @@ class InterpretedRunner:
         else:
             e = np.zeros(spec.n_exo)
             if spec.n_exo:
-                e = cases.exo[i][cases.exo_index(i, np.array([max(last - 1, 0)]), s)[0]]
+                rows = cases.exo[i][cases.exo_index(i, np.array([max(last - 1, 0)]), s)]
+                e = as_read(spec, rows, dt * float(last))[0]
             u_final = np.asarray(build(spec).law(x, dt * float(last), c, e)[0]).ravel()
         ks.append(np.array([last], dtype=np.int64))
         xs.append(x[None, :])

@@ -12,7 +12,8 @@ from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
 from quadctl.native.compile import C_LONG, DRIVER_SOURCE
 from quadctl.native.emit import SIMD_DECLARATIONS, emit
-from quadctl.sim.builder import LoopFunctions, LoopSpec
+from quadctl.physics.flatness import ROW_HALF, SPLIT_ROUNDOFF
+from quadctl.sim.builder import N_REFERENCE, LoopFunctions, LoopSpec
 from quadctl.sim.cases import Cases
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec
 
@@ -41,7 +42,9 @@ def library_source(funcs: LoopFunctions, lanes: int, simd: bool) -> str:
             f"#define QC_NC {spec.n_constants}\n"
             f"#define QC_HELD {int(spec.held)}\n#define QC_ETD {int(etd)}\n"
             f"#define QC_BAND {SETTLING_BAND!r}\n#define QC_FLOOR {ERROR_FLOOR!r}\n"
-            f"#define QC_SETTLE_NONE ({SETTLE_NONE!r})\n#define QC_SETTLE_PENDING ({SETTLE_PENDING!r})\n")
+            f"#define QC_SETTLE_NONE ({SETTLE_NONE!r})\n#define QC_SETTLE_PENDING ({SETTLE_PENDING!r})\n"
+            f"#define QC_REF {spec.n_exo - N_REFERENCE if spec.reference else -1}\n#define QC_REF_HALF {ROW_HALF}\n"
+            f"#define QC_SPLIT_ROUNDOFF {SPLIT_ROUNDOFF!r}\n")
     if simd:
         head += SIMD_DECLARATIONS
     functions = funcs.functions()

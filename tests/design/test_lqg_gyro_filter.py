@@ -291,7 +291,7 @@ def test_the_continuous_filtered_lqg_loops_linear_part_is_the_builders_jacobian(
     assert spec.n_estimate == N_STATES + spec.n_filter and L.shape == (spec.nx, spec.nx)
     X, nc = ca.SX.sym("X", spec.nx), spec.n_constants
     cs = ca.SX.sym("c", nc)
-    N = build(spec).remainder(X, 0.0, cs, ca.DM.zeros(spec.n_exo), 0.0)[0]
+    N = build(spec).remainder(X, 0.0, cs, ca.DM.zeros(spec.n_exo))[0]
     jac = ca.Function("remainder_jacobian", [X, cs], [ca.jacobian(N, X)])
     base = loop.constants()
     lin = np.zeros(nc - len(base))

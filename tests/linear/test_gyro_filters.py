@@ -231,7 +231,7 @@ def test_the_continuous_loops_linear_part_is_the_builders_jacobian():
     X = ca.SX.sym("X", spec.nx)
     nc = spec.n_constants
     cs = ca.SX.sym("c", nc)
-    N = fns.remainder(X, 0.0, cs, ca.DM.zeros(spec.n_exo), 0.0)[0]
+    N = fns.remainder(X, 0.0, cs, ca.DM.zeros(spec.n_exo))[0]
     jac = ca.Function("remainder_jacobian", [X, cs], [ca.jacobian(N, X)])
     base = loop.constants()
     lin = np.zeros(nc - len(base))
