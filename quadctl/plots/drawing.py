@@ -1,5 +1,6 @@
 """What every figure shares: its resolution and colours, a state as drawn (degrees, the height), a time
-series thinned to the figure's pixel columns, the PNG bytes of a figure, and the inputs' limits.
+series thinned to the figure's pixel columns, titles that fit their panels, the PNG bytes of a figure, and
+the inputs' limits.
 """
 
 from __future__ import annotations
@@ -94,6 +95,56 @@ def trace(ax, x, y, *args, log: bool = False, **kwargs):
             tail_x, tail_y = pixel_envelope(x[head:], y[head:], columns, log=True)
             return ax.plot(np.r_[x[:head], tail_x], np.r_[y[:head], tail_y], *args, **kwargs)
     return ax.plot(*pixel_envelope(x, y, columns, log=log), *args, **kwargs)
+
+
+def wrap_titles(fig: Figure) -> None:
+    """Break each axes title wider than its axes into lines (at its ``", "``; within a part still too wide, at
+    its words, then a file name's ``_`` and ``-``), so that no title runs past its panel into the next or off
+    the figure; the layout engine makes room for the lines when the figure is drawn. Widths are measured once
+    the figure is laid out."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = fig.canvas
+    try:
+        measure = FigureCanvasAgg(fig)
+        fig.draw_without_rendering()
+        _wrap_titles(fig, measure.get_renderer())
+    finally:
+        fig.set_canvas(canvas)
+
+
+def _wrap_titles(fig: Figure, renderer) -> None:
+    for ax in fig.axes:
+        title, room = ax.title, ax.get_window_extent(renderer).width
+        text = title.get_text()
+        if "\n" in text or title.get_window_extent(renderer).width <= room:
+            continue
+
+        def fits(line: str) -> bool:
+            title.set_text(line)
+            return title.get_window_extent(renderer).width <= room
+
+        lines: list[str] = []
+        for piece in _pieces(text, fits):
+            if lines and fits(lines[-1] + piece):
+                lines[-1] += piece
+            else:
+                lines.append(piece)
+        title.set_text("\n".join(line.rstrip() for line in lines))
+
+
+_BREAKS = (", ", " ", "_", "-")
+"""Where a title breaks, the first that makes its parts fit: its clauses, words, then a file name's parts."""
+
+
+def _pieces(text: str, fits, breaks: tuple[str, ...] = _BREAKS) -> list[str]:
+    """``text`` cut after its first separator in ``breaks`` (kept with the part before it), each part too wide
+    for ``fits`` cut again at the next."""
+    if fits(text) or not breaks:
+        return [text]
+    parts = text.split(breaks[0])
+    cut = [p + breaks[0] for p in parts[:-1]] + [parts[-1]]
+    return [piece for part in cut if part for piece in _pieces(part, fits, breaks[1:])]
 
 
 def png_bytes(fig: Figure, dpi: float = DPI) -> bytes:

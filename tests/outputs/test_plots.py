@@ -218,6 +218,23 @@ def test_the_identification_figure_names_its_logs_units_and_hides_no_data():
     assert not any(box.overlaps(ax.get_window_extent()) for ax in fig.axes)
 
 
+@pytest.mark.parametrize("name", ["sample_px4_events.ulg", "log_49_2024-5-12-13-40-22_hover_and_roll_steps.ulg"])
+def test_the_identification_figure_keeps_each_title_of_a_long_log_name_within_its_panel(name):
+    """A ULog's name is long: each title still names it and stays within its panel (broken into lines
+    at its commas), so none runs off the figure or into the next panel."""
+    from quadctl.plots.identify import identification_figure
+
+    ident = _identification()
+    ident.logs[0].name = name
+    fig = _drawn(identification_figure(ident))
+    page = fig.bbox
+    for ax in fig.axes:
+        title, panel = ax.title.get_window_extent(), ax.get_window_extent()
+        assert panel.x0 - 1 <= title.x0 and title.x1 <= panel.x1 + 1, (ax.get_title(), title, panel)
+        assert page.x0 <= title.x0 and title.x1 <= page.x1 and title.y1 <= page.y1
+    assert "".join(fig.axes[1].get_title().split()).startswith(name)  # named whole, whatever its lines
+
+
 def test_the_position_error_figure_says_when_the_lqr_leaves_the_horizontal_position_free():
     """The note quadctl compare prints (present/compare.py) is written on the position-error figure."""
     from quadctl.plots.compare import comparison_figures
