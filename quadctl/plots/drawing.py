@@ -117,20 +117,24 @@ def _wrap_titles(fig: Figure, renderer) -> None:
     for ax in fig.axes:
         title, room = ax.title, ax.get_window_extent(renderer).width
         text = title.get_text()
-        if "\n" in text or title.get_window_extent(renderer).width <= room:
-            continue
+        if "\n" not in text and title.get_window_extent(renderer).width > room:
+            title.set_text(_wrapped(text, title, room, renderer))
 
-        def fits(line: str) -> bool:
-            title.set_text(line)
-            return title.get_window_extent(renderer).width <= room
 
-        lines: list[str] = []
-        for piece in _pieces(text, fits):
-            if lines and fits(lines[-1] + piece):
-                lines[-1] += piece
-            else:
-                lines.append(piece)
-        title.set_text("\n".join(line.rstrip() for line in lines))
+def _wrapped(text: str, title, room: float, renderer) -> str:
+    """``text`` in lines each at most ``room`` wide (display units) as ``title`` draws it."""
+
+    def fits(line: str) -> bool:
+        title.set_text(line)
+        return title.get_window_extent(renderer).width <= room
+
+    lines: list[str] = []
+    for piece in _pieces(text, fits):
+        if lines and fits(lines[-1] + piece):
+            lines[-1] += piece
+        else:
+            lines.append(piece)
+    return "\n".join(line.rstrip() for line in lines)
 
 
 _BREAKS = (", ", " ", "_", "-")

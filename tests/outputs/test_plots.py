@@ -249,6 +249,28 @@ def test_the_position_error_figure_says_when_the_lqr_leaves_the_horizontal_posit
     assert all(fig.axes[0].get_title(loc="left") == "" for stem, fig in figs.items() if stem != "position-error")
 
 
+def test_a_law_whose_run_stopped_early_ends_with_a_cross_in_every_comparison_figure():
+    """PX4's cascade on the Crazyflie leaves the valid range at 1.6 s (docs/guide/compare.md): its line ends
+    there with a cross at its last value, and its legend entry says why and when; a completed run has none."""
+    from quadctl.plots.compare import QUANTITIES, comparison_figures
+
+    act = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))
+    stopped = _sim(30)
+    stopped.status = "left_valid_range"
+    laws = [SimpleNamespace(name=name, run=run, loop=SimpleNamespace(actuators=act), metrics={"rotor_peak": 0.5})
+            for name, run in (("lqr", _sim()), ("pid:px4", stopped))]
+    figs = comparison_figures(laws)
+    assert sorted(figs) == ["altitude", "attitude-error", "position-error", "rotor-use"]
+    for stem, fig in figs.items():
+        ax = fig.axes[0]
+        crosses = [ln for ln in ax.get_lines() if ln.get_marker() == "x"]
+        assert len(crosses) == 1, stem
+        curve = _lines(ax, f"pid:px4, left the valid range at {stopped.t[-1]:.3g} s")[0]
+        assert crosses[0].get_color() == curve.get_color()
+        assert (crosses[0].get_xdata()[0], crosses[0].get_ydata()[0]) == (curve.get_xdata()[-1], curve.get_ydata()[-1])
+        assert _lines(ax, "lqr") and ax.get_ylabel() == dict(QUANTITIES)[stem]
+
+
 def _columns_of(x, columns, log=False):
     """Column of each sample, computed on its own: equal widths across x[0]..x[-1] (in log10 x with log)."""
     pos = np.log10(x) if log else np.asarray(x)
