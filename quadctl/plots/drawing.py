@@ -185,6 +185,27 @@ def displayed(name: str, values: np.ndarray) -> tuple[np.ndarray, str]:
     return values, unit_of(name)
 
 
+LENGTH_UNITS = ((1.0, "m"), (1e-3, "mm"), (1e-6, "µm"), (1e-9, "nm"))
+"""Units a length is drawn in, largest first, each with its size in metres (:func:`length_unit`)."""
+
+
+def length_unit(values) -> tuple[float, str]:
+    """``(size in m, name)`` of the largest of :data:`LENGTH_UNITS` in which the largest ``|values|`` (m) is at
+    least 1 (the smallest when even that is not, metres when there is nothing to draw): the axis reads its
+    values (340 nm, not 3.4 with a 1e-7 above the axis).
+
+    Examples
+    --------
+    >>> length_unit([0.0, -3.4e-7]), length_unit([0.02]), length_unit([1.5]), length_unit([0.0])
+    ((1e-09, 'nm'), (0.001, 'mm'), (1.0, 'm'), (1.0, 'm'))
+    """
+    v = np.abs(np.asarray(values, dtype=float))
+    peak = float(v[np.isfinite(v)].max()) if np.isfinite(v).any() else 0.0
+    if peak == 0.0:
+        return LENGTH_UNITS[0]
+    return next((unit for unit in LENGTH_UNITS if peak >= unit[0]), LENGTH_UNITS[-1])
+
+
 def axis_label(name: str) -> str:
     """The axis label of state ``name`` as :func:`displayed` shows it."""
     return "height (-pD)" if name == _HEIGHT else name

@@ -249,6 +249,23 @@ def test_the_position_error_figure_says_when_the_lqr_leaves_the_horizontal_posit
     assert all(fig.axes[0].get_title(loc="left") == "" for stem, fig in figs.items() if stem != "position-error")
 
 
+@pytest.mark.parametrize("peak, unit, size", [(3.4e-7, "nm", 1e-9), (2.5e-5, "µm", 1e-6), (0.4, "mm", 1e-3),
+                                              (2.0, "m", 1.0)])
+def test_the_tracking_error_reads_in_a_unit_of_its_size_with_no_multiplier_above_the_axis(peak, unit, size):
+    """A flatness-fed mission tracks to a fraction of a micrometre (`square`: 340 nm): the axis says nm and
+    its ticks read the values, where matplotlib would write 1e-7 above the axis."""
+    sim = _sim()
+    sim.x_ref = sim.x.copy()
+    sim.x[:, STATE_INDEX["pN"]] += peak * np.sin(np.pi * sim.t)  # the error, peak at t = 0.5 s
+    fig = _drawn(plots.tracking_error_figure(sim))
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == f"position error [{unit}]"
+    assert ax.yaxis.get_offset_text().get_text() == ""
+    north = _lines(ax, "pN - reference")[0]
+    assert north.get_ydata().max() == pytest.approx(peak / size, rel=1e-3)
+    assert 1 <= north.get_ydata().max() < 1000
+
+
 def test_a_law_whose_run_stopped_early_ends_with_a_cross_in_every_comparison_figure():
     """PX4's cascade on the Crazyflie leaves the valid range at 1.6 s (docs/guide/compare.md): its line ends
     there with a cross at its last value, and its legend entry says why and when; a completed run has none."""
