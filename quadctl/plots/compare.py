@@ -9,6 +9,7 @@ from matplotlib.figure import Figure
 
 from quadctl.layout import STATE_INDEX
 from quadctl.plots.drawing import COLORS, trace
+from quadctl.sim.run import STATUS_WORDS
 
 QUANTITIES: tuple[tuple[str, str], ...] = (
     ("position-error", "|p - p_ref| [m]"),
@@ -33,7 +34,8 @@ def _values(name: str, run, loop) -> np.ndarray:
 
 def comparison_figures(laws, *, title: str = "", notes: dict[str, str] | None = None) -> dict[str, Figure]:
     """``{stem: figure}``: each of :data:`QUANTITIES` against time, the laws overlaid (the rotor use only
-    when the plant has rotors).
+    when the plant has rotors). A run that stopped early (it diverged or left the model's valid range) ends
+    with a cross, its legend entry saying why and when.
 
     Parameters
     ----------
@@ -52,8 +54,13 @@ def comparison_figures(laws, *, title: str = "", notes: dict[str, str] | None = 
         fig = Figure(figsize=(10.0, 3.6), layout="constrained")
         ax = fig.subplots()
         for k, law in enumerate(laws):
-            trace(ax, law.run.t, _values(stem, law.run, law.loop), color=COLORS[k % len(COLORS)], lw=1.2,
-                  label=law.name)
+            run, color = law.run, COLORS[k % len(COLORS)]
+            values = _values(stem, run, law.loop)
+            ended = run.status != "ok" and len(run.t)
+            entry = f"{law.name}, {STATUS_WORDS[run.status]} at {run.t[-1]:.3g} s" if ended else law.name
+            trace(ax, run.t, values, color=color, lw=1.2, label=entry)
+            if ended:  # where the run stopped: its line ends there, not the quantity
+                ax.plot(run.t[-1], values[-1], "x", color=color, ms=9, mew=2, zorder=4)
         ax.set_xlabel("time [s]")
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)

@@ -1,5 +1,6 @@
 """What every figure shares: its resolution and colours, a state as drawn (degrees, the height), a time
-series thinned to the figure's pixel columns, the PNG bytes of a figure, and the inputs' limits.
+series thinned to the figure's pixel columns, titles that fit their panels, the PNG bytes of a figure, and
+the inputs' limits.
 """
 
 from __future__ import annotations
@@ -96,6 +97,60 @@ def trace(ax, x, y, *args, log: bool = False, **kwargs):
     return ax.plot(*pixel_envelope(x, y, columns, log=log), *args, **kwargs)
 
 
+def wrap_titles(fig: Figure) -> None:
+    """Break each axes title wider than its axes into lines (at its ``", "``; within a part still too wide, at
+    its words, then a file name's ``_`` and ``-``), so that no title runs past its panel into the next or off
+    the figure; the layout engine makes room for the lines when the figure is drawn. Widths are measured once
+    the figure is laid out."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = fig.canvas
+    try:
+        measure = FigureCanvasAgg(fig)
+        fig.draw_without_rendering()
+        _wrap_titles(fig, measure.get_renderer())
+    finally:
+        fig.set_canvas(canvas)
+
+
+def _wrap_titles(fig: Figure, renderer) -> None:
+    for ax in fig.axes:
+        title, room = ax.title, ax.get_window_extent(renderer).width
+        text = title.get_text()
+        if "\n" not in text and title.get_window_extent(renderer).width > room:
+            title.set_text(_wrapped(text, title, room, renderer))
+
+
+def _wrapped(text: str, title, room: float, renderer) -> str:
+    """``text`` in lines each at most ``room`` wide (display units) as ``title`` draws it."""
+
+    def fits(line: str) -> bool:
+        title.set_text(line)
+        return title.get_window_extent(renderer).width <= room
+
+    lines: list[str] = []
+    for piece in _pieces(text, fits):
+        if lines and fits(lines[-1] + piece):
+            lines[-1] += piece
+        else:
+            lines.append(piece)
+    return "\n".join(line.rstrip() for line in lines)
+
+
+_BREAKS = (", ", " ", "_", "-")
+"""Where a title breaks, the first that makes its parts fit: its clauses, words, then a file name's parts."""
+
+
+def _pieces(text: str, fits, breaks: tuple[str, ...] = _BREAKS) -> list[str]:
+    """``text`` cut after its first separator in ``breaks`` (kept with the part before it), each part too wide
+    for ``fits`` cut again at the next."""
+    if fits(text) or not breaks:
+        return [text]
+    parts = text.split(breaks[0])
+    cut = [p + breaks[0] for p in parts[:-1]] + [parts[-1]]
+    return [piece for part in cut if part for piece in _pieces(part, fits, breaks[1:])]
+
+
 def png_bytes(fig: Figure, dpi: float = DPI) -> bytes:
     """``fig`` as PNG bytes at ``dpi``: the pixels ``fig.savefig(buf, format="png", dpi=dpi)`` writes,
     drawn once.
@@ -128,6 +183,27 @@ def displayed(name: str, values: np.ndarray) -> tuple[np.ndarray, str]:
     if name == _HEIGHT:
         return -np.asarray(values), unit_of(name)
     return values, unit_of(name)
+
+
+LENGTH_UNITS = ((1.0, "m"), (1e-3, "mm"), (1e-6, "µm"), (1e-9, "nm"))
+"""Units a length is drawn in, largest first, each with its size in metres (:func:`length_unit`)."""
+
+
+def length_unit(values) -> tuple[float, str]:
+    """``(size in m, name)`` of the largest of :data:`LENGTH_UNITS` in which the largest ``|values|`` (m) is at
+    least 1 (the smallest when even that is not, metres when there is nothing to draw): the axis reads its
+    values (340 nm, not 3.4 with a 1e-7 above the axis).
+
+    Examples
+    --------
+    >>> length_unit([0.0, -3.4e-7]), length_unit([0.02]), length_unit([1.5]), length_unit([0.0])
+    ((1e-09, 'nm'), (0.001, 'mm'), (1.0, 'm'), (1.0, 'm'))
+    """
+    v = np.abs(np.asarray(values, dtype=float))
+    peak = float(v[np.isfinite(v)].max()) if np.isfinite(v).any() else 0.0
+    if peak == 0.0:
+        return LENGTH_UNITS[0]
+    return next((unit for unit in LENGTH_UNITS if peak >= unit[0]), LENGTH_UNITS[-1])
 
 
 def axis_label(name: str) -> str:

@@ -7,6 +7,31 @@ from matplotlib.figure import Figure
 
 from quadctl.plots.drawing import COLORS
 
+MAGNITUDE_SPAN_DB = 60.0
+"""dB: the magnitude axis shows ``|L|`` within this of 0 dB (the crossover), or of the farthest finite gain margin
+and 10 dB more: a lifted cascade's integrators reach +400 dB at the lowest frequency drawn and its zeros -300 dB
+at Nyquist, which would squeeze the crossover into a few pixels."""
+
+
+def magnitude_limits(mag_db, gain_margins_db=()) -> tuple[float, float]:
+    """``(low, high)`` dB of the magnitude axis: the finite ``mag_db`` within :data:`MAGNITUDE_SPAN_DB` of 0 dB
+    (wider to show every finite gain margin with 10 dB to spare), 0 dB always inside, 5 % of the range padded.
+
+    Examples
+    --------
+    >>> magnitude_limits([470.0, 25.0, 0.0, -140.0], (-25.0, 0.75))
+    (-66.0, 66.0)
+    >>> magnitude_limits([20.0, 0.0, -10.0])
+    (-11.5, 21.5)
+    """
+    mag = np.asarray(mag_db, dtype=float)
+    mag = mag[np.isfinite(mag)]
+    span = max([MAGNITUDE_SPAN_DB] + [abs(g) + 10.0 for g in gain_margins_db if np.isfinite(g)])
+    low = max(min(float(mag.min()), 0.0), -span) if mag.size else -span
+    high = min(max(float(mag.max()), 0.0), span) if mag.size else span
+    pad = 0.05 * (high - low)
+    return low - pad, high + pad
+
 
 def phase_about_minus_180(response, anchor: int | None = None) -> np.ndarray:
     """The phase (deg) of a frequency response, unwrapped and shifted by whole turns so that it
@@ -52,7 +77,8 @@ def margins_figure_name(m) -> str:
 
 
 def margins_figure(m, *, title: str = "") -> Figure:
-    """Bode (magnitude, phase) and Nyquist plot of one broken loop, with its margins marked.
+    """Bode (magnitude, phase) and Nyquist plot of one broken loop, with its margins marked; the magnitude
+    axis about the crossover (:func:`magnitude_limits`).
 
     Parameters
     ----------
@@ -66,7 +92,10 @@ def margins_figure(m, *, title: str = "") -> Figure:
     w, L = m.freq, m.response
     crossover = None if m.gain_crossover_freq is None else int(np.argmin(np.abs(np.log(w / m.gain_crossover_freq))))
     phase = phase_about_minus_180(L, crossover)
-    ax_mag.semilogx(w, 20 * np.log10(np.abs(L)), color=COLORS[0], lw=1.5)
+    with np.errstate(divide="ignore"):  # a zero of L on the grid: -inf dB, off the axis
+        mag = 20 * np.log10(np.abs(L))
+    ax_mag.semilogx(w, mag, color=COLORS[0], lw=1.5)
+    ax_mag.set_ylim(*magnitude_limits(mag, m.gain_margin_db))
     ax_mag.axhline(0.0, color="0.35", lw=0.9, ls="--")
     ax_mag.set_ylabel("|L| [dB]")
     ax_ph.semilogx(w, phase, color=COLORS[0], lw=1.5)

@@ -7,7 +7,7 @@ import re
 import numpy as np
 from matplotlib.figure import Figure
 
-from quadctl.plots.drawing import COLORS, png_bytes
+from quadctl.plots.drawing import COLORS, png_bytes, wrap_titles
 
 
 def identification_figure(ident) -> Figure:
@@ -15,7 +15,8 @@ def identification_figure(ident) -> Figure:
 
     Each row's title names the log its stage was fitted on. The model is drawn first and wider, the
     measurement over it, thinner and partly transparent, so both show where they agree; the legend is
-    the figure's, above the panels, never over data.
+    the figure's, above the panels, never over data. A title wider than its panel (a long log name) is
+    broken into lines.
 
     Parameters
     ----------
@@ -48,6 +49,7 @@ def identification_figure(ident) -> Figure:
             ax.set_xlabel("t (s)")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles[::-1], labels[::-1], loc="outside upper center", ncols=2, fontsize=8, frameon=False)
+    wrap_titles(fig)  # a long log name (a ULog's) would run a title off its panel
     return fig
 
 

@@ -110,7 +110,7 @@ def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
         drawn.append((name, curve))
         color, style, marker = GAIN_COLORS[n % len(GAIN_COLORS)], INPUT_STYLES[i], INPUT_MARKERS[i]
         ax_k.plot(c.values, curve, color=color, lw=1.2, ls=style,
-                  label=f"{name} ({scale:.3g})" + (f", on {same}'s curve" if same else ""))
+                  label=f"{name} ({scale:.3g})" + (f",\non {same}'s curve" if same else ""))
         ax_k.plot(v, K[:, i, j] / scale, marker, color=color, ms=3.5, mfc="none")
     ax_k.set_ylabel("gain / max |gain|")
     ax_k.set_title(f"gains ({sched.interpolation} between the points)", fontsize=9)

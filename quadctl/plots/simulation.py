@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle
 
 from quadctl.layout import INPUT_NAMES, STATE_INDEX, unit_of
-from quadctl.plots.drawing import COLORS, axis_label, displayed, input_limits, limit_lines, trace
+from quadctl.plots.drawing import COLORS, axis_label, displayed, input_limits, length_unit, limit_lines, trace
 
 
 def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
@@ -211,13 +211,17 @@ square at its centre (its inside radius above the square's half diagonal), the e
 
 
 def tracking_error_figure(sim, *, title: str = "") -> Figure:
-    """The position tracking error against time: north, east and down, and its norm ``|p - p_ref|``."""
+    """The position tracking error against time: north, east and down, and its norm ``|p - p_ref|``, in the
+    length unit its size reads in (:func:`~quadctl.plots.drawing.length_unit`: a flatness-fed mission's error
+    of a fraction of a micrometre in nm)."""
     fig, ax = _over_time(3.8)
     err = sim.x[:, :3] - sim.x_ref[:, :3]
+    norm = np.linalg.norm(err, axis=1)
+    size, unit = length_unit(norm)
     for i, (name, color) in enumerate(zip(("pN", "pE", "pD"), COLORS)):
-        trace(ax, sim.t, err[:, i], color=color, lw=1.2, label=f"{name} - reference")
-    trace(ax, sim.t, np.linalg.norm(err, axis=1), color="k", lw=1.0, ls=":", label="|p - p_ref|")
-    return _finished(fig, ax, "position error [m]", "tracking error", title)
+        trace(ax, sim.t, err[:, i] / size, color=color, lw=1.2, label=f"{name} - reference")
+    trace(ax, sim.t, norm / size, color="k", lw=1.0, ls=":", label="|p - p_ref|")
+    return _finished(fig, ax, f"position error [{unit}]", "tracking error", title)
 
 
 def _over_time(height: float) -> tuple[Figure, object]:

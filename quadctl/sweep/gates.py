@@ -93,7 +93,9 @@ def gated_margins(gates) -> bool:
 
 TRACKING_ERRORS = ("tracking.rms", "tracking.peak")
 """m: the position error flying a reference, its RMS and its peak."""
-TRACKING_COLUMNS = (*TRACKING_ERRORS, "waypoints.reached")
+WAYPOINTS_REACHED = "waypoints.reached"
+"""A mission's column: its waypoints reached in order within its tolerance (a count)."""
+TRACKING_COLUMNS = (*TRACKING_ERRORS, WAYPOINTS_REACHED)
 """Columns of a case that flies a reference: the position tracking error's RMS and peak (m), and
 a mission's waypoints reached in order within its tolerance (a count)."""
 
@@ -104,7 +106,7 @@ def tracking_columns(tracking: dict | None) -> dict:
         return {}
     out = {"tracking.rms": tracking["position_error"]["rms"], "tracking.peak": tracking["position_error"]["peak"]}
     if "waypoints" in tracking:
-        out["waypoints.reached"] = sum(w["reached"] is not None for w in tracking["waypoints"])
+        out[WAYPOINTS_REACHED] = sum(w["reached"] is not None for w in tracking["waypoints"])
     return out
 
 

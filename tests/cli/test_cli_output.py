@@ -151,6 +151,27 @@ def test_a_sweep_draws_its_bar_on_a_terminal_and_does_its_work_meanwhile_once(mo
     with progress.sweep_progress(quiet=True) as update:
         assert update is None
 
+@pytest.mark.parametrize("mission", [True, False])
+def test_a_mission_sweeps_table_shows_no_settling_time_and_the_others_do(mission):
+    """A mission is gated on its waypoints and tracking error: its table's third column is the peak thrust,
+    not a settling time it never asked for; a sweep without a mission keeps the settling time."""
+    from types import SimpleNamespace
+
+    from quadctl.cli.render_sweep import sweep_tables
+
+    columns = ["stable", "settling_time.pD", "peak.T", "tracking.rms", "tracking.peak"] + \
+        (["waypoints.reached"] if mission else []) + ["cost", "status"]
+    gated = ["waypoints.reached", "tracking.peak"] if mission else ["tracking.peak"]
+    rows = [{"case": 0, "reference.speed": 1.0, "settling_time.pD": 19.7, "peak.T": 0.8, "tracking.peak": 2e-8,
+             "waypoints.reached": 4, "cost": 1.0, "status": "ok", "pass": True}]
+    result = SimpleNamespace(columns=columns, rows=rows, ranked=lambda: rows)
+    spec = SimpleNamespace(gates=[SimpleNamespace(metric=m) for m in gated], names=["reference.speed"])
+    headers = [str(c.header) for c in sweep_tables(result, spec).renderables[0].columns]
+    want = ["waypoints.reached", "tracking.peak", "peak T (N)"] if mission else \
+        ["tracking.peak", "settle pD (s)", "peak T (N)"]
+    assert headers == ["case", "parameters", *want, "result"]
+
+
 def test_a_mistyped_config_file_offers_the_file_beside_it(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "f450.yaml").write_text(config.bundled("hover").text)

@@ -218,6 +218,23 @@ def test_the_identification_figure_names_its_logs_units_and_hides_no_data():
     assert not any(box.overlaps(ax.get_window_extent()) for ax in fig.axes)
 
 
+@pytest.mark.parametrize("name", ["sample_px4_events.ulg", "log_49_2024-5-12-13-40-22_hover_and_roll_steps.ulg"])
+def test_the_identification_figure_keeps_each_title_of_a_long_log_name_within_its_panel(name):
+    """A ULog's name is long: each title still names it and stays within its panel (broken into lines
+    at its commas), so none runs off the figure or into the next panel."""
+    from quadctl.plots.identify import identification_figure
+
+    ident = _identification()
+    ident.logs[0].name = name
+    fig = _drawn(identification_figure(ident))
+    page = fig.bbox
+    for ax in fig.axes:
+        title, panel = ax.title.get_window_extent(), ax.get_window_extent()
+        assert panel.x0 - 1 <= title.x0 and title.x1 <= panel.x1 + 1, (ax.get_title(), title, panel)
+        assert page.x0 <= title.x0 and title.x1 <= page.x1 and title.y1 <= page.y1
+    assert "".join(fig.axes[1].get_title().split()).startswith(name)  # named whole, whatever its lines
+
+
 def test_the_position_error_figure_says_when_the_lqr_leaves_the_horizontal_position_free():
     """The note quadctl compare prints (present/compare.py) is written on the position-error figure."""
     from quadctl.plots.compare import comparison_figures
@@ -230,6 +247,45 @@ def test_the_position_error_figure_says_when_the_lqr_leaves_the_horizontal_posit
     figs = comparison_figures([law], notes={"position-error": note})
     assert " ".join(figs["position-error"].axes[0].get_title(loc="left").split()) == note
     assert all(fig.axes[0].get_title(loc="left") == "" for stem, fig in figs.items() if stem != "position-error")
+
+
+@pytest.mark.parametrize("peak, unit, size", [(3.4e-7, "nm", 1e-9), (2.5e-5, "µm", 1e-6), (0.4, "mm", 1e-3),
+                                              (2.0, "m", 1.0)])
+def test_the_tracking_error_reads_in_a_unit_of_its_size_with_no_multiplier_above_the_axis(peak, unit, size):
+    """A flatness-fed mission tracks to a fraction of a micrometre (`square`: 340 nm): the axis says nm and
+    its ticks read the values, where matplotlib would write 1e-7 above the axis."""
+    sim = _sim()
+    sim.x_ref = sim.x.copy()
+    sim.x[:, STATE_INDEX["pN"]] += peak * np.sin(np.pi * sim.t)  # the error, peak at t = 0.5 s
+    fig = _drawn(plots.tracking_error_figure(sim))
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == f"position error [{unit}]"
+    assert ax.yaxis.get_offset_text().get_text() == ""
+    north = _lines(ax, "pN - reference")[0]
+    assert north.get_ydata().max() == pytest.approx(peak / size, rel=1e-3)
+    assert 1 <= north.get_ydata().max() < 1000
+
+
+def test_a_law_whose_run_stopped_early_ends_with_a_cross_in_every_comparison_figure():
+    """PX4's cascade on the Crazyflie leaves the valid range at 1.6 s (docs/guide/compare.md): its line ends
+    there with a cross at its last value, and its legend entry says why and when; a completed run has none."""
+    from quadctl.plots.compare import QUANTITIES, comparison_figures
+
+    act = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))
+    stopped = _sim(30)
+    stopped.status = "left_valid_range"
+    laws = [SimpleNamespace(name=name, run=run, loop=SimpleNamespace(actuators=act), metrics={"rotor_peak": 0.5})
+            for name, run in (("lqr", _sim()), ("pid:px4", stopped))]
+    figs = comparison_figures(laws)
+    assert sorted(figs) == ["altitude", "attitude-error", "position-error", "rotor-use"]
+    for stem, fig in figs.items():
+        ax = fig.axes[0]
+        crosses = [ln for ln in ax.get_lines() if ln.get_marker() == "x"]
+        assert len(crosses) == 1, stem
+        curve = _lines(ax, f"pid:px4, left the valid range at {stopped.t[-1]:.3g} s")[0]
+        assert crosses[0].get_color() == curve.get_color()
+        assert (crosses[0].get_xdata()[0], crosses[0].get_ydata()[0]) == (curve.get_xdata()[-1], curve.get_ydata()[-1])
+        assert _lines(ax, "lqr") and ax.get_ylabel() == dict(QUANTITIES)[stem]
 
 
 def _columns_of(x, columns, log=False):

@@ -232,7 +232,7 @@ def test_the_envelope_figure_draws_the_rotor_limits_and_marks_the_values_with_no
     np.testing.assert_allclose(poles.get_lines()[0].get_ydata(), sched.checks.slowest)
 
 
-def test_the_gain_legend_sits_beside_the_curves_and_tells_coincident_ones_apart():
+def test_the_gain_legend_sits_narrow_beside_the_curves_and_tells_coincident_ones_apart():
     """The bundled `schedule` case: 10 nonzero gains, roll and pitch designed alike (K[A,phi] and
     K[E,theta] on one normalized curve), several constant gains on +1."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -246,6 +246,7 @@ def test_the_gain_legend_sits_beside_the_curves_and_tells_coincident_ones_apart(
     legend, box = gains.get_legend(), gains.get_window_extent()
     beside = legend.get_window_extent()
     assert box.x1 <= beside.x0 and beside.x1 <= fig.axes[1].get_window_extent().x0  # between the two panels
+    assert beside.width < 0.4 * box.width  # narrow: a long label breaks, the panels keep the figure's width
     curves = {line.get_label().split(" ")[0]: line for line in gains.get_lines() if line.get_label()[0] == "K"}
     assert len(curves) == 10
     dashes = {}  # input -> the dash patterns (offset, on-off sequence) of its entries' lines
@@ -256,7 +257,7 @@ def test_the_gain_legend_sits_beside_the_curves_and_tells_coincident_ones_apart(
     assert len({d for ds in dashes.values() for d in ds}) == 4  # one pattern per input, no two alike
     roll, pitch = curves["K[A,phi]"], curves["K[E,theta]"]
     np.testing.assert_allclose(pitch.get_ydata(), roll.get_ydata(), atol=1e-3)  # one curve: two styles
-    assert pitch.get_label().endswith(", on K[A,phi]'s curve")
+    assert pitch.get_label().endswith(",\non K[A,phi]'s curve")
     assert not curves["K[A,v]"].get_label().endswith("curve")
 
 

@@ -337,6 +337,23 @@ def test_a_cascade_margins_figure_names_the_cascade_and_the_input_it_is_broken_a
                      "2 ms sample)")
 
 
+@pytest.mark.parametrize("j", [1, 3])
+def test_a_cascade_margins_figure_draws_the_magnitude_about_the_crossover(crazyflie_margins, j):
+    """The lifted roll and yaw loops reach hundreds of dB at the ends of the grid (integrators at the lowest
+    frequency, zeros at Nyquist): the magnitude axis keeps 0 dB and every finite gain margin in view, within
+    MAGNITUDE_SPAN_DB of 0 dB (10 dB beyond the farthest margin), not the grid's ends."""
+    from quadctl.plots import margins_figure
+    from quadctl.plots.frequency import MAGNITUDE_SPAN_DB
+
+    m = crazyflie_margins[j]
+    mag = 20 * np.log10(np.abs(m.response))
+    assert mag.max() > 2 * MAGNITUDE_SPAN_DB or mag.min() < -2 * MAGNITUDE_SPAN_DB  # what the limits are for
+    low, high = margins_figure(m).axes[0].get_ylim()
+    finite = [abs(g) for g in m.gain_margin_db if math.isfinite(g)]
+    span = max([MAGNITUDE_SPAN_DB] + [g + 10 for g in finite])
+    assert -1.1 * span <= low < -max(finite) and max(finite) < high <= 1.1 * span, (low, high, m.gain_margin_db)
+
+
 def test_the_report_of_a_config_flying_the_cascade_shows_its_loops(tmp_path):
     from quadctl.cli.options import open_workspace
     from quadctl.report import content

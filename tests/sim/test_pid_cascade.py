@@ -3,12 +3,15 @@
 The axis loops (:func:`quadctl.design.pid.axis_loop`) must have the roots of their characteristic
 polynomials written out by hand (continuous, and sampled through the zero-order hold's transfer
 function ``T^2 (z + 1) / (2 m (z - 1)^2)``); the simulation law's PID arithmetic
-(:mod:`quadctl.sim.pid`) must be the sampled loop's. The Crazyflie's cascade with its firmware's
-defaults must hold the bundled ``crazyflie`` config's hover from its initial offset within the rotor
-limits, and fail with one gain's sign flipped.
+(:mod:`quadctl.sim.pid`) must be the sampled loop's; the attitude PID inside the simulated cascade (its
+D's sign and period) must give the roll axis the poles of that axis sampled by hand. The Crazyflie's
+cascade with its firmware's defaults must hold the bundled ``crazyflie`` config's hover from its
+initial offset within the rotor limits, and fail with one gain's sign flipped.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
@@ -101,6 +104,97 @@ def fly(stages, gains, duration=8.0):
 
     loop = pid_loop_of(stages.setup, stages.linear, gains)
     return loop, qc.simulate(loop, stages.setup.initial_state(loop.x_trim), duration)
+
+
+def roll_axis_frame_map(G, Ts, n_att, kp, ki, kd):
+    """The roll axis sampled by hand: the map of one attitude period on ``[phi, p, i, phi_prev, r]``.
+
+    ``phi'' = G (r - p)`` under a zero-order hold at ``Ts`` (the rate loop, a P; ``G`` in 1/s, its gain times the
+    largest roll torque over the inertia); ``r = kp e + ki i + kd d`` computed every ``n_att`` samples and held
+    (``e = -phi``, ``i`` by backward Euler, ``d = -(phi - phi_prev) / Ta`` on the measurement, ``Ta = n_att Ts``).
+    """
+    Ta = Ts * n_att
+    update = np.eye(5)  # the attitude PID at phase 0, before the sample: i, phi_prev and r from the state
+    update[2] = [-Ta, 0, 1, 0, 0]
+    update[3] = [1, 0, 0, 0, 0]
+    update[4] = [-kp - ki * Ta - kd / Ta, 0, ki, kd / Ta, 0]
+    sample = np.eye(5)  # one sample of the plant under the held r
+    sample[0] = [1, Ts - Ts ** 2 / 2 * G, 0, 0, Ts ** 2 / 2 * G]
+    sample[1] = [0, 1 - Ts * G, 0, 0, Ts * G]
+    return np.linalg.matrix_power(sample, n_att) @ update
+
+
+def eigenvalue_conditions(A) -> tuple[np.ndarray, np.ndarray]:
+    """The eigenvalues of ``A`` and their condition numbers ``|y| |x| / |y^H x|`` (first-order perturbation:
+    an eigenvalue moves at most that times the size of a change of ``A``)."""
+    lam, right = np.linalg.eig(A)
+    left = np.linalg.inv(right).conj().T
+    kappa = np.linalg.norm(left, axis=0) * np.linalg.norm(right, axis=0) / np.abs(np.sum(left.conj() * right, axis=0))
+    return lam, kappa
+
+
+MAP_TOL = 1e-10
+"""Relative: the lifted loop's map (the plant's zero-order hold by a matrix exponential, the law's exact
+Jacobian) against the hand map's arithmetic: both ~1e-14 of their size; 1e-10 leaves room for any LAPACK."""
+
+
+@pytest.mark.parametrize("n_att", [1, 2])
+def test_the_attitude_pid_of_the_simulated_cascade_has_the_poles_of_the_roll_axis_sampled_by_hand(crazyflie, n_att):
+    """The attitude stage's D (its sign, its period) as the simulation flies it: the cascade's loop linearized
+    (:func:`quadctl.sim.cascade_margins.lifted`, from the law the runners are generated from), its roll axis
+    closed on itself (no position or velocity loop around it; the rate loop a P on PX4's normalized torque, no
+    filters), has the poles of :func:`roll_axis_frame_map`, as sets; with the D's sign flipped they are far off."""
+    import quadctl as qc
+    from quadctl.config.pid import resolve
+    from quadctl.layout import STATE_INDEX
+    from quadctl.pipeline import pid_loop_of
+    from quadctl.sim import pid
+    from quadctl.sim.cascade_margins import lifted
+
+    Ts, kp_rate = 1 / 500, 0.15  # s; normalized torque per rad/s
+    kp, ki, kd = 5.0, 2.0, 0.2  # 1/s, 1/s^2, 1: rate setpoint per angle error, its integral, its rate
+    axis = dict(rate_roll_kp=kp_rate, rate_roll_ki=0.0, rate_roll_kd=0.0,
+                att_roll_kp=kp, att_roll_ki=ki, att_roll_kd=kd)
+    outer_hz = 1 / (Ts * n_att)
+    gains = resolve("px4", attitude="euler").with_values(
+        rate_hz=1 / Ts, attitude_hz=outer_hz, position_hz=outer_hz, gyro_lpf_hz=0.0, rate_dfilter_hz=0.0,
+        vel_xy_kp=0.0, vel_xy_ki=0.0, vel_xy_kd=0.0, pos_xy_kp=0.0,  # the roll setpoint held at 0
+        # pitch alike: PX4's rate D (tuned for a 1.5 kg vehicle) would make the 27 g Crazyflie's pitch diverge
+        **axis, **{name.replace("roll", "pitch"): value for name, value in axis.items()})
+    assert gains.angle_unit == "rad" and gains.torque_output == "normalized"
+    loop = pid_loop_of(crazyflie.setup, crazyflie.linear, gains)
+    lift = lifted(loop)
+    assert lift.frame == n_att
+
+    base = loop.spec().nx - pid.N_LAW_STATES  # the law's states follow the plant's
+    law = {name: base + pid.state_slice(name).start
+           for name in ("att_integral", "att_previous", "rate_setpoint", "rate_integral")}
+    keep = list(lift.states)
+    block = [keep.index(k) for k in (STATE_INDEX["phi"], STATE_INDEX["p"], *law.values()) if k in keep]
+    rest = [i for i in range(len(keep)) if i not in block]
+    Phi = lift.frame_map
+    assert not np.any(Phi[np.ix_(block, rest)])  # the roll axis reads nothing else: its poles are the loop's
+    got = np.linalg.eigvals(Phi[np.ix_(block, block)])
+
+    cfg = qc.load_config("crazyflie")
+    torque = math.sqrt(2) * cfg.motors.arm_length * cfg.motors.max_thrust  # two rotors at 45 deg from the x axis
+    G = kp_rate * torque / cfg.vehicle.inertia[0]
+    want, kappa = eigenvalue_conditions(roll_axis_frame_map(G, Ts, n_att, kp, ki, kd))
+    # the hand map's r is overwritten at each update (a pole at 0), as is the loop's held rate setpoint, which
+    # the loop leaves out when the attitude runs at every sample; the rate integrator (ki 0) stays: a pole at 1
+    if law["rate_setpoint"] not in keep:
+        k = int(np.argmin(np.abs(want)))
+        want, kappa = np.delete(want, k), np.delete(kappa, k)
+    want, kappa = np.append(want, 1.0), np.append(kappa, 1.0)
+    size = np.linalg.norm(Phi[np.ix_(block, block)], 2)
+    assert len(got) == len(want)
+    for w, k in zip(want, kappa):
+        i = int(np.argmin(np.abs(got - w)))
+        diff, bound = abs(got[i] - w), k * MAP_TOL * size
+        assert diff <= bound, f"pole {w} vs {got[i]}: diff {diff:.4E}, bound {bound:.4E}"
+        got = np.delete(got, i)
+    flipped = np.linalg.eigvals(roll_axis_frame_map(G, Ts, n_att, kp, ki, -kd))
+    assert max(np.min(np.abs(flipped - w)) for w in want) > 1e-3  # the D moves the poles: the test can fail
 
 
 @pytest.mark.compiler
