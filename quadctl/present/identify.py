@@ -39,14 +39,17 @@ def log_sentences(payload: dict) -> list[str]:
 
 
 def values_table(payload: dict) -> Table:
-    """Every identified value with its 95 % interval, unit, log and window (from ``identified.json``)."""
+    """Every identified value with its 95 % interval, unit, log and window (from ``identified.json``); one
+    that fails its rule (not written) marked so beside its interval."""
     rows = []
     for s in payload["stages"].values():
         log = s["log"].rsplit("/", 1)[-1]
         span = ", ".join(f"{a:.4g}-{b:.4g}" for a, b in s["windows_s"])
-        for name, p in s["parameters"].items():
+        for name, p in {**s["parameters"], **s.get("derived", {})}.items():
             lo, hi = p["interval95"]
-            rows.append((name, f"{p['value']:.4g}", f"{lo:.4g} .. {hi:.4g}", p["unit"], p["meaning"], log, span))
+            mark = "" if p.get("plausible", True) else f" ({NOT_PLAUSIBLE[p['rule']]})"
+            rows.append((name, f"{p['value']:.4g}", f"{lo:.4g} .. {hi:.4g}{mark}", p["unit"], p["meaning"], log,
+                         span))
     return Table(id="identified", title="Identified (95 % intervals from the fit's covariance, residual "
                  "autocorrelation included)", columns=("parameter", "value", "95 % interval", "unit", "meaning",
                                                        "log", "window (s)"), rows=tuple(rows), align="lrrlwll")
@@ -61,7 +64,7 @@ def sentences(payload: dict) -> list[str]:
                    f"{th['rms_without_lag']:.4g} N without (the lag explains "
                    f"{(1 - th['residual_rms'] / th['rms_without_lag']) * 100:.0f} % of the error).")
     delay = payload.get("delay_written")
-    if delay is not None:
+    if delay is not None and "controller.delay" not in payload.get("not_written", {}):  # (else: implausible())
         fitted = th["parameters"]["delay"]["value"]
         if delay["samples"] is None and delay.get("fitted_samples") is not None:
             out.append(f"The fitted delay, {fitted * 1e3:.4g} ms, is {delay['fitted_samples']} samples at "
@@ -80,3 +83,56 @@ def sentences(payload: dict) -> list[str]:
     for stage, reason in payload["refused"].items():
         out.append(f"Not identified, {STAGE_TITLES[stage]}: {reason}.")
     return out
+
+
+NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written"}
+"""What a value that fails its rule (:class:`quadctl.identify.plausibility.Sign`) shows beside its interval."""
+RULE_WORDS = {"positive": "a positive quantity whose 95 % interval reaches zero or below",
+              "non-negative": "a quantity that cannot be negative"}
+"""Why a value that fails its rule is not plausible."""
+
+
+def _estimate(name: str, value: float, lo: float, hi: float, unit: str) -> str:
+    return f"{name} = {value:.4g} {unit} (95 %: {lo:.4g} to {hi:.4g} {unit})"
+
+
+def withheld_comment(failed) -> str:
+    """The identified config's comment on a key left as the config had it: which estimate fails its rule.
+
+    Parameters
+    ----------
+    failed : list of (name, value, low, high, unit, rule)
+    """
+    said = "; ".join(f"{_estimate(n, v, lo, hi, u)}, {RULE_WORDS[r]}" for n, v, lo, hi, u, r in failed)
+    return f"not identified: {said}; the config's value stays (identified.json: plausible false)"
+
+
+def implausible(payload: dict, folder) -> str:
+    """The one line ``identify`` ends with (exit 1) when an estimate fails its rule: which, what was kept, the cure."""
+    found = {}
+    for s in payload["stages"].values():
+        found.update({**s["parameters"], **s.get("derived", {})})
+    said = "; ".join(f"{_estimate(n, p['value'], *p['interval95'], p['unit'])} is {RULE_WORDS[p['rule']]}"
+                     for n, p in found.items() if n in payload["implausible"])
+    kept = ", ".join(payload["not_written"]) or "nothing"
+    return (f"not plausible: {said}; {folder}/identified.yaml keeps the config's {kept} (identified.json flags "
+            "it): fit a window that excites it more (--window), or a longer log")
+
+
+def set_comment(sets) -> str:
+    """The identified config's comment on a value ``--set`` gave the fit."""
+    return "given on the command line (" + ", ".join(f"--set {t}" for t in sets) + ")"
+
+
+def edited(path, why: str) -> str:
+    """Why ``identify`` refuses to write over ``path`` (an identified.yaml edited since quadctl wrote it, or
+    one it has no record of), and the two ways on: keep the edits under another name, or discard them."""
+    return (f"{path}: changed since quadctl identify wrote it ({why}); identify would write over it: to keep "
+            f"your edits copy it to another name (cp {path} my-vehicle.yaml) and run again, or pass --force to "
+            "write over them")
+
+
+def edit_evidence(recorded: bool) -> str:
+    """What :func:`edited` says it found: a hash that differs, or no hash recorded."""
+    return ("its bytes differ from the sha256 identified.json records" if recorded
+            else "identified.json beside it records no sha256 of it")
