@@ -308,7 +308,7 @@ def identified_config(text: str, ident: Identification, name: str, sets=()) -> s
         if key is None:
             _put_top(lines, top, value, shown.set_comment(given))
         else:
-            _put(lines, top, key, value, shown.set_comment(given))
+            _put(lines, top, key, json.dumps(value), shown.set_comment(given))
     lines = [f"name: {name}" if re.match(r"^name:\s", ln)
              else f"description: {json.dumps(f'{ident.config_name}, identified from {logs}')}"
              if re.match(r"^description:\s+[^|>\s]", ln) else ln for ln in lines]  # (a block scalar stays)
@@ -326,8 +326,8 @@ def identified_config(text: str, ident: Identification, name: str, sets=()) -> s
     return out
 
 
-def _set_values(text: str, sets) -> list[tuple[str, str | None, str, list[str]]]:
-    """``(section, key or None, YAML flow value, the --set texts)`` per key of the config that the ``--set``
+def _set_values(text: str, sets) -> list[tuple[str, str | None, object, list[str]]]:
+    """``(section, key or None, value, the --set texts)`` per key of the config that the ``--set``
     values ``sets`` change: the whole value at ``section.key`` (or at a top-level key) as the config with
     them has it, and the values that changed it."""
     if not sets:
@@ -340,8 +340,7 @@ def _set_values(text: str, sets) -> list[tuple[str, str | None, str, list[str]]]
         keys = overrides.parse(t).keys
         top = keys[0]
         found.setdefault((top, keys[1] if len(keys) > 1 and isinstance(merged.get(top), dict) else None), []).append(t)
-    return [(top, key, json.dumps(merged[top] if key is None else merged[top][key]), texts)
-            for (top, key), texts in found.items()]
+    return [(top, key, merged[top] if key is None else merged[top][key], texts) for (top, key), texts in found.items()]
 
 
 def _section(lines: list[str], section: str):
@@ -376,15 +375,19 @@ def _put(lines: list[str], section: str, key: str, value: str, comment: str) -> 
     lines[above:drop] = [" " * indent + new.lstrip()]
 
 
-def _put_top(lines: list[str], key: str, value: str, comment: str) -> None:
-    """Set the top-level ``key: value  # comment``: its line and block replaced, or added at the end."""
-    new = f"{key}: {value}  # {comment}"
+def _put_top(lines: list[str], key: str, value, comment: str) -> None:
+    """Set the top-level ``key`` to ``value`` (a mapping as a block of its keys, each as YAML flow; else one
+    line), ``# comment`` after the key: its line and block replaced, or added at the end."""
+    if isinstance(value, dict):
+        new = [f"{key}:  # {comment}", *(f"  {k}: {json.dumps(v)}" for k, v in value.items())]
+    else:
+        new = [f"{key}: {json.dumps(value)}  # {comment}"]
     start = next((k for k, ln in enumerate(lines) if re.match(rf"^{key}:", ln)), None)
     if start is None:
-        lines.append(new)
+        lines += new
         return
     end = next((k for k in range(start + 1, len(lines)) if re.match(r"^\S", lines[k])), len(lines))
-    lines[start:end] = [new]
+    lines[start:end] = new
 
 
 def _keep(lines: list[str], section: str, key: str, comment: str) -> None:
