@@ -114,9 +114,10 @@ def implausible(payload: dict, folder) -> str:
         found.update({**s["parameters"], **s.get("derived", {})})
     said = "; ".join(f"{_estimate(n, p['value'], *p['interval95'], p['unit'])} is {RULE_WORDS[p['rule']]}"
                      for n, p in found.items() if n in payload["implausible"])
-    kept = ", ".join(payload["not_written"]) or "nothing"
-    return (f"not plausible: {said}; {folder}/identified.yaml keeps the config's {kept} (identified.json flags "
-            "it): fit a window that excites it more (--window), or a longer log")
+    kept = (f"{folder}/identified.yaml keeps the config's {', '.join(payload['not_written'])}"
+            if payload["not_written"] else f"{folder}/identified.yaml does not take it")
+    return (f"not plausible: {said}; {kept} (identified.json flags it): fit a window that excites it more "
+            "(--window), or a longer log")
 
 
 def set_comment(sets) -> str:
@@ -128,8 +129,8 @@ def edited(path, why: str) -> str:
     """Why ``identify`` refuses to write over ``path`` (an identified.yaml edited since quadctl wrote it, or
     one it has no record of), and the two ways on: keep the edits under another name, or discard them."""
     return (f"{path}: changed since quadctl identify wrote it ({why}); identify would write over it: to keep "
-            f"your edits copy it to another name (cp {path} my-vehicle.yaml) and run again, or pass --force to "
-            "write over them")
+            f"your edits move it to another name (mv {path} my-vehicle.yaml) or identify into another folder "
+            "(-o DIR), or pass --force to write over them")
 
 
 def edit_evidence(recorded: bool) -> str:

@@ -60,7 +60,8 @@ def test_an_edited_identified_yaml_is_refused_in_one_line_and_the_folder_is_left
     why = "records no sha256 of it" if edit == "the record lost" else "its bytes differ from the sha256"
     assert len(lines) == 1 and lines[0].startswith(f"quadctl: error: {yaml_file}: changed since quadctl identify "
                                                    "wrote it"), lines
-    assert why in lines[0] and f"cp {yaml_file} my-vehicle.yaml" in lines[0] and "pass --force" in lines[0]
+    assert why in lines[0] and f"mv {yaml_file} my-vehicle.yaml" in lines[0] and "(-o DIR)" in lines[0]
+    assert lines[0].endswith("or pass --force to write over them")
     assert res.stdout == ""
     assert snapshot(out) == before
 

@@ -141,3 +141,16 @@ def test_the_sample_ulogs_unresolved_motor_lag_is_not_written_and_identify_exits
     assert cfg.motors.time_constant == parse(locate("crazyflie").text, "c").motors.time_constant
     assert cfg.motors.max_thrust == pytest.approx(done["stages"]["thrust"]["derived"]["max_thrust"]["value"],
                                                   rel=1e-3)
+
+
+def test_the_closing_line_names_what_was_kept_or_that_nothing_was_to_be_written():
+    from quadctl.present.identify import implausible
+
+    p = {"value": -0.001, "interval95": [-0.004, 0.002], "unit": "s", "rule": "non-negative"}
+    done = {"stages": {"thrust": {"parameters": {"delay": p}}}, "implausible": ["delay"], "not_written": {}}
+    assert implausible(done, "runs/x") == (
+        "not plausible: delay = -0.001 s (95 %: -0.004 to 0.002 s) is a quantity that cannot be negative; "
+        "runs/x/identified.yaml does not take it (identified.json flags it): fit a window that excites it more "
+        "(--window), or a longer log")
+    done["not_written"] = {"controller.delay": ["delay"]}
+    assert "runs/x/identified.yaml keeps the config's controller.delay (" in implausible(done, "runs/x")
