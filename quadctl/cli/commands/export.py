@@ -54,7 +54,7 @@ def command(to: Annotated[Target, typer.Option(
     Exits 1 when the design is unstable, when the gain schedule (schedule:) fails its checks, or when a
     continuous design's loop is unstable sampled at --rate; 2 when --to c has no rate (give --rate or set
     controller.rate), or when --to crazyflie cannot serve the config (a rate that does not divide the
-    firmware's 1 kHz loop, a setpoint the partition leaves free, rotors numbered unlike the firmware's).
+    firmware's 1 kHz loop, a --setpoint the partition leaves free, rotors numbered unlike the firmware's).
     """
     from quadctl import artifacts, export
     from quadctl.cli import render
