@@ -39,19 +39,32 @@ def test_identified_json_records_the_sha256_of_the_yaml_it_wrote(written):
     require_unedited(written)  # what quadctl wrote: written over without a word
 
 
+def identify_folder(folder):
+    """A folder as identify leaves it, made without a fit: identified.yaml and identified.json recording its
+    sha256 (the refusal comes before the logs are read)."""
+    from quadctl.artifacts.meta import IDENTIFIED_CONFIG_HEAD
+    from quadctl.config import locate
+
+    folder.mkdir()
+    text = f"{IDENTIFIED_CONFIG_HEAD} log10: see identified.json.\n" + locate("crazyflie").text
+    (folder / "identified.yaml").write_text(text)
+    (folder / "identified.json").write_text(json.dumps({"identified_yaml_sha256": hashlib.sha256(
+        text.encode()).hexdigest()}))
+    (folder / ".quadctl").write_text("mark\n")
+    return folder / "identified.yaml"
+
+
 @pytest.mark.parametrize("edit", ["a changed value", "a comment added", "the record lost"])
-def test_an_edited_identified_yaml_is_refused_in_one_line_and_the_folder_is_left_as_it_was(written, tmp_path, edit):
+def test_an_edited_identified_yaml_is_refused_in_one_line_and_the_folder_is_left_as_it_was(tmp_path, edit):
     out = tmp_path / "o"
-    shutil.copytree(written, out)
-    yaml_file = out / "identified.yaml"
+    yaml_file = identify_folder(out)
+    require_unedited(out)  # as written: identify would write over it
     if edit == "a changed value":
         yaml_file.write_text(yaml_file.read_text().replace("mass: 0.027", "mass: 0.0291"))
     elif edit == "a comment added":
         yaml_file.write_text(yaml_file.read_text() + "# flown with the new battery\n")
     else:  # identified.json of an earlier quadctl, with no sha256: the edits cannot be told, so none is lost
-        done = json.loads((out / "identified.json").read_text())
-        del done["identified_yaml_sha256"]
-        (out / "identified.json").write_text(json.dumps(done))
+        (out / "identified.json").write_text("{}")
     before = snapshot(out)
     res = CliRunner().invoke(app, ["identify", str(LOG10), "-c", "crazyflie", "--window", "8.67:38.67",
                                    "-o", str(out)])
@@ -74,6 +87,9 @@ def test_force_writes_over_the_edits(written, tmp_path):
                                    "-o", str(out), "--force"])
     assert res.exit_code == 0, res.output
     assert (out / "identified.yaml").read_bytes() == (written / "identified.yaml").read_bytes()
+    res = CliRunner().invoke(app, ["identify", str(LOG10), "-c", "crazyflie", "--window", "8.67:38.67",
+                                   "-o", str(out)])  # its own file again: written over without --force
+    assert res.exit_code == 0, res.output
 
 
 def test_a_folder_without_an_identified_yaml_is_written(tmp_path):

@@ -87,6 +87,7 @@ def test_a_value_whose_interval_reaches_zero_leaves_the_configs_and_says_why(kin
     assert config_value(got) == config_value(was), kind
     assert text.count("not identified: ") == len(kept)
     done = payload(ident, "crazyflie.yaml", written=text)
+    assert done["identified_yaml_sha256"] == __import__("hashlib").sha256(text.encode()).hexdigest()
     assert list(done["not_written"]) == list(kept)
     assert len(done["implausible"]) == 1
     flagged = [p for s in done["stages"].values() for n, p in s["parameters"].items() if not p["plausible"]]
