@@ -121,8 +121,13 @@ def implausible(payload: dict, folder) -> str:
 
 
 def set_comment(sets) -> str:
-    """The identified config's comment on a value ``--set`` gave the fit."""
-    return "given on the command line (" + ", ".join(f"--set {t}" for t in sets) + ")"
+    """The identified config's comment on a value ``--set`` gave the fit, on one line (a line break in a
+    value shown as ``\\n``: a YAML comment ends at the line's end).
+
+    >>> set_comment(["vehicle.mass=0.03", "description=two\\nlines"])
+    'given on the command line (--set vehicle.mass=0.03, --set description=two\\\\nlines)'
+    """
+    return "given on the command line (" + ", ".join(f"--set {repr(t)[1:-1]}" for t in sets) + ")"
 
 
 def edited(path, why: str) -> str:

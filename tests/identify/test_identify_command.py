@@ -280,3 +280,14 @@ def test_the_identified_config_holds_the_set_values_as_the_fit_took_them(sets):
         assert _at(got, at) != _at(want, at), text
     if sets[0].startswith("motors="):  # identified values go over the section --set gave
         assert got["motors"]["arm_length"] == 0.05 and got["motors"]["time_constant"] == 0.056
+
+
+def test_a_set_value_over_two_lines_keeps_the_identified_config_loadable():
+    """A comment ends at the line's end: the --set that gave a value spanning lines is shown escaped."""
+    from quadctl.config import locate, parse
+    from quadctl.identify.results import identified_config
+
+    text = identified_config(locate("crazyflie").text, _delay_identification(500.0), "x",
+                             ["simulation.reference={setpoints: [{t: 1,\n yaw: 0.5}]}"])
+    assert "--set simulation.reference={setpoints: [{t: 1,\\n yaw: 0.5}]})" in text
+    assert parse(text, "x").simulation.reference.setpoints[0].yaw == 0.5
