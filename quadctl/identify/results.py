@@ -53,24 +53,42 @@ class Identification:
         k = [th.names.index(n) for n in ("c0", "c1", "c2")]
         return float(np.sqrt(max(float(np.sum(th.covariance[np.ix_(k, k)])), 0.0)))
 
-    def estimates(self) -> dict[str, tuple[float, float, float]]:
-        """``{parameter: (value, low, high)}``, its 95 % interval: every fitted parameter, and ``max_thrust``
-        (:data:`quadctl.identify.plausibility.RULES` has a rule for each)."""
+    def entries(self) -> dict[str, dict]:
+        """``{parameter: its identified.json entry}`` (:func:`entry`): every fitted parameter, and
+        ``max_thrust``, the curve at full command (:data:`quadctl.identify.plausibility.RULES` has a rule for each)."""
         out = {}
         for fit in self.fits.values():
-            for name in fit.names:
-                out[name] = (fit.value(name), *fit.interval(name))
-        top, half = self.max_thrust(), est.Z95 * self.max_thrust_std()
-        out["max_thrust"] = (top, top - half, top + half)
+            for k, name in enumerate(fit.names):
+                out[name] = entry(name, fit.values[k], *fit.interval(name), fit.std[k], est.UNITS[name],
+                                  est.MEANING[name], fit.floors.get(name) if fit.at_floor(name) else None)
+        top, std = self.max_thrust(), self.max_thrust_std()
+        out["max_thrust"] = entry("max_thrust", top, top - est.Z95 * std, top + est.Z95 * std, std, "N",
+                                  MAX_THRUST_MEANING)
         return out
 
     def implausible(self) -> tuple[str, ...]:
-        """The parameters whose estimate fails its rule (:func:`quadctl.identify.plausibility.judge`)."""
-        return tuple(n for n, (v, lo, hi) in self.estimates().items() if not plausibility.judge(n, v, (lo, hi)))
+        """The parameters whose estimate is not plausible (:func:`entry`)."""
+        return tuple(n for n, e in self.entries().items() if not e["plausible"])
 
     def withheld(self) -> dict[tuple[str, str], tuple[str, ...]]:
         """``{(section, key): implausible parameters}``: the keys the identified config does not write."""
         return plausibility.withheld(self.implausible())
+
+
+MAX_THRUST_MEANING = "rotor thrust at full command (c0 + c1 + c2)"
+"""The meaning ``identified.json`` gives ``max_thrust`` (:data:`quadctl.identify.estimate.MEANING` gives the
+fitted parameters')."""
+
+
+def entry(name: str, value: float, lo: float, hi: float, std: float, unit: str, meaning: str,
+          floor: float | None = None) -> dict:
+    """One parameter of ``identified.json``: its value, 95 % interval, unit, rule and whether it passes it
+    (``passes_rule``, :func:`quadctl.identify.plausibility.judge`), the fit's ``floor`` when the value sits
+    on it (``fit_floor``: the floor, not an estimate), and ``plausible``: it passes its rule, off the floor."""
+    passes = plausibility.judge(name, value, (lo, hi))
+    return {"value": float(value), "interval95": [lo, hi], "std": float(std), "unit": unit, "meaning": meaning,
+            "rule": plausibility.RULES[name].value, "passes_rule": passes, "fit_floor": floor,
+            "plausible": passes and floor is None}
 
 
 def windows_per_log(texts, count: int):
@@ -127,15 +145,6 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
                           config_name=config.name, controller_rate=config.controller.rate)
 
 
-MAX_THRUST_MEANING = "rotor thrust at full command (c0 + c1 + c2)"
-
-
-def _entry(name: str, value: float, lo: float, hi: float, std: float, unit: str, meaning: str) -> dict:
-    """One parameter of ``identified.json``: its value, interval, unit, rule and whether it passes it."""
-    return {"value": float(value), "interval95": [lo, hi], "std": float(std), "unit": unit, "meaning": meaning,
-            "rule": plausibility.RULES[name].value, "plausible": plausibility.judge(name, value, (lo, hi))}
-
-
 def yaml_digest(text: str) -> str:
     """The sha256 of ``identified.yaml``'s bytes as written (``text`` UTF-8 encoded)."""
     return hashlib.sha256(text.encode()).hexdigest()
@@ -178,17 +187,10 @@ def payload(ident: Identification, config_label: str, config=None, written: str 
     and, given the identified config's text as ``written``, the sha256 of its bytes
     (``identified_yaml_sha256``: :func:`require_unedited` tells a hand edit by it); the ``--set`` values
     the fit's config took (``set``)."""
-    stages = {}
+    stages, found = {}, ident.entries()
     for stage, fit in ident.fits.items():
-        params = {}
-        for k, name in enumerate(fit.names):
-            params[name] = _entry(name, fit.values[k], *fit.interval(name), fit.std[k], est.UNITS[name],
-                                  est.MEANING[name])
-        derived = {}
-        if stage == "thrust":
-            top, lo, hi = ident.estimates()["max_thrust"]
-            derived["derived"] = {"max_thrust": _entry("max_thrust", top, lo, hi, ident.max_thrust_std(), "N",
-                                                       MAX_THRUST_MEANING)}
+        params = {name: found[name] for name in fit.names}
+        derived = {"derived": {"max_thrust": found["max_thrust"]}} if stage == "thrust" else {}
         stages[stage] = {
             "log": ident.logs[ident.stage_logs[stage]].path, "windows_s": [list(w) for w in fit.windows],
             "samples": int(fit.t.size), "parameters": params, "residual_rms": fit.rms,
@@ -253,16 +255,11 @@ def changes(ident: Identification) -> dict:
         k_m = yaw.value("k_m") * inertia[2] / ident.airframe.inertia[2]  # the log fixes k_m / Jzz
         out[("motors", "torque_coefficient")] = (
             f"{k_m:.4g}", f"N m per N, identified from {src_y} t {span_y} s (k_m / Jzz, with the Jzz above)")
-    found = ident.estimates()
+    found = ident.entries()
     for key, names in ident.withheld().items():
         if key in out:  # not written: the config's value stays, and the comment says why
-            out[key] = (None, shown.withheld_comment([(n, *found[n], UNITS[n], plausibility.RULES[n].value)
-                                                      for n in names]))
+            out[key] = (None, shown.withheld_comment({n: found[n] for n in names}))
     return out
-
-
-UNITS = {**est.UNITS, "max_thrust": "N"}
-"""The unit of each parameter :meth:`Identification.estimates` gives."""
 
 
 def identified_inertia(ident: Identification) -> tuple[list, bool]:

@@ -47,7 +47,8 @@ def values_table(payload: dict) -> Table:
         span = ", ".join(f"{a:.4g}-{b:.4g}" for a, b in s["windows_s"])
         for name, p in {**s["parameters"], **s.get("derived", {})}.items():
             lo, hi = p["interval95"]
-            mark = "" if p.get("plausible", True) else f" ({NOT_PLAUSIBLE[p['rule']]})"
+            mark = ("" if p["plausible"] else f" ({NOT_PLAUSIBLE[p['rule']]})" if not p["passes_rule"]
+                    else " (at the fit's floor: not written)")
             rows.append((name, f"{p['value']:.4g}", f"{lo:.4g} .. {hi:.4g}{mark}", p["unit"], p["meaning"], log,
                          span))
     return Table(id="identified", title="Identified (95 % intervals from the fit's covariance, residual "
@@ -88,22 +89,25 @@ def sentences(payload: dict) -> list[str]:
 NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written"}
 """What a value that fails its rule (:class:`quadctl.identify.plausibility.Sign`) shows beside its interval."""
 RULE_WORDS = {"positive": "a positive quantity whose 95 % interval reaches zero or below",
-              "non-negative": "a quantity that cannot be negative"}
+              "non-negative": "negative, which it cannot be"}
 """Why a value that fails its rule is not plausible."""
 
 
-def _estimate(name: str, value: float, lo: float, hi: float, unit: str) -> str:
-    return f"{name} = {value:.4g} {unit} (95 %: {lo:.4g} to {hi:.4g} {unit})"
+def _estimate(name: str, p: dict) -> str:
+    """``T_m = 0.008 s (95 %: -0.004 to 0.02 s) is ...``: an identified.json entry ``p`` of ``name``, and why
+    it is not plausible: its rule (:data:`RULE_WORDS`), and the fit's floor when it sits there."""
+    lo, hi = p["interval95"]
+    why = [] if p["passes_rule"] else [RULE_WORDS[p["rule"]]]
+    if p.get("fit_floor") is not None:
+        why.append(f"on the fit's floor ({p['fit_floor']:.4g} {p['unit']}, two samples of the log: the log resolves "
+                   "nothing shorter)")
+    return f"{name} = {p['value']:.4g} {p['unit']} (95 %: {lo:.4g} to {hi:.4g} {p['unit']}) is {', and '.join(why)}"
 
 
-def withheld_comment(failed) -> str:
-    """The identified config's comment on a key left as the config had it: which estimate fails its rule.
-
-    Parameters
-    ----------
-    failed : list of (name, value, low, high, unit, rule)
-    """
-    said = "; ".join(f"{_estimate(n, v, lo, hi, u)}, {RULE_WORDS[r]}" for n, v, lo, hi, u, r in failed)
+def withheld_comment(failed: dict) -> str:
+    """The identified config's comment on a key left as the config had it: which estimates are not plausible
+    (``failed``: ``{name: identified.json entry}``) and why."""
+    said = "; ".join(_estimate(n, p) for n, p in failed.items())
     return f"not identified: {said}; the config's value stays (identified.json: plausible false)"
 
 
@@ -112,8 +116,7 @@ def implausible(payload: dict, folder) -> str:
     found = {}
     for s in payload["stages"].values():
         found.update({**s["parameters"], **s.get("derived", {})})
-    said = "; ".join(f"{_estimate(n, p['value'], *p['interval95'], p['unit'])} is {RULE_WORDS[p['rule']]}"
-                     for n, p in found.items() if n in payload["implausible"])
+    said = "; ".join(_estimate(n, p) for n, p in found.items() if n in payload["implausible"])
     kept = (f"{folder}/identified.yaml keeps the config's {', '.join(payload['not_written'])}"
             if payload["not_written"] else f"{folder}/identified.yaml does not take it")
     return (f"not plausible: {said}; {kept} (identified.json flags it): fit a window that excites it more "

@@ -105,6 +105,21 @@ def test_the_torque_coefficient_keeps_the_configs_jzz_when_the_inertia_is_not_wr
         0.0062 * (1.3e-5 + 1.38e-5) / 29.261652e-6, rel=1e-3)
 
 
+def test_a_lag_on_the_fits_floor_is_not_written_however_narrow_its_interval():
+    """The fit holds T_m at two samples or more: a value there is the floor (the data want less), not an
+    estimate, even when its interval lies above zero."""
+    ident = _identification()
+    thrust = ident.fits["thrust"]
+    thrust.floors["T_m"] = 0.07  # the fitted 0.07 s, std 1e-4 s: well above zero, but on the floor
+    entry = ident.entries()["T_m"]
+    assert entry["passes_rule"] and entry["fit_floor"] == 0.07 and not entry["plausible"]
+    got = changes(ident)
+    assert got[("motors", "time_constant")][0] is None
+    assert "is on the fit's floor (0.07 s, two samples of the log" in got[("motors", "time_constant")][1]
+    thrust.floors["T_m"] = 0.004  # off the floor: written
+    assert changes(ident)[("motors", "time_constant")][0] == "0.07"
+
+
 def test_a_delay_fitted_with_an_implausible_lag_is_not_written():
     """The delay and T_m trade against each other: a delay fitted beside a lag the log does not resolve is not
     written either, and the delay's own sentence gives way to the one that says what was kept."""
@@ -128,12 +143,14 @@ def test_the_sample_ulogs_unresolved_motor_lag_is_not_written_and_identify_exits
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and re.match(
         r"^quadctl: check failed: not plausible: T_m = 0\.008 s \(95 %: -0\.004\d* to 0\.02\d* s\) is a positive "
-        r"quantity whose 95 % interval reaches zero or below; .*identified\.yaml keeps the config's "
+        r"quantity whose 95 % interval reaches zero or below, and on the fit's floor \(0\.008 s, two samples of "
+        r"the log: the log resolves nothing shorter\); .*identified\.yaml keeps the config's "
         r"motors\.time_constant, controller\.rotor_lag \(identified\.json flags it\)", lines[0]), lines
     done = json.loads(res.stdout)
     assert done == json.loads((out / "identified.json").read_text())
     t_m = done["stages"]["thrust"]["parameters"]["T_m"]
     assert t_m["plausible"] is False and t_m["interval95"][0] < 0 < t_m["interval95"][1]
+    assert t_m["fit_floor"] == pytest.approx(2 / 250)  # two samples at the log's 250 Hz
     assert done["implausible"] == ["T_m"]
     text = (out / "identified.yaml").read_text()
     assert "time_constant: 0.008" not in text and "rotor_lag: include" not in text
@@ -147,10 +164,11 @@ def test_the_sample_ulogs_unresolved_motor_lag_is_not_written_and_identify_exits
 def test_the_closing_line_names_what_was_kept_or_that_nothing_was_to_be_written():
     from quadctl.present.identify import implausible
 
-    p = {"value": -0.001, "interval95": [-0.004, 0.002], "unit": "s", "rule": "non-negative"}
+    p = {"value": -0.001, "interval95": [-0.004, 0.002], "unit": "s", "rule": "non-negative", "passes_rule": False,
+         "fit_floor": None, "plausible": False}
     done = {"stages": {"thrust": {"parameters": {"delay": p}}}, "implausible": ["delay"], "not_written": {}}
     assert implausible(done, "runs/x") == (
-        "not plausible: delay = -0.001 s (95 %: -0.004 to 0.002 s) is a quantity that cannot be negative; "
+        "not plausible: delay = -0.001 s (95 %: -0.004 to 0.002 s) is negative, which it cannot be; "
         "runs/x/identified.yaml does not take it (identified.json flags it): fit a window that excites it more "
         "(--window), or a longer log")
     done["not_written"] = {"controller.delay": ["delay"]}
