@@ -20,7 +20,8 @@ EXIT_INTERRUPTED = 130
 
 EXIT_CODES_HELP = (
     "Exit codes: 0 success; 1 a check failed (rank, stability, divergence, a mission not flown, a sweep gate, "
-    "a unit slip, saturation); 2 bad input (config, options, files); 3 internal error (a bug: please report it); "
+    "a unit slip, saturation, an identified value not physically possible); 2 bad input (config, options, files); "
+    "3 internal error (a bug: please report it); "
     "130 interrupted."
 )
 

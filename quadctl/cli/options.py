@@ -45,6 +45,12 @@ SetOpt = set_option("recorded in DIR/config.yaml.")
 """``--set`` of a command that writes a run directory (DIR): the values are recorded there."""
 
 
+def force_option(what: str):
+    """``--force``: write over ``what``, a file of the user's that the command otherwise refuses to replace
+    (one line, exit 2, naming ``--force``)."""
+    return Annotated[bool, typer.Option("--force", help=f"Write over {what}.")]
+
+
 def flags_without_placeholder(command_cls):
     """A typer command (or group) class whose boolean flags show no value placeholder in ``--help``.
 

@@ -112,7 +112,7 @@ TARGETS = ("c", "mat", "json", "crazyflie")
 """What :func:`write` writes: the C controller, the MATLAB ``.mat``, the JSON, the Crazyflie app."""
 
 
-def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: str = "position",
+def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: str | None = None,
           mode: str = "force") -> list:
     """Write the export ``to`` (one of :data:`TARGETS`) into ``folder``, atomically; the paths.
 
@@ -126,7 +126,9 @@ def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: s
     meta : dict, optional
         Provenance for the JSON (:func:`quadctl.artifacts.metadata`).
     setpoint, mode : str
-        The Crazyflie app's setpoints and output mode (:func:`quadctl.export.crazyflie.sources`).
+        The Crazyflie app's setpoints (default: what the config can fly,
+        :func:`quadctl.export.crazyflie.default_setpoint`) and output mode
+        (:func:`quadctl.export.crazyflie.sources`).
 
     Returns
     -------

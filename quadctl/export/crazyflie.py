@@ -19,6 +19,7 @@ import numpy as np
 from quadctl.errors import ConfigError
 from quadctl.export import c
 from quadctl.export.bundle import Export, require_export
+from quadctl.present.platform import setpoint_refused
 from quadctl.text.escape import c_comment
 from quadctl.version import __version__
 
@@ -28,6 +29,8 @@ called at this rate."""
 SETPOINTS = ("position", "velocity")
 """What the app follows: ``position`` (x, y, z and yaw held where the commander says, the
 high-level commander's go-to), ``velocity`` (the hover setpoint: vx, vy, z (or vz) and yaw rate)."""
+NEEDS = {"position": ("pN", "pE", "pD", "psi"), "velocity": ("u", "v", "pD", "psi")}
+"""The states each of :data:`SETPOINTS` needs regulated (in a subsystem with ``regulate: true``)."""
 MODES = ("force", "force-torque")
 """The firmware's ``control_t`` modes the app can write."""
 NUMBERING = ("front_right", "rear_right", "rear_left", "front_left")
@@ -110,15 +113,35 @@ def divider(rate: float) -> int:
     return int(round(n))
 
 
-def check(exp: Export, setpoint: str = "position", mode: str = "force") -> None:
+def flyable_setpoints(exp: Export) -> tuple[str, ...]:
+    """The setpoints (:data:`SETPOINTS`, in order) whose states (:data:`NEEDS`) the partition all regulates."""
+    regulated = exp.setup.regulated
+    return tuple(s for s in SETPOINTS if all(state in regulated for state in NEEDS[s]))
+
+
+def default_setpoint(exp: Export) -> str:
+    """The setpoint the app follows when none is asked: the first of :data:`SETPOINTS` the config can
+    fly (:func:`flyable_setpoints`: ``position`` when the partition regulates pN, pE, pD and psi,
+    ``velocity`` when it leaves the position free, as the bundled ``crazyflie`` does), else
+    ``position`` (which :func:`check` refuses, naming the states to regulate).
+
+    >>> from quadctl import config, export, setup
+    >>> default_setpoint(export.prepare(setup.setup_of(config.load("crazyflie"))))
+    'velocity'
+    """
+    require_export(exp, "default_setpoint")
+    return (flyable_setpoints(exp) or SETPOINTS)[0]
+
+
+def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None:
     """Refuse what the app cannot serve (:class:`~quadctl.errors.ConfigError`, exit 2).
 
     Parameters
     ----------
     exp : Export
         Prepared with a rate.
-    setpoint : {"position", "velocity"}
-        What the commander gives (:data:`SETPOINTS`).
+    setpoint : {"position", "velocity"}, optional
+        What the commander gives (:data:`SETPOINTS`); default :func:`default_setpoint`.
     mode : {"force", "force-torque"}
 
     Raises
@@ -130,6 +153,7 @@ def check(exp: Export, setpoint: str = "position", mode: str = "force") -> None:
         setpoint that needs a state the partition leaves free.
     """
     require_export(exp, "check")
+    setpoint = default_setpoint(exp) if setpoint is None else setpoint
     if setpoint not in SETPOINTS:
         raise ValueError(f"setpoint must be one of {SETPOINTS}, got {setpoint!r}")
     if mode not in MODES:
@@ -156,14 +180,9 @@ def check(exp: Export, setpoint: str = "position", mode: str = "force") -> None:
     if np.any(np.asarray(loop.x_rate) != 0.0):
         raise ConfigError("trim.velocity_ned is not zero: the commander's setpoints are positions and velocities "
                           "about a hover; trim at velocity_ned: [0, 0, 0]")
-    need = {"position": ("pN", "pE", "pD", "psi"), "velocity": ("u", "v", "pD", "psi")}[setpoint]
-    free = [s for s in need if s not in setup.regulated]
+    free = [s for s in NEEDS[setpoint] if s not in setup.regulated]
     if free:
-        other = ("--setpoint velocity (the hover setpoint: vx, vy, z, yaw rate)" if setpoint == "position"
-                 else "--setpoint position")
-        raise ConfigError(f"subsystems: the partition leaves {', '.join(free)} free (in no regulated subsystem), so "
-                          f"a {setpoint} setpoint cannot be followed: regulate {', '.join(free)} (add them to a "
-                          f"subsystem with regulate: true) or export with {other}")
+        raise ConfigError(setpoint_refused(setpoint, free, flyable_setpoints(exp)))
 
 
 def platform_rows(exp: Export, platform: Platform = FIRMWARE) -> list[tuple[str, str, float, float, str]]:
@@ -196,8 +215,9 @@ def _c_float(v: float) -> str:
     return f"{float(v)!r}f"
 
 
-def sources(exp: Export, setpoint: str = "position", mode: str = "force") -> dict[str, str]:
-    """The app's files: ``{path relative to the app folder: text}``.
+def sources(exp: Export, setpoint: str | None = None, mode: str = "force") -> dict[str, str]:
+    """The app's files: ``{path relative to the app folder: text}``; ``setpoint`` default
+    :func:`default_setpoint`.
 
     The controller is :func:`quadctl.export.c.sources` with the reference as an input
     (``quadctl_step_ref``): the commander's setpoint is the law's reference.
@@ -208,6 +228,7 @@ def sources(exp: Export, setpoint: str = "position", mode: str = "force") -> dic
         What :func:`check` refuses.
     """
 
+    setpoint = default_setpoint(exp) if setpoint is None else setpoint
     check(exp, setpoint, mode)
     loop = exp.loop
     ctrl = c.sources(exp, reference=True)

@@ -265,6 +265,9 @@ class Estimate:
         Samples of residual autocorrelation the covariance accounts for.
     extra : dict
         Stage-specific numbers (the thrust stage's fit without a lag).
+    floors : dict
+        ``{name: the least value the fit takes}`` of a parameter held above a floor (the motor lag: two
+        samples of the log); a value on it is the floor, not an estimate.
     """
 
     stage: str
@@ -280,9 +283,15 @@ class Estimate:
     rms: float
     bandwidth: int
     extra: dict = field(default_factory=dict)
+    floors: dict = field(default_factory=dict)
 
     def value(self, name: str) -> float:
         return float(self.values[self.names.index(name)])
+
+    def at_floor(self, name: str) -> bool:
+        """Whether ``name`` sits on its floor (:attr:`floors`, within a relative 1e-9: the fit clips to it)."""
+        floor = self.floors.get(name)
+        return floor is not None and self.value(name) <= floor + 1e-9 * abs(floor)
 
     def interval(self, name: str) -> tuple[float, float]:
         """The 95 % interval of ``name``."""
@@ -423,6 +432,7 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
     return Estimate(stage="thrust", names=names, values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=-meas[:, None], predicted=(-(meas - r))[:, None],
                     rows=("thrust (N)",), rms=float(np.sqrt(np.mean(r ** 2))), bandwidth=bandwidth,
+                    floors={"T_m": float(lower[3])},
                     extra={"rms_without_lag": rms_no_lag, "curve_without_lag": [float(v) for v in no_lag],
                            "commands_flown": [float(np.quantile(z, 0.01)), float(np.quantile(z, 0.99))]})
 

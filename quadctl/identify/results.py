@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from dataclasses import dataclass
@@ -11,9 +12,11 @@ import numpy as np
 from quadctl.artifacts.meta import IDENTIFIED_CONFIG_HEAD, metadata
 from quadctl.config import parse
 from quadctl.config.schema import MAX_DELAY_SAMPLES
-from quadctl.errors import LogError
+from quadctl.errors import ArtifactError, ConfigError, LogError
 from quadctl.identify import estimate as est
+from quadctl.identify import plausibility
 from quadctl.identify import windows as win
+from quadctl.present import identify as shown
 
 
 @dataclass
@@ -43,6 +46,49 @@ class Identification:
         """N: a rotor's thrust at full command (the curve at 1)."""
         th = self.fits["thrust"]
         return th.value("c0") + th.value("c1") + th.value("c2")
+
+    def max_thrust_std(self) -> float:
+        """N: the standard deviation of :meth:`max_thrust`, from the thrust fit's covariance of c0, c1, c2."""
+        th = self.fits["thrust"]
+        k = [th.names.index(n) for n in ("c0", "c1", "c2")]
+        return float(np.sqrt(max(float(np.sum(th.covariance[np.ix_(k, k)])), 0.0)))
+
+    def entries(self) -> dict[str, dict]:
+        """``{parameter: its identified.json entry}`` (:func:`entry`): every fitted parameter, and
+        ``max_thrust``, the curve at full command (:data:`quadctl.identify.plausibility.RULES` has a rule for each)."""
+        out = {}
+        for fit in self.fits.values():
+            for k, name in enumerate(fit.names):
+                out[name] = entry(name, fit.values[k], *fit.interval(name), fit.std[k], est.UNITS[name],
+                                  est.MEANING[name], fit.floors.get(name) if fit.at_floor(name) else None)
+        top, std = self.max_thrust(), self.max_thrust_std()
+        out["max_thrust"] = entry("max_thrust", top, top - est.Z95 * std, top + est.Z95 * std, std, "N",
+                                  MAX_THRUST_MEANING)
+        return out
+
+    def implausible(self) -> tuple[str, ...]:
+        """The parameters whose estimate is not plausible (:func:`entry`)."""
+        return tuple(n for n, e in self.entries().items() if not e["plausible"])
+
+    def withheld(self) -> dict[tuple[str, str], tuple[str, ...]]:
+        """``{(section, key): implausible parameters}``: the keys the identified config does not write."""
+        return plausibility.withheld(self.implausible())
+
+
+MAX_THRUST_MEANING = "rotor thrust at full command (c0 + c1 + c2)"
+"""The meaning ``identified.json`` gives ``max_thrust`` (:data:`quadctl.identify.estimate.MEANING` gives the
+fitted parameters')."""
+
+
+def entry(name: str, value: float, lo: float, hi: float, std: float, unit: str, meaning: str,
+          floor: float | None = None) -> dict:
+    """One parameter of ``identified.json``: its value, 95 % interval, unit, rule and whether it passes it
+    (``passes_rule``, :func:`quadctl.identify.plausibility.judge`), the fit's ``floor`` when the value sits
+    on it (``fit_floor``: the floor, not an estimate), and ``plausible``: it passes its rule, off the floor."""
+    passes = plausibility.judge(name, value, (lo, hi))
+    return {"value": float(value), "interval95": [lo, hi], "std": float(std), "unit": unit, "meaning": meaning,
+            "rule": plausibility.RULES[name].value, "passes_rule": passes, "fit_floor": floor,
+            "plausible": passes and floor is None}
 
 
 def windows_per_log(texts, count: int):
@@ -99,28 +145,70 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
                           config_name=config.name, controller_rate=config.controller.rate)
 
 
-def payload(ident: Identification, config_label: str, config=None) -> dict:
+def yaml_digest(text: str) -> str:
+    """The sha256 of ``identified.yaml``'s bytes as written (``text`` UTF-8 encoded)."""
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def require_unedited(folder, force: bool = False) -> None:
+    """Refuse to write over an ``identified.yaml`` in ``folder`` that is not the one quadctl last wrote there.
+
+    quadctl records the sha256 of the bytes it writes (``identified.json``'s ``identified_yaml_sha256``,
+    :func:`payload`); a file whose bytes differ was edited by hand (or was written by a quadctl that kept no
+    record). ``force`` writes over it all the same.
+
+    Raises
+    ------
+    ArtifactError
+        The file differs from the record, or there is no record (exit 2); nothing is written.
+    """
+    from pathlib import Path
+
+    path = Path(folder) / "identified.yaml"
+    if force or not (path.exists() or path.is_symlink()):
+        return
+    try:
+        recorded = json.loads((Path(folder) / "identified.json").read_text(encoding="utf-8"))
+        recorded = recorded.get("identified_yaml_sha256") if isinstance(recorded, dict) else None
+    except (OSError, ValueError):
+        recorded = None
+    try:
+        same = recorded is not None and hashlib.sha256(path.read_bytes()).hexdigest() == recorded
+    except OSError:
+        same = False
+    if not same:
+        raise ArtifactError(shown.edited(path, shown.edit_evidence(recorded is not None)))
+
+
+def payload(ident: Identification, config_label: str, config=None, written: str | None = None, sets=()) -> dict:
     """``identified.json``: values, 95 % intervals, units, windows, residuals, the logs' provenance
-    (and, given the ``config``, the provenance every quadctl artifact carries)."""
-    stages = {}
+    (and, given the ``config``, the provenance every quadctl artifact carries), each value's rule and
+    whether it passes it (``plausible``), the keys not written for a value that does not (``not_written``),
+    and, given the identified config's text as ``written``, the sha256 of its bytes
+    (``identified_yaml_sha256``: :func:`require_unedited` tells a hand edit by it); the ``--set`` values
+    the fit's config took (``set``)."""
+    stages, found = {}, ident.entries()
     for stage, fit in ident.fits.items():
-        params = {}
-        for k, name in enumerate(fit.names):
-            lo, hi = fit.interval(name)
-            params[name] = {"value": float(fit.values[k]), "interval95": [lo, hi], "std": float(fit.std[k]),
-                            "unit": est.UNITS[name], "meaning": est.MEANING[name]}
+        params = {name: found[name] for name in fit.names}
+        derived = {"derived": {"max_thrust": found["max_thrust"]}} if stage == "thrust" else {}
         stages[stage] = {
             "log": ident.logs[ident.stage_logs[stage]].path, "windows_s": [list(w) for w in fit.windows],
             "samples": int(fit.t.size), "parameters": params, "residual_rms": fit.rms,
             "residual_unit": "N" if stage == "thrust" else "N m",
             "residual_correlation_s": fit.bandwidth / 2 * float(np.median(np.diff(fit.t))),
-            **{k: v for k, v in fit.extra.items()}}
+            **{k: v for k, v in fit.extra.items()}, **derived}
 
     meta = metadata(config, "identified.json") if config is not None else {}
     fitted_delay = "delay" in ident.fits["thrust"].names
-    n = ident.delay_samples()
-    return {**meta, "config": config_label, "logs": [log.provenance() for log in ident.logs], "stages": stages,
+    withheld = ident.withheld()
+    n = None if ("controller", "delay") in withheld else ident.delay_samples()
+    kept = [key for key, (value, _) in changes(ident).items() if value is None]
+    return {**meta, "config": config_label, "set": list(sets), "logs": [log.provenance() for log in ident.logs],
+            "stages": stages,
             "refused": dict(ident.refused),
+            "implausible": list(ident.implausible()),
+            "not_written": {f"{section}.{key}": list(withheld[section, key]) for section, key in kept},
+            **({"identified_yaml_sha256": yaml_digest(written)} if written is not None else {}),
             "delay_written": None if not fitted_delay else {
                 "samples": n, "rate_hz": ident.controller_rate, "s": None if n is None else n / ident.controller_rate,
                 "fitted_samples": ident.delay_samples(written=False), "max_samples": MAX_DELAY_SAMPLES},
@@ -167,14 +255,21 @@ def changes(ident: Identification) -> dict:
         k_m = yaw.value("k_m") * inertia[2] / ident.airframe.inertia[2]  # the log fixes k_m / Jzz
         out[("motors", "torque_coefficient")] = (
             f"{k_m:.4g}", f"N m per N, identified from {src_y} t {span_y} s (k_m / Jzz, with the Jzz above)")
+    found = ident.entries()
+    for key, names in ident.withheld().items():
+        if key in out:  # not written: the config's value stays, and the comment says why
+            out[key] = (None, shown.withheld_comment({n: found[n] for n in names}))
     return out
 
 
 def identified_inertia(ident: Identification) -> tuple[list, bool]:
-    """``([Jxx, Jyy, Jzz], lowered)``: the identified Jxx and Jyy (the config's without the attitude stage)
+    """``([Jxx, Jyy, Jzz], lowered)``: the identified Jxx and Jyy (the config's without the attitude stage, or
+    when either is not plausible)
     and the config's Jzz, lowered to Jxx + Jyy when above it (the flat body's bound: no rigid body has
     Jzz > Jxx + Jyy, and a yaw log gives Jzz only over the torque coefficient)."""
     inertia = [float(v) for v in ident.airframe.inertia]
+    if ("vehicle", "inertia") in ident.withheld():  # an implausible Jxx or Jyy: the config's inertia stays
+        return inertia, False
     if "attitude" in ident.fits:
         inertia[0], inertia[1] = ident.fits["attitude"].value("Jxx"), ident.fits["attitude"].value("Jyy")
     lowered = "attitude" in ident.fits and inertia[2] > inertia[0] + inertia[1]
@@ -192,40 +287,33 @@ def _under(line: str, indent: int) -> bool:
     return bool(line.strip()) and deeper > indent
 
 
-def identified_config(text: str, ident: Identification, name: str) -> str:
+def identified_config(text: str, ident: Identification, name: str, sets=()) -> str:
     """The config's YAML ``text`` with the identified values set, each changed line saying where it came from.
 
     Only the changed lines move: a key's line (and the comment lines continuing it, and those just above
     it, which spoke of the old value) is replaced in its section, or added at the section's top; a missing
-    section is appended. A header names the config it came from, whose comments (its sources among them)
-    stay, but for an editor's schema line relative to where it lay; its ``description`` says it was
-    identified.
+    section is appended. A value that is not plausible (:meth:`Identification.withheld`) leaves the
+    config's line as it is, a comment above it saying why. A header names the config it came from, whose
+    comments (its sources among them) stay, but for an editor's schema line relative to where it lay; its
+    ``description`` says it was identified. The ``--set`` values ``sets`` (``KEY=VALUE`` texts, as the fit
+    took them) are put in first, each at its section's key (the whole value there, as YAML flow), saying so.
     """
     lines = text.splitlines()
     lines = [ln for ln in lines if "yaml-language-server:" not in ln]  # a schema path relative to where it lay
     logs = ", ".join(log.name for log in ident.logs)
+    for top, key, value, given in _set_values(text, sets):
+        if key is None:
+            _put_top(lines, top, value, shown.set_comment(given))
+        else:
+            _put(lines, top, key, json.dumps(value), shown.set_comment(given))
     lines = [f"name: {name}" if re.match(r"^name:\s", ln)
              else f"description: {json.dumps(f'{ident.config_name}, identified from {logs}')}"
              if re.match(r"^description:\s+[^|>\s]", ln) else ln for ln in lines]  # (a block scalar stays)
     for (section, key), (value, comment) in changes(ident).items():
-        new = f"  {key}: {value}  # {comment}"
-        start = next((k for k, ln in enumerate(lines) if re.match(rf"^{section}:\s*(#.*)?$", ln)), None)
-        if start is None:
-            lines += [f"{section}:", new]
-            continue
-        end = next((k for k in range(start + 1, len(lines)) if re.match(r"^\S", lines[k])), len(lines))
-        at = next((k for k in range(start + 1, end) if re.match(rf"^\s+{key}:", lines[k])), None)
-        if at is None:
-            lines.insert(start + 1, new)
-            continue
-        indent = len(lines[at]) - len(lines[at].lstrip())
-        drop = at + 1
-        while drop < end and _under(lines[drop], indent):
-            drop += 1  # the old value's continued comment, or its block (delay:\n    samples: 1)
-        above = at
-        while above - 1 > start and lines[above - 1].startswith(" " * indent + "#"):
-            above -= 1  # the comment just above the old value: its source
-        lines[above:drop] = [" " * indent + new.lstrip()]
+        if value is None:
+            _keep(lines, section, key, comment)
+        else:
+            _put(lines, section, key, value, comment)
     head = (f"{IDENTIFIED_CONFIG_HEAD} {logs}: see identified.json. The rest is the config\n"
             f"# {ident.config_name}'s, its comments speaking of its values; each identified value says where it\n"
             "# came from.")
@@ -233,3 +321,80 @@ def identified_config(text: str, ident: Identification, name: str) -> str:
 
     parse(out, f"the identified config of {name}")  # what it writes loads (ConfigError otherwise)
     return out
+
+
+def _set_values(text: str, sets) -> list[tuple[str, str | None, object, list[str]]]:
+    """``(section, key or None, value, the --set texts)`` per key of the config that the ``--set``
+    values ``sets`` change: the whole value at ``section.key`` (or at a top-level key) as the config with
+    them has it, and the values that changed it."""
+    if not sets:
+        return []
+    from quadctl.config import overrides, yamlio
+
+    merged = overrides.apply(yamlio.load(text, "the config", ConfigError), [overrides.parse(t) for t in sets])
+    found: dict[tuple, list[str]] = {}
+    for t in sets:
+        keys = overrides.parse(t).keys
+        top = keys[0]
+        found.setdefault((top, keys[1] if len(keys) > 1 and isinstance(merged.get(top), dict) else None), []).append(t)
+    return [(top, key, merged[top] if key is None else merged[top][key], texts) for (top, key), texts in found.items()]
+
+
+def _section(lines: list[str], section: str):
+    """``(start, end)``: the line of ``section:`` and the first line after its block; None when absent."""
+    start = next((k for k, ln in enumerate(lines) if re.match(rf"^{section}:\s*(#.*)?$", ln)), None)
+    if start is None:
+        return None
+    end = next((k for k in range(start + 1, len(lines)) if re.match(r"^\S", lines[k])), len(lines))
+    return start, end
+
+
+def _put(lines: list[str], section: str, key: str, value: str, comment: str) -> None:
+    """Set ``section.key: value  # comment`` in ``lines``: the key's line (its continued comment, its block and
+    the comment just above it, which spoke of the old value) replaced, or added at the section's top."""
+    new = f"  {key}: {value}  # {comment}"
+    found = _section(lines, section)
+    if found is None:
+        lines += [f"{section}:", new]
+        return
+    start, end = found
+    at = next((k for k in range(start + 1, end) if re.match(rf"^\s+{key}:", lines[k])), None)
+    if at is None:
+        lines.insert(start + 1, new)
+        return
+    indent = len(lines[at]) - len(lines[at].lstrip())
+    drop = at + 1
+    while drop < end and _under(lines[drop], indent):
+        drop += 1  # the old value's continued comment, or its block (delay:\n    samples: 1)
+    above = at
+    while above - 1 > start and lines[above - 1].startswith(" " * indent + "#"):
+        above -= 1  # the comment just above the old value: its source
+    lines[above:drop] = [" " * indent + new.lstrip()]
+
+
+def _put_top(lines: list[str], key: str, value, comment: str) -> None:
+    """Set the top-level ``key`` to ``value`` (a mapping as a block of its keys, each as YAML flow; else one
+    line), ``# comment`` after the key: its line and block replaced, or added at the end."""
+    if isinstance(value, dict):
+        new = [f"{key}:  # {comment}", *(f"  {k}: {json.dumps(v)}" for k, v in value.items())]
+    else:
+        new = [f"{key}: {json.dumps(value)}  # {comment}"]
+    start = next((k for k, ln in enumerate(lines) if re.match(rf"^{key}:", ln)), None)
+    if start is None:
+        lines += new
+        return
+    end = next((k for k in range(start + 1, len(lines)) if re.match(r"^\S", lines[k])), len(lines))
+    lines[start:end] = new
+
+
+def _keep(lines: list[str], section: str, key: str, comment: str) -> None:
+    """Leave ``section.key`` as the config has it, the comment ``comment`` (why) on the line above it (at the
+    section's top when the config leaves the key out; at the end when it leaves the section out)."""
+    found = _section(lines, section)
+    if found is None:
+        lines.append(f"# {section}.{key}: {comment}")
+        return
+    start, end = found
+    at = next((k for k in range(start + 1, end) if re.match(rf"^\s+{key}:", lines[k])), None)
+    indent = "  " if at is None else lines[at][:len(lines[at]) - len(lines[at].lstrip())]
+    lines.insert(start + 1 if at is None else at, f"{indent}# {key}: {comment}")

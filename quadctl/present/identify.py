@@ -39,14 +39,18 @@ def log_sentences(payload: dict) -> list[str]:
 
 
 def values_table(payload: dict) -> Table:
-    """Every identified value with its 95 % interval, unit, log and window (from ``identified.json``)."""
+    """Every identified value with its 95 % interval, unit, log and window (from ``identified.json``); one
+    that fails its rule (not written) marked so beside its interval."""
     rows = []
     for s in payload["stages"].values():
         log = s["log"].rsplit("/", 1)[-1]
         span = ", ".join(f"{a:.4g}-{b:.4g}" for a, b in s["windows_s"])
-        for name, p in s["parameters"].items():
+        for name, p in {**s["parameters"], **s.get("derived", {})}.items():
             lo, hi = p["interval95"]
-            rows.append((name, f"{p['value']:.4g}", f"{lo:.4g} .. {hi:.4g}", p["unit"], p["meaning"], log, span))
+            mark = ("" if p["plausible"] else f" ({NOT_PLAUSIBLE[p['rule']]})" if not p["passes_rule"]
+                    else " (at the fit's floor: not written)")
+            rows.append((name, f"{p['value']:.4g}", f"{lo:.4g} .. {hi:.4g}{mark}", p["unit"], p["meaning"], log,
+                         span))
     return Table(id="identified", title="Identified (95 % intervals from the fit's covariance, residual "
                  "autocorrelation included)", columns=("parameter", "value", "95 % interval", "unit", "meaning",
                                                        "log", "window (s)"), rows=tuple(rows), align="lrrlwll")
@@ -61,7 +65,7 @@ def sentences(payload: dict) -> list[str]:
                    f"{th['rms_without_lag']:.4g} N without (the lag explains "
                    f"{(1 - th['residual_rms'] / th['rms_without_lag']) * 100:.0f} % of the error).")
     delay = payload.get("delay_written")
-    if delay is not None:
+    if delay is not None and "controller.delay" not in payload.get("not_written", {}):  # (else: implausible())
         fitted = th["parameters"]["delay"]["value"]
         if delay["samples"] is None and delay.get("fitted_samples") is not None:
             out.append(f"The fitted delay, {fitted * 1e3:.4g} ms, is {delay['fitted_samples']} samples at "
@@ -80,3 +84,64 @@ def sentences(payload: dict) -> list[str]:
     for stage, reason in payload["refused"].items():
         out.append(f"Not identified, {STAGE_TITLES[stage]}: {reason}.")
     return out
+
+
+NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written"}
+"""What a value that fails its rule (:class:`quadctl.identify.plausibility.Sign`) shows beside its interval."""
+RULE_WORDS = {"positive": "a positive quantity whose 95 % interval reaches zero or below",
+              "non-negative": "negative, which it cannot be"}
+"""Why a value that fails its rule is not plausible."""
+
+
+def _estimate(name: str, p: dict) -> str:
+    """``T_m = 0.008 s (95 %: -0.004 to 0.02 s) is ...``: an identified.json entry ``p`` of ``name``, and why
+    it is not plausible: its rule (:data:`RULE_WORDS`), and the fit's floor when it sits there."""
+    lo, hi = p["interval95"]
+    why = [] if p["passes_rule"] else [RULE_WORDS[p["rule"]]]
+    if p.get("fit_floor") is not None:
+        why.append(f"on the fit's floor ({p['fit_floor']:.4g} {p['unit']}, two samples of the log: the log resolves "
+                   "nothing shorter)")
+    return f"{name} = {p['value']:.4g} {p['unit']} (95 %: {lo:.4g} to {hi:.4g} {p['unit']}) is {', and '.join(why)}"
+
+
+def withheld_comment(failed: dict) -> str:
+    """The identified config's comment on a key left as the config had it: which estimates are not plausible
+    (``failed``: ``{name: identified.json entry}``) and why."""
+    said = "; ".join(_estimate(n, p) for n, p in failed.items())
+    return f"not identified: {said}; the config's value stays (identified.json: plausible false)"
+
+
+def implausible(payload: dict, folder) -> str:
+    """The one line ``identify`` ends with (exit 1) when an estimate fails its rule: which, what was kept, the cure."""
+    found = {}
+    for s in payload["stages"].values():
+        found.update({**s["parameters"], **s.get("derived", {})})
+    said = "; ".join(_estimate(n, p) for n, p in found.items() if n in payload["implausible"])
+    kept = (f"{folder}/identified.yaml keeps the config's {', '.join(payload['not_written'])}"
+            if payload["not_written"] else f"{folder}/identified.yaml does not take it")
+    return (f"not plausible: {said}; {kept} (identified.json flags it): fit a window that excites it more "
+            "(--window), or a longer log")
+
+
+def set_comment(sets) -> str:
+    """The identified config's comment on a value ``--set`` gave the fit, on one line (a line break in a
+    value shown as ``\\n``: a YAML comment ends at the line's end).
+
+    >>> set_comment(["vehicle.mass=0.03", "description=two\\nlines"])
+    'given on the command line (--set vehicle.mass=0.03, --set description=two\\\\nlines)'
+    """
+    return "given on the command line (" + ", ".join(f"--set {repr(t)[1:-1]}" for t in sets) + ")"
+
+
+def edited(path, why: str) -> str:
+    """Why ``identify`` refuses to write over ``path`` (an identified.yaml edited since quadctl wrote it, or
+    one it has no record of), and the two ways on: keep the edits under another name, or discard them."""
+    return (f"{path}: changed since quadctl identify wrote it ({why}); identify would write over it: to keep "
+            f"your edits move it to another name (mv {path} my-vehicle.yaml) or identify into another folder "
+            "(-o DIR), or pass --force to write over them")
+
+
+def edit_evidence(recorded: bool) -> str:
+    """What :func:`edited` says it found: a hash that differs, or no hash recorded."""
+    return ("its bytes differ from the sha256 identified.json records" if recorded
+            else "identified.json beside it records no sha256 of it")

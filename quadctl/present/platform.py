@@ -1,5 +1,5 @@
 """The vehicle's numbers beside a flight stack's platform defaults, as sentences
-(:func:`quadctl.export.crazyflie.platform_rows`)."""
+(:func:`quadctl.export.crazyflie.platform_rows`), and a setpoint the flight stack's app cannot follow."""
 
 from __future__ import annotations
 
@@ -32,3 +32,27 @@ def platform_sentences(rows, platform) -> list[str]:
         out.append("the design flies the config's vehicle, not the firmware's: identify the vehicle you fly from "
                    "a flight log (`quadctl identify`) and design on the identified config")
     return out
+
+
+SETPOINT_OPTIONS = {"position": "--setpoint position (x, y, z, yaw)",
+                    "velocity": "--setpoint velocity (the hover setpoint: vx, vy, z, yaw rate)"}
+"""Each setpoint as the option that asks for it, with what the commander gives."""
+
+
+def setpoint_refused(setpoint: str, free, flyable) -> str:
+    """Why a ``setpoint`` cannot be followed (the partition leaves the states ``free`` unregulated),
+    and the way out: regulate them, or the ``flyable`` setpoints' option (none: regulating is the only one).
+
+    >>> setpoint_refused("position", ["pN", "pE"], ["velocity"]).endswith(
+    ...     "or export with --setpoint velocity (the hover setpoint: vx, vy, z, yaw rate)")
+    True
+    >>> "export with" in setpoint_refused("position", ["pN", "pE"], [])  # no setpoint the config flies
+    False
+    """
+    names = ", ".join(free)
+    other = [SETPOINT_OPTIONS[s] for s in flyable if s != setpoint]
+    fix = f"regulate {names} (add them to a subsystem with regulate: true)"
+    if other:
+        fix += f" or export with {' or '.join(other)}"
+    return (f"subsystems: the partition leaves {names} free (in no regulated subsystem), so a {setpoint} setpoint "
+            f"cannot be followed: {fix}")

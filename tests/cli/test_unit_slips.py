@@ -100,6 +100,11 @@ def test_a_design_at_its_rotor_limits_most_of_the_run_fails_unless_accepted(tmp_
     assert (tmp_path / "out" / "sim.npz").exists()  # what was computed is saved
     res = runner.invoke(app, ["run", "-c", str(path), "-o", out, "--allow-saturation"])
     assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["report", "-c", str(path), "-o", out])  # the same check, the same option
+    assert res.exit_code == 1 and "the design saturates: rotor" in res.stderr, res.output
+    res = runner.invoke(app, ["report", "-c", str(path), "-o", out, "--allow-saturation"])
+    assert res.exit_code == 0, res.output
+    assert "--allow-saturation" in (tmp_path / "out" / "report" / "report.md").read_text()  # its command line
     path.write_text(text.replace("allow: [implausible]", "allow: [implausible, saturation]"))
     res = runner.invoke(app, ["simulate", "-c", str(path), "-o", out])
     assert res.exit_code == 0, res.output

@@ -217,3 +217,77 @@ def test_the_identified_config_says_what_it_is_not_what_the_config_it_came_from_
     cfg = parse(out, "crazyflie-identified")
     assert cfg.description == "crazyflie, identified from log" and cfg.name == "crazyflie-identified"
     assert "# N/(rad/s)^2: [F]'s C_T" in out  # a comment above a value the logs leave stays
+
+
+def test_set_gives_the_fit_its_values_and_identified_yaml_carries_them(identified, tmp_path):
+    """--set as on every command: the fit takes the config with it (a heavier vehicle: the same accelerations
+    make a thrust curve larger by the ratio of the masses, the same lag), and identified.yaml holds the value,
+    saying where it came from."""
+    from quadctl.config import parse
+
+    out = tmp_path / "o"
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "8.67:38.67",
+                                   "--set", "vehicle.mass=0.03", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    heavy = json.loads((out / "identified.json").read_text())
+    light = json.loads((identified[0] / "identified.json").read_text())
+    assert heavy["set"] == ["vehicle.mass=0.03"] and heavy["held"]["mass_kg"] == 0.03
+    p_heavy, p_light = heavy["stages"]["thrust"]["parameters"], light["stages"]["thrust"]["parameters"]
+    for c in ("c0", "c1", "c2"):
+        assert p_heavy[c]["value"] == pytest.approx(p_light[c]["value"] * 0.03 / 0.027, rel=1e-3), c
+    assert p_heavy["T_m"]["value"] == pytest.approx(p_light["T_m"]["value"], rel=1e-3)
+    text = (out / "identified.yaml").read_text()
+    assert "mass: 0.03  # given on the command line (--set vehicle.mass=0.03)" in text
+    assert parse(text, "identified.yaml").vehicle.mass == 0.03
+
+
+def test_a_bad_set_is_refused_in_one_line_naming_it_and_nothing_is_written(tmp_path):
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--set", "vehicle.mass=-1",
+                                   "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2
+    assert res.stderr.strip().splitlines() == ["quadctl: error: --set: vehicle.mass = -1: must be at least 0.0001 (kg)"]
+    assert not (tmp_path / "o").exists()
+
+
+def _at(tree: dict, keys: list):
+    for key in keys:
+        tree = tree[key]
+    return tree
+
+
+@pytest.mark.parametrize("sets", [
+    ["lqr.roll.Q[1]=50", "lqr.roll.R=[4e5]"],  # two into one key: one line for both
+    ["allow=[saturation]"],  # a top-level key the config leaves out
+    ["simulation.plant.inertia=[1.3e-5, 1.4e-5, 2.7e-5]"],  # a section's key the config leaves out
+    ["motors={layout: x, arm_length: 0.05, max_thrust: 0.16}"],  # a whole section
+])
+def test_the_identified_config_holds_the_set_values_as_the_fit_took_them(sets):
+    """identified.yaml is the config with --set put in (as overrides.load makes it), then the identified values."""
+    from quadctl.config import locate, overrides, parse
+    from quadctl.identify.results import identified_config
+
+    source = locate("crazyflie")
+    ident = _delay_identification(500.0)
+    got = parse(identified_config(source.text, ident, "x", sets), "x").model_dump()
+    want = parse(identified_config(source.text, ident, "x"), "x").model_dump()
+    fit = overrides.load(source, sets).model_dump()
+    for text in sets:
+        top, _, rest = text.partition("=")[0].partition(".")
+        key = rest.split(".")[0].split("[")[0] or None
+        at = [top] if key is None else [top, key]
+        if at != ["motors"]:  # (the identified values go into the section: below)
+            assert _at(got, at) == _at(fit, at), text
+        assert _at(got, at) != _at(want, at), text
+    if sets[0].startswith("motors="):  # identified values go over the section --set gave
+        assert got["motors"]["arm_length"] == 0.05 and got["motors"]["time_constant"] == 0.056
+
+
+def test_a_set_value_over_two_lines_keeps_the_identified_config_loadable():
+    """A comment ends at the line's end: the --set that gave a value spanning lines is shown escaped."""
+    from quadctl.config import locate, parse
+    from quadctl.identify.results import identified_config
+
+    text = identified_config(locate("crazyflie").text, _delay_identification(500.0), "x",
+                             ["simulation.reference={setpoints: [{t: 1,\n yaw: 0.5}]}"])
+    assert "--set simulation.reference={setpoints: [{t: 1,\\n yaw: 0.5}]})" in text
+    assert parse(text, "x").simulation.reference.setpoints[0].yaw == 0.5

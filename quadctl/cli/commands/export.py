@@ -1,5 +1,5 @@
 from enum import Enum
-from typing import Annotated
+from typing import Annotated, Optional
 
 import typer
 
@@ -36,10 +36,12 @@ def command(to: Annotated[Target, typer.Option(
                              "build files).")],
             config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
             rate: RateOpt = None,
-            setpoint: Annotated[Setpoint, typer.Option(
-                "--setpoint", help="--to crazyflie: the commander's setpoints the app follows: position (x, y, z, "
-                                   "yaw) or velocity (the hover setpoint: vx, vy, z or vz, yaw rate).")]
-            = Setpoint.position,
+            setpoint: Annotated[Optional[Setpoint], typer.Option(
+                "--setpoint", show_default=False,
+                help="--to crazyflie: the commander's setpoints the app follows: position (x, y, z, yaw; needs pN, "
+                     "pE, pD and psi regulated) or velocity (the hover setpoint: vx, vy, z or vz, yaw rate; needs u, "
+                     "v, pD and psi regulated). Default: position when the config's partition regulates the "
+                     "position, else velocity (as for the bundled crazyflie).")] = None,
             mode: Annotated[Mode, typer.Option(
                 "--mode", help="--to crazyflie: force (each motor's thrust, mixed and clipped as the simulation "
                                "does) or force-torque (thrust and torques, mixed by the firmware).")] = Mode.force,
@@ -52,7 +54,7 @@ def command(to: Annotated[Target, typer.Option(
     Exits 1 when the design is unstable, when the gain schedule (schedule:) fails its checks, or when a
     continuous design's loop is unstable sampled at --rate; 2 when --to c has no rate (give --rate or set
     controller.rate), or when --to crazyflie cannot serve the config (a rate that does not divide the
-    firmware's 1 kHz loop, a setpoint the partition leaves free, rotors numbered unlike the firmware's).
+    firmware's 1 kHz loop, a --setpoint the partition leaves free, rotors numbered unlike the firmware's).
     """
     from quadctl import artifacts, export
     from quadctl.cli import render
@@ -67,10 +69,14 @@ def command(to: Annotated[Target, typer.Option(
                          config_hash=cfg.digest())
     for w in exp.rate_warnings:
         render.warning(rate_warning(w, exp.rate))
-    paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"),
-                         setpoint=setpoint.value, mode=mode.value)
+    flown = None
     if to is Target.crazyflie:
         from quadctl.export import crazyflie
+
+        flown = setpoint.value if setpoint is not None else crazyflie.default_setpoint(exp)
+    paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"),
+                         setpoint=flown, mode=mode.value)
+    if to is Target.crazyflie:
         from quadctl.present.platform import platform_sentences
 
         for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE):
@@ -85,10 +91,8 @@ def command(to: Annotated[Target, typer.Option(
         if to is Target.json:
             written["controller"] = artifacts.read_json(paths[0])
         if to is Target.crazyflie:
-            from quadctl.export import crazyflie
-
             written["crazyflie"] = {
-                "setpoint": setpoint.value, "mode": mode.value, "calls_per_sample": crazyflie.divider(exp.rate),
+                "setpoint": flown, "mode": mode.value, "calls_per_sample": crazyflie.divider(exp.rate),
                 "firmware": {"commit": crazyflie.FIRMWARE.commit, "source": crazyflie.FIRMWARE.source},
                 "platform": [{"quantity": q, "key": k, "value": v, "firmware": f, "unit": u}
                              for q, k, v, f, u in crazyflie.platform_rows(exp)]}
@@ -96,7 +100,7 @@ def command(to: Annotated[Target, typer.Option(
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
     if to is Target.crazyflie:
-        filt += f"; reference: the commander's {setpoint.value} setpoints; output: {mode.value} mode"
+        filt += f"; reference: the commander's {flown} setpoints; output: {mode.value} mode"
     elif exp.flies_reference:
         filt += "; reference: an input at each sample" + (" (quadctl_step_ref)" if to is Target.c else "")
     table = exp.loop.schedule

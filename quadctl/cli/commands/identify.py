@@ -3,7 +3,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.options import JsonOpt, out_folder
+from quadctl.cli.options import JsonOpt, force_option, out_folder, set_option
 
 NAME = "identify"
 
@@ -28,20 +28,26 @@ def command(logs: Annotated[list[str], typer.Argument(
                 "--columns", metavar="NAME=COLUMN", help="A CSV's column names (t=time_s,cmd_1=m1).")] = None,
             delay: Annotated[bool, typer.Option(
                 "--delay", help="Fit a pure delay of the commands beside the motor lag.")] = False,
+            sets: set_option("the fit takes the config with them, and identified.yaml carries them.") = None,
+            force: force_option("an identified.yaml edited since quadctl wrote it (the edits are lost)") = False,
             json: JsonOpt = False) -> None:
     """Identify the rotors' thrust curve and lag, Ixx and Iyy, and the torque coefficient from flight logs.
 
     The config gives what a log cannot (mass, rotor positions and numbering). Writes identified.json
     (values, 95 % intervals, windows, residuals, the logs' sha256), identified.yaml (the config with
-    the identified values, each line saying where it came from) and identify.png.
+    the identified values, each line saying where it came from) and identify.png. A value that is not
+    physically possible (a time constant, an inertia, a torque coefficient or the full-command thrust
+    whose 95 % interval reaches zero) is not written into identified.yaml (the config's stays) and is
+    flagged in identified.json: exit 1 after writing. An identified.yaml edited since quadctl wrote it
+    is not written over (exit 2, nothing changed) unless --force.
     """
     import json as _json
 
     from quadctl import artifacts
     from quadctl.artifacts.writing import write_together
     from quadctl.cli import render
-    from quadctl.config import locate, parse
-    from quadctl.errors import ConfigError
+    from quadctl.config import locate, overrides
+    from quadctl.errors import CheckFailed, ConfigError
     from quadctl.identify import readers, results
     from quadctl.plots.identify import fit_figure
     from quadctl.present import identify as shown
@@ -49,18 +55,22 @@ def command(logs: Annotated[list[str], typer.Argument(
     if config is None:  # no default: the fit depends on the vehicle's mass and geometry
         raise ConfigError(shown.config_needed())
     source = locate(config)
-    cfg = parse(source.text, source.label)
+    cfg = overrides.load(source, sets or ())
+    folder = out or Path("runs") / f"{cfg.name}-identified"
+    results.require_unedited(folder, force)  # before the fit, and before the folder is touched
     read = [readers.read_log(p, readers.parse_columns(columns)) for p in logs]
     ident = results.identify(read, cfg, results.windows_per_log(window, len(logs)), delay=delay)
-    payload = results.payload(ident, source.label, cfg)
-    folder = out or Path("runs") / f"{cfg.name}-identified"
-    text = results.identified_config(source.text, ident, f"{cfg.name}-identified")
+    text = results.identified_config(source.text, ident, f"{cfg.name}-identified", sets or ())
+    payload = results.payload(ident, source.label, cfg, written=text, sets=sets or ())
     with artifacts.locked(folder):  # a folder of quadctl's (claimed), one quadctl at a time
+        results.require_unedited(folder, force)  # (edited while the fit ran)
         write_together({folder / "identified.json": _json.dumps(payload, indent=1).encode(),
                         folder / "identified.yaml": text.encode(), folder / "identify.png": fit_figure(ident)})
     if json:
         render.emit_json(payload)
-        return
-    render.show(*shown.log_sentences(payload), shown.values_table(payload), *shown.sentences(payload))
-    for name in ("identified.json", "identified.yaml", "identify.png"):
-        render.out.print(f"-> {folder / name}")
+    else:
+        render.show(*shown.log_sentences(payload), shown.values_table(payload), *shown.sentences(payload))
+        for name in ("identified.json", "identified.yaml", "identify.png"):
+            render.out.print(f"-> {folder / name}")
+    if payload["implausible"]:
+        raise CheckFailed(shown.implausible(payload, folder))

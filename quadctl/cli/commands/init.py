@@ -3,7 +3,7 @@ from typing import Annotated
 
 import typer
 
-from quadctl.cli.options import JsonOpt
+from quadctl.cli.options import JsonOpt, force_option
 
 NAME = "init"
 
@@ -18,7 +18,7 @@ def command(
         help="The flight condition: its trim and the partition that fits it (hold: hover holding position; "
              "hover: the position left free; forward: 1 m/s north).")]
         = "hold",
-    force: Annotated[bool, typer.Option("--force", help="Overwrite NAME.yaml if it exists.")] = False,
+    force: force_option("NAME.yaml if it exists") = False,
     json: JsonOpt = False,
 ) -> None:
     """Start a config for your own vehicle: NAME.yaml, every key with its unit, a named vehicle's values

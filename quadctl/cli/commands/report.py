@@ -1,12 +1,12 @@
 
 from quadctl.cli.errors import FailedChecks
-from quadctl.cli.options import ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt
+from quadctl.cli.options import AllowSaturationOpt, ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt
 
 NAME = "report"
 
 
 def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, fresh: FreshOpt = False,
-            json: JsonOpt = False) -> None:
+            json: JsonOpt = False, allow_saturation: AllowSaturationOpt = False) -> None:
     """Every stage and the margins in one HTML page (figures inline, nothing fetched) and a Markdown twin.
 
     Writes DIR/report/report.html, report.md and its figures. Exits 1 when a check fails, as `run`
@@ -24,8 +24,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     remember_workspace(ws)
     artifacts.check_folder(ws.out / report.FOLDER)  # a link there: refused now, not after the stages
     with simulation_progress(quiet=json) as ws.progress:
-        outcome = stages.run_stages(ws)
-    doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets), label=source.label)
+        outcome = stages.run_stages(ws, allow_saturation=allow_saturation)
+    doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets, allow_saturation),
+                       label=source.label)
     paths = report.write(doc, ws.out / report.FOLDER, store=ws)  # a failed write (a full disk): all put back
     ws.keep()  # the report says what ran and why it stopped: it and the artifacts it shows stay together
     if json:
@@ -39,10 +40,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
         raise FailedChecks(outcome.failed)
 
 
-def _command_line(config, out, fresh: bool, sets=None) -> str:
+def _command_line(config, out, fresh: bool, sets=None, allow_saturation: bool = False) -> str:
     """This command with the options it was given (shown in the report)."""
     import shlex
 
     words = ["quadctl", NAME] + (["--config", config] if config else []) + (["--out", str(out)] if out else [])
     words += [word for assignment in sets or () for word in ("--set", assignment)]
-    return shlex.join(words + (["--fresh"] if fresh else []))
+    return shlex.join(words + (["--fresh"] if fresh else []) + (["--allow-saturation"] if allow_saturation else []))

@@ -1,0 +1,71 @@
+"""Which identified values are physically possible: a rule per identified parameter, judged on its 95 % interval.
+
+A value that fails its rule is not written into the identified config (the config's own value stays
+there, with a comment saying why), is flagged in ``identified.json`` and makes ``quadctl identify``
+exit 1 (:class:`~quadctl.errors.CheckFailed`, after writing).
+
+Examples
+--------
+A motor time constant whose interval reaches below zero is not resolved by the log:
+
+>>> judge("T_m", 0.008, (-0.0041, 0.0201))
+False
+>>> judge("T_m", 0.0725, (0.069, 0.076)), judge("bias_A", -1e-4, (-3e-4, 1e-4))
+(True, True)
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+
+
+class Sign(str, Enum):
+    """What a parameter's 95 % interval must show for its value to be written."""
+
+    POSITIVE = "positive"
+    """The whole interval above zero: a quantity that is positive in any real vehicle (a time constant,
+    an inertia, a torque coefficient, a rotor's thrust at full command), which an interval reaching zero
+    does not resolve."""
+    NON_NEGATIVE = "non-negative"
+    """The value at or above zero; its interval may reach below (a pure delay, which may be none)."""
+    FREE = "free"
+    """Any value: a constant disturbance torque, or a coefficient of the thrust curve (which trade
+    against each other; the curve is judged by its thrust at full command, ``max_thrust``)."""
+
+
+RULES = {
+    "c0": Sign.FREE, "c1": Sign.FREE, "c2": Sign.FREE, "max_thrust": Sign.POSITIVE,
+    "T_m": Sign.POSITIVE, "delay": Sign.NON_NEGATIVE,
+    "Jxx": Sign.POSITIVE, "Jyy": Sign.POSITIVE, "Jzz": Sign.POSITIVE, "k_m": Sign.POSITIVE,
+    "bias_A": Sign.FREE, "bias_E": Sign.FREE, "bias_R": Sign.FREE,
+}
+"""The rule of every identified parameter (:data:`quadctl.identify.estimate.PARAMETERS`, ``T_m``, ``delay``) and
+of ``max_thrust``, the thrust curve at full command (``c0 + c1 + c2``), which the identified config writes."""
+
+WRITTEN = {
+    ("motors", "time_constant"): ("T_m",),
+    ("controller", "rotor_lag"): ("T_m",),
+    ("controller", "delay"): ("delay", "T_m"),
+    ("motors", "max_thrust"): ("max_thrust",),
+    ("vehicle", "inertia"): ("Jxx", "Jyy"),
+    ("motors", "torque_coefficient"): ("k_m",),
+}
+"""Each key the identified config writes, and the parameters it needs plausible: the rotors' lag is
+designed with (``controller.rotor_lag: include``) only when T_m is written; a delay fitted with T_m
+(the two trade against each other) is written only with it."""
+
+
+def judge(name: str, value: float, interval: tuple[float, float]) -> bool:
+    """Whether ``value`` of parameter ``name`` (:data:`RULES`) with its 95 % ``interval`` is plausible."""
+    sign = RULES[name]
+    if sign is Sign.POSITIVE:
+        return interval[0] > 0.0
+    if sign is Sign.NON_NEGATIVE:
+        return value >= 0.0
+    return True
+
+
+def withheld(implausible) -> dict[tuple[str, str], tuple[str, ...]]:
+    """``{(section, key): the implausible parameters it needs}`` for each key (:data:`WRITTEN`) not written."""
+    bad = set(implausible)
+    return {key: tuple(n for n in needs if n in bad) for key, needs in WRITTEN.items() if bad & set(needs)}
