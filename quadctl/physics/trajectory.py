@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -43,14 +44,23 @@ def shape_derivatives(kind: str, tau, left: bool = False) -> np.ndarray:
     if kind == "step":
         out[0] = (tau >= 0).astype(float)
         return out
-    coef = np.polynomial.Polynomial(SHAPES[kind])
     clipped = np.clip(tau, 0.0, 1.0)
-    for k in range(ORDER):
-        out[k] = coef.deriv(k)(clipped) if k else coef(clipped)
+    for k, coef in enumerate(_derivatives(kind)):
+        out[k] = np.polynomial.polynomial.polyval(clipped, coef)
     last = 1.0 + ROUNDOFF if left else 1.0 - ROUNDOFF  # the shape's end, taken from the left or the right
     end = tau > last
     out[1:, (tau < -ROUNDOFF) | end] = 0.0
     return out
+
+
+@lru_cache(maxsize=None)
+def _derivatives(kind: str) -> tuple[np.ndarray, ...]:
+    """The coefficients (ascending powers) of the shape ``kind``'s ``s`` and its first :data:`ORDER` - 1
+    derivatives."""
+    out = [np.asarray(SHAPES[kind], dtype=float)]
+    for _ in range(ORDER - 1):
+        out.append(np.polynomial.polynomial.polyder(out[-1]))
+    return tuple(out)
 
 
 def peak_rate(kind: str) -> float:
