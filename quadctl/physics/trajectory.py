@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -53,7 +53,7 @@ def shape_derivatives(kind: str, tau, left: bool = False) -> np.ndarray:
     return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def _derivatives(kind: str) -> tuple[np.ndarray, ...]:
     """The coefficients (ascending powers) of the shape ``kind``'s ``s`` and its first :data:`ORDER` - 1
     derivatives."""

@@ -18,6 +18,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.design.gain_table import VARIABLES, scheduling_value
 from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, PRODUCTS, STATE_INDEX
+from quadctl.physics.flatness import ROW_HALF
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 from quadctl.physics.motors import desaturate
 from quadctl.sim import pid
@@ -666,7 +667,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
         return ca.vertcat(*[parts["filter_A"] @ g[k * mf:(k + 1) * mf] + parts["filter_b"] * r[k]
                             for k in range(N_RATES)])
 
-    half = N_REFERENCE // 2  # one expansion's columns (REFERENCE_LAYOUT holds two)
+    half = ROW_HALF  # one expansion's columns (REFERENCE_LAYOUT holds two)
     n_ref = n_wind_end
     stage = {"over_step": False}  # True while a step's stages are built: they read the step's expansion
 

@@ -17,7 +17,7 @@ from quadctl import config, pipeline
 from quadctl.errors import ConfigError
 from quadctl.linear.trim import solve_trim
 from quadctl.physics import trajectory
-from quadctl.physics.flatness import ROW_HALF, FlownReference
+from quadctl.physics.flatness import ROW_HALF, SPLIT_ROUNDOFF, FlownReference, in_force
 from quadctl.physics.model import Vehicle, build_model
 from quadctl.present import mission
 from quadctl.present.mission import mission_text
@@ -323,6 +323,30 @@ def _short(setup, loop):
     return FlownReference(trajectory.mission_reference([{"position": [1.0, 0.5, -1.2], "yaw": 0.4}],
                                                        loop.x_trim[:3], 0.0, 2.0, 0.05, "minimum-jerk"),
                           setup.vehicle.vector())
+
+
+def test_a_rows_second_expansion_is_in_force_from_its_split_on():
+    """in_force (and driver.c's qc_after, its rule in C, which the compiled-against-interpreted test below
+    holds to it): a row split at t_b gives its first expansion before t_b and its second from t_b on (a
+    time within round-off of t_b counts as on it); a row with no split (its second a copy of the first)
+    gives its first throughout. The loop reads the one in force at t, then the one over the step."""
+    from quadctl.sim.builder import N_REFERENCE
+
+    assert N_REFERENCE == 2 * ROW_HALF  # the loop's columns are the table's two expansions
+    t_j, t_b = 0.005, 0.0075
+    split = np.r_[t_j, np.full(ROW_HALF - 1, 1.0), t_b, np.full(ROW_HALF - 1, 2.0)]
+    whole = np.r_[t_j, np.full(ROW_HALF - 1, 1.0), t_j, np.full(ROW_HALF - 1, 1.0)]
+    t = np.array([t_j, t_b - 1e-6, t_b - 0.5 * SPLIT_ROUNDOFF * t_b, t_b, t_b + 1e-6, 0.0099])
+    got = in_force(np.tile(split, (len(t), 1)), t)
+    second = got[:, 1:ROW_HALF].mean(axis=1) == 2.0
+    assert second.tolist() == [False, False, True, True, True, True]
+    assert np.array_equal(got[:, :ROW_HALF], got[:, ROW_HALF:])  # over defaults to at
+    at, over = np.array([0.006, 0.006]), np.array([0.007, 0.008])  # steps whose midpoints are before, after t_b
+    got = in_force(np.tile(split, (2, 1)), at, over)
+    assert got[:, 1].tolist() == [1.0, 1.0] and got[:, ROW_HALF + 1].tolist() == [1.0, 2.0]
+    assert got[1, ROW_HALF] == t_b  # the step's expansion is anchored at the split
+    rows = np.tile(whole, (len(t), 1))
+    assert np.array_equal(in_force(rows, t)[:, :ROW_HALF], rows[:, :ROW_HALF])
 
 
 @pytest.mark.compiler
