@@ -19,18 +19,18 @@ import numpy as np
 from quadctl.errors import ConfigError
 from quadctl.export import c
 from quadctl.export.bundle import Export, require_export
-from quadctl.present.platform import setpoint_refused
+from quadctl.present.platform import SETPOINT_NEEDS as NEEDS
+from quadctl.present.platform import no_setpoint_flyable, setpoint_refused
 from quadctl.text.escape import c_comment
 from quadctl.version import __version__
 
 LOOP_HZ = 1000
 """The firmware's stabilizer loop (``RATE_MAIN_LOOP`` in ``stabilizer_types.h``): the controller is
 called at this rate."""
-SETPOINTS = ("position", "velocity")
-"""What the app follows: ``position`` (x, y, z and yaw held where the commander says, the
-high-level commander's go-to), ``velocity`` (the hover setpoint: vx, vy, z (or vz) and yaw rate)."""
-NEEDS = {"position": ("pN", "pE", "pD", "psi"), "velocity": ("u", "v", "pD", "psi")}
-"""The states each of :data:`SETPOINTS` needs regulated (in a subsystem with ``regulate: true``)."""
+SETPOINTS = tuple(NEEDS)
+"""What the app follows (in the order :func:`default_setpoint` tries them): ``position`` (x, y, z and
+yaw held where the commander says, the high-level commander's go-to), ``velocity`` (the hover
+setpoint: vx, vy, z (or vz) and yaw rate)."""
 MODES = ("force", "force-torque")
 """The firmware's ``control_t`` modes the app can write."""
 NUMBERING = ("front_right", "rear_right", "rear_left", "front_left")
@@ -123,7 +123,7 @@ def default_setpoint(exp: Export) -> str:
     """The setpoint the app follows when none is asked: the first of :data:`SETPOINTS` the config can
     fly (:func:`flyable_setpoints`: ``position`` when the partition regulates pN, pE, pD and psi,
     ``velocity`` when it leaves the position free, as the bundled ``crazyflie`` does), else
-    ``position`` (which :func:`check` refuses, naming the states to regulate).
+    ``position`` (which :func:`check` refuses, naming what each setpoint needs regulated).
 
     >>> from quadctl import config, export, setup
     >>> default_setpoint(export.prepare(setup.setup_of(config.load("crazyflie"))))
@@ -153,7 +153,7 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
         setpoint that needs a state the partition leaves free.
     """
     require_export(exp, "check")
-    setpoint = default_setpoint(exp) if setpoint is None else setpoint
+    asked, setpoint = setpoint, default_setpoint(exp) if setpoint is None else setpoint
     if setpoint not in SETPOINTS:
         raise ValueError(f"setpoint must be one of {SETPOINTS}, got {setpoint!r}")
     if mode not in MODES:
@@ -181,6 +181,9 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
         raise ConfigError("trim.velocity_ned is not zero: the commander's setpoints are positions and velocities "
                           "about a hover; trim at velocity_ned: [0, 0, 0]")
     free = [s for s in NEEDS[setpoint] if s not in setup.regulated]
+    if free and asked is None:  # none asked, and none flyable
+        unregulated = {s: [x for x in NEEDS[s] if x not in setup.regulated] for s in SETPOINTS}
+        raise ConfigError(no_setpoint_flyable(unregulated))
     if free:
         raise ConfigError(setpoint_refused(setpoint, free, flyable_setpoints(exp)))
 

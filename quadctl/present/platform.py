@@ -34,9 +34,33 @@ def platform_sentences(rows, platform) -> list[str]:
     return out
 
 
-SETPOINT_OPTIONS = {"position": "--setpoint position (x, y, z, yaw)",
-                    "velocity": "--setpoint velocity (the hover setpoint: vx, vy, z, yaw rate)"}
+SETPOINT_GIVES = {"position": "x, y, z, yaw", "velocity": "the hover setpoint: vx, vy, z, yaw rate"}
+"""What the commander gives in each setpoint the Crazyflie app follows
+(:data:`quadctl.export.crazyflie.SETPOINTS`)."""
+SETPOINT_NEEDS = {"position": ("pN", "pE", "pD", "psi"), "velocity": ("u", "v", "pD", "psi")}
+"""The states each setpoint needs regulated (in a subsystem with ``regulate: true``)."""
+SETPOINT_OPTIONS = {s: f"--setpoint {s} ({gives})" for s, gives in SETPOINT_GIVES.items()}
 """Each setpoint as the option that asks for it, with what the commander gives."""
+SETPOINT_HELP = (
+    "--to crazyflie: the commander's setpoints the app follows: "
+    + " or ".join(f"{s} ({gives}; needs {', '.join(SETPOINT_NEEDS[s])} regulated)"
+                  for s, gives in SETPOINT_GIVES.items())
+    + ". Default: the first of these the config's partition regulates (velocity for the bundled crazyflie, which "
+      "leaves the position free).")
+"""``quadctl export --setpoint``'s help."""
+
+
+def no_setpoint_flyable(free: dict) -> str:
+    """Why the app can follow no setpoint when none was asked: per setpoint the states the partition
+    leaves ``free`` ({setpoint: states}).
+
+    >>> no_setpoint_flyable({"position": ["pN", "pE", "pD"], "velocity": ["pD"]}).endswith(
+    ...     "--setpoint velocity (the hover setpoint: vx, vy, z, yaw rate) needs pD")
+    True
+    """
+    needs = "; ".join(f"{SETPOINT_OPTIONS[s]} needs {', '.join(states)}" for s, states in free.items())
+    return ("subsystems: the partition regulates no setpoint's states, so the app can follow none; regulate "
+            f"(add to a subsystem with regulate: true) what one of them needs: {needs}")
 
 
 def setpoint_refused(setpoint: str, free, flyable) -> str:

@@ -415,7 +415,8 @@ def test_the_bundled_crazyflie_config_exports_with_no_setpoint_option(tmp_path):
 
 def test_a_setpoint_no_partition_follows_is_refused_naming_only_what_to_regulate():
     """A partition that leaves the yaw free serves no setpoint: the message offers no other --setpoint, only
-    regulating (the export of such a design is unstable before, so its setup is changed here alone)."""
+    regulating, and without --setpoint it says what each setpoint needs (the export of such a design is
+    unstable before, so its setup is changed here alone)."""
     from dataclasses import replace
 
     from quadctl.export import prepare
@@ -424,11 +425,13 @@ def test_a_setpoint_no_partition_follows_is_refused_naming_only_what_to_regulate
     exp = prepare(setup_of(config.load("crazyflie")))
     exp = replace(exp, setup=replace(exp.setup, regulated=tuple(s for s in exp.setup.regulated if s != "psi")))
     assert crazyflie.flyable_setpoints(exp) == ()
-    for setpoint in (None, "velocity"):
-        with pytest.raises(ConfigError, match=r"so a (position|velocity) setpoint cannot be followed: "
-                                              r"regulate (pN, pE, )?psi \(add them to a subsystem with "
-                                              r"regulate: true\)$"):
-            crazyflie.check(exp, setpoint)
+    with pytest.raises(ConfigError, match=r"so a velocity setpoint cannot be followed: regulate psi \(add them to "
+                                          r"a subsystem with regulate: true\)$"):
+        crazyflie.check(exp, "velocity")
+    # none asked: what each setpoint needs, not a refusal of a position setpoint the user never asked for
+    with pytest.raises(ConfigError, match=r"the app can follow none; regulate .*: --setpoint position \(x, y, z, "
+                                          r"yaw\) needs pN, pE, psi; --setpoint velocity \(.*\) needs psi$"):
+        crazyflie.check(exp)
 
 
 def test_the_vehicle_is_compared_with_the_firmware_platform_defaults(tmp_path):

@@ -4,6 +4,7 @@ from typing import Annotated, Optional
 import typer
 
 from quadctl.cli.options import ConfigOpt, OutOpt, SetOpt, rate_option
+from quadctl.present.platform import SETPOINT_HELP
 
 RateOpt = rate_option(
     help="Run a continuous design (no controller.rate) at this rate, after the check "
@@ -38,10 +39,7 @@ def command(to: Annotated[Target, typer.Option(
             rate: RateOpt = None,
             setpoint: Annotated[Optional[Setpoint], typer.Option(
                 "--setpoint", show_default=False,
-                help="--to crazyflie: the commander's setpoints the app follows: position (x, y, z, yaw; needs pN, "
-                     "pE, pD and psi regulated) or velocity (the hover setpoint: vx, vy, z or vz, yaw rate; needs u, "
-                     "v, pD and psi regulated). Default: position when the config's partition regulates the "
-                     "position, else velocity (as for the bundled crazyflie).")] = None,
+                help=SETPOINT_HELP)] = None,
             mode: Annotated[Mode, typer.Option(
                 "--mode", help="--to crazyflie: force (each motor's thrust, mixed and clipped as the simulation "
                                "does) or force-torque (thrust and torques, mixed by the firmware).")] = Mode.force,
