@@ -50,12 +50,14 @@ _LAG_DELAY_STEP = 1e-4
 
 @dataclass(frozen=True)
 class Airframe:
-    """What a log cannot give: mass, rotor geometry and spins, and the values a stage holds fixed.
+    """What a log cannot give: mass, gravity, rotor geometry and spins, and the values a stage holds fixed.
 
     Attributes
     ----------
     mass : float
         kg.
+    gravity : float
+        m/s^2 (the fit does not take it: an accelerometer does not feel gravity; :meth:`hover_thrust` does).
     positions : (4, 2) ndarray
         Rotor positions ``(x, y)`` in the FRD body frame, m, rotor 1 first.
     spins : (4,) ndarray
@@ -67,6 +69,7 @@ class Airframe:
     """
 
     mass: float
+    gravity: float
     positions: np.ndarray
     spins: np.ndarray
     inertia: np.ndarray
@@ -77,8 +80,13 @@ class Airframe:
         """From a :class:`quadctl.config.Config` (vehicle and motors; default motors when absent)."""
 
         motors = Motors.from_config(cfg.motors if cfg.motors is not None else MotorsConfig())
-        return cls(mass=cfg.vehicle.mass, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
-                   inertia=np.array(cfg.vehicle.inertia, dtype=float), torque_coefficient=motors.torque_coefficient)
+        return cls(mass=cfg.vehicle.mass, gravity=cfg.vehicle.gravity, positions=motors.positions(),
+                   spins=np.array(motors.rotor_spins()), inertia=np.array(cfg.vehicle.inertia, dtype=float),
+                   torque_coefficient=motors.torque_coefficient)
+
+    def hover_thrust(self) -> float:
+        """N: each rotor's share of the weight, ``m g`` over the rotors (the thrust each gives at hover)."""
+        return self.mass * self.gravity / len(self.positions)
 
     def theta(self, **given) -> np.ndarray:
         """The full parameter vector (:data:`PARAMETERS`): the airframe's values, ``given`` over them."""

@@ -86,18 +86,22 @@ def sentences(payload: dict) -> list[str]:
     return out
 
 
-NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written"}
+NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written",
+                 "lifts": "reaches the hover thrust: not written"}
 """What a value that fails its rule (:class:`quadctl.identify.plausibility.Sign`) shows beside its interval."""
 RULE_WORDS = {"positive": "a positive quantity whose 95 % interval reaches zero or below",
-              "non-negative": "negative, which it cannot be"}
-"""Why a value that fails its rule is not plausible."""
+              "non-negative": "negative, which it cannot be",
+              "lifts": "a rotor's thrust at full command whose 95 % interval reaches its share of the weight "
+                       "(m g / 4 = {hover_thrust:.4g} N, the config's mass and gravity) or below: four rotors at "
+                       "full command may not lift the vehicle"}
+"""Why a value that fails its rule is not plausible (formatted with its identified.json entry)."""
 
 
 def _estimate(name: str, p: dict) -> str:
     """``T_m = 0.008 s (95 %: -0.004 to 0.02 s) is ...``: an identified.json entry ``p`` of ``name``, and why
     it is not plausible: its rule (:data:`RULE_WORDS`), and the fit's floor when it sits there."""
     lo, hi = p["interval95"]
-    why = [] if p["passes_rule"] else [RULE_WORDS[p["rule"]]]
+    why = [] if p["passes_rule"] else [RULE_WORDS[p["rule"]].format(**p)]
     if p.get("fit_floor") is not None:
         why.append(f"on the fit's floor ({p['fit_floor']:.4g} {p['unit']}, two samples of the log: the log resolves "
                    "nothing shorter)")

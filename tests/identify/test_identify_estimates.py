@@ -25,7 +25,7 @@ MASS = 0.027
 
 def airframe(arm=PAPER_ARM, inertia=(1.05e-5, 1.12e-5, 2.0e-5), k_m=0.006):
     motors = Motors(layout="x", arm_length=arm, torque_coefficient=k_m)
-    return est.Airframe(mass=MASS, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
+    return est.Airframe(mass=MASS, gravity=9.81, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
                         inertia=np.array(inertia), torque_coefficient=k_m)
 
 
