@@ -34,6 +34,8 @@ MEANING = {"c0": "rotor thrust at command 0", "c1": "rotor thrust, linear in the
            "Jzz": "yaw inertia", "k_m": "yaw torque per newton of rotor thrust", "bias_A": "constant roll torque",
            "bias_E": "constant pitch torque", "bias_R": "constant yaw torque",
            "T_m": "motor time constant (lag of the command)", "delay": "pure delay of the command"}
+TORQUE_ROWS = ("roll torque (N m)", "pitch torque (N m)", "yaw torque (N m)")
+"""The name of each body axis's torque residual row (FRD), its unit in parentheses: a figure's labels and titles."""
 ANGULAR_ACCELERATION_CUTOFF = 20.0
 """Hz: the gyro is low-passed (zero phase, 2nd-order Butterworth) before it is differentiated; the
 model's torque goes through the same filter, so the fit compares like with like."""
@@ -266,7 +268,7 @@ class Estimate:
     measured, predicted : (M, r) ndarray
         The fitted quantities (N or N m), one column per residual row (``rows``).
     rows : tuple of str
-        What each column is (``force z``, ``torque x``...).
+        What each column is, its unit in parentheses (``thrust (N)``, :data:`TORQUE_ROWS`).
     rms : float
         Root mean square of the residual.
     bandwidth : int
@@ -492,7 +494,7 @@ def _torque_fit(stage, grid, windows, airframe, thrust: Estimate, names, axes, g
     cov = cov + sensitivity @ thrust.covariance @ sensitivity.T
     return Estimate(stage=stage, names=tuple(names), values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=measured, predicted=pred,
-                    rows=tuple(f"torque {'xyz'[a]} (N m)" for a in axes), rms=float(np.sqrt(np.mean(r ** 2))),
+                    rows=tuple(TORQUE_ROWS[a] for a in axes), rms=float(np.sqrt(np.mean(r ** 2))),
                     bandwidth=bandwidth)
 
 

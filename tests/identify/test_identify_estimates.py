@@ -158,6 +158,8 @@ def test_inertia_and_torque_coefficient_within_their_intervals():
     thrust = est.fit_thrust(grid, [(0.3, 5.9)], af)
     att = est.fit_attitude(grid, [(0.3, 5.9)], af, thrust)
     yaw = est.fit_yaw(grid, [(0.3, 5.9)], af, thrust, att)
+    assert att.rows == ("roll torque (N m)", "pitch torque (N m)")  # the figure's names of the rows
+    assert yaw.rows == ("yaw torque (N m)",)
     for fit, name, value in ((att, "Jxx", inertia[0]), (att, "Jyy", inertia[1]), (yaw, "k_m", k_m)):
         lo, hi = fit.interval(name)
         assert lo <= value <= hi, (name, value, lo, hi)
