@@ -120,11 +120,20 @@ def implausible(payload: dict, folder) -> str:
     found = {}
     for s in payload["stages"].values():
         found.update({**s["parameters"], **s.get("derived", {})})
-    said = "; ".join(_estimate(n, p) for n, p in found.items() if n in payload["implausible"])
+    failed = {n: p for n, p in found.items() if n in payload["implausible"]}
+    said = "; ".join(_estimate(n, p) for n, p in failed.items())
     kept = (f"{folder}/identified.yaml keeps the config's {', '.join(payload['not_written'])}"
             if payload["not_written"] else f"{folder}/identified.yaml does not take it")
-    return (f"not plausible: {said}; {kept} (identified.json flags it): fit a window that excites it more "
-            "(--window), or a longer log")
+    cures = dict.fromkeys(CURES.get(p["rule"] if not p["passes_rule"] else None, CURE) for p in failed.values())
+    return f"not plausible: {said}; {kept} (identified.json flags it): {'; or '.join(cures)}"
+
+
+CURE = "fit a window that excites it more (--window), or a longer log"
+"""What to do about an estimate the log does not resolve (its interval reaches past its rule's bound, or it sits
+on the fit's floor)."""
+CURES = {"lifts": "check vehicle.mass and vehicle.gravity against the vehicle flown (--set vehicle.mass=KG), or fit "
+                  "a log that climbs at full command (a curve the log did not fly there is extrapolated)"}
+"""What to do about a value that fails its rule, where it is not :data:`CURE`."""
 
 
 def set_comment(sets) -> str:

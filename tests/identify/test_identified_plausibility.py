@@ -117,7 +117,10 @@ def test_a_full_command_thrust_that_does_not_lift_the_vehicle_is_not_written_and
     assert re.match(r"^not plausible: max_thrust = 0\.06 N \(95 %: 0\.0596\d* to 0\.0603\d* N\) is a rotor's thrust "
                     r"at full command whose 95 % interval reaches its share of the weight \(m g / 4 = 0\.06622 N, "
                     r"the config's mass and gravity\) or below: four rotors at full command may not lift the vehicle; "
-                    r"runs/x/identified\.yaml keeps the config's motors\.max_thrust \(", implausible(done, "runs/x"))
+                    r"runs/x/identified\.yaml keeps the config's motors\.max_thrust \(identified\.json flags it\): "
+                    r"check vehicle\.mass and vehicle\.gravity against the vehicle flown \(--set vehicle\.mass=KG\), "
+                    r"or fit a log that climbs at full command \(a curve the log did not fly there is extrapolated\)$",
+                    implausible(done, "runs/x"))
     assert _identification(c2=0.12).entries()["max_thrust"]["plausible"]
 
 
