@@ -34,6 +34,8 @@ MEANING = {"c0": "rotor thrust at command 0", "c1": "rotor thrust, linear in the
            "Jzz": "yaw inertia", "k_m": "yaw torque per newton of rotor thrust", "bias_A": "constant roll torque",
            "bias_E": "constant pitch torque", "bias_R": "constant yaw torque",
            "T_m": "motor time constant (lag of the command)", "delay": "pure delay of the command"}
+TORQUE_ROWS = ("roll torque (N m)", "pitch torque (N m)", "yaw torque (N m)")
+"""The name of each body axis's torque residual row (FRD), its unit in parentheses: a figure's labels and titles."""
 ANGULAR_ACCELERATION_CUTOFF = 20.0
 """Hz: the gyro is low-passed (zero phase, 2nd-order Butterworth) before it is differentiated; the
 model's torque goes through the same filter, so the fit compares like with like."""
@@ -50,12 +52,14 @@ _LAG_DELAY_STEP = 1e-4
 
 @dataclass(frozen=True)
 class Airframe:
-    """What a log cannot give: mass, rotor geometry and spins, and the values a stage holds fixed.
+    """What a log cannot give: mass, gravity, rotor geometry and spins, and the values a stage holds fixed.
 
     Attributes
     ----------
     mass : float
         kg.
+    gravity : float
+        m/s^2 (the fit does not take it: an accelerometer does not feel gravity; :meth:`hover_thrust` does).
     positions : (4, 2) ndarray
         Rotor positions ``(x, y)`` in the FRD body frame, m, rotor 1 first.
     spins : (4,) ndarray
@@ -67,6 +71,7 @@ class Airframe:
     """
 
     mass: float
+    gravity: float
     positions: np.ndarray
     spins: np.ndarray
     inertia: np.ndarray
@@ -77,8 +82,13 @@ class Airframe:
         """From a :class:`quadctl.config.Config` (vehicle and motors; default motors when absent)."""
 
         motors = Motors.from_config(cfg.motors if cfg.motors is not None else MotorsConfig())
-        return cls(mass=cfg.vehicle.mass, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
-                   inertia=np.array(cfg.vehicle.inertia, dtype=float), torque_coefficient=motors.torque_coefficient)
+        return cls(mass=cfg.vehicle.mass, gravity=cfg.vehicle.gravity, positions=motors.positions(),
+                   spins=np.array(motors.rotor_spins()), inertia=np.array(cfg.vehicle.inertia, dtype=float),
+                   torque_coefficient=motors.torque_coefficient)
+
+    def hover_thrust(self) -> float:
+        """N: each rotor's share of the weight, ``m g`` over the rotors (the thrust each gives at hover)."""
+        return self.mass * self.gravity / len(self.positions)
 
     def theta(self, **given) -> np.ndarray:
         """The full parameter vector (:data:`PARAMETERS`): the airframe's values, ``given`` over them."""
@@ -258,7 +268,7 @@ class Estimate:
     measured, predicted : (M, r) ndarray
         The fitted quantities (N or N m), one column per residual row (``rows``).
     rows : tuple of str
-        What each column is (``force z``, ``torque x``...).
+        What each column is, its unit in parentheses (``thrust (N)``, :data:`TORQUE_ROWS`).
     rms : float
         Root mean square of the residual.
     bandwidth : int
@@ -484,7 +494,7 @@ def _torque_fit(stage, grid, windows, airframe, thrust: Estimate, names, axes, g
     cov = cov + sensitivity @ thrust.covariance @ sensitivity.T
     return Estimate(stage=stage, names=tuple(names), values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=measured, predicted=pred,
-                    rows=tuple(f"torque {'xyz'[a]} (N m)" for a in axes), rms=float(np.sqrt(np.mean(r ** 2))),
+                    rows=tuple(TORQUE_ROWS[a] for a in axes), rms=float(np.sqrt(np.mean(r ** 2))),
                     bandwidth=bandwidth)
 
 

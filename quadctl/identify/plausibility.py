@@ -12,6 +12,11 @@ A motor time constant whose interval reaches below zero is not resolved by the l
 False
 >>> judge("T_m", 0.0725, (0.069, 0.076)), judge("bias_A", -1e-4, (-3e-4, 1e-4))
 (True, True)
+
+Nor is a thrust at full command of rotors that may not lift the 27 g Crazyflie (its rotors hover at 0.0662 N each):
+
+>>> judge("max_thrust", 0.07, (0.065, 0.075), hover=0.027 * 9.81 / 4)
+False
 """
 
 from __future__ import annotations
@@ -24,17 +29,21 @@ class Sign(str, Enum):
 
     POSITIVE = "positive"
     """The whole interval above zero: a quantity that is positive in any real vehicle (a time constant,
-    an inertia, a torque coefficient, a rotor's thrust at full command), which an interval reaching zero
-    does not resolve."""
+    an inertia, a torque coefficient), which an interval reaching zero does not resolve."""
     NON_NEGATIVE = "non-negative"
     """The value at or above zero; its interval may reach below (a pure delay, which may be none)."""
+    LIFTS = "lifts"
+    """The whole interval above the rotor's share of the weight, ``m g / 4`` with the config's mass and
+    gravity (:meth:`quadctl.identify.estimate.Airframe.hover_thrust`): the rotors at full command lift the
+    vehicle (``max_thrust``, the thrust curve at full command; a vehicle that flew the log did), which an
+    interval reaching the hover thrust does not resolve. Above a positive hover thrust it is positive too."""
     FREE = "free"
     """Any value: a constant disturbance torque, or a coefficient of the thrust curve (which trade
     against each other; the curve is judged by its thrust at full command, ``max_thrust``)."""
 
 
 RULES = {
-    "c0": Sign.FREE, "c1": Sign.FREE, "c2": Sign.FREE, "max_thrust": Sign.POSITIVE,
+    "c0": Sign.FREE, "c1": Sign.FREE, "c2": Sign.FREE, "max_thrust": Sign.LIFTS,
     "T_m": Sign.POSITIVE, "delay": Sign.NON_NEGATIVE,
     "Jxx": Sign.POSITIVE, "Jyy": Sign.POSITIVE, "Jzz": Sign.POSITIVE, "k_m": Sign.POSITIVE,
     "bias_A": Sign.FREE, "bias_E": Sign.FREE, "bias_R": Sign.FREE,
@@ -55,11 +64,16 @@ designed with (``controller.rotor_lag: include``) only when T_m is written; a de
 (the two trade against each other) is written only with it."""
 
 
-def judge(name: str, value: float, interval: tuple[float, float]) -> bool:
-    """Whether ``value`` of parameter ``name`` (:data:`RULES`) with its 95 % ``interval`` is plausible."""
+def judge(name: str, value: float, interval: tuple[float, float], hover: float | None = None) -> bool:
+    """Whether ``value`` of parameter ``name`` (:data:`RULES`) with its 95 % ``interval`` is plausible;
+    ``hover`` (N, a rotor's share of the weight) is the bound of a :attr:`Sign.LIFTS` rule, which needs it."""
     sign = RULES[name]
     if sign is Sign.POSITIVE:
         return interval[0] > 0.0
+    if sign is Sign.LIFTS:
+        if hover is None:
+            raise TypeError(f"judge({name!r}): its rule, {sign.value}, needs hover=")
+        return interval[0] > hover
     if sign is Sign.NON_NEGATIVE:
         return value >= 0.0
     return True

@@ -63,7 +63,7 @@ class Identification:
                                   est.MEANING[name], fit.floors.get(name) if fit.at_floor(name) else None)
         top, std = self.max_thrust(), self.max_thrust_std()
         out["max_thrust"] = entry("max_thrust", top, top - est.Z95 * std, top + est.Z95 * std, std, "N",
-                                  MAX_THRUST_MEANING)
+                                  MAX_THRUST_MEANING, hover=self.airframe.hover_thrust())
         return out
 
     def implausible(self) -> tuple[str, ...]:
@@ -81,14 +81,15 @@ fitted parameters')."""
 
 
 def entry(name: str, value: float, lo: float, hi: float, std: float, unit: str, meaning: str,
-          floor: float | None = None) -> dict:
+          floor: float | None = None, hover: float | None = None) -> dict:
     """One parameter of ``identified.json``: its value, 95 % interval, unit, rule and whether it passes it
     (``passes_rule``, :func:`quadctl.identify.plausibility.judge`), the fit's ``floor`` when the value sits
-    on it (``fit_floor``: the floor, not an estimate), and ``plausible``: it passes its rule, off the floor."""
-    passes = plausibility.judge(name, value, (lo, hi))
+    on it (``fit_floor``: the floor, not an estimate), and ``plausible``: it passes its rule, off the floor.
+    ``hover`` (N, a rotor's share of the weight), the bound of a rule that needs it, is kept as ``hover_thrust``."""
+    passes = plausibility.judge(name, value, (lo, hi), hover=hover)
     return {"value": float(value), "interval95": [lo, hi], "std": float(std), "unit": unit, "meaning": meaning,
             "rule": plausibility.RULES[name].value, "passes_rule": passes, "fit_floor": floor,
-            "plausible": passes and floor is None}
+            "plausible": passes and floor is None, **({} if hover is None else {"hover_thrust": float(hover)})}
 
 
 def windows_per_log(texts, count: int):

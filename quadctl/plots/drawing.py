@@ -1,6 +1,6 @@
 """What every figure shares: its resolution and colours, a state as drawn (degrees, the height), a time
-series thinned to the figure's pixel columns, titles that fit their panels, the PNG bytes of a figure, and
-the inputs' limits.
+series thinned to the figure's pixel columns, titles that fit their panels, labels clear of the curves, the PNG
+bytes of a figure, and the inputs' limits.
 """
 
 from __future__ import annotations
@@ -149,6 +149,81 @@ def _pieces(text: str, fits, breaks: tuple[str, ...] = _BREAKS) -> list[str]:
     parts = text.split(breaks[0])
     cut = [p + breaks[0] for p in parts[:-1]] + [parts[-1]]
     return [piece for part in cut if part for piece in _pieces(part, fits, breaks[1:])]
+
+
+LABEL_SPOTS = tuple((dx * side, dy * up, "left" if side > 0 else "right", "bottom" if up > 0 else "top")
+                    for dy in (3, 14, 26) for up in (1, -1) for dx in (3,) for side in (-1, 1))
+"""Where :func:`place_labels` tries a label, in order: ``(dx, dy)`` points from the point it marks and its
+alignment; above and to the left first, then to the right, below, then farther up and down."""
+
+
+def place_labels(fig: Figure, labels) -> None:
+    """Put each label (an ``Annotation`` of a point, in offset points) at its first spot of :data:`LABEL_SPOTS`
+    that lies inside its axes and crosses none of the axes' lines and none of its texts placed before it (the
+    spot crossing the fewest when none is clear). Positions are measured once the figure is laid out, and the
+    layout is kept (its engine off: it is the costly part of drawing the figure, and the labels take no part in
+    it), so the figure is drawn as it was measured.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    labels = list(labels)
+    for label in labels:
+        label.set_in_layout(False)
+    canvas = fig.canvas
+    try:
+        renderer = FigureCanvasAgg(fig).get_renderer()
+        engine = fig.get_layout_engine()
+        if engine is not None:  # the layout alone (the axes' places), not a draw of every artist; kept
+            engine.execute(fig)
+            fig.set_layout_engine("none")
+        placed = {id(label) for label in labels}
+        fixed = [t for label in labels for t in label.axes.texts if id(t) not in placed]
+        done: list = []
+        for label in labels:
+            ax = label.axes
+            frame = ax.get_window_extent(renderer)
+            others = [t.get_window_extent(renderer) for t in fixed if t.axes is ax] + [
+                t.get_window_extent(renderer) for t in done if t.axes is ax]
+            paths = [line.get_transform().transform(line.get_xydata()) for line in ax.get_lines()]
+            scores = []
+            for spot in LABEL_SPOTS:
+                _move(label, spot)
+                box = label.get_window_extent(renderer)
+                inside = frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1
+                score = (0 if inside else 100) + sum(box.overlaps(o) for o in others) + sum(
+                    _crosses(p, box) for p in paths)
+                scores.append(score)
+                if score == 0:
+                    break
+            _move(label, LABEL_SPOTS[int(np.argmin(scores))])
+            done.append(label)
+    finally:
+        fig.set_canvas(canvas)
+
+
+def _move(label, spot) -> None:
+    dx, dy, ha, va = spot
+    label.xyann = (dx, dy)
+    label.set_horizontalalignment(ha)
+    label.set_verticalalignment(va)
+
+
+def _crosses(points: np.ndarray, box) -> bool:
+    """Whether the polyline ``points`` ((n, 2), display units; a non-finite point breaks it) enters ``box``:
+    the segments clipped to the box (Liang and Barsky), each axis's entry before its exit."""
+    p0, p1 = points[:-1], points[1:]
+    keep = np.isfinite(p0).all(axis=1) & np.isfinite(p1).all(axis=1)
+    p0, p1 = p0[keep], p1[keep]
+    d = p1 - p0
+    enter, leave = np.zeros(len(d)), np.ones(len(d))
+    for k, (lo, hi) in enumerate(((box.x0, box.x1), (box.y0, box.y1))):
+        flat = d[:, k] == 0
+        step = np.where(flat, 1.0, d[:, k])
+        t0, t1 = (lo - p0[:, k]) / step, (hi - p0[:, k]) / step
+        within = (lo <= p0[:, k]) & (p0[:, k] <= hi)
+        enter = np.maximum(enter, np.where(flat, np.where(within, -np.inf, np.inf), np.minimum(t0, t1)))
+        leave = np.minimum(leave, np.where(flat, np.where(within, np.inf, -np.inf), np.maximum(t0, t1)))
+    return bool(np.any(enter <= leave))
 
 
 def png_bytes(fig: Figure, dpi: float = DPI) -> bytes:

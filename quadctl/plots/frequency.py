@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from quadctl.plots.drawing import COLORS
+from quadctl.plots.drawing import COLORS, place_labels
 
 MAGNITUDE_SPAN_DB = 60.0
 """dB: the magnitude axis shows ``|L|`` within this of 0 dB (the crossover), or of the farthest finite gain margin
@@ -29,6 +29,36 @@ def magnitude_limits(mag_db, gain_margins_db=()) -> tuple[float, float]:
     span = max([MAGNITUDE_SPAN_DB] + [abs(g) + 10.0 for g in gain_margins_db if np.isfinite(g)])
     low = max(min(float(mag.min()), 0.0), -span) if mag.size else -span
     high = min(max(float(mag.max()), 0.0), span) if mag.size else span
+    pad = 0.05 * (high - low)
+    return low - pad, high + pad
+
+
+PHASE_SPAN_DEG = 180.0
+"""deg: the phase axis shows the phase within this of -180 deg (the line the margins are read from; the
+gain crossover's phase lies within it, :func:`phase_about_minus_180`), or of the phase at every phase
+crossover and 20 deg more: a lifted cascade's integrators take the phase to -540 deg at the lowest frequency
+drawn, which would squeeze the crossover into a third of the axis."""
+
+
+def phase_limits(phase, crossings=()) -> tuple[float, float]:
+    """``(low, high)`` deg of the phase axis: the finite ``phase`` within :data:`PHASE_SPAN_DEG` of -180 deg
+    (wider to show the phase at each of the ``crossings`` with 20 deg to spare), -180 deg and the crossings
+    always inside, 5 % of the range padded.
+
+    Examples
+    --------
+    >>> phase_limits([-540.0, -170.0, -80.0])
+    (-374.0, -66.0)
+    >>> phase_limits([-600.0, -170.0, -80.0], (-540.0,))
+    (-584.0, -56.0)
+    """
+    ph = np.asarray(phase, dtype=float)
+    ph = ph[np.isfinite(ph)]
+    marks = [-180.0] + [float(c) for c in crossings if np.isfinite(c)]
+    floor = min([-180.0 - PHASE_SPAN_DEG] + [c - 20.0 for c in marks])
+    ceiling = max([-180.0 + PHASE_SPAN_DEG] + [c + 20.0 for c in marks])
+    low = max(min([float(ph.min())] + marks) if ph.size else floor, floor)
+    high = min(max([float(ph.max())] + marks) if ph.size else ceiling, ceiling)
     pad = 0.05 * (high - low)
     return low - pad, high + pad
 
@@ -78,7 +108,8 @@ def margins_figure_name(m) -> str:
 
 def margins_figure(m, *, title: str = "") -> Figure:
     """Bode (magnitude, phase) and Nyquist plot of one broken loop, with its margins marked; the magnitude
-    axis about the crossover (:func:`magnitude_limits`).
+    axis about the crossover (:func:`magnitude_limits`), the phase axis about -180 deg (:func:`phase_limits`),
+    each margin's label where it crosses no curve (:func:`quadctl.plots.drawing.place_labels`).
 
     Parameters
     ----------
@@ -99,22 +130,26 @@ def margins_figure(m, *, title: str = "") -> Figure:
     ax_mag.axhline(0.0, color="0.35", lw=0.9, ls="--")
     ax_mag.set_ylabel("|L| [dB]")
     ax_ph.semilogx(w, phase, color=COLORS[0], lw=1.5)
+    crossings = [wg for wg in m.phase_crossover_freqs if wg is not None]
+    low, high = phase_limits(phase, [phase[int(np.argmin(np.abs(np.log(w / wg))))] for wg in crossings])
+    ax_ph.set_ylim(low, high)
     for k in range(-3, 2):
-        if phase.min() - 10 <= -180 + 360 * k <= phase.max() + 10:
+        if low <= -180 + 360 * k <= high:
             ax_ph.axhline(-180 + 360 * k, color="0.35", lw=0.9, ls="--")
     ax_ph.set_ylabel("phase of L [deg]")
     ax_ph.set_xlabel("frequency [rad/s]")
-    if m.gain_crossover_freq is not None:
+    labels = []
+    if m.gain_crossover_freq is not None:  # read from -180 deg: the curve is PM above it there
         for ax in (ax_mag, ax_ph):
             ax.axvline(m.gain_crossover_freq, color=COLORS[2], lw=1.0, ls=":")
-        ax_ph.annotate(f"PM {m.phase_margin_deg:.3g} deg", (m.gain_crossover_freq, phase.min()), xytext=(3, 4),
-                       textcoords="offset points", fontsize=8, color=COLORS[2], va="bottom")
+        labels.append(ax_ph.annotate(f"PM {m.phase_margin_deg:.3g} deg", (m.gain_crossover_freq, -180.0),
+                                     xytext=(0, 0), textcoords="offset points", fontsize=8, color=COLORS[2]))
     for wg, gm in zip(m.phase_crossover_freqs, m.gain_margin_db):
         if wg is not None:
             for ax in (ax_mag, ax_ph):
                 ax.axvline(wg, color=COLORS[1], lw=1.0, ls=":")
-            ax_mag.annotate(f"GM {gm:+.3g} dB", (wg, 0.0), xytext=(-3, 3), textcoords="offset points",
-                            fontsize=8, color=COLORS[1], ha="right", va="bottom")
+            labels.append(ax_mag.annotate(f"GM {gm:+.3g} dB", (wg, 0.0), xytext=(0, 0), textcoords="offset points",
+                                          fontsize=8, color=COLORS[1]))
     if m.sample_time:  # labelled at the top: a gain margin often sits at the Nyquist frequency
         ax_mag.axvline(np.pi / m.sample_time, color="0.5", lw=0.9)
         ax_mag.annotate("Nyquist", (np.pi / m.sample_time, 1.0), xycoords=("data", "axes fraction"),
@@ -140,4 +175,5 @@ def margins_figure(m, *, title: str = "") -> Figure:
             f"{m.sample_time * 1e3:.3g} ms sample)"
             if m.model == "cascade" else f"{m.loop} loop broken at {m.input} ({m.model} model, {kind})")
     fig.suptitle(f"{title}: {head}" if title else head)
+    place_labels(fig, labels)  # last: measured on the figure as laid out
     return fig

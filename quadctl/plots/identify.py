@@ -13,9 +13,10 @@ from quadctl.plots.drawing import COLORS, png_bytes, wrap_titles
 def identification_figure(ident) -> Figure:
     """One row per fitted quantity (thrust, torques): measured and predicted over time, and the residual.
 
-    Each row's title names the log its stage was fitted on. The model is drawn first and wider, the
-    measurement over it, thinner and partly transparent, so both show where they agree; the legend is
-    the figure's, above the panels, never over data. A title wider than its panel (a long log name) is
+    Each row's titles name the log its stage was fitted on and the quantity (the residual's too, without the
+    stage, which the row's first title gives: the narrower panel keeps it on one line). The model is drawn
+    first and wider, the measurement over it, thinner and partly transparent, so both show where they agree;
+    the legend is the figure's, above the panels, never over data. A title wider than its panel (a long log name) is
     broken into lines.
 
     Parameters
@@ -42,8 +43,8 @@ def identification_figure(ident) -> Figure:
         right.plot(t, measured - predicted, color=COLORS[2], lw=0.5)
         right.axhline(0.0, color="k", lw=0.5)
         right.set_ylabel(f"measured - model ({unit})" if unit else "measured - model")
-        right.set_title(f"{log}, {stage}: residual, RMS {np.sqrt(np.mean(res ** 2)):.3g} {unit}".rstrip(),
-                        fontsize=9)
+        right.set_title(f"{log}: {_quantity(fit.rows[k])} residual, RMS "
+                        f"{np.sqrt(np.mean(res ** 2)):.3g} {unit}".rstrip(), fontsize=9)
         right.grid(alpha=0.3)
         for ax in (left, right):
             ax.set_xlabel("t (s)")
@@ -62,6 +63,11 @@ def _unit(row: str) -> str:
     """The unit in a fitted row's name, ``"thrust (N)"`` -> ``"N"`` (empty without one)."""
     found = re.search(r"\(([^()]*)\)\s*$", row)
     return found.group(1) if found else ""
+
+
+def _quantity(row: str) -> str:
+    """A fitted row's name without its unit, ``"roll torque (N m)"`` -> ``"roll torque"``."""
+    return re.sub(r"\s*\([^()]*\)\s*$", "", row)
 
 
 def _broken(t, *series):

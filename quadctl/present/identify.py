@@ -86,18 +86,22 @@ def sentences(payload: dict) -> list[str]:
     return out
 
 
-NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written"}
+NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written",
+                 "lifts": "reaches the hover thrust: not written"}
 """What a value that fails its rule (:class:`quadctl.identify.plausibility.Sign`) shows beside its interval."""
 RULE_WORDS = {"positive": "a positive quantity whose 95 % interval reaches zero or below",
-              "non-negative": "negative, which it cannot be"}
-"""Why a value that fails its rule is not plausible."""
+              "non-negative": "negative, which it cannot be",
+              "lifts": "a rotor's thrust at full command whose 95 % interval reaches its share of the weight "
+                       "(m g / 4 = {hover_thrust:.4g} N, the config's mass and gravity) or below: four rotors at "
+                       "full command may not lift the vehicle"}
+"""Why a value that fails its rule is not plausible (formatted with its identified.json entry)."""
 
 
 def _estimate(name: str, p: dict) -> str:
     """``T_m = 0.008 s (95 %: -0.004 to 0.02 s) is ...``: an identified.json entry ``p`` of ``name``, and why
     it is not plausible: its rule (:data:`RULE_WORDS`), and the fit's floor when it sits there."""
     lo, hi = p["interval95"]
-    why = [] if p["passes_rule"] else [RULE_WORDS[p["rule"]]]
+    why = [] if p["passes_rule"] else [RULE_WORDS[p["rule"]].format(**p)]
     if p.get("fit_floor") is not None:
         why.append(f"on the fit's floor ({p['fit_floor']:.4g} {p['unit']}, two samples of the log: the log resolves "
                    "nothing shorter)")
@@ -116,11 +120,20 @@ def implausible(payload: dict, folder) -> str:
     found = {}
     for s in payload["stages"].values():
         found.update({**s["parameters"], **s.get("derived", {})})
-    said = "; ".join(_estimate(n, p) for n, p in found.items() if n in payload["implausible"])
+    failed = {n: p for n, p in found.items() if n in payload["implausible"]}
+    said = "; ".join(_estimate(n, p) for n, p in failed.items())
     kept = (f"{folder}/identified.yaml keeps the config's {', '.join(payload['not_written'])}"
             if payload["not_written"] else f"{folder}/identified.yaml does not take it")
-    return (f"not plausible: {said}; {kept} (identified.json flags it): fit a window that excites it more "
-            "(--window), or a longer log")
+    cures = dict.fromkeys(CURES.get(p["rule"] if not p["passes_rule"] else None, CURE) for p in failed.values())
+    return f"not plausible: {said}; {kept} (identified.json flags it): {'; or '.join(cures)}"
+
+
+CURE = "fit a window that excites it more (--window), or a longer log"
+"""What to do about an estimate the log does not resolve (its interval reaches past its rule's bound, or it sits
+on the fit's floor)."""
+CURES = {"lifts": "check vehicle.mass and vehicle.gravity against the vehicle flown (--set vehicle.mass=KG), or fit "
+                  "a log that climbs at full command (a curve the log did not fly there is extrapolated)"}
+"""What to do about a value that fails its rule, where it is not :data:`CURE`."""
 
 
 def set_comment(sets) -> str:

@@ -27,20 +27,23 @@ from quadctl.present.identify import sentences
     ("Jxx", 1.3e-5, (1.2e-5, 1.4e-5), True),
     ("Jyy", 1.3e-5, (-1e-6, 2.7e-5), False),
     ("k_m", 0.006, (-0.001, 0.013), False),
-    ("max_thrust", 0.14, (0.07, 0.22), True),
+    ("max_thrust", 0.14, (0.07, 0.22), True),  # the 27 g Crazyflie's rotors hover at 0.0662 N each
+    ("max_thrust", 0.07, (0.0661, 0.0739), False),  # four rotors at full command may not lift it
+    ("max_thrust", 0.06, (0.059, 0.061), False),  # they do not: positive and narrow, below the weight
     ("delay", 0.002, (-0.001, 0.005), True),  # a delay may be none: its value, not its interval, is judged
     ("delay", -0.001, (-0.004, 0.002), False),
     ("c1", -0.12, (-0.25, 0.006), True),  # a coefficient of the curve has no sign of its own
     ("bias_A", -2e-4, (-3e-4, -1e-4), True),
 ])
 def test_each_rule_judges_the_interval_or_the_value(name, value, interval, plausible):
-    assert judge(name, value, interval) is plausible
+    assert judge(name, value, interval, hover=0.027 * 9.81 / 4) is plausible
 
 
 def test_every_identified_parameter_has_a_rule():
     fitted = set(est.PARAMETERS) | {"T_m", "delay"}
     assert fitted | {"max_thrust"} == set(RULES)
-    assert {n for n, s in RULES.items() if s is Sign.POSITIVE} == {"T_m", "Jxx", "Jyy", "Jzz", "k_m", "max_thrust"}
+    assert {n for n, s in RULES.items() if s is Sign.POSITIVE} == {"T_m", "Jxx", "Jyy", "Jzz", "k_m"}
+    assert {n for n, s in RULES.items() if s is Sign.LIFTS} == {"max_thrust"}
 
 
 def _fit(stage, names, values, std, windows=((1.0, 2.0),)):
@@ -51,16 +54,16 @@ def _fit(stage, names, values, std, windows=((1.0, 2.0),)):
                         extra={"rms_without_lag": 1.0} if stage == "thrust" else {})
 
 
-def _identification(t_m_std=1e-4, jxx_std=1e-7, k_m_std=1e-5, delay=False):
+def _identification(t_m_std=1e-4, jxx_std=1e-7, k_m_std=1e-5, delay=False, c2=0.12):
     """crazyflie's airframe, a thrust, attitude and yaw fit with the given stds (1.96 std past the value: the
-    interval reaches zero)."""
+    interval reaches zero) and quadratic coefficient (the thrust at full command is c2 + 0.01 N)."""
     from quadctl import config
 
     log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
                     path="log", format="csv", sha256="")
     cfg = config.load("crazyflie")
     names = ("c0", "c1", "c2", "T_m") + (("delay",) if delay else ())
-    thrust = _fit("thrust", names, (0.02, -0.01, 0.12, 0.07) + ((0.017,) if delay else ()),
+    thrust = _fit("thrust", names, (0.02, -0.01, c2, 0.07) + ((0.017,) if delay else ()),
                   (1e-4, 1e-4, 1e-4, t_m_std) + ((1e-3,) if delay else ()))
     fits = {"thrust": thrust,
             "attitude": _fit("attitude", ("Jxx", "Jyy"), (1.3e-5, 1.38e-5), (jxx_std, 1e-7)),
@@ -93,6 +96,32 @@ def test_a_value_whose_interval_reaches_zero_leaves_the_configs_and_says_why(kin
     flagged = [p for s in done["stages"].values() for n, p in s["parameters"].items() if not p["plausible"]]
     assert len(flagged) == 1 and flagged[0]["rule"] == "positive" and flagged[0]["interval95"][0] <= 0
     assert got.motors.max_thrust == pytest.approx(0.13, rel=1e-3)  # the plausible values are written
+
+
+def test_a_full_command_thrust_that_does_not_lift_the_vehicle_is_not_written_and_says_why():
+    """The 27 g Crazyflie (m g / 4 = 0.0662 N a rotor) with a curve that gives 0.06 N at full command: its interval
+    (a std of 1.7e-4 N) lies above zero but below the hover thrust. The config's max_thrust stays, and the line
+    identify ends with (exit 1) names the bound; at 0.13 N the curve lifts it and is written."""
+    from quadctl.present.identify import implausible
+
+    ident = _identification(c2=0.05)
+    entry = ident.entries()["max_thrust"]
+    assert entry["interval95"][0] > 0 and entry["rule"] == "lifts" and not entry["plausible"]
+    assert entry["hover_thrust"] == pytest.approx(0.027 * 9.81 / 4)
+    base = locate("crazyflie").text
+    text = identified_config(base, ident, "x")
+    assert parse(text, "x").motors.max_thrust == parse(base, "crazyflie").motors.max_thrust
+    assert "# max_thrust: not identified: max_thrust = 0.06 N" in text
+    done = payload(ident, "crazyflie.yaml", written=text)
+    assert done["implausible"] == ["max_thrust"] and list(done["not_written"]) == ["motors.max_thrust"]
+    assert re.match(r"^not plausible: max_thrust = 0\.06 N \(95 %: 0\.0596\d* to 0\.0603\d* N\) is a rotor's thrust "
+                    r"at full command whose 95 % interval reaches its share of the weight \(m g / 4 = 0\.06622 N, "
+                    r"the config's mass and gravity\) or below: four rotors at full command may not lift the vehicle; "
+                    r"runs/x/identified\.yaml keeps the config's motors\.max_thrust \(identified\.json flags it\): "
+                    r"check vehicle\.mass and vehicle\.gravity against the vehicle flown \(--set vehicle\.mass=KG\), "
+                    r"or fit a log that climbs at full command \(a curve the log did not fly there is extrapolated\)$",
+                    implausible(done, "runs/x"))
+    assert _identification(c2=0.12).entries()["max_thrust"]["plausible"]
 
 
 def test_the_torque_coefficient_keeps_the_configs_jzz_when_the_inertia_is_not_written():
@@ -173,3 +202,20 @@ def test_the_closing_line_names_what_was_kept_or_that_nothing_was_to_be_written(
         "(--window), or a longer log")
     done["not_written"] = {"controller.delay": ["delay"]}
     assert "runs/x/identified.yaml keeps the config's controller.delay (" in implausible(done, "runs/x")
+
+
+@pytest.mark.slow  # the exit-1 path is the sample ULog's above; this is the lift rule through the command
+def test_a_curve_that_cannot_lift_the_configs_weight_is_not_written_and_identify_exits_1(tmp_path):
+    """log10's curve (0.139 N a rotor at full command) and the Crazyflie under 22 m/s^2 (0.149 N a rotor at hover):
+    the fit ignores gravity (an accelerometer does not feel it), the rule does not."""
+    out = tmp_path / "o"
+    res = CliRunner().invoke(app, ["identify", str(DATA / "crazyflie-flights" / "log10"), "-c", "crazyflie",
+                                   "--window", "8.67:38.67", "--set", "vehicle.gravity=22", "-o", str(out)])
+    assert res.exit_code == 1, res.output
+    assert "max_thrust = 0.1391 N (95 %: 0.1367 to 0.1415 N) is a rotor's thrust at full command" in res.stderr
+    assert "(m g / 4 = 0.1485 N," in res.stderr and "keeps the config's motors.max_thrust" in res.stderr
+    done = json.loads((out / "identified.json").read_text())
+    assert done["implausible"] == ["max_thrust"]
+    cfg = parse((out / "identified.yaml").read_text(), "identified.yaml")
+    assert cfg.motors.max_thrust == parse(locate("crazyflie").text, "c").motors.max_thrust
+    assert cfg.motors.time_constant == pytest.approx(0.0725, abs=5e-4)  # the plausible values are written

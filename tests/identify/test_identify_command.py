@@ -101,7 +101,7 @@ def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
 
     log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
                     path="log", format="csv", sha256="")
-    airframe = est.Airframe(mass=0.027, positions=np.zeros((4, 2)), spins=np.ones(4),
+    airframe = est.Airframe(mass=0.027, gravity=9.81, positions=np.zeros((4, 2)), spins=np.ones(4),
                             inertia=np.array([1e-5, 1e-5, jzz]), torque_coefficient=0.006)
     fits = {"thrust": _fit("thrust", ("c0", "c1", "c2", "T_m"), (0.02, -0.01, 0.12, 0.07)),
             "attitude": _fit("attitude", ("Jxx", "Jyy"), (1.2e-5, 1.3e-5)),
@@ -151,7 +151,7 @@ def _delay_identification(rate):
 
     log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
                     path="log", format="csv", sha256="")
-    airframe = est.Airframe(mass=0.027, positions=np.zeros((4, 2)), spins=np.ones(4),
+    airframe = est.Airframe(mass=0.027, gravity=9.81, positions=np.zeros((4, 2)), spins=np.ones(4),
                             inertia=np.array([1e-5, 1e-5, 2e-5]), torque_coefficient=0.006)
     thrust = _fit("thrust", ("c0", "c1", "c2", "T_m", "delay"), (0.02, -0.01, 0.12, 0.056, 0.01711))
     thrust.extra["rms_without_lag"] = 1.0

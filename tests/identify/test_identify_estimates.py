@@ -25,7 +25,7 @@ MASS = 0.027
 
 def airframe(arm=PAPER_ARM, inertia=(1.05e-5, 1.12e-5, 2.0e-5), k_m=0.006):
     motors = Motors(layout="x", arm_length=arm, torque_coefficient=k_m)
-    return est.Airframe(mass=MASS, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
+    return est.Airframe(mass=MASS, gravity=9.81, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
                         inertia=np.array(inertia), torque_coefficient=k_m)
 
 
@@ -158,6 +158,8 @@ def test_inertia_and_torque_coefficient_within_their_intervals():
     thrust = est.fit_thrust(grid, [(0.3, 5.9)], af)
     att = est.fit_attitude(grid, [(0.3, 5.9)], af, thrust)
     yaw = est.fit_yaw(grid, [(0.3, 5.9)], af, thrust, att)
+    assert att.rows == ("roll torque (N m)", "pitch torque (N m)")  # the figure's names of the rows
+    assert yaw.rows == ("yaw torque (N m)",)
     for fit, name, value in ((att, "Jxx", inertia[0]), (att, "Jyy", inertia[1]), (yaw, "k_m", k_m)):
         lo, hi = fit.interval(name)
         assert lo <= value <= hi, (name, value, lo, hi)

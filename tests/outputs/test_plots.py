@@ -195,21 +195,25 @@ def _identification():
         t=t, rows=rows, measured=scale * np.sin(np.outer(t, np.arange(1, len(rows) + 1))),
         predicted=scale * 0.9 * np.sin(np.outer(t, np.arange(1, len(rows) + 1))),
         residual=scale * 0.1 * np.sin(np.outer(t, np.arange(1, len(rows) + 1))))
-    return SimpleNamespace(fits={"thrust": fit(("thrust (N)",), 0.3), "attitude": fit(("torque x (N m)",), 0.002)},
+    return SimpleNamespace(fits={"thrust": fit(("thrust (N)",), 0.3),
+                                 "attitude": fit(("roll torque (N m)", "pitch torque (N m)"), 0.002)},
                            logs=[SimpleNamespace(name="log10"), SimpleNamespace(name="log15")],
                            stage_logs={"thrust": 0, "attitude": 1})
 
 
 def test_the_identification_figure_names_its_logs_units_and_hides_no_data():
-    """Each row's titles name the log its stage was fitted on; the residuals carry the unit of their
-    quantity; the measurement is drawn over the model and thinner, so both show; the legend lies
-    outside every panel."""
+    """Each row's titles name the log its stage was fitted on and the quantity (the roll or pitch torque's
+    residual apart); the residuals carry the unit of their quantity; the measurement is drawn over the model
+    and thinner, so both show; the legend lies outside every panel."""
     from quadctl.plots.identify import identification_figure
 
     fig = _drawn(identification_figure(_identification()))
     rows = np.reshape(fig.axes, (-1, 2))
-    for (left, right), log, unit in zip(rows, ("log10", "log15"), ("(N)", "(N m)")):
+    named = ("thrust", "roll torque", "pitch torque")
+    for (left, right), log, quantity, unit in zip(rows, ("log10", "log15", "log15"), named, ("(N)", "(N m)", "(N m)")):
         assert left.get_title().startswith(log) and right.get_title().startswith(log)
+        assert f": {quantity} (" in left.get_title() and f": {quantity} residual, RMS" in " ".join(
+            right.get_title().split())
         assert right.get_ylabel().endswith(unit) and left.get_ylabel().endswith(unit)
         measured, model = _lines(left, "measured")[0], _lines(left, "model")[0]
         assert measured.get_zorder() > model.get_zorder() and measured.get_linewidth() < model.get_linewidth()

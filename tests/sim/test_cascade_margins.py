@@ -354,6 +354,54 @@ def test_a_cascade_margins_figure_draws_the_magnitude_about_the_crossover(crazyf
     assert -1.1 * span <= low < -max(finite) and max(finite) < high <= 1.1 * span, (low, high, m.gain_margin_db)
 
 
+@pytest.mark.parametrize("j", [1, 3])
+def test_a_cascade_margins_figure_draws_the_phase_about_minus_180(crazyflie_margins, j):
+    """The lifted roll loop's phase runs down to -540 deg at the lowest frequency drawn (its integrators): the
+    phase axis keeps -180 deg, the phase margin above it at the crossover and the phase at every phase crossover
+    in view, within PHASE_SPAN_DEG of -180 deg, not the grid's ends."""
+    from quadctl.plots import margins_figure
+    from quadctl.plots.frequency import PHASE_SPAN_DEG
+
+    m = crazyflie_margins[j]
+    ax = margins_figure(m).axes[1]
+    low, high = ax.get_ylim()
+    w, phase = ax.get_lines()[0].get_xydata().T
+    at = lambda f: phase[int(np.argmin(np.abs(np.log(w / f))))]  # noqa: E731
+    seen = [at(m.gain_crossover_freq)] + [at(f) for f in m.phase_crossover_freqs if f is not None]
+    assert seen[0] == pytest.approx(-180.0 + m.phase_margin_deg, abs=np.abs(np.diff(phase)).max())
+    assert -180.0 - 1.1 * PHASE_SPAN_DEG <= low < min(seen + [-180.0]), (low, seen)
+    assert max(seen + [-180.0]) < high <= -180.0 + 1.1 * PHASE_SPAN_DEG, (high, seen)
+    if j == 1:
+        assert phase.min() < -180.0 - 1.5 * PHASE_SPAN_DEG  # what the limits are for: -540 deg
+
+
+@pytest.mark.parametrize("j", range(4))
+def test_a_cascade_margins_figures_labels_cross_no_curve(crazyflie_margins, j):
+    """Each margin's label (GM on the magnitude, PM on the phase) lies inside its panel and clear of the curve
+    (the roll loop's GM +0.75 dB sits where |L| is a few dB above 0 just left of its crossover): the curve,
+    sampled at 50 points a segment in the figure as drawn, has none inside a label's box."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from quadctl.plots import margins_figure
+
+    fig = margins_figure(crazyflie_margins[j])
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    labels = [(ax, t) for ax in fig.axes[:2] for t in ax.texts if t.get_text()[:2] in ("GM", "PM")]
+    assert sorted(t.get_text()[:2] for _, t in labels) == ["GM", "GM", "PM"]
+    for ax, text in labels:
+        box, frame = text.get_window_extent(renderer), ax.get_window_extent(renderer)
+        assert frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1
+        curve = ax.get_lines()[0]
+        xy = curve.get_transform().transform(curve.get_xydata())
+        s = np.linspace(0.0, 1.0, 50)[:, None, None]
+        dense = (xy[:-1] + s * (xy[1:] - xy[:-1])).reshape(-1, 2)
+        dense = dense[np.isfinite(dense).all(axis=1)]
+        inside = ((box.x0 <= dense[:, 0]) & (dense[:, 0] <= box.x1) & (box.y0 <= dense[:, 1]) & (dense[:, 1] <= box.y1))
+        assert not inside.any(), (text.get_text(), dense[inside][:3], box)
+
+
 def test_the_report_of_a_config_flying_the_cascade_shows_its_loops(tmp_path):
     from quadctl.cli.options import open_workspace
     from quadctl.report import content

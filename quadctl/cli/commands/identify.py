@@ -36,10 +36,10 @@ def command(logs: Annotated[list[str], typer.Argument(
     The config gives what a log cannot (mass, rotor positions and numbering). Writes identified.json
     (values, 95 % intervals, windows, residuals, the logs' sha256), identified.yaml (the config with
     the identified values, each line saying where it came from) and identify.png. A value that is not
-    physically possible (a time constant, an inertia, a torque coefficient or the full-command thrust
-    whose 95 % interval reaches zero) is not written into identified.yaml (the config's stays) and is
-    flagged in identified.json: exit 1 after writing. An identified.yaml edited since quadctl wrote it
-    is not written over (exit 2, nothing changed) unless --force.
+    physically possible (a time constant, an inertia or a torque coefficient whose 95 % interval reaches
+    zero, a full-command thrust whose interval reaches a rotor's share of the weight) is not written into
+    identified.yaml (the config's stays) and is flagged in identified.json: exit 1 after writing. An
+    identified.yaml edited since quadctl wrote it is not written over (exit 2, nothing changed) unless --force.
     """
     import json as _json
 
