@@ -178,7 +178,7 @@ def require_unedited(folder, force: bool = False) -> None:
     except OSError:
         same = False
     if not same:
-        raise ArtifactError(shown.edited(path, shown.edit_evidence(recorded is not None)))
+        raise ArtifactError(shown.edited(path, recorded is not None))
 
 
 def payload(ident: Identification, config_label: str, config=None, written: str | None = None, sets=()) -> dict:

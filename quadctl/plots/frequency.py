@@ -15,7 +15,8 @@ at Nyquist, which would squeeze the crossover into a few pixels."""
 
 def magnitude_limits(mag_db, gain_margins_db=()) -> tuple[float, float]:
     """``(low, high)`` dB of the magnitude axis: the finite ``mag_db`` within :data:`MAGNITUDE_SPAN_DB` of 0 dB
-    (wider to show every finite gain margin with 10 dB to spare), 0 dB always inside, 5 % of the range padded.
+    (wider to show every finite gain margin with 10 dB to spare, and the curve's point nearest 0 dB with
+    10 dB more when it lies beyond that), 0 dB always inside, 5 % of the range padded.
 
     Examples
     --------
@@ -23,12 +24,17 @@ def magnitude_limits(mag_db, gain_margins_db=()) -> tuple[float, float]:
     (-66.0, 66.0)
     >>> magnitude_limits([20.0, 0.0, -10.0])
     (-11.5, 21.5)
+    >>> magnitude_limits([100.0, 80.0, 70.0])  # |L| never within 60 dB of 0 dB: its nearest point still shown
+    (-4.0, 84.0)
     """
     mag = np.asarray(mag_db, dtype=float)
     mag = mag[np.isfinite(mag)]
     span = max([MAGNITUDE_SPAN_DB] + [abs(g) + 10.0 for g in gain_margins_db if np.isfinite(g)])
     low = max(min(float(mag.min()), 0.0), -span) if mag.size else -span
     high = min(max(float(mag.max()), 0.0), span) if mag.size else span
+    near = float(mag[np.argmin(np.abs(mag))]) if mag.size else 0.0
+    if not low <= near <= high:  # no point of the curve in view
+        low, high = min(low, near - 10.0), max(high, near + 10.0)
     pad = 0.05 * (high - low)
     return low - pad, high + pad
 

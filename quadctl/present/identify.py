@@ -122,10 +122,12 @@ def implausible(payload: dict, folder) -> str:
         found.update({**s["parameters"], **s.get("derived", {})})
     failed = {n: p for n, p in found.items() if n in payload["implausible"]}
     said = "; ".join(_estimate(n, p) for n, p in failed.items())
-    kept = (f"{folder}/identified.yaml keeps the config's {', '.join(payload['not_written'])}"
-            if payload["not_written"] else f"{folder}/identified.yaml does not take it")
+    them = "them" if len(failed) > 1 else "it"
+    kept = (f"{folder}/identified.yaml leaves {', '.join(payload['not_written'])} as the config has "
+            f"{'them' if len(payload['not_written']) > 1 else 'it'}"
+            if payload["not_written"] else f"{folder}/identified.yaml does not take {them}")
     cures = dict.fromkeys(CURES.get(p["rule"] if not p["passes_rule"] else None, CURE) for p in failed.values())
-    return f"not plausible: {said}; {kept} (identified.json flags it): {'; or '.join(cures)}"
+    return f"not plausible: {said}; {kept} (identified.json flags {them}): {'; or '.join(cures)}"
 
 
 CURE = "fit a window that excites it more (--window), or a longer log"
@@ -146,15 +148,11 @@ def set_comment(sets) -> str:
     return "given on the command line (" + ", ".join(f"--set {repr(t)[1:-1]}" for t in sets) + ")"
 
 
-def edited(path, why: str) -> str:
-    """Why ``identify`` refuses to write over ``path`` (an identified.yaml edited since quadctl wrote it, or
-    one it has no record of), and the two ways on: keep the edits under another name, or discard them."""
-    return (f"{path}: changed since quadctl identify wrote it ({why}); identify would write over it: to keep "
-            f"your edits move it to another name (mv {path} my-vehicle.yaml) or identify into another folder "
-            "(-o DIR), or pass --force to write over them")
-
-
-def edit_evidence(recorded: bool) -> str:
-    """What :func:`edited` says it found: a hash that differs, or no hash recorded."""
-    return ("its bytes differ from the sha256 identified.json records" if recorded
-            else "identified.json beside it records no sha256 of it")
+def edited(path, recorded: bool) -> str:
+    """Why ``identify`` refuses to write over ``path``: an identified.yaml edited since quadctl wrote it
+    (``recorded``: identified.json records the sha256 of what it wrote, and the bytes differ), or one it has
+    no record of writing; and the two ways on: keep the file under another name, or discard it."""
+    found = ("changed since quadctl identify wrote it (its bytes differ from the sha256 identified.json records)"
+             if recorded else "quadctl has no record of writing it (identified.json beside it records no sha256 of it)")
+    return (f"{path}: {found}; identify would write over it: to keep it move it to another name "
+            f"(mv {path} my-vehicle.yaml) or identify into another folder (-o DIR), or pass --force to write over it")

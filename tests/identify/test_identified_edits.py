@@ -70,11 +70,12 @@ def test_an_edited_identified_yaml_is_refused_in_one_line_and_the_folder_is_left
                                    "-o", str(out)])
     assert res.exit_code == 2, res.output
     lines = res.stderr.strip().splitlines()
-    why = "records no sha256 of it" if edit == "the record lost" else "its bytes differ from the sha256"
-    assert len(lines) == 1 and lines[0].startswith(f"quadctl: error: {yaml_file}: changed since quadctl identify "
-                                                   "wrote it"), lines
-    assert why in lines[0] and f"mv {yaml_file} my-vehicle.yaml" in lines[0] and "(-o DIR)" in lines[0]
-    assert lines[0].endswith("or pass --force to write over them")
+    found = ("quadctl has no record of writing it (identified.json beside it records no sha256 of it)"
+             if edit == "the record lost" else
+             "changed since quadctl identify wrote it (its bytes differ from the sha256 identified.json records)")
+    assert len(lines) == 1 and lines[0].startswith(f"quadctl: error: {yaml_file}: {found}"), lines
+    assert f"mv {yaml_file} my-vehicle.yaml" in lines[0] and "(-o DIR)" in lines[0]
+    assert lines[0].endswith("or pass --force to write over it")
     assert res.stdout == ""
     assert snapshot(out) == before
 

@@ -74,15 +74,17 @@ def _identification(t_m_std=1e-4, jxx_std=1e-7, k_m_std=1e-5, delay=False, c2=0.
 
 
 @pytest.mark.parametrize("kind, args, kept, config_value", [
-    ("motor lag", {"t_m_std": 0.05}, ("motors.time_constant", "controller.rotor_lag"),
-     lambda c: (c.motors.time_constant, c.controller.rotor_lag)),
+    ("motor lag", {"t_m_std": 0.05},  # the inertia and k_m are fitted to torques of rotors lagged by T_m
+     ("motors.time_constant", "controller.rotor_lag", "vehicle.inertia", "motors.torque_coefficient"),
+     lambda c: (c.motors.time_constant, c.controller.rotor_lag, c.vehicle.inertia, c.motors.torque_coefficient)),
     ("roll inertia", {"jxx_std": 1e-5}, ("vehicle.inertia",), lambda c: c.vehicle.inertia),
     ("torque coefficient", {"k_m_std": 0.004}, ("motors.torque_coefficient",),
      lambda c: c.motors.torque_coefficient),
 ])
 def test_a_value_whose_interval_reaches_zero_leaves_the_configs_and_says_why(kind, args, kept, config_value):
     """The identified config keeps the config's value of each key the implausible value would have set (the
-    lag's design option with the lag), says why above it, and loads; the other values are written."""
+    lag's design option with the lag, and the values fitted through the lag), says why above it, and loads;
+    the other values are written."""
     ident = _identification(**args)
     base = locate("crazyflie").text
     text = identified_config(base, ident, "x")
@@ -117,7 +119,8 @@ def test_a_full_command_thrust_that_does_not_lift_the_vehicle_is_not_written_and
     assert re.match(r"^not plausible: max_thrust = 0\.06 N \(95 %: 0\.0596\d* to 0\.0603\d* N\) is a rotor's thrust "
                     r"at full command whose 95 % interval reaches its share of the weight \(m g / 4 = 0\.06622 N, "
                     r"the config's mass and gravity\) or below: four rotors at full command may not lift the vehicle; "
-                    r"runs/x/identified\.yaml keeps the config's motors\.max_thrust \(identified\.json flags it\): "
+                    r"runs/x/identified\.yaml leaves motors\.max_thrust as the config has it "
+                    r"\(identified\.json flags it\): "
                     r"check vehicle\.mass and vehicle\.gravity against the vehicle flown \(--set vehicle\.mass=KG\), "
                     r"or fit a log that climbs at full command \(a curve the log did not fly there is extrapolated\)$",
                     implausible(done, "runs/x"))
@@ -173,8 +176,9 @@ def test_the_sample_ulogs_unresolved_motor_lag_is_not_written_and_identify_exits
     assert len(lines) == 1 and re.match(
         r"^quadctl: check failed: not plausible: T_m = 0\.008 s \(95 %: -0\.004\d* to 0\.02\d* s\) is a positive "
         r"quantity whose 95 % interval reaches zero or below, and on the fit's floor \(0\.008 s, two samples of "
-        r"the log: the log resolves nothing shorter\); .*identified\.yaml keeps the config's "
-        r"motors\.time_constant, controller\.rotor_lag \(identified\.json flags it\)", lines[0]), lines
+        r"the log: the log resolves nothing shorter\); .*identified\.yaml leaves "
+        r"motors\.time_constant, controller\.rotor_lag as the config has them \(identified\.json flags it\)",
+        lines[0]), lines
     done = json.loads(res.stdout)
     assert done == json.loads((out / "identified.json").read_text())
     t_m = done["stages"]["thrust"]["parameters"]["T_m"]
@@ -201,7 +205,7 @@ def test_the_closing_line_names_what_was_kept_or_that_nothing_was_to_be_written(
         "runs/x/identified.yaml does not take it (identified.json flags it): fit a window that excites it more "
         "(--window), or a longer log")
     done["not_written"] = {"controller.delay": ["delay"]}
-    assert "runs/x/identified.yaml keeps the config's controller.delay (" in implausible(done, "runs/x")
+    assert "runs/x/identified.yaml leaves controller.delay as the config has it (" in implausible(done, "runs/x")
 
 
 @pytest.mark.slow  # the exit-1 path is the sample ULog's above; this is the lift rule through the command
@@ -213,7 +217,7 @@ def test_a_curve_that_cannot_lift_the_configs_weight_is_not_written_and_identify
                                    "--window", "8.67:38.67", "--set", "vehicle.gravity=22", "-o", str(out)])
     assert res.exit_code == 1, res.output
     assert "max_thrust = 0.1391 N (95 %: 0.1367 to 0.1415 N) is a rotor's thrust at full command" in res.stderr
-    assert "(m g / 4 = 0.1485 N," in res.stderr and "keeps the config's motors.max_thrust" in res.stderr
+    assert "(m g / 4 = 0.1485 N," in res.stderr and "leaves motors.max_thrust as the config has it" in res.stderr
     done = json.loads((out / "identified.json").read_text())
     assert done["implausible"] == ["max_thrust"]
     cfg = parse((out / "identified.yaml").read_text(), "identified.yaml")
