@@ -19,9 +19,9 @@ import numpy as np
 from quadctl.errors import ConfigError
 from quadctl.export import c
 from quadctl.export.bundle import Export, require_export
-from quadctl.present.platform import SETPOINT_NEEDS as NEEDS
 from quadctl.present.platform import no_setpoint_flyable, setpoint_refused
 from quadctl.text.escape import c_comment
+from quadctl.text.setpoints import SETPOINT_NEEDS as NEEDS
 from quadctl.version import __version__
 
 LOOP_HZ = 1000

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from quadctl.text.setpoints import SETPOINT_OPTIONS
+
 AGREE_RTOL = 0.005
 """A number agrees with the platform's when within 0.5 % of it (the platform's own rounding)."""
 
@@ -34,20 +36,6 @@ def platform_sentences(rows, platform) -> list[str]:
     return out
 
 
-SETPOINT_GIVES = {"position": "x, y, z, yaw", "velocity": "the hover setpoint: vx, vy, z, yaw rate"}
-"""What the commander gives in each setpoint the Crazyflie app follows
-(:data:`quadctl.export.crazyflie.SETPOINTS`)."""
-SETPOINT_NEEDS = {"position": ("pN", "pE", "pD", "psi"), "velocity": ("u", "v", "pD", "psi")}
-"""The states each setpoint needs regulated (in a subsystem with ``regulate: true``)."""
-SETPOINT_OPTIONS = {s: f"--setpoint {s} ({gives})" for s, gives in SETPOINT_GIVES.items()}
-"""Each setpoint as the option that asks for it, with what the commander gives."""
-SETPOINT_HELP = (
-    "--to crazyflie: the commander's setpoints the app follows: "
-    + " or ".join(f"{s} ({gives}; needs {', '.join(SETPOINT_NEEDS[s])} regulated)"
-                  for s, gives in SETPOINT_GIVES.items())
-    + ". Default: the first of these the config's partition regulates (velocity for the bundled crazyflie, which "
-      "leaves the position free).")
-"""``quadctl export --setpoint``'s help."""
 
 
 def no_setpoint_flyable(free: dict) -> str:

@@ -4,7 +4,7 @@ from typing import Annotated, Optional
 import typer
 
 from quadctl.cli.options import ConfigOpt, OutOpt, SetOpt, rate_option
-from quadctl.present.platform import SETPOINT_HELP
+from quadctl.text.setpoints import SETPOINT_HELP
 
 RateOpt = rate_option(
     help="Run a continuous design (no controller.rate) at this rate, after the check "
