@@ -146,9 +146,9 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
                           config_name=config.name, controller_rate=config.controller.rate)
 
 
-def yaml_digest(text: str) -> str:
-    """The sha256 of ``identified.yaml``'s bytes as written (``text`` UTF-8 encoded)."""
-    return hashlib.sha256(text.encode()).hexdigest()
+def yaml_digest(data: str | bytes) -> str:
+    """The sha256 of ``identified.yaml``'s bytes: as written (``data`` text, UTF-8 encoded), or as read."""
+    return hashlib.sha256(data.encode() if isinstance(data, str) else data).hexdigest()
 
 
 def require_unedited(folder, force: bool = False) -> None:
@@ -174,7 +174,7 @@ def require_unedited(folder, force: bool = False) -> None:
     except (OSError, ValueError):
         recorded = None
     try:
-        same = recorded is not None and hashlib.sha256(path.read_bytes()).hexdigest() == recorded
+        same = recorded is not None and yaml_digest(path.read_bytes()) == recorded
     except OSError:
         same = False
     if not same:
