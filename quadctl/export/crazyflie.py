@@ -113,10 +113,15 @@ def divider(rate: float) -> int:
     return int(round(n))
 
 
+def unregulated(exp: Export) -> dict[str, list[str]]:
+    """``{setpoint: the states it needs (:data:`NEEDS`) that the partition leaves free}``, for each of
+    :data:`SETPOINTS` in order."""
+    return {s: [x for x in NEEDS[s] if x not in exp.setup.regulated] for s in SETPOINTS}
+
+
 def flyable_setpoints(exp: Export) -> tuple[str, ...]:
     """The setpoints (:data:`SETPOINTS`, in order) whose states (:data:`NEEDS`) the partition all regulates."""
-    regulated = exp.setup.regulated
-    return tuple(s for s in SETPOINTS if all(state in regulated for state in NEEDS[s]))
+    return tuple(s for s, free in unregulated(exp).items() if not free)
 
 
 def default_setpoint(exp: Export) -> str:
@@ -159,7 +164,7 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     divider(exp.rate)
-    loop, setup = exp.loop, exp.setup
+    loop = exp.loop
     act = loop.actuators
     if mode == "force":
         if act is None or act.mode != "motors":
@@ -180,12 +185,11 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
     if np.any(np.asarray(loop.x_rate) != 0.0):
         raise ConfigError("trim.velocity_ned is not zero: the commander's setpoints are positions and velocities "
                           "about a hover; trim at velocity_ned: [0, 0, 0]")
-    free = [s for s in NEEDS[setpoint] if s not in setup.regulated]
-    if free and asked is None:  # none asked, and none flyable
-        unregulated = {s: [x for x in NEEDS[s] if x not in setup.regulated] for s in SETPOINTS}
-        raise ConfigError(no_setpoint_flyable(unregulated))
-    if free:
-        raise ConfigError(setpoint_refused(setpoint, free, flyable_setpoints(exp)))
+    free = unregulated(exp)
+    if free[setpoint] and asked is None:  # none asked, and none flyable
+        raise ConfigError(no_setpoint_flyable(free))
+    if free[setpoint]:
+        raise ConfigError(setpoint_refused(setpoint, free[setpoint], flyable_setpoints(exp)))
 
 
 def platform_rows(exp: Export, platform: Platform = FIRMWARE) -> list[tuple[str, str, float, float, str]]:
