@@ -25,10 +25,10 @@ from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linear.filters import RateFilter, rate_filter_of
 from quadctl.linear.trim import solve_trim
 from quadctl.physics import trajectory
-from quadctl.physics.flatness import FlownReference
 from quadctl.physics.model import Vehicle
 from quadctl.physics.motors import Actuators, Motors, actuators_of, headroom
 from quadctl.physics.noise import NoiseSpec, exogenous_period
+from quadctl.physics.reference_rows import FlownReference
 from quadctl.physics.trajectory import Reference
 from quadctl.physics.wind import WindSpec, wind_of
 
@@ -226,7 +226,7 @@ class Setup:
 
     @cached_property
     def flown_reference(self) -> FlownReference | None:
-        """The path to fly with the design model's feedforward (:class:`quadctl.physics.flatness.FlownReference`),
+        """The path to fly with the design model's feedforward (:class:`quadctl.physics.reference_rows.FlownReference`),
         made once per setup; None without ``simulation.reference``."""
         return None if self.reference is None else FlownReference(self.reference, self.vehicle.vector())
 

@@ -8,5 +8,6 @@
 
 It imports nothing of quadctl's but the lazy import of CasADi: the simulation's runners
 (:mod:`quadctl.sim`), the Riccati doubling kernel (:mod:`quadctl.design.riccati.doubling`), the
-feedforward (:mod:`quadctl.physics.flatness`) and a run's provenance all stand on it.
+feedforward (:mod:`quadctl.physics.flatness`), a reference's rows (:mod:`quadctl.physics.reference_rows`)
+and a run's provenance all stand on it.
 """

@@ -18,9 +18,9 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.design.gain_table import VARIABLES, scheduling_value
 from quadctl.layout import GRAVITY, N_INPUTS, N_STATES, PRODUCTS, STATE_INDEX
-from quadctl.physics.flatness import ROW_HALF
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, N_WIND, build_model
 from quadctl.physics.motors import desaturate
+from quadctl.physics.reference_rows import ROW_HALF
 from quadctl.sim import pid
 from quadctl.sim.pid import N_LAW_STATES, n_constants
 
@@ -80,11 +80,11 @@ REFERENCE_LAYOUT: tuple[tuple[str, int], ...] = (
 )
 """Exogenous channels of one step after the wind's, when the loop flies a reference
 (:mod:`quadctl.physics.trajectory`): it replaces ``x_ref + x_rate t`` and ``u_trim`` in the law. Two
-expansions of the path (:class:`quadctl.physics.flatness.FlownReference`): the one in force at the
+expansions of the path (:class:`quadctl.physics.reference_rows.FlownReference`): the one in force at the
 step's start ``t`` (the law's and the regulated reference's, :func:`build`'s ``qc_law`` and ``qc_ref``),
 and the one in force over the step (the one its midpoint falls in: every stage of an RK4 or ETDRK4
 step). The runners choose them from the tabulated row before each step
-(:func:`quadctl.physics.flatness.in_force`), so the generated step reads its columns with no
+(:func:`quadctl.physics.reference_rows.in_force`), so the generated step reads its columns with no
 choice in it (a select per column would keep the compiler from vectorizing the lanes); they are
 the same expansion but in a row a knot of the path splits."""
 N_REFERENCE = sum(size for _, size in REFERENCE_LAYOUT)

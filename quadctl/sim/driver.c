@@ -52,7 +52,7 @@ static long qc_exo_sample(const double* lane_d, int l, long kk) {
 
 #if QC_REF >= 0
 /* whether a tabulated reference row's second expansion is in force at t: from its split on, when it
- * has one (quadctl.physics.flatness.in_force, the same rule) */
+ * has one (quadctl.physics.reference_rows.in_force, the same rule) */
 static int qc_after(const double* row, double t) {
   const double split = row[QC_REF + QC_REF_HALF];
   return split > row[QC_REF] && t > split - QC_SPLIT_ROUNDOFF * (1 + fabs(split));

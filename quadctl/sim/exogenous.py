@@ -26,7 +26,7 @@ class ExoStream:
         self.noise = NoiseStream(noise) if noise is not None else None
         self.wind = WindStream(wind, self.period) if wind is not None else None
         self.reference = reference
-        """:class:`quadctl.physics.flatness.FlownReference` whose rows end each row, or None."""
+        """:class:`quadctl.physics.reference_rows.FlownReference` whose rows end each row, or None."""
 
     def index(self, steps, dt: float) -> np.ndarray:
         """The row each absolute RK4 step of ``dt`` takes (as the runners count)."""
@@ -49,7 +49,7 @@ class ExoStream:
     @staticmethod
     def samples_of(streams, spans) -> list:
         """:meth:`samples` of many streams (``spans``: each one's ``(first, last)``), their references'
-        rows tabulated together (:meth:`quadctl.physics.flatness.FlownReference.rows_of`, the rows each
+        rows tabulated together (:meth:`quadctl.physics.reference_rows.FlownReference.rows_of`, the rows each
         has alone): per stream its rows, or the TrimError refusing its reference."""
         parts: list = [[] for _ in streams]
         flying: dict[type, list] = {}  # the references' kind -> the streams that fly one

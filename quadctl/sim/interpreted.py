@@ -18,7 +18,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS
-from quadctl.physics.flatness import in_force
+from quadctl.physics.reference_rows import in_force
 from quadctl.sim.builder import N_REFERENCE, LoopFunctions, LoopSpec, build
 from quadctl.sim.cases import Cases
 
@@ -79,7 +79,7 @@ def chain(spec: LoopSpec, hold: int, blocks: int, zeros: tuple[int, ...] = ()):
 def as_read(spec: LoopSpec, rows: np.ndarray, at, over=None) -> np.ndarray:
     """The exogenous ``rows`` (n, n_exo) as the loop functions read them at the times ``at`` (n,) s, for
     steps whose midpoints are ``over`` (n,) s: a reference's expansions chosen from the tabulated row
-    (:func:`quadctl.physics.flatness.in_force`, what ``driver.c``'s ``qc_exo_row`` does per lane)."""
+    (:func:`quadctl.physics.reference_rows.in_force`, what ``driver.c``'s ``qc_exo_row`` does per lane)."""
     if not spec.reference:
         return rows
     start = spec.n_exo - N_REFERENCE

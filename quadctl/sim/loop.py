@@ -364,7 +364,7 @@ class ClosedLoop:
         """(lo, hi) of the loop state ``[x; f; z]`` past which a run stops (:data:`RUNAWAY`).
 
         Positions drift with the reference: they are bounded around its farthest point (a flown
-        ``reference``, :class:`quadctl.physics.flatness.FlownReference`: its extent); rotor
+        ``reference``, :class:`quadctl.physics.reference_rows.FlownReference`: its extent); rotor
         thrusts and integrators are unbounded (a NaN still stops the run).
         """
         bound = np.array([RUNAWAY[s] for s in STATE_NAMES])

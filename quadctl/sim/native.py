@@ -12,7 +12,7 @@ from quadctl.layout import N_INPUTS, N_STATES
 from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
 from quadctl.native.compile import C_LONG, DRIVER_SOURCE
 from quadctl.native.emit import SIMD_DECLARATIONS, emit
-from quadctl.physics.flatness import ROW_HALF, SPLIT_ROUNDOFF
+from quadctl.physics.reference_rows import ROW_HALF, SPLIT_ROUNDOFF
 from quadctl.sim.builder import N_REFERENCE, LoopFunctions, LoopSpec
 from quadctl.sim.cases import Cases
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec

@@ -127,7 +127,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         ``progress(done, total)``: called with the steps done and the steps in all after each
         chunk of the run (:func:`~quadctl.sim.stack.run_stack`), for a caller that shows how far a long run is.
     reference : FlownReference, optional
-        A reference to fly (:class:`quadctl.physics.flatness.FlownReference`): ``x_ref(t)`` and the feedforward
+        A reference to fly (:class:`quadctl.physics.reference_rows.FlownReference`): ``x_ref(t)`` and the feedforward
         ``u_ref(t)`` in place of ``x_trim + x_rate t`` and ``u_trim``; ``SimResult.x_ref`` is then the
         reference the law used.
     method : {"rk4", "etdrk4"}

@@ -246,7 +246,7 @@ def kept_exponential_stack(loop: ClosedLoop, duration: float, dt="auto", *, tole
     latest settings): a second run with the same settings computes no plan, φ-functions or constants
     again (nor marshals them for the runner).
 
-    A :class:`~quadctl.physics.flatness.FlownReference` counts as the same when it flies the same
+    A :class:`~quadctl.physics.reference_rows.FlownReference` counts as the same when it flies the same
     path object, with the same knots (``knots``) and parameters (its position range and, for a gain
     schedule, the pieces the plan is cut into are read from it).
     """
@@ -337,7 +337,7 @@ def simulate_stack(loops, x0s, duration: float, dt="auto", *, method: str = "rk4
     """Runs of several loops of one structure from ``x0s``, as :func:`~quadctl.sim.run.simulate` runs each
     (its arguments; the RK4 or ETDRK4 runs of :func:`stack_of`), in the SIMD lanes
     (:data:`quadctl.sim.engine.LANES` at a time; one case alone: the one-case loop). Every loop takes the
-    same exogenous inputs: a ``reference`` (:class:`quadctl.physics.flatness.FlownReference`), noise and
+    same exogenous inputs: a ``reference`` (:class:`quadctl.physics.reference_rows.FlownReference`), noise and
     wind, tabulated once for the run.
 
     Returns

@@ -173,7 +173,7 @@ def _lockstep_cases():
     """(reference, rows, period): missions and setpoints at several speeds, clocks, lengths and vehicles,
     with refusals of both kinds (a point lost to the continuation, the steepest point beyond the
     model's tilt) among them."""
-    from quadctl.physics.flatness import FlownReference
+    from quadctl.physics.reference_rows import FlownReference
 
     heavy = Vehicle(mass=0.09, drag=(0.3, 0.25, 0.05)).vector()
     refused = [FlownReference(trajectory.mission_reference([{"position": p}], [0, 0, -1], 0.0, 9.0, 0.05,
@@ -196,7 +196,7 @@ def test_references_tabulated_together_are_each_ones_own_rows_to_the_bit():
     continuation, each row from its own path's start root): each point's Newton is its own (its
     iterations, its 3 x 3 solve, the compiled map a point at a time), so every reference's rows are
     those it has alone, bit for bit, and a refused one is refused alone, with its own message."""
-    from quadctl.physics.flatness import FlownReference
+    from quadctl.physics.reference_rows import FlownReference
 
     cases = _lockstep_cases()
     together = FlownReference.rows_of(*zip(*cases))

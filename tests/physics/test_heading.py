@@ -15,7 +15,7 @@ from _solve import cfg_dict, max_rel_diff, run, solve, without_compiler
 from quadctl import pipeline, sweep
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.physics import trajectory
-from quadctl.physics.flatness import FlownReference
+from quadctl.physics.reference_rows import FlownReference
 from quadctl.sim.builder import heading_frame, wrap_angle
 from quadctl.sim.run import simulate
 

@@ -17,8 +17,8 @@ from quadctl import config, pipeline
 from quadctl.errors import ConfigError
 from quadctl.linear.trim import solve_trim
 from quadctl.physics import trajectory
-from quadctl.physics.flatness import ROW_HALF, SPLIT_ROUNDOFF, FlownReference, in_force
 from quadctl.physics.model import Vehicle, build_model
+from quadctl.physics.reference_rows import ROW_HALF, SPLIT_ROUNDOFF, FlownReference, in_force
 from quadctl.present import mission
 from quadctl.present.mission import mission_text
 from quadctl.setup import setup_of

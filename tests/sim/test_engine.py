@@ -469,7 +469,7 @@ def test_a_vehicle_with_products_of_inertia_flies_the_code_that_reads_them():
 
 def test_a_flown_reference_adds_no_select_to_the_lanes_step():
     """The runners choose a reference row's expansions before each step
-    (:func:`quadctl.physics.flatness.in_force`), so the generated step reads its columns with no select.
+    (:func:`quadctl.physics.reference_rows.in_force`), so the generated step reads its columns with no select.
     With a select per column (about 180) GCC's jump threading turned the lanes' step into branches and
     left it scalar ("control flow in loop"): a mission sweep ran 3 times slower."""
     from dataclasses import replace
