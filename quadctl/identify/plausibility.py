@@ -24,7 +24,7 @@ from __future__ import annotations
 from enum import Enum
 
 
-class Sign(str, Enum):
+class Rule(str, Enum):
     """What a parameter's 95 % interval must show for its value to be written."""
 
     POSITIVE = "positive"
@@ -43,10 +43,10 @@ class Sign(str, Enum):
 
 
 RULES = {
-    "c0": Sign.FREE, "c1": Sign.FREE, "c2": Sign.FREE, "max_thrust": Sign.LIFTS,
-    "T_m": Sign.POSITIVE, "delay": Sign.NON_NEGATIVE,
-    "Jxx": Sign.POSITIVE, "Jyy": Sign.POSITIVE, "Jzz": Sign.POSITIVE, "k_m": Sign.POSITIVE,
-    "bias_A": Sign.FREE, "bias_E": Sign.FREE, "bias_R": Sign.FREE,
+    "c0": Rule.FREE, "c1": Rule.FREE, "c2": Rule.FREE, "max_thrust": Rule.LIFTS,
+    "T_m": Rule.POSITIVE, "delay": Rule.NON_NEGATIVE,
+    "Jxx": Rule.POSITIVE, "Jyy": Rule.POSITIVE, "Jzz": Rule.POSITIVE, "k_m": Rule.POSITIVE,
+    "bias_A": Rule.FREE, "bias_E": Rule.FREE, "bias_R": Rule.FREE,
 }
 """The rule of every identified parameter (:data:`quadctl.identify.estimate.PARAMETERS`, ``T_m``, ``delay``) and
 of ``max_thrust``, the thrust curve at full command (``c0 + c1 + c2``), which the identified config writes."""
@@ -68,15 +68,15 @@ unresolved T_m leaves them unresolved too, whatever their own intervals say."""
 
 def judge(name: str, value: float, interval: tuple[float, float], hover: float | None = None) -> bool:
     """Whether ``value`` of parameter ``name`` (:data:`RULES`) with its 95 % ``interval`` is plausible;
-    ``hover`` (N, a rotor's share of the weight) is the bound of a :attr:`Sign.LIFTS` rule, which needs it."""
-    sign = RULES[name]
-    if sign is Sign.POSITIVE:
+    ``hover`` (N, a rotor's share of the weight) is the bound of a :attr:`Rule.LIFTS` rule, which needs it."""
+    rule = RULES[name]
+    if rule is Rule.POSITIVE:
         return interval[0] > 0.0
-    if sign is Sign.LIFTS:
+    if rule is Rule.LIFTS:
         if hover is None:
-            raise TypeError(f"judge({name!r}): its rule, {sign.value}, needs hover=")
+            raise TypeError(f"judge({name!r}): its rule, {rule.value}, needs hover=")
         return interval[0] > hover
-    if sign is Sign.NON_NEGATIVE:
+    if rule is Rule.NON_NEGATIVE:
         return value >= 0.0
     return True
 

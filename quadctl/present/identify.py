@@ -88,7 +88,7 @@ def sentences(payload: dict) -> list[str]:
 
 NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written",
                  "lifts": "reaches the hover thrust: not written"}
-"""What a value that fails its rule (:class:`quadctl.identify.plausibility.Sign`) shows beside its interval."""
+"""What a value that fails its rule (:class:`quadctl.identify.plausibility.Rule`) shows beside its interval."""
 RULE_WORDS = {"positive": "a positive quantity whose 95 % interval reaches zero or below",
               "non-negative": "negative, which it cannot be",
               "lifts": "a rotor's thrust at full command whose 95 % interval reaches its share of the weight "

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from quadctl.cli.app import app
 from quadctl.config import locate, parse
 from quadctl.identify import estimate as est
-from quadctl.identify.plausibility import RULES, Sign, judge
+from quadctl.identify.plausibility import RULES, Rule, judge
 from quadctl.identify.readers import FlightLog
 from quadctl.identify.results import Identification, changes, identified_config, payload
 from quadctl.present.identify import sentences
@@ -42,8 +42,8 @@ def test_each_rule_judges_the_interval_or_the_value(name, value, interval, plaus
 def test_every_identified_parameter_has_a_rule():
     fitted = set(est.PARAMETERS) | {"T_m", "delay"}
     assert fitted | {"max_thrust"} == set(RULES)
-    assert {n for n, s in RULES.items() if s is Sign.POSITIVE} == {"T_m", "Jxx", "Jyy", "Jzz", "k_m"}
-    assert {n for n, s in RULES.items() if s is Sign.LIFTS} == {"max_thrust"}
+    assert {n for n, r in RULES.items() if r is Rule.POSITIVE} == {"T_m", "Jxx", "Jyy", "Jzz", "k_m"}
+    assert {n for n, r in RULES.items() if r is Rule.LIFTS} == {"max_thrust"}
 
 
 def _fit(stage, names, values, std, windows=((1.0, 2.0),)):
