@@ -1,4 +1,5 @@
-"""The console script: the app imported inside a guard, so Ctrl-C at any moment ends with one line.
+"""The console script: the app imported inside a guard, so Ctrl-C at any moment ends with one line;
+SIGTERM (``timeout``, a cancelled CI job, ``docker stop``) is answered as Ctrl-C is.
 
 A Ctrl-C that lands while Python imports typer and the commands (the first ~0.2 s) would otherwise
 print a traceback from deep inside an import; one inside a compiled module's initialization would
@@ -27,18 +28,44 @@ def main() -> None:
     """
     try:
         with extensions_initialize_whole():
+            _terminate_as_interrupt()
             from quadctl.cli.app import app
 
             app(prog_name="quadctl")
-    except KeyboardInterrupt:
-        sys.stderr.write("quadctl: error: interrupted\n")
-        _leave(130)
+    except KeyboardInterrupt as exc:
+        sys.stderr.write(f"quadctl: error: {'terminated' if isinstance(exc, Terminated) else 'interrupted'}\n")
+        _leave(EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED)
     except SystemExit as exc:
         if _cut_short():
             _leave(exc.code)
         raise
     finally:
         gc.freeze()
+
+
+EXIT_INTERRUPTED = 130
+"""The exit code of a command stopped by Ctrl-C (SIGINT), as a shell reports one the signal ended."""
+EXIT_TERMINATED = 128 + signal.SIGTERM
+"""The exit code of a command stopped by SIGTERM (143)."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Python takes a Ctrl-C: the command stops as on Ctrl-C (a run folder
+    it had changed is put back, a sweep keeps its finished chunks and stops its workers), and says
+    ``terminated``."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise Terminated
+
+
+def _terminate_as_interrupt() -> None:
+    """Answer SIGTERM as Ctrl-C, in the main thread, unless SIGTERM is ignored or already handled
+    (a process that set its own handler keeps it). Processes forked later (a sweep's workers, a
+    figure drawer) take SIGTERM's default back or leave at once (see their starts)."""
+    if threading.current_thread() is threading.main_thread() and \
+            signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _raise_terminated)
 
 
 def _cut_short() -> list[str]:

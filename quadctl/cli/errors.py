@@ -12,17 +12,18 @@ import warnings
 
 import typer
 
+from quadctl.cli.entry import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated
+
 EXIT_OK = 0
 EXIT_CHECK_FAILED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
-EXIT_INTERRUPTED = 130
 
 EXIT_CODES_HELP = (
     "Exit codes: 0 success; 1 a check failed (rank, stability, divergence, a mission not flown, a sweep gate, "
     "a unit slip, saturation, an identified value not physically possible); 2 bad input (config, options, files); "
     "3 internal error (a bug: please report it); "
-    "130 interrupted."
+    "130 interrupted (Ctrl-C); 143 terminated (SIGTERM)."
 )
 
 
@@ -179,12 +180,13 @@ def handled(fn):
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
             raise typer.Exit(EXIT_OK) from None
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (quadctl.cli.entry.Terminated)
+            stopped, code = ("terminated", EXIT_TERMINATED) if isinstance(exc, Terminated) else \
+                ("interrupted", EXIT_INTERRUPTED)
             if (_COMMAND.get(None) or {}).get("put_back"):
-                raise fail("interrupted; the run folder is as the earlier config's run left it (this one's "
-                           "artifacts were not all written)", EXIT_INTERRUPTED) from None
-            raise fail("interrupted; artifacts written before this point are complete",
-                       EXIT_INTERRUPTED) from None
+                raise fail(f"{stopped}; the run folder is as the earlier config's run left it (this one's "
+                           "artifacts were not all written)", code) from None
+            raise fail(f"{stopped}; artifacts written before this point are complete", code) from None
         except Exception as exc:  # a bug: say so in one line, traceback on --debug
             if debug_enabled(ctx):
                 _traceback()

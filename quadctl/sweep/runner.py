@@ -229,12 +229,13 @@ def columns_of(spec: SweepSpec) -> list[str]:
 
 
 def _worker_init(forked: bool = False) -> None:
-    """A worker ignores Ctrl-C (the parent handles it and stops the pool) and, on Linux, dies with
+    """A worker ignores Ctrl-C (the parent handles it and stops the pool), ends on SIGTERM and, on Linux, dies with
     its parent: a killed sweep leaves no worker computing for nobody. It works on small matrices
     only: one BLAS thread for good (:func:`quadctl.threads.one_thread_for_good`; ``forked``: inside
     :func:`quadctl.threads.loaded_one_thread`, its pools run one thread already)."""
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the pool stops a worker by SIGTERM: not the CLI handler
     one_thread_for_good(forked_limited=forked)
     if sys.platform.startswith("linux"):
         import ctypes

@@ -59,16 +59,19 @@ def _start_sweep(tmp_path: Path) -> subprocess.Popen:
     return proc
 
 
-def test_ctrl_c_stops_a_sweep_within_a_second_and_its_workers_with_it(tmp_path):
+@pytest.mark.parametrize("sent_signal, code, word", [(signal.SIGINT, 130, "interrupted"),
+                                                      (signal.SIGTERM, 143, "terminated")], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_stops_a_sweep_within_a_second_and_its_workers_with_it(tmp_path, sent_signal, code, word):
+    """Ctrl-C, and SIGTERM as Ctrl-C."""
     proc = _start_sweep(tmp_path)
     workers = _children(proc.pid)
     sent = time.monotonic()
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sent_signal)
     _, err = proc.communicate(timeout=30)
     took = time.monotonic() - sent
-    assert proc.returncode == 130, err
-    assert took < 1.5, f"Ctrl-C took {took:.2f} s"
-    assert "Traceback" not in err and "interrupted" in err
+    assert proc.returncode == code, err
+    assert took < 1.5, f"stopping took {took:.2f} s"
+    assert "Traceback" not in err and word in err
     assert not any(_alive(w) for w in workers)
 
 
@@ -246,3 +249,25 @@ def test_ctrl_c_after_a_changed_configs_artifacts_are_all_written_keeps_the_new_
     assert res.exit_code == 130 and "artifacts written before this point are complete" in res.stderr
     after = _files(tmp_path)
     assert after.keys() == before.keys() and after["sim.npz"] != before["sim.npz"]  # the 2 s run's
+
+
+def test_sigterm_stops_a_run_as_ctrl_c_does_and_puts_the_earlier_run_back(tmp_path):
+    """SIGTERM (`timeout`, a cancelled CI job, `docker stop`) after a config change, while the new
+    run simulates: exit 143 with one line, and the folder is the earlier run's again, byte for byte
+    (without the handler the process died at once, the earlier sim.npz gone with it)."""
+    run = [sys.executable, "-m", "quadctl", "simulate", "-c", "hover", "-o", str(tmp_path)]
+    assert subprocess.run([*run, "--set", "simulation.duration=1"], capture_output=True).returncode == 0
+    before = _files(tmp_path)
+    proc = subprocess.Popen([*run, "--set", "simulation.duration=2000"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while (tmp_path / "sim.npz").exists():  # the new run has set the earlier one's aside
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "the new run never replaced the earlier one's artifacts"
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 143, err
+    assert err == ("quadctl: error: terminated; the run folder is as the earlier config's run left it "
+                   "(this one's artifacts were not all written)\n")
+    assert _files(tmp_path) == before
