@@ -12,6 +12,8 @@ name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``
 - :mod:`~quadctl.config.weights`: the rules an LQR weight (Q or R) obeys, for one weight or many
 - :mod:`~quadctl.config.describe`: a pydantic ``ValidationError`` as the one line a user reads
 - :mod:`~quadctl.config.vehicle_checks`: a vehicle that can exist: its inertia and its rotors
+- :mod:`~quadctl.config.unit_limits`: the bounds of values by unit: the longest run, the largest initial
+  offset, one limit per unit for every position, velocity, heading and time
 - :mod:`~quadctl.config.checks`: the checks after the schema: rules across fields, bounds in context
 - :mod:`~quadctl.config.render`: the schema shown to people and editors (``quadctl configs --show``)
 - :mod:`~quadctl.config.kinds`: what a file that fails is instead (a sweep file, an artifact)
@@ -19,13 +21,6 @@ name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``
 """
 
 from quadctl.config.checks import DELAY_SAMPLES_TOL as DELAY_SAMPLES_TOL
-from quadctl.config.checks import MAX_DURATION as MAX_DURATION
-from quadctl.config.checks import MAX_DURATION_ENV as MAX_DURATION_ENV
-from quadctl.config.checks import MAX_OFFSET as MAX_OFFSET
-from quadctl.config.checks import MAX_TILT_OFFSET as MAX_TILT_OFFSET
-from quadctl.config.checks import UNIT_KEYS as UNIT_KEYS
-from quadctl.config.checks import UNIT_LIMITS as UNIT_LIMITS
-from quadctl.config.checks import max_duration_s as max_duration_s
 from quadctl.config.loading import DEFAULT_CONFIG as DEFAULT_CONFIG
 from quadctl.config.loading import FOLDER_SCAN as FOLDER_SCAN
 from quadctl.config.loading import OVERRIDES as OVERRIDES
@@ -101,6 +96,13 @@ from quadctl.config.schema import default_at as default_at
 from quadctl.config.schema import first_model as first_model
 from quadctl.config.schema import inertia_parts as inertia_parts
 from quadctl.config.schema import section_model as section_model
+from quadctl.config.unit_limits import MAX_DURATION as MAX_DURATION
+from quadctl.config.unit_limits import MAX_DURATION_ENV as MAX_DURATION_ENV
+from quadctl.config.unit_limits import MAX_OFFSET as MAX_OFFSET
+from quadctl.config.unit_limits import MAX_TILT_OFFSET as MAX_TILT_OFFSET
+from quadctl.config.unit_limits import UNIT_KEYS as UNIT_KEYS
+from quadctl.config.unit_limits import UNIT_LIMITS as UNIT_LIMITS
+from quadctl.config.unit_limits import max_duration_s as max_duration_s
 from quadctl.config.vehicle_checks import INERTIA_TRIANGLE_RTOL as INERTIA_TRIANGLE_RTOL
 from quadctl.config.weights import DEFINITENESS_RTOL as DEFINITENESS_RTOL
 from quadctl.config.weights import SYMMETRY_RTOL as SYMMETRY_RTOL

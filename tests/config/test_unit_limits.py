@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from quadctl import config
 from quadctl.cli.app import app
 from quadctl.config import schema, yamlio
-from quadctl.config.checks import SCHEDULE_UNITS, UNIT_KEYS, UNIT_LIMITS
+from quadctl.config.unit_limits import SCHEDULE_UNITS, UNIT_KEYS, UNIT_LIMITS
 from quadctl.errors import ConfigError
 from quadctl.text.messages import parse_key_path, show
 
