@@ -15,7 +15,7 @@ import numpy as np
 from quadctl import config
 from quadctl.config import yamlio
 from quadctl.config.kinds import misplaced
-from quadctl.config.schema import default_at, section_model
+from quadctl.config.schema_paths import default_at, section_model
 from quadctl.errors import ConfigError, SweepError
 from quadctl.layout import STATE_NAMES
 from quadctl.sweep.config_tree import assign, value_at, with_sections, with_set
