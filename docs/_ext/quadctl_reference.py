@@ -126,7 +126,7 @@ def _type(node: dict, definitions: dict) -> str:
 
 def _default(node: dict, path: tuple[str, ...]) -> str:
     """The default column: the value an absent key takes, ``absent`` where there is none."""
-    from quadctl.config.schema import default_at
+    from quadctl.config.schema_paths import default_at
 
     inside = "[i]" in path or "<name>" in path  # a key of a list item or a named entry: the schema's own
     if "default" not in node:  # a default_factory: an empty list or mapping
@@ -146,7 +146,7 @@ def _default(node: dict, path: tuple[str, ...]) -> str:
 def _meaning(node: dict, definitions: dict, default: str, path: tuple[str, ...] = ()) -> str:
     """The unit and meaning from the key's description, without the default it repeats, and what its
     absence means where the description does not say."""
-    from quadctl.config.schema import PLANT
+    from quadctl.config.schema_paths import PLANT
 
     text = node.get("description", "") or _resolve(node, definitions).get("description", "")
     if tuple(path[:2]) == tuple(PLANT) and len(path) == 3:  # the simulated vehicle: the design vehicle's value

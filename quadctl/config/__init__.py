@@ -8,10 +8,16 @@ and what is allowed.
 Modules, each importing only those above it (``from quadctl import config`` gives every public
 name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``, ``config.MAX_DURATION``):
 
+- :mod:`~quadctl.config.schema_types`: the sections' base and the strict number types of their fields
+- :mod:`~quadctl.config.controller_schema`: the sections of what runs on the flight computer (``controller:``,
+  ``estimator:``)
 - :mod:`~quadctl.config.schema`: the sections (frozen pydantic models, limits and units), :class:`Config`
+- :mod:`~quadctl.config.schema_paths`: the schema walked by a key path; the value a config leaves out
 - :mod:`~quadctl.config.weights`: the rules an LQR weight (Q or R) obeys, for one weight or many
 - :mod:`~quadctl.config.describe`: a pydantic ``ValidationError`` as the one line a user reads
 - :mod:`~quadctl.config.vehicle_checks`: a vehicle that can exist: its inertia and its rotors
+- :mod:`~quadctl.config.unit_limits`: the bounds of values by unit: the longest run, the largest initial
+  offset, one limit per unit for every position, velocity, heading and time
 - :mod:`~quadctl.config.checks`: the checks after the schema: rules across fields, bounds in context
 - :mod:`~quadctl.config.render`: the schema shown to people and editors (``quadctl configs --show``)
 - :mod:`~quadctl.config.kinds`: what a file that fails is instead (a sweep file, an artifact)
@@ -19,13 +25,13 @@ name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``
 """
 
 from quadctl.config.checks import DELAY_SAMPLES_TOL as DELAY_SAMPLES_TOL
-from quadctl.config.checks import MAX_DURATION as MAX_DURATION
-from quadctl.config.checks import MAX_DURATION_ENV as MAX_DURATION_ENV
-from quadctl.config.checks import MAX_OFFSET as MAX_OFFSET
-from quadctl.config.checks import MAX_TILT_OFFSET as MAX_TILT_OFFSET
-from quadctl.config.checks import UNIT_KEYS as UNIT_KEYS
-from quadctl.config.checks import UNIT_LIMITS as UNIT_LIMITS
-from quadctl.config.checks import max_duration_s as max_duration_s
+from quadctl.config.controller_schema import MAX_DELAY_SAMPLES as MAX_DELAY_SAMPLES
+from quadctl.config.controller_schema import MAX_RATE as MAX_RATE
+from quadctl.config.controller_schema import ControllerConfig as ControllerConfig
+from quadctl.config.controller_schema import DelaySamples as DelaySamples
+from quadctl.config.controller_schema import EstimatorConfig as EstimatorConfig
+from quadctl.config.controller_schema import FiltersConfig as FiltersConfig
+from quadctl.config.controller_schema import PidConfig as PidConfig
 from quadctl.config.loading import DEFAULT_CONFIG as DEFAULT_CONFIG
 from quadctl.config.loading import FOLDER_SCAN as FOLDER_SCAN
 from quadctl.config.loading import OVERRIDES as OVERRIDES
@@ -46,13 +52,10 @@ from quadctl.config.render import shown_yaml as shown_yaml
 from quadctl.config.schema import INERTIA_DESCRIPTION as INERTIA_DESCRIPTION
 from quadctl.config.schema import LATER_KEYS as LATER_KEYS
 from quadctl.config.schema import MASS_RANGE as MASS_RANGE
-from quadctl.config.schema import MAX_DELAY_SAMPLES as MAX_DELAY_SAMPLES
 from quadctl.config.schema import MAX_DRAG as MAX_DRAG
 from quadctl.config.schema import MAX_GRAVITY as MAX_GRAVITY
 from quadctl.config.schema import MAX_GUSTS as MAX_GUSTS
 from quadctl.config.schema import MAX_NAME_LENGTH as MAX_NAME_LENGTH
-from quadctl.config.schema import MAX_NOISE as MAX_NOISE
-from quadctl.config.schema import MAX_RATE as MAX_RATE
 from quadctl.config.schema import MAX_ROTOR_TIME_CONSTANT as MAX_ROTOR_TIME_CONSTANT
 from quadctl.config.schema import MAX_SCHEDULE_POINTS as MAX_SCHEDULE_POINTS
 from quadctl.config.schema import MAX_TURBULENCE_SIGMA as MAX_TURBULENCE_SIGMA
@@ -60,28 +63,18 @@ from quadctl.config.schema import MAX_WIND as MAX_WIND
 from quadctl.config.schema import MAX_WIND_ALTITUDE as MAX_WIND_ALTITUDE
 from quadctl.config.schema import NAME_PATTERN as NAME_PATTERN
 from quadctl.config.schema import NAME_RULE as NAME_RULE
-from quadctl.config.schema import PLANT as PLANT
 from quadctl.config.schema import SUBSYSTEM_NAME_PATTERN as SUBSYSTEM_NAME_PATTERN
 from quadctl.config.schema import TURBULENCE_LENGTH as TURBULENCE_LENGTH
 from quadctl.config.schema import Config as Config
-from quadctl.config.schema import ControllerConfig as ControllerConfig
-from quadctl.config.schema import DelaySamples as DelaySamples
 from quadctl.config.schema import Drag as Drag
-from quadctl.config.schema import EstimatorConfig as EstimatorConfig
-from quadctl.config.schema import FiltersConfig as FiltersConfig
 from quadctl.config.schema import Gravity as Gravity
 from quadctl.config.schema import GustConfig as GustConfig
 from quadctl.config.schema import InputLimits as InputLimits
 from quadctl.config.schema import LqrWeights as LqrWeights
 from quadctl.config.schema import Mass as Mass
-from quadctl.config.schema import Matrix as Matrix
 from quadctl.config.schema import MotorsConfig as MotorsConfig
 from quadctl.config.schema import NoiseConfig as NoiseConfig
-from quadctl.config.schema import NonNegative as NonNegative
-from quadctl.config.schema import Number as Number
-from quadctl.config.schema import PidConfig as PidConfig
 from quadctl.config.schema import PlantConfig as PlantConfig
-from quadctl.config.schema import Positive as Positive
 from quadctl.config.schema import ReferenceConfig as ReferenceConfig
 from quadctl.config.schema import RotorTimeConstant as RotorTimeConstant
 from quadctl.config.schema import ScheduleConfig as ScheduleConfig
@@ -91,16 +84,29 @@ from quadctl.config.schema import StartedFrom as StartedFrom
 from quadctl.config.schema import SubsystemConfig as SubsystemConfig
 from quadctl.config.schema import TrimConfig as TrimConfig
 from quadctl.config.schema import TurbulenceConfig as TurbulenceConfig
-from quadctl.config.schema import Vector3 as Vector3
 from quadctl.config.schema import VehicleConfig as VehicleConfig
 from quadctl.config.schema import WaypointConfig as WaypointConfig
 from quadctl.config.schema import WindComponent as WindComponent
 from quadctl.config.schema import WindConfig as WindConfig
 from quadctl.config.schema import WindVector as WindVector
-from quadctl.config.schema import default_at as default_at
-from quadctl.config.schema import first_model as first_model
 from quadctl.config.schema import inertia_parts as inertia_parts
-from quadctl.config.schema import section_model as section_model
+from quadctl.config.schema_paths import PLANT as PLANT
+from quadctl.config.schema_paths import default_at as default_at
+from quadctl.config.schema_paths import first_model as first_model
+from quadctl.config.schema_paths import section_model as section_model
+from quadctl.config.schema_types import MAX_NOISE as MAX_NOISE
+from quadctl.config.schema_types import Matrix as Matrix
+from quadctl.config.schema_types import NonNegative as NonNegative
+from quadctl.config.schema_types import Number as Number
+from quadctl.config.schema_types import Positive as Positive
+from quadctl.config.schema_types import Vector3 as Vector3
+from quadctl.config.unit_limits import MAX_DURATION as MAX_DURATION
+from quadctl.config.unit_limits import MAX_DURATION_ENV as MAX_DURATION_ENV
+from quadctl.config.unit_limits import MAX_OFFSET as MAX_OFFSET
+from quadctl.config.unit_limits import MAX_TILT_OFFSET as MAX_TILT_OFFSET
+from quadctl.config.unit_limits import UNIT_KEYS as UNIT_KEYS
+from quadctl.config.unit_limits import UNIT_LIMITS as UNIT_LIMITS
+from quadctl.config.unit_limits import max_duration_s as max_duration_s
 from quadctl.config.vehicle_checks import INERTIA_TRIANGLE_RTOL as INERTIA_TRIANGLE_RTOL
 from quadctl.config.weights import DEFINITENESS_RTOL as DEFINITENESS_RTOL
 from quadctl.config.weights import SYMMETRY_RTOL as SYMMETRY_RTOL

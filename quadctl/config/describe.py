@@ -9,7 +9,9 @@ from typing import Any, Literal
 
 from pydantic import ValidationError
 
-from quadctl.config.schema import NAME_RULE, DelaySamples, section_model
+from quadctl.config.controller_schema import DelaySamples
+from quadctl.config.schema import NAME_RULE
+from quadctl.config.schema_paths import section_model
 from quadctl.text.messages import hint as _hint
 from quadctl.text.messages import key_path, show
 

@@ -19,7 +19,8 @@ from quadctl.config import yamlio
 from quadctl.config.checks import check_semantics
 from quadctl.config.describe import describe, expected, is_union_tag
 from quadctl.config.kinds import misplaced
-from quadctl.config.schema import Config, section_model
+from quadctl.config.schema import Config
+from quadctl.config.schema_paths import section_model
 from quadctl.errors import ConfigError
 from quadctl.text.messages import show
 

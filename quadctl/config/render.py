@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import re
 
-from quadctl.config.schema import Config, section_model
+from quadctl.config.schema import Config
+from quadctl.config.schema_paths import section_model
 
 
 def shown_yaml(cfg: Config, label: str) -> str:

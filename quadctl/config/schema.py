@@ -1,23 +1,25 @@
 """The config's schema: each section a frozen pydantic model, with the limits and the units of its keys.
 
-Unknown keys are refused (``extra="forbid"``), numbers are strict and finite, and every bound is a
-named constant declared here, beside the field it bounds. :func:`section_model` and
-:func:`first_model` walk the schema by a key path (for messages, the shown YAML and ``key_field``).
-Rules across fields are :mod:`quadctl.config.checks`'s.
+Unknown keys are refused (``extra="forbid"``), numbers are strict and finite
+(:mod:`quadctl.config.schema_types`), and every bound is a named constant declared beside the field it
+bounds. The sections of what runs on the flight computer (``controller:``, ``estimator:``) are
+:mod:`quadctl.config.controller_schema`'s; :mod:`quadctl.config.schema_paths` walks the schema by a key
+path (for messages, the shown YAML and ``key_field``). Rules across fields are
+:mod:`quadctl.config.checks`'s.
 """
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 from typing import Annotated, Any, Literal, Optional, Union
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field
 
-from quadctl.config.pid import NAMES
-from quadctl.layout import REPORT_PARTITION, SENSOR_GROUPS, STATE_NAMES
+from quadctl.config.controller_schema import ControllerConfig, EstimatorConfig
+from quadctl.config.schema_types import MAX_NOISE, Matrix, NonNegative, Number, Positive, Section, Vector3
+from quadctl.layout import REPORT_PARTITION
 from quadctl.metrics import MAX_SAMPLES
 
 NAME_PATTERN = r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$"
@@ -35,11 +37,6 @@ SUBSYSTEM_NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_]{0,62}$"
 everything that uses the name: file names (``plots/<name>.png``, the report's figures), HTML ids,
 C identifiers and MATLAB struct fields (``.mat``: at most 63 characters)."""
 
-Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
-Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0)]
-NonNegative = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0)]
-Vector3 = Annotated[list[Number], Field(min_length=3, max_length=3)]
-Matrix = Union[list[Number], list[list[Number]]]
 
 
 MASS_RANGE = (1e-4, 1e4)
@@ -49,11 +46,6 @@ MAX_GRAVITY = 100.0
 """m/s^2: ten g (Jupiter's is 24.8). 1e300 overflowed the controllability test."""
 MAX_DRAG = 100.0
 """1/(m/s): 450 times the Mambo's 0.22. 1e300 overflowed the controllability test."""
-MAX_RATE = 1e5
-"""Hz: ten times the fastest flight controllers' loops (8 to 32 kHz)."""
-MAX_NOISE = {"force": 1e4, "torque": 1e3}
-"""Standard deviation of the process noise, N and N m: far past any gust; 1e300 overflowed the
-run's error statistics."""
 MAX_ROTOR_TIME_CONSTANT = 1.0
 """s: ten times the slowest small-rotor lags (brushless rotors reach their command in 10 to 100 ms);
 a rotor slower than this cannot hold a vehicle's attitude, and LQR on the rigid body means nothing."""
@@ -61,10 +53,6 @@ RotorTimeConstant = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=
 Mass = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=MASS_RANGE[0], le=MASS_RANGE[1])]
 Gravity = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=MAX_GRAVITY)]
 Drag = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=0, le=MAX_DRAG)]
-
-
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 INERTIA_DESCRIPTION = ("kg m^2: the diagonal [Jxx, Jyy, Jzz], or the full symmetric tensor J as 3 rows "
@@ -87,7 +75,7 @@ def inertia_parts(value: list) -> tuple[tuple[float, float, float], tuple[float,
     return tuple(float(v) for v in value), (0.0, 0.0, 0.0)
 
 
-class VehicleConfig(_Section):
+class VehicleConfig(Section):
     """Vehicle parameters, SI units."""
 
     mass: Mass = Field(0.068, description="kg")
@@ -97,7 +85,7 @@ class VehicleConfig(_Section):
         [0.22, 0.22, 0.0], description="Kc diagonal; rotor drag force is -T Kc V_b (1/(m/s))")
 
 
-class TrimConfig(_Section):
+class TrimConfig(Section):
     """The flight condition to trim about."""
 
     velocity_ned: Vector3 = Field([0.0, 0.0, 0.0], description="m/s, earth frame (down positive)")
@@ -108,7 +96,7 @@ class TrimConfig(_Section):
         "ground, tilted into the wind), and linearize there; false: trim in still air"))
 
 
-class SubsystemConfig(_Section):
+class SubsystemConfig(Section):
     """One block of the partition: its states, its inputs, and whether it is regulated."""
 
     states: Annotated[list[str], Field(min_length=1)] = Field(
@@ -123,7 +111,7 @@ class SubsystemConfig(_Section):
 Share = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0, le=1)]
 
 
-class BrysonRule(_Section):
+class BrysonRule(Section):
     """Bryson's rule, evaluated on the vehicle the config describes when it is loaded for a design."""
 
     errors: list[Positive] = Field(description=(
@@ -133,7 +121,7 @@ class BrysonRule(_Section):
         "nearer side) taken as its largest acceptable excursion du: R = diag(1 / du^2)"))
 
 
-class LqrWeights(_Section):
+class LqrWeights(Section):
     """LQR weights of one subsystem: ``Q`` and ``R`` (a list is a diagonal, a nested list a full matrix), or
     the rule ``bryson`` that gives them from the vehicle.
 
@@ -154,7 +142,7 @@ class LqrWeights(_Section):
         default_factory=list, description="states of this subsystem whose error is integrated (LQI)")
 
 
-class NoiseConfig(_Section):
+class NoiseConfig(Section):
     """Process and sensor noise: zero-mean Gaussian, drawn every ``period`` and held in between."""
 
     seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description="random seed; same seed, same run")
@@ -188,7 +176,7 @@ WindComponent = Annotated[float, Field(strict=True, allow_inf_nan=False, ge=-MAX
 WindVector = Annotated[list[WindComponent], Field(min_length=3, max_length=3)]
 
 
-class GustConfig(_Section):
+class GustConfig(Section):
     """A 1-cosine gust (MIL-F-8785C §3.7.3.4), in time: rises over ``length``, holds, falls back."""
 
     start: NonNegative = Field(description="s, when the gust begins")
@@ -200,7 +188,7 @@ class GustConfig(_Section):
         "which stays")
 
 
-class TurbulenceConfig(_Section):
+class TurbulenceConfig(Section):
     """Dryden turbulence (MIL-HDBK-1797 low altitude): an intensity and altitude, or sigma and length_scale."""
 
     intensity: Optional[Literal["light", "moderate", "severe"]] = Field(
@@ -220,7 +208,7 @@ class TurbulenceConfig(_Section):
     seed: Annotated[int, Field(strict=True, ge=0)] = Field(0, description="random seed; same seed, same wind")
 
 
-class WindConfig(_Section):
+class WindConfig(Section):
     """Wind: steady, gusts and turbulence, summed; acts through the rotor drag on the air-relative velocity."""
 
     steady: WindVector = Field([0.0, 0.0, 0.0], description="m/s, the air's velocity over the ground, NED")
@@ -229,7 +217,7 @@ class WindConfig(_Section):
     turbulence: Optional[TurbulenceConfig] = Field(None, description="Dryden turbulence; absent: none")
 
 
-class PlantConfig(_Section):
+class PlantConfig(Section):
     """The simulated vehicle where it differs from the design model (model mismatch)."""
 
     mass: Optional[Mass] = Field(None, description="kg")
@@ -239,7 +227,7 @@ class PlantConfig(_Section):
         None, description="Kc diagonal, 1/(m/s)")
 
 
-class SetpointConfig(_Section):
+class SetpointConfig(Section):
     """A step of the reference at time ``t``: any of position, velocity and yaw (the others continue)."""
 
     t: NonNegative = Field(description="s, from the start of the run; increasing along the list")
@@ -248,7 +236,7 @@ class SetpointConfig(_Section):
     yaw: Optional[Number] = Field(None, description="rad")
 
 
-class WaypointConfig(_Section):
+class WaypointConfig(Section):
     """A waypoint of a mission, flown to in order."""
 
     position: Vector3 = Field(description="m, NED")
@@ -256,7 +244,7 @@ class WaypointConfig(_Section):
     hold: NonNegative = Field(0.0, description="s to stay at the waypoint before the next leg")
 
 
-class ReferenceConfig(_Section):
+class ReferenceConfig(Section):
     """A reference to fly: setpoint steps, or a waypoint mission with its feedforward."""
 
     setpoints: Optional[list[SetpointConfig]] = Field(
@@ -273,7 +261,7 @@ ETDRK4_TOLERANCE = 1e-8
 final-state error of a 10 s run). Declared here only: the setup resolves an absent tolerance to it, and
 the simulation's functions called without a config read it from here."""
 
-class SimulationConfig(_Section):
+class SimulationConfig(Section):
     """Closed-loop simulation settings."""
 
     duration: Positive = Field(10.0, description="s")
@@ -297,19 +285,7 @@ class SimulationConfig(_Section):
         f"{ETDRK4_TOLERANCE:g}")
 
 
-MAX_DELAY_SAMPLES = 100
-"""Controller samples of delay: half a second at 200 Hz, far past any loop that still flies (the
-delay margin of a 200 Hz attitude loop is a few samples); each sample is four buffer states."""
-
-
-class DelaySamples(_Section):
-    """A delay given in controller samples."""
-
-    samples: Annotated[int, Field(strict=True, ge=0, le=MAX_DELAY_SAMPLES)] = Field(
-        description="controller samples from measurement to actuation")
-
-
-class ScheduleConfig(_Section):
+class ScheduleConfig(Section):
     """A gain schedule (``quadctl schedule``): trim and design at each value of one variable."""
 
     variable: Literal["speed", "climb", "yaw"] = Field(description=(
@@ -323,108 +299,10 @@ class ScheduleConfig(_Section):
         4, description="the frozen-point stability check splits each interval between values into this many")
 
 
-class PidConfig(_Section):
-    """A flight stack's PID cascade (quadctl.config.pid): a preset of its published defaults, and overrides."""
-
-    preset: Literal["crazyflie", "px4"] = Field(
-        "crazyflie", description="crazyflie: controller_pid of bitcraze/crazyflie-firmware (angles in deg, "
-        "500 Hz attitude and rate, 100 Hz position and velocity, PWM out); px4: PX4's mc_pos_control, "
-        "mc_att_control and mc_rate_control (rad, 400/200/100 Hz, normalized torques out)")
-    attitude: Optional[Literal["euler", "px4"]] = Field(
-        None, description="the attitude stage: euler, a PID per Euler angle error (the Crazyflie's "
-        "attitude_pid_controller); px4, PX4's AttitudeControl (the quaternion error, the thrust axis's first and "
-        "the yaw's weighted by att_yaw_weight, a P gain per axis, the reference's yaw rate fed forward, the rate "
-        "limits; the crazyflie preset has no yaw weight: set values.att_yaw_weight, 0 holds no heading); absent: "
-        "the preset's (crazyflie: euler, px4: px4)")
-    values: dict[str, Number] = Field(
-        default_factory=dict, description="name -> value in the stack's units, replacing the preset's "
-        "(rate_roll_kp, att_roll_kp, vel_xy_kp, pos_z_ki, rate_hz ...: `quadctl compare --help` lists them with "
-        "their units)")
-
-    @field_validator("values")
-    @classmethod
-    def _known(cls, values: dict) -> dict:
-
-        unknown = sorted(set(values) - set(NAMES))
-        if unknown:
-            raise ValueError(f"unknown PID value {unknown[0]!r}: use one of {', '.join(NAMES)}")
-        return values
-
-
-class LowPassConfig(_Section):
-    """A low-pass filter: first order, or a second-order Butterworth."""
-
-    cutoff: Positive = Field(description="Hz: the -3 dB frequency; below half the controller's rate")
-    order: Literal[1, 2] = Field(2, description=(
-        "1: first order (sampled: the PT1 with its exact pole exp(-2 pi cutoff Ts)); 2: Butterworth "
-        "(sampled: the biquad of the bilinear transform prewarped at the cutoff, as PX4's LowPassFilter2p)"))
-
-
-class NotchConfig(_Section):
-    """A notch filter (sampled: the bilinear biquad prewarped at its centre, as PX4's NotchFilter)."""
-
-    center: Positive = Field(description="Hz: the frequency removed; below half the controller's rate")
-    bandwidth: Positive = Field(description="Hz: the width between its -3 dB points (Q = center / bandwidth)")
-
-
-class FiltersConfig(_Section):
-    """The filters the flight stack runs on its sensors, in the simulated loop, the margins and the C export.
-
-    The LQR is designed without them (on the rigid body, with the rotors' lag when included): the filter sits
-    after the plant, so the LQR of the model with its states, unweighted, gives them zero gain and the others
-    the gains they had (no ``design: include`` as for the rotors' lag). The margins and the vehicle's loop
-    show what the filters cost. With ``estimator:`` the Kalman filter's
-    model includes the gyro filter: it measures the filtered rates and estimates the filter's states too."""
-
-    gyro: Optional[LowPassConfig] = Field(None, description=(
-        "low-pass on the gyro: the law takes the filtered body rates p, q, r in place of the measured ones "
-        "(PX4: 40 Hz, second order; Crazyflie: 30 Hz); with estimator: the Kalman filter measures the filtered "
-        "rates, its model the plant followed by the filter (the gyro's noise taken at the filter's output); "
-        "absent: none"))
-    notch: Optional[NotchConfig] = Field(None, description=(
-        "notch on the gyro, after the low-pass (a frame's resonance or the rotors' frequency); absent: none"))
-    d_term: Optional[LowPassConfig] = Field(None, description=(
-        "low-pass on the rate derivative of a law with a D term (PX4: 30 Hz); the LQR law has none (its "
-        "rate feedback is proportional), so the lqr law does not use it"))
-
-
-class ControllerConfig(_Section):
-    """How the controller runs on the flight computer."""
-
-    rate: Optional[Annotated[Positive, Field(le=MAX_RATE)]] = Field(
-        None, description="Hz; absent: continuous feedback, as in the report")
-    design: Literal["discrete", "continuous"] = Field(
-        "discrete", description="with a rate: discrete LQR at that rate (lqrd), or the continuous LQR "
-        "run at that rate (emulation)")
-    rotor_lag: Literal["ignore", "include"] = Field(
-        "ignore", description="ignore: the design model's rotors are instantaneous (motors.time_constant lags "
-        "the simulated plant only); include: the design model's inputs lag by motors.time_constant, and the "
-        "controller feeds back its own model of the lag, propagated from its commands")
-    delay: Optional[Union[NonNegative, DelaySamples]] = Field(
-        None, description="s (a whole number of samples at the rate) or {samples: n}: from measurement to "
-        "actuation; needs a rate; absent: none")
-    flies: Literal["lqr", "pid"] = Field(
-        "lqr", description="the law that flies: lqr, the LQR design of lqr: (as the report); pid, the PID cascade "
-        "of pid: (position P, velocity PID, attitude PID, rate PID, each at its own rate) instead, at its own rate")
-    pid: Optional[PidConfig] = Field(
-        None, description="the PID cascade flown with flies: pid, and by quadctl compare; absent: the crazyflie "
-        "preset")
-    filters: Optional[FiltersConfig] = Field(
-        None, description="the sensor filters the flight stack runs (gyro low-pass, notch); absent: raw rates")
-
-    def delay_samples(self) -> int:
-        """Samples of delay (0 when none); :func:`quadctl.config.checks._check_delay` has checked it is whole."""
-        if self.delay is None:
-            return 0
-        if isinstance(self.delay, DelaySamples):
-            return self.delay.samples
-        return round(self.delay * self.rate) if self.rate is not None else 0
-
-
 RotorPosition = Annotated[list[Number], Field(min_length=2, max_length=2)]
 
 
-class MotorsConfig(_Section):
+class MotorsConfig(Section):
     """Four rotors; defaults: the Parrot Mambo (docs/model.md, "Motors")."""
 
     layout: Literal["x", "+"] = Field("x", description="x: rotors at +-45 deg from the nose; +: on the axes")
@@ -452,34 +330,10 @@ class MotorsConfig(_Section):
         "rotor 1 first; needs spin; absent: from layout and arm_length (x: [+-L/sqrt 2, +-L/sqrt 2]; +: on the axes)")
 
 
-class EstimatorConfig(_Section):
-    """A steady-state Kalman filter: the loop closes through its estimate instead of the measured state."""
-
-    measure: Annotated[list[str], Field(min_length=1)] = Field(description=(
-        "measured quantities: state names or sensor groups (imu: phi theta psi p q r; baro: pD; "
-        "mocap, gps: pN pE pD; flow: u v)"))
-    sensor: dict[str, Positive] = Field(default_factory=dict, description=(
-        "state name -> standard deviation of its measurement the filter assumes (state units); default "
-        "simulation.noise.sensor's; every measured state needs one of the two, > 0"))
-    force: Optional[Annotated[list[Annotated[NonNegative, Field(le=MAX_NOISE["force"])]],
-                              Field(min_length=3, max_length=3)]] = Field(
-        None, description="N, standard deviation of the body force process noise the filter assumes; "
-        "default simulation.noise.force")
-    torque: Optional[Annotated[list[Annotated[NonNegative, Field(le=MAX_NOISE["torque"])]],
-                               Field(min_length=3, max_length=3)]] = Field(
-        None, description="N m, standard deviation of the body torque process noise the filter assumes; "
-        "default simulation.noise.torque")
-
-    def measured(self) -> tuple[str, ...]:
-        """The measured states, in state order (groups expanded)."""
-        names = {s for item in self.measure for s in SENSOR_GROUPS.get(item, (item,))}
-        return tuple(s for s in STATE_NAMES if s in names)
-
-
 InputLimits = Annotated[list[Number], Field(min_length=2, max_length=2)]
 
 
-class StartedFrom(_Section):
+class StartedFrom(Section):
     """The ``quadctl init`` template a config was started from, and its vehicle's numbers as written."""
 
     template: str = Field(description="the vehicle template (quadctl init --from)")
@@ -488,7 +342,7 @@ class StartedFrom(_Section):
         "you to check the description still names your vehicle"))
 
 
-class Config(_Section):
+class Config(Section):
     """A whole quadctl config (see the README's config reference).
 
     Examples
@@ -584,87 +438,3 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
 :meth:`Config.digest` at that default."""
 
 
-def section_model(loc: list) -> type[BaseModel] | None:
-    """The schema section that the key path ``loc`` points into (for unknown-key hints)."""
-    model: Any = Config
-    expect_key = False
-    for part in loc:
-        if isinstance(part, int):
-            continue
-        if expect_key:  # a name inside subsystems/lqr/initial_offset: the value model follows
-            expect_key = False
-            continue
-        field = model.model_fields.get(part) if isinstance(model, type) else None
-        if field is None:
-            return None
-        inner = first_model(field.annotation)
-        expect_key = "dict" in str(field.annotation)
-        model = inner if inner is not None else None
-    return model if isinstance(model, type) and issubclass(model, BaseModel) else None
-
-
-def first_model(annotation: Any) -> Any:
-    """The BaseModel inside an annotation such as ``dict[str, X] | None``."""
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    for arg in getattr(annotation, "__args__", ()) or ():
-        found = first_model(arg)
-        if found is not None:
-            return found
-    return None
-
-
-PLANT = ("simulation", "plant")
-"""The key path of the simulated vehicle: absent, or any of its keys absent, it is the design vehicle."""
-
-
-def default_at(tree: Any, keys) -> Any:
-    """The value the config holds at the key path ``keys`` where ``tree`` leaves it (or a section on
-    the way) out; ``tree`` is a config's data, as YAML gives it or as dumped.
-
-    What an absent value stands for, declared once: in ``simulation.plant`` the design vehicle's
-    value (``vehicle:``, itself with the schema's defaults), elsewhere the schema's default (a section
-    that takes no required key: all its defaults). None where there is none (``simulation.wind.gusts[0]``).
-
-    Examples
-    --------
-    >>> default_at({}, ("simulation", "noise", "force"))
-    [0.0, 0.0, 0.0]
-    >>> default_at({"vehicle": {"mass": 0.5}}, ("simulation", "plant", "mass"))
-    0.5
-    >>> default_at({}, ("simulation", "wind", "gusts", 0)) is None
-    True
-    """
-    keys = tuple(keys)
-    node = tree
-    for k, key in enumerate(keys):
-        if isinstance(node, dict):
-            value = node.get(key)
-        elif isinstance(node, list) and isinstance(key, int) and 0 <= key < len(node):
-            value = node[key]
-        else:
-            return None
-        node = _absent(tree, keys[:k + 1]) if value is None else value
-    return copy.deepcopy(node)  # a copy: the caller may change it, never ``tree``
-
-
-def _absent(tree: Any, loc: tuple) -> Any:
-    """What the value at ``loc`` stands for when the config leaves it out, or None."""
-    if loc[:2] == PLANT and len(loc) <= 3:
-        given = tree.get("vehicle") if isinstance(tree, dict) else None
-        vehicle = {**VehicleConfig().model_dump(mode="json"), **(given if isinstance(given, dict) else {})}
-        plant = {key: vehicle.get(key) for key in PlantConfig.model_fields}
-        return plant if len(loc) == 2 else plant.get(loc[2])
-    if not loc or isinstance(loc[-1], int):
-        return None
-    model = section_model(list(loc[:-1]))
-    field = model.model_fields.get(loc[-1]) if model is not None else None
-    if field is None or field.is_required():
-        return None
-    default = field.get_default(call_default_factory=True)
-    if default is None:
-        inner = first_model(field.annotation)
-        if inner is None or any(f.is_required() for f in inner.model_fields.values()):
-            return None
-        return inner().model_dump(mode="json")
-    return default.model_dump(mode="json") if isinstance(default, BaseModel) else default

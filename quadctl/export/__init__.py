@@ -7,7 +7,8 @@ it (:mod:`quadctl.export.bundle`). The writers read only that object:
 
 - :mod:`quadctl.export.c`: a C99 controller generated from the simulation's own control law
   (:func:`quadctl.sim.builder.build`), ``double`` or ``float``; a config that flies a reference
-  (``simulation.reference``) gives one that takes the reference at each sample;
+  (``simulation.reference``) gives one that takes the reference at each sample; its header's
+  documentation comments are written by :mod:`quadctl.export.c_doc`;
 - :mod:`quadctl.export.data`: the design as named, unit-carrying fields, written as a MATLAB v5
   ``.mat`` (:func:`scipy.io.savemat`) or as one self-describing JSON.
 """

@@ -4,7 +4,8 @@
 :func:`quadctl.sim.builder.build`, emits it with :func:`quadctl.native.emit.emit` (``double``, or
 ``float`` with ``-DQUADCTL_FLOAT``), bakes the loop's constants in and fills the C templates
 (``templates/quadctl_controller.h`` and ``.c``), sizes and offsets from :mod:`quadctl.layout` and
-:func:`quadctl.sim.builder.constant_layout`. Why quadctl emits its own C is in the docs,
+:func:`quadctl.sim.builder.constant_layout`, the header's documentation comments from
+:mod:`quadctl.export.c_doc`. Why quadctl emits its own C is in the docs,
 docs/internals.md ("The exported C").
 """
 
@@ -18,8 +19,8 @@ from string import Template
 
 import numpy as np
 
-from quadctl.design.gain_table import OUTSIDE, VARIABLES
 from quadctl.export.bundle import Export, require_export
+from quadctl.export.c_doc import delay_doc, doc_lines, filter_doc, gyro_doc, lag_doc, schedule_doc, vector_table
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
 from quadctl.native.emit import Dialect, emit
 from quadctl.sim.builder import ANTIWINDUP_TOL, build, constant_layout, exo_layout
@@ -101,8 +102,8 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
     values = {
         "CONFIG": c_comment(exp.name), "VERSION": __version__, "CONFIG_HASH": exp.config_hash or "not recorded",
         "TS": repr(Ts), "RATE": repr(float(exp.rate)),
-        "STATE_TABLE": _table(STATE_NAMES, STATE_UNITS, loop.x_trim, loop.x_rate, "x"),
-        "INPUT_TABLE": _table(INPUT_NAMES, INPUT_UNITS, loop.u_trim, None, "u"),
+        "STATE_TABLE": vector_table(STATE_NAMES, STATE_UNITS, loop.x_trim, loop.x_rate, "x"),
+        "INPUT_TABLE": vector_table(INPUT_NAMES, INPUT_UNITS, loop.u_trim, None, "u"),
         "LAW": "\n".join(" *   " + line for line in textwrap.wrap(c_comment(exp.law()), 94)),
         "TOL_FLOAT": repr(tol_float), "TOL_DOUBLE": repr(ANTIWINDUP_TOL),
         "FLOAT_EXACT_S": f"{2 ** 24 * Ts:.4g}", "ULONG_DAYS": f"{2 ** 32 * Ts / 86400:.4g}",
@@ -114,10 +115,10 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
         "LAG_LOAD": ("  for (i = 0; i < QUADCTL_NL; ++i) X[QUADCTL_NX + QUADCTL_NZ + i] = c->l[i];\n" if nl else ""),
         "LAG_STORE": ("  for (i = 0; i < QUADCTL_NL; ++i) c->l[i] = X_sampled[QUADCTL_NX + QUADCTL_NZ + i];\n"
                       if nl else ""),
-        "LAG_DOC": _lag_doc(loop, Ts),
-        "DELAY_DOC": _delay_doc(delay, Ts, kal is not None),
-        "FILTER_DOC": _filter_doc(loop, reference),
-        "SCHEDULE_DOC": _schedule_doc(loop, reference),
+        "LAG_DOC": lag_doc(loop, Ts),
+        "DELAY_DOC": delay_doc(delay, Ts, kal is not None),
+        "FILTER_DOC": filter_doc(loop, step_name(reference), reference),
+        "SCHEDULE_DOC": schedule_doc(loop, reference),
         "NY": str(ny), "NB": str(nb),
         "STEP_ARG": "y" if ny else "x",
         "STEP_DOC": ("the measurements y\n * (QUADCTL_NY measured states, QUADCTL_Y_* order, state units)" if ny
@@ -156,7 +157,7 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
                       "starts */\n" if ng else ""),
         "GYRO_LOAD": "  for (i = 0; i < QUADCTL_NG; ++i) X[QC_X_G + i] = c->g[i];\n" if ng else "",
         "GYRO_STORE": "  for (i = 0; i < QUADCTL_NG; ++i) c->g[i] = X_sampled[QC_X_G + i];\n" if ng else "",
-        "GYRO_DOC": _gyro_doc(loop, Ts),
+        "GYRO_DOC": gyro_doc(loop, Ts),
         "NE": str(spec.n_estimate or N_STATES),
         "ESTIMATE_MEMBER": ("  quadctl_real xh[QUADCTL_NE];  /* the filter's a priori estimate of x - x_ref(t) for "
                             "this sample (state units)" + (", then of the gyro filter's states g" if ng else "")
@@ -226,7 +227,7 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
     """
     what = "the measurements y read" if arg == "y" else "the state measured"
     if not reference:
-        return {"CALL_DOC": _doc([
+        return {"CALL_DOC": doc_lines([
                     "quadctl_init(&c) once, before the first sample: integrators and time to zero.",
                     f"quadctl_step(&c, {arg}, u) once every QUADCTL_SAMPLE_TIME = {Ts!r} s ({float(rate)!r} Hz), "
                     f"with {what} at that instant; apply u until the next call (zero-order hold). The reference "
@@ -236,7 +237,7 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
                 "REFERENCE_DOC": "", "REFERENCE_TYPES": "", "REFERENCE_FUNCTIONS": "", "REFERENCE_DEFINITIONS": "",
                 "EXO_DEFINES": "", "EXO_DECL": "", "EXO_LOAD": "", "LAW_E": "NULL"}
     n_arg = f"QUADCTL_N{arg.upper()}"
-    doc = _doc([
+    doc = doc_lines([
         "Each sample takes the reference (simulation.reference) as a quadctl_reference:",
         "  ref.x = x_ref(t), the commanded state: all 12, in the order and units of x (QUADCTL_X_*);",
         "  ref.u = u_ref(t), the feedforward input, in the order and units of u (QUADCTL_U_*);",
@@ -262,7 +263,7 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
         defines.append(f"#define QC_E_{name.upper()} {start}  /* {name} ({size}) */")
         start += size
     return {
-        "CALL_DOC": _doc([
+        "CALL_DOC": doc_lines([
             "quadctl_init(&c) once, before the first sample: integrators to zero.",
             f"quadctl_step_ref(&c, {arg}, &ref, u) once every QUADCTL_SAMPLE_TIME = {Ts!r} s ({float(rate)!r} Hz), "
             f"with {what} and the reference ref at that instant (THE REFERENCE below); apply u until the next "
@@ -305,132 +306,10 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
 _NO_ALLOCATION = "No allocation, no global state: everything lives in the struct; one struct per vehicle."
 
 
-def _doc(lines) -> str:
-    """Lines of a header comment (each wrapped at 94 columns, keeping its indent)."""
-    out = []
-    for line in lines:
-        indent = " " * (len(line) - len(line.lstrip(" ")))
-        out += textwrap.wrap(line, 94, subsequent_indent=indent) or [""]
-    return "\n".join((" *   " + line).rstrip() for line in out)
-
-
-def _schedule_doc(loop, reference: bool) -> str:
-    """The header's paragraph on the gain schedule: the table, where it lives, how the law reads it."""
-
-    table = loop.schedule
-    if table is None:
-        return " *   None: the gains are constants (K, Ki in qc_c)."
-    unit = VARIABLES[table.variable]
-    pieces, columns = len(table.breaks) - 1, table.coefficients.shape[-1]
-    read = {"speed": f"the horizontal velocity of x_ref(t) along the heading {loop.schedule_heading:g} rad (m/s)"
-                     + (", turned with the reference's yaw (its yaw less the trim's added)" if reference else ""),
-            "climb": "the climb rate of x_ref(t), -vD (m/s, up positive)",
-            "yaw": "the yaw psi of x_ref(t) (rad)"}[table.variable]
-    source = "ref->x, the reference given" if reference else "x_trim + x_rate t"
-    text = (f"The gains are scheduled on {table.variable} ({unit}): designs at v = "
-            + ", ".join(f"{v:g}" for v in table.values)
-            + f" {unit}, {table.interpolation} interpolation between them; outside them {OUTSIDE}. v is {read}, "
-            f"x_ref(t) being {source}: the gain moves with the command, not with the measured state. "
-            f"G(v) (4 x {columns}: K" + (", then Ki" if columns > N_STATES else "") + ") replaces the constant "
-            f"gain{'s' if columns > N_STATES else ''} of the law: the piecewise cubic G(v) = sum_k "
-            "schedule_coefficients[k, i] (v - schedule_breaks[i])^(3 - k) on the piece i with schedule_breaks[i] "
-            f"<= v < schedule_breaks[i + 1] (v held to [{table.breaks[0]:g}, {table.breaks[-1]:g}]), {pieces} "
-            f"pieces, its breaks and coefficients ({4} x {pieces} x 4 x {columns}, column-major) constants of qc_c "
-            "(quadctl.design.gain_table.GainTable, the one `quadctl simulate` flies). qc_law evaluates it at "
-            "each sample.")
-    return "\n".join(" *   " + line for line in textwrap.wrap(c_comment(text), 94))
-
-
-def _lag_doc(loop, Ts: float) -> str:
-    """The header's paragraph on the rotors' lag: what the law does with it."""
-    tau = loop.lag_model_time_constant
-    if loop.Kv is None:
-        lines = ["The design ignores the rotors' lag (controller.rotor_lag: ignore): no lag state here; the",
-                 "simulation's rotors lag by motors.time_constant if the config sets one."]
-    else:
-        a = math.exp(-Ts / tau)
-        lines = [f"The design includes the rotors' {tau:g} s lag (controller.rotor_lag: include). The controller",
-                 "does not measure the thrust the rotors reach: it keeps a model of it, l (the struct's l[], the",
-                 "deviation of [T, A, E, R] from trim), advanced each sample from the command it returns by the",
-                 f"lag's exact zero-order hold, l <- a l + (1 - a)(u - u_trim), a = exp(-Ts/tau) = {a:.9g}, and",
-                 "fed back through Kv. quadctl_init starts it at 0: the rotors at their trim thrust."]
-    return "\n".join(" *   " + line for line in lines)
-
-
 def step_name(reference: bool) -> str:
     """The C function a sample calls: ``quadctl_step_ref`` when the law flies a reference (it takes one),
     else ``quadctl_step`` (it holds the trim)."""
     return "quadctl_step_ref" if reference else "quadctl_step"
-
-
-def _filter_doc(loop, reference: bool = False) -> str:
-    """The header's paragraph on the Kalman filter: its form, the measurements, one sample of it
-    (``reference``: the law flies a reference, its filter predicts about ``u_ref(t)``)."""
-    kal = loop.estimator
-    step = step_name(reference)
-    if kal is None:
-        lines = [f"None (no estimator: in the config): {step} takes the full measured state x."]
-        return "\n".join(" *   " + line for line in lines)
-    rho = float(np.max(np.abs(kal.eigenvalues)))
-    ne, ng = kal.n_estimate, kal.n_estimate - N_STATES
-    gyro = ([] if kal.rate_filter is None else textwrap.wrap(
-        f"The filter's model includes the gyro filter (controller.filters: {kal.rate_filter.describe()}): xh[] is "
-        f"the estimate of [x - x_ref(t); g] (QUADCTL_NE = {ne}: the 12 states, then the gyro filter's {ng}, "
-        f"as the g member), and a measured rate is the filtered rate the law computes from the raw gyro "
-        f"(give y the raw rates), predicted as c g_h + d r_h: those rows of C read the filter's states.", 94))
-    lines = ["The law closes through a steady-state Kalman filter (estimator:), the discrete one of the",
-             "zero-order-hold model at Ts in MATLAB dlqe's filter form (design.json estimator, form filter):",
-             "Le = M is the filter (measurement-update) gain, the struct's xh[] the a priori estimate",
-             "x_hat[k|k-1] of the deviation x - x_ref(t) (state units, the order of x), 0 after quadctl_init",
-             "(the filter believes the trim, as `quadctl simulate` starts it). Each sample, with y the",
-             "measured states (QUADCTL_Y_*: absolute, in state units, as the sensors give them):",
-             "  xc = xh + M (y - C x_ref(t) - C xh)        update: x_hat[k|k]",
-             "  u  = the law above with x - x_ref(t) = xc  (the integrators integrate xc too)",
-             f"  xh <- Ae xc + Be (u_applied - {'u_ref(t)' if reference else 'u_trim'})".ljust(45)
-             + "predict: x_hat[k+1|k] under the applied (clipped)",
-             "                                             command" + (", the one the vehicle applies now (b[])"
-                                                                       if loop.delay_samples else ""),
-             *gyro,
-             *textwrap.wrap(f"C picks the measured states; Ae ({ne} x {ne}), Be ({ne} x 4) and Le = M ({ne} x ny) "
-                            "are constants of qc_c (column-major). The predictor gain is Ae M; the estimator's "
-                            f"eigenvalues (of Ae - Ae M C) have |z| <= {rho:.6g}. Measured, in the order of y: "
-                            + ", ".join(f"{n} ({STATE_UNITS[n]})" for n in kal.measured) + ".", 94)]
-    return "\n".join(" *   " + line for line in lines)
-
-
-def _gyro_doc(loop, Ts: float) -> str:
-    """The header's paragraph on the gyro filter (controller.filters): what the law does to the rates."""
-    if loop.rate_filter is None:
-        return _doc(["No gyro filter was configured (controller.filters): the law takes the measured rates p, q, r",
-                     "as they are; filter them before quadctl_step only if the simulation did."])
-    form = loop.filter_form
-    return _doc([f"The law runs the config's gyro filter (controller.filters: {loop.rate_filter.describe()}) "
-                 f"on the measured rates p, q, r, at {1 / Ts:g} Hz: y = c g + d r, g <- A g + b r on each rate "
-                 f"(the g member, {form.order} states per rate; qc_c's filter_A, filter_b, filter_c, filter_d), "
-                 "and uses y in place of r, as `quadctl simulate` does. Give quadctl_step the raw gyro rates: do "
-                 "not filter them again."])
-
-
-def _delay_doc(delay: int, Ts: float, filtered: bool = False) -> str:
-    """The header's paragraph on the delay: the law is the law before it."""
-    if delay and filtered:
-        n = f"{delay} sample{'s' if delay > 1 else ''}"
-        lines = [f"The config's controller.delay, {n} ({delay * Ts:.6g} s) from measurement to actuation, is",
-                 "the vehicle's (its computer, bus and ESCs): quadctl_step returns the new command at once, and",
-                 f"`quadctl simulate` applies each command {n} later. The Kalman filter must predict with what",
-                 f"the vehicle applies, so the struct remembers the commands of the last {n} (b[], starting at",
-                 "u_trim) for the filter only. Do not add a buffer to u: the vehicle has the delay already."]
-        return "\n".join(" *   " + line for line in lines)
-    if not delay:
-        lines = ["No delay was configured (controller.delay): the simulation applies u at the instant x is",
-                 "measured."]
-    else:
-        n = f"{delay} sample{'s' if delay > 1 else ''}"
-        lines = [f"The config's controller.delay, {n} ({delay * Ts:.6g} s) from measurement to actuation, is",
-                 "the vehicle's (its computer, bus and ESCs), not part of this law: quadctl_step returns the",
-                 f"command at once, and `quadctl simulate` applies each command {n} later (a buffer starting",
-                 "at u_trim). Do not add a buffer here: the vehicle has the delay already."]
-    return "\n".join(" *   " + line for line in lines)
 
 
 def _offsets(nz: int, lag_model: bool = False, ny: int = 0, schedule: tuple[int, ...] = (),
@@ -476,11 +355,3 @@ def _constants(c: np.ndarray, offsets) -> str:
         lines.append(f"  /* {name} */")
         lines += ["  " + ", ".join(items[i:i + 4]) + "," for i in range(0, size, 4)]
     return "\n".join(lines).rstrip(",")
-
-
-def _table(names, units, trim, rate, symbol: str) -> str:
-    rows = []
-    for i, name in enumerate(names):
-        drift = f", drifting {rate[i]:+.6g} {units[name]}/s" if rate is not None and rate[i] != 0 else ""
-        rows.append(f" *   {symbol}[{i:2d}] {name:<6} {units[name]:<6} trim {trim[i]:+.9g}{drift}")
-    return "\n".join(rows)

@@ -11,7 +11,7 @@ import numpy as np
 
 from quadctl.artifacts.meta import IDENTIFIED_CONFIG_HEAD, metadata
 from quadctl.config import parse
-from quadctl.config.schema import MAX_DELAY_SAMPLES
+from quadctl.config.controller_schema import MAX_DELAY_SAMPLES
 from quadctl.errors import ArtifactError, ConfigError, LogError
 from quadctl.identify import estimate as est
 from quadctl.identify import plausibility

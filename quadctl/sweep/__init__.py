@@ -9,7 +9,9 @@ Modules, each importing only those above it:
 
 - :mod:`~quadctl.sweep.config_tree`: a config as a mapping, values read and put in by key path
 - :mod:`~quadctl.sweep.gates`: the metrics of a case, the gates on them, verdict and ranking
-- :mod:`~quadctl.sweep.spec`: the sweep file (parameters, values, gates) parsed and checked
+- :mod:`~quadctl.sweep.spec`: a validated sweep as data: its parameters, its cases, the whole sweep
+- :mod:`~quadctl.sweep.uncertainty`: what a varied key reaches (the simulated vehicle only, or the design)
+- :mod:`~quadctl.sweep.sweep_file`: the sweep file (parameters, values, gates) parsed and checked
 - :mod:`~quadctl.sweep.batched`: designs, verdicts and lane simulations of many cases at once
 - :mod:`~quadctl.sweep.evaluate`: a chunk of cases, batched or one by one, as rows
 - :mod:`~quadctl.sweep.runner`: chunks on local processes or a Dask cluster
@@ -22,8 +24,9 @@ from quadctl.sweep.evaluate import MC_POINTS, ChunkResult, ChunkTask, evaluate_c
 from quadctl.sweep.gates import Gate, judge, margin, metric_columns, regulated_states
 from quadctl.sweep.outputs import MonteCarloBands, montecarlo_bands, summarize, to_csv
 from quadctl.sweep.runner import SweepResult, run
-from quadctl.sweep.spec import Case, Parameter, SweepSpec, from_dict, load, parse
+from quadctl.sweep.spec import Case, Parameter, SweepSpec
 from quadctl.sweep.store import PARTS, SweepOutcome, SweepStore, execute
+from quadctl.sweep.sweep_file import from_dict, load, parse
 
 __all__ = [
     "MC_POINTS", "PARTS", "Case", "ChunkResult", "ChunkTask", "Gate", "MonteCarloBands", "Parameter",

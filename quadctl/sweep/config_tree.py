@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from quadctl.config.schema import PLANT, default_at
+from quadctl.config.schema_paths import PLANT, default_at
 from quadctl.text.messages import is_whole
 
 

@@ -47,11 +47,11 @@ def _doc() -> Document:
 
 
 def _sweep_store(run: Path):
-    from quadctl.sweep import spec as sweep_spec
+    from quadctl.sweep import sweep_file
     from quadctl.sweep.store import SweepStore
 
     cfg = config.load("hover")
-    spec = sweep_spec.parse("parameters:\n  lqr.yaw.R[0]: [1, 2]\n", cfg, "s.yaml")
+    spec = sweep_file.parse("parameters:\n  lqr.yaw.R[0]: [1, 2]\n", cfg, "s.yaml")
     return SweepStore(run, cfg, spec)
 
 

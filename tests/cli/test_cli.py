@@ -222,9 +222,9 @@ def test_help_still_answers_and_no_arguments_still_print_it():
 
 def test_help_texts_show_no_rst_quotes_and_sweep_states_the_uncertainty_rule():
     """check --help showed ``estimator:`` literally; sweep --help said a noise-seed sweep alone is a
-    Monte Carlo, though every plant-side sweep (spec.plant_side) writes montecarlo.png/.npz."""
+    Monte Carlo, though every plant-side sweep (uncertainty.plant_side) writes montecarlo.png/.npz."""
     from quadctl.cli.commands import COMMANDS
-    from quadctl.sweep.spec import plant_side
+    from quadctl.sweep.uncertainty import plant_side
 
     for module in COMMANDS:
         res = runner.invoke(app, [module.NAME, "--help"], env={"COLUMNS": "200"})

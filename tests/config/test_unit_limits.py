@@ -12,8 +12,8 @@ from typer.testing import CliRunner
 
 from quadctl import config
 from quadctl.cli.app import app
-from quadctl.config import schema, yamlio
-from quadctl.config.checks import SCHEDULE_UNITS, UNIT_KEYS, UNIT_LIMITS
+from quadctl.config import schema, schema_paths, yamlio
+from quadctl.config.unit_limits import SCHEDULE_UNITS, UNIT_KEYS, UNIT_LIMITS
 from quadctl.errors import ConfigError
 from quadctl.text.messages import parse_key_path, show
 
@@ -123,7 +123,7 @@ def _unit_fields(model, prefix=""):
     """(key path pattern, unit) of every field of the schema whose description starts with a unit of
     UNIT_LIMITS and that the schema does not bound itself."""
     for name, field in model.model_fields.items():
-        inner = schema.first_model(field.annotation)
+        inner = schema_paths.first_model(field.annotation)
         depth = str(field.annotation).count("list[")  # a list of lists (rotor positions): each item's items
         path = f"{prefix}{name}" + "[*]" * depth
         if inner is not None:

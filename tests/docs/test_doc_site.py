@@ -161,7 +161,8 @@ def test_the_config_reference_has_every_key_with_its_default_and_unit():
     def walk(model, prefix):
         return [f"{prefix}{name}" for name in model.model_fields]
 
-    from quadctl.config.schema import Config, ControllerConfig, SimulationConfig, VehicleConfig
+    from quadctl.config.controller_schema import ControllerConfig
+    from quadctl.config.schema import Config, SimulationConfig, VehicleConfig
 
     expected = [*walk(Config, ""), *walk(VehicleConfig, "vehicle."), *walk(SimulationConfig, "simulation."),
                 *walk(ControllerConfig, "controller.")]

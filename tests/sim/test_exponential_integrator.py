@@ -541,7 +541,8 @@ def test_a_tolerance_without_etdrk4_is_refused():
 
 
 def test_a_sweep_runs_one_method():
-    from quadctl.sweep.spec import SweepError, from_dict
+    from quadctl.errors import SweepError
+    from quadctl.sweep.sweep_file import from_dict
 
     cfg = config.load("hover")
     with pytest.raises(SweepError, match=r"parameters\.simulation\.method: a sweep runs one integrator"):

@@ -1,6 +1,6 @@
 """Uncertainty studies: sweeps of the simulated vehicle only, one design, every case in the lanes.
 
-Which parameters are plant-side (:func:`quadctl.sweep.spec.plant_side`); rows of mass, inertia,
+Which parameters are plant-side (:func:`quadctl.sweep.uncertainty.plant_side`); rows of mass, inertia,
 rotor time constant and delay variations against the one-case path; the design made once per
 distinct problem; a design that includes the rotors' lag in an uncertainty sweep; the bands file
 with its names and units.
@@ -14,7 +14,7 @@ from _paths import ROOT
 from _solve import max_rel_diff
 
 from quadctl import artifacts, config, sweep
-from quadctl.sweep.spec import plant_side
+from quadctl.sweep.uncertainty import plant_side
 
 MATCH_RTOL = 1e-9
 """Lanes and the one-case loop do the same arithmetic in another order (SIMD lanes, a batched

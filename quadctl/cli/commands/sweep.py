@@ -68,7 +68,7 @@ def command(
         render.emit_json({**summary, "performance": render_sweep.sweep_performance(outcome)})
     else:
         render.out.print(render_sweep.sweep_tables(result, spec))
-        method = sweep_mod.spec.fixed_value(spec.fixed, "simulation.method", cfg.simulation.method)
+        method = sweep_mod.sweep_file.fixed_value(spec.fixed, "simulation.method", cfg.simulation.method)
         render.out.print(render_sweep.sweep_line(outcome, method))
         for path in outcome.files:
             render.out.print(f"-> {path}")
