@@ -28,9 +28,7 @@ def describe(exc: ValidationError, data: Any, label: str) -> str:
     err = errors[0]
     loc = [part for part in err["loc"] if not is_union_tag(part)]
     path = key_path(loc)
-    distinct = {tuple(p for p in e["loc"] if not is_union_tag(p)) for e in found}
-    n_more = len(distinct) - 1
-    more = f" (and {n_more} more error{'s' if n_more > 1 else ''})" if n_more else ""
+    more = _the_others(found, tuple(loc))
     kind = err["type"]
     if kind == "extra_forbidden":
         parent = section_model(loc[:-1])
@@ -42,6 +40,26 @@ def describe(exc: ValidationError, data: Any, label: str) -> str:
     if kind in ("int_type", "int_from_float") and isinstance(value, float) and value.is_integer():
         return f"{label}: {path} = {value!r}: must be a whole number; write {int(value)}{more}"
     return f"{label}: {path} = {show(value)}: {expected(err, loc)}{more}"
+
+
+MORE_NAMED = 3
+"""How many of the other failing keys the line names (the rest are counted)."""
+
+
+def _the_others(found: list, first: tuple) -> str:
+    """`` (and 2 more errors, at vehicle.inertia and trim.speed)``: the other keys that fail, in
+    the schema's order, so one run says where every fix goes; '' when there are none."""
+    others: list[str] = []
+    for e in found:
+        loc = tuple(p for p in e["loc"] if not is_union_tag(p))
+        path = key_path(list(loc))
+        if loc != first and path not in others:
+            others.append(path)
+    if not others:
+        return ""
+    named = others[:MORE_NAMED] + ([f"{len(others) - MORE_NAMED} more"] if len(others) > MORE_NAMED else [])
+    where = named[0] if len(named) == 1 else f"{', '.join(named[:-1])} and {named[-1]}"
+    return f" (and {len(others)} more error{'s' if len(others) > 1 else ''}, at {where})"
 
 
 def _what_it_takes(loc: list) -> str:

@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 from quadctl import config
 from quadctl.cli.app import app
 from quadctl.config import notices
+from quadctl.errors import ConfigError
 
 runner = CliRunner()
 FORWARD = config.bundled("forward").text
@@ -377,3 +378,19 @@ def test_a_fifth_rotor_position_is_refused_as_a_list_of_exactly_four():
                                    "motors.positions=[[0.03,0.04],[-0.03,0.04],[-0.03,-0.04],[0.03,-0.04],[0.05,0]]"])
     assert res.exit_code == 2 and "motors.positions" in res.stderr
     assert "must be a list of exactly 4 items (m, each rotor's" in res.stderr and "None" not in res.stderr
+
+
+def test_a_config_with_several_errors_names_where_each_of_the_others_is():
+    """The line says the first error and names every other failing key (the rest counted past three), so
+    one run shows where each fix goes."""
+    data = {"name": "x", "vehicle": {"mass": "heavy", "inertia": "big"}}
+    with pytest.raises(ConfigError) as err:
+        config.from_dict(data, "two.yaml")
+    assert str(err.value) == ('two.yaml: vehicle.mass = "heavy": must be a number (kg) '
+                              "(and 2 more errors, at vehicle.inertia and lqr)")
+    data = {"name": "x", "vehicle": {"mass": 1.0, "inertia": [1, 1, 1], "drag": "a", "gravity": "b"},
+            "trim": {"speed": "c"}, "simulation": {"duration": "d", "dt": -1}, "lqr": {}}
+    with pytest.raises(ConfigError) as err:
+        config.from_dict(data, "many.yaml")
+    assert str(err.value).endswith("(and 4 more errors, at vehicle.gravity, vehicle.drag, simulation.duration "
+                                   "and 1 more)"), str(err.value)

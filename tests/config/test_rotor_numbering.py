@@ -95,7 +95,9 @@ def test_the_default_numbering_leaves_the_config_digest_as_it_was():
      r"^c\.yaml: motors\.numbering = 4: must be one of quadctl, .*, rotor 1 first; did you mean `px4`\?$"),
     ({"numbering": {"x": 1}},
      r"^c\.yaml: motors\.numbering = \{\"x\": 1\}: must be one of quadctl, .*, rotor 1 first$"),
-    ({"numbering": [1, 2, 3, 4]}, r"^c\.yaml: motors\.numbering\[0\] = 1: must be text \(and 3 more errors\)$"),
+    ({"numbering": [1, 2, 3, 4]}, r"^c\.yaml: motors\.numbering\[0\] = 1: must be text "
+                                  r"\(and 3 more errors, at motors\.numbering\[1\], motors\.numbering\[2\] and "
+                                  r"motors\.numbering\[3\]\)$"),
     ({"spin": ["cw", "ccw", "cw", "clockwise"]},
      r"^c\.yaml: motors\.spin\[3\] = \"clockwise\": must be one of cw, ccw; did you mean `ccw`\?$"),
 ])
