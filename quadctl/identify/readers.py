@@ -230,8 +230,9 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
             raise _fail(path, f"no column {given!r}{via} (the header has {', '.join(header)})",
                         f"rename the column or map it: --columns {name}=YOUR_NAME")
         where[name] = header.index(given)
-    try:
-        values = np.loadtxt(lines[1:], delimiter=",", usecols=[where[n] for n in CSV_COLUMNS], ndmin=2)
+    try:  # no data lines: no samples (loadtxt would warn, on stderr, before the one line that says so)
+        values = (np.loadtxt(lines[1:], delimiter=",", usecols=[where[n] for n in CSV_COLUMNS], ndmin=2)
+                  if lines[1:] else np.empty((0, len(CSV_COLUMNS))))
     except (ValueError, IndexError):
         rows = csv.reader(lines[1:])
         bad = next((i for i, row in enumerate(rows) if not _numeric_row(row, where.values())), 0)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import struct
+import warnings
 import zlib
 
 import numpy as np
@@ -92,6 +93,23 @@ def test_damaged_crazyflie_log_refused(tmp_path, damage, match):
     path.write_bytes(damage(good))
     with pytest.raises(LogError, match=match):
         read_log(path)
+
+
+@pytest.mark.parametrize("name, text, match", [
+    ("x.csv", ",".join(CSV_COLUMNS) + "\n", r"x.csv: 0 sample\(s\), too few to identify anything; give a log"),
+    ("x.csv", ",".join(CSV_COLUMNS) + "\n\n  \n# a comment\n", r"x.csv: 0 sample\(s\), too few"),
+    ("x.csv", "", r"x.csv: an empty file; give the log"),
+    ("log", crazyflie_bytes([]), r"log: 0 sample\(s\), too few"),
+])
+def test_a_log_without_samples_is_one_error_and_no_warning(tmp_path, name, text, match):
+    """A header and no data (blank and comment lines are no data): the reader's error alone, no library warning
+    printed before it (a warning here is raised, and is not the LogError)."""
+    path = tmp_path / name
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(LogError, match=match):
+            read_log(path)
 
 
 def test_crazyflie_log_without_the_motors_refused(tmp_path):
