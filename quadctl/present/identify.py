@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from quadctl.present.cells import Table
+from quadctl.present.cells import Table, percent
 
 STAGE_TITLES = {"thrust": "thrust curve and motor lag", "attitude": "roll and pitch inertia",
                 "yaw": "yaw torque coefficient"}
@@ -63,7 +63,7 @@ def sentences(payload: dict) -> list[str]:
     if th:
         out.append(f"Thrust fit: residual {th['residual_rms']:.4g} N RMS with the motor lag, "
                    f"{th['rms_without_lag']:.4g} N without (the lag explains "
-                   f"{(1 - th['residual_rms'] / th['rms_without_lag']) * 100:.0f} % of the error).")
+                   f"{percent(1 - th['residual_rms'] / th['rms_without_lag'], places=0)} of the error).")
     delay = payload.get("delay_written")
     if delay is not None and "controller.delay" not in payload.get("not_written", {}):  # (else: implausible())
         fitted = th["parameters"]["delay"]["value"]

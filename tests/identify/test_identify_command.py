@@ -291,3 +291,17 @@ def test_a_set_value_over_two_lines_keeps_the_identified_config_loadable():
                              ["simulation.reference={setpoints: [{t: 1,\n yaw: 0.5}]}"])
     assert "--set simulation.reference={setpoints: [{t: 1,\\n yaw: 0.5}]})" in text
     assert parse(text, "x").simulation.reference.setpoints[0].yaw == 0.5
+
+
+@pytest.mark.parametrize("rms, explains", [(1.004, "0 %"), (0.0, "100 %"), (0.5468, "45 %")])
+def test_the_share_of_the_thrust_error_the_lag_explains_reads_0_not_minus_0(rms, explains):
+    """The lag held at its floor (two samples) may fit a hair worse than no lag (the sample ULog: -0.4 %):
+    that share is 0 % of the error, not -0 %."""
+    from quadctl.identify.results import payload
+    from quadctl.present.identify import sentences
+
+    ident = _delay_identification(500.0)
+    ident.fits["thrust"].rms = rms  # rms_without_lag: 1.0
+    said = sentences(payload(ident, "crazyflie.yaml"))
+    assert any(s.startswith("Thrust fit: ") and s.endswith(f"(the lag explains {explains} of the error).")
+               for s in said), said
