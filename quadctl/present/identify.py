@@ -26,6 +26,34 @@ def ulog_read_past_corruption(name: str, said: str) -> str:
             "so a window there may lack samples (identify refuses a window with a gap)")
 
 
+def _cut_where(size: int, at: int | None, declared: int | None, data_at: int | None) -> str:
+    """Where a ULog cut short ends (:class:`quadctl.identify.readers.UlogEnd`'s fields, bytes)."""
+    section = "before its data section begins" if data_at is None else f"in its data section (from byte {data_at})"
+    if at is None:  # whole messages, but no data section
+        return f"the ULog looks cut short: it ends after {size} bytes, {section}"
+    if declared is None:
+        inside = f"inside the 3-byte header of the message at byte {at}"
+    else:
+        there = size - at - 3
+        inside = (f"inside the message at byte {at}, which declares {declared} bytes and has {there} "
+                  f"({declared - there} missing)")
+    return f"the ULog looks cut short: it ends after {size} bytes, {inside}, {section}"
+
+
+def ulog_cut_short(topic: str, **end) -> str:
+    """A ULog that ends inside a message or before its data (``end``: where) and so lacks ``topic``: the
+    error, with its fix (not a logging profile: the log is incomplete, not configured wrong)."""
+    return (f"{_cut_where(**end)}, so it holds no {topic} samples; copy the whole log from the vehicle again "
+            "(a full card or a power loss during logging cuts a log short)")
+
+
+def ulog_read_cut_short(name: str, t_end: float, **end) -> str:
+    """A ULog that looks cut short (``end``: where) whose topics were read up to ``t_end`` (s from its first
+    sample)."""
+    return (f"{name}: {_cut_where(**end)}; its samples end there, at t = {t_end:.4g} s, and identify fits "
+            "what is there")
+
+
 def time_from_start(clock: float) -> str:
     """The reader's phrase for the time it shows and takes: from the log's first sample."""
     return f"t = 0 at the first sample (the log's own clock read {clock:.9g} s there)"

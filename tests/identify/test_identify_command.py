@@ -142,6 +142,16 @@ def test_identify_json_of_a_truncated_ulog_keeps_stdout_clean(tmp_path):
     assert "cut.ulg: the ULog is truncated or corrupt" in res.stderr
 
 
+def test_identify_of_a_ulog_cut_short_before_its_data_says_so_in_one_line(tmp_path):
+    pytest.importorskip("pyulog")
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes((DATA / "px4-ulog" / "sample_px4_events.ulg").read_bytes()[:5000])
+    res = CliRunner().invoke(app, ["identify", str(cut), "-c", "crazyflie", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and len(res.stderr.strip().splitlines()) == 1
+    assert "cut.ulg: the ULog looks cut short: it ends after 5000 bytes" in res.stderr
+    assert "SDLOG_PROFILE" not in res.stderr and not (tmp_path / "o").exists()
+
+
 def _delay_identification(rate):
     import numpy as np
 
