@@ -250,7 +250,8 @@ def test_a_complete_ulog_without_the_imu_topic_is_sent_to_the_logging_profile(tm
     whole = tmp_path / "motors-only.ulg"
     pyulog.ULog(str(ULOG), ["actuator_motors"]).write_ulog(str(whole))
     assert ulog_end(whole.read_bytes()) is None and ulog_end(ULOG.read_bytes()) is None
-    with pytest.raises(LogError, match=r"motors-only.ulg: the ULog has no sensor_combined topic; log it \(SDLOG_PROFILE"):
+    with pytest.raises(LogError, match=r"motors-only.ulg: the ULog has no sensor_combined topic; log it "
+                                       r"\(SDLOG_PROFILE"):
         read_log(whole)
 
 
