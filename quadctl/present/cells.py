@@ -125,9 +125,18 @@ def weights(mat) -> str:
     return "[" + "; ".join(", ".join(num(v) for v in row) for row in mat) + "]"
 
 
-def percent(share, digits: int = 3) -> str:
-    """A share as a percentage: ``2.85 %``; None ``-``."""
-    return "-" if share is None else f"{share * 100:.{digits}g} %"
+def percent(share, digits: int = 3, places: int | None = None) -> str:
+    """A share as a percentage: ``2.85 %`` (``digits`` significant digits, or ``places`` decimals); None ``-``.
+    One that shows as zero has no sign: ``0 %``, not ``-0 %`` (a negative zero, or a tiny negative share
+    rounded to ``places``).
+
+    >>> percent(0.02851), percent(-0.0), percent(-0.004, places=0), percent(0.4532, places=0), percent(None)
+    ('2.85 %', '0 %', '0 %', '45 %', '-')
+    """
+    if share is None:
+        return "-"
+    text = f"{share * 100:.{digits}g}" if places is None else f"{share * 100:.{places}f}"
+    return f"{text.lstrip('-') if float(text) == 0 else text} %"
 
 
 def yes(flag: bool) -> Mark:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from quadctl.present.cells import Table
+from quadctl.present.cells import Table, percent
 
 STAGE_TITLES = {"thrust": "thrust curve and motor lag", "attitude": "roll and pitch inertia",
                 "yaw": "yaw torque coefficient"}
@@ -24,6 +24,34 @@ def ulog_read_past_corruption(name: str, said: str) -> str:
     """A ULog that pyulog found damaged but read: its samples may have gaps."""
     return (f"{name}: the ULog is damaged (pyulog: {said.rstrip('!.')}); its topics were read past the damage, "
             "so a window there may lack samples (identify refuses a window with a gap)")
+
+
+def _cut_where(size: int, at: int | None, declared: int | None, data_at: int | None) -> str:
+    """Where a ULog cut short ends (:class:`quadctl.identify.readers.UlogEnd`'s fields, bytes)."""
+    section = "before its data section begins" if data_at is None else f"in its data section (from byte {data_at})"
+    if at is None:  # whole messages, but no data section
+        return f"the ULog looks cut short: it ends after {size} bytes, {section}"
+    if declared is None:
+        inside = f"inside the 3-byte header of the message at byte {at}"
+    else:
+        there = size - at - 3
+        inside = (f"inside the message at byte {at}, which declares {declared} bytes and has {there} "
+                  f"({declared - there} missing)")
+    return f"the ULog looks cut short: it ends after {size} bytes, {inside}, {section}"
+
+
+def ulog_cut_short(topic: str, **end) -> str:
+    """A ULog that ends inside a message or before its data (``end``: where) and so lacks ``topic``: the
+    error, with its fix (not a logging profile: the log is incomplete, not configured wrong)."""
+    return (f"{_cut_where(**end)}, so it holds no {topic} samples; copy the whole log from the vehicle again "
+            "(a full card or a power loss during logging cuts a log short)")
+
+
+def ulog_read_cut_short(name: str, t_end: float, **end) -> str:
+    """A ULog that looks cut short (``end``: where) whose topics were read up to ``t_end`` (s from its first
+    sample)."""
+    return (f"{name}: {_cut_where(**end)}; its samples end there, at t = {t_end:.4g} s, and identify fits "
+            "what is there")
 
 
 def time_from_start(clock: float) -> str:
@@ -63,7 +91,7 @@ def sentences(payload: dict) -> list[str]:
     if th:
         out.append(f"Thrust fit: residual {th['residual_rms']:.4g} N RMS with the motor lag, "
                    f"{th['rms_without_lag']:.4g} N without (the lag explains "
-                   f"{(1 - th['residual_rms'] / th['rms_without_lag']) * 100:.0f} % of the error).")
+                   f"{percent(1 - th['residual_rms'] / th['rms_without_lag'], places=0)} of the error).")
     delay = payload.get("delay_written")
     if delay is not None and "controller.delay" not in payload.get("not_written", {}):  # (else: implausible())
         fitted = th["parameters"]["delay"]["value"]

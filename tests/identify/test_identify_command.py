@@ -142,6 +142,16 @@ def test_identify_json_of_a_truncated_ulog_keeps_stdout_clean(tmp_path):
     assert "cut.ulg: the ULog is truncated or corrupt" in res.stderr
 
 
+def test_identify_of_a_ulog_cut_short_before_its_data_says_so_in_one_line(tmp_path):
+    pytest.importorskip("pyulog")
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes((DATA / "px4-ulog" / "sample_px4_events.ulg").read_bytes()[:5000])
+    res = CliRunner().invoke(app, ["identify", str(cut), "-c", "crazyflie", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and len(res.stderr.strip().splitlines()) == 1
+    assert "cut.ulg: the ULog looks cut short: it ends after 5000 bytes" in res.stderr
+    assert "SDLOG_PROFILE" not in res.stderr and not (tmp_path / "o").exists()
+
+
 def _delay_identification(rate):
     import numpy as np
 
@@ -291,3 +301,17 @@ def test_a_set_value_over_two_lines_keeps_the_identified_config_loadable():
                              ["simulation.reference={setpoints: [{t: 1,\n yaw: 0.5}]}"])
     assert "--set simulation.reference={setpoints: [{t: 1,\\n yaw: 0.5}]})" in text
     assert parse(text, "x").simulation.reference.setpoints[0].yaw == 0.5
+
+
+@pytest.mark.parametrize("rms, explains", [(1.004, "0 %"), (0.0, "100 %"), (0.5468, "45 %")])
+def test_the_share_of_the_thrust_error_the_lag_explains_reads_0_not_minus_0(rms, explains):
+    """The lag held at its floor (two samples) may fit a hair worse than no lag (the sample ULog: -0.4 %):
+    that share is 0 % of the error, not -0 %."""
+    from quadctl.identify.results import payload
+    from quadctl.present.identify import sentences
+
+    ident = _delay_identification(500.0)
+    ident.fits["thrust"].rms = rms  # rms_without_lag: 1.0
+    said = sentences(payload(ident, "crazyflie.yaml"))
+    assert any(s.startswith("Thrust fit: ") and s.endswith(f"(the lag explains {explains} of the error).")
+               for s in said), said

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import struct
+import warnings
 import zlib
 
 import numpy as np
@@ -94,6 +95,23 @@ def test_damaged_crazyflie_log_refused(tmp_path, damage, match):
         read_log(path)
 
 
+@pytest.mark.parametrize("name, text, match", [
+    ("x.csv", ",".join(CSV_COLUMNS) + "\n", r"x.csv: 0 sample\(s\), too few to identify anything; give a log"),
+    ("x.csv", ",".join(CSV_COLUMNS) + "\n\n  \n# a comment\n", r"x.csv: 0 sample\(s\), too few"),
+    ("x.csv", "", r"x.csv: an empty file; give the log"),
+    ("log", crazyflie_bytes([]), r"log: 0 sample\(s\), too few"),
+])
+def test_a_log_without_samples_is_one_error_and_no_warning(tmp_path, name, text, match):
+    """A header and no data (blank and comment lines are no data): the reader's error alone, no library warning
+    printed before it (a warning here is raised, and is not the LogError)."""
+    path = tmp_path / name
+    path.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(LogError, match=match):
+            read_log(path)
+
+
 def test_crazyflie_log_without_the_motors_refused(tmp_path):
     names = ("acc.x(f)", "acc.y(f)", "acc.z(f)", "gyro.x(f)", "gyro.y(f)", "gyro.z(f)")
     path = tmp_path / "log"
@@ -156,6 +174,100 @@ def test_a_truncated_ulog_is_said_to_be_truncated_and_pyulog_prints_nothing(tmp_
                                        r".*\), so its sensor_combined topic cannot be read; copy the log"):
         read_log(cut)
     assert capsys.readouterr().out == ""  # stdout is --json's
+
+
+def _ulog_messages(*messages):
+    """A ULog's bytes from the file format's description (independent of pyulog and the reader): the 16-byte
+    header, then each ``(type letter, payload)`` as a uint16 payload size, the letter and the payload."""
+    out = b"ULog\x01\x12\x35\x01" + struct.pack("<Q", 0)
+    return out + b"".join(struct.pack("<HB", len(p), ord(k)) + p for k, p in messages)
+
+
+def _boundaries(raw):
+    pos, ends = 16, []
+    while pos < len(raw):
+        pos += 3 + struct.unpack_from("<H", raw, pos)[0]
+        ends.append(pos)
+    return ends
+
+
+def test_a_ulog_is_complete_only_where_a_message_of_its_data_section_ends():
+    """Cut at every byte: whole (None) only at a message's end after the data section began; elsewhere where it
+    stops, inside which message, how many bytes it declares."""
+    from quadctl.identify.readers import ulog_end
+
+    flags = bytes(16) + struct.pack("<3Q", 0, 0, 0)
+    raw = _ulog_messages(("B", flags), ("F", b"imu:uint64_t timestamp;float x;"), ("I", b"\x0bchar[3] ver" + b"1.0"),
+                         ("A", b"\x00\x01\x00imu"), ("D", b"\x01\x00" + bytes(12)), ("D", b"\x01\x00" + bytes(12)))
+    ends = _boundaries(raw)
+    data_at = ends[2]  # the subscription "A" opens the data section
+    for n in range(16, len(raw) + 1):
+        end = ulog_end(raw[:n])
+        assert (end is None) == (n in ends and n > data_at), n
+        if end is None:
+            continue
+        assert end.size == n and end.data_at == (data_at if n >= data_at + 3 else None), n  # its type letter read
+        inside = [a for a, b in zip([16, *ends], ends) if a < n < b]
+        assert end.at == (inside[0] if inside else None), n
+        assert end.declared == (struct.unpack_from("<H", raw, end.at)[0] if inside and n - end.at >= 3 else None)
+
+
+def test_a_ulog_with_data_appended_after_a_crash_is_walked_from_the_appended_data():
+    """The part before the flag bits' appended offset may stop inside a message (the format allows it)."""
+    from quadctl.identify.readers import ulog_end
+
+    head = _ulog_messages(("B", bytes(56)), ("A", b"\x00\x01\x00imu"), ("D", b"\x01\x00" + bytes(12)))
+    broken = head[:-5]  # the logger stopped inside this message
+    appended = struct.pack("<HB", 14, ord("D")) + b"\x01\x00" + bytes(12)
+    flags = bytes(16) + struct.pack("<3Q", len(broken), 0, 0)
+    raw = broken[:19] + flags + broken[19 + 40:] + appended
+    assert ulog_end(raw) is None and ulog_end(raw[:-1]).at == len(broken)
+
+
+@pytest.mark.parametrize("size, said", [
+    (5000, r"it ends after 5000 bytes, inside the message at byte 4217, which declares 844 bytes and has 780 \(64 "
+           r"missing\), before its data section begins, so it holds no sensor_combined samples"),
+    (4217, r"it ends after 4217 bytes, before its data section begins, so it holds no sensor_combined samples"),
+    (16, r"it ends after 16 bytes, before its data section begins"),
+])
+def test_a_ulog_cut_short_before_its_data_is_said_so_not_sent_to_a_logging_profile(tmp_path, size, said):
+    """pyulog reads these without a word of corruption: no topic, and the file ends inside a message or before
+    any data. The fix is the whole file, not a logging profile."""
+    pytest.importorskip("pyulog")
+    cut = tmp_path / "cut.ulg"
+    cut.write_bytes(ULOG.read_bytes()[:size])
+    with pytest.raises(LogError, match=r"cut.ulg: the ULog looks cut short: " + said + r".*; copy the whole log from"
+                                       r" the vehicle again") as err:
+        read_log(cut)
+    assert "SDLOG_PROFILE" not in str(err.value)
+
+
+def test_a_complete_ulog_without_the_imu_topic_is_sent_to_the_logging_profile(tmp_path):
+    """A whole log (pyulog writes the sample's actuator_motors alone) that never logged sensor_combined."""
+    pyulog = pytest.importorskip("pyulog")
+    from quadctl.identify.readers import ulog_end
+
+    whole = tmp_path / "motors-only.ulg"
+    pyulog.ULog(str(ULOG), ["actuator_motors"]).write_ulog(str(whole))
+    assert ulog_end(whole.read_bytes()) is None and ulog_end(ULOG.read_bytes()) is None
+    with pytest.raises(LogError, match=r"motors-only.ulg: the ULog has no sensor_combined topic; log it "
+                                       r"\(SDLOG_PROFILE"):
+        read_log(whole)
+
+
+def test_a_ulog_cut_short_in_its_data_is_read_with_a_notice_of_where_it_ends(tmp_path):
+    pytest.importorskip("pyulog")
+    from quadctl.errors import QuadctlNotice
+
+    raw = ULOG.read_bytes()
+    cut = tmp_path / "half.ulg"
+    cut.write_bytes(raw[: len(raw) // 2])
+    with pytest.warns(QuadctlNotice, match=r"half.ulg: the ULog looks cut short: it ends after 781573 bytes, inside "
+                                           r"the message at byte 781570, which declares 144 bytes and has 0 \(144 "
+                                           r"missing\), in its data section \(from byte 85398\); its samples end "
+                                           r"there, at t = 14.63 s"):
+        log = read_log(cut)
+    assert log.t[-1] == pytest.approx(14.63, abs=0.01)
 
 
 def test_a_ulog_pyulog_read_past_damage_gives_a_notice_not_stdout(monkeypatch, capsys):
