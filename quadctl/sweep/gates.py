@@ -75,7 +75,8 @@ MARGIN_COLUMNS = ("margin.gain_db", "margin.phase_deg")
 """Columns of a sweep that gates on them (computed only then: a design's margins cost more than its run's
 metrics): the least gain margin of any regulated loop, dB on its nearer side (``min(-lower, upper)``), and
 the least phase margin, deg, over the design-model and coupled loops as ``quadctl margins`` reports them
-(:func:`quadctl.pipeline.margins_of`: the rotors' lag, the delay and the gyro filter in them). A gate
+(:func:`quadctl.pipeline.margins_of`: the rotors' lag, the delay and the gyro filter in them); None, which fails
+every gate, when one of them is unstable (:func:`quadctl.design.margins.least_margins`). A gate
 ``margin.gain_db: {min: 6}`` and ``margin.phase_deg: {min: 30}`` is the thin-margins check
 (:data:`quadctl.design.margins.THIN_GAIN_MARGIN_DB`, :data:`~quadctl.design.margins.THIN_PHASE_MARGIN_DEG`)."""
 
