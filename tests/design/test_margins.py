@@ -154,11 +154,14 @@ def test_margins_json_gives_an_unstable_loop_no_margin_and_spells_infinity(tmp_p
         assert m["delay_margin"] == {"s": None, "samples": None}
         assert m["disk_margin_freq"] is None and m["gain_crossover_freq"] is None
         assert m["gain_margin_lower_freq"] is None and m["gain_margin_upper_freq"] is None
-    shown = {line.split("│")[1].strip(): [c.strip() for c in line.split("│")[2:-1]] for line in res.output.splitlines()
-             if line.startswith("│ ") and line.split("│")[2].strip() == "design"}
+    classical, disk = {}, {}  # the first table's row of each loop, then the disk table's
+    for line in res.output.splitlines():
+        cells = [c.strip() for c in line.split("│")[1:-1]]
+        if len(cells) > 2 and cells[1] == "design":
+            (disk if cells[0] in classical else classical)[cells[0]] = cells
     for label in ("roll (A)", "pitch (E)", "yaw (R)"):
-        gm, pm = shown[label][1], shown[label][3]
-        assert gm == pm == "unstable", shown[label]
+        assert classical[label][2] == classical[label][4] == "unstable", classical[label]  # GM dB, PM deg
+        assert disk[label][2:5] == ["unstable"] * 3 and disk[label][-1] == "unstable", disk[label]
     altitude = loops["altitude", "design"]
     assert altitude["stable"] is True and altitude["gain_margin_lower_db"] == "-inf"
     assert altitude["gain_margin_lower_freq"] is None  # no crossover: not applicable
