@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from quadctl.design.margins import least_margins
-from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES
 
 
 @dataclass(frozen=True)
@@ -99,6 +99,31 @@ WAYPOINTS_REACHED = "waypoints.reached"
 TRACKING_COLUMNS = (*TRACKING_ERRORS, WAYPOINTS_REACHED)
 """Columns of a case that flies a reference: the position tracking error's RMS and peak (m), and
 a mission's waypoints reached in order within its tolerance (a count)."""
+
+
+METRIC_UNITS: dict[str, str] = {
+    "eig.fastest": "rad/s", "eig.slowest": "rad/s", "settling_time.": "s", "overshoot.": "%",
+    **{f"peak.{i}": INPUT_UNITS[i] for i in INPUT_NAMES}, "cost": "1", "dt": "s", "steps": "1",
+    "tracking.rms": "m", "tracking.peak": "m", WAYPOINTS_REACHED: "1",
+    MARGIN_COLUMNS[0]: "dB", MARGIN_COLUMNS[1]: "deg",
+}
+"""The unit of each numeric metric column (``1``: a count or a pure number); a key ending in ``.`` is the unit of
+every column it begins (``settling_time.pD``: s). ``stable`` and ``status`` are not numbers."""
+
+
+def column_units(columns) -> dict[str, str]:
+    """The unit of each metric column among ``columns`` (:data:`METRIC_UNITS`); the rest (``case``, the
+    parameters, in the config's own units, flags and text) left out.
+
+    >>> column_units(["case", "vehicle.mass", "stable", "settling_time.pD", "peak.A", "cost"])
+    {'settling_time.pD': 's', 'peak.A': 'N m', 'cost': '1'}
+    """
+    out = {}
+    for column in columns:
+        unit = METRIC_UNITS.get(column) or METRIC_UNITS.get(column.partition(".")[0] + ".")
+        if unit is not None:
+            out[column] = unit
+    return out
 
 
 def tracking_columns(tracking: dict | None) -> dict:
