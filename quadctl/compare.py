@@ -40,10 +40,13 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("rotor_rms", "1", "RMS over the run and the rotors of thrust over the largest (None: no motors:)"),
     ("saturated", "s", "time with a rotor at a thrust limit (within 0.1 % of its range; None: no motors:)"),
     ("cost", "1", "integral of e' Q e + du' R du dt on the config's LQR weights"),
-    ("gain_margin", "dB", "least gain change, up or down, that destabilizes a loop broken at a plant input"),
-    ("phase_margin", "deg", "least phase margin of the loops broken at the plant inputs"),
+    ("gain_margin", "dB", "least gain change, up or down, that destabilizes a loop broken at a plant input "
+                          "(None: an unstable loop, closed_loop_stable false, or no loops)"),
+    ("phase_margin", "deg", "least phase margin of the loops broken at the plant inputs (None: as gain_margin)"),
 )
 """Each metric of a run: name, unit, meaning."""
+CLOSED_LOOP_STABLE = "every loop of the law, unbroken, is stable (None: no loops); false: no margins"
+"""The meaning of a law's ``closed_loop_stable`` in ``compare.json`` (beside its margins)."""
 SATURATION_BAND = 1e-3
 """A rotor counts as at its limit within this fraction of its thrust range."""
 
@@ -185,10 +188,13 @@ def plant_input_loops(margins) -> list:
 
 def margin_summary(margins) -> dict:
     """``gain_margin`` (dB: the least gain change, up or down, that destabilizes one of the loops) and
-    ``phase_margin`` (deg: the least) of ``margins``; 0 for an unstable loop, None without loops."""
+    ``phase_margin`` (deg: the least) of ``margins``, and ``closed_loop_stable``, whether each loop is stable;
+    with an unstable loop the margins are None (it has none: :func:`quadctl.design.margins.no_margin`)
+    and ``closed_loop_stable`` False; without loops all three are None."""
     if not margins:
-        return {"gain_margin": None, "phase_margin": None}
-    return dict(zip(("gain_margin", "phase_margin"), least_margins(margins)))
+        return {"gain_margin": None, "phase_margin": None, "closed_loop_stable": None}
+    return (dict(zip(("gain_margin", "phase_margin"), least_margins(margins)))
+            | {"closed_loop_stable": all(m.stable for m in margins)})
 
 
 def disturbance_digest(noise, wind, rate, period: float, duration: float) -> str:
@@ -244,7 +250,7 @@ def payload(comparison: Comparison) -> dict:
     return {
         "config": comparison.config, "duration": comparison.duration,
         "units": {name: unit for name, unit, _ in METRICS} | {"duration": "s", "exo_period": "s", "rate": "Hz"},
-        "meaning": {name: meaning for name, _, meaning in METRICS},
+        "meaning": {name: meaning for name, _, meaning in METRICS} | {"closed_loop_stable": CLOSED_LOOP_STABLE},
         "exo_period": comparison.exo_period, "noise_seed": comparison.noise_seed, "wind_seed": comparison.wind_seed,
         "identical_disturbances": comparison.identical_disturbances,
         "laws": [{"name": law.name, "title": law.title, "rate": law.rate, "disturbances": law.disturbances,

@@ -140,12 +140,15 @@ def design_full(fd, comparison: dict) -> dict:
 
 
 def simulation_arrays(sim, loop) -> dict:
-    """``sim.npz``'s arrays."""
+    """``sim.npz``'s arrays, with the units of ``t`` and ``dt`` (``t_unit``), of the states' columns (``x``,
+    ``x_ref``, ``x_hat``: ``state_units``) and of the inputs' (``u``, ``u_ref``: ``input_units``), from the layout."""
     return {
         "t": sim.t, "x": sim.x, "u": sim.u, "x_ref": sim.x_ref, "dt": np.array(sim.dt),
         "stride": np.array(sim.stride),
         "status": np.array(sim.status), "state_names": np.array(STATE_NAMES),
-        "input_names": np.array(INPUT_NAMES), "z": sim.z,
+        "input_names": np.array(INPUT_NAMES), "t_unit": np.array("s"),
+        "state_units": np.array([STATE_UNITS[s] for s in STATE_NAMES]),
+        "input_units": np.array([INPUT_UNITS[i] for i in INPUT_NAMES]), "z": sim.z,
         "integral_states": np.array(loop.integral_states, dtype=str),
         "rotor_thrust": sim.rotor_thrust, "rotor_thrust_unit": np.array("N"),  # empty: instantaneous rotors
         "rotor_names": np.array([f"rotor {i + 1}" for i in range(sim.rotor_thrust.shape[1])], dtype=str),

@@ -59,26 +59,26 @@ class LoopMargins:
     sample_time : float or None
         s for a sampled loop (``L(z)``), None for continuous.
     stable : bool
-        The closed loop (``g = 1``) is stable. When it is not, every margin below is zero and
-        every frequency None (:func:`no_margin`).
-    gain_margin_db : (float, float)
+        The closed loop (``g = 1``) is stable. When it is not, it has no margin: every margin below
+        and every frequency is None (:func:`no_margin`).
+    gain_margin_db : (float, float) or (None, None)
         (lower, upper) in dB; ``-inf`` / ``+inf`` when there is no critical gain on that side.
     phase_crossover_freqs : (float or None, float or None)
         rad/s of the phase crossovers that set them (None: no such crossover).
-    phase_margin_deg : float
+    phase_margin_deg : float or None
         ``inf`` when ``|L|`` never crosses 1.
     gain_crossover_freq : float or None
         rad/s of the gain crossover (``|L| = 1``) that sets it.
-    disk_alpha : float
-        Balanced disk margin ``alpha`` (0 for an unstable loop).
-    disk_gain_db : (float, float)
+    disk_alpha : float or None
+        Balanced disk margin ``alpha``.
+    disk_gain_db : (float, float) or (None, None)
         The disk's gain range in dB.
-    disk_phase_deg : float
+    disk_phase_deg : float or None
     disk_freq : float or None
         rad/s where the disk margin is smallest.
     min_return_difference : float
         ``min |1 + L|`` on the grid: a property of the curve, reported for any loop (an unstable
-        loop's curve may stay far from -1; its margins are still zero).
+        loop's curve may stay far from -1; it still has no margin).
     freq : (n,) ndarray
         The frequency grid (rad/s).
     response : (n,) complex ndarray
@@ -106,13 +106,13 @@ class LoopMargins:
     model: str
     sample_time: float | None
     stable: bool
-    gain_margin_db: tuple[float, float]
+    gain_margin_db: tuple[float, float] | tuple[None, None]
     phase_crossover_freqs: tuple[float | None, float | None]
-    phase_margin_deg: float
+    phase_margin_deg: float | None
     gain_crossover_freq: float | None
-    disk_alpha: float
-    disk_gain_db: tuple[float, float]
-    disk_phase_deg: float
+    disk_alpha: float | None
+    disk_gain_db: tuple[float, float] | tuple[None, None]
+    disk_phase_deg: float | None
     disk_freq: float | None
     min_return_difference: float
     freq: np.ndarray = field(repr=False)
@@ -131,10 +131,12 @@ class LoopMargins:
     @property
     def meets_lqr_guarantee(self) -> bool:
         """Gain margin within [-6 dB, inf) and phase margin >= 60 deg (and stable)."""
+        if not self.stable:
+            return False
         lower, upper = self.gain_margin_db
         gm_ok = lower <= LQR_GAIN_MARGIN_DB[0] * (1 - GUARANTEE_TOL) and upper == math.inf
         pm_ok = self.phase_margin_deg >= LQR_PHASE_MARGIN_DEG * (1 - GUARANTEE_TOL)
-        return self.stable and gm_ok and pm_ok
+        return gm_ok and pm_ok
 
     @property
     def thin(self) -> tuple[str, ...]:
@@ -153,7 +155,8 @@ class LoopMargins:
 
     def as_dict(self) -> dict:
         """JSON-ready summary (the curves left out); infinite margins stay ``inf`` floats (the
-        artifact writer spells them ``"inf"``), a frequency that does not apply is None."""
+        artifact writer spells them ``"inf"``), a frequency that does not apply is None, and so is every
+        margin of an unstable loop (``stable`` False beside them)."""
         return {
             "loop": self.loop, "input": self.input, "model": self.model, "sample_time": self.sample_time,
             "stable": self.stable,
@@ -171,9 +174,23 @@ class LoopMargins:
         }
 
 
-def least_margins(margins) -> tuple[float, float]:
+def least_margins(margins) -> tuple[float, float] | tuple[None, None]:
     """``(gain dB, phase deg)``: the least gain change, up or down, that destabilizes one of ``margins``'
-    loops, and their least phase margin (what the sweep's margin columns and ``quadctl compare`` show)."""
+    loops, and their least phase margin (what the sweep's margin columns and ``quadctl compare`` show);
+    ``(None, None)`` when one of the loops is unstable (it has no margin, :func:`no_margin`).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as M
+    >>> least_margins([M(stable=True, gain_margin_db=(-8.0, 12.0), phase_margin_deg=40.0),
+    ...                M(stable=True, gain_margin_db=(-float("inf"), 7.0), phase_margin_deg=65.0)])
+    (7.0, 40.0)
+    >>> least_margins([M(stable=True, gain_margin_db=(-8.0, 12.0), phase_margin_deg=40.0),
+    ...                M(stable=False, gain_margin_db=(None, None), phase_margin_deg=None)])
+    (None, None)
+    """
+    if not all(m.stable for m in margins):
+        return None, None
     return (float(min(min(-m.gain_margin_db[0], m.gain_margin_db[1]) for m in margins)),
             float(min(m.phase_margin_deg for m in margins)))
 
@@ -265,8 +282,8 @@ def loop_margins(loop: BrokenLoop, *, name: str = "loop", input_name: str = "u",
     The same loop with positive feedback is unstable: it has no margin at all.
 
     >>> bad = loop_margins(BrokenLoop(A, b, -k))
-    >>> bad.stable, bad.gain_margin_db, bad.phase_margin_deg, bad.disk_alpha, bad.disk_freq
-    (False, (0.0, 0.0), 0.0, 0.0, None)
+    >>> bad.stable, bad.gain_margin_db, bad.phase_margin_deg, bad.disk_alpha, bad.delay_margin
+    (False, (None, None), None, None, None)
     """
     w = frequency_grid(loop) if grid is None else np.asarray(grid, dtype=float)
     Lw = loop(w)
@@ -296,24 +313,20 @@ def disk_gain_range_db(alpha: float) -> tuple[float, float]:
 
 
 def no_margin(**labels) -> LoopMargins:
-    """The margins of an unstable closed loop: none.
+    """The margins of an unstable closed loop: none, every margin and its frequency None.
 
-    MATLAB's ``diskmargin`` (Robust Control Toolbox, ``help diskmargin``) defines the disk
-    margin as "the largest perturbation size ALPHA for which the feedback loop remains stable",
-    and derives ``GainMargin`` and ``PhaseMargin`` from that disk (``DiskMargin`` is its lower
-    bound, ``[GainMargin, PhaseMargin] = dm2gm(DiskMargin, sigma)``). A loop unstable at the
-    nominal gain remains stable for no perturbation: ``ALPHA = 0``, whose disk is the single
-    gain factor 1 (0 dB both ways) and phase 0 deg. quadctl reports exactly that, and applies
-    the same reading to the classical margins: a loop that is already unstable tolerates no
-    gain or phase change, so they are 0 dB and 0 deg, with no crossover frequency. (MATLAB's
-    ``allmargin`` instead keeps listing the crossings beside ``Stable = 0``, and ``margin``
-    warns "The closed-loop system is unstable."; ``stable`` and the findings say so here too, but
-    a crossing of an unstable loop is where stability would *return*, not a margin, and a
-    table that prints it as one reads as robustness.) The delay margin is 0 s as well.
+    A margin is how far a stable loop is from instability; a loop unstable at the nominal gain is
+    on the other side already, so none of its margins exists. Zero would read as "at the edge of
+    stability", which it is not: ``stable`` (False) and the findings say what it is. MATLAB's
+    ``diskmargin`` (Robust Control Toolbox, ``help diskmargin``: "the largest perturbation size ALPHA
+    for which the feedback loop remains stable") finds no such ALPHA for it; ``allmargin`` keeps listing
+    the crossings beside ``Stable = 0`` and ``margin`` warns "The closed-loop system is unstable.", but a
+    crossing of an unstable loop is where stability would *return*, not a margin, and a table that
+    printed it as one would read as robustness. Tables say ``unstable`` in its cells, JSON has null.
     """
-    return LoopMargins(stable=False, gain_margin_db=(0.0, 0.0), phase_crossover_freqs=(None, None),
-                       phase_margin_deg=0.0, gain_crossover_freq=None, disk_alpha=0.0,
-                       disk_gain_db=(0.0, 0.0), disk_phase_deg=0.0, disk_freq=None, delay_margin=0.0, **labels)
+    return LoopMargins(stable=False, gain_margin_db=(None, None), phase_crossover_freqs=(None, None),
+                       phase_margin_deg=None, gain_crossover_freq=None, disk_alpha=None,
+                       disk_gain_db=(None, None), disk_phase_deg=None, disk_freq=None, delay_margin=None, **labels)
 
 
 def frequency_grid(loop: BrokenLoop) -> np.ndarray:

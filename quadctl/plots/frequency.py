@@ -29,7 +29,7 @@ def magnitude_limits(mag_db, gain_margins_db=()) -> tuple[float, float]:
     """
     mag = np.asarray(mag_db, dtype=float)
     mag = mag[np.isfinite(mag)]
-    span = max([MAGNITUDE_SPAN_DB] + [abs(g) + 10.0 for g in gain_margins_db if np.isfinite(g)])
+    span = max([MAGNITUDE_SPAN_DB] + [abs(g) + 10.0 for g in gain_margins_db if g is not None and np.isfinite(g)])
     low = max(min(float(mag.min()), 0.0), -span) if mag.size else -span
     high = min(max(float(mag.max()), 0.0), span) if mag.size else span
     near = float(mag[np.argmin(np.abs(mag))]) if mag.size else 0.0
@@ -113,7 +113,8 @@ def margins_figure_name(m) -> str:
 
 
 def margins_figure(m, *, title: str = "") -> Figure:
-    """Bode (magnitude, phase) and Nyquist plot of one broken loop, with its margins marked; the magnitude
+    """Bode (magnitude, phase) and Nyquist plot of one broken loop, with its margins marked (an unstable loop's
+    title says it has none); the magnitude
     axis about the crossover (:func:`magnitude_limits`), the phase axis about -180 deg (:func:`phase_limits`),
     each margin's label where it crosses no curve (:func:`quadctl.plots.drawing.place_labels`).
 
@@ -180,6 +181,8 @@ def margins_figure(m, *, title: str = "") -> Figure:
     head = (f"{m.loop} PID cascade broken at {m.input} (the rest of it closed; lifted, frequencies at its "
             f"{m.sample_time * 1e3:.3g} ms sample)"
             if m.model == "cascade" else f"{m.loop} loop broken at {m.input} ({m.model} model, {kind})")
+    if not m.stable:  # no margin marked: it has none
+        head += ": closed loop unstable, no margins"
     fig.suptitle(f"{title}: {head}" if title else head)
     place_labels(fig, labels)  # last: measured on the figure as laid out
     return fig

@@ -65,6 +65,11 @@ eig = eig_text
 :func:`quadctl.text.messages.eig_text`."""
 
 
+UNSTABLE = "unstable"
+"""A margin's cell for an unstable loop, which has none (:func:`quadctl.design.margins.no_margin`): a word, not
+a number (0 would read as a loop at the edge of stability)."""
+
+
 def eigs(values) -> str:
     """Eigenvalues separated by commas, as given."""
     return ", ".join(eig(e) for e in values)

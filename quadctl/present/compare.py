@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from quadctl.artifacts.json_values import decode_floats
 from quadctl.compare import METRICS, parse_law
-from quadctl.present.cells import NBSP, Mark, Table, num
+from quadctl.present.cells import NBSP, UNSTABLE, Mark, Table, num
 
 
 def table(data: dict) -> Table:
@@ -18,13 +18,15 @@ def table(data: dict) -> Table:
     rows = []
     for name, unit, _ in METRICS:
         label = f"{name.replace('_', ' ')} [{unit}]" if unit != "1" else name.replace("_", " ")
-        rows.append((label, *[_cell(law.get(name)) for law in laws]))
+        rows.append((label, *[_cell(law.get(name), name, law) for law in laws]))
     rows.append(("rate [Hz]", *[num(law["rate"]) if law["rate"] else "continuous" for law in laws]))
     rows.append(("run", *[Mark(law["status"], "ok" if law["status"] == "ok" else "fail") for law in laws]))
     how = "LQR: on the coupled model"
     if any(parse_law(law["name"])[0] == "pid" for law in laws):
         how += ("; a PID cascade: lifted to its frame, gain and phase margins exact, the phase margin from its "
                 "characteristic loci")
+    if any(law.get("closed_loop_stable") is False for law in laws):
+        how += f"; {UNSTABLE}: the law's closed loop is unstable, so it has no margin"
     no_rotors = ("rotor use '-': no rotors (the config has no motors:); "
                  if any(law.get("rotor_peak") is None for law in laws) else "")
     return Table("compare-table", f"{data['config']}: laws side by side over {num(data['duration'])}{NBSP}s",
@@ -34,7 +36,13 @@ def table(data: dict) -> Table:
                          f"{no_rotors}margins: the least over each law's loops broken at a plant input ({how})")
 
 
-def _cell(value) -> str:
+MARGINS = ("gain_margin", "phase_margin")
+"""The metrics an unstable law's loops do not have (``closed_loop_stable`` false: None in ``compare.json``)."""
+
+
+def _cell(value, name: str, law: dict) -> str:
+    if value is None and name in MARGINS and law.get("closed_loop_stable") is False:
+        return Mark(UNSTABLE, "fail")
     return "-" if value is None else num(value)
 
 

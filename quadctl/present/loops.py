@@ -16,7 +16,7 @@ from __future__ import annotations
 import re
 
 from quadctl.design.margins import THIN_GAIN_MARGIN_DB, THIN_PHASE_MARGIN_DEG, thin_loops
-from quadctl.present.cells import Mark, Table, db, gain_range_db, num
+from quadctl.present.cells import UNSTABLE, Mark, Table, db, gain_range_db, num
 from quadctl.sim.cascade_margins import DELAY_SCAN
 
 GUARANTEE = "gain margin [1/2, inf), i.e. -6.02 dB to +inf, phase margin >= 60 deg"
@@ -38,12 +38,12 @@ def classical_table(margins, rate=None) -> Table:
     for m in margins:
         lo, hi = m.gain_margin_db
         at = " / ".join(num(w, 3) for w in m.phase_crossover_freqs if w is not None) or "-"
-        rows.append((_label(m), m.model, f"{db(lo)} / {db(hi)}", at, num(m.phase_margin_deg, 3),
-                     num(m.gain_crossover_freq, 3)))
+        rows.append((_label(m), m.model, f"{db(lo)} / {db(hi)}" if m.stable else UNSTABLE, at,
+                     num(m.phase_margin_deg, 3) if m.stable else UNSTABLE, num(m.gain_crossover_freq, 3)))
     return Table("margins-table", f"Stability margins, each loop broken at its plant input; {domain(rate)}",
                  ("loop", "model", "GM dB", "at rad/s", "PM deg", "at rad/s "), tuple(rows),
                  caption="GM: lower / upper gain margin in dB (inf: no critical gain on that side), at the phase "
-                         "crossovers; PM at the gain crossover; an unstable loop has no margin (0)", align="llrrrr")
+                         "crossovers; PM at the gain crossover; an unstable loop has no margin", align="llrrrr")
 
 
 def guarantee_verdict(m) -> Mark:
@@ -60,8 +60,9 @@ def disk_table(margins, discrete: bool) -> Table:
     for m in margins:
         d_lo, d_hi = m.disk_gain_db
         verdict = (Mark("stable", "ok") if m.stable else Mark("unstable", "fail")) if discrete else guarantee_verdict(m)
-        rows.append((_label(m), m.model, num(m.disk_alpha, 3), gain_range_db(d_lo, d_hi), num(m.disk_phase_deg, 3),
-                     num(m.min_return_difference, 3), verdict))
+        disk = ((num(m.disk_alpha, 3), gain_range_db(d_lo, d_hi), num(m.disk_phase_deg, 3)) if m.stable
+                else (UNSTABLE,) * 3)
+        rows.append((_label(m), m.model, *disk, num(m.min_return_difference, 3), verdict))
     if discrete:
         return Table("disk-table", "Disk margins of the sampled loops",
                      ("loop", "model", "alpha", "disk GM dB", "disk PM deg", "min|1+L|", "closed loop"), tuple(rows),
@@ -83,7 +84,8 @@ def delay_table(margins) -> Table:
         "delay-margin-table", f"Delay margins: the extra delay each loop tolerates ({how})",
         ("loop", "model", "configured delay (samples)", "delay margin ms", "samples"),
         tuple((_label(m), m.model, str(m.delay_samples),
-               num(None if m.delay_margin is None else m.delay_margin * 1e3, 3), num(m.delay_margin_samples, 3))
+               num(None if m.delay_margin is None else m.delay_margin * 1e3, 3) if m.stable else UNSTABLE,
+               num(m.delay_margin_samples, 3) if m.stable else UNSTABLE)
               for m in margins),
         caption=f"Beyond the configured delay (controller.delay), already in every loop; '-': {never}.",
         align="llrrr")

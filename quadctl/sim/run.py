@@ -33,11 +33,15 @@ class SimResult:
     t : (N+1,) ndarray
         s.
     x : (N+1, 12) ndarray
+        The plant's state, columns in :data:`quadctl.layout.STATE_NAMES` order, each in its
+        :data:`quadctl.layout.STATE_UNITS` unit (m, m/s, rad, rad/s).
     u : (N+1, 4) ndarray
-        Applied input (after any saturation).
+        Applied input (after any saturation), columns in :data:`quadctl.layout.INPUT_NAMES` order,
+        in :data:`quadctl.layout.INPUT_UNITS` (N, N m).
     x_ref : (N+1, 12) ndarray
-        The reference the controller regulates to.
+        The reference the controller regulates to (as ``x``).
     dt : float
+        s: the integration step (RK4's; ETDRK4's last segment's, its whole schedule in ``plan``).
     status : str
         ``ok``, ``diverged`` or ``left_valid_range``.
     message : str

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from quadctl.design.margins import least_margins
-from quadctl.layout import INPUT_NAMES, STATE_NAMES
+from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES
 
 
 @dataclass(frozen=True)
@@ -75,7 +75,8 @@ MARGIN_COLUMNS = ("margin.gain_db", "margin.phase_deg")
 """Columns of a sweep that gates on them (computed only then: a design's margins cost more than its run's
 metrics): the least gain margin of any regulated loop, dB on its nearer side (``min(-lower, upper)``), and
 the least phase margin, deg, over the design-model and coupled loops as ``quadctl margins`` reports them
-(:func:`quadctl.pipeline.margins_of`: the rotors' lag, the delay and the gyro filter in them). A gate
+(:func:`quadctl.pipeline.margins_of`: the rotors' lag, the delay and the gyro filter in them); None, which fails
+every gate, when one of them is unstable (:func:`quadctl.design.margins.least_margins`). A gate
 ``margin.gain_db: {min: 6}`` and ``margin.phase_deg: {min: 30}`` is the thin-margins check
 (:data:`quadctl.design.margins.THIN_GAIN_MARGIN_DB`, :data:`~quadctl.design.margins.THIN_PHASE_MARGIN_DEG`)."""
 
@@ -98,6 +99,31 @@ WAYPOINTS_REACHED = "waypoints.reached"
 TRACKING_COLUMNS = (*TRACKING_ERRORS, WAYPOINTS_REACHED)
 """Columns of a case that flies a reference: the position tracking error's RMS and peak (m), and
 a mission's waypoints reached in order within its tolerance (a count)."""
+
+
+METRIC_UNITS: dict[str, str] = {
+    "eig.fastest": "rad/s", "eig.slowest": "rad/s", "settling_time.": "s", "overshoot.": "%",
+    **{f"peak.{i}": INPUT_UNITS[i] for i in INPUT_NAMES}, "cost": "1", "dt": "s", "steps": "1",
+    "tracking.rms": "m", "tracking.peak": "m", WAYPOINTS_REACHED: "1",
+    MARGIN_COLUMNS[0]: "dB", MARGIN_COLUMNS[1]: "deg",
+}
+"""The unit of each numeric metric column (``1``: a count or a pure number); a key ending in ``.`` is the unit of
+every column it begins (``settling_time.pD``: s). ``stable`` and ``status`` are not numbers."""
+
+
+def column_units(columns) -> dict[str, str]:
+    """The unit of each metric column among ``columns`` (:data:`METRIC_UNITS`); the rest (``case``, the
+    parameters, in the config's own units, flags and text) left out.
+
+    >>> column_units(["case", "vehicle.mass", "stable", "settling_time.pD", "peak.A", "cost"])
+    {'settling_time.pD': 's', 'peak.A': 'N m', 'cost': '1'}
+    """
+    out = {}
+    for column in columns:
+        unit = METRIC_UNITS.get(column) or METRIC_UNITS.get(column.partition(".")[0] + ".")
+        if unit is not None:
+            out[column] = unit
+    return out
 
 
 def tracking_columns(tracking: dict | None) -> dict:

@@ -13,7 +13,7 @@ import numpy as np
 
 from quadctl.errors import SweepError
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS, mc_grid
-from quadctl.sweep.gates import TRACKING_ERRORS
+from quadctl.sweep.gates import TRACKING_ERRORS, column_units
 from quadctl.sweep.runner import SweepResult
 from quadctl.sweep.spec import SweepSpec
 
@@ -166,6 +166,7 @@ def summarize(result: SweepResult, cfg, spec: SweepSpec) -> dict:
         "worst": [r for r in ranked[:WORST_SHOWN] if not r["pass"]] or ranked[:min(WORST_SHOWN, len(ranked))],
         "best": list(reversed(ranked[-BEST_SHOWN:])),
         "columns": result.columns,
+        "units": column_units(result.columns),
         "ok": all(r["pass"] for r in rows),
     }
 

@@ -38,6 +38,21 @@ def _without_created(path):
     return _CREATED.sub(b"", path.read_bytes())
 
 
+def test_sim_npz_carries_the_units_of_t_x_and_u_beside_their_names(tmp_path):
+    """t (and dt) in s, each column of x and u in its unit, in the order of the names: the layout's units, as
+    the .mat export has them (``state_units``, ``input_units``)."""
+    from quadctl.layout import INPUT_UNITS, STATE_UNITS
+
+    data = config.load("hover").model_dump(mode="json")
+    data["simulation"]["duration"] = 0.1
+    Workspace(config.from_dict(data), tmp_path).simulation  # noqa: B018 - evaluating the stage writes it
+    npz, _ = artifacts.read_npz(tmp_path / "sim.npz")
+    assert str(npz["t_unit"]) == "s" and npz["state_units"].shape == (12,) and npz["input_units"].shape == (4,)
+    assert dict(zip(npz["state_names"], npz["state_units"])) == STATE_UNITS
+    assert dict(zip(npz["input_names"], npz["input_units"])) == INPUT_UNITS
+    assert list(npz["state_units"][[0, 3, 6, 9]]) == ["m", "m/s", "rad", "rad/s"] and npz["input_units"][0] == "N"
+
+
 def test_every_artifact_records_provenance(tmp_path):
     cfg = config.load("forward")
     _run_all(cfg, tmp_path)

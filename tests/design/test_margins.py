@@ -72,18 +72,21 @@ def test_unstable_loop_is_reported_unstable():
 def test_an_unstable_loop_has_no_margin():
     """x' = 2 x + u with u = -x: L = 1 / (s - 2), closed loop s = 1. The disk formula alone,
     ``1 / max |S - 1/2|`` with ``S - 1/2 = (s - 3) / (2 (s - 1))``, gives 2/3 (at s = 0): a
-    margin the loop does not have. It is unstable, so every margin is zero."""
+    margin the loop does not have. It is unstable, so it has none: every margin None, not 0 (at the edge)."""
     loop = BrokenLoop(np.array([[2.0]]), np.array([1.0]), np.array([1.0]))
     assert loop.closed_loop_eigenvalues()[0] == pytest.approx(1.0)
     w = np.logspace(-3, 3, 601)
     assert 1.0 / np.abs(1 / (1 + loop(w)) - 0.5).max() == pytest.approx(2 / 3, rel=1e-5)
     m = loop_margins(loop)
     assert not m.stable
-    assert m.gain_margin_db == (0.0, 0.0) and m.phase_crossover_freqs == (None, None)
-    assert m.phase_margin_deg == 0.0 and m.gain_crossover_freq is None
-    assert (m.disk_alpha, m.disk_gain_db, m.disk_phase_deg, m.disk_freq) == (0.0, (0.0, 0.0), 0.0, None)
+    assert m.gain_margin_db == (None, None) and m.phase_crossover_freqs == (None, None)
+    assert m.phase_margin_deg is None and m.gain_crossover_freq is None and m.delay_margin is None
+    assert (m.disk_alpha, m.disk_gain_db, m.disk_phase_deg, m.disk_freq) == (None, (None, None), None, None)
+    assert margins.least_margins([m]) == (None, None) and m.thin == ()
     d = m.as_dict()
-    assert d["disk_margin_alpha"] == 0.0 and d["disk_margin_freq"] is None and not d["meets_lqr_guarantee"]
+    assert d["stable"] is False and not d["meets_lqr_guarantee"]
+    assert d["disk_margin_alpha"] is None and d["disk_margin_freq"] is None and d["phase_margin_deg"] is None
+    assert d["gain_margin_lower_db"] is d["gain_margin_upper_db"] is None
 
 
 @pytest.mark.filterwarnings("ignore:__call__. evaluation above Nyquist")
@@ -134,9 +137,9 @@ REPORT_AT_200HZ = ROOT / "docs" / "configs" / "report-at-200hz.yaml"
 
 
 def test_margins_json_gives_an_unstable_loop_no_margin_and_spells_infinity(tmp_path):
-    """The report's gains at 200 Hz: roll, pitch and yaw are unstable sampled loops, so their
-    margins are zero (not the 1.89 / +-31 dB / 86.8 deg the disk formula gives); altitude is
-    stable with no lower critical gain: "-inf", distinct from null (not applicable)."""
+    """The report's gains at 200 Hz: roll, pitch and yaw are unstable sampled loops, so they have no
+    margins (not the 1.89 / +-31 dB / 86.8 deg the disk formula gives, nor 0): null beside "stable": false,
+    "unstable" in the tables; altitude is stable with no lower critical gain: "-inf", distinct from null."""
     res = CliRunner().invoke(app, ["margins", "-c", str(REPORT_AT_200HZ), "-o", str(tmp_path), "--design-only"])
     assert res.exit_code == 1, res.output
     assert "31.2" not in res.output and "1.89" not in res.output
@@ -145,10 +148,20 @@ def test_margins_json_gives_an_unstable_loop_no_margin_and_spells_infinity(tmp_p
     for name in ("roll", "pitch", "yaw"):
         m = loops[name, "design"]
         assert m["stable"] is False, name
-        assert (m["disk_margin_alpha"], m["disk_gain_margin_db"], m["disk_phase_margin_deg"]) == (0.0, [0.0, 0.0], 0.0)
-        assert (m["gain_margin_lower_db"], m["gain_margin_upper_db"], m["phase_margin_deg"]) == (0.0, 0.0, 0.0)
+        assert (m["disk_margin_alpha"], m["disk_gain_margin_db"], m["disk_phase_margin_deg"]) == (None, [None, None],
+                                                                                                  None)
+        assert (m["gain_margin_lower_db"], m["gain_margin_upper_db"], m["phase_margin_deg"]) == (None, None, None)
+        assert m["delay_margin"] == {"s": None, "samples": None}
         assert m["disk_margin_freq"] is None and m["gain_crossover_freq"] is None
         assert m["gain_margin_lower_freq"] is None and m["gain_margin_upper_freq"] is None
+    classical, disk = {}, {}  # the first table's row of each loop, then the disk table's
+    for line in res.output.splitlines():
+        cells = [c.strip() for c in line.split("│")[1:-1]]
+        if len(cells) > 2 and cells[1] == "design":
+            (disk if cells[0] in classical else classical)[cells[0]] = cells
+    for label in ("roll (A)", "pitch (E)", "yaw (R)"):
+        assert classical[label][2] == classical[label][4] == "unstable", classical[label]  # GM dB, PM deg
+        assert disk[label][2:5] == ["unstable"] * 3 and disk[label][-1] == "unstable", disk[label]
     altitude = loops["altitude", "design"]
     assert altitude["stable"] is True and altitude["gain_margin_lower_db"] == "-inf"
     assert altitude["gain_margin_lower_freq"] is None  # no crossover: not applicable
@@ -164,3 +177,18 @@ def test_an_infinite_margin_is_a_string_in_margins_json(tmp_path):
     for m in data["loops"]:
         assert m["stable"] and m["meets_lqr_guarantee"], m["loop"]
         assert m["gain_margin_upper_db"] == "inf" and m["gain_margin_upper_freq"] is None
+
+
+def test_the_figure_of_an_unstable_loop_says_it_has_no_margin():
+    """L = 1 / (s - 2) closed by u = -x is unstable: no margin marked, the title says so; the stable
+    integrator with a lag (phase never -180 deg: infinite gain margin) draws as before."""
+    from quadctl.plots.frequency import margins_figure
+
+    bad = loop_margins(BrokenLoop(np.array([[2.0]]), np.array([1.0]), np.array([1.0])))
+    title = margins_figure(bad, title="t").get_suptitle()
+    assert title.endswith("closed loop unstable, no margins"), title
+    A = np.array([[0.0, 1.0], [0.0, -1.0]])
+    good = loop_margins(BrokenLoop(A, np.array([0.0, 1.0]), np.array([2 ** 0.5, 0.0])))
+    assert good.gain_margin_db == (-math.inf, math.inf)
+    assert margins.least_margins([good]) == (math.inf, pytest.approx(45.0, abs=1e-6))
+    assert "unstable" not in margins_figure(good).get_suptitle()

@@ -185,3 +185,26 @@ def test_the_table_title_keeps_the_duration_and_its_unit_on_one_line():
         console.print(render.table(words.table(data)))
         lines = [line.rstrip() for line in console.file.getvalue().splitlines()]
         assert "10 s" in " ".join(lines[:3]) and not any(line.endswith("10") for line in lines), lines[:3]
+
+
+def test_an_unstable_law_has_no_margins_in_the_table_or_compare_json(tmp_path):
+    """PX4's defaults on the Crazyflie: the cascade's closed loop is unstable, so it has no margin: `unstable`
+    in the table (not 0 dB, which reads as a loop at the edge), null in compare.json beside
+    "closed_loop_stable": false and each loop's "stable": false; the LQR design's stay numbers."""
+    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--law", "pid:px4", "--set", "simulation.duration=0.1",
+                                   "-o", str(tmp_path), "--json"], catch_exceptions=False)
+    assert res.exit_code == 0, res.output
+    lqr, px4 = json.loads((tmp_path / "compare.json").read_text())["laws"]
+    assert px4["closed_loop_stable"] is False and px4["gain_margin"] is None and px4["phase_margin"] is None
+    assert all(m["stable"] is False and m["gain_margin_upper_db"] is None and m["phase_margin_deg"] is None
+               for m in px4["margins"])
+    assert lqr["closed_loop_stable"] is True and lqr["gain_margin"] > 6.0 and lqr["phase_margin"] > 30.0
+    from quadctl.cli import render
+    from quadctl.present import compare as words
+
+    table = words.table(json.loads((tmp_path / "compare.json").read_text()))
+    rows = {row[0]: row[1:] for row in table.rows}
+    assert rows["gain margin [dB]"][1] == rows["phase margin [deg]"][1] == "unstable"
+    assert rows["gain margin [dB]"][0] == f"{lqr['gain_margin']:.4g}"
+    assert "unstable: the law's closed loop is unstable, so it has no margin" in table.caption
+    assert render.table(table) is not None

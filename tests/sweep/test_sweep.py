@@ -474,9 +474,34 @@ def test_outputs_table_summary_and_plot(cfg, tmp_path):
     assert summary["gates"]["peak.T"]["failed"] == 1
     assert summary["worst"][0]["case"] == 0
     assert summary["sweep_digest"] == spec.digest(cfg)
+    units = summary["units"]  # every numeric metric column of the CSV has its unit; case, parameters, flags none
+    assert units["peak.T"] == "N" and units["peak.A"] == "N m" and units["eig.fastest"] == "rad/s"
+    assert units["settling_time.pD"] == "s" and units["overshoot.pD"] == "%" and units["dt"] == "s"
+    assert set(units) == set(header) - {"case", "lqr.altitude.R[0]", "stable", "status", "pass", "failed_gates",
+                                        "reason", "path"}
     assert (tmp_path / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert outcome.summary["ok"] is False
     assert not spec.monte_carlo and not (tmp_path / "montecarlo.png").exists()
+
+
+def test_the_sweeps_page_gives_each_metric_column_the_unit_sweep_json_gives_it():
+    """docs/guide/sweeps.md's table of columns, its unit cells against :data:`quadctl.sweep.gates.METRIC_UNITS`
+    (the one place they are declared): each row's columns (``<state>``, ``<input>`` every one) have exactly the
+    units its cell lists, and every metric with a unit is in the table."""
+    from quadctl.layout import INPUT_NAMES, STATE_NAMES
+    from quadctl.sweep.gates import METRIC_UNITS, column_units
+
+    page = (ROOT / "docs" / "guide" / "sweeps.md").read_text()
+    table = page[page.index("| column | unit | meaning |"):].split("\n\n")[0].splitlines()[2:]
+    documented = set()
+    for line in table:
+        names, unit = (c.strip() for c in re.split(r"(?<!\\)\|", line.strip().strip("|"))[:2])
+        columns = [c.replace("<state>", s).replace("<input>", i) for c in re.findall(r"`([^`]+)`", names)
+                   for s in STATE_NAMES for i in INPUT_NAMES]
+        assert set(column_units(columns).values()) == (set(unit.split(", ")) if unit else set()), line
+        documented |= {c for c in columns if c in column_units(columns)}
+    assert {k for k in METRIC_UNITS if not k.endswith(".")} <= documented
+    assert all(any(c.startswith(k) for c in documented) for k in METRIC_UNITS if k.endswith("."))
 
 
 # ---------------------------------------------------------------------------------------
