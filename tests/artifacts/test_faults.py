@@ -184,3 +184,62 @@ def test_ctrl_c_stops_a_long_simulation_promptly(tmp_path, engine):
     waited = time.time() - sent
     assert proc.returncode == 130, err.decode()
     assert waited < 1.0, f"Ctrl-C took {waited:.1f} s to stop the run"
+
+
+def _folder(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file() and p.name != ".quadctl.lock"}
+
+
+def _die_in(folder: Path, stage: str) -> None:
+    """A session of the hover config at 2 s in ``folder`` that computes ``stage`` and then dies as a
+    `kill -9` would: no handler, no clean-up, nothing closed."""
+    code = ("import os\n"
+            "from quadctl import config\n"
+            "from quadctl.workspace import Workspace\n"
+            "cfg = config.load('hover')\n"
+            "cfg = cfg.model_copy(update={'simulation': cfg.simulation.model_copy(update={'duration': 2.0})})\n"
+            f"ws = Workspace(cfg, {str(folder)!r})\n"
+            f"ws.{stage}\n"
+            "os._exit(9)\n")
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 9
+
+
+def _simulate(folder: Path, duration: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "quadctl", "simulate", "-c", "hover", "-o", str(folder),
+                           "--set", f"simulation.duration={duration}"], capture_output=True, text=True)
+
+
+def test_a_run_killed_after_it_replaced_the_earlier_configs_artifacts_is_undone_by_the_next(tmp_path):
+    """A changed config's run died (`kill -9`, a crash) after it removed the earlier run's artifacts and
+    before it wrote each again: the next command takes up its journal as Ctrl-C would have ended it,
+    and the folder is the earlier run's again, byte for byte (before the journal, the next command
+    removed the earlier run's set-aside files with the dead run's other temporaries)."""
+    assert _simulate(tmp_path, "1").returncode == 0
+    before = _folder(tmp_path)
+    _die_in(tmp_path, "trim")
+    assert "sim.npz" not in _folder(tmp_path) and (tmp_path / ".quadctl.journal").exists()
+    from quadctl import config
+    from quadctl.errors import QuadctlNotice
+    from quadctl.workspace import Workspace
+
+    with pytest.warns(QuadctlNotice, match=r"had removed linear\.npz, subsystems\.json, design\.json, sim\.npz, "
+                                           r"sim\.json of the earlier config's run and not written them again: the "
+                                           r"earlier run is put back"):
+        Workspace(config.load("hover"), tmp_path).close()  # the next session to take the folder
+    assert _folder(tmp_path) == before
+
+
+def test_a_run_killed_after_it_wrote_every_artifact_again_is_kept(tmp_path):
+    """Dead after it wrote again each artifact it had removed: its run is whole and stays, as after a
+    Ctrl-C at that point; only its temporaries go."""
+    assert _simulate(tmp_path, "1").returncode == 0
+    before = _folder(tmp_path)
+    _die_in(tmp_path, "simulation")
+    dead = _folder(tmp_path)
+    assert dead["sim.npz"] != before["sim.npz"]
+    from quadctl import config
+    from quadctl.workspace import Workspace
+
+    Workspace(config.load("hover"), tmp_path).close()
+    assert _folder(tmp_path) == {k: v for k, v in dead.items() if ".quadctl-undo" not in k and k != ".quadctl.journal"}
+    assert not any(".quadctl-" in name or name == ".quadctl.journal" for name in _folder(tmp_path))
