@@ -53,6 +53,7 @@ SHARED = ("configs", "docs", "examples", "benchmarks", "tests")
 NOT_RUN = {
     "pytest": "the test suite itself: running it from inside itself would recurse",
     "python benchmarks/bench.py": "the benchmark takes about a minute of timed runs; its options are parsed instead",
+    "python benchmarks/instructions.py": "counts instructions under Valgrind, about five minutes",
     "sphinx-build": "builds the site: tests/docs/test_doc_site.py runs the same build (docs extra installed)",
     **{f"python examples/{script}": "without a folder it rewrites the checkout's docs/figures/; "
                                      "tests/docs/test_examples.py runs it into a temporary folder"
