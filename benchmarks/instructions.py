@@ -18,7 +18,7 @@ The lanes are one group of :data:`quadctl.sim.engine.LANES` cases of each sweep 
 sweep files, ``jobs=1``); the ceiling is :data:`bench.CEILING_SOURCE` on 64 cases, one thread.
 Not a timing: an instruction of a vector divide costs more than one of an add, and a step that runs
 fewer instructions can still wait longer on memory. It shows where a case-step's work is, the same on
-every run. About 2 minutes.
+every run. About five minutes.
 """
 
 from __future__ import annotations

@@ -17,7 +17,6 @@ folder back as it found it.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import warnings
 import weakref
@@ -29,6 +28,7 @@ import numpy as np
 
 from quadctl import artifacts, payloads, pipeline
 from quadctl.artifacts import default_out
+from quadctl.artifacts.journal import NEW_FOLDER, Journal, undo
 from quadctl.artifacts.meta import RESOLVED_CONFIG_HEAD
 from quadctl.config import Config
 from quadctl.design import Design
@@ -76,70 +76,13 @@ def config_hash_of(folder: Path | str) -> str | None:
     return first.rpartition(head)[2][:-len(tail)] or None
 
 
-_NEW_FOLDER = object()
-JOURNAL_NAME = ".quadctl.journal"
-"""A session's changes to its folder, one JSON line each as it makes them (:meth:`Workspace._journal`),
-removed when the session ends. One left behind is a session that never ended (``kill -9``, a crash): the
-next takes it up as Ctrl-C would have (:meth:`Workspace._finish_a_dead_session`)."""
-_LOST = object()
-"""A file's earlier bytes that the journal cannot hold (set aside as bytes, where links fail)."""
-
-
-def _journaled(before, out: Path) -> dict:
-    """A :meth:`Workspace._before_change` record as the journal holds it."""
-    if isinstance(before, Path):
-        return {"aside": os.path.relpath(before, out)}
-    if isinstance(before, str):
-        return {"link": before[3:]}
-    if before is None:
-        return {"absent": True}
-    return {"lost": True}
-
-
-def _unjournaled(before, out: Path):
-    """The record :func:`_journaled` wrote, back."""
-    if not isinstance(before, dict):
-        return _LOST
-    if "aside" in before:
-        return out / before["aside"]
-    if "link" in before:
-        return f"-> {before['link']}"
-    if before.get("folder"):
-        return _NEW_FOLDER
-    return None if before.get("absent") else _LOST
-
-
-def _released(journal: Path, hold: contextlib.ExitStack) -> None:
+def _released(journal: Journal, hold: contextlib.ExitStack) -> None:
     """A session dropped without :meth:`Workspace.close` (collected, or at the process's exit): what it
     wrote stands, so its journal goes first, then the files it set aside and the folder's lock."""
-    with contextlib.suppress(OSError):
-        journal.unlink(missing_ok=True)
+    journal.end()
     hold.close()
 
 
-def _undo(changes: list) -> None:
-    """Put back each ``(path, what it held before)`` of a session's changes, the last first: a file set
-    aside (a Path), a link (``"-> target"``), a file's bytes, absent (None: the session made it), or an
-    artifact folder the session made (:data:`_NEW_FOLDER`, removed if empty again). Best effort: an error
-    leaves that one and goes on."""
-    for path, before in reversed(changes):
-        try:
-            if before is _NEW_FOLDER:  # an artifact folder (plots/, report/) the session made
-                path.rmdir()
-            elif isinstance(before, str):  # a link the session replaced
-                path.unlink(missing_ok=True)
-                os.symlink(before[3:], path)
-            elif isinstance(before, Path):  # the file itself, set aside
-                os.replace(before, path)
-                before.unlink(missing_ok=True)  # still there when the write never came: a rename between
-                # two names of one file does nothing
-            elif before is not None:
-                artifacts.write_bytes(path, before)
-            elif path.is_file() or path.is_symlink():  # made by the session (never a folder in its way)
-                path.unlink()
-        except OSError:  # best effort: the error that stopped the command is the one to report
-            continue
-"""What a session's undo record holds for an artifact folder it made (:meth:`Workspace.roll_back`)."""
 
 
 @dataclass(frozen=True)
@@ -254,11 +197,13 @@ class Workspace(pipeline.Stages):
         self._hold.enter_context(artifacts.locked(self.out))  # one run writes a folder at a time
         if artifacts.lock.marked_by_this_hold(self.out):  # marked as quadctl's now: a roll-back takes the mark away
             self._undo.append((self.out / artifacts.MARK_NAME, None))
-        self._finalizer = weakref.finalize(self, _released, self.out / JOURNAL_NAME, self._hold)  # never closed
-        if first:  # no other process holds the folder, and none of this one: every quadctl temporary there,
-            # a file set aside for a roll-back too (it keeps its file's time: an age tells nothing), is a dead run's
-            self._finish_a_dead_session()
-            artifacts.remove_stale_temporaries(self.out, age=0.0)
+        self._journal = Journal(self.out)
+        """What this session changes, as it changes it (:mod:`quadctl.artifacts.journal`)."""
+        if first:  # no other process holds the folder, and none of this one: a journal there is a dead
+            # session's, finished as Ctrl-C would have; every quadctl temporary there is a dead run's
+            for note in artifacts.take_over(self.out):
+                warnings.warn(QuadctlNotice(note), stacklevel=2)
+        self._finalizer = weakref.finalize(self, _released, self._journal, self._hold)  # a session never closed
 
     def close(self) -> None:
         """Release the run folder (the process's end releases it too), and issue the notices held back
@@ -268,7 +213,7 @@ class Workspace(pipeline.Stages):
             self._notes = []
         for note in notes:
             warnings.warn(QuadctlNotice(note), stacklevel=2)
-        self._end_journal()  # before the files it names as set aside go
+        self._journal.end()  # before the files it names as set aside go
         self._hold.close()
         self._finalizer.detach()  # a later session's journal in this folder is not this one's to remove
 
@@ -341,9 +286,9 @@ class Workspace(pipeline.Stages):
         if self._undo is None:
             return False
         undone = bool(self._undo)
-        _undo(self._undo)
+        undo(self._undo)
         self._undo = []
-        self._end_journal()
+        self._journal.end()
         self.written.clear()
         self.replaced.clear()
         if self._notes is not None:  # what they said was undone
@@ -353,7 +298,7 @@ class Workspace(pipeline.Stages):
     def keep(self) -> None:
         """Keep what this session wrote, whatever follows (:meth:`roll_back` does nothing after this)."""
         self._undo = None
-        self._end_journal()
+        self._journal.end()
 
     def _before_change(self, path: Path) -> None:
         """Remember what ``path`` holds (once a session) before it is written or removed: the file set
@@ -363,15 +308,15 @@ class Workspace(pipeline.Stages):
             return
         if (path.parent != self.out and not os.path.lexists(path.parent)  # an artifact folder it will make
                 and not any(path.parent == p for p, _ in self._undo)):
-            self._undo.append((path.parent, _NEW_FOLDER))
-            self._journal({"path": self._relative(path.parent), "before": {"folder": True}})
+            self._undo.append((path.parent, NEW_FOLDER))
+            self._journal.change(path.parent, NEW_FOLDER)
         try:
             before = (f"-> {os.readlink(path)}" if path.is_symlink()
                       else self._set_aside(path) if path.is_file() else None)
         except OSError:
             before = None
         self._undo.append((path, before))
-        self._journal({"path": self._relative(path), "before": _journaled(before, self.out)})
+        self._journal.change(path, before)
 
     def _set_aside(self, path: Path) -> Path | bytes:
         """The file at ``path`` kept for :meth:`roll_back` without copying it: a second name in the folder
@@ -389,60 +334,7 @@ class Workspace(pipeline.Stages):
     def _wrote(self, path: Path) -> None:
         self.written.append(path)
         if self._undo is not None:
-            self._journal({"wrote": self._relative(path)})
-
-    def _relative(self, path: Path) -> str:
-        return os.path.relpath(path, self.out)
-
-    def _journal(self, record: dict) -> None:
-        """Add ``record`` to the folder's journal (:data:`JOURNAL_NAME`) at once: a line written is the
-        kernel's, so a ``kill -9`` after it loses nothing of it. Best effort: a folder that takes no journal
-        is undone by this process only (Ctrl-C, a refusal), as before journals."""
-        if self._undo is None:
-            return
-        try:
-            with open(self.out / JOURNAL_NAME, "a", encoding="utf-8") as journal:
-                journal.write(json.dumps(record) + "\n")
-        except OSError:
-            pass
-
-    def _end_journal(self) -> None:
-        with contextlib.suppress(OSError):
-            (self.out / JOURNAL_NAME).unlink(missing_ok=True)
-
-    def _finish_a_dead_session(self) -> None:
-        """Take up the journal of a session that never ended (``kill -9``, a crash) as Ctrl-C would have
-        ended it: when it had removed another config's artifacts and not yet written each again for its
-        own, put the earlier run back from the files it set aside (with a notice); else keep what it
-        wrote. The set-aside files then go with the other temporaries."""
-        path = self.out / JOURNAL_NAME
-        try:
-            lines = path.read_text(encoding="utf-8").splitlines()
-        except (OSError, ValueError):
-            return
-        undo, replaced, written = [], [], set()
-        for line in lines:
-            try:
-                record = json.loads(line)
-            except ValueError:  # the line the kill cut short
-                continue
-            if not isinstance(record, dict):
-                continue
-            if "path" in record:
-                undo.append((self.out / record["path"], _unjournaled(record.get("before"), self.out)))
-            elif "wrote" in record:
-                written.add(record["wrote"])
-            elif "replaced" in record:
-                replaced += record["replaced"]
-        unreplaced = [name for name in replaced if name not in written]
-        if unreplaced:
-            _undo([(p, before) for p, before in undo if before is not _LOST])
-            warnings.warn(QuadctlNotice(
-                f"{self.out}: a quadctl command that never finished (killed, or the machine stopped) had removed "
-                f"{', '.join(unreplaced)} of the earlier config's run and not written them again: the earlier run "
-                "is put back"), stacklevel=3)
-        with contextlib.suppress(OSError):
-            path.unlink()
+            self._journal.wrote(path)
 
     def _write_json(self, name: str, kind: str, payload: dict, backends=()) -> None:
         self._write_config_files()
@@ -484,11 +376,12 @@ class Workspace(pipeline.Stages):
             path = self.path(name)
             if path.is_file() and not path.is_symlink() and self._made_by_another_config(path):
                 self._before_change(path)
+                if self._undo is not None:  # said before it goes: a kill right after still finds the earlier run
+                    self._journal.replaced(name)
+                self.replaced.append(name)
                 path.unlink()
                 removed.append(name)
-        self.replaced += removed
         if removed:
-            self._journal({"replaced": removed})
             note = (f"{self.out}: removed {', '.join(removed)}, made by another config "
                     f"(config_hash {config_hash_of(self.out) or 'unknown'})")
             if self._notes is None:

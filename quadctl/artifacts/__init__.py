@@ -15,8 +15,11 @@ names of all of them: ``artifacts.write_json``, ``artifacts.read_npz``, ``artifa
 - :mod:`~quadctl.artifacts.writing`: atomic writes (tagged temporaries, fsync, rename), cleaning up
 - :mod:`~quadctl.artifacts.reading`: reading back with provenance checked; reuse (:func:`is_fresh`)
 - :mod:`~quadctl.artifacts.lock`: one quadctl per run directory (:func:`locked`)
+- :mod:`~quadctl.artifacts.journal`: what a session changes, for the next to finish a killed one
+  (:func:`take_over`)
 """
 
+from quadctl.artifacts.journal import take_over as take_over
 from quadctl.artifacts.json_values import INFINITY as INFINITY
 from quadctl.artifacts.json_values import complex_values as complex_values
 from quadctl.artifacts.json_values import decode_floats as decode_floats

@@ -151,6 +151,9 @@ def remove_stale_temporaries(folder: Path, age: float = STALE_TEMPORARY_AGE) -> 
     folder = Path(folder)
     now = time.time()
     stale = []
+    # a file set aside for a roll-back keeps its file's time: while a journal names it (a dead session's,
+    # for the next lock holder to finish: quadctl.artifacts.journal), it stays
+    journaled = any(name.startswith(".quadctl.journal.") for name in _names_in(folder))
     places = [(folder, ARTIFACT_NAMES.__contains__)]
     places += [(folder / sub, pattern.fullmatch) for sub, pattern in SUBFOLDER_NAMES.items()]
     for where, is_ours in places:
@@ -164,6 +167,8 @@ def remove_stale_temporaries(folder: Path, age: float = STALE_TEMPORARY_AGE) -> 
             match = _TEMPORARY.fullmatch(entry.name)
             if not match or not is_ours(match["name"]) or not entry.is_file(follow_symlinks=False):
                 continue
+            if journaled and f".{TEMPORARY_TAG}-undo" in entry.name:
+                continue
             try:
                 if now - entry.stat(follow_symlinks=False).st_mtime >= age:
                     os.unlink(entry.path)
@@ -171,6 +176,13 @@ def remove_stale_temporaries(folder: Path, age: float = STALE_TEMPORARY_AGE) -> 
             except OSError:  # gone meanwhile, or a read-only folder: leave it
                 continue
     return sorted(stale)
+
+
+def _names_in(folder: Path) -> list[str]:
+    try:
+        return os.listdir(folder)
+    except OSError:
+        return []
 
 
 def _umask() -> int:

@@ -122,16 +122,23 @@ def extensions_initialize_whole():
 
 @contextlib.contextmanager
 def _ctrl_c_after():
-    """A Ctrl-C while the block runs is taken when it ends, where Python's handler would take it."""
-    if threading.current_thread() is not threading.main_thread() or \
-            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+    """A Ctrl-C (or SIGTERM, taken as one: :func:`_terminate_as_interrupt`) while the block runs is taken
+    when it ends, where Python's handler would take it."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    handlers = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: _raise_terminated}
+    held = [s for s, handler in handlers.items() if signal.getsignal(s) is handler]
+    if not held:
         yield
         return
     caught: list = []
-    signal.signal(signal.SIGINT, lambda *_: caught.append(True))
+    for s in held:
+        signal.signal(s, lambda signum, _: caught.append(signum))
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        for s in held:
+            signal.signal(s, handlers[s])
     if caught:
-        raise KeyboardInterrupt
+        raise Terminated if signal.SIGTERM in caught else KeyboardInterrupt

@@ -110,9 +110,9 @@ def _roll_back() -> None:
 
 
 def _put_back_a_replaced_run() -> bool:
-    """A command stopped (Ctrl-C) after it removed another config's artifacts and before it wrote each of
-    them again for its own (:attr:`Workspace.unreplaced`): put the folder back as the earlier run left it
-    (:meth:`Workspace.roll_back`), which is whole, rather than leave half of each. True if it did."""
+    """A command stopped (Ctrl-C, SIGTERM, a bug) after it removed another config's artifacts and before it
+    wrote each of them again for its own (:attr:`Workspace.unreplaced`): put the folder back as the earlier
+    run left it (:meth:`Workspace.roll_back`), which is whole, rather than leave half of each. True if it did."""
     state = _COMMAND.get(None) or {}
     ws = state.get("workspace")
     if ws is None or not ws.unreplaced or not ws.roll_back():
@@ -165,6 +165,11 @@ def handled(fn):
                 except KeyboardInterrupt:
                     _put_back_a_replaced_run()
                     raise
+                except (typer.Exit, typer.Abort, FailedChecks, BrokenPipeError):
+                    raise
+                except Exception:  # a bug (exit 3): the run folder as Ctrl-C would leave it
+                    _put_back_a_replaced_run()
+                    raise
                 finally:  # within the notices: those the workspace held back are said (before the error)
                     _release_workspace()
         except (typer.Exit, typer.Abort, SystemExit):
@@ -196,7 +201,9 @@ def handled(fn):
                 tb = tb.tb_next
             if tb:
                 where = f" at {os.path.basename(tb.tb_frame.f_code.co_filename)}:{tb.tb_lineno}"
-            raise fail(f"internal error {type(exc).__name__}: {exc}{where}; "
+            put_back = ("; the run folder is as the earlier config's run left it"
+                        if (_COMMAND.get(None) or {}).get("put_back") else "")
+            raise fail(f"internal error {type(exc).__name__}: {exc}{where}{put_back}; "
                        "rerun with --debug for the traceback and please report it",
                        EXIT_INTERNAL) from None
         finally:

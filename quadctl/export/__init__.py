@@ -15,11 +15,12 @@ it (:mod:`quadctl.export.bundle`). The writers read only that object:
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import replace
 
 from quadctl import artifacts
 from quadctl.config import check_override
-from quadctl.errors import CheckFailed, RateError, ScheduleError
+from quadctl.errors import CheckFailed, QuadctlNotice, RateError, ScheduleError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
@@ -169,8 +170,9 @@ def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: s
         files = {folder / data.MAT_FILE: buf.getvalue()}
     first = not artifacts.held(folder)  # (a workspace of this process holding it keeps the files it set aside)
     with artifacts.locked(folder):  # one quadctl writes a folder at a time: a temporary here is a dead one's
-        if first:
-            artifacts.remove_stale_temporaries(folder, age=0.0)
+        if first:  # a dead session's journal finished as Ctrl-C would have, then the temporaries removed
+            for note in artifacts.take_over(folder):
+                warnings.warn(QuadctlNotice(note), stacklevel=2)
         if to == "json":
             return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
         return artifacts.write_together(files)

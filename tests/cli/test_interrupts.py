@@ -143,6 +143,32 @@ def test_ctrl_c_in_a_compiled_modules_initialization_is_taken_after_it(monkeypat
         signal.signal(signal.SIGINT, previous)
 
 
+def test_sigterm_in_a_compiled_modules_initialization_is_taken_after_it_as_ctrl_c_is(monkeypatch):
+    """SIGTERM, which the console script takes as Ctrl-C, waits for a compiled module's initialization
+    to end as a Ctrl-C does, then stops the command as terminated."""
+    from importlib.machinery import ExtensionFileLoader
+
+    from quadctl.cli import entry
+
+    done = []
+
+    def initialization(self, spec):
+        os.kill(os.getpid(), signal.SIGTERM)
+        done.append(sum(range(100_000)))
+
+    monkeypatch.setattr(ExtensionFileLoader, "create_module", initialization)
+    previous = signal.signal(signal.SIGTERM, entry._raise_terminated)
+    try:
+        with pytest.raises(entry.Terminated):
+            with entry.extensions_initialize_whole():
+                ExtensionFileLoader.create_module(None, None)
+                done.append("the Python after it")  # not reached: taken when the init ends
+        assert done == [sum(range(100_000))]
+        assert signal.getsignal(signal.SIGTERM) is entry._raise_terminated
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def test_the_console_script_initializes_compiled_modules_whole():
     """A Ctrl-C inside the initialization of a compiled module the commands import is taken after it:
     the module is whole, the command ends with one line and 130."""
@@ -187,15 +213,16 @@ def test_a_sweep_whose_figure_import_a_ctrl_c_cut_short_leaves_at_once(tmp_path)
     assert "the interpreter exited" not in res.stderr
 
 
-def _interrupted_simulate(tmp_path: Path, monkeypatch, *extra):
-    """``simulate`` into ``tmp_path``, Ctrl-C landing in its simulation stage (after trim and design wrote)."""
+def _interrupted_simulate(tmp_path: Path, monkeypatch, *extra, stop_with=KeyboardInterrupt):
+    """``simulate`` into ``tmp_path``, Ctrl-C (or ``stop_with``) landing in its simulation stage (after trim
+    and design wrote)."""
     from typer.testing import CliRunner
 
     from quadctl import pipeline
     from quadctl.cli.app import app
 
     def stop(*_, **__):
-        raise KeyboardInterrupt
+        raise stop_with
 
     with monkeypatch.context() as patch:
         patch.setattr(pipeline, "simulation_of", stop)
@@ -270,4 +297,22 @@ def test_sigterm_stops_a_run_as_ctrl_c_does_and_puts_the_earlier_run_back(tmp_pa
     assert proc.returncode == 143, err
     assert err == ("quadctl: error: terminated; the run folder is as the earlier config's run left it "
                    "(this one's artifacts were not all written)\n")
+    assert _files(tmp_path) == before
+
+
+def test_a_bug_after_a_config_change_puts_the_earlier_complete_run_back(tmp_path, monkeypatch):
+    """An internal error (exit 3) in the changed config's run, after it removed the earlier run's artifacts:
+    the folder is put back as Ctrl-C puts it back, and the line says so."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    assert CliRunner().invoke(app, ["simulate", "-c", "hover", "-o", str(tmp_path),
+                                    "--set", "simulation.duration=1"]).exit_code == 0
+    before = _files(tmp_path)
+    res = _interrupted_simulate(tmp_path, monkeypatch, "--set", "simulation.duration=2",
+                                stop_with=ZeroDivisionError("a bug"))
+    assert res.exit_code == 3, res.stderr
+    assert "internal error ZeroDivisionError: a bug" in res.stderr
+    assert "; the run folder is as the earlier config's run left it; rerun with --debug" in res.stderr
     assert _files(tmp_path) == before

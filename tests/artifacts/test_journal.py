@@ -1,0 +1,93 @@
+"""A run folder's journals: the next holder of the folder finishes a dead session as Ctrl-C would have,
+follows only journals that name quadctl's own files, and says what it did."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from quadctl import artifacts
+
+ASIDE = ".trim.json.quadctl-undo0000abcd.tmp"
+"""A file set aside for a roll-back, as a session names it."""
+
+
+def _journal(folder: Path, *records: dict) -> Path:
+    path = folder / ".quadctl.journal.0123abcd"
+    path.write_text("".join(json.dumps(r) + "\n" for r in records))
+    return path
+
+
+def test_a_dead_sessions_journal_puts_the_earlier_run_back(tmp_path):
+    (tmp_path / "trim.json").write_bytes(b"the dead run's")
+    (tmp_path / ASIDE).write_bytes(b"the earlier run's")
+    (tmp_path / "sim.npz").write_bytes(b"made by the dead run")
+    journal = _journal(tmp_path, {"path": "trim.json", "before": {"aside": ASIDE}}, {"replaced": ["trim.json"]},
+                       {"wrote": "trim.json"}, {"replaced": ["design.json"]},
+                       {"path": "sim.npz", "before": {"absent": True}})
+    with open(journal, "a") as f:
+        f.write('{"wrote": "sim.n')  # the line the kill cut short
+    notes = artifacts.take_over(tmp_path)
+    assert (tmp_path / "trim.json").read_bytes() == b"the earlier run's"
+    assert not (tmp_path / "sim.npz").exists() and not (tmp_path / ASIDE).exists() and not journal.exists()
+    assert len(notes) == 1 and notes[0].endswith("had removed design.json of the earlier config's run and not "
+                                                 "written them again: the earlier run is put back")
+
+
+def test_a_journal_that_names_files_outside_the_folder_is_not_followed(tmp_path):
+    folder = tmp_path / "run"
+    folder.mkdir()
+    victim = tmp_path / "victim.txt"
+    victim.write_text("mine")
+    journal = _journal(folder, {"path": "../victim.txt", "before": {"absent": True}}, {"replaced": ["sim.npz"]})
+    notes = artifacts.take_over(folder)
+    assert victim.read_text() == "mine" and not journal.exists()
+    assert len(notes) == 1 and "unfollowed" in notes[0] and "nothing was put back" in notes[0]
+
+
+def test_a_journal_whose_set_aside_files_are_gone_puts_nothing_back_and_says_so(tmp_path):
+    (tmp_path / "trim.json").write_bytes(b"the dead run's")
+    _journal(tmp_path, {"path": "trim.json", "before": {"aside": ASIDE}}, {"replaced": ["linear.npz"]})
+    notes = artifacts.take_over(tmp_path)
+    assert (tmp_path / "trim.json").read_bytes() == b"the dead run's"
+    assert len(notes) == 1 and notes[0].endswith(f"the files it set aside are gone ({ASIDE}): nothing was put back")
+
+
+def test_a_cleanup_without_the_folders_lock_keeps_what_a_journal_set_aside(tmp_path):
+    """A sweep cleans its old temporaries without the folder's lock: a file a dead session set aside
+    (old as the file it keeps) stays while a journal names it, for the next lock holder."""
+    (tmp_path / ASIDE).write_bytes(b"the earlier run's")
+    stray = tmp_path / ".sim.npz.quadctl-1a2b3c4d.tmp"
+    stray.write_bytes(b"half written")
+    _journal(tmp_path, {"path": "trim.json", "before": {"aside": ASIDE}})
+    assert artifacts.remove_stale_temporaries(tmp_path, age=0.0) == [stray]
+    assert (tmp_path / ASIDE).exists()
+
+
+def test_a_session_killed_while_it_removes_the_earlier_configs_artifacts_is_undone(tmp_path):
+    """Killed between removing one of the earlier config's artifacts and the next: the removal was
+    journaled before the file went, so the next session puts it back."""
+    assert subprocess.run([sys.executable, "-m", "quadctl", "design", "-c", "hover", "-o", str(tmp_path)],
+                          capture_output=True).returncode == 0
+    before = (tmp_path / "trim.json").read_bytes()
+    code = ("import os\n"
+            "from quadctl import config\n"
+            "from quadctl.workspace import Workspace\n"
+            "calls = []\n"
+            "real = Workspace._made_by_another_config\n"
+            "def checked(self, path):\n"
+            "    calls.append(path)\n"
+            "    if len(calls) == 2:  # trim.json is gone, linear.npz is next: killed here\n"
+            "        os._exit(9)\n"
+            "    return real(self, path)\n"
+            "Workspace._made_by_another_config = checked\n"
+            "cfg = config.load('hover')\n"
+            "cfg = cfg.model_copy(update={'simulation': cfg.simulation.model_copy(update={'duration': 2.0})})\n"
+            f"Workspace(cfg, {str(tmp_path)!r}).trim\n")
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 9
+    assert not (tmp_path / "trim.json").exists()
+    notes = artifacts.take_over(tmp_path)
+    assert (tmp_path / "trim.json").read_bytes() == before
+    assert len(notes) == 1 and "had removed trim.json of the earlier config's run" in notes[0]
