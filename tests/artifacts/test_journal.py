@@ -91,3 +91,16 @@ def test_a_session_killed_while_it_removes_the_earlier_configs_artifacts_is_undo
     notes = artifacts.take_over(tmp_path)
     assert (tmp_path / "trim.json").read_bytes() == before
     assert len(notes) == 1 and "had removed trim.json of the earlier config's run" in notes[0]
+
+
+def test_a_dead_session_that_wrote_each_artifact_it_removed_again_is_kept(tmp_path):
+    """As Ctrl-C at that point keeps it: the dead run is whole; only what it set aside goes."""
+    (tmp_path / "trim.json").write_bytes(b"the dead run's")
+    (tmp_path / ASIDE).write_bytes(b"the earlier run's")
+    (tmp_path / "sim.npz").write_bytes(b"made by the dead run")
+    _journal(tmp_path, {"path": "trim.json", "before": {"aside": ASIDE}}, {"replaced": ["trim.json"]},
+             {"wrote": "trim.json"}, {"path": "sim.npz", "before": {"absent": True}}, {"wrote": "sim.npz"})
+    assert artifacts.take_over(tmp_path) == []
+    assert (tmp_path / "trim.json").read_bytes() == b"the dead run's"
+    assert (tmp_path / "sim.npz").read_bytes() == b"made by the dead run"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sim.npz", "trim.json"]
