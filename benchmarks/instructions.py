@@ -43,7 +43,7 @@ SWEEPS = {"plain": ("forward", bench.SWEEP_FILE), "flying": ("mambo-200hz", benc
           "mission": ("square", bench.MISSION_SWEEP_FILE)}
 """The lanes counted: a group of each benchmark sweep (config, sweep file)."""
 PARTS = {"step": re.compile(r"^(qc_run_at|qc_law|qc_plant|qc_step|qc_etd|qc_rem|qc_exo_|rhs$|ceiling)"),
-         "sines and cosines": re.compile(r"^_ZGV\w+_(sin|cos)"),
+         "sin, cos": re.compile(r"^_ZGV\w+_(sin|cos)"),
          "metrics": re.compile(r"^(qc_metric|qc_quadratic|qc_ref)")}
 """Function names (callgrind's, ``.constprop.0`` and such suffixes aside) by the part they count in."""
 CEILING_CASES = 64
@@ -105,8 +105,8 @@ def main() -> None:
     os.environ["OMP_NUM_THREADS"] = "1"  # the ceiling on one thread: callgrind runs threads one at a time
     with tempfile.TemporaryDirectory() as tmp:
         rows = {name: counted(name, Path(tmp)) for name in names}
-    what = {name: f"{name} sweep's lanes ({SWEEPS[name][0]})" for name in SWEEPS}
-    what["ceiling"] = f"hand-written C ceiling (forward, {CEILING_CASES} cases, one thread)"
+    what = {name: f"{name} lanes ({SWEEPS[name][0]})" for name in SWEEPS}
+    what["ceiling"] = f"C ceiling ({CEILING_CASES} cases)"
     print("Instructions per simulated step of one case (callgrind; the same on every run)\n")
     print(bench.table("", ["what ran", *PARTS, "total"],
                       [[what[name], *(f"{v:,.0f}" if v else "-" for v in row.values()), f"{sum(row.values()):,.0f}"]
