@@ -9,6 +9,8 @@ thread counts back after). A sweep's worker processes fork inside :func:`loaded_
 pools loaded so far, SciPy's not loaded for it) and then run :func:`one_thread_for_good`: every
 pool runs one thread for the life of the worker, those loaded later too, and :func:`one_thread`
 has nothing left to do (and never loads SciPy only to find its pool: ~0.2 s a worker).
+
+:func:`die_with_parent`: a process quadctl forks (a sweep's worker, a figure drawer) ends with it.
 """
 
 from __future__ import annotations
@@ -36,6 +38,24 @@ def _controller():
     import quadctl.sim.engine  # noqa: F401
 
     return ThreadpoolController()
+
+
+def die_with_parent() -> None:
+    """This process (a child quadctl forked) is killed when its parent dies, on Linux: a parent killed
+    hard (``kill -9``) leaves no child computing, or writing into a folder whose lock died with the
+    parent, for nobody. Elsewhere nothing."""
+    import signal
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    PR_SET_PDEATHSIG = 1
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass
 
 
 def one_thread() -> AbstractContextManager:

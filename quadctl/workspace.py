@@ -28,7 +28,7 @@ import numpy as np
 
 from quadctl import artifacts, payloads, pipeline
 from quadctl.artifacts import default_out
-from quadctl.artifacts.journal import NEW_FOLDER, Journal, undo
+from quadctl.artifacts.journal import NEW_FOLDER, Journal, signals_held, undo
 from quadctl.artifacts.meta import RESOLVED_CONFIG_HEAD
 from quadctl.config import Config
 from quadctl.design import Design
@@ -193,16 +193,11 @@ class Workspace(pipeline.Stages):
         """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
         a reused artifact is parsed once, here."""
         self._hold = contextlib.ExitStack()
-        first = not artifacts.held(self.out)
-        self._hold.enter_context(artifacts.locked(self.out))  # one run writes a folder at a time
+        self._hold.enter_context(artifacts.locked(self.out))  # one run at a time; the first finishes a dead one
         if artifacts.lock.marked_by_this_hold(self.out):  # marked as quadctl's now: a roll-back takes the mark away
             self._undo.append((self.out / artifacts.MARK_NAME, None))
         self._journal = Journal(self.out)
         """What this session changes, as it changes it (:mod:`quadctl.artifacts.journal`)."""
-        if first:  # no other process holds the folder, and none of this one: a journal there is a dead
-            # session's, finished as Ctrl-C would have; every quadctl temporary there is a dead run's
-            for note in artifacts.take_over(self.out):
-                warnings.warn(QuadctlNotice(note), stacklevel=2)
         self._finalizer = weakref.finalize(self, _released, self._journal, self._hold)  # a session never closed
 
     def close(self) -> None:
@@ -286,9 +281,11 @@ class Workspace(pipeline.Stages):
         if self._undo is None:
             return False
         undone = bool(self._undo)
-        undo(self._undo)
+        self._journal.rolling_back()
+        with signals_held():  # a second signal does not leave the folder half put back
+            undo(self._undo, on_undone=self._journal.undone)
+            self._journal.end()
         self._undo = []
-        self._journal.end()
         self.written.clear()
         self.replaced.clear()
         if self._notes is not None:  # what they said was undone

@@ -14,9 +14,10 @@ names of all of them: ``artifacts.write_json``, ``artifacts.read_npz``, ``artifa
 - :mod:`~quadctl.artifacts.places`: the run directory and its names, kept off symbolic links
 - :mod:`~quadctl.artifacts.writing`: atomic writes (tagged temporaries, fsync, rename), cleaning up
 - :mod:`~quadctl.artifacts.reading`: reading back with provenance checked; reuse (:func:`is_fresh`)
-- :mod:`~quadctl.artifacts.lock`: one quadctl per run directory (:func:`locked`)
 - :mod:`~quadctl.artifacts.journal`: what a session changes, for the next to finish a killed one
   (:func:`take_over`)
+- :mod:`~quadctl.artifacts.lock`: one quadctl per run directory (:func:`locked`; its first holder
+  finishes a dead session)
 """
 
 from quadctl.artifacts.journal import take_over as take_over

@@ -1,6 +1,6 @@
 """A run folder's journals: what a session changes there, a line a change as it makes it, so that the
-next quadctl to take the folder finishes a session that never ended (``kill -9``, a power-less crash of
-the process) as Ctrl-C would have ended it.
+next quadctl to take the folder finishes a session that never ended (``kill -9``, a crash of the
+process) as Ctrl-C would have ended it.
 
 A session (:class:`quadctl.workspace.Workspace`) keeps the files it replaces as hard links beside them
 (``.<artifact>.quadctl-undo<random>.tmp``) and its journal, ``.quadctl.journal.<random>``, says what each
@@ -46,11 +46,9 @@ class Journal:
 
     def add(self, record: dict) -> None:
         """Append ``record`` at once: a line written is the kernel's, so a ``kill -9`` after it loses
-        none of it. Best effort: in a folder that takes no journal, only the session itself can undo
-        (Ctrl-C, a refusal)."""
-        with contextlib.suppress(OSError):
-            with open(self.path, "a", encoding="utf-8") as journal:
-                journal.write(json.dumps(record) + "\n")
+        none of it (a power cut may: nothing is fsynced). Best effort: in a folder that takes no journal,
+        only the session itself can undo (Ctrl-C, a refusal)."""
+        _add(self.path, record)
 
     def end(self) -> None:
         """The session ended: its journal goes (before the files it set aside, which name nothing then)."""
@@ -68,8 +66,23 @@ class Journal:
         """Record, before it goes, that the session removes ``name``, another config's artifact."""
         self.add({"replaced": [name]})
 
+    def rolling_back(self) -> None:
+        """Record that the session puts everything back (a refused input): a kill in the middle leaves
+        the rest for the next to put back, whatever the session had written."""
+        self.add({"rolling_back": True})
+
+    def undone(self, path: Path) -> None:
+        """Record that ``path`` is back as it was: a roll-back cut short is finished, not redone."""
+        self.add({"undone": self._relative(path)})
+
     def _relative(self, path: Path) -> str:
         return os.path.relpath(path, self.folder)
+
+
+def _add(journal: Path, record: dict) -> None:
+    with contextlib.suppress(OSError):
+        with open(journal, "a", encoding="utf-8") as f:
+            f.write(json.dumps(record) + "\n")
 
 
 def _encoded(before, folder: Path) -> dict:
@@ -84,47 +97,63 @@ def _encoded(before, folder: Path) -> dict:
     return {"lost": True}
 
 
-def undo(changes: list) -> list[Path]:
+def undo(changes: list, on_undone=None) -> list[Path]:
     """Put back each ``(path, what it held before)`` of a session's changes, the last first: a file set
     aside (a Path), a link (``"-> target"``), a file's bytes, absent (None: the session made it), an
-    artifact folder the session made (:data:`NEW_FOLDER`: removed if empty again), or :data:`LOST`.
-    Ctrl-C and SIGTERM wait until it is done (in the main thread): a second signal does not leave the
-    folder half put back. Returns the paths it could not put back."""
+    artifact folder the session made (:data:`NEW_FOLDER`: removed if empty again), or :data:`LOST`;
+    ``on_undone(path)`` after each that is back. Run it inside :func:`signals_held`. Returns the paths it
+    could not put back."""
     failed = []
-    with _signals_held():
-        for path, before in reversed(changes):
-            try:
-                if before is LOST:
-                    failed.append(path)
-                elif before is NEW_FOLDER:
-                    path.rmdir()
-                elif isinstance(before, str):  # a link the session replaced
-                    path.unlink(missing_ok=True)
-                    os.symlink(before[3:], path)
-                elif isinstance(before, Path):  # the file itself, set aside
-                    os.replace(before, path)
-                    before.unlink(missing_ok=True)  # still there when the write never came: a rename between
-                    # two names of one file does nothing
-                elif before is not None:
-                    write_bytes(path, before)
-                elif path.is_file() or path.is_symlink():  # made by the session (never a folder in its way)
-                    path.unlink()
-            except OSError:  # best effort: the rest still goes back
-                if before is not NEW_FOLDER:
-                    failed.append(path)
+    for path, before in reversed(changes):
+        try:
+            if before is LOST:
+                failed.append(path)
+                continue
+            if before is NEW_FOLDER:
+                path.rmdir()
+            elif isinstance(before, str):  # a link the session replaced
+                path.unlink(missing_ok=True)
+                os.symlink(before[3:], path)
+            elif isinstance(before, Path):  # the file itself, set aside
+                os.replace(before, path)
+                before.unlink(missing_ok=True)  # still there when the write never came: a rename between
+                # two names of one file does nothing
+            elif before is not None:
+                write_bytes(path, before)
+            elif path.is_file() or path.is_symlink():  # made by the session (never a folder in its way)
+                path.unlink()
+        except OSError:  # best effort: the rest still goes back
+            if before is not NEW_FOLDER:
+                failed.append(path)
+            continue
+        if on_undone is not None:
+            on_undone(path)
     return failed
 
 
 @contextlib.contextmanager
-def _signals_held():
-    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+def signals_held():
+    """Ctrl-C and SIGTERM wait until the block is done (in the main thread; Python takes signals there
+    only): each is recorded by a handler of this block meanwhile, then raised again under the handler
+    it had, so a second signal does not leave a folder half put back. (Masking them would not do: a
+    thread BLAS started, not masked, takes the signal, and Python still runs its handler.)"""
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    caught: list[int] = []
+    held = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        try:
+            held[signum] = signal.signal(signum, lambda s, _: caught.append(s))
+        except (OSError, ValueError):
+            continue
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        for signum, handler in held.items():
+            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
+        for signum in dict.fromkeys(caught):
+            signal.raise_signal(signum)
 
 
 def journals(folder: Path) -> list[Path]:
@@ -144,7 +173,10 @@ def take_up(folder: Path) -> list[str]:
     folder = Path(folder)
     notes = []
     for path in journals(folder):
-        note = _finish(folder, path)
+        try:
+            note = _finish(folder, path)
+        except Exception as exc:  # a journal of any shape is a note, never an error of the command
+            note = _unfollowed(folder, path, f"{type(exc).__name__} while reading it")
         if note:
             notes.append(note)
         with contextlib.suppress(OSError):
@@ -152,16 +184,25 @@ def take_up(folder: Path) -> list[str]:
     return notes
 
 
+def _unfollowed(folder: Path, journal: Path, why: str) -> str:
+    return f"{folder}: left {journal.name} unfollowed ({why}; it is removed): nothing was put back"
+
+
 class _NotOurs(ValueError):
     pass
+
+
+DEAD = "a quadctl command that never finished (killed, or its process crashed)"
 
 
 def _finish(folder: Path, journal: Path) -> str:
     try:
         lines = journal.read_text(encoding="utf-8").splitlines()
-    except (OSError, ValueError):
-        return ""
-    changes, replaced, wrote = [], [], set()
+    except ValueError:
+        return _unfollowed(folder, journal, "it is not text")
+    except OSError as exc:
+        return _unfollowed(folder, journal, f"it cannot be read: {exc.strerror or exc}")
+    changes, replaced, wrote, undone, rolling_back = [], [], set(), set(), False
     try:
         for line in lines:
             try:
@@ -174,26 +215,31 @@ def _finish(folder: Path, journal: Path) -> str:
                 changes.append(_change(folder, record))
             elif "wrote" in record:
                 wrote.add(_place(folder, record["wrote"]))
+            elif "undone" in record:
+                undone.add(_place(folder, record["undone"]))
             elif "replaced" in record:
                 for name in record["replaced"]:
-                    replaced.append(_place(folder, name))
-    except (_NotOurs, TypeError, KeyError):
-        return (f"{folder}: left {journal.name} unfollowed: it names files quadctl does not write there (it is "
-                "removed; nothing was put back)")
+                    if _place(folder, name) not in replaced:
+                        replaced.append(_place(folder, name))
+            elif record.get("rolling_back") is True:
+                rolling_back = True
+    except (_NotOurs, TypeError, KeyError, AttributeError):
+        return _unfollowed(folder, journal, "it names files quadctl does not write there")
     unreplaced = [p for p in replaced if p not in wrote]
-    if not unreplaced:  # the dead session had written each artifact it removed again: its run stays
+    if not unreplaced and not rolling_back:  # the dead session had written each artifact it removed again
         return ""
-    missing = [before for _, before in changes if isinstance(before, Path) and not before.is_file()]
+    left = [(path, before) for path, before in changes if path not in undone]
+    missing = [before for _, before in left if isinstance(before, Path) and not before.is_file()]
+    what = (f"had removed {_names(folder, unreplaced)} of the earlier config's run and not written them again"
+            if unreplaced else "was putting the folder back as it found it")
     if missing:
-        return (f"{folder}: a quadctl command that never finished (killed, or the machine stopped) had removed "
-                f"{_names(folder, unreplaced)} of the earlier config's run, and the files it set aside are gone "
-                f"({_names(folder, missing)}): nothing was put back")
-    failed = undo(changes)
-    back = (f"{_names(folder, unreplaced)} of the earlier config's run and not written them again: the earlier "
-            "run is put back")
-    if failed:
-        back += f", but for {_names(folder, failed)}, which could not be"
-    return f"{folder}: a quadctl command that never finished (killed, or the machine stopped) had removed {back}"
+        return (f"{folder}: {DEAD} {what}, and files it set aside are gone ({_names(folder, missing)}): "
+                "nothing was put back")
+    with signals_held():
+        failed = undo(left, on_undone=lambda path: _add(journal, {"undone": os.path.relpath(path, folder)}))
+        journal.unlink(missing_ok=True)
+    note = f"{folder}: {DEAD} {what}: the earlier run is put back"
+    return note + (f", but for {_names(folder, failed)}, which could not be" if failed else "")
 
 
 def _names(folder: Path, paths) -> str:

@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
+from quadctl.artifacts.journal import take_over
 from quadctl.artifacts.meta import IDENTIFIED_CONFIG_HEAD, RESOLVED_CONFIG_HEAD, carries_provenance
 from quadctl.artifacts.places import ARTIFACT_NAMES, SUBFOLDER_NAMES, reason_of
-from quadctl.errors import ArtifactError
+from quadctl.errors import ArtifactError, QuadctlNotice
 
 LOCK_NAME = ".quadctl.lock"
 """The lock file in a run directory (it holds the pid of the quadctl that has the folder)."""
@@ -84,6 +86,10 @@ def locked(folder: Path | str):
     if marked:
         _marked.add(key)
     try:
+        # the first holder here, and no other process holds it: a session journal there is a dead one's,
+        # finished as Ctrl-C would have; then every quadctl temporary there is a dead run's
+        for note in take_over(folder):
+            warnings.warn(QuadctlNotice(note), stacklevel=3)
         yield folder
     except BaseException:
         if key in _marked and not _names(folder):  # stopped before writing anything: the folder as it was

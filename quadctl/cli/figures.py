@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from quadctl.threads import die_with_parent
+
 
 def save_figures(ws, sim, tracking: dict | None = None) -> list[Path]:
     """Render every figure of ``sim`` to ``ws.out/plots/*.png``; return the paths (in figure order).
@@ -77,6 +79,7 @@ def _fork(draw, names) -> int | None:
     if pid == 0:  # the child: never returns, never runs the parent's exit handlers or flushes its buffers
         code = 1
         try:
+            die_with_parent()  # a parent killed hard leaves no drawer writing into its folder unlocked
             draw(names)
             code = 0
         finally:

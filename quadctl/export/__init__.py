@@ -15,12 +15,11 @@ it (:mod:`quadctl.export.bundle`). The writers read only that object:
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import replace
 
 from quadctl import artifacts
 from quadctl.config import check_override
-from quadctl.errors import CheckFailed, QuadctlNotice, RateError, ScheduleError
+from quadctl.errors import CheckFailed, RateError, ScheduleError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
@@ -168,11 +167,7 @@ def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: s
         buf = io.BytesIO()
         data.write_mat(buf, exp)
         files = {folder / data.MAT_FILE: buf.getvalue()}
-    first = not artifacts.held(folder)  # (a workspace of this process holding it keeps the files it set aside)
-    with artifacts.locked(folder):  # one quadctl writes a folder at a time: a temporary here is a dead one's
-        if first:  # a dead session's journal finished as Ctrl-C would have, then the temporaries removed
-            for note in artifacts.take_over(folder):
-                warnings.warn(QuadctlNotice(note), stacklevel=2)
+    with artifacts.locked(folder):  # one quadctl writes a folder at a time (the first holder finishes a dead one)
         if to == "json":
             return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
         return artifacts.write_together(files)

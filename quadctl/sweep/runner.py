@@ -24,7 +24,7 @@ from quadctl.sweep.config_tree import with_sections, with_set
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import margin, regulated_states
 from quadctl.sweep.spec import Case, SweepSpec
-from quadctl.threads import loaded_one_thread, one_thread_for_good
+from quadctl.threads import die_with_parent, loaded_one_thread, one_thread_for_good
 
 
 @dataclass
@@ -237,14 +237,7 @@ def _worker_init(forked: bool = False) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the pool stops a worker by SIGTERM: not the CLI handler
     one_thread_for_good(forked_limited=forked)
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        PR_SET_PDEATHSIG = 1
-        try:
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-        except (OSError, AttributeError):
-            pass
+    die_with_parent()
     _keep_freed_memory()
 
 

@@ -4,11 +4,17 @@ follows only journals that name quadctl's own files, and says what it did."""
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
+import pytest
+
 from quadctl import artifacts
+from quadctl.artifacts.journal import signals_held
 
 ASIDE = ".trim.json.quadctl-undo0000abcd.tmp"
 """A file set aside for a roll-back, as a session names it."""
@@ -52,7 +58,7 @@ def test_a_journal_whose_set_aside_files_are_gone_puts_nothing_back_and_says_so(
     _journal(tmp_path, {"path": "trim.json", "before": {"aside": ASIDE}}, {"replaced": ["linear.npz"]})
     notes = artifacts.take_over(tmp_path)
     assert (tmp_path / "trim.json").read_bytes() == b"the dead run's"
-    assert len(notes) == 1 and notes[0].endswith(f"the files it set aside are gone ({ASIDE}): nothing was put back")
+    assert len(notes) == 1 and notes[0].endswith(f"files it set aside are gone ({ASIDE}): nothing was put back")
 
 
 def test_a_cleanup_without_the_folders_lock_keeps_what_a_journal_set_aside(tmp_path):
@@ -104,3 +110,53 @@ def test_a_dead_session_that_wrote_each_artifact_it_removed_again_is_kept(tmp_pa
     assert (tmp_path / "trim.json").read_bytes() == b"the dead run's"
     assert (tmp_path / "sim.npz").read_bytes() == b"made by the dead run"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sim.npz", "trim.json"]
+
+
+def test_a_take_over_cut_short_is_finished_not_redone(tmp_path):
+    """A put-back killed half way recorded each file it had put back: the next finishes the rest (the
+    files already back have no set-aside file any more, and that is not a loss)."""
+    (tmp_path / "trim.json").write_bytes(b"the earlier run's, back already")
+    (tmp_path / "linear.npz").write_bytes(b"the dead run's")
+    aside = ".linear.npz.quadctl-undo0000abce.tmp"
+    (tmp_path / aside).write_bytes(b"the earlier run's")
+    _journal(tmp_path, {"path": "trim.json", "before": {"aside": ASIDE}},
+             {"path": "linear.npz", "before": {"aside": aside}}, {"replaced": ["sim.npz"]},
+             {"undone": "trim.json"})
+    notes = artifacts.take_over(tmp_path)
+    assert (tmp_path / "linear.npz").read_bytes() == b"the earlier run's"
+    assert (tmp_path / "trim.json").read_bytes() == b"the earlier run's, back already"
+    assert len(notes) == 1 and notes[0].endswith("the earlier run is put back")
+
+
+@pytest.mark.parametrize("line", ["[" * 100_000 + "]" * 100_000, b"\xff\xfe{}"], ids=["deep", "not-text"])
+def test_a_journal_of_any_shape_is_a_note_not_an_error(tmp_path, line):
+    journal = tmp_path / ".quadctl.journal.0123abcd"
+    journal.write_bytes(line.encode() if isinstance(line, str) else line)
+    notes = artifacts.take_over(tmp_path)
+    assert len(notes) == 1 and "unfollowed" in notes[0] and not journal.exists()
+
+
+def test_every_first_holder_of_the_folder_finishes_a_dead_session(tmp_path):
+    """Not only the stages' workspace: a sweep, identify or export takes the folder by its lock, and the
+    lock's first holder finishes what a dead session left."""
+    (tmp_path / artifacts.MARK_NAME).write_text("")  # a run folder of quadctl's
+    (tmp_path / "trim.json").write_bytes(b"the dead run's")
+    (tmp_path / ASIDE).write_bytes(b"the earlier run's")
+    _journal(tmp_path, {"path": "trim.json", "before": {"aside": ASIDE}}, {"replaced": ["sim.npz"]})
+    with pytest.warns(Warning, match="the earlier run is put back"):
+        with artifacts.locked(tmp_path):
+            pass
+    assert (tmp_path / "trim.json").read_bytes() == b"the earlier run's"
+
+
+def test_ctrl_c_waits_until_a_put_back_is_done():
+    """Held by a handler of its own, not a signal mask (a BLAS thread, unmasked, would take it and
+    Python would raise at once): the block ends, then the Ctrl-C is raised."""
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with signals_held():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+            done.append(sum(range(10_000)))
+    assert done == [sum(range(10_000))]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -316,3 +316,36 @@ def test_a_bug_after_a_config_change_puts_the_earlier_complete_run_back(tmp_path
     assert "internal error ZeroDivisionError: a bug" in res.stderr
     assert "; the run folder is as the earlier config's run left it; rerun with --debug" in res.stderr
     assert _files(tmp_path) == before
+
+
+def test_a_figure_drawer_dies_with_its_parent_killed_hard(tmp_path):
+    """`simulate --plot` forks a child that draws half the figures: a `kill -9` of the command takes it
+    too, so nothing writes into the folder after its lock died with the parent."""
+    proc = subprocess.Popen([sys.executable, "-m", "quadctl", "simulate", "-c", "forward", "-o", str(tmp_path),
+                             "--plot"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env={**os.environ, "MPLBACKEND": "Agg"})
+    def drawers() -> list[int]:  # forked: the command's own command line (a compiler it runs has another)
+        own = (Path("/proc") / str(proc.pid) / "cmdline").read_bytes()
+        found = []
+        for pid in _children(proc.pid):
+            try:
+                if (Path("/proc") / str(pid) / "cmdline").read_bytes() == own:
+                    found.append(pid)
+            except OSError:
+                continue
+        return found
+
+    deadline = time.monotonic() + 120
+    while not drawers():  # the drawer is forked once the simulation is done
+        assert proc.poll() is None, "the command ended before it forked a drawer"
+        assert time.monotonic() < deadline, "no drawer was forked"
+        time.sleep(0.005)
+    drawers = drawers()
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=30)
+    time.sleep(0.2)
+    assert not any(_alive(d) for d in drawers), "the drawer outlived its killed parent"
+    plots = tmp_path / "plots"
+    drawn = sorted(p.name for p in plots.iterdir()) if plots.is_dir() else []
+    time.sleep(3)  # what a drawer left alive would draw meanwhile
+    assert (sorted(p.name for p in plots.iterdir()) if plots.is_dir() else []) == drawn
