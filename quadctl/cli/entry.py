@@ -15,6 +15,8 @@ import signal
 import sys
 import threading
 
+from quadctl.cli.stops import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated, raise_terminated
+
 
 def main() -> None:
     """Console-script entry point (``quadctl``, ``python -m quadctl``).
@@ -43,29 +45,13 @@ def main() -> None:
         gc.freeze()
 
 
-EXIT_INTERRUPTED = 130
-"""The exit code of a command stopped by Ctrl-C (SIGINT), as a shell reports one the signal ended."""
-EXIT_TERMINATED = 128 + signal.SIGTERM
-"""The exit code of a command stopped by SIGTERM (143)."""
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where Python takes a Ctrl-C: the command stops as on Ctrl-C (a run folder
-    it had changed is put back, a sweep keeps its finished chunks and stops its workers), and says
-    ``terminated``."""
-
-
-def _raise_terminated(signum, frame) -> None:
-    raise Terminated
-
-
 def _terminate_as_interrupt() -> None:
     """Answer SIGTERM as Ctrl-C, in the main thread, unless SIGTERM is ignored or already handled
     (a process that set its own handler keeps it). Processes forked later (a sweep's workers, a
     figure drawer) take SIGTERM's default back or leave at once (see their starts)."""
     if threading.current_thread() is threading.main_thread() and \
             signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
-        signal.signal(signal.SIGTERM, _raise_terminated)
+        signal.signal(signal.SIGTERM, raise_terminated)
 
 
 def _cut_short() -> list[str]:
@@ -127,7 +113,7 @@ def _ctrl_c_after():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    handlers = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: _raise_terminated}
+    handlers = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: raise_terminated}
     held = [s for s, handler in handlers.items() if signal.getsignal(s) is handler]
     if not held:
         yield

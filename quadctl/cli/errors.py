@@ -12,7 +12,7 @@ import warnings
 
 import typer
 
-from quadctl.cli.entry import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated
+from quadctl.cli.stops import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated
 
 EXIT_OK = 0
 EXIT_CHECK_FAILED = 1
@@ -185,7 +185,7 @@ def handled(fn):
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())
             raise typer.Exit(EXIT_OK) from None
-        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (quadctl.cli.entry.Terminated)
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (quadctl.cli.stops.Terminated)
             stopped, code = ("terminated", EXIT_TERMINATED) if isinstance(exc, Terminated) else \
                 ("interrupted", EXIT_INTERRUPTED)
             if (_COMMAND.get(None) or {}).get("put_back"):

@@ -47,7 +47,7 @@ MORE_NAMED = 3
 
 
 def _the_others(found: list, first: tuple) -> str:
-    """`` (and 2 more errors, at vehicle.inertia and trim.speed)``: the other keys that fail, in
+    """`` (and 2 more errors, at vehicle.inertia and vehicle.drag)``: the other keys that fail, in
     the schema's order, so one run says where every fix goes; '' when there are none."""
     others: list[str] = []
     for e in found:

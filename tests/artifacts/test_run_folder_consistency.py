@@ -244,17 +244,21 @@ def test_files_set_aside_by_a_killed_run_are_removed_by_the_next_command(tmp_pat
     assert (folder / "report" / "report.md").read_bytes() == b"# half a report"  # what the killed run wrote stays
 
 
-def test_files_set_aside_are_left_while_another_process_holds_the_folder(tmp_path):
+def test_a_command_refused_while_another_process_holds_the_folder_touches_nothing(tmp_path):
+    """The folder's first holder finishes what a killed session left (its journal: the files it set aside
+    go back or go); a command refused meanwhile, the folder in use, changes nothing there."""
     folder = tmp_path / "run"
     assert invoke("design", "-c", "hover", "-o", folder).exit_code == 0
-    left = _killed_mid_session(folder)
+    assert _killed_mid_session(folder)
     from test_folder_lock import _holder
 
     other = _holder(folder)
     try:
+        held = _contents(folder)
+        assert _set_aside(folder) == []  # the holder took the dead session up
         res = invoke("trim", "-c", "hover", "-o", folder)
         assert res.exit_code == 2 and "is in use by another quadctl" in res.stderr
-        assert _set_aside(folder) == left
+        assert _contents(folder) == held
     finally:
         other.kill()
         other.wait()

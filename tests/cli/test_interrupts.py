@@ -148,7 +148,7 @@ def test_sigterm_in_a_compiled_modules_initialization_is_taken_after_it_as_ctrl_
     to end as a Ctrl-C does, then stops the command as terminated."""
     from importlib.machinery import ExtensionFileLoader
 
-    from quadctl.cli import entry
+    from quadctl.cli import entry, stops
 
     done = []
 
@@ -157,14 +157,14 @@ def test_sigterm_in_a_compiled_modules_initialization_is_taken_after_it_as_ctrl_
         done.append(sum(range(100_000)))
 
     monkeypatch.setattr(ExtensionFileLoader, "create_module", initialization)
-    previous = signal.signal(signal.SIGTERM, entry._raise_terminated)
+    previous = signal.signal(signal.SIGTERM, stops.raise_terminated)
     try:
-        with pytest.raises(entry.Terminated):
+        with pytest.raises(stops.Terminated):
             with entry.extensions_initialize_whole():
                 ExtensionFileLoader.create_module(None, None)
                 done.append("the Python after it")  # not reached: taken when the init ends
         assert done == [sum(range(100_000))]
-        assert signal.getsignal(signal.SIGTERM) is entry._raise_terminated
+        assert signal.getsignal(signal.SIGTERM) is stops.raise_terminated
     finally:
         signal.signal(signal.SIGTERM, previous)
 
