@@ -47,11 +47,19 @@ def main() -> None:
 
 def _terminate_as_interrupt() -> None:
     """Answer SIGTERM as Ctrl-C, in the main thread, unless SIGTERM is ignored or already handled
-    (a process that set its own handler keeps it). Processes forked later (a sweep's workers, a
-    figure drawer) take SIGTERM's default back or leave at once (see their starts)."""
+    (a process that set its own handler keeps it). A process forked from here (a sweep's worker, a
+    figure drawer) takes SIGTERM's default back at once, before any of its own code runs: the pool
+    stops a worker with SIGTERM, which must end it, not raise in it."""
     if threading.current_thread() is threading.main_thread() and \
             signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         signal.signal(signal.SIGTERM, raise_terminated)
+        if hasattr(os, "register_at_fork"):
+            os.register_at_fork(after_in_child=_default_sigterm)
+
+
+def _default_sigterm() -> None:
+    if signal.getsignal(signal.SIGTERM) is raise_terminated:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _cut_short() -> list[str]:

@@ -349,3 +349,19 @@ def test_a_figure_drawer_dies_with_its_parent_killed_hard(tmp_path):
     drawn = sorted(p.name for p in plots.iterdir()) if plots.is_dir() else []
     time.sleep(3)  # what a drawer left alive would draw meanwhile
     assert (sorted(p.name for p in plots.iterdir()) if plots.is_dir() else []) == drawn
+
+
+def test_a_process_forked_by_the_command_ends_on_sigterm_as_by_default():
+    """The command answers SIGTERM as Ctrl-C; what it forks (a sweep's worker, a figure drawer) takes the
+    default back before any of its own code runs: the pool stops a worker by SIGTERM, which must end it
+    silently, not raise in it (a worker stopped while it started printed a traceback)."""
+    code = ("import os, signal, sys\n"
+            "from quadctl.cli import entry\n"
+            "entry._terminate_as_interrupt()\n"
+            "assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL\n"
+            "pid = os.fork()\n"
+            "if pid == 0:\n"
+            "    os._exit(0 if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL else 1)\n"
+            "sys.exit(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
