@@ -83,8 +83,6 @@ def _released(journal: Journal, hold: contextlib.ExitStack) -> None:
     hold.close()
 
 
-
-
 @dataclass(frozen=True)
 class CheckReport:
     """``check``'s result: the rank checks per subsystem (and ``"full"``, and ``"estimator"`` for the
