@@ -22,12 +22,11 @@ import contextlib
 import json
 import os
 import re
-import signal
-import threading
 from pathlib import Path
 
 from quadctl.artifacts.places import ARTIFACT_NAMES, SUBFOLDER_NAMES
 from quadctl.artifacts.writing import _TEMPORARY, TEMPORARY_TAG, write_bytes
+from quadctl.signals import signals_held
 
 JOURNAL = re.compile(r"\.quadctl\.journal\.[0-9a-f]{8}")
 """A session's journal's name: ``.quadctl.journal.<random>``."""
@@ -101,8 +100,8 @@ def undo(changes: list, on_undone=None) -> list[Path]:
     """Put back each ``(path, what it held before)`` of a session's changes, the last first: a file set
     aside (a Path), a link (``"-> target"``), a file's bytes, absent (None: the session made it), an
     artifact folder the session made (:data:`NEW_FOLDER`: removed if empty again), or :data:`LOST`;
-    ``on_undone(path)`` after each that is back. Run it inside :func:`signals_held`. Returns the paths it
-    could not put back."""
+    ``on_undone(path)`` after each that is back. Run it inside :func:`quadctl.signals.signals_held`.
+    Returns the paths it could not put back."""
     failed = []
     for path, before in reversed(changes):
         try:
@@ -129,31 +128,6 @@ def undo(changes: list, on_undone=None) -> list[Path]:
         if on_undone is not None:
             on_undone(path)
     return failed
-
-
-@contextlib.contextmanager
-def signals_held():
-    """Ctrl-C and SIGTERM wait until the block is done (in the main thread; Python takes signals there
-    only): each is recorded by a handler of this block meanwhile, then raised again under the handler
-    it had, so a second signal does not leave a folder half put back. (Masking them would not do: a
-    thread BLAS started, not masked, takes the signal, and Python still runs its handler.)"""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught: list[int] = []
-    held = {}
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        try:
-            held[signum] = signal.signal(signum, lambda s, _: caught.append(s))
-        except (OSError, ValueError):
-            continue
-    try:
-        yield
-    finally:
-        for signum, handler in held.items():
-            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
-        for signum in dict.fromkeys(caught):
-            signal.raise_signal(signum)
 
 
 def journals(folder: Path) -> list[Path]:

@@ -16,6 +16,7 @@ import sys
 import threading
 
 from quadctl.cli.stops import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated, raise_terminated
+from quadctl.signals import signals_held
 
 
 def main() -> None:
@@ -92,19 +93,19 @@ def extensions_initialize_whole():
     KeyboardInterrupt lands), the module was left half made: the command ended in "internal error
     ImportError: initialization failed" instead of "interrupted". An initialization takes
     milliseconds; the Python around it stays interruptible, so a Ctrl-C is still answered at once.
-    Only where Python's own handler takes SIGINT, in the main thread (a sweep's worker ignores it, and
-    keeps ignoring it).
+    In the main thread (:func:`quadctl.signals.signals_held`); a signal ignored stays ignored (a sweep's
+    worker ignores Ctrl-C).
     """
     from importlib.machinery import ExtensionFileLoader
 
     create, execute = ExtensionFileLoader.create_module, ExtensionFileLoader.exec_module
 
     def create_whole(self, spec):
-        with _ctrl_c_after():
+        with signals_held():
             return create(self, spec)
 
     def execute_whole(self, module):
-        with _ctrl_c_after():
+        with signals_held():
             return execute(self, module)
 
     ExtensionFileLoader.create_module, ExtensionFileLoader.exec_module = create_whole, execute_whole
@@ -112,27 +113,3 @@ def extensions_initialize_whole():
         yield
     finally:
         ExtensionFileLoader.create_module, ExtensionFileLoader.exec_module = create, execute
-
-
-@contextlib.contextmanager
-def _ctrl_c_after():
-    """A Ctrl-C (or SIGTERM, taken as one: :func:`_terminate_as_interrupt`) while the block runs is taken
-    when it ends, where Python's handler would take it."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    handlers = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: raise_terminated}
-    held = [s for s, handler in handlers.items() if signal.getsignal(s) is handler]
-    if not held:
-        yield
-        return
-    caught: list = []
-    for s in held:
-        signal.signal(s, lambda signum, _: caught.append(signum))
-    try:
-        yield
-    finally:
-        for s in held:
-            signal.signal(s, handlers[s])
-    if caught:
-        raise Terminated if signal.SIGTERM in caught else KeyboardInterrupt
