@@ -323,7 +323,7 @@ def _points(setup: Setup, values: list[float], heading: float) -> tuple[list[Sch
     # the sweep's package brings its runner's processes and its figures: loaded when a schedule is designed,
     # not by every command that reads a schedule (simulate, export)
     from quadctl.sweep import batched
-    from quadctl.sweep.evaluate import Plant, Prepared
+    from quadctl.sweep.prepare import Plant, Prepared
 
 
     points: list[SchedulePoint] = []

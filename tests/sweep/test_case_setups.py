@@ -1,4 +1,4 @@
-"""A sweep case's setup built from the base's and the varied values (quadctl.sweep.evaluate.CaseSetups)
+"""A sweep case's setup built from the base's and the varied values (quadctl.sweep.prepare.CaseSetups)
 equals the one its whole config validates and resolves to, and an invalid value gives the same error."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import pytest
 
 from quadctl import config, sweep
 from quadctl.errors import ConfigError
-from quadctl.sweep.evaluate import CaseSetups
+from quadctl.sweep.prepare import CaseSetups
 from quadctl.sweep.runner import tasks_for
 
 
