@@ -39,7 +39,9 @@ MAX_ITER = 50
 
 @lru_cache(maxsize=1)
 def _functions():
-    """``(balance, feedforward)``: ``balance(z, s, params) -> (G, dG/dz)`` and
+    """``(balance, feedforward)``: ``balance(z, s, params) -> (G, Newton's step -(dG/dz)^-1 G)`` (the
+    3 x 3 solve in the compiled point, by minors as CasADi solves a 3 x 3; a singular or non-finite
+    Jacobian gives a step that is not finite) and
     ``feedforward(z, s, sdot, sddot, p, params) -> (x, u)``."""
     model = build_model()
     z = ca.SX.sym("z", 3)
@@ -55,7 +57,7 @@ def _functions():
     vel_dot = model.f(x_still, ca.vertcat(thrust, ca.DM.zeros(3)), params)[3:6]
     G = r_eb.T @ vel_dot - a
     Gz, Gs = ca.jacobian(G, z), ca.jacobian(G, s)
-    balance = ca.Function("flat_balance", [z, s, params], [G, Gz])
+    balance = ca.Function("flat_balance", [z, s, params], [G, -ca.solve(Gz, G)])
     zd_sym = ca.SX.sym("zd", 3)
     zd = -ca.solve(Gz, Gs @ sd)
     H = Gz @ zd_sym + Gs @ sd  # d/dt G along the path (zero)
@@ -242,33 +244,13 @@ def _newton(balance, z, s, params) -> tuple[np.ndarray, np.ndarray]:
         idx = np.flatnonzero(going)
         if not idx.size:
             break
-        G, J = balance(z[idx], s[idx], params[idx] if params.ndim == 2 else params)
-        jac = J.reshape(len(idx), 3, 3).transpose(0, 2, 1)  # each point's (3, 3) column-major
-        z[idx] = z[idx] + _steps(jac, G)  # on a row within the tolerance, one step more: its root to round-off
+        G, step = balance(z[idx], s[idx], params[idx] if params.ndim == 2 else params)
+        z[idx] = z[idx] + step  # on a row within the tolerance, one step more: its root to round-off
         ok = np.abs(G).max(axis=1) <= NEWTON_TOL
         done[idx[ok]] = True
         going[idx[ok]] = False
         going[idx[~_physical(z[idx])]] = False
     return z, done & _physical(z)
-
-
-def _steps(jac, G) -> np.ndarray:
-    """(m, 3): each row's Newton step ``-jac^-1 G`` (``jac`` (m, 3, 3), ``G`` (m, 3)), a matrix at a time
-    as LAPACK solves a stack; NaN where the Jacobian is not finite or is singular (that row alone)."""
-    step = np.full_like(G, np.nan)
-    finite = np.isfinite(jac).all(axis=(1, 2))
-    with np.errstate(all="ignore"):
-        try:
-            if finite.all():
-                return np.linalg.solve(jac, -G[:, :, None])[:, :, 0]
-            step[finite] = np.linalg.solve(jac[finite], -G[finite][:, :, None])[:, :, 0]
-        except np.linalg.LinAlgError:  # a singular one: each alone, so it fails by itself
-            for i in np.flatnonzero(finite):
-                try:
-                    step[i] = np.linalg.solve(jac[i], -G[i])
-                except np.linalg.LinAlgError:
-                    pass
-    return step
 
 
 def _continued(balance, z0, s0, s, params, case=None) -> tuple[np.ndarray, np.ndarray]:

@@ -228,15 +228,25 @@ def test_paths_solved_together_are_each_ones_own_feedforward_to_the_bit():
 
 
 def test_a_row_whose_jacobian_is_singular_or_not_finite_fails_alone():
-    """Newton's steps of the rows are each their own 3 x 3 solve: a singular or non-finite Jacobian
-    makes that row's step NaN (it leaves the branch and the continuation retries it), not the others'."""
-    from quadctl.physics.flatness import _steps
+    """Newton's step of each row is its own 3 x 3 solve, in the compiled point: where the Jacobian is
+    singular (no thrust at rest: roll and pitch move no force) or not finite, that row's step is not
+    finite (it leaves the branch and the continuation retries it); the other rows' steps solve their
+    own Jacobian, here by central differences of G."""
+    from quadctl.native.mapped import mapped
+    from quadctl.physics.flatness import _functions
 
+    balance = mapped(_functions()[0])
+    p = VEHICLE.vector()
     rng = np.random.default_rng(3)
-    jac, G = rng.normal(size=(5, 3, 3)) + 3 * np.eye(3), rng.normal(size=(5, 3))
-    good = _steps(jac, G)
-    assert np.allclose(np.einsum("kij,kj->ki", jac, good), -G, rtol=0, atol=1e-12)
-    jac[1] = np.outer([1.0, 2.0, 3.0], [1.0, 0.0, 1.0])  # rank one: LAPACK refuses it
-    jac[3, 0, 2] = np.inf
-    got = _steps(jac, G)
-    assert np.isnan(got[[1, 3]]).all() and np.array_equal(got[[0, 2, 4]], good[[0, 2, 4]])
+    z = np.column_stack([rng.uniform(-0.3, 0.3, (5, 2)), rng.uniform(0.2, 0.5, 5)])
+    s = np.column_stack([rng.normal(size=(5, 3)), rng.uniform(-1.0, 1.0, 5), rng.normal(size=(5, 3))])
+    z[1], s[1, :3] = 0.0, 0.0  # no thrust, at rest: G does not depend on roll and pitch
+    s[3, 0] = np.inf
+    G, step = balance(z, s, p)
+    assert not np.isfinite(step[1]).all() and not np.isfinite(step[3]).all()
+    h = 1e-6
+    for k in (0, 2, 4):
+        J = np.column_stack([(balance(z[k] + h * e, s[k], p)[0][0] - balance(z[k] - h * e, s[k], p)[0][0]) / (2 * h)
+                             for e in np.eye(3)])
+        assert np.isfinite(step[k]).all()
+        assert np.allclose(J @ step[k], -G[k], rtol=0, atol=1e-7 * (1 + np.abs(J).max() * np.abs(step[k]).max()))
