@@ -19,6 +19,12 @@ sweep files, ``jobs=1``); the ceiling is :data:`bench.CEILING_SOURCE` on 64 case
 Not a timing: an instruction of a vector divide costs more than one of an add, and a step that runs
 fewer instructions can still wait longer on memory. It shows where a case-step's work is, the same on
 every run. About five minutes.
+
+``--whole`` counts each whole sweep instead (``sweep.run``, ``jobs=1``: the designs, the loops, the
+references, the rows, Python and numpy included), per simulated step: the sweep at two case counts
+(:data:`WHOLE_CASES`), each in its own process under callgrind, the difference of their totals over
+the difference of their steps, so the imports and the warm run cancel. Its ratios are the issue's
+steps/s ratios at one instruction per instruction, the same on every run. About fifteen minutes.
 """
 
 from __future__ import annotations
@@ -48,10 +54,13 @@ PARTS = {"step": re.compile(r"^(qc_run_at|qc_law|qc_plant|qc_step|qc_etd|qc_rem|
 """Function names (callgrind's, ``.constprop.0`` and such suffixes aside) by the part they count in."""
 CEILING_CASES = 64
 CEILING_STEPS = 10_000
+WHOLE_CASES = {"plain": (64, 192), "flying": (128, 384), "mission": (8, 16)}
+"""``--whole``: the two case counts of each sweep (the mission's cases are 434 783 steps each)."""
 
 
-def child(name: str) -> dict:
-    """Run one part (in the process callgrind watches); its simulated case-steps."""
+def child(name: str, cases: int | None = None) -> dict:
+    """Run one part (in the process callgrind watches); its simulated case-steps. ``cases``: the
+    whole sweep of that many cases, after a warm run of 16 (else one group of lanes)."""
     from quadctl import config, sweep
     from quadctl.sim.engine import LANES
 
@@ -63,21 +72,30 @@ def child(name: str) -> dict:
         return {"case_steps": CEILING_CASES * (2000 + CEILING_STEPS)}
     cfg_name, path = SWEEPS[name]
     cfg = config.load(cfg_name)
-    spec = dataclasses.replace(sweep.load(path, cfg), samples=LANES)
+    spec = sweep.load(path, cfg)
+    if cases is not None:
+        sweep.run(cfg, dataclasses.replace(spec, samples=16), jobs=1)  # warm: the plants, caches, first calls
+    spec = dataclasses.replace(spec, samples=cases or LANES)
     return {"case_steps": int(sweep.run(cfg, spec, jobs=1).stats["steps"])}
 
 
-def counted(name: str, tmp: Path) -> dict:
-    """Per part, instructions per simulated case-step of ``name``, counted by callgrind."""
-    out, steps = tmp / f"{name}.callgrind", tmp / f"{name}.json"
-    subprocess.run([sys.executable, __file__, "--child", name, str(steps)], check=True)  # warm: compiles
-    subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable, __file__,
-                    "--child", name, str(steps)], check=True, capture_output=True)
-    case_steps = json.loads(steps.read_text())["case_steps"]
+def counted(name: str, tmp: Path, cases: int | None = None) -> dict:
+    """Per part, and in all (``"all"``), the instructions of ``name`` (:func:`child`'s ``cases``), and
+    its simulated case-steps (``"case_steps"``), counted by callgrind."""
+    tag = f"{name}-{cases}" if cases else name
+    out, steps = tmp / f"{tag}.callgrind", tmp / f"{tag}.json"
+    argv = [sys.executable, __file__, "--child", name, str(steps), *([str(cases)] if cases else [])]
+    subprocess.run(argv, check=True)  # warm: compiles
+    subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *argv], check=True,
+                   capture_output=True)
     report = subprocess.run(["callgrind_annotate", "--inclusive=no", "--threshold=100", str(out)],
                             check=True, capture_output=True, text=True).stdout
     totals = dict.fromkeys(PARTS, 0)
     for line in report.splitlines():
+        whole = re.match(r"\s*([\d,]+)\s+\([\s\d.]+%\)\s+PROGRAM TOTALS", line)
+        if whole:
+            totals["all"] = int(whole.group(1).replace(",", ""))
+            continue
         match = re.match(r"\s*([\d,]+)\s+\([\s\d.]+%\)\s+\S*:(\S+)", line)
         if not match:
             continue
@@ -86,25 +104,59 @@ def counted(name: str, tmp: Path) -> dict:
             if pattern.match(function):
                 totals[part] += int(match.group(1).replace(",", ""))
                 break
-    return {part: count / case_steps for part, count in totals.items()}
+    return {**totals, "case_steps": json.loads(steps.read_text())["case_steps"]}
+
+
+def per_step(name: str, tmp: Path) -> dict:
+    """Per part, instructions per simulated case-step of one group of ``name``'s lanes."""
+    got = counted(name, tmp)
+    return {part: got[part] / got["case_steps"] for part in PARTS}
+
+
+def whole_sweep(name: str, tmp: Path) -> dict:
+    """Instructions per simulated case-step of the whole sweep ``name`` (``"all"``), and of it the
+    compiled lanes (the parts of :data:`PARTS`): differenced between :data:`WHOLE_CASES`' counts."""
+    few, many = (counted(name, tmp, cases) for cases in WHOLE_CASES[name])
+    steps = many["case_steps"] - few["case_steps"]
+    lanes = sum(many[part] - few[part] for part in PARTS)
+    return {"all": (many["all"] - few["all"]) / steps, "lanes": lanes / steps}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", nargs="+", choices=[*SWEEPS, "ceiling"], metavar="PART",
                         help=f"count only these: {', '.join([*SWEEPS, 'ceiling'])} (default: all)")
-    parser.add_argument("--child", nargs=2, metavar=("PART", "OUT"), help=argparse.SUPPRESS)
+    parser.add_argument("--whole", action="store_true",
+                        help="count each whole sweep (designs, loops, rows, Python) per simulated step, and its "
+                             "ratio to the plain sweep's (about fifteen minutes)")
+    parser.add_argument("--child", nargs="+", metavar="PART OUT [CASES]", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        Path(args.child[1]).write_text(json.dumps(child(args.child[0])))
+        name, out, *cases = args.child
+        Path(out).write_text(json.dumps(child(name, int(cases[0]) if cases else None)))
         return
     if shutil.which("valgrind") is None or shutil.which("callgrind_annotate") is None:
         sys.exit("instructions.py needs Valgrind's callgrind (Debian: apt install valgrind)")
     names = args.only or [*SWEEPS, "ceiling"]
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     os.environ["OMP_NUM_THREADS"] = "1"  # the ceiling on one thread: callgrind runs threads one at a time
+    if args.whole:
+        names = [name for name in names if name in SWEEPS]
+        if "plain" not in names:
+            names.insert(0, "plain")  # the ratios' reference
+        with tempfile.TemporaryDirectory() as tmp:
+            counts = {name: whole_sweep(name, Path(tmp)) for name in names}
+        plain = counts["plain"]["all"]
+        print("Instructions per simulated step of one case, the whole sweep (callgrind, jobs=1; the same on every "
+              "run)\n")
+        print(bench.table("", ["sweep", "all", "in the lanes", "around them", "steps/s against the plain sweep's, "
+                               "at one instruction per instruction"],
+                          [[f"{name} ({SWEEPS[name][0]})", f"{c['all']:,.0f}", f"{c['lanes']:,.0f}",
+                            f"{c['all'] - c['lanes']:,.0f}", f"{plain / c['all']:.2f}"]
+                           for name, c in counts.items()]).lstrip("\n"))
+        return
     with tempfile.TemporaryDirectory() as tmp:
-        rows = {name: counted(name, Path(tmp)) for name in names}
+        rows = {name: per_step(name, Path(tmp)) for name in names}
     what = {name: f"{name} lanes ({SWEEPS[name][0]})" for name in SWEEPS}
     what["ceiling"] = f"C ceiling ({CEILING_CASES} cases)"
     print("Instructions per simulated step of one case (callgrind; the same on every run)\n")

@@ -12,6 +12,7 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.sweep.spec`: a validated sweep as data: its parameters, its cases, the whole sweep
 - :mod:`~quadctl.sweep.uncertainty`: what a varied key reaches (the simulated vehicle only, or the design)
 - :mod:`~quadctl.sweep.sweep_file`: the sweep file (parameters, values, gates) parsed and checked
+- :mod:`~quadctl.sweep.lane_jobs`: a designed case made ready for the lanes: its loop, step plan, bounds, rows
 - :mod:`~quadctl.sweep.batched`: designs, verdicts and lane simulations of many cases at once
 - :mod:`~quadctl.sweep.prepare`: a chunk's cases made ready to design: their setups, the plants they fly
 - :mod:`~quadctl.sweep.evaluate`: a chunk of cases, batched or one by one, as rows

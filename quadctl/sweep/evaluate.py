@@ -24,7 +24,7 @@ from quadctl.metrics import error_into, summarize_errors
 from quadctl.present.mission import mission_text
 from quadctl.sim.lane_metrics import row_values, tracking
 from quadctl.sim.run import verdict
-from quadctl.sweep import batched
+from quadctl.sweep import batched, lane_jobs
 from quadctl.sweep.batched import CaseDesign, core_extremes
 from quadctl.sweep.gates import MARGIN_COLUMNS, gated_margins, judge, margin_columns, tracking_columns
 from quadctl.sweep.prepare import CaseSetups, Prepared, plant_of
@@ -309,7 +309,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             live.append((prep, des))
     exponential = bool(live) and live[0][0].setup.method == "etdrk4"  # a sweep runs one method
     jobs = []
-    for (prep, des), job in zip(live, batched.loops_of(live, "etdrk4" if exponential else "rk4")):
+    for (prep, des), job in zip(live, lane_jobs.loops_of(live, "etdrk4" if exponential else "rk4")):
         if isinstance(job, str):
             row = _row(prep.head, des.stable, des.core, None, None, 0, job, des.path)
             row["status"] = "step_refused"

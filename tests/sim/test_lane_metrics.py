@@ -15,7 +15,7 @@ from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.setup import setup_of
 from quadctl.sim.engine import LANES, runner
 from quadctl.sim.lane_metrics import MetricSpec, case_values, row_values, summaries, tracking
-from quadctl.sweep import batched, prepare
+from quadctl.sweep import batched, lane_jobs, prepare
 
 pytestmark = pytest.mark.compiler
 
@@ -43,7 +43,7 @@ def lane_group(cfgs):
         setup = setup_of(cfg)
         preps.append(prepare.Prepared(k, {"case": k}, setup, prepare.plant_of(setup)))
     live = list(zip(preps, batched.design_all(preps, {"designs": 0, "fallbacks": 0})))
-    items = [(prep, des, job) for (prep, des), job in zip(live, batched.loops_of(live))]
+    items = [(prep, des, job) for (prep, des), job in zip(live, lane_jobs.loops_of(live))]
     spec = items[0][2].spec
     assert all(job.spec == spec for _, _, job in items)
     ref = preps[0].setup.reference

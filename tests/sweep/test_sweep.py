@@ -652,7 +652,7 @@ def test_a_resumed_monte_carlo_reads_the_trajectories_from_its_journal(mambo, tm
 
 
 def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
-    """A sweep gives cases of one lane structure (batched._structure) the constants and initial
+    """A sweep gives cases of one lane structure (lane_jobs._structure) the constants and initial
     state of the first, with only the gains rewritten: so a change in any other field of the loop must
     give another structure. Each field of ClosedLoop but the gains and the spectrum, changed alone."""
     from dataclasses import fields, replace
@@ -663,7 +663,7 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
     from quadctl.config.pid import resolve
     from quadctl.design.gain_table import GainTable
     from quadctl.linear.filters import rate_filter_of
-    from quadctl.sweep import batched
+    from quadctl.sweep import lane_jobs
 
     data = cfg_dict("mambo-200hz", controller={"rate": 200.0, "rotor_lag": "include", "delay": {"samples": 1}})
     data["motors"]["time_constant"] = 0.03
@@ -676,7 +676,7 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
     assert loop.Kv is not None and loop.estimator is not None and loop.integral_states and loop.delay_samples
 
     def key(lp):
-        return batched._structure(lp, (True, False, 1.0), batched._Seen())[0]
+        return lane_jobs._structure(lp, (True, False, 1.0), lane_jobs._Seen())[0]
 
     changed = {"params": loop.params * 1.01, "x_trim": loop.x_trim + 1e-3, "u_trim": loop.u_trim * 1.01,
                "x_rate": loop.x_rate + 1e-3, "rate": 400.0, "integral_states": ("pN",),
@@ -688,7 +688,7 @@ def test_every_field_of_a_loop_but_its_gains_is_part_of_its_lane_structure():
                "law": resolve("crazyflie"),
                "rate_filter": rate_filter_of(SimpleNamespace(gyro=SimpleNamespace(cutoff=30.0, order=2),
                                                              notch=None))}
-    structural = {f.name for f in fields(loop)} - set(batched.PER_CASE)
+    structural = {f.name for f in fields(loop)} - set(lane_jobs.PER_CASE)
     assert structural == set(changed), "a new ClosedLoop field: add a change of it here"
     for name, value in changed.items():
         assert key(replace(loop, **{name: value})) != key(loop), name
