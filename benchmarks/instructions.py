@@ -23,8 +23,9 @@ every run. About five minutes.
 ``--whole`` counts each whole sweep instead (``sweep.run``, ``jobs=1``: the designs, the loops, the
 references, the rows, Python and numpy included), per simulated step: the sweep at two case counts
 (:data:`WHOLE_CASES`), each in its own process under callgrind, the difference of their totals over
-the difference of their steps, so the imports and the warm run cancel. Its ratios are the issue's
-steps/s ratios at one instruction per instruction, the same on every run. About fifteen minutes.
+the difference of their steps, so the imports and the warm run cancel. Its ratios are bench.py's
+steps/s ratios at one instruction per instruction: the lanes' part the same on every run, Python's
+within a few instructions a step. About 20 minutes.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ WHOLE_CASES = {"plain": (64, 192), "flying": (128, 384), "mission": (8, 16)}
 
 def child(name: str, cases: int | None = None) -> dict:
     """Run one part (in the process callgrind watches); its simulated case-steps. ``cases``: the
-    whole sweep of that many cases, after a warm run of 16 (else one group of lanes)."""
+    whole sweep of that many cases, after a warm run of one group of lanes (else that group alone)."""
     from quadctl import config, sweep
     from quadctl.sim.engine import LANES
 
@@ -74,7 +75,7 @@ def child(name: str, cases: int | None = None) -> dict:
     cfg = config.load(cfg_name)
     spec = sweep.load(path, cfg)
     if cases is not None:
-        sweep.run(cfg, dataclasses.replace(spec, samples=16), jobs=1)  # warm: the plants, caches, first calls
+        sweep.run(cfg, dataclasses.replace(spec, samples=LANES), jobs=1)  # warm: the plants, caches, first calls
     spec = dataclasses.replace(spec, samples=cases or LANES)
     return {"case_steps": int(sweep.run(cfg, spec, jobs=1).stats["steps"])}
 
@@ -128,7 +129,7 @@ def main() -> None:
                         help=f"count only these: {', '.join([*SWEEPS, 'ceiling'])} (default: all)")
     parser.add_argument("--whole", action="store_true",
                         help="count each whole sweep (designs, loops, rows, Python) per simulated step, and its "
-                             "ratio to the plain sweep's (about fifteen minutes)")
+                             "ratio to the plain sweep's (about 20 minutes)")
     parser.add_argument("--child", nargs="+", metavar="PART OUT [CASES]", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -147,13 +148,14 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             counts = {name: whole_sweep(name, Path(tmp)) for name in names}
         plain = counts["plain"]["all"]
-        print("Instructions per simulated step of one case, the whole sweep (callgrind, jobs=1; the same on every "
-              "run)\n")
-        print(bench.table("", ["sweep", "all", "in the lanes", "around them", "steps/s against the plain sweep's, "
-                               "at one instruction per instruction"],
+        print("Instructions per simulated step of one case, the whole sweep (callgrind, jobs=1; the lanes' counts "
+              "are the same on every run, Python's around them move by a few)\n")
+        print(bench.table("", ["sweep", "all", "in the lanes", "around them", "against plain"],
                           [[f"{name} ({SWEEPS[name][0]})", f"{c['all']:,.0f}", f"{c['lanes']:,.0f}",
                             f"{c['all'] - c['lanes']:,.0f}", f"{plain / c['all']:.2f}"]
                            for name, c in counts.items()]).lstrip("\n"))
+        print("\n'against plain': the plain sweep's instructions a step over the sweep's, its steps/s against the "
+              "plain sweep's at one instruction per instruction")
         return
     with tempfile.TemporaryDirectory() as tmp:
         rows = {name: per_step(name, Path(tmp)) for name in names}
