@@ -24,6 +24,7 @@ from quadctl.artifacts.places import (
     safe_place,
 )
 from quadctl.errors import ArtifactError
+from quadctl.signals import signals_held
 
 TEMPORARY_TAG = "quadctl"
 """A temporary is ``.<artifact>.quadctl-<random>.tmp``: the tag, and the artifact's registered
@@ -47,8 +48,9 @@ def write_together(files: dict[Path, bytes]) -> list[Path]:
     """Write a set of artifacts that belong together: every temporary first, then the renames.
 
     Each file is written to a tagged temporary in its folder and fsynced; only when all of them
-    are whole are they renamed into place, one after the other. A failure (or Ctrl-C) before the
-    renames leaves every old file as it was and no temporary; a ``kill -9`` between two renames
+    are whole are they renamed into place, one after the other. A failure (or Ctrl-C, or SIGTERM)
+    before the renames leaves every old file as it was and no temporary (a signal waits while a
+    temporary is made: one that landed inside ``mkstemp`` left it behind, empty); a ``kill -9`` between two renames
     can still leave a new file beside an old one, so files read together must also carry a
     check of each other (the C export's ``QUADCTL_PAIR``, :mod:`quadctl.export.c`). The
     temporaries of a killed writer are removed by :func:`remove_stale_temporaries`.
@@ -67,7 +69,8 @@ def write_together(files: dict[Path, bytes]) -> list[Path]:
     path = paths[0] if paths else None
     try:
         for path, data in zip(paths, files.values()):
-            written.append((_temporary(path, data), path))
+            with signals_held():  # a temporary is made and listed whole (a Ctrl-C or SIGTERM waits), so it is discarded
+                written.append((_temporary(path, data), path))
         for tmp, path in written:
             os.replace(tmp, path)
     except OSError as exc:

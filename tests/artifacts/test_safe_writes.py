@@ -322,3 +322,22 @@ def test_write_together_renames_only_when_every_file_is_whole(tmp_path, monkeypa
         artifacts.write_together({a: b"new h", b: b"new c"})
     assert a.read_text() == "old h" and b.read_text() == "old c"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["quadctl_controller.c", "quadctl_controller.h"]
+
+
+def test_a_signal_while_a_temporary_is_made_leaves_no_temporary(tmp_path, monkeypatch):
+    """Ctrl-C (or SIGTERM) landing just after the temporary file exists, before its name is kept:
+    the signal waits until the temporary is listed, then stops the write, which discards it (it was
+    left behind, empty, when a SIGTERM landed there: seen in CI)."""
+    target = tmp_path / "trim.json"
+    target.write_text("old")
+    mkstemp = writing.tempfile.mkstemp
+
+    def interrupted(*args, **kwargs):
+        made = mkstemp(*args, **kwargs)
+        signal.raise_signal(signal.SIGINT)  # Python's handler raises KeyboardInterrupt at once, unless held
+        return made
+
+    monkeypatch.setattr(writing.tempfile, "mkstemp", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        artifacts.write_together({target: b"new"})
+    assert [p.name for p in tmp_path.iterdir()] == ["trim.json"] and target.read_text() == "old"

@@ -426,7 +426,7 @@ def test_the_lqg_table_is_what_margins_writes(tmp_path, monkeypatch):
 def test_a_sweep_with_the_lag_included_and_a_filter_designs_the_filter_once_and_keeps_one_loop_structure():
     """The lag-including branch builds each case's loop through pipeline.closed_loop_of: it takes the
     chunk's Kalman filter, so the cases share one filter, one lane structure, one cache entry."""
-    from quadctl.sweep import evaluate
+    from quadctl.sweep import prepare
 
     data = _lqg("mambo-200hz", duration=0.3)
     data["motors"]["time_constant"] = 0.03
@@ -434,9 +434,9 @@ def test_a_sweep_with_the_lag_included_and_a_filter_designs_the_filter_once_and_
     cfg = config.from_dict(data)
     spec = sweep.from_dict({"parameters": {"lqr.roll.R[0]": [20000, 40000, 60000, 80000],
                                            "simulation.noise.seed": [1, 2]}}, cfg, "test.yaml")
-    evaluate._plants.clear()
+    prepare._plants.clear()
     fast = sweep.run(cfg, spec, jobs=1)
-    (plant,) = evaluate._plants.values()
+    (plant,) = prepare._plants.values()
     assert len([key for key in plant.cache if key[0] == "structure"]) == 1
     slow = sweep.run(cfg, spec, jobs=1, fast=False)
     worst, where = max_rel_diff(fast.rows, slow.rows)
