@@ -28,7 +28,7 @@ import numpy as np
 
 from quadctl import artifacts, payloads, pipeline
 from quadctl.artifacts import default_out
-from quadctl.artifacts.journal import NEW_FOLDER, Journal, signals_held, undo
+from quadctl.artifacts.journal import NEW_FOLDER, Journal, undo
 from quadctl.artifacts.meta import RESOLVED_CONFIG_HEAD
 from quadctl.config import Config
 from quadctl.design import Design
@@ -47,6 +47,7 @@ from quadctl.present.schedule import verdict
 from quadctl.present.stages import rate_warning
 from quadctl.schedule.envelope import schedule_of
 from quadctl.setup import setup_of
+from quadctl.signals import signals_held
 from quadctl.sim.loop import ClosedLoop
 from quadctl.sim.run import SimResult
 from quadctl.version import __version__
