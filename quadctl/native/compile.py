@@ -2,7 +2,7 @@
 
 A library's cache key is what its source is made from, not the source: :data:`FINGERPRINT`
 (the files the C is generated from, as this process imported them, and the installed CasADi),
-the loop's :class:`~quadctl.sim.builder.LoopSpec`, the lane count, the flags, the compiler, the
+the loop's :class:`~quadctl.sim.loop_spec.LoopSpec`, the lane count, the flags, the compiler, the
 platform and, for ``-march=native``, the CPU. So a cached library loads without building any
 CasADi function. Libraries are compiled under a unique temporary name and renamed into place,
 so concurrent processes and threads never load a half-written file; no working directory is
@@ -58,9 +58,9 @@ GCC's fused ``sincos``): about 20 % a step faster than :data:`PORTABLE_FLAGS` (m
 vectorizes those products (1.39 ms a run of ``forward`` against 1.72 ms at ``-O2``)."""
 EVICT_AFTER_DAYS = 30
 """Cached libraries of another fingerprint unused for this long are deleted."""
-GENERATOR_SOURCES = ("_lazy.py", "layout.py", "physics/model.py", "sim/builder.py", "native/emit.py", "sim/cases.py",
-                     "native/compile.py", "sim/native.py", "sim/lane_metrics.py", "sim/driver.c",
-                     "design/gain_table.py", "metrics.py", "native/mapped.py",
+GENERATOR_SOURCES = ("_lazy.py", "layout.py", "physics/model.py", "sim/builder.py", "sim/loop_spec.py",
+                     "native/emit.py", "sim/cases.py", "native/compile.py", "sim/native.py", "sim/lane_metrics.py",
+                     "sim/driver.c", "design/gain_table.py", "metrics.py", "native/mapped.py",
                      "native/pointwise.py", "physics/motors.py", "errors.py", "sim/pid.py", "config/pid.py",
                      "physics/flatness.py", "physics/reference_rows.py", "physics/trajectory.py")
 """The files a library's C is generated from (``tests/house/test_structure.py`` checks that this lists

@@ -12,7 +12,7 @@ from quadctl.native.compile import C_LONG
 
 @dataclass(frozen=True)
 class Cases:
-    """``N`` cases of one :class:`~quadctl.sim.builder.LoopSpec`, each run through up to ``S`` segments
+    """``N`` cases of one :class:`~quadctl.sim.loop_spec.LoopSpec`, each run through up to ``S`` segments
     of its own, one after another from where the last ended: RK4 at a fixed step is one segment;
     ETDRK4's graded schedule a segment per step size, each with its own constants (the φ-functions of
     its step).
@@ -22,7 +22,7 @@ class Cases:
     x0 : (N, nx) ndarray
         Loop state ``[x; z]`` at the first segment's step ``k0``.
     c : (S, N, nc) ndarray
-        Each segment's constants of each case (:func:`~quadctl.sim.builder.pack_constants`).
+        Each segment's constants of each case (:func:`~quadctl.sim.loop_spec.pack_constants`).
     dt : (S, N) ndarray
         Step, s.
     n : (S, N) int ndarray

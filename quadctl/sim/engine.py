@@ -13,8 +13,9 @@ from functools import lru_cache
 
 from quadctl.errors import QuadctlNotice
 from quadctl.native.compile import NATIVE_FLAGS, PORTABLE_FLAGS, SIMD_FLAGS, CompileError, compile_cached, cpu_tag
-from quadctl.sim.builder import LoopSpec, build
+from quadctl.sim.builder import build
 from quadctl.sim.interpreted import InterpretedRunner
+from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.native import NativeRunner, library_source
 
 LANES = 8

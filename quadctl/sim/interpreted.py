@@ -19,8 +19,9 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_INPUTS
 from quadctl.physics.reference_rows import in_force
-from quadctl.sim.builder import N_REFERENCE, LoopFunctions, LoopSpec, build
+from quadctl.sim.builder import LoopFunctions, build
 from quadctl.sim.cases import Cases
+from quadctl.sim.loop_spec import N_REFERENCE, LoopSpec
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 

@@ -13,9 +13,10 @@ from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
 from quadctl.native.compile import C_LONG, DRIVER_SOURCE
 from quadctl.native.emit import SIMD_DECLARATIONS, emit
 from quadctl.physics.reference_rows import ROW_HALF, SPLIT_ROUNDOFF
-from quadctl.sim.builder import N_REFERENCE, LoopFunctions, LoopSpec
+from quadctl.sim.builder import LoopFunctions
 from quadctl.sim.cases import Cases
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec
+from quadctl.sim.loop_spec import N_REFERENCE, LoopSpec
 
 STEPPERS = ("qc_step", "qc_plant")
 """The step functions ``driver.c`` calls with their work on a case's step and constants hoisted."""

@@ -59,7 +59,7 @@ def state_slice(name: str) -> slice:
 
 
 def structure_of(gains) -> tuple:
-    """The choices baked into the law's code (:attr:`quadctl.sim.builder.LoopSpec.law`):
+    """The choices baked into the law's code (:attr:`quadctl.sim.loop_spec.LoopSpec.law`):
     ``("pid", n_att, n_pos, angle_unit, velocity_output, torque_output, dfilter, gyro_filter, attitude)``."""
     n_att, n_pos = gains.ratios
     return ("pid", n_att, n_pos, gains.angle_unit, gains.velocity_output, gains.torque_output,

@@ -16,10 +16,11 @@ from quadctl.layout import N_STATES, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec
 from quadctl.physics.wind import WindSpec
-from quadctl.sim.builder import LoopSpec, heading_frame
+from quadctl.sim.builder import heading_frame
 from quadctl.sim.engine import runner
 from quadctl.sim.exogenous import wind_felt
 from quadctl.sim.loop import VALID_PITCH, ClosedLoop
+from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.plan import StepPlan
 from quadctl.sim.stack import run_stack, stack_of
 

@@ -33,7 +33,7 @@ from quadctl.sim.loop import ClosedLoop, exponential_plan
 from quadctl.sim.plan import max_stable_steps
 
 if TYPE_CHECKING:
-    from quadctl.sim.builder import LoopSpec
+    from quadctl.sim.loop_spec import LoopSpec
     from quadctl.sim.plan import StepPlan
 
 

@@ -23,7 +23,8 @@ from quadctl import config, pipeline
 from quadctl.design.gain_table import GainTable
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.setup import setup_of
-from quadctl.sim.builder import LoopSpec, build
+from quadctl.sim.builder import build
+from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.run import simulate
 
 AGREE = 1e-12
