@@ -18,6 +18,7 @@ name of all of them: ``config.load``, ``config.Config``, ``config.check_weight``
 - :mod:`~quadctl.config.vehicle_checks`: a vehicle that can exist: its inertia and its rotors
 - :mod:`~quadctl.config.unit_limits`: the bounds of values by unit: the longest run, the largest initial
   offset, one limit per unit for every position, velocity, heading and time
+- :mod:`~quadctl.config.key_units`: the unit of the value at a key path (a sweep's parameter columns)
 - :mod:`~quadctl.config.checks`: the checks after the schema: rules across fields, bounds in context
 - :mod:`~quadctl.config.render`: the schema shown to people and editors (``quadctl configs --show``)
 - :mod:`~quadctl.config.kinds`: what a file that fails is instead (a sweep file, an artifact)
@@ -32,6 +33,7 @@ from quadctl.config.controller_schema import DelaySamples as DelaySamples
 from quadctl.config.controller_schema import EstimatorConfig as EstimatorConfig
 from quadctl.config.controller_schema import FiltersConfig as FiltersConfig
 from quadctl.config.controller_schema import PidConfig as PidConfig
+from quadctl.config.key_units import key_unit as key_unit
 from quadctl.config.loading import DEFAULT_CONFIG as DEFAULT_CONFIG
 from quadctl.config.loading import FOLDER_SCAN as FOLDER_SCAN
 from quadctl.config.loading import OVERRIDES as OVERRIDES

@@ -82,7 +82,7 @@ class VehicleConfig(Section):
     gravity: Gravity = Field(9.81, description="m/s^2")
     inertia: Matrix = Field([0.69e-4, 0.775e-4, 1.5e-4], description=INERTIA_DESCRIPTION)
     drag: Annotated[list[Drag], Field(min_length=3, max_length=3)] = Field(
-        [0.22, 0.22, 0.0], description="Kc diagonal; rotor drag force is -T Kc V_b (1/(m/s))")
+        [0.22, 0.22, 0.0], description="1/(m/s): the Kc diagonal; rotor drag force is -T Kc V_b")
 
 
 class TrimConfig(Section):
@@ -224,7 +224,7 @@ class PlantConfig(Section):
     gravity: Optional[Gravity] = Field(None, description="m/s^2")
     inertia: Optional[Matrix] = Field(None, description=INERTIA_DESCRIPTION)
     drag: Optional[Annotated[list[Drag], Field(min_length=3, max_length=3)]] = Field(
-        None, description="Kc diagonal, 1/(m/s)")
+        None, description="1/(m/s), the Kc diagonal")
 
 
 class SetpointConfig(Section):
@@ -308,7 +308,7 @@ class MotorsConfig(Section):
     layout: Literal["x", "+"] = Field("x", description="x: rotors at +-45 deg from the nose; +: on the axes")
     arm_length: Positive = Field(0.0624, description="m, from the centre to each rotor axis")
     thrust_coefficient: Positive = Field(4.72e-8, description="N/(rad/s)^2, rotor thrust = k omega^2")
-    torque_coefficient: Positive = Field(0.00241, description="N m of yaw reaction torque per N of thrust")
+    torque_coefficient: Positive = Field(0.00241, description="N m/N: yaw reaction torque per N of thrust")
     min_thrust: NonNegative = Field(0.0, description="N per rotor")
     max_thrust: Positive = Field(0.33, description="N per rotor")
     time_constant: Optional[RotorTimeConstant] = Field(
@@ -367,7 +367,7 @@ class Config(Section):
         ControllerConfig(), description="how the controller runs on the flight computer")
     motors: Optional[MotorsConfig] = Field(None, description="rotor layout and thrust limits; saturates the inputs")
     limits: Optional[dict[str, InputLimits]] = Field(
-        None, description="input name -> [low, high] (N or N m); box limits when there is no motors:")
+        None, description="input name -> [low, high] (input units: N or N m); box limits when there is no motors:")
     estimator: Optional[EstimatorConfig] = Field(
         None, description="state estimation (LQG): what is measured and the noise the Kalman filter assumes; "
         "absent: the controller measures the full state")

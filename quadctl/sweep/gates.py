@@ -113,7 +113,7 @@ every column it begins (``settling_time.pD``: s). ``stable`` and ``status`` are 
 
 def column_units(columns) -> dict[str, str]:
     """The unit of each metric column among ``columns`` (:data:`METRIC_UNITS`); the rest (``case``, the
-    parameters, in the config's own units, flags and text) left out.
+    parameters, whose units are :attr:`~quadctl.sweep.spec.SweepSpec.parameter_units`, flags and text) left out.
 
     >>> column_units(["case", "vehicle.mass", "stable", "settling_time.pD", "peak.A", "cost"])
     {'settling_time.pD': 's', 'peak.A': 'N m', 'cost': '1'}

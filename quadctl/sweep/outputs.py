@@ -166,7 +166,7 @@ def summarize(result: SweepResult, cfg, spec: SweepSpec) -> dict:
         "worst": [r for r in ranked[:WORST_SHOWN] if not r["pass"]] or ranked[:min(WORST_SHOWN, len(ranked))],
         "best": list(reversed(ranked[-BEST_SHOWN:])),
         "columns": result.columns,
-        "units": column_units(result.columns),
+        "units": {**dict(spec.parameter_units), **column_units(result.columns)},
         "ok": all(r["pass"] for r in rows),
     }
 

@@ -122,6 +122,9 @@ class SweepSpec:
     metrics: tuple[str, ...] = ()
     """The metric columns (:func:`quadctl.sweep.gates.metric_columns`) of the config the cases start
     from (:func:`quadctl.sweep.sweep_file.configured`): a mission that ``set:`` gives adds its tracking columns."""
+    parameter_units: tuple[tuple[str, str], ...] = ()
+    """``(key path, unit)`` of each parameter that has a unit (:func:`quadctl.config.key_units.key_unit` on the
+    config the cases start from), in file order; a seed, a count or a share has none."""
 
     @property
     def names(self) -> list[str]:

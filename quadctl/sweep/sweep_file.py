@@ -11,6 +11,7 @@ from typing import Any
 
 from quadctl import config
 from quadctl.config import yamlio
+from quadctl.config.key_units import key_unit
 from quadctl.config.kinds import misplaced
 from quadctl.config.schema_paths import default_at, section_model
 from quadctl.errors import ConfigError, SweepError
@@ -158,7 +159,9 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
                      canonical=json.loads(json.dumps({k: v for k, v in data.items() if k != "description"},
                                                      default=str)),
                      uncertainty=all(plant_side(p.keys, rotor_lag, bool(trim_wind), estimator) for p in parameters),
-                     metrics=tuple(metric_columns(start)) + (MARGIN_COLUMNS if gated_margins(gates) else ()))
+                     metrics=tuple(metric_columns(start)) + (MARGIN_COLUMNS if gated_margins(gates) else ()),
+                     parameter_units=tuple((p.path, unit) for p in parameters
+                                           if (unit := key_unit(start, p.keys)) is not None))
     if mode == "grid":
         count = spec.count()
         if count > MAX_CASES:

@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from quadctl import config
 from quadctl.cli.app import app
 from quadctl.config import schema, schema_paths, yamlio
+from quadctl.config.key_units import key_unit
 from quadctl.config.unit_limits import SCHEDULE_UNITS, UNIT_KEYS, UNIT_LIMITS
 from quadctl.errors import ConfigError
 from quadctl.text.messages import parse_key_path, show
@@ -169,3 +170,90 @@ def test_a_slip_on_the_command_line_is_refused_before_anything_is_written(tmp_pa
     assert len(lines) == 1 and lines[0].startswith("quadctl: error: --set: "), res.stderr
     assert ("that is 5157 deg" in lines[0]) == (key != "simulation.reference.speed"), lines[0]
     assert not out.exists() or not any(out.iterdir())
+
+
+# ---------------------------------------------------------------------------------------
+# The unit of a key (quadctl.config.key_units.key_unit): a sweep's parameter columns
+
+
+@pytest.mark.parametrize("name,path,unit", [
+    ("forward", "vehicle.mass", "kg"),
+    ("forward", "vehicle.inertia[2]", "kg m^2"),
+    ("forward", "vehicle.drag[0]", "1/(m/s)"),           # F = -T Kc V: N = N Kc m/s
+    ("forward", "trim.velocity_ned[0]", "m/s"),
+    ("forward", "trim.yaw", "rad"),
+    ("forward", "simulation.initial_offset.phi", "rad"),
+    ("forward", "lqr.roll.Q[0]", "1/(m/s)^2"),           # roll's states: v, phi, p
+    ("forward", "lqr.roll.Q[1]", "1/rad^2"),
+    ("forward", "lqr.roll.Q[2]", "1/(rad/s)^2"),
+    ("forward", "lqr.altitude.R[0]", "1/N^2"),           # thrust
+    ("forward", "lqr.yaw.R[0]", "1/(N m)^2"),            # yaw torque
+    ("mambo-200hz", "lqr.altitude.Q[0]", "1/m^2"),       # altitude: pD, w, then the integral of pD (m s)
+    ("mambo-200hz", "lqr.altitude.Q[2]", "1/(m s)^2"),
+    ("mambo-200hz", "lqr.roll.R[0]", "1/(N m)^2"),
+    ("mambo-200hz", "motors.thrust_coefficient", "N/(rad/s)^2"),
+    ("mambo-200hz", "motors.torque_coefficient", "N m/N"),
+    ("mambo-200hz", "motors.max_thrust", "N"),
+    ("mambo-200hz", "motors.time_constant", "s"),
+    ("mambo-200hz", "controller.rate", "Hz"),
+    ("mambo-200hz", "simulation.noise.force[2]", "N"),
+    ("mambo-200hz", "simulation.noise.torque[0]", "N m"),
+    ("mambo-200hz", "simulation.noise.sensor.p", "rad/s"),
+    ("mambo-200hz", "simulation.plant.mass", "kg"),
+])
+def test_a_bundled_configs_keys_have_their_units(name, path, unit):
+    assert key_unit(config.load(name), path) == unit
+
+
+def test_lqr_weights_take_the_units_of_the_partition_states_then_integrals():
+    """Q's diagonal runs over the subsystem's states in the partition's order, then the integrals in the
+    order of ``integral``: the integral of an angle in rad s, of a rate in rad/s in rad; Bryson's errors
+    are in the same units, not squared."""
+    data = copy.deepcopy(HOVER)
+    data["subsystems"] = {"altitude": {"states": ["pD", "w"], "inputs": ["T"]},
+                          "roll": {"states": ["phi", "p", "v"], "inputs": ["A"]},
+                          "pitch": {"states": ["u", "theta", "q"], "inputs": ["E"]},
+                          "yaw": {"states": ["psi", "r"], "inputs": ["R"]},
+                          "guidance": {"states": ["pN", "pE"], "inputs": ["u", "psi"], "regulate": False}}
+    data["lqr"]["roll"] = {"Q": [100, 0.25, 1, 10, 1], "R": [40000], "integral": ["p", "phi"]}
+    data["lqr"]["pitch"] = {"bryson": {"errors": [1.0, 0.1, 2.0, 0.5], "headroom": 0.2}, "integral": ["theta"]}
+    data["motors"] = {}  # the Mambo's rotors: the headroom Bryson's R takes
+    cfg = config.from_dict(data, "c.yaml")
+    assert [key_unit(cfg, f"lqr.roll.Q[{i}]") for i in range(5)] == [
+        "1/rad^2", "1/(rad/s)^2", "1/(m/s)^2", "1/rad^2", "1/(rad s)^2"]
+    assert key_unit(cfg, ("lqr", "roll", "Q", 1)) == "1/(rad/s)^2"  # the path as the sweep parses it
+    assert [key_unit(cfg, f"lqr.pitch.bryson.errors[{i}]") for i in range(4)] == ["m/s", "rad", "rad/s", "rad s"]
+    assert key_unit(cfg, "lqr.roll.R[0]") == "1/(N m)^2"
+    data["lqr"]["roll"]["Q"] = [[100, 0, 0, 0, 0], [0, 0.25, 0, 0, 0], [0, 0, 1, 0, 0], [0, 0, 0, 10, 0],
+                                [0, 0, 0, 0, 1]]
+    full = config.from_dict(data, "c.yaml")
+    assert key_unit(full, "lqr.roll.Q[0][2]") == "1/(rad (m/s))"  # an off-diagonal entry: 1/(unit i unit j)
+    assert key_unit(full, "lqr.roll.Q[4][4]") == "1/(rad s)^2"
+    assert key_unit(full, "lqr.roll.Q[1]") is None  # a row of a full Q is not one value
+
+
+@pytest.mark.parametrize("path", ["simulation.noise.seed", "simulation.wind.turbulence.seed", "simulation.max_samples",
+                                  "controller.delay.samples", "controller.filters.gyro.order", "schedule.check",
+                                  "lqr.roll.bryson.headroom", "controller.pid.values.rate_roll_kp", "lqr.roll.Q[3]",
+                                  "lqr.roll.integral[0]", "lqr.nosuch.Q[0]", "name", "motors.layout", "vehicle.nosuch"])
+def test_a_key_with_no_unit_has_none(path):
+    """A seed, a count, an order, a share, a name, a PID value (its flight stack's units), a weight past Q's
+    size or of no subsystem, a key the schema does not have."""
+    assert key_unit(config.load("mambo-200hz"), path) is None
+
+
+def test_a_schedules_values_take_the_unit_of_its_variable():
+    data = {**copy.deepcopy(HOVER), "schedule": {"variable": "yaw", "values": [0.0, 1.0]}}
+    assert key_unit(config.from_dict(data, "c.yaml"), "schedule.values[1]") == "rad"
+    data["schedule"]["variable"] = "climb"
+    assert key_unit(config.from_dict(data, "c.yaml"), "schedule.values[1]") == "m/s"
+
+
+def test_every_key_whose_description_gives_a_limited_unit_has_that_unit():
+    """The schema's fields whose description begins with a position, velocity, heading or time unit, read
+    by this file's own parser (``_unit_of``), against key_unit's."""
+    cfg = config.load("mambo-200hz")
+    found = list(_unit_fields(schema.Config))
+    assert len(found) > 10
+    for pattern, unit in found:
+        assert key_unit(cfg, pattern.replace("[*]", "[0]")) == unit.split(" ")[0], pattern

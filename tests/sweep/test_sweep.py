@@ -496,14 +496,33 @@ def test_outputs_table_summary_and_plot(cfg, tmp_path):
     assert summary["gates"]["peak.T"]["failed"] == 1
     assert summary["worst"][0]["case"] == 0
     assert summary["sweep_digest"] == spec.digest(cfg)
-    units = summary["units"]  # every numeric metric column of the CSV has its unit; case, parameters, flags none
+    units = summary["units"]  # every numeric column of the CSV has its unit, the parameter's too; case, flags none
     assert units["peak.T"] == "N" and units["peak.A"] == "N m" and units["eig.fastest"] == "rad/s"
     assert units["settling_time.pD"] == "s" and units["overshoot.pD"] == "%" and units["dt"] == "s"
-    assert set(units) == set(header) - {"case", "lqr.altitude.R[0]", "stable", "status", "pass", "failed_gates",
-                                        "reason", "path"}
+    assert units["lqr.altitude.R[0]"] == "1/N^2"  # R weighs the thrust, in N
+    assert set(units) == set(header) - {"case", "stable", "status", "pass", "failed_gates", "reason", "path"}
     assert (tmp_path / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert outcome.summary["ok"] is False
     assert not spec.monte_carlo and not (tmp_path / "montecarlo.png").exists()
+
+
+def test_sweep_json_gives_each_parameter_column_with_a_unit_its_unit(tmp_path):
+    """The parameters' units in sweep.json, from the config the cases start from: a Q entry on the integral
+    of pD (m s) is 1/(m s)^2, a torque's R 1/(N m)^2, a mass kg, the rotors' lag s; the noise
+    seed has none. The metric columns keep theirs."""
+    cfg = config.load("mambo-200hz")
+    spec = spec_of(cfg, parameters={"lqr.altitude.Q[2]": [1.0], "lqr.roll.R[0]": [40000.0],
+                                    "simulation.noise.seed": [1, 2], "vehicle.mass": [0.068],
+                                    "motors.time_constant": [0.02]},
+                   set=dict(SHORT))
+    sweep.execute(cfg, spec, tmp_path, jobs=1)
+    summary = json.loads((tmp_path / "sweep.json").read_text())
+    assert summary["cases"] == 2
+    units = summary["units"]
+    assert {c: units.get(c) for c in summary["columns"][1:6]} == {
+        "lqr.altitude.Q[2]": "1/(m s)^2", "lqr.roll.R[0]": "1/(N m)^2", "simulation.noise.seed": None,
+        "vehicle.mass": "kg", "motors.time_constant": "s"}
+    assert units["peak.T"] == "N" and units["settling_time.pD"] == "s"
 
 
 def test_the_sweeps_page_gives_each_metric_column_the_unit_sweep_json_gives_it():
