@@ -532,7 +532,7 @@ def against_plain(plain: list, other: tuple, runs: int) -> str:
     """The note of ``other``'s (``(cfg, spec)``) simulated steps/s against the plain sweep's
     (``plain``) on both cores and on one, the best of ``runs`` runs of each, alternated so both see
     the same machine. On one core the ratio is of the cases' own costs; on two it also carries the
-    worker's fixed cost (forking it, its first chunk's copied pages, ~10 ms a run),
+    worker processes' fixed cost (forking them, their first chunk's copied pages, ~30 ms a run),
     which weighs more on a shorter sweep."""
     from quadctl import sweep
 

@@ -1,4 +1,4 @@
-"""Running a sweep: chunks of cases on local processes (this one and workers) or a Dask cluster, rows in case order."""
+"""Running a sweep: chunks of cases on local worker processes or a Dask cluster, results in case order."""
 
 from __future__ import annotations
 
@@ -151,7 +151,7 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     label : str, optional
         Names the config in case messages (default its name).
     jobs : int, optional
-        Local processes, this one and ``jobs - 1`` workers (default all cores; 1: this one alone).
+        Local worker processes (default all cores; 1 runs in this process).
     scheduler : str, optional
         Address of a Dask distributed scheduler (``tcp://host:8786``): run the chunks there.
     done : dict, optional
@@ -261,41 +261,32 @@ def _keep_freed_memory() -> None:
 
 @contextmanager
 def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[Iterator[ChunkResult]]:
-    """The chunks' results as they finish, from ``jobs`` local processes: this one and ``jobs - 1``
-    workers (``jobs == 1``: this one alone, each chunk computed as the iterator is read).
+    """The chunks' results as they finish, from ``jobs`` worker processes (``jobs == 1``: computed
+    here, one by one as the iterator is read).
 
     The workers start on entering (they compute while the caller does its own work) and stop on
-    leaving: at once, if the caller leaves before the last result (Ctrl-C, an error). This process
-    takes chunks from the end of the queue while the iterator is read: one fork fewer, and its chunks
-    start at once (1000 mambo-200hz cases of 2 000 steps on two cores, three runs each: 0.108-0.114 s
-    with two workers, 0.099-0.100 s with this process and one).
+    leaving: at once, if the caller leaves before the last result (Ctrl-C, an error).
     """
     if jobs == 1:
         yield (evaluate_chunk(task) for task in tasks)
         return
-    helpers = jobs - 1
     # fork on Linux: workers start at once with everything imported so far (the progress bar runs no
     # thread, so nothing is forked mid-lock); spawn elsewhere (macOS's system libraries are not fork-safe)
     ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
     # held while the workers fork and run: they start with one BLAS thread and set no count (threads.py)
     with loaded_one_thread():
-        pool = ProcessPoolExecutor(max_workers=helpers, mp_context=ctx, initializer=_worker_init,
+        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_init,
                                    initargs=(ctx.get_start_method() == "fork",))
         queue, pending = list(tasks), set()
 
         def fill() -> None:
-            # two tasks per worker in flight: a worker has the next one while this process computes
-            # its own, and a stop (Ctrl-C) leaves little half-done work
-            while queue and len(pending) < 2 * helpers:
+            # two tasks per worker in flight: a stop (Ctrl-C) leaves little half-done work
+            while queue and len(pending) < 2 * jobs:
                 pending.add(pool.submit(evaluate_chunk, queue.pop(0)))
 
         def results() -> Iterator[ChunkResult]:
-            while pending or queue:
-                if queue:  # this process computes the last chunk left, then hands on what the workers finished
-                    yield evaluate_chunk(queue.pop())
-                    finished = {fut for fut in pending if fut.done()}
-                else:
-                    finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            while pending:
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
                 pending.difference_update(finished)
                 fill()  # before the caller handles these: no worker waits for it
                 for fut in finished:

@@ -51,7 +51,7 @@ def _start_sweep(tmp_path: Path) -> subprocess.Popen:
                              "-j", "2", "-o", str(tmp_path / "out")], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
-    while not _children(proc.pid):  # the worker computes, and this process (the warm-up case ran)
+    while len(_children(proc.pid)) < 2:  # the workers are computing (the warm-up case ran)
         assert proc.poll() is None, proc.communicate()
         assert time.monotonic() < deadline, "the sweep never started its workers"
         time.sleep(0.05)

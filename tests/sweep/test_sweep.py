@@ -7,7 +7,6 @@ import csv
 import dataclasses
 import json
 import math
-import os
 import re
 from pathlib import Path
 
@@ -24,8 +23,6 @@ from quadctl.design import lqr, riccati_residual
 from quadctl.design.riccati import care_batch
 from quadctl.errors import DesignError, SweepError
 from quadctl.sim.run import simulate
-from quadctl.sweep import runner as sweep_runner
-from quadctl.sweep.evaluate import evaluate_chunk
 from quadctl.sweep.gates import Gate
 
 SHORT = {"simulation.duration": 0.15}
@@ -371,25 +368,6 @@ def test_local_processes_give_the_same_rows(cfg):
     two = sweep.run(cfg, spec, jobs=2)
     assert two.stats["executor"] == "local processes (2)"
     assert one.rows == two.rows
-
-
-def _computed_where(task):
-    """evaluate_chunk, each row marked with the process that computed it."""
-    result = evaluate_chunk(task)
-    for row in result.rows:
-        row["pid"] = os.getpid()
-    return result
-
-
-def test_two_local_processes_are_this_one_and_one_worker(cfg, monkeypatch):
-    """--jobs 2 forks one worker: this process computes chunks too, from the end of the queue."""
-    spec = spec_of(cfg, mode="random", samples=32, seed=4, chunk_size=8,
-                   parameters={"lqr.roll.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}})
-    monkeypatch.setattr(sweep_runner, "evaluate_chunk", _computed_where)
-    rows = sweep.run(cfg, spec, jobs=2).rows
-    where = {row["pid"] for row in rows}
-    assert os.getpid() in where and len(where) == 2
-    assert rows[-1]["pid"] == os.getpid()  # its first chunk: the queue's last
 
 
 def test_dask_local_cluster_gives_the_same_rows(cfg):

@@ -15,7 +15,7 @@ def command(
     config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
     jobs: Annotated[Optional[int], typer.Option(
         "--jobs", "-j", min=1, metavar="N",
-        help="Local processes: this one and N - 1 workers (not with --scheduler). Default: all cores.")] = None,
+        help="Local worker processes (not with --scheduler). Default: all cores.")] = None,
     scheduler: Annotated[Optional[str], typer.Option(
         "--scheduler", metavar="ADDRESS", help="Run on this Dask scheduler (tcp://host:8786) instead.")] = None,
     resume: Annotated[bool, typer.Option(
