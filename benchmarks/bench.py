@@ -714,6 +714,7 @@ def the_ceiling(cfg, spec, dense: bool = False) -> tuple:
     import yaml
 
     from quadctl import pipeline
+    from quadctl.native.compile import MARCH  # the lanes' target: the same instructions on both sides
     from quadctl.setup import setup_of
     from quadctl.sim.run import simulate
 
@@ -730,7 +731,7 @@ def the_ceiling(cfg, spec, dense: bool = False) -> tuple:
         pattern = np.ones((4, 12), dtype=bool) if dense else \
             np.reshape(np.asarray(loop.spec().pattern, dtype=bool), (4, 12), order="F")
         terms = " ".join(f"X({j}, {i})" for j, i in zip(*np.nonzero(pattern)))
-        base = ["cc", "-O3", "-march=native", "-ffp-contract=off", "-fno-math-errno", "-fno-builtin-sin",
+        base = ["cc", "-O3", MARCH, "-ffp-contract=off", "-fno-math-errno", "-fno-builtin-sin",
                 "-fno-builtin-cos", f"-DGAIN_TERMS={terms}", "-fPIC", "-shared", str(src), "-o", str(lib), "-lm"]
         threads = "OpenMP, 2 threads"
         if subprocess.run([*base[:1], "-fopenmp", *base[1:]], capture_output=True).returncode != 0:
@@ -784,6 +785,7 @@ def the_sweep() -> tuple[str, list]:
     import dataclasses
 
     from quadctl import config, sweep
+    from quadctl.native.compile import MARCH
 
     cfg = config.load("forward")
     spec = sweep.load(SWEEP_FILE, cfg)
@@ -827,7 +829,7 @@ def the_sweep() -> tuple[str, list]:
              f"{library / ceiling:.2f} of the hand-written C ceiling's simulated steps/s ({library / dense:.2f} of "
              f"the dense-gain variant's {dense / 1e6:.2f} M), best of "
              f"{ALTERNATED // 2} runs of each, alternated (benchmarks/bench.py CEILING_SOURCE: the same loop's "
-             "RK4 and nothing else, no design, metrics or records; compiled here with -O3 -march=native "
+             f"RK4 and nothing else, no design, metrics or records; compiled here with -O3 {MARCH} "
              "-ffp-contract=off and OpenMP).")
     for jobs, result in results.items():
         st = result.stats

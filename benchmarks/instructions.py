@@ -46,6 +46,8 @@ sys.path.insert(0, str(HERE))
 
 import bench  # noqa: E402  (the ceiling's source and the sweep files)
 
+from quadctl.native.compile import MARCH_ENV  # noqa: E402
+
 SWEEPS = {"plain": ("forward", bench.SWEEP_FILE), "flying": ("mambo-200hz", bench.FLYING_SWEEP_FILE),
           "mission": ("square", bench.MISSION_SWEEP_FILE)}
 """The lanes counted: a group of each benchmark sweep (config, sweep file)."""
@@ -57,6 +59,15 @@ CEILING_CASES = 64
 CEILING_STEPS = 10_000
 WHOLE_CASES = {"plain": (64, 192), "flying": (128, 384), "mission": (8, 16)}
 """``--whole``: the two case counts of each sweep (the mission's cases are 434 783 steps each)."""
+
+
+def _has_avx512() -> bool:
+    """Whether this CPU has AVX-512 (Linux's /proc/cpuinfo; False where there is none)."""
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return False
+    return any(line.startswith("flags") and " avx512f" in line for line in text.splitlines())
 
 
 def child(name: str, cases: int | None = None) -> dict:
@@ -87,8 +98,14 @@ def counted(name: str, tmp: Path, cases: int | None = None) -> dict:
     out, steps = tmp / f"{tag}.callgrind", tmp / f"{tag}.json"
     argv = [sys.executable, __file__, "--child", name, str(steps), *([str(cases)] if cases else [])]
     subprocess.run(argv, check=True)  # warm: compiles
-    subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *argv], check=True,
-                   capture_output=True)
+    ran = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *argv], capture_output=True,
+                         text=True)
+    if ran.returncode != 0:
+        lines = [re.sub(r"^==\d+== ?", "", line).strip() for line in ran.stderr.splitlines()]
+        said = [line for line in lines if "unhandled instruction" in line or "Illegal" in line] or \
+            [line for line in lines if line]
+        sys.exit(f"instructions.py: {name} under callgrind exited {ran.returncode}: "
+                 f"{said[-1] if said else 'no message'}")
     report = subprocess.run(["callgrind_annotate", "--inclusive=no", "--threshold=100", str(out)],
                             check=True, capture_output=True, text=True).stdout
     totals = dict.fromkeys(PARTS, 0)
@@ -139,6 +156,10 @@ def main() -> None:
     if shutil.which("valgrind") is None or shutil.which("callgrind_annotate") is None:
         sys.exit("instructions.py needs Valgrind's callgrind (Debian: apt install valgrind)")
     names = args.only or [*SWEEPS, "ceiling"]
+    if MARCH_ENV not in os.environ and _has_avx512():  # Valgrind 3.19 runs no AVX-512: the lanes and ceiling for AVX2
+        os.environ[MARCH_ENV] = "x86-64-v3"
+        print(f"this CPU has AVX-512, which callgrind does not run: the lanes and the ceiling are compiled for "
+              f"{MARCH_ENV}=x86-64-v3 (AVX2) here, and counted so\n")
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     os.environ["OMP_NUM_THREADS"] = "1"  # the ceiling on one thread: callgrind runs threads one at a time
     if args.whole:

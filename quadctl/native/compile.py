@@ -3,7 +3,7 @@
 A library's cache key is what its source is made from, not the source: :data:`FINGERPRINT`
 (the files the C is generated from, as this process imported them, and the installed CasADi),
 the loop's :class:`~quadctl.sim.loop_spec.LoopSpec`, the lane count, the flags, the compiler, the
-platform and, for ``-march=native``, the CPU. So a cached library loads without building any
+platform and, for ``-march=native`` (:data:`MARCH`), the CPU. So a cached library loads without building any
 CasADi function. Libraries are compiled under a unique temporary name and renamed into place,
 so concurrent processes and threads never load a half-written file; no working directory is
 ever changed. Libraries of other fingerprints (an older quadctl or CasADi) that were not used
@@ -38,12 +38,29 @@ import numpy as np
 C_LONG = np.dtype(f"i{ctypes.sizeof(ctypes.c_long)}")
 """numpy's twin of C ``long`` (the integer type of the generated code's drivers)."""
 
+MARCH_ENV = "QUADCTL_MARCH"
+"""The environment variable that names the CPU the vectorized and one-case native builds target (GCC's
+``-march``: ``x86-64-v3``, ``znver3``, ...) in place of this one (``native``, its default): a compile cache
+shared by machines of several CPUs, or a tool that does not run every instruction of this CPU
+(Valgrind 3.19 has no AVX-512: ``benchmarks/instructions.py`` counts under ``x86-64-v3`` there). Read
+once, on import."""
+
+
+def _march() -> str:
+    """``-march=`` of :data:`MARCH_ENV` (``-march=native`` when unset or not a plain name)."""
+    value = os.environ.get(MARCH_ENV, "").strip()
+    ok = value and all(ch.isalnum() or ch in "-_.+" for ch in value) and not value.startswith("-")
+    return f"-march={value if ok else 'native'}"
+
+
+MARCH = _march()
+"""The ``-march`` flag of :data:`SIMD_FLAGS` and :data:`NATIVE_FLAGS` (:data:`MARCH_ENV`)."""
 PORTABLE_FLAGS = ("-O2", "-ffp-contract=off", "-fno-math-errno", "-fPIC", "-shared")
 """``-ffp-contract=off`` keeps a*b+c rounded as written (no FMA), so compiled and interpreted runs
 round alike; no ``-ffast-math``: NaN still propagates and stops a diverging run. ``-O2``: the one-case
 RK4 loop (straight-line scalar code) steps as fast as at ``-O3`` (1.75 M steps/s on ``forward`` both
 ways, GCC 12) and compiles in half the time (0.46 s against 0.92 s)."""
-SIMD_FLAGS = PORTABLE_FLAGS[:1] + ("-march=native", "-fno-builtin-sin", "-fno-builtin-cos",
+SIMD_FLAGS = PORTABLE_FLAGS[:1] + (MARCH, "-fno-builtin-sin", "-fno-builtin-cos",
                                    "-fno-builtin-tan", "-fopenmp-simd", "-fno-trapping-math") + PORTABLE_FLAGS[1:]
 """The vectorized lanes: ``-fno-builtin-sin/cos`` keep GCC from fusing sin and cos into one scalar
 ``sincos`` call (it has no vector form). ``-fno-trapping-math`` lets GCC evaluate both sides of a
@@ -51,7 +68,7 @@ select (the saturation's and the law's comparisons, :mod:`quadctl.native.emit`),
 vectorizing a loop with selects takes; no value changes (quadctl reads no floating-point exception
 flag). Their ``#pragma omp simd`` loops are vectorized at ``-O2`` as at ``-O3``, in three quarters
 of the compile time."""
-NATIVE_FLAGS = ("-O3", "-march=native") + PORTABLE_FLAGS[1:]
+NATIVE_FLAGS = ("-O3", MARCH) + PORTABLE_FLAGS[1:]
 """One case of ETDRK4 for this CPU (its stages' dense matrix-vector products in ``driver.c``,
 GCC's fused ``sincos``): about 20 % a step faster than :data:`PORTABLE_FLAGS` (measured on the
 ``forward`` loop), the same roundings (``-ffp-contract=off``, no vector sines in one lane); ``-O3``
@@ -144,7 +161,10 @@ _FAILED: dict[tuple, str] = {}
 
 @lru_cache(maxsize=1)
 def cpu_tag() -> str:
-    """What ``-march=native`` depends on: the machine and its CPU feature flags."""
+    """What ``-march=native`` depends on: the machine and its CPU feature flags (a named :data:`MARCH`:
+    the machine alone, the same library on every CPU that runs it)."""
+    if MARCH != "-march=native":
+        return platform.machine()
     flags = ""
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as fh:

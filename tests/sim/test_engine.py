@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import os
 import shutil
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -288,6 +290,24 @@ def test_the_compile_cache_key_follows_what_the_source_is_made_from(tmp_path, mo
     assert compile_mod.compile_cached(source, flags, "variant") != one
     assert len(made) == 3
     assert sorted(p.suffix for p in tmp_path.iterdir()) == [".so", ".so", ".so"]  # no temporaries left
+
+
+@pytest.mark.parametrize("value, march, machine_only", [(None, "-march=native", False),
+                                                         ("x86-64-v3", "-march=x86-64-v3", True),
+                                                         ("-O0 -fno-pic", "-march=native", False)],
+                         ids=["unset", "named", "not-a-name"])
+def test_quadctl_march_names_the_target_of_the_native_builds(value, march, machine_only):
+    """QUADCTL_MARCH replaces -march=native in the lanes' and the one-case native flags (read on import: a
+    fresh process); a named target's libraries are keyed by the machine alone, not this CPU's flags; a
+    value that is not a plain name is not passed to the compiler."""
+    env = {k: v for k, v in os.environ.items() if k != compile_mod.MARCH_ENV}
+    if value is not None:
+        env[compile_mod.MARCH_ENV] = value
+    code = ("import platform; from quadctl.native import compile as c; "
+            "print(c.MARCH, c.SIMD_FLAGS.count(c.MARCH), c.NATIVE_FLAGS.count(c.MARCH), "
+            "c.cpu_tag() == platform.machine())")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    assert out.split() == [march, "1", "1", str(machine_only)]
 
 
 @pytest.mark.compiler
