@@ -14,7 +14,7 @@ from quadctl.layout import INPUT_NAMES, STATE_INDEX, unit_of
 from quadctl.plots.drawing import COLORS, axis_label, displayed, input_limits, length_unit, limit_lines, trace
 
 
-def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
+def subsystem_figure(sim, name: str, states, *, title: str = "", regulated: bool = True) -> Figure:
     """One panel per state of a subsystem: the state and its reference against time.
 
     Parameters
@@ -23,21 +23,28 @@ def subsystem_figure(sim, name: str, states, *, title: str = "") -> Figure:
     name : str
         Subsystem name (figure title).
     states : sequence of str
+    regulated : bool
+        False: the partition leaves the subsystem unregulated (``regulate: false``), so no feedback
+        holds its states to the reference: the title and the legends say so, and the reference is
+        drawn as what the states would follow, not as a miss.
     """
     fig = Figure(figsize=(7.5, 1.9 * len(states) + 0.8), layout="constrained")
     axes = fig.subplots(len(states), 1, sharex=True, squeeze=False)[:, 0]
+    free = "" if regulated else " (not regulated)"
     for ax, state, color in zip(axes, states, COLORS * 3):
         i = STATE_INDEX[state]
         y, unit = displayed(state, sim.x[:, i])
         ref, _ = displayed(state, sim.x_ref[:, i])
-        trace(ax, sim.t, y, color=color, lw=1.6, label=axis_label(state))
-        trace(ax, sim.t, ref, color="0.35", lw=1.0, ls="--", label="reference")
+        trace(ax, sim.t, y, color=color, lw=1.6, label=axis_label(state) + free)
+        trace(ax, sim.t, ref, color="0.35", lw=1.0, ls="--" if regulated else ":",
+              label="reference" if regulated else "reference (no feedback holds it)")
         ax.set_ylabel(f"{axis_label(state)} [{unit}]")
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8, frameon=False)
     axes[-1].set_xlabel("time [s]")
     status = "" if sim.status == "ok" else f" ({sim.status})"
-    fig.suptitle(f"{title}: {name} subsystem{status}" if title else f"{name} subsystem{status}")
+    what = f"{name} subsystem{free}{status}"
+    fig.suptitle(f"{title}: {what}" if title else what)
     return fig
 
 
@@ -221,7 +228,13 @@ def tracking_error_figure(sim, *, title: str = "") -> Figure:
     for i, (name, color) in enumerate(zip(("pN", "pE", "pD"), COLORS)):
         trace(ax, sim.t, err[:, i] / size, color=color, lw=1.2, label=f"{name} - reference")
     trace(ax, sim.t, norm / size, color="k", lw=1.0, ls=":", label="|p - p_ref|")
-    return _finished(fig, ax, f"position error [{unit}]", "tracking error", title)
+    # a small unit with its size (an "nm" beside the inputs' "N m" is read as a torque)
+    scale = "" if size == 1.0 else f" = 10{str(round(np.log10(size))).translate(SUPERSCRIPTS)} m"
+    return _finished(fig, ax, f"position error [{unit}{scale}]", "tracking error", title)
+
+
+SUPERSCRIPTS = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+"""Digits and the minus sign as superscripts (an exponent in an axis label)."""
 
 
 def _over_time(height: float) -> tuple[Figure, object]:
@@ -254,7 +267,9 @@ def simulation_figure_makers(sim, partition: dict, u_trim=None, *, title: str = 
                              tracking: dict | None = None) -> dict[str, Callable[[], Figure]]:
     """The figures of :func:`simulation_figures`, each not yet made: file stem -> a function that
     makes it (so that a caller can make, draw and drop one at a time, or share them out)."""
-    makers = {name: partial(subsystem_figure, sim, name, sub.states, title=title) for name, sub in partition.items()}
+    makers = {name: partial(subsystem_figure, sim, name, sub.states, title=title,
+                            regulated=getattr(sub, "regulate", True))  # a partition's Subsystem
+              for name, sub in partition.items()}
     makers["inputs"] = partial(inputs_figure, sim, u_trim, title=title, actuators=actuators)
     if len(getattr(sim, "wind", ())):
         makers["wind"] = partial(wind_figure, sim, title=title)

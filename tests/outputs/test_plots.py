@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, solve
 
-from quadctl import plots
+from quadctl import config, plots
 from quadctl.design import margin_findings
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.physics.motors import Motors, actuators_of
@@ -78,6 +78,18 @@ def test_the_altitude_plot_shows_height_up():
     np.testing.assert_array_equal(state.get_ydata(), -sim.x[:, STATE_INDEX["pD"]])  # 0.5 m rising to 1 m
     np.testing.assert_array_equal(ref.get_ydata(), np.ones(len(sim.t)))
     assert state.get_ydata()[0] == pytest.approx(0.5) and state.get_ydata()[-1] > 0.99
+
+
+def test_an_unregulated_subsystems_figure_says_no_feedback_holds_its_reference():
+    """forward's guidance (pN, pE; regulate: false): pE drifts off its reference, which no loop holds."""
+    sim = _sim()
+    fig = plots.simulation_figure_makers(sim, config.load("forward").partition())["guidance"]()
+    assert fig.get_suptitle() == "guidance subsystem (not regulated)"
+    for ax, state in zip(fig.axes, ("pN", "pE")):
+        assert [line.get_label() for line in ax.get_legend().get_lines()] == \
+            [f"{state} (not regulated)", "reference (no feedback holds it)"]
+    held = plots.subsystem_figure(sim, "altitude", ["pD", "w"])
+    assert held.get_suptitle() == "altitude subsystem" and _lines(held.axes[0], "reference")
 
 
 def _limit_values(ax):
@@ -253,17 +265,19 @@ def test_the_position_error_figure_says_when_the_lqr_leaves_the_horizontal_posit
     assert all(fig.axes[0].get_title(loc="left") == "" for stem, fig in figs.items() if stem != "position-error")
 
 
-@pytest.mark.parametrize("peak, unit, size", [(3.4e-7, "nm", 1e-9), (2.5e-5, "µm", 1e-6), (0.4, "mm", 1e-3),
-                                              (2.0, "m", 1.0)])
-def test_the_tracking_error_reads_in_a_unit_of_its_size_with_no_multiplier_above_the_axis(peak, unit, size):
+@pytest.mark.parametrize("peak, unit, size, scale", [(3.4e-7, "nm", 1e-9, " = 10⁻⁹ m"),
+                                                     (2.5e-5, "µm", 1e-6, " = 10⁻⁶ m"),
+                                                     (0.4, "mm", 1e-3, " = 10⁻³ m"), (2.0, "m", 1.0, "")])
+def test_the_tracking_error_reads_in_a_unit_of_its_size_with_no_multiplier_above_the_axis(peak, unit, size, scale):
     """A flatness-fed mission tracks to a fraction of a micrometre (`square`: 340 nm): the axis says nm and
-    its ticks read the values, where matplotlib would write 1e-7 above the axis."""
+    its ticks read the values, where matplotlib would write 1e-7 above the axis; a unit below the metre
+    says its size (an "nm" beside the inputs' "N m" reads as a torque)."""
     sim = _sim()
     sim.x_ref = sim.x.copy()
     sim.x[:, STATE_INDEX["pN"]] += peak * np.sin(np.pi * sim.t)  # the error, peak at t = 0.5 s
     fig = _drawn(plots.tracking_error_figure(sim))
     ax = fig.axes[0]
-    assert ax.get_ylabel() == f"position error [{unit}]"
+    assert ax.get_ylabel() == f"position error [{unit}{scale}]"
     assert ax.yaxis.get_offset_text().get_text() == ""
     north = _lines(ax, "pN - reference")[0]
     assert north.get_ydata().max() == pytest.approx(peak / size, rel=1e-3)
