@@ -195,16 +195,32 @@ def load(text: str, label: str, error: type[QuadctlError] = ConfigError) -> Any:
         raise error(f"{label}: {exc}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
         kind = "syntax error" if isinstance(exc, (yaml.scanner.ScannerError, yaml.parser.ParserError,
                                                   yaml.reader.ReaderError)) else "error"
+        start = _start_mark(exc)
+        if start is not None and (start.line, start.column) != (mark.line, mark.column):
+            where = f" at line {start.line + 1}, column {start.column + 1}"
+            problem = f"{exc.context}, {problem} (reading stopped at line {mark.line + 1}, column {mark.column + 1})"
+        else:
+            where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         raise error(f"{label}: YAML {kind}{where}: {_in_plain_words(text, mark, problem)}") from None
     except RecursionError:  # MAX_DEPTH keeps the composer shallow; this is the last line of defence
         raise error(f"{label}: nested too deeply to read; check the brackets") from None
     finally:
         if loader is not None:
             loader.dispose()
+
+
+def _start_mark(exc: yaml.YAMLError):
+    """Where the problem starts, when PyYAML says so apart from where it stopped reading: the key, quoted
+    text, anchor, tag or block scalar it was scanning, or the ``[`` or ``{`` left open (its context mark).
+    None otherwise, and for a block mapping or list, whose context mark is where the enclosing block
+    begins (often line 1): farther from the problem than where reading stopped."""
+    context, start, mark = (getattr(exc, name, None) for name in ("context", "context_mark", "problem_mark"))
+    if start is None or mark is None or not isinstance(context, str):
+        return None
+    return start if context.startswith(("while scanning", "while parsing a flow")) else None
 
 
 _KEY_WITHOUT_SPACE = re.compile(r"^\s*(?:-\s+)?[A-Za-z_][\w-]*:[^\s:/]\S*")

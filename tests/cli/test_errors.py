@@ -24,7 +24,7 @@ def _edit(old: str, new: str) -> str:
 
 
 CONFIG_CASES = {
-    "yaml syntax": ("name: [forward\n", r"c\.yaml: YAML syntax error at line 2, column 1: .*fix the YAML"),
+    "yaml syntax": ("name: [forward\n", r"c\.yaml: YAML syntax error at line 1, column 7: .*fix the YAML"),
     "not a mapping": ("- 1\n- 2\n", r"the config is a list, not a mapping of keys"),
     "empty file": ("", r"the config is empty, not a mapping of keys"),
     "wrong type": (_edit("mass: 0.068", "mass: heavy"), r'vehicle\.mass = "heavy": must be a number \(kg\)'),

@@ -113,7 +113,7 @@ def test_nesting_a_config_needs_is_fine():
 
 
 @pytest.mark.parametrize("text,message", [
-    ("name: [forward\n", r"^c\.yaml: YAML syntax error at line 2, column 1: .*; fix the YAML$"),
+    ("name: [forward\n", r"^c\.yaml: YAML syntax error at line 1, column 7: .*; fix the YAML$"),
     ("\x1fname: x\n", r"^c\.yaml: YAML syntax error: .*special characters are not allowed"),
     ("a: !!python/object:os.system x\n", r"^c\.yaml: YAML error at line 1, column 4: could not determine a "
                                          r"constructor"),
@@ -137,6 +137,23 @@ def test_yaml_errors_are_one_line(text, message):
      "`name:forward`, one word to YAML: write `key: value` with a space after the colon"),
 ])
 def test_a_tab_or_a_missing_space_after_a_colon_is_told_in_plain_words(text, message):
+    with pytest.raises(ConfigError) as info:
+        load(text)
+    assert str(info.value) == message
+
+
+@pytest.mark.parametrize("text,message", [
+    ("name: hover\nvehicle\n  mass: 0.068\n",
+     "c.yaml: YAML syntax error at line 2, column 1: while scanning a simple key, could not find expected ':' "
+     "(reading stopped at line 3, column 7); fix the YAML"),
+    ("name: hover\nseed: 1\ninertia: [6.9e-5, 7.75e-5\ndrag: 0.2\n",
+     "c.yaml: YAML syntax error at line 3, column 10: while parsing a flow sequence, expected ',' or ']', but got "
+     "':' (reading stopped at line 4, column 5); fix the YAML"),
+    ("name: 'hover\nseed: 1\n",
+     "c.yaml: YAML syntax error at line 1, column 7: while scanning a quoted scalar, found unexpected end of "
+     "stream (reading stopped at line 3, column 1); fix the YAML"),
+])
+def test_a_syntax_error_points_at_the_line_where_the_problem_starts(text, message):
     with pytest.raises(ConfigError) as info:
         load(text)
     assert str(info.value) == message
