@@ -14,9 +14,9 @@ import hashlib
 import json
 from typing import Annotated, Any, Literal, Optional, Union
 
-import yaml
 from pydantic import Field
 
+from quadctl.config import yamlio
 from quadctl.config.controller_schema import ControllerConfig, EstimatorConfig
 from quadctl.config.schema_types import MAX_NOISE, Matrix, NonNegative, Number, Positive, Section, Vector3
 from quadctl.layout import REPORT_PARTITION
@@ -416,7 +416,7 @@ class Config(Section):
 
     def to_yaml(self) -> str:
         """The validated config as YAML (all defaults filled in)."""
-        return yaml.safe_dump(self.model_dump(mode="json"), sort_keys=False)
+        return yamlio.dump(self.model_dump(mode="json"))
 
 
 LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (

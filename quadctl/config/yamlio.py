@@ -162,6 +162,43 @@ Loader.add_implicit_resolver(_INT, _INT_RE, list("-+0123456789"))
 Loader.add_implicit_resolver(_FLOAT, _FLOAT_RE, list("-+0123456789."))
 
 
+class Dumper(yaml.SafeDumper):
+    """PyYAML's safe dumper quoting what :class:`Loader` would read as another type: a text ``1e5``
+    or ``010`` is a number to quadctl, so it is written ``'1e5'``. Use :func:`dump` or :func:`flow`."""
+
+    yaml_implicit_resolvers = {first: list(resolvers) for first, resolvers in Loader.yaml_implicit_resolvers.items()}
+
+
+def dump(data: Any) -> str:
+    """``data`` as a YAML document for people to read, quadctl's one way to write YAML: keys in their
+    order, text as written (``Förster``, not ``F\\xF6rster``; only characters YAML cannot hold are
+    escaped), and no line folded, however long (an editor or terminal wraps them for the reader).
+
+    Examples
+    --------
+    >>> print(dump({"description": "rotor limits (Förster 2015)", "inertia": [6.9e-5, 7.75e-5], "id": "1e5"}), end="")
+    description: rotor limits (Förster 2015)
+    inertia:
+    - 6.9e-05
+    - 7.75e-05
+    id: '1e5'
+    """
+    return yaml.dump(data, Dumper=Dumper, sort_keys=False, allow_unicode=True, width=float("inf"))
+
+
+def flow(value: Any) -> str:
+    """``value`` as one line of YAML to follow ``key: `` (lists and mappings in brackets), written as
+    :func:`dump` writes.
+
+    Examples
+    --------
+    >>> flow("Förster, identified from log.csv"), flow([1e-05, 0.068]), flow({"a": "yes"})
+    ('Förster, identified from log.csv', '[1.0e-05, 0.068]', "{a: 'yes'}")
+    """
+    text = yaml.dump(value, Dumper=Dumper, default_flow_style=True, allow_unicode=True, width=float("inf"))
+    return text.removesuffix("...\n").strip("\n")
+
+
 def load(text: str, label: str, error: type[QuadctlError] = ConfigError) -> Any:
     """Parse one YAML document as quadctl reads every file.
 

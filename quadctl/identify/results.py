@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.artifacts.meta import IDENTIFIED_CONFIG_HEAD, metadata
-from quadctl.config import parse
+from quadctl.config import parse, yamlio
 from quadctl.config.controller_schema import MAX_DELAY_SAMPLES
 from quadctl.errors import ArtifactError, ConfigError, LogError
 from quadctl.identify import estimate as est
@@ -306,9 +306,9 @@ def identified_config(text: str, ident: Identification, name: str, sets=()) -> s
         if key is None:
             _put_top(lines, top, value, shown.set_comment(given))
         else:
-            _put(lines, top, key, json.dumps(value), shown.set_comment(given))
+            _put(lines, top, key, yamlio.flow(value), shown.set_comment(given))
     lines = [f"name: {name}" if re.match(r"^name:\s", ln)
-             else f"description: {json.dumps(f'{ident.config_name}, identified from {logs}')}"
+             else f"description: {yamlio.flow(f'{ident.config_name}, identified from {logs}')}"
              if re.match(r"^description:\s+[^|>\s]", ln) else ln for ln in lines]  # (a block scalar stays)
     for (section, key), (value, comment) in changes(ident).items():
         if value is None:
@@ -330,7 +330,7 @@ def _set_values(text: str, sets) -> list[tuple[str, str | None, object, list[str
     them has it, and the values that changed it."""
     if not sets:
         return []
-    from quadctl.config import overrides, yamlio
+    from quadctl.config import overrides
 
     merged = overrides.apply(yamlio.load(text, "the config", ConfigError), [overrides.parse(t) for t in sets])
     found: dict[tuple, list[str]] = {}
@@ -377,9 +377,9 @@ def _put_top(lines: list[str], key: str, value, comment: str) -> None:
     """Set the top-level ``key`` to ``value`` (a mapping as a block of its keys, each as YAML flow; else one
     line), ``# comment`` after the key: its line and block replaced, or added at the end."""
     if isinstance(value, dict):
-        new = [f"{key}:  # {comment}", *(f"  {k}: {json.dumps(v)}" for k, v in value.items())]
+        new = [f"{key}:  # {comment}", *(f"  {k}: {yamlio.flow(v)}" for k, v in value.items())]
     else:
-        new = [f"{key}: {json.dumps(value)}  # {comment}"]
+        new = [f"{key}: {yamlio.flow(value)}  # {comment}"]
     start = next((k for k, ln in enumerate(lines) if re.match(rf"^{key}:", ln)), None)
     if start is None:
         lines += new

@@ -126,6 +126,13 @@ def test_configs_lists_and_shows(tmp_path):
     assert invoke("trim", "-c", own, "-o", tmp_path).exit_code == 0
 
 
+def test_configs_show_prints_the_description_as_written_on_one_line():
+    shown = invoke("configs", "--show", "crazyflie").output.splitlines()
+    description = next(line for line in shown if line.startswith("description:"))
+    assert description == f"description: '{config.load('crazyflie').description}'"
+    assert "Förster" in description
+
+
 def _write(tmp_path: Path, text: str) -> Path:
     path = tmp_path / "c.yaml"
     path.write_text(text)

@@ -166,6 +166,30 @@ def test_text_longer_than_the_cap_is_refused():
 
 
 # ---------------------------------------------------------------------------------------
+# Writing YAML for people
+
+
+def test_dumped_yaml_keeps_unicode_and_does_not_fold_long_text():
+    text = "Crazyflie 2.x hover at 1 m: 500 Hz discrete LQR within its rotor limits (Förster 2015) " * 3
+    dumped = yamlio.dump({"description": text, "mass": 0.027})
+    assert dumped.splitlines()[0] == f"description: '{text}'"
+    assert load(dumped) == {"description": text, "mass": 0.027}
+
+
+@pytest.mark.parametrize("value", ["1e5", "010", "0x1F", "yes", "null", "1.5"])
+def test_dumped_yaml_quotes_text_quadctl_would_read_as_another_type(value):
+    assert load(yamlio.dump({"a": value})) == {"a": value}
+    assert load(f"a: {yamlio.flow(value)}") == {"a": value}
+
+
+def test_flow_yaml_is_one_line_that_reads_back():
+    value = {"note": "Förster, identified from log.csv " * 4, "inertia": [6.9e-05, 7.75e-05, 1.5e-04]}
+    line = yamlio.flow(value)
+    assert "\n" not in line and "Förster" in line
+    assert load(f"a: {line}") == {"a": value}
+
+
+# ---------------------------------------------------------------------------------------
 # Reading files
 
 

@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 
 from quadctl import artifacts, config, report, stages
 from quadctl.cli.app import app
+from quadctl.config import yamlio
 from quadctl.workspace import Workspace
 
 runner = CliRunner()
@@ -194,6 +195,8 @@ def test_report_of_every_bundled_config_holds_what_the_stages_print(name, report
     assert {r[0]: r[1] for r in page.tables["software-table"][1:6]} == sim["software"]
     assert page.pres[0] == config.bundled(name).text  # the config as given, then as resolved
     assert page.pres[1] == config.load(name).to_yaml()
+    described = next(line for line in page.pres[1].splitlines() if line.startswith("description:"))
+    assert yamlio.load(described, "line")["description"] == config.load(name).description  # on one line
     assert f"Command line: quadctl report --config {name} --out {out}" in "".join(page.text)
 
 
