@@ -193,7 +193,7 @@ def _check_reach(cfg: Config, fail) -> None:
             fail(f"simulation.reference.waypoints[{i}].position", wp.position,
                  f"{along:.5g} m from the start along the mission, more than {MAX_REACH:g} times the {reach:.4g} m "
                  f"that simulation.reference.speed = {ref.speed:g} m/s covers in simulation.duration = "
-                 f"{cfg.simulation.duration:g} s (MAX_REACH); positions are in m: {mm}correct the slip, or raise "
+                 f"{cfg.simulation.duration:g} s; positions are in m: {mm}correct the slip, or raise "
                  "the speed or the duration")
 
 
@@ -260,8 +260,8 @@ def _check_delay(cfg: Config, fail) -> None:
              f"is {n:.6g} samples at {rate:g} Hz; the simulated delay is a whole number of samples: use "
              f"{lo / rate:.6g} s ({{samples: {lo}}}) or {hi / rate:.6g} s ({{samples: {hi}}})")
     if whole > MAX_DELAY_SAMPLES:
-        fail("controller.delay", delay, f"is {whole} samples at {rate:g} Hz, more than MAX_DELAY_SAMPLES = "
-             f"{MAX_DELAY_SAMPLES} ({MAX_DELAY_SAMPLES / rate:g} s); controller.delay is in seconds (5 ms is "
+        fail("controller.delay", delay, f"is {whole} samples at {rate:g} Hz, more than the {MAX_DELAY_SAMPLES} "
+             f"samples ({MAX_DELAY_SAMPLES / rate:g} s) quadctl simulates; controller.delay is in seconds (5 ms is "
              "0.005): shorten it")
 
 

@@ -184,12 +184,12 @@ def _gyration(cfg: Config, label: str) -> list[Notice]:
         return []
     radius = math.sqrt(max(inertia) / mass)
     if arm is not None:
-        against = (f"{radius / arm:.3g} times motors.arm_length = {arm:g} m (a quadcopter's is {band[0]:g} to "
-                   f"{band[1]:g} times it: GYRATION_TO_ARM)")
+        against = (f"{radius / arm:.3g} times motors.arm_length = {arm:g} m (a quadcopter's radius of gyration is "
+                   f"{band[0]:g} to {band[1]:g} times its arm length)")
     else:
         cube = mass ** (1 / 3)
-        against = (f"a {mass:g} kg quadcopter's is {band[0] * cube:.2g} to {band[1] * cube:.2g} m "
-                   "(GYRATION_TO_CUBE_ROOT_MASS)")
+        against = (f"a {mass:g} kg quadcopter's is {band[0] * cube:.2g} to {band[1] * cube:.2g} m ({band[0]:g} to "
+                   f"{band[1]:g} m times the cube root of the mass in kg)")
     middle = math.sqrt(band[0] * band[1])
 
     def fits(m: float, j: float) -> float:  # distance (in decades) from the middle of the band, if inside
@@ -221,7 +221,7 @@ def _gyration(cfg: Config, label: str) -> list[Notice]:
         return [Notice("warning", key, (
             f"{label}: motors.arm_length = {arm:g} m is {arm / radius:.3g} times the radius of gyration sqrt({axis}/m) "
             f"= {radius:.3g} m of vehicle.inertia = {show(inertia)} kg m^2 and vehicle.mass = {mass:g} kg (a "
-            f"quadcopter's arm is {1 / band[1]:g} to {1 / band[0]:g} times it: GYRATION_TO_ARM); {guess}"))]
+            f"quadcopter's arm is {1 / band[1]:g} to {1 / band[0]:g} times its radius of gyration); {guess}"))]
     given = [f"vehicle.inertia = {show(inertia)} kg m^2", f"vehicle.mass = {mass:g} kg"]
     if key == "vehicle.mass":  # lead with the key that slipped
         given.reverse()
@@ -238,8 +238,8 @@ def _controller_rate(cfg: Config, label: str) -> list[Notice]:
     guess = (f"is controller.rate in kHz? {rate:g} kHz is {rate * 1e3:g} Hz" if _within(rate * 1e3, (100.0, 8e3))
              else "check controller.rate (Hz)")
     return [Notice("warning", "controller.rate", (
-        f"{label}: controller.rate = {rate:g} Hz is below the {CONTROLLER_RATES[0]:g} Hz of the slowest attitude "
-        f"loop a flight computer closes (100 Hz to 8 kHz: CONTROLLER_RATES); {guess}"))]
+        f"{label}: controller.rate = {rate:g} Hz is below {CONTROLLER_RATES[0]:g} Hz, slower than any attitude loop "
+        f"a flight computer closes (they run at 100 Hz to 8 kHz); {guess}"))]
 
 
 def _within(value: float, band: tuple[float, float]) -> bool:
@@ -264,7 +264,8 @@ def _thrust_to_weight(cfg: Config, label: str) -> list[Notice]:
         else:
             guess = "check motors.max_thrust (N per rotor) and vehicle.mass (kg)"
     else:
-        key, what = "motors.max_thrust", f"racing quadcopters reach about 10 (THRUST_TO_WEIGHT: {low:g} to {high:g})"
+        key, what = "motors.max_thrust", (f"a quadcopter's is {low:g} to {high:g}, a racing "
+                                        "quadcopter's about 10")
         if ratio > 2 * high and low <= ratio * GRAM_FORCE <= high:
             guess = f"is motors.max_thrust in grams-force? {thrust:g} gf is {thrust * GRAM_FORCE:.3g} N"
         else:

@@ -102,9 +102,9 @@ def check_unit_limits(cfg: Config, fail) -> None:
             if unit_here.startswith("rad"):
                 fail(path, value, _degrees_hint(value, limit))
             if unit_here == "s":
-                fail(path, value, f"must be at most {limit:g} s (MAX_DURATION, one day; set {MAX_DURATION_ENV} to "
+                fail(path, value, f"must be at most {limit:g} s (one day; set {MAX_DURATION_ENV} to "
                      "allow longer)")
-            fail(path, value, f"must be at most {limit:g} {unit_here} in magnitude (UNIT_LIMITS)")
+            fail(path, value, f"must be at most {limit:g} {unit_here} in magnitude")
 
 
 def _values_at(node: Any, parts: list[str], path: str):
@@ -143,7 +143,7 @@ def check_initial_offset(cfg: Config, fail) -> None:
         unit = STATE_UNITS[state]
         if unit in MAX_OFFSET and abs(value) > MAX_OFFSET[unit]:
             fail(f"simulation.initial_offset.{state}", value,
-                 f"must be at most {MAX_OFFSET[unit]:g} {unit} from the trim (MAX_OFFSET)")
+                 f"must be at most {MAX_OFFSET[unit]:g} {unit} from the trim")
 
 
 def _check_angle(path: str, value: float, limit: float, fail, *, at_limit: bool = False) -> None:

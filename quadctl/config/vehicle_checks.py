@@ -138,5 +138,6 @@ def _check_positions(motors: MotorsConfig, fail) -> None:
     rcond = 0.0 if not np.all(largest > 0) else 1.0 / np.linalg.cond(m / largest)
     if not rcond > MIXER_RCOND:
         fail("motors.positions", motors.positions, f"with motors.spin = {motors.spin} the rotors cannot command "
-             f"thrust, roll, pitch and yaw independently (reciprocal condition {rcond:.2g} <= MIXER_RCOND = "
-             f"{MIXER_RCOND:g}); put the rotors around the centre of mass, diagonal rotors turning alike")
+             f"thrust, roll, pitch and yaw independently (the reciprocal condition number of the mixer is "
+             f"{rcond:.2g}, not above {MIXER_RCOND:g}); put the rotors around the centre of mass, diagonal rotors "
+             "turning alike")

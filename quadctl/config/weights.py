@@ -73,7 +73,7 @@ def check_weight(value: list, size: int, path: str, label: str, *, definite: boo
         where = f"{path}[{k}]" if not nested else f"{path}[{k // size}][{k % size}]"
         entry = value[k] if not nested else value[k // size][k % size]
         raise ConfigError(f"{label}: {where} = {show(entry)}: a weight must be 0 or between {WEIGHT_RANGE[0]:g} "
-                          f"and {WEIGHT_RANGE[1]:g} in magnitude (WEIGHT_RANGE); the gains depend only on the "
+                          f"and {WEIGHT_RANGE[1]:g} in magnitude; the gains depend only on the "
                           "ratios of the weights: scale Q and R together")
     if nested:
         mat = weight_matrix(value, size)

@@ -94,7 +94,7 @@ class Loader(yaml.SafeLoader):
             if self._depth > MAX_DEPTH:
                 mark = self.peek_event().start_mark
                 raise _Bounded(f"{self._where(3)}nested more than {MAX_DEPTH} levels deep at line "
-                               f"{mark.line + 1} (MAX_DEPTH); a config nests about 5: check the brackets")
+                               f"{mark.line + 1}; a config nests about 5: check the brackets")
             alias = self.check_event(yaml.AliasEvent)
             mark = self.peek_event().start_mark if alias else None
             node = super().compose_node(parent, index)
@@ -107,7 +107,7 @@ class Loader(yaml.SafeLoader):
             if self._sizes[id(node)] > MAX_EXPANDED:
                 line = (mark or node.start_mark).line + 1
                 raise _Bounded(f"{self._where()}at line {line} the aliases (*name) expand the document past "
-                               f"{MAX_EXPANDED:,} values and characters (MAX_EXPANDED): a YAML alias bomb? "
+                               f"{MAX_EXPANDED:,} values and characters: a YAML alias bomb? "
                                "write the values out")
             return node
         finally:
@@ -151,8 +151,8 @@ class Loader(yaml.SafeLoader):
         sign = -1 if text[0] == "-" else 1
         text = text.lstrip("+-")
         if len(text) > MAX_DIGITS:
-            raise _Bounded(f"line {node.start_mark.line + 1}: a whole number of {len(text)} digits (MAX_DIGITS "
-                           f"is {MAX_DIGITS}); quadctl's numbers end at about 1.8e308")
+            raise _Bounded(f"line {node.start_mark.line + 1}: a whole number of {len(text)} digits (quadctl "
+                           f"reads at most {MAX_DIGITS}); quadctl's numbers end at about 1.8e308")
         base = {"0x": 16, "0o": 8, "0b": 2}.get(text[:2].lower(), 10)
         return sign * int(text[2:] if base != 10 else text, base)
 
@@ -222,7 +222,7 @@ def load(text: str, label: str, error: type[QuadctlError] = ConfigError) -> Any:
         a bound (size, depth, alias expansion) with its name and value.
     """
     if len(text) > MAX_BYTES:
-        raise error(f"{label}: {len(text):,} characters, more than the {MAX_BYTES:,} quadctl reads (MAX_BYTES); "
+        raise error(f"{label}: {len(text):,} characters, more than the {MAX_BYTES:,} quadctl reads; "
                     "a config or sweep file is a few kB: check the file")
     loader = None
     try:
@@ -308,7 +308,7 @@ def read_text(path: str | Path, label: str, what: str, error: type[QuadctlError]
         raise error(f"{label}: cannot read the {what} ({_reason(exc)}); check the file") from None
     if stat.S_ISDIR(info.st_mode):
         raise error(f"{label}: is a folder, not a {what}; give a .yaml file")
-    too_big = (f"{label}: more than {MAX_BYTES:,} bytes, the most quadctl reads for a {what} (MAX_BYTES); "
+    too_big = (f"{label}: more than {MAX_BYTES:,} bytes, the most quadctl reads for a {what}; "
                f"a {what} is a few kB: check the path")
     if stat.S_ISREG(info.st_mode) and info.st_size > MAX_BYTES:
         raise error(too_big)

@@ -413,7 +413,7 @@ def require_within_limits(fractions: dict[str, float] | None, mode: str | None, 
               f"give {worst} the range the vehicle really has (limits.{worst})")
     raise SaturationFailed(
         f"the design saturates: {worst} is at a limit {fractions[worst] * 100:.3g} % of the run, more than "
-        f"{SATURATION_FAIL * 100:g} % (SATURATION_FAIL), so it flies its limits, not the design; lower the gains "
+        f"{SATURATION_FAIL * 100:g} %, so it flies its limits, not the design; lower the gains "
         f"(larger lqr R) or the initial offset, or {really}; "
         "--allow-saturation (or allow: [saturation] in the config) accepts it")
 

@@ -104,7 +104,7 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
     if samples is not None and (not is_whole(samples) or samples < 1):
         raise fail("samples", f"{show(samples, exact=True)}: {whole_number(samples, 1)}")
     if samples is not None and samples > MAX_CASES:
-        raise fail("samples", f"{show(samples)}: more than {MAX_CASES:,} cases (MAX_CASES); "
+        raise fail("samples", f"{show(samples)}: more than {MAX_CASES:,} cases, the most a sweep runs; "
                    "run fewer samples, or split the sweep into several files")
     seed = data.get("seed", 0)
     if not is_whole(seed) or seed < 0:
@@ -167,7 +167,7 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
         if count > MAX_CASES:
             sizes = " x ".join(str(p.size()) for p in parameters)
             raise fail("parameters", f"the grid has {sizes} = {count:,} cases, more than {MAX_CASES:,} "
-                       "(MAX_CASES); use fewer values, or mode: random with samples")
+                       "(the most a sweep runs); use fewer values, or mode: random with samples")
     return spec
 
 
@@ -225,7 +225,7 @@ def _check_values(spec, path: str, mode: str, label: str) -> str:
             raise SweepError(f"{where}.num = {show(num, exact=True)}: {why}{whole_number(num, 1)}")
         if num > MAX_CASES:
             raise SweepError(f"{where}.num = {show(num)}: more than {MAX_CASES:,} values, the most cases a "
-                             "sweep runs (MAX_CASES); use fewer")
+                             "sweep runs; use fewer")
     scale = spec.get("scale", "linear")
     if scale not in ("linear", "log"):
         raise SweepError(f"{where}.scale = {show(scale)}: use linear or log")
@@ -369,7 +369,7 @@ def _finite(value, where: str) -> None:
     if not finite_number(value):
         raise SweepError(f"{where} = {show(value)}: must be a finite number")
     if abs(value) > MAX_MAGNITUDE:
-        raise SweepError(f"{where} = {show(value)}: must be at most {MAX_MAGNITUDE:g} in magnitude (MAX_MAGNITUDE)")
+        raise SweepError(f"{where} = {show(value)}: must be at most {MAX_MAGNITUDE:g} in magnitude")
 
 
 def _num(value):

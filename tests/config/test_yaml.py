@@ -41,7 +41,8 @@ def test_nan():
 
 
 def test_a_huge_whole_number_is_refused_before_conversion():
-    with pytest.raises(ConfigError, match=r"^c\.yaml: line 1: a whole number of 5000 digits \(MAX_DIGITS is 400\)"):
+    with pytest.raises(ConfigError, match=r"^c\.yaml: line 1: a whole number of 5000 digits "
+                                          r"\(quadctl reads at most 400\)"):
         load("x: " + "9" * 5000)
 
 
@@ -78,7 +79,7 @@ def test_an_alias_bomb_is_refused_while_parsing():
     assert len(text) < 1700
     start = time.perf_counter()
     with pytest.raises(ConfigError, match=r"^c\.yaml: lol6: at line 7 the aliases \(\*name\) expand the document "
-                                          r"past 2,000,000 values and characters \(MAX_EXPANDED\)"):
+                                          r"past 2,000,000 values and characters: a YAML alias bomb\?"):
         load(text)
     assert time.perf_counter() - start < 5  # refused before anything is built from it
 
@@ -90,7 +91,7 @@ def test_aliases_that_expand_modestly_are_fine():
 
 def test_a_long_string_repeated_by_aliases_counts_its_characters():
     text = f"s: &s {'x' * 100_000}\nl: [{', '.join(['*s'] * 30)}]\n"
-    with pytest.raises(ConfigError, match=r"^c\.yaml: l: .*MAX_EXPANDED"):
+    with pytest.raises(ConfigError, match=r"^c\.yaml: l: .*past 2,000,000 values and characters"):
         load(text)
 
 
@@ -103,7 +104,8 @@ def test_a_recursive_alias_is_refused():
 @pytest.mark.parametrize("text", ["x: " + "[" * 5000 + "]" * 5000, "x: " + "{a: " * 5000 + "1" + "}" * 5000,
                                   "? " * 3000 + "a"])
 def test_deep_nesting_is_refused_before_recursing(text):
-    with pytest.raises(ConfigError, match=rf"nested more than {yamlio.MAX_DEPTH} levels deep at line 1 \(MAX_DEPTH\)"):
+    with pytest.raises(ConfigError, match=rf"nested more than {yamlio.MAX_DEPTH} levels deep at line 1; "
+                                          r"a config nests about 5"):
         load(text)
 
 
@@ -160,8 +162,8 @@ def test_a_syntax_error_points_at_the_line_where_the_problem_starts(text, messag
 
 
 def test_text_longer_than_the_cap_is_refused():
-    with pytest.raises(ConfigError, match=r"^c\.yaml: 1,000,001 characters, more than the 1,000,000 quadctl reads "
-                                          r"\(MAX_BYTES\)"):
+    with pytest.raises(ConfigError, match=r"^c\.yaml: 1,000,001 characters, more than the 1,000,000 quadctl reads; "
+                                          r"a config or sweep file is a few kB: check the file$"):
         load("#" * (yamlio.MAX_BYTES + 1))
 
 
@@ -202,7 +204,7 @@ def test_a_large_file_is_refused_from_its_size(tmp_path):
     with open(path, "wb") as f:
         f.truncate(50_000_000)  # sparse: 50 MB that cost nothing to make
     with pytest.raises(ConfigError, match=r"big\.yaml: more than 1,000,000 bytes, the most quadctl reads for a "
-                                          r"config file \(MAX_BYTES\); a config file is a few kB: check the path$"):
+                                          r"config file; a config file is a few kB: check the path$"):
         read(path)
 
 

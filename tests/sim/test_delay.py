@@ -112,7 +112,7 @@ def test_margins_json_reports_the_delay_margin(tmp_path):
                                       r"a whole number of samples: use 0.005 s \({samples: 1}\) or 0.01 s "
                                       r"\({samples: 2}\)"),
     ({"rate": 200.0, "delay": 5}, r"^<config>: controller\.delay = 5: is 1000 samples at 200 Hz, more than "
-                                  r"MAX_DELAY_SAMPLES = 100 \(0\.5 s\); controller\.delay is in seconds "
+                                  r"the 100 samples \(0\.5 s\) quadctl simulates; controller\.delay is in seconds "
                                   r"\(5 ms is 0\.005\): shorten it$"),
     ({"delay": 0.005}, r"controller.delay = 0.005: a delay is counted in controller samples: set controller.rate"),
     ({"rate": 200.0, "delay": {"samples": 101}}, r"controller.delay.samples = 101: must be at most 100"),
