@@ -65,16 +65,23 @@ def _shown_metrics(result, spec) -> list[str]:
     return (gated + extra)[:3]
 
 
+RANKED_BY = {True: ("most slack at their tightest gate, relative to its bound",
+                    "least slack at their tightest gate, relative to its bound"),
+             False: ("lowest LQR cost", "highest LQR cost")}
+"""What the best and the worst tables rank by, with gates and without: a case's slack is that of the gate
+it comes nearest to failing (:func:`quadctl.sweep.gates.margin`)."""
+
+
 def sweep_tables(result, spec) -> Group:
     """Two tables: the best and the worst cases (by their slack to the gates; by cost without gates)."""
     metrics = _shown_metrics(result, spec)
     ranked = result.ranked()
     worst = ranked[:SHOWN]
     best = [r for r in reversed(ranked[-SHOWN:]) if r not in worst]
-    how = "by the smallest relative slack to the gates" if spec.gates else "by LQR cost"
+    of = f"of {len(result.rows)} cases"
     tables = []
-    for title, rows in ((f"Best of {len(result.rows)} cases ({how})", best),
-                        (f"Worst of {len(result.rows)} cases", worst)):
+    for title, rows in ((f"Best {of} ({RANKED_BY[bool(spec.gates)][0]})", best),
+                        (f"Worst {of} ({RANKED_BY[bool(spec.gates)][1]})", worst)):
         if not rows:
             continue
         table = Table(title=title, title_justify="left", expand=not out.is_wide)  # a pipe: as wide as its rows

@@ -172,6 +172,24 @@ def test_a_mission_sweeps_table_shows_no_settling_time_and_the_others_do(mission
     assert headers == ["case", "parameters", *want, "result"]
 
 
+@pytest.mark.parametrize("gated", [True, False])
+def test_the_sweep_tables_say_what_they_rank_by(gated):
+    """The best cases have the most slack at the gate each comes nearest to failing, the worst the least:
+    the titles say so, not just "the smallest slack"; without gates, the LQR cost ranks them."""
+    from types import SimpleNamespace
+
+    from quadctl.cli.render_sweep import sweep_tables
+
+    rows = [{"case": k, "vehicle.mass": 0.068, "settling_time.pD": 1.0 + k, "cost": 1.0 + k, "status": "ok",
+             "pass": True} for k in range(12)]
+    result = SimpleNamespace(columns=["settling_time.pD", "cost", "status"], rows=rows, ranked=lambda: rows)
+    spec = SimpleNamespace(gates=[SimpleNamespace(metric="settling_time.pD")] if gated else [], names=["vehicle.mass"])
+    titles = [str(table.title) for table in sweep_tables(result, spec).renderables]
+    assert titles == (["Best of 12 cases (most slack at their tightest gate, relative to its bound)",
+                       "Worst of 12 cases (least slack at their tightest gate, relative to its bound)"] if gated else
+                      ["Best of 12 cases (lowest LQR cost)", "Worst of 12 cases (highest LQR cost)"])
+
+
 def test_a_mistyped_config_file_offers_the_file_beside_it(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "f450.yaml").write_text(config.bundled("hover").text)
