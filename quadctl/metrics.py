@@ -22,12 +22,31 @@ MAX_SAMPLES = 20_000
 """Default of ``simulation.max_samples``: a run keeps at most this many samples (every
 ``stride``-th step, and always the last). 10 s at the report's auto step (290 000 steps) is then
 a sample every 0.5 ms: finer than any settling time or plot needs, and 4.5 MB of sim.npz."""
+NOISE_TAIL = 0.1
+"""The last tenth of a run: in a run with noise or turbulence, a state whose error still leaves the
+settling band there (settled after ``(1 - NOISE_TAIL) t_end``, or never) is *noise-limited*: the band
+lies within the noise, so when it last crossed it measures the noise, not the response, and it has
+no settling time (None). A run without noise keeps its settling times as they are."""
 OVERSHOOT_FLOOR = 1e-6
 """Excursions past zero below this fraction of the initial error are round-off: overshoot 0."""
 
 
-def settling_time(t, err) -> float | None:
-    """Time after which ``|err|`` stays within ``SETTLING_BAND`` of its peak (s); None if it never does."""
+def settling_time(t, err, noisy: bool = False) -> float | None:
+    """Time after which ``|err|`` stays within ``SETTLING_BAND`` of its peak (s); None if it never
+    does, or, in a ``noisy`` run (noise or turbulence), if it is noise-limited (:func:`noise_limited`)."""
+    settled = _settled(t, err)
+    return None if noisy and noise_limited(settled, t[-1] if len(t) else 0.0) else settled
+
+
+def noise_limited(settled: float | None, t_end: float) -> bool:
+    """Whether a settling time ``settled`` (s, None: never) of a run with noise or turbulence that
+    ended at ``t_end`` (s, from 0) is noise-limited: the error still left the band in the run's last
+    :data:`NOISE_TAIL`."""
+    return settled is None or settled > (1.0 - NOISE_TAIL) * t_end
+
+
+def _settled(t, err) -> float | None:
+    """:func:`settling_time` without noise."""
     mag = np.abs(err)
     peak = float(mag.max()) if mag.size else 0.0
     if peak <= ERROR_FLOOR:
@@ -57,7 +76,7 @@ def lqr_cost(t, err, du, Q, R) -> float:
     return float(np.sum((integrand[1:] + integrand[:-1]) * np.diff(t)) / 2) if len(t) > 1 else 0.0
 
 
-def summarize(sim, u_trim, Q, R, regulated_states) -> dict:
+def summarize(sim, u_trim, Q, R, regulated_states, noisy: bool = False) -> dict:
     """Metrics of a run, as plain JSON-ready data.
 
     Parameters
@@ -68,22 +87,29 @@ def summarize(sim, u_trim, Q, R, regulated_states) -> dict:
     R : (4, 4) array_like
     regulated_states : iterable of str
         States that get settling and overshoot figures.
+    noisy : bool
+        The run had noise or turbulence: its settling times may be noise-limited (:data:`NOISE_TAIL`).
 
     Returns
     -------
     dict
-        ``settling_time`` (s; None when the run did not reach its end), ``overshoot`` (%),
-        ``peak_error``, ``final_error`` per state; ``peak`` per input (max |u|, N or N m); ``cost``;
-        ``status``.
+        ``settling_time`` (s; None when the run did not reach its end, never settled or is
+        noise-limited), ``overshoot`` (%), ``peak_error``, ``final_error`` per state;
+        ``noise_limited``, the regulated states whose settling time is noise-limited (state order);
+        ``peak`` per input (max |u|, N or N m); ``cost``; ``status``.
     """
     err = sim.x - sim.x_ref
     du = sim.u - np.asarray(u_trim)
-    out: dict = {"settling_time": {}, "overshoot": {}, "peak_error": {}, "final_error": {}}
+    out: dict = {"settling_time": {}, "overshoot": {}, "peak_error": {}, "final_error": {}, "noise_limited": []}
     for i, name in enumerate(STATE_NAMES):
         out["peak_error"][name] = float(np.abs(err[:, i]).max())
         out["final_error"][name] = float(err[-1, i])
         if name in regulated_states:  # a run cut short has not shown where it settles
-            out["settling_time"][name] = settling_time(sim.t, err[:, i]) if sim.status == "ok" else None
+            settled = _settled(sim.t, err[:, i]) if sim.status == "ok" else None
+            if sim.status == "ok" and noisy and noise_limited(settled, float(sim.t[-1])):
+                out["noise_limited"].append(name)
+                settled = None
+            out["settling_time"][name] = settled
             out["overshoot"][name] = overshoot(err[:, i])
     out["peak"] = {name: float(np.abs(sim.u[:, j]).max()) for j, name in enumerate(INPUT_NAMES)}
     cost = lqr_cost(sim.t, err, du, np.asarray(Q), np.asarray(R))
@@ -92,7 +118,7 @@ def summarize(sim, u_trim, Q, R, regulated_states) -> dict:
     return out
 
 
-def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status) -> dict:
+def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status, noisy: bool = False) -> dict:
     """:func:`summarize` of one run, vectorized over the states (:func:`summarize_errors` of it).
 
     Same definitions and the same numbers (the cost integral to round-off: its quadratic forms
@@ -115,6 +141,8 @@ def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status) -> dic
     R : (4, 4) ndarray
     regulated_states : iterable of str
     status : str
+    noisy : bool
+        As :func:`summarize`'s.
 
     Returns
     -------
@@ -129,7 +157,7 @@ def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status) -> dic
         err = (np.asarray(x).T - np.asarray(x_ref).T)[None]
     return summarize_errors(t[None], err, np.asarray(u).T[None], np.asarray(u_trim, dtype=float)[None],
                             np.asarray(Q, dtype=float)[None], np.asarray(R, dtype=float)[None], regulated_states,
-                            [status])[0]
+                            [status], [noisy])[0]
 
 
 def error_into(out: np.ndarray, t: np.ndarray, xT: np.ndarray, x_trim, x_rate) -> np.ndarray:
@@ -144,7 +172,7 @@ def error_into(out: np.ndarray, t: np.ndarray, xT: np.ndarray, x_trim, x_rate) -
     return out
 
 
-def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status) -> list[dict]:
+def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=False) -> list[dict]:
     """:func:`summarize` of ``B`` runs of as many samples at once (a sweep's batches of cases).
 
     Each run's numbers are those :func:`summarize_run` gives it alone (every operation is
@@ -165,6 +193,8 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status) -> list[
     regulated_states : iterable of str
         States that get settling and overshoot figures (the same in every run).
     status : sequence of B str
+    noisy : bool, or sequence of B bool
+        Which runs had noise or turbulence (:func:`summarize`'s ``noisy``).
 
     Returns
     -------
@@ -184,9 +214,13 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status) -> list[
     last = n - 1 - newest  # the last sample outside (n - 1 when none is)
     run, state = np.indices(last.shape)
     # settled at once when the error is ~0 or never leaves the band; never when the last sample is out
-    at_once = ((peak <= ERROR_FLOOR) | ~outside[run, state, newest]).tolist()
-    never = outside[:, :, 0].tolist()
-    settled_at = np.take_along_axis(t, np.minimum(last + 1, n - 1), axis=1).tolist()
+    at_once = (peak <= ERROR_FLOOR) | ~outside[run, state, newest]
+    never = outside[:, :, 0]
+    settled_at = np.take_along_axis(t, np.minimum(last + 1, n - 1), axis=1)
+    # noise-limited (noise_limited): a full run with noise that never settled, or settled in its last tenth
+    late = (never | (settled_at > (1.0 - NOISE_TAIL) * t[:, -1:])) & ~at_once \
+        & np.broadcast_to(np.asarray(noisy, dtype=bool), (B,))[:, None] & (np.asarray(status) == "ok")[:, None]
+    at_once, never, late, settled_at = at_once.tolist(), never.tolist(), late.tolist(), settled_at.tolist()
     e0 = err[:, :, 0]
     # max(-sign(e0) e) without the product: -min(e) where e0 > 0, max(e) where e0 < 0 (exact)
     past = np.where(e0 > 0, -low, np.where(e0 < 0, high, 0.0))
@@ -203,8 +237,9 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status) -> list[
     out = []
     for b, c in enumerate(cost.tolist()):
         out.append({
-            "settling_time": {name: None if never[b][i] or status[b] != "ok" else 0.0 if at_once[b][i]
+            "settling_time": {name: None if never[b][i] or status[b] != "ok" or late[b][i] else 0.0 if at_once[b][i]
                               else settled_at[b][i] for i, name in regulated},
+            "noise_limited": [name for i, name in regulated if late[b][i]],
             "overshoot": {name: None if no_initial[b][i] else over[b][i] for i, name in regulated},
             "peak_error": dict(zip(STATE_NAMES, peaks[b])), "final_error": dict(zip(STATE_NAMES, finals[b])),
             "peak": dict(zip(INPUT_NAMES, peak_u[b])), "cost": c if math.isfinite(c) else None,

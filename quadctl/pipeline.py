@@ -215,6 +215,13 @@ def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progres
                     tolerance=setup.tolerance)
 
 
+def noisy(setup: Setup, noise: bool = True) -> bool:
+    """Whether the configured run is randomly disturbed: noise (``noise=False``: a run without it,
+    :func:`simulation_of`'s) or turbulence. Its settling times may be noise-limited
+    (:func:`quadctl.metrics.noise_limited`)."""
+    return (noise and setup.noise is not None) or (setup.wind is not None and setup.wind.turbulence is not None)
+
+
 def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:
     """``sim.json``'s ``reference``: the position tracking error ``|p - p_ref|`` (m; RMS over time,
     peak and final) and, for a mission, each waypoint with the time it was first reached within the
@@ -665,7 +672,7 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
     for label, K, Ki in (("decoupled", des.K_block, des.Ki_block), ("full", fd.K, fd.Ki)):
         loop = closed_loop_of(setup, linear, K, Ki=Ki, integral_states=des.integral_states)
         sim = simulation_of(setup, loop, noise=False)
-        met = summarize(sim, linear.u_trim, Q, des.R_block, setup.regulated)
+        met = summarize(sim, linear.u_trim, Q, des.R_block, setup.regulated, noisy=noisy(setup, noise=False))
         met["peak_delta"] = {name: float(np.abs(sim.u[:, j] - linear.u_trim[j]).max())
                              for j, name in enumerate(INPUT_NAMES)}
         met["linear_cost"] = coupled.linear_cost(linear.A, linear.B, K, Ki, des, dx0)

@@ -510,7 +510,8 @@ class Workspace(pipeline.Stages):
             loop = pipeline.pid_loop_of(setup, linear)
         sim = pipeline.simulation_of(setup, loop, progress=self.progress)
         flight = pipeline.flight_summary(setup, loop, sim)
-        summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
+        summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated,
+                            noisy=pipeline.noisy(setup))
         meta = self._meta("simulation", sim.backend)
         self._write_npz(SIM_NPZ, payloads.simulation_arrays(sim, loop), meta)
         self._write_json(SIM_JSON, "simulation", payloads.simulation(sim, summary, flight), sim.backend)

@@ -46,13 +46,27 @@ def controller_text(flight: dict, sim) -> str | None:
             f"{ctl['hold_steps']} {integrator_name(sim)} steps of {sim.dt:.4g} s")
 
 
+NOISE_LIMITED_NOTE = ("noise: noise-limited, the run's noise or turbulence keeps the error crossing the band "
+                      "in the last tenth of the run, so it has no settling time")
+"""The metrics table's footnote on a settling time shown as ``noise``."""
+
+
+def settling_cell(metrics: dict, name: str) -> str:
+    """A state's settling time as the tables show it: s, ``noise`` (noise-limited) or '-'."""
+    if name in metrics.get("noise_limited", ()):
+        return "noise"
+    return num(metrics["settling_time"].get(name))
+
+
 def metrics_table(metrics: dict) -> Table:
-    rows = tuple((n, unit_of(n), num(metrics["settling_time"].get(n)), num(metrics["overshoot"].get(n), 3),
+    rows = tuple((n, unit_of(n), settling_cell(metrics, n), num(metrics["overshoot"].get(n), 3),
                   num(metrics["peak_error"][n]), num(metrics["final_error"][n])) for n in STATE_NAMES)
+    caption = "settling: within 2 % of the state's largest error; '-' never settled or n/a"
+    if metrics.get("noise_limited"):
+        caption += f"; {NOISE_LIMITED_NOTE}"
     return Table("metrics-table", "Closed-loop response (error from the reference)",
                  ("state", "unit", "settling (s)", "overshoot (%)", "peak |error|", "final error"), rows,
-                 caption="settling: within 2 % of the state's largest error; '-' never settled or n/a",
-                 align="llrrrr")
+                 caption=caption, align="llrrrr")
 
 
 def inputs_table(metrics: dict, u_trim, peak_delta: dict) -> Table:

@@ -5,7 +5,8 @@ A sweep needs of each run its metrics (:func:`quadctl.metrics.summarize_errors`)
 (:data:`PER_STATE`, :data:`SCALARS`: the slots of ``driver.c``) over the records a one-case run would keep (every
 ``stride``-th step and the last), from ``e = x - x_ref(t)``: first, last, lowest, highest and
 largest ``|e|``, the record after the last one outside the settling band (exact: the band of the
-largest ``|e|`` so far), largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du``, the position
+largest ``|e|`` so far; with the last record's time, whether a run with noise is noise-limited:
+:func:`quadctl.metrics.noise_limited`), largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du``, the position
 error's sums and the waypoint times. Read back, they equal :func:`quadctl.metrics.summarize` of the
 same records.
 """
@@ -18,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
-from quadctl.metrics import ERROR_FLOOR
+from quadctl.metrics import ERROR_FLOOR, NOISE_TAIL
 from quadctl.native.compile import C_LONG
 
 PER_STATE = ("e0", "e_last", "e_min", "e_max", "peak", "settle")
@@ -105,7 +106,7 @@ def _slot(name: str, i: int = 0) -> int:
     return len(PER_STATE) * N_STATES + N_INPUTS + SCALARS.index(name)
 
 
-def summaries(sums: np.ndarray, dt, regulated_states, status) -> list[dict]:
+def summaries(sums: np.ndarray, dt, regulated_states, status, noisy=False) -> list[dict]:
     """The :func:`quadctl.metrics.summarize_errors` dicts of ``B`` runs from their lane sums (a state
     the lanes did not summarize has NaN for its ``peak_error`` and ``final_error``).
 
@@ -116,25 +117,29 @@ def summaries(sums: np.ndarray, dt, regulated_states, status) -> list[dict]:
         s: the runs' steps (a settling record's time is ``dt`` times its step).
     regulated_states : iterable of str
     status : sequence of B str
+    noisy : bool, or sequence of B bool
+        Which runs had noise or turbulence (their settling times may be noise-limited).
     """
-    names, settling, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status)
+    names, settling, late, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status, noisy)
     per = _per_state(np.asarray(sums, dtype=float))
     peaks, finals = per[:, PER_STATE.index("peak")].tolist(), per[:, PER_STATE.index("e_last")].tolist()
     return [{"settling_time": dict(zip(names, settling[b])), "overshoot": dict(zip(names, overshoot[b])),
+             "noise_limited": [n for n, flag in zip(names, late[b]) if flag],
              "peak_error": dict(zip(STATE_NAMES, peaks[b])), "final_error": dict(zip(STATE_NAMES, finals[b])),
              "peak": dict(zip(INPUT_NAMES, u_max[b])), "cost": cost[b], "status": status[b]}
             for b in range(len(cost))]
 
 
-def row_values(sums: np.ndarray, dt, regulated_states, status) -> tuple[tuple[str, ...], list[list]]:
+def row_values(sums: np.ndarray, dt, regulated_states, status, noisy=False) -> tuple[tuple[str, ...], list[list]]:
     """The metric columns of a sweep's rows (``settling_time.<state>``, ``overshoot.<state>``,
-    ``peak.<input>``, ``cost``, ``status``) of ``B`` runs from their lane sums, flat: the values of
-    :func:`summaries` (arguments alike) without a dict per metric. Returns (the column names, per
-    run its values in that order)."""
-    names, settling, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status)
+    ``peak.<input>``, ``cost``, ``status``) and its ``noise_limited`` states (a list) of ``B`` runs
+    from their lane sums, flat: the values of :func:`summaries` (arguments alike) without a dict per
+    metric. Returns (the column names, per run its values in that order)."""
+    names, settling, late, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status, noisy)
     columns = (*(f"settling_time.{n}" for n in names), *(f"overshoot.{n}" for n in names),
-               *(f"peak.{n}" for n in INPUT_NAMES), "cost", "status")
-    return columns, [[*settling[b], *overshoot[b], *u_max[b], cost[b], status[b]] for b in range(len(cost))]
+               *(f"peak.{n}" for n in INPUT_NAMES), "cost", "status", "noise_limited")
+    return columns, [[*settling[b], *overshoot[b], *u_max[b], cost[b], status[b],
+                      [n for n, flag in zip(names, late[b]) if flag]] for b in range(len(cost))]
 
 
 def _per_state(sums: np.ndarray) -> np.ndarray:
@@ -142,9 +147,10 @@ def _per_state(sums: np.ndarray) -> np.ndarray:
     return sums[:, :len(PER_STATE) * N_STATES].reshape(len(sums), len(PER_STATE), N_STATES)
 
 
-def _readings(sums, dt, regulated_states, status) -> tuple:
-    """The regulated states' names (in state order) and, per run, their settling times and
-    overshoots, its input peaks (4) and cost, as :func:`summaries` reads them."""
+def _readings(sums, dt, regulated_states, status, noisy=False) -> tuple:
+    """The regulated states' names (in state order) and, per run, their settling times, whether
+    each is noise-limited and their overshoots, its input peaks (4) and cost, as :func:`summaries`
+    reads them."""
     sums = np.asarray(sums, dtype=float)
     wanted = set(regulated_states)
     index = [i for i, name in enumerate(STATE_NAMES) if name in wanted]
@@ -156,12 +162,18 @@ def _readings(sums, dt, regulated_states, status) -> tuple:
     # settled at the record after the last one outside the band; at once; never (or not a full run)
     settled_at = np.asarray(dt, dtype=float)[:, None] * np.maximum(settle, 0.0)
     settling = np.where(settle == SETTLE_NONE, 0.0, settled_at).astype(object)
-    settling[(settle == SETTLE_PENDING) | (np.asarray(status) != "ok")[:, None]] = None
+    ok = (np.asarray(status) == "ok")[:, None]
+    # noise-limited (quadctl.metrics.noise_limited): never settled, or settled in the run's last tenth
+    t_end = sums[:, _slot("t_last")][:, None]
+    late = ((settle == SETTLE_PENDING) | ((settle >= 0) & (settled_at > (1.0 - NOISE_TAIL) * t_end))) & ok \
+        & np.broadcast_to(np.asarray(noisy, dtype=bool), (len(sums),))[:, None]
+    settling[(settle == SETTLE_PENDING) | ~ok | late] = None
     overshoot = over.astype(object)
     overshoot[np.abs(e0) <= ERROR_FLOOR] = None
     u_max = sums[:, _slot("u_max"):_slot("u_max") + N_INPUTS].tolist()
     cost = [c if math.isfinite(c) else None for c in (sums[:, _slot("cost")] / 2).tolist()]
-    return tuple(STATE_NAMES[i] for i in index), settling.tolist(), overshoot.tolist(), u_max, cost
+    return (tuple(STATE_NAMES[i] for i in index), settling.tolist(), late.tolist(), overshoot.tolist(), u_max,
+            cost)
 
 
 def tracking(sums: np.ndarray, legs: int) -> dict:

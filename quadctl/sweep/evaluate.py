@@ -26,7 +26,14 @@ from quadctl.sim.lane_metrics import row_values, tracking
 from quadctl.sim.run import verdict
 from quadctl.sweep import batched, lane_jobs
 from quadctl.sweep.batched import CaseDesign, core_extremes
-from quadctl.sweep.gates import MARGIN_COLUMNS, gated_margins, judge, margin_columns, tracking_columns
+from quadctl.sweep.gates import (
+    MARGIN_COLUMNS,
+    gated_margins,
+    judge,
+    margin_columns,
+    noise_limited_reason,
+    tracking_columns,
+)
 from quadctl.sweep.prepare import CaseSetups, Prepared, plant_of
 from quadctl.threads import one_thread
 
@@ -139,6 +146,9 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
     out = []
     for index, _ in task.cases:
         row = rows[index]
+        if row["noise_limited"]:  # its settling times are blank: say why (sweep.csv keeps its columns)
+            note = noise_limited_reason(row["noise_limited"])
+            row["reason"] = f"{row['reason']}; {note}" if row["reason"] else note
         passed, failed = judge(row, task.gates, task.require_ok)
         row["pass"] = passed
         row["failed_gates"] = "; ".join(failed)
@@ -171,7 +181,7 @@ def _columns(kind: str, names: tuple[str, ...]) -> tuple[str, ...]:
 def _failed(head: dict, status: str, reason: str) -> dict:
     row = dict(head)
     row.update({"stable": None, "eig.fastest": None, "eig.slowest": None, "status": status,
-                "dt": None, "steps": 0, "reason": reason, "path": ""})
+                "dt": None, "steps": 0, "reason": reason, "path": "", "noise_limited": []})
     return row
 
 
@@ -194,6 +204,8 @@ def _row(head: dict, stable: bool, core_eigs, plan, summary: dict | None, steps:
             row.update(zip(_columns(kind, tuple(values)), values.values()))
         row["cost"] = summary["cost"]
         row["status"] = summary["status"]
+        row["noise_limited"] = summary["noise_limited"]
+    row.setdefault("noise_limited", [])
     row["dt"] = plan.dt if plan is not None else None
     row["steps"] = int(steps)
     row["reason"] = reason
@@ -246,7 +258,8 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
         return row, None
     stats["backend"].add(sim.backend)
     stats["steps"] += sim.steps
-    summary = metrics.summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated)
+    summary = metrics.summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated,
+                                noisy=pipeline.noisy(setup))
     row = _row(prep.head, des.stable, des.core_eigenvalues, sim.plan, summary, sim.steps,
                "" if sim.status == "ok" else sim.message, "one-by-one")
     tracking = pipeline.tracking_summary(setup, sim)
@@ -384,7 +397,7 @@ def _summed_rows(summed: list, rows: dict, tracked: dict, reasons: dict) -> None
         groups.setdefault(item[0].setup.regulated, []).append(item)
     for regulated, items in groups.items():
         names, out = row_values(np.stack([it[6] for it in items]), [it[2].plan.dt for it in items], regulated,
-                                [it[4] for it in items])
+                                [it[4] for it in items], [pipeline.noisy(it[0].setup) for it in items])
         for (prep, des, job, done, status, message, sums), values in zip(items, out):
             rows[prep.index] = _row(prep.head, des.stable, des, job.plan, None, done,
                                     "" if status == "ok" else message, des.path, flat=(names, values))
@@ -431,7 +444,7 @@ class MetricsBatch:
             self.capacity = self.size(r)
             self.t, self.err, self.u = np.empty((self.capacity, r)), np.empty((self.capacity, N_STATES, r)), \
                 np.empty((self.capacity, u.shape[1], r))
-            self.u_trim, self.Q, self.R, self.status = [], [], [], []
+            self.u_trim, self.Q, self.R, self.status, self.noisy = [], [], [], [], []
 
         b = len(self.items)
         self.t[b] = t
@@ -444,6 +457,7 @@ class MetricsBatch:
         self.Q.append(setup.Q_block)
         self.R.append(setup.R_block)
         self.status.append(status)
+        self.noisy.append(pipeline.noisy(setup))
         self.items.append(item)
         return done + (self.flush() if len(self.items) == self.capacity else [])
 
@@ -454,7 +468,7 @@ class MetricsBatch:
             return []
         B = len(self.items)
         summaries = summarize_errors(self.t[:B], self.err[:B], self.u[:B], np.array(self.u_trim), np.array(self.Q),
-                                     np.array(self.R), self.key[1], self.status)
+                                     np.array(self.R), self.key[1], self.status, self.noisy)
         out = list(zip(self.items, summaries))
         self.items = []
         return out

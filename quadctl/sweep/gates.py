@@ -142,8 +142,15 @@ def regulated_states(cfg) -> list[str]:
     return [s for s in STATE_NAMES if s in regulated]
 
 
+def noise_limited_reason(states) -> str:
+    """A row's ``reason`` for its noise-limited settling times (``states``; their columns are empty)."""
+    return (f"settling noise-limited: {', '.join(states)} (with noise or turbulence, the error still crosses "
+            "the 2 % band in the last tenth of the run)")
+
+
 def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:
-    """Whether a row passes, and what it fails (gate descriptions, or why it has no result)."""
+    """Whether a row passes, and what it fails (gate descriptions, or why it has no result; a
+    settling time the row's ``noise_limited`` lists shows as ``noise-limited``)."""
     failed = []
     if require_ok:
         if row.get("status") != "ok":
@@ -154,6 +161,9 @@ def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:
         if not gate.passes(row.get(gate.metric)):
             value = row.get(gate.metric)
             shown = "none" if value is None else (f"{value:.4g}" if isinstance(value, float) else str(value))
+            if value is None and gate.metric.startswith("settling_time.") \
+                    and gate.metric.split(".", 1)[1] in row.get("noise_limited", ()):
+                shown = "noise-limited"
             failed.append(f"{gate.describe()} (got {shown})")
     return not failed, failed
 

@@ -95,6 +95,36 @@ def test_simulate_reports_speed_and_plots(tmp_path):
     assert summary["metrics"]["peak"]["T"] > 0.6
 
 
+QUIET_MAMBO_SETTLING = {"pD": 8.019, "u": 3.5700000000000003, "v": 2.376, "w": 6.796, "phi": 0.495,
+                        "theta": 0.41100000000000003, "psi": 2.013, "p": 1.02, "q": 0.249, "r": 2.4010000000000002}
+"""s: mambo-200hz's settling times without its noise (record times at 1 ms), as simulate gave them before
+noise-limited settling times existed."""
+
+
+def test_noise_limits_mambo_s_rate_settling_and_its_noise_free_run_keeps_its_numbers(tmp_path):
+    """With its sensor and process noise, mambo-200hz's p, q, u and v still cross their 2 % band in the
+    last second of the 10 s run: sim.json lists them as noise-limited with no settling time, the table
+    shows ``noise`` and says what it means; the attitude keeps its number. The same config without
+    noise keeps every settling time a number, the same as before."""
+    res = invoke("simulate", "-c", "mambo-200hz", "-o", tmp_path / "noisy")
+    assert res.exit_code == 0, res.output
+    met = json.loads((tmp_path / "noisy" / "sim.json").read_text())["metrics"]
+    assert met["noise_limited"] == ["u", "v", "p", "q"]
+    assert all(met["settling_time"][s] is None for s in met["noise_limited"])
+    assert 0.4 < met["settling_time"]["phi"] < 0.7 and 0.4 < met["settling_time"]["theta"] < 0.7
+    rows = {line.split("│")[1].strip(): line.split("│")[3].strip() for line in res.output.splitlines()
+            if line.count("│") >= 6}
+    assert rows["p"] == rows["q"] == rows["u"] == rows["v"] == "noise" and rows["phi"] not in ("noise", "-")
+    assert "noise: noise-limited" in " ".join(res.output.split())
+    text = config.locate("mambo-200hz")[1]
+    quiet = _write(tmp_path, text[:text.index("  noise:")])
+    res = invoke("simulate", "-c", quiet, "-o", tmp_path / "quiet")
+    assert res.exit_code == 0, res.output
+    met = json.loads((tmp_path / "quiet" / "sim.json").read_text())["metrics"]
+    assert met["noise_limited"] == [] and met["settling_time"] == QUIET_MAMBO_SETTLING
+    assert "noise-limited" not in res.output
+
+
 def test_run_executes_every_stage(tmp_path):
     res = invoke("run", "-o", tmp_path, "-c", "forward-script-q")
     assert res.exit_code == 0, res.output

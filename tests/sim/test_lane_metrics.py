@@ -88,6 +88,14 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
         want = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,
                                  setup.regulated)
         got = summaries(sums[None], [job.plan.dt], setup.regulated, ["ok"])[0]
+        # read as a run with noise, the same records: the same noise-limited states (at least one
+        # in forward's 1 s, where some settle late or never) and settling times
+        noisy = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,
+                                  setup.regulated, noisy=True)
+        lanes_noisy = summaries(sums[None], [job.plan.dt], setup.regulated, ["ok"], [True])[0]
+        assert lanes_noisy["noise_limited"] == noisy["noise_limited"] and want["noise_limited"] == []
+        assert lanes_noisy["settling_time"] == noisy["settling_time"]
+        assert which != "forward" or noisy["noise_limited"]
         if which == "forward":
             assert sum(v is not None for v in want["settling_time"].values()) >= 5
         for key in ("settling_time", "overshoot", "peak"):
@@ -99,7 +107,7 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
         names, (flat,) = row_values(sums[None], [job.plan.dt], setup.regulated, ["ok"])
         assert dict(zip(names, flat)) == {**{f"{key}.{name}": value for key in ("settling_time", "overshoot", "peak")
                                              for name, value in got[key].items()},
-                                          "cost": got["cost"], "status": "ok"}
+                                          "cost": got["cost"], "status": "ok", "noise_limited": []}
         if setup.reference is not None:
             track = pipeline.tracking_of(setup.reference, t, x, x_ref)
             lanes = tracking(sums, len(setup.reference.legs))
@@ -197,10 +205,10 @@ def test_row_values_are_the_summaries_flattened_for_every_settling_and_status():
     want = summaries(sums, dt, ("phi", "p", "v"), status)
     names, values = row_values(sums, dt, ("phi", "p", "v"), status)
     assert names == ("settling_time.v", "settling_time.phi", "settling_time.p", "overshoot.v", "overshoot.phi",
-                     "overshoot.p", "peak.T", "peak.A", "peak.E", "peak.R", "cost", "status")
+                     "overshoot.p", "peak.T", "peak.A", "peak.E", "peak.R", "cost", "status", "noise_limited")
     for w, got in zip(want, values):
         flat = {f"{key}.{name}": value for key in ("settling_time", "overshoot", "peak")
                 for name, value in w[key].items()}
-        assert dict(zip(names, got)) == {**flat, "cost": w["cost"], "status": w["status"]}
+        assert dict(zip(names, got)) == {**flat, "cost": w["cost"], "status": w["status"], "noise_limited": []}
     assert values[2][:3] == [None, None, None]  # diverged: no settling time
     assert values[1][4] is None  # phi started at its reference

@@ -46,3 +46,52 @@ def test_a_second_order_mode_overshoots_as_its_damping_says(zeta):
     want = 100 * math.exp(-zeta * math.pi / math.sqrt(1 - zeta ** 2))
     for got in (metrics.overshoot(e), _batched(t, e)["overshoot"]["pD"]):
         assert got == pytest.approx(want, rel=1e-6)
+
+
+@pytest.mark.parametrize("sigma_in_bands, limited", [(0.02, False), (0.1, False), (1.5, True), (4.0, True)])
+def test_a_decaying_mode_plus_white_noise_is_noise_limited_exactly_when_the_noise_exceeds_the_band(
+        sigma_in_bands, limited):
+    """``e = exp(-t / 0.3) + n``, ``n`` white of standard deviation ``sigma_in_bands`` times the 2 %
+    band, over 10 s at 1 ms. Noise above the band crosses it to the end of the run: in a run with
+    noise the state is noise-limited (no settling time) in the one-run and batched metrics alike;
+    noise well inside it (at most 0.1 band: 10 sigma to the edge) leaves the mode's own settling time,
+    ``0.3 ln 50`` moved by the noise at the edge (within 5 sigma of it). Read without noise, the same
+    errors keep the number the band's last crossing gives."""
+    tau, dt = 0.3, 1e-3
+    t = np.arange(0.0, 10.0 + dt / 2, dt)
+    band = metrics.SETTLING_BAND  # of the peak, 1 (the noise moves it by at most sigma)
+    e = np.exp(-t / tau) + np.random.default_rng(7).normal(0.0, sigma_in_bands * band, t.size)
+    single = metrics.settling_time(t, e, noisy=True)
+    batched = metrics.summarize_errors(t[None], np.tile(e, (1, N_STATES, 1)), np.zeros((1, N_INPUTS, t.size)),
+                                       np.zeros((1, N_INPUTS)), np.zeros((1, N_STATES, N_STATES)),
+                                       np.zeros((1, N_INPUTS, N_INPUTS)), ("pD", "p"), ["ok"], [True])[0]
+    run = _Run(t, e)
+    summary = metrics.summarize(run, np.zeros(N_INPUTS), np.zeros((N_STATES, N_STATES)),
+                                np.zeros((N_INPUTS, N_INPUTS)), ("pD", "p"), noisy=True)
+    if limited:
+        assert single is None
+        assert batched["noise_limited"] == summary["noise_limited"] == ["pD", "p"]
+        assert batched["settling_time"] == summary["settling_time"] == {"pD": None, "p": None}
+        quiet = metrics.settling_time(t, e)  # the same errors read without noise: the last crossing
+        assert quiet is None or quiet > 9.0
+    else:
+        edge = [tau * math.log(1 / (band * (1 + k * sigma_in_bands))) for k in (5, -5)]
+        assert edge[0] < single < edge[1], (single, edge)
+        assert batched["noise_limited"] == summary["noise_limited"] == []
+        assert batched["settling_time"] == summary["settling_time"] == {"pD": single, "p": single}
+        assert single == metrics.settling_time(t, e)
+
+
+class _Run:
+    """A run's arrays as :func:`metrics.summarize` reads them: the error ``e`` on every state."""
+
+    def __init__(self, t, e):
+        self.t, self.x = t, np.tile(e[:, None], (1, N_STATES))
+        self.x_ref, self.u = np.zeros_like(self.x), np.zeros((t.size, N_INPUTS))
+        self.status = "ok"
+
+
+def test_noise_limited_is_a_settling_time_in_the_last_tenth_of_the_run_or_none():
+    """The rule at its edges: at 9 s of a 10 s run a number, past it or never noise-limited."""
+    assert not metrics.noise_limited(9.0, 10.0) and not metrics.noise_limited(0.0, 10.0)
+    assert metrics.noise_limited(9.001, 10.0) and metrics.noise_limited(None, 10.0)

@@ -965,3 +965,26 @@ def test_the_trade_off_figure_plots_what_the_sweep_judges(gates, columns, want):
     result = SweepResult(rows=[], columns=["case", *columns, "pass"], computed=0, wall_time=0.0, stats={},
                          gates=gates)
     assert tradeoff_axes(result) == want
+
+
+@pytest.mark.compiler
+def test_a_noisy_sweep_s_lanes_give_the_one_case_rows_with_their_noise_limited_settling(mambo):
+    """mambo-200hz's 10 s with noise, two seeds: the lanes' rows are the one-by-one path's, the rate
+    states' settling times blank and noise-limited (named in the row and its reason), and a gate on
+    one fails saying so rather than reading 'none'."""
+    spec = sweep.from_dict({"parameters": {"simulation.noise.seed": [1, 2]},
+                            "gates": {"settling_time.p": {"max": 1.0}, "settling_time.phi": {"max": 1.0}}},
+                           mambo, "noisy.yaml")
+    fast = sweep.run(mambo, spec, jobs=1)
+    slow = sweep.run(mambo, spec, jobs=1, fast=False)
+    assert {r["path"] for r in fast.rows} == {"batched"} and {r["path"] for r in slow.rows} == {"one-by-one"}
+    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert worst < MATCH_RTOL, f"Max diff is {worst:.4E} at {where}"
+    for row in fast.rows:
+        assert {"p", "q"} <= set(row["noise_limited"]) and "phi" not in row["noise_limited"]
+        assert row["settling_time.p"] is None and row["settling_time.q"] is None
+        assert 0.3 < row["settling_time.phi"] < 1.0  # the attitude settles within the noise: a number
+        assert row["reason"].startswith("settling noise-limited: ") and " p, q" in row["reason"]
+        assert not row["pass"]
+        assert row["failed_gates"] == "settling_time.p <= 1 (got noise-limited)"
+    assert "noise_limited" not in fast.columns  # sweep.csv keeps its columns
