@@ -7,9 +7,10 @@ A :class:`Workspace` couples a config to a run directory. Each stage writes its 
 atomically; an upstream artifact is reused only when its ``config_hash`` and quadctl
 version match, otherwise it is recomputed and rewritten (never a stale result). The first
 write of a session also writes the config as given (``config.yaml``) and as resolved
-(``config.resolved.yaml``), so a run directory always says what made it; the stage artifacts
-another config made are then removed (:data:`STAGE_FILES`, with a notice naming them; figures,
-reports and exports are the commands' own and stay). Every write of a session can be undone
+(``config.resolved.yaml``), so a run directory always says what made it; every artifact another
+config made is then removed, with a notice naming them: the stages' (:data:`STAGE_FILES`), the figures,
+the report, a sweep's outputs, the exports (:mod:`quadctl.artifacts.run_folder`; a file quadctl does not
+write stays). Every write of a session can be undone
 (:meth:`Workspace.roll_back`): a command that refuses its input after some stages ran puts the
 folder back as it found it.
 """
@@ -34,7 +35,7 @@ from quadctl.config import Config
 from quadctl.design import Design
 from quadctl.design.discrete import RateWarning
 from quadctl.design.kalman import require_detectable, selector
-from quadctl.errors import ArtifactError, DesignError, QuadctlNotice
+from quadctl.errors import DesignError, QuadctlNotice
 from quadctl.layout import N_INPUTS, STATE_NAMES
 from quadctl.linear.analysis import Checks, check
 from quadctl.linear.decouple import Decoupled
@@ -57,6 +58,7 @@ TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
 MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
 SCHEDULE_JSON, SCHEDULE_NPZ = "schedule.json", "schedule.npz"
 CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
+SWEEP_PARTS = "sweep.parts"
 HASH_NOTE = " (config_hash {})"
 """How ``config.resolved.yaml``'s first line ends: the digest of the config (:func:`config_hash_of`)."""
 STAGE_FILES = (TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON, MARGINS, DESIGN_FULL, SCHEDULE_JSON,
@@ -75,6 +77,14 @@ def config_hash_of(folder: Path | str) -> str | None:
     if not first.endswith(tail) or head not in first:
         return None
     return first.rpartition(head)[2][:-len(tail)] or None
+
+
+def _listed(removed: list[str]) -> str:
+    """The files a note names, a sweep's chunks counted (``sweep.parts/ (250 chunks)``): each of them is a
+    line of its journal, not a file to read."""
+    chunks = [name for name in removed if name.startswith(f"{SWEEP_PARTS}/")]
+    named = [name for name in removed if name not in chunks]
+    return ", ".join(named + ([f"{SWEEP_PARTS}/ ({len(chunks)} chunk{'s' * (len(chunks) != 1)})"] if chunks else []))
 
 
 def _released(journal: Journal, hold: contextlib.ExitStack) -> None:
@@ -185,7 +195,9 @@ class Workspace(pipeline.Stages):
         """Each file the session wrote or removed, and what it held before (:meth:`_before_change`); None: kept."""
         self.reused: list[Path] = []
         self.replaced: list[str] = []
-        """The stage artifacts of another config this session removed (:meth:`_remove_stale`)."""
+        """The artifacts of another config this session removed, relative to the run folder (:meth:`_remove_stale`)."""
+        self._made_by: artifacts.MadeBy | None = None
+        """Which config made each artifact of the folder, when this session removes another config's."""
         self._notes: list[str] | None = None
         """The notices :meth:`defer_notes` holds back until :meth:`close` (None: each is issued at once)."""
         self.payloads: dict[str, dict] = {}
@@ -247,20 +259,31 @@ class Workspace(pipeline.Stages):
         artifact is, remembering what it replaces: :meth:`roll_back` puts it back with the stages' artifacts,
         so a command has one way to put its folder back."""
         path = Path(path)
+        self._write_config_files()  # beside the config that made it: another config's artifacts go first
         self._before_change(path)
         self._wrote(artifacts.write_bytes(path, data))
         return path
 
     def remember(self, *paths: Path | str) -> None:
         """Remember what each of ``paths`` holds before the command writes it by other means (a drawing
-        process of its own), for :meth:`roll_back`, as :meth:`write_bytes` does."""
+        process of its own), for :meth:`roll_back`, as :meth:`write_bytes` does; :meth:`record_written`
+        once it has."""
+        self._write_config_files()
         for path in paths:
             self._before_change(Path(path))
+
+    def record_written(self, *paths: Path | str) -> None:
+        """The command wrote ``paths`` by other means (after :meth:`remember`): this session's, as what
+        :meth:`write_bytes` writes (an artifact of another config it replaces is written again)."""
+        for path in paths:
+            if Path(path).is_file():
+                self._wrote(Path(path))
 
     def remove(self, path: Path | str) -> bool:
         """Remove a file of the command's own (an earlier report's figure), remembered for :meth:`roll_back`
         as :meth:`write_bytes` remembers; True if one went."""
         path = Path(path)
+        self._write_config_files()
         self._before_change(path)
         return artifacts.remove(path)
 
@@ -287,6 +310,10 @@ class Workspace(pipeline.Stages):
         self._undo = []
         self.written.clear()
         self.replaced.clear()
+        self.reused.clear()
+        self.payloads.clear()  # the folder's files are the earlier ones again: read afresh if reused
+        self._config_written = False  # a later write puts this config beside it again, and its artifacts
+        # only: those of the folder's config go first, as at the session's first write
         if self._notes is not None:  # what they said was undone
             self._notes.clear()
         return undone
@@ -364,13 +391,16 @@ class Workspace(pipeline.Stages):
         return config_hash_of(self.out)
 
     def _remove_stale(self) -> None:
-        """Remove the stage artifacts another config made, with a notice naming them: quadctl never reuses
-        them, and beside this config they would say what it did not make. A file whose provenance cannot
-        be read (damaged, foreign) is left to the stage that reads it."""
+        """Remove the artifacts another config made (:mod:`quadctl.artifacts.run_folder`: the stages', the
+        figures and the report, a sweep's, the exports), with a notice naming them: quadctl never reuses
+        them, and beside this config they would say what it did not make. A file whose provenance cannot be
+        read (damaged, foreign) is left to the stage that reads it; a file quadctl does not write, always."""
+        folder_hash = config_hash_of(self.out)
+        self._made_by = artifacts.MadeBy(self.out, folder_hash)
         removed = []
-        for name in STAGE_FILES:
-            path = self.path(name)
+        for path in artifacts.run_artifacts(self.out, first=STAGE_FILES):
             if path.is_file() and not path.is_symlink() and self._made_by_another_config(path):
+                name = path.relative_to(self.out).as_posix()
                 self._before_change(path)
                 if self._undo is not None:  # said before it goes: a kill right after still finds the earlier run
                     self._journal.replaced(name)
@@ -378,20 +408,16 @@ class Workspace(pipeline.Stages):
                 path.unlink()
                 removed.append(name)
         if removed:
-            note = (f"{self.out}: removed {', '.join(removed)}, made by another config "
-                    f"(config_hash {config_hash_of(self.out) or 'unknown'})")
+            note = (f"{self.out}: removed {_listed(removed)}, made by another config "
+                    f"(config_hash {folder_hash or 'unknown'})")
             if self._notes is None:
                 warnings.warn(QuadctlNotice(note), stacklevel=2)
             else:
                 self._notes.append(note)
 
     def _made_by_another_config(self, path: Path) -> bool:
-        try:
-            meta = artifacts.read_npz(path)[1] if path.suffix == ".npz" else artifacts.read_json(path)
-        except (ArtifactError, OSError, ValueError):
-            return False
-        found = meta.get("config_hash") if isinstance(meta, dict) else None
-        return isinstance(found, str) and found != self.cfg.digest()
+        found = self._made_by(path)
+        return found is not None and found != self.cfg.digest()
 
     # -- stages ---------------------------------------------------------------------------
 

@@ -14,6 +14,8 @@ names of all of them: ``artifacts.write_json``, ``artifacts.read_npz``, ``artifa
 - :mod:`~quadctl.artifacts.places`: the run directory and its names, kept off symbolic links
 - :mod:`~quadctl.artifacts.writing`: atomic writes (tagged temporaries, fsync, rename), cleaning up
 - :mod:`~quadctl.artifacts.reading`: reading back with provenance checked; reuse (:func:`is_fresh`)
+- :mod:`~quadctl.artifacts.run_folder`: a run folder's artifacts and the config that made each
+  (:func:`run_artifacts`, :class:`MadeBy`)
 - :mod:`~quadctl.artifacts.journal`: what a session changes, for the next to finish a killed one
   (:func:`take_over`)
 - :mod:`~quadctl.artifacts.lock`: one quadctl per run directory (:func:`locked`; its first holder
@@ -45,6 +47,8 @@ from quadctl.artifacts.reading import is_fresh as is_fresh
 from quadctl.artifacts.reading import read_json as read_json
 from quadctl.artifacts.reading import read_npz as read_npz
 from quadctl.artifacts.reading import validate as validate
+from quadctl.artifacts.run_folder import MadeBy as MadeBy
+from quadctl.artifacts.run_folder import run_artifacts as run_artifacts
 from quadctl.artifacts.writing import STALE_TEMPORARY_AGE as STALE_TEMPORARY_AGE
 from quadctl.artifacts.writing import TEMPORARY_TAG as TEMPORARY_TAG
 from quadctl.artifacts.writing import remove as remove

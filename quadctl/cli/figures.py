@@ -38,6 +38,7 @@ def save_figures(ws, sim, tracking: dict | None = None) -> list[Path]:
         drawn = child is None or _succeeded(child)
     if not drawn:
         draw(theirs)
+    ws.record_written(*paths.values())  # every figure this run's: none of another config's is missing
     return list(paths.values())
 
 

@@ -99,6 +99,41 @@ def test_a_session_killed_while_it_removes_the_earlier_configs_artifacts_is_undo
     assert len(notes) == 1 and "had removed trim.json of the earlier config's run" in notes[0]
 
 
+def test_a_session_killed_while_it_removes_the_earlier_configs_figures_is_undone(tmp_path):
+    """Killed after it removed the earlier config's stage artifacts and a figure in plots/: the next
+    session puts every one back, the figure in its folder too."""
+    run = [sys.executable, "-m", "quadctl", "simulate", "-c", "hover", "-o", str(tmp_path), "--plot",
+           "--set", "simulation.duration=1"]
+    assert subprocess.run(run, capture_output=True, env={**os.environ, "MPLBACKEND": "Agg"}).returncode == 0
+    def files():
+        return {p.relative_to(tmp_path).as_posix(): p.read_bytes() for p in tmp_path.rglob("*")
+                if p.is_file() and p.name != artifacts.LOCK_NAME}
+
+    before = files()
+    assert "plots/roll.png" in before
+    code = ("import os\n"
+            "from quadctl import config\n"
+            "from quadctl.workspace import Workspace\n"
+            "real = Workspace._made_by_another_config\n"
+            "figures = []\n"
+            "def checked(self, path):\n"
+            "    if path.parent.name == 'plots':\n"
+            "        figures.append(path)\n"
+            "        if len(figures) == 2:  # one figure is gone, the next is checked: killed here\n"
+            "            os._exit(9)\n"
+            "    return real(self, path)\n"
+            "Workspace._made_by_another_config = checked\n"
+            "cfg = config.load('hover')\n"
+            "cfg = cfg.model_copy(update={'simulation': cfg.simulation.model_copy(update={'duration': 2.0})})\n"
+            f"Workspace(cfg, {str(tmp_path)!r}).trim\n")
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 9
+    assert not (tmp_path / "sim.npz").exists() and len(list(tmp_path.glob("plots/*.png"))) == len(
+        [n for n in before if n.startswith("plots/")]) - 1
+    notes = artifacts.take_over(tmp_path)
+    assert files() == before
+    assert len(notes) == 1 and "sim.npz" in notes[0] and "plots/" in notes[0] and "put back" in notes[0]
+
+
 def test_a_dead_session_that_wrote_each_artifact_it_removed_again_is_kept(tmp_path):
     """As Ctrl-C at that point keeps it: the dead run is whole; only what it set aside goes."""
     (tmp_path / "trim.json").write_bytes(b"the dead run's")

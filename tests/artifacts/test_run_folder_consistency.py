@@ -1,6 +1,7 @@
 """A run folder agrees with its config: a command that refuses its input (exit 2) after some stages
-wrote puts the folder back byte for byte; a new config removes the stage artifacts an earlier one made,
-so none is left beside a config that did not make it (quadctl.workspace)."""
+wrote puts the folder back byte for byte; a new config removes every artifact an earlier one made (its
+stages', figures, report, sweep, exports), so none is left beside a config that did not make it
+(quadctl.workspace, quadctl.artifacts.run_folder)."""
 
 from __future__ import annotations
 
@@ -72,6 +73,137 @@ def test_roll_back_restores_what_was_overwritten_and_removes_what_was_new(tmp_pa
     assert json.loads((tmp_path / "trim.json").read_text())["config_hash"] == forward.digest()
     assert not list(tmp_path.glob(".*.tmp"))  # kept: the old files set aside are gone with the workspace
     assert set(STAGE_FILES) >= set(_contents(tmp_path)) - {"config.yaml", "config.resolved.yaml"}
+
+
+SHORT = ("--set", "simulation.duration=1")
+USERS_OWN = {"notes.txt": b"mine", "plots/notes.txt": b"mine", "report/notes.md": b"mine", "mine/roll.png": b"mine"}
+"""Files a user put into a run folder, beside and among quadctl's, under names quadctl does not write there."""
+
+
+@pytest.fixture(scope="module")
+def hover_run_and_report(tmp_path_factory):
+    """``run --plot`` and ``report`` of hover (cut to 1 s) in one folder, with files of the user's own."""
+    folder = tmp_path_factory.mktemp("hover") / "runs" / "hover"
+    assert invoke("run", "-c", "hover", "--plot", "-o", folder, *SHORT).exit_code == 0
+    assert invoke("report", "-c", "hover", "-o", folder, *SHORT).exit_code == 0
+    for name, data in USERS_OWN.items():
+        (folder / name).parent.mkdir(exist_ok=True)
+        (folder / name).write_bytes(data)
+    return folder
+
+
+def _copy_of(folder, tmp_path):
+    import shutil
+
+    return shutil.copytree(folder, tmp_path / "runs" / "hover")
+
+
+def _figures_and_report(folder):
+    return sorted(p.relative_to(folder).as_posix() for sub in ("plots", "report") for p in (folder / sub).iterdir()
+                  if p.relative_to(folder).as_posix() not in USERS_OWN)
+
+
+def test_a_new_config_removes_the_earlier_configs_figures_and_report_too(tmp_path, hover_run_and_report):
+    """run --plot and report of hover, then design with another mass into the same folder: the earlier
+    config's figures (plots/) and report (report/) go with its stage artifacts, the note names each, and
+    the user's own files stay; every artifact left was made by the config beside it."""
+    from quadctl.artifacts import MadeBy, run_artifacts
+
+    folder = _copy_of(hover_run_and_report, tmp_path)
+    earlier = _figures_and_report(folder)
+    assert "plots/roll.png" in earlier and {"report/report.html", "report/report.md", "report/sim-roll.png"} <= {
+        *earlier}
+    res = invoke("design", "-c", "hover", "-o", folder, *SHORT, "--set", "vehicle.mass=0.075")
+    assert res.exit_code == 0, res.output
+    note = " ".join(res.stderr.split())
+    removed = "trim.json, linear.npz, subsystems.json, checks.json, design.json, sim.npz, sim.json, margins.json, "
+    assert f"removed {removed}{', '.join(earlier)}, made by another config" in note
+    assert _figures_and_report(folder) == []
+    assert {name: (folder / name).read_bytes() for name in USERS_OWN} == USERS_OWN
+    digest = config_hash_of(folder)
+    made_by = MadeBy(folder, digest)
+    assert digest != config.load("hover").digest()
+    assert {p.name: made_by(p) for p in run_artifacts(folder)} == dict.fromkeys(
+        ["trim.json", "linear.npz", "subsystems.json", "design.json"], digest)
+
+
+def _gone_at_roll_back(monkeypatch, folder) -> list:
+    """What of the earlier figures and report was gone when the session put the folder back (one list a
+    roll-back)."""
+    rolled_back = Workspace.roll_back
+    gone = []
+
+    def roll_back(ws):
+        gone.append([name for name in ("plots/roll.png", "report/report.html") if not (folder / name).exists()])
+        return rolled_back(ws)
+
+    monkeypatch.setattr(Workspace, "roll_back", roll_back)
+    return gone
+
+
+def test_a_refused_command_puts_the_earlier_configs_figures_and_report_back(tmp_path, hover_run_and_report,
+                                                                             monkeypatch):
+    """A changed config's run that removed the earlier figures and report, then refused its input (exit 2):
+    they are back, byte for byte, with the rest of the earlier run."""
+    folder = _copy_of(hover_run_and_report, tmp_path)
+    before = _tree(folder)
+    gone = _gone_at_roll_back(monkeypatch, folder)
+    res = invoke("simulate", "-c", "hover", "-o", folder, "--plot", "--set", "simulation.dt=0.001")
+    assert res.exit_code == 2 and "is unstable for RK4" in res.stderr
+    assert gone == [["plots/roll.png", "report/report.html"]]  # removed with the stage artifacts, then put back
+    assert _tree(folder) == before
+    assert len(res.stderr.splitlines()) == 1  # no note of a removal the refusal undid
+
+
+def test_a_new_config_removes_the_earlier_configs_sweep_and_exports_and_keeps_what_identify_wrote(tmp_path):
+    """A sweep's outputs and chunks and every export (C, JSON, MAT, the Crazyflie app) of the earlier config
+    go too, each judged by the config it names (or its companion's: sweep.csv by sweep.json); what identify
+    wrote stays (made from flight logs: identified.yaml is the config a run in that folder may read)."""
+    from quadctl.artifacts import MadeBy, run_artifacts
+
+    folder = tmp_path / "run"
+    spec = tmp_path / "mass.yaml"
+    spec.write_text("parameters:\n  vehicle.mass: [0.026, 0.028]\nset:\n  simulation.duration: 1.0\n")
+    assert invoke("sweep", "-c", "crazyflie", "-s", spec, "-o", folder).exit_code == 0
+    for to in ("c", "json", "mat", "crazyflie"):
+        assert invoke("export", "-c", "crazyflie", "--to", to, "-o", folder).exit_code == 0, to
+    digest = config.load("crazyflie").digest()
+    made = run_artifacts(folder)
+    names = [p.relative_to(folder).as_posix() for p in made]
+    assert {"sweep.csv", "sweep.json", "sweep.png", "sweep.parts/chunk-0000000.json", "quadctl_controller.c",
+            "quadctl_controller.mat", "Makefile", "README.md", "src/quadctl_app.c"} <= set(names)
+    assert {name: MadeBy(folder, None)(p) for name, p in zip(names, made)} == dict.fromkeys(names, digest)
+    identified = {"identified.json": json.dumps({"artifact": "identified.json", "config_hash": "ab" * 32}).encode(),
+                  "identified.yaml": b"# Identified by quadctl identify from a log\nname: crazyflie-identified\n",
+                  "identify.png": b"a figure", "notes.txt": b"mine"}
+    for name, data in identified.items():
+        (folder / name).write_bytes(data)
+    res = invoke("design", "-c", "crazyflie", "-o", folder, "--set", "vehicle.mass=0.03")
+    assert res.exit_code == 0, res.output
+    listed = [name for name in names if not name.startswith("sweep.parts/")] + ["sweep.parts/ (1 chunk)"]
+    assert f"removed {', '.join(listed)}, made by another config" in " ".join(res.stderr.split())
+    assert not any(p.exists() for p in made)
+    assert {name: (folder / name).read_bytes() for name in identified} == identified
+
+
+def test_a_roll_back_then_more_writes_leave_one_configs_artifacts(tmp_path):
+    """A session rolled back (the earlier config's run is back) that then writes again (a library user
+    going on): the earlier run's artifacts go again, as at its first write, and the config is written
+    beside what it makes; never one config's artifacts beside another's config."""
+    from quadctl.artifacts import MadeBy, run_artifacts
+
+    hover, forward = config.load("hover"), config.load("forward")
+    with Workspace(hover, tmp_path) as ws:
+        assert ws.design.stable
+    with Workspace(forward, tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json"):
+        assert ws.trim.residual < 1e-9
+        ws.roll_back()
+        assert config_hash_of(tmp_path) == hover.digest()
+        assert ws.design.stable
+    assert config_hash_of(tmp_path) == forward.digest()
+    made_by = MadeBy(tmp_path, forward.digest())
+    left = {p.name: made_by(p) for p in run_artifacts(tmp_path)}
+    assert "design.json" in left and set(left.values()) == {forward.digest()}, left
 
 
 def test_a_damaged_artifact_is_left_to_the_stage_that_reads_it(tmp_path):

@@ -255,6 +255,43 @@ def test_ctrl_c_after_a_config_change_puts_the_earlier_complete_run_back(tmp_pat
     assert "sim.npz" in _files(tmp_path)  # the same config: the earlier sim.npz is this config's, kept
 
 
+def _tree(folder: Path) -> dict[str, bytes | str]:
+    """Every file below ``folder`` with its bytes (figures, the report), and every folder; not the lock."""
+    import gc
+
+    gc.collect()  # a command's workspace, released (its lock and its files set aside go with it)
+    return {p.relative_to(folder).as_posix(): p.read_bytes() if p.is_file() else "folder"
+            for p in sorted(folder.rglob("*")) if p.name != ".quadctl.lock"}
+
+
+def test_ctrl_c_after_a_config_change_puts_the_earlier_runs_figures_and_report_back(tmp_path, monkeypatch):
+    """The changed config's run removed the earlier run's figures (plots/) and report (report/) with its
+    stage artifacts, then was stopped: they are back, byte for byte, with the rest of the earlier run."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    short = ["--set", "simulation.duration=1"]
+    for command in (["run", "--plot"], ["report"]):
+        assert CliRunner().invoke(app, [*command, "-c", "hover", "-o", str(tmp_path), *short]).exit_code == 0
+    before = _tree(tmp_path)
+    assert {"plots/roll.png", "report/report.html", "report/sim-roll.png"} <= before.keys()
+    from quadctl.workspace import Workspace
+
+    rolled_back, gone = Workspace.roll_back, []
+
+    def roll_back(ws):  # what of the earlier figures and report the stopped run had removed
+        gone.extend(name for name in ("plots/roll.png", "report/report.html") if not (tmp_path / name).exists())
+        return rolled_back(ws)
+
+    monkeypatch.setattr(Workspace, "roll_back", roll_back)
+    res = _interrupted_simulate(tmp_path, monkeypatch, "--plot", "--set", "simulation.duration=2")
+    assert res.exit_code == 130
+    assert gone == ["plots/roll.png", "report/report.html"]
+    assert "the run folder is as the earlier config's run left it" in res.stderr
+    assert _tree(tmp_path) == before
+
+
 def test_ctrl_c_after_a_changed_configs_artifacts_are_all_written_keeps_the_new_run(tmp_path, monkeypatch):
     """Stopped while drawing its figures, a changed config's run has written every artifact it removed
     again: the new run is whole and stays; nothing is put back and nothing claims it was."""
