@@ -13,7 +13,8 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
     """A sweep's trade-off: metric ``y`` against metric ``x``, one point per case.
 
     Passing cases are dots, failing ones red crosses; gate thresholds on either axis are
-    dashed lines. Cases without both values (no design, never settled) are counted in the title.
+    dashed lines. Cases without both values (no design, never settled) are counted in the title; the
+    legend counts each kind and, where some draw over others, the places they draw at (:func:`_places`).
 
     Parameters
     ----------
@@ -46,10 +47,11 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
             plotted[bool(row.get("pass"))][1].append(vy)
         else:
             missing += 1
+    drawn = {}
     for passed, style in ((True, {"s": 14, "color": COLORS[0], "alpha": 0.7}),
                           (False, {"s": 22, "color": COLORS[1], "marker": "x"})):
         if plotted[passed][0]:  # no empty "fail (0)" in the legend
-            ax.scatter(*plotted[passed], label=f"{'pass' if passed else 'fail'} ({len(plotted[passed][0])})", **style)
+            drawn[passed] = ax.scatter(*plotted[passed], **style)
     labelled = False
     for gate in gates:
         for bound in (gate.min, gate.max):
@@ -61,6 +63,10 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
     values = plotted[True][1] + plotted[False][1]
     if y.startswith("tracking.") and values and min(values) > 0:  # errors of many decades, a gate far above them
         ax.set_yscale("log")
+    for passed, points in drawn.items():  # labelled once the axes' limits are final (the gates widen them)
+        n, places = len(plotted[passed][0]), _places(ax, *plotted[passed])
+        where = "" if places in (None, n) else f" at {places} places"  # cases the parameters move off neither axis
+        points.set_label(f"{'pass' if passed else 'fail'} ({n}{where})")
     ax.set_xlabel(f"{x} [{unit(x)}]" if unit(x) else x)
     ax.set_ylabel(f"{y} [{unit(y)}]" if unit(y) else y)
     ax.grid(True, alpha=0.3)
@@ -70,6 +76,32 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
     fig.suptitle(f"{title}: sweep trade-off ({len(rows)} cases{note})" if title else
                  f"sweep trade-off ({len(rows)} cases{note})")
     return fig
+
+
+OVERLAP = 0.01
+"""Points closer than this share of each axis's span draw as one (a marker is about that wide)."""
+
+
+def _places(ax, xs, ys) -> int | None:
+    """How many places the points ``(xs, ys)`` draw at on ``ax``: a point within :data:`OVERLAP` of each
+    axis's span (its limits, on its scale) of one counted before it is drawn over by it (a parameter that
+    moves neither metric stacks its cases on one point). None past :data:`PLACES_MAX` points."""
+    if len(xs) > PLACES_MAX:
+        return None
+    scaled = []
+    for values, (lo, hi), scale in ((xs, ax.get_xlim(), ax.get_xscale()), (ys, ax.get_ylim(), ax.get_yscale())):
+        v, lo, hi = (np.log10(values), np.log10(lo), np.log10(hi)) if scale == "log" else (np.asarray(values), lo, hi)
+        scaled.append((v - lo) / (hi - lo) if hi > lo else np.zeros(len(v)))
+    points = np.column_stack(scaled)
+    kept = points[:1]
+    for point in points[1:]:
+        if not np.any(np.all(np.abs(kept - point) <= OVERLAP, axis=1)):
+            kept = np.vstack([kept, point])
+    return len(kept)
+
+
+PLACES_MAX = 5000
+"""Points past which the trade-off's legend does not count the places they draw at (a quadratic count)."""
 
 
 def montecarlo_figure(bands, groups: dict, *, title: str = "", varied: tuple = ()) -> Figure:

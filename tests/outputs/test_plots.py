@@ -464,3 +464,19 @@ def test_the_sweep_trade_off_draws_a_missions_errors_on_a_log_scale_and_no_empty
         warnings.simplefilter("error")  # no "No artists with labels" from an empty legend
         (ax,) = plots.sweep_tradeoff_figure([{"pass": False}], "peak.T", "settling_time.pD").axes
     assert ax.get_legend() is None
+
+
+def test_the_sweep_trade_off_counts_the_places_stacked_cases_draw_at():
+    """A parameter that moves neither metric stacks its cases on one point (examples/ci-sweep.yaml's
+    roll weight: 27 cases at 9 places): the legend says so; cases apart by more than a marker are counted
+    each, as on a log scale."""
+    rows = [{"peak.T": 3.0 + t, "settling_time.pD": 0.5 + 0.01 * t + 1e-6 * k, "pass": True}
+            for t in range(3) for k in range(3)]
+    (ax,) = plots.sweep_tradeoff_figure(rows, "peak.T", "settling_time.pD").axes
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["pass (9 at 3 places)"]
+    rows[0]["pass"] = False
+    (ax,) = plots.sweep_tradeoff_figure(rows, "peak.T", "settling_time.pD").axes
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["pass (8 at 3 places)", "fail (1)"]
+    apart = [{"peak.T": 3.0 + 0.1 * k, "tracking.peak": 10.0 ** -k, "pass": True} for k in range(1, 8)]
+    (ax,) = plots.sweep_tradeoff_figure(apart, "peak.T", "tracking.peak").axes
+    assert ax.get_yscale() == "log" and [t.get_text() for t in ax.get_legend().get_texts()] == ["pass (7)"]
