@@ -21,10 +21,10 @@ from quadctl.config.pid import NEEDS_ROTORS, PRESET_NAMES, resolve
 from quadctl.design.margins import least_margins
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
-from quadctl.metrics import lqr_cost, overshoot, settling_time
+from quadctl.metrics import lqr_cost, noise_limited, overshoot, settling_time
 from quadctl.physics.motors import has_rotors
 from quadctl.physics.noise import exogenous_period
-from quadctl.pipeline import Stages, pid_loop_of
+from quadctl.pipeline import Stages, noisy, pid_loop_of
 from quadctl.sim.cascade_margins import cascade_margins
 from quadctl.sim.exogenous import ExoStream
 from quadctl.sim.loop import ClosedLoop
@@ -34,7 +34,8 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("position_rms", "m", "RMS over the run of |p - p_ref|"),
     ("position_peak", "m", "largest |p - p_ref|"),
     ("attitude_rms", "rad", "RMS over the run of |(phi, theta, psi) - reference|"),
-    ("settling", "s", "time after which |p - p_ref| stays within 2 % of its peak (None: never)"),
+    ("settling", "s", "time after which |p - p_ref| stays within 2 % of its peak (None: never, or noise-limited: "
+                      "with noise or turbulence, still crossing it in the run's last tenth: settling_noise_limited)"),
     ("altitude_overshoot", "%", "largest excursion of pD past its reference, in % of the initial error"),
     ("rotor_peak", "1", "largest rotor thrust over the rotors' largest (motors.max_thrust; None: no motors:)"),
     ("rotor_rms", "1", "RMS over the run and the rotors of thrust over the largest (None: no motors:)"),
@@ -167,7 +168,7 @@ def compare(stages: Stages, laws=DEFAULT_LAWS, duration: float | None = None) ->
                        else cascade_margins(loop, title=preset))
         run = simulate(loop, setup.initial_state(loop.x_trim), duration, setup.dt, noise=noise, wind=wind,
                        max_samples=setup.max_samples, reference=reference, exo_rate=1.0 / period)
-        metrics = metrics_of(run, loop, setup.Q_block, setup.R_block) | margin_summary(margins)
+        metrics = metrics_of(run, loop, setup.Q_block, setup.R_block, noisy(setup)) | margin_summary(margins)
         out.append(LawRun(name=name, title=title, rate=loop.rate, loop=loop, run=run, metrics=metrics,
                           disturbances=disturbance_digest(noise, wind, loop.rate, period, duration),
                           margins=tuple(margins)))
@@ -209,15 +210,26 @@ def disturbance_digest(noise, wind, rate, period: float, duration: float) -> str
     return hashlib.sha256(np.ascontiguousarray(rows, dtype=float).tobytes()).hexdigest()
 
 
-def metrics_of(run: SimResult, loop: ClosedLoop, Q, R) -> dict:
-    """:data:`METRICS` of one run."""
+NOISE_LIMITED = ("true: the run had noise or turbulence and |p - p_ref|, back within its 2 % band, still crossed "
+                 "it in the run's last tenth, so it has no settling time (settling None): the band lies within the "
+                 "noise (one that never came back within it has none either, and is not noise-limited)")
+"""compare.json's meaning of a law's ``settling_noise_limited``."""
+
+
+def metrics_of(run: SimResult, loop: ClosedLoop, Q, R, noisy: bool = False) -> dict:
+    """:data:`METRICS` of one run, and ``settling_noise_limited``: whether a ``noisy`` run's (noise or
+    turbulence, :func:`quadctl.pipeline.noisy`) settling is noise-limited (:func:`quadctl.metrics.noise_limited`)."""
     t = run.t
     err = run.x - run.x_ref
     pos = np.linalg.norm(err[:, :3], axis=1)
     att = np.linalg.norm(err[:, STATE_INDEX["phi"]:STATE_INDEX["psi"] + 1], axis=1)
     cost = lqr_cost(t, err, run.u - loop.u_trim, np.asarray(Q), np.asarray(R))
+    settled = settling_time(t, pos) if run.status == "ok" else None
+    # a late settling only: a position the law leaves free (the LQR's horizontal one) drifts in a wind and
+    # never settles, which is no noise
+    limited = noisy and settled is not None and noise_limited(settled, float(t[-1]))
     return {"position_rms": _rms(pos, t), "position_peak": float(pos.max()), "attitude_rms": _rms(att, t),
-            "settling": settling_time(t, pos) if run.status == "ok" else None,
+            "settling": None if limited else settled, "settling_noise_limited": bool(limited),
             "altitude_overshoot": overshoot(err[:, STATE_INDEX["pD"]]),
             **rotor_use(run, loop), "cost": cost if np.isfinite(cost) else None, "status": run.status}
 
@@ -250,7 +262,8 @@ def payload(comparison: Comparison) -> dict:
     return {
         "config": comparison.config, "duration": comparison.duration,
         "units": {name: unit for name, unit, _ in METRICS} | {"duration": "s", "exo_period": "s", "rate": "Hz"},
-        "meaning": {name: meaning for name, _, meaning in METRICS} | {"closed_loop_stable": CLOSED_LOOP_STABLE},
+        "meaning": {name: meaning for name, _, meaning in METRICS} | {"closed_loop_stable": CLOSED_LOOP_STABLE,
+                                                                       "settling_noise_limited": NOISE_LIMITED},
         "exo_period": comparison.exo_period, "noise_seed": comparison.noise_seed, "wind_seed": comparison.wind_seed,
         "identical_disturbances": comparison.identical_disturbances,
         "laws": [{"name": law.name, "title": law.title, "rate": law.rate, "disturbances": law.disturbances,

@@ -29,11 +29,14 @@ def table(data: dict) -> Table:
         how += f"; {UNSTABLE}: the law's closed loop is unstable, so it has no margin"
     no_rotors = ("rotor use '-': no rotors (the config has no motors:); "
                  if any(law.get("rotor_peak") is None for law in laws) else "")
+    noise = ("settling 'noise': noise-limited, the run's noise or turbulence keeps the position error crossing "
+             "the band in the last tenth of the run; " if any(law.get("settling_noise_limited") for law in laws)
+             else "")
     return Table("compare-table", f"{data['config']}: laws side by side over {num(data['duration'])}{NBSP}s",
                  ("metric", *[law["name"] for law in laws]), tuple(rows),
                  caption="the same plant, initial offset, reference, wind and noise for every law; cost on the "
                          "config's LQR weights; settling '-': never within 2 % of the peak position error; "
-                         f"{no_rotors}margins: the least over each law's loops broken at a plant input ({how})")
+                         f"{noise}{no_rotors}margins: the least over each law's loops broken at a plant input ({how})")
 
 
 MARGINS = ("gain_margin", "phase_margin")
@@ -43,6 +46,8 @@ MARGINS = ("gain_margin", "phase_margin")
 def _cell(value, name: str, law: dict) -> str:
     if value is None and name in MARGINS and law.get("closed_loop_stable") is False:
         return Mark(UNSTABLE, "fail")
+    if value is None and name == "settling" and law.get("settling_noise_limited"):
+        return "noise"
     return "-" if value is None else num(value)
 
 

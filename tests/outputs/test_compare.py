@@ -208,3 +208,33 @@ def test_an_unstable_law_has_no_margins_in_the_table_or_compare_json(tmp_path):
     assert rows["gain margin [dB]"][0] == f"{lqr['gain_margin']:.4g}"
     assert "unstable: the law's closed loop is unstable, so it has no margin" in table.caption
     assert render.table(table) is not None
+
+
+def test_a_noisy_runs_late_settling_is_noise_limited_and_a_drift_is_never():
+    """The position error of a law decaying to a noise floor inside its 2 % band crosses the band in the run's
+    last tenth: with noise it has no settling time and is named noise-limited (the table says `noise`); the
+    same run without noise keeps the time; a position the law leaves free drifts and never settles, which
+    is no noise."""
+    from types import SimpleNamespace
+
+    from quadctl.compare import metrics_of
+    from quadctl.layout import N_STATES
+    from quadctl.present import compare as words
+
+    t = np.linspace(0.0, 10.0, 2001)
+    rng = np.random.default_rng(0)
+    x = np.zeros((len(t), N_STATES))
+    x[:, 0] = np.exp(-2.0 * t) + 0.03 * rng.standard_normal(len(t))  # the noise crosses the 0.02 m band to the end
+    run = SimpleNamespace(t=t, x=x, x_ref=np.zeros_like(x), u=np.zeros((len(t), 4)), status="ok")
+    loop = SimpleNamespace(u_trim=np.zeros(4), actuators=None)
+    Q, R = np.eye(N_STATES), np.eye(4)
+    noisy = metrics_of(run, loop, Q, R, noisy=True)
+    assert noisy["settling"] is None and noisy["settling_noise_limited"] is True
+    quiet = metrics_of(run, loop, Q, R)
+    assert quiet["settling"] > 9.0 and quiet["settling_noise_limited"] is False
+    drift = SimpleNamespace(**{**vars(run), "x": np.column_stack([0.1 * t, x[:, 1:]])})
+    never = metrics_of(drift, loop, Q, R, noisy=True)
+    assert never["settling"] is None and never["settling_noise_limited"] is False
+    law = {"name": "lqr", "rate": 500.0, "status": "ok", **noisy}
+    rows = dict((row[0], row[1]) for row in words.table({"config": "c", "duration": 10.0, "laws": [law]}).rows)
+    assert rows["settling [s]"] == "noise"
