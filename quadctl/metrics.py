@@ -23,10 +23,15 @@ MAX_SAMPLES = 20_000
 ``stride``-th step, and always the last). 10 s at the report's auto step (290 000 steps) is then
 a sample every 0.5 ms: finer than any settling time or plot needs, and 4.5 MB of sim.npz."""
 NOISE_TAIL = 0.1
-"""The last tenth of a run: in a run with noise or turbulence, a state whose error still leaves the
-settling band there (settled after ``(1 - NOISE_TAIL) t_end``, or never) is *noise-limited*: the band
-lies within the noise, so when it last crossed it measures the noise, not the response, and it has
-no settling time (None). A run without noise keeps its settling times as they are."""
+"""The last tenth of a run: in a run with noise or turbulence, a state whose error still crosses its
+settling band there (settled after ``(1 - NOISE_TAIL) t_end``, or outside it at the end though down to
+:data:`NOISE_FINAL` of its largest) is *noise-limited*: the band lies within the noise, so when it last
+crossed it measures the noise, not the response, and it has no settling time (None). An error that
+ends above :data:`NOISE_FINAL` of its largest (a drift, one still growing) never settled, and is not
+noise-limited. A run without noise keeps its settling times as they are."""
+NOISE_FINAL = 0.5
+"""An error outside its settling band at a noisy run's end is noise-limited when it ends at most this
+share of its largest (it came down, and the noise holds it out of the band), else it never settled."""
 OVERSHOOT_FLOOR = 1e-6
 """Excursions past zero below this fraction of the initial error are round-off: overshoot 0."""
 
@@ -38,11 +43,14 @@ def settling_time(t, err, noisy: bool = False) -> float | None:
     return None if noisy and noise_limited(settled, t[-1] if len(t) else 0.0) else settled
 
 
-def noise_limited(settled: float | None, t_end: float) -> bool:
+def noise_limited(settled: float | None, t_end: float, final: float = math.inf, peak: float = 0.0) -> bool:
     """Whether a settling time ``settled`` (s, None: never) of a run with noise or turbulence that
-    ended at ``t_end`` (s, from 0) is noise-limited: the error still left the band in the run's last
-    :data:`NOISE_TAIL`."""
-    return settled is None or settled > (1.0 - NOISE_TAIL) * t_end
+    ended at ``t_end`` (s, from 0) is noise-limited (:data:`NOISE_TAIL`): the error still left its band
+    in the run's last tenth, or, never settled, it ended (``final``) at most :data:`NOISE_FINAL` of its
+    largest (``peak``)."""
+    if settled is not None:
+        return settled > (1.0 - NOISE_TAIL) * t_end
+    return abs(final) <= NOISE_FINAL * peak
 
 
 def _settled(t, err) -> float | None:
@@ -106,7 +114,8 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: bool = False) -> dict:
         out["final_error"][name] = float(err[-1, i])
         if name in regulated_states:  # a run cut short has not shown where it settles
             settled = _settled(sim.t, err[:, i]) if sim.status == "ok" else None
-            if sim.status == "ok" and noisy and noise_limited(settled, float(sim.t[-1])):
+            if sim.status == "ok" and noisy and noise_limited(settled, float(sim.t[-1]), out["final_error"][name],
+                                                              out["peak_error"][name]):
                 out["noise_limited"].append(name)
                 settled = None
             out["settling_time"][name] = settled
@@ -217,8 +226,10 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=Fa
     at_once = (peak <= ERROR_FLOOR) | ~outside[run, state, newest]
     never = outside[:, :, 0]
     settled_at = np.take_along_axis(t, np.minimum(last + 1, n - 1), axis=1)
-    # noise-limited (noise_limited): a full run with noise that never settled, or settled in its last tenth
-    late = (never | (settled_at > (1.0 - NOISE_TAIL) * t[:, -1:])) & ~at_once \
+    # noise-limited (noise_limited): a full run with noise whose error settled in its last tenth, or never
+    # settled and ended down to NOISE_FINAL of its largest
+    late = np.where(never, np.abs(err[:, :, -1]) <= NOISE_FINAL * peak,
+                    settled_at > (1.0 - NOISE_TAIL) * t[:, -1:]) & ~at_once \
         & np.broadcast_to(np.asarray(noisy, dtype=bool), (B,))[:, None] & (np.asarray(status) == "ok")[:, None]
     at_once, never, late, settled_at = at_once.tolist(), never.tolist(), late.tolist(), settled_at.tolist()
     e0 = err[:, :, 0]

@@ -46,8 +46,8 @@ def controller_text(flight: dict, sim) -> str | None:
             f"{ctl['hold_steps']} {integrator_name(sim)} steps of {sim.dt:.4g} s")
 
 
-NOISE_LIMITED_NOTE = ("noise: noise-limited, the run's noise or turbulence keeps the error crossing the band "
-                      "in the last tenth of the run, so it has no settling time")
+NOISE_LIMITED_NOTE = ("noise: noise-limited, the error came down but the run's noise or turbulence keeps it "
+                      "crossing the band in the last tenth of the run, so it has no settling time")
 """The metrics table's footnote on a settling time shown as ``noise``."""
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
-from quadctl.metrics import ERROR_FLOOR, NOISE_TAIL
+from quadctl.metrics import ERROR_FLOOR, NOISE_FINAL, NOISE_TAIL
 from quadctl.native.compile import C_LONG
 
 PER_STATE = ("e0", "e_last", "e_min", "e_max", "peak", "settle")
@@ -155,7 +155,8 @@ def _readings(sums, dt, regulated_states, status, noisy=False) -> tuple:
     wanted = set(regulated_states)
     index = [i for i, name in enumerate(STATE_NAMES) if name in wanted]
     per = _per_state(sums)[:, :, index]
-    e0, low, high, settle = (per[:, PER_STATE.index(k)] for k in ("e0", "e_min", "e_max", "settle"))
+    e0, low, high, settle, last, peak = (per[:, PER_STATE.index(k)] for k in ("e0", "e_min", "e_max", "settle",
+                                                                              "e_last", "peak"))
     with np.errstate(invalid="ignore", divide="ignore"):
         past = np.where(e0 > 0, -low, np.where(e0 < 0, high, 0.0))  # as summarize_errors
         over = np.maximum(0.0, past) / np.abs(e0) * 100.0
@@ -163,9 +164,11 @@ def _readings(sums, dt, regulated_states, status, noisy=False) -> tuple:
     settled_at = np.asarray(dt, dtype=float)[:, None] * np.maximum(settle, 0.0)
     settling = np.where(settle == SETTLE_NONE, 0.0, settled_at).astype(object)
     ok = (np.asarray(status) == "ok")[:, None]
-    # noise-limited (quadctl.metrics.noise_limited): never settled, or settled in the run's last tenth
+    # noise-limited (quadctl.metrics.noise_limited): settled in the run's last tenth, or never and ended down
+    # to NOISE_FINAL of its largest
     t_end = sums[:, _slot("t_last")][:, None]
-    late = ((settle == SETTLE_PENDING) | ((settle >= 0) & (settled_at > (1.0 - NOISE_TAIL) * t_end))) & ok \
+    late = np.where(settle == SETTLE_PENDING, np.abs(last) <= NOISE_FINAL * peak,
+                    (settle >= 0) & (settled_at > (1.0 - NOISE_TAIL) * t_end)) & ok \
         & np.broadcast_to(np.asarray(noisy, dtype=bool), (len(sums),))[:, None]
     settling[(settle == SETTLE_PENDING) | ~ok | late] = None
     overshoot = over.astype(object)

@@ -145,7 +145,7 @@ def regulated_states(cfg) -> list[str]:
 def noise_limited_reason(states) -> str:
     """A row's ``reason`` for its noise-limited settling times (``states``; their columns are empty)."""
     return (f"settling noise-limited: {', '.join(states)} (with noise or turbulence, the error still crosses "
-            "the 2 % band in the last tenth of the run)")
+            "the 2 % band in the last tenth of the run, or ends outside it though down to half its largest)")
 
 
 def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:

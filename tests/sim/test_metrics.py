@@ -91,7 +91,13 @@ class _Run:
         self.status = "ok"
 
 
-def test_noise_limited_is_a_settling_time_in_the_last_tenth_of_the_run_or_none():
-    """The rule at its edges: at 9 s of a 10 s run a number, past it or never noise-limited."""
+def test_noise_limited_is_a_settling_time_in_the_last_tenth_of_the_run_or_an_error_that_came_down():
+    """The rule at its edges: at 9 s of a 10 s run a number, past it noise-limited; never settled, an
+    error that ends at half its largest or less is noise-limited, one that ends above it (a drift, an
+    error still growing at the end) never settled."""
     assert not metrics.noise_limited(9.0, 10.0) and not metrics.noise_limited(0.0, 10.0)
-    assert metrics.noise_limited(9.001, 10.0) and metrics.noise_limited(None, 10.0)
+    assert metrics.noise_limited(9.001, 10.0)
+    assert metrics.noise_limited(None, 10.0, final=-0.5, peak=1.0) and metrics.noise_limited(None, 10.0, 0.03, 1.0)
+    assert not metrics.noise_limited(None, 10.0, final=0.51, peak=1.0)
+    assert not metrics.noise_limited(None, 10.0, final=1.0, peak=1.0)  # at its largest at the end: growing
+    assert not metrics.noise_limited(None, 10.0)
