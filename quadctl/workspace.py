@@ -257,12 +257,18 @@ class Workspace(pipeline.Stages):
     def write_bytes(self, path: Path | str, data: bytes) -> Path:
         """Write a file of the command's own into the run folder (a figure, the report), atomically as an
         artifact is, remembering what it replaces: :meth:`roll_back` puts it back with the stages' artifacts,
-        so a command has one way to put its folder back."""
+        so a command has one way to put its folder back. A figure (``.png``) carries this config's hash
+        (:meth:`stamp`)."""
         path = Path(path)
         self._write_config_files()  # beside the config that made it: another config's artifacts go first
         self._before_change(path)
-        self._wrote(artifacts.write_bytes(path, data))
+        self._wrote(artifacts.write_bytes(path, self.stamp(data) if path.suffix == ".png" else data))
         return path
+
+    def stamp(self, png: bytes) -> bytes:
+        """``png`` carrying this config's hash (:mod:`quadctl.artifacts.png_stamp`): the run folder tells
+        it from a figure of another config, or one a user put there."""
+        return artifacts.stamp_png(png, self.cfg.digest())
 
     def remember(self, *paths: Path | str) -> None:
         """Remember what each of ``paths`` holds before the command writes it by other means (a drawing

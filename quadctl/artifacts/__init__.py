@@ -14,6 +14,7 @@ names of all of them: ``artifacts.write_json``, ``artifacts.read_npz``, ``artifa
 - :mod:`~quadctl.artifacts.places`: the run directory and its names, kept off symbolic links
 - :mod:`~quadctl.artifacts.writing`: atomic writes (tagged temporaries, fsync, rename), cleaning up
 - :mod:`~quadctl.artifacts.reading`: reading back with provenance checked; reuse (:func:`is_fresh`)
+- :mod:`~quadctl.artifacts.png_stamp`: a figure's config hash in its PNG (:func:`stamp_png`)
 - :mod:`~quadctl.artifacts.run_folder`: a run folder's artifacts and the config that made each
   (:func:`run_artifacts`, :class:`MadeBy`)
 - :mod:`~quadctl.artifacts.journal`: what a session changes, for the next to finish a killed one
@@ -40,6 +41,7 @@ from quadctl.artifacts.places import SUBFOLDER_NAMES as SUBFOLDER_NAMES
 from quadctl.artifacts.places import check_folder as check_folder
 from quadctl.artifacts.places import default_out as default_out
 from quadctl.artifacts.places import plot_path as plot_path
+from quadctl.artifacts.png_stamp import stamp_png as stamp_png
 from quadctl.artifacts.reading import NAMES as NAMES
 from quadctl.artifacts.reading import SCHEMAS as SCHEMAS
 from quadctl.artifacts.reading import InvalidArtifact as InvalidArtifact

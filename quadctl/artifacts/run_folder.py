@@ -9,11 +9,12 @@ files, which the session rewrites itself, and for what ``quadctl identify`` wrot
 own) is never one of them.
 
 Which config made an artifact (:class:`MadeBy`): the ``config_hash`` it carries (a JSON or NPZ artifact's
-provenance, a MAT file's field, the ``Config sha256`` line of generated C or of the Crazyflie app's
-README); for a file that carries none, its companion's (sweep.csv and sweep.png: sweep.json's; the C source:
-its header's); for figures and the report (``plots/``, ``report/``, written only beside the config they
-were made from), the folder's config's, the one ``config.resolved.yaml`` names. None when it cannot be read:
-such a file is left where it is.
+provenance, a MAT file's field, a figure's PNG text chunk (:mod:`quadctl.artifacts.png_stamp`), the
+``Config sha256`` line of generated C or of the Crazyflie app's README); for a file that carries none, its
+companion's (sweep.csv and sweep.png: sweep.json's; the C source: its header's); for the report's pages
+(``report/report.html`` and ``.md``, written only beside the config they were made from), the folder's
+config's, the one ``config.resolved.yaml`` names. None when it cannot be read, and for a figure without
+the chunk (a user's, or one an earlier quadctl drew): such a file is left where it is.
 """
 
 from __future__ import annotations
@@ -23,16 +24,17 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-from quadctl.artifacts.places import ARTIFACT_NAMES, PLOTS, SUBFOLDER_NAMES
+from quadctl.artifacts.places import ARTIFACT_NAMES, SUBFOLDER_NAMES
+from quadctl.artifacts.png_stamp import stamp_of
 from quadctl.artifacts.reading import read_json, read_npz
 from quadctl.errors import ArtifactError
 
 NOT_THE_RUNS = frozenset({"config.yaml", "config.resolved.yaml", "identified.json", "identified.yaml", "identify.png"})
 """Names quadctl writes in a run folder that are not a run's artifacts: the config (rewritten by the session
 that writes there) and what ``quadctl identify`` made from flight logs."""
-BY_THE_FOLDERS_CONFIG = (PLOTS, "report")
-"""Artifact folders whose files carry no provenance and are written only beside the config they were made
-from (a :class:`~quadctl.workspace.Workspace` writes its config first): the folder's config made them."""
+BY_THE_FOLDERS_CONFIG = frozenset({"report/report.html", "report/report.md"})
+"""Files that carry no provenance and are written only beside the config they were made from (a
+:class:`~quadctl.workspace.Workspace` writes its config first): the folder's config made them."""
 COMPANIONS = {
     "sweep.csv": "sweep.json", "sweep.png": "sweep.json", "montecarlo.png": "montecarlo.npz",
     "quadctl_controller.c": "quadctl_controller.h",
@@ -88,7 +90,7 @@ class MadeBy:
         relative = path.relative_to(self.folder).as_posix()
         if relative in COMPANIONS:
             return self(self.folder / COMPANIONS[relative])
-        if path.parent != self.folder and path.parent.name in BY_THE_FOLDERS_CONFIG:
+        if relative in BY_THE_FOLDERS_CONFIG:
             return self.folder_hash
         if os.path.islink(path) or not path.is_file():
             return None
@@ -106,6 +108,8 @@ def _carried(path: Path) -> str | None:
             from scipy.io import loadmat
 
             found = {"config_hash": str(loadmat(str(path), variable_names=["config_hash"])["config_hash"][0])}
+        elif path.suffix == ".png":
+            return stamp_of(path)
         elif path.suffix == ".h" or path.name == "README.md":
             with open(path, "rb") as fh:
                 match = _TEXT_STAMP.search(fh.read(_STAMP_HEAD))

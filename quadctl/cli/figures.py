@@ -26,7 +26,7 @@ def save_figures(ws, sim, tracking: dict | None = None) -> list[Path]:
 
     def draw(names) -> None:
         for name in names:
-            artifacts.write_bytes(paths[name], plots.png_bytes(makers[name](), plots.DPI))
+            artifacts.write_bytes(paths[name], ws.stamp(plots.png_bytes(makers[name](), plots.DPI)))
 
     theirs = _share(makers, ws) if _can_fork() else []
     child = _fork(draw, theirs) if theirs else None

@@ -76,8 +76,21 @@ def test_roll_back_restores_what_was_overwritten_and_removes_what_was_new(tmp_pa
 
 
 SHORT = ("--set", "simulation.duration=1")
-USERS_OWN = {"notes.txt": b"mine", "plots/notes.txt": b"mine", "report/notes.md": b"mine", "mine/roll.png": b"mine"}
-"""Files a user put into a run folder, beside and among quadctl's, under names quadctl does not write there."""
+def _users_figure() -> bytes:
+    """A PNG a user drew (matplotlib's own, with no quadctl config hash in it)."""
+    import io
+
+    from matplotlib.figure import Figure
+
+    buf = io.BytesIO()
+    Figure(figsize=(1, 1)).savefig(buf, format="png")
+    return buf.getvalue()
+
+
+USERS_OWN = {"notes.txt": b"mine", "plots/notes.txt": b"mine", "report/notes.md": b"mine", "mine/roll.png": b"mine",
+             "plots/my_sketch.png": _users_figure(), "report/logo.png": _users_figure()}
+"""Files a user put into a run folder, beside and among quadctl's: under names quadctl does not write there,
+and figures among quadctl's (a figure carries the hash of the config that drew it: theirs carry none)."""
 
 
 @pytest.fixture(scope="module")
@@ -123,8 +136,10 @@ def test_a_new_config_removes_the_earlier_configs_figures_and_report_too(tmp_pat
     digest = config_hash_of(folder)
     made_by = MadeBy(folder, digest)
     assert digest != config.load("hover").digest()
-    assert {p.name: made_by(p) for p in run_artifacts(folder)} == dict.fromkeys(
-        ["trim.json", "linear.npz", "subsystems.json", "design.json"], digest)
+    listed = {p.relative_to(folder).as_posix(): made_by(p) for p in run_artifacts(folder)}
+    assert {name: listed.pop(name) for name in ("plots/my_sketch.png", "report/logo.png")} == dict.fromkeys(
+        ("plots/my_sketch.png", "report/logo.png"))  # a user's figures: made by no config, left where they are
+    assert listed == dict.fromkeys(["trim.json", "linear.npz", "subsystems.json", "design.json"], digest)
 
 
 def _gone_at_roll_back(monkeypatch, folder) -> list:
@@ -426,3 +441,23 @@ def test_a_kept_session_says_what_it_removed_even_when_its_command_then_refuses(
     ws.roll_back()
     with pytest.warns(QuadctlNotice, match="removed trim.json, made by another config"):
         ws.close()
+
+
+def test_every_figure_quadctl_draws_carries_the_hash_of_its_config(hover_run_and_report):
+    """The figures of run --plot (drawn in a forked child or here) and of the report carry hover's
+    config_hash in a PNG text chunk that other PNG readers see too; a figure without one is nobody's."""
+    from matplotlib.image import imread
+
+    from quadctl.artifacts.png_stamp import KEYWORD, stamp_of, stamp_png, stamped
+
+    digest = config_hash_of(hover_run_and_report)
+    figures = sorted((hover_run_and_report / "plots").glob("*.png")) + sorted(
+        (hover_run_and_report / "report").glob("*.png"))
+    ours = [p for p in figures if p.relative_to(hover_run_and_report).as_posix() not in USERS_OWN]
+    assert len(ours) >= 6 and {stamp_of(p) for p in ours} == {digest}
+    assert stamp_of(hover_run_and_report / "plots" / "my_sketch.png") is None
+    roll = hover_run_and_report / "plots" / "roll.png"
+    assert KEYWORD + b"\0" + digest.encode() in roll.read_bytes() and imread(str(roll)).ndim == 3
+    assert stamped(stamp_png(USERS_OWN["plots/my_sketch.png"], "f" * 64)) == "f" * 64
+    with pytest.raises(ValueError, match="not a PNG"):
+        stamp_png(b"mine", digest)

@@ -426,7 +426,7 @@ def test_the_cli_draws_the_same_figures_on_two_cores_and_redraws_what_a_failed_c
         monkeypatch.setattr(figures, "_can_fork", lambda: can_fork)
         ws = SimpleNamespace(setup=setup, linear=SimpleNamespace(u_trim=[0.6, 0.0, 0.0, 0.0]), out=tmp_path / name,
                              remember=lambda *paths: None,  # (a workspace's record for its roll-back)
-                             record_written=lambda *paths: None)
+                             record_written=lambda *paths: None, stamp=lambda png: png)
         paths = figures.save_figures(ws, sim)
         assert [p.name for p in paths] == ["altitude.png", "roll.png", "inputs.png"]
         return _figure_files(tmp_path / name)
