@@ -401,12 +401,12 @@ class Workspace(pipeline.Stages):
         figures and the report, a sweep's, the exports), with a notice naming them: quadctl never reuses
         them, and beside this config they would say what it did not make. A file whose provenance cannot be
         read (damaged, foreign) is left to the stage that reads it; a file quadctl does not write, always."""
-        folder_hash = config_hash_of(self.out)
-        self._made_by = artifacts.MadeBy(self.out, folder_hash)
-        removed = []
+        self._made_by = artifacts.MadeBy(self.out, config_hash_of(self.out))
+        removed, hashes = [], []
         for path in artifacts.run_artifacts(self.out, first=STAGE_FILES):
             if path.is_file() and not path.is_symlink() and self._made_by_another_config(path):
                 name = path.relative_to(self.out).as_posix()
+                hashes.append(self._made_by(path))
                 self._before_change(path)
                 if self._undo is not None:  # said before it goes: a kill right after still finds the earlier run
                     self._journal.replaced(name)
@@ -414,8 +414,9 @@ class Workspace(pipeline.Stages):
                 path.unlink()
                 removed.append(name)
         if removed:
-            note = (f"{self.out}: removed {_listed(removed)}, made by another config "
-                    f"(config_hash {folder_hash or 'unknown'})")
+            which = list(dict.fromkeys(hashes))  # each file's own (a sweep another config wrote here: its)
+            note = (f"{self.out}: removed {_listed(removed)}, made by "
+                    f"{'another config' if len(which) == 1 else 'other configs'} (config_hash {', '.join(which)})")
             if self._notes is None:
                 warnings.warn(QuadctlNotice(note), stacklevel=2)
             else:

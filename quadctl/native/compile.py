@@ -46,15 +46,17 @@ shared by machines of several CPUs, or a tool that does not run every instructio
 once, on import."""
 
 
-def _march() -> str:
-    """``-march=`` of :data:`MARCH_ENV` (``-march=native`` when unset or not a plain name)."""
+def _march() -> tuple[str, str | None]:
+    """``-march=`` of :data:`MARCH_ENV` (``-march=native`` when unset or not a plain name), and the
+    value refused (None: none)."""
     value = os.environ.get(MARCH_ENV, "").strip()
-    ok = value and all(ch.isalnum() or ch in "-_.+" for ch in value) and not value.startswith("-")
-    return f"-march={value if ok else 'native'}"
+    ok = all(ch.isalnum() or ch in "-_.+" for ch in value) and not value.startswith("-")
+    return f"-march={value if value and ok else 'native'}", (None if ok else value)
 
 
-MARCH = _march()
-"""The ``-march`` flag of :data:`SIMD_FLAGS` and :data:`NATIVE_FLAGS` (:data:`MARCH_ENV`)."""
+MARCH, MARCH_REFUSED = _march()
+"""The ``-march`` flag of :data:`SIMD_FLAGS` and :data:`NATIVE_FLAGS` (:data:`MARCH_ENV`), and a value of
+:data:`MARCH_ENV` that is not a plain name (not given to the compiler: the engine says so once)."""
 PORTABLE_FLAGS = ("-O2", "-ffp-contract=off", "-fno-math-errno", "-fPIC", "-shared")
 """``-ffp-contract=off`` keeps a*b+c rounded as written (no FMA), so compiled and interpreted runs
 round alike; no ``-ffast-math``: NaN still propagates and stops a diverging run. ``-O2``: the one-case

@@ -9,10 +9,20 @@ fallback runs the same functions.
 from __future__ import annotations
 
 import warnings
-from functools import lru_cache
+from functools import cache, lru_cache
 
 from quadctl.errors import QuadctlNotice
-from quadctl.native.compile import NATIVE_FLAGS, PORTABLE_FLAGS, SIMD_FLAGS, CompileError, compile_cached, cpu_tag
+from quadctl.native.compile import (
+    MARCH,
+    MARCH_ENV,
+    MARCH_REFUSED,
+    NATIVE_FLAGS,
+    PORTABLE_FLAGS,
+    SIMD_FLAGS,
+    CompileError,
+    compile_cached,
+    cpu_tag,
+)
 from quadctl.sim.builder import build
 from quadctl.sim.interpreted import InterpretedRunner
 from quadctl.sim.loop_spec import LoopSpec
@@ -31,6 +41,12 @@ VM_COST = "same numbers, about 10x slower or more"
 simulation of the forward config, 0.43 M against 4.4 M steps/s compiled)."""
 
 
+@cache
+def _march_notice(text: str) -> None:
+    """Say once per process that :data:`~quadctl.native.compile.MARCH_ENV` was not used as given."""
+    warnings.warn(CompilerNotice(text), stacklevel=4)
+
+
 @lru_cache(maxsize=64)
 def runner(spec: LoopSpec, lanes: int = 1):
     """A :class:`NativeRunner` (``backend`` ``"compiled"`` or ``"compiled-simd"``) or, when no C
@@ -47,11 +63,17 @@ def runner(spec: LoopSpec, lanes: int = 1):
     for simd, flags, backend in variants:
         native = flags is not PORTABLE_FLAGS
         key = f"{spec.key()} lanes={lanes} simd={int(simd)} {cpu_tag() if native else ''}"
+        if native and MARCH_REFUSED is not None:
+            _march_notice(f"{MARCH_ENV}={MARCH_REFUSED!r} is not a target's name (x86-64-v3, znver4, ...): "
+                          "built for this CPU (native)")
         try:
             library = compile_cached(lambda s=simd: library_source(build(spec), lanes, s), flags, key)
             return NativeRunner(library, spec, lanes, backend)
         except CompileError as exc:
             reason = str(exc)
+            if native and MARCH != "-march=native":
+                _march_notice(f"{MARCH_ENV}: the compiler refused {MARCH} ({reason.splitlines()[0][:160]}); "
+                              "the loop is built for any CPU instead (slower)")
             if not native:
                 break
         except OSError as exc:  # built but does not load (a foreign or broken library)

@@ -8,6 +8,7 @@ machine: a missing or failing compiler, the compile cache, threads.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -308,6 +309,31 @@ def test_quadctl_march_names_the_target_of_the_native_builds(value, march, machi
             "c.cpu_tag() == platform.machine())")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
     assert out.split() == [march, "1", "1", str(machine_only)]
+
+
+@pytest.mark.compiler
+@pytest.mark.parametrize("value, said", [("foo", "QUADCTL_MARCH: the compiler refused -march=foo"),
+                                         ("x86-64 v3", "QUADCTL_MARCH='x86-64 v3' is not a target's name")],
+                         ids=["refused", "not-a-name"])
+def test_a_quadctl_march_not_used_as_given_is_said_once_and_the_lanes_still_run(value, said, tmp_path):
+    """A target the compiler refuses: the lanes are built for any CPU, and a notice says so; a value that
+    is not a name: built for this CPU, and a notice says so. Once a process, however many runners."""
+    code = ("import json, warnings; from quadctl import config, pipeline; from quadctl.setup import setup_of\n"
+            "from quadctl.sim import engine\n"
+            "setup = setup_of(config.load('hover'))\n"
+            "stages = pipeline.Stages(setup)\n"
+            "with warnings.catch_warnings(record=True) as caught:\n"
+            "    warnings.simplefilter('always')\n"
+            "    specs = (stages.loop.spec(), stages.loop.spec(True))\n"
+            "    runners = [engine.runner(spec, engine.LANES) for spec in specs]\n"
+            "print(json.dumps(sorted({r.backend for r in runners})))\n"
+            "print(json.dumps([str(w.message) for w in caught if isinstance(w.message, engine.CompilerNotice)]))\n")
+    env = {**os.environ, "QUADCTL_MARCH": value, "QUADCTL_CACHE": str(tmp_path)}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    backends, notices = out.splitlines()
+    assert json.loads(backends) == (["compiled"] if value == "foo" else ["compiled-simd"])
+    notices = json.loads(notices)
+    assert len(notices) == 1 and notices[0].startswith(said), notices
 
 
 @pytest.mark.compiler
