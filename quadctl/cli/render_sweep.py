@@ -95,7 +95,7 @@ def sweep_tables(result, spec) -> Group:
             status = row.get("status")
             verdict = ("[green]pass[/green]" if row["pass"] else
                        "[red]fail[/red]" + ("" if status == "ok" else f" ({status})"))
-            table.add_row(str(row["case"]), params, *[_fmt(row.get(m)) for m in metrics], verdict)
+            table.add_row(str(row["case"]), params, *[_cell(row, m) for m in metrics], verdict)
         tables.append(table)
     return Group(*tables)
 
@@ -126,6 +126,15 @@ def worst_lines(result, limit: int = SHOWN) -> list[str]:
     """One line per failing case, worst first: what it fails."""
     return [f"case {row['case']}: {row['failed_gates']}" + (f" ({row['reason']})" if row.get("reason") else "")
             for row in result.ranked()[:limit] if not row["pass"]]
+
+
+def _cell(row: dict, metric: str) -> str:
+    """A row's ``metric`` as the table shows it: a noise-limited settling time as ``noise``, as
+    ``quadctl simulate`` shows it (:func:`quadctl.metrics.noise_limited`)."""
+    kind, _, state = metric.partition(".")
+    if kind == "settling_time" and row.get(metric) is None and state in row.get("noise_limited", ()):
+        return "noise"
+    return _fmt(row.get(metric))
 
 
 def _fmt(value) -> str:

@@ -209,3 +209,24 @@ def test_a_mistyped_command_is_one_clean_line():
     assert res.exit_code == 2
     assert res.stderr == ("quadctl: error: no such command 'simulte'; did you mean 'simulate'? "
                           "(quadctl --help lists the commands)\n")
+
+
+def test_the_sweep_tables_show_a_noise_limited_settling_time_as_noise():
+    """A row's settling time its noise_limited names reads `noise`, as in quadctl simulate; one that never
+    settled, `-`."""
+    import io
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from quadctl.cli.render_sweep import sweep_tables
+
+    rows = [{"case": 0, "vehicle.mass": 0.068, "settling_time.p": None, "settling_time.v": None, "status": "ok",
+             "noise_limited": ["p"], "pass": True}]
+    result = SimpleNamespace(columns=["settling_time.p", "settling_time.v", "status"], rows=rows, ranked=lambda: rows)
+    gates = [SimpleNamespace(metric="settling_time.p"), SimpleNamespace(metric="settling_time.v")]
+    spec = SimpleNamespace(gates=gates, names=["vehicle.mass"])
+    console = Console(width=200, file=io.StringIO())
+    console.print(sweep_tables(result, spec))
+    line = next(line for line in console.file.getvalue().splitlines() if "mass=0.068" in line)
+    assert [cell.strip() for cell in line.split("│")[3:5]] == ["noise", "-"]
