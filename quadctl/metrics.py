@@ -40,7 +40,10 @@ def settling_time(t, err, noisy: bool = False) -> float | None:
     """Time after which ``|err|`` stays within ``SETTLING_BAND`` of its peak (s); None if it never
     does, or, in a ``noisy`` run (noise or turbulence), if it is noise-limited (:func:`noise_limited`)."""
     settled = _settled(t, err)
-    return None if noisy and noise_limited(settled, t[-1] if len(t) else 0.0) else settled
+    if not noisy or not len(t):
+        return settled
+    mag = np.abs(np.asarray(err, dtype=float))
+    return None if noise_limited(settled, float(t[-1]), float(mag[-1]), float(mag.max())) else settled
 
 
 def noise_limited(settled: float | None, t_end: float, final: float = math.inf, peak: float = 0.0) -> bool:
