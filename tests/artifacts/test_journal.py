@@ -72,27 +72,34 @@ def test_a_cleanup_without_the_folders_lock_keeps_what_a_journal_set_aside(tmp_p
     assert (tmp_path / ASIDE).exists()
 
 
+def _killed_removing(folder, which: str) -> int:
+    """The exit code of a hover session (2 s, another config than the folder's) killed (exit 9) as it checks
+    the second of the earlier config's files that ``which`` (a Python condition on ``path``) takes in."""
+    code = ("import os\n"
+            "from quadctl import config\n"
+            "from quadctl.workspace import Workspace\n"
+            "real = Workspace._made_by_another_config\n"
+            "seen = []\n"
+            "def checked(self, path):\n"
+            f"    if {which}:\n"
+            "        seen.append(path)\n"
+            "        if len(seen) == 2:\n"
+            "            os._exit(9)\n"
+            "    return real(self, path)\n"
+            "Workspace._made_by_another_config = checked\n"
+            "cfg = config.load('hover')\n"
+            "cfg = cfg.model_copy(update={'simulation': cfg.simulation.model_copy(update={'duration': 2.0})})\n"
+            f"Workspace(cfg, {str(folder)!r}).trim\n")
+    return subprocess.run([sys.executable, "-c", code], capture_output=True).returncode
+
+
 def test_a_session_killed_while_it_removes_the_earlier_configs_artifacts_is_undone(tmp_path):
     """Killed between removing one of the earlier config's artifacts and the next: the removal was
     journaled before the file went, so the next session puts it back."""
     assert subprocess.run([sys.executable, "-m", "quadctl", "design", "-c", "hover", "-o", str(tmp_path)],
                           capture_output=True).returncode == 0
     before = (tmp_path / "trim.json").read_bytes()
-    code = ("import os\n"
-            "from quadctl import config\n"
-            "from quadctl.workspace import Workspace\n"
-            "calls = []\n"
-            "real = Workspace._made_by_another_config\n"
-            "def checked(self, path):\n"
-            "    calls.append(path)\n"
-            "    if len(calls) == 2:  # trim.json is gone, linear.npz is next: killed here\n"
-            "        os._exit(9)\n"
-            "    return real(self, path)\n"
-            "Workspace._made_by_another_config = checked\n"
-            "cfg = config.load('hover')\n"
-            "cfg = cfg.model_copy(update={'simulation': cfg.simulation.model_copy(update={'duration': 2.0})})\n"
-            f"Workspace(cfg, {str(tmp_path)!r}).trim\n")
-    assert subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 9
+    assert _killed_removing(tmp_path, "True") == 9  # trim.json is gone, linear.npz is next: killed there
     assert not (tmp_path / "trim.json").exists()
     notes = artifacts.take_over(tmp_path)
     assert (tmp_path / "trim.json").read_bytes() == before
@@ -111,22 +118,7 @@ def test_a_session_killed_while_it_removes_the_earlier_configs_figures_is_undone
 
     before = files()
     assert "plots/roll.png" in before
-    code = ("import os\n"
-            "from quadctl import config\n"
-            "from quadctl.workspace import Workspace\n"
-            "real = Workspace._made_by_another_config\n"
-            "figures = []\n"
-            "def checked(self, path):\n"
-            "    if path.parent.name == 'plots':\n"
-            "        figures.append(path)\n"
-            "        if len(figures) == 2:  # one figure is gone, the next is checked: killed here\n"
-            "            os._exit(9)\n"
-            "    return real(self, path)\n"
-            "Workspace._made_by_another_config = checked\n"
-            "cfg = config.load('hover')\n"
-            "cfg = cfg.model_copy(update={'simulation': cfg.simulation.model_copy(update={'duration': 2.0})})\n"
-            f"Workspace(cfg, {str(tmp_path)!r}).trim\n")
-    assert subprocess.run([sys.executable, "-c", code], capture_output=True).returncode == 9
+    assert _killed_removing(tmp_path, "path.parent.name == 'plots'") == 9  # one figure gone, at the next
     assert not (tmp_path / "sim.npz").exists() and len(list(tmp_path.glob("plots/*.png"))) == len(
         [n for n in before if n.startswith("plots/")]) - 1
     notes = artifacts.take_over(tmp_path)
