@@ -237,3 +237,16 @@ def test_unreadable_files(tmp_path, make, message):
     make(path)
     with pytest.raises(ConfigError, match=message):
         read(path)
+
+
+def test_the_pid_presets_read_by_libyaml_are_what_pythons_yaml_reader_reads():
+    import yaml
+
+    from quadctl.config import pid
+
+    if not hasattr(yaml, "CSafeLoader"):
+        pytest.skip("PyYAML without libyaml: the presets are read in Python")
+    with open(pid.PRESETS_FILE, encoding="utf-8") as fh:
+        expected = yaml.load(fh, Loader=yaml.SafeLoader)
+    pid.presets.cache_clear()
+    assert pid.presets() == expected
