@@ -5,22 +5,15 @@ is :mod:`quadctl.payloads`.
 
 A :class:`Workspace` couples a config to a run directory. Each stage writes its artifact
 atomically; an upstream artifact is reused only when its ``config_hash`` and quadctl
-version match, otherwise it is recomputed and rewritten (never a stale result). The first
-write of a session also writes the config as given (``config.yaml``) and as resolved
-(``config.resolved.yaml``), so a run directory always says what made it; every artifact another
-config made is then removed, with a notice naming them: the stages' (:data:`STAGE_FILES`), the figures,
-the report, a sweep's outputs, the exports (:mod:`quadctl.artifacts.run_folder`; a file quadctl does not
-write stays). Every write of a session can be undone
-(:meth:`Workspace.roll_back`): a command that refuses its input after some stages ran puts the
-folder back as it found it.
+version match, otherwise it is recomputed and rewritten (never a stale result). It writes through a
+session of the folder (:class:`quadctl.artifacts.Session`): its first write also writes the config beside
+the artifacts and removes every artifact another config made there, with a notice naming them, and every
+write can be undone (:meth:`Workspace.roll_back`): a command that refuses its input after some stages ran
+puts the folder back as it found it.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import warnings
-import weakref
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -28,14 +21,25 @@ from pathlib import Path
 import numpy as np
 
 from quadctl import artifacts, payloads, pipeline
-from quadctl.artifacts import default_out
-from quadctl.artifacts.journal import NEW_FOLDER, Journal, undo
-from quadctl.artifacts.meta import RESOLVED_CONFIG_HEAD
+from quadctl.artifacts.places import (
+    CHECKS,
+    DESIGN,
+    DESIGN_FULL,
+    LINEAR,
+    MARGINS,
+    SCHEDULE_JSON,
+    SCHEDULE_NPZ,
+    SIM_JSON,
+    SIM_NPZ,
+    SUBSYSTEMS,
+    TRIM,
+)
+from quadctl.artifacts.session import Session
 from quadctl.config import Config
 from quadctl.design import Design
 from quadctl.design.discrete import RateWarning
 from quadctl.design.kalman import require_detectable, selector
-from quadctl.errors import DesignError, QuadctlNotice
+from quadctl.errors import DesignError
 from quadctl.layout import N_INPUTS, STATE_NAMES
 from quadctl.linear.analysis import Checks, check
 from quadctl.linear.decouple import Decoupled
@@ -48,50 +52,8 @@ from quadctl.present.schedule import verdict
 from quadctl.present.stages import rate_warning
 from quadctl.schedule.envelope import schedule_of
 from quadctl.setup import setup_of
-from quadctl.signals import signals_held
 from quadctl.sim.loop import ClosedLoop
 from quadctl.sim.run import SimResult
-from quadctl.version import __version__
-
-TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
-    "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
-MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
-SCHEDULE_JSON, SCHEDULE_NPZ = "schedule.json", "schedule.npz"
-CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
-SWEEP_PARTS = "sweep.parts"
-HASH_NOTE = " (config_hash {})"
-"""How ``config.resolved.yaml``'s first line ends: the digest of the config (:func:`config_hash_of`)."""
-STAGE_FILES = (TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON, MARGINS, DESIGN_FULL, SCHEDULE_JSON,
-               SCHEDULE_NPZ)
-"""The artifacts the stages write (each carries the ``config_hash`` it was made from)."""
-
-
-def config_hash_of(folder: Path | str) -> str | None:
-    """The ``config_hash`` a run folder's ``config.resolved.yaml`` names (None: none there, or unreadable)."""
-    try:
-        with open(Path(folder) / CONFIG_RESOLVED, encoding="utf-8") as f:
-            first = f.readline().rstrip("\n")
-    except (OSError, UnicodeDecodeError):
-        return None
-    head, _, tail = HASH_NOTE.partition("{}")
-    if not first.endswith(tail) or head not in first:
-        return None
-    return first.rpartition(head)[2][:-len(tail)] or None
-
-
-def _listed(removed: list[str]) -> str:
-    """The files a note names, a sweep's chunks counted (``sweep.parts/ (250 chunks)``): each of them is a
-    line of its journal, not a file to read."""
-    chunks = [name for name in removed if name.startswith(f"{SWEEP_PARTS}/")]
-    named = [name for name in removed if name not in chunks]
-    return ", ".join(named + ([f"{SWEEP_PARTS}/ ({len(chunks)} chunk{'s' * (len(chunks) != 1)})"] if chunks else []))
-
-
-def _released(journal: Journal, hold: contextlib.ExitStack) -> None:
-    """A session dropped without :meth:`Workspace.close` (collected, or at the process's exit): what it
-    wrote stands, so its journal goes first, then the files it set aside and the folder's lock."""
-    journal.end()
-    hold.close()
 
 
 @dataclass(frozen=True)
@@ -161,9 +123,11 @@ def _with_notes(payload: dict, margins) -> dict:
     return {**payload, "loops": [{**d, "notes": list(loop_notes(m))} for d, m in zip(payload["loops"], margins)]}
 
 
-class Workspace(pipeline.Stages):
+class Workspace(Session, pipeline.Stages):
     """Stages of one config in one run directory: :class:`quadctl.pipeline.Stages` that reuses
-    each stage's fresh artifact and writes the ones it computes.
+    each stage's fresh artifact and writes the ones it computes, through a
+    :class:`~quadctl.artifacts.Session` of the folder (the config beside them, another config's run
+    removed, every write undoable).
 
     Parameters
     ----------
@@ -183,61 +147,14 @@ class Workspace(pipeline.Stages):
 
     def __init__(self, cfg: Config, out: Path | str | None = None, *, fresh: bool = False,
                  source_text: str | None = None, progress=None):
-        super().__init__(setup_of(cfg))
-        self.cfg = cfg
+        pipeline.Stages.__init__(self, setup_of(cfg))
         self.progress = progress
-        self.out = Path(out) if out is not None else default_out(cfg)
         self.fresh = fresh
-        self.source_text = source_text
-        self._config_written = False
-        self.written: list[Path] = []
-        self._undo: list[tuple[Path, Path | bytes | str | object | None]] | None = []
-        """Each file the session wrote or removed, and what it held before (:meth:`_before_change`); None: kept."""
         self.reused: list[Path] = []
-        self.replaced: list[str] = []
-        """The artifacts of another config this session removed, relative to the run folder (:meth:`_remove_stale`)."""
-        self._made_by: artifacts.MadeBy | None = None
-        """Which config made each artifact of the folder, when this session removes another config's."""
-        self._notes: list[str] | None = None
-        """The notices :meth:`defer_notes` holds back until :meth:`close` (None: each is issued at once)."""
         self.payloads: dict[str, dict] = {}
         """JSON artifacts written or reused in this session, by file name (what ``--json`` prints);
         a reused artifact is parsed once, here."""
-        self._hold = contextlib.ExitStack()
-        self._hold.enter_context(artifacts.locked(self.out))  # one run at a time; the first finishes a dead one
-        if artifacts.lock.marked_by_this_hold(self.out):  # marked as quadctl's now: a roll-back takes the mark away
-            self._undo.append((self.out / artifacts.MARK_NAME, None))
-        self._journal = Journal(self.out)
-        """What this session changes, as it changes it (:mod:`quadctl.artifacts.journal`)."""
-        self._finalizer = weakref.finalize(self, _released, self._journal, self._hold)  # a session never closed
-
-    def close(self) -> None:
-        """Release the run folder (the process's end releases it too), and issue the notices held back
-        (:meth:`defer_notes`)."""
-        notes = self._notes or []
-        if self._notes is not None:
-            self._notes = []
-        for note in notes:
-            warnings.warn(QuadctlNotice(note), stacklevel=2)
-        self._journal.end()  # before the files it names as set aside go
-        self._hold.close()
-        self._finalizer.detach()  # a later session's journal in this folder is not this one's to remove
-
-    def defer_notes(self) -> None:
-        """Hold back what this session says of the folder (the artifacts of another config it removed)
-        until :meth:`close`: a command that refuses its input puts the folder back (:meth:`roll_back`), and
-        the notices of what it undid are then not issued at all."""
-        if self._notes is None:
-            self._notes = []
-
-    def __enter__(self) -> Workspace:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def path(self, name: str) -> Path:
-        return self.out / name
+        Session.__init__(self, cfg, out, source_text=source_text)
 
     def _reusable(self, name: str) -> bool:
         if self.fresh:
@@ -254,177 +171,21 @@ class Workspace(pipeline.Stages):
     def _meta(self, kind: str, backends=()) -> dict:
         return artifacts.metadata(self.cfg, kind, backends)
 
-    def write_bytes(self, path: Path | str, data: bytes) -> Path:
-        """Write a file of the command's own into the run folder (a figure, the report), atomically as an
-        artifact is, remembering what it replaces: :meth:`roll_back` puts it back with the stages' artifacts,
-        so a command has one way to put its folder back. A figure (``.png``) carries this config's hash
-        (:meth:`stamp`)."""
-        path = Path(path)
-        self._write_config_files()  # beside the config that made it: another config's artifacts go first
-        self._before_change(path)
-        self._wrote(artifacts.write_bytes(path, self.stamp(data) if path.suffix == ".png" else data))
-        return path
-
-    def stamp(self, png: bytes) -> bytes:
-        """``png`` carrying this config's hash (:mod:`quadctl.artifacts.png_stamp`): the run folder tells
-        it from a figure of another config, or one a user put there."""
-        return artifacts.stamp_png(png, self.cfg.digest())
-
-    def remember(self, *paths: Path | str) -> None:
-        """Remember what each of ``paths`` holds before the command writes it by other means (a drawing
-        process of its own), for :meth:`roll_back`, as :meth:`write_bytes` does; :meth:`record_written`
-        once it has."""
-        self._write_config_files()
-        for path in paths:
-            self._before_change(Path(path))
-
-    def record_written(self, *paths: Path | str) -> None:
-        """The command wrote ``paths`` by other means (after :meth:`remember`): this session's, as what
-        :meth:`write_bytes` writes (an artifact of another config it replaces is written again)."""
-        for path in paths:
-            if Path(path).is_file():
-                self._wrote(Path(path))
-
-    def remove(self, path: Path | str) -> bool:
-        """Remove a file of the command's own (an earlier report's figure), remembered for :meth:`roll_back`
-        as :meth:`write_bytes` remembers; True if one went."""
-        path = Path(path)
-        self._write_config_files()
-        self._before_change(path)
-        return artifacts.remove(path)
-
-    @property
-    def unreplaced(self) -> list[str]:
-        """The artifacts of another config this session removed and has not yet written again for its own:
-        while there are any, the folder holds neither run whole. Empty after :meth:`keep`."""
-        if self._undo is None:
-            return []
-        return [name for name in self.replaced if self.path(name) not in self.written]
-
     def roll_back(self) -> bool:
-        """Put back every file this session wrote or removed as it was before (the command refused its
-        input: nothing it computed is kept), and remove the artifact folders it made, if empty again;
-        after :meth:`keep`, nothing (and the notices of what it did are still said). Returns whether it
-        put anything back."""
-        if self._undo is None:
-            return False
-        undone = bool(self._undo)
-        self._journal.rolling_back()
-        with signals_held():  # a second signal does not leave the folder half put back
-            undo(self._undo, on_undone=self._journal.undone)
-            self._journal.end()
-        self._undo = []
-        self.written.clear()
-        self.replaced.clear()
-        self.reused.clear()
-        self.payloads.clear()  # the folder's files are the earlier ones again: read afresh if reused
-        self._config_written = False  # a later write puts this config beside it again, and its artifacts
-        # only: those of the folder's config go first, as at the session's first write
-        if self._notes is not None:  # what they said was undone
-            self._notes.clear()
-        return undone
-
-    def keep(self) -> None:
-        """Keep what this session wrote, whatever follows (:meth:`roll_back` does nothing after this)."""
-        self._undo = None
-        self._journal.end()
-
-    def _before_change(self, path: Path) -> None:
-        """Remember what ``path`` holds (once a session) before it is written or removed: the file set
-        aside (:meth:`_set_aside`), a link's target (``"-> target"``), or None (absent, or unreadable:
-        it cannot be put back)."""
-        if self._undo is None or any(path == p for p, _ in self._undo):
-            return
-        if (path.parent != self.out and not os.path.lexists(path.parent)  # an artifact folder it will make
-                and not any(path.parent == p for p, _ in self._undo)):
-            self._undo.append((path.parent, NEW_FOLDER))
-            self._journal.change(path.parent, NEW_FOLDER)
-        try:
-            before = (f"-> {os.readlink(path)}" if path.is_symlink()
-                      else self._set_aside(path) if path.is_file() else None)
-        except OSError:
-            before = None
-        self._undo.append((path, before))
-        self._journal.change(path, before)
-
-    def _set_aside(self, path: Path) -> Path | bytes:
-        """The file at ``path`` kept for :meth:`roll_back` without copying it: a second name in the folder
-        (a hard link; the atomic write gives ``path`` a new file, so this name keeps the old bytes), removed
-        when the workspace closes and named as a temporary a killed run leaves for the next to clean up;
-        its bytes where the file system has no hard links."""
-        aside = path.parent / f".{path.name}.{artifacts.TEMPORARY_TAG}-undo{os.urandom(4).hex()}.tmp"
-        try:
-            os.link(path, aside)
-        except OSError:
-            return path.read_bytes()
-        self._hold.callback(aside.unlink, missing_ok=True)
-        return aside
-
-    def _wrote(self, path: Path) -> None:
-        self.written.append(path)
+        """:meth:`Session.roll_back`; what the session read of the folder is forgotten too (the folder's
+        files are the earlier ones again: read afresh if reused)."""
         if self._undo is not None:
-            self._journal.wrote(path)
+            self.reused.clear()
+            self.payloads.clear()
+        return super().roll_back()
 
     def _write_json(self, name: str, kind: str, payload: dict, backends=()) -> None:
-        self._write_config_files()
         full = artifacts.jsonable({**self._meta(kind, backends), **payload})
+        self.write_json(self.path(name), full)
         self.payloads[name] = full
-        self._before_change(self.path(name))
-        self._wrote(artifacts.write_json(self.path(name), full))
 
     def _write_npz(self, name: str, arrays: dict, meta: dict) -> None:
-        self._write_config_files()
-        self._before_change(self.path(name))
-        self._wrote(artifacts.write_npz(self.path(name), arrays, meta))
-
-    def _write_config_files(self) -> None:
-        """``config.yaml`` (as given) and ``config.resolved.yaml``, at the session's first write."""
-        if self._config_written:
-            return
-        resolved = self.cfg.to_yaml()
-        given = self.source_text if self.source_text is not None else (
-            "# built in Python, not read from a file: the validated config\n" + resolved)
-        head = (f"{RESOLVED_CONFIG_HEAD} {__version__} validated it, every default filled in"
-                f"{HASH_NOTE.format(self.cfg.digest())}\n")
-        if self._folder_digest() != self.cfg.digest():
-            self._remove_stale()
-        for name, text in ((CONFIG_GIVEN, given), (CONFIG_RESOLVED, head + resolved)):
-            self._before_change(self.path(name))
-            self._wrote(artifacts.write_bytes(self.path(name), text.encode("utf-8")))
-        self._config_written = True
-
-    def _folder_digest(self) -> str | None:
-        return config_hash_of(self.out)
-
-    def _remove_stale(self) -> None:
-        """Remove the artifacts another config made (:mod:`quadctl.artifacts.run_folder`: the stages', the
-        figures and the report, a sweep's, the exports), with a notice naming them: quadctl never reuses
-        them, and beside this config they would say what it did not make. A file whose provenance cannot be
-        read (damaged, foreign) is left to the stage that reads it; a file quadctl does not write, always."""
-        self._made_by = artifacts.MadeBy(self.out, config_hash_of(self.out))
-        removed, hashes = [], []
-        for path in artifacts.run_artifacts(self.out, first=STAGE_FILES):
-            if path.is_file() and not path.is_symlink() and self._made_by_another_config(path):
-                name = path.relative_to(self.out).as_posix()
-                hashes.append(self._made_by(path))
-                self._before_change(path)
-                if self._undo is not None:  # said before it goes: a kill right after still finds the earlier run
-                    self._journal.replaced(name)
-                self.replaced.append(name)
-                path.unlink()
-                removed.append(name)
-        if removed:
-            which = list(dict.fromkeys(hashes))  # each file's own (a sweep another config wrote here: its)
-            note = (f"{self.out}: removed {_listed(removed)}, made by "
-                    f"{'another config' if len(which) == 1 else 'other configs'} (config_hash {', '.join(which)})")
-            if self._notes is None:
-                warnings.warn(QuadctlNotice(note), stacklevel=2)
-            else:
-                self._notes.append(note)
-
-    def _made_by_another_config(self, path: Path) -> bool:
-        found = self._made_by(path)
-        return found is not None and found != self.cfg.digest()
+        self.write_npz(self.path(name), arrays, meta)
 
     # -- stages ---------------------------------------------------------------------------
 

@@ -21,6 +21,8 @@ names of all of them: ``artifacts.write_json``, ``artifacts.read_npz``, ``artifa
   (:func:`take_over`)
 - :mod:`~quadctl.artifacts.lock`: one quadctl per run directory (:func:`locked`; its first holder
   finishes a dead session)
+- :mod:`~quadctl.artifacts.session`: one command's writes into a run folder, beside its config, another
+  config's run removed, every change undoable (:class:`Session`)
 """
 
 from quadctl.artifacts.journal import take_over as take_over
@@ -51,8 +53,11 @@ from quadctl.artifacts.reading import read_npz as read_npz
 from quadctl.artifacts.reading import validate as validate
 from quadctl.artifacts.run_folder import MadeBy as MadeBy
 from quadctl.artifacts.run_folder import run_artifacts as run_artifacts
+from quadctl.artifacts.session import Session as Session
+from quadctl.artifacts.session import config_hash_of as config_hash_of
 from quadctl.artifacts.writing import STALE_TEMPORARY_AGE as STALE_TEMPORARY_AGE
 from quadctl.artifacts.writing import TEMPORARY_TAG as TEMPORARY_TAG
+from quadctl.artifacts.writing import json_bytes as json_bytes
 from quadctl.artifacts.writing import remove as remove
 from quadctl.artifacts.writing import remove_stale_temporaries as remove_stale_temporaries
 from quadctl.artifacts.writing import write_bytes as write_bytes

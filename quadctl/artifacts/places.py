@@ -15,10 +15,16 @@ def default_out(cfg) -> Path:
     return Path("runs") / cfg.name
 
 
+TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON = (
+    "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json")
+MARGINS, DESIGN_FULL = "margins.json", "design_full.json"
+SCHEDULE_JSON, SCHEDULE_NPZ = "schedule.json", "schedule.npz"
+STAGE_FILES = (TRIM, LINEAR, SUBSYSTEMS, CHECKS, DESIGN, SIM_NPZ, SIM_JSON, MARGINS, DESIGN_FULL, SCHEDULE_JSON,
+               SCHEDULE_NPZ)
+"""The artifacts the stages write (:class:`quadctl.workspace.Workspace`; each carries the ``config_hash`` it was
+made from), in the order the stages make them."""
 ARTIFACT_NAMES = frozenset({
-    "config.yaml", "config.resolved.yaml",
-    "trim.json", "linear.npz", "subsystems.json", "checks.json", "design.json", "sim.npz", "sim.json",
-    "margins.json", "design_full.json", "schedule.json", "schedule.npz", "compare.json",
+    "config.yaml", "config.resolved.yaml", *STAGE_FILES, "compare.json",
     "sweep.csv", "sweep.json", "sweep.png", "montecarlo.npz", "montecarlo.png",
     "quadctl_controller.h", "quadctl_controller.c", "quadctl_controller.mat", "quadctl_controller.json",
     "identified.json", "identified.yaml", "identify.png",

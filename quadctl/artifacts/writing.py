@@ -194,11 +194,15 @@ def _umask() -> int:
     return mask
 
 
+def json_bytes(payload: dict, indent: int | None = 1) -> bytes:
+    """``payload`` as an artifact's JSON: indented (``indent=None``: compact, several times faster to encode),
+    keys sorted, no NaN, a newline at the end."""
+    return (json.dumps(jsonable(payload), indent=indent, sort_keys=True, allow_nan=False) + "\n").encode()
+
+
 def write_json(path: Path, payload: dict, indent: int | None = 1) -> Path:
-    """Write ``payload`` as indented (``indent=None``: compact, several times faster to encode),
-    key-sorted JSON, atomically."""
-    text = json.dumps(jsonable(payload), indent=indent, sort_keys=True, allow_nan=False)
-    _atomic_write(path, (text + "\n").encode())
+    """Write ``payload`` as :func:`json_bytes`, atomically."""
+    _atomic_write(path, json_bytes(payload, indent))
     return Path(path)
 
 

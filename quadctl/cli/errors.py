@@ -93,40 +93,42 @@ def remember_config(label: str) -> None:
         state["config"] = label
 
 
-def remember_workspace(ws) -> None:
-    """Note the run folder this command writes, so that :func:`handled` can put it back when the
-    command refuses its input (exit 2) after some stages wrote there (:meth:`Workspace.roll_back`),
-    and release it when the command ends."""
+def remember_session(session) -> None:
+    """Note the session of the run folder this command writes (:class:`quadctl.artifacts.Session`, a
+    :class:`~quadctl.workspace.Workspace`), so that :func:`handled` can put the folder back when the command
+    refuses its input (exit 2) after it wrote there (:meth:`~quadctl.artifacts.Session.roll_back`), and
+    release it when the command ends."""
     state = _COMMAND.get(None)
     if state is not None:
-        state["workspace"] = ws
-        ws.defer_notes()  # said when the command ends, and not at all of what a refusal puts back
+        state["session"] = session
+        session.defer_notes()  # said when the command ends, and not at all of what a refusal puts back
 
 
 def _roll_back() -> None:
-    ws = (_COMMAND.get(None) or {}).get("workspace")
-    if ws is not None:
-        ws.roll_back()
+    session = (_COMMAND.get(None) or {}).get("session")
+    if session is not None:
+        session.roll_back()
 
 
 def _put_back_a_replaced_run() -> bool:
     """A command stopped (Ctrl-C, SIGTERM, a bug) after it removed another config's artifacts and before it
-    wrote each of them again for its own (:attr:`Workspace.unreplaced`): put the folder back as the earlier
-    run left it (:meth:`Workspace.roll_back`), which is whole, rather than leave half of each. True if it did."""
+    wrote each of them again for its own (:attr:`~quadctl.artifacts.Session.unreplaced`): put the folder back as
+    the earlier run left it (:meth:`~quadctl.artifacts.Session.roll_back`), which is whole, rather than leave half
+    of each. True if it did."""
     state = _COMMAND.get(None) or {}
-    ws = state.get("workspace")
-    if ws is None or not ws.unreplaced or not ws.roll_back():
+    session = state.get("session")
+    if session is None or not session.unreplaced or not session.roll_back():
         return False
     state["put_back"] = True
     return True
 
 
-def _release_workspace() -> None:
+def _release_session() -> None:
     """The command is over: its run folder is released (its lock, the files it set aside) and its held-back
     notices said, not left to the garbage collector of a process that goes on."""
-    ws = (_COMMAND.get(None) or {}).get("workspace")
-    if ws is not None:
-        ws.close()
+    session = (_COMMAND.get(None) or {}).get("session")
+    if session is not None:
+        session.close()
 
 
 def message_of(exc) -> str:
@@ -170,8 +172,8 @@ def handled(fn):
                 except Exception:  # a bug (exit 3): the run folder as Ctrl-C would leave it
                     _put_back_a_replaced_run()
                     raise
-                finally:  # within the notices: those the workspace held back are said (before the error)
-                    _release_workspace()
+                finally:  # within the notices: those the session held back are said (before the error)
+                    _release_session()
         except (typer.Exit, typer.Abort, SystemExit):
             raise
         except FailedChecks as verdict:  # a verdict, not an error: no traceback with --debug

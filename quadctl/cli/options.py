@@ -102,7 +102,13 @@ def load_config(config: str | None, sets=None, *, plausible: bool = True):
     (Config, str) : the validated config and the file to name in messages.
     """
     cfg, source = load_source(config, sets, plausible=plausible)
-    return cfg, source.label
+    return cfg, label_of(source, sets)
+
+
+def label_of(source, sets=None) -> str:
+    """How messages name the config: its file (or bundled name), ``with --set`` when a value named may be one
+    ``--set`` gave."""
+    return f"{source.label} with --set" if sets else source.label
 
 
 def load_source(config: str | None, sets=None, *, plausible: bool = True):
@@ -120,7 +126,7 @@ def load_source(config: str | None, sets=None, *, plausible: bool = True):
     if source.note:
         _render().note(source.note)
     cfg = overrides.load(source, sets or ())
-    label = f"{source.label} with --set" if sets else source.label  # a value named may be one --set gave
+    label = label_of(source, sets)
     remember_config(label)
     found = notices.notices(cfg, label)
     for notice in found:
@@ -139,11 +145,26 @@ def _render():
 
 
 def open_workspace(config: str | None, out: Path | None, fresh: bool = False, sets=None):
-    """Load the config (with its ``--set`` values) and open its run directory."""
-    from quadctl.cli.errors import remember_workspace
+    """Load the config (with its ``--set`` values) and open its run directory for the stages."""
     from quadctl.workspace import Workspace
 
     cfg, source = load_source(config, sets)
-    ws = Workspace(cfg, out, fresh=fresh, source_text=source.text)
-    remember_workspace(ws)
-    return ws
+    return remembered(Workspace(cfg, out, fresh=fresh, source_text=source.text))
+
+
+def open_session(cfg, source, out: Path | None):
+    """Open the run directory of ``cfg`` (loaded from ``source``, :func:`load_source`) for a command that
+    writes without the stages (a sweep, an export): its config beside what it writes, another config's run
+    there removed, the folder put back when the command fails (:class:`quadctl.artifacts.Session`)."""
+    from quadctl.artifacts import Session
+
+    return remembered(Session(cfg, out, source_text=source.text))
+
+
+def remembered(session):
+    """``session``, the command's (:func:`quadctl.cli.errors.remember_session`): put back when the command
+    fails, released when it ends."""
+    from quadctl.cli.errors import remember_session
+
+    remember_session(session)
+    return session

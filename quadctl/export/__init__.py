@@ -113,17 +113,18 @@ TARGETS = ("c", "mat", "json", "crazyflie")
 """What :func:`write` writes: the C controller, the MATLAB ``.mat``, the JSON, the Crazyflie app."""
 
 
-def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: str | None = None,
-          mode: str = "force") -> list:
-    """Write the export ``to`` (one of :data:`TARGETS`) into ``folder``, atomically; the paths.
+def files(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: str | None = None,
+          mode: str = "force") -> dict:
+    """The export ``to`` (one of :data:`TARGETS`) as the files to write into ``folder``, each checked whole
+    and nothing written: ``{path: bytes}``, for :func:`write` or a run folder's session
+    (:meth:`quadctl.artifacts.Session.write_together`, as ``quadctl export`` writes them).
 
     Parameters
     ----------
     exp : Export
     to : {"c", "mat", "json", "crazyflie"}
     folder : path
-        Created if missing. Held (:func:`quadctl.artifacts.locked`) while it is written; the
-        temporaries an earlier, killed writer left there are removed first.
+        The run folder.
     meta : dict, optional
         Provenance for the JSON (:func:`quadctl.artifacts.metadata`).
     setpoint, mode : str
@@ -133,10 +134,49 @@ def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: s
 
     Returns
     -------
-    list of pathlib.Path
+    dict of pathlib.Path to bytes
         ``quadctl_controller.h`` and ``.c``; or ``quadctl_controller.mat``; or ``quadctl_controller.json``;
         or the Crazyflie app's files (:data:`quadctl.export.crazyflie.APP_FILES` and the controller
         in ``src/``).
+
+    Raises
+    ------
+    ConfigError
+        The Crazyflie app cannot serve the config (:func:`quadctl.export.crazyflie.check`).
+    """
+    return _files(exp, to, folder, meta, setpoint, mode, "files")
+
+
+def _files(exp: Export, to: str, folder, meta: dict | None, setpoint: str | None, mode: str, who: str) -> dict:
+    """:func:`files`; ``who`` is named when ``exp`` is no :class:`Export`."""
+    import io
+    from pathlib import Path
+
+    from quadctl.export import c, crazyflie, data
+
+    if to not in TARGETS:
+        raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
+    require_export(exp, who)
+    folder = Path(folder)
+    if to == "c":
+        return {folder / name: text.encode() for name, text in c.sources(exp).items()}
+    if to == "crazyflie":
+        return {folder / name: text.encode() for name, text in crazyflie.sources(exp, setpoint, mode).items()}
+    if to == "mat":
+        buf = io.BytesIO()
+        data.write_mat(buf, exp)
+        return {folder / data.MAT_FILE: buf.getvalue()}
+    return {folder / data.JSON_FILE: artifacts.json_bytes(data.json_payload(exp, meta))}
+
+
+def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: str | None = None,
+          mode: str = "force") -> list:
+    """Write the export ``to`` (:func:`files`) into ``folder``, atomically; the paths.
+
+    ``folder`` is created if missing, and held (:func:`quadctl.artifacts.locked`) while it is written; the
+    temporaries an earlier, killed writer left there are removed first. The files are written as they are:
+    a run folder's rule (one config's run, undone when the command fails) is a session's, which
+    ``quadctl export`` writes through (:class:`quadctl.artifacts.Session`).
 
     Raises
     ------
@@ -146,28 +186,10 @@ def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: s
 
     Notes
     -----
-    The two C files are written together (:func:`quadctl.artifacts.write_together`: both
-    temporaries whole before either rename) and each carries the other's ``QUADCTL_PAIR``: a pair
+    The files are written together (:func:`quadctl.artifacts.write_together`: every temporary whole
+    before the first rename), and the two C files each carry the other's ``QUADCTL_PAIR``: a pair
     that a kill between the renames leaves half-replaced does not compile.
     """
-    import io
-    from pathlib import Path
-
-    from quadctl.export import c, crazyflie, data
-
-    if to not in TARGETS:
-        raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
-    require_export(exp, "write")
-    folder = Path(folder)
-    if to == "c":
-        files = {folder / name: text.encode() for name, text in c.sources(exp).items()}
-    elif to == "crazyflie":  # checked whole before the folder is touched
-        files = {folder / name: text.encode() for name, text in crazyflie.sources(exp, setpoint, mode).items()}
-    elif to == "mat":
-        buf = io.BytesIO()
-        data.write_mat(buf, exp)
-        files = {folder / data.MAT_FILE: buf.getvalue()}
+    written = _files(exp, to, folder, meta, setpoint, mode, "write")  # checked whole before the folder is touched
     with artifacts.locked(folder):  # one quadctl writes a folder at a time (the first holder finishes a dead one)
-        if to == "json":
-            return [artifacts.write_json(folder / data.JSON_FILE, data.json_payload(exp, meta))]
-        return artifacts.write_together(files)
+        return artifacts.write_together(written)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,13 +50,20 @@ class SweepStore:
     plot : bool
         Draw the figures (``sweep.png``, ``montecarlo.png``); without, an earlier run's in this
         folder go, so none is mistaken for this one's.
+    session : quadctl.artifacts.Session, optional
+        The run folder's session (of ``out``) every file is written and removed through: the config beside
+        them, another config's run removed, each change undoable. Default: :mod:`quadctl.artifacts`, each
+        file written as it is.
     """
 
-    def __init__(self, out: Path | str, cfg, spec: SweepSpec, *, plot: bool = True):
+    def __init__(self, out: Path | str, cfg, spec: SweepSpec, *, plot: bool = True,
+                 session: artifacts.Session | None = None):
         self.out = Path(out)
         self.cfg = cfg
         self.spec = spec
         self.plot = plot
+        self.files = artifacts if session is None else session
+        """What writes and removes the files (``write_bytes``, ``write_json``, ``write_npz``, ``remove``)."""
         self.parts = self.out / PARTS
         self.digest = spec.digest(cfg)
         self.trace = tuple(regulated_states(cfg)) if spec.monte_carlo else ()
@@ -73,7 +81,7 @@ class SweepStore:
             if self.parts.is_dir() else []
         if not resume:
             for path in files:
-                artifacts.remove(path)
+                self.files.remove(path)
             return {}
         done: dict[int, dict] = {}
         for path in files:
@@ -106,7 +114,7 @@ class SweepStore:
                                  "cases": {str(k): base64.b64encode(np.ascontiguousarray(v, "<f4").tobytes())
                                            .decode("ascii") for k, v in traces.items()}}
         # compact: a journal read back by --resume, not a file to read (1000 rows: 0.2 s indented)
-        return artifacts.write_json(self.parts / f"chunk-{first:07d}.json", payload, indent=None)
+        return self.files.write_json(self.parts / f"chunk-{first:07d}.json", payload, indent=None)
 
     def _decode(self, path: Path, block) -> dict[int, np.ndarray]:
         """A chunk's trajectories, checked to have this sweep's layout."""
@@ -123,7 +131,7 @@ class SweepStore:
         """Write sweep.csv, sweep.json and sweep.png (and a Monte Carlo's files); return the
         summary (sweep.json's content)."""
 
-        csv_path = artifacts.write_bytes(self.out / "sweep.csv", to_csv(result).encode())
+        csv_path = self.files.write_bytes(self.out / "sweep.csv", to_csv(result).encode())
         summary = summarize(result, self.cfg, self.spec)
         summary["files"] = {"table": csv_path.name, **({"plot": "sweep.png"} if self.plot else {}), "chunks": PARTS}
         bands = self.finish_montecarlo(result)
@@ -137,11 +145,11 @@ class SweepStore:
         backends = result.stats.get("backend", ())
         payload = artifacts.jsonable({**artifacts.metadata(self.cfg, "sweep", backends), **summary,
                                       "sweep_digest": self.digest})
-        artifacts.write_json(self.out / "sweep.json", payload)
+        self.files.write_json(self.out / "sweep.json", payload)
         if self.plot:
-            artifacts.write_bytes(self.out / "sweep.png", tradeoff_png(result, self.cfg))
+            self.files.write_bytes(self.out / "sweep.png", tradeoff_png(result, self.cfg))
         else:
-            artifacts.remove(self.out / "sweep.png")
+            self.files.remove(self.out / "sweep.png")
         return payload
 
     def finish_montecarlo(self, result: SweepResult) -> MonteCarloBands | None:
@@ -152,7 +160,7 @@ class SweepStore:
         traces = {**self.traces, **result.traces} if self.trace else {}
         if not traces:
             for name in MC_FILES:
-                artifacts.remove(self.out / name)
+                self.files.remove(self.out / name)
             return None
         duration = value_at(base_of(self.cfg, self.spec), ("simulation", "duration"))
         bands = montecarlo_bands(traces, self.trace, duration, [r["case"] for r in result.rows])
@@ -161,15 +169,15 @@ class SweepStore:
                 "quantity": "deviation from the reference, x - x_ref, in state units (m, m/s, rad, rad/s)",
                 "units": {s: unit_of(s) for s in bands.states}, "left_out": list(bands.left_out),
                 "t_unit": "s", "parameters": list(self.spec.names)}
-        artifacts.write_npz(self.out / "montecarlo.npz",
+        self.files.write_npz(self.out / "montecarlo.npz",
                             {"t": bands.t, "percentiles": np.asarray(bands.percentiles, dtype=float),
                              "bands": bands.bands, "states": np.array(bands.states),
                              "units": np.array([unit_of(s) for s in bands.states]), "cases": bands.cases,
                              "traces": bands.traces, "parameters": np.array(self.spec.names)}, meta)
         if self.plot:
-            artifacts.write_bytes(self.out / "montecarlo.png", montecarlo_png(bands, self.cfg, self.spec.names))
+            self.files.write_bytes(self.out / "montecarlo.png", montecarlo_png(bands, self.cfg, self.spec.names))
         else:
-            artifacts.remove(self.out / "montecarlo.png")
+            self.files.remove(self.out / "montecarlo.png")
         return bands
 
 
@@ -187,7 +195,8 @@ class SweepOutcome:
 
 def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, jobs: int | None = None,
             scheduler: str | None = None, resume: bool = False,
-            progress: Callable[[int, int], None] | None = None, plot: bool = True) -> SweepOutcome:
+            progress: Callable[[int, int], None] | None = None, plot: bool = True,
+            session: artifacts.Session | None = None) -> SweepOutcome:
     """Run a sweep into a run directory: journal each chunk, resume, write the outputs.
 
     Parameters
@@ -204,6 +213,10 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     plot : bool
         Draw ``sweep.png`` (and a Monte Carlo's ``montecarlo.png``); False: no figure (an earlier
         run's in ``out`` goes).
+    session : quadctl.artifacts.Session, optional
+        The session of ``out`` the files are written through (``quadctl sweep``'s, which puts the folder
+        back when the command fails); default one of its own, closed when the sweep ends. Either writes
+        the config beside the sweep at its first write and removes the run of another config there.
 
     Returns
     -------
@@ -213,10 +226,16 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     ------
     SweepError
         ``resume`` finds rows of a different sweep, or the scheduler cannot be reached.
+    ValueError
+        ``session`` is another folder's.
     """
 
-    store = SweepStore(out, cfg, spec, plot=plot)
-    with artifacts.locked(store.out):  # one run writes a folder at a time
+    with contextlib.ExitStack() as own:
+        if session is None:
+            session = own.enter_context(artifacts.Session(cfg, out))  # one run writes a folder at a time
+        elif session.out != Path(out):
+            raise ValueError(f"the session is of {session.out}, not of {out}")
+        store = SweepStore(out, cfg, spec, plot=plot, session=session)
         done = store.start(resume)
         result = run(cfg, spec, label=label, jobs=jobs, scheduler=scheduler, done=done,
                      on_chunk=store.save_chunk, progress=progress)
@@ -224,4 +243,3 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     files = [store.out / "sweep.csv", store.out / "sweep.json"] + ([store.out / "sweep.png"] if plot else [])
     files += [store.out / name for name in summary["files"].get("montecarlo", [])]
     return SweepOutcome(result=result, summary=summary, out=store.out, reused=len(done), files=files)
-

@@ -217,13 +217,12 @@ def test_artifacts_follow_the_umask_with_or_without_fchmod(tmp_path, monkeypatch
 
 
 def test_every_name_the_stages_write_is_registered():
-    from quadctl import report, workspace
+    from quadctl import report
+    from quadctl.artifacts import session
     from quadctl.export import c, data
     from quadctl.sweep import outputs, store
 
-    names = {workspace.TRIM, workspace.LINEAR, workspace.SUBSYSTEMS, workspace.CHECKS, workspace.DESIGN,
-             workspace.SIM_NPZ, workspace.SIM_JSON, workspace.MARGINS, workspace.DESIGN_FULL,
-             workspace.CONFIG_GIVEN, workspace.CONFIG_RESOLVED, c.HEADER, c.SOURCE, data.MAT_FILE, data.JSON_FILE,
+    names = {session.CONFIG_GIVEN, session.CONFIG_RESOLVED, c.HEADER, c.SOURCE, data.MAT_FILE, data.JSON_FILE,
              "sweep.csv", "sweep.json", "sweep.png", *outputs.MC_FILES}
     assert names <= artifacts.ARTIFACT_NAMES, names - artifacts.ARTIFACT_NAMES
     assert store.PARTS in artifacts.SUBFOLDER_NAMES and artifacts.PLOTS in artifacts.SUBFOLDER_NAMES

@@ -12,9 +12,10 @@ from typer.testing import CliRunner
 import quadctl
 from quadctl import artifacts, config
 from quadctl.artifacts import provenance
+from quadctl.artifacts.session import CONFIG_GIVEN, CONFIG_RESOLVED
 from quadctl.cli.app import app
 from quadctl.sim import engine
-from quadctl.workspace import CONFIG_GIVEN, CONFIG_RESOLVED, Workspace
+from quadctl.workspace import Workspace
 
 runner = CliRunner()
 

@@ -14,9 +14,11 @@ from _paths import ROOT
 from typer.testing import CliRunner
 
 from quadctl import config
+from quadctl.artifacts import config_hash_of
+from quadctl.artifacts.places import STAGE_FILES
 from quadctl.cli.app import app
 from quadctl.errors import QuadctlNotice
-from quadctl.workspace import STAGE_FILES, Workspace, config_hash_of
+from quadctl.workspace import Workspace
 
 
 def invoke(*args):
@@ -256,7 +258,7 @@ def test_roll_back_puts_a_replaced_link_back(tmp_path):
 
 def test_roll_back_without_hard_links_keeps_the_bytes(tmp_path, monkeypatch):
     """A file system with no hard links: the files are kept as their bytes, and put back the same."""
-    import quadctl.workspace as workspace
+    from quadctl.artifacts import session
 
     def no_links(*_):
         raise OSError(1, "Operation not permitted")
@@ -264,7 +266,7 @@ def test_roll_back_without_hard_links_keeps_the_bytes(tmp_path, monkeypatch):
     with Workspace(config.load("hover"), tmp_path) as ws:
         assert ws.trim.residual < 1e-9
     before = _contents(tmp_path)
-    monkeypatch.setattr(workspace.os, "link", no_links)
+    monkeypatch.setattr(session.os, "link", no_links)
     with Workspace(config.load("forward"), tmp_path) as ws, pytest.warns(QuadctlNotice, match="removed trim.json"):
         assert ws.design.stable
         ws.roll_back()
@@ -461,3 +463,137 @@ def test_every_figure_quadctl_draws_carries_the_hash_of_its_config(hover_run_and
     assert stamped(stamp_png(USERS_OWN["plots/my_sketch.png"], "f" * 64)) == "f" * 64
     with pytest.raises(ValueError, match="not a PNG"):
         stamp_png(b"mine", digest)
+
+
+# -- the commands that run no stages: a sweep, an export -------------------------------------------------
+
+HEAVIER = ("--set", "vehicle.mass=0.075")
+"""hover with another mass: another config (another config_hash), as fast to run."""
+TWO_CASES = "parameters:\n  lqr.roll.R[0]: [1.0, 1.1]\nset:\n  simulation.duration: 1.0\n"
+
+
+@pytest.fixture(scope="module")
+def heavier_run(tmp_path_factory):
+    """``simulate --plot`` of hover with another mass (1 s): stage artifacts and figures in ``plots/``."""
+    folder = tmp_path_factory.mktemp("heavier") / "run"
+    assert invoke("simulate", "-c", "hover", "--plot", "-o", folder, *SHORT, *HEAVIER).exit_code == 0
+    return folder
+
+
+def _two_cases(tmp_path):
+    spec = tmp_path / "two.yaml"
+    spec.write_text(TWO_CASES)
+    return spec
+
+
+def _only_hovers(folder) -> None:
+    """Every artifact of ``folder`` was made by hover, the config beside them."""
+    from quadctl.artifacts import MadeBy, run_artifacts
+
+    digest = config.load("hover").digest()
+    assert config_hash_of(folder) == digest
+    made_by = MadeBy(folder, digest)
+    assert {p.relative_to(folder).as_posix(): made_by(p) for p in run_artifacts(folder)} == {
+        p.relative_to(folder).as_posix(): digest for p in run_artifacts(folder)}
+
+
+@pytest.mark.parametrize("command", [("sweep", "-j", "1"), ("export", "--to", "json")], ids=["sweep", "export"])
+def test_a_sweep_or_an_export_removes_the_run_of_another_config(
+        tmp_path, heavier_run, command):
+    """quadctl sweep and quadctl export of hover into the folder of another config's run: that run goes (its
+    stage artifacts and figures, with a note naming them), and the config written beside the sweep or the
+    export is hover's."""
+    folder = _copy_of(heavier_run, tmp_path)
+    earlier = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()
+                     and not p.name.startswith(".") and p.name not in ("config.yaml", "config.resolved.yaml"))
+    assert {"trim.json", "sim.npz", "plots/roll.png"} <= set(earlier)
+    extra = ("-s", _two_cases(tmp_path)) if command[0] == "sweep" else ()
+    res = invoke(*command, "-c", "hover", "-o", folder, *extra)
+    assert res.exit_code == 0, res.output
+    assert "trim.json, linear.npz" in res.stderr and "plots/roll.png" in res.stderr
+    assert "made by another config" in " ".join(res.stderr.split())
+    assert not any((folder / name).exists() for name in earlier)
+    assert (folder / ("sweep.csv" if command[0] == "sweep" else "quadctl_controller.json")).is_file()
+    _only_hovers(folder)
+
+
+def test_an_export_removes_another_configs_crazyflie_app(tmp_path):
+    """The Crazyflie app of one config, then the JSON export of another in the same folder: the app goes;
+    a file of the user's own stays."""
+    folder = tmp_path / "run"
+    assert invoke("export", "-c", "crazyflie", "--to", "crazyflie", "-o", folder).exit_code == 0
+    assert (folder / "src" / "quadctl_app.c").is_file()
+    (folder / "plots").mkdir()
+    (folder / "plots" / "notes.txt").write_text("mine")
+    res = invoke("export", "-c", "crazyflie", "--to", "json", "-o", folder, "--set", "vehicle.mass=0.03")
+    assert res.exit_code == 0, res.output
+    assert "src/quadctl_app.c" in res.stderr and not (folder / "src" / "quadctl_app.c").exists()
+    assert not (folder / "Makefile").exists() and (folder / "quadctl_controller.json").is_file()
+    assert (folder / "plots" / "notes.txt").read_text() == "mine"
+
+
+def _stopped_at(monkeypatch, where: str):
+    """Ctrl-C where a sweep writes its tables (after its chunks), or where an export writes its files."""
+    from quadctl.artifacts import writing
+    from quadctl.sweep import store
+
+    def stop(*_, **__):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(*((store.SweepStore, "finish") if where == "sweep" else (writing, "write_together")), stop)
+
+
+@pytest.mark.parametrize("command", [("sweep", "-j", "1"), ("export", "--to", "mat")], ids=["sweep", "export"])
+@pytest.mark.parametrize("stop", ["ctrl-c", "full disk"])
+def test_a_sweep_or_an_export_stopped_or_refused_puts_the_earlier_run_back(tmp_path, heavier_run, monkeypatch,
+                                                                          command, stop):
+    """Ctrl-C (exit 130) or a full disk (exit 2) after the sweep or the export removed another config's run
+    and before its own files were all written: the earlier run is back, byte for byte, and no chunk, table or
+    export of hover is left beside it."""
+    folder = _copy_of(heavier_run, tmp_path)
+    before = _tree(folder)
+    extra = ("-s", _two_cases(tmp_path)) if command[0] == "sweep" else ()
+    if stop == "ctrl-c":
+        _stopped_at(monkeypatch, command[0])
+    else:
+        _full_disk_at(monkeypatch, "sweep.json" if command[0] == "sweep" else "quadctl_controller.mat")
+    res = invoke(*command, "-c", "hover", "-o", folder, *extra)
+    if stop == "ctrl-c":
+        assert res.exit_code == 130 and "the run folder is as the earlier config's run left it" in res.stderr
+    else:
+        assert res.exit_code == 2 and "No space left on device" in res.stderr
+        assert len(res.stderr.splitlines()) == 1  # the error alone: no note of a removal the refusal undid
+    assert _tree(folder) == before
+
+
+KILLED_SWEEP = """
+import os, sys
+from quadctl.sweep import store
+save = store.SweepStore.save_chunk
+def save_and_die(self, rows, traces=None):  # its first chunk written: kill -9
+    save(self, rows, traces)
+    os._exit(9)
+store.SweepStore.save_chunk = save_and_die
+sys.argv = ["quadctl", "sweep", "-c", "hover", "-s", sys.argv[2], "-o", sys.argv[1], "-j", "1"]
+from quadctl.cli.entry import main
+main()
+"""
+
+
+def test_a_sweep_killed_after_it_removed_another_configs_run_is_undone_by_the_next_command(tmp_path, heavier_run):
+    """A kill -9 once the sweep had removed the earlier config's run and written a chunk of its own: the next
+    quadctl to take the folder puts the earlier run back (its journal), and removes the chunk."""
+    import subprocess
+    import sys
+
+    from quadctl import artifacts
+
+    folder = _copy_of(heavier_run, tmp_path)
+    before = _tree(folder)
+    proc = subprocess.run([sys.executable, "-c", KILLED_SWEEP, str(folder), str(_two_cases(tmp_path))],
+                          capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 9, proc.stderr
+    assert list(folder.glob("sweep.parts/chunk-*.json")) and not (folder / "trim.json").exists()
+    notes = artifacts.take_over(folder)
+    assert len(notes) == 1 and "the earlier run is put back" in notes[0]
+    assert _tree(folder) == before

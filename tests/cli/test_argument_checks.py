@@ -171,7 +171,7 @@ def test_the_export_writer_names_a_target_it_does_not_know(tmp_path):
     assert not any(tmp_path.iterdir())
 
 
-@pytest.mark.parametrize("who", ["write", "sources", "fields", "mat_variables", "json_payload", "write_mat"])
+@pytest.mark.parametrize("who", ["write", "files", "sources", "fields", "mat_variables", "json_payload", "write_mat"])
 def test_the_export_writers_name_an_argument_that_is_no_export(tmp_path, who):
     import io
 
@@ -179,7 +179,8 @@ def test_the_export_writers_name_an_argument_that_is_no_export(tmp_path, who):
     from quadctl.export import c as cexport
     from quadctl.export import data
 
-    calls = {"write": lambda x: export.write(x, "json", tmp_path), "sources": cexport.sources, "fields": data.fields,
+    calls = {"write": lambda x: export.write(x, "json", tmp_path), "files": lambda x: export.files(x, "c", tmp_path),
+             "sources": cexport.sources, "fields": data.fields,
              "mat_variables": data.mat_variables, "json_payload": data.json_payload,
              "write_mat": lambda x: data.write_mat(io.BytesIO(), x)}
     name = "mat_variables" if who == "write_mat" else who

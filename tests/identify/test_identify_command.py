@@ -43,6 +43,23 @@ def test_identified_config_says_where_each_value_came_from_and_designs(identifie
     assert res.exit_code == 0, res.output
 
 
+def test_identify_again_keeps_the_run_of_the_identified_config_in_its_folder(identified, tmp_path):
+    """identify writes no config's run, so it removes none: the identified config designed in identify's own
+    folder, then identify run again there (a new fit), leaves that design and the config beside it as they
+    were (a session of the vehicle's config would have removed them and written crazyflie's config there)."""
+    import shutil
+
+    out = shutil.copytree(identified[0], tmp_path / "identified")
+    res = CliRunner().invoke(app, ["design", "-c", str(out / "identified.yaml"), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    run = ("config.yaml", "config.resolved.yaml", "trim.json", "linear.npz", "design.json")
+    before = {name: (out / name).read_bytes() for name in run}
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "8.67:38.67",
+                                   "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert {name: (out / name).read_bytes() for name in run} == before and "removed" not in res.stderr
+
+
 @pytest.mark.parametrize("args, match", [
     (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1"),
     (["--window", "100:200"], "log10: --window 100:200 lies outside the log, which spans t"),

@@ -536,7 +536,8 @@ def test_the_app_is_whole_and_states_its_licence(tmp_path):
     export_app(crazyflie_config(tmp_path), out, "--setpoint", "velocity")
     files = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
     assert files == sorted([*crazyflie.APP_FILES, "src/quadctl_controller.c", "src/quadctl_controller.h",
-                            artifacts.MARK_NAME])  # the mark: quadctl may write this folder again
+                            artifacts.MARK_NAME,  # the mark: quadctl may write this folder again
+                            "config.yaml", "config.resolved.yaml"])  # the config that made it
     for name in ("Makefile", "src/quadctl_app.c", "src/quadctl_crazyflie.c", "src/quadctl_crazyflie.h"):
         assert "SPDX-License-Identifier: MIT" in (out / name).read_text(), name
     readme = (out / "README.md").read_text()

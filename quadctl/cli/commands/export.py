@@ -48,7 +48,8 @@ def command(to: Annotated[Target, typer.Option(
                                "JSON itself under `controller`).")] = False) -> None:
     """Take the design to the vehicle: a C controller that applies it exactly as simulate does, or its matrices.
 
-    Writes into the run directory: quadctl_controller.h/.c (--to c), quadctl_controller.mat or quadctl_controller.json.
+    Writes into the run directory: quadctl_controller.h/.c (--to c), quadctl_controller.mat or quadctl_controller.json,
+    beside the config (the run of another config there is removed first).
     Exits 1 when the design is unstable, when the gain schedule (schedule:) fails its checks, or when a
     continuous design's loop is unstable sampled at --rate; 2 when --to c has no rate (give --rate or set
     controller.rate), or when --to crazyflie cannot serve the config (a rate that does not divide the
@@ -56,13 +57,12 @@ def command(to: Annotated[Target, typer.Option(
     """
     from quadctl import artifacts, export
     from quadctl.cli import render
-    from quadctl.cli.options import load_config, override
+    from quadctl.cli.options import load_source, open_session, override
     from quadctl.present.stages import rate_warning
     from quadctl.setup import setup_of
-    from quadctl.workspace import default_out
 
     rate = override("--rate", rate)
-    cfg, _ = load_config(config, sets)
+    cfg, source = load_source(config, sets)
     exp = export.prepare(setup_of(cfg), rate, need_rate=to in (Target.c, Target.crazyflie),
                          config_hash=cfg.digest())
     for w in exp.rate_warnings:
@@ -72,8 +72,11 @@ def command(to: Annotated[Target, typer.Option(
         from quadctl.export import crazyflie
 
         flown = setpoint.value if setpoint is not None else crazyflie.default_setpoint(exp)
-    paths = export.write(exp, to.value, out or default_out(cfg), artifacts.metadata(cfg, "export"),
-                         setpoint=flown, mode=mode.value)
+    folder = out or artifacts.default_out(cfg)
+    files = export.files(exp, to.value, folder, artifacts.metadata(cfg, "export"), setpoint=flown, mode=mode.value)
+    session = open_session(cfg, source, folder)  # after every check: a refused export touches no folder
+    paths = session.write_together(files)
+    session.keep()  # the export is whole: it stays, whatever follows
     if to is Target.crazyflie:
         from quadctl.present.platform import platform_sentences
 

@@ -62,6 +62,10 @@ def command(logs: Annotated[list[str], typer.Argument(
     ident = results.identify(read, cfg, results.windows_per_log(window, len(logs)), delay=delay)
     text = results.identified_config(source.text, ident, f"{cfg.name}-identified", sets or ())
     payload = results.payload(ident, source.label, cfg, written=text, sets=sets or ())
+    # the folder's lock only, not a session of it (quadctl.artifacts.Session, as sweep and export take): what
+    # identify writes is made from flight logs and is no config's run (quadctl.artifacts.run_folder.NOT_THE_RUNS),
+    # and its folder is where the identified config runs (run -c DIR/identified.yaml -o DIR). A session of the
+    # vehicle's config would write that config over the identified one's and remove its run at every new fit.
     with artifacts.locked(folder):  # a folder of quadctl's (claimed), one quadctl at a time
         results.require_unedited(folder, force)  # (edited while the fit ran)
         write_together({folder / "identified.json": _json.dumps(payload, indent=1).encode(),

@@ -14,14 +14,12 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     """
     from quadctl import artifacts, report, stages
     from quadctl.cli import render
-    from quadctl.cli.errors import remember_workspace
-    from quadctl.cli.options import load_source
+    from quadctl.cli.options import load_source, remembered
     from quadctl.cli.progress import simulation_progress
     from quadctl.workspace import Workspace
 
     cfg, source = load_source(config, sets)
-    ws = Workspace(cfg, out, fresh=fresh, source_text=source.text)
-    remember_workspace(ws)
+    ws = remembered(Workspace(cfg, out, fresh=fresh, source_text=source.text))
     artifacts.check_folder(ws.out / report.FOLDER)  # a link there: refused now, not after the stages
     with simulation_progress(quiet=json) as ws.progress:
         outcome = stages.run_stages(ws, allow_saturation=allow_saturation)

@@ -27,6 +27,8 @@ def command(
 ) -> None:
     """Design, simulate and score many variants of a config; write sweep.csv, sweep.json, sweep.png.
 
+    They are written beside the config (the run of another config in the folder is removed first).
+
     Each case is the config with the sweep file's values put in at their key paths (lqr.roll.Q[1], vehicle.mass).
     Every case is trimmed, designed, simulated on the nonlinear model and scored.
     Exits 1 when a case fails a gate (or, with require_ok, fails to design, is unstable or diverges).
@@ -40,8 +42,7 @@ def command(
     # only what the worker processes need starts before them (they fork from this process): the
     # terminal's output (rich) is imported as they run
     from quadctl import sweep as sweep_mod
-    from quadctl.artifacts import default_out
-    from quadctl.cli.options import load_config
+    from quadctl.cli.options import label_of, load_source, open_session
     from quadctl.cli.progress import sweep_progress
     from quadctl.errors import SweepError
     from quadctl.sweep.runner import check_scheduler_address
@@ -50,12 +51,14 @@ def command(
         raise SweepError("--jobs and --scheduler: give one; on a cluster its workers do the work")
     if scheduler:
         check_scheduler_address(scheduler)  # before anything is loaded: a typo fails at once
-    cfg, label = load_config(config, sets)
+    cfg, source = load_source(config, sets)
     spec = sweep_mod.load(sweep, cfg)
+    session = open_session(cfg, source, out)  # after the sweep file: a refused one touches no folder
     with sweep_progress(quiet=json, meanwhile=None if no_plot else _import_plots) as progress:
-        outcome = sweep_mod.execute(cfg, spec, out or default_out(cfg), label=label, jobs=jobs,
+        outcome = sweep_mod.execute(cfg, spec, session.out, label=label_of(source, sets), jobs=jobs,
                                     scheduler=scheduler, resume=resume, progress=progress,
-                                    plot=not no_plot)
+                                    plot=not no_plot, session=session)
+    session.keep()  # the sweep's outputs are whole: they stay, whatever follows (a failed gate, exit 1)
     from quadctl.cli import render, render_sweep
 
     result, summary = outcome.result, outcome.summary
