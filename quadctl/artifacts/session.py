@@ -6,7 +6,10 @@ Its first write also writes the config as given (``config.yaml``) and as resolve
 so a run folder always says what made it, and removes every artifact another config made there
 (:mod:`quadctl.artifacts.run_folder`), with a notice naming them: one config's run a folder. Each file it writes
 or removes can be put back (:meth:`Session.roll_back`; what a killed session left, by the next holder of the
-folder: :mod:`quadctl.artifacts.journal`).
+folder: :mod:`quadctl.artifacts.journal`). An artifact folder (``plots/``, ``report/``, ``src/``, ``sweep.parts/``)
+that removing another config's artifacts left empty goes when the session ends, kept: until then the files
+set aside for a roll-back are in it, and a roll-back finds it where it was. A folder that holds anything else
+(a user's file) stays.
 
 :class:`quadctl.workspace.Workspace` is a session that also runs the stages; ``quadctl sweep`` and
 ``quadctl export`` write through one of their own.
@@ -57,11 +60,16 @@ def _listed(removed: list[str]) -> str:
     return ", ".join(named + ([f"{SWEEP_PARTS}/ ({len(chunks)} chunk{'s' * (len(chunks) != 1)})"] if chunks else []))
 
 
-def _released(journal: Journal, hold: contextlib.ExitStack) -> None:
+def _released(journal: Journal, hold: contextlib.ExitStack, emptied: set[Path]) -> None:
     """A session ends (closed, collected, or at the process's exit) with what it wrote standing: its journal
-    goes first, then the files it set aside and the folder's lock."""
+    goes first, then the files it set aside and the folder's lock, then the artifact folders it emptied of
+    another config's files, if nothing is in them now."""
     journal.end()
     hold.close()
+    for folder in sorted(emptied):
+        with contextlib.suppress(OSError):  # not empty (a user's file, this session's own), a link, gone
+            folder.rmdir()
+    emptied.clear()
 
 
 class Session:
@@ -95,6 +103,8 @@ class Session:
         """Each file the session wrote or removed, and what it held before (:meth:`_before_change`); None: kept."""
         self.replaced: list[str] = []
         """The artifacts of another config this session removed, relative to the run folder (:meth:`_remove_stale`)."""
+        self._emptied: set[Path] = set()
+        """The artifact folders removing another config's artifacts emptied (removed at the end, if still empty)."""
         self._made_by: MadeBy | None = None
         """Which config made each artifact of the folder, when this session removes another config's."""
         self._notes: list[str] | None = None
@@ -105,7 +115,7 @@ class Session:
             self._undo.append((self.out / lock.MARK_NAME, None))
         self._journal = Journal(self.out)
         """What this session changes, as it changes it (:mod:`quadctl.artifacts.journal`)."""
-        self._finalizer = weakref.finalize(self, _released, self._journal, self._hold)
+        self._finalizer = weakref.finalize(self, _released, self._journal, self._hold, self._emptied)
 
     def close(self) -> None:
         """Release the run folder (the process's end releases it too), and issue the notices held back
@@ -208,6 +218,7 @@ class Session:
         self._undo = []
         self.written.clear()
         self.replaced.clear()
+        self._emptied.clear()  # each holds its files again
         self._config_written = False  # a later write puts this config beside it again, and its artifacts
         # only: those of the folder's config go first, as at the session's first write
         if self._notes is not None:  # what they said was undone
@@ -291,6 +302,8 @@ class Session:
                 self.replaced.append(name)
                 path.unlink()
                 removed.append(name)
+                if path.parent != self.out:
+                    self._emptied.add(path.parent)
         if removed:
             which = list(dict.fromkeys(hashes))  # each file's own (a sweep another config wrote here: its)
             note = (f"{self.out}: removed {_listed(removed)}, made by "

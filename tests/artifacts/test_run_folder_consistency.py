@@ -487,22 +487,24 @@ def _two_cases(tmp_path):
 
 
 def _only_hovers(folder) -> None:
-    """Every artifact of ``folder`` was made by hover, the config beside them."""
-    from quadctl.artifacts import MadeBy, run_artifacts
+    """Every artifact of ``folder`` was made by hover, the config beside them, and no artifact folder is
+    left empty."""
+    from quadctl.artifacts import SUBFOLDER_NAMES, MadeBy, run_artifacts
 
     digest = config.load("hover").digest()
     assert config_hash_of(folder) == digest
     made_by = MadeBy(folder, digest)
     assert {p.relative_to(folder).as_posix(): made_by(p) for p in run_artifacts(folder)} == {
         p.relative_to(folder).as_posix(): digest for p in run_artifacts(folder)}
+    assert [sub for sub in SUBFOLDER_NAMES if (folder / sub).exists() and not any((folder / sub).iterdir())] == []
 
 
 @pytest.mark.parametrize("command", [("sweep", "-j", "1"), ("export", "--to", "json")], ids=["sweep", "export"])
-def test_a_sweep_or_an_export_removes_the_run_of_another_config(
+def test_a_sweep_or_an_export_removes_the_run_of_another_config_and_the_folders_it_emptied(
         tmp_path, heavier_run, command):
     """quadctl sweep and quadctl export of hover into the folder of another config's run: that run goes (its
-    stage artifacts and figures, with a note naming them), and the config written beside the sweep or the
-    export is hover's."""
+    stage artifacts and figures, with a note naming them, and the plots/ folder they leave empty), and the
+    config written beside the sweep or the export is hover's."""
     folder = _copy_of(heavier_run, tmp_path)
     earlier = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()
                      and not p.name.startswith(".") and p.name not in ("config.yaml", "config.resolved.yaml"))
@@ -512,14 +514,14 @@ def test_a_sweep_or_an_export_removes_the_run_of_another_config(
     assert res.exit_code == 0, res.output
     assert "trim.json, linear.npz" in res.stderr and "plots/roll.png" in res.stderr
     assert "made by another config" in " ".join(res.stderr.split())
-    assert not any((folder / name).exists() for name in earlier)
+    assert not any((folder / name).exists() for name in earlier) and not (folder / "plots").exists()
     assert (folder / ("sweep.csv" if command[0] == "sweep" else "quadctl_controller.json")).is_file()
     _only_hovers(folder)
 
 
-def test_an_export_removes_another_configs_crazyflie_app(tmp_path):
-    """The Crazyflie app of one config, then the JSON export of another in the same folder: the app goes;
-    a file of the user's own stays."""
+def test_an_export_removes_another_configs_crazyflie_app_and_its_src_folder(tmp_path):
+    """The Crazyflie app of one config, then the JSON export of another in the same folder: the app goes,
+    its src/ folder with it; a folder that holds a file of the user's own stays, with that file."""
     folder = tmp_path / "run"
     assert invoke("export", "-c", "crazyflie", "--to", "crazyflie", "-o", folder).exit_code == 0
     assert (folder / "src" / "quadctl_app.c").is_file()
@@ -527,7 +529,7 @@ def test_an_export_removes_another_configs_crazyflie_app(tmp_path):
     (folder / "plots" / "notes.txt").write_text("mine")
     res = invoke("export", "-c", "crazyflie", "--to", "json", "-o", folder, "--set", "vehicle.mass=0.03")
     assert res.exit_code == 0, res.output
-    assert "src/quadctl_app.c" in res.stderr and not (folder / "src" / "quadctl_app.c").exists()
+    assert "src/quadctl_app.c" in res.stderr and not (folder / "src").exists()
     assert not (folder / "Makefile").exists() and (folder / "quadctl_controller.json").is_file()
     assert (folder / "plots" / "notes.txt").read_text() == "mine"
 
@@ -548,8 +550,8 @@ def _stopped_at(monkeypatch, where: str):
 def test_a_sweep_or_an_export_stopped_or_refused_puts_the_earlier_run_back(tmp_path, heavier_run, monkeypatch,
                                                                           command, stop):
     """Ctrl-C (exit 130) or a full disk (exit 2) after the sweep or the export removed another config's run
-    and before its own files were all written: the earlier run is back, byte for byte, and no chunk, table or
-    export of hover is left beside it."""
+    and before its own files were all written: the earlier run is back, byte for byte, its plots/ folder too,
+    and no chunk, table or export of hover is left beside it."""
     folder = _copy_of(heavier_run, tmp_path)
     before = _tree(folder)
     extra = ("-s", _two_cases(tmp_path)) if command[0] == "sweep" else ()
@@ -597,3 +599,32 @@ def test_a_sweep_killed_after_it_removed_another_configs_run_is_undone_by_the_ne
     notes = artifacts.take_over(folder)
     assert len(notes) == 1 and "the earlier run is put back" in notes[0]
     assert _tree(folder) == before
+
+
+def _without_the_users_files(folder, tmp_path):
+    """A copy of ``folder`` (a run and its report) without the files of the user's own."""
+    copy = _copy_of(folder, tmp_path)
+    for name in USERS_OWN:
+        (copy / name).unlink()
+    (copy / "mine").rmdir()
+    return copy
+
+
+@pytest.mark.parametrize("refused", [False, True], ids=["design", "refused"])
+def test_a_new_config_removes_the_artifact_folders_it_emptied_and_a_refusal_keeps_them(
+        tmp_path, hover_run_and_report, refused):
+    """Without files of the user's own in plots/ and report/, removing the earlier config's figures and report
+    leaves them empty: they go too when the command ends. A command refused (exit 2) after it removed them
+    puts the folders back with every file in them."""
+    folder = _without_the_users_files(hover_run_and_report, tmp_path)
+    before = _tree(folder)
+    assert before["plots"] == before["report"] == "folder"
+    if refused:
+        res = invoke("simulate", "-c", "hover", "-o", folder, "--set", "simulation.dt=0.001")
+        assert res.exit_code == 2 and "is unstable for RK4" in res.stderr
+        assert _tree(folder) == before
+    else:
+        res = invoke("design", "-c", "hover", "-o", folder, *SHORT, *HEAVIER)
+        assert res.exit_code == 0, res.output
+        assert "plots/roll.png" in res.stderr and "report/report.html" in res.stderr
+        assert not (folder / "plots").exists() and not (folder / "report").exists()
