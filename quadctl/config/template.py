@@ -9,8 +9,6 @@ not written: the command line writes it.
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,6 +31,7 @@ from quadctl.config import (
     TrimConfig,
     VehicleConfig,
     WindConfig,
+    yamlio,
 )
 from quadctl.errors import ConfigError
 from quadctl.layout import REPORT_PARTITION, STATE_UNITS
@@ -177,6 +176,8 @@ BRYSON = {
 input's headroom around the trim (``motors.headroom``) taken as its largest acceptable excursion:
 enough room that the initial offset flies without reaching a rotor limit."""
 INITIAL_OFFSET = {"pD": 0.5, "phi": 0.1, "theta": 0.1, "psi": 0.2}
+REQUIRED = "..."
+"""What a key without a default shows in a commented-out section: the place for a value, not one."""
 
 
 def bryson_rules(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = False
@@ -259,8 +260,8 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     out += [f"#   {s}" for s in preset.sources]
     out += ["# Optional sections are commented out: uncomment one to use it. The README's \"Config reference\"",
             "# explains every key, and how an editor checks them as you type.",
-            f"name: {name}",
-            f"description: {json.dumps(f'Started from the {preset.title} template (quadctl init): {flight} at 1 m')}"]
+            f"name: {yamlio.flow(name)}",
+            f"description: {yamlio.flow(f'Started from the {preset.title} template (quadctl init): {flight} at 1 m')}"]
     out += ["vehicle:   # " + _doc(Config, "vehicle")]
     out += _section(VehicleConfig, {"gravity": (9.81, ""), **preset.vehicle}, 2)
     out += ["trim:   # " + _doc(Config, "trim")]
@@ -283,7 +284,7 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
         out.append(f"  {key + ':':<{width + 1}} {flow}{note}")
     out += ["lqr:   # " + _doc(Config, "lqr") + "; Q in 1/(state unit)^2, R in 1/(input unit)^2"]
     for key, (rule, why) in bryson_rules(preset, velocity, hold=flight == "hold").items():
-        out.append(f"  {key + ':':<9} {{bryson: {_flow(rule)}}}  # {why}")
+        out.append(f"  {key + ':':<9} {{bryson: {yamlio.flow(rule)}}}  # {why}")
     out += ["simulation:   # " + _doc(Config, "simulation")]
     out += _section(SimulationConfig, {"duration": (10.0, ""), "dt": ("auto", ""),
                                        "initial_offset": (INITIAL_OFFSET, ""), "max_samples": (20_000, "")}, 2)
@@ -306,29 +307,13 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     out += [f"allow: []   # {_doc(Config, 'allow')}"]
     text = "\n".join(out) + "\n"
     digest = config_mod.parse(text, f"{name}.yaml").vehicle_digest()
-    recorded = {"template": (vehicle, ""), "vehicle_digest": (json.dumps(digest), "quoted: a string")}
+    recorded = {"template": (vehicle, ""), "vehicle_digest": (digest, "")}
     return "\n".join([text + f"started_from:   # {_doc(Config, 'started_from')}",
                       *_section(StartedFrom, recorded, 2)]) + "\n"
 
 
 def _doc(model: type[BaseModel], key: str) -> str:
     return model.model_fields[key].description or ""
-
-
-def _flow(value: Any) -> str:
-    """A value as one line of YAML flow style (``[1, 2]``, ``{a: 1}``, ``null``)."""
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        short = f"{value:.6g}"  # 4 for 4.0, 1.11e+08 for 111000000.0; repr where six digits do not hold it
-        return short if math.isfinite(value) and float(short) == value else repr(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_flow(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k}: {_flow(v)}" for k, v in value.items()) + "}"
-    return str(value)
 
 
 def _section(model: type[BaseModel], given: dict[str, tuple[Any, str]], indent: int, *,
@@ -353,9 +338,9 @@ def _section(model: type[BaseModel], given: dict[str, tuple[Any, str]], indent: 
             lines += inner
             continue
         else:
-            value = field.get_default(call_default_factory=True) if not field.is_required() else "..."
+            value = field.get_default(call_default_factory=True) if not field.is_required() else REQUIRED
             note = ""
-        text = f"{key}: {_flow(value)}"
+        text = f"{key}: {value if value is REQUIRED else yamlio.flow(value)}"
         comment = field.description + (f" {note}" if note.startswith("[") else f"; {note}" if note else "")
         lines.append(f"{pad}{'# ' if commented else ''}{text}   # {comment}")
     return lines

@@ -15,6 +15,7 @@ Examples
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import stat
@@ -163,16 +164,29 @@ Loader.add_implicit_resolver(_FLOAT, _FLOAT_RE, list("-+0123456789."))
 
 
 class Dumper(yaml.SafeDumper):
-    """PyYAML's safe dumper quoting what :class:`Loader` would read as another type: a text ``1e5``
-    or ``010`` is a number to quadctl, so it is written ``'1e5'``. Use :func:`dump` or :func:`flow`."""
+    """PyYAML's safe dumper quoting what :class:`Loader` would read as another type (a text ``1e5``
+    or ``010`` is a number to quadctl, so it is written ``'1e5'``) and writing a number as short as
+    it reads back (``4`` for 4.0, ``1.11e+08``). Use :func:`dump` or :func:`flow`."""
 
     yaml_implicit_resolvers = {first: list(resolvers) for first, resolvers in Loader.yaml_implicit_resolvers.items()}
+
+    def represent_float(self, data):
+        """Six significant digits (``1e-05``, ``1.11e+08``, ``4``) where they read back as ``data``;
+        PyYAML's own spelling otherwise (every digit, ``.inf``, ``.nan``, ``-0.0``)."""
+        short = f"{data:.6g}"
+        if not math.isfinite(data) or float(short) != data or short == "-0":
+            return super().represent_float(data)
+        return self.represent_scalar(_INT if _INT_RE.match(short) else _FLOAT, short)
+
+
+Dumper.add_representer(float, Dumper.represent_float)
 
 
 def dump(data: Any) -> str:
     """``data`` as a YAML document for people to read, quadctl's one way to write YAML: keys in their
     order, text as written (``Förster``, not ``F\\xF6rster``; only characters YAML cannot hold are
-    escaped), and no line folded, however long (an editor or terminal wraps them for the reader).
+    escaped), numbers as short as they read back (``4`` for 4.0, ``1e-05``), and no line folded,
+    however long (an editor or terminal wraps them for the reader).
 
     Examples
     --------
@@ -193,9 +207,10 @@ def flow(value: Any) -> str:
     Examples
     --------
     >>> flow("Förster, identified from log.csv"), flow([1e-05, 0.068]), flow({"a": "yes"})
-    ('Förster, identified from log.csv', '[1.0e-05, 0.068]', "{a: 'yes'}")
+    ('Förster, identified from log.csv', '[1e-05, 0.068]', "{a: 'yes'}")
     """
-    text = yaml.dump(value, Dumper=Dumper, default_flow_style=True, allow_unicode=True, width=float("inf"))
+    text = yaml.dump(value, Dumper=Dumper, default_flow_style=True, sort_keys=False, allow_unicode=True,
+                     width=float("inf"))
     return text.removesuffix("...\n").strip("\n")
 
 

@@ -7,12 +7,13 @@ import re
 
 import numpy as np
 import pytest
+import yaml
 from _solve import run
 from typer.testing import CliRunner
 
 from quadctl import config
 from quadctl.cli.app import app
-from quadctl.config import Config
+from quadctl.config import Config, yamlio
 from quadctl.config import template as starter
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
@@ -101,6 +102,31 @@ def test_init_is_listed_and_writes_the_file_once(tmp_path, monkeypatch):
     assert config.load("f450.yaml").vehicle.mass == 0.068
     res = runner.invoke(app, ["run", "-c", "f450.yaml", "-o", "out"])
     assert res.exit_code == 0, res.output
+
+
+@pytest.mark.parametrize("name", ["1e3", "010", "0x1F", "1_000", "1.5", "yes", "on", "null", "true", "2024-01-01"])
+def test_a_name_yaml_would_read_as_another_type_is_written_so_it_reads_back(tmp_path, monkeypatch, name):
+    """`quadctl init 1e3` once wrote `name: 1e3`, which reads as the number 1000 (and `yes` as true)."""
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["init", name, "--from", "mambo"])
+    assert res.exit_code == 0, res.output
+    text = (tmp_path / f"{name}.yaml").read_text()
+    assert yamlio.load(text, "c.yaml")["name"] == name
+    if name != "2024-01-01":  # PyYAML's YAML 1.1 reads that as a date; quadctl's loader and YAML 1.2 as text
+        assert yaml.safe_load(text)["name"] == name
+    cfg = config.load(f"{name}.yaml")
+    assert cfg.name == name
+    assert cfg.description == ("Started from the Parrot Mambo / Rolling Spider (68 g), the report's vehicle template "
+                               "(quadctl init): hold at 1 m")  # a colon and an apostrophe, read back as given
+    assert cfg.vehicle_digest() == cfg.started_from.vehicle_digest
+
+
+def test_the_template_writes_numbers_short():
+    text = starter.config_text("mine", "crazyflie", "hold")
+    assert "  duration: 10   # s" in text  # 10.0
+    assert "  yaw:      {bryson: {errors: [0.2, 2], headroom: 0.06}}  # Bryson" in text
+    assert "  initial_offset: {pD: 0.5, phi: 0.1, theta: 0.1, psi: 0.2}   #" in text  # in the order given
+    assert "  rate: 500   # " in text
 
 
 @pytest.mark.parametrize(("args", "match"), [
