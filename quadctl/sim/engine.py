@@ -22,6 +22,7 @@ from quadctl.native.compile import (
     CompileError,
     compile_cached,
     cpu_tag,
+    find_compiler,
 )
 from quadctl.sim.builder import build
 from quadctl.sim.interpreted import InterpretedRunner
@@ -41,10 +42,44 @@ VM_COST = "same numbers, about 10x slower or more"
 simulation of the forward config, 0.43 M against 4.4 M steps/s compiled)."""
 
 
+class MarchNotice(CompilerNotice):
+    """:data:`~quadctl.native.compile.MARCH_ENV` not used as given: not a target's name, or a target
+    the compiler refuses."""
+
+
+_NOT_A_NAME = (f"{MARCH_ENV}={MARCH_REFUSED!r} is not a target's name (x86-64-v3, znver4, ...): built for this "
+              "CPU (native)")
+"""The :class:`MarchNotice` of a :data:`~quadctl.native.compile.MARCH_ENV` that is not a plain name."""
+
+
+def _refused(reason: str) -> str:
+    """The :class:`MarchNotice` of a named target the compiler refused, saying ``reason``."""
+    return (f"{MARCH_ENV}: the compiler refused {MARCH} ({reason.splitlines()[0][:160]}); the loop is built "
+            "for any CPU instead (slower)")
+
+
 @cache
 def _march_notice(text: str) -> None:
     """Say once per process that :data:`~quadctl.native.compile.MARCH_ENV` was not used as given."""
-    warnings.warn(CompilerNotice(text), stacklevel=4)
+    warnings.warn(MarchNotice(text), stacklevel=4)
+
+
+def say_march() -> None:
+    """Say now what building the SIMD lanes would say of :data:`~quadctl.native.compile.MARCH_ENV`
+    (a :class:`MarchNotice`, once per process; nothing when it is unset or a target the compiler
+    takes). A sweep says it before its worker processes start, and they ignore their own.
+
+    A named target is tried by compiling one line with the lanes' flags (cached like any library, and
+    a refusal remembered by the process and the workers it forks, which then build for any CPU
+    without trying it again).
+    """
+    if MARCH_REFUSED is not None:
+        _march_notice(_NOT_A_NAME)
+    elif MARCH != "-march=native" and find_compiler() is not None:
+        try:
+            compile_cached(lambda: "int quadctl_march_probe;\n", SIMD_FLAGS, "march probe")
+        except CompileError as exc:
+            _march_notice(_refused(str(exc)))
 
 
 @lru_cache(maxsize=64)
@@ -64,16 +99,14 @@ def runner(spec: LoopSpec, lanes: int = 1):
         native = flags is not PORTABLE_FLAGS
         key = f"{spec.key()} lanes={lanes} simd={int(simd)} {cpu_tag() if native else ''}"
         if native and MARCH_REFUSED is not None:
-            _march_notice(f"{MARCH_ENV}={MARCH_REFUSED!r} is not a target's name (x86-64-v3, znver4, ...): "
-                          "built for this CPU (native)")
+            _march_notice(_NOT_A_NAME)
         try:
             library = compile_cached(lambda s=simd: library_source(build(spec), lanes, s), flags, key)
             return NativeRunner(library, spec, lanes, backend)
         except CompileError as exc:
             reason = str(exc)
             if native and MARCH != "-march=native":
-                _march_notice(f"{MARCH_ENV}: the compiler refused {MARCH} ({reason.splitlines()[0][:160]}); "
-                              "the loop is built for any CPU instead (slower)")
+                _march_notice(_refused(reason))
             if not native:
                 break
         except OSError as exc:  # built but does not load (a foreign or broken library)

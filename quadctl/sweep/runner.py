@@ -10,6 +10,7 @@ import re
 import signal
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -19,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl.errors import SweepError
-from quadctl.sim.engine import LANES
+from quadctl.sim.engine import LANES, MarchNotice, say_march
 from quadctl.sweep.config_tree import with_sections, with_set
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import margin, regulated_states
@@ -232,8 +233,10 @@ def _worker_init(forked: bool = False) -> None:
     """A worker ignores Ctrl-C (the parent handles it and stops the pool), ends on SIGTERM and, on Linux, dies with
     its parent: a killed sweep leaves no worker computing for nobody. It works on small matrices
     only: one BLAS thread for good (:func:`quadctl.threads.one_thread_for_good`; ``forked``: inside
-    :func:`quadctl.threads.loaded_one_thread`, its pools run one thread already)."""
+    :func:`quadctl.threads.loaded_one_thread`, its pools run one thread already). It keeps quiet about
+    QUADCTL_MARCH: the parent said it once (:func:`quadctl.sim.engine.say_march`)."""
 
+    warnings.filterwarnings("ignore", category=MarchNotice)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the pool stops a worker by SIGTERM: not the CLI handler
     one_thread_for_good(forked_limited=forked)
@@ -270,6 +273,7 @@ def _local_results(tasks: list[ChunkTask], jobs: int) -> Iterator[Iterator[Chunk
     if jobs == 1:
         yield (evaluate_chunk(task) for task in tasks)
         return
+    say_march()  # here, not once by each worker
     # fork on Linux: workers start at once with everything imported so far (the progress bar runs no
     # thread, so nothing is forked mid-lock); spawn elsewhere (macOS's system libraries are not fork-safe)
     ctx = multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")

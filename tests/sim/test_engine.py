@@ -337,6 +337,25 @@ def test_a_quadctl_march_not_used_as_given_is_said_once_and_the_lanes_still_run(
 
 
 @pytest.mark.compiler
+@pytest.mark.parametrize("value, said", [("foo", "QUADCTL_MARCH: the compiler refused -march=foo"),
+                                         ("x86-64 v3", "QUADCTL_MARCH='x86-64 v3' is not a target's name")],
+                         ids=["refused", "not-a-name"])
+def test_a_sweep_on_two_workers_says_a_quadctl_march_not_used_as_given_once(value, said, tmp_path):
+    """Each worker builds its own lanes; the sweep says the notice before they start, and they do not
+    repeat it (it came once a worker: two lines with -j 2)."""
+    (tmp_path / "s.yaml").write_text("parameters:\n  vehicle.mass: {from: 0.06, to: 0.08, num: 32}\n"
+                                     "set: {simulation.duration: 0.2}\n")
+    env = {**os.environ, "QUADCTL_MARCH": value, "QUADCTL_CACHE": str(tmp_path / "cache")}
+    res = subprocess.run([sys.executable, "-m", "quadctl", "sweep", "-c", "hover", "-s", str(tmp_path / "s.yaml"),
+                          "-o", str(tmp_path / "out"), "-j", "2", "--no-plot"],
+                         env=env, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    notes = [line for line in res.stderr.replace("\r", "\n").splitlines() if "QUADCTL_MARCH" in line]
+    assert len(notes) == 1 and notes[0].startswith(f"quadctl: note: {said}"), notes
+    assert json.loads((tmp_path / "out" / "sweep.json").read_text())["statuses"] == {"ok": 32}
+
+
+@pytest.mark.compiler
 def test_threads_compile_one_library_without_touching_the_working_directory(tmp_path, monkeypatch):
     """Dask workers run chunks in threads: one compiles, the others wait and load its library, and
     nothing changes the process's working directory (which every thread shares)."""
