@@ -10,6 +10,13 @@ then the files it set aside. The next holder of the folder's lock reads what a d
 (:func:`take_up`): when it had removed another config's artifacts and not yet written each again, the
 earlier run is put back, byte for byte; otherwise what it wrote stays.
 
+A line written is the kernel's at once, so a ``kill -9`` loses none of it; a power cut loses what is not
+yet on the disk. The journal is fsynced (:meth:`Journal.sync`), with the folders of its name and of the
+files it set aside, where the undo comes to depend on it: before the first of another config's artifacts
+is removed, before a roll-back starts, and from then on before each file is replaced; and once synced,
+its removal at the session's end is fsynced too, before the files it set aside go. A session that
+replaces none of another config's artifacts fsyncs nothing: a dead one's journal would be left as it is.
+
 A journal is followed only when every path in it is one quadctl writes in that very folder (a name of
 :data:`~quadctl.artifacts.places.ARTIFACT_NAMES`, or of :data:`~quadctl.artifacts.places.SUBFOLDER_NAMES`
 in its subfolder, never through a link) and every file it set aside is still there; otherwise it is
@@ -42,21 +49,52 @@ class Journal:
     def __init__(self, folder: Path):
         self.folder = Path(folder)
         self.path = self.folder / f".quadctl.journal.{os.urandom(4).hex()}"
+        self.synced = False
+        """Whether the undo depends on the journal being on disk (:meth:`sync` was called)."""
+        self._folders = {self.folder}
+        """The folders whose new names (the journal's, the files set aside) the next :meth:`sync` fsyncs."""
 
     def add(self, record: dict) -> None:
         """Append ``record`` at once: a line written is the kernel's, so a ``kill -9`` after it loses
-        none of it (a power cut may: nothing is fsynced). Best effort: in a folder that takes no journal,
+        none of it (a power cut may, until :meth:`sync`). Best effort: in a folder that takes no journal,
         only the session itself can undo (Ctrl-C, a refusal)."""
         _add(self.path, record)
 
+    def sync(self) -> None:
+        """Put the journal on the disk (fsync), and the names of it and of the files it set aside since the
+        last sync (their folders fsynced): call it before a change only the journal can undo after a power
+        cut. Best effort, as :meth:`add`."""
+        with contextlib.suppress(OSError):
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)  # not made here: no journal, nothing to sync
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            self.synced = True
+        for folder in sorted(self._folders):
+            with contextlib.suppress(OSError):
+                _fsync_folder(folder)
+        self._folders.clear()
+
     def end(self) -> None:
-        """The session ended: its journal goes (before the files it set aside, which name nothing then)."""
+        """The session ended: its journal goes (before the files it set aside, which name nothing then);
+        once synced, for good before they go (its folder fsynced): a power cut then cannot leave the
+        journal and those files to undo a session that ended."""
+        self._folders.add(self.folder)  # a later add makes the file again
         with contextlib.suppress(OSError):
             self.path.unlink(missing_ok=True)
+            if self.synced:
+                _fsync_folder(self.folder)
+                self.synced = False
 
     def change(self, path: Path, before) -> None:
-        """Record that the session changes ``path``, which held ``before`` (as :func:`undo` takes it)."""
+        """Record that the session changes ``path``, which held ``before`` (as :func:`undo` takes it);
+        once the journal is synced, synced again before a file is replaced (``before`` is not None)."""
+        if isinstance(before, Path):
+            self._folders.add(before.parent)
         self.add({"path": self._relative(path), "before": _encoded(before, self.folder)})
+        if self.synced and before is not None and before is not NEW_FOLDER:
+            self.sync()
 
     def wrote(self, path: Path) -> None:
         self.add({"wrote": self._relative(path)})
@@ -82,6 +120,18 @@ def _add(journal: Path, record: dict) -> None:
     with contextlib.suppress(OSError):
         with open(journal, "a", encoding="utf-8") as f:
             f.write(json.dumps(record) + "\n")
+
+
+def _fsync_folder(folder: Path) -> None:
+    """fsync a folder: the names made or removed in it are on the disk (nothing to do on Windows, which
+    cannot open a folder)."""
+    if os.name == "nt":
+        return
+    fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def _encoded(before, folder: Path) -> dict:
@@ -204,8 +254,10 @@ def _finish(folder: Path, journal: Path) -> str:
         return ""
     left = [(path, before) for path, before in changes if path not in undone]
     missing = [before for _, before in left if isinstance(before, Path) and not before.is_file()]
-    what = (f"had removed {_names(folder, unreplaced)} of the earlier config's run and not written them again"
-            if unreplaced else "was putting the folder back as it found it")
+    gone = [p for p in unreplaced if not _still_in_place(p, dict(changes).get(p))]  # all said before the first went
+    what = (f"had removed {_names(folder, gone)} of the earlier config's run and not written them again" if gone
+            else f"was about to remove {_names(folder, unreplaced)} of the earlier config's run" if unreplaced
+            else "was putting the folder back as it found it")
     if missing:
         return (f"{folder}: {DEAD} {what}, and files it set aside are gone ({_names(folder, missing)}): "
                 "nothing was put back")
@@ -214,6 +266,14 @@ def _finish(folder: Path, journal: Path) -> str:
         journal.unlink(missing_ok=True)
     note = f"{folder}: {DEAD} {what}: the earlier run is put back"
     return note + (f", but for {_names(folder, failed)}, which could not be" if failed else "")
+
+
+def _still_in_place(path: Path, before) -> bool:
+    """Whether ``path`` is still the file the session set aside as ``before`` (it was not removed)."""
+    try:
+        return isinstance(before, Path) and os.path.samefile(path, before)
+    except OSError:
+        return False
 
 
 def _names(folder: Path, paths) -> str:

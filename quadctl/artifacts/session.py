@@ -212,6 +212,7 @@ class Session:
             return False
         undone = bool(self._undo)
         self._journal.rolling_back()
+        self._journal.sync()  # on the disk before the first file goes back
         with signals_held():  # a second signal does not leave the folder half put back
             undo(self._undo, on_undone=self._journal.undone)
             self._journal.end()
@@ -299,11 +300,15 @@ class Session:
                 self._before_change(path)
                 if self._undo is not None:  # said before it goes: a kill right after still finds the earlier run
                     self._journal.replaced(name)
-                self.replaced.append(name)
-                path.unlink()
                 removed.append(name)
-                if path.parent != self.out:
-                    self._emptied.add(path.parent)
+        if removed and self._undo is not None:
+            self._journal.sync()  # every removal said, on the disk (one fsync), before the first file goes
+        for name in removed:
+            path = self.path(name)
+            self.replaced.append(name)
+            path.unlink()
+            if path.parent != self.out:
+                self._emptied.add(path.parent)
         if removed:
             which = list(dict.fromkeys(hashes))  # each file's own (a sweep another config wrote here: its)
             note = (f"{self.out}: removed {_listed(removed)}, made by "

@@ -73,20 +73,20 @@ def test_a_cleanup_without_the_folders_lock_keeps_what_a_journal_set_aside(tmp_p
 
 
 def _killed_removing(folder, which: str) -> int:
-    """The exit code of a hover session (2 s, another config than the folder's) killed (exit 9) as it checks
+    """The exit code of a hover session (2 s, another config than the folder's) killed (exit 9) as it removes
     the second of the earlier config's files that ``which`` (a Python condition on ``path``) takes in."""
-    code = ("import os\n"
+    code = ("import os, pathlib\n"
             "from quadctl import config\n"
             "from quadctl.workspace import Workspace\n"
-            "real = Workspace._made_by_another_config\n"
+            "real = pathlib.Path.unlink\n"
             "seen = []\n"
-            "def checked(self, path):\n"
-            f"    if {which}:\n"
+            "def removed(path, *args, **kwargs):\n"
+            f"    if not path.name.startswith('.') and ({which}):  # an artifact, not a temporary or the journal\n"
             "        seen.append(path)\n"
             "        if len(seen) == 2:\n"
             "            os._exit(9)\n"
-            "    return real(self, path)\n"
-            "Workspace._made_by_another_config = checked\n"
+            "    return real(path, *args, **kwargs)\n"
+            "pathlib.Path.unlink = removed\n"
             "cfg = config.load('hover')\n"
             "cfg = cfg.model_copy(update={'simulation': cfg.simulation.model_copy(update={'duration': 2.0})})\n"
             f"Workspace(cfg, {str(folder)!r}).trim\n")
@@ -124,6 +124,42 @@ def test_a_session_killed_while_it_removes_the_earlier_configs_figures_is_undone
     notes = artifacts.take_over(tmp_path)
     assert files() == before
     assert len(notes) == 1 and "sim.npz" in notes[0] and "plots/" in notes[0] and "put back" in notes[0]
+
+
+def test_the_journal_is_on_the_disk_before_the_first_of_the_earlier_configs_artifacts_goes(tmp_path, monkeypatch):
+    """A power cut right after the removal still finds the journal that puts the file back: the journal
+    and its folder (its name, the files set aside) are fsynced before the first file goes."""
+    from quadctl import config
+    from quadctl.errors import QuadctlNotice
+    from quadctl.workspace import Workspace
+
+    cfg = config.load("hover")
+    earlier = Workspace(cfg, tmp_path)
+    assert earlier.trim.residual < 1e-6 and (tmp_path / "trim.json").is_file()  # the earlier config's run
+    earlier.close()
+    synced, seen_at_removal = set(), []
+    real_fsync, real_unlink = os.fsync, Path.unlink
+
+    def fsync(fd):
+        info = os.fstat(fd)
+        synced.add((info.st_dev, info.st_ino))
+        real_fsync(fd)
+
+    def unlink(path, *args, **kwargs):
+        if not path.name.startswith(".") and not seen_at_removal:  # the first artifact removed
+            journal = os.stat(next(tmp_path.glob(".quadctl.journal.*")))
+            seen_at_removal.append({(journal.st_dev, journal.st_ino), (os.stat(tmp_path).st_dev,
+                                                                     os.stat(tmp_path).st_ino)} <= synced)
+        real_unlink(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    monkeypatch.setattr(Path, "unlink", unlink)
+    changed = cfg.model_copy(update={"vehicle": cfg.vehicle.model_copy(update={"mass": cfg.vehicle.mass * 1.01})})
+    ws = Workspace(changed, tmp_path)
+    with pytest.warns(QuadctlNotice, match=r"removed trim\.json, made by another config"):
+        assert ws.trim.residual < 1e-6
+    assert ws.replaced == ["trim.json"] and seen_at_removal == [True]
+    ws.close()
 
 
 def test_a_dead_session_that_wrote_each_artifact_it_removed_again_is_kept(tmp_path):
