@@ -171,12 +171,14 @@ class Dumper(yaml.SafeDumper):
     yaml_implicit_resolvers = {first: list(resolvers) for first, resolvers in Loader.yaml_implicit_resolvers.items()}
 
     def represent_float(self, data):
-        """Six significant digits (``1e-05``, ``1.11e+08``, ``4``) where they read back as ``data``;
+        """Six significant digits where they read back as ``data``, with a point in the mantissa so that
+        any YAML reader (PyYAML's ``safe_load`` too) reads a float (``4.0``, ``1.0e-05``, ``1.11e+08``);
         PyYAML's own spelling otherwise (every digit, ``.inf``, ``.nan``, ``-0.0``)."""
         short = f"{data:.6g}"
         if not math.isfinite(data) or float(short) != data or short == "-0":
             return super().represent_float(data)
-        return self.represent_scalar(_INT if _INT_RE.match(short) else _FLOAT, short)
+        mantissa, e, exponent = short.partition("e")
+        return self.represent_scalar(_FLOAT, mantissa + ("" if "." in mantissa else ".0") + e + exponent)
 
 
 Dumper.add_representer(float, Dumper.represent_float)
@@ -207,7 +209,7 @@ def flow(value: Any) -> str:
     Examples
     --------
     >>> flow("Förster, identified from log.csv"), flow([1e-05, 0.068]), flow({"a": "yes"})
-    ('Förster, identified from log.csv', '[1e-05, 0.068]', "{a: 'yes'}")
+    ('Förster, identified from log.csv', '[1.0e-05, 0.068]', "{a: 'yes'}")
     """
     text = yaml.dump(value, Dumper=Dumper, default_flow_style=True, sort_keys=False, allow_unicode=True,
                      width=float("inf"))

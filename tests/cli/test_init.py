@@ -123,10 +123,10 @@ def test_a_name_yaml_would_read_as_another_type_is_written_so_it_reads_back(tmp_
 
 def test_the_template_writes_numbers_short():
     text = starter.config_text("mine", "crazyflie", "hold")
-    assert "  duration: 10   # s" in text  # 10.0
-    assert "  yaw:      {bryson: {errors: [0.2, 2], headroom: 0.06}}  # Bryson" in text
+    assert "  duration: 10.0   # s" in text
+    assert "  yaw:      {bryson: {errors: [0.2, 2.0], headroom: 0.06}}  # Bryson" in text
     assert "  initial_offset: {pD: 0.5, phi: 0.1, theta: 0.1, psi: 0.2}   #" in text  # in the order given
-    assert "  rate: 500   # " in text
+    assert "  rate: 500.0   # " in text
 
 
 @pytest.mark.parametrize(("args", "match"), [
