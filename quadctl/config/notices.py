@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from quadctl.config import Config, inertia_parts
+from quadctl.config import Config, inertia_parts, yamlio
 from quadctl.errors import ImplausibleConfig
 from quadctl.text.messages import show
 
@@ -153,7 +153,7 @@ def _template_changed(cfg: Config, label: str) -> list[Notice]:
     return [Notice("note", "description", (
         f"{label}: started from quadctl init's {start.template} template, and vehicle: or motors: no longer hold "
         f"its numbers: check that description ({cfg.description!r}) names your vehicle, then set "
-        f"started_from.vehicle_digest: {cfg.vehicle_digest()} (or remove started_from) to silence this"))]
+        f"started_from.vehicle_digest: {yamlio.flow(cfg.vehicle_digest())} (or remove started_from) to silence this"))]
 
 
 def _d_term_unused(cfg: Config, label: str) -> list[Notice]:

@@ -188,3 +188,16 @@ def test_hold_brings_the_vehicle_back_to_its_position(vehicle):
     for state in ("pN", "pE"):
         i = STATE_INDEX[state]
         assert abs(sim.x[-1, i] - loop.x_trim[i]) < 0.05, (state, sim.x[-1, i])
+
+
+def test_the_digest_the_template_note_asks_for_reads_back_as_text_when_it_is_all_digits(tmp_path, monkeypatch):
+    """The note gives the line to paste; a digest of digits only, pasted unquoted, would read as a number."""
+    from quadctl.config import notices
+
+    monkeypatch.chdir(tmp_path)
+    assert runner.invoke(app, ["init", "f450", "--from", "mambo"]).exit_code == 0
+    cfg = config.load("f450.yaml")
+    monkeypatch.setattr(type(cfg), "vehicle_digest", lambda self: "123456789012")
+    (note,) = [n for n in notices.notices(cfg, "f450.yaml") if n.key == "description"]
+    line = note.message.split("then set ")[1].split(" (or remove")[0]
+    assert yamlio.load(line, "c.yaml") == {"started_from.vehicle_digest": "123456789012"}
