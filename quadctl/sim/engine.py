@@ -105,7 +105,7 @@ def runner(spec: LoopSpec, lanes: int = 1):
             return NativeRunner(library, spec, lanes, backend)
         except CompileError as exc:
             reason = str(exc)
-            if native and MARCH != "-march=native":
+            if native and MARCH != "-march=native" and find_compiler() is not None:  # else no compiler to refuse it
                 _march_notice(_refused(reason))
             if not native:
                 break

@@ -336,6 +336,25 @@ def test_a_quadctl_march_not_used_as_given_is_said_once_and_the_lanes_still_run(
     assert len(notices) == 1 and notices[0].startswith(said), notices
 
 
+def test_with_no_compiler_a_named_quadctl_march_is_not_said_refused(monkeypatch):
+    """No compiler to refuse the target: only the notice that the loop runs in CasADi's virtual machine."""
+    import warnings
+
+    from quadctl import config, pipeline
+    from quadctl.setup import setup_of
+
+    monkeypatch.setenv("QUADCTL_NO_COMPILE", "1")
+    monkeypatch.setattr(engine, "MARCH", "-march=foo")
+    engine._march_notice.cache_clear()
+    spec = pipeline.Stages(setup_of(config.load("hover"))).loop.spec()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        got = engine.runner.__wrapped__(spec, engine.LANES)
+    said = [str(w.message) for w in caught if isinstance(w.message, engine.CompilerNotice)]
+    assert got.backend == "casadi"
+    assert len(said) == 1 and "CasADi's virtual machine" in said[0] and "QUADCTL_MARCH" not in said[0], said
+
+
 @pytest.mark.compiler
 @pytest.mark.parametrize("value, said", [("foo", "QUADCTL_MARCH: the compiler refused -march=foo"),
                                          ("x86-64 v3", "QUADCTL_MARCH='x86-64 v3' is not a target's name")],
