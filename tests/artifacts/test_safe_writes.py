@@ -230,39 +230,41 @@ KILLED_EXPORT = """
 import os, signal, sys
 from quadctl.artifacts import writing
 steps, kill_at = [0], int(sys.argv[1])
-def step():
-    steps[0] += 1
-    if steps[0] == kill_at:
-        os.kill(os.getpid(), signal.SIGKILL)
+def step(path):
+    if "quadctl_controller." in os.fspath(path):  # the C pair's writes (not the config's beside them)
+        steps[0] += 1
+        if steps[0] == kill_at:
+            os.kill(os.getpid(), signal.SIGKILL)
 temporary, replace = writing._temporary, os.replace
 def counted_temporary(*a):
     out = temporary(*a)
-    step()
+    step(out)
     return out
 def counted_replace(*a):
     replace(*a)
-    step()
+    step(a[1])
 writing._temporary, writing.os.replace = counted_temporary, counted_replace
-sys.argv = ["quadctl", "export", "--to", "c", "-c", sys.argv[2], "-o", sys.argv[3]]
+sys.argv = ["quadctl", "export", "--to", "c", "-c", "drake-hover", "--rate", sys.argv[2], "-o", sys.argv[3]]
 from quadctl.cli.entry import main
 main()
 """
 
 
-def _export(cfg: str, out: Path, kill: int = 0) -> subprocess.CompletedProcess:
-    """``quadctl export --to c`` in a new process, killed (SIGKILL) after its ``kill``-th write step
-    (a temporary written, or a rename done; 0: never)."""
+def _export(rate: str, out: Path, kill: int = 0) -> subprocess.CompletedProcess:
+    """``quadctl export --to c`` of ``drake-hover``'s continuous design run at ``rate`` Hz (the same config
+    at another rate: another pair, replaced in place, the config's run kept) in a new process, killed
+    (SIGKILL) after its ``kill``-th write step of the pair (a temporary written, or a rename done; 0: never)."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT),
                                                                       os.environ.get("PYTHONPATH")]))}
-    return subprocess.run([sys.executable, "-c", KILLED_EXPORT, str(kill), cfg, str(out)], env=env,
+    return subprocess.run([sys.executable, "-c", KILLED_EXPORT, str(kill), rate, str(out)], env=env,
                           capture_output=True, text=True, timeout=120)
 
 
 @pytest.fixture(scope="module")
 def old_pair(tmp_path_factory) -> Path:
-    """A run folder holding crazyflie's exported C pair (the files an export replaces)."""
+    """A run folder holding drake-hover's C pair run at 1000 Hz (the files an export at 500 Hz replaces)."""
     out = tmp_path_factory.mktemp("old-pair")
-    assert _export("crazyflie", out).returncode == 0
+    assert _export("1000", out).returncode == 0
     return out
 
 
@@ -279,12 +281,12 @@ def test_a_kill_between_the_c_files_leaves_no_pair_that_compiles_and_the_next_ex
     out = tmp_path / "run"
     shutil.copytree(old_pair, out)
 
-    def export(cfg: str, kill: int = 0):
-        return _export(cfg, out, kill)
+    def export(rate: str, kill: int = 0):
+        return _export(rate, out, kill)
 
     old = _pair(out)
     assert old[0] == old[1]
-    killed = export("mambo-200hz", kill_after)
+    killed = export("500", kill_after)
     assert killed.returncode == -signal.SIGKILL, killed.stderr
     header_id, source_id = _pair(out)
     temporaries = sorted(p.name for p in out.glob(".quadctl_controller.*.tmp"))
@@ -298,7 +300,7 @@ def test_a_kill_between_the_c_files_leaves_no_pair_that_compiles_and_the_next_ex
             res = subprocess.run([compiler, "-std=c99", "-c", str(out / "quadctl_controller.c"), "-o",
                                   str(tmp_path / "x.o")], capture_output=True, text=True)
             assert res.returncode != 0 and "come from different exports: export again" in res.stderr
-    again = export("mambo-200hz")
+    again = export("500")
     assert again.returncode == 0, again.stderr
     header_id, source_id = _pair(out)
     assert header_id == source_id != old[0]

@@ -85,8 +85,9 @@ def test_a_slip_is_a_failed_check_unless_the_config_accepts_it(tmp_path, name):
 
 def test_a_design_at_its_rotor_limits_most_of_the_run_fails_unless_accepted(tmp_path):
     """The inertia in kg mm^2, accepted as implausible: the rotors sit at a limit the whole run."""
-    text = _slipped("inertia in kg mm^2").replace("allow: []", "allow: [implausible]").replace(
-        "duration: 10 ", "duration: 1 ")
+    text = _slipped("inertia in kg mm^2").replace("allow: []", "allow: [implausible]")
+    assert "duration: 10.0 " in text
+    text = text.replace("duration: 10.0 ", "duration: 1.0 ")
     path = tmp_path / "c.yaml"
     path.write_text(text)
     out = str(tmp_path / "out")
