@@ -21,6 +21,7 @@ from quadctl.config.schema import MotorsConfig
 from quadctl.errors import LogError
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, dynamics_expression
 from quadctl.physics.motors import Motors
+from quadctl.signals import signals_held
 
 ca = lazy_import("casadi")
 scipy = lazy_import("scipy")
@@ -143,10 +144,14 @@ def predict(z: np.ndarray, omega: np.ndarray, theta: np.ndarray, airframe: Airfr
     for the rows ``rows`` of ``y`` and the parameters ``names``."""
     n = z.shape[0]
     pos = np.concatenate([airframe.positions[:, 0], airframe.positions[:, 1]])
-    y, jt, jz = _mapped(n, tuple(rows), tuple(names))(z.T, omega.T, theta, airframe.mass, pos, airframe.spins)
+    # Ctrl-C (or SIGTERM) is taken after CasADi's calls, not inside them: CasADi's Python wrapper turns an
+    # interrupt that lands in its argument conversion into "NotImplementedError: Wrong number or type of
+    # arguments", and DM.full() so interrupted returns None; the command ended in "internal error".
+    with signals_held():
+        y, jt, jz = _mapped(n, tuple(rows), tuple(names))(z.T, omega.T, theta, airframe.mass, pos, airframe.spins)
+        y, jt, jz = y.full(), jt.full(), jz.full()
     r = len(rows)
-    return (y.full().T, jt.full().reshape(r, n, len(names)).transpose(1, 0, 2),
-            jz.full().reshape(r, n, 4).transpose(1, 0, 2))
+    return y.T, jt.reshape(r, n, len(names)).transpose(1, 0, 2), jz.reshape(r, n, 4).transpose(1, 0, 2)
 
 
 @dataclass(frozen=True)

@@ -119,6 +119,32 @@ def test_measurement_function_is_the_model_with_gravity_removed():
         np.testing.assert_allclose(y[k, 3:], af.inertia * xdot[9:], rtol=1e-10, atol=1e-15)
 
 
+def test_ctrl_c_during_the_fits_casadi_call_is_taken_after_it(monkeypatch):
+    """A Ctrl-C that lands while CasADi evaluates the measurement waits for the call, then is the
+    KeyboardInterrupt the command answers with "interrupted" (exit 130). Inside the call, CasADi's
+    wrapper turned it into "NotImplementedError: Wrong number or type of arguments" or a None result,
+    and quadctl identify ended in "internal error" (exit 3)."""
+    import signal
+
+    real, results = est._mapped, []
+
+    def mapped(*key):
+        fn = real(*key)
+
+        def call(*args):
+            signal.raise_signal(signal.SIGINT)  # the Ctrl-C lands as the call starts
+            results.append(fn(*args))
+            return results[-1]
+        return call
+
+    monkeypatch.setattr(est, "_mapped", mapped)
+    af = airframe()
+    z, omega = np.full((5, 4), 0.5), np.zeros((5, 3))
+    with pytest.raises(KeyboardInterrupt):
+        est.predict(z, omega, af.theta(c0=0.02, c1=-0.01, c2=0.12), af)
+    assert len(results) == 1 and all(r is not None for r in results[0])  # the evaluation ran whole
+
+
 @pytest.mark.parametrize("delay", [False, True])
 def test_thrust_parameters_within_their_intervals(delay):
     rng = np.random.default_rng(11 if delay else 10)
