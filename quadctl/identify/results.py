@@ -103,7 +103,8 @@ def windows_per_log(texts, count: int):
     if not texts:
         return None
     if len(texts) != count:
-        raise LogError(f"--window given {len(texts)} times for {count} log(s); give it once per LOG, in order")
+        given = "once" if len(texts) == 1 else f"{len(texts)} times"
+        raise LogError(f"--window given {given} for {count} log(s); give it once per LOG, in order")
     return [win.parse_window(t) for t in texts]
 
 

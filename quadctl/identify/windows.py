@@ -230,7 +230,7 @@ def parse_window(text: str) -> list[tuple[float, float]]:
         except ValueError:
             t0 = t1 = float("nan")
         if not colon or not (t0 < t1):
-            raise LogError(f"--window {text!r}: {part!r} is not t0:t1 with t0 < t1 (seconds of the log's time); "
-                           "write e.g. --window 35:65 or --window 32:38,45:49")
+            raise LogError(f"--window {text!r}: {part!r} is not t0:t1 with t0 < t1 (s from the log's first sample, "
+                           "as identify shows times); write e.g. --window 8.67:38.67 or --window 15.1:21.1,28.1:32.1")
         out.append((t0, t1))
     return out

@@ -61,7 +61,8 @@ def test_identify_again_keeps_the_run_of_the_identified_config_in_its_folder(ide
 
 
 @pytest.mark.parametrize("args, match", [
-    (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1"),
+    (["--window", "65:35"], "--window '65:35': '65:35' is not t0:t1 with t0 < t1 (s from the log's first sample"),
+    (["--window", "8.67-38.67"], "write e.g. --window 8.67:38.67 or"),  # an example within the log, not its clock's
     (["--window", "100:200"], "log10: --window 100:200 lies outside the log, which spans t"),
     (["--window", "35:65", "--window", "1:2"], "--window given 2 times for 1 log(s); give it once per LOG"),
     (["--window", "10:30,25:35"], "log10: --window 10:30 and 25:35 overlap"),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from _paths import DATA
@@ -95,6 +97,15 @@ def test_window_option(text, want):
 def test_window_option_refused(text):
     with pytest.raises(LogError, match=r"is not t0:t1 with t0 < t1"):
         win.parse_window(text)
+
+
+@pytest.mark.parametrize("given, count, said", [(["8.67:38.67"], 2, "given once for 2 log(s)"),
+                                                (["1:2", "3:4"], 1, "given 2 times for 1 log(s)")])
+def test_window_option_once_per_log(given, count, said):
+    from quadctl.identify.results import windows_per_log
+
+    with pytest.raises(LogError, match=re.escape(f"--window {said}; give it once per LOG")):
+        windows_per_log(given, count)
 
 
 @pytest.mark.parametrize("windows, match", [
