@@ -228,7 +228,8 @@ def changes(ident: Identification) -> dict:
     span = ",".join(f"{a:.4g}:{b:.4g}" for a, b in th.windows)
     lo, hi = th.interval("T_m")
     out[("motors", "time_constant")] = (f"{th.value('T_m'):.4g}", f"s, identified from {src} t {span} s "
-                                        f"(95 %: {lo:.4g}-{hi:.4g}); the lag of the command, see the README")
+                                        f"(95 %: {lo:.4g}-{hi:.4g}); the lag of the command: docs/guide/identify.md, "
+                                        "Which lag")
     out[("controller", "rotor_lag")] = ("include", "the design models the identified motor lag "
                                          "(ignore: instantaneous rotors, and the lag only in the flown plant)")
     out[("motors", "max_thrust")] = (f"{ident.max_thrust():.4g}", f"N per rotor, the thrust curve at full command, "

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from _paths import DATA
+from _paths import DATA, ROOT
 from typer.testing import CliRunner
 
 from quadctl.cli.app import app
@@ -39,6 +39,8 @@ def test_identified_config_says_where_each_value_came_from_and_designs(identifie
     out, _ = identified
     text = (out / "identified.yaml").read_text()
     assert "time_constant: 0.07" in text and "identified from log10 t 8.67:38.67 s" in text
+    assert "the lag of the command: docs/guide/identify.md, Which lag" in text  # the page that explains it
+    assert (ROOT / "docs/guide/identify.md").read_text().count("**Which lag.**") == 1
     res = CliRunner().invoke(app, ["design", "-c", str(out / "identified.yaml"), "-o", str(out / "design")])
     assert res.exit_code == 0, res.output
 
