@@ -9,14 +9,17 @@ AGREE_RTOL = 0.005
 """A number agrees with the platform's when within 0.5 % of it (the platform's own rounding)."""
 
 
-def platform_sentences(rows, platform) -> list[str]:
+def platform_sentences(rows, platform, mode: str = "force") -> list[str]:
     """One sentence per number that differs from the platform's (by how much, in % of the
-    platform's), one for those that agree, and the cure when any differs.
+    platform's; in force mode, a maximum rotor thrust above the platform's with the firmware's clip),
+    one for those that agree, and what to check when any differs.
 
     Parameters
     ----------
     rows : list of (quantity, key, value, firmware value, unit)
     platform : quadctl.export.crazyflie.Platform
+    mode : str
+        The app's output, ``force`` or ``force-torque`` (``--mode``).
     """
     where = f"{platform.source} at crazyflie-firmware {platform.commit[:12]}"
     differ, agree = [], []
@@ -25,14 +28,17 @@ def platform_sentences(rows, platform) -> list[str]:
         if abs(rel) <= AGREE_RTOL:
             agree.append(f"{quantity} ({key} = {value:.4g} {unit})")
         else:
+            clipped = (f"; in force mode the firmware clips each rotor at its {theirs:.4g} {unit}, where the design's "
+                       f"saturation puts it at {value:.4g} {unit}"
+                       if key == "motors.max_thrust" and value > theirs and mode == "force" else "")
             differ.append(f"{quantity}: {key} = {value:.4g} {unit}, the firmware's {theirs:.4g} {unit} "
-                          f"({rel * 100:+.1f} %)")
+                          f"({rel * 100:+.1f} %){clipped}")
     out = [f"differs from the firmware's {platform.name} ({where}): {d}" for d in differ]
     if agree:
         out.append(f"agrees with the firmware's defaults: {', '.join(agree)}")
     if differ:
-        out.append("the design flies the config's vehicle, not the firmware's: identify the vehicle you fly from "
-                   "a flight log (`quadctl identify`) and design on the identified config")
+        out.append("the design flies the config's vehicle, not the firmware's defaults: check that the config's "
+                   "numbers are those of the vehicle you fly (`quadctl identify` takes them from its flight log)")
     return out
 
 

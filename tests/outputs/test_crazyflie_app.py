@@ -451,6 +451,13 @@ def test_the_vehicle_is_compared_with_the_firmware_platform_defaults(tmp_path):
         assert f"{quantity}: {key} = " in text and f"({(mine - theirs) / theirs * 100:+.1f} %)" in text
     assert "agrees with the firmware's defaults: arm length" in text
     assert "`quadctl identify`" in text and crazyflie.FIRMWARE.commit[:12] in text
+    # the consequence of a larger maximum thrust, in force mode only (force-torque: the firmware mixes and clips)
+    assert ("in force mode the firmware clips each rotor at its 0.12 N, where the design's saturation puts it at "
+            "0.1592 N" in text)
+    torque_mode = "\n".join(platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE, "force-torque"))
+    assert "clips" not in torque_mode and "(+32.6 %)" in torque_mode
+    # the last sentence holds for an identified config too (it does not tell its user to identify again)
+    assert "check that the config's numbers are those of the vehicle you fly" in text
     res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "--setpoint", "velocity",
                                    "-o", str(tmp_path / "app"), "--json"])
     assert res.exit_code == 0, res.output

@@ -80,7 +80,7 @@ def command(to: Annotated[Target, typer.Option(
     if to is Target.crazyflie:
         from quadctl.present.platform import platform_sentences
 
-        for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE):
+        for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE, mode.value):
             render.note(line)
     kal = exp.loop.estimator
     if json:
