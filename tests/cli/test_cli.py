@@ -257,6 +257,18 @@ def test_help_still_answers_and_no_arguments_still_print_it():
     assert runner.invoke(app, ["check", "--help"]).exit_code == 0
 
 
+def test_help_options_show_a_metavar_not_a_python_type():
+    """compare --help showed `--law <list[str]>`, the option's Python annotation, where every other option
+    shows what to type (LAW, KEY=VALUE, T0:T1)."""
+    from quadctl.cli.commands import COMMANDS
+
+    for module in COMMANDS:
+        text = runner.invoke(app, [module.NAME, "--help"], env={"COLUMNS": "200"}).output
+        options = text[text.index("Options"):]
+        assert "<list[" not in options, module.NAME
+    assert "--law" in runner.invoke(app, ["compare", "--help"], env={"COLUMNS": "200"}).output
+
+
 def test_help_texts_show_no_rst_quotes_and_sweep_states_the_uncertainty_rule():
     """check --help showed ``estimator:`` literally; sweep --help said a noise-seed sweep alone is a
     Monte Carlo, though every plant-side sweep (uncertainty.plant_side) writes montecarlo.png/.npz."""

@@ -9,9 +9,10 @@ NAME = "compare"
 
 def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, json: JsonOpt = False,
             law: Annotated[Optional[list[str]], typer.Option(
-                "--law", help="A law to fly beside the LQR design: pid:crazyflie or pid:px4 (the flight stacks' "
-                "published defaults; controller.pid's values apply to its own preset; a cascade needs motors: in the "
-                "config). Repeat for more; default pid:crazyflie; lqr alone: the LQR design by itself.")] = None,
+                "--law", metavar="LAW", help="A law to fly beside the LQR design: pid:crazyflie or pid:px4 (the "
+                "flight stacks' published defaults; controller.pid's values apply to its own preset; a cascade needs "
+                "motors: in the config). Repeat for more; default pid:crazyflie; lqr alone: the LQR design by "
+                "itself.")] = None,
             plot: Annotated[bool, typer.Option(
                 "--plot", help="Also write one figure per quantity, the laws overlaid, to DIR/plots/compare-*.png.")]
             = False) -> None:
