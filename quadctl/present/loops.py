@@ -132,9 +132,11 @@ def guarantee_sentence(margins, discrete: bool) -> str:
     """What the margins are compared with, said once: the guarantee, or why a sampled design is not held to it."""
     if discrete:
         least = least_margins(margins)
+        unstable = sum(not m.stable for m in margins)
+        among = f" (of the stable loops; {unstable} unstable, with no margin)" if unstable else ""
         return (f"The continuous LQR guarantee ({GUARANTEE}) is a property of continuous state feedback that "
                 "sampling does not keep, so a discrete design's loops are not held to it; the margins shown are "
-                "those the sampled loops have" + (f": {least}." if least else "."))
+                "those the sampled loops have" + (f": {least}{among}." if least else "."))
     met = sum(m.meets_lqr_guarantee for m in margins)
     return f"{met} of {len(margins)} loops meet the continuous LQR guarantee ({GUARANTEE})."
 

@@ -197,3 +197,18 @@ def test_a_discrete_design_shows_the_margins_its_sampled_loops_have():
     assert summary.startswith(f"{len(found)} of {len(found)} sampled loops stable; least phase margin")
     every = " ".join([text, summary, *loops.notes(found), *disk.column("closed loop")])
     assert "short" not in every and "meet" not in every
+
+
+def test_the_least_margins_of_a_discrete_design_with_unstable_loops_are_said_to_be_the_stable_loops():
+    """With roll and pitch unstable (crazyflie flown with a 72.5 ms rotor lag its design ignores) the sentence
+    named the yaw loop's 41 deg as the "least phase margin" of the sampled loops, with no word of the two
+    that have none."""
+    import dataclasses
+
+    _, found = _margins("mambo-200hz")
+    assert "unstable" not in loops.guarantee_sentence(found, discrete=True)
+    broken = [dataclasses.replace(m, stable=False) if m.loop == "roll" else m for m in found]
+    n = sum(m.loop == "roll" for m in found)
+    text = loops.guarantee_sentence(broken, discrete=True)
+    assert n == 2 and text.endswith(") (of the stable loops; 2 unstable, with no margin).")
+    assert "(roll, " not in text  # the least margins are the stable loops'
