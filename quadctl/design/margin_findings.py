@@ -52,6 +52,8 @@ class UnstableLoop(Finding):
     kind: ClassVar[str] = "unstable"
     sampled: bool
     delay_samples: int
+    ignored_rotor_lag_s: float | None = None
+    """s: the rotors' lag in the loop that the design leaves out (``controller.rotor_lag: ignore``); None: none."""
 
 
 @dataclass(frozen=True)
@@ -199,7 +201,7 @@ def hold_phase_deg(crossover_rad_s: float, sample_time_s: float) -> float:
 
 
 def findings(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=None,
-             initial_demand=None, rate_filter=None) -> tuple[Finding, ...]:
+             initial_demand=None, rate_filter=None, rotor_time_constant=None) -> tuple[Finding, ...]:
     """``m`` against the LQR guarantee, the cause of any shortfall, the gyro filter's lag and the saturation.
 
     A discrete design's loop is not compared: the guarantee is a property of continuous state
@@ -208,7 +210,9 @@ def findings(m: LoopMargins, design, emulated_rate=None, actuators=None, u_trim=
     """
     lower, upper = m.gain_margin_db
     if not m.stable:
-        return (UnstableLoop(bool(m.sample_time), m.delay_samples),)
+        ignored = rotor_time_constant if rotor_time_constant and getattr(design, "lag_time_constant", None) is None \
+            else None
+        return (UnstableLoop(bool(m.sample_time), m.delay_samples, ignored),)
     out: list[Finding] = []
     wc = m.gain_crossover_freq
     if m.sample_time and design.rate is not None:  # a discrete design: the guarantee is not the sampled loop's
@@ -313,7 +317,7 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
                                                rotor_time_constant, rate_filter):
         m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)
         out.append(replace(m, findings=findings(m, design, emulated_rate, actuators, u_trim, initial_demand,
-                                                rate_filter)))
+                                                rate_filter, rotor_time_constant)))
     if estimator is not None:
         full_state = {m.input: m for m in out if m.model == "coupled"}
         for name, inp, model, loop in lqg_loops(design, A, B, estimator):

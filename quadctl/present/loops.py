@@ -186,7 +186,11 @@ def note(finding) -> str:
 
 
 def unstable_note(f) -> str:
-    return ("the closed loop is UNSTABLE: no margin; the gains are too high for this loop"
+    lag = getattr(f, "ignored_rotor_lag_s", None)
+    cause = (f"the design leaves out the rotors' {lag * 1e3:.3g} ms lag this loop has (controller.rotor_lag: "
+             "include designs with it), or the gains are too high for this loop" if lag else
+             "the gains are too high for this loop")
+    return ("the closed loop is UNSTABLE: no margin; " + cause
             + (" at this rate" if f.sampled else "")
             + (f" with {f.delay_samples} samples of delay" if f.delay_samples else ""))
 

@@ -108,6 +108,28 @@ def test_the_findings_are_the_numbers_the_loop_has():
         assert cause.hold_phase_deg == pytest.approx(math.degrees(m.gain_crossover_freq / 200.0 / 2), rel=1e-12)
 
 
+def test_a_loop_unstable_with_a_rotor_lag_its_design_ignores_names_the_lag():
+    """crazyflie flown with the 72.5 ms lag identified from log10 (docs/guide/identify.md): its roll and
+    pitch loops are unstable, and the note blamed the gains "at this rate" alone; it names the lag the design
+    leaves out. With the lag in the design (controller.rotor_lag: include) no loop is unstable for it."""
+    _, _, linear, dec, des = solve(cfg_dict("crazyflie"))
+    found = margin_findings.all_margins(des, dec, linear.A, linear.B, rotor_time_constant=0.0725)
+    unstable = [m for m in found if not m.stable]
+    assert {m.loop for m in unstable} >= {"roll", "pitch"}
+    for m in unstable:
+        (f,) = m.findings
+        assert f.ignored_rotor_lag_s == 0.0725 and "the design leaves out the rotors' 72.5 ms lag" in loop_notes(m)[0]
+    assert all(f.ignored_rotor_lag_s is None for m in margin_findings.all_margins(des, dec, linear.A, linear.B)
+               if not m.stable for f in m.findings)
+    lagged = cfg_dict("crazyflie")
+    lagged["motors"]["time_constant"] = 0.0725
+    lagged["controller"]["rotor_lag"] = "include"
+    _, _, linear, dec, des_lag = solve(lagged)
+    assert des_lag.lag_time_constant == 0.0725
+    assert all(m.stable for m in margin_findings.all_margins(des_lag, dec, linear.A, linear.B,
+                                                             rotor_time_constant=0.0725))
+
+
 def test_every_kind_of_finding_has_its_words():
     """Each kind (every :class:`~quadctl.design.margin_findings.Finding` subclass) is worded by the presenter,
     with its numbers in the sentence."""
@@ -117,6 +139,9 @@ def test_every_kind_of_finding_has_its_words():
     cases = [
         (F.UnstableLoop(True, 2), "the closed loop is UNSTABLE: no margin; the gains are too high for this loop at "
                                   "this rate with 2 samples of delay"),
+        (F.UnstableLoop(True, 0, 0.0725), "the closed loop is UNSTABLE: no margin; the design leaves out the "
+                                          "rotors' 72.5 ms lag this loop has (controller.rotor_lag: include designs "
+                                          "with it), or the gains are too high for this loop at this rate"),
         (F.HoldPhase(12.5, 0.005, 1.79), "sampled loop: the hold's half-sample delay is 1.79 deg of phase at the 12.5 "
                                          "rad/s crossover"),
         (F.GuaranteeMet(), "meets the continuous LQR guarantee (gain margin -6 dB to inf, phase margin >= 60 deg)"),
