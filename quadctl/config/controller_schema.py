@@ -14,6 +14,7 @@ from pydantic import Field, field_validator
 from quadctl.config.pid import NAMES
 from quadctl.config.schema_types import MAX_NOISE, NonNegative, Number, Positive, Section
 from quadctl.layout import SENSOR_GROUPS, STATE_NAMES
+from quadctl.text.messages import hint
 
 MAX_RATE = 1e5
 """Hz: ten times the fastest flight controllers' loops (8 to 32 kHz)."""
@@ -44,8 +45,8 @@ class PidConfig(Section):
         "the preset's (crazyflie: euler, px4: px4)")
     values: dict[str, Number] = Field(
         default_factory=dict, description="name -> value in the stack's units, replacing the preset's "
-        "(rate_roll_kp, att_roll_kp, vel_xy_kp, pos_z_ki, rate_hz ...: `quadctl compare --help` lists them with "
-        "their units)")
+        "(rate_roll_kp, att_roll_kp, vel_xy_kp, pos_z_ki, rate_hz ...: quadctl/config/pid_presets.yaml lists them "
+        "with their sources, docs/guide/compare.md's The cascades their units)")
 
     @field_validator("values")
     @classmethod
@@ -53,7 +54,9 @@ class PidConfig(Section):
 
         unknown = sorted(set(values) - set(NAMES))
         if unknown:
-            raise ValueError(f"unknown PID value {unknown[0]!r}: use one of {', '.join(NAMES)}")
+            near = hint(unknown[0], NAMES)
+            raise ValueError(f"unknown PID value {unknown[0]!r}; " + (near if near.startswith("did you mean") else
+                                                                       f"use one of {', '.join(NAMES)}"))
         return values
 
 

@@ -133,6 +133,8 @@ def expected(err: dict, loc: list) -> str:
                 else ""
             return f"must be one of {', '.join(choices)}{listed}" + (
                 f"; {near}" if near.startswith("did you mean") else "")
+    if kind == "value_error":  # a validator's own sentence, without pydantic's "Value error, " before it
+        return str(ctx.get("error") or err["msg"].removeprefix("Value error, "))
     return err["msg"]
 
 

@@ -206,3 +206,16 @@ def test_a_value_on_several_lines_is_recorded_as_comments_and_the_folder_reruns(
     assert with_set.digest() == overrides.load(config.bundled("hover"), [given]).digest()
     tail = text[len(config.bundled("hover").text):]
     assert all(line.startswith("#") for line in tail.splitlines()), tail
+
+
+@pytest.mark.parametrize("key, said", [
+    ("rate_roll_kpp", "unknown PID value 'rate_roll_kpp'; did you mean `rate_roll_kp`?"),
+    ("zzz", "unknown PID value 'zzz'; use one of rate_hz, attitude_hz,"),
+])
+def test_a_misspelt_pid_value_is_one_plain_sentence(tmp_path, key, said):
+    """`--set controller.pid.values.rate_roll_kpp=100` said "Value error, unknown PID value ...: use one of" and
+    the 56 names: pydantic's prefix, and no nearest name."""
+    res = runner.invoke(app, ["design", "-c", "crazyflie", "-o", str(tmp_path / "o"), "--set",
+                              f"controller.pid.values.{key}=100"])
+    assert res.exit_code == 2
+    assert said in res.output and "Value error" not in res.output
