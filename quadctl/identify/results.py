@@ -225,7 +225,7 @@ def changes(ident: Identification) -> dict:
     out = {}
     th = ident.fits["thrust"]
     src = ident.logs[ident.stage_logs["thrust"]].name
-    span = ",".join(f"{a:.4g}:{b:.4g}" for a, b in th.windows)
+    span = ",".join(f"{shown.seconds(a)}:{shown.seconds(b)}" for a, b in th.windows)
     lo, hi = th.interval("T_m")
     out[("motors", "time_constant")] = (f"{th.value('T_m'):.4g}", f"s, identified from {src} t {span} s "
                                         f"(95 %: {lo:.4g}-{hi:.4g}); the lag of the command: docs/guide/identify.md, "
@@ -245,7 +245,7 @@ def changes(ident: Identification) -> dict:
     if "attitude" in ident.fits:
         att = ident.fits["attitude"]
         src_a = ident.logs[ident.stage_logs["attitude"]].name
-        span_a = ",".join(f"{a:.4g}:{b:.4g}" for a, b in att.windows)
+        span_a = ",".join(f"{shown.seconds(a)}:{shown.seconds(b)}" for a, b in att.windows)
         jzz = ("Jzz lowered to Jxx + Jyy (the config's Jzz was above it, which no rigid body allows; a log gives "
                "Jzz only over the torque coefficient)") if lowered else "Jzz kept"
         out[("vehicle", "inertia")] = (
@@ -254,7 +254,7 @@ def changes(ident: Identification) -> dict:
     if "yaw" in ident.fits:
         yaw = ident.fits["yaw"]
         src_y = ident.logs[ident.stage_logs["yaw"]].name
-        span_y = ",".join(f"{a:.4g}:{b:.4g}" for a, b in yaw.windows)
+        span_y = ",".join(f"{shown.seconds(a)}:{shown.seconds(b)}" for a, b in yaw.windows)
         k_m = yaw.value("k_m") * inertia[2] / ident.airframe.inertia[2]  # the log fixes k_m / Jzz
         out[("motors", "torque_coefficient")] = (
             f"{k_m:.4g}", f"N m per N, identified from {src_y} t {span_y} s (k_m / Jzz, with the Jzz above)")

@@ -8,6 +8,16 @@ STAGE_TITLES = {"thrust": "thrust curve and motor lag", "attitude": "roll and pi
                 "yaw": "yaw torque coefficient"}
 
 
+def seconds(t: float) -> str:
+    """A log time as identify shows it, to the millisecond, trailing zeros dropped, so a window given with
+    ``--window`` reads back as typed (15.755, not 15.76).
+
+    >>> seconds(15.755), seconds(8.67), seconds(30.0), seconds(17.49631)
+    ('15.755', '8.67', '30', '17.496')
+    """
+    return f"{t:.3f}".rstrip("0").rstrip(".")
+
+
 def config_needed() -> str:
     """Why ``identify`` refuses to run without ``-c``, and what to pass."""
     return ("identify needs the config of the vehicle flown (the fit takes its mass, rotor positions and "
@@ -72,7 +82,7 @@ def values_table(payload: dict) -> Table:
     rows = []
     for s in payload["stages"].values():
         log = s["log"].rsplit("/", 1)[-1]
-        span = ", ".join(f"{a:.4g}-{b:.4g}" for a, b in s["windows_s"])
+        span = ", ".join(f"{seconds(a)}-{seconds(b)}" for a, b in s["windows_s"])
         for name, p in {**s["parameters"], **s.get("derived", {})}.items():
             lo, hi = p["interval95"]
             mark = ("" if p["plausible"] else f" ({NOT_PLAUSIBLE[p['rule']]})" if not p["passes_rule"]

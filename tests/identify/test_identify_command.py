@@ -335,3 +335,14 @@ def test_the_share_of_the_thrust_error_the_lag_explains_reads_0_not_minus_0(rms,
     said = sentences(payload(ident, "crazyflie.yaml"))
     assert any(s.startswith("Thrust fit: ") and s.endswith(f"(the lag explains {explains} of the error).")
                for s in said), said
+
+
+def test_a_window_reads_back_as_it_was_typed(tmp_path):
+    """log15's window from its README, 15.755:50.755, showed as 15.76-50.76 in the table and the
+    identified.yaml comment: typed back, another window. Times are shown to the millisecond."""
+    out = tmp_path / "o"
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log15"), "-c", "crazyflie", "--window", "15.755:50.755",
+                                   "-o", str(out)], env={"COLUMNS": "200"})
+    assert res.exit_code == 0, res.output
+    assert "15.755-50.755" in res.output and "15.76" not in res.output
+    assert "identified from log15 t 15.755:50.755 s" in (out / "identified.yaml").read_text()
