@@ -69,15 +69,15 @@ unresolved T_m leaves them unresolved too, whatever their own intervals say."""
 def judge(name: str, value: float, interval: tuple[float, float], hover: float | None = None) -> bool:
     """Whether ``value`` of parameter ``name`` (:data:`RULES`) with its 95 % ``interval`` is plausible;
     ``hover`` (N, a rotor's share of the weight) is the bound of a :attr:`Rule.LIFTS` rule, which needs it."""
-    rule = RULES[name]
+    rule = RULES[name]  # a Python bool each (identified.json holds it): NumPy's comparisons give numpy.bool
     if rule is Rule.POSITIVE:
-        return interval[0] > 0.0
+        return bool(interval[0] > 0.0)
     if rule is Rule.LIFTS:
         if hover is None:
             raise TypeError(f"judge({name!r}): its rule, {rule.value}, needs hover=")
-        return interval[0] > hover
+        return bool(interval[0] > hover)
     if rule is Rule.NON_NEGATIVE:
-        return value >= 0.0
+        return bool(value >= 0.0)
     return True
 
 

@@ -346,3 +346,17 @@ def test_a_window_reads_back_as_it_was_typed(tmp_path):
     assert res.exit_code == 0, res.output
     assert "15.755-50.755" in res.output and "15.76" not in res.output
     assert "identified from log15 t 15.755:50.755 s" in (out / "identified.yaml").read_text()
+
+
+def test_identify_with_a_delay_writes_it_in_controller_samples(tmp_path):
+    """`--delay` ended in "internal error TypeError: Object of type bool is not JSON serializable": the
+    delay's rule (not negative) judged a NumPy float, and numpy.bool went into identified.json. On log10's
+    window the page's numbers: about 17 ms beside T_m about 0.056 s, written as 9 samples at 500 Hz."""
+    out = tmp_path / "o"
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "8.67:38.67",
+                                   "--delay", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    thrust = json.loads((out / "identified.json").read_text())["stages"]["thrust"]["parameters"]
+    assert thrust["delay"]["passes_rule"] is True and thrust["delay"]["value"] == pytest.approx(0.017, abs=1e-3)
+    assert thrust["T_m"]["value"] == pytest.approx(0.056, abs=2e-3)
+    assert "delay: {samples: 9}" in (out / "identified.yaml").read_text()
