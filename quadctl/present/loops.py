@@ -117,8 +117,7 @@ def thin_sentence(margins, accepted: bool = False) -> str | None:
             said.append(f"gain margin {db(lo)} / {db(hi)} dB")
         if "phase" in m.thin:
             said.append(f"phase margin {num(m.phase_margin_deg, 3)} deg")
-        which = f"{m.model}, {m.input}" if m.model == "cascade" else m.model
-        parts.append(f"{m.loop} ({which}): {', '.join(said)}")
+        parts.append(f"{loop_name(m)}: {', '.join(said)}")
     way_out = ("lower the cascade's gains on that axis (controller.pid.values: its rate loop's kp and kd first)"
                if all(m.model == "cascade" for m in thin) else
                "slow the loop (larger lqr R), design with the rotors' lag (controller.rotor_lag: include) or at a "
@@ -143,7 +142,7 @@ def guarantee_sentence(margins, discrete: bool) -> str:
 
 def summary(margins, discrete: bool) -> str:
     """One line for a report's summary: the loops' verdict, without repeating the reasons."""
-    unstable = [f"{m.loop} ({m.model})" for m in margins if not m.stable]
+    unstable = [loop_name(m) for m in margins if not m.stable]
     if discrete:
         least = least_margins(margins)
         text = f"{len(margins) - len(unstable)} of {len(margins)} sampled loops stable" + (
@@ -154,8 +153,13 @@ def summary(margins, discrete: bool) -> str:
     return text + (f"; unstable: {', '.join(unstable)}" if unstable else "")
 
 
+def loop_name(m) -> str:
+    """``roll (coupled)``; a cascade's loops, one per plant input, ``crazyflie (cascade, A)``."""
+    return f"{m.loop} ({m.model}, {m.input})" if m.model == "cascade" else f"{m.loop} ({m.model})"
+
+
 def unstable_sentence(margins) -> Mark | None:
-    unstable = [f"{m.loop} ({m.model})" for m in margins if not m.stable]
+    unstable = [loop_name(m) for m in margins if not m.stable]
     return Mark(f"Unstable loop(s): {', '.join(unstable)}.", "fail") if unstable else None
 
 

@@ -326,6 +326,21 @@ def test_margins_command_shows_the_cascade_that_flies_and_fails_its_thin_roll_lo
     assert sorted((tmp_path / "plots").glob("margins-*.png")) == sorted(figures)
 
 
+def test_an_unstable_cascade_names_each_loop_by_its_input(tmp_path):
+    """Without the gyro low-pass the stock cascade is unstable (docs/guide/compare.md): the check said
+    "unstable loop(s): crazyflie (cascade), crazyflie (cascade), crazyflie (cascade), crazyflie (cascade)",
+    four loops alike; each is named by the input it is broken at, as the thin-margin sentence names them."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    res = CliRunner().invoke(app, ["margins", "-c", "crazyflie", "--set", "controller.flies=pid", "--set",
+                                   "controller.pid.values.gyro_lpf_hz=0", "-o", str(tmp_path)])
+    assert res.exit_code == 1, res.output
+    assert ("unstable loop(s): crazyflie (cascade, T), crazyflie (cascade, A), crazyflie (cascade, E), "
+            "crazyflie (cascade, R)") in " ".join(res.output.split())
+
+
 def test_a_cascade_margins_figure_names_the_cascade_and_the_input_it_is_broken_at(crazyflie_margins):
     import dataclasses
 

@@ -52,7 +52,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         render.out.print(f"-> {ws.path('margins.json')}")
         for path in paths:
             render.out.print(f"figure -> {path}")
-    from quadctl.present.loops import thin_sentence
+    from quadctl.present.loops import loop_name, thin_sentence
 
     unstable = [m for m in margins if not m.stable]
     thin = thin_sentence(margins, accepted="thin-margins" in ws.cfg.allow)
@@ -60,7 +60,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         render.warning(thin)
         thin = None
     if unstable or thin:
-        names = ", ".join(f"{m.loop} ({m.model})" for m in unstable)
+        names = ", ".join(loop_name(m) for m in unstable)
         raise FailedChecks(*([f"unstable loop(s): {names}"] if unstable else []), *([thin] if thin else []))
 
 
