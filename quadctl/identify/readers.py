@@ -238,8 +238,25 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
         bad = next((i for i, row in enumerate(rows) if not _numeric_row(row, where.values())), 0)
         raise _fail(path, f"data line {bad + 1} is not {len(header)} numbers", "repair or remove that line") from None
     values = values.reshape(-1, len(CSV_COLUMNS))
+    _check_gravity(path, values[:, 3])
     return _checked(path, values[:, 0], values[:, 1:4], values[:, 4:7], values[:, 7:11], "csv",
                     hashlib.sha256(raw).hexdigest(), ("as written: s, m/s^2 and rad/s in FRD, commands in [0, 1]",))
+
+
+def _check_gravity(path, acc_z) -> None:
+    """Refuse a CSV whose ``acc_z`` is not about -g most of the time, as a resting or hovering accelerometer
+    reads in FRD m/s^2: about -1 or +1 is g (a Crazyflie logs g), about +9.8 a z axis up (FLU). Either fitted
+    a thrust curve 9.8 times too small, or negative, and the refusal blamed the config's mass."""
+    if acc_z.size == 0:
+        return
+    median = float(np.median(acc_z))
+    if 0.4 < abs(median) < 2.5:
+        raise _fail(path, f"acc_z reads {median:.3g} at its median, about {'-' if median < 0 else '+'}1: the "
+                    "accelerometer in g, not m/s^2", "multiply acc_x, acc_y, acc_z by 9.80665" +
+                    ("" if median < 0 else ", and negate acc_y, acc_z (FRD: -9.81 on acc_z at rest or hover)"))
+    if median > 4.9:
+        raise _fail(path, f"acc_z reads {median:.3g} m/s^2 at its median, about +g: its z axis points up (FLU), "
+                    "not down", "negate acc_y, acc_z, gyro_q and gyro_r for FRD (-9.81 on acc_z at rest or hover)")
 
 
 def _numeric_row(row, indices) -> bool:

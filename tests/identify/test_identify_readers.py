@@ -12,7 +12,7 @@ import pytest
 from _paths import DATA
 
 from quadctl.errors import LogError
-from quadctl.identify.readers import CSV_COLUMNS, parse_columns, read_crazyflie, read_csv, read_log
+from quadctl.identify.readers import CSV_COLUMNS, FlightLog, parse_columns, read_crazyflie, read_csv, read_log
 
 FLIGHTS = DATA / "crazyflie-flights"
 
@@ -130,6 +130,20 @@ def test_crazyflie_log_without_the_motors_refused(tmp_path):
 def test_bad_csv_refused(tmp_path, text, match):
     path = tmp_path / "x.csv"
     path.write_text(text)
+    with pytest.raises(LogError, match=match):
+        read_log(path)
+
+
+@pytest.mark.parametrize("scale, flip, match", [
+    (1 / 9.80665, 1, r"x.csv: acc_z reads -0.99 at its median, about -1: the accelerometer in g, not m/s\^2; multiply"),
+    (1 / 9.80665, -1, r"about \+1: the accelerometer in g.*and negate acc_y, acc_z"),
+    (1.0, -1, r"acc_z reads 9.71 m/s\^2 at its median, about \+g: its z axis points up \(FLU\), not down; negate"),
+])
+def test_a_csv_accelerometer_in_g_or_with_z_up_is_refused(tmp_path, log10, scale, flip, match):
+    """log10 written as a CSV in g (the Crazyflie's own unit) was fitted: a thrust curve 9.8 times too small,
+    refused for the config's mass; with z up, a negative one. Each is the CSV's unit or axis, said so."""
+    path = tmp_path / "x.csv"
+    FlightLog(**{**log10.__dict__, "acc": log10.acc * scale * np.array([1, flip, flip])}).to_csv(path)
     with pytest.raises(LogError, match=match):
         read_log(path)
 
