@@ -68,6 +68,26 @@ def flights(log) -> list[tuple[float, float]]:
     return out
 
 
+def cut_by_a_crash(log) -> str | None:
+    """Why a log that flies has no flight (:func:`flights`): a crash's sample (:data:`VIOLENT_RATE`,
+    :data:`VIOLENT_ACCELERATION`) right after take-off, which a gyro in deg/s reads at any turn; None when
+    the log has a flight, never flies, or its flights are short for another reason."""
+    airborne = np.nonzero(log.cmd.mean(axis=1) > AIRBORNE_COMMAND)[0]
+    if airborne.size == 0 or flights(log):
+        return None
+    rate = np.abs(log.gyro).max(axis=1)
+    force = np.linalg.norm(log.acc, axis=1)
+    violent = airborne[(rate[airborne] > VIOLENT_RATE) | (force[airborne] > VIOLENT_ACCELERATION)]
+    if violent.size == 0:
+        return None
+    k = int(violent[0])
+    what = (f"the gyro reads {rate[k]:.4g} rad/s (above {VIOLENT_RATE:g}, about 1000 deg/s)" if rate[k] > VIOLENT_RATE
+            else f"the accelerometer reads {force[k]:.3g} m/s^2 (above {VIOLENT_ACCELERATION:.3g})")
+    return (f"{log.name}'s flight ends as a crash at t = {log.t[k]:.4g} s, {log.t[k] - log.t[airborne[0]]:.3g} s "
+            f"after take-off, where {what}: if it did not crash, check the units (a gyro in deg/s reads so at any "
+            "turn; give rad/s)")
+
+
 def combinations(log) -> dict[str, np.ndarray]:
     """The command combinations each stage needs moving: collective, roll, pitch, yaw (rotor order
     front right, rear right, rear left, front left)."""
@@ -138,8 +158,11 @@ def plan(logs, windows=None) -> Plan:
     if not chosen:
         names = ", ".join(log.name for log in logs)
         why = "; ".join(f"{s}: {r}" for s, r in refused.items())
-        raise LogError(f"{names}: nothing to identify ({why}); give a log of a flight that moves the rotors "
-                       "(a thrust, roll-pitch or yaw excitation), or --window t0:t1 around one")
+        crashed = [c for i, log in enumerate(logs) if not (windows and windows[i] is not None)
+                   for c in [cut_by_a_crash(log)] if c]
+        fix = "; ".join(crashed) if crashed else ("give a log of a flight that moves the rotors (a thrust, roll-pitch "
+                                                  "or yaw excitation), or --window t0:t1 around one")
+        raise LogError(f"{names}: nothing to identify ({why}); {fix}")
     if "thrust" not in chosen:
         for stage in ("attitude", "yaw"):
             if stage in chosen:

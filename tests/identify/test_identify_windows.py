@@ -130,3 +130,16 @@ def test_a_window_ending_on_the_span_as_printed_is_inside():
 def test_touching_windows_are_one_stretch_of_the_log():
     plan = win.plan([hover(collective=0.15)], [[(5.0, 10.0), (10.0, 15.0)]])
     assert plan.chosen["thrust"] == (0, [(5.0, 10.0), (10.0, 15.0)])
+
+
+def test_a_gyro_in_degrees_per_second_is_named_not_taken_for_no_excitation(flights):
+    """log10 with its gyro in deg/s: every turn reads as a crash's rate, the flight is cut just after take-off
+    and the refusal said only that no log excites anything. It says where the flight was cut, why, and the
+    units to check; the logs as read (rad/s) have their flights."""
+    log10 = flights[0]
+    degrees = FlightLog(**{**log10.__dict__, "gyro": np.degrees(log10.gyro)})
+    with pytest.raises(LogError, match=r"log10's flight ends as a crash at t = [\d.]+ s, [\d.]+ s after take-off, "
+                                       r"where the gyro reads [\d.]+ rad/s \(above 17, about 1000 deg/s\): if it did "
+                                       r"not crash, check the units \(a gyro in deg/s"):
+        win.plan([degrees])
+    assert all(win.cut_by_a_crash(log) is None for log in flights)
