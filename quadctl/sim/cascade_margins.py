@@ -21,6 +21,7 @@ from quadctl._lazy import lazy_import
 from quadctl.design.margins import GRID_SPAN, POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, gain_db, no_margin
 from quadctl.layout import INPUT_NAMES
 from quadctl.linear.stability import is_stable
+from quadctl.signals import signals_held
 from quadctl.sim import pid
 from quadctl.sim.builder import build
 
@@ -455,7 +456,18 @@ def exact_delay_margin(lift: Lifted, j: int) -> float | None:
 
 def lifted(loop) -> Lifted:
     """The cascade's loop ``loop`` (:class:`quadctl.sim.loop.ClosedLoop` with a ``law``) linearized about
-    hover at every phase of its frame.
+    hover at every phase of its frame (:func:`_lifted`), Ctrl-C and SIGTERM taken when it is done (tens of ms).
+
+    Its least-squares trim calls the CasADi law from Python hundreds of times: a KeyboardInterrupt raised in
+    CasADi's argument conversion was swallowed by its wrapper, which then matched another overload, and
+    ``quadctl compare`` ran to its end with exit 0, the Ctrl-C lost (7 presses in 60 about 1.2 s in).
+    """
+    with signals_held():
+        return _lifted(loop)
+
+
+def _lifted(loop) -> Lifted:
+    """:func:`lifted`, its Ctrl-C not held.
 
     The law's equilibrium is found first: the plant at trim, the integrators (velocity and rate) that
     make the command the law computes the trim input (least squares), the held setpoints the first sample's.

@@ -137,6 +137,34 @@ def crazyflie_cascade():
     return loop, lifted(loop)
 
 
+def test_a_ctrl_c_during_the_cascades_linearization_is_taken_after_it(crazyflie_cascade, monkeypatch):
+    """The lifted loop's trim calls the CasADi law from Python (least squares): a Ctrl-C that landed in one
+    of those calls was swallowed by CasADi's argument conversion and `quadctl compare` ran on to exit 0.
+    It is held until the linearization is done, then raised: the law's calls go on after it."""
+    import dataclasses
+    import signal
+
+    from quadctl.sim import cascade_margins
+
+    real = cascade_margins.build
+    calls = []
+
+    def build(spec):
+        funcs = real(spec)
+
+        def law(*args):
+            if not calls:
+                signal.raise_signal(signal.SIGINT)  # the Ctrl-C lands in the first call
+            calls.append(1)
+            return funcs.law(*args)
+        return dataclasses.replace(funcs, law=law)
+
+    monkeypatch.setattr(cascade_margins, "build", build)
+    with pytest.raises(KeyboardInterrupt):
+        cascade_margins.lifted(crazyflie_cascade[0])
+    assert len(calls) > 10  # the trim's least squares and the phases' Jacobians ran whole
+
+
 @pytest.fixture(scope="module")
 def iris():
     """PX4's Iris (``quadctl init``'s iris preset), at hover."""
