@@ -113,9 +113,12 @@ def require_export(exp, who: str) -> Export:
     return exp
 
 
-def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = False) -> str:
+def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = False,
+             source: str = "simulation.reference",
+             feedforward: str = "the differential-flatness trim along the path") -> str:
     """The control law of ``loop`` in one paragraph (the C header, the ``.mat`` and the JSON say it);
-    ``reference``: the loop flies a reference, ``x_ref(t)`` and ``u_ref(t)`` given, not the trim.
+    ``reference``: the loop flies a reference, ``x_ref(t)`` and ``u_ref(t)`` given, not the trim, from
+    ``source``, its feedforward ``feedforward`` (the Crazyflie app's: the commander's setpoints, the hover trim's).
 
     Examples
     --------
@@ -132,8 +135,8 @@ def law_text(loop: ClosedLoop, sample_time: float | None, reference: bool = Fals
     u_ref = "u_ref(t)" if reference else "u_trim"
     inner = f"{u_ref} - K (x - x_ref(t))" + (" - Ki z" if ints else "") + (" - Kv l" if loop.Kv is not None else "")
     parts = [(f"u = {inner}" if act is None else f"u = sat({inner})")
-             + (", x_ref(t) and u_ref(t) the reference flown (simulation.reference): the commanded state and its "
-                "feedforward input (the differential-flatness trim along the path); x - x_ref(t) is taken in the "
+             + (f", x_ref(t) and u_ref(t) the reference flown ({source}): the commanded state and its "
+                f"feedforward input ({feedforward}); x - x_ref(t) is taken in the "
                 "reference's heading frame, its pN, pE turned by -(psi_ref(t) - psi_d), psi_d the yaw the gain was "
                 "designed at (the trim's" + (", or a yaw schedule's value held to its ends" if loop.schedule is not None
                                               and loop.schedule.variable == "yaw" else "")

@@ -554,3 +554,14 @@ def test_the_app_is_whole_and_states_its_licence(tmp_path):
     src = (out / "src" / "quadctl_crazyflie.c").read_text()
     gpl_header = ("Bitcraze" + " AB", "GNU General" + " Public License")  # the firmware's file header (GPL-3.0)
     assert not any(words in src for words in gpl_header)
+
+
+def test_the_apps_law_line_names_the_commanders_setpoints_as_its_reference(tmp_path):
+    """export --to crazyflie printed the law with "the reference flown (simulation.reference) ... (the
+    differential-flatness trim along the path)": the app follows the commander's setpoints about the hover
+    trim, as the line before it says."""
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "-o", str(tmp_path / "app")])
+    assert res.exit_code == 0, res.output
+    law = " ".join(next(line for line in res.stdout.splitlines() if line.startswith("law: ")).split())
+    assert "the reference flown (the commander's velocity setpoints, through the app's adapter)" in law
+    assert "(the hover trim's roll, pitch and input)" in law and "simulation.reference" not in law
