@@ -239,7 +239,8 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
                 "EXO_DEFINES": "", "EXO_DECL": "", "EXO_LOAD": "", "LAW_E": "NULL"}
     n_arg = f"QUADCTL_N{arg.upper()}"
     doc = doc_lines([
-        "Each sample takes the reference (simulation.reference) as a quadctl_reference:",
+        "Each sample takes the reference as a quadctl_reference (quadctl's simulation takes it from "
+        "simulation.reference; a flight stack, from its commander's setpoints):",
         "  ref.x = x_ref(t), the commanded state: all 12, in the order and units of x (QUADCTL_X_*);",
         "  ref.u = u_ref(t), the feedforward input, in the order and units of u (QUADCTL_U_*);",
         "both at the sample's instant t. Along a smooth path they are its differential-flatness trim: "
