@@ -54,6 +54,8 @@ NOT_RUN = {
     "pytest": "the test suite itself: running it from inside itself would recurse",
     "python benchmarks/bench.py": "the benchmark takes about a minute of timed runs; its options are parsed instead",
     "python benchmarks/instructions.py": "counts instructions under Valgrind, about five minutes",
+    "python benchmarks/case_stages.py": "times three 1000-case sweeps' stages, its numbers this machine's; "
+                                        "tests/sweep/test_stage_timer.py runs its timer on 16 cases",
     "sphinx-build": "builds the site: tests/docs/test_doc_site.py runs the same build (docs extra installed)",
     **{f"python examples/{script}": "without a folder it rewrites the checkout's docs/figures/; "
                                      "tests/docs/test_examples.py runs it into a temporary folder"
