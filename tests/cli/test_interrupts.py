@@ -402,3 +402,41 @@ def test_a_process_forked_by_the_command_ends_on_sigterm_as_by_default():
             "sys.exit(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))\n")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr
+
+
+def _library_takes_the_ctrl_c(then):
+    """A stage in which a Ctrl-C lands inside a library that takes it for its own error, as CasADi's Python
+    wrapper does when the interrupt lands in its argument conversion: ``then(*args, **kwargs)`` is what the
+    library does instead (raise its own error, return None, or carry on with the stage's work)."""
+
+    def stage(*args, **kwargs):
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            return then(*args, **kwargs)
+        raise AssertionError("the Ctrl-C was not raised")
+    return stage
+
+
+def _wrong_arguments(*_, **__):
+    raise NotImplementedError("Wrong number or type of arguments for overloaded function 'Function_call'")
+
+
+@pytest.mark.parametrize("then", ["its error", "None", "carried on"])
+def test_a_ctrl_c_a_library_takes_for_its_own_still_stops_the_command(tmp_path, monkeypatch, then):
+    """The command ends interrupted (130), not in 'internal error' (3) with the library's error, nor on
+    with its work as if no Ctrl-C had come (0)."""
+    from typer.testing import CliRunner
+
+    from quadctl import pipeline
+    from quadctl.cli.app import app
+
+    instead = {"its error": _wrong_arguments, "None": lambda *_, **__: None,
+               "carried on": pipeline.simulation_of}[then]
+    with monkeypatch.context() as patch:
+        patch.setattr(pipeline, "simulation_of", _library_takes_the_ctrl_c(instead))
+        res = CliRunner().invoke(app, ["simulate", "-c", "hover", "-o", str(tmp_path)])
+    assert res.exit_code == 130, res.output
+    assert res.stderr.startswith("quadctl: error: interrupted") and "internal error" not in res.stderr, res.stderr
+    if then == "carried on":  # what it finished is kept
+        assert (tmp_path / "sim.npz").exists()
