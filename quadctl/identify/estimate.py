@@ -446,7 +446,7 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
     z = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0, in_delay=False)[0][mask]
     return Estimate(stage="thrust", names=names, values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=-meas[:, None], predicted=(-(meas - r))[:, None],
-                    rows=("thrust (N)",), rms=float(np.sqrt(np.mean(r ** 2))), bandwidth=bandwidth,
+                    rows=("total thrust (N)",), rms=float(np.sqrt(np.mean(r ** 2))), bandwidth=bandwidth,
                     floors={"T_m": float(lower[3])},
                     extra={"rms_without_lag": rms_no_lag, "curve_without_lag": [float(v) for v in no_lag],
                            "commands_flown": [float(np.quantile(z, 0.01)), float(np.quantile(z, 0.99))]})

@@ -47,7 +47,7 @@ def identification_figure(ident) -> Figure:
                         f"{np.sqrt(np.mean(res ** 2)):.3g} {unit}".rstrip(), fontsize=9)
         right.grid(alpha=0.3)
         for ax in (left, right):
-            ax.set_xlabel("t (s)")
+            ax.set_xlabel("time [s]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     fig.legend(handles[::-1], labels[::-1], loc="outside upper center", ncols=2, fontsize=8, frameon=False)
     wrap_titles(fig)  # a long log name (a ULog's) would run a title off its panel
