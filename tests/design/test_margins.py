@@ -154,14 +154,17 @@ def test_margins_json_gives_an_unstable_loop_no_margin_and_spells_infinity(tmp_p
         assert m["delay_margin"] == {"s": None, "samples": None}
         assert m["disk_margin_freq"] is None and m["gain_crossover_freq"] is None
         assert m["gain_margin_lower_freq"] is None and m["gain_margin_upper_freq"] is None
-    classical, disk = {}, {}  # the first table's row of each loop, then the disk table's
+    tables = [{}, {}, {}]  # each loop's row in the classical table, the disk table, the delay table
     for line in res.output.splitlines():
         cells = [c.strip() for c in line.split("│")[1:-1]]
         if len(cells) > 2 and cells[1] == "design":
-            (disk if cells[0] in classical else classical)[cells[0]] = cells
+            next(t for t in tables if cells[0] not in t)[cells[0]] = cells
+    classical, disk, delay = tables
     for label in ("roll (A)", "pitch (E)", "yaw (R)"):
         assert classical[label][2] == classical[label][4] == "unstable", classical[label]  # GM dB, PM deg
         assert disk[label][2:5] == ["unstable"] * 3 and disk[label][-1] == "unstable", disk[label]
+        assert delay[label][3:] == ["unstable"] * 2, delay[label]  # delay margin ms, samples
+    assert float(delay["altitude (T)"][3]) > 0  # a stable loop's delay margin
     altitude = loops["altitude", "design"]
     assert altitude["stable"] is True and altitude["gain_margin_lower_db"] == "-inf"
     assert altitude["gain_margin_lower_freq"] is None  # no crossover: not applicable

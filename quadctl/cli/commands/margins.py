@@ -41,11 +41,11 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         if cascade:
             payload = ws.payloads["margins.json"]
             render.show(loops.classical_table(margins, payload["rate"]), loops.disk_table(margins, True),
-                        loops.cascade_sentence(payload))
+                        loops.delay_table(margins), loops.cascade_sentence(payload))
         else:
             discrete = ws.design.rate is not None
             render.show(loops.classical_table(margins, ws.setup.timing.rate), loops.disk_table(margins, discrete),
-                        loops.guarantee_sentence(margins, discrete))
+                        loops.delay_table(margins), loops.guarantee_sentence(margins, discrete))
             for line in loops.notes(margins):
                 render.out.print(f"  {line}", markup=False)
             render.show(loops.closed_loop_sentence(ws.payloads["margins.json"]))
