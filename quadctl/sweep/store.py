@@ -114,7 +114,13 @@ class SweepStore:
                                  "cases": {str(k): base64.b64encode(np.ascontiguousarray(v, "<f4").tobytes())
                                            .decode("ascii") for k, v in traces.items()}}
         # compact: a journal read back by --resume, not a file to read (1000 rows: 0.2 s indented)
-        return self.files.write_json(self.parts / f"chunk-{first:07d}.json", payload, indent=None)
+        path = self.files.write_json(self.parts / f"chunk-{first:07d}.json", payload, indent=None)
+        if self.files is not artifacts and not self.files.replaced:
+            # finished work --resume takes up, in a folder of this config's: kept whatever follows (a refusal,
+            # a full disk at sweep.json). A sweep that replaced another config's run keeps its undo: refused,
+            # it puts that run back whole
+            self.files.keep()
+        return path
 
     def _decode(self, path: Path, block) -> dict[int, np.ndarray]:
         """A chunk's trajectories, checked to have this sweep's layout."""

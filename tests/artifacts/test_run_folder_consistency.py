@@ -568,6 +568,24 @@ def test_a_sweep_or_an_export_stopped_or_refused_puts_the_earlier_run_back(tmp_p
     assert _tree(folder) == before
 
 
+@pytest.mark.parametrize("start", ["empty", "this config's sweep"])
+def test_a_sweep_refused_in_a_folder_of_its_own_config_keeps_its_chunks_for_resume(tmp_path, monkeypatch, start):
+    """A full disk at sweep.json (exit 2) after the chunks were written, in a folder that held nothing of
+    another config: the chunks are finished work and stay, and --resume computes none of their cases again."""
+    folder = tmp_path / "run"
+    spec = _two_cases(tmp_path)
+    if start != "empty":
+        assert invoke("sweep", "-c", "hover", "-s", spec, "-o", folder, "-j", "1").exit_code == 0
+    with monkeypatch.context() as patch:
+        _full_disk_at(patch, "sweep.json")
+        res = invoke("sweep", "-c", "hover", "-s", spec, "-o", folder, "-j", "1")
+    assert res.exit_code == 2 and "No space left on device" in res.stderr, res.output
+    assert sorted((folder / "sweep.parts").glob("chunk-*.json"))
+    res = invoke("sweep", "-c", "hover", "-s", spec, "-o", folder, "-j", "1", "--resume")
+    assert res.exit_code == 0, res.output
+    assert "(0 computed, 2 resumed)" in res.output, res.output
+
+
 KILLED_SWEEP = """
 import os, sys
 from quadctl.sweep import store
