@@ -40,6 +40,7 @@ from quadctl.artifacts.meta import metadata as metadata
 from quadctl.artifacts.places import ARTIFACT_NAMES as ARTIFACT_NAMES
 from quadctl.artifacts.places import PLOTS as PLOTS
 from quadctl.artifacts.places import SUBFOLDER_NAMES as SUBFOLDER_NAMES
+from quadctl.artifacts.places import SWEEP_PARTS as SWEEP_PARTS
 from quadctl.artifacts.places import check_folder as check_folder
 from quadctl.artifacts.places import default_out as default_out
 from quadctl.artifacts.places import plot_path as plot_path

@@ -33,9 +33,11 @@ ARTIFACT_NAMES = frozenset({
 """Every file quadctl writes at the top of a run directory (tests check the workspace's, the
 sweep's and the exports' names are among them)."""
 PLOTS = "plots"
+SWEEP_PARTS = "sweep.parts"
+"""The subfolder of a sweep's finished chunks (:mod:`quadctl.sweep.store`), read back by ``--resume``."""
 SUBFOLDER_NAMES = {
     PLOTS: re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]*\.png"),
-    "sweep.parts": re.compile(r"chunk-[0-9]+\.json"),
+    SWEEP_PARTS: re.compile(r"chunk-[0-9]+\.json"),
     "report": re.compile(r"report\.(html|md)|[A-Za-z0-9_][A-Za-z0-9_.+-]*\.png"),
     "src": re.compile(r"Kbuild|quadctl_(controller|crazyflie)\.[ch]|quadctl_app\.c"),  # the Crazyflie app's
 }

@@ -26,7 +26,7 @@ from pathlib import Path
 from quadctl.artifacts import lock, writing
 from quadctl.artifacts.journal import NEW_FOLDER, Journal, undo
 from quadctl.artifacts.meta import RESOLVED_CONFIG_HEAD
-from quadctl.artifacts.places import STAGE_FILES, default_out
+from quadctl.artifacts.places import STAGE_FILES, SWEEP_PARTS, default_out
 from quadctl.artifacts.png_stamp import stamp_png
 from quadctl.artifacts.run_folder import MadeBy, run_artifacts
 from quadctl.errors import QuadctlNotice
@@ -36,7 +36,6 @@ from quadctl.version import __version__
 CONFIG_GIVEN, CONFIG_RESOLVED = "config.yaml", "config.resolved.yaml"
 HASH_NOTE = " (config_hash {})"
 """How ``config.resolved.yaml``'s first line ends: the digest of the config (:func:`config_hash_of`)."""
-SWEEP_PARTS = "sweep.parts"
 
 
 def config_hash_of(folder: Path | str) -> str | None:
@@ -60,16 +59,21 @@ def _listed(removed: list[str]) -> str:
     return ", ".join(named + ([f"{SWEEP_PARTS}/ ({len(chunks)} chunk{'s' * (len(chunks) != 1)})"] if chunks else []))
 
 
-def _released(journal: Journal, hold: contextlib.ExitStack, emptied: set[Path]) -> None:
+def _released(journal: Journal, hold: contextlib.ExitStack) -> None:
     """A session ends (closed, collected, or at the process's exit) with what it wrote standing: its journal
-    goes first, then the files it set aside and the folder's lock, then the artifact folders it emptied of
-    another config's files, if nothing is in them now."""
+    goes first, then the files it set aside, the artifact folders it emptied of another config's files (if
+    nothing is in them now), and last the folder's lock (:attr:`Session._hold`, in that order)."""
     journal.end()
     hold.close()
-    for folder in sorted(emptied):
-        with contextlib.suppress(OSError):  # not empty (a user's file, this session's own), a link, gone
+
+
+def _remove_if_empty(folders: set[Path]) -> None:
+    """Remove each of ``folders`` that is empty; a folder with anything in it (a user's file, this session's
+    own), a link, or one gone, stays as it is."""
+    for folder in sorted(folders):
+        with contextlib.suppress(OSError):
             folder.rmdir()
-    emptied.clear()
+    folders.clear()
 
 
 class Session:
@@ -105,17 +109,18 @@ class Session:
         """The artifacts of another config this session removed, relative to the run folder (:meth:`_remove_stale`)."""
         self._emptied: set[Path] = set()
         """The artifact folders removing another config's artifacts emptied (removed at the end, if still empty)."""
-        self._made_by: MadeBy | None = None
-        """Which config made each artifact of the folder, when this session removes another config's."""
         self._notes: list[str] | None = None
         """The notices :meth:`defer_notes` holds back until :meth:`close` (None: each is issued at once)."""
         self._hold = contextlib.ExitStack()
         self._hold.enter_context(lock.locked(self.out))  # one run at a time; the first finishes a dead one
+        # the emptied folders go while the folder is still held (the next holder sees them as they are), after
+        # the files set aside in them (their callbacks, added later, run first)
+        self._hold.callback(_remove_if_empty, self._emptied)
         if lock.marked_by_this_hold(self.out):  # marked as quadctl's now: a roll-back takes the mark away
             self._undo.append((self.out / lock.MARK_NAME, None))
         self._journal = Journal(self.out)
         """What this session changes, as it changes it (:mod:`quadctl.artifacts.journal`)."""
-        self._finalizer = weakref.finalize(self, _released, self._journal, self._hold, self._emptied)
+        self._finalizer = weakref.finalize(self, _released, self._journal, self._hold)
 
     def close(self) -> None:
         """Release the run folder (the process's end releases it too), and issue the notices held back
@@ -137,7 +142,9 @@ class Session:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None and self.unreplaced:  # stopped halfway through replacing another config's run:
+            self.roll_back()  # that run, whole (as the command line puts it back), not half of each
         self.close()
 
     def path(self, name: str) -> Path:
@@ -279,24 +286,28 @@ class Session:
             "# built in Python, not read from a file: the validated config\n" + resolved)
         head = (f"{RESOLVED_CONFIG_HEAD} {__version__} validated it, every default filled in"
                 f"{HASH_NOTE.format(self.cfg.digest())}\n")
-        if config_hash_of(self.out) != self.cfg.digest():
-            self._remove_stale()
+        folder_hash = config_hash_of(self.out)
+        if folder_hash != self.cfg.digest():
+            self._remove_stale(folder_hash)
         for name, text in ((CONFIG_GIVEN, given), (CONFIG_RESOLVED, head + resolved)):
             self._before_change(self.path(name))
             self._wrote(writing.write_bytes(self.path(name), text.encode("utf-8")))
         self._config_written = True
 
-    def _remove_stale(self) -> None:
+    def _remove_stale(self, folder_hash: str | None) -> None:
         """Remove the artifacts another config made (:mod:`quadctl.artifacts.run_folder`: the stages', the
         figures and the report, a sweep's, the exports), with a notice naming them: quadctl never reuses
         them, and beside this config they would say what it did not make. A file whose provenance cannot be
-        read (damaged, foreign) is left to the stage that reads it; a file quadctl does not write, always."""
-        self._made_by = MadeBy(self.out, config_hash_of(self.out))
+        read (damaged, foreign) is left to the stage that reads it; a file quadctl does not write, always.
+        ``folder_hash``: the config hash the folder's ``config.resolved.yaml`` names (None: none)."""
+        made_by = MadeBy(self.out, folder_hash)
+        digest = self.cfg.digest()
         removed, hashes = [], []
         for path in run_artifacts(self.out, first=STAGE_FILES):
-            if path.is_file() and not path.is_symlink() and self._made_by_another_config(path):
+            found = made_by(path) if path.is_file() and not path.is_symlink() else None
+            if found is not None and found != digest:  # another config's
                 name = path.relative_to(self.out).as_posix()
-                hashes.append(self._made_by(path))
+                hashes.append(found)
                 self._before_change(path)
                 if self._undo is not None:  # said before it goes: a kill right after still finds the earlier run
                     self._journal.replaced(name)
@@ -318,6 +329,3 @@ class Session:
             else:
                 self._notes.append(note)
 
-    def _made_by_another_config(self, path: Path) -> bool:
-        found = self._made_by(path)
-        return found is not None and found != self.cfg.digest()

@@ -28,7 +28,7 @@ from quadctl.sweep.outputs import (
 from quadctl.sweep.runner import SweepResult, base_of, run
 from quadctl.sweep.spec import SweepSpec
 
-PARTS = "sweep.parts"
+PARTS = artifacts.SWEEP_PARTS
 """Folder of the run directory holding the finished chunks (the journal ``--resume`` reads)."""
 
 class SweepStore:
@@ -239,6 +239,7 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     with contextlib.ExitStack() as own:
         if session is None:
             session = own.enter_context(artifacts.Session(cfg, out))  # one run writes a folder at a time
+            session.defer_notes()  # what it removed is said at the end: not at all if it is put back
         elif session.out != Path(out):
             raise ValueError(f"the session is of {session.out}, not of {out}")
         store = SweepStore(out, cfg, spec, plot=plot, session=session)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import time
+import warnings
 
 import pytest
 from _paths import ROOT
@@ -584,6 +585,27 @@ def test_a_sweep_refused_in_a_folder_of_its_own_config_keeps_its_chunks_for_resu
     res = invoke("sweep", "-c", "hover", "-s", spec, "-o", folder, "-j", "1", "--resume")
     assert res.exit_code == 0, res.output
     assert "(0 computed, 2 resumed)" in res.output, res.output
+
+
+def test_a_library_sweep_stopped_after_it_removed_another_configs_run_puts_that_run_back(tmp_path, heavier_run):
+    """sweep.execute in Python (its own session), Ctrl-C after its first chunk, in a folder of another config's
+    run: the earlier run is back whole, as the command line leaves it, not half of each."""
+    from quadctl import config, sweep
+
+    folder = _copy_of(heavier_run, tmp_path)
+    before = _tree(folder)
+    cfg = config.load("hover")
+
+    def stop(done, total):
+        if done:  # a chunk is written: the earlier run's artifacts are gone
+            raise KeyboardInterrupt
+
+    with warnings.catch_warnings(record=True) as said, pytest.raises(KeyboardInterrupt):
+        warnings.simplefilter("always")
+        sweep.execute(cfg, sweep.load(_two_cases(tmp_path), cfg), folder, jobs=1, progress=stop,
+                      plot=False)
+    assert _tree(folder) == before
+    assert not [w for w in said if "removed" in str(w.message)]  # nothing said of a removal put back
 
 
 KILLED_SWEEP = """
