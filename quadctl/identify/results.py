@@ -227,12 +227,12 @@ def changes(ident: Identification) -> dict:
     src = ident.logs[ident.stage_logs["thrust"]].name
     span = ",".join(f"{shown.seconds(a)}:{shown.seconds(b)}" for a, b in th.windows)
     lo, hi = th.interval("T_m")
-    out[("motors", "time_constant")] = (f"{th.value('T_m'):.4g}", f"s, identified from {src} t {span} s "
+    out[("motors", "time_constant")] = (_number(th.value("T_m")), f"s, identified from {src} t {span} s "
                                         f"(95 %: {lo:.4g}-{hi:.4g}); the lag of the command: docs/guide/identify.md, "
                                         "Which lag")
     out[("controller", "rotor_lag")] = ("include", "the design models the identified motor lag "
                                          "(ignore: instantaneous rotors, and the lag only in the flown plant)")
-    out[("motors", "max_thrust")] = (f"{ident.max_thrust():.4g}", f"N per rotor, the thrust curve at full command, "
+    out[("motors", "max_thrust")] = (_number(ident.max_thrust()), f"N per rotor, the thrust curve at full command, "
                                      f"identified from {src} t {span} s")
     n = ident.delay_samples()
     if n is not None:
@@ -249,7 +249,7 @@ def changes(ident: Identification) -> dict:
         jzz = ("Jzz lowered to Jxx + Jyy (the config's Jzz was above it, which no rigid body allows; a log gives "
                "Jzz only over the torque coefficient)") if lowered else "Jzz kept"
         out[("vehicle", "inertia")] = (
-            "[" + ", ".join(f"{v:.4g}" for v in inertia) + "]",
+            yamlio.flow([float(f"{v:.4g}") for v in inertia]),
             f"kg m^2, Jxx Jyy identified from {src_a} t {span_a} s with this config's rotor positions; {jzz}")
     if "yaw" in ident.fits:
         yaw = ident.fits["yaw"]
@@ -257,12 +257,18 @@ def changes(ident: Identification) -> dict:
         span_y = ",".join(f"{shown.seconds(a)}:{shown.seconds(b)}" for a, b in yaw.windows)
         k_m = yaw.value("k_m") * inertia[2] / ident.airframe.inertia[2]  # the log fixes k_m / Jzz
         out[("motors", "torque_coefficient")] = (
-            f"{k_m:.4g}", f"N m per N, identified from {src_y} t {span_y} s (k_m / Jzz, with the Jzz above)")
+            _number(k_m), f"N m per N, identified from {src_y} t {span_y} s (k_m / Jzz, with the Jzz above)")
     found = ident.entries()
     for key, names in ident.withheld().items():
         if key in out:  # not written: the config's value stays, and the comment says why
             out[key] = (None, shown.withheld_comment({n: found[n] for n in names}))
     return out
+
+
+def _number(value: float) -> str:
+    """``value`` to 4 significant digits, as YAML that any reader reads as a float (``1.0e-05``, not ``1e-05``,
+    which PyYAML's ``safe_load`` reads as text: :func:`quadctl.config.yamlio.flow`)."""
+    return yamlio.flow(float(f"{value:.4g}"))
 
 
 def identified_inertia(ident: Identification) -> tuple[list, bool]:
