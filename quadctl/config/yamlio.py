@@ -166,7 +166,7 @@ Loader.add_implicit_resolver(_FLOAT, _FLOAT_RE, list("-+0123456789."))
 class Dumper(yaml.SafeDumper):
     """PyYAML's safe dumper quoting what :class:`Loader` would read as another type (a text ``1e5``
     or ``010`` is a number to quadctl, so it is written ``'1e5'``) and writing a number as short as
-    it reads back (``4`` for 4.0, ``1.11e+08``). Use :func:`dump` or :func:`flow`."""
+    it reads back, with a point (``4.0``, ``1.0e-05``, ``1.11e+08``). Use :func:`dump` or :func:`flow`."""
 
     yaml_implicit_resolvers = {first: list(resolvers) for first, resolvers in Loader.yaml_implicit_resolvers.items()}
 
@@ -187,7 +187,7 @@ Dumper.add_representer(float, Dumper.represent_float)
 def dump(data: Any) -> str:
     """``data`` as a YAML document for people to read, quadctl's one way to write YAML: keys in their
     order, text as written (``Förster``, not ``F\\xF6rster``; only characters YAML cannot hold are
-    escaped), numbers as short as they read back (``4`` for 4.0, ``1e-05``), and no line folded,
+    escaped), numbers as short as they read back, with a point (``4.0``, ``1.0e-05``), and no line folded,
     however long (an editor or terminal wraps them for the reader).
 
     Examples

@@ -250,13 +250,14 @@ def _check_gravity(path, acc_z) -> None:
     if acc_z.size == 0:
         return
     median = float(np.median(acc_z))
+    to_frd = "negate acc_y, acc_z, gyro_q and gyro_r for FRD (-9.81 on acc_z at rest or hover)"  # z up (FLU)
     if 0.4 < abs(median) < 2.5:
         raise _fail(path, f"acc_z reads {median:.3g} at its median, about {'-' if median < 0 else '+'}1: the "
                     "accelerometer in g, not m/s^2", "multiply acc_x, acc_y, acc_z by 9.80665" +
-                    ("" if median < 0 else ", and negate acc_y, acc_z (FRD: -9.81 on acc_z at rest or hover)"))
+                    ("" if median < 0 else f", and {to_frd}"))
     if median > 4.9:
         raise _fail(path, f"acc_z reads {median:.3g} m/s^2 at its median, about +g: its z axis points up (FLU), "
-                    "not down", "negate acc_y, acc_z, gyro_q and gyro_r for FRD (-9.81 on acc_z at rest or hover)")
+                    "not down", to_frd)
 
 
 def _numeric_row(row, indices) -> bool:

@@ -456,11 +456,11 @@ def exact_delay_margin(lift: Lifted, j: int) -> float | None:
 
 def lifted(loop) -> Lifted:
     """The cascade's loop ``loop`` (:class:`quadctl.sim.loop.ClosedLoop` with a ``law``) linearized about
-    hover at every phase of its frame (:func:`_lifted`), Ctrl-C and SIGTERM taken when it is done (tens of ms).
+    hover at every phase of its frame (:func:`_lifted`), Ctrl-C and SIGTERM taken when it is done.
 
     Its least-squares trim calls the CasADi law from Python hundreds of times: a KeyboardInterrupt raised in
-    CasADi's argument conversion was swallowed by its wrapper, which then matched another overload, and
-    ``quadctl compare`` ran to its end with exit 0, the Ctrl-C lost (7 presses in 60 about 1.2 s in).
+    CasADi's argument conversion is swallowed by its wrapper, which then matches another overload, and the
+    work went on as if no Ctrl-C had come.
     """
     with signals_held():
         return _lifted(loop)

@@ -136,7 +136,7 @@ def test_bad_csv_refused(tmp_path, text, match):
 
 @pytest.mark.parametrize("scale, flip, match", [
     (1 / 9.80665, 1, r"x.csv: acc_z reads -0.99 at its median, about -1: the accelerometer in g, not m/s\^2; multiply"),
-    (1 / 9.80665, -1, r"about \+1: the accelerometer in g.*and negate acc_y, acc_z"),
+    (1 / 9.80665, -1, r"about \+1: the accelerometer in g.*and negate acc_y, acc_z, gyro_q and gyro_r for FRD"),
     (1.0, -1, r"acc_z reads 9.71 m/s\^2 at its median, about \+g: its z axis points up \(FLU\), not down; negate"),
 ])
 def test_a_csv_accelerometer_in_g_or_with_z_up_is_refused(tmp_path, log10, scale, flip, match):
