@@ -145,8 +145,8 @@ class PidGains:
 @lru_cache(maxsize=1)
 def presets() -> dict:
     """The presets' data (``pid_presets.yaml``), read once: by libyaml's reader where PyYAML has it
-    (every setup resolves a cascade, so every command and sweep worker reads it; libyaml reads it
-    about twenty times faster than Python's reader), the same safe types either way."""
+    (every setup resolves a cascade, so every command and sweep worker reads it, and Python's reader
+    is many times slower), the same safe types either way."""
     import yaml
 
     with open(PRESETS_FILE, encoding="utf-8") as fh:
