@@ -18,7 +18,7 @@ import numpy as np
 
 from quadctl.errors import ConfigError
 from quadctl.export import c
-from quadctl.export.bundle import Export, require_export
+from quadctl.export.bundle import Export, law_text, require_export
 from quadctl.present.platform import no_setpoint_flyable, setpoint_refused
 from quadctl.text.escape import c_comment
 from quadctl.text.setpoints import SETPOINT_NEEDS as NEEDS
@@ -190,6 +190,14 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
         raise ConfigError(no_setpoint_flyable(free))
     if free[setpoint]:
         raise ConfigError(setpoint_refused(setpoint, free[setpoint], flyable_setpoints(exp)))
+
+
+def law(exp: Export, setpoint: str) -> str:
+    """The app's control law in one paragraph (:func:`quadctl.export.bundle.law_text`): the reference is the
+    commander's ``setpoint`` setpoints, through the app's adapter, about the hover trim."""
+    return law_text(exp.loop, exp.sample_time, reference=True,
+                    source=f"the commander's {setpoint} setpoints, through the app's adapter",
+                    feedforward="the hover trim's roll, pitch and input")
 
 
 def platform_rows(exp: Export, platform: Platform = FIRMWARE) -> list[tuple[str, str, float, float, str]]:

@@ -109,10 +109,7 @@ def command(to: Annotated[Target, typer.Option(
         filt += f"; gains scheduled on {table.variable} ({len(table.values)} designs, {table.interpolation})"
     render.out.print(f"{cfg.name}: {timing}; integrators: {', '.join(exp.loop.integral_states) or 'none'}{filt}",
                      markup=False)
-    law = (export.law_text(exp.loop, exp.sample_time, reference=True,
-                           source=f"the commander's {flown} setpoints, through the app's adapter",
-                           feedforward="the hover trim's roll, pitch and input")
-           if to is Target.crazyflie else exp.law())
+    law = crazyflie.law(exp, flown) if to is Target.crazyflie else exp.law()
     render.out.print(f"law: {law}", markup=False)
     for path in paths:
         render.out.print(f"-> {path}", markup=False)
