@@ -641,6 +641,41 @@ def test_a_sweep_killed_after_it_removed_another_configs_run_is_undone_by_the_ne
     assert _tree(folder) == before
 
 
+KILLED_EXPORT = """
+import os, sys
+from quadctl.artifacts import writing
+write_together = writing.write_together
+def write_some_and_die(files):  # the first of the export's files written: kill -9
+    first = dict(list(files.items())[:1])
+    write_together(first)
+    os._exit(9)
+writing.write_together = write_some_and_die
+sys.argv = ["quadctl", "export", "--to", "c", "-c", "crazyflie", "-o", sys.argv[1]]
+from quadctl.cli.entry import main
+main()
+"""
+
+
+def test_an_export_killed_after_it_removed_another_configs_export_is_undone_by_the_next_command(tmp_path):
+    """mambo-200hz's C pair in the folder; crazyflie's export removes it and is killed (kill -9) with one of its
+    own files written: the next quadctl to take the folder puts mambo-200hz's run back, pair and all."""
+    import subprocess
+    import sys
+
+    from quadctl import artifacts
+
+    folder = tmp_path / "run"
+    assert invoke("export", "--to", "c", "-c", "mambo-200hz", "-o", folder).exit_code == 0
+    before = _tree(folder)
+    proc = subprocess.run([sys.executable, "-c", KILLED_EXPORT, str(folder)], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 9, proc.stderr
+    assert _tree(folder) != before  # mid-way: the pair is another's, or gone
+    notes = artifacts.take_over(folder)
+    assert len(notes) == 1 and "the earlier run is put back" in notes[0]
+    assert _tree(folder) == before
+
+
 def _without_the_users_files(folder, tmp_path):
     """A copy of ``folder`` (a run and its report) without the files of the user's own."""
     copy = _copy_of(folder, tmp_path)
