@@ -5,6 +5,7 @@ commands' error handling (:mod:`quadctl.cli.errors`) both read it."""
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import threading
 
@@ -26,6 +27,22 @@ def raise_terminated(signum, frame) -> None:
 
 
 
+_RECORDING: dict[int, object] = {}
+"""The handlers :func:`stops_recorded` stands in front of, by signal, while it records."""
+
+
+def _handlers_back_in_child() -> None:
+    """A process forked while a command records its stops (a sweep's worker) is not that command: it takes
+    the handlers back that the recording stood in front of (then SIGTERM's default, :mod:`quadctl.cli.entry`)."""
+    for signum, previous in _RECORDING.items():
+        signal.signal(signum, previous)
+    _RECORDING.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_handlers_back_in_child)
+
+
 @contextlib.contextmanager
 def stops_recorded():
     """Record each Ctrl-C and SIGTERM that reaches the block (its handler still runs: the stop is raised
@@ -34,7 +51,8 @@ def stops_recorded():
     ``NotImplementedError: Wrong number or type of arguments`` (or returns None), and the command went
     on to fail with that error, or finished, rather than stop. With the record, the command ends as
     stopped either way (:func:`quadctl.cli.errors.handled`). Only in the main thread (Python runs
-    handlers there only), and only over a handler Python can call (not one ignored or the default)."""
+    handlers there only), and only over a handler Python can call (not one ignored or the default); a
+    process forked meanwhile has the handlers from before."""
     received: list[int] = []
     if threading.current_thread() is not threading.main_thread():
         yield received
@@ -42,7 +60,7 @@ def stops_recorded():
     chained = {}
     for signum in (signal.SIGINT, signal.SIGTERM):
         previous = signal.getsignal(signum)
-        if not callable(previous):
+        if not callable(previous) or signum in _RECORDING:
             continue
 
         def recorded(signum, frame, previous=previous):
@@ -54,11 +72,13 @@ def stops_recorded():
         except (OSError, ValueError):
             continue
         chained[signum] = previous
+    _RECORDING.update(chained)
     try:
         yield received
     finally:
         for signum, previous in chained.items():
             signal.signal(signum, previous)
+            _RECORDING.pop(signum, None)
 
 
 def stop_of(received: list[int]) -> KeyboardInterrupt:

@@ -440,3 +440,23 @@ def test_a_ctrl_c_a_library_takes_for_its_own_still_stops_the_command(tmp_path, 
     assert res.stderr.startswith("quadctl: error: interrupted") and "internal error" not in res.stderr, res.stderr
     if then == "carried on":  # what it finished is kept
         assert (tmp_path / "sim.npz").exists()
+
+
+def test_a_process_forked_while_a_command_records_its_stops_has_the_handlers_from_before():
+    """A sweep's worker forks while its command records Ctrl-C and SIGTERM: it is not that command, and
+    takes the handlers back (with the command's, a SIGTERM the pool stops it with raised in it, traceback
+    and all)."""
+    from quadctl.cli.stops import stops_recorded
+
+    before = signal.getsignal(signal.SIGINT)
+    with stops_recorded():
+        assert signal.getsignal(signal.SIGINT) is not before  # recording
+        read, write = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: say whether it has the handler from before, and leave
+            os.write(write, b"1" if signal.getsignal(signal.SIGINT) is before else b"0")
+            os._exit(0)
+        os.waitpid(pid, 0)
+        got = os.read(read, 1)
+    assert got == b"1"
+    assert signal.getsignal(signal.SIGINT) is before
