@@ -117,9 +117,15 @@ def _put_back_a_replaced_run() -> bool:
     of each. True if it did."""
     state = _COMMAND.get(None) or {}
     session = state.get("session")
-    if session is None or not session.unreplaced or not session.roll_back():
+    if session is None or not session.unreplaced:
+        return False
+    from quadctl.artifacts import SWEEP_PARTS
+
+    chunks = sum(1 for path in session.written if path.parent.name == SWEEP_PARTS)  # a sweep's finished work
+    if not session.roll_back():
         return False
     state["put_back"] = True
+    state["chunks_gone"] = chunks
     return True
 
 
@@ -202,8 +208,11 @@ def handled(fn):
             stopped, code = ("terminated", EXIT_TERMINATED) if isinstance(exc, Terminated) else \
                 ("interrupted", EXIT_INTERRUPTED)
             if (_COMMAND.get(None) or {}).get("put_back"):
+                chunks = (_COMMAND.get(None) or {}).get("chunks_gone", 0)
+                lost = (f"; the {chunks} chunk{'s' * (chunks != 1)} this sweep finished went with them, so "
+                        "--resume cannot take them up" if chunks else "")
                 raise fail(f"{stopped}; the run folder is as the earlier config's run left it (this one's "
-                           "artifacts were not all written)", code) from None
+                           f"artifacts were not all written{lost})", code) from None
             raise fail(f"{stopped}; artifacts written before this point are complete", code) from None
         except Exception as exc:  # a bug: say so in one line, traceback on --debug
             if debug_enabled(ctx):

@@ -563,6 +563,8 @@ def test_a_sweep_or_an_export_stopped_or_refused_puts_the_earlier_run_back(tmp_p
     res = invoke(*command, "-c", "hover", "-o", folder, *extra)
     if stop == "ctrl-c":
         assert res.exit_code == 130 and "the run folder is as the earlier config's run left it" in res.stderr
+        # a sweep says the finished work it takes with it (its one chunk), which --resume then cannot use
+        assert ("the 1 chunk this sweep finished went with them" in res.stderr) is (command[0] == "sweep")
     else:
         assert res.exit_code == 2 and "No space left on device" in res.stderr
         assert len(res.stderr.splitlines()) == 1  # the error alone: no note of a removal the refusal undid
