@@ -183,15 +183,24 @@ def _check_reach(cfg: Config, fail) -> None:
     if ref is None or not ref.waypoints:
         return
     reach = ref.speed * cfg.simulation.duration
-    here, along = cfg.trim.position_ned, 0.0
+    start = cfg.trim.position_ned
+    here, along, far = start, 0.0, (-1.0, 0)
     for i, wp in enumerate(ref.waypoints):
         along += math.dist(here, wp.position)  # overflow-safe: a slip of 1e300 m is named, not inf
         here = wp.position
+        far = max(far, (math.dist(start, wp.position), -i))  # the farthest so far, the first of equals
         if along > MAX_REACH * reach:
-            metres = ", ".join(f"{c / 1000:.4g}" for c in wp.position)
+            # name the waypoint farthest from the start: a slipped waypoint makes the legs to it and from it
+            # long, so the sum first passes the bound at the waypoint after it, which is as the user wrote it
+            k = -far[1]
+            culprit = ref.waypoints[k].position
+            metres = ", ".join(f"{c / 1000:.4g}" for c in culprit)
             mm = f"for millimetres write [{metres}], else " if along / 1000 <= MAX_REACH * reach else ""
-            fail(f"simulation.reference.waypoints[{i}].position", wp.position,
-                 f"{along:.5g} m from the start along the mission, more than {MAX_REACH:g} times the {reach:.4g} m "
+            where = (f"{along:.5g} m from the start along the mission" if k == i else
+                     f"{far[0]:.5g} m from the start, the farthest waypoint of a mission {along:.5g} m long by "
+                     f"waypoints[{i}]")
+            fail(f"simulation.reference.waypoints[{k}].position", culprit,
+                 f"{where}, more than {MAX_REACH:g} times the {reach:.4g} m "
                  f"that simulation.reference.speed = {ref.speed:g} m/s covers in simulation.duration = "
                  f"{cfg.simulation.duration:g} s; positions are in m: {mm}correct the slip, or raise "
                  "the speed or the duration")

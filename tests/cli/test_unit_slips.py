@@ -146,6 +146,11 @@ REFERENCE_SLIPS = {
         r"^--set: simulation\.reference\.waypoints\[2\]\.position = \[0, 400, -1\.5\]: 402\.07 m from the start "
         r"along the mission, more than 10 times the 30 m .*; positions are in m: for millimetres write "
         r"\[0, 0\.4, -0\.0015\]"),
+    "a slipped waypoint whose next leg passes the reach": (  # the sum passes it at [2]: the slip is [1]'s
+        ["simulation.reference.waypoints[1].position=[200, 2, -1.5]"],
+        r"^--set: simulation\.reference\.waypoints\[1\]\.position = \[200, 2, -1\.5\]: 200\.01 m from the start, "
+        r"the farthest waypoint of a mission 400\.01 m long by waypoints\[2\], more than 10 times the 30 m .*; "
+        r"positions are in m: for millimetres write \[0\.2, 0\.002, -0\.0015\]"),
     "a position beyond any millimetre": (
         ["simulation.reference.waypoints[0].position=[5e5, 0, -1]"],
         r"^--set: simulation\.reference\.waypoints\[0\]\.position = \[500000, 0, -1\]: 5e\+05 m from the start "
@@ -179,11 +184,13 @@ def test_a_reference_within_its_ranges_is_taken(sets):
 
 
 def test_the_reach_is_counted_along_the_mission():
-    """There and back, 150 m each way, is 300 m flown: one metre more is past the 300 m the rule allows."""
+    """There and back, 150 m each way, is 300 m flown: one metre more is past the 300 m the rule allows. The
+    error names the farthest waypoint (what a slip would have made far) and where the mission passed the bound."""
     sets = ["simulation.reference.waypoints[0].position=[150, 0, -1]",
             "simulation.reference.waypoints[1].position=[0, 0, -1]"]
     overrides.load(SQUARE, [*sets, "simulation.reference.waypoints[2].position=[0, 0, -1]"])
-    with pytest.raises(ConfigError, match=r"waypoints\[2\]\.position = \[0, 1, -1\]: 301 m from the start"):
+    with pytest.raises(ConfigError, match=r"waypoints\[0\]\.position = \[150, 0, -1\]: 150 m from the start, the "
+                                          r"farthest waypoint of a mission 301 m long by waypoints\[2\], more than 10"):
         overrides.load(SQUARE, [*sets, "simulation.reference.waypoints[2].position=[0, 1, -1]"])
 
 
