@@ -46,8 +46,9 @@ def controller_text(flight: dict, sim) -> str | None:
             f"{ctl['hold_steps']} {integrator_name(sim)} steps of {sim.dt:.4g} s")
 
 
-NOISE_LIMITED_NOTE = ("noise: noise-limited, the error came down but the run's noise or turbulence keeps it "
-                      "crossing the band in the last tenth of the run, so it has no settling time")
+NOISE_LIMITED_NOTE = ("noise: noise-limited, in a run with noise or turbulence the error came down to half its "
+                      "largest or less but still crosses the band in the last tenth of the run, or ends outside it, so "
+                      "it has no settling time (read the RMS over the second half, or run without noise)")
 """The metrics table's footnote on a settling time shown as ``noise``."""
 
 
