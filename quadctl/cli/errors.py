@@ -104,6 +104,14 @@ def remember_session(session) -> None:
         session.defer_notes()  # said when the command ends, and not at all of what a refusal puts back
 
 
+def remember_interrupt_hint(hint: str) -> None:
+    """Note what a user can do after Ctrl-C (or SIGTERM) stops this command with its work kept: ``handled``
+    adds it to the ``interrupted`` line (a sweep's ``--resume``); not when the folder was put back."""
+    state = _COMMAND.get(None)
+    if state is not None:
+        state["interrupt_hint"] = hint
+
+
 def _roll_back() -> None:
     session = (_COMMAND.get(None) or {}).get("session")
     if session is not None:
@@ -213,7 +221,9 @@ def handled(fn):
                         "--resume cannot take them up" if chunks else "")
                 raise fail(f"{stopped}; the run folder is as the earlier config's run left it (this one's "
                            f"artifacts were not all written{lost})", code) from None
-            raise fail(f"{stopped}; artifacts written before this point are complete", code) from None
+            hint = (_COMMAND.get(None) or {}).get("interrupt_hint")
+            raise fail(f"{stopped}; artifacts written before this point are complete"
+                       + (f"; {hint}" if hint else ""), code) from None
         except Exception as exc:  # a bug: say so in one line, traceback on --debug
             if debug_enabled(ctx):
                 _traceback()

@@ -86,6 +86,29 @@ def test_a_killed_sweep_leaves_no_worker_behind(tmp_path):
     assert not any(_alive(w) for w in workers), "workers outlived their killed parent"
 
 
+def test_an_interrupted_sweep_says_where_its_chunks_are_and_that_resume_takes_them(tmp_path, monkeypatch):
+    """Ctrl-C in a sweep keeps its finished chunks: its one line says where, and that --resume computes the rest
+    (a simulate's line stays as it was: it has nothing to resume)."""
+    from typer.testing import CliRunner
+
+    from quadctl import sweep
+    from quadctl.cli.app import app
+
+    def stop(*_, **__):
+        raise KeyboardInterrupt
+
+    spec = tmp_path / "s.yaml"
+    spec.write_text("parameters:\n  lqr.roll.R[0]: [1.0, 2.0]\n")
+    monkeypatch.setattr(sweep, "execute", stop)
+    res = CliRunner().invoke(app, ["sweep", "-c", "forward", "-s", str(spec), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 130
+    assert res.stderr == (f"quadctl: error: interrupted; artifacts written before this point are complete; the "
+                          f"chunks it finished are kept in {tmp_path / 'out' / sweep.PARTS}: the same command with "
+                          "--resume computes only the rest\n")
+    res = _interrupted_simulate(tmp_path / "sim", monkeypatch)
+    assert res.exit_code == 130 and "--resume" not in res.stderr
+
+
 def test_ctrl_c_while_the_commands_import_prints_one_line_not_a_traceback():
     """Ctrl-C that lands while the console script imports typer and the commands (its first ~0.2 s;
     before that Python itself is starting, which no program controls)."""

@@ -42,6 +42,7 @@ def command(
     # only what the worker processes need starts before them (they fork from this process): the
     # terminal's output (rich) is imported as they run
     from quadctl import sweep as sweep_mod
+    from quadctl.cli.errors import remember_interrupt_hint
     from quadctl.cli.options import label_of, load_source, open_session
     from quadctl.cli.progress import sweep_progress
     from quadctl.errors import SweepError
@@ -54,6 +55,8 @@ def command(
     cfg, source = load_source(config, sets)
     spec = sweep_mod.load(sweep, cfg)
     session = open_session(cfg, source, out)  # after the sweep file: a refused one touches no folder
+    remember_interrupt_hint(f"the chunks it finished are kept in {session.out / sweep_mod.PARTS}: the same "
+                            "command with --resume computes only the rest")
     with sweep_progress(quiet=json, meanwhile=None if no_plot else _import_plots) as progress:
         outcome = sweep_mod.execute(cfg, spec, session.out, label=label_of(source, sets), jobs=jobs,
                                     scheduler=scheduler, resume=resume, progress=progress,
