@@ -46,9 +46,9 @@ def controller_text(flight: dict, sim) -> str | None:
             f"{ctl['hold_steps']} {integrator_name(sim)} steps of {sim.dt:.4g} s")
 
 
-NOISE_LIMITED_NOTE = ("noise: noise-limited, in a run with noise or turbulence the error came down to half its "
-                      "largest or less but still crosses the band in the last tenth of the run, or ends outside it, so "
-                      "it has no settling time (read the RMS over the second half, or run without noise)")
+NOISE_LIMITED_NOTE = ("noise: noise-limited: in a run with noise or turbulence, the error still crosses the band in "
+                      "the last tenth of the run, or ends outside the band at half its largest or less, so it has no "
+                      "settling time (read the RMS over the second half, or run without noise)")
 """The metrics table's footnote on a settling time shown as ``noise``."""
 
 
