@@ -132,7 +132,8 @@ def test_the_noise_footnote_also_covers_an_error_that_ends_outside_its_band(tmp_
     res = invoke("simulate", "-c", "mambo-200hz", "-o", tmp_path, "--set", "simulation.duration=3")
     assert res.exit_code == 0, res.output
     assert "pD" in json.loads((tmp_path / "sim.json").read_text())["metrics"]["noise_limited"]
-    assert "crosses the band in the last tenth of the run, or ends outside the band at half its largest or less" in " ".join(res.output.split())
+    said = " ".join(res.output.split())
+    assert "crosses the band in the last tenth of the run, or ends outside the band at half its largest or less" in said
 
 
 def test_run_executes_every_stage(tmp_path):
