@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from rich.console import Group
 from rich.progress import (
     BarColumn,
@@ -53,12 +55,15 @@ def sweep_bar() -> Progress:
 
 
 def _shown_metrics(result, spec) -> list[str]:
-    """The table's metric columns: the gated ones, then a settling time, the peak thrust and the cost, three in
+    """The table's metric columns: the gated ones, tightest first (the least slack among the worst cases, so
+    the gate that ranks them is on screen), then a settling time, the peak thrust and the cost, three in
     all. A mission's table shows no settling time it does not gate: a mission is judged on its waypoints and
     tracking error, and its settling times (of the error to a moving reference) measure nothing it asks."""
     from quadctl.sweep.gates import WAYPOINTS_REACHED
 
-    gated = [g.metric for g in spec.gates]
+    worst = result.ranked()[:SHOWN]
+    tightest = sorted(spec.gates, key=lambda g: min((g.slack(r.get(g.metric)) for r in worst), default=math.inf))
+    gated = list(dict.fromkeys(g.metric for g in tightest))  # a stable sort: the file's order among equals
     mission = WAYPOINTS_REACHED in result.columns
     extra = [m for m in ("settling_time.pD", "peak.T", "cost") if m in result.columns and m not in gated
              and not (mission and m.startswith("settling_time."))]

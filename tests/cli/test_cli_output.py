@@ -19,6 +19,7 @@ from quadctl.cli.app import app
 from quadctl.cli.commands import COMMANDS
 from quadctl.config import overrides
 from quadctl.errors import ConfigError
+from quadctl.sweep.gates import Gate
 from quadctl.workspace import Workspace
 
 runner = CliRunner()
@@ -165,7 +166,8 @@ def test_a_mission_sweeps_table_shows_no_settling_time_and_the_others_do(mission
     rows = [{"case": 0, "reference.speed": 1.0, "settling_time.pD": 19.7, "peak.T": 0.8, "tracking.peak": 2e-8,
              "waypoints.reached": 4, "cost": 1.0, "status": "ok", "pass": True}]
     result = SimpleNamespace(columns=columns, rows=rows, ranked=lambda: rows)
-    spec = SimpleNamespace(gates=[SimpleNamespace(metric=m) for m in gated], names=["reference.speed"])
+    bounds = {"waypoints.reached": Gate("waypoints.reached", min=4), "tracking.peak": Gate("tracking.peak", max=0.1)}
+    spec = SimpleNamespace(gates=[bounds[m] for m in gated], names=["reference.speed"])
     headers = [str(c.header) for c in sweep_tables(result, spec).renderables[0].columns]
     want = ["waypoints.reached", "tracking.peak", "peak T (N)"] if mission else \
         ["tracking.peak", "settle pD (s)", "peak T (N)"]
@@ -183,11 +185,30 @@ def test_the_sweep_tables_say_what_they_rank_by(gated):
     rows = [{"case": k, "vehicle.mass": 0.068, "settling_time.pD": 1.0 + k, "cost": 1.0 + k, "status": "ok",
              "pass": True} for k in range(12)]
     result = SimpleNamespace(columns=["settling_time.pD", "cost", "status"], rows=rows, ranked=lambda: rows)
-    spec = SimpleNamespace(gates=[SimpleNamespace(metric="settling_time.pD")] if gated else [], names=["vehicle.mass"])
+    spec = SimpleNamespace(gates=[Gate("settling_time.pD", max=20.0)] if gated else [], names=["vehicle.mass"])
     titles = [str(table.title) for table in sweep_tables(result, spec).renderables]
     assert titles == (["Best of 12 cases (most slack at their tightest gate, relative to its bound)",
                        "Worst of 12 cases (least slack at their tightest gate, relative to its bound)"] if gated else
                       ["Best of 12 cases (lowest LQR cost)", "Worst of 12 cases (highest LQR cost)"])
+
+
+def test_the_sweep_tables_show_the_gate_that_ranks_the_worst_cases_first():
+    """The worst cases are ranked by their tightest gate: its column comes first, whatever the sweep file's
+    order of gates (three columns are shown, and a fourth gate's would be off screen)."""
+    from types import SimpleNamespace
+
+    from quadctl.cli.render_sweep import sweep_tables
+
+    rows = [{"case": k, "vehicle.mass": 0.068, "settling_time.pD": 0.5, "settling_time.phi": 1.0,
+             "settling_time.theta": 1.0, "peak.T": 5.6 + 0.01 * k, "cost": 1.0, "status": "ok", "pass": True}
+            for k in range(6)]
+    result = SimpleNamespace(columns=["settling_time.pD", "settling_time.phi", "settling_time.theta", "peak.T",
+                                      "cost", "status"], rows=rows, ranked=lambda: rows[::-1])
+    gates = [Gate("settling_time.pD", max=2.0), Gate("settling_time.phi", max=2.0),
+             Gate("settling_time.theta", max=2.0), Gate("peak.T", max=6.0)]
+    headers = [str(c.header) for c in sweep_tables(result, SimpleNamespace(gates=gates, names=["vehicle.mass"]))
+               .renderables[0].columns]
+    assert headers == ["case", "parameters", "peak T (N)", "settle phi (s)", "settle theta (s)", "result"]
 
 
 def test_a_mistyped_config_file_offers_the_file_beside_it(tmp_path, monkeypatch):
@@ -224,7 +245,7 @@ def test_the_sweep_tables_show_a_noise_limited_settling_time_as_noise():
     rows = [{"case": 0, "vehicle.mass": 0.068, "settling_time.p": None, "settling_time.v": None, "status": "ok",
              "noise_limited": ["p"], "pass": True}]
     result = SimpleNamespace(columns=["settling_time.p", "settling_time.v", "status"], rows=rows, ranked=lambda: rows)
-    gates = [SimpleNamespace(metric="settling_time.p"), SimpleNamespace(metric="settling_time.v")]
+    gates = [Gate("settling_time.p", max=1.0), Gate("settling_time.v", max=1.0)]
     spec = SimpleNamespace(gates=gates, names=["vehicle.mass"])
     console = Console(width=200, file=io.StringIO())
     console.print(sweep_tables(result, spec))
