@@ -262,11 +262,12 @@ class Session:
         when the session closes and named as a temporary a killed run leaves for the next to clean up;
         its bytes where the file system has no hard links."""
         aside = path.parent / f".{path.name}.{writing.TEMPORARY_TAG}-undo{os.urandom(4).hex()}.tmp"
+        # its removal is arranged before it exists: a Ctrl-C or SIGTERM between the two would leave it behind
+        self._hold.callback(aside.unlink, missing_ok=True)
         try:
             os.link(path, aside)
         except OSError:
             return path.read_bytes()
-        self._hold.callback(aside.unlink, missing_ok=True)
         return aside
 
     def _wrote(self, path: Path) -> Path:

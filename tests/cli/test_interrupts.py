@@ -483,3 +483,30 @@ def test_a_process_forked_while_a_command_records_its_stops_has_the_handlers_fro
         got = os.read(read, 1)
     assert got == b"1"
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_a_stop_the_moment_a_file_is_set_aside_leaves_no_set_aside_file(tmp_path, monkeypatch):
+    """Ctrl-C (or SIGTERM) right after the session sets the earlier run's config.resolved.yaml aside for a
+    roll-back, before anything else: the folder is the earlier run's again, with no set-aside file left in it
+    (the removal of a set-aside file is arranged before the file exists)."""
+    from typer.testing import CliRunner
+
+    from quadctl.artifacts import session
+    from quadctl.cli.app import app
+
+    assert CliRunner().invoke(app, ["simulate", "-c", "hover", "-o", str(tmp_path),
+                                    "--set", "simulation.duration=1"]).exit_code == 0
+    before = _files(tmp_path)
+    link = os.link
+
+    def link_then_stop(src, dst, *args, **kwargs):
+        link(src, dst, *args, **kwargs)
+        if Path(src).name == "config.resolved.yaml":
+            raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(session.os, "link", link_then_stop)
+        res = CliRunner().invoke(app, ["simulate", "-c", "hover", "-o", str(tmp_path),
+                                       "--set", "simulation.duration=2"])
+    assert res.exit_code == 130, res.output
+    assert _files(tmp_path) == before
