@@ -173,14 +173,16 @@ def handled(fn):
         try:
             with notices_printed(), stops_recorded() as stops:
                 try:
-                    result = fn(*args, **kwargs)
+                    try:
+                        result = fn(*args, **kwargs)
+                    except Exception as exc:  # whatever a stop caused where a library took it for its own
+                        if stops:  # error (CasADi's wrapper): the stop
+                            raise stop_of(stops) from exc
+                        raise
                     if stops:  # a stop a library took for its own and the command outlived: it ends stopped
                         raise stop_of(stops)
                     return result
                 except QuadctlError as exc:
-                    if stops:  # what a stop a library mistook caused (a refusal, a check): the stop
-                        _put_back_a_replaced_run()
-                        raise stop_of(stops) from exc
                     if exc.exit_code == EXIT_BAD_INPUT:  # refused: the run folder as it was
                         _roll_back()
                     raise
@@ -188,14 +190,9 @@ def handled(fn):
                     _put_back_a_replaced_run()
                     raise
                 except (typer.Exit, typer.Abort, FailedChecks, BrokenPipeError):
-                    if stops:
-                        _put_back_a_replaced_run()
-                        raise stop_of(stops) from None
                     raise
-                except Exception as exc:  # a bug (exit 3): the run folder as Ctrl-C would leave it
+                except Exception:  # a bug (exit 3): the run folder as Ctrl-C would leave it
                     _put_back_a_replaced_run()
-                    if stops:  # the error a stop caused where a library took it (CasADi's wrapper)
-                        raise stop_of(stops) from exc
                     raise
                 finally:  # within the notices: those the session held back are said (before the error)
                     _release_session()

@@ -25,8 +25,6 @@ def raise_terminated(signum, frame) -> None:
     raise Terminated
 
 
-
-
 _RECORDING: dict[int, object] = {}
 """The handlers :func:`stops_recorded` stands in front of, by signal, while it records."""
 
