@@ -55,13 +55,19 @@ def stops_recorded():
     if threading.current_thread() is not threading.main_thread():
         yield received
         return
-    chained = {}
+    chained, owner = {}, os.getpid()
     for signum in (signal.SIGINT, signal.SIGTERM):
         previous = signal.getsignal(signum)
         if not callable(previous) or signum in _RECORDING:
             continue
 
         def recorded(signum, frame, previous=previous):
+            if os.getpid() != owner and signum == signal.SIGTERM:
+                # a process forked meanwhile, stopped (a pool ends its workers so) before it took its handlers
+                # back: it ends as SIGTERM's default ends it, not with an exception in its fork hooks
+                signal.signal(signum, signal.SIG_DFL)
+                os.kill(os.getpid(), signum)
+                return
             received.append(signum)
             previous(signum, frame)
 

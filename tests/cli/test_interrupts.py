@@ -510,3 +510,26 @@ def test_a_stop_the_moment_a_file_is_set_aside_leaves_no_set_aside_file(tmp_path
                                        "--set", "simulation.duration=2"])
     assert res.exit_code == 130, res.output
     assert _files(tmp_path) == before
+
+
+def test_a_sigterm_that_reaches_a_forked_child_before_it_takes_its_handlers_back_ends_it_as_sigterm_does():
+    """A sweep's worker stopped by its pool (SIGTERM) in the moment after its fork, while it still has the
+    command's recording handler: it ends by the signal, not with Terminated raised in its fork hooks (which
+    printed 'Exception ignored in _handlers_back_in_child' and a traceback)."""
+    from quadctl.cli.stops import raise_terminated, stops_recorded
+
+    previous = signal.signal(signal.SIGTERM, raise_terminated)  # as the console script sets it
+    try:
+        with stops_recorded():
+            handler = signal.getsignal(signal.SIGTERM)
+            pid = os.fork()
+            if pid == 0:  # the child, as if the signal came before its fork hook restored the handlers
+                try:
+                    handler(signal.SIGTERM, None)
+                except BaseException:
+                    os._exit(7)
+                os._exit(0)
+            _, status = os.waitpid(pid, 0)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGTERM, status
