@@ -1,14 +1,14 @@
 """One thread for BLAS and OpenMP while quadctl works on many small matrices at once.
 
 The matrices of a sweep's chunk or a schedule's points are 12x12 to 30x30: too small for threads
-to pay, and on a busy 2-core machine BLAS threads made a sweep 6 to 16 times slower and a
-schedule's zero-order holds 500 times slower (1.7 s against 3 ms for 197 loops).
+to pay: on a busy machine BLAS threads spend far longer waiting for each other than computing,
+and a sweep or a schedule's zero-order holds slow down by orders of magnitude.
 
 :func:`one_thread` is the context for work done in the caller's process (its pools get their
 thread counts back after). A sweep's worker processes fork inside :func:`loaded_one_thread` (the
 pools loaded so far, SciPy's not loaded for it) and then run :func:`one_thread_for_good`: every
 pool runs one thread for the life of the worker, those loaded later too, and :func:`one_thread`
-has nothing left to do (and never loads SciPy only to find its pool: ~0.2 s a worker).
+has nothing left to do (and never loads SciPy only to find its pool).
 
 :func:`die_with_parent`: a process quadctl forks (a sweep's worker, a figure drawer) ends with it.
 """
@@ -29,7 +29,7 @@ _for_good = False
 
 @lru_cache(maxsize=1)
 def _controller():
-    """The process's BLAS and OpenMP thread pools, found once (a search costs ~1 ms), after loading
+    """The process's BLAS and OpenMP thread pools, found once (a search walks every loaded library), after loading
     every library quadctl computes with (a pool loaded later would not be limited)."""
     import scipy.linalg  # noqa: F401  (SciPy's own OpenBLAS)
     from threadpoolctl import ThreadpoolController
@@ -63,8 +63,8 @@ def one_thread() -> AbstractContextManager:
 
     Nothing to do when every pool runs one thread already: a sweep's worker forked inside
     :func:`loaded_one_thread` then never sets a count. Setting one in a forked child makes OpenBLAS
-    start its thread pool anew, whose threads spin ~0.1 s of CPU before they sleep: half the first
-    chunk's time in each worker of a mambo-200hz sweep.
+    start its thread pool anew, whose threads spin before they sleep: CPU time a worker's first chunk
+    would pay for nothing.
     """
     if _for_good:
         return nullcontext()
@@ -92,7 +92,7 @@ def one_thread_for_good(forked_limited: bool = False) -> None:
     :func:`loaded_one_thread` sets no count: see :func:`one_thread`).
 
     ``forked_limited``: this process was forked inside :func:`loaded_one_thread`, so every pool it
-    has runs one thread: they are not searched for again (~1.2 ms a worker).
+    has runs one thread: they are not searched for again.
 
     For a process that only works on small matrices (a sweep's worker process). Its environment then
     also asks one thread of the processes it starts.

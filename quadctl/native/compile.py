@@ -60,8 +60,8 @@ MARCH, MARCH_REFUSED = _march()
 PORTABLE_FLAGS = ("-O2", "-ffp-contract=off", "-fno-math-errno", "-fPIC", "-shared")
 """``-ffp-contract=off`` keeps a*b+c rounded as written (no FMA), so compiled and interpreted runs
 round alike; no ``-ffast-math``: NaN still propagates and stops a diverging run. ``-O2``: the one-case
-RK4 loop (straight-line scalar code) steps as fast as at ``-O3`` (1.75 M steps/s on ``forward`` both
-ways, GCC 12) and compiles in half the time (0.46 s against 0.92 s)."""
+RK4 loop (straight-line scalar code) steps as fast as at ``-O3`` and compiles in about half the
+time."""
 SIMD_FLAGS = PORTABLE_FLAGS[:1] + (MARCH, "-fno-builtin-sin", "-fno-builtin-cos",
                                    "-fno-builtin-tan", "-fopenmp-simd", "-fno-trapping-math") + PORTABLE_FLAGS[1:]
 """The vectorized lanes: ``-fno-builtin-sin/cos`` keep GCC from fusing sin and cos into one scalar
@@ -72,9 +72,9 @@ flag). Their ``#pragma omp simd`` loops are vectorized at ``-O2`` as at ``-O3``,
 of the compile time."""
 NATIVE_FLAGS = ("-O3", MARCH) + PORTABLE_FLAGS[1:]
 """One case of ETDRK4 for this CPU (its stages' dense matrix-vector products in ``driver.c``,
-GCC's fused ``sincos``): about 20 % a step faster than :data:`PORTABLE_FLAGS` (measured on the
-``forward`` loop), the same roundings (``-ffp-contract=off``, no vector sines in one lane); ``-O3``
-vectorizes those products (1.39 ms a run of ``forward`` against 1.72 ms at ``-O2``)."""
+GCC's fused ``sincos``): faster a step than :data:`PORTABLE_FLAGS`, with the same roundings
+(``-ffp-contract=off``, no vector sines in one lane); ``-O3`` vectorizes those products, which
+``-O2`` leaves scalar."""
 EVICT_AFTER_DAYS = 30
 """Cached libraries of another fingerprint unused for this long are deleted."""
 GENERATOR_SOURCES = ("_lazy.py", "layout.py", "physics/model.py", "sim/builder.py", "sim/loop_spec.py",

@@ -26,9 +26,9 @@ from quadctl.sim.loop_spec import N_REFERENCE, LoopSpec
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
 UNROLL = 16
-"""Steps per block at least: one block call costs ~8 µs besides its arithmetic (~3 µs a step),
-and constant subexpressions are shared within a block (measured: 16 steps run 10-20 % faster a
-step than 8)."""
+"""Steps per block at least: a block call has a fixed cost besides its arithmetic, comparable to a
+few steps', and constant subexpressions are shared within a block, so longer blocks run faster a
+step (16 steps faster than 8)."""
 BLOCKS = (128, 8)
 """Blocks chained by one ``mapaccum`` call: the long chain while it fits the steps left, then the
 short one (at most a short chain's worth of steps computed past the end and dropped)."""

@@ -184,7 +184,7 @@ def plant_of(setup):
 
     Kept for the :data:`PLANTS` last used: every chunk of a sweep flies the same few, and a
     worker forked after the first case inherits them (a trim, linearization, partition and step
-    plan cost ~5 ms, a tenth of a 128-case chunk of mambo-200hz). The key holds everything they
+    plan cost as much as many cases' lanes). The key holds everything they
     depend on (:func:`_plant_key`) and a Plant's own cache is keyed by what its entries depend
     on, so a plant is the same object for every case that flies it.
     """

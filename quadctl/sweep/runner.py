@@ -97,9 +97,8 @@ def default_chunks(n_cases: int, workers: int) -> list[int]:
     workers are tasks of 16, 16, 8 and 8 (each worker 24), where tasks of one size, 16, would be three
     (one worker 32, the other 16).
 
-    A task costs ~5 ms whatever its size (setups, the batched solves' and the lanes' fixed costs):
-    with four tasks per worker, 1000 cases of mambo-200hz (2 000 steps each) on two workers took
-    4 % longer (0.342-0.366 s against 0.332-0.345 s, best of 12, three times alternated).
+    A task has a fixed cost whatever its size (setups, the batched solves' and the lanes' fixed
+    costs), so more, smaller tasks per worker make a sweep of short cases slower.
     """
     if n_cases <= 0:
         return []
