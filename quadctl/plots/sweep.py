@@ -13,8 +13,10 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
     """A sweep's trade-off: metric ``y`` against metric ``x``, one point per case.
 
     Passing cases are dots, failing ones red crosses; gate thresholds on either axis are
-    dashed lines. Cases without both values (no design, never settled) are counted in the title; the
-    legend counts each kind and, where some draw over others, the places they draw at (:func:`_places`).
+    dashed lines. A case with ``x`` but no settling time ``y`` is drawn on a strip above the plot, at
+    its ``x``, in a row for why it has none (:data:`UNSETTLED`); the legend counts each kind and, where some draw
+    over others, the places they draw at (:func:`_places`). Cases without ``x``, or without a ``y``
+    of another kind, are counted in the title.
 
     Parameters
     ----------
@@ -37,21 +39,38 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
         return "rad/s" if family == "eig" else ""
 
     fig = Figure(figsize=(7.5, 5.0), layout="constrained")
-    ax = fig.subplots()
     plotted = {True: ([], []), False: ([], [])}
+    unsettled: dict[tuple[bool, str], list] = {}  # (passed, why) -> x of the cases on the top strip
     missing = 0
     for row in rows:
         vx, vy = row.get(x), row.get(y)
-        if isinstance(vx, (int, float)) and isinstance(vy, (int, float)) and np.isfinite([vx, vy]).all():
-            plotted[bool(row.get("pass"))][0].append(vx)
-            plotted[bool(row.get("pass"))][1].append(vy)
+        passed = bool(row.get("pass"))
+        if _finite(vx) and _finite(vy):
+            plotted[passed][0].append(vx)
+            plotted[passed][1].append(vy)
+        elif _finite(vx) and y.startswith("settling_time."):
+            unsettled.setdefault((passed, _why_unsettled(row, y)), []).append(vx)
         else:
             missing += 1
+    if unsettled:  # a strip above the plot, sharing its x axis: each reason a row
+        top, ax = fig.subplots(2, 1, sharex=True, height_ratios=[1, 8])
+        top.set_yticks([])
+        top.set_ylim(len(UNSETTLED), -1)
+        top.set_ylabel(f"no {y.partition('.')[0].replace('_', ' ')}", rotation=0, ha="right", va="center",
+                       fontsize=8)
+        top.grid(True, axis="x", alpha=0.3)
+    else:
+        top, ax = None, fig.subplots()
     drawn = {}
     for passed, style in ((True, {"s": 14, "color": COLORS[0], "alpha": 0.7}),
                           (False, {"s": 22, "color": COLORS[1], "marker": "x"})):
         if plotted[passed][0]:  # no empty "fail (0)" in the legend
             drawn[passed] = ax.scatter(*plotted[passed], **style)
+    strip = []
+    for (passed, why), xs in sorted(unsettled.items(), key=lambda item: (not item[0][0], item[0][1])):
+        points = top.scatter(xs, np.full(len(xs), list(UNSETTLED).index(why)), marker=UNSETTLED[why], s=26,
+                             facecolors="none", linewidths=1.0, edgecolors=COLORS[0] if passed else COLORS[1])
+        strip.append((points, f"{'pass' if passed else 'fail'}, {why} ({len(xs)})"))
     labelled = False
     for gate in gates:
         for bound in (gate.min, gate.max):
@@ -67,15 +86,39 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
         n, places = len(plotted[passed][0]), _places(ax, *plotted[passed])
         where = "" if places in (None, n) else f" at {places} places"  # cases the parameters move off neither axis
         points.set_label(f"{'pass' if passed else 'fail'} ({n}{where})")
+    for points, label in strip:
+        points.set_label(label)
+    if top is not None and not values:
+        ax.set_yticks([])
     ax.set_xlabel(f"{x} [{unit(x)}]" if unit(x) else x)
     ax.set_ylabel(f"{y} [{unit(y)}]" if unit(y) else y)
     ax.grid(True, alpha=0.3)
-    if ax.get_legend_handles_labels()[0]:  # nothing plotted and no gate: no empty legend
-        ax.legend(loc="best", fontsize=8, frameon=False)
-    note = f"; {missing} cases without both values" if missing else ""
+    handles, labels = ax.get_legend_handles_labels()
+    if top is not None:
+        handles, labels = [*handles, *(p for p, _ in strip)], [*labels, *(label for _, label in strip)]
+    if handles:  # nothing plotted and no gate: no empty legend
+        ax.legend(handles, labels, loc="best", fontsize=8, frameon=False)
+    note = f"; {missing} {'case' if missing == 1 else 'cases'} without both values" if missing else ""
     fig.suptitle(f"{title}: sweep trade-off ({len(rows)} cases{note})" if title else
                  f"sweep trade-off ({len(rows)} cases{note})")
     return fig
+
+
+UNSETTLED = {"noise-limited": "^", "never settled": "v", "run stopped": "X"}
+"""Why a case has no settling time, and its marker on the trade-off's strip (a row each, in this order):
+noise-limited (:func:`quadctl.metrics.noise_limited`), outside its band at the end, or a run that did not
+finish."""
+
+
+def _finite(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
+
+
+def _why_unsettled(row: dict, metric: str) -> str:
+    """The key of :data:`UNSETTLED` for a row with no ``metric`` (a ``settling_time.<state>``)."""
+    if row.get("status", "ok") != "ok":
+        return "run stopped"
+    return "noise-limited" if metric.partition(".")[2] in row.get("noise_limited", ()) else "never settled"
 
 
 OVERLAP = 0.01

@@ -480,3 +480,28 @@ def test_the_sweep_trade_off_counts_the_places_stacked_cases_draw_at():
     apart = [{"peak.T": 3.0 + 0.1 * k, "tracking.peak": 10.0 ** -k, "pass": True} for k in range(1, 8)]
     (ax,) = plots.sweep_tradeoff_figure(apart, "peak.T", "tracking.peak").axes
     assert ax.get_yscale() == "log" and [t.get_text() for t in ax.get_legend().get_texts()] == ["pass (7)"]
+
+
+def test_the_sweep_trade_off_draws_cases_with_no_settling_time_on_a_strip_by_reason():
+    """A noisy uncertainty study where most cases have no settling time (examples/uncertainty-sweep.yaml:
+    62 of 64 noise-limited) still shows every case: those with a peak but no settling time sit on a strip
+    above the plot at their peak, a row for each reason, and the legend counts them by pass and reason."""
+    from quadctl.plots.sweep import UNSETTLED
+
+    rows = [{"peak.T": 0.95, "settling_time.pD": 2.6, "pass": True, "status": "ok", "noise_limited": []},
+            *({"peak.T": 0.94 + 0.001 * k, "settling_time.pD": None, "pass": True, "status": "ok",
+               "noise_limited": ["pD", "u"]} for k in range(5)),
+            {"peak.T": 0.96, "settling_time.pD": None, "pass": False, "status": "ok", "noise_limited": ["u"]},
+            {"peak.T": 0.97, "settling_time.pD": None, "pass": False, "status": "diverged", "noise_limited": []},
+            {"settling_time.pD": 1.0, "pass": True}]  # no peak: counted in the title only
+    fig = plots.sweep_tradeoff_figure(rows, "peak.T", "settling_time.pD")
+    top, ax = fig.axes
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [
+        "pass (1)", "pass, noise-limited (5)", "fail, never settled (1)", "fail, run stopped (1)"]
+    rows_drawn = {tuple(c.get_offsets()[:, 1]): sorted(c.get_offsets()[:, 0]) for c in top.collections}
+    order = list(UNSETTLED)
+    assert rows_drawn[(order.index("noise-limited"),) * 5] == pytest.approx([0.94, 0.941, 0.942, 0.943, 0.944])
+    assert rows_drawn[(order.index("never settled"),)] == [0.96]
+    assert rows_drawn[(order.index("run stopped"),)] == [0.97]
+    assert ax.get_xlim() == top.get_xlim() and ax.get_xlim()[0] < 0.94 and ax.get_xlim()[1] > 0.97
+    assert fig._suptitle.get_text() == "sweep trade-off (9 cases; 1 case without both values)"
