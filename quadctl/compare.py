@@ -21,7 +21,7 @@ from quadctl.config.pid import NEEDS_ROTORS, PRESET_NAMES, resolve
 from quadctl.design.margins import least_margins
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
-from quadctl.metrics import lqr_cost, noise_limited, overshoot, settling_time
+from quadctl.metrics import NOISE_LIMITED_WORDS, limited_by_noise, lqr_cost, overshoot, settling_time
 from quadctl.physics.motors import has_rotors
 from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import Stages, noisy, pid_loop_of
@@ -35,7 +35,7 @@ METRICS: tuple[tuple[str, str, str], ...] = (
     ("position_peak", "m", "largest |p - p_ref|"),
     ("attitude_rms", "rad", "RMS over the run of |(phi, theta, psi) - reference|"),
     ("settling", "s", "time after which |p - p_ref| stays within 2 % of its peak (None: never, or noise-limited: "
-                      "with noise or turbulence, still crossing it in the run's last tenth: settling_noise_limited)"),
+                      "settling_noise_limited)"),
     ("altitude_overshoot", "%", "largest excursion of pD past its reference, in % of the initial error"),
     ("rotor_peak", "1", "largest rotor thrust over the rotors' largest (motors.max_thrust; None: no motors:)"),
     ("rotor_rms", "1", "RMS over the run and the rotors of thrust over the largest (None: no motors:)"),
@@ -210,10 +210,9 @@ def disturbance_digest(noise, wind, rate, period: float, duration: float) -> str
     return hashlib.sha256(np.ascontiguousarray(rows, dtype=float).tobytes()).hexdigest()
 
 
-NOISE_LIMITED = ("true: the run had noise or turbulence and |p - p_ref| still crossed its 2 % band in the run's "
-                 "last tenth, or ended out of it down to half its largest, so it has no settling time (settling "
-                 "None): the band lies within the noise (an error that ends above half its largest, a drift, "
-                 "never settled: quadctl.metrics.noise_limited)")
+NOISE_LIMITED = (f"true: |p - p_ref| is noise-limited ({NOISE_LIMITED_WORDS}: quadctl.metrics.noise_limited), so it "
+                 "has no settling time (settling None); a trend that ends outside the band beyond the noise's "
+                 "reach, a drift, never settled (false)")
 """compare.json's meaning of a law's ``settling_noise_limited``."""
 
 
@@ -226,8 +225,8 @@ def metrics_of(run: SimResult, loop: ClosedLoop, Q, R, noisy: bool = False) -> d
     att = np.linalg.norm(err[:, STATE_INDEX["phi"]:STATE_INDEX["psi"] + 1], axis=1)
     cost = lqr_cost(t, err, run.u - loop.u_trim, np.asarray(Q), np.asarray(R))
     settled = settling_time(t, pos) if run.status == "ok" else None
-    # a drift (a position the law leaves free, in a wind) ends at its largest: it never settled
-    limited = run.status == "ok" and noisy and noise_limited(settled, float(t[-1]), float(pos[-1]), float(pos.max()))
+    # a drift (a position the law leaves free, in a wind) trends out of its band: it never settled
+    limited = run.status == "ok" and noisy and limited_by_noise(t, pos, settled)
     return {"position_rms": _rms(pos, t), "position_peak": float(pos.max()), "attitude_rms": _rms(att, t),
             "settling": None if limited else settled, "settling_noise_limited": bool(limited),
             "altitude_overshoot": overshoot(err[:, STATE_INDEX["pD"]]),

@@ -23,15 +23,21 @@ MAX_SAMPLES = 20_000
 ``stride``-th step, and always the last). 10 s at the report's auto step (290 000 steps) is then
 a sample every 0.5 ms: finer than any settling time or plot needs, and 4.5 MB of sim.npz."""
 NOISE_TAIL = 0.1
-"""The last tenth of a run: in a run with noise or turbulence, a state whose error still crosses its
-settling band there (settled after ``(1 - NOISE_TAIL) t_end``, or outside it at the end though down to
-:data:`NOISE_FINAL` of its largest) is *noise-limited*: the band lies within the noise, so when it last
-crossed it measures the noise, not the response, and it has no settling time (None). An error that
-ends above :data:`NOISE_FINAL` of its largest (a drift, one still growing) never settled, and is not
-noise-limited. A run without noise keeps its settling times as they are."""
-NOISE_FINAL = 0.5
-"""An error outside its settling band at a noisy run's end is noise-limited when it ends at most this
-share of its largest (it came down, and the noise holds it out of the band), else it never settled."""
+"""The last tenth of a run. In a run with noise or turbulence, a state whose error still crosses its
+settling band there (settled after ``(1 - NOISE_TAIL) t_end``, or outside the band at the end) is
+*noise-limited* when the noise is what keeps it crossing: the band's edge lies within the noise about
+the error's trend, where the trend is a least-squares line through the last tenth, taken at the end,
+and the noise its spread about that line (:data:`NOISE_REACH` standard deviations). When the error
+last crossed the band then measures the noise, not the response, and it has no settling time (None).
+An error whose trend ends farther outside the band than the noise reaches (still coming down, a
+drift) never settled, noise or not; one whose trend ends farther inside than the noise reaches is on
+its way in, and keeps its settling time. A run without noise keeps its settling times as they are."""
+NOISE_LIMITED_WORDS = ("with noise or turbulence, the error still crosses its 2 % band in the last tenth of the run, "
+                       "and the band's edge lies within the noise about the error's trend")
+"""What noise-limited means, as every table, reason and artifact says it (:data:`NOISE_TAIL`)."""
+NOISE_REACH = 3.0
+"""Standard deviations of the error about its trend that count as the reach of the noise (a
+Gaussian's samples over a run's last tenth stay within about three)."""
 OVERSHOOT_FLOOR = 1e-6
 """Excursions past zero below this fraction of the initial error are round-off: overshoot 0."""
 
@@ -42,18 +48,68 @@ def settling_time(t, err, noisy: bool = False) -> float | None:
     settled = _settled(t, err)
     if not noisy or not len(t):
         return settled
-    mag = np.abs(np.asarray(err, dtype=float))
-    return None if noise_limited(settled, float(t[-1]), float(mag[-1]), float(mag.max())) else settled
+    return None if limited_by_noise(t, err, settled) else settled
 
 
-def noise_limited(settled: float | None, t_end: float, final: float = math.inf, peak: float = 0.0) -> bool:
+def limited_by_noise(t, err, settled: float | None) -> bool:
+    """:func:`noise_limited` of one error ``err`` (r,) at times ``t`` (r,, s) that settled at ``settled``
+    (s, None: never): its band from its largest ``|err|``, its trend over the last tenth
+    (:func:`tail_trend`)."""
+    t, err = np.asarray(t, dtype=float), np.asarray(err, dtype=float)
+    band = max(SETTLING_BAND * float(np.abs(err).max()), ERROR_FLOOR)
+    return noise_limited(settled, float(t[-1]), *tail_trend(t, err), band)
+
+
+def noise_limited(settled: float | None, t_end: float, trend_end: float, spread: float, band: float) -> bool:
     """Whether a settling time ``settled`` (s, None: never) of a run with noise or turbulence that
-    ended at ``t_end`` (s, from 0) is noise-limited (:data:`NOISE_TAIL`): the error still left its band
-    in the run's last tenth, or, never settled, it ended (``final``) at most :data:`NOISE_FINAL` of its
-    largest (``peak``)."""
-    if settled is not None:
-        return settled > (1.0 - NOISE_TAIL) * t_end
-    return abs(final) <= NOISE_FINAL * peak
+    ended at ``t_end`` (s, from 0) is noise-limited (:data:`NOISE_TAIL`): the error still left its
+    ``band`` in the run's last tenth, and the band's edge lies within :data:`NOISE_REACH` times its
+    ``spread`` of where its trend there ends (``trend_end``, :func:`tail_trend`). Elementwise over
+    arrays too (``settled`` then NaN for never)."""
+    settled = np.nan if settled is None else settled
+    with np.errstate(invalid="ignore"):
+        late = np.isnan(settled) | (settled > (1.0 - NOISE_TAIL) * np.asarray(t_end))
+        out = late & (np.abs(np.abs(trend_end) - band) <= NOISE_REACH * np.asarray(spread))
+    return bool(out) if np.ndim(out) == 0 else out
+
+
+def tail_trend(t, err) -> tuple:
+    """The trend of ``err`` over the run's last tenth (:data:`NOISE_TAIL`, the samples at ``t >= (1 -
+    NOISE_TAIL) t[-1]``): a least-squares line's value at the end and the RMS of ``err`` about it,
+    in ``err``'s unit. ``t`` (..., r) and ``err`` (..., r) give arrays of the leading shape.
+
+    The sums run left to right over the samples (``cumsum``), as the sweep's lanes add them as
+    they step (:func:`trend_of_sums`), so the two agree to the last bit."""
+    t, err = np.asarray(t, dtype=float), np.asarray(err, dtype=float)
+    t_end = t[..., -1:]
+    t0 = (1.0 - NOISE_TAIL) * t_end
+    tail = t >= t0
+    tau = np.where(tail, t - t0, 0.0)
+    e = np.where(tail, err, 0.0)
+
+    def last(v):
+        return np.cumsum(v, axis=-1)[..., -1]
+
+    return trend_of_sums(last(tail.astype(float)), last(tau), last(tau * tau), last(e), last(tau * e),
+                         last(e * e), t_end[..., 0] - t0[..., 0])
+
+
+def trend_of_sums(n, st, stt, se, ste, see, tau_end) -> tuple:
+    """(the line's value at ``tau_end``, the RMS about it) of the least-squares line ``e = a + b tau``
+    through ``n`` samples with the sums of ``tau``, ``tau^2``, ``e``, ``tau e`` and ``e^2``
+    (elementwise over arrays; one sample: the line is flat through it)."""
+    n, st, stt, se, ste, see = (np.asarray(v, dtype=float) for v in (n, st, stt, se, ste, see))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        det = n * stt - st * st
+        slope = np.where(det > 0, (n * ste - st * se) / np.where(det > 0, det, 1.0), 0.0)
+        mean = se / np.maximum(n, 1.0)
+        a = mean - slope * st / np.maximum(n, 1.0)
+        ssr = np.maximum(see - a * se - slope * ste, 0.0)
+        spread = np.sqrt(ssr / np.maximum(n, 1.0))
+    trend = a + slope * np.asarray(tau_end, dtype=float)
+    if np.ndim(trend) == 0:
+        return float(trend), float(spread)
+    return trend, spread
 
 
 def _settled(t, err) -> float | None:
@@ -117,8 +173,7 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: bool = False) -> dict:
         out["final_error"][name] = float(err[-1, i])
         if name in regulated_states:  # a run cut short has not shown where it settles
             settled = _settled(sim.t, err[:, i]) if sim.status == "ok" else None
-            if sim.status == "ok" and noisy and noise_limited(settled, float(sim.t[-1]), out["final_error"][name],
-                                                              out["peak_error"][name]):
+            if sim.status == "ok" and noisy and limited_by_noise(sim.t, err[:, i], settled):
                 out["noise_limited"].append(name)
                 settled = None
             out["settling_time"][name] = settled
@@ -229,11 +284,14 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=Fa
     at_once = (peak <= ERROR_FLOOR) | ~outside[run, state, newest]
     never = outside[:, :, 0]
     settled_at = np.take_along_axis(t, np.minimum(last + 1, n - 1), axis=1)
-    # noise-limited (noise_limited): a full run with noise whose error settled in its last tenth, or never
-    # settled and ended down to NOISE_FINAL of its largest
-    late = np.where(never, np.abs(err[:, :, -1]) <= NOISE_FINAL * peak,
-                    settled_at > (1.0 - NOISE_TAIL) * t[:, -1:]) & ~at_once \
-        & np.broadcast_to(np.asarray(noisy, dtype=bool), (B,))[:, None] & (np.asarray(status) == "ok")[:, None]
+    # noise-limited (noise_limited): a full run with noise whose error still crossed its band in the last
+    # tenth, the band's edge within the noise about the error's trend there
+    noisy = np.broadcast_to(np.asarray(noisy, dtype=bool), (B,))
+    late = np.zeros((B, err.shape[1]), dtype=bool)
+    if noisy.any():
+        trend_end, spread = tail_trend(t[:, None, :], err)
+        late = noise_limited(np.where(never, np.nan, settled_at), t[:, -1:], trend_end, spread, band) & ~at_once \
+            & noisy[:, None] & (np.asarray(status) == "ok")[:, None]
     at_once, never, late, settled_at = at_once.tolist(), never.tolist(), late.tolist(), settled_at.tolist()
     e0 = err[:, :, 0]
     # max(-sign(e0) e) without the product: -min(e) where e0 > 0, max(e) where e0 < 0 (exact)

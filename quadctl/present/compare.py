@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from quadctl.artifacts.json_values import decode_floats
 from quadctl.compare import METRICS, parse_law
+from quadctl.metrics import NOISE_LIMITED_WORDS
 from quadctl.present.cells import NBSP, UNSTABLE, Mark, Table, num
 
 
@@ -29,9 +30,8 @@ def table(data: dict) -> Table:
         how += f"; {UNSTABLE}: the law's closed loop is unstable, so it has no margin"
     no_rotors = ("rotor use '-': no rotors (the config has no motors:); "
                  if any(law.get("rotor_peak") is None for law in laws) else "")
-    noise = ("settling 'noise': noise-limited, the run's noise or turbulence keeps the position error crossing "
-             "the band in the last tenth of the run; " if any(law.get("settling_noise_limited") for law in laws)
-             else "")
+    noise = (f"settling 'noise': noise-limited: {NOISE_LIMITED_WORDS}; "
+             if any(law.get("settling_noise_limited") for law in laws) else "")
     return Table("compare-table", f"{data['config']}: laws side by side over {num(data['duration'])}{NBSP}s",
                  ("metric", *[law["name"] for law in laws]), tuple(rows),
                  caption="the same plant, initial offset, reference, wind and noise for every law; cost on the "

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 from quadctl.layout import INPUT_NAMES, STATE_NAMES, unit_of
+from quadctl.metrics import NOISE_LIMITED_WORDS
 from quadctl.present.cells import Mark, Table, eig, num, percent
 
 
@@ -46,8 +47,7 @@ def controller_text(flight: dict, sim) -> str | None:
             f"{ctl['hold_steps']} {integrator_name(sim)} steps of {sim.dt:.4g} s")
 
 
-NOISE_LIMITED_NOTE = ("noise: noise-limited: in a run with noise or turbulence, the error still crosses the band in "
-                      "the last tenth of the run, or ends outside the band at half its largest or less, so it has no "
+NOISE_LIMITED_NOTE = (f"noise: noise-limited: {NOISE_LIMITED_WORDS}: the band lies within the noise, so it has no "
                       "settling time (read the RMS over the second half, or run without noise)")
 """The metrics table's footnote on a settling time shown as ``noise``."""
 

@@ -11,7 +11,7 @@
  *   qc_rem(X, t, c, e, N, u, P) / qc_rem(X, u, c, e, N, P)  the nonlinear remainder N = rhs - L X
  * whose stages qc_etd combines here (P: what it computes from c alone, by qc_rem_pre)
  *   qc_ref(t, c, e, x_ref)             the reference state the law regulates to (QC_NS states)
- * and the metrics' constants (QC_BAND, QC_FLOOR: quadctl.metrics; QC_SETTLE_NONE, QC_SETTLE_PENDING:
+ * and the metrics' constants (QC_BAND, QC_FLOOR, QC_NOISE_TAIL: quadctl.metrics; QC_SETTLE_NONE, QC_SETTLE_PENDING:
  * quadctl.sim.lane_metrics).
  * Every argument is lane-major: element j of lane l is at [j * QC_L + l].
  *
@@ -29,7 +29,8 @@
  * reads the sums): the error e = x - x_ref(t) of the QC_NS rigid-body states against the reference
  * the law regulates to (qc_ref), its first, last, lowest, highest and largest |e|, the settling
  * record, the largest |u|, the LQR cost by the trapezoid rule, the position tracking error and the
- * waypoints reached, as quadctl.metrics and quadctl.pipeline.tracking_of define them. */
+ * waypoints reached, and, for a run with noise, the sums of the line through the error over its last
+ * tenth (quadctl.metrics.tail_trend), as quadctl.metrics and quadctl.pipeline.tracking_of define them. */
 #include <limits.h>
 #include <math.h>
 #include <string.h>
@@ -124,7 +125,7 @@ static void qc_exo_next(const double* exo, long exo_rows, const double* lane_d, 
 
 /* ---- the metrics of the records (mq != NULL); the slots of macc [QC_M(...)][QC_L] ---- */
 #define QC_SLOT(k, i) (((k) * QC_NS + (i)) * QC_L)
-enum { QC_E0, QC_ELAST, QC_EMIN, QC_EMAX, QC_PEAK, QC_SETTLE, QC_PER_STATE };
+enum { QC_E0, QC_ELAST, QC_EMIN, QC_EMAX, QC_PEAK, QC_SETTLE, QC_TAIL_E, QC_TAIL_TE, QC_TAIL_EE, QC_PER_STATE };
 #define QC_UMAX (QC_PER_STATE * QC_NS)         /* QC_NU slots: largest |u| */
 #define QC_COST (QC_UMAX + QC_NU)              /* trapezoid sum of (I_k + I_k-1)(t_k - t_k-1) */
 #define QC_ILAST (QC_COST + 1)                 /* the last record's integrand */
@@ -132,14 +133,17 @@ enum { QC_E0, QC_ELAST, QC_EMIN, QC_EMAX, QC_PEAK, QC_SETTLE, QC_PER_STATE };
 #define QC_TRACK2 (QC_COST + 3)                /* sum of |p - p_ref|^2 over the records */
 #define QC_TRACKMAX (QC_COST + 4)              /* largest |p - p_ref| */
 #define QC_NREC (QC_COST + 5)                  /* records summarized */
-#define QC_REACHED (QC_COST + 6)               /* one slot per leg: the time it was reached, or -1 */
+#define QC_TAIL_N (QC_COST + 6)                /* records in the last tenth of a full run (t >= tail0) */
+#define QC_TAIL_T (QC_COST + 7)                /* their sum of tau = t - tail0, s */
+#define QC_TAIL_TT (QC_COST + 8)               /* their sum of tau^2 */
+#define QC_REACHED (QC_COST + 9)               /* one slot per leg: the time it was reached, or -1 */
 
 static double qc_nanmax(double a, double b) { return (b > a || b != b) ? b : a; }  /* numpy's max: NaN wins */
 static double qc_nanmin(double a, double b) { return (b < a || b != b) ? b : a; }
 
-/* mq: [n_s, s[n_s], n_q, q_i[n_q], q_j[n_q], n_r, r_i[n_r], r_j[n_r], n_legs, track]: the states
+/* mq: [n_s, s[n_s], n_q, q_i[n_q], q_j[n_q], n_r, r_i[n_r], r_j[n_r], n_legs, track, tail]: the states
  * summarized (every state the weights or the tracking error read among them), the weights'
- * nonzeros, the mission's legs and whether to sum the position error;
+ * nonzeros, the mission's legs, whether to sum the position error and the tail's line;
  * mv [rows][QC_L]: u_trim[QC_NU], q[n_q], r[n_r], tolerance, then per leg start, N, E, D. */
 #define QC_MQ_Q(mq) ((mq) + 1 + (mq)[0])
 #define QC_MQ_R(mq) (QC_MQ_Q(mq) + 1 + 2 * QC_MQ_Q(mq)[0])
@@ -154,6 +158,9 @@ static void qc_metric_init(const long* mq, double* macc) {
       macc[QC_SLOT(QC_EMAX, i) + l] = -INFINITY;
       macc[QC_SLOT(QC_PEAK, i) + l] = NAN;  /* set at the final record */
       macc[QC_SLOT(QC_SETTLE, i) + l] = QC_SETTLE_NONE;
+      macc[QC_SLOT(QC_TAIL_E, i) + l] = 0.0;
+      macc[QC_SLOT(QC_TAIL_TE, i) + l] = 0.0;
+      macc[QC_SLOT(QC_TAIL_EE, i) + l] = 0.0;
     }
     for (int j = 0; j < QC_NU; ++j) macc[(QC_UMAX + j) * QC_L + l] = 0.0;
     for (int k = QC_COST; k < QC_REACHED; ++k) macc[k * QC_L + l] = 0.0;
@@ -176,15 +183,17 @@ static void qc_quadratic(double* s, const double* v, const long* i, const long* 
 }
 
 /* one record of the lanes with on[l] != 0: absolute step kk[l] at time t[l], state X, input U,
- * reference R (each [.][QC_L]); final: the run's last record (its error is kept). Every loop runs
- * over the lanes, a lane that does not record keeps its sums (so the compiler vectorizes them). */
+ * reference R (each [.][QC_L]); final: the run's last record (its error is kept); tail0[l]: where
+ * the last tenth of the lane's full run starts (s). Every loop runs over the lanes, a lane that does
+ * not record keeps its sums (so the compiler vectorizes them). */
 static void qc_metric(const long* mq, const double* mv, double* macc, const int* on_, const long* kk_,
-                      const double* t, const double* X, const double* U, const double* R, int final) {
+                      const double* t, const double* X, const double* U, const double* R, const double* tail0,
+                      int final) {
   const long ns = mq[0], *st = mq + 1;
   const long* mqq = QC_MQ_Q(mq), *mqr = QC_MQ_R(mq), *mql = QC_MQ_LEGS(mq);
   const long nq = mqq[0], *qi = mqq + 1, *qj = mqq + 1 + nq;
   const long nr = mqr[0], *ri = mqr + 1, *rj = mqr + 1 + nr;
-  const long n_legs = mql[0], track = mql[1];
+  const long n_legs = mql[0], track = mql[1], tail = mql[2];
   const double* q = mv + QC_NU * QC_L;
   const double* r = q + nq * QC_L;
   const double* legs = r + nr * QC_L;  /* tolerance, then 4 rows a leg */
@@ -264,6 +273,36 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
     i_last[l] = o ? integrand : i_last[l];
     t_last[l] = o ? t[l] : t_last[l];
     n_rec[l] += on[l];
+  }
+  if (tail) {  /* the line through the error over the last tenth: left to right, as metrics.tail_trend adds */
+    double in[QC_L], tau[QC_L];
+    int any_in = 0;
+    for (int l = 0; l < QC_L; ++l) {
+      in[l] = on[l] != 0.0 && t[l] >= tail0[l] ? 1.0 : 0.0;
+      tau[l] = in[l] != 0.0 ? t[l] - tail0[l] : 0.0;
+      any_in |= in[l] != 0.0;
+    }
+    if (any_in) {
+      double *tn = macc + QC_TAIL_N * QC_L, *tt = macc + QC_TAIL_T * QC_L, *ttt = macc + QC_TAIL_TT * QC_L;
+#pragma omp simd
+      for (int l = 0; l < QC_L; ++l) {
+        tn[l] = tn[l] + in[l];
+        tt[l] = tt[l] + tau[l];
+        ttt[l] = ttt[l] + tau[l] * tau[l];
+      }
+      for (long a = 0; a < ns; ++a) {
+        const long i = st[a];
+        double *se = macc + QC_SLOT(QC_TAIL_E, i), *ste = macc + QC_SLOT(QC_TAIL_TE, i);
+        double* see = macc + QC_SLOT(QC_TAIL_EE, i);
+#pragma omp simd
+        for (int l = 0; l < QC_L; ++l) {
+          double v = in[l] != 0.0 ? e[i * QC_L + l] : 0.0;
+          se[l] = se[l] + v;
+          ste[l] = ste[l] + tau[l] * v;
+          see[l] = see[l] + v * v;
+        }
+      }
+    }
   }
   if (!track) return;
   double *sq = macc + QC_TRACK2 * QC_L, *top = macc + QC_TRACKMAX * QC_L;
@@ -376,7 +415,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
                       long keep, const long* mq, const double* mv, double* macc, const long* row0) {
   double X[QC_NX * QC_L], XN[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
   double U[QC_NU * QC_L], UH[QC_NU * QC_L], UF[QC_NU * QC_L], T[QC_L], DT[QC_L], E[QC_NE1 * QC_L];
-  double XR[QC_NS * QC_L];
+  double XR[QC_NS * QC_L], TAIL0[QC_L];
   long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L], until[QC_L];
   int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
   long first_end = LONG_MAX;  /* the fewest steps a lane takes: no lane finishes on a step before it */
@@ -400,6 +439,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     rec_in[l] = qc_mod(-QC_K0(l), QC_STRIDE(l));   /* steps until the next recorded one */
     hold_in[l] = qc_mod(-QC_K0(l), QC_HOLD(l));    /* steps until the next controller sample */
     DT[l] = QC_DT(l);
+    TAIL0[l] = (1.0 - QC_NOISE_TAIL) * (QC_DT(l) * (double)(QC_K0(l) + QC_N(l)));  /* metrics.tail_trend's t0 */
     n_active += active[l];
     if (QC_N(l) < first_end) first_end = QC_N(l);
   }
@@ -446,7 +486,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
         kk[l] = QC_K0(l) + k;
       }
       qc_ref(T, c, E, XR);
-      qc_metric(mq, mv, macc, on, kk, T, X, UA, XR, 0);
+      qc_metric(mq, mv, macc, on, kk, T, X, UA, XR, TAIL0, 0);
     }
     if (rec && keep) {
       for (int l = 0; l < QC_L; ++l) {
@@ -541,7 +581,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
       qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk[l], T[l], E, held + l);
     }
     qc_ref(T, c, E, XR);
-    qc_metric(mq, mv, macc, on, kk, T, XF, U, XR, 1);
+    qc_metric(mq, mv, macc, on, kk, T, XF, U, XR, TAIL0, 1);
   }
 }
 

@@ -5,9 +5,10 @@ A sweep needs of each run its metrics (:func:`quadctl.metrics.summarize_errors`)
 (:data:`PER_STATE`, :data:`SCALARS`: the slots of ``driver.c``) over the records a one-case run would keep (every
 ``stride``-th step and the last), from ``e = x - x_ref(t)``: first, last, lowest, highest and
 largest ``|e|``, the record after the last one outside the settling band (exact: the band of the
-largest ``|e|`` so far; with the last record's time, whether a run with noise is noise-limited:
-:func:`quadctl.metrics.noise_limited`), largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du``, the position
-error's sums and the waypoint times. Read back, they equal :func:`quadctl.metrics.summarize` of the
+largest ``|e|`` so far), for a run with noise the sums of the line through ``e`` over the run's last
+tenth (with the settling record, whether it is noise-limited: :func:`quadctl.metrics.noise_limited`),
+largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du``, the position error's sums and the
+waypoint times. Read back, they equal :func:`quadctl.metrics.summarize` of the
 same records.
 """
 
@@ -19,16 +20,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
-from quadctl.metrics import ERROR_FLOOR, NOISE_FINAL, NOISE_TAIL
+from quadctl.metrics import ERROR_FLOOR, NOISE_TAIL, SETTLING_BAND, noise_limited, trend_of_sums
 from quadctl.native.compile import C_LONG
 
-PER_STATE = ("e0", "e_last", "e_min", "e_max", "peak", "settle")
+PER_STATE = ("e0", "e_last", "e_min", "e_max", "peak", "settle", "tail_e", "tail_te", "tail_ee")
 """Per-state sums, each :data:`N_STATES` slots, in ``driver.c``'s order."""
 SETTLE_NONE = -2.0
 """``settle``: no record was outside the band (settled at once)."""
 SETTLE_PENDING = -1.0
 """``settle``: the last record was outside the band (never settled)."""
-SCALARS = ("cost", "integrand_last", "t_last", "track_sq", "track_max", "records")
+SCALARS = ("cost", "integrand_last", "t_last", "track_sq", "track_max", "records", "tail_n", "tail_t", "tail_tt")
 """The sums after the per-state ones and the :data:`N_INPUTS` input peaks; one slot per leg follows."""
 
 
@@ -37,7 +38,8 @@ class MetricSpec:
     """What the lanes of one group sum: the states summarized (the regulated ones, and those the
     weights and the tracking error read), the nonzeros of ``Q`` (12 x 12) and ``R`` (4 x 4),
     row-major (the same in every case of the group), and, flying a reference, the position error
-    and the number of mission legs whose waypoint times they find.
+    and the number of mission legs whose waypoint times they find; with ``tail``, the line through
+    each error over the run's last tenth (runs with noise: :func:`quadctl.metrics.tail_trend`).
 
     Attributes
     ----------
@@ -46,6 +48,7 @@ class MetricSpec:
     q_pairs, r_pairs : tuple of (int, int)
     track : bool
     legs : int
+    tail : bool
     """
 
     states: tuple[int, ...]
@@ -53,22 +56,23 @@ class MetricSpec:
     r_pairs: tuple[tuple[int, int], ...]
     track: bool = False
     legs: int = 0
+    tail: bool = False
 
     @classmethod
-    def of(cls, regulated_states, Q, R, track: bool = False, legs: int = 0) -> MetricSpec:
+    def of(cls, regulated_states, Q, R, track: bool = False, legs: int = 0, tail: bool = False) -> MetricSpec:
         """The spec of the ``regulated_states`` (names) and weights with the sparsity of ``Q`` and ``R``."""
         q_pairs = tuple(zip(*(v.tolist() for v in np.nonzero(np.asarray(Q)))))
         states = {STATE_NAMES.index(name) for name in regulated_states} | {i for pair in q_pairs for i in pair}
         states |= {0, 1, 2} if track else set()
         return cls(tuple(sorted(states)), q_pairs, tuple(zip(*(v.tolist() for v in np.nonzero(np.asarray(R))))),
-                   bool(track), int(legs))
+                   bool(track), int(legs), bool(tail))
 
     def header(self) -> np.ndarray:
         """``driver.c``'s ``mq``: the states, counts and index pairs (C long)."""
 
         q, r = np.array(self.q_pairs, dtype=int).reshape(-1, 2), np.array(self.r_pairs, dtype=int).reshape(-1, 2)
         return np.concatenate([[len(self.states)], self.states, [len(q)], q[:, 0], q[:, 1], [len(r)], r[:, 0],
-                               r[:, 1], [self.legs, int(self.track)]]).astype(C_LONG)
+                               r[:, 1], [self.legs, int(self.track), int(self.tail)]]).astype(C_LONG)
 
     @property
     def n_values(self) -> int:
@@ -164,12 +168,18 @@ def _readings(sums, dt, regulated_states, status, noisy=False) -> tuple:
     settled_at = np.asarray(dt, dtype=float)[:, None] * np.maximum(settle, 0.0)
     settling = np.where(settle == SETTLE_NONE, 0.0, settled_at).astype(object)
     ok = (np.asarray(status) == "ok")[:, None]
-    # noise-limited (quadctl.metrics.noise_limited): settled in the run's last tenth, or never and ended down
-    # to NOISE_FINAL of its largest
-    t_end = sums[:, _slot("t_last")][:, None]
-    late = np.where(settle == SETTLE_PENDING, np.abs(last) <= NOISE_FINAL * peak,
-                    (settle >= 0) & (settled_at > (1.0 - NOISE_TAIL) * t_end)) & ok \
-        & np.broadcast_to(np.asarray(noisy, dtype=bool), (len(sums),))[:, None]
+    # noise-limited (quadctl.metrics.noise_limited): still crossing the band in the run's last tenth, and the
+    # band's edge within the noise about the error's trend there
+    noisy = np.broadcast_to(np.asarray(noisy, dtype=bool), (len(sums),))
+    late = np.zeros(settle.shape, dtype=bool)
+    if noisy.any():
+        t_end = sums[:, _slot("t_last")][:, None]
+        tail = [per[:, PER_STATE.index(k)] for k in ("tail_e", "tail_te", "tail_ee")]
+        n, st, stt = (sums[:, _slot(k)][:, None] for k in ("tail_n", "tail_t", "tail_tt"))
+        trend_end, spread = trend_of_sums(n, st, stt, *tail, t_end - (1.0 - NOISE_TAIL) * t_end)
+        band = np.maximum(SETTLING_BAND * peak, ERROR_FLOOR)
+        late = noise_limited(np.where(settle == SETTLE_PENDING, np.nan, settled_at), t_end, trend_end, spread, band) \
+            & (settle != SETTLE_NONE) & ok & noisy[:, None]
     settling[(settle == SETTLE_PENDING) | ~ok | late] = None
     overshoot = over.astype(object)
     overshoot[np.abs(e0) <= ERROR_FLOOR] = None

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from quadctl.layout import N_INPUTS, N_STATES
-from quadctl.metrics import ERROR_FLOOR, SETTLING_BAND
+from quadctl.metrics import ERROR_FLOOR, NOISE_TAIL, SETTLING_BAND
 from quadctl.native.compile import C_LONG, DRIVER_SOURCE
 from quadctl.native.emit import SIMD_DECLARATIONS, emit
 from quadctl.physics.reference_rows import ROW_HALF, SPLIT_ROUNDOFF
@@ -43,6 +43,7 @@ def library_source(funcs: LoopFunctions, lanes: int, simd: bool) -> str:
             f"#define QC_NC {spec.n_constants}\n"
             f"#define QC_HELD {int(spec.held)}\n#define QC_ETD {int(etd)}\n"
             f"#define QC_BAND {SETTLING_BAND!r}\n#define QC_FLOOR {ERROR_FLOOR!r}\n"
+            f"#define QC_NOISE_TAIL {NOISE_TAIL!r}\n"
             f"#define QC_SETTLE_NONE ({SETTLE_NONE!r})\n#define QC_SETTLE_PENDING ({SETTLE_PENDING!r})\n"
             f"#define QC_REF {spec.n_exo - N_REFERENCE if spec.reference else -1}\n#define QC_REF_HALF {ROW_HALF}\n"
             f"#define QC_SPLIT_ROUNDOFF {SPLIT_ROUNDOFF!r}\n")

@@ -250,9 +250,11 @@ def summarize_all(jobs):
         setup = item[0].setup
         ref = setup.reference
         legs = len(ref.legs) if ref is not None else 0
-        key = (setup.regulated, (setup.Q_block != 0).tobytes(), (setup.R_block != 0).tobytes(), ref is not None, legs)
+        tail = pipeline.noisy(setup)  # its settling may be noise-limited: the line through its errors' tails
+        key = (setup.regulated, (setup.Q_block != 0).tobytes(), (setup.R_block != 0).tobytes(), ref is not None, legs,
+               tail)
         if key not in specs:
-            specs[key] = MetricSpec.of(setup.regulated, setup.Q_block, setup.R_block, ref is not None, legs)
+            specs[key] = MetricSpec.of(setup.regulated, setup.Q_block, setup.R_block, ref is not None, legs, tail)
         by_spec.setdefault((item[2].spec, specs[key]), []).append(item)
     for (spec, metrics), group in by_spec.items():
         run = runner(spec, LANES)

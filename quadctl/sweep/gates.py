@@ -9,6 +9,7 @@ from typing import Any
 
 from quadctl.design.margins import least_margins
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES
+from quadctl.metrics import NOISE_LIMITED_WORDS
 
 
 @dataclass(frozen=True)
@@ -144,8 +145,7 @@ def regulated_states(cfg) -> list[str]:
 
 def noise_limited_reason(states) -> str:
     """A row's ``reason`` for its noise-limited settling times (``states``; their columns are empty)."""
-    return (f"settling noise-limited: {', '.join(states)} (with noise or turbulence, the error still crosses "
-            "the 2 % band in the last tenth of the run, or ends outside it though down to half its largest)")
+    return f"settling noise-limited: {', '.join(states)} ({NOISE_LIMITED_WORDS})"
 
 
 def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:

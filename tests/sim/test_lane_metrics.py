@@ -11,16 +11,19 @@ import numpy as np
 import pytest
 
 from quadctl import config, metrics, pipeline, sweep
-from quadctl.layout import N_STATES, STATE_INDEX
+from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.setup import setup_of
 from quadctl.sim.engine import LANES, runner
-from quadctl.sim.lane_metrics import MetricSpec, case_values, row_values, summaries, tracking
+from quadctl.sim.lane_metrics import PER_STATE, MetricSpec, _slot, case_values, row_values, summaries, tracking
 from quadctl.sweep import batched, lane_jobs, prepare
 
 pytestmark = pytest.mark.compiler
 
 SPEEDS = (2.0, 2.5, 3.0)
 """m/s: the square mission's peak speed in the sweep (it ends within its 15 s at each)."""
+NOISE = {"seed": 3, "force": [0.02, 0.02, 0.02], "torque": [1e-4, 1e-4, 5e-5],
+         "sensor": {"phi": 0.002, "theta": 0.002, "psi": 0.002, "p": 0.01, "q": 0.01, "r": 0.01}}
+"""The forward sweep's noise (N, N m, state units): enough to keep some errors crossing their bands."""
 GATE = 5e-7
 """m: the tracking-error gate, between the middle and the fastest case's RMS (about 1.2e-7, 3.3e-7 and
 7.6e-7 at 2, 2.5 and 3 m/s)."""
@@ -49,7 +52,7 @@ def lane_group(cfgs):
     ref = preps[0].setup.reference
     legs = len(ref.legs) if ref is not None else 0
     mspec = MetricSpec.of(preps[0].setup.regulated, preps[0].setup.Q_block, preps[0].setup.R_block, ref is not None,
-                          legs)
+                          legs, pipeline.noisy(preps[0].setup))
     values = np.stack([case_values(mspec, p.plant.linear.u_trim, p.setup.Q_block, p.setup.R_block,
                                    *((ref.tolerance, p.setup.reference.legs) if legs else ())) for p in preps])
     return items, runner(spec, LANES), batched._cases_of(items), mspec, values
@@ -61,9 +64,13 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
     records the same lanes keep: the same numbers (the cost to round-off of its summation order). forward
     fills a whole group of lanes, so every record but the last takes qc_metric's path for all lanes
     recording at once, which a group with an idle (padded) lane never takes; its 1 s lets most states
-    settle (6 to 8 of 10 a case), so the settling times compared are numbers, not None."""
+    settle (6 to 8 of 10 a case), so the settling times compared are numbers, not None. It flies with
+    sensor and process noise, so the lanes also sum the line through each error's last tenth, and the
+    states the noise keeps crossing their bands read noise-limited the same from the lanes' sums as
+    from the records."""
     if which == "forward":
         base = config.load("forward").model_dump(mode="json")
+        base["simulation"]["noise"] = NOISE
         cfgs = [config.from_dict(sweep.assign(sweep.assign(base, ("lqr", "roll", "Q", 1), float(q)),
                                               ("simulation", "duration"), 1.0), "forward")
                 for q in np.geomspace(10.0, 200.0, LANES)]
@@ -88,14 +95,22 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
         want = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,
                                  setup.regulated)
         got = summaries(sums[None], [job.plan.dt], setup.regulated, ["ok"])[0]
-        # read as a run with noise, the same records: the same noise-limited states (at least one
-        # in forward's 1 s, where some settle late or never) and settling times
-        noisy = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,
-                                  setup.regulated, noisy=True)
-        lanes_noisy = summaries(sums[None], [job.plan.dt], setup.regulated, ["ok"], [True])[0]
-        assert lanes_noisy["noise_limited"] == noisy["noise_limited"] and want["noise_limited"] == []
-        assert lanes_noisy["settling_time"] == noisy["settling_time"]
-        assert which != "forward" or noisy["noise_limited"]
+        # forward flies with noise: read so, the same records give the same noise-limited states (at least
+        # one in its 1 s), settling times and tails' lines, to the last bit (square flies without: its lanes
+        # sum no tails)
+        assert mspec.tail == (which == "forward")
+        if mspec.tail:
+            noisy = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,
+                                      setup.regulated, noisy=True)
+            lanes_noisy = summaries(sums[None], [job.plan.dt], setup.regulated, ["ok"], [True])[0]
+            assert lanes_noisy["noise_limited"] == noisy["noise_limited"] and want["noise_limited"] == []
+            assert lanes_noisy["settling_time"] == noisy["settling_time"] and noisy["noise_limited"]
+            per = sums[:len(PER_STATE) * N_STATES].reshape(len(PER_STATE), N_STATES)
+            for i in mspec.states:
+                lines = metrics.trend_of_sums(*(sums[_slot(k)] for k in ("tail_n", "tail_t", "tail_tt")),
+                                              *(per[PER_STATE.index(k), i] for k in ("tail_e", "tail_te", "tail_ee")),
+                                              t[-1] - (1.0 - metrics.NOISE_TAIL) * t[-1])
+                assert lines == metrics.tail_trend(t, x[:, i] - x_ref[:, i]), STATE_NAMES[i]
         if which == "forward":
             assert sum(v is not None for v in want["settling_time"].values()) >= 5
         for key in ("settling_time", "overshoot", "peak"):
