@@ -2,8 +2,8 @@
 
 Each case is the config with the sweep's values put in and validated again; a chunk of cases is
 designed and simulated together (batched Riccati solves, SIMD lanes), or one by one through
-:mod:`quadctl.pipeline` with ``fast=False``. The sweep file, the metrics, uncertainty studies and
-how a sweep is fast are in the docs, docs/guide/sweeps.md.
+:mod:`quadctl.pipeline` with ``fast=False``. The sweep file, the metrics and uncertainty studies are in
+the docs, docs/guide/sweeps.md; how a sweep is fast, docs/internals.md ("How a sweep runs").
 
 Modules, each importing only those above it:
 
