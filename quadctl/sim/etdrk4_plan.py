@@ -46,7 +46,7 @@ FREE_SAFETY = 2.0
 initial state excites the fast modes, the case the rule's ``t = 0`` grading describes). Measured
 against RK4 at a 2.5e-5 s step over 3 s of the bundled ``forward``, ``hover``, ``drake-hover`` and
 ``forward-script-q`` at tolerance 1e-8 and 1e-10, and on the report's 10 s ``forward`` loop against
-LSODA at rtol 1e-12 (docs/guide/simulation.md and docs/internals.md give the numbers): the error starts to rise at 6, and
+LSODA at rtol 1e-12 (docs/internals.md gives the numbers): the error starts to rise at 6, and
 2 keeps a factor of 3 in step below that."""
 MERGE_STEPS = 1
 """A graded segment that would save at most this many steps over the finer step before it is not
