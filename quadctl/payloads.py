@@ -110,7 +110,7 @@ def margins(setup, des: Design, result, vehicle) -> dict:
 
 def cascade_margins(setup, lift, result) -> dict:
     """``margins.json`` of a PID cascade: each input's loop (``result``) and the lifted closed loop
-    (:class:`quadctl.sim.cascade_margins.Lifted`)."""
+    (:class:`quadctl.sim.cascade_lift.Lifted`)."""
     gains = setup.pid
     n_att, n_pos = gains.ratios
     eig = np.linalg.eigvals(lift.frame_map)

@@ -29,7 +29,8 @@ from quadctl.physics import motors, trajectory
 from quadctl.physics.model import Vehicle, build_model
 from quadctl.physics.motors import check_trim
 from quadctl.setup import Setup
-from quadctl.sim.cascade_margins import cascade_margins, lifted
+from quadctl.sim.cascade_lift import lifted
+from quadctl.sim.cascade_margins import cascade_margins
 from quadctl.sim.loop import ClosedLoop, eigen_owners
 from quadctl.sim.run import SimResult, simulate
 
@@ -339,7 +340,7 @@ class Stages:
     @cached_property
     def pid_lift(self):
         """The setup's PID cascade linearized about hover, lifted to its frame
-        (:func:`quadctl.sim.cascade_margins.lifted`)."""
+        (:func:`quadctl.sim.cascade_lift.lifted`)."""
 
         return lifted(self.pid_loop)
 

@@ -1,13 +1,12 @@
 """Margins of a PID cascade's loops, broken at each plant input with the whole cascade closed around it.
 
-The multi-rate cascade (:mod:`quadctl.sim.pid`), linearized about hover from the law the simulation
-runs, is lifted to its frame (:func:`lifted`, :class:`Lifted`), where it is time-invariant. Every margin
-is exact: stability, poles and the gain margins from the lifted loop's poles (:func:`exact_gain_margins`);
-the phase and disk margins from its characteristic loci, the eigenvalues of the frame's transfer matrix
-(:func:`loci_margins`: a constant gain on the input is that gain on every sample, so it commutes with the
-lifted loop); the delay margin the least extra delay of the held input that makes the lifted loop
-unstable (:func:`exact_delay_margin`). The method and its references are in the docs, docs/internals.md
-("Margins of a PID cascade").
+Every margin is exact, read from the cascade lifted to its frame (:mod:`quadctl.sim.cascade_lift`, where
+it is time-invariant): stability, poles and the gain margins from the lifted loop's poles
+(:func:`exact_gain_margins`); the phase and disk margins from its characteristic loci, the eigenvalues of
+the frame's transfer matrix (:func:`loci_margins`: a constant gain on the input is that gain on every
+sample, so it commutes with the lifted loop); the delay margin the least extra delay of the held input
+that makes the lifted loop unstable (:func:`exact_delay_margin`). The method and its references are in
+the docs, docs/internals.md ("Margins of a PID cascade").
 """
 
 from __future__ import annotations
@@ -18,14 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.design.margins import GRID_SPAN, POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, gain_db, no_margin
+from quadctl.design.margins import POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, gain_db, no_margin
 from quadctl.layout import INPUT_NAMES
 from quadctl.linear.stability import is_stable
-from quadctl.signals import signals_held
-from quadctl.sim import pid
-from quadctl.sim.builder import build
+from quadctl.sim.cascade_lift import LOCI_INFINITE, Lifted, LiftedLoop, lifted
 
-ca = lazy_import("casadi")
 scipy = lazy_import("scipy")
 
 GAIN_SCAN = np.logspace(-3, 3, 241)
@@ -39,235 +35,9 @@ LOCI_POINTS_PER_DECADE = 20
 """Frame frequencies ``theta`` per decade at which the characteristic loci are computed before each crossing
 is refined by root finding and each least value by minimization: two crossings closer than a step apart (a
 locus grazing ``|lam| = 1`` or the real axis) could be missed."""
-LOCI_INFINITE = 1e10
-"""An eigenvalue of ``L`` larger than this (a destabilizing gain below -200 dB) is taken as this, real."""
-LOCI_ZERO = 1e-10
-"""An eigenvalue of ``L`` smaller than this (a destabilizing gain above +200 dB; a loop of low rank over the
-frame has such, their phase rounding noise) is taken as 0."""
-LOCI_EXPLICIT = 1e4
-"""Largest ``|L|`` entry at which the loci are the eigenvalues of ``L`` itself (those of order one then good
-to ~1e-12); beyond it, of the pencil (:meth:`LiftedLoop.loci`)."""
 DELAY_SCAN = (1 / 16) * 1.1 ** np.arange(90)
 """Delays in base samples scanned for the exact delay margin (1/16 to ~300 samples, 10 % apart), then refined
 to the edge: a band of instability narrower than 10 % in delay between two stable ones would be missed."""
-
-
-@dataclass(frozen=True)
-class Lifted:
-    """The cascade's loop about hover, linearized sample by sample (``N`` samples of one frame).
-
-    Attributes
-    ----------
-    plant : (n, n) ndarray, (n, 4) ndarray
-        The plant's ZOH map at the base rate on its states ``[x; f]`` (``f``: rotor thrusts when they lag).
-    law_state : list of (nx, nx) ndarray
-        ``dX_sampled/dX`` of the law at each phase (the plant rows the identity).
-    law_command : list of (4, nx) ndarray
-        ``du/dX`` of the law's command at each phase.
-    sample_time : float
-        s: the base period ``Ts``.
-    states : (nx,) ndarray of int, optional
-        Which of the simulated loop's states these are (:func:`read_states`); None: all.
-    equilibrium : ndarray, optional
-        The simulated loop's state at hover at phase 0 (every state), where the law was linearized.
-    plant_rates : (n, n) ndarray, (n, 4) ndarray, optional
-        The continuous model ``(A, B)`` whose zero-order hold at ``Ts`` is ``plant`` (for a delay of the held
-        input by a fraction of a sample, :meth:`delayed_frame_map`); None: no delay margin.
-    """
-
-    plant: tuple[np.ndarray, np.ndarray]
-    law_state: list
-    law_command: list
-    sample_time: float
-    states: np.ndarray | None = None
-    equilibrium: np.ndarray | None = None
-    plant_rates: tuple[np.ndarray, np.ndarray] | None = None
-
-    @property
-    def n_plant(self) -> int:
-        return self.plant[0].shape[0]
-
-    @property
-    def frame(self) -> int:
-        return len(self.law_state)
-
-    def sample_map(self, p: int, j: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """``(M, G)``: ``X+ = M X + G v`` at phase ``p``, input ``j`` given ``v`` instead of the law's command
-        (``j`` None: every loop closed, ``G`` empty)."""
-        Ad, Bd = self.plant
-        npl, nx = self.n_plant, self.law_state[p].shape[0]
-        hold = np.eye(nx)
-        hold[:npl, :npl] = Ad
-        Du = self.law_command[p].copy()
-        G = np.zeros((nx, 1))
-        if j is not None:
-            Du[j] = 0.0
-            G[:npl, 0] = Bd[:, j]
-        M = hold @ self.law_state[p]
-        M[:npl] += Bd @ Du
-        return M, G
-
-    @property
-    def frame_map(self) -> np.ndarray:
-        """The closed loop's map over one frame (``nx``, ``nx``): its eigenvalues are the loop's poles in ``z``
-        of the frame period ``N Ts``."""
-        Phi = np.eye(self.law_state[0].shape[0])
-        for p in range(self.frame):
-            Phi = self.sample_map(p)[0] @ Phi
-        return Phi
-
-    def delayed_frame_map(self, j: int, delay: float) -> np.ndarray:
-        """The closed loop's map over one frame with input ``j`` held ``delay`` s late (``d + f`` samples, ``f``
-        in ``[0, 1)``): the plant is given the command of ``d + 1`` samples ago for the first ``f Ts`` of each
-        sample and that of ``d`` samples ago for the rest (the zero-order hold shifted, exact at the base rate).
-        State ``[X; u_j(k-1) .. u_j(k-d-1)]``."""
-        if self.plant_rates is None:
-            raise ValueError("a delay of the held input needs the continuous plant (Lifted.plant_rates)")
-        Ts, npl, nx = self.sample_time, self.n_plant, self.law_state[0].shape[0]
-        d = int(math.floor(delay / Ts + 1e-12))
-        f = min(max(delay / Ts - d, 0.0), 1.0)
-        late, early = _held_input(self.plant_rates, j, (1.0 - f) * Ts, f * Ts)
-        n = nx + d + 1
-        Phi = np.eye(n)
-        for p in range(self.frame):
-            M, _ = self.sample_map(p, j)
-            S = np.zeros((n, n))
-            S[:nx, :nx] = M
-            row = self.law_command[p][j]
-            now = np.zeros(n)  # u_j(k - d): the command computed now without delay, else the buffer's d-th
-            if d == 0:
-                now[:nx] = row
-            else:
-                now[nx + d - 1] = 1.0
-            S[:npl] += np.outer(late, now)
-            S[:npl, nx + d] += early  # u_j(k - d - 1)
-            S[nx, :nx] = row  # the buffer shifts: u_j(k) in, the oldest out
-            S[nx + 1:, nx:n - 1] = np.eye(d)
-            Phi = S @ Phi
-        return Phi
-
-    def broken(self, j: int) -> LiftedLoop:
-        """The loop broken at input ``j`` (:data:`quadctl.layout.INPUT_NAMES` order), lifted to the frame."""
-        N, nx = self.frame, self.law_state[0].shape[0]
-        Phi, Gam = np.eye(nx), np.zeros((nx, N))
-        C, D = np.zeros((N, nx)), np.zeros((N, N))
-        for p in range(N):
-            M, G = self.sample_map(p, j)
-            row = self.law_command[p][j]
-            C[p] = row @ Phi
-            D[p] = row @ Gam
-            Phi, Gam = M @ Phi, M @ Gam
-            Gam[:, p] += G[:, 0]
-        return LiftedLoop(Phi=Phi, Gamma=Gam, C=C, D=D, sample_time=self.sample_time)
-
-
-@dataclass(frozen=True)
-class LiftedLoop:
-    """A loop broken at one input, lifted to the frame: ``y = (C (zI - Phi)^-1 Gamma + D) v``; closed, ``v = y``.
-
-    Called at ``w`` (rad/s) it gives the fundamental harmonic ``L0(w) = phi^H L(e^(j w N Ts)) phi / N``,
-    ``phi = [e^(j w p Ts)]_p`` (the response at ``w`` to a sinusoid at ``w``: the curve of the Bode and
-    Nyquist plots, as :class:`quadctl.design.margins.BrokenLoop` gives its ``L``); the margins are from
-    :meth:`loci` and :meth:`is_stable`, exact.
-    """
-
-    Phi: np.ndarray
-    Gamma: np.ndarray
-    C: np.ndarray
-    D: np.ndarray
-    sample_time: float
-
-    @property
-    def frame(self) -> int:
-        return self.D.shape[0]
-
-    def lifted_response(self, w) -> np.ndarray:
-        """``L(z)`` (len(w), N, N), ``z = e^(j w N Ts)``, with the sign of
-        :class:`~quadctl.design.margins.BrokenLoop` (closed loop: ``I + L`` singular)."""
-        z = np.exp(1j * np.atleast_1d(np.asarray(w, dtype=float)) * self.frame * self.sample_time)
-        n = self.Phi.shape[0]
-        M = z[:, None, None] * np.eye(n) - self.Phi[None]
-        return -(self.C[None] @ np.linalg.solve(M, np.broadcast_to(self.Gamma, (len(z),) + self.Gamma.shape))
-                 + self.D[None])
-
-    def frame_response(self, theta) -> np.ndarray:
-        """``L(e^(j theta))`` (len(theta), N, N) at frame frequencies ``theta`` (rad per frame)."""
-        return self.lifted_response(np.asarray(theta, dtype=float) / (self.frame * self.sample_time))
-
-    def loci(self, theta, vectors: bool = False):
-        """The eigenvalues ``lam`` (..., N) of ``L(e^(j theta))`` at frame frequencies ``theta`` (and, with
-        ``vectors`` and a scalar ``theta``, their eigenvectors (N, N): the frame's input samples).
-
-        Where ``L`` is large (near a pole of the loop on the unit circle: an integrator, ``theta`` -> 0) its
-        eigenvalues of order one are lost to rounding when ``L`` is formed; there they are the finite
-        eigenvalues of the pencil ``[[zI - Phi, -Gamma], [C, D + lam I]]``, on which QZ is backward stable. An
-        eigenvalue below :data:`LOCI_ZERO` stands as 0, one beyond :data:`LOCI_INFINITE` as that value."""
-        theta = np.atleast_1d(np.asarray(theta, dtype=float))
-        N = self.frame
-        vals = np.zeros((len(theta), N), dtype=complex)
-        vecs = np.zeros((len(theta), N, N), dtype=complex) if vectors else None
-        explicit = theta > 0  # at theta = 0 (z = 1) an integrator makes L infinite: the pencil only
-        if explicit.any():
-            L = self.frame_response(theta[explicit])
-            small = np.abs(L).max(axis=(1, 2)) <= LOCI_EXPLICIT
-            explicit[explicit] = small
-            if vectors:
-                vals[explicit], vecs[explicit] = np.linalg.eig(L[small])
-            else:
-                vals[explicit] = np.linalg.eigvals(L[small])
-        for k in np.nonzero(~explicit)[0]:
-            pv, pw = self._pencil(theta[k])
-            vals[k] = pv
-            if vectors:
-                vecs[k] = pw
-        vals = np.where(np.abs(vals) < LOCI_ZERO, 0.0, np.where(np.abs(vals) > LOCI_INFINITE, LOCI_INFINITE, vals))
-        return (vals[0], vecs[0]) if vectors else vals
-
-    def _pencil(self, theta: float):
-        n, N = self.Phi.shape[0], self.frame
-        M = np.zeros((n + N, n + N), dtype=complex)
-        M[:n, :n] = np.exp(1j * theta) * np.eye(n) - self.Phi
-        M[:n, n:], M[n:, :n], M[n:, n:] = -self.Gamma, self.C, self.D
-        E = np.zeros_like(M)
-        E[n:, n:] = -np.eye(N)
-        vals, vecs = scipy.linalg.eig(M, E, right=True, check_finite=False)
-        with np.errstate(invalid="ignore"):
-            order = np.argsort(np.where(np.isfinite(vals), np.abs(vals), np.inf))[:N]
-        vals = np.where(np.isfinite(vals[order]), vals[order], LOCI_INFINITE)
-        return vals, vecs[n:, order]
-
-    def __call__(self, w) -> np.ndarray:
-        w = np.atleast_1d(np.asarray(w, dtype=float))
-        phi = np.exp(1j * w[:, None] * np.arange(self.frame)[None, :] * self.sample_time)
-        return np.einsum("wp,wpq,wq->w", phi.conj(), self.lifted_response(w), phi) / self.frame
-
-    def closed_loop_eigenvalues(self, gain: float = 1.0) -> np.ndarray:
-        """Eigenvalues (``z`` of the frame) of the loop closed through ``v = gain y``."""
-        N = self.frame
-        feed = gain * np.linalg.solve(np.eye(N) - gain * self.D, self.C)
-        return np.linalg.eigvals(self.Phi + self.Gamma @ feed)
-
-    def is_stable(self, gain: float = 1.0) -> bool:
-        return bool(np.all(is_stable(self.closed_loop_eigenvalues(gain), discrete=True)))
-
-    def grid(self, points_per_decade: int) -> np.ndarray:
-        """rad/s from the slowest pole's frequency / 100 (at most Nyquist / 1000) to Nyquist ``pi / Ts``."""
-
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = np.log(self.closed_loop_eigenvalues().astype(complex)) / (self.frame * self.sample_time)
-        mags = np.abs(s[np.isfinite(s)])
-        mags = mags[mags > 1e-9]
-        hi = math.pi / self.sample_time
-        lo = min((mags.min() if mags.size else 1.0) / GRID_SPAN, hi / 1e3)
-        w = np.logspace(math.log10(lo), math.log10(hi), int(max(math.log10(hi / lo), 1.0) * points_per_decade) + 1)
-        w[-1] = hi
-        return w
-
-    def frame_grid(self, points_per_decade: int) -> np.ndarray:
-        """Frame frequencies ``theta`` (rad per frame) of :meth:`grid` up to ``pi``, with both ends, ``0`` and
-        ``pi`` (``z = 1`` and ``-1``: with an even frame, the base rate's Nyquist frequency is at ``z = 1``)."""
-        theta = self.grid(points_per_decade) * self.frame * self.sample_time
-        return np.concatenate([[0.0], theta[theta < math.pi * (1 - 1e-9)], [math.pi]])
 
 
 def exact_gain_margins(loop: LiftedLoop) -> tuple[float, float]:
@@ -316,7 +86,8 @@ def loci_margins(loop: LiftedLoop, points_per_decade: int = LOCI_POINTS_PER_DECA
 
     A constant gain ``g`` (complex: gain and phase) on the broken input is ``g I`` on the frame's samples and
     commutes with the loop: the loop closed through it has a pole on the unit circle exactly where
-    ``-1/g`` is an eigenvalue ``lam`` of ``L(e^(j theta))`` (:meth:`LiftedLoop.lifted_response`'s sign), so the
+    ``-1/g`` is an eigenvalue ``lam`` of ``L(e^(j theta))``
+    (:meth:`~quadctl.sim.cascade_lift.LiftedLoop.lifted_response`'s sign), so the
     destabilizing gains on the circle are ``g = -1/lam``, ``theta`` in ``[0, pi]`` (the loci over
     ``(pi, 2 pi)`` are the conjugates). Crossings of ``|lam| = 1`` and of the real axis are found on a log
     grid of ``theta`` and refined by root finding; the disk margin's minimum by bounded minimization.
@@ -432,9 +203,10 @@ def base_frequency(loop: LiftedLoop, theta: float, v) -> float:
 
 
 def exact_delay_margin(lift: Lifted, j: int) -> float | None:
-    """s: the least extra delay of input ``j``'s held command (:meth:`Lifted.delayed_frame_map`) that puts a
-    pole of the lifted loop on the unit circle, scanned over :data:`DELAY_SCAN` then bisected (None: none
-    within the scan, or no continuous plant). The loop is stable without it."""
+    """s: the least extra delay of input ``j``'s held command
+    (:meth:`~quadctl.sim.cascade_lift.Lifted.delayed_frame_map`) that puts a pole of the lifted loop on the unit
+    circle, scanned over :data:`DELAY_SCAN` then bisected (None: none within the scan, or no continuous plant).
+    The loop is stable without it."""
     if lift.plant_rates is None:
         return None
     Ts = lift.sample_time
@@ -454,125 +226,6 @@ def exact_delay_margin(lift: Lifted, j: int) -> float | None:
     return None
 
 
-def lifted(loop) -> Lifted:
-    """The cascade's loop ``loop`` (:class:`quadctl.sim.loop.ClosedLoop` with a ``law``) linearized about
-    hover at every phase of its frame (:func:`_lifted`), Ctrl-C and SIGTERM taken when it is done.
-
-    Its least-squares trim calls the CasADi law from Python hundreds of times: a KeyboardInterrupt raised in
-    CasADi's argument conversion is swallowed by its wrapper, which then matches another overload, and the
-    work went on as if no Ctrl-C had come.
-    """
-    with signals_held():
-        return _lifted(loop)
-
-
-def _lifted(loop) -> Lifted:
-    """:func:`lifted`, its Ctrl-C not held.
-
-    The law's equilibrium is found first: the plant at trim, the integrators (velocity and rate) that
-    make the command the law computes the trim input (least squares), the held setpoints the first sample's.
-    With a delay (``loop.delay_samples``) the command computed is the one shifted into the buffer (the buffer
-    holds the trim input), and the command applied, the buffer's oldest, is what the lifted loop breaks at.
-    """
-
-    gains = loop.law
-    Ts = 1.0 / float(gains["rate_hz"])
-    spec = loop.spec()
-    funcs = build(spec)
-    c = loop.constants(Ts)
-    e = np.zeros(spec.n_exo)
-    X0 = loop.initial_loop_state(loop.x_trim)
-    npl = spec.n_plant
-    base = npl + spec.nz + spec.n_lag
-    law = funcs.law
-    u_trim = np.asarray(loop.u_trim, dtype=float)
-    free = np.concatenate([np.arange(pid.state_slice(name).start, pid.state_slice(name).stop) + base
-                           for name in ("vel_integral", "rate_integral")])
-
-    def computed(X):  # the command the law computes at X: applied at once, or shifted into the delay's buffer
-        if not spec.delay:
-            return np.asarray(law(X, 0.0, c, e)[0]).ravel()
-        return np.asarray(law(X, 0.0, c, e)[1]).ravel()[spec.buffer_start:spec.buffer_start + len(u_trim)]
-
-    def residual(values):
-        X = X0.copy()
-        X[free] = values
-        return computed(X) - u_trim
-
-    fit = scipy.optimize.least_squares(residual, X0[free], xtol=1e-14, ftol=1e-14, gtol=1e-14)
-    X = X0.copy()
-    X[free] = fit.x
-    X = np.asarray(law(X, 0.0, c, e)[1]).ravel()  # the held setpoints of a first sample, phase 1
-    Xs = ca.SX.sym("X", spec.nx)
-    u_sym, X_next = law(Xs, 0.0, c, e)
-    jac = ca.Function("qc_law_jacobian", [Xs], [ca.jacobian(u_sym, Xs), ca.jacobian(X_next, Xs)])
-    _, n_pos = gains.ratios
-    phase = base + pid.state_slice("phase").start
-    states, commands = [None] * n_pos, [None] * n_pos
-    start = None
-    for _ in range(n_pos):
-        p = int(round(X[phase]))
-        if p == 0:
-            start = X.copy()
-        Ju, JX = (np.asarray(m) for m in jac(X))
-        commands[p], states[p] = Ju, JX
-        X = np.asarray(law(X, 0.0, c, e)[1]).ravel()
-    keep = read_states(states, commands, npl)
-    rates = plant_rates(loop)
-    return Lifted(plant=_hold(rates, Ts), law_state=[S[np.ix_(keep, keep)] for S in states],
-                  law_command=[U[:, keep] for U in commands], sample_time=Ts, states=keep, equilibrium=start,
-                  plant_rates=rates)
-
-
-def read_states(law_state, law_command, n_plant: int) -> np.ndarray:
-    """Indices of the loop states something reads: the plant's, and each law state that the command or
-    another read state depends on at some phase. The others (an integrator of gain zero, a filter the
-    values switch off) only follow the loop: their eigenvalues (1) are neither controllable nor
-    observable, and they are left out, as the LQR loops leave out the positions nothing feeds back."""
-    nx = law_state[0].shape[0]
-    keep = np.ones(nx, dtype=bool)
-    while True:
-        read = np.zeros(nx, dtype=bool)
-        read[:n_plant] = True
-        for S, U in zip(law_state, law_command):
-            read |= np.any(U != 0, axis=0)
-            others = (S - np.diag(np.diag(S)))[keep]  # what the kept states read, their own past aside
-            read |= np.any(others != 0, axis=0)
-        if np.array_equal(read & keep, keep):
-            return np.nonzero(keep)[0]
-        keep &= read
-
-
-def _hold(rates, t: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(e^(A t), int_0^t e^(A s) ds B)`` of ``rates = (A, B)``."""
-    A, B = rates
-    n, m = B.shape
-    E = scipy.linalg.expm(np.block([[A, B], [np.zeros((m, n + m))]]) * t)
-    return E[:n, :n], E[:n, n:]
-
-
-def _held_input(rates, j: int, late: float, early: float) -> tuple[np.ndarray, np.ndarray]:
-    """What one sample of the plant gets from input ``j`` held for the last ``late`` s of it (the command now)
-    and for the first ``early`` s (the command before): ``(int_0^late e^(A s) ds b, e^(A late) int_0^early
-    e^(A s) ds b)``."""
-    Al, Bl = _hold(rates, late)
-    _, Be = _hold(rates, early)
-    return Bl[:, j], Al @ Be[:, j]
-
-
-def plant_rates(loop) -> tuple[np.ndarray, np.ndarray]:
-    """The plant's continuous model ``(A, B)`` on ``[x; f]``: the linear model (``loop.jacobians``),
-    through the rotors' lag when they lag (each rotor's thrust ``f' = (mix u - f) / tau``)."""
-    A, B = (np.asarray(m, dtype=float) for m in loop.jacobians)
-    tau = loop.rotor_time_constant
-    if tau is not None:
-        mix, mix_inv = np.asarray(loop.actuators.mix), np.asarray(loop.actuators.mix_inv)
-        n, m = A.shape[0], mix.shape[0]
-        A = np.block([[A, B @ mix_inv], [np.zeros((m, n)), -np.eye(m) / tau]])
-        B = np.vstack([np.zeros((n, B.shape[1])), mix / tau])
-    return A, B
-
-
 def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> list:
     """Margins of every input's loop of a PID cascade, broken at the plant input (``model = "cascade"``).
 
@@ -582,8 +235,8 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
         A loop flying a PID cascade (:func:`quadctl.pipeline.pid_loop_of`).
     title : str
         The law's name, for the loop's label.
-    lift : Lifted, optional
-        :func:`lifted` ``loop``, when already computed.
+    lift : quadctl.sim.cascade_lift.Lifted, optional
+        :func:`~quadctl.sim.cascade_lift.lifted` ``loop``, when already computed.
 
     Returns
     -------
@@ -592,8 +245,8 @@ def cascade_margins(loop, *, title: str = "PID", lift: Lifted | None = None) -> 
         (:func:`exact_gain_margins`; their frequencies the loci's where they agree, :data:`FREQUENCY_AGREEMENT_DB`),
         phase and disk margins from its characteristic loci (:func:`loci_margins`), the delay margin the least
         extra delay of the held input (:func:`exact_delay_margin`); ``freq`` and ``response`` the fundamental
-        harmonic (:class:`LiftedLoop`, for the plots). A delay (``loop.delay_samples``, the cascade's samples) is
-        in every loop, before the break: the margins are beyond it, as the LQR loops' are.
+        harmonic (:class:`~quadctl.sim.cascade_lift.LiftedLoop`, for the plots). A delay (``loop.delay_samples``,
+        the cascade's samples) is in every loop, before the break: the margins are beyond it, as the LQR loops' are.
     """
     from threadpoolctl import threadpool_limits
 

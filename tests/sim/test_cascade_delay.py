@@ -71,7 +71,7 @@ def recurrence(a: float, d: int, n: int) -> np.ndarray:
 @pytest.mark.parametrize("d", [0, 1, 2, 3])
 def test_the_lifted_p_rate_loop_has_the_roots_of_z_to_the_d_plus_1_minus_z_to_the_d_plus_a(d):
     from quadctl.pipeline import pid_loop_of
-    from quadctl.sim.cascade_margins import lifted
+    from quadctl.sim.cascade_lift import lifted
 
     stages = crazyflie(d)
     loop = pid_loop_of(stages.setup, stages.linear, p_rate_gains())
@@ -131,7 +131,7 @@ def test_the_delayed_multirate_cascade_is_linearized_at_hover_and_lifted_to_the_
     from quadctl.config.pid import resolve
     from quadctl.pipeline import pid_loop_of
     from quadctl.sim.builder import build
-    from quadctl.sim.cascade_margins import lifted
+    from quadctl.sim.cascade_lift import lifted
 
     stages = crazyflie(1)
     stock = resolve("crazyflie")

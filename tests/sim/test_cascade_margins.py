@@ -1,6 +1,6 @@
 """Margins of the PID cascade's loops against what they must equal.
 
-The lifted loop (:mod:`quadctl.sim.cascade_margins`) must have the poles of the loop the simulation
+The lifted loop (:mod:`quadctl.sim.cascade_lift`) must have the poles of the loop the simulation
 flies: the eigenvalues of the Jacobian of one frame of the compiled law and RK4 plant, as sets. A
 single-rate P loop on an integrator has phase, gain and disk margins in closed form; the same loop
 written as a frame of three or four identical samples must keep them. A loop at one rate (a PD loop on a
@@ -18,7 +18,8 @@ import pytest
 import scipy.optimize
 
 from quadctl.design.margins import broken_loop, loop_margins
-from quadctl.sim.cascade_margins import Lifted, exact_delay_margin, exact_gain_margins, loci_margins
+from quadctl.sim.cascade_lift import Lifted
+from quadctl.sim.cascade_margins import exact_delay_margin, exact_gain_margins, loci_margins
 
 J, KP, TS = 1.4e-5, 0.004, 0.002  # kg m^2 (a Crazyflie's roll inertia), N m s/rad, s (500 Hz): kp Ts / J = 0.57
 
@@ -130,7 +131,7 @@ def test_a_sampled_p_rate_loop_has_its_closed_form_margins(frame):
 def crazyflie_cascade():
     import quadctl as qc
     from quadctl.pipeline import pid_loop_of
-    from quadctl.sim.cascade_margins import lifted
+    from quadctl.sim.cascade_lift import lifted
 
     stages = qc.Stages(qc.setup_of(qc.load_config("crazyflie")))
     loop = pid_loop_of(stages.setup, stages.linear)
@@ -144,9 +145,9 @@ def test_a_ctrl_c_during_the_cascades_linearization_is_taken_after_it(crazyflie_
     import dataclasses
     import signal
 
-    from quadctl.sim import cascade_margins
+    from quadctl.sim import cascade_lift
 
-    real = cascade_margins.build
+    real = cascade_lift.build
     calls = []
 
     def build(spec):
@@ -159,9 +160,9 @@ def test_a_ctrl_c_during_the_cascades_linearization_is_taken_after_it(crazyflie_
             return funcs.law(*args)
         return dataclasses.replace(funcs, law=law)
 
-    monkeypatch.setattr(cascade_margins, "build", build)
+    monkeypatch.setattr(cascade_lift, "build", build)
     with pytest.raises(KeyboardInterrupt):
-        cascade_margins.lifted(crazyflie_cascade[0])
+        cascade_lift.lifted(crazyflie_cascade[0])
     assert len(calls) > 10  # the trim's least squares and the phases' Jacobians ran whole
 
 
@@ -182,7 +183,7 @@ def px4_cascade(iris):
     """PX4's cascade (its quaternion attitude stage, 400/200/100 Hz) on PX4's Iris."""
     from quadctl.config.pid import resolve
     from quadctl.pipeline import pid_loop_of
-    from quadctl.sim.cascade_margins import lifted
+    from quadctl.sim.cascade_lift import lifted
 
     loop = pid_loop_of(iris.setup, iris.linear, resolve("px4"))
     assert loop.law.attitude == "px4"
@@ -196,7 +197,8 @@ def test_the_px4_cascade_on_the_iris_has_margins_on_every_input(px4_cascade, iri
     divided by the weight: the same linearization, to the Jacobians' round-off)."""
     from quadctl.config.pid import resolve
     from quadctl.pipeline import pid_loop_of
-    from quadctl.sim.cascade_margins import cascade_margins, lifted
+    from quadctl.sim.cascade_lift import lifted
+    from quadctl.sim.cascade_margins import cascade_margins
 
     loop, lift = px4_cascade
     euler = lifted(pid_loop_of(iris.setup, iris.linear, resolve("px4", attitude="euler")))
@@ -314,7 +316,7 @@ def test_the_cascade_at_one_rate_has_the_margins_of_its_transfer_function():
     import quadctl as qc
     from quadctl.config.pid import resolve
     from quadctl.pipeline import pid_loop_of
-    from quadctl.sim.cascade_margins import lifted
+    from quadctl.sim.cascade_lift import lifted
 
     stages = qc.Stages(qc.setup_of(qc.load_config("crazyflie")))
     stock = resolve("crazyflie")

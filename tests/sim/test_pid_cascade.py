@@ -141,7 +141,7 @@ Jacobian) against the hand map's arithmetic: both ~1e-14 of their size; 1e-10 le
 @pytest.mark.parametrize("n_att", [1, 2])
 def test_the_attitude_pid_of_the_simulated_cascade_has_the_poles_of_the_roll_axis_sampled_by_hand(crazyflie, n_att):
     """The attitude stage's D (its sign, its period) as the simulation flies it: the cascade's loop linearized
-    (:func:`quadctl.sim.cascade_margins.lifted`, from the law the runners are generated from), its roll axis
+    (:func:`quadctl.sim.cascade_lift.lifted`, from the law the runners are generated from), its roll axis
     closed on itself (no position or velocity loop around it; the rate loop a P on PX4's normalized torque, no
     filters), has the poles of :func:`roll_axis_frame_map`, as sets; with the D's sign flipped they are far off."""
     import quadctl as qc
@@ -149,7 +149,7 @@ def test_the_attitude_pid_of_the_simulated_cascade_has_the_poles_of_the_roll_axi
     from quadctl.layout import STATE_INDEX
     from quadctl.pipeline import pid_loop_of
     from quadctl.sim import pid
-    from quadctl.sim.cascade_margins import lifted
+    from quadctl.sim.cascade_lift import lifted
 
     Ts, kp_rate = 1 / 500, 0.15  # s; normalized torque per rad/s
     kp, ki, kd = 5.0, 2.0, 0.2  # 1/s, 1/s^2, 1: rate setpoint per angle error, its integral, its rate
