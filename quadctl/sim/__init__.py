@@ -4,7 +4,8 @@ Modules, each importing only those above it:
 
 - :mod:`~quadctl.sim.plan`: the RK4 step a loop needs (from its spectrum) or a user's step checked
 - :mod:`~quadctl.sim.builder`: the one closed-loop definition (:class:`LoopSpec` -> CasADi functions of one step)
-- :mod:`~quadctl.sim.etdrk4_plan`: the exponential integrator's step schedule and its φ-functions
+- :mod:`~quadctl.sim.etdrk4_plan`: the exponential integrator's step schedule
+- :mod:`~quadctl.sim.etdrk4_matrices`: the matrices of its steps, from the φ-functions of the loop's linear part
 - :mod:`~quadctl.sim.cases`: what every runner takes, a stack of cases (:class:`Cases`: N cases, each through
   its segments; one case is a stack of one, a fixed step one segment)
 - :mod:`~quadctl.sim.lane_metrics`: a run's metrics summed in the lanes as they step, read back

@@ -25,7 +25,7 @@ METHODS = ("rk4", "etdrk4")
 of order 4 of Hochbruck and Ostermann (ETDRK4; :data:`PHI_LAYOUT`), exact on the loop's linear part."""
 PHI_LAYOUT: tuple[str, ...] = ("lin", "A21", "A31", "A32", "A41", "A42", "A51", "A52", "A54", "B1", "B4", "B5")
 """The ETDRK4 constants (each (nx, nx), column-major, after the loop's others), for one step ``h`` and
-the loop's linear part ``L`` (:func:`quadctl.sim.etdrk4_plan.phi_constants`), with ``phi_k = phi_k(hL)``
+the loop's linear part ``L`` (:func:`quadctl.sim.etdrk4_matrices.phi_constants`), with ``phi_k = phi_k(hL)``
 and ``psi_k = phi_k(hL/2)``: ``lin`` = ``L``, the stages' weights ``A21 = h psi1 / 2``,
 ``A31 = h (psi1 / 2 - psi2)``, ``A32 = h psi2``, ``A41 = h (phi1 - 2 phi2)``, ``A42 = h phi2``,
 ``A52 = h (psi2 / 2 - phi3 + phi2 / 4 - psi3 / 2)``, ``A54 = h psi2 / 4 - A52``,

@@ -1,7 +1,7 @@
 """One run of the full nonlinear closed loop (:class:`~quadctl.sim.loop.ClosedLoop`): RK4 at a fixed
 step, or ETDRK4 (``simulation.method: etdrk4``) on a graded schedule of steps
-(:mod:`quadctl.sim.etdrk4_plan`). :func:`simulate` runs the stack of one
-(:func:`quadctl.sim.stack.stack_of`, :func:`quadctl.sim.stack.run_stack`) and reads its records back
+(:mod:`quadctl.sim.etdrk4_plan`; its matrices :mod:`quadctl.sim.etdrk4_matrices`). :func:`simulate` runs
+the stack of one (:func:`quadctl.sim.stack.stack_of`, :func:`quadctl.sim.stack.run_stack`) and reads its records back
 as a :class:`SimResult`, with how the run ended (:func:`verdict`).
 """
 from __future__ import annotations

@@ -21,7 +21,8 @@ from quadctl.physics.noise import NoiseSpec
 from quadctl.physics.wind import WindSpec
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import LANES, runner
-from quadctl.sim.etdrk4_plan import Segment, phi_constant_rows, phi_ladder, record_strides
+from quadctl.sim.etdrk4_matrices import phi_constant_rows, phi_ladder, phi_pattern
+from quadctl.sim.etdrk4_plan import Segment, record_strides
 from quadctl.sim.exogenous import ExoStream
 from quadctl.sim.loop import exponential_plan, gain_constants
 from quadctl.sim.loop_spec import LoopSpec, fill_constants_stack
@@ -187,8 +188,6 @@ def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: floa
     The loops whose schedules start at one step share a φ ladder, computed on the stack of their linear
     parts (each matrix as its one-case run computes it, from that step up); the lanes step through their
     schedules together (segment ``i`` of every case per call)."""
-    from quadctl.sim.etdrk4_plan import phi_pattern
-
     rate = loops[0].rate
     held = rate is not None
     period = 1.0 / rate if held else exo_period

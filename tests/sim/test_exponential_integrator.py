@@ -1,5 +1,5 @@
-"""ETDRK4, the exponential integrator beside RK4 (quadctl.sim.builder.etdrk4, quadctl.sim.etdrk4_plan),
-against independent references.
+"""ETDRK4, the exponential integrator beside RK4 (quadctl.sim.builder.etdrk4, quadctl.sim.etdrk4_plan,
+quadctl.sim.etdrk4_matrices), against independent references.
 
 - The φ-functions from one matrix exponential equal their closed forms on a diagonalizable matrix,
   and the step ladder (doublings between direct exponentials) equals direct exponentials.
@@ -29,7 +29,7 @@ from scipy.integrate import solve_ivp
 from quadctl import config, pipeline
 from quadctl.errors import ConfigError, StepSizeError
 from quadctl.setup import setup_of
-from quadctl.sim import engine, etdrk4_plan
+from quadctl.sim import engine, etdrk4_matrices, etdrk4_plan
 from quadctl.sim.builder import build, etdrk4
 from quadctl.sim.loop_spec import PHI_LAYOUT
 from quadctl.sim.run import simulate
@@ -54,7 +54,7 @@ def test_phi_functions_equal_their_closed_forms():
     V = rng.standard_normal((4, 4)) + 3 * np.eye(4)
     L = V @ np.diag(lam) @ np.linalg.inv(V)
     h = 1e-3
-    got = etdrk4_plan.phi_functions(L, h)
+    got = etdrk4_matrices.phi_functions(L, h)
     for k in range(4):
         ref = V @ np.diag(np.exp(h * lam) if k == 0 else _phi_closed(h * lam, k)) @ np.linalg.inv(V)
         assert np.abs(got[k] - ref).max() < 1e-12 * max(1.0, np.abs(ref).max()), k
@@ -69,23 +69,24 @@ def test_the_exponential_is_scipys(scale):
     D = np.diag(-scale * np.linspace(0.05, 5.0, 12))
     M = V @ D @ np.linalg.inv(V)
     ref = scipy.linalg.expm(M)
-    assert np.abs(etdrk4_plan.expm(M) - ref).max() < 1e-12 * max(1.0, np.abs(ref).max())
+    assert np.abs(etdrk4_matrices.expm(M) - ref).max() < 1e-12 * max(1.0, np.abs(ref).max())
     exact = V @ np.diag(np.exp(np.diag(D))) @ np.linalg.inv(V)
-    assert np.abs(etdrk4_plan.expm(M) - exact).max() < 1e-11 * max(1.0, np.abs(exact).max())
+    assert np.abs(etdrk4_matrices.expm(M) - exact).max() < 1e-11 * max(1.0, np.abs(exact).max())
 
 
 def test_the_ladder_equals_direct_exponentials():
     rng = np.random.default_rng(2)
     L = rng.standard_normal((6, 6)) * 50 - 2000 * np.diag(rng.random(6))
     steps = [1e-6 * 2 ** j for j in range(12)]
-    ladder = etdrk4_plan.phi_ladder(L, steps)
+    ladder = etdrk4_matrices.phi_ladder(L, steps)
     for h in steps[::3]:
-        ref = etdrk4_plan.step_matrices(L, h, etdrk4_plan.phi_functions(L, h / 2), etdrk4_plan.phi_functions(L, h))
+        half, full = etdrk4_matrices.phi_functions(L, h / 2), etdrk4_matrices.phi_functions(L, h)
+        ref = etdrk4_matrices.step_matrices(L, h, half, full)
         assert set(ref) == set(PHI_LAYOUT)
         for name, M in ref.items():
             assert np.abs(ladder[h][name] - M).max() < 1e-13 * max(1.0, np.abs(M).max()), (h, name)
     with pytest.raises(ValueError, match="not .* times a power of two"):
-        etdrk4_plan.phi_ladder(L, [1e-6, 3e-6])
+        etdrk4_matrices.phi_ladder(L, [1e-6, 3e-6])
 
 
 def _etdrk4_function(rhs, n: int, L: np.ndarray):
@@ -96,7 +97,7 @@ def _etdrk4_function(rhs, n: int, L: np.ndarray):
     fn = ca.Function("etd", [X, t, h, *mats.values()], [etdrk4(rhs, X, t, h, mats)])
 
     def step(x, tt, hh):
-        ladder = etdrk4_plan.phi_ladder(L, [hh])[hh]
+        ladder = etdrk4_matrices.phi_ladder(L, [hh])[hh]
         return np.asarray(fn(x, tt, hh, *[ladder[name] for name in PHI_LAYOUT])).ravel()
 
     return step
@@ -525,7 +526,7 @@ def test_the_phi_pattern_keeps_a_decoupled_loops_blocks():
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
     L = loop.linear_part()
-    pattern = etdrk4_plan.phi_pattern(etdrk4_plan.phi_ladder(L, [1e-3]))
+    pattern = etdrk4_matrices.phi_pattern(etdrk4_matrices.phi_ladder(L, [1e-3]))
     assert 0 < sum(pattern) < len(pattern)
     spec = loop.spec(method="etdrk4", phi_pattern=pattern)
     assert spec.n_phi == len(PHI_LAYOUT) * spec.nx ** 2 and "method=etdrk4" in spec.key()
