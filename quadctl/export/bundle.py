@@ -89,7 +89,7 @@ class Export:
     @property
     def flies_reference(self) -> bool:
         """The loop flies a reference (``simulation.reference``): ``x_ref`` and ``u_ref`` are inputs of
-        the law at each sample (:data:`quadctl.sim.loop_spec.REFERENCE_LAYOUT`), not the trim."""
+        the law at each sample (:data:`quadctl.sim.loop_layout.REFERENCE_LAYOUT`), not the trim."""
         return self.setup.reference is not None
 
     def law(self) -> str:

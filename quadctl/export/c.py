@@ -4,7 +4,7 @@
 :func:`quadctl.sim.builder.build`, emits it with :func:`quadctl.native.emit.emit` (``double``, or
 ``float`` with ``-DQUADCTL_FLOAT``), bakes the loop's constants in and fills the C templates
 (``templates/quadctl_controller.h`` and ``.c``), sizes and offsets from :mod:`quadctl.layout` and
-:func:`quadctl.sim.loop_spec.constant_layout`, the header's documentation comments from
+:func:`quadctl.sim.loop_layout.constant_layout`, the header's documentation comments from
 :mod:`quadctl.export.c_doc`. Why quadctl emits its own C is in the docs,
 docs/internals.md ("The exported C").
 """
@@ -24,7 +24,7 @@ from quadctl.export.c_doc import delay_doc, doc_lines, filter_doc, gyro_doc, lag
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
 from quadctl.native.emit import Dialect, emit
 from quadctl.sim.builder import ANTIWINDUP_TOL, build
-from quadctl.sim.loop_spec import constant_layout, exo_layout
+from quadctl.sim.loop_layout import constant_layout, exo_layout
 from quadctl.text.escape import c_comment, c_identifier
 from quadctl.version import __version__
 
@@ -221,7 +221,7 @@ def float_tolerance(actuators) -> float:
 def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict[str, str]:
     """The template's text that differs between a law that holds the trim and one that flies a reference.
 
-    A reference is the law's exogenous row (:data:`quadctl.sim.loop_spec.REFERENCE_LAYOUT`: the
+    A reference is the law's exogenous row (:data:`quadctl.sim.loop_layout.REFERENCE_LAYOUT`: the
     reference expanded about a time ``t_j``), which the simulation tabulates and ``quadctl_step_ref``
     fills from the ``quadctl_reference`` it is given, expanded about the sample itself (``t_j = t``,
     no rates): the law then reads ``x_ref(t) = ref->x`` and ``u_ref(t) = ref->u``.
@@ -290,7 +290,7 @@ def _reference_values(reference: bool, arg: str, Ts: float, rate: float) -> dict
             "}\n\n"),
         "EXO_DEFINES": (
             "\n/* The law's exogenous row: the reference expanded about a time t_j\n"
-            " * (quadctl.sim.loop_spec.REFERENCE_LAYOUT), s = t - t_j:\n"
+            " * (quadctl.sim.loop_layout.REFERENCE_LAYOUT), s = t - t_j:\n"
             " *   x_ref(t) = ref_x + s (ref_rate + s ref_curvature / 2), u_ref(t) = ref_u + s ref_u_rate\n"
             " * (the step_ref_ columns: the expansion a simulated step's stages read, not the law).\n"
             " * quadctl_step_ref expands about the sample itself (t_j = t, s = 0, no rates):\n"

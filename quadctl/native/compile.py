@@ -78,7 +78,8 @@ GCC's fused ``sincos``): faster a step than :data:`PORTABLE_FLAGS`, with the sam
 EVICT_AFTER_DAYS = 30
 """Cached libraries of another fingerprint unused for this long are deleted."""
 GENERATOR_SOURCES = ("_lazy.py", "layout.py", "physics/model.py", "sim/builder.py", "sim/loop_spec.py",
-                     "native/emit.py", "sim/cases.py", "native/compile.py", "sim/native.py", "sim/lane_metrics.py",
+                     "sim/loop_layout.py", "native/emit.py", "sim/cases.py", "native/compile.py", "sim/native.py",
+                     "sim/lane_metrics.py",
                      "sim/driver.c", "design/gain_table.py", "metrics.py", "native/mapped.py",
                      "native/pointwise.py", "physics/motors.py", "errors.py", "sim/pid.py", "config/pid.py",
                      "physics/flatness.py", "physics/reference_rows.py", "physics/trajectory.py")

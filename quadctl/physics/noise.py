@@ -65,7 +65,7 @@ class NoiseSpec:
 class NoiseStream:
     """The noise samples of a spec, drawn in order as a run needs them (memory bounded by a chunk).
 
-    Sample ``j`` (held over ``[j period, (j + 1) period)``) is one row of :data:`quadctl.sim.loop_spec.EXO_LAYOUT`:
+    Sample ``j`` (held over ``[j period, (j + 1) period)``) is one row of :data:`quadctl.sim.loop_layout.EXO_LAYOUT`:
     the body force and torque (N, N m), then the sensor noise of the 12 states. Process and
     sensor noise come from two independent streams spawned from the seed
     (``numpy.random.SeedSequence(seed).spawn(2)``), so enabling one does not change the other,

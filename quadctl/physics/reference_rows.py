@@ -28,7 +28,7 @@ class FlownReference:
     assumes (the design model's :meth:`~quadctl.physics.model.Vehicle.vector`: the controller's knowledge).
 
     Its rows (:meth:`rows`) are the loop's exogenous reference rows
-    (:data:`quadctl.sim.loop_spec.REFERENCE_LAYOUT`), tabulated on the exogenous clock of the run (the
+    (:data:`quadctl.sim.loop_layout.REFERENCE_LAYOUT`), tabulated on the exogenous clock of the run (the
     noise's period, else the controller's, else :data:`quadctl.physics.noise.DEFAULT_PERIOD`), as the noise
     and the wind are, so the compiled one-case loop, the lanes and the interpreted runner take it
     through the same rows and agree to round-off. Row ``j`` holds over ``[t_j, t_j + period)``, ``t_j = j period``,
@@ -124,13 +124,13 @@ SPLIT_ROUNDOFF = 1e-12
 expansion (the limit from the right): a run's time ``k dt``, rounded, that lands on a knot."""
 ROW_HALF = 1 + 3 * N_STATES + 2 * N_INPUTS
 """Columns of one expansion of a reference row: ``t``, ``x``, rate, curvature, ``u``, ``u`` rate
-(:data:`quadctl.sim.loop_spec.REFERENCE_LAYOUT` holds two)."""
+(:data:`quadctl.sim.loop_layout.REFERENCE_LAYOUT` holds two)."""
 
 
 def in_force(rows: np.ndarray, at, over=None) -> np.ndarray:
     """``(n, 2 ROW_HALF)``: per tabulated row (``rows`` (n, 2 :data:`ROW_HALF`), :meth:`FlownReference.rows`)
     the expansion in force at the times ``at`` (n,) s, then the one in force at ``over`` (n,) s (default
-    ``at``): what the loop reads (:data:`quadctl.sim.loop_spec.REFERENCE_LAYOUT`, ``over`` a step's
+    ``at``): what the loop reads (:data:`quadctl.sim.loop_layout.REFERENCE_LAYOUT`, ``over`` a step's
     midpoint). A row's second expansion is in force from its split ``t_b`` on (to within
     :data:`SPLIT_ROUNDOFF`) when the row has one (``t_b`` after the first's anchor), its first
     before. ``driver.c``'s ``qc_after`` is this rule in C (the compiled runners choose there)."""

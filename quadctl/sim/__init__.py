@@ -3,6 +3,8 @@
 Modules, each importing only those above it:
 
 - :mod:`~quadctl.sim.plan`: the RK4 step a loop needs (from its spectrum) or a user's step checked
+- :mod:`~quadctl.sim.loop_layout`: the layouts of a loop's constant vector and of its exogenous row per step
+- :mod:`~quadctl.sim.loop_spec`: a loop's structure (:class:`LoopSpec`, what is baked into its code)
 - :mod:`~quadctl.sim.builder`: the one closed-loop definition (:class:`LoopSpec` -> CasADi functions of one step)
 - :mod:`~quadctl.sim.etdrk4_plan`: the exponential integrator's step schedule
 - :mod:`~quadctl.sim.etdrk4_matrices`: the matrices of its steps, from the φ-functions of the loop's linear part

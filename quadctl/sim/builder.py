@@ -4,9 +4,9 @@ Every runner is generated from what this module builds: the compiled one-case lo
 lanes (emitted as C by :mod:`quadctl.native.emit`) and the interpreted fallback
 (:mod:`quadctl.sim.interpreted`). The plant is :func:`quadctl.physics.model.build_model`; a loop's structure
 is a :class:`~quadctl.sim.loop_spec.LoopSpec`, its numbers one constant vector
-(:func:`~quadctl.sim.loop_spec.constant_layout`), its per-step inputs an exogenous row
-(:func:`~quadctl.sim.loop_spec.exo_layout`), all of :mod:`quadctl.sim.loop_spec`. The loop's state,
-law, timings and features are described in the docs, docs/internals.md ("The closed loop").
+(:func:`~quadctl.sim.loop_layout.constant_layout`), its per-step inputs an exogenous row
+(:func:`~quadctl.sim.loop_layout.exo_layout`), of :mod:`quadctl.sim.loop_spec` and :mod:`quadctl.sim.loop_layout`.
+The loop's state, law, timings and features are described in the docs, docs/internals.md ("The closed loop").
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ from quadctl.physics.model import N_DISTURBANCES, N_WIND, build_model
 from quadctl.physics.motors import desaturate
 from quadctl.physics.reference_rows import ROW_HALF
 from quadctl.sim import pid
-from quadctl.sim.loop_spec import N_EXO, N_RATES, N_REFERENCE, PHI_LAYOUT, LoopSpec, constant_layout
+from quadctl.sim.loop_layout import N_EXO, N_RATES, N_REFERENCE, PHI_LAYOUT, constant_layout
+from quadctl.sim.loop_spec import LoopSpec
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 
@@ -155,7 +156,7 @@ class LoopFunctions:
     remainder: ca.Function | None = None
     """ETDRK4 only: the nonlinear remainder ``N = rhs - L X`` of :func:`etdrk4`'s stages,
     ``(X, t, c, e) -> (N, u)`` (``N`` on the reference's expansion in force over the step, ``u`` the input
-    at ``X`` on the one in force at ``t``: :data:`~quadctl.sim.loop_spec.REFERENCE_LAYOUT`) with continuous feedback,
+    at ``X`` on the one in force at ``t``: :data:`~quadctl.sim.loop_layout.REFERENCE_LAYOUT`) with continuous feedback,
     ``(X, u, c, e) -> N``
     under a held input: what a one-case compiled loop evaluates, its stages' products in
     ``driver.c`` (``qc_etd``, the same operations in the same order)."""
@@ -233,7 +234,7 @@ def build(spec: LoopSpec) -> LoopFunctions:
     stage = {"over_step": False}  # True while a step's stages are built: they read the step's expansion
 
     def expansion(t):
-        """The expansion the loop reads at ``t`` (:data:`~quadctl.sim.loop_spec.REFERENCE_LAYOUT`): its columns and
+        """The expansion the loop reads at ``t`` (:data:`~quadctl.sim.loop_layout.REFERENCE_LAYOUT`): its columns and
         ``s`` (the
         time from its anchor): the one in force at the step's start, or in a step's stages the one in
         force over the step."""
@@ -441,8 +442,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
 
 
 def phi_block(c, spec: LoopSpec) -> dict:
-    """The ETDRK4 matrices of :data:`~quadctl.sim.loop_spec.PHI_LAYOUT` in ``c`` (after the loop's constants), with the
-    entries outside ``spec.phi_pattern`` zero."""
+    """The ETDRK4 matrices of :data:`~quadctl.sim.loop_layout.PHI_LAYOUT` in ``c`` (after the loop's constants),
+    with the entries outside ``spec.phi_pattern`` zero."""
     nx = spec.nx
     offset = spec.n_constants - spec.n_phi
     mask = (ca.DM(np.reshape(np.asarray(spec.phi_pattern, dtype=float), (nx, nx), order="F"))
@@ -458,7 +459,7 @@ def phi_block(c, spec: LoopSpec) -> dict:
 def etdrk4(rhs, X, t, h, phi: dict):
     """One step of the stiffly accurate exponential Runge-Kutta method of order 4 of Hochbruck and
     Ostermann (SIAM J. Numer. Anal. 43, 2005, eq. 5.19) of ``X' = rhs(X, t)`` split as ``L X + N(X, t)``,
-    with ``L`` and the matrices of ``h`` in ``phi`` (:data:`~quadctl.sim.loop_spec.PHI_LAYOUT`), written about the
+    with ``L`` and the matrices of ``h`` in ``phi`` (:data:`~quadctl.sim.loop_layout.PHI_LAYOUT`), written about the
     step's
     start ``X`` (the linear part acts on ``Y - X``)::
 

@@ -22,7 +22,7 @@ class Cases:
     x0 : (N, nx) ndarray
         Loop state ``[x; z]`` at the first segment's step ``k0``.
     c : (S, N, nc) ndarray
-        Each segment's constants of each case (:func:`~quadctl.sim.loop_spec.pack_constants`).
+        Each segment's constants of each case (:func:`~quadctl.sim.loop_layout.pack_constants`).
     dt : (S, N) ndarray
         Step, s.
     n : (S, N) int ndarray

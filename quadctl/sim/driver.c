@@ -61,7 +61,7 @@ static int qc_after(const double* row, double t) {
 #endif
 
 /* the exogenous row of absolute step kk (its sample, clipped to the rows given) as the loop functions
- * read it at time t (quadctl.sim.loop_spec.REFERENCE_LAYOUT): a reference's expansion in force at t, then
+ * read it at time t (quadctl.sim.loop_layout.REFERENCE_LAYOUT): a reference's expansion in force at t, then
  * the one in force over the step from t (at its midpoint t + dt / 2). *held is what lane l holds in e
  * (-1: nothing), not copied again (a row lasts many steps); returns whether the row is split (the
  * expansions it gives change within it) */

@@ -2,7 +2,7 @@
 
 The φ-functions of the loop's linear part ``L`` by scaling and squaring (:func:`phi_functions`, and
 :func:`expm` alone), carried from step to step up a ladder of steps ``h_min 2^j`` by doubling
-(:func:`phi_ladder`), weighted into the stage and step matrices of :data:`quadctl.sim.loop_spec.PHI_LAYOUT`
+(:func:`phi_ladder`), weighted into the stage and step matrices of :data:`quadctl.sim.loop_layout.PHI_LAYOUT`
 (:func:`step_matrices`) and laid out as the block that ends the loop's constants (:func:`phi_constants`).
 The steps themselves are planned in :mod:`quadctl.sim.etdrk4_plan`.
 """
@@ -14,7 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from quadctl.sim.loop_spec import PHI_LAYOUT
+from quadctl.sim.loop_layout import PHI_LAYOUT
 
 PHI_ACCURACY = 1e-15
 """The φ-functions come from scaling and squaring (:func:`phi_functions`, as :func:`expm` of a block
@@ -133,7 +133,7 @@ simulation's setup, are one in five rungs."""
 
 
 def phi_ladder(L, steps) -> dict[float, dict[str, np.ndarray]]:
-    """The ETDRK4 matrices (:data:`quadctl.sim.loop_spec.PHI_LAYOUT`) of each step in ``steps``, which
+    """The ETDRK4 matrices (:data:`quadctl.sim.loop_layout.PHI_LAYOUT`) of each step in ``steps``, which
     are ``h_min 2^j``: :func:`phi_functions` at ``h_min / 2``, then up the ladder by :func:`doubled`,
     from a direct :func:`phi_functions` every :data:`RESEED` doublings. ``L`` (n, n), or a stack
     (N, n, n) of linear parts: each matrix of the ladder is then the stack of theirs (the same numbers
@@ -178,12 +178,12 @@ STAGE_WEIGHTS = np.array([
     [0, 0, 0, 1, -3, 4],                         # B1
     [0, 0, 0, 0, -1, 4],                         # B4
     [0, 0, 0, 0, 4, -8]])                        # B5
-"""The stage and step weights of :data:`quadctl.sim.loop_spec.PHI_LAYOUT` after ``lin`` as rows of
+"""The stage and step weights of :data:`quadctl.sim.loop_layout.PHI_LAYOUT` after ``lin`` as rows of
 coefficients of ``(psi1, psi2, psi3, phi1, phi2, phi3)`` (``psi_k = phi_k(hL/2)``), each times ``h``."""
 
 
 def step_matrices(L, h: float, half: list[np.ndarray], full: list[np.ndarray]) -> dict[str, np.ndarray]:
-    """The matrices of one ETDRK4 step ``h`` (:data:`quadctl.sim.loop_spec.PHI_LAYOUT`) from
+    """The matrices of one ETDRK4 step ``h`` (:data:`quadctl.sim.loop_layout.PHI_LAYOUT`) from
     ``half = [e^(hL/2), φ_1, φ_2, φ_3 (hL/2)]`` and ``full``, the same of ``hL`` (each (n, n), or a
     stack): the weights :data:`STAGE_WEIGHTS` in one product."""
     weights = np.tensordot(h * STAGE_WEIGHTS, np.stack([*half[1:], *full[1:]]), axes=1)

@@ -12,7 +12,7 @@ from quadctl.physics.wind import WindSpec, WindStream
 
 
 class ExoStream:
-    """The exogenous rows of a run (:func:`quadctl.sim.loop_spec.exo_layout`) on one clock, drawn in order.
+    """The exogenous rows of a run (:func:`quadctl.sim.loop_layout.exo_layout`) on one clock, drawn in order.
 
     Row ``j`` holds over ``[j period, (j + 1) period)``: the noise's sample ``j``
     (:class:`quadctl.physics.noise.NoiseStream`), then the wind at ``t = j period``

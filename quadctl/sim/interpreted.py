@@ -21,7 +21,8 @@ from quadctl.layout import N_INPUTS
 from quadctl.physics.reference_rows import in_force
 from quadctl.sim.builder import LoopFunctions, build
 from quadctl.sim.cases import Cases
-from quadctl.sim.loop_spec import N_REFERENCE, LoopSpec
+from quadctl.sim.loop_layout import N_REFERENCE
+from quadctl.sim.loop_spec import LoopSpec
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
 

@@ -21,7 +21,8 @@ import numpy as np
 from quadctl.design import lqg_loop
 from quadctl.layout import N_STATES, PRODUCTS, STATE_INDEX, STATE_NAMES
 from quadctl.sim.etdrk4_plan import plan_schedule
-from quadctl.sim.loop_spec import LoopSpec, pack_constants
+from quadctl.sim.loop_layout import pack_constants
+from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.pid import initial_states, structure_of
 from quadctl.sim.plan import StepPlan, max_stable_steps, plan_held_step, plan_step
 
@@ -281,7 +282,7 @@ class ClosedLoop:
         return tuple(self.estimator.measured) if self.estimator is not None else ()
 
     def constants(self, sample_time: float | None = None) -> np.ndarray:
-        """The constant vector ``c`` of this loop (:func:`quadctl.sim.loop_spec.pack_constants`)."""
+        """The constant vector ``c`` of this loop (:func:`quadctl.sim.loop_layout.pack_constants`)."""
         values = dict(x_ref=self.x_trim, x_rate=self.x_rate, u_trim=self.u_trim, params=self.params,
                       Ts=[sample_time or 0.0])
         act = self.actuators
@@ -308,7 +309,7 @@ class ClosedLoop:
     @property
     def constant_layout(self) -> tuple[int, bool, bool, int, tuple[int, ...], int, int]:
         """``(nz, rotors, lag_model, ny, schedule, law, filter_order)``: the arguments of
-        :func:`quadctl.sim.loop_spec.constant_layout` that give the layout of :meth:`constants`."""
+        :func:`quadctl.sim.loop_layout.constant_layout` that give the layout of :meth:`constants`."""
         return (len(self.integral_states), self.rotor_time_constant is not None, self.Kv is not None,
                 len(self.measured), self.schedule_shape, len(self.law.values) if self.law is not None else 0,
                 self.rate_filter.order if self.rate_filter is not None else 0)
@@ -330,7 +331,7 @@ class ClosedLoop:
 
     def gain_constants(self) -> dict[str, np.ndarray]:
         """The entries of :meth:`constants` that the gains set: :func:`gain_constants` of this loop alone
-        (:func:`quadctl.sim.loop_spec.fill_constants` writes them into a copy of another loop's)."""
+        (:func:`quadctl.sim.loop_layout.fill_constants` writes them into a copy of another loop's)."""
         return {name: value[0] for name, value in gain_constants([self]).items()}
 
     def heading_offset(self, x_ref) -> np.ndarray:
@@ -392,7 +393,7 @@ def gain_constants(loops) -> dict[str, np.ndarray]:
     """The entries of :meth:`ClosedLoop.constants` that the gains set (``K``, a cascade's ``law``,
     ``Ki`` and its anti-windup pattern, ``Kv``, a gain schedule's table), each stacked over ``loops``
     (one structure): all that differs between two loops of one structure
-    (:func:`quadctl.sim.loop_spec.fill_constants_stack` writes them into copies of one's constants)."""
+    (:func:`quadctl.sim.loop_layout.fill_constants_stack` writes them into copies of one's constants)."""
     first = loops[0]
     out = {"K": np.stack([loop.K for loop in loops])}
     if first.law is not None:

@@ -16,7 +16,8 @@ from quadctl.physics.reference_rows import ROW_HALF, SPLIT_ROUNDOFF
 from quadctl.sim.builder import LoopFunctions
 from quadctl.sim.cases import Cases
 from quadctl.sim.lane_metrics import SETTLE_NONE, SETTLE_PENDING, MetricSpec
-from quadctl.sim.loop_spec import N_REFERENCE, LoopSpec
+from quadctl.sim.loop_layout import N_REFERENCE
+from quadctl.sim.loop_spec import LoopSpec
 
 STEPPERS = ("qc_step", "qc_plant")
 """The step functions ``driver.c`` calls with their work on a case's step and constants hoisted."""

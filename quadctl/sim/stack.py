@@ -25,7 +25,8 @@ from quadctl.sim.etdrk4_matrices import phi_constant_rows, phi_ladder, phi_patte
 from quadctl.sim.etdrk4_plan import Segment, record_strides
 from quadctl.sim.exogenous import ExoStream
 from quadctl.sim.loop import exponential_plan, gain_constants
-from quadctl.sim.loop_spec import LoopSpec, fill_constants_stack
+from quadctl.sim.loop_layout import fill_constants_stack
+from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.plan import StepPlan, record_stride
 
 if TYPE_CHECKING:
@@ -112,7 +113,7 @@ def rk4_cases(loops, x0s, plans, bounds, *, max_samples=MAX_SAMPLES, exo=None, e
     of ``exo_period`` drawn when the stack runs, :func:`run_stack`). ``shared``: per case a key; the
     cases of one key are one loop but for its gains (:meth:`~quadctl.sim.loop.ClosedLoop.gain_constants`) from one
     ``x0``: its constants and initial loop state are computed once, each case's gains written into a
-    copy (:func:`quadctl.sim.loop_spec.fill_constants_stack`); None: each case's own.
+    copy (:func:`quadctl.sim.loop_layout.fill_constants_stack`); None: each case's own.
     """
     N = len(loops)
     samples = np.broadcast_to(np.asarray(max_samples), (N,))

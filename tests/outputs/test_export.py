@@ -438,7 +438,7 @@ def test_the_exported_gain_schedule_gives_the_simulated_commands(tmp_path):
     from dataclasses import replace
 
     from quadctl.design.gain_table import scheduling_value
-    from quadctl.sim.loop_spec import constant_layout
+    from quadctl.sim.loop_layout import constant_layout
 
     cfg = config.load("crazyflie-speed-schedule")
     exp = export.prepare(setup_of(cfg), config_hash=cfg.digest())

@@ -330,7 +330,7 @@ def test_a_rows_second_expansion_is_in_force_from_its_split_on():
     holds to it): a row split at t_b gives its first expansion before t_b and its second from t_b on (a
     time within round-off of t_b counts as on it); a row with no split (its second a copy of the first)
     gives its first throughout. The loop reads the one in force at t, then the one over the step."""
-    from quadctl.sim.loop_spec import N_REFERENCE
+    from quadctl.sim.loop_layout import N_REFERENCE
 
     assert N_REFERENCE == 2 * ROW_HALF  # the loop's columns are the table's two expansions
     t_j, t_b = 0.005, 0.0075

@@ -83,7 +83,7 @@ def test_a_loops_gains_written_into_another_loops_constants_give_its_constants(l
     gain_constants): the gains must be all that differs between two loops of one structure."""
     from dataclasses import replace
 
-    from quadctl.sim.loop_spec import fill_constants, fill_constants_stack
+    from quadctl.sim.loop_layout import fill_constants, fill_constants_stack
 
     _, loop = _loop(data)
     rng = np.random.default_rng(7)

@@ -31,7 +31,7 @@ from quadctl.errors import ConfigError, StepSizeError
 from quadctl.setup import setup_of
 from quadctl.sim import engine, etdrk4_matrices, etdrk4_plan
 from quadctl.sim.builder import build, etdrk4
-from quadctl.sim.loop_spec import PHI_LAYOUT
+from quadctl.sim.loop_layout import PHI_LAYOUT
 from quadctl.sim.run import simulate
 
 ca = pytest.importorskip("casadi")
