@@ -19,7 +19,7 @@ import numpy as np
 
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.config.pid import PidGains, resolve
-from quadctl.config.schema import ETDRK4_TOLERANCE
+from quadctl.config.simulation_schema import ETDRK4_TOLERANCE
 from quadctl.errors import RateError, TrimError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linear.filters import RateFilter, rate_filter_of

@@ -14,7 +14,8 @@ from typing import Any
 
 from quadctl.config.controller_schema import MAX_DELAY_SAMPLES, DelaySamples, EstimatorConfig
 from quadctl.config.pid import NEEDS_ROTORS, rate_problem, resolve
-from quadctl.config.schema import MAX_WIND_ALTITUDE, SUBSYSTEM_NAME_PATTERN, Config, ReferenceConfig, ScheduleConfig
+from quadctl.config.schema import SUBSYSTEM_NAME_PATTERN, Config, ScheduleConfig
+from quadctl.config.simulation_schema import MAX_WIND_ALTITUDE, ReferenceConfig
 from quadctl.config.unit_limits import check_initial_offset, check_unit_limits
 from quadctl.config.vehicle_checks import check_inertia, check_rotors
 from quadctl.config.weights import check_weight

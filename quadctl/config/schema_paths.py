@@ -11,7 +11,9 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from quadctl.config.schema import Config, PlantConfig, VehicleConfig
+from quadctl.config.schema import Config
+from quadctl.config.simulation_schema import PlantConfig
+from quadctl.config.vehicle_schema import VehicleConfig
 
 
 def section_model(loc: list) -> type[BaseModel] | None:

@@ -9,7 +9,8 @@ the value and the fix. What is merely unusual is warned about instead (:mod:`qua
 from __future__ import annotations
 
 from quadctl.config.describe import UNION_HINTS
-from quadctl.config.schema import INERTIA_DESCRIPTION, Config, MotorsConfig
+from quadctl.config.schema import Config
+from quadctl.config.vehicle_schema import INERTIA_DESCRIPTION, MotorsConfig
 from quadctl.config.weights import DEFINITENESS_RTOL, SYMMETRY_RTOL
 from quadctl.physics.motors import NUMBERINGS, POSITIONS, Motors
 from quadctl.text.messages import unknown as _unknown

@@ -17,7 +17,7 @@ import numpy as np
 
 from quadctl import layout
 from quadctl._lazy import lazy_import
-from quadctl.config.schema import MotorsConfig
+from quadctl.config.vehicle_schema import MotorsConfig
 from quadctl.errors import LogError
 from quadctl.physics.model import N_DISTURBANCES, N_PARAMS, dynamics_expression
 from quadctl.physics.motors import Motors

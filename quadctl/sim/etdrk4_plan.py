@@ -129,9 +129,9 @@ def forced_step(eigenvalues, tolerance: float) -> float:
 
 def default_tolerance() -> float:
     """The error ``dt: auto`` aims at when none is given: ``simulation.tolerance``'s default
-    (:data:`quadctl.config.schema.ETDRK4_TOLERANCE`, declared there only; read when first needed, so
+    (:data:`quadctl.config.simulation_schema.ETDRK4_TOLERANCE`, declared there only; read when first needed, so
     that the simulation does not load the config's schema)."""
-    from quadctl.config.schema import ETDRK4_TOLERANCE
+    from quadctl.config.simulation_schema import ETDRK4_TOLERANCE
 
     return ETDRK4_TOLERANCE
 

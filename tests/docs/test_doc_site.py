@@ -162,7 +162,9 @@ def test_the_config_reference_has_every_key_with_its_default_and_unit():
         return [f"{prefix}{name}" for name in model.model_fields]
 
     from quadctl.config.controller_schema import ControllerConfig
-    from quadctl.config.schema import Config, SimulationConfig, VehicleConfig
+    from quadctl.config.schema import Config
+    from quadctl.config.simulation_schema import SimulationConfig
+    from quadctl.config.vehicle_schema import VehicleConfig
 
     expected = [*walk(Config, ""), *walk(VehicleConfig, "vehicle."), *walk(SimulationConfig, "simulation."),
                 *walk(ControllerConfig, "controller.")]

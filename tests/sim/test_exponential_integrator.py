@@ -588,7 +588,7 @@ def test_a_sweep_in_the_lanes_matches_the_one_case_runs(name):
 def test_a_run_without_a_tolerance_aims_at_the_configs_default():
     """One default, the schema's: the setup resolves an absent ``simulation.tolerance`` to it, and a
     run planned without a config aims at it too."""
-    from quadctl.config.schema import ETDRK4_TOLERANCE
+    from quadctl.config.simulation_schema import ETDRK4_TOLERANCE
 
     assert setup_of(config.load("forward")).tolerance == ETDRK4_TOLERANCE
     eig, owners = np.array([-1.0, -50.0, -400.0]), ["loop"] * 3
