@@ -12,13 +12,13 @@ import sys
 from pathlib import Path
 
 import quadctl as qc
-from quadctl import pipeline, plots
+from quadctl import pipeline, plots, run_summary
 
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent / "docs" / "figures"
 
 stages = qc.Stages(qc.setup_of(qc.load_config("square")))
 sim = pipeline.simulation_of(stages.setup, stages.loop)
-summary = pipeline.tracking_summary(stages.setup, sim)
+summary = run_summary.tracking_summary(stages.setup, sim)
 error = summary["position_error"]
 print("square: reached " + ", ".join(f"{w['reached']:.3f} s" for w in summary["waypoints"])
       + f"; tracking error rms {error['rms']:.3g} m, peak {error['peak']:.3g} m")

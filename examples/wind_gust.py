@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 import quadctl as qc
-from quadctl import config, pipeline
+from quadctl import config, pipeline, run_summary
 from quadctl.config import overrides
 from quadctl.layout import STATE_INDEX
 
@@ -27,7 +27,7 @@ for label, sets in (("gust", ["simulation.wind.turbulence=null"]), ("gust and tu
     stages = qc.Stages(qc.setup_of(overrides.load(config.locate("crazyflie-wind"), sets)))
     sim = runs[label] = pipeline.simulation_of(stages.setup, stages.loop)
     err = sim.x - sim.x_ref
-    ground, air = pipeline.speeds(sim)
+    ground, air = run_summary.speeds(sim)
     print(f"crazyflie-wind, {label}: status {sim.status}; "
           f"peak |pN drift| {np.abs(err[:, STATE_INDEX['pN']]).max():.3g} m, "
           f"peak |theta - trim| {np.rad2deg(np.abs(err[:, STATE_INDEX['theta']]).max()):.3g} deg, "

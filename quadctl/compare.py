@@ -8,6 +8,9 @@ run is summarized by the same metrics (:data:`METRICS`), its cost on the config'
 each law's loops by their margins, each broken at a plant input with the rest of the loop closed (the
 LQR design's on the coupled model, :func:`quadctl.design.margin_findings.all_margins`; a cascade's lifted to its
 frame, :func:`quadctl.sim.cascade_margins.cascade_margins`): the same functions, comparable numbers.
+
+``design --full`` sets two designs side by side the same way: the decoupled LQR and one coupled LQR of
+the same cost, both flown on the nonlinear model from the configured offset (:func:`compare_full`).
 """
 
 from __future__ import annotations
@@ -18,13 +21,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.config.pid import NEEDS_ROTORS, PRESET_NAMES, resolve
+from quadctl.design import Design, coupled
 from quadctl.design.margins import least_margins
 from quadctl.errors import ConfigError
-from quadctl.layout import STATE_INDEX
-from quadctl.metrics import NOISE_LIMITED_WORDS, limited_by_noise, lqr_cost, overshoot, settling_time
+from quadctl.layout import INPUT_NAMES, STATE_INDEX
+from quadctl.linear.linearize import LinearModel
+from quadctl.metrics import NOISE_LIMITED_WORDS, limited_by_noise, lqr_cost, overshoot, settling_time, summarize
 from quadctl.physics.motors import has_rotors
 from quadctl.physics.noise import exogenous_period
-from quadctl.pipeline import Stages, noisy, pid_loop_of
+from quadctl.pipeline import Stages, closed_loop_of, noisy, pid_loop_of, simulation_of
+from quadctl.setup import Setup
 from quadctl.sim.cascade_margins import cascade_margins
 from quadctl.sim.exogenous import ExoStream
 from quadctl.sim.loop import ClosedLoop
@@ -268,3 +274,35 @@ def payload(comparison: Comparison) -> dict:
         "laws": [{"name": law.name, "title": law.title, "rate": law.rate, "disturbances": law.disturbances,
                   **law.metrics, "margins": [m.as_dict() for m in law.margins]} for law in comparison.laws],
     }
+
+
+def compare_full(setup: Setup, linear: LinearModel, des: Design):
+    """``design --full``: one coupled LQR with the same cost, both simulated on the nonlinear model.
+
+    Both runs start from the configured offset on the configured plant and actuators, *without*
+    noise, so settling times and peaks measure the designs, not one noise realization.
+
+    Returns
+    -------
+    (FullDesign, dict)
+        The full design and :func:`quadctl.design.coupled.compare` of the two runs (``decoupled``, ``full``),
+        with each run's metrics and status.
+    """
+
+    if des.lag_time_constant is not None:
+        raise ConfigError("controller.rotor_lag = include: design --full (one coupled LQR) is built for designs "
+                          "without the rotors' lag only; run it with rotor_lag: ignore, or drop --full")
+    fd = coupled.full_design(des, linear.A, linear.B)
+    dx0 = setup.initial_offset
+    Q = des.Q_block
+    runs = {}
+    for label, K, Ki in (("decoupled", des.K_block, des.Ki_block), ("full", fd.K, fd.Ki)):
+        loop = closed_loop_of(setup, linear, K, Ki=Ki, integral_states=des.integral_states)
+        sim = simulation_of(setup, loop, noise=False)
+        met = summarize(sim, linear.u_trim, Q, des.R_block, setup.regulated, noisy=noisy(setup, noise=False))
+        met["peak_delta"] = {name: float(np.abs(sim.u[:, j] - linear.u_trim[j]).max())
+                             for j, name in enumerate(INPUT_NAMES)}
+        met["linear_cost"] = coupled.linear_cost(linear.A, linear.B, K, Ki, des, dx0)
+        met["backend"] = sim.backend
+        runs[label] = met
+    return fd, coupled.compare(runs, setup.regulated)

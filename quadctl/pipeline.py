@@ -3,20 +3,19 @@
 Each takes the setup (and upstream results) and returns the stage's result object; nothing here
 reads the config (:func:`quadctl.setup.setup_of` did, once). :class:`Stages` is the one chain of
 them, each computed once on first use: the run folder's :class:`~quadctl.workspace.Workspace` and
-:func:`quadctl.export.prepare` take it.
+:func:`quadctl.export.prepare` take it. What a flown run reports (``sim.json``'s flight, wind,
+tracking and mission verdict) is :mod:`quadctl.run_summary`'s.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import Enum
 from functools import cached_property
 
 import numpy as np
 
 from quadctl.config.pid import NEEDS_ROTORS
-from quadctl.design import Design, coupled, design, discrete, kalman, linear_loop, lqg_loop, margin_findings
-from quadctl.design.gain_table import OUTSIDE, VARIABLES
+from quadctl.design import Design, design, discrete, kalman, linear_loop, lqg_loop, margin_findings
 from quadctl.errors import ConfigError, RateError
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 from quadctl.linear import stability
@@ -24,9 +23,7 @@ from quadctl.linear.analysis import Checks, check
 from quadctl.linear.decouple import Decoupled, decouple
 from quadctl.linear.linearize import LinearModel, linearize
 from quadctl.linear.trim import Trim, solve_trim
-from quadctl.metrics import summarize
-from quadctl.physics import motors, trajectory
-from quadctl.physics.model import Vehicle, build_model
+from quadctl.physics import motors
 from quadctl.physics.motors import check_trim
 from quadctl.setup import Setup
 from quadctl.sim.cascade_lift import lifted
@@ -194,19 +191,6 @@ def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
                    schedule_jacobians=jacobians)
 
 
-def schedule_summary(loop: ClosedLoop) -> dict | None:
-    """``sim.json``'s ``gain_schedule``: the gain table the loop flew (variable, unit, values,
-    interpolation, what holds outside them, what the variable is read from); None: fixed gains."""
-
-    table = loop.schedule
-    if table is None:
-        return None
-    return {"variable": table.variable, "units": VARIABLES[table.variable], "values": table.values.tolist(),
-            "interpolation": table.interpolation, "outside": OUTSIDE, "heading": loop.schedule_heading,
-            "scheduled_on": "the reference the law uses (x_ref(t))",
-            "integrator_gains": bool(table.coefficients.shape[-1] > len(STATE_NAMES))}
-
-
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progress=None) -> SimResult:
     """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise;
     the wind, a condition of the flight, stays); ``progress(done, total)`` as :func:`simulate` calls it."""
@@ -221,36 +205,6 @@ def noisy(setup: Setup, noise: bool = True) -> bool:
     :func:`simulation_of`'s) or turbulence. Its settling times may be noise-limited
     (:func:`quadctl.metrics.noise_limited`)."""
     return (noise and setup.noise is not None) or (setup.wind is not None and setup.wind.turbulence is not None)
-
-
-def tracking_summary(setup: Setup, sim: SimResult) -> dict | None:
-    """``sim.json``'s ``reference``: the position tracking error ``|p - p_ref|`` (m; RMS over time,
-    peak and final) and, for a mission, each waypoint with the time it was first reached within the
-    tolerance (in order; None: never) and its closest approach (m) and when (s)
-    (:class:`quadctl.physics.trajectory.Approach`); None without a reference."""
-    if setup.reference is None or len(sim.t) == 0:
-        return None
-    return tracking_of(setup.reference, sim.t, sim.x, sim.x_ref)
-
-
-def tracking_of(ref, t, x, x_ref) -> dict:
-    """:func:`tracking_summary` of the path ``ref`` (:class:`quadctl.physics.trajectory.Reference`) flown as
-    ``x`` ((n, 12), at the times ``t``) against the reference ``x_ref`` the law used."""
-
-    err = np.linalg.norm(x[:, :3] - x_ref[:, :3], axis=1)
-    out = {"kind": "waypoints" if ref.legs else "setpoints",
-           "position_error": {"rms": float(np.sqrt(np.mean(err ** 2))), "peak": float(err.max()),
-                              "final": float(err[-1]), "units": "m"}}
-    if ref.legs:
-        met = trajectory.waypoint_approaches(ref, t, x[:, :3])
-        out["tolerance"] = ref.tolerance
-        out["waypoints"] = [{"position": list(leg.position), "yaw": leg.yaw, "leg_start": leg.start,
-                             "leg_end": leg.end, "hold": leg.hold, "reached": a.reached, "closest": a.closest,
-                             "closest_at": a.closest_at}
-                            for leg, a in zip(ref.legs, met)]
-        out["all_reached"] = all(a.reached is not None for a in met)
-        out["mission_end"] = ref.end
-    return out
 
 
 class Stages:
@@ -475,208 +429,3 @@ def initial_demand(setup: Setup, des: Design) -> dict[str, float]:
     """``|K (x0 - x_trim)|`` per input: what the configured initial offset asks for at t = 0."""
     du = des.K_block @ setup.initial_offset
     return {name: float(abs(du[j])) for j, name in enumerate(INPUT_NAMES)}
-
-
-def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
-    """The flight numbers of ``sim.json``: controller sampling, saturation, noise RMS, integrators.
-
-    Returns
-    -------
-    dict
-        ``controller`` (rate Hz, design kind, RK4 steps per sample), ``peak_delta`` (max |u - u_trim|
-        per input), ``rms_error`` and ``rms_error_second_half`` (per state, state units),
-        ``saturation`` (None without actuators; else per actuator the fraction of the run at a
-        limit, ``saturates`` when one exceeds 1 %, peak commands, rotor speeds), ``noise``
-        (seed and period, or None), ``wind`` (:func:`wind_summary`, or None), ``estimation`` (LQG
-        only: RMS of ``x - x_hat`` per state, whole run and second half, and the steady filter's
-        predicted standard deviation), ``integral`` (states and final integrator values), ``plant``
-        (the simulated vehicle's parameters when they differ from the design model), ``reference``
-        (:func:`tracking_summary`: tracking error and waypoints; None without a reference),
-        ``gain_schedule`` (:func:`schedule_summary`: the gain table flown; None: fixed gains).
-    """
-    from quadctl.physics import noise
-
-    duration = float(sim.t[-1]) if len(sim.t) else 0.0
-    out: dict = {
-        "controller": {"rate": setup.timing.rate, "design": setup.timing.mode,
-                       "hold_steps": sim.plan.hold, "sample_time": sim.plan.sample_time},
-        "peak_delta": {name: float(np.abs(sim.u[:, j] - loop.u_trim[j]).max())
-                       for j, name in enumerate(INPUT_NAMES)},
-        "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_ref),
-        "rms_error_second_half": noise.rms_deviation(sim.t, sim.x, sim.x_ref, duration / 2),
-        "saturation": None, "noise": None, "wind": wind_summary(setup, sim), "estimation": None,
-        "integral": {"states": list(loop.integral_states),
-                     "final": {s: float(sim.z[-1, i]) for i, s in enumerate(loop.integral_states)}},
-        "plant": setup.plant_overrides or None, "reference": tracking_summary(setup, sim),
-        "gain_schedule": schedule_summary(loop),
-    }
-    act = loop.actuators
-    if act is not None:
-        fractions = motors.saturation_fraction(act, sim.u)
-        commands = act.commands(sim.u)
-        sat = {"mode": act.mode, "actuators": list(act.names), "fraction": fractions,
-               "saturates": motors.saturates(fractions), "flag_above": motors.SATURATION_FLAG,
-               "low": act.lo, "high": act.hi,
-               "peak_command": {n: float(commands[:, i].max()) for i, n in enumerate(act.names)},
-               "min_command": {n: float(commands[:, i].min()) for i, n in enumerate(act.names)}}
-        if act.motors is not None:
-            speeds = act.motors.speed(commands)
-            sat["peak_rotor_speed"] = {n: float(speeds[:, i].max()) for i, n in enumerate(act.names)}
-            sat["trim_rotor_thrust"] = list(act.commands(loop.u_trim))
-        out["saturation"] = sat
-    if out["reference"] is not None and "waypoints" in out["reference"]:
-        sat = out["saturation"]
-        out["reference"].update(mission_check(
-            out["reference"], status=sim.status, saturates=bool(sat and sat["saturates"]),
-            unregulated=unregulated_positions(setup), duration=setup.duration))
-    kal = loop.estimator
-    if kal is not None and sim.x_hat.size:
-        predicted = np.sqrt(np.maximum(np.diag(kal.P), 0.0))
-        out["estimation"] = {
-            "form": kal.form, "measured": list(kal.measured),
-            "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_hat),
-            "rms_error_second_half": noise.rms_deviation(sim.t, sim.x, sim.x_hat, duration / 2),
-            "predicted_std": dict(zip(STATE_NAMES, predicted))}
-    spec = setup.noise
-    if spec is not None:
-        out["noise"] = {"seed": spec.seed, "period": spec.period, "process_std": spec.process_std,
-                        "sensor_std": dict(zip(STATE_NAMES, spec.sensor_std))}
-    return out
-
-
-def speeds(sim: SimResult) -> tuple[np.ndarray, np.ndarray]:
-    """(ground speed, airspeed) at each recorded sample, m/s: ``|R_b^E V_b|`` from the model's position
-    rates, and ``|R_b^E V_b - w|`` with the wind the plant felt (still air: the two agree)."""
-
-    # the position rows of f are the kinematics R_b^E V_b: no parameter enters them
-    vel = np.asarray(build_model().f.map(len(sim.t))(sim.x.T, sim.u.T, Vehicle().vector()), dtype=float)[:3].T
-    wind = sim.wind if len(sim.wind) else np.zeros_like(vel)
-    return np.linalg.norm(vel, axis=1), np.linalg.norm(vel - wind, axis=1)
-
-
-def wind_summary(setup: Setup, sim: SimResult) -> dict | None:
-    """``sim.json``'s ``wind``: the wind's configuration and seed, the peak wind, and the ground speed
-    and airspeed (m/s: max and RMS over the run); None in still air."""
-    spec = setup.wind
-    if spec is None or len(sim.t) == 0:
-        return None
-    ground, air = speeds(sim)
-    turb = spec.turbulence
-    return {
-        "steady": list(spec.steady), "gusts": [{"start": g.start, "length": g.length, "amplitude": list(g.amplitude),
-                                                 "hold": g.hold} for g in spec.gusts],
-        "turbulence": None if turb is None else {
-            "seed": turb.seed, "sigma": list(turb.sigma), "length_scale": list(turb.length),
-            "reference_speed": turb.speed, "heading": turb.heading, "period": turb.period},
-        "trim_in_wind": bool(any(setup.trim_wind)),
-        "peak_wind": float(np.linalg.norm(sim.wind, axis=1).max()),
-        "ground_speed": {"max": float(ground.max()), "rms": float(np.sqrt(np.mean(ground ** 2)))},
-        "airspeed": {"max": float(air.max()), "rms": float(np.sqrt(np.mean(air ** 2)))},
-        "units": "m/s",
-    }
-
-
-class MissionVerdict(str, Enum):
-    """How a mission ended (``sim.json``'s ``reference.verdict``): every waypoint reached and the final
-    tracking error within the tolerance, or the first cause of a failure the run shows, in this order
-    (:func:`mission_check`). Its sentence: :func:`quadctl.present.mission.mission_text`."""
-
-    REACHED = "reached"
-    """Every waypoint reached within the tolerance, the final tracking error within it."""
-    NOT_REGULATED = "position_not_regulated"
-    """A position the mission flies is in no regulated subsystem: no gain acts on its error."""
-    LEFT_VALID_RANGE = "left_valid_range"
-    """The run stopped early: the vehicle left the model's valid range (or diverged)."""
-    SATURATED = "saturated"
-    """The inputs were at their limits for more than :data:`quadctl.physics.motors.SATURATION_FLAG` of the run."""
-    RUN_ENDS_BEFORE_MISSION = "run_ends_before_mission"
-    """``simulation.duration`` ends before the mission's last leg and hold."""
-    MISSED = "missed"
-    """None of the causes above: the vehicle flew the whole mission and stayed farther than the tolerance."""
-
-
-def unregulated_positions(setup: Setup) -> tuple[str, ...]:
-    """The position states (``pN``, ``pE``, ``pD``) in no regulated subsystem of the partition that a
-    mission (``setup.reference`` with waypoints) moves along: a waypoint off the trim's position there."""
-    ref = setup.reference
-    legs = ref.legs if ref is not None else ()
-    offsets = np.abs(np.array([leg.position for leg in legs]).reshape(-1, 3) - np.asarray(setup.position_ned))
-    return tuple(s for i, s in enumerate(STATE_NAMES[:3])
-                 if s not in setup.regulated and (not legs or offsets[:, i].max() > 0))
-
-
-def mission_check(tracking: dict, *, status: str = "ok", saturates: bool = False,
-                  unregulated: tuple[str, ...] = (), duration: float | None = None) -> dict:
-    """The verdict on a mission flown (:func:`tracking_summary`'s ``tracking``, with ``waypoints``): a
-    waypoint never reached, or a final tracking error above the tolerance, fails; the cause is the first
-    the run shows of :class:`MissionVerdict`'s.
-
-    Parameters
-    ----------
-    tracking : dict
-        ``waypoints`` (each with ``reached``: s, or None), ``tolerance`` (m), ``mission_end`` (s) and,
-        when known, ``position_error.final`` (m; a sweep's lanes do not keep it).
-    status : str
-        The run's (:func:`quadctl.sim.run.verdict`): ``ok``, ``diverged`` or ``left_valid_range``.
-    saturates : bool
-        Some input at a limit for more than 1 % of the run.
-    unregulated : tuple of str
-        :func:`unregulated_positions` of the design.
-    duration : float, optional
-        s, the configured run (``simulation.duration``).
-
-    Returns
-    -------
-    dict
-        ``verdict`` (a :class:`MissionVerdict` value), ``missed`` (indices of the waypoints never
-        reached), ``final_above_tolerance`` (bool), ``unregulated`` (list) and ``duration``.
-    """
-    missed = [i for i, w in enumerate(tracking["waypoints"]) if w["reached"] is None]
-    final = tracking.get("position_error", {}).get("final")
-    above = final is not None and not final <= tracking["tolerance"]
-    if not missed and not above:
-        verdict = MissionVerdict.REACHED
-    elif unregulated:
-        verdict = MissionVerdict.NOT_REGULATED
-    elif status != "ok":
-        verdict = MissionVerdict.LEFT_VALID_RANGE
-    elif saturates:
-        verdict = MissionVerdict.SATURATED
-    elif duration is not None and duration < tracking["mission_end"]:
-        verdict = MissionVerdict.RUN_ENDS_BEFORE_MISSION
-    else:
-        verdict = MissionVerdict.MISSED
-    return {"verdict": verdict.value, "missed": missed, "final_above_tolerance": bool(above),
-            "unregulated": list(unregulated), "duration": duration}
-
-
-def compare_full(setup: Setup, linear: LinearModel, des: Design):
-    """``design --full``: one coupled LQR with the same cost, both simulated on the nonlinear model.
-
-    Both runs start from the configured offset on the configured plant and actuators, *without*
-    noise, so settling times and peaks measure the designs, not one noise realization.
-
-    Returns
-    -------
-    (FullDesign, dict)
-        The full design and :func:`quadctl.design.coupled.compare` of the two runs (``decoupled``, ``full``),
-        with each run's metrics and status.
-    """
-
-    if des.lag_time_constant is not None:
-        raise ConfigError("controller.rotor_lag = include: design --full (one coupled LQR) is built for designs "
-                          "without the rotors' lag only; run it with rotor_lag: ignore, or drop --full")
-    fd = coupled.full_design(des, linear.A, linear.B)
-    dx0 = setup.initial_offset
-    Q = des.Q_block
-    runs = {}
-    for label, K, Ki in (("decoupled", des.K_block, des.Ki_block), ("full", fd.K, fd.Ki)):
-        loop = closed_loop_of(setup, linear, K, Ki=Ki, integral_states=des.integral_states)
-        sim = simulation_of(setup, loop, noise=False)
-        met = summarize(sim, linear.u_trim, Q, des.R_block, setup.regulated, noisy=noisy(setup, noise=False))
-        met["peak_delta"] = {name: float(np.abs(sim.u[:, j] - linear.u_trim[j]).max())
-                             for j, name in enumerate(INPUT_NAMES)}
-        met["linear_cost"] = coupled.linear_cost(linear.A, linear.B, K, Ki, des, dx0)
-        met["backend"] = sim.backend
-        runs[label] = met
-    return fd, coupled.compare(runs, setup.regulated)

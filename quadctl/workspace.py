@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadctl import artifacts, payloads, pipeline
+from quadctl import artifacts, compare, payloads, pipeline, run_summary
 from quadctl.artifacts.places import (
     CHECKS,
     DESIGN,
@@ -285,7 +285,7 @@ class Workspace(Session, pipeline.Stages):
     @cached_property
     def full(self):
         """``design --full``: (FullDesign, comparison); writes design_full.json."""
-        fd, comparison = pipeline.compare_full(self.setup, self.linear, self.design)
+        fd, comparison = compare.compare_full(self.setup, self.linear, self.design)
         self._write_json(DESIGN_FULL, "design_full", payloads.design_full(fd, comparison),
                          [d["backend"] for d in comparison["designs"].values()])
         return fd, comparison
@@ -303,7 +303,7 @@ class Workspace(Session, pipeline.Stages):
         if setup.law == "pid":  # the PID cascade flies in place of the design (controller.flies: pid)
             loop = pipeline.pid_loop_of(setup, linear)
         sim = pipeline.simulation_of(setup, loop, progress=self.progress)
-        flight = pipeline.flight_summary(setup, loop, sim)
+        flight = run_summary.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated,
                             noisy=pipeline.noisy(setup))
         meta = self._meta("simulation", sim.backend)

@@ -257,7 +257,7 @@ def simulation_figures(sim, partition: dict, u_trim=None, *, title: str = "", ac
                        tracking: dict | None = None) -> dict[str, Figure]:
     """A figure per subsystem (in partition order), one of the inputs (with ``actuators``' limits,
     :func:`inputs_figure`), in wind one of the wind and, flying a reference, the path (a mission's
-    waypoints from ``tracking``, :func:`quadctl.pipeline.tracking_of`) and the tracking error,
+    waypoints from ``tracking``, :func:`quadctl.run_summary.tracking_of`) and the tracking error,
     keyed by file stem."""
     return {name: make() for name, make in simulation_figure_makers(sim, partition, u_trim, title=title,
                                                                      actuators=actuators, tracking=tracking).items()}

@@ -163,7 +163,7 @@ def integral_text(flight: dict) -> str | None:
 
 
 def wind_line(wind: dict) -> str:
-    """A run's wind (:func:`quadctl.pipeline.wind_summary`) in one line: steady, gusts, turbulence, peak, and whether
+    """A run's wind (:func:`quadctl.run_summary.wind_summary`) in one line: steady, gusts, turbulence, peak, and whether
     the trim is in it (``simulate`` and the report print it)."""
     def num(v):
         return f"{v:.4g}"

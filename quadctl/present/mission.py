@@ -1,13 +1,13 @@
 """A flown reference as rows and sentences: the waypoints of a mission (where, when reached, how
 close) and the position tracking error, from a run's tracking summary
-(:func:`quadctl.pipeline.tracking_of`, ``sim.json``'s ``reference``)."""
+(:func:`quadctl.run_summary.tracking_of`, ``sim.json``'s ``reference``)."""
 
 from __future__ import annotations
 
 import math
 
-from quadctl.pipeline import MissionVerdict
 from quadctl.present.cells import Mark, Table, num
+from quadctl.run_summary import MissionVerdict
 
 
 def tracking_sentence(tracking: dict) -> str:
@@ -70,7 +70,7 @@ def waypoints_table(tracking: dict) -> Table | None:
 
 
 def mission_text(tracking: dict | None) -> str | None:
-    """Why a mission failed (:func:`quadctl.pipeline.mission_check`'s verdict in ``tracking``): what was
+    """Why a mission failed (:func:`quadctl.run_summary.mission_check`'s verdict in ``tracking``): what was
     missed, then the cause the run shows and its fix; None: every waypoint reached (or no mission)."""
 
     if not tracking or tracking.get("verdict", MissionVerdict.REACHED.value) == MissionVerdict.REACHED.value:

@@ -145,7 +145,7 @@ def failures_table(sched) -> Table | None:
 
 
 def schedule_line(schedule: dict) -> str:
-    """A run's gain schedule (:func:`quadctl.pipeline.schedule_summary`) in one line (``simulate`` prints it)."""
+    """A run's gain schedule (:func:`quadctl.run_summary.schedule_summary`) in one line (``simulate`` prints it)."""
     values = ", ".join(f"{v:g}" for v in schedule["values"])
     return (f"gains scheduled on {schedule['variable']} at {values} {schedule['units']} ({schedule['interpolation']}, "
             "held outside), read from the reference")

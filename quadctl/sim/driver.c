@@ -30,7 +30,7 @@
  * the law regulates to (qc_ref), its first, last, lowest, highest and largest |e|, the settling
  * record, the largest |u|, the LQR cost by the trapezoid rule, the position tracking error and the
  * waypoints reached, and, for a run with noise, the sums of the line through the error over its last
- * tenth (quadctl.metrics.tail_trend), as quadctl.metrics and quadctl.pipeline.tracking_of define them. */
+ * tenth (quadctl.metrics.tail_trend), as quadctl.metrics and quadctl.run_summary.tracking_of define them. */
 #include <limits.h>
 #include <math.h>
 #include <string.h>

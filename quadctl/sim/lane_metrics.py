@@ -1,7 +1,7 @@
 """A run's metrics summed in the lanes as they step (``driver.c``'s ``qc_metric``), and read back.
 
 A sweep needs of each run its metrics (:func:`quadctl.metrics.summarize_errors`) and tracking
-(:func:`quadctl.pipeline.tracking_of`), not its trajectory: the lanes keep per case running sums
+(:func:`quadctl.run_summary.tracking_of`), not its trajectory: the lanes keep per case running sums
 (:data:`PER_STATE`, :data:`SCALARS`: the slots of ``driver.c``) over the records a one-case run would keep (every
 ``stride``-th step and the last), from ``e = x - x_ref(t)``: first, last, lowest, highest and
 largest ``|e|``, the record after the last one outside the settling band (exact: the band of the

@@ -17,7 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from quadctl import metrics, pipeline
+from quadctl import metrics, pipeline, run_summary
 from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError, TrimError
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.metrics import error_into, summarize_errors
@@ -224,8 +224,9 @@ def mission_reason(setup, reached, status: str) -> str:
         return ""
     tracking = {"waypoints": [{"position": list(leg.position), "reached": r} for leg, r in zip(ref.legs, reached)],
                 "tolerance": ref.tolerance, "mission_end": ref.end}
-    tracking.update(pipeline.mission_check(tracking, status=status, unregulated=pipeline.unregulated_positions(setup),
-                                           duration=setup.duration))
+    tracking.update(run_summary.mission_check(tracking, status=status,
+                                              unregulated=run_summary.unregulated_positions(setup),
+                                              duration=setup.duration))
     return mission_text(tracking) or ""
 
 
@@ -262,7 +263,7 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
                                 noisy=pipeline.noisy(setup))
     row = _row(prep.head, des.stable, des.core_eigenvalues, sim.plan, summary, sim.steps,
                "" if sim.status == "ok" else sim.message, "one-by-one")
-    tracking = pipeline.tracking_summary(setup, sim)
+    tracking = run_summary.tracking_summary(setup, sim)
     row.update(tracking_columns(tracking))
     if tracking is not None and "waypoints" in tracking and sim.status == "ok":
         row["reason"] = mission_reason(setup, [w["reached"] for w in tracking["waypoints"]], sim.status)
@@ -348,7 +349,7 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             flown = setup.flown_reference
             rows_at = np.floor(t / job.exo_period + 1e-9).astype(np.int64)
             x_ref = flown.flown(flown.rows(rows_at, job.exo_period), t)[0]
-            tracking = pipeline.tracking_of(setup.reference, t, x, x_ref)
+            tracking = run_summary.tracking_of(setup.reference, t, x, x_ref)
             tracked[prep.index] = tracking_columns(tracking)
             if "waypoints" in tracking:
                 reasons[prep.index] = mission_reason(setup, [w["reached"] for w in tracking["waypoints"]], status)

@@ -128,7 +128,7 @@ def column_units(columns) -> dict[str, str]:
 
 
 def tracking_columns(tracking: dict | None) -> dict:
-    """:data:`TRACKING_COLUMNS` from :func:`quadctl.pipeline.tracking_of` (none without a reference)."""
+    """:data:`TRACKING_COLUMNS` from :func:`quadctl.run_summary.tracking_of` (none without a reference)."""
     if tracking is None:
         return {}
     out = {"tracking.rms": tracking["position_error"]["rms"], "tracking.peak": tracking["position_error"]["peak"]}

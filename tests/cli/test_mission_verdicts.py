@@ -7,11 +7,11 @@ from __future__ import annotations
 import pytest
 from typer.testing import CliRunner
 
-from quadctl import config, pipeline, sweep
+from quadctl import config, run_summary, sweep
 from quadctl.cli.app import app
 from quadctl.config.template import config_text
-from quadctl.pipeline import MissionVerdict, mission_check
 from quadctl.present.mission import mission_text
+from quadctl.run_summary import MissionVerdict, mission_check
 
 runner = CliRunner()
 
@@ -80,7 +80,7 @@ def test_only_a_position_the_mission_moves_along_is_named():
     data = config.parse(config_text("free", flight="hover"), "free.yaml").model_dump(mode="json")
     start = data["trim"]["position_ned"]
     data["simulation"]["reference"] = {"waypoints": [{"position": [start[0] + 1.0, start[1], start[2]]}]}
-    assert pipeline.unregulated_positions(setup_of(config.from_dict(data, "free.yaml"))) == ("pN",)
+    assert run_summary.unregulated_positions(setup_of(config.from_dict(data, "free.yaml"))) == ("pN",)
 
 
 # ---------------------------------------------------------------------------------------------

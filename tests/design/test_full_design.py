@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, solve
 
-from quadctl import config, pipeline
+from quadctl import compare, config
 from quadctl.design import coupled, riccati_residual
 from quadctl.layout import STATE_INDEX
 from quadctl.setup import setup_of
@@ -46,7 +46,7 @@ def test_compare_reports_a_winner_and_a_ratio_per_criterion():
     data = cfg_dict("mambo-200hz")
     data["simulation"]["duration"] = 4.0
     setup = setup_of(config.from_dict(data))
-    fd, comparison = pipeline.compare_full(setup, linear, des)
+    fd, comparison = compare.compare_full(setup, linear, des)
     assert set(comparison["designs"]) == {"decoupled", "full"}
     lin = comparison["better"]["linear_cost"]
     assert lin["winner"] in ("full", None) and lin["ratio"] >= 1.0

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, max_rel_diff, run, solve, without_compiler
 
-from quadctl import pipeline, sweep
+from quadctl import pipeline, run_summary, sweep
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.physics import trajectory
 from quadctl.physics.reference_rows import FlownReference
@@ -118,7 +118,7 @@ def test_a_mission_turned_about_the_vertical_flies_the_turned_trajectory(square,
     body = np.abs(np.delete(turned.x - straight.x, [PN, PE, PSI], axis=1)).max()
     assert max(yaw, body) <= TURN_TOL, f"max |dpsi| = {yaw:.3e}, max |d(body states)| = {body:.3e}"
     np.testing.assert_allclose(turned.u, straight.u, rtol=0, atol=TURN_TOL)
-    reached = pipeline.tracking_of(replace_legs(setup.reference, angle, loop.x_trim[:2]), turned.t, turned.x,
+    reached = run_summary.tracking_of(replace_legs(setup.reference, angle, loop.x_trim[:2]), turned.t, turned.x,
                                    turned.x_ref)
     assert reached["all_reached"]
 
@@ -176,7 +176,7 @@ def test_a_hover_hold_design_reaches_a_waypoint_at_any_yaw(yaw):
     """The design made at yaw 0 reaches and holds the waypoint at yaw pi/2 (2.54 m off, and drifting,
     with the error in the earth frame) and at pi (out of the valid range before)."""
     setup, _, loop, sim = run(_hold(yaw))
-    tracking = pipeline.tracking_summary(setup, sim)
+    tracking = run_summary.tracking_summary(setup, sim)
     assert sim.status == "ok" and tracking["all_reached"], sim.message
     assert tracking["position_error"]["final"] < 1e-3
     assert abs(wrap_angle(sim.x[-1, PSI] - yaw)) < 1e-3

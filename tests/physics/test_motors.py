@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from _solve import cfg_dict, run
 
-from quadctl import config, pipeline
+from quadctl import config, pipeline, run_summary
 from quadctl.errors import ConfigError, SaturationFailed
 from quadctl.layout import INPUT_INDEX
 from quadctl.physics import motors
@@ -114,7 +114,7 @@ def test_a_design_at_its_limits_most_of_the_run_is_told_the_key_of_those_limits(
 def test_the_reports_design_saturates_the_mambo_rotors_and_is_flagged():
     data = cfg_dict("forward", controller={"rate": 200.0}, motors={})
     setup, _, loop, sim = run(data)
-    summary = pipeline.flight_summary(setup, loop, sim)
+    summary = run_summary.flight_summary(setup, loop, sim)
     sat = summary["saturation"]
     assert sat["saturates"] and max(sat["fraction"].values()) > motors.SATURATION_FLAG
     assert max(sat["peak_command"].values()) == pytest.approx(0.33, rel=1e-9)  # clipped at the limit

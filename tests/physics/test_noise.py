@@ -64,7 +64,7 @@ def test_sensor_noise_alone_moves_the_vehicle_through_the_controller():
     data["simulation"].update({"duration": 3.0, "initial_offset": {}})
     data["simulation"]["noise"] = {"seed": 2, "sensor": {"phi": 0.01}}
     cfg, _, loop, sim = run(data)
-    from quadctl import pipeline
+    from quadctl import run_summary
 
-    rms = pipeline.flight_summary(cfg, loop, sim)["rms_error"]
+    rms = run_summary.flight_summary(cfg, loop, sim)["rms_error"]
     assert rms["phi"] > 1e-4 and rms["psi"] < 1e-9  # roll is disturbed, yaw untouched

@@ -13,7 +13,7 @@ import pytest
 from _paths import ROOT
 from _solve import without_compiler
 
-from quadctl import config, pipeline
+from quadctl import config, pipeline, run_summary
 from quadctl.errors import ConfigError
 from quadctl.linear.trim import solve_trim
 from quadctl.physics import trajectory
@@ -106,7 +106,7 @@ def square_run(square):
 def test_the_square_mission_passes_every_waypoint_in_order_and_holds_the_last(square, square_run):
     setup, loop = square
     sim = square_run
-    summary = pipeline.tracking_summary(setup, sim)
+    summary = run_summary.tracking_summary(setup, sim)
     reached = [w["reached"] for w in summary["waypoints"]]
     assert sim.status == "ok" and summary["all_reached"] and len(reached) == 4
     assert all(a < b for a, b in zip(reached, reached[1:]))
@@ -130,9 +130,9 @@ def test_the_waypoints_line_names_the_times_of_those_reached(reached, said):
 def test_a_mission_flown_outside_a_tight_tolerance_reaches_none(square, square_run):
     setup, _ = square
     ref = replace(setup.reference, tolerance=1e-9)
-    tracking = pipeline.tracking_of(ref, square_run.t, square_run.x, square_run.x_ref)
+    tracking = run_summary.tracking_of(ref, square_run.t, square_run.x, square_run.x_ref)
     assert mission.tracking_lines(tracking)[0].startswith("waypoints: none of 4 reached within 1e-09 m (mission ")
-    tracking.update(pipeline.mission_check(tracking, duration=setup.duration))
+    tracking.update(run_summary.mission_check(tracking, duration=setup.duration))
     said = mission_text(tracking)
     assert said.startswith("simulation.reference.waypoints[0] [") and "loosen simulation.reference.tolerance" in said
     assert "lengthen" not in said  # the run outlasts the mission: its length is not the cause

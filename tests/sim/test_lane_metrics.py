@@ -1,6 +1,6 @@
 """A run's metrics summed in the SIMD lanes as they step (quadctl.sim.lane_metrics, driver.c's
 qc_metric), and a sweep over a mission's speed that gates on them, checked against independent
-computations: quadctl.metrics and quadctl.pipeline.tracking_of of the same lanes' records, and the
+computations: quadctl.metrics and quadctl.run_summary.tracking_of of the same lanes' records, and the
 one-case ``simulate`` of each case (its settling and overshoot against the reference it flew)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from quadctl import config, metrics, pipeline, sweep
+from quadctl import config, metrics, pipeline, run_summary, sweep
 from quadctl.layout import N_STATES, STATE_INDEX, STATE_NAMES
 from quadctl.setup import setup_of
 from quadctl.sim.engine import LANES, runner
@@ -124,7 +124,7 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
                                              for name, value in got[key].items()},
                                           "cost": got["cost"], "status": "ok", "noise_limited": []}
         if setup.reference is not None:
-            track = pipeline.tracking_of(setup.reference, t, x, x_ref)
+            track = run_summary.tracking_of(setup.reference, t, x, x_ref)
             lanes = tracking(sums, len(setup.reference.legs))
             assert lanes["rms"] == pytest.approx(track["position_error"]["rms"], rel=1e-12)
             assert lanes["peak"] == track["position_error"]["peak"]
@@ -158,7 +158,7 @@ def test_a_sweep_over_a_missions_speed_gates_on_the_one_case_tracking_error(spee
     result, ones = speed_sweep
     assert {r["path"] for r in result.rows} == {"batched"} and result.stats["backend"] == ["compiled-simd"]
     for row, (setup, _, sim) in zip(result.rows, ones):
-        track = pipeline.tracking_summary(setup, sim)
+        track = run_summary.tracking_summary(setup, sim)
         assert row["tracking.rms"] == pytest.approx(track["position_error"]["rms"], rel=1e-9, abs=TRACK_ATOL)
         assert row["tracking.peak"] == pytest.approx(track["position_error"]["peak"], rel=1e-9, abs=TRACK_ATOL)
         assert row["waypoints.reached"] == sum(w["reached"] is not None for w in track["waypoints"]) == 4

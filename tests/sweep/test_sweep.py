@@ -17,7 +17,7 @@ from _paths import ROOT
 from _solve import max_rel_diff
 from typer.testing import CliRunner
 
-from quadctl import artifacts, config, metrics, pipeline, sweep
+from quadctl import artifacts, config, metrics, pipeline, run_summary, sweep
 from quadctl.cli.app import app
 from quadctl.design import lqr, riccati_residual
 from quadctl.design.riccati import care_batch
@@ -779,7 +779,7 @@ def test_set_makes_the_section_its_parameters_vary(square_without_mission):
                                                         "simulation.duration=2",
                                                         f"simulation.reference.speed={row['simulation.reference.speed']}"])
         setup = setup_of(one)
-        track = pipeline.tracking_summary(setup, pipeline.simulation_of(setup, pipeline.Stages(setup).loop))
+        track = run_summary.tracking_summary(setup, pipeline.simulation_of(setup, pipeline.Stages(setup).loop))
         for column, key in (("tracking.rms", "rms"), ("tracking.peak", "peak")):
             assert row[column] == pytest.approx(track["position_error"][key], rel=MATCH_RTOL, abs=1e-15)
     assert result.rows[0]["tracking.rms"] < result.rows[1]["tracking.rms"]  # slower flies closer
