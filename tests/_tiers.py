@@ -23,7 +23,7 @@ LIST = Path(__file__).with_name("slow_tests.txt")
 KEEP = ("tests/docs/test_doc_pages.py::test_page_block[README.md:",
         "tests/house/test_reference_runs.py::",
         "tests/outputs/test_report.py::test_the_markdown_twin_shows_the_figures_beside_it[forward]",  # one whole report
-        "tests/docs/test_guide_pages.py::test_guide_block[docs/guide/export.md:L215",  # writes the file L273 reads
+        "tests/docs/test_guide_pages.py::test_guide_block[docs/guide/export.md:L218",  # writes the file L276 reads
         # a sweep's Ctrl-C within a second, on a loaded machine too: a Ctrl-C that cut the figure's import short
         # had ended 2 to 4 runs in 30 by -2 or -6 at exit on a 2-core machine loaded to 6 (quadctl.cli.progress's
         # IMPORTS_CUT_SHORT: none in 30 since)

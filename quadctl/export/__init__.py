@@ -19,7 +19,7 @@ from dataclasses import replace
 
 from quadctl import artifacts
 from quadctl.config import check_override
-from quadctl.errors import CheckFailed, RateError, ScheduleError
+from quadctl.errors import CheckFailed, ConfigError, RateError, ScheduleError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
@@ -28,6 +28,10 @@ from quadctl.present import schedule as schedule_words
 from quadctl.schedule import envelope
 from quadctl.setup import Setup, Timing
 from quadctl.stages import verdict
+
+PID_NOT_EXPORTED = ("controller.flies: pid: the export carries the LQR design, and the PID cascade that flies is the "
+                    "flight stack's own (its gains are the stack's parameters): export with controller.flies: lqr")
+"""Why a config that flies the PID cascade is not exported."""
 
 
 def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
@@ -55,7 +59,8 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
     Raises
     ------
     ConfigError
-        No rate where one is needed or ``rate`` given for a config that has its own
+        The config flies the PID cascade (``controller.flies: pid``): the export carries the LQR
+        design. No rate where one is needed or ``rate`` given for a config that has its own
         (:class:`~quadctl.errors.RateError`), outside
         ``controller.rate``'s bounds, or a gain schedule with values that do not trim
         (:class:`~quadctl.errors.ScheduleError`; exit 2).
@@ -67,6 +72,8 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
         A subsystem cannot be designed (exit 1).
     """
 
+    if setup.law == "pid":
+        raise ConfigError(PID_NOT_EXPORTED)
     if rate is not None:  # the bounds of controller.rate, which it stands for
         rate = check_override("rate", rate, key="controller.rate")
     timing = setup.timing

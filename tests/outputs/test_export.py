@@ -644,6 +644,20 @@ def test_a_rate_that_makes_the_loop_unstable_is_refused_with_the_reason(tmp_path
     assert not (tmp_path / "quadctl_controller.c").exists()
 
 
+@pytest.mark.parametrize("to", ["c", "crazyflie", "json", "mat"])
+def test_a_config_that_flies_the_pid_cascade_is_refused_in_one_line_and_nothing_is_written(tmp_path, to):
+    """The export carries the LQR design: the C of a config that flies the cascade (controller.flies: pid)
+    read the cascade's 41 law states uninitialized (the firmware build failed on -Werror=uninitialized),
+    and its JSON or .mat would give the LQR gains of a vehicle that flies the PID."""
+    from quadctl.export import PID_NOT_EXPORTED
+
+    res = runner.invoke(app, ["export", "--to", to, "-c", "crazyflie", "--set", "controller.flies=pid",
+                              "-o", str(tmp_path / "out")])
+    assert res.exit_code == 2, res.output
+    assert res.stderr == f"quadctl: error: {PID_NOT_EXPORTED}\n"
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_rate_for_a_config_that_has_one_is_refused(tmp_path):
     res = runner.invoke(app, ["export", "--to", "c", "-c", "crazyflie", "--rate", "200", "-o", str(tmp_path)])
     assert res.exit_code == 2
