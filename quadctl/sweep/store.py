@@ -199,19 +199,21 @@ class SweepOutcome:
     files: list = field(default_factory=list)
 
 
-def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, jobs: int | None = None,
-            scheduler: str | None = None, resume: bool = False,
-            progress: Callable[[int, int], None] | None = None, plot: bool = True,
-            session: artifacts.Session | None = None) -> SweepOutcome:
+def execute(cfg, spec: SweepSpec, out: Path | str | artifacts.Session, *, label: str | None = None,
+            jobs: int | None = None, scheduler: str | None = None, resume: bool = False,
+            progress: Callable[[int, int], None] | None = None, plot: bool = True) -> SweepOutcome:
     """Run a sweep into a run directory: journal each chunk, resume, write the outputs.
 
     Parameters
     ----------
     cfg : Config
     spec : SweepSpec
-    out : path
+    out : path or quadctl.artifacts.Session
         Run directory (``sweep.csv``, ``sweep.json``, ``sweep.png``, ``sweep.parts/``; a Monte
-        Carlo also ``montecarlo.png`` and ``montecarlo.npz``).
+        Carlo also ``montecarlo.png`` and ``montecarlo.npz``), or the session of one the files are
+        written through (``quadctl sweep``'s, which puts the folder back when the command fails).
+        Given a path, the sweep opens a session of its own, closed when it ends. Either writes the
+        config beside the sweep at its first write and removes the run of another config there.
     label, jobs, scheduler, progress
         As :func:`run`.
     resume : bool
@@ -219,10 +221,6 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     plot : bool
         Draw ``sweep.png`` (and a Monte Carlo's ``montecarlo.png``); False: no figure (an earlier
         run's in ``out`` goes).
-    session : quadctl.artifacts.Session, optional
-        The session of ``out`` the files are written through (``quadctl sweep``'s, which puts the folder
-        back when the command fails); default one of its own, closed when the sweep ends. Either writes
-        the config beside the sweep at its first write and removes the run of another config there.
 
     Returns
     -------
@@ -232,17 +230,15 @@ def execute(cfg, spec: SweepSpec, out: Path | str, *, label: str | None = None, 
     ------
     SweepError
         ``resume`` finds rows of a different sweep, or the scheduler cannot be reached.
-    ValueError
-        ``session`` is another folder's.
     """
 
     with contextlib.ExitStack() as own:
-        if session is None:
+        if isinstance(out, artifacts.Session):
+            session = out
+        else:
             session = own.enter_context(artifacts.Session(cfg, out))  # one run writes a folder at a time
             session.defer_notes()  # what it removed is said at the end: not at all if it is put back
-        elif session.out != Path(out):
-            raise ValueError(f"the session is of {session.out}, not of {out}")
-        store = SweepStore(out, cfg, spec, plot=plot, session=session)
+        store = SweepStore(session.out, cfg, spec, plot=plot, session=session)
         done = store.start(resume)
         result = run(cfg, spec, label=label, jobs=jobs, scheduler=scheduler, done=done,
                      on_chunk=store.save_chunk, progress=progress)

@@ -58,9 +58,8 @@ def command(
     remember_interrupt_hint(f"the chunks it finished are kept in {session.out / sweep_mod.PARTS}: the same "
                             "command with --resume computes only the rest")
     with sweep_progress(quiet=json, meanwhile=None if no_plot else _import_plots) as progress:
-        outcome = sweep_mod.execute(cfg, spec, session.out, label=label_of(source, sets), jobs=jobs,
-                                    scheduler=scheduler, resume=resume, progress=progress,
-                                    plot=not no_plot, session=session)
+        outcome = sweep_mod.execute(cfg, spec, session, label=label_of(source, sets), jobs=jobs,
+                                    scheduler=scheduler, resume=resume, progress=progress, plot=not no_plot)
     session.keep()  # the sweep's outputs are whole: they stay, whatever follows (a failed gate, exit 1)
     from quadctl.cli import render, render_sweep
 
