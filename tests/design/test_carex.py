@@ -12,6 +12,7 @@ import pytest
 from _carex import NUMBERS, arnold_laub_1_solution, case, circulant_solution, kenney_laub_wette_solution, laub_6
 
 from quadctl.design import lqr, riccati_residual
+from quadctl.design.riccati import care_schur
 from quadctl.errors import DesignError
 from quadctl.linear.analysis import RICCATI_RTOL
 from quadctl.linear.stability import is_stable
@@ -94,3 +95,23 @@ def test_carex_4_1_with_40_integrators_is_refused_as_ill_conditioned():
                                           r"\(residual .*\); its slowest closed-loop mode is at .* rad/s: weight "
                                           r"the states of that mode, or rescale units"):
         lqr(c.A, c.B, c.Q, c.R, name="laub")
+
+
+SCHUR_ILL_CONDITIONED = {"2.6", "4.1", "4.4"}
+"""The cases whose unrefined Schur answer misses ``RICCATI_RTOL`` (residuals 4e-4, 6e-8, 1e-7): ``P`` spans
+twelve orders of magnitude (2.6) or the equation is nearly singular (4.1, 4.4); :func:`lqr` polishes
+them by Newton steps."""
+
+
+@pytest.mark.parametrize("number", [n for n in NUMBERS if n not in SCHUR_ILL_CONDITIONED])
+def test_laubs_schur_method_alone_solves_the_carex_cases_its_scaling_balances(number):
+    """:func:`care_schur` by itself, with no Newton polish and no SciPy fallback behind it (which would
+    hide a wrong answer from :func:`lqr`): residual within ``RICCATI_RTOL`` and a symmetric ``P``.
+    Most of these cases are badly scaled (1.5, 1.6, 2.1-2.3, 2.7, 3.1, 4.3), so the symplectic scaling
+    ``x = D x_s`` is not the identity and ``P = D^-1 P_s D^-1`` must undo it."""
+    c = case(number)
+    with np.errstate(all="ignore"):
+        P = care_schur(c.A, c.B, c.Q, c.R)
+    residual = riccati_residual(c.A, c.B, c.Q, c.R, P)
+    assert residual <= RICCATI_RTOL, f"CAREX {number}: residual {residual:.4E}"
+    np.testing.assert_array_equal(P, P.T)

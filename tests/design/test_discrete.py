@@ -97,6 +97,25 @@ def test_design_at_a_rate_is_lqrd_per_subsystem_and_stable_in_z():
     assert des["roll"].K[0, 1] < solve(cfg_dict("forward"))[4]["roll"].K[0, 1] / 50
 
 
+S_EQUIVALENT_RTOL = 1e-2
+"""Relative gap allowed between a 1 kHz design's s-equivalent poles and the continuous design's: lqrd's
+gain tends to lqr's to first order in ``Ts`` (test above), so the poles to about ``Ts |s| = 0.012`` at
+the altitude loop's -12 rad/s; seen: 1.3e-5."""
+
+
+def test_a_fast_rate_designs_s_plane_eigenvalues_are_the_continuous_designs_poles():
+    """A discrete design reports each subsystem's poles on the continuous scale, ``s = ln(z) / Ts``:
+    ``exp(s Ts)`` gives back its ``z``, and at 1 kHz, far above the altitude loop's bandwidth, they are
+    the continuous LQR's poles (rad/s), which an independent ``lqr`` of the same subsystem gives."""
+    Ts = 1e-3
+    setup, _, _, dec, des = solve(cfg_dict("hover", controller={"rate": 1 / Ts}))
+    alt = des["altitude"]
+    np.testing.assert_allclose(np.exp(alt.eigenvalues * Ts), alt.eigenvalues_z, rtol=1e-12)
+    sub = dec["altitude"]
+    continuous = np.sort_complex(np.linalg.eigvals(sub.A - sub.B @ lqr(sub.A, sub.B, *setup.weights["altitude"]).K))
+    np.testing.assert_allclose(np.sort_complex(alt.eigenvalues), continuous, rtol=S_EQUIVALENT_RTOL)
+
+
 def test_check_warns_which_loop_is_too_fast_for_the_rate_and_by_how_much():
     setup, _, linear, dec, _ = solve(cfg_dict("forward"))
     warnings = {w.loop: w for w in pipeline.rate_warnings_of(setup, dec, linear, 200.0)}
