@@ -97,10 +97,13 @@ float powerDistributionGetMaxThrust(void) { return 4.0f * TEST_THRUST_MAX; }
 /* one record: modes x, y, z, yaw, velocity_body; setpoint position (3), velocity (3), yaw, yaw rate;
    state position (3), velocity (3), quaternion w x y z, attitude roll pitch yaw; gyro (3) */
 #define NREC 29
+#define REFERENCE_DT 0.01f
 int main(int argc, char **argv) {
   float r[NREC];
   uint32_t tick = 0;
   int state_only = argc > 1 && strcmp(argv[1], "state") == 0;
+  int reference_only = argc > 1 && strcmp(argv[1], "reference") == 0;
+  static quadctl_reference ref;  /* reference mode: held from record to record, as the app holds its own */
   controllerOutOfTreeInit();
   if (!controllerOutOfTreeTest()) return 1;
   while (fread(r, sizeof(float), NREC, stdin) == NREC) {
@@ -122,6 +125,13 @@ int main(int argc, char **argv) {
       int i;
       quadctl_cf_state(&st, &se, x);
       for (i = 0; i < QUADCTL_NX; ++i) printf("%.9g ", (double)x[i]);
+      printf("\n");
+      continue;
+    }
+    if (reference_only) {  /* quadctl's x_ref after this setpoint, REFERENCE_DT after the last */
+      int i;
+      quadctl_cf_reference(&ref, &sp, REFERENCE_DT);
+      for (i = 0; i < QUADCTL_NX; ++i) printf("%.9g ", (double)ref.x[i]);
       printf("\n");
       continue;
     }
@@ -363,6 +373,30 @@ def test_each_frame_conversion_on_a_hand_made_state(state_harness, case, fw, wan
         assert got[name] == pytest.approx(value, abs=2e-6), f"{case}: {name}"
     for name in set(STATE_INDEX) - set(want):
         assert abs(got[name]) < 2e-6, f"{case}: {name} should be 0"
+
+
+def test_a_yaw_rate_and_velocity_setpoint_turns_the_reference_as_the_frames_say(state_harness):
+    """The commander's yaw rate +30 deg/s (counter-clockwise seen from above, z up: turning left) is
+    ``r = -30 deg/s`` in FRD, and the reference's heading integrates it, ``psi_k = -30 deg/s k dt``; its
+    world velocity (1, 0.5) m/s (x north, y west) is ``(vN, vE) = (1, -0.5)``, its position integrates
+    that, and the body velocity of the turning reference is that velocity seen at ``psi_k``."""
+    n, dt, rate = 10, 0.01, 30.0  # records, s (the harness's REFERENCE_DT), deg/s
+    rows = np.zeros((n, 29))
+    rows[:, 19] = 1.0  # identity quaternion (the state is not read)
+    rows[:, 0:4] = [MODE_VELOCITY, MODE_VELOCITY, MODE_ABS, MODE_VELOCITY]
+    rows[:, 7], rows[:, 8], rows[:, 9], rows[:, 12] = 1.0, 1.0, 0.5, rate
+    x = run_harness(state_harness, rows.astype(np.float32).tobytes(), "reference")
+    k = np.arange(1, n + 1)
+    psi = -np.radians(rate) * k * dt
+    tol = 1e-6  # single precision of the firmware's floats, on values of order one
+    np.testing.assert_allclose(x[:, STATE_INDEX["r"]], -np.radians(rate), atol=tol)
+    np.testing.assert_allclose(x[:, STATE_INDEX["psi"]], psi, atol=tol)
+    np.testing.assert_allclose(x[:, STATE_INDEX["pN"]], k * dt * 1.0, atol=tol)
+    np.testing.assert_allclose(x[:, STATE_INDEX["pE"]], -k * dt * 0.5, atol=tol)
+    np.testing.assert_allclose(x[:, STATE_INDEX["pD"]], -1.0, atol=tol)
+    vn, ve = 1.0, -0.5
+    np.testing.assert_allclose(x[:, STATE_INDEX["u"]], np.cos(psi) * vn + np.sin(psi) * ve, atol=tol)
+    np.testing.assert_allclose(x[:, STATE_INDEX["v"]], -np.sin(psi) * vn + np.cos(psi) * ve, atol=tol)
 
 
 @pytest.mark.parametrize("case", ["nose up", "rolled right", "yawed left"])
