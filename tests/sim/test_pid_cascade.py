@@ -287,3 +287,26 @@ def test_a_cascade_with_controller_filters_is_refused_naming_the_key():
     data["controller"].update(flies="pid", filters={"gyro": {"cutoff": 80.0}})
     with pytest.raises(ConfigError, match=r"controller\.filters.*its flight stack's own gyro"):
         config.from_dict(data, "pid-filtered.yaml")
+
+
+BUTTERWORTH_RTOL = 1e-12
+"""Relative: two evaluations of the same rational coefficients in double precision."""
+
+
+@pytest.mark.parametrize("cutoff, rate", [(80.0, 1000.0), (30.0, 500.0), (200.0, 500.0)])
+def test_the_stacks_low_pass_is_scipys_prewarped_butterworth_and_minus_3_db_at_its_cutoff(cutoff, rate):
+    """The gyro and D-term low-pass (:func:`quadctl.sim.pid.butterworth2`, direct form II) against
+    ``scipy.signal.butter(2, cutoff, fs=rate)`` (the bilinear transform prewarped at the cutoff, as the
+    Crazyflie's lpf2p and PX4's LowPassFilter2p are): the same coefficients, unit gain at zero frequency
+    and ``1/sqrt(2)`` of it at the cutoff itself (without the prewarp, 200 Hz sampled at 500 Hz sits at -16 dB)."""
+    import scipy.signal
+
+    from quadctl.sim.pid import butterworth2
+
+    b0, b1, b2, a1, a2 = butterworth2(cutoff / rate, lib=np)
+    b, a = scipy.signal.butter(2, cutoff, fs=rate)
+    np.testing.assert_allclose([b0, b1, b2], b, rtol=BUTTERWORTH_RTOL)
+    np.testing.assert_allclose([1.0, a1, a2], a, rtol=BUTTERWORTH_RTOL, atol=BUTTERWORTH_RTOL)
+    _, h = scipy.signal.freqz([b0, b1, b2], [1.0, a1, a2], worN=[0.0, cutoff], fs=rate)
+    assert abs(h[0]) == pytest.approx(1.0, rel=BUTTERWORTH_RTOL)
+    assert abs(h[1]) == pytest.approx(1 / math.sqrt(2), rel=1e-9)
