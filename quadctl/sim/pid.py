@@ -371,8 +371,7 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     out = ca.vertcat(*[_clamp(out[k], v["rate_output_limit"]) for k in range(3)])
 
     if torque_out == "pwm":
-        share = ca.if_else(mix > 0, 1, 0) - ca.if_else(mix < 0, 1, 0)
-        pwm = thrust_sp + share[:, 1] * out[0] / 2 + share[:, 2] * out[1] / 2 + share[:, 3] * out[2]
+        pwm = legacy_pwm(thrust_sp, out, mix)
         sfrac = ca.fmin(ca.fmax(pwm, 0), PWM_FULL) / PWM_FULL
         a, b = v["pwm_thrust_a"], v["pwm_thrust_b"]
         rotors = hi * (a * sfrac ** 2 + b * sfrac) / (a + b)
@@ -384,6 +383,15 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     s_next = ca.vertcat(phase, i_pos, i_vel, vel_prev, att_sp, thrust_sp, i_att, att_prev, rate_sp, i_rate,
                         rates, d_next, gyro_next)
     return command, s_next
+
+
+def legacy_pwm(thrust, out, mix):
+    """The Crazyflie's legacy power distribution of its PID's outputs: each rotor's PWM (4,), the
+    ``thrust`` PWM plus half the roll and pitch outputs and the whole yaw output (``out``, FRD
+    torque senses), each with the sign of that torque's column in its rotor's row of ``mix`` (4, 4:
+    rotors by rows, [T, A, E, R] by columns), as the firmware's ``powerDistributionLegacy``."""
+    share = ca.if_else(mix > 0, 1, 0) - ca.if_else(mix < 0, 1, 0)
+    return thrust + share[:, 1] * out[0] / 2 + share[:, 2] * out[1] / 2 + share[:, 3] * out[2]
 
 
 def butterworth2(ratio, lib=ca):

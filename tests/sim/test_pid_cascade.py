@@ -310,3 +310,25 @@ def test_the_stacks_low_pass_is_scipys_prewarped_butterworth_and_minus_3_db_at_i
     _, h = scipy.signal.freqz([b0, b1, b2], [1.0, a1, a2], worN=[0.0, cutoff], fs=rate)
     assert abs(h[0]) == pytest.approx(1.0, rel=BUTTERWORTH_RTOL)
     assert abs(h[1]) == pytest.approx(1 / math.sqrt(2), rel=1e-9)
+
+
+def test_the_crazyflie_legacy_pwm_is_the_firmwares_power_distribution():
+    """The firmware's legacy power distribution, written from its documented form
+    (crazyflie-firmware, power_distribution_quadrotor.c): half the roll and pitch outputs, the whole
+    yaw output, M1 front right, M2 rear right, M3 rear left, M4 front left, M1 and M3 counter-clockwise:
+    m1 = T - r/2 + p/2 + y, m2 = T - r/2 - p/2 - y, m3 = T + r/2 - p/2 + y, m4 = T + r/2 + p/2 - y,
+    in FRD torque senses (a roll to the right lifts the left rotors, nose up the front ones, a yaw to
+    the right the counter-clockwise ones). quadctl's takes the signs from the crazyflie config's mixer."""
+    import casadi as ca
+
+    from quadctl import config
+    from quadctl.setup import setup_of
+    from quadctl.sim.pid import legacy_pwm
+
+    mix = setup_of(config.load("crazyflie")).actuators.mix
+    rng = np.random.default_rng(3)
+    for thrust, r, p, y in rng.uniform(-20000.0, 40000.0, size=(20, 4)):
+        want = [thrust - r / 2 + p / 2 + y, thrust - r / 2 - p / 2 - y, thrust + r / 2 - p / 2 + y,
+                thrust + r / 2 + p / 2 - y]
+        got = np.asarray(legacy_pwm(thrust, ca.DM([r, p, y]), ca.DM(mix))).ravel()
+        np.testing.assert_allclose(got, want, rtol=1e-15, atol=1e-9)
