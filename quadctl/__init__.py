@@ -79,7 +79,9 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+    """The public face and the module's dunders (``__version__``): not the names this file imports for itself
+    (``importlib``, ``TYPE_CHECKING``, ``annotations``) nor the submodules loaded so far."""
+    return sorted({n for n in globals() if n.startswith("__") and n.endswith("__")} | set(__all__))
 
 
 if TYPE_CHECKING:  # what type checkers and editors see: the same names, imported at once

@@ -87,6 +87,15 @@ def test_the_docstring_check_finds_what_is_missing(obj, missing):
     assert missing_docs(obj) == missing
 
 
+def test_dir_lists_the_public_face_and_no_helper_of_the_package():
+    """Tab completion shows ``qc.lqr``, not the ``importlib`` or ``TYPE_CHECKING`` the package imports for
+    itself, nor a submodule some earlier import bound as an attribute."""
+    importlib.import_module("quadctl.version")
+    shown = {n for n in dir(qc) if not n.startswith("__")}
+    assert shown == set(qc.__all__)
+    assert "__version__" in dir(qc)
+
+
 def test_an_unknown_name_is_an_attribute_error():
     with pytest.raises(AttributeError, match=r"^module 'quadctl' has no attribute 'lqrr'$"):
         qc.lqrr  # noqa: B018
