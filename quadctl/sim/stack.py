@@ -10,7 +10,6 @@ stops it at once, its exogenous rows drawn chunk by chunk (:class:`~quadctl.sim.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,14 +23,10 @@ from quadctl.sim.engine import LANES, runner
 from quadctl.sim.etdrk4_matrices import phi_constant_rows, phi_ladder, phi_pattern
 from quadctl.sim.etdrk4_plan import Segment, record_strides
 from quadctl.sim.exogenous import ExoStream
-from quadctl.sim.loop import exponential_plan, gain_constants
+from quadctl.sim.loop import ClosedLoop, exponential_plan, gain_constants
 from quadctl.sim.loop_layout import fill_constants_stack
 from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.plan import StepPlan, record_stride
-
-if TYPE_CHECKING:
-    from quadctl.sim.loop import ClosedLoop
-
 
 SETUPS_KEPT = 4
 """ETDRK4 stacks of one a loop keeps (:func:`kept_exponential_stack`): one per run settings, the latest."""
@@ -62,21 +57,36 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
 
     Raises
     ------
+    TypeError
+        A loop that is not a :class:`~quadctl.sim.loop.ClosedLoop`.
     ValueError
-        Loops of different structures or controller rates, an unknown method, a duration that is not a
-        positive number of seconds, or an initial state that is not the loop's 12 numbers.
+        Loops of different structures or controller rates, an unknown method, a duration or a ``dt`` that
+        is not a positive number of seconds, or an initial state that is not the loop's 12 finite numbers.
     StepSizeError
         A step that a loop cannot take.
     """
     loops = list(loops)
+    for loop in loops:
+        if not isinstance(loop, ClosedLoop):
+            raise TypeError(f"simulate takes a ClosedLoop, stages.loop of qc.Stages(setup) "
+                            f"(or quadctl.pipeline.loop_of); got {type(loop).__name__}")
     if method not in ("rk4", "etdrk4"):
         raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
     if isinstance(duration, bool) or not isinstance(duration, (int, float, np.integer, np.floating)) \
             or not 0.0 < float(duration) < float("inf"):
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
+    if not (isinstance(dt, str) and dt == "auto") and (
+            isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating))
+            or not 0.0 < float(dt) < float("inf")):
+        raise ValueError(f"dt must be a positive number of seconds or 'auto', got {dt!r}")
     for x0 in x0s:
         if np.shape(x0) != (N_STATES,):
             raise ValueError(f"x0 must be the {N_STATES} states {', '.join(STATE_NAMES)}, got shape {np.shape(x0)}")
+        x = np.asarray(x0, dtype=float)
+        if not np.isfinite(x).all():
+            i = int(np.argmax(~np.isfinite(x)))
+            raise ValueError(f"x0 must be finite: x0[{i}] ({STATE_NAMES[i]}) = {float(x[i])!r}; "
+                             "give every state a number (setup.initial_state(loop.x_trim) is the configured start)")
     rate = loops[0].rate
     if len(loops) > 1:
         if len({loop.spec() for loop in loops}) > 1:

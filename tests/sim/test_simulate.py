@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -199,16 +200,40 @@ def test_a_step_too_small_to_run_is_refused_naming_simulation_dt(tmp_path, confi
     (float("nan"), None, "duration must be a positive number of seconds, got nan"),
     ("3", None, "duration must be a positive number of seconds, got '3'"),
     (1.0, [0.0, 0.0, 0.0], r"x0 must be the 12 states pN, pE, .* got shape \(3,\)"),
+    (1.0, [0.0, 0.0, float("nan")] + [0.0] * 9, r"x0 must be finite: x0\[2\] \(pD\) = nan; give every state"),
 ])
 def test_the_python_call_refuses_a_run_that_cannot_be_flown(duration, x0, match):
     """Bad arguments of the public call give one clear ValueError, not a run 'ok' to t = -1 s, a division by
-    zero or NumPy's broadcasting error."""
+    zero, NumPy's broadcasting error or a run of NaN reported as 'diverged'."""
     import quadctl as qc
 
     stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
     loop = stages.loop
     with pytest.raises(ValueError, match=match):
         qc.simulate(loop, loop.x_trim if x0 is None else x0, duration)
+
+
+@pytest.mark.parametrize("dt", [-1e-3, 0.0, float("nan"), float("inf"), "fast", None, True])
+@pytest.mark.parametrize("config_name", ["hover", "mambo-200hz"])  # continuous control, and held at 200 Hz
+def test_the_python_call_refuses_a_step_that_is_not_a_positive_number_of_seconds(config_name, dt):
+    """A negative ``dt`` ran backwards in time and reported 'ok'; text reached ``float()``: each is one
+    ValueError naming ``dt`` and what it takes."""
+    import quadctl as qc
+
+    stages = qc.Stages(qc.setup_of(qc.load_config(config_name)))
+    loop = stages.loop
+    want = rf"^dt must be a positive number of seconds or 'auto', got {re.escape(repr(dt))}$"
+    with pytest.raises(ValueError, match=want):
+        qc.simulate(loop, loop.x_trim, 0.1, dt=dt)
+
+
+def test_the_python_call_refuses_what_is_not_a_closed_loop():
+    """The design where the loop goes: a TypeError saying what to pass, not an AttributeError from inside."""
+    import quadctl as qc
+
+    stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    with pytest.raises(TypeError, match=r"^simulate takes a ClosedLoop, stages.loop of .*; got Design$"):
+        qc.simulate(stages.design, stages.loop.x_trim, 1.0)
 
 
 def test_the_chain_of_stages_names_what_it_takes_when_given_something_else():
