@@ -76,6 +76,14 @@ def test_a_matrix_that_is_not_numeric_is_named():
         lqr([[0.0, 1.0], [0.0]], B_C, np.eye(2), [[1.0]], name="sys")
 
 
+@pytest.mark.parametrize("missing", ["A", "B", "Q", "R"])
+def test_a_matrix_left_out_is_named_not_a_key_error(missing):
+    """``lqr(None, B, Q, R)`` raised ``KeyError: 'A'`` from inside; only ``N`` may be left out."""
+    args = {"A": [[0.0, 1.0], [0.0, 0.0]], "B": B_C, "Q": np.eye(2), "R": [[1.0]]} | {missing: None}
+    with pytest.raises(DesignError, match=rf"^sys: {missing} is None; give an array of numbers$"):
+        lqr(**args, name="sys")
+
+
 def test_carex_2_5_is_refused_not_solved():
     """The regression: CAREX 2.5 at eps = 0 returned K = [3.00000004, 2.00000004] and a 'stable' loop."""
     with pytest.raises(DesignError, match=r"carex: Q is not positive semidefinite: its most negative eigenvalue "

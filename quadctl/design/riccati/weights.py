@@ -56,6 +56,8 @@ def real_array(M, label: str, *, name: str = "system", shape: tuple | None = Non
     ...     print(str(exc)[:72])
     dlqr: A is complex (dtype complex128); quadctl solves real problems only
     """
+    if M is None:
+        raise error(f"{name}: {label} is None; give an array of numbers")
     try:
         arr = np.asarray(M)
     except (TypeError, ValueError) as exc:
@@ -84,7 +86,7 @@ def as_problem(A, B, Q, R, N=None, *, name: str = "system"):
         A matrix is not numeric, or its shape does not fit (the message names it).
     """
     mats = {label: real_array(M, label, name=name, ndim=2)
-            for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R), ("N", N)) if M is not None}
+            for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R), ("N", N)) if M is not None or label != "N"}
     n, m = mats["A"].shape[0], mats["B"].shape[-1]
     mats.setdefault("N", np.zeros((n, m)))
     _check_shapes(mats, (), n, m, name)
