@@ -9,6 +9,7 @@ from __future__ import annotations
 import difflib
 import os
 import re
+from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, NamedTuple
@@ -145,6 +146,8 @@ def load(spec: str | Path | None = None) -> Config:
     ------
     ConfigError
         With one line naming the file, key path, value and the fix.
+    TypeError
+        ``spec`` is not a path or a name (a dict: :func:`from_dict` validates a mapping).
 
     Examples
     --------
@@ -153,6 +156,10 @@ def load(spec: str | Path | None = None) -> Config:
     >>> cfg.name, cfg.vehicle.mass, list(cfg.lqr)
     ('hover', 0.068, ['altitude', 'roll', 'pitch', 'yaw'])
     """
+    if spec is not None and not isinstance(spec, (str, os.PathLike)):
+        fix = ("validate a mapping with quadctl.config.from_dict(data)" if isinstance(spec, Mapping)
+               else "give a YAML file's path or a bundled config's name (quadctl.config.bundled_names())")
+        raise TypeError(f"load_config takes a file path or a bundled config's name, got {type(spec).__name__}; {fix}")
     source = locate(spec)
     return parse(source.text, source.label)
 

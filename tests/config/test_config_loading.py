@@ -396,3 +396,16 @@ def test_a_config_with_several_errors_names_where_each_of_the_others_is():
         config.from_dict(data, "many.yaml")
     assert str(err.value).endswith("(and 4 more errors, at vehicle.gravity, vehicle.drag, simulation.duration "
                                    "and 1 more)"), str(err.value)
+
+
+@pytest.mark.parametrize("spec, fix", [
+    ({"vehicle": {"mass": 0.068}}, r"validate a mapping with quadctl.config.from_dict\(data\)"),
+    (42, r"give a YAML file's path or a bundled config's name"),
+])
+def test_load_config_given_no_path_or_name_says_what_to_pass(spec, fix):
+    """A dict read as a file name was 'no such file and no bundled config of that name'."""
+    import quadctl as qc
+
+    with pytest.raises(TypeError, match=rf"^load_config takes a file path or a bundled config's name, got "
+                                        rf"{type(spec).__name__}; {fix}"):
+        qc.load_config(spec)
