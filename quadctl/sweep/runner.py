@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from quadctl.config.schema import Config
 from quadctl.errors import SweepError
 from quadctl.sim.engine import LANES, MarchNotice, say_march
 from quadctl.sweep.config_tree import with_sections, with_set
@@ -172,7 +173,14 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     ------
     SweepError
         ``jobs`` below 1, or the scheduler cannot be reached.
+    TypeError
+        ``cfg`` is not a :class:`~quadctl.config.schema.Config` or ``spec`` not a :class:`SweepSpec`.
     """
+    if not isinstance(cfg, Config):
+        raise TypeError(f"sweep.run takes a validated Config, qc.load_config('forward'); got {type(cfg).__name__}")
+    if not isinstance(spec, SweepSpec):
+        raise TypeError(f"sweep.run takes a SweepSpec, sweep.from_dict(data, cfg) or sweep.load(path, cfg); "
+                        f"got {type(spec).__name__}")
     label = label or cfg.name
     done = dict(done or {})
     cases = spec.cases()

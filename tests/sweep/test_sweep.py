@@ -988,3 +988,16 @@ def test_a_noisy_sweep_s_lanes_give_the_one_case_rows_with_their_noise_limited_s
         assert not row["pass"]
         assert row["failed_gates"] == "settling_time.p <= 1 (got noise-limited)"
     assert "noise_limited" not in fast.columns  # sweep.csv keeps its columns
+
+
+def test_sweep_run_names_what_it_takes_when_given_something_else():
+    """A name where the config goes, or the sweep's mapping where its spec goes: one TypeError saying what to
+    pass, not an AttributeError from inside."""
+    from quadctl import sweep
+
+    cfg = config.load("forward")
+    data = {"parameters": {"lqr.roll.Q[1]": [25, 50]}}
+    with pytest.raises(TypeError, match=r"^sweep.run takes a validated Config, .*; got str$"):
+        sweep.run("forward", sweep.from_dict(data, cfg), jobs=1)
+    with pytest.raises(TypeError, match=r"^sweep.run takes a SweepSpec, sweep.from_dict\(data, cfg\) .*; got dict$"):
+        sweep.run(cfg, data, jobs=1)
