@@ -23,6 +23,7 @@ def describe(exc: ValidationError, data: Any, label: str) -> str:
     # a list never is one of a union's literal choices: that branch's error says nothing
     found = [e for e in exc.errors()
              if not (e["type"] == "literal_error" and isinstance(e.get("input"), list))] or exc.errors()
+    found = _meant_branches(found)
     errors = sorted(found, key=lambda e: (e["type"] != "extra_forbidden",
                                           e["type"] == "float_type" and isinstance(e.get("input"), dict)))
     err = errors[0]
@@ -40,6 +41,32 @@ def describe(exc: ValidationError, data: Any, label: str) -> str:
     if kind in ("int_type", "int_from_float") and isinstance(value, float) and value.is_integer():
         return f"{label}: {path} = {value!r}: must be a whole number; write {int(value)}{more}"
     return f"{label}: {path} = {show(value)}: {expected(err, loc)}{more}"
+
+
+def _wrong_shape(err: dict) -> bool:
+    """A union branch's error that only says the value is not that branch's shape (a number where the
+    branch takes a row, a row where it takes a number)."""
+    return err["type"] == "list_type" or (err["type"] in ("float_type", "int_type")
+                                          and isinstance(err.get("input"), (list, dict)))
+
+
+def _meant_branches(errors: list) -> list:
+    """The errors without a union branch whose every error is of the wrong shape, when another branch of
+    the same key has an error of its own: ``Q: [1, .nan, 1]`` was meant as the diagonal, and its NaN is
+    the error to report, not that ``1`` is no row of a full matrix."""
+    def branch(err):
+        loc = err["loc"]
+        i = next((k for k, part in enumerate(loc) if is_union_tag(part)), None)
+        return None if i is None else (loc[:i], loc[i])
+
+    by_branch: dict = {}
+    for e in errors:
+        if (b := branch(e)) is not None:
+            by_branch.setdefault(b, []).append(e)
+    shape_only = {b for b, es in by_branch.items() if all(_wrong_shape(e) for e in es)}
+    meant = {b[0] for b in by_branch if b not in shape_only}  # keys with a branch of a fitting shape
+    kept = [e for e in errors if (b := branch(e)) is None or b not in shape_only or b[0] not in meant]
+    return kept or errors
 
 
 MORE_NAMED = 3
@@ -87,6 +114,8 @@ def expected(err: dict, loc: list) -> str:
     """What the value should be, in words, with the field's unit from the schema."""
     kind, ctx = err["type"], err.get("ctx") or {}
     names = [p for p in loc if isinstance(p, str)]
+    if kind == "finite_number":  # a number of the branch the value was meant for
+        return "must be a finite number (not NaN or infinity)"
     if names and names[-1] in UNION_HINTS:
         return UNION_HINTS[names[-1]]
     field = _field_info(loc)

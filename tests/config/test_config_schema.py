@@ -127,3 +127,20 @@ def test_descriptions_carry_the_defaults_read_from_the_schema():
     assert defs["VehicleConfig"]["properties"]["drag"]["description"].endswith("; default [0.22, 0.22, 0.0]")
     # the loader's messages keep the bare unit (pinned in test_errors): the schema adds defaults, not the model
     assert config.VehicleConfig.model_fields["mass"].description == "kg"
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("Q", [1, float("nan"), 1], r"lqr\.pitch\.Q\[1\] = nan: must be a finite number \(not NaN or infinity\)$"),
+    ("R", [float("inf")], r"lqr\.pitch\.R\[0\] = inf: must be a finite number \(not NaN or infinity\)$"),
+    ("Q", [[1, 0, 0], [0, float("nan"), 0], [0, 0, 1]],
+     r"lqr\.pitch\.Q\[1\]\[1\] = nan: must be a finite number \(not NaN or infinity\)$"),
+    ("Q", [1, "x", 1], r"lqr\.pitch\.Q\[1\] = \"x\": must be a list of numbers \(the diagonal\) or a list of rows "
+                       r"\(a full matrix\)$"),
+])
+def test_a_bad_entry_of_a_weight_is_reported_in_the_form_it_was_written(key, value, message):
+    """A NaN in a diagonal ``Q`` was reported as 'must be a list of numbers' with '2 more errors' at the entries
+    that are fine (those of the full-matrix reading): the error is the entry, in the form the user wrote."""
+    data = config.load("hover").model_dump()
+    data["lqr"]["pitch"][key] = value
+    with pytest.raises(ConfigError, match=rf"^<config>: {message}"):
+        config.from_dict(data)
