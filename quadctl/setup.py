@@ -250,8 +250,18 @@ class Setup:
         return "unassigned"
 
     def initial_state(self, x_trim) -> np.ndarray:
-        """(12,) trim state plus the configured initial offset."""
-        return np.asarray(x_trim, dtype=float) + self.initial_offset
+        """(12,) trim state plus the configured initial offset.
+
+        Raises
+        ------
+        ValueError
+            ``x_trim`` is not the 12 states (``trim.x`` or ``loop.x_trim``).
+        """
+        x = np.asarray(x_trim, dtype=float)
+        if x.shape != (N_STATES,):
+            raise ValueError(f"initial_state takes the {N_STATES} states of a trim (trim.x or loop.x_trim), "
+                             f"got shape {x.shape}")
+        return x + self.initial_offset
 
 
 def setup_of(cfg: Config) -> Setup:

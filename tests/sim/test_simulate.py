@@ -245,3 +245,15 @@ def test_the_chain_of_stages_names_what_it_takes_when_given_something_else():
         qc.Stages(cfg)
     with pytest.raises(TypeError, match=r"setup_of takes a validated Config, .*got str"):
         qc.setup_of("hover")
+
+
+@pytest.mark.parametrize("x_trim", [[0.0] * 5, [[0.0] * 12]])
+def test_the_configured_start_refuses_what_is_not_the_12_states(x_trim):
+    """``setup.initial_state`` of the wrong shape was NumPy's broadcasting error, or a (1, 12) start that
+    ``simulate`` then refused for a reason the caller did not write."""
+    import quadctl as qc
+
+    setup = qc.setup_of(qc.load_config("hover"))
+    with pytest.raises(ValueError, match=r"^initial_state takes the 12 states of a trim \(trim.x or loop.x_trim\), "
+                                         rf"got shape {re.escape(str(np.shape(x_trim)))}$"):
+        setup.initial_state(x_trim)
