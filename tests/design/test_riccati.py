@@ -84,6 +84,14 @@ def test_a_matrix_left_out_is_named_not_a_key_error(missing):
         lqr(**args, name="sys")
 
 
+def test_a_1d_input_matrix_is_refused_saying_to_give_the_column():
+    """``B = [0, 1]`` for one input (read as a row, as SciPy and python-control read it) was refused as
+    'shape (1, 2), expected (2, 2)', an m of 2 nobody wrote."""
+    with pytest.raises(DesignError, match=r"^sys: B has shape \(2,\), a 1-D array read as the row \(1, 2\); for "
+                                          r"one input give the column, shape \(2, 1\)"):
+        lqr([[0.0, 1.0], [0.0, 0.0]], [0.0, 1.0], np.eye(2), [[1.0]], name="sys")
+
+
 def test_carex_2_5_is_refused_not_solved():
     """The regression: CAREX 2.5 at eps = 0 returned K = [3.00000004, 2.00000004] and a 'stable' loop."""
     with pytest.raises(DesignError, match=r"carex: Q is not positive semidefinite: its most negative eigenvalue "

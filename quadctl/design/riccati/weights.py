@@ -88,6 +88,9 @@ def as_problem(A, B, Q, R, N=None, *, name: str = "system"):
     mats = {label: real_array(M, label, name=name, ndim=2)
             for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R), ("N", N)) if M is not None or label != "N"}
     n, m = mats["A"].shape[0], mats["B"].shape[-1]
+    if np.ndim(B) == 1 and mats["B"].shape[1] == n != 1:  # padded to a row: one input was meant as a column
+        raise DesignError(f"{name}: B has shape {np.shape(B)}, a 1-D array read as the row (1, {n}); for one input "
+                          f"give the column, shape ({n}, 1): [[b1], [b2], ...] or np.reshape(B, (-1, 1))")
     mats.setdefault("N", np.zeros((n, m)))
     _check_shapes(mats, (), n, m, name)
     return tuple(mats[k] for k in "ABQRN")
