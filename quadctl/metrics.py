@@ -83,6 +83,9 @@ def tail_trend(t, err) -> tuple:
     t, err = np.asarray(t, dtype=float), np.asarray(err, dtype=float)
     t_end = t[..., -1:]
     t0 = (1.0 - NOISE_TAIL) * t_end
+    # only the samples from the first any run has in its tail: before it the sums add zeros, exactly
+    first = int(np.argmax(t >= t0, axis=-1).min())
+    t, err = t[..., first:], err[..., first:]
     tail = t >= t0
     tau = np.where(tail, t - t0, 0.0)
     e = np.where(tail, err, 0.0)

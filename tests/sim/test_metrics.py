@@ -146,3 +146,24 @@ def test_the_tail_trend_is_the_least_squares_line_of_the_last_tenth():
     assert end == pytest.approx(intercept + slope * t[-1], rel=1e-10)
     assert spread == pytest.approx(math.sqrt(np.mean(residual ** 2)), rel=1e-8)
     assert metrics.tail_trend(np.array([0.0, 1.0]), np.array([5.0, 0.25])) == (0.25, 0.0)
+
+
+def test_the_tail_trend_of_a_batch_works_on_its_tail_only_and_gives_the_same_lines():
+    """A sweep's noisy batch reads the line of its errors' last tenth (16 runs, 12 states, 5001 samples, two
+    steps): the sums start where the first run's tail does, so the work and the memory it takes are those of
+    the tail, not of the whole run (it took over five times the errors' own size, an eleventh of it now); the
+    lines are each run's own, to the last bit, whatever else is in the batch."""
+    import tracemalloc
+
+    rng = np.random.default_rng(2)
+    t = np.stack([np.linspace(0.0, 5.0, 5001)] * 8 + [np.linspace(0.0, 4.0, 5001)] * 8)
+    err = np.exp(-t[:, None, :] / rng.uniform(0.2, 3.0, (16, 12, 1))) + rng.normal(0.0, 1e-3, (16, 12, 5001))
+    tracemalloc.start()
+    try:
+        end, spread = metrics.tail_trend(t[:, None, :], err)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < err.nbytes, f"{peak / err.nbytes:.2f} times the errors' size"
+    for b, i in ((0, 0), (9, 7), (15, 11)):
+        assert (end[b, i], spread[b, i]) == metrics.tail_trend(t[b], err[b, i])
