@@ -230,11 +230,17 @@ def execute(cfg, spec: SweepSpec, out: Path | str | artifacts.Session, *, label:
     ------
     SweepError
         ``resume`` finds rows of a different sweep, or the scheduler cannot be reached.
+    ValueError
+        ``out`` is a session of another config.
     """
 
     with contextlib.ExitStack() as own:
         if isinstance(out, artifacts.Session):
             session = out
+            if session.cfg.digest() != cfg.digest():  # its config.yaml, stamps and clean-up are its config's
+                raise ValueError(f"the session of {session.out} is of config {session.cfg.name!r} "
+                                 f"({session.cfg.digest()[:12]}), the sweep of {cfg.name!r} ({cfg.digest()[:12]}): "
+                                 "give the run folder's path, or a session of the sweep's config")
         else:
             session = own.enter_context(artifacts.Session(cfg, out))  # one run writes a folder at a time
             session.defer_notes()  # what it removed is said at the end: not at all if it is put back

@@ -1001,3 +1001,15 @@ def test_sweep_run_names_what_it_takes_when_given_something_else():
         sweep.run("forward", sweep.from_dict(data, cfg), jobs=1)
     with pytest.raises(TypeError, match=r"^sweep.run takes a SweepSpec, sweep.from_dict\(data, cfg\) .*; got dict$"):
         sweep.run(cfg, data, jobs=1)
+
+
+def test_execute_refuses_a_session_of_another_config_and_writes_nothing(cfg, tmp_path):
+    """A session writes its own config beside the files, stamps the figures with it and removes the runs of
+    any other: given one of another config, the folder would say one config and hold another's sweep."""
+    spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [25, 50]})
+    other = config.from_dict(sweep.assign(cfg.model_dump(mode="json"), ("vehicle", "mass"), 0.07), "other")
+    said = (rf"^the session of .* is of config {other.name!r} \({other.digest()[:12]}\), the sweep of {cfg.name!r} "
+            r".*: give the run folder's path")
+    with artifacts.Session(other, tmp_path) as session, pytest.raises(ValueError, match=said):
+        sweep.execute(cfg, spec, session, jobs=1, plot=False)
+    assert not (tmp_path / "sweep.csv").exists() and not (tmp_path / "config.yaml").exists()
