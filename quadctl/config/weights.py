@@ -62,9 +62,13 @@ def check_weight(value: list, size: int, path: str, label: str, *, definite: boo
         raise ConfigError(f"{label}: {path}: mixes numbers and rows; give a list (diagonal) or a list of rows")
     if (not nested and len(value) != size) or (nested and (len(value) != size or any(
             len(row) != size for row in value))):
-        shape = (len(value), len(value[0])) if nested and value else (len(value),)
         expect = f"{size} value{'s' if size != 1 else ''} (one per {', '.join(names)}) or a {size}x{size} matrix"
-        got = "x".join(map(str, shape)) if nested else f"{len(value)} values"
+        if not nested:
+            got = f"{len(value)} values"
+        elif len({len(row) for row in value}) == 1:
+            got = f"{len(value)}x{len(value[0])}"
+        else:  # rows of different lengths: a shape would name one of them only
+            got = f"rows of {', '.join(str(len(row)) for row in value)} values"
         raise ConfigError(f"{label}: {path} = {show(value)}: expected {expect}, got {got}")
     flat = np.abs(np.array(value, dtype=float)).ravel()
     bad = np.flatnonzero(_out_of_range(flat))

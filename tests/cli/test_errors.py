@@ -60,6 +60,9 @@ CONFIG_CASES = {
         r"input `R` is not assigned to any regulated subsystem; add it to one subsystem's inputs"),
     "Q wrong size": (_edit("roll:     {Q: [1, 50, 1]", "roll:     {Q: [1, 50]"),
                      r"lqr\.roll\.Q = \[1, 50\]: expected 3 values \(one per v, phi, p\) or a 3x3 matrix, got 2"),
+    "Q rows of different lengths": (_edit("altitude: {Q: [50, 1]", "altitude: {Q: [[50, 0], [0]]"),
+                                    r"lqr\.altitude\.Q = \[\[50, 0\], \[0\]\]: expected 2 values \(one per pD, w\) "
+                                    r"or a 2x2 matrix, got rows of 2, 1 values$"),
     "Q not symmetric": (_edit("altitude: {Q: [50, 1]", "altitude: {Q: [[50, 1], [0, 1]]"),
                         r"lqr\.altitude\.Q = .*: not symmetric; make it equal to its transpose"),
     "Q not PSD": (_edit("yaw:      {Q: [50, 1]", "yaw:      {Q: [50, -1]"),
