@@ -35,6 +35,11 @@ its way in, and keeps its settling time. A run without noise keeps its settling 
 NOISE_LIMITED_WORDS = ("with noise or turbulence, the error still crosses its 2 % band in the last tenth of the run, "
                        "and the band's edge lies within the noise about the error's trend")
 """What noise-limited means, as every table, reason and artifact says it (:data:`NOISE_TAIL`)."""
+NOISE_MIN_RECORDS = 10
+"""Records in the last tenth below which the noise about the trend is not measured (a line through
+one or two records fits them exactly): its spread is then taken as unbounded, so a late crossing
+reads noise-limited, and no settling time is claimed that the records cannot support (a small
+``simulation.max_samples``)."""
 NOISE_REACH = 3.0
 """Standard deviations of the error about its trend that count as the reach of the noise (a
 Gaussian's samples over a run's last tenth stay within about three)."""
@@ -100,7 +105,8 @@ def tail_trend(t, err) -> tuple:
 def trend_of_sums(n, st, stt, se, ste, see, tau_end) -> tuple:
     """(the line's value at ``tau_end``, the RMS about it) of the least-squares line ``e = a + b tau``
     through ``n`` samples with the sums of ``tau``, ``tau^2``, ``e``, ``tau e`` and ``e^2``
-    (elementwise over arrays; one sample: the line is flat through it)."""
+    (elementwise over arrays; one sample: the line is flat through it). Fewer than
+    :data:`NOISE_MIN_RECORDS` samples: the RMS is ``inf`` (not measured)."""
     n, st, stt, se, ste, see = (np.asarray(v, dtype=float) for v in (n, st, stt, se, ste, see))
     with np.errstate(invalid="ignore", divide="ignore"):
         det = n * stt - st * st
@@ -108,7 +114,7 @@ def trend_of_sums(n, st, stt, se, ste, see, tau_end) -> tuple:
         mean = se / np.maximum(n, 1.0)
         a = mean - slope * st / np.maximum(n, 1.0)
         ssr = np.maximum(see - a * se - slope * ste, 0.0)
-        spread = np.sqrt(ssr / np.maximum(n, 1.0))
+        spread = np.where(n >= NOISE_MIN_RECORDS, np.sqrt(ssr / np.maximum(n, 1.0)), np.inf)
     trend = a + slope * np.asarray(tau_end, dtype=float)
     if np.ndim(trend) == 0:
         return float(trend), float(spread)

@@ -145,7 +145,7 @@ def test_the_tail_trend_is_the_least_squares_line_of_the_last_tenth():
     end, spread = metrics.tail_trend(t, e)
     assert end == pytest.approx(intercept + slope * t[-1], rel=1e-10)
     assert spread == pytest.approx(math.sqrt(np.mean(residual ** 2)), rel=1e-8)
-    assert metrics.tail_trend(np.array([0.0, 1.0]), np.array([5.0, 0.25])) == (0.25, 0.0)
+    assert metrics.tail_trend(np.array([0.0, 1.0]), np.array([5.0, 0.25])) == (0.25, math.inf)
 
 
 def test_the_tail_trend_of_a_batch_works_on_its_tail_only_and_gives_the_same_lines():
@@ -167,3 +167,18 @@ def test_the_tail_trend_of_a_batch_works_on_its_tail_only_and_gives_the_same_lin
     assert peak < err.nbytes, f"{peak / err.nbytes:.2f} times the errors' size"
     for b, i in ((0, 0), (9, 7), (15, 11)):
         assert (end[b, i], spread[b, i]) == metrics.tail_trend(t[b], err[b, i])
+
+
+@pytest.mark.parametrize("records", [12, 40, 150, 20_000])
+def test_a_late_crossing_with_too_few_records_to_measure_the_noise_claims_no_settling_time(records):
+    """A decay down into white noise of half a band, kept as ``records`` samples of a 10 s run (as a small
+    ``simulation.max_samples`` keeps them): with fewer than NOISE_MIN_RECORDS in the last tenth a line
+    fits them exactly and measures no noise, so a late crossing would have kept a settling time the records
+    cannot support; it reads noise-limited, as it does with every record kept."""
+    t = np.linspace(0.0, 10.0, records)
+    band = metrics.SETTLING_BAND
+    e = np.exp(-t / 0.3) + np.random.default_rng(11).normal(0.0, 0.5 * band, t.size)
+    e[-1] = 1.5 * band  # the last record outside: never settled
+    n_tail = int(np.sum(t >= (1.0 - metrics.NOISE_TAIL) * t[-1]))
+    assert (n_tail < metrics.NOISE_MIN_RECORDS) == (records < 100)
+    assert metrics.limited_by_noise(t, e, None)
