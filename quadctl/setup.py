@@ -259,8 +259,8 @@ class Setup:
         """
         x = np.asarray(x_trim, dtype=float)
         if x.shape != (N_STATES,):
-            raise ValueError(f"initial_state takes the {N_STATES} states of a trim (trim.x or loop.x_trim), "
-                             f"got shape {x.shape}")
+            raise ValueError(f"initial_state takes the {N_STATES} states of a trim (a Trim's x, or a loop's "
+                             f"x_trim), got shape {x.shape}")
         return x + self.initial_offset
 
 

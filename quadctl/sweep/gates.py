@@ -59,7 +59,7 @@ def metric_columns(cfg) -> list[str]:
     ``stable`` (coupled linear closed loop), ``eig.fastest`` / ``eig.slowest`` (most negative and
     largest real part of its eigenvalues, marginal position modes left out; rad/s), then per
     regulated state ``settling_time.<state>`` (s, 2 % band) and ``overshoot.<state>`` (%), per
-    input ``peak.<input>`` (max |u|: N or N m), ``cost`` (the LQR cost integral), ``status``
+    input ``peak.<input>`` (max ``|u|``: N or N m), ``cost`` (the LQR cost integral), ``status``
     (the simulation's: ok, diverged, left_valid_range; or why the case has no simulation),
     ``dt`` (s) and ``steps``; with ``simulation.reference``, after the peaks, :data:`TRACKING_COLUMNS`
     (a mission's, with ``waypoints.reached``).

@@ -95,8 +95,8 @@ class SweepSpec:
     samples : int or None
     seed : int
     parameters : tuple of Parameter
-    fixed : tuple of (path, keys, value)
-        ``set:`` values every case gets.
+    fixed : tuple
+        ``set:`` values every case gets, each ``(path, keys, value)``.
     gates : tuple of Gate
     require_ok : bool
         A case that fails to design, is unstable on the coupled model or does not simulate to

@@ -254,6 +254,6 @@ def test_the_configured_start_refuses_what_is_not_the_12_states(x_trim):
     import quadctl as qc
 
     setup = qc.setup_of(qc.load_config("hover"))
-    with pytest.raises(ValueError, match=r"^initial_state takes the 12 states of a trim \(trim.x or loop.x_trim\), "
-                                         rf"got shape {re.escape(str(np.shape(x_trim)))}$"):
+    with pytest.raises(ValueError, match=r"^initial_state takes the 12 states of a trim \(a Trim's x, or a loop's "
+                                         rf"x_trim\), got shape {re.escape(str(np.shape(x_trim)))}$"):
         setup.initial_state(x_trim)
