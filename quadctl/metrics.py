@@ -32,8 +32,8 @@ last crossed the band then measures the noise, not the response, and it has no s
 An error whose trend ends farther outside the band than the noise reaches (still coming down, a
 drift) never settled, noise or not; one whose trend ends farther inside than the noise reaches is on
 its way in, and keeps its settling time. A run without noise keeps its settling times as they are."""
-NOISE_LIMITED_WORDS = ("with noise or turbulence, the error still crosses its 2 % band in the last tenth of the run, "
-                       "and the band's edge lies within the noise about the error's trend")
+NOISE_LIMITED_WORDS = (f"with noise or turbulence, the error still crosses its {100 * SETTLING_BAND:g} % band in the "
+                       "last tenth of the run, and the band's edge lies within the noise about the error's trend")
 """What noise-limited means, as every table, reason and artifact says it (:data:`NOISE_TAIL`)."""
 NOISE_MIN_RECORDS = 10
 """Records in the last tenth below which the noise about the trend is not measured (a line through

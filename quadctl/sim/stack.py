@@ -28,6 +28,13 @@ from quadctl.sim.loop_layout import fill_constants_stack
 from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.plan import StepPlan, record_stride
 
+
+def _positive_seconds(value) -> bool:
+    """Whether ``value`` is a finite positive number (not a bool, not text numpy would convert)."""
+    return not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating)) \
+        and 0.0 < float(value) < float("inf")
+
+
 SETUPS_KEPT = 4
 """ETDRK4 stacks of one a loop keeps (:func:`kept_exponential_stack`): one per run settings, the latest."""
 
@@ -72,12 +79,9 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
                             f"(or quadctl.pipeline.loop_of); got {type(loop).__name__}")
     if method not in ("rk4", "etdrk4"):
         raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
-    if isinstance(duration, bool) or not isinstance(duration, (int, float, np.integer, np.floating)) \
-            or not 0.0 < float(duration) < float("inf"):
+    if not _positive_seconds(duration):
         raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
-    if not (isinstance(dt, str) and dt == "auto") and (
-            isinstance(dt, bool) or not isinstance(dt, (int, float, np.integer, np.floating))
-            or not 0.0 < float(dt) < float("inf")):
+    if not (isinstance(dt, str) and dt == "auto") and not _positive_seconds(dt):
         raise ValueError(f"dt must be a positive number of seconds or 'auto', got {dt!r}")
     for x0 in x0s:
         if np.shape(x0) != (N_STATES,):
