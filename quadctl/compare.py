@@ -26,7 +26,15 @@ from quadctl.design.margins import least_margins
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
 from quadctl.linear.linearize import LinearModel
-from quadctl.metrics import NOISE_LIMITED_WORDS, limited_by_noise, lqr_cost, overshoot, settling_time, summarize
+from quadctl.metrics import (
+    NOISE_LIMITED_WORDS,
+    Disturbance,
+    limited_by_noise,
+    lqr_cost,
+    overshoot,
+    settling_time,
+    summarize,
+)
 from quadctl.physics.motors import has_rotors
 from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import Stages, closed_loop_of, noisy, pid_loop_of, simulation_of
@@ -222,9 +230,10 @@ NOISE_LIMITED = (f"true: |p - p_ref| is noise-limited ({NOISE_LIMITED_WORDS}: qu
 """compare.json's meaning of a law's ``settling_noise_limited``."""
 
 
-def metrics_of(run: SimResult, loop: ClosedLoop, Q, R, noisy: bool = False) -> dict:
-    """:data:`METRICS` of one run, and ``settling_noise_limited``: whether a ``noisy`` run's (noise or
-    turbulence, :func:`quadctl.pipeline.noisy`) settling is noise-limited (:func:`quadctl.metrics.noise_limited`)."""
+def metrics_of(run: SimResult, loop: ClosedLoop, Q, R, noisy: int = Disturbance.QUIET) -> dict:
+    """:data:`METRICS` of one run, and ``settling_noise_limited``: whether a ``noisy`` run's (a
+    :class:`~quadctl.metrics.Disturbance`, :func:`quadctl.pipeline.noisy`; True: noise) settling is
+    noise-limited (:func:`quadctl.metrics.noise_limited`)."""
     t = run.t
     err = run.x - run.x_ref
     pos = np.linalg.norm(err[:, :3], axis=1)
@@ -232,7 +241,7 @@ def metrics_of(run: SimResult, loop: ClosedLoop, Q, R, noisy: bool = False) -> d
     cost = lqr_cost(t, err, run.u - loop.u_trim, np.asarray(Q), np.asarray(R))
     settled = settling_time(t, pos) if run.status == "ok" else None
     # a drift (a position the law leaves free, in a wind) trends out of its band: it never settled
-    limited = run.status == "ok" and noisy and limited_by_noise(t, pos, settled)
+    limited = run.status == "ok" and noisy and limited_by_noise(t, pos, settled, gusts=noisy == Disturbance.GUSTS)
     return {"position_rms": _rms(pos, t), "position_peak": float(pos.max()), "attitude_rms": _rms(att, t),
             "settling": None if limited else settled, "settling_noise_limited": bool(limited),
             "altitude_overshoot": overshoot(err[:, STATE_INDEX["pD"]]),

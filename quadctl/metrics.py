@@ -7,6 +7,7 @@ the controller regulates to.
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 
 import numpy as np
 
@@ -31,10 +32,26 @@ and the noise its spread about that line (:data:`NOISE_REACH` standard deviation
 last crossed the band then measures the noise, not the response, and it has no settling time (None).
 An error whose trend ends farther outside the band than the noise reaches (still coming down, a
 drift) never settled, noise or not; one whose trend ends farther inside than the noise reaches is on
-its way in, and keeps its settling time. A run without noise keeps its settling times as they are."""
+its way in, and keeps its settling time. Turbulence's gusts last longer than the last tenth, so
+there the noise is not measured (:class:`Disturbance`). A run without noise or turbulence keeps its
+settling times as they are."""
 NOISE_LIMITED_WORDS = (f"with noise or turbulence, the error still crosses its {100 * SETTLING_BAND:g} % band in the "
                        "last tenth of the run, and the band's edge lies within the noise about the error's trend")
 """What noise-limited means, as every table, reason and artifact says it (:data:`NOISE_TAIL`)."""
+class Disturbance(IntEnum):
+    """What randomly disturbs a run, as its settling is read (:func:`noise_limited`; true when not quiet).
+
+    ``NOISE``: noise, sampled fast next to the run's last tenth, so the spread of the error about its
+    trend there measures it. ``GUSTS``: turbulence, whose gusts last longer than a run's last tenth
+    (Dryden's length scales over the airspeed: seconds), so that spread does not measure it; it is taken
+    as unbounded, and a late crossing, or an error outside its band at the end, reads noise-limited
+    whatever its seed."""
+
+    QUIET = 0
+    NOISE = 1
+    GUSTS = 2
+
+
 NOISE_MIN_RECORDS = 10
 """Records in the last tenth below which the noise about the trend is not measured (a line through
 one or two records fits them exactly): its spread is then taken as unbounded, so a late crossing
@@ -47,22 +64,24 @@ OVERSHOOT_FLOOR = 1e-6
 """Excursions past zero below this fraction of the initial error are round-off: overshoot 0."""
 
 
-def settling_time(t, err, noisy: bool = False) -> float | None:
+def settling_time(t, err, noisy: int = Disturbance.QUIET) -> float | None:
     """Time after which ``|err|`` stays within ``SETTLING_BAND`` of its peak (s); None if it never
-    does, or, in a ``noisy`` run (noise or turbulence), if it is noise-limited (:func:`noise_limited`)."""
+    does, or, in a ``noisy`` run (a :class:`Disturbance`; True: noise), if it is noise-limited
+    (:func:`noise_limited`)."""
     settled = _settled(t, err)
     if not noisy or not len(t):
         return settled
-    return None if limited_by_noise(t, err, settled) else settled
+    return None if limited_by_noise(t, err, settled, gusts=noisy == Disturbance.GUSTS) else settled
 
 
-def limited_by_noise(t, err, settled: float | None) -> bool:
+def limited_by_noise(t, err, settled: float | None, gusts: bool = False) -> bool:
     """:func:`noise_limited` of one error ``err`` (r,) at times ``t`` (r,, s) that settled at ``settled``
     (s, None: never): its band from its largest ``|err|``, its trend over the last tenth
-    (:func:`tail_trend`)."""
+    (:func:`tail_trend`); with ``gusts`` (:attr:`Disturbance.GUSTS`) the spread about it unbounded."""
     t, err = np.asarray(t, dtype=float), np.asarray(err, dtype=float)
     band = max(SETTLING_BAND * float(np.abs(err).max()), ERROR_FLOOR)
-    return noise_limited(settled, float(t[-1]), *tail_trend(t, err), band)
+    trend_end, spread = tail_trend(t, err)
+    return noise_limited(settled, float(t[-1]), trend_end, math.inf if gusts else spread, band)
 
 
 def noise_limited(settled: float | None, t_end: float, trend_end: float, spread: float, band: float) -> bool:
@@ -152,7 +171,7 @@ def lqr_cost(t, err, du, Q, R) -> float:
     return float(np.sum((integrand[1:] + integrand[:-1]) * np.diff(t)) / 2) if len(t) > 1 else 0.0
 
 
-def summarize(sim, u_trim, Q, R, regulated_states, noisy: bool = False) -> dict:
+def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIET) -> dict:
     """Metrics of a run, as plain JSON-ready data.
 
     Parameters
@@ -163,8 +182,9 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: bool = False) -> dict:
     R : (4, 4) array_like
     regulated_states : iterable of str
         States that get settling and overshoot figures.
-    noisy : bool
-        The run had noise or turbulence: its settling times may be noise-limited (:data:`NOISE_TAIL`).
+    noisy : Disturbance or bool
+        What randomly disturbed the run (True: noise): its settling times may be noise-limited
+        (:data:`NOISE_TAIL`).
 
     Returns
     -------
@@ -182,7 +202,8 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: bool = False) -> dict:
         out["final_error"][name] = float(err[-1, i])
         if name in regulated_states:  # a run cut short has not shown where it settles
             settled = _settled(sim.t, err[:, i]) if sim.status == "ok" else None
-            if sim.status == "ok" and noisy and limited_by_noise(sim.t, err[:, i], settled):
+            if sim.status == "ok" and noisy and limited_by_noise(sim.t, err[:, i], settled,
+                                                                 gusts=noisy == Disturbance.GUSTS):
                 out["noise_limited"].append(name)
                 settled = None
             out["settling_time"][name] = settled
@@ -194,7 +215,7 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: bool = False) -> dict:
     return out
 
 
-def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status, noisy: bool = False) -> dict:
+def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status, noisy: int = Disturbance.QUIET) -> dict:
     """:func:`summarize` of one run, vectorized over the states (:func:`summarize_errors` of it).
 
     Same definitions and the same numbers (the cost integral to round-off: its quadratic forms
@@ -217,7 +238,7 @@ def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status, noisy:
     R : (4, 4) ndarray
     regulated_states : iterable of str
     status : str
-    noisy : bool
+    noisy : Disturbance or bool
         As :func:`summarize`'s.
 
     Returns
@@ -269,8 +290,8 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=Fa
     regulated_states : iterable of str
         States that get settling and overshoot figures (the same in every run).
     status : sequence of B str
-    noisy : bool, or sequence of B bool
-        Which runs had noise or turbulence (:func:`summarize`'s ``noisy``).
+    noisy : Disturbance or bool, or a sequence of B of them
+        What randomly disturbed each run (:func:`summarize`'s ``noisy``).
 
     Returns
     -------
@@ -295,10 +316,12 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=Fa
     settled_at = np.take_along_axis(t, np.minimum(last + 1, n - 1), axis=1)
     # noise-limited (noise_limited): a full run with noise whose error still crossed its band in the last
     # tenth, the band's edge within the noise about the error's trend there
-    noisy = np.broadcast_to(np.asarray(noisy, dtype=bool), (B,))
+    kind = np.broadcast_to(np.asarray(noisy, dtype=int), (B,))
+    noisy = kind != Disturbance.QUIET
     late = np.zeros((B, err.shape[1]), dtype=bool)
     if noisy.any():
         trend_end, spread = tail_trend(t[:, None, :], err)
+        spread = np.where((kind == Disturbance.GUSTS)[:, None], np.inf, spread)
         late = noise_limited(np.where(never, np.nan, settled_at), t[:, -1:], trend_end, spread, band) & ~at_once \
             & noisy[:, None] & (np.asarray(status) == "ok")[:, None]
     at_once, never, late, settled_at = at_once.tolist(), never.tolist(), late.tolist(), settled_at.tolist()

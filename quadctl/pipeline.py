@@ -23,6 +23,7 @@ from quadctl.linear.analysis import Checks, check
 from quadctl.linear.decouple import Decoupled, decouple
 from quadctl.linear.linearize import LinearModel, linearize
 from quadctl.linear.trim import Trim, solve_trim
+from quadctl.metrics import Disturbance
 from quadctl.physics import motors
 from quadctl.physics.motors import check_trim
 from quadctl.setup import Setup
@@ -200,11 +201,14 @@ def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progres
                     tolerance=setup.tolerance)
 
 
-def noisy(setup: Setup, noise: bool = True) -> bool:
-    """Whether the configured run is randomly disturbed: noise (``noise=False``: a run without it,
-    :func:`simulation_of`'s) or turbulence. Its settling times may be noise-limited
+def noisy(setup: Setup, noise: bool = True) -> Disturbance:
+    """What randomly disturbs the configured run (:class:`quadctl.metrics.Disturbance`, true when
+    something does): turbulence (``GUSTS``, whatever the noise), noise (``NOISE``; ``noise=False``: a
+    run without it, :func:`simulation_of`'s), or nothing. Its settling times may be noise-limited
     (:func:`quadctl.metrics.noise_limited`)."""
-    return (noise and setup.noise is not None) or (setup.wind is not None and setup.wind.turbulence is not None)
+    if setup.wind is not None and setup.wind.turbulence is not None:
+        return Disturbance.GUSTS
+    return Disturbance.NOISE if noise and setup.noise is not None else Disturbance.QUIET
 
 
 class Stages:

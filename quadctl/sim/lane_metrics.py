@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
-from quadctl.metrics import ERROR_FLOOR, NOISE_TAIL, SETTLING_BAND, noise_limited, trend_of_sums
+from quadctl.metrics import ERROR_FLOOR, NOISE_TAIL, SETTLING_BAND, Disturbance, noise_limited, trend_of_sums
 from quadctl.native.compile import C_LONG
 
 PER_STATE = ("e0", "e_last", "e_min", "e_max", "peak", "settle", "tail_e", "tail_te", "tail_ee")
@@ -121,8 +121,8 @@ def summaries(sums: np.ndarray, dt, regulated_states, status, noisy=False) -> li
         s: the runs' steps (a settling record's time is ``dt`` times its step).
     regulated_states : iterable of str
     status : sequence of B str
-    noisy : bool, or sequence of B bool
-        Which runs had noise or turbulence (their settling times may be noise-limited).
+    noisy : Disturbance or bool, or a sequence of B of them
+        What randomly disturbed each run (:func:`quadctl.metrics.summarize`'s ``noisy``).
     """
     names, settling, late, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status, noisy)
     per = _per_state(np.asarray(sums, dtype=float))
@@ -170,13 +170,15 @@ def _readings(sums, dt, regulated_states, status, noisy=False) -> tuple:
     ok = (np.asarray(status) == "ok")[:, None]
     # noise-limited (quadctl.metrics.noise_limited): still crossing the band in the run's last tenth, and the
     # band's edge within the noise about the error's trend there
-    noisy = np.broadcast_to(np.asarray(noisy, dtype=bool), (len(sums),))
+    kind = np.broadcast_to(np.asarray(noisy, dtype=int), (len(sums),))
+    noisy = kind != Disturbance.QUIET
     late = np.zeros(settle.shape, dtype=bool)
     if noisy.any():
         t_end = sums[:, _slot("t_last")][:, None]
         tail = [per[:, PER_STATE.index(k)] for k in ("tail_e", "tail_te", "tail_ee")]
         n, st, stt = (sums[:, _slot(k)][:, None] for k in ("tail_n", "tail_t", "tail_tt"))
         trend_end, spread = trend_of_sums(n, st, stt, *tail, t_end - (1.0 - NOISE_TAIL) * t_end)
+        spread = np.where((kind == Disturbance.GUSTS)[:, None], np.inf, spread)  # gusts: not measured there
         band = np.maximum(SETTLING_BAND * peak, ERROR_FLOOR)
         late = noise_limited(np.where(settle == SETTLE_PENDING, np.nan, settled_at), t_end, trend_end, spread, band) \
             & (settle != SETTLE_NONE) & ok & noisy[:, None]

@@ -21,6 +21,7 @@ from quadctl import pipeline
 from quadctl.design import stacked
 from quadctl.design.discrete import LqrdWeightMap
 from quadctl.errors import DesignError
+from quadctl.metrics import Disturbance
 from quadctl.sim.engine import LANES, runner
 from quadctl.sim.lane_metrics import MetricSpec, case_values
 from quadctl.sim.stack import rk4_cases, simulate_stack
@@ -250,7 +251,7 @@ def summarize_all(jobs):
         setup = item[0].setup
         ref = setup.reference
         legs = len(ref.legs) if ref is not None else 0
-        tail = pipeline.noisy(setup)  # its settling may be noise-limited: the line through its errors' tails
+        tail = pipeline.noisy(setup) == Disturbance.NOISE  # the line through its errors' tails measures the noise
         key = (setup.regulated, (setup.Q_block != 0).tobytes(), (setup.R_block != 0).tobytes(), ref is not None, legs,
                tail)
         if key not in specs:

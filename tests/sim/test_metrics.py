@@ -182,3 +182,35 @@ def test_a_late_crossing_with_too_few_records_to_measure_the_noise_claims_no_set
     n_tail = int(np.sum(t >= (1.0 - metrics.NOISE_TAIL) * t[-1]))
     assert (n_tail < metrics.NOISE_MIN_RECORDS) == (records < 100)
     assert metrics.limited_by_noise(t, e, None)
+
+
+def test_with_gusts_the_noise_about_the_trend_is_not_measured_so_a_late_crossing_is_noise_limited():
+    """Dryden gusts last longer than a run's last tenth: a line through it follows a gust, so an error
+    outside its band at the end reads noise-limited under turbulence (Disturbance.GUSTS) whatever its trend,
+    where under noise a trend that ends far outside the band never settled."""
+    t = np.linspace(0.0, 10.0, 10_001)
+    e = np.exp(-t / 3.0)  # ends at 3.6 % of its largest, coming down: outside its 2 % band
+    assert not metrics.limited_by_noise(t, e, None)
+    assert metrics.limited_by_noise(t, e, None, gusts=True)
+    assert metrics.settling_time(t, e, noisy=metrics.Disturbance.GUSTS) is None
+    assert _batched(t, e, noisy=metrics.Disturbance.GUSTS)["noise_limited"] == ["pD"]
+    assert _batched(t, e, noisy=True)["noise_limited"] == []
+
+
+def test_a_turbulent_run_reads_the_same_noise_limited_states_whatever_its_seed():
+    """crazyflie-wind (turbulence): which states read noise-limited does not depend on the turbulence's
+    seed (a line through the last tenth, following a gust, read p noise-limited with seed 2 and never
+    settled with seed 1)."""
+    from quadctl import config, pipeline
+    from quadctl.config import overrides
+    from quadctl.setup import setup_of
+
+    found = []
+    for seed in (1, 2):
+        cfg = overrides.load(config.locate("crazyflie-wind"), [f"simulation.wind.turbulence.seed={seed}"])
+        stages = pipeline.Stages(setup_of(cfg))
+        assert pipeline.noisy(stages.setup) == metrics.Disturbance.GUSTS
+        sim = pipeline.simulation_of(stages.setup, stages.loop)
+        found.append(metrics.summarize(sim, stages.linear.u_trim, stages.setup.Q_block, stages.setup.R_block,
+                                       stages.setup.regulated, noisy=pipeline.noisy(stages.setup))["noise_limited"])
+    assert found[0] == found[1] and "p" in found[0]
