@@ -241,7 +241,7 @@ def metrics_of(run: SimResult, loop: ClosedLoop, Q, R, noisy: int = Disturbance.
     cost = lqr_cost(t, err, run.u - loop.u_trim, np.asarray(Q), np.asarray(R))
     settled = settling_time(t, pos) if run.status == "ok" else None
     # a drift (a position the law leaves free, in a wind) trends out of its band: it never settled
-    limited = run.status == "ok" and noisy and limited_by_noise(t, pos, settled, gusts=noisy == Disturbance.GUSTS)
+    limited = run.status == "ok" and noisy and limited_by_noise(t, pos, settled, noisy)
     return {"position_rms": _rms(pos, t), "position_peak": float(pos.max()), "attitude_rms": _rms(att, t),
             "settling": None if limited else settled, "settling_noise_limited": bool(limited),
             "altitude_overshoot": overshoot(err[:, STATE_INDEX["pD"]]),

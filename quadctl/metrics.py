@@ -38,6 +38,8 @@ settling times as they are."""
 NOISE_LIMITED_WORDS = (f"with noise or turbulence, the error still crosses its {100 * SETTLING_BAND:g} % band in the "
                        "last tenth of the run, and the band's edge lies within the noise about the error's trend")
 """What noise-limited means, as every table, reason and artifact says it (:data:`NOISE_TAIL`)."""
+
+
 class Disturbance(IntEnum):
     """What randomly disturbs a run, as its settling is read (:func:`noise_limited`; true when not quiet).
 
@@ -71,26 +73,28 @@ def settling_time(t, err, noisy: int = Disturbance.QUIET) -> float | None:
     settled = _settled(t, err)
     if not noisy or not len(t):
         return settled
-    return None if limited_by_noise(t, err, settled, gusts=noisy == Disturbance.GUSTS) else settled
+    return None if limited_by_noise(t, err, settled, noisy) else settled
 
 
-def limited_by_noise(t, err, settled: float | None, gusts: bool = False) -> bool:
+def limited_by_noise(t, err, settled: float | None, noisy: int = Disturbance.NOISE) -> bool:
     """:func:`noise_limited` of one error ``err`` (r,) at times ``t`` (r,, s) that settled at ``settled``
-    (s, None: never): its band from its largest ``|err|``, its trend over the last tenth
-    (:func:`tail_trend`); with ``gusts`` (:attr:`Disturbance.GUSTS`) the spread about it unbounded."""
+    (s, None: never) in a run ``noisy`` disturbed (:class:`Disturbance`): its band from its largest
+    ``|err|``, its trend over the last tenth (:func:`tail_trend`)."""
     t, err = np.asarray(t, dtype=float), np.asarray(err, dtype=float)
     band = max(SETTLING_BAND * float(np.abs(err).max()), ERROR_FLOOR)
-    trend_end, spread = tail_trend(t, err)
-    return noise_limited(settled, float(t[-1]), trend_end, math.inf if gusts else spread, band)
+    return noise_limited(settled, float(t[-1]), *tail_trend(t, err), band, gusts=noisy == Disturbance.GUSTS)
 
 
-def noise_limited(settled: float | None, t_end: float, trend_end: float, spread: float, band: float) -> bool:
+def noise_limited(settled: float | None, t_end: float, trend_end: float, spread: float, band: float,
+                  gusts: bool = False) -> bool:
     """Whether a settling time ``settled`` (s, None: never) of a run with noise or turbulence that
     ended at ``t_end`` (s, from 0) is noise-limited (:data:`NOISE_TAIL`): the error still left its
     ``band`` in the run's last tenth, and the band's edge lies within :data:`NOISE_REACH` times its
-    ``spread`` of where its trend there ends (``trend_end``, :func:`tail_trend`). Elementwise over
-    arrays too (``settled`` then NaN for never)."""
+    ``spread`` of where its trend there ends (``trend_end``, :func:`tail_trend`); with ``gusts``
+    (turbulence, :attr:`Disturbance.GUSTS`) the spread is not measured there and taken as unbounded.
+    Elementwise over arrays too (``settled`` then NaN for never)."""
     settled = np.nan if settled is None else settled
+    spread = np.where(gusts, np.inf, spread)
     with np.errstate(invalid="ignore"):
         late = np.isnan(settled) | (settled > (1.0 - NOISE_TAIL) * np.asarray(t_end))
         out = late & (np.abs(np.abs(trend_end) - band) <= NOISE_REACH * np.asarray(spread))
@@ -202,8 +206,7 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIE
         out["final_error"][name] = float(err[-1, i])
         if name in regulated_states:  # a run cut short has not shown where it settles
             settled = _settled(sim.t, err[:, i]) if sim.status == "ok" else None
-            if sim.status == "ok" and noisy and limited_by_noise(sim.t, err[:, i], settled,
-                                                                 gusts=noisy == Disturbance.GUSTS):
+            if sim.status == "ok" and noisy and limited_by_noise(sim.t, err[:, i], settled, noisy):
                 out["noise_limited"].append(name)
                 settled = None
             out["settling_time"][name] = settled
@@ -321,8 +324,8 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=Fa
     late = np.zeros((B, err.shape[1]), dtype=bool)
     if noisy.any():
         trend_end, spread = tail_trend(t[:, None, :], err)
-        spread = np.where((kind == Disturbance.GUSTS)[:, None], np.inf, spread)
-        late = noise_limited(np.where(never, np.nan, settled_at), t[:, -1:], trend_end, spread, band) & ~at_once \
+        late = noise_limited(np.where(never, np.nan, settled_at), t[:, -1:], trend_end, spread, band,
+                             gusts=(kind == Disturbance.GUSTS)[:, None]) & ~at_once \
             & noisy[:, None] & (np.asarray(status) == "ok")[:, None]
     at_once, never, late, settled_at = at_once.tolist(), never.tolist(), late.tolist(), settled_at.tolist()
     e0 = err[:, :, 0]

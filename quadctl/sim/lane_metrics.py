@@ -178,9 +178,9 @@ def _readings(sums, dt, regulated_states, status, noisy=False) -> tuple:
         tail = [per[:, PER_STATE.index(k)] for k in ("tail_e", "tail_te", "tail_ee")]
         n, st, stt = (sums[:, _slot(k)][:, None] for k in ("tail_n", "tail_t", "tail_tt"))
         trend_end, spread = trend_of_sums(n, st, stt, *tail, t_end - (1.0 - NOISE_TAIL) * t_end)
-        spread = np.where((kind == Disturbance.GUSTS)[:, None], np.inf, spread)  # gusts: not measured there
         band = np.maximum(SETTLING_BAND * peak, ERROR_FLOOR)
-        late = noise_limited(np.where(settle == SETTLE_PENDING, np.nan, settled_at), t_end, trend_end, spread, band) \
+        late = noise_limited(np.where(settle == SETTLE_PENDING, np.nan, settled_at), t_end, trend_end, spread, band,
+                             gusts=(kind == Disturbance.GUSTS)[:, None]) \
             & (settle != SETTLE_NONE) & ok & noisy[:, None]
     settling[(settle == SETTLE_PENDING) | ~ok | late] = None
     overshoot = over.astype(object)

@@ -191,7 +191,7 @@ def test_with_gusts_the_noise_about_the_trend_is_not_measured_so_a_late_crossing
     t = np.linspace(0.0, 10.0, 10_001)
     e = np.exp(-t / 3.0)  # ends at 3.6 % of its largest, coming down: outside its 2 % band
     assert not metrics.limited_by_noise(t, e, None)
-    assert metrics.limited_by_noise(t, e, None, gusts=True)
+    assert metrics.limited_by_noise(t, e, None, metrics.Disturbance.GUSTS)
     assert metrics.settling_time(t, e, noisy=metrics.Disturbance.GUSTS) is None
     assert _batched(t, e, noisy=metrics.Disturbance.GUSTS)["noise_limited"] == ["pD"]
     assert _batched(t, e, noisy=True)["noise_limited"] == []
