@@ -12,7 +12,8 @@ documented with an example:
   conventions), :func:`margins` (:class:`LoopMargins` of a :class:`Design`), :func:`simulate`
   (:class:`SimResult` of a :class:`ClosedLoop`)
 - the errors: :class:`QuadctlError`, and the :class:`ConfigError`, :class:`TrimError`,
-  :class:`DesignError` it divides into
+  :class:`DesignError`, :class:`ArgumentError` (a ``ValueError``) and :class:`ArgumentTypeError`
+  (a ``TypeError``) it divides into
 
 >>> import quadctl as qc
 >>> K, S, E = qc.lqr([[0.0]], [[1.0]], [[4.0]], [[1.0]])  # x' = u: S = sqrt(Q R), K = sqrt(Q / R)
@@ -56,13 +57,15 @@ _PUBLIC = {
     "ConfigError": ("quadctl.errors", "ConfigError"),
     "TrimError": ("quadctl.errors", "TrimError"),
     "DesignError": ("quadctl.errors", "DesignError"),
+    "ArgumentError": ("quadctl.errors", "ArgumentError"),
+    "ArgumentTypeError": ("quadctl.errors", "ArgumentTypeError"),
 }
 """Public name -> (the module that defines it, its name there): loaded on first use."""
 
 __all__ = [
     "load_config", "Config", "setup_of", "Setup", "Stages", "Vehicle", "trim", "Trim", "linearize", "LinearModel",
     "lqr", "dlqr", "lqrd", "LqrResult", "Design", "margins", "LoopMargins", "simulate", "ClosedLoop", "SimResult",
-    "QuadctlError", "ConfigError", "TrimError", "DesignError",
+    "QuadctlError", "ConfigError", "TrimError", "DesignError", "ArgumentError", "ArgumentTypeError",
 ]
 """The public face: the names of :data:`_PUBLIC` (a test keeps the two equal)."""
 
@@ -92,7 +95,7 @@ if TYPE_CHECKING:  # what type checkers and editors see: the same names, importe
     from quadctl.design.margin_findings import all_margins as margins
     from quadctl.design.margins import LoopMargins
     from quadctl.design.riccati import LqrResult
-    from quadctl.errors import ConfigError, DesignError, QuadctlError, TrimError
+    from quadctl.errors import ArgumentError, ArgumentTypeError, ConfigError, DesignError, QuadctlError, TrimError
     from quadctl.linear.linearize import LinearModel, linearize
     from quadctl.linear.trim import Trim
     from quadctl.linear.trim import solve_trim as trim

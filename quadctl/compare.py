@@ -23,7 +23,7 @@ import numpy as np
 from quadctl.config.pid import NEEDS_ROTORS, PRESET_NAMES, resolve
 from quadctl.design import Design, coupled
 from quadctl.design.margins import least_margins
-from quadctl.errors import ConfigError
+from quadctl.errors import ArgumentError, ConfigError
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
 from quadctl.linear.linearize import LinearModel
 from quadctl.metrics import (
@@ -119,7 +119,7 @@ def parse_law(text: str) -> tuple[str, str | None]:
 
     Raises
     ------
-    ValueError
+    ArgumentError
         Anything else.
     """
 
@@ -128,7 +128,7 @@ def parse_law(text: str) -> tuple[str, str | None]:
         return "lqr", None
     if kind == "pid" and preset in PRESET_NAMES:
         return "pid", preset
-    raise ValueError(f"law {text!r}: use lqr or pid:<preset> with a preset of {', '.join(PRESET_NAMES)}")
+    raise ArgumentError(f"law {text!r}: use lqr or pid:<preset> with a preset of {', '.join(PRESET_NAMES)}")
 
 
 DEFAULT_LAWS = ("pid:crazyflie",)
@@ -156,6 +156,8 @@ def compare(stages: Stages, laws=DEFAULT_LAWS, duration: float | None = None) ->
     ------
     ConfigError
         A PID cascade among ``laws`` and no rotors (``motors:``) for it to command: before any run.
+    ArgumentError
+        A law that is not ``lqr`` or ``pid:<preset>``.
     """
 
     setup = stages.setup

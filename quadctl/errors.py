@@ -2,7 +2,9 @@
 
 Every error a user can cause is a :class:`QuadctlError`; its message is one line that
 names the problem and the fix. ``exit_code`` is what the command line returns:
-2 for bad input, 1 for valid input whose design fails a check.
+2 for bad input, 1 for valid input whose design fails a check. A Python call's wrong argument is an
+:class:`ArgumentError` (a ``ValueError``) or an :class:`ArgumentTypeError` (a ``TypeError``), so that
+``except ValueError`` and ``except qc.QuadctlError`` both catch it.
 """
 
 from __future__ import annotations
@@ -43,6 +45,36 @@ class ConfigError(QuadctlError, ValueError):
 
     key: str | None = None
     """The key path the message is about, when one key is (``simulation.initial_offset.foo``)."""
+
+
+class ArgumentError(QuadctlError, ValueError):
+    """A Python call's argument has a value quadctl cannot take (a negative ``dt``, an unknown
+    ``to``, a start of the wrong shape): the message names the call, the argument, what was expected
+    and what was found. A ``ValueError`` too, as SciPy's and NumPy's users expect.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> qc.Vehicle(mass=0.0)
+    Traceback (most recent call last):
+    ...
+    quadctl.errors.ArgumentError: Vehicle: mass (kg) and the inertia's diagonal (kg m^2) must be positive, ...
+    """
+
+
+class ArgumentTypeError(QuadctlError, TypeError):
+    """A Python call got an object of the wrong kind where it takes one of quadctl's (a config's name
+    where a :class:`~quadctl.config.schema.Config` goes): the message names what to pass. A
+    ``TypeError`` too.
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> qc.setup_of("hover")
+    Traceback (most recent call last):
+    ...
+    quadctl.errors.ArgumentTypeError: setup_of takes a validated Config, qc.setup_of(qc.load_config('hover')); got str
+    """
 
 
 class ArtifactError(QuadctlError, OSError):

@@ -16,7 +16,7 @@ import numpy as np
 
 from quadctl.config.pid import NEEDS_ROTORS
 from quadctl.design import Design, design, discrete, kalman, linear_loop, lqg_loop, margin_findings
-from quadctl.errors import ConfigError, RateError
+from quadctl.errors import ArgumentError, ArgumentTypeError, ConfigError, RateError
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 from quadctl.linear import stability
 from quadctl.linear.analysis import Checks, check
@@ -81,12 +81,14 @@ def closed_loop_of(setup: Setup, linear: LinearModel, K: np.ndarray, *, Ki: np.n
     """
     integral_states = tuple(integral_states)
     if setup.integral and not integral_states:
-        raise ValueError("the setup has integral action (lqr.<subsystem>.integral): pass Ki and "
-                         "integral_states from the design, or call pipeline.loop_of(setup, linear, design)")
+        raise ArgumentError("closed_loop_of: no integral_states, and the setup has integral action "
+                            "(lqr.<subsystem>.integral): pass Ki and integral_states from the design, or call "
+                            "pipeline.loop_of(setup, linear, design)")
     tau = setup.design_lag_time_constant if Kv is not None else None
     if Kv is not None and tau is None:
-        raise ValueError("Kv feeds back the controller's rotor lag model: the setup must include the lag "
-                         "(controller.rotor_lag: include with motors.time_constant)")
+        raise ArgumentError("closed_loop_of: Kv feeds back the controller's rotor lag model, and the setup's design "
+                            "has none: leave Kv out, or use a setup with controller.rotor_lag: include and "
+                            "motors.time_constant")
     A_cl = linear_loop.matrix(linear.A, linear.B, K, Ki, integral_states, Kv=Kv, lag_time_constant=tau)
     lag_names = tuple(f"lag of {i}" for i in INPUT_NAMES) if tau is not None else ()
     owner = {**setup.state_owner, **{f"lag of {i}": setup.input_owner(i) for i in INPUT_NAMES}}
@@ -186,7 +188,8 @@ def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
     from dataclasses import replace
 
     if jacobians is not None and len(jacobians[0]) != len(table.values):
-        raise ValueError(f"jacobians: {len(jacobians[0])} points for a table of {len(table.values)} values")
+        raise ArgumentError(f"scheduled_loop: jacobians has {len(jacobians[0])} points for a table of "
+                            f"{len(table.values)} values; give (A, B) at each of table.values")
     eig = np.asarray(eigenvalues, dtype=complex).ravel()
     return replace(loop, schedule=table, schedule_heading=float(heading), schedule_eigenvalues=eig[np.isfinite(eig)],
                    schedule_jacobians=jacobians)
@@ -240,8 +243,8 @@ class Stages:
     def __init__(self, setup: Setup, *, trim: Trim | None = None, linear: LinearModel | None = None,
                  decoupled: Decoupled | None = None):
         if not isinstance(setup, Setup):
-            raise TypeError(f"Stages takes a Setup, qc.Stages(qc.setup_of(qc.load_config('hover'))); got "
-                            f"{type(setup).__name__}")
+            raise ArgumentTypeError(f"Stages takes a Setup, qc.Stages(qc.setup_of(qc.load_config('hover'))); got "
+                                    f"{type(setup).__name__}")
         self.setup = setup
         given = {"trim": trim, "linear": linear, "decoupled": decoupled}
         self.__dict__.update({stage: result for stage, result in given.items() if result is not None})

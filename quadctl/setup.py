@@ -20,7 +20,7 @@ import numpy as np
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.config.pid import PidGains, resolve
 from quadctl.config.simulation_schema import ETDRK4_TOLERANCE
-from quadctl.errors import RateError, TrimError
+from quadctl.errors import ArgumentError, ArgumentTypeError, RateError, TrimError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linear.filters import RateFilter, rate_filter_of
 from quadctl.linear.trim import solve_trim
@@ -56,8 +56,9 @@ class Timing:
 
     def __post_init__(self):
         if self.design_rate is not None and self.design_rate != self.rate:
-            raise ValueError(f"design_rate {self.design_rate:g} Hz: a discrete design is computed at the "
-                             f"controller's rate ({self.rate} Hz)")
+            raise ArgumentError(f"Timing: design_rate {self.design_rate:g} Hz: a discrete design is computed at the "
+                                f"controller's rate ({self.rate} Hz); give design_rate = rate, or None for a "
+                                "continuous design")
 
     @property
     def mode(self) -> Literal["continuous", "discrete", "emulated"]:
@@ -254,13 +255,13 @@ class Setup:
 
         Raises
         ------
-        ValueError
+        ArgumentError
             ``x_trim`` is not the 12 states (``trim.x`` or ``loop.x_trim``).
         """
         x = np.asarray(x_trim, dtype=float)
         if x.shape != (N_STATES,):
-            raise ValueError(f"initial_state takes the {N_STATES} states of a trim (a Trim's x, or a loop's "
-                             f"x_trim), got shape {x.shape}")
+            raise ArgumentError(f"initial_state takes the {N_STATES} states of a trim (a Trim's x, or a loop's "
+                                f"x_trim), got shape {x.shape}")
         return x + self.initial_offset
 
 
@@ -277,6 +278,11 @@ def setup_of(cfg: Config) -> Setup:
     Setup
         Every value the stages read, resolved once.
 
+    Raises
+    ------
+    ArgumentTypeError
+        ``cfg`` is not a :class:`~quadctl.config.schema.Config` (a name or a path: load it first).
+
     Examples
     --------
     >>> import quadctl as qc
@@ -285,8 +291,8 @@ def setup_of(cfg: Config) -> Setup:
     ('continuous', (12, 12), ['altitude', 'roll', 'pitch', 'yaw'])
     """
     if not isinstance(cfg, Config):
-        raise TypeError(f"setup_of takes a validated Config, qc.setup_of(qc.load_config('hover')); got "
-                        f"{type(cfg).__name__}")
+        raise ArgumentTypeError(f"setup_of takes a validated Config, qc.setup_of(qc.load_config('hover')); got "
+                                f"{type(cfg).__name__}")
     v = cfg.vehicle
     diagonal, products = inertia_parts(v.inertia)
     vehicle = Vehicle(mass=v.mass, gravity=v.gravity, inertia=diagonal, drag=tuple(v.drag), products=products)

@@ -22,7 +22,7 @@ from quadctl.config.describe import describe, expected, is_union_tag
 from quadctl.config.kinds import misplaced
 from quadctl.config.schema import Config
 from quadctl.config.schema_paths import section_model
-from quadctl.errors import ConfigError
+from quadctl.errors import ArgumentTypeError, ConfigError
 from quadctl.text.messages import show
 
 DEFAULT_CONFIG = "forward"
@@ -146,8 +146,8 @@ def load(spec: str | Path | None = None) -> Config:
     ------
     ConfigError
         With one line naming the file, key path, value and the fix.
-    TypeError
-        ``spec`` is not a path or a name (a dict: :func:`from_dict` validates a mapping).
+    ArgumentTypeError
+        ``spec`` is not a path or a name (a dict: :func:`from_dict` validates a mapping); a ``TypeError``.
 
     Examples
     --------
@@ -159,7 +159,8 @@ def load(spec: str | Path | None = None) -> Config:
     if spec is not None and not isinstance(spec, (str, os.PathLike)):
         fix = ("validate a mapping with quadctl.config.from_dict(data)" if isinstance(spec, Mapping)
                else "give a YAML file's path or a bundled config's name (quadctl.config.bundled_names())")
-        raise TypeError(f"load_config takes a file path or a bundled config's name, got {type(spec).__name__}; {fix}")
+        raise ArgumentTypeError(f"load_config takes a file path or a bundled config's name, got "
+                                f"{type(spec).__name__}; {fix}")
     source = locate(spec)
     return parse(source.text, source.label)
 

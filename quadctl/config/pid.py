@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from quadctl.errors import ArgumentError
+
 PRESETS_FILE = Path(__file__).with_name("pid_presets.yaml")
 """The presets' data file (package data)."""
 
@@ -133,7 +135,7 @@ class PidGains:
         """This cascade with some values replaced (each cited ``override``)."""
         unknown = sorted(set(values) - set(NAMES))
         if unknown:
-            raise ValueError(f"unknown PID values {unknown}: use {', '.join(NAMES)}")
+            raise ArgumentError(f"unknown PID values {unknown}: use {', '.join(NAMES)}")
         vals, cites = list(self.values), list(self.citations)
         for name, value in values.items():
             i = NAMES.index(name)
@@ -174,7 +176,7 @@ def resolve(preset: str, overrides: dict | None = None, attitude: str | None = N
 
     Raises
     ------
-    ValueError
+    ArgumentError
         An unknown preset, value name or attitude stage, or rates that do not divide the base rate.
 
     Examples
@@ -187,11 +189,11 @@ def resolve(preset: str, overrides: dict | None = None, attitude: str | None = N
     """
     data = presets()
     if preset not in data:
-        raise ValueError(f"unknown PID preset {preset!r}: use one of {', '.join(PRESET_NAMES)}")
+        raise ArgumentError(f"unknown PID preset {preset!r}: use one of {', '.join(PRESET_NAMES)}")
     entry = data[preset]
     attitude = entry["attitude"] if attitude is None else attitude
     if attitude not in ATTITUDE_STAGES:
-        raise ValueError(f"unknown attitude stage {attitude!r}: use one of {', '.join(ATTITUDE_STAGES)}")
+        raise ArgumentError(f"unknown attitude stage {attitude!r}: use one of {', '.join(ATTITUDE_STAGES)}")
     table = entry["values"]
     values = tuple(float(table[n][0]) if n in table else 0.0 for n in NAMES)
     cites = tuple(str(table[n][1]) if n in table else "not in this stack (0)" for n in NAMES)
@@ -199,5 +201,5 @@ def resolve(preset: str, overrides: dict | None = None, attitude: str | None = N
                      attitude, cites, entry["source"], entry.get("title", preset)).with_values(**(overrides or {}))
     problem = rate_problem(gains)
     if problem:
-        raise ValueError(problem)
+        raise ArgumentError(f"{problem}: change the rates in overrides")
     return gains

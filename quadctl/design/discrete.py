@@ -16,7 +16,7 @@ import numpy as np
 
 from quadctl._lazy import lazy_import
 from quadctl.design.riccati import LqrResult, as_stack, real_array, require_valid_weights, solve
-from quadctl.errors import DesignError
+from quadctl.errors import ArgumentError, DesignError
 from quadctl.linear import stability
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -58,7 +58,7 @@ def c2d(A, B, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     >>> np.round(Ad, 12).tolist(), np.round(Bd, 12).ravel().tolist()
     ([[1.0, 0.1], [0.0, 1.0]], [0.005, 0.1])
     """
-    Ad, Bd = c2d_batch(_as2d(A, "A", "c2d")[None], _as2d(B, "B", "c2d")[None], Ts)
+    Ad, Bd = c2d_batch(_as2d(A, "A", "c2d")[None], _as2d(B, "B", "c2d")[None], _sample_times(Ts, 1, "c2d"))
     return Ad[0], Bd[0]
 
 
@@ -88,7 +88,7 @@ def c2d_batch(A, B, Ts) -> tuple[np.ndarray, np.ndarray]:
     F = np.zeros((batch, n + m, n + m))
     F[:, :n, :n], F[:, :n, n:] = A, B
     with np.errstate(over="ignore", invalid="ignore"):  # sampled for hours, a plant overflows: inf, for the caller
-        E = scipy.linalg.expm(F * _sample_times(Ts, batch)[:, None, None])
+        E = scipy.linalg.expm(F * _sample_times(Ts, batch, "c2d_batch")[:, None, None])
     return E[:, :n, :n], E[:, :n, n:]
 
 
@@ -106,6 +106,8 @@ def lqrd_weights(A, B, Q, R, Ts: float, N=None, *, name: str = "system"):
 
     Raises
     ------
+    ArgumentError
+        Naming ``name``: ``Ts`` is not a positive finite number of seconds.
     DesignError
         Naming ``name``: the sampled plant or weights overflow (a sample time of hours).
 
@@ -118,6 +120,7 @@ def lqrd_weights(A, B, Q, R, Ts: float, N=None, *, name: str = "system"):
     [1.5, 0.375, 1.125]
     """
     A, B, Q, R = (_as2d(M, label, name) for M, label in ((A, "A"), (B, "B"), (Q, "Q"), (R, "R")))
+    Ts = float(_sample_times(Ts, 1, name)[0])
     out = lqrd_weights_batch(A[None], B[None], Q[None], R[None], Ts, None if N is None else _as2d(N, "N", name)[None])
     if not all(np.all(np.isfinite(M)) for M in out):
         raise overflow(name, Ts)
@@ -159,7 +162,7 @@ def lqrd_weights_batch(A, B, Q, R, Ts, N=None):
     A, B, Q, R, N = as_stack(A, B, Q, R, N, name="lqrd_weights_batch")
     batch, n, m = B.shape
     k = n + m
-    Ts = _sample_times(Ts, batch)
+    Ts = _sample_times(Ts, batch, "lqrd_weights_batch")
     # the exponential over a span where ||A|| h <= VAN_LOAN_SPAN, then doubled up to Ts
     with np.errstate(divide="ignore"):
         span = np.abs(A).sum(axis=1).max(axis=1, initial=0.0) * Ts / VAN_LOAN_SPAN
@@ -305,6 +308,8 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system", state_names=Non
     ------
     DesignError
         The continuous weights are invalid (checked before they are integrated), or ``dlqr`` fails.
+    ArgumentError
+        ``Ts`` is not a positive finite number of seconds.
 
     Examples
     --------
@@ -418,10 +423,16 @@ def _joint(Q, R, N) -> np.ndarray:
     return np.concatenate([np.concatenate([Q, N], axis=2), np.concatenate([N.transpose(0, 2, 1), R], axis=2)], axis=1)
 
 
-def _sample_times(Ts, batch: int) -> np.ndarray:
-    """``Ts`` as (batch,) positive finite seconds, or a ValueError naming the bad one."""
-    Ts = np.broadcast_to(np.asarray(Ts, dtype=float), (batch,))
-    bad = ~(np.isfinite(Ts) & (Ts > 0))
+def _sample_times(Ts, batch: int, name: str) -> np.ndarray:
+    """``Ts`` as (batch,) positive finite seconds, or an ArgumentError naming ``name`` and the bad one."""
+    try:
+        times = np.broadcast_to(np.asarray(Ts, dtype=float), (batch,))
+    except (TypeError, ValueError):
+        each = f", one or one per problem ({batch})" if batch > 1 else ""
+        raise ArgumentError(f"{name}: Ts = {Ts!r}: the sample time must be a positive finite number of "
+                            f"seconds{each}") from None
+    bad = ~(np.isfinite(times) & (times > 0))
     if bad.any():
-        raise ValueError(f"sample time must be a positive finite number of seconds, got {float(Ts[bad][0])!r}")
-    return Ts
+        raise ArgumentError(f"{name}: Ts = {float(times[bad][0])!r}: the sample time must be a positive finite "
+                            "number of seconds")
+    return times

@@ -14,6 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from quadctl.errors import ArgumentError
 from quadctl.layout import STATE_NAMES
 from quadctl.physics.model import rotation_earth_to_body
 
@@ -44,7 +45,7 @@ def scheduling_value(variable: str, x, heading: float, lib=np):
         model's (:func:`quadctl.physics.model.rotation_earth_to_body`).
     """
     if variable not in VARIABLES:
-        raise ValueError(f"unknown scheduling variable {variable!r}: use one of {', '.join(VARIABLES)}")
+        raise ArgumentError(f"unknown scheduling variable {variable!r}: use one of {', '.join(VARIABLES)}")
     psi = x[_PHI + 2]
     if variable == "yaw":
         return psi
@@ -109,19 +110,31 @@ class GainTable:
 
     @classmethod
     def of(cls, variable: str, values, gains, interpolation: str = "linear") -> GainTable:
-        """The table of ``gains`` (n, 4, m) at ``values`` (n,), interpolated as ``interpolation``."""
+        """The table of ``gains`` (n, 4, m) at ``values`` (n,), interpolated as ``interpolation``.
+
+        Raises
+        ------
+        ArgumentError
+            An unknown ``variable`` or ``interpolation``, fewer than two values or values not increasing, or
+            ``gains`` of another shape (the message names the argument).
+        """
         if variable not in VARIABLES:
-            raise ValueError(f"unknown scheduling variable {variable!r}: use one of {', '.join(VARIABLES)}")
+            raise ArgumentError(f"GainTable.of: unknown scheduling variable {variable!r}: use one of "
+                                f"{', '.join(VARIABLES)}")
         if interpolation not in INTERPOLATIONS:
-            raise ValueError(f"unknown interpolation {interpolation!r}: use one of {', '.join(INTERPOLATIONS)}")
+            raise ArgumentError(f"GainTable.of: unknown interpolation {interpolation!r}: use one of "
+                                f"{', '.join(INTERPOLATIONS)}")
         values = np.asarray(values, dtype=float)
         gains = np.asarray(gains, dtype=float)
         if values.ndim != 1 or len(values) < 2 or not np.all(np.isfinite(values)):
-            raise ValueError(f"a gain table needs at least two finite scheduling values, got {values.tolist()}")
+            raise ArgumentError(f"GainTable.of: values = {values.tolist()}: a gain table needs at least two finite "
+                                "scheduling values, in a 1-D array")
         if np.any(np.diff(values) <= 0):
-            raise ValueError(f"scheduling values must increase strictly, got {values.tolist()}")
+            raise ArgumentError(f"GainTable.of: values = {values.tolist()}: the scheduling values must increase "
+                                "strictly; sort them and drop repeats")
         if gains.ndim != 3 or gains.shape[:2] != (len(values), 4):
-            raise ValueError(f"gains must be ({len(values)}, 4, m), one 4-row gain per value; got {gains.shape}")
+            raise ArgumentError(f"GainTable.of: gains has shape {gains.shape}, expected ({len(values)}, 4, m): "
+                                "one 4-row gain per value")
         breaks, coefficients = _pieces(values, gains, interpolation)
         return cls(variable, values, gains, interpolation, breaks, coefficients)
 

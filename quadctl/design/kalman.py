@@ -16,7 +16,7 @@ import numpy as np
 
 from quadctl.design import discrete as dsc
 from quadctl.design.riccati import solve
-from quadctl.errors import DesignError
+from quadctl.errors import ArgumentError, DesignError
 from quadctl.layout import N_STATES, SENSOR_GROUPS, STATE_INDEX, STATE_NAMES
 from quadctl.linear.analysis import check
 from quadctl.linear.filters import RATE_STATES, filtered_output, series, state_names
@@ -196,6 +196,8 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
     ------
     DesignError
         A mode that is not stable is unobservable from ``measured``, or the Riccati equation is refused.
+    ArgumentError
+        A continuous filter without ``period``.
     """
 
     A, B, G = (np.asarray(M, dtype=float) for M in (A, B, G))
@@ -207,7 +209,8 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
     Qn = np.diag(np.asarray(process_std, dtype=float) ** 2)
     if sample_time is None:
         if period is None:
-            raise ValueError("a continuous filter needs the noise period (s) for its intensities")
+            raise ArgumentError("kalman: period is None: a continuous filter (sample_time None) needs the s the noise "
+                                "is held for, for its intensities; give period, or sample_time for a discrete filter")
         A, B = series(A, B, form, rates)
         G = np.vstack([G, np.zeros((A.shape[0] - G.shape[0], G.shape[1]))])
         C = filtered_output(selector(measured), form, rates)

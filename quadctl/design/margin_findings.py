@@ -25,6 +25,7 @@ from quadctl.design.margins import (
     loop_margins,
     lqg_loops,
 )
+from quadctl.errors import ArgumentError
 from quadctl.layout import INPUT_UNITS
 from quadctl.physics.motors import headroom
 
@@ -298,6 +299,11 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
         Design-model loops first, then coupled ones, then LQG ones, each with its ``findings``
         (:func:`findings`, :func:`lqg_findings`; :mod:`quadctl.present.loops` words them).
 
+    Raises
+    ------
+    ArgumentError
+        ``delay_samples`` of a continuous design without ``emulated_rate``.
+
     Examples
     --------
     >>> import quadctl as qc
@@ -312,7 +318,8 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     sample_time = design.sample_time or (1.0 / emulated_rate if emulated_rate else None)
     out = []
     if delay_samples and sample_time is None:
-        raise ValueError("a delay is counted in controller samples: give the design's rate (or emulated_rate)")
+        raise ArgumentError(f"margins: delay_samples = {delay_samples!r} of a continuous design: a delay is counted in "
+                            "controller samples; give emulated_rate (Hz), or a design at a rate")
     for name, inp, model, loop in design_loops(design, decoupled, A, B, sample_time, delay_samples,
                                                rotor_time_constant, rate_filter):
         m = replace(loop_margins(loop, name=name, input_name=inp, model=model), delay_samples=delay_samples)

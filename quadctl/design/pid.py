@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadctl.errors import ArgumentError
+
 
 def axis_loop(mass: float, kp: float, ki: float, kd: float = 0.0, *, outer: float | None = None,
               sample_time: float | None = None) -> np.ndarray:
@@ -36,6 +38,11 @@ def axis_loop(mass: float, kp: float, ki: float, kd: float = 0.0, *, outer: floa
         Continuous: (3, 3) on ``[x, v, integral]``. Sampled: (4, 4) on ``[x, v, integral, previous
         measurement]``, the map of one sample.
 
+    Raises
+    ------
+    ArgumentError
+        ``kd`` of a continuous cascade (``outer`` given, no ``sample_time``).
+
     Examples
     --------
     A PID on ``x'' = u`` has the poles of ``s^3 + kd s^2 + kp s + ki``:
@@ -50,7 +57,8 @@ def axis_loop(mass: float, kp: float, ki: float, kd: float = 0.0, *, outer: floa
             u = np.array([-kp, -kd, ki])
         else:  # e = -outer x - v, d = -v' is not a state: kd acts through -u/m (kd = 0 for the stacks' cascades)
             if kd:
-                raise ValueError("a continuous cascade's inner D acts on the acceleration: use sample_time")
+                raise ArgumentError(f"axis_loop: kd = {kd!r} with outer: a continuous cascade's inner D acts on the "
+                                    "acceleration; give sample_time (s), or kd = 0")
             u = np.array([-kp * outer, -kp, ki])
         A = np.zeros((3, 3))
         A[0, 1] = 1.0

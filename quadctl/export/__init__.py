@@ -19,7 +19,7 @@ from dataclasses import replace
 
 from quadctl import artifacts
 from quadctl.config import check_override
-from quadctl.errors import CheckFailed, ConfigError, RateError, ScheduleError
+from quadctl.errors import ArgumentError, CheckFailed, ConfigError, RateError, ScheduleError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
@@ -150,6 +150,8 @@ def files(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: s
     ------
     ConfigError
         The Crazyflie app cannot serve the config (:func:`quadctl.export.crazyflie.check`).
+    ArgumentError, ArgumentTypeError
+        An unknown ``to``, or ``exp`` is not an :class:`Export`.
     """
     return _files(exp, to, folder, meta, setpoint, mode, "files")
 
@@ -162,7 +164,7 @@ def _files(exp: Export, to: str, folder, meta: dict | None, setpoint: str | None
     from quadctl.export import c, crazyflie, data
 
     if to not in TARGETS:
-        raise ValueError(f"to must be one of {TARGETS}, got {to!r}")
+        raise ArgumentError(f"to must be one of {TARGETS}, got {to!r}")
     require_export(exp, who)
     folder = Path(folder)
     if to == "c":
@@ -190,6 +192,8 @@ def write(exp: Export, to: str, folder, meta: dict | None = None, *, setpoint: s
     ConfigError
         The Crazyflie app cannot serve the config (:func:`quadctl.export.crazyflie.check`):
         nothing is written.
+    ArgumentError, ArgumentTypeError
+        An unknown ``to``, or ``exp`` is not an :class:`Export`: nothing is written.
 
     Notes
     -----

@@ -13,6 +13,7 @@ import numpy as np
 
 from quadctl.design import Design, linear_loop
 from quadctl.design.gain_table import VARIABLES
+from quadctl.errors import ArgumentTypeError
 from quadctl.linear.decouple import Decoupled
 from quadctl.linear.linearize import LinearModel
 from quadctl.setup import Setup
@@ -99,17 +100,17 @@ class Export:
 
 
 def require_export(exp, who: str) -> Export:
-    """``exp``, checked to be an :class:`Export` (what :func:`quadctl.export.prepare` returns); a
-    TypeError naming ``who`` and what was given otherwise.
+    """``exp``, checked to be an :class:`Export` (what :func:`quadctl.export.prepare` returns); an
+    :class:`~quadctl.errors.ArgumentTypeError` (a ``TypeError``) naming ``who`` and what was given otherwise.
 
-    >>> require_export(None, "sources")
+    >>> require_export(None, "sources")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    TypeError: sources: exp must be a quadctl.export.Export (from quadctl.export.prepare), got NoneType
+    quadctl.errors.ArgumentTypeError: sources: exp must be a quadctl.export.Export (from ...), got NoneType
     """
     if not isinstance(exp, Export):
-        raise TypeError(f"{who}: exp must be a quadctl.export.Export (from quadctl.export.prepare), "
-                        f"got {type(exp).__name__}")
+        raise ArgumentTypeError(f"{who}: exp must be a quadctl.export.Export (from quadctl.export.prepare), "
+                                f"got {type(exp).__name__}")
     return exp
 
 

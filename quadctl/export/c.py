@@ -19,6 +19,7 @@ from string import Template
 
 import numpy as np
 
+from quadctl.errors import ArgumentError
 from quadctl.export.bundle import Export, require_export
 from quadctl.export.c_doc import delay_doc, doc_lines, filter_doc, gyro_doc, lag_doc, schedule_doc, vector_table
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, N_INPUTS, N_STATES, STATE_NAMES, STATE_UNITS
@@ -63,17 +64,23 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
 
     Raises
     ------
+    ArgumentError
+        ``exp`` is continuous (nothing to sample), or its Kalman filter is not the discrete one.
+    ArgumentTypeError
+        ``exp`` is not an :class:`~quadctl.export.Export`.
     ValueError
-        ``exp`` is continuous (nothing to sample), or the law has an operation ``emit`` cannot write.
+        The law has an operation ``emit`` cannot write (a bug).
     """
 
     require_export(exp, "sources")
     if exp.sample_time is None:
-        raise ValueError("a C controller samples: prepare the export with a rate")
+        raise ArgumentError("sources: exp is continuous (no rate): a C controller samples: prepare the export with a "
+                            "rate, quadctl.export.prepare(setup, rate)")
     loop, Ts = exp.loop, exp.sample_time
     kal = loop.estimator
     if kal is not None and kal.form != "filter":  # prepare() designs the filter at the rate the C runs at
-        raise ValueError("a C controller samples: its Kalman filter must be the discrete one (form filter)")
+        raise ArgumentError(f"sources: exp's Kalman filter is of form {kal.form!r}: a C controller samples: its Kalman "
+                            "filter must be the discrete one (form filter), as quadctl.export.prepare designs it")
     if loop.rotor_time_constant is not None:  # the rotors' lag is the vehicle's, not the law's: no rotor states
         act = loop.actuators
         loop = replace(loop, actuators=replace(act, motors=replace(act.motors, time_constant=None)))

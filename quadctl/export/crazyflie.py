@@ -16,7 +16,7 @@ from string import Template
 
 import numpy as np
 
-from quadctl.errors import ConfigError
+from quadctl.errors import ArgumentError, ConfigError
 from quadctl.export import c
 from quadctl.export.bundle import Export, law_text, require_export
 from quadctl.present.platform import no_setpoint_flyable, setpoint_refused
@@ -156,13 +156,15 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
         numbering other than the firmware's; a Kalman filter (``estimator:``; the firmware estimates
         the state); a trim that is not a hover (the commander's setpoints are about a hover); a
         setpoint that needs a state the partition leaves free.
+    ArgumentError
+        An unknown ``setpoint`` or ``mode``.
     """
     require_export(exp, "check")
     asked, setpoint = setpoint, default_setpoint(exp) if setpoint is None else setpoint
     if setpoint not in SETPOINTS:
-        raise ValueError(f"setpoint must be one of {SETPOINTS}, got {setpoint!r}")
+        raise ArgumentError(f"setpoint must be one of {SETPOINTS}, got {setpoint!r}")
     if mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        raise ArgumentError(f"mode must be one of {MODES}, got {mode!r}")
     divider(exp.rate)
     loop = exp.loop
     act = loop.actuators

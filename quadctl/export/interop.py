@@ -26,6 +26,7 @@ import numpy as np
 
 from quadctl.design import discrete, integral, linear_loop, lqr
 from quadctl.design.riccati import real_array
+from quadctl.errors import ArgumentError, ArgumentTypeError
 from quadctl.layout import INPUT_NAMES, STATE_INDEX, STATE_NAMES
 from quadctl.linear.filters import RATE_STATES, series
 
@@ -61,8 +62,8 @@ def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
 
     _control()
     A, B = _held(linear.A, linear.B, sample_time, "plant")
-    A = real_array(A, "linear.A", name="plant", error=ValueError, shape=(len(STATE_NAMES), len(STATE_NAMES)))
-    B = real_array(B, "linear.B", name="plant", error=ValueError, shape=(len(STATE_NAMES), len(INPUT_NAMES)))
+    A = real_array(A, "linear.A", name="plant", error=ArgumentError, shape=(len(STATE_NAMES), len(STATE_NAMES)))
+    B = real_array(B, "linear.B", name="plant", error=ArgumentError, shape=(len(STATE_NAMES), len(INPUT_NAMES)))
     return _ss(A, B, STATE_NAMES, INPUT_NAMES, STATE_NAMES, sample_time, name)
 
 
@@ -75,10 +76,10 @@ def subsystem(sub, *, sample_time: float | None = None):
     _control()
 
     A, B = _held(sub.A, sub.B, sample_time, "subsystem")
-    C = real_array(sub.C, "sub.C", name="subsystem", error=ValueError, ndim=2, shape=(None, A.shape[0]))
+    C = real_array(sub.C, "sub.C", name="subsystem", error=ArgumentError, ndim=2, shape=(None, A.shape[0]))
     if A.shape[0] != len(sub.states) or B.shape[1] != len(sub.inputs):
-        raise ValueError(f"subsystem: A is {A.shape[0]} x {A.shape[0]} and B has {B.shape[1]} columns for "
-                         f"{len(sub.states)} states and {len(sub.inputs)} inputs")
+        raise ArgumentError(f"subsystem: A is {A.shape[0]} x {A.shape[0]} and B has {B.shape[1]} columns for "
+                            f"{len(sub.states)} states and {len(sub.inputs)} inputs")
     outputs = [sub.states[int(np.argmax(np.abs(row)))] for row in C]
     return _ss(A, B, sub.states, sub.inputs, outputs, sample_time, sub.name, C=C)
 
@@ -107,7 +108,7 @@ def controller(design, *, sample_time: float | str | None = "design", name: str 
 
     Raises
     ------
-    ValueError
+    ArgumentError
         The design includes the rotors' lag, or an LQG loop has a delay (the filter's command
         buffer) or is asked for another sample time than its filter's.
     """
@@ -169,13 +170,13 @@ def _lqg_controller(loop, K, Ki, ints, sample_time, name):
     kal = loop.estimator
     Ts = kal.sample_time
     if sample_time != "design" and (sample_time or None) != Ts:
-        raise ValueError(f"sample_time = {sample_time}: an LQG controller runs at its Kalman filter's "
-                         f"{'sample time ' + format(Ts, 'g') + ' s' if Ts else 'continuous time'}; "
-                         "leave sample_time at 'design'")
+        raise ArgumentError(f"controller: sample_time = {sample_time}: an LQG controller runs at its Kalman filter's "
+                            f"{'sample time ' + format(Ts, 'g') + ' s' if Ts else 'continuous time'}; "
+                            "leave sample_time at 'design'")
     if getattr(loop, "delay_samples", 0):
-        raise ValueError("the loop's Kalman filter predicts with the command of controller.delay samples ago: "
-                         "its buffer is not in these python-control systems; export it with quadctl export "
-                         "(C carries it), or remove controller.delay")
+        raise ArgumentError("controller: the loop's Kalman filter predicts with the command of controller.delay "
+                            "samples ago: its buffer is not in these python-control systems; export it with quadctl "
+                            "export (C carries it), or remove controller.delay")
     Ae, Be, Ca = (np.asarray(M, dtype=float) for M in (kal.A, kal.B, kal.C))
     gain, n, nz, ne = np.asarray(kal.gain, dtype=float), len(STATE_NAMES), len(ints), kal.n_estimate
     ng = ne - n
@@ -229,18 +230,18 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
     _control()
     K, Ki, ints = _gains(design)
     if getattr(design, "rate_filter", None) is not None:
-        raise ValueError("the law takes the body rates through its gyro filter (controller.filters): closed_loop "
-                         "is the loop of [x; z]; for the loop with the filter use control.feedback(interop.plant("
-                         "linear, sample_time=Ts), interop.controller(loop), sign=1)")
+        raise ArgumentError("closed_loop: the law takes the body rates through its gyro filter (controller.filters): "
+                            "closed_loop is the loop of [x; z]; for the loop with the filter use control.feedback("
+                            "interop.plant(linear, sample_time=Ts), interop.controller(loop), sign=1)")
     if getattr(design, "estimator", None) is not None:
-        raise ValueError("the loop closes through a Kalman filter (estimator:): closed_loop is the full-state "
-                         "loop of [x; z]; for the LQG loop use control.feedback(interop.plant(linear, "
-                         "sample_time=Ts), interop.controller(loop), sign=1)")
+        raise ArgumentError("closed_loop: the loop closes through a Kalman filter (estimator:): closed_loop is the "
+                            "full-state loop of [x; z]; for the LQG loop use control.feedback(interop.plant(linear, "
+                            "sample_time=Ts), interop.controller(loop), sign=1)")
     Ts = getattr(design, "sample_time", None) if sample_time == "design" else _sample_time(sample_time, "closed_loop")
     A, B = _held(linear.A, linear.B, None, "closed_loop")
     n, m = len(STATE_NAMES), len(INPUT_NAMES)
-    A = real_array(A, "linear.A", name="closed_loop", error=ValueError, shape=(n, n))
-    B = real_array(B, "linear.B", name="closed_loop", error=ValueError, shape=(n, m))
+    A = real_array(A, "linear.A", name="closed_loop", error=ArgumentError, shape=(n, n))
+    B = real_array(B, "linear.B", name="closed_loop", error=ArgumentError, shape=(n, m))
     A_cl = linear_loop.matrix(A, B, K, Ki, ints, Ts)
     B = B if not Ts else discrete.c2d(A, B, Ts)[1]
     B_cl = np.vstack([B, np.zeros((len(ints), B.shape[1]))])
@@ -295,52 +296,56 @@ def from_statespace(sys) -> Plant:
 
     Raises
     ------
-    ValueError
+    ArgumentError
         Not a state-space system, no states, non-finite entries, or an unspecified timebase
         (``dt = None`` or ``True``: give the sample time).
     """
     if not all(hasattr(sys, attr) for attr in ("A", "B", "state_labels", "input_labels")):
-        raise ValueError(f"expected a control.StateSpace, got {type(sys).__name__}; convert it with control.ss(sys)")
+        raise ArgumentError(f"from_statespace: expected a control.StateSpace, got {type(sys).__name__}; convert it "
+                            "with control.ss(sys)")
 
-    A = real_array(sys.A, "sys.A", name="from_statespace", error=ValueError, ndim=2)
-    B = real_array(sys.B, "sys.B", name="from_statespace", error=ValueError, ndim=2)
+    A = real_array(sys.A, "sys.A", name="from_statespace", error=ArgumentError, ndim=2)
+    B = real_array(sys.B, "sys.B", name="from_statespace", error=ArgumentError, ndim=2)
     n = A.shape[0]
     if n == 0:
-        raise ValueError("the system has no states: nothing to regulate")
+        raise ArgumentError("from_statespace: the system has no states: nothing to regulate")
     for label, M in (("A", A), ("B", B)):
         if not np.all(np.isfinite(M)):
-            raise ValueError(f"{label} has non-finite entries; a plant to design for needs finite matrices")
+            raise ArgumentError(f"from_statespace: sys.{label} has non-finite entries; a plant to design for needs "
+                                "finite matrices")
     if A.shape != (n, n) or B.shape[0] != n:
-        raise ValueError(f"A has shape {A.shape} and B {B.shape}: expected (n, n) and (n, m)")
+        raise ArgumentError(f"from_statespace: sys.A has shape {A.shape} and sys.B {B.shape}: expected (n, n) and "
+                            "(n, m)")
     dt = sys.dt
     if dt is None or dt is True:
-        raise ValueError(f"the system's timebase is unspecified (dt = {dt}); give dt = 0 (continuous) or "
-                         "the sample time in s")
+        raise ArgumentError(f"from_statespace: the system's timebase is unspecified (dt = {dt}); give dt = 0 "
+                            "(continuous) or the sample time in s")
     return Plant(A=A, B=B, state_names=tuple(sys.state_labels), input_names=tuple(sys.input_labels),
                  dt=float(dt))
 
 
 def _gains(design):
     if getattr(design, "lag_time_constant", None) is not None or getattr(design, "Kv", None) is not None:
-        raise ValueError("the design includes the rotors' lag (controller.rotor_lag: include): its controller has "
-                         "lag-model states these python-control systems do not carry; export it with "
-                         "quadctl export (C, .mat or JSON: Kv and the law), or design with rotor_lag: ignore")
+        raise ArgumentError("interop: the design includes the rotors' lag (controller.rotor_lag: include): its "
+                            "controller has lag-model states these python-control systems do not carry; export it "
+                            "with quadctl export (C, .mat or JSON: Kv and the law), or design with rotor_lag: ignore")
 
     label = "K_block" if hasattr(design, "K_block") else "K"
     if not hasattr(design, label) or not hasattr(design, "integral_states"):
-        raise TypeError(f"design must be a quadctl.design.Design or a quadctl.sim.loop.ClosedLoop (K or K_block, "
-                        f"integral_states), got {type(design).__name__}")
+        raise ArgumentTypeError(f"design must be a quadctl.design.Design or a quadctl.sim.loop.ClosedLoop (K or "
+                                f"K_block, integral_states), got {type(design).__name__}")
     n, m = len(STATE_NAMES), len(INPUT_NAMES)
-    K = real_array(getattr(design, label), f"design.{label}", name="interop", error=ValueError, shape=(m, n))
+    K = real_array(getattr(design, label), f"design.{label}", name="interop", error=ArgumentError, shape=(m, n))
     ints = tuple(design.integral_states)
     unknown = [s for s in ints if s not in STATE_NAMES]
     if unknown:
-        raise ValueError(f"interop: design.integral_states names {unknown[0]!r}, not a state ({' '.join(STATE_NAMES)})")
+        raise ArgumentError(f"interop: design.integral_states names {unknown[0]!r}, not a state "
+                            f"({' '.join(STATE_NAMES)})")
     ki_label = "Ki_block" if hasattr(design, "Ki_block") else "Ki"
     Ki = getattr(design, ki_label, None)
     if Ki is None or not ints:
         return K, np.zeros((m, 0)), ints
-    Ki = real_array(Ki, f"design.{ki_label}", name="interop", error=ValueError, ndim=2, shape=(m, len(ints)))
+    Ki = real_array(Ki, f"design.{ki_label}", name="interop", error=ArgumentError, ndim=2, shape=(m, len(ints)))
     return K, Ki, ints
 
 
@@ -348,9 +353,9 @@ def _held(A, B, sample_time, who: str = "interop"):
     """``(A, B)`` checked (real, ``A`` n x n, ``B`` n x m), or with a sample time the zero-order-hold
     plant ``(Ad, Bd)``."""
 
-    A = real_array(A, "A", name=who, error=ValueError, ndim=2)
-    A = real_array(A, "A", name=who, error=ValueError, shape=(A.shape[0], A.shape[0]))
-    B = real_array(B, "B", name=who, error=ValueError, ndim=2, shape=(A.shape[0], None))
+    A = real_array(A, "A", name=who, error=ArgumentError, ndim=2)
+    A = real_array(A, "A", name=who, error=ArgumentError, shape=(A.shape[0], A.shape[0]))
+    B = real_array(B, "B", name=who, error=ArgumentError, ndim=2, shape=(A.shape[0], None))
     return discrete.c2d(A, B, _sample_time(sample_time, who)) if sample_time else (A, B)
 
 
@@ -360,8 +365,8 @@ def _sample_time(sample_time, who: str):
         return None
     if isinstance(sample_time, bool) or not isinstance(sample_time, (int, float, np.integer, np.floating)) \
             or not np.isfinite(sample_time) or sample_time < 0:
-        raise ValueError(f"{who}: sample_time = {sample_time!r}: must be a positive finite number of seconds, "
-                         "or None for continuous time")
+        raise ArgumentError(f"{who}: sample_time = {sample_time!r}: must be a positive finite number of seconds, "
+                            "or None for continuous time")
     return float(sample_time)
 
 

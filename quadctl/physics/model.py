@@ -17,6 +17,7 @@ import numpy as np
 
 from quadctl import layout
 from quadctl._lazy import lazy_import
+from quadctl.errors import ArgumentError
 from quadctl.layout import N_INPUTS, N_STATES, PARAMETER_NAMES
 
 ca = lazy_import("casadi")  # loaded on first use: see quadctl._lazy
@@ -68,19 +69,19 @@ class Vehicle:
 
     def __post_init__(self):
         """Refuse a vehicle no model can fly (a config's are checked with their keys before this; a vehicle
-        made in Python meets this): ValueError naming the field."""
+        made in Python meets this): an :class:`~quadctl.errors.ArgumentError` (a ``ValueError``) naming the field."""
         try:
             values = self.vector()
             if values.shape != (N_PARAMS,):
                 raise ValueError
         except (TypeError, ValueError):
-            raise ValueError(f"Vehicle: every parameter must be a number (mass, gravity, three each of inertia, "
-                             f"drag and products), got {self!r}") from None
+            raise ArgumentError(f"Vehicle: every parameter must be a number (mass, gravity, three each of inertia, "
+                                f"drag and products), got {self!r}") from None
         if not np.all(np.isfinite(values)):
-            raise ValueError(f"Vehicle: every parameter must be finite, got {self!r}")
+            raise ArgumentError(f"Vehicle: every parameter must be finite, got {self!r}")
         if not values[0] > 0.0 or not np.all(np.asarray(self.inertia, dtype=float) > 0.0):
-            raise ValueError(f"Vehicle: mass (kg) and the inertia's diagonal (kg m^2) must be positive, got mass "
-                             f"{self.mass!r} and inertia {self.inertia!r}")
+            raise ArgumentError(f"Vehicle: mass (kg) and the inertia's diagonal (kg m^2) must be positive, got mass "
+                                f"{self.mass!r} and inertia {self.inertia!r}")
 
     def vector(self) -> np.ndarray:
         """Parameters as the (11,) vector the CasADi functions take (order: ``PARAMETER_NAMES``)."""

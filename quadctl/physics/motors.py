@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.errors import ActuatorLimitError, SaturationFailed
+from quadctl.errors import ActuatorLimitError, ArgumentError, SaturationFailed
 from quadctl.layout import INPUT_INDEX, INPUT_NAMES, INPUT_UNITS, N_INPUTS
 
 SATURATED_RTOL = 1e-9
@@ -137,7 +137,8 @@ class Motors:
             L = self.arm_length
             at = {"front": [L, 0.0], "right": [0.0, L], "rear": [-L, 0.0], "left": [0.0, -L]}
         else:
-            raise ValueError(f"layout must be 'x' or '+', got {self.layout!r}")
+            raise ArgumentError(f"Motors: layout must be 'x' or '+', got {self.layout!r}; give xy (the rotor "
+                                "positions) for any other geometry")
         return np.array([at[p] for p in self.rotor_positions()])
 
     def effectiveness(self) -> np.ndarray:

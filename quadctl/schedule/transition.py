@@ -18,6 +18,7 @@ import numpy as np
 
 from quadctl import pipeline
 from quadctl.design.gain_table import scheduling_values
+from quadctl.errors import ArgumentError
 from quadctl.layout import STATE_INDEX
 from quadctl.native.mapped import mapped
 from quadctl.physics import motors
@@ -72,11 +73,13 @@ def fly_transition(setup: Setup, table=None) -> Transition:
 
     Raises
     ------
-    ValueError
+    ArgumentError
         The setup has no ``schedule:`` or no ``simulation.reference``.
     """
     if setup.schedule is None or setup.reference is None:
-        raise ValueError("a transition flies a schedule (schedule:) along a reference (simulation.reference)")
+        missing = "schedule (schedule:)" if setup.schedule is None else "reference (simulation.reference)"
+        raise ArgumentError(f"fly_transition: the setup has no {missing}: a transition flies a schedule (schedule:) "
+                            "along a reference (simulation.reference); give the setup of a config with both")
     stages = pipeline.Stages(setup)
     fixed = stages.loop
     if table is None:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from quadctl.design import lqg_loop
+from quadctl.errors import ArgumentError
 from quadctl.layout import N_STATES, PRODUCTS, STATE_INDEX, STATE_NAMES
 from quadctl.sim.etdrk4_plan import plan_schedule
 from quadctl.sim.loop_layout import pack_constants
@@ -174,9 +175,10 @@ class ClosedLoop:
                           *["gyro filter"] * len(filt)], duration, dt, limits=limits)
 
     def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(A, B)`` of the design model at the trim, or ValueError naming how to build a loop with them."""
+        """``(A, B)`` of the design model at the trim, or an ArgumentError naming how to build a loop with them."""
         if self.jacobians is None:
-            raise ValueError("this ClosedLoop has no jacobians (A, B): build it with quadctl.pipeline.closed_loop_of")
+            raise ArgumentError("this ClosedLoop has no jacobians (A, B): build it with "
+                                "quadctl.pipeline.closed_loop_of")
         A, B = self.jacobians
         return np.asarray(A, dtype=float), np.asarray(B, dtype=float)
 
@@ -188,7 +190,7 @@ class ClosedLoop:
 
         Raises
         ------
-        ValueError
+        ArgumentError
             The loop was built without its ``jacobians`` (or ``schedule_jacobians``, for a ``point``).
         """
 
@@ -196,8 +198,8 @@ class ClosedLoop:
         K, Ki = self.K, self.Ki
         if point is not None:
             if self.schedule_jacobians is None:
-                raise ValueError("this ClosedLoop has no schedule_jacobians: build it with "
-                                 "quadctl.pipeline.scheduled_loop and the schedule's points")
+                raise ArgumentError("this ClosedLoop has no schedule_jacobians: build it with "
+                                    "quadctl.pipeline.scheduled_loop and the schedule's points")
             A, B = (np.asarray(M[point], dtype=float) for M in self.schedule_jacobians)
             G = self.schedule.gains[point]
             K = G[:, :N_STATES]
@@ -234,7 +236,7 @@ class ClosedLoop:
 
         Raises
         ------
-        ValueError
+        ArgumentError
             The loop was built without its ``jacobians``.
         """
         A, B = self._jacobians()
@@ -297,9 +299,12 @@ class ClosedLoop:
         if kal is not None:
             if kal.discrete != (self.rate is not None) or (
                     kal.discrete and not math.isclose(kal.sample_time, 1.0 / self.rate, rel_tol=1e-12)):
-                raise ValueError("the Kalman filter's sample time must be the controller period (or both continuous)")
+                raise ArgumentError(f"this ClosedLoop's Kalman filter has sample_time {kal.sample_time} s and the loop "
+                                    f"rate {self.rate} Hz: the filter's sample time must be the controller period "
+                                    "(or both continuous); design it at the loop's rate, quadctl.pipeline.estimator_of")
             if kal.rate_filter != self.rate_filter:
-                raise ValueError("the Kalman filter's model must have the loop's gyro filter (controller.filters)")
+                raise ArgumentError("this ClosedLoop's Kalman filter models another gyro filter than the loop's "
+                                    "(controller.filters): design it with the loop's, quadctl.pipeline.estimator_of")
             values.update(Ae=kal.A, Be=kal.B, Le=kal.gain)
         form = self.filter_form
         if form is not None:

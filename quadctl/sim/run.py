@@ -150,6 +150,16 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     SimResult
         A diverging run stops at the first bad state and keeps everything before it.
 
+    Raises
+    ------
+    ArgumentError
+        ``duration`` or ``dt`` is not a positive number of seconds, ``method`` is unknown, or ``x0`` is not
+        the 12 finite states (a ``ValueError``).
+    ArgumentTypeError
+        ``loop`` is not a :class:`ClosedLoop` (a ``TypeError``).
+    StepSizeError
+        A fixed ``dt`` that RK4 cannot hold stable for the loop.
+
     Examples
     --------
     The hover design, flown 3 s from its configured offset (0.5 m low, tilted and turned), is back

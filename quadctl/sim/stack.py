@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from quadctl.design.gain_table import scheduling_value, scheduling_values
+from quadctl.errors import ArgumentError, ArgumentTypeError
 from quadctl.layout import N_STATES, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec
@@ -64,9 +65,9 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
 
     Raises
     ------
-    TypeError
-        A loop that is not a :class:`~quadctl.sim.loop.ClosedLoop`.
-    ValueError
+    ArgumentTypeError
+        A loop that is not a :class:`~quadctl.sim.loop.ClosedLoop` (a ``TypeError``).
+    ArgumentError
         Loops of different structures or controller rates, an unknown method, a duration or a ``dt`` that
         is not a positive number of seconds, or an initial state that is not the loop's 12 finite numbers.
     StepSizeError
@@ -75,28 +76,31 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     loops = list(loops)
     for loop in loops:
         if not isinstance(loop, ClosedLoop):
-            raise TypeError(f"simulate takes a ClosedLoop, stages.loop of qc.Stages(setup) "
-                            f"(or quadctl.pipeline.loop_of); got {type(loop).__name__}")
+            raise ArgumentTypeError(f"simulate takes a ClosedLoop, stages.loop of qc.Stages(setup) "
+                                    f"(or quadctl.pipeline.loop_of); got {type(loop).__name__}")
     if method not in ("rk4", "etdrk4"):
-        raise ValueError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
+        raise ArgumentError(f"method must be 'rk4' or 'etdrk4', got {method!r}")
     if not _positive_seconds(duration):
-        raise ValueError(f"duration must be a positive number of seconds, got {duration!r}")
+        raise ArgumentError(f"duration must be a positive number of seconds, got {duration!r}")
     if not (isinstance(dt, str) and dt == "auto") and not _positive_seconds(dt):
-        raise ValueError(f"dt must be a positive number of seconds or 'auto', got {dt!r}")
+        raise ArgumentError(f"dt must be a positive number of seconds or 'auto', got {dt!r}")
     for x0 in x0s:
         if np.shape(x0) != (N_STATES,):
-            raise ValueError(f"x0 must be the {N_STATES} states {', '.join(STATE_NAMES)}, got shape {np.shape(x0)}")
+            raise ArgumentError(f"x0 must be the {N_STATES} states {', '.join(STATE_NAMES)}, got shape "
+                                f"{np.shape(x0)}")
         x = np.asarray(x0, dtype=float)
         if not np.isfinite(x).all():
             i = int(np.argmax(~np.isfinite(x)))
-            raise ValueError(f"x0 must be finite: x0[{i}] ({STATE_NAMES[i]}) = {float(x[i])!r}; "
-                             "give every state a number (setup.initial_state(loop.x_trim) is the configured start)")
+            raise ArgumentError(f"x0 must be finite: x0[{i}] ({STATE_NAMES[i]}) = {float(x[i])!r}; give every state "
+                                "a number (setup.initial_state(loop.x_trim) is the configured start)")
     rate = loops[0].rate
     if len(loops) > 1:
         if len({loop.spec() for loop in loops}) > 1:
-            raise ValueError("the lanes run loops of one structure (LoopSpec): group the loops by loop.spec()")
+            raise ArgumentError("simulate_stack: the lanes run loops of one structure (LoopSpec): group the loops "
+                                "by loop.spec()")
         if any(loop.rate != rate for loop in loops):
-            raise ValueError("the lanes run loops of one controller rate: group the loops by loop.rate")
+            raise ArgumentError("simulate_stack: the lanes run loops of one controller rate: group the loops by "
+                                "loop.rate")
     noisy = noise is not None and noise.active
     windy = wind is not None and wind.active
     exo = (ExoStream(noise if noisy else None, wind if windy else None, exo_rate or rate, reference)
@@ -363,7 +367,7 @@ def simulate_stack(loops, x0s, duration: float, dt="auto", *, method: str = "rk4
 
     Raises
     ------
-    ValueError
+    ArgumentError
         Loops of different structures or controller rates.
 
     Examples

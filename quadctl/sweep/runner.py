@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from quadctl.config.schema import Config
-from quadctl.errors import SweepError
+from quadctl.errors import ArgumentTypeError, SweepError
 from quadctl.sim.engine import LANES, MarchNotice, say_march
 from quadctl.sweep.config_tree import with_sections, with_set
 from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
@@ -173,14 +173,16 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     ------
     SweepError
         ``jobs`` below 1, or the scheduler cannot be reached.
-    TypeError
-        ``cfg`` is not a :class:`~quadctl.config.schema.Config` or ``spec`` not a :class:`SweepSpec`.
+    ArgumentTypeError
+        ``cfg`` is not a :class:`~quadctl.config.schema.Config` or ``spec`` not a :class:`SweepSpec` (a
+        ``TypeError``).
     """
     if not isinstance(cfg, Config):
-        raise TypeError(f"sweep.run takes a validated Config, qc.load_config('forward'); got {type(cfg).__name__}")
+        raise ArgumentTypeError(f"sweep.run takes a validated Config, qc.load_config('forward'); got "
+                                f"{type(cfg).__name__}")
     if not isinstance(spec, SweepSpec):
-        raise TypeError(f"sweep.run takes a SweepSpec, sweep.from_dict(data, cfg) or sweep.load(path, cfg); "
-                        f"got {type(spec).__name__}")
+        raise ArgumentTypeError(f"sweep.run takes a SweepSpec, sweep.from_dict(data, cfg) or sweep.load(path, cfg); "
+                                f"got {type(spec).__name__}")
     label = label or cfg.name
     done = dict(done or {})
     cases = spec.cases()

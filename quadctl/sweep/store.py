@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from quadctl import artifacts
-from quadctl.errors import ArtifactError, SweepError
+from quadctl.errors import ArgumentError, ArtifactError, SweepError
 from quadctl.layout import unit_of
 from quadctl.sweep.config_tree import value_at
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS
@@ -230,7 +230,7 @@ def execute(cfg, spec: SweepSpec, out: Path | str | artifacts.Session, *, label:
     ------
     SweepError
         ``resume`` finds rows of a different sweep, or the scheduler cannot be reached.
-    ValueError
+    ArgumentError
         ``out`` is a session of another config.
     """
 
@@ -238,9 +238,9 @@ def execute(cfg, spec: SweepSpec, out: Path | str | artifacts.Session, *, label:
         if isinstance(out, artifacts.Session):
             session = out
             if session.cfg.digest() != cfg.digest():  # its config.yaml, stamps and clean-up are its config's
-                raise ValueError(f"the session of {session.out} is of config {session.cfg.name!r} "
-                                 f"({session.cfg.digest()[:12]}), the sweep of {cfg.name!r} ({cfg.digest()[:12]}): "
-                                 "give the run folder's path, or a session of the sweep's config")
+                raise ArgumentError(f"the session of {session.out} is of config {session.cfg.name!r} "
+                                    f"({session.cfg.digest()[:12]}), the sweep of {cfg.name!r} ({cfg.digest()[:12]}): "
+                                    "give the run folder's path, or a session of the sweep's config")
         else:
             session = own.enter_context(artifacts.Session(cfg, out))  # one run writes a folder at a time
             session.defer_notes()  # what it removed is said at the end: not at all if it is put back

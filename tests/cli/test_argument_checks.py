@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import quadctl as qc
 from quadctl.design import closed_loop_matrix, discrete, lqr, riccati
 from quadctl.errors import DesignError
 from quadctl.export import interop
@@ -197,3 +198,207 @@ def test_a_c_export_of_a_continuous_design_is_refused(forward):
     exp = export.prepare(forward[0], need_rate=False)
     with pytest.raises(ValueError, match="a C controller samples: prepare the export with a rate"):
         cexport.sources(exp)
+
+
+# ---------------------------------------------------------------------------------------
+# Every wrong argument of a public call is a QuadctlError and the builtin a SciPy user expects
+
+
+@pytest.fixture(scope="module")
+def hover():
+    """The hover config's stages (a continuous design, no schedule, no reference), computed once."""
+    return qc.Stages(qc.setup_of(qc.load_config("hover")))
+
+
+def _sweep_run_of_a_name(tmp_path, stages):
+    from quadctl import sweep
+
+    return sweep.run("forward", None, jobs=1)
+
+
+def _sweep_run_of_a_mapping(tmp_path, stages):
+    from quadctl import sweep
+
+    return sweep.run(qc.load_config("forward"), {"parameters": {"vehicle.mass": [0.06, 0.07]}}, jobs=1)
+
+
+def _export_files_of_a_mapping(tmp_path, stages):
+    from quadctl import export
+
+    return export.files({"K": np.zeros((4, 12))}, "c", tmp_path)
+
+
+def _export_write_to_pdf(tmp_path, stages):
+    from quadctl import export
+
+    return export.write(SimpleNamespace(), "pdf", tmp_path)
+
+
+def _read_a_missing_log(tmp_path, stages):
+    from quadctl.identify.readers import read_log
+
+    return read_log(tmp_path / "flight.csv")
+
+
+def _compare_an_unknown_law(tmp_path, stages):
+    from quadctl.compare import compare
+
+    return compare(stages, ["pid:betaflight"])
+
+
+def _transition_without_a_schedule(tmp_path, stages):
+    from quadctl.schedule.transition import fly_transition
+
+    return fly_transition(stages.setup)
+
+
+def _stack_of_a_short_start(tmp_path, stages):
+    from quadctl.sim.stack import simulate_stack
+
+    return simulate_stack([stages.loop], [[0.0] * 3], 1.0)
+
+
+def _gain_table_of_one_value(tmp_path, stages):
+    from quadctl.design.gain_table import GainTable
+
+    return GainTable.of("speed", [0.0], np.zeros((1, 4, 12)))
+
+
+def _pid_preset_unknown(tmp_path, stages):
+    from quadctl.config.pid import resolve
+
+    return resolve("betaflight")
+
+
+def _linear_part_without_jacobians(tmp_path, stages):
+    from dataclasses import replace
+
+    return replace(stages.loop, jacobians=None).linear_part()
+
+
+def _closed_loop_of_without_integrators(tmp_path, stages):
+    from dataclasses import replace
+
+    from quadctl import pipeline
+
+    setup = replace(stages.setup, integral={"altitude": ("pD",)})
+    return pipeline.closed_loop_of(setup, stages.linear, stages.design.K_block)
+
+
+ARGUMENTS = {  # a call with a wrong argument: (call(tmp_path, stages), its class, the builtin, the message)
+    "simulate negative duration": (
+        lambda _, s: qc.simulate(s.loop, s.loop.x_trim, -1.0),
+        "ArgumentError", ValueError, r"^duration must be a positive number of seconds, got -1\.0$"),
+    "simulate dt text": (
+        lambda _, s: qc.simulate(s.loop, s.loop.x_trim, 1.0, dt="fast"),
+        "ArgumentError", ValueError, r"^dt must be a positive number of seconds or 'auto', got 'fast'$"),
+    "simulate unknown method": (
+        lambda _, s: qc.simulate(s.loop, s.loop.x_trim, 1.0, method="euler"),
+        "ArgumentError", ValueError, r"^method must be 'rk4' or 'etdrk4', got 'euler'$"),
+    "simulate a design": (
+        lambda _, s: qc.simulate(s.design, s.loop.x_trim, 1.0),
+        "ArgumentTypeError", TypeError, r"^simulate takes a ClosedLoop, stages\.loop of .*; got Design$"),
+    "simulate_stack x0 of 3": (
+        _stack_of_a_short_start,
+        "ArgumentError", ValueError, r"^x0 must be the 12 states pN, pE, .*, got shape \(3,\)$"),
+    "lqr A None": (
+        lambda _, s: qc.lqr(None, [[1.0]], [[1.0]], [[1.0]]),
+        "DesignError", ValueError, r"^system: A is None; give an array of numbers$"),
+    "dlqr 1-D B": (
+        lambda _, s: qc.dlqr(np.eye(2), [0.0, 1.0], np.eye(2), [[1.0]]),
+        "DesignError", ValueError, r"^system: B has shape \(2,\), a 1-D array read as the row \(1, 2\)"),
+    "lqrd negative Ts": (
+        lambda _, s: qc.lqrd([[0.0]], [[1.0]], [[1.0]], [[1.0]], -0.01),
+        "ArgumentError", ValueError, r"^system: Ts = -0\.01: the sample time must be a positive finite number of "
+                                     r"seconds$"),
+    "c2d Ts text": (
+        lambda _, s: discrete.c2d([[0.0]], [[1.0]], "fast"),
+        "ArgumentError", ValueError, r"^c2d: Ts = 'fast': the sample time must be a positive finite number of "
+                                     r"seconds$"),
+    "load_config a dict": (
+        lambda _, s: qc.load_config({"name": "mine"}),
+        "ArgumentTypeError", TypeError, r"^load_config takes a file path or a bundled config's name, got dict; "
+                                        r"validate a mapping with quadctl\.config\.from_dict\(data\)$"),
+    "setup_of a name": (
+        lambda _, s: qc.setup_of("hover"),
+        "ArgumentTypeError", TypeError, r"^setup_of takes a validated Config, .*; got str$"),
+    "Stages a config": (
+        lambda _, s: qc.Stages(qc.load_config("hover")),
+        "ArgumentTypeError", TypeError, r"^Stages takes a Setup, .*; got Config$"),
+    "initial_state of 5": (
+        lambda _, s: s.setup.initial_state([0.0] * 5),
+        "ArgumentError", ValueError, r"^initial_state takes the 12 states of a trim .*, got shape \(5,\)$"),
+    "Vehicle negative mass": (
+        lambda _, s: qc.Vehicle(mass=-1.0),
+        "ArgumentError", ValueError, r"^Vehicle: mass \(kg\) and the inertia's diagonal \(kg m\^2\) must be positive, "
+                                     r"got mass -1\.0"),
+    "margins delay of a continuous design": (
+        lambda _, s: qc.margins(s.design, s.decoupled, s.linear.A, s.linear.B, delay_samples=1),
+        "ArgumentError", ValueError, r"^margins: delay_samples = 1 of a continuous design: a delay is counted in "
+                                     r"controller samples; give emulated_rate \(Hz\), or a design at a rate$"),
+    "sweep.run a name": (
+        _sweep_run_of_a_name,
+        "ArgumentTypeError", TypeError, r"^sweep\.run takes a validated Config, .*; got str$"),
+    "sweep.run a mapping": (
+        _sweep_run_of_a_mapping,
+        "ArgumentTypeError", TypeError, r"^sweep\.run takes a SweepSpec, sweep\.from_dict\(data, cfg\) .*; got dict$"),
+    "export.files a mapping": (
+        _export_files_of_a_mapping,
+        "ArgumentTypeError", TypeError, r"^files: exp must be a quadctl\.export\.Export \(from quadctl\.export\."
+                                        r"prepare\), got dict$"),
+    "export.write to pdf": (
+        _export_write_to_pdf,
+        "ArgumentError", ValueError, r"^to must be one of \('c', 'mat', 'json', 'crazyflie'\), got 'pdf'$"),
+    "interop.from_statespace an object": (
+        lambda _, s: interop.from_statespace(object()),
+        "ArgumentError", ValueError, r"^from_statespace: expected a control\.StateSpace, got object; convert it with "
+                                     r"control\.ss\(sys\)$"),
+    "identify a missing log": (
+        _read_a_missing_log,
+        "LogError", ValueError, r"flight\.csv: no such file; give the path of a flight log$"),
+    "compare an unknown law": (
+        _compare_an_unknown_law,
+        "ArgumentError", ValueError, r"^law 'pid:betaflight': use lqr or pid:<preset> with a preset of crazyflie, "
+                                     r"px4$"),
+    "resolve an unknown PID preset": (
+        _pid_preset_unknown,
+        "ArgumentError", ValueError, r"^unknown PID preset 'betaflight': use one of crazyflie, px4$"),
+    "fly_transition without a schedule": (
+        _transition_without_a_schedule,
+        "ArgumentError", ValueError, r"^fly_transition: the setup has no schedule \(schedule:\): a transition flies"),
+    "GainTable.of one value": (
+        _gain_table_of_one_value,
+        "ArgumentError", ValueError, r"^GainTable\.of: values = \[0\.0\]: a gain table needs at least two finite "
+                                     r"scheduling values"),
+    "linear_part without jacobians": (
+        _linear_part_without_jacobians,
+        "ArgumentError", ValueError, r"^this ClosedLoop has no jacobians \(A, B\): build it with "
+                                     r"quadctl\.pipeline\.closed_loop_of$"),
+    "closed_loop_of without integrators": (
+        _closed_loop_of_without_integrators,
+        "ArgumentError", ValueError, r"^closed_loop_of: no integral_states, and the setup has integral action"),
+}
+
+
+@pytest.mark.parametrize("case", ARGUMENTS)
+def test_a_wrong_argument_is_a_quadctl_error_and_the_builtin_a_scipy_user_catches(case, hover, tmp_path):
+    """``except qc.QuadctlError`` and ``except ValueError`` (or ``TypeError``) both catch it, and the one line
+    names the argument, what was expected and what was found."""
+    from quadctl import errors
+
+    call, cls, builtin, match = ARGUMENTS[case]
+    with pytest.raises(qc.QuadctlError, match=match) as info:
+        call(tmp_path, hover)
+    assert type(info.value) is getattr(errors, cls)
+    assert isinstance(info.value, builtin)
+    assert "\n" not in str(info.value)
+    assert not any(tmp_path.iterdir())  # refused before anything is written
+
+
+@pytest.mark.parametrize("cls, builtin", [("ArgumentError", ValueError), ("ArgumentTypeError", TypeError)])
+def test_an_argument_error_is_bad_input_to_the_command_line(cls, builtin):
+    """Exit code 2 (bad input, the folder put back), as a config error: not 1 (a check failed) nor a bug's 3."""
+    error = getattr(qc, cls)
+    assert issubclass(error, qc.QuadctlError) and issubclass(error, builtin)
+    assert error.exit_code == 2 and not error.from_config
+    assert not issubclass(error, (ValueError if builtin is TypeError else TypeError))

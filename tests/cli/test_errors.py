@@ -288,6 +288,21 @@ def test_debug_prints_the_traceback_and_keeps_the_exit_code(debug):
         assert "quadctl.errors.ConfigError: nope: no such file" in res.stderr
 
 
+@pytest.mark.parametrize("debug", [[], ["--debug"]])
+def test_a_wrong_argument_reaching_a_command_is_bad_input_not_a_bug(tmp_path, monkeypatch, debug):
+    """A library call given a wrong argument inside a command (here the run's duration) is an ArgumentError:
+    exit 2 and its one line, as bad input; a plain ValueError there would read as an internal error, exit 3."""
+    import quadctl as qc
+    from quadctl import pipeline
+
+    monkeypatch.setattr(pipeline, "simulation_of", lambda setup, loop, **_: qc.simulate(loop, loop.x_trim, -1.0))
+    res = runner.invoke(app, [*debug, "simulate", "-c", "hover", "-o", str(tmp_path / "run")])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines()[-1] == \
+        "quadctl: error: duration must be a positive number of seconds, got -1.0"
+    assert ("Traceback (most recent call last)" in res.stderr) == bool(debug)
+    assert "internal error" not in res.stderr
+
 
 @pytest.mark.parametrize("debug", [False, True])
 def test_failed_checks_are_one_line_each_and_exit_1_decided_in_one_place(monkeypatch, debug):

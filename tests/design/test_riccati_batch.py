@@ -64,7 +64,8 @@ def test_lqrd_weights_batch_is_lqrd_weights_per_entry_and_the_hand_integrals():
 def test_batched_discretization_refuses_bad_shapes_and_sample_times():
     with pytest.raises(DesignError, match=r"c2d_batch: B has shape \(3, 1\); stack the problems"):
         discrete.c2d_batch(np.zeros((3, 3)), np.zeros((3, 1)), 0.1)
-    with pytest.raises(ValueError, match="sample time must be a positive finite number of seconds, got -0.1"):
+    with pytest.raises(ValueError, match=r"^c2d_batch: Ts = -0\.1: the sample time must be a positive finite number of "
+                                         "seconds$"):
         discrete.c2d_batch(np.zeros((2, 1, 1)), np.ones((2, 1, 1)), [0.1, -0.1])
 
 
