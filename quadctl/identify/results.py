@@ -12,7 +12,8 @@ import numpy as np
 from quadctl.artifacts.meta import IDENTIFIED_CONFIG_HEAD, metadata
 from quadctl.config import parse, yamlio
 from quadctl.config.controller_schema import MAX_DELAY_SAMPLES
-from quadctl.errors import ArtifactError, ConfigError, LogError
+from quadctl.config.schema import Config
+from quadctl.errors import ArgumentTypeError, ArtifactError, ConfigError, LogError
 from quadctl.identify import estimate as est
 from quadctl.identify import plausibility
 from quadctl.identify import windows as win
@@ -120,7 +121,15 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
         Per log, its ``(t0, t1)`` windows or None (automatic).
     delay : bool
         Fit a pure delay beside the motor lag.
+
+    Raises
+    ------
+    ArgumentTypeError
+        ``config`` is not a validated Config (a config's name: load it first).
     """
+    if not isinstance(config, Config):
+        raise ArgumentTypeError(f"identify takes a validated Config, identify(logs, qc.load_config('crazyflie')); "
+                                f"got {type(config).__name__}")
     airframe = est.Airframe.from_config(config)
     p = win.plan(logs, windows)
     grids = {}

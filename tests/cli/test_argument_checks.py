@@ -240,6 +240,12 @@ def _read_a_missing_log(tmp_path, stages):
     return read_log(tmp_path / "flight.csv")
 
 
+def _identify_with_a_configs_name(tmp_path, stages):
+    from quadctl.identify.results import identify
+
+    return identify([], "crazyflie")
+
+
 def _compare_an_unknown_law(tmp_path, stages):
     from quadctl.compare import compare
 
@@ -356,6 +362,9 @@ ARGUMENTS = {  # a call with a wrong argument: (call(tmp_path, stages), its clas
     "identify a missing log": (
         _read_a_missing_log,
         "LogError", ValueError, r"flight\.csv: no such file; give the path of a flight log$"),
+    "identify a config's name": (
+        _identify_with_a_configs_name,
+        "ArgumentTypeError", TypeError, r"^identify takes a validated Config, .*; got str$"),
     "compare an unknown law": (
         _compare_an_unknown_law,
         "ArgumentError", ValueError, r"^law 'pid:betaflight': use lqr or pid:<preset> with a preset of crazyflie, "
