@@ -305,7 +305,7 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
         att_sp = ca.vertcat(ca.fmin(ca.fmax(o[1], -tilt), tilt), ca.fmin(ca.fmax(-o[0], -tilt), tilt), yaw_sp)
         thrust_sp = ca.fmin(ca.fmax(v["thrust_base"] + v["thrust_scale"] * o[2], v["thrust_min"]), PWM_FULL)
     else:
-        hover = u_ref[0] / _largest(mix_inv[0, :], hi)
+        hover = u_ref[0] / px4_units(mix, hi)[0]
         t_vec = ca.vertcat(o[0], o[1], -o[2] - gravity) * (hover / gravity)
         up = -t_vec[2]
         horizontal = ca.sqrt(t_vec[0] ** 2 + t_vec[1] ** 2)
@@ -376,9 +376,8 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
         a, b = v["pwm_thrust_a"], v["pwm_thrust_b"]
         rotors = hi * (a * sfrac ** 2 + b * sfrac) / (a + b)
         command = mix_inv @ rotors
-    else:
-        command = ca.vertcat(thrust_sp * _largest(mix_inv[0, :], hi),
-                             *[out[k] * _largest(mix_inv[k + 1, :], hi) for k in range(3)])
+    else:  # PX4's control allocation, unsaturated: each normalized input is its own multiple of the input
+        command = ca.vertcat(thrust_sp, out) * px4_units(mix, hi)
     phase = ca.if_else(phase + 1 > n_pos - 0.5, 0, phase + 1)
     s_next = ca.vertcat(phase, i_pos, i_vel, vel_prev, att_sp, thrust_sp, i_att, att_prev, rate_sp, i_rate,
                         rates, d_next, gyro_next)
@@ -404,9 +403,55 @@ def butterworth2(ratio, lib=ca):
     return b0, 2 * b0, b0, 2 * (w * w - 1) / c, (1 - math.sqrt(2) * w + w * w) / c
 
 
-def _largest(row, hi):
-    """The largest value of ``row @ f`` over rotor thrusts ``0 <= f <= hi``."""
-    return ca.dot(ca.fmax(row.T, 0), hi)
+PX4_COUNTED = 1e-3
+"""Output per N m: PX4 counts a rotor in its mix's roll or pitch column when its entry is beyond this (a numerical
+zero; in these units when ``CA_ROTOR_CT`` is the rotor's thrust at full output, in N)."""
+FLT_EPSILON = float(np.finfo(np.float32).eps)
+"""PX4 counts a rotor in its mix's thrust column when its entry is beyond single precision's epsilon."""
+
+
+def px4_units(mix, hi):
+    """``[T, A, E, R]`` (N, N m, N m, N m, (4,)) of one unit of PX4's normalized collective thrust and of each of
+    its normalized torques (roll, pitch, yaw), as PX4's control allocation mixes them onto these rotors.
+
+    PX4 mixes by the pseudo-inverse of its effectiveness (the thrust and torques of each rotor's output, 0 to 1,
+    from the rotor positions, ``CA_ROTOR*_CT`` and ``_KM``), its columns divided by scales ``s``: roll and pitch
+    both by the larger of ``sqrt(|c|^2 / (n / 2))`` of the two columns ``c`` (``n`` the rotors with a share),
+    yaw by the column's largest entry, thrust by the mean size of the entries of the rotors with one. With
+    outputs ``f_i / hi_i`` the pseudo-inverse of four rotors is the inverse, ``diag(1 / hi) mix``, and a unit of
+    each normalized input commands ``1 / s`` of its own input and nothing of the others. So a symmetric X
+    moves each rotor by ``1 / sqrt 2`` of its range for a full roll or pitch torque, by all of it for a full
+    yaw torque. PX4 sets the normalized mix's entries below 1e-3 to zero: none are on four rotors.
+
+    Parameters
+    ----------
+    mix : CasADi (4, 4)
+        The mixer ``M^-1``: rotor thrusts (N) from ``[T, A, E, R]``.
+    hi : CasADi column (4,)
+        N: each rotor's largest thrust (PX4's full output).
+
+    References
+    ----------
+    PX4/PX4-Autopilot, src/lib/control_allocation/control_allocation/ControlAllocationPseudoInverse.cpp
+    (``updateControlAllocationMatrixScale``, commit 1316f1cea7199b56b51fab6835f59e7cf52aaa11);
+    src/modules/control_allocator/VehicleActuatorEffectiveness/ActuatorEffectivenessRotors.cpp
+    (``computeEffectivenessMatrix``, commit 1da805dc2d258aff311a0d5b9de8088b635f6c5e). Checked against those
+    rules written out in tests/sim/test_px4_allocation.py.
+    """
+    n = mix.shape[0]
+    col = [[mix[i, j] / hi[i] for i in range(n)] for j in range(4)]
+
+    def spread(c):  # sqrt(|c|^2 / (n / 2)), n the entries beyond PX4_COUNTED
+        counted = sum(ca.if_else(ca.fabs(e) > PX4_COUNTED, 1, 0) for e in c)
+        return ca.sqrt(sum(e * e for e in c) / (ca.fmax(counted, 1) / 2))
+
+    roll_pitch = ca.fmax(spread(col[1]), spread(col[2]))
+    yaw = col[3][0]
+    for e in col[3][1:]:
+        yaw = ca.fmax(yaw, e)
+    sizes = [ca.fabs(e) for e in col[0]]
+    thrust = sum(sizes) / ca.fmax(sum(ca.if_else(s > FLT_EPSILON, 1, 0) for s in sizes), 1)
+    return ca.vertcat(1 / thrust, 1 / roll_pitch, 1 / roll_pitch, 1 / yaw)
 
 
 @lru_cache(maxsize=4)

@@ -285,8 +285,8 @@ def test_the_tracking_error_reads_in_a_unit_of_its_size_with_no_multiplier_above
 
 
 def test_a_law_whose_run_stopped_early_ends_with_a_cross_in_every_comparison_figure():
-    """PX4's cascade on the Crazyflie leaves the valid range at 1.6 s (docs/guide/compare.md): its line ends
-    there with a cross at its last value, and its legend entry says why and when; a completed run has none."""
+    """A law whose run left the valid range (a vehicle past 85 deg of pitch): its line ends there with a cross
+    at its last value, and its legend entry says why and when; a completed run has none."""
     from quadctl.plots.compare import QUANTITIES, comparison_figures
 
     act = actuators_of(Motors(min_thrust=0.0, max_thrust=0.33))

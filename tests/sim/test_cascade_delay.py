@@ -1,7 +1,8 @@
 """A PID cascade flown with a delay (``controller.flies: pid`` with ``controller.delay``) against closed forms.
 
 A P rate loop on the roll inertia, ``J p' = A``, sampled at ``Ts`` with ``d`` samples from measurement to
-actuation, ``A_k = -kp L p_(k-d)`` (``L`` the largest roll torque, from the rotors' geometry and thrust limit),
+actuation, ``A_k = -kp L p_(k-d)`` (``L`` PX4's roll torque per normalized unit, from the rotors' geometry and
+thrust limit),
 is ``p_(k+1) = p_k - a p_(k-d)``, ``a = kp L Ts / J``: characteristic polynomial ``z^(d+1) - z^d + a``. Every
 other gain of the cascade zero (PX4's normalized torques: no PWM curve), nothing else moves ``p``, so the
 nonlinear simulation follows the recurrence exactly (RK4 is exact on a constant rate) and the lifted loop
@@ -17,8 +18,8 @@ import numpy as np
 import pytest
 
 RATE = 500.0   # Hz: the crazyflie config's controller rate, the cascade's base rate here
-KP = 0.3       # normalized torque per rad/s: a = kp L Ts / J = 0.375 (stable for d <= 3: z^4 - z^3 + a needs a < 0.45)
-P0 = 0.5       # rad/s: the initial roll rate (kp p0 = 0.15 of the torque range, the rotors far from their limits)
+KP = 0.2       # normalized torque per rad/s: a = kp L Ts / J = 0.354 (stable for d <= 3: z^4 - z^3 + a needs a < 0.45)
+P0 = 0.5       # rad/s: the initial roll rate (kp p0 = 0.1 of the torque range, the rotors far from their limits)
 POLE_TOL = 1e-9
 """Relative: simple roots of a polynomial of degree <= 4 with coefficients of order one (their condition
 numbers < 10) against the eigenvalues of the linearized law (~1e-15 each)."""
@@ -49,9 +50,9 @@ def closed_form(d: int, kp: float = KP) -> tuple[float, np.ndarray]:
     import quadctl as qc
 
     cfg = qc.load_config("crazyflie")
-    # X layout: each rotor 0.046 / sqrt(2) m off the roll axis; the largest roll torque is two rotors at full
-    # thrust on one side, none on the other
-    L = 2 * cfg.motors.arm_length / math.sqrt(2) * cfg.motors.max_thrust
+    # X layout: each rotor 0.046 / sqrt(2) m off the roll axis; PX4's control allocation moves each by 1/sqrt 2 of
+    # its thrust range per unit of normalized roll torque (tests/sim/test_px4_allocation.py)
+    L = 4 * cfg.motors.arm_length / math.sqrt(2) * cfg.motors.max_thrust / math.sqrt(2)
     a = kp * L / RATE / cfg.vehicle.inertia[0]
     poly = np.zeros(d + 2)
     poly[:2] = 1.0, -1.0

@@ -110,8 +110,9 @@ def roll_axis_frame_map(G, Ts, n_att, kp, ki, kd):
     """The roll axis sampled by hand: the map of one attitude period on ``[phi, p, i, phi_prev, r]``.
 
     ``phi'' = G (r - p)`` under a zero-order hold at ``Ts`` (the rate loop, a P; ``G`` in 1/s, its gain times the
-    largest roll torque over the inertia); ``r = kp e + ki i + kd d`` computed every ``n_att`` samples and held
-    (``e = -phi``, ``i`` by backward Euler, ``d = -(phi - phi_prev) / Ta`` on the measurement, ``Ta = n_att Ts``).
+    roll torque of a unit of its output over the inertia); ``r = kp e + ki i + kd d`` computed every ``n_att``
+    samples and held (``e = -phi``, ``i`` by backward Euler, ``d = -(phi - phi_prev) / Ta`` on the measurement,
+    ``Ta = n_att Ts``).
     """
     Ta = Ts * n_att
     update = np.eye(5)  # the attitude PID at phase 0, before the sample: i, phi_prev and r from the state
@@ -177,7 +178,9 @@ def test_the_attitude_pid_of_the_simulated_cascade_has_the_poles_of_the_roll_axi
     got = np.linalg.eigvals(Phi[np.ix_(block, block)])
 
     cfg = qc.load_config("crazyflie")
-    torque = math.sqrt(2) * cfg.motors.arm_length * cfg.motors.max_thrust  # two rotors at 45 deg from the x axis
+    # PX4's roll torque per normalized unit: each rotor, at 45 deg from the x axis, moved by 1/sqrt 2 of its range
+    # (PX4's control allocation, tests/sim/test_px4_allocation.py): 4 (L / sqrt 2) f_max / sqrt 2
+    torque = 2 * cfg.motors.arm_length * cfg.motors.max_thrust
     G = kp_rate * torque / cfg.vehicle.inertia[0]
     want, kappa = eigenvalue_conditions(roll_axis_frame_map(G, Ts, n_att, kp, ki, kd))
     # the hand map's r is overwritten at each update (a pole at 0), as is the loop's held rate setpoint, which

@@ -136,8 +136,8 @@ def errors_after(stages, gains, times):
 def test_a_large_tilt_and_yaw_error_closes_the_thrust_axis_first(iris_tumbled):
     """60 deg roll and 90 deg yaw off: in the first 0.2 s the roll error closes (as a share of itself)
     more than three times faster than the yaw's; with the yaw weight 1 (no priority) the yaw closes
-    more and the roll less than with PX4's 0.4 (measured: roll 60 -> 33 deg, yaw 90 -> 84 deg at 0.4;
-    roll -> 36, yaw -> 76 at 1)."""
+    more and the roll less than with PX4's 0.4 (measured: roll 60 -> 31 deg, yaw 90 -> 84 deg at 0.4;
+    roll -> 34, yaw -> 75 at 1)."""
     from quadctl.config.pid import resolve
 
     px4 = resolve("px4")
