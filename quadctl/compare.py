@@ -29,7 +29,7 @@ from quadctl.linear.linearize import LinearModel
 from quadctl.metrics import (
     NOISE_LIMITED_WORDS,
     Disturbance,
-    limited_by_noise,
+    disturbed_settling,
     lqr_cost,
     overshoot,
     settling_time,
@@ -37,7 +37,7 @@ from quadctl.metrics import (
 )
 from quadctl.physics.motors import has_rotors
 from quadctl.physics.noise import exogenous_period
-from quadctl.pipeline import Stages, closed_loop_of, noisy, pid_loop_of, simulation_of
+from quadctl.pipeline import Stages, closed_loop_of, noisy, pid_loop_of, simulation_of, twin_of, twin_settling
 from quadctl.setup import Setup
 from quadctl.sim.cascade_margins import cascade_margins
 from quadctl.sim.exogenous import ExoStream
@@ -171,6 +171,7 @@ def compare(stages: Stages, laws=DEFAULT_LAWS, duration: float | None = None) ->
     noise, wind = setup.noise, setup.wind
     period = exogenous_period(noise.period if noise is not None else None, lqr.rate)
     reference = setup.flown_reference
+    twin = twin_of(setup)  # turbulence: each law's late settling is read against its run without it
     out = []
     for name in dict.fromkeys(names):
         kind, preset = parse_law(name)
@@ -182,9 +183,12 @@ def compare(stages: Stages, laws=DEFAULT_LAWS, duration: float | None = None) ->
             loop, title = pid_loop_of(setup, stages.linear, own), f"{own.title} PID"
             margins = (stages.pid_margins if own is setup.pid
                        else cascade_margins(loop, title=preset))
-        run = simulate(loop, setup.initial_state(loop.x_trim), duration, setup.dt, noise=noise, wind=wind,
-                       max_samples=setup.max_samples, reference=reference, exo_rate=1.0 / period)
-        metrics = metrics_of(run, loop, setup.Q_block, setup.R_block, noisy(setup)) | margin_summary(margins)
+        x0, common = setup.initial_state(loop.x_trim), {"max_samples": setup.max_samples, "reference": reference,
+                                                         "exo_rate": 1.0 / period}
+        run = simulate(loop, x0, duration, setup.dt, noise=noise, wind=wind, **common)
+        calm = None if twin is None else simulate(loop, x0, duration, setup.dt, noise=twin.noise, wind=twin.wind,
+                                                  **common)
+        metrics = metrics_of(run, loop, setup.Q_block, setup.R_block, noisy(setup), calm) | margin_summary(margins)
         out.append(LawRun(name=name, title=title, rate=loop.rate, loop=loop, run=run, metrics=metrics,
                           disturbances=disturbance_digest(noise, wind, loop.rate, period, duration),
                           margins=tuple(margins)))
@@ -228,26 +232,39 @@ def disturbance_digest(noise, wind, rate, period: float, duration: float) -> str
 
 NOISE_LIMITED = (f"true: |p - p_ref| is noise-limited ({NOISE_LIMITED_WORDS}: quadctl.metrics.noise_limited), so it "
                  "has no settling time (settling None); a trend that ends outside the band beyond the noise's "
-                 "reach, a drift, never settled (false)")
+                 "reach, a drift, never settled (false); with turbulence, a law whose run without its random "
+                 "disturbances does not settle never settled (false)")
 """compare.json's meaning of a law's ``settling_noise_limited``."""
 
 
-def metrics_of(run: SimResult, loop: ClosedLoop, Q, R, noisy: int = Disturbance.QUIET) -> dict:
+def metrics_of(run: SimResult, loop: ClosedLoop, Q, R, noisy: int = Disturbance.QUIET,
+               twin: SimResult | None = None) -> dict:
     """:data:`METRICS` of one run, and ``settling_noise_limited``: whether a ``noisy`` run's (a
     :class:`~quadctl.metrics.Disturbance`, :func:`quadctl.pipeline.noisy`; True: noise) settling is
-    noise-limited (:func:`quadctl.metrics.noise_limited`)."""
+    noise-limited (:func:`quadctl.metrics.noise_limited`); with turbulence, against ``twin``, the run
+    of the same law without its random disturbances (:func:`quadctl.pipeline.twin_of`)."""
     t = run.t
     err = run.x - run.x_ref
-    pos = np.linalg.norm(err[:, :3], axis=1)
+    pos = _position_error(run)
     att = np.linalg.norm(err[:, STATE_INDEX["phi"]:STATE_INDEX["psi"] + 1], axis=1)
     cost = lqr_cost(t, err, run.u - loop.u_trim, np.asarray(Q), np.asarray(R))
     settled = settling_time(t, pos) if run.status == "ok" else None
+    twin_settled = None
+    if twin is not None:
+        twin_settled = twin.status == "ok" and settling_time(twin.t, _position_error(twin)) is not None
     # a drift (a position the law leaves free, in a wind) trends out of its band: it never settled
-    limited = run.status == "ok" and noisy and limited_by_noise(t, pos, settled, noisy)
+    limited = False
+    if run.status == "ok" and noisy:
+        settled, limited = disturbed_settling(t, pos, settled, noisy, twin_settled)
     return {"position_rms": _rms(pos, t), "position_peak": float(pos.max()), "attitude_rms": _rms(att, t),
-            "settling": None if limited else settled, "settling_noise_limited": bool(limited),
+            "settling": settled, "settling_noise_limited": bool(limited),
             "altitude_overshoot": overshoot(err[:, STATE_INDEX["pD"]]),
             **rotor_use(run, loop), "cost": cost if np.isfinite(cost) else None, "status": run.status}
+
+
+def _position_error(run: SimResult) -> np.ndarray:
+    """``|p - p_ref|`` (m) at each record of ``run``."""
+    return np.linalg.norm(run.x[:, :3] - run.x_ref[:, :3], axis=1)
 
 
 def _rms(v, t) -> float:
@@ -310,7 +327,8 @@ def compare_full(setup: Setup, linear: LinearModel, des: Design):
     for label, K, Ki in (("decoupled", des.K_block, des.Ki_block), ("full", fd.K, fd.Ki)):
         loop = closed_loop_of(setup, linear, K, Ki=Ki, integral_states=des.integral_states)
         sim = simulation_of(setup, loop, noise=False)
-        met = summarize(sim, linear.u_trim, Q, des.R_block, setup.regulated, noisy=noisy(setup, noise=False))
+        met = summarize(sim, linear.u_trim, Q, des.R_block, setup.regulated, noisy=noisy(setup, noise=False),
+                        twin=twin_settling(setup, loop))
         met["peak_delta"] = {name: float(np.abs(sim.u[:, j] - linear.u_trim[j]).max())
                              for j, name in enumerate(INPUT_NAMES)}
         met["linear_cost"] = coupled.linear_cost(linear.A, linear.B, K, Ki, des, dx0)

@@ -26,17 +26,19 @@ a sample every 0.5 ms: finer than any settling time or plot needs, and 4.5 MB of
 NOISE_TAIL = 0.1
 """The last tenth of a run. In a run with noise or turbulence, a state whose error still crosses its
 settling band there (settled after ``(1 - NOISE_TAIL) t_end``, or outside the band at the end) is
-*noise-limited* when the noise is what keeps it crossing: the band's edge lies within the noise about
-the error's trend, where the trend is a least-squares line through the last tenth, taken at the end,
-and the noise its spread about that line (:data:`NOISE_REACH` standard deviations). When the error
-last crossed the band then measures the noise, not the response, and it has no settling time (None).
-An error whose trend ends farther outside the band than the noise reaches (still coming down, a
-drift) never settled, noise or not; one whose trend ends farther inside than the noise reaches is on
-its way in, and keeps its settling time. Turbulence's gusts last longer than the last tenth, so
-there the noise is not measured (:class:`Disturbance`). A run without noise or turbulence keeps its
-settling times as they are."""
+*noise-limited* when the disturbance is what keeps it crossing. With noise, when the band's edge lies
+within the noise about the error's trend, where the trend is a least-squares line through the last
+tenth, taken at the end, and the noise its spread about that line (:data:`NOISE_REACH` standard
+deviations): an error whose trend ends farther outside the band than the noise reaches (still coming
+down, a drift) never settled, noise or not; one whose trend ends farther inside than the noise reaches
+is on its way in, and keeps its settling time. With turbulence, whose gusts last longer than the last
+tenth (:class:`Disturbance`), when the run's twin, the same case without its random disturbances
+(:func:`quadctl.pipeline.twin_of`), settled that state: else it never settled. A noise-limited
+state has no settling time (None): when its error last crossed the band measures the disturbance, not
+the response. A run without noise or turbulence keeps its settling times as they are."""
 NOISE_LIMITED_WORDS = (f"with noise or turbulence, the error still crosses its {100 * SETTLING_BAND:g} % band in the "
-                       "last tenth of the run, and the band's edge lies within the noise about the error's trend")
+                       "last tenth of the run, and the band's edge lies within the noise about the error's trend "
+                       "(with turbulence: the same run without its random disturbances settles)")
 """What noise-limited means, as every table, reason and artifact says it (:data:`NOISE_TAIL`)."""
 
 
@@ -45,9 +47,10 @@ class Disturbance(IntEnum):
 
     ``NOISE``: noise, sampled fast next to the run's last tenth, so the spread of the error about its
     trend there measures it. ``GUSTS``: turbulence, whose gusts last longer than a run's last tenth
-    (Dryden's length scales over the airspeed: seconds), so that spread does not measure it; it is taken
-    as unbounded, and a late crossing, or an error outside its band at the end, reads noise-limited
-    whatever its seed."""
+    (Dryden's length scales over the airspeed: seconds), so that spread does not measure it: a late
+    crossing, or an error outside its band at the end, is read against the run's twin, the same case
+    without its random disturbances (noise-limited when the twin settled, else never settled), the
+    same whatever the seed."""
 
     QUIET = 0
     NOISE = 1
@@ -66,39 +69,118 @@ OVERSHOOT_FLOOR = 1e-6
 """Excursions past zero below this fraction of the initial error are round-off: overshoot 0."""
 
 
-def settling_time(t, err, noisy: int = Disturbance.QUIET) -> float | None:
+def settling_time(t, err, noisy: int = Disturbance.QUIET, twin_settled: bool | None = None) -> float | None:
     """Time after which ``|err|`` stays within ``SETTLING_BAND`` of its peak (s); None if it never
-    does, or, in a ``noisy`` run (a :class:`Disturbance`; True: noise), if it is noise-limited
-    (:func:`noise_limited`)."""
+    does, or, in a ``noisy`` run (a :class:`Disturbance`; True: noise), if its late settling is
+    not read as one (:func:`read_settling`; ``twin_settled`` as there)."""
     settled = _settled(t, err)
     if not noisy or not len(t):
         return settled
-    return None if limited_by_noise(t, err, settled, noisy) else settled
+    return disturbed_settling(t, err, settled, noisy, twin_settled)[0]
 
 
-def limited_by_noise(t, err, settled: float | None, noisy: int = Disturbance.NOISE) -> bool:
-    """:func:`noise_limited` of one error ``err`` (r,) at times ``t`` (r,, s) that settled at ``settled``
+def limited_by_noise(t, err, settled: float | None, noisy: int = Disturbance.NOISE,
+                     twin_settled: bool | None = None) -> bool:
+    """Whether one error's settling is noise-limited (:func:`disturbed_settling`, arguments alike)."""
+    return disturbed_settling(t, err, settled, noisy, twin_settled)[1]
+
+
+def disturbed_settling(t, err, settled: float | None, noisy: int = Disturbance.NOISE,
+                       twin_settled: bool | None = None) -> tuple[float | None, bool]:
+    """:func:`read_settling` of one error ``err`` (r,) at times ``t`` (r,, s) that settled at ``settled``
     (s, None: never) in a run ``noisy`` disturbed (:class:`Disturbance`): its band from its largest
-    ``|err|``, its trend over the last tenth (:func:`tail_trend`)."""
+    ``|err|``, its trend over the last tenth (:func:`tail_trend`); with turbulence, ``twin_settled``
+    (whether the run's twin settled this error). Returns (the settling time, s or None; whether it is
+    noise-limited)."""
     t, err = np.asarray(t, dtype=float), np.asarray(err, dtype=float)
     band = max(SETTLING_BAND * float(np.abs(err).max()), ERROR_FLOOR)
-    return noise_limited(settled, float(t[-1]), *tail_trend(t, err), band, gusts=noisy == Disturbance.GUSTS)
+    return read_settling(settled, float(t[-1]), *tail_trend(t, err), band, gusts=noisy == Disturbance.GUSTS,
+                         twin_settled=twin_settled)
 
 
 def noise_limited(settled: float | None, t_end: float, trend_end: float, spread: float, band: float,
-                  gusts: bool = False) -> bool:
-    """Whether a settling time ``settled`` (s, None: never) of a run with noise or turbulence that
-    ended at ``t_end`` (s, from 0) is noise-limited (:data:`NOISE_TAIL`): the error still left its
-    ``band`` in the run's last tenth, and the band's edge lies within :data:`NOISE_REACH` times its
-    ``spread`` of where its trend there ends (``trend_end``, :func:`tail_trend`); with ``gusts``
-    (turbulence, :attr:`Disturbance.GUSTS`) the spread is not measured there and taken as unbounded.
-    Elementwise over arrays too (``settled`` then NaN for never)."""
+                  gusts: bool = False, twin_settled: bool | None = None) -> bool:
+    """Whether a settling time is noise-limited: :func:`read_settling`'s second value (arguments alike)."""
+    return read_settling(settled, t_end, trend_end, spread, band, gusts, twin_settled)[1]
+
+
+def read_settling(settled: float | None, t_end: float, trend_end: float, spread: float, band: float,
+                  gusts: bool = False, twin_settled: bool | None = None) -> tuple:
+    """The settling time a run with noise or turbulence reports, and whether it is noise-limited
+    (:data:`NOISE_TAIL`), from the one it measured, ``settled`` (s, None: never), in a run that ended
+    at ``t_end`` (s, from 0).
+
+    A *late* crossing (``settled`` after ``(1 - NOISE_TAIL) t_end``, or never) is noise-limited when,
+    with noise, the ``band``'s edge lies within :data:`NOISE_REACH` times the error's ``spread`` of
+    where its trend over the last tenth ends (``trend_end``, :func:`tail_trend`); with ``gusts``
+    (turbulence, :attr:`Disturbance.GUSTS`), whose spread the last tenth does not measure, when the
+    run's twin settled (``twin_settled``: the same case without its random disturbances,
+    :func:`quadctl.pipeline.twin_of`, has a settling time for this state). A noise-limited state has
+    no settling time; with gusts, neither has a late one whose twin did not settle (it never
+    settled); with noise, a late one that is not noise-limited keeps its time (a trend on its way
+    in). Elementwise over arrays too (``settled`` then NaN for never).
+
+    Returns
+    -------
+    (settling, limited)
+        The settling time (s; None, or NaN in arrays: none) and whether it is noise-limited.
+
+    Raises
+    ------
+    ValueError
+        ``gusts`` without ``twin_settled``: a turbulent run is read against its twin.
+    """
+    scalar = settled is None or np.ndim(settled) == 0
     settled = np.nan if settled is None else settled
-    spread = np.where(gusts, np.inf, spread)
     with np.errstate(invalid="ignore"):
         late = np.isnan(settled) | (settled > (1.0 - NOISE_TAIL) * np.asarray(t_end))
-        out = late & (np.abs(np.abs(trend_end) - band) <= NOISE_REACH * np.asarray(spread))
-    return bool(out) if np.ndim(out) == 0 else out
+        within = np.abs(np.abs(trend_end) - band) <= NOISE_REACH * np.asarray(spread)
+    dropped = np.zeros_like(late)
+    if np.any(gusts):
+        if twin_settled is None:
+            raise ValueError("read_settling: a run with turbulence (gusts) is read against its twin, the same "
+                             "case without its random disturbances: pass twin_settled (quadctl.pipeline.twin_of)")
+        within = np.where(gusts, twin_settled, within)
+        dropped = late & gusts
+    limited = late & within
+    out = np.where(limited | dropped, np.nan, settled)
+    if scalar and np.ndim(limited) == 0:
+        return (None if np.isnan(out) else float(out)), bool(limited)
+    return out, limited
+
+
+def twins_settled(twin, names, kind) -> np.ndarray | None:
+    """Whether each of ``B`` runs' twin (:func:`quadctl.pipeline.twin_of`) settled each state of
+    ``names``: ``(B, len(names))`` bool, for :func:`noise_limited`'s ``twin_settled``; None when no
+    run has turbulence (``kind``, (B,) :class:`Disturbance`).
+
+    ``twin``: per run, its twin's settling times (state name -> s, None: never; a state it does not
+    name did not settle), None for a run without turbulence; one dict or None for all.
+
+    Raises
+    ------
+    ValueError
+        A run with turbulence and no twin.
+    """
+    gusts = np.asarray(kind) == Disturbance.GUSTS
+    if not gusts.any():
+        return None
+    twins = [twin] * len(gusts) if twin is None or isinstance(twin, dict) else list(twin)
+    missing = [b for b, (g, times) in enumerate(zip(gusts, twins)) if g and times is None]
+    if missing:
+        raise ValueError(f"runs {missing} have turbulence and no twin: pass each one's twin's settling times "
+                         "(quadctl.pipeline.twin_settling)")
+    return np.array([[times is not None and times.get(name) is not None for name in names] for times in twins],
+                    dtype=bool).reshape(len(gusts), len(names))
+
+
+def settling_times(sim, states) -> dict:
+    """Each of ``states``' settling time (s, None: never, or the run did not reach its end) in ``sim``
+    (a SimResult: ``t``, ``x``, ``x_ref``, ``status``) as a run without random disturbances reads
+    it: a twin's verdict (:func:`noise_limited`'s ``twin_settled``)."""
+    err = sim.x - sim.x_ref
+    return {name: _settled(sim.t, err[:, STATE_NAMES.index(name)]) if sim.status == "ok" else None
+            for name in states}
 
 
 def tail_trend(t, err) -> tuple:
@@ -175,7 +257,7 @@ def lqr_cost(t, err, du, Q, R) -> float:
     return float(np.sum((integrand[1:] + integrand[:-1]) * np.diff(t)) / 2) if len(t) > 1 else 0.0
 
 
-def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIET) -> dict:
+def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIET, twin: dict | None = None) -> dict:
     """Metrics of a run, as plain JSON-ready data.
 
     Parameters
@@ -189,6 +271,9 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIE
     noisy : Disturbance or bool
         What randomly disturbed the run (True: noise): its settling times may be noise-limited
         (:data:`NOISE_TAIL`).
+    twin : dict of str -> float or None, optional
+        With turbulence (required then): the settling times of the run's twin, the same case without
+        its random disturbances (:func:`quadctl.pipeline.twin_settling`, :func:`settling_times`).
 
     Returns
     -------
@@ -206,9 +291,11 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIE
         out["final_error"][name] = float(err[-1, i])
         if name in regulated_states:  # a run cut short has not shown where it settles
             settled = _settled(sim.t, err[:, i]) if sim.status == "ok" else None
-            if sim.status == "ok" and noisy and limited_by_noise(sim.t, err[:, i], settled, noisy):
-                out["noise_limited"].append(name)
-                settled = None
+            if sim.status == "ok" and noisy:
+                settled, limited = disturbed_settling(sim.t, err[:, i], settled, noisy,
+                                                      None if twin is None else twin.get(name) is not None)
+                if limited:
+                    out["noise_limited"].append(name)
             out["settling_time"][name] = settled
             out["overshoot"][name] = overshoot(err[:, i])
     out["peak"] = {name: float(np.abs(sim.u[:, j]).max()) for j, name in enumerate(INPUT_NAMES)}
@@ -218,7 +305,8 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIE
     return out
 
 
-def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status, noisy: int = Disturbance.QUIET) -> dict:
+def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status, noisy: int = Disturbance.QUIET,
+                  twin: dict | None = None) -> dict:
     """:func:`summarize` of one run, vectorized over the states (:func:`summarize_errors` of it).
 
     Same definitions and the same numbers (the cost integral to round-off: its quadratic forms
@@ -242,6 +330,7 @@ def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status, noisy:
     regulated_states : iterable of str
     status : str
     noisy : Disturbance or bool
+    twin : dict, optional
         As :func:`summarize`'s.
 
     Returns
@@ -257,7 +346,7 @@ def summarize_run(t, x, u, x_ref, u_trim, Q, R, regulated_states, status, noisy:
         err = (np.asarray(x).T - np.asarray(x_ref).T)[None]
     return summarize_errors(t[None], err, np.asarray(u).T[None], np.asarray(u_trim, dtype=float)[None],
                             np.asarray(Q, dtype=float)[None], np.asarray(R, dtype=float)[None], regulated_states,
-                            [status], [noisy])[0]
+                            [status], [noisy], [twin])[0]
 
 
 def error_into(out: np.ndarray, t: np.ndarray, xT: np.ndarray, x_trim, x_rate) -> np.ndarray:
@@ -272,7 +361,7 @@ def error_into(out: np.ndarray, t: np.ndarray, xT: np.ndarray, x_trim, x_rate) -
     return out
 
 
-def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=False) -> list[dict]:
+def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=False, twin=None) -> list[dict]:
     """:func:`summarize` of ``B`` runs of as many samples at once (a sweep's batches of cases).
 
     Each run's numbers are those :func:`summarize_run` gives it alone (every operation is
@@ -295,6 +384,8 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=Fa
     status : sequence of B str
     noisy : Disturbance or bool, or a sequence of B of them
         What randomly disturbed each run (:func:`summarize`'s ``noisy``).
+    twin : sequence of B dict or None, optional
+        Each run's twin's settling times (:func:`summarize`'s ``twin``; None: a run without turbulence).
 
     Returns
     -------
@@ -318,16 +409,19 @@ def summarize_errors(t, err, u, u_trim, Q, R, regulated_states, status, noisy=Fa
     never = outside[:, :, 0]
     settled_at = np.take_along_axis(t, np.minimum(last + 1, n - 1), axis=1)
     # noise-limited (noise_limited): a full run with noise whose error still crossed its band in the last
-    # tenth, the band's edge within the noise about the error's trend there
+    # tenth, the band's edge within the noise about the error's trend there (turbulence: its twin settled)
     kind = np.broadcast_to(np.asarray(noisy, dtype=int), (B,))
     noisy = kind != Disturbance.QUIET
-    late = np.zeros((B, err.shape[1]), dtype=bool)
+    late = dropped = np.zeros((B, err.shape[1]), dtype=bool)
     if noisy.any():
         trend_end, spread = tail_trend(t[:, None, :], err)
-        late = noise_limited(np.where(never, np.nan, settled_at), t[:, -1:], trend_end, spread, band,
-                             gusts=(kind == Disturbance.GUSTS)[:, None]) & ~at_once \
-            & noisy[:, None] & (np.asarray(status) == "ok")[:, None]
-    at_once, never, late, settled_at = at_once.tolist(), never.tolist(), late.tolist(), settled_at.tolist()
+        reported, late = read_settling(np.where(never, np.nan, settled_at), t[:, -1:], trend_end, spread, band,
+                                       gusts=(kind == Disturbance.GUSTS)[:, None],
+                                       twin_settled=twins_settled(twin, STATE_NAMES, kind))
+        disturbed = ~at_once & noisy[:, None] & (np.asarray(status) == "ok")[:, None]
+        late, dropped = late & disturbed, np.isnan(reported) & disturbed
+    at_once, never, settled_at = at_once.tolist(), (never | dropped).tolist(), settled_at.tolist()
+    late = late.tolist()
     e0 = err[:, :, 0]
     # max(-sign(e0) e) without the product: -min(e) where e0 > 0, max(e) where e0 < 0 (exact)
     past = np.where(e0 > 0, -low, np.where(e0 < 0, high, 0.0))

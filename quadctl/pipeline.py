@@ -23,10 +23,10 @@ from quadctl.linear.analysis import Checks, check
 from quadctl.linear.decouple import Decoupled, decouple
 from quadctl.linear.linearize import LinearModel, linearize
 from quadctl.linear.trim import Trim, solve_trim
-from quadctl.metrics import Disturbance
+from quadctl.metrics import Disturbance, settling_times
 from quadctl.physics import motors
 from quadctl.physics.motors import check_trim
-from quadctl.setup import Setup
+from quadctl.setup import Setup, without_disturbances
 from quadctl.sim.cascade_lift import lifted
 from quadctl.sim.cascade_margins import cascade_margins
 from quadctl.sim.loop import ClosedLoop, eigen_owners
@@ -212,6 +212,26 @@ def noisy(setup: Setup, noise: bool = True) -> Disturbance:
     if setup.wind is not None and setup.wind.turbulence is not None:
         return Disturbance.GUSTS
     return Disturbance.NOISE if noise and setup.noise is not None else Disturbance.QUIET
+
+
+def twin_of(setup: Setup) -> Setup | None:
+    """The setup of the configured run's twin: the same case without its random disturbances
+    (:func:`quadctl.setup.without_disturbances`: no noise, no turbulence; the steady wind, the gusts,
+    the reference, the delays and lags kept), against which a turbulent run's late settling is read
+    (:func:`quadctl.metrics.noise_limited`); None when the run has no turbulence (it needs none)."""
+    if noisy(setup) != Disturbance.GUSTS:
+        return None
+    return without_disturbances(setup)
+
+
+def twin_settling(setup: Setup, loop: ClosedLoop) -> dict | None:
+    """The settling times of the regulated states in the run of ``loop`` its twin makes
+    (:func:`twin_of`, :func:`simulation_of`; :func:`quadctl.metrics.settling_times`): what
+    :func:`quadctl.metrics.summarize`'s ``twin`` takes. None without turbulence."""
+    twin = twin_of(setup)
+    if twin is None:
+        return None
+    return settling_times(simulation_of(twin, loop), setup.regulated)
 
 
 class Stages:

@@ -454,6 +454,25 @@ def vary(setup: Setup, n: int, weights: dict[str, tuple[np.ndarray | None, np.nd
     return [_replaced(setup, changes) if changes else setup for changes in cases]
 
 
+def without_disturbances(setup: Setup) -> Setup:
+    """``setup`` without its random disturbances: no noise (``simulation.noise``) and the wind without
+    its turbulence (the steady wind and the gusts kept; None when nothing is left). Everything else
+    is the same, the flown reference (:attr:`Setup.flown_reference`) shared: the run a turbulent one is
+    read against (:func:`quadctl.pipeline.twin_of`).
+
+    >>> import quadctl as qc
+    >>> setup = qc.setup_of(qc.load_config("crazyflie-wind"))
+    >>> calm = without_disturbances(setup)
+    >>> calm.wind.turbulence is None, calm.wind.steady == setup.wind.steady, calm.noise
+    (True, True, None)
+    """
+    wind = setup.wind
+    if wind is not None:
+        wind = replace(wind, turbulence=None)
+        wind = wind if wind.active else None
+    return _replaced(setup, {"noise": None, "wind": wind})
+
+
 def _replaced(setup: Setup, changes: dict) -> Setup:
     """``dataclasses.replace(setup, **changes)`` without running ``Setup.__init__`` again (six times
     faster: a sweep builds thousands of cases; Setup derives nothing from its fields)."""

@@ -305,7 +305,7 @@ class Workspace(Session, pipeline.Stages):
         sim = pipeline.simulation_of(setup, loop, progress=self.progress)
         flight = run_summary.flight_summary(setup, loop, sim)
         summary = summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated,
-                            noisy=pipeline.noisy(setup))
+                            noisy=pipeline.noisy(setup), twin=pipeline.twin_settling(setup, loop))
         meta = self._meta("simulation", sim.backend)
         self._write_npz(SIM_NPZ, payloads.simulation_arrays(sim, loop), meta)
         self._write_json(SIM_JSON, "simulation", payloads.simulation(sim, summary, flight), sim.backend)

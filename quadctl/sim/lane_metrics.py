@@ -6,7 +6,9 @@ A sweep needs of each run its metrics (:func:`quadctl.metrics.summarize_errors`)
 ``stride``-th step and the last), from ``e = x - x_ref(t)``: first, last, lowest, highest and
 largest ``|e|``, the record after the last one outside the settling band (exact: the band of the
 largest ``|e|`` so far), for a run with noise the sums of the line through ``e`` over the run's last
-tenth (with the settling record, whether it is noise-limited: :func:`quadctl.metrics.noise_limited`),
+tenth (with the settling record, whether it is noise-limited: :func:`quadctl.metrics.noise_limited`; with
+turbulence that is read against the run's twin, the case without its random disturbances, which runs
+in the lanes as another case: its settling record is the twin's verdict),
 largest ``|u|``, the trapezoid sum of ``e' Q e + du' R du``, the position error's sums and the
 waypoint times. Read back, they equal :func:`quadctl.metrics.summarize` of the
 same records.
@@ -20,7 +22,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.layout import INPUT_NAMES, N_INPUTS, N_STATES, STATE_NAMES
-from quadctl.metrics import ERROR_FLOOR, NOISE_TAIL, SETTLING_BAND, Disturbance, noise_limited, trend_of_sums
+from quadctl.metrics import (
+    ERROR_FLOOR,
+    NOISE_TAIL,
+    SETTLING_BAND,
+    Disturbance,
+    read_settling,
+    trend_of_sums,
+    twins_settled,
+)
 from quadctl.native.compile import C_LONG
 
 PER_STATE = ("e0", "e_last", "e_min", "e_max", "peak", "settle", "tail_e", "tail_te", "tail_ee")
@@ -110,7 +120,7 @@ def _slot(name: str, i: int = 0) -> int:
     return len(PER_STATE) * N_STATES + N_INPUTS + SCALARS.index(name)
 
 
-def summaries(sums: np.ndarray, dt, regulated_states, status, noisy=False) -> list[dict]:
+def summaries(sums: np.ndarray, dt, regulated_states, status, noisy=False, twin=None) -> list[dict]:
     """The :func:`quadctl.metrics.summarize_errors` dicts of ``B`` runs from their lane sums (a state
     the lanes did not summarize has NaN for its ``peak_error`` and ``final_error``).
 
@@ -123,8 +133,11 @@ def summaries(sums: np.ndarray, dt, regulated_states, status, noisy=False) -> li
     status : sequence of B str
     noisy : Disturbance or bool, or a sequence of B of them
         What randomly disturbed each run (:func:`quadctl.metrics.summarize`'s ``noisy``).
+    twin : sequence of B dict or None, optional
+        Each run's twin's settling times (:func:`quadctl.metrics.summarize_errors`'s ``twin``: None for a
+        run without turbulence).
     """
-    names, settling, late, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status, noisy)
+    names, settling, late, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status, noisy, twin)
     per = _per_state(np.asarray(sums, dtype=float))
     peaks, finals = per[:, PER_STATE.index("peak")].tolist(), per[:, PER_STATE.index("e_last")].tolist()
     return [{"settling_time": dict(zip(names, settling[b])), "overshoot": dict(zip(names, overshoot[b])),
@@ -134,12 +147,13 @@ def summaries(sums: np.ndarray, dt, regulated_states, status, noisy=False) -> li
             for b in range(len(cost))]
 
 
-def row_values(sums: np.ndarray, dt, regulated_states, status, noisy=False) -> tuple[tuple[str, ...], list[list]]:
+def row_values(sums: np.ndarray, dt, regulated_states, status, noisy=False,
+               twin=None) -> tuple[tuple[str, ...], list[list]]:
     """The metric columns of a sweep's rows (``settling_time.<state>``, ``overshoot.<state>``,
     ``peak.<input>``, ``cost``, ``status``) and its ``noise_limited`` states (a list) of ``B`` runs
     from their lane sums, flat: the values of :func:`summaries` (arguments alike) without a dict per
     metric. Returns (the column names, per run its values in that order)."""
-    names, settling, late, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status, noisy)
+    names, settling, late, overshoot, u_max, cost = _readings(sums, dt, regulated_states, status, noisy, twin)
     columns = (*(f"settling_time.{n}" for n in names), *(f"overshoot.{n}" for n in names),
                *(f"peak.{n}" for n in INPUT_NAMES), "cost", "status", "noise_limited")
     return columns, [[*settling[b], *overshoot[b], *u_max[b], cost[b], status[b],
@@ -151,7 +165,7 @@ def _per_state(sums: np.ndarray) -> np.ndarray:
     return sums[:, :len(PER_STATE) * N_STATES].reshape(len(sums), len(PER_STATE), N_STATES)
 
 
-def _readings(sums, dt, regulated_states, status, noisy=False) -> tuple:
+def _readings(sums, dt, regulated_states, status, noisy=False, twin=None) -> tuple:
     """The regulated states' names (in state order) and, per run, their settling times, whether
     each is noise-limited and their overshoots, its input peaks (4) and cost, as :func:`summaries`
     reads them."""
@@ -168,21 +182,23 @@ def _readings(sums, dt, regulated_states, status, noisy=False) -> tuple:
     settled_at = np.asarray(dt, dtype=float)[:, None] * np.maximum(settle, 0.0)
     settling = np.where(settle == SETTLE_NONE, 0.0, settled_at).astype(object)
     ok = (np.asarray(status) == "ok")[:, None]
-    # noise-limited (quadctl.metrics.noise_limited): still crossing the band in the run's last tenth, and the
-    # band's edge within the noise about the error's trend there
+    # noise-limited (quadctl.metrics.read_settling): still crossing the band in the run's last tenth, and the
+    # band's edge within the noise about the error's trend there (turbulence: the twin's settling record)
     kind = np.broadcast_to(np.asarray(noisy, dtype=int), (len(sums),))
     noisy = kind != Disturbance.QUIET
-    late = np.zeros(settle.shape, dtype=bool)
+    late = dropped = np.zeros(settle.shape, dtype=bool)
     if noisy.any():
         t_end = sums[:, _slot("t_last")][:, None]
         tail = [per[:, PER_STATE.index(k)] for k in ("tail_e", "tail_te", "tail_ee")]
         n, st, stt = (sums[:, _slot(k)][:, None] for k in ("tail_n", "tail_t", "tail_tt"))
         trend_end, spread = trend_of_sums(n, st, stt, *tail, t_end - (1.0 - NOISE_TAIL) * t_end)
         band = np.maximum(SETTLING_BAND * peak, ERROR_FLOOR)
-        late = noise_limited(np.where(settle == SETTLE_PENDING, np.nan, settled_at), t_end, trend_end, spread, band,
-                             gusts=(kind == Disturbance.GUSTS)[:, None]) \
-            & (settle != SETTLE_NONE) & ok & noisy[:, None]
-    settling[(settle == SETTLE_PENDING) | ~ok | late] = None
+        reported, late = read_settling(np.where(settle == SETTLE_PENDING, np.nan, settled_at), t_end, trend_end,
+                                       spread, band, gusts=(kind == Disturbance.GUSTS)[:, None],
+                                       twin_settled=twins_settled(twin, tuple(STATE_NAMES[i] for i in index), kind))
+        disturbed = (settle != SETTLE_NONE) & ok & noisy[:, None]
+        late, dropped = late & disturbed, np.isnan(reported) & disturbed
+    settling[(settle == SETTLE_PENDING) | ~ok | late | dropped] = None
     overshoot = over.astype(object)
     overshoot[np.abs(e0) <= ERROR_FLOOR] = None
     u_max = sums[:, _slot("u_max"):_slot("u_max") + N_INPUTS].tolist()

@@ -129,7 +129,8 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
             continue
         ready.append(Prepared(index, head, setup, plant))
     if task.fast:
-        batched_rows, batched_traces = evaluate_batched(ready, stats, task.trace)
+        seeds = tuple(name for name, keys in zip(task.names, task.keys) if tuple(keys) in SEED_KEYS)
+        batched_rows, batched_traces = evaluate_batched(ready, stats, task.trace, seeds)
         rows.update(batched_rows)
         traces.update(batched_traces)
     else:
@@ -259,8 +260,15 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
         return row, None
     stats["backend"].add(sim.backend)
     stats["steps"] += sim.steps
+    twin = pipeline.twin_of(setup)  # turbulence: its late settling is read against the run without it
+    if twin is not None:
+        t0 = time.perf_counter()
+        calm = pipeline.simulation_of(twin, loop)
+        stats["simulate_time"] += time.perf_counter() - t0
+        stats["steps"] += calm.steps
+        twin = metrics.settling_times(calm, setup.regulated)
     summary = metrics.summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated,
-                                noisy=pipeline.noisy(setup))
+                                noisy=pipeline.noisy(setup), twin=twin)
     row = _row(prep.head, des.stable, des.core_eigenvalues, sim.plan, summary, sim.steps,
                "" if sim.status == "ok" else sim.message, "one-by-one")
     tracking = run_summary.tracking_summary(setup, sim)
@@ -303,13 +311,20 @@ def resample_deviation(t, x, x_ref, states, duration: float) -> np.ndarray:
     return np.stack([np.interp(grid, t, dev[:, j]) for j in range(len(index))], axis=1).astype(np.float32)
 
 
-def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> tuple[dict, dict]:
-    """Design, assess and simulate cases together; (rows, Monte Carlo traces) by case number."""
+SEED_KEYS = (("simulation", "noise", "seed"), ("simulation", "wind", "turbulence", "seed"))
+"""Key paths whose value a case's twin (:func:`quadctl.pipeline.twin_of`) does not read: the cases of a
+chunk whose other values are the same share one twin (a Monte Carlo over turbulence seeds runs one)."""
+
+
+def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = (), seeds: tuple = ()) -> tuple[dict, dict]:
+    """Design, assess and simulate cases together; (rows, Monte Carlo traces) by case number.
+
+    A case with turbulence reads its late settling against its twin (:func:`quadctl.pipeline.twin_of`),
+    simulated as one more case in the lanes, before the cases (its settling times are read with
+    theirs); the cases whose parameters differ only in the columns ``seeds`` (their names,
+    :data:`SEED_KEYS`) share one."""
 
     rows: dict[int, dict] = {}
-    traces: dict[int, np.ndarray] = {}
-    tracked: dict[int, dict] = {}  # case -> its tracking columns (cases that fly a reference)
-    reasons: dict[int, str] = {}  # case -> why its mission failed (cases that fly waypoints and finish)
     t0, c0 = time.perf_counter(), time.process_time()
     # rows read the extremes of each core, and take its gains to round-off
     designs = batched.design_all(preps, stats, any_order=True, compiled=True)
@@ -321,9 +336,11 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             rows[prep.index] = _failed(prep.head, "design_failed", des)
         else:
             live.append((prep, des))
+    twin_live, twin_of_case = _twins(live, seeds)
     exponential = bool(live) and live[0][0].setup.method == "etdrk4"  # a sweep runs one method
-    jobs = []
-    for (prep, des), job in zip(live, lane_jobs.loops_of(live, "etdrk4" if exponential else "rk4")):
+    jobs, twin_jobs = [], []
+    made = lane_jobs.loops_of(live + twin_live, "etdrk4" if exponential else "rk4")
+    for (prep, des), job in zip(live, made):
         if isinstance(job, str):
             row = _row(prep.head, des.stable, des.core, None, None, 0, job, des.path)
             row["status"] = "step_refused"
@@ -332,7 +349,54 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             rows[prep.index] = _failed(prep.head, "failed", str(job))
         else:
             jobs.append((prep, des, job))
+    # a twin whose job is refused did not run: no state of it settled
+    twin_jobs = [(prep, des, job) for (prep, des), job in zip(twin_live, made[len(live):])
+                 if not isinstance(job, (str, QuadctlError))]
     t0 = time.perf_counter()
+    twin_rows = _simulated(twin_jobs, stats, (), exponential, {})[0]
+    twins = {case: {name: twin_rows.get(k, {}).get(f"settling_time.{name}") for name in twin_live[k][0].setup.regulated}
+             for case, k in twin_of_case.items()}
+    simulated, traces, tracked, reasons = _simulated(jobs, stats, trace, exponential, twins)
+    rows.update(simulated)
+    stats["simulate_time"] += time.perf_counter() - t0
+    for index, columns in tracked.items():
+        rows[index].update(columns)
+    for index, reason in reasons.items():
+        if reason:
+            rows[index]["reason"] = reason
+    return rows, traces
+
+
+def _twins(live: list, seeds: tuple) -> tuple[list, dict]:
+    """The twins (:func:`quadctl.pipeline.twin_of`) the cases with turbulence among ``live`` (``(prep,
+    design)`` each) read their settling against: ``(prep, design)`` per twin (its ``index`` its place
+    in the list) and the twin's place per case number; cases whose parameters but ``seeds`` are the
+    same share one."""
+
+    twins: list = []
+    place: dict = {}  # the case's parameters but its seeds -> its twin's place
+    of_case: dict[int, int] = {}
+    for prep, des in live:
+        twin = pipeline.twin_of(prep.setup)
+        if twin is None:
+            continue
+        key = repr([(name, value) for name, value in prep.head.items() if name != "case" and name not in seeds])
+        if key not in place:
+            place[key] = len(twins)
+            twins.append((Prepared(len(twins), {}, twin, prep.plant), des))
+        of_case[prep.index] = place[key]
+    return twins, of_case
+
+
+def _simulated(jobs: list, stats: dict, trace: tuple, exponential: bool, twins: dict) -> tuple:
+    """Run ``jobs`` (``(prep, design, job)`` each) in the lanes and read their rows: (rows, Monte Carlo
+    traces, tracking columns, a mission's reason), each by ``prep.index``. ``twins``: per case with
+    turbulence, its twin's settling times (:func:`quadctl.metrics.summarize`'s ``twin``)."""
+
+    rows: dict[int, dict] = {}
+    traces: dict[int, np.ndarray] = {}
+    tracked: dict[int, dict] = {}  # case -> its tracking columns (cases that fly a reference)
+    reasons: dict[int, str] = {}  # case -> why its mission failed (cases that fly waypoints and finish)
     batch = MetricsBatch()
     summed: list = []  # (prep, design, job, done, status, message, sums) of the runs summed in the lanes
 
@@ -354,7 +418,8 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
             if "waypoints" in tracking:
                 reasons[prep.index] = mission_reason(setup, [w["reached"] for w in tracking["waypoints"]], status)
         for (p, d, j, steps, msg), summary in batch.add(t, x, us, setup, linear, status,
-                                                         (prep, des, job, done, message), x_ref):
+                                                         (prep, des, job, done, message), x_ref,
+                                                         twins.get(prep.index)):
             rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps, "" if summary["status"] == "ok"
                                  else msg, d.path)
         if trace and status == "ok":
@@ -379,26 +444,22 @@ def evaluate_batched(preps: list[Prepared], stats: dict, trace: tuple = ()) -> t
     for (p, d, j, steps, msg), summary in batch.flush():
         rows[p.index] = _row(p.head, d.stable, d.core, j.plan, summary, steps,
                              "" if summary["status"] == "ok" else msg, d.path)
-    _summed_rows(summed, rows, tracked, reasons)
-    stats["simulate_time"] += time.perf_counter() - t0
-    for index, columns in tracked.items():
-        rows[index].update(columns)
-    for index, reason in reasons.items():
-        if reason:
-            rows[index]["reason"] = reason
-    return rows, traces
+    _summed_rows(summed, rows, tracked, reasons, twins)
+    return rows, traces, tracked, reasons
 
 
-def _summed_rows(summed: list, rows: dict, tracked: dict, reasons: dict) -> None:
+def _summed_rows(summed: list, rows: dict, tracked: dict, reasons: dict, twins: dict) -> None:
     """Rows (and tracking columns, and a mission's reason) of the runs summed in the lanes: ``(prep,
-    design, job, done, status, message, sums)`` each, read back together per set of regulated states."""
+    design, job, done, status, message, sums)`` each, read back together per set of regulated states;
+    ``twins`` as :func:`_simulated`'s."""
 
     groups: dict[tuple, list] = {}
     for item in summed:
         groups.setdefault(item[0].setup.regulated, []).append(item)
     for regulated, items in groups.items():
         names, out = row_values(np.stack([it[6] for it in items]), [it[2].plan.dt for it in items], regulated,
-                                [it[4] for it in items], [pipeline.noisy(it[0].setup) for it in items])
+                                [it[4] for it in items], [pipeline.noisy(it[0].setup) for it in items],
+                                [twins.get(it[0].index) for it in items])
         for (prep, des, job, done, status, message, sums), values in zip(items, out):
             rows[prep.index] = _row(prep.head, des.stable, des, job.plan, None, done,
                                     "" if status == "ok" else message, des.path, flat=(names, values))
@@ -433,9 +494,10 @@ class MetricsBatch:
         self.key = None
         self.items: list = []
 
-    def add(self, t, x, u, setup, linear, status, item, x_ref=None) -> list:
+    def add(self, t, x, u, setup, linear, status, item, x_ref=None, twin: dict | None = None) -> list:
         """Gather one run (``x`` (r, 12), ``u`` (r, 4); ``x_ref`` (r, 12) the reference it flew, None:
-        the trim moving at its velocity); returns the ``(item, summary)`` pairs of the
+        the trim moving at its velocity; ``twin``: with turbulence, its twin's settling times,
+        :func:`quadctl.metrics.summarize`'s); returns the ``(item, summary)`` pairs of the
         batch this completes or closes (else none)."""
         key = (len(t), setup.regulated, (setup.Q_block != 0).tobytes(), (setup.R_block != 0).tobytes())
         done = self.flush() if key != self.key else []
@@ -445,7 +507,7 @@ class MetricsBatch:
             self.capacity = self.size(r)
             self.t, self.err, self.u = np.empty((self.capacity, r)), np.empty((self.capacity, N_STATES, r)), \
                 np.empty((self.capacity, u.shape[1], r))
-            self.u_trim, self.Q, self.R, self.status, self.noisy = [], [], [], [], []
+            self.u_trim, self.Q, self.R, self.status, self.noisy, self.twin = [], [], [], [], [], []
 
         b = len(self.items)
         self.t[b] = t
@@ -459,6 +521,7 @@ class MetricsBatch:
         self.R.append(setup.R_block)
         self.status.append(status)
         self.noisy.append(pipeline.noisy(setup))
+        self.twin.append(twin)
         self.items.append(item)
         return done + (self.flush() if len(self.items) == self.capacity else [])
 
@@ -469,7 +532,7 @@ class MetricsBatch:
             return []
         B = len(self.items)
         summaries = summarize_errors(self.t[:B], self.err[:B], self.u[:B], np.array(self.u_trim), np.array(self.Q),
-                                     np.array(self.R), self.key[1], self.status, self.noisy)
+                                     np.array(self.R), self.key[1], self.status, self.noisy, self.twin)
         out = list(zip(self.items, summaries))
         self.items = []
         return out

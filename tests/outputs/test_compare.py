@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from quadctl import metrics
 from quadctl.cli.app import app
 
 pytestmark = pytest.mark.compiler
@@ -235,6 +236,14 @@ def test_a_noisy_runs_late_settling_is_noise_limited_and_a_drift_is_never():
     drift = SimpleNamespace(**{**vars(run), "x": np.column_stack([0.1 * t, x[:, 1:]])})
     never = metrics_of(drift, loop, Q, R, noisy=True)
     assert never["settling"] is None and never["settling_noise_limited"] is False
+    # under turbulence the run is read against its twin, the law's run without it: noise-limited when the
+    # twin settles (the decay alone), never settled when the twin does not (a slow decay still outside its band)
+    gusts = metrics.Disturbance.GUSTS
+    calm = SimpleNamespace(**{**vars(run), "x": np.column_stack([np.exp(-2.0 * t), x[:, 1:] * 0])})
+    slow = SimpleNamespace(**{**vars(calm), "x": np.column_stack([np.exp(-0.2 * t), x[:, 1:] * 0])})
+    assert metrics_of(run, loop, Q, R, noisy=gusts, twin=calm)["settling_noise_limited"] is True
+    unsettled = metrics_of(run, loop, Q, R, noisy=gusts, twin=slow)
+    assert unsettled["settling"] is None and unsettled["settling_noise_limited"] is False
     law = {"name": "lqr", "rate": 500.0, "status": "ok", **noisy}
     rows = dict((row[0], row[1]) for row in words.table({"config": "c", "duration": 10.0, "laws": [law]}).rows)
     assert rows["settling [s]"] == "noise"

@@ -105,6 +105,16 @@ def test_lane_sums_read_back_as_the_metrics_of_the_same_records(which):
             lanes_noisy = summaries(sums[None], [job.plan.dt], setup.regulated, ["ok"], [True])[0]
             assert lanes_noisy["noise_limited"] == noisy["noise_limited"] and want["noise_limited"] == []
             assert lanes_noisy["settling_time"] == noisy["settling_time"] and noisy["noise_limited"]
+            # read as under turbulence, against a twin that settled every other state: the same verdicts
+            twin = {name: (None if k % 2 else 0.5) for k, name in enumerate(setup.regulated)}
+            gusty = metrics.summarize(_Run(t, x, us, x_ref, "ok"), linear.u_trim, setup.Q_block, setup.R_block,
+                                      setup.regulated, noisy=metrics.Disturbance.GUSTS, twin=twin)
+            lanes_gusty = summaries(sums[None], [job.plan.dt], setup.regulated, ["ok"], [metrics.Disturbance.GUSTS],
+                                    [twin])[0]
+            assert lanes_gusty["noise_limited"] == gusty["noise_limited"]
+            assert lanes_gusty["settling_time"] == gusty["settling_time"]
+            assert gusty["noise_limited"]
+            assert set(gusty["noise_limited"]) <= {name for name, time in twin.items() if time is not None}
             per = sums[:len(PER_STATE) * N_STATES].reshape(len(PER_STATE), N_STATES)
             for i in mspec.states:
                 lines = metrics.trend_of_sums(*(sums[_slot(k)] for k in ("tail_n", "tail_t", "tail_tt")),

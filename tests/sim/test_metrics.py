@@ -13,13 +13,14 @@ from quadctl import metrics
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
 
 
-def _batched(t, e, state="pD", noisy=False):
-    """:func:`metrics.summarize_errors` of one run whose only nonzero error is ``e`` on ``state``."""
+def _batched(t, e, state="pD", noisy=False, twin=None):
+    """:func:`metrics.summarize_errors` of one run whose only nonzero error is ``e`` on ``state`` (``twin``:
+    its twin's settling times, with turbulence)."""
     err = np.zeros((1, N_STATES, len(t)))
     err[0, STATE_INDEX[state]] = e
     return metrics.summarize_errors(t[None, :], err, np.zeros((1, N_INPUTS, len(t))), np.zeros((1, N_INPUTS)),
                                     np.zeros((1, N_STATES, N_STATES)), np.zeros((1, N_INPUTS, N_INPUTS)),
-                                    STATE_NAMES, ["ok"], [noisy])[0]
+                                    STATE_NAMES, ["ok"], [noisy], [twin])[0]
 
 
 @pytest.mark.parametrize("tau, e0, dt", [(0.3, 1.0, 1e-3), (2.0, -0.05, 4e-3), (0.05, 3.0, 1e-4)])
@@ -184,23 +185,89 @@ def test_a_late_crossing_with_too_few_records_to_measure_the_noise_claims_no_set
     assert metrics.limited_by_noise(t, e, None)
 
 
-def test_with_gusts_the_noise_about_the_trend_is_not_measured_so_a_late_crossing_is_noise_limited():
-    """Dryden gusts last longer than a run's last tenth: a line through it follows a gust, so an error
-    outside its band at the end reads noise-limited under turbulence (Disturbance.GUSTS) whatever its trend,
-    where under noise a trend that ends far outside the band never settled."""
+def test_with_gusts_a_late_crossing_is_noise_limited_when_the_twin_settled_and_never_settled_when_not():
+    """Dryden gusts last longer than a run's last tenth, so a line through it follows a gust: under
+    turbulence (Disturbance.GUSTS) a late crossing, or an error outside its band at the end, is read against
+    the run's twin, the same case without its random disturbances: noise-limited when the twin settled that
+    state, else never settled (no settling time, not noise-limited), whatever the error's trend; a crossing
+    before the last tenth keeps its time. Without the twin's verdict a turbulent run is refused."""
+    band = 0.02
+    for trend, spread in ((0.05, 1e-4), (0.0, 1e-4), (0.019, 0.0)):  # far outside, well inside, on the edge
+        assert metrics.read_settling(None, 10.0, trend, spread, band, gusts=True, twin_settled=True) == (None, True)
+        assert metrics.read_settling(None, 10.0, trend, spread, band, gusts=True, twin_settled=False) == (None, False)
+        assert metrics.read_settling(9.5, 10.0, trend, spread, band, gusts=True, twin_settled=True) == (None, True)
+        assert metrics.read_settling(9.5, 10.0, trend, spread, band, gusts=True, twin_settled=False) == (None, False)
+        assert metrics.read_settling(8.0, 10.0, trend, spread, band, gusts=True, twin_settled=False) == (8.0, False)
+    assert metrics.read_settling(9.5, 10.0, 0.0, 1e-4, band) == (9.5, False)  # noise: on its way in, it keeps it
+    with pytest.raises(ValueError, match=r"turbulence \(gusts\) is read against its twin.*pass twin_settled"):
+        metrics.noise_limited(None, 10.0, 0.05, 1e-4, band, gusts=True)
     t = np.linspace(0.0, 10.0, 10_001)
     e = np.exp(-t / 3.0)  # ends at 3.6 % of its largest, coming down: outside its 2 % band
+    gusts = metrics.Disturbance.GUSTS
     assert not metrics.limited_by_noise(t, e, None)
-    assert metrics.limited_by_noise(t, e, None, metrics.Disturbance.GUSTS)
-    assert metrics.settling_time(t, e, noisy=metrics.Disturbance.GUSTS) is None
-    assert _batched(t, e, noisy=metrics.Disturbance.GUSTS)["noise_limited"] == ["pD"]
-    assert _batched(t, e, noisy=True)["noise_limited"] == []
+    for twin, limited in (({"pD": 1.2}, True), ({"pD": None}, False), ({}, False)):
+        assert metrics.limited_by_noise(t, e, None, gusts, twin_settled=twin.get("pD") is not None) is limited
+        assert metrics.settling_time(t, e, noisy=gusts, twin_settled=limited) is None
+        summary = metrics.summarize(_Run(t, e), np.zeros(N_INPUTS), np.zeros((N_STATES, N_STATES)),
+                                    np.zeros((N_INPUTS, N_INPUTS)), ("pD",), noisy=gusts, twin=twin)
+        batched = _batched(t, e, noisy=gusts, twin=twin)
+        assert summary["noise_limited"] == batched["noise_limited"] == (["pD"] if limited else [])
+        assert summary["settling_time"]["pD"] is batched["settling_time"]["pD"] is None
+    with pytest.raises(ValueError, match=r"runs \[0\] have turbulence and no twin"):
+        _batched(t, e, noisy=gusts)
+
+
+def _gusty(t, seed, scale):
+    """A gust-like disturbance: white noise through a first-order lag of 2 s (longer than a 10 s run's
+    last tenth, as Dryden's are), scaled to a standard deviation of ``scale``."""
+    dt = t[1] - t[0]
+    white = np.random.default_rng(seed).normal(0.0, 1.0, t.size)
+    a = math.exp(-dt / 2.0)
+    g = np.empty_like(white)
+    g[0] = white[0]
+    for k in range(1, t.size):
+        g[k] = a * g[k - 1] + math.sqrt(1 - a * a) * white[k]
+    return scale * g
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+@pytest.mark.parametrize("tau_in_runs, twin_settles", [(0.03, True), (0.5, False)])
+def test_under_gusts_a_mode_whose_twin_does_not_settle_never_settled_and_one_whose_twin_does_is_noise_limited(
+        seed, tau_in_runs, twin_settles):
+    """``e = exp(-t / tau) + g``, ``g`` gust-like (:func:`_gusty`, five bands), over a 10 s run; its twin is
+    ``exp(-t / tau)`` alone, which settles at ``tau ln 50`` (closed form) when that lies within the run:
+    ``tau`` = 0.3 s does (1.17 s), ``tau`` = 5 s does not (19.6 s; it ends at ``exp(-2)`` = 13.5 % of its
+    start, outside its 2 % band). The gusts keep ``e`` crossing its band to the end with every seed, so under
+    turbulence the fast mode reads noise-limited and the slow one never settled, whatever the seed, in the
+    one-run and batched metrics alike (under the rule without the twin both read noise-limited)."""
+    T, dt = 10.0, 1e-3
+    t = np.arange(0.0, T + dt / 2, dt)
+    tau = tau_in_runs * T
+    twin_e = np.exp(-t / tau)
+    reference = tau * math.log(1 / metrics.SETTLING_BAND)
+    assert (reference < T) == twin_settles
+    twin_time = metrics.settling_time(t, twin_e)
+    if twin_settles:
+        assert reference <= twin_time < reference + dt
+    else:
+        assert twin_time is None
+    e = twin_e + _gusty(t, seed, 5 * metrics.SETTLING_BAND)
+    raw = metrics.settling_time(t, e)
+    assert raw is None or raw > (1 - metrics.NOISE_TAIL) * T  # the gusts keep it crossing late
+    twin = {"pD": twin_time}
+    summary = metrics.summarize(_Run(t, e), np.zeros(N_INPUTS), np.zeros((N_STATES, N_STATES)),
+                                np.zeros((N_INPUTS, N_INPUTS)), ("pD",), noisy=metrics.Disturbance.GUSTS, twin=twin)
+    batched = _batched(t, e, noisy=metrics.Disturbance.GUSTS, twin=twin)
+    for got in (summary, batched):
+        assert got["settling_time"]["pD"] is None
+        assert got["noise_limited"] == (["pD"] if twin_settles else [])
 
 
 def test_a_turbulent_run_reads_the_same_noise_limited_states_whatever_its_seed():
     """crazyflie-wind (turbulence): which states read noise-limited does not depend on the turbulence's
     seed (a line through the last tenth, following a gust, read p noise-limited with seed 2 and never
-    settled with seed 1)."""
+    settled with seed 1): they are the late ones whose twin, the run without turbulence, settled. p's twin
+    is still outside its band at the end (the gust at 5 s, and the roll loop's slow mode): p never settled."""
     from quadctl import config, pipeline
     from quadctl.config import overrides
     from quadctl.setup import setup_of
@@ -211,6 +278,42 @@ def test_a_turbulent_run_reads_the_same_noise_limited_states_whatever_its_seed()
         stages = pipeline.Stages(setup_of(cfg))
         assert pipeline.noisy(stages.setup) == metrics.Disturbance.GUSTS
         sim = pipeline.simulation_of(stages.setup, stages.loop)
+        twin = pipeline.twin_settling(stages.setup, stages.loop)
         found.append(metrics.summarize(sim, stages.linear.u_trim, stages.setup.Q_block, stages.setup.R_block,
-                                       stages.setup.regulated, noisy=pipeline.noisy(stages.setup))["noise_limited"])
-    assert found[0] == found[1] and "p" in found[0]
+                                       stages.setup.regulated, noisy=pipeline.noisy(stages.setup),
+                                       twin=twin)["noise_limited"])
+    settled = [name for name in stages.setup.regulated if twin[name] is not None]
+    assert found[0] == found[1] and sorted(found[0]) == sorted(settled) and "q" in found[0]
+    assert twin["p"] is None and "p" not in found[0]
+
+
+@pytest.mark.parametrize("altitude, twin_settles", [({"Q": [100, 1], "R": [1]}, True),
+                                                     ({"Q": [4, 4], "R": [1e6]}, False)])
+def test_a_turbulent_loop_whose_slowest_mode_outlasts_the_run_never_settled_whatever_the_seed(
+        altitude, twin_settles):
+    """crazyflie-wind, 0.3 m below its altitude for 5 s, in its turbulence, with a fast altitude loop (slowest
+    pole -10.2 /s: ``ln 50 / 10.2`` = 0.38 s to its band) or one so slow (poles -0.21 +- 0.16j /s: 18.8 s)
+    that its twin, the run without turbulence, is still outside pD's band at the end. Under turbulence the
+    slow loop's pD never settled, and the fast loop's is noise-limited, with every seed: the design's own
+    eigenvalues say which (a margin of 3 on either side of the run's length)."""
+    from quadctl import config, pipeline
+    from quadctl.config import overrides
+    from quadctl.setup import setup_of
+
+    duration = 5.0
+    for seed in (1, 2, 3):
+        cfg = overrides.load(config.locate("crazyflie-wind"), [
+            f"simulation.wind.turbulence.seed={seed}", f"lqr.altitude.Q={altitude['Q']}",
+            f"lqr.altitude.R={altitude['R']}", "simulation.initial_offset={pD: 0.3}",
+            f"simulation.duration={duration}"])
+        stages = pipeline.Stages(setup_of(cfg))
+        (poles,) = [sub.eigenvalues for sub in stages.design.subsystems if sub.name == "altitude"]
+        to_band = math.log(1 / metrics.SETTLING_BAND) / -poles.real.max()  # the slowest mode's time to its band
+        assert (to_band < duration / 3) if twin_settles else (to_band > 3 * duration)
+        twin = pipeline.twin_settling(stages.setup, stages.loop)
+        assert (twin["pD"] is not None) == twin_settles
+        sim = pipeline.simulation_of(stages.setup, stages.loop)
+        summary = metrics.summarize(sim, stages.linear.u_trim, stages.setup.Q_block, stages.setup.R_block,
+                                    stages.setup.regulated, noisy=pipeline.noisy(stages.setup), twin=twin)
+        assert summary["settling_time"]["pD"] is None
+        assert ("pD" in summary["noise_limited"]) == twin_settles, seed

@@ -990,6 +990,35 @@ def test_a_noisy_sweep_s_lanes_give_the_one_case_rows_with_their_noise_limited_s
     assert "noise_limited" not in fast.columns  # sweep.csv keeps its columns
 
 
+@pytest.mark.compiler
+def test_a_turbulent_sweep_reads_each_case_against_its_twin_in_the_lanes_as_one_by_one():
+    """crazyflie-wind's turbulence, 5 s from 0.3 m below, a fast altitude loop and one so slow its run
+    without turbulence (its twin) is still outside pD's band at the end, two turbulence seeds: the lanes'
+    rows are the one-by-one path's; each case's noise-limited states are the late ones its twin settled
+    (pD: the fast loop's, never the slow one's), the same with either seed; the cases of one loop share
+    one twin (the lanes step four cases' and two twins' runs)."""
+    from quadctl.config import overrides
+
+    cfg = overrides.load(config.bundled("crazyflie-wind"), ["simulation.duration=5",
+                                                            "simulation.initial_offset={pD: 0.3}"])
+    spec = sweep.from_dict({"parameters": {"lqr.altitude.R[0]": [1.0, 1.0e6],
+                                           "simulation.wind.turbulence.seed": [1, 2]},
+                            "set": {"lqr.altitude.Q": [100.0, 1.0]}}, cfg, "turbulent.yaml")
+    fast = sweep.run(cfg, spec, jobs=1)
+    slow = sweep.run(cfg, spec, jobs=1, fast=False)
+    assert {r["path"] for r in fast.rows} == {"batched"} and {r["status"] for r in fast.rows} == {"ok"}
+    worst, where = max_rel_diff(fast.rows, slow.rows)
+    assert worst < MATCH_RTOL, f"Max diff is {worst:.4E} at {where}"
+    steps = fast.rows[0]["steps"]
+    assert fast.stats["steps"] == (4 + 2) * steps and slow.stats["steps"] == (4 + 4) * steps
+    by_loop = {}
+    for row in fast.rows:
+        by_loop.setdefault(row["lqr.altitude.R[0]"], []).append(row["noise_limited"])
+        assert row["settling_time.pD"] is None
+    assert by_loop[1.0][0] == by_loop[1.0][1] and "pD" in by_loop[1.0][0]
+    assert by_loop[1.0e6][0] == by_loop[1.0e6][1] and "pD" not in by_loop[1.0e6][0]
+
+
 def test_sweep_run_names_what_it_takes_when_given_something_else():
     """A name where the config goes, or the sweep's mapping where its spec goes: one TypeError saying what to
     pass, not an AttributeError from inside."""
