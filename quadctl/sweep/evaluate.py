@@ -5,8 +5,10 @@ designs of the whole chunk in batched Riccati solves (continuous, or discrete at
 rate with the ``lqrd`` weights), residual-checked, a case whose solve misses the check designed
 again one by one (which names the reason); the coupled verdicts stacked; the simulations in the
 SIMD lanes of :mod:`quadctl.sim`, :data:`~quadctl.sim.engine.LANES` cases per call, with the
-rate and hold, motors and saturation, integrators and noise of each case. Each row says which
-path it took (``path``). Rows equal the one-by-one path's (``tests/sweep/test_sweep.py``).
+rate and hold, motors and saturation, integrators and noise of each case; a case with turbulence
+reads its late settling against its twin (:func:`quadctl.pipeline.twin_of`), flown in the lanes too.
+Each row says which path it took (``path``). Rows equal the one-by-one path's
+(``tests/sweep/test_sweep.py``).
 """
 
 from __future__ import annotations
