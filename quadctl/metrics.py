@@ -286,6 +286,7 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIE
     err = sim.x - sim.x_ref
     du = sim.u - np.asarray(u_trim)
     out: dict = {"settling_time": {}, "overshoot": {}, "peak_error": {}, "final_error": {}, "noise_limited": []}
+    by_twin = twins_settled(twin, STATE_NAMES, [int(noisy)])
     for i, name in enumerate(STATE_NAMES):
         out["peak_error"][name] = float(np.abs(err[:, i]).max())
         out["final_error"][name] = float(err[-1, i])
@@ -293,7 +294,7 @@ def summarize(sim, u_trim, Q, R, regulated_states, noisy: int = Disturbance.QUIE
             settled = _settled(sim.t, err[:, i]) if sim.status == "ok" else None
             if sim.status == "ok" and noisy:
                 settled, limited = disturbed_settling(sim.t, err[:, i], settled, noisy,
-                                                      None if twin is None else twin.get(name) is not None)
+                                                      None if by_twin is None else bool(by_twin[0, i]))
                 if limited:
                     out["noise_limited"].append(name)
             out["settling_time"][name] = settled
