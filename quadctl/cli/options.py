@@ -120,7 +120,7 @@ def load_source(config: str | None, sets=None, *, plausible: bool = True):
     """
     from quadctl import config as config_mod
     from quadctl.cli.errors import remember_config
-    from quadctl.config import notices, overrides
+    from quadctl.config import overrides
 
     source = config_mod.locate(config)
     if source.note:
@@ -128,12 +128,21 @@ def load_source(config: str | None, sets=None, *, plausible: bool = True):
     cfg = overrides.load(source, sets or ())
     label = label_of(source, sets)
     remember_config(label)
+    noticed(cfg, label, plausible=plausible)
+    return cfg, source._replace(text=overrides.recorded(source.text, sets or ()))
+
+
+def noticed(cfg, label: str, *, plausible: bool = True) -> None:
+    """Print the config's notes and warnings on stderr, one line each (:func:`quadctl.config.notices.notices`);
+    with ``plausible``, a warning (a likely unit slip) then stops the command with exit 1, unless the config
+    says ``allow: [implausible]`` (:func:`quadctl.config.notices.require_plausible`)."""
+    from quadctl.config import notices
+
     found = notices.notices(cfg, label)
     for notice in found:
         (_render().note if notice.level == "note" else _render().warning)(notice.message)
     if plausible:
         notices.require_plausible(cfg, found, label)
-    return cfg, source._replace(text=overrides.recorded(source.text, sets or ()))
 
 
 def _render():

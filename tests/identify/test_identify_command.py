@@ -280,6 +280,19 @@ def test_a_bad_set_is_refused_in_one_line_naming_it_and_nothing_is_written(tmp_p
     assert not (tmp_path / "o").exists()
 
 
+def test_a_mass_in_grams_stops_identify_before_the_fit_as_it_stops_design(tmp_path):
+    """The fit's thrust is the mass times the measured acceleration: 30 (grams typed as kg) made a thrust curve
+    a thousand times too large, 154 N a rotor, written with exit 0. The config's unit-slip check runs as on every
+    command that computes: its warnings, exit 1, and nothing written."""
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), "-c", "crazyflie", "--window", "8.67:38.67",
+                                   "--set", "vehicle.mass=30", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 1, res.output
+    assert "is vehicle.mass in grams? 30 g is 0.03 kg" in res.stderr
+    assert res.stderr.strip().splitlines()[-1].startswith(
+        "quadctl: check failed: crazyflie.yaml with --set: vehicle.mass implausible")
+    assert not (tmp_path / "o").exists()
+
+
 def _at(tree: dict, keys: list):
     for key in keys:
         tree = tree[key]

@@ -3,7 +3,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from quadctl.cli.options import JsonOpt, force_option, out_folder, set_option
+from quadctl.cli.options import JsonOpt, force_option, label_of, noticed, out_folder, set_option
 
 NAME = "identify"
 
@@ -56,6 +56,9 @@ def command(logs: Annotated[list[str], typer.Argument(
         raise ConfigError(shown.config_needed())
     source = locate(config)
     cfg = overrides.load(source, sets or ())
+    # the fit takes the config's mass (and its rotor positions): a unit slip there (grams, mm) is a thrust curve
+    # and an inertia off by as much, so it stops identify as it stops every command that computes
+    noticed(cfg, label_of(source, sets))
     folder = out or Path("runs") / f"{cfg.name}-identified"
     results.require_unedited(folder, force)  # before the fit, and before the folder is touched
     read = [readers.read_log(p, readers.parse_columns(columns)) for p in logs]
