@@ -71,6 +71,7 @@ def locked(folder: Path | str):
             if key in _held:  # holders may be released in any order (a workspace closed at exit)
                 _held[key] -= 1
         return
+    made = _missing(folder)  # the folders the hold makes: those still empty when it ends go again
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -99,6 +100,28 @@ def locked(folder: Path | str):
         _held.pop(key, None)
         _marked.discard(key)
         release()
+        _remove_made(made)
+
+
+def _missing(folder: Path) -> list[Path]:
+    """``folder`` and its ancestors that do not exist yet, deepest first: what ``mkdir(parents=True)`` makes."""
+    made = []
+    for path in (folder, *folder.parents):
+        if os.path.lexists(path):
+            break
+        made.append(path)
+    return made
+
+
+def _remove_made(made: list[Path]) -> None:
+    """Remove the folders a hold made (:func:`_missing`), deepest first, while each is empty: a command that
+    stopped before writing (a refusal, Ctrl-C) leaves no empty run directory behind, and a folder with anything
+    in it (this run's artifacts, another process's lock) stays."""
+    for path in made:
+        try:
+            path.rmdir()
+        except OSError:
+            return
 
 
 def claim(folder: Path) -> bool:

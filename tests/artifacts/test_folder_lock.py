@@ -165,3 +165,22 @@ def test_a_lock_taken_on_a_file_its_holder_removed_meanwhile_is_taken_again_on_t
                                text=True, timeout=60)
         assert probe.returncode != 0 and f"pid {os.getpid()}" in probe.stderr  # the path's file is ours
     assert len([op for op in calls if op & lock.fcntl.LOCK_EX]) == 2  # taken again on the new file
+
+
+def test_a_hold_that_ends_with_nothing_written_leaves_no_folder_it_made(tmp_path):
+    """A command refused after it took its run folder (compare of a config without rotors) left the folder it
+    made, empty, with its parents: the folders a hold makes go again while empty; one that was there, or one
+    with a file in it, stays."""
+    new = tmp_path / "runs" / "new"
+    with pytest.raises(RuntimeError, match="refused"), artifacts.locked(new):
+        assert new.is_dir()
+        raise RuntimeError("refused")
+    assert not (tmp_path / "runs").exists()
+    with artifacts.locked(new):
+        (new / "mine.txt").write_text("kept")
+    assert (new / "mine.txt").read_text() == "kept"
+    there = tmp_path / "there"
+    there.mkdir()
+    with artifacts.locked(there):
+        pass
+    assert there.is_dir()

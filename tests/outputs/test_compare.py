@@ -136,6 +136,13 @@ def test_compare_refuses_a_cascade_without_rotors_in_one_line_before_any_run(tmp
     assert flies.exit_code == 2 and f"{NEEDS_ROTORS}, or fly lqr" in flies.output
 
 
+def test_a_refused_compare_leaves_no_empty_run_folder_behind(tmp_path):
+    """compare took its run folder before it refused a cascade without rotors: runs/x stayed, empty."""
+    res = CliRunner().invoke(app, ["compare", "-c", "hover", "--law", "pid:crazyflie", "-o", str(tmp_path / "x" / "y")])
+    assert res.exit_code == 2, res.output
+    assert not (tmp_path / "x").exists()
+
+
 def test_compare_of_the_lqr_design_alone_flies_without_rotors_and_says_nothing_of_cascades(tmp_path):
     """hover (no motors:, a continuous design) with --law lqr: the rotors' metrics '-' (None in compare.json),
     no rotor-use figure, the infinite gain margin shown as such, no word of a PID cascade."""
