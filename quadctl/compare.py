@@ -25,6 +25,7 @@ from quadctl.design import Design, coupled
 from quadctl.design.margins import least_margins
 from quadctl.errors import ArgumentError, ConfigError
 from quadctl.layout import INPUT_NAMES, STATE_INDEX
+from quadctl.linear.filters import Section
 from quadctl.linear.linearize import LinearModel
 from quadctl.metrics import (
     NOISE_LIMITED_WORDS,
@@ -296,12 +297,27 @@ def payload(comparison: Comparison) -> dict:
         "config": comparison.config, "duration": comparison.duration,
         "units": {name: unit for name, unit, _ in METRICS} | {"duration": "s", "exo_period": "s", "rate": "Hz"},
         "meaning": {name: meaning for name, _, meaning in METRICS} | {"closed_loop_stable": CLOSED_LOOP_STABLE,
-                                                                       "settling_noise_limited": NOISE_LIMITED},
+                                                                       "settling_noise_limited": NOISE_LIMITED,
+                                                                       "gyro_filter": GYRO_FILTER},
         "exo_period": comparison.exo_period, "noise_seed": comparison.noise_seed, "wind_seed": comparison.wind_seed,
         "identical_disturbances": comparison.identical_disturbances,
         "laws": [{"name": law.name, "title": law.title, "rate": law.rate, "disturbances": law.disturbances,
-                  **law.metrics, "margins": [m.as_dict() for m in law.margins]} for law in comparison.laws],
+                  "gyro_filter": gyro_filter_of(law.loop), **law.metrics,
+                  "margins": [m.as_dict() for m in law.margins]} for law in comparison.laws],
     }
+
+
+GYRO_FILTER = ("the filters the law reads the body rates through (the LQR design: controller.filters; a PID "
+               "cascade: its stack's gyro low-pass, gyro_lpf_hz); None: raw rates")
+"""compare.json's meaning of a law's ``gyro_filter``."""
+
+
+def gyro_filter_of(loop: ClosedLoop) -> str | None:
+    """The filters ``loop``'s law reads the body rates through, in words (:data:`GYRO_FILTER`); None: raw rates."""
+    if loop.law is not None:  # a PID cascade: its stack's low-pass
+        hz = float(loop.law["gyro_lpf_hz"])
+        return Section("lowpass", hz, 2).describe() if hz > 0 else None
+    return loop.rate_filter.describe() if loop.rate_filter is not None else None
 
 
 def compare_full(setup: Setup, linear: LinearModel, des: Design):

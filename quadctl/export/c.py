@@ -45,7 +45,7 @@ FLT_EPSILON = 2.0 ** -23
 TEMPLATES = "export/templates"
 
 
-def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
+def sources(exp: Export, reference: bool | None = None, gyro_filtered_by: str | None = None) -> dict[str, str]:
     """The C files of the exported controller: ``{file name: text}``.
 
     Parameters
@@ -56,6 +56,11 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
         Write the controller that takes the reference at each sample (``quadctl_step_ref``);
         None: when the config flies one (``simulation.reference``). A flight stack whose commander
         gives the setpoints wants it for any config.
+    gyro_filtered_by : str, optional
+        Who runs the config's gyro filter (``controller.filters``) before the law sees the rates: a flight
+        stack whose sensor driver low-passes the gyro for every controller (the Crazyflie's). The filter is
+        then the vehicle's, as the rotors' lag and the delay are: the C leaves it out, and its header says
+        whose it is. None: the C runs it on the raw rates, as the simulation does.
 
     Returns
     -------
@@ -84,6 +89,13 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
     if loop.rotor_time_constant is not None:  # the rotors' lag is the vehicle's, not the law's: no rotor states
         act = loop.actuators
         loop = replace(loop, actuators=replace(act, motors=replace(act.motors, time_constant=None)))
+    if gyro_filtered_by is not None and loop.rate_filter is not None:  # the vehicle's too: filtered once
+        if kal is not None:
+            raise ValueError("a gyro filter the flight stack runs: the C's Kalman filter models it as the law's")
+        upstream = f"{loop.rate_filter.describe()}, {gyro_filtered_by}"
+        loop = replace(loop, rate_filter=None)
+    else:
+        upstream = None
     delay = loop.delay_samples
     if kal is None:  # so is the delay: the vehicle's computer and bus add it
         loop = replace(loop, delay_samples=0)
@@ -165,7 +177,7 @@ def sources(exp: Export, reference: bool | None = None) -> dict[str, str]:
                       "starts */\n" if ng else ""),
         "GYRO_LOAD": "  for (i = 0; i < QUADCTL_NG; ++i) X[QC_X_G + i] = c->g[i];\n" if ng else "",
         "GYRO_STORE": "  for (i = 0; i < QUADCTL_NG; ++i) c->g[i] = X_sampled[QC_X_G + i];\n" if ng else "",
-        "GYRO_DOC": gyro_doc(loop, Ts),
+        "GYRO_DOC": gyro_doc(loop, Ts, upstream),
         "NE": str(spec.n_estimate or N_STATES),
         "ESTIMATE_MEMBER": ("  quadctl_real xh[QUADCTL_NE];  /* the filter's a priori estimate of x - x_ref(t) for "
                             "this sample (state units)" + (", then of the gyro filter's states g" if ng else "")

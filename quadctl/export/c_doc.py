@@ -104,8 +104,14 @@ def filter_doc(loop, step: str, reference: bool = False) -> str:
     return "\n".join(" *   " + line for line in lines)
 
 
-def gyro_doc(loop, Ts: float) -> str:
-    """The header's paragraph on the gyro filter (controller.filters): what the law does to the rates."""
+def gyro_doc(loop, Ts: float, upstream: str | None = None) -> str:
+    """The header's paragraph on the gyro filter (controller.filters): what the law does to the rates;
+    ``upstream``, the config's filter and who runs it before the law (the flight stack's sensor driver)."""
+    if upstream is not None:
+        return doc_lines([f"The config's gyro filter (controller.filters: {upstream}) is the vehicle's: the "
+                          "simulation and the margins have it in the loop, and the flight stack runs it before the "
+                          "law. The law takes the rates p, q, r as the stack gives them, filtered; it does not "
+                          "filter them again."])
     if loop.rate_filter is None:
         return doc_lines([
             "No gyro filter was configured (controller.filters): the law takes the measured rates p, q, r",

@@ -50,6 +50,19 @@ class Platform:
     arm_length: float
     max_thrust: float
     torque_coefficient: float
+    gyro_cutoff: float = 80.0
+    gyro_order: int = 2
+    gyro_source: str = "src/hal/src/sensors_bmi088_bmp3xx.c GYRO_LPF_CUTOFF_FREQ"
+
+    def gyro_lowpass(self) -> str:
+        """The sensor driver's gyro low-pass in words, as :meth:`quadctl.linear.filters.RateFilter.describe` has it."""
+        from quadctl.linear.filters import Section
+
+        return Section("lowpass", self.gyro_cutoff, self.gyro_order).describe()
+
+    def gyro_filter(self) -> str:
+        """The sensor driver's low-pass of ``sensors->gyro``, as the config's ``controller.filters`` writes it."""
+        return f"controller.filters: {{gyro: {{cutoff: {self.gyro_cutoff:g}, order: {self.gyro_order}}}}}"
 
 
 FIRMWARE = Platform(
@@ -62,7 +75,10 @@ FIRMWARE = Platform(
     torque_coefficient=0.0069928948992470565,     # THRUST2TORQUE, m (N m per N)
 )
 """bitcraze/crazyflie-firmware at :attr:`Platform.commit` (2026-08-21), :attr:`Platform.source`:
-``CF_MASS``, ``ARM_LENGTH``, ``THRUST_MAX``, ``THRUST2TORQUE`` of the default (2.1+) propellers."""
+``CF_MASS``, ``ARM_LENGTH``, ``THRUST2TORQUE`` of the default (2.1+) propellers; and the second-order
+low-pass (``lpf2p``, at the 1 kHz sensor rate) the sensor driver runs on the gyro at ``GYRO_LPF_CUTOFF_FREQ``
+before it hands ``sensors->gyro`` to any controller, the app's too (the ``crazyflie`` PID preset's
+``gyro_lpf_hz``)."""
 
 FRAMES = (
     ("pN, pE, pD", "state->position x, y, z (m, world x forward, y left, z up)", "pN = x, pE = -y, pD = -z"),
@@ -181,6 +197,13 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
                 f"motors.numbering: rotors 1-4 are {', '.join(where)} spinning {turn}, not the Crazyflie's "
                 "motors M1-M4 (front_right, rear_right, rear_left, front_left spinning ccw, cw, ccw, cw): set "
                 "motors.layout: x and motors.numbering: crazyflie (and no motors.spin)")
+    filt = loop.rate_filter
+    if filt is not None and not firmware_gyro_filter(filt):
+        raise ConfigError(
+            f"controller.filters: {filt.describe()}, but the firmware's sensor driver low-passes the gyro itself "
+            f"({FIRMWARE.gyro_lowpass()}, {FIRMWARE.gyro_source}) before the app "
+            f"reads it, and the app flies that filter alone: set {FIRMWARE.gyro_filter()}, the filter the vehicle "
+            "has, or remove controller.filters")
     if loop.estimator is not None:
         raise ConfigError("estimator: the app takes the firmware's state estimate (its Kalman filter): remove "
                           "estimator: from the config to export the full-state law for the Crazyflie")
@@ -192,6 +215,26 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
         raise ConfigError(no_setpoint_flyable(free))
     if free[setpoint]:
         raise ConfigError(setpoint_refused(setpoint, free[setpoint], flyable_setpoints(exp)))
+
+
+def firmware_gyro_filter(filt) -> bool:
+    """Whether ``filt`` (:class:`quadctl.linear.filters.RateFilter`) is the firmware's sensor driver's gyro
+    low-pass (:attr:`Platform.gyro_cutoff`, :attr:`Platform.gyro_order`), alone."""
+    return (len(filt.sections) == 1 and filt.sections[0].kind == "lowpass"
+            and filt.sections[0].order == FIRMWARE.gyro_order
+            and abs(filt.sections[0].frequency - FIRMWARE.gyro_cutoff) <= 1e-9 * FIRMWARE.gyro_cutoff)
+
+
+def gyro_sentence(exp: Export) -> str | None:
+    """What the export says when the design reads raw rates, though the firmware filters the gyro the app reads:
+    the margins, the simulation and the comparison with the PID cascade have no filter the vehicle has."""
+    require_export(exp, "gyro_sentence")
+    if exp.loop.rate_filter is not None:
+        return None
+    return (f"the firmware low-passes the gyro ({FIRMWARE.gyro_lowpass()}, {FIRMWARE.gyro_source}) before the "
+            "app's law reads it, but the config has no controller.filters: its "
+            "margins, simulation and comparison read raw rates, which the vehicle does not have; set "
+            f"{FIRMWARE.gyro_filter()} to check the design behind the filter (the app leaves it to the firmware)")
 
 
 def law(exp: Export, setpoint: str) -> str:
@@ -248,7 +291,8 @@ def sources(exp: Export, setpoint: str | None = None, mode: str = "force") -> di
     setpoint = default_setpoint(exp) if setpoint is None else setpoint
     check(exp, setpoint, mode)
     loop = exp.loop
-    ctrl = c.sources(exp, reference=True)
+    ctrl = c.sources(exp, reference=True,  # the firmware filters the gyro the adapter reads: once (check)
+                     gyro_filtered_by=f"the firmware's sensor driver's ({FIRMWARE.gyro_source})")
     n = divider(exp.rate)
     x_trim = np.asarray(loop.x_trim, dtype=float)
     u_trim = np.asarray(loop.u_trim, dtype=float)

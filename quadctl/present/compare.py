@@ -6,6 +6,8 @@ which reads the file a ``quadctl compare`` left in the run folder, say the same.
 
 from __future__ import annotations
 
+import re
+
 from quadctl.artifacts.json_values import decode_floats
 from quadctl.compare import METRICS, parse_law
 from quadctl.metrics import NOISE_LIMITED_WORDS
@@ -66,6 +68,32 @@ def disturbance_sentence(data: dict) -> Mark:
         return Mark(f"Every law flew through the same disturbances ({what}; rows every "
                     f"{num(data['exo_period'])} s, one digest {data['laws'][0]['disturbances'][:12]}).", "ok")
     return Mark("The laws read different disturbance rows: the comparison is not like for like.", "fail")
+
+
+def gyro_filter_sentence(data: dict) -> Mark | None:
+    """A warning when a PID cascade reads the body rates through its stack's gyro low-pass and the LQR design
+    reads them raw (``compare.json``'s ``gyro_filter``): a stack's sensor driver filters the gyro for every
+    controller (the Crazyflie's, PX4's), so the LQR design's margins and run lack a lag the vehicle has, and
+    its margins read better than they are beside the cascade's. None: the laws read their rates alike."""
+    laws = data["laws"]
+    lqr = next((law for law in laws if law["name"] == "lqr"), None)
+    filtered = [law for law in laws if parse_law(law["name"])[0] == "pid" and law.get("gyro_filter")]
+    if lqr is None or "gyro_filter" not in lqr or lqr["gyro_filter"] or not filtered:
+        return None
+    which = "; ".join(f"{law['name']}: {law['gyro_filter']}" for law in filtered)
+    cascades = ("the PID cascade reads the body rates behind its flight stack's gyro low-pass" if len(filtered) == 1
+                else "the PID cascades read the body rates behind their flight stacks' gyro low-passes")
+    return Mark(f"Not like for like: {cascades} ({which}), which a stack's sensor driver runs for every controller, "
+                "and the LQR design reads "
+                "them raw (no controller.filters), so its margins and run lack that lag. Give the LQR design the "
+                f"stack's filter, --set controller.filters.gyro.cutoff={_cutoff(filtered[0]['gyro_filter'])}, "
+                "to compare them behind the same one.", "warning")
+
+
+def _cutoff(words: str) -> str:
+    """The cutoff (Hz) of a low-pass described as ``second-order low-pass at 80 Hz``
+    (:meth:`quadctl.linear.filters.Section.describe`)."""
+    return re.search(r"low-pass at (\S+) Hz", words).group(1)
 
 
 def free_position_sentence(regulated: tuple[str, ...], laws) -> str | None:

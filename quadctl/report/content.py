@@ -173,6 +173,9 @@ def comparison(ws) -> Section | None:
     if made_from != current:
         return Section("compare", "Laws side by side", (_text(words.stale_sentence(made_from, current)),))
     blocks = [words.table(data), _text(words.disturbance_sentence(data))]
+    gyro = words.gyro_filter_sentence(data)
+    if gyro is not None:
+        blocks.append(_text(gyro))
     free = words.free_position_sentence(ws.setup.regulated, [law["name"] for law in data["laws"]])
     if free:
         blocks.append(Text(free))

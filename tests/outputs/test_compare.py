@@ -254,3 +254,26 @@ def test_a_noisy_runs_late_settling_is_noise_limited_and_a_drift_is_never():
     law = {"name": "lqr", "rate": 500.0, "status": "ok", **noisy}
     rows = dict((row[0], row[1]) for row in words.table({"config": "c", "duration": 10.0, "laws": [law]}).rows)
     assert rows["settling [s]"] == "noise"
+
+
+def test_compare_says_when_the_cascade_reads_filtered_rates_and_the_lqr_design_raw_ones(tmp_path):
+    """The Crazyflie's cascade flies behind its sensor driver's 80 Hz gyro low-pass, which the firmware runs for
+    every controller; crazyflie's LQR design has no controller.filters, so its margins read better than the
+    vehicle gives them beside the cascade's. compare.json says what each law reads its rates through, and the
+    table is followed by the warning with the --set that compares them behind the same filter."""
+    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "-o", str(tmp_path / "raw")])
+    assert res.exit_code == 0, res.output
+    data = json.loads((tmp_path / "raw" / "compare.json").read_text())
+    assert [law["gyro_filter"] for law in data["laws"]] == [None, "second-order low-pass at 80 Hz"]
+    text = " ".join(res.output.split())
+    assert ("Not like for like: the PID cascade reads the body rates behind its flight stack's gyro low-pass "
+            "(pid:crazyflie: second-order low-pass at 80 Hz)") in text
+    assert "--set controller.filters.gyro.cutoff=80, to compare them behind the same one." in text
+    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "-o", str(tmp_path / "same"),
+                                   "--set", "controller.filters.gyro.cutoff=80"])
+    assert res.exit_code == 0, res.output
+    same = json.loads((tmp_path / "same" / "compare.json").read_text())
+    assert [law["gyro_filter"] for law in same["laws"]] == ["second-order low-pass at 80 Hz"] * 2
+    assert "Not like for like" not in res.output
+    # behind the filter the LQR design's least gain margin is what the vehicle has: lower than on raw rates
+    assert same["laws"][0]["gain_margin"] < data["laws"][0]["gain_margin"]

@@ -419,6 +419,11 @@ def test_the_test_firmware_view_agrees_with_the_hand_made_states(case):
     (["--set", "motors.numbering=px4", "--setpoint", "velocity"],
      r"^quadctl: error: motors.numbering: rotors 1-4 are front_right, rear_left, front_left, rear_right spinning "
      r"ccw, ccw, cw, cw, not the Crazyflie's motors M1-M4"),
+    (["--set", "controller.filters.gyro.cutoff=30"],  # the firmware's 80 Hz low-pass is the one the app flies
+     r"^quadctl: error: controller.filters: second-order low-pass at 30 Hz, but the firmware's sensor driver "
+     r"low-passes the gyro itself \(second-order low-pass at 80 Hz, src/hal/src/sensors_bmi088_bmp3xx.c "
+     r"GYRO_LPF_CUTOFF_FREQ\) before the app reads it, and the app flies that filter alone: set controller.filters: "
+     r"\{gyro: \{cutoff: 80, order: 2\}\}, the filter the vehicle has, or remove controller.filters$"),
 ])
 def test_an_app_the_adapter_cannot_serve_is_refused_with_one_line_and_nothing_written(tmp_path, args, message):
     out = tmp_path / "app"
@@ -445,6 +450,37 @@ def test_the_bundled_crazyflie_config_exports_with_no_setpoint_option(tmp_path):
     held = prepare(setup_of(config.load(str(crazyflie_config(tmp_path, **MISSION)))))
     assert crazyflie.flyable_setpoints(held) == ("position", "velocity")
     assert crazyflie.default_setpoint(held) == "position"
+
+
+def test_the_firmwares_gyro_filter_in_the_config_is_left_to_the_firmware_not_run_twice(tmp_path):
+    """The adapter reads sensors->gyro, which the firmware's sensor driver has low-passed at 80 Hz for every
+    controller. A config that models that filter (controller.filters, so that its margins and simulation have
+    it) exported an app whose C filtered the rates a second time: the app now leaves it to the firmware, and its
+    header says so; the plain C export still runs it on the raw rates."""
+    sets = ["--set", "controller.filters.gyro.cutoff=80", "--set", "controller.filters.gyro.order=2"]
+    export_app(Path("crazyflie"), tmp_path / "app", *sets)
+    header = (tmp_path / "app" / "src" / "quadctl_controller.h").read_text()
+    assert "#define QUADCTL_NG 0 " in header
+    assert re.sub(r"\s*\n \*\s*", " ", header).count(
+        "The config's gyro filter (controller.filters: second-order low-pass at 80 Hz, the firmware's sensor "
+        "driver's (src/hal/src/sensors_bmi088_bmp3xx.c GYRO_LPF_CUTOFF_FREQ)) is the vehicle's") == 1
+    res = CliRunner().invoke(app, ["export", "--to", "c", "-c", "crazyflie", "-o", str(tmp_path / "c"), *sets])
+    assert res.exit_code == 0, res.output
+    assert "#define QUADCTL_NG 6 " in (tmp_path / "c" / "quadctl_controller.h").read_text()
+
+
+def test_an_app_of_a_design_on_raw_rates_says_the_firmware_filters_them(tmp_path):
+    """crazyflie has no controller.filters: its margins and simulation read raw rates the vehicle does not give
+    the app, and the export says so, naming the filter to set."""
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "-o", str(tmp_path / "app")])
+    assert res.exit_code == 0, res.output
+    assert ("quadctl: note: the firmware low-passes the gyro (second-order low-pass at 80 Hz, "
+            "src/hal/src/sensors_bmi088_bmp3xx.c GYRO_LPF_CUTOFF_FREQ) before the app's law reads it, but the config "
+            "has no controller.filters") in res.stderr
+    assert "set controller.filters: {gyro: {cutoff: 80, order: 2}}" in res.stderr
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "-o", str(tmp_path / "f"),
+                                   "--set", "controller.filters.gyro.cutoff=80"])
+    assert res.exit_code == 0 and "low-passes the gyro" not in res.stderr, res.output
 
 
 def test_a_setpoint_no_partition_follows_is_refused_naming_only_what_to_regulate():

@@ -59,7 +59,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
         return
     from quadctl.present import compare as words
 
-    render.show(words.table(data), words.disturbance_sentence(data),
+    render.show(words.table(data), words.disturbance_sentence(data), words.gyro_filter_sentence(data),
                 words.free_position_sentence(ws.setup.regulated, names))
     render.out.print(f"-> {path}")
     for fig_path in figures:
