@@ -239,8 +239,10 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
         raise _fail(path, f"data line {bad + 1} is not {len(header)} numbers", "repair or remove that line") from None
     values = values.reshape(-1, len(CSV_COLUMNS))
     _check_gravity(path, values[:, 3])
-    return _checked(path, values[:, 0], values[:, 1:4], values[:, 4:7], values[:, 7:11], "csv",
-                    hashlib.sha256(raw).hexdigest(), ("as written: s, m/s^2 and rad/s in FRD, commands in [0, 1]",))
+    log = _checked(path, values[:, 0], values[:, 1:4], values[:, 4:7], values[:, 7:11], "csv",
+                   hashlib.sha256(raw).hexdigest(), ("as written: s, m/s^2 and rad/s in FRD, commands in [0, 1]",))
+    _check_time_unit(path, log.t)
+    return log
 
 
 def _check_gravity(path, acc_z) -> None:
@@ -258,6 +260,28 @@ def _check_gravity(path, acc_z) -> None:
     if median > 4.9:
         raise _fail(path, f"acc_z reads {median:.3g} m/s^2 at its median, about +g: its z axis points up (FLU), "
                     "not down", to_frd)
+
+
+def _check_time_unit(path, t) -> None:
+    """Refuse a CSV whose ``t`` steps, at its median, by more than a dropped sensor's gap
+    (:data:`quadctl.identify.windows.SENSOR_GAP`): every sample would be a gap. A flight log's IMU is sampled
+    at 100 Hz or more, so such a ``t`` is in ms or µs, not s; the fit read it as a dropped sensor."""
+    from quadctl.identify.windows import SENSOR_GAP
+
+    steps = np.diff(t)
+    if steps.size == 0 or not np.all(np.isfinite(steps)):
+        return
+    step = float(np.median(steps))
+    if step <= SENSOR_GAP:
+        return
+    if step < 0.5:  # 2 to 50 samples a second: a coarse log in s, not another unit (a 1 kHz IMU in ms steps by 1)
+        raise _fail(path, f"t steps by {step:.3g} s at its median, {1 / step:.3g} samples a second: every step is "
+                          f"longer than a dropped sensor's gap ({SENSOR_GAP * 1e3:g} ms), too coarse to resolve the "
+                          "rotors' lag", "give the log at the rate its IMU samples (100 Hz or more)")
+    unit, factor = ("µs", "1e6") if step > 20.0 else ("ms", "1000")
+    raise _fail(path, f"t steps by {step:.3g} at its median, {1 / step:.3g} samples a second if t is in s, where a "
+                      f"flight log's IMU gives 100 or more: t looks in {unit}",
+                f"divide t by {factor} (the CSV's t is in s)")
 
 
 def _numeric_row(row, indices) -> bool:

@@ -134,6 +134,25 @@ def test_bad_csv_refused(tmp_path, text, match):
         read_log(path)
 
 
+@pytest.mark.parametrize("factor, match", [
+    (1e3, r"x.csv: t steps by 0.989 at its median, 1.01 samples a second if t is in s, where a flight log's IMU "
+          r"gives 100 or more: t looks in ms; divide t by 1000 \(the CSV's t is in s\)$"),
+    (1e6, r"x.csv: t steps by 989 at its median, .*: t looks in µs; divide t by 1e6"),
+    (50.0, r"x.csv: t steps by 0.0495 s at its median, 20.2 samples a second: every step is longer than a dropped "
+           r"sensor's gap \(20 ms\), too coarse to resolve the rotors' lag; give the log at the rate its IMU samples"),
+])
+def test_a_csv_time_in_ms_or_too_coarse_is_refused_with_the_unit(tmp_path, log10, factor, match):
+    """A CSV's t in ms (a 1 kHz log stepping by 1) read as s made every sample a dropped sensor: identify said
+    "no samples for 5.98e+03 ms at t = 4.222e+04 s (a dropped sensor)" and blamed the excitation."""
+    path = tmp_path / "x.csv"
+    log10.to_csv(path)
+    data = np.loadtxt(path, delimiter=",", skiprows=1)
+    data[:, 0] *= factor
+    np.savetxt(path, data, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.17g")
+    with pytest.raises(LogError, match=match):
+        read_log(path)
+
+
 @pytest.mark.parametrize("scale, flip, match", [
     (1 / 9.80665, 1, r"x.csv: acc_z reads -0.99 at its median, about -1: the accelerometer in g, not m/s\^2; multiply"),
     (1 / 9.80665, -1, r"about \+1: the accelerometer in g.*and negate acc_y, acc_z, gyro_q and gyro_r for FRD"),
