@@ -217,7 +217,7 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
         raise LogError(f"--columns names {', '.join(unknown)}, not a column of the CSV format; "
                        f"map these: {', '.join(CSV_COLUMNS)}")
     raw = Path(path).read_bytes()
-    lines = [line for line in raw.decode("utf-8", errors="replace").splitlines()
+    lines = [line for line in raw.decode("utf-8-sig", errors="replace").splitlines()  # a BOM: Excel's "CSV UTF-8"
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
         raise _fail(path, "an empty CSV", f"write a header line with {', '.join(CSV_COLUMNS)} and the samples")

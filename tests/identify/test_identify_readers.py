@@ -73,6 +73,18 @@ def test_csv_written_from_the_binary_log_reads_back_the_same(tmp_path, log10):
         np.testing.assert_array_equal(getattr(back, name), getattr(log10, name))
 
 
+def test_a_csv_saved_by_a_spreadsheet_with_a_byte_order_mark_and_crlf_reads_the_same(tmp_path, log10):
+    """Excel's "CSV UTF-8" opens with a byte order mark: the header's first name read as '\\ufefft', and the
+    log was refused, "no column 't' (the header has \\ufefft, ...)", with a --columns fix no one can type."""
+    plain = tmp_path / "plain.csv"
+    log10.to_csv(plain)
+    excel = tmp_path / "excel.csv"
+    excel.write_bytes(b"\xef\xbb\xbf" + plain.read_bytes().replace(b"\n", b"\r\n"))
+    back = read_log(excel)
+    for name in ("t", "acc", "gyro", "cmd"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(log10, name))
+
+
 def test_csv_columns_mapped(tmp_path):
     names = ["time", *CSV_COLUMNS[1:]]
     path = tmp_path / "renamed.csv"
