@@ -222,6 +222,10 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
     if not lines:
         raise _fail(path, "an empty CSV", f"write a header line with {', '.join(CSV_COLUMNS)} and the samples")
     header = [h.strip() for h in next(csv.reader(lines[:1]))]
+    other = next((sep for sep in (";", "\t") if len(header) == 1 and sep in lines[0]), None)
+    if other is not None:  # a spreadsheet's export where the comma is the decimal mark
+        raise _fail(path, f"its columns are separated by {'a semicolon' if other == ';' else 'tabs'}, not commas",
+                    "save it with commas between the values and a point as the decimal mark")
     where = {}
     for name in CSV_COLUMNS:
         given = columns.get(name, name)

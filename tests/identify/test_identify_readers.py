@@ -137,6 +137,9 @@ def test_crazyflie_log_without_the_motors_refused(tmp_path):
      r"x.csv: no column 'cmd_4' .*--columns cmd_4=YOUR_NAME"),
     (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0,x,0,0\n", r"x.csv: data line 2 is not"),
     (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n0,0,0,0,0,0,0,0,0,0,0\n", r"time does not increase at sample 2"),
+    (";".join(CSV_COLUMNS) + "\n0;0;0;0;0;0;0;0;0;0;0\n", r"^\S*x.csv: its columns are separated by a semicolon, not "
+                                                        r"commas; save it with commas between the values and a point"),
+    ("\t".join(CSV_COLUMNS) + "\n0\t0\t0\t0\t0\t0\t0\t0\t0\t0\t0\n", r"x.csv: its columns are separated by tabs"),
     (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n1,0,0,0,0,0,0,300,0,0,0\n", r"outside \[0, 1\].*65535"),
 ])
 def test_bad_csv_refused(tmp_path, text, match):
