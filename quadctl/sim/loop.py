@@ -37,9 +37,14 @@ if TYPE_CHECKING:  # the types of a loop's parts (their modules load only when a
 
 VALID_PITCH = math.radians(85.0)
 """Beyond this pitch the Euler kinematics (``1/cos theta``) are near singular: the run stops."""
+TURNED_OVER = math.radians(90.0)
+"""A roll this far from the trim's turns the rotors' thrust sideways or down: the vehicle is lost (it tumbles
+and falls), and the run stops as diverged. (A roll cannot reach it while the pitch runs past
+:data:`VALID_PITCH` first; the model itself holds at any roll.)"""
 RUNAWAY = {"pN": 1e5, "pE": 1e5, "pD": 1e5, "u": 1e3, "v": 1e3, "w": 1e3,
-           "phi": 1e3, "theta": VALID_PITCH, "psi": 1e3, "p": 1e4, "q": 1e4, "r": 1e4}
-"""Bounds on |x - x_ref| (state units) past which a run counts as diverged; theta's is the model's range."""
+           "phi": TURNED_OVER, "theta": VALID_PITCH, "psi": 1e3, "p": 1e4, "q": 1e4, "r": 1e4}
+"""Bounds on |x - x_ref| (state units) past which a run counts as diverged; theta's is the model's range, phi's
+a vehicle turned over."""
 
 
 def eigen_owners(A_cl, state_owner: dict[str, str], names=STATE_NAMES) -> tuple[np.ndarray, list[str]]:

@@ -19,7 +19,7 @@ from quadctl.physics.wind import WindSpec
 from quadctl.sim.builder import heading_frame
 from quadctl.sim.engine import runner
 from quadctl.sim.exogenous import wind_felt
-from quadctl.sim.loop import VALID_PITCH, ClosedLoop
+from quadctl.sim.loop import TURNED_OVER, VALID_PITCH, ClosedLoop
 from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.plan import StepPlan
 from quadctl.sim.stack import run_stack, stack_of
@@ -236,6 +236,11 @@ def verdict(xs, t, done, n, lo, hi) -> tuple[str, str]:
         return "left_valid_range", (
             f"left the model's valid range at t = {t[-1]:.4g} s: pitch {math.degrees(last[bad[0]]):.1f} deg "
             f"is beyond +-{math.degrees(VALID_PITCH):.0f} deg (Euler kinematics singular at 90); saved {_steps(done)}")
+    if name == "phi":
+        over = math.degrees(TURNED_OVER)
+        return "diverged", (f"diverged at t = {t[-1]:.4g} s: roll {math.degrees(last[bad[0]]):.1f} deg is {over:.0f} "
+                            "deg or more from the trim's: the vehicle turned over, its thrust no longer holds it up; "
+                            f"saved {_steps(done)}")
     return "diverged", (f"diverged at t = {t[-1]:.4g} s: {name} = {last[bad[0]]:.3g} ran away; "
                         f"saved {_steps(done)}")
 
