@@ -10,7 +10,7 @@ rotor model (Eschmann, Albani & Loianno, IROS 2024) and the fits are in the docs
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -170,6 +170,9 @@ class Grid:
         Angular acceleration, rad/s^2: the gyro low-passed (:data:`ANGULAR_ACCELERATION_CUTOFF`), differentiated.
     cmd : (N, 4) ndarray
         Held (a command is a step until the next).
+    acc_lowpass_hz, gyro_lowpass_hz : float or None
+        The low-passes the vehicle ran on its sensors before it logged them
+        (:attr:`quadctl.identify.readers.FlightLog.acc_lowpass_hz`): :meth:`as_logged` applies them.
     """
 
     t: np.ndarray
@@ -178,6 +181,8 @@ class Grid:
     gyro: np.ndarray
     alpha: np.ndarray
     cmd: np.ndarray
+    acc_lowpass_hz: float | None = None
+    gyro_lowpass_hz: float | None = None
 
     def around(self, windows, margin: float = LEAD_IN) -> Grid:
         """The grid from ``margin`` s before the first window to ``margin`` after the last (the lag and
@@ -185,8 +190,19 @@ class Grid:
         t0 = min(a for a, _ in windows) - margin
         t1 = max(b for _, b in windows) + margin
         keep = slice(int(np.searchsorted(self.t, t0)), int(np.searchsorted(self.t, t1, side="right")))
-        return Grid(t=self.t[keep], dt=self.dt, acc=self.acc[keep], gyro=self.gyro[keep], alpha=self.alpha[keep],
-                    cmd=self.cmd[keep])
+        return replace(self, t=self.t[keep], acc=self.acc[keep], gyro=self.gyro[keep], alpha=self.alpha[keep],
+                       cmd=self.cmd[keep])
+
+    def as_logged(self, values: np.ndarray, sensor: str) -> np.ndarray:
+        """``values`` (on axis 0, this grid's samples) through the low-pass the vehicle ran on ``sensor``
+        (``"acc"`` or ``"gyro"``) before logging it, causal, from rest at its first value; unchanged when it
+        ran none. A model's prediction so filtered compares with the log without the filter's lag."""
+        hz = self.acc_lowpass_hz if sensor == "acc" else self.gyro_lowpass_hz
+        if hz is None:
+            return values
+        b, a = _butter_at(float(hz) * 2.0 * self.dt)
+        rest = scipy.signal.lfilter_zi(b, a).reshape((-1,) + (1,) * (values.ndim - 1)) * values[:1]
+        return scipy.signal.lfilter(b, a, values, axis=0, zi=rest)[0]
 
     def lowpass(self, values: np.ndarray) -> np.ndarray:
         """The zero-phase filter applied to the gyro, on axis 0 of ``values``."""
@@ -199,6 +215,13 @@ def _butter(dt: float):
     return scipy.signal.butter(2, ANGULAR_ACCELERATION_CUTOFF * 2.0 * dt)
 
 
+@lru_cache(maxsize=8)
+def _butter_at(normalized: float):
+    """A second-order Butterworth low-pass at ``normalized`` times the Nyquist frequency: the bilinear transform
+    with the cutoff prewarped, as the Crazyflie's ``lpf2p`` computes its coefficients."""
+    return scipy.signal.butter(2, normalized)
+
+
 def on_grid(log, rate: float | None = None) -> Grid:
     """The log resampled at ``rate`` (Hz; default its median rate rounded to 10 Hz)."""
     if rate is None:
@@ -208,9 +231,9 @@ def on_grid(log, rate: float | None = None) -> Grid:
     acc = np.column_stack([np.interp(t, log.t, log.acc[:, i]) for i in range(3)])
     gyro = np.column_stack([np.interp(t, log.t, log.gyro[:, i]) for i in range(3)])
     held = np.clip(np.searchsorted(log.t, t, side="right") - 1, 0, log.t.size - 1)
-    grid = Grid(t=t, dt=dt, acc=acc, gyro=gyro, alpha=np.zeros_like(gyro), cmd=log.cmd[held])
-    alpha = np.gradient(grid.lowpass(gyro), dt, axis=0)
-    return Grid(t=t, dt=dt, acc=acc, gyro=gyro, alpha=alpha, cmd=grid.cmd)
+    grid = Grid(t=t, dt=dt, acc=acc, gyro=gyro, alpha=np.zeros_like(gyro), cmd=log.cmd[held],
+                acc_lowpass_hz=log.acc_lowpass_hz, gyro_lowpass_hz=log.gyro_lowpass_hz)
+    return replace(grid, alpha=np.gradient(grid.lowpass(gyro), dt, axis=0))
 
 
 def lagged(cmd: np.ndarray, dt: float, time_constant: float, delay: float = 0.0, *, in_delay: bool = True):
@@ -415,34 +438,37 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
     grid = grid.around(windows)
     mask = window_mask(grid.t, windows)
     meas = airframe.mass * grid.acc[mask, 2]
-    omega = grid.gyro[mask]
+    omega = grid.gyro
     names = ("c0", "c1", "c2", "T_m") + (("delay",) if delay else ())
+    logged = grid.as_logged  # the model's thrust through the accelerometer's low-pass, as the log has it
 
     def rj(x):
         z, dz_dT, dz_dd = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0, in_delay=delay)
         theta = airframe.theta(c0=x[0], c1=x[1], c2=x[2])
-        y, jt, jz = predict(z[mask], omega, theta, airframe, rows=(2,), names=names[:3])
+        y, jt, jz = predict(z, omega, theta, airframe, rows=(2,), names=names[:3])
         jac = [-jt[:, 0, :]]
-        jac.append(-np.einsum("nj,nj->n", jz[:, 0, :], dz_dT[mask])[:, None])
+        jac.append(-np.einsum("nj,nj->n", jz[:, 0, :], dz_dT)[:, None])
         if delay:
-            jac.append(-np.einsum("nj,nj->n", jz[:, 0, :], dz_dd[mask])[:, None])
-        return meas - y[:, 0], np.hstack(jac)
+            jac.append(-np.einsum("nj,nj->n", jz[:, 0, :], dz_dd)[:, None])
+        return meas - logged(y[:, 0], "acc")[mask], logged(np.hstack(jac), "acc")[mask]
 
     def curve(z):
-        """The thrust curve by linear least squares for given rotor commands (the model is linear in it)."""
+        """The thrust curve by linear least squares for given rotor commands, on the grid (the model is linear
+        in it, and so is the filter)."""
         _, jt, _ = predict(z, omega, airframe.theta(), airframe, rows=(2,), names=names[:3])
-        c, *_ = np.linalg.lstsq(jt[:, 0, :], meas, rcond=None)
-        return c, float(np.sqrt(np.mean((meas - jt[:, 0, :] @ c) ** 2)))
+        basis = logged(jt[:, 0, :], "acc")[mask]
+        c, *_ = np.linalg.lstsq(basis, meas, rcond=None)
+        return c, float(np.sqrt(np.mean((meas - basis @ c) ** 2)))
 
     # the curve at the starting lag, then everything together
-    c_start, _ = curve(lagged(grid.cmd, grid.dt, time_constant, in_delay=False)[0][mask])
+    c_start, _ = curve(lagged(grid.cmd, grid.dt, time_constant, in_delay=False)[0])
     x0 = np.r_[c_start, time_constant, [0.005] if delay else []]
     scale = np.r_[0.01, 0.01, 0.1, 0.01, [0.005] if delay else []]
     lower = np.r_[-np.inf, -np.inf, -np.inf, 2 * grid.dt, [0.0] if delay else []]
     x = _levenberg_marquardt(rj, x0, scale, lower)
     r, j = rj(x)
     cov, bandwidth = sandwich(j[:, None, :], r[:, None])
-    no_lag, rms_no_lag = curve(grid.cmd[mask])  # the same curve with no lag (the paper's comparison)
+    no_lag, rms_no_lag = curve(grid.cmd)  # the same curve with no lag (the paper's comparison)
     z = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0, in_delay=False)[0][mask]
     return Estimate(stage="thrust", names=names, values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=-meas[:, None], predicted=(-(meas - r))[:, None],
@@ -475,8 +501,9 @@ def _torque_fit(stage, grid, windows, airframe, thrust: Estimate, names, axes, g
         for k, n in enumerate(names):
             if n in axis_of and axis_of[n] in axes:
                 d_measured[:, axes.index(axis_of[n]), k] = grid.alpha[:, axis_of[n]]
-        pred = grid.lowpass(y)
-        jac_pred = grid.lowpass(jt.reshape(z.shape[0], -1)).reshape(z.shape[0], len(axes), -1)
+        # the model's torque through the gyro's own low-pass (the log's), then the one alpha took
+        pred = grid.lowpass(grid.as_logged(y, "gyro"))
+        jac_pred = grid.lowpass(grid.as_logged(jt.reshape(z.shape[0], -1), "gyro")).reshape(z.shape[0], len(axes), -1)
         return (measured - pred)[mask], (d_measured - jac_pred)[mask], measured[mask], pred[mask]
 
     def solve(rotors, x, steps=8):

@@ -19,7 +19,7 @@ import math
 import struct
 import warnings
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -31,8 +31,19 @@ STANDARD_GRAVITY = 9.80665
 """m/s^2 per g: the Crazyflie's accelerometer reads in units of g."""
 CSV_COLUMNS = ("t", "acc_x", "acc_y", "acc_z", "gyro_p", "gyro_q", "gyro_r", "cmd_1", "cmd_2", "cmd_3", "cmd_4")
 """The CSV's columns (units and frame: the module's docstring)."""
+CSV_FILTER_LINE = "# lowpass:"
+"""A CSV comment line that says which low-passes the vehicle ran on its sensors before it logged them:
+``# lowpass: acc_lowpass_hz=30 gyro_lowpass_hz=80`` (second-order Butterworth cutoffs, Hz), as a Crazyflie's
+log written as a CSV carries them (:meth:`FlightLog.to_csv`). Without it a CSV's sensors are as measured."""
+CSV_FILTER_KEYS = ("acc_lowpass_hz", "gyro_lowpass_hz")
 CRAZYFLIE_MAGIC = 0xBC
 CRAZYFLIE_PWM_MAX = 65535
+CRAZYFLIE_ACC_LOWPASS_HZ = 30.0
+CRAZYFLIE_GYRO_LOWPASS_HZ = 80.0
+"""Hz: the second-order low-passes (``lpf2p``, at its 1 kHz sensor rate) the Crazyflie's sensor driver runs on
+the accelerometer and the gyro before anything reads or logs them (bitcraze/crazyflie-firmware,
+src/hal/src/sensors_bmi088_bmp3xx.c ``ACCEL_LPF_CUTOFF_FREQ``, ``GYRO_LPF_CUTOFF_FREQ``; the same in the
+other sensor drivers). The accelerometer's lags the logged thrust by about 7.5 ms (sqrt(2) / (2 pi 30 Hz))."""
 CRAZYFLIE_EVENT = 0xFFFF
 """The event id of the fixed-frequency records."""
 _CRAZYFLIE_TYPES = {"b": "<i1", "B": "<u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4", "f": "<f4",
@@ -64,6 +75,11 @@ class FlightLog:
         What the reader converted (units, frame, numbering), one phrase each.
     clock_at_start : float
         s: the log's own clock at its first sample (a Crazyflie's time since boot, a ULog's time stamp).
+    acc_lowpass_hz, gyro_lowpass_hz : float or None
+        Hz: the second-order Butterworth low-pass the vehicle ran on its accelerometer and gyro before it
+        logged them (the Crazyflie's sensor driver's); None: logged as measured. The fit passes its
+        predicted thrust and torques through the same filter (:mod:`quadctl.identify.estimate`), so that
+        the filter's lag is not taken for the rotors'.
     """
 
     t: np.ndarray
@@ -75,6 +91,8 @@ class FlightLog:
     sha256: str
     conversions: tuple[str, ...] = field(default=())
     clock_at_start: float = 0.0
+    acc_lowpass_hz: float | None = None
+    gyro_lowpass_hz: float | None = None
 
     @property
     def name(self) -> str:
@@ -84,12 +102,17 @@ class FlightLog:
         """The log's identity for ``identified.json``."""
         return {"path": self.path, "format": self.format, "sha256": self.sha256, "samples": int(self.t.size),
                 "t_start": float(self.t[0]), "t_end": float(self.t[-1]), "clock_at_start_s": self.clock_at_start,
-                "rate_hz": float((self.t.size - 1) / (self.t[-1] - self.t[0])), "conversions": list(self.conversions)}
+                "rate_hz": float((self.t.size - 1) / (self.t[-1] - self.t[0])), "conversions": list(self.conversions),
+                "acc_lowpass_hz": self.acc_lowpass_hz, "gyro_lowpass_hz": self.gyro_lowpass_hz}
 
     def to_csv(self, path) -> None:
-        """Write the log as the CSV format's columns (:data:`CSV_COLUMNS`), full precision."""
+        """Write the log as the CSV format's columns (:data:`CSV_COLUMNS`), full precision, the sensors'
+        low-passes (:data:`CSV_FILTER_LINE`) on a comment line above them."""
         data = np.column_stack([self.t, self.acc, self.gyro, self.cmd])
         with open(path, "w", newline="") as fh:
+            said = {k: getattr(self, k) for k in CSV_FILTER_KEYS if getattr(self, k) is not None}
+            if said:
+                fh.write(CSV_FILTER_LINE + " " + " ".join(f"{k}={v:g}" for k, v in said.items()) + "\n")
             fh.write(",".join(CSV_COLUMNS) + "\n")
             np.savetxt(fh, data, delimiter=",", fmt="%.17g")
 
@@ -171,9 +194,12 @@ def read_crazyflie(path) -> FlightLog:
     acc = np.column_stack([rec[f"acc.{a}"] for a in "xyz"]).astype(float) * STANDARD_GRAVITY * flu_to_frd
     gyro = np.column_stack([rec[f"gyro.{a}"] for a in "xyz"]).astype(float) * (math.pi / 180.0) * flu_to_frd
     cmd = np.column_stack([rec[f"motor.m{i}"] for i in range(1, 5)]).astype(float) / CRAZYFLIE_PWM_MAX
-    return _checked(path, t, acc, gyro, cmd, "crazyflie", digest, (
+    log = _checked(path, t, acc, gyro, cmd, "crazyflie", digest, (
         "time: us -> s", "acc: g -> m/s^2 (x 9.80665), FLU -> FRD (y, z negated)",
-        "gyro: deg/s -> rad/s, FLU -> FRD (q, r negated)", "motor.m1..m4: PWM / 65535 -> cmd_1..cmd_4"))
+        "gyro: deg/s -> rad/s, FLU -> FRD (q, r negated)", "motor.m1..m4: PWM / 65535 -> cmd_1..cmd_4",
+        f"acc and gyro as the firmware logs them, low-passed at {CRAZYFLIE_ACC_LOWPASS_HZ:g} and "
+        f"{CRAZYFLIE_GYRO_LOWPASS_HZ:g} Hz (second order): the fit models both"))
+    return replace(log, acc_lowpass_hz=CRAZYFLIE_ACC_LOWPASS_HZ, gyro_lowpass_hz=CRAZYFLIE_GYRO_LOWPASS_HZ)
 
 
 def _crazyflie_header(body: bytes):
@@ -217,8 +243,9 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
         raise LogError(f"--columns names {', '.join(unknown)}, not a column of the CSV format; "
                        f"map these: {', '.join(CSV_COLUMNS)}")
     raw = Path(path).read_bytes()
-    lines = [line for line in raw.decode("utf-8-sig", errors="replace").splitlines()  # a BOM: Excel's "CSV UTF-8"
-             if line.strip() and not line.lstrip().startswith("#")]
+    text = raw.decode("utf-8-sig", errors="replace").splitlines()  # a BOM: Excel's "CSV UTF-8"
+    lines = [line for line in text if line.strip() and not line.lstrip().startswith("#")]
+    filters = _csv_filters(path, [line.strip() for line in text if line.strip().startswith(CSV_FILTER_LINE)])
     if not lines:
         raise _fail(path, "an empty CSV", f"write a header line with {', '.join(CSV_COLUMNS)} and the samples")
     header = [h.strip() for h in next(csv.reader(lines[:1]))]
@@ -243,10 +270,38 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
         raise _fail(path, f"data line {bad + 1} is not {len(header)} numbers", "repair or remove that line") from None
     values = values.reshape(-1, len(CSV_COLUMNS))
     _check_gravity(path, values[:, 3])
+    said = tuple(f"{k.split('_')[0]} low-passed at {v:g} Hz (second order) before it was logged, as the CSV's "
+                 f"{CSV_FILTER_LINE!r} line says: the fit models it" for k, v in filters.items())
     log = _checked(path, values[:, 0], values[:, 1:4], values[:, 4:7], values[:, 7:11], "csv",
-                   hashlib.sha256(raw).hexdigest(), ("as written: s, m/s^2 and rad/s in FRD, commands in [0, 1]",))
+                   hashlib.sha256(raw).hexdigest(),
+                   ("as written: s, m/s^2 and rad/s in FRD, commands in [0, 1]", *said))
     _check_time_unit(path, log.t)
-    return log
+    return replace(log, **filters)
+
+
+def _csv_filters(path, lines) -> dict[str, float]:
+    """The low-passes a CSV's :data:`CSV_FILTER_LINE` lines give: ``{key: Hz}``.
+
+    Raises
+    ------
+    LogError
+        A key that is not one of :data:`CSV_FILTER_KEYS`, or a value that is not a positive number.
+    """
+    out = {}
+    for line in lines:
+        for item in line[len(CSV_FILTER_LINE):].split():
+            key, eq, value = item.partition("=")
+            try:
+                hz = float(value) if eq and key in CSV_FILTER_KEYS else None
+            except ValueError:
+                hz = None
+            if hz is None or not math.isfinite(hz) or hz <= 0:
+                keys = ", ".join(CSV_FILTER_KEYS)
+                raise _fail(path, f"{CSV_FILTER_LINE} {item!r} is not KEY=HZ with a key of {keys} and a positive "
+                                  "cutoff", f"write e.g. {CSV_FILTER_LINE} acc_lowpass_hz=30 gyro_lowpass_hz=80, or "
+                                  "remove the line")
+            out[key] = hz
+    return out
 
 
 def _check_gravity(path, acc_z) -> None:

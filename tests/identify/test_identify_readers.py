@@ -140,6 +140,9 @@ def test_crazyflie_log_without_the_motors_refused(tmp_path):
     (";".join(CSV_COLUMNS) + "\n0;0;0;0;0;0;0;0;0;0;0\n", r"^\S*x.csv: its columns are separated by a semicolon, not "
                                                         r"commas; save it with commas between the values and a point"),
     ("\t".join(CSV_COLUMNS) + "\n0\t0\t0\t0\t0\t0\t0\t0\t0\t0\t0\n", r"x.csv: its columns are separated by tabs"),
+    ("# lowpass: acc_lowpass_hz=-30\n" + ",".join(CSV_COLUMNS) + "\n0,0,0,-9.8,0,0,0,0,0,0,0\n",
+     r"x.csv: # lowpass: 'acc_lowpass_hz=-30' is not KEY=HZ with a key of acc_lowpass_hz, gyro_lowpass_hz and a "
+     r"positive cutoff; write e.g."),
     (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n1,0,0,0,0,0,0,300,0,0,0\n", r"outside \[0, 1\].*65535"),
 ])
 def test_bad_csv_refused(tmp_path, text, match):
@@ -160,10 +163,7 @@ def test_a_csv_time_in_ms_or_too_coarse_is_refused_with_the_unit(tmp_path, log10
     """A CSV's t in ms (a 1 kHz log stepping by 1) read as s made every sample a dropped sensor: identify said
     "no samples for 5.98e+03 ms at t = 4.222e+04 s (a dropped sensor)" and blamed the excitation."""
     path = tmp_path / "x.csv"
-    log10.to_csv(path)
-    data = np.loadtxt(path, delimiter=",", skiprows=1)
-    data[:, 0] *= factor
-    np.savetxt(path, data, delimiter=",", header=",".join(CSV_COLUMNS), comments="", fmt="%.17g")
+    FlightLog(**{**log10.__dict__, "t": log10.t * factor}).to_csv(path)
     with pytest.raises(LogError, match=match):
         read_log(path)
 
