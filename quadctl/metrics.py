@@ -11,6 +11,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from quadctl.errors import ArgumentError
 from quadctl.layout import INPUT_NAMES, N_STATES, STATE_NAMES
 
 SETTLING_BAND = 0.02
@@ -127,8 +128,8 @@ def read_settling(settled: float | None, t_end: float, trend_end: float, spread:
 
     Raises
     ------
-    ValueError
-        ``gusts`` without ``twin_settled``: a turbulent run is read against its twin.
+    ArgumentError
+        ``gusts`` without ``twin_settled``: a turbulent run is read against its twin (a ``ValueError``).
     """
     scalar = settled is None or np.ndim(settled) == 0
     settled = np.nan if settled is None else settled
@@ -138,7 +139,7 @@ def read_settling(settled: float | None, t_end: float, trend_end: float, spread:
     dropped = np.zeros_like(late)
     if np.any(gusts):
         if twin_settled is None:
-            raise ValueError("read_settling: a run with turbulence (gusts) is read against its twin, the same "
+            raise ArgumentError("read_settling: a run with turbulence (gusts) is read against its twin, the same "
                              "case without its random disturbances: pass twin_settled (quadctl.pipeline.twin_of)")
         within = np.where(gusts, twin_settled, within)
         dropped = late & gusts
@@ -159,8 +160,8 @@ def twins_settled(twin, names, kind) -> np.ndarray | None:
 
     Raises
     ------
-    ValueError
-        A run with turbulence and no twin.
+    ArgumentError
+        A run with turbulence and no twin (a ``ValueError``).
     """
     gusts = np.asarray(kind) == Disturbance.GUSTS
     if not gusts.any():
@@ -168,7 +169,7 @@ def twins_settled(twin, names, kind) -> np.ndarray | None:
     twins = [twin] * len(gusts) if twin is None or isinstance(twin, dict) else list(twin)
     missing = [b for b, (g, times) in enumerate(zip(gusts, twins)) if g and times is None]
     if missing:
-        raise ValueError(f"runs {missing} have turbulence and no twin: pass each one's twin's settling times "
+        raise ArgumentError(f"runs {missing} have turbulence and no twin: pass each one's twin's settling times "
                          "(quadctl.pipeline.twin_settling)")
     return np.array([[times is not None and times.get(name) is not None for name in names] for times in twins],
                     dtype=bool).reshape(len(gusts), len(names))

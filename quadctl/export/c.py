@@ -70,7 +70,8 @@ def sources(exp: Export, reference: bool | None = None, gyro_filtered_by: str | 
     Raises
     ------
     ArgumentError
-        ``exp`` is continuous (nothing to sample), or its Kalman filter is not the discrete one.
+        ``exp`` is continuous (nothing to sample), its Kalman filter is not the discrete one, or it has one and
+        ``gyro_filtered_by`` says the flight stack runs the gyro filter the filter's model holds.
     ArgumentTypeError
         ``exp`` is not an :class:`~quadctl.export.Export`.
     ValueError
@@ -91,7 +92,9 @@ def sources(exp: Export, reference: bool | None = None, gyro_filtered_by: str | 
         loop = replace(loop, actuators=replace(act, motors=replace(act.motors, time_constant=None)))
     if gyro_filtered_by is not None and loop.rate_filter is not None:  # the vehicle's too: filtered once
         if kal is not None:
-            raise ValueError("a gyro filter the flight stack runs: the C's Kalman filter models it as the law's")
+            raise ArgumentError("sources: gyro_filtered_by with a Kalman filter (estimator:): the filter's model "
+                                "holds the gyro filter's states, estimated from the rates it filters itself; leave "
+                                "out gyro_filtered_by, or export the design without the estimator")
         upstream = f"{loop.rate_filter.describe()}, {gyro_filtered_by}"
         loop = replace(loop, rate_filter=None)
     else:

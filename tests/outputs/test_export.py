@@ -26,7 +26,7 @@ from typer.testing import CliRunner
 
 from quadctl import config, export
 from quadctl.cli.app import app
-from quadctl.errors import CheckFailed
+from quadctl.errors import ArgumentError, CheckFailed
 from quadctl.export import c as cexport
 from quadctl.export import data
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX
@@ -292,6 +292,15 @@ CASES["mambo-lqg-lag-delayed"] = lambda: _mambo_lqg(delayed=True)
 CASES["mambo-lqg-emulated"] = _mambo_lqg_emulated
 CASES["mambo-lqg-gyro-filtered"] = _mambo_lqg_gyro_filtered
 LQG_CASES = ("mambo-lqg", "mambo-lqg-lag-delayed", "mambo-lqg-emulated", "mambo-lqg-gyro-filtered")
+
+
+def test_a_gyro_filter_left_to_the_flight_stack_is_refused_beside_a_kalman_filter():
+    """The Kalman filter's model holds the gyro filter's states: the C cannot leave that filter to the flight
+    stack (``gyro_filtered_by``, the Crazyflie app's). A wrong argument, refused as one (it was a bare ValueError)."""
+    exp = prepared("mambo-lqg-gyro-filtered")
+    with pytest.raises(ArgumentError, match=r"^sources: gyro_filtered_by with a Kalman filter \(estimator:\): .*; "
+                                            r"leave out gyro_filtered_by, or export the design without the estimator$"):
+        cexport.sources(exp, gyro_filtered_by="the flight stack's")
 
 
 def replay(ctl: Controller, y) -> tuple[np.ndarray, np.ndarray]:

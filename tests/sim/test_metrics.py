@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from quadctl import metrics
+from quadctl.errors import ArgumentError
 from quadctl.layout import N_INPUTS, N_STATES, STATE_INDEX, STATE_NAMES
 
 
@@ -199,7 +200,7 @@ def test_with_gusts_a_late_crossing_is_noise_limited_when_the_twin_settled_and_n
         assert metrics.read_settling(9.5, 10.0, trend, spread, band, gusts=True, twin_settled=False) == (None, False)
         assert metrics.read_settling(8.0, 10.0, trend, spread, band, gusts=True, twin_settled=False) == (8.0, False)
     assert metrics.read_settling(9.5, 10.0, 0.0, 1e-4, band) == (9.5, False)  # noise: on its way in, it keeps it
-    with pytest.raises(ValueError, match=r"turbulence \(gusts\) is read against its twin.*pass twin_settled"):
+    with pytest.raises(ArgumentError, match=r"turbulence \(gusts\) is read against its twin.*pass twin_settled"):
         metrics.noise_limited(None, 10.0, 0.05, 1e-4, band, gusts=True)
     t = np.linspace(0.0, 10.0, 10_001)
     e = np.exp(-t / 3.0)  # ends at 3.6 % of its largest, coming down: outside its 2 % band
@@ -213,7 +214,7 @@ def test_with_gusts_a_late_crossing_is_noise_limited_when_the_twin_settled_and_n
         batched = _batched(t, e, noisy=gusts, twin=twin)
         assert summary["noise_limited"] == batched["noise_limited"] == (["pD"] if limited else [])
         assert summary["settling_time"]["pD"] is batched["settling_time"]["pD"] is None
-    with pytest.raises(ValueError, match=r"runs \[0\] have turbulence and no twin"):
+    with pytest.raises(ArgumentError, match=r"runs \[0\] have turbulence and no twin"):
         _batched(t, e, noisy=gusts)
 
 
