@@ -337,7 +337,9 @@ def _check_time_unit(path, t) -> None:
         raise _fail(path, f"t steps by {step:.3g} s at its median, {1 / step:.3g} samples a second: every step is "
                           f"longer than a dropped sensor's gap ({SENSOR_GAP * 1e3:g} ms), too coarse to resolve the "
                           "rotors' lag", "give the log at the rate its IMU samples (100 Hz or more)")
-    unit, factor = ("µs", "1e6") if step > 20.0 else ("ms", "1000")
+    # an IMU's 100 Hz to 10 kHz steps by 0.1 to 10 in ms, by 100 to 10 000 in µs; between, a slow log in ms (which
+    # the check then finds too coarse) is likelier than one past 10 kHz in µs
+    unit, factor = ("µs", "1e6") if step >= 100.0 else ("ms", "1000")
     raise _fail(path, f"t steps by {step:.3g} at its median, {1 / step:.3g} samples a second if t is in s, where a "
                       f"flight log's IMU gives 100 or more: t looks in {unit}",
                 f"divide t by {factor} (the CSV's t is in s)")

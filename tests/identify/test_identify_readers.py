@@ -168,6 +168,21 @@ def test_a_csv_time_in_ms_or_too_coarse_is_refused_with_the_unit(tmp_path, log10
         read_log(path)
 
 
+def test_a_slow_csv_in_ms_is_not_told_to_divide_by_a_million(tmp_path, log10):
+    """A 40 Hz log in ms steps by 25: it was read as µs ("divide t by 1e6"), and so divided it passed as a 40 kHz
+    log. In ms it is 40 samples a second, too coarse, which the check says once t is divided by 1000."""
+    path = tmp_path / "x.csv"
+    every = slice(None, None, 25)
+    slow = {**log10.__dict__, "t": log10.t[every], "acc": log10.acc[every], "gyro": log10.gyro[every],
+            "cmd": log10.cmd[every]}
+    FlightLog(**{**slow, "t": slow["t"] * 1e3}).to_csv(path)
+    with pytest.raises(LogError, match=r"x.csv: t steps by 24.7 at its median, .*: t looks in ms; divide t by 1000"):
+        read_log(path)
+    FlightLog(**slow).to_csv(path)
+    with pytest.raises(LogError, match=r"x.csv: t steps by 0.0247 s at its median, .* too coarse"):
+        read_log(path)
+
+
 @pytest.mark.parametrize("scale, flip, match", [
     (1 / 9.80665, 1, r"x.csv: acc_z reads -0.99 at its median, about -1: the accelerometer in g, not m/s\^2; multiply"),
     (1 / 9.80665, -1, r"about \+1: the accelerometer in g.*and negate acc_y, acc_z, gyro_q and gyro_r for FRD"),
