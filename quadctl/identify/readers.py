@@ -11,6 +11,7 @@ docs/guide/identify.md and docs/internals.md ("Identification").
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import csv
 import hashlib
@@ -243,7 +244,9 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
         raise LogError(f"--columns names {', '.join(unknown)}, not a column of the CSV format; "
                        f"map these: {', '.join(CSV_COLUMNS)}")
     raw = Path(path).read_bytes()
-    text = raw.decode("utf-8-sig", errors="replace").splitlines()  # a BOM: Excel's "CSV UTF-8"
+    # a byte order mark: UTF-8's is Excel's "CSV UTF-8"; UTF-16's its "Unicode Text" and some loggers' exports
+    utf16 = raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
+    text = raw.decode("utf-16" if utf16 else "utf-8-sig", errors="replace").splitlines()
     lines = [line for line in text if line.strip() and not line.lstrip().startswith("#")]
     filters = _csv_filters(path, [line.strip() for line in text if line.strip().startswith(CSV_FILTER_LINE)])
     if not lines:

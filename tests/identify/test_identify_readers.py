@@ -85,6 +85,19 @@ def test_a_csv_saved_by_a_spreadsheet_with_a_byte_order_mark_and_crlf_reads_the_
         np.testing.assert_array_equal(getattr(back, name), getattr(log10, name))
 
 
+def test_a_utf16_csv_reads_the_same(tmp_path, log10):
+    """A CSV saved as UTF-16 with its byte order mark (Excel's "Unicode Text", some loggers' exports) read as
+    UTF-8: every other byte a NUL, refused for "no column 't' (the header has \ufffd\ufffdt\x00,\x00a..."."""
+    plain = tmp_path / "plain.csv"
+    log10.to_csv(plain)
+    wide = tmp_path / "wide.csv"
+    wide.write_bytes(plain.read_text().encode("utf-16"))
+    back = read_log(wide)
+    for name in ("t", "acc", "gyro", "cmd"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(log10, name))
+    assert (back.acc_lowpass_hz, back.gyro_lowpass_hz) == (30.0, 80.0)
+
+
 def test_csv_columns_mapped(tmp_path):
     names = ["time", *CSV_COLUMNS[1:]]
     path = tmp_path / "renamed.csv"
