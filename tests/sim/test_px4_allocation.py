@@ -47,6 +47,10 @@ GENERIC_QUAD = ((0.15, 0.15, 1.0), (-0.15, -0.15, 1.0), (0.15, -0.15, -1.0), (-0
 """PX4's Generic Quadcopter: ``CA_ROTOR{i}_PX, _PY`` (m) and the sign of ``CA_ROTOR{i}_KM``, motor 1 first."""
 IRIS_SITL = ((0.1515, 0.245, 1.0), (-0.1515, -0.1875, 1.0), (0.1515, -0.245, -1.0), (-0.1515, 0.1875, -1.0))
 """PX4's Iris SITL airframe, likewise: the wider front arms (a stretched, unequal X)."""
+IRREGULAR = ((0.16, 0.12, 1.0), (-0.1, -0.2, 1.0), (0.12, -0.18, -1.0), (-0.18, 0.16, -1.0))
+"""An irregular quadrilateral (m), whose pure yaw moves a clockwise rotor most: PX4 scales yaw by the column's
+largest entry, signed (14.0 / N m here), not by its largest size (16.2), which the regular frames cannot tell
+apart."""
 PLUS = ((1.0, 0.0, 1.0), (0.0, 1.0, -1.0), (-1.0, 0.0, 1.0), (0.0, -1.0, -1.0))
 """quadctl's ``+`` layout (front, right, rear, left; front and rear counter-clockwise) as PX4 would be told it,
 in that order, over the arm length: two rotors of four in each of the roll and pitch columns."""
@@ -87,8 +91,8 @@ def px4_mix(B) -> np.ndarray:
 
 def cascade_setup(geometry: str):
     """The setup of PX4's Iris (``quadctl init``'s iris, numbering px4), of the same with PX4's Iris SITL rotor
-    positions or as a ``+``, or the bundled crazyflie; with the rotors PX4 would be given for it (``CA_ROTOR``
-    x, y and the sign of KM)."""
+    positions, with :data:`IRREGULAR`'s or as a ``+``, or the bundled crazyflie; with the rotors PX4 would be
+    given for it (``CA_ROTOR`` x, y and the sign of KM)."""
     import yaml
 
     import quadctl as qc
@@ -107,9 +111,10 @@ def cascade_setup(geometry: str):
         data["motors"].update(layout="+", numbering="quadctl")
         arm = data["motors"]["arm_length"]
         return qc.setup_of(Config(**data)), [(x * arm, y * arm, k) for x, y, k in PLUS]
-    data["motors"].update(positions=[[x, y] for x, y, _ in IRIS_SITL],
-                          spin=["ccw" if k > 0 else "cw" for *_, k in IRIS_SITL], numbering="quadctl")
-    return qc.setup_of(Config(**data)), list(IRIS_SITL)
+    rotors = IRIS_SITL if geometry == "iris-sitl" else IRREGULAR
+    data["motors"].update(positions=[[x, y] for x, y, _ in rotors],
+                          spin=["ccw" if k > 0 else "cw" for *_, k in rotors], numbering="quadctl")
+    return qc.setup_of(Config(**data)), list(rotors)
 
 
 def law_outputs(setup, thrust_newtons, torques) -> np.ndarray:
@@ -138,7 +143,7 @@ def law_outputs(setup, thrust_newtons, torques) -> np.ndarray:
     return act.mix @ np.asarray(command, dtype=float).ravel() / act.hi
 
 
-@pytest.mark.parametrize("geometry", ["iris", "iris-sitl", "plus", "crazyflie"])
+@pytest.mark.parametrize("geometry", ["iris", "iris-sitl", "irregular", "plus", "crazyflie"])
 def test_the_px4_cascade_mixes_its_torques_and_thrust_as_px4s_control_allocation(geometry):
     setup, rotors = cascade_setup(geometry)
     motors = setup.actuators.motors
