@@ -80,6 +80,12 @@ low-pass (``lpf2p``, at the 1 kHz sensor rate) the sensor driver runs on the gyr
 before it hands ``sensors->gyro`` to any controller, the app's too (the ``crazyflie`` PID preset's
 ``gyro_lpf_hz``)."""
 
+ROTOR_LAG = 0.065
+"""s: the Crazyflie 2.x's rotor lag, the time constant ``quadctl identify`` finds in the bundled flight
+``log10`` (docs/guide/identify.md; its 95 % interval is checked to hold this value in
+tests/identify/test_identify_estimates.py). A design that leaves it out is told so at export
+(:func:`lag_sentence`)."""
+
 FRAMES = (
     ("pN, pE, pD", "state->position x, y, z (m, world x forward, y left, z up)", "pN = x, pE = -y, pD = -z"),
     ("u, v, w", "state->velocity (m/s, world) and state->attitudeQuaternion",
@@ -235,6 +241,20 @@ def gyro_sentence(exp: Export) -> str | None:
             "app's law reads it, but the config has no controller.filters: its "
             "margins, simulation and comparison read raw rates, which the vehicle does not have; set "
             f"{FIRMWARE.gyro_filter()} to check the design behind the filter (the app leaves it to the firmware)")
+
+
+def lag_sentence(exp: Export, config: str) -> str | None:
+    """What the export says when the config has no rotor lag at all (``motors.time_constant``): its design,
+    margins and simulation take the rotors as instantaneous, though the Crazyflie's lag (:data:`ROTOR_LAG`)
+    is long enough to unsettle a design made without it; ``config`` is how the user named the config
+    (``-c``), for the command to run."""
+    require_export(exp, "lag_sentence")
+    if exp.setup.rotor_time_constant is not None:
+        return None
+    return (f"the config gives the rotors no lag (motors.time_constant), but a Crazyflie's rotors lag about "
+            f"{1e3 * ROTOR_LAG:.0f} ms (quadctl identify on its flight logs): check the design on it before you fly, "
+            f"quadctl margins -c {config} --set motors.time_constant={ROTOR_LAG:g}, and design with it "
+            "(controller.rotor_lag: include) if it does not hold")
 
 
 def law(exp: Export, setpoint: str) -> str:

@@ -322,3 +322,15 @@ def test_the_gyro_low_pass_in_the_model_leaves_a_smaller_torque_residual():
         grid = est.on_grid(dataclasses.replace(log, gyro_lowpass_hz=said))
         rms[said] = est.fit_attitude(grid, window, af, est.fit_thrust(grid, window, af)).rms
     assert rms[80.0] < 0.95 * rms[None], rms
+
+
+def test_the_rotor_lag_the_crazyflie_export_cites_is_the_one_log10_gives():
+    """The Crazyflie export tells a design without rotor lag the lag a Crazyflie's rotors have
+    (quadctl.export.crazyflie.ROTOR_LAG): it must lie in the 95 % interval of the lag identified from the
+    bundled log10, its sensors' low-passes modelled (the fit of docs/guide/identify.md)."""
+    from quadctl.export.crazyflie import ROTOR_LAG
+
+    paper = dataclasses.replace(est.Airframe.from_config(load("crazyflie")), positions=airframe().positions)
+    thrust = est.fit_thrust(est.on_grid(read_log(FLIGHTS / "log10")), PAPER_WINDOW_10, paper)
+    lo, hi = thrust.interval("T_m")
+    assert lo <= ROTOR_LAG <= hi, (lo, thrust.value("T_m"), hi)

@@ -483,6 +483,25 @@ def test_an_app_of_a_design_on_raw_rates_says_the_firmware_filters_them(tmp_path
     assert res.exit_code == 0 and "low-passes the gyro" not in res.stderr, res.output
 
 
+def test_an_app_of_a_design_without_rotor_lag_names_the_lag_to_check_it_on(tmp_path):
+    """crazyflie gives its rotors no lag; the identified Crazyflie's rotors lag 65 ms, on which its design is
+    unstable: the export says so and names the command that checks it, which does fail (exit 1, unstable);
+    a config that models a lag gets no such note."""
+    from quadctl.export.crazyflie import ROTOR_LAG
+
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "-o", str(tmp_path / "app")])
+    assert res.exit_code == 0, res.output
+    check = f"quadctl margins -c crazyflie --set motors.time_constant={ROTOR_LAG:g}"
+    assert ("quadctl: note: the config gives the rotors no lag (motors.time_constant), but a Crazyflie's rotors lag "
+            f"about 65 ms (quadctl identify on its flight logs): check the design on it before you fly, {check}, "
+            "and design with it (controller.rotor_lag: include) if it does not hold") in res.stderr
+    margins = CliRunner().invoke(app, [*check.split()[1:], "-o", str(tmp_path / "m")])
+    assert margins.exit_code == 1 and "UNSTABLE" in margins.output, margins.output
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "-o", str(tmp_path / "lag"),
+                                   "--set", "motors.time_constant=0.03"])
+    assert res.exit_code == 0 and "no lag" not in res.stderr, res.output
+
+
 def test_a_setpoint_no_partition_follows_is_refused_naming_only_what_to_regulate():
     """A partition that leaves the yaw free serves no setpoint: the message offers no other --setpoint, only
     regulating, and without --setpoint it says what each setpoint needs (the export of such a design is

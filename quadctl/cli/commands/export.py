@@ -82,9 +82,9 @@ def command(to: Annotated[Target, typer.Option(
 
         for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE, mode.value):
             render.note(line)
-        gyro = crazyflie.gyro_sentence(exp)
-        if gyro is not None:
-            render.note(gyro)
+        for sentence in (crazyflie.gyro_sentence(exp), crazyflie.lag_sentence(exp, config or cfg.name)):
+            if sentence is not None:
+                render.note(sentence)
     kal = exp.loop.estimator
     if json:
         written = {"config_name": cfg.name, "to": to.value, "rate": exp.rate, "design": exp.mode if exp.rate else
