@@ -82,6 +82,7 @@ PRESETS: dict[str, Preset] = {
             "src/modules/src/power_distribution_quadrotor.c (thrustToTorque, pwmToThrustA/B: [F]'s fit), "
             "src/modules/interface/stabilizer_types.h (ATTITUDE_RATE)",
             "[R] spencerfolk/rotorpy: rotorpy/vehicles/crazyflie_params.py (rotor drag k_d, \"See [F]\")",
+            "[L] the Crazyflie 2.x flight logs of quadctl's Identify page (docs/guide/identify.md)",
         ),
         vehicle=_bundled("crazyflie", "vehicle", {
             "mass": "[F]",
@@ -98,6 +99,7 @@ PRESETS: dict[str, Preset] = {
                 "min_thrust": "",
                 "max_thrust": "[FW] pwmToThrustA + pwmToThrustB at full PWM",
             }),
+            "time_constant": (0.065, "[L] quadctl identify on the bundled flight log10 (65 ms, 95 %: 62-69 ms)"),
             "numbering": ("crazyflie", "[FW] M1 front right ... M4 front left"),
         },
         rate=500.0, rate_note="[FW] ATTITUDE_RATE",

@@ -16,6 +16,7 @@ from string import Template
 
 import numpy as np
 
+from quadctl.config.template import PRESETS
 from quadctl.errors import ArgumentError, ConfigError
 from quadctl.export import c
 from quadctl.export.bundle import Export, law_text, require_export
@@ -80,11 +81,11 @@ low-pass (``lpf2p``, at the 1 kHz sensor rate) the sensor driver runs on the gyr
 before it hands ``sensors->gyro`` to any controller, the app's too (the ``crazyflie`` PID preset's
 ``gyro_lpf_hz``)."""
 
-ROTOR_LAG = 0.065
-"""s: the Crazyflie 2.x's rotor lag, the time constant ``quadctl identify`` finds in the bundled flight
-``log10`` (docs/guide/identify.md; its 95 % interval is checked to hold this value in
-tests/identify/test_identify_estimates.py). A design that leaves it out is told so at export
-(:func:`lag_sentence`)."""
+ROTOR_LAG = PRESETS["crazyflie"].motors["time_constant"][0]
+"""s: the Crazyflie 2.x's rotor lag, as ``quadctl init --from crazyflie`` writes it: the time constant
+``quadctl identify`` finds in the bundled flight ``log10`` (docs/guide/identify.md; its 95 % interval is
+checked to hold this value in tests/identify/test_identify_estimates.py). A design that leaves it out is
+told so at export (:func:`lag_sentence`)."""
 
 FRAMES = (
     ("pN, pE, pD", "state->position x, y, z (m, world x forward, y left, z up)", "pN = x, pE = -y, pD = -z"),

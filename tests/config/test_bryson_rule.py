@@ -48,7 +48,9 @@ def test_the_template_writes_the_rule_and_includes_a_rotor_lag_it_has():
     assert all(w.bryson is not None and w.Q is None for w in cfg.lqr.values())
     assert cfg.motors.time_constant == 0.0125 and cfg.controller.rotor_lag == "include"
     crazyflie = config.parse(starter.config_text("mine", "crazyflie", "hold"), "mine.yaml")
-    assert crazyflie.motors.time_constant is None and crazyflie.controller.rotor_lag == "ignore"
+    assert crazyflie.motors.time_constant == 0.065 and crazyflie.controller.rotor_lag == "include"
+    mambo = config.parse(starter.config_text("mine", "mambo", "hold"), "mine.yaml")
+    assert mambo.motors.time_constant is None and mambo.controller.rotor_lag == "ignore"
     assert cfg.description.startswith("Started from the 3DR Iris")
 
 
