@@ -13,7 +13,7 @@ import pytest
 
 import quadctl as qc
 from quadctl.design import closed_loop_matrix, discrete, lqr, riccati
-from quadctl.errors import DesignError
+from quadctl.errors import ArgumentError
 from quadctl.export import interop
 from quadctl.layout import INPUT_NAMES, STATE_NAMES
 
@@ -56,19 +56,19 @@ BATCH = {
 
 @pytest.mark.parametrize("solver", ONE)
 def test_a_complex_a_is_refused_by_name_not_solved_as_another_problem(solver):
-    with pytest.raises(DesignError, match=rf": A {COMPLEX}"):
+    with pytest.raises(ArgumentError, match=rf": A {COMPLEX}"):
         ONE[solver](A_SCIPY, B2)
 
 
 @pytest.mark.parametrize("solver", ONE)
 def test_a_complex_b_with_zero_real_part_is_refused_as_complex_not_unstabilizable(solver):
-    with pytest.raises(DesignError, match=rf": B {COMPLEX}"):
+    with pytest.raises(ArgumentError, match=rf": B {COMPLEX}"):
         ONE[solver](np.diag([0.5, -0.5]), 1j * B2)
 
 
 @pytest.mark.parametrize("solver", BATCH)
 def test_the_batched_solvers_refuse_complex_stacks(solver):
-    with pytest.raises(DesignError, match=rf"^{solver}: A {COMPLEX}"):
+    with pytest.raises(ArgumentError, match=rf"^{solver}: A {COMPLEX}"):
         BATCH[solver](A_SCIPY[None], B2[None])
 
 
@@ -78,7 +78,7 @@ def test_the_batched_solvers_refuse_complex_stacks(solver):
     ([[1, 2], [3]], "A is not a numeric matrix"),
 ])
 def test_text_objects_and_ragged_lists_are_no_matrices(bad, match):
-    with pytest.raises(DesignError, match=match):
+    with pytest.raises(ArgumentError, match=match):
         lqr(bad, B2, Q2, R2)
 
 
@@ -309,10 +309,10 @@ ARGUMENTS = {  # a call with a wrong argument: (call(tmp_path, stages), its clas
         "ArgumentError", ValueError, r"^x0 must be the 12 states pN, pE, .*, got shape \(3,\)$"),
     "lqr A None": (
         lambda _, s: qc.lqr(None, [[1.0]], [[1.0]], [[1.0]]),
-        "DesignError", ValueError, r"^system: A is None; give an array of numbers$"),
+        "ArgumentError", ValueError, r"^system: A is None; give an array of numbers$"),
     "dlqr 1-D B": (
         lambda _, s: qc.dlqr(np.eye(2), [0.0, 1.0], np.eye(2), [[1.0]]),
-        "DesignError", ValueError, r"^system: B has shape \(2,\), a 1-D array read as the row \(1, 2\)"),
+        "ArgumentError", ValueError, r"^system: B has shape \(2,\), a 1-D array read as the row \(1, 2\)"),
     "lqrd negative Ts": (
         lambda _, s: qc.lqrd([[0.0]], [[1.0]], [[1.0]], [[1.0]], -0.01),
         "ArgumentError", ValueError, r"^system: Ts = -0\.01: the sample time must be a positive finite number of "

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from quadctl.design import design, lqr, riccati_residual
-from quadctl.errors import DesignError
+from quadctl.errors import ArgumentError, DesignError
 from quadctl.layout import REPORT_PARTITION, STATE_NAMES
 from quadctl.linear.analysis import check
 from quadctl.linear.decouple import decouple
@@ -206,8 +206,8 @@ def test_scipy_fallback_gives_the_same_design_as_quadctls_solver(forward, monkey
         assert diff < 1e-9, f"{sub.name}: Max diff is {diff:.4E}"
 
 
-def test_mismatched_shapes_are_a_design_error_naming_the_matrix():
-    with pytest.raises(DesignError, match=r"roll: R has shape \(2, 2\), expected \(1, 1\)"):
+def test_mismatched_shapes_are_an_argument_error_naming_the_matrix():
+    with pytest.raises(ArgumentError, match=r"roll: R has shape \(2, 2\), expected \(1, 1\)"):
         lqr(np.eye(2), [[0.0], [1.0]], np.eye(2), np.eye(2), name="roll")
 
 

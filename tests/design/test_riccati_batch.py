@@ -11,7 +11,7 @@ from _solve import bundled_subsystems
 
 from quadctl.design import discrete, integral
 from quadctl.design.riccati import KRONECKER_MAX_N, care_batch, dare_batch, dare_residual
-from quadctl.errors import DesignError
+from quadctl.errors import ArgumentError, DesignError
 
 AGREEMENT = 1e-9
 """Relative difference (largest entry over the largest entry) allowed between the batched answers
@@ -62,7 +62,7 @@ def test_lqrd_weights_batch_is_lqrd_weights_per_entry_and_the_hand_integrals():
 
 
 def test_batched_discretization_refuses_bad_shapes_and_sample_times():
-    with pytest.raises(DesignError, match=r"c2d_batch: B has shape \(3, 1\); stack the problems"):
+    with pytest.raises(ArgumentError, match=r"c2d_batch: B has shape \(3, 1\); stack the problems"):
         discrete.c2d_batch(np.zeros((3, 3)), np.zeros((3, 1)), 0.1)
     with pytest.raises(ValueError, match=r"^c2d_batch: Ts = -0\.1: the sample time must be a positive finite number of "
                                          "seconds$"):

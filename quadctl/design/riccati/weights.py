@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadctl.errors import DesignError
+from quadctl.errors import ArgumentError, DesignError
 
 SEMIDEFINITE_RTOL = 1e-12
 """``Q`` and ``[[Q, N], [N', R]]`` count as positive semidefinite while their most negative eigenvalue
@@ -24,7 +24,7 @@ against 0.23)."""
 
 
 def real_array(M, label: str, *, name: str = "system", shape: tuple | None = None, ndim: int | None = None,
-               error: type[Exception] = DesignError) -> np.ndarray:
+               error: type[Exception] = ArgumentError) -> np.ndarray:
     """``M`` as a float array, refusing what a float conversion would change or lose.
 
     The one check of a matrix argument for every public function that takes one (the Riccati
@@ -44,7 +44,7 @@ def real_array(M, label: str, *, name: str = "system", shape: tuple | None = Non
     shape : tuple of int or None, optional
     ndim : int, optional
     error : exception class
-        Raised with the message (default :class:`~quadctl.errors.DesignError`).
+        Raised with the message (default :class:`~quadctl.errors.ArgumentError`).
 
     Examples
     --------
@@ -52,7 +52,7 @@ def real_array(M, label: str, *, name: str = "system", shape: tuple | None = Non
     dtype('float64')
     >>> try:
     ...     real_array([[2, 1 - 2j], [0, -3j]], "A", name="dlqr")
-    ... except DesignError as exc:
+    ... except ArgumentError as exc:
     ...     print(str(exc)[:72])
     dlqr: A is complex (dtype complex128); quadctl solves real problems only
     """
@@ -82,15 +82,15 @@ def as_problem(A, B, Q, R, N=None, *, name: str = "system"):
 
     Raises
     ------
-    DesignError
+    ArgumentError
         A matrix is not numeric, or its shape does not fit (the message names it).
     """
     mats = {label: real_array(M, label, name=name, ndim=2)
             for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R), ("N", N)) if M is not None or label != "N"}
     n, m = mats["A"].shape[0], mats["B"].shape[-1]
     if np.ndim(B) == 1 and mats["B"].shape[1] == n != 1:  # padded to a row: one input was meant as a column
-        raise DesignError(f"{name}: B has shape {np.shape(B)}, a 1-D array read as the row (1, {n}); for one input "
-                          f"give the column, shape ({n}, 1): [[b1], [b2], ...] or np.reshape(B, (-1, 1))")
+        raise ArgumentError(f"{name}: B has shape {np.shape(B)}, a 1-D array read as the row (1, {n}); for one input "
+                            f"give the column, shape ({n}, 1): [[b1], [b2], ...] or np.reshape(B, (-1, 1))")
     mats.setdefault("N", np.zeros((n, m)))
     _check_shapes(mats, (), n, m, name)
     return tuple(mats[k] for k in "ABQRN")
@@ -102,14 +102,14 @@ def as_stack(A, B, Q=None, R=None, N=None, *, name: str):
 
     Raises
     ------
-    DesignError
-        The shapes do not stack (the message names the matrix and ``name``).
+    ArgumentError
+        A matrix is not numeric, or the shapes do not stack (the message names the matrix and ``name``).
     """
     mats = {label: real_array(M, label, name=name) for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R))
             if M is not None}
     if mats["B"].ndim != 3:
-        raise DesignError(f"{name}: B has shape {mats['B'].shape}; stack the problems as A (batch, n, n), "
-                          "B (batch, n, m), Q (batch, n, n), R (batch, m, m)")
+        raise ArgumentError(f"{name}: B has shape {mats['B'].shape}; stack the problems as A (batch, n, n), "
+                            "B (batch, n, m), Q (batch, n, n), R (batch, m, m)")
     batch, n, m = mats["B"].shape
     mats["N"] = np.zeros((batch, n, m)) if N is None else real_array(N, "N", name=name)
     _check_shapes(mats, (batch,), n, m, name)
@@ -121,8 +121,8 @@ def _check_shapes(mats: dict, lead: tuple, n: int, m: int, name: str) -> None:
     for label, M in mats.items():
         shape = (*lead, *expected[label])
         if M.shape != shape:
-            raise DesignError(f"{name}: {label} has shape {M.shape}, expected {shape} "
-                              f"(A is n x n, B n x m, Q n x n, R m x m, N n x m with n = {n}, m = {m})")
+            raise ArgumentError(f"{name}: {label} has shape {M.shape}, expected {shape} "
+                                f"(A is n x n, B n x m, Q n x n, R m x m, N n x m with n = {n}, m = {m})")
 
 
 class WeightCheck:
