@@ -17,7 +17,7 @@ from quadctl.config.pid import NEEDS_ROTORS, rate_problem, resolve
 from quadctl.config.schema import SUBSYSTEM_NAME_PATTERN, Config, ScheduleConfig
 from quadctl.config.simulation_schema import MAX_WIND_ALTITUDE, ReferenceConfig
 from quadctl.config.unit_limits import check_initial_offset, check_unit_limits
-from quadctl.config.vehicle_checks import check_inertia, check_rotors
+from quadctl.config.vehicle_checks import check_inertia, check_rotors, check_thrust_curve
 from quadctl.config.weights import check_weight
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_NAMES, SENSOR_GROUPS, STATE_NAMES, STATE_UNITS
@@ -307,6 +307,8 @@ def _check_controller_and_actuators(cfg: Config, fail) -> None:
     if cfg.motors is not None and cfg.motors.min_thrust >= cfg.motors.max_thrust:
         fail("motors.min_thrust", cfg.motors.min_thrust,
              f"must be below motors.max_thrust = {cfg.motors.max_thrust:g} N")
+    if cfg.motors is not None:
+        check_thrust_curve(cfg.motors, fail)
     for name, (low, high) in (cfg.limits or {}).items():
         if name not in INPUT_NAMES:
             fail(f"limits.{name}", [low, high], _unknown(name, INPUT_NAMES, "input"))

@@ -171,6 +171,7 @@ class Config(Section):
         what ``started_from`` records of the template's vehicle."""
         data = {"vehicle": self.vehicle.model_dump(mode="json"),
                 "motors": self.motors.model_dump(mode="json") if self.motors is not None else None}
+        _drop_at_default(data, VEHICLE_LATER_KEYS)
         return hashlib.sha256(json.dumps(data, sort_keys=True, separators=(",", ":")).encode()).hexdigest()[:12]
 
     def partition(self) -> dict[str, SubsystemConfig]:
@@ -186,13 +187,7 @@ class Config(Section):
         that does not use them keeps the digest it always had.
         """
         data = self.model_dump(mode="json")
-        for path, default in LATER_KEYS:
-            *parents, last = path
-            node = data
-            for part in parents:
-                node = node.get(part) if isinstance(node, dict) else None
-            if isinstance(node, dict) and node.get(last, default) == default:
-                node.pop(last, None)
+        _drop_at_default(data, LATER_KEYS)
         for weights in (data.get("lqr") or {}).values():  # lqr.<name>.bryson, added later: named entries
             if isinstance(weights, dict) and weights.get("bryson") is None:
                 weights.pop("bryson", None)
@@ -218,6 +213,23 @@ LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
     (("controller", "pid"), None),
     (("controller", "filters"), None),
     (("started_from",), None),
+    (("motors", "thrust_curve"), None),
 )
 """Keys added to the schema after configs were already hashed, with their defaults: left out of
 :meth:`Config.digest` at that default."""
+VEHICLE_LATER_KEYS: tuple[tuple[tuple[str, ...], Any], ...] = (
+    (("motors", "thrust_curve"), None),
+)
+"""Keys of ``vehicle:`` and ``motors:`` added after :meth:`Config.vehicle_digest` was recorded in configs
+(``started_from``), with their defaults: left out of it at that default."""
+
+
+def _drop_at_default(data: dict, keys) -> None:
+    """Remove from ``data`` (a config's JSON dump, in place) each of ``keys`` (path, default) at its default."""
+    for path, default in keys:
+        *parents, last = path
+        node = data
+        for part in parents:
+            node = node.get(part) if isinstance(node, dict) else None
+        if isinstance(node, dict) and node.get(last, default) == default:
+            node.pop(last, None)

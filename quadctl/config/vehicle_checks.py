@@ -12,7 +12,7 @@ from quadctl.config.describe import UNION_HINTS
 from quadctl.config.schema import Config
 from quadctl.config.vehicle_schema import INERTIA_DESCRIPTION, MotorsConfig
 from quadctl.config.weights import DEFINITENESS_RTOL, SYMMETRY_RTOL
-from quadctl.physics.motors import NUMBERINGS, POSITIONS, Motors
+from quadctl.physics.motors import NUMBERINGS, POSITIONS, Motors, thrust_curve_problem
 from quadctl.text.messages import unknown as _unknown
 
 INERTIA_TRIANGLE_RTOL = 0.10
@@ -111,6 +111,15 @@ def check_rotors(motors: MotorsConfig, fail) -> None:
             fail("motors.spin", motors.spin, f"diagonal rotors must turn alike and neighbours opposite ({first} and "
                  f"{diagonal} one way, {' and '.join(others)} the other), else yaw cannot be told from roll and pitch; "
                  "check the order against motors.numbering")
+
+
+def check_thrust_curve(motors: MotorsConfig, fail) -> None:
+    """``motors.thrust_curve``: its thrust at full command is ``motors.max_thrust``, and it rises with the
+    command (:func:`quadctl.physics.motors.thrust_curve_problem`)."""
+    if motors.thrust_curve is not None:
+        problem = thrust_curve_problem(motors.thrust_curve, motors.max_thrust)
+        if problem:
+            fail("motors.thrust_curve", motors.thrust_curve, problem)
 
 
 MIXER_RCOND = 1e-6

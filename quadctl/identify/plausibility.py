@@ -56,6 +56,7 @@ WRITTEN = {
     ("controller", "rotor_lag"): ("T_m",),
     ("controller", "delay"): ("delay", "T_m"),
     ("motors", "max_thrust"): ("max_thrust",),
+    ("motors", "thrust_curve"): ("max_thrust",),
     ("vehicle", "inertia"): ("Jxx", "Jyy", "T_m"),
     ("motors", "torque_coefficient"): ("k_m", "T_m"),
 }
@@ -63,7 +64,8 @@ WRITTEN = {
 designed with (``controller.rotor_lag: include``) only when T_m is written; a delay fitted with T_m
 (the two trade against each other) is written only with it; the inertia and the torque coefficient are
 fitted to the torques of rotors lagged by T_m (:func:`quadctl.identify.estimate.fit_attitude`), so an
-unresolved T_m leaves them unresolved too, whatever their own intervals say."""
+unresolved T_m leaves them unresolved too, whatever their own intervals say. The thrust curve goes with its thrust
+at full command (``motors.thrust_curve`` and ``motors.max_thrust``: both or neither)."""
 
 
 def judge(name: str, value: float, interval: tuple[float, float], hover: float | None = None) -> bool:

@@ -6,6 +6,7 @@ import hashlib
 import json
 import re
 from dataclasses import dataclass
+from decimal import Decimal
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from quadctl.errors import ArgumentTypeError, ArtifactError, ConfigError, LogErr
 from quadctl.identify import estimate as est
 from quadctl.identify import plausibility
 from quadctl.identify import windows as win
+from quadctl.physics.motors import thrust_curve_problem
 from quadctl.present import identify as shown
 
 
@@ -218,7 +220,7 @@ def payload(ident: Identification, config_label: str, config=None, written: str 
             "stages": stages,
             "refused": dict(ident.refused),
             "implausible": list(ident.implausible()),
-            "not_written": {f"{section}.{key}": list(withheld[section, key]) for section, key in kept},
+            "not_written": {f"{section}.{key}": list(withheld.get((section, key), CURVE)) for section, key in kept},
             **({"identified_yaml_sha256": yaml_digest(written)} if written is not None else {}),
             "delay_written": None if not fitted_delay else {
                 "samples": n, "rate_hz": ident.controller_rate, "s": None if n is None else n / ident.controller_rate,
@@ -241,8 +243,18 @@ def changes(ident: Identification) -> dict:
                                         "Which lag")
     out[("controller", "rotor_lag")] = ("include", "the design models the identified motor lag "
                                          "(ignore: instantaneous rotors, and the lag only in the flown plant)")
-    out[("motors", "max_thrust")] = (_number(ident.max_thrust()), f"N per rotor, the thrust curve at full command, "
-                                     f"identified from {src} t {span} s")
+    curve = written_curve(ident)
+    top = float(sum(Decimal(repr(c)) for c in curve))  # the written curve at full command, to its last digit
+    where = f"identified from {src} t {span} s"
+    problem = thrust_curve_problem(curve, top)
+    if problem is None:
+        out[("motors", "max_thrust")] = (yamlio.flow(top), f"N per rotor, the thrust curve at full command "
+                                         f"(c0 + c1 + c2), {where}")
+        out[("motors", "thrust_curve")] = (yamlio.flow(curve), f"N: c0, c1, c2 of a rotor's thrust c0 + c1 s + c2 "
+                                           f"s^2 at the command s (of full), {where}")
+    else:  # a curve no rotor has: neither it nor its thrust at full command (the config's pair stays together)
+        out[("motors", "max_thrust")] = out[("motors", "thrust_curve")] = (None, "not written: "
+                                                                           + shown.curve_withheld(curve))
     n = ident.delay_samples()
     if n is not None:
         d_lo, d_hi = th.interval("delay")
@@ -272,6 +284,17 @@ def changes(ident: Identification) -> dict:
         if key in out:  # not written: the config's value stays, and the comment says why
             out[key] = (None, shown.withheld_comment({n: found[n] for n in names}))
     return out
+
+
+def written_curve(ident: Identification) -> list[float]:
+    """N: the identified ``[c0, c1, c2]`` as the identified config writes them, each to 4 significant digits."""
+    th = ident.fits["thrust"]
+    return [float(f"{th.value(name):.4g}") for name in CURVE]
+
+
+CURVE = ("c0", "c1", "c2")
+"""The thrust curve's parameters: what ``not_written`` gives for ``motors.thrust_curve`` and ``motors.max_thrust``
+when the curve falls (:func:`quadctl.physics.motors.thrust_curve_problem`), plausible as each of them is."""
 
 
 def _number(value: float) -> str:
@@ -329,9 +352,9 @@ def identified_config(text: str, ident: Identification, name: str, sets=()) -> s
              if re.match(r"^description:\s+[^|>\s]", ln) else ln for ln in lines]  # (a block scalar stays)
     for (section, key), (value, comment) in changes(ident).items():
         if value is None:
-            _keep(lines, section, key, comment)
+            _keep(lines, section, key, comment, after=NEIGHBOURS.get((section, key)))
         else:
-            _put(lines, section, key, value, comment)
+            _put(lines, section, key, value, comment, after=NEIGHBOURS.get((section, key)))
     head = (f"{IDENTIFIED_CONFIG_HEAD} {logs}: see identified.json. The rest is the config\n"
             f"# {ident.config_name}'s, its comments speaking of its values; each identified value says where it\n"
             "# came from.")
@@ -367,9 +390,14 @@ def _section(lines: list[str], section: str):
     return start, end
 
 
-def _put(lines: list[str], section: str, key: str, value: str, comment: str) -> None:
+NEIGHBOURS = {("motors", "thrust_curve"): "max_thrust"}
+"""A key the identified config adds, and the key of its section it goes after (when the section has it)."""
+
+
+def _put(lines: list[str], section: str, key: str, value: str, comment: str, after: str | None = None) -> None:
     """Set ``section.key: value  # comment`` in ``lines``: the key's line (its continued comment, its block and
-    the comment just above it, which spoke of the old value) replaced, or added at the section's top."""
+    the comment just above it, which spoke of the old value) replaced, or added after the key ``after`` (with its
+    block) when the section has it, else at the section's top."""
     new = f"  {key}: {value}  # {comment}"
     found = _section(lines, section)
     if found is None:
@@ -378,7 +406,8 @@ def _put(lines: list[str], section: str, key: str, value: str, comment: str) -> 
     start, end = found
     at = next((k for k in range(start + 1, end) if re.match(rf"^\s+{key}:", lines[k])), None)
     if at is None:
-        lines.insert(start + 1, new)
+        below, indent = _below(lines, start, end, after)
+        lines.insert(below, " " * indent + new.lstrip())
         return
     indent = len(lines[at]) - len(lines[at].lstrip())
     drop = at + 1
@@ -405,14 +434,32 @@ def _put_top(lines: list[str], key: str, value, comment: str) -> None:
     lines[start:end] = new
 
 
-def _keep(lines: list[str], section: str, key: str, comment: str) -> None:
-    """Leave ``section.key`` as the config has it, the comment ``comment`` (why) on the line above it (at the
-    section's top when the config leaves the key out; at the end when it leaves the section out)."""
+def _keep(lines: list[str], section: str, key: str, comment: str, after: str | None = None) -> None:
+    """Leave ``section.key`` as the config has it, the comment ``comment`` (why) on the line above it (when the
+    config leaves the key out: after the key ``after`` and its block, or at the section's top; at the end when
+    it leaves the section out)."""
     found = _section(lines, section)
     if found is None:
         lines.append(f"# {section}.{key}: {comment}")
         return
     start, end = found
     at = next((k for k in range(start + 1, end) if re.match(rf"^\s+{key}:", lines[k])), None)
-    indent = "  " if at is None else lines[at][:len(lines[at]) - len(lines[at].lstrip())]
-    lines.insert(start + 1 if at is None else at, f"{indent}# {key}: {comment}")
+    if at is None:
+        below, indent = _below(lines, start, end, after)
+        lines.insert(below, f"{' ' * indent}# {key}: {comment}")
+        return
+    indent = lines[at][:len(lines[at]) - len(lines[at].lstrip())]
+    lines.insert(at, f"{indent}# {key}: {comment}")
+
+
+def _below(lines: list[str], start: int, end: int, after: str | None) -> tuple[int, int]:
+    """``(line, indent)`` where a key the section (``lines[start:end]``) leaves out goes: below the key ``after``
+    and its block, at its indent, when the section has it; else the section's first line, indented 2."""
+    near = next((k for k in range(start + 1, end) if after and re.match(rf"^\s+{after}:", lines[k])), None)
+    if near is None:
+        return start + 1, 2
+    indent = len(lines[near]) - len(lines[near].lstrip())
+    below = near + 1
+    while below < end and _under(lines[below], indent):
+        below += 1
+    return below, indent

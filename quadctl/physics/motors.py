@@ -93,12 +93,17 @@ class Motors:
     xy: tuple[tuple[float, float], ...] | None = None
     """Rotor positions ``(x, y)`` (m, body frame), rotor 1 first (``motors.positions``); None: from
     ``layout`` and ``arm_length``."""
+    thrust_curve: tuple[float, float, float] | None = None
+    """N: ``(c0, c1, c2)`` of each rotor's thrust ``c0 + c1 s + c2 s^2`` at the command fraction ``s``
+    (``motors.thrust_curve``, :func:`thrust_curve_problem`); None: the flight stack's own curve."""
 
     @classmethod
     def from_config(cls, cfg) -> Motors:
         """From a :class:`quadctl.config.MotorsConfig` (its ``numbering`` and ``spin`` resolved)."""
         data = cfg.model_dump()
         numbering, spin = data.pop("numbering", "quadctl"), data.pop("spin", None)
+        curve = data.pop("thrust_curve", None)
+        data["thrust_curve"] = tuple(float(c) for c in curve) if curve is not None else None
         xy = data.pop("positions", None)
         if xy is not None:  # the geometry as built: the positions in the vehicle's order, spins given
             return cls(**data, spins=tuple(SPIN_SIGN[s] for s in spin),
@@ -170,6 +175,48 @@ PARALLEL_RTOL = 1e-9
 less than this, relative: their difference is then round-off, and dividing by it would throw the thrust away."""
 SATURATION_RULES = ("prioritize", "clip")
 """``motors.saturation``: how a command the rotors cannot produce is brought inside their limits."""
+
+THRUST_CURVE_RTOL = 1e-6
+"""Relative: a thrust curve's ``c0 + c1 + c2`` (its thrust at full command) must be ``max_thrust`` within
+this. They are one thrust written twice (every reader of ``max_thrust``, the saturation and the Bryson
+weights, takes it from there); summing three decimals rounds off by ~1e-16, a value copied to 7 digits
+passes, a different number (0.138 for 0.1382) does not."""
+THRUST_CURVE_RISES_FROM = 0.1
+"""Command fraction from which a thrust curve must rise to full command (slope ``c1 + 2 c2 s > 0``):
+a falling curve turns the cascade's feedback over. Below it a fit of flight data (hover near
+0.5) may curl: the identified Crazyflie curve has its least thrust at s = 0.04, 0.14 % of full thrust
+below ``c0``. No steady flight holds a rotor there (the Crazyflie cascade's least collective command is
+``thrust_min``, 20000 PWM, 0.31), only a torque's transient passes through."""
+
+
+def thrust_curve_problem(curve, max_thrust: float) -> str | None:
+    """Why ``curve`` ``(c0, c1, c2)`` (N) is not a rotor's thrust curve with ``max_thrust`` (N) at full
+    command, or None: a coefficient not finite, ``c0 + c1 + c2`` not ``max_thrust`` (within
+    :data:`THRUST_CURVE_RTOL`), or a slope ``c1 + 2 c2 s`` not positive somewhere on
+    ``[THRUST_CURVE_RISES_FROM, 1]`` (linear in ``s``: checked at both ends). The sentence ends with the fix.
+
+    Examples
+    --------
+    >>> thrust_curve_problem((0.0224, -0.0098, 0.1256), 0.1382) is None
+    True
+    >>> thrust_curve_problem((0.0, 0.1, 0.03), 0.1382).split(";")[0]
+    'gives c0 + c1 + c2 = 0.13 N at full command, but motors.max_thrust = 0.1382 N: they are the same thrust'
+    """
+    c0, c1, c2 = (float(c) for c in curve)
+    if not all(math.isfinite(c) for c in (c0, c1, c2)):
+        return "each coefficient must be a finite number of N: [c0, c1, c2] of thrust = c0 + c1 s + c2 s^2"
+    top = c0 + c1 + c2
+    if not abs(top - max_thrust) <= THRUST_CURVE_RTOL * abs(max_thrust):
+        return (f"gives c0 + c1 + c2 = {top:.10g} N at full command, but motors.max_thrust = {max_thrust:g} N: they "
+                f"are the same thrust; set motors.max_thrust: {top:.10g}, or correct the curve")
+    s = THRUST_CURVE_RISES_FROM
+    low, high = c1 + 2 * c2 * s, c1 + 2 * c2
+    if not (low > 0 and high > 0):
+        where = s if low <= 0 else 1.0
+        return (f"its slope c1 + 2 c2 s is {min(low, high):.4g} N at s = {where:g}: the thrust must rise with the "
+                f"command from s = {s:g} to 1, else the feedback turns over; check the order [c0, c1, c2], each in N")
+    return None
+
 
 
 class _Ops:

@@ -119,9 +119,24 @@ def sentences(payload: dict) -> list[str]:
             out.append(f"The fitted delay, {fitted * 1e3:.4g} ms, is written as controller.delay: "
                        f"{{samples: {delay['samples']}}} ({delay['s'] * 1e3:.4g} ms at {delay['rate_hz']:g} Hz, "
                        "the nearest whole samples).")
+    if th and "motors.thrust_curve" in payload.get("not_written", {}) and "max_thrust" not in payload["implausible"]:
+        curve = [float(f"{th['parameters'][n]['value']:.4g}") for n in ("c0", "c1", "c2")]
+        out.append(f"Not written, motors.thrust_curve and motors.max_thrust: {curve_withheld(curve)}.")
     for stage, reason in payload["refused"].items():
         out.append(f"Not identified, {STAGE_TITLES[stage]}: {reason}.")
     return out
+
+
+def curve_withheld(curve) -> str:
+    """Why the identified thrust ``curve`` ``[c0, c1, c2]`` (N, as written) and its thrust at full command are not
+    written: it falls (:func:`quadctl.physics.motors.thrust_curve_problem`); what stays; the cure."""
+    from quadctl.physics.motors import thrust_curve_problem
+
+    top = sum(curve)
+    problem = thrust_curve_problem(curve, top) or "rises"
+    return (f"the identified curve {[float(c) for c in curve]} N is no rotor's: {problem.split('; ')[0]}; the "
+            "config's thrust curve and max_thrust stay (a log whose rotors sweep more of the command range pins "
+            "the curve's low end)")
 
 
 NOT_PLAUSIBLE = {"positive": "reaches zero: not written", "non-negative": "negative: not written",
@@ -161,9 +176,11 @@ def implausible(payload: dict, folder) -> str:
     failed = {n: p for n, p in found.items() if n in payload["implausible"]}
     said = "; ".join(_estimate(n, p) for n, p in failed.items())
     them = "them" if len(failed) > 1 else "it"
-    kept = (f"{folder}/identified.yaml leaves {', '.join(payload['not_written'])} as the config has "
-            f"{'them' if len(payload['not_written']) > 1 else 'it'}"
-            if payload["not_written"] else f"{folder}/identified.yaml does not take {them}")
+    flagged = [key for key, needs in payload["not_written"].items() if set(needs) & set(failed)]  # (not a curve
+    # that falls, which its own sentence names)
+    kept = (f"{folder}/identified.yaml leaves {', '.join(flagged)} as the config has "
+            f"{'them' if len(flagged) > 1 else 'it'}"
+            if flagged else f"{folder}/identified.yaml does not take {them}")
     cures = dict.fromkeys(CURES.get(p["rule"] if not p["passes_rule"] else None, CURE) for p in failed.values())
     return f"not plausible: {said}; {kept} (identified.json flags {them}): {'; or '.join(cures)}"
 

@@ -379,8 +379,8 @@ def build(spec: LoopSpec) -> LoopFunctions:
     if spec.law:  # a PID cascade (quadctl.sim.pid): its own states after the plant's
 
         command, s_next = pid.law(spec.law, X[npl:npl + n_law], X[:N_STATES] + sensor, x_ref(t), u_ref(t),
-                                  parts["law"], parts["mix"], parts["mix_inv"], parts["hi"], parts["Ts"],
-                                  params[GRAVITY])
+                                  parts["law"], parts["mix"], parts["mix_inv"], parts["hi"], parts["thrust_curve"],
+                                  parts["Ts"], params[GRAVITY])
         u_now, X_sampled = saturate(command), ca.vertcat(X[:npl], s_next)
     else:
         u_now, z_rate = control(X, t)

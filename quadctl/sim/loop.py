@@ -24,7 +24,7 @@ from quadctl.layout import N_STATES, PRODUCTS, STATE_INDEX, STATE_NAMES
 from quadctl.sim.etdrk4_plan import plan_schedule
 from quadctl.sim.loop_layout import pack_constants
 from quadctl.sim.loop_spec import LoopSpec
-from quadctl.sim.pid import initial_states, structure_of
+from quadctl.sim.pid import initial_states, pwm_thrust_curve, structure_of
 from quadctl.sim.plan import StepPlan, max_stable_steps, plan_held_step, plan_step
 
 if TYPE_CHECKING:  # the types of a loop's parts (their modules load only when a loop has one)
@@ -400,7 +400,8 @@ def rotor_eigenvalues(time_constant: float | None) -> np.ndarray:
 
 
 def gain_constants(loops) -> dict[str, np.ndarray]:
-    """The entries of :meth:`ClosedLoop.constants` that the gains set (``K``, a cascade's ``law``,
+    """The entries of :meth:`ClosedLoop.constants` that the gains set (``K``, a cascade's ``law`` and the thrust
+    curve its PWM flies, which is the preset's when the vehicle has none,
     ``Ki`` and its anti-windup pattern, ``Kv``, a gain schedule's table), each stacked over ``loops``
     (one structure): all that differs between two loops of one structure
     (:func:`quadctl.sim.loop_layout.fill_constants_stack` writes them into copies of one's constants)."""
@@ -408,6 +409,7 @@ def gain_constants(loops) -> dict[str, np.ndarray]:
     out = {"K": np.stack([loop.K for loop in loops])}
     if first.law is not None:
         out["law"] = np.array([loop.law.values for loop in loops], dtype=float)
+        out["thrust_curve"] = np.array([pwm_thrust_curve(loop.law, loop.actuators) for loop in loops])
     nz = len(first.integral_states)
     if nz:
         Ki = np.array([loop.Ki for loop in loops], dtype=float).reshape(len(loops), len(first.u_trim), nz)

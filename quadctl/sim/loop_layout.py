@@ -99,7 +99,9 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, 
     ``speed`` is measured along), ``schedule_breaks`` (p + 1,) and ``schedule_coefficients``
     (4, p, 4, m): :class:`quadctl.design.gain_table.GainTable`'s ``breaks`` and ``coefficients``.
     A loop flying a law other than LQR (:attr:`~quadctl.sim.loop_spec.LoopSpec.law`) then has its ``law``
-    constants (``n_law`` of them). A loop with a gyro filter of ``filter_order`` states per rate
+    constants (``n_law`` of them) and ``thrust_curve`` (4, 3): each rotor's ``(c0, c1, c2)``, N, of its thrust
+    ``c0 + c1 s + c2 s^2`` at the command fraction ``s`` (:func:`quadctl.sim.pid.pwm_thrust_curve`). A loop
+    with a gyro filter of ``filter_order`` states per rate
     (:attr:`~quadctl.sim.loop_spec.LoopSpec.filter_order`) ends with the filter's ``filter_A`` (m, m),
     ``filter_b``, ``filter_c`` (m,) and ``filter_d`` (1,)
     (:class:`quadctl.linear.filters.StateSpace`, the same on each rate).
@@ -120,7 +122,7 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, 
         out = out + (("schedule_heading", (1,)), ("schedule_breaks", (pieces + 1,)),
                      ("schedule_coefficients", (4, pieces, N_INPUTS, columns)))
     if n_law:
-        out = out + (("law", (n_law,)),)
+        out = out + (("law", (n_law,)), ("thrust_curve", (N_INPUTS, 3)))
     if filter_order:
         m = filter_order
         out = out + (("filter_A", (m, m)), ("filter_b", (m,)), ("filter_c", (m,)), ("filter_d", (1,)))

@@ -227,7 +227,7 @@ def _earth_velocity(x):
     return R @ body
 
 
-def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gravity):
+def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, curve, Ts, gravity):
     """One sample of the cascade: ``(command [T, A, E, R] (4,), the law's next states)``.
 
     Parameters
@@ -247,6 +247,9 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
         The rotors' mixing and its inverse.
     hi : CasADi column (4,)
         The rotors' largest thrusts (N).
+    curve : CasADi (4, 3)
+        N: each rotor's ``(c0, c1, c2)``, its thrust ``c0 + c1 s + c2 s^2`` at the PWM fraction ``s``
+        (:func:`pwm_thrust_curve`; PWM torques only).
     Ts : CasADi scalar
         s: the base period.
     gravity : CasADi scalar
@@ -373,8 +376,7 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     if torque_out == "pwm":
         pwm = legacy_pwm(thrust_sp, out, mix)
         sfrac = ca.fmin(ca.fmax(pwm, 0), PWM_FULL) / PWM_FULL
-        a, b = v["pwm_thrust_a"], v["pwm_thrust_b"]
-        rotors = hi * (a * sfrac ** 2 + b * sfrac) / (a + b)
+        rotors = curve[:, 0] + curve[:, 1] * sfrac + curve[:, 2] * sfrac ** 2
         command = mix_inv @ rotors
     else:  # PX4's control allocation, unsaturated: each normalized input is its own multiple of the input
         command = ca.vertcat(thrust_sp, out) * px4_units(mix, hi)
@@ -382,6 +384,35 @@ def law(structure: tuple, s, x_m, x_ref, u_ref, values, mix, mix_inv, hi, Ts, gr
     s_next = ca.vertcat(phase, i_pos, i_vel, vel_prev, att_sp, thrust_sp, i_att, att_prev, rate_sp, i_rate,
                         rates, d_next, gyro_next)
     return command, s_next
+
+
+def pwm_thrust_curve(gains, actuators) -> np.ndarray:
+    """(4, 3) N: each rotor's ``(c0, c1, c2)``, its thrust ``c0 + c1 s + c2 s^2`` at the fraction ``s`` of full
+    PWM, that the cascade of ``gains`` (:class:`quadctl.config.pid.PidGains`) flies on ``actuators``
+    (:class:`quadctl.physics.motors.Actuators`): the vehicle's own curve (``motors.thrust_curve``), else the
+    preset's ``f = a s^2 + b s`` (``pwm_thrust_a``, ``pwm_thrust_b``) scaled to each rotor's largest thrust
+    ``hi`` at full PWM, ``(0, hi b / (a + b), hi a / (a + b))``. Zero for a cascade whose torques are
+    normalized (PX4's, :func:`px4_units`), which reads no curve.
+
+    Examples
+    --------
+    >>> from quadctl.config.pid import resolve
+    >>> from quadctl.physics.motors import Motors, actuators_of
+    >>> curve = pwm_thrust_curve(resolve("crazyflie"), actuators_of(Motors(max_thrust=0.2)))[0]
+    >>> curve.round(5), round(float(curve.sum()), 12)  # Förster's shape, max_thrust at full PWM
+    (array([0.     , 0.08504, 0.11496]), 0.2)
+    >>> pwm_thrust_curve(resolve("crazyflie"), actuators_of(Motors(max_thrust=0.1382,
+    ...                  thrust_curve=(0.0224, -0.0098, 0.1256))))[0]
+    array([ 0.0224, -0.0098,  0.1256])
+    """
+    hi = np.asarray(actuators.hi, dtype=float)
+    if gains.torque_output != "pwm":
+        return np.zeros((len(hi), 3))
+    own = actuators.motors.thrust_curve if actuators.motors is not None else None
+    if own is not None:
+        return np.tile(np.asarray(own, dtype=float), (len(hi), 1))
+    a, b = gains["pwm_thrust_a"], gains["pwm_thrust_b"]
+    return hi[:, None] * np.array([0.0, b, a]) / (a + b)
 
 
 def legacy_pwm(thrust, out, mix):

@@ -54,7 +54,7 @@ def _fit(stage, names, values, std, windows=((1.0, 2.0),)):
                         extra={"rms_without_lag": 1.0} if stage == "thrust" else {})
 
 
-def _identification(t_m_std=1e-4, jxx_std=1e-7, k_m_std=1e-5, delay=False, c2=0.12):
+def _identification(t_m_std=1e-4, jxx_std=1e-7, k_m_std=1e-5, delay=False, c2=0.12, c1=-0.01):
     """crazyflie's airframe, a thrust, attitude and yaw fit with the given stds (1.96 std past the value: the
     interval reaches zero) and quadratic coefficient (the thrust at full command is c2 + 0.01 N)."""
     from quadctl import config
@@ -63,7 +63,7 @@ def _identification(t_m_std=1e-4, jxx_std=1e-7, k_m_std=1e-5, delay=False, c2=0.
                     path="log", format="csv", sha256="")
     cfg = config.load("crazyflie")
     names = ("c0", "c1", "c2", "T_m") + (("delay",) if delay else ())
-    thrust = _fit("thrust", names, (0.02, -0.01, c2, 0.07) + ((0.017,) if delay else ()),
+    thrust = _fit("thrust", names, (0.02, c1, c2, 0.07) + ((0.017,) if delay else ()),
                   (1e-4, 1e-4, 1e-4, t_m_std) + ((1e-3,) if delay else ()))
     fits = {"thrust": thrust,
             "attitude": _fit("attitude", ("Jxx", "Jyy"), (1.3e-5, 1.38e-5), (jxx_std, 1e-7)),
@@ -114,17 +114,41 @@ def test_a_full_command_thrust_that_does_not_lift_the_vehicle_is_not_written_and
     text = identified_config(base, ident, "x")
     assert parse(text, "x").motors.max_thrust == parse(base, "crazyflie").motors.max_thrust
     assert "# max_thrust: not identified: max_thrust = 0.06 N" in text
+    assert "# thrust_curve: not identified: max_thrust = 0.06 N" in text  # the curve goes with its full thrust
+    assert parse(text, "x").motors.thrust_curve is None
     done = payload(ident, "crazyflie.yaml", written=text)
-    assert done["implausible"] == ["max_thrust"] and list(done["not_written"]) == ["motors.max_thrust"]
+    assert done["implausible"] == ["max_thrust"]
+    assert list(done["not_written"]) == ["motors.max_thrust", "motors.thrust_curve"]
     assert re.match(r"^not plausible: max_thrust = 0\.06 N \(95 %: 0\.0596\d* to 0\.0603\d* N\) is a rotor's thrust "
                     r"at full command whose 95 % interval reaches its share of the weight \(m g / 4 = 0\.06622 N, "
                     r"the config's mass and gravity\) or below: four rotors at full command may not lift the vehicle; "
-                    r"runs/x/identified\.yaml leaves motors\.max_thrust as the config has it "
+                    r"runs/x/identified\.yaml leaves motors\.max_thrust, motors\.thrust_curve as the config has them "
                     r"\(identified\.json flags it\): "
                     r"check vehicle\.mass and vehicle\.gravity against the vehicle flown \(--set vehicle\.mass=KG\), "
                     r"or fit a log that climbs at full command \(a curve the log did not fly there is extrapolated\)$",
                     implausible(done, "runs/x"))
     assert _identification(c2=0.12).entries()["max_thrust"]["plausible"]
+
+
+def test_a_thrust_curve_that_falls_is_written_neither_nor_its_full_command_thrust():
+    """A curve whose slope c1 + 2 c2 s is negative at s = 0.1 (-0.12 + 0.052 N) is no rotor's, plausible as its
+    full-command thrust (0.16 N) is: the config keeps its own curve and max_thrust, together (writing the new
+    max_thrust beside a config's curve would make a config that does not load), and a sentence says why."""
+    from quadctl.present.identify import sentences
+
+    ident = _identification(c1=-0.12, c2=0.26)
+    assert ident.implausible() == ()
+    base = locate("crazyflie").text
+    text = identified_config(base, ident, "x")
+    got = parse(text, "x")
+    assert got.motors.max_thrust == parse(base, "crazyflie").motors.max_thrust and got.motors.thrust_curve is None
+    assert "# thrust_curve: not written: the identified curve [0.02, -0.12, 0.26] N is no rotor's: its slope " \
+           "c1 + 2 c2 s is -0.068 N at s = 0.1" in text
+    done = payload(ident, "crazyflie.yaml", written=text)
+    assert done["not_written"] == {"motors.max_thrust": ["c0", "c1", "c2"], "motors.thrust_curve": ["c0", "c1", "c2"]}
+    said = [x for x in sentences(done) if x.startswith("Not written, motors.thrust_curve and motors.max_thrust: ")]
+    assert len(said) == 1 and "the config's thrust curve and max_thrust stay" in said[0]
+    assert got.motors.time_constant == pytest.approx(0.07)  # the rest is written
 
 
 def test_the_torque_coefficient_keeps_the_configs_jzz_when_the_inertia_is_not_written():
@@ -190,8 +214,10 @@ def test_the_sample_ulogs_unresolved_motor_lag_is_not_written_and_identify_exits
     assert "# time_constant: not identified: T_m = 0.008 s" in text
     cfg = parse(text, "identified.yaml")
     assert cfg.motors.time_constant == parse(locate("crazyflie").text, "c").motors.time_constant
-    assert cfg.motors.max_thrust == pytest.approx(done["stages"]["thrust"]["derived"]["max_thrust"]["value"],
-                                                  rel=1e-3)
+    # its curve falls from 0.08 N at s = 0 to 0.062 N at s = 0.33, inside the commands it flew (0.12 to 0.54):
+    # no rotor's, so neither it nor its full-command thrust is written (the config's stay)
+    assert cfg.motors.max_thrust == parse(locate("crazyflie").text, "c").motors.max_thrust
+    assert cfg.motors.thrust_curve is None and "motors.thrust_curve" in done["not_written"]
 
 
 def test_the_closing_line_names_what_was_kept_or_that_nothing_was_to_be_written():
@@ -217,7 +243,8 @@ def test_a_curve_that_cannot_lift_the_configs_weight_is_not_written_and_identify
                                    "--window", "8.67:38.67", "--set", "vehicle.gravity=22", "-o", str(out)])
     assert res.exit_code == 1, res.output
     assert "max_thrust = 0.1382 N (95 %: 0.1359 to 0.1405 N) is a rotor's thrust at full command" in res.stderr
-    assert "(m g / 4 = 0.1485 N," in res.stderr and "leaves motors.max_thrust as the config has it" in res.stderr
+    assert "(m g / 4 = 0.1485 N," in res.stderr
+    assert "leaves motors.max_thrust, motors.thrust_curve as the config has them" in res.stderr
     done = json.loads((out / "identified.json").read_text())
     assert done["implausible"] == ["max_thrust"]
     cfg = parse((out / "identified.yaml").read_text(), "identified.yaml")

@@ -46,6 +46,24 @@ def test_identified_config_says_where_each_value_came_from_and_designs(identifie
     assert res.exit_code == 0, res.output
 
 
+def test_identified_config_carries_the_thrust_curve_whose_full_command_thrust_is_max_thrust(identified):
+    """The curve as fitted (identified.json's c0, c1, c2, 4 digits each) is written beside max_thrust, which is
+    that written curve at s = 1 to its last digit: loaded back, c0 + c1 + c2 is max_thrust."""
+    from quadctl.config import parse
+
+    out, _ = identified
+    text = (out / "identified.yaml").read_text()
+    cfg = parse(text, "identified.yaml")
+    fitted = json.loads((out / "identified.json").read_text())["stages"]["thrust"]["parameters"]
+    curve = cfg.motors.thrust_curve
+    assert curve == pytest.approx([fitted[n]["value"] for n in ("c0", "c1", "c2")], rel=5e-4)
+    assert sum(curve) == pytest.approx(cfg.motors.max_thrust, rel=1e-15, abs=0)
+    lines = text.splitlines()
+    at = next(k for k, ln in enumerate(lines) if ln.lstrip().startswith("max_thrust:"))
+    assert lines[at + 1].lstrip().startswith("thrust_curve: [")  # beside it
+    assert "c0 + c1 s + c2 s^2 at the command s (of full), identified from log10 t 8.67:38.67 s" in lines[at + 1]
+
+
 def test_identify_again_keeps_the_run_of_the_identified_config_in_its_folder(identified, tmp_path):
     """identify writes no config's run, so it removes none: the identified config designed in identify's own
     folder, then identify run again there (a new fit), leaves that design and the config beside it as they

@@ -139,7 +139,7 @@ def law_outputs(setup, thrust_newtons, torques) -> np.ndarray:
     state[pid.state_slice("rate_previous")] = measured[STATE_INDEX["p"]:STATE_INDEX["p"] + 3]
     command, _ = pid.law(pid.structure_of(gains), ca.DM(state), ca.DM(measured), ca.DM(x),
                          ca.DM([thrust_newtons, 0.0, 0.0, 0.0]), ca.DM(gains.values), ca.DM(act.mix),
-                         ca.DM(act.mix_inv), ca.DM(act.hi), 1 / gains["rate_hz"], 9.81)
+                         ca.DM(act.mix_inv), ca.DM(act.hi), ca.DM.zeros(4, 3), 1 / gains["rate_hz"], 9.81)
     return act.mix @ np.asarray(command, dtype=float).ravel() / act.hi
 
 

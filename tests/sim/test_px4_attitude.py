@@ -186,7 +186,7 @@ def test_px4s_rate_integrator_grows_in_torque_units_by_i_factor_ki_e_dt(error_dp
         x[STATE_INDEX["p"]] = -e  # rate setpoint 0 at level: the error is e
         _, s_next = pid.law(pid.structure_of(gains), ca.DM(s), ca.DM(x), ca.DM(np.zeros(N_STATES)),
                             ca.DM([10.0, 0, 0, 0]), ca.DM(gains.values), ca.DM(np.eye(4)), ca.DM(np.eye(4)),
-                            ca.DM(np.full(4, 10.0)), Ts, 9.81)
+                            ca.DM(np.full(4, 10.0)), ca.DM.zeros(4, 3), Ts, 9.81)
         return float(np.asarray(s_next).ravel()[pid.state_slice("rate_integral")][0])
 
     assert next_integral(0.0) == pytest.approx(factor * ki * e * Ts, rel=1e-12, abs=1e-15)

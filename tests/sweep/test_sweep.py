@@ -286,6 +286,12 @@ BATCHED_CASES = {
     "pid cascade": ({"controller.pid.values.rate_roll_kp": [200.0, 250.0], "vehicle.mass": [0.0578, 0.0782]},
                     {"simulation.duration": 0.6, "controller.flies": "pid",
                      "controller.pid": {"preset": "crazyflie", "values": {"rate_roll_kp": 250.0}}}),
+    # the PWM's thrust curve (the firmware's, scaled to each case's max_thrust) is each lane's, whether the lanes
+    # share a loop but for the gains (rate_roll_kp) or not (max_thrust)
+    "pid cascade, its rotors": ({"motors.max_thrust": [0.25, 0.33],
+                                 "controller.pid.values.rate_roll_kp": [200.0, 250.0]},
+                                {"simulation.duration": 0.6, "controller.flies": "pid",
+                                 "controller.pid": {"preset": "crazyflie", "values": {"rate_roll_kp": 250.0}}}),
 }
 
 
