@@ -76,7 +76,7 @@ PARAMETERS: tuple[tuple[str, str], ...] = (
     ("thrust_max", "PX4: largest normalized collective thrust"),
     ("thrust_scale", "Crazyflie: PWM per unit of the vertical velocity PID's output"),
     ("pwm_thrust_a", "Crazyflie: the PWM-to-thrust curve's quadratic coefficient (f = a s^2 + b s, s = PWM/65535), "
-                     "scaled so that full PWM gives motors.max_thrust"),
+                     "scaled so that full PWM gives motors.max_thrust; a vehicle's motors.thrust_curve replaces it"),
     ("pwm_thrust_b", "Crazyflie: the PWM-to-thrust curve's linear coefficient"),
 )
 """Every value of a cascade, in the order of the law's constants, with its unit (a preset leaves out
