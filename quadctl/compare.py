@@ -298,11 +298,13 @@ def payload(comparison: Comparison) -> dict:
         "units": {name: unit for name, unit, _ in METRICS} | {"duration": "s", "exo_period": "s", "rate": "Hz"},
         "meaning": {name: meaning for name, _, meaning in METRICS} | {"closed_loop_stable": CLOSED_LOOP_STABLE,
                                                                        "settling_noise_limited": NOISE_LIMITED,
-                                                                       "gyro_filter": GYRO_FILTER},
+                                                                       "gyro_filter": GYRO_FILTER,
+                                                                       "gyro_lowpass_hz": GYRO_LOWPASS},
         "exo_period": comparison.exo_period, "noise_seed": comparison.noise_seed, "wind_seed": comparison.wind_seed,
         "identical_disturbances": comparison.identical_disturbances,
         "laws": [{"name": law.name, "title": law.title, "rate": law.rate, "disturbances": law.disturbances,
-                  "gyro_filter": gyro_filter_of(law.loop), **law.metrics,
+                  "gyro_filter": gyro_filter_of(law.loop), "gyro_lowpass_hz": stack_lowpass_of(law.loop),
+                  **law.metrics,
                   "margins": [m.as_dict() for m in law.margins]} for law in comparison.laws],
     }
 
@@ -312,11 +314,24 @@ GYRO_FILTER = ("the filters the law reads the body rates through (the LQR design
 """compare.json's meaning of a law's ``gyro_filter``."""
 
 
+GYRO_LOWPASS = "Hz: a PID cascade's stack's second-order gyro low-pass (gyro_lpf_hz); None: none, or the LQR design"
+"""compare.json's meaning of a law's ``gyro_lowpass_hz``."""
+
+
+def stack_lowpass_of(loop: ClosedLoop) -> float | None:
+    """Hz of the second-order gyro low-pass a PID cascade's stack runs (:data:`GYRO_LOWPASS`); None: none, or
+    not a cascade."""
+    if loop.law is None:
+        return None
+    hz = float(loop.law["gyro_lpf_hz"])
+    return hz if hz > 0 else None
+
+
 def gyro_filter_of(loop: ClosedLoop) -> str | None:
     """The filters ``loop``'s law reads the body rates through, in words (:data:`GYRO_FILTER`); None: raw rates."""
     if loop.law is not None:  # a PID cascade: its stack's low-pass
-        hz = float(loop.law["gyro_lpf_hz"])
-        return Section("lowpass", hz, 2).describe() if hz > 0 else None
+        hz = stack_lowpass_of(loop)
+        return Section("lowpass", hz, 2).describe() if hz is not None else None
     return loop.rate_filter.describe() if loop.rate_filter is not None else None
 
 

@@ -6,8 +6,6 @@ which reads the file a ``quadctl compare`` left in the run folder, say the same.
 
 from __future__ import annotations
 
-import re
-
 from quadctl.artifacts.json_values import decode_floats
 from quadctl.compare import METRICS, parse_law
 from quadctl.metrics import NOISE_LIMITED_WORDS
@@ -86,14 +84,8 @@ def gyro_filter_sentence(data: dict) -> Mark | None:
     return Mark(f"Not like for like: {cascades} ({which}), which a stack's sensor driver runs for every controller, "
                 "and the LQR design reads "
                 "them raw (no controller.filters), so its margins and run lack that lag. Give the LQR design the "
-                f"stack's filter, --set controller.filters.gyro.cutoff={_cutoff(filtered[0]['gyro_filter'])}, "
+                f"stack's filter, --set controller.filters.gyro.cutoff={filtered[0]['gyro_lowpass_hz']:g}, "
                 "to compare them behind the same one.", "warning")
-
-
-def _cutoff(words: str) -> str:
-    """The cutoff (Hz) of a low-pass described as ``second-order low-pass at 80 Hz``
-    (:meth:`quadctl.linear.filters.Section.describe`)."""
-    return re.search(r"low-pass at (\S+) Hz", words).group(1)
 
 
 def free_position_sentence(regulated: tuple[str, ...], laws) -> str | None:

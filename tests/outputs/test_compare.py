@@ -265,6 +265,7 @@ def test_compare_says_when_the_cascade_reads_filtered_rates_and_the_lqr_design_r
     assert res.exit_code == 0, res.output
     data = json.loads((tmp_path / "raw" / "compare.json").read_text())
     assert [law["gyro_filter"] for law in data["laws"]] == [None, "second-order low-pass at 80 Hz"]
+    assert [law["gyro_lowpass_hz"] for law in data["laws"]] == [None, 80.0]  # the --set the warning names
     text = " ".join(res.output.split())
     assert ("Not like for like: the PID cascade reads the body rates behind its flight stack's gyro low-pass "
             "(pid:crazyflie: second-order low-pass at 80 Hz)") in text
