@@ -82,7 +82,7 @@ before it hands ``sensors->gyro`` to any controller, the app's too (the ``crazyf
 ``gyro_lpf_hz``)."""
 
 ROTOR_LAG = PRESETS["crazyflie"].motors["time_constant"][0]
-"""s: the Crazyflie 2.x's rotor lag, as ``quadctl init --from crazyflie`` writes it: the time constant
+"""s: the Crazyflie 2.x's rotor lag, as the Crazyflie template of ``quadctl init`` writes it: the time constant
 ``quadctl identify`` finds in the bundled flight ``log10`` (docs/guide/identify.md; its 95 % interval is
 checked to hold this value in tests/identify/test_identify_estimates.py). A design that leaves it out is
 told so at export (:func:`lag_sentence`)."""
