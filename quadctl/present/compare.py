@@ -81,11 +81,12 @@ def gyro_filter_sentence(data: dict) -> Mark | None:
     which = "; ".join(f"{law['name']}: {law['gyro_filter']}" for law in filtered)
     cascades = ("the PID cascade reads the body rates behind its flight stack's gyro low-pass" if len(filtered) == 1
                 else "the PID cascades read the body rates behind their flight stacks' gyro low-passes")
+    hz = filtered[0].get("gyro_lowpass_hz")  # (a compare.json written before the key: the filter in words only)
+    fix = f"--set controller.filters.gyro.cutoff={hz:g}" if hz is not None else "controller.filters.gyro"
     return Mark(f"Not like for like: {cascades} ({which}), which a stack's sensor driver runs for every controller, "
                 "and the LQR design reads "
                 "them raw (no controller.filters), so its margins and run lack that lag. Give the LQR design the "
-                f"stack's filter, --set controller.filters.gyro.cutoff={filtered[0]['gyro_lowpass_hz']:g}, "
-                "to compare them behind the same one.", "warning")
+                f"stack's filter, {fix}, to compare them behind the same one.", "warning")
 
 
 def free_position_sentence(regulated: tuple[str, ...], laws) -> str | None:
