@@ -22,6 +22,8 @@ FORSTER = (0.091492681, 0.067673604)
 """N: the firmware's pwmToThrustA and pwmToThrustB (pid_presets.yaml), Förster's bench curve."""
 THRUST_RTOL = 1e-12
 """Relative: the law's arithmetic on four numbers of order 0.1 N, rounded once or twice."""
+THRUST_ATOL = 1e-15
+"""N: a rotor at no PWM on Förster's curve (0 N) comes back through the mixing and its inverse as ~1e-19 N."""
 
 
 def crazyflie(*sets):
@@ -72,28 +74,36 @@ def rotor_thrusts(stages, base_pwm, torques):
 
 
 COMMANDS = [(36000.0, (0.0, 0.0, 0.0)), (41300.0, (3000.0, -2000.0, 1500.0)), (20000.0, (-8000.0, 6000.0, -900.0)),
-            (60000.0, (4000.0, 2000.0, 0.0)), (7000.0, (0.0, 0.0, 1000.0))]
+            (60000.0, (4000.0, 2000.0, 0.0)), (7000.0, (0.0, 0.0, 1000.0)), (62000.0, (9000.0, 0.0, 1000.0)),
+            (3000.0, (-9000.0, 0.0, 0.0))]
 """PWM thrust setpoints and roll, pitch and yaw outputs: the firmware's hover base, the identified hover (s 0.63)
-with torques, the least thrust with large torques, near full, and low (below the curve's minimum at s 0.04 for
-one rotor: the curve, not a clip)."""
+with torques, the least thrust with large torques, near full, low (below the curve's minimum at s 0.04 for
+one rotor: the curve, not a clip), and two that ask one rotor for more than full PWM (67500) and two for less
+than none (-1500): the firmware clamps each motor's PWM to 0..65535, so those fly the curve's ends."""
+
+
+def clamped(pwm):
+    """The command fraction ``s`` of each rotor's ``pwm``, clamped as the firmware clamps a motor's PWM to
+    its 16 bits (power_distribution_quadrotor.c, limitUint16)."""
+    return np.clip(pwm, 0.0, 65535.0) / 65535.0
 
 
 @pytest.mark.parametrize("base, torques", COMMANDS)
 def test_the_cascade_flies_the_vehicles_curve_c0_plus_c1_s_plus_c2_s_squared(identified, base, torques):
     got, pwm = rotor_thrusts(identified, base, torques)
     c0, c1, c2 = IDENTIFIED
-    s = pwm / 65535.0
+    s = clamped(pwm)
     want = c0 + c1 * s + c2 * s * s
     assert len(set(np.round(pwm))) > 1 or not any(torques)  # the rotors' commands differ: each its own thrust
-    np.testing.assert_allclose(got, want, rtol=THRUST_RTOL)
+    np.testing.assert_allclose(got, want, rtol=THRUST_RTOL, atol=THRUST_ATOL)
 
 
 @pytest.mark.parametrize("base, torques", COMMANDS)
 def test_without_a_curve_the_cascade_flies_forsters_scaled_to_max_thrust(forster, base, torques):
     got, pwm = rotor_thrusts(forster, base, torques)
     a, b = FORSTER
-    s = pwm / 65535.0
-    np.testing.assert_allclose(got, TOP * (a * s * s + b * s) / (a + b), rtol=THRUST_RTOL)
+    s = clamped(pwm)
+    np.testing.assert_allclose(got, TOP * (a * s * s + b * s) / (a + b), rtol=THRUST_RTOL, atol=THRUST_ATOL)
 
 
 def hover_slope(curve, hover):
