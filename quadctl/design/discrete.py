@@ -154,10 +154,8 @@ def lqrd_weights_batch(A, B, Q, R, Ts, N=None):
 
     Raises
     ------
-    DesignError
-        The shapes do not stack.
-    ValueError
-        A sample time is not positive and finite.
+    ArgumentError
+        A matrix is not numeric, the shapes do not stack, or a sample time is not positive and finite.
     """
     A, B, Q, R, N = as_stack(A, B, Q, R, N, name="lqrd_weights_batch")
     batch, n, m = B.shape

@@ -130,7 +130,7 @@ def matrix(A, B, K, Ki=None, integral_states=(), sample_time=None, *, Kv=None,
 
     Raises
     ------
-    DesignError
+    ArgumentError
         A matrix that is complex, not numeric, or of a shape that does not fit (named).
     """
 

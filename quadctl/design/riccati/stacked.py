@@ -160,8 +160,10 @@ def care_batch(A, B, Q, R, N=None) -> BatchLqr:
 
     Raises
     ------
+    ArgumentError
+        A matrix is not numeric, or the shapes do not stack (named).
     DesignError
-        The shapes do not stack, or the stack does not fit in memory.
+        The stack does not fit in memory.
 
     Examples
     --------
@@ -234,8 +236,10 @@ def dare_batch(A, B, Q, R, N=None, *, compiled: bool = False) -> BatchLqr:
 
     Raises
     ------
+    ArgumentError
+        A matrix is not numeric, or the shapes do not stack (named).
     DesignError
-        The shapes do not stack, or the stack does not fit in memory.
+        The stack does not fit in memory.
 
     Examples
     --------
