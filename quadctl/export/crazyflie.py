@@ -10,6 +10,7 @@ call is in the docs, docs/guide/export.md ("Into the flight stack: the Crazyflie
 
 from __future__ import annotations
 
+import shlex
 from dataclasses import dataclass
 from importlib import resources
 from string import Template
@@ -244,18 +245,19 @@ def gyro_sentence(exp: Export) -> str | None:
             f"{FIRMWARE.gyro_filter()} to check the design behind the filter (the app leaves it to the firmware)")
 
 
-def lag_sentence(exp: Export, config: str) -> str | None:
+def lag_sentence(exp: Export, config: str, sets=()) -> str | None:
     """What the export says when the config has no rotor lag at all (``motors.time_constant``): its design,
     margins and simulation take the rotors as instantaneous, though the Crazyflie's lag (:data:`ROTOR_LAG`)
-    is long enough to unsettle a design made without it; ``config`` is how the user named the config
-    (``-c``), for the command to run."""
+    is long enough to unsettle a design made without it; ``config`` and ``sets`` are how the user named the
+    config (``-c``, each ``--set`` as given), for the command that checks the design exported."""
     require_export(exp, "lag_sentence")
     if exp.setup.rotor_time_constant is not None:
         return None
+    check = shlex.join(["quadctl", "margins", "-c", config, *(w for s in sets for w in ("--set", s)),
+                        "--set", f"motors.time_constant={ROTOR_LAG:g}"])
     return (f"the config gives the rotors no lag (motors.time_constant), but a Crazyflie's rotors lag about "
             f"{1e3 * ROTOR_LAG:.0f} ms (quadctl identify on its flight logs): check the design on it before you fly, "
-            f"quadctl margins -c {config} --set motors.time_constant={ROTOR_LAG:g}, and design with it "
-            "(controller.rotor_lag: include) if it does not hold")
+            f"{check}, and design with it (controller.rotor_lag: include) if it does not hold")
 
 
 def law(exp: Export, setpoint: str) -> str:

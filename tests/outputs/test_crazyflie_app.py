@@ -500,6 +500,15 @@ def test_an_app_of_a_design_without_rotor_lag_names_the_lag_to_check_it_on(tmp_p
     res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "-o", str(tmp_path / "lag"),
                                    "--set", "motors.time_constant=0.03"])
     assert res.exit_code == 0 and "no lag" not in res.stderr, res.output
+    # exported with --set, the check is of that design: the command keeps each, quoted for the shell (it named
+    # the bundled config's instead)
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "-o", str(tmp_path / "set"),
+                                   "--set", "lqr.roll.R=[2000]", "--set", "simulation.duration=5"])
+    assert res.exit_code == 0, res.output
+    said = " ".join(res.stderr.split())
+    check = ("quadctl margins -c crazyflie --set 'lqr.roll.R=[2000]' --set simulation.duration=5 "
+             f"--set motors.time_constant={ROTOR_LAG:g}")
+    assert f"before you fly, {check}, and design with it" in said, said
 
 
 def test_a_setpoint_no_partition_follows_is_refused_naming_only_what_to_regulate():

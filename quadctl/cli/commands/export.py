@@ -82,7 +82,7 @@ def command(to: Annotated[Target, typer.Option(
 
         for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE, mode.value):
             render.note(line)
-        for sentence in (crazyflie.gyro_sentence(exp), crazyflie.lag_sentence(exp, config or cfg.name)):
+        for sentence in (crazyflie.gyro_sentence(exp), crazyflie.lag_sentence(exp, config or cfg.name, sets or ())):
             if sentence is not None:
                 render.note(sentence)
     kal = exp.loop.estimator
