@@ -208,7 +208,8 @@ def thrust_curve_problem(curve, max_thrust: float) -> str | None:
     top = c0 + c1 + c2
     if not abs(top - max_thrust) <= THRUST_CURVE_RTOL * abs(max_thrust):
         return (f"gives c0 + c1 + c2 = {top:.10g} N at full command, but motors.max_thrust = {max_thrust:g} N: they "
-                f"are the same thrust; set motors.max_thrust: {top:.10g}, or correct the curve")
+                f"are the same thrust; set motors.max_thrust: {top:.10g}, correct the curve, or remove it "
+                "(motors.thrust_curve: null) to fly the flight stack's own curve scaled to max_thrust")
     s = THRUST_CURVE_RISES_FROM
     low, high = c1 + 2 * c2 * s, c1 + 2 * c2
     if not (low > 0 and high > 0):

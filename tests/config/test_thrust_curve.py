@@ -28,7 +28,8 @@ def test_a_curve_whose_full_command_thrust_is_max_thrust_loads(top):
     # max_thrust left at the config's (Förster's 0.159166 N), or rounded by hand: the message gives the number
     (None, IDENTIFIED, r"^--set: motors\.thrust_curve = \[0\.02242, -0\.009828, 0\.1256\]: gives c0 \+ c1 \+ c2 = "
      r"0\.138192 N at full command, but motors\.max_thrust = 0\.159166 N: they are the same thrust; set "
-     r"motors\.max_thrust: 0\.138192, or correct the curve$"),
+     r"motors\.max_thrust: 0\.138192, correct the curve, or remove it \(motors\.thrust_curve: null\) to fly the "
+     r"flight stack's own curve scaled to max_thrust$"),
     ("0.1382", IDENTIFIED, r"c0 \+ c1 \+ c2 = 0\.138192 N at full command, but motors\.max_thrust = 0\.1382 N"),
     # c0 and c2 swapped: falls from 0.1 (log15's curve, fitted on a narrow command range, falls below 0.31)
     ("0.138192", "[0.1256, -0.009828, 0.02242]",
@@ -45,6 +46,15 @@ def test_a_curve_that_is_no_rotors_is_refused_naming_the_key(top, curve, pattern
     sets = ([f"motors.max_thrust={top}"] if top else []) + [f"motors.thrust_curve={curve}"]
     with pytest.raises(ConfigError, match=pattern):
         load(*sets)
+
+
+def test_a_max_thrust_changed_under_a_curve_is_refused_naming_the_way_to_fly_it():
+    """An identified config carries the curve; a --set (or a sweep) of max_thrust alone leaves the two apart.
+    The message names the key to drop, and dropping it flies the new max_thrust (the preset's curve scaled)."""
+    with pytest.raises(ConfigError, match=r"or remove it \(motors\.thrust_curve: null\)"):
+        load(f"motors.thrust_curve={IDENTIFIED}", "motors.max_thrust=0.15")
+    cfg = load(f"motors.thrust_curve={IDENTIFIED}", "motors.max_thrust=0.15", "motors.thrust_curve=null")
+    assert cfg.motors.max_thrust == 0.15 and cfg.motors.thrust_curve is None
 
 
 def test_the_curve_has_its_unit_and_counts_in_the_digests_when_given():
