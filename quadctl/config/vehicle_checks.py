@@ -114,10 +114,10 @@ def check_rotors(motors: MotorsConfig, fail) -> None:
 
 
 def check_thrust_curve(motors: MotorsConfig, fail) -> None:
-    """``motors.thrust_curve``: its thrust at full command is ``motors.max_thrust``, and it rises with the
-    command (:func:`quadctl.physics.motors.thrust_curve_problem`)."""
+    """``motors.thrust_curve``: it rises with the command, and has a thrust at full command to scale to
+    ``motors.max_thrust`` (:func:`quadctl.physics.motors.thrust_curve_problem`)."""
     if motors.thrust_curve is not None:
-        problem = thrust_curve_problem(motors.thrust_curve, motors.max_thrust)
+        problem = thrust_curve_problem(motors.thrust_curve)
         if problem:
             fail("motors.thrust_curve", motors.thrust_curve, problem)
 

@@ -72,9 +72,9 @@ class MotorsConfig(Section):
     max_thrust: Positive = Field(0.33, description="N per rotor")
     thrust_curve: Optional[Annotated[list[Number], Field(min_length=3, max_length=3)]] = Field(
         None, description="N: [c0, c1, c2] of each rotor's thrust c0 + c1 s + c2 s^2 at the command s (a fraction of "
-        "full command, 0 to 1; the Crazyflie's PWM / 65535), c0 + c1 + c2 = max_thrust; the curve the Crazyflie "
-        "PID cascade's PWM becomes thrust by (quadctl identify writes it); absent: the flight stack's own curve "
-        "scaled to max_thrust")
+        "full command, 0 to 1; the Crazyflie's PWM / 65535), scaled so that its thrust at full command is max_thrust "
+        "(quadctl identify writes both, max_thrust = c0 + c1 + c2); the curve the Crazyflie PID cascade's PWM "
+        "becomes thrust by; absent: the flight stack's own curve scaled to max_thrust")
     time_constant: Optional[RotorTimeConstant] = Field(
         None, description="s, first-order lag of each rotor's thrust behind its command; absent: instantaneous")
     numbering: Union[Literal["quadctl", "crazyflie", "px4", "betaflight"], list[str]] = Field(

@@ -246,7 +246,7 @@ def changes(ident: Identification) -> dict:
     curve = written_curve(ident)
     top = float(sum(Decimal(repr(c)) for c in curve))  # the written curve at full command, to its last digit
     where = f"identified from {src} t {span} s"
-    problem = thrust_curve_problem(curve, top)
+    problem = thrust_curve_problem(curve)
     if problem is None:
         out[("motors", "max_thrust")] = (yamlio.flow(top), f"N per rotor, the thrust curve at full command "
                                          f"(c0 + c1 + c2), {where}")

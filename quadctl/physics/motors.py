@@ -94,8 +94,9 @@ class Motors:
     """Rotor positions ``(x, y)`` (m, body frame), rotor 1 first (``motors.positions``); None: from
     ``layout`` and ``arm_length``."""
     thrust_curve: tuple[float, float, float] | None = None
-    """N: ``(c0, c1, c2)`` of each rotor's thrust ``c0 + c1 s + c2 s^2`` at the command fraction ``s``
-    (``motors.thrust_curve``, :func:`thrust_curve_problem`); None: the flight stack's own curve."""
+    """N: ``(c0, c1, c2)`` of each rotor's thrust ``c0 + c1 s + c2 s^2`` at the command fraction ``s``, its shape
+    scaled to ``max_thrust`` at full command (``motors.thrust_curve``, :func:`thrust_curve_problem`,
+    :func:`scaled_thrust_curve`); None: the flight stack's own curve."""
 
     @classmethod
     def from_config(cls, cfg) -> Motors:
@@ -176,11 +177,6 @@ less than this, relative: their difference is then round-off, and dividing by it
 SATURATION_RULES = ("prioritize", "clip")
 """``motors.saturation``: how a command the rotors cannot produce is brought inside their limits."""
 
-THRUST_CURVE_RTOL = 1e-6
-"""Relative: a thrust curve's ``c0 + c1 + c2`` (its thrust at full command) must be ``max_thrust`` within
-this. They are one thrust written twice (every reader of ``max_thrust``, the saturation and the Bryson
-weights, takes it from there); summing three decimals rounds off by ~1e-16, a value copied to 7 digits
-passes, a different number (0.138 for 0.1382) does not."""
 THRUST_CURVE_RISES_FROM = 0.1
 """Command fraction from which a thrust curve must rise to full command (slope ``c1 + 2 c2 s > 0``):
 a falling curve turns the cascade's feedback over. Below it a fit of flight data (hover near
@@ -189,35 +185,46 @@ below ``c0``. No steady flight holds a rotor there (the Crazyflie cascade's leas
 ``thrust_min``, 20000 PWM, 0.31), only a torque's transient passes through."""
 
 
-def thrust_curve_problem(curve, max_thrust: float) -> str | None:
-    """Why ``curve`` ``(c0, c1, c2)`` (N) is not a rotor's thrust curve with ``max_thrust`` (N) at full
-    command, or None: a coefficient not finite, ``c0 + c1 + c2`` not ``max_thrust`` (within
-    :data:`THRUST_CURVE_RTOL`), or a slope ``c1 + 2 c2 s`` not positive somewhere on
-    ``[THRUST_CURVE_RISES_FROM, 1]`` (linear in ``s``: checked at both ends). The sentence ends with the fix.
+def thrust_curve_problem(curve) -> str | None:
+    """Why ``curve`` ``(c0, c1, c2)`` (N) is not the shape of a rotor's thrust curve, or None: a coefficient
+    not finite, no thrust at full command (``c0 + c1 + c2``, which ``motors.max_thrust`` scales to its own), or
+    a slope ``c1 + 2 c2 s`` not positive somewhere on ``[THRUST_CURVE_RISES_FROM, 1]`` (linear in ``s``:
+    checked at both ends). The sentence ends with the fix.
 
     Examples
     --------
-    >>> thrust_curve_problem((0.0224, -0.0098, 0.1256), 0.1382) is None
+    >>> thrust_curve_problem((0.0224, -0.0098, 0.1256)) is None
     True
-    >>> thrust_curve_problem((0.0, 0.1, 0.03), 0.1382).split(";")[0]
-    'gives c0 + c1 + c2 = 0.13 N at full command, but motors.max_thrust = 0.1382 N: they are the same thrust'
+    >>> thrust_curve_problem((0.1, 0.05, -0.1)).split(":")[0]
+    'its slope c1 + 2 c2 s is -0.15 N at s = 1'
     """
     c0, c1, c2 = (float(c) for c in curve)
     if not all(math.isfinite(c) for c in (c0, c1, c2)):
         return "each coefficient must be a finite number of N: [c0, c1, c2] of thrust = c0 + c1 s + c2 s^2"
-    top = c0 + c1 + c2
-    if not abs(top - max_thrust) <= THRUST_CURVE_RTOL * abs(max_thrust):
-        return (f"gives c0 + c1 + c2 = {top:.10g} N at full command, but motors.max_thrust = {max_thrust:g} N: they "
-                f"are the same thrust; set motors.max_thrust: {top:.10g}, correct the curve, or remove it "
-                "(motors.thrust_curve: null) to fly the flight stack's own curve scaled to max_thrust")
     s = THRUST_CURVE_RISES_FROM
     low, high = c1 + 2 * c2 * s, c1 + 2 * c2
     if not (low > 0 and high > 0):
         where = s if low <= 0 else 1.0
         return (f"its slope c1 + 2 c2 s is {min(low, high):.4g} N at s = {where:g}: the thrust must rise with the "
                 f"command from s = {s:g} to 1, else the feedback turns over; check the order [c0, c1, c2], each in N")
+    if not c0 + c1 + c2 > 0:
+        return (f"its thrust at full command, c0 + c1 + c2 = {c0 + c1 + c2:.4g} N, is not positive: there is no "
+                "curve to scale to motors.max_thrust; check the order [c0, c1, c2], each in N")
     return None
 
+
+def scaled_thrust_curve(curve, max_thrust: float) -> np.ndarray:
+    """(3,) N: the thrust curve ``curve`` ``(c0, c1, c2)`` scaled so that its thrust at full command is
+    ``max_thrust``: ``motors.thrust_curve`` gives the shape, ``motors.max_thrust`` the one full-command thrust
+    (as the flight stack's own curve is scaled to it). Identify writes both, the curve's sum as max_thrust.
+
+    Examples
+    --------
+    >>> scaled_thrust_curve((0.02, 0.0, 0.1), 0.24)
+    array([0.04, 0.  , 0.2 ])
+    """
+    c = np.asarray(curve, dtype=float)
+    return c * (float(max_thrust) / float(c.sum()))
 
 
 class _Ops:

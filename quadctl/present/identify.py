@@ -132,8 +132,7 @@ def curve_withheld(curve) -> str:
     written: it falls (:func:`quadctl.physics.motors.thrust_curve_problem`); what stays; the cure."""
     from quadctl.physics.motors import thrust_curve_problem
 
-    top = sum(curve)
-    problem = thrust_curve_problem(curve, top) or "rises"
+    problem = thrust_curve_problem(curve) or "rises"
     return (f"the identified curve {[float(c) for c in curve]} N is no rotor's: {problem.split('; ')[0]}; the "
             "config's thrust curve and max_thrust stay (a log whose rotors sweep more of the command range pins "
             "the curve's low end)")

@@ -23,6 +23,7 @@ import numpy as np
 from quadctl._lazy import lazy_import
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.physics.model import euler_rates_matrix
+from quadctl.physics.motors import scaled_thrust_curve
 
 ca = lazy_import("casadi")
 
@@ -409,8 +410,8 @@ def pwm_thrust_curve(gains, actuators) -> np.ndarray:
     if gains.torque_output != "pwm":
         return np.zeros((len(hi), 3))
     own = actuators.motors.thrust_curve if actuators.motors is not None else None
-    if own is not None:
-        return np.tile(np.asarray(own, dtype=float), (len(hi), 1))
+    if own is not None:  # its shape, scaled to each rotor's largest thrust
+        return np.stack([scaled_thrust_curve(own, h) for h in hi])
     a, b = gains["pwm_thrust_a"], gains["pwm_thrust_b"]
     return hi[:, None] * np.array([0.0, b, a]) / (a + b)
 

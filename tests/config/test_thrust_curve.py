@@ -1,6 +1,6 @@
-"""``motors.thrust_curve``: three finite numbers (N), their sum the thrust at full command, ``motors.max_thrust``,
-and a curve that rises from 10 % of full command to full (:func:`quadctl.physics.motors.thrust_curve_problem`);
-each refusal one line naming the key, its value and the fix."""
+"""``motors.thrust_curve``: three finite numbers (N), a curve that rises from 10 % of full command to full and has
+a thrust there, its shape scaled to ``motors.max_thrust`` (:func:`quadctl.physics.motors.thrust_curve_problem`,
+:func:`~quadctl.physics.motors.scaled_thrust_curve`); each refusal one line naming the key, its value and the fix."""
 
 from __future__ import annotations
 
@@ -18,19 +18,26 @@ def load(*sets):
     return overrides.load(locate("crazyflie"), sets)
 
 
-@pytest.mark.parametrize("top", ["0.138192", "0.1381920001"])
-def test_a_curve_whose_full_command_thrust_is_max_thrust_loads(top):
-    cfg = load(f"motors.max_thrust={top}", f"motors.thrust_curve={IDENTIFIED}")
+@pytest.mark.parametrize("top", ["0.138192", "0.15", None])
+def test_a_curve_loads_beside_any_max_thrust_and_is_flown_scaled_to_it(top):
+    """The curve is the shape, max_thrust the one thrust at full command: a --set or a sweep of max_thrust on an
+    identified config scales the curve (the cascade's PWM-to-thrust per rotor, sim.pid.pwm_thrust_curve)."""
+    import numpy as np
+
+    from quadctl.config.pid import resolve
+    from quadctl.setup import setup_of
+    from quadctl.sim.pid import pwm_thrust_curve
+
+    cfg = load(*([f"motors.max_thrust={top}"] if top else []), f"motors.thrust_curve={IDENTIFIED}")
     assert cfg.motors.thrust_curve == [0.02242, -0.009828, 0.1256]
+    hi = cfg.motors.max_thrust
+    flown = pwm_thrust_curve(resolve("crazyflie"), setup_of(cfg).actuators)
+    shape = np.array([0.02242, -0.009828, 0.1256])
+    np.testing.assert_allclose(flown, np.tile(shape * hi / shape.sum(), (4, 1)), rtol=1e-15)
+    np.testing.assert_allclose(flown.sum(axis=1), hi, rtol=1e-15)  # full PWM gives max_thrust
 
 
 @pytest.mark.parametrize("top, curve, pattern", [
-    # max_thrust left at the config's (Förster's 0.159166 N), or rounded by hand: the message gives the number
-    (None, IDENTIFIED, r"^--set: motors\.thrust_curve = \[0\.02242, -0\.009828, 0\.1256\]: gives c0 \+ c1 \+ c2 = "
-     r"0\.138192 N at full command, but motors\.max_thrust = 0\.159166 N: they are the same thrust; set "
-     r"motors\.max_thrust: 0\.138192, correct the curve, or remove it \(motors\.thrust_curve: null\) to fly the "
-     r"flight stack's own curve scaled to max_thrust$"),
-    ("0.1382", IDENTIFIED, r"c0 \+ c1 \+ c2 = 0\.138192 N at full command, but motors\.max_thrust = 0\.1382 N"),
     # c0 and c2 swapped: falls from 0.1 (log15's curve, fitted on a narrow command range, falls below 0.31)
     ("0.138192", "[0.1256, -0.009828, 0.02242]",
      r"^--set: motors\.thrust_curve = \[0\.1256, -0\.009828, 0\.02242\]: its slope c1 \+ 2 c2 s is -0\.005344 N at "
@@ -38,6 +45,8 @@ def test_a_curve_whose_full_command_thrust_is_max_thrust_loads(top):
      r"order \[c0, c1, c2\], each in N$"),
     ("0.13647", "[0.06247, -0.1159, 0.1899]", r"its slope c1 \+ 2 c2 s is -0\.07792 N at s = 0\.1: "),
     ("0.14", "[0.0, 0.3, -0.16]", r"its slope c1 \+ 2 c2 s is -0\.02 N at s = 1: "),  # saturating past full
+    (None, "[-0.2, 0.05, 0.05]", r"^--set: motors\.thrust_curve = \[-0\.2, 0\.05, 0\.05\]: its thrust at full command, "
+     r"c0 \+ c1 \+ c2 = -0\.1 N, is not positive: there is no curve to scale to motors\.max_thrust"),
     (None, "[0.1, .nan, 0.1]", r"^--set: motors\.thrust_curve\[1\] = nan: must be a finite number"),
     (None, "[0.1, 0.1]", r"^--set: motors\.thrust_curve = \[0\.1, 0\.1\]: must be a list of exactly 3 items \(N: "
      r"\[c0, c1, c2\] of each rotor's thrust c0 \+ c1 s \+ c2 s\^2"),
@@ -46,15 +55,6 @@ def test_a_curve_that_is_no_rotors_is_refused_naming_the_key(top, curve, pattern
     sets = ([f"motors.max_thrust={top}"] if top else []) + [f"motors.thrust_curve={curve}"]
     with pytest.raises(ConfigError, match=pattern):
         load(*sets)
-
-
-def test_a_max_thrust_changed_under_a_curve_is_refused_naming_the_way_to_fly_it():
-    """An identified config carries the curve; a --set (or a sweep) of max_thrust alone leaves the two apart.
-    The message names the key to drop, and dropping it flies the new max_thrust (the preset's curve scaled)."""
-    with pytest.raises(ConfigError, match=r"or remove it \(motors\.thrust_curve: null\)"):
-        load(f"motors.thrust_curve={IDENTIFIED}", "motors.max_thrust=0.15")
-    cfg = load(f"motors.thrust_curve={IDENTIFIED}", "motors.max_thrust=0.15", "motors.thrust_curve=null")
-    assert cfg.motors.max_thrust == 0.15 and cfg.motors.thrust_curve is None
 
 
 def test_the_curve_has_its_unit_and_counts_in_the_digests_when_given():
