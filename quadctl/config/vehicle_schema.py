@@ -87,8 +87,8 @@ class MotorsConfig(Section):
         "right (front, in +) and its diagonal ccw, the others cw, as every preset's default")
     saturation: Literal["prioritize", "clip"] = Field(
         "prioritize", description="a command the rotors cannot produce: prioritize keeps the roll and pitch torques, "
-        "then the collective thrust, and gives up yaw first (as PX4 and Betaflight do); clip clips each rotor and "
-        "mixes back (every input moves)")
+        "then the collective thrust, and gives up yaw first (as PX4 and Betaflight do in airmode); clip clips each "
+        "rotor and mixes back (every input moves)")
     positions: Optional[Annotated[list[RotorPosition], Field(min_length=4, max_length=4)]] = Field(
         None, description="m, each rotor's [x, y] in the body frame (x forward, y right, from the centre of mass), "
         "rotor 1 first; needs spin; absent: from layout and arm_length (x: [+-L/sqrt 2, +-L/sqrt 2]; +: on the axes)")
