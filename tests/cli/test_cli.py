@@ -398,3 +398,17 @@ def test_the_set_help_of_configs_names_what_it_changes_not_a_run_directory():
     assert "validated as the file is; put into the config --show prints (give --show with it)." in text
     trim = " ".join(runner.invoke(app, ["trim", "--help"], env={"COLUMNS": "200"}).output.split())
     assert "validated as the file is; recorded in DIR/config.yaml." in trim
+
+
+def test_a_monte_carlo_with_no_case_simulated_says_why_it_has_no_bands(tmp_path):
+    """Every case of a plant-side sweep refused (a delay of half a controller sample): the gates fail
+    (exit 1) and stderr says why montecarlo.png and montecarlo.npz are missing, not silence."""
+    sweep_file = tmp_path / "s.yaml"
+    sweep_file.write_text("mode: grid\nparameters:\n  controller.delay: [0.0025, 0.0075]\n"
+                          "set:\n  simulation.duration: 0.5\ngates:\n  peak.T: {max: 10}\n")
+    res = invoke("sweep", "-c", "mambo-200hz", "-s", sweep_file, "-o", tmp_path / "out", "--jobs", "1", "--no-plot")
+    assert res.exit_code == 1, res.output
+    assert "no montecarlo.png or montecarlo.npz: no case of this Monte Carlo simulated to the end" in res.output
+    assert not (tmp_path / "out" / "montecarlo.npz").exists()
+    summary = json.loads((tmp_path / "out" / "sweep.json").read_text())
+    assert summary["montecarlo"]["cases"] == 0 and summary["montecarlo"]["left_out"] == [0, 1]

@@ -77,6 +77,9 @@ def command(
         render.out.print(render_sweep.sweep_line(outcome, method))
         for path in outcome.files:
             render.out.print(f"-> {path}")
+    if summary.get("montecarlo", {}).get("cases") == 0:
+        render.warning("no montecarlo.png or montecarlo.npz: no case of this Monte Carlo simulated to the end, "
+                       "so there are no bands to draw; each case's reason is in sweep.csv")
     if result.failed:
         if not json:
             for line in render_sweep.worst_lines(result):
