@@ -9,6 +9,7 @@ import json
 import math
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -527,6 +528,19 @@ def test_the_sweeps_page_gives_each_metric_column_the_unit_sweep_json_gives_it()
         documented |= {c for c in columns if c in column_units(columns)}
     assert {k for k in METRIC_UNITS if not k.endswith(".")} <= documented
     assert all(any(c.startswith(k) for c in documented) for k in METRIC_UNITS if k.endswith("."))
+
+
+def test_the_sweeps_page_names_every_column_sweep_csv_ends_with():
+    """``path`` (batched, or one-by-one and why) is a column of every sweep.csv, but the page's table of
+    columns stopped at ``reason``: each of the fixed columns after the metrics is in the table."""
+    from quadctl.sweep.runner import columns_of
+
+    page = (ROOT / "docs" / "guide" / "sweeps.md").read_text()
+    table = page[page.index("| column | unit | meaning |"):].split("\n\n")[0]
+    named = set(re.findall(r"^\| ([^|]+)\|", table, re.M))
+    named = {c for cell in named for c in re.findall(r"`([^`]+)`", cell)}
+    spec = SimpleNamespace(names=(), metrics=())
+    assert set(columns_of(spec)) - {"case"} <= named, set(columns_of(spec)) - {"case"} - named
 
 
 # ---------------------------------------------------------------------------------------
