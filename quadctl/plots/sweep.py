@@ -36,6 +36,8 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
             return "m"
         if family == "peak":
             return unit_of(name)
+        if family == "margin":
+            return {"gain_db": "dB", "phase_deg": "deg"}.get(name, "")
         return "rad/s" if family == "eig" else ""
 
     fig = Figure(figsize=(7.5, 5.0), layout="constrained")

@@ -173,10 +173,12 @@ def summarize(result: SweepResult, cfg, spec: SweepSpec) -> dict:
 
 def tradeoff_axes(result: SweepResult) -> tuple[str, str]:
     """The plot's (x, y) metrics: a peak input against how well the loop did, the gated ones first: a
-    settling time, or a mission's tracking error (a mission's settling times measure nothing it asks)."""
+    settling time, or a mission's tracking error (a mission's settling times measure nothing it asks);
+    else a gated margin (a sweep that judges its margins only), else the first settling time."""
     gated = [g.metric for g in result.gates]
     xs = [m for m in gated if m.startswith("peak.")] + ["peak.T"]
     ys = [m for m in gated if m.startswith("settling_time.") or m in TRACKING_ERRORS] + \
+         [m for m in gated if m.startswith("margin.")] + \
          [c for c in result.columns if c in TRACKING_ERRORS] + \
          [c for c in result.columns if c.startswith("settling_time.")]
     return xs[0], (ys[0] if ys else "cost")

@@ -466,6 +466,18 @@ def test_the_sweep_trade_off_draws_a_missions_errors_on_a_log_scale_and_no_empty
     assert ax.get_legend() is None
 
 
+def test_the_sweep_trade_off_labels_a_margin_axis_with_its_unit():
+    """A sweep gated on its margins plots one: its axis reads dB or deg, as the sweep.json units do."""
+    from quadctl.sweep.gates import Gate
+
+    rows = [{"peak.T": 0.95, "margin.gain_db": 17.7, "margin.phase_deg": 42.5, "pass": True},
+            {"peak.T": 0.96, "margin.gain_db": None, "margin.phase_deg": None, "pass": False}]
+    (ax,) = plots.sweep_tradeoff_figure(rows, "peak.T", "margin.gain_db", (Gate("margin.gain_db", min=6),)).axes
+    assert ax.get_ylabel() == "margin.gain_db [dB]"
+    (ax,) = plots.sweep_tradeoff_figure(rows, "peak.T", "margin.phase_deg").axes
+    assert ax.get_ylabel() == "margin.phase_deg [deg]"
+
+
 def test_the_sweep_trade_off_counts_the_places_stacked_cases_draw_at():
     """A parameter that moves neither metric stacks its cases on one point (examples/ci-sweep.yaml's
     roll weight: 27 cases at 9 places): the legend says so; cases apart by more than a marker are counted

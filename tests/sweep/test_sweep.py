@@ -977,6 +977,11 @@ def test_distinct_rows_number_each_value_from_its_first_row():
     ((Gate("waypoints.reached", min=4), Gate("tracking.peak", max=1e-3)),
      ["settling_time.pD", "tracking.rms", "tracking.peak", "waypoints.reached"], ("peak.T", "tracking.peak")),
     ((), ["settling_time.pD", "tracking.rms", "tracking.peak"], ("peak.T", "tracking.rms")),
+    # gated on its margins alone: the margin it judges, not a settling time a short run may never reach
+    ((Gate("margin.gain_db", min=6), Gate("margin.phase_deg", min=30)),
+     ["settling_time.pD", "margin.gain_db", "margin.phase_deg"], ("peak.T", "margin.gain_db")),
+    ((Gate("margin.phase_deg", min=30), Gate("settling_time.phi", max=2.0)),
+     ["settling_time.pD", "settling_time.phi", "margin.phase_deg"], ("peak.T", "settling_time.phi")),
 ])
 def test_the_trade_off_figure_plots_what_the_sweep_judges(gates, columns, want):
     from quadctl.sweep.outputs import tradeoff_axes
