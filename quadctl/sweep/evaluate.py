@@ -170,9 +170,12 @@ def _add_margins(row: dict, prep: Prepared) -> None:
     stages = pipeline.Stages(prep.setup, linear=prep.plant.linear, decoupled=prep.plant.decoupled)
     try:
         found = pipeline.margins_of(prep.setup, prep.plant.linear, prep.plant.decoupled, stages.design)
-    except QuadctlError:
+    except QuadctlError as exc:
+        row["margins_missing"] = f"no margins: {exc}"
         return
     row.update(margin_columns(found))
+    if row[MARGIN_COLUMNS[0]] is None:
+        row["margins_missing"] = "a loop is unstable"
 
 
 @lru_cache(maxsize=32)

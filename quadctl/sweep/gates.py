@@ -150,7 +150,8 @@ def noise_limited_reason(states) -> str:
 
 def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:
     """Whether a row passes, and what it fails (gate descriptions, or why it has no result; a
-    settling time the row's ``noise_limited`` lists shows as ``noise-limited``)."""
+    settling time the row's ``noise_limited`` lists shows as ``noise-limited``, a missing margin the
+    row's ``margins_missing``: ``none: a loop is unstable``)."""
     failed = []
     if require_ok:
         if row.get("status") != "ok":
@@ -164,6 +165,8 @@ def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:
             if value is None and gate.metric.startswith("settling_time.") \
                     and gate.metric.split(".", 1)[1] in row.get("noise_limited", ()):
                 shown = "noise-limited"
+            elif value is None and gate.metric in MARGIN_COLUMNS and row.get("margins_missing"):
+                shown = f"none: {row['margins_missing']}"  # the design's loop, not a run that stopped
             failed.append(f"{gate.describe()} (got {shown})")
     return not failed, failed
 

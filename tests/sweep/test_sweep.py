@@ -933,6 +933,18 @@ def test_margin_columns_are_the_margins_command_s_and_gate_thin_loops():
     assert "margin.phase_deg" not in plain.metrics  # computed only when gated
 
 
+def test_a_margin_gate_on_an_unstable_loop_says_the_loop_is_unstable():
+    """80 ms of rotor lag loses one of mambo-200hz's loops: its margin cells are empty and the gate fails
+    with why, 'got none: a loop is unstable', where it read 'got none' as a run that stopped does."""
+    cfg = config.load("mambo-200hz")
+    spec = spec_of(cfg, parameters={"motors.time_constant": [0.08]}, set={"simulation.duration": 0.3},
+                   gates={"margin.gain_db": {"min": 6}, "margin.phase_deg": {"min": 30}})
+    (row,) = sweep.run(cfg, spec, jobs=1).rows
+    assert row["margin.gain_db"] is None and row["margin.phase_deg"] is None and not row["pass"]
+    assert row["failed_gates"] == ("6 <= margin.gain_db (got none: a loop is unstable); "
+                                   "30 <= margin.phase_deg (got none: a loop is unstable)")
+
+
 @pytest.mark.parametrize("n, workers", [(48, 2), (1000, 2), (64, 2), (17, 2), (3000, 2), (1, 1), (200, 3), (9, 4)])
 def test_default_chunks_are_whole_lane_groups_the_workers_finish_together(n, workers):
     """Cases cost alike, so tasks taken by the next free worker (largest first) leave each worker within
