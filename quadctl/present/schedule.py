@@ -35,7 +35,7 @@ def points_table(sched) -> Table:
                   "slowest pole (rad/s)", "stable"), tuple(rows),
                  caption="K: design.json's 4x12 block gain (u = u_trim - K (x - x_trim)); stable: the design's "
                          "loop on the coupled model; no: the value has no trim or no design, and why.",
-                 align="l" + "r" * (5 + len(gains)) + "w")
+                 align="l" + "r" * (4 + len(gains)) + "w")
 
 
 def _short(reason: str | None, limit: int = 100) -> str:

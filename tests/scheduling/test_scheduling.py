@@ -422,3 +422,18 @@ def test_help_reads_well():
 def test_the_configs_own_value_of_the_variable(variable, trim, expected):
     setup = setup_of(with_schedule("forward", {"variable": variable, "values": [0.0, 1.0]}, **trim))
     assert own_value(setup, heading_of(setup)) == pytest.approx(expected, abs=1e-12)
+
+
+def test_the_report_s_schedule_table_has_a_markdown_rule_cell_per_column(schedules):
+    """report.md's gain schedule table had 11 cells in its |---| rule under 10 headers, which GitHub's
+    Markdown does not read as a table; a value with no trim keeps the count too."""
+    from quadctl.present.schedule import points_table
+    from quadctl.report.document import _md_block
+
+    _, sched = schedules["forward speed"]
+    table = points_table(sched)
+    assert len(table.alignment()) == len(table.columns) == len(table.rows[0])
+    header, rule = _md_block(table).splitlines()[2:4]
+    assert header.count(" | ") + 1 == rule.strip("|").count("|") + 1 == len(table.columns)
+    refused = with_schedule("forward", {"variable": "speed", "values": [0.0, 1.0, 300.0]})  # 300 m/s: no trim
+    assert {len(row) for row in points_table(schedule_of(setup_of(refused))).rows} == {len(table.columns)}
