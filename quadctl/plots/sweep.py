@@ -86,7 +86,8 @@ def sweep_tradeoff_figure(rows, x: str, y: str, gates=(), *, title: str = "") ->
         ax.set_yscale("log")
     for passed, points in drawn.items():  # labelled once the axes' limits are final (the gates widen them)
         n, places = len(plotted[passed][0]), _places(ax, *plotted[passed])
-        where = "" if places in (None, n) else f" at {places} places"  # cases the parameters move off neither axis
+        # cases the parameters move off neither axis
+        where = "" if places in (None, n) else f" at {places} place{'' if places == 1 else 's'}"
         points.set_label(f"{'pass' if passed else 'fail'} ({n}{where})")
     for points, label in strip:
         points.set_label(label)

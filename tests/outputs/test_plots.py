@@ -494,6 +494,14 @@ def test_the_sweep_trade_off_counts_the_places_stacked_cases_draw_at():
     assert ax.get_yscale() == "log" and [t.get_text() for t in ax.get_legend().get_texts()] == ["pass (7)"]
 
 
+def test_the_sweep_trade_off_says_one_place_in_the_singular():
+    """Cases stacked on one point (a mission's tolerance moves neither metric) read 'at 1 place', not
+    'at 1 places'."""
+    rows = [{"peak.T": 0.68, "tracking.rms": 8.9e-9, "pass": True}] * 2
+    (ax,) = plots.sweep_tradeoff_figure(rows, "peak.T", "tracking.rms").axes
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["pass (2 at 1 place)"]
+
+
 def test_the_sweep_trade_off_draws_cases_with_no_settling_time_on_a_strip_by_reason():
     """A noisy uncertainty study where most cases have no settling time (examples/uncertainty-sweep.yaml:
     62 of 64 noise-limited) still shows every case: those with a peak but no settling time sit on a strip
