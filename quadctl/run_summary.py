@@ -191,6 +191,22 @@ def unregulated_positions(setup: Setup) -> tuple[str, ...]:
                  if s not in setup.regulated and (not legs or offsets[:, i].max() > 0))
 
 
+def ignored_position_steps(setup: Setup) -> tuple[str, ...]:
+    """The position states (``pN``, ``pE``, ``pD``) in no regulated subsystem that a setpoint's
+    ``position`` steps (``setup.reference`` of setpoints): no gain acts on their error, so the vehicle
+    does not follow the step. A velocity setpoint moving an unregulated position is flown by its velocity
+    loop and is not counted (``crazyflie-speed-schedule``)."""
+    ref = setup.reference
+    if ref is None or ref.legs or not ref.pieces:
+        return ()
+    start = np.asarray(setup.position_ned, dtype=float)
+    before = [start] + [np.asarray(a.p0, float) + np.asarray(a.v0, float) * (b.t0 - a.t0)
+                        for a, b in zip(ref.pieces, ref.pieces[1:])]
+    jumps = np.abs(np.array([p.p0 for p in ref.pieces], dtype=float) - np.array(before))
+    return tuple(s for i, s in enumerate(STATE_NAMES[:3])
+                 if s not in setup.regulated and jumps[:, i].max() > 1e-12)
+
+
 def mission_check(tracking: dict, *, status: str = "ok", saturates: bool = False,
                   unregulated: tuple[str, ...] = (), duration: float | None = None) -> dict:
     """The verdict on a mission flown (:func:`tracking_summary`'s ``tracking``, with ``waypoints``): a

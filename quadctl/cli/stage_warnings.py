@@ -14,7 +14,23 @@ def warn_of_the_flight(ws, flown, allow_saturation: bool) -> None:
     saturates = saturation_text(flown.flight)
     if saturates and not _fails_on_saturation(ws, flown, allow_saturation):  # else the error says it
         render.warning(saturates)
+    warn_of_ignored_steps(ws)
     warn_of_the_schedule(ws)
+
+
+def warn_of_ignored_steps(ws) -> None:
+    """Setpoints that step a position no regulated subsystem holds: the vehicle does not follow them."""
+    from quadctl.run_summary import ignored_position_steps
+
+    ignored = ignored_position_steps(ws.setup)
+    if ignored:
+        from quadctl.cli import render
+
+        names = ", ".join(ignored)
+        render.warning(f"simulation.reference.setpoints step position {names}, in no regulated subsystem of "
+                       f"the partition: no gain acts on its error, so the vehicle does not follow the step; add "
+                       f"{names} to a regulated subsystem's states (as docs/configs/hover-hold.yaml does), or "
+                       "command a velocity")
 
 
 def mission_failure(flown) -> str | None:

@@ -83,6 +83,32 @@ def test_only_a_position_the_mission_moves_along_is_named():
     assert run_summary.unregulated_positions(setup_of(config.from_dict(data, "free.yaml"))) == ("pN",)
 
 
+@pytest.mark.parametrize("setpoints, ignored", [
+    ([{"t": 1.0, "position": [1.0, 0.0, -1.0]}], ("pN",)),  # a step north, pN free
+    ([{"t": 1.0, "position": [0.0, 0.0, -1.5]}], ()),  # a climb: pD is the altitude loop's
+    ([{"t": 0.0, "position": [0.0, 0.5, -1.0]}, {"t": 2.0, "position": [0.0, 0.5, -1.0]}], ("pE",)),
+    ([{"t": 1.0, "velocity": [1.0, 0.0, 0.0]}], ()),  # a velocity: flown by the velocity loop
+    ([{"t": 1.0, "velocity": [1.0, 0.0, 0.0]}, {"t": 2.0, "position": [1.0, 0.0, -1.0]}], ()),  # where it is
+])
+def test_setpoints_that_step_a_free_position_are_named(setpoints, ignored):
+    """A setpoint's position step on an axis no regulated subsystem holds is not flown: those axes are named;
+    a step on a regulated one, a velocity, and a position the reference already holds are not."""
+    from quadctl.setup import setup_of
+
+    data = config.parse(config_text("free", flight="hover"), "free.yaml").model_dump(mode="json")
+    data["trim"]["position_ned"] = [0.0, 0.0, -1.0]
+    data["simulation"]["reference"] = {"setpoints": setpoints}
+    assert run_summary.ignored_position_steps(setup_of(config.from_dict(data, "free.yaml"))) == ignored
+
+
+def test_simulate_warns_that_a_position_step_on_a_free_axis_is_not_flown(free, tmp_path):
+    """``hover``'s partition leaves pN free: a setpoint 1 m north ended 1.18 m off it with exit 0 and no word."""
+    res = invoke("simulate", "-c", free, "-o", tmp_path, "--set",
+                 "simulation.reference={setpoints: [{t: 1, position: [1, 0, -1]}]}", "--set", "simulation.duration=2")
+    assert res.exit_code == 0, res.output
+    assert ("quadctl: warning: simulation.reference.setpoints step position pN, " + PARTITION) in res.stderr
+
+
 # ---------------------------------------------------------------------------------------------
 # the commands
 
