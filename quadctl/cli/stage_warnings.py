@@ -20,17 +20,14 @@ def warn_of_the_flight(ws, flown, allow_saturation: bool) -> None:
 
 def warn_of_ignored_steps(ws) -> None:
     """Setpoints that step a position no regulated subsystem holds: the vehicle does not follow them."""
+    from quadctl.present.mission import ignored_steps_text
     from quadctl.run_summary import ignored_position_steps
 
-    ignored = ignored_position_steps(ws.setup)
-    if ignored:
+    text = ignored_steps_text(ignored_position_steps(ws.setup))
+    if text:
         from quadctl.cli import render
 
-        names = ", ".join(ignored)
-        render.warning(f"simulation.reference.setpoints step position {names}, in no regulated subsystem of "
-                       f"the partition: no gain acts on its error, so the vehicle does not follow the step; add "
-                       f"{names} to a regulated subsystem's states (as docs/configs/hover-hold.yaml does), or "
-                       "command a velocity")
+        render.warning(text)
 
 
 def mission_failure(flown) -> str | None:

@@ -110,3 +110,14 @@ def run_line(status: str, message: str, mission_failed: bool) -> str:
     """The line that closes a simulation's output: its status and what it says; a run that completed
     but did not fly its mission is not called ok (the failed check follows it)."""
     return f"{'mission not flown' if status == 'ok' and mission_failed else status}: {message}"
+
+
+def ignored_steps_text(ignored) -> str | None:
+    """The warning on setpoints that step the positions ``ignored``
+    (:func:`quadctl.run_summary.ignored_position_steps`); None when there are none."""
+    if not ignored:
+        return None
+    names = ", ".join(ignored)
+    return (f"simulation.reference.setpoints step position {names}, in no regulated subsystem of the partition: "
+            f"no gain acts on its error, so the vehicle does not follow the step; add {names} to a regulated "
+            "subsystem's states (as docs/configs/hover-hold.yaml does), or command a velocity")

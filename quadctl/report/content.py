@@ -6,7 +6,7 @@ a value read in the report is the one the stage command prints, from the same co
 
 from __future__ import annotations
 
-from quadctl import artifacts, pipeline, plots
+from quadctl import artifacts, pipeline, plots, run_summary
 from quadctl.layout import INPUT_NAMES, unit_of
 from quadctl.plots import png_bytes
 from quadctl.plots.compare import QUANTITIES
@@ -232,6 +232,9 @@ def mission(ws) -> Section | None:
     if "waypoints" in tracking:
         blocks += [_text(shown_mission.waypoints_sentence(tracking)), shown_mission.waypoints_table(tracking)]
     blocks.append(_text(shown_mission.tracking_sentence(tracking)))
+    ignored = shown_mission.ignored_steps_text(run_summary.ignored_position_steps(ws.setup))
+    if ignored:
+        blocks.append(Text(f"{ignored}.", "warning"))  # a config key: no capital
     makers = plots.simulation_figure_makers(ws.simulation.sim, ws.setup.partition, title=ws.setup.name,
                                             tracking=tracking)
     marks = "the start ringed green, the end a blue dot"

@@ -109,6 +109,15 @@ def test_simulate_warns_that_a_position_step_on_a_free_axis_is_not_flown(free, t
     assert ("quadctl: warning: simulation.reference.setpoints step position pN, " + PARTITION) in res.stderr
 
 
+def test_the_report_s_reference_section_warns_that_a_position_step_on_a_free_axis_is_not_flown(free, tmp_path):
+    res = invoke("report", "-c", free, "-o", tmp_path, "--set",
+                 "simulation.reference={setpoints: [{t: 1, position: [1, 0, -1]}]}", "--set", "simulation.duration=2")
+    assert res.exit_code == 0, res.output
+    page = (tmp_path / "report" / "report.md").read_text()
+    section = page[page.index("## Reference"):]
+    assert "⚠ simulation.reference.setpoints step position pN, " + PARTITION in section
+
+
 # ---------------------------------------------------------------------------------------------
 # the commands
 
