@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parent.parent
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "docs" / "figures"
 
 flights = ROOT / "tests" / "data" / "crazyflie-flights"
-logs = [readers.read_log(flights / name, readers.parse_columns(None)) for name in ("log10", "log15")]
+logs = [readers.read_log(flights / name) for name in ("log10", "log15")]
 ident = results.identify(logs, qc.load_config("crazyflie"), results.windows_per_log(["8.67:38.67", "15.755:50.755"], 2))
 identified = results.payload(ident, "crazyflie")  # what identified.json holds
 for stage in identified["stages"].values():

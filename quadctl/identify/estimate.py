@@ -172,7 +172,7 @@ class Grid:
         Held (a command is a step until the next).
     acc_lowpass_hz, gyro_lowpass_hz : float or None
         The low-passes the vehicle ran on its sensors before it logged them
-        (:attr:`quadctl.identify.readers.FlightLog.acc_lowpass_hz`): :meth:`as_logged` applies them.
+        (:attr:`quadctl.identify.flight_log.FlightLog.acc_lowpass_hz`): :meth:`as_logged` applies them.
     """
 
     t: np.ndarray

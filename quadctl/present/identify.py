@@ -37,7 +37,7 @@ def ulog_read_past_corruption(name: str, said: str) -> str:
 
 
 def _cut_where(size: int, at: int | None, declared: int | None, data_at: int | None) -> str:
-    """Where a ULog cut short ends (:class:`quadctl.identify.readers.UlogEnd`'s fields, bytes)."""
+    """Where a ULog cut short ends (:class:`quadctl.identify.ulog.UlogEnd`'s fields, bytes)."""
     section = "before its data section begins" if data_at is None else f"in its data section (from byte {data_at})"
     if at is None:  # whole messages, but no data section
         return f"the ULog looks cut short: it ends after {size} bytes, {section}"

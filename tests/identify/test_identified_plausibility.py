@@ -14,8 +14,8 @@ from typer.testing import CliRunner
 from quadctl.cli.app import app
 from quadctl.config import locate, parse
 from quadctl.identify import estimate as est
+from quadctl.identify.flight_log import FlightLog
 from quadctl.identify.plausibility import RULES, Rule, judge
-from quadctl.identify.readers import FlightLog
 from quadctl.identify.results import Identification, changes, identified_config, payload
 from quadctl.present.identify import sentences
 

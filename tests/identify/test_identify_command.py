@@ -135,7 +135,7 @@ def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
     import numpy as np
 
     from quadctl.identify import estimate as est
-    from quadctl.identify.readers import FlightLog
+    from quadctl.identify.flight_log import FlightLog
     from quadctl.identify.results import Identification, changes
 
     log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
@@ -195,7 +195,7 @@ def _delay_identification(rate):
     import numpy as np
 
     from quadctl.identify import estimate as est
-    from quadctl.identify.readers import FlightLog
+    from quadctl.identify.flight_log import FlightLog
     from quadctl.identify.results import Identification
 
     log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),

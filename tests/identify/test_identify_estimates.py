@@ -11,7 +11,8 @@ from _paths import DATA
 
 from quadctl.config import load
 from quadctl.identify import estimate as est
-from quadctl.identify.readers import FlightLog, read_log
+from quadctl.identify.flight_log import FlightLog
+from quadctl.identify.readers import read_log
 from quadctl.physics.model import Vehicle, build_model
 from quadctl.physics.motors import Motors
 

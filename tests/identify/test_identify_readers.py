@@ -12,7 +12,9 @@ import pytest
 from _paths import DATA
 
 from quadctl.errors import LogError
-from quadctl.identify.readers import CSV_COLUMNS, FlightLog, parse_columns, read_crazyflie, read_csv, read_log
+from quadctl.identify.csv_log import parse_columns, read_csv
+from quadctl.identify.flight_log import CSV_COLUMNS, FlightLog
+from quadctl.identify.readers import read_crazyflie, read_log
 
 FLIGHTS = DATA / "crazyflie-flights"
 
@@ -270,7 +272,7 @@ def _boundaries(raw):
 def test_a_ulog_is_complete_only_where_a_message_of_its_data_section_ends():
     """Cut at every byte: whole (None) only at a message's end after the data section began; elsewhere where it
     stops, inside which message, how many bytes it declares."""
-    from quadctl.identify.readers import ulog_end
+    from quadctl.identify.ulog import ulog_end
 
     flags = bytes(16) + struct.pack("<3Q", 0, 0, 0)
     raw = _ulog_messages(("B", flags), ("F", b"imu:uint64_t timestamp;float x;"), ("I", b"\x0bchar[3] ver" + b"1.0"),
@@ -290,7 +292,7 @@ def test_a_ulog_is_complete_only_where_a_message_of_its_data_section_ends():
 
 def test_a_ulog_with_data_appended_after_a_crash_is_walked_from_the_appended_data():
     """The part before the flag bits' appended offset may stop inside a message (the format allows it)."""
-    from quadctl.identify.readers import ulog_end
+    from quadctl.identify.ulog import ulog_end
 
     head = _ulog_messages(("B", bytes(56)), ("A", b"\x00\x01\x00imu"), ("D", b"\x01\x00" + bytes(12)))
     broken = head[:-5]  # the logger stopped inside this message
@@ -321,7 +323,7 @@ def test_a_ulog_cut_short_before_its_data_is_said_so_not_sent_to_a_logging_profi
 def test_a_complete_ulog_without_the_imu_topic_is_sent_to_the_logging_profile(tmp_path):
     """A whole log (pyulog writes the sample's actuator_motors alone) that never logged sensor_combined."""
     pyulog = pytest.importorskip("pyulog")
-    from quadctl.identify.readers import ulog_end
+    from quadctl.identify.ulog import ulog_end
 
     whole = tmp_path / "motors-only.ulg"
     pyulog.ULog(str(ULOG), ["actuator_motors"]).write_ulog(str(whole))

@@ -10,7 +10,8 @@ from _paths import DATA
 
 from quadctl.errors import LogError
 from quadctl.identify import windows as win
-from quadctl.identify.readers import FlightLog, read_log
+from quadctl.identify.flight_log import FlightLog
+from quadctl.identify.readers import read_log
 
 FLIGHTS = DATA / "crazyflie-flights"
 

@@ -48,7 +48,7 @@ def command(logs: Annotated[list[str], typer.Argument(
     from quadctl.cli import render
     from quadctl.config import locate, overrides
     from quadctl.errors import CheckFailed, ConfigError
-    from quadctl.identify import readers, results
+    from quadctl.identify import csv_log, readers, results
     from quadctl.plots.identify import fit_figure
     from quadctl.present import identify as shown
 
@@ -61,7 +61,7 @@ def command(logs: Annotated[list[str], typer.Argument(
     noticed(cfg, label_of(source, sets))
     folder = out or Path("runs") / f"{cfg.name}-identified"
     results.require_unedited(folder, force)  # before the fit, and before the folder is touched
-    read = [readers.read_log(p, readers.parse_columns(columns)) for p in logs]
+    read = [readers.read_log(p, csv_log.parse_columns(columns)) for p in logs]
     ident = results.identify(read, cfg, results.windows_per_log(window, len(logs)), delay=delay)
     text = results.identified_config(source.text, ident, f"{cfg.name}-identified", sets or ())
     payload = results.payload(ident, source.label, cfg, written=text, sets=sets or ())
