@@ -81,8 +81,8 @@ GENERATOR_SOURCES = ("_lazy.py", "layout.py", "physics/model.py", "sim/builder.p
                      "sim/loop_layout.py", "native/emit.py", "sim/cases.py", "native/compile.py", "sim/native.py",
                      "sim/lane_metrics.py",
                      "sim/driver.c", "design/gain_table.py", "metrics.py", "native/mapped.py",
-                     "native/pointwise.py", "physics/motors.py", "errors.py", "sim/pid.py", "config/pid.py",
-                     "physics/flatness.py", "physics/reference_rows.py", "physics/trajectory.py")
+                     "native/pointwise.py", "physics/motors.py", "errors.py", "sim/pid.py", "sim/pid_mixing.py",
+                     "config/pid.py", "physics/flatness.py", "physics/reference_rows.py", "physics/trajectory.py")
 """The files a library's C is generated from (``tests/house/test_structure.py`` checks that this lists
 everything those modules import from quadctl). Read once, when this module is imported: the cache
 key hashes the code this process runs, and ``driver.c`` is compiled from the same bytes."""

@@ -24,7 +24,8 @@ from quadctl.layout import N_STATES, PRODUCTS, STATE_INDEX, STATE_NAMES
 from quadctl.sim.etdrk4_plan import plan_schedule
 from quadctl.sim.loop_layout import pack_constants
 from quadctl.sim.loop_spec import LoopSpec
-from quadctl.sim.pid import initial_states, pwm_thrust_curve, structure_of
+from quadctl.sim.pid import initial_states, structure_of
+from quadctl.sim.pid_mixing import pwm_thrust_curve
 from quadctl.sim.plan import StepPlan, max_stable_steps, plan_held_step, plan_step
 
 if TYPE_CHECKING:  # the types of a loop's parts (their modules load only when a loop has one)

@@ -100,7 +100,7 @@ def constant_layout(nz: int = 0, rotors: bool = False, lag_model: bool = False, 
     (4, p, 4, m): :class:`quadctl.design.gain_table.GainTable`'s ``breaks`` and ``coefficients``.
     A loop flying a law other than LQR (:attr:`~quadctl.sim.loop_spec.LoopSpec.law`) then has its ``law``
     constants (``n_law`` of them) and ``thrust_curve`` (4, 3): each rotor's ``(c0, c1, c2)``, N, of its thrust
-    ``c0 + c1 s + c2 s^2`` at the command fraction ``s`` (:func:`quadctl.sim.pid.pwm_thrust_curve`). A loop
+    ``c0 + c1 s + c2 s^2`` at the command fraction ``s`` (:func:`quadctl.sim.pid_mixing.pwm_thrust_curve`). A loop
     with a gyro filter of ``filter_order`` states per rate
     (:attr:`~quadctl.sim.loop_spec.LoopSpec.filter_order`) ends with the filter's ``filter_A`` (m, m),
     ``filter_b``, ``filter_c`` (m,) and ``filter_d`` (1,)

@@ -21,12 +21,12 @@ def load(*sets):
 @pytest.mark.parametrize("top", ["0.138192", "0.15", None])
 def test_a_curve_loads_beside_any_max_thrust_and_is_flown_scaled_to_it(top):
     """The curve is the shape, max_thrust the one thrust at full command: a --set or a sweep of max_thrust on an
-    identified config scales the curve (the cascade's PWM-to-thrust per rotor, sim.pid.pwm_thrust_curve)."""
+    identified config scales the curve (the cascade's PWM-to-thrust per rotor, sim.pid_mixing.pwm_thrust_curve)."""
     import numpy as np
 
     from quadctl.config.pid import resolve
     from quadctl.setup import setup_of
-    from quadctl.sim.pid import pwm_thrust_curve
+    from quadctl.sim.pid_mixing import pwm_thrust_curve
 
     cfg = load(*([f"motors.max_thrust={top}"] if top else []), f"motors.thrust_curve={IDENTIFIED}")
     assert cfg.motors.thrust_curve == [0.02242, -0.009828, 0.1256]

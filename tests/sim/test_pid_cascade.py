@@ -326,7 +326,7 @@ def test_the_crazyflie_legacy_pwm_is_the_firmwares_power_distribution():
 
     from quadctl import config
     from quadctl.setup import setup_of
-    from quadctl.sim.pid import legacy_pwm
+    from quadctl.sim.pid_mixing import legacy_pwm
 
     mix = setup_of(config.load("crazyflie")).actuators.mix
     rng = np.random.default_rng(3)

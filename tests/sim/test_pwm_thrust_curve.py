@@ -56,7 +56,7 @@ def rotor_thrusts(stages, base_pwm, torques):
     from quadctl.config.pid import NAMES, resolve
     from quadctl.layout import STATE_INDEX
     from quadctl.pipeline import pid_loop_of
-    from quadctl.sim import pid
+    from quadctl.sim import pid_mixing
     from quadctl.sim.builder import build
 
     zero = {n: 0.0 for n in NAMES if n.endswith(("_kp", "_ki", "_kd"))}
@@ -69,7 +69,7 @@ def rotor_thrusts(stages, base_pwm, torques):
     spec = loop.spec()
     u, _ = build(spec).law(X, 0.0, loop.constants(1.0 / gains["rate_hz"]), np.zeros(spec.n_exo))
     act = loop.actuators
-    pwm = np.asarray(pid.legacy_pwm(base_pwm, ca.DM(torques), ca.DM(act.mix))).ravel()
+    pwm = np.asarray(pid_mixing.legacy_pwm(base_pwm, ca.DM(torques), ca.DM(act.mix))).ravel()
     return act.mix @ np.asarray(u, dtype=float).ravel(), pwm
 
 
