@@ -224,14 +224,18 @@ def twin_of(setup: Setup) -> Setup | None:
     return without_disturbances(setup)
 
 
-def twin_settling(setup: Setup, loop: ClosedLoop) -> dict | None:
-    """The settling times of the regulated states in the run of ``loop`` its twin makes
-    (:func:`twin_of`, :func:`simulation_of`; :func:`quadctl.metrics.settling_times`): what
-    :func:`quadctl.metrics.summarize`'s ``twin`` takes. None without turbulence."""
+def twin_simulation(setup: Setup, loop: ClosedLoop) -> SimResult | None:
+    """The run of ``loop`` its twin makes (:func:`twin_of`, :func:`simulation_of`); None without turbulence."""
     twin = twin_of(setup)
-    if twin is None:
-        return None
-    return settling_times(simulation_of(twin, loop), setup.regulated)
+    return None if twin is None else simulation_of(twin, loop)
+
+
+def twin_settling(setup: Setup, loop: ClosedLoop, calm: SimResult | None = None) -> dict | None:
+    """The settling times of the regulated states in the run of ``loop`` its twin makes (``calm``, that run
+    flown already: :func:`twin_simulation`; :func:`quadctl.metrics.settling_times`): what
+    :func:`quadctl.metrics.summarize`'s ``twin`` takes. None without turbulence."""
+    calm = twin_simulation(setup, loop) if calm is None else calm
+    return None if calm is None else settling_times(calm, setup.regulated)
 
 
 class Stages:

@@ -265,13 +265,12 @@ def _evaluate_one(prep: Prepared, stats: dict, trace: tuple = ()) -> tuple[dict,
         return row, None
     stats["backend"].add(sim.backend)
     stats["steps"] += sim.steps
-    twin = pipeline.twin_of(setup)  # turbulence: its late settling is read against the run without it
-    if twin is not None:
-        t0 = time.perf_counter()
-        calm = pipeline.simulation_of(twin, loop)
+    t0 = time.perf_counter()
+    calm = pipeline.twin_simulation(setup, loop)  # turbulence: its late settling is read against the run without it
+    if calm is not None:
         stats["simulate_time"] += time.perf_counter() - t0
         stats["steps"] += calm.steps
-        twin = metrics.settling_times(calm, setup.regulated)
+    twin = pipeline.twin_settling(setup, loop, calm)
     summary = metrics.summarize(sim, linear.u_trim, setup.Q_block, setup.R_block, setup.regulated,
                                 noisy=pipeline.noisy(setup), twin=twin)
     row = _row(prep.head, des.stable, des.core_eigenvalues, sim.plan, summary, sim.steps,
