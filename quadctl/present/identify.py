@@ -118,7 +118,9 @@ def sentences(payload: dict) -> list[str]:
         else:
             out.append(f"The fitted delay, {fitted * 1e3:.4g} ms, is written as controller.delay: "
                        f"{{samples: {delay['samples']}}} ({delay['s'] * 1e3:.4g} ms at {delay['rate_hz']:g} Hz, "
-                       "the nearest whole samples).")
+                       "the nearest whole samples). Fly the vehicle's own PID cascade on it before you keep it "
+                       "(quadctl compare -c on the identified config): a delay the cascade the vehicle flies cannot "
+                       "hold is more likely the shape of the rotors' lag than a delay.")
     if th and "motors.thrust_curve" in payload.get("not_written", {}) and "max_thrust" not in payload["implausible"]:
         curve = [float(f"{th['parameters'][n]['value']:.4g}") for n in ("c0", "c1", "c2")]
         out.append(f"Not written, motors.thrust_curve and motors.max_thrust: {curve_withheld(curve)}.")

@@ -221,7 +221,8 @@ def test_a_fitted_delay_is_written_as_whole_controller_samples_replacing_the_con
     assert parse(text, "x").controller.delay_samples() == 2
     assert parse(identified_config(text, ident, "x"), "x").controller.delay_samples() == 9
     said = sentences(payload(ident, "crazyflie.yaml"))
-    assert any("written as controller.delay: {samples: 9}" in s for s in said)
+    written = [s for s in said if "written as controller.delay: {samples: 9}" in s]
+    assert written and "quadctl compare -c" in written[0]  # the check against the cascade the vehicle flies
 
 
 def test_a_fitted_delay_with_a_continuous_controller_is_not_written_and_the_user_is_told_how():
