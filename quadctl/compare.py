@@ -114,6 +114,21 @@ class Comparison:
         """Every law read the same noise and wind rows."""
         return len({law.disturbances for law in self.laws}) == 1
 
+    @property
+    def design_failures(self) -> list[str]:
+        """Why the config's LQR design failed, one line each: its run stopped (diverged, or out of the
+        model's valid range), or its closed loop is unstable; empty when it did not, or was not flown. A
+        cascade's failure is not listed: it is the comparison's finding about that cascade."""
+        out = []
+        for law in self.laws:
+            if law.name != "lqr":
+                continue
+            if law.run.status != "ok":
+                out.append(f"lqr: {law.run.message}")
+            if law.margins and not all(m.stable for m in law.margins):
+                out.append("lqr: the closed loop is unstable (no margins)")
+        return out
+
 
 def parse_law(text: str) -> tuple[str, str | None]:
     """``lqr`` or ``pid:<preset>`` as ``(kind, preset)``.

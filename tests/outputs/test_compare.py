@@ -288,3 +288,49 @@ def test_compare_says_when_the_cascade_reads_filtered_rates_and_the_lqr_design_r
     page = " ".join((tmp_path / "raw" / "report" / "report.md").read_text().split())
     assert ("(pid:crazyflie: second-order low-pass at 80 Hz)" in page
             and "Give the LQR design the stack's filter, controller.filters.gyro, to compare them" in page)
+
+
+def test_compare_exits_1_when_the_lqr_design_fails_and_keeps_what_it_wrote(tmp_path):
+    """crazyflie flown on a 0.1 s rotor lag its design ignores: the LQR design turns over (diverged) and its
+    closed loop is unstable, as simulate and margins would say (exit 1, one line each); compare.json is kept."""
+    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--set", "motors.time_constant=0.1",
+                                   "--set", "simulation.duration=3", "-o", str(tmp_path)])
+    assert res.exit_code == 1, res.output
+    failed = [line for line in res.output.splitlines() if line.startswith("quadctl: check failed:")]
+    assert len(failed) == 2 and "lqr: diverged at t = " in failed[0] and "turned over" in failed[0]
+    assert failed[1] == "quadctl: check failed: lqr: the closed loop is unstable (no margins)"
+    lqr, pid = json.loads((tmp_path / "compare.json").read_text())["laws"]
+    assert (lqr["status"], lqr["closed_loop_stable"]) == ("diverged", False)
+    assert (pid["status"], pid["closed_loop_stable"]) == ("ok", True)
+
+
+def test_a_cascade_that_fails_is_the_finding_and_compare_exits_0(tmp_path):
+    """A sample of delay leaves the firmware's cascade unstable on the bundled crazyflie (its rate loop crosses
+    over near 90 Hz) and the LQR design stable: the cascade's column says so, the exit code does not."""
+    res = CliRunner().invoke(app, ["compare", "-c", "crazyflie", "--set", "controller.delay.samples=1",
+                                   "--set", "simulation.duration=2", "-o", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    lqr, pid = json.loads((tmp_path / "compare.json").read_text())["laws"]
+    assert lqr["closed_loop_stable"] is True and pid["closed_loop_stable"] is False
+    assert "check failed" not in res.output
+
+
+def test_design_failures_name_the_lqr_designs_run_and_loop_and_never_a_cascades():
+    """The rule behind compare's exit code, on stand-in laws: the LQR design's stopped run and unstable loop,
+    one line each; a failed cascade's, nothing."""
+    from types import SimpleNamespace as NS
+
+    from quadctl.compare import Comparison
+
+    def law(name, status, *stable):
+        return NS(name=name, run=NS(status=status, message=f"{status} at t = 1 s"),
+                  margins=tuple(NS(stable=s) for s in stable))
+
+    def failures(*laws):
+        return Comparison("x", 1.0, 0.01, laws, None, None).design_failures
+
+    assert failures(law("lqr", "ok", True, True), law("pid:crazyflie", "diverged", False)) == []
+    assert failures(law("lqr", "diverged", True, False), law("pid:px4", "ok", True)) == [
+        "lqr: diverged at t = 1 s", "lqr: the closed loop is unstable (no margins)"]
+    assert failures(law("lqr", "left_valid_range")) == ["lqr: left_valid_range at t = 1 s"]
+    assert failures(law("pid:crazyflie", "diverged", False)) == []

@@ -2,6 +2,7 @@ from typing import Annotated, Optional
 
 import typer
 
+from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import ConfigOpt, JsonOpt, OutOpt, SetOpt, open_workspace
 
 NAME = "compare"
@@ -23,6 +24,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     overshoot, rotor use, time at a rotor limit, the cost on the config's LQR weights and each law's least
     gain and phase margins (its loops broken at the plant inputs). quadctl report shows it when
     compare.json is in the run folder.
+
+    Exits 1 when the LQR design fails, as simulate and margins would: its run stops (diverged, or out of
+    the model's valid range) or its closed loop is unstable. A cascade that fails is shown in its column
+    and does not change the exit code: it is the finding, not the design under test.
     """
     import json as jsonlib
 
@@ -56,6 +61,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
             figures.append(ws.write_bytes(artifacts.plot_path(ws.out, f"compare-{stem}"), plots.png_bytes(fig, 90)))
     if json:
         render.emit_json(data)
+        if result.design_failures:
+            raise FailedChecks(*result.design_failures)
         return
     from quadctl.present import compare as words
 
@@ -64,3 +71,6 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
     render.out.print(f"-> {path}")
     for fig_path in figures:
         render.out.print(f"figure -> {fig_path}")
+    if result.design_failures:  # a verdict after every output is written and shown
+        raise FailedChecks(*result.design_failures)
+
