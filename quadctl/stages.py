@@ -20,11 +20,14 @@ from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from quadctl.errors import QuadctlError, SaturationFailed
+from quadctl.linear.stability import is_stable
 from quadctl.physics.motors import require_within_limits
 from quadctl.present.loops import thin_sentence
 from quadctl.present.mission import mission_text
-from quadctl.present.stages import UNSTABLE_DESIGN, check_verdict
+from quadctl.present.stages import UNSTABLE_DESIGN, check_verdict, unstable_cascade_text
 
 
 def _passes(ws, allow_saturation: bool) -> None:
@@ -36,11 +39,15 @@ def _design(ws, allow_saturation: bool) -> str | None:
 
 
 def _flight(ws, allow_saturation: bool) -> str | None:
-    """Why the flight fails its check: it did not finish, it flew its actuators' limits most of the run
-    (unless accepted), or its mission was not flown."""
+    """Why the flight fails its check: it did not finish, the PID cascade it flew is unstable about hover
+    (:func:`cascade_instability`), it flew its actuators' limits most of the run (unless accepted), or its
+    mission was not flown."""
     flown = ws.simulation
     if flown.sim.status != "ok":
         return flown.sim.message
+    unstable = cascade_instability(ws)
+    if unstable:
+        return unstable
     sat = flown.flight.get("saturation")
     try:
         require_within_limits(sat["fraction"] if sat else None, sat["mode"] if sat else None,
@@ -48,6 +55,21 @@ def _flight(ws, allow_saturation: bool) -> str | None:
     except SaturationFailed as exc:
         return str(exc)
     return mission_text(flown.flight.get("reference"))
+
+
+def cascade_instability(ws) -> str | None:
+    """With ``controller.flies: pid``, why the cascade that flies is unstable about hover (its lifted closed
+    loop, :attr:`quadctl.pipeline.Stages.pid_lift`, has a pole on or outside the unit circle); None: it is
+    stable, or the LQR design flies (its stability is the design stage's check). A run of an unstable cascade
+    can end before its mode grows: the run alone does not say it."""
+    if ws.setup.law != "pid":
+        return None
+    lift = ws.pid_lift
+    eig = np.linalg.eigvals(lift.frame_map)
+    if np.all(is_stable(eig, discrete=True)):
+        return None
+    return unstable_cascade_text(ws.setup.pid.title or ws.setup.pid.preset, float(np.abs(eig).max()),
+                                 lift.frame * lift.sample_time)
 
 
 def _thin(ws, allow_saturation: bool) -> str | None:

@@ -3,6 +3,8 @@ and the check stage's verdicts (rate warnings, the loop the vehicle flies, why t
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from quadctl.design.discrete import SAMPLES_PER_POLE
@@ -85,6 +87,16 @@ CHECKS_PASSED = "every regulated subsystem stabilizable"
 """A passed check stage in one line (``quadctl run``, the report's summary)."""
 UNSTABLE_DESIGN = "unstable on the coupled 12-state model"
 """Why ``run``, ``report`` and ``export`` stop after the design stage."""
+
+
+def unstable_cascade_text(title: str, radius: float, frame_s: float) -> str:
+    """Why a flight of a PID cascade (``controller.flies: pid``) fails although its run may have ended: the
+    cascade's closed loop about hover, lifted to its ``frame_s`` s frame, has spectral ``radius`` >= 1."""
+    growth = (f"a mode that doubles every {frame_s * math.log(2) / math.log(radius):.3g} s" if radius > 1
+              else "a mode that does not decay")
+    return (f"the PID cascade ({title}) is unstable about hover: its closed loop, linearized and lifted to its "
+            f"{frame_s * 1e3:.3g} ms frame, has spectral radius {radius:.5g} ({growth}); a run that ended has "
+            "not grown yet. quadctl margins shows each of its loops")
 
 
 def trim_summary(trim) -> str:
