@@ -198,9 +198,11 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
             stats["executor"] = f"dask {scheduler} ({workers} threads)"
         else:
             workers = max(1, min(jobs or default_jobs(), len(todo)))
+        tasks = tasks_for(cfg, spec, todo, label, spec.chunk_size or default_chunks(len(todo), workers), fast)
+        if client is None:  # no more processes than tasks: one task (a sweep of a lane group) runs here, no pool
+            workers = max(1, min(workers, len(tasks)))
             stats["executor"] = "local" if workers == 1 else f"local processes ({workers})"
         stats["workers"] = workers
-        tasks = tasks_for(cfg, spec, todo, label, spec.chunk_size or default_chunks(len(todo), workers), fast)
         rows = dict(done)
         traces: dict[int, np.ndarray] = {}
         total = len(cases)

@@ -377,6 +377,24 @@ def test_local_processes_give_the_same_rows(cfg):
     assert one.rows == two.rows
 
 
+def test_a_sweep_of_one_task_runs_in_this_process_whatever_the_jobs(cfg, monkeypatch):
+    """Three cases are one task (one group of the lanes): no pool is started for it at --jobs 2, and the rows
+    are those of --jobs 1."""
+    from quadctl.sweep import runner
+
+    spec = spec_of(cfg, mode="random", samples=3, seed=3,
+                   parameters={"lqr.pitch.Q[1]": {"distribution": "loguniform", "low": 5, "high": 500}})
+    one = sweep.run(cfg, spec, jobs=1)
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError("a process pool for one task")
+
+    monkeypatch.setattr(runner, "ProcessPoolExecutor", no_pool)
+    two = sweep.run(cfg, spec, jobs=2)
+    assert (two.stats["executor"], two.stats["workers"]) == ("local", 1)
+    assert one.rows == two.rows
+
+
 def test_dask_local_cluster_gives_the_same_rows(cfg):
     distributed = pytest.importorskip("distributed")
     spec = spec_of(cfg, mode="random", samples=12, seed=5, chunk_size=8,
