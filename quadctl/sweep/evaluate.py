@@ -162,14 +162,16 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
 
 
 def _add_margins(row: dict, prep: Prepared) -> None:
-    """A designed case's :data:`~quadctl.sweep.gates.MARGIN_COLUMNS` (None where it has no design)."""
+    """A designed case's :data:`~quadctl.sweep.gates.MARGIN_COLUMNS` (None where it has no design): of the law
+    that flies, as ``quadctl margins`` reports them (``controller.flies: pid``: the cascade's loops)."""
 
     row.update(dict.fromkeys(MARGIN_COLUMNS))
     if row.get("stable") is None:  # no design
         return
     stages = pipeline.Stages(prep.setup, linear=prep.plant.linear, decoupled=prep.plant.decoupled)
     try:
-        found = pipeline.margins_of(prep.setup, prep.plant.linear, prep.plant.decoupled, stages.design)
+        found = stages.pid_margins if prep.setup.law == "pid" else \
+            pipeline.margins_of(prep.setup, prep.plant.linear, prep.plant.decoupled, stages.design)
     except QuadctlError as exc:
         row["margins_missing"] = f"no margins: {exc}"
         return

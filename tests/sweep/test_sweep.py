@@ -951,6 +951,25 @@ def test_margin_columns_are_the_margins_command_s_and_gate_thin_loops():
     assert "margin.phase_deg" not in plain.metrics  # computed only when gated
 
 
+def test_a_sweep_that_flies_the_cascade_gates_the_cascades_margins_not_the_lqr_designs():
+    """controller.flies: pid: the margin columns are the cascade's, as quadctl margins reports them for that
+    config (the stock Crazyflie cascade keeps 0.75 dB where the LQR design keeps 24 dB): a gate at 6 dB fails."""
+    from quadctl.setup import setup_of
+
+    cfg = config.load("crazyflie")
+    spec = spec_of(cfg, parameters={"vehicle.mass": [0.027]}, set={"simulation.duration": 0.3,
+                                                                    "controller.flies": "pid"},
+                   gates={"margin.gain_db": {"min": 6}})
+    (row,) = sweep.run(cfg, spec, jobs=1).rows
+    data = cfg.model_dump(mode="json")
+    data["controller"]["flies"] = "pid"
+    st = pipeline.Stages(setup_of(config.from_dict(data)))
+    found = st.margins  # the law that flies: the cascade's loops
+    assert {m.model for m in found} == {"cascade"}
+    assert row["margin.gain_db"] == min(min(-m.gain_margin_db[0], m.gain_margin_db[1]) for m in found)
+    assert row["margin.gain_db"] < 1 and not row["pass"]
+
+
 def test_a_margin_gate_on_an_unstable_loop_says_the_loop_is_unstable():
     """80 ms of rotor lag loses one of mambo-200hz's loops: its margin cells are empty and the gate fails
     with why, 'got none: a loop is unstable', where it read 'got none' as a run that stopped does."""
