@@ -85,7 +85,8 @@ def flight_summary(setup: Setup, loop: ClosedLoop, sim: SimResult) -> dict:
     duration = float(sim.t[-1]) if len(sim.t) else 0.0
     out: dict = {
         "controller": {"rate": setup.timing.rate, "design": setup.timing.mode,
-                       "hold_steps": sim.plan.hold, "sample_time": sim.plan.sample_time},
+                       "hold_steps": sim.plan.hold, "sample_time": sim.plan.sample_time,
+                       "flies": setup.law, "cascade": setup.pid.title if setup.law == "pid" else None},
         "peak_delta": {name: float(np.abs(sim.u[:, j] - loop.u_trim[j]).max())
                        for j, name in enumerate(INPUT_NAMES)},
         "rms_error": noise.rms_deviation(sim.t, sim.x, sim.x_ref),

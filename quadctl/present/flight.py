@@ -36,8 +36,13 @@ def integrator_name(sim) -> str:
 
 
 def controller_text(flight: dict, sim) -> str | None:
-    """A sampled controller's rate and hold (None for a continuous one)."""
+    """A sampled controller's rate and hold (None for a continuous one): the design's, or the PID cascade's
+    when it flies."""
     ctl = flight["controller"]
+    if ctl.get("flies") == "pid":  # the cascade flies at its own rate, not the design's
+        rate = 1.0 / ctl["sample_time"]
+        return (f"controller: the {ctl['cascade']} cascade at {rate:g} Hz (controller.flies: pid), zero-order "
+                f"hold: one sample every {ctl['hold_steps']} {integrator_name(sim)} steps of {sim.dt:.4g} s")
     if not ctl.get("rate"):
         return None
     if sim.plan.method == "etdrk4" and len(sim.plan.schedule) > 1:

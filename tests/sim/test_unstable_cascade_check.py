@@ -44,6 +44,26 @@ def test_a_cascade_one_sample_of_delay_destabilizes_fails_simulate_and_run_thoug
     assert run.exit_code == 1 and "check failed: simulate: the PID cascade" in " ".join(run.output.split())
     fine = CliRunner().invoke(app, ["simulate", *common, "-o", str(tmp_path / "b")])
     assert fine.exit_code == 0, fine.output
+    assert "controller: the Crazyflie controller_pid cascade at 500 Hz (controller.flies: pid)" in fine.output
+    ctl = json.loads((tmp_path / "b" / "sim.json").read_text())["controller"]
+    assert (ctl["flies"], ctl["cascade"], ctl["sample_time"]) == ("pid", "Crazyflie controller_pid", 0.002)
+
+
+def test_the_controller_line_names_the_law_that_flies():
+    """A sampled design's line names the design; with controller.flies: pid, the cascade and its own rate
+    (1 / its sample time), not the design's."""
+    from types import SimpleNamespace as NS
+
+    from quadctl.present.flight import controller_text
+
+    sim = NS(plan=NS(method="rk4", schedule=()), dt=0.001)
+    design = {"rate": 200.0, "design": "discrete", "hold_steps": 5, "sample_time": 0.005, "flies": "lqr",
+              "cascade": None}
+    assert controller_text({"controller": design}, sim).startswith("controller: discrete design at 200 Hz")
+    cascade = design | {"flies": "pid", "cascade": "Crazyflie controller_pid", "sample_time": 0.002, "hold_steps": 2}
+    assert controller_text({"controller": cascade}, sim) == (
+        "controller: the Crazyflie controller_pid cascade at 500 Hz (controller.flies: pid), zero-order hold: one "
+        "sample every 2 RK4 steps of 0.001 s")
 
 
 def test_the_lqr_design_that_flies_is_not_judged_by_its_cascade():
