@@ -11,7 +11,6 @@ from quadctl.cli.options import (
     open_workspace,
 )
 from quadctl.cli.stage_warnings import mission_failure, require_within_limits, warn_of_the_flight
-from quadctl.stages import cascade_instability
 
 NAME = "simulate"
 
@@ -63,6 +62,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
     mission = mission_failure(flown)
     if sim.status != "ok":
         raise FailedChecks(sim.message, *([mission] if mission else []))
+    from quadctl.stages import cascade_instability
+
     unstable = cascade_instability(ws)  # controller.flies: pid: a run that ended is not a stable cascade
     if unstable:
         raise FailedChecks(unstable, *([mission] if mission else []))
