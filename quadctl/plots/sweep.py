@@ -194,7 +194,7 @@ def montecarlo_figure(bands, groups: dict, *, title: str = "", varied: tuple = (
                 ax.grid(True, alpha=0.3)
             top.plot(bands.t, p[50], color=color, lw=1.4, label="median")
             top.set_ylabel(f"Δ{axis_label(states[c])} [{unit}]")
-            below.set_ylabel(f"about median [{unit}]", fontsize=8)
+            below.set_ylabel(f"about median\n[{unit}]", fontsize=8)
             below.tick_params(labelsize=7)
             if c == 0:
                 top.set_title(name, loc="left", fontsize=10, fontweight="bold")

@@ -525,3 +525,31 @@ def test_the_sweep_trade_off_draws_cases_with_no_settling_time_on_a_strip_by_rea
     assert rows_drawn[(order.index("run stopped"),)] == [0.97]
     assert ax.get_xlim() == top.get_xlim() and ax.get_xlim()[0] < 0.94 and ax.get_xlim()[1] > 0.97
     assert fig._suptitle.get_text() == "sweep trade-off (9 cases; 1 case without both values)"
+
+
+@pytest.mark.parametrize("groups", [{"roll": ["v", "phi", "p"]},
+                                    {"altitude": ["pD", "w"], "roll": ["v", "phi", "p"]}], ids=["one row", "two rows"])
+def test_the_monte_carlo_figures_axis_labels_name_a_unit_and_stay_beside_their_own_panel(groups):
+    """Each panel's y label names its unit and fits the panel's height: the short panels of the bands about
+    the median (a third of a row) once carried a one-line label taller than themselves, which ran into the
+    tick labels of the panel above (docs/figures/uncertainty-bands.png: 'about median [deg/s]' over '-60')."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from quadctl.sweep.outputs import MC_PERCENTILES, MonteCarloBands
+
+    t = np.linspace(0.0, 3.0, 300)
+    states = ("pD", "w", "v", "phi", "p")
+    start = np.exp(-t)[:, None] * np.array([0.5, -0.6, 0.1, 0.1, -1.0])
+    wobble = 0.01 * np.sin(5 * t)[:, None]
+    levels = np.stack([start + q * wobble for q in (-2, -1, 0, 1, 2)])
+    bands = MonteCarloBands(t=t, percentiles=MC_PERCENTILES, bands=levels, states=states, cases=np.arange(64),
+                            traces=np.zeros((64, len(t), len(states)), np.float32))
+    fig = plots.montecarlo_figure(bands, groups, title="mc", varied=("simulation.plant.mass",))
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)  # the constrained layout places the panels
+    labelled = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(labelled) == 2 * sum(len(s) for s in groups.values())
+    for ax in labelled:
+        label, panel = ax.yaxis.label.get_window_extent(renderer), ax.get_window_extent(renderer)
+        assert ax.get_ylabel().rstrip().endswith("]"), ax.get_ylabel()
+        assert panel.y0 <= label.y0 and label.y1 <= panel.y1, (ax.get_ylabel(), label, panel)
