@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from quadctl.design.gain_table import VARIABLES, scheduling_values
 from quadctl.layout import INPUT_NAMES, STATE_INDEX, STATE_NAMES
@@ -128,6 +129,9 @@ def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:
     twin.set_ylabel("least damping ratio")
     lines = ax_p.get_legend_handles_labels()
     more = twin.get_legend_handles_labels()
+    # "best" avoids only the lines of the legend's own axes: an unseen copy of the damping curve, in the
+    # twin's coordinates, keeps the legend off it too (add_artist leaves the pole axis' limits alone)
+    ax_p.add_artist(Line2D(c.values, c.least_damping, transform=twin.transData, visible=False))
     ax_p.legend(lines[0] + more[0], lines[1] + more[1], loc="best", fontsize=7, frameon=False)
     ax_p.set_title(f"frozen-point loops, grid {c.refinement}x finer", fontsize=9)
     trimmed = [p for p in sched.points if p.trimmed]

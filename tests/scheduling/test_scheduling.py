@@ -261,6 +261,26 @@ def test_the_gain_legend_sits_narrow_beside_the_curves_and_tells_coincident_ones
     assert not curves["K[A,v]"].get_label().endswith("curve")
 
 
+
+def test_the_frozen_point_legend_covers_neither_curve_of_its_twin_axes():
+    """The poles panel's legend names the slowest pole and, on the twin axis, the least damping: it keeps off
+    both curves (matplotlib's "best" sees only the lines of the legend's own axes; the bundled schedule's
+    damping curve ends in the lower right corner, where the legend sat)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from quadctl import plots
+
+    sched = schedule_of(setup_of(config.load("schedule")))
+    fig = plots.schedule_figure(sched, title="schedule")
+    FigureCanvasAgg(fig).draw()
+    poles, twin = fig.axes[1], fig.axes[-1]
+    box = poles.get_legend().get_window_extent()
+    for ax in (poles, twin):
+        line = ax.get_lines()[0]
+        points = line.get_transform().transform(line.get_xydata())
+        assert not any(box.contains(x, y) for x, y in points), f"the legend covers {line.get_label()}"
+    assert poles.get_ylim()[1] < 0.5  # the unseen copy of the damping curve leaves the poles' limits alone
+
 def test_a_value_beyond_the_models_tilt_says_why():
     sched = schedule_of(setup_of(with_schedule("hover", {"variable": "speed", "values": [0.0, 1.0, 200.0]})))
     assert sched.envelope == (0.0, 1.0)
