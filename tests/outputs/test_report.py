@@ -467,3 +467,18 @@ def test_the_report_shows_the_gain_schedule_the_run_flew(name, reports):
         assert row[header.index("stable")] == ("yes" if p["stable"] else "no")
     assert any("Frozen-point checks" in t for t in page.text)
     assert (out / report.FOLDER / "schedule.png").is_file()
+
+
+def test_the_reports_text_wraps_a_word_longer_than_a_phones_page():
+    """The Configuration section's config_hash is 64 hex digits with no break: without a rule that breaks it,
+    the paragraph stuck out of a 420-pixel-wide page and the whole report scrolled sideways on a phone
+    (the tables scroll in their own boxes)."""
+    import re
+    from pathlib import Path
+
+    import quadctl.report
+
+    css = (Path(quadctl.report.__file__).parent / "templates" / "report.css").read_text(encoding="utf-8")
+    paragraph_rules = [body for sels, body in re.findall(r"([^{}@]+)\{([^}]*)\}", css)
+                       if "p" in (sel.strip() for sel in sels.split(","))]
+    assert any(re.search(r"overflow-wrap:\s*(break-word|anywhere)", body) for body in paragraph_rules)
