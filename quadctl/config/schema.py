@@ -128,7 +128,7 @@ class StartedFrom(Section):
 
 
 class Config(Section):
-    """A whole quadctl config (see the README's config reference).
+    """A whole quadctl config (every key: the config reference, docs/reference/config.md).
 
     Examples
     --------
