@@ -36,13 +36,13 @@ def identification_figure(ident) -> Figure:
         t, measured, predicted = _broken(fit.t[::cut], fit.measured[::cut, k], fit.predicted[::cut, k])
         left.plot(t, predicted, color=COLORS[1], lw=1.3, alpha=0.9, label="model", zorder=2)
         left.plot(t, measured, color=COLORS[0], lw=0.6, alpha=0.75, label="measured", zorder=3)
-        left.set_ylabel(fit.rows[k])
+        left.set_ylabel(f"{_quantity(fit.rows[k])} [{unit}]" if unit else fit.rows[k])  # [N], as every axis
         left.set_title(f"{log}, {stage}: {fit.rows[k]}, measured and predicted", fontsize=9)
         left.grid(alpha=0.3)
         res = fit.residual[:, k]
         right.plot(t, measured - predicted, color=COLORS[2], lw=0.5)
         right.axhline(0.0, color="k", lw=0.5)
-        right.set_ylabel(f"measured - model ({unit})" if unit else "measured - model")
+        right.set_ylabel(f"measured - model [{unit}]" if unit else "measured - model")
         right.set_title(f"{log}: {_quantity(fit.rows[k])} residual, RMS "
                         f"{np.sqrt(np.mean(res ** 2)):.3g} {unit}".rstrip(), fontsize=9)
         right.grid(alpha=0.3)

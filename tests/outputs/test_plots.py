@@ -215,14 +215,15 @@ def _identification():
 
 def test_the_identification_figure_names_its_logs_units_and_hides_no_data():
     """Each row's titles name the log its stage was fitted on and the quantity (the roll or pitch torque's
-    residual apart); the residuals carry the unit of their quantity; the measurement is drawn over the model
-    and thinner, so both show; the legend lies outside every panel."""
+    residual apart); both axes carry the unit of their quantity, in brackets as every figure's axes do (the titles
+    keep the row's "(N)"); the measurement is drawn over the model and thinner, so both show; the legend lies
+    outside every panel."""
     from quadctl.plots.identify import identification_figure
 
     fig = _drawn(identification_figure(_identification()))
     rows = np.reshape(fig.axes, (-1, 2))
     named = ("thrust", "roll torque", "pitch torque")
-    for (left, right), log, quantity, unit in zip(rows, ("log10", "log15", "log15"), named, ("(N)", "(N m)", "(N m)")):
+    for (left, right), log, quantity, unit in zip(rows, ("log10", "log15", "log15"), named, ("[N]", "[N m]", "[N m]")):
         assert left.get_title().startswith(log) and right.get_title().startswith(log)
         assert f": {quantity} (" in left.get_title() and f": {quantity} residual, RMS" in " ".join(
             right.get_title().split())
