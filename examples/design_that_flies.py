@@ -103,9 +103,9 @@ for i in range(4):
 ax[2].axhline(MAMBO.max_thrust, color="k", ls="--", lw=1.0, label="limit")
 ax[2].set_ylabel("rotor thrust [N]")
 ax[2].set_xlabel("time [s]")
-for a in ax:
+for a, where in zip(ax, ("upper right", "upper right", "center right")):  # the rotors' legend below their limit line
     a.grid(True, alpha=0.3)
-    a.legend(fontsize=7, frameon=False, loc="upper right", ncol=5)
+    a.legend(fontsize=8, frameon=False, loc=where, ncol=5)
 fig.suptitle("mambo-200hz: report's offset, 200 Hz discrete LQR, rotor limits, noise (seed 1)")
 save(fig, "mambo-response.png")
 
