@@ -35,6 +35,7 @@ print(f"uncertainty: {len(bands.cases)} cases, {sum(r['pass'] for r in result.ro
 
 groups = {name: list(cfg.partition()[name].states) for name in ("altitude", "roll")}  # the mass and Jxx errors
 fig = plots.montecarlo_figure(bands, groups, title=cfg.name, varied=tuple(spec.names))
+fig.set_size_inches(9.2, fig.get_figheight())  # 736 pixels at 80 dpi: the pages' width, so it shows unscaled
 OUT.mkdir(parents=True, exist_ok=True)
 fig.savefig(OUT / "uncertainty-bands.png", dpi=80)
 print(f"wrote {OUT / 'uncertainty-bands.png'}")
