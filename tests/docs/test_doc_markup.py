@@ -46,3 +46,12 @@ def test_every_table_row_has_its_headers_cells(page):
         elif cells != header:
             short.append((number, cells, header))
     assert not short, f"{_name(page)}: rows (line, cells, header's) whose cells differ from the header's: {short}"
+
+
+@pytest.mark.parametrize("page", PAGES, ids=_name)
+def test_every_fenced_block_names_its_language(page):
+    """Sphinx highlights a fence without a language as Python: the model's equations (``phi' = p + ...``)
+    showed as green string literals. Plain text says ``text``."""
+    unnamed = [token.map[0] + 1 for token in PARSER.parse(page.read_text(encoding="utf-8"))
+               if token.type == "fence" and not token.info.strip()]
+    assert not unnamed, f"{_name(page)}: fenced blocks at lines {unnamed} name no language (plain text: ```text)"
