@@ -166,17 +166,17 @@ def margins_figure(m, *, title: str = "") -> Figure:
     ax_ny.plot(L.real, L.imag, color=COLORS[0], lw=1.5, label="L(jw), w > 0")
     ax_ny.plot(L.real, -L.imag, color=COLORS[0], lw=1.0, ls="--", alpha=0.6, label="w < 0")
     circle = np.exp(1j * np.linspace(0, 2 * np.pi, 361))
-    ax_ny.plot(circle.real, circle.imag, color="0.6", lw=0.8)
+    ax_ny.plot(circle.real, circle.imag, color="0.6", lw=0.8, label="|L| = 1")
     disk = -1 + m.min_return_difference * circle  # L never enters this disk around -1
     ax_ny.plot(disk.real, disk.imag, color=COLORS[3], lw=1.0, label=f"min |1+L| = {m.min_return_difference:.3g}")
-    ax_ny.plot(-1, 0, "x", color=COLORS[1], ms=9, mew=2)
+    ax_ny.plot(-1, 0, "x", color=COLORS[1], ms=9, mew=2, label="-1, the critical point")
     ax_ny.set_xlim(-3, 2)
     ax_ny.set_ylim(-2.5, 2.5)
     ax_ny.set_aspect("equal", adjustable="box")
     ax_ny.set_xlabel("Re L")
     ax_ny.set_ylabel("Im L")
     ax_ny.grid(True, alpha=0.3)
-    ax_ny.legend(loc="lower right", fontsize=7, frameon=False)
+    ax_ny.legend(loc="best", fontsize=7, frameon=False)  # five entries: where the curves leave room
     kind = f"sampled, Ts = {m.sample_time * 1e3:.3g} ms" if m.sample_time else "continuous"
     head = (f"{m.loop} PID cascade broken at {m.input} (the rest of it closed; lifted, frequencies at its "
             f"{m.sample_time * 1e3:.3g} ms sample)"

@@ -69,6 +69,25 @@ def _sim(n=50):
     return SimpleNamespace(t=t, x=x, x_ref=x_ref, u=u, status="ok")
 
 
+
+def test_the_nyquist_panel_names_every_curve_and_mark_it_draws():
+    """The Nyquist panel's legend names each of its curves and marks: L for positive and negative frequencies,
+    the unit circle (it was drawn unnamed, a grey circle a reader had to guess), the disk of the least return
+    difference and the critical point -1."""
+    setup, trim, linear, dec, des = solve(cfg_dict("mambo-200hz"))
+    roll = next(m for m in margin_findings.all_margins(des, dec, linear.A, linear.B)
+                if m.loop == "roll" and m.model == "design")
+    ax_ny = _drawn(plots.margins_figure(roll)).axes[2]
+    assert ax_ny.get_xlabel() == "Re L" and ax_ny.get_ylabel() == "Im L"
+    named = [t.get_text() for t in ax_ny.get_legend().get_texts()]
+    assert named[:2] == ["L(jw), w > 0", "w < 0"] and "|L| = 1" in named and "-1, the critical point" in named
+    assert any(text.startswith("min |1+L| = ") for text in named)
+    assert len(named) == len(_lines(ax_ny))  # every line and mark of the panel, none unnamed
+    box = ax_ny.get_legend().get_window_extent()  # five entries, placed where no curve runs
+    for line in _lines(ax_ny):
+        points = line.get_transform().transform(line.get_xydata())
+        assert not any(box.contains(x, y) for x, y in points), line.get_label()
+
 def test_the_altitude_plot_shows_height_up():
     sim = _sim()
     fig = plots.subsystem_figure(sim, "altitude", ["pD", "w"])
