@@ -152,7 +152,8 @@ class Config(Section):
         ControllerConfig(), description="how the controller runs on the flight computer")
     motors: Optional[MotorsConfig] = Field(None, description="rotor layout and thrust limits; saturates the inputs")
     limits: Optional[dict[str, InputLimits]] = Field(
-        None, description="input name -> [low, high] (input units: N or N m); box limits when there is no motors:")
+        None, description="input name -> [low, high] (input units: N or N m); box limits, when the config has no "
+                          "motors section")
     estimator: Optional[EstimatorConfig] = Field(
         None, description="state estimation (LQG): what is measured and the noise the Kalman filter assumes; "
         "absent: the controller measures the full state")
