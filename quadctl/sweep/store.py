@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -11,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from quadctl import artifacts
-from quadctl.errors import ArgumentError, ArtifactError, SweepError
+from quadctl.errors import ArgumentError, ArtifactError, QuadctlNotice, SweepError
 from quadctl.layout import unit_of
 from quadctl.sweep.config_tree import value_at
 from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS
@@ -82,6 +83,10 @@ class SweepStore:
         if not resume:
             for path in files:
                 self.files.remove(path)
+            return {}
+        if not files:  # asked to resume, told so rather than silently starting over
+            warnings.warn(QuadctlNotice(f"--resume: no finished chunks in {self.parts}, so nothing to resume: "
+                                        f"computing all {self.spec.count()} cases"), stacklevel=2)
             return {}
         done: dict[int, dict] = {}
         for path in files:

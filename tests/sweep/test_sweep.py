@@ -450,6 +450,15 @@ def test_resume_keeps_finished_rows_and_computes_only_the_rest(cfg, tmp_path, mo
         sweep.execute(cfg, changed, tmp_path / "cut", jobs=1, resume=True)
 
 
+def test_resume_without_a_journal_says_so_and_computes_every_case(cfg, tmp_path):
+    from quadctl.errors import QuadctlNotice
+
+    spec = spec_of(cfg, parameters={"lqr.roll.Q[1]": [10, 50]})
+    with pytest.warns(QuadctlNotice, match=r"--resume: no finished chunks in .*sweep\.parts.*all 2 cases"):
+        outcome = sweep.execute(cfg, spec, tmp_path / "new", jobs=1, resume=True)
+    assert outcome.reused == 0 and outcome.result.computed == 2
+
+
 def test_a_killed_sweep_resumes_from_its_journal(tmp_path):
     """kill -9 a real `quadctl sweep` once it has journaled a chunk; --resume finishes the rest."""
     import os
