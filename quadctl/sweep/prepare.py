@@ -48,6 +48,8 @@ class CaseSetups:
         except ConfigError:  # a case's values may still make it valid: every case the reference way
             return
         self.base = setup_of(self.cfg)
+        if _implausible(self.cfg, task.label):  # every case says so, the reference way
+            return
         kinds = [self._kind(keys) for keys in task.keys]
         if all(kind is not None for kind in kinds):
             self.kinds = kinds
@@ -82,7 +84,12 @@ class CaseSetups:
         data = self.task.base
         for keys, value in zip(self.task.keys, values):
             data = assign(data, keys, _plain(value))
-        return setup_of(config_mod.from_dict(data, f"{self.task.label} case {index}"))
+        label = f"{self.task.label} case {index}"
+        cfg = config_mod.from_dict(data, label)
+        slips = _implausible(cfg, label)
+        if slips:  # as a command refuses the same config on its own: a design for a unit slip is for no vehicle
+            raise ConfigError(f"{'; '.join(slips)} (implausible; `allow: [implausible]` accepts it)")
+        return setup_of(cfg)
 
     def _kind(self, keys: tuple):
         """("seed",), ("weight", subsystem, "Q" or "R", index), or None (the reference way)."""
@@ -138,6 +145,16 @@ class CaseSetups:
             weights.setdefault(name, [None, None])["QR".index(which)] = matrices
         setups = vary(self.base, n, weights={name: tuple(pair) for name, pair in weights.items()}, noise_seeds=seeds)
         return [setup if good else None for setup, good in zip(setups, ok.tolist())]
+
+
+def _implausible(cfg, label: str) -> list[str]:
+    """The warnings of :func:`quadctl.config.notices.notices` (a likely unit slip: a mass in grams, an
+    arm in mm), unless the config says ``allow: [implausible]``."""
+    from quadctl.config.notices import notices
+
+    if "implausible" in cfg.allow:
+        return []
+    return [n.message for n in notices(cfg, label) if n.level == "warning"]
 
 
 class Plant:

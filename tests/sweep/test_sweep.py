@@ -329,6 +329,18 @@ def test_failed_cases_are_rows_with_their_reason(cfg):
     assert result.stats["fallbacks"] == 1
 
 
+def test_a_case_whose_values_look_like_a_unit_slip_is_a_failed_row_as_the_config_alone_is_refused(cfg):
+    spec = spec_of(cfg, parameters={"vehicle.mass": [68.0, 0.068]})  # 68 g written as 68 kg, then right
+    slip, right = sweep.run(cfg, spec, jobs=1).rows
+    assert slip["status"] == "invalid_config" and not slip["pass"]
+    assert "case 0: vehicle.mass = 68 kg" in slip["reason"] and "is vehicle.mass in grams?" in slip["reason"]
+    assert right["status"] == "ok" and right["pass"]
+    allowed = spec_of(cfg, parameters={"vehicle.mass": [68.0]}, set={**SHORT, "allow": ["implausible"]})
+    assert sweep.run(cfg, allowed, jobs=1).rows[0]["status"] == "ok"
+    weights = spec_of(cfg, parameters={"lqr.roll.Q[1]": [50.0]}, set={**SHORT, "vehicle.mass": 68.0})
+    assert sweep.run(cfg, weights, jobs=1).rows[0]["status"] == "invalid_config"  # the slip in set:
+
+
 def test_a_step_rk4_cannot_hold_is_a_row(cfg):
     spec = spec_of(cfg, parameters={"lqr.roll.R[0]": [1.0]}, set={**SHORT, "simulation.dt": 0.001})
     row = sweep.run(cfg, spec, jobs=1).rows[0]
