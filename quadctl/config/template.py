@@ -251,6 +251,10 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
         shown = repr(name) if len(name) <= SHOWN_CHARS else f"{name[:SHOWN_CHARS]!r}... ({len(name)} characters)"
         raise ConfigError(f"NAME = {shown}: {config_mod.NAME_RULE} (it names the file NAME.yaml and the folder "
                           "runs/NAME)")
+    stem, dot, suffix = name.rpartition(".")
+    if dot and stem and suffix.lower() in ("yaml", "yml"):  # the file, not the name: it would write NAME.yaml.yaml
+        raise ConfigError(f"NAME = {name!r}: give the config's name without .{suffix}; quadctl init {stem} "
+                          f"writes {stem}.yaml")
     if vehicle not in PRESETS:
         raise ConfigError(f"--from {vehicle}: {unknown(vehicle, tuple(PRESETS), 'vehicle')}")
     if flight not in FLIGHTS:

@@ -133,6 +133,9 @@ def test_the_template_writes_numbers_short():
     (("my/quad",), r"^NAME = 'my/quad': must start with a letter"),
     (("q", "iriss", "hover"), r"^--from iriss: unknown vehicle; did you mean `iris`\?"),
     (("q", "iris", "climb"), r"^--flight climb: unknown flight condition"),
+    (("mine.yaml",), r"^NAME = 'mine\.yaml': give the config's name without \.yaml; quadctl init mine writes "
+                     r"mine\.yaml$"),
+    (("f450.YML",), r"^NAME = 'f450\.YML': give the config's name without \.YML; quadctl init f450 writes f450\.yaml$"),
 ])
 def test_bad_init_arguments_are_named(args, match):
     with pytest.raises(ConfigError, match=match):
