@@ -55,6 +55,12 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
             raise log_error(path, f"no column {given!r}{via} (the header has {', '.join(header)})",
                         f"rename the column or map it: --columns {name}=YOUR_NAME")
         where[name] = header.index(given)
+    # a line with more values than the header names (a value split in two by a thousands separator, a
+    # column added mid-file) would be read shifted, or its extra values dropped, without a word
+    ragged = next((i for i, line in enumerate(lines[1:]) if line.count(",") != len(header) - 1), None)
+    if ragged is not None:
+        raise log_error(path, f"data line {ragged + 1} is not {len(header)} numbers (it has "
+                              f"{lines[ragged + 1].count(',') + 1} values)", "repair or remove that line")
     try:  # no data lines: no samples (loadtxt would warn, on stderr, before the one line that says so)
         values = (np.loadtxt(lines[1:], delimiter=",", usecols=[where[n] for n in CSV_COLUMNS], ndmin=2)
                   if lines[1:] else np.empty((0, len(CSV_COLUMNS))))

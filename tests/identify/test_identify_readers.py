@@ -152,6 +152,10 @@ def test_crazyflie_log_without_the_motors_refused(tmp_path):
      r"x.csv: no column 'cmd_4' .*--columns cmd_4=YOUR_NAME"),
     (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0,x,0,0\n", r"x.csv: data line 2 is not"),
     (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n0,0,0,0,0,0,0,0,0,0,0\n", r"time does not increase at sample 2"),
+    (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0,0.5,0,0,7\n",
+     r"x.csv: data line 2 is not 11 numbers \(it has 12 values\); repair or remove that line"),
+    (",".join(CSV_COLUMNS) + "\n0,0,0,0,0,0,0,0,0,0,0\n0.1,0,0,0,0,0,0,0,0.5,0\n",
+     r"x.csv: data line 2 is not 11 numbers \(it has 10 values\)"),
     (";".join(CSV_COLUMNS) + "\n0;0;0;0;0;0;0;0;0;0;0\n", r"^\S*x.csv: its columns are separated by a semicolon, not "
                                                         r"commas; save it with commas between the values and a point"),
     ("\t".join(CSV_COLUMNS) + "\n0\t0\t0\t0\t0\t0\t0\t0\t0\t0\t0\n", r"x.csv: its columns are separated by tabs"),
