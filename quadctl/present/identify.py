@@ -99,9 +99,12 @@ def sentences(payload: dict) -> list[str]:
     out = []
     th = payload["stages"].get("thrust")
     if th:
+        share = 1 - th['residual_rms'] / th['rms_without_lag']
+        explains = (f"the lag explains {percent(share, places=0)} of the error" if round(share * 100) >= 0 else
+                    # a lag the log does not resolve (its rotors follow the commands within a sample or two)
+                    f"the lag explains none of the error: it is {percent(-share, places=0)} larger with it")
         out.append(f"Thrust fit: residual {th['residual_rms']:.4g} N RMS with the motor lag, "
-                   f"{th['rms_without_lag']:.4g} N without (the lag explains "
-                   f"{percent(1 - th['residual_rms'] / th['rms_without_lag'], places=0)} of the error).")
+                   f"{th['rms_without_lag']:.4g} N without ({explains}).")
     delay = payload.get("delay_written")
     if delay is not None and "controller.delay" not in payload.get("not_written", {}):  # (else: implausible())
         fitted = th["parameters"]["delay"]["value"]

@@ -370,6 +370,19 @@ def test_the_share_of_the_thrust_error_the_lag_explains_reads_0_not_minus_0(rms,
                for s in said), said
 
 
+def test_a_lag_that_fits_worse_than_none_is_said_to_explain_none_of_the_thrust_error_not_a_negative_share():
+    """A log whose rotors do not lag (a simulator's) fitted 69 % worse with the lag held at its floor: the
+    sentence said "the lag explains -69 % of the error"."""
+    from quadctl.identify.results import payload
+    from quadctl.present.identify import sentences
+
+    ident = _delay_identification(500.0)
+    ident.fits["thrust"].rms = 1.69  # rms_without_lag: 1.0
+    said = sentences(payload(ident, "crazyflie.yaml"))
+    assert any(s.startswith("Thrust fit: ") and s.endswith("(the lag explains none of the error: it is 69 % larger "
+                                                           "with it).") for s in said), said
+
+
 def test_a_window_reads_back_as_it_was_typed(tmp_path):
     """log15's window from its README, 15.755:50.755, showed as 15.76-50.76 in the table and the
     identified.yaml comment: typed back, another window. Times are shown to the millisecond."""
