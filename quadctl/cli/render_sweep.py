@@ -179,11 +179,13 @@ def sweep_line(outcome, method: str = "rk4") -> str:
                  f"{perf['designs_per_second']:.0f} designs/s")
     if perf["us_per_subsystem_design"] is not None:
         speed += f", {perf['us_per_subsystem_design']:.1f} µs CPU per subsystem LQR"
-    backend = ", ".join(perf["backend"]) or "-"
+    backend = ", ".join(perf["backend"]) or "no case simulated"
+    # every case read back from the journal: nothing ran anywhere
+    where = f" on {perf['executor']} ({backend})" if perf["computed"] else ""
     failed = len(result.failed)
     verdict = "[green]all pass[/green]" if not failed else f"[red]{failed} fail[/red]"
-    return (f"{perf['cases']} cases ({perf['computed']} computed{resumed}) in {perf['wall_time_s']:.2f} s "
-            f"on {perf['executor']} ({backend}){speed}; {verdict}")
+    return (f"{perf['cases']} cases ({perf['computed']} computed{resumed}) in {perf['wall_time_s']:.2f} s"
+            f"{where}{speed}; {verdict}")
 
 
 def sweep_failures(summary: dict) -> str:

@@ -251,3 +251,20 @@ def test_the_sweep_tables_show_a_noise_limited_settling_time_as_noise():
     console.print(sweep_tables(result, spec))
     line = next(line for line in console.file.getvalue().splitlines() if "mass=0.068" in line)
     assert [cell.strip() for cell in line.split("│")[3:5]] == ["noise", "-"]
+
+
+@pytest.mark.parametrize(("computed", "backend", "where"), [
+    (0, [], ""), (2, [], " on local (no case simulated)"), (2, ["compiled-simd"], " on local (compiled-simd)")])
+def test_the_sweep_line_names_where_cases_ran_only_when_some_did(computed, backend, where):
+    """A sweep resumed whole computed nothing: its line said "on local (-)"; a sweep none of whose cases
+    simulated (every one refused) said "(-)" too."""
+    from types import SimpleNamespace
+
+    from quadctl.cli.render_sweep import sweep_line
+
+    stats = {"steps": 0, "designs": 0, "design_cpu": 0.0, "design_time": 0.0, "fallbacks": 0,
+             "backend": backend, "executor": "local"}
+    result = SimpleNamespace(rows=[{}, {}], computed=computed, wall_time=0.0, stats=stats, failed=[])
+    line = sweep_line(SimpleNamespace(result=result, reused=2 - computed))
+    resumed = ", 2 resumed" if not computed else ""
+    assert line == f"2 cases ({computed} computed{resumed}) in 0.00 s{where}; [green]all pass[/green]"
