@@ -105,6 +105,7 @@ def notices(cfg: Config, label: str = "<config>") -> list[Notice]:
     found += _d_term_unused(cfg, label)
     found += _template_changed(cfg, label)
     found += _gyration(cfg, label)
+    found += _rotor_positions(cfg, label)
     found += _thrust_to_weight(cfg, label)
     jxx, jyy, jzz = inertia_parts(cfg.vehicle.inertia)[0]
     if jzz < max(jxx, jyy):
@@ -240,6 +241,30 @@ def _controller_rate(cfg: Config, label: str) -> list[Notice]:
     return [Notice("warning", "controller.rate", (
         f"{label}: controller.rate = {rate:g} Hz is below {CONTROLLER_RATES[0]:g} Hz, slower than any attitude loop "
         f"a flight computer closes (they run at 100 Hz to 8 kHz); {guess}"))]
+
+
+def _rotor_positions(cfg: Config, label: str) -> list[Notice]:
+    """``motors.positions`` against the radius of gyration, as :func:`_gyration` holds an arm length: rotors
+    given in mm or cm. Only when the mass and inertia agree with each other (else that slip is the warning)."""
+    if cfg.motors is None or cfg.motors.positions is None:
+        return []
+    mass, inertia = cfg.vehicle.mass, inertia_parts(cfg.vehicle.inertia)[0]
+    radius = math.sqrt(max(inertia) / mass)
+    distance = sum(math.hypot(x, y) for x, y in cfg.motors.positions) / len(cfg.motors.positions)
+    if not _within(radius / mass ** (1 / 3), GYRATION_TO_CUBE_ROOT_MASS) or _within(radius / distance, GYRATION_TO_ARM):
+        return []
+    slips = [(unit, factor) for unit, factor in ARM_SLIPS if _within(radius / (distance * factor), GYRATION_TO_ARM)]
+    if slips:
+        unit, factor = slips[0]
+        guess = (f"are motors.positions in {unit}? {distance:.3g} {unit} is {distance * factor:.3g} m: give each "
+                 f"rotor's [x, y] in m")
+    else:
+        guess = "check their units (m), and vehicle.inertia's (kg m^2)"
+    return [Notice("warning", "motors.positions", (
+        f"{label}: motors.positions puts the rotors {distance:.3g} m from the centre on average, "
+        f"{distance / radius:.3g} times the radius of gyration sqrt(J/m) = {radius:.3g} m of vehicle.inertia and "
+        f"vehicle.mass (a quadcopter's arm is {1 / GYRATION_TO_ARM[1]:g} to {1 / GYRATION_TO_ARM[0]:g} times its "
+        f"radius of gyration); {guess}"))]
 
 
 def _within(value: float, band: tuple[float, float]) -> bool:

@@ -63,6 +63,34 @@ def test_the_original_vehicle_earns_no_warning():
     assert notices.notices(config.parse(IRIS, "c.yaml"), "c.yaml") == []
 
 
+def _iris_with_rotors_at(factor: float) -> str:
+    """IRIS with its rotors given as positions (PX4's order, as its numbering), in m over ``factor``."""
+    at = [[0.1807, 0.1807], [-0.1807, -0.1807], [0.1807, -0.1807], [-0.1807, 0.1807]]
+    text = IRIS.replace("positions: null", f"positions: {[[round(v / factor, 6) for v in xy] for xy in at]}")
+    text = re.sub(r"\n  numbering: px4 .*", "", text.replace("spin: null", "spin: [ccw, ccw, cw, cw]"))
+    assert "spin: [ccw" in text and "positions: [[" in text and "numbering:" not in text
+    return text
+
+
+@pytest.mark.parametrize(("factor", "pattern"), [
+    (1e-3, r"^c\.yaml: motors\.positions puts the rotors 256 m from the centre on average, 1\.33e\+03 times the "
+           r"radius of gyration sqrt\(J/m\) = 0\.192 m of vehicle\.inertia and vehicle\.mass \(a quadcopter's arm is "
+           r"0\.5 to 10 times its radius of gyration\); are motors\.positions in mm\? 256 mm is 0\.256 m: give "
+           r"each rotor's \[x, y\] in m$"),
+    (1e-2, r"; are motors\.positions in cm\? 25\.6 cm is 0\.256 m: give each rotor's \[x, y\] in m$"),
+    (1.0, None)])
+def test_rotor_positions_in_mm_or_cm_are_named_as_the_slip_and_in_m_pass(factor, pattern):
+    """An arm in mm was a warning and exit 1; the same rotors given as motors.positions in mm flew a 1.5 kg
+    vehicle with rotors 256 m out."""
+    found = [n for n in notices.notices(config.parse(_iris_with_rotors_at(factor), "c.yaml"), "c.yaml")
+             if n.level == "warning"]
+    if pattern is None:
+        assert found == []
+        return
+    assert [n.key for n in found] == ["motors.positions"], [n.message for n in found]
+    assert re.search(pattern, found[0].message), found[0].message
+
+
 @pytest.mark.parametrize("name", ["arm in mm", "thrust in grams-force", "mass in grams", "inertia in kg mm^2",
                                   "controller rate in kHz"])
 def test_a_slip_is_a_failed_check_unless_the_config_accepts_it(tmp_path, name):
