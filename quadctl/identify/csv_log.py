@@ -160,7 +160,7 @@ def parse_columns(items) -> dict[str, str]:
     Raises
     ------
     LogError
-        An item without ``=``.
+        An item without ``=``, or a name mapped to two columns.
     """
     out = {}
     for item in items or ():
@@ -168,5 +168,8 @@ def parse_columns(items) -> dict[str, str]:
             name, eq, given = part.partition("=")
             if not eq or not name.strip() or not given.strip():
                 raise LogError(f"--columns {part!r} is not NAME=COLUMN; write e.g. --columns t=time_s,cmd_1=m1")
-            out[name.strip()] = given.strip()
+            name, given = name.strip(), given.strip()
+            if out.get(name, given) != given:  # the later would win without a word
+                raise LogError(f"--columns maps {name} twice, to {out[name]} and to {given}; give each NAME once")
+            out[name] = given
     return out

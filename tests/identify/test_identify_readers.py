@@ -219,6 +219,9 @@ def test_a_csv_accelerometer_in_g_or_with_z_up_is_refused(tmp_path, log10, scale
 def test_columns_option_refuses_unknown_names(tmp_path):
     with pytest.raises(LogError, match=r"--columns 'tee' is not NAME=COLUMN"):
         parse_columns(["tee"])
+    with pytest.raises(LogError, match=r"^--columns maps cmd_1 twice, to m1 and to m2; give each NAME once$"):
+        parse_columns(["cmd_1=m1", "t=time,cmd_1=m2"])
+    assert parse_columns(["cmd_1=m2,cmd_2=m1", "cmd_1=m2"]) == {"cmd_1": "m2", "cmd_2": "m1"}  # a swap; a repeat
     path = tmp_path / "x.csv"
     path.write_text(",".join(CSV_COLUMNS) + "\n")
     with pytest.raises(LogError, match=r"--columns names time, not a column of the CSV format"):
