@@ -39,7 +39,9 @@ def linear(linear) -> dict:
     return {
         "A": linear.A, "B": linear.B, "x_trim": linear.x_trim, "u_trim": linear.u_trim,
         "x_rate": linear.x_rate,
-        "state_names": np.array(STATE_NAMES), "input_names": np.array(INPUT_NAMES)}
+        "state_names": np.array(STATE_NAMES), "input_names": np.array(INPUT_NAMES),
+        "state_units": np.array([STATE_UNITS[s] for s in STATE_NAMES]),
+        "input_units": np.array([INPUT_UNITS[i] for i in INPUT_NAMES])}
 
 
 def subsystems(dec) -> dict:
@@ -86,7 +88,8 @@ def design(setup, des: Design, kal) -> dict:
                       "Kv_block": des.Kv_block if des.lag_time_constant is not None else None,
                       "measured": ("the controller's own model of the lag, propagated from its commands"
                                    if des.lag_time_constant is not None else None)},
-        **_flight_design_payload(des), "estimator": _estimator_payload(kal)}
+        **_flight_design_payload(des), "estimator": _estimator_payload(kal),
+        "units": {**STATE_UNITS, **INPUT_UNITS}}  # a gain K[input, state] is in input unit / state unit
 
 
 def margins(setup, des: Design, result, vehicle) -> dict:

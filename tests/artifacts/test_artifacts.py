@@ -53,6 +53,19 @@ def test_sim_npz_carries_the_units_of_t_x_and_u_beside_their_names(tmp_path):
     assert list(npz["state_units"][[0, 3, 6, 9]]) == ["m", "m/s", "rad", "rad/s"] and npz["input_units"][0] == "N"
 
 
+def test_linear_npz_and_design_json_carry_the_units_of_their_states_and_inputs(tmp_path):
+    """A, B, x_trim and u_trim, and design.json's gains, in the layout's units, as sim.npz gives them: linear.npz
+    named its states and inputs but not their units (an angle in rad, not deg, read nowhere)."""
+    from quadctl.layout import INPUT_UNITS, STATE_UNITS
+
+    ws = Workspace(config.load("hover"), tmp_path)
+    ws.design  # noqa: B018 - evaluating the stage writes it and linear.npz
+    npz, _ = artifacts.read_npz(tmp_path / "linear.npz")
+    assert dict(zip(npz["state_names"], npz["state_units"])) == STATE_UNITS
+    assert dict(zip(npz["input_names"], npz["input_units"])) == INPUT_UNITS
+    assert artifacts.read_json(tmp_path / "design.json")["units"] == {**STATE_UNITS, **INPUT_UNITS}
+
+
 def test_every_artifact_records_provenance(tmp_path):
     cfg = config.load("forward")
     _run_all(cfg, tmp_path)
