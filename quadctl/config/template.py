@@ -264,8 +264,8 @@ def config_text(name: str, vehicle: str = "crazyflie", flight: str = "hold") -> 
     out = [f"# {name}: a quadctl config started from the {preset.title}, {flight} (quadctl init).",
            "# Replace the vehicle's numbers with your own; each line says its unit. Sources of the numbers given:"]
     out += [f"#   {s}" for s in preset.sources]
-    out += ["# Optional sections are commented out: uncomment one to use it. The README's \"Config reference\"",
-            "# explains every key, and how an editor checks them as you type.",
+    out += ["# Optional sections are commented out: uncomment one to use it. The config reference,",
+            "# docs/reference/config.md, explains every key, and how an editor checks them as you type.",
             f"name: {yamlio.flow(name)}",
             f"description: {yamlio.flow(f'Started from the {preset.title} template (quadctl init): {flight} at 1 m')}"]
     out += ["vehicle:   # " + _doc(Config, "vehicle")]

@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 import yaml
+from _paths import ROOT
 from _solve import run
 from typer.testing import CliRunner
 
@@ -119,6 +120,16 @@ def test_a_name_yaml_would_read_as_another_type_is_written_so_it_reads_back(tmp_
     assert cfg.description == ("Started from the Parrot Mambo / Rolling Spider (68 g), the report's vehicle template "
                                "(quadctl init): hold at 1 m")  # a colon and an apostrophe, read back as given
     assert cfg.vehicle_digest() == cfg.started_from.vehicle_digest
+
+
+def test_the_page_the_template_points_to_for_every_key_exists_and_explains_the_editor_schema():
+    """The template sent the reader to the README's "Config reference", a section the README does not have."""
+    text = starter.config_text("mine", "crazyflie", "hold")
+    pages = re.findall(r"docs/[\w/.-]+\.md", text)
+    assert "docs/reference/config.md" in pages and all((ROOT / p).is_file() for p in pages), pages
+    page = (ROOT / "docs/reference/config.md").read_text()
+    assert "yaml-language-server" in page and "quadctl configs --schema" in page
+    assert "README" not in text
 
 
 def test_the_template_writes_numbers_short():
