@@ -11,6 +11,11 @@ from quadctl.design.margins import least_margins
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES
 from quadctl.metrics import NOISE_LIMITED_WORDS
 
+CASE_STATUSES = ("ok", "diverged", "left_valid_range", "invalid_config", "no_trim", "design_failed", "step_refused",
+                 "failed")
+"""Every ``status`` a case's row can have: how its run ended (:data:`quadctl.sim.run.STATUS_WORDS`), or why it has
+no run (:mod:`quadctl.sweep.evaluate`); what a gate ``status: {equals: ...}`` may name."""
+
 
 @dataclass(frozen=True)
 class Gate:

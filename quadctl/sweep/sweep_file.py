@@ -17,7 +17,7 @@ from quadctl.config.schema_paths import default_at, section_model
 from quadctl.errors import ConfigError, SweepError
 from quadctl.layout import STATE_NAMES
 from quadctl.sweep.config_tree import assign, value_at, with_sections, with_set
-from quadctl.sweep.gates import MARGIN_COLUMNS, Gate, gated_margins, metric_columns
+from quadctl.sweep.gates import CASE_STATUSES, MARGIN_COLUMNS, Gate, gated_margins, metric_columns
 from quadctl.sweep.spec import Parameter, SweepSpec
 from quadctl.sweep.uncertainty import plant_side
 from quadctl.text.messages import (
@@ -306,7 +306,13 @@ def _check_gate(metric, spec, cfg, label: str) -> Gate:
     if metric in ("stable", "status"):
         if set(spec) != {"equals"}:
             raise SweepError(f"{where}: {metric} takes {{equals: {'true' if metric == 'stable' else 'ok'}}}")
-        return Gate(metric, equals=spec["equals"])
+        value = spec["equals"]
+        if metric == "stable" and not isinstance(value, bool):  # a case is stable or not: no other value passes
+            raise SweepError(f"{where}.equals = {json.dumps(value)}: stable is true or false")
+        if metric == "status" and value not in CASE_STATUSES:  # a value no case has: every case would fail
+            raise SweepError(f"{where}.equals = {json.dumps(value)}: no case has that status; "
+                             + hint(str(value), CASE_STATUSES))
+        return Gate(metric, equals=value)
     if "equals" in spec:
         raise SweepError(f"{where}: a number takes min and max, not equals")
     for key in ("min", "max"):

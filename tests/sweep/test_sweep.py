@@ -119,12 +119,28 @@ def test_random_mode_same_seed_same_cases_and_within_bounds(cfg):
      r"gates\.peak\.T\.maks: unknown key; did you mean `max`\?"),
     ({"parameters": {"vehicle.mass": [1]}, "gates": {"peak.T": {"min": 2, "max": 1}}},
      r"min 2 is above max 1; no case can pass"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"status": {"equals": "okk"}}},
+     r"^s\.yaml: gates\.status\.equals = \"okk\": no case has that status; did you mean `ok`\?$"),
+    ({"parameters": {"vehicle.mass": [1]}, "gates": {"stable": {"equals": 1}}},
+     r"^s\.yaml: gates\.stable\.equals = 1: stable is true or false$"),
 ])
 def test_sweep_file_errors_name_the_key_and_the_fix(cfg, data, message):
     with pytest.raises(SweepError, match=message) as info:
         sweep.from_dict(data, cfg, "s.yaml")
     text = str(info.value)
     assert text.startswith("s.yaml: ") and "\n" not in text
+
+
+def test_every_status_a_case_can_have_is_one_a_status_gate_takes():
+    """The statuses evaluate.py writes (and the simulation's) are the ones a gate `status: {equals: ...}` accepts."""
+    import inspect
+
+    from quadctl.sim.run import STATUS_WORDS
+    from quadctl.sweep import evaluate
+    from quadctl.sweep.gates import CASE_STATUSES
+
+    written = set(re.findall(r'_failed\([^,]+, "(\w+)"|\["status"\] = "(\w+)"', inspect.getsource(evaluate)))
+    assert {a or b for a, b in written} | set(STATUS_WORDS) == set(CASE_STATUSES)
 
 
 @pytest.mark.parametrize("data,message", [
