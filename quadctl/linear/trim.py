@@ -16,7 +16,7 @@ from functools import lru_cache
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.errors import TrimError
+from quadctl.errors import ArgumentError, ArgumentTypeError, TrimError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, POSITION_STATES, STATE_INDEX
 from quadctl.physics.model import MAX_TILT, N_PARAMS, Vehicle, build_model, rotation_earth_to_body
 
@@ -107,6 +107,11 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     ------
     TrimError
         No equilibrium exists (with the reason) or Newton did not converge.
+    ArgumentError
+        ``velocity_ned``, ``position_ned`` or ``wind_ned`` is not three finite numbers, or ``yaw`` not
+        one (a ``ValueError``).
+    ArgumentTypeError
+        ``vehicle`` is not a :class:`~quadctl.physics.model.Vehicle` (a ``TypeError``).
 
     Examples
     --------
@@ -114,8 +119,7 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     >>> round(float(t.x[7]), 4), round(float(t.u[0]), 4)
     (-0.2119, 0.6522)
     """
-    v_e = np.asarray(velocity_ned, dtype=float)
-    wind = np.zeros(3) if wind_ned is None else np.asarray(wind_ned, dtype=float)
+    v_e, wind, yaw, position_ned = _checked(velocity_ned, wind_ned, yaw, position_ned, vehicle)
     params = vehicle.vector()
     newton = _in_wind(wind)
     z = np.array([0.0, 0.0, vehicle.mass * vehicle.gravity])
@@ -127,7 +131,7 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
         newton = _in_wind(fraction * wind)
         z, iters, resid = _newton(newton, z, fraction * v_e, yaw, params, max_iter)
         total += iters
-        if resid > RESIDUAL_TOL:
+        if not resid <= RESIDUAL_TOL:
             ramp = (f"the solver's ramp reached {reached:.0%} of it and stalled at {fraction:.0%}" if reached
                     else f"the solver's ramp stalled at its first step, {fraction:.0%} of it")
             raise TrimError(
@@ -257,6 +261,33 @@ def _trim_state(n: int) -> ca.Function:
     u = ca.vertcat(z[2], ca.DM.zeros(3))
     one = ca.Function("trim_state", [z, v_e, psi, pos, params, wind], [x, build_model().f_wind(x, u, params, wind)])
     return one if n == 1 else one.map(n)
+
+
+def _checked(velocity_ned, wind_ned, yaw, position_ned, vehicle):
+    """:func:`solve_trim`'s arguments as floats, or the ArgumentError (ArgumentTypeError) naming the one
+    that is not finite numbers of its shape: NaN went through Newton and came out as a Trim of NaN."""
+    if not isinstance(vehicle, Vehicle):
+        raise ArgumentTypeError(f"trim takes a Vehicle, qc.Vehicle(mass=...) or setup.vehicle; "
+                                f"got {type(vehicle).__name__}")
+    out = []
+    for label, value, shape in (("velocity_ned", velocity_ned, (3,)), ("wind_ned", wind_ned, (3,)),
+                                ("yaw", yaw, ()), ("position_ned", position_ned, (3,))):
+        if value is None and label == "wind_ned":
+            out.append(np.zeros(3))
+            continue
+        want = "one number (rad)" if shape == () else "three numbers (NED)"
+        try:
+            arr = np.asarray(value)
+            ok = arr.shape == shape and arr.dtype.kind in "biuf"
+            arr = arr.astype(float) if ok else arr
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ArgumentError(f"trim: {label} must be {want}, got {value!r}")
+        if not np.all(np.isfinite(arr)):
+            raise ArgumentError(f"trim: {label} must be finite, got {value!r}")
+        out.append(arr if shape else float(arr))
+    return tuple(out)
 
 
 def _in_wind(wind):

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from quadctl.errors import TrimError
+from quadctl.errors import ArgumentError, ArgumentTypeError, TrimError
 from quadctl.layout import STATE_INDEX
 from quadctl.linear.trim import RESIDUAL_TOL, solve_trim
 from quadctl.physics.model import Vehicle, evaluate
@@ -105,3 +105,23 @@ def test_batched_trims_are_the_one_point_trims(wind):
         np.testing.assert_array_equal(got.xdot, ref.xdot)
         assert (got.iterations, got.residual) == (ref.iterations, ref.residual)
     assert refused == 1  # 200 m/s; in still air 120 m/s is solved by the homotopy (the direct Newton misses it)
+
+
+@pytest.mark.parametrize("velocity,yaw,position,wind", [
+    ([np.nan, 0, 0], 0.0, [0, 0, 0], None),   # NaN ran through Newton and came out a Trim of NaN
+    ([1, 0, 0], 0.0, [0, 0, 0], [np.inf, 0, 0]),
+    ([1, 0, 0], float("nan"), [0, 0, 0], None),
+    ([1, 0, 0], 0.0, [0, 0, np.nan], None),
+    ([1, 0], 0.0, [0, 0, 0], None),           # CasADi's 'mismatching shape' RuntimeError
+    ([1, 0, 0], [0.0], [0, 0, 0], None),
+    ([1, 0, 0], 0.0, None, None),
+    (["1", 0, 0], 0.0, [0, 0, 0], None),
+])
+def test_trim_refuses_arguments_that_are_not_finite_numbers_of_their_shape(velocity, yaw, position, wind):
+    with pytest.raises(ArgumentError, match="trim: (velocity_ned|yaw|position_ned|wind_ned) must be"):
+        solve_trim(velocity, yaw, position, Vehicle(), wind_ned=wind)
+
+
+def test_trim_refuses_what_is_not_a_vehicle():
+    with pytest.raises(ArgumentTypeError, match="trim takes a Vehicle"):
+        solve_trim([0, 0, 0], 0.0, [0, 0, 0], {"mass": 0.068})
