@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl.errors import ArgumentError, ArgumentTypeError
 from quadctl.layout import N_INPUTS, N_STATES, POSITION
 from quadctl.physics.model import Vehicle, build_model
 
@@ -58,6 +59,13 @@ def linearize(x_trim, u_trim, vehicle: Vehicle, wind_ned=None) -> LinearModel:
     -------
     LinearModel
 
+    Raises
+    ------
+    ArgumentError
+        ``x_trim``, ``u_trim`` or ``wind_ned`` is not 12, 4 or 3 finite numbers (a ``ValueError``).
+    ArgumentTypeError
+        ``vehicle`` is not a :class:`~quadctl.physics.model.Vehicle` (a ``TypeError``).
+
     Examples
     --------
     About a hover the thrust only lifts: ``dw/dT = -1/m`` (NED, down positive), and the pitch tilts
@@ -70,8 +78,30 @@ def linearize(x_trim, u_trim, vehicle: Vehicle, wind_ned=None) -> LinearModel:
     >>> round(float(lin.B[5, 0] * vehicle.mass), 12), round(float(lin.A[3, 7]), 12)
     (-1.0, -9.81)
     """
-    return linearize_all(np.asarray(x_trim, dtype=float)[None], np.asarray(u_trim, dtype=float)[None], vehicle,
-                         wind_ned)[0]
+    if not isinstance(vehicle, Vehicle):
+        raise ArgumentTypeError(f"linearize takes a Vehicle, qc.Vehicle(mass=...) or setup.vehicle; "
+                                f"got {type(vehicle).__name__}")
+    x, u, wind = (_finite(v, label, size) for v, label, size in
+                  ((x_trim, "x_trim", N_STATES), (u_trim, "u_trim", N_INPUTS), (wind_ned, "wind_ned", 3)))
+    return linearize_all(x[None], u[None], vehicle, wind)[0]
+
+
+def _finite(value, label: str, size: int):
+    """``value`` as (size,) finite floats (None stays None), or the ArgumentError naming ``label``: a wrong
+    length failed inside CasADi (RuntimeError), NaN came out as a model of NaN."""
+    if value is None and label == "wind_ned":
+        return None
+    try:
+        arr = np.asarray(value)
+        ok = arr.shape == (size,) and arr.dtype.kind in "biuf"
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ArgumentError(f"linearize: {label} must be {size} numbers, got {value!r}")
+    arr = arr.astype(float)
+    if not np.all(np.isfinite(arr)):
+        raise ArgumentError(f"linearize: {label} must be finite, got {value!r}")
+    return arr
 
 
 def linearize_all(x_trims, u_trims, vehicle: Vehicle, wind_ned=None) -> list[LinearModel]:
