@@ -153,8 +153,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     Raises
     ------
     ArgumentError
-        ``duration`` or ``dt`` is not a positive number of seconds, ``method`` is unknown, or ``x0`` is not
-        the 12 finite states (a ``ValueError``).
+        ``duration`` or ``dt`` is not a positive number of seconds, ``method`` is unknown, ``max_samples``
+        is not a whole number of at least 2, or ``x0`` is not the 12 finite real states (a ``ValueError``).
     ArgumentTypeError
         ``loop`` is not a :class:`ClosedLoop` (a ``TypeError``).
     StepSizeError

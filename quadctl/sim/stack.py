@@ -69,7 +69,8 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
         A loop that is not a :class:`~quadctl.sim.loop.ClosedLoop` (a ``TypeError``).
     ArgumentError
         Loops of different structures or controller rates, an unknown method, a duration or a ``dt`` that
-        is not a positive number of seconds, or an initial state that is not the loop's 12 finite numbers.
+        is not a positive number of seconds, a ``max_samples`` below 2, or an initial state that is not the
+        loop's 12 finite real numbers.
     StepSizeError
         A step that a loop cannot take.
     """
@@ -84,10 +85,15 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
         raise ArgumentError(f"duration must be a positive number of seconds, got {duration!r}")
     if not (isinstance(dt, str) and dt == "auto") and not _positive_seconds(dt):
         raise ArgumentError(f"dt must be a positive number of seconds or 'auto', got {dt!r}")
+    if isinstance(max_samples, bool) or not isinstance(max_samples, (int, np.integer)) or max_samples < 2:
+        raise ArgumentError(f"max_samples must be a whole number of at least 2 (the start and the end), "
+                            f"got {max_samples!r}")
     for x0 in x0s:
         if np.shape(x0) != (N_STATES,):
             raise ArgumentError(f"x0 must be the {N_STATES} states {', '.join(STATE_NAMES)}, got shape "
                                 f"{np.shape(x0)}")
+        if np.asarray(x0).dtype.kind not in "biuf":
+            raise ArgumentError(f"x0 must be {N_STATES} real numbers, got dtype {np.asarray(x0).dtype}")
         x = np.asarray(x0, dtype=float)
         if not np.isfinite(x).all():
             i = int(np.argmax(~np.isfinite(x)))

@@ -227,6 +227,28 @@ def test_the_python_call_refuses_a_step_that_is_not_a_positive_number_of_seconds
         qc.simulate(loop, loop.x_trim, 0.1, dt=dt)
 
 
+@pytest.mark.parametrize("max_samples", [1, 0, -5, 2.5, "100", None, True])
+def test_the_python_call_refuses_a_max_samples_below_two_or_not_whole(max_samples):
+    """``max_samples=1`` divided by zero inside the record stride, and ``0`` returned the start alone for
+    a whole run: each is one ValueError naming ``max_samples``, as the config's ``ge=2`` refuses it."""
+    import quadctl as qc
+
+    loop = qc.Stages(qc.setup_of(qc.load_config("hover"))).loop
+    want = rf"^max_samples must be a whole number of at least 2 .*got {re.escape(repr(max_samples))}$"
+    with pytest.raises(qc.ArgumentError, match=want):
+        qc.simulate(loop, loop.x_trim, 0.1, max_samples=max_samples)
+    assert qc.simulate(loop, loop.x_trim, 0.1, max_samples=2).t.tolist() == [0.0, 0.1]
+
+
+def test_the_python_call_refuses_a_complex_start():
+    """A complex ``x0`` lost its imaginary part to a ComplexWarning and flew the real one."""
+    import quadctl as qc
+
+    loop = qc.Stages(qc.setup_of(qc.load_config("hover"))).loop
+    with pytest.raises(qc.ArgumentError, match=r"^x0 must be 12 real numbers, got dtype complex128$"):
+        qc.simulate(loop, loop.x_trim + 0.1j, 0.1)
+
+
 def test_the_python_call_refuses_what_is_not_a_closed_loop():
     """The design where the loop goes: a TypeError saying what to pass, not an AttributeError from inside."""
     import quadctl as qc
