@@ -16,6 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from quadctl.design.decoupled import Design
 from quadctl.design.margins import (
     GUARANTEE_TOL,
     LQR_GAIN_MARGIN_DB,
@@ -25,8 +26,10 @@ from quadctl.design.margins import (
     loop_margins,
     lqg_loops,
 )
-from quadctl.errors import ArgumentError
-from quadctl.layout import INPUT_UNITS
+from quadctl.design.riccati import real_array
+from quadctl.errors import ArgumentError, ArgumentTypeError
+from quadctl.layout import INPUT_UNITS, N_INPUTS, N_STATES
+from quadctl.linear.decouple import Decoupled
 from quadctl.physics.motors import headroom
 
 # ---------------------------------------------------------------------------------------
@@ -302,7 +305,11 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     Raises
     ------
     ArgumentError
-        ``delay_samples`` of a continuous design without ``emulated_rate``.
+        ``delay_samples`` of a continuous design without ``emulated_rate``, or ``A``, ``B`` not the
+        12-state model's real (12, 12) and (12, 4) matrices (a ``ValueError``).
+    ArgumentTypeError
+        ``design`` is not a :class:`~quadctl.design.decoupled.Design` or ``decoupled`` not a
+        :class:`~quadctl.linear.decouple.Decoupled` (the stages' ``design`` and ``decoupled``; a ``TypeError``).
 
     Examples
     --------
@@ -314,6 +321,13 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     """
     from dataclasses import replace
 
+    for label, value, kind in (("design", design, Design), ("decoupled", decoupled, Decoupled)):
+        if not isinstance(value, kind):
+            raise ArgumentTypeError(f"margins takes the design and the decoupled model, qc.margins(stages.design, "
+                                    f"stages.decoupled, stages.linear.A, stages.linear.B); {label} is "
+                                    f"{type(value).__name__}")
+    A = real_array(A, "A", name="margins", shape=(N_STATES, N_STATES))
+    B = real_array(B, "B", name="margins", shape=(N_STATES, N_INPUTS))
     # the loops run at the design's rate, or a continuous design's gains at the emulated rate
     sample_time = design.sample_time or (1.0 / emulated_rate if emulated_rate else None)
     out = []

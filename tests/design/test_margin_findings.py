@@ -172,3 +172,25 @@ def test_every_kind_of_finding_has_its_words():
     assert {type(f) for f, _ in cases} == set(F.Finding.__subclasses__())
     for f, words in cases:
         assert loops.note(f) == words, f.kind
+
+
+def test_margins_name_what_they_take_when_given_something_else():
+    """The decoupled model where the design goes (an AttributeError from inside), a config, or a plant
+    of the wrong shape (NumPy's 'negative dimensions are not allowed'): each is one qc error saying what
+    to pass."""
+    import quadctl as qc
+
+    stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    A, B = stages.linear.A, stages.linear.B
+    with pytest.raises(qc.ArgumentTypeError, match=r"^margins takes the design and the decoupled model, .*; "
+                                                   r"design is Decoupled$"):
+        qc.margins(stages.decoupled, stages.design, A, B)
+    with pytest.raises(qc.ArgumentTypeError, match=r"; decoupled is Config$"):
+        qc.margins(stages.design, qc.load_config("hover"), A, B)
+    with pytest.raises(qc.ArgumentError, match=r"^margins: A has shape \(3, 3\), expected 12 x 12$"):
+        qc.margins(stages.design, stages.decoupled, np.eye(3), B)
+    with pytest.raises(qc.ArgumentError, match=r"^margins: B has shape \(12, 3\), expected 12 x 4$"):
+        qc.margins(stages.design, stages.decoupled, A, B[:, :3])
+    with pytest.raises(qc.ArgumentError, match=r"^margins: A is complex"):
+        qc.margins(stages.design, stages.decoupled, A + 0j, B)
+    assert len(qc.margins(stages.design, stages.decoupled, A.tolist(), B.tolist())) == 8  # lists are matrices
