@@ -211,6 +211,23 @@ def test_mismatched_shapes_are_an_argument_error_naming_the_matrix():
         lqr(np.eye(2), [[0.0], [1.0]], np.eye(2), np.eye(2), name="roll")
 
 
+@pytest.mark.parametrize("solver", ["lqr", "dlqr", "lqrd", "care_batch", "dare_batch"])
+@pytest.mark.parametrize("n, m", [(0, 1), (2, 0), (0, 0)])
+def test_a_problem_with_no_state_or_no_input_is_an_argument_error(solver, n, m):
+    """An empty A or B failed inside the weight check with NumPy's 'zero-size array to reduction
+    operation maximum which has no identity' (a bare ValueError)."""
+    import quadctl as qc
+    from quadctl.design.riccati import care_batch, dare_batch
+
+    A, B, Q, R = np.zeros((n, n)), np.zeros((n, m)), np.eye(n), np.eye(m)
+    call = {"lqr": lambda: qc.lqr(A, B, Q, R), "dlqr": lambda: qc.dlqr(A, B, Q, R),
+            "lqrd": lambda: qc.lqrd(A, B, Q, R, 0.1),
+            "care_batch": lambda: care_batch(A[None], B[None], Q[None], R[None]),
+            "dare_batch": lambda: dare_batch(A[None], B[None], Q[None], R[None])}[solver]
+    with pytest.raises(ArgumentError, match=rf"the problem has {n} states and {m} inputs .*at least one of each"):
+        call()
+
+
 @pytest.mark.parametrize("design_kind, expected_mode", [("discrete", "discrete"), ("continuous", "emulated")])
 def test_discrete_or_continuous_is_the_designs_own_property(design_kind, expected_mode):
     """The setup says what to design at; the design it gives carries its own sample time (as a

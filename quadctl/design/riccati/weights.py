@@ -117,6 +117,9 @@ def as_stack(A, B, Q=None, R=None, N=None, *, name: str):
 
 
 def _check_shapes(mats: dict, lead: tuple, n: int, m: int, name: str) -> None:
+    if "R" in mats and not (n and m):  # a weighted problem (not c2d's plant) with nothing to regulate or no input
+        raise ArgumentError(f"{name}: the problem has {n} states and {m} inputs (B has shape {mats['B'].shape}); "
+                            "an LQR problem needs at least one of each")
     expected = {"A": (n, n), "B": (n, m), "Q": (n, n), "R": (m, m), "N": (n, m)}
     for label, M in mats.items():
         shape = (*lead, *expected[label])
