@@ -286,6 +286,29 @@ def test_lqr_with_cross_term_agrees_with_scipy_and_python_control():
     np.testing.assert_allclose(batched.K[0], K, rtol=1e-10)
 
 
+@pytest.mark.parametrize("solver", ["lqr", "lqr_schur", "dlqr", "lqrd", "care_batch", "dare_batch"])
+def test_closed_loop_eigenvalues_are_complex_even_when_all_are_real(solver):
+    """LqrResult.E and BatchLqr.E are documented complex (as python-control's E): NumPy's eigvals gave
+    floats when every closed-loop eigenvalue was real, so E's dtype depended on the plant. The set is
+    np.linalg.eigvals(A - B K)'s, to the loop's conditioning."""
+    discrete_plant = solver in ("dlqr", "dare_batch")
+    A = np.diag([1.5, 0.5]) if discrete_plant else np.array([[1.0, 2.0], [0.0, 3.0]])  # unstable, real loop poles
+    B = np.array([[1.0], [1.0]]) if discrete_plant else np.array([[0.0], [1.0]])
+    Q, R = np.eye(2), np.eye(1)
+    if solver == "lqr_schur":  # above KRONECKER_MAX_N: Laub's method, then the one-case polish
+        A, B, Q, R, solver = np.diag(np.arange(1.0, 9.0)), np.eye(8), np.eye(8), np.eye(8), "lqr"
+    if solver in ("care_batch", "dare_batch"):
+        batch = (care_batch if solver == "care_batch" else dare_batch)(A[None], B[None], Q[None], R[None])
+        K, E = batch.K[0], batch.E[0]
+    else:
+        K, _, E = lqrd(A, B, Q, R, 0.1) if solver == "lqrd" else (dlqr if discrete_plant else lqr)(A, B, Q, R)
+    Ad, Bd = discrete.c2d(A, B, 0.1) if solver == "lqrd" else (A, B)
+    want = np.linalg.eigvals(Ad - Bd @ K)
+    assert want.dtype == np.float64 and E.dtype == np.complex128 and np.all(E.imag == 0)
+    tol = 1e-12 * np.linalg.cond(np.linalg.eig(Ad - Bd @ K)[1]) * np.abs(want).max()
+    assert all(np.min(np.abs(e - want)) <= tol for e in E) and all(np.min(np.abs(w - E)) <= tol for w in want)
+
+
 def test_lqr_and_dlqr_return_the_same_result_type():
     a, b = lqr(A_C, B_C, np.eye(2), [[1.0]]), dlqr(A_D, B_D, np.eye(2), [[1.0]])
     assert type(a) is type(b) is riccati.LqrResult

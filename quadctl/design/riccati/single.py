@@ -223,7 +223,7 @@ def _refine(discrete, A, B, Q, R, N, P) -> LqrResult:
             break
         P, K, F, residual = P + D, K_next, F_next, residual_next
     K, P = K[0], P[0]
-    E = np.linalg.eigvals(A - B @ K) if np.all(np.isfinite(K)) else np.full(len(A), np.nan + 0j)
+    E = np.linalg.eigvals(A - B @ K).astype(complex) if np.all(np.isfinite(K)) else np.full(len(A), np.nan + 0j)
     return LqrResult(K=K, P=P, E=E, residual=float(residual[0]) if np.isfinite(residual[0]) else np.inf)
 
 

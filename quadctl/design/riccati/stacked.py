@@ -306,6 +306,7 @@ def _finish(discrete: bool, A, B, Q, R, N, P, ok) -> BatchLqr:
         K, F, residual, solved = gain_and_residual(discrete, A, B, Q, R, N, P)
     A_cl, finite = _finite(A - B @ K)
     E, converged = _each_eig(np.linalg.eigvals, A_cl)
+    E = E.astype(complex, copy=False)  # as documented: NumPy gives floats when every eigenvalue is real
     finite &= converged
     finite &= np.all(np.isfinite(P), axis=(1, 2))
     ok = ok & solved & finite & all_stable(discrete, E) & (residual <= RICCATI_RTOL)
