@@ -60,6 +60,9 @@ def lqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrRes
     DesignError
         Invalid weights (the matrix and what is wrong are named), ``(A, B)`` not stabilizable
         (the mode is named), a marginal mode invisible to ``Q``, or an ill-conditioned equation.
+    ArgumentError
+        A matrix that is not real numbers (complex, text, None, ragged), of a shape that does not fit
+        the others, or a problem with no state or no input (the matrix is named; a ``ValueError``).
 
     Examples
     --------

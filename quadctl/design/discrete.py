@@ -50,6 +50,12 @@ def c2d(A, B, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     Ad : (n, n) ndarray
     Bd : (n, m) ndarray
 
+    Raises
+    ------
+    ArgumentError
+        ``Ts`` is not a positive finite number of seconds, or ``A``, ``B`` are not real matrices of
+        shapes (n, n) and (n, m).
+
     Examples
     --------
     A double integrator: ``Ad = [[1, Ts], [0, 1]]``, ``Bd = [Ts^2/2, Ts]``.
@@ -268,6 +274,9 @@ def dlqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrRe
     DesignError
         Invalid weights, a mode that is not stable and that no input reaches, a mode on the unit
         circle invisible to ``Q``, or an equation too ill-conditioned to certify (named).
+    ArgumentError
+        A matrix that is not real numbers, or of a shape that does not fit, as for
+        :func:`quadctl.design.lqr` (a ``ValueError``).
 
     Examples
     --------
@@ -307,7 +316,8 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system", state_names=Non
     DesignError
         The continuous weights are invalid (checked before they are integrated), or ``dlqr`` fails.
     ArgumentError
-        ``Ts`` is not a positive finite number of seconds.
+        ``Ts`` is not a positive finite number of seconds, or a matrix is not real numbers or of a shape
+        that does not fit, as for :func:`quadctl.design.lqr`.
 
     Examples
     --------
@@ -424,7 +434,10 @@ def _joint(Q, R, N) -> np.ndarray:
 def _sample_times(Ts, batch: int, name: str) -> np.ndarray:
     """``Ts`` as (batch,) positive finite seconds, or an ArgumentError naming ``name`` and the bad one."""
     try:
-        times = np.broadcast_to(np.asarray(Ts, dtype=float), (batch,))
+        given = np.asarray(Ts)
+        if given.dtype.kind not in "iuf":  # text ('0.1'), a bool, None: float() would take them
+            raise TypeError
+        times = np.broadcast_to(given.astype(float), (batch,))
     except (TypeError, ValueError):
         each = f", one or one per problem ({batch})" if batch > 1 else ""
         raise ArgumentError(f"{name}: Ts = {Ts!r}: the sample time must be a positive finite number of "

@@ -3,6 +3,8 @@ Kronecker size, against SciPy and the one-case functions they batch."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 import scipy.linalg
@@ -67,6 +69,17 @@ def test_batched_discretization_refuses_bad_shapes_and_sample_times():
     with pytest.raises(ValueError, match=r"^c2d_batch: Ts = -0\.1: the sample time must be a positive finite number of "
                                          "seconds$"):
         discrete.c2d_batch(np.zeros((2, 1, 1)), np.ones((2, 1, 1)), [0.1, -0.1])
+
+
+@pytest.mark.parametrize("Ts", ["0.1", True, None, b"1"])
+def test_a_sample_time_that_is_not_a_number_is_refused_as_given(Ts):
+    """Text and a bool went through float(): lqrd(..., "0.1") designed at 0.1 s and lqrd(..., True) at
+    1 s; None was reported as 'Ts = nan'. Each is refused, quoting what was given."""
+    want = rf"^lqrd: Ts = {re.escape(repr(Ts))}: the sample time must be a positive finite number of seconds$"
+    with pytest.raises(ArgumentError, match=want):
+        discrete.lqrd([[0.0]], [[1.0]], [[1.0]], [[1.0]], Ts, name="lqrd")
+    with pytest.raises(ArgumentError, match=r"^c2d: Ts = "):
+        discrete.c2d([[0.0]], [[1.0]], Ts)
 
 
 @pytest.mark.parametrize("n, m", [(1, 1), (2, 1), (3, 1), (3, 2), (4, 2), (9, 2)])

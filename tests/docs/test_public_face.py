@@ -173,3 +173,31 @@ def test_the_readmes_python_section_runs(tmp_path, monkeypatch, capsys):
     assert names["stages"].design.sample_time == pytest.approx(0.005)
     assert names["run"].status == "ok" and names["run"].x.shape[1] == 12
     assert "[[7.07 3.89]]" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------------------------------
+# What a refused call raises is in its docstring's Raises
+
+
+def _raises_section(obj) -> str:
+    doc = inspect.cleandoc(obj.__doc__ or "")
+    found = re.search(r"^Raises\n-{3,}\n(.*?)(?:\n\n\w[\w ]*\n-{3,}\n|\Z)", doc, re.M | re.S)
+    return found.group(1) if found else ""
+
+
+@pytest.mark.parametrize("name, call", [
+    ("lqr", lambda: qc.lqr([[0.0]], [[1.0, 0.0]], [[1.0]], [[1.0]])),           # B of two inputs, R of one
+    ("lqr", lambda: qc.lqr([[0.0]], [[1.0]], [[1.0]], [[1j]])),
+    ("dlqr", lambda: qc.dlqr([[1.0]], [[1.0]], [[1.0, 0.0]], [[1.0]])),
+    ("dlqr", lambda: qc.dlqr([[2.0]], [[0.0]], [[1.0]], [[1.0]])),              # no input reaches z = 2
+    ("lqrd", lambda: qc.lqrd([[0.0]], [[1.0]], [[1.0]], [[1.0]], -0.1)),
+    ("lqrd", lambda: qc.lqrd([[0.0]], [[1.0]], "Q", [[1.0]], 0.1)),
+    ("trim", lambda: qc.trim([1.0, 0.0], 0.0, [0, 0, 0], qc.Vehicle())),
+    ("linearize", lambda: qc.linearize([0.0] * 11, [0.6, 0, 0, 0], qc.Vehicle())),
+])
+def test_a_refused_call_raises_what_its_docstring_lists(name, call):
+    """qc.lqr and qc.dlqr listed only DesignError, and lqrd an ArgumentError only for Ts, while a matrix
+    of the wrong shape or kind raises qc.ArgumentError."""
+    with pytest.raises(qc.QuadctlError) as info:
+        call()
+    assert type(info.value).__name__ in _raises_section(getattr(qc, name)), (name, type(info.value).__name__)

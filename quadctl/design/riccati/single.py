@@ -148,6 +148,9 @@ def solve(A, B, Q, R, N=None, *, discrete: bool = False, name: str = "system", s
     DesignError
         Invalid weights; a mode no input reaches; a marginal mode ``Q`` does not see; an equation
         too ill-conditioned to certify; or the numerics failed (the reason is named).
+    ArgumentError
+        A matrix that is not real numbers, of a shape that does not fit, or a problem with no state
+        or no input (:func:`~quadctl.design.riccati.weights.as_problem`).
     """
     A, B, Q, R, N = as_problem(A, B, Q, R, N, name=name)
     reason = WeightCheck(*(M[None] for M in (A, B, Q, R, N))).reason(0)
