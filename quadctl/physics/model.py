@@ -10,6 +10,7 @@ inputs ordered as in :mod:`quadctl.layout`. Thrust ``T`` acts along body -z
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -72,7 +73,9 @@ class Vehicle:
         made in Python meets this): an :class:`~quadctl.errors.ArgumentError` (a ``ValueError``) naming the field."""
         try:
             values = self.vector()
-            if values.shape != (N_PARAMS,):
+            given = (self.mass, self.gravity, *self.inertia, *self.drag, *self.products)
+            numeric = all(isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) for v in given)
+            if values.shape != (N_PARAMS,) or not numeric:  # float() takes '0.5' and True: not numbers here
                 raise ValueError
         except (TypeError, ValueError):
             raise ArgumentError(f"Vehicle: every parameter must be a number (mass, gravity, three each of inertia, "
