@@ -172,7 +172,7 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     Raises
     ------
     SweepError
-        ``jobs`` below 1, or the scheduler cannot be reached.
+        ``jobs`` not a whole number of at least 1, or the scheduler cannot be reached.
     ArgumentTypeError
         ``cfg`` is not a :class:`~quadctl.config.schema.Config` or ``spec`` not a :class:`SweepSpec` (a
         ``TypeError``).
@@ -189,8 +189,8 @@ def run(cfg, spec: SweepSpec, *, label: str | None = None, jobs: int | None = No
     todo = [c for c in cases if c.index not in done]
     stats = {"designs": 0, "design_time": 0.0, "design_cpu": 0.0, "simulate_time": 0.0, "steps": 0, "fallbacks": 0,
              "backend": set()}
-    if jobs is not None and jobs < 1:
-        raise SweepError(f"--jobs {jobs}: must be at least 1")
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, (int, np.integer)) or jobs < 1):
+        raise SweepError(f"--jobs {jobs!r}: must be a whole number of at least 1")
     client = _dask_client(scheduler) if scheduler else None
     try:
         if client is not None:

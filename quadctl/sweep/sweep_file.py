@@ -13,8 +13,9 @@ from quadctl import config
 from quadctl.config import yamlio
 from quadctl.config.key_units import key_unit
 from quadctl.config.kinds import misplaced
+from quadctl.config.schema import Config
 from quadctl.config.schema_paths import default_at, section_model
-from quadctl.errors import ConfigError, SweepError
+from quadctl.errors import ArgumentTypeError, ConfigError, SweepError
 from quadctl.layout import STATE_NAMES
 from quadctl.sweep.config_tree import assign, value_at, with_sections, with_set
 from quadctl.sweep.gates import CASE_STATUSES, MARGIN_COLUMNS, Gate, gated_margins, metric_columns
@@ -76,11 +77,44 @@ def parse(text: str, cfg, label: str = "<sweep>") -> SweepSpec:
 
 
 def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
-    """Validate a mapping (as YAML gives it) as a sweep of ``cfg``."""
+    """Validate a mapping (as YAML gives it) as a sweep of ``cfg``.
+
+    Parameters
+    ----------
+    data : dict
+        The sweep file's mapping: ``parameters`` (key path -> values, a range or a distribution) and
+        optionally ``mode``, ``samples``, ``seed``, ``set``, ``gates``, ``require_ok``, ``chunk_size``.
+    cfg : Config
+        The config it varies (:func:`quadctl.config.loading.load`): each key path is checked against it.
+    label : str
+        Names the sweep in errors.
+
+    Returns
+    -------
+    SweepSpec
+
+    Raises
+    ------
+    SweepError
+        One line naming the key and the fix (a ``ValueError``).
+    ArgumentTypeError
+        ``cfg`` is not a :class:`~quadctl.config.schema.Config` (a ``TypeError``).
+
+    Examples
+    --------
+    >>> import quadctl as qc
+    >>> from quadctl import sweep
+    >>> spec = sweep.from_dict({"parameters": {"lqr.pitch.Q[1]": [25, 50, 100]}}, qc.load_config("hover"))
+    >>> spec.mode, len(spec.cases())
+    ('grid', 3)
+    """
 
     def fail(where: str, why: str) -> SweepError:
         return SweepError(f"{label}: {where}: {why}")
 
+    if not isinstance(cfg, Config):
+        raise ArgumentTypeError(f"a sweep varies a validated Config, sweep.from_dict(data, qc.load_config('hover')); "
+                                f"got {type(cfg).__name__}")
     if not isinstance(data, dict):
         kind = "empty" if data is None else f"a {type(data).__name__}"
         raise SweepError(f"{label}: the sweep file is {kind}, not a mapping; "

@@ -1143,6 +1143,26 @@ def test_sweep_run_names_what_it_takes_when_given_something_else():
         sweep.run(cfg, data, jobs=1)
 
 
+def test_a_sweep_spec_names_the_config_it_varies_when_given_something_else():
+    """A config's name where the config goes failed with 'str' object has no attribute 'model_dump'
+    (sweep.from_dict, and sweep.parse and sweep.load through it)."""
+    data = {"parameters": {"lqr.roll.Q[1]": [25, 50]}}
+    for call in (lambda: sweep.from_dict(data, "forward"),
+                 lambda: sweep.parse('parameters: {"lqr.roll.Q[1]": [1]}', {})):
+        with pytest.raises(TypeError, match=r"^a sweep varies a validated Config, .*; got (str|dict)$"):
+            call()
+
+
+@pytest.mark.parametrize("jobs", [0, 1.5, "2", True])
+def test_sweep_run_refuses_jobs_that_are_not_a_whole_number_of_at_least_one(jobs):
+    """1.5 and '2' failed inside with a TypeError of Python's ('float' object cannot be interpreted as an
+    integer), and True ran as one worker."""
+    cfg = config.load("forward")
+    spec = sweep.from_dict({"parameters": {"lqr.roll.Q[1]": [25, 50]}}, cfg)
+    with pytest.raises(SweepError, match=rf"^--jobs {re.escape(repr(jobs))}: must be a whole number of at least 1$"):
+        sweep.run(cfg, spec, jobs=jobs)
+
+
 def test_execute_refuses_a_session_of_another_config_and_writes_nothing(cfg, tmp_path):
     """A session writes its own config beside the files, stamps the figures with it and removes the runs of
     any other: given one of another config, the folder would say one config and hold another's sweep."""
