@@ -58,9 +58,17 @@ def plant(linear, *, sample_time: float | None = None, name: str = "plant"):
     -------
     control.StateSpace
         States and outputs named ``pN ... r``, inputs ``T A E R`` (deviations from the trim).
+
+    Raises
+    ------
+    ArgumentTypeError
+        ``linear`` has no ``A`` and ``B`` (``stages.linear`` is the model; a ``TypeError``).
+    ArgumentError
+        ``A``, ``B`` not real (12, 12) and (12, 4), or ``sample_time`` not a positive number of seconds.
     """
 
     _control()
+    _require(linear, ("A", "B"), "plant", "linear", "a quadctl.linear.linearize.LinearModel, stages.linear")
     A, B = _held(linear.A, linear.B, sample_time, "plant")
     A = real_array(A, "linear.A", name="plant", error=ArgumentError, shape=(len(STATE_NAMES), len(STATE_NAMES)))
     B = real_array(B, "linear.B", name="plant", error=ArgumentError, shape=(len(STATE_NAMES), len(INPUT_NAMES)))
@@ -72,8 +80,18 @@ def subsystem(sub, *, sample_time: float | None = None):
 
     Its outputs are its measured states (the rows of ``sub.C``); with ``sample_time`` the
     zero-order-hold discretization.
+
+    Raises
+    ------
+    ArgumentTypeError
+        ``sub`` is not a subsystem (``stages.decoupled["pitch"]``; a ``TypeError``).
+    ArgumentError
+        Its matrices are not real or do not fit its states and inputs, or ``sample_time`` is not a
+        positive number of seconds.
     """
     _control()
+    _require(sub, ("A", "B", "C", "states", "inputs", "name"), "subsystem", "sub",
+             "a quadctl.linear.decouple.Subsystem, stages.decoupled['pitch']")
 
     A, B = _held(sub.A, sub.B, sample_time, "subsystem")
     C = real_array(sub.C, "sub.C", name="subsystem", error=ArgumentError, ndim=2, shape=(None, A.shape[0]))
@@ -238,6 +256,7 @@ def closed_loop(linear, design, *, sample_time: float | str | None = "design", n
                             "full-state loop of [x; z]; for the LQG loop use control.feedback(interop.plant(linear, "
                             "sample_time=Ts), interop.controller(loop), sign=1)")
     Ts = getattr(design, "sample_time", None) if sample_time == "design" else _sample_time(sample_time, "closed_loop")
+    _require(linear, ("A", "B"), "closed_loop", "linear", "a quadctl.linear.linearize.LinearModel, stages.linear")
     A, B = _held(linear.A, linear.B, None, "closed_loop")
     n, m = len(STATE_NAMES), len(INPUT_NAMES)
     A = real_array(A, "linear.A", name="closed_loop", error=ArgumentError, shape=(n, n))
@@ -274,13 +293,14 @@ class Plant:
     def __iter__(self):
         return iter((self.A, self.B))
 
-    def lqr(self, Q, R):
+    def lqr(self, Q, R, N=None):
         """``K, P, E``: :func:`quadctl.design.lqr` for a continuous plant, :func:`quadctl.design.discrete.dlqr`
-        for a discrete one (decided by ``dt``, as python-control's ``lqr`` does)."""
+        for a discrete one (decided by ``dt``, as python-control's ``lqr(sys, Q, R, N)`` does); ``N`` the
+        cross weight."""
 
         if self.dt:
-            return discrete.dlqr(self.A, self.B, Q, R, name="plant")
-        return lqr(self.A, self.B, Q, R, name="plant", state_names=self.state_names)
+            return discrete.dlqr(self.A, self.B, Q, R, N, name="plant", state_names=self.state_names)
+        return lqr(self.A, self.B, Q, R, N, name="plant", state_names=self.state_names)
 
 
 def from_statespace(sys) -> Plant:
@@ -347,6 +367,13 @@ def _gains(design):
         return K, np.zeros((m, 0)), ints
     Ki = real_array(Ki, f"design.{ki_label}", name="interop", error=ArgumentError, ndim=2, shape=(m, len(ints)))
     return K, Ki, ints
+
+
+def _require(obj, attrs: tuple, who: str, label: str, what: str) -> None:
+    """An ArgumentTypeError naming what ``label`` takes when ``obj`` lacks one of ``attrs`` (an AttributeError
+    from inside, otherwise)."""
+    if not all(hasattr(obj, a) for a in attrs):
+        raise ArgumentTypeError(f"{who}: {label} must be {what}; got {type(obj).__name__}")
 
 
 def _held(A, B, sample_time, who: str = "interop"):

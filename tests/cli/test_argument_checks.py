@@ -359,6 +359,18 @@ ARGUMENTS = {  # a call with a wrong argument: (call(tmp_path, stages), its clas
         lambda _, s: interop.from_statespace(object()),
         "ArgumentError", ValueError, r"^from_statespace: expected a control\.StateSpace, got object; convert it with "
                                      r"control\.ss\(sys\)$"),
+    "interop.plant a config's name": (
+        lambda _, s: interop.plant("hover"),
+        "ArgumentTypeError", TypeError, r"^plant: linear must be a quadctl\.linear\.linearize\.LinearModel, "
+                                        r"stages\.linear; got str$"),
+    "interop.subsystem a design": (
+        lambda _, s: interop.subsystem(s.design),
+        "ArgumentTypeError", TypeError, r"^subsystem: sub must be a quadctl\.linear\.decouple\.Subsystem, .*; "
+                                        r"got Design$"),
+    "interop.closed_loop the design twice": (
+        lambda _, s: interop.closed_loop(s.design, s.design),
+        "ArgumentTypeError", TypeError, r"^closed_loop: linear must be a quadctl\.linear\.linearize\.LinearModel, "
+                                        r"stages\.linear; got Design$"),
     "identify a missing log": (
         _read_a_missing_log,
         "LogError", ValueError, r"flight\.csv: no such file; give the path of a flight log$"),

@@ -100,6 +100,19 @@ def test_a_statespace_comes_back_as_a_plant_quadctl_designs_for():
     np.testing.assert_allclose(K2, des["altitude"].K, rtol=1e-9)
 
 
+@pytest.mark.parametrize("dt", [0, 0.1])
+def test_a_plants_lqr_takes_the_cross_weight_as_python_controls_does(dt):
+    """python-control's lqr(sys, Q, R, N) and dlqr(sys, Q, R, N): Plant.lqr(Q, R, N) was a TypeError."""
+    sys_ = control.ss([[0, 1], [0, 0]], [[0], [1]], np.eye(2), 0)
+    sys_ = control.c2d(sys_, dt) if dt else sys_
+    Q, R, N = np.diag([4.0, 1.0]), [[1.0]], [[0.5], [0.0]]
+    K, P, E = interop.from_statespace(sys_).lqr(Q, R, N)
+    K_ref, P_ref, E_ref = (control.dlqr if dt else control.lqr)(sys_, Q, R, N)
+    np.testing.assert_allclose(K, K_ref, rtol=1e-9)
+    np.testing.assert_allclose(P, P_ref, rtol=1e-9)
+    assert np.abs(np.sort_complex(E) - np.sort_complex(np.asarray(E_ref, dtype=complex))).max() < 1e-9
+
+
 @pytest.mark.parametrize("bad, message", [
     (lambda: control.tf([1], [1, 1]), "expected a control.StateSpace, got TransferFunction"),
     (lambda: control.ss([[0.0, 1.0], [0.0, np.inf]], [[0], [1]], np.eye(2), 0), "A has non-finite entries"),
