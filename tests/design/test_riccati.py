@@ -92,6 +92,23 @@ def test_a_1d_input_matrix_is_refused_saying_to_give_the_column():
         lqr([[0.0, 1.0], [0.0, 0.0]], [0.0, 1.0], np.eye(2), [[1.0]], name="sys")
 
 
+@pytest.mark.parametrize("which, value, message", [
+    ("Q", [1.0, 1.0], r"Q has shape \(2,\), a 1-D array; give the \(2, 2\) matrix: np.diag\(Q\) for a diagonal "
+                      r"weight$"),
+    ("R", [1.0, 2.0], r"R has shape \(2,\), a 1-D array; give the \(2, 2\) matrix: np.diag\(R\) for a diagonal "
+                      r"weight$"),
+    ("Q", [1.0, 1.0, 1.0], r"Q has shape \(3,\), a 1-D array; give the \(2, 2\) matrix$"),
+    ("A", [0.0, 1.0], r"A has shape \(2,\), a 1-D array; give the \(n, n\) state matrix$"),
+])
+def test_a_1d_weight_is_refused_with_the_shape_it_was_given(which, value, message):
+    """A diagonal given as a vector (MATLAB and python-control take matrices) was refused as 'Q has shape
+    (1, 2), expected (2, 2)': a shape nobody wrote, read after padding the vector to a row."""
+    args = {"A": [[0.0, 1.0], [0.0, 0.0]], "B": [[0.0, 0.0], [1.0, 1.0]], "Q": np.eye(2), "R": np.eye(2)}
+    args[which] = value
+    with pytest.raises(ArgumentError, match=rf"^sys: {message}"):
+        lqr(**args, name="sys")
+
+
 def test_carex_2_5_is_refused_not_solved():
     """The regression: CAREX 2.5 at eps = 0 returned K = [3.00000004, 2.00000004] and a 'stable' loop."""
     with pytest.raises(DesignError, match=r"carex: Q is not positive semidefinite: its most negative eigenvalue "

@@ -87,10 +87,16 @@ def as_problem(A, B, Q, R, N=None, *, name: str = "system"):
     """
     mats = {label: real_array(M, label, name=name, ndim=2)
             for label, M in (("A", A), ("B", B), ("Q", Q), ("R", R), ("N", N)) if M is not None or label != "N"}
+    if np.ndim(A) == 1 and np.size(A) > 1:
+        raise ArgumentError(f"{name}: A has shape {np.shape(A)}, a 1-D array; give the (n, n) state matrix")
     n, m = mats["A"].shape[0], mats["B"].shape[-1]
     if np.ndim(B) == 1 and mats["B"].shape[1] == n != 1:  # padded to a row: one input was meant as a column
         raise ArgumentError(f"{name}: B has shape {np.shape(B)}, a 1-D array read as the row (1, {n}); for one input "
                             f"give the column, shape ({n}, 1): [[b1], [b2], ...] or np.reshape(B, (-1, 1))")
+    for label, M, shape in (("Q", Q, (n, n)), ("R", R, (m, m)), ("N", N, (n, m))):
+        if np.ndim(M) == 1 and np.size(M) > 1:  # padded to a row, it was reported as shape (1, k)
+            fix = f": np.diag({label}) for a diagonal weight" if label != "N" and np.size(M) == shape[0] else ""
+            raise ArgumentError(f"{name}: {label} has shape {np.shape(M)}, a 1-D array; give the {shape} matrix{fix}")
     mats.setdefault("N", np.zeros((n, m)))
     _check_shapes(mats, (), n, m, name)
     return tuple(mats[k] for k in "ABQRN")
