@@ -253,6 +253,11 @@ class Stages:
     trim, linear, decoupled : optional
         Upstream stages already computed for this setup's flight condition: the chain starts there.
 
+    Raises
+    ------
+    ArgumentTypeError
+        ``setup`` is not a :class:`~quadctl.setup.Setup`, or a given stage is not of its kind (a ``TypeError``).
+
     Examples
     --------
     >>> import quadctl as qc
@@ -271,6 +276,11 @@ class Stages:
                                     f"{type(setup).__name__}")
         self.setup = setup
         given = {"trim": trim, "linear": linear, "decoupled": decoupled}
+        kinds = {"trim": Trim, "linear": LinearModel, "decoupled": Decoupled}
+        for stage, result in given.items():
+            if result is not None and not isinstance(result, kinds[stage]):
+                raise ArgumentTypeError(f"Stages: {stage} must be a {kinds[stage].__name__} (another Stages' "
+                                        f"stages.{stage}), got {type(result).__name__}")
         self.__dict__.update({stage: result for stage, result in given.items() if result is not None})
 
     @cached_property

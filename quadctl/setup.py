@@ -257,8 +257,14 @@ class Setup:
         ------
         ArgumentError
             ``x_trim`` is not the 12 states (``trim.x`` or ``loop.x_trim``).
+        ArgumentTypeError
+            ``x_trim`` is not numbers (a :class:`~quadctl.linear.trim.Trim` itself: give its ``x``).
         """
-        x = np.asarray(x_trim, dtype=float)
+        try:
+            x = np.asarray(x_trim, dtype=float)
+        except (TypeError, ValueError):  # a Trim itself (its x is the state), text
+            raise ArgumentTypeError(f"initial_state takes the {N_STATES} states of a trim (a Trim's x, or a loop's "
+                                f"x_trim), got {type(x_trim).__name__}") from None
         if x.shape != (N_STATES,):
             raise ArgumentError(f"initial_state takes the {N_STATES} states of a trim (a Trim's x, or a loop's "
                                 f"x_trim), got shape {x.shape}")

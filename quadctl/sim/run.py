@@ -154,9 +154,12 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     ------
     ArgumentError
         ``duration`` or ``dt`` is not a positive number of seconds, ``method`` is unknown, ``max_samples``
-        is not a whole number of at least 2, or ``x0`` is not the 12 finite real states (a ``ValueError``).
+        is not a whole number of at least 2, ``tolerance`` not a positive number, or ``x0`` is not the 12
+        finite real states (a ``ValueError``).
     ArgumentTypeError
-        ``loop`` is not a :class:`ClosedLoop` (a ``TypeError``).
+        ``loop`` is not a :class:`ClosedLoop`, or ``noise``, ``wind`` or ``reference`` is not a
+        :class:`~quadctl.physics.noise.NoiseSpec`, :class:`~quadctl.physics.wind.WindSpec` or
+        :class:`~quadctl.physics.reference_rows.FlownReference` (a ``TypeError``).
     StepSizeError
         A fixed ``dt`` that RK4 cannot hold stable for the loop.
 

@@ -18,6 +18,7 @@ from quadctl.errors import ArgumentError, ArgumentTypeError
 from quadctl.layout import N_STATES, STATE_NAMES
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.physics.noise import NoiseSpec
+from quadctl.physics.reference_rows import FlownReference
 from quadctl.physics.wind import WindSpec
 from quadctl.sim.cases import Cases
 from quadctl.sim.engine import LANES, runner
@@ -66,11 +67,12 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     Raises
     ------
     ArgumentTypeError
-        A loop that is not a :class:`~quadctl.sim.loop.ClosedLoop` (a ``TypeError``).
+        A loop that is not a :class:`~quadctl.sim.loop.ClosedLoop`, or a ``noise``, ``wind`` or ``reference``
+        not of its kind (a ``TypeError``).
     ArgumentError
         Loops of different structures or controller rates, an unknown method, a duration or a ``dt`` that
-        is not a positive number of seconds, a ``max_samples`` below 2, or an initial state that is not the
-        loop's 12 finite real numbers.
+        is not a positive number of seconds, a ``max_samples`` below 2, a ``tolerance`` that is not a positive
+        number, or an initial state that is not the loop's 12 finite real numbers.
     StepSizeError
         A step that a loop cannot take.
     """
@@ -85,6 +87,14 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
         raise ArgumentError(f"duration must be a positive number of seconds, got {duration!r}")
     if not (isinstance(dt, str) and dt == "auto") and not _positive_seconds(dt):
         raise ArgumentError(f"dt must be a positive number of seconds or 'auto', got {dt!r}")
+    for label, value, kind, configured in (("noise", noise, NoiseSpec, "noise"), ("wind", wind, WindSpec, "wind"),
+                                           ("reference", reference, FlownReference, "flown_reference")):
+        if value is not None and not isinstance(value, kind):  # an AttributeError from inside, otherwise
+            raise ArgumentTypeError(f"simulate: {label} must be a {kind.__name__} (setup.{configured} is the "
+                                    f"configured one) or None, got {type(value).__name__}")
+    if tolerance is not None and not _positive_seconds(tolerance):  # a positive finite number, as seconds are
+        raise ArgumentError(f"tolerance must be a positive number (the state error ETDRK4 aims at) or None, "
+                            f"got {tolerance!r}")
     if isinstance(max_samples, bool) or not isinstance(max_samples, (int, np.integer)) or max_samples < 2:
         raise ArgumentError(f"max_samples must be a whole number of at least 2 (the start and the end), "
                             f"got {max_samples!r}")

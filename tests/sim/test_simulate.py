@@ -258,6 +258,33 @@ def test_the_python_call_refuses_what_is_not_a_closed_loop():
         qc.simulate(stages.design, stages.loop.x_trim, 1.0)
 
 
+def test_the_python_call_refuses_noise_wind_or_a_reference_of_another_kind():
+    """The path (setup.reference) where the flown reference goes (setup.flown_reference), a mapping for the
+    noise, a number for the wind: each failed with an AttributeError from inside the run."""
+    import quadctl as qc
+
+    setup = qc.setup_of(qc.load_config("square"))
+    loop = qc.Stages(setup).loop
+    for kwargs, match in (({"reference": setup.reference}, r"reference must be a FlownReference \(setup\."
+                                                              r"flown_reference is the configured one\) or None, "
+                                                              r"got Reference$"),
+                          ({"noise": {"gyro": 0.01}}, r"noise must be a NoiseSpec .*got dict$"),
+                          ({"wind": 3.0}, r"wind must be a WindSpec .*got float$")):
+        with pytest.raises(qc.ArgumentTypeError, match=rf"^simulate: {match}"):
+            qc.simulate(loop, loop.x_trim, 0.1, **kwargs)
+
+
+@pytest.mark.parametrize("tolerance", [-1.0, 0.0, float("nan"), "1e-6"])
+def test_the_python_call_refuses_a_tolerance_that_is_not_a_positive_number(tolerance):
+    """A negative one failed inside ETDRK4's planner with 'float() argument must be ... not complex'."""
+    import quadctl as qc
+
+    loop = qc.Stages(qc.setup_of(qc.load_config("hover"))).loop
+    want = rf"^tolerance must be a positive number .*got {re.escape(repr(tolerance))}$"
+    with pytest.raises(qc.ArgumentError, match=want):
+        qc.simulate(loop, loop.x_trim, 0.1, method="etdrk4", tolerance=tolerance)
+
+
 def test_the_chain_of_stages_names_what_it_takes_when_given_something_else():
     """A config where a setup goes, or a name where a config goes: one TypeError saying what to pass."""
     import quadctl as qc
@@ -267,6 +294,12 @@ def test_the_chain_of_stages_names_what_it_takes_when_given_something_else():
         qc.Stages(cfg)
     with pytest.raises(TypeError, match=r"setup_of takes a validated Config, .*got str"):
         qc.setup_of("hover")
+    stages = qc.Stages(qc.setup_of(cfg))  # a stage of another kind where one is given: not an AttributeError later
+    for given, match in (({"trim": stages.trim.x}, r"trim must be a Trim .*got ndarray"),
+                         ({"linear": stages.trim}, r"linear must be a LinearModel .*got Trim"),
+                         ({"decoupled": stages.design}, r"decoupled must be a Decoupled .*got Design")):
+        with pytest.raises(qc.ArgumentTypeError, match=rf"^Stages: {match}$"):
+            qc.Stages(stages.setup, **given)
 
 
 @pytest.mark.parametrize("x_trim", [[0.0] * 5, [[0.0] * 12]])
@@ -279,6 +312,16 @@ def test_the_configured_start_refuses_what_is_not_the_12_states(x_trim):
     with pytest.raises(ValueError, match=r"^initial_state takes the 12 states of a trim \(a Trim's x, or a loop's "
                                          rf"x_trim\), got shape {re.escape(str(np.shape(x_trim)))}$"):
         setup.initial_state(x_trim)
+
+
+def test_the_configured_start_names_a_trim_given_whole():
+    """``setup.initial_state(stages.trim)``, the Trim where its ``x`` goes: float()'s TypeError."""
+    import quadctl as qc
+
+    stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    with pytest.raises(qc.ArgumentTypeError, match=r"^initial_state takes the 12 states of a trim \(a Trim's x, "
+                                                   r"or a loop's x_trim\), got Trim$"):
+        stages.setup.initial_state(stages.trim)
 
 
 def test_a_vehicle_that_turns_over_is_a_diverged_run_not_a_completed_one(tmp_path):
