@@ -109,6 +109,16 @@ def test_a_1d_weight_is_refused_with_the_shape_it_was_given(which, value, messag
         lqr(**args, name="sys")
 
 
+@pytest.mark.parametrize("solve", [lqr, dlqr])
+@pytest.mark.parametrize("names, given", [(["a"], "has 1 names"), (["a", "b", "c"], "has 3 names"),
+                                          ("ab", "is one string")])
+def test_state_names_that_are_not_one_a_state_are_refused_before_solving(solve, names, given):
+    """Too few names failed with an IndexError while naming a refused mode, and only then (a plant quadctl
+    solved never read them)."""
+    with pytest.raises(ArgumentError, match=rf"^sys: state_names {given} for 2 states; give a name a state"):
+        solve(np.diag([1.0, 0.5]), [[0.0], [1.0]], np.eye(2), [[1.0]], name="sys", state_names=names)
+
+
 def test_carex_2_5_is_refused_not_solved():
     """The regression: CAREX 2.5 at eps = 0 returned K = [3.00000004, 2.00000004] and a 'stable' loop."""
     with pytest.raises(DesignError, match=r"carex: Q is not positive semidefinite: its most negative eigenvalue "

@@ -26,7 +26,7 @@ from quadctl.design.riccati.stacked import (
     without_cross,
 )
 from quadctl.design.riccati.weights import WeightCheck, as_problem
-from quadctl.errors import DesignError
+from quadctl.errors import ArgumentError, DesignError
 from quadctl.linear import stability
 from quadctl.linear.analysis import RICCATI_RTOL, pbh
 from quadctl.text.messages import eig_text
@@ -150,9 +150,13 @@ def solve(A, B, Q, R, N=None, *, discrete: bool = False, name: str = "system", s
         too ill-conditioned to certify; or the numerics failed (the reason is named).
     ArgumentError
         A matrix that is not real numbers, of a shape that does not fit, or a problem with no state
-        or no input (:func:`~quadctl.design.riccati.weights.as_problem`).
+        or no input (:func:`~quadctl.design.riccati.weights.as_problem`); ``state_names`` not one a state.
     """
     A, B, Q, R, N = as_problem(A, B, Q, R, N, name=name)
+    if state_names is not None and (isinstance(state_names, str) or len(state_names) != len(A)):
+        given = "is one string" if isinstance(state_names, str) else f"has {len(state_names)} names"
+        raise ArgumentError(f"{name}: state_names {given} for {len(A)} states; give a name a state, in the order "
+                            "of A's rows")
     reason = WeightCheck(*(M[None] for M in (A, B, Q, R, N))).reason(0)
     if reason is not None:
         raise DesignError(f"{name}: {reason}")
