@@ -242,9 +242,9 @@ class Stages:
     """The chain of stages of one setup, each computed on first use and once (no I/O).
 
     trim -> linear -> decoupled -> design -> loop, and, for a continuous design run sampled at the
-    controller rate, :attr:`rate_warnings`. :func:`quadctl.export.prepare` takes it as it is;
-    :class:`quadctl.workspace.Workspace` (the command line, the report) is this chain with a run
-    folder: it reuses and writes each stage's artifact.
+    controller rate, :attr:`rate_warnings`. :func:`quadctl.export.prepare` builds this chain from a setup
+    (``prepare(stages.setup)``); :class:`quadctl.workspace.Workspace` (the command line, the report) is
+    this chain with a run folder: it reuses and writes each stage's artifact.
 
     Parameters
     ----------

@@ -19,7 +19,7 @@ from dataclasses import replace
 
 from quadctl import artifacts
 from quadctl.config import check_override
-from quadctl.errors import ArgumentError, CheckFailed, ConfigError, RateError, ScheduleError
+from quadctl.errors import ArgumentError, ArgumentTypeError, CheckFailed, ConfigError, RateError, ScheduleError
 from quadctl.export.bundle import Export as Export
 from quadctl.export.bundle import law_text as law_text
 from quadctl.export.bundle import require_export
@@ -70,8 +70,14 @@ def prepare(setup: Setup, rate: float | None = None, *, need_rate: bool = True,
         loop and why).
     DesignError
         A subsystem cannot be designed (exit 1).
+    ArgumentTypeError
+        ``setup`` is not a :class:`~quadctl.setup.Setup` (a :class:`~quadctl.pipeline.Stages`: give its
+        ``setup``; a ``TypeError``).
     """
 
+    if not isinstance(setup, Setup):
+        raise ArgumentTypeError(f"prepare takes a Setup, export.prepare(stages.setup) or "
+                                f"export.prepare(qc.setup_of(cfg)); got {type(setup).__name__}")
     if setup.law == "pid":
         raise ConfigError(PID_NOT_EXPORTED)
     if rate is not None:  # the bounds of controller.rate, which it stands for

@@ -228,6 +228,14 @@ def _export_files_of_a_mapping(tmp_path, stages):
     return export.files({"K": np.zeros((4, 12))}, "c", tmp_path)
 
 
+def _export_prepare_of_the_stages(tmp_path, stages):
+    """The Stages docstring said prepare takes it as it is: an AttributeError ('Stages' object has no
+    attribute 'law')."""
+    from quadctl import export
+
+    return export.prepare(stages)
+
+
 def _export_write_to_pdf(tmp_path, stages):
     from quadctl import export
 
@@ -352,6 +360,10 @@ ARGUMENTS = {  # a call with a wrong argument: (call(tmp_path, stages), its clas
         _export_files_of_a_mapping,
         "ArgumentTypeError", TypeError, r"^files: exp must be a quadctl\.export\.Export \(from quadctl\.export\."
                                         r"prepare\), got dict$"),
+    "export.prepare the stages": (
+        _export_prepare_of_the_stages,
+        "ArgumentTypeError", TypeError, r"^prepare takes a Setup, export\.prepare\(stages\.setup\) or "
+                                        r"export\.prepare\(qc\.setup_of\(cfg\)\); got Stages$"),
     "export.write to pdf": (
         _export_write_to_pdf,
         "ArgumentError", ValueError, r"^to must be one of \('c', 'mat', 'json', 'crazyflie'\), got 'pdf'$"),
