@@ -17,6 +17,7 @@ from typing import ClassVar
 import numpy as np
 
 from quadctl.design.decoupled import Design
+from quadctl.design.kalman import Kalman
 from quadctl.design.margins import (
     GUARANTEE_TOL,
     LQR_GAIN_MARGIN_DB,
@@ -30,7 +31,8 @@ from quadctl.design.riccati import real_array
 from quadctl.errors import ArgumentError, ArgumentTypeError
 from quadctl.layout import INPUT_UNITS, N_INPUTS, N_STATES
 from quadctl.linear.decouple import Decoupled
-from quadctl.physics.motors import headroom
+from quadctl.linear.filters import RateFilter
+from quadctl.physics.motors import Actuators, headroom
 
 # ---------------------------------------------------------------------------------------
 # Findings: what a loop's margins say, as values (their sentences: quadctl.present.loops)
@@ -305,11 +307,13 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     Raises
     ------
     ArgumentError
-        ``delay_samples`` of a continuous design without ``emulated_rate``, or ``A``, ``B`` not the
+        ``delay_samples`` of a continuous design without ``emulated_rate``, or not a whole number; an
+        ``emulated_rate`` or ``rotor_time_constant`` that is not a positive number; ``A``, ``B`` not the
         12-state model's real (12, 12) and (12, 4) matrices (a ``ValueError``).
     ArgumentTypeError
         ``design`` is not a :class:`~quadctl.design.decoupled.Design` or ``decoupled`` not a
-        :class:`~quadctl.linear.decouple.Decoupled` (the stages' ``design`` and ``decoupled``; a ``TypeError``).
+        :class:`~quadctl.linear.decouple.Decoupled` (the stages' ``design`` and ``decoupled``), or
+        ``actuators``, ``estimator``, ``rate_filter`` not of their kinds (a ``TypeError``).
 
     Examples
     --------
@@ -328,6 +332,19 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
                                     f"{type(value).__name__}")
     A = real_array(A, "A", name="margins", shape=(N_STATES, N_STATES))
     B = real_array(B, "B", name="margins", shape=(N_STATES, N_INPUTS))
+    for label, value, kind in (("actuators", actuators, Actuators), ("estimator", estimator, Kalman),
+                               ("rate_filter", rate_filter, RateFilter)):
+        if value is not None and not isinstance(value, kind):  # an AttributeError from inside, otherwise
+            raise ArgumentTypeError(f"margins: {label} must be {kind.__name__} or None, got {type(value).__name__}")
+    for label, value in (("emulated_rate", emulated_rate), ("rotor_time_constant", rotor_time_constant)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
+                                                                                    np.floating))
+                                  or not 0.0 < value < math.inf):
+            raise ArgumentError(f"margins: {label} = {value!r}: must be a positive number "
+                                f"({'Hz' if label == 'emulated_rate' else 's'}) or None")
+    if isinstance(delay_samples, bool) or not isinstance(delay_samples, (int, np.integer)) or delay_samples < 0:
+        raise ArgumentError(f"margins: delay_samples = {delay_samples!r}: must be a whole number of controller "
+                            "samples, 0 or more")
     # the loops run at the design's rate, or a continuous design's gains at the emulated rate
     sample_time = design.sample_time or (1.0 / emulated_rate if emulated_rate else None)
     out = []

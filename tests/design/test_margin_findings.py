@@ -194,3 +194,23 @@ def test_margins_name_what_they_take_when_given_something_else():
     with pytest.raises(qc.ArgumentError, match=r"^margins: A is complex"):
         qc.margins(stages.design, stages.decoupled, A + 0j, B)
     assert len(qc.margins(stages.design, stages.decoupled, A.tolist(), B.tolist())) == 8  # lists are matrices
+
+
+@pytest.mark.parametrize("kwargs, error, match", [
+    ({"emulated_rate": -100.0}, "ArgumentError", r"emulated_rate = -100\.0: must be a positive number \(Hz\) or None"),
+    ({"emulated_rate": "200"}, "ArgumentError", r"emulated_rate = '200': must be a positive number"),
+    ({"emulated_rate": 200.0, "delay_samples": -1}, "ArgumentError", r"delay_samples = -1: must be a whole number"),
+    ({"emulated_rate": 200.0, "delay_samples": 1.5}, "ArgumentError", r"delay_samples = 1\.5: must be a whole"),
+    ({"rotor_time_constant": -0.01}, "ArgumentError", r"rotor_time_constant = -0\.01: must be a positive number"),
+    ({"estimator": "kalman"}, "ArgumentTypeError", r"estimator must be Kalman or None, got str"),
+    ({"rate_filter": "80 Hz"}, "ArgumentTypeError", r"rate_filter must be RateFilter or None, got str"),
+    ({"actuators": {"max_thrust": 1.0}}, "ArgumentTypeError", r"actuators must be Actuators or None, got dict"),
+])
+def test_margins_refuse_options_that_are_not_what_they_take(kwargs, error, match):
+    """A negative rotor time constant gave every loop unstable, a negative delay NumPy's broadcast error,
+    a text rate Python's TypeError, an estimator of another kind an AttributeError from inside."""
+    import quadctl as qc
+
+    stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    with pytest.raises(getattr(qc, error), match=rf"^margins: {match}"):
+        qc.margins(stages.design, stages.decoupled, stages.linear.A, stages.linear.B, **kwargs)
