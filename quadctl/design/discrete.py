@@ -301,7 +301,7 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system", state_names=Non
     Q, R, N : array_like
         Continuous weights, as for ``lqr``.
     Ts : float
-        s.
+        s. It comes before ``N``: MATLAB's ``lqrd(A, B, Q, R, N, Ts)`` is ``lqrd(A, B, Q, R, Ts, N)`` here.
     name : str
         Names the system in errors.
     state_names : sequence of str, optional
@@ -329,6 +329,10 @@ def lqrd(A, B, Q, R, Ts: float, N=None, *, name: str = "system", state_names=Non
     >>> round(float(K[0, 0]), 4), round(float(E[0].real), 4)
     (0.952, 0.9048)
     """
+    if np.ndim(Ts) == 2 and np.ndim(N) == 0:  # MATLAB's argument order, lqrd(A, B, Q, R, N, Ts)
+        raise ArgumentError(f"{name}: Ts has shape {np.shape(Ts)}, a matrix, and N is {N!r}: lqrd takes (A, B, Q, R, "
+                            "Ts, N), the sample time before the cross weight (MATLAB's lqrd(A, B, Q, R, N, Ts) "
+                            "puts N first)")
     require_valid_weights(A, B, Q, R, N, name=name)
     Ad, Bd, Qd, Rd, Nd = lqrd_weights(A, B, Q, R, Ts, N, name=name)
     return dlqr(Ad, Bd, Qd, Rd, Nd, name=name, state_names=state_names)

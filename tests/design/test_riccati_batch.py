@@ -82,6 +82,17 @@ def test_a_sample_time_that_is_not_a_number_is_refused_as_given(Ts):
         discrete.c2d([[0.0]], [[1.0]], Ts)
 
 
+def test_lqrd_in_matlabs_argument_order_says_where_the_sample_time_goes():
+    """MATLAB's lqrd(A, B, Q, R, N, Ts) put N where Ts goes and Ts where N goes: it was refused as 'N has
+    shape (1, 1), expected (2, 1)', about a matrix the caller gave right."""
+    A, B, N = [[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]], [[0.1], [0.0]]
+    with pytest.raises(ArgumentError, match=r"^sys: Ts has shape \(2, 1\), a matrix, and N is 0\.1: lqrd takes "
+                                            r"\(A, B, Q, R, Ts, N\), the sample time before the cross weight"):
+        discrete.lqrd(A, B, np.eye(2), [[1.0]], N, 0.1, name="sys")
+    ours = discrete.lqrd(A, B, np.eye(2), [[1.0]], 0.1, N)
+    assert ours.residual < 1e-12 and np.all(np.abs(ours.E) < 1)
+
+
 @pytest.mark.parametrize("n, m", [(1, 1), (2, 1), (3, 1), (3, 2), (4, 2), (9, 2)])
 def test_dare_batch_agrees_with_scipy_and_dlqr(n, m):
     """Random discrete plants (spectral radius up to ~1.5) and weights with a cross term."""
