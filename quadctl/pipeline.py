@@ -33,15 +33,33 @@ from quadctl.sim.loop import ClosedLoop, eigen_owners
 from quadctl.sim.run import SimResult, simulate
 
 
+def _require(who: str, *given) -> None:
+    """An ArgumentTypeError naming the first ``(label, value, kind)`` of ``given`` whose value is not of its
+    kind: stages swapped or from elsewhere failed with an AttributeError from inside."""
+    for label, value, kind in given:
+        if not isinstance(value, kind):
+            raise ArgumentTypeError(f"{who}: {label} must be a {kind.__name__} (qc.Stages(setup) computes each stage), "
+                                    f"got {type(value).__name__}")
+
+
 def trim_of(setup: Setup) -> Trim:
+    """The trim of the setup's flight condition: :func:`quadctl.linear.trim.solve_trim` of its velocity,
+    heading and position, for its design vehicle, in its steady wind (``trim.wind``)."""
+    _require("trim_of", ("setup", setup, Setup))
     return solve_trim(setup.velocity_ned, setup.yaw, setup.position_ned, setup.vehicle, wind_ned=setup.trim_wind)
 
 
 def linear_of(setup: Setup, trim: Trim) -> LinearModel:
+    """The setup's design vehicle linearized about ``trim`` (:func:`quadctl.linear.linearize.linearize`),
+    in its steady wind."""
+    _require("linear_of", ("setup", setup, Setup), ("trim", trim, Trim))
     return linearize(trim.x, trim.u, setup.vehicle, setup.trim_wind)
 
 
 def decoupled_of(setup: Setup, linear: LinearModel) -> Decoupled:
+    """The linear model split into the subsystems of the setup's partition
+    (:func:`quadctl.linear.decouple.decouple`)."""
+    _require("decoupled_of", ("setup", setup, Setup), ("linear", linear, LinearModel))
     return decouple(linear.A, linear.B, setup.partition)
 
 
@@ -61,6 +79,7 @@ def design_of(setup: Setup, decoupled: Decoupled, linear: LinearModel) -> Design
 def design_at(setup: Setup, decoupled: Decoupled, linear: LinearModel, rate: float | None) -> Design:
     """The setup's decoupled LQR design computed at ``rate`` Hz (MATLAB ``lqrd``), or continuous for
     None, whatever the setup's own timing (``check`` compares a continuous design with a rate)."""
+    _require("design_of", ("setup", setup, Setup), ("decoupled", decoupled, Decoupled), ("linear", linear, LinearModel))
     if setup.weight_error is not None:
 
         raise ConfigError(setup.weight_error)
@@ -169,6 +188,7 @@ def estimator_of(setup: Setup, linear: LinearModel):
 def loop_of(setup: Setup, linear: LinearModel, des: Design) -> ClosedLoop:
     """:func:`closed_loop_of` for a design: its state gain, its integrators (LQI) and its gain on
     the rotors' lag (a design that includes it)."""
+    _require("loop_of", ("setup", setup, Setup), ("linear", linear, LinearModel), ("des", des, Design))
     return closed_loop_of(setup, linear, des.K_block, Ki=des.Ki_block, integral_states=des.integral_states,
                           Kv=des.Kv_block if des.lag_time_constant is not None else None)
 
@@ -198,6 +218,7 @@ def scheduled_loop(loop: ClosedLoop, table, heading: float, eigenvalues=(),
 def simulation_of(setup: Setup, loop: ClosedLoop, *, noise: bool = True, progress=None) -> SimResult:
     """The configured run of ``loop`` from the configured initial state (``noise=False``: without noise;
     the wind, a condition of the flight, stays); ``progress(done, total)`` as :func:`simulate` calls it."""
+    _require("simulation_of", ("setup", setup, Setup), ("loop", loop, ClosedLoop))
     return simulate(loop, setup.initial_state(loop.x_trim), setup.duration, setup.dt,
                     noise=setup.noise if noise else None, wind=setup.wind, max_samples=setup.max_samples,
                     progress=progress, reference=setup.flown_reference, method=setup.method,

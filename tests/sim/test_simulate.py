@@ -258,6 +258,26 @@ def test_the_python_call_refuses_what_is_not_a_closed_loop():
         qc.simulate(stages.design, stages.loop.x_trim, 1.0)
 
 
+def test_each_stage_function_names_an_argument_of_another_kind():
+    """quadctl.pipeline's stage functions (the reference's 'The stages') with a config for the setup or two
+    stages swapped failed with an AttributeError from inside ('Config' object has no attribute
+    'velocity_ned')."""
+    import quadctl as qc
+    from quadctl import pipeline
+
+    cfg = qc.load_config("hover")
+    stages = qc.Stages(qc.setup_of(cfg))
+    setup, trim, linear, dec, des = stages.setup, stages.trim, stages.linear, stages.decoupled, stages.design
+    for call, match in ((lambda: pipeline.trim_of(cfg), r"trim_of: setup must be a Setup .*got Config"),
+                        (lambda: pipeline.linear_of(setup, linear), r"linear_of: trim must be a Trim .*got Linear"),
+                        (lambda: pipeline.decoupled_of(setup, trim), r"decoupled_of: linear must be a LinearModel"),
+                        (lambda: pipeline.design_of(setup, linear, dec), r"design_of: decoupled must be a Decoupled"),
+                        (lambda: pipeline.loop_of(setup, linear, dec), r"loop_of: des must be a Design .*got Dec"),
+                        (lambda: pipeline.simulation_of(setup, des), r"simulation_of: loop must be a ClosedLoop")):
+        with pytest.raises(qc.ArgumentTypeError, match=rf"^{match}"):
+            call()
+
+
 def test_the_python_call_refuses_noise_wind_or_a_reference_of_another_kind():
     """The path (setup.reference) where the flown reference goes (setup.flown_reference), a mapping for the
     noise, a number for the wind: each failed with an AttributeError from inside the run."""
