@@ -85,6 +85,11 @@ class Vehicle:
         if not values[0] > 0.0 or not np.all(np.asarray(self.inertia, dtype=float) > 0.0):
             raise ArgumentError(f"Vehicle: mass (kg) and the inertia's diagonal (kg m^2) must be positive, got mass "
                                 f"{self.mass!r} and inertia {self.inertia!r}")
+        smallest = float(np.linalg.eigvalsh(self.inertia_tensor())[0])
+        if not smallest > 0.0:  # as a config's full tensor is checked: J^-1 of the model would be no rigid body's
+            raise ArgumentError(f"Vehicle: the inertia tensor is not positive definite (smallest principal moment "
+                                f"{smallest:.4g} kg m^2): the products {self.products!r} are too large for the "
+                                f"moments {self.inertia!r}; check their units (kg m^2) and signs")
 
     def vector(self) -> np.ndarray:
         """Parameters as the (11,) vector the CasADi functions take (order: ``PARAMETER_NAMES``)."""

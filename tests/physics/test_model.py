@@ -133,6 +133,7 @@ def test_linearize_all_is_linearize_at_each_point(wind):
     ({"mass": "0.5"}, "must be a number"),                   # float() took it; the trim's m g then failed on text
     ({"inertia": ("1e-4", 1e-4, 1e-4)}, "must be a number"),
     ({"mass": True}, "must be a number"),                    # a vehicle of 1 kg
+    ({"products": (1e-3, 0.0, 0.0)}, r"not positive definite \(smallest principal moment -0\.0009268 kg m\^2\)"),
 ])
 def test_a_vehicle_no_model_can_fly_is_refused_where_it_is_made(kwargs, match):
     """A vehicle made in Python (a config's are checked with their keys) with a NaN mass, a negative one or a
