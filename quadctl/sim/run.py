@@ -154,8 +154,8 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
     ------
     ArgumentError
         ``duration`` or ``dt`` is not a positive number of seconds, ``method`` is unknown, ``max_samples``
-        is not a whole number of at least 2, ``tolerance`` not a positive number, or ``x0`` is not the 12
-        finite real states (a ``ValueError``).
+        is not a whole number of at least 2, ``tolerance`` or ``exo_rate`` not a positive number, or ``x0`` is
+        not the 12 finite real states (a ``ValueError``).
     ArgumentTypeError
         ``loop`` is not a :class:`ClosedLoop`, or ``noise``, ``wind`` or ``reference`` is not a
         :class:`~quadctl.physics.noise.NoiseSpec`, :class:`~quadctl.physics.wind.WindSpec` or

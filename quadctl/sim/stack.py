@@ -71,8 +71,8 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
         not of its kind (a ``TypeError``).
     ArgumentError
         Loops of different structures or controller rates, an unknown method, a duration or a ``dt`` that
-        is not a positive number of seconds, a ``max_samples`` below 2, a ``tolerance`` that is not a positive
-        number, or an initial state that is not the loop's 12 finite real numbers.
+        is not a positive number of seconds, a ``max_samples`` below 2, a ``tolerance`` or ``exo_rate`` that is not
+        a positive number, or an initial state that is not the loop's 12 finite real numbers.
     StepSizeError
         A step that a loop cannot take.
     """
@@ -95,6 +95,8 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     if tolerance is not None and not _positive_seconds(tolerance):  # a positive finite number, as seconds are
         raise ArgumentError(f"tolerance must be a positive number (the state error ETDRK4 aims at) or None, "
                             f"got {tolerance!r}")
+    if exo_rate is not None and not _positive_seconds(exo_rate):
+        raise ArgumentError(f"exo_rate must be a positive number of Hz or None, got {exo_rate!r}")
     if isinstance(max_samples, bool) or not isinstance(max_samples, (int, np.integer)) or max_samples < 2:
         raise ArgumentError(f"max_samples must be a whole number of at least 2 (the start and the end), "
                             f"got {max_samples!r}")

@@ -294,6 +294,18 @@ def test_the_python_call_refuses_noise_wind_or_a_reference_of_another_kind():
             qc.simulate(loop, loop.x_trim, 0.1, **kwargs)
 
 
+@pytest.mark.parametrize("exo_rate", [-1.0, 0.0, "200"])
+def test_the_python_call_refuses_an_exogenous_rate_that_is_not_a_positive_number(exo_rate):
+    """A negative one failed in the wind's rows with an IndexError, text with Python's TypeError."""
+    import quadctl as qc
+
+    setup = qc.setup_of(qc.load_config("crazyflie-wind"))
+    loop = qc.Stages(setup).loop
+    with pytest.raises(qc.ArgumentError, match=rf"^exo_rate must be a positive number of Hz or None, "
+                                               rf"got {re.escape(repr(exo_rate))}$"):
+        qc.simulate(loop, loop.x_trim, 0.1, wind=setup.wind, exo_rate=exo_rate)
+
+
 @pytest.mark.parametrize("tolerance", [-1.0, 0.0, float("nan"), "1e-6"])
 def test_the_python_call_refuses_a_tolerance_that_is_not_a_positive_number(tolerance):
     """A negative one failed inside ETDRK4's planner with 'float() argument must be ... not complex'."""
