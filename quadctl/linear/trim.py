@@ -108,8 +108,8 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     TrimError
         No equilibrium exists (with the reason) or Newton did not converge.
     ArgumentError
-        ``velocity_ned``, ``position_ned`` or ``wind_ned`` is not three finite numbers, or ``yaw`` not
-        one (a ``ValueError``).
+        ``velocity_ned``, ``position_ned`` or ``wind_ned`` is not three finite numbers, ``yaw`` not one, or
+        ``max_iter`` not a whole number of 1 or more (a ``ValueError``).
     ArgumentTypeError
         ``vehicle`` is not a :class:`~quadctl.physics.model.Vehicle` (a ``TypeError``).
 
@@ -120,6 +120,8 @@ def solve_trim(velocity_ned, yaw: float, position_ned, vehicle: Vehicle,
     (-0.2119, 0.6522)
     """
     v_e, wind, yaw, position_ned = _checked(velocity_ned, wind_ned, yaw, position_ned, vehicle)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise ArgumentError(f"trim: max_iter must be a whole number of Newton iterations, 1 or more, got {max_iter!r}")
     params = vehicle.vector()
     newton = _in_wind(wind)
     z = np.array([0.0, 0.0, vehicle.mass * vehicle.gravity])

@@ -122,6 +122,14 @@ def test_trim_refuses_arguments_that_are_not_finite_numbers_of_their_shape(veloc
         solve_trim(velocity, yaw, position, Vehicle(), wind_ned=wind)
 
 
+@pytest.mark.parametrize("max_iter", [0, -1, 1.5])
+def test_trim_refuses_a_max_iter_that_is_not_a_whole_number_of_one_or_more(max_iter):
+    """0 and -1 were a TrimError blaming the speed and the vehicle ('after -1 iterations'), 1.5 Python's
+    TypeError."""
+    with pytest.raises(ArgumentError, match=rf"^trim: max_iter must be a whole number .*got {max_iter!r}$"):
+        solve_trim([1, 0, 0], 0.0, [0, 0, 0], Vehicle(), max_iter=max_iter)
+
+
 def test_trim_refuses_what_is_not_a_vehicle():
     with pytest.raises(ArgumentTypeError, match="trim takes a Vehicle"):
         solve_trim([0, 0, 0], 0.0, [0, 0, 0], {"mass": 0.068})
