@@ -119,6 +119,17 @@ def test_state_names_that_are_not_one_a_state_are_refused_before_solving(solve, 
         solve(np.diag([1.0, 0.5]), [[0.0], [1.0]], np.eye(2), [[1.0]], name="sys", state_names=names)
 
 
+def test_an_unstabilizable_system_of_the_callers_own_is_told_a_fix_it_can_make():
+    """qc.lqr on the caller's own (A, B) was told to 'change the partition', a config's notion it has no
+    part in; a config's subsystem still is (docs/reference/errors.md)."""
+    A, B = [[1.0, 0.0], [0.0, -1.0]], [[0.0], [1.0]]
+    with pytest.raises(DesignError, match=r"^sys: not stabilizable: .* no input reaches it; give B an input that "
+                                          r"drives those states, or leave that mode out of A$"):
+        lqr(A, B, np.eye(2), [[1.0]], name="sys")
+    with pytest.raises(DesignError, match=r"; change the partition so an input drives those states$"):
+        lqr(A, B, np.eye(2), [[1.0]], name="subsystem roll")
+
+
 def test_carex_2_5_is_refused_not_solved():
     """The regression: CAREX 2.5 at eps = 0 returned K = [3.00000004, 2.00000004] and a 'stable' loop."""
     with pytest.raises(DesignError, match=r"carex: Q is not positive semidefinite: its most negative eigenvalue "

@@ -332,9 +332,11 @@ def require_stabilizable(A, B, name: str = "system", state_names=None, *, discre
 
 
 def _not_stabilizable(name: str, mode, discrete: bool) -> str:
+    # a config's subsystem is fixed by its partition; a caller's own (A, B) by B (qc.lqr has no partition)
+    fix = ("change the partition so an input drives those states" if name.startswith("subsystem ")
+           else "give B an input that drives those states, or leave that mode out of A")
     return (f"{name}: not stabilizable: the mode at eigenvalue {_fmt(mode.eigenvalue, discrete)} "
-            f"(in {', '.join(mode.states)}) is unstable and no input reaches it; "
-            "change the partition so an input drives those states")
+            f"(in {', '.join(mode.states)}) is unstable and no input reaches it; {fix}")
 
 
 def _fmt(e: complex, discrete: bool = False, digits: int = 4) -> str:
