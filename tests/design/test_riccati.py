@@ -130,6 +130,15 @@ def test_an_unstabilizable_system_of_the_callers_own_is_told_a_fix_it_can_make()
         lqr(A, B, np.eye(2), [[1.0]], name="subsystem roll")
 
 
+def test_a_sparse_matrix_is_refused_saying_to_give_the_dense_one():
+    """SciPy's sparse matrices became a 0-d object array: 'A is not a numeric matrix (dtype object)'."""
+    import scipy.sparse
+
+    with pytest.raises(ArgumentError, match=r"^sys: A is a sparse matrix \(csr_matrix\); give the dense one, "
+                                            r"A\.toarray\(\)$"):
+        lqr(scipy.sparse.csr_matrix([[0.0, 1.0], [0.0, 0.0]]), [[0.0], [1.0]], np.eye(2), [[1.0]], name="sys")
+
+
 def test_carex_2_5_is_refused_not_solved():
     """The regression: CAREX 2.5 at eps = 0 returned K = [3.00000004, 2.00000004] and a 'stable' loop."""
     with pytest.raises(DesignError, match=r"carex: Q is not positive semidefinite: its most negative eigenvalue "

@@ -66,6 +66,9 @@ def real_array(M, label: str, *, name: str = "system", shape: tuple | None = Non
         raise error(f"{name}: {label} is complex (dtype {arr.dtype}); quadctl solves real problems only: give the "
                     "real matrix (SciPy's solve_continuous_are and solve_discrete_are take complex ones)")
     if arr.dtype.kind not in "biuf":
+        if hasattr(M, "toarray"):  # scipy.sparse: np.asarray wraps it in a 0-d object array
+            raise error(f"{name}: {label} is a sparse matrix ({type(M).__name__}); give the dense one, "
+                        f"{label}.toarray()")
         raise error(f"{name}: {label} is not a numeric matrix (dtype {arr.dtype}); give an array of numbers")
     arr = arr.astype(float)
     if ndim is not None and arr.ndim < ndim:
