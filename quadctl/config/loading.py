@@ -161,6 +161,9 @@ def load(spec: str | Path | None = None) -> Config:
                else "give a YAML file's path or a bundled config's name (quadctl.config.bundled_names())")
         raise ArgumentTypeError(f"load_config takes a file path or a bundled config's name, got "
                                 f"{type(spec).__name__}; {fix}")
+    if isinstance(spec, str) and not spec.strip():  # '' resolved to the working folder: ': is a folder'
+        raise ConfigError(f"load_config: the config's name is empty ({spec!r}); give a YAML file's path or a bundled "
+                          "config's name (quadctl.config.bundled_names())")
     source = locate(spec)
     return parse(source.text, source.label)
 

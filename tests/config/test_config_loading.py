@@ -409,3 +409,13 @@ def test_load_config_given_no_path_or_name_says_what_to_pass(spec, fix):
     with pytest.raises(TypeError, match=rf"^load_config takes a file path or a bundled config's name, got "
                                         rf"{type(spec).__name__}; {fix}"):
         qc.load_config(spec)
+
+
+@pytest.mark.parametrize("name", ["", "  "])
+def test_an_empty_config_name_is_refused_as_empty(name):
+    """'' resolved to the working folder and was refused as ': is a folder, not a config file' (no name)."""
+    import quadctl as qc
+
+    with pytest.raises(qc.ConfigError, match=r"^load_config: the config's name is empty \(.*\); give a YAML file's "
+                                             r"path or a bundled config's name"):
+        qc.load_config(name)
