@@ -70,6 +70,26 @@ def test_report_equilibrium_balances_only_with_corrected_thrust_sign():
     assert wrong[STATE_INDEX["w"]] == pytest.approx(2 * v.gravity * math.cos(theta), rel=1e-3)
 
 
+def test_the_disturbance_adds_its_force_over_the_mass_and_its_torque_through_the_inertia():
+    """docs/model.md: F_d joins the forces over m (V^b' gains F_d / m) and M_d the moments (omega' gains
+    J^-1 M_d), in the body frame, with the signs they are given; nothing else moves. Both enter linearly,
+    so the difference from the undisturbed f is exactly that (the full tensor solved by numpy)."""
+    rng = np.random.default_rng(4)
+    j = np.array([[6.9e-5, 0.9e-5, -1.2e-5], [0.9e-5, 7.75e-5, 0.6e-5], [-1.2e-5, 0.6e-5, 1.5e-4]])
+    for vehicle in (Vehicle(), Vehicle(inertia=tuple(np.diag(j)), products=(j[0, 1], j[0, 2], j[1, 2]))):
+        model = build_model()
+        for _ in range(5):
+            x, u = _random_point(rng)
+            d = np.r_[rng.normal(size=3) * 0.05, rng.normal(size=3) * 1e-4]  # N, N m
+            moved = np.asarray(model.f_disturbed(x, u, vehicle.vector(), d)).ravel() - evaluate(x, u, vehicle)
+            expected = np.zeros(12)
+            expected[3:6] = d[:3] / vehicle.mass
+            expected[9:12] = np.linalg.solve(vehicle.inertia_tensor(), d[3:])
+            # round-off of f's own entries (rates of order |x| / J), not of the difference
+            scale = np.abs(evaluate(x, u, vehicle)).max() + np.abs(expected).max()
+            np.testing.assert_allclose(moved, expected, rtol=0, atol=1e-12 * scale)
+
+
 def _rk4_open_loop(x, u, vehicle, dt, n):
     f = build_model().f
     p = vehicle.vector()
