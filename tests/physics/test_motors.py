@@ -47,6 +47,26 @@ def test_x_layout_signs_and_the_mambo_torque_authority():
     assert 0.025 < room["A"][1] < 0.03 and room["R"][1] < 2e-3
 
 
+@pytest.mark.parametrize("rotors", [MAMBO, motors.Motors(layout="+"),
+                                    motors.Motors(xy=((0.05, 0.08), (-0.06, 0.07), (-0.06, -0.07), (0.05, -0.08)))])
+@pytest.mark.parametrize("u_trim", [[MG, 0.0, 0.0, 0.0], [0.5, 0.004, -0.003, 3e-4], [0.9, -0.006, 0.002, -5e-4]])
+def test_the_headroom_takes_each_input_to_the_first_rotor_limit_each_way(rotors, u_trim):
+    """headroom's (down, up) of an input: moved that far from the trim (the others held), every rotor is
+    within [min_thrust, max_thrust] and one is on a limit, so a step past it leaves them. The rotors'
+    thrusts are the mixer's, each way on its own (the rotors of a trim with torques are not alike)."""
+    act = motors.actuators_of(rotors)
+    base = act.commands(u_trim)
+    assert np.all((act.lo <= base) & (base <= act.hi))
+    tol = 1e-12 * act.hi.max()  # round-off of a thrust of at most max_thrust
+    for name, (down, up) in motors.headroom(act, u_trim).items():
+        for sign, room in ((-1.0, down), (1.0, up)):
+            moved = np.asarray(u_trim, dtype=float).copy()
+            moved[INPUT_INDEX[name]] += sign * room
+            thrust = act.commands(moved)
+            assert np.all((act.lo - tol <= thrust) & (thrust <= act.hi + tol)), (name, sign, thrust)
+            assert np.min(np.minimum(thrust - act.lo, act.hi - thrust)) <= tol, (name, sign, thrust)
+
+
 def test_plus_layout_rolls_with_the_side_rotors_only():
     roll = motors.Motors(layout="+").mixer() @ [0, 1e-3, 0, 0]
     assert roll[0] == pytest.approx(0, abs=1e-15) and roll[2] == pytest.approx(0, abs=1e-15)
