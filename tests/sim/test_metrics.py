@@ -36,6 +36,32 @@ def test_a_first_order_mode_settles_at_tau_ln_50(tau, e0, dt):
         assert want <= got < want + dt, (got, want)
 
 
+def test_the_cost_is_the_integral_of_the_quadratic_forms_with_their_cross_terms():
+    """Errors ``e_i = c_i exp(-a_i t)`` and input deviations ``du_k = d_k exp(-b_k t)`` under a ``Q`` and an
+    ``R`` with off-diagonal entries: ``integral_0^T e'Qe + du'R du dt`` is ``sum_ij Q_ij c_i c_j (1 -
+    exp(-(a_i + a_j) T)) / (a_i + a_j)`` plus the same in ``R``. The trapezoid rule's relative error is
+    about ``(dt (a_i + a_j))^2 / 12``, 4e-6 here: held to 1e-5."""
+    rng = np.random.default_rng(11)
+    dt, T = 1e-3, 6.0
+    t = np.arange(0.0, T + dt / 2, dt)
+    a, c = rng.uniform(0.3, 3.0, N_STATES), rng.normal(size=N_STATES)
+    b, d = rng.uniform(0.3, 3.0, N_INPUTS), rng.normal(size=N_INPUTS) * 0.1
+    M, W = rng.normal(size=(N_STATES, N_STATES)), rng.normal(size=(N_INPUTS, N_INPUTS))
+    Q, R = M @ M.T, W @ W.T + np.eye(N_INPUTS)  # full: every cross term weighs
+    err = c * np.exp(-np.outer(t, a))
+    u_trim = np.array([0.6, 0.0, 0.0, 0.0])
+    u = u_trim + d * np.exp(-np.outer(t, b))
+
+    def integral(weight, amp, rate):
+        s = rate[:, None] + rate[None, :]
+        return float(np.sum(weight * np.outer(amp, amp) * -np.expm1(-s * t[-1]) / s))
+
+    want = integral(Q, c, a) + integral(R, d, b)
+    run = metrics.summarize_run(t, err, u, np.zeros_like(err), u_trim, Q, R, STATE_NAMES, "ok")
+    assert run["cost"] == pytest.approx(want, rel=1e-5)
+    assert metrics.lqr_cost(t, err, u - u_trim, Q, R) == pytest.approx(want, rel=1e-5)
+
+
 @pytest.mark.parametrize("zeta", [0.2, 0.5, 0.8])
 def test_a_second_order_mode_overshoots_as_its_damping_says(zeta):
     """``e = e0 (cos(wd t) + zeta / sqrt(1 - zeta^2) sin(wd t)) exp(-zeta wn t)`` (a released
