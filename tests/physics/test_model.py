@@ -70,6 +70,59 @@ def test_report_equilibrium_balances_only_with_corrected_thrust_sign():
     assert wrong[STATE_INDEX["w"]] == pytest.approx(2 * v.gravity * math.cos(theta), rel=1e-3)
 
 
+def _f_of_docs_model_md(x, u, vehicle, d, wind):
+    """docs/model.md's equations of motion written again in numpy: R_b^E as the three turns of the 3-2-1
+    sequence (yaw, then pitch, then roll), the Euler rates by solving H, the rates by solving J."""
+    (u_b, v_b, w_b), (phi, theta, psi), omega = x[3:6], x[6:9], x[9:12]
+    thrust, moment = u[0], u[1:4]
+
+    def rx(a):
+        return np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+
+    def ry(a):
+        return np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+
+    def rz(a):
+        return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+
+    body_to_earth = rz(psi) @ ry(theta) @ rx(phi)
+    earth_to_body = body_to_earth.T
+    vel = np.array([u_b, v_b, w_b])
+    air = vel - earth_to_body @ wind
+    force = (np.array([0.0, 0.0, -thrust]) - thrust * np.asarray(vehicle.drag) * air
+             + earth_to_body @ [0.0, 0.0, vehicle.mass * vehicle.gravity] + d[:3])
+    h = np.array([[1.0, 0.0, -np.sin(theta)],
+                  [0.0, np.cos(phi), np.sin(phi) * np.cos(theta)],
+                  [0.0, -np.sin(phi), np.cos(phi) * np.cos(theta)]])
+    j = vehicle.inertia_tensor()
+    return np.concatenate([body_to_earth @ vel, force / vehicle.mass - np.cross(omega, vel), np.linalg.solve(h, omega),
+                           np.linalg.solve(j, moment + d[3:] - np.cross(omega, j @ omega))])
+
+
+@pytest.mark.parametrize("vehicle", [
+    Vehicle(drag=(0.22, 0.31, 0.07)),
+    Vehicle(mass=0.5, gravity=9.7, drag=(0.1, 0.02, 0.3), products=(0.9e-5, -1.2e-5, 0.6e-5)),
+], ids=["diagonal", "tensor"])
+def test_f_is_the_equations_of_docs_model_md_written_again_in_numpy(vehicle):
+    """Every term of f (rotation, thrust, rotor drag on the air-relative velocity with its own Kx, Ky, Kz,
+    gravity, disturbance, omega x V, the Euler rates, Euler's equations) against docs/model.md in numpy, at
+    random states off every axis, with wind. The two differ by round-off of their largest terms (the rates'
+    J^-1 M and omega x J omega / J, of order 100 rad/s^2 here): 1e-12 of those."""
+    rng = np.random.default_rng(12)
+    model = build_model()
+    for _ in range(20):
+        x, u = _random_point(rng)
+        x[9:12] *= 10.0  # rates of a few rad/s: the gyroscopic term counts
+        d = np.r_[rng.normal(size=3) * 0.05, rng.normal(size=3) * 1e-4]
+        wind = rng.normal(size=3) * 2.0
+        got = np.asarray(model.f_disturbed_wind(x, u, vehicle.vector(), d, wind)).ravel()
+        want = _f_of_docs_model_md(x, u, vehicle, d, wind)
+        j = vehicle.inertia_tensor()
+        scale = max(1.0, np.abs(want).max(), np.abs(np.linalg.solve(j, u[1:4])).max(),
+                    np.abs(np.linalg.solve(j, np.cross(x[9:12], j @ x[9:12]))).max())
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * scale)
+
+
 def test_the_disturbance_adds_its_force_over_the_mass_and_its_torque_through_the_inertia():
     """docs/model.md: F_d joins the forces over m (V^b' gains F_d / m) and M_d the moments (omega' gains
     J^-1 M_d), in the body frame, with the signs they are given; nothing else moves. Both enter linearly,
