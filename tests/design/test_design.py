@@ -9,7 +9,7 @@ import pytest
 
 from quadctl.design import design, lqr, riccati_residual
 from quadctl.errors import ArgumentError, DesignError
-from quadctl.layout import REPORT_PARTITION, STATE_NAMES
+from quadctl.layout import INPUT_INDEX, REPORT_PARTITION, STATE_NAMES
 from quadctl.linear.analysis import check
 from quadctl.linear.decouple import decouple
 
@@ -90,6 +90,26 @@ def test_riccati_residuals_of_the_report_design(forward):
         assert all(e.real < 0 for e in s.eigenvalues)
         np.testing.assert_allclose(s.P, s.P.T)
         assert np.linalg.eigvalsh(s.P).min() > 0
+
+
+def test_the_assembled_weights_are_the_cost_each_loops_riccati_solution_prices(forward):
+    """Q_block and R_block are the cost the design minimizes: on each subsystem's closed loop
+    ``Ac = A - B K``, its ``P`` is the cost to go of ``x' Q_block x + u' R_block u`` from ``x``, the solution of
+    ``Ac' P + P Ac + Q + K' R K = 0`` with the blocks at its states and inputs; nothing outside the blocks is
+    weighed. Relative residual (the 1-norms of the equation's terms) at round-off of the Riccati solve."""
+    *_, dec, des = forward
+    Q_seen, R_seen = np.zeros_like(des.Q_block, dtype=bool), np.zeros_like(des.R_block, dtype=bool)
+    for sub in des.subsystems:
+        plant = dec[sub.name]
+        cols = plant.state_index
+        rows = [INPUT_INDEX[i] for i in sub.inputs]
+        Q, R = des.Q_block[np.ix_(cols, cols)], des.R_block[np.ix_(rows, rows)]
+        Q_seen[np.ix_(cols, cols)], R_seen[np.ix_(rows, rows)] = True, True
+        Ac = plant.A - plant.B @ sub.K
+        terms = (Ac.T @ sub.P, sub.P @ Ac, Q, sub.K.T @ R @ sub.K)
+        residual = np.abs(terms[0] + terms[1] + terms[2] + terms[3]).sum(axis=0).max()
+        assert residual <= 1e-10 * sum(np.abs(t).sum(axis=0).max() for t in terms), sub.name
+    assert not np.any(des.Q_block[~Q_seen]) and not np.any(des.R_block[~R_seen])
 
 
 def test_report_design_values(forward):
