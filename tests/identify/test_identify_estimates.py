@@ -176,6 +176,28 @@ def test_thrust_intervals_cover_the_truth_about_95_percent():
     assert all(0.85 <= c <= 1.0 for c in coverage.values()), coverage
 
 
+def test_inertia_intervals_cover_the_truth_about_95_percent():
+    """Over 40 noisy logs the attitude fit's 95 % intervals of Jxx and Jyy hold the truth in 85-100 % of them
+    (binomial: 95 % within about +-7 % at 40 draws). The rotors' thrust comes from the thrust stage's fit,
+    whose own error moves the inertia as much as the torque noise does: intervals without it (the attitude
+    residual's sandwich alone) are 1.4 to 1.8 times narrower and held the truth in 73 % (Jxx) and 75 % (Jyy)
+    of these logs, against 95 % and 88 % with it."""
+    rng = np.random.default_rng(2024)
+    inertia = (1.05e-5, 1.12e-5, 2.0e-5)
+    hits = {"Jxx": 0, "Jyy": 0}
+    repeats = 40
+    af = airframe(inertia=(2e-5, 2e-5, inertia[2]))
+    for _ in range(repeats):
+        grid = est.on_grid(simulated_log(rng, seconds=3.0, inertia=inertia))
+        thrust = est.fit_thrust(grid, [(0.3, 2.95)], af)
+        att = est.fit_attitude(grid, [(0.3, 2.95)], af, thrust)
+        for n, value in zip(("Jxx", "Jyy"), inertia):
+            lo, hi = att.interval(n)
+            hits[n] += lo <= value <= hi
+    coverage = {n: h / repeats for n, h in hits.items()}
+    assert all(0.85 <= c <= 1.0 for c in coverage.values()), coverage
+
+
 def test_inertia_and_torque_coefficient_within_their_intervals():
     rng = np.random.default_rng(7)
     inertia, k_m = (1.05e-5, 1.12e-5, 2.0e-5), 0.006
