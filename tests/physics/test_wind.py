@@ -272,6 +272,20 @@ def test_the_realization_does_not_depend_on_how_it_is_asked_for():
     assert np.abs(other - whole).max() > 0.1
 
 
+
+def test_the_turbulence_between_its_samples_is_the_line_through_them():
+    """The turbulence at any time is linear between its samples (every ``period`` s): at a sample it is that
+    sample, at a fraction ``a`` of the way to the next it is ``(1 - a)`` of one and ``a`` of the other, so it
+    is continuous. A run reads it on its own exogenous clock, which need not be the turbulence's: a 200 Hz
+    controller's 5 ms falls halfway between two samples 10 ms apart."""
+    rows = TurbulenceStream(TURB).samples(0, 200)
+    period = TURB.period
+    for a in (0.0, 0.25, 0.5, 0.9):
+        t = (np.arange(200) + a) * period
+        want = (1.0 - a) * rows[:-1] + a * rows[1:]
+        np.testing.assert_allclose(TurbulenceStream(TURB).at(t), want, rtol=0, atol=1e-12 * np.abs(rows).max())
+
+
 # ---------------------------------------------------------------------------------------
 # Wind in the closed loop
 
