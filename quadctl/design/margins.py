@@ -363,12 +363,34 @@ def _gain_margins(loop, w, Lw):
             crossings.append((wc, -1.0 / Lc.real))
     if loop.sample_time and abs(Lw[-1].imag) <= 1e-12 * max(1.0, abs(Lw[-1])) and Lw[-1].real < 0:
         crossings.append((float(w[-1]), -1.0 / Lw[-1].real))  # L is real at the Nyquist frequency
+    L0 = _dc_gain(loop)
+    if L0 is not None and L0 < 0:  # L is real at w = 0 too (finite where the open loop has no pole there)
+        crossings.append((0.0, -1.0 / L0))
     above = [(g, wc) for wc, g in crossings if g > 1]
     below = [(g, wc) for wc, g in crossings if g < 1]
     upper = min(above) if above else None
     lower = max(below) if below else None
     return (gain_db(lower[0]) if lower else -math.inf, gain_db(upper[0]) if upper else math.inf,
             lower[1] if lower else None, upper[1] if upper else None)
+
+
+def _dc_gain(loop) -> float | None:
+    """``L`` at ``w = 0`` (real), or None where the open loop has a pole there (``s = 0``, ``z = 1``: an
+    integrator, within the 1e-9 rad/s :func:`frequency_grid` takes as zero), which makes it infinite; the
+    grid's crossings near zero frequency then stand for it. Of a :class:`BrokenLoop` (a loop of another form,
+    the cascade's lifted one, keeps the grid's crossings)."""
+    if not isinstance(loop, BrokenLoop):
+        return None
+    eig = np.linalg.eigvals(loop.A)
+    if loop.sample_time:
+        with np.errstate(divide="ignore", invalid="ignore"):  # a delay's shift states sit at z = 0
+            eig = np.log(eig.astype(complex)) / loop.sample_time
+    if np.any(np.abs(eig) <= 1e-9):
+        return None
+    n = loop.A.shape[0]
+    at_dc = (np.eye(n) if loop.sample_time else np.zeros((n, n))) - loop.A  # s I - A at s = 0, z I - A at z = 1
+    value = float(loop.k @ np.linalg.solve(at_dc, loop.b))
+    return value if math.isfinite(value) else None
 
 
 def _phase_margin(loop, w, Lw):

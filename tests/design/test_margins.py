@@ -55,6 +55,30 @@ def test_three_lags_gain_margin_is_six():
     assert m.phase_margin_deg == pytest.approx(pm, abs=1e-8)
 
 
+
+@pytest.mark.parametrize("k, sample_time", [(15.0, None), (25.0, None), (15.0, 0.01)])
+def test_an_open_loop_unstable_plant_loses_stability_below_the_gain_where_its_dc_crossing_reaches_minus_one(
+        k, sample_time):
+    """L = k (s + 1) / ((s - 1) (s + 10)): its Nyquist curve leaves the negative real axis at w = 0, from
+    L(0) = -k / 10. Closed with a gain g, s^2 + (9 + g k) s + (g k - 10) is stable only for g > 10 / k: a
+    lower gain margin of 20 log10(10 / k) dB, at w = 0 (python-control's stability_margins finds it there);
+    none above. At k = 15 that is -3.5 dB, short of LQR's -6 dB, whatever the phase margin (122 deg).
+    Sampled (ZOH at 100 Hz) the curve starts on the axis too, at z = 1, where L(1) = L(0) of the plant."""
+    A, b, gain = np.array([[0.0, 1.0], [10.0, -9.0]]), np.array([0.0, 1.0]), np.array([k, k])
+    if sample_time:
+        A, B = discrete.c2d(A, b[:, None], sample_time)
+        b = B[:, 0]
+    m = loop_margins(BrokenLoop(A, b, gain, sample_time))
+    critical = 10.0 / k
+    assert m.stable and (m.gain_margin_db[1] == math.inf or sample_time)  # sampled, a high gain fails too
+    assert m.gain_margin_db[0] == pytest.approx(20 * math.log10(critical), abs=1e-9)
+    assert m.phase_crossover_freqs[0] == 0.0
+    loop = BrokenLoop(A, b, gain, sample_time)
+    assert loop.is_stable(critical * 1.01) and not loop.is_stable(critical * 0.99)
+    if not sample_time:
+        assert m.meets_lqr_guarantee == (20 * math.log10(critical) <= margins.LQR_GAIN_MARGIN_DB[0])
+
+
 def test_pure_integrator_disk_margin_is_two():
     """L = k / s: |S - T| = 1 at every frequency, so alpha = 2, gains [0, inf), disk phase 90 deg."""
     m = loop_margins(BrokenLoop(np.array([[0.0]]), np.array([1.0]), np.array([3.0])))
