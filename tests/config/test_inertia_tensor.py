@@ -7,6 +7,7 @@ import casadi as ca
 import numpy as np
 import pytest
 from _finite_differences import assert_jacobians_match_central_differences
+from _rotation import body_to_earth
 
 from quadctl import layout
 from quadctl.config import bundled, parse
@@ -58,20 +59,6 @@ def test_jacobians_match_central_differences_with_full_tensor(seed):
     np.testing.assert_allclose(b[9:12, 1:4], np.linalg.inv(TILTED_J), rtol=1e-12)
 
 
-def _rotation_body_to_earth(phi, theta, psi):
-    """R_b^E from 3-2-1 Euler angles, built in numpy (independent of the model's CasADi one)."""
-    def rx(a):
-        return np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
-
-    def ry(a):
-        return np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
-
-    def rz(a):
-        return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-
-    return rz(psi) @ ry(theta) @ rx(phi)
-
-
 def test_torque_free_body_conserves_earth_frame_angular_momentum_with_full_tensor():
     """M = 0: the angular momentum in the earth frame, R_b^E J omega, is constant (a vector, so a wrong
     product term or a wrong attitude kinematics moves it), and so is the energy 0.5 omega' J omega."""
@@ -80,7 +67,7 @@ def test_torque_free_body_conserves_earth_frame_angular_momentum_with_full_tenso
     x = np.zeros(12)
     x[9:12] = [3.0, -2.0, 1.5]
     x[STATE_INDEX["theta"]] = 0.2
-    h0 = _rotation_body_to_earth(*x[6:9]) @ TILTED_J @ x[9:12]
+    h0 = body_to_earth(*x[6:9]) @ TILTED_J @ x[9:12]
     e0 = 0.5 * x[9:12] @ TILTED_J @ x[9:12]
     dt = 1e-4
     for _ in range(3000):  # 0.3 s of RK4 (theta stays far from 90 deg)
@@ -89,7 +76,7 @@ def test_torque_free_body_conserves_earth_frame_angular_momentum_with_full_tenso
         k3 = np.asarray(f(x + dt / 2 * k2, np.zeros(4), p)).ravel()
         k4 = np.asarray(f(x + dt * k3, np.zeros(4), p)).ravel()
         x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    h1 = _rotation_body_to_earth(*x[6:9]) @ TILTED_J @ x[9:12]
+    h1 = body_to_earth(*x[6:9]) @ TILTED_J @ x[9:12]
     assert abs(x[STATE_INDEX["theta"]]) < 1.3
     np.testing.assert_allclose(h1, h0, rtol=0, atol=1e-9 * np.linalg.norm(h0))
     assert 0.5 * x[9:12] @ TILTED_J @ x[9:12] == pytest.approx(e0, rel=1e-9)

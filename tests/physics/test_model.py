@@ -8,6 +8,7 @@ import casadi as ca
 import numpy as np
 import pytest
 from _finite_differences import assert_jacobians_match_central_differences
+from _rotation import body_to_earth as rotation_body_to_earth
 
 from quadctl.layout import STATE_INDEX
 from quadctl.physics.model import Vehicle, build_model, euler_rates_matrix, evaluate, rotation_earth_to_body
@@ -76,16 +77,7 @@ def _f_of_docs_model_md(x, u, vehicle, d, wind):
     (u_b, v_b, w_b), (phi, theta, psi), omega = x[3:6], x[6:9], x[9:12]
     thrust, moment = u[0], u[1:4]
 
-    def rx(a):
-        return np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
-
-    def ry(a):
-        return np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
-
-    def rz(a):
-        return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-
-    body_to_earth = rz(psi) @ ry(theta) @ rx(phi)
+    body_to_earth = rotation_body_to_earth(phi, theta, psi)
     earth_to_body = body_to_earth.T
     vel = np.array([u_b, v_b, w_b])
     air = vel - earth_to_body @ wind
