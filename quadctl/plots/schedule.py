@@ -30,8 +30,9 @@ def transition_figure(transition, *, title: str = "") -> Figure:
 
     Top: the scheduling variable flown by each and the reference's, with the schedule's grid
     values dotted. Middle: the pitch angle. Bottom: the thrust of the most loaded rotor
-    (or the largest ``|u - u_ref|`` share of the limits without rotors) against its limits. A run
-    that stopped early ends with a cross.
+    against its limits; with box limits, the largest share of an input's room from its reference to the
+    limit it moves toward (:func:`limit_share`, 1 at a limit); with no limits, the thrust's change from its
+    reference (N). A run that stopped early ends with a cross.
     """
 
     runs, loop = transition.runs(), transition.loops["scheduled"]
@@ -51,10 +52,13 @@ def transition_figure(transition, *, title: str = "") -> Figure:
         ended = sim.status != "ok"
         trace(speed_ax, sim.t, variable(sim.x), color=color, lw=1.6, label=f"{label} ({STATUS_WORDS[sim.status]})")
         trace(angle_ax, sim.t, np.rad2deg(sim.x[:, STATE_INDEX["theta"]]), color=color, lw=1.3, label=label)
+        ref = sim.u_ref if len(sim.u_ref) else loop.u_trim
         if act is not None and act.mode == "motors":
             load = act.commands(sim.u).max(axis=1)
+        elif act is not None:
+            load = limit_share(sim.u, ref, act.lo, act.hi).max(axis=1)
         else:
-            load = np.abs(sim.u - (sim.u_ref if len(sim.u_ref) else loop.u_trim)).max(axis=1)
+            load = np.abs(sim.u[:, 0] - np.broadcast_to(ref, sim.u.shape)[:, 0])
         trace(rotor_ax, sim.t, load, color=color, lw=1.2, label=label)
         if ended:
             for ax, y in ((speed_ax, variable(sim.x[-1:])[0]), (angle_ax, np.rad2deg(sim.x[-1, STATE_INDEX["theta"]])),
@@ -63,8 +67,11 @@ def transition_figure(transition, *, title: str = "") -> Figure:
     if act is not None and act.mode == "motors":
         limit_lines(rotor_ax, (act.lo[0], act.hi[0]), "min / max thrust")
         rotor_ax.set_ylabel("most loaded rotor [N]")
+    elif act is not None:
+        limit_lines(rotor_ax, (np.inf, 1.0), "at a limit")
+        rotor_ax.set_ylabel("largest share of an\ninput's limit [1]")
     else:
-        rotor_ax.set_ylabel("largest |u - u_ref|")
+        rotor_ax.set_ylabel("thrust change\n|T - T_ref| [N]")
     speed_ax.set_ylabel(f"{table.variable} [{VARIABLES[table.variable]}]")
     angle_ax.set_ylabel("pitch theta [deg]")
     rotor_ax.set_xlabel("time [s]")
@@ -74,6 +81,22 @@ def transition_figure(transition, *, title: str = "") -> Figure:
     what = f"{table.variable} schedule ({table.interpolation}) against one fixed design"
     fig.suptitle(f"{title}: {what}" if title else what)
     return fig
+
+
+def limit_share(u, ref, lo, hi) -> np.ndarray:
+    """Each input's move from ``ref`` as a share of its room to the limit it moves toward (N, 4): 0 at the
+    reference, 1 at ``lo`` or ``hi`` (box limits, (4,)); 0 where that side is unlimited.
+
+    Examples
+    --------
+    >>> limit_share([[1.5, -0.1, 0.0, 0.0]], [1.0, 0.0, 0.0, 0.0], [0.0, -0.2, -1.0, -1.0], [2.0, 0.2, 1.0, 1.0])
+    array([[0.5, 0.5, 0. , 0. ]])
+    """
+    u, ref = np.atleast_2d(np.asarray(u, dtype=float)), np.asarray(ref, dtype=float)
+    move = u - ref
+    room = np.where(move >= 0, np.asarray(hi, dtype=float) - ref, ref - np.asarray(lo, dtype=float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isfinite(room) & (room > 0), np.abs(move) / room, 0.0)
 
 
 def schedule_figure(sched, actuators=None, *, title: str = "") -> Figure:

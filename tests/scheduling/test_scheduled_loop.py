@@ -245,6 +245,32 @@ def test_the_transition_figure_shows_both_runs_and_where_one_stopped(flown_trans
     assert plots.png_bytes(fig)[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_the_transition_figure_without_rotors_plots_a_share_of_the_limits_or_the_thrust_in_newtons():
+    """Box limits: the bottom panel is each input's share of its room from the reference to its limit (1 at
+    the limit, a line there), so N and N m are never drawn on one axis; no limits: the thrust's change, in N."""
+    from types import SimpleNamespace as NS
+
+    from quadctl import plots
+
+    t = np.linspace(0.0, 1.0, 5)
+    x = np.zeros((5, 12))
+    u = np.column_stack([np.linspace(0.3, 0.5, 5), np.linspace(0.0, -0.004, 5), np.zeros(5), np.zeros(5)])
+    sim = NS(t=t, x=x, x_ref=x, u=u, u_ref=np.zeros((0, 4)), status="ok")
+    table = NS(variable="speed", values=(0.0, 2.0), interpolation="linear")
+    trim = np.array([0.3, 0.0, 0.0, 0.0])
+    box = NS(mode="box", lo=np.array([0.0, -0.01, -0.01, -0.01]), hi=np.array([0.7, 0.01, 0.01, 0.01]))
+    for act, label, want in ((box, "largest share of an\ninput's limit [1]", np.maximum(np.linspace(0, 0.5, 5),
+                                                                                      np.linspace(0, 0.4, 5))),
+                             (None, "thrust change\n|T - T_ref| [N]", np.linspace(0.0, 0.2, 5))):
+        loop = NS(schedule=table, schedule_heading=0.0, actuators=act, u_trim=trim)
+        flown = NS(runs=lambda: {"scheduled": sim, "fixed": sim}, loops={"scheduled": loop})
+        bottom = plots.transition_figure(flown).axes[2]
+        assert bottom.get_ylabel() == label
+        np.testing.assert_allclose(bottom.get_lines()[0].get_ydata(), want, rtol=1e-12, atol=1e-15)
+        limits = [line for line in bottom.get_lines() if line.get_label() == "at a limit"]
+        assert len(limits) == (act is not None) and all(line.get_ydata()[0] == 1.0 for line in limits)
+
+
 def test_a_schedule_takes_the_gain_columns_of_its_integrators(transition):
     _, fixed, _ = transition
     with pytest.raises(ValueError, match=r"^schedule: 13 gain columns; a loop with 0 integrators schedules 12"):
