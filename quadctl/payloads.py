@@ -116,7 +116,7 @@ def cascade_margins(setup, lift, result) -> dict:
     (:class:`quadctl.sim.cascade_lift.Lifted`)."""
     gains = setup.pid
     n_att, n_pos = gains.ratios
-    eig = np.linalg.eigvals(lift.frame_map)
+    eig = lift.poles
     return {
         "law": "pid", "preset": gains.preset, "title": gains.title, "rate": float(gains["rate_hz"]),
         "samples_per_update": {"attitude": n_att, "position": n_pos},

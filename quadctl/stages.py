@@ -65,7 +65,7 @@ def cascade_instability(ws) -> str | None:
     if ws.setup.law != "pid":
         return None
     lift = ws.pid_lift
-    eig = np.linalg.eigvals(lift.frame_map)
+    eig = lift.poles
     if np.all(is_stable(eig, discrete=True)):
         return None
     return unstable_cascade_text(ws.setup.pid.title or ws.setup.pid.preset, float(np.abs(eig).max()),

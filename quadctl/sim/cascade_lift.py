@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -99,6 +100,12 @@ class Lifted:
         for p in range(self.frame):
             Phi = self.sample_map(p)[0] @ Phi
         return Phi
+
+    @cached_property
+    def poles(self) -> np.ndarray:
+        """The closed loop's poles in ``z`` of the frame period: the eigenvalues of :attr:`frame_map`, computed
+        once (the flight's check and ``margins.json`` both read them)."""
+        return np.linalg.eigvals(self.frame_map)
 
     def delayed_frame_map(self, j: int, delay: float) -> np.ndarray:
         """The closed loop's map over one frame with input ``j`` held ``delay`` s late (``d + f`` samples, ``f``
