@@ -39,22 +39,32 @@ def _design(ws, allow_saturation: bool) -> str | None:
 
 
 def _flight(ws, allow_saturation: bool) -> str | None:
-    """Why the flight fails its check: it did not finish, the PID cascade it flew is unstable about hover
-    (:func:`cascade_instability`), it flew its actuators' limits most of the run (unless accepted), or its
-    mission was not flown."""
+    """The first of :func:`flight_failures`: what ``quadctl run`` and the report stop on."""
+    reasons = flight_failures(ws, allow_saturation)
+    return reasons[0] if reasons else None
+
+
+def flight_failures(ws, allow_saturation: bool) -> tuple[str, ...]:
+    """Why the flight fails its check, in order; empty: it passes. First one of: it did not finish, the
+    PID cascade it flew is unstable about hover (:func:`cascade_instability`), it flew its actuators'
+    limits most of the run (:func:`saturation_failure`); then, beside it, its mission not flown (a run
+    that stopped early misses its waypoints too: both are said)."""
     flown = ws.simulation
-    if flown.sim.status != "ok":
-        return flown.sim.message
-    unstable = cascade_instability(ws)
-    if unstable:
-        return unstable
-    sat = flown.flight.get("saturation")
+    first = (flown.sim.message if flown.sim.status != "ok"
+             else cascade_instability(ws) or saturation_failure(ws, allow_saturation))
+    return tuple(why for why in (first, mission_text(flown.flight.get("reference"))) if why)
+
+
+def saturation_failure(ws, allow_saturation: bool) -> str | None:
+    """Why the flight fails on its actuators' limits: at a limit most of the run, unless accepted
+    (``allow_saturation``, or the config's ``allow: [saturation]``); None: it does not."""
+    sat = ws.simulation.flight.get("saturation")
     try:
         require_within_limits(sat["fraction"] if sat else None, sat["mode"] if sat else None,
                               allowed=allow_saturation or "saturation" in ws.cfg.allow)
     except SaturationFailed as exc:
         return str(exc)
-    return mission_text(flown.flight.get("reference"))
+    return None
 
 
 def cascade_instability(ws) -> str | None:

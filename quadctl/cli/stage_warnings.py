@@ -6,14 +6,17 @@ from __future__ import annotations
 
 def warn_of_the_flight(ws, flown, allow_saturation: bool) -> None:
     """The warnings on a flight (``simulate`` and ``run`` alike): inputs at a limit for a part of the
-    run the gate lets through, the gain schedule's (a mission that fails is a failed check:
-    :func:`mission_failure`)."""
+    run the gate lets through, the gain schedule's (what fails the flight is a failed check:
+    :func:`quadctl.stages.flight_failures`)."""
     from quadctl.cli import render
     from quadctl.present.flight import saturation_text
 
     saturates = saturation_text(flown.flight)
-    if saturates and not _fails_on_saturation(ws, flown, allow_saturation):  # else the error says it
-        render.warning(saturates)
+    if saturates:
+        from quadctl.stages import saturation_failure
+
+        if saturation_failure(ws, allow_saturation) is None:  # else the failed check says it
+            render.warning(saturates)
     warn_of_ignored_steps(ws)
     warn_of_the_schedule(ws)
 
@@ -46,26 +49,6 @@ def warn_of_the_schedule(ws) -> None:
 
         for line in flight_warnings(ws.schedule):
             render.warning(line)
-
-
-def require_within_limits(ws, flown, allow_saturation: bool) -> None:
-    """Exit 1 (a check failed) when the design saturates most of the run and nobody accepted it."""
-    from quadctl.physics import motors
-
-    sat = flown.flight.get("saturation")
-    fractions, mode = (sat["fraction"], sat["mode"]) if sat else (None, None)
-    motors.require_within_limits(fractions, mode,
-                                 allowed=allow_saturation or "saturation" in ws.cfg.allow)
-
-
-def _fails_on_saturation(ws, flown, allow_saturation: bool) -> bool:
-    from quadctl.errors import SaturationFailed
-
-    try:
-        require_within_limits(ws, flown, allow_saturation)
-    except SaturationFailed:
-        return True
-    return False
 
 
 def warn_of_the_rate(rate: float, warnings) -> None:

@@ -10,7 +10,7 @@ from quadctl.cli.options import (
     SetOpt,
     open_workspace,
 )
-from quadctl.cli.stage_warnings import mission_failure, require_within_limits, warn_of_the_flight
+from quadctl.cli.stage_warnings import mission_failure, warn_of_the_flight
 
 NAME = "simulate"
 
@@ -22,8 +22,10 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
 
     The loop flies simulation.reference (setpoints or a mission) when the config gives one, and the
     gain schedule when it has a schedule: section (schedule.json and schedule.npz written beside).
-    Exits 1 when the run diverges or leaves the model's valid range, or its mission misses a waypoint or
-    ends farther than the tolerance from it (what was computed is saved).
+    Exits 1 when the run diverges or leaves the model's valid range, the PID cascade it flies
+    (controller.flies: pid) is unstable about hover, it flies its actuators' limits most of the run
+    (unless accepted), or its mission misses a waypoint or ends farther than the tolerance from it
+    (what was computed is saved).
     """
     from quadctl.cli import render
     from quadctl.cli.figures import save_figures
@@ -59,14 +61,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, p
         for path in figures:
             render.out.print(f"figure -> {path}")
     warn_of_the_flight(ws, flown, allow_saturation)
-    mission = mission_failure(flown)
-    if sim.status != "ok":
-        raise FailedChecks(sim.message, *([mission] if mission else []))
-    from quadctl.stages import cascade_instability
+    from quadctl.stages import flight_failures
 
-    unstable = cascade_instability(ws)  # controller.flies: pid: a run that ended is not a stable cascade
-    if unstable:
-        raise FailedChecks(unstable, *([mission] if mission else []))
-    require_within_limits(ws, flown, allow_saturation)
-    if mission:
-        raise FailedChecks(mission)
+    reasons = flight_failures(ws, allow_saturation)
+    if reasons:
+        raise FailedChecks(*reasons)
