@@ -43,7 +43,7 @@ from quadctl.setup import Setup
 from quadctl.sim.cascade_margins import cascade_margins
 from quadctl.sim.exogenous import ExoStream
 from quadctl.sim.loop import ClosedLoop
-from quadctl.sim.run import SimResult, simulate
+from quadctl.sim.run import SimResult, simulate, stop_cause
 
 METRICS: tuple[tuple[str, str, str], ...] = (
     ("position_rms", "m", "RMS over the run of |p - p_ref|"),
@@ -123,8 +123,8 @@ class Comparison:
         for law in self.laws:
             if law.name != "lqr":
                 continue
-            if law.run.status != "ok":
-                out.append(f"lqr: {law.run.message}")
+            if law.run.status != "ok":  # what the run saved is not kept: compare.json has its metrics
+                out.append(f"lqr: {stop_cause(law.run.message)}")
             if law.margins and not all(m.stable for m in law.margins):
                 out.append("lqr: the closed loop is unstable (no margins)")
         return out

@@ -25,7 +25,7 @@ from quadctl.sim.plan import StepPlan
 from quadctl.sim.stack import run_stack, stack_of
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SimResult:
     """A simulation run.
 
@@ -227,25 +227,36 @@ STATUS_WORDS = {"ok": "completed", "diverged": "diverged", "left_valid_range": "
 
 
 def verdict(xs, t, done, n, lo, hi) -> tuple[str, str]:
-    """(status, message) of a run: ``ok``, ``diverged`` or ``left_valid_range``."""
+    """(status, message) of a run: ``ok``, ``diverged`` or ``left_valid_range`` (the message of a run that
+    stopped: its cause, then ``; saved N steps``, :func:`stop_cause`)."""
     if done == n:
         return "ok", f"completed {n} steps to t = {t[-1]:.6g} s"
     last = xs[-1]
     bad = [i for i in range(N_STATES) if not (lo[i] <= last[i] <= hi[i])]
     name = STATE_NAMES[bad[0]] if bad else "?"
     if not np.all(np.isfinite(last)):
-        return "diverged", f"diverged at t = {t[-1]:.4g} s: {name} is not finite; saved {_steps(done)}"
-    if name == "theta":
-        return "left_valid_range", (
+        status, cause = "diverged", f"diverged at t = {t[-1]:.4g} s: {name} is not finite"
+    elif name == "theta":
+        status, cause = "left_valid_range", (
             f"left the model's valid range at t = {t[-1]:.4g} s: pitch {math.degrees(last[bad[0]]):.1f} deg "
-            f"is beyond +-{math.degrees(VALID_PITCH):.0f} deg (Euler kinematics singular at 90); saved {_steps(done)}")
-    if name == "phi":
+            f"is beyond +-{math.degrees(VALID_PITCH):.0f} deg (Euler kinematics singular at 90)")
+    elif name == "phi":
         over = math.degrees(TURNED_OVER)
-        return "diverged", (f"diverged at t = {t[-1]:.4g} s: roll {math.degrees(last[bad[0]]):.1f} deg is {over:.0f} "
-                            "deg or more from the trim's: the vehicle turned over, its thrust no longer holds it up; "
-                            f"saved {_steps(done)}")
-    return "diverged", (f"diverged at t = {t[-1]:.4g} s: {name} = {last[bad[0]]:.3g} ran away; "
-                        f"saved {_steps(done)}")
+        status, cause = "diverged", (
+            f"diverged at t = {t[-1]:.4g} s: roll {math.degrees(last[bad[0]]):.1f} deg is {over:.0f} deg or more "
+            "from the trim's: the vehicle turned over, its thrust no longer holds it up")
+    else:
+        status, cause = "diverged", f"diverged at t = {t[-1]:.4g} s: {name} = {last[bad[0]]:.3g} ran away"
+    return status, f"{cause}{_SAVED}{_steps(done)}"
+
+
+_SAVED = "; saved "
+
+
+def stop_cause(message: str) -> str:
+    """A :func:`verdict` message without what the run saved: why it stopped (for a caller that keeps less
+    than the run's steps, such as ``quadctl compare``)."""
+    return message.rpartition(_SAVED)[0] or message
 
 
 def _steps(n: int) -> str:

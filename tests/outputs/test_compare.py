@@ -298,6 +298,7 @@ def test_compare_exits_1_when_the_lqr_design_fails_and_keeps_what_it_wrote(tmp_p
     assert res.exit_code == 1, res.output
     failed = [line for line in res.output.splitlines() if line.startswith("quadctl: check failed:")]
     assert len(failed) == 2 and "lqr: diverged at t = " in failed[0] and "turned over" in failed[0]
+    assert "saved" not in failed[0]  # compare keeps the run's metrics, not its steps
     assert failed[1] == "quadctl: check failed: lqr: the closed loop is unstable (no margins)"
     lqr, pid = json.loads((tmp_path / "compare.json").read_text())["laws"]
     assert (lqr["status"], lqr["closed_loop_stable"]) == ("diverged", False)
@@ -323,7 +324,7 @@ def test_design_failures_name_the_lqr_designs_run_and_loop_and_never_a_cascades(
     from quadctl.compare import Comparison
 
     def law(name, status, *stable):
-        return NS(name=name, run=NS(status=status, message=f"{status} at t = 1 s"),
+        return NS(name=name, run=NS(status=status, message=f"{status} at t = 1 s; saved 50 steps"),
                   margins=tuple(NS(stable=s) for s in stable))
 
     def failures(*laws):
