@@ -117,7 +117,7 @@ class EstimatorSpec:
     period: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Setup:
     """A config in numbers: what every stage reads.
 

@@ -24,7 +24,7 @@ from quadctl.linear import stability
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FullDesign:
     """A 12-state (LQI: 12 + nz) LQR on the coupled model.
 

@@ -75,7 +75,7 @@ def lqr(A, B, Q, R, N=None, *, name: str = "system", state_names=None) -> LqrRes
     return solve(A, B, Q, R, N, name=name, state_names=state_names)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SubsystemDesign:
     """LQR of one regulated subsystem.
 
@@ -101,7 +101,7 @@ class SubsystemDesign:
     Kv: np.ndarray | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Design:
     """The assembled decoupled design, checked on the full coupled linear model.
 

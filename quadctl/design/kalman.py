@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from quadctl.linear.filters import RateFilter
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Kalman:
     """A steady-state Kalman filter.
 

@@ -43,7 +43,7 @@ GRID_SPAN = 100.0
 """The grid reaches from the slowest nonzero loop eigenvalue / 100 to the fastest x 100."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LoopMargins:
     """Margins of one loop broken at one input.
 
@@ -204,7 +204,7 @@ def thin_loops(margins) -> list[LoopMargins]:
 # The loop transfer function
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BrokenLoop:
     """``L = k (sI - A)^-1 b`` (or in ``z`` with ``sample_time``): a loop broken at one input."""
 

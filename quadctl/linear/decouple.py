@@ -18,7 +18,7 @@ DROP_RTOL = 1e-12
 """An entry counts as dropped when ``|value| > DROP_RTOL * max|A|, max|B|`` (round-off is not a term)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Subsystem:
     """One block of a partition.
 
@@ -66,7 +66,7 @@ class DroppedTerm:
     unit: str
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Decoupled:
     """A partition of a linear model.
 

@@ -11,7 +11,7 @@ from quadctl.layout import N_INPUTS, N_STATES, POSITION
 from quadctl.physics.model import Vehicle, build_model
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LinearModel:
     """``d(dx)/dt = A dx + B du`` about ``(x_trim, u_trim)``.
 

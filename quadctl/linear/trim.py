@@ -28,7 +28,7 @@ _POSITION = [STATE_INDEX[s] for s in POSITION_STATES]
 _NON_POSITION = [i for i in range(N_STATES) if i not in _POSITION]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Trim:
     """An equilibrium of the model.
 

@@ -60,7 +60,7 @@ def eigen_owners(A_cl, state_owner: dict[str, str], names=STATE_NAMES) -> tuple[
     return eig, owners
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ClosedLoop:
     """Everything the simulation needs: the plant parameters, the trim and the control law.
 

@@ -201,3 +201,18 @@ def test_a_refused_call_raises_what_its_docstring_lists(name, call):
     with pytest.raises(qc.QuadctlError) as info:
         call()
     assert type(info.value).__name__ in _raises_section(getattr(qc, name)), (name, type(info.value).__name__)
+
+
+def test_results_of_arrays_compare_by_identity_and_can_be_keys():
+    """Two results solved alike are two results: ``==`` says whether they are the same one (NumPy's
+    element-wise ``==`` of their arrays made it raise), and each can key a dict."""
+    import numpy as np
+
+    A, B = [[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]]
+    a, b = (qc.lqr(A, B, np.eye(2), [[1.0]]) for _ in range(2))
+    assert a == a and a != b and not (a == b)
+    assert len({a: 1, b: 2}) == 2
+    stages = qc.Stages(qc.setup_of(qc.load_config("hover")))
+    for result in (stages.trim, stages.linear, stages.design, stages.decoupled, stages.loop, stages.setup,
+                   *stages.margins):
+        assert result == result and {result: 0}[result] == 0

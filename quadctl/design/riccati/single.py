@@ -34,7 +34,7 @@ from quadctl.text.messages import eig_text
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LqrResult:
     """One LQR solution; unpacks as ``K, P, E = lqr(...)`` (python-control's order).
 
