@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -296,23 +296,29 @@ def _lifted(loop) -> Lifted:
     free = np.concatenate([np.arange(pid.state_slice(name).start, pid.state_slice(name).stop) + base
                            for name in ("vel_integral", "rate_integral")])
 
+    jac = law_jacobians(spec)
+    rows = (slice(None) if not spec.delay
+            else slice(spec.buffer_start, spec.buffer_start + len(u_trim)))  # the command computed, in the buffer
+
     def computed(X):  # the command the law computes at X: applied at once, or shifted into the delay's buffer
-        if not spec.delay:
-            return np.asarray(law(X, 0.0, c, e)[0]).ravel()
-        return np.asarray(law(X, 0.0, c, e)[1]).ravel()[spec.buffer_start:spec.buffer_start + len(u_trim)]
+        return np.asarray(law(X, 0.0, c, e)[1 if spec.delay else 0]).ravel()[rows]
 
     def residual(values):
         X = X0.copy()
         X[free] = values
         return computed(X) - u_trim
 
-    fit = scipy.optimize.least_squares(residual, X0[free], xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    def residual_jacobian(values):  # exact, from CasADi: a few law calls, not one per free state and step
+        X = X0.copy()
+        X[free] = values
+        Ju, JX = jac(X, c, e)
+        return np.asarray(JX if spec.delay else Ju)[rows][:, free]
+
+    fit = scipy.optimize.least_squares(residual, X0[free], jac=residual_jacobian, xtol=1e-14, ftol=1e-14,
+                                       gtol=1e-14)
     X = X0.copy()
     X[free] = fit.x
     X = np.asarray(law(X, 0.0, c, e)[1]).ravel()  # the held setpoints of a first sample, phase 1
-    Xs = ca.SX.sym("X", spec.nx)
-    u_sym, X_next = law(Xs, 0.0, c, e)
-    jac = ca.Function("qc_law_jacobian", [Xs], [ca.jacobian(u_sym, Xs), ca.jacobian(X_next, Xs)])
     _, n_pos = gains.ratios
     phase = base + pid.state_slice("phase").start
     states, commands = [None] * n_pos, [None] * n_pos
@@ -321,7 +327,7 @@ def _lifted(loop) -> Lifted:
         p = int(round(X[phase]))
         if p == 0:
             start = X.copy()
-        Ju, JX = (np.asarray(m) for m in jac(X))
+        Ju, JX = (np.asarray(m) for m in jac(X, c, e))
         commands[p], states[p] = Ju, JX
         X = np.asarray(law(X, 0.0, c, e)[1]).ravel()
     keep = read_states(states, commands, npl)
@@ -329,6 +335,16 @@ def _lifted(loop) -> Lifted:
     return Lifted(plant=_hold(rates, Ts), law_state=[S[np.ix_(keep, keep)] for S in states],
                   law_command=[U[:, keep] for U in commands], sample_time=Ts, states=keep, equilibrium=start,
                   plant_rates=rates)
+
+
+@lru_cache(maxsize=8)
+def law_jacobians(spec):
+    """``(X, c, e) -> (du/dX, dX_sampled/dX)``: the exact Jacobians of the law of loop spec ``spec`` at the
+    start of a run (t = 0), built once per spec (a sweep's cases share it)."""
+    law = build(spec).law
+    X, c, e = ca.SX.sym("X", spec.nx), ca.SX.sym("c", spec.n_constants), ca.SX.sym("e", spec.n_exo)
+    u, X_next = law(X, 0.0, c, e)
+    return ca.Function("qc_law_jacobian", [X, c, e], [ca.jacobian(u, X), ca.jacobian(X_next, X)])
 
 
 def read_states(law_state, law_command, n_plant: int) -> np.ndarray:
