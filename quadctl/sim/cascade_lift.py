@@ -107,6 +107,16 @@ class Lifted:
         once (the flight's check and ``margins.json`` both read them)."""
         return np.linalg.eigvals(self.frame_map)
 
+    @property
+    def stable(self) -> bool:
+        """Whether the cascade holds hover: every pole inside the unit circle (:func:`is_stable`)."""
+        return bool(np.all(is_stable(self.poles, discrete=True)))
+
+    @property
+    def frame_time(self) -> float:
+        """s: the frame period ``N Ts`` the poles are in ``z`` of."""
+        return self.frame * self.sample_time
+
     def delayed_frame_map(self, j: int, delay: float) -> np.ndarray:
         """The closed loop's map over one frame with input ``j`` held ``delay`` s late (``d + f`` samples, ``f``
         in ``[0, 1)``): the plant is given the command of ``d + 1`` samples ago for the first ``f Ts`` of each
@@ -277,7 +287,8 @@ def _lifted(loop) -> Lifted:
     """:func:`lifted`, its Ctrl-C not held.
 
     The law's equilibrium is found first: the plant at trim, the integrators (velocity and rate) that
-    make the command the law computes the trim input (least squares), the held setpoints the first sample's.
+    make the command the law computes the trim input (:func:`nearest_zero`: the integrators have more states than
+    the command has inputs), the held setpoints the first sample's.
     With a delay (``loop.delay_samples``) the command computed is the one shifted into the buffer (the buffer
     holds the trim input), and the command applied, the buffer's oldest, is what the lifted loop breaks at.
     """
@@ -314,10 +325,8 @@ def _lifted(loop) -> Lifted:
         Ju, JX = jac(X, c, e)
         return np.asarray(JX if spec.delay else Ju)[rows][:, free]
 
-    fit = scipy.optimize.least_squares(residual, X0[free], jac=residual_jacobian, xtol=1e-14, ftol=1e-14,
-                                       gtol=1e-14)
     X = X0.copy()
-    X[free] = fit.x
+    X[free] = nearest_zero(residual, residual_jacobian, X0[free], scale=1.0 + float(np.max(np.abs(u_trim))))
     X = np.asarray(law(X, 0.0, c, e)[1]).ravel()  # the held setpoints of a first sample, phase 1
     _, n_pos = gains.ratios
     phase = base + pid.state_slice("phase").start
@@ -335,6 +344,25 @@ def _lifted(loop) -> Lifted:
     return Lifted(plant=_hold(rates, Ts), law_state=[S[np.ix_(keep, keep)] for S in states],
                   law_command=[U[:, keep] for U in commands], sample_time=Ts, states=keep, equilibrium=start,
                   plant_rates=rates)
+
+
+ZERO_STEPS = 20
+"""Gauss-Newton steps :func:`nearest_zero` takes before it hands the search to SciPy's least squares."""
+
+
+def nearest_zero(residual, jacobian, x0: np.ndarray, scale: float) -> np.ndarray:
+    """A zero of ``residual`` (fewer equations than unknowns) near ``x0``: Gauss-Newton steps of least norm
+    from ``x0`` (on a residual affine in ``x``, the zero nearest ``x0``, in one step), until the residual is
+    within round-off of ``scale`` (1e-14 of it); else SciPy's trust-region least squares from where they got
+    (a residual the steps do not settle)."""
+    x = np.array(x0, dtype=float)
+    for _ in range(ZERO_STEPS):
+        r = residual(x)
+        if np.max(np.abs(r)) <= 1e-14 * scale:
+            return x
+        x = x - np.linalg.lstsq(jacobian(x), r, rcond=None)[0]
+    fit = scipy.optimize.least_squares(residual, x, jac=jacobian, xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    return fit.x
 
 
 @lru_cache(maxsize=8)
