@@ -23,7 +23,6 @@ from typing import Any
 import numpy as np
 
 from quadctl.errors import QuadctlError, SaturationFailed
-from quadctl.linear.stability import is_stable
 from quadctl.physics.motors import require_within_limits
 from quadctl.present.loops import thin_sentence
 from quadctl.present.mission import mission_text
@@ -75,11 +74,10 @@ def cascade_instability(ws) -> str | None:
     if ws.setup.law != "pid":
         return None
     lift = ws.pid_lift
-    eig = lift.poles
-    if np.all(is_stable(eig, discrete=True)):
+    if lift.stable:
         return None
-    return unstable_cascade_text(ws.setup.pid.title or ws.setup.pid.preset, float(np.abs(eig).max()),
-                                 lift.frame * lift.sample_time)
+    return unstable_cascade_text(ws.setup.pid.title or ws.setup.pid.preset, float(np.abs(lift.poles).max()),
+                                 lift.frame_time)
 
 
 def _thin(ws, allow_saturation: bool) -> str | None:

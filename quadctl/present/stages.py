@@ -99,6 +99,11 @@ def unstable_cascade_text(title: str, radius: float, frame_s: float) -> str:
             "not grown yet. quadctl margins shows each of its loops")
 
 
+def unstable_cascade_gate(radius: float, frame_s: float) -> str:
+    """A sweep case's failure for a PID cascade unstable about hover (:func:`unstable_cascade_text`, short)."""
+    return f"the PID cascade is unstable about hover (spectral radius {radius:.5g} per {frame_s * 1e3:.3g} ms frame)"
+
+
 def trim_summary(trim) -> str:
     """The trim in one line: ``T = 0.6522 N, phi = 0.0000 rad, theta = -0.2119 rad, residual 1.6e-15``."""
     phi, theta = trim.x[STATE_INDEX["phi"]], trim.x[STATE_INDEX["theta"]]

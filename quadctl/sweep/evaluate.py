@@ -24,6 +24,7 @@ from quadctl.errors import ConfigError, DesignError, QuadctlError, StepSizeError
 from quadctl.layout import N_STATES, STATE_INDEX
 from quadctl.metrics import error_into, summarize_errors
 from quadctl.present.mission import mission_text
+from quadctl.present.stages import unstable_cascade_gate
 from quadctl.sim.lane_metrics import row_values, tracking
 from quadctl.sim.run import verdict
 from quadctl.sweep import batched, lane_jobs
@@ -143,6 +144,9 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
                     traces[prep.index] = trace
             except QuadctlError as exc:  # whatever a feature of the config refuses: a row, not a crash
                 rows[prep.index] = _failed(prep.head, "failed", str(exc))
+    for prep in ready:
+        if prep.setup.law == "pid":
+            _judge_cascade(rows[prep.index], prep)
     if gated_margins(task.gates):
         for prep in ready:
             _add_margins(rows[prep.index], prep)
@@ -159,6 +163,21 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
     stats["backend"] = sorted(stats["backend"])
     stats["wall_time"] = time.perf_counter() - start
     return ChunkResult(rows=out, stats=stats, traces=traces)
+
+
+def _judge_cascade(row: dict, prep: Prepared) -> None:
+    """With ``controller.flies: pid``, a case's ``stable`` is the cascade's that flies, as ``simulate`` checks it
+    (:attr:`quadctl.sim.cascade_lift.Lifted.stable`: its closed loop about hover, lifted to its frame), not the
+    LQR design's; ``eig.slowest`` is the rate of its slowest mode, ln(spectral radius) / frame (rad/s), and
+    ``eig.fastest`` is empty (the frame map's poles at 0, the held samples', have no rate)."""
+    if row.get("stable") is None:  # no design: the case did not fly
+        return
+    lift = pipeline.Stages(prep.setup, linear=prep.plant.linear, decoupled=prep.plant.decoupled).pid_lift
+    radius = float(np.abs(lift.poles).max())
+    row["stable"] = lift.stable
+    row["eig.fastest"], row["eig.slowest"] = None, float(np.log(radius)) / lift.frame_time
+    if not lift.stable:
+        row["instability"] = unstable_cascade_gate(radius, lift.frame_time)
 
 
 def _add_margins(row: dict, prep: Prepared) -> None:

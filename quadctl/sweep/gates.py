@@ -62,7 +62,8 @@ def metric_columns(cfg) -> list[str]:
     """The metric columns of a sweep of ``cfg``, in table order.
 
     ``stable`` (coupled linear closed loop), ``eig.fastest`` / ``eig.slowest`` (most negative and
-    largest real part of its eigenvalues, marginal position modes left out; rad/s), then per
+    largest real part of its eigenvalues, marginal position modes left out; rad/s; with
+    ``controller.flies: pid``, the cascade's lifted loop: ``quadctl.sweep.evaluate._judge_cascade``), then per
     regulated state ``settling_time.<state>`` (s, 2 % band) and ``overshoot.<state>`` (%), per
     input ``peak.<input>`` (max ``|u|``: N or N m), ``cost`` (the LQR cost integral), ``status``
     (the simulation's: ok, diverged, left_valid_range; or why the case has no simulation),
@@ -161,8 +162,8 @@ def judge(row: dict, gates, require_ok: bool) -> tuple[bool, list[str]]:
     if require_ok:
         if row.get("status") != "ok":
             failed.append(f"status {row.get('status')}")
-        elif row.get("stable") is False:
-            failed.append("unstable on the coupled model")
+        elif row.get("stable") is False:  # the LQR design on the coupled model, or the cascade that flies
+            failed.append(row.get("instability") or "unstable on the coupled model")
     for gate in gates:
         if not gate.passes(row.get(gate.metric)):
             value = row.get(gate.metric)

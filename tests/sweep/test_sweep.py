@@ -1173,3 +1173,30 @@ def test_execute_refuses_a_session_of_another_config_and_writes_nothing(cfg, tmp
     with artifacts.Session(other, tmp_path) as session, pytest.raises(ValueError, match=said):
         sweep.execute(cfg, spec, session, jobs=1, plot=False)
     assert not (tmp_path / "sweep.csv").exists() and not (tmp_path / "config.yaml").exists()
+
+
+def test_a_sweep_that_flies_the_cascade_judges_the_cascades_stability_not_the_lqr_designs():
+    """controller.flies: pid: one sample of delay leaves the stock Crazyflie cascade unstable about hover (as
+    simulate's check and quadctl margins find) while the LQR design stays stable, and a 0.3 s run still ends.
+    The row is unstable, with the lifted loop's radius, and fails require_ok; without the delay it is stable.
+    eig.slowest is ln(radius) / frame."""
+    from quadctl.setup import setup_of
+
+    cfg = config.load("crazyflie")
+    spec = spec_of(cfg, parameters={"controller.delay.samples": [0, 1]},
+                   set={"simulation.duration": 0.3, "controller.flies": "pid", "controller.delay": {"samples": 0}},
+                   require_ok=True)
+    fine, delayed = sweep.run(cfg, spec, jobs=1).rows
+    assert (fine["status"], delayed["status"]) == ("ok", "ok")
+    assert fine["stable"] and fine["pass"] and fine["eig.fastest"] is None
+    assert delayed["stable"] is False and not delayed["pass"]
+    data = cfg.model_dump(mode="json")
+    data["controller"].update(flies="pid", delay={"samples": 1})
+    st = pipeline.Stages(setup_of(config.from_dict(data)))
+    assert st.design.stable  # the LQR design, which does not fly, is stable
+    lift = st.pid_lift
+    radius = float(np.abs(lift.poles).max())
+    assert math.isclose(delayed["eig.slowest"], math.log(radius) / (lift.frame * lift.sample_time), rel_tol=1e-9)
+    assert delayed["eig.slowest"] > 0 > fine["eig.slowest"]
+    assert delayed["failed_gates"] == f"the PID cascade is unstable about hover (spectral radius {radius:.5g} " \
+                                      f"per {lift.frame * lift.sample_time * 1e3:.3g} ms frame)"
