@@ -121,7 +121,7 @@ def test_a_design_at_its_rotor_limits_most_of_the_run_fails_unless_accepted(tmp_
     out = str(tmp_path / "out")
     res = runner.invoke(app, ["simulate", "-c", str(path), "-o", out])
     assert res.exit_code == 1, res.output
-    assert re.search(r"^quadctl: check failed: .*c\.yaml: the design saturates: rotor \d is at a limit 100 % of "
+    assert re.search(r"^quadctl: check failed: the design saturates: rotor \d is at a limit 100 % of "
                      r"the run, more than 50 %, so it flies its limits, not the design; lower the "
                      r"gains \(larger lqr R\) or the initial offset, or give the rotors the thrust they really have "
                      r"\(motors\.max_thrust\); --allow-saturation \(or allow: \[saturation\] in the config\) accepts "
