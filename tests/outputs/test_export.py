@@ -124,15 +124,17 @@ def prepared(case: str):
 
 
 class Controller:
-    """The exported C loaded with ctypes (``quadctl_init``, ``quadctl_step``, ``quadctl_mix``)."""
+    """The exported C loaded with ctypes (``quadctl_init``, ``quadctl_step``, ``quadctl_mix``), compiled with
+    ``STRICT -O2`` and ``flags``."""
 
-    def __init__(self, exp, folder, single: bool):
+    def __init__(self, exp, folder, single: bool, flags: tuple[str, ...] = ()):
         folder.mkdir(parents=True, exist_ok=True)
         for name, text in cexport.sources(exp).items():
             (folder / name).write_text(text)
-        lib = folder / f"controller_{'float' if single else 'double'}.so"
-        res = subprocess.run([cc(), *STRICT, "-O2", "-fPIC", "-shared", *(["-DQUADCTL_FLOAT"] if single else []),
-                              str(folder / cexport.SOURCE), "-o", str(lib), "-lm"], capture_output=True, text=True)
+        lib = folder / f"controller_{'float' if single else 'double'}{''.join(flags)}.so"
+        res = subprocess.run([cc(), *STRICT, "-O2", *flags, "-fPIC", "-shared",
+                              *(["-DQUADCTL_FLOAT"] if single else []), str(folder / cexport.SOURCE), "-o", str(lib),
+                              "-lm"], capture_output=True, text=True)
         assert res.returncode == 0, res.stderr
         self.lib = ctypes.CDLL(str(lib))
         self.real = ctypes.c_float if single else ctypes.c_double
