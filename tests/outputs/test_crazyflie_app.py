@@ -12,6 +12,7 @@ the simulation's rotor thrusts. Each frame conversion is checked alone on a hand
 from __future__ import annotations
 
 import copy
+import os
 import re
 import shutil
 import subprocess
@@ -600,6 +601,69 @@ def test_the_app_cross_compiles_for_the_cortex_m4_without_double_precision_calls
         print(f"{mode}: {name}.o text {text} B, data {data} B, bss {bss} B")
     print(f"{mode}: the app's controller and adapter: {total} B of flash")
     assert total < 16384  # a few kB on a 1 MB flash
+
+
+OOT_MK_STAND_IN = """OOT ?= $(PWD)
+OOT_CONFIG ?= $(OOT)/oot-config
+show:
+\t@echo $(OOT) $(OOT_CONFIG) $(EXTRA_CFLAGS)
+"""
+"""A stand-in for the firmware's tools/make/oot.mk: its defaults (the app's folder from the shell's PWD, the
+config beside it) and a target that shows what the firmware's build would be given."""
+
+
+def test_the_apps_makefile_finds_the_app_when_make_starts_elsewhere(tmp_path):
+    """``make -C APP``, or a script's make run in APP with its own PWD, builds the app: the Makefile takes the
+    app's folder from make (CURDIR). From the shell's PWD, which neither changes, the firmware built the
+    caller's folder without app-config, so without the out-of-tree controller."""
+    make = shutil.which("make")
+    if make is None:
+        pytest.skip("make is not installed: the app's Makefile is not run here")
+    export_app(crazyflie_config(tmp_path), tmp_path / "app", "--setpoint", "velocity")
+    firmware, elsewhere = tmp_path / "firmware", tmp_path / "elsewhere"
+    (firmware / "tools" / "make").mkdir(parents=True)
+    (firmware / "tools" / "make" / "oot.mk").write_text(OOT_MK_STAND_IN)
+    elsewhere.mkdir()
+    res = subprocess.run([make, "--no-print-directory", "-s", "-C", str(tmp_path / "app"),
+                          f"CRAZYFLIE_BASE={firmware}", "show"], cwd=elsewhere,
+                         env={**os.environ, "PWD": str(elsewhere)}, capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.split() == [str(tmp_path / "app"), str(tmp_path / "app" / "app-config"), "-DQUADCTL_FLOAT"]
+
+
+FIRMWARE_CHECKOUT = "QUADCTL_CRAZYFLIE_FIRMWARE"
+"""The environment variable naming a checkout of bitcraze/crazyflie-firmware with its submodules: where it is
+set, the app is built inside it."""
+
+
+@pytest.mark.slow
+def test_the_app_builds_and_links_inside_the_firmware(tmp_path):
+    """The firmware's own build (its headers, flags and link) of the exported app, with the arm-none-eabi
+    toolchain: the image holds the out-of-tree controller, and no app object calls a double-precision helper."""
+    base = os.environ.get(FIRMWARE_CHECKOUT)
+    if not base:
+        pytest.skip(f"{FIRMWARE_CHECKOUT} is not set: set it to a crazyflie-firmware checkout with its submodules "
+                    "to build the app inside the firmware")
+    tools = {name: shutil.which(name) for name in ("make", "arm-none-eabi-gcc", "arm-none-eabi-nm")}
+    if not all(tools.values()):
+        pytest.skip(f"not installed: {', '.join(n for n, p in tools.items() if p is None)} (Debian: apt-get install "
+                    "make gcc-arm-none-eabi)")
+    assert (Path(base) / "tools" / "make" / "oot.mk").is_file(), f"{FIRMWARE_CHECKOUT}={base}: no tools/make/oot.mk"
+    app_dir = tmp_path / "app"
+    export_app(crazyflie_config(tmp_path), app_dir, "--setpoint", "velocity")
+    res = subprocess.run([tools["make"], f"-j{os.cpu_count() or 1}", f"CRAZYFLIE_BASE={base}"], cwd=app_dir,
+                         capture_output=True, text=True, timeout=1800)
+    assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-4000:]
+    assert "CONFIG_CONTROLLER_OOT=y" in (app_dir / "build" / ".config").read_text().splitlines()
+    assert (app_dir / "build" / "cf2.bin").is_file()
+    nm = tools["arm-none-eabi-nm"]
+    defined = subprocess.run([nm, "--defined-only", str(app_dir / "build" / "cf2.elf")], capture_output=True,
+                             text=True, check=True).stdout.split()
+    for symbol in ("controllerOutOfTree", "controllerOutOfTreeInit", "controllerOutOfTreeTest", "quadctl_step_ref"):
+        assert symbol in defined, f"cf2.elf does not define {symbol}"
+    for obj in sorted((app_dir / "src").glob("quadctl_*.o")):
+        undefined = subprocess.run([nm, "-u", str(obj)], capture_output=True, text=True, check=True).stdout
+        assert "__aeabi_d" not in undefined, f"{obj.name} calls double-precision helpers:\n{undefined}"
 
 
 def test_the_c_header_gives_the_trim_as_macros_and_quadctl_trim(tmp_path):
