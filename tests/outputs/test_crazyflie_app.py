@@ -147,7 +147,7 @@ int main(int argc, char **argv) {
   return 0;
 }
 """
-MODE_ABS, MODE_VELOCITY = 1, 2
+MODE_DISABLE, MODE_ABS, MODE_VELOCITY = 0, 1, 2
 FLU = np.diag([1.0, -1.0, -1.0])
 """x forward (north), y left, z up from NED / FRD, and back."""
 
@@ -398,6 +398,26 @@ def test_a_yaw_rate_and_velocity_setpoint_turns_the_reference_as_the_frames_say(
     vn, ve = 1.0, -0.5
     np.testing.assert_allclose(x[:, STATE_INDEX["u"]], np.cos(psi) * vn + np.sin(psi) * ve, atol=tol)
     np.testing.assert_allclose(x[:, STATE_INDEX["v"]], -np.sin(psi) * vn + np.cos(psi) * ve, atol=tol)
+
+
+def test_an_axis_the_setpoint_leaves_out_holds_still_where_it_was(state_harness):
+    """Setpoints that stop coming while the vehicle flies a velocity: after 0.5 s the firmware's supervisor
+    levels it out (its WarningLevelOut: x and y modeDisable, z kept). Every axis the setpoint leaves out holds
+    its last position or yaw, still: velocity and yaw rate 0. The app kept the last velocity and yaw rate,
+    and flew on at 1 m/s."""
+    n, dt, rate = 10, 0.01, 30.0  # records of each kind, s (the harness's REFERENCE_DT), deg/s
+    rows = np.zeros((2 * n, 29))
+    rows[:, 19] = 1.0  # identity quaternion (the state is not read)
+    rows[:, 7] = 1.0  # z = 1 m up
+    rows[:n, 0:4] = [MODE_VELOCITY, MODE_VELOCITY, MODE_ABS, MODE_VELOCITY]
+    rows[:n, 8], rows[:n, 9], rows[:n, 12] = 1.0, 0.5, rate
+    rows[n:, 0:4] = [MODE_DISABLE, MODE_DISABLE, MODE_ABS, MODE_DISABLE]
+    x = run_harness(state_harness, rows.astype(np.float32).tobytes(), "reference")
+    tol = 1e-6  # single precision of the firmware's floats, on values of order one
+    for name in ("u", "v", "w", "r"):
+        np.testing.assert_allclose(x[n:, STATE_INDEX[name]], 0.0, atol=tol, err_msg=name)
+    for name, last in (("pN", n * dt * 1.0), ("pE", -n * dt * 0.5), ("pD", -1.0), ("psi", -np.radians(rate) * n * dt)):
+        np.testing.assert_allclose(x[n - 1:, STATE_INDEX[name]], last, atol=tol, err_msg=name)
 
 
 @pytest.mark.parametrize("case", ["nose up", "rolled right", "yawed left"])

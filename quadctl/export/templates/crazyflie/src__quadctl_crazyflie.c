@@ -58,13 +58,14 @@ void quadctl_cf_reference(quadctl_reference *ref, const setpoint_t *sp, quadctl_
   } else if (sp->mode.yaw == modeVelocity) {
     ref->x[QUADCTL_X_R] = -sp->attitudeRate.yaw * QC_CF_DEG;
     ref->x[QUADCTL_X_PSI] = quadctl_cf_wrap(ref->x[QUADCTL_X_PSI] + ref->x[QUADCTL_X_R] * dt);
+  } else {  /* left out: the yaw held, still */
+    ref->x[QUADCTL_X_R] = 0.0f;
   }
   c = cosf(ref->x[QUADCTL_X_PSI]);
   s = sinf(ref->x[QUADCTL_X_PSI]);
-  /* the held world velocity (NED), from the body's before this sample */
-  vn = c * ref->x[QUADCTL_X_U] - s * ref->x[QUADCTL_X_V];
-  ve = s * ref->x[QUADCTL_X_U] + c * ref->x[QUADCTL_X_V];
-  vd = ref->x[QUADCTL_X_W];
+  /* the world velocity (NED): the setpoint's on an axis in modeVelocity, else 0 (a position given,
+   * or the axis left out, as the supervisor's level-out leaves x and y: held where it was) */
+  vn = ve = vd = 0.0f;
   if (sp->mode.x == modeVelocity && sp->mode.y == modeVelocity && sp->velocity_body) {
     fwd = sp->velocity.x;
     right = -sp->velocity.y;
@@ -77,19 +78,16 @@ void quadctl_cf_reference(quadctl_reference *ref, const setpoint_t *sp, quadctl_
   if (sp->mode.z == modeVelocity) vd = -sp->velocity.z;
   if (sp->mode.x == modeAbs) {
     ref->x[QUADCTL_X_PN] = sp->position.x;
-    vn = 0.0f;
   } else if (sp->mode.x == modeVelocity) {
     ref->x[QUADCTL_X_PN] += vn * dt;
   }
   if (sp->mode.y == modeAbs) {
     ref->x[QUADCTL_X_PE] = -sp->position.y;
-    ve = 0.0f;
   } else if (sp->mode.y == modeVelocity) {
     ref->x[QUADCTL_X_PE] += ve * dt;
   }
   if (sp->mode.z == modeAbs) {
     ref->x[QUADCTL_X_PD] = -sp->position.z;
-    vd = 0.0f;
   } else if (sp->mode.z == modeVelocity) {
     ref->x[QUADCTL_X_PD] += vd * dt;
   }

@@ -20,8 +20,10 @@
  *   velocity, modeVelocity per axis: the world velocity (or, with velocity_body, the body's: x
  *   forward, y left), the held position moving with it; z: vz up;
  *   yaw modeAbs: psi = -yaw; yaw modeVelocity: r = -yaw rate, the held yaw moving with it.
- *   An axis in another mode keeps its last reference. Roll and pitch stay at the trim's, and the
- *   feedforward input is the trim's (u_ref = u_trim): the law regulates to a hover at the point.
+ *   An axis left out (modeDisable; the supervisor's level-out, when setpoints stop coming for 0.5 s,
+ *   leaves out x and y) holds its last position or yaw, still (velocity and yaw rate 0).
+ *   Roll and pitch stay at the trim's, and the feedforward input is the trim's (u_ref = u_trim):
+ *   the law regulates to a hover at the point.
  *   mode.z == modeDisable (the commander stops, or sends nothing): outputs zero, and the next
  *   setpoint with z starts the controller afresh (quadctl_init), its held position and yaw at the
  *   state measured then.
