@@ -104,7 +104,9 @@ def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
     """PBH test at each distinct eigenvalue of ``A`` (or at those ``keep`` selects).
 
     Each test is an SVD of an ``n x (n + m)`` matrix; no matrix powers, so no overflow however
-    large the entries of ``A``.
+    large the entries of ``A``. Every eigenvalue is tested: two within ``1e-9 max(1, |lambda|)`` of
+    each other are reported once, by the lower rank, since at the rank tolerance they can be two
+    modes one input reaches and one it does not (``diag(1, 1 + 1e-10)``, ``B = [1; 0]``).
 
     Parameters
     ----------
@@ -121,21 +123,21 @@ def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
     M = np.asarray(M, dtype=float)
     n = A.shape[0]
     eigvals, eigvecs = np.linalg.eig(A.T if not dual else A)
-    tests = []
-    seen: list[complex] = []
+    tests: list[ModeTest] = []
     for k, lam in enumerate(eigvals):
         if keep is not None and not keep(lam):
             continue
-        if any(abs(lam - s) <= 1e-9 * max(1.0, abs(lam)) for s in seen):
-            continue
-        seen.append(lam)
         pencil = lam * np.eye(n) - A
         stacked = np.vstack([pencil, M]) if dual else np.hstack([pencil, M])
         r = numerical_rank(stacked).rank
         vec = np.abs(eigvecs[:, k])
         order = [i for i in np.argsort(-vec) if vec[i] > 0.1 * vec.max()]
-        tests.append(ModeTest(eigenvalue=complex(lam), rank=r, passed=r == n,
-                              states=tuple(names[i] for i in order)))
+        test = ModeTest(eigenvalue=complex(lam), rank=r, passed=r == n, states=tuple(names[i] for i in order))
+        same = next((j for j, t in enumerate(tests) if abs(lam - t.eigenvalue) <= 1e-9 * max(1.0, abs(lam))), None)
+        if same is None:
+            tests.append(test)
+        elif r < tests[same].rank:
+            tests[same] = test
     return tuple(tests)
 
 

@@ -68,6 +68,72 @@ def test_uncontrollable_mode_is_found_by_pbh():
     assert check(np.diag([-1.0, -2.0]), B).stabilizable  # uncontrollable but stable
 
 
+@pytest.mark.parametrize("order", [(1.0, 1.0 + 1e-10), (1.0 + 1e-10, 1.0)])
+def test_a_mode_next_to_a_controllable_one_is_tested_at_its_own_eigenvalue(order):
+    """Two unstable modes 1e-10 apart, one of them out of the input's reach: at the stated rank
+    tolerance they are two modes (the SVD of ``[lambda I - A, B]`` at the unreached one has rank 1),
+    and the Kalman matrix has rank 1; the verdict is not controllable, not stabilizable."""
+    A = np.diag(order)
+    reached = int(np.argmin(order))  # the input reaches the mode at 1
+    B = np.eye(2)[:, [reached]]
+    unreached = order[1 - reached]
+    assert np.linalg.matrix_rank(np.hstack([unreached * np.eye(2) - A, B])) == 1
+    assert np.linalg.matrix_rank(np.hstack([B, A @ B])) == 1
+    c = check(A, B, names=["a", "b"])
+    assert not c.controllable and not c.stabilizable
+    assert [m.eigenvalue for m in c.unstabilizable_modes] == [unreached]
+    assert c.unstabilizable_modes[0].states == ("ab"[1 - reached],)
+
+
+@pytest.mark.parametrize("factor, controllable", [(1.2, True), (0.8, False)])
+def test_a_nearly_unreached_mode_is_decided_by_the_stated_tolerance(factor, controllable):
+    """``A = diag(-1, 1)``, ``B = [1; delta]``: the mode at 1 is reached through ``delta`` alone. The
+    PBH matrix at 1 has singular values ``~sqrt(5)`` and ``2 delta / sqrt(5)``; the verdict flips where
+    the smaller crosses ``tol = max(shape) eps sigma_max`` (docs/model.md, "Checks"), here at delta ~ 1.7e-15."""
+    A = np.diag([-1.0, 1.0])
+    pencil = np.hstack([np.eye(2) - A, [[1.0], [0.0]]])
+    tol = 3 * np.finfo(float).eps * np.linalg.norm(pencil, 2)
+    delta = factor * tol * math.sqrt(5) / 2  # sigma_min = factor * tol, to first order in delta
+    B = np.array([[1.0], [delta]])
+    sv = np.linalg.svd(np.hstack([np.eye(2) - A, B]), compute_uv=False)
+    assert (sv[-1] > tol) == controllable
+    c = check(A, B)
+    assert c.controllable == controllable and c.stabilizable == controllable
+    assert c.pbh_ctrb[[m.eigenvalue for m in c.pbh_ctrb].index(1.0)].rank == (2 if controllable else 1)
+
+
+def _subspace_states(basis, names) -> tuple[str, ...]:
+    """The names of the rows of an orthonormal ``basis`` above a tenth of the largest row, largest first."""
+    weight = np.linalg.norm(basis, axis=1)
+    return tuple(names[i] for i in np.argsort(-weight) if weight[i] > 0.1 * weight.max())
+
+
+@pytest.mark.parametrize("dual", [False, True], ids=["unreachable", "unobservable"])
+def test_a_lost_mode_is_named_by_the_states_of_the_subspace_the_svd_leaves_out(dual):
+    """Not a diagonal ``A``: ``a`` drives ``b`` (controllability), or ``b`` drives ``a`` (observability),
+    and only ``b`` is actuated or measured. The states no input reaches span the left null space of the
+    Kalman matrix; those no output sees, the null space of the observability matrix (both by SVD). The
+    mode at s = 1 is named by them (``a``), not by its eigenvector on the other side (``b`` and ``a``)."""
+    names = ["a", "b"]
+    A = np.array([[1.0, 0.0], [5.0, -2.0]])
+    b = np.array([[0.0], [1.0]])
+    if dual:
+        A = A.T
+        c = check(A, np.zeros((2, 1)), b.T, names)
+        u, sv, vh = np.linalg.svd(np.vstack([b.T, b.T @ A]))
+        lost = vh[np.sum(sv > 1e-12):].T
+        modes = c.pbh_obsv
+    else:
+        c = check(A, b, names=names)
+        u, sv, _ = np.linalg.svd(np.hstack([b, A @ b]))
+        lost = u[:, np.sum(sv > 1e-12):]
+        modes = c.pbh_ctrb
+    assert lost.shape == (2, 1)
+    failed = [m for m in modes if not m.passed]
+    assert [m.eigenvalue for m in failed] == [1.0]
+    assert failed[0].states == _subspace_states(lost, names) == ("a",)
+
+
 def test_scalar_integrator_closed_form():
     q, r = 9.0, 4.0
     K, P, E = lqr([[0.0]], [[1.0]], [[q]], [[r]])
