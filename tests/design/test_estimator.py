@@ -65,7 +65,7 @@ def test_the_discrete_filter_is_the_dare_solution_and_dlqes_predictor_gain_is_ad
     # the covariance Z is smaller than P (a measurement helps), and the estimator is stable
     assert np.all(np.diag(kal.Z) <= np.diag(kal.P)) and np.abs(kal.eigenvalues).max() < 1
     control = pytest.importorskip("control")
-    L, Pc, E = control.dlqe(kal.A, kal.G, kal.C, kal.Qn, kal.Rn)
+    L, Pc, E = control.dlqe(kal.A, kal.G, kal.C, kal.Qn, kal.Rn, method="scipy")  # not Slycot's: see below
     # python-control's dlqe returns the predictor gain A M (its issue #1173), not MATLAB's M
     assert np.abs(L - kal.predictor_gain).max() <= GAIN_RTOL * np.abs(L).max()
     assert np.abs(L - kal.gain).max() > 1e-3 * np.abs(L).max()
@@ -85,7 +85,10 @@ def test_the_kalman_bucy_filter_is_the_care_solution_and_lqes():
     assert np.abs(kal.gain - L).max() <= GAIN_RTOL * np.abs(L).max()
     assert np.all(kal.eigenvalues.real < 0)
     control = pytest.importorskip("control")
-    Lc, Pc, _ = control.lqe(linear.A, kal.G, kal.C, kal.Qn, kal.Rn)
+    # python-control solves with Slycot's SB02MD when Slycot is installed: its P has a relative residual
+    # of 1.4e-7 here (quadctl's 8.8e-16, SciPy's 6.9e-12) and its gain is 8.2e-7 off; SciPy's solver is
+    # asked for, so the reference is the same whatever else is installed
+    Lc, Pc, _ = control.lqe(linear.A, kal.G, kal.C, kal.Qn, kal.Rn, method="scipy")
     assert np.abs(Lc - kal.gain).max() <= 1e-8 * np.abs(Lc).max()  # python-control's CARE: ~1e-10 measured
 
 
