@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 from quadctl import config
 from quadctl.cli.app import app
-from quadctl.design import margin_findings, margins
+from quadctl.design import linear_loop, margin_findings, margins
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
 
@@ -35,6 +35,31 @@ def test_the_delay_margin_of_an_integrator_loop_is_pi_over_2_wc(wc):
     assert m.phase_margin_deg == pytest.approx(90.0, rel=CLOSED_FORM)
     assert m.delay_margin == pytest.approx(math.pi / 2 / wc, rel=CLOSED_FORM)
     assert m.delay_margin_samples is None  # continuous: no samples
+
+
+@pytest.mark.parametrize("samples", [0, 1, 3])
+@pytest.mark.parametrize("k", [5.0, 40.0, 150.0])
+def test_a_sampled_integrator_with_n_samples_of_delay_has_the_closed_form_margins(k, samples):
+    """``x <- x + Ts u``, ``u = -k x`` delayed ``n`` samples: ``L(z) = k Ts / ((z - 1) z^n)``. On
+    ``z = e^(j w Ts)``, ``|L| = k Ts / (2 sin(w Ts / 2))`` and ``arg L = -pi/2 - w Ts / 2 - n w Ts``, so
+    ``w_c = (2 / Ts) asin(k Ts / 2)``, ``PM = pi/2 - (n + 1/2) w_c Ts``, the delay margin ``PM / w_c``, and
+    the phase reaches -pi at ``w_180 = pi / (2 (n + 1/2) Ts)``, where the upper gain margin is ``1 / |L|``.
+    At k = 150, n = 3 the phase margin is negative: the loop is unstable and has none."""
+    Ts = 0.005
+    A, B, K = linear_loop.delayed(np.eye(1), np.array([[Ts]]), np.array([[k]]), samples)
+    m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], K[0], Ts))
+    wc = 2 / Ts * math.asin(k * Ts / 2)
+    pm = math.pi / 2 - (samples + 0.5) * wc * Ts
+    if pm < 0:
+        assert not m.stable and m.phase_margin_deg is None
+        return
+    w180 = math.pi / (2 * (samples + 0.5) * Ts)
+    assert m.gain_crossover_freq == pytest.approx(wc, rel=CLOSED_FORM)
+    assert m.phase_margin_deg == pytest.approx(math.degrees(pm), rel=CLOSED_FORM)
+    assert m.delay_margin == pytest.approx(pm / wc, rel=CLOSED_FORM)
+    assert m.delay_margin_samples == pytest.approx(pm / wc / Ts, rel=CLOSED_FORM)
+    upper = 20 * math.log10(2 * math.sin(w180 * Ts / 2) / (k * Ts))
+    assert m.gain_margin_db[1] == pytest.approx(upper, rel=CLOSED_FORM)
 
 
 def test_each_sample_of_delay_takes_one_sample_of_margin():
