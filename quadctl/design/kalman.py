@@ -183,7 +183,9 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
     sample_time : float, optional
         s: the discrete filter at this period (:data:`Kalman.form` ``filter``); None: Kalman-Bucy.
     period : float, optional
-        s the noise is held for: the continuous intensities ``sigma^2 period`` (required then).
+        s the noise is held for: the continuous intensities ``sigma^2 period`` (required then). For a
+        discrete filter, the process noise held over each sample has the same intensity: the variance
+        ``sigma^2 period / sample_time`` (exact when ``period = sample_time``; default that).
     rate_filter : quadctl.linear.filters.RateFilter, optional
         The gyro filter the measured rates pass through (module doc): the model's state is ``[x; g]``,
         the filter at ``sample_time`` (continuous without one).
@@ -224,6 +226,8 @@ def kalman(A, B, G, measured, sensor_std, process_std, *, sample_time: float | N
                       sample_time=None, residual=res.residual, rate_filter=rate_filter)
     Ad, Bd = dsc.c2d(A, B, sample_time)
     _, Gd = dsc.c2d(A, G, sample_time)
+    if period is not None:  # r holds of sigma^2 in a sample act as one of sigma^2 / r (to first order in A Ts)
+        Qn = Qn * (period / sample_time)
     Ad, Bd = series(Ad, Bd, form, rates)
     Gd = np.vstack([Gd, np.zeros((Ad.shape[0] - Gd.shape[0], Gd.shape[1]))])
     C = filtered_output(selector(measured), form, rates)
