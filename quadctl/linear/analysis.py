@@ -72,11 +72,23 @@ class Checks:
         return tuple(m for m in self.pbh_ctrb if not m.passed and not stability.is_stable(m.eigenvalue))
 
 
+SAME_EIGENVALUE = 1e-9
+"""Relative (to ``max(1, |lambda|)``): two computed eigenvalues this close are one mode's, for PBH."""
+NEWTON_STEPS = 3
+"""Newton steps a PBH test takes on its smallest singular value (:func:`pbh`)."""
+NEWTON_REACH = 100
+"""The steps stay within ``NEWTON_REACH * n * eps * ||A||_2`` of the computed eigenvalue: its error, an
+eigensolver's backward error ``~ n eps ||A||`` times the eigenvalue's condition number, up to 100."""
+
+
 def numerical_rank(mat: np.ndarray) -> Rank:
     """Rank by SVD with ``tol = max(shape) * eps * sigma_max``."""
     mat = np.atleast_2d(np.asarray(mat))
-    sv = np.linalg.svd(mat, compute_uv=False)
-    tol = max(mat.shape) * np.finfo(float).eps * (sv[0] if sv.size else 0.0)
+    return _rank_of(np.linalg.svd(mat, compute_uv=False), mat.shape)
+
+
+def _rank_of(sv: np.ndarray, shape) -> Rank:
+    tol = max(shape) * np.finfo(float).eps * (sv[0] if sv.size else 0.0)
     return Rank(rank=int((sv > tol).sum()), singular_values=sv, tolerance=float(tol))
 
 
@@ -104,9 +116,16 @@ def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
     """PBH test at each distinct eigenvalue of ``A`` (or at those ``keep`` selects).
 
     Each test is an SVD of an ``n x (n + m)`` matrix; no matrix powers, so no overflow however
-    large the entries of ``A``. Every eigenvalue is tested: two within ``1e-9 max(1, |lambda|)`` of
+    large the entries of ``A``. Every eigenvalue is tested: two within :data:`SAME_EIGENVALUE` of
     each other are reported once, by the lower rank, since at the rank tolerance they can be two
     modes one input reaches and one it does not (``diag(1, 1 + 1e-10)``, ``B = [1; 0]``).
+
+    A computed eigenvalue is off by the eigensolver's round-off, and at it the smallest singular
+    value of ``[lambda I - A, B]`` is that error, not zero: a few times the rank tolerance for one
+    system in a hundred that has a mode no input reaches. So each test also takes up to
+    :data:`NEWTON_STEPS` Newton steps from the eigenvalue toward a zero of that singular value
+    (``lambda <- lambda - sigma / (u^H [v_1..n])``, ``u, v`` its singular vectors), staying within
+    its round-off (:data:`NEWTON_REACH`), and the rank is the least it finds.
 
     Parameters
     ----------
@@ -123,22 +142,44 @@ def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
     M = np.asarray(M, dtype=float)
     n = A.shape[0]
     eigvals, eigvecs = np.linalg.eig(A.T if not dual else A)
+    reach = NEWTON_REACH * n * np.finfo(float).eps * (np.linalg.norm(A, 2) if n else 0.0)
     tests: list[ModeTest] = []
     for k, lam in enumerate(eigvals):
         if keep is not None and not keep(lam):
             continue
-        pencil = lam * np.eye(n) - A
-        stacked = np.vstack([pencil, M]) if dual else np.hstack([pencil, M])
-        r = numerical_rank(stacked).rank
+        r = _pbh_rank(lam, A, M, dual, reach)
         vec = np.abs(eigvecs[:, k])
         order = [i for i in np.argsort(-vec) if vec[i] > 0.1 * vec.max()]
         test = ModeTest(eigenvalue=complex(lam), rank=r, passed=r == n, states=tuple(names[i] for i in order))
-        same = next((j for j, t in enumerate(tests) if abs(lam - t.eigenvalue) <= 1e-9 * max(1.0, abs(lam))), None)
+        same = next((j for j, t in enumerate(tests)
+                     if abs(lam - t.eigenvalue) <= SAME_EIGENVALUE * max(1.0, abs(lam))), None)
         if same is None:
             tests.append(test)
         elif r < tests[same].rank:
             tests[same] = test
     return tuple(tests)
+
+
+def _pbh_rank(lam: complex, A: np.ndarray, M: np.ndarray, dual: bool, reach: float) -> int:
+    """The least rank of ``[mu I - A, M]`` (``[mu I - A; M]`` when ``dual``) at ``mu = lam`` and along
+    Newton's steps toward a zero of its smallest singular value, within ``reach`` of ``lam`` (:func:`pbh`)."""
+    n = A.shape[0]
+    mu, rank = lam, n
+    for _ in range(NEWTON_STEPS + 1):
+        pencil = mu * np.eye(n) - A
+        stacked = np.vstack([pencil, M]) if dual else np.hstack([pencil, M])
+        u, sv, vh = np.linalg.svd(stacked)
+        rank = min(rank, _rank_of(sv, stacked.shape).rank)
+        if rank < n:
+            break
+        left, right = u[:, n - 1], vh[n - 1].conj()  # stacked @ right = sv[n - 1] * left
+        slope = left[:n].conj() @ right if dual else left.conj() @ right[:n]
+        if slope == 0:
+            break
+        mu = mu - sv[n - 1] / slope
+        if abs(mu - lam) > reach:
+            break
+    return rank
 
 
 def check(A, B, C=None, names=None) -> Checks:
