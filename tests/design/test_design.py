@@ -9,10 +9,10 @@ import pytest
 
 from quadctl.design import design, lqr, riccati_residual
 from quadctl.errors import ArgumentError, DesignError
-from quadctl.layout import INPUT_INDEX, REPORT_PARTITION, STATE_NAMES
+from quadctl.layout import INPUT_INDEX, INPUT_NAMES, REPORT_PARTITION, STATE_NAMES
 from quadctl.linear import stability
 from quadctl.linear.analysis import check
-from quadctl.linear.decouple import decouple
+from quadctl.linear.decouple import DROP_RTOL, decouple
 
 
 def test_linear_model_report_entries(forward):
@@ -47,6 +47,30 @@ def test_decouple_keeps_blocks_and_lists_what_it_drops(forward):
         if d.matrix == "A":
             dropped_a[STATE_NAMES.index(d.row), STATE_NAMES.index(d.column)] = d.value
     np.testing.assert_allclose(dec.A_kept + dropped_a, linear.A, atol=1e-12)
+
+
+def test_decouple_drops_exactly_the_entries_no_subsystem_uses(forward):
+    """What decouple says it drops, against the partition read here: an entry of ``A`` is used when its
+    row and column are states of one subsystem, or its row is a state and its column a state the
+    subsystem takes as an input (guidance's ``u``, ``psi``); an entry of ``B`` when its row is a state
+    and its column an input of one subsystem. The dropped terms are every other entry above
+    ``DROP_RTOL`` of its matrix's largest, with its value."""
+    _, _, linear, dec, _ = forward
+    used = {"A": set(), "B": set()}
+    for spec in REPORT_PARTITION.values():
+        for row in spec["states"]:
+            used["A"].update((row, col) for col in spec["states"])
+            used["A"].update((row, i) for i in spec["inputs"] if i in STATE_NAMES)
+            used["B"].update((row, i) for i in spec["inputs"] if i in INPUT_NAMES)
+    expected = {}
+    for label, mat, columns in (("A", linear.A, STATE_NAMES), ("B", linear.B, INPUT_NAMES)):
+        scale = np.abs(mat).max()
+        for i, row in enumerate(STATE_NAMES):
+            for j, col in enumerate(columns):
+                if (row, col) not in used[label] and abs(mat[i, j]) > DROP_RTOL * scale:
+                    expected[(label, row, col)] = mat[i, j]
+    assert {(d.matrix, d.row, d.column): d.value for d in dec.dropped} == expected
+    assert ("A", "pN", "u") not in expected and ("A", "u", "theta") not in expected  # guidance's, pitch's
 
 
 def test_every_report_subsystem_controllable_and_observable(forward):
