@@ -176,8 +176,9 @@ def _pbh_rank(lam: complex, A: np.ndarray, M: np.ndarray, dual: bool, reach: flo
         slope = left[:n].conj() @ right if dual else left.conj() @ right[:n]
         if slope == 0:
             break
-        mu = mu - sv[n - 1] / slope
-        if abs(mu - lam) > reach:
+        with np.errstate(over="ignore", invalid="ignore"):  # a slope of 1e-310: a step to inf, beyond reach
+            mu = mu - sv[n - 1] / slope
+        if not abs(mu - lam) <= reach:
             break
     return rank
 

@@ -411,3 +411,23 @@ def test_discrete_or_continuous_is_the_designs_own_property(design_kind, expecte
     assert continuous.sample_time is None
     with pytest.raises(ValueError, match="design_rate 100 Hz: a discrete design is computed at the controller's"):
         Timing(rate=20.0, design_rate=100.0)
+
+
+def test_a_newton_step_toward_infinity_ends_the_pbh_search_quietly(monkeypatch):
+    """A singular vector pair whose slope is 1e-320 makes the next step 1e320, past the reach: the search stops
+    there with the rank it found, and the overflow is not a RuntimeWarning (``quadctl check`` would print it)."""
+    import warnings
+
+    from quadctl.linear import analysis
+
+    real = np.linalg.svd
+
+    def svd(M, *args, **kwargs):  # [mu - a, b]: the right singular vector's first entry 1e-320
+        if M.shape == (1, 2):
+            return np.eye(1), np.array([1.0]), np.array([[1e-320, 1.0], [1.0, -1e-320]])
+        return real(M, *args, **kwargs)
+
+    monkeypatch.setattr(analysis.np.linalg, "svd", svd)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert analysis._pbh_rank(0.0, np.zeros((1, 1)), np.ones((1, 1)), False, 1e-12) == 1
