@@ -47,6 +47,9 @@ Z95 = 1.959963984540054
 LEAD_IN = 2.0
 """s of the log before (and after) a window that a fit computes through: the lag's memory (its
 time constant, tens of ms) and the low-pass filter's settle in it to far below the noise."""
+COMMANDS_SEEN = 0.99
+"""A log sampled at this share of the vehicle's command rate or more (its median rate rounded) sees every
+command it flew: :func:`on_grid` holds them between samples."""
 _LAG_DELAY_STEP = 1e-4
 """s: the central difference of the lag in the delay (exact for a linearly interpolated command)."""
 
@@ -69,6 +72,10 @@ class Airframe:
         ``Jxx, Jyy, Jzz``, kg m^2 (a stage that does not fit one holds it).
     torque_coefficient : float
         N m per N.
+    command_rate : float or None
+        Hz: how often the vehicle's controller changes the rotor commands (the config's ``controller.rate``;
+        ``inf`` for a continuous controller). A log that samples them less often holds them linear between
+        its samples (:func:`on_grid`); None: they change no faster than any log samples them.
     """
 
     mass: float
@@ -77,15 +84,18 @@ class Airframe:
     spins: np.ndarray
     inertia: np.ndarray
     torque_coefficient: float
+    command_rate: float | None = None
 
     @classmethod
     def from_config(cls, cfg) -> Airframe:
         """From a :class:`quadctl.config.Config` (vehicle and motors; default motors when absent)."""
 
         motors = Motors.from_config(cfg.motors if cfg.motors is not None else MotorsConfig())
+        rate = cfg.controller.rate
         return cls(mass=cfg.vehicle.mass, gravity=cfg.vehicle.gravity, positions=motors.positions(),
                    spins=np.array(motors.rotor_spins()), inertia=np.array(cfg.vehicle.inertia, dtype=float),
-                   torque_coefficient=motors.torque_coefficient)
+                   torque_coefficient=motors.torque_coefficient,
+                   command_rate=math.inf if rate is None else float(rate))
 
     def hover_thrust(self) -> float:
         """N: each rotor's share of the weight, ``m g`` over the rotors (the thrust each gives at hover)."""
@@ -169,10 +179,13 @@ class Grid:
     alpha : (N, 3) ndarray
         Angular acceleration, rad/s^2: the gyro low-passed (:data:`ANGULAR_ACCELERATION_CUTOFF`), differentiated.
     cmd : (N, 4) ndarray
-        Held (a command is a step until the next).
+        Held (a command is a step until the next), or, with ``linear_commands``, linear between samples.
     acc_lowpass_hz, gyro_lowpass_hz : float or None
         The low-passes the vehicle ran on its sensors before it logged them
         (:attr:`quadctl.identify.flight_log.FlightLog.acc_lowpass_hz`): :meth:`as_logged` applies them.
+    linear_commands : bool
+        The commands moved between the log's samples (its controller changes them more often than the log
+        samples them): the rotors' lag takes them linear from one sample to the next (:meth:`lagged`).
     """
 
     t: np.ndarray
@@ -183,6 +196,12 @@ class Grid:
     cmd: np.ndarray
     acc_lowpass_hz: float | None = None
     gyro_lowpass_hz: float | None = None
+    linear_commands: bool = False
+
+    def lagged(self, time_constant: float, delay: float = 0.0, *, in_delay: bool = True):
+        """The grid's commands through the rotors' lag (:func:`lagged`), held or linear between samples as the
+        grid takes them (:attr:`linear_commands`)."""
+        return lagged(self.cmd, self.dt, time_constant, delay, in_delay=in_delay, linear=self.linear_commands)
 
     def around(self, windows, margin: float = LEAD_IN) -> Grid:
         """The grid from ``margin`` s before the first window to ``margin`` after the last (the lag and
@@ -228,22 +247,34 @@ def _butter_at(hz: float, dt: float):
     return scipy.signal.bilinear(b, a, fs=1.0 / dt)
 
 
-def on_grid(log, rate: float | None = None) -> Grid:
-    """The log resampled at ``rate`` (Hz; default its median rate rounded to 10 Hz)."""
+def on_grid(log, rate: float | None = None, command_rate: float | None = None) -> Grid:
+    """The log resampled at ``rate`` (Hz; default its median rate rounded to 10 Hz).
+
+    ``command_rate`` (Hz, :attr:`Airframe.command_rate`) is how often the vehicle changes its commands. A log
+    that samples them at least that often sees each step: they are held between samples. A log that samples
+    them less often (a 100 Hz log of a 500 Hz controller) sees a command that moved since its last sample:
+    they are taken linear between samples (:attr:`Grid.linear_commands`); held, they would lag the rotors by
+    half a sample more than they do, and the fit would take it off the rotors' lag."""
     if rate is None:
         rate = max(10.0, round(1.0 / float(np.median(np.diff(log.t))) / 10.0) * 10.0)
     dt = 1.0 / rate
     t = log.t[0] + dt * np.arange(int(math.floor((log.t[-1] - log.t[0]) / dt)) + 1)
     acc = np.column_stack([np.interp(t, log.t, log.acc[:, i]) for i in range(3)])
     gyro = np.column_stack([np.interp(t, log.t, log.gyro[:, i]) for i in range(3)])
-    held = np.clip(np.searchsorted(log.t, t, side="right") - 1, 0, log.t.size - 1)
-    grid = Grid(t=t, dt=dt, acc=acc, gyro=gyro, alpha=np.zeros_like(gyro), cmd=log.cmd[held],
-                acc_lowpass_hz=log.acc_lowpass_hz, gyro_lowpass_hz=log.gyro_lowpass_hz)
+    linear = command_rate is not None and rate < COMMANDS_SEEN * command_rate
+    if linear:
+        cmd = np.column_stack([np.interp(t, log.t, log.cmd[:, i]) for i in range(4)])
+    else:
+        cmd = log.cmd[np.clip(np.searchsorted(log.t, t, side="right") - 1, 0, log.t.size - 1)]
+    grid = Grid(t=t, dt=dt, acc=acc, gyro=gyro, alpha=np.zeros_like(gyro), cmd=cmd,
+                acc_lowpass_hz=log.acc_lowpass_hz, gyro_lowpass_hz=log.gyro_lowpass_hz, linear_commands=linear)
     return replace(grid, alpha=np.gradient(grid.lowpass(gyro), dt, axis=0))
 
 
-def lagged(cmd: np.ndarray, dt: float, time_constant: float, delay: float = 0.0, *, in_delay: bool = True):
-    """The commands delayed by ``delay`` and lagged through ``time_constant`` (exact for held steps).
+def lagged(cmd: np.ndarray, dt: float, time_constant: float, delay: float = 0.0, *, in_delay: bool = True,
+           linear: bool = False):
+    """The commands delayed by ``delay`` and lagged through ``time_constant``: exact for commands held from
+    one sample to the next or, with ``linear``, moving linearly from one sample to the next.
 
     Returns
     -------
@@ -252,19 +283,22 @@ def lagged(cmd: np.ndarray, dt: float, time_constant: float, delay: float = 0.0,
         without ``in_delay``).
     """
     a = math.exp(-dt / time_constant)
-    da = a * dt / time_constant ** 2
+    da = a * dt / time_constant ** 2  # da/dT
+    # z_k = a z_{k-1} + (1 - a) u_{k-1} + b (u_k - u_{k-1}): b = 0 for a held command; for a linear one,
+    # the lag's response to the ramp, b = 1 - (T / dt) (1 - a)
+    b = 1.0 - time_constant / dt * (1.0 - a) if linear else 0.0
+    db = -(1.0 - a) / dt + time_constant / dt * da if linear else 0.0  # db/dT
 
     def run(d):
         shifted = _delayed(cmd, d / dt)
-        # z_k = a z_{k-1} + (1 - a) u_{k-1}, from rest at the first command (z_0 = u_0)
-        z = scipy.signal.lfilter([0.0, 1 - a], [1.0, -a], shifted - shifted[0], axis=0) + shifted[0]
+        # from rest at the first command (z_0 = u_0)
+        z = scipy.signal.lfilter([b, 1 - a - b], [1.0, -a], shifted - shifted[0], axis=0) + shifted[0]
         return z, shifted
 
     z, shifted = run(delay)
-    # dz_k/da = a dz_{k-1}/da + z_{k-1} - u_{k-1}
-    drive = np.vstack([np.zeros((1, 4)), z[:-1] - shifted[:-1]])
-    dz_da = scipy.signal.lfilter([1.0], [1.0, -a], drive, axis=0)
-    dz_dt = dz_da * da
+    # dz_k/dT = a dz_{k-1}/dT + da/dT (z_{k-1} - u_{k-1}) + db/dT (u_k - u_{k-1})
+    drive = np.vstack([np.zeros((1, 4)), (z[:-1] - shifted[:-1]) * da + np.diff(shifted, axis=0) * db])
+    dz_dt = scipy.signal.lfilter([1.0], [1.0, -a], drive, axis=0)
     if not in_delay:
         return z, dz_dt, None
     h = _LAG_DELAY_STEP
@@ -449,7 +483,7 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
     logged = grid.as_logged  # the model's thrust through the accelerometer's low-pass, as the log has it
 
     def rj(x):
-        z, dz_dT, dz_dd = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0, in_delay=delay)
+        z, dz_dT, dz_dd = grid.lagged(x[3], x[4] if delay else 0.0, in_delay=delay)
         theta = airframe.theta(c0=x[0], c1=x[1], c2=x[2])
         y, jt, jz = predict(z, omega, theta, airframe, rows=(2,), names=names[:3])
         jac = [-jt[:, 0, :]]
@@ -467,7 +501,7 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
         return c, float(np.sqrt(np.mean((meas - basis @ c) ** 2)))
 
     # the curve at the starting lag, then everything together
-    c_start, _ = curve(lagged(grid.cmd, grid.dt, time_constant, in_delay=False)[0])
+    c_start, _ = curve(grid.lagged(time_constant, in_delay=False)[0])
     x0 = np.r_[c_start, time_constant, [0.005] if delay else []]
     scale = np.r_[0.01, 0.01, 0.1, 0.01, [0.005] if delay else []]
     lower = np.r_[-np.inf, -np.inf, -np.inf, 2 * grid.dt, [0.0] if delay else []]
@@ -475,7 +509,7 @@ def fit_thrust(grid: Grid, windows, airframe: Airframe, *, delay: bool = False,
     r, j = rj(x)
     cov, bandwidth = sandwich(j[:, None, :], r[:, None])
     no_lag, rms_no_lag = curve(grid.cmd)  # the same curve with no lag (the paper's comparison)
-    z = lagged(grid.cmd, grid.dt, x[3], x[4] if delay else 0.0, in_delay=False)[0][mask]
+    z = grid.lagged(x[3], x[4] if delay else 0.0, in_delay=False)[0][mask]
     return Estimate(stage="thrust", names=names, values=x, std=np.sqrt(np.diag(cov)), covariance=cov,
                     windows=list(windows), t=grid.t[mask], measured=-meas[:, None], predicted=(-(meas - r))[:, None],
                     rows=("total thrust (N)",), rms=float(np.sqrt(np.mean(r ** 2))), bandwidth=bandwidth,
@@ -497,7 +531,7 @@ def _torque_fit(stage, grid, windows, airframe, thrust: Estimate, names, axes, g
     axis_of = {"Jxx": 0, "Jyy": 1, "Jzz": 2}
 
     def rj(x, rotors):
-        z = lagged(grid.cmd, grid.dt, rotors["T_m"], rotors.get("delay", 0.0), in_delay=False)[0]
+        z = grid.lagged(rotors["T_m"], rotors.get("delay", 0.0), in_delay=False)[0]
         curve = {n: rotors[n] for n in ("c0", "c1", "c2")}
         theta = airframe.theta(**curve, **given, **dict(zip(names, x)))
         y, jt, _ = predict(z, grid.gyro, theta, airframe, rows=rows, names=tuple(names))

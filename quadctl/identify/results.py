@@ -138,7 +138,7 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
 
     def grid(i):
         if i not in grids:
-            grids[i] = est.on_grid(logs[i])
+            grids[i] = est.on_grid(logs[i], command_rate=airframe.command_rate)
         return grids[i]
 
     fits = {}
