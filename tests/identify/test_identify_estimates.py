@@ -397,6 +397,37 @@ def test_log10_logged_at_100_hz_gives_the_lag_it_gives_at_1_khz():
     assert lo <= slow.value("T_m") <= hi, (lo, slow.value("T_m"), hi)
 
 
+GUIDE_WINDOWS = {"log10": [(8.67, 38.67)], "log15": [(15.755, 50.755)], "log16": [(15.104, 21.104), (28.104, 32.104)]}
+"""s from each log's first sample: the windows docs/guide/identify.md fits."""
+
+
+def thrust_residual(fit, grid, windows, af):
+    """N RMS: ``m a_z`` of ``grid`` in ``windows`` against the thrust ``fit``'s rotors (curve and lag) predict there,
+    through the accelerometer's low-pass as the log went through it."""
+    grid = grid.around(windows)
+    mask = est.window_mask(grid.t, windows)
+    v = dict(zip(fit.names, fit.values))
+    z = grid.lagged(v["T_m"], in_delay=False)[0]
+    y = est.predict(z, grid.gyro, af.theta(c0=v["c0"], c1=v["c1"], c2=v["c2"]), af, rows=(2,), names=("c0",))[0]
+    return float(np.sqrt(np.mean((af.mass * grid.acc[mask, 2] - grid.as_logged(y[:, 0], "acc")[mask]) ** 2)))
+
+
+def test_the_rotors_fitted_to_log10_predict_the_thrust_of_log15_and_log16():
+    """Cross-validation on flights the fit did not see: log10's curve and lag leave 24 % and 28 % more thrust
+    residual on log15 and log16 (0.0137 and 0.0178 N RMS) than each log's own fit (0.0110 and 0.0139 N). A
+    curve that holds on its own log only does not: log15's, fitted about hover, leaves 0.0324 N on log10, 2.6
+    times log10's own 0.0125 N."""
+    af = est.Airframe.from_config(load("crazyflie"))
+    grids = {n: est.on_grid(read_log(FLIGHTS / n), command_rate=af.command_rate) for n in GUIDE_WINDOWS}
+    own = {n: est.fit_thrust(grids[n], GUIDE_WINDOWS[n], af) for n in GUIDE_WINDOWS}
+    for n in GUIDE_WINDOWS:  # the residual here is the fit's own on its own log
+        assert thrust_residual(own[n], grids[n], GUIDE_WINDOWS[n], af) == pytest.approx(own[n].rms, rel=1e-9)
+    for n in ("log15", "log16"):
+        across = thrust_residual(own["log10"], grids[n], GUIDE_WINDOWS[n], af)
+        assert across <= 1.35 * own[n].rms, (n, across, own[n].rms)
+    assert thrust_residual(own["log15"], grids["log10"], GUIDE_WINDOWS["log10"], af) > 2 * own["log10"].rms
+
+
 def test_the_gyro_low_pass_in_the_model_leaves_a_smaller_torque_residual():
     """The attitude fit passes the model's torques through the gyro's 80 Hz low-pass as the log went through
     it: without it (the log taken as measured) the residual is larger by the filter's 2.8 ms lag (by 12 % on
