@@ -133,7 +133,7 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
         raise ArgumentTypeError(f"identify takes a validated Config, identify(logs, qc.load_config('crazyflie')); "
                                 f"got {type(config).__name__}")
     airframe = est.Airframe.from_config(config)
-    p = win.plan(logs, windows)
+    p = win.plan(logs, windows, airframe)
     grids = {}
 
     def grid(i):

@@ -14,7 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from quadctl.config.vehicle_schema import MotorsConfig
 from quadctl.errors import LogError
+from quadctl.physics.motors import Motors
 
 AIRBORNE_COMMAND = 0.1
 """Mean rotor command (normalized) above which the vehicle counts as flying."""
@@ -88,22 +90,33 @@ def cut_by_a_crash(log) -> str | None:
             "turn; give rad/s)")
 
 
-def combinations(log) -> dict[str, np.ndarray]:
-    """The command combinations each stage needs moving: collective, roll, pitch, yaw (rotor order
-    front right, rear right, rear left, front left)."""
+def combinations(log, airframe=None) -> dict[str, np.ndarray]:
+    """The command combinations each stage needs moving: collective, roll, pitch, yaw.
+
+    Each weighs rotor ``i``'s command by where it acts, from the ``airframe``'s rotors in the log's (the
+    config's) numbering (:class:`quadctl.identify.estimate.Airframe`: ``positions``, ``spins``): roll by
+    ``-y_i``, pitch by ``x_i``, yaw by the spin, each scaled to ``+-1/4`` at the farthest rotor (an x layout:
+    ``(c1 + c2 - c3 - c4) / 4`` and the like). Default: the config's default motors (quadctl's numbering,
+    front right first, clockwise seen from above)."""
+    if airframe is None:
+        motors = Motors.from_config(MotorsConfig())
+        positions, spins = motors.positions(), np.array(motors.rotor_spins())
+    else:
+        positions, spins = airframe.positions, airframe.spins
     c = log.cmd
-    return {"collective": c.mean(axis=1), "roll": (c[:, 0] + c[:, 1] - c[:, 2] - c[:, 3]) / 4,
-            "pitch": (c[:, 0] - c[:, 1] - c[:, 2] + c[:, 3]) / 4, "yaw": (c[:, 0] - c[:, 1] + c[:, 2] - c[:, 3]) / 4}
+    x, y = positions[:, 0], positions[:, 1]
+    return {"collective": c.mean(axis=1), "roll": c @ (-y / np.abs(y).max() / 4),
+            "pitch": c @ (x / np.abs(x).max() / 4), "yaw": c @ (np.asarray(spins, dtype=float) / 4)}
 
 
-def excitation(log, windows) -> dict[str, float]:
-    """Per stage, the standard deviation of its command combination inside ``windows``."""
+def excitation(log, windows, airframe=None) -> dict[str, float]:
+    """Per stage, the standard deviation of its command combination (:func:`combinations`) inside ``windows``."""
     mask = np.zeros(log.t.shape, dtype=bool)
     for t0, t1 in windows:
         mask |= (log.t >= t0) & (log.t <= t1)
     if mask.sum() < 2:
         return dict.fromkeys(EXCITATION, 0.0)
-    s = {k: float(v[mask].std()) for k, v in combinations(log).items()}
+    s = {k: float(v[mask].std()) for k, v in combinations(log, airframe).items()}
     return {"thrust": s["collective"], "attitude": min(s["roll"], s["pitch"]), "yaw": s["yaw"]}
 
 
@@ -124,8 +137,9 @@ class Plan:
     excitation: list  # per log: {stage: std}
 
 
-def plan(logs, windows=None) -> Plan:
-    """Choose each stage's log and windows (``windows``: per log, a list of ``(t0, t1)`` or None for automatic).
+def plan(logs, windows, airframe) -> Plan:
+    """Choose each stage's log and windows (``windows``: None, or per log a list of ``(t0, t1)`` or None for
+    automatic), the excitation weighed by the ``airframe``'s rotors in the logs' numbering (:func:`combinations`).
 
     Raises
     ------
@@ -140,7 +154,7 @@ def plan(logs, windows=None) -> Plan:
             check_windows(log, given)
         wins = given if given is not None else flights(log)
         per_log.append(wins)
-    exc = [excitation(log, w) for log, w in zip(logs, per_log)]
+    exc = [excitation(log, w, airframe) for log, w in zip(logs, per_log)]
     chosen, refused = {}, {}
     for stage, least in EXCITATION.items():
         candidates = [i for i in range(len(logs)) if exc[i][stage] >= least]

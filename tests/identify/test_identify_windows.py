@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
 import pytest
 from _paths import DATA
 
+from quadctl.config import load
 from quadctl.errors import LogError
 from quadctl.identify import windows as win
+from quadctl.identify.estimate import Airframe
 from quadctl.identify.flight_log import FlightLog
 from quadctl.identify.readers import read_log
 
 FLIGHTS = DATA / "crazyflie-flights"
+CRAZYFLIE = Airframe.from_config(load("crazyflie"))
+"""The crazyflie config's rotors, in the Crazyflie's numbering: its logs' motor.m1..m4 as they are."""
 
 
 @pytest.fixture(scope="module")
@@ -42,25 +47,40 @@ def test_flights_found_after_take_off_and_before_the_crash(flights):
 
 
 def test_each_stage_takes_the_log_flown_for_it(flights):
-    plan = win.plan(flights)
+    plan = win.plan(flights, None, CRAZYFLIE)
     assert {stage: i for stage, (i, _) in plan.chosen.items()} == {"thrust": 0, "attitude": 1, "yaw": 2}
     assert plan.refused == {}
 
 
+def test_the_stages_weigh_the_commands_by_the_configs_rotor_numbering(flights):
+    """The three flights with their rotors in PX4's order (front right, rear left, front left, rear right), as a
+    PX4 ULog or a CSV so numbered carries them, and the config numbered so: each stage takes the log flown for it,
+    with the same excitation. Weighed in the Crazyflie's order whatever the config said, roll and pitch were
+    refused ("no log excites it", 0.0276 at most) and the yaw was fitted to log15, which rolls and pitches."""
+    cfg = load("crazyflie")
+    px4 = cfg.model_copy(update={"motors": cfg.motors.model_copy(update={"numbering": "px4"})})
+    reordered = [dataclasses.replace(log, cmd=log.cmd[:, [0, 2, 3, 1]]) for log in flights]
+    want = win.plan(flights, None, CRAZYFLIE)
+    got = win.plan(reordered, None, Airframe.from_config(px4))
+    assert {stage: i for stage, (i, _) in got.chosen.items()} == {"thrust": 0, "attitude": 1, "yaw": 2}
+    for g, w in zip(got.excitation, want.excitation):
+        assert g == pytest.approx(w, rel=1e-12)
+
+
 def test_a_log_that_only_moves_the_thrust_refuses_the_others():
-    plan = win.plan([hover(collective=0.15)])
+    plan = win.plan([hover(collective=0.15)], None, CRAZYFLIE)
     assert set(plan.chosen) == {"thrust"}
     assert "no log excites it" in plan.refused["attitude"] and "no log excites it" in plan.refused["yaw"]
 
 
 def test_a_log_without_excitation_is_refused():
     with pytest.raises(LogError, match=r"hover.csv: nothing to identify \(thrust: no log excites it.*--window"):
-        win.plan([hover()])
+        win.plan([hover()], None, CRAZYFLIE)
 
 
 def test_without_thrust_no_other_stage():
     with pytest.raises(LogError, match=r"no log excites the thrust, which every other stage needs"):
-        win.plan([hover(yaw=0.1)])
+        win.plan([hover(yaw=0.1)], None, CRAZYFLIE)
 
 
 def test_saturated_motors_refused():
@@ -69,7 +89,7 @@ def test_saturated_motors_refused():
     cmd[(log.t > 5) & (log.t < 7)] = 1.0
     with pytest.raises(LogError, match=r"hover.csv: nothing to identify \(thrust: .*the motors are at full command in "
                                        r"\d+.?\d* % of the window .*choose --window"):
-        win.plan([FlightLog(**{**log.__dict__, "cmd": cmd})])
+        win.plan([FlightLog(**{**log.__dict__, "cmd": cmd})], None, CRAZYFLIE)
 
 
 def test_dropped_sensor_refused():
@@ -78,7 +98,7 @@ def test_dropped_sensor_refused():
     cut = FlightLog(t=log.t[keep], acc=log.acc[keep], gyro=log.gyro[keep], cmd=log.cmd[keep], path="hover.csv",
                     format="csv", sha256="")
     with pytest.raises(LogError, match=r"thrust: .*no samples for 5\d ms at t = 7.999 s \(a dropped sensor\)"):
-        win.plan([cut])
+        win.plan([cut], None, CRAZYFLIE)
 
 
 def test_frozen_gyro_refused():
@@ -86,7 +106,7 @@ def test_frozen_gyro_refused():
     gyro = log.gyro.copy()
     gyro[(log.t > 8) & (log.t < 8.1)] = gyro[8000]
     with pytest.raises(LogError, match=r"thrust: .*the gyro repeats one value for 9\d samples \(a dropped sensor\)"):
-        win.plan([FlightLog(**{**log.__dict__, "gyro": gyro})])
+        win.plan([FlightLog(**{**log.__dict__, "gyro": gyro})], None, CRAZYFLIE)
 
 
 @pytest.mark.parametrize("text, want", [("35:65", [(35.0, 65.0)]), ("32:38,45:49", [(32.0, 38.0), (45.0, 49.0)])])
@@ -117,7 +137,7 @@ def test_window_option_once_per_log(given, count, said):
 ])
 def test_given_windows_that_overlap_or_miss_the_log_are_refused(windows, match):
     with pytest.raises(LogError, match=match):
-        win.plan([hover(collective=0.15)], [windows])
+        win.plan([hover(collective=0.15)], [windows], CRAZYFLIE)
 
 
 def test_a_window_ending_on_the_span_as_printed_is_inside():
@@ -125,11 +145,11 @@ def test_a_window_ending_on_the_span_as_printed_is_inside():
     log = hover(collective=0.15)
     end = float(f"{log.t[-1] + 0.4 * (log.t[1] - log.t[0]):.4g}")
     assert end > log.t[-1]
-    win.plan([log], [[(5.0, end)]])
+    win.plan([log], [[(5.0, end)]], CRAZYFLIE)
 
 
 def test_touching_windows_are_one_stretch_of_the_log():
-    plan = win.plan([hover(collective=0.15)], [[(5.0, 10.0), (10.0, 15.0)]])
+    plan = win.plan([hover(collective=0.15)], [[(5.0, 10.0), (10.0, 15.0)]], CRAZYFLIE)
     assert plan.chosen["thrust"] == (0, [(5.0, 10.0), (10.0, 15.0)])
 
 
@@ -142,5 +162,5 @@ def test_a_gyro_in_degrees_per_second_is_named_not_taken_for_no_excitation(fligh
     with pytest.raises(LogError, match=r"log10's flight ends as a crash at t = [\d.]+ s, [\d.]+ s after take-off, "
                                        r"where the gyro reads [\d.]+ rad/s \(above 17, about 1000 deg/s\): if it did "
                                        r"not crash, check the units \(a gyro in deg/s"):
-        win.plan([degrees])
+        win.plan([degrees], None, CRAZYFLIE)
     assert all(win.cut_by_a_crash(log) is None for log in flights)
