@@ -450,6 +450,22 @@ def test_the_rotors_fitted_to_log10_predict_the_thrust_of_log15_and_log16():
     assert thrust_residual(own["log15"], grids["log10"], GUIDE_WINDOWS["log10"], af) > 2 * own["log10"].rms
 
 
+def test_log16s_torque_coefficient_holds_forsters_bench_value():
+    """An independent reference: J. Förster, "System Identification of the Crazyflie 2.0 Nano Quadrocopter" (ETH
+    Zurich, 2015) measured the yaw torque per newton of thrust on a bench, 0.005964552 N m/N (the crazyflie
+    config's motors.torque_coefficient). log16 fits 0.00626 N m/N with his Jzz (the config's), the rotors from
+    log10; his value lies in its 95 % interval (0.00561-0.00692). The yaw log's gyro units, frame and the rotors'
+    spins all enter it: a wrong sign or a factor of 57 (deg/s) would not."""
+    cfg = load("crazyflie")
+    af = est.Airframe.from_config(cfg)
+    assert af.torque_coefficient == 0.005964552 and af.inertia[2] == pytest.approx(29.261652e-6)
+    grids = {n: est.on_grid(read_log(FLIGHTS / n), command_rate=af.command_rate) for n in ("log10", "log16")}
+    rotors = est.fit_thrust(grids["log10"], GUIDE_WINDOWS["log10"], af)
+    lo, hi = est.fit_yaw(grids["log16"], GUIDE_WINDOWS["log16"], af, rotors).interval("k_m")
+    assert lo <= 0.005964552 <= hi, (lo, hi)
+    assert hi - lo < 0.25 * 0.005964552  # and the interval says something
+
+
 def test_the_gyro_low_pass_in_the_model_leaves_a_smaller_torque_residual():
     """The attitude fit passes the model's torques through the gyro's 80 Hz low-pass as the log went through
     it: without it (the log taken as measured) the residual is larger by the filter's 2.8 ms lag (by 12 % on
