@@ -49,6 +49,7 @@ from quadctl.config.loading import load as load
 from quadctl.config.loading import locate as locate
 from quadctl.config.loading import near_files as near_files
 from quadctl.config.loading import parse as parse
+from quadctl.config.loading import refusal as refusal
 from quadctl.config.render import SCHEMA_DIALECT as SCHEMA_DIALECT
 from quadctl.config.render import TOP_LEVEL_ABSENT as TOP_LEVEL_ABSENT
 from quadctl.config.render import json_schema as json_schema

@@ -226,15 +226,45 @@ def check_override(option: str, value: Any, key: str | None = None) -> Any:
     ...     print(str(exc)[:48])
     --rate = 1000000000000: must be at most 100000 (
     """
+    key = key or OVERRIDES[option]
+    try:
+        return _validated(key, value)
+    except ValidationError as exc:
+        raise ConfigError(f"{option} = {show(value)}: {_expected_of(exc, key)}; {option} is {key}") from None
+
+
+def refusal(key: str, value: Any) -> str | None:
+    """What the declaration of the config key ``key`` (``simulation.duration``) says ``value`` must be
+    when it refuses the value on its own, whatever the rest of the config holds; None when it takes it,
+    or when ``key`` is not one declared key (an index: ``vehicle.inertia[0]``).
+
+    Examples
+    --------
+    >>> refusal("simulation.duration", -1)
+    'must be greater than 0.0 (s)'
+    >>> refusal("simulation.duration", 4.0) is None
+    True
+    """
+    try:
+        _validated(key, value)
+    except KeyError:
+        return None
+    except ValidationError as exc:
+        return _expected_of(exc, key)
+    return None
+
+
+def _validated(key: str, value: Any) -> Any:
+    """``value`` as the declaration of the config key ``key`` takes it (pydantic's ValidationError if not;
+    KeyError if ``key`` is not one declared key)."""
     from pydantic import TypeAdapter
 
-    key = key or OVERRIDES[option]
     field = key_field(key)
-    try:
-        kind = Annotated[(field.annotation, *field.metadata)] if field.metadata else field.annotation
-        return TypeAdapter(kind).validate_python(value)
-    except ValidationError as exc:
+    kind = Annotated[(field.annotation, *field.metadata)] if field.metadata else field.annotation
+    return TypeAdapter(kind).validate_python(value)
 
-        err = exc.errors()[0]
-        loc = key.split(".") + [p for p in err["loc"] if not is_union_tag(p)]
-        raise ConfigError(f"{option} = {show(value)}: {expected(err, loc)}; {option} is {key}") from None
+
+def _expected_of(exc: ValidationError, key: str) -> str:
+    """What the key ``key`` takes, from the first error of its validation."""
+    err = exc.errors()[0]
+    return expected(err, key.split(".") + [p for p in err["loc"] if not is_union_tag(p)])

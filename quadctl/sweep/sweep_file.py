@@ -368,7 +368,8 @@ def configured(cfg, fixed, label: str = "<sweep>", varied=()):
     Raises
     ------
     SweepError
-        A ``set:`` value holds a key the config does not take (``set.simulation.reference.sped``).
+        A ``set:`` value holds a key the config does not take (``set.simulation.reference.sped``), or a
+        value its key refuses whatever the rest of the config holds (``set.simulation.duration = -1``).
     """
 
     if not fixed:
@@ -384,6 +385,10 @@ def configured(cfg, fixed, label: str = "<sweep>", varied=()):
     try:
         return config.from_dict(data, label)
     except ConfigError:
+        for path, _, value in fixed:  # a value its own key refuses: no case's values make it valid
+            why = config.refusal(path, value)
+            if why is not None:
+                raise SweepError(f"{label}: set.{path} = {show(value)}: {why}") from None
         return cfg
 
 

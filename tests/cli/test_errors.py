@@ -382,6 +382,8 @@ SWEEP_CASES = {
                               "  lqr.roll.Q[1]: {from: 1, to: 100, num: 1001}\n",
                               r"s\.yaml: parameters: the grid has 1000 x 1001 = 1,001,000 cases, more than 1,000,000 "
                               r"\(the most a sweep runs\); use fewer values, or mode: random with samples$"),
+    "a set: value its key refuses": ("parameters:\n  vehicle.mass: [0.06, 0.07]\nset:\n  simulation.duration: -1\n",
+                                     r"s\.yaml: set\.simulation\.duration = -1: must be greater than 0\.0 \(s\)$"),
     "a range wider than a float": ("parameters:\n  vehicle.mass: {from: -1e308, to: 1e308, num: 3}\n",
                                    r"s\.yaml: parameters\.vehicle\.mass\.from = -1e\+308: must be at most 1e\+300 in "
                                    r"magnitude$"),

@@ -957,6 +957,10 @@ def test_a_parameter_may_vary_a_key_of_a_section_set_makes(cfg):
       "parameters": {"simulation.reference.waypoints[0]": [1]}},
      r"^s\.yaml: parameters\.simulation\.reference\.waypoints\[0\]: is a section, not a value; name one of its keys: "
      r"position, or set it whole under the sweep's `set:`$"),
+    ({"set": {"simulation.duration": -1}, "parameters": {"vehicle.mass": [0.5]}},  # each case ran and failed
+     r"^s\.yaml: set\.simulation\.duration = -1: must be greater than 0\.0 \(s\)$"),
+    ({"set": {"controller.rate": "fast"}, "parameters": {"lqr.roll.Q[0]": [1]}},
+     r"^s\.yaml: set\.controller\.rate = \"fast\": must be a number"),
 ])
 def test_set_and_its_sections_errors_name_the_key_and_the_fix(data, message):
     with pytest.raises(SweepError, match=message):
