@@ -455,6 +455,24 @@ def test_an_app_the_adapter_cannot_serve_is_refused_with_one_line_and_nothing_wr
     assert not out.exists()
 
 
+@pytest.mark.parametrize("to, args, message", [
+    ("c", ["--setpoint", "velocity"], r"--setpoint velocity: only --to crazyflie takes it \(the app's commander and "
+                                      r"mixer\), not --to c; drop it, or export --to crazyflie$"),
+    ("json", ["--mode", "force"], r"--mode force: only --to crazyflie takes it .*, not --to json;"),
+    ("mat", ["--setpoint", "position", "--mode", "force-torque"],
+     r"--setpoint position and --mode force-torque: only --to crazyflie takes them"),
+])
+def test_the_app_s_options_with_another_target_are_refused_not_ignored(tmp_path, to, args, message):
+    """--setpoint and --mode shape the Crazyflie app alone: with --to c they were dropped without a word, and
+    the C controller written was not the one asked for."""
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, ["export", "--to", to, "-c", "crazyflie", "-o", str(out), *args])
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and re.search(r"^quadctl: error: " + message, lines[0]), res.output
+    assert not out.exists()
+
+
 def test_the_bundled_crazyflie_config_exports_with_no_setpoint_option(tmp_path):
     """Its partition leaves pN, pE free (guidance: regulate: false), so the app follows the velocity setpoint
     unasked; a config that regulates the position follows the position setpoint."""

@@ -40,9 +40,10 @@ def command(to: Annotated[Target, typer.Option(
             setpoint: Annotated[Optional[Setpoint], typer.Option(
                 "--setpoint", show_default=False,
                 help=SETPOINT_HELP)] = None,
-            mode: Annotated[Mode, typer.Option(
-                "--mode", help="--to crazyflie: force (each motor's thrust, mixed and clipped as the simulation "
-                               "does) or force-torque (thrust and torques, mixed by the firmware).")] = Mode.force,
+            mode: Annotated[Optional[Mode], typer.Option(
+                "--mode", show_default="force",
+                help="--to crazyflie: force (each motor's thrust, mixed and clipped as the simulation "
+                     "does) or force-torque (thrust and torques, mixed by the firmware).")] = None,
             json: Annotated[bool, typer.Option(
                 "--json", help="Print what was written as JSON on stdout (with --to json, the controller's "
                                "JSON itself under `controller`).")] = False) -> None:
@@ -53,7 +54,8 @@ def command(to: Annotated[Target, typer.Option(
     Exits 1 when the design is unstable, when the gain schedule (schedule:) fails its checks, or when a
     continuous design's loop is unstable sampled at --rate; 2 when --to c has no rate (give --rate or set
     controller.rate), or when --to crazyflie cannot serve the config (a rate that does not divide the
-    firmware's 1 kHz loop, a --setpoint the partition leaves free, rotors numbered unlike the firmware's).
+    firmware's 1 kHz loop, a --setpoint the partition leaves free, rotors numbered unlike the firmware's), or
+    when --setpoint or --mode is given with another --to.
     """
     from quadctl import artifacts, export
     from quadctl.cli import render
@@ -61,6 +63,13 @@ def command(to: Annotated[Target, typer.Option(
     from quadctl.present.stages import rate_warning
     from quadctl.setup import setup_of
 
+    app_only = [f"--{name} {choice.value}" for name, choice in (("setpoint", setpoint), ("mode", mode)) if choice]
+    if app_only and to is not Target.crazyflie:
+        from quadctl.errors import ConfigError
+
+        raise ConfigError(f"{' and '.join(app_only)}: only --to crazyflie takes {'them' if len(app_only) > 1 else 'it'}"
+                          f" (the app's commander and mixer), not --to {to.value}; drop it, or export --to crazyflie")
+    mode = mode or Mode.force
     rate = override("--rate", rate)
     cfg, source = load_source(config, sets)
     exp = export.prepare(setup_of(cfg), rate, need_rate=to in (Target.c, Target.crazyflie),
