@@ -75,7 +75,8 @@ def locked(folder: Path | str):
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        why = "a file, not a folder" if folder.is_file() else reason_of(exc)
+        _remove_made([path for path in made if os.path.lexists(path)])  # those made before the one that failed
+        why = "a file, not a folder" if os.path.isfile(folder) else reason_of(exc)  # a name too long: no raise
         raise ArtifactError(f"{folder}: cannot write artifacts there ({why}); choose another --out folder") from None
     release = _lock_flock(folder) if fcntl is not None else _lock_exclusive(folder)
     try:

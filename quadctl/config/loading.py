@@ -82,16 +82,17 @@ def locate(spec: str | Path | None) -> Source:
     path = Path(spec)
     name = re.sub(r"\.ya?ml$", "", spec)
     is_name = "/" not in name and os.sep not in name and name in bundled_names()
-    if path.exists() and not path.is_dir():  # a file, a pipe or a device: read (with a size cap)
+    # os.path's tests, not Path's: a name too long for the system is no such file, where Path's raise
+    if os.path.exists(path) and not os.path.isdir(path):  # a file, a pipe or a device: read (with a size cap)
         note = (f"-c {spec}: using the file {path}, not the bundled config `{name}` "
                 f"(`quadctl configs --show {name}` prints that one)") if is_name else None
         return Source(str(path), yamlio.read_text(path, spec, "config file"), note)
     if is_name:
-        here = [p for p in (name, f"{name}.yaml", f"{name}.yml") if Path(p).is_file()]
+        here = [p for p in (name, f"{name}.yaml", f"{name}.yml") if os.path.isfile(p)]
         note = (f"-c {spec}: using the bundled config `{name}`, not the file {here[0]} in this folder "
                 f"(give -c ./{here[0]} for the file)") if here else None
         return bundled(name)._replace(note=note)
-    if path.is_dir():
+    if os.path.isdir(path):
         raise ConfigError(f"{spec}: is a folder, not a config file; give a .yaml file")
     here = "here" if str(path.parent) == "." else f"in {path.parent}"
     near = [f"{f}` (a file {here})" for f in near_files(path)] or [

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import struct
 import zlib
 from dataclasses import replace
@@ -16,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadctl.artifacts.places import reason_of
 from quadctl.errors import LogError
 from quadctl.identify.csv_log import read_csv
 from quadctl.identify.flight_log import CSV_COLUMNS, FlightLog, checked, log_error
@@ -130,12 +132,17 @@ def read_log(path, columns: dict[str, str] | None = None) -> FlightLog:
         not a CSV.
     """
     p = Path(path)
-    if p.is_dir():
+    if os.path.isdir(p):  # os.path's tests: a name too long for the system is no such file, where Path's raise
         raise LogError(f"{path}: is a folder, not a flight log; give the path of a log file in it")
-    if not p.is_file():
+    if not os.path.exists(p):
         raise LogError(f"{path}: no such file; give the path of a flight log")
-    with open(p, "rb") as fh:
-        head = fh.read(8)
+    if not os.path.isfile(p):
+        raise LogError(f"{path}: not a file (a device or a pipe); give the path of the flight log the vehicle wrote")
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(8)
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read the log ({reason_of(exc)}); check the file") from None
     if not head:
         raise log_error(path, "an empty file", "give the log the vehicle wrote")
     binary = ("a ULog", read_ulog) if head[:7] == b"ULog\x01\x12\x35" else \

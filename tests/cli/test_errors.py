@@ -245,6 +245,27 @@ def test_output_folder_that_cannot_be_written(tmp_path):
     assert "cannot write artifacts there" in res.stderr and "choose another --out folder" in res.stderr
 
 
+NAME_TOO_LONG = "a" * 300
+"""A file name past every file system's 255 bytes: the system refuses it (ENAMETOOLONG) where it would say
+"no such file"; pathlib's tests raise that error, and the commands gave it as an internal error, exit 3."""
+
+
+@pytest.mark.parametrize("args, message", [
+    (["trim", "-c", NAME_TOO_LONG], rf"^quadctl: error: {NAME_TOO_LONG}: no such file and no bundled config"),
+    (["configs", "--show", NAME_TOO_LONG + ".yaml"], r": no such file and no bundled config of that name;"),
+    (["trim", "-o", NAME_TOO_LONG], r": cannot write artifacts there \(File name too long\); choose another --out"),
+    (["trim", "-o", f"x/{NAME_TOO_LONG}/y"], r": cannot write artifacts there \(File name too long\);"),
+    (["identify", "-c", "crazyflie", NAME_TOO_LONG], r": no such file; give the path of a flight log$"),
+])
+def test_a_name_too_long_for_the_file_system_is_bad_input(tmp_path, monkeypatch, args, message):
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and re.search(message, lines[0]), res.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_corrupt_upstream_artifact(tmp_path):
     assert runner.invoke(app, ["linearize", "-o", str(tmp_path)]).exit_code == 0
     (tmp_path / "linear.npz").write_bytes(b"PK\x03\x04 truncated")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import struct
 import warnings
 import zlib
@@ -377,6 +378,18 @@ def test_a_folder_or_a_missing_path_is_named_as_what_it_is(tmp_path):
         read_log(tmp_path / "logs")
     with pytest.raises(LogError, match=r"gone.csv: no such file; give the path of a flight log"):
         read_log(tmp_path / "gone.csv")
+    with pytest.raises(LogError, match=r"^/dev/null: not a file \(a device or a pipe\); give the path of the flight "
+                                       r"log the vehicle wrote$"):  # it said "no such file" of a path that is there
+        read_log("/dev/null")
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root reads any file")
+def test_an_unreadable_log_is_named_with_the_reason(tmp_path):
+    path = tmp_path / "x.csv"
+    path.write_text(",".join(CSV_COLUMNS) + "\n")
+    path.chmod(0)
+    with pytest.raises(LogError, match=r"x.csv: cannot read the log \(Permission denied\); check the file$"):
+        read_log(path)
 
 
 def test_a_ulog_is_timed_from_its_first_sample_not_its_epoch_stamps():
