@@ -6,6 +6,7 @@ from __future__ import annotations
 import codecs
 import csv
 import hashlib
+import itertools
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -55,6 +56,11 @@ def read_csv(path, columns: dict[str, str] | None = None) -> FlightLog:
             raise log_error(path, f"no column {given!r}{via} (the header has {', '.join(header)})",
                         f"rename the column or map it: --columns {name}=YOUR_NAME")
         where[name] = header.index(given)
+    shared = next(((a, b) for a, b in itertools.combinations(CSV_COLUMNS, 2) if where[a] == where[b]), None)
+    if shared:  # --columns acc_x=acc_y: acc_y read twice, and acc_x's own column nowhere, without a word
+        a, b = shared
+        raise LogError(f"--columns reads {a} and {b} from the one column {header[where[a]]!r} of {path}; "
+                       f"map each to a column of its own")
     # a line with more values than the header names (a value split in two by a thousands separator, a
     # column added mid-file) would be read shifted, or its extra values dropped, without a word
     ragged = next((i for i, line in enumerate(lines[1:]) if line.count(",") != len(header) - 1), None)

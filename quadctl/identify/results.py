@@ -111,6 +111,19 @@ def windows_per_log(texts, count: int):
     return [win.parse_window(t) for t in texts]
 
 
+def _check_each_log_once(logs, windows) -> None:
+    """Refuse a log given twice over the same windows (the same bytes, by their sha256): its samples would
+    count twice, and every interval would come out narrower than the flight supports."""
+    first = {}
+    for i, log in enumerate(logs):
+        key = (log.sha256, repr(windows[i] if windows else None))
+        if key in first:
+            raise LogError(f"{log.path}: the same log as {logs[first[key]].path} (sha256 {log.sha256[:12]}...), over "
+                           "the same stretch; give each log once: its samples would count twice and narrow every "
+                           "interval")
+        first[key] = i
+
+
 def identify(logs, config, windows=None, delay: bool = False) -> Identification:
     """Run every stage the logs support (:func:`quadctl.identify.windows.plan`).
 
@@ -128,10 +141,13 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
     ------
     ArgumentTypeError
         ``config`` is not a validated Config (a config's name: load it first).
+    LogError
+        One log given twice over the same windows (its samples would count twice).
     """
     if not isinstance(config, Config):
         raise ArgumentTypeError(f"identify takes a validated Config, identify(logs, qc.load_config('crazyflie')); "
                                 f"got {type(config).__name__}")
+    _check_each_log_once(logs, windows)
     airframe = est.Airframe.from_config(config)
     p = win.plan(logs, windows, airframe)
     grids = {}

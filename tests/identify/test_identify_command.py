@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 import yaml
@@ -115,6 +116,19 @@ def test_identify_refuses_a_csv_without_a_column(tmp_path):
     assert res.exit_code == 2
     assert "flight.csv: no column 'cmd_4'" in res.output and "--columns cmd_4=YOUR_NAME" in res.output
     assert not (tmp_path / "o").exists()
+
+
+def test_identify_refuses_one_log_given_twice(tmp_path):
+    """The same log twice (a shell glob and its name) was fitted as two flights: each sample counted twice and
+    every interval came out narrower than the flight supports."""
+    copy = tmp_path / "copy-of-log10"
+    copy.write_bytes((FLIGHTS / "log10").read_bytes())
+    res = CliRunner().invoke(app, ["identify", str(FLIGHTS / "log10"), str(copy), "-c", "crazyflie",
+                                   "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2, res.output
+    assert re.search(r"^quadctl: error: \S*copy-of-log10: the same log as \S*log10 \(sha256 [0-9a-f]{12}\.\.\.\), "
+                     r"over the same stretch; give each log once", res.output), res.output
+    assert len(res.output.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
 
 
 def _fit(stage, names, values, windows=((1.0, 2.0),)):

@@ -109,6 +109,15 @@ def test_csv_columns_mapped(tmp_path):
     assert log.cmd[1, 3] == 0.6 and log.t[1] == 0.001
 
 
+def test_two_names_mapped_onto_one_column_are_refused(tmp_path):
+    """--columns acc_x=acc_y read acc_y as both axes and the file's acc_x nowhere, without a word."""
+    path = tmp_path / "x.csv"
+    path.write_text(",".join(CSV_COLUMNS) + "\n0,0,0,-9.81,0,0,0,0.5,0.5,0.5,0.5\n")
+    with pytest.raises(LogError, match=r"^--columns reads acc_x and acc_y from the one column 'acc_y' of \S*x.csv; "
+                                       r"map each to a column of its own$"):
+        read_csv(path, parse_columns(["acc_x=acc_y"]))
+
+
 @pytest.mark.parametrize("damage, match", [
     (lambda b: b[: len(b) // 2], r"log: the CRC-32 at the end does not match .*copy the file"),
     (lambda b: b[:500] + bytes([b[500] ^ 0xFF]) + b[501:], r"log: the CRC-32 .*truncated or corrupted"),
