@@ -23,7 +23,7 @@ from quadctl.config.kinds import misplaced
 from quadctl.config.schema import Config
 from quadctl.config.schema_paths import section_model
 from quadctl.errors import ArgumentTypeError, ConfigError
-from quadctl.text.messages import show
+from quadctl.text.messages import kind_of, show
 
 DEFAULT_CONFIG = "forward"
 """Bundled config used when no ``--config`` is given: the report's forward-flight case."""
@@ -79,6 +79,9 @@ def locate(spec: str | Path | None) -> Source:
         config, or a file that cannot be read (too large, not UTF-8, no permission).
     """
     spec = DEFAULT_CONFIG if spec is None else str(spec)
+    if not spec.strip():  # '' is the working folder: it was refused as ": is a folder, not a config file"
+        raise ConfigError(f"{spec!r}: an empty config name; give a config file's path or a bundled config's name "
+                          "(`quadctl configs` lists them)")
     path = Path(spec)
     name = re.sub(r"\.ya?ml$", "", spec)
     is_name = "/" not in name and os.sep not in name and name in bundled_names()
@@ -177,8 +180,7 @@ def parse(text: str, label: str = "<config>") -> Config:
 def from_dict(data: Any, label: str = "<config>") -> Config:
     """Validate a mapping (as YAML gives it) as a config."""
     if not isinstance(data, dict):
-        kind = "empty" if data is None else f"a {type(data).__name__}"
-        raise ConfigError(f"{label}: the config is {kind}, not a mapping of keys; "
+        raise ConfigError(f"{label}: the config is {kind_of(data)}, not a mapping of keys; "
                           "start from `quadctl configs --show forward`")
     try:
         cfg = Config.model_validate(data)

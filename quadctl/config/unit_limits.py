@@ -127,7 +127,9 @@ MAX_TILT_OFFSET = math.radians(85.0)
 
 def _degrees_hint(value: float, limit: float) -> str:
     """Angles are in rad: say what the value would be, and what the user likely meant."""
-    return (f"that is {math.degrees(value):.0f} deg, beyond {math.degrees(limit):.0f} deg; angles are in rad: "
+    deg = math.degrees(value)
+    shown = f"{deg:.0f}" if abs(deg) < 1e6 else f"{deg:.3g}"  # 1e300 rad: not a number of 300 digits
+    return (f"that is {shown} deg, beyond {math.degrees(limit):.0f} deg; angles are in rad: "
             f"for {value:g} deg write {math.radians(value):.4g}")
 
 

@@ -29,6 +29,7 @@ from quadctl.text.messages import (
     hint,
     is_whole,
     key_path,
+    kind_of,
     parse_key_path,
     show,
     whole_number,
@@ -116,8 +117,7 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
         raise ArgumentTypeError(f"a sweep varies a validated Config, sweep.from_dict(data, qc.load_config('hover')); "
                                 f"got {type(cfg).__name__}")
     if not isinstance(data, dict):
-        kind = "empty" if data is None else f"a {type(data).__name__}"
-        raise SweepError(f"{label}: the sweep file is {kind}, not a mapping; "
+        raise SweepError(f"{label}: the sweep file is {kind_of(data)}, not a mapping; "
                          "give at least `parameters:` (see examples/ci-sweep.yaml)")
     for key in data:
         if key not in TOP_KEYS:

@@ -75,6 +75,23 @@ def child(node: Any, key, walked) -> Any:
     return node[key]
 
 
+def kind_of(value: Any) -> str:
+    """What a YAML document (or value) is, in a reader's words: where a mapping was due, what came instead.
+
+    >>> kind_of(None), kind_of([1]), kind_of(42), kind_of("hover"), kind_of(True)
+    ('empty', 'a list', 'a number', 'text', 'true or false')
+    """
+    if value is None:
+        return "empty"
+    if isinstance(value, bool):
+        return "true or false"
+    if isinstance(value, (int, float)):
+        return "a number"
+    if isinstance(value, str):
+        return "text"
+    return "a list" if isinstance(value, list) else f"a {type(value).__name__}"
+
+
 def show(value: Any, exact: bool = False) -> str:
     """A value as the user wrote it: whole floats without ``.0`` (unless ``exact``: where a whole
     number is due, ``1e3`` is shown as ``1000.0``), text quoted, cut to 60 characters.

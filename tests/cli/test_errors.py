@@ -31,6 +31,10 @@ CONFIG_CASES = {
     "yaml syntax": ("name: [forward\n", r"c\.yaml: YAML syntax error at line 1, column 7: .*fix the YAML"),
     "not a mapping": ("- 1\n- 2\n", r"the config is a list, not a mapping of keys"),
     "empty file": ("", r"the config is empty, not a mapping of keys"),
+    "a number": ("42\n", r"the config is a number, not a mapping of keys"),  # it said "is a int"
+    "text": ("forward\n", r"the config is text, not a mapping of keys"),
+    "yaw far past a turn": (_edit("yaw: 0.0", "yaw: 1e300"),  # 300 digits of degrees, in one line
+                            r"trim\.yaw = 1e\+300: that is 5\.73e\+301 deg, beyond 360 deg; angles are in rad: "),
     "wrong type": (_edit("mass: 0.068", "mass: heavy"), r'vehicle\.mass = "heavy": must be a number \(kg\)'),
     "unknown key": (_edit("vehicle:", "vehicel:"), r"vehicel: unknown key; did you mean `vehicle`\?"),
     "unknown nested key": (_edit("dt: auto", "dtt: auto"), r"simulation\.dtt: unknown key; did you mean `dt`\?"),
@@ -202,6 +206,14 @@ def test_exponent_without_a_dot_is_a_number():
 @pytest.mark.parametrize("spec,label", [("forward.yml", "forward.yaml"), ("hover.yaml", "hover.yaml")])
 def test_bundled_names_with_an_extension(spec, label):
     assert config.locate(spec)[0] == label
+
+
+@pytest.mark.parametrize("args", [["trim", "-c", ""], ["configs", "--show", " "]])
+def test_an_empty_config_name_is_named_as_empty(args):
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    assert re.fullmatch(r"quadctl: error: '\s*': an empty config name; give a config file's path or a bundled "
+                        r"config's name \(`quadctl configs` lists them\)\n", res.stderr), res.stderr
 
 
 def test_misspelt_bundled_name_gets_a_suggestion():
