@@ -174,6 +174,7 @@ def from_dict(data: Any, cfg, label: str = "<sweep>") -> SweepSpec:
             raise fail(f"parameters.{path}", f"is a list ({show(leaf)}) here, a range gives numbers; "
                        f"index one entry, as `{path}[0]`")
         parameters.append(Parameter(str(path), keys, kind, spec))
+    _check_nesting(fixed, parameters, fail)
     start = configured(cfg, fixed, label, [(p.keys, _representative(p)) for p in parameters])
     if data.get("gates") is not None and not isinstance(data.get("gates"), dict):
         raise fail("gates", "must be a mapping of metric -> {min, max}")
@@ -268,6 +269,32 @@ def _check_values(spec, path: str, mode: str, label: str) -> str:
     if mode == "random" and spec["from"] == spec["to"]:
         raise SweepError(f"{where}: empty range: from equals to; give a list for one value")
     return "range"
+
+
+def _inside(keys: tuple, outer: tuple) -> bool:
+    """Whether the key path ``keys`` lies inside ``outer`` (``vehicle.inertia[0]`` inside ``vehicle.inertia``)."""
+    return len(keys) > len(outer) and keys[:len(outer)] == outer
+
+
+def _check_nesting(fixed, parameters, fail) -> None:
+    """Refuse a key path the sweep would write over with a later value of a path around it: a ``set:`` value
+    inside a later ``set:`` section or inside a parameter, and a parameter inside another parameter (each case
+    takes one of the two; the results' column would show values no case flew). A parameter inside a ``set:``
+    section varies what ``set:`` made, as documented."""
+    for i, (path, keys, _) in enumerate(fixed):
+        later = next((p for p, k, _ in fixed[i + 1:] if _inside(keys, k)), None)
+        if later is not None:
+            raise fail(f"set.{path}", f"lies inside set.{later}, which follows and gives it whole; put set.{path} "
+                                      f"after it, or its value inside it")
+        around = next((p.path for p in parameters if _inside(keys, p.keys)), None)
+        if around is not None:
+            raise fail(f"set.{path}", f"lies inside parameters.{around}, whose values replace it in every case; "
+                                      f"give the value in those")
+    for p in parameters:
+        around = next((q.path for q in parameters if _inside(p.keys, q.keys)), None)
+        if around is not None:
+            raise fail(f"parameters.{p.path}", f"lies inside parameters.{around}: a case would fly one of the two "
+                                               "values; vary one of them")
 
 
 def fixed_value(fixed, path: str, default):

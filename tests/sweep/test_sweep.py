@@ -957,6 +957,18 @@ def test_a_parameter_may_vary_a_key_of_a_section_set_makes(cfg):
       "parameters": {"simulation.reference.waypoints[0]": [1]}},
      r"^s\.yaml: parameters\.simulation\.reference\.waypoints\[0\]: is a section, not a value; name one of its keys: "
      r"position, or set it whole under the sweep's `set:`$"),
+    ({"parameters": {"vehicle.inertia[0]": [7e-5, 8e-5], "vehicle.inertia": [[6.9e-5, 7.75e-5, 1.5e-4]]}},  # one
+     r"^s\.yaml: parameters\.vehicle\.inertia\[0\]: lies inside parameters\.vehicle\.inertia: a case would fly one "
+     r"of the two values; vary one of them$"),                       # inertia flew every case, the column said two
+    ({"parameters": {"vehicle.inertia": [[6.9e-5, 7.75e-5, 1.5e-4]], "vehicle.inertia[0]": [7e-5, 8e-5]}},
+     r"^s\.yaml: parameters\.vehicle\.inertia\[0\]: lies inside parameters\.vehicle\.inertia:"),
+    ({"set": {"vehicle.inertia[0]": 8e-5}, "parameters": {"vehicle.inertia": [[6.9e-5, 7.75e-5, 1.5e-4]]}},
+     r"^s\.yaml: set\.vehicle\.inertia\[0\]: lies inside parameters\.vehicle\.inertia, whose values replace it in "
+     r"every case; give the value in those$"),
+    ({"set": {"vehicle.mass": 0.07, "vehicle": {"mass": 0.068, "inertia": [6.9e-5, 7.75e-5, 1.5e-4]}},
+      "parameters": {"lqr.roll.Q[0]": [1]}},
+     r"^s\.yaml: set\.vehicle\.mass: lies inside set\.vehicle, which follows and gives it whole; put "
+     r"set\.vehicle\.mass after it, or its value inside it$"),
     ({"set": {"simulation.duration": -1}, "parameters": {"vehicle.mass": [0.5]}},  # each case ran and failed
      r"^s\.yaml: set\.simulation\.duration = -1: must be greater than 0\.0 \(s\)$"),
     ({"set": {"controller.rate": "fast"}, "parameters": {"lqr.roll.Q[0]": [1]}},
