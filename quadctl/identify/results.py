@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 from dataclasses import dataclass
 from decimal import Decimal
@@ -194,7 +195,7 @@ def require_unedited(folder, force: bool = False) -> None:
     from pathlib import Path
 
     path = Path(folder) / "identified.yaml"
-    if force or not (path.exists() or path.is_symlink()):
+    if force or not os.path.lexists(path):  # a link too; os.path's: a name too long for the system is none
         return
     try:
         recorded = json.loads((Path(folder) / "identified.json").read_text(encoding="utf-8"))

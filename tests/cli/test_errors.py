@@ -268,6 +268,7 @@ NAME_TOO_LONG = "a" * 300
     (["trim", "-o", NAME_TOO_LONG], r": cannot write artifacts there \(File name too long\); choose another --out"),
     (["trim", "-o", f"x/{NAME_TOO_LONG}/y"], r": cannot write artifacts there \(File name too long\);"),
     (["identify", "-c", "crazyflie", NAME_TOO_LONG], r": no such file; give the path of a flight log$"),
+    (["identify", "-c", "crazyflie", "-o", NAME_TOO_LONG, "gone.csv"], r"gone.csv: no such file; give the path of"),
 ])
 def test_a_name_too_long_for_the_file_system_is_bad_input(tmp_path, monkeypatch, args, message):
     monkeypatch.chdir(tmp_path)
