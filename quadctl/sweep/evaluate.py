@@ -144,12 +144,15 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
                     traces[prep.index] = trace
             except QuadctlError as exc:  # whatever a feature of the config refuses: a row, not a crash
                 rows[prep.index] = _failed(prep.head, "failed", str(exc))
+    margins = gated_margins(task.gates)
+    stages = {prep.index: pipeline.Stages(prep.setup, linear=prep.plant.linear, decoupled=prep.plant.decoupled)
+              for prep in ready if margins or prep.setup.law == "pid"}  # a cascade's lift serves both below
     for prep in ready:
         if prep.setup.law == "pid":
-            _judge_cascade(rows[prep.index], prep)
-    if gated_margins(task.gates):
+            _judge_cascade(rows[prep.index], stages[prep.index])
+    if margins:
         for prep in ready:
-            _add_margins(rows[prep.index], prep)
+            _add_margins(rows[prep.index], prep, stages[prep.index])
     out = []
     for index, _ in task.cases:
         row = rows[index]
@@ -165,14 +168,14 @@ def _evaluate_chunk(task: ChunkTask) -> ChunkResult:
     return ChunkResult(rows=out, stats=stats, traces=traces)
 
 
-def _judge_cascade(row: dict, prep: Prepared) -> None:
+def _judge_cascade(row: dict, stages: pipeline.Stages) -> None:
     """With ``controller.flies: pid``, a case's ``stable`` is the cascade's that flies, as ``simulate`` checks it
     (:attr:`quadctl.sim.cascade_lift.Lifted.stable`: its closed loop about hover, lifted to its frame), not the
     LQR design's; ``eig.slowest`` is the rate of its slowest mode, ln(spectral radius) / frame (rad/s), and
     ``eig.fastest`` is empty (the frame map's poles at 0, the held samples', have no rate)."""
     if row.get("stable") is None:  # no design: the case did not fly
         return
-    lift = pipeline.Stages(prep.setup, linear=prep.plant.linear, decoupled=prep.plant.decoupled).pid_lift
+    lift = stages.pid_lift
     radius = float(np.abs(lift.poles).max())
     row["stable"] = lift.stable
     row["eig.fastest"], row["eig.slowest"] = None, float(np.log(radius)) / lift.frame_time
@@ -180,14 +183,13 @@ def _judge_cascade(row: dict, prep: Prepared) -> None:
         row["instability"] = unstable_cascade_gate(radius, lift.frame_time)
 
 
-def _add_margins(row: dict, prep: Prepared) -> None:
+def _add_margins(row: dict, prep: Prepared, stages: pipeline.Stages) -> None:
     """A designed case's :data:`~quadctl.sweep.gates.MARGIN_COLUMNS` (None where it has no design): of the law
     that flies, as ``quadctl margins`` reports them (``controller.flies: pid``: the cascade's loops)."""
 
     row.update(dict.fromkeys(MARGIN_COLUMNS))
     if row.get("stable") is None:  # no design
         return
-    stages = pipeline.Stages(prep.setup, linear=prep.plant.linear, decoupled=prep.plant.decoupled)
     try:
         found = stages.pid_margins if prep.setup.law == "pid" else \
             pipeline.margins_of(prep.setup, prep.plant.linear, prep.plant.decoupled, stages.design)

@@ -1004,16 +1004,22 @@ def test_margin_columns_are_the_margins_command_s_and_gate_thin_loops():
     assert "margin.phase_deg" not in plain.metrics  # computed only when gated
 
 
-def test_a_sweep_that_flies_the_cascade_gates_the_cascades_margins_not_the_lqr_designs():
+def test_a_sweep_that_flies_the_cascade_gates_the_cascades_margins_not_the_lqr_designs(monkeypatch):
     """controller.flies: pid: the margin columns are the cascade's, as quadctl margins reports them for that
-    config (the stock Crazyflie cascade keeps 0.75 dB where the LQR design keeps 24 dB): a gate at 6 dB fails."""
+    config (the stock Crazyflie cascade keeps 0.75 dB where the LQR design keeps 24 dB): a gate at 6 dB fails.
+    The case's cascade is lifted once, for its stability and its margins."""
     from quadctl.setup import setup_of
 
+    lifts = []
+    real = pipeline.lifted
+    monkeypatch.setattr(pipeline, "lifted", lambda loop: lifts.append(1) or real(loop))
     cfg = config.load("crazyflie")
     spec = spec_of(cfg, parameters={"vehicle.mass": [0.027]}, set={"simulation.duration": 0.3,
                                                                     "controller.flies": "pid"},
                    gates={"margin.gain_db": {"min": 6}})
     (row,) = sweep.run(cfg, spec, jobs=1).rows
+    assert len(lifts) == 1
+    monkeypatch.undo()
     data = cfg.model_dump(mode="json")
     data["controller"]["flies"] = "pid"
     st = pipeline.Stages(setup_of(config.from_dict(data)))
