@@ -92,6 +92,13 @@ class FlightLog:
             np.savetxt(fh, data, delimiter=",", fmt="%.17g")
 
 
+ACC_RANGE = 1e4
+"""m/s^2: an accelerometer sample beyond this (1000 g; a flight controller's IMU reads 16 to 24 g) is corrupt."""
+GYRO_RANGE = 1e3
+"""rad/s: a gyro sample beyond this (57,000 deg/s; a flight controller's gyro reads 2000 to 4000 deg/s) is corrupt,
+or in deg/s."""
+
+
 def log_error(path, what: str, fix: str) -> LogError:
     """The one line a reader refuses a log with: the file, what is wrong, the fix."""
     return LogError(f"{path}: {what}; {fix}")
@@ -107,6 +114,12 @@ def checked(path, t, acc, gyro, cmd, fmt, digest, conversions, clock: float = 0.
         if not np.all(np.isfinite(values)):
             k = int(np.argwhere(~np.isfinite(np.atleast_2d(values.T).T))[0][0])
             raise log_error(path, f"a non-finite {what} value in sample {k + 1}", "repair or cut the log there")
+    for what, values, unit, bound in (("accelerometer", acc, "m/s^2", ACC_RANGE), ("gyro", gyro, "rad/s", GYRO_RANGE)):
+        beyond = np.abs(values) > bound
+        if np.any(beyond):
+            k, i = (int(v) for v in np.argwhere(beyond)[0])
+            raise log_error(path, f"{what} value {values[k, i]:.4g} {unit} in sample {k + 1}, beyond any IMU's "
+                            f"range (±{bound:g} {unit})", "repair or cut the log there, or check its units")
     steps = np.diff(t)
     if np.any(steps <= 0):
         k = int(np.argmax(steps <= 0))

@@ -226,6 +226,22 @@ def test_a_csv_accelerometer_in_g_or_with_z_up_is_refused(tmp_path, log10, scale
         read_log(path)
 
 
+@pytest.mark.parametrize("sensor, value, match", [
+    ("acc", 1e308, r"x.csv: accelerometer value 1e\+308 m/s\^2 in sample 5001, beyond any IMU's range "
+                   r"\(±10000 m/s\^2\)"),
+    ("gyro", -2000.0, r"x.csv: gyro value -2000 rad/s in sample 5001, beyond any IMU's range \(±1000 rad/s\); .*units"),
+])
+def test_a_sample_no_imu_reads_is_refused(tmp_path, log10, sensor, value, match):
+    """One corrupt accelerometer sample of 1e308 m/s^2 was fitted, NumPy's overflow warning printed and exit 0;
+    a gyro column in deg/s read as rad/s reaches 2000. Either is one line naming the sample."""
+    path = tmp_path / "x.csv"
+    bad = getattr(log10, sensor).copy()
+    bad[5000, 0] = value
+    FlightLog(**{**log10.__dict__, sensor: bad}).to_csv(path)
+    with pytest.raises(LogError, match=match):
+        read_log(path)
+
+
 def test_columns_option_refuses_unknown_names(tmp_path):
     with pytest.raises(LogError, match=r"--columns 'tee' is not NAME=COLUMN"):
         parse_columns(["tee"])
