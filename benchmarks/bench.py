@@ -620,12 +620,35 @@ def the_pid_sweep() -> str:
                          f"{passed} of {len(last[name].rows)}", ", ".join(st["backend"])])
         ratios.append(f"--jobs {jobs}: {best['PID'][0] / 1e6:.2f} M / {best['LQR'][0] / 1e6:.2f} M = "
                       f"{best['PID'][0] / best['LQR'][0]:.2f}")
+    lift = _lift_cpu(laws["PID"])
     return table(f"Sweep: {specs['LQR'].count()} masses of the crazyflie config (benchmarks/crazyflie-mass.yaml), "
                  "the firmware's PID cascade (controller.flies: pid) against the LQR design, alternated, best of "
                  f"{PID_REPEAT}",
                  ["run", "wall (s)", "simulated steps/s", "cases/s", "steps per case", "status ok", "backend"],
                  rows) + ("\n\nThe PID sweep's simulated steps/s against the LQR sweep's (a PID case lifts its "
-                          "cascade about hover for its stable column, an LQR case is designed): " + "; ".join(ratios))
+                          "cascade about hover for its stable column, an LQR case is designed): " + "; ".join(ratios)
+                          + "\n\nThe cascade's lift, one case of the crazyflie config (quadctl.sim.cascade_lift."
+                          f"lifted and its poles): {lift * 1e3:.2f} ms of CPU, best of {LIFT_REPEAT}")
+
+
+LIFT_REPEAT = 20
+"""Lifts timed in :func:`_lift_cpu`."""
+
+
+def _lift_cpu(cfg) -> float:
+    """s of CPU, best of :data:`LIFT_REPEAT`: the PID cascade of ``cfg`` linearized about hover and lifted to its
+    frame, its poles computed (what a PID sweep case adds to judge its stability)."""
+    from quadctl import pipeline
+    from quadctl.setup import setup_of
+    from quadctl.sim.cascade_lift import lifted
+
+    loop = pipeline.Stages(setup_of(cfg)).pid_loop
+    times = []
+    for _ in range(LIFT_REPEAT + 1):  # the first warms: the law's Jacobians, built once per loop
+        start = time.process_time()
+        _ = lifted(loop).poles
+        times.append(time.process_time() - start)
+    return min(times[1:])
 
 
 CEILING_CHUNK = 64
