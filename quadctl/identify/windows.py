@@ -14,9 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadctl.config.vehicle_schema import MotorsConfig
 from quadctl.errors import LogError
-from quadctl.physics.motors import Motors
 
 AIRBORNE_COMMAND = 0.1
 """Mean rotor command (normalized) above which the vehicle counts as flying."""
@@ -90,26 +88,21 @@ def cut_by_a_crash(log) -> str | None:
             "turn; give rad/s)")
 
 
-def combinations(log, airframe=None) -> dict[str, np.ndarray]:
+def combinations(log, airframe) -> dict[str, np.ndarray]:
     """The command combinations each stage needs moving: collective, roll, pitch, yaw.
 
     Each weighs rotor ``i``'s command by where it acts, from the ``airframe``'s rotors in the log's (the
     config's) numbering (:class:`quadctl.identify.estimate.Airframe`: ``positions``, ``spins``): roll by
     ``-y_i``, pitch by ``x_i``, yaw by the spin, each scaled to ``+-1/4`` at the farthest rotor (an x layout:
-    ``(c1 + c2 - c3 - c4) / 4`` and the like). Default: the config's default motors (quadctl's numbering,
-    front right first, clockwise seen from above)."""
-    if airframe is None:
-        motors = Motors.from_config(MotorsConfig())
-        positions, spins = motors.positions(), np.array(motors.rotor_spins())
-    else:
-        positions, spins = airframe.positions, airframe.spins
+    ``(c1 + c2 - c3 - c4) / 4`` and the like)."""
+    positions, spins = airframe.positions, airframe.spins
     c = log.cmd
     x, y = positions[:, 0], positions[:, 1]
     return {"collective": c.mean(axis=1), "roll": c @ (-y / np.abs(y).max() / 4),
             "pitch": c @ (x / np.abs(x).max() / 4), "yaw": c @ (np.asarray(spins, dtype=float) / 4)}
 
 
-def excitation(log, windows, airframe=None) -> dict[str, float]:
+def excitation(log, windows, airframe) -> dict[str, float]:
     """Per stage, the standard deviation of its command combination (:func:`combinations`) inside ``windows``."""
     mask = np.zeros(log.t.shape, dtype=bool)
     for t0, t1 in windows:
