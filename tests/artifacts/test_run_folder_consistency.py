@@ -243,6 +243,18 @@ def test_a_refused_report_keeps_the_report_and_what_it_shows(tmp_path):
     assert design["config_hash"] == config_hash_of(tmp_path)
 
 
+def test_a_refused_report_puts_back_another_configs_run(tmp_path):
+    """report refused (exit 2) in a folder that holds another config's run writes no report and puts that run
+    back byte for byte, as every command does on exit 2: it had replaced the run with the refused one's."""
+    assert invoke("simulate", "-c", "hover", "-o", tmp_path, "--plot", "--set", "simulation.duration=1").exit_code == 0
+    before = _tree(tmp_path)
+    res = invoke("report", "-c", "forward", "-o", tmp_path, "--set", "simulation.dt=0.001")
+    assert res.exit_code == 2, res.output
+    assert f"{tmp_path}: no report written: the folder holds another config's run, put back as it was" in res.stderr
+    assert res.stderr.strip().splitlines()[-1].startswith("quadctl: error: ")
+    assert _tree(tmp_path) == before
+
+
 def test_roll_back_puts_a_replaced_link_back(tmp_path):
     elsewhere = tmp_path / "elsewhere.json"
     elsewhere.write_text("{}")

@@ -1,6 +1,8 @@
+import warnings
 
 from quadctl.cli.errors import FailedChecks
 from quadctl.cli.options import AllowSaturationOpt, ConfigOpt, FreshOpt, JsonOpt, OutOpt, SetOpt
+from quadctl.errors import CheckFailed, QuadctlNotice
 
 NAME = "report"
 
@@ -10,7 +12,8 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     """Every stage and the margins in one HTML page (figures inline, nothing fetched) and a Markdown twin.
 
     Writes DIR/report/report.html, report.md and its figures. Exits 1 when a check fails, as `run`
-    does, after writing the report of what was computed (it says where it stopped).
+    does, after writing the report of what was computed (it says where it stopped); on refused input
+    (exit 2) too, unless DIR held another config's run, which is then put back as it was.
     """
     from quadctl import artifacts, report, stages
     from quadctl.cli import render
@@ -23,6 +26,13 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, f
     artifacts.check_folder(ws.out / report.FOLDER)  # a link there: refused now, not after the stages
     with simulation_progress(quiet=json) as ws.progress:
         outcome = stages.run_stages(ws, allow_saturation=allow_saturation)
+    if outcome.error is not None and not isinstance(outcome.error, CheckFailed) and ws.replaced:
+        # refused, in a folder that held another config's run: that run is put back whole (as every command
+        # puts the folder back on exit 2), and with it goes the report that would have replaced it
+        warnings.warn(QuadctlNotice(f"{ws.out}: no report written: the folder holds another config's run, put back "
+                                    "as it was; report into another --out folder to keep the refused run's"),
+                      stacklevel=1)
+        raise outcome.error
     doc = report.build(ws, outcome, command_line=_command_line(config, out, fresh, sets, allow_saturation),
                        label=source.label)
     paths = report.write(doc, ws.out / report.FOLDER, store=ws)  # a failed write (a full disk): all put back
