@@ -316,13 +316,15 @@ def from_statespace(sys) -> Plant:
 
     Raises
     ------
+    ArgumentTypeError
+        Not a state-space system (a ``TransferFunction``: convert it with ``control.ss``).
     ArgumentError
-        Not a state-space system, no states, non-finite entries, or an unspecified timebase
-        (``dt = None`` or ``True``: give the sample time).
+        No states, non-finite entries, or an unspecified timebase (``dt = None`` or ``True``: give the
+        sample time).
     """
     if not all(hasattr(sys, attr) for attr in ("A", "B", "state_labels", "input_labels")):
-        raise ArgumentError(f"from_statespace: expected a control.StateSpace, got {type(sys).__name__}; convert it "
-                            "with control.ss(sys)")
+        raise ArgumentTypeError(f"from_statespace: expected a control.StateSpace, got {type(sys).__name__}; "
+                                "convert it with control.ss(sys)")
 
     A = real_array(sys.A, "sys.A", name="from_statespace", error=ArgumentError, ndim=2)
     B = real_array(sys.B, "sys.B", name="from_statespace", error=ArgumentError, ndim=2)

@@ -369,8 +369,8 @@ ARGUMENTS = {  # a call with a wrong argument: (call(tmp_path, stages), its clas
         "ArgumentError", ValueError, r"^to must be one of \('c', 'mat', 'json', 'crazyflie'\), got 'pdf'$"),
     "interop.from_statespace an object": (
         lambda _, s: interop.from_statespace(object()),
-        "ArgumentError", ValueError, r"^from_statespace: expected a control\.StateSpace, got object; convert it with "
-                                     r"control\.ss\(sys\)$"),
+        "ArgumentTypeError", TypeError, r"^from_statespace: expected a control\.StateSpace, got object; convert it "
+                                        r"with control\.ss\(sys\)$"),
     "interop.plant a config's name": (
         lambda _, s: interop.plant("hover"),
         "ArgumentTypeError", TypeError, r"^plant: linear must be a quadctl\.linear\.linearize\.LinearModel, "

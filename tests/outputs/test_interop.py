@@ -113,8 +113,12 @@ def test_a_plants_lqr_takes_the_cross_weight_as_python_controls_does(dt):
     assert np.abs(np.sort_complex(E) - np.sort_complex(np.asarray(E_ref, dtype=complex))).max() < 1e-9
 
 
+def test_a_transfer_function_is_refused_as_the_wrong_kind():
+    with pytest.raises(TypeError, match="expected a control.StateSpace, got TransferFunction"):
+        interop.from_statespace(control.tf([1], [1, 1]))
+
+
 @pytest.mark.parametrize("bad, message", [
-    (lambda: control.tf([1], [1, 1]), "expected a control.StateSpace, got TransferFunction"),
     (lambda: control.ss([[0.0, 1.0], [0.0, np.inf]], [[0], [1]], np.eye(2), 0), "A has non-finite entries"),
     (lambda: control.ss([[0.0]], [[1.0]], [[1.0]], 0, True), r"timebase is unspecified \(dt = True\)"),
 ])
