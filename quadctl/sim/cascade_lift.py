@@ -296,13 +296,12 @@ def _lifted(loop) -> Lifted:
     gains = loop.law
     Ts = 1.0 / float(gains["rate_hz"])
     spec = loop.spec()
-    funcs = build(spec)
     c = loop.constants(Ts)
     e = np.zeros(spec.n_exo)
     X0 = loop.initial_loop_state(loop.x_trim)
     npl = spec.n_plant
     base = npl + spec.nz + spec.n_lag
-    law = funcs.law
+    law = law_at_start(spec)
     u_trim = np.asarray(loop.u_trim, dtype=float)
     free = np.concatenate([np.arange(pid.state_slice(name).start, pid.state_slice(name).stop) + base
                            for name in ("vel_integral", "rate_integral")])
@@ -312,7 +311,7 @@ def _lifted(loop) -> Lifted:
             else slice(spec.buffer_start, spec.buffer_start + len(u_trim)))  # the command computed, in the buffer
 
     def computed(X):  # the command the law computes at X: applied at once, or shifted into the delay's buffer
-        return np.asarray(law(X, 0.0, c, e)[1 if spec.delay else 0]).ravel()[rows]
+        return evaluated(law, X, c, e)[1 if spec.delay else 0].ravel()[rows]
 
     def residual(values):
         X = X0.copy()
@@ -322,23 +321,23 @@ def _lifted(loop) -> Lifted:
     def residual_jacobian(values):  # exact, from CasADi: a few law calls, not one per free state and step
         X = X0.copy()
         X[free] = values
-        Ju, JX = jac(X, c, e)
-        return np.asarray(JX if spec.delay else Ju)[rows][:, free]
+        Ju, JX = evaluated(jac, X, c, e)
+        return (JX if spec.delay else Ju)[rows][:, free]
 
     X = X0.copy()
     X[free] = nearest_zero(residual, residual_jacobian, X0[free], scale=1.0 + float(np.max(np.abs(u_trim))))
-    X = np.asarray(law(X, 0.0, c, e)[1]).ravel()  # the held setpoints of a first sample, phase 1
+    X = evaluated(law, X, c, e)[1].ravel()  # the held setpoints of a first sample, phase 1
     _, n_pos = gains.ratios
     phase = base + pid.state_slice("phase").start
     states, commands = [None] * n_pos, [None] * n_pos
     start = None
-    for _ in range(n_pos):
-        p = int(round(X[phase]))
+    chain = evaluated(frame_chain(spec, n_pos), X, c, e)  # each sample's state and Jacobians, in one call
+    for k in range(n_pos):
+        Ju, JX, X = chain[3 * k: 3 * k + 3]
+        p = int(round(X[phase, 0]))
         if p == 0:
-            start = X.copy()
-        Ju, JX = (np.asarray(m) for m in jac(X, c, e))
+            start = X.ravel()
         commands[p], states[p] = Ju, JX
-        X = np.asarray(law(X, 0.0, c, e)[1]).ravel()
     keep = read_states(states, commands, npl)
     rates = plant_rates(loop)
     return Lifted(plant=_hold(rates, Ts), law_state=[S[np.ix_(keep, keep)] for S in states],
@@ -365,14 +364,55 @@ def nearest_zero(residual, jacobian, x0: np.ndarray, scale: float) -> np.ndarray
     return fit.x
 
 
+def _symbols(spec):
+    return ca.SX.sym("X", spec.nx), ca.SX.sym("c", spec.n_constants), ca.SX.sym("e", spec.n_exo)
+
+
+@lru_cache(maxsize=8)
+def law_at_start(spec):
+    """``(X, c, e) -> (u, X_sampled)``: the law of loop spec ``spec`` at the start of a run (t = 0), its
+    outputs dense (for :func:`evaluated`)."""
+    X, c, e = _symbols(spec)
+    u, X_next = build(spec).law(X, 0.0, c, e)
+    return ca.Function("qc_law_at_start", [X, c, e], [ca.densify(u), ca.densify(X_next)])
+
+
 @lru_cache(maxsize=8)
 def law_jacobians(spec):
     """``(X, c, e) -> (du/dX, dX_sampled/dX)``: the exact Jacobians of the law of loop spec ``spec`` at the
-    start of a run (t = 0), built once per spec (a sweep's cases share it)."""
-    law = build(spec).law
-    X, c, e = ca.SX.sym("X", spec.nx), ca.SX.sym("c", spec.n_constants), ca.SX.sym("e", spec.n_exo)
-    u, X_next = law(X, 0.0, c, e)
-    return ca.Function("qc_law_jacobian", [X, c, e], [ca.jacobian(u, X), ca.jacobian(X_next, X)])
+    start of a run (t = 0), built once per spec (a sweep's cases share it), dense."""
+    X, c, e = _symbols(spec)
+    u, X_next = build(spec).law(X, 0.0, c, e)
+    return ca.Function("qc_law_jacobian", [X, c, e],
+                       [ca.densify(ca.jacobian(u, X)), ca.densify(ca.jacobian(X_next, X))])
+
+
+@lru_cache(maxsize=8)
+def frame_chain(spec, samples: int):
+    """``(X, c, e) -> (du/dX, dX_sampled/dX, X)`` at each of ``samples`` samples from ``X``, each sample's
+    ``X`` the law's sampled state of the one before: a frame's linearization in one call."""
+    X, c, e = _symbols(spec)
+    law, jac = build(spec).law, law_jacobians(spec)
+    outputs, Xk = [], X
+    for _ in range(samples):
+        outputs += [*jac(Xk, c, e), ca.densify(Xk)]
+        Xk = law(Xk, 0.0, c, e)[1]
+    return ca.Function("qc_frame_chain", [X, c, e], outputs)
+
+
+def evaluated(fn, *args) -> list[np.ndarray]:
+    """The dense outputs of CasADi function ``fn`` at ``args`` (numpy arrays), as numpy matrices: CasADi
+    writes them straight into numpy's memory (its buffer), where converting its DM results cost more
+    than the evaluation itself (about 80 µs a 53 x 53 Jacobian)."""
+    buffer, run = fn.buffer()
+    held = [np.ascontiguousarray(a, dtype=float).ravel() for a in args]
+    out = [np.empty((fn.size2_out(k), fn.size1_out(k))) for k in range(fn.n_out())]  # column-major: transposed
+    for k, a in enumerate(held):
+        buffer.set_arg(k, memoryview(a))
+    for k, o in enumerate(out):
+        buffer.set_res(k, memoryview(o))
+    run()
+    return [o.T for o in out]
 
 
 def read_states(law_state, law_command, n_plant: int) -> np.ndarray:

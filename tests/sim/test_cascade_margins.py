@@ -139,34 +139,29 @@ def crazyflie_cascade():
 
 
 def test_a_ctrl_c_during_the_cascades_linearization_is_taken_after_it(crazyflie_cascade, monkeypatch):
-    """The lifted loop's trim calls the CasADi law from Python (least squares): a Ctrl-C that landed in one
+    """The lifted loop's trim evaluates the CasADi law from Python, step by step: a Ctrl-C that landed in one
     of those calls was swallowed by CasADi's argument conversion and `quadctl compare` ran on to exit 0.
-    It is held until the linearization is done, then raised: the law's calls go on after it."""
-    import dataclasses
+    It is held until the linearization is done, then raised: the law's evaluations go on after it."""
     import signal
 
     from quadctl.sim import cascade_lift
 
-    real = cascade_lift.build
+    real = cascade_lift.evaluated
     calls, interrupt = [], []
 
-    def build(spec):
-        funcs = real(spec)
+    def evaluated(fn, *args):
+        if interrupt and not calls:
+            signal.raise_signal(signal.SIGINT)  # the Ctrl-C lands in the first evaluation
+        calls.append(1)
+        return real(fn, *args)
 
-        def law(*args):
-            if interrupt and not calls:
-                signal.raise_signal(signal.SIGINT)  # the Ctrl-C lands in the first call
-            calls.append(1)
-            return funcs.law(*args)
-        return dataclasses.replace(funcs, law=law)
-
-    monkeypatch.setattr(cascade_lift, "build", build)
+    monkeypatch.setattr(cascade_lift, "evaluated", evaluated)
     cascade_lift.lifted(crazyflie_cascade[0])
     whole, calls[:] = len(calls), []
     interrupt.append(1)
     with pytest.raises(KeyboardInterrupt):
         cascade_lift.lifted(crazyflie_cascade[0])
-    assert len(calls) == whole > 1  # the trim's search and the phases ran whole
+    assert len(calls) == whole > 1  # the trim's search and the frame's linearization ran whole
 
 
 @pytest.fixture(scope="module")
