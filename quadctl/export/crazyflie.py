@@ -51,7 +51,9 @@ class Platform:
     mass: float
     arm_length: float
     max_thrust: float
+    min_thrust: float
     torque_coefficient: float
+    min_thrust_source: str = "src/drivers/src/motors.c motorsCompensateBatteryVoltage"
     gyro_cutoff: float = 80.0
     gyro_order: int = 2
     gyro_source: str = "src/hal/src/sensors_bmi088_bmp3xx.c GYRO_LPF_CUTOFF_FREQ"
@@ -66,6 +68,15 @@ class Platform:
         """The sensor driver's low-pass of ``sensors->gyro``, as the config's ``controller.filters`` writes it."""
         return f"controller.filters: {{gyro: {{cutoff: {self.gyro_cutoff:g}, order: {self.gyro_order}}}}}"
 
+    def motors(self):
+        """The firmware's own mixer as :class:`quadctl.physics.motors.Motors` (x layout, ``ARM_LENGTH``,
+        ``THRUST2TORQUE``, its motors M1-M4 in :data:`NUMBERING`): what force-torque mode mixes the law's
+        output with."""
+        from quadctl.physics.motors import Motors
+
+        return Motors(layout="x", arm_length=self.arm_length, torque_coefficient=self.torque_coefficient,
+                      min_thrust=0.0, max_thrust=self.max_thrust, order=NUMBERING, spins=SPINS)
+
 
 FIRMWARE = Platform(
     name="Crazyflie 2.1+ (the firmware's default propellers)",
@@ -74,10 +85,17 @@ FIRMWARE = Platform(
     mass=0.029,                                   # CF_MASS, kg
     arm_length=0.046,                             # ARM_LENGTH, m
     max_thrust=0.12,                              # THRUST_MAX, N per motor
+    min_thrust=0.012817578393224994,              # THRUST_MIN, N per motor (7000 / 65535 of THRUST_MAX)
     torque_coefficient=0.0069928948992470565,     # THRUST2TORQUE, m (N m per N)
 )
 """bitcraze/crazyflie-firmware at :attr:`Platform.commit` (2026-08-21), :attr:`Platform.source`:
-``CF_MASS``, ``ARM_LENGTH``, ``THRUST2TORQUE`` of the default (2.1+) propellers; and the second-order
+``CF_MASS``, ``ARM_LENGTH``, ``THRUST2TORQUE`` of the default (2.1+) propellers; ``THRUST_MAX`` and
+``THRUST_MIN``, the rotor thrusts the battery compensation (on by default, ``CONFIG_ENABLE_THRUST_BAT_COMPENSATED``)
+works between: a motor asked for more than ``THRUST_MAX`` is clipped there in force mode
+(``powerDistributionForce`` in ``src/modules/src/power_distribution_quadrotor.c`` clips its share to [0, 1]),
+one asked for less than ``THRUST_MIN`` gets no voltage at all, in either mode (:attr:`Platform.min_thrust_source`;
+the idle thrust that could floor it instead, ``powerDistribution.idleThrust``, is 0 on a Crazyflie 2.x, whose
+motors need no arming); and the second-order
 low-pass (``lpf2p``, at the 1 kHz sensor rate) the sensor driver runs on the gyro at ``GYRO_LPF_CUTOFF_FREQ``
 before it hands ``sensors->gyro`` to any controller, the app's too (the ``crazyflie`` PID preset's
 ``gyro_lpf_hz``)."""
@@ -274,8 +292,8 @@ def platform_rows(exp: Export, platform: Platform = FIRMWARE) -> list[tuple[str,
     Returns
     -------
     list of (quantity, config key, config value, firmware value, unit)
-        Mass, arm length, maximum rotor thrust and torque coefficient (the rotor rows only with
-        ``motors:``).
+        Mass, arm length, maximum and least rotor thrust and torque coefficient (the rotor rows only
+        with ``motors:``).
     """
     require_export(exp, "platform_rows")
     setup = exp.setup
@@ -285,9 +303,83 @@ def platform_rows(exp: Export, platform: Platform = FIRMWARE) -> list[tuple[str,
         m = act.motors
         rows += [("arm length", "motors.arm_length", float(m.arm_length), platform.arm_length, "m"),
                  ("maximum rotor thrust", "motors.max_thrust", float(m.max_thrust), platform.max_thrust, "N"),
+                 ("least rotor thrust", "motors.min_thrust", float(m.min_thrust), platform.min_thrust, "N"),
                  ("torque coefficient", "motors.torque_coefficient", float(m.torque_coefficient),
                   platform.torque_coefficient, "N m/N")]
     return rows
+
+
+@dataclass(frozen=True)
+class FlightThrusts:
+    """The rotor thrusts the configured flight asks the firmware for (:func:`flight_thrusts`).
+
+    Attributes
+    ----------
+    thrusts : (N+1, 4) ndarray
+        N: each motor's thrust (M1-M4) at each recorded sample of the run, as the app hands it over:
+        ``quadctl_mix``'s in force mode, the firmware's own mix of the law's output in force-torque mode.
+    t : (N+1,) ndarray
+        s.
+    mode : str
+        The app's output, ``force`` or ``force-torque``.
+    message : str
+        How the run ended (:attr:`quadctl.sim.run.SimResult.message`); ``ok`` says it completed.
+    ok : bool
+        The run completed.
+    """
+
+    thrusts: np.ndarray
+    t: np.ndarray
+    mode: str
+    message: str
+    ok: bool
+
+    def lowest(self) -> tuple[int, float]:
+        """(motor index 0-3, N): the least thrust any motor is asked for."""
+        i, k = np.unravel_index(int(np.argmin(self.thrusts)), self.thrusts.shape)
+        return int(k), float(self.thrusts[i, k])
+
+    def highest(self) -> tuple[int, float]:
+        """(motor index 0-3, N): the most thrust any motor is asked for."""
+        i, k = np.unravel_index(int(np.argmax(self.thrusts)), self.thrusts.shape)
+        return int(k), float(self.thrusts[i, k])
+
+    def share_below(self, limit: float) -> float:
+        """The share of the run's samples in which some motor is asked for less than ``limit`` (N)."""
+        return float(np.mean(np.any(self.thrusts < limit, axis=1)))
+
+    def share_above(self, limit: float) -> float:
+        """The share of the run's samples in which some motor is asked for more than ``limit`` (N)."""
+        return float(np.mean(np.any(self.thrusts > limit, axis=1)))
+
+
+def flight_thrusts(exp: Export, mode: str = "force", platform: Platform = FIRMWARE) -> FlightThrusts | None:
+    """Fly the configured run (``quadctl simulate``'s: its initial offset, reference, wind and noise) and
+    take each motor's thrust as the app hands it to the firmware.
+
+    In force mode that is the design's own mixer and saturation (``quadctl_mix``, the config's rotors,
+    numbered as the firmware's: :func:`check`); in force-torque mode the firmware mixes the law's output
+    with its own constants (:meth:`Platform.motors`), and a config without ``motors:`` is covered too.
+
+    Returns
+    -------
+    FlightThrusts or None
+        None in force mode without ``motors:`` (which :func:`check` refuses).
+    """
+    from quadctl.pipeline import simulation_of
+
+    require_export(exp, "flight_thrusts")
+    if mode not in MODES:
+        raise ArgumentError(f"mode must be one of {MODES}, got {mode!r}")
+    act = exp.loop.actuators
+    if mode == "force" and (act is None or act.mode != "motors"):
+        return None
+    run = simulation_of(exp.setup, exp.loop)
+    u = np.asarray(run.u, dtype=float)
+    # force-torque: the firmware gives a motor its mixed share, or nothing when that is negative
+    thrusts = act.commands(u) if mode == "force" else np.maximum(u @ platform.motors().mixer().T, 0.0)
+    return FlightThrusts(thrusts=thrusts, t=np.asarray(run.t, dtype=float), mode=mode, message=run.message,
+                         ok=run.status == "ok")
 
 
 def _mass(exp: Export) -> float:

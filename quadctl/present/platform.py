@@ -12,7 +12,8 @@ AGREE_RTOL = 0.005
 def platform_sentences(rows, platform, mode: str = "force") -> list[str]:
     """One sentence per number that differs from the platform's (by how much, in % of the
     platform's; in force mode, a maximum rotor thrust above the platform's with the firmware's clip),
-    one for those that agree, and what to check when any differs.
+    one for a least rotor thrust below the platform's (:func:`least_thrust_sentence`), one for those that
+    agree, and what to check when any number of the vehicle differs.
 
     Parameters
     ----------
@@ -22,18 +23,21 @@ def platform_sentences(rows, platform, mode: str = "force") -> list[str]:
         The app's output, ``force`` or ``force-torque`` (``--mode``).
     """
     where = f"{platform.source} at crazyflie-firmware {platform.commit[:12]}"
-    differ, agree = [], []
+    differ, agree, floor = [], [], []
     for quantity, key, value, theirs, unit in rows:
         rel = (value - theirs) / theirs
         if abs(rel) <= AGREE_RTOL:
             agree.append(f"{quantity} ({key} = {value:.4g} {unit})")
+        elif key == "motors.min_thrust":  # a floor of the firmware's, not a number of the vehicle
+            if value < theirs:
+                floor.append(least_thrust_sentence(value, platform))
         else:
             clipped = (f"; in force mode the firmware clips each rotor at its {theirs:.4g} {unit}, where the design's "
                        f"saturation puts it at {value:.4g} {unit}"
                        if key == "motors.max_thrust" and value > theirs and mode == "force" else "")
             differ.append(f"{quantity}: {key} = {value:.4g} {unit}, the firmware's {theirs:.4g} {unit} "
                           f"({rel * 100:+.1f} %){clipped}")
-    out = [f"differs from the firmware's {platform.name} ({where}): {d}" for d in differ]
+    out = [f"differs from the firmware's {platform.name} ({where}): {d}" for d in differ] + floor
     if agree:
         out.append(f"agrees with the firmware's defaults: {', '.join(agree)}")
     if differ:
@@ -42,6 +46,65 @@ def platform_sentences(rows, platform, mode: str = "force") -> list[str]:
     return out
 
 
+def _newtons(value: float) -> str:
+    """A rotor thrust in words (N, 4 digits); a mixer's round-off about 0 read as 0."""
+    return f"{0.0 if abs(value) < 1e-12 else value:.4g}"
+
+
+def least_thrust_sentence(value: float, platform) -> str:
+    """What the firmware does below its least rotor thrust (:attr:`quadctl.export.crazyflie.Platform.min_thrust`),
+    which the design's ``motors.min_thrust = value`` (N) lies under."""
+    floor = platform.min_thrust
+    return (f"the firmware stops a motor asked for less than {floor:.4g} N (THRUST_MIN of {platform.source}; "
+            f"{platform.min_thrust_source} gives it no voltage), in either mode, where the design takes a rotor as "
+            f"able to give any thrust down to motors.min_thrust = {value:.4g} N: a rotor the design asks for less "
+            f"loses all its thrust at once; set motors.min_thrust: {floor:.4g} to keep the design's saturation "
+            "above it")
+
+
+def flight_sentences(flight, platform) -> list[tuple[str, str]]:
+    """The configured flight's rotor thrusts against the firmware's limits: a note with the lowest and the
+    highest, then a warning for each limit the flight goes past. In force mode both limits bind (below
+    :attr:`~quadctl.export.crazyflie.Platform.min_thrust` a motor stops, above
+    :attr:`~quadctl.export.crazyflie.Platform.max_thrust` it is clipped); in force-torque mode only the first
+    (the firmware caps the motors at full PWM instead, all four lowered alike).
+
+    Parameters
+    ----------
+    flight : quadctl.export.crazyflie.FlightThrusts
+    platform : quadctl.export.crazyflie.Platform
+
+    Returns
+    -------
+    list of (level, sentence)
+        ``level`` is ``note`` or ``warning``.
+    """
+    force = flight.mode == "force"
+    (i_lo, lo), (i_hi, hi) = flight.lowest(), flight.highest()
+    run = (f"quadctl simulate's run, {float(flight.t[-1]):.3g} s" if flight.ok else
+           f"quadctl simulate's run, which stopped at t = {float(flight.t[-1]):.3g} s: {flight.message}")
+    top = (f"clips one above {platform.max_thrust:.4g} N" if force else
+           f"has no clip at {platform.max_thrust:.4g} N in force-torque mode (full PWM caps the motors, all four "
+           "lowered alike)")
+    out = [("note", f"the configured flight ({run}) asks the firmware's motors for {_newtons(lo)} N (M{i_lo + 1}) to "
+                    f"{_newtons(hi)} N (M{i_hi + 1}) in {flight.mode} mode: the firmware stops a motor below "
+                    f"{platform.min_thrust:.4g} N and {top}")]
+    if lo < platform.min_thrust:
+        fix = (f"set motors.min_thrust: {platform.min_thrust:.4g} (the design's saturation, which the app flies, then "
+               "asks no less)" if force else
+               f"export with --mode force and motors.min_thrust: {platform.min_thrust:.4g} (the app's saturation "
+               "then asks no less)")
+        out.append(("warning", f"the configured flight asks M{i_lo + 1} for {_newtons(lo)} N, below the "
+                               f"{platform.min_thrust:.4g} N under which the firmware stops a motor: some motor is "
+                               f"below it {100 * flight.share_below(platform.min_thrust):.3g} % of the run, where the "
+                               f"vehicle loses thrust the design counts on; {fix}, or fly gentler gains or offsets"))
+    if force and hi > platform.max_thrust:
+        out.append(("warning", f"the configured flight asks M{i_hi + 1} for {_newtons(hi)} N, above the "
+                               f"{platform.max_thrust:.4g} N at which the firmware clips a motor in force mode: some "
+                               f"motor is above it {100 * flight.share_above(platform.max_thrust):.3g} % of the run, "
+                               "where the vehicle lacks thrust the design counts on; set motors.max_thrust: "
+                               f"{platform.max_thrust:.4g} to saturate the design where the firmware does"))
+    return out
 
 
 def no_setpoint_flyable(free: dict) -> str:

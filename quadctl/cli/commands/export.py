@@ -86,11 +86,15 @@ def command(to: Annotated[Target, typer.Option(
     session = open_session(cfg, source, folder)  # after every check: a refused export touches no folder
     paths = session.write_together(files)
     session.keep()  # the export is whole: it stays, whatever follows
+    flight = None
     if to is Target.crazyflie:
-        from quadctl.present.platform import platform_sentences
+        from quadctl.present.platform import flight_sentences, platform_sentences
 
         for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE, mode.value):
             render.note(line)
+        flight = crazyflie.flight_thrusts(exp, mode.value)
+        for level, line in flight_sentences(flight, crazyflie.FIRMWARE) if flight is not None else ():
+            (render.warning if level == "warning" else render.note)(line)
         for sentence in (crazyflie.gyro_sentence(exp), crazyflie.lag_sentence(exp, config or cfg.name, sets or ())):
             if sentence is not None:
                 render.note(sentence)
@@ -106,9 +110,14 @@ def command(to: Annotated[Target, typer.Option(
         if to is Target.crazyflie:
             written["crazyflie"] = {
                 "setpoint": flown, "mode": mode.value, "calls_per_sample": crazyflie.divider(exp.rate),
-                "firmware": {"commit": crazyflie.FIRMWARE.commit, "source": crazyflie.FIRMWARE.source},
+                "firmware": {"commit": crazyflie.FIRMWARE.commit, "source": crazyflie.FIRMWARE.source,
+                             "min_thrust": crazyflie.FIRMWARE.min_thrust, "max_thrust": crazyflie.FIRMWARE.max_thrust},
                 "platform": [{"quantity": q, "key": k, "value": v, "firmware": f, "unit": u}
-                             for q, k, v, f, u in crazyflie.platform_rows(exp)]}
+                             for q, k, v, f, u in crazyflie.platform_rows(exp)],
+                "flight": None if flight is None else {
+                    "completed": flight.ok, "lowest": flight.lowest()[1], "highest": flight.highest()[1],
+                    "below_min": flight.share_below(crazyflie.FIRMWARE.min_thrust),
+                    "above_max": flight.share_above(crazyflie.FIRMWARE.max_thrust)}}
         return render.emit_json(written)
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
