@@ -165,6 +165,7 @@ def test_a_design_allowed_below_the_firmwares_least_thrust_is_told_without_blami
         "agrees with the firmware's defaults: mass (vehicle.mass = 0.029 kg), least rotor thrust "
         "(motors.min_thrust = 0.01282 N)"]
     assert "stops a motor" not in "\n".join(platform_sentences(rows(0.02), FW))
+    assert "down to motors.min_thrust = 0.005 N" in "\n".join(platform_sentences(rows(0.005), FW))
 
 
 def test_the_json_gives_the_firmwares_limits_and_the_flights_thrusts(tmp_path):
