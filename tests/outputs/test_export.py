@@ -992,12 +992,13 @@ def test_the_page_commands_print_what_it_shows_and_its_code_runs(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     (tmp_path / "docs").symlink_to(ROOT / "docs")  # the section's LQG config
     runs = _console_runs()
-    assert len(runs) == 10
+    assert len(runs) == 11
     for command, shown in runs:
         res = runner.invoke(app, shlex.split(command)[1:])
         failed = any(line.startswith(("quadctl: error:", "quadctl: check failed:")) for line in shown)
         assert (res.exit_code != 0) == failed, (command, res.exit_code, res.stderr)
-        printed = _flat(res.stderr if failed else res.stdout)
+        # a shown note or warning is on stderr, the rest on stdout
+        printed = _flat(res.stderr if failed else f"{res.stdout}\n{res.stderr}")
         for line in shown:
             assert _flat(line) in printed, (command, line)
     for command in INLINE_COMMANDS:
