@@ -4,8 +4,9 @@
 an adapter for the firmware's out-of-tree controller interface (``controller.h``; written from its
 documentation, no firmware code in it) with the frames converted (:data:`FRAMES`), the build files
 and a README. :func:`check` refuses what the app cannot serve (exit 2); :func:`platform_rows`
-compares the vehicle with the firmware's defaults (:data:`FIRMWARE`). What the adapter does at each
-call is in the docs, docs/guide/export.md ("Into the flight stack: the Crazyflie app").
+compares the vehicle with the firmware's defaults (:data:`FIRMWARE`), and :func:`flight_thrusts` takes the
+rotor thrusts the configured flight asks of the firmware, for comparison with those it gives. What the adapter
+does at each call is in the docs, docs/guide/export.md ("Into the flight stack: the Crazyflie app").
 """
 
 from __future__ import annotations
