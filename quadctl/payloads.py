@@ -224,6 +224,9 @@ def _checks_payload(c: Checks, regulated: bool) -> dict:
                  "states": m.states} for m in c.pbh_ctrb],
         "pbh_obsv": [{"eigenvalue": m.eigenvalue, "obsv_rank": m.rank, "observable": m.passed,
                       "states": m.states} for m in c.pbh_obsv],
+        "staircase": {"controllable_dim": c.controllable_dim, "observable_dim": c.observable_dim,
+                      "uncontrollable": [{"eigenvalue": m.eigenvalue, "states": m.states} for m in c.lost_ctrb],
+                      "unobservable": [{"eigenvalue": m.eigenvalue, "states": m.states} for m in c.lost_obsv]},
     }
 
 

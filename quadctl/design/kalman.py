@@ -20,7 +20,6 @@ from quadctl.errors import ArgumentError, DesignError
 from quadctl.layout import N_STATES, SENSOR_GROUPS, STATE_INDEX, STATE_NAMES
 from quadctl.linear.analysis import check
 from quadctl.linear.filters import RATE_STATES, filtered_output, series, state_names
-from quadctl.linear.stability import is_stable
 from quadctl.physics.model import N_DISTURBANCES, Vehicle, build_model
 from quadctl.text.messages import eig_text, show
 
@@ -130,7 +129,8 @@ def noise_input(x_trim, u_trim, vehicle: Vehicle) -> np.ndarray:
 
 
 def require_detectable(A, C, measured, key: str = "estimator.measure", names=STATE_NAMES) -> None:
-    """Refuse a measured set that leaves a mode that is not stable unobservable (PBH).
+    """Refuse a measured set that leaves a mode that is not stable unobservable (PBH or the staircase:
+    :func:`quadctl.linear.analysis.check`).
 
     Raises
     ------
@@ -138,10 +138,10 @@ def require_detectable(A, C, measured, key: str = "estimator.measure", names=STA
         Naming the modes, the states they live in, and what to measure.
     """
     checks = check(A, np.zeros((A.shape[0], 1)), C, names)
-    bad = [m for m in checks.pbh_obsv if not m.passed and not is_stable(m.eigenvalue)]
-    if not bad:
+    if checks.detectable:
         return
-    states = sorted({s for m in bad for s in _unobserved_states(A, C, m.eigenvalue, names)},
+    bad = checks.undetectable_modes
+    states = sorted({s for m in bad for s in _unobserved_states(A, C, m.eigenvalue, names) or m.states},
                     key=list(names).index)
     modes = ", ".join(eig_text(m.eigenvalue, 3) for m in bad)
     groups = [g for g, ss in SENSOR_GROUPS.items() if set(states) & set(ss)]

@@ -4,7 +4,9 @@ Ranks are numerical: the number of singular values above
 ``tol = max(shape) * eps * sigma_max`` (the tolerance of ``numpy.linalg.matrix_rank``),
 reported with every result. The Kalman matrices of these models are badly scaled
 (inputs enter through ``1/J ~ 1e4``), so the verdicts come from the PBH test,
-``rank [lambda I - A, B] = n`` at each eigenvalue, which needs no matrix powers.
+``rank [lambda I - A, B] = n`` at each eigenvalue, which needs no matrix powers, and from the
+orthogonal staircase (:mod:`quadctl.linear.staircase`), which needs no eigenvalues: a mode either
+finds out of reach is out of reach.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.linear import stability
+from quadctl.linear.staircase import staircase
 
 RICCATI_RTOL = 1e-8
 """Largest accepted relative residual of a Riccati solution, continuous or discrete: the residual's
@@ -50,11 +53,23 @@ class ModeTest:
 
 
 @dataclass(frozen=True)
+class LostMode:
+    """A mode the staircase finds out of reach of every input (or out of sight of every output): an eigenvalue
+    of its block ``A_uu`` (:func:`quadctl.linear.staircase.staircase`)."""
+
+    eigenvalue: complex
+    states: tuple[str, ...]
+    """The states its direction no input reaches (no output sees) lives in most, largest components first."""
+
+
+@dataclass(frozen=True)
 class Checks:
     """Controllability and observability of one system.
 
-    ``controllable``/``observable`` come from PBH at every eigenvalue; ``ctrb``/``obsv`` are the
-    Kalman matrices' ranks, reported for comparison with the report.
+    ``controllable``/``observable`` hold when PBH passes at every eigenvalue and the staircase finds
+    every state reached (seen); ``stabilizable``/``detectable`` when every mode either finds out of
+    reach (sight) is stable. ``ctrb``/``obsv`` are the Kalman matrices' ranks, reported for comparison
+    with the report.
     """
 
     n: int
@@ -66,10 +81,30 @@ class Checks:
     detectable: bool
     pbh_ctrb: tuple[ModeTest, ...]
     pbh_obsv: tuple[ModeTest, ...]
+    controllable_dim: int
+    """The dimension of the controllable subspace, by the staircase of ``(A, B)``."""
+    observable_dim: int
+    """The dimension of the observable subspace, by the staircase of ``(A^T, C^T)``."""
+    lost_ctrb: tuple[LostMode, ...]
+    """The staircase's modes no input reaches (``n - controllable_dim`` of them)."""
+    lost_obsv: tuple[LostMode, ...]
+    """The staircase's modes no output sees (``n - observable_dim`` of them)."""
 
     @property
-    def unstabilizable_modes(self) -> tuple[ModeTest, ...]:
-        return tuple(m for m in self.pbh_ctrb if not m.passed and not stability.is_stable(m.eigenvalue))
+    def unstabilizable_modes(self) -> tuple[ModeTest | LostMode, ...]:
+        """The modes out of reach that are not stable: PBH's, else the staircase's (PBH names a mode at an
+        eigenvalue of ``A`` itself; the staircase finds those whose eigenvalue is too far off for PBH)."""
+        return _not_stable(self.pbh_ctrb, self.lost_ctrb)
+
+    @property
+    def undetectable_modes(self) -> tuple[ModeTest | LostMode, ...]:
+        """The modes out of sight that are not stable: PBH's, else the staircase's."""
+        return _not_stable(self.pbh_obsv, self.lost_obsv)
+
+
+def _not_stable(tests: tuple[ModeTest, ...], lost: tuple[LostMode, ...]) -> tuple[ModeTest | LostMode, ...]:
+    failed = tuple(m for m in tests if not m.passed and not stability.is_stable(m.eigenvalue))
+    return failed or tuple(m for m in lost if not stability.is_stable(m.eigenvalue))
 
 
 SAME_EIGENVALUE = 1e-9
@@ -186,6 +221,13 @@ def _pbh_rank(lam: complex, A: np.ndarray, M: np.ndarray, dual: bool, reach: flo
 def check(A, B, C=None, names=None) -> Checks:
     """Controllability, observability, stabilizability and detectability of ``(A, B, C)``.
 
+    Two tests, each able to miss what the other finds: PBH at every eigenvalue (:func:`pbh`), and the
+    orthogonal staircases of ``(A, B)`` and ``(A^T, C^T)`` (:func:`quadctl.linear.staircase.staircase`),
+    whose dimension needs no eigenvalue, so a mode out of reach inside a nearly defective block of ``A``
+    (its computed eigenvalue off by ``~sqrt(eps)``, beyond PBH's Newton steps) is still found. A mode
+    either finds out of reach (sight) makes the system not controllable (observable); it is
+    stabilizable (detectable) when every such mode is stable.
+
     Parameters
     ----------
     A : (n, n) array_like
@@ -205,14 +247,31 @@ def check(A, B, C=None, names=None) -> Checks:
     names = list(names) if names is not None else [f"x{i}" for i in range(n)]
     ctrb_modes = pbh(A, B, names)
     obsv_modes = pbh(A, C, names, dual=True)
+    reached, lost_ctrb = _staircase_modes(A, B, names)
+    seen, lost_obsv = _staircase_modes(A.T, C.T, names)
     return Checks(
         n=n,
         ctrb=numerical_rank(ctrb(A, B)),
         obsv=numerical_rank(obsv(A, C)),
-        controllable=all(m.passed for m in ctrb_modes),
-        observable=all(m.passed for m in obsv_modes),
-        stabilizable=all(m.passed or stability.is_stable(m.eigenvalue) for m in ctrb_modes),
-        detectable=all(m.passed or stability.is_stable(m.eigenvalue) for m in obsv_modes),
+        controllable=all(m.passed for m in ctrb_modes) and reached == n,
+        observable=all(m.passed for m in obsv_modes) and seen == n,
+        stabilizable=not _not_stable(ctrb_modes, lost_ctrb),
+        detectable=not _not_stable(obsv_modes, lost_obsv),
         pbh_ctrb=ctrb_modes,
         pbh_obsv=obsv_modes,
+        controllable_dim=reached,
+        observable_dim=seen,
+        lost_ctrb=lost_ctrb,
+        lost_obsv=lost_obsv,
     )
+
+
+def _staircase_modes(A: np.ndarray, B: np.ndarray, names) -> tuple[int, tuple[LostMode, ...]]:
+    """The controllable dimension of ``(A, B)`` and the modes out of reach, each named by its direction no
+    input reaches (components above a tenth of the largest, as :func:`pbh` names a mode)."""
+    form = staircase(A, B)
+    lost = []
+    for lam, vec in zip(form.uncontrollable_eigenvalues, np.abs(form.uncontrollable_directions).T):
+        order = [i for i in np.argsort(-vec) if vec[i] > 0.1 * vec.max()]
+        lost.append(LostMode(eigenvalue=complex(lam), states=tuple(names[i] for i in order)))
+    return form.controllable_dim, tuple(lost)

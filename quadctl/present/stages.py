@@ -66,12 +66,16 @@ def checks_table(checks: dict, regulated) -> Table:
     for name, c in checks.items():
         label = name if name == "full" or name in regulated else f"{name}*"
         rows.append((label, f"{c.ctrb.rank}/{c.n}", f"{c.obsv.rank}/{c.n}", f"{c.ctrb.tolerance:.0e}",
+                     f"{c.controllable_dim}, {c.observable_dim}",
                      yes(c.controllable), yes(c.observable), yes(c.stabilizable), yes(c.detectable)))
     return Table("checks-table", "Controllability and observability",
-                 ("system", "ctrb", "obsv", "tol", "controllable", "observable", "stabilizable", "detectable"),
+                 ("system", "ctrb", "obsv", "tol", "staircase", "controllable", "observable", "stabilizable",
+                  "detectable"),
                  tuple(rows), caption="ctrb/obsv: Kalman matrix rank by SVD, counting singular values > tol = "
-                 f"max(shape) * eps * sigma_max (eps = {np.finfo(float).eps:.3g}); verdicts by PBH at each "
-                 f"eigenvalue; a mode is unstable when {stability.criterion()}; * analysed only", align="lrrrllll")
+                 f"max(shape) * eps * sigma_max (eps = {np.finfo(float).eps:.3g}); staircase: the dimensions of "
+                 "the controllable and the observable subspace, by orthogonal transformations; verdicts by PBH at "
+                 "each eigenvalue and by the staircase (a mode either finds out of reach or sight counts); a mode "
+                 f"is unstable when {stability.criterion()}; * analysed only", align="lrrrrllll")
 
 
 def stabilizable_sentence(checks: dict, regulated) -> Mark:
