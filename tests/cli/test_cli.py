@@ -79,6 +79,13 @@ def test_check_states_tolerance(tmp_path):
     assert res.exit_code == 0 and "tolerance" in res.output
     data = json.loads((tmp_path / "checks.json").read_text())
     assert data["subsystems"]["roll"]["stabilizable"] and data["full"]["ctrb_rank"] == 12
+    assert "staircase" in res.output
+    assert (data["full"]["staircase"]["controllable_dim"], data["subsystems"]["roll"]["staircase"]["observable_dim"]) == (
+        12, 3)
+    # hovering at zero yaw, u drives pN and nothing drives pE (subsystems.json: A = 0, B = [[1, 0], [0, 0]])
+    assert data["subsystems"]["guidance"]["staircase"] == {
+        "controllable_dim": 1, "observable_dim": 2, "unobservable": [],
+        "uncontrollable": [{"eigenvalue": [0.0, 0.0], "states": ["pE"]}]}
 
 
 def test_simulate_reports_speed_and_plots(tmp_path):

@@ -310,6 +310,7 @@ def test_a_failed_check_exits_1_after_reporting_what_was_computed(tmp_path):
     assert f"Stopped at check: {why}. Not run: design, margins, simulate." in text
     assert [r[1] for r in page.tables["summary-table"][1:]] == ["ok"] * 3 + ["failed"] + ["not run"] * 3
     assert page.column("checks-table", "stabilizable", "roll") == "no"
+    assert page.column("checks-table", "staircase", "roll") == "0, 3"  # E, the pitch torque, reaches no roll state
     assert "design-table" not in page.tables and "metrics-table" not in page.tables and not page.srcs
     assert page.pres[0] == UNSTABILIZABLE
 
