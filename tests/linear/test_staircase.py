@@ -176,9 +176,9 @@ def test_a_mode_pbh_misses_in_a_nearly_defective_block_is_out_of_reach(monkeypat
 def test_random_nearly_defective_systems_out_of_reach_get_their_verdicts():
     """300 systems with a nearly defective block out of reach (``_nearly_defective``): the staircase finds
     every controllable dimension, and check calls each not controllable, stabilizable by the sign of ``a``.
-    PBH at the computed eigenvalues alone calls some controllable (2 of these 300 here; 9 and 2 of 3000 with
-    seeds 0 and 7: the eigenvalue off by up to ~1e-5); the measurement is in the message on failure."""
-    rng = np.random.default_rng(0)
+    PBH at the computed eigenvalues alone gets some wrong (3 of these 300 on one machine; round-off decides
+    which, so the count is in the message, not asserted)."""
+    rng = np.random.default_rng(2)
     pbh_wrong, wrong = [], []
     for k in range(300):
         A, B, nc, lost = _nearly_defective(rng)
@@ -225,23 +225,24 @@ def test_the_attitude_loop_inputs_through_inverse_inertia_are_no_false_alarm():
     assert staircase(*_rotated(rng, A, B)).steps == (1, 1, 1)
 
 
-def test_the_bundled_configs_are_controllable_and_observable_by_the_staircase():
-    """The regulated subsystems and the 12-state model of every bundled config (``import quadctl as qc``):
-    every state reached and seen; the guidance block of a hover (``pN``, ``pE`` with ``u`` only at zero yaw)
-    has ``pE`` out of reach."""
+@pytest.mark.parametrize("name", ["hover", "forward", "crazyflie", "mambo-200hz"])
+def test_the_bundled_configs_are_controllable_and_observable_by_the_staircase(name):
+    """The regulated subsystems and the 12-state model of a bundled config (``import quadctl as qc``): every
+    state reached and seen. A hover's guidance block (``pN``, ``pE``; ``u`` drives ``pN`` alone at zero yaw,
+    ``A = 0``) has ``pE`` out of reach."""
     import quadctl as qc
 
-    for name in ("hover", "forward", "crazyflie", "mambo-200hz"):
-        stages = qc.Stages(qc.setup_of(qc.load_config(name)))
-        for sub in stages.decoupled.regulated:
-            c = check(sub.A, sub.B, sub.C, sub.states)
-            assert (c.controllable_dim, c.observable_dim) == (c.n, c.n), (name, sub.name)
-        full = check(stages.linear.A, stages.linear.B)
-        assert (full.controllable_dim, full.observable_dim, full.controllable) == (12, 12, True), name
-    guidance = next(s for s in qc.Stages(qc.setup_of(qc.load_config("hover"))).decoupled.subsystems
-                    if s.name == "guidance")
-    c = check(guidance.A, guidance.B, guidance.C, guidance.states)
-    assert c.controllable_dim == 1 and [m.states for m in c.lost_ctrb] == [("pE",)]
+    stages = qc.Stages(qc.setup_of(qc.load_config(name)))
+    for sub in stages.decoupled.regulated:
+        c = check(sub.A, sub.B, sub.C, sub.states)
+        assert (c.controllable_dim, c.observable_dim) == (c.n, c.n), sub.name
+    full = check(stages.linear.A, stages.linear.B)
+    assert (full.controllable_dim, full.observable_dim, full.controllable) == (12, 12, True)
+    if name == "hover":
+        guidance = next(s for s in stages.decoupled.subsystems if s.name == "guidance")
+        assert np.all(guidance.A == 0.0) and np.all(guidance.B[1] == 0.0)
+        c = check(guidance.A, guidance.B, guidance.C, guidance.states)
+        assert c.controllable_dim == 1 and [m.states for m in c.lost_ctrb] == [("pE",)]
 
 
 @pytest.mark.parametrize("seed", range(3))

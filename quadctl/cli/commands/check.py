@@ -15,7 +15,7 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
             fresh: FreshOpt = False,
             rate: RateOpt = None,
             ) -> None:
-    """Controllability, observability, PBH, stabilizability of every subsystem and the full model.
+    """Controllability, observability (PBH and the staircase), stabilizability of every subsystem and the full model.
 
     Warns when a continuous design has closed-loop poles faster than the controller rate can
     realize (which loop, by how much, and whether the sampled loop is still stable).
