@@ -261,3 +261,30 @@ def test_observability_is_controllability_of_the_transpose(seed):
     assert [m.eigenvalue for m in c.lost_obsv] == [m.eigenvalue for m in d.lost_ctrb]
     assert [m.states for m in c.lost_obsv] == [m.states for m in d.lost_ctrb]
     assert c.controllable and c.controllable_dim == n
+
+
+def test_a_measured_set_that_leaves_a_nearly_defective_unstable_block_unseen_is_refused(monkeypatch):
+    """The dual of the PBH miss above: ``(A, C)`` with a nearly defective unstable block no output sees, every
+    computed eigenvalue moved by 6e-4. PBH alone sees every mode; the observability staircase does not, and the
+    Kalman filter's check (``require_detectable``) refuses the measured set, naming the states of the unseen
+    direction."""
+    from quadctl.design.kalman import require_detectable
+    from quadctl.errors import DesignError
+
+    rng = np.random.default_rng(5)
+    At, Ct = _rotated(rng, *_kalman_form(rng, 2, 1, np.array([[0.5, 1.0], [0.0, 0.5 + JORDAN_GAP]])))
+    A, C = At.T, Ct.T
+    names = ["a", "b", "c", "d"]
+    unseen = np.abs(staircase(At, Ct).uncontrollable_directions)
+    eig = np.linalg.eig
+
+    def off(a):
+        w, v = eig(a)
+        return w + 6e-4, v
+
+    monkeypatch.setattr(np.linalg, "eig", off)
+    assert all(m.passed for m in pbh(A, C, names, dual=True))
+    expected = sorted({names[i] for col in unseen.T for i in range(4) if col[i] > 0.1 * col.max()}, key=names.index)
+    with pytest.raises(DesignError, match=rf'^estimator.measure = \["y"\]: {", ".join(expected)} not observable '
+                                          r"\(modes at s = .*, not stable\): measure "):
+        require_detectable(A, C, ["y"], names=names)
