@@ -53,8 +53,8 @@ class FlightLog:
     acc_lowpass_hz, gyro_lowpass_hz : float or None
         Hz: the second-order Butterworth low-pass the vehicle ran on its accelerometer and gyro before it
         logged them (the Crazyflie's sensor driver's); None: logged as measured. The fit passes its
-        predicted thrust and torques through the same filter (:mod:`quadctl.identify.estimate`), so that
-        the filter's lag is not taken for the rotors'.
+        predicted thrust and torques through the same filter (:meth:`quadctl.identify.grid.Grid.as_logged`),
+        so that the filter's lag is not taken for the rotors'.
     """
 
     t: np.ndarray

@@ -34,7 +34,7 @@ class Rule(str, Enum):
     """The value at or above zero; its interval may reach below (a pure delay, which may be none)."""
     LIFTS = "lifts"
     """The whole interval above the rotor's share of the weight, ``m g / 4`` with the config's mass and
-    gravity (:meth:`quadctl.identify.estimate.Airframe.hover_thrust`): the rotors at full command lift the
+    gravity (:meth:`quadctl.identify.measurement.Airframe.hover_thrust`): the rotors at full command lift the
     vehicle (``max_thrust``, the thrust curve at full command; a vehicle that flew the log did), which an
     interval reaching the hover thrust does not resolve. Above a positive hover thrust it is positive too."""
     FREE = "free"
@@ -48,7 +48,7 @@ RULES = {
     "Jxx": Rule.POSITIVE, "Jyy": Rule.POSITIVE, "Jzz": Rule.POSITIVE, "k_m": Rule.POSITIVE,
     "bias_A": Rule.FREE, "bias_E": Rule.FREE, "bias_R": Rule.FREE,
 }
-"""The rule of every identified parameter (:data:`quadctl.identify.estimate.PARAMETERS`, ``T_m``, ``delay``) and
+"""The rule of every identified parameter (:data:`quadctl.identify.measurement.PARAMETERS`, ``T_m``, ``delay``) and
 of ``max_thrust``, the thrust curve at full command (``c0 + c1 + c2``), which the identified config writes."""
 
 WRITTEN = {

@@ -19,6 +19,8 @@ from quadctl.errors import ArgumentTypeError, ArtifactError, ConfigError, LogErr
 from quadctl.identify import estimate as est
 from quadctl.identify import plausibility
 from quadctl.identify import windows as win
+from quadctl.identify.grid import on_grid, require_window
+from quadctl.identify.measurement import MEANING, UNITS, Airframe
 from quadctl.physics.motors import thrust_curve_problem
 from quadctl.present import identify as shown
 
@@ -31,7 +33,7 @@ class Identification:
     fits: dict
     refused: dict
     stage_logs: dict  # stage -> log index
-    airframe: est.Airframe
+    airframe: Airframe
     config_name: str
     controller_rate: float | None = None
     """Hz, the config's ``controller.rate`` (None: continuous), at which a fitted delay is counted."""
@@ -63,8 +65,8 @@ class Identification:
         out = {}
         for fit in self.fits.values():
             for k, name in enumerate(fit.names):
-                out[name] = entry(name, fit.values[k], *fit.interval(name), fit.std[k], est.UNITS[name],
-                                  est.MEANING[name], fit.floors.get(name) if fit.at_floor(name) else None)
+                out[name] = entry(name, fit.values[k], *fit.interval(name), fit.std[k], UNITS[name],
+                                  MEANING[name], fit.floors.get(name) if fit.at_floor(name) else None)
         top, std = self.max_thrust(), self.max_thrust_std()
         out["max_thrust"] = entry("max_thrust", top, top - est.Z95 * std, top + est.Z95 * std, std, "N",
                                   MAX_THRUST_MEANING, hover=self.airframe.hover_thrust())
@@ -80,7 +82,7 @@ class Identification:
 
 
 MAX_THRUST_MEANING = "rotor thrust at full command (c0 + c1 + c2)"
-"""The meaning ``identified.json`` gives ``max_thrust`` (:data:`quadctl.identify.estimate.MEANING` gives the
+"""The meaning ``identified.json`` gives ``max_thrust`` (:data:`quadctl.identify.measurement.MEANING` gives the
 fitted parameters')."""
 
 
@@ -149,26 +151,26 @@ def identify(logs, config, windows=None, delay: bool = False) -> Identification:
         raise ArgumentTypeError(f"identify takes a validated Config, identify(logs, qc.load_config('crazyflie')); "
                                 f"got {type(config).__name__}")
     _check_each_log_once(logs, windows)
-    airframe = est.Airframe.from_config(config)
+    airframe = Airframe.from_config(config)
     p = win.plan(logs, windows, airframe)
     grids = {}
 
     def grid(i):
         if i not in grids:
-            grids[i] = est.on_grid(logs[i], command_rate=airframe.command_rate)
+            grids[i] = on_grid(logs[i], command_rate=airframe.command_rate)
         return grids[i]
 
     fits = {}
     i, w = p.chosen["thrust"]
-    est.require_window(grid(i), w, logs[i].path, "thrust")
+    require_window(grid(i), w, logs[i].path, "thrust")
     fits["thrust"] = est.fit_thrust(grid(i), w, airframe, delay=delay)
     if "attitude" in p.chosen:
         i, w = p.chosen["attitude"]
-        est.require_window(grid(i), w, logs[i].path, "attitude")
+        require_window(grid(i), w, logs[i].path, "attitude")
         fits["attitude"] = est.fit_attitude(grid(i), w, airframe, fits["thrust"])
     if "yaw" in p.chosen:
         i, w = p.chosen["yaw"]
-        est.require_window(grid(i), w, logs[i].path, "yaw")
+        require_window(grid(i), w, logs[i].path, "yaw")
         fits["yaw"] = est.fit_yaw(grid(i), w, airframe, fits["thrust"], fits.get("attitude"))
     return Identification(logs=list(logs), fits=fits, refused=p.refused,
                           stage_logs={s: c[0] for s, c in p.chosen.items()}, airframe=airframe,

@@ -92,7 +92,7 @@ def combinations(log, airframe) -> dict[str, np.ndarray]:
     """The command combinations each stage needs moving: collective, roll, pitch, yaw.
 
     Each weighs rotor ``i``'s command by where it acts, from the ``airframe``'s rotors in the log's (the
-    config's) numbering (:class:`quadctl.identify.estimate.Airframe`: ``positions``, ``spins``): roll by
+    config's) numbering (:class:`quadctl.identify.measurement.Airframe`: ``positions``, ``spins``): roll by
     ``-y_i``, pitch by ``x_i``, yaw by the spin, each scaled to ``+-1/4`` at the farthest rotor (an x layout:
     ``(c1 + c2 - c3 - c4) / 4`` and the like)."""
     positions, spins = airframe.positions, airframe.spins

@@ -13,8 +13,9 @@ from typer.testing import CliRunner
 
 from quadctl.cli.app import app
 from quadctl.config import locate, parse
-from quadctl.identify import estimate as est
+from quadctl.identify.estimate import Estimate
 from quadctl.identify.flight_log import FlightLog
+from quadctl.identify.measurement import PARAMETERS, Airframe
 from quadctl.identify.plausibility import RULES, Rule, judge
 from quadctl.identify.results import Identification, changes, identified_config, payload
 from quadctl.present.identify import sentences
@@ -40,7 +41,7 @@ def test_each_rule_judges_the_interval_or_the_value(name, value, interval, plaus
 
 
 def test_every_identified_parameter_has_a_rule():
-    fitted = set(est.PARAMETERS) | {"T_m", "delay"}
+    fitted = set(PARAMETERS) | {"T_m", "delay"}
     assert fitted | {"max_thrust"} == set(RULES)
     assert {n for n, r in RULES.items() if r is Rule.POSITIVE} == {"T_m", "Jxx", "Jyy", "Jzz", "k_m"}
     assert {n for n, r in RULES.items() if r is Rule.LIFTS} == {"max_thrust"}
@@ -48,7 +49,7 @@ def test_every_identified_parameter_has_a_rule():
 
 def _fit(stage, names, values, std, windows=((1.0, 2.0),)):
     std = np.asarray(std, float)
-    return est.Estimate(stage=stage, names=tuple(names), values=np.array(values, float), std=std,
+    return Estimate(stage=stage, names=tuple(names), values=np.array(values, float), std=std,
                         covariance=np.diag(std ** 2), windows=list(windows), t=np.zeros(2),
                         measured=np.zeros((2, 1)), predicted=np.zeros((2, 1)), rows=("x",), rms=0.0, bandwidth=1,
                         extra={"rms_without_lag": 1.0} if stage == "thrust" else {})
@@ -69,7 +70,7 @@ def _identification(t_m_std=1e-4, jxx_std=1e-7, k_m_std=1e-5, delay=False, c2=0.
             "attitude": _fit("attitude", ("Jxx", "Jyy"), (1.3e-5, 1.38e-5), (jxx_std, 1e-7)),
             "yaw": _fit("yaw", ("k_m",), (0.0062,), (k_m_std,))}
     return Identification(logs=[log], fits=fits, refused={}, stage_logs={"thrust": 0, "attitude": 0, "yaw": 0},
-                          airframe=est.Airframe.from_config(cfg), config_name="crazyflie",
+                          airframe=Airframe.from_config(cfg), config_name="crazyflie",
                           controller_rate=cfg.controller.rate)
 
 

@@ -148,13 +148,13 @@ def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
     coefficient with it (a yaw log fixes k_m / Jzz)."""
     import numpy as np
 
-    from quadctl.identify import estimate as est
     from quadctl.identify.flight_log import FlightLog
+    from quadctl.identify.measurement import Airframe
     from quadctl.identify.results import Identification, changes
 
     log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
                     path="log", format="csv", sha256="")
-    airframe = est.Airframe(mass=0.027, gravity=9.81, positions=np.zeros((4, 2)), spins=np.ones(4),
+    airframe = Airframe(mass=0.027, gravity=9.81, positions=np.zeros((4, 2)), spins=np.ones(4),
                             inertia=np.array([1e-5, 1e-5, jzz]), torque_coefficient=0.006)
     fits = {"thrust": _fit("thrust", ("c0", "c1", "c2", "T_m"), (0.02, -0.01, 0.12, 0.07)),
             "attitude": _fit("attitude", ("Jxx", "Jyy"), (1.2e-5, 1.3e-5)),
@@ -208,13 +208,13 @@ def test_identify_of_a_ulog_cut_short_before_its_data_says_so_in_one_line(tmp_pa
 def _delay_identification(rate):
     import numpy as np
 
-    from quadctl.identify import estimate as est
     from quadctl.identify.flight_log import FlightLog
+    from quadctl.identify.measurement import Airframe
     from quadctl.identify.results import Identification
 
     log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
                     path="log", format="csv", sha256="")
-    airframe = est.Airframe(mass=0.027, gravity=9.81, positions=np.zeros((4, 2)), spins=np.ones(4),
+    airframe = Airframe(mass=0.027, gravity=9.81, positions=np.zeros((4, 2)), spins=np.ones(4),
                             inertia=np.array([1e-5, 1e-5, 2e-5]), torque_coefficient=0.006)
     thrust = _fit("thrust", ("c0", "c1", "c2", "T_m", "delay"), (0.02, -0.01, 0.12, 0.056, 0.01711))
     thrust.extra["rms_without_lag"] = 1.0

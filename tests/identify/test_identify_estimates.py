@@ -11,7 +11,10 @@ from _paths import DATA
 
 from quadctl.config import load
 from quadctl.identify import estimate as est
+from quadctl.identify import measurement
 from quadctl.identify.flight_log import FlightLog
+from quadctl.identify.grid import lagged, on_grid, window_mask
+from quadctl.identify.measurement import Airframe, predict
 from quadctl.identify.readers import read_log
 from quadctl.physics.model import Vehicle, build_model
 from quadctl.physics.motors import Motors
@@ -26,7 +29,7 @@ MASS = 0.027
 
 def airframe(arm=PAPER_ARM, inertia=(1.05e-5, 1.12e-5, 2.0e-5), k_m=0.006):
     motors = Motors(layout="x", arm_length=arm, torque_coefficient=k_m)
-    return est.Airframe(mass=MASS, gravity=9.81, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
+    return Airframe(mass=MASS, gravity=9.81, positions=motors.positions(), spins=np.array(motors.rotor_spins()),
                         inertia=np.array(inertia), torque_coefficient=k_m)
 
 
@@ -51,7 +54,7 @@ def simulated_log(rng, *, seconds=4.0, rate=1000.0, tm=0.07, delay=0.0, curve=PA
             out[k] = ar * out[k - 1] + e[k]
         return out
 
-    z = est.lagged(cmd, 1.0 / rate, tm, delay)[0]
+    z = lagged(cmd, 1.0 / rate, tm, delay)[0]
     thrust = curve[0] + curve[1] * z + curve[2] * z ** 2
     motors = Motors(layout="x", arm_length=PAPER_ARM, torque_coefficient=k_m)
     inputs = thrust @ motors.effectiveness().T  # [T, A, E, R] per sample
@@ -91,10 +94,10 @@ def test_lag_sensitivity_matches_finite_differences(linear):
     cmd = np.repeat(rng.uniform(0.2, 0.8, size=(40, 4)), 25, axis=0)
     if linear:
         cmd = cmd + rng.uniform(-0.1, 0.1, size=cmd.shape)  # a command that moves at every sample
-    z, dz_dt, dz_dd = est.lagged(cmd, 1e-3, 0.07, 0.01, linear=linear)
+    z, dz_dt, dz_dd = lagged(cmd, 1e-3, 0.07, 0.01, linear=linear)
     h = 1e-6
-    fd = (est.lagged(cmd, 1e-3, 0.07 + h, 0.01, linear=linear)[0]
-          - est.lagged(cmd, 1e-3, 0.07 - h, 0.01, linear=linear)[0]) / (2 * h)
+    fd = (lagged(cmd, 1e-3, 0.07 + h, 0.01, linear=linear)[0]
+          - lagged(cmd, 1e-3, 0.07 - h, 0.01, linear=linear)[0]) / (2 * h)
     np.testing.assert_allclose(dz_dt, fd, atol=1e-6 * np.abs(fd).max())
     assert np.abs(dz_dd).max() > 1.0  # the delay moves the lagged command
 
@@ -102,7 +105,7 @@ def test_lag_sensitivity_matches_finite_differences(linear):
 def test_lag_is_the_exact_first_order_step_response():
     cmd = np.zeros((500, 4))
     cmd[100:] = 1.0
-    z = est.lagged(cmd, 1e-3, 0.05)[0]
+    z = lagged(cmd, 1e-3, 0.05)[0]
     t = (np.arange(500) - 100) * 1e-3
     np.testing.assert_allclose(z[101:, 0], 1 - np.exp(-t[101:] / 0.05), rtol=1e-12, atol=1e-12)
 
@@ -113,7 +116,7 @@ def test_lag_of_commands_linear_between_samples_is_the_exact_ramp_response():
     dt, tm, t_r = 0.01, 0.05, 2.0
     t = np.arange(200) * dt
     cmd = np.repeat((t / t_r)[:, None], 4, axis=1)
-    z = est.lagged(cmd, dt, tm, linear=True)[0]
+    z = lagged(cmd, dt, tm, linear=True)[0]
     np.testing.assert_allclose(z[:, 0], t / t_r - tm / t_r * (1 - np.exp(-t / tm)), rtol=0, atol=1e-12)
 
 
@@ -123,7 +126,7 @@ def test_measurement_function_is_the_model_with_gravity_removed():
     rng = np.random.default_rng(2)
     z, omega = rng.uniform(0, 1, (5, 4)), rng.normal(0, 2, (5, 3))
     theta = af.theta(c0=0.02, c1=-0.01, c2=0.12, bias_A=1e-5)
-    y = est.predict(z, omega, theta, af)[0]
+    y = predict(z, omega, theta, af)[0]
     motors = Motors(layout="x", arm_length=PAPER_ARM, torque_coefficient=0.006)
     vehicle = Vehicle(mass=MASS, gravity=9.81, inertia=tuple(af.inertia), drag=(0.0, 0.0, 0.0))
     for k in range(5):
@@ -141,7 +144,7 @@ def test_ctrl_c_during_the_fits_casadi_call_is_taken_after_it(monkeypatch):
     and quadctl identify ended in "internal error" (exit 3)."""
     import signal
 
-    real, results = est._mapped, []
+    real, results = measurement._mapped, []
 
     def mapped(*key):
         fn = real(*key)
@@ -152,11 +155,11 @@ def test_ctrl_c_during_the_fits_casadi_call_is_taken_after_it(monkeypatch):
             return results[-1]
         return call
 
-    monkeypatch.setattr(est, "_mapped", mapped)
+    monkeypatch.setattr(measurement, "_mapped", mapped)
     af = airframe()
     z, omega = np.full((5, 4), 0.5), np.zeros((5, 3))
     with pytest.raises(KeyboardInterrupt):
-        est.predict(z, omega, af.theta(c0=0.02, c1=-0.01, c2=0.12), af)
+        predict(z, omega, af.theta(c0=0.02, c1=-0.01, c2=0.12), af)
     assert len(results) == 1 and all(r is not None for r in results[0])  # the evaluation ran whole
 
 
@@ -164,7 +167,7 @@ def test_ctrl_c_during_the_fits_casadi_call_is_taken_after_it(monkeypatch):
 def test_thrust_parameters_within_their_intervals(delay):
     rng = np.random.default_rng(11 if delay else 10)
     log = simulated_log(rng, seconds=8.0, delay=0.008 if delay else 0.0, with_rates=False)
-    grid = est.on_grid(log)
+    grid = on_grid(log)
     fit = est.fit_thrust(grid, [(0.5, 7.9)], airframe(), delay=delay)
     truth = dict(zip(("c0", "c1", "c2"), PAPER_CURVE), T_m=0.07, delay=0.008)
     for name in fit.names:
@@ -182,7 +185,7 @@ def test_thrust_intervals_cover_the_truth_about_95_percent():
     af = airframe()
     for _ in range(repeats):
         log = simulated_log(rng, seconds=3.0, acc_noise=0.5, with_rates=False)
-        fit = est.fit_thrust(est.on_grid(log), [(0.3, 2.95)], af)
+        fit = est.fit_thrust(on_grid(log), [(0.3, 2.95)], af)
         for n in truth:
             lo, hi = fit.interval(n)
             hits[n] += lo <= truth[n] <= hi
@@ -202,7 +205,7 @@ def test_inertia_intervals_cover_the_truth_about_95_percent():
     repeats = 40
     af = airframe(inertia=(2e-5, 2e-5, inertia[2]))
     for _ in range(repeats):
-        grid = est.on_grid(simulated_log(rng, seconds=3.0, inertia=inertia))
+        grid = on_grid(simulated_log(rng, seconds=3.0, inertia=inertia))
         thrust = est.fit_thrust(grid, [(0.3, 2.95)], af)
         att = est.fit_attitude(grid, [(0.3, 2.95)], af, thrust)
         for n, value in zip(("Jxx", "Jyy"), inertia):
@@ -216,7 +219,7 @@ def test_inertia_and_torque_coefficient_within_their_intervals():
     rng = np.random.default_rng(7)
     inertia, k_m = (1.05e-5, 1.12e-5, 2.0e-5), 0.006
     log = simulated_log(rng, seconds=6.0, inertia=inertia, k_m=k_m)
-    grid = est.on_grid(log)
+    grid = on_grid(log)
     af = airframe(inertia=(2e-5, 2e-5, inertia[2]), k_m=0.004)  # wrong starting values, the true Jzz
     thrust = est.fit_thrust(grid, [(0.3, 5.9)], af)
     att = est.fit_attitude(grid, [(0.3, 5.9)], af, thrust)
@@ -238,7 +241,7 @@ def test_a_noise_free_log_of_the_model_is_fitted_to_its_residual():
     inertia, k_m = (1.05e-5, 1.12e-5, 2.0e-5), 0.006
     log = simulated_log(np.random.default_rng(7), seconds=3.0, inertia=inertia, k_m=k_m, acc_noise=0.0,
                         gyro_noise=0.0, torque_noise=0.0)
-    grid, window = est.on_grid(log), [(0.3, 2.9)]
+    grid, window = on_grid(log), [(0.3, 2.9)]
     af = airframe(inertia=(2e-5, 2e-5, inertia[2]), k_m=0.004)
     thrust = est.fit_thrust(grid, window, af)
     att = est.fit_attitude(grid, window, af, thrust)
@@ -268,8 +271,8 @@ def as_the_paper_read(log):
 @pytest.fixture(scope="module")
 def real():
     cfg = load("crazyflie")
-    paper = dataclasses.replace(est.Airframe.from_config(cfg), positions=airframe().positions)
-    grid10 = est.on_grid(as_the_paper_read(read_log(FLIGHTS / "log10")))
+    paper = dataclasses.replace(Airframe.from_config(cfg), positions=airframe().positions)
+    grid10 = on_grid(as_the_paper_read(read_log(FLIGHTS / "log10")))
     thrust = est.fit_thrust(grid10, PAPER_WINDOW_10, paper)
     return paper, thrust
 
@@ -288,7 +291,7 @@ def test_real_log10_motor_time_constant_and_thrust_curve(real):
 def test_real_log15_inertia_with_the_papers_geometry(real):
     paper, thrust = real
     log15 = as_the_paper_read(read_log(FLIGHTS / "log15"))
-    att = est.fit_attitude(est.on_grid(log15), on_its_clock(log15, 55.0, 90.0), paper, thrust)
+    att = est.fit_attitude(on_grid(log15), on_its_clock(log15, 55.0, 90.0), paper, thrust)
     assert att.value("Jxx") == pytest.approx(PAPER_INERTIA[0], rel=0.10)
     assert att.value("Jyy") == pytest.approx(PAPER_INERTIA[1], rel=0.10)
 
@@ -301,15 +304,15 @@ def test_csv_of_the_binary_log_gives_the_same_estimates(real, tmp_path):
     binary.to_csv(path)
     csv = read_log(path)
     assert (csv.acc_lowpass_hz, csv.gyro_lowpass_hz) == (30.0, 80.0)
-    want = est.fit_thrust(est.on_grid(binary), PAPER_WINDOW_10, paper)
-    again = est.fit_thrust(est.on_grid(csv), PAPER_WINDOW_10, paper)
+    want = est.fit_thrust(on_grid(binary), PAPER_WINDOW_10, paper)
+    again = est.fit_thrust(on_grid(csv), PAPER_WINDOW_10, paper)
     np.testing.assert_allclose(again.values, want.values, rtol=1e-9)
     np.testing.assert_allclose(again.std, want.std, rtol=1e-6)
 
 
 def sensor_lowpass(values, hz, rate=1000.0):
     """``values`` through a second-order Butterworth low-pass at ``hz``, causal, from rest at the first value:
-    the Crazyflie's ``lpf2p`` on its sensors (independently of :meth:`quadctl.identify.estimate.Grid.as_logged`)."""
+    the Crazyflie's ``lpf2p`` on its sensors (independently of :meth:`quadctl.identify.grid.Grid.as_logged`)."""
     from scipy import signal
 
     b, a = signal.butter(2, hz / (rate / 2))
@@ -328,8 +331,8 @@ def test_the_sensors_low_pass_is_not_taken_for_the_rotors_lag(delay):
     told = dataclasses.replace(logged, acc_lowpass_hz=30.0, gyro_lowpass_hz=80.0)
     af = airframe(inertia=(2e-5, 2e-5, inertia[2]))
     window = [(0.3, 7.9)]
-    unmodelled = est.fit_thrust(est.on_grid(logged), window, af, delay=delay)
-    grid = est.on_grid(told)
+    unmodelled = est.fit_thrust(on_grid(logged), window, af, delay=delay)
+    grid = on_grid(told)
     thrust = est.fit_thrust(grid, window, af, delay=delay)
     assert unmodelled.value("T_m") > 0.075 if not delay else unmodelled.value("delay") > 0.006
     assert thrust.value("T_m") == pytest.approx(0.07, abs=0.002)
@@ -361,7 +364,7 @@ def test_a_log_sampled_slower_than_its_sensors_filters_fits_the_same(every):
     keep = slice(None, None, every)
     slow = dataclasses.replace(log, t=log.t[keep], acc=log.acc[keep], gyro=log.gyro[keep], cmd=log.cmd[keep])
     window = [(0.3, 7.9)]
-    grid = est.on_grid(slow)
+    grid = on_grid(slow)
     thrust = est.fit_thrust(grid, window, af)
     assert thrust.value("T_m") == pytest.approx(0.07, abs=0.002)
     att = est.fit_attitude(grid, window, af, thrust)
@@ -379,7 +382,7 @@ def moving_commands_log(rng, seconds=8.0, rate=1000.0, tm=0.07):
     b, a = signal.butter(2, 8.0 / (rate / 2))
     cmd = np.clip(0.6 + signal.lfilter(b, a, rng.normal(size=(n, 1)) * 1.5, axis=0)
                   + signal.lfilter(b, a, rng.normal(size=(n, 4)) * 0.3, axis=0), 0.0, 1.0)
-    z = est.lagged(cmd, 1.0 / rate, tm)[0]
+    z = lagged(cmd, 1.0 / rate, tm)[0]
     acc = np.zeros((n, 3))
     acc[:, 2] = -(PAPER_CURVE[0] + PAPER_CURVE[1] * z + PAPER_CURVE[2] * z ** 2).sum(axis=1) / MASS
     return FlightLog(t=np.arange(n) / rate, acc=acc + rng.normal(size=(n, 3)) * 0.05, gyro=np.zeros((n, 3)),
@@ -398,8 +401,8 @@ def test_commands_that_move_between_a_slow_logs_samples_are_not_taken_for_a_shor
     its interval 61.0-63.3 ms; c2 0.108 N against 0.120 N). Taken linear between samples, the lag and the curve
     are the rotors'."""
     log = every(moving_commands_log(np.random.default_rng(3)), 10)
-    held = est.fit_thrust(est.on_grid(log), [(0.5, 7.5)], airframe())
-    fit = est.fit_thrust(est.on_grid(log, command_rate=1000.0), [(0.5, 7.5)], airframe())
+    held = est.fit_thrust(on_grid(log), [(0.5, 7.5)], airframe())
+    fit = est.fit_thrust(on_grid(log, command_rate=1000.0), [(0.5, 7.5)], airframe())
     assert held.interval("T_m")[1] < 0.065  # the defect this guards against, still there for held commands
     assert fit.value("T_m") == pytest.approx(0.07, abs=0.001)
     np.testing.assert_allclose(fit.values[:3] @ [1, 0.6, 0.36], PAPER_CURVE @ [1, 0.6, 0.36], rtol=0.01)
@@ -412,7 +415,7 @@ def test_log10_logged_at_100_hz_gives_the_lag_it_gives_at_1_khz():
     from quadctl.identify.results import identify
 
     cfg = load("crazyflie")
-    assert est.Airframe.from_config(cfg).command_rate == cfg.controller.rate == 500
+    assert Airframe.from_config(cfg).command_rate == cfg.controller.rate == 500
     log = read_log(FLIGHTS / "log10")
     full, slow = (identify([flown], cfg, [PAPER_WINDOW_10]).fits["thrust"] for flown in (log, every(log, 10)))
     lo, hi = full.interval("T_m")
@@ -427,10 +430,10 @@ def thrust_residual(fit, grid, windows, af):
     """N RMS: ``m a_z`` of ``grid`` in ``windows`` against the thrust ``fit``'s rotors (curve and lag) predict there,
     through the accelerometer's low-pass as the log went through it."""
     grid = grid.around(windows)
-    mask = est.window_mask(grid.t, windows)
+    mask = window_mask(grid.t, windows)
     v = dict(zip(fit.names, fit.values))
     z = grid.lagged(v["T_m"], in_delay=False)[0]
-    y = est.predict(z, grid.gyro, af.theta(c0=v["c0"], c1=v["c1"], c2=v["c2"]), af, rows=(2,), names=("c0",))[0]
+    y = predict(z, grid.gyro, af.theta(c0=v["c0"], c1=v["c1"], c2=v["c2"]), af, rows=(2,), names=("c0",))[0]
     return float(np.sqrt(np.mean((af.mass * grid.acc[mask, 2] - grid.as_logged(y[:, 0], "acc")[mask]) ** 2)))
 
 
@@ -439,8 +442,8 @@ def test_the_rotors_fitted_to_log10_predict_the_thrust_of_log15_and_log16():
     residual on log15 and log16 (0.0137 and 0.0178 N RMS) than each log's own fit (0.0110 and 0.0139 N). A
     curve that holds on its own log only does not: log15's, fitted about hover, leaves 0.0324 N on log10, 2.6
     times log10's own 0.0125 N."""
-    af = est.Airframe.from_config(load("crazyflie"))
-    grids = {n: est.on_grid(read_log(FLIGHTS / n), command_rate=af.command_rate) for n in GUIDE_WINDOWS}
+    af = Airframe.from_config(load("crazyflie"))
+    grids = {n: on_grid(read_log(FLIGHTS / n), command_rate=af.command_rate) for n in GUIDE_WINDOWS}
     own = {n: est.fit_thrust(grids[n], GUIDE_WINDOWS[n], af) for n in GUIDE_WINDOWS}
     for n in GUIDE_WINDOWS:  # the residual here is the fit's own on its own log
         assert thrust_residual(own[n], grids[n], GUIDE_WINDOWS[n], af) == pytest.approx(own[n].rms, rel=1e-9)
@@ -457,9 +460,9 @@ def test_log16s_torque_coefficient_holds_forsters_bench_value():
     log10; his value lies in its 95 % interval (0.00561-0.00692). The yaw log's gyro units, frame and the rotors'
     spins all enter it: a wrong sign or a factor of 57 (deg/s) would not."""
     cfg = load("crazyflie")
-    af = est.Airframe.from_config(cfg)
+    af = Airframe.from_config(cfg)
     assert af.torque_coefficient == 0.005964552 and af.inertia[2] == pytest.approx(29.261652e-6)
-    grids = {n: est.on_grid(read_log(FLIGHTS / n), command_rate=af.command_rate) for n in ("log10", "log16")}
+    grids = {n: on_grid(read_log(FLIGHTS / n), command_rate=af.command_rate) for n in ("log10", "log16")}
     rotors = est.fit_thrust(grids["log10"], GUIDE_WINDOWS["log10"], af)
     lo, hi = est.fit_yaw(grids["log16"], GUIDE_WINDOWS["log16"], af, rotors).interval("k_m")
     assert lo <= 0.005964552 <= hi, (lo, hi)
@@ -474,7 +477,7 @@ def test_the_gyro_low_pass_in_the_model_leaves_a_smaller_torque_residual():
     window = [(0.3, 7.9)]
     rms = {}
     for said in (80.0, None):
-        grid = est.on_grid(dataclasses.replace(log, gyro_lowpass_hz=said))
+        grid = on_grid(dataclasses.replace(log, gyro_lowpass_hz=said))
         rms[said] = est.fit_attitude(grid, window, af, est.fit_thrust(grid, window, af)).rms
     assert rms[80.0] < 0.95 * rms[None], rms
 
@@ -485,7 +488,7 @@ def test_the_rotor_lag_the_crazyflie_export_cites_is_the_one_log10_gives():
     bundled log10, its sensors' low-passes modelled (the fit of docs/guide/identify.md)."""
     from quadctl.export.crazyflie import ROTOR_LAG
 
-    paper = dataclasses.replace(est.Airframe.from_config(load("crazyflie")), positions=airframe().positions)
-    thrust = est.fit_thrust(est.on_grid(read_log(FLIGHTS / "log10")), PAPER_WINDOW_10, paper)
+    paper = dataclasses.replace(Airframe.from_config(load("crazyflie")), positions=airframe().positions)
+    thrust = est.fit_thrust(on_grid(read_log(FLIGHTS / "log10")), PAPER_WINDOW_10, paper)
     lo, hi = thrust.interval("T_m")
     assert lo <= ROTOR_LAG <= hi, (lo, thrust.value("T_m"), hi)

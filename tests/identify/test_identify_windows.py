@@ -12,8 +12,8 @@ from _paths import DATA
 from quadctl.config import load
 from quadctl.errors import LogError
 from quadctl.identify import windows as win
-from quadctl.identify.estimate import Airframe
 from quadctl.identify.flight_log import FlightLog
+from quadctl.identify.measurement import Airframe
 from quadctl.identify.readers import read_log
 
 FLIGHTS = DATA / "crazyflie-flights"
