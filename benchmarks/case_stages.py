@@ -9,8 +9,8 @@ cases' setups, the batched designs, the cases' loops and plans (``loops_of``), t
 compiled calls, and the Python that feeds and reads them), the rows read back from the lanes' sums,
 and the rest of a chunk. Best of five runs, after a warm-up; microseconds of CPU time per case.
 
-The counters are wrapped around the functions the sweep calls by name
-(:mod:`quadctl.sweep.evaluate`'s imports and :class:`quadctl.sim.native.NativeRunner`), so they time
+The counters are wrapped around the functions the sweep calls by name (in the modules of
+:mod:`quadctl.sweep` that define them, and :class:`quadctl.sim.native.NativeRunner`), so they time
 what a sweep runs and nothing else; they add ~1 µs a case.
 """
 
@@ -43,7 +43,7 @@ STAGES = {
 def _counted(acc: collections.Counter):
     """Wrap the sweep's stages in CPU-time counters adding into ``acc``; returns the undo."""
     from quadctl.sim import native
-    from quadctl.sweep import evaluate
+    from quadctl.sweep import batched, evaluate, lane_jobs, lane_rows, prepare
 
     undo = []
 
@@ -72,7 +72,7 @@ def _counted(acc: collections.Counter):
         setattr(owner, name, timed_generator if generator else timed)
         undo.append(lambda: setattr(owner, name, original))
 
-    original_all = evaluate.CaseSetups.all
+    original_all = prepare.CaseSetups.all
 
     def setups(self, cases):
         start = time.process_time()
@@ -80,12 +80,12 @@ def _counted(acc: collections.Counter):
         acc["setups"] += time.process_time() - start
         return out
 
-    evaluate.CaseSetups.all = setups
-    undo.append(lambda: setattr(evaluate.CaseSetups, "all", original_all))
-    wrap(evaluate.batched, "design_all", "design_all")
-    wrap(evaluate.lane_jobs, "loops_of", "loops_of")
-    wrap(evaluate, "_summed_rows", "_summed_rows")
-    wrap(evaluate.batched, "summarize_all", "lanes", generator=True)
+    prepare.CaseSetups.all = setups
+    undo.append(lambda: setattr(prepare.CaseSetups, "all", original_all))
+    wrap(batched, "design_all", "design_all")
+    wrap(lane_jobs, "loops_of", "loops_of")
+    wrap(lane_rows, "_summed_rows", "_summed_rows")
+    wrap(batched, "summarize_all", "lanes", generator=True)
     wrap(native.NativeRunner, "_call", "lanes (compiled)")
     wrap(evaluate, "_evaluate_chunk", "chunk")
     return lambda: [u() for u in reversed(undo)]

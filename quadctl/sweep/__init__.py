@@ -15,16 +15,19 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.sweep.lane_jobs`: a designed case made ready for the lanes: its loop, step plan, bounds, rows
 - :mod:`~quadctl.sweep.batched`: designs, verdicts and lane simulations of many cases at once
 - :mod:`~quadctl.sweep.prepare`: a chunk's cases made ready to design: their setups, the plants they fly
-- :mod:`~quadctl.sweep.evaluate`: a chunk of cases, batched or one by one, as rows
+- :mod:`~quadctl.sweep.rows`: a case's row, the verdicts of the law that flies, a Monte Carlo's trajectory
+- :mod:`~quadctl.sweep.lane_rows`: the batched path: a chunk's cases designed together, flown in the lanes, as rows
+- :mod:`~quadctl.sweep.evaluate`: a chunk of cases, batched or one by one, as rows judged by the gates
 - :mod:`~quadctl.sweep.runner`: chunks on local processes or a Dask cluster
 - :mod:`~quadctl.sweep.outputs`: sweep.csv, the summary, the plots, Monte Carlo bands
 - :mod:`~quadctl.sweep.store`: the run directory (journal, ``--resume``) and :func:`execute`
 """
 
 from quadctl.sweep.config_tree import assign
-from quadctl.sweep.evaluate import MC_POINTS, ChunkResult, ChunkTask, evaluate_chunk
+from quadctl.sweep.evaluate import ChunkResult, ChunkTask, evaluate_chunk
 from quadctl.sweep.gates import Gate, judge, margin, metric_columns, regulated_states
 from quadctl.sweep.outputs import MonteCarloBands, montecarlo_bands, summarize, to_csv
+from quadctl.sweep.rows import MC_POINTS
 from quadctl.sweep.runner import SweepResult, run
 from quadctl.sweep.spec import Case, Parameter, SweepSpec
 from quadctl.sweep.store import PARTS, SweepOutcome, SweepStore, execute

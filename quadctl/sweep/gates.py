@@ -14,7 +14,8 @@ from quadctl.metrics import NOISE_LIMITED_WORDS
 CASE_STATUSES = ("ok", "diverged", "left_valid_range", "invalid_config", "no_trim", "design_failed", "step_refused",
                  "failed")
 """Every ``status`` a case's row can have: how its run ended (:data:`quadctl.sim.run.STATUS_WORDS`), or why it has
-no run (:mod:`quadctl.sweep.evaluate`); what a gate ``status: {equals: ...}`` may name."""
+no run (:mod:`quadctl.sweep.evaluate`, :mod:`quadctl.sweep.lane_rows`); what a gate ``status: {equals: ...}`` may
+name."""
 
 
 @dataclass(frozen=True)
@@ -63,7 +64,7 @@ def metric_columns(cfg) -> list[str]:
 
     ``stable`` (coupled linear closed loop), ``eig.fastest`` / ``eig.slowest`` (most negative and
     largest real part of its eigenvalues, marginal position modes left out; rad/s; with
-    ``controller.flies: pid``, the cascade's lifted loop: ``quadctl.sweep.evaluate._judge_cascade``), then per
+    ``controller.flies: pid``, the cascade's lifted loop: ``quadctl.sweep.rows.judge_cascade``), then per
     regulated state ``settling_time.<state>`` (s, 2 % band) and ``overshoot.<state>`` (%), per
     input ``peak.<input>`` (max ``|u|``: N or N m), ``cost`` (the LQR cost integral), ``status``
     (the simulation's: ok, diverged, left_valid_range; or why the case has no simulation),

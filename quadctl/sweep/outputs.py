@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl.errors import SweepError
-from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS, mc_grid
 from quadctl.sweep.gates import TRACKING_ERRORS, column_units
+from quadctl.sweep.rows import MC_PERCENTILES, MC_POINTS, mc_grid
 from quadctl.sweep.runner import SweepResult
 from quadctl.sweep.spec import SweepSpec
 
@@ -61,7 +61,7 @@ def montecarlo_bands(traces: dict, states, duration: float, cases: Iterable[int]
     Parameters
     ----------
     traces : dict
-        Case number -> (MC_POINTS, len(states)) deviations (:func:`resample_deviation`).
+        Case number -> (MC_POINTS, len(states)) deviations (:func:`~quadctl.sweep.rows.resample_deviation`).
     states : sequence of str
     duration : float
         s, the run's length (the grid's end).

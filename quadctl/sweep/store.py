@@ -15,7 +15,6 @@ from quadctl import artifacts
 from quadctl.errors import ArgumentError, ArtifactError, QuadctlNotice, SweepError
 from quadctl.layout import unit_of
 from quadctl.sweep.config_tree import value_at
-from quadctl.sweep.evaluate import MC_PERCENTILES, MC_POINTS
 from quadctl.sweep.gates import regulated_states
 from quadctl.sweep.outputs import (
     MC_FILES,
@@ -26,6 +25,7 @@ from quadctl.sweep.outputs import (
     to_csv,
     tradeoff_png,
 )
+from quadctl.sweep.rows import MC_PERCENTILES, MC_POINTS
 from quadctl.sweep.runner import SweepResult, base_of, run
 from quadctl.sweep.spec import SweepSpec
 

@@ -10,7 +10,7 @@ import pytest
 
 from quadctl import config, metrics, sweep
 from quadctl.layout import STATE_NAMES
-from quadctl.sweep.evaluate import MetricsBatch
+from quadctl.sweep.lane_rows import MetricsBatch
 
 
 def _runs(rng, B: int, r: int):

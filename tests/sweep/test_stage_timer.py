@@ -10,7 +10,7 @@ from _paths import ROOT
 
 from quadctl import config, sweep
 from quadctl.sim import native
-from quadctl.sweep import evaluate
+from quadctl.sweep import batched, prepare
 
 
 def test_each_stage_the_timer_names_runs_and_none_is_counted_inside_another():
@@ -19,11 +19,11 @@ def test_each_stage_the_timer_names_runs_and_none_is_counted_inside_another():
 
     cfg = config.load("mambo-200hz")
     spec = dataclasses.replace(sweep.load(ROOT / "benchmarks" / "mambo-1000.yaml", cfg), samples=16)
-    before = (evaluate.batched.design_all, evaluate.CaseSetups.all, native.NativeRunner._call)
+    before = (batched.design_all, prepare.CaseSetups.all, native.NativeRunner._call)
     total, per, steps = case_stages.stages(cfg, spec, runs=1)
     assert steps == 2_000
     assert all(per[name] > 0 for name in case_stages.STAGES), per  # each entered: a stage the sweep runs
     # the chunk's own rest and what lies outside the chunks are what the named stages leave: below zero
     # if a stage were counted inside another
     assert per["the rest of a chunk"] >= 0 and per["outside the chunks"] >= 0, per
-    assert (evaluate.batched.design_all, evaluate.CaseSetups.all, native.NativeRunner._call) == before
+    assert (batched.design_all, prepare.CaseSetups.all, native.NativeRunner._call) == before

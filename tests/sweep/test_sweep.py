@@ -132,14 +132,16 @@ def test_sweep_file_errors_name_the_key_and_the_fix(cfg, data, message):
 
 
 def test_every_status_a_case_can_have_is_one_a_status_gate_takes():
-    """The statuses evaluate.py writes (and the simulation's) are the ones a gate `status: {equals: ...}` accepts."""
+    """The statuses a chunk's rows are given (one by one, batched, and the simulation's) are the ones a gate
+    `status: {equals: ...}` accepts."""
     import inspect
 
     from quadctl.sim.run import STATUS_WORDS
-    from quadctl.sweep import evaluate
+    from quadctl.sweep import evaluate, lane_rows, rows
     from quadctl.sweep.gates import CASE_STATUSES
 
-    written = set(re.findall(r'_failed\([^,]+, "(\w+)"|\["status"\] = "(\w+)"', inspect.getsource(evaluate)))
+    source = "".join(inspect.getsource(module) for module in (evaluate, lane_rows, rows))
+    written = set(re.findall(r'failed_row\([^,]+, "(\w+)"|\["status"\] = "(\w+)"', source))
     assert {a or b for a, b in written} | set(STATUS_WORDS) == set(CASE_STATUSES)
 
 
