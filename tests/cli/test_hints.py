@@ -23,8 +23,8 @@ from quadctl.cli.app import app
 PACKAGE = Path(quadctl.__file__).parent
 OPTION_RE = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
 KEY_RE = re.compile(r"(?<![\w.`-])(?:" + "|".join(config.Config.model_fields) + r")(?:\.[A-Za-z_]\w*)+")
-NOT_KEYS = re.compile(r"\.(json|npz|png|csv|yaml|yml|py|md|html|parts)$")
-"""File names (trim.json, simulate.py) look like key paths."""
+NOT_KEYS = re.compile(r"\.(json|npz|png|csv|yaml|yml|py|md|html|parts|c|h)$")
+"""File names (trim.json, simulate.py, the firmware's motors.c) look like key paths."""
 
 
 def _options(command) -> set[str]:
