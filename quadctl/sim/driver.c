@@ -182,13 +182,14 @@ static void qc_quadratic(double* s, const double* v, const long* i, const long* 
 #undef QC_TERM
 }
 
-/* one record of the lanes with on[l] != 0: absolute step kk[l] at time t[l], state X, input U,
- * reference R (each [.][QC_L]); final: the run's last record (its error is kept); tail0[l]: where
+/* one record of the lanes with on[l] == 1.0 (else 0.0; all_on: every lane's is 1.0): absolute step
+ * kk[l] (a whole number) at time t[l], state X, input U, reference R (each [.][QC_L]); final: the
+ * run's last record (its error is kept); tail0[l]: where
  * the last tenth of the lane's full run starts (s). Every loop runs over the lanes, a lane that does
  * not record keeps its sums (so the compiler vectorizes them). */
-static void qc_metric(const long* mq, const double* mv, double* macc, const int* on_, const long* kk_,
-                      const double* t, const double* X, const double* U, const double* R, const double* tail0,
-                      int final) {
+static void qc_metric(const long* mq, const double* mv, double* macc, const double* on, long all_on,
+                      const double* kk, const double* t, const double* X, const double* U, const double* R,
+                      const double* tail0, int final) {
   const long ns = mq[0], *st = mq + 1;
   const long* mqq = QC_MQ_Q(mq), *mqr = QC_MQ_R(mq), *mql = QC_MQ_LEGS(mq);
   const long nq = mqq[0], *qi = mqq + 1, *qj = mqq + 1 + nq;
@@ -197,26 +198,25 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
   const double* q = mv + QC_NU * QC_L;
   const double* r = q + nq * QC_L;
   const double* legs = r + nr * QC_L;  /* tolerance, then 4 rows a leg */
-  double e[QC_NS * QC_L], du[QC_NU * QC_L], on[QC_L], first[QC_L], kk[QC_L], iq[QC_L], ir[QC_L];
+  double e[QC_NS * QC_L], du[QC_NU * QC_L], first[QC_L], iq[QC_L], ir[QC_L];
   double* n_rec = macc + QC_NREC * QC_L;
-  int any_first = 0, all_on = 1;
+  long any_first = 0;
+#pragma omp simd reduction(|:any_first)
   for (int l = 0; l < QC_L; ++l) {
-    on[l] = on_[l] ? 1.0 : 0.0;
-    first[l] = on_[l] && n_rec[l] == 0.0 ? 1.0 : 0.0;
-    any_first |= first[l] != 0.0;
-    all_on &= on_[l] != 0;
-    kk[l] = (double)kk_[l];
+    long f = on[l] != 0.0 && n_rec[l] == 0.0;
+    first[l] = f ? 1.0 : 0.0;
+    any_first |= f;
     iq[l] = 0.0;
     ir[l] = 0.0;
   }
-  for (long a = 0; a < ns; ++a) {
-    const long i = st[a];
-    double *e_min = macc + QC_SLOT(QC_EMIN, i), *e_max = macc + QC_SLOT(QC_EMAX, i);
-    double* settle = macc + QC_SLOT(QC_SETTLE, i);
-    /* settling against the largest |e| so far (max(e_max, -e_min)): exact for the whole run, since
-       the record that sets the final largest is outside its own band and every later record sees
-       the final band */
-    if (all_on && !final) {  /* a record before the last is inside the bounds: no NaN */
+  /* settling against the largest |e| so far (max(e_max, -e_min)): exact for the whole run, since the
+     record that sets the final largest is outside its own band and every later record sees the final
+     band */
+  if (all_on && !final) {  /* a record before the last is inside the bounds: no NaN */
+    for (long a = 0; a < ns; ++a) {
+      const long i = st[a];
+      double *e_min = macc + QC_SLOT(QC_EMIN, i), *e_max = macc + QC_SLOT(QC_EMAX, i);
+      double* settle = macc + QC_SLOT(QC_SETTLE, i);
 #pragma omp simd
       for (int l = 0; l < QC_L; ++l) {
         double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
@@ -227,7 +227,12 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
         e_max[l] = hi;
         settle[l] = a > band ? QC_SETTLE_PENDING : (settle[l] == QC_SETTLE_PENDING ? kk[l] : settle[l]);
       }
-    } else {
+    }
+  } else {
+    for (long a = 0; a < ns; ++a) {
+      const long i = st[a];
+      double *e_min = macc + QC_SLOT(QC_EMIN, i), *e_max = macc + QC_SLOT(QC_EMAX, i);
+      double* settle = macc + QC_SLOT(QC_SETTLE, i);
 #pragma omp simd
       for (int l = 0; l < QC_L; ++l) {
         double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
@@ -241,18 +246,23 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const int*
         settle[l] = o ? s : settle[l];
       }
     }
-    if (any_first) {
+  }
+  if (any_first)
+    for (long a = 0; a < ns; ++a) {
+      const long i = st[a];
       double* e0 = macc + QC_SLOT(QC_E0, i);
       for (int l = 0; l < QC_L; ++l) e0[l] = first[l] != 0.0 ? e[i * QC_L + l] : e0[l];
     }
-    if (final) {
+  if (final)
+    for (long a = 0; a < ns; ++a) {
+      const long i = st[a];
+      double *e_min = macc + QC_SLOT(QC_EMIN, i), *e_max = macc + QC_SLOT(QC_EMAX, i);
       double *e_last = macc + QC_SLOT(QC_ELAST, i), *peak = macc + QC_SLOT(QC_PEAK, i);
       for (int l = 0; l < QC_L; ++l) {
         e_last[l] = e[i * QC_L + l];
         peak[l] = qc_nanmax(e_max[l], -e_min[l]);
       }
     }
-  }
   for (int j = 0; j < QC_NU; ++j) {
     double* u_max = macc + (QC_UMAX + j) * QC_L;
 #pragma omp simd
@@ -413,11 +423,14 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
                       const double* lo, const double* hi, const double* exo, long exo_rows, long rows_max,
                       double* xs, double* us, long* ks, long* n_rec, long* done,
                       long keep, const long* mq, const double* mv, double* macc, const long* row0) {
-  double X[QC_NX * QC_L], XN[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
+  /* the state before and after a step: two buffers that swap roles after each step (no copy) */
+  double XA[QC_NX * QC_L], XB[QC_NX * QC_L], XF[QC_NX * QC_L], XS[QC_NX * QC_L];
+  double *X = XA, *XN = XB;
   double U[QC_NU * QC_L], UH[QC_NU * QC_L], UF[QC_NU * QC_L], T[QC_L], DT[QC_L], E[QC_NE1 * QC_L];
-  double XR[QC_NS * QC_L], TAIL0[QC_L];
-  long rec_in[QC_L], hold_in[QC_L], rows[QC_L], kk[QC_L], held[QC_L], until[QC_L];
-  int active[QC_L], inb[QC_L], on[QC_L], n_active = 0;
+  double XR[QC_NS * QC_L], TAIL0[QC_L], KD[QC_L], ON[QC_L];
+  long rec_in[QC_L], hold_in[QC_L], rows[QC_L], held[QC_L], until[QC_L];
+  long active[QC_L];  /* as wide as rec_in, so the lanes' per-step tests vectorize together */
+  int inb[QC_L], n_active = 0;
   long first_end = LONG_MAX;  /* the fewest steps a lane takes: no lane finishes on a step before it */
   if (mq) qc_metric_init(mq, macc);
 #if QC_ETD
@@ -427,7 +440,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
 #else
   double P[qc_step_nh * QC_L];
 #endif
-  memcpy(X, x0, sizeof X);
+  memcpy(X, x0, sizeof XA);
   memcpy(XF, x0, sizeof XF);
   memset(E, 0, sizeof E);
   memset(U, 0, sizeof U);
@@ -439,6 +452,7 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     rec_in[l] = qc_mod(-QC_K0(l), QC_STRIDE(l));   /* steps until the next recorded one */
     hold_in[l] = qc_mod(-QC_K0(l), QC_HOLD(l));    /* steps until the next controller sample */
     DT[l] = QC_DT(l);
+    KD[l] = (double)QC_K0(l);  /* the absolute step K0 + k, counted in a double (exact below 2^53) */
     TAIL0[l] = (1.0 - QC_NOISE_TAIL) * (QC_DT(l) * (double)(QC_K0(l) + QC_N(l)));  /* metrics.tail_trend's t0 */
     n_active += active[l];
     if (QC_N(l) < first_end) first_end = QC_N(l);
@@ -453,10 +467,11 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
   qc_step_pre(X, T, DT, c, E, P);
 #endif
   for (long k = 0; n_active > 0; ++k) {
-    int rec = 0;
+    long rec = 0;
+#pragma omp simd reduction(|:rec)
     for (int l = 0; l < QC_L; ++l) {
-      T[l] = QC_DT(l) * (double)(QC_K0(l) + k);
-      rec |= active[l] && rec_in[l] == 0;
+      T[l] = DT[l] * KD[l];  /* QC_DT(l) * (double)(QC_K0(l) + k), the same product */
+      rec |= active[l] & (rec_in[l] == 0);
     }
     if (QC_NE > 0 && exo != NULL)  /* (without exogenous rows qc_exo_next does nothing) */
       for (int l = 0; l < QC_L; ++l)
@@ -481,12 +496,15 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     const double* UA = U;
 #endif
     if (rec && mq) {
+      long all_on = 1;
+#pragma omp simd reduction(&:all_on)
       for (int l = 0; l < QC_L; ++l) {
-        on[l] = active[l] && rec_in[l] == 0;
-        kk[l] = QC_K0(l) + k;
+        long o = active[l] & (rec_in[l] == 0);
+        ON[l] = o ? 1.0 : 0.0;
+        all_on &= o;
       }
       qc_ref(T, c, E, XR);
-      qc_metric(mq, mv, macc, on, kk, T, X, UA, XR, TAIL0, 0);
+      qc_metric(mq, mv, macc, ON, all_on, KD, T, X, UA, XR, TAIL0, 0);
     }
     if (rec && keep) {
       for (int l = 0; l < QC_L; ++l) {
@@ -515,19 +533,26 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
     /* bounds: each lane's own flag, OR-ed over the states (NaN compares false, so it counts as
        out); integer ORs, so the lanes vectorize without a lane's verdict mixing with another's; as
        wide as a double, so a lane's flag is its comparison's mask as it is (no packing each step) */
-    long long out[QC_L];
-    for (int l = 0; l < QC_L; ++l) out[l] = 0;
-    for (int i = 0; i < QC_NX; ++i)
-      for (int l = 0; l < QC_L; ++l) {
+    long long out[QC_L], any_out = 0;
+#pragma omp simd reduction(|:any_out)
+    for (int l = 0; l < QC_L; ++l) {  /* the states inside: a lane's flag stays in a register */
+      long long o = 0;
+#pragma GCC unroll 64
+      for (int i = 0; i < QC_NX; ++i) {
         double v = XN[i * QC_L + l];
-        out[l] |= !(v >= lo[i * QC_L + l]) | !(v <= hi[i * QC_L + l]);
+        o |= !(v >= lo[i * QC_L + l]) | !(v <= hi[i * QC_L + l]);
       }
-    memcpy(X, XN, sizeof X);
-    long long any_out = 0;
+      out[l] = o;
+      any_out |= o;
+    }
+    double* X_next = X;  /* the step's result becomes the state; the old state's buffer takes the next */
+    X = XN;
+    XN = X_next;
+#pragma omp simd
     for (int l = 0; l < QC_L; ++l) {
       rec_in[l] = rec_in[l] == 0 ? QC_STRIDE(l) - 1 : rec_in[l] - 1;
       hold_in[l] = hold_in[l] == 0 ? QC_HOLD(l) - 1 : hold_in[l] - 1;
-      any_out |= out[l];
+      KD[l] = KD[l] + 1.0;
     }
     /* the common step: every lane runs, stays in bounds and has steps left (nothing below to do) */
     if (n_active == QC_L && !any_out && k + 1 < first_end) continue;
@@ -576,12 +601,12 @@ static void qc_run_at(const double* x0, const double* c, const double* lane_d, c
   }
   if (mq) {  /* the final record: the reference at its own step's row (as the one-case run's x_ref) */
     for (int l = 0; l < QC_L; ++l) {
-      kk[l] = QC_K0(l) + done[l];
-      on[l] = 1;
-      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, kk[l], T[l], E, held + l);
+      KD[l] = (double)(QC_K0(l) + done[l]);
+      ON[l] = 1.0;
+      qc_exo_row(exo, exo_rows, lane_d, lane_i, l, QC_K0(l) + done[l], T[l], E, held + l);
     }
     qc_ref(T, c, E, XR);
-    qc_metric(mq, mv, macc, on, kk, T, XF, U, XR, TAIL0, 1);
+    qc_metric(mq, mv, macc, ON, 1, KD, T, XF, U, XR, TAIL0, 1);
   }
 }
 
