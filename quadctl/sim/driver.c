@@ -219,13 +219,16 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const doub
       double* settle = macc + QC_SLOT(QC_SETTLE, i);
 #pragma omp simd
       for (int l = 0; l < QC_L; ++l) {
-        double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
+        double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v), k = kk[l], s = settle[l];
         e[i * QC_L + l] = v;
         double lo = v < e_min[l] ? v : e_min[l], hi = v > e_max[l] ? v : e_max[l], p = hi > -lo ? hi : -lo;
         double band = QC_BAND * p > QC_FLOOR ? QC_BAND * p : QC_FLOOR;
+        /* two selects, their operands loaded unconditionally: GCC emits a blend each, where one nested
+           expression took a masked load, both comparisons and three blends */
+        s = s == QC_SETTLE_PENDING ? k : s;
         e_min[l] = lo;
         e_max[l] = hi;
-        settle[l] = a > band ? QC_SETTLE_PENDING : (settle[l] == QC_SETTLE_PENDING ? kk[l] : settle[l]);
+        settle[l] = a > band ? QC_SETTLE_PENDING : s;
       }
     }
   } else {
@@ -235,15 +238,16 @@ static void qc_metric(const long* mq, const double* mv, double* macc, const doub
       double* settle = macc + QC_SLOT(QC_SETTLE, i);
 #pragma omp simd
       for (int l = 0; l < QC_L; ++l) {
-        double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v);
+        double v = X[i * QC_L + l] - R[i * QC_L + l], a = fabs(v), k = kk[l], s0 = settle[l];
         int o = on[l] != 0.0;
         e[i * QC_L + l] = v;
         double lo = qc_nanmin(e_min[l], v), hi = qc_nanmax(e_max[l], v), p = qc_nanmax(hi, -lo);
         double band = QC_BAND * p > QC_FLOOR ? QC_BAND * p : QC_FLOOR;
-        double s = a > band ? QC_SETTLE_PENDING : (settle[l] == QC_SETTLE_PENDING ? kk[l] : settle[l]);
+        double s = s0 == QC_SETTLE_PENDING ? k : s0;
+        s = a > band ? QC_SETTLE_PENDING : s;
         e_min[l] = o ? lo : e_min[l];
         e_max[l] = o ? hi : e_max[l];
-        settle[l] = o ? s : settle[l];
+        settle[l] = o ? s : s0;
       }
     }
   }
