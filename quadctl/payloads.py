@@ -13,6 +13,7 @@ import numpy as np
 from quadctl import artifacts
 from quadctl.design import Design
 from quadctl.design.discrete import realizable_frequency
+from quadctl.design.margins import LQR_GAIN_MARGIN_DB, LQR_PHASE_MARGIN_DEG
 from quadctl.layout import INPUT_NAMES, INPUT_UNITS, STATE_NAMES, STATE_UNITS
 from quadctl.linear.analysis import Checks
 from quadctl.linear.stability import is_stable
@@ -94,8 +95,6 @@ def design(setup, des: Design, kal) -> dict:
 
 def margins(setup, des: Design, result, vehicle) -> dict:
     """``margins.json``: every loop's margins (``result``) and the vehicle's loop."""
-    from quadctl.design import margins  # SciPy's signal tools: loaded only by the runs that compute margins
-
     timing = setup.timing
     return {
         "rate": timing.rate, "design": "discrete" if des.rate else "continuous",
@@ -103,8 +102,7 @@ def margins(setup, des: Design, result, vehicle) -> dict:
         "rotor_lag": setup.rotor_lag,
         **({"gyro_filter": setup.rate_filter.describe()} if setup.rate_filter is not None else {}),
         "closed_loop": _vehicle_loop_payload(vehicle),
-        "guarantee": {"gain_margin_db": list(margins.LQR_GAIN_MARGIN_DB),
-                      "phase_margin_deg": margins.LQR_PHASE_MARGIN_DEG},
+        "guarantee": {"gain_margin_db": list(LQR_GAIN_MARGIN_DB), "phase_margin_deg": LQR_PHASE_MARGIN_DEG},
         "estimator": None if setup.estimator is None else {
             "measured": setup.estimator.measured, "model": "lqg",
             "broken": "at the plant input, Kalman filter in the loop fed the commanded input"},

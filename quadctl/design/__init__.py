@@ -13,7 +13,10 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.design.decoupled`: :func:`lqr` (one case) and the decoupled :func:`design` (the 4x12 gain)
 - :mod:`~quadctl.design.coupled`: one LQR on the full coupled model, to compare with the decoupled design
 - :mod:`~quadctl.design.gain_table`: a gain schedule's table and the scheduling variable read from a state
-- :mod:`~quadctl.design.margins`: the loops' margins (not imported by the package: SciPy loads only for them)
+- :mod:`~quadctl.design.margins`: a loop's margins as values, and the guarantee and requirement they are judged by
+- :mod:`~quadctl.design.broken_loops`: every regulated loop of a design broken at one plant input (LQR and LQG)
+- :mod:`~quadctl.design.margin_search`: a broken loop's margins found on its frequency response (not imported by
+  the package: SciPy loads only for them)
 - :mod:`~quadctl.design.margin_findings`: what the margins say (findings, as values), every loop of a design judged
 
 ``from quadctl.design import lqr`` is the one-case entry point (MATLAB ``lqr``: ``K, P, E``).

@@ -8,7 +8,7 @@ partition stays decoupled:
     d/dt [x; v] = [[A, B], [0, -I / tau]] [x; v] + [[0], [I / tau]] u.
 
 Used by the design (``controller.rotor_lag: include``: LQR on this model, :mod:`quadctl.design`) and
-by the margins (the lag in every loop, :mod:`quadctl.design.margins`).
+by the margins (the lag in every loop, :mod:`quadctl.design.broken_loops`).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ how it stands against the continuous LQR guarantee, the cause of a shortfall, th
 the crossover, the saturation the disk margin covers, and what a Kalman filter in the loop costs
 (:func:`lqg_findings`). Their sentences are written in :mod:`quadctl.present.loops`.
 :func:`all_margins` computes the margins of every regulated loop of a design
-(:mod:`quadctl.design.margins`) and gives each its findings.
+(:mod:`quadctl.design.broken_loops`, :mod:`quadctl.design.margin_search`) and gives each its findings.
 """
 
 from __future__ import annotations
@@ -16,17 +16,11 @@ from typing import ClassVar
 
 import numpy as np
 
+from quadctl.design.broken_loops import design_loops, lqg_loops
 from quadctl.design.decoupled import Design
 from quadctl.design.kalman import Kalman
-from quadctl.design.margins import (
-    GUARANTEE_TOL,
-    LQR_GAIN_MARGIN_DB,
-    LQR_PHASE_MARGIN_DEG,
-    LoopMargins,
-    design_loops,
-    loop_margins,
-    lqg_loops,
-)
+from quadctl.design.margin_search import loop_margins
+from quadctl.design.margins import GUARANTEE_TOL, LQR_GAIN_MARGIN_DB, LQR_PHASE_MARGIN_DEG, LoopMargins
 from quadctl.design.riccati import real_array
 from quadctl.errors import ArgumentError, ArgumentTypeError
 from quadctl.layout import INPUT_UNITS, N_INPUTS, N_STATES
@@ -294,7 +288,7 @@ def all_margins(design, decoupled, A, B, *, emulated_rate: float | None = None, 
     rotor_time_constant : float, optional
         s of the rotors' lag included in every loop (``motors.time_constant``).
     estimator : quadctl.design.kalman.Kalman, optional
-        The LQG loops (:func:`quadctl.design.margins.lqg_loops`), each compared with the full-state coupled loop.
+        The LQG loops (:func:`quadctl.design.broken_loops.lqg_loops`), each compared with the full-state coupled loop.
     rate_filter : quadctl.linear.filters.RateFilter, optional
         The gyro filter (``controller.filters``) in every loop's rate path, sampled with the loop.
 

@@ -18,7 +18,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.design.margins import GRID_SPAN
+from quadctl.design.margin_search import GRID_SPAN
 from quadctl.linear.stability import is_stable
 from quadctl.signals import signals_held
 from quadctl.sim import pid
@@ -168,7 +168,7 @@ class LiftedLoop:
 
     Called at ``w`` (rad/s) it gives the fundamental harmonic ``L0(w) = phi^H L(e^(j w N Ts)) phi / N``,
     ``phi = [e^(j w p Ts)]_p`` (the response at ``w`` to a sinusoid at ``w``: the curve of the Bode and
-    Nyquist plots, as :class:`quadctl.design.margins.BrokenLoop` gives its ``L``); the margins are from
+    Nyquist plots, as :class:`quadctl.design.broken_loops.BrokenLoop` gives its ``L``); the margins are from
     :meth:`loci` and :meth:`is_stable`, exact.
     """
 
@@ -184,7 +184,7 @@ class LiftedLoop:
 
     def lifted_response(self, w) -> np.ndarray:
         """``L(z)`` (len(w), N, N), ``z = e^(j w N Ts)``, with the sign of
-        :class:`~quadctl.design.margins.BrokenLoop` (closed loop: ``I + L`` singular)."""
+        :class:`~quadctl.design.broken_loops.BrokenLoop` (closed loop: ``I + L`` singular)."""
         z = np.exp(1j * np.atleast_1d(np.asarray(w, dtype=float)) * self.frame * self.sample_time)
         n = self.Phi.shape[0]
         M = z[:, None, None] * np.eye(n) - self.Phi[None]

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadctl._lazy import lazy_import
-from quadctl.design.margins import POINTS_PER_DECADE, LoopMargins, disk_gain_range_db, gain_db, no_margin
+from quadctl.design.margin_search import POINTS_PER_DECADE
+from quadctl.design.margins import LoopMargins, disk_gain_range_db, gain_db, no_margin
 from quadctl.layout import INPUT_NAMES
 from quadctl.linear.stability import is_stable
 from quadctl.sim.cascade_lift import LOCI_INFINITE, Lifted, LiftedLoop, lifted

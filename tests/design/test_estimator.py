@@ -408,7 +408,7 @@ def test_simulate_reports_the_estimation_error_and_records_x_hat(tmp_path):
 def test_each_lqg_broken_loop_closes_to_the_regulator_and_the_estimator(data):
     """Closing any input's LQG loop (v = c_j) gives back the LQG loop: its eigenvalues are the regulator's
     (A - B K, without the positions nothing feeds back) and the estimator's, to 1e-9."""
-    from quadctl.design import margins
+    from quadctl.design import broken_loops
 
     setup, linear, des, kal = _filter(data)
     A, B = (kal.A, kal.B) if kal.discrete else (linear.A, linear.B)
@@ -417,7 +417,7 @@ def test_each_lqg_broken_loop_closes_to_the_regulator_and_the_estimator(data):
     keep = [i for i in range(12) if i not in free]
     regulator = np.linalg.eigvals((A - B @ des.K_block)[np.ix_(keep, keep)])
     expected = np.concatenate([regulator, kal.eigenvalues])
-    loops = list(margins.lqg_loops(des, linear.A, linear.B, kal))
+    loops = list(broken_loops.lqg_loops(des, linear.A, linear.B, kal))
     assert sorted(inp for _, inp, _, _ in loops) == ["A", "E", "R", "T"]
     for name, inp, model, loop in loops:
         assert model == "lqg"

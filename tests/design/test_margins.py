@@ -13,8 +13,9 @@ from _solve import cfg_dict, solve
 from typer.testing import CliRunner
 
 from quadctl.cli.app import app
-from quadctl.design import discrete, margin_findings, margins
-from quadctl.design.margins import BrokenLoop, loop_margins
+from quadctl.design import discrete, margin_findings, margin_search, margins
+from quadctl.design.broken_loops import BrokenLoop
+from quadctl.design.margin_search import loop_margins
 from quadctl.present.loops import loop_notes
 
 
@@ -154,7 +155,7 @@ def test_continuous_lqr_loops_meet_the_guarantee():
 def test_the_grid_of_a_sampled_loop_ends_at_nyquist():
     Ad, Bd = discrete.c2d([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]], 0.01)
     loop = BrokenLoop(Ad, Bd.ravel(), np.array([1.0, 1.0]), 0.01)
-    assert margins.frequency_grid(loop)[-1] == pytest.approx(math.pi / 0.01, rel=1e-15)
+    assert margin_search.frequency_grid(loop)[-1] == pytest.approx(math.pi / 0.01, rel=1e-15)
 
 
 REPORT_AT_200HZ = ROOT / "docs" / "configs" / "report-at-200hz.yaml"

@@ -23,7 +23,7 @@ from typer.testing import CliRunner
 from quadctl import config, pipeline
 from quadctl.cli.app import app
 from quadctl.config.notices import notices
-from quadctl.design import discrete, integral, lag, linear_loop, margin_findings, margins
+from quadctl.design import broken_loops, discrete, integral, lag, linear_loop, margin_findings, margin_search
 from quadctl.design.decoupled import solve_subsystem
 from quadctl.design.riccati import riccati_residual
 from quadctl.errors import ConfigError
@@ -169,7 +169,7 @@ def test_the_augmented_loop_meets_the_lqr_guarantee_and_the_model_in_the_control
     kx, kv = lag.scalar_integrator_gain(q, r, tau)
     Al, Bl = lag.lagged(np.zeros((1, 1)), np.ones((1, 1)), tau)
     A, B, K = linear_loop.with_lag_model(Al, Bl, np.array([[kx, 0.0]]), np.array([[kv]]), tau)
-    m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], K[0]))
+    m = margin_search.loop_margins(broken_loops.BrokenLoop(A, B[:, 0], K[0]))
     b = (1 + kv) ** 2  # tau^2 w^4 + (1 + kv)^2 w^2 - kx^2 = 0 at the crossover
     wc = math.sqrt((-b + math.sqrt(b * b + 4 * tau ** 2 * kx ** 2)) / (2 * tau ** 2))
     assert m.gain_crossover_freq == pytest.approx(wc, rel=1e-9)

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from quadctl import config, stages
 from quadctl.cli.app import app
-from quadctl.design import margins
+from quadctl.design import broken_loops, margin_search, margins
 from quadctl.present.loops import thin_sentence
 
 runner = CliRunner()
@@ -23,7 +23,7 @@ def _third_order(k: float) -> margins.LoopMargins:
     """``L(s) = k / (s + 1)^3`` broken from its state-space form (companion of ``s^3 + 3 s^2 + 3 s + 1``)."""
     A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, -3.0, -3.0]])
     B = np.array([[0.0], [0.0], [1.0]])
-    return margins.loop_margins(margins.broken_loop(A, B, np.array([[k, 0.0, 0.0]]), 0))
+    return margin_search.loop_margins(broken_loops.broken_loop(A, B, np.array([[k, 0.0, 0.0]]), 0))
 
 
 def _closed_form(k: float) -> tuple[float, float]:

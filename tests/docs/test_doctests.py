@@ -37,4 +37,5 @@ def test_the_examples_are_found():
     """The modules whose docstrings show examples (a test that finds none would pass for nothing)."""
     with_examples = {m for m in MODULES if _examples(m)}
     assert {"quadctl.artifacts.json_values", "quadctl.design.decoupled", "quadctl.design.margins",
+            "quadctl.design.margin_search",
             "quadctl.design.margin_findings", "quadctl.design.discrete", "quadctl.linear.trim"} <= with_examples

@@ -11,7 +11,7 @@ import yaml
 
 from quadctl.config import loading
 from quadctl.config.loading import from_dict
-from quadctl.design import margin_findings, margins
+from quadctl.design import broken_loops, margin_findings, margin_search
 from quadctl.errors import ConfigError
 from quadctl.layout import INPUT_INDEX, STATE_INDEX
 from quadctl.linear import filters
@@ -20,7 +20,7 @@ from quadctl.setup import setup_of
 
 TIGHT = 1e-9
 """The closed forms are evaluated in double: a few ulps of phases near 1 rad, and the crossover solved
-to round-off by the margins' own refinement (:func:`quadctl.design.margins.loop_margins`)."""
+to round-off by the margins' own refinement (:func:`quadctl.design.margin_search.loop_margins`)."""
 
 
 def config(name: str, **controller) -> dict:
@@ -85,12 +85,12 @@ def rate_loop(sample_time=None):
         B = B * sample_time  # the ZOH of an integrator: q <- q + Ts E / J
         A = np.eye(1)
     Aa, Ba, Ka = filters.with_rate_filter(A, B, [[GAIN]], form, [0])
-    return margins.broken_loop(Aa, Ba, Ka, 0, sample_time)
+    return broken_loops.broken_loop(Aa, Ba, Ka, 0, sample_time)
 
 
 def test_a_first_order_gyro_lowpass_costs_atan_of_the_crossover_over_its_cutoff():
     """Continuous: L = (GAIN / J s) wc / (s + wc): the integrator's 90 deg less atan(w / wc) at the crossover."""
-    m = margins.loop_margins(rate_loop(), name="pitch", input_name="E")
+    m = margin_search.loop_margins(rate_loop(), name="pitch", input_name="E")
     wc = m.gain_crossover_freq
     assert abs(abs(GAIN / (J * wc)) / math.hypot(1, wc / (2 * np.pi * CUTOFF)) - 1) < TIGHT
     expected = 90.0 - math.degrees(math.atan(wc / (2 * np.pi * CUTOFF)))
@@ -102,7 +102,7 @@ def test_the_sampled_lowpass_costs_its_own_phase_at_the_crossover():
     """At 200 Hz: L(z) = (GAIN Ts / J) / (z - 1) (1 - a) z / (z - a): the ZOH integrator's
     90 deg - th / 2 less the PT1's atan2(a sin th, 1 - a cos th), th = w Ts."""
     Ts = 1 / 200
-    m = margins.loop_margins(rate_loop(Ts), name="pitch", input_name="E")
+    m = margin_search.loop_margins(rate_loop(Ts), name="pitch", input_name="E")
     th = m.gain_crossover_freq * Ts
     a = math.exp(-2 * np.pi * CUTOFF * Ts)
     z = np.exp(1j * th)
@@ -156,7 +156,7 @@ def test_the_lqr_loops_margins_are_those_of_the_loop_with_the_filter_in_its_rate
     b2, a2 = signal.iirnotch(80.0, 80.0 / 30.0, fs=fs)
     plant = ct.c2d(ct.ss(lin.A, lin.B, np.eye(12), np.zeros((12, 4))), Ts, method="zoh")
     loops = {(name, inp): loop for name, inp, model, loop in
-             margins.design_loops(des, st.decoupled, lin.A, lin.B, Ts, rate_filter=setup.rate_filter)
+             broken_loops.design_loops(des, st.decoupled, lin.A, lin.B, Ts, rate_filter=setup.rate_filter)
              if model == "coupled"}
     w = np.linspace(0.5, 0.98 * np.pi / Ts, 400)
     P = np.moveaxis(plant.frequency_response(w).complex, -1, 0)  # (N, 12, 4)
@@ -168,7 +168,7 @@ def test_the_lqr_loops_margins_are_those_of_the_loop_with_the_filter_in_its_rate
         Goo = G[:, o][:, :, o]
         ref = G[:, j, j] - np.einsum("ni,nij,nj->n", G[:, j, o], np.linalg.inv(np.eye(3) + Goo), G[:, o, j])
         np.testing.assert_allclose(loop(w), ref, rtol=1e-8, atol=1e-12, err_msg=f"{name} ({inp})")
-        m = margins.loop_margins(loop, name=name, input_name=inp, model="coupled")
+        m = margin_search.loop_margins(loop, name=name, input_name=inp, model="coupled")
         if m.gain_crossover_freq is not None:
             wc = np.array([m.gain_crossover_freq])
             Pc = np.moveaxis(plant.frequency_response(wc).complex, -1, 0)

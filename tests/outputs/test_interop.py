@@ -54,7 +54,7 @@ def test_the_loops_reproduce_quadctls_closed_loop_eigenvalues(name):
 
 def test_one_loop_has_quadctls_margins():
     """The Crazyflie's roll loop, sampled at 500 Hz and broken at its input: python-control's
-    stability_margins of K * subsystem agree with quadctl.design.margins (lower gain margin, phase margin
+    stability_margins of K * subsystem agree with quadctl.design.margin_search (lower gain margin, phase margin
     and its crossover).
 
     On its frequency response (1 rad/s to Nyquist, 20001 points, crossings interpolated) it agrees

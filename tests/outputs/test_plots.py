@@ -43,7 +43,7 @@ def test_the_phase_of_a_known_loop_is_its_closed_form_in_minus_360_to_0():
 
 def test_a_loops_bode_phase_shows_its_phase_margin_above_minus_180():
     """mambo-200hz's roll loop (sampled, the one docs/guide/flying.md shows): the plotted phase at the gain
-    crossover is ``-180 + PM`` (PM from quadctl.design.margins, which never reads the plot), within the grid's
+    crossover is ``-180 + PM`` (PM from quadctl.design.margin_search, which never reads the plot), within the grid's
     spacing, and the whole curve lies in (-360, 0]."""
     setup, trim, linear, dec, des = solve(cfg_dict("mambo-200hz"))
     roll = next(m for m in margin_findings.all_margins(des, dec, linear.A, linear.B)

@@ -12,7 +12,7 @@ import pytest
 from _solve import cfg_dict, run
 
 from quadctl import config
-from quadctl.design import lag, margins
+from quadctl.design import broken_loops, lag, margin_search
 from quadctl.errors import ConfigError
 from quadctl.layout import N_STATES
 from quadctl.sim.builder import build
@@ -95,7 +95,7 @@ def test_the_margins_see_the_lag_an_integrator_loop_loses_atan_wc_tau(k, tau):
     """``L = k / (s (tau s + 1))``: ``|L| = 1`` at ``w_c`` with ``k = w_c sqrt(1 + (w_c tau)^2)``,
     phase margin ``90 deg - atan(w_c tau)``."""
     A, B = lag.lagged(np.zeros((1, 1)), np.ones((1, 1)), tau)
-    m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], np.array([k, 0.0])))
+    m = margin_search.loop_margins(broken_loops.BrokenLoop(A, B[:, 0], np.array([k, 0.0])))
     wc = np.sqrt((np.sqrt(1 + 4 * (k * tau) ** 2) - 1) / (2 * tau ** 2))
     assert m.gain_crossover_freq == pytest.approx(wc, rel=1e-9)
     assert m.phase_margin_deg == pytest.approx(90.0 - np.degrees(np.arctan(wc * tau)), rel=1e-9)

@@ -5,7 +5,7 @@ flies: the eigenvalues of the Jacobian of one frame of the compiled law and RK4 
 single-rate P loop on an integrator has phase, gain and disk margins in closed form; the same loop
 written as a frame of three or four identical samples must keep them. A loop at one rate (a PD loop on a
 double integrator, the Crazyflie's cascade with every loop at its rate) must have the margins
-:func:`quadctl.design.margins.loop_margins` reads from its transfer function; on the multi-rate cascade
+:func:`quadctl.design.margin_search.loop_margins` reads from its transfer function; on the multi-rate cascade
 each margin's perturbation must put a pole of the lifted loop on the unit circle, and a little less not.
 """
 
@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 import scipy.optimize
 
-from quadctl.design.margins import broken_loop, loop_margins
+from quadctl.design.broken_loops import broken_loop
+from quadctl.design.margin_search import loop_margins
 from quadctl.sim.cascade_lift import Lifted
 from quadctl.sim.cascade_margins import exact_delay_margin, exact_gain_margins, loci_margins
 

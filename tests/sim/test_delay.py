@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 
 from quadctl import config
 from quadctl.cli.app import app
-from quadctl.design import linear_loop, margin_findings, margins
+from quadctl.design import broken_loops, linear_loop, margin_findings, margin_search
 from quadctl.errors import ConfigError
 from quadctl.layout import STATE_INDEX
 
@@ -31,7 +31,7 @@ CLOSED_FORM = 1e-9
 @pytest.mark.parametrize("wc", [0.5, 3.0, 40.0])
 def test_the_delay_margin_of_an_integrator_loop_is_pi_over_2_wc(wc):
     """``L = wc / s`` crosses ``|L| = 1`` at ``wc`` with phase -90 deg: it tolerates ``pi / 2 / wc`` s."""
-    m = margins.loop_margins(margins.BrokenLoop(np.zeros((1, 1)), np.ones(1), np.array([wc])))
+    m = margin_search.loop_margins(broken_loops.BrokenLoop(np.zeros((1, 1)), np.ones(1), np.array([wc])))
     assert m.phase_margin_deg == pytest.approx(90.0, rel=CLOSED_FORM)
     assert m.delay_margin == pytest.approx(math.pi / 2 / wc, rel=CLOSED_FORM)
     assert m.delay_margin_samples is None  # continuous: no samples
@@ -47,7 +47,7 @@ def test_a_sampled_integrator_with_n_samples_of_delay_has_the_closed_form_margin
     At k = 150, n = 3 the phase margin is negative: the loop is unstable and has none."""
     Ts = 0.005
     A, B, K = linear_loop.delayed(np.eye(1), np.array([[Ts]]), np.array([[k]]), samples)
-    m = margins.loop_margins(margins.BrokenLoop(A, B[:, 0], K[0], Ts))
+    m = margin_search.loop_margins(broken_loops.BrokenLoop(A, B[:, 0], K[0], Ts))
     wc = 2 / Ts * math.asin(k * Ts / 2)
     pm = math.pi / 2 - (samples + 0.5) * wc * Ts
     if pm < 0:
