@@ -17,7 +17,7 @@ RESOLVED_CONFIG_HEAD = "# the config as quadctl"
 """How ``config.resolved.yaml`` opens (:class:`quadctl.workspace.Workspace`): a stamp of quadctl's
 (:func:`quadctl.artifacts.lock.stamped`)."""
 IDENTIFIED_CONFIG_HEAD = "# Identified by quadctl identify from"
-"""How ``identified.yaml`` opens (:func:`quadctl.identify.results.identified_config`): a stamp of quadctl's."""
+"""How ``identified.yaml`` opens (:func:`quadctl.identify.config_edits.identified_config`): a stamp of quadctl's."""
 
 
 def carries_provenance(data) -> bool:

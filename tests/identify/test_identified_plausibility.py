@@ -13,11 +13,12 @@ from typer.testing import CliRunner
 
 from quadctl.cli.app import app
 from quadctl.config import locate, parse
+from quadctl.identify.config_edits import changes, identified_config
 from quadctl.identify.estimate import Estimate
 from quadctl.identify.flight_log import FlightLog
 from quadctl.identify.measurement import PARAMETERS, Airframe
 from quadctl.identify.plausibility import RULES, Rule, judge
-from quadctl.identify.results import Identification, changes, identified_config, payload
+from quadctl.identify.results import Identification, payload
 from quadctl.present.identify import sentences
 
 

@@ -148,9 +148,10 @@ def test_identified_config_keeps_a_rigid_body_and_the_yaw_ratio(jzz, lowered):
     coefficient with it (a yaw log fixes k_m / Jzz)."""
     import numpy as np
 
+    from quadctl.identify.config_edits import changes
     from quadctl.identify.flight_log import FlightLog
     from quadctl.identify.measurement import Airframe
-    from quadctl.identify.results import Identification, changes
+    from quadctl.identify.results import Identification
 
     log = FlightLog(t=np.arange(2.0), acc=np.zeros((2, 3)), gyro=np.zeros((2, 3)), cmd=np.zeros((2, 4)),
                     path="log", format="csv", sha256="")
@@ -225,7 +226,8 @@ def _delay_identification(rate):
 def test_a_fitted_delay_is_written_as_whole_controller_samples_replacing_the_configs():
     """17.11 ms at 500 Hz is 8.55 samples: 9 written; a delay the config gave as a block is replaced whole."""
     from quadctl.config import locate, parse
-    from quadctl.identify.results import changes, identified_config, payload
+    from quadctl.identify.config_edits import changes, identified_config
+    from quadctl.identify.results import payload
     from quadctl.present.identify import sentences
 
     ident = _delay_identification(500.0)
@@ -240,7 +242,8 @@ def test_a_fitted_delay_is_written_as_whole_controller_samples_replacing_the_con
 
 
 def test_a_fitted_delay_with_a_continuous_controller_is_not_written_and_the_user_is_told_how():
-    from quadctl.identify.results import changes, payload
+    from quadctl.identify.config_edits import changes
+    from quadctl.identify.results import payload
     from quadctl.present.identify import sentences
 
     ident = _delay_identification(None)
@@ -253,7 +256,8 @@ def test_a_fitted_delay_longer_than_the_config_takes_is_not_written_and_the_conf
     """17.11 ms at 10 kHz is 171 samples, past controller.delay's 100: the identified config loads without it
     (it would not with it), and the user is told why."""
     from quadctl.config import locate, parse
-    from quadctl.identify.results import changes, identified_config, payload
+    from quadctl.identify.config_edits import changes, identified_config
+    from quadctl.identify.results import payload
     from quadctl.present.identify import sentences
 
     ident = _delay_identification(10_000.0)
@@ -268,7 +272,7 @@ def test_the_identified_config_says_what_it_is_not_what_the_config_it_came_from_
     editor's schema line relative to where it lay; its description and the comment above a replaced value
     spoke of that config: they give way to a description that says identified and each value's own comment."""
     from quadctl.config import locate, parse
-    from quadctl.identify.results import identified_config
+    from quadctl.identify.config_edits import identified_config
 
     text = locate("crazyflie").text
     assert "$schema=" in text and "The rotors hover at" in text and "[F]'s thrust at full PWM" in text
@@ -341,7 +345,7 @@ def _at(tree: dict, keys: list):
 def test_the_identified_config_holds_the_set_values_as_the_fit_took_them(sets):
     """identified.yaml is the config with --set put in (as overrides.load makes it), then the identified values."""
     from quadctl.config import locate, overrides, parse
-    from quadctl.identify.results import identified_config
+    from quadctl.identify.config_edits import identified_config
 
     source = locate("crazyflie")
     ident = _delay_identification(500.0)
@@ -362,7 +366,7 @@ def test_the_identified_config_holds_the_set_values_as_the_fit_took_them(sets):
 def test_a_set_value_over_two_lines_keeps_the_identified_config_loadable():
     """A comment ends at the line's end: the --set that gave a value spanning lines is shown escaped."""
     from quadctl.config import locate, parse
-    from quadctl.identify.results import identified_config
+    from quadctl.identify.config_edits import identified_config
 
     text = identified_config(locate("crazyflie").text, _delay_identification(500.0), "x",
                              ["simulation.reference={setpoints: [{t: 1,\n yaw: 0.5}]}"])

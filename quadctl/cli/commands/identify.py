@@ -48,7 +48,7 @@ def command(logs: Annotated[list[str], typer.Argument(
     from quadctl.cli import render
     from quadctl.config import locate, overrides
     from quadctl.errors import CheckFailed, ConfigError
-    from quadctl.identify import csv_log, readers, results
+    from quadctl.identify import config_edits, csv_log, readers, results
     from quadctl.plots.identify import fit_figure
     from quadctl.present import identify as shown
 
@@ -63,7 +63,7 @@ def command(logs: Annotated[list[str], typer.Argument(
     results.require_unedited(folder, force)  # before the fit, and before the folder is touched
     read = [readers.read_log(p, csv_log.parse_columns(columns)) for p in logs]
     ident = results.identify(read, cfg, results.windows_per_log(window, len(logs)), delay=delay)
-    text = results.identified_config(source.text, ident, f"{cfg.name}-identified", sets or ())
+    text = config_edits.identified_config(source.text, ident, f"{cfg.name}-identified", sets or ())
     payload = results.payload(ident, source.label, cfg, written=text, sets=sets or ())
     # the folder's lock only, not a session of it (quadctl.artifacts.Session, as sweep and export take): what
     # identify writes is made from flight logs and is no config's run (quadctl.artifacts.run_folder.NOT_THE_RUNS),
