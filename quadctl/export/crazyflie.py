@@ -310,6 +310,10 @@ def platform_rows(exp: Export, platform: Platform = FIRMWARE) -> list[tuple[str,
     return rows
 
 
+ZERO_THRUST = 1e-12
+"""N: a rotor thrust within this of 0 is the saturation's 0, mixed to rotors with round-off."""
+
+
 @dataclass(frozen=True)
 class FlightThrusts:
     """The rotor thrusts the configured flight asks the firmware for (:func:`flight_thrusts`).
@@ -345,9 +349,16 @@ class FlightThrusts:
         i, k = np.unravel_index(int(np.argmax(self.thrusts)), self.thrusts.shape)
         return int(k), float(self.thrusts[i, k])
 
-    def share_below(self, limit: float) -> float:
-        """The share of the run's samples in which some motor is asked for less than ``limit`` (N)."""
-        return float(np.mean(np.any(self.thrusts < limit, axis=1)))
+    def stopped(self, limit: float) -> np.ndarray:
+        """(N+1, 4) bool: the thrusts a firmware that stops a motor below ``limit`` (N) does not give, where
+        the design asks for some: above 0 and below ``limit``. A thrust of 0 (the saturation's, within the
+        mixer's round-off :data:`ZERO_THRUST`) is given as asked."""
+        return (self.thrusts > ZERO_THRUST) & (self.thrusts < limit)
+
+    def share_stopped(self, limit: float) -> float:
+        """The share of the run's samples in which some motor is asked for a thrust it is not given
+        (:meth:`stopped`)."""
+        return float(np.mean(np.any(self.stopped(limit), axis=1)))
 
     def share_above(self, limit: float) -> float:
         """The share of the run's samples in which some motor is asked for more than ``limit`` (N)."""

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from quadctl.text.setpoints import SETPOINT_OPTIONS
 
 AGREE_RTOL = 0.005
@@ -89,14 +91,16 @@ def flight_sentences(flight, platform) -> list[tuple[str, str]]:
     out = [("note", f"the configured flight ({run}) asks the firmware's motors for {_newtons(lo)} N (M{i_lo + 1}) to "
                     f"{_newtons(hi)} N (M{i_hi + 1}) in {flight.mode} mode: the firmware stops a motor below "
                     f"{platform.min_thrust:.4g} N and {top}")]
-    if lo < platform.min_thrust:
+    stopped = flight.stopped(platform.min_thrust)
+    if stopped.any():
         fix = (f"set motors.min_thrust: {platform.min_thrust:.4g} (the design's saturation, which the app flies, then "
                "asks no less)" if force else
                f"export with --mode force and motors.min_thrust: {platform.min_thrust:.4g} (the app's saturation "
                "then asks no less)")
-        out.append(("warning", f"the configured flight asks M{i_lo + 1} for {_newtons(lo)} N, below the "
-                               f"{platform.min_thrust:.4g} N under which the firmware stops a motor: some motor is "
-                               f"below it {100 * flight.share_below(platform.min_thrust):.3g} % of the run, where the "
+        motors = ", ".join(f"M{k + 1}" for k in np.flatnonzero(stopped.any(axis=0)))
+        out.append(("warning", f"the configured flight asks {motors} for thrusts between 0 and the "
+                               f"{platform.min_thrust:.4g} N under which the firmware stops a motor "
+                               f"({100 * flight.share_stopped(platform.min_thrust):.3g} % of the run), where the "
                                f"vehicle loses thrust the design counts on; {fix}, or fly gentler gains or offsets"))
     if force and hi > platform.max_thrust:
         out.append(("warning", f"the configured flight asks M{i_hi + 1} for {_newtons(hi)} N, above the "

@@ -65,18 +65,23 @@ def test_the_bundled_crazyflie_flight_stays_within_the_firmwares_rotor_thrusts(t
 
 
 def test_a_flight_that_drops_a_rotor_below_the_firmwares_least_thrust_is_warned_and_the_fix_named(tmp_path):
-    """From 1 m high the rotors drop to 0 N: warned, the share of the run below the floor counted on the
-    samples, exit 0; the fix the warning names (motors.min_thrust at the floor) removes the warning, as the
-    design's saturation then asks no rotor for less."""
+    """From 1 m high the rotors drop to 0 N, passing between 0 and the floor, where the firmware gives none of
+    the thrust asked: warned, the share of the run counted on those samples (a thrust of exactly 0, the
+    saturation's, is given as asked), exit 0; the fix the warning names (motors.min_thrust at the floor)
+    removes the warning, as the design's saturation then asks no rotor for less."""
     flight = crazyflie.flight_thrusts(_exp(HIGH))
-    below = np.any(flight.thrusts < 0.012817578393224994, axis=1)
-    assert below.sum() >= 2 and flight.lowest()[1] == pytest.approx(0.0, abs=1e-12)
+    floor = 0.012817578393224994
+    lost = np.any((flight.thrusts > 1e-12) & (flight.thrusts < floor), axis=1)
+    assert lost.sum() >= 2 and flight.lowest()[1] == pytest.approx(0.0, abs=1e-12)
+    assert lost.sum() < np.any(flight.thrusts < floor, axis=1).sum()  # some samples at 0 itself, not counted
     warned = _lines(_export(tmp_path, "--set", HIGH), "warning")
+    lost_motors = ((flight.thrusts > 1e-12) & (flight.thrusts < floor)).any(axis=0)
+    motors = ", ".join(f"M{k + 1}" for k in np.flatnonzero(lost_motors))
     assert warned == [
-        "quadctl: warning: the configured flight asks M4 for 0 N, below the 0.01282 N under which the firmware "
-        f"stops a motor: some motor is below it {100 * below.mean():.3g} % of the run, where the vehicle loses thrust "
-        "the design counts on; set motors.min_thrust: 0.01282 (the design's saturation, which the app flies, then asks "
-        "no less), or fly gentler gains or offsets"]
+        f"quadctl: warning: the configured flight asks {motors} for thrusts between 0 and the 0.01282 N under which "
+        f"the firmware stops a motor ({100 * lost.mean():.3g} % of the run), where the vehicle loses thrust the design "
+        "counts on; set motors.min_thrust: 0.01282 (the design's saturation, which the app flies, then asks no less), "
+        "or fly gentler gains or offsets"]
     fixed = _export(tmp_path, "--set", HIGH, "--set", "motors.min_thrust=0.01282")
     assert _lines(fixed, "warning") == [] and "asks the firmware's motors for 0.01282 N (M4)" in fixed
 
@@ -127,8 +132,16 @@ def test_the_least_thrust_is_compared_at_the_firmwares_value(mode, factor, warne
     low = [text for level, text in said if level == "warning" and "stops a motor" in text]
     assert len(low) == warned and said[0][0] == "note"
     if warned:
-        assert low[0].startswith("the configured flight asks M3 for 0.01282 N, below the 0.01282 N") and \
-            "below it 25 % of the run" in low[0]
+        assert low[0].startswith("the configured flight asks M3 for thrusts between 0 and the 0.01282 N") and \
+            "(25 % of the run)" in low[0]
+
+
+@pytest.mark.parametrize("lowest, warned", [(0.0, False), (1e-13, False), (1e-6, True)])
+def test_a_rotor_asked_for_no_thrust_is_given_it(lowest, warned):
+    """The firmware gives a motor asked for 0 N (the design's saturation) what it asks: only a thrust between 0
+    and THRUST_MIN is lost; the mixer's round-off about 0 is 0."""
+    said = flight_sentences(_flight(lowest, 0.1), FW)
+    assert any(level == "warning" and "stops a motor" in text for level, text in said) == warned
 
 
 @pytest.mark.parametrize("factor, warned", [(1 + 1e-9, True), (1.0, False), (1 - 1e-9, False)])
@@ -174,5 +187,5 @@ def test_the_json_gives_the_firmwares_limits_and_the_flights_thrusts(tmp_path):
     flight = crazyflie.flight_thrusts(_exp(HIGH))
     assert out["firmware"]["min_thrust"] == 0.012817578393224994 and out["firmware"]["max_thrust"] == 0.12
     assert out["flight"] == {"completed": True, "lowest": flight.lowest()[1], "highest": flight.highest()[1],
-                             "below_min": flight.share_below(FW.min_thrust), "above_max": 0.0}
+                             "stopped": flight.share_stopped(FW.min_thrust), "above_max": 0.0}
     assert {r["key"]: r["value"] for r in out["platform"]}["motors.min_thrust"] == 0.0

@@ -118,7 +118,7 @@ def command(to: Annotated[Target, typer.Option(
                              for q, k, v, f, u in crazyflie.platform_rows(exp)],
                 "flight": None if flight is None else {
                     "completed": flight.ok, "lowest": flight.lowest()[1], "highest": flight.highest()[1],
-                    "below_min": flight.share_below(crazyflie.FIRMWARE.min_thrust),
+                    "stopped": flight.share_stopped(crazyflie.FIRMWARE.min_thrust),
                     "above_max": flight.share_above(crazyflie.FIRMWARE.max_thrust)}}
         return render.emit_json(written)
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
