@@ -34,10 +34,10 @@ LANES = 8
 
 
 class CompilerNotice(QuadctlNotice):
-    """No working C compiler: the loop runs in CasADi's virtual machine (same numbers, slower)."""
+    """No working C compiler: the loop runs in CasADi's virtual machine (the same results to round-off, slower)."""
 
 
-VM_COST = "same numbers, about 10x slower or more"
+VM_COST = "the same results to round-off, about 10x slower or more"
 """What running in CasADi's virtual machine costs, as the notices say it (README Performance: one
 simulation of the forward config, 0.43 M against 4.4 M steps/s compiled)."""
 
