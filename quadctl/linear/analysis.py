@@ -247,8 +247,8 @@ def check(A, B, C=None, names=None) -> Checks:
     names = list(names) if names is not None else [f"x{i}" for i in range(n)]
     ctrb_modes = pbh(A, B, names)
     obsv_modes = pbh(A, C, names, dual=True)
-    reached, lost_ctrb = _staircase_modes(A, B, names)
-    seen, lost_obsv = _staircase_modes(A.T, C.T, names)
+    reached, lost_ctrb = staircase_modes(A, B, names)
+    seen, lost_obsv = staircase_modes(A.T, C.T, names)
     return Checks(
         n=n,
         ctrb=numerical_rank(ctrb(A, B)),
@@ -266,7 +266,7 @@ def check(A, B, C=None, names=None) -> Checks:
     )
 
 
-def _staircase_modes(A: np.ndarray, B: np.ndarray, names) -> tuple[int, tuple[LostMode, ...]]:
+def staircase_modes(A: np.ndarray, B: np.ndarray, names) -> tuple[int, tuple[LostMode, ...]]:
     """The controllable dimension of ``(A, B)`` and the modes out of reach, each named by its direction no
     input reaches (components above a tenth of the largest, as :func:`pbh` names a mode)."""
     form = staircase(A, B)

@@ -288,3 +288,30 @@ def test_a_measured_set_that_leaves_a_nearly_defective_unstable_block_unseen_is_
     with pytest.raises(DesignError, match=rf'^estimator.measure = \["y"\]: {", ".join(expected)} not observable '
                                           r"\(modes at s = .*, not stable\): measure "):
         require_detectable(A, C, ["y"], names=names)
+
+
+def test_a_design_refuses_a_nearly_defective_unstable_block_no_input_reaches(monkeypatch):
+    """The design's own check (``require_stabilizable``, before any Riccati solve) on the system PBH misses
+    above: it refuses it as not stabilizable, naming the mode the staircase finds out of reach, where PBH
+    alone let the solve go on to fail without saying why."""
+    from quadctl.design.riccati import require_stabilizable, unstabilizable_mode
+    from quadctl.errors import DesignError
+
+    rng = np.random.default_rng(5)
+    A, B = _rotated(rng, *_kalman_form(rng, 2, 1, np.array([[0.5, 1.0], [0.0, 0.5 + JORDAN_GAP]])))
+    names = ["a", "b", "c", "d"]
+    eig = np.linalg.eig
+
+    def off(a):
+        w, v = eig(a)
+        return w + 6e-4, v
+
+    monkeypatch.setattr(np.linalg, "eig", off)
+    assert all(m.passed for m in pbh(A, B, names))
+    mode = unstabilizable_mode(A, B, names)
+    assert mode is not None and abs(mode.eigenvalue - 0.5 - 6e-4) <= JORDAN_EIG_ATOL
+    with pytest.raises(DesignError, match=r"^sys: not stabilizable: the mode at eigenvalue .* is unstable and no "
+                                          r"input reaches it"):
+        require_stabilizable(A, B, "sys", names)
+    stable = _rotated(rng, *_kalman_form(rng, 2, 1, np.array([[-0.5, 1.0], [0.0, -0.5 + JORDAN_GAP]])))
+    assert unstabilizable_mode(*stable, names) is None  # out of reach but stable: stabilizable

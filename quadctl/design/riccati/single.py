@@ -28,7 +28,7 @@ from quadctl.design.riccati.stacked import (
 from quadctl.design.riccati.weights import WeightCheck, as_problem
 from quadctl.errors import ArgumentError, DesignError
 from quadctl.linear import stability
-from quadctl.linear.analysis import RICCATI_RTOL, pbh
+from quadctl.linear.analysis import RICCATI_RTOL, pbh, staircase_modes
 from quadctl.text.messages import eig_text
 
 scipy = lazy_import("scipy")  # loaded on first use (then scipy.linalg on access): quadctl._lazy
@@ -285,7 +285,9 @@ def unstabilizable_mode(A, B, state_names=None, *, discrete: bool = False, name:
 
     Only the modes that are not stable are tested (``rank [lambda I - A, B] = n``, one SVD each):
     a stable mode needs no input, and no Kalman matrix ``[B, AB, ...]`` is formed (its powers
-    overflow for large or stiff ``A``).
+    overflow for large or stiff ``A``). When PBH finds none, the staircase's modes out of reach
+    (:func:`quadctl.linear.analysis.staircase_modes`): one inside a nearly defective block, whose
+    computed eigenvalue is too far off for PBH, as :func:`quadctl.linear.analysis.check` decides.
 
     Parameters
     ----------
@@ -299,7 +301,7 @@ def unstabilizable_mode(A, B, state_names=None, *, discrete: bool = False, name:
 
     Returns
     -------
-    quadctl.linear.analysis.ModeTest or None
+    quadctl.linear.analysis.ModeTest or quadctl.linear.analysis.LostMode or None
 
     Raises
     ------
@@ -308,12 +310,19 @@ def unstabilizable_mode(A, B, state_names=None, *, discrete: bool = False, name:
     """
     A = np.atleast_2d(np.asarray(A, dtype=float))
     names = list(state_names) if state_names is not None else [f"x{i}" for i in range(A.shape[0])]
+
+    def unstable(lam):
+        return not stability.is_stable(lam, discrete=discrete)
+
     try:
-        tests = pbh(A, B, names, keep=lambda lam: not stability.is_stable(lam, discrete=discrete))
+        found = next((t for t in pbh(A, B, names, keep=unstable) if not t.passed), None)
+        if found is None:  # a mode out of reach whose computed eigenvalue is too far off for PBH
+            found = next((m for m in staircase_modes(A, np.atleast_2d(np.asarray(B, dtype=float)), names)[1]
+                          if unstable(m.eigenvalue)), None)
     except (np.linalg.LinAlgError, ValueError) as exc:
         raise DesignError(f"{name}: could not decide stabilizability ({exc}); "
                           "rescale units so the entries of A and B are comparable") from None
-    return next((t for t in tests if not t.passed), None)
+    return found
 
 
 def require_stabilizable(A, B, name: str = "system", state_names=None, *, discrete: bool = False) -> None:
