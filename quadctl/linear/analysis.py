@@ -141,12 +141,6 @@ def obsv(A, C) -> np.ndarray:
     return ctrb(np.asarray(A).T, np.asarray(C).T).T
 
 
-
-def is_stable_z(z: complex) -> bool:
-    """Strictly inside the unit circle: :func:`quadctl.linear.stability.is_stable`, discrete."""
-    return stability.is_stable(z, discrete=True)
-
-
 def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
     """PBH test at each distinct eigenvalue of ``A`` (or at those ``keep`` selects).
 
