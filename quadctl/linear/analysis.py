@@ -176,8 +176,8 @@ def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
     for k, lam in enumerate(eigvals):
         if keep is not None and not keep(lam):
             continue
-        r = _pbh_rank(lam, A, M, dual, reach)
-        vec = np.abs(eigvecs[:, k])
+        r, lost = _pbh_rank(lam, A, M, dual, reach)
+        vec = np.abs(eigvecs[:, k]) if lost is None else lost  # a lost mode: where no input reaches
         order = [i for i in np.argsort(-vec) if vec[i] > 0.1 * vec.max()]
         test = ModeTest(eigenvalue=complex(lam), rank=r, passed=r == n, states=tuple(names[i] for i in order))
         same = next((j for j, t in enumerate(tests)
@@ -189,9 +189,12 @@ def pbh(A, M, names, *, dual: bool = False, keep=None) -> tuple[ModeTest, ...]:
     return tuple(tests)
 
 
-def _pbh_rank(lam: complex, A: np.ndarray, M: np.ndarray, dual: bool, reach: float) -> int:
+def _pbh_rank(lam: complex, A: np.ndarray, M: np.ndarray, dual: bool, reach: float) -> tuple[int, np.ndarray | None]:
     """The least rank of ``[mu I - A, M]`` (``[mu I - A; M]`` when ``dual``) at ``mu = lam`` and along
-    Newton's steps toward a zero of its smallest singular value, within ``reach`` of ``lam`` (:func:`pbh`)."""
+    Newton's steps toward a zero of its smallest singular value, within ``reach`` of ``lam`` (:func:`pbh`);
+    and, below ``n``, how much of each state the directions no input reaches (no output sees) hold: the
+    row norms of the null space's basis (the eigenvector of a repeated eigenvalue can lie anywhere in its
+    eigenspace, the null space cannot)."""
     n = A.shape[0]
     mu, rank = lam, n
     for _ in range(NEWTON_STEPS + 1):
@@ -200,7 +203,8 @@ def _pbh_rank(lam: complex, A: np.ndarray, M: np.ndarray, dual: bool, reach: flo
         u, sv, vh = np.linalg.svd(stacked)
         rank = min(rank, _rank_of(sv, stacked.shape).rank)
         if rank < n:
-            break
+            null = vh[rank:n].conj().T if dual else u[:, rank:n]  # y^H [mu I - A, B] = 0, or [mu I - A; C] v = 0
+            return rank, np.sqrt(np.sum(np.abs(null) ** 2, axis=1))
         left, right = u[:, n - 1], vh[n - 1].conj()  # stacked @ right = sv[n - 1] * left
         slope = left[:n].conj() @ right if dual else left.conj() @ right[:n]
         if slope == 0:
@@ -209,7 +213,7 @@ def _pbh_rank(lam: complex, A: np.ndarray, M: np.ndarray, dual: bool, reach: flo
             mu = mu - sv[n - 1] / slope
         if not abs(mu - lam) <= reach:
             break
-    return rank
+    return rank, None
 
 
 def check(A, B, C=None, names=None) -> Checks:

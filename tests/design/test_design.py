@@ -430,4 +430,4 @@ def test_a_newton_step_toward_infinity_ends_the_pbh_search_quietly(monkeypatch):
     monkeypatch.setattr(analysis.np.linalg, "svd", svd)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert analysis._pbh_rank(0.0, np.zeros((1, 1)), np.ones((1, 1)), False, 1e-12) == 1
+        assert analysis._pbh_rank(0.0, np.zeros((1, 1)), np.ones((1, 1)), False, 1e-12) == (1, None)

@@ -315,3 +315,15 @@ def test_a_design_refuses_a_nearly_defective_unstable_block_no_input_reaches(mon
         require_stabilizable(A, B, "sys", names)
     stable = _rotated(rng, *_kalman_form(rng, 2, 1, np.array([[-0.5, 1.0], [0.0, -0.5 + JORDAN_GAP]])))
     assert unstabilizable_mode(*stable, names) is None  # out of reach but stable: stabilizable
+
+
+@pytest.mark.parametrize("dual", [False, True])
+def test_pbh_names_the_state_no_input_reaches_at_a_repeated_eigenvalue(dual):
+    """A hover's guidance block: two integrators (eigenvalue 0 twice), an input on pN alone. Any vector is an
+    eigenvector of A = 0, so the eigensolver's first (pN) named the lost mode; the direction no input reaches
+    (no output sees) is pE, which the staircase finds too."""
+    A, M, names = np.zeros((2, 2)), np.array([[1.0], [0.0]]), ["pN", "pE"]
+    tests = pbh(A, M.T if dual else M, names, dual=dual)
+    assert len(tests) == 1 and not tests[0].passed and tests[0].states == ("pE",)
+    lost = check(A, M, C=M.T, names=names)
+    assert (lost.lost_obsv if dual else lost.lost_ctrb)[0].states == ("pE",)
