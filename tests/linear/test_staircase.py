@@ -53,6 +53,18 @@ def _nearly_defective(rng):
     return (*_rotated(rng, A, B), nc, np.linalg.eigvals(A_uu))
 
 
+def _eigenvalues_off(monkeypatch, by: float = 6e-4) -> None:
+    """Every eigenvalue NumPy's eigensolver returns moved by ``by`` (6e-4: a nearly defective pair's error seen),
+    its eigenvectors kept: what PBH then tests at."""
+    eig = np.linalg.eig
+
+    def off(a):
+        w, v = eig(a)
+        return w + by, v
+
+    monkeypatch.setattr(np.linalg, "eig", off)
+
+
 def _matched(found, exact) -> np.ndarray:
     """``|found - exact|`` pairing each exact eigenvalue with its nearest found one (a multiset match)."""
     from scipy.optimize import linear_sum_assignment
@@ -157,13 +169,7 @@ def test_a_mode_pbh_misses_in_a_nearly_defective_block_is_out_of_reach(monkeypat
     A_uu = np.array([[0.5, 1.0], [0.0, 0.5 + JORDAN_GAP]])
     A, B = _rotated(rng, *_kalman_form(rng, 2, 1, A_uu))
     names = ["a", "b", "c", "d"]
-    eig = np.linalg.eig
-
-    def off(a):
-        w, v = eig(a)
-        return w + 6e-4, v
-
-    monkeypatch.setattr(np.linalg, "eig", off)
+    _eigenvalues_off(monkeypatch)
     assert all(m.passed for m in pbh(A, B, names))
     c = check(A, B, names=names)
     assert not c.controllable and not c.stabilizable and c.controllable_dim == 2
@@ -276,13 +282,7 @@ def test_a_measured_set_that_leaves_a_nearly_defective_unstable_block_unseen_is_
     A, C = At.T, Ct.T
     names = ["a", "b", "c", "d"]
     unseen = np.abs(staircase(At, Ct).uncontrollable_directions)
-    eig = np.linalg.eig
-
-    def off(a):
-        w, v = eig(a)
-        return w + 6e-4, v
-
-    monkeypatch.setattr(np.linalg, "eig", off)
+    _eigenvalues_off(monkeypatch)
     assert all(m.passed for m in pbh(A, C, names, dual=True))
     expected = sorted({names[i] for col in unseen.T for i in range(4) if col[i] > 0.1 * col.max()}, key=names.index)
     with pytest.raises(DesignError, match=rf'^estimator.measure = \["y"\]: {", ".join(expected)} not observable '
@@ -300,13 +300,7 @@ def test_a_design_refuses_a_nearly_defective_unstable_block_no_input_reaches(mon
     rng = np.random.default_rng(5)
     A, B = _rotated(rng, *_kalman_form(rng, 2, 1, np.array([[0.5, 1.0], [0.0, 0.5 + JORDAN_GAP]])))
     names = ["a", "b", "c", "d"]
-    eig = np.linalg.eig
-
-    def off(a):
-        w, v = eig(a)
-        return w + 6e-4, v
-
-    monkeypatch.setattr(np.linalg, "eig", off)
+    _eigenvalues_off(monkeypatch)
     assert all(m.passed for m in pbh(A, B, names))
     mode = unstabilizable_mode(A, B, names)
     assert mode is not None and abs(mode.eigenvalue - 0.5 - 6e-4) <= JORDAN_EIG_ATOL
