@@ -469,6 +469,74 @@ def test_log16s_torque_coefficient_holds_forsters_bench_value():
     assert hi - lo < 0.25 * 0.005964552  # and the interval says something
 
 
+FORSTER_INERTIA = np.array([16.571710e-6, 16.655602e-6])
+"""kg m^2: Förster's Ixx and Iyy (the crazyflie config's), measured on his Crazyflie 2.0."""
+FLOWN_MASS = 0.0287
+"""kg: the config's 27 g and the 1.7 g microSD deck (Bitcraze's product page) the bundled flights were logged on."""
+BANDS = ((1.0, 2.0), (2.0, 3.0), (3.0, 5.0), (5.0, 8.0), (8.0, 12.0))
+"""Hz: where log15 rolls and pitches."""
+
+
+def band_inertia(fit):
+    """Per axis and band (:data:`BANDS`), the inertia that band alone gives: the fit's, over the gain from its model
+    torque to its ``J alpha`` there (cross spectrum over the model torque's own)."""
+    from scipy.signal import csd
+
+    fs = 1.0 / float(np.median(np.diff(fit.t)))
+    out = np.zeros((2, len(BANDS)))
+    for k in range(2):
+        p, m = fit.predicted[:, k], fit.measured[:, k]
+        f, ppp = csd(p, p, fs=fs, nperseg=4096)
+        pm = csd(p, m, fs=fs, nperseg=4096)[1]
+        for b, (lo, hi) in enumerate(BANDS):
+            s = (f >= lo) & (f < hi)
+            out[k, b] = fit.values[k] / abs(pm[s].sum() / ppp[s].sum())
+    return out
+
+
+def test_log15s_inertia_under_forsters_is_the_mass_and_the_rotors_response_not_the_fit():
+    """docs/guide/identify.md, "Against Förster's inertia": log15 fits Ixx and Iyy 15 % and 11 % under Förster's,
+    outside their intervals. The torque's scale is the mass (every thrust is m a_z), and the flights carried the
+    microSD deck they were logged on: 6.3 % more inertia, exactly the mass's ratio. One first-order lag does not
+    follow the rotors: band by band the inertia falls by 10 % (roll) and 17 % (pitch) from 1-2 Hz to 8-12 Hz; with
+    the delay --delay fits to log10, by 1 % and 9 %. With both, Förster's values lie inside the intervals.
+
+    Not the fit: a fit diluted by noise in the angular acceleration (the regressor) rises when the band where the model
+    torque and the angular acceleration agree least (below 1 Hz: R^2 0.86-0.89 over the window, 0.96 without it) is
+    left out; this one moves by 0.2 % at most (both sides high-passed alike)."""
+    from scipy.signal import butter, filtfilt
+
+    af = Airframe.from_config(load("crazyflie"))
+    grids = {n: on_grid(read_log(FLIGHTS / n), command_rate=af.command_rate) for n in ("log10", "log15")}
+
+    def attitude(mass, delay):
+        flown = dataclasses.replace(af, mass=mass)
+        rotors = est.fit_thrust(grids["log10"], GUIDE_WINDOWS["log10"], flown, delay=delay)
+        return est.fit_attitude(grids["log15"], GUIDE_WINDOWS["log15"], flown, rotors)
+
+    as_is, delayed, both = attitude(MASS, False), attitude(MASS, True), attitude(FLOWN_MASS, True)
+    names = ("Jxx", "Jyy")
+    np.testing.assert_allclose(as_is.values[:2] / FORSTER_INERTIA, [0.845, 0.890], atol=0.005)
+    assert all(as_is.interval(n)[1] < FORSTER_INERTIA[k] for k, n in enumerate(names))
+    np.testing.assert_allclose(both.values[:2] / delayed.values[:2], FLOWN_MASS / MASS, rtol=1e-4)
+
+    lag, lag_delay = band_inertia(as_is), band_inertia(delayed)
+    np.testing.assert_allclose(1 - lag[:, -1] / lag[:, 0], [0.10, 0.17], atol=0.01)
+    np.testing.assert_allclose(1 - lag_delay[:, -1] / lag_delay[:, 0], [0.01, 0.09], atol=0.01)
+
+    np.testing.assert_allclose(both.values[:2] / FORSTER_INERTIA, [0.982, 1.028], atol=0.005)
+    for k, n in enumerate(names):
+        lo, hi = both.interval(n)
+        assert lo <= FORSTER_INERTIA[k] <= hi, (n, lo, hi)
+
+    b, a = butter(2, 1.0 * 2.0 * float(np.median(np.diff(as_is.t))), "high")
+    m, p = filtfilt(b, a, as_is.measured, axis=0), filtfilt(b, a, as_is.predicted, axis=0)
+    for k in range(2):
+        r2 = (m[:, k] @ p[:, k]) ** 2 / ((m[:, k] @ m[:, k]) * (p[:, k] @ p[:, k]))
+        assert r2 > 0.95, r2  # what is left is the band the torque and the angular acceleration agree in
+        assert abs((m[:, k] @ p[:, k]) / (m[:, k] @ m[:, k]) - 1) < 0.003  # the fit's J, refitted there
+
+
 def test_the_gyro_low_pass_in_the_model_leaves_a_smaller_torque_residual():
     """The attitude fit passes the model's torques through the gyro's 80 Hz low-pass as the log went through
     it: without it (the log taken as measured) the residual is larger by the filter's 2.8 ms lag (by 12 % on
