@@ -53,8 +53,12 @@ class Platform:
     arm_length: float
     max_thrust: float
     min_thrust: float
+    full_pwm_thrust: float
     torque_coefficient: float
     min_thrust_source: str = "src/drivers/src/motors.c motorsCompensateBatteryVoltage"
+    full_pwm_voltage: float = 4.2
+    full_pwm_source: str = ("src/modules/src/power_distribution_quadrotor.c powerDistributionForceTorque and "
+                            "powerDistributionCap, src/drivers/src/motors.c motorsCompensateBatteryVoltage")
     gyro_cutoff: float = 80.0
     gyro_order: int = 2
     gyro_source: str = "src/hal/src/sensors_bmi088_bmp3xx.c GYRO_LPF_CUTOFF_FREQ"
@@ -87,6 +91,7 @@ FIRMWARE = Platform(
     arm_length=0.046,                             # ARM_LENGTH, m
     max_thrust=0.12,                              # THRUST_MAX, N per motor
     min_thrust=0.012817578393224994,              # THRUST_MIN, N per motor (7000 / 65535 of THRUST_MAX)
+    full_pwm_thrust=0.2786929273177367,           # N per motor at full PWM, 4.2 V: the VMOTOR2THRUST0-3 cubic there
     torque_coefficient=0.0069928948992470565,     # THRUST2TORQUE, m (N m per N)
 )
 """bitcraze/crazyflie-firmware at :attr:`Platform.commit` (2026-08-21), :attr:`Platform.source`:
@@ -96,10 +101,25 @@ works between: a motor asked for more than ``THRUST_MAX`` is clipped there in fo
 (``powerDistributionForce`` in ``src/modules/src/power_distribution_quadrotor.c`` clips its share to [0, 1]),
 one asked for less than ``THRUST_MIN`` gets no voltage at all, in either mode (:attr:`Platform.min_thrust_source`;
 the idle thrust that could floor it instead, ``powerDistribution.idleThrust``, is 0 on a Crazyflie 2.x, whose
-motors need no arming); and the second-order
+motors need no arming); the top of force-torque mode, ``full_pwm_thrust`` (below); and the second-order
 low-pass (``lpf2p``, at the 1 kHz sensor rate) the sensor driver runs on the gyro at ``GYRO_LPF_CUTOFF_FREQ``
 before it hands ``sensors->gyro`` to any controller, the app's too (the ``crazyflie`` PID preset's
-``gyro_lpf_hz``)."""
+``gyro_lpf_hz``).
+
+``full_pwm_thrust`` is the top of force-torque mode, which has no clip at ``THRUST_MAX``
+(:attr:`Platform.full_pwm_source`): ``powerDistributionForceTorque`` sets a negative share to 0 and scales the
+others by ``THRUST_MAX`` to 1/65535 of full PWM, uncapped; the battery compensation
+(``src/drivers/src/motors.c`` ``motorsCompensateBatteryVoltage``) turns each thrust into the motor voltage
+that gives it, by the inverse of the cubic fit of thrust against motor voltage (``VMOTOR2THRUST0`` to
+``VMOTOR2THRUST3`` of :attr:`Platform.source`), and divides it by the battery's low-passed voltage
+(``batteryCompensation`` in ``src/modules/src/stabilizer.c``), again uncapped; ``powerDistributionCap`` then
+lowers all four motors by what the highest is over full PWM (65535). A motor asked for more than the cubic gives
+at the battery's voltage gets full PWM, and the other three lose as much PWM. ``full_pwm_thrust`` is the cubic at
+:attr:`Platform.full_pwm_voltage`, a full LiPo's 4.2 V (where the firmware's filter of the battery's voltage
+starts): the most full PWM gives at any charge. As the battery drains it gives less: 0.193 N at 3.7 V, 0.132 N at
+the 3.2 V the firmware calls a low battery (``DEFAULT_BAT_LOW_VOLTAGE``), ``THRUST_MAX`` at 3.08 V. The
+firmware's PWM is an integer: it caps from 65536 on, about 1.3e-5 N above ``full_pwm_thrust``, which the
+warnings' four digits do not show."""
 
 ROTOR_LAG = PRESETS["crazyflie"].motors["time_constant"][0]
 """s: the Crazyflie 2.x's rotor lag, as the Crazyflie template of ``quadctl init`` writes it: the time constant

@@ -66,10 +66,11 @@ def least_thrust_sentence(value: float, platform) -> str:
 
 def flight_sentences(flight, platform) -> list[tuple[str, str]]:
     """The configured flight's rotor thrusts against the firmware's limits: a note with the lowest and the
-    highest, then a warning for each limit the flight goes past. In force mode both limits bind (below
-    :attr:`~quadctl.export.crazyflie.Platform.min_thrust` a motor stops, above
-    :attr:`~quadctl.export.crazyflie.Platform.max_thrust` it is clipped); in force-torque mode only the first
-    (the firmware caps the motors at full PWM instead, all four lowered alike).
+    highest, then a warning for each limit the flight goes past: below
+    :attr:`~quadctl.export.crazyflie.Platform.min_thrust` a motor stops, in either mode; above
+    :attr:`~quadctl.export.crazyflie.Platform.max_thrust` it is clipped in force mode, and above
+    :attr:`~quadctl.export.crazyflie.Platform.full_pwm_thrust` it is capped at full PWM in force-torque mode
+    (all four lowered alike), a limit that falls as the battery drains.
 
     Parameters
     ----------
@@ -85,9 +86,11 @@ def flight_sentences(flight, platform) -> list[tuple[str, str]]:
     (i_lo, lo), (i_hi, hi) = flight.lowest(), flight.highest()
     run = (f"quadctl simulate's run, {float(flight.t[-1]):.3g} s" if flight.ok else
            f"quadctl simulate's run, which stopped at t = {float(flight.t[-1]):.3g} s: {flight.message}")
+    full = f"{platform.full_pwm_thrust:.4g} N"
+    battery = f"on a full battery ({platform.full_pwm_voltage:g} V)"
     top = (f"clips one above {platform.max_thrust:.4g} N" if force else
-           f"has no clip at {platform.max_thrust:.4g} N in force-torque mode (full PWM caps the motors, all four "
-           "lowered alike)")
+           f"caps one at full PWM, lowering all four alike: {full} {battery}, less as it drains (no clip at "
+           f"{platform.max_thrust:.4g} N in force-torque mode)")
     out = [("note", f"the configured flight ({run}) asks the firmware's motors for {_newtons(lo)} N (M{i_lo + 1}) to "
                     f"{_newtons(hi)} N (M{i_hi + 1}) in {flight.mode} mode: the firmware stops a motor below "
                     f"{platform.min_thrust:.4g} N and {top}")]
@@ -108,6 +111,14 @@ def flight_sentences(flight, platform) -> list[tuple[str, str]]:
                                f"motor is above it {100 * flight.share_above(platform.max_thrust):.3g} % of the run, "
                                "where the vehicle lacks thrust the design counts on; set motors.max_thrust: "
                                f"{platform.max_thrust:.4g} to saturate the design where the firmware does"))
+    if not force and hi > platform.full_pwm_thrust:
+        out.append(("warning", f"the configured flight asks M{i_hi + 1} for {_newtons(hi)} N, above the {full} full "
+                               f"PWM gives a motor {battery}, at which the firmware caps a motor in force-torque "
+                               "mode and lowers the other three by as much PWM: some motor is above it "
+                               f"{100 * flight.share_above(platform.full_pwm_thrust):.3g} % of the run, where the "
+                               "vehicle lacks thrust and torque the design counts on; export with --mode force and "
+                               f"motors.max_thrust: {platform.max_thrust:.4g} (the app's saturation then asks no "
+                               "more), or fly gentler gains or offsets"))
     return out
 
 

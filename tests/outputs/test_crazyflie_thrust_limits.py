@@ -1,9 +1,13 @@
 """quadctl export --to crazyflie: the rotor thrusts the configured flight asks of the firmware, against the
-thrusts the firmware gives (it stops a motor below ``THRUST_MIN``, clips one above ``THRUST_MAX`` in force mode).
+thrusts the firmware gives (it stops a motor below ``THRUST_MIN``, clips one above ``THRUST_MAX`` in force mode,
+caps one at full PWM in force-torque mode).
 
 The firmware is not here: its limits are :data:`quadctl.export.crazyflie.FIRMWARE`'s, and its force-torque
 mixer is written out below from its documented convention (each motor a quarter of the thrust, plus or minus a
-quarter of each torque over the arm's lever and over ``THRUST2TORQUE``), not taken from quadctl's mixer.
+quarter of each torque over the arm's lever and over ``THRUST2TORQUE``), not taken from quadctl's mixer; so is
+the way from a force-torque share to a motor's PWM (:func:`_firmware_pwm`: the battery compensation's fit of
+thrust against motor voltage, solved here by bisection, and the cap at full PWM), which gives the full-PWM
+limit a second time, not from quadctl's number.
 """
 
 from __future__ import annotations
@@ -27,6 +31,50 @@ HIGH = "simulation.initial_offset.pD=-1.0"
 """crazyflie started 1 m above its trim: sinking back, its rotors drop to 0 N for the first samples."""
 MIX_RTOL = 1e-9
 """Mixing to rotor thrusts and back is a 4 x 4 solve: round-off only."""
+HARD = ("--set", "motors.max_thrust=0.4", "--set", "simulation.initial_offset.pD=5.0")
+"""crazyflie started 5 m below its trim, its rotors allowed 0.4 N: climbing back, one asks for 0.34 N."""
+
+VMOTOR2THRUST = (-0.02476537915958403, 0.06523793527519485, -0.026792504967750107, 0.006776789303971145)
+"""The firmware's fit of a motor's thrust (N) against its voltage (V), constant term first: ``VMOTOR2THRUST0``
+to ``VMOTOR2THRUST3`` of src/platform/interface/platform_defaults_cf2.h (2.1+ propellers) at ``FW.commit``."""
+FULL_BATTERY = 4.2
+"""V: a full LiPo cell, where the firmware's low-pass of the battery's voltage starts."""
+FULL_PWM = 65535
+"""The motors' PWM is 16 bits: 65535 is full."""
+
+
+def _thrust_at(volts):
+    """N: what the fit gives a motor at ``volts`` (V)."""
+    return sum(c * np.asarray(volts, dtype=float) ** k for k, c in enumerate(VMOTOR2THRUST))
+
+
+def _volts_for(thrust):
+    """V: the motor voltage that gives ``thrust`` (N), by bisection (the fit rises everywhere: its slope's
+    discriminant is negative)."""
+    lo, hi = np.zeros_like(thrust, dtype=float), np.full_like(thrust, 10.0, dtype=float)
+    for _ in range(80):
+        mid = (lo + hi) / 2
+        below = _thrust_at(mid) < thrust
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    return (lo + hi) / 2
+
+
+def _firmware_pwm(thrusts, battery=FULL_BATTERY):
+    """The PWM each motor gets in force-torque mode, and whether the sample was capped, from the motors' mixed
+    thrusts (N, negative shares already 0): the share is handed on as an integer count of ``THRUST_MAX``/65535
+    and read back as N; under ``THRUST_MIN`` a motor gets 0, else the voltage the fit needs over the battery's,
+    in integer 1/65535 of full PWM, uncapped; the highest over full lowers all four by its excess, none below 0.
+
+    Returns
+    -------
+    pwm : (..., 4) ndarray
+    capped : (...) bool ndarray
+    """
+    counts = np.trunc(np.asarray(thrusts, dtype=float) / FW.max_thrust * FULL_PWM)
+    asked = counts / FULL_PWM * FW.max_thrust
+    uncapped = np.where(asked < FW.min_thrust, 0.0, np.trunc(FULL_PWM * _volts_for(asked) / battery))
+    excess = np.maximum(uncapped.max(axis=-1) - FULL_PWM, 0.0)
+    return np.maximum(uncapped - excess[..., None], 0.0), excess > 0
 
 
 def _exp(*sets):
@@ -88,13 +136,75 @@ def test_a_flight_that_drops_a_rotor_below_the_firmwares_least_thrust_is_warned_
 
 def test_a_flight_above_the_firmwares_clip_is_warned_in_force_mode_only(tmp_path):
     """A 0.3 rad roll asks one rotor for 0.14 N: the firmware clips it at 0.12 N in force mode; in force-torque
-    mode it has no clip there, and nothing is warned of the top."""
+    mode it has no clip there, and full PWM gives 0.14 N: nothing is warned of the top."""
     sets = ("--set", "simulation.initial_offset.phi=0.3")
     warned = _lines(_export(tmp_path, *sets), "warning")
     assert len(warned) == 1 and "above the 0.12 N at which the firmware clips a motor in force mode" in warned[0]
     assert warned[0].endswith("set motors.max_thrust: 0.12 to saturate the design where the firmware does")
     torque = _export(tmp_path, *sets, "--mode", "force-torque")
-    assert _lines(torque, "warning") == [] and "has no clip at 0.12 N in force-torque mode" in torque
+    assert _lines(torque, "warning") == [] and "(no clip at 0.12 N in force-torque mode)" in torque
+
+
+def test_the_bundled_crazyflie_flight_stays_under_full_pwm_in_force_torque_mode(tmp_path):
+    """Force-torque mode: the firmware's own mix of the run asks 0.064 to 0.117 N, under the 0.2787 N full PWM
+    gives on a full battery (and under the 0.12 N full PWM gives down to 3.08 V): a note, no warning."""
+    flight = crazyflie.flight_thrusts(_exp(), "force-torque")
+    assert flight.ok and round(flight.lowest()[1], 3) == 0.064 and round(flight.highest()[1], 3) == 0.117
+    assert not _firmware_pwm(flight.thrusts)[1].any() and not _firmware_pwm(flight.thrusts, 3.08)[1].any()
+    out = _export(tmp_path, "--mode", "force-torque")
+    assert _lines(out, "note") == [
+        "quadctl: note: the configured flight (quadctl simulate's run, 10 s) asks the firmware's motors for "
+        f"{flight.lowest()[1]:.4g} N (M4) to {flight.highest()[1]:.4g} N (M2) in force-torque mode: the firmware "
+        "stops a motor below 0.01282 N and caps one at full PWM, lowering all four alike: 0.2787 N on a full battery "
+        "(4.2 V), less as it drains (no clip at 0.12 N in force-torque mode)"]
+    assert _lines(out, "warning") == []
+
+
+def test_a_flight_above_full_pwm_is_warned_in_force_torque_mode(tmp_path):
+    """5 m low, the rotors allowed 0.4 N: climbing back, the firmware's mix of the run asks M2 for 0.34 N, more
+    than full PWM gives on a full battery. Warned, with the rotor, the thrust, the limit and the share of the run;
+    the samples counted are those in which the firmware's way to the PWM (written out here) caps the motors, and
+    none lies within the integer PWM's step of the limit. In force mode the same run is warned of the 0.12 N
+    clip instead."""
+    exp = _exp(*HARD[1::2])
+    flight = crazyflie.flight_thrusts(exp, "force-torque")
+    above = np.any(flight.thrusts > FW.full_pwm_thrust, axis=1)
+    capped = _firmware_pwm(flight.thrusts)[1]
+    assert flight.ok and flight.highest()[0] == 1 and round(flight.highest()[1], 2) == 0.34
+    assert 0 < above.sum() < len(above) and np.array_equal(above, capped)
+    assert np.abs(flight.thrusts / FW.full_pwm_thrust - 1).min() > 1e-4
+    warned = _lines(_export(tmp_path, *HARD, "--mode", "force-torque"), "warning")
+    assert warned == [
+        f"quadctl: warning: the configured flight asks M2 for {flight.highest()[1]:.4g} N, above the 0.2787 N full "
+        "PWM gives a motor on a full battery (4.2 V), at which the firmware caps a motor in force-torque mode and "
+        f"lowers the other three by as much PWM: some motor is above it {100 * above.mean():.3g} % of the run, where "
+        "the vehicle lacks thrust and torque the design counts on; export with --mode force and motors.max_thrust: "
+        "0.12 (the app's saturation then asks no more), or fly gentler gains or offsets"]
+    force = _lines(_export(tmp_path, *HARD), "warning")
+    assert len(force) == 1 and "at which the firmware clips a motor in force mode" in force[0]
+
+
+def test_full_pwm_gives_the_fit_at_a_full_battery_and_less_as_it_drains():
+    """The limit is the firmware's fit at 4.2 V: the firmware's way to the PWM caps no motor at it, nor 1e-4 under,
+    and caps 1e-4 over, the other three lowered by the same PWM; its integer PWM caps from about 1.3e-5 N over
+    (the firmware's docs: 0.193 N at 3.7 V, 0.132 N at 3.2 V, THRUST_MAX at 3.08 V)."""
+    assert FW.full_pwm_voltage == FULL_BATTERY
+    assert FW.full_pwm_thrust == pytest.approx(_thrust_at(FULL_BATTERY), rel=1e-15)
+    assert _volts_for(np.array(FW.full_pwm_thrust)) == pytest.approx(FULL_BATTERY, rel=1e-12)
+    hover = [0.07, 0.06, 0.05]
+    for factor, caps in [(1 - 1e-4, False), (1.0, False), (1 + 1e-4, True)]:
+        thrusts = np.array([hover[0], FW.full_pwm_thrust * factor, *hover[1:]])
+        pwm, capped = _firmware_pwm(thrusts)
+        assert bool(capped) == caps, factor
+        alone = _firmware_pwm(np.array(hover))[0]
+        if caps:
+            assert pwm[1] == FULL_PWM and np.all(pwm[[0, 2, 3]] < alone) and np.ptp(alone - pwm[[0, 2, 3]]) == 0
+        else:
+            assert np.array_equal(pwm[[0, 2, 3]], alone) and pwm[1] <= FULL_PWM
+    step = [bool(_firmware_pwm(np.array([FW.full_pwm_thrust + d, *hover]))[1]) for d in (1.2e-5, 1.5e-5)]
+    assert step == [False, True]
+    assert [round(float(_thrust_at(v)), 3) for v in (3.7, 3.2)] == [0.193, 0.132]
+    assert round(float(_volts_for(np.array(FW.max_thrust))), 2) == 3.08
 
 
 def test_force_torque_mode_takes_the_rotor_thrusts_the_firmwares_own_mixer_gives():
@@ -157,6 +267,26 @@ def test_the_maximum_thrust_is_compared_at_the_firmwares_clip(factor, warned):
     assert [level for level, _ in flight_sentences(_flight(0.05, 0.12 * factor, "force-torque"), FW)] == ["note"]
 
 
+@pytest.mark.parametrize("factor", [1 - 1e-4, 1 - 1e-9, 1.0, 1 + 1e-9, 1 + 1e-4])
+def test_the_full_pwm_thrust_is_compared_at_the_firmwares_cap(factor):
+    """Force-torque mode: a motor asked for more than full PWM gives on a full battery is warned, at it or under
+    is not; 1e-4 from it the warning is the firmware's way to the PWM's cap (within 1.3e-5 N over it, the integer
+    PWM's step, the firmware does not cap yet); one sample of four: 25 % of the run. In force mode the same
+    flight is warned of the 0.12 N clip alone."""
+    flight = _flight(0.05, FW.full_pwm_thrust * factor, "force-torque")
+    said = flight_sentences(flight, FW)
+    high = [text for level, text in said if level == "warning"]
+    assert len(high) == (factor > 1)
+    if abs(factor - 1) >= 1e-4:
+        assert bool(high) == _firmware_pwm(flight.thrusts)[1].any()
+    if high:
+        assert high[0].startswith("the configured flight asks M2 for 0.2787 N, above the 0.2787 N full PWM gives a "
+                                  "motor on a full battery (4.2 V)") and "above it 25 % of the run" in high[0]
+    force = [text for level, text in flight_sentences(_flight(0.05, FW.full_pwm_thrust * factor), FW)
+             if level == "warning"]
+    assert len(force) == 1 and "clips a motor in force mode" in force[0] and "full PWM" not in force[0]
+
+
 def test_a_design_allowed_below_the_firmwares_least_thrust_is_told_without_blaming_the_vehicles_numbers():
     """The config's motors.min_thrust under the firmware's THRUST_MIN: one sentence with the firmware's number and
     the key to set, whatever the mode; it is no number of the vehicle, so alone it does not send the user to
@@ -186,6 +316,17 @@ def test_the_json_gives_the_firmwares_limits_and_the_flights_thrusts(tmp_path):
                                               "-o", str(tmp_path / "app"), "--json"]).stdout)["crazyflie"]
     flight = crazyflie.flight_thrusts(_exp(HIGH))
     assert out["firmware"]["min_thrust"] == 0.012817578393224994 and out["firmware"]["max_thrust"] == 0.12
+    assert out["firmware"]["full_pwm_thrust"] == FW.full_pwm_thrust and out["firmware"]["full_pwm_voltage"] == 4.2
     assert out["flight"] == {"completed": True, "lowest": flight.lowest()[1], "highest": flight.highest()[1],
-                             "stopped": flight.share_stopped(FW.min_thrust), "above_max": 0.0}
+                             "stopped": flight.share_stopped(FW.min_thrust), "above_max": 0.0,
+                             "above_full_pwm": 0.0}
     assert {r["key"]: r["value"] for r in out["platform"]}["motors.min_thrust"] == 0.0
+
+
+def test_the_json_gives_the_share_of_a_force_torque_flight_above_full_pwm(tmp_path):
+    out = json.loads(CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", *HARD, "--mode",
+                                              "force-torque", "-o", str(tmp_path / "app"), "--json"]).stdout)
+    flight = crazyflie.flight_thrusts(_exp(*HARD[1::2]), "force-torque")
+    got = out["crazyflie"]["flight"]
+    assert got["highest"] == flight.highest()[1] > FW.full_pwm_thrust
+    assert got["above_full_pwm"] == float(np.mean(_firmware_pwm(flight.thrusts)[1])) > 0

@@ -992,7 +992,7 @@ def test_the_page_commands_print_what_it_shows_and_its_code_runs(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     (tmp_path / "docs").symlink_to(ROOT / "docs")  # the section's LQG config
     runs = _console_runs()
-    assert len(runs) == 11
+    assert len(runs) == 12
     for command, shown in runs:
         res = runner.invoke(app, shlex.split(command)[1:])
         failed = any(line.startswith(("quadctl: error:", "quadctl: check failed:")) for line in shown)
