@@ -34,7 +34,7 @@
  *   (powerDistributionGetMaxThrust() / STABILIZER_NR_OF_MOTORS).
  *   force-torque: control->thrustSi = T, torqueX = A, torqueY = -E, torqueZ = -R (N, N m, body
  *   x forward, y left, z up), the law's input after its saturation; the firmware then mixes with
- *   its own ARM_LENGTH (${FW_ARM} m) and THRUST2TORQUE (${FW_TORQUE} m) and clips its own way
+ *   its own ARM_LENGTH (${FW_ARM} m) and THRUST2TORQUE (${FW_TORQUE} m) and caps a motor at full PWM, lowering all four alike
  *   (values of ${PLATFORM_SOURCE} at ${COMMIT}).
  */
 #ifndef QUADCTL_CRAZYFLIE_H
