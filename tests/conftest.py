@@ -1,11 +1,13 @@
 """Shared fixtures (the report's configs solved once per session, a temporary compile cache for the
 whole run) and the ``compiler`` marker: tests that need a C compiler skip, saying why, where there is
 none. The suite runs in pytest-xdist workers (``addopts`` in pyproject.toml): each worker keeps to one
-BLAS thread and sees the run's own ``COLUMNS``."""
+BLAS thread and sees the run's own ``COLUMNS``, and Ctrl-C has Python's own handler even where the run
+was started with it ignored."""
 
 from __future__ import annotations
 
 import os
+import signal
 
 import pytest
 
@@ -20,6 +22,11 @@ elif os.environ.get(RUN_COLUMNS) == "":
     # stdout in a test is as wide as in a pipe (quadctl.cli.render.WIDE), as in one process
     os.environ.pop("COLUMNS", None)
     os.environ.pop("LINES", None)
+
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    # started with Ctrl-C ignored (a script's `pytest &`, which a non-interactive shell starts so): the tests
+    # of Ctrl-C raise SIGINT in this process and need Python's own handler, as a terminal's run has
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 if os.environ.get("PYTEST_XDIST_WORKER") and not any(v in os.environ for v in BLAS_THREADS):
