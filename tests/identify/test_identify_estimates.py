@@ -120,6 +120,35 @@ def test_lag_of_commands_linear_between_samples_is_the_exact_ramp_response():
     np.testing.assert_allclose(z[:, 0], t / t_r - tm / t_r * (1 - np.exp(-t / tm)), rtol=0, atol=1e-12)
 
 
+def test_the_sandwich_is_newey_wests_sum_written_out_lag_by_lag():
+    """``sandwich`` (FFT, every lag at once) against Newey-West's estimator from its definition, a lag at a
+    time: ``H = sum J'J``, ``S = G0 + sum_{l<=L} (1 - l / (L + 1)) (Gl + Gl')`` with ``Gl = sum_t s(t+l) s(t)'``
+    and ``s(t) = J(t)' e(t)``, ``cov = H^-1 S H^-1 n / (n - k)``; ``L`` twice the lag where the residuals'
+    autocorrelation (summed over their columns) first falls below 0.05, at most n / 5."""
+    from quadctl.identify.least_squares import BANDWIDTH_FACTOR, sandwich
+
+    rng = np.random.default_rng(7)
+    n, r, k = 400, 2, 3
+    jac, w = rng.normal(size=(n, r, k)), rng.normal(size=(n, r))
+    res = np.empty_like(w)
+    res[0] = w[0]
+    for t in range(1, n):  # AR(1) residuals: correlated over ~13 samples
+        res[t] = 0.8 * res[t - 1] + w[t]
+    cov, bandwidth = sandwich(jac, res)
+
+    c = res - res.mean(axis=0)
+    acf = np.array([np.sum(c[lag:] * c[:n - lag]) for lag in range(n)]) / np.sum(c * c)
+    assert bandwidth == BANDWIDTH_FACTOR * min(int(np.argmax(acf < 0.05)), n // 5) > 2
+    s = np.einsum("trk,tr->tk", jac, res)
+    S = s.T @ s
+    for lag in range(1, bandwidth + 1):
+        G = s[lag:].T @ s[:n - lag]
+        S += (1.0 - lag / (bandwidth + 1.0)) * (G + G.T)
+    H_inv = np.linalg.inv(np.einsum("trk,trj->kj", jac, jac))
+    want = H_inv @ S @ H_inv * n / (n - k)
+    assert np.abs(cov - want).max() <= 1e-10 * np.abs(want).max(), f"Max diff is {np.abs(cov - want).max():.4E}"
+
+
 def test_measurement_function_is_the_model_with_gravity_removed():
     """The CasADi measurement (specific force times m, J domega/dt) against quadctl.physics.model's f and the mixer."""
     af = airframe()

@@ -376,6 +376,23 @@ def test_gates_and_ranking(cfg):
     assert "peak.T <= 3 (got" in result.rows[0]["failed_gates"]
 
 
+@pytest.mark.parametrize("bounds", [{"min": 0.5}, {"max": 0.8}, {"min": 0.5, "max": 0.8}, {"min": -2.0, "max": -2.0}])
+def test_a_gates_bounds_are_inclusive_and_a_value_past_one_by_an_ulp_fails(bounds):
+    """``min <= value <= max``: a value on a bound passes with slack 0 (a CI gate at a sweep's own best
+    value holds), one a unit in the last place outside fails; no value, a flag, a word and NaN fail."""
+    from quadctl.sweep.gates import Gate
+
+    gate = Gate("peak.T", **bounds)
+    for bound, outward in ((bounds.get("min"), -np.inf), (bounds.get("max"), np.inf)):
+        if bound is None:
+            continue
+        assert gate.passes(bound) and gate.slack(bound) == 0.0
+        past = float(np.nextafter(bound, outward))
+        assert not gate.passes(past) and gate.slack(past) < 0.0
+    for value in (None, True, "0.6", float("nan")):
+        assert not gate.passes(value)
+
+
 @pytest.mark.parametrize("gates, slacks, worst", [
     # hand-computed relative slacks: (value - min) / |min| and (max - value) / |max|, the smallest of a row's
     ({"eig.slowest": {"min": -4.0}}, [(-1.0 + 4.0) / 4.0, (-3.0 + 4.0) / 4.0], 1),
