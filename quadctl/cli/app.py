@@ -8,6 +8,7 @@ from typing import Annotated, Optional
 import typer
 
 from quadctl.cli import commands
+from quadctl.cli.entry import NARROWEST
 from quadctl.cli.errors import EXIT_CODES_HELP, one_line_usage_errors
 from quadctl.cli.options import flags_without_placeholder
 from quadctl.version import __version__
@@ -37,7 +38,7 @@ def _root(
     version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
                                           help="Print the version and exit.")] = False,
     width: Annotated[Optional[int], typer.Option(
-        "--width", metavar="COLUMNS", min=40,
+        "--width", metavar="COLUMNS", min=NARROWEST,
         help="Width of the tables on stdout. Default: the terminal's; in a pipe or a file, COLUMNS if set, "
              "else wide enough that nothing is cut.")] = None,
 ) -> None:

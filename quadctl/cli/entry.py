@@ -29,6 +29,7 @@ def main() -> None:
     (:data:`quadctl.cli.progress.IMPORTS_CUT_SHORT`), once the command's own cleanup is done, the
     process leaves at once.
     """
+    _usable_columns()
     try:
         with extensions_initialize_whole():
             _terminate_as_interrupt()
@@ -44,6 +45,22 @@ def main() -> None:
         raise
     finally:
         gc.freeze()
+
+
+NARROWEST = 40
+"""The fewest columns a table or help page is drawn in: ``--width``'s floor."""
+
+
+def _usable_columns() -> None:
+    """``COLUMNS`` as rich can draw in, before any console reads it: ``0`` (what a container or CI runner
+    that knows no width may set) is taken as unset, where rich would draw every table and help page
+    ``0`` columns wide, that is print nothing; ``1`` to ``39`` as :data:`NARROWEST`, where each cell would be
+    cut to a character or less. Anything else, a terminal's own width included, is left as it is."""
+    columns = os.environ.get("COLUMNS", "")
+    if columns.isdigit() and int(columns) == 0:
+        del os.environ["COLUMNS"]
+    elif columns.isdigit() and int(columns) < NARROWEST:
+        os.environ["COLUMNS"] = str(NARROWEST)
 
 
 def _terminate_as_interrupt() -> None:

@@ -59,6 +59,20 @@ def test_columns_and_width_set_the_width(hover_run, monkeypatch):
     assert res.exit_code == 0 and _widest(res.stdout) <= 70  # the next call in this process: COLUMNS again
 
 
+def test_a_columns_of_zero_or_too_few_still_prints(tmp_path):
+    """COLUMNS=0 (a container or CI runner that knows no width) printed nothing at all, help and tables
+    alike, with exit 0; COLUMNS=5 cut every cell to nothing: 0 is taken as unset, under 40 as 40."""
+    def quadctl(columns, *args):
+        return subprocess.run([sys.executable, "-m", "quadctl", *args], capture_output=True, text=True,
+                              timeout=300, env={**os.environ, "COLUMNS": columns}, cwd=tmp_path)
+
+    helped = quadctl("0", "--help")
+    assert helped.returncode == 0 and "Usage: quadctl" in helped.stdout and "configs" in helped.stdout
+    listed = quadctl("5", "configs")
+    assert listed.returncode == 0 and "mambo-200hz" in listed.stdout
+    assert 40 <= _widest(listed.stdout) <= 41  # the narrowest --width takes
+
+
 def test_a_closed_pipe_ends_the_output_not_the_run(tmp_path):
     """`quadctl design | head -1`: exit 0 (never 1, "a check failed"), nothing on stderr, the work saved."""
     read, write = os.pipe()
