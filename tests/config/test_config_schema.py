@@ -47,6 +47,13 @@ def test_the_schema_file_is_what_configs_schema_prints():
     assert json.loads(res.stdout) == config.json_schema()
 
 
+def test_schema_with_show_is_refused_not_half_done():
+    """`configs --show hover --schema` printed the schema and dropped --show without a word."""
+    res = CliRunner().invoke(app, ["configs", "--show", "hover", "--schema"])
+    assert res.exit_code == 2 and res.stdout == ""
+    assert "--schema with --show hover" in res.stderr and "give one of the two" in res.stderr
+
+
 def test_every_bundled_config_is_found():
     names = {p.stem for p in CONFIG_FILES}
     assert set(config.bundled_names()) <= names and {"report-at-200hz", "report-on-mambo"} <= names

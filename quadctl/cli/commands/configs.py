@@ -21,10 +21,12 @@ def command(
     from quadctl import config
     from quadctl.cli import render
     from quadctl.cli.options import load_config
+    from quadctl.errors import ConfigError
 
+    if schema and show:
+        raise ConfigError(f"--schema with --show {show}: one prints the schema of every config, the other one "
+                          "config; give one of the two")
     if sets and not show:
-        from quadctl.errors import ConfigError
-
         raise ConfigError("--set changes the config --show prints; give --show NAME with it")
     if schema:
         import json
