@@ -30,6 +30,7 @@ def main() -> None:
     process leaves at once.
     """
     _usable_columns()
+    _unencodable_replaced()
     try:
         with extensions_initialize_whole():
             _terminate_as_interrupt()
@@ -61,6 +62,18 @@ def _usable_columns() -> None:
         del os.environ["COLUMNS"]
     elif columns.isdigit() and int(columns) < NARROWEST:
         os.environ["COLUMNS"] = str(NARROWEST)
+
+
+def _unencodable_replaced() -> None:
+    """A character stdout's encoding cannot carry is printed as ``?``, where Python would raise in the
+    middle of a table: a stdout in ASCII or Latin-1 (``PYTHONIOENCODING``, a Latin-1 locale) or cp1252
+    (Windows, redirected to a file) has no ``✓`` of ``run``, no ``·`` of ``design``, no ``±`` of
+    ``margins``, no ``ö`` of ``configs``. stdout only, and only when it would raise: stderr's own
+    default (``backslashreplace``) already never raises, and ``--json`` output is ASCII."""
+    import io
+
+    if isinstance(sys.stdout, io.TextIOWrapper) and sys.stdout.errors == "strict":
+        sys.stdout.reconfigure(errors="replace")
 
 
 def _terminate_as_interrupt() -> None:

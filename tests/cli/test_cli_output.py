@@ -73,6 +73,16 @@ def test_a_columns_of_zero_or_too_few_still_prints(tmp_path):
     assert 40 <= _widest(listed.stdout) <= 41  # the narrowest --width takes
 
 
+def test_a_stdout_that_cannot_encode_a_character_gets_a_question_mark_not_an_internal_error(tmp_path):
+    """An ASCII, Latin-1 or cp1252 stdout (Windows, redirected to a file) raised UnicodeEncodeError at
+    the first `ö`, `✓`, `·` or `±` and exited 3, "please report it"."""
+    listed = subprocess.run([sys.executable, "-m", "quadctl", "configs"], capture_output=True, text=True,
+                            encoding="ascii", errors="strict", timeout=300, cwd=tmp_path,
+                            env={**os.environ, "PYTHONIOENCODING": "ascii"})
+    assert (listed.returncode, listed.stderr) == (0, "")
+    assert "F?rster" in listed.stdout and "mambo-200hz" in listed.stdout
+
+
 def test_a_closed_pipe_ends_the_output_not_the_run(tmp_path):
     """`quadctl design | head -1`: exit 0 (never 1, "a check failed"), nothing on stderr, the work saved."""
     read, write = os.pipe()
