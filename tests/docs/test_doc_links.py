@@ -140,3 +140,28 @@ def test_links_in_code_are_not_links_and_headings_anchor_as_on_github():
     assert anchors(text) == {"a-code-title-its-here", "wind", "wind-1"}
     assert slug("From the report's design to one that flies") == "from-the-reports-design-to-one-that-flies"
     assert slug("Attitude (report eqs. 6-7)") == "attitude-report-eqs-6-7"
+
+
+CONFIG_FILES = sorted(p for folder in ("configs", "docs/configs", "examples") for p in (ROOT / folder).glob("*.yaml"))
+PAGE_NAMED = re.compile(r"(docs/[\w/.-]+\.md)(?:, \"([^\"]+)\")?")
+README_SECTION = re.compile(r"README,? \"([^\"]+)\"")
+
+
+def config_comments(text: str) -> str:
+    """A YAML file's whole-line comments, joined into one line (a reference may wrap)."""
+    return " ".join(line.strip()[1:].strip() for line in text.splitlines() if line.strip().startswith("#"))
+
+
+@pytest.mark.parametrize("path", CONFIG_FILES, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_the_pages_and_sections_a_config_file_sends_the_reader_to_exist(path):
+    """Bundled and documented configs sent the reader to the README's "From the report's design to one that
+    flies", a section the README no longer has (its steps are on docs/guide/flying.md)."""
+    comments = config_comments(path.read_text(encoding="utf-8"))
+    readme = anchors((ROOT / "README.md").read_text(encoding="utf-8"))
+    for section in README_SECTION.findall(comments):
+        assert slug(section) in readme, f"{path.name}: the README has no section {section!r}"
+    for page, section in PAGE_NAMED.findall(comments):
+        assert (ROOT / page).is_file(), f"{path.name}: no page {page}"
+        if section:
+            assert slug(section) in anchors((ROOT / page).read_text(encoding="utf-8")), \
+                f"{path.name}: {page} has no section {section!r}"
