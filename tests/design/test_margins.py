@@ -202,9 +202,18 @@ def test_an_infinite_margin_is_a_string_in_margins_json(tmp_path):
     assert res.exit_code == 0, res.output
     data = json.loads(res.output)
     assert data == json.loads((tmp_path / "margins.json").read_text())
+    assert {m["model"] for m in data["loops"]} == {"design", "coupled"}  # as the help says
     for m in data["loops"]:
         assert m["stable"] and m["meets_lqr_guarantee"], m["loop"]
         assert m["gain_margin_upper_db"] == "inf" and m["gain_margin_upper_freq"] is None
+
+
+def test_design_only_hides_the_coupled_loops_and_its_help_says_margins_json_keeps_them():
+    """The help said --coupled/--design-only decides whether the coupled loops are broken at all; they always
+    are: --design-only leaves them out of the tables and the verdict, and margins.json (and --json) holds them."""
+    shown = CliRunner().invoke(app, ["margins", "--help"], env={"COLUMNS": "200"}).output
+    text = " ".join(shown.replace("│", "").split())
+    assert "--design-only shows the design's loops alone. margins.json, and --json, hold both." in text
 
 
 def test_the_figure_of_an_unstable_loop_says_it_has_no_margin():

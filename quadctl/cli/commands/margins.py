@@ -14,7 +14,9 @@ def command(config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None, j
                 "--plot", help="Also write a Bode and Nyquist figure per loop to DIR/plots/margins-*.png.")] = False,
             coupled: Annotated[bool, typer.Option(
                 "--coupled/--design-only",
-                help="Also break each loop on the coupled 12-state model (other loops closed).")] = True,
+                help="Also show each loop broken on the coupled 12-state model (other loops closed), and exit 1 "
+                     "on its verdict; --design-only shows the design's loops alone. margins.json, and --json, hold "
+                     "both.")] = True,
             ) -> None:
     """Gain, phase and disk margins of every regulated loop, broken at its plant input; write margins.json.
 
