@@ -151,7 +151,7 @@ def rate_warning(w, rate: float) -> str:
     return (f"{w.loop}: closed-loop pole {eig(w.pole)} rad/s is {w.factor:.3g}x faster than "
             f"{rate:g} Hz realizes (|s| <= 2 pi rate / {SAMPLES_PER_POLE:g} = {w.limit:.4g} rad/s); "
             f"sampled at {rate:g} Hz this loop {verdict} (spectral radius {w.sampled_radius:.3g}); "
-            "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
+            f"{_design_for_the_rate(rate)}")
 
 
 def sampled_unstable(warnings, rate: float) -> str | None:
@@ -161,7 +161,15 @@ def sampled_unstable(warnings, rate: float) -> str | None:
     if not unstable:
         return None
     return (f"sampled at {rate:g} Hz the continuous design's loop(s) {', '.join(unstable)} are UNSTABLE; "
-            "use a discrete design (controller.design: discrete) or smaller gains (larger R)")
+            f"{_design_for_the_rate(rate)}")
+
+
+def _design_for_the_rate(rate: float) -> str:
+    """The way out of a continuous design too fast for ``rate``: both keys, since ``controller.design: discrete``
+    (the default) alone designs nothing discrete without ``controller.rate``, the case of ``check --rate`` and
+    ``export --rate`` on a config that has none."""
+    return (f"design for the rate (controller.rate: {rate:g} with controller.design: discrete) "
+            "or use smaller gains (larger R)")
 
 
 def _vehicle_loop_has(loop) -> str:

@@ -44,8 +44,8 @@ def test_check_exits_1_when_a_sampled_loop_is_unstable(tmp_path, args):
     res = invoke("check", *args, "-o", tmp_path)
     assert res.exit_code == 1, res.output
     out = flat(res.output)
-    assert f"quadctl: check failed: {UNSTABLE_AT_200HZ}; use a discrete design (controller.design: " \
-           "discrete) or smaller gains (larger R)" in out
+    assert f"quadctl: check failed: {UNSTABLE_AT_200HZ}; design for the rate (controller.rate: 200 with " \
+           "controller.design: discrete) or use smaller gains (larger R)" in out
     assert (tmp_path / "checks.json").exists()  # the verdict comes after the artifact
 
 
