@@ -10,12 +10,12 @@ import typer
 from quadctl.cli import commands
 from quadctl.cli.entry import NARROWEST
 from quadctl.cli.errors import EXIT_CODES_HELP, one_line_usage_errors
-from quadctl.cli.options import flags_without_placeholder
+from quadctl.cli.options import flags_without_placeholder, help_into_a_closed_pipe
 from quadctl.version import __version__
 
 app = typer.Typer(
     name="quadctl",
-    cls=one_line_usage_errors(flags_without_placeholder(typer.core.TyperGroup)),
+    cls=one_line_usage_errors(help_into_a_closed_pipe(flags_without_placeholder(typer.core.TyperGroup))),
     help="Design and verify LQR controllers for quadcopters: trim, linearize, decouple, check, "
          f"design, simulate; schedule the gains across an envelope; sweep many designs at once.\n\n{EXIT_CODES_HELP}",
     no_args_is_help=True,

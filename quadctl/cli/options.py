@@ -70,6 +70,24 @@ def flags_without_placeholder(command_cls):
     return FlagsWithoutPlaceholder
 
 
+def help_into_a_closed_pipe(command_cls):
+    """A typer command (or group) class whose ``--help`` into a pipe the reader has closed
+    (``quadctl --help | head -1``) ends the output and exits 0, as a command's own output does
+    (:meth:`quadctl.cli.render._Stdout.on_broken_pipe`). rich, which prints typer's help, answers the
+    ``BrokenPipeError`` by sending stdout to the null device and raising ``SystemExit(1)``: a failure
+    under ``set -o pipefail`` in a CI job. That exit, and only that one, is dropped here."""
+
+    class HelpIntoAClosedPipe(command_cls):
+        def format_help(self, ctx, formatter):
+            try:
+                return super().format_help(ctx, formatter)
+            except SystemExit as exc:
+                if not isinstance(exc.__context__, BrokenPipeError):
+                    raise
+
+    return HelpIntoAClosedPipe
+
+
 def rate_option(help: str):
     """``--rate HZ``: stands for ``controller.rate`` (:data:`quadctl.config.OVERRIDES`); its bounds
     are that key's, checked by :func:`override` in the command (not typer's ``min``/``max``)."""

@@ -95,6 +95,17 @@ def test_a_closed_pipe_ends_the_output_not_the_run(tmp_path):
     assert not (tmp_path / ".quadctl.lock").exists()  # and no lock file is left behind
 
 
+def test_help_into_a_closed_pipe_exits_0():
+    """`quadctl --help | head -1` exited 1 (rich's answer to the broken pipe), failing a `set -o pipefail` job."""
+    for args in (["--help"], ["trim", "--help"]):
+        read, write = os.pipe()
+        os.close(read)
+        proc = subprocess.run([sys.executable, "-m", "quadctl", *args], stdout=write, stderr=subprocess.PIPE,
+                              text=True, timeout=300)
+        os.close(write)
+        assert (proc.returncode, proc.stderr) == (0, ""), args
+
+
 def test_every_stage_command_has_json():
     stages = [m.NAME for m in COMMANDS if m.NAME != "configs"]
     for name in stages:

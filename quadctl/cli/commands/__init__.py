@@ -25,9 +25,9 @@ from quadctl.cli.commands import (
     trim,
 )
 from quadctl.cli.errors import handled
-from quadctl.cli.options import flags_without_placeholder
+from quadctl.cli.options import flags_without_placeholder, help_into_a_closed_pipe
 
-COMMAND_CLASS = flags_without_placeholder(typer.core.TyperCommand)
+COMMAND_CLASS = help_into_a_closed_pipe(flags_without_placeholder(typer.core.TyperCommand))
 """Every command's class: its flags show no value placeholder in ``--help``."""
 
 COMMANDS = (init, trim, linearize, decouple, check, design, schedule, simulate, compare, margins, export, sweep, run,
