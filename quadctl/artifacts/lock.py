@@ -62,7 +62,11 @@ def locked(folder: Path | str):
         quadctl (pid N); wait for it or use -o another folder``; or it cannot be created.
     """
     folder = Path(folder)
-    key = os.path.abspath(folder)
+    try:
+        key = os.path.abspath(folder)
+    except FileNotFoundError:  # a relative folder, and the current folder is gone: no path leads anywhere
+        raise ArtifactError(f"{folder}: cannot write artifacts there (the current folder no longer exists: "
+                            "deleted or moved); cd to a folder that exists, or give -o an absolute path") from None
     if key in _held:
         _held[key] += 1
         try:

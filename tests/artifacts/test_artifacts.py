@@ -152,6 +152,24 @@ def test_unwritable_out_folder_is_a_clear_error(tmp_path):
         artifacts.write_json(blocker / "sub" / "trim.json", {})
 
 
+def test_a_run_folder_in_a_current_folder_that_was_deleted_is_bad_input(tmp_path, monkeypatch):
+    """`quadctl trim` in a shell whose folder was removed under it was an internal error (exit 3, "please
+    report it") at os.path.abspath: now one line, exit 2."""
+    from typer.testing import CliRunner
+
+    from quadctl.cli.app import app
+
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    monkeypatch.chdir(gone)
+    gone.rmdir()
+    res = CliRunner().invoke(app, ["trim", "-c", "hover"])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip() == ("quadctl: error: runs/hover: cannot write artifacts there (the current folder no "
+                                  "longer exists: deleted or moved); cd to a folder that exists, or give -o an "
+                                  "absolute path")
+
+
 def test_artifacts_follow_the_umask_not_mkstemps_0600(tmp_path):
     old = os.umask(0o022)
     try:
