@@ -33,6 +33,10 @@ ARTIFACT_NAMES = frozenset({
 """Every file quadctl writes at the top of a run directory (tests check the workspace's, the
 sweep's and the exports' names are among them)."""
 PLOTS = "plots"
+OWN_FIGURES = ("inputs", "wind", "path", "tracking", "schedule")
+"""The figures quadctl draws beside one per subsystem, named alike (``plots/<stem>.png``, the report's
+``sim-<stem>.png``): the inputs, the wind, a reference's path and tracking error, the gain schedule. A
+subsystem of one of these names would share its figure's file, and lose it: the config refuses them."""
 SWEEP_PARTS = "sweep.parts"
 """The subfolder of a sweep's finished chunks (:mod:`quadctl.sweep.store`), read back by ``--resume``."""
 SUBFOLDER_NAMES = {

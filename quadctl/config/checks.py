@@ -12,6 +12,7 @@ import math
 import re
 from typing import Any
 
+from quadctl.artifacts.places import OWN_FIGURES
 from quadctl.config.controller_schema import MAX_DELAY_SAMPLES, DelaySamples, EstimatorConfig
 from quadctl.config.pid import NEEDS_ROTORS, rate_problem, resolve
 from quadctl.config.schema import SUBSYSTEM_NAME_PATTERN, Config, ScheduleConfig
@@ -46,6 +47,10 @@ def check_semantics(cfg: Config, label: str) -> None:
             raise ConfigError(f"{label}: subsystems: {name!r} is not a usable subsystem name: it must start with a "
                               "letter and use only letters, digits and '_' (at most 63 characters: it names "
                               f"files, C and MATLAB fields); rename it, e.g. `{_safe_name(name)}`")
+        if name in OWN_FIGURES:
+            raise ConfigError(f"{label}: subsystems: {name!r} is the name of a figure quadctl draws of its own "
+                              f"(plots/{name}.png), which would take the place of this subsystem's; rename it, "
+                              f"e.g. `{name}_loop`")
     partition = cfg.partition()
     where = "subsystems" if cfg.subsystems is not None else "subsystems (the report's default)"
     seen_states: dict[str, str] = {}

@@ -39,7 +39,8 @@ NAME_RULE = ("must start with a letter, digit or '_', use only letters, digits, 
 SUBSYSTEM_NAME_PATTERN = r"^[A-Za-z][A-Za-z0-9_]{0,62}$"
 """A subsystem's name: a letter, then letters, digits or ``_``, at most 63 characters. One rule for
 everything that uses the name: file names (``plots/<name>.png``, the report's figures), HTML ids,
-C identifiers and MATLAB struct fields (``.mat``: at most 63 characters)."""
+C identifiers and MATLAB struct fields (``.mat``: at most 63 characters). The names of quadctl's own
+figures (:data:`quadctl.artifacts.places.OWN_FIGURES`) are refused beside it."""
 
 
 

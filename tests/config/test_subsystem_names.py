@@ -39,6 +39,25 @@ def test_a_name_the_rule_allows_is_usable_everywhere(name):
     assert escape.c_identifier(name) == escape.matlab_field(name) == name
 
 
+@pytest.mark.parametrize("name", artifacts.places.OWN_FIGURES)
+def test_a_name_of_one_of_quadctls_own_figures_is_refused(name):
+    """A subsystem named `inputs` drew plots/inputs.png, then the inputs' figure took its place (the report
+    lost sim-inputs.png the same way): `run --plot` listed five figures for five subsystems and the inputs."""
+    with pytest.raises(ConfigError, match=rf"^c\.yaml: subsystems: '{name}' is the name of a figure quadctl draws "
+                                          rf"of its own \(plots/{name}\.png\), .*; rename it, e\.g\. `{name}_loop`$"):
+        config.from_dict(_renamed(name), "c.yaml")
+    config.from_dict(_renamed(f"{name}_loop"), "c.yaml")
+
+
+def test_the_own_figures_are_every_figure_drawn_beside_the_subsystems():
+    from types import SimpleNamespace
+
+    from quadctl.plots.simulation import simulation_figure_makers
+
+    drawn = simulation_figure_makers(SimpleNamespace(wind=[0.0], u_ref=[0.0]), {})  # wind and a reference: all
+    assert set(drawn) <= set(artifacts.places.OWN_FIGURES), set(drawn)
+
+
 def test_the_suggested_name_is_itself_allowed():
     for name in BAD:
         message = str(pytest.raises(ConfigError, config.from_dict, _renamed(name), "c.yaml").value)
