@@ -322,6 +322,15 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
     if ctx is not None:
         command = ctx.command_path
     if isinstance(exc, exc_mod.NoSuchOption):
+        root = ctx.find_root() if ctx is not None and ctx.parent is not None else None
+        own = next((p for p in (root.command.get_params(root) if root else []) if exc.option_name in p.opts), None)
+        if own is not None and getattr(own, "is_eager", False):  # --version: it answers alone
+            return f"{exc.option_name}: an option of quadctl itself, not of {command}: run `{root.command_path} " \
+                   f"{exc.option_name}`"
+        if own is not None:  # quadctl's own option (--debug, --width) after the command's name
+            value = "" if getattr(own, "is_flag", False) else f" {own.metavar or 'VALUE'}"
+            return (f"{exc.option_name}: an option of quadctl itself, not of {command}: give it before the "
+                    f"command, as `{root.command_path} {exc.option_name}{value} {ctx.info_name} ...`")
         options = [o for p in (ctx.command.get_params(ctx) if ctx else []) for o in (*p.opts, *p.secondary_opts)
                    if o.startswith("--")]
         near = difflib.get_close_matches(exc.option_name, options, n=1, cutoff=0.7)

@@ -259,6 +259,15 @@ USAGE_ERRORS = {
                                                          "an argument; see `quadctl check --help`"),
     "an unknown command": (["trmi"], "quadctl: error: no such command 'trmi'; did you mean 'trim'? "
                                      "(quadctl --help lists the commands)"),
+    # quadctl's own options after the command: the line said only "quadctl trim has no such option"
+    "--debug after the command": (["trim", "-c", "hover", "--debug"],
+                                  "quadctl: error: --debug: an option of quadctl itself, not of quadctl trim: give it "
+                                  "before the command, as `quadctl --debug trim ...`"),
+    "--width after the command": (["design", "--width", "100"],
+                                  "quadctl: error: --width: an option of quadctl itself, not of quadctl design: give "
+                                  "it before the command, as `quadctl --width COLUMNS design ...`"),
+    "--version after the command": (["sweep", "--version"], "quadctl: error: --version: an option of quadctl "
+                                                            "itself, not of quadctl sweep: run `quadctl --version`"),
 }
 
 
