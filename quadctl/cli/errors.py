@@ -331,6 +331,9 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
             value = "" if getattr(own, "is_flag", False) else f" {own.metavar or 'VALUE'}"
             return (f"{exc.option_name}: an option of quadctl itself, not of {command}: give it before the "
                     f"command, as `{root.command_path} {exc.option_name}{value} {ctx.info_name} ...`")
+        later = _command_option_first(exc.option_name, args, ctx) if ctx is not None and ctx.parent is None else None
+        if later is not None:
+            return later
         options = [o for p in (ctx.command.get_params(ctx) if ctx else []) for o in (*p.opts, *p.secondary_opts)
                    if o.startswith("--")]
         near = difflib.get_close_matches(exc.option_name, options, n=1, cutoff=0.7)
@@ -363,6 +366,33 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
         return f"{given}: {_number(one_line(exc.message)).rstrip('.')}; see `{command} --help`"
     text = _number(one_line(exc.format_message())).rstrip(".")
     return f"{command}: {text[:1].lower()}{text[1:]}; see `{command} --help`"
+
+
+def _command_option_first(option: str, args, ctx) -> str | None:
+    """The line for a command's option given before the command's name (``quadctl -c hover trim``), naming
+    where it goes; None when ``option`` is not an option of the command named later in ``args`` (nor, with no
+    command named, of any)."""
+    group = ctx.command
+    if not hasattr(group, "list_commands"):
+        return None
+    names = group.list_commands(ctx)
+    takes_value = {o for name in names for p in group.get_command(ctx, name).get_params(ctx)
+                   if not getattr(p, "is_flag", False) for o in p.opts}
+    words, named = iter(args), None
+    for word in words:
+        if word.startswith("-"):
+            if word in takes_value:
+                next(words, None)  # its value, which may read like a command (-c schedule)
+        elif word in names:
+            named = word
+            break
+    for name in [named] if named is not None else names:
+        command = group.get_command(ctx, name)
+        if command is not None and any(option in p.opts for p in command.get_params(ctx)):
+            where = f"`{ctx.command_path} {name} {option} ...`" if named is not None else \
+                f"`{ctx.command_path} COMMAND {option} ...` (`{ctx.command_path} {name} --help` lists it)"
+            return f"{option}: an option of a command, not of quadctl itself: give it after the command, as {where}"
+    return None
 
 
 def unknown_command(name: str, commands, program: str = "quadctl") -> str:

@@ -268,6 +268,14 @@ USAGE_ERRORS = {
                                   "it before the command, as `quadctl --width COLUMNS design ...`"),
     "--version after the command": (["sweep", "--version"], "quadctl: error: --version: an option of quadctl "
                                                             "itself, not of quadctl sweep: run `quadctl --version`"),
+    # and a command's options before it: the line listed quadctl's own options only
+    "-c before the command": (["-c", "schedule", "run"],
+                              "quadctl: error: -c: an option of a command, not of quadctl itself: give it after the "
+                              "command, as `quadctl run -c ...`"),  # -c's value is no command
+    "--json with no command": (["--json"], "quadctl: error: --json: an option of a command, not of quadctl itself: "
+                                           "give it after the command, as `quadctl COMMAND --json ...`"),
+    "an unknown option before the command": (["--bogus", "trim"], "quadctl: error: --bogus: quadctl has no such "
+                                                                  "option; its options: --debug"),
 }
 
 
