@@ -7,6 +7,7 @@ import contextvars
 import functools
 import inspect
 import os
+import re
 import sys
 import warnings
 
@@ -364,6 +365,12 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
                      else f"of at least {lo:g}" if lo is not None else f"of at most {hi:g}")
             return f"{given}: out of range; give {key} a value {bound}"
         return f"{given}: {_number(one_line(exc.message)).rstrip('.')}; see `{command} --help`"
+    extra = re.fullmatch(r"Got unexpected extra argument\(s\) \((\S+)\)", getattr(exc, "message", "") or "")
+    taken = next((o for key, o in (("config", "-c"), ("show", "--show")) if ctx is not None and key in ctx.params
+                  and ctx.params[key] is None), None) if extra else None
+    if taken is not None:  # quadctl run hover, quadctl configs hover
+        return f"{command}: got an extra argument, {extra[1]}: a config goes after {taken}, as " \
+               f"`{command} {taken} {extra[1]}`"
     text = _number(one_line(exc.format_message())).rstrip(".")
     return f"{command}: {text[:1].lower()}{text[1:]}; see `{command} --help`"
 

@@ -276,6 +276,14 @@ USAGE_ERRORS = {
                                            "give it after the command, as `quadctl COMMAND --json ...`"),
     "an unknown option before the command": (["--bogus", "trim"], "quadctl: error: --bogus: quadctl has no such "
                                                                   "option; its options: --debug"),
+    # a config named without its option: the line said only "got unexpected extra argument(s) (hover)"
+    "a config without -c": (["run", "hover"], "quadctl: error: quadctl run: got an extra argument, hover: a config "
+                                              "goes after -c, as `quadctl run -c hover`"),
+    "a config without --show": (["configs", "hover"], "quadctl: error: quadctl configs: got an extra argument, "
+                                                      "hover: a config goes after --show, as `quadctl configs --show "
+                                                      "hover`"),
+    "an extra word beside -c": (["trim", "-c", "hover", "x"], "quadctl: error: quadctl trim: got unexpected extra "
+                                                              "argument(s) (x); see `quadctl trim --help`"),
 }
 
 
