@@ -377,6 +377,9 @@ def check_scheduler_address(address: str) -> str:
         return SweepError(f"--scheduler {address}: {why}; give the address as tcp://host:port "
                           "(a Dask scheduler listens on 8786 unless told otherwise)")
 
+    if not address.strip():  # --scheduler "$UNSET": not this machine's cores without a word
+        raise SweepError(f"--scheduler {address!r}: an empty address; give the address as tcp://host:port, or "
+                         "leave --scheduler out to run on this machine's cores")
     match = _ADDRESS_RE.fullmatch(address.strip())
     if match is None:
         raise bad("not a scheduler address")

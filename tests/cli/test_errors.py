@@ -511,6 +511,15 @@ def test_a_malformed_scheduler_address_fails_at_once(tmp_path, address, why):
                           "(a Dask scheduler listens on 8786 unless told otherwise)\n")
 
 
+def test_an_empty_scheduler_address_is_refused_not_run_locally(tmp_path):
+    """`--scheduler "$DASK_SCHEDULER"` with the variable unset ran the sweep on this machine without a word."""
+    (tmp_path / "s.yaml").write_text("parameters: {vehicle.mass: [0.07]}\n")
+    res = runner.invoke(app, ["sweep", "-s", str(tmp_path / "s.yaml"), "--scheduler", "", "-o", str(tmp_path / "o")])
+    assert res.exit_code == 2 and not (tmp_path / "o").exists()
+    assert res.stderr == ("quadctl: error: --scheduler '': an empty address; give the address as tcp://host:port, "
+                          "or leave --scheduler out to run on this machine's cores\n")
+
+
 @pytest.mark.parametrize("address,normal", [("127.0.0.1:8786", "tcp://127.0.0.1:8786"),
                                             ("TLS://sched.example.org:8786/", "tls://sched.example.org:8786"),
                                             ("tcp://[::1]:8786", "tcp://[::1]:8786")])

@@ -50,8 +50,8 @@ def command(
 
     if jobs is not None and scheduler:
         raise SweepError("--jobs and --scheduler: give one; on a cluster its workers do the work")
-    if scheduler:
-        check_scheduler_address(scheduler)  # before anything is loaded: a typo fails at once
+    if scheduler is not None:
+        check_scheduler_address(scheduler)  # before anything is loaded: a typo, or nothing, fails at once
     cfg, source = load_source(config, sets)
     spec = sweep_mod.load(sweep, cfg)
     session = open_session(cfg, source, out)  # after the sweep file: a refused one touches no folder
