@@ -284,6 +284,11 @@ USAGE_ERRORS = {
                                                       "hover`"),
     "an extra word beside -c": (["trim", "-c", "hover", "x"], "quadctl: error: quadctl trim: got unexpected extra "
                                                               "argument(s) (x); see `quadctl trim --help`"),
+    # empty values: --show '' listed the bundled configs, -s '' read the current folder as the sweep file
+    "an empty --show": (["configs", "--show", ""], "quadctl: error: '': an empty config name; give a config file's "
+                                                   "path or a bundled config's name"),
+    "an empty --sweep": (["sweep", "-s", ""], "quadctl: error: --sweep '': an empty path; give the sweep file, as "
+                                              "`quadctl sweep -s examples/ci-sweep.yaml`"),
 }
 
 

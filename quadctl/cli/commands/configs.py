@@ -23,17 +23,17 @@ def command(
     from quadctl.cli.options import load_config
     from quadctl.errors import ConfigError
 
-    if schema and show:
-        raise ConfigError(f"--schema with --show {show}: one prints the schema of every config, the other one "
-                          "config; give one of the two")
-    if sets and not show:
+    if schema and show is not None:
+        raise ConfigError(f"--schema with --show {show or repr(show)}: one prints the schema of every config, the "
+                          "other one config; give one of the two")
+    if sets and show is None:
         raise ConfigError("--set changes the config --show prints; give --show NAME with it")
     if schema:
         import json
 
         typer.echo(json.dumps(config.json_schema(), indent=2))
         return
-    if show:
+    if show is not None:  # '' too: refused by name, not taken for no --show
         cfg, label = load_config(show, sets, plausible=False)
         typer.echo(config.shown_yaml(cfg, label), nl=False)  # raw: rich would wrap long lines
         return
