@@ -298,6 +298,12 @@ def _is_numeric(param) -> bool:
     return kind in ("float", "integer") or annotation in (float, int)
 
 
+def _is_integer(param) -> bool:
+    """Whether an option takes a whole number (click's INT type, or typer's type descriptor)."""
+    kind = getattr(getattr(param, "type", None), "name", "")
+    return kind == "integer" or getattr(getattr(param, "type_descriptor", None), "annotation", None) is int
+
+
 def _choices_of(param) -> list[str]:
     """The values a choice option takes (click's Choice type, or typer's type descriptor)."""
     for holder in (getattr(param, "type", None), getattr(param, "type_descriptor", None)):
@@ -363,6 +369,8 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
         if lo is not None or hi is not None:
             bound = (f"between {lo:g} and {hi:g}" if lo is not None and hi is not None
                      else f"of at least {lo:g}" if lo is not None else f"of at most {hi:g}")
+            if _is_integer(param) and not re.fullmatch(r"\s*[+-]?[0-9]+\s*", value):  # -j 2.5, --width 1e3
+                return f"{given}: not a whole number; give {key} one in digits, {bound.removeprefix('of ')}"
             return f"{given}: out of range; give {key} a value {bound}"
         return f"{given}: {_number(one_line(exc.message)).rstrip('.')}; see `{command} --help`"
     extra = re.fullmatch(r"Got unexpected extra argument\(s\) \((\S+)\)", getattr(exc, "message", "") or "")

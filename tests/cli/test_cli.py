@@ -251,6 +251,11 @@ USAGE_ERRORS = {
     "no export target": (["export"], "quadctl: error: quadctl export needs --to c | mat | json | crazyflie; add it "
                                      "(`quadctl export --help` describes it)"),
     "no worker": (["sweep", "-j", "0"], "quadctl: error: --jobs 0: out of range; give --jobs a value of at least 1"),
+    # a whole-number option given a fraction or an exponent: the line said "out of range"
+    "a fraction of a worker": (["sweep", "-j", "2.5"], "quadctl: error: --jobs 2.5: not a whole number; give --jobs "
+                                                       "one in digits, at least 1"),
+    "a width in exponent form": (["--width", "1e3", "trim"], "quadctl: error: --width 1e3: not a whole number; give "
+                                                             "--width one in digits, at least 40"),
     "an unknown option": (["trim", "--bogus"], "quadctl: error: --bogus: quadctl trim has no such option; its "
                                                "options: --config, --out, --set, --json, --fresh, --help"),
     "a misspelt option": (["trim", "--jsn"], "quadctl: error: --jsn: quadctl trim has no such option; "
