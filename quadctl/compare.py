@@ -15,6 +15,7 @@ the same cost, both flown on the nonlinear model from the configured offset (:fu
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 from dataclasses import dataclass
 
@@ -144,7 +145,10 @@ def parse_law(text: str) -> tuple[str, str | None]:
         return "lqr", None
     if kind == "pid" and preset in PRESET_NAMES:
         return "pid", preset
-    raise ArgumentError(f"law {text!r}: use lqr or pid:<preset> with a preset of {', '.join(PRESET_NAMES)}")
+    laws = ["lqr", *(f"pid:{name}" for name in PRESET_NAMES)]
+    close = difflib.get_close_matches(text.lower(), laws, n=1, cutoff=0.75)  # pid:crazyfly, PID:px4; not
+    near = f"; did you mean `{close[0]}`?" if close else ""                  # pid:betaflight for crazyflie
+    raise ArgumentError(f"law {text!r}: use lqr or pid:<preset> with a preset of {', '.join(PRESET_NAMES)}{near}")
 
 
 DEFAULT_LAWS = ("pid:crazyflie",)

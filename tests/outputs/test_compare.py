@@ -335,3 +335,16 @@ def test_design_failures_name_the_lqr_designs_run_and_loop_and_never_a_cascades(
         "lqr: diverged at t = 1 s", "lqr: the closed loop is unstable (no margins)"]
     assert failures(law("lqr", "left_valid_range")) == ["lqr: left_valid_range at t = 1 s"]
     assert failures(law("pid:crazyflie", "diverged", False)) == []
+
+
+@pytest.mark.parametrize("law, near", [("pid:crazyfly", "pid:crazyflie"), ("PID:px4", "pid:px4"), ("LQR", "lqr"),
+                                       ("pid:betaflight", None)])
+def test_a_mistyped_law_gets_the_nearest_one(law, near):
+    """--law pid:crazyfly listed the presets but named none of them: the other choices of the command line
+    (--to, --from, --mode) say `did you mean`; a law far from all (betaflight) gets the list alone."""
+    from quadctl.compare import parse_law
+    from quadctl.errors import ArgumentError
+
+    message = str(pytest.raises(ArgumentError, parse_law, law).value)
+    assert message.startswith(f"law {law!r}: use lqr or pid:<preset> with a preset of crazyflie, px4")
+    assert message.endswith(f"; did you mean `{near}`?" if near else "px4")
