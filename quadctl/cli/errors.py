@@ -349,6 +349,11 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
     param = getattr(exc, "param", None)
     key = (getattr(param, "opts", None) or [getattr(param, "name", "")])[0]
     choices = _choices_of(param) if param is not None else []
+    if isinstance(exc, exc_mod.MissingParameter) and getattr(param, "param_type_name", "") == "argument":
+        meta = (param.metavar or param.name or "ARGUMENT").strip("{}").upper()  # init's NAME, identify's LOG
+        many = ", one or more" if param.nargs == -1 else ""
+        return (f"{command} needs {meta}{many}; give it, as `{command} {meta}{' ...' if many else ''}` "
+                f"(`{command} --help` describes it)")
     if isinstance(exc, exc_mod.MissingParameter) and param is not None:
         what = f" {' | '.join(choices)}" if choices else ""
         return f"{command} needs {key}{what}; add it (`{command} --help` describes it)"

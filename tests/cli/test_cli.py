@@ -250,6 +250,11 @@ USAGE_ERRORS = {
                                  "did you mean `json`?"),
     "no export target": (["export"], "quadctl: error: quadctl export needs --to c | mat | json | crazyflie; add it "
                                      "(`quadctl export --help` describes it)"),
+    # a missing argument: the line read "quadctl init needs name" and "quadctl identify needs logs"
+    "no name to init": (["init"], "quadctl: error: quadctl init needs NAME; give it, as `quadctl init NAME` "
+                                  "(`quadctl init --help` describes it)"),
+    "no log to identify": (["identify", "-c", "crazyflie"], "quadctl: error: quadctl identify needs LOG, one or more; "
+                                                            "give it, as `quadctl identify LOG ...`"),
     "no worker": (["sweep", "-j", "0"], "quadctl: error: --jobs 0: out of range; give --jobs a value of at least 1"),
     # a whole-number option given a fraction or an exponent: the line said "out of range"
     "a fraction of a worker": (["sweep", "-j", "2.5"], "quadctl: error: --jobs 2.5: not a whole number; give --jobs "
