@@ -31,6 +31,7 @@ def main() -> None:
     """
     _usable_columns()
     _unencodable_replaced()
+    _drawing_into_files()
     try:
         with extensions_initialize_whole():
             _terminate_as_interrupt()
@@ -62,6 +63,14 @@ def _usable_columns() -> None:
         del os.environ["COLUMNS"]
     elif columns.isdigit() and int(columns) < NARROWEST:
         os.environ["COLUMNS"] = str(NARROWEST)
+
+
+def _drawing_into_files() -> None:
+    """``MPLBACKEND=agg`` before matplotlib is imported. quadctl draws every figure into a file through Agg
+    and never opens a window, so the backend an environment names is never used; but matplotlib checks it
+    on import, and one it does not know (``MPLBACKEND=bogus``, a backend of another environment) made every
+    command that draws an internal error (exit 3)."""
+    os.environ["MPLBACKEND"] = "agg"
 
 
 def _unencodable_replaced() -> None:

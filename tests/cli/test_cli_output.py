@@ -83,6 +83,16 @@ def test_a_stdout_that_cannot_encode_a_character_gets_a_question_mark_not_an_int
     assert "F?rster" in listed.stdout and "mambo-200hz" in listed.stdout
 
 
+def test_a_backend_matplotlib_does_not_know_does_not_stop_the_figures(tmp_path):
+    """MPLBACKEND=bogus (or another environment's backend) made `simulate --plot` an internal error, exit 3:
+    matplotlib checks the variable on import, though quadctl draws into files with Agg and opens no window."""
+    proc = subprocess.run([sys.executable, "-m", "quadctl", "simulate", "-c", "hover", "--plot", "-o", str(tmp_path),
+                           "--set", "simulation.duration=0.1"], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "MPLBACKEND": "bogus"})
+    assert (proc.returncode, proc.stderr) == (0, ""), proc.stderr
+    assert (tmp_path / "plots" / "inputs.png").is_file()
+
+
 def test_a_closed_pipe_ends_the_output_not_the_run(tmp_path):
     """`quadctl design | head -1`: exit 0 (never 1, "a check failed"), nothing on stderr, the work saved."""
     read, write = os.pipe()
