@@ -77,12 +77,16 @@ def _unencodable_replaced() -> None:
     """A character stdout's encoding cannot carry is printed as ``?``, where Python would raise in the
     middle of a table: a stdout in ASCII or Latin-1 (``PYTHONIOENCODING``, a Latin-1 locale) or cp1252
     (Windows, redirected to a file) has no ``✓`` of ``run``, no ``·`` of ``design``, no ``±`` of
-    ``margins``, no ``ö`` of ``configs``. stdout only, and only when it would raise: stderr's own
-    default (``backslashreplace``) already never raises, and ``--json`` output is ASCII."""
+    ``margins``, no ``ö`` of ``configs``. A UTF-8 stdout carries every character but the bytes of a path
+    that are not UTF-8 (``runs/\xff``, read from the command line as surrogates): those are written back
+    as they were given, as Python does in the C locale. stdout only, and only when it would raise: stderr's
+    own default (``backslashreplace``) already never raises, and ``--json`` output is ASCII."""
+    import codecs
     import io
 
     if isinstance(sys.stdout, io.TextIOWrapper) and sys.stdout.errors == "strict":
-        sys.stdout.reconfigure(errors="replace")
+        utf8 = codecs.lookup(sys.stdout.encoding).name == "utf-8"
+        sys.stdout.reconfigure(errors="surrogateescape" if utf8 else "replace")
 
 
 def _terminate_as_interrupt() -> None:

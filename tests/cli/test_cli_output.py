@@ -83,6 +83,21 @@ def test_a_stdout_that_cannot_encode_a_character_gets_a_question_mark_not_an_int
     assert "F?rster" in listed.stdout and "mambo-200hz" in listed.stdout
 
 
+@pytest.mark.skipif(sys.platform in ("darwin", "win32"), reason="a file name there is Unicode: no stray byte")
+def test_a_path_that_is_not_utf8_is_printed_as_given_on_a_strict_utf8_stdout(tmp_path):
+    """A strict UTF-8 stdout (an en_US.UTF-8 locale) raised at the first byte of a path that is not UTF-8
+    (read from the command line as a surrogate): exit 3. The bytes are now written back as given."""
+    from quadctl import config
+
+    name = os.fsencode(tmp_path) + b"/\xff.yaml"
+    with open(name, "w", encoding="utf-8") as fh:
+        fh.write(config.locate("hover").text)
+    proc = subprocess.run([sys.executable, "-m", "quadctl", "configs", "--show", name], capture_output=True,
+                          timeout=300, env={**os.environ, "PYTHONIOENCODING": "utf-8"})
+    assert (proc.returncode, proc.stderr) == (0, b""), proc.stderr
+    assert proc.stdout.startswith(b"# " + name + b", validated")
+
+
 def test_a_backend_matplotlib_does_not_know_does_not_stop_the_figures(tmp_path):
     """MPLBACKEND=bogus (or another environment's backend) made `simulate --plot` an internal error, exit 3:
     matplotlib checks the variable on import, though quadctl draws into files with Agg and opens no window."""
