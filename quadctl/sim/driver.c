@@ -2,7 +2,7 @@
  *
  * No dynamics here. quadctl/native/compile.py prepends the sizes (QC_L lanes, QC_NX loop states,
  * QC_NP plant states, QC_NU inputs, QC_NE exogenous channels, QC_NC constants, QC_HELD) and the
- * functions emitted by quadctl/sim/emit.py from the builder's CasADi functions:
+ * functions emitted by quadctl/native/emit.py from the builder's CasADi functions:
  *   qc_law(X, t, c, e, u, X_sampled)   the control law (and the controller states' update)
  *   qc_step(X, t, dt, c, e, X_next, u, P) one RK4 step with continuous feedback   (QC_HELD == 0)
  *   qc_plant(X, u, dt, c, e, X_next, P)   one RK4 step under a held input        (QC_HELD == 1)

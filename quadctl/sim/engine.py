@@ -37,9 +37,9 @@ class CompilerNotice(QuadctlNotice):
     """No working C compiler: the loop runs in CasADi's virtual machine (the same results to round-off, slower)."""
 
 
-VM_COST = "the same results to round-off, about 10x slower or more"
-"""What running in CasADi's virtual machine costs, as the notices say it (README Performance: one
-simulation of the forward config, 0.43 M against 4.4 M steps/s compiled)."""
+VM_COST = "the same results to round-off, 6x slower or more"
+"""What running in CasADi's virtual machine costs, as the notices say it (docs/performance.md, one
+simulation of the forward config: 0.95 M against 5.7 M steps/s compiled; a sweep's SIMD lanes lose more)."""
 
 
 class MarchNotice(CompilerNotice):
