@@ -8,7 +8,7 @@ from typing import Annotated, Optional
 import typer
 
 from quadctl.cli import commands
-from quadctl.cli.entry import NARROWEST
+from quadctl.cli.columns import NARROWEST
 from quadctl.cli.errors import EXIT_CODES_HELP, one_line_usage_errors
 from quadctl.cli.options import flags_without_placeholder, help_into_a_closed_pipe
 from quadctl.version import __version__

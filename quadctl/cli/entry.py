@@ -15,6 +15,7 @@ import signal
 import sys
 import threading
 
+from quadctl.cli.columns import usable_columns
 from quadctl.cli.stops import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated, raise_terminated
 from quadctl.signals import signals_held
 
@@ -29,7 +30,7 @@ def main() -> None:
     (:data:`quadctl.cli.progress.IMPORTS_CUT_SHORT`), once the command's own cleanup is done, the
     process leaves at once.
     """
-    _usable_columns()
+    usable_columns()
     _unencodable_replaced()
     _drawing_into_files()
     try:
@@ -47,22 +48,6 @@ def main() -> None:
         raise
     finally:
         gc.freeze()
-
-
-NARROWEST = 40
-"""The fewest columns a table or help page is drawn in: ``--width``'s floor."""
-
-
-def _usable_columns() -> None:
-    """``COLUMNS`` as rich can draw in, before any console reads it: ``0`` (what a container or CI runner
-    that knows no width may set) is taken as unset, where rich would draw every table and help page
-    ``0`` columns wide, that is print nothing; ``1`` to ``39`` as :data:`NARROWEST`, where each cell would be
-    cut to a character or less. Anything else, a terminal's own width included, is left as it is."""
-    columns = os.environ.get("COLUMNS", "")
-    if columns.isdigit() and int(columns) == 0:
-        del os.environ["COLUMNS"]
-    elif columns.isdigit() and int(columns) < NARROWEST:
-        os.environ["COLUMNS"] = str(NARROWEST)
 
 
 def _drawing_into_files() -> None:
