@@ -220,7 +220,7 @@ class ClosedLoop:
     @property
     def kept(self) -> dict:
         """What this process keeps with the loop to reuse (by its maker's key: the ETDRK4 stacks of
-        :func:`quadctl.sim.stack.kept_exponential_stack`); a pickle carries none of it."""
+        :func:`quadctl.sim.etdrk4_stack.kept_exponential_stack`); a pickle carries none of it."""
         return self.__dict__.setdefault("_kept", {})
 
     def __getstate__(self):

@@ -1,8 +1,8 @@
 """One run of the full nonlinear closed loop (:class:`~quadctl.sim.loop.ClosedLoop`): RK4 at a fixed
 step, or ETDRK4 (``simulation.method: etdrk4``) on a graded schedule of steps
 (:mod:`quadctl.sim.etdrk4_plan`; its matrices :mod:`quadctl.sim.etdrk4_matrices`). :func:`simulate` runs
-the stack of one (:func:`quadctl.sim.stack.stack_of`, :func:`quadctl.sim.stack.run_stack`) and reads its records back
-as a :class:`SimResult`, with how the run ended (:func:`verdict`).
+the stack of one (:func:`quadctl.sim.stack.stack_of`, :func:`quadctl.sim.stack_run.run_stack`) and reads its
+records back as a :class:`SimResult`, with how the run ended (:func:`verdict`).
 """
 from __future__ import annotations
 
@@ -22,7 +22,8 @@ from quadctl.sim.exogenous import wind_felt
 from quadctl.sim.loop import TURNED_OVER, VALID_PITCH, ClosedLoop
 from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.plan import StepPlan
-from quadctl.sim.stack import run_stack, stack_of
+from quadctl.sim.stack import stack_of
+from quadctl.sim.stack_run import run_stack
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,7 +131,7 @@ def simulate(loop: ClosedLoop, x0, duration: float, dt="auto", *,
         Samples kept, at most: every :func:`record_stride`-th step and the last.
     progress : callable, optional
         ``progress(done, total)``: called with the steps done and the steps in all after each
-        chunk of the run (:func:`~quadctl.sim.stack.run_stack`), for a caller that shows how far a long run is.
+        chunk of the run (:func:`~quadctl.sim.stack_run.run_stack`), for a caller that shows how far a long run is.
     reference : FlownReference, optional
         A reference to fly (:class:`quadctl.physics.reference_rows.FlownReference`): ``x_ref(t)`` and the feedforward
         ``u_ref(t)`` in place of ``x_trim + x_rate t`` and ``u_trim``; ``SimResult.x_ref`` is then the

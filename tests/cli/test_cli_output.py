@@ -148,10 +148,10 @@ def test_export_json_is_the_artifact_and_nothing_else(hover_run):
 
 
 def test_the_library_reports_the_simulation_s_progress(tmp_path, monkeypatch):
-    from quadctl.sim import stack
+    from quadctl.sim import stack_run
 
-    monkeypatch.setitem(stack.CHUNK_STEPS, "compiled", 500)
-    monkeypatch.setitem(stack.CHUNK_STEPS, "casadi", 500)
+    monkeypatch.setitem(stack_run.CHUNK_STEPS, "compiled", 500)
+    monkeypatch.setitem(stack_run.CHUNK_STEPS, "casadi", 500)
     cfg = overrides.load(config.bundled("hover"), ["simulation.duration=1"])
     calls = []
     ws = Workspace(cfg, tmp_path, progress=lambda done, total: calls.append((done, total)))

@@ -321,7 +321,7 @@ def test_the_plant_feels_the_gust_sample_for_sample():
 
 
 def test_a_run_in_wind_is_the_same_at_any_step_and_any_chunking(monkeypatch):
-    from quadctl.sim import stack as stack_module
+    from quadctl.sim import stack_run as stack_module
 
     setup, loop = _loop(_windy())
     x0 = setup.initial_state(loop.x_trim)

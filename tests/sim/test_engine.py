@@ -520,7 +520,8 @@ def test_a_diagonal_inertia_is_baked_in_as_zeros_with_the_same_numbers(label, da
     from dataclasses import replace
 
     from quadctl.sim.builder import build
-    from quadctl.sim.stack import run_stack, stack_of
+    from quadctl.sim.stack import stack_of
+    from quadctl.sim.stack_run import run_stack
 
     setup, loop = _loop(data)
     stack = stack_of([loop], [setup.initial_state(loop.x_trim)], duration, setup.dt, noise=setup.noise)
@@ -538,7 +539,8 @@ def test_a_vehicle_with_products_of_inertia_flies_the_code_that_reads_them():
     """A full tensor is not baked in as diagonal: forcing the diagonal code on it changes the flight."""
     from dataclasses import replace
 
-    from quadctl.sim.stack import run_stack, stack_of
+    from quadctl.sim.stack import stack_of
+    from quadctl.sim.stack_run import run_stack
 
     data = cfg_dict("hover")
     data["vehicle"]["inertia"] = [[6.9e-5, 0.9e-5, -1.2e-5], [0.9e-5, 7.75e-5, 0.6e-5], [-1.2e-5, 0.6e-5, 1.5e-4]]

@@ -737,7 +737,7 @@ def test_a_loop_keeps_its_exponential_stack():
     computed again) and gives the same numbers; other settings get their own; a pickled loop carries none."""
     import pickle
 
-    from quadctl.sim.stack import kept_exponential_stack
+    from quadctl.sim.etdrk4_stack import kept_exponential_stack
 
     setup, _, linear, _, des = solve(cfg_dict("forward"))
     loop = pipeline.loop_of(setup, linear, des)
@@ -757,7 +757,7 @@ def test_a_loop_keeps_its_exponential_stack():
 def test_a_long_run_in_chunks_is_the_one_call_run(monkeypatch, name):
     """A run past the runner's chunk (segment after segment, each in chunks, the exogenous rows drawn as
     it goes) gives the one-call run's records (the whole run's rows at once) to round-off."""
-    from quadctl.sim import stack as stack_module
+    from quadctl.sim import stack_run as stack_module
 
     setup, _, linear, _, des = solve(_variant(name))
     loop = pipeline.loop_of(setup, linear, des)

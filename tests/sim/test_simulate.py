@@ -111,7 +111,7 @@ def test_leaving_the_euler_range_is_reported(loop):
 
 def test_chunked_runs_equal_one_long_call(loop, monkeypatch):
     """Chunk boundaries (for Ctrl-C) change nothing: t = k dt from the absolute step index."""
-    import quadctl.sim.stack as stack_module
+    import quadctl.sim.stack_run as stack_module
 
     setup, cl = loop
     x0 = setup.initial_state(cl.x_trim)
