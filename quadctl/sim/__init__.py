@@ -15,13 +15,15 @@ Modules, each importing only those above it:
 - :mod:`~quadctl.sim.interpreted`: the same loop in CasADi's virtual machine, without a compiler
 - :mod:`~quadctl.sim.engine`: :func:`runner`, the fastest runner that builds here
 - :mod:`~quadctl.sim.loop`: the closed loop (:class:`~quadctl.sim.loop.ClosedLoop`): its linear parts, the
-  constants of its code, its bounds and its steps (RK4's, ETDRK4's :func:`~quadctl.sim.loop.exponential_plan`)
+  constants of its code, its bounds and its RK4 step
 - :mod:`~quadctl.sim.exogenous`: a run's exogenous inputs on one clock (:class:`~quadctl.sim.exogenous.ExoStream`:
   noise, wind, a flown reference's rows), drawn chunk by chunk
 - :mod:`~quadctl.sim.stack_run`: a stack of runs ready for a runner (:class:`~quadctl.sim.stack_run.Stack`) and its
   run (:func:`~quadctl.sim.stack_run.run_stack`: a long run of one case in chunks, for Ctrl-C)
-- :mod:`~quadctl.sim.etdrk4_stack`: ETDRK4's stacks (:func:`~quadctl.sim.etdrk4_stack.exponential_stack`: the
-  φ-functions of the loops' linear parts on the stack of them; the stack of one a loop keeps)
+- :mod:`~quadctl.sim.etdrk4_stack`: ETDRK4 for loops: a loop's linear part and graded schedule
+  (:func:`~quadctl.sim.etdrk4_stack.exponential_plan`) and their stacks
+  (:func:`~quadctl.sim.etdrk4_stack.exponential_stack`: the φ-functions of the loops' linear parts on the stack of
+  them; the stack of one a loop keeps)
 - :mod:`~quadctl.sim.stack`: the one entry that makes a stack of loops for either integrator, RK4 or ETDRK4
   (:func:`~quadctl.sim.stack.stack_of`, RK4's :func:`~quadctl.sim.stack.rk4_cases`;
   :func:`~quadctl.sim.stack.simulate_stack`)

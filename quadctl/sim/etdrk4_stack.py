@@ -1,12 +1,16 @@
-"""ETDRK4's stacks of runs: each loop's linear part and graded schedule, the φ-functions of every
-step computed on the stack of the loops' linear parts, and the stack of one a loop keeps.
+"""ETDRK4 for loops and stacks of them: each loop's linear part and graded schedule, the φ-functions of
+every step computed on the stack of the loops' linear parts, and the stack of one a loop keeps.
 
-:func:`exponential_stack` makes the :class:`~quadctl.sim.stack_run.Stack` of ETDRK4 runs (a segment per step of
-each case's schedule; a gain schedule's continuous loop flown piece by piece on the loop closed at the nearest
-schedule value, :func:`_linear_pieces`); :func:`kept_exponential_stack` is the stack of one a loop keeps for its
-next run with the same settings. :func:`quadctl.sim.stack.stack_of` takes them for ``method="etdrk4"``.
+:func:`exponential_plan` gives a loop's linear part and steps (from the loop alone; a sweep plans its
+cases with it); :func:`exponential_stack` makes the :class:`~quadctl.sim.stack_run.Stack` of ETDRK4 runs (a
+segment per step of each case's schedule; a gain schedule's continuous loop flown piece by piece on the loop
+closed at the nearest schedule value, :func:`_linear_pieces`); :func:`kept_exponential_stack` is the stack of one
+a loop keeps for its next run with the same settings. :func:`quadctl.sim.stack.stack_of` takes them for
+``method="etdrk4"``.
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -14,13 +18,47 @@ from quadctl.design.gain_table import scheduling_value, scheduling_values
 from quadctl.metrics import MAX_SAMPLES
 from quadctl.sim.cases import Cases
 from quadctl.sim.etdrk4_matrices import phi_constant_rows, phi_ladder, phi_pattern
-from quadctl.sim.etdrk4_plan import Segment, record_strides
-from quadctl.sim.loop import ClosedLoop, exponential_plan
+from quadctl.sim.etdrk4_plan import Segment, plan_schedule, record_strides
+from quadctl.sim.loop import ClosedLoop
 from quadctl.sim.plan import StepPlan
 from quadctl.sim.stack_run import Stack
 
 SETUPS_KEPT = 4
 """ETDRK4 stacks of one a loop keeps (:func:`kept_exponential_stack`): one per run settings, the latest."""
+
+
+def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float | None = None,
+                     reference=None, exo_period: float | None = None, linear_part=None,
+                     max_stable_dt: float | None = None) -> tuple[np.ndarray, StepPlan]:
+    """ETDRK4's linear part and steps for ``loop``: the closed loop's
+    (:meth:`~quadctl.sim.loop.ClosedLoop.linear_part`) graded by its modes, steps dividing the exogenous period
+    ``exo_period`` (s; None: no exogenous inputs); a sampled controller's plant
+    (:meth:`~quadctl.sim.loop.ClosedLoop.plant_linear_part`) graded by the
+    closed loop's modes, which move it, in segments that start on samples
+    (:func:`quadctl.sim.etdrk4_plan.plan_schedule`). ``linear_part`` and RK4's ``max_stable_dt`` (which
+    the plan reports), when the caller has them (a sweep computes them for many loops at once).
+
+    Raises
+    ------
+    StepSizeError
+        A given step a sampled controller's period does not hold whole, or a runaway plan.
+    """
+
+    kicks = tuple(reference.path.knots) if reference is not None else ()
+    if loop.rate is not None:
+        L, eig = loop.plant_linear_part(), np.asarray(loop.eigenvalues)
+        owners = list(loop.owners) or ["loop"] * len(eig)
+        plan = plan_schedule(eig, owners, duration, dt, tolerance=tolerance, period=1.0 / loop.rate,
+                             forced=reference is not None, held=True, kicks=kicks)
+        rk4 = loop.plan(duration, "auto")  # reported: RK4's limit on the plant between samples
+        return L, replace(plan, max_stable_dt=rk4.max_stable_dt, fastest_eigenvalue=rk4.fastest_eigenvalue,
+                          fastest_owner=rk4.fastest_owner)
+    L = loop.linear_part() if linear_part is None else linear_part
+    eig = np.linalg.eigvals(L)
+    if loop.schedule is not None and loop.schedule_jacobians is not None:  # graded by every point's modes
+        eig = np.concatenate([eig, np.linalg.eigvals(loop.point_linear_parts).ravel()])
+    return L, plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=exo_period,
+                            forced=reference is not None, max_stable_dt=max_stable_dt, kicks=kicks)
 
 
 def _linear_pieces(loop: ClosedLoop, plan: StepPlan, strides, reference) -> list[tuple]:
@@ -62,7 +100,7 @@ def exponential_stack(loops, x0s, duration: float, dt="auto", *, tolerance: floa
                       noise: bool = False, wind: bool = False, planned=None) -> Stack:
     """The :class:`~quadctl.sim.stack_run.Stack` of ETDRK4 runs of ``loops`` of one structure from ``x0s``
     (``noise``, ``wind``: the runs have them; ``exo_period``: s of their exogenous rows, None: none; no rows drawn):
-    each case its own linear part and graded schedule (:func:`~quadctl.sim.loop.exponential_plan`, or ``planned``),
+    each case its own linear part and graded schedule (:func:`exponential_plan`, or ``planned``),
     a segment a step, each segment's constants the loop's, then the φ-functions of its step and linear part. A
     sampled controller's segments start on its samples; a gain schedule's continuous loop flies each stretch on the
     loop closed at the schedule value nearest the commanded one (:func:`_linear_pieces`). The loops whose schedules

@@ -1,7 +1,8 @@
 """The closed loop a simulation flies: the plant's parameters, the trim and the control law
 (:class:`ClosedLoop`), and what is read from a loop alone: its linear parts, the constants and structure
-of its generated code (:mod:`quadctl.sim.builder`), the bounds a run stops at, and its steps (RK4's
-:meth:`ClosedLoop.plan`; ETDRK4's linear part and graded schedule, :func:`exponential_plan`).
+of its generated code (:mod:`quadctl.sim.builder`), the bounds a run stops at, and its RK4 step
+(:meth:`ClosedLoop.plan`; ETDRK4's linear part and graded schedule are
+:func:`quadctl.sim.etdrk4_stack.exponential_plan`'s).
 
 ``u = u_ref(t) - K (x - x_ref(t))``: by default ``x_ref(t) = x_trim + x_rate t`` (positions drift at
 the trim velocity) and ``u_ref = u_trim``; with ``simulation.reference`` the reference flown and its
@@ -12,7 +13,7 @@ the engine of :mod:`quadctl.sim` (compiled where a C compiler works).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -21,7 +22,6 @@ import numpy as np
 from quadctl.design import lqg_loop
 from quadctl.errors import ArgumentError
 from quadctl.layout import N_STATES, PRODUCTS, STATE_INDEX, STATE_NAMES
-from quadctl.sim.etdrk4_plan import plan_schedule
 from quadctl.sim.loop_layout import pack_constants
 from quadctl.sim.loop_spec import LoopSpec
 from quadctl.sim.pid import initial_states, structure_of
@@ -425,36 +425,3 @@ def gain_constants(loops) -> dict[str, np.ndarray]:
         if nz and coefficients.shape[-1] > N_STATES:  # the integrators the table's Ki drives
             out["antiwindup"] = np.any(coefficients[..., N_STATES:] != 0, axis=(1, 2)).transpose(0, 2, 1).astype(float)
     return out
-
-
-def exponential_plan(loop: ClosedLoop, duration: float, dt="auto", *, tolerance: float | None = None,
-                     reference=None, exo_period: float | None = None, linear_part=None,
-                     max_stable_dt: float | None = None) -> tuple[np.ndarray, StepPlan]:
-    """ETDRK4's linear part and steps for ``loop``: the closed loop's (:meth:`ClosedLoop.linear_part`)
-    graded by its modes, steps dividing the exogenous period ``exo_period`` (s; None: no exogenous
-    inputs); a sampled controller's plant (:meth:`ClosedLoop.plant_linear_part`) graded by the
-    closed loop's modes, which move it, in segments that start on samples
-    (:func:`quadctl.sim.etdrk4_plan.plan_schedule`). ``linear_part`` and RK4's ``max_stable_dt`` (which
-    the plan reports), when the caller has them (a sweep computes them for many loops at once).
-
-    Raises
-    ------
-    StepSizeError
-        A given step a sampled controller's period does not hold whole, or a runaway plan.
-    """
-
-    kicks = tuple(reference.path.knots) if reference is not None else ()
-    if loop.rate is not None:
-        L, eig = loop.plant_linear_part(), np.asarray(loop.eigenvalues)
-        owners = list(loop.owners) or ["loop"] * len(eig)
-        plan = plan_schedule(eig, owners, duration, dt, tolerance=tolerance, period=1.0 / loop.rate,
-                             forced=reference is not None, held=True, kicks=kicks)
-        rk4 = loop.plan(duration, "auto")  # reported: RK4's limit on the plant between samples
-        return L, replace(plan, max_stable_dt=rk4.max_stable_dt, fastest_eigenvalue=rk4.fastest_eigenvalue,
-                          fastest_owner=rk4.fastest_owner)
-    L = loop.linear_part() if linear_part is None else linear_part
-    eig = np.linalg.eigvals(L)
-    if loop.schedule is not None and loop.schedule_jacobians is not None:  # graded by every point's modes
-        eig = np.concatenate([eig, np.linalg.eigvals(loop.point_linear_parts).ravel()])
-    return L, plan_schedule(eig, ["loop"] * len(eig), duration, dt, tolerance=tolerance, period=exo_period,
-                            forced=reference is not None, max_stable_dt=max_stable_dt, kicks=kicks)

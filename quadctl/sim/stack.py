@@ -41,8 +41,8 @@ def stack_of(loops, x0s, duration: float, dt="auto", *, method: str = "rk4", noi
     :func:`~quadctl.sim.run.simulate`): one case is a stack of one (an ETDRK4 case from the setup its loop keeps,
     :func:`~quadctl.sim.etdrk4_stack.kept_exponential_stack`); more run in the SIMD lanes, each case stepping as its
     one-case run does (ETDRK4: the φ-functions of all the loops' linear parts computed on the stack of them).
-    ``planned``: each loop's ``(L, StepPlan)`` of :func:`~quadctl.sim.loop.exponential_plan`, when the caller has
-    them.
+    ``planned``: each loop's ``(L, StepPlan)`` of :func:`~quadctl.sim.etdrk4_stack.exponential_plan`, when the
+    caller has them.
 
     Raises
     ------

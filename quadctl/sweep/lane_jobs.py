@@ -7,7 +7,7 @@ step plan, lane spec and bounds per loop structure), the noise realizations the 
 share (:data:`REALIZATION_BYTES`), and the reference rows of the cases that fly one drawn together
 (:meth:`quadctl.sim.exogenous.ExoStream.samples_of`: their feedforward solved in lockstep, each case's
 rows those it has alone). The step plan is the loop's own (:meth:`quadctl.sim.loop.ClosedLoop.plan`;
-ETDRK4: :func:`quadctl.sim.loop.exponential_plan`). :mod:`quadctl.sweep.batched` designs the cases
+ETDRK4: :func:`quadctl.sim.etdrk4_stack.exponential_plan`). :mod:`quadctl.sweep.batched` designs the cases
 before and runs the jobs after.
 """
 from __future__ import annotations
@@ -28,8 +28,9 @@ from quadctl.physics.motors import check_trim
 from quadctl.physics.noise import exogenous_period
 from quadctl.pipeline import estimator_of
 from quadctl.sim.etdrk4_plan import rk4_limits
+from quadctl.sim.etdrk4_stack import exponential_plan
 from quadctl.sim.exogenous import ExoStream
-from quadctl.sim.loop import ClosedLoop, exponential_plan
+from quadctl.sim.loop import ClosedLoop
 from quadctl.sim.plan import max_stable_steps
 
 if TYPE_CHECKING:
@@ -71,7 +72,7 @@ class ExponentialJob:
     group: tuple
     """The cases that can share lanes: structure, rate and simulation inputs (by value)."""
     linear_part: np.ndarray
-    """ETDRK4's linear part of the loop (:func:`quadctl.sim.loop.exponential_plan`)."""
+    """ETDRK4's linear part of the loop (:func:`quadctl.sim.etdrk4_stack.exponential_plan`)."""
 
 
 def loops_of(live, method: str = "rk4") -> list:

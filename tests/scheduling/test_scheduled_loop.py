@@ -310,8 +310,7 @@ def test_etdrk4_flies_a_gain_schedule_on_the_loop_closed_at_the_nearest_value(sp
     9.1e-9, four times that (2.3e-7 on steps graded on tolerance^(1/4), where a reference's largest
     step was 6.6 times as long: quadctl.sim.etdrk4_plan.forced_step)."""
     from quadctl.sim.etdrk4_plan import record_strides
-    from quadctl.sim.etdrk4_stack import _linear_pieces
-    from quadctl.sim.loop import exponential_plan
+    from quadctl.sim.etdrk4_stack import _linear_pieces, exponential_plan
 
     loop, sched, ref, x0, truth = speed_steps
     etd = simulate(loop, x0, SETPOINT_RUN, "auto", method="etdrk4", tolerance=1e-8, reference=ref)
