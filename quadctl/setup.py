@@ -10,23 +10,22 @@ config after that.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
 from typing import Literal
 
 import numpy as np
 
+from quadctl.bryson import bryson_weights, weight_error
 from quadctl.config import Config, ScheduleConfig, SubsystemConfig, inertia_parts, weight_matrix
 from quadctl.config.pid import PidGains, resolve
 from quadctl.config.simulation_schema import ETDRK4_TOLERANCE
-from quadctl.errors import ArgumentError, ArgumentTypeError, RateError, TrimError
+from quadctl.errors import ArgumentError, ArgumentTypeError, RateError
 from quadctl.layout import INPUT_INDEX, N_INPUTS, N_STATES, STATE_INDEX
 from quadctl.linear.filters import RateFilter, rate_filter_of
-from quadctl.linear.trim import solve_trim
 from quadctl.physics import trajectory
 from quadctl.physics.model import Vehicle
-from quadctl.physics.motors import Actuators, Motors, actuators_of, headroom
+from quadctl.physics.motors import Actuators, Motors, actuators_of
 from quadctl.physics.noise import NoiseSpec, exogenous_period
 from quadctl.physics.reference_rows import FlownReference
 from quadctl.physics.trajectory import Reference
@@ -177,8 +176,8 @@ class Setup:
     rate_filter : quadctl.linear.filters.RateFilter or None
         The filters on the gyro (``controller.filters``), in the loop the vehicle has; None: raw rates.
     weight_error : str or None
-        Why a Bryson rule (``lqr.<name>.bryson``) has no weights on this vehicle (:func:`weight_error`):
-        the design refuses the setup with it; None: every weight is a number.
+        Why a Bryson rule (``lqr.<name>.bryson``) has no weights on this vehicle
+        (:func:`quadctl.bryson.weight_error`): the design refuses the setup with it; None: every weight is a number.
 
     Examples
     --------
@@ -350,46 +349,6 @@ def _pid(cfg: Config):
 
     pid = cfg.controller.pid
     return resolve(pid.preset, pid.values, pid.attitude) if pid is not None else resolve("crazyflie")
-
-
-def bryson_weights(cfg: Config, vehicle: Vehicle, actuators: Actuators | None,
-                   trim_wind=(0.0, 0.0, 0.0)) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """``(Q, R)`` of each subsystem whose weights are Bryson's rule (``lqr.<name>.bryson``), on this vehicle.
-
-    ``Q = diag(1 / e^2)`` of the largest acceptable errors ``e``; ``R = diag(1 / du^2)`` with ``du`` the
-    rule's ``headroom`` share of each input's room around the trim (:func:`quadctl.physics.motors.headroom`, the
-    nearer side), the trim solved for the config's flight condition on ``vehicle``.
-
-    An input with no room around the trim (its rotors at a limit there), or a flight condition with no
-    trim, gives NaN in ``R``: the stages that need no weights (trim, linearize) still run, and the design
-    refuses them (:attr:`Setup.weight_error`, :func:`weight_error`).
-    """
-    rules = {name: w for name, w in cfg.lqr.items() if w.bryson is not None}
-    if not rules:
-        return {}
-
-    try:
-        trim = solve_trim(cfg.trim.velocity_ned, cfg.trim.yaw, cfg.trim.position_ned, vehicle, wind_ned=trim_wind)
-        room = headroom(actuators, trim.u)
-    except TrimError:  # the trim stage says why
-        room = None
-    out = {}
-    for name, w in rules.items():
-        steps = [w.bryson.headroom * min(room[inp]) if room is not None else math.nan
-                 for inp in cfg.partition()[name].inputs]
-        out[name] = (np.diag(1.0 / np.square(w.bryson.errors)),
-                     np.diag([1.0 / s ** 2 if s > 0 else math.nan for s in steps]))
-    return out
-
-
-def weight_error(cfg: Config, weights: dict) -> str | None:
-    """The one line that says why a Bryson rule has no weights on this vehicle (None: every weight is a number)."""
-    for name, (_, R) in weights.items():
-        if cfg.lqr[name].bryson is not None and np.isnan(np.diag(R)).any():
-            inputs = ", ".join(cfg.partition()[name].inputs)
-            return (f"{cfg.name}: lqr.{name}.bryson: {inputs} has no room around the trim (a rotor at its limit "
-                    "there, or no trim): give Q and R, or motors that can hold the trim")
-    return None
 
 
 def _reference(cfg: Config):

@@ -184,7 +184,7 @@ REQUIRED = "..."
 
 def bryson_rules(preset: Preset, velocity_ned=(0.0, 0.0, 0.0), hold: bool = False
                  ) -> dict[str, tuple[dict, str]]:
-    """The LQR weights as Bryson's rule (``lqr.<name>.bryson``, :func:`quadctl.setup.bryson_weights`
+    """The LQR weights as Bryson's rule (``lqr.<name>.bryson``, :func:`quadctl.bryson.bryson_weights`
     evaluates it on the vehicle the config describes), with a comment giving what it comes to on the
     preset's vehicle (``hold``: roll and pitch weigh the east and north position too,
     :data:`HOLD_POSITION_ERROR`).
