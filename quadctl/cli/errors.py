@@ -8,6 +8,7 @@ import functools
 import inspect
 import os
 import re
+import shlex
 import sys
 import warnings
 
@@ -381,11 +382,22 @@ def usage_message(exc, args, command: str = "quadctl") -> str:
     extra = re.fullmatch(r"Got unexpected extra argument\(s\) \((\S+)\)", getattr(exc, "message", "") or "")
     taken = next((o for key, o in (("config", "-c"), ("show", "--show")) if ctx is not None and key in ctx.params
                   and ctx.params[key] is None), None) if extra else None
-    if taken is not None:  # quadctl run hover, quadctl configs hover
+    if taken is not None and _names_a_config(extra[1]):  # quadctl run hover, quadctl configs hover
+        words = list(args)
+        at = len(words) - 1 - words[::-1].index(extra[1]) if extra[1] in words else len(words)
+        fixed = shlex.join([*words[:at], taken, extra[1], *words[at + 1:]])
         return f"{command}: got an extra argument, {extra[1]}: a config goes after {taken}, as " \
-               f"`{command} {taken} {extra[1]}`"
+               f"`{command.split()[0]} {fixed}`"
     text = _number(one_line(exc.format_message())).rstrip(".")
     return f"{command}: {text[:1].lower()}{text[1:]}; see `{command} --help`"
+
+
+def _names_a_config(word: str) -> bool:
+    """Whether a stray word names a config: a file, or a bundled config's name (with or without ``.yaml``);
+    another word (``quadctl compare pid:px4``, a law) is not read as one."""
+    from quadctl.config.loading import bundled_names
+
+    return os.path.isfile(word) or re.sub(r"\.ya?ml$", "", word) in bundled_names()
 
 
 def _command_option_first(option: str, args, ctx) -> str | None:

@@ -292,6 +292,12 @@ USAGE_ERRORS = {
     "a config without --show": (["configs", "hover"], "quadctl: error: quadctl configs: got an extra argument, "
                                                       "hover: a config goes after --show, as `quadctl configs --show "
                                                       "hover`"),
+    # the line keeps the options given, and reads a word as a config only when it names one
+    "a config without -c after options": (["export", "--to", "c", "hover"], "quadctl: error: quadctl export: got an "
+                                          "extra argument, hover: a config goes after -c, as `quadctl export --to c "
+                                          "-c hover`"),
+    "a law without --law": (["compare", "pid:px4"], "quadctl: error: quadctl compare: got unexpected extra "
+                                                    "argument(s) (pid:px4); see `quadctl compare --help`"),
     "an extra word beside -c": (["trim", "-c", "hover", "x"], "quadctl: error: quadctl trim: got unexpected extra "
                                                               "argument(s) (x); see `quadctl trim --help`"),
     # empty values: --show '' listed the bundled configs, -s '' read the current folder as the sweep file
