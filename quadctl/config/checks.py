@@ -42,15 +42,24 @@ def check_semantics(cfg: Config, label: str) -> None:
         error.key = path
         raise error
 
+    folded: dict[str, str] = {}  # a name's file name where file names ignore case (macOS, Windows) -> the name
     for name in cfg.subsystems or {}:
         if not re.fullmatch(SUBSYSTEM_NAME_PATTERN, name):
             raise ConfigError(f"{label}: subsystems: {name!r} is not a usable subsystem name: it must start with a "
                               "letter and use only letters, digits and '_' (at most 63 characters: it names "
                               f"files, C and MATLAB fields); rename it, e.g. `{_safe_name(name)}`")
-        if name in OWN_FIGURES:
+        own = name.casefold()
+        if own in OWN_FIGURES:
+            same = ("" if own == name else
+                    f", one file with plots/{name}.png where file names ignore case (macOS, Windows)")
             raise ConfigError(f"{label}: subsystems: {name!r} is the name of a figure quadctl draws of its own "
-                              f"(plots/{name}.png), which would take the place of this subsystem's; rename it, "
+                              f"(plots/{own}.png{same}), which would take the place of this subsystem's; rename it, "
                               f"e.g. `{name}_loop`")
+        other = folded.setdefault(own, name)
+        if other != name:
+            raise ConfigError(f"{label}: subsystems: {other!r} and {name!r} differ only in case: their figures "
+                              f"(plots/{other}.png, plots/{name}.png) are one file where file names ignore case "
+                              f"(macOS, Windows); rename one, e.g. `{name}_2`")
     partition = cfg.partition()
     where = "subsystems" if cfg.subsystems is not None else "subsystems (the report's default)"
     seen_states: dict[str, str] = {}

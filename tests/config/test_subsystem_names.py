@@ -49,6 +49,26 @@ def test_a_name_of_one_of_quadctls_own_figures_is_refused(name):
     config.from_dict(_renamed(f"{name}_loop"), "c.yaml")
 
 
+@pytest.mark.parametrize("name", ["Inputs", "WIND", "Schedule"])
+def test_a_name_of_an_own_figure_in_other_case_is_refused(name):
+    """macOS's and Windows's file systems ignore case by default: plots/Inputs.png is plots/inputs.png there."""
+    own = name.casefold()
+    with pytest.raises(ConfigError, match=rf"^c\.yaml: subsystems: '{name}' is the name of a figure quadctl draws "
+                                          rf"of its own \(plots/{own}\.png, one file with plots/{name}\.png where "
+                                          rf"file names ignore case \(macOS, Windows\)\), .*; rename it, e\.g\. "
+                                          rf"`{name}_loop`$"):
+        config.from_dict(_renamed(name), "c.yaml")
+
+
+def test_two_names_that_differ_only_in_case_are_refused():
+    """hover's roll beside a Roll (yaw renamed): their figures would be one file where file names ignore case."""
+    with pytest.raises(ConfigError, match=r"^c\.yaml: subsystems: 'roll' and 'Roll' differ only in case: their "
+                                          r"figures \(plots/roll\.png, plots/Roll\.png\) are one file where file "
+                                          r"names ignore case \(macOS, Windows\); rename one, e\.g\. `Roll_2`$"):
+        config.from_dict(_renamed("Roll"), "c.yaml")
+    config.from_dict(_renamed("Roll_2"), "c.yaml")
+
+
 def test_the_own_figures_are_every_figure_drawn_beside_the_subsystems():
     from types import SimpleNamespace
 
