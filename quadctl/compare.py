@@ -15,7 +15,6 @@ the same cost, both flown on the nonlinear model from the configured offset (:fu
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 from dataclasses import dataclass
 
@@ -45,6 +44,7 @@ from quadctl.sim.cascade_margins import cascade_margins
 from quadctl.sim.exogenous import ExoStream
 from quadctl.sim.loop import ClosedLoop
 from quadctl.sim.run import SimResult, simulate, stop_cause
+from quadctl.text.messages import hint
 
 METRICS: tuple[tuple[str, str, str], ...] = (
     ("position_rms", "m", "RMS over the run of |p - p_ref|"),
@@ -145,9 +145,8 @@ def parse_law(text: str) -> tuple[str, str | None]:
         return "lqr", None
     if kind == "pid" and preset in PRESET_NAMES:
         return "pid", preset
-    laws = ["lqr", *(f"pid:{name}" for name in PRESET_NAMES)]
-    close = difflib.get_close_matches(text.lower(), laws, n=1, cutoff=0.75)  # pid:crazyfly, PID:px4; not
-    near = f"; did you mean `{close[0]}`?" if close else ""                  # pid:betaflight for crazyflie
+    near = hint(text.lower(), ["lqr", *(f"pid:{name}" for name in PRESET_NAMES)], cutoff=0.75)  # pid:crazyfly,
+    near = f"; {near}" if near.startswith("did you mean") else ""  # PID:px4; not pid:betaflight for pid:crazyflie
     raise ArgumentError(f"law {text!r}: use lqr or pid:<preset> with a preset of {', '.join(PRESET_NAMES)}{near}")
 
 

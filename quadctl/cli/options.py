@@ -13,12 +13,19 @@ ConfigOpt = Annotated[Optional[str], typer.Option(
          "Default: forward, the report's case.")]
 
 
-def out_folder(text: str) -> Path:
-    """``--out``'s value as a path, refusing an empty one (a path of '' would be the current folder)."""
-    if not text.strip():
-        raise typer.BadParameter("an empty path; give the run directory, or leave -o out for runs/<config name>")
-    return Path(text)
+def nonempty_path(way_out: str):
+    """A typer ``parser`` taking an option's value as a path and refusing an empty one (a path of '' would
+    be the current folder): ``an empty path; <way_out>``."""
+    def parsed(text: str) -> Path:
+        if not text.strip():
+            raise typer.BadParameter(f"an empty path; {way_out}")
+        return Path(text)
 
+    return parsed
+
+
+out_folder = nonempty_path("give the run directory, or leave -o out for runs/<config name>")
+"""``--out``'s parser."""
 
 OutOpt = Annotated[Optional[Path], typer.Option(
     "--out", "-o", metavar="DIR", parser=out_folder,

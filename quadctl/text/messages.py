@@ -117,16 +117,17 @@ def show(value: Any, exact: bool = False) -> str:
     return text if len(text) <= SHOWN_CHARS else text[:SHOWN_CHARS - 3] + "..."
 
 
-def hint(name: str, allowed, many: bool = False) -> str:
-    """``did you mean `X`?`` (same letters in another case first, then the nearest spelling),
-    else the list of what is allowed (cut to 12 with ``many``).
+def hint(name: str, allowed, many: bool = False, cutoff: float = 0.5) -> str:
+    """``did you mean `X`?`` (same letters in another case first, then the nearest spelling, at least
+    ``cutoff`` alike by :func:`difflib.get_close_matches`), else the list of what is allowed (cut to 12
+    with ``many``).
 
     >>> hint("mas", ["mass", "gravity"]), hint("Q", ["q", "r"]), hint("zz", ["a", "b"])
     ('did you mean `mass`?', 'did you mean `q`?', 'allowed: a, b')
     """
     allowed = [str(a) for a in allowed]
     same_but_case = [a for a in allowed if a.lower() == name.lower()]
-    near = same_but_case or difflib.get_close_matches(name, allowed, n=1, cutoff=0.5)
+    near = same_but_case or difflib.get_close_matches(name, allowed, n=1, cutoff=cutoff)
     if near:
         return f"did you mean `{near[0]}`?"
     shown = allowed[:12] + ["..."] if many and len(allowed) > 12 else allowed

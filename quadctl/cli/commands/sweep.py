@@ -4,20 +4,14 @@ from typing import Annotated, Optional
 import typer
 
 from quadctl.cli.errors import FailedChecks
-from quadctl.cli.options import ConfigOpt, JsonOpt, OutOpt, SetOpt
+from quadctl.cli.options import ConfigOpt, JsonOpt, OutOpt, SetOpt, nonempty_path
 
 NAME = "sweep"
 
 
-def _sweep_file(text: str) -> Path:
-    """``--sweep``'s value as a path, refusing an empty one (a path of '' would be the current folder)."""
-    if not text.strip():
-        raise typer.BadParameter("an empty path; give the sweep file, as `quadctl sweep -s examples/ci-sweep.yaml`")
-    return Path(text)
-
-
 def command(
-    sweep: Annotated[Path, typer.Option("--sweep", "-s", metavar="FILE", parser=_sweep_file,
+    sweep: Annotated[Path, typer.Option("--sweep", "-s", metavar="FILE", parser=nonempty_path(
+        "give the sweep file, as `quadctl sweep -s examples/ci-sweep.yaml`"),
                                         help="Sweep file: parameters to vary, mode, gates.")],
     config: ConfigOpt = None, out: OutOpt = None, sets: SetOpt = None,
     jobs: Annotated[Optional[int], typer.Option(
