@@ -22,7 +22,7 @@ from quadctl.config.template import PRESETS
 from quadctl.errors import ArgumentError, ConfigError
 from quadctl.export import c
 from quadctl.export.bundle import Export, law_text, require_export
-from quadctl.present.platform import no_setpoint_flyable, setpoint_refused
+from quadctl.present.platform import no_setpoint_flyable, rotors_to_add, setpoint_refused
 from quadctl.text.escape import c_comment
 from quadctl.text.setpoints import SETPOINT_NEEDS as NEEDS
 from quadctl.version import __version__
@@ -44,7 +44,11 @@ SPINS = (1.0, -1.0, 1.0, -1.0)
 
 @dataclass(frozen=True)
 class Platform:
-    """The firmware platform defaults the app is compared with."""
+    """The firmware platform defaults the app is compared with (:data:`FIRMWARE` names each one's macro).
+
+    ``vmotor2thrust`` holds the fit's coefficients, constant term first (N, N/V, N/V², N/V³); the thrust full
+    PWM gives, :attr:`full_pwm_thrust`, is computed from them at :attr:`full_pwm_voltage`, never stored beside
+    it."""
 
     name: str
     commit: str
@@ -53,7 +57,7 @@ class Platform:
     arm_length: float
     max_thrust: float
     min_thrust: float
-    full_pwm_thrust: float
+    vmotor2thrust: tuple[float, float, float, float]
     torque_coefficient: float
     min_thrust_source: str = "src/drivers/src/motors.c motorsCompensateBatteryVoltage"
     full_pwm_voltage: float = 4.2
@@ -73,6 +77,23 @@ class Platform:
         """The sensor driver's low-pass of ``sensors->gyro``, as the config's ``controller.filters`` writes it."""
         return f"controller.filters: {{gyro: {{cutoff: {self.gyro_cutoff:g}, order: {self.gyro_order}}}}}"
 
+    def motors_section(self) -> str:
+        """The firmware's rotors as the config's ``motors:`` writes them: the section force mode needs
+        (:func:`check`), at the platform's arm, thrusts and torque coefficient."""
+        return (f"motors: {{layout: x, arm_length: {self.arm_length:g}, max_thrust: {self.max_thrust:g}, "
+                f"min_thrust: {self.min_thrust:.4g}, torque_coefficient: {self.torque_coefficient:.4g}}}")
+
+    def thrust_at(self, volts):
+        """N: a motor's thrust at ``volts`` (V) on it, by the battery compensation's cubic fit
+        (:attr:`vmotor2thrust`)."""
+        v = np.asarray(volts, dtype=float)
+        return sum(c * v ** k for k, c in enumerate(self.vmotor2thrust))
+
+    @property
+    def full_pwm_thrust(self) -> float:
+        """N per motor: what full PWM gives at :attr:`full_pwm_voltage`, the fit (:meth:`thrust_at`) there."""
+        return float(self.thrust_at(self.full_pwm_voltage))
+
     def motors(self):
         """The firmware's own mixer as :class:`quadctl.physics.motors.Motors` (x layout, ``ARM_LENGTH``,
         ``THRUST2TORQUE``, its motors M1-M4 in :data:`NUMBERING`): what force-torque mode mixes the law's
@@ -91,7 +112,10 @@ FIRMWARE = Platform(
     arm_length=0.046,                             # ARM_LENGTH, m
     max_thrust=0.12,                              # THRUST_MAX, N per motor
     min_thrust=0.012817578393224994,              # THRUST_MIN, N per motor (7000 / 65535 of THRUST_MAX)
-    full_pwm_thrust=0.2786929273177367,           # N per motor at full PWM, 4.2 V: the VMOTOR2THRUST0-3 cubic there
+    vmotor2thrust=(-0.02476537915958403,          # VMOTOR2THRUST0-3, N at V**0..V**3: a motor's thrust
+                   0.06523793527519485,           # against its voltage, the battery compensation's fit
+                   -0.026792504967750107,
+                   0.006776789303971145),
     torque_coefficient=0.0069928948992470565,     # THRUST2TORQUE, m (N m per N)
 )
 """bitcraze/crazyflie-firmware at :attr:`Platform.commit` (2026-08-21), :attr:`Platform.source`:
@@ -101,10 +125,11 @@ works between: a motor asked for more than ``THRUST_MAX`` is clipped there in fo
 (``powerDistributionForce`` in ``src/modules/src/power_distribution_quadrotor.c`` clips its share to [0, 1]),
 one asked for less than ``THRUST_MIN`` gets no voltage at all, in either mode (:attr:`Platform.min_thrust_source`;
 the idle thrust that could floor it instead, ``powerDistribution.idleThrust``, is 0 on a Crazyflie 2.x, whose
-motors need no arming); the top of force-torque mode, ``full_pwm_thrust`` (below); and the second-order
-low-pass (``lpf2p``, at the 1 kHz sensor rate) the sensor driver runs on the gyro at ``GYRO_LPF_CUTOFF_FREQ``
-before it hands ``sensors->gyro`` to any controller, the app's too (the ``crazyflie`` PID preset's
-``gyro_lpf_hz``).
+motors need no arming); ``VMOTOR2THRUST0`` to ``VMOTOR2THRUST3``, the fit of a motor's thrust against its
+voltage (:attr:`Platform.vmotor2thrust`), which gives the top of force-torque mode, ``full_pwm_thrust`` (below);
+and the second-order low-pass (``lpf2p``, at the 1 kHz sensor rate) the sensor driver runs on the gyro at
+``GYRO_LPF_CUTOFF_FREQ`` before it hands ``sensors->gyro`` to any controller, the app's too (the ``crazyflie`` PID
+preset's ``gyro_lpf_hz``).
 
 ``full_pwm_thrust`` is the top of force-torque mode, which has no clip at ``THRUST_MAX``
 (:attr:`Platform.full_pwm_source`): ``powerDistributionForceTorque`` sets a negative share to 0 and scales the
@@ -234,8 +259,7 @@ def check(exp: Export, setpoint: str | None = None, mode: str = "force") -> None
     if mode == "force":
         if act is None or act.mode != "motors":
             raise ConfigError("motors: is absent: force mode writes each rotor's thrust, so the config needs its "
-                              "rotors (motors: with layout x, arm_length, max_thrust), or export with "
-                              "--mode force-torque")
+                              f"rotors: add them, {rotors_to_add(FIRMWARE)}, or export with --mode force-torque")
         motors = act.motors
         where, spins = quadrants(motors.positions()), tuple(float(v) for v in motors.rotor_spins())
         if where != NUMBERING or spins != SPINS:
@@ -331,7 +355,8 @@ def platform_rows(exp: Export, platform: Platform = FIRMWARE) -> list[tuple[str,
 
 
 ZERO_THRUST = 1e-12
-"""N: a rotor thrust within this of 0 is the saturation's 0, mixed to rotors with round-off."""
+"""N: a rotor thrust within this of 0 is the saturation's 0, and within this over a limit is the limit, mixed to
+rotors with round-off (a rotor saturated at ``motors.max_thrust = 0.12`` comes out 0.12000000000000002 N)."""
 
 
 @dataclass(frozen=True)
@@ -351,6 +376,8 @@ class FlightThrusts:
         How the run ended (:attr:`quadctl.sim.run.SimResult.message`); ``ok`` says it completed.
     ok : bool
         The run completed.
+    rotors : bool
+        The config has rotors (``motors:``), which force mode needs (:func:`check`).
     """
 
     thrusts: np.ndarray
@@ -358,6 +385,7 @@ class FlightThrusts:
     mode: str
     message: str
     ok: bool
+    rotors: bool
 
     def lowest(self) -> tuple[int, float]:
         """(motor index 0-3, N): the least thrust any motor is asked for."""
@@ -380,9 +408,34 @@ class FlightThrusts:
         (:meth:`stopped`)."""
         return float(np.mean(np.any(self.stopped(limit), axis=1)))
 
+    def above(self, limit: float) -> np.ndarray:
+        """(N+1, 4) bool: the thrusts over ``limit`` (N) by more than the mixer's round-off (:data:`ZERO_THRUST`):
+        a rotor the design's saturation holds at the limit asks for the limit."""
+        return self.thrusts > limit + ZERO_THRUST
+
     def share_above(self, limit: float) -> float:
-        """The share of the run's samples in which some motor is asked for more than ``limit`` (N)."""
-        return float(np.mean(np.any(self.thrusts > limit, axis=1)))
+        """The share of the run's samples in which some motor is asked for more than ``limit`` (N) (:meth:`above`)."""
+        return float(np.mean(np.any(self.above(limit), axis=1)))
+
+    def summary(self, platform: Platform) -> dict:
+        """The flight against ``platform``'s limits, as ``quadctl export --to crazyflie --json`` gives it under
+        ``flight`` (docs/guide/export.md lists the keys).
+
+        Returns
+        -------
+        dict
+            ``completed`` (bool); ``lowest``, ``highest`` (N, any motor); ``stopped``, ``above_max``,
+            ``above_full_pwm``: the shares of the run's samples (0 to 1) in which some motor is asked for less than
+            :attr:`Platform.min_thrust` (:meth:`share_stopped`), more than :attr:`Platform.max_thrust` (force
+            mode's clip) or more than :attr:`Platform.full_pwm_thrust` (force-torque mode's cap)
+            (:meth:`share_above`). The share of the limit the mode does not have is None: force-torque mode has no
+            clip at ``max_thrust``, and force mode clips there, under full PWM.
+        """
+        force = self.mode == "force"
+        return {"completed": self.ok, "lowest": self.lowest()[1], "highest": self.highest()[1],
+                "stopped": self.share_stopped(platform.min_thrust),
+                "above_max": self.share_above(platform.max_thrust) if force else None,
+                "above_full_pwm": None if force else self.share_above(platform.full_pwm_thrust)}
 
 
 def flight_thrusts(exp: Export, mode: str = "force", platform: Platform = FIRMWARE) -> FlightThrusts | None:
@@ -404,14 +457,15 @@ def flight_thrusts(exp: Export, mode: str = "force", platform: Platform = FIRMWA
     if mode not in MODES:
         raise ArgumentError(f"mode must be one of {MODES}, got {mode!r}")
     act = exp.loop.actuators
-    if mode == "force" and (act is None or act.mode != "motors"):
+    rotors = act is not None and act.mode == "motors"
+    if mode == "force" and not rotors:
         return None
     run = simulation_of(exp.setup, exp.loop)
     u = np.asarray(run.u, dtype=float)
     # force-torque: the firmware gives a motor its mixed share, or nothing when that is negative
     thrusts = act.commands(u) if mode == "force" else np.maximum(u @ platform.motors().mixer().T, 0.0)
     return FlightThrusts(thrusts=thrusts, t=np.asarray(run.t, dtype=float), mode=mode, message=run.message,
-                         ok=run.status == "ok")
+                         ok=run.status == "ok", rotors=rotors)
 
 
 def _mass(exp: Export) -> float:

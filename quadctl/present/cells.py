@@ -90,6 +90,20 @@ def num(value, digits: int = 4) -> str:
     return f"{value + 0.0:.{digits}g}"
 
 
+def apart(a: float, b: float, digits: int = 4) -> tuple[str, str]:
+    """Two numbers that differ, each written with ``digits`` significant digits, or with more where those read
+    alike (up to 17, which tell any two floats apart): a value beside the limit it passes.
+
+    >>> apart(0.3406, 0.2787), apart(0.2786932, 0.2786929)
+    (('0.3406', '0.2787'), ('0.2786932', '0.2786929'))
+    """
+    for d in range(digits, 18):
+        x, y = f"{a:.{d}g}", f"{b:.{d}g}"
+        if x != y:
+            break
+    return x, y
+
+
 def db(value) -> str:
     """A margin in dB, signed, 3 digits: ``+18.4``, ``-inf``; exactly ``0`` (no margin) as ``0``; None ``-``.
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadctl.present.cells import apart
 from quadctl.text.setpoints import SETPOINT_OPTIONS
 
 AGREE_RTOL = 0.005
@@ -98,28 +99,47 @@ def flight_sentences(flight, platform) -> list[tuple[str, str]]:
     if stopped.any():
         fix = (f"set motors.min_thrust: {platform.min_thrust:.4g} (the design's saturation, which the app flies, then "
                "asks no less)" if force else
-               f"export with --mode force and motors.min_thrust: {platform.min_thrust:.4g} (the app's saturation "
-               "then asks no less)")
+               f"{_to_force_mode(flight, platform, f'motors.min_thrust: {platform.min_thrust:.4g}')} (the app's "
+               "saturation then asks no less)")
         motors = ", ".join(f"M{k + 1}" for k in np.flatnonzero(stopped.any(axis=0)))
         out.append(("warning", f"the configured flight asks {motors} for thrusts between 0 and the "
                                f"{platform.min_thrust:.4g} N under which the firmware stops a motor "
                                f"({100 * flight.share_stopped(platform.min_thrust):.3g} % of the run), where the "
                                f"vehicle loses thrust the design counts on; {fix}, or fly gentler gains or offsets"))
-    if force and hi > platform.max_thrust:
-        out.append(("warning", f"the configured flight asks M{i_hi + 1} for {_newtons(hi)} N, above the "
-                               f"{platform.max_thrust:.4g} N at which the firmware clips a motor in force mode: some "
+    if force and flight.above(platform.max_thrust).any():
+        asked, limit = apart(hi, platform.max_thrust)
+        out.append(("warning", f"the configured flight asks M{i_hi + 1} for {asked} N, above the "
+                               f"{limit} N at which the firmware clips a motor in force mode: some "
                                f"motor is above it {100 * flight.share_above(platform.max_thrust):.3g} % of the run, "
                                "where the vehicle lacks thrust the design counts on; set motors.max_thrust: "
                                f"{platform.max_thrust:.4g} to saturate the design where the firmware does"))
-    if not force and hi > platform.full_pwm_thrust:
-        out.append(("warning", f"the configured flight asks M{i_hi + 1} for {_newtons(hi)} N, above the {full} full "
+    if not force and flight.above(platform.full_pwm_thrust).any():
+        asked, limit = apart(hi, platform.full_pwm_thrust)
+        fix = _to_force_mode(flight, platform, f"motors.max_thrust: {platform.max_thrust:.4g}")
+        out.append(("warning", f"the configured flight asks M{i_hi + 1} for {asked} N, above the {limit} N full "
                                f"PWM gives a motor {battery}, at which the firmware caps a motor in force-torque "
                                "mode and lowers the other three by as much PWM: some motor is above it "
                                f"{100 * flight.share_above(platform.full_pwm_thrust):.3g} % of the run, where the "
-                               "vehicle lacks thrust and torque the design counts on; export with --mode force and "
-                               f"motors.max_thrust: {platform.max_thrust:.4g} (the app's saturation then asks no "
-                               "more), or fly gentler gains or offsets"))
+                               f"vehicle lacks thrust and torque the design counts on; {fix} (the app's saturation "
+                               "then asks no more), or fly gentler gains or offsets"))
     return out
+
+
+def _to_force_mode(flight, platform, key: str) -> str:
+    """The way from a force-torque flight to force mode, whose saturation is the design's: with the config's
+    rotors, export with ``--mode force`` and ``key`` (``motors.name: value``) set; without them (``motors:``,
+    which force mode needs), add the firmware's (:meth:`~quadctl.export.crazyflie.Platform.motors_section`)."""
+    if flight.rotors:
+        return f"export with --mode force and {key}"
+    return f"add the rotors force mode needs, {rotors_to_add(platform)}, and export with --mode force"
+
+
+def rotors_to_add(platform) -> str:
+    """The ``motors:`` section to add where force mode finds none: the ``platform``'s
+    (:meth:`~quadctl.export.crazyflie.Platform.motors_section`), the vehicle's own numbers where they differ. The
+    refusal of force mode without rotors (:func:`quadctl.export.crazyflie.check`) and the warnings that send a
+    force-torque flight to force mode (:func:`flight_sentences`) both name it."""
+    return f"{platform.motors_section()} (the firmware's; your vehicle's own where they differ)"
 
 
 def no_setpoint_flyable(free: dict) -> str:

@@ -440,6 +440,10 @@ def test_the_test_firmware_view_agrees_with_the_hand_made_states(case):
     (["--set", "motors.numbering=px4", "--setpoint", "velocity"],
      r"^quadctl: error: motors.numbering: rotors 1-4 are front_right, rear_left, front_left, rear_right spinning "
      r"ccw, ccw, cw, cw, not the Crazyflie's motors M1-M4"),
+    (["--set", "motors=null"],  # force mode, the default, writes rotor thrusts: the section to add, named
+     r"^quadctl: error: motors: is absent: force mode writes each rotor's thrust, so the config needs its rotors: "
+     r"add them, motors: \{layout: x, arm_length: 0.046, max_thrust: 0.12, min_thrust: 0.01282, torque_coefficient: "
+     r"0.006993\} \(the firmware's; your vehicle's own where they differ\), or export with --mode force-torque$"),
     (["--set", "controller.filters.gyro.cutoff=30"],  # the firmware's 80 Hz low-pass is the one the app flies
      r"^quadctl: error: controller.filters: second-order low-pass at 30 Hz, but the firmware's sensor driver "
      r"low-passes the gyro itself \(second-order low-pass at 80 Hz, src/hal/src/sensors_bmi088_bmp3xx.c "

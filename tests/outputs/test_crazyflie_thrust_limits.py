@@ -6,14 +6,17 @@ The firmware is not here: its limits are :data:`quadctl.export.crazyflie.FIRMWAR
 mixer is written out below from its documented convention (each motor a quarter of the thrust, plus or minus a
 quarter of each torque over the arm's lever and over ``THRUST2TORQUE``), not taken from quadctl's mixer; so is
 the way from a force-torque share to a motor's PWM (:func:`_firmware_pwm`: the battery compensation's fit of
-thrust against motor voltage, solved here by bisection, and the cap at full PWM), which gives the full-PWM
-limit a second time, not from quadctl's number.
+thrust against motor voltage, the firmware's coefficients as :attr:`~quadctl.export.crazyflie.Platform.vmotor2thrust`
+holds them, solved here by bisection, and the cap at full PWM), which gives the full-PWM limit a second time, not
+from quadctl's number.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -34,18 +37,20 @@ MIX_RTOL = 1e-9
 HARD = ("--set", "motors.max_thrust=0.4", "--set", "simulation.initial_offset.pD=5.0")
 """crazyflie started 5 m below its trim, its rotors allowed 0.4 N: climbing back, one asks for 0.34 N."""
 
-VMOTOR2THRUST = (-0.02476537915958403, 0.06523793527519485, -0.026792504967750107, 0.006776789303971145)
-"""The firmware's fit of a motor's thrust (N) against its voltage (V), constant term first: ``VMOTOR2THRUST0``
-to ``VMOTOR2THRUST3`` of src/platform/interface/platform_defaults_cf2.h (2.1+ propellers) at ``FW.commit``."""
 FULL_BATTERY = 4.2
 """V: a full LiPo cell, where the firmware's low-pass of the battery's voltage starts."""
 FULL_PWM = 65535
 """The motors' PWM is 16 bits: 65535 is full."""
+PWM_STEP = 1e-6
+"""Relative: the firmware's integer PWM caps from about 1.3e-5 N (5e-5 of the full-PWM thrust) over the limit; a
+thrust nearer the limit than this is compared with the limit alone, one farther also with the firmware's cap."""
 
 
 def _thrust_at(volts):
     """N: what the fit gives a motor at ``volts`` (V)."""
-    return sum(c * np.asarray(volts, dtype=float) ** k for k, c in enumerate(VMOTOR2THRUST))
+    c0, c1, c2, c3 = FW.vmotor2thrust
+    v = np.asarray(volts, dtype=float)
+    return c0 + v * (c1 + v * (c2 + v * c3))
 
 
 def _volts_for(thrust):
@@ -143,6 +148,8 @@ def test_a_flight_above_the_firmwares_clip_is_warned_in_force_mode_only(tmp_path
     assert warned[0].endswith("set motors.max_thrust: 0.12 to saturate the design where the firmware does")
     torque = _export(tmp_path, *sets, "--mode", "force-torque")
     assert _lines(torque, "warning") == [] and "(no clip at 0.12 N in force-torque mode)" in torque
+    fixed = _export(tmp_path, *sets, "--set", "motors.max_thrust=0.12")  # the fix the warning names
+    assert _lines(fixed, "warning") == [] and "asks the firmware's motors for" in fixed and "to 0.12 N (M2)" in fixed
 
 
 def test_the_bundled_crazyflie_flight_stays_under_full_pwm_in_force_torque_mode(tmp_path):
@@ -207,6 +214,16 @@ def test_full_pwm_gives_the_fit_at_a_full_battery_and_less_as_it_drains():
     assert round(float(_volts_for(np.array(FW.max_thrust))), 2) == 3.08
 
 
+def test_the_full_pwm_thrust_is_the_fit_at_the_platforms_voltage():
+    """A platform at another voltage has its own full-PWM thrust, the fit there (solved back to the voltage by
+    bisection), none kept from 4.2 V."""
+    for volts in (3.7, 3.2):
+        other = dataclasses.replace(FW, full_pwm_voltage=volts)
+        assert other.full_pwm_thrust == pytest.approx(float(_thrust_at(volts)), rel=1e-14)
+        assert _volts_for(np.array(other.full_pwm_thrust)) == pytest.approx(volts, rel=1e-12)
+        assert other.full_pwm_thrust < FW.full_pwm_thrust
+
+
 def test_force_torque_mode_takes_the_rotor_thrusts_the_firmwares_own_mixer_gives():
     """Force-torque mode: the app hands over T and the torques in the firmware's body axes (torqueX = A,
     torqueY = -E, torqueZ = -R); the firmware's mixer, written out here, gives each motor a quarter of the
@@ -226,11 +243,13 @@ def test_force_torque_mode_takes_the_rotor_thrusts_the_firmwares_own_mixer_gives
     assert (want < 0).any()  # the clamp is exercised
 
 
-def _flight(lowest: float, highest: float, mode: str = "force") -> crazyflie.FlightThrusts:
-    """A made-up flight: motor M3 at ``lowest`` and M2 at ``highest`` for one sample of four, hover otherwise."""
+def _flight(lowest: float, highest: float, mode: str = "force", rotors: bool = True) -> crazyflie.FlightThrusts:
+    """A made-up flight: motor M3 at ``lowest`` and M2 at ``highest`` for one sample of four, hover otherwise;
+    ``rotors``: the config has ``motors:``."""
     thrusts = np.full((4, 4), 0.066)
     thrusts[1, 2], thrusts[2, 1] = lowest, highest
-    return crazyflie.FlightThrusts(thrusts=thrusts, t=np.linspace(0.0, 3.0, 4), mode=mode, message="ok", ok=True)
+    return crazyflie.FlightThrusts(thrusts=thrusts, t=np.linspace(0.0, 3.0, 4), mode=mode, message="ok", ok=True,
+                                   rotors=rotors)
 
 
 @pytest.mark.parametrize("mode", ["force", "force-torque"])
@@ -254,34 +273,41 @@ def test_a_rotor_asked_for_no_thrust_is_given_it(lowest, warned):
     assert any(level == "warning" and "stops a motor" in text for level, text in said) == warned
 
 
-@pytest.mark.parametrize("factor, warned", [(1 + 1e-9, True), (1.0, False), (1 - 1e-9, False)])
-def test_the_maximum_thrust_is_compared_at_the_firmwares_clip(factor, warned):
-    """Force mode clips the share at 1, THRUST_MAX: just over it is warned, at it or under is not; in
-    force-torque mode, never."""
-    said = flight_sentences(_flight(0.05, 0.12 * factor), FW)
+@pytest.mark.parametrize("highest, warned", [(0.12 * (1 + 1e-9), True), (0.12, False), (0.12 * (1 - 1e-9), False),
+                                             (0.12000000000000002, False)])
+def test_the_maximum_thrust_is_compared_at_the_firmwares_clip(highest, warned):
+    """Force mode clips the share at 1, THRUST_MAX: just over it is warned, with as many digits as tell the two
+    apart, at it or under is not, nor the mixer's round-off over it (a rotor the design's saturation holds at
+    ``motors.max_thrust: 0.12`` mixes to 0.12000000000000002 N); in force-torque mode, never."""
+    said = flight_sentences(_flight(0.05, highest), FW)
     high = [text for level, text in said if level == "warning"]
     assert len(high) == warned
     if warned:
-        assert high[0].startswith("the configured flight asks M2 for 0.12 N, above the 0.12 N") and \
+        assert high[0].startswith("the configured flight asks M2 for 0.1200000001 N, above the 0.12 N") and \
             "above it 25 % of the run" in high[0]
-    assert [level for level, _ in flight_sentences(_flight(0.05, 0.12 * factor, "force-torque"), FW)] == ["note"]
+    assert [level for level, _ in flight_sentences(_flight(0.05, highest, "force-torque"), FW)] == ["note"]
 
 
 @pytest.mark.parametrize("factor", [1 - 1e-4, 1 - 1e-9, 1.0, 1 + 1e-9, 1 + 1e-4])
 def test_the_full_pwm_thrust_is_compared_at_the_firmwares_cap(factor):
-    """Force-torque mode: a motor asked for more than full PWM gives on a full battery is warned, at it or under
-    is not; 1e-4 from it the warning is the firmware's way to the PWM's cap (within 1.3e-5 N over it, the integer
-    PWM's step, the firmware does not cap yet); one sample of four: 25 % of the run. In force mode the same
-    flight is warned of the 0.12 N clip alone."""
+    """Force-torque mode: a motor asked for more than full PWM gives on a full battery is warned, with as many
+    digits as tell the thrust from the limit, at it or under is not; 1e-4 from it the warning and the samples
+    counted are the firmware's way to the PWM's cap (within 1.3e-5 N over it, the integer PWM's step, the firmware
+    does not cap yet); one sample of four: 25 % of the run. In force mode the same flight is warned of the 0.12 N
+    clip alone."""
     flight = _flight(0.05, FW.full_pwm_thrust * factor, "force-torque")
     said = flight_sentences(flight, FW)
     high = [text for level, text in said if level == "warning"]
     assert len(high) == (factor > 1)
-    if abs(factor - 1) >= 1e-4:
-        assert bool(high) == _firmware_pwm(flight.thrusts)[1].any()
+    if abs(factor - 1) > PWM_STEP:  # at 1 +- 1e-4, abs(factor - 1) is 9.999999999998899e-05: not >= 1e-4
+        capped = _firmware_pwm(flight.thrusts)[1]
+        assert bool(high) == capped.any() and np.array_equal(np.any(flight.thrusts > FW.full_pwm_thrust, axis=1),
+                                                             capped), factor
     if high:
-        assert high[0].startswith("the configured flight asks M2 for 0.2787 N, above the 0.2787 N full PWM gives a "
-                                  "motor on a full battery (4.2 V)") and "above it 25 % of the run" in high[0]
+        asked, limit = re.match(r"the configured flight asks M2 for (\S+) N, above the (\S+) N full PWM gives a motor "
+                                r"on a full battery \(4\.2 V\)", high[0]).groups()
+        assert float(asked) > float(limit)  # the two written apart, the limit with as many digits as that takes
+        assert limit == {1 + 1e-9: "0.278692927", 1 + 1e-4: "0.27869"}[factor] and "above it 25 % of the run" in high[0]
     force = [text for level, text in flight_sentences(_flight(0.05, FW.full_pwm_thrust * factor), FW)
              if level == "warning"]
     assert len(force) == 1 and "clips a motor in force mode" in force[0] and "full PWM" not in force[0]
@@ -319,14 +345,62 @@ def test_the_json_gives_the_firmwares_limits_and_the_flights_thrusts(tmp_path):
     assert out["firmware"]["full_pwm_thrust"] == FW.full_pwm_thrust and out["firmware"]["full_pwm_voltage"] == 4.2
     assert out["flight"] == {"completed": True, "lowest": flight.lowest()[1], "highest": flight.highest()[1],
                              "stopped": flight.share_stopped(FW.min_thrust), "above_max": 0.0,
-                             "above_full_pwm": 0.0}
+                             "above_full_pwm": None}
     assert {r["key"]: r["value"] for r in out["platform"]}["motors.min_thrust"] == 0.0
 
 
-def test_the_json_gives_the_share_of_a_force_torque_flight_above_full_pwm(tmp_path):
-    out = json.loads(CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", *HARD, "--mode",
-                                              "force-torque", "-o", str(tmp_path / "app"), "--json"]).stdout)
+def _json_flight(tmp_path, *args) -> dict:
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", *args, "-o",
+                                   str(tmp_path / "app"), "--json"])
+    assert res.exit_code == 0, res.output
+    return json.loads(res.stdout)["crazyflie"]["flight"]
+
+
+def test_the_json_gives_the_share_of_a_force_torque_flight_above_full_pwm_and_none_above_the_clip(tmp_path):
+    """Force-torque mode caps at full PWM and has no clip at THRUST_MAX: its share above 0.12 N is null, though the
+    flight asks for far more."""
+    got = _json_flight(tmp_path, *HARD, "--mode", "force-torque")
     flight = crazyflie.flight_thrusts(_exp(*HARD[1::2]), "force-torque")
-    got = out["crazyflie"]["flight"]
     assert got["highest"] == flight.highest()[1] > FW.full_pwm_thrust
     assert got["above_full_pwm"] == float(np.mean(_firmware_pwm(flight.thrusts)[1])) > 0
+    assert got["above_max"] is None
+
+
+def test_the_json_gives_the_share_of_a_force_flight_above_the_clip_and_none_above_full_pwm(tmp_path):
+    """Force mode clips at THRUST_MAX, under full PWM: its share above full PWM is null, though the design's
+    rotors (allowed 0.4 N) ask for more than full PWM gives."""
+    got = _json_flight(tmp_path, *HARD)
+    flight = crazyflie.flight_thrusts(_exp(*HARD[1::2]))
+    assert got["highest"] == flight.highest()[1] > FW.full_pwm_thrust
+    assert got["above_max"] == float(np.mean(np.any(flight.thrusts > FW.max_thrust, axis=1))) > 0
+    assert got["above_full_pwm"] is None
+
+
+@pytest.mark.parametrize("lowest, highest, kind", [(0.005, 0.1, "stops a motor"), (0.05, 0.3, "full PWM")])
+def test_a_force_torque_flight_without_rotors_is_told_to_add_them_for_force_mode(lowest, highest, kind):
+    """Without ``motors:`` force mode is refused (its refusal names the section to add): the warnings of a
+    force-torque flight send it there with that section, the firmware's own rotors, not with one key to set."""
+    for rotors in (True, False):
+        said = [text for level, text in flight_sentences(_flight(lowest, highest, "force-torque", rotors), FW)
+                if level == "warning"]
+        assert len(said) == 1 and kind in said[0]
+        add = (f"add the rotors force mode needs, {FW.motors_section()} (the firmware's; your vehicle's own where "
+               "they differ), and export with --mode force (the app's saturation then asks no ")
+        key = "min_thrust: 0.01282" if kind == "stops a motor" else "max_thrust: 0.12"
+        assert (add in said[0]) == (not rotors)
+        assert (f"export with --mode force and motors.{key} (the app's saturation then asks no " in said[0]) == rotors
+        assert said[0].endswith("or fly gentler gains or offsets")
+
+
+def test_the_rotors_a_force_torque_flight_without_them_is_told_to_add_take_it_to_force_mode(tmp_path):
+    """crazyflie without ``motors:``, 5 m low, in force-torque mode: above full PWM, told to add the firmware's
+    rotors and export in force mode, which refuses it as it is, with the same section; given the section, force
+    mode exports and the firmware neither clips nor stops a motor the design does not."""
+    warned = _lines(_export(tmp_path, "--set", "motors=null", *HARD[2:], "--mode", "force-torque"), "warning")
+    assert len(warned) == 1 and f"add the rotors force mode needs, {FW.motors_section()}" in warned[0]
+    res = CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "--set", "motors=null",
+                                   "-o", str(tmp_path / "refused")])
+    assert res.exit_code == 2 and f"add them, {FW.motors_section()} (the firmware's" in res.output
+    section = FW.motors_section().replace("motors: ", "motors=", 1)
+    fixed = _export(tmp_path, "--set", "motors=null", "--set", section, *HARD[2:])
+    assert _lines(fixed, "warning") == [] and "in force mode" in fixed

@@ -118,11 +118,7 @@ def command(to: Annotated[Target, typer.Option(
                              "full_pwm_voltage": crazyflie.FIRMWARE.full_pwm_voltage},
                 "platform": [{"quantity": q, "key": k, "value": v, "firmware": f, "unit": u}
                              for q, k, v, f, u in crazyflie.platform_rows(exp)],
-                "flight": None if flight is None else {
-                    "completed": flight.ok, "lowest": flight.lowest()[1], "highest": flight.highest()[1],
-                    "stopped": flight.share_stopped(crazyflie.FIRMWARE.min_thrust),
-                    "above_max": flight.share_above(crazyflie.FIRMWARE.max_thrust),
-                    "above_full_pwm": flight.share_above(crazyflie.FIRMWARE.full_pwm_thrust)}}
+                "flight": None if flight is None else flight.summary(crazyflie.FIRMWARE)}
         return render.emit_json(written)
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
