@@ -678,6 +678,28 @@ FIRMWARE_CHECKOUT = "QUADCTL_CRAZYFLIE_FIRMWARE"
 set, the app is built inside it."""
 
 
+def test_the_platform_numbers_are_the_firmware_headers():
+    """crazyflie.FIRMWARE's numbers are those its header gives for the default (2.1+) propellers with the
+    battery compensation on, as the firmware's floats: read from the checkout, not from quadctl."""
+    base = os.environ.get(FIRMWARE_CHECKOUT)
+    if not base:
+        pytest.skip(f"{FIRMWARE_CHECKOUT} is not set: set it to a crazyflie-firmware checkout to compare the "
+                    "platform's numbers with its header")
+    fw = crazyflie.FIRMWARE
+    text = (Path(base) / fw.source).read_text()
+    plus = text[text.index("#if defined(CONFIG_CRAZYFLIE_21_PLUS)"):]
+    plus = plus[:plus.index("#elif")]
+
+    def macro(name, where):  # the last definition: CF_MASS's without the thrust upgrade kit
+        return np.float32(re.findall(rf"#define\s+{name}\s+([-0-9.eE]+)f", where)[-1])
+
+    want = {"VMOTOR2THRUST0": fw.vmotor2thrust[0], "VMOTOR2THRUST1": fw.vmotor2thrust[1],
+            "VMOTOR2THRUST2": fw.vmotor2thrust[2], "VMOTOR2THRUST3": fw.vmotor2thrust[3],
+            "THRUST_MIN": fw.min_thrust, "THRUST_MAX": fw.max_thrust, "THRUST2TORQUE": fw.torque_coefficient}
+    assert {k: macro(k, plus) for k in want} == {k: np.float32(v) for k, v in want.items()}
+    assert macro("ARM_LENGTH", text) == np.float32(fw.arm_length) and macro("CF_MASS", text) == np.float32(fw.mass)
+
+
 @pytest.mark.slow
 def test_the_app_builds_and_links_inside_the_firmware(tmp_path):
     """The firmware's own build (its headers, flags and link) of the exported app, with the arm-none-eabi
