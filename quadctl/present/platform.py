@@ -1,5 +1,5 @@
 """The vehicle's numbers beside a flight stack's platform defaults, as sentences
-(:func:`quadctl.export.crazyflie.platform_rows`), and a setpoint the flight stack's app cannot follow."""
+(:func:`quadctl.export.crazyflie_platform.platform_rows`), and a setpoint the flight stack's app cannot follow."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ def platform_sentences(rows, platform, mode: str = "force") -> list[str]:
     Parameters
     ----------
     rows : list of (quantity, key, value, firmware value, unit)
-    platform : quadctl.export.crazyflie.Platform
+    platform : quadctl.export.crazyflie_platform.Platform
     mode : str
         The app's output, ``force`` or ``force-torque`` (``--mode``).
     """
@@ -55,8 +55,9 @@ def _newtons(value: float) -> str:
 
 
 def least_thrust_sentence(value: float, platform) -> str:
-    """What the firmware does below its least rotor thrust (:attr:`quadctl.export.crazyflie.Platform.min_thrust`),
-    which the design's ``motors.min_thrust = value`` (N) lies under."""
+    """What the firmware does below its least rotor thrust
+    (:attr:`quadctl.export.crazyflie_platform.Platform.min_thrust`), which the design's ``motors.min_thrust = value``
+    (N) lies under."""
     floor = platform.min_thrust
     return (f"the firmware stops a motor asked for less than {floor:.4g} N (THRUST_MIN of {platform.source}; "
             f"{platform.min_thrust_source} gives it no voltage), in either mode, where the design takes a rotor as "
@@ -68,15 +69,15 @@ def least_thrust_sentence(value: float, platform) -> str:
 def flight_sentences(flight, platform) -> list[tuple[str, str]]:
     """The configured flight's rotor thrusts against the firmware's limits: a note with the lowest and the
     highest, then a warning for each limit the flight goes past: below
-    :attr:`~quadctl.export.crazyflie.Platform.min_thrust` a motor stops, in either mode; above
-    :attr:`~quadctl.export.crazyflie.Platform.max_thrust` it is clipped in force mode, and above
-    :attr:`~quadctl.export.crazyflie.Platform.full_pwm_thrust` it is capped at full PWM in force-torque mode
+    :attr:`~quadctl.export.crazyflie_platform.Platform.min_thrust` a motor stops, in either mode; above
+    :attr:`~quadctl.export.crazyflie_platform.Platform.max_thrust` it is clipped in force mode, and above
+    :attr:`~quadctl.export.crazyflie_platform.Platform.full_pwm_thrust` it is capped at full PWM in force-torque mode
     (all four lowered alike), a limit that falls as the battery drains.
 
     Parameters
     ----------
-    flight : quadctl.export.crazyflie.FlightThrusts
-    platform : quadctl.export.crazyflie.Platform
+    flight : quadctl.export.crazyflie_platform.FlightThrusts
+    platform : quadctl.export.crazyflie_platform.Platform
 
     Returns
     -------
@@ -128,7 +129,7 @@ def flight_sentences(flight, platform) -> list[tuple[str, str]]:
 def _to_force_mode(flight, platform, key: str) -> str:
     """The way from a force-torque flight to force mode, whose saturation is the design's: with the config's
     rotors, export with ``--mode force`` and ``key`` (``motors.name: value``) set; without them (``motors:``,
-    which force mode needs), add the firmware's (:meth:`~quadctl.export.crazyflie.Platform.motors_section`)."""
+    which force mode needs), add the firmware's (:meth:`~quadctl.export.crazyflie_platform.Platform.motors_section`)."""
     if flight.rotors:
         return f"export with --mode force and {key}"
     return f"add the rotors force mode needs, {rotors_to_add(platform)}, and export with --mode force"
@@ -136,9 +137,9 @@ def _to_force_mode(flight, platform, key: str) -> str:
 
 def rotors_to_add(platform) -> str:
     """The ``motors:`` section to add where force mode finds none: the ``platform``'s
-    (:meth:`~quadctl.export.crazyflie.Platform.motors_section`), the vehicle's own numbers where they differ. The
-    refusal of force mode without rotors (:func:`quadctl.export.crazyflie.check`) and the warnings that send a
-    force-torque flight to force mode (:func:`flight_sentences`) both name it."""
+    (:meth:`~quadctl.export.crazyflie_platform.Platform.motors_section`), the vehicle's own numbers where they
+    differ. The refusal of force mode without rotors (:func:`quadctl.export.crazyflie.check`) and the warnings that
+    send a force-torque flight to force mode (:func:`flight_sentences`) both name it."""
     return f"{platform.motors_section()} (the firmware's; your vehicle's own where they differ)"
 
 

@@ -27,7 +27,7 @@ from typer.testing import CliRunner
 from quadctl import artifacts, config
 from quadctl.cli.app import app
 from quadctl.errors import ConfigError
-from quadctl.export import crazyflie
+from quadctl.export import crazyflie, crazyflie_platform
 from quadctl.layout import STATE_INDEX
 
 FIRMWARE_HEADERS = {
@@ -583,19 +583,20 @@ def test_the_vehicle_is_compared_with_the_firmware_platform_defaults(tmp_path):
     from quadctl.setup import setup_of
 
     exp = prepare(setup_of(config.load("crazyflie")))
-    rows = {r[0]: r for r in crazyflie.platform_rows(exp)}
-    assert rows["mass"][2:4] == (0.027, crazyflie.FIRMWARE.mass)
-    text = "\n".join(platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE))
+    rows = {r[0]: r for r in crazyflie_platform.platform_rows(exp)}
+    assert rows["mass"][2:4] == (0.027, crazyflie_platform.FIRMWARE.mass)
+    text = "\n".join(platform_sentences(crazyflie_platform.platform_rows(exp), crazyflie_platform.FIRMWARE))
     for quantity, key in [("mass", "vehicle.mass"), ("maximum rotor thrust", "motors.max_thrust"),
                           ("torque coefficient", "motors.torque_coefficient")]:
         _, _, mine, theirs, _ = rows[quantity]
         assert f"{quantity}: {key} = " in text and f"({(mine - theirs) / theirs * 100:+.1f} %)" in text
     assert "agrees with the firmware's defaults: arm length" in text
-    assert "`quadctl identify`" in text and crazyflie.FIRMWARE.commit[:12] in text
+    assert "`quadctl identify`" in text and crazyflie_platform.FIRMWARE.commit[:12] in text
     # the consequence of a larger maximum thrust, in force mode only (force-torque: the firmware mixes and clips)
     assert ("in force mode the firmware clips each rotor at its 0.12 N, where the design's saturation puts it at "
             "0.1592 N" in text)
-    torque_mode = "\n".join(platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE, "force-torque"))
+    torque_mode = "\n".join(platform_sentences(crazyflie_platform.platform_rows(exp), crazyflie_platform.FIRMWARE,
+                                               "force-torque"))
     assert "clips" not in torque_mode and "(+32.6 %)" in torque_mode
     # the last sentence holds for an identified config too (it does not tell its user to identify again)
     assert "check that the config's numbers are those of the vehicle you fly" in text
@@ -605,7 +606,7 @@ def test_the_vehicle_is_compared_with_the_firmware_platform_defaults(tmp_path):
     import json
 
     got = json.loads(res.stdout)["crazyflie"]
-    assert got["calls_per_sample"] == 2 and got["firmware"]["commit"] == crazyflie.FIRMWARE.commit
+    assert got["calls_per_sample"] == 2 and got["firmware"]["commit"] == crazyflie_platform.FIRMWARE.commit
     assert {r["key"]: r["firmware"] for r in got["platform"]}["motors.max_thrust"] == 0.12
 
 
@@ -679,13 +680,13 @@ set, the app is built inside it."""
 
 
 def test_the_platform_numbers_are_the_firmware_headers():
-    """crazyflie.FIRMWARE's numbers are those its header gives for the default (2.1+) propellers with the
-    battery compensation on, as the firmware's floats: read from the checkout, not from quadctl."""
+    """crazyflie_platform.FIRMWARE's numbers are those its header gives for the default (2.1+) propellers with
+    the battery compensation on, as the firmware's floats: read from the checkout, not from quadctl."""
     base = os.environ.get(FIRMWARE_CHECKOUT)
     if not base:
         pytest.skip(f"{FIRMWARE_CHECKOUT} is not set: set it to a crazyflie-firmware checkout to compare the "
                     "platform's numbers with its header")
-    fw = crazyflie.FIRMWARE
+    fw = crazyflie_platform.FIRMWARE
     text = (Path(base) / fw.source).read_text()
     plus = text[text.index("#if defined(CONFIG_CRAZYFLIE_21_PLUS)"):]
     plus = plus[:plus.index("#elif")]

@@ -2,13 +2,13 @@
 thrusts the firmware gives (it stops a motor below ``THRUST_MIN``, clips one above ``THRUST_MAX`` in force mode,
 caps one at full PWM in force-torque mode).
 
-The firmware is not here: its limits are :data:`quadctl.export.crazyflie.FIRMWARE`'s, and its force-torque
-mixer is written out below from its documented convention (each motor a quarter of the thrust, plus or minus a
-quarter of each torque over the arm's lever and over ``THRUST2TORQUE``), not taken from quadctl's mixer; so is
-the way from a force-torque share to a motor's PWM (:func:`_firmware_pwm`: the battery compensation's fit of
-thrust against motor voltage, the firmware's coefficients as :attr:`~quadctl.export.crazyflie.Platform.vmotor2thrust`
-holds them, solved here by bisection, and the cap at full PWM), which gives the full-PWM limit a second time, not
-from quadctl's number.
+The firmware is not here: its limits are :data:`quadctl.export.crazyflie_platform.FIRMWARE`'s, and its
+force-torque mixer is written out below from its documented convention (each motor a quarter of the thrust, plus
+or minus a quarter of each torque over the arm's lever and over ``THRUST2TORQUE``), not taken from quadctl's mixer;
+so is the way from a force-torque share to a motor's PWM (:func:`_firmware_pwm`: the battery compensation's fit
+of thrust against motor voltage, the firmware's coefficients as
+:attr:`~quadctl.export.crazyflie_platform.Platform.vmotor2thrust` holds them, solved here by bisection, and the
+cap at full PWM), which gives the full-PWM limit a second time, not from quadctl's number.
 """
 
 from __future__ import annotations
@@ -25,11 +25,11 @@ from typer.testing import CliRunner
 from quadctl import config
 from quadctl.cli.app import app
 from quadctl.config import overrides
-from quadctl.export import crazyflie, prepare
+from quadctl.export import crazyflie_platform, prepare
 from quadctl.present.platform import flight_sentences, platform_sentences
 from quadctl.setup import setup_of
 
-FW = crazyflie.FIRMWARE
+FW = crazyflie_platform.FIRMWARE
 HIGH = "simulation.initial_offset.pD=-1.0"
 """crazyflie started 1 m above its trim: sinking back, its rotors drop to 0 N for the first samples."""
 MIX_RTOL = 1e-9
@@ -104,7 +104,7 @@ def test_the_bundled_crazyflie_flight_stays_within_the_firmwares_rotor_thrusts(t
     from quadctl.pipeline import simulation_of
 
     exp = _exp()
-    flight = crazyflie.flight_thrusts(exp)
+    flight = crazyflie_platform.flight_thrusts(exp)
     run = simulation_of(exp.setup, exp.loop)
     back = flight.thrusts @ exp.loop.actuators.motors.effectiveness().T
     assert np.allclose(back, run.u, rtol=MIX_RTOL, atol=MIX_RTOL * np.abs(run.u).max()), np.abs(back - run.u).max()
@@ -122,7 +122,7 @@ def test_a_flight_that_drops_a_rotor_below_the_firmwares_least_thrust_is_warned_
     the thrust asked: warned, the share of the run counted on those samples (a thrust of exactly 0, the
     saturation's, is given as asked), exit 0; the fix the warning names (motors.min_thrust at the floor)
     removes the warning, as the design's saturation then asks no rotor for less."""
-    flight = crazyflie.flight_thrusts(_exp(HIGH))
+    flight = crazyflie_platform.flight_thrusts(_exp(HIGH))
     floor = 0.012817578393224994
     lost = np.any((flight.thrusts > 1e-12) & (flight.thrusts < floor), axis=1)
     assert lost.sum() >= 2 and flight.lowest()[1] == pytest.approx(0.0, abs=1e-12)
@@ -155,7 +155,7 @@ def test_a_flight_above_the_firmwares_clip_is_warned_in_force_mode_only(tmp_path
 def test_the_bundled_crazyflie_flight_stays_under_full_pwm_in_force_torque_mode(tmp_path):
     """Force-torque mode: the firmware's own mix of the run asks 0.064 to 0.117 N, under the 0.2787 N full PWM
     gives on a full battery (and under the 0.12 N full PWM gives down to 3.08 V): a note, no warning."""
-    flight = crazyflie.flight_thrusts(_exp(), "force-torque")
+    flight = crazyflie_platform.flight_thrusts(_exp(), "force-torque")
     assert flight.ok and round(flight.lowest()[1], 3) == 0.064 and round(flight.highest()[1], 3) == 0.117
     assert not _firmware_pwm(flight.thrusts)[1].any() and not _firmware_pwm(flight.thrusts, 3.08)[1].any()
     out = _export(tmp_path, "--mode", "force-torque")
@@ -174,7 +174,7 @@ def test_a_flight_above_full_pwm_is_warned_in_force_torque_mode(tmp_path):
     none lies within the integer PWM's step of the limit. In force mode the same run is warned of the 0.12 N
     clip instead."""
     exp = _exp(*HARD[1::2])
-    flight = crazyflie.flight_thrusts(exp, "force-torque")
+    flight = crazyflie_platform.flight_thrusts(exp, "force-torque")
     above = np.any(flight.thrusts > FW.full_pwm_thrust, axis=1)
     capped = _firmware_pwm(flight.thrusts)[1]
     assert flight.ok and flight.highest()[0] == 1 and round(flight.highest()[1], 2) == 0.34
@@ -238,18 +238,19 @@ def test_force_torque_mode_takes_the_rotor_thrusts_the_firmwares_own_mixer_gives
     signs = [(-1, -1, -1), (-1, 1, 1), (1, 1, -1), (1, -1, 1)]  # M1-M4: roll, pitch, yaw
     want = np.stack([u[:, 0] / 4 + sx * tx / (4 * lever) + sy * ty / (4 * lever) + sz * tz / (4 * FW.torque_coefficient)
                      for sx, sy, sz in signs], axis=1)
-    got = crazyflie.flight_thrusts(exp, "force-torque").thrusts
+    got = crazyflie_platform.flight_thrusts(exp, "force-torque").thrusts
     assert np.allclose(got, np.maximum(want, 0.0), rtol=1e-9, atol=1e-12), np.abs(got - np.maximum(want, 0.0)).max()
     assert (want < 0).any()  # the clamp is exercised
 
 
-def _flight(lowest: float, highest: float, mode: str = "force", rotors: bool = True) -> crazyflie.FlightThrusts:
+def _flight(lowest: float, highest: float, mode: str = "force",
+            rotors: bool = True) -> crazyflie_platform.FlightThrusts:
     """A made-up flight: motor M3 at ``lowest`` and M2 at ``highest`` for one sample of four, hover otherwise;
     ``rotors``: the config has ``motors:``."""
     thrusts = np.full((4, 4), 0.066)
     thrusts[1, 2], thrusts[2, 1] = lowest, highest
-    return crazyflie.FlightThrusts(thrusts=thrusts, t=np.linspace(0.0, 3.0, 4), mode=mode, message="ok", ok=True,
-                                   rotors=rotors)
+    return crazyflie_platform.FlightThrusts(thrusts=thrusts, t=np.linspace(0.0, 3.0, 4), mode=mode, message="ok",
+                                            ok=True, rotors=rotors)
 
 
 @pytest.mark.parametrize("mode", ["force", "force-torque"])
@@ -340,7 +341,7 @@ def test_a_design_allowed_below_the_firmwares_least_thrust_is_told_without_blami
 def test_the_json_gives_the_firmwares_limits_and_the_flights_thrusts(tmp_path):
     out = json.loads(CliRunner().invoke(app, ["export", "--to", "crazyflie", "-c", "crazyflie", "--set", HIGH,
                                               "-o", str(tmp_path / "app"), "--json"]).stdout)["crazyflie"]
-    flight = crazyflie.flight_thrusts(_exp(HIGH))
+    flight = crazyflie_platform.flight_thrusts(_exp(HIGH))
     assert out["firmware"]["min_thrust"] == 0.012817578393224994 and out["firmware"]["max_thrust"] == 0.12
     assert out["firmware"]["full_pwm_thrust"] == FW.full_pwm_thrust and out["firmware"]["full_pwm_voltage"] == 4.2
     assert out["flight"] == {"completed": True, "lowest": flight.lowest()[1], "highest": flight.highest()[1],
@@ -360,7 +361,7 @@ def test_the_json_gives_the_share_of_a_force_torque_flight_above_full_pwm_and_no
     """Force-torque mode caps at full PWM and has no clip at THRUST_MAX: its share above 0.12 N is null, though the
     flight asks for far more."""
     got = _json_flight(tmp_path, *HARD, "--mode", "force-torque")
-    flight = crazyflie.flight_thrusts(_exp(*HARD[1::2]), "force-torque")
+    flight = crazyflie_platform.flight_thrusts(_exp(*HARD[1::2]), "force-torque")
     assert got["highest"] == flight.highest()[1] > FW.full_pwm_thrust
     assert got["above_full_pwm"] == float(np.mean(_firmware_pwm(flight.thrusts)[1])) > 0
     assert got["above_max"] is None
@@ -370,7 +371,7 @@ def test_the_json_gives_the_share_of_a_force_flight_above_the_clip_and_none_abov
     """Force mode clips at THRUST_MAX, under full PWM: its share above full PWM is null, though the design's
     rotors (allowed 0.4 N) ask for more than full PWM gives."""
     got = _json_flight(tmp_path, *HARD)
-    flight = crazyflie.flight_thrusts(_exp(*HARD[1::2]))
+    flight = crazyflie_platform.flight_thrusts(_exp(*HARD[1::2]))
     assert got["highest"] == flight.highest()[1] > FW.full_pwm_thrust
     assert got["above_max"] == float(np.mean(np.any(flight.thrusts > FW.max_thrust, axis=1))) > 0
     assert got["above_full_pwm"] is None

@@ -81,6 +81,7 @@ def command(to: Annotated[Target, typer.Option(
     flown = None
     if to is Target.crazyflie:
         from quadctl.export import crazyflie
+        from quadctl.export.crazyflie_platform import FIRMWARE, flight_thrusts, platform_rows
 
         flown = setpoint.value if setpoint is not None else crazyflie.default_setpoint(exp)
     folder = out or artifacts.default_out(cfg)
@@ -92,10 +93,10 @@ def command(to: Annotated[Target, typer.Option(
     if to is Target.crazyflie:
         from quadctl.present.platform import flight_sentences, platform_sentences
 
-        for line in platform_sentences(crazyflie.platform_rows(exp), crazyflie.FIRMWARE, mode.value):
+        for line in platform_sentences(platform_rows(exp), FIRMWARE, mode.value):
             render.note(line)
-        flight = crazyflie.flight_thrusts(exp, mode.value)
-        for level, line in flight_sentences(flight, crazyflie.FIRMWARE) if flight is not None else ():
+        flight = flight_thrusts(exp, mode.value)
+        for level, line in flight_sentences(flight, FIRMWARE) if flight is not None else ():
             (render.warning if level == "warning" else render.note)(line)
         for sentence in (crazyflie.gyro_sentence(exp), crazyflie.lag_sentence(exp, config or cfg.name, sets or ())):
             if sentence is not None:
@@ -112,13 +113,13 @@ def command(to: Annotated[Target, typer.Option(
         if to is Target.crazyflie:
             written["crazyflie"] = {
                 "setpoint": flown, "mode": mode.value, "calls_per_sample": crazyflie.divider(exp.rate),
-                "firmware": {"commit": crazyflie.FIRMWARE.commit, "source": crazyflie.FIRMWARE.source,
-                             "min_thrust": crazyflie.FIRMWARE.min_thrust, "max_thrust": crazyflie.FIRMWARE.max_thrust,
-                             "full_pwm_thrust": crazyflie.FIRMWARE.full_pwm_thrust,
-                             "full_pwm_voltage": crazyflie.FIRMWARE.full_pwm_voltage},
+                "firmware": {"commit": FIRMWARE.commit, "source": FIRMWARE.source,
+                             "min_thrust": FIRMWARE.min_thrust, "max_thrust": FIRMWARE.max_thrust,
+                             "full_pwm_thrust": FIRMWARE.full_pwm_thrust,
+                             "full_pwm_voltage": FIRMWARE.full_pwm_voltage},
                 "platform": [{"quantity": q, "key": k, "value": v, "firmware": f, "unit": u}
-                             for q, k, v, f, u in crazyflie.platform_rows(exp)],
-                "flight": None if flight is None else flight.summary(crazyflie.FIRMWARE)}
+                             for q, k, v, f, u in platform_rows(exp)],
+                "flight": None if flight is None else flight.summary(FIRMWARE)}
         return render.emit_json(written)
     timing = f"{exp.rate:g} Hz, {exp.mode} design" if exp.rate else "continuous design"
     filt = f"; Kalman filter ({kal.form}) measuring {', '.join(kal.measured)}" if kal is not None else ""
