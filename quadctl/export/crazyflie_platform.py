@@ -186,9 +186,11 @@ class FlightThrusts:
     rotors: bool
 
     def lowest(self) -> tuple[int, float]:
-        """(motor index 0-3, N): the least thrust any motor is asked for."""
+        """(motor index 0-3, N): the least thrust any motor is asked for (0 within the mixer's round-off
+        about it, :data:`ZERO_THRUST`)."""
         i, k = np.unravel_index(int(np.argmin(self.thrusts)), self.thrusts.shape)
-        return int(k), float(self.thrusts[i, k])
+        least = float(self.thrusts[i, k])
+        return int(k), 0.0 if abs(least) <= ZERO_THRUST else least
 
     def highest(self) -> tuple[int, float]:
         """(motor index 0-3, N): the most thrust any motor is asked for."""

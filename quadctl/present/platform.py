@@ -49,11 +49,6 @@ def platform_sentences(rows, platform, mode: str = "force") -> list[str]:
     return out
 
 
-def _newtons(value: float) -> str:
-    """A rotor thrust in words (N, 4 digits); a mixer's round-off about 0 read as 0."""
-    return f"{0.0 if abs(value) < 1e-12 else value:.4g}"
-
-
 def least_thrust_sentence(value: float, platform) -> str:
     """What the firmware does below its least rotor thrust
     (:attr:`quadctl.export.crazyflie_platform.Platform.min_thrust`), which the design's ``motors.min_thrust = value``
@@ -93,8 +88,8 @@ def flight_sentences(flight, platform) -> list[tuple[str, str]]:
     top = (f"clips one above {platform.max_thrust:.4g} N" if force else
            f"caps one at full PWM, lowering all four alike: {full} {battery}, less as it drains (no clip at "
            f"{platform.max_thrust:.4g} N in force-torque mode)")
-    out = [("note", f"the configured flight ({run}) asks the firmware's motors for {_newtons(lo)} N (M{i_lo + 1}) to "
-                    f"{_newtons(hi)} N (M{i_hi + 1}) in {flight.mode} mode: the firmware stops a motor below "
+    out = [("note", f"the configured flight ({run}) asks the firmware's motors for {lo:.4g} N (M{i_lo + 1}) to "
+                    f"{hi:.4g} N (M{i_hi + 1}) in {flight.mode} mode: the firmware stops a motor below "
                     f"{platform.min_thrust:.4g} N and {top}")]
     stopped = flight.stopped(platform.min_thrust)
     if stopped.any():

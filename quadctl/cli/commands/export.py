@@ -52,7 +52,8 @@ def command(to: Annotated[Target, typer.Option(
     Writes into the run directory: quadctl_controller.h/.c (--to c), quadctl_controller.mat or quadctl_controller.json,
     beside the config (the run of another config there is removed first). --to crazyflie compares the vehicle
     with the firmware's defaults and flies the configured run, warning when it asks a motor for a thrust the
-    firmware does not give (below THRUST_MIN it stops the motor; in force mode it clips one above THRUST_MAX).
+    firmware does not give (below THRUST_MIN it stops the motor; in force mode it clips one above THRUST_MAX,
+    in force-torque mode it caps one at full PWM).
     Exits 1 when the design is unstable, when the gain schedule (schedule:) fails its checks, or when a
     continuous design's loop is unstable sampled at --rate; 2 when --to c has no rate (give --rate or set
     controller.rate), or when --to crazyflie cannot serve the config (a rate that does not divide the
